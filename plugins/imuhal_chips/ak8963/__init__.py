@@ -1,0 +1,1 @@
+"""ak8963: see plugin.py."""

@@ -1,0 +1,1 @@
+"""Entry point of the ak8963 plugin. Its hook implementations are being written."""

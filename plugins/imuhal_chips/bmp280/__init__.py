@@ -1,0 +1,1 @@
+"""bmp280: see plugin.py."""

@@ -1,0 +1,1 @@
+"""hmc5883l: see plugin.py."""

@@ -1,0 +1,1 @@
+"""max2110x: see plugin.py."""

@@ -1,0 +1,1 @@
+"""Entry point of the max2110x plugin. Its hook implementations are being written."""

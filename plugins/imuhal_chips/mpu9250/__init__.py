@@ -1,0 +1,1 @@
+"""mpu9250: see plugin.py."""

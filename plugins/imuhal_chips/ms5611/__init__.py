@@ -1,0 +1,1 @@
+"""ms5611: see plugin.py."""

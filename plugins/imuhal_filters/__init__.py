@@ -1,0 +1,1 @@
+"""Built-in estimators, each a plugin of its own."""

@@ -1,0 +1,1 @@
+"""freescale: see plugin.py."""

@@ -1,0 +1,1 @@
+"""imufilter: see plugin.py."""

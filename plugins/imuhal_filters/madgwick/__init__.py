@@ -1,0 +1,1 @@
+"""madgwick: see plugin.py."""

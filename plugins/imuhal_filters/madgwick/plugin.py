@@ -1,0 +1,1 @@
+"""Entry point of the madgwick plugin. Its hook implementations are being written."""

@@ -1,0 +1,1 @@
+"""mahony: see plugin.py."""

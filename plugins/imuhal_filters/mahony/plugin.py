@@ -1,0 +1,1 @@
+"""Entry point of the mahony plugin. Its hook implementations are being written."""

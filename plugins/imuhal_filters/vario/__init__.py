@@ -1,0 +1,1 @@
+"""vario: see plugin.py."""

@@ -1,0 +1,1 @@
+"""Entry point of the vario plugin. Its hook implementations are being written."""

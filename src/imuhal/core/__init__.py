@@ -1,0 +1,1 @@
+"""Core model: samples, errors, frames, clocks. Knows no chip and no estimator."""

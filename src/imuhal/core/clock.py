@@ -1,0 +1,65 @@
+"""Clocks. The pipeline keeps one clock; drivers that must wait use it, never time.sleep.
+
+On hardware the clock is the OS monotonic clock. When emulated, a simulated clock advances
+only when the pipeline (or a driver's wait) tells it to, so runs are deterministic and can go
+much faster than real time.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Protocol, runtime_checkable
+
+
+@runtime_checkable
+class Clock(Protocol):
+    def now_ns(self) -> int:
+        """Current time in integer nanoseconds."""
+
+    def sleep_until(self, t_ns: int) -> None:
+        """Return once the clock reads at least ``t_ns``."""
+
+    def sleep(self, seconds: float) -> None:
+        """Wait ``seconds`` (float seconds)."""
+
+
+class MonotonicClock:
+    """The OS monotonic clock, counted from construction."""
+
+    def __init__(self) -> None:
+        self._origin = time.monotonic_ns()
+
+    def now_ns(self) -> int:
+        return time.monotonic_ns() - self._origin
+
+    def sleep_until(self, t_ns: int) -> None:
+        delay = t_ns - self.now_ns()
+        if delay > 0:
+            time.sleep(delay / 1e9)
+
+    def sleep(self, seconds: float) -> None:
+        if seconds > 0:
+            time.sleep(seconds)
+
+
+class SimulatedClock:
+    """A clock that moves only when told. ``realtime=True`` paces it against the wall clock."""
+
+    def __init__(self, start_ns: int = 0, *, realtime: bool = False) -> None:
+        self._t_ns = start_ns
+        self._realtime = realtime
+        self._wall_origin = time.monotonic_ns() - start_ns
+
+    def now_ns(self) -> int:
+        return self._t_ns
+
+    def sleep_until(self, t_ns: int) -> None:
+        if t_ns > self._t_ns:
+            self._t_ns = t_ns
+        if self._realtime:
+            delay = self._t_ns - (time.monotonic_ns() - self._wall_origin)
+            if delay > 0:
+                time.sleep(delay / 1e9)
+
+    def sleep(self, seconds: float) -> None:
+        self.sleep_until(self._t_ns + round(seconds * 1e9))

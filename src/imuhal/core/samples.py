@@ -1,0 +1,200 @@
+"""Timestamped samples. Units are in the field names; frames are in the ``frame`` field.
+
+Every sample carries ``t_ns`` (int nanoseconds on the pipeline clock), the name of the device
+that produced it, the frame its vector is expressed in, and quality flags. A sample whose
+``flags`` are not ``SampleFlag.OK`` is never fused: the pipeline counts it and passes it to
+sinks marked invalid.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from enum import Enum, IntFlag
+from typing import ClassVar, TypeAlias
+
+Vec3: TypeAlias = tuple[float, float, float]
+
+
+class Channel(str, Enum):
+    """A physical quantity a device provides, with its unit at the pipeline boundary."""
+
+    ACCEL = "accel"
+    """Specific force, m/s^2 (a level board at rest reads (0, 0, -9.81) in NED)."""
+    GYRO = "gyro"
+    """Angular rate, rad/s, right-handed about each axis."""
+    MAG = "mag"
+    """Magnetic flux density, uT."""
+    PRESSURE = "pressure"
+    """Static pressure, Pa."""
+    TEMPERATURE = "temperature"
+    """Die temperature, degC."""
+
+    @property
+    def unit(self) -> str:
+        return _UNITS[self]
+
+
+_UNITS = {
+    Channel.ACCEL: "m/s^2",
+    Channel.GYRO: "rad/s",
+    Channel.MAG: "uT",
+    Channel.PRESSURE: "Pa",
+    Channel.TEMPERATURE: "degC",
+}
+
+
+class Frame(str, Enum):
+    """Which axes a vector sample is expressed in."""
+
+    SENSOR = "sensor"
+    """The chip's own axes, as printed in its datasheet."""
+    BODY_NED = "body_ned"
+    """The board/vehicle body frame: x forward, y right, z down."""
+
+
+class SampleFlag(IntFlag):
+    """Why a sample must not be fused. OK (0) means it may be."""
+
+    OK = 0
+    NAN = 1 << 0
+    """A value is NaN or infinite."""
+    OVERFLOW = 1 << 1
+    """The chip reported overflow (e.g. HMC5883L -4096, AK8963 HOFL)."""
+    SATURATED = 1 << 2
+    """A value sits at the configured full scale: the true value may be larger."""
+    CRC_ERROR = 1 << 3
+    """An integrity check failed."""
+    BUS_ERROR = 1 << 4
+    """The transfer that should have carried the sample failed."""
+    STALE = 1 << 5
+    """The chip had no new data (data-ready not set when it should have been)."""
+    OUT_OF_RANGE = 1 << 6
+    """The value is outside what the chip can physically report (datasheet limits)."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Sample:
+    """Base of all samples. Subclasses add one value field whose name carries the unit."""
+
+    t_ns: int
+    device: str
+    flags: SampleFlag = SampleFlag.OK
+    channel: ClassVar[Channel]
+
+    @property
+    def valid(self) -> bool:
+        return self.flags == SampleFlag.OK
+
+    def flagged(self, flag: SampleFlag) -> Sample:
+        """A copy with ``flag`` added."""
+        return replace(self, flags=self.flags | flag)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class VectorSample(Sample):
+    """A three-axis sample; ``vector`` is the value in the unit of ``channel``."""
+
+    frame: Frame = Frame.SENSOR
+
+    @property
+    def vector(self) -> Vec3:
+        raise NotImplementedError
+
+    def with_vector(self, vector: Vec3, frame: Frame) -> VectorSample:
+        raise NotImplementedError
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ScalarSample(Sample):
+    @property
+    def scalar(self) -> float:
+        raise NotImplementedError
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class AccelSample(VectorSample):
+    """Specific force in m/s^2 (not gravity-positive: level at rest is (0, 0, -9.81) NED)."""
+
+    accel_m_s2: Vec3 = field(default=(0.0, 0.0, 0.0))
+    channel: ClassVar[Channel] = Channel.ACCEL
+
+    @property
+    def vector(self) -> Vec3:
+        return self.accel_m_s2
+
+    def with_vector(self, vector: Vec3, frame: Frame) -> AccelSample:
+        return replace(self, accel_m_s2=_vec3(vector), frame=frame)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class GyroSample(VectorSample):
+    """Angular rate in rad/s."""
+
+    gyro_rad_s: Vec3 = field(default=(0.0, 0.0, 0.0))
+    channel: ClassVar[Channel] = Channel.GYRO
+
+    @property
+    def vector(self) -> Vec3:
+        return self.gyro_rad_s
+
+    def with_vector(self, vector: Vec3, frame: Frame) -> GyroSample:
+        return replace(self, gyro_rad_s=_vec3(vector), frame=frame)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class MagSample(VectorSample):
+    """Magnetic flux density in uT."""
+
+    mag_ut: Vec3 = field(default=(0.0, 0.0, 0.0))
+    channel: ClassVar[Channel] = Channel.MAG
+
+    @property
+    def vector(self) -> Vec3:
+        return self.mag_ut
+
+    def with_vector(self, vector: Vec3, frame: Frame) -> MagSample:
+        return replace(self, mag_ut=_vec3(vector), frame=frame)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class PressureSample(ScalarSample):
+    """Static pressure in Pa."""
+
+    pressure_pa: float = 0.0
+    channel: ClassVar[Channel] = Channel.PRESSURE
+
+    @property
+    def scalar(self) -> float:
+        return self.pressure_pa
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class TemperatureSample(ScalarSample):
+    """Die temperature in degC."""
+
+    temperature_degc: float = 0.0
+    channel: ClassVar[Channel] = Channel.TEMPERATURE
+
+    @property
+    def scalar(self) -> float:
+        return self.temperature_degc
+
+
+SAMPLE_TYPES: dict[Channel, type[Sample]] = {
+    Channel.ACCEL: AccelSample,
+    Channel.GYRO: GyroSample,
+    Channel.MAG: MagSample,
+    Channel.PRESSURE: PressureSample,
+    Channel.TEMPERATURE: TemperatureSample,
+}
+
+
+def _vec3(v: object) -> Vec3:
+    x, y, z = (float(c) for c in v)  # type: ignore[attr-defined]
+    return (x, y, z)
+
+
+def non_finite_flag(values: tuple[float, ...] | list[float]) -> SampleFlag:
+    """``SampleFlag.NAN`` if any value is NaN or infinite, else ``OK``."""
+    return SampleFlag.NAN if any(not math.isfinite(v) for v in values) else SampleFlag.OK

@@ -1,0 +1,120 @@
+"""What every chip driver provides: probe -> configure -> poll, with settings in physical units.
+
+A driver knows its chip's registers and its bus link; it knows nothing about estimators, and
+it never knows whether the link ends at silicon or at an emulator. It produces samples in SI
+units in the chip's own sensor frame; calibration and mounting are applied by the pipeline.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+from pydantic import BaseModel, ConfigDict
+
+from imuhal.bus.base import Bus, BusKind, Link
+from imuhal.core.clock import Clock
+from imuhal.core.samples import Channel, Sample
+
+
+class DriverSettings(BaseModel):
+    """Base of every driver's settings: physical values only (``odr_hz: 250``), never codes."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+@dataclass(frozen=True)
+class DeviceIdentity:
+    """What probe() found, bound into stored calibration so it is not applied to another chip."""
+
+    driver: str
+    bus: str
+    address: int
+    identity: str
+    """The identity evidence, e.g. ``WHO_AM_I=0xB2`` or ``PROM CRC4=0xB``."""
+    note: str = ""
+
+
+@dataclass
+class PollResult:
+    """Samples produced by one poll and when the driver wants to be polled next (ns)."""
+
+    samples: list[Sample]
+    next_poll_ns: int
+
+
+@dataclass
+class DeviceHealth:
+    """Running counts the pipeline reports; a driver increments what it detects."""
+
+    samples: int = 0
+    flagged: int = 0
+    bus_errors: int = 0
+    resets_detected: int = 0
+    reconfigurations: int = 0
+    flags_seen: dict[str, int] = field(default_factory=dict)
+
+
+class Driver(ABC):
+    """Base of every chip driver.
+
+    Subclasses set ``name`` (stable, used in profiles), ``description``, ``Settings``,
+    ``channels`` and ``bus_kinds``; they implement ``probe``, ``configure`` and ``poll``.
+    """
+
+    name: ClassVar[str]
+    description: ClassVar[str] = ""
+    Settings: ClassVar[type[DriverSettings]]
+    channels: ClassVar[tuple[Channel, ...]]
+    bus_kinds: ClassVar[frozenset[BusKind]]
+    calibration_version: ClassVar[int] = 1
+    """Bumped when a change to decoding would invalidate stored user calibration."""
+
+    def __init__(self, link: Link, settings: DriverSettings, *, device: str, clock: Clock) -> None:
+        if not isinstance(settings, self.Settings):
+            settings = self.Settings.model_validate(settings)
+        self.link = link
+        self.settings = settings
+        self.device = device
+        self.clock = clock
+        self.health = DeviceHealth()
+        self.identity: DeviceIdentity | None = None
+
+    @abstractmethod
+    def probe(self) -> DeviceIdentity:
+        """Check the chip's identity; raise DeviceNotFoundError naming bus, address,
+        expected and found identity when it is absent or another chip."""
+
+    @abstractmethod
+    def configure(self) -> None:
+        """Reset and program the chip from ``settings``; verify what was written."""
+
+    @abstractmethod
+    def poll(self, now_ns: int) -> PollResult:
+        """Do the work due at ``now_ns`` and return any complete samples.
+
+        Raise BusError when a transfer fails; the pipeline counts it, flags the interval and
+        calls ``recover`` before the next poll.
+        """
+
+    def start(self, now_ns: int) -> int:
+        """Called once after configure(); returns the time of the first poll."""
+        return now_ns
+
+    def recover(self, now_ns: int) -> int:
+        """Bring the chip back after a failed poll; returns the next poll time.
+
+        The default re-probes and reconfigures, which also covers a chip that silently reset.
+        """
+        self.probe()
+        self.configure()
+        self.health.reconfigurations += 1
+        return self.start(now_ns)
+
+    def child_buses(self) -> dict[str, Bus]:
+        """Buses this chip exposes to others (an I2C master or bypass), by local name."""
+        return {}
+
+    def describe(self) -> str:
+        return f"{self.name} '{self.device}' on {self.link.describe()}"

@@ -1,0 +1,64 @@
+"""What a chip emulator is: a bus face (register file, state machines) and a physics face.
+
+A driver talks to an emulator only through a bus, exactly as to silicon. The simulation talks
+to it only through ``set_physics``, handing it true values in the chip's own sensor frame and
+in SI units; the emulator encodes them with the chip's configured range and resolution when
+its measurement completes.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+from typing import TYPE_CHECKING
+
+from imuhal.bus.base import BusKind
+from imuhal.core.clock import Clock, SimulatedClock
+
+if TYPE_CHECKING:
+    from imuhal.emulation.bus import EmulatedBus
+
+
+@dataclass(frozen=True, slots=True)
+class PhysicalInputs:
+    """True physical quantities at the chip, in its own sensor frame. None: not simulated."""
+
+    specific_force_m_s2: tuple[float, float, float] | None = None
+    angular_rate_rad_s: tuple[float, float, float] | None = None
+    magnetic_field_ut: tuple[float, float, float] | None = None
+    pressure_pa: float | None = None
+    temperature_degc: float | None = None
+
+
+class ChipEmulator(ABC):
+    """Base of every chip emulator.
+
+    ``clock`` is the simulated clock the emulator measures conversion and data-ready timing
+    against. ``absent`` makes the chip NACK every transfer (fault injection).
+    """
+
+    #: The driver name this emulator stands in for (the registry pairs them by it).
+    chip: str = ""
+
+    def __init__(self, clock: Clock | None = None) -> None:
+        self.clock: Clock = clock if clock is not None else SimulatedClock()
+        self.absent = False
+        self.physics = PhysicalInputs()
+
+    @abstractmethod
+    def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes:
+        """Answer one bus transaction (write then read) as the chip would."""
+
+    def set_physics(self, inputs: PhysicalInputs) -> None:
+        """Hand the emulator the true values it should measure from now on."""
+        self.physics = inputs
+
+    def now_ns(self) -> int:
+        return self.clock.now_ns()
+
+    def child_buses(self) -> dict[str, EmulatedBus]:
+        """Downstream buses this chip masters (e.g. the MAX21100's I2C master), by the same
+        local names its driver's ``child_buses`` uses. Emulators of chips behind it are
+        attached to these, and this emulator performs real transfers on them."""
+        return {}

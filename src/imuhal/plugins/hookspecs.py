@@ -1,0 +1,45 @@
+"""Hook specifications. A plugin module implements any of these with ``@hookimpl``.
+
+Each hook receives a registrar: call it with the class to register. Built-in chips and
+filters use exactly these hooks, through the same ``imuhal`` entry-point group as anyone's.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import pluggy
+
+PROJECT = "imuhal"
+ENTRY_POINT_GROUP = "imuhal"
+
+hookspec = pluggy.HookspecMarker(PROJECT)
+hookimpl = pluggy.HookimplMarker(PROJECT)
+
+if TYPE_CHECKING:
+    from imuhal.plugins.registrars import Registrar
+
+
+@hookspec
+def imuhal_register_drivers(register: Registrar) -> None:
+    """Register Driver subclasses: ``register(MyDriver)``."""
+
+
+@hookspec
+def imuhal_register_emulators(register: Registrar) -> None:
+    """Register ChipEmulator subclasses; each names the driver it stands in for (``chip``)."""
+
+
+@hookspec
+def imuhal_register_estimators(register: Registrar) -> None:
+    """Register Estimator subclasses."""
+
+
+@hookspec
+def imuhal_register_buses(register: Registrar) -> None:
+    """Register BusFactory subclasses for new bus kinds (URL schemes)."""
+
+
+@hookspec
+def imuhal_register_scenarios(register: Registrar) -> None:
+    """Register Scenario subclasses for the simulator."""

@@ -1,0 +1,69 @@
+"""Typed registrars handed to hooks. They check what is registered and remember who did."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Generic, TypeVar
+
+from imuhal.core.errors import PluginError
+
+T = TypeVar("T")
+
+
+@dataclass(frozen=True)
+class Registration(Generic[T]):
+    name: str
+    obj: type[T]
+    plugin: str
+    """The plugin (entry point) name that registered it."""
+    package: str
+    """The distribution that provides that plugin ('' when registered by hand)."""
+
+
+class Registrar(Generic[T]):
+    """Registers classes of one kind under their ``name`` attribute."""
+
+    def __init__(self, kind: str, base: type[T], name_attr: str = "name") -> None:
+        self.kind = kind
+        self.base = base
+        self.name_attr = name_attr
+        self.entries: dict[str, Registration[T]] = {}
+        self._plugin = ""
+        self._package = ""
+
+    def _bind(self, plugin: str, package: str) -> Registrar[T]:
+        self._plugin, self._package = plugin, package
+        return self
+
+    def __call__(self, cls: type[T]) -> type[T]:
+        if not (isinstance(cls, type) and issubclass(cls, self.base)):
+            raise PluginError(
+                f"plugin {self._plugin!r} registered {cls!r} as a {self.kind}, "
+                f"but it is not a subclass of {self.base.__name__}"
+            )
+        name = getattr(cls, self.name_attr, "")
+        if not isinstance(name, str) or not name:
+            raise PluginError(
+                f"plugin {self._plugin!r}: {self.kind} {cls.__name__} has no "
+                f"'{self.name_attr}' to register it under"
+            )
+        if name in self.entries:
+            prior = self.entries[name]
+            raise PluginError(
+                f"{self.kind} {name!r} registered twice: by plugin {prior.plugin!r} "
+                f"({prior.obj.__module__}) and by {self._plugin!r} ({cls.__module__})"
+            )
+        self.entries[name] = Registration(name, cls, self._plugin, self._package)
+        return cls
+
+    def get(self, name: str) -> type[T]:
+        try:
+            return self.entries[name].obj
+        except KeyError:
+            installed = ", ".join(sorted(self.entries)) or "none"
+            raise PluginError(
+                f"no {self.kind} named {name!r} is installed (installed: {installed})"
+            ) from None
+
+    def names(self) -> list[str]:
+        return sorted(self.entries)

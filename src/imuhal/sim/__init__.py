@@ -1,0 +1,1 @@
+"""The simulated world: scenarios with ground truth that drive the chip emulators."""

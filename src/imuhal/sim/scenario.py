@@ -1,0 +1,72 @@
+"""What a scenario is: a function of time to the true state of the vehicle and its world."""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict
+
+from imuhal.core.frames import FloatArray
+
+
+class ScenarioParams(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+@dataclass(frozen=True, slots=True)
+class TruthState:
+    """The true state at ``t_s`` (float seconds from the scenario start).
+
+    Body frame is NED-aligned FRD (x forward, y right, z down); the earth frame is NED.
+    """
+
+    t_s: float
+    q_body_to_ned: FloatArray
+    angular_rate_body_rad_s: FloatArray
+    specific_force_body_m_s2: FloatArray
+    """Accelerometer truth: a - g, in body axes (level at rest: (0, 0, -9.81))."""
+    position_ned_m: FloatArray
+    velocity_ned_m_s: FloatArray
+    magnetic_field_body_ut: FloatArray
+    pressure_pa: float
+    temperature_degc: float
+
+    @property
+    def altitude_m(self) -> float:
+        """Height above the scenario's origin (m, up positive)."""
+        return float(-self.position_ned_m[2])
+
+    @property
+    def climb_m_s(self) -> float:
+        """Vertical speed (m/s, up positive)."""
+        return float(-self.velocity_ned_m_s[2])
+
+
+class Scenario(ABC):
+    """A named, parameterised motion and environment with known truth.
+
+    Subclasses set ``name``, ``description``, ``Params`` and ``default_duration_s`` and
+    implement ``truth``. ``seed`` drives any randomness (turbulence, gusts), reproducibly.
+    """
+
+    name: ClassVar[str]
+    description: ClassVar[str] = ""
+    Params: ClassVar[type[ScenarioParams]] = ScenarioParams
+    default_duration_s: ClassVar[float] = 60.0
+
+    def __init__(self, params: ScenarioParams | dict[str, Any] | None = None, *,
+                 seed: int = 0) -> None:
+        if params is None:
+            params = self.Params()
+        elif not isinstance(params, self.Params):
+            params = self.Params.model_validate(params)
+        self.params = params
+        self.seed = seed
+        self.rng = np.random.default_rng(seed)
+
+    @abstractmethod
+    def truth(self, t_s: float) -> TruthState:
+        """The true state at ``t_s``; must be a pure function of ``t_s`` and the seed."""
