@@ -1,1 +1,12 @@
-"""Entry point of the vario plugin. Its hook implementations are being written."""
+"""Entry point of the vario plugin: registers the variometer estimators."""
+
+from __future__ import annotations
+
+from imuhal.plugins.hookspecs import hookimpl
+from imuhal.plugins.registrars import Registrar
+from imuhal_filters.vario.baro_estimator import BaroVarioEstimator
+
+
+@hookimpl
+def imuhal_register_estimators(register: Registrar) -> None:
+    register(BaroVarioEstimator)

@@ -1,0 +1,139 @@
+"""``baro-vario``: altitude and climb rate from the barometer alone (2-state Kalman filter)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar
+
+from pydantic import Field
+
+from imuhal.core.atmosphere import SEA_LEVEL_PRESSURE_PA
+from imuhal.core.samples import PressureSample
+from imuhal.estimation.base import Estimator, EstimatorSettings
+from imuhal.estimation.outputs import Estimate, VerticalEstimate
+from imuhal_filters.vario.baro_input import dt_s, usable_altitude_m
+from imuhal_filters.vario.baro_kalman import BaroKalman2
+
+
+class BaroVarioSettings(EstimatorSettings):
+    """Tuning of the barometer-only filter. SI units.
+
+    ``accel_noise_m_s2`` is the standard deviation of the vertical acceleration the
+    constant-velocity model does not know about (air movement and pilot input), not a sensor
+    noise: larger values follow climb-rate changes faster but pass more baro noise into the
+    climb rate. ``altitude_noise_m`` is the barometer's altitude noise (estimate it with
+    ``estimate_altitude_variance`` on 1-2 s of data at rest and take the square root).
+
+    The defaults are close to the kf3 ``esp32`` defaults (sigma_z^2 = 300 cm^2,
+    sigma_a^2 = 50000 cm^2/s^4, i.e. 0.17 m and 2.2 m/s^2) so the two filters start from the
+    same idea of the air. On the 40 Hz paraglider data set C the barometer-only filter's
+    climb-rate error is smallest for sigma_a around 2-3 m/s^2.
+    """
+
+    accel_noise_m_s2: float = Field(default=2.0, gt=0.0)
+    """Sigma of unmodelled vertical acceleration (m/s^2)."""
+    altitude_noise_m: float = Field(default=0.2, gt=0.0)
+    """Sigma of the barometric altitude measurement (m)."""
+    sea_level_pa: float = Field(default=SEA_LEVEL_PRESSURE_PA, gt=0.0)
+    """Pressure reference (QNH, Pa) for pressure -> altitude; 101325 gives pressure altitude."""
+    initial_climb_sigma_m_s: float = Field(default=1.0, gt=0.0)
+    """Sigma of the climb rate at start-up (m/s); the filter starts at 0 m/s."""
+    max_gap_s: float = Field(default=1.0, gt=0.0)
+    """A gap between valid samples longer than this restarts the filter from the new sample:
+    the constant-velocity prediction over a long outage is not worth trusting."""
+
+
+class BaroVarioEstimator(Estimator):
+    """Barometer-only variometer: one predict + update per valid PressureSample.
+
+    Emits a VerticalEstimate (altitude m up +, climb m/s up +, ``accel_bias_m_s2`` None) for
+    every fused sample, including the first (which only initialises: altitude = measurement,
+    climb = 0). Flagged samples, samples with non-positive or non-finite pressure, and samples
+    whose timestamp does not advance are skipped and counted in ``diagnostics()``.
+    """
+
+    name: ClassVar[str] = "baro-vario"
+    description: ClassVar[str] = (
+        "Altitude and climb rate from the barometer only (2-state constant-velocity Kalman)"
+    )
+    Settings: ClassVar[type[EstimatorSettings]] = BaroVarioSettings
+    consumes: ClassVar[tuple[type, ...]] = (PressureSample,)
+    settings: BaroVarioSettings
+
+    def reset(self) -> None:
+        s = self.settings
+        self._kf = BaroKalman2(accel_var=s.accel_noise_m_s2**2, meas_var=s.altitude_noise_m**2)
+        self._last_t_ns: int | None = None
+        self._counts = {"fused": 0, "skipped_invalid": 0, "skipped_non_monotonic": 0,
+                        "restarts_after_gap": 0}
+
+    # -- the filter steps, kept apart so callers (and tests) can drive them directly --------
+
+    def initialise(self, t_ns: int, altitude_m: float) -> None:
+        s = self.settings
+        self._kf.initialise(altitude_m, 0.0, s.altitude_noise_m**2, s.initial_climb_sigma_m_s**2)
+        self._last_t_ns = t_ns
+
+    def predict(self, dt_seconds: float) -> None:
+        """Propagate the state ``dt_seconds`` ahead (constant velocity)."""
+        self._kf.predict(dt_seconds)
+
+    def update(self, altitude_m: float) -> float:
+        """Fuse one barometric altitude (m); return the innovation (m)."""
+        return self._kf.update(altitude_m)
+
+    # -- Estimator interface ----------------------------------------------------------------
+
+    def process(self, item: Any) -> list[Estimate]:
+        if not isinstance(item, PressureSample):
+            return []
+        altitude = usable_altitude_m(item, self.settings.sea_level_pa)
+        if altitude is None:
+            self._counts["skipped_invalid"] += 1
+            return []
+        innovation = 0.0
+        if self._last_t_ns is None:
+            self.initialise(item.t_ns, altitude)
+        else:
+            dt = dt_s(item.t_ns, self._last_t_ns)
+            if dt <= 0.0:
+                self._counts["skipped_non_monotonic"] += 1
+                return []
+            if dt > self.settings.max_gap_s:
+                self._counts["restarts_after_gap"] += 1
+                self.initialise(item.t_ns, altitude)
+            else:
+                self.predict(dt)
+                innovation = self.update(altitude)
+                self._last_t_ns = item.t_ns
+        self._counts["fused"] += 1
+        return [self._estimate(item.t_ns, innovation)]
+
+    def _estimate(self, t_ns: int, innovation_m: float) -> VerticalEstimate:
+        kf = self._kf
+        return VerticalEstimate(
+            t_ns=t_ns,
+            source=self.instance,
+            altitude_m=kf.z,
+            climb_m_s=kf.v,
+            accel_bias_m_s2=None,
+            diagnostics={
+                "innovation_m": innovation_m,
+                "altitude_sigma_m": math.sqrt(max(kf.pzz, 0.0)),
+                "climb_sigma_m_s": math.sqrt(max(kf.pvv, 0.0)),
+                **self._counts,
+            },
+        )
+
+    def get_state(self) -> dict[str, Any]:
+        return {"kf": self._kf.as_dict(), "last_t_ns": self._last_t_ns,
+                "counts": dict(self._counts)}
+
+    def set_state(self, state: dict[str, Any]) -> None:
+        self._kf.load_dict(state["kf"])
+        last = state["last_t_ns"]
+        self._last_t_ns = None if last is None else int(last)
+        self._counts = {k: int(v) for k, v in state["counts"].items()}
+
+    def diagnostics(self) -> dict[str, Any]:
+        return dict(self._counts)
