@@ -1,1 +1,1 @@
-"""ms5611: see plugin.py."""
+"""MS5611-01BA03 barometer plugin: commands, compensation, driver and emulator."""

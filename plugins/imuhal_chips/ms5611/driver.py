@@ -1,0 +1,337 @@
+"""MS5611-01BA03 driver: PROM check on probe, then a non-blocking conversion state machine.
+
+One cycle: [convert D2 (temperature) -> wait -> ADC read] -> convert D1 (pressure) -> wait ->
+ADC read -> compensate -> emit. The D2 part runs every ``temperature_every`` cycles. Waits are
+the datasheet *maximum* conversion time, so a read never catches a running conversion.
+Cycles are placed so that pressure conversions complete on a grid of ``1/rate_hz``; a late
+poll slides the cycle rather than reading early.
+
+Transactions: every command is one byte; ADC read (3 bytes) and PROM read (2 bytes) are the
+command and the read in one ``Link.transfer`` (I2C: write + repeated-start read; SPI: one
+chip-select assertion). The MS5611 has no configuration registers: OSR travels in each
+convert command.
+
+Source of facts: MS5611-01BA03 datasheet (DA5611-01BA03_011); AN520; Linux IIO
+``ms5611_core.c``; /work/shared/facts/chips.md section 1.
+"""
+
+from __future__ import annotations
+
+import math
+from enum import Enum
+from typing import ClassVar
+
+from pydantic import Field, model_validator
+
+from imuhal.bus.base import BusKind, Link
+from imuhal.core.clock import Clock
+from imuhal.core.errors import DeviceNotFoundError, NackError
+from imuhal.core.samples import (
+    Channel,
+    PressureSample,
+    Sample,
+    SampleFlag,
+    TemperatureSample,
+)
+from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
+from imuhal_chips.ms5611.commands import (
+    ADC_READ,
+    ADC_READ_LEN,
+    OSR_TIMING,
+    PROM_READ_LEN,
+    PROM_WORDS,
+    RESET,
+    RESET_RELOAD_MS,
+    Measurement,
+    Osr,
+    convert_command,
+    prom_read_command,
+)
+from imuhal_chips.ms5611.conversion import (
+    Coefficients,
+    Compensated,
+    compensate,
+    crc4,
+    prom_is_valid,
+    stored_crc4,
+)
+
+EXPECTED_IDENTITY = "MS5611 PROM with valid CRC4"
+
+
+def max_rate_hz(pressure_osr: int, temperature_osr: int) -> float:
+    """Highest pressure sample rate at which every sample slot can hold a temperature and a
+    pressure conversion, each given its datasheet maximum time."""
+    cycle_ms = OSR_TIMING[pressure_osr].max_ms + OSR_TIMING[temperature_osr].max_ms
+    return 1000.0 / cycle_ms
+
+
+class MS5611Settings(DriverSettings):
+    """MS5611 settings, physical values only.
+
+    ``pressure_osr`` / ``temperature_osr``: oversampling ratio of each conversion (higher:
+    less noise, longer conversion). ``rate_hz``: pressure samples per second. A temperature
+    conversion is made every ``temperature_every`` pressure samples (fewer conversions, less
+    self-heating); the sample grid still reserves room for one in every slot so samples stay
+    evenly spaced.
+    """
+
+    pressure_osr: Osr = 4096
+    temperature_osr: Osr = 4096
+    rate_hz: float = Field(default=50.0, gt=0)
+    temperature_every: int = Field(default=1, ge=1)
+
+    @model_validator(mode="after")
+    def _rate_fits_conversions(self) -> MS5611Settings:
+        limit = max_rate_hz(self.pressure_osr, self.temperature_osr)
+        if self.rate_hz > limit:
+            raise ValueError(
+                f"rate_hz {self.rate_hz:g} is too high for pressure_osr {self.pressure_osr} "
+                f"and temperature_osr {self.temperature_osr}: the maximum is {limit:.2f} Hz "
+                f"(the two conversions take {1000.0 / limit:.2f} ms at their datasheet "
+                f"maximum); lower rate_hz or choose smaller OSRs"
+            )
+        return self
+
+
+class _State(Enum):
+    IDLE = "idle"
+    """Waiting to start the next cycle (D2 or D1)."""
+    CONVERTING_D2 = "converting_d2"
+    CONVERTING_D1 = "converting_d1"
+
+
+class MS5611Driver(Driver):
+    """Barometer MS5611-01BA03 on I2C (0x77 with CSB low, 0x76 with CSB high) or SPI."""
+
+    name: ClassVar[str] = "ms5611"
+    description: ClassVar[str] = "MEAS/TE MS5611-01BA03 barometric pressure sensor (Pa, degC)"
+    Settings: ClassVar[type[DriverSettings]] = MS5611Settings
+    channels: ClassVar[tuple[Channel, ...]] = (Channel.PRESSURE, Channel.TEMPERATURE)
+    bus_kinds: ClassVar[frozenset[BusKind]] = frozenset({BusKind.I2C, BusKind.SPI})
+
+    settings: MS5611Settings
+
+    def __init__(
+        self, link: Link, settings: DriverSettings, *, device: str, clock: Clock
+    ) -> None:
+        super().__init__(link, settings, device=device, clock=clock)
+        self.coefficients: Coefficients | None = None
+        self.prom_words: list[int] | None = None
+        self.last: Compensated | None = None
+        """The last good compensated reading."""
+        s = self.settings
+        self._t_d1_ns = OSR_TIMING[s.pressure_osr].max_ns
+        self._t_d2_ns = OSR_TIMING[s.temperature_osr].max_ns
+        self._period_ns = round(1e9 / s.rate_hz)
+        self._reset_state()
+
+    # -- probe / configure ------------------------------------------------------------------
+
+    def _not_found(self, found: str, hint: str) -> DeviceNotFoundError:
+        return DeviceNotFoundError(
+            driver=self.name,
+            bus=self.link.bus.name,
+            address=self.link.target,
+            expected=EXPECTED_IDENTITY,
+            found=found,
+            hint=hint,
+        )
+
+    def _wiring_hint(self) -> str:
+        if self.link.kind is BusKind.SPI:
+            return ("nothing answering: check the PS pin is low (SPI), the chip select line "
+                    "and MISO/SDO wiring")
+        return ("nothing answering: check CSB/PS wiring and the address "
+                "(0x77 when CSB is low, 0x76 when high)")
+
+    def _command(self, command: int) -> None:
+        self.link.transfer(bytes([command]), 0)
+
+    def _read_prom(self) -> list[int]:
+        words = []
+        for n in range(PROM_WORDS):
+            raw = self.link.transfer(bytes([prom_read_command(n)]), PROM_READ_LEN)
+            words.append(int.from_bytes(raw, "big"))
+        return words
+
+    def probe(self) -> DeviceIdentity:
+        """Reset the chip (which reloads its PROM), read the 8 PROM words and check CRC4."""
+        try:
+            self._command(RESET)
+            self.clock.sleep(RESET_RELOAD_MS / 1000.0)
+            words = self._read_prom()
+        except NackError as err:
+            raise self._not_found("no acknowledge (NACK)", self._wiring_hint()) from err
+        self._reset_state()
+        if all(w == 0xFFFF for w in words):
+            raise self._not_found("all-0xFFFF PROM", self._wiring_hint())
+        if all(w == 0x0000 for w in words):
+            raise self._not_found(
+                "all-0x0000 PROM",
+                "data line stuck low or the PROM did not reload: check SDA/MISO and power",
+            )
+        computed, stored = crc4(words), stored_crc4(words)
+        if not prom_is_valid(words):
+            raise self._not_found(
+                f"CRC4 0x{computed:X} but stored 0x{stored:X}",
+                "PROM read with bit errors or another chip: check wiring, lower the bus clock "
+                "(SPI <= 16 MHz), or it is not an MS5611",
+            )
+        self.prom_words = words
+        self.coefficients = Coefficients.from_prom(words)
+        self.identity = DeviceIdentity(
+            driver=self.name,
+            bus=self.link.bus.name,
+            address=self.link.target,
+            identity=f"PROM CRC4=0x{stored:X}",
+            note=f"PROM word0=0x{words[0]:04X} word7=0x{words[7]:04X}",
+        )
+        return self.identity
+
+    def configure(self) -> None:
+        """Nothing to program (OSR is part of each convert command); probe if not done and
+        start from a clean state machine. probe()'s reset already aborted any conversion."""
+        if self.coefficients is None:
+            self.probe()
+        self._reset_state()
+
+    # -- conversion state machine -----------------------------------------------------------
+
+    def _reset_state(self) -> None:
+        self._state = _State.IDLE
+        self._need_temperature = True
+        self._since_temperature = 0
+        self._fresh_temperature = False
+        self._d2: int | None = None
+        self._conv_start_ns = 0
+        self._target_ns = 0
+        """When the pressure conversion of the current cycle is due to complete."""
+
+    def _cycle_ns(self, with_temperature: bool) -> int:
+        return self._t_d1_ns + (self._t_d2_ns if with_temperature else 0)
+
+    def _cycle_start_ns(self) -> int:
+        return self._target_ns - self._cycle_ns(self._need_temperature)
+
+    def start(self, now_ns: int) -> int:
+        self._reset_state()
+        self._target_ns = now_ns + self._cycle_ns(True)
+        return now_ns
+
+    def _read_adc(self) -> int:
+        return int.from_bytes(self.link.transfer(bytes([ADC_READ]), ADC_READ_LEN), "big")
+
+    def _start_conversion(self, measurement: Measurement, now_ns: int) -> int:
+        osr = (self.settings.pressure_osr if measurement is Measurement.D1
+               else self.settings.temperature_osr)
+        self._command(convert_command(measurement, osr))
+        self._conv_start_ns = now_ns
+        if measurement is Measurement.D2:
+            self._state = _State.CONVERTING_D2
+            return now_ns + self._t_d2_ns
+        self._state = _State.CONVERTING_D1
+        return now_ns + self._t_d1_ns
+
+    def _start_pressure_when_due(self, now_ns: int) -> int:
+        due = self._target_ns - self._t_d1_ns
+        if now_ns < due:
+            return due
+        return self._start_conversion(Measurement.D1, now_ns)
+
+    def poll(self, now_ns: int) -> PollResult:
+        if self._state is _State.IDLE:
+            if self._need_temperature:
+                start = self._cycle_start_ns()
+                if now_ns < start:
+                    return PollResult([], start)
+                # Late beyond the slack: slide this cycle rather than shorten a wait.
+                self._target_ns = max(self._target_ns, now_ns + self._cycle_ns(True))
+                return PollResult([], self._start_conversion(Measurement.D2, now_ns))
+            self._target_ns = max(self._target_ns, now_ns + self._t_d1_ns)
+            return PollResult([], self._start_pressure_when_due(now_ns))
+
+        ready = self._conv_start_ns + (
+            self._t_d2_ns if self._state is _State.CONVERTING_D2 else self._t_d1_ns
+        )
+        if now_ns < ready:
+            return PollResult([], ready)
+
+        if self._state is _State.CONVERTING_D2:
+            d2 = self._read_adc()
+            if d2 == 0:
+                return self._stale(now_ns)
+            self._d2 = d2
+            self._fresh_temperature = True
+            self._need_temperature = False
+            self._state = _State.IDLE
+            self._target_ns = max(self._target_ns, now_ns + self._t_d1_ns)
+            return PollResult([], self._start_pressure_when_due(now_ns))
+
+        d1 = self._read_adc()
+        if d1 == 0:
+            return self._stale(now_ns)
+        samples = self._emit(d1, t_ns=ready)
+        self._next_cycle(now_ns)
+        return PollResult(samples, self._cycle_start_ns())
+
+    def _next_cycle(self, now_ns: int) -> None:
+        self._state = _State.IDLE
+        self._fresh_temperature = False
+        self._since_temperature += 1
+        self._need_temperature = self._since_temperature >= self.settings.temperature_every
+        if self._need_temperature:
+            self._since_temperature = 0
+        self._target_ns += self._period_ns
+        if self._cycle_start_ns() < now_ns:
+            # Behind by more than the slack in a period: re-anchor the grid at now.
+            self._target_ns = now_ns + self._cycle_ns(self._need_temperature)
+
+    def _emit(self, d1: int, *, t_ns: int) -> list[Sample]:
+        assert self.coefficients is not None and self._d2 is not None
+        result = compensate(self.coefficients, d1, self._d2)
+        temp_flags = SampleFlag.OK if result.temperature_in_range else SampleFlag.OUT_OF_RANGE
+        # Pressure is compensated with the temperature, so an invalid TEMP taints it too.
+        pressure_flags = temp_flags | (
+            SampleFlag.OK if result.pressure_in_range else SampleFlag.OUT_OF_RANGE
+        )
+        samples: list[Sample] = [
+            PressureSample(t_ns=t_ns, device=self.device, flags=pressure_flags,
+                           pressure_pa=result.pressure_pa)
+        ]
+        if self._fresh_temperature:
+            samples.append(TemperatureSample(t_ns=t_ns, device=self.device, flags=temp_flags,
+                                             temperature_degc=result.temperature_degc))
+        if pressure_flags == SampleFlag.OK:
+            self.last = result
+        self._count(samples)
+        return samples
+
+    def _stale(self, now_ns: int) -> PollResult:
+        """An ADC read returned 0: the conversion did not happen (chip reset, reload, or a
+        glitch). Report the slot as stale and restart the cycle with a temperature."""
+        last = self.last
+        samples: list[Sample] = [
+            PressureSample(t_ns=now_ns, device=self.device, flags=SampleFlag.STALE,
+                           pressure_pa=last.pressure_pa if last else math.nan),
+            TemperatureSample(t_ns=now_ns, device=self.device, flags=SampleFlag.STALE,
+                              temperature_degc=last.temperature_degc if last else math.nan),
+        ]
+        self._count(samples)
+        self._state = _State.IDLE
+        self._need_temperature = True
+        self._since_temperature = 0
+        self._fresh_temperature = False
+        self._target_ns = now_ns + self._cycle_ns(True)
+        return PollResult(samples, now_ns)
+
+    def _count(self, samples: list[Sample]) -> None:
+        health = self.health
+        for sample in samples:
+            health.samples += 1
+            if sample.flags != SampleFlag.OK:
+                health.flagged += 1
+                for flag in SampleFlag:
+                    if flag and flag in sample.flags:
+                        name = flag.name or str(int(flag))
+                        health.flags_seen[name] = health.flags_seen.get(name, 0) + 1

@@ -1,0 +1,207 @@
+"""MS5611-01BA03 emulator: the chip's command state machine on a bus, fed by true physics.
+
+Bus face (identical on I2C and SPI, since every transaction is "command bytes, then read"):
+- RESET (0x1E) aborts any conversion and reloads the PROM, which takes 2.8 ms; commands that
+  arrive during the reload are acknowledged but have no effect, and reads return zeros.
+- Convert D1/D2 captures the physics at its start and completes after the *typical* time
+  for its OSR on ``self.clock``; a convert issued while another runs aborts the running one
+  and its own result is garbage (the datasheet: "an incorrect result").
+- ADC read (0x00) returns the 24-bit result once per finished conversion; it returns 0 when
+  no conversion finished since the last read (so a repeated read returns 0), and a read while
+  a conversion runs returns 0 and aborts that conversion.
+- PROM read (0xA0 + 2n) returns word n, MSB first.
+A read with no command in the same transaction returns what the last command left in the
+output register (I2C drivers that write the command and read in two transactions).
+
+Physics face: ``physics.pressure_pa`` and ``physics.temperature_degc`` (defaults 101325 Pa,
+20 degC when not simulated) are encoded with ``encode_raw`` and the *factory* coefficients:
+corrupting the PROM changes what a driver reads, not what the sensor element measures.
+
+Source of facts: MS5611-01BA03 datasheet (DA5611-01BA03_011) commands, timing and the
+"ADC read returns 0" rules; /work/shared/facts/chips.md section 1.
+"""
+
+from __future__ import annotations
+
+import random
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from imuhal.bus.base import BusKind
+from imuhal.core.clock import Clock
+from imuhal.emulation.base import ChipEmulator
+from imuhal_chips.ms5611.commands import (
+    ADC_MAX,
+    OSR_TIMING,
+    PROM_WORDS,
+    RESET_RELOAD_NS,
+    Measurement,
+    decode_command,
+)
+from imuhal_chips.ms5611.conversion import Coefficients, encode_raw, with_crc4
+
+DATASHEET_COEFFICIENTS = (40127, 36924, 23317, 23282, 33464, 28312)
+"""C1..C6 of the datasheet's worked example (p.7)."""
+
+DEFAULT_PROM_WORDS: tuple[int, ...] = tuple(
+    with_crc4([0x0A5C, *DATASHEET_COEFFICIENTS, 0x7D30])
+)
+"""Word 0 (factory data) 0x0A5C and serial bits 0x7D3 in word 7 are arbitrary; the CRC
+nibble is computed."""
+
+DEFAULT_PRESSURE_PA = 101325.0
+DEFAULT_TEMPERATURE_DEGC = 20.0
+
+
+@dataclass
+class _Conversion:
+    measurement: Measurement
+    done_ns: int
+    result: int
+
+
+class MS5611Emulator(ChipEmulator):
+    """Register-level stand-in for an MS5611 on I2C or SPI.
+
+    ``prom_words``: the factory PROM (8 words); default: the datasheet coefficients with a
+    valid CRC. ``seed`` makes the garbage of overlapping conversions reproducible.
+    """
+
+    chip = "ms5611"
+
+    def __init__(
+        self,
+        clock: Clock | None = None,
+        *,
+        prom_words: Sequence[int] | None = None,
+        seed: int = 0x5611,
+    ) -> None:
+        super().__init__(clock)
+        words = list(DEFAULT_PROM_WORDS if prom_words is None else prom_words)
+        if len(words) != PROM_WORDS:
+            raise ValueError(f"MS5611 PROM has {PROM_WORDS} words, got {len(words)}")
+        self.factory_prom: list[int] = [w & 0xFFFF for w in words]
+        """The PROM contents (fault injection edits these; a reset reloads them)."""
+        self.coefficients = Coefficients.from_prom(self.factory_prom)
+        """The sensor element's true calibration, used to encode physics."""
+        self._prom: list[int] = list(self.factory_prom)
+        self._reload_until_ns = -1
+        self._conversion: _Conversion | None = None
+        self._result: int | None = None
+        """The finished conversion not yet fetched by an ADC read."""
+        self._out = b""
+        self._rng = random.Random(seed)
+        self.resets = 0
+        self.conversions_started = 0
+        self.aborted_conversions = 0
+
+    # -- fault injection --------------------------------------------------------------------
+
+    def corrupt_prom(self, word: int, bit: int) -> None:
+        """Flip ``bit`` of PROM ``word``; the stored CRC4 then no longer matches."""
+        self.factory_prom[word] ^= 1 << bit
+        self._prom[word] = self.factory_prom[word]
+
+    def fill_prom(self, value: int) -> None:
+        """Make every PROM word read ``value`` (0xFFFF: bus floating high; 0x0000: blank)."""
+        self.factory_prom = [value & 0xFFFF] * PROM_WORDS
+        self._prom = list(self.factory_prom)
+
+    def silent_reset(self) -> None:
+        """The chip resets without the driver asking (brown-out, ESD): any running or
+        unread conversion is lost and the PROM reloads for 2.8 ms."""
+        self._reset()
+
+    # -- bus face ---------------------------------------------------------------------------
+
+    def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes:
+        for byte in write:
+            self._command(byte)
+        if read_len == 0:
+            return b""
+        data, self._out = self._out[:read_len], self._out[read_len:]
+        return data + bytes(read_len - len(data))
+
+    def _reloading(self) -> bool:
+        return self.now_ns() < self._reload_until_ns
+
+    def _command(self, byte: int) -> None:
+        decoded = decode_command(byte)
+        if decoded.action == "reset":
+            self._reset()
+            return
+        if self._reloading():
+            self._out = b""
+            return
+        if decoded.action == "adc_read":
+            self._out = self._adc_read().to_bytes(3, "big")
+        elif decoded.action == "prom_read":
+            assert decoded.word is not None
+            self._out = self._prom[decoded.word].to_bytes(2, "big")
+        elif decoded.action == "convert":
+            assert decoded.measurement is not None and decoded.osr is not None
+            self._start_conversion(decoded.measurement, decoded.osr)
+        else:
+            self._out = b""
+
+    def _reset(self) -> None:
+        self.resets += 1
+        if self._conversion is not None:
+            self.aborted_conversions += 1
+        self._conversion = None
+        self._result = None
+        self._out = b""
+        self._prom = list(self.factory_prom)
+        self._reload_until_ns = self.now_ns() + RESET_RELOAD_NS
+
+    def _start_conversion(self, measurement: Measurement, osr: int) -> None:
+        now = self.now_ns()
+        self._settle(now)
+        self.conversions_started += 1
+        if self._conversion is not None:
+            # Overlapping conversions: the running one is lost, the new one is garbage.
+            self.aborted_conversions += 1
+            result = self._rng.randint(1, ADC_MAX)
+        else:
+            result = self._measure(measurement)
+        self._result = None
+        self._conversion = _Conversion(measurement, now + OSR_TIMING[osr].typ_ns, result)
+
+    def _measure(self, measurement: Measurement) -> int:
+        p = self.physics.pressure_pa
+        t = self.physics.temperature_degc
+        d1, d2 = encode_raw(
+            self.coefficients,
+            DEFAULT_PRESSURE_PA if p is None else p,
+            DEFAULT_TEMPERATURE_DEGC if t is None else t,
+        )
+        return d1 if measurement is Measurement.D1 else d2
+
+    def _settle(self, now: int) -> None:
+        """Move a conversion that has finished by ``now`` into the result register."""
+        if self._conversion is not None and now >= self._conversion.done_ns:
+            self._result = self._conversion.result
+            self._conversion = None
+
+    def _adc_read(self) -> int:
+        self._settle(self.now_ns())
+        if self._conversion is not None:
+            # Read during a conversion: returns 0 and corrupts (here: aborts) it.
+            self._conversion = None
+            self.aborted_conversions += 1
+            return 0
+        result, self._result = self._result, None
+        return 0 if result is None else result
+
+    # -- inspection for tests ---------------------------------------------------------------
+
+    @property
+    def converting(self) -> bool:
+        """True while a conversion is running at the current clock time."""
+        self._settle(self.now_ns())
+        return self._conversion is not None
+
+    @property
+    def reloading(self) -> bool:
+        """True while the PROM reload after a reset is in progress."""
+        return self._reloading()
