@@ -1,0 +1,331 @@
+"""The indirect complementary Kalman filter of Freescale sensor fusion (build 422, fusion.c).
+
+One ``step`` is one pass of fRun_6DOF_GY_KALMAN / fRun_9DOF_GBY_KALMAN, in the reference's
+units and coordinate system (see ``coords``): accelerometer in g, magnetometer in uT
+(calibrated), gyro in deg/s, angles and the orientation error in degrees.
+
+The filter estimates an *error* vector, re-zeroed after every step:
+
+* theta (3, deg): by how much the a priori orientation exceeds the truth,
+* b (3, deg/s): gyro offset error,
+* a (3, g, sensor frame): linear acceleration error,
+* d (3, uT, sensor frame, 9DOF only): magnetic disturbance error.
+
+Each step (1) integrates the buffered fast gyro samples minus the offset estimate onto the
+last orientation (a priori), (2) predicts gravity and the geomagnetic vector in the sensor
+frame from it, (3) compares them with the accelerometer (plus the decayed linear
+acceleration estimate) and the magnetometer, (4) maps that 3- or 6-element measurement error
+through the gain K = Qw C^T (C Qw C^T + Qv)^-1 onto the error vector, (5) corrects the
+orientation, offset and acceleration, (6) tracks the geomagnetic inclination from d, and
+(7) rebuilds the process covariance Qw from the a posteriori covariance. A magnetic error
+power |d|^2 above (2B)^2 flags magnetic jamming: then only the gravity columns of K correct
+orientation, offset and acceleration, and the inclination is left alone.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from imuhal.core.frames import FloatArray
+from imuhal_filters.freescale.coords import (
+    DEG,
+    CoordinateSystem,
+    ecompass,
+    euler_angles_deg,
+    matrix_from_quat,
+    normalise_positive,
+    quat_from_matrix_fsl,
+    quat_from_rotvec_deg,
+    quat_mul,
+    skew,
+    tilt_matrix,
+)
+from imuhal_filters.freescale.settings import FreescaleCommonSettings, Freescale9DofSettings
+
+TH, B, A, D = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12)
+"""Blocks of the error vector: orientation, gyro offset, linear acceleration, disturbance."""
+
+
+@dataclass(frozen=True)
+class KalmanStep:
+    """What one Kalman step produced (reference units and coordinate system)."""
+
+    valid: bool
+    """False for the initialising step, which estimates nothing."""
+    q_sensor_to_global: FloatArray
+    """A posteriori orientation quaternion (scalar >= 0), sensor -> global of the system."""
+    euler_deg: dict[str, float]
+    """The system's own Euler angles: phi, theta, psi (0..360), rho (heading), chi (tilt)."""
+    gyro_offset_dps: FloatArray
+    """Gyro offset estimate b+ (deg/s, sensor axes)."""
+    omega_dps: FloatArray
+    """Angular velocity: window-average gyro minus the previous offset estimate (deg/s)."""
+    linear_accel_sensor_g: FloatArray
+    """A posteriori linear acceleration estimate a+ (g, sensor axes, the system's sign)."""
+    linear_accel_global_g: FloatArray
+    """Accelerometer reading rotated to the global frame with gravity removed (g); NED and
+    Windows 8 give it as acceleration positive (sign flipped), as the reference does."""
+    inclination_deg: float
+    """Geomagnetic inclination being tracked (9DOF; 0 for 6DOF)."""
+    mag_jamming: bool
+    """Magnetic jamming detected this step (9DOF; always False for 6DOF)."""
+
+
+class FreescaleKalman:
+    """fRun_9DOF_GBY_KALMAN (``use_mag=True``, 12 states) or fRun_6DOF_GY_KALMAN (9 states)."""
+
+    def __init__(self, settings: FreescaleCommonSettings, *, use_mag: bool) -> None:
+        if use_mag and not isinstance(settings, Freescale9DofSettings):
+            raise TypeError("the 9DOF filter needs Freescale9DofSettings")
+        self.s = settings
+        self.use_mag = use_mag
+        self.n = 12 if use_mag else 9
+        self.reset()
+
+    # -- state --------------------------------------------------------------------------------
+
+    def reset(self) -> None:
+        """Back to power-on: the next step only initialises (if the settings say so)."""
+        self.initialised = not self.s.initialise_on_first_step
+        self._init_state()
+
+    def _init_state(self) -> None:
+        s = self.s
+        self.locked = False
+        self.q = np.array([1.0, 0.0, 0.0, 0.0])
+        self.b = np.zeros(3)
+        self.a_sensor = np.zeros(3)
+        self.inclination_deg = 0.0
+        self.m_global = np.zeros(3)
+        if self.use_mag:
+            field = self._field()
+            # the reference starts at zero inclination, pointing north
+            north = 0 if s.coordinate_system is CoordinateSystem.NED else 1
+            self.m_global[north] = field
+        qw = np.zeros((self.n, self.n))
+        for i in range(3):
+            qw[i, i] = s.qw_init_theta_deg2
+            qw[3 + i, 3 + i] = s.qw_init_offset_dps2
+            qw[i, 3 + i] = qw[3 + i, i] = s.qw_init_theta_offset
+            qw[6 + i, 6 + i] = s.qw_init_accel_g2
+            if self.use_mag:
+                qw[9 + i, 9 + i] = self._s9().qw_init_disturbance_ut2
+        self.qw = qw
+
+    def _s9(self) -> Freescale9DofSettings:
+        assert isinstance(self.s, Freescale9DofSettings)
+        return self.s
+
+    def _field(self) -> float:
+        return self._s9().field_strength_ut
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-serialisable snapshot."""
+        return {
+            "initialised": self.initialised, "locked": self.locked,
+            "q": self.q.tolist(), "b": self.b.tolist(), "a_sensor": self.a_sensor.tolist(),
+            "inclination_deg": self.inclination_deg, "m_global": self.m_global.tolist(),
+            "qw": self.qw.tolist(),
+        }
+
+    def load_dict(self, d: dict[str, Any]) -> None:
+        self.initialised = bool(d["initialised"])
+        self.locked = bool(d["locked"])
+        self.q = np.array(d["q"], dtype=float)
+        self.b = np.array(d["b"], dtype=float)
+        self.a_sensor = np.array(d["a_sensor"], dtype=float)
+        self.inclination_deg = float(d["inclination_deg"])
+        self.m_global = np.array(d["m_global"], dtype=float)
+        qw = np.array(d["qw"], dtype=float)
+        if qw.shape != (self.n, self.n):
+            raise ValueError(f"covariance shape {qw.shape} does not fit a {self.n}-state filter")
+        self.qw = qw
+
+    # -- one Kalman step ----------------------------------------------------------------------
+
+    def step(self, accel_g: FloatArray, gyro_fast_dps: FloatArray,
+             mag_ut: FloatArray | None = None) -> KalmanStep:
+        """One Kalman pass.
+
+        ``gyro_fast_dps`` holds the oversample_ratio buffered gyro samples (rows, deg/s) of
+        the window just ended; ``accel_g`` and ``mag_ut`` are the measurements the step fuses.
+        """
+        s = self.s
+        cs = s.coordinate_system
+        accel = np.asarray(accel_g, dtype=float)
+        gyro = np.atleast_2d(np.asarray(gyro_fast_dps, dtype=float))
+        if self.use_mag and mag_ut is None:
+            raise ValueError("the 9DOF filter needs a magnetometer reading")
+        mag = np.asarray(mag_ut, dtype=float) if mag_ut is not None else np.zeros(3)
+
+        if not self.initialised:
+            self._init_state()
+            self.initialised = True
+            return self._result(False, np.zeros(3), False)
+
+        if not self.locked:
+            if self.use_mag:
+                r0, self.inclination_deg = ecompass(cs, accel, mag)
+            else:
+                r0 = tilt_matrix(cs, accel)
+            self.q = quat_from_matrix_fsl(r0)
+            self.locked = True
+
+        omega = gyro.mean(axis=0) - self.b
+
+        # a priori orientation: integrate each fast gyro sample (quaternions accumulate right)
+        q_mi = self.q.copy()
+        for y in gyro:
+            q_mi = quat_mul(q_mi, quat_from_rotvec_deg((y - self.b) * s.fast_dt_s))
+        r_mi = matrix_from_quat(q_mi)
+
+        # gyro-predicted gravity and geomagnetic vectors in the sensor frame
+        g_gyro = r_mi[:, 2] if cs is CoordinateSystem.NED else -r_mi[:, 2]
+        a_mi = s.accel_decay * self.a_sensor
+        g_accel = accel if cs.gravity_positive else -accel
+        g_err = g_accel + a_mi - g_gyro
+        m_gyro = r_mi @ self.m_global
+        m_err = mag - m_gyro
+
+        c = self._measurement_matrix(g_gyro, m_gyro)
+        k = self._gain(c)
+
+        # a posteriori error vector; d always sees both measurements
+        xe = k[:, :3] @ g_err
+        jamming = False
+        if self.use_mag:
+            xe[D] += k[D, 3:] @ m_err
+            field = self._field()
+            jamming = bool(xe[D] @ xe[D] > 4.0 * field * field)
+            if not jamming:
+                xe[:9] += k[:9, 3:] @ m_err
+
+        # apply the corrections
+        q_pl = quat_mul(q_mi, quat_from_rotvec_deg(-xe[TH]))
+        self.q = normalise_positive(q_pl)
+        self.b = self.b - xe[B]
+        self.a_sensor = a_mi - xe[A]
+        r_pl = matrix_from_quat(self.q)
+
+        if self.use_mag and not jamming:
+            self._track_inclination(r_pl.T @ xe[D])
+
+        self._update_covariance(k, c)
+        return self._result(True, omega, jamming, accel=accel, r_pl=r_pl)
+
+    def _measurement_matrix(self, g_gyro: FloatArray, m_gyro: FloatArray) -> FloatArray:
+        """C: how the error vector shows in the measurement error (gravity; geomagnetism).
+
+        An orientation error theta (deg) changes a predicted sensor-frame vector v by
+        -(pi/180) [v]x theta... seen from the measurement side: +(pi/180) [theta]x v; the
+        offset error acts through the orientation it accumulates over one Kalman interval.
+        """
+        dt = self.s.kalman_dt_s
+        c = np.zeros((6 if self.use_mag else 3, self.n))
+        c[0:3, TH] = -DEG * skew(g_gyro)
+        c[0:3, B] = dt * DEG * skew(g_gyro)
+        c[0:3, A] = np.eye(3)
+        if self.use_mag:
+            c[3:6, TH] = -DEG * skew(m_gyro)
+            c[3:6, B] = dt * DEG * skew(m_gyro)
+            c[3:6, D] = -np.eye(3)
+        return c
+
+    def _measurement_noise(self) -> FloatArray:
+        """Qv: sensor noise plus the process noise the one-step prediction adds (diagonal)."""
+        s = self.s
+        dt2 = s.kalman_dt_s**2
+        gyro_var = s.qw_gyro_offset_dps2 + s.qv_gyro_dps2
+        qv_aa = s.qv_accel_g2 + s.qw_accel_g2 + DEG * DEG * dt2 * gyro_var
+        if not self.use_mag:
+            return np.full(3, qv_aa)
+        s9 = self._s9()
+        field = s9.field_strength_ut
+        qv_mm = s9.qv_mag_ut2 + s9.qw_mag_disturbance_ut2 + DEG * DEG * dt2 * field**2 * gyro_var
+        return np.array([qv_aa] * 3 + [qv_mm] * 3)
+
+    def _gain(self, c: FloatArray) -> FloatArray:
+        """K = Qw C^T S^-1 with S = C Qw C^T + Qv (Qw stands in for the a priori P)."""
+        qw_ct = self.qw @ c.T
+        innov = c @ qw_ct + np.diag(self._measurement_noise())
+        innov = np.triu(innov) + np.triu(innov, 1).T  # the reference fills S from its top half
+        if self.use_mag and not self._s9().full_innovation_inverse:
+            # build 422: only the gravity block is inverted in place; the rest stays S
+            inv = innov.copy()
+            inv[:3, :3] = _inverse_or_identity(innov[:3, :3])
+        else:
+            inv = _inverse_or_identity(innov)
+        return qw_ct @ inv
+
+    def _track_inclination(self, d_global: FloatArray) -> None:
+        """Rotate the reference geomagnetic vector towards the observed disturbance, keeping
+        its length B and its north component non-negative, the dip within +-max inclination."""
+        s9 = self._s9()
+        ned = s9.coordinate_system is CoordinateSystem.NED
+        north, sign_down = (0, 1.0) if ned else (1, -1.0)
+        down = sign_down * (self.m_global[2] - d_global[2])
+        horiz = max(self.m_global[north] - d_global[north], 0.0)
+        hyp = math.hypot(down, horiz)
+        if hyp == 0.0:
+            return
+        sin_d, cos_d = down / hyp, horiz / hyp
+        lim = math.radians(s9.max_inclination_deg)
+        if abs(sin_d) > math.sin(lim):
+            sin_d, cos_d = math.copysign(math.sin(lim), sin_d), math.cos(lim)
+        self.inclination_deg = math.degrees(math.asin(max(-1.0, min(1.0, sin_d))))
+        self.m_global[north] = s9.field_strength_ut * cos_d
+        self.m_global[2] = sign_down * s9.field_strength_ut * sin_d
+
+    def _update_covariance(self, k: FloatArray, c: FloatArray) -> None:
+        """P+ = Qw - K C Qw (upper triangle, mirrored as the reference does), then the next
+        Qw from P+'s diagonal: the offset random walk feeds the orientation error over dt."""
+        s = self.s
+        full = self.qw - k @ (c @ self.qw)
+        p = np.triu(full) + np.triu(full, 1).T
+        dt = s.kalman_dt_s
+        qw = np.zeros_like(self.qw)
+        for i in range(3):
+            qw[3 + i, 3 + i] = p[3 + i, 3 + i] + s.qw_gyro_offset_dps2
+            qw[i, i] = p[i, i] + dt * dt * (p[3 + i, 3 + i] + s.qw_gyro_offset_dps2
+                                             + s.qv_gyro_dps2)
+            qw[i, 3 + i] = qw[3 + i, i] = -dt * qw[3 + i, 3 + i]
+            qw[6 + i, 6 + i] = s.accel_decay**2 * p[6 + i, 6 + i] + s.qw_accel_g2
+            if self.use_mag:
+                s9 = self._s9()
+                qw[9 + i, 9 + i] = (s9.disturbance_decay**2 * p[9 + i, 9 + i]
+                                    + s9.qw_mag_disturbance_ut2)
+        self.qw = qw
+
+    def _result(self, valid: bool, omega: FloatArray, jamming: bool, *,
+                accel: FloatArray | None = None, r_pl: FloatArray | None = None) -> KalmanStep:
+        cs = self.s.coordinate_system
+        r = matrix_from_quat(self.q) if r_pl is None else r_pl
+        lin = np.zeros(3)
+        if accel is not None:
+            lin = r.T @ accel
+            if cs is CoordinateSystem.NED:
+                lin = -(lin - np.array([0.0, 0.0, 1.0]))
+            elif cs is CoordinateSystem.ANDROID:
+                lin = lin - np.array([0.0, 0.0, 1.0])
+            else:
+                lin = -(lin + np.array([0.0, 0.0, 1.0]))
+        euler = (euler_angles_deg(cs, r) if valid
+                 else {"phi": 0.0, "theta": 0.0, "psi": 0.0, "rho": 0.0, "chi": 0.0})
+        return KalmanStep(
+            valid=valid, q_sensor_to_global=self.q.copy(), euler_deg=euler,
+            gyro_offset_dps=self.b.copy(), omega_dps=np.asarray(omega, dtype=float).copy(),
+            linear_accel_sensor_g=self.a_sensor.copy(), linear_accel_global_g=lin,
+            inclination_deg=self.inclination_deg, mag_jamming=jamming,
+        )
+
+
+def _inverse_or_identity(m: FloatArray) -> FloatArray:
+    """Inverse of ``m``; identity if singular (what the reference's Gauss-Jordan returns)."""
+    try:
+        return np.linalg.inv(m)
+    except np.linalg.LinAlgError:
+        return np.eye(m.shape[0])

@@ -1,0 +1,96 @@
+"""Settings of the Freescale Kalman filters: timing, coordinate system and fusion.h tuning.
+
+Units are the reference's own, because the tuning constants are variances in those units:
+g (accelerometer), uT (magnetometer), deg/s (gyro), degrees (orientation error). Each field
+names the fusion.h / build.h constant it stands for; defaults are those of build 422.
+"""
+
+from __future__ import annotations
+
+from pydantic import Field, model_validator
+
+from imuhal.estimation.base import EstimatorSettings
+from imuhal_filters.freescale.coords import CoordinateSystem
+
+
+class FreescaleCommonSettings(EstimatorSettings):
+    """What the 6DOF and 9DOF filters share."""
+
+    sensor_rate_hz: float = Field(default=200.0, gt=0.0)
+    """SENSORFS: the rate of the gyro samples; each is integrated over 1 / sensor_rate_hz."""
+    oversample_ratio: int = Field(default=8, ge=1, le=64)
+    """OVERSAMPLE_RATIO: gyro samples per Kalman step (200 Hz / 8 = 25 Hz Kalman)."""
+    coordinate_system: CoordinateSystem = CoordinateSystem.NED
+    """THISCOORDSYSTEM. Estimators always take body-NED samples and emit body -> NED
+    quaternions; this only chooses which of the reference's equivalent formulations runs."""
+    accel_mag_input: str = Field(default="latest", pattern="^(latest|average)$")
+    """What the Kalman step measures: ``latest`` is the reference (the newest fast accel and
+    mag sample, "to reduce phase errors"); ``average`` uses the mean of the decimation window."""
+    initialise_on_first_step: bool = True
+    """Reference start-up: the first Kalman step only initialises (no estimate); the second
+    locks to the accelerometer tilt (6DOF) or eCompass (9DOF) and fuses."""
+
+    qv_accel_g2: float = Field(default=2e-6, gt=0.0)
+    """FQVA: accelerometer noise variance (g^2)."""
+    qv_gyro_dps2: float = Field(default=0.3, gt=0.0)
+    """FQVG: gyro noise variance ((deg/s)^2)."""
+    qw_gyro_offset_dps2: float = Field(default=1e-9, ge=0.0)
+    """FQWB: gyro offset random-walk variance per step ((deg/s)^2)."""
+    qw_accel_g2: float = Field(default=1e-4, gt=0.0)
+    """FQWA: linear acceleration drift variance (g^2)."""
+    qw_init_theta_deg2: float = Field(default=2000e-5, ge=0.0)
+    """FQWINITTHTH: initial orientation error variance (deg^2)."""
+    qw_init_offset_dps2: float = Field(default=250e-3, ge=0.0)
+    """FQWINITBB: initial gyro offset error variance ((deg/s)^2)."""
+    qw_init_theta_offset: float = 0.0
+    """FQWINITTHB: initial orientation / gyro offset covariance (deg^2/s)."""
+    qw_init_accel_g2: float = Field(default=10e-5, ge=0.0)
+    """FQWINITAA: initial linear acceleration error variance (g^2)."""
+    accel_decay: float = Field(default=0.5, ge=0.0, le=1.0)
+    """FCA: per-step decay of the linear acceleration estimate (Markov process)."""
+
+    @property
+    def fast_dt_s(self) -> float:
+        return 1.0 / self.sensor_rate_hz
+
+    @property
+    def kalman_dt_s(self) -> float:
+        return self.oversample_ratio / self.sensor_rate_hz
+
+
+class Freescale6DofSettings(FreescaleCommonSettings):
+    """COMPUTE_6DOF_GY_KALMAN: accelerometer + gyro, 9-element error vector."""
+
+
+class Freescale9DofSettings(FreescaleCommonSettings):
+    """COMPUTE_9DOF_GBY_KALMAN: accelerometer + magnetometer + gyro, 12-element error vector.
+
+    The magnetometer must already be calibrated (hard and soft iron removed): the reference
+    here runs with its calibration forced valid (offset 0, inverse soft iron identity) and
+    ``field_strength_ut`` as the fitted field B.
+    """
+
+    qv_mag_ut2: float = Field(default=0.1, gt=0.0)
+    """FQVM: magnetometer noise variance (uT^2)."""
+    qw_mag_disturbance_ut2: float = Field(default=0.5, gt=0.0)
+    """FQWD: magnetic disturbance drift variance (uT^2)."""
+    qw_init_disturbance_ut2: float = Field(default=600e-3, ge=0.0)
+    """FQWINITDD: initial magnetic disturbance error variance (uT^2)."""
+    disturbance_decay: float = Field(default=0.5, ge=0.0, le=1.0)
+    """FCD: per-step decay of the magnetic disturbance estimate."""
+    max_inclination_deg: float = Field(default=65.0, gt=0.0, le=90.0)
+    """SINDELTAMAX / COSDELTAMAX: the tracked geomagnetic inclination is clamped to +-this."""
+    field_strength_ut: float = Field(default=50.0, gt=0.0)
+    """B (uT): DEFAULTB and the magnetic calibration's fitted field. Sets the reference
+    geomagnetic vector's length, the jamming threshold |d|^2 > (2 B)^2 and the
+    magnetometer term of the measurement noise."""
+    full_innovation_inverse: bool = False
+    """Build 422 inverts only the top-left 3x3 block of the 6x6 innovation covariance
+    (``fmatrixAeqInvA(..., 3)``) and uses the other blocks uninverted; False reproduces that.
+    True inverts the whole 6x6 matrix (the textbook Kalman gain; not the reference)."""
+
+    @model_validator(mode="after")
+    def _positive_field(self) -> Freescale9DofSettings:
+        if not self.field_strength_ut > 0.0:
+            raise ValueError("field_strength_ut must be positive")
+        return self
