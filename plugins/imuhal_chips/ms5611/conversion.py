@@ -195,7 +195,7 @@ def _closest_raw(value_of: Callable[[int], int], target: float) -> int:
             hi = mid
         else:
             lo = mid + 1
-    if lo > 1 and abs(value_of(lo - 1) - target) <= abs(value_of(lo) - target):
+    if lo > 1 and abs(value_of(lo - 1) - target) < abs(value_of(lo) - target):
         return lo - 1
     return lo
 
