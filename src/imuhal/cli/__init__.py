@@ -1,0 +1,1 @@
+"""The ``imuhal`` command line."""

@@ -1,0 +1,6 @@
+"""The pipeline: poll devices on one clock, decode, calibrate, rotate, estimate, sink."""
+
+from imuhal.pipeline.pipeline import Pipeline, RunSummary
+from imuhal.pipeline.sinks import CallbackSink, ConsoleSink, CsvSink, Sink
+
+__all__ = ["CallbackSink", "ConsoleSink", "CsvSink", "Pipeline", "RunSummary", "Sink"]

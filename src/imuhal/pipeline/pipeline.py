@@ -1,0 +1,310 @@
+"""The pipeline: one clock, every device polled when it asks to be, every sample through the
+same steps, estimators fed only valid body-frame samples, sinks fed everything.
+
+Embedding: ``Pipeline.open(profile, registry, emulate="thermal")`` then iterate
+``pipeline.events(duration_s)`` (samples and estimates in time order) or call
+``pipeline.run(duration_s, sinks)``.
+"""
+
+from __future__ import annotations
+
+import heapq
+import time
+from collections import Counter
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from imuhal.bus.base import Bus, Link
+from imuhal.calibration.model import DeviceCalibration
+from imuhal.core.clock import Clock, MonotonicClock, SimulatedClock
+from imuhal.core.errors import BusError, ImuhalError, PluginError
+from imuhal.core.frames import FloatArray, parse_mount
+from imuhal.core.samples import Sample, SampleFlag
+from imuhal.drivers.base import DeviceIdentity, Driver
+from imuhal.emulation.board import EmulatedBoard
+from imuhal.estimation.base import Estimator
+from imuhal.estimation.outputs import Estimate
+from imuhal.pipeline.processing import calibrate, quality_flags, to_body
+from imuhal.pipeline.sinks import Sink
+from imuhal.pipeline.topology import device_order, split_bus_ref
+from imuhal.plugins.manager import Registry
+from imuhal.profile.model import BoardProfile
+
+Event = Sample | Estimate
+RECOVERY_BACKOFF_NS = 100_000_000
+"""After a failed recovery, wait this long before trying the device again (100 ms)."""
+
+
+@dataclass
+class DeviceRuntime:
+    name: str
+    driver: Driver
+    chip_to_body: FloatArray
+    calibration: DeviceCalibration | None
+    next_poll_ns: int = 0
+    bus_errors: int = 0
+    samples: int = 0
+    flagged: Counter[str] = field(default_factory=Counter)
+
+
+@dataclass
+class EstimatorRuntime:
+    name: str
+    estimator: Estimator
+    inputs: frozenset[str] | None
+    consumes: tuple[type, ...]
+    outputs: int = 0
+
+
+@dataclass
+class RunSummary:
+    simulated_s: float
+    wall_s: float
+    samples: dict[str, int]
+    flagged: dict[str, dict[str, int]]
+    bus_errors: dict[str, int]
+    estimates: dict[str, int]
+    warnings: list[str]
+
+    def describe(self) -> str:
+        lines = [f"ran {self.simulated_s:.1f} s in {self.wall_s:.2f} s wall time"]
+        for dev, n in self.samples.items():
+            bad = sum(self.flagged.get(dev, {}).values())
+            extra = f", {bad} flagged {dict(self.flagged[dev])}" if bad else ""
+            errs = self.bus_errors.get(dev, 0)
+            lines.append(f"  {dev}: {n} samples{extra}" + (f", {errs} bus errors" if errs else ""))
+        for est, n in self.estimates.items():
+            lines.append(f"  {est}: {n} estimates")
+        lines += [f"  warning: {w}" for w in self.warnings]
+        return "\n".join(lines)
+
+
+class Pipeline:
+    def __init__(
+        self,
+        profile: BoardProfile,
+        registry: Registry,
+        *,
+        clock: Clock,
+        buses: dict[str, Bus],
+        board: EmulatedBoard | None = None,
+    ) -> None:
+        self.profile = profile
+        self.registry = registry
+        self.clock = clock
+        self.buses = dict(buses)
+        self.board = board
+        self.warnings: list[str] = []
+        self.devices: dict[str, DeviceRuntime] = {}
+        self.estimators: list[EstimatorRuntime] = []
+        board_to_body = parse_mount(profile.board_to_body)
+        for name in device_order(profile):
+            cfg = profile.devices[name]
+            driver_cls = registry.drivers.get(cfg.driver)
+            driver = driver_cls(self._link(cfg.bus, cfg.address), cfg.settings, device=name,
+                                clock=clock)
+            identity = driver.probe()
+            driver.identity = identity
+            driver.configure()
+            self.devices[name] = DeviceRuntime(
+                name=name,
+                driver=driver,
+                chip_to_body=board_to_body @ parse_mount(cfg.mount),
+                calibration=self._checked_calibration(name, cfg.bus, cfg.calibration,
+                                                      identity, driver_cls.calibration_version),
+            )
+        for name, ecfg in profile.estimators.items():
+            est_cls = registry.estimators.get(ecfg.estimator)
+            self.estimators.append(EstimatorRuntime(
+                name=name,
+                estimator=est_cls(ecfg.settings, instance=name),
+                inputs=frozenset(ecfg.inputs) if ecfg.inputs is not None else None,
+                consumes=tuple(est_cls.consumes),
+            ))
+
+    # -- construction -------------------------------------------------------------------
+
+    @classmethod
+    def open(
+        cls,
+        profile: BoardProfile,
+        registry: Registry,
+        *,
+        emulate: str | None = None,
+        realtime: bool = False,
+        seed: int | None = None,
+        scenario_params: dict[str, Any] | None = None,
+    ) -> Pipeline:
+        """Open the profile's real buses, or (``emulate=SCENARIO``) an emulated board."""
+        if emulate is None:
+            buses = {}
+            try:
+                for name, cfg in profile.buses.items():
+                    factory = registry.buses.get(cfg.kind)
+                    settings = factory.Settings.model_validate(cfg.plugin_settings())
+                    buses[name] = factory.open(name, settings)
+                return cls(profile, registry, clock=MonotonicClock(), buses=buses)
+            except BaseException:
+                for bus in buses.values():
+                    bus.close()
+                raise
+        clock = SimulatedClock(realtime=realtime)
+        scenario_cls = registry.scenarios.get(emulate)
+        params = dict(profile.emulation.scenario_params) if emulate == profile.emulation.scenario \
+            else {}
+        params.update(scenario_params or {})
+        scenario = scenario_cls(params or None,
+                                seed=profile.emulation.seed if seed is None else seed)
+        board = EmulatedBoard(profile, registry, clock, scenario, _chip_to_body(profile))
+        board.update(0)
+        return cls(profile, registry, clock=clock, buses=dict(board.buses), board=board)
+
+    def _link(self, bus_ref: str, address: int) -> Link:
+        parent, child = split_bus_ref(bus_ref)
+        if child is None:
+            return self.buses[parent].link(address)
+        provided = self.devices[parent].driver.child_buses()
+        if child not in provided:
+            raise PluginError(
+                f"device {parent!r} ({self.devices[parent].driver.name}) provides no bus "
+                f"{child!r}; it provides: {', '.join(provided) or 'none'}"
+            )
+        return provided[child].link(address)
+
+    def _checked_calibration(
+        self, device: str, bus_ref: str, cal: DeviceCalibration | None,
+        identity: DeviceIdentity, version: int,
+    ) -> DeviceCalibration | None:
+        if cal is None:
+            return None
+        kept = {}
+        for channel in ("accel", "gyro", "mag"):
+            record = getattr(cal, channel)
+            if record is None:
+                continue
+            b = record.binding
+            if b is not None:
+                found = (identity.driver, bus_ref, identity.address, identity.identity, version)
+                wanted = (b.driver, b.bus, b.address, b.identity, b.calibration_version)
+                if found != wanted:
+                    self.warnings.append(
+                        f"{device}: stored {channel} calibration was measured on "
+                        f"{b.driver} at {b.bus}/0x{b.address:02X} ({b.identity}, calibration "
+                        f"version {b.calibration_version}) but this is {identity.driver} at "
+                        f"{bus_ref}/0x{identity.address:02X} ({identity.identity}, version "
+                        f"{version}); NOT applied - recalibrate with `imuhal calibrate`"
+                    )
+                    continue
+            kept[channel] = record
+        return DeviceCalibration(**kept)
+
+    # -- running ------------------------------------------------------------------------
+
+    def events(self, duration_s: float | None = None) -> Iterator[Event]:
+        """Samples (body frame, flagged ones included) and estimates, in time order."""
+        start = self.clock.now_ns()
+        end = None if duration_s is None else start + round(duration_s * 1e9)
+        heap: list[tuple[int, int, str]] = []
+        for seq, (name, dev) in enumerate(self.devices.items()):
+            dev.next_poll_ns = dev.driver.start(start)
+            heapq.heappush(heap, (dev.next_poll_ns, seq, name))
+        order = {name: i for i, name in enumerate(self.devices)}
+        while heap:
+            t_ns, _, name = heapq.heappop(heap)
+            if end is not None and t_ns > end:
+                break
+            self.clock.sleep_until(t_ns)
+            if self.board is not None:
+                self.board.update(t_ns)
+            dev = self.devices[name]
+            try:
+                result = dev.driver.poll(t_ns)
+                samples, next_ns = result.samples, result.next_poll_ns
+            except BusError:
+                dev.bus_errors += 1
+                dev.driver.health.bus_errors += 1
+                samples, next_ns = [], self._recover(dev, t_ns)
+            for raw in samples:
+                yield from self._process(dev, raw)
+            heapq.heappush(heap, (max(next_ns, t_ns + 1), order[name], name))
+
+    def _recover(self, dev: DeviceRuntime, t_ns: int) -> int:
+        try:
+            return dev.driver.recover(t_ns)
+        except ImuhalError as exc:
+            self.warnings.append(f"{dev.name}: recovery failed at t={t_ns / 1e9:.3f} s: {exc}")
+            return t_ns + RECOVERY_BACKOFF_NS
+
+    def _process(self, dev: DeviceRuntime, raw: Sample) -> Iterator[Event]:
+        flags = quality_flags(raw)
+        sample = raw if flags == raw.flags else raw.flagged(flags)
+        dev.samples += 1
+        if sample.valid:
+            sample = calibrate(sample, dev.calibration)
+        sample = to_body(sample, dev.chip_to_body)
+        if not sample.valid:
+            for flag in SampleFlag:
+                if flag and flag in sample.flags:
+                    dev.flagged[flag.name or str(flag)] += 1
+            yield sample
+            return
+        yield sample
+        yield from self._estimate(sample)
+
+    def _estimate(self, item: Event) -> Iterator[Event]:
+        pending: list[Event] = [item]
+        while pending:
+            current = pending.pop(0)
+            source = current.device if isinstance(current, Sample) else current.source
+            for est in self.estimators:
+                if est.inputs is not None and source not in est.inputs:
+                    continue
+                if source == est.name or not isinstance(current, est.consumes):
+                    continue
+                for out in est.estimator.process(current):
+                    est.outputs += 1
+                    yield out
+                    pending.append(out)
+
+    def run(self, duration_s: float | None, sinks: Sequence[Sink] = ()) -> RunSummary:
+        """Run for ``duration_s`` simulated (or real) seconds, feeding every sink."""
+        wall0 = time.perf_counter()
+        t0 = self.clock.now_ns()
+        try:
+            for event in self.events(duration_s):
+                for sink in sinks:
+                    sink.handle(event)
+        finally:
+            for sink in sinks:
+                sink.close()
+        return self.summary(wall_s=time.perf_counter() - wall0,
+                            simulated_s=(self.clock.now_ns() - t0) / 1e9)
+
+    def summary(self, *, wall_s: float = 0.0, simulated_s: float = 0.0) -> RunSummary:
+        return RunSummary(
+            simulated_s=simulated_s,
+            wall_s=wall_s,
+            samples={n: d.samples for n, d in self.devices.items()},
+            flagged={n: dict(d.flagged) for n, d in self.devices.items()},
+            bus_errors={n: d.bus_errors for n, d in self.devices.items()},
+            estimates={e.name: e.outputs for e in self.estimators},
+            warnings=list(self.warnings),
+        )
+
+    def close(self) -> None:
+        for bus in self.buses.values():
+            bus.close()
+
+    def __enter__(self) -> Pipeline:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _chip_to_body(profile: BoardProfile) -> dict[str, FloatArray]:
+    board_to_body = parse_mount(profile.board_to_body)
+    return {n: board_to_body @ parse_mount(d.mount) for n, d in profile.devices.items()
+            if d.enabled}
+

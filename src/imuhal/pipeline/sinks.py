@@ -1,0 +1,212 @@
+"""Where pipeline events go: a live console line, a CSV log, or your own callback.
+
+CSV format (docs/output-csv.md): one row per event; ``kind`` says which columns it fills.
+Columns carry their unit and frame: body-frame NED samples, body -> NED quaternions.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import IO, Protocol
+
+from imuhal.core.samples import (
+    AccelSample,
+    GyroSample,
+    MagSample,
+    PressureSample,
+    Sample,
+    TemperatureSample,
+)
+from imuhal.estimation.outputs import AttitudeEstimate, Estimate, VerticalEstimate
+
+Event = Sample | Estimate
+
+CSV_COLUMNS = (
+    "t_s", "source", "kind", "flags",
+    "ax_m_s2", "ay_m_s2", "az_m_s2",
+    "gx_rad_s", "gy_rad_s", "gz_rad_s",
+    "mx_ut", "my_ut", "mz_ut",
+    "pressure_pa", "temperature_degc",
+    "qw", "qx", "qy", "qz", "roll_deg", "pitch_deg", "yaw_deg",
+    "lin_an_m_s2", "lin_ae_m_s2", "lin_ad_m_s2",
+    "altitude_m", "climb_m_s", "accel_bias_m_s2",
+)
+
+
+class Sink(Protocol):
+    def handle(self, event: Event) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class CallbackSink:
+    """Calls ``fn(event)`` for every event (or only for estimates with ``estimates_only``)."""
+
+    def __init__(self, fn: Callable[[Event], None], *, estimates_only: bool = False) -> None:
+        self.fn = fn
+        self.estimates_only = estimates_only
+
+    def handle(self, event: Event) -> None:
+        if self.estimates_only and not isinstance(event, Estimate):
+            return
+        self.fn(event)
+
+    def close(self) -> None:
+        return None
+
+
+def event_row(event: Event) -> dict[str, str]:
+    """The CSV row of one event: only the columns its kind fills."""
+    row: dict[str, str] = {}
+    if isinstance(event, Sample):
+        row["t_s"] = f"{event.t_ns / 1e9:.6f}"
+        row["source"] = event.device
+        row["kind"] = event.channel.value
+        row["flags"] = str(int(event.flags))
+        if isinstance(event, AccelSample):
+            _put(row, ("ax_m_s2", "ay_m_s2", "az_m_s2"), event.accel_m_s2)
+        elif isinstance(event, GyroSample):
+            _put(row, ("gx_rad_s", "gy_rad_s", "gz_rad_s"), event.gyro_rad_s)
+        elif isinstance(event, MagSample):
+            _put(row, ("mx_ut", "my_ut", "mz_ut"), event.mag_ut)
+        elif isinstance(event, PressureSample):
+            _put(row, ("pressure_pa",), (event.pressure_pa,))
+        elif isinstance(event, TemperatureSample):
+            _put(row, ("temperature_degc",), (event.temperature_degc,))
+        return row
+    row["t_s"] = f"{event.t_ns / 1e9:.6f}"
+    row["source"] = event.source
+    row["flags"] = "0"
+    if isinstance(event, AttitudeEstimate):
+        row["kind"] = "attitude"
+        _put(row, ("qw", "qx", "qy", "qz"), event.q_body_to_ned)
+        _put(row, ("roll_deg", "pitch_deg", "yaw_deg"), event.roll_pitch_yaw_deg)
+        if event.linear_accel_ned_m_s2 is not None:
+            _put(row, ("lin_an_m_s2", "lin_ae_m_s2", "lin_ad_m_s2"), event.linear_accel_ned_m_s2)
+    elif isinstance(event, VerticalEstimate):
+        row["kind"] = "vertical"
+        _put(row, ("altitude_m", "climb_m_s"), (event.altitude_m, event.climb_m_s))
+        if event.accel_bias_m_s2 is not None:
+            _put(row, ("accel_bias_m_s2",), (event.accel_bias_m_s2,))
+    else:
+        row["kind"] = type(event).__name__
+    return row
+
+
+def _put(row: dict[str, str], names: tuple[str, ...], values: tuple[float, ...]) -> None:
+    for name, value in zip(names, values, strict=True):
+        row[name] = repr(float(value)) if math.isfinite(value) else "nan"
+
+
+class CsvSink:
+    """Writes events to a CSV file atomically: rows go to a temporary file in the same
+    folder, which replaces ``path`` (after flush and fsync) only when the run closes, so an
+    interrupted run never leaves a half-written log under the final name."""
+
+    def __init__(self, path: str | os.PathLike[str], *, include_samples: bool = False) -> None:
+        self.path = Path(path)
+        self.include_samples = include_samples
+        self.rows = 0
+        folder = self.path.parent if str(self.path.parent) else Path(".")
+        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=folder)
+        self._tmp = Path(tmp)
+        self._file: IO[str] | None = os.fdopen(fd, "w", newline="", encoding="utf-8")
+        self._writer = csv.DictWriter(self._file, fieldnames=CSV_COLUMNS, restval="")
+        self._writer.writeheader()
+
+    def handle(self, event: Event) -> None:
+        if isinstance(event, Sample) and not self.include_samples:
+            return
+        self._writer.writerow(event_row(event))
+        self.rows += 1
+
+    def close(self) -> None:
+        if self._file is None:
+            return
+        self._file.flush()
+        os.fsync(self._file.fileno())
+        self._file.close()
+        self._file = None
+        os.replace(self._tmp, self.path)
+
+    def abort(self) -> None:
+        """Drop the temporary file; ``path`` keeps whatever it had before."""
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+        self._tmp.unlink(missing_ok=True)
+
+
+class ConsoleSink:
+    """A live one-line status: latest altitude, climb rate and attitude, refreshed a few
+    times per second of wall time (or every ``every_s`` simulated seconds when not a TTY)."""
+
+    def __init__(self, stream: IO[str] | None = None, *, every_s: float = 1.0) -> None:
+        self.stream = stream if stream is not None else sys.stdout
+        self.tty = getattr(self.stream, "isatty", lambda: False)()
+        self.every_ns = round(every_s * 1e9)
+        self._last_print_ns: int | None = None
+        self._last_wall = 0.0
+        self.vertical: VerticalEstimate | None = None
+        self.attitude: AttitudeEstimate | None = None
+        self.flagged = 0
+
+    def handle(self, event: Event) -> None:
+        if isinstance(event, VerticalEstimate):
+            self.vertical = event
+        elif isinstance(event, AttitudeEstimate):
+            self.attitude = event
+        elif isinstance(event, Sample) and not event.valid:
+            self.flagged += 1
+        t_ns = event.t_ns
+        if self.tty:
+            now = time.monotonic()
+            if now - self._last_wall < 0.2:
+                return
+            self._last_wall = now
+        elif self._last_print_ns is not None and t_ns - self._last_print_ns < self.every_ns:
+            return
+        self._last_print_ns = t_ns
+        self._emit(self.status_line(t_ns))
+
+    def status_line(self, t_ns: int) -> str:
+        parts = [f"t={t_ns / 1e9:8.2f} s"]
+        if self.vertical is not None:
+            v = self.vertical
+            parts.append(f"alt {v.altitude_m:8.2f} m  climb {v.climb_m_s:+6.2f} m/s")
+        if self.attitude is not None:
+            r, p, y = self.attitude.roll_pitch_yaw_deg
+            parts.append(f"roll {r:+6.1f} pitch {p:+6.1f} yaw {y:+7.1f} deg")
+        if self.flagged:
+            parts.append(f"flagged {self.flagged}")
+        return "  ".join(parts)
+
+    def _emit(self, line: str) -> None:
+        if self.tty:
+            self.stream.write("\r" + line + "\x1b[K")
+        else:
+            self.stream.write(line + "\n")
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.tty:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+def rows_as_text(events: list[Event]) -> str:
+    """The CSV text for ``events`` (header included); handy in tests and notebooks."""
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=CSV_COLUMNS, restval="")
+    writer.writeheader()
+    for e in events:
+        writer.writerow(event_row(e))
+    return buf.getvalue()

@@ -1,0 +1,218 @@
+"""Loading and checking board profiles, reporting every problem at once with its location.
+
+Two passes: the board schema (profile/model.py), then each bus, device and estimator against
+the Settings model of the plugin it names. Both passes collect problems instead of stopping at
+the first, and each problem reads ``file:line:column: path: what is wrong (value); allowed``.
+"""
+
+from __future__ import annotations
+
+import types
+import typing
+from pathlib import Path as FsPath
+from typing import Any
+
+import yaml
+from pydantic import BaseModel, ValidationError
+
+from imuhal.bus.base import BusKind
+from imuhal.core.errors import ProfileError
+from imuhal.plugins.manager import Registry
+from imuhal.profile.model import SCHEMA_VERSION, BoardProfile
+from imuhal.profile.yaml_source import LocatedDocument, Path, dotted, load_located
+
+
+def load_profile(path: str | FsPath, registry: Registry | None = None) -> BoardProfile:
+    """Load and fully validate a profile; raise ProfileError listing every problem."""
+    text, source = _read(path)
+    return parse_profile(text, source, registry)
+
+
+def parse_profile(text: str, source: str, registry: Registry | None = None) -> BoardProfile:
+    problems, profile = _check(text, source, registry)
+    if problems or profile is None:
+        raise ProfileError(source, problems)
+    return profile
+
+
+def check_profile(path: str | FsPath, registry: Registry | None = None) -> list[str]:
+    """Every problem in the profile at ``path`` (empty when it is valid)."""
+    try:
+        text, source = _read(path)
+    except ProfileError as exc:
+        return exc.problems
+    return _check(text, source, registry)[0]
+
+
+def _read(path: str | FsPath) -> tuple[str, str]:
+    p = FsPath(path)
+    try:
+        return p.read_text(encoding="utf-8"), str(p)
+    except FileNotFoundError:
+        raise ProfileError(str(p), ["file not found; give the path of a .yaml profile "
+                                    "(see profiles/ for examples)"]) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ProfileError(str(p), [f"cannot read: {exc}"]) from None
+
+
+def _check(text: str, source: str, registry: Registry | None) -> tuple[list[str], BoardProfile | None]:
+    try:
+        doc = load_located(text, source)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"{source}:{mark.line + 1}:{mark.column + 1}" if mark else source
+        problem = getattr(exc, "problem", None) or str(exc)
+        return [f"{where}: YAML syntax error: {problem}"], None
+    problems = list(doc.problems)
+    if not isinstance(doc.data, dict):
+        return [*problems, f"{source}:1:1: a profile is a YAML mapping with schema_version, "
+                f"name, buses and devices"], None
+    version = doc.data.get("schema_version")
+    if version is not None and version != SCHEMA_VERSION:
+        problems.append(
+            f"{doc.where(('schema_version',))}: schema_version: {version!r} is not supported; "
+            f"this imuhal reads schema_version {SCHEMA_VERSION}"
+        )
+        return problems, None
+    try:
+        profile = BoardProfile.model_validate(doc.data)
+    except ValidationError as exc:
+        problems += _describe(exc, doc, (), BoardProfile)
+        return problems, None
+    problems += _check_references(profile, doc)
+    if registry is not None:
+        problems += _check_plugins(profile, doc, registry)
+    return problems, (profile if not problems else None)
+
+
+def _describe(exc: ValidationError, doc: LocatedDocument, prefix: Path,
+              model: type[BaseModel]) -> list[str]:
+    out = []
+    for err in exc.errors(include_url=False):
+        loc = _clean_loc(err["loc"])
+        path = (*prefix, *loc)
+        where = doc.where(path)
+        kind = err["type"]
+        if kind == "extra_forbidden":
+            allowed = _allowed_keys(model, loc[:-1])
+            hint = f"; allowed keys: {', '.join(allowed)}" if allowed else ""
+            out.append(f"{where}: {dotted(path)}: unknown key{hint}")
+        elif kind == "missing":
+            out.append(f"{where}: {dotted(path)}: required key is missing; add it")
+        else:
+            value = err.get("input")
+            msg = err["msg"]
+            if isinstance(err.get("ctx"), dict) and "error" in err["ctx"]:
+                msg = str(err["ctx"]["error"])
+            out.append(f"{where}: {dotted(path)}: {msg} (found {value!r})")
+    return out
+
+
+def _clean_loc(loc: tuple[Any, ...]) -> Path:
+    # pydantic inserts union-branch tags such as 'str' or 'list[list[float]]' into loc
+    return tuple(p for p in loc if not (isinstance(p, str) and ("[" in p or p in {"str"})))
+
+
+def _allowed_keys(model: type[BaseModel], loc: Path) -> list[str]:
+    target: Any = model
+    for part in loc:
+        if isinstance(target, type) and issubclass(target, BaseModel):
+            field = target.model_fields.get(str(part))
+            if field is None:
+                return []
+            target = _unwrap(field.annotation)
+        elif typing.get_origin(target) is dict:
+            target = _unwrap(typing.get_args(target)[1])
+        else:
+            return []
+    if isinstance(target, type) and issubclass(target, BaseModel):
+        return list(target.model_fields)
+    return []
+
+
+def _unwrap(annotation: Any) -> Any:
+    origin = typing.get_origin(annotation)
+    if origin in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(annotation) if a is not type(None)]
+        models = [a for a in args if isinstance(a, type) and issubclass(a, BaseModel)]
+        return models[0] if models else (args[0] if args else annotation)
+    return annotation
+
+
+def _check_references(profile: BoardProfile, doc: LocatedDocument) -> list[str]:
+    out = []
+    device_names = set(profile.devices)
+    for name, dev in profile.devices.items():
+        path: Path = ("devices", name, "bus")
+        if "/" in dev.bus:
+            parent = dev.bus.split("/", 1)[0]
+            if parent not in device_names:
+                out.append(f"{doc.where(path)}: {dotted(path)}: {dev.bus!r} names device "
+                           f"{parent!r}, which is not in devices ({', '.join(sorted(device_names))})")
+            elif parent == name:
+                out.append(f"{doc.where(path)}: {dotted(path)}: a device cannot sit on its own bus")
+        elif dev.bus not in profile.buses:
+            out.append(f"{doc.where(path)}: {dotted(path)}: no bus named {dev.bus!r}; "
+                       f"defined buses: {', '.join(sorted(profile.buses)) or 'none'}")
+    known = device_names | set(profile.estimators)
+    for name, est in profile.estimators.items():
+        for i, ref in enumerate(est.inputs or []):
+            if ref not in known:
+                path = ("estimators", name, "inputs", i)
+                out.append(f"{doc.where(path)}: {dotted(path)}: {ref!r} is neither a device nor "
+                           f"an estimator of this profile")
+    return out
+
+
+def _check_plugins(profile: BoardProfile, doc: LocatedDocument, registry: Registry) -> list[str]:
+    out: list[str] = []
+    bus_kinds: dict[str, BusKind | None] = {}
+    for name, bus in profile.buses.items():
+        path: Path = ("buses", name)
+        factory = registry.buses.entries.get(bus.kind)
+        if factory is None:
+            out.append(f"{doc.where((*path, 'kind'))}: {dotted((*path, 'kind'))}: unknown bus kind "
+                       f"{bus.kind!r}; installed: {', '.join(registry.buses.names())}")
+            bus_kinds[name] = None
+            continue
+        bus_kinds[name] = factory.obj.kind
+        try:
+            factory.obj.Settings.model_validate(bus.plugin_settings())
+        except ValidationError as exc:
+            out += _describe(exc, doc, path, factory.obj.Settings)
+    for name, dev in profile.devices.items():
+        path = ("devices", name)
+        reg = registry.drivers.entries.get(dev.driver)
+        if reg is None:
+            out.append(f"{doc.where((*path, 'driver'))}: {dotted((*path, 'driver'))}: no driver "
+                       f"named {dev.driver!r} is installed; installed: "
+                       f"{', '.join(registry.drivers.names()) or 'none'} (see `imuhal plugins`)")
+            continue
+        driver = reg.obj
+        kind = bus_kinds.get(dev.bus) if "/" not in dev.bus else BusKind.I2C
+        if kind is not None and kind not in driver.bus_kinds:
+            allowed = ", ".join(sorted(k.value for k in driver.bus_kinds))
+            out.append(f"{doc.where((*path, 'bus'))}: {dotted((*path, 'bus'))}: {dev.driver} "
+                       f"cannot sit on a {kind.value} bus; it supports: {allowed}")
+        try:
+            driver.Settings.model_validate(dev.settings)
+        except ValidationError as exc:
+            out += _describe(exc, doc, (*path, "settings"), driver.Settings)
+    for name, est in profile.estimators.items():
+        path = ("estimators", name)
+        reg_e = registry.estimators.entries.get(est.estimator)
+        if reg_e is None:
+            out.append(f"{doc.where((*path, 'estimator'))}: {dotted((*path, 'estimator'))}: no "
+                       f"estimator named {est.estimator!r} is installed; installed: "
+                       f"{', '.join(registry.estimators.names()) or 'none'}")
+            continue
+        try:
+            reg_e.obj.Settings.model_validate(est.settings)
+        except ValidationError as exc:
+            out += _describe(exc, doc, (*path, "settings"), reg_e.obj.Settings)
+    scenario = profile.emulation.scenario
+    if registry.scenarios.entries and scenario not in registry.scenarios.entries:
+        p: Path = ("emulation", "scenario")
+        out.append(f"{doc.where(p)}: {dotted(p)}: unknown scenario {scenario!r}; installed: "
+                   f"{', '.join(registry.scenarios.names())}")
+    return out

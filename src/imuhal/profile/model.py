@@ -1,0 +1,88 @@
+"""The board profile schema (version 1).
+
+A profile names the buses, the devices on them (driver, address, mount rotation, settings in
+physical units, stored calibration) and the estimators to run. This schema checks structure;
+driver, bus and estimator settings are checked by their plugins' own models after plugins load
+(see loader.py), so a third-party driver's settings get the same located errors.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from imuhal.calibration.model import DeviceCalibration
+from imuhal.core.frames import MountError, parse_mount
+
+SCHEMA_VERSION = 1
+MountSpec = str | list[list[float]]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+def _valid_mount(value: MountSpec) -> MountSpec:
+    try:
+        parse_mount(value)
+    except MountError as exc:
+        raise ValueError(str(exc)) from None
+    return value
+
+
+class BusConfig(BaseModel):
+    """``kind`` picks the bus plugin; the other keys are that plugin's settings."""
+
+    model_config = ConfigDict(extra="allow", frozen=True)
+    kind: str
+
+    def plugin_settings(self) -> dict[str, Any]:
+        return dict(self.model_extra or {})
+
+
+class DeviceConfig(_Strict):
+    driver: str
+    """Driver name as listed by ``imuhal plugins``."""
+    bus: str
+    """A bus name from ``buses``, or ``DEVICE/CHILD`` for a bus another chip provides
+    (e.g. ``imu/aux``: the MAX21100's I2C master)."""
+    address: int = Field(ge=0, le=0x3FF)
+    """I2C 7-bit address, or SPI chip select."""
+    mount: MountSpec = "+X+Y+Z"
+    """Rotation chip -> board: signed axes (``"-Y-X-Z"``: board x = -chip y, ...) or 3x3."""
+    settings: dict[str, Any] = Field(default_factory=dict)
+    calibration: DeviceCalibration | None = None
+    enabled: bool = True
+
+    _mount = field_validator("mount")(_valid_mount)
+
+
+class EstimatorConfig(_Strict):
+    estimator: str
+    """Estimator name as listed by ``imuhal plugins``."""
+    settings: dict[str, Any] = Field(default_factory=dict)
+    inputs: list[str] | None = None
+    """Devices and estimators whose output this one consumes; default: all."""
+
+
+class EmulationConfig(_Strict):
+    """How ``--emulate`` runs this board when no hardware is attached."""
+
+    scenario: str = "thermal"
+    seed: int = 1
+    scenario_params: dict[str, Any] = Field(default_factory=dict)
+
+
+class BoardProfile(_Strict):
+    schema_version: Literal[1]
+    name: str
+    description: str = ""
+    board_to_body: MountSpec = "+X+Y+Z"
+    """Rotation board -> body (NED body: x forward, y right, z down)."""
+    buses: dict[str, BusConfig]
+    devices: dict[str, DeviceConfig]
+    estimators: dict[str, EstimatorConfig] = Field(default_factory=dict)
+    emulation: EmulationConfig = Field(default_factory=EmulationConfig)
+
+    _mount = field_validator("board_to_body")(_valid_mount)

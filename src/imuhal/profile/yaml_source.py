@@ -1,0 +1,84 @@
+"""Safe YAML loading that remembers where every value came from (line and column).
+
+PyYAML's safe loader is used for scalars; composing the node tree first lets us keep each
+node's position, so a validation error on ``devices.imu.settings.odr_hz`` can point at the
+exact line. Duplicate mapping keys, which YAML silently collapses, are reported as errors.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import yaml
+
+Path = tuple[str | int, ...]
+
+
+@dataclass
+class LocatedDocument:
+    data: Any
+    source: str
+    positions: dict[Path, tuple[int, int]] = field(default_factory=dict)
+    problems: list[str] = field(default_factory=list)
+
+    def where(self, path: Path) -> str:
+        """``file:line:column`` of the deepest known prefix of ``path``."""
+        for n in range(len(path), -1, -1):
+            pos = self.positions.get(tuple(path[:n]))
+            if pos is not None:
+                return f"{self.source}:{pos[0]}:{pos[1]}"
+        return self.source
+
+
+class _Constructor(yaml.SafeLoader):
+    pass
+
+
+def load_located(text: str, source: str) -> LocatedDocument:
+    """Parse YAML text safely; raise yaml.YAMLError (with its own mark) on syntax errors."""
+    loader = _Constructor(text)
+    try:
+        node = loader.get_single_node()
+    finally:
+        loader.dispose()
+    doc = LocatedDocument(data=None, source=source)
+    if node is None:
+        return doc
+    constructor = yaml.SafeLoader("")
+    doc.data = _build(node, (), doc, constructor)
+    return doc
+
+
+def _build(node: yaml.Node, path: Path, doc: LocatedDocument, ctor: yaml.SafeLoader) -> Any:
+    doc.positions[path] = (node.start_mark.line + 1, node.start_mark.column + 1)
+    if isinstance(node, yaml.MappingNode):
+        ctor.flatten_mapping(node)
+        out: dict[Any, Any] = {}
+        for key_node, value_node in node.value:
+            key = ctor.construct_object(key_node, deep=True)
+            if key in out:
+                doc.problems.append(
+                    f"{source_pos(doc.source, key_node)}: {_dotted((*path, key))}: "
+                    "duplicate key (YAML would silently keep only the last one)"
+                )
+            child = (*path, key)
+            out[key] = _build(value_node, child, doc, ctor)
+            # Point errors about a missing/extra key at the key itself.
+            doc.positions.setdefault(child, (key_node.start_mark.line + 1,
+                                             key_node.start_mark.column + 1))
+        return out
+    if isinstance(node, yaml.SequenceNode):
+        return [_build(item, (*path, i), doc, ctor) for i, item in enumerate(node.value)]
+    return ctor.construct_object(node, deep=True)
+
+
+def source_pos(source: str, node: yaml.Node) -> str:
+    return f"{source}:{node.start_mark.line + 1}:{node.start_mark.column + 1}"
+
+
+def _dotted(path: Path) -> str:
+    return ".".join(str(p) for p in path) or "(top level)"
+
+
+dotted = _dotted
