@@ -1,0 +1,188 @@
+"""``vario-kf3``: altitude, climb rate and accelerometer bias from barometer + AHRS.
+
+Inputs (project units, converted to the cm-unit core at this boundary only):
+
+- PressureSample -> ISA altitude (m). Each valid one runs one filter step.
+- AttitudeEstimate with ``linear_accel_ned_m_s2``: the upward acceleration is ``-a_ned[2]``.
+- AttitudeEstimate without it: its quaternion is kept, and each valid body-frame AccelSample
+  is rotated into NED and gravity-compensated (``imuhal.estimation.gravity``) with the latest
+  quaternion. Once any AttitudeEstimate has carried a linear acceleration, AccelSamples are
+  ignored so the same acceleration is never counted twice.
+
+The IMU-rate upward accelerations are averaged over each barometer interval (low-pass and
+down-sample, as the seed does) and the filter runs predict(mean accel, dt) then update(altitude)
+once per valid pressure sample, dt from the pressure samples' ``t_ns``. The first valid
+pressure sample only initialises (altitude = measurement, climb 0, bias = initial_bias). An
+interval with no acceleration at all predicts with zero true acceleration (a_meas = bias
+estimate), i.e. it falls back to the constant-velocity model, and is counted.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar
+
+from imuhal.core.samples import AccelSample, Frame, PressureSample
+from imuhal.estimation.base import Estimator, EstimatorSettings
+from imuhal.estimation.gravity import vertical_accel_up_m_s2
+from imuhal.estimation.outputs import AttitudeEstimate, Estimate, VerticalEstimate
+from imuhal_filters.vario.baro_input import dt_s, usable_altitude_m
+from imuhal_filters.vario.downsample import IntervalMean
+from imuhal_filters.vario.kf3 import Kalman3
+from imuhal_filters.vario.kf3_settings import CM_PER_M, VarioKf3Settings, configured_core
+
+_COUNTERS = (
+    "fused",
+    "skipped_invalid",
+    "skipped_non_monotonic",
+    "restarts_after_gap",
+    "accel_samples_skipped_invalid",
+    "accel_samples_skipped_frame",
+    "accel_samples_without_attitude",
+    "intervals_without_accel",
+)
+
+
+class VarioKf3Estimator(Estimator):
+    """The seed's 3-state variometer Kalman filter (see ``imuhal_filters.vario.kf3``)."""
+
+    name: ClassVar[str] = "vario-kf3"
+    description: ClassVar[str] = (
+        "Altitude, climb rate and accelerometer bias: barometer fused with AHRS vertical "
+        "acceleration (3-state Kalman, Nair 2016)"
+    )
+    Settings: ClassVar[type[EstimatorSettings]] = VarioKf3Settings
+    consumes: ClassVar[tuple[type, ...]] = (PressureSample, AttitudeEstimate, AccelSample)
+    settings: VarioKf3Settings
+
+    def reset(self) -> None:
+        self._kf: Kalman3 | None = None
+        self._last_t_ns: int | None = None
+        self._accel = IntervalMean()
+        self._q: tuple[float, float, float, float] | None = None
+        self._attitude_has_linear_accel = False
+        self._counts = dict.fromkeys(_COUNTERS, 0)
+
+    # -- the filter steps, in project units -------------------------------------------------
+
+    def initialise(self, t_ns: int, altitude_m: float) -> None:
+        self._kf = configured_core(self.settings, altitude_m)
+        self._last_t_ns = t_ns
+        self._accel.take()  # acceleration before the first altitude belongs to no interval
+
+    def predict(self, accel_up_m_s2: float, dt_seconds: float) -> None:
+        """Propagate ``dt_seconds`` with the interval's mean upward acceleration (m/s^2)."""
+        assert self._kf is not None, "initialise first"
+        self._kf.predict(accel_up_m_s2 * CM_PER_M, dt_seconds)
+
+    def update(self, altitude_m: float) -> float:
+        """Fuse one barometric altitude (m); return the innovation (m)."""
+        assert self._kf is not None, "initialise first"
+        return self._kf.update(altitude_m * CM_PER_M) / CM_PER_M
+
+    # -- Estimator interface ----------------------------------------------------------------
+
+    def process(self, item: Any) -> list[Estimate]:
+        if isinstance(item, PressureSample):
+            return self._on_pressure(item)
+        if isinstance(item, AttitudeEstimate):
+            self._on_attitude(item)
+        elif isinstance(item, AccelSample):
+            self._on_accel(item)
+        return []
+
+    def _on_attitude(self, att: AttitudeEstimate) -> None:
+        wanted = self.settings.attitude_source
+        if wanted is not None and att.source != wanted:
+            return
+        if att.linear_accel_ned_m_s2 is not None:
+            self._attitude_has_linear_accel = True
+            self._accel.add(-float(att.linear_accel_ned_m_s2[2]))  # NED z is down
+        else:
+            self._q = att.q_body_to_ned
+
+    def _on_accel(self, sample: AccelSample) -> None:
+        if self._attitude_has_linear_accel:
+            return  # the AHRS already hands us this acceleration, compensated
+        if not sample.valid:
+            self._counts["accel_samples_skipped_invalid"] += 1
+        elif sample.frame is not Frame.BODY_NED:
+            self._counts["accel_samples_skipped_frame"] += 1
+        elif self._q is None:
+            self._counts["accel_samples_without_attitude"] += 1
+        else:
+            self._accel.add(vertical_accel_up_m_s2(self._q, sample.accel_m_s2))
+
+    def _on_pressure(self, sample: PressureSample) -> list[Estimate]:
+        altitude = usable_altitude_m(sample, self.settings.sea_level_pa)
+        if altitude is None:
+            self._counts["skipped_invalid"] += 1
+            return []
+        innovation = 0.0
+        if self._kf is None or self._last_t_ns is None:
+            self.initialise(sample.t_ns, altitude)
+        else:
+            dt = dt_s(sample.t_ns, self._last_t_ns)
+            if dt <= 0.0:
+                self._counts["skipped_non_monotonic"] += 1
+                return []
+            if dt > self.settings.max_gap_s:
+                self._counts["restarts_after_gap"] += 1
+                self.initialise(sample.t_ns, altitude)
+            else:
+                accel = self._accel.take()
+                if accel is None:
+                    self._counts["intervals_without_accel"] += 1
+                    accel = self._kf.bias / CM_PER_M  # zero true acceleration
+                self.predict(accel, dt)
+                innovation = self.update(altitude)
+                self._last_t_ns = sample.t_ns
+        self._counts["fused"] += 1
+        return [self._estimate(sample.t_ns, innovation)]
+
+    def _estimate(self, t_ns: int, innovation_m: float) -> VerticalEstimate:
+        kf = self._kf
+        assert kf is not None
+        p = kf.P
+        return VerticalEstimate(
+            t_ns=t_ns,
+            source=self.instance,
+            altitude_m=kf.z / CM_PER_M,
+            climb_m_s=kf.v / CM_PER_M,
+            accel_bias_m_s2=kf.bias / CM_PER_M,
+            diagnostics={
+                "innovation_m": innovation_m,
+                "altitude_sigma_m": math.sqrt(max(p[0, 0], 0.0)) / CM_PER_M,
+                "climb_sigma_m_s": math.sqrt(max(p[1, 1], 0.0)) / CM_PER_M,
+                "bias_sigma_m_s2": math.sqrt(max(p[2, 2], 0.0)) / CM_PER_M,
+                "accel_variance_m2_s4": kf.accel_variance / CM_PER_M**2,
+                **self._counts,
+            },
+        )
+
+    def get_state(self) -> dict[str, Any]:
+        return {
+            "kf": None if self._kf is None else self._kf.as_dict(),
+            "last_t_ns": self._last_t_ns,
+            "accel": self._accel.as_dict(),
+            "q": None if self._q is None else list(self._q),
+            "attitude_has_linear_accel": self._attitude_has_linear_accel,
+            "counts": dict(self._counts),
+        }
+
+    def set_state(self, state: dict[str, Any]) -> None:
+        if state["kf"] is None:
+            self._kf = None
+        else:
+            self._kf = Kalman3(self.settings.mode)
+            self._kf.load_dict(state["kf"])
+        last = state["last_t_ns"]
+        self._last_t_ns = None if last is None else int(last)
+        self._accel.load_dict(state["accel"])
+        q = state["q"]
+        self._q = None if q is None else (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
+        self._attitude_has_linear_accel = bool(state["attitude_has_linear_accel"])
+        self._counts = {k: int(v) for k, v in state["counts"].items()}
+
+    def diagnostics(self) -> dict[str, Any]:
+        return dict(self._counts)
