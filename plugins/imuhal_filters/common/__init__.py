@@ -1,0 +1,1 @@
+"""Code the AHRS estimator plugins share: sample collection, gating, quaternion helpers."""

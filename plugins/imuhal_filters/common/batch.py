@@ -1,0 +1,54 @@
+"""Run an AHRS over whole arrays: the form the conformance tests and offline analyses use."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from imuhal.core.frames import FloatArray
+from imuhal_filters.common.ahrs import AhrsEstimator
+
+
+def run_batch(
+    estimator: AhrsEstimator,
+    gyro_rad_s: ArrayLike,
+    accel_m_s2: ArrayLike | None = None,
+    mag_ut: ArrayLike | None = None,
+    dt_s: ArrayLike | float | None = None,
+) -> FloatArray:
+    """Step ``estimator`` once per row; return the (N, 4) body -> NED quaternions after each row.
+
+    Arrays are N x 3 in body NED axes: gyro rad/s, accel specific force m/s^2, mag uT. ``dt_s``
+    is a scalar or N values (default: the estimator's ``sample_period_s``). A row of NaN in
+    ``accel_m_s2`` or ``mag_ut`` means "no sample this step". Rows for which the filter had no
+    attitude yet are NaN. The estimator keeps its state, so batches can be chained.
+    """
+    gyro = np.asarray(gyro_rad_s, dtype=float)
+    n = gyro.shape[0]
+    if gyro.shape != (n, 3):
+        raise ValueError(f"gyro must be N x 3, got {gyro.shape}")
+    accel = _optional(accel_m_s2, n, "accel")
+    mag = _optional(mag_ut, n, "mag")
+    if dt_s is None:
+        dts = np.full(n, estimator.settings.sample_period_s)
+    else:
+        dts = np.broadcast_to(np.asarray(dt_s, dtype=float), (n,))
+    out = np.full((n, 4), np.nan)
+    for i in range(n):
+        a: Any = None if accel is None or np.isnan(accel[i]).any() else accel[i]
+        m: Any = None if mag is None or np.isnan(mag[i]).any() else mag[i]
+        q = estimator.update(gyro[i], a, m, float(dts[i]))
+        if q is not None:
+            out[i] = q
+    return out
+
+
+def _optional(values: ArrayLike | None, n: int, what: str) -> FloatArray | None:
+    if values is None:
+        return None
+    arr = np.asarray(values, dtype=float)
+    if arr.shape != (n, 3):
+        raise ValueError(f"{what} must be N x 3 like the gyro ({n} rows), got {arr.shape}")
+    return arr

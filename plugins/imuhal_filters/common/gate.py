@@ -1,0 +1,56 @@
+"""Accelerometer magnitude gate and the unit change the reference filters expect.
+
+The seed's AHRS and the ESP32 vario firmware trust the accelerometer as a gravity reference only
+while ``|a|`` is near 1 g; outside the window they integrate the gyro alone. imuhal carries
+specific force in m/s^2; the reference kernels want the accelerometer "gravity positive" (a
+level board at rest reads (0, 0, +1) in NED body axes), in g. Both conversions live here so
+every AHRS uses the same constant and the same strict comparisons.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
+from imuhal_filters.common.quat import Vec
+
+
+def gravity_positive_g(specific_force_m_s2: Vec) -> Vec:
+    """Specific force (m/s^2, body NED) -> gravity-positive accelerometer reading (g)."""
+    k = -1.0 / STANDARD_GRAVITY_M_S2
+    fx, fy, fz = specific_force_m_s2
+    return (fx * k, fy * k, fz * k)
+
+
+def specific_force_m_s2(gravity_positive: Vec) -> Vec:
+    """Gravity-positive accelerometer reading (g) -> specific force (m/s^2): the inverse."""
+    k = -STANDARD_GRAVITY_M_S2
+    ax, ay, az = gravity_positive
+    return (ax * k, ay * k, az * k)
+
+
+@dataclass(frozen=True, slots=True)
+class AccelGate:
+    """Open (accelerometer trusted) while ``lower_g < |a| < upper_g``, strictly, as in the seeds.
+
+    ``AccelGate(0.0, math.inf)`` never closes for a finite, non-zero reading.
+    """
+
+    lower_g: float
+    upper_g: float
+
+    def __post_init__(self) -> None:
+        if not (0.0 <= self.lower_g < self.upper_g):
+            raise ValueError(
+                f"accelerometer gate needs 0 <= lower < upper, got ({self.lower_g}, {self.upper_g})"
+            )
+
+    @classmethod
+    def from_bounds(cls, bounds: tuple[float, float] | None) -> AccelGate:
+        return cls(0.0, math.inf) if bounds is None else cls(float(bounds[0]), float(bounds[1]))
+
+    def is_open(self, accel_g: Vec) -> bool:
+        """True when the magnitude of ``accel_g`` (any sign convention, in g) is in the window."""
+        n = math.sqrt(accel_g[0] ** 2 + accel_g[1] ** 2 + accel_g[2] ** 2)
+        return self.lower_g < n < self.upper_g
