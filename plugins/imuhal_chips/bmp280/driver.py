@@ -1,0 +1,307 @@
+"""BMP280 (Bosch) barometer driver: pressure and temperature on I2C or SPI.
+
+Source of the register facts: BMP280 datasheet BST-BMP280-DS001-19 rev 1.19 (register map,
+SPI/I2C protocol, timing) and the rev 1.14 worked example; cross-checked with Bosch
+BMP280_driver v3.3.4 and Linux ``bmp280-core.c`` (imuhal shared chip facts, section 2).
+
+One poll reads the coherent burst 0xF3..0xFC (status, ctrl_meas, config, pressure,
+temperature): the chip's shadowing guarantees consistency only within one burst, and the
+config bytes in it reveal a silent reset at no extra cost. Compensation uses the datasheet's
+32-bit temperature and 64-bit pressure integer formulas with the chip's own trimming.
+
+Modes: ``normal`` lets the chip cycle (measurement + standby) and polls once per cycle;
+``forced`` triggers one measurement per poll at ``odr_hz`` and reads it when ``measuring``
+clears and the mode bits have returned to sleep. The BMP280 has no data-ready flag: in forced
+mode a measurement that has not finished after three times its maximum conversion time is
+reported STALE; in normal mode staleness is only visible as the never-measured value 0x80000.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import ClassVar, Literal
+
+from pydantic import Field, field_validator, model_validator
+
+from imuhal.bus.base import Bus, BusKind, Link
+from imuhal.bus.registers import RegisterConvention, RegisterView
+from imuhal.core.clock import Clock
+from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
+from imuhal.core.samples import (
+    Channel,
+    PressureSample,
+    Sample,
+    SampleFlag,
+    TemperatureSample,
+)
+from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
+from imuhal_chips.bmp280 import registers as r
+from imuhal_chips.bmp280.compensation import (
+    Trim,
+    compensate_pressure_int64,
+    compensate_temperature_int32,
+    decode_adc,
+)
+
+PRESSURE_RANGE_PA = (30_000.0, 110_000.0)
+TEMPERATURE_RANGE_DEGC = (-40.0, 85.0)
+"""Datasheet operating ranges; readings outside are flagged OUT_OF_RANGE."""
+
+KNOWN_IDS: dict[int, str] = {
+    0x60: "a BME280 (pressure + humidity) answers here; use a BME280 driver",
+    0x61: "a BME680 answers here",
+    0x55: "a BMP180/BMP085 answers here (older register map)",
+    0x00: "the id register reads 0x00: check power, SDO/CSB wiring and pull-ups",
+    0xFF: "the id register reads 0xFF: MISO/SDA floats high (check CSB, wiring, SPI mode)",
+}
+
+
+class BMP280Settings(DriverSettings):
+    """BMP280 settings in physical terms.
+
+    ``odr_hz`` is the wanted measurement rate. In normal mode the driver picks the longest
+    standby time whose cycle (typical measurement time + standby) still reaches ``odr_hz``,
+    unless ``standby_ms`` names one; in forced mode it triggers at ``odr_hz``.
+    """
+
+    mode: Literal["normal", "forced"] = "normal"
+    pressure_oversampling: Literal[1, 2, 4, 8, 16] = 8
+    temperature_oversampling: Literal[1, 2, 4, 8, 16] = 1
+    iir_filter: Literal[0, 2, 4, 8, 16] = 4
+    """IIR filter coefficient; 0 switches the filter off."""
+    odr_hz: float = Field(25.0, gt=0)
+    standby_ms: float | None = None
+    """Normal-mode standby t_sb (ms); one of 0.5, 62.5, 125, 250, 500, 1000, 2000, 4000."""
+
+    @field_validator("standby_ms")
+    @classmethod
+    def _standby_known(cls, value: float | None) -> float | None:
+        if value is not None and value not in r.STANDBY_CODES_MS:
+            allowed = ", ".join(f"{v:g}" for v in r.STANDBY_CODES_MS)
+            raise ValueError(f"standby_ms must be one of {allowed} (got {value:g})")
+        return value
+
+    @model_validator(mode="after")
+    def _rate_reachable(self) -> BMP280Settings:
+        if self.mode == "forced":
+            if self.standby_ms is not None:
+                raise ValueError("standby_ms applies to normal mode only; forced mode uses odr_hz")
+            t_max = r.measurement_time_s(self.temperature_oversampling,
+                                         self.pressure_oversampling, maximum=True)
+            if self.odr_hz > 1.0 / t_max:
+                raise ValueError(
+                    f"odr_hz {self.odr_hz:g} is faster than one forced measurement at these "
+                    f"oversamplings allows (at most {1.0 / t_max:.1f} Hz)")
+        elif self.standby_ms is None:
+            self.chosen_standby_ms()
+        return self
+
+    def measurement_time_s(self, *, maximum: bool) -> float:
+        return r.measurement_time_s(self.temperature_oversampling, self.pressure_oversampling,
+                                    maximum=maximum)
+
+    def chosen_standby_ms(self) -> float:
+        """The normal-mode standby time: ``standby_ms`` or the longest one reaching odr_hz."""
+        if self.standby_ms is not None:
+            return self.standby_ms
+        t_meas_ms = self.measurement_time_s(maximum=False) * 1000.0
+        fitting = [sb for sb in r.STANDBY_CODES_MS if 1000.0 / (t_meas_ms + sb) >= self.odr_hz]
+        if not fitting:
+            fastest = 1000.0 / (t_meas_ms + 0.5)
+            raise ValueError(
+                f"odr_hz {self.odr_hz:g} is out of reach in normal mode at these oversamplings "
+                f"(at most {fastest:.1f} Hz); lower the oversampling or odr_hz")
+        return max(fitting)
+
+
+class BMP280Driver(Driver):
+    """Bosch BMP280 pressure + temperature sensor."""
+
+    name = "bmp280"
+    description = "Bosch BMP280 barometer (pressure, temperature), I2C 0x76/0x77 or SPI"
+    Settings = BMP280Settings
+    channels: ClassVar[tuple[Channel, ...]] = (Channel.PRESSURE, Channel.TEMPERATURE)
+    bus_kinds: ClassVar[frozenset[BusKind]] = frozenset({BusKind.I2C, BusKind.SPI})
+
+    STALE_AFTER_MAX_TIMES = 3
+    """Forced mode: a measurement unfinished after this many maximum conversion times is stale."""
+
+    def __init__(self, link: Link, settings: DriverSettings, *, device: str,
+                 clock: Clock) -> None:
+        super().__init__(link, settings, device=device, clock=clock)
+        self.settings: BMP280Settings
+        # Writes are (address, data) pairs on both buses; SPI reads set bit 7, writes clear it.
+        convention = (
+            RegisterConvention(read_set=0x80, write_clear=0x80, pairwise_burst_write=True)
+            if link.kind is BusKind.SPI
+            else RegisterConvention(pairwise_burst_write=True)
+        )
+        self.regs = RegisterView(link, convention)
+        self.trim: Trim | None = None
+        self._ctrl = 0
+        self._config = 0
+        self._period_ns = 0
+        self._triggered_ns: int | None = None
+        self._next_ns = 0
+
+    # -- identity ---------------------------------------------------------------------------
+
+    def _not_found(self, found: str, hint: str) -> DeviceNotFoundError:
+        return DeviceNotFoundError(
+            driver=self.name, bus=self.link.bus.name, address=self.link.target,
+            expected=f"chip id 0x{r.CHIP_ID:02X} at register 0x{r.REG_CHIP_ID:02X}",
+            found=found, hint=hint)
+
+    def probe(self) -> DeviceIdentity:
+        try:
+            chip_id = self.regs.read_u8(r.REG_CHIP_ID)
+        except NackError as exc:
+            where = ("SDO to GND gives 0x76, SDO to VDDIO 0x77"
+                     if self.link.kind is BusKind.I2C else "check CSB and the SPI wiring")
+            raise self._not_found("no answer (NACK)", f"is the BMP280 powered? {where}") from exc
+        note = ""
+        if chip_id in r.SAMPLE_CHIP_IDS:
+            note = f"engineering sample id 0x{chip_id:02X} (accepted as a BMP280)"
+        elif chip_id != r.CHIP_ID:
+            raise self._not_found(f"0x{chip_id:02X}",
+                                  KNOWN_IDS.get(chip_id, "another chip or a clone answers here"))
+        self.identity = DeviceIdentity(self.name, self.link.bus.name, self.link.target,
+                                       f"chip_id=0x{chip_id:02X}", note)
+        return self.identity
+
+    # -- configuration ----------------------------------------------------------------------
+
+    def configure(self) -> None:
+        s = self.settings
+        self.regs.write(r.REG_RESET, r.RESET_COMMAND)
+        self.clock.sleep(r.STARTUP_S)
+        deadline = self.clock.now_ns() + 20_000_000
+        while self.regs.read_u8(r.REG_STATUS) & r.STATUS_IM_UPDATE:
+            if self.clock.now_ns() > deadline:
+                raise ConfigurationError(
+                    f"{self.describe()}: NVM copy (status.im_update) did not finish in 20 ms")
+            self.clock.sleep(0.0005)
+        trim = Trim.from_bytes(self.regs.read(r.REG_CALIB, r.CALIB_LENGTH))
+        if not trim.plausible():
+            raise ConfigurationError(
+                f"{self.describe()}: trimming reads blank ({trim}); check the wiring")
+        self.trim = trim
+
+        standby = s.chosen_standby_ms() if s.mode == "normal" else 0.5
+        self._config = r.config_value(standby, s.iir_filter)
+        mode = r.MODE_NORMAL if s.mode == "normal" else r.MODE_SLEEP
+        self._ctrl = r.ctrl_meas_value(s.temperature_oversampling, s.pressure_oversampling, mode)
+        # config first: the chip may ignore config writes once in normal mode.
+        self.regs.write(r.REG_CONFIG, self._config)
+        self.regs.write(r.REG_CTRL_MEAS, self._ctrl)
+        back = self.regs.read(r.REG_CTRL_MEAS, 2)
+        if back[0] != self._ctrl or back[1] != self._config:
+            raise ConfigurationError(
+                f"{self.describe()}: ctrl_meas/config read back 0x{back[0]:02X}/0x{back[1]:02X}"
+                f", wrote 0x{self._ctrl:02X}/0x{self._config:02X}")
+        t_meas = s.measurement_time_s(maximum=False)
+        period_s = t_meas + standby / 1000.0 if s.mode == "normal" else 1.0 / s.odr_hz
+        self._period_ns = round(period_s * 1e9)
+        self._triggered_ns = None
+
+    def start(self, now_ns: int) -> int:
+        if self.settings.mode == "normal":
+            # The first cycle ends one measurement after the ctrl_meas write.
+            self._next_ns = now_ns + round(self.settings.measurement_time_s(maximum=True) * 1e9)
+        else:
+            self._next_ns = now_ns
+        return self._next_ns
+
+    # -- polling ----------------------------------------------------------------------------
+
+    def _read_burst(self) -> tuple[int, int, int, int, int]:
+        """(status, ctrl_meas, config, adc_P, adc_T) from one burst 0xF3..0xFC."""
+        data = self.regs.read(r.POLL_BURST_START, r.POLL_BURST_LENGTH)
+        adc_p, adc_t = decode_adc(data[4:10])
+        return data[0], data[1], data[2], adc_p, adc_t
+
+    def _config_lost(self, ctrl: int, config: int) -> bool:
+        if self.settings.mode == "normal":
+            return ctrl != self._ctrl or config != self._config
+        return (ctrl & ~r.MODE_MASK) != (self._ctrl & ~r.MODE_MASK) or config != self._config
+
+    def _reconfigure(self, now_ns: int) -> PollResult:
+        self.health.resets_detected += 1
+        self.configure()
+        self.health.reconfigurations += 1
+        return PollResult([], self.start(self.clock.now_ns()))
+
+    def poll(self, now_ns: int) -> PollResult:
+        if self.settings.mode == "forced":
+            return self._poll_forced(now_ns)
+        _status, ctrl, config, adc_p, adc_t = self._read_burst()
+        if self._config_lost(ctrl, config):
+            return self._reconfigure(now_ns)
+        stale = adc_p == r.ADC_SKIPPED and adc_t == r.ADC_SKIPPED
+        self._next_ns = max(self._next_ns + self._period_ns, now_ns + self._period_ns // 4)
+        return PollResult(self._emit(now_ns, adc_p, adc_t, stale=stale), self._next_ns)
+
+    def _poll_forced(self, now_ns: int) -> PollResult:
+        s = self.settings
+        if self._triggered_ns is None:
+            if now_ns < self._next_ns:
+                return PollResult([], self._next_ns)
+            self.regs.write(r.REG_CTRL_MEAS, (self._ctrl & ~r.MODE_MASK) | r.MODE_FORCED)
+            self._triggered_ns = now_ns
+            return PollResult([], now_ns + round(s.measurement_time_s(maximum=True) * 1e9))
+        status, ctrl, config, adc_p, adc_t = self._read_burst()
+        if self._config_lost(ctrl, config):
+            return self._reconfigure(now_ns)
+        done = not status & r.STATUS_MEASURING and ctrl & r.MODE_MASK == r.MODE_SLEEP
+        t_max_ns = round(s.measurement_time_s(maximum=True) * 1e9)
+        if not done and now_ns - self._triggered_ns < self.STALE_AFTER_MAX_TIMES * t_max_ns:
+            return PollResult([], now_ns + t_max_ns // 10)
+        trigger = self._triggered_ns
+        self._triggered_ns = None
+        self._next_ns = max(trigger + self._period_ns, now_ns)
+        stale = not done or (adc_p == r.ADC_SKIPPED and adc_t == r.ADC_SKIPPED)
+        return PollResult(self._emit(now_ns, adc_p, adc_t, stale=stale), self._next_ns)
+
+    def _emit(self, t_ns: int, adc_p: int, adc_t: int, *, stale: bool) -> list[Sample]:
+        assert self.trim is not None, "poll() before configure()"
+        if stale:
+            flags_p = flags_t = SampleFlag.STALE
+            pressure = temperature = math.nan
+        else:
+            t_centi, t_fine = compensate_temperature_int32(adc_t, self.trim)
+            temperature = t_centi / 100.0
+            pressure = compensate_pressure_int64(adc_p, t_fine, self.trim) / 256.0
+            flags_t = _range_flags(adc_t, temperature, TEMPERATURE_RANGE_DEGC)
+            # Pressure is compensated with the temperature, so its flags carry over.
+            flags_p = flags_t | _range_flags(adc_p, pressure, PRESSURE_RANGE_PA)
+        samples: list[Sample] = [
+            PressureSample(t_ns=t_ns, device=self.device, flags=flags_p, pressure_pa=pressure),
+            TemperatureSample(t_ns=t_ns, device=self.device, flags=flags_t,
+                              temperature_degc=temperature),
+        ]
+        _count(self, samples)
+        return samples
+
+    def child_buses(self) -> dict[str, Bus]:
+        return {}
+
+
+def _range_flags(adc: int, value: float, limits: tuple[float, float]) -> SampleFlag:
+    flags = SampleFlag.OK
+    if adc in (0, r.ADC_MAX):
+        flags |= SampleFlag.SATURATED
+    if not limits[0] <= value <= limits[1]:
+        flags |= SampleFlag.OUT_OF_RANGE
+    return flags
+
+
+def _count(driver: Driver, samples: list[Sample]) -> None:
+    health = driver.health
+    for sample in samples:
+        health.samples += 1
+        if sample.flags != SampleFlag.OK:
+            health.flagged += 1
+            for flag in SampleFlag:
+                if flag and flag in sample.flags:
+                    key = flag.name or str(int(flag))
+                    health.flags_seen[key] = health.flags_seen.get(key, 0) + 1

@@ -1,0 +1,249 @@
+"""BMP280 emulator: the register file and measurement cycle on a bus, fed by true physics.
+
+Bus face:
+- I2C: the first written byte is the register pointer; a longer write is (register, data)
+  pairs, as the chip wants (no auto-increment on writes). Reads auto-increment.
+- SPI: the control byte's bit 7 is RW (1 = read) and its low 7 bits are the address with bit 7
+  implied (every BMP280 register is >= 0x80); writes are (control, data) pairs.
+- Identity 0xD0, soft reset (only 0xB6 written to 0xE0 has an effect; 0xE0 reads 0x00),
+  read-only trimming, status (``measuring`` while converting, ``im_update`` for 2 ms after
+  a reset while the NVM is copied), ctrl_meas and config (config writes in normal mode are
+  ignored, as the datasheet warns they may be).
+- Timing on ``self.clock``: a measurement takes the datasheet's *typical* time for its
+  oversampling; forced mode (mode 01 or 10) measures once and returns to sleep (mode bits
+  read 00 afterwards); normal mode cycles measurement + standby t_sb. The IIR filter runs on
+  the ADC values of successive measurements, seeded with the first.
+
+Physics face: ``physics.pressure_pa`` and ``physics.temperature_degc`` (defaults 101325 Pa,
+25 degC) are turned into ADC counts by searching the inverse of the chip's own compensation
+with its trimming (default: the datasheet worked example), at the configured resolution.
+
+Faults: ``chip_id`` (a clone or another part), ``stuck_data_ready`` (conversions never finish:
+``measuring`` stays set, forced mode never returns to sleep, data freeze), ``silent_reset()``,
+absence (``absent``) and bus errors via ``EmulatedBus.fail_transfers``.
+
+Source of facts: BMP280 datasheet BST-BMP280-DS001-19; imuhal shared chip facts section 2.
+"""
+
+from __future__ import annotations
+
+from imuhal.bus.base import BusKind
+from imuhal.core.clock import Clock
+from imuhal.core.samples import Channel
+from imuhal.emulation.base import ChipEmulator
+from imuhal_chips.bmp280 import registers as r
+from imuhal_chips.bmp280.compensation import (
+    DATASHEET_TRIM,
+    Trim,
+    adc_for_pressure,
+    adc_for_temperature,
+    compensate_pressure_double,
+    compensate_temperature_double,
+    compensate_temperature_int32,
+    encode_adc,
+)
+
+DEFAULT_PRESSURE_PA = 101325.0
+DEFAULT_TEMPERATURE_DEGC = 25.0
+
+
+class BMP280Emulator(ChipEmulator):
+    """Register-level stand-in for a BMP280 on I2C or SPI."""
+
+    chip = "bmp280"
+
+    def __init__(self, clock: Clock | None = None, *, trim: Trim = DATASHEET_TRIM) -> None:
+        super().__init__(clock)
+        self.trim = trim
+        self.chip_id = r.CHIP_ID
+        """What 0xD0 reads (fault injection: 0x60 is a BME280, anything else a clone)."""
+        self.stuck_data_ready = False
+        self._pointer = 0
+        self.resets = 0
+        self._reset()
+        self.resets = 0
+        """Resets seen (soft reset command or silent reset), for tests."""
+
+    # -- fault injection --------------------------------------------------------------------
+
+    def silent_reset(self) -> None:
+        """The chip resets without being asked (brown-out): back to sleep, defaults."""
+        self._reset()
+
+    # -- physics helpers --------------------------------------------------------------------
+
+    def _true_values(self) -> tuple[float, float]:
+        p = self.physics.pressure_pa
+        t = self.physics.temperature_degc
+        return (DEFAULT_PRESSURE_PA if p is None else p,
+                DEFAULT_TEMPERATURE_DEGC if t is None else t)
+
+    def _oversampling(self) -> tuple[int, int]:
+        """(temperature, pressure) oversampling factors from ctrl_meas (0 = skipped)."""
+        return (r.oversampling_from_code(self._ctrl >> 5),
+                r.oversampling_from_code((self._ctrl >> 2) & 0b111))
+
+    def _bits(self, oversampling: int) -> int:
+        iir = r.iir_from_code((self._config >> 2) & 0b111)
+        return 20 if iir else r.OVERSAMPLING_BITS[oversampling]
+
+    def resolution(self, channel: Channel) -> float:
+        """One output LSB at the current settings and physics, in Pa or degC.
+
+        Temperature is reported by the driver in 0.01 degC steps, so that is its floor.
+        """
+        osrs_t, osrs_p = self._oversampling()
+        pressure, temperature = self._true_values()
+        if channel is Channel.TEMPERATURE:
+            step = 1 << (20 - self._bits(max(osrs_t, 1)))
+            adc = adc_for_temperature(temperature, self.trim)
+            t0 = compensate_temperature_double(adc, self.trim)[0]
+            t1 = compensate_temperature_double(adc + step, self.trim)[0]
+            return max(abs(t1 - t0), 0.01)
+        if channel is Channel.PRESSURE:
+            step = 1 << (20 - self._bits(max(osrs_p, 1)))
+            t_fine = compensate_temperature_int32(
+                adc_for_temperature(temperature, self.trim), self.trim)[1]
+            adc = adc_for_pressure(pressure, t_fine, self.trim)
+            p0 = compensate_pressure_double(adc, t_fine, self.trim)
+            p1 = compensate_pressure_double(adc + step, t_fine, self.trim)
+            return abs(p1 - p0)
+        raise ValueError(f"the BMP280 has no {channel.value} channel")
+
+    def full_scale(self, channel: Channel) -> float:
+        """Upper end of the datasheet operating range: 110000 Pa, 85 degC."""
+        if channel is Channel.PRESSURE:
+            return 110_000.0
+        if channel is Channel.TEMPERATURE:
+            return 85.0
+        raise ValueError(f"the BMP280 has no {channel.value} channel")
+
+    # -- state ------------------------------------------------------------------------------
+
+    def _reset(self) -> None:
+        self.resets += 1
+        self._ctrl = 0x00
+        self._config = 0x00
+        self._data = bytearray(encode_adc(r.ADC_SKIPPED) * 2)
+        self._im_update_until = self.now_ns() + round(r.STARTUP_S * 1e9)
+        self._cycle_start = 0
+        self._cycles_done = 0
+        self._forced_done: int | None = None
+        self._filter: tuple[float, float] | None = None
+
+    def _mode(self) -> int:
+        return self._ctrl & r.MODE_MASK
+
+    def _meas_ns(self) -> int:
+        osrs_t, osrs_p = self._oversampling()
+        return round(r.measurement_time_s(osrs_t, osrs_p, maximum=False) * 1e9)
+
+    def _period_ns(self) -> int:
+        standby = r.standby_ms_from_code(self._config >> 5)
+        return self._meas_ns() + round(standby * 1e6)
+
+    def _advance(self) -> None:
+        """Complete the measurements that have finished by now."""
+        if self.stuck_data_ready:
+            return
+        now = self.now_ns()
+        mode = self._mode()
+        if mode == r.MODE_NORMAL:
+            elapsed = now - self._cycle_start - self._meas_ns()
+            if elapsed >= 0:
+                done = elapsed // self._period_ns() + 1
+                for _ in range(min(done - self._cycles_done, 64)):
+                    self._measure()
+                self._cycles_done = done
+        elif self._forced_done is not None and now >= self._forced_done:
+            self._measure()
+            self._forced_done = None
+            self._ctrl &= ~r.MODE_MASK  # back to sleep
+
+    def _measuring(self) -> bool:
+        now = self.now_ns()
+        mode = self._mode()
+        if mode == r.MODE_NORMAL:
+            if self.stuck_data_ready:
+                return True
+            return (now - self._cycle_start) % self._period_ns() < self._meas_ns()
+        return mode != r.MODE_SLEEP and self._forced_done is not None
+
+    def _measure(self) -> None:
+        pressure, temperature = self._true_values()
+        osrs_t, osrs_p = self._oversampling()
+        adc_t = adc_for_temperature(temperature, self.trim)
+        t_fine = compensate_temperature_int32(adc_t, self.trim)[1]
+        adc_p = adc_for_pressure(pressure, t_fine, self.trim)
+        iir = r.iir_from_code((self._config >> 2) & 0b111)
+        if self._filter is None or not iir:
+            self._filter = (float(adc_p), float(adc_t))
+        else:
+            fp, ft = self._filter
+            self._filter = ((fp * (iir - 1) + adc_p) / iir, (ft * (iir - 1) + adc_t) / iir)
+        fp, ft = self._filter
+        out_p = self._quantise(fp, osrs_p) if osrs_p else r.ADC_SKIPPED
+        out_t = self._quantise(ft, osrs_t) if osrs_t else r.ADC_SKIPPED
+        self._data[:] = encode_adc(out_p) + encode_adc(out_t)
+
+    def _quantise(self, adc: float, oversampling: int) -> int:
+        step = 1 << (20 - self._bits(oversampling))
+        return min(max(round(adc / step) * step, 0), r.ADC_MAX)
+
+    # -- bus face ---------------------------------------------------------------------------
+
+    def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes:
+        self._advance()
+        pointer: int | None = None
+        if kind is BusKind.SPI:
+            if write and write[0] & 0x80:
+                pointer = write[0]
+            else:
+                for i in range(0, len(write) - 1, 2):
+                    self._write(write[i] | 0x80, write[i + 1])
+        else:
+            if write:
+                self._pointer = write[0]
+            for i in range(0, len(write) - 1, 2):
+                self._write(write[i], write[i + 1])
+            pointer = self._pointer
+        if not read_len or pointer is None:
+            return bytes(read_len)
+        return bytes(self._read((pointer + i) & 0xFF) for i in range(read_len))
+
+    def _read(self, address: int) -> int:
+        if r.REG_CALIB <= address < r.REG_CALIB + r.CALIB_LENGTH:
+            return self.trim.to_bytes()[address - r.REG_CALIB]
+        if address == r.REG_CHIP_ID:
+            return self.chip_id
+        if address == r.REG_STATUS:
+            im_update = self.now_ns() < self._im_update_until
+            return (r.STATUS_MEASURING if self._measuring() else 0) | (
+                r.STATUS_IM_UPDATE if im_update else 0)
+        if address == r.REG_CTRL_MEAS:
+            return self._ctrl
+        if address == r.REG_CONFIG:
+            return self._config
+        if r.REG_PRESS_MSB <= address < r.REG_PRESS_MSB + 6:
+            return self._data[address - r.REG_PRESS_MSB]
+        return 0x00
+
+    def _write(self, address: int, value: int) -> None:
+        if address == r.REG_RESET:
+            if value == r.RESET_COMMAND:
+                self._reset()
+        elif address == r.REG_CTRL_MEAS:
+            self._ctrl = value
+            mode = value & r.MODE_MASK
+            now = self.now_ns()
+            if mode == r.MODE_NORMAL:
+                self._cycle_start, self._cycles_done = now, 0
+                self._forced_done = None
+            elif mode == r.MODE_SLEEP:
+                self._forced_done = None
+            else:
+                self._forced_done = now + self._meas_ns()
+        elif address == r.REG_CONFIG and self._mode() != r.MODE_NORMAL:
+            self._config = value & 0xFD  # bit 1 is reserved
+            self._filter = None
+        # every other register is read-only: writes are ignored, as on the chip
