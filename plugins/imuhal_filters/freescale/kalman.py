@@ -44,7 +44,7 @@ from imuhal_filters.freescale.coords import (
     skew,
     tilt_matrix,
 )
-from imuhal_filters.freescale.settings import FreescaleCommonSettings, Freescale9DofSettings
+from imuhal_filters.freescale.settings import Freescale9DofSettings, FreescaleCommonSettings
 
 TH, B, A, D = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12)
 """Blocks of the error vector: orientation, gyro offset, linear acceleration, disturbance."""
@@ -220,9 +220,11 @@ class FreescaleKalman:
     def _measurement_matrix(self, g_gyro: FloatArray, m_gyro: FloatArray) -> FloatArray:
         """C: how the error vector shows in the measurement error (gravity; geomagnetism).
 
-        An orientation error theta (deg) changes a predicted sensor-frame vector v by
-        -(pi/180) [v]x theta... seen from the measurement side: +(pi/180) [theta]x v; the
-        offset error acts through the orientation it accumulates over one Kalman interval.
+        An orientation error theta (deg) leaves the gyro-predicted sensor-frame vector v off
+        by (pi/180) theta x v, so the measured-minus-predicted error picks up
+        -(pi/180) [v]x theta. A gyro offset error acts through the orientation error it
+        builds over one Kalman interval (-dt times that), linear acceleration adds directly to
+        the gravity error and a magnetic disturbance subtracts from the geomagnetic one.
         """
         dt = self.s.kalman_dt_s
         c = np.zeros((6 if self.use_mag else 3, self.n))

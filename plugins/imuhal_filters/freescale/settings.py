@@ -7,7 +7,7 @@ names the fusion.h / build.h constant it stands for; defaults are those of build
 
 from __future__ import annotations
 
-from pydantic import Field, model_validator
+from pydantic import Field
 
 from imuhal.estimation.base import EstimatorSettings
 from imuhal_filters.freescale.coords import CoordinateSystem
@@ -88,9 +88,3 @@ class Freescale9DofSettings(FreescaleCommonSettings):
     """Build 422 inverts only the top-left 3x3 block of the 6x6 innovation covariance
     (``fmatrixAeqInvA(..., 3)``) and uses the other blocks uninverted; False reproduces that.
     True inverts the whole 6x6 matrix (the textbook Kalman gain; not the reference)."""
-
-    @model_validator(mode="after")
-    def _positive_field(self) -> Freescale9DofSettings:
-        if not self.field_strength_ut > 0.0:
-            raise ValueError("field_strength_ut must be positive")
-        return self

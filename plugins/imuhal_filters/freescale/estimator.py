@@ -1,0 +1,239 @@
+"""``freescale-9dof`` and ``freescale-6dof``: the Freescale Kalman filters as imuhal estimators.
+
+Samples arrive in project units and body NED axes (GyroSample rad/s, AccelSample specific
+force m/s^2, MagSample calibrated uT). At the boundary they become the reference's units and
+the sensor axes/sign of the configured coordinate system (``coords``). Every valid gyro
+sample is one fast tick, integrated over 1 / sensor_rate_hz (the reference assumes a steady
+rate; timestamps only stamp the output). After ``oversample_ratio`` gyro samples a Kalman
+step runs on them and on the newest accelerometer (and magnetometer) sample — waiting, if
+needed, for the accelerometer/magnetometer sample of that same tick, or at the latest until
+the next gyro sample arrives. Each valid step emits an AttitudeEstimate (body -> NED).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar
+
+import numpy as np
+
+from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
+from imuhal.core.frames import FloatArray
+from imuhal.core.samples import AccelSample, Frame, GyroSample, MagSample, Sample
+from imuhal.estimation.base import Estimator, EstimatorSettings
+from imuhal.estimation.gravity import linear_accel_ned_m_s2
+from imuhal.estimation.outputs import AttitudeEstimate, Estimate
+from imuhal_filters.freescale.coords import (
+    accel_reading_g,
+    quat_body_to_ned,
+    to_sensor_vector,
+)
+from imuhal_filters.freescale.kalman import FreescaleKalman, KalmanStep
+from imuhal_filters.freescale.settings import (
+    Freescale6DofSettings,
+    Freescale9DofSettings,
+    FreescaleCommonSettings,
+)
+
+_COUNTERS = ("gyro_samples", "accel_samples", "mag_samples", "kalman_steps",
+             "skipped_invalid", "skipped_not_body_frame", "windows_without_accel_or_mag")
+
+
+class _Latest:
+    """The newest sample of one sensor (reference units) and the sum over the window."""
+
+    def __init__(self) -> None:
+        self.value: FloatArray | None = None
+        self.t_ns: int | None = None
+        self.sum = np.zeros(3)
+        self.count = 0
+
+    def add(self, t_ns: int, v: FloatArray) -> None:
+        self.value, self.t_ns = v, t_ns
+        self.sum = self.sum + v
+        self.count += 1
+
+    def take(self, average: bool) -> FloatArray | None:
+        """The value a Kalman step fuses; restarts the window sum."""
+        out = self.value
+        if average and self.count:
+            out = self.sum / self.count
+        self.sum, self.count = np.zeros(3), 0
+        return out
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"value": None if self.value is None else self.value.tolist(), "t_ns": self.t_ns,
+                "sum": self.sum.tolist(), "count": self.count}
+
+    def load_dict(self, d: dict[str, Any]) -> None:
+        self.value = None if d["value"] is None else np.array(d["value"], dtype=float)
+        self.t_ns = None if d["t_ns"] is None else int(d["t_ns"])
+        self.sum = np.array(d["sum"], dtype=float)
+        self.count = int(d["count"])
+
+
+class _FreescaleEstimator(Estimator):
+    """The oversampling front end shared by the 6DOF and 9DOF filters."""
+
+    use_mag: ClassVar[bool]
+    settings: FreescaleCommonSettings
+
+    def reset(self) -> None:
+        self._kf = FreescaleKalman(self.settings, use_mag=self.use_mag)
+        self._gyro: list[FloatArray] = []
+        self._gyro_t_ns: int | None = None
+        self._accel = _Latest()
+        self._mag = _Latest()
+        self._pending = False
+        self._last_step: KalmanStep | None = None
+        self._counts = dict.fromkeys(_COUNTERS, 0)
+
+    # -- Estimator interface ----------------------------------------------------------------
+
+    def process(self, item: Sample | Estimate) -> list[Estimate]:
+        if not isinstance(item, self.consumes):
+            return []
+        assert isinstance(item, GyroSample | AccelSample | MagSample)
+        vec = np.asarray(item.vector, dtype=float)
+        if not item.valid or not np.all(np.isfinite(vec)):
+            self._counts["skipped_invalid"] += 1
+            return []
+        if item.frame is not Frame.BODY_NED:
+            self._counts["skipped_not_body_frame"] += 1
+            return []
+        cs = self.settings.coordinate_system
+        out: list[Estimate] = []
+        if isinstance(item, GyroSample):
+            if self._pending:  # the window's accel/mag never caught up: use what there is
+                out += self._run_step()
+            self._counts["gyro_samples"] += 1
+            self._gyro.append(to_sensor_vector(cs, np.degrees(vec)))
+            self._gyro_t_ns = item.t_ns
+            if len(self._gyro) == self.settings.oversample_ratio:
+                self._pending = True
+        elif isinstance(item, AccelSample):
+            self._counts["accel_samples"] += 1
+            self._accel.add(item.t_ns, accel_reading_g(cs, vec / STANDARD_GRAVITY_M_S2))
+        else:
+            self._counts["mag_samples"] += 1
+            self._mag.add(item.t_ns, to_sensor_vector(cs, vec))
+        if self._pending and self._caught_up():
+            out += self._run_step()
+        return out
+
+    def _caught_up(self) -> bool:
+        """The accel (and mag) samples of the tick that closed the gyro window have arrived."""
+        t = self._gyro_t_ns
+        sensors = (self._accel, self._mag) if self.use_mag else (self._accel,)
+        return all(s.t_ns is not None and t is not None and s.t_ns >= t for s in sensors)
+
+    def _run_step(self) -> list[Estimate]:
+        self._pending = False
+        gyro = np.array(self._gyro)
+        self._gyro = []
+        average = self.settings.accel_mag_input == "average"
+        accel = self._accel.take(average)
+        mag = self._mag.take(average) if self.use_mag else None
+        if accel is None or (self.use_mag and mag is None):
+            self._counts["windows_without_accel_or_mag"] += 1
+            return []
+        step = self._kf.step(accel, gyro, mag)
+        self._counts["kalman_steps"] += 1
+        self._last_step = step
+        if not step.valid:
+            return []
+        return [self._estimate(step, accel)]
+
+    def _estimate(self, step: KalmanStep, accel_reading: FloatArray) -> AttitudeEstimate:
+        cs = self.settings.coordinate_system
+        q = quat_body_to_ned(cs, step.q_sensor_to_global)
+        # back to specific force in body NED (m/s^2) for the shared gravity compensation
+        signed = -accel_reading if cs.gravity_positive else accel_reading
+        force_body = to_sensor_vector(cs, signed) * STANDARD_GRAVITY_M_S2
+        lin = linear_accel_ned_m_s2(q, force_body)
+        assert self._gyro_t_ns is not None
+        return AttitudeEstimate(
+            t_ns=self._gyro_t_ns,
+            source=self.instance,
+            q_body_to_ned=(float(q[0]), float(q[1]), float(q[2]), float(q[3])),
+            linear_accel_ned_m_s2=(float(lin[0]), float(lin[1]), float(lin[2])),
+            diagnostics=self._step_diagnostics(step),
+        )
+
+    def _step_diagnostics(self, step: KalmanStep) -> dict[str, Any]:
+        cs = self.settings.coordinate_system
+        offset_body_dps = to_sensor_vector(cs, step.gyro_offset_dps)  # the swap is involutory
+        diag: dict[str, Any] = {
+            "gyro_offset_rad_s": tuple(math.radians(float(v)) for v in offset_body_dps),
+            "gyro_offset_dps": tuple(float(v) for v in offset_body_dps),
+            "euler_deg": dict(step.euler_deg),
+            "coordinate_system": cs.value,
+            **self._counts,
+        }
+        if self.use_mag:
+            diag["inclination_deg"] = step.inclination_deg
+            diag["mag_jamming"] = step.mag_jamming
+        return diag
+
+    def get_state(self) -> dict[str, Any]:
+        return {
+            "kf": self._kf.as_dict(),
+            "gyro": [g.tolist() for g in self._gyro],
+            "gyro_t_ns": self._gyro_t_ns,
+            "accel": self._accel.as_dict(),
+            "mag": self._mag.as_dict(),
+            "pending": self._pending,
+            "counts": dict(self._counts),
+        }
+
+    def set_state(self, state: dict[str, Any]) -> None:
+        self._kf.load_dict(state["kf"])
+        self._gyro = [np.array(g, dtype=float) for g in state["gyro"]]
+        t = state["gyro_t_ns"]
+        self._gyro_t_ns = None if t is None else int(t)
+        self._accel.load_dict(state["accel"])
+        self._mag.load_dict(state["mag"])
+        self._pending = bool(state["pending"])
+        self._counts = {k: int(state["counts"].get(k, 0)) for k in _COUNTERS}
+
+    def diagnostics(self) -> dict[str, Any]:
+        out: dict[str, Any] = dict(self._counts)
+        if self._last_step is not None and self._last_step.valid:
+            out.update(self._step_diagnostics(self._last_step))
+        return out
+
+
+class Freescale9DofEstimator(_FreescaleEstimator):
+    """Accelerometer + magnetometer + gyro Kalman filter (fRun_9DOF_GBY_KALMAN, build 422).
+
+    Needs a calibrated magnetometer (hard/soft iron removed). Diagnostics per step: gyro
+    offset estimate (rad/s and deg/s, body NED), tracked geomagnetic inclination (deg),
+    magnetic jamming flag, the coordinate system's own Euler angles and sample counters.
+    """
+
+    name: ClassVar[str] = "freescale-9dof"
+    description: ClassVar[str] = (
+        "Freescale/NXP 9DOF indirect Kalman (gyro offset, linear acceleration, magnetic "
+        "disturbance, jamming detection, inclination tracking)"
+    )
+    Settings: ClassVar[type[EstimatorSettings]] = Freescale9DofSettings
+    consumes: ClassVar[tuple[type, ...]] = (GyroSample, AccelSample, MagSample)
+    use_mag: ClassVar[bool] = True
+
+
+class Freescale6DofEstimator(_FreescaleEstimator):
+    """Accelerometer + gyro Kalman filter (fRun_6DOF_GY_KALMAN, build 422).
+
+    Yaw is unobservable: it starts at zero (the board's heading at start-up) and then
+    follows the offset-corrected gyro. Diagnostics: gyro offset estimate, Euler angles and
+    sample counters.
+    """
+
+    name: ClassVar[str] = "freescale-6dof"
+    description: ClassVar[str] = (
+        "Freescale/NXP 6DOF indirect Kalman (accelerometer + gyro, gyro offset and linear "
+        "acceleration)"
+    )
+    Settings: ClassVar[type[EstimatorSettings]] = Freescale6DofSettings
+    consumes: ClassVar[tuple[type, ...]] = (GyroSample, AccelSample)
+    use_mag: ClassVar[bool] = False
