@@ -42,7 +42,7 @@ def _run_core(mode: Kf3Mode, variances: tuple[float, float, float], explicit_cal
     kf = Kalman3(mode)
     kf.configure(*variances, z0=float(d["z_baro_cm"][0]), v0=0.0, bias0=0.0)
     out = np.empty((len(d), 3))
-    for i, (z, a) in enumerate(zip(d["z_baro_cm"], d["a_meas_cms2"])):
+    for i, (z, a) in enumerate(zip(d["z_baro_cm"], d["a_meas_cms2"], strict=True)):
         if explicit_calls:  # the 2021 reference calls predict then update
             kf.predict(float(a), DT_S)
             kf.update(float(z))
@@ -66,7 +66,7 @@ def test_core_matches_reference_at_every_row_of_both_windows(mode: Kf3Mode) -> N
 
 @pytest.mark.parametrize("mode", list(REFERENCE_RUNS))
 def test_mode_defaults_are_the_reference_parameters(mode: Kf3Mode) -> None:
-    tag, variances = REFERENCE_RUNS[mode]
+    tag, _ = REFERENCE_RUNS[mode]
     ref = _reference(tag)
     d = _inputs()
     # The project-unit batch with only `mode` set: defaults, P0 and m <-> cm conversion.
