@@ -196,10 +196,15 @@ class MS5611Emulator(ChipEmulator):
     # -- inspection for tests ---------------------------------------------------------------
 
     @property
+    def running(self) -> Measurement | None:
+        """The conversion running at the current clock time, if any."""
+        self._settle(self.now_ns())
+        return None if self._conversion is None else self._conversion.measurement
+
+    @property
     def converting(self) -> bool:
         """True while a conversion is running at the current clock time."""
-        self._settle(self.now_ns())
-        return self._conversion is not None
+        return self.running is not None
 
     @property
     def reloading(self) -> bool:
