@@ -103,8 +103,8 @@ def test_accel_sample_with_attitude_quaternion_equals_ahrs_linear_accel() -> Non
     raw: list[Any] = []
     for item in linear:
         if isinstance(item, AttitudeEstimate):
-            a_ned = np.array([0.3, -0.2, -item.linear_accel_ned_m_s2[2]])  # type: ignore[index]
-            a_ned[2] = -a_ned[2]
+            # same vertical acceleration plus some horizontal: specific force = R^T (a - g)
+            a_ned = np.array([0.3, -0.2, item.linear_accel_ned_m_s2[2]])  # type: ignore[index]
             f_body = r.T @ (a_ned - np.array([0.0, 0.0, STANDARD_GRAVITY_M_S2]))
             raw.append(AccelSample(t_ns=item.t_ns, device="imu", frame=Frame.BODY_NED,
                                    accel_m_s2=tuple(f_body)))
@@ -175,7 +175,7 @@ def test_interval_without_accel_predicts_zero_true_acceleration_and_is_counted()
 def test_saved_state_restored_mid_interval_continues_exactly() -> None:
     accel_up, z = _flight(seed=6)
     items = _stream(accel_up, z)
-    cut = 503  # between two baro samples: the accel accumulator holds 3 samples
+    cut = 83 * (BARO_EVERY + 1) + 3  # mid-interval: the accel accumulator holds 3 samples
     a = VarioKf3Estimator({"mode": "avario"})
     _run(a, items[:cut])
     snapshot = json.loads(json.dumps(a.get_state()))
