@@ -1,1 +1,1 @@
-"""max2110x: see plugin.py."""
+"""MAX21100 / MAX21105 (Maxim) IMU drivers and register-level emulators; see plugin.py."""

@@ -1,0 +1,104 @@
+"""The MAX21100's I2C master as a Bus, so unchanged I2C drivers (HMC5883L) run behind it.
+
+Mechanism [SS: har-in-air ESP32_IMU_BARO_GPS_LOGGER max21100.c, real hardware; see
+facts/chips.md section 6]: the master does one-byte *one-shot* transactions with the slave
+whose 7-bit address is in MAG_SLV_ADD (0x08):
+
+- write: I2C_MST_ADD (0x0B) <- register, I2C_MST_DATA (0x0C) <- value,
+  DR_CFG (0x13) <- base | 0x10 (trigger), DR_CFG <- base;
+- read:  I2C_MST_ADD <- register, DR_CFG <- base | 0x30, DR_CFG <- base, wait,
+  then read I2C_MST_DATA.
+
+``base`` is the DR_CFG value the MAX21100 driver configured, so the trigger never changes
+its data-ready or temperature settings.
+
+How an I2C transaction maps onto one-shot bytes:
+- ``write=[reg, d0, d1, ...]``: one one-shot write per byte, to reg, reg+1, ...: what a
+  slave with an auto-incrementing register pointer would do with the burst write.
+- ``write=[reg]`` + ``read_len=n``: one one-shot read per byte from reg, reg+1, ...: the
+  same bytes a pointer that auto-increments linearly would return. A slave whose pointer
+  wraps (HMC5883L: after register 8 back to 3) differs only for reads that cross the wrap,
+  which no driver does. Coherence across the n separate reads is the slave's business:
+  the HMC5883L locks its data outputs from the first data byte read until all six are read.
+- ``write=[reg]`` alone sets a remembered pointer; a read with no register byte continues
+  from it. The master cannot do a bare read without a register, so the pointer is emulated.
+- The master reports no NACK that any source documents; a missing slave shows as 0xFF data
+  (released bus), which the slave's driver turns into DeviceNotFoundError when probing.
+
+The whole sequence holds the parent bus lock, so the MAX21100 driver's own accesses never
+interleave with a half-done one-shot transaction.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from imuhal.bus.base import Bus, BusKind
+from imuhal.core.errors import ConfigurationError
+from imuhal_chips.max2110x.registers import (
+    DR_CFG_ONESHOT_MASK,
+    DR_CFG_ONESHOT_READ,
+    DR_CFG_ONESHOT_WRITE,
+    DR_CFG_TEMP_EN,
+    Reg,
+)
+
+if TYPE_CHECKING:
+    from imuhal_chips.max2110x.driver import Max21100Driver
+
+ONESHOT_WAIT_S = 200e-6
+"""Time allowed for one one-shot byte transaction to finish (about 4 bytes at 400 kHz plus
+margin) before the next step. [UNVERIFIED: har-in-air waits an unspecified delay.]"""
+
+
+class Max21100AuxBus(Bus):
+    """An I2C bus whose transfers are carried out by a MAX21100's one-shot master."""
+
+    kind = BusKind.I2C
+
+    def __init__(self, host: Max21100Driver) -> None:
+        super().__init__(f"{host.link.bus.name}/{host.device}/aux")
+        self.host = host
+        self._pointer: dict[int, int] = {}
+        # Share the parent's lock: a one-shot sequence is several parent transfers.
+        self.lock = host.link.bus.lock
+
+    def _base(self) -> int:
+        base = self.host._expected.get(Reg.DR_CFG, DR_CFG_TEMP_EN)
+        return base & ~DR_CFG_ONESHOT_MASK
+
+    def _transfer(self, target: int, write: bytes, read_len: int) -> bytes:
+        if not 0 <= target <= 0x7F:
+            raise ConfigurationError(f"{self.name}: 0x{target:X} is not a 7-bit I2C address")
+        regs = self.host.regs
+        with self.host.link.bus.lock:
+            regs.write(Reg.MAG_SLV_ADD, target)
+            if write:
+                self._pointer[target] = write[0]
+            pointer = self._pointer.get(target, 0)
+            for offset, value in enumerate(write[1:]):
+                self._oneshot_write((pointer + offset) & 0xFF, value)
+            if len(write) > 1:
+                pointer = (pointer + len(write) - 1) & 0xFF
+                self._pointer[target] = pointer
+            data = bytearray()
+            for offset in range(read_len):
+                data.append(self._oneshot_read((pointer + offset) & 0xFF))
+            if read_len:
+                self._pointer[target] = (pointer + read_len) & 0xFF
+        return bytes(data)
+
+    def _oneshot_write(self, register: int, value: int) -> None:
+        regs, base = self.host.regs, self._base()
+        regs.write(Reg.I2C_MST_ADD, bytes([register, value]))  # 0x0B, 0x0C auto-increment
+        regs.write(Reg.DR_CFG, base | DR_CFG_ONESHOT_WRITE)
+        regs.write(Reg.DR_CFG, base)
+        self.host.clock.sleep(ONESHOT_WAIT_S)
+
+    def _oneshot_read(self, register: int) -> int:
+        regs, base = self.host.regs, self._base()
+        regs.write(Reg.I2C_MST_ADD, register)
+        regs.write(Reg.DR_CFG, base | DR_CFG_ONESHOT_READ)
+        regs.write(Reg.DR_CFG, base)
+        self.host.clock.sleep(ONESHOT_WAIT_S)
+        return regs.read_u8(Reg.I2C_MST_DATA)

@@ -1,0 +1,354 @@
+"""Register-level emulators of the MAX21100 and MAX21105 (facts/chips.md sections 5, 6).
+
+Bus face: a 64-address register file (0x00..0x1F banked by BANK_SELECT 0x22, 0x20..0x3F
+common), the address byte (SPI bit 7 read; bit 6 = 1 no auto-increment, on I2C too),
+power-on defaults and soft reset (RST_REG bit 3), read-only identity/status/data registers,
+data-ready and overrun bits with the three DR_CFG clear modes, big/little-endian data
+(I2C_CFG bit 1), I2C slave disable on I2C_CFG bit 0, and measurements on ``self.clock`` at
+the configured ODRs (first sample one period after the power mode or ODR is written).
+MAX21100 only: the one-shot I2C master (DR_CFG [5:4] trigger, MAG_SLV_ADD / I2C_MST_ADD /
+I2C_MST_DATA) performing real transfers on the ``aux`` EmulatedBus.
+
+Physics face: ``physics`` (sensor frame, SI) is sampled when a measurement completes
+(at the first bus access or ``set_physics`` after the measurement instant) and encoded with
+the configured sensitivity, rounded to counts and clipped at +/-30000 (the nominal full scale;
+what silicon outputs beyond it is undocumented, so the emulator saturates there).
+
+Fault injection: ``who_am_i`` (set another value: a clone or the sibling part),
+``stuck_data_ready`` (the measurement engine hangs: no new data, data-ready never set; a soft
+reset cures it), ``silent_reset()`` (a brown-out: every register back to power-on defaults
+without the host being told), ``absent`` (base class) and bus errors via the EmulatedBus.
+Not modelled: FIFO (reads 0), interrupts, parity address modes, self-test, OIS modes, the
+MAX21100 slave auto-read (MAG_SLV_CFG) and on-chip fusion.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import ClassVar
+
+from imuhal.bus.base import BusKind
+from imuhal.core.clock import Clock
+from imuhal.core.errors import BusError, NackError
+from imuhal.core.samples import Channel
+from imuhal.emulation.base import ChipEmulator, PhysicalInputs
+from imuhal.emulation.bus import EmulatedBus
+from imuhal_chips.max2110x.registers import (
+    ACCEL_ON_MODES,
+    ACCEL_RANGE_G,
+    ADDRESS_MASK,
+    DR_CFG_CLEAR_SHIFT,
+    DR_CFG_ONESHOT_MASK,
+    DR_CFG_ONESHOT_READ,
+    DR_CFG_ONESHOT_WRITE,
+    DR_CFG_TEMP_EN,
+    FULL_SCALE_COUNTS,
+    GYRO_ON_MODES,
+    GYRO_RANGE_DPS,
+    I2C_CFG_I2C_OFF,
+    I2C_CFG_LITTLE_ENDIAN,
+    MAX21100,
+    MAX21105,
+    NO_INCREMENT_BIT,
+    POWER_MODE_SHIFT,
+    READ_BIT,
+    RST_SW_RESET,
+    STANDARD_GRAVITY_M_S2,
+    TEMP_LSB_PER_DEGC,
+    PartSpec,
+    Reg,
+    Status,
+    accel_range_from_code,
+    gyro_range_from_code,
+    odr_from_code,
+)
+
+ONESHOT_DURATION_NS = 100_000
+"""A one-shot aux byte transaction completes 100 us after its trigger (about 4 bytes at
+400 kHz); I2C_MST_DATA reads the previous value until then."""
+ABSENT_SLAVE_BYTE = 0xFF
+"""What a one-shot read returns when the slave does not acknowledge (released bus)."""
+
+_GYRO_WORDS = range(Reg.GYRO_X_H, Reg.GYRO_X_H + 6)
+_ACCEL_WORDS = range(Reg.ACC_X_H, Reg.ACC_X_H + 6)
+_CONFIG_REGS = frozenset({Reg.POWER_CFG, Reg.GYRO_CFG1, Reg.GYRO_CFG2, Reg.PWR_ACC_CFG,
+                          Reg.ACC_CFG1})
+
+
+class Max2110xEmulator(ChipEmulator):
+    """Family base; subclasses set ``chip`` and ``part``."""
+
+    part: ClassVar[PartSpec]
+
+    def __init__(self, clock: Clock | None = None, *, name: str | None = None) -> None:
+        super().__init__(clock)
+        self.name = name or self.chip
+        self.who_am_i = self.part.who_am_i
+        self.stuck_data_ready = False
+        self.power_on_resets = 0
+        self.power_on_reset()
+
+    # --- state ----------------------------------------------------------------------------
+
+    def power_on_reset(self) -> None:
+        """Every register to its power-on default; measurements stop (power-down)."""
+        self.banks = [bytearray(32) for _ in range(3)]
+        for reg, value in self.part.bank0_defaults.items():
+            self.banks[0][reg] = value
+        self.bank = 0
+        self.status = 0
+        self.words: dict[int, int] = {}  # high-byte address -> int16 value
+        self._read_since_latch: dict[Channel, set[int]] = {Channel.GYRO: set(),
+                                                            Channel.ACCEL: set()}
+        self._next_ns: dict[Channel, int | None] = {Channel.GYRO: None, Channel.ACCEL: None}
+        self._mst_data = 0
+        self._mst_pending: tuple[int, int] | None = None
+        self.stuck_data_ready = False
+        self.power_on_resets += 1
+
+    def silent_reset(self) -> None:
+        """Fault: the chip resets (brown-out) without the host knowing."""
+        self.power_on_reset()
+
+    def bank0(self, reg: int) -> int:
+        return self.banks[0][reg]
+
+    # --- physics face ---------------------------------------------------------------------
+
+    def set_physics(self, inputs: PhysicalInputs) -> None:
+        self._advance()  # measurements due before the change use the old values
+        super().set_physics(inputs)
+
+    def _gyro_lsb_per_dps(self) -> float:
+        return GYRO_RANGE_DPS[gyro_range_from_code(self.bank0(Reg.GYRO_CFG1))][1]
+
+    def _accel_lsb_per_g(self) -> float:
+        return ACCEL_RANGE_G[accel_range_from_code(self.bank0(Reg.PWR_ACC_CFG))][1]
+
+    def resolution(self, channel: Channel) -> float:
+        """SI units per count for the current configuration."""
+        if channel is Channel.GYRO:
+            return math.radians(1.0) / self._gyro_lsb_per_dps()
+        if channel is Channel.ACCEL:
+            return STANDARD_GRAVITY_M_S2 / self._accel_lsb_per_g()
+        if channel is Channel.TEMPERATURE:
+            return 1.0 / TEMP_LSB_PER_DEGC
+        raise ValueError(f"{self.chip} has no {channel.value} channel")
+
+    def full_scale(self, channel: Channel) -> float:
+        """Largest SI magnitude the chip reports before saturating (current configuration)."""
+        if channel is Channel.TEMPERATURE:
+            return 32767 / TEMP_LSB_PER_DEGC
+        return FULL_SCALE_COUNTS * self.resolution(channel)
+
+    @staticmethod
+    def _encode(value: float, per_count: float, limit: int) -> int:
+        if not math.isfinite(value):
+            return limit if value > 0 else -limit
+        return max(-limit, min(limit, round(value / per_count)))
+
+    def _latch(self, channel: Channel) -> None:
+        p = self.physics
+        if channel is Channel.GYRO:
+            rate = p.angular_rate_rad_s or (0.0, 0.0, 0.0)
+            k = self.resolution(Channel.GYRO)
+            enabled = self.bank0(Reg.POWER_CFG) & 0x07 if self.part.has_aux_master else 0x07
+            for axis in range(3):
+                counts = self._encode(rate[axis], k, FULL_SCALE_COUNTS)
+                self.words[Reg.GYRO_X_H + 2 * axis] = counts if enabled & (1 << axis) else 0
+            if self.bank0(Reg.DR_CFG) & DR_CFG_TEMP_EN:
+                t = p.temperature_degc if p.temperature_degc is not None else 25.0
+                self.words[self.part.temp_register] = self._encode(
+                    t, 1.0 / TEMP_LSB_PER_DEGC, 32767)
+            dr, err = Status.GYRO_DR, Status.GYRO_ERR
+        else:
+            force = p.specific_force_m_s2 or (0.0, 0.0, 0.0)
+            k = self.resolution(Channel.ACCEL)
+            enabled = (self.bank0(Reg.PWR_ACC_CFG) & 0x07) if self.part.has_aux_master else 0x07
+            for axis in range(3):
+                counts = self._encode(force[axis], k, FULL_SCALE_COUNTS)
+                self.words[Reg.ACC_X_H + 2 * axis] = counts if enabled & (1 << axis) else 0
+            dr, err = Status.ACC_DR, Status.ACC_ERR
+        if self.status & dr:
+            self.status |= err  # the previous sample was never read: it is lost
+        self.status |= dr
+        self._read_since_latch[channel] = set()
+
+    # --- timing ---------------------------------------------------------------------------
+
+    def _odr_hz(self, channel: Channel) -> float | None:
+        if channel is Channel.GYRO:
+            code = self.bank0(Reg.GYRO_CFG2) & 0x0F
+            return odr_from_code(self.part.gyro_odr_hz, code)
+        code = self.bank0(Reg.ACC_CFG1) & 0x0F
+        if self.part is MAX21105 and code & 0x08:
+            return 5.0  # 1xxx: 5 Hz
+        return odr_from_code(self.part.accel_odr_hz, code)
+
+    def _active(self, channel: Channel) -> bool:
+        mode = (self.bank0(Reg.POWER_CFG) >> POWER_MODE_SHIFT) & 0x0F
+        return mode in (GYRO_ON_MODES if channel is Channel.GYRO else ACCEL_ON_MODES)
+
+    def _restart_timing(self) -> None:
+        now = self.now_ns()
+        for channel in (Channel.GYRO, Channel.ACCEL):
+            odr = self._odr_hz(channel)
+            if self._active(channel) and odr:
+                self._next_ns[channel] = now + round(1e9 / odr)
+            else:
+                self._next_ns[channel] = None
+
+    def _advance(self) -> None:
+        now = self.now_ns()
+        for channel in (Channel.GYRO, Channel.ACCEL):
+            due = self._next_ns[channel]
+            if due is None or now < due:
+                continue
+            odr = self._odr_hz(channel)
+            assert odr
+            period = round(1e9 / odr)
+            missed = (now - due) // period
+            self._next_ns[channel] = due + (missed + 1) * period
+            if self.stuck_data_ready:
+                continue
+            if missed:
+                self.status |= Status.GYRO_ERR if channel is Channel.GYRO else Status.ACC_ERR
+            self._latch(channel)
+        if self._mst_pending is not None and now >= self._mst_pending[0]:
+            self._mst_data = self._mst_pending[1]
+            self._mst_pending = None
+
+    # --- bus face -------------------------------------------------------------------------
+
+    def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes:
+        if kind is BusKind.I2C and self.bank0(Reg.I2C_CFG) & I2C_CFG_I2C_OFF:
+            raise NackError(f"{self.name}: I2C slave disabled (I2C_CFG bit 0)")
+        self._advance()
+        if not write:
+            raise BusError(f"{self.name}: a transaction must start with an address byte")
+        first = write[0]
+        reg = first & ADDRESS_MASK
+        increment = not first & NO_INCREMENT_BIT
+        is_read = bool(first & READ_BIT) if kind is BusKind.SPI else read_len > 0
+        if kind is BusKind.SPI and is_read and len(write) > 1:
+            raise BusError(f"{self.name}: SPI read with data bytes after the address")
+        for value in write[1:]:
+            self._write(reg, value)
+            reg = self._step(reg, increment)
+        if not is_read:
+            return bytes(read_len) if kind is BusKind.SPI else b""
+        out = bytearray()
+        touched: list[int] = []
+        for _ in range(read_len):
+            out.append(self._read(reg))
+            touched.append(reg)
+            reg = self._step(reg, increment)
+        self._after_read(touched)
+        return bytes(out)
+
+    @staticmethod
+    def _step(reg: int, increment: bool) -> int:
+        return (reg + 1) & ADDRESS_MASK if increment else reg
+
+    def _read(self, reg: int) -> int:
+        if reg < 0x20:
+            if self.bank > 2:
+                return 0
+            if self.part.has_aux_master and self.bank == 0 and reg == Reg.I2C_MST_DATA:
+                return self._mst_data
+            return self.banks[self.bank][reg]
+        if reg == Reg.WHO_AM_I:
+            return self.who_am_i
+        if reg == Reg.REVISION:
+            return self.part.revision
+        if reg == Reg.BANK_SELECT:
+            return self.bank & 0x0F
+        if reg == Reg.SYSTEM_STATUS:
+            return self.status
+        high = reg & ~1
+        if high in self.words or Reg.GYRO_X_H <= reg < self.part.temp_register + 2:
+            word = self.words.get(high, 0) & 0xFFFF
+            big_endian = not self.bank0(Reg.I2C_CFG) & I2C_CFG_LITTLE_ENDIAN
+            first_byte = word >> 8 if big_endian else word & 0xFF
+            second_byte = word & 0xFF if big_endian else word >> 8
+            return first_byte if reg == high else second_byte
+        return 0  # FIFO and unmodelled registers
+
+    def _after_read(self, touched: list[int]) -> None:
+        mode = (self.bank0(Reg.DR_CFG) >> DR_CFG_CLEAR_SHIFT) & 0x03
+        if Reg.SYSTEM_STATUS in touched:
+            if mode == 2:
+                self.status &= ~(Status.GYRO_DR | Status.ACC_DR)
+            self.status &= ~(Status.GYRO_ERR | Status.ACC_ERR)
+        for channel, regs, dr in ((Channel.GYRO, _GYRO_WORDS, Status.GYRO_DR),
+                                  (Channel.ACCEL, _ACCEL_WORDS, Status.ACC_DR)):
+            seen = self._read_since_latch[channel]
+            seen.update(r for r in touched if r in regs)
+            if (mode == 0 and len(seen) == 6) or (mode == 1 and seen):
+                self.status &= ~dr
+
+    def _write(self, reg: int, value: int) -> None:
+        if reg < 0x20:
+            if self.bank > 2:
+                return
+            self.banks[self.bank][reg] = value
+            if self.bank == 0:
+                self._bank0_written(reg, value)
+            return
+        if reg == Reg.BANK_SELECT:
+            self.bank = value & 0x0F
+        elif reg == Reg.RST_REG and value & RST_SW_RESET:
+            self.power_on_reset()
+        # identity, status and data registers are read-only: writes are ignored
+
+    def _oneshot(self, *, write: bool) -> None:
+        """Aux master transaction; only the MAX21100 has the master."""
+
+    def _bank0_written(self, reg: int, value: int) -> None:
+        if reg in _CONFIG_REGS:
+            self._restart_timing()
+        if self.part.has_aux_master and reg == Reg.DR_CFG:
+            trigger = value & DR_CFG_ONESHOT_MASK
+            if trigger == DR_CFG_ONESHOT_WRITE:
+                self._oneshot(write=True)
+            elif trigger == DR_CFG_ONESHOT_READ:
+                self._oneshot(write=False)
+            # the trigger field is a command, not a setting
+            self.banks[0][reg] = value & ~DR_CFG_ONESHOT_MASK
+
+
+class Max21105Emulator(Max2110xEmulator):
+    """MAX21105 (WHO_AM_I 0xB4): gyro + accel + temperature at 0x30."""
+
+    chip = "max21105"
+    part = MAX21105
+
+
+class Max21100Emulator(Max2110xEmulator):
+    """MAX21100 (WHO_AM_I 0xB2): gyro + accel + temperature at 0x36, aux I2C master."""
+
+    chip = "max21100"
+    part = MAX21100
+
+    def __init__(self, clock: Clock | None = None, *, name: str | None = None) -> None:
+        self._aux = EmulatedBus(f"{name or self.chip}/aux", BusKind.I2C)
+        super().__init__(clock, name=name)
+
+    def child_buses(self) -> dict[str, EmulatedBus]:
+        return {"aux": self._aux}
+
+    def _oneshot(self, *, write: bool) -> None:
+        """Carry out a one-shot byte transaction on the aux bus (result after 100 us)."""
+        slave = self.bank0(Reg.MAG_SLV_ADD) & 0x7F
+        register = self.bank0(Reg.I2C_MST_ADD)
+        done = self.now_ns() + ONESHOT_DURATION_NS
+        try:
+            if write:
+                self._aux.transfer(slave, bytes([register, self.bank0(Reg.I2C_MST_DATA)]), 0)
+                return
+            value = self._aux.transfer(slave, bytes([register]), 1)[0]
+        except BusError:
+            if write:
+                return
+            value = ABSENT_SLAVE_BYTE
+        self._mst_pending = (done, value)
