@@ -212,7 +212,7 @@ class Pipeline:
         order = {name: i for i, name in enumerate(self.devices)}
         while heap:
             t_ns, _, name = heapq.heappop(heap)
-            if end is not None and t_ns > end:
+            if end is not None and t_ns >= end:
                 break
             self.clock.sleep_until(t_ns)
             if self.board is not None:

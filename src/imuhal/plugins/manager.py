@@ -118,7 +118,7 @@ def load_registry(
         registrar = registry.registrar_for(hook_name)
         caller = getattr(pm.hook, hook_name)
         # Called one implementation at a time so each registration records its plugin.
-        for impl in reversed(caller.get_hookimpls()):
+        for impl in caller.get_hookimpls():
             plugin_name = impl.plugin_name
             registrar._bind(plugin_name, registry.plugins.get(plugin_name, ""))
             impl.function(register=registrar)

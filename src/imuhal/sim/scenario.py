@@ -9,7 +9,7 @@ from typing import Any, ClassVar
 import numpy as np
 from pydantic import BaseModel, ConfigDict
 
-from imuhal.core.frames import FloatArray
+from imuhal.core.frames import FloatArray, euler_deg_from_quat
 
 
 class ScenarioParams(BaseModel):
@@ -31,8 +31,17 @@ class TruthState:
     position_ned_m: FloatArray
     velocity_ned_m_s: FloatArray
     magnetic_field_body_ut: FloatArray
+    """What a magnetometer should read: earth field plus any disturbance, in body axes."""
     pressure_pa: float
     temperature_degc: float
+    """The board's temperature (what the chips' thermometers measure)."""
+    magnetic_disturbance_ned_ut: FloatArray | None = None
+    """The disturbance part of the field in NED (None: the scenario has none)."""
+
+    @property
+    def euler_deg(self) -> tuple[float, float, float]:
+        """(roll, pitch, yaw) in degrees, ZYX, yaw in [-180, 180] from true north."""
+        return euler_deg_from_quat(self.q_body_to_ned)
 
     @property
     def altitude_m(self) -> float:
@@ -43,6 +52,15 @@ class TruthState:
     def climb_m_s(self) -> float:
         """Vertical speed (m/s, up positive)."""
         return float(-self.velocity_ned_m_s[2])
+
+
+@dataclass(frozen=True, slots=True)
+class Phase:
+    """A labelled interval of a scenario (e.g. one calibration position held still)."""
+
+    name: str
+    start_s: float
+    end_s: float
 
 
 class Scenario(ABC):
@@ -70,3 +88,7 @@ class Scenario(ABC):
     @abstractmethod
     def truth(self, t_s: float) -> TruthState:
         """The true state at ``t_s``; must be a pure function of ``t_s`` and the seed."""
+
+    def phases(self) -> tuple[Phase, ...]:
+        """Labelled intervals of the run (holds, manoeuvres); empty unless a scenario has any."""
+        return ()

@@ -1,0 +1,301 @@
+"""Rigid-body trajectories: attitude, angular rate, specific force, position and velocity.
+
+Frames: earth NED; body FRD (x forward, y right, z down). Quaternions scalar first, rotating
+body -> NED (``v_ned = R(q) v_body``). Specific force is ``R^T (a_ned - g_ned)`` with
+``g_ned = (0, 0, +g)``: level at rest it reads (0, 0, -g).
+
+Everything is a pure function of time. Kinematic consistency holds by construction:
+
+* attitude is a product of rotations whose angles are :class:`~imuhal.sim.signals.Signal`s,
+  and the body rate is the exact derivative of that product;
+* velocity and acceleration come from signals with exact derivatives; where position has
+  no closed form (flight along a turning heading or along the nose) it is the integral of
+  the velocity on a fine grid (cubic Hermite quadrature using the exact acceleration,
+  error below a micrometre), filled lazily and deterministically.
+
+Hot paths use plain floats and tuples: these are evaluated at every sensor poll.
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
+from imuhal.sim.signals import Signal
+
+Vec3 = tuple[float, float, float]
+Quat = tuple[float, float, float, float]
+Mat3 = tuple[float, float, float, float, float, float, float, float, float]
+"""A 3x3 matrix as a row-major 9-tuple."""
+
+
+@dataclass(frozen=True, slots=True)
+class Kinematics:
+    """The rigid-body state at ``t_s``. SI units; see the module docstring for frames."""
+
+    t_s: float
+    q_body_to_ned: Quat
+    rotation: Mat3
+    """R(q) row-major: v_ned = R v_body."""
+    angular_rate_body_rad_s: Vec3
+    specific_force_body_m_s2: Vec3
+    acceleration_ned_m_s2: Vec3
+    position_ned_m: Vec3
+    velocity_ned_m_s: Vec3
+
+
+# --------------------------------------------------------------------------- float helpers
+def quat_mul(p: Quat, q: Quat) -> Quat:
+    """Hamilton product p * q on tuples."""
+    pw, px, py, pz = p
+    qw, qx, qy, qz = q
+    return (pw * qw - px * qx - py * qy - pz * qz,
+            pw * qx + px * qw + py * qz - pz * qy,
+            pw * qy - px * qz + py * qw + pz * qx,
+            pw * qz + px * qy - py * qx + pz * qw)
+
+
+def quat_matrix(q: Quat) -> Mat3:
+    w, x, y, z = q
+    return (w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y),
+            2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x),
+            2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z)
+
+
+def mat_vec(m: Mat3, v: Vec3) -> Vec3:
+    return (m[0] * v[0] + m[1] * v[1] + m[2] * v[2],
+            m[3] * v[0] + m[4] * v[1] + m[5] * v[2],
+            m[6] * v[0] + m[7] * v[1] + m[8] * v[2])
+
+
+def mat_t_vec(m: Mat3, v: Vec3) -> Vec3:
+    """R^T v (NED -> body for a body -> NED rotation)."""
+    return (m[0] * v[0] + m[3] * v[1] + m[6] * v[2],
+            m[1] * v[0] + m[4] * v[1] + m[7] * v[2],
+            m[2] * v[0] + m[5] * v[1] + m[8] * v[2])
+
+
+def quat_axis_angle(axis: Vec3, angle: float) -> Quat:
+    h = 0.5 * angle
+    s = math.sin(h)
+    return (math.cos(h), axis[0] * s, axis[1] * s, axis[2] * s)
+
+
+def quat_euler(roll: float, pitch: float, yaw: float) -> Quat:
+    """Body -> NED quaternion from ZYX Euler angles in radians (any range)."""
+    cr, sr = math.cos(0.5 * roll), math.sin(0.5 * roll)
+    cp, sp = math.cos(0.5 * pitch), math.sin(0.5 * pitch)
+    cy, sy = math.cos(0.5 * yaw), math.sin(0.5 * yaw)
+    return (cy * cp * cr + sy * sp * sr, cy * cp * sr - sy * sp * cr,
+            cy * sp * cr + sy * cp * sr, sy * cp * cr - cy * sp * sr)
+
+
+def euler_body_rate(roll: float, pitch: float, droll: float, dpitch: float,
+                    dyaw: float) -> Vec3:
+    """Body angular rate (p, q, r) of ZYX Euler angles changing at the given rates.
+
+    Exact for any angles (no division, so no singularity at pitch +-90 deg).
+    """
+    sr, cr = math.sin(roll), math.cos(roll)
+    sp, cp = math.sin(pitch), math.cos(pitch)
+    return (droll - dyaw * sp,
+            dpitch * cr + dyaw * sr * cp,
+            -dpitch * sr + dyaw * cr * cp)
+
+
+def _unit(v: Sequence[float]) -> Vec3:
+    n = math.sqrt(sum(c * c for c in v))
+    if n == 0 or not math.isfinite(n):
+        raise ValueError(f"rotation axis {tuple(v)} has no direction")
+    return (v[0] / n, v[1] / n, v[2] / n)
+
+
+# --------------------------------------------------------------------------- motions
+class Motion(ABC):
+    """A trajectory: ``kinematics(t_s)`` for any ``t_s >= 0``; pure function of time."""
+
+    gravity_m_s2: float = STANDARD_GRAVITY_M_S2
+
+    @abstractmethod
+    def kinematics(self, t_s: float) -> Kinematics:
+        """The state at ``t_s`` (s since the start)."""
+
+
+@dataclass(frozen=True, slots=True)
+class BodyRotation:
+    """A rotation about a fixed body axis by a time-varying angle (rad), applied after the
+    Euler attitude (and after earlier body rotations): R = R_euler * R_1 * R_2 ..."""
+
+    axis: Vec3
+    angle: Signal
+
+
+class FlightMotion(Motion):
+    """A trajectory composed from signals.
+
+    Attitude: ``R = Rz(yaw) Ry(pitch) Rx(roll + bank) * R_1(a_1) * R_2(a_2) ...`` where the
+    optional ``bank`` is the coordinated-turn bank ``atan(V * dyaw/dt / g)`` for the speed V
+    of ``speed_along_heading`` (or ``speed_along_nose``), and each ``R_i`` is a
+    :class:`BodyRotation` (tumbling, figure-of-8 moves).
+
+    Velocity (NED) is the sum of
+      * ``north``/``east``/``down`` position signals (closed-form position),
+      * ``speed_along_heading``: horizontal speed along the yaw direction (a glider),
+      * ``speed_along_nose``: speed along body x (an aeroplane with no angle of attack or
+        sideslip; a = R (dV/dt, V r, -V q) in closed form),
+      * a constant ``wind_ned_m_s`` drift.
+
+    ``grid_step_s`` is the quadrature step for the positions without closed form.
+    """
+
+    def __init__(self, *, yaw: Signal | None = None, pitch: Signal | None = None,
+                 roll: Signal | None = None, body_rotations: Sequence[BodyRotation] = (),
+                 coordinated_bank: bool = False, north: Signal | None = None,
+                 east: Signal | None = None, down: Signal | None = None,
+                 speed_along_heading: Signal | None = None,
+                 speed_along_nose: Signal | None = None,
+                 wind_ned_m_s: Vec3 = (0.0, 0.0, 0.0),
+                 gravity_m_s2: float = STANDARD_GRAVITY_M_S2,
+                 grid_step_s: float = 0.01) -> None:
+        self.yaw = yaw or Signal()
+        self.pitch = pitch or Signal()
+        self.roll = roll or Signal()
+        self.body_rotations = tuple(BodyRotation(_unit(b.axis), b.angle)
+                                    for b in body_rotations)
+        self.coordinated_bank = coordinated_bank
+        self.north, self.east, self.down = north, east, down
+        self.speed_along_heading = speed_along_heading
+        self.speed_along_nose = speed_along_nose
+        if coordinated_bank and speed_along_heading is None and speed_along_nose is None:
+            raise ValueError("coordinated_bank needs a speed signal to bank for")
+        self.wind = (float(wind_ned_m_s[0]), float(wind_ned_m_s[1]), float(wind_ned_m_s[2]))
+        self.gravity_m_s2 = float(gravity_m_s2)
+        self.grid_step_s = float(grid_step_s)
+        self._tabulated = speed_along_heading is not None or speed_along_nose is not None
+        # Quadrature table of the tabulated velocity: node k at t = k * h.
+        self._tv: list[Vec3] = []
+        self._ta: list[Vec3] = []
+        self._tp: list[Vec3] = []
+
+    # ------------------------------------------------------------------ attitude + velocity
+    def _attitude(self, t: float) -> tuple[Quat, Vec3]:
+        psi, dpsi, ddpsi = self.yaw(t)
+        th, dth, _ = self.pitch(t)
+        ph, dph, _ = self.roll(t)
+        if self.coordinated_bank:
+            sig = self.speed_along_heading or self.speed_along_nose
+            assert sig is not None
+            v, dv, _ = sig(t)
+            x = v * dpsi / self.gravity_m_s2
+            ph += math.atan(x)
+            dph += (dv * dpsi + v * ddpsi) / self.gravity_m_s2 / (1.0 + x * x)
+        q = quat_euler(ph, th, psi)
+        w = euler_body_rate(ph, th, dph, dth, dpsi)
+        if self.body_rotations:
+            # R = R_e B_1 ... B_n; body rate = B^T w_e + sum_i (B_{i+1}..B_n)^T a_i da_i.
+            acc_w = (0.0, 0.0, 0.0)
+            right: Quat = (1.0, 0.0, 0.0, 0.0)
+            for rot in reversed(self.body_rotations):
+                ang, dang, _ = rot.angle(t)
+                m = quat_matrix(right)
+                ax = mat_t_vec(m, rot.axis)
+                acc_w = (acc_w[0] + ax[0] * dang, acc_w[1] + ax[1] * dang,
+                         acc_w[2] + ax[2] * dang)
+                right = quat_mul(quat_axis_angle(rot.axis, ang), right)
+            we = mat_t_vec(quat_matrix(right), w)
+            w = (we[0] + acc_w[0], we[1] + acc_w[1], we[2] + acc_w[2])
+            q = quat_mul(q, right)
+        return q, w
+
+    def _tab_velocity(self, t: float, q: Quat, rot: Mat3, w: Vec3) -> tuple[Vec3, Vec3]:
+        """Velocity and acceleration (NED) of the parts without closed-form position."""
+        vn = ve = vd = an = ae = ad = 0.0
+        if self.speed_along_heading is not None:
+            v, dv, _ = self.speed_along_heading(t)
+            psi, dpsi, _ = self.yaw(t)
+            c, s = math.cos(psi), math.sin(psi)
+            vn += v * c
+            ve += v * s
+            an += dv * c - v * dpsi * s
+            ae += dv * s + v * dpsi * c
+        if self.speed_along_nose is not None:
+            v, dv, _ = self.speed_along_nose(t)
+            vn += v * rot[0]
+            ve += v * rot[3]
+            vd += v * rot[6]
+            a = mat_vec(rot, (dv, v * w[2], -v * w[1]))
+            an += a[0]
+            ae += a[1]
+            ad += a[2]
+        return (vn, ve, vd), (an, ae, ad)
+
+    # ------------------------------------------------------------------ position quadrature
+    def _node(self, k: int) -> tuple[Vec3, Vec3]:
+        t = k * self.grid_step_s
+        q, w = self._attitude(t)
+        return self._tab_velocity(t, q, quat_matrix(q), w)
+
+    def _extend_table(self, k_needed: int) -> None:
+        h = self.grid_step_s
+        if not self._tv:
+            v, a = self._node(0)
+            self._tv.append(v)
+            self._ta.append(a)
+            self._tp.append((0.0, 0.0, 0.0))
+        while len(self._tv) <= k_needed:
+            k = len(self._tv)
+            v1, a1 = self._node(k)
+            v0, a0, p0 = self._tv[-1], self._ta[-1], self._tp[-1]
+            # Integral of the cubic Hermite interpolant of v (exact for cubic velocity).
+            self._tp.append(tuple(p0[i] + 0.5 * h * (v0[i] + v1[i])
+                                  + h * h / 12.0 * (a0[i] - a1[i]) for i in range(3)))
+            self._tv.append(v1)
+            self._ta.append(a1)
+
+    def _tab_position(self, t: float) -> Vec3:
+        h = self.grid_step_s
+        k = int(t / h)
+        self._extend_table(k + 1)
+        s = t / h - k
+        s2, s3, s4 = s * s, s * s * s, s * s * s * s
+        i00 = s - s3 + 0.5 * s4
+        i10 = 0.5 * s2 - 2.0 / 3.0 * s3 + 0.25 * s4
+        i01 = s3 - 0.5 * s4
+        i11 = -s3 / 3.0 + 0.25 * s4
+        v0, a0, v1, a1, p0 = self._tv[k], self._ta[k], self._tv[k + 1], self._ta[k + 1], \
+            self._tp[k]
+        return tuple(p0[i] + h * (v0[i] * i00 + h * a0[i] * i10 + v1[i] * i01
+                                  + h * a1[i] * i11) for i in range(3))  # type: ignore[return-value]
+
+    # ------------------------------------------------------------------ public
+    def kinematics(self, t_s: float) -> Kinematics:
+        if t_s < 0:
+            raise ValueError(f"trajectories start at t = 0 s, got {t_s}")
+        t = float(t_s)
+        q, w = self._attitude(t)
+        rot = quat_matrix(q)
+        wn, we, wd = self.wind
+        pn, pe, pd = wn * t, we * t, wd * t
+        vn, ve, vd = wn, we, wd
+        an = ae = ad = 0.0
+        for idx, sig in enumerate((self.north, self.east, self.down)):
+            if sig is None:
+                continue
+            p, v, a = sig(t)
+            if idx == 0:
+                pn, vn, an = pn + p, vn + v, an + a
+            elif idx == 1:
+                pe, ve, ae = pe + p, ve + v, ae + a
+            else:
+                pd, vd, ad = pd + p, vd + v, ad + a
+        if self._tabulated:
+            tv, ta = self._tab_velocity(t, q, rot, w)
+            tp = self._tab_position(t)
+            pn, pe, pd = pn + tp[0], pe + tp[1], pd + tp[2]
+            vn, ve, vd = vn + tv[0], ve + tv[1], vd + tv[2]
+            an, ae, ad = an + ta[0], ae + ta[1], ad + ta[2]
+        f = mat_t_vec(rot, (an, ae, ad - self.gravity_m_s2))
+        return Kinematics(t, q, rot, w, f, (an, ae, ad), (pn, pe, pd), (vn, ve, vd))

@@ -1,0 +1,239 @@
+"""Smooth scalar profiles of time with exact first and second derivatives.
+
+A :class:`Signal` is the building block of every trajectory: an angle (rad), a speed (m/s) or
+a position (m) as a function of time (s). It is built from
+
+* a base value and rate,
+* a chronological list of non-overlapping *transitions*: value steps (the rate rises and falls
+  as ``1 - cos``, so value, rate and acceleration stay continuous) and rate steps (the rate
+  changes along a raised cosine, so rate and acceleration stay continuous),
+* windowed sinusoids (single tones or seeded sums of tones for turbulence), faded in and out
+  with a quintic smootherstep envelope.
+
+Evaluation ``signal(t) -> (value, d/dt, d2/dt2)`` uses plain floats and a bisection over
+precompiled transition starts, because it runs at every sensor poll.
+"""
+
+from __future__ import annotations
+
+import math
+from bisect import bisect_right
+from dataclasses import dataclass
+
+import numpy as np
+
+_TWO_PI = 2.0 * math.pi
+
+STEP = 0
+"""Transition kind: the value moves by ``delta`` (rate zero at both ends)."""
+RATE = 1
+"""Transition kind: the rate changes by ``delta`` (raised-cosine ramp)."""
+
+
+@dataclass(frozen=True, slots=True)
+class _Transition:
+    t0: float
+    duration: float
+    kind: int
+    delta: float
+    v_start: float
+    r_start: float
+    v_end: float
+    r_end: float
+
+
+@dataclass(frozen=True, slots=True)
+class _Tones:
+    """A group of sinusoids sharing one fade-in/fade-out window."""
+
+    t_on: float
+    t_off: float
+    ramp_s: float
+    amplitudes: tuple[float, ...]
+    omegas: tuple[float, ...]
+    phases: tuple[float, ...]
+
+
+def _smootherstep(x: float) -> tuple[float, float, float]:
+    """Quintic 0 -> 1 ramp on x in [0, 1] and its first two derivatives in x."""
+    if x <= 0.0:
+        return 0.0, 0.0, 0.0
+    if x >= 1.0:
+        return 1.0, 0.0, 0.0
+    return (x * x * x * (10.0 - 15.0 * x + 6.0 * x * x),
+            30.0 * x * x * (1.0 - x) * (1.0 - x),
+            60.0 * x * (1.0 - x) * (1.0 - 2.0 * x))
+
+
+class Signal:
+    """A scalar function of time built from transitions and windowed tones.
+
+    Builder methods return ``self`` so profiles read like a schedule::
+
+        yaw = Signal(0.0).rate_to(10.0, 2.0, 0.3).rate_to(40.0, 2.0, 0.0)
+
+    Transitions must be added in time order and must not overlap (the builder checks it);
+    tones may overlap anything.
+    """
+
+    __slots__ = ("_end_t", "_end_v", "_r0", "_starts", "_tones", "_transitions", "_v0")
+
+    def __init__(self, value: float = 0.0, rate: float = 0.0) -> None:
+        self._v0 = float(value)
+        self._r0 = float(rate)
+        self._transitions: list[_Transition] = []
+        self._starts: list[float] = []
+        self._tones: list[_Tones] = []
+        self._end_t = -math.inf
+        self._end_v = self._v0
+
+    # ----------------------------------------------------------------------------- building
+    def base_state(self, t_s: float) -> tuple[float, float]:
+        """(value, rate) of the transitions alone (no tones) at ``t_s``."""
+        v, r, _ = self._ramps(t_s)
+        return v, r
+
+    def _add(self, t0: float, duration: float, kind: int, delta: float) -> Signal:
+        if duration <= 0 or not math.isfinite(duration):
+            raise ValueError(f"a transition needs a positive duration, got {duration}")
+        if t0 < self._end_t - 1e-12:
+            raise ValueError(
+                f"transition at t={t0} s starts before the previous one ends "
+                f"(t={self._end_t} s): add transitions in time order, without overlap"
+            )
+        v_start, r_start = self.base_state(t0)
+        if kind == STEP:
+            v_end, r_end = v_start + r_start * duration + delta, r_start
+        else:
+            v_end, r_end = v_start + r_start * duration + delta * duration / 2.0, r_start + delta
+        self._transitions.append(
+            _Transition(t0, duration, kind, delta, v_start, r_start, v_end, r_end))
+        self._starts.append(t0)
+        self._end_t = t0 + duration
+        return self
+
+    def step(self, t0: float, duration: float, delta: float) -> Signal:
+        """Move the value by ``delta`` over ``duration`` s from ``t0``; rate 0 at both ends
+        (on top of any constant rate already present)."""
+        return self._add(t0, duration, STEP, delta)
+
+    def step_to(self, t0: float, duration: float, value: float) -> Signal:
+        """Move to ``value`` by ``t0 + duration`` (assumes zero base rate at ``t0``)."""
+        v, r = self.base_state(t0)
+        return self._add(t0, duration, STEP, value - v - r * duration)
+
+    def rate_step(self, t0: float, duration: float, delta_rate: float) -> Signal:
+        """Change the rate by ``delta_rate`` along a raised cosine lasting ``duration``."""
+        return self._add(t0, duration, RATE, delta_rate)
+
+    def rate_to(self, t0: float, duration: float, rate: float) -> Signal:
+        """Change the rate to ``rate`` along a raised cosine lasting ``duration``."""
+        return self._add(t0, duration, RATE, rate - self.base_state(t0)[1])
+
+    def sweep(self, t0: float, duration: float, delta: float, ramp_s: float) -> Signal:
+        """Move the value by ``delta`` with a trapezoidal rate: ramp up over ``ramp_s``,
+        hold a constant rate, ramp down over ``ramp_s``; done at ``t0 + duration``.
+
+        Gentler than :meth:`step` for large moves (loops, rolls, constant-rate turns): the
+        peak rate is ``delta / (duration - ramp_s)`` instead of ``2 delta / duration``.
+        """
+        if not 0 < 2 * ramp_s <= duration:
+            raise ValueError(f"sweep needs 0 < 2*ramp_s <= duration (ramp {ramp_s}, "
+                             f"duration {duration})")
+        rate = delta / (duration - ramp_s)
+        r0 = self.base_state(t0)[1]
+        self.rate_step(t0, ramp_s, rate)
+        return self.rate_to(t0 + duration - ramp_s, ramp_s, r0)
+
+    def oscillate(self, amplitude: float, period_s: float, *, t_on: float = 0.0,
+                  t_off: float = math.inf, ramp_s: float = 1.0,
+                  phase_rad: float = 0.0) -> Signal:
+        """Add ``amplitude * sin(2 pi t / period_s + phase_rad)``, faded in from ``t_on``
+        and out before ``t_off`` over ``ramp_s`` seconds each."""
+        return self._tones_add(t_on, t_off, ramp_s, (amplitude,), (_TWO_PI / period_s,),
+                               (phase_rad,))
+
+    def turbulence(self, rng: np.random.Generator, rms: float, *, f_min_hz: float,
+                   f_max_hz: float, tones: int = 8, t_on: float = 0.0,
+                   t_off: float = math.inf, ramp_s: float = 2.0) -> Signal:
+        """Add a seeded, band-limited random wiggle: ``tones`` sinusoids with log-uniform
+        frequencies in [f_min, f_max] and random phases, of total RMS ``rms``.
+
+        Deterministic for a given generator state; smooth, so its derivatives are exact.
+        """
+        if tones <= 0 or rms == 0.0:
+            return self
+        freqs = np.exp(rng.uniform(math.log(f_min_hz), math.log(f_max_hz), tones))
+        phases = rng.uniform(0.0, _TWO_PI, tones)
+        weights = rng.uniform(0.5, 1.5, tones)
+        amps = weights * rms * math.sqrt(2.0) / math.sqrt(float(np.sum(weights**2)))
+        return self._tones_add(t_on, t_off, ramp_s, tuple(float(a) for a in amps),
+                               tuple(float(_TWO_PI * f) for f in freqs),
+                               tuple(float(p) for p in phases))
+
+    def _tones_add(self, t_on: float, t_off: float, ramp_s: float,
+                   amps: tuple[float, ...], omegas: tuple[float, ...],
+                   phases: tuple[float, ...]) -> Signal:
+        if ramp_s <= 0:
+            raise ValueError("ramp_s must be positive")
+        if t_off - t_on < 2 * ramp_s:
+            raise ValueError(f"tone window [{t_on}, {t_off}] is shorter than two ramps")
+        self._tones.append(_Tones(t_on, t_off, ramp_s, amps, omegas, phases))
+        return self
+
+    @property
+    def end_of_transitions_s(self) -> float:
+        """When the last transition ends (-inf when there is none)."""
+        return self._end_t
+
+    # ----------------------------------------------------------------------------- evaluation
+    def _ramps(self, t: float) -> tuple[float, float, float]:
+        i = bisect_right(self._starts, t) - 1
+        if i < 0:
+            return self._v0 + self._r0 * t, self._r0, 0.0
+        tr = self._transitions[i]
+        tau = t - tr.t0
+        if tau >= tr.duration:
+            return tr.v_end + tr.r_end * (tau - tr.duration), tr.r_end, 0.0
+        d, dur = tr.delta, tr.duration
+        s = tau / dur
+        v = tr.v_start + tr.r_start * tau
+        if tr.kind == STEP:
+            ang = _TWO_PI * s
+            return (v + d * (s - math.sin(ang) / _TWO_PI),
+                    tr.r_start + d / dur * (1.0 - math.cos(ang)),
+                    d * _TWO_PI / (dur * dur) * math.sin(ang))
+        ang = math.pi * s
+        return (v + 0.5 * d * (tau - dur / math.pi * math.sin(ang)),
+                tr.r_start + 0.5 * d * (1.0 - math.cos(ang)),
+                0.5 * d * math.pi / dur * math.sin(ang))
+
+    def __call__(self, t: float) -> tuple[float, float, float]:
+        """(value, first derivative, second derivative) at time ``t`` (s)."""
+        v, r, a = self._ramps(t)
+        for g in self._tones:
+            if t <= g.t_on or t >= g.t_off:
+                continue
+            ramp = g.ramp_s
+            if t < g.t_on + ramp:
+                e, e1, e2 = _smootherstep((t - g.t_on) / ramp)
+                e1, e2 = e1 / ramp, e2 / (ramp * ramp)
+            elif t > g.t_off - ramp:
+                e, e1, e2 = _smootherstep((g.t_off - t) / ramp)
+                e1, e2 = -e1 / ramp, e2 / (ramp * ramp)
+            else:
+                e, e1, e2 = 1.0, 0.0, 0.0
+            for amp, w, ph in zip(g.amplitudes, g.omegas, g.phases):
+                th = w * t + ph
+                sn, cs = math.sin(th), math.cos(th)
+                v += amp * e * sn
+                r += amp * (e1 * sn + e * w * cs)
+                a += amp * (e2 * sn + 2.0 * e1 * w * cs - e * w * w * sn)
+        return v, r, a
+
+    def is_constant(self) -> bool:
+        return not self._transitions and not self._tones and self._r0 == 0.0
+
+
+def constant(value: float) -> Signal:
+    return Signal(value)

@@ -1,0 +1,110 @@
+"""Scenarios made of a trajectory, an environment and magnetic disturbances.
+
+:class:`MotionScenario` is the base of every built-in scenario: a subclass builds its
+:class:`~imuhal.sim.motion.Motion` once (from its params and seed) and the base turns the
+kinematics into a :class:`~imuhal.sim.scenario.TruthState` at any time. The helper
+:func:`physical_inputs` hands that truth to a chip emulator in the chip's own sensor frame.
+"""
+
+from __future__ import annotations
+
+from abc import abstractmethod
+from collections.abc import Sequence
+from typing import Any, ClassVar
+
+import numpy as np
+
+from imuhal.emulation.base import PhysicalInputs
+from imuhal.sim.environment import Environment
+from imuhal.sim.magnetic import MagneticDisturbance, MagneticDisturbanceSpec
+from imuhal.sim.motion import Kinematics, Motion, mat_t_vec
+from imuhal.sim.scenario import Phase, Scenario, ScenarioParams, TruthState
+
+
+class WorldParams(ScenarioParams):
+    """Parameters every built-in scenario shares."""
+
+    environment: Environment = Environment()
+    magnetic: MagneticDisturbanceSpec = MagneticDisturbanceSpec()
+    """Disturbances added to the earth field (default none)."""
+
+
+class MotionScenario(Scenario):
+    """A scenario whose truth is ``build_motion()`` in ``params.environment``."""
+
+    Params: ClassVar[type[ScenarioParams]] = WorldParams
+
+    def __init__(self, params: ScenarioParams | dict[str, Any] | None = None, *,
+                 seed: int = 0) -> None:
+        super().__init__(params, seed=seed)
+        p: WorldParams = self.params  # type: ignore[assignment]
+        self.environment: Environment = p.environment
+        self._field_ned = p.environment.magnetic_field_ned_tuple()
+        self.disturbance = MagneticDisturbance(p.magnetic, seed)
+        self._phases: list[Phase] = []
+        self.motion: Motion = self.build_motion()
+
+    @abstractmethod
+    def build_motion(self) -> Motion:
+        """Build the trajectory from ``self.params`` and ``self.rng`` (seeded); may record
+        phases with :meth:`add_phase`."""
+
+    def add_phase(self, name: str, start_s: float, end_s: float) -> None:
+        self._phases.append(Phase(name, start_s, end_s))
+
+    def phases(self) -> tuple[Phase, ...]:
+        return tuple(self._phases)
+
+    def kinematics(self, t_s: float) -> Kinematics:
+        return self.motion.kinematics(t_s)
+
+    def field_ned_ut(self, t_s: float) -> tuple[tuple[float, float, float],
+                                               tuple[float, float, float] | None]:
+        """(total field, disturbance or None) in NED, uT."""
+        if not self.disturbance.active:
+            return self._field_ned, None
+        d = self.disturbance.field_ned(t_s)
+        e = self._field_ned
+        return (e[0] + d[0], e[1] + d[1], e[2] + d[2]), d
+
+    def truth(self, t_s: float) -> TruthState:
+        k = self.motion.kinematics(t_s)
+        env = self.environment
+        field, dist = self.field_ned_ut(t_s)
+        alt = -k.position_ned_m[2]
+        return TruthState(
+            t_s=float(t_s),
+            q_body_to_ned=np.array(k.q_body_to_ned),
+            angular_rate_body_rad_s=np.array(k.angular_rate_body_rad_s),
+            specific_force_body_m_s2=np.array(k.specific_force_body_m_s2),
+            position_ned_m=np.array(k.position_ned_m),
+            velocity_ned_m_s=np.array(k.velocity_ned_m_s),
+            magnetic_field_body_ut=np.array(mat_t_vec(k.rotation, field)),
+            pressure_pa=env.pressure_pa(alt, t_s),
+            temperature_degc=env.temperature_degc(alt, t_s),
+            magnetic_disturbance_ned_ut=None if dist is None else np.array(dist),
+        )
+
+
+def physical_inputs(truth: TruthState, sensor_to_body: Sequence[Sequence[float]] | None = None,
+                    *, accel: bool = True, gyro: bool = True, mag: bool = True,
+                    pressure: bool = True, temperature: bool = True) -> PhysicalInputs:
+    """The truth as one chip sees it: vectors rotated into its sensor frame.
+
+    ``sensor_to_body`` is the mount matrix M with ``v_body = M v_sensor`` (as
+    :func:`imuhal.core.frames.parse_mount` returns); None means the chip is aligned with the
+    body. Flags leave out quantities the chip does not measure (None in the result).
+    """
+    m = None if sensor_to_body is None else np.asarray(sensor_to_body, dtype=float)
+
+    def to_sensor(v: np.ndarray) -> tuple[float, float, float]:
+        s = v if m is None else m.T @ v
+        return (float(s[0]), float(s[1]), float(s[2]))
+
+    return PhysicalInputs(
+        specific_force_m_s2=to_sensor(truth.specific_force_body_m_s2) if accel else None,
+        angular_rate_rad_s=to_sensor(truth.angular_rate_body_rad_s) if gyro else None,
+        magnetic_field_ut=to_sensor(truth.magnetic_field_body_ut) if mag else None,
+        pressure_pa=truth.pressure_pa if pressure else None,
+        temperature_degc=truth.temperature_degc if temperature else None,
+    )

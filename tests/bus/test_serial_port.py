@@ -1,0 +1,50 @@
+"""The serial backend through pyserial against a real pseudo-terminal."""
+
+from __future__ import annotations
+
+import os
+import threading
+
+import pytest
+
+from imuhal.bus.serial_port import SerialBus
+from imuhal.core.errors import BusError
+
+pytestmark = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a POSIX pty")
+
+
+def test_a_transfer_writes_then_reads_the_peer_answer() -> None:
+    master, slave = os.openpty()
+    name = os.ttyname(slave)
+
+    def peer() -> None:
+        request = os.read(master, 2)
+        os.write(master, request[::-1] + b"!")
+
+    t = threading.Thread(target=peer)
+    t.start()
+    bus = SerialBus(name, baudrate=115200, timeout_s=2.0)
+    try:
+        assert bus.transfer(0, b"ab", 3) == b"ba!"
+    finally:
+        bus.close()
+        t.join(timeout=2)
+        os.close(master)
+        os.close(slave)
+
+
+def test_a_silent_peer_is_a_timeout_error() -> None:
+    master, slave = os.openpty()
+    bus = SerialBus(os.ttyname(slave), timeout_s=0.05)
+    try:
+        with pytest.raises(BusError, match="timeout"):
+            bus.transfer(0, b"", 4)
+    finally:
+        bus.close()
+        os.close(master)
+        os.close(slave)
+
+
+def test_a_missing_port_is_reported() -> None:
+    with pytest.raises(BusError, match="cannot open"):
+        SerialBus("/dev/ttyDOESNOTEXIST")

@@ -1,0 +1,27 @@
+"""Samples carry units in their names, frames and quality flags."""
+
+from __future__ import annotations
+
+from imuhal.core.samples import AccelSample, Channel, Frame, PressureSample, SampleFlag
+
+
+def test_a_new_sample_is_valid_and_in_the_sensor_frame() -> None:
+    s = AccelSample(t_ns=5, device="imu", accel_m_s2=(0.0, 0.0, -9.8))
+    assert s.valid and s.frame is Frame.SENSOR and s.channel is Channel.ACCEL
+
+
+def test_flagging_returns_an_invalid_copy() -> None:
+    s = PressureSample(t_ns=1, device="baro", pressure_pa=101325.0)
+    bad = s.flagged(SampleFlag.CRC_ERROR)
+    assert s.valid and not bad.valid and SampleFlag.CRC_ERROR in bad.flags
+
+
+def test_channels_document_their_units() -> None:
+    assert {c.unit for c in Channel} == {"m/s^2", "rad/s", "uT", "Pa", "degC"}
+
+
+def test_with_vector_changes_value_and_frame_only() -> None:
+    s = AccelSample(t_ns=9, device="imu", accel_m_s2=(1.0, 2.0, 3.0))
+    moved = s.with_vector((3.0, 2.0, 1.0), Frame.BODY_NED)
+    assert moved.accel_m_s2 == (3.0, 2.0, 1.0) and moved.frame is Frame.BODY_NED
+    assert (moved.t_ns, moved.device) == (9, "imu")
