@@ -1,1 +1,12 @@
-"""Entry point of the imufilter plugin. Its hook implementations are being written."""
+"""Entry point of the imufilter plugin: registers the "imufilter" attitude estimator."""
+
+from __future__ import annotations
+
+from imuhal.plugins.hookspecs import hookimpl
+from imuhal.plugins.registrars import Registrar
+from imuhal_filters.imufilter.estimator import ImuFilterEstimator
+
+
+@hookimpl
+def imuhal_register_estimators(register: Registrar) -> None:  # type: ignore[type-arg]
+    register(ImuFilterEstimator)

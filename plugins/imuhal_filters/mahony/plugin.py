@@ -1,1 +1,12 @@
-"""Entry point of the mahony plugin. Its hook implementations are being written."""
+"""Entry point of the mahony plugin: registers the "mahony" attitude estimator."""
+
+from __future__ import annotations
+
+from imuhal.plugins.hookspecs import hookimpl
+from imuhal.plugins.registrars import Registrar
+from imuhal_filters.mahony.estimator import MahonyEstimator
+
+
+@hookimpl
+def imuhal_register_estimators(register: Registrar) -> None:  # type: ignore[type-arg]
+    register(MahonyEstimator)

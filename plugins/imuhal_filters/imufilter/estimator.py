@@ -1,0 +1,152 @@
+"""The "imufilter" estimator: RCmags imuFilter v1.6.3 (6-DOF) with its velocity estimate.
+
+The attitude is set up from the first accelerometer sample (tilt from gravity, yaw 0): until
+then the estimator emits nothing. Each later gyro sample runs one update: the rotated
+accelerometer is compared with (0, 0, 1) g; its squared deviation feeds a Kalman-like variance
+whose gain (1 inside the ``sd_acc_g`` band, falling outside it) scales the correction, and
+``gain`` (the library's ALPHA) sets how fast the correction acts. With no fresh accel sample
+the step integrates the gyro alone. Heading is relative (no magnetometer); ``rotate_heading``
+turns it about the vertical, e.g. to align it with an external heading.
+
+When ``velocity`` is on, each step also runs the library's velocity filter (see
+``velocity.py``); the estimate is in the diagnostics as ``velocity_ned_m_s``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, ClassVar, Literal
+
+import numpy as np
+from pydantic import Field
+
+from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
+from imuhal.core.frames import FloatArray
+from imuhal.core.samples import AccelSample, GyroSample
+from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
+from imuhal_filters.common.gate import specific_force_m_s2
+from imuhal_filters.common.quat import Vec, to_global, to_local
+from imuhal_filters.imufilter.core import (
+    axis_unit_vectors,
+    gyro_step,
+    imufilter_step,
+    rotate_heading,
+    setup_quaternion,
+)
+from imuhal_filters.imufilter.velocity import ZERO, VelocityState, velocity_step
+
+
+class ImuFilterSettings(AhrsSettings):
+    gain: float = Field(0.5, ge=0.0)
+    """The library's ALPHA (DEFAULT_GAIN): correction rate; smaller = smoother, slower."""
+    sd_acc_g: float = Field(0.2, gt=0.0)
+    """Accelerometer band (DEFAULT_SD_ACC, g): deviations inside it count as "at rest"."""
+    velocity: bool = True
+    """Also run the velocity filter (accIntegral)."""
+    sd_vel_g_s: float = Field(0.1, gt=0.0)
+    """Velocity band (DEFAULT_SD_VEL, g*s = 9.80665 m/s per unit)."""
+
+
+class ImuFilterEstimator(AhrsEstimator):
+    """imuFilter-style 6-DOF attitude filter with a Kalman-like accelerometer band check."""
+
+    name: ClassVar[str] = "imufilter"
+    description: ClassVar[str] = (
+        "RCmags imuFilter: 6-DOF quaternion filter with a Kalman-like accel band, and velocity"
+    )
+    Settings: ClassVar[type[ImuFilterSettings]] = ImuFilterSettings  # type: ignore[assignment]
+    consumes: ClassVar[tuple[type, ...]] = (GyroSample, AccelSample)
+    uses_mag: ClassVar[bool] = False
+    settings: ImuFilterSettings
+
+    def _reset_filter(self) -> None:
+        self._initialized = False
+        self._var = 0.0
+        self._gain = 1.0
+        self._vel = VelocityState()
+        self._vel_target: Vec = ZERO
+
+    def _step(self, step: ImuStep) -> dict[str, Any] | None:
+        accel = step.accel_g
+        if not self._initialized:
+            if accel is None:
+                return None  # no attitude until gravity has been seen once
+            self._q = setup_quaternion(accel)
+            self._var, self._gain, self._initialized = 0.0, 1.0, True
+            self._vel = VelocityState()
+            return self._diag(accel_used=True, setup=True)
+        if accel is None:
+            self._q = gyro_step(self._q, step.gyro_rad_s, step.dt_s)
+            return self._diag(accel_used=False)
+        self._q, self._var, self._gain = imufilter_step(
+            self._q, self._var, step.gyro_rad_s, accel, step.dt_s, self.settings.gain,
+            self.settings.sd_acc_g,
+        )
+        if self.settings.velocity:
+            self._vel = velocity_step(
+                self._vel, self._q, step.gyro_rad_s, specific_force_m_s2(accel), step.dt_s,
+                self.settings.sd_acc_g * STANDARD_GRAVITY_M_S2,
+                self.settings.sd_vel_g_s * STANDARD_GRAVITY_M_S2,
+                self._vel_target,
+            )
+        return self._diag(accel_used=True)
+
+    def _diag(self, *, accel_used: bool, setup: bool = False) -> dict[str, Any]:
+        d: dict[str, Any] = {
+            "accel_used": accel_used,
+            "accel_gain": self._gain,
+            "accel_variance_g2": self._var,
+        }
+        if setup:
+            d["setup"] = True
+        if self.settings.velocity:
+            d["velocity_ned_m_s"] = self._vel.velocity
+        return d
+
+    # ------------------------------------------------------------------ library functions
+    @property
+    def initialized(self) -> bool:
+        return self._initialized
+
+    @property
+    def velocity_ned_m_s(self) -> FloatArray:
+        return np.array(self._vel.velocity)
+
+    def set_velocity_target(self, target_ned_m_s: Sequence[float]) -> None:
+        """The velocity the filter relaxes to while accelerations are small (default 0)."""
+        x, y, z = (float(c) for c in target_ned_m_s)
+        self._vel_target = (x, y, z)
+
+    def rotate_heading(self, angle_rad: float, *, small_angle: bool = False) -> None:
+        """Turn the attitude about the vertical by ``angle_rad`` (yaw increases)."""
+        self._q = rotate_heading(self._q, angle_rad, small_angle=small_angle)
+
+    def to_global(self, v_body: Sequence[float]) -> FloatArray:
+        """A body-frame vector in NED."""
+        return np.array(to_global(self._q, (float(v_body[0]), float(v_body[1]),
+                                            float(v_body[2]))))
+
+    def to_local(self, v_ned: Sequence[float]) -> FloatArray:
+        """A NED vector in body axes."""
+        return np.array(to_local(self._q, (float(v_ned[0]), float(v_ned[1]), float(v_ned[2]))))
+
+    def axis(self, which: Literal["x", "y", "z"], *, in_global: bool = True) -> FloatArray:
+        """Unit vector of a body axis in NED (``in_global``) or of a NED axis in the body."""
+        return np.array(axis_unit_vectors(self._q, in_global=in_global)["xyz".index(which)])
+
+    # ------------------------------------------------------------------ state
+    def _filter_state(self) -> dict[str, Any]:
+        return {
+            "initialized": self._initialized,
+            "var": self._var,
+            "gain": self._gain,
+            "velocity": self._vel.to_dict(),
+            "velocity_target": list(self._vel_target),
+        }
+
+    def _set_filter_state(self, state: dict[str, Any]) -> None:
+        self._initialized = bool(state["initialized"])
+        self._var = float(state["var"])
+        self._gain = float(state["gain"])
+        self._vel = VelocityState.from_dict(state["velocity"])
+        self.set_velocity_target(state["velocity_target"])

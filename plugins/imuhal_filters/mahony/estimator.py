@@ -1,0 +1,78 @@
+"""The "mahony" estimator: the Mahony AHRS of the seed author's ESP32 vario firmware.
+
+har-in-air/ESP32_IMU_BARO_GPS_VARIO fuses its MPU9250 with this filter at 500 Hz, proportional
+gain 5 and no integral term, and feeds the accelerometer back only while
+``0.75 g < |a| < 1.25 g`` (it compares ``|a|^2`` in mG^2 with 562500 and 1562500). Outside
+that window the step integrates the gyro alone, magnetometer included. Those are the defaults
+here; ``kp``, ``ki`` and ``accel_gate_g`` are settings. A non-zero ``ki`` makes the integral
+term estimate the gyro bias (rad/s, in ``diagnostics`` as ``gyro_bias_rad_s``: the negated
+integral feedback).
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+from pydantic import Field
+
+from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
+from imuhal_filters.common.gate import AccelGate
+from imuhal_filters.common.quat import Vec
+from imuhal_filters.mahony.core import mahony_step
+
+
+class MahonySettings(AhrsSettings):
+    kp: float = Field(5.0, ge=0.0)
+    """Proportional gain (1/s); the firmware's twoKp = 2 * 5. x-io's default is 0.5."""
+    ki: float = Field(0.0, ge=0.0)
+    """Integral gain (1/s^2); 0 in the firmware (integral held at zero)."""
+    accel_gate_g: tuple[float, float] | None = (0.75, 1.25)
+    """Feedback only while lower < |a| < upper (g); None disables the gate."""
+    use_mag: bool = True
+    """Fuse magnetometer samples (9-DOF); False runs the 6-DOF update."""
+
+
+class MahonyEstimator(AhrsEstimator):
+    """Mahony complementary AHRS with proportional-integral feedback and an accel gate."""
+
+    name: ClassVar[str] = "mahony"
+    description: ClassVar[str] = (
+        "Mahony AHRS as in the seed author's ESP32 vario firmware (Kp 5, 0.75-1.25 g gate)"
+    )
+    Settings: ClassVar[type[MahonySettings]] = MahonySettings  # type: ignore[assignment]
+    settings: MahonySettings
+
+    def _reset_filter(self) -> None:
+        self._gate = AccelGate.from_bounds(self.settings.accel_gate_g)
+        self._integral: Vec = (0.0, 0.0, 0.0)
+        self._counters["gate_closed_steps"] = 0
+
+    def _step(self, step: ImuStep) -> dict[str, Any]:
+        accel = step.accel_g
+        gate_open = accel is not None and self._gate.is_open(accel)
+        if accel is not None and not gate_open:
+            self._counters["gate_closed_steps"] += 1
+        mag = step.mag_ut if self.settings.use_mag else None
+        self._q, self._integral = mahony_step(
+            self._q, self._integral, step.gyro_rad_s, accel if gate_open else None, mag,
+            self.settings.kp, self.settings.ki, step.dt_s,
+        )
+        return {
+            "gate_open": gate_open,
+            "accel_used": gate_open,
+            "mag_used": gate_open and mag is not None,
+            "gyro_bias_rad_s": self.gyro_bias_rad_s,
+        }
+
+    @property
+    def gyro_bias_rad_s(self) -> Vec:
+        """The integral term's bias estimate (rad/s): what it adds to the gyro, negated."""
+        ix, iy, iz = self._integral
+        return (-ix, -iy, -iz)
+
+    def _filter_state(self) -> dict[str, Any]:
+        return {"integral": list(self._integral)}
+
+    def _set_filter_state(self, state: dict[str, Any]) -> None:
+        ix, iy, iz = (float(v) for v in state["integral"])
+        self._integral = (ix, iy, iz)
