@@ -1,0 +1,209 @@
+"""AK8963 emulator: register file, measurement timing and status semantics, fed by physics.
+
+Bus face (I2C; the first written byte is the register pointer, further bytes are written to
+successive registers; reads auto-increment, wrapping 0x0C -> 0x00 and 0x12 -> 0x10):
+- WIA 0x48, INFO, ST1 (DRDY, DOR), HXL..HZH little-endian, ST2 (HOFL, BITM), CNTL1 (BIT,
+  MODE), CNTL2 (SRST), ASTC, I2CDIS, ASAX..ASAZ (readable only in fuse-ROM mode, else 0x00).
+- Writing CNTL1 re-initialises ST1..ST2. Continuous modes 1/2 measure at 8/100 Hz, single
+  mode measures once (7.2 ms) and returns to power-down.
+- Reading a data register clears DRDY and DOR and protects the data until ST2 is read; a
+  measurement finishing meanwhile is held and appears (with DRDY) when ST2 ends the read. A
+  measurement finishing while DRDY is still set overwrites the data and sets DOR.
+- HOFL is set when |X| + |Y| + |Z| >= 4912 uT; each axis also clips at the data range.
+
+Physics face: ``physics.magnetic_field_ut`` in the AK8963's own axes (uT), divided by the
+sensitivity (0.15 or 0.6 uT/LSB) times the part's ASA adjustment, so the driver's Hadj
+recovers the true field.
+
+Faults: ``wia`` (clone), ``stuck_data_ready`` (no measurement completes), ``silent_reset()``,
+``absent`` and bus errors through the bus.
+
+Source of facts: MPU-9250 Register Map rev 1.4 section 5; imuhal shared chip facts section 4.
+"""
+
+from __future__ import annotations
+
+import struct
+
+from imuhal.bus.base import BusKind
+from imuhal.core.clock import Clock
+from imuhal.core.samples import Channel
+from imuhal.emulation.base import ChipEmulator
+from imuhal_chips.ak8963 import registers as r
+from imuhal_chips.ak8963.decode import asa_factor
+
+DEFAULT_ASA = (176, 177, 165)
+"""Fuse-ROM adjustment of the emulated part (values from the shared ASA examples)."""
+
+
+class AK8963Emulator(ChipEmulator):
+    """Register-level stand-in for an AK8963 (standalone or inside an MPU-9250)."""
+
+    chip = "ak8963"
+
+    def __init__(self, clock: Clock | None = None, *,
+                 asa: tuple[int, int, int] = DEFAULT_ASA) -> None:
+        super().__init__(clock)
+        self.asa = asa
+        self.wia = r.WIA
+        """What WIA reads (fault injection: a clone or another part)."""
+        self.stuck_data_ready = False
+        self.resets = 0
+        self.mode_violations = 0
+        """Mode changes that skipped power-down (the datasheet forbids them)."""
+        self._pointer = 0
+        self._reset()
+
+    # -- fault injection --------------------------------------------------------------------
+
+    def silent_reset(self) -> None:
+        """The chip resets on its own: power-down, registers at their defaults."""
+        self.resets += 1
+        self._reset()
+
+    # -- conformance face -------------------------------------------------------------------
+
+    def _resolution(self) -> r.Resolution:
+        return r.RESOLUTIONS[16 if self._cntl1 & r.CNTL1_BIT else 14]
+
+    def resolution(self, channel: Channel) -> float:
+        """The largest per-axis LSB (uT) at the current resolution and this part's ASA."""
+        if channel is not Channel.MAG:
+            raise ValueError(f"the AK8963 has no {channel.value} channel")
+        return self._resolution().ut_per_lsb * max(asa_factor(a) for a in self.asa)
+
+    def full_scale(self, channel: Channel) -> float:
+        """The smallest per-axis range (uT), at most the 4912 uT overflow limit."""
+        if channel is not Channel.MAG:
+            raise ValueError(f"the AK8963 has no {channel.value} channel")
+        res = self._resolution()
+        axis = res.max_count * res.ut_per_lsb * min(asa_factor(a) for a in self.asa)
+        return min(axis, r.OVERFLOW_SUM_UT)
+
+    # -- state ------------------------------------------------------------------------------
+
+    def _reset(self) -> None:
+        self._cntl1 = 0x00
+        self._astc = 0x00
+        self._clear_outputs()
+
+    def _clear_outputs(self) -> None:
+        self._st1 = 0x00
+        self._st2 = 0x00
+        self._data = bytearray(6)
+        self._protected = False
+        self._held: tuple[bytes, int] | None = None
+        self._next_ns: int | None = None
+
+    def _mode(self) -> int:
+        return self._cntl1 & r.MODE_MASK
+
+    def _start_mode(self) -> None:
+        mode = self._mode()
+        now = self.now_ns()
+        if mode in r.MODE_PERIOD_S or mode == r.MODE_SINGLE:
+            self._next_ns = now + round(r.MEASUREMENT_S * 1e9)
+        else:
+            self._next_ns = None
+
+    def _advance(self) -> None:
+        now = self.now_ns()
+        while self._next_ns is not None and self._next_ns <= now and not self.stuck_data_ready:
+            self._complete(self._measure())
+            mode = self._mode()
+            if mode == r.MODE_SINGLE:
+                self._cntl1 &= ~r.MODE_MASK
+                self._next_ns = None
+            else:
+                period = round(r.MODE_PERIOD_S[mode] * 1e9)
+                missed = max((now - self._next_ns) // period, 0)
+                self._next_ns += (missed + 1) * period
+
+    def _measure(self) -> tuple[bytes, int]:
+        field = self.physics.magnetic_field_ut or (0.0, 0.0, 0.0)
+        res = self._resolution()
+        counts = []
+        for value, asa in zip(field, self.asa, strict=True):
+            count = round(value / (res.ut_per_lsb * asa_factor(asa)))
+            counts.append(max(-res.max_count, min(res.max_count, count)))
+        st2 = r.ST2_BITM if res.bits == 16 else 0
+        if sum(abs(v) for v in field) >= r.OVERFLOW_SUM_UT:
+            st2 |= r.ST2_HOFL
+        return struct.pack("<hhh", *counts), st2
+
+    def _complete(self, result: tuple[bytes, int]) -> None:
+        if self._protected:
+            if self._held is not None:
+                self._st1 |= r.ST1_DOR
+            self._held = result
+            return
+        if self._st1 & r.ST1_DRDY:
+            self._st1 |= r.ST1_DOR
+        self._data[:] = result[0]
+        self._st2 = result[1]
+        self._st1 |= r.ST1_DRDY
+
+    # -- bus face ---------------------------------------------------------------------------
+
+    def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes:
+        self._advance()
+        if write:
+            self._pointer = write[0]
+            for offset, value in enumerate(write[1:]):
+                self._write(write[0] + offset, value)
+        out = bytearray()
+        for _ in range(read_len):
+            out.append(self._read(self._pointer))
+            self._pointer = self._increment(self._pointer)
+        return bytes(out)
+
+    @staticmethod
+    def _increment(address: int) -> int:
+        if address == r.REG_ASTC:
+            return r.REG_WIA
+        if address == r.REG_ASAX + 2:
+            return r.REG_ASAX
+        return (address + 1) & 0xFF
+
+    def _read(self, address: int) -> int:
+        if address == r.REG_WIA:
+            return self.wia
+        if address == r.REG_INFO:
+            return 0x9A
+        if address == r.REG_ST1:
+            return self._st1
+        if r.REG_HXL <= address < r.REG_ST2:
+            self._protected = True
+            self._st1 &= ~(r.ST1_DRDY | r.ST1_DOR)
+            return self._data[address - r.REG_HXL]
+        if address == r.REG_ST2:
+            value = self._st2
+            self._st1 &= ~(r.ST1_DRDY | r.ST1_DOR)
+            self._protected = False
+            if self._held is not None:
+                held, self._held = self._held, None
+                self._complete(held)
+            return value
+        if address == r.REG_CNTL1:
+            return self._cntl1
+        if address == r.REG_ASTC:
+            return self._astc
+        if r.REG_ASAX <= address <= r.REG_ASAX + 2:
+            return self.asa[address - r.REG_ASAX] if self._mode() == r.MODE_FUSE_ROM else 0
+        return 0x00
+
+    def _write(self, address: int, value: int) -> None:
+        if address == r.REG_CNTL1:
+            old, new = self._mode(), value & r.MODE_MASK
+            if old != r.MODE_POWER_DOWN and new != r.MODE_POWER_DOWN:
+                self.mode_violations += 1
+            self._cntl1 = value & (r.CNTL1_BIT | r.MODE_MASK)
+            self._clear_outputs()
+            self._start_mode()
+        elif address == r.REG_CNTL2:
+            if value & r.CNTL2_SRST:
+                self.resets += 1
+                self._reset()
+        elif address == r.REG_ASTC:
+            self._astc = value & 0x40
+        # WIA, INFO, status, data and ASA are read-only
