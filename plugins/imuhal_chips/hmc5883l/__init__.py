@@ -1,1 +1,1 @@
-"""hmc5883l: see plugin.py."""
+"""HMC5883L (Honeywell) magnetometer driver and register-level emulator; see plugin.py."""

@@ -1,0 +1,232 @@
+"""HMC5883L driver (Honeywell 3-axis magnetometer, I2C 0x1E).
+
+Register facts: HMC5883L datasheet Form 900405 Rev E and Linux hmc5843_core.c, summarised in
+/work/shared/facts/chips.md section 3. Tables in registers.py, decoding in decode.py.
+
+The driver runs the chip in continuous mode and polls at the output rate: per poll it reads
+the status register and, when RDY is set, the six data bytes X, Z, Y in one transaction
+(the chip locks its data outputs from the first data byte read until all six are read, so
+the triple is coherent even when a bus splits the read into byte transactions, as the
+MAX21100's aux master does). Samples: MagSample in uT, sensor frame.
+
+Two chip habits shape configure(): the first measurement after a gain change still uses the
+old gain (so the first sample after configure is dropped), and reading the mode register
+locks the data outputs until the six data bytes are read (so the read-back is followed by one
+throw-away data read).
+"""
+
+from __future__ import annotations
+
+from pydantic import Field, field_validator
+
+from imuhal.bus.base import BusKind, Link
+from imuhal.core.clock import Clock
+from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
+from imuhal.core.samples import Channel, Frame, MagSample, Sample, SampleFlag
+from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
+from imuhal_chips.hmc5883l import decode
+from imuhal_chips.hmc5883l.registers import (
+    AVERAGING,
+    IDENTITY,
+    MODE_CONTINUOUS,
+    ODR_HZ,
+    RANGE_GAUSS,
+    STATUS_RDY,
+    Reg,
+    config_a,
+    config_b,
+    pick,
+)
+
+STALE_AFTER_PERIODS = 1.5
+"""No RDY for longer than this many output periods: the sample is stale."""
+STALE_POLLS_BEFORE_RESTART = 4
+"""Consecutive stale polls after which the driver rewrites its configuration."""
+NOT_READY_RETRY_NS = 500_000
+"""RDY is low for about 250 us while the chip writes new data: retry this much later."""
+
+
+class Hmc5883lSettings(DriverSettings):
+    """HMC5883L settings; defaults are the seed's: +/-1.3 Ga, 75 Hz, 8-sample average."""
+
+    range_gauss: float = 1.3
+    """Field range +/- gauss: 0.88, 1.3, 1.9, 2.5, 4.0, 4.7, 5.6, 8.1 (sets the gain)."""
+    odr_hz: float = 75
+    """Continuous-mode output rate, Hz: 0.75, 1.5, 3, 7.5, 15, 30, 75."""
+    averaging: int = 8
+    """Samples averaged per output: 1, 2, 4, 8."""
+    reset_check_s: float = Field(default=0.5, gt=0, le=60)
+    """How often (s) the configuration is read back to catch a silent chip reset."""
+
+    @field_validator("range_gauss", mode="before")
+    @classmethod
+    def _range(cls, v: float) -> float:
+        return float(pick(RANGE_GAUSS, v, "range_gauss", "Ga"))
+
+    @field_validator("odr_hz", mode="before")
+    @classmethod
+    def _odr(cls, v: float) -> float:
+        return float(pick(ODR_HZ, v, "odr_hz", "Hz"))
+
+    @field_validator("averaging", mode="before")
+    @classmethod
+    def _averaging(cls, v: float) -> int:
+        return int(pick(AVERAGING, v, "averaging", "samples"))
+
+
+class Hmc5883lDriver(Driver):
+    """Honeywell HMC5883L on I2C: directly, or behind another chip's I2C master."""
+
+    name = "hmc5883l"
+    description = "Honeywell HMC5883L 3-axis magnetometer (I2C 0x1E)"
+    Settings = Hmc5883lSettings
+    channels = (Channel.MAG,)
+    bus_kinds = frozenset({BusKind.I2C})
+    settings: Hmc5883lSettings
+
+    def __init__(
+        self, link: Link, settings: DriverSettings | dict[str, object], *, device: str,
+        clock: Clock,
+    ) -> None:
+        super().__init__(link, settings, device=device, clock=clock)  # type: ignore[arg-type]
+        self.gain_lsb_per_gauss: float | None = None
+        self._expected = b""
+        self._period_ns = round(1e9 / self.settings.odr_hz)
+        self._grid_start_ns = 0
+        self._grid_k = 0
+        self._last_ready_ns = 0
+        self._skip_next = False
+        self._stale_polls = 0
+        self._next_check_ns = 0
+
+    # --- bus helpers (plain I2C register protocol: write pointer, then read) --------------
+
+    def _read(self, register: int, length: int) -> bytes:
+        return self.link.transfer(bytes([register]), length)
+
+    def _write(self, register: int, data: bytes) -> None:
+        self.link.transfer(bytes([register]) + data, 0)
+
+    # --- identity -------------------------------------------------------------------------
+
+    def probe(self) -> DeviceIdentity:
+        expected = "ID registers 0x0A..0x0C = 'H43'"
+        try:
+            found = self._read(Reg.ID_A, 3)
+        except NackError as exc:
+            raise DeviceNotFoundError(
+                driver=self.name, bus=self.link.bus.name, address=self.link.target,
+                expected=expected, found="no answer (NACK)",
+                hint="check power and SDA/SCL wiring and pull-ups; the HMC5883L is at 0x1E",
+            ) from exc
+        if found != IDENTITY:
+            raise DeviceNotFoundError(
+                driver=self.name, bus=self.link.bus.name, address=self.link.target,
+                expected=expected, found=_show(found), hint=_identity_hint(found),
+            )
+        self.identity = DeviceIdentity(
+            driver=self.name, bus=self.link.bus.name, address=self.link.target,
+            identity="ID=H43",
+        )
+        return self.identity
+
+    # --- configuration --------------------------------------------------------------------
+
+    def register_plan(self) -> bytes:
+        """Config A, Config B, Mode (registers 0x00..0x02) for the settings."""
+        s = self.settings
+        return bytes([config_a(s.averaging, s.odr_hz), config_b(s.range_gauss),
+                      MODE_CONTINUOUS])
+
+    def configure(self) -> None:
+        """Write Config A/B and continuous mode, read them back, release the data lock."""
+        plan = self.register_plan()
+        self._write(Reg.CONFIG_A, plan)
+        got = self._read(Reg.CONFIG_A, 3)
+        self._read(Reg.X_MSB, 6)  # reading MODE locked the outputs; six data reads unlock
+        if got != plan:
+            raise ConfigurationError(
+                f"{self.describe()}: configuration did not read back: wrote "
+                f"{plan.hex(' ')} to 0x00..0x02, read {got.hex(' ')}; check the bus"
+            )
+        self._expected = plan
+        self.gain_lsb_per_gauss = RANGE_GAUSS[self.settings.range_gauss][1]
+        self._skip_next = True  # its first measurement still uses the previous gain
+
+    def start(self, now_ns: int) -> int:
+        self._grid_start_ns = now_ns
+        self._grid_k = 1
+        self._last_ready_ns = now_ns
+        self._stale_polls = 0
+        self._next_check_ns = now_ns + round(self.settings.reset_check_s * 1e9)
+        return now_ns + self._period_ns
+
+    def _next_poll(self, now_ns: int) -> int:
+        k = max(self._grid_k + 1, (now_ns - self._grid_start_ns) // self._period_ns + 1)
+        self._grid_k = k
+        return self._grid_start_ns + k * self._period_ns
+
+    # --- sampling -------------------------------------------------------------------------
+
+    def poll(self, now_ns: int) -> PollResult:
+        if self.gain_lsb_per_gauss is None:
+            raise ConfigurationError(f"{self.describe()}: poll() before configure()")
+        if now_ns >= self._next_check_ns and self._reset_detected(now_ns):
+            return PollResult([], self.start(self.clock.now_ns()))
+        status = self._read(Reg.STATUS, 1)[0]
+        if status & STATUS_RDY:
+            self._last_ready_ns = now_ns
+            self._stale_polls = 0
+            sample = self._sample(now_ns, SampleFlag.OK)
+            if self._skip_next:
+                self._skip_next = False
+                return PollResult([], self._next_poll(now_ns))
+            return PollResult([sample], self._next_poll(now_ns))
+        if now_ns - self._last_ready_ns <= STALE_AFTER_PERIODS * self._period_ns:
+            return PollResult([], now_ns + NOT_READY_RETRY_NS)
+        sample = self._sample(now_ns, SampleFlag.STALE)
+        self._stale_polls += 1
+        if self._reset_detected(now_ns):
+            return PollResult([sample], self.start(self.clock.now_ns()))
+        if self._stale_polls >= STALE_POLLS_BEFORE_RESTART:
+            # configuration intact but no data: rewriting the mode restarts measuring
+            self.configure()
+            self.health.reconfigurations += 1
+            return PollResult([sample], self.start(self.clock.now_ns()))
+        return PollResult([sample], self._next_poll(now_ns))
+
+    def _sample(self, now_ns: int, flags: SampleFlag) -> Sample:
+        assert self.gain_lsb_per_gauss is not None
+        counts = decode.data_counts_xyz(self._read(Reg.X_MSB, 6))
+        flags |= decode.counts_flags(counts)
+        return MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
+                         mag_ut=decode.counts_to_ut(counts, self.gain_lsb_per_gauss),
+                         flags=flags)
+
+    def _reset_detected(self, now_ns: int) -> bool:
+        """Read Config A/B and Mode back; on a mismatch (silent reset: defaults 0x10, 0x20,
+        single mode) count it and reconfigure. Returns True when it did."""
+        self._next_check_ns = now_ns + round(self.settings.reset_check_s * 1e9)
+        got = self._read(Reg.CONFIG_A, 3)
+        self._read(Reg.X_MSB, 6)  # release the lock that reading MODE set
+        if got == self._expected:
+            return False
+        self.health.resets_detected += 1
+        self.configure()
+        self.health.reconfigurations += 1
+        return True
+
+
+def _show(found: bytes) -> str:
+    text = found.decode("ascii", "replace") if all(32 <= b < 127 for b in found) else ""
+    return f"ID bytes {found.hex(' ')}" + (f" ('{text}')" if text else "")
+
+
+def _identity_hint(found: bytes) -> str:
+    if found == b"\xff\xff\xff":
+        return ("nothing drives the bus (all 0xFF): check SDA/SCL wiring and pull-ups, or "
+                "the I2C master the magnetometer sits behind")
+    if found == b"\x00\x00\x00":
+        return "ID reads as zeros: a clone or another chip at 0x1E; this driver needs 'H43'"
+    return ("another chip (or an HMC5883L clone with a different register map) answers at "
+            "this address; QMC5883L clones live at 0x0D and need their own driver")

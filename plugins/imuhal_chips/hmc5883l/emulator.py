@@ -1,0 +1,216 @@
+"""Register-level HMC5883L emulator (facts/chips.md section 3; datasheet Form 900405 Rev E).
+
+Bus face (I2C only): registers 0x00..0x0C with power-on defaults (CRA 0x10, CRB 0x20, Mode
+single), writable bits only (CRA bit 7 and CRB [4:0] stay 0), read-only data/status/ID,
+a register pointer set by a write that auto-increments on reads and writes and wraps from 8
+back to 3 after a data read, invalid addresses reading 0; RDY set when new data is written
+(never cleared by reading); the data-output lock (LOCK) set by a partial data read or by
+reading the Mode register and released when all six data bytes have been read, Mode or CRA
+are written, or power cycles, with a measurement completed while locked placed on release.
+Continuous mode measures every 1/ODR from the Mode write; single mode measures once 6 ms
+after it and shows idle (11) afterwards. The first measurement after a gain (CRB) change
+still uses the previous gain.
+
+Physics face: ``physics.magnetic_field_ut`` (sensor frame) is converted to gauss, multiplied
+by the gain and rounded; an axis whose counts fall outside -2048..2047 reads -4096.
+Data bytes are stored X, Z, Y, big-endian.
+
+Fault injection: ``identity`` (e.g. b"\\x00\\x00\\x00" for a clone), ``stuck_data_ready``
+(measurements stop and RDY reads 0; writing the Mode register restarts them),
+``silent_reset()`` (registers back to defaults unannounced), ``absent`` (base class) and bus
+errors via the EmulatedBus. Not modelled: self-test bias fields, high-speed I2C, averaging
+noise, the 250 us RDY-low window while data are written.
+"""
+
+from __future__ import annotations
+
+import math
+
+from imuhal.bus.base import BusKind
+from imuhal.core.clock import Clock
+from imuhal.core.errors import BusError
+from imuhal.core.samples import Channel
+from imuhal.emulation.base import ChipEmulator, PhysicalInputs
+from imuhal_chips.hmc5883l.decode import data_bytes_from_counts, encode_axis
+from imuhal_chips.hmc5883l.registers import (
+    CRA_RATE_SHIFT,
+    CRA_WRITABLE,
+    CRB_WRITABLE,
+    DATA_FIRST,
+    DATA_LAST,
+    DATA_MAX,
+    IDENTITY,
+    LAST_REGISTER,
+    MODE_CONTINUOUS,
+    MODE_IDLE,
+    MODE_MD_MASK,
+    MODE_SINGLE,
+    MODE_WRITABLE,
+    ODR_BY_CODE,
+    OVERFLOW_VALUE,
+    POINTER_WRAP_TO,
+    POWER_ON_DEFAULTS,
+    SINGLE_MEASUREMENT_NS,
+    STATUS_LOCK,
+    STATUS_RDY,
+    UT_PER_GAUSS,
+    Reg,
+    gain_from_config_b,
+)
+
+_WRITE_MASKS = {Reg.CONFIG_A: CRA_WRITABLE, Reg.CONFIG_B: CRB_WRITABLE, Reg.MODE: MODE_WRITABLE}
+_DATA = range(DATA_FIRST, DATA_LAST + 1)
+
+
+class Hmc5883lEmulator(ChipEmulator):
+    """HMC5883L at I2C 0x1E; attach it to an EmulatedBus (or the MAX21100 aux bus)."""
+
+    chip = "hmc5883l"
+
+    def __init__(self, clock: Clock | None = None, *, name: str | None = None) -> None:
+        super().__init__(clock)
+        self.name = name or self.chip
+        self.identity = IDENTITY
+        self.stuck_data_ready = False
+        self.measurements = 0
+        self.power_on_reset()
+
+    # --- state ----------------------------------------------------------------------------
+
+    def power_on_reset(self) -> None:
+        self.regs = {reg: value for reg, value in POWER_ON_DEFAULTS.items()}
+        self.pointer = 0
+        self.data = data_bytes_from_counts((0, 0, 0))
+        self.rdy = False
+        self.locked = False
+        self._read_mask: set[int] = set()
+        self._pending: bytes | None = None
+        self._gain = gain_from_config_b(self.regs[Reg.CONFIG_B])
+        self._gain_next = self._gain
+        self._next_ns: int | None = None
+        self._start_mode()
+
+    def silent_reset(self) -> None:
+        """Fault: a brown-out restores the power-on registers; the host is not told."""
+        self.power_on_reset()
+
+    # --- physics face ---------------------------------------------------------------------
+
+    def set_physics(self, inputs: PhysicalInputs) -> None:
+        self._advance()
+        super().set_physics(inputs)
+
+    def resolution(self, channel: Channel) -> float:
+        """uT per count at the current gain."""
+        if channel is not Channel.MAG:
+            raise ValueError(f"{self.chip} has no {channel.value} channel")
+        return UT_PER_GAUSS / gain_from_config_b(self.regs[Reg.CONFIG_B])
+
+    def full_scale(self, channel: Channel) -> float:
+        """Largest field (uT) encoded before the -4096 overflow value: 2047 counts."""
+        return DATA_MAX * self.resolution(channel)
+
+    def _measure(self) -> None:
+        field = self.physics.magnetic_field_ut or (0.0, 0.0, 0.0)
+        gain = self._gain
+        counts = tuple(
+            encode_axis(b / UT_PER_GAUSS, gain) if math.isfinite(b) else OVERFLOW_VALUE
+            for b in field
+        )
+        self._gain = self._gain_next  # a gain change takes effect one measurement late
+        self.measurements += 1
+        new = data_bytes_from_counts(counts)  # type: ignore[arg-type]
+        if self.locked:
+            self._pending = new
+        else:
+            self.data = new
+        self.rdy = True
+
+    # --- timing ---------------------------------------------------------------------------
+
+    def _period_ns(self) -> int | None:
+        odr = ODR_BY_CODE.get((self.regs[Reg.CONFIG_A] >> CRA_RATE_SHIFT) & 0x07)
+        return round(1e9 / odr) if odr else None
+
+    def _start_mode(self) -> None:
+        md = self.regs[Reg.MODE] & MODE_MD_MASK
+        now = self.now_ns()
+        if md == MODE_CONTINUOUS:
+            period = self._period_ns()
+            self._next_ns = now + period if period else None
+        elif md == MODE_SINGLE:
+            self._next_ns = now + SINGLE_MEASUREMENT_NS
+        else:
+            self._next_ns = None
+
+    def _advance(self) -> None:
+        now = self.now_ns()
+        due = self._next_ns
+        if due is None or now < due or self.stuck_data_ready:
+            return
+        if self.regs[Reg.MODE] & MODE_MD_MASK == MODE_SINGLE:
+            self._measure()
+            self.regs[Reg.MODE] = (self.regs[Reg.MODE] & ~MODE_MD_MASK) | MODE_IDLE
+            self._next_ns = None
+            return
+        period = self._period_ns()
+        assert period
+        self._next_ns = due + ((now - due) // period + 1) * period
+        self._measure()  # only the latest of several missed measurements is visible
+
+    # --- bus face -------------------------------------------------------------------------
+
+    def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes:
+        if kind is not BusKind.I2C:
+            raise BusError(f"{self.name}: the HMC5883L has only an I2C interface")
+        self._advance()
+        if write:
+            self.pointer = write[0]
+            for value in write[1:]:
+                self._write(self.pointer, value)
+                self.pointer = (self.pointer + 1) & 0xFF
+        out = bytearray()
+        for _ in range(read_len):
+            out.append(self._read(self.pointer))
+            self.pointer = POINTER_WRAP_TO if self.pointer == DATA_LAST else (
+                (self.pointer + 1) & 0xFF)
+        return bytes(out)
+
+    def _read(self, reg: int) -> int:
+        if reg in _DATA:
+            self._read_mask.add(reg)
+            if len(self._read_mask) == len(_DATA):
+                value = self.data[reg - DATA_FIRST]
+                self._unlock()
+                return value
+            self.locked = True
+            return self.data[reg - DATA_FIRST]
+        if reg in _WRITE_MASKS:
+            if reg == Reg.MODE:
+                self.locked = True
+            return self.regs[reg]
+        if reg == Reg.STATUS:
+            rdy = self.rdy and not self.stuck_data_ready
+            return (STATUS_LOCK if self.locked else 0) | (STATUS_RDY if rdy else 0)
+        if Reg.ID_A <= reg <= LAST_REGISTER:
+            return self.identity[reg - Reg.ID_A]
+        return 0
+
+    def _unlock(self) -> None:
+        self.locked = False
+        self._read_mask.clear()
+        if self._pending is not None:
+            self.data, self._pending = self._pending, None
+
+    def _write(self, reg: int, value: int) -> None:
+        mask = _WRITE_MASKS.get(reg)
+        if mask is None:
+            return  # data, status and ID registers are read-only; invalid addresses ignored
+        self.regs[reg] = value & mask
+        if reg == Reg.CONFIG_B:
+            self._gain_next = gain_from_config_b(self.regs[reg])
+        else:  # a Mode or Config A write releases the lock and restarts measuring
+            self._unlock()
+            if reg == Reg.MODE:
+                self.stuck_data_ready = False
+            self._start_mode()
