@@ -155,9 +155,11 @@ class Signal:
 
     def turbulence(self, rng: np.random.Generator, rms: float, *, f_min_hz: float,
                    f_max_hz: float, tones: int = 8, t_on: float = 0.0,
-                   t_off: float = math.inf, ramp_s: float = 2.0) -> Signal:
+                   t_off: float = math.inf, ramp_s: float = 2.0,
+                   derivative: int = 0) -> Signal:
         """Add a seeded, band-limited random wiggle: ``tones`` sinusoids with log-uniform
-        frequencies in [f_min, f_max] and random phases, of total RMS ``rms``.
+        frequencies in [f_min, f_max] and random phases, whose ``derivative``-th time
+        derivative (0: the value itself, 1: its rate) has total RMS ``rms``.
 
         Deterministic for a given generator state; smooth, so its derivatives are exact.
         """
@@ -167,6 +169,7 @@ class Signal:
         phases = rng.uniform(0.0, _TWO_PI, tones)
         weights = rng.uniform(0.5, 1.5, tones)
         amps = weights * rms * math.sqrt(2.0) / math.sqrt(float(np.sum(weights**2)))
+        amps = amps / (_TWO_PI * freqs) ** derivative
         return self._tones_add(t_on, t_off, ramp_s, tuple(float(a) for a in amps),
                                tuple(float(_TWO_PI * f) for f in freqs),
                                tuple(float(p) for p in phases))

@@ -1,9 +1,14 @@
-"""The ``thermal`` scenario: a paraglider working a thermal, the seed's own use case.
+"""The ``thermal`` scenario: a paraglider working thermals, the seed's own use case.
 
-A scripted climb-rate schedule (glide sink, thermal climbs, strong sinks) with smooth
-raised-cosine transitions, so altitude, climb rate and vertical acceleration are exact
-derivatives of one another. This first version holds the attitude level and the heading
-fixed; banked circling, turbulence and horizontal motion belong to the full simulator.
+The glider sits still on launch, then flies at a constant airspeed along its heading while
+a climb-rate schedule (glide sink, thermal climbs, strong sinks) plays out with smooth
+raised-cosine transitions. In every thermal (climb at least ``circle_min_climb_m_s``) it
+circles at a constant turn rate with a coordinated bank (tan(bank) = V * turn rate / g),
+alternating left and right. Turbulence adds seeded vertical gusts and the pilot's pendulum
+swing in roll and pitch; a constant wind drifts the whole flight.
+
+Altitude, climb rate and vertical acceleration are exact derivatives of one another, and
+so are heading, turn rate and bank; see :mod:`imuhal.sim.motion`.
 """
 
 from __future__ import annotations
@@ -11,15 +16,14 @@ from __future__ import annotations
 import math
 from typing import ClassVar
 
-import numpy as np
-from pydantic import Field
+from pydantic import Field, model_validator
 
-from imuhal.core.frames import quat_from_euler_deg, quat_to_matrix
-from imuhal.sim.environment import Environment
-from imuhal.sim.scenario import Scenario, ScenarioParams, TruthState
+from imuhal.sim.motion import FlightMotion, Motion
+from imuhal.sim.signals import Signal
+from imuhal.sim.world import MotionScenario, WorldParams
 
 
-class ThermalParams(ScenarioParams):
+class ThermalParams(WorldParams):
     schedule: tuple[tuple[float, float], ...] = (
         (0.0, 0.0),     # on the ground, still, for the first seconds
         (5.0, -1.1),    # glide
@@ -30,59 +34,85 @@ class ThermalParams(ScenarioParams):
     )
     """(start time s, climb rate m/s, up +) segments; the last lasts to the end."""
     transition_s: float = Field(2.0, gt=0)
-    """Each change of climb rate takes this long (raised cosine)."""
-    environment: Environment = Environment()
+    """Each change of climb rate (and of turn rate, airspeed) takes this long (raised cosine)."""
+    launch_s: float = Field(5.0, ge=0)
+    """Still on launch until then; the airspeed builds up over ``transition_s``."""
+    airspeed_m_s: float = Field(10.0, ge=0)
+    """Horizontal speed through the air, along the heading (trim speed of a paraglider)."""
+    heading_deg: float = 0.0
+    """Initial heading, from true north, clockwise."""
+    circle_min_climb_m_s: float = 0.5
+    """Segments climbing at least this fast are thermals: the glider circles in them."""
+    turn_period_s: float = Field(20.0, gt=0)
+    """Time for one full circle in a thermal."""
+    first_turn_right: bool = True
+    """Direction of the first thermal's circles; later thermals alternate."""
+    gust_rms_m_s: float = Field(0.15, ge=0)
+    """RMS of the vertical gusts (m/s) once airborne."""
+    pendulum_rms_deg: float = Field(2.0, ge=0)
+    """RMS of the pilot's pendulum swing in roll and in pitch once airborne."""
+    wind_ne_m_s: tuple[float, float] = (2.0, 1.0)
+    """Horizontal wind (north, east), which drifts the glider once airborne."""
+
+    @model_validator(mode="after")
+    def _schedule_is_playable(self) -> ThermalParams:
+        starts = [s for s, _ in self.schedule]
+        if not starts:
+            raise ValueError("schedule needs at least one (start, climb) segment")
+        for a, b in zip(starts[1:], starts[2:]):
+            if b < a + self.transition_s:
+                raise ValueError(f"schedule changes at {a} s and {b} s are closer than "
+                                 f"transition_s = {self.transition_s} s")
+        return self
 
 
-class ThermalScenario(Scenario):
+class ThermalScenario(MotionScenario):
     name: ClassVar[str] = "thermal"
-    description: ClassVar[str] = "paraglider climbing in thermals, sinking and gliding"
+    description: ClassVar[str] = ("paraglider launching, gliding, circling in thermals with "
+                                  "coordinated banked turns, sinking, with turbulence")
     Params = ThermalParams
     default_duration_s: ClassVar[float] = 60.0
 
-    def _vertical(self, t_s: float) -> tuple[float, float, float]:
-        """(altitude m, climb m/s, vertical acceleration m/s^2), all up positive."""
+    def build_motion(self) -> Motion:
         p: ThermalParams = self.params  # type: ignore[assignment]
-        sched = p.schedule
         tau = p.transition_s
-        climb, accel = sched[0][1], 0.0
-        # Integrate segment by segment: each change is a raised cosine from prev to new rate.
-        alt = 0.0
-        t_prev = 0.0
-        rate = sched[0][1]
-        for start, new_rate in sched[1:]:
-            if t_s <= start:
-                break
-            alt += rate * (start - t_prev)
-            dv = new_rate - rate
-            dt = min(t_s - start, tau)
-            # v(s) = rate + dv (1 - cos(pi s / tau)) / 2 for s in [0, tau]
-            alt += rate * dt + dv / 2 * (dt - tau / math.pi * math.sin(math.pi * dt / tau))
-            if t_s - start < tau:
-                climb = rate + dv * (1 - math.cos(math.pi * dt / tau)) / 2
-                accel = dv * math.pi / (2 * tau) * math.sin(math.pi * dt / tau)
-                return alt, climb, accel
-            t_prev = start + tau
-            rate = new_rate
-        alt += rate * (t_s - t_prev)
-        return alt, rate, 0.0
+        sched = p.schedule
+        down = Signal(0.0, rate=-sched[0][1])
+        yaw = Signal(math.radians(p.heading_deg))
+        turn_rate = 2.0 * math.pi / p.turn_period_s
+        direction = 1.0 if p.first_turn_right else -1.0
+        bounds = [*sched[1:], (math.inf, 0.0)]
+        for i, (start, climb) in enumerate(sched):
+            end = bounds[i][0]
+            if i > 0:
+                down.rate_to(start, tau, -climb)
+            if climb >= p.circle_min_climb_m_s and math.isfinite(end):
+                yaw.rate_to(max(start, 0.0), tau, direction * turn_rate)
+                yaw.rate_to(end, tau, 0.0)
+                self.add_phase(f"thermal {'right' if direction > 0 else 'left'}", start, end)
+                direction = -direction
+            elif climb >= p.circle_min_climb_m_s:
+                yaw.rate_to(max(start, 0.0), tau, direction * turn_rate)
+                self.add_phase("thermal", start, math.inf)
+        self.add_phase("on launch", 0.0, p.launch_s)
 
-    def truth(self, t_s: float) -> TruthState:
-        p: ThermalParams = self.params  # type: ignore[assignment]
-        env = p.environment
-        alt, climb, accel_up = self._vertical(t_s)
-        q = quat_from_euler_deg(0.0, 0.0, 0.0)
-        r = quat_to_matrix(q)
-        accel_ned = np.array([0.0, 0.0, -accel_up])
-        specific_force_body = r.T @ (accel_ned - env.gravity_ned())
-        return TruthState(
-            t_s=t_s,
-            q_body_to_ned=q,
-            angular_rate_body_rad_s=np.zeros(3),
-            specific_force_body_m_s2=specific_force_body,
-            position_ned_m=np.array([0.0, 0.0, -alt]),
-            velocity_ned_m_s=np.array([0.0, 0.0, -climb]),
-            magnetic_field_body_ut=r.T @ env.magnetic_field_ned_ut(),
-            pressure_pa=env.pressure_pa(alt, t_s),
-            temperature_degc=env.temperature_degc(alt),
-        )
+        speed = Signal(0.0)
+        if p.airspeed_m_s > 0:
+            speed.step_to(p.launch_s, tau, p.airspeed_m_s)
+        airborne = p.launch_s + tau
+        roll, pitch = Signal(), Signal()
+        if p.pendulum_rms_deg > 0:
+            for sig in (roll, pitch):
+                sig.turbulence(self.rng, math.radians(p.pendulum_rms_deg), f_min_hz=0.2,
+                               f_max_hz=0.6, tones=6, t_on=airborne, ramp_s=3.0)
+        if p.gust_rms_m_s > 0:
+            down.turbulence(self.rng, p.gust_rms_m_s, f_min_hz=0.05, f_max_hz=0.4,
+                            tones=8, t_on=airborne, ramp_s=3.0, derivative=1)
+        # The wind carries the glider only once it is airborne (drift builds up with speed).
+        north = east = None
+        if p.wind_ne_m_s != (0.0, 0.0):
+            north = Signal().rate_to(p.launch_s, tau, p.wind_ne_m_s[0])
+            east = Signal().rate_to(p.launch_s, tau, p.wind_ne_m_s[1])
+        return FlightMotion(yaw=yaw, pitch=pitch, roll=roll, coordinated_bank=True,
+                            speed_along_heading=speed, down=down, north=north, east=east,
+                            gravity_m_s2=p.environment.gravity_m_s2)
