@@ -1,0 +1,261 @@
+"""MPU-9250 (InvenSense) accelerometer + gyroscope driver, I2C or SPI, with its aux bus.
+
+Source of the register facts: MPU-9250 Register Map RM-MPU-9250A-00 rev 1.4 and Linux
+``inv_mpu6050`` (imuhal shared chip facts, section 4). The magnetometer of the MPU-9250 is a
+separate die, the AK8963: this driver exposes it as ``child_buses()["aux"]`` (bypass or the
+internal I2C master, see :mod:`imuhal_chips.mpu9250.aux`) and the ``ak8963`` driver runs on it.
+
+configure(): H_RESET, wake with the auto-selected PLL clock, then the registers from the
+declarative tables (ranges, DLPFs, SMPLRT_DIV, INT_ENABLE.RAW_RDY_EN, aux mode); each is read
+back and verified; scales are cached.
+poll(): one burst INT_STATUS..GYRO_ZOUT_L (0x3A..0x48): the data-ready bit and one coherent
+sample. No data-ready for 2.5 sample periods -> the slot is reported STALE. A count at the
+16-bit limit -> SATURATED. INT_PIN_CFG/INT_ENABLE are re-read every second (and whenever data
+are overdue) to catch a silent reset, which is then counted and repaired by reconfiguring.
+Outputs are in the MPU-9250's own sensor frame, SI units.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import ClassVar, Literal
+
+from pydantic import model_validator
+
+from imuhal.bus.base import Bus, BusKind, Link
+from imuhal.bus.registers import RegisterView
+from imuhal.core.clock import Clock
+from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
+from imuhal.core.samples import (
+    AccelSample,
+    Channel,
+    GyroSample,
+    Sample,
+    SampleFlag,
+    TemperatureSample,
+)
+from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
+from imuhal_chips.mpu9250 import registers as r
+from imuhal_chips.mpu9250.aux import MasterAuxBus
+from imuhal_chips.mpu9250.decode import (
+    accel_m_s2,
+    decode_counts,
+    gyro_rad_s,
+    saturated,
+    temperature_degc,
+)
+
+KNOWN_IDS: dict[int, str] = {
+    0x70: "WHO_AM_I 0x70 is an MPU-6500 (accel+gyro only, no magnetometer): the board is "
+          "not a genuine MPU-9250/GY-91, or use an mpu6500 driver",
+    0x68: "WHO_AM_I 0x68 is an MPU-6050/MPU-9150 (different register map)",
+    0x00: "the register reads 0x00: check power, AD0/CS wiring and pull-ups",
+    0xFF: "the register reads 0xFF: MISO/SDA floats high (check CS, wiring and SPI mode)",
+}
+
+
+class MPU9250Settings(DriverSettings):
+    """MPU-9250 settings in physical units.
+
+    ``odr_hz``: with a gyro DLPF of 184..5 Hz the internal rate is 1 kHz and the output rate
+    is 1000 / (1 + SMPLRT_DIV), i.e. 1000, 500, 333.3, 250, 200, 166.7, ... 3.9 Hz; with 250
+    or 3600 Hz it is 8000 Hz. ``aux``: how the AK8963 is reached: ``bypass`` (MPU on I2C),
+    ``master`` (internal I2C master, also on SPI), ``auto`` (bypass on I2C, master on SPI)
+    or ``off``.
+    """
+
+    gyro_range_dps: Literal[250, 500, 1000, 2000] = 500
+    accel_range_g: Literal[2, 4, 8, 16] = 4
+    gyro_dlpf_hz: Literal[250, 184, 92, 41, 20, 10, 5, 3600] = 41
+    accel_dlpf_hz: Literal[460, 184, 92, 41, 20, 10, 5, 1130] = 41
+    odr_hz: float = 200.0
+    aux: Literal["auto", "bypass", "master", "off"] = "auto"
+
+    @model_validator(mode="after")
+    def _odr_reachable(self) -> MPU9250Settings:
+        self.smplrt_div()
+        return self
+
+    def smplrt_div(self) -> int:
+        """The SMPLRT_DIV that gives exactly ``odr_hz`` (0.1 % tolerance), or ValueError."""
+        gyro_filter = r.GYRO_DLPF[self.gyro_dlpf_hz]
+        if not gyro_filter.divider_applies:
+            if abs(self.odr_hz - gyro_filter.internal_rate_hz) > 1e-3 * self.odr_hz:
+                raise ValueError(
+                    f"with gyro_dlpf_hz {self.gyro_dlpf_hz} the output rate is fixed at "
+                    f"{gyro_filter.internal_rate_hz} Hz (odr_hz {self.odr_hz:g}); choose "
+                    "gyro_dlpf_hz 184, 92, 41, 20, 10 or 5 for lower rates")
+            return 0
+        div = round(gyro_filter.internal_rate_hz / self.odr_hz) - 1 if self.odr_hz > 0 else -1
+        if 0 <= div <= 255:
+            rate = r.sample_rate_hz(gyro_filter, div)
+            if abs(rate - self.odr_hz) <= 1e-3 * self.odr_hz:
+                return div
+        near = sorted({r.sample_rate_hz(gyro_filter, d) for d in range(256)},
+                      key=lambda f: abs(f - self.odr_hz))[:4]
+        raise ValueError(
+            f"odr_hz {self.odr_hz:g} is not 1000/(1+n) for n in 0..255; nearest allowed: "
+            + ", ".join(f"{f:g}" for f in sorted(near)))
+
+
+class MPU9250Driver(Driver):
+    """InvenSense MPU-9250 / MPU-9255 accel + gyro; its AK8963 is on ``child_buses()['aux']``."""
+
+    name = "mpu9250"
+    description = ("InvenSense MPU-9250 accel+gyro+temperature, I2C 0x68/0x69 or SPI; "
+                   "AK8963 magnetometer on its 'aux' bus")
+    Settings = MPU9250Settings
+    channels: ClassVar[tuple[Channel, ...]] = (Channel.ACCEL, Channel.GYRO, Channel.TEMPERATURE)
+    bus_kinds: ClassVar[frozenset[BusKind]] = frozenset({BusKind.I2C, BusKind.SPI})
+
+    STALE_AFTER_PERIODS = 2.5
+    CONFIG_CHECK_S = 1.0
+
+    def __init__(self, link: Link, settings: DriverSettings, *, device: str,
+                 clock: Clock) -> None:
+        super().__init__(link, settings, device=device, clock=clock)
+        self.settings: MPU9250Settings
+        self.regs = RegisterView(link)  # SPI: bit 7 set to read; I2C: plain register byte
+        aux = self.settings.aux
+        if aux == "auto":
+            aux = "bypass" if link.kind is BusKind.I2C else "master"
+        if aux == "bypass" and link.kind is not BusKind.I2C:
+            raise ConfigurationError(
+                f"{self.describe()}: aux 'bypass' joins the AK8963 to the host I2C bus, which "
+                "needs the MPU-9250 on I2C; on SPI set aux: master")
+        self.aux_mode: str = aux
+        self._aux_bus: Bus | None = None
+        if aux == "bypass":
+            self._aux_bus = link.bus
+        elif aux == "master":
+            self._aux_bus = MasterAuxBus(f"{link.bus.name}.{device}.aux", self.regs, clock)
+        s = self.settings
+        self._gyro = r.GYRO_RANGES[s.gyro_range_dps]
+        self._accel = r.ACCEL_RANGES[s.accel_range_g]
+        self._period_ns = round(1e9 / r.sample_rate_hz(r.GYRO_DLPF[s.gyro_dlpf_hz],
+                                                        s.smplrt_div()))
+        self._expected = self._register_plan()
+        self._last_data_ns = 0
+        self._next_check_ns = 0
+
+    # -- identity ---------------------------------------------------------------------------
+
+    def _not_found(self, found: str, hint: str) -> DeviceNotFoundError:
+        return DeviceNotFoundError(
+            driver=self.name, bus=self.link.bus.name, address=self.link.target,
+            expected=f"WHO_AM_I 0x{r.WHO_AM_I_MPU9250:02X} (or 0x{r.WHO_AM_I_MPU9255:02X} "
+                     f"MPU-9255) at register 0x{r.WHO_AM_I:02X}", found=found, hint=hint)
+
+    def probe(self) -> DeviceIdentity:
+        try:
+            who = self.regs.read_u8(r.WHO_AM_I)
+        except NackError as exc:
+            raise self._not_found(
+                "no answer (NACK)",
+                "AD0 low gives 0x68, high 0x69; check power and wiring") from exc
+        note = ""
+        if who == r.WHO_AM_I_MPU9255:
+            note = "MPU-9255 (WHO_AM_I 0x73): register-compatible with the MPU-9250"
+        elif who != r.WHO_AM_I_MPU9250:
+            raise self._not_found(f"0x{who:02X}",
+                                  KNOWN_IDS.get(who, "another chip or a clone answers here"))
+        self.identity = DeviceIdentity(self.name, self.link.bus.name, self.link.target,
+                                       f"WHO_AM_I=0x{who:02X}", note)
+        return self.identity
+
+    # -- configuration ----------------------------------------------------------------------
+
+    def _register_plan(self) -> dict[int, int]:
+        """Register -> value to write, in write order (USER_CTRL first: on SPI it disables
+        the I2C slave interface before anything else)."""
+        s = self.settings
+        user_ctrl = (r.USER_I2C_IF_DIS if self.link.kind is BusKind.SPI else 0) | (
+            r.USER_I2C_MST_EN if self.aux_mode == "master" else 0)
+        return {
+            r.USER_CTRL: user_ctrl,
+            r.PWR_MGMT_2: 0x00,
+            r.SMPLRT_DIV: s.smplrt_div(),
+            r.CONFIG: r.GYRO_DLPF[s.gyro_dlpf_hz].dlpf_cfg,
+            r.GYRO_CONFIG: self._gyro.config_value,  # Fchoice_b = 00: DLPF in use
+            r.ACCEL_CONFIG: self._accel.config_value,
+            r.ACCEL_CONFIG2: r.ACCEL_DLPF[s.accel_dlpf_hz],
+            r.I2C_MST_CTRL: r.I2C_MST_CLK_400KHZ if self.aux_mode == "master" else 0x00,
+            r.INT_PIN_CFG: r.INT_PIN_BYPASS_EN if self.aux_mode == "bypass" else 0x00,
+            r.INT_ENABLE: r.INT_RAW_RDY,
+        }
+
+    def configure(self) -> None:
+        self.regs.write(r.PWR_MGMT_1, r.PWR1_H_RESET)
+        self.clock.sleep(r.RESET_S)
+        self.regs.write(r.PWR_MGMT_1, r.PWR1_CLKSEL_AUTO)
+        self.clock.sleep(r.WAKE_S)
+        for register, value in self._expected.items():
+            self.regs.write(register, value)
+        wrong = []
+        for register, value in self._expected.items():
+            back = self.regs.read_u8(register)
+            if back != value:
+                wrong.append(f"0x{register:02X} reads 0x{back:02X}, wrote 0x{value:02X}")
+        if wrong:
+            raise ConfigurationError(f"{self.describe()}: register read-back failed: "
+                                     + "; ".join(wrong))
+
+    def start(self, now_ns: int) -> int:
+        self._last_data_ns = now_ns
+        self._next_check_ns = now_ns + round(self.CONFIG_CHECK_S * 1e9)
+        return now_ns + self._period_ns
+
+    def child_buses(self) -> dict[str, Bus]:
+        return {"aux": self._aux_bus} if self._aux_bus is not None else {}
+
+    # -- polling ----------------------------------------------------------------------------
+
+    def _config_lost(self) -> bool:
+        pin_cfg, int_enable = self.regs.read(r.INT_PIN_CFG, 2)
+        return (pin_cfg != self._expected[r.INT_PIN_CFG]
+                or int_enable != self._expected[r.INT_ENABLE])
+
+    def poll(self, now_ns: int) -> PollResult:
+        overdue = now_ns - self._last_data_ns > self.STALE_AFTER_PERIODS * self._period_ns
+        if overdue or now_ns >= self._next_check_ns:
+            self._next_check_ns = now_ns + round(self.CONFIG_CHECK_S * 1e9)
+            if self._config_lost():
+                self.health.resets_detected += 1
+                self.configure()
+                self.health.reconfigurations += 1
+                return PollResult([], self.start(self.clock.now_ns()))
+        data = self.regs.read(r.DATA_BURST_START, r.DATA_BURST_LENGTH)
+        ready = bool(data[0] & r.INT_RAW_RDY)
+        if not ready and not overdue:
+            return PollResult([], now_ns + max(self._period_ns // 10, 50_000))
+        raw = decode_counts(data[1:])
+        stale = SampleFlag.OK if ready else SampleFlag.STALE
+        accel = accel_m_s2(raw.accel, self._accel.lsb_per_unit)
+        gyro = gyro_rad_s(raw.gyro, self._gyro.lsb_per_unit)
+        temp = temperature_degc(raw.temperature)
+        if stale:
+            accel = gyro = (math.nan, math.nan, math.nan)
+            temp = math.nan
+        sat_a = SampleFlag.SATURATED if saturated(raw.accel) else SampleFlag.OK
+        sat_g = SampleFlag.SATURATED if saturated(raw.gyro) else SampleFlag.OK
+        samples: list[Sample] = [
+            AccelSample(t_ns=now_ns, device=self.device, flags=stale | sat_a, accel_m_s2=accel),
+            GyroSample(t_ns=now_ns, device=self.device, flags=stale | sat_g, gyro_rad_s=gyro),
+            TemperatureSample(t_ns=now_ns, device=self.device, flags=stale,
+                              temperature_degc=temp),
+        ]
+        self._last_data_ns = now_ns
+        _count(self, samples)
+        return PollResult(samples, now_ns + self._period_ns)
+
+
+def _count(driver: Driver, samples: list[Sample]) -> None:
+    health = driver.health
+    for sample in samples:
+        health.samples += 1
+        if sample.flags != SampleFlag.OK:
+            health.flagged += 1
+            for flag in SampleFlag:
+                if flag and flag in sample.flags:
+                    key = flag.name or str(int(flag))
+                    health.flags_seen[key] = health.flags_seen.get(key, 0) + 1

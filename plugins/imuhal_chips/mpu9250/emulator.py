@@ -1,0 +1,267 @@
+"""MPU-9250 emulator: register file, sample timing, bypass and I2C master, fed by physics.
+
+Bus face (I2C: first written byte is the register pointer, further bytes go to successive
+registers; SPI: bit 7 of the first byte set = read; both auto-increment):
+- Power-on defaults (PWR_MGMT_1 0x01, WHO_AM_I 0x71, the rest 0x00); PWR_MGMT_1.H_RESET
+  restores them and self-clears; read-only registers (WHO_AM_I, INT_STATUS, sensor and
+  EXT_SENS_DATA, I2C_MST_STATUS, I2C_SLV4_DI) ignore writes.
+- Samples are taken every 1 / SAMPLE_RATE on ``self.clock`` (internal rate 1 kHz or 8 kHz or
+  32 kHz by DLPF_CFG / Fchoice_b, divided by 1 + SMPLRT_DIV where it applies); each latches
+  the physics into ACCEL/TEMP/GYRO_OUT (big-endian, clipped at the 16-bit limits) and sets
+  INT_STATUS.RAW_DATA_RDY_INT when INT_ENABLE.RAW_RDY_EN is set. INT_STATUS clears when
+  read (on any read with INT_PIN_CFG.INT_ANYRD_2CLEAR). No samples while SLEEP is set.
+- Auxiliary bus ``child_buses()["aux"]`` (an EmulatedBus; attach the AK8963 emulator at 0x0C):
+  * bypass: :meth:`connect_bypass` puts gates on the host bus that forward to the aux bus
+    while INT_PIN_CFG.BYPASS_EN = 1 and USER_CTRL.I2C_MST_EN = 0, and NACK otherwise;
+  * master (USER_CTRL.I2C_MST_EN): writing I2C_SLV4_CTRL with EN performs one single-byte
+    transaction on the aux bus, which completes 100 us later (I2C_MST_STATUS.SLV4_DONE, DI
+    valid; SLV4_NACK if nobody answered). I2C_MST_STATUS clears when read. Slave 0, when
+    enabled for reading, copies LENG bytes into EXT_SENS_DATA at every sample (BYTE_SW/GRP
+    swap the bytes of each register pair).
+
+Physics face (sensor frame, SI): ``specific_force_m_s2`` (default (0, 0, 9.80665): lying
+flat, face up), ``angular_rate_rad_s`` (default 0), ``temperature_degc`` (default 25).
+
+Faults: ``who_am_i`` (clone: 0x70 MPU-6500, 0x73 MPU-9255), ``stuck_data_ready`` (RAW_RDY
+never set), ``silent_reset()``, ``absent`` and bus errors through the bus.
+
+Source of facts: MPU-9250 Register Map RM-MPU-9250A-00 rev 1.4; imuhal shared facts sect. 4.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+
+from imuhal.bus.base import BusKind
+from imuhal.core.clock import Clock
+from imuhal.core.errors import BusError, NackError
+from imuhal.core.samples import Channel
+from imuhal.emulation.base import ChipEmulator
+from imuhal.emulation.bus import EmulatedBus
+from imuhal_chips.mpu9250 import registers as r
+
+SLV4_TRANSACTION_S = 100e-6
+"""A single-byte transaction at 400 kHz, address + register + data with (re)starts."""
+
+_READ_ONLY = {r.WHO_AM_I, r.INT_STATUS, r.I2C_MST_STATUS, r.I2C_SLV4_DI, 0x72, 0x73,
+              *range(r.ACCEL_XOUT_H, r.EXT_SENS_DATA_00 + 24)}
+_GYRO_FS = {v.fs_sel: v for v in r.GYRO_RANGES.values()}
+_ACCEL_FS = {v.fs_sel: v for v in r.ACCEL_RANGES.values()}
+
+
+class MPU9250Emulator(ChipEmulator):
+    """Register-level stand-in for an MPU-9250 (accel, gyro, temperature, aux I2C)."""
+
+    chip = "mpu9250"
+
+    def __init__(self, clock: Clock | None = None, *, name: str = "mpu9250") -> None:
+        super().__init__(clock)
+        self.who_am_i = r.WHO_AM_I_MPU9250
+        self.stuck_data_ready = False
+        self.resets = 0
+        self.aux_bus = EmulatedBus(f"{name}.aux", BusKind.I2C)
+        self._pointer = 0
+        self._reset()
+
+    # -- fault injection --------------------------------------------------------------------
+
+    def silent_reset(self) -> None:
+        """The chip resets on its own (brown-out): every register back to its default."""
+        self.resets += 1
+        self._reset()
+
+    # -- composition ------------------------------------------------------------------------
+
+    def child_buses(self) -> dict[str, EmulatedBus]:
+        return {"aux": self.aux_bus}
+
+    def connect_bypass(self, host_bus: EmulatedBus) -> None:
+        """Make the chips now attached to the aux bus answer on ``host_bus`` while bypass is
+        on (the MPU-9250's aux pins joined to the host I2C bus)."""
+        for target in self.aux_bus.targets:
+            host_bus.attach(target, _BypassGate(self, target))
+
+    def bypass_active(self) -> bool:
+        return bool(self._regs[r.INT_PIN_CFG] & r.INT_PIN_BYPASS_EN) and not (
+            self._regs[r.USER_CTRL] & r.USER_I2C_MST_EN)
+
+    # -- conformance face -------------------------------------------------------------------
+
+    def _gyro_range(self) -> r.Range:
+        return _GYRO_FS[(self._regs[r.GYRO_CONFIG] >> 3) & 0b11]
+
+    def _accel_range(self) -> r.Range:
+        return _ACCEL_FS[(self._regs[r.ACCEL_CONFIG] >> 3) & 0b11]
+
+    def resolution(self, channel: Channel) -> float:
+        """One LSB in SI units at the current ranges."""
+        if channel is Channel.ACCEL:
+            return r.STANDARD_GRAVITY_M_S2 / self._accel_range().lsb_per_unit
+        if channel is Channel.GYRO:
+            return math.radians(1.0) / self._gyro_range().lsb_per_unit
+        if channel is Channel.TEMPERATURE:
+            return 1.0 / r.TEMP_LSB_PER_DEGC
+        raise ValueError(f"the MPU-9250 has no {channel.value} channel")
+
+    def full_scale(self, channel: Channel) -> float:
+        """The largest magnitude representable (32767 counts) in SI units."""
+        if channel is Channel.TEMPERATURE:
+            return 32767 / r.TEMP_LSB_PER_DEGC + r.TEMP_OFFSET_DEGC
+        return 32767 * self.resolution(channel)
+
+    # -- state ------------------------------------------------------------------------------
+
+    def _reset(self) -> None:
+        self._regs = bytearray(128)
+        self._regs[r.PWR_MGMT_1] = r.PWR1_CLKSEL_AUTO
+        self._slv4_done_ns: int | None = None
+        self._slv4_result: tuple[int, int] = (0, 0)
+        self._restart_sampling()
+
+    def _restart_sampling(self) -> None:
+        self._t0 = self.now_ns()
+        self._taken = 0
+
+    def period_ns(self) -> int:
+        internal, divided = r.gyro_filter_from_config(self._regs[r.CONFIG],
+                                                      self._regs[r.GYRO_CONFIG])
+        rate = internal / (1 + self._regs[r.SMPLRT_DIV]) if divided else internal
+        return round(1e9 / rate)
+
+    def _advance(self) -> None:
+        now = self.now_ns()
+        if self._slv4_done_ns is not None and now >= self._slv4_done_ns:
+            self._slv4_done_ns = None
+            di, status = self._slv4_result
+            self._regs[r.I2C_SLV4_DI] = di
+            self._regs[r.I2C_MST_STATUS] |= status
+            self._regs[r.I2C_SLV4_CTRL] &= ~r.SLV_EN
+        if self._regs[r.PWR_MGMT_1] & r.PWR1_SLEEP:
+            return
+        due = (now - self._t0) // self.period_ns()
+        if due > self._taken:
+            self._taken = due
+            self._latch()
+
+    def _latch(self) -> None:
+        p = self.physics
+        force = p.specific_force_m_s2 or (0.0, 0.0, r.STANDARD_GRAVITY_M_S2)
+        rate = p.angular_rate_rad_s or (0.0, 0.0, 0.0)
+        temp = 25.0 if p.temperature_degc is None else p.temperature_degc
+        a_lsb = self._accel_range().lsb_per_unit / r.STANDARD_GRAVITY_M_S2
+        g_lsb = self._gyro_range().lsb_per_unit / math.radians(1.0)
+        counts = [*(v * a_lsb for v in force),
+                  (temp - r.TEMP_OFFSET_DEGC) * r.TEMP_LSB_PER_DEGC,
+                  *(v * g_lsb for v in rate)]
+        clipped = [max(-32768, min(32767, round(c))) for c in counts]
+        self._regs[r.ACCEL_XOUT_H:r.ACCEL_XOUT_H + 14] = struct.pack(">7h", *clipped)
+        if self._regs[r.INT_ENABLE] & r.INT_RAW_RDY and not self.stuck_data_ready:
+            self._regs[r.INT_STATUS] |= r.INT_RAW_RDY
+        self._slave0_read()
+
+    def _master_on(self) -> bool:
+        return bool(self._regs[r.USER_CTRL] & r.USER_I2C_MST_EN)
+
+    def _slave0_read(self) -> None:
+        ctrl = self._regs[r.I2C_SLV0_CTRL]
+        address = self._regs[r.I2C_SLV0_ADDR]
+        if not (self._master_on() and ctrl & r.SLV_EN and address & r.SLV_READ):
+            return
+        register, length = self._regs[r.I2C_SLV0_REG], ctrl & r.SLV_LENG
+        try:
+            data = bytearray(self.aux_bus.transfer(address & 0x7F, bytes([register]), length))
+        except BusError:
+            self._regs[r.I2C_MST_STATUS] |= r.MST_SLV0_NACK
+            return
+        if ctrl & r.SLV_BYTE_SW:
+            # Pairs end on an odd slave register (GRP=0) or on an even one (GRP=1).
+            first = 0 if (register % 2 == 0) != bool(ctrl & r.SLV_GRP) else 1
+            for i in range(first, length - 1, 2):
+                data[i], data[i + 1] = data[i + 1], data[i]
+        start = r.EXT_SENS_DATA_00
+        self._regs[start:start + length] = data
+
+    def _slv4_start(self) -> None:
+        address = self._regs[r.I2C_SLV4_ADDR]
+        register = self._regs[r.I2C_SLV4_REG]
+        if not self._master_on() or self._regs[r.PWR_MGMT_1] & r.PWR1_SLEEP:
+            return  # the master is off: the transaction never runs, DONE never comes
+        target = address & 0x7F
+        try:
+            if address & r.SLV_READ:
+                di = self.aux_bus.transfer(target, bytes([register]), 1)[0]
+            else:
+                self.aux_bus.transfer(target, bytes([register, self._regs[r.I2C_SLV4_DO]]), 0)
+                di = self._regs[r.I2C_SLV4_DI]
+            self._slv4_result = (di, r.MST_SLV4_DONE)
+        except NackError:
+            self._slv4_result = (self._regs[r.I2C_SLV4_DI], r.MST_SLV4_NACK | r.MST_SLV4_DONE)
+        except BusError:
+            self._slv4_result = (0xFF, r.MST_SLV4_DONE)  # a glitch: garbage data
+        self._slv4_done_ns = self.now_ns() + round(SLV4_TRANSACTION_S * 1e9)
+
+    # -- bus face ---------------------------------------------------------------------------
+
+    def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes:
+        self._advance()
+        if not write:
+            return bytes(read_len)
+        if kind is BusKind.SPI and write[0] & r.SPI_READ:
+            self._pointer = write[0] & 0x7F
+        else:
+            self._pointer = write[0] & 0x7F
+            for offset, value in enumerate(write[1:]):
+                self._write((self._pointer + offset) & 0x7F, value)
+        out = bytearray()
+        for i in range(read_len):
+            out.append(self._read((self._pointer + i) & 0x7F))
+        if read_len and self._regs[r.INT_PIN_CFG] & r.INT_PIN_ANYRD_2CLEAR:
+            self._regs[r.INT_STATUS] = 0
+        return bytes(out)
+
+    def _read(self, address: int) -> int:
+        if address == r.WHO_AM_I:
+            return self.who_am_i
+        value = self._regs[address]
+        if address in (r.INT_STATUS, r.I2C_MST_STATUS):
+            self._regs[address] = 0  # read to clear
+        return value
+
+    def _write(self, address: int, value: int) -> None:
+        if address in _READ_ONLY:
+            return
+        if address == r.PWR_MGMT_1:
+            if value & r.PWR1_H_RESET:
+                self.resets += 1
+                self._reset()
+                return
+            was_asleep = self._regs[address] & r.PWR1_SLEEP
+            self._regs[address] = value
+            if was_asleep and not value & r.PWR1_SLEEP:
+                self._restart_sampling()
+            return
+        if address == r.USER_CTRL:
+            value &= ~0x07  # FIFO/I2C master/signal-path resets self-clear
+        if address == r.SIGNAL_PATH_RESET:
+            value = 0
+        self._regs[address] = value
+        if address in (r.SMPLRT_DIV, r.CONFIG, r.GYRO_CONFIG):
+            self._restart_sampling()
+        if address == r.I2C_SLV4_CTRL and value & r.SLV_EN:
+            self._slv4_start()
+
+
+class _BypassGate(ChipEmulator):
+    """Stands at an aux-bus address on the host bus; forwards only while bypass is on."""
+
+    def __init__(self, mpu: MPU9250Emulator, target: int) -> None:
+        super().__init__(mpu.clock)
+        self.mpu = mpu
+        self.target = target
+
+    def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes:
+        if not self.mpu.bypass_active():
+            raise NackError(f"no device answered at address 0x{self.target:02X} "
+                            "(MPU-9250 bypass is off)", target=self.target)
+        return self.mpu.aux_bus.transfer(self.target, write, read_len)
