@@ -109,6 +109,26 @@ def test_first_kalman_step_emits_nothing_and_the_second_emits_an_estimate() -> N
     assert len(second) == 1 and second[0].t_ns == 15 * DT_NS
 
 
+def test_without_reference_start_up_the_first_window_already_emits() -> None:
+    est = Freescale9DofEstimator({"initialise_on_first_step": False})
+    out = _run(est, _counts()[:8])
+    assert [e.t_ns for e in out] == [7 * DT_NS]
+
+
+def test_windows_without_accel_are_dropped_and_stale_accel_is_reused_but_counted() -> None:
+    """A full gyro window waits for an accel sample at or after its last gyro sample; if the
+    next gyro sample comes first, the window runs on the last accel reading (the reference
+    reuses it too) or, with none yet, is dropped."""
+    est = Freescale6DofEstimator({"initialise_on_first_step": False})
+    rows = _counts()[:33]
+    assert _run(est, rows[:16], order="g") == []  # window 0 dropped, window 1 waits
+    assert [e.t_ns for e in _run(est, rows[16:24], order="ag")] == [15 * DT_NS, 23 * DT_NS]
+    assert [e.t_ns for e in _run(est, rows[24:33], order="g")] == [31 * DT_NS]
+    diag = est.diagnostics()
+    assert diag["windows_without_accel_or_mag"] == 1
+    assert diag["windows_with_stale_accel_or_mag"] == 1
+
+
 def test_invalid_samples_are_skipped_and_counted_without_advancing_the_window() -> None:
     est = Freescale6DofEstimator()
     rows = _counts()[:16]

@@ -6,8 +6,10 @@ the sensor axes/sign of the configured coordinate system (``coords``). Every val
 sample is one fast tick, integrated over 1 / sensor_rate_hz (the reference assumes a steady
 rate; timestamps only stamp the output). After ``oversample_ratio`` gyro samples a Kalman
 step runs on them and on the newest accelerometer (and magnetometer) sample — waiting, if
-needed, for the accelerometer/magnetometer sample of that same tick, or at the latest until
-the next gyro sample arrives. Each valid step emits an AttitudeEstimate (body -> NED).
+needed, for one stamped at or after the window's last gyro sample, but no longer than until
+the next gyro sample arrives; then it reuses the last reading (as the reference does; counted
+as stale) or, with none yet, drops the window (counted). Each valid step emits an
+AttitudeEstimate (body -> NED) stamped with the window's last gyro sample.
 """
 
 from __future__ import annotations
@@ -36,7 +38,8 @@ from imuhal_filters.freescale.settings import (
 )
 
 _COUNTERS = ("gyro_samples", "accel_samples", "mag_samples", "kalman_steps",
-             "skipped_invalid", "skipped_not_body_frame", "windows_without_accel_or_mag")
+             "skipped_invalid", "skipped_not_body_frame", "windows_without_accel_or_mag",
+             "windows_with_stale_accel_or_mag")
 
 
 class _Latest:
@@ -132,11 +135,15 @@ class _FreescaleEstimator(Estimator):
         gyro = np.array(self._gyro)
         self._gyro = []
         average = self.settings.accel_mag_input == "average"
+        sensors = (self._accel, self._mag) if self.use_mag else (self._accel,)
+        stale = any(s.count == 0 for s in sensors)
         accel = self._accel.take(average)
         mag = self._mag.take(average) if self.use_mag else None
         if accel is None or (self.use_mag and mag is None):
             self._counts["windows_without_accel_or_mag"] += 1
             return []
+        if stale:  # the reference, too, fuses the last reading it has; say so
+            self._counts["windows_with_stale_accel_or_mag"] += 1
         step = self._kf.step(accel, gyro, mag)
         self._counts["kalman_steps"] += 1
         self._last_step = step
