@@ -154,6 +154,9 @@ class Hmc5883lDriver(Driver):
         self._skip_next = True  # its first measurement still uses the previous gain
 
     def start(self, now_ns: int) -> int:
+        # configure() may have waited on the clock since the caller read it (the base
+        # recover() passes the time from before its configure()): never start in the past
+        now_ns = max(now_ns, self.clock.now_ns())
         self._grid_start_ns = now_ns
         self._grid_k = 1
         self._last_ready_ns = now_ns

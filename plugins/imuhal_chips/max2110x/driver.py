@@ -188,6 +188,9 @@ class Max2110xDriver(Driver):
     # --- sampling -------------------------------------------------------------------------
 
     def start(self, now_ns: int) -> int:
+        # configure() may have waited on the clock since the caller read it (the base
+        # recover() passes the time from before its configure()): never start in the past
+        now_ns = max(now_ns, self.clock.now_ns())
         self._grid_start_ns = now_ns
         self._grid_k = 1
         self._last_fresh_ns = {Channel.GYRO: now_ns, Channel.ACCEL: now_ns}

@@ -1,0 +1,278 @@
+"""MAX21100/MAX21105 drivers against their emulators, over I2C and SPI, on a shared
+simulated clock. Tolerance for values: one LSB of the configured range."""
+
+from __future__ import annotations
+
+import math
+import random
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import pytest
+
+from imuhal.bus.base import BusKind
+from imuhal.core.clock import SimulatedClock
+from imuhal.core.errors import BusError, ConfigurationError, DeviceNotFoundError
+from imuhal.core.samples import (
+    AccelSample,
+    Channel,
+    GyroSample,
+    Sample,
+    SampleFlag,
+    TemperatureSample,
+)
+from imuhal.drivers.base import Driver
+from imuhal.emulation import EmulatedBus, PhysicalInputs
+from imuhal_chips.max2110x.driver import Max2110xDriver, Max21100Driver, Max21105Driver
+from imuhal_chips.max2110x.emulator import Max2110xEmulator, Max21100Emulator, Max21105Emulator
+from imuhal_chips.max2110x.registers import ACCEL_LPF_DIVISOR, GYRO_BANDWIDTH_HZ
+
+PARTS = [(Max21100Driver, Max21100Emulator), (Max21105Driver, Max21105Emulator)]
+KINDS = [BusKind.I2C, BusKind.SPI]
+
+
+@dataclass
+class Rig:
+    clock: SimulatedClock
+    bus: EmulatedBus
+    emu: Max2110xEmulator
+    driver: Max2110xDriver
+    next_ns: int = 0
+
+    def run(self, seconds: float) -> list[Sample]:
+        """Poll on the driver's schedule for ``seconds`` of simulated time."""
+        end = self.clock.now_ns() + round(seconds * 1e9)
+        out: list[Sample] = []
+        while self.next_ns <= end:
+            self.clock.sleep_until(self.next_ns)
+            result = self.driver.poll(self.clock.now_ns())
+            out += result.samples
+            self.next_ns = result.next_poll_ns
+        return out
+
+
+def make_rig(driver_cls: type[Max2110xDriver], emu_cls: type[Max2110xEmulator],
+             kind: BusKind = BusKind.SPI, *, start: bool = True,
+             **settings: object) -> Rig:
+    clock = SimulatedClock()
+    bus = EmulatedBus("spi0" if kind is BusKind.SPI else "i2c1", kind)
+    target = 0 if kind is BusKind.SPI else 0x58
+    emu = bus.attach(target, emu_cls(clock))
+    driver = driver_cls(bus.link(target), settings, device="imu", clock=clock)
+    rig = Rig(clock, bus, emu, driver)
+    if start:
+        driver.probe()
+        driver.configure()
+        rig.next_ns = driver.start(clock.now_ns())
+    return rig
+
+
+def of(samples: list[Sample], cls: type) -> list:
+    return [s for s in samples if isinstance(s, cls)]
+
+
+def settings_sweep() -> Iterator[tuple[type, type, str, object]]:
+    for driver_cls, emu_cls in PARTS:
+        s = driver_cls.Settings
+        for name, values in (("gyro_range_dps", (250, 500, 1000, 2000)),
+                             ("accel_range_g", (2, 4, 8, 16))):
+            for v in values:
+                yield driver_cls, emu_cls, name, v
+        for v in s.part.gyro_odr_hz:
+            yield driver_cls, emu_cls, "gyro_odr_hz", v
+        for v in s.part.accel_odr_hz:
+            yield driver_cls, emu_cls, "accel_odr_hz", v
+
+
+def test_probe_returns_identity_bound_to_bus_and_address() -> None:
+    rig = make_rig(Max21100Driver, Max21100Emulator, BusKind.I2C, start=False)
+    ident = rig.driver.probe()
+    assert (ident.driver, ident.bus, ident.address, ident.identity) == (
+        "max21100", "i2c1", 0x58, "WHO_AM_I=0xB2")
+
+
+@pytest.mark.parametrize(("driver_cls", "emu_cls", "hint"), [
+    (Max21100Driver, Max21105Emulator, "this is a MAX21105: use driver max21105"),
+    (Max21105Driver, Max21100Emulator, "this is a MAX21100: use driver max21100"),
+])
+def test_sibling_part_is_named_in_the_error(driver_cls: type, emu_cls: type, hint: str) -> None:
+    rig = make_rig(driver_cls, emu_cls, start=False)
+    with pytest.raises(DeviceNotFoundError) as err:
+        rig.driver.probe()
+    text = str(err.value)
+    assert hint in text and "spi0" in text and "0x00" in text
+    assert err.value.expected.startswith(f"WHO_AM_I=0x{driver_cls.part.who_am_i:02X}")
+
+
+def test_clone_with_unknown_identity_is_rejected_with_found_value() -> None:
+    rig = make_rig(Max21100Driver, Max21100Emulator, BusKind.I2C, start=False)
+    rig.emu.who_am_i = 0x69
+    with pytest.raises(DeviceNotFoundError, match=r"found WHO_AM_I=0x69.*clone"):
+        rig.driver.probe()
+
+
+def test_absent_chip_becomes_device_not_found_with_wiring_hint() -> None:
+    rig = make_rig(Max21105Driver, Max21105Emulator, BusKind.I2C, start=False)
+    rig.emu.absent = True
+    with pytest.raises(DeviceNotFoundError, match=r"i2c1.*0x58.*NACK.*0x58 \(SA0 low\)"):
+        rig.driver.probe()
+
+
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize(("driver_cls", "emu_cls"), PARTS)
+def test_configure_writes_the_seed_configuration(driver_cls: type, emu_cls: type,
+                                                 kind: BusKind) -> None:
+    rig = make_rig(driver_cls, emu_cls, kind)
+    s = rig.driver.settings
+    bank0 = rig.emu.banks[0]
+    assert (bank0[0x01] >> 2) == GYRO_BANDWIDTH_HZ[s.gyro_bandwidth_hz]
+    assert (bank0[0x05] >> 4) & 0x03 == ACCEL_LPF_DIVISOR[48]
+    assert bank0[0x00] == driver_cls.part.power_cfg_on
+    assert bank0[0x16] & 0x01 == (1 if kind is BusKind.SPI else 0)
+
+
+def test_configure_read_back_mismatch_raises_configuration_error() -> None:
+    class StuckBit(Max21100Emulator):
+        def _write(self, reg: int, value: int) -> None:
+            super()._write(reg, value & ~0x20 if reg == 0x01 else value)
+
+    rig = make_rig(Max21100Driver, StuckBit, start=False, gyro_bandwidth_hz=100)
+    rig.driver.probe()
+    with pytest.raises(ConfigurationError, match=r"0x01 wrote 0x2A read 0x0A"):
+        rig.driver.configure()
+
+
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize(("driver_cls", "emu_cls"), PARTS)
+def test_values_set_on_the_emulator_read_back_in_si_within_one_lsb(
+    driver_cls: type, emu_cls: type, kind: BusKind
+) -> None:
+    rng = random.Random(21100)
+    rig = make_rig(driver_cls, emu_cls, kind)
+    for _ in range(5):
+        gfs, afs = rig.emu.full_scale(Channel.GYRO), rig.emu.full_scale(Channel.ACCEL)
+        rate = tuple(rng.uniform(-0.9, 0.9) * gfs for _ in range(3))
+        force = tuple(rng.uniform(-0.9, 0.9) * afs for _ in range(3))
+        rig.emu.set_physics(PhysicalInputs(angular_rate_rad_s=rate, specific_force_m_s2=force,
+                                           temperature_degc=rng.uniform(-20, 60)))
+        rig.run(0.02)
+        samples = rig.run(0.2)
+        gyro, accel = of(samples, GyroSample), of(samples, AccelSample)
+        temps = of(samples, TemperatureSample)
+        assert gyro and accel and temps
+        assert all(s.valid for s in samples)
+        assert gyro[-1].gyro_rad_s == pytest.approx(rate, abs=rig.emu.resolution(Channel.GYRO))
+        assert accel[-1].accel_m_s2 == pytest.approx(force,
+                                                     abs=rig.emu.resolution(Channel.ACCEL))
+        assert temps[-1].temperature_degc == pytest.approx(rig.emu.physics.temperature_degc,
+                                                           abs=1 / 256)
+
+
+@pytest.mark.parametrize(("driver_cls", "emu_cls", "name", "value"), list(settings_sweep()))
+def test_every_supported_setting_reads_physical_values_within_one_lsb(
+    driver_cls: type, emu_cls: type, name: str, value: float
+) -> None:
+    rig = make_rig(driver_cls, emu_cls, **{name: value})
+    rate = (0.7 * rig.emu.full_scale(Channel.GYRO), -0.3 * rig.emu.full_scale(Channel.GYRO),
+            0.01)
+    force = (-0.2 * rig.emu.full_scale(Channel.ACCEL), 0.0, 9.80665)
+    rig.emu.set_physics(PhysicalInputs(angular_rate_rad_s=rate, specific_force_m_s2=force))
+    gyro_period = 1.0 / rig.driver.settings.gyro_odr_hz
+    accel_period = 1.0 / rig.driver.settings.accel_odr_hz
+    samples = rig.run(3.5 * max(gyro_period, accel_period))
+    gyro, accel = of(samples, GyroSample), of(samples, AccelSample)
+    assert gyro and accel and all(s.valid for s in samples)
+    assert gyro[-1].gyro_rad_s == pytest.approx(rate, abs=rig.emu.resolution(Channel.GYRO))
+    assert accel[-1].accel_m_s2 == pytest.approx(force, abs=rig.emu.resolution(Channel.ACCEL))
+
+
+@pytest.mark.parametrize(("gyro_hz", "accel_hz"), [(250, 250), (1000, 125), (31.25, 500)])
+def test_sample_rates_follow_the_configured_odrs(gyro_hz: float, accel_hz: float) -> None:
+    rig = make_rig(Max21100Driver, Max21100Emulator, gyro_odr_hz=gyro_hz, accel_odr_hz=accel_hz)
+    samples = rig.run(1.0)
+    assert len(of(samples, GyroSample)) == pytest.approx(gyro_hz, abs=1)
+    assert len(of(samples, AccelSample)) == pytest.approx(accel_hz, abs=1)
+    assert all(s.valid for s in samples)  # no STALE while the slower channel waits
+
+
+def test_values_beyond_full_scale_are_flagged_saturated() -> None:
+    rig = make_rig(Max21105Driver, Max21105Emulator)
+    rig.emu.set_physics(PhysicalInputs(angular_rate_rad_s=(math.radians(1500), 0.0, 0.0),
+                                       specific_force_m_s2=(0.0, 0.0, -9.0 * 9.80665)))
+    samples = rig.run(0.05)
+    gyro, accel = of(samples, GyroSample)[-1], of(samples, AccelSample)[-1]
+    assert gyro.flags == SampleFlag.SATURATED and accel.flags == SampleFlag.SATURATED
+    assert gyro.gyro_rad_s[0] == pytest.approx(math.radians(1000))
+    assert accel.accel_m_s2[2] == pytest.approx(-8 * 9.80665)
+
+
+def test_stuck_data_ready_gives_stale_samples_then_the_driver_resets_the_chip() -> None:
+    rig = make_rig(Max21100Driver, Max21100Emulator)
+    rig.run(0.02)
+    rig.emu.stuck_data_ready = True
+    samples = rig.run(0.03)
+    stale = [s for s in samples if s.flags & SampleFlag.STALE]
+    assert stale and not [s for s in samples if s.valid and not isinstance(s, TemperatureSample)
+                          and s.t_ns > stale[-1].t_ns]
+    assert rig.driver.health.reconfigurations == 1
+    assert rig.driver.health.resets_detected == 0  # configuration was intact
+    after = rig.run(0.05)
+    assert after and all(s.valid for s in after)
+
+
+def test_recover_after_stuck_data_ready_restores_valid_samples() -> None:
+    rig = make_rig(Max21105Driver, Max21105Emulator, BusKind.I2C)
+    rig.emu.stuck_data_ready = True
+    assert any(s.flags & SampleFlag.STALE for s in rig.run(0.012))
+    rig.next_ns = rig.driver.recover(rig.clock.now_ns())
+    assert rig.driver.health.reconfigurations == 1
+    samples = rig.run(0.1)
+    assert len(of(samples, GyroSample)) == pytest.approx(20, abs=1)
+    assert all(s.valid for s in samples)
+
+
+@pytest.mark.parametrize(("driver_cls", "emu_cls"), PARTS)
+def test_silent_reset_is_detected_counted_and_reconfigured(driver_cls: type,
+                                                           emu_cls: type) -> None:
+    rig = make_rig(driver_cls, emu_cls, reset_check_s=0.1)
+    rig.emu.set_physics(PhysicalInputs(angular_rate_rad_s=(0.5, 0.0, 0.0)))
+    rig.run(0.05)
+    rig.emu.silent_reset()
+    rig.run(0.2)
+    assert rig.driver.health.resets_detected == 1
+    assert rig.emu.banks[0][0x00] == driver_cls.part.power_cfg_on
+    gyro = of(rig.run(0.05), GyroSample)
+    assert gyro and all(s.valid for s in gyro)
+    assert gyro[-1].gyro_rad_s[0] == pytest.approx(0.5, abs=rig.emu.resolution(Channel.GYRO))
+
+
+def test_bus_error_surfaces_and_recover_resumes_sampling() -> None:
+    rig = make_rig(Max21100Driver, Max21100Emulator)
+    rig.run(0.02)
+    rig.bus.fail_transfers({1})
+    rig.clock.sleep_until(rig.next_ns)
+    with pytest.raises(BusError, match="injected"):
+        rig.driver.poll(rig.clock.now_ns())
+    rig.next_ns = rig.driver.recover(rig.clock.now_ns())
+    samples = rig.run(0.1)
+    assert len(of(samples, GyroSample)) == pytest.approx(25, abs=1)
+    assert all(s.valid for s in samples)
+
+
+def test_each_poll_is_one_bus_transaction() -> None:
+    rig = make_rig(Max21105Driver, Max21105Emulator, reset_check_s=60)
+    before = rig.bus.transfers
+    samples = rig.run(0.1)
+    assert rig.bus.transfers - before == len(of(samples, GyroSample))
+
+
+def test_drivers_are_registered_through_the_plugin_hooks() -> None:
+    from imuhal.plugins.manager import load_registry
+    from imuhal_chips.max2110x import plugin
+
+    registry = load_registry(entry_point_plugins=False, extra=[("max2110x", plugin)])
+    assert registry.drivers.get("max21100") is Max21100Driver
+    assert registry.drivers.get("max21105") is Max21105Driver
+    assert registry.emulators.get("max21100") is Max21100Emulator
+    assert issubclass(registry.drivers.get("max21105"), Driver)
+    assert Max21100Driver.bus_kinds == {BusKind.I2C, BusKind.SPI}
