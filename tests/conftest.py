@@ -3,12 +3,18 @@
 from __future__ import annotations
 
 import pytest
-
-from imuhal.plugins.manager import Registry, load_registry
 from tests.support import testchip
+
+from imuhal.bus import plugin as bus_plugin
+from imuhal.plugins.manager import Registry, load_registry
+from imuhal.sim import plugin as sim_plugin
 
 
 @pytest.fixture(scope="session")
 def registry() -> Registry:
-    """The installed plugins (built-ins via entry points) plus the fictional test chip."""
-    return load_registry(extra=[("testchip", testchip)])
+    """Core's own plugins (bus kinds, scenarios) plus the fictional test chip: core tests do
+    not depend on any real chip or filter plugin."""
+    return load_registry(
+        entry_point_plugins=False,
+        extra=[("buses", bus_plugin), ("scenarios", sim_plugin), ("testchip", testchip)],
+    )

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import pytest
+from tests.support.testchip import TC3Emulator
 
 from imuhal.bus.base import BusKind
 from imuhal.core.errors import BusError, NackError
 from imuhal.emulation.bus import EmulatedBus
-from tests.support.testchip import TC3Emulator
 
 
 def test_transfers_reach_the_emulator_at_that_address() -> None:

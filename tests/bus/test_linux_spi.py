@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import pytest
 
 from imuhal.bus.linux_spi import LinuxSPIBus
@@ -9,7 +11,7 @@ from imuhal.core.errors import BusError
 
 
 class FakeSpiDev:
-    opened: list[tuple[int, int]] = []
+    opened: ClassVar[list[tuple[int, int]]] = []
 
     def __init__(self) -> None:
         self.mode = 0
@@ -52,5 +54,5 @@ def test_each_chip_select_opens_its_own_device_file_once() -> None:
 
 def test_a_missing_chip_select_is_reported_with_its_device_path() -> None:
     bus = LinuxSPIBus(0, spidev_module=FakeModule)
-    with pytest.raises(BusError, match="/dev/spidev0.5"):
+    with pytest.raises(BusError, match=r"/dev/spidev0\.5"):
         bus.transfer(5, b"\x00", 1)

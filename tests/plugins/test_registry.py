@@ -5,11 +5,11 @@ from __future__ import annotations
 import types
 
 import pytest
+from tests.support import testchip
 
 from imuhal.core.errors import PluginError
 from imuhal.plugins.hookspecs import hookimpl
 from imuhal.plugins.manager import load_registry
-from tests.support import testchip
 
 
 def _module(name: str, **attrs: object) -> types.ModuleType:
@@ -48,7 +48,7 @@ def test_registering_something_that_is_not_a_driver_names_the_plugin() -> None:
         register(int)
 
     bad = _module("bad", imuhal_register_drivers=imuhal_register_drivers)
-    with pytest.raises(PluginError, match="plugin 'bad'.*not a subclass of Driver"):
+    with pytest.raises(PluginError, match=r"plugin 'bad'.*not a subclass of Driver"):
         load_registry(entry_point_plugins=False, extra=[("bad", bad)])
 
 
@@ -58,7 +58,7 @@ def test_the_same_name_twice_is_an_error_naming_both_plugins() -> None:
         register(testchip.TC3Driver)
 
     twin = _module("twin", imuhal_register_drivers=imuhal_register_drivers)
-    with pytest.raises(PluginError, match="registered twice.*'testchip'.*'twin'"):
+    with pytest.raises(PluginError, match=r"registered twice.*'testchip'.*'twin'"):
         load_registry(entry_point_plugins=False, extra=[("testchip", testchip), ("twin", twin)])
 
 

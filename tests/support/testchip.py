@@ -14,10 +14,13 @@ from typing import ClassVar, Literal
 
 from imuhal.bus.base import BusKind
 from imuhal.bus.registers import RegisterView
+from imuhal.core.atmosphere import altitude_m_from_pressure
 from imuhal.core.errors import DeviceNotFoundError, NackError
 from imuhal.core.samples import AccelSample, Channel, PressureSample, SampleFlag
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
 from imuhal.emulation.base import ChipEmulator
+from imuhal.estimation.base import Estimator, EstimatorSettings
+from imuhal.estimation.outputs import VerticalEstimate
 from imuhal.plugins.hookspecs import hookimpl
 
 G = 9.80665
@@ -126,3 +129,37 @@ def imuhal_register_drivers(register) -> None:  # type: ignore[no-untyped-def]
 @hookimpl
 def imuhal_register_emulators(register) -> None:  # type: ignore[no-untyped-def]
     register(TC3Emulator)
+
+
+class RecorderSettings(EstimatorSettings):
+    pass
+
+
+class Recorder(Estimator):
+    """Records what the pipeline hands it and echoes one VerticalEstimate per pressure."""
+
+    name: ClassVar[str] = "recorder"
+    Settings = RecorderSettings
+    consumes = (AccelSample, PressureSample)
+
+    def reset(self) -> None:
+        self.seen: list[object] = []
+
+    def process(self, item):  # type: ignore[no-untyped-def]
+        self.seen.append(item)
+        if isinstance(item, PressureSample):
+            return [VerticalEstimate(t_ns=item.t_ns, source=self.instance,
+                                     altitude_m=altitude_m_from_pressure(item.pressure_pa),
+                                     climb_m_s=0.0)]
+        return []
+
+    def get_state(self) -> dict:  # type: ignore[type-arg]
+        return {"seen": len(self.seen)}
+
+    def set_state(self, state) -> None:  # type: ignore[no-untyped-def]
+        pass
+
+
+@hookimpl
+def imuhal_register_estimators(register) -> None:  # type: ignore[no-untyped-def]
+    register(Recorder)

@@ -17,7 +17,9 @@ STANDARD_GRAVITY_M_S2 = 9.806_65
 _EXPONENT = STANDARD_GRAVITY_M_S2 / (GAS_CONSTANT_AIR_J_KG_K * LAPSE_RATE_K_PER_M)  # ~5.2559
 
 
-def pressure_pa_at_altitude(altitude_m: float, sea_level_pa: float = SEA_LEVEL_PRESSURE_PA) -> float:
+def pressure_pa_at_altitude(
+    altitude_m: float, sea_level_pa: float = SEA_LEVEL_PRESSURE_PA
+) -> float:
     """Static pressure (Pa) at ``altitude_m`` in the ISA troposphere."""
     ratio = 1.0 - LAPSE_RATE_K_PER_M * altitude_m / SEA_LEVEL_TEMPERATURE_K
     if ratio <= 0:
@@ -25,7 +27,9 @@ def pressure_pa_at_altitude(altitude_m: float, sea_level_pa: float = SEA_LEVEL_P
     return sea_level_pa * ratio**_EXPONENT
 
 
-def altitude_m_from_pressure(pressure_pa: float, sea_level_pa: float = SEA_LEVEL_PRESSURE_PA) -> float:
+def altitude_m_from_pressure(
+    pressure_pa: float, sea_level_pa: float = SEA_LEVEL_PRESSURE_PA
+) -> float:
     """Altitude (m) at which the ISA troposphere has ``pressure_pa``."""
     if pressure_pa <= 0 or not math.isfinite(pressure_pa):
         raise ValueError(f"pressure must be a positive finite number of Pa, got {pressure_pa}")

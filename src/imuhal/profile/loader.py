@@ -55,14 +55,18 @@ def _read(path: str | FsPath) -> tuple[str, str]:
         raise ProfileError(str(p), [f"cannot read: {exc}"]) from None
 
 
-def _check(text: str, source: str, registry: Registry | None) -> tuple[list[str], BoardProfile | None]:
+def _check(
+    text: str, source: str, registry: Registry | None
+) -> tuple[list[str], BoardProfile | None]:
     try:
         doc = load_located(text, source)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"{source}:{mark.line + 1}:{mark.column + 1}" if mark else source
         problem = getattr(exc, "problem", None) or str(exc)
-        return [f"{where}: YAML syntax error: {problem}"], None
+        label = "not allowed" if isinstance(exc, yaml.constructor.ConstructorError) \
+            else "YAML syntax error"
+        return [f"{where}: {label}: {problem}"], None
     problems = list(doc.problems)
     if not isinstance(doc.data, dict):
         return [*problems, f"{source}:1:1: a profile is a YAML mapping with schema_version, "
@@ -91,8 +95,8 @@ def _describe(exc: ValidationError, doc: LocatedDocument, prefix: Path,
     for err in exc.errors(include_url=False):
         loc = _clean_loc(err["loc"])
         path = (*prefix, *loc)
-        where = doc.where(path)
         kind = err["type"]
+        where = doc.where(path, key=kind in ("extra_forbidden", "missing"))
         if kind == "extra_forbidden":
             allowed = _allowed_keys(model, loc[:-1])
             hint = f"; allowed keys: {', '.join(allowed)}" if allowed else ""
@@ -147,8 +151,9 @@ def _check_references(profile: BoardProfile, doc: LocatedDocument) -> list[str]:
         if "/" in dev.bus:
             parent = dev.bus.split("/", 1)[0]
             if parent not in device_names:
+                names = ", ".join(sorted(device_names))
                 out.append(f"{doc.where(path)}: {dotted(path)}: {dev.bus!r} names device "
-                           f"{parent!r}, which is not in devices ({', '.join(sorted(device_names))})")
+                           f"{parent!r}, which is not in devices ({names})")
             elif parent == name:
                 out.append(f"{doc.where(path)}: {dotted(path)}: a device cannot sit on its own bus")
         elif dev.bus not in profile.buses:

@@ -20,10 +20,17 @@ class LocatedDocument:
     data: Any
     source: str
     positions: dict[Path, tuple[int, int]] = field(default_factory=dict)
+    """Where each value starts."""
+    key_positions: dict[Path, tuple[int, int]] = field(default_factory=dict)
+    """Where each mapping key starts (for errors about the key itself)."""
     problems: list[str] = field(default_factory=list)
 
-    def where(self, path: Path) -> str:
-        """``file:line:column`` of the deepest known prefix of ``path``."""
+    def where(self, path: Path, *, key: bool = False) -> str:
+        """``file:line:column`` of ``path`` (its key with ``key=True``), or of the deepest
+        known prefix when the path does not exist in the file (a missing key)."""
+        if key and tuple(path) in self.key_positions:
+            pos = self.key_positions[tuple(path)]
+            return f"{self.source}:{pos[0]}:{pos[1]}"
         for n in range(len(path), -1, -1):
             pos = self.positions.get(tuple(path[:n]))
             if pos is not None:
@@ -50,8 +57,16 @@ def load_located(text: str, source: str) -> LocatedDocument:
     return doc
 
 
+_PLAIN_COLLECTION_TAGS = {"tag:yaml.org,2002:map", "tag:yaml.org,2002:seq",
+                          "tag:yaml.org,2002:omap"}
+
+
 def _build(node: yaml.Node, path: Path, doc: LocatedDocument, ctor: yaml.SafeLoader) -> Any:
     doc.positions[path] = (node.start_mark.line + 1, node.start_mark.column + 1)
+    if isinstance(node, yaml.CollectionNode) and node.tag not in _PLAIN_COLLECTION_TAGS:
+        raise yaml.constructor.ConstructorError(
+            None, None, f"tag {node.tag!r} is not allowed in a profile (safe YAML only)",
+            node.start_mark)
     if isinstance(node, yaml.MappingNode):
         ctor.flatten_mapping(node)
         out: dict[Any, Any] = {}
@@ -63,10 +78,9 @@ def _build(node: yaml.Node, path: Path, doc: LocatedDocument, ctor: yaml.SafeLoa
                     "duplicate key (YAML would silently keep only the last one)"
                 )
             child = (*path, key)
+            doc.key_positions[child] = (key_node.start_mark.line + 1,
+                                        key_node.start_mark.column + 1)
             out[key] = _build(value_node, child, doc, ctor)
-            # Point errors about a missing/extra key at the key itself.
-            doc.positions.setdefault(child, (key_node.start_mark.line + 1,
-                                             key_node.start_mark.column + 1))
         return out
     if isinstance(node, yaml.SequenceNode):
         return [_build(item, (*path, i), doc, ctor) for i, item in enumerate(node.value)]

@@ -1,0 +1,95 @@
+"""The command line: two commands work verbatim; errors are one message, never a traceback."""
+
+from __future__ import annotations
+
+import csv
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from imuhal import __version__
+from imuhal.cli.main import main
+from imuhal.profiles_dir import bundled_profiles, default_profile_path
+
+
+def test_version(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as info:
+        main(["--version"])
+    assert info.value.code == 0
+    assert __version__ in capsys.readouterr().out
+
+
+def test_help_lists_the_commands(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    out = capsys.readouterr().out
+    for command in ("run", "plugins", "profile"):
+        assert command in out
+
+
+def test_plugins_lists_drivers_and_estimators_with_their_package(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    assert main(["plugins"]) == 0
+    out = capsys.readouterr().out
+    assert "drivers:" in out and "estimators:" in out
+    ms5611 = next(li for li in out.splitlines() if li.strip().startswith("ms5611"))
+    assert "imuhal:ms5611" in ms5611
+
+
+def test_every_bundled_profile_checks_clean(capsys: pytest.CaptureFixture[str]) -> None:
+    files = [str(p) for p in bundled_profiles().values()]
+    assert files
+    assert main(["profile", "check", *files]) == 0
+
+
+def test_profile_check_exits_non_zero_and_lists_problems(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("schema_version: 1\nname: x\nbuses: {}\ndevices:\n  b: {driver: nope}\n")
+    assert main(["profile", "check", str(bad)]) == 2
+    out = capsys.readouterr().out
+    assert "INVALID" in out and "devices.b.bus" in out and "devices.b.address" in out
+
+
+def test_run_writes_a_csv_of_estimates(tmp_path: Path) -> None:
+    out = tmp_path / "flight.csv"
+    assert main(["run", "--duration", "3", "--output", str(out), "--quiet"]) == 0
+    rows = list(csv.DictReader(out.open()))
+    assert rows and {r["kind"] for r in rows} >= {"vertical"}
+
+
+def test_a_missing_profile_is_one_clear_error(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["run", "no-such-board.yaml"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("imuhal: error:") and "file not found" in err
+    assert "Traceback" not in err
+
+
+def test_an_unknown_scenario_is_one_clear_error(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["run", "--emulate", "moonwalk", "--duration", "1", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "no scenario named 'moonwalk'" in err and "thermal" in err
+
+
+def test_real_hardware_that_is_absent_is_one_clear_error(tmp_path: Path) -> None:
+    profile = tmp_path / "hw.yaml"
+    profile.write_text(default_profile_path().read_text().replace(
+        "bus: 0\n", "bus: 97\n"))
+    result = subprocess.run([sys.executable, "-m", "imuhal.cli.main", "run", str(profile),
+                             "--duration", "1", "--quiet"], capture_output=True, text=True,
+                            timeout=60)
+    assert result.returncode == 2
+    assert "Traceback" not in result.stderr
+    assert "imuhal: error:" in result.stderr and "spidev97" in result.stderr
+
+
+@pytest.mark.slow
+def test_the_default_run_of_60_s_finishes_when_not_paced() -> None:
+    result = subprocess.run([sys.executable, "-m", "imuhal.cli.main", "run", "--duration", "60",
+                             "--quiet"], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert "ran 60.0 s" in result.stderr
