@@ -226,7 +226,7 @@ class Signal:
                 e1, e2 = -e1 / ramp, e2 / (ramp * ramp)
             else:
                 e, e1, e2 = 1.0, 0.0, 0.0
-            for amp, w, ph in zip(g.amplitudes, g.omegas, g.phases):
+            for amp, w, ph in zip(g.amplitudes, g.omegas, g.phases, strict=True):
                 th = w * t + ph
                 sn, cs = math.sin(th), math.cos(th)
                 v += amp * e * sn

@@ -13,6 +13,7 @@ so are heading, turn rate and bank; see :mod:`imuhal.sim.motion`.
 
 from __future__ import annotations
 
+import itertools
 import math
 from typing import ClassVar
 
@@ -59,7 +60,7 @@ class ThermalParams(WorldParams):
         starts = [s for s, _ in self.schedule]
         if not starts:
             raise ValueError("schedule needs at least one (start, climb) segment")
-        for a, b in zip(starts[1:], starts[2:]):
+        for a, b in itertools.pairwise(starts[1:]):
             if b < a + self.transition_s:
                 raise ValueError(f"schedule changes at {a} s and {b} s are closer than "
                                  f"transition_s = {self.transition_s} s")

@@ -49,6 +49,11 @@ class MotionScenario(Scenario):
         """Build the trajectory from ``self.params`` and ``self.rng`` (seeded); may record
         phases with :meth:`add_phase`."""
 
+    @property
+    def duration_s(self) -> float:
+        """How long a run of this scenario lasts by default (s)."""
+        return self.default_duration_s
+
     def add_phase(self, name: str, start_s: float, end_s: float) -> None:
         self._phases.append(Phase(name, start_s, end_s))
 

@@ -1,0 +1,325 @@
+"""Sensor error models: what turns true physical values into what a real chip measures.
+
+Everything here works in the chip's own sensor frame and in SI units (the unit of the
+quantity: m/s^2 for accelerometers, rad/s for gyroscopes, uT for magnetometers, Pa, degC).
+
+Vector sensors (per axis, ``true`` the true vector, ``T`` the chip temperature)::
+
+    raw = W @ (I + C) @ diag(1 + s) @ true        # W soft iron (mag only), C cross-axis, s scale
+          + h                                     # hard iron (mag only)
+          + b + b_T * (T - T_ref) + b_rw(t)       # constant, thermal and random-walk bias
+          + n                                     # white noise
+
+* ``noise_density`` is the datasheet's noise spectral density (unit/sqrt(Hz)); each sample
+  gets Gaussian noise of std ``noise_density * sqrt(bandwidth_hz)`` with the bandwidth
+  defaulting to the Nyquist band ``1 / (2 * sample_period_s)`` (set ``bandwidth_hz`` to the
+  chip's low-pass filter bandwidth when it has one; e.g. 0.01 dps/sqrt(Hz) in 92 Hz gives the
+  MPU-9250's 0.1 dps RMS).
+* ``noise_std`` is a per-sample std for chips specified by RMS noise at their output rate.
+* ``bias_random_walk`` (unit/sqrt(s), i.e. unit/s/sqrt(Hz)): the bias performs a Wiener
+  process, std ``bias_random_walk * sqrt(t)`` after t seconds.
+* ``*_std`` fields draw a per-device value from the seed (turn-on bias, scale factor,
+  cross-axis), the way each part off the reel differs from the datasheet's typical one.
+
+Calibration (design.md section 6) inverts this: corrected = M diag(s) (raw - b) for inertial
+sensors, corrected = S (raw - h) for magnetometers, so S = W^-1.
+
+Scalar sensors: ``raw = true + bias + drift * t + walk(t) + temp_coeff * (T - T_ref) + n``
+with ``noise_std`` per sample (barometers specify RMS noise per oversampling setting).
+
+A :class:`SensorErrorModel` is seeded and reproducible: the same seed and the same sequence
+of ``apply`` calls give the same output. Each channel draws from its own stream, so
+enabling the magnetometer does not change the gyro noise.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from imuhal.emulation.base import PhysicalInputs
+
+Vec3 = tuple[float, float, float]
+Mat3 = tuple[Vec3, Vec3, Vec3]
+
+_ZERO3: Vec3 = (0.0, 0.0, 0.0)
+_ZERO33: Mat3 = (_ZERO3, _ZERO3, _ZERO3)
+_IDENTITY: Mat3 = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+
+
+class _Spec(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class VectorErrorSpec(_Spec):
+    """Errors of a 3-axis sensor, in its SI unit (see the module docstring)."""
+
+    noise_density: float = Field(0.0, ge=0)
+    """White noise spectral density, unit/sqrt(Hz)."""
+    noise_std: float = Field(0.0, ge=0)
+    """White noise std per sample, whatever the rate (for chips specified by RMS noise);
+    added in quadrature to the density's share."""
+    bandwidth_hz: float | None = Field(None, gt=0)
+    """Noise bandwidth; None: the Nyquist band of the sample period."""
+    bias: Vec3 = _ZERO3
+    """Constant bias (unit)."""
+    bias_std: float = Field(0.0, ge=0)
+    """Std of a per-device turn-on bias drawn from the seed, per axis (unit)."""
+    bias_random_walk: float = Field(0.0, ge=0)
+    """Bias random walk, unit/sqrt(s)."""
+    bias_temp_coeff: Vec3 = _ZERO3
+    """Bias change per degC away from ``reference_temperature_degc`` (unit/degC)."""
+    scale_factor_error: Vec3 = _ZERO3
+    """Per-axis scale error as a fraction (0.01 = reads 1 % high)."""
+    scale_factor_std: float = Field(0.0, ge=0)
+    """Std of a per-device scale error drawn from the seed (fraction)."""
+    cross_axis: Mat3 = _ZERO33
+    """Misalignment / cross-axis sensitivity C (fractions); the diagonal must be zero."""
+    cross_axis_std: float = Field(0.0, ge=0)
+    """Std of per-device off-diagonal cross-axis terms drawn from the seed (fraction)."""
+    reference_temperature_degc: float = 25.0
+
+    @model_validator(mode="after")
+    def _diagonal_free(self) -> VectorErrorSpec:
+        if any(self.cross_axis[i][i] != 0.0 for i in range(3)):
+            raise ValueError("cross_axis must have a zero diagonal: per-axis gain errors "
+                             "belong in scale_factor_error")
+        return self
+
+
+class MagErrorSpec(VectorErrorSpec):
+    """A magnetometer's errors: the sensor's own, plus the board's hard and soft iron."""
+
+    hard_iron_ut: Vec3 = _ZERO3
+    """Field of magnetised parts on the board, in the sensor frame (uT)."""
+    soft_iron: Mat3 = _IDENTITY
+    """W: how soft iron near the sensor distorts the field (identity: none)."""
+
+    @model_validator(mode="after")
+    def _invertible(self) -> MagErrorSpec:
+        if abs(float(np.linalg.det(np.asarray(self.soft_iron)))) < 1e-6:
+            raise ValueError("soft_iron must be invertible (calibration applies its inverse)")
+        return self
+
+
+class ScalarErrorSpec(_Spec):
+    """Errors of a scalar sensor (pressure in Pa, temperature in degC)."""
+
+    noise_std: float = Field(0.0, ge=0)
+    """White noise std per sample (unit)."""
+    bias: float = 0.0
+    bias_std: float = Field(0.0, ge=0)
+    drift_per_hour: float = 0.0
+    """Linear drift (unit/hour)."""
+    random_walk: float = Field(0.0, ge=0)
+    """unit/sqrt(s)."""
+    temp_coeff: float = 0.0
+    """Change per degC away from ``reference_temperature_degc`` (unit/degC)."""
+    reference_temperature_degc: float = 25.0
+
+
+class SensorErrorSpec(_Spec):
+    """Errors of every channel a chip has; None: that channel is passed through unchanged."""
+
+    accel: VectorErrorSpec | None = None
+    gyro: VectorErrorSpec | None = None
+    mag: MagErrorSpec | None = None
+    pressure: ScalarErrorSpec | None = None
+    temperature: ScalarErrorSpec | None = None
+
+
+class _Normals:
+    """Standard normal draws from one seeded stream, fetched in blocks (cheap per call)."""
+
+    __slots__ = ("_buf", "_i", "_rng")
+
+    def __init__(self, rng: np.random.Generator) -> None:
+        self._rng = rng
+        self._buf: list[float] = []
+        self._i = 0
+
+    def __call__(self) -> float:
+        if self._i >= len(self._buf):
+            self._buf = self._rng.standard_normal(1024).tolist()
+            self._i = 0
+        x = self._buf[self._i]
+        self._i += 1
+        return x
+
+
+class _VectorChannel:
+    def __init__(self, spec: VectorErrorSpec, rng: np.random.Generator) -> None:
+        self.spec = spec
+        # Per-device draws first, in a fixed order, so they depend only on the seed.
+        s = np.asarray(spec.scale_factor_error) + rng.normal(0.0, 1.0, 3) * spec.scale_factor_std
+        c = np.asarray(spec.cross_axis, dtype=float)
+        c = c + (rng.normal(0.0, 1.0, (3, 3)) * spec.cross_axis_std) * (1.0 - np.eye(3))
+        b = np.asarray(spec.bias) + rng.normal(0.0, 1.0, 3) * spec.bias_std
+        k = (np.eye(3) + c) @ np.diag(1.0 + s)
+        offset = np.zeros(3)
+        if isinstance(spec, MagErrorSpec):
+            k = np.asarray(spec.soft_iron, dtype=float) @ k
+            offset = np.asarray(spec.hard_iron_ut, dtype=float)
+        self.gain: tuple[float, ...] = tuple(float(x) for x in k.ravel())
+        self.offset = (float(offset[0]), float(offset[1]), float(offset[2]))
+        self.turn_on_bias = (float(b[0]), float(b[1]), float(b[2]))
+        self.walk = [0.0, 0.0, 0.0]
+        self.normal = _Normals(rng)
+
+    def bias_at(self, temperature: float | None) -> Vec3:
+        """The total bias (constant + thermal + random walk) now."""
+        sp = self.spec
+        b = self.turn_on_bias
+        dt = 0.0 if temperature is None else temperature - sp.reference_temperature_degc
+        tc = sp.bias_temp_coeff
+        return (b[0] + tc[0] * dt + self.walk[0], b[1] + tc[1] * dt + self.walk[1],
+                b[2] + tc[2] * dt + self.walk[2])
+
+    def step(self, elapsed_s: float) -> None:
+        rw = self.spec.bias_random_walk
+        if rw and elapsed_s > 0:
+            k = rw * math.sqrt(elapsed_s)
+            n = self.normal
+            self.walk[0] += k * n()
+            self.walk[1] += k * n()
+            self.walk[2] += k * n()
+
+    def noise_sigma(self, period_s: float) -> float:
+        sp = self.spec
+        if not sp.noise_density:
+            return sp.noise_std
+        bw = sp.bandwidth_hz or 0.5 / period_s
+        return math.sqrt(sp.noise_density * sp.noise_density * bw + sp.noise_std * sp.noise_std)
+
+    def apply(self, v: Vec3, temperature: float | None, period_s: float) -> Vec3:
+        g = self.gain
+        x, y, z = v
+        bx, by, bz = self.bias_at(temperature)
+        ox, oy, oz = self.offset
+        out = [g[0] * x + g[1] * y + g[2] * z + ox + bx,
+               g[3] * x + g[4] * y + g[5] * z + oy + by,
+               g[6] * x + g[7] * y + g[8] * z + oz + bz]
+        sigma = self.noise_sigma(period_s)
+        if sigma:
+            n = self.normal
+            out[0] += sigma * n()
+            out[1] += sigma * n()
+            out[2] += sigma * n()
+        return (out[0], out[1], out[2])
+
+
+class _ScalarChannel:
+    def __init__(self, spec: ScalarErrorSpec, rng: np.random.Generator) -> None:
+        self.spec = spec
+        self.turn_on_bias = spec.bias + float(rng.normal()) * spec.bias_std
+        self.walk = 0.0
+        self.normal = _Normals(rng)
+
+    def bias_at(self, t_s: float, temperature: float | None) -> float:
+        sp = self.spec
+        dt = 0.0 if temperature is None else temperature - sp.reference_temperature_degc
+        return (self.turn_on_bias + sp.drift_per_hour * t_s / 3600.0 + self.walk
+                + sp.temp_coeff * dt)
+
+    def step(self, elapsed_s: float) -> None:
+        if self.spec.random_walk and elapsed_s > 0:
+            self.walk += self.spec.random_walk * math.sqrt(elapsed_s) * self.normal()
+
+    def apply(self, t_s: float, v: float, temperature: float | None) -> float:
+        out = v + self.bias_at(t_s, temperature)
+        if self.spec.noise_std:
+            out += self.spec.noise_std * self.normal()
+        return out
+
+
+_CHANNELS = ("accel", "gyro", "mag", "pressure", "temperature")
+
+
+class SensorErrorModel:
+    """Applies a :class:`SensorErrorSpec` to the true inputs of one chip, reproducibly.
+
+    ``apply`` must be called with non-decreasing times; random walks advance by the time
+    elapsed since the previous call (the first call is their start).
+    """
+
+    def __init__(self, spec: SensorErrorSpec | dict[str, Any], seed: int = 0) -> None:
+        self.spec = spec if isinstance(spec, SensorErrorSpec) else \
+            SensorErrorSpec.model_validate(spec)
+        self.seed = seed
+        streams = np.random.SeedSequence(int(seed)).spawn(len(_CHANNELS))
+        rngs = dict(zip(_CHANNELS, (np.random.default_rng(s) for s in streams), strict=True))
+        sp = self.spec
+        self._accel = None if sp.accel is None else _VectorChannel(sp.accel, rngs["accel"])
+        self._gyro = None if sp.gyro is None else _VectorChannel(sp.gyro, rngs["gyro"])
+        self._mag = None if sp.mag is None else _VectorChannel(sp.mag, rngs["mag"])
+        self._pressure = None if sp.pressure is None else \
+            _ScalarChannel(sp.pressure, rngs["pressure"])
+        self._temperature = None if sp.temperature is None else \
+            _ScalarChannel(sp.temperature, rngs["temperature"])
+        self._last_t: float | None = None
+
+    def apply(self, t_s: float, inputs: PhysicalInputs, sample_period_s: float) -> PhysicalInputs:
+        """Measured values for true ``inputs`` sampled at ``t_s`` every ``sample_period_s``."""
+        if sample_period_s <= 0:
+            raise ValueError(f"sample_period_s must be positive, got {sample_period_s}")
+        if self._last_t is not None and t_s < self._last_t:
+            raise ValueError(f"time went backwards: {t_s} s after {self._last_t} s")
+        elapsed = 0.0 if self._last_t is None else t_s - self._last_t
+        self._last_t = t_s
+        for ch in (self._accel, self._gyro, self._mag, self._pressure, self._temperature):
+            if ch is not None:
+                ch.step(elapsed)
+        temp = inputs.temperature_degc
+        changes: dict[str, Any] = {}
+        if self._accel is not None and inputs.specific_force_m_s2 is not None:
+            changes["specific_force_m_s2"] = self._accel.apply(
+                inputs.specific_force_m_s2, temp, sample_period_s)
+        if self._gyro is not None and inputs.angular_rate_rad_s is not None:
+            changes["angular_rate_rad_s"] = self._gyro.apply(
+                inputs.angular_rate_rad_s, temp, sample_period_s)
+        if self._mag is not None and inputs.magnetic_field_ut is not None:
+            changes["magnetic_field_ut"] = self._mag.apply(
+                inputs.magnetic_field_ut, temp, sample_period_s)
+        if self._pressure is not None and inputs.pressure_pa is not None:
+            changes["pressure_pa"] = self._pressure.apply(t_s, inputs.pressure_pa, temp)
+        if self._temperature is not None and temp is not None:
+            changes["temperature_degc"] = self._temperature.apply(t_s, temp, None)
+        return replace(inputs, **changes) if changes else inputs
+
+    # ------------------------------------------------------------------ truth of the errors
+    def bias(self, channel: str, temperature_degc: float | None = None,
+             t_s: float | None = None) -> Vec3 | float | None:
+        """The current total bias of ``channel`` (for checking estimators' bias estimates);
+        hard iron is not included (see ``hard_iron``). None: channel not modelled."""
+        ch = getattr(self, f"_{channel}", None) if channel in _CHANNELS else None
+        if ch is None:
+            if channel not in _CHANNELS:
+                raise ValueError(f"unknown channel {channel!r} (known: {', '.join(_CHANNELS)})")
+            return None
+        if isinstance(ch, _ScalarChannel):
+            return ch.bias_at(t_s if t_s is not None else (self._last_t or 0.0), temperature_degc)
+        return ch.bias_at(temperature_degc)
+
+    def gain_matrix(self, channel: str) -> np.ndarray:
+        """The 3x3 matrix applied to the true vector (soft iron, cross-axis, scale)."""
+        ch = getattr(self, f"_{channel}", None)
+        if not isinstance(ch, _VectorChannel):
+            raise ValueError(f"{channel!r} is not a modelled vector channel")
+        return np.asarray(ch.gain).reshape(3, 3)
+
+
+def chip_error_spec(chip: str, **overrides: Any) -> SensorErrorSpec:
+    """The datasheet-derived default error spec of ``chip`` (see ``chip_errors``), with any
+    top-level channel replaced by ``overrides`` (e.g. ``mag=None``)."""
+    from imuhal.sim.chip_errors import CHIP_ERROR_SPECS
+
+    try:
+        data = CHIP_ERROR_SPECS[chip]
+    except KeyError:
+        raise ValueError(f"no default error spec for chip {chip!r} "
+                         f"(known: {', '.join(sorted(CHIP_ERROR_SPECS))})") from None
+    return SensorErrorSpec.model_validate({**data, **overrides})
