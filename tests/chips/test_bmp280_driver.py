@@ -1,0 +1,228 @@
+"""BMP280 driver against the register-level emulator on I2C and SPI, on one simulated clock."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+from imuhal.bus.base import BusKind
+from imuhal.core.clock import SimulatedClock
+from imuhal.core.errors import BusError, DeviceNotFoundError
+from imuhal.core.samples import Channel, PressureSample, SampleFlag, TemperatureSample
+from imuhal.emulation.base import PhysicalInputs
+from imuhal.emulation.bus import EmulatedBus
+from imuhal_chips.bmp280 import registers as r
+from imuhal_chips.bmp280.driver import BMP280Driver, BMP280Settings
+from imuhal_chips.bmp280.emulator import BMP280Emulator
+
+ADDRESS = 0x76
+
+
+def rig(kind: BusKind = BusKind.I2C, **settings: Any) -> tuple[
+        SimulatedClock, EmulatedBus, BMP280Emulator, BMP280Driver]:
+    clock = SimulatedClock()
+    bus = EmulatedBus("bus0", kind)
+    emu = bus.attach(ADDRESS, BMP280Emulator(clock))
+    driver = BMP280Driver(bus.link(ADDRESS), settings, device="baro", clock=clock)
+    return clock, bus, emu, driver
+
+
+def run(clock: SimulatedClock, driver: BMP280Driver, n_samples: int,
+        start: int | None = None) -> list[Any]:
+    """Poll on the shared clock until ``n_samples`` samples (both channels) came out."""
+    t = driver.start(clock.now_ns()) if start is None else start
+    out: list[Any] = []
+    for _ in range(10 * n_samples + 20):
+        clock.sleep_until(t)
+        result = driver.poll(clock.now_ns())
+        out.extend(result.samples)
+        t = result.next_poll_ns
+        if len(out) >= n_samples:
+            break
+    return out
+
+
+def pressures(samples: list[Any]) -> list[PressureSample]:
+    return [s for s in samples if isinstance(s, PressureSample)]
+
+
+def test_worked_example_at_register_level() -> None:
+    """The datasheet trim and data bytes, read through the bus, compensate to its numbers."""
+    clock, _bus, emu, driver = rig()
+    driver.probe()
+    driver.configure()
+    emu._data[:] = bytes([0x65, 0x5A, 0xC0, 0x7E, 0xED, 0x00])  # what the chip latched
+    emu.stuck_data_ready = True  # keep it: no new measurement overwrites it
+    samples = driver.poll(clock.now_ns()).samples
+    p, t = samples
+    assert isinstance(p, PressureSample) and isinstance(t, TemperatureSample)
+    assert p.pressure_pa == 25767233 / 256
+    assert t.temperature_degc == 25.08
+
+
+@pytest.mark.parametrize("kind", [BusKind.I2C, BusKind.SPI])
+@pytest.mark.parametrize("mode", ["normal", "forced"])
+def test_reads_the_true_pressure_and_temperature(kind: BusKind, mode: str) -> None:
+    clock, _bus, emu, driver = rig(kind, mode=mode)
+    emu.set_physics(PhysicalInputs(pressure_pa=95_432.1, temperature_degc=17.3))
+    driver.probe()
+    driver.configure()
+    samples = run(clock, driver, 6)
+    p = pressures(samples)[-1]
+    t = [s for s in samples if isinstance(s, TemperatureSample)][-1]
+    assert p.valid and t.valid
+    assert abs(p.pressure_pa - 95_432.1) <= emu.resolution(Channel.PRESSURE)
+    assert abs(t.temperature_degc - 17.3) <= emu.resolution(Channel.TEMPERATURE)
+
+
+SWEEP = (
+    [{"pressure_oversampling": v} for v in (1, 2, 4, 8, 16)]
+    + [{"temperature_oversampling": v, "odr_hz": 10.0} for v in (1, 2, 4, 8, 16)]
+    + [{"iir_filter": v} for v in (0, 2, 4, 8, 16)]
+    + [{"standby_ms": v} for v in (0.5, 62.5, 125.0, 250.0)]
+    + [{"mode": "forced", "odr_hz": 10.0}, {"mode": "normal", "odr_hz": 1.0}]
+)
+
+
+@pytest.mark.parametrize("setting", SWEEP, ids=lambda s: "-".join(f"{k}={v}" for k, v in
+                                                                  s.items()))
+def test_every_setting_reads_within_one_lsb(setting: dict[str, Any]) -> None:
+    clock, _bus, emu, driver = rig(**setting)
+    truth_p, truth_t = 0.63 * emu.full_scale(Channel.PRESSURE) + 12.34, 31.27
+    emu.set_physics(PhysicalInputs(pressure_pa=truth_p, temperature_degc=truth_t))
+    driver.probe()
+    driver.configure()
+    samples = run(clock, driver, 4)
+    p = pressures(samples)[-1]
+    t = [s for s in samples if isinstance(s, TemperatureSample)][-1]
+    assert abs(p.pressure_pa - truth_p) <= emu.resolution(Channel.PRESSURE)
+    assert abs(t.temperature_degc - truth_t) <= emu.resolution(Channel.TEMPERATURE)
+
+
+def test_configure_programs_the_table_codes() -> None:
+    _clock, _bus, emu, driver = rig(pressure_oversampling=16, temperature_oversampling=2,
+                                  iir_filter=16, standby_ms=62.5)
+    driver.probe()
+    driver.configure()
+    # osrs_t x2 = 010, osrs_p x16 = 101, normal = 11; t_sb 62.5 = 001, filter 16 = 100
+    assert emu._ctrl == 0b010_101_11
+    assert emu._config == 0b001_100_00
+
+
+def test_settings_reject_values_listing_the_allowed_ones() -> None:
+    with pytest.raises(ValueError, match="1, 2, 4, 8 or 16"):
+        BMP280Settings(pressure_oversampling=3)
+    with pytest.raises(ValueError, match=r"0\.5, 62\.5, 125"):
+        BMP280Settings(standby_ms=100)
+    with pytest.raises(ValueError, match="at most"):
+        BMP280Settings(mode="forced", odr_hz=200, pressure_oversampling=16)
+
+
+def test_forced_mode_returns_to_sleep_after_one_measurement() -> None:
+    clock, bus, _emu, driver = rig(mode="forced", odr_hz=5.0)
+    driver.probe()
+    driver.configure()
+    t = driver.start(clock.now_ns())
+    clock.sleep_until(t)
+    t = driver.poll(clock.now_ns()).next_poll_ns  # triggers
+
+    def status_ctrl() -> bytes:
+        return bus.transfer(ADDRESS, bytes([r.REG_STATUS]), 2)
+
+    status, ctrl = status_ctrl()
+    assert status & r.STATUS_MEASURING and ctrl & r.MODE_MASK == r.MODE_FORCED
+    clock.sleep_until(t)
+    status, ctrl = status_ctrl()
+    assert not status & r.STATUS_MEASURING and ctrl & r.MODE_MASK == r.MODE_SLEEP
+
+
+def test_pressure_at_the_adc_limit_is_saturated() -> None:
+    clock, _bus, emu, driver = rig(iir_filter=0)
+    # Beyond what the 20-bit ADC can encode with this trim (adc_P = 0 at ~171.7 kPa).
+    emu.set_physics(PhysicalInputs(pressure_pa=200_000.0, temperature_degc=20.0))
+    driver.probe()
+    driver.configure()
+    p = pressures(run(clock, driver, 2))[-1]
+    assert SampleFlag.SATURATED in p.flags
+    assert SampleFlag.OUT_OF_RANGE in p.flags
+
+
+def test_wrong_identity_names_bme280() -> None:
+    _clock, _bus, emu, driver = rig()
+    emu.chip_id = 0x60
+    with pytest.raises(DeviceNotFoundError) as err:
+        driver.probe()
+    assert err.value.found == "0x60" and "BME280" in err.value.hint
+    assert err.value.bus == "bus0" and err.value.address == ADDRESS and "0x58" in err.value.expected
+
+
+def test_absent_chip_raises_device_not_found() -> None:
+    _clock, _bus, emu, driver = rig()
+    emu.absent = True
+    with pytest.raises(DeviceNotFoundError, match="NACK"):
+        driver.probe()
+
+
+def test_stuck_conversion_in_forced_mode_is_stale_and_recover_works() -> None:
+    clock, _bus, emu, driver = rig(mode="forced", odr_hz=10.0)
+    driver.probe()
+    driver.configure()
+    emu.stuck_data_ready = True
+    samples = run(clock, driver, 2)
+    assert all(s.flags == SampleFlag.STALE for s in samples)
+    assert driver.health.flags_seen["STALE"] == 2
+    emu.stuck_data_ready = False
+    start = driver.recover(clock.now_ns())
+    assert all(s.valid for s in run(clock, driver, 2, start))
+
+
+def test_silent_reset_is_detected_and_repaired() -> None:
+    clock, _bus, emu, driver = rig()
+    emu.set_physics(PhysicalInputs(pressure_pa=90_000.0, temperature_degc=20.0))
+    driver.probe()
+    driver.configure()
+    t = driver.start(clock.now_ns())
+    run(clock, driver, 4, t)
+    emu.silent_reset()
+    samples = run(clock, driver, 6)
+    assert driver.health.resets_detected == 1
+    assert driver.health.reconfigurations == 1
+    assert samples and all(s.valid for s in samples)
+    assert abs(pressures(samples)[-1].pressure_pa - 90_000.0) <= emu.resolution(
+        Channel.PRESSURE)
+
+
+def test_bus_error_propagates_and_recover_restores_sampling() -> None:
+    clock, bus, _emu, driver = rig()
+    driver.probe()
+    driver.configure()
+    t = driver.start(clock.now_ns())
+    clock.sleep_until(t)
+    bus.fail_transfers({1})
+    with pytest.raises(BusError):
+        driver.poll(clock.now_ns())
+    start = driver.recover(clock.now_ns())
+    samples = run(clock, driver, 2, start)
+    assert samples and all(s.valid for s in samples) and driver.health.reconfigurations == 1
+
+
+def test_spi_reads_set_bit7_and_writes_are_address_data_pairs_with_bit7_clear() -> None:
+    clock = SimulatedClock()
+    seen: list[bytes] = []
+
+    class Spy(BMP280Emulator):
+        def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes:
+            seen.append(write)
+            return super().bus_transfer(kind, write, read_len)
+
+    bus = EmulatedBus("spi0", BusKind.SPI)
+    bus.attach(0, Spy(clock))
+    driver = BMP280Driver(bus.link(0), {}, device="baro", clock=clock)
+    driver.probe()
+    driver.configure()
+    assert seen[0] == bytes([0xD0])
+    assert bytes([0x60, 0xB6]) in seen  # reset: 0xE0 with bit 7 cleared
+    writes = [w for w in seen if len(w) >= 2]
+    assert all(w[i] & 0x80 == 0 for w in writes for i in range(0, len(w), 2))
+    assert driver.trim is not None and driver.trim.T1 == 27504  # 24-byte burst read over SPI
