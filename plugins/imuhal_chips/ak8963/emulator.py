@@ -116,8 +116,9 @@ class AK8963Emulator(ChipEmulator):
                 self._next_ns = None
             else:
                 period = round(r.MODE_PERIOD_S[mode] * 1e9)
-                missed = max((now - self._next_ns) // period, 0)
-                self._next_ns += (missed + 1) * period
+                # Long gaps: skip ahead, keeping the last two measurements (enough for DOR).
+                missed = (now - self._next_ns) // period
+                self._next_ns += (max(missed - 1, 0) + 1) * period
 
     def _measure(self) -> tuple[bytes, int]:
         field = self.physics.magnetic_field_ut or (0.0, 0.0, 0.0)
