@@ -1,0 +1,72 @@
+"""``imuhal run``: run a board profile on hardware or emulated."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from imuhal import __version__
+from imuhal.plugins.manager import Registry
+from imuhal.profile.loader import load_profile
+from imuhal.profiles_dir import default_profile_path
+
+
+def add_parser(sub: Any) -> None:
+    run = sub.add_parser(
+        "run", help="run a board profile (default: the seed vario board, emulated)",
+        description="Run the pipeline. With no PROFILE: the bundled seed paragliding vario "
+        "board, emulated, flying its default scenario. A PROFILE without --emulate opens "
+        "the real buses it names and always runs in real time.",
+    )
+    run.add_argument("profile", nargs="?", help="board profile YAML (default: bundled seed board)")
+    run.add_argument("--emulate", metavar="SCENARIO",
+                     help="emulate the board's chips flying SCENARIO (see `imuhal plugins`)")
+    run.add_argument("--duration", type=float, metavar="SECONDS",
+                     help="stop after this many seconds (default: the scenario's length, "
+                     "or until Ctrl-C on hardware)")
+    run.add_argument("--realtime", action="store_true",
+                     help="pace an emulated run at wall-clock speed")
+    run.add_argument("--output", metavar="FILE.csv", help="write estimates to a CSV file")
+    run.add_argument("--samples", action="store_true",
+                     help="with --output, also write every sample (flagged ones included)")
+    run.add_argument("--seed", type=int, help="seed of the simulated world (default: profile's)")
+    run.add_argument("--quiet", action="store_true", help="no live status line")
+    run.set_defaults(func=cmd_run)
+
+
+def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
+    from imuhal.pipeline import ConsoleSink, CsvSink, Pipeline
+
+    path = Path(args.profile) if args.profile else default_profile_path()
+    profile = load_profile(path, registry)
+    emulate = args.emulate
+    if args.profile is None and emulate is None:
+        emulate = profile.emulation.scenario
+    realtime = args.realtime or emulate is None  # real buses always run in real time
+    duration = args.duration
+    if duration is None and emulate is not None:
+        duration = registry.scenarios.get(emulate).default_duration_s
+    where = f"emulated, scenario '{emulate}'" if emulate else "real hardware"
+    print(f"imuhal {__version__}: {profile.name} ({where}) from {path}", file=sys.stderr)
+    sinks: list[Any] = []
+    if not args.quiet:
+        sinks.append(ConsoleSink(sys.stdout))
+    csv_sink = None
+    with Pipeline.open(profile, registry, emulate=emulate, realtime=realtime,
+                       seed=args.seed) as pipeline:
+        for w in pipeline.warnings:
+            print(f"warning: {w}", file=sys.stderr)
+        if args.output:
+            csv_sink = CsvSink(args.output, include_samples=args.samples)
+            sinks.append(csv_sink)
+        try:
+            summary = pipeline.run(duration, sinks)
+        except KeyboardInterrupt:
+            summary = pipeline.summary()
+            print("\ninterrupted", file=sys.stderr)
+    print(summary.describe(), file=sys.stderr)
+    if csv_sink is not None:
+        print(f"wrote {csv_sink.rows} rows to {args.output}", file=sys.stderr)
+    return 0
