@@ -139,3 +139,16 @@ def test_a_run_is_deterministic_for_a_seed(registry: Registry) -> None:
             return list(p.events(0.5))
 
     assert once() == once()
+
+
+def test_uncalibrated_mode_yields_raw_sensor_frame_samples(registry: Registry) -> None:
+    text = PROFILE.replace("    settings: {odr_hz: 50}\n", """    settings: {odr_hz: 50}
+    calibration:
+      accel: {offset_m_s2: [0.0, 0.0, 1.0]}
+""")
+    with _open(registry, text, calibrated=False) as p:
+        events = list(p.events(0.1))
+    accel = next(e for e in events if isinstance(e, AccelSample))
+    assert accel.frame is Frame.SENSOR
+    assert accel.accel_m_s2[2] == pytest.approx(9.80665, abs=0.01)  # chip z up, uncorrected
+    assert not any(isinstance(e, VerticalEstimate) for e in events)

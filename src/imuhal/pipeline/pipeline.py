@@ -89,8 +89,10 @@ class Pipeline:
         clock: Clock,
         buses: dict[str, Bus],
         board: EmulatedBoard | None = None,
+        calibrated: bool = True,
     ) -> None:
         self.profile = profile
+        self.calibrated = calibrated
         self.registry = registry
         self.clock = clock
         self.buses = dict(buses)
@@ -135,8 +137,13 @@ class Pipeline:
         realtime: bool = False,
         seed: int | None = None,
         scenario_params: dict[str, Any] | None = None,
+        calibrated: bool = True,
     ) -> Pipeline:
-        """Open the profile's real buses, or (``emulate=SCENARIO``) an emulated board."""
+        """Open the profile's real buses, or (``emulate=SCENARIO``) an emulated board.
+
+        ``calibrated=False`` yields raw sensor-frame samples (no calibration, no mount
+        rotation, no estimators): what calibration procedures measure.
+        """
         if emulate is None:
             buses = {}
             try:
@@ -144,7 +151,8 @@ class Pipeline:
                     factory = registry.buses.get(cfg.kind)
                     settings = factory.Settings.model_validate(cfg.plugin_settings())
                     buses[name] = factory.open(name, settings)
-                return cls(profile, registry, clock=MonotonicClock(), buses=buses)
+                return cls(profile, registry, clock=MonotonicClock(), buses=buses,
+                           calibrated=calibrated)
             except BaseException:
                 for bus in buses.values():
                     bus.close()
@@ -158,7 +166,8 @@ class Pipeline:
                                 seed=profile.emulation.seed if seed is None else seed)
         board = EmulatedBoard(profile, registry, clock, scenario, _chip_to_body(profile))
         board.update(0)
-        return cls(profile, registry, clock=clock, buses=dict(board.buses), board=board)
+        return cls(profile, registry, clock=clock, buses=dict(board.buses), board=board,
+                   calibrated=calibrated)
 
     def _link(self, bus_ref: str, address: int) -> Link:
         parent, child = split_bus_ref(bus_ref)
@@ -240,17 +249,26 @@ class Pipeline:
         flags = quality_flags(raw)
         sample = raw if flags == raw.flags else raw.flagged(flags)
         dev.samples += 1
+        if not self.calibrated:
+            if not sample.valid:
+                self._count_flags(dev, sample)
+            yield sample
+            return
         if sample.valid:
             sample = calibrate(sample, dev.calibration)
         sample = to_body(sample, dev.chip_to_body)
         if not sample.valid:
-            for flag in SampleFlag:
-                if flag and flag in sample.flags:
-                    dev.flagged[flag.name or str(flag)] += 1
+            self._count_flags(dev, sample)
             yield sample
             return
         yield sample
         yield from self._estimate(sample)
+
+    @staticmethod
+    def _count_flags(dev: DeviceRuntime, sample: Sample) -> None:
+        for flag in SampleFlag:
+            if flag and flag in sample.flags:
+                dev.flagged[flag.name or str(flag)] += 1
 
     def _estimate(self, item: Event) -> Iterator[Event]:
         pending: list[Event] = [item]
