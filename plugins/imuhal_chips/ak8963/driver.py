@@ -108,6 +108,8 @@ class AK8963Driver(Driver):
                 f"{self.describe()}: CNTL1 reads back 0x{back:02X}, wrote 0x{self._cntl1:02X}")
 
     def start(self, now_ns: int) -> int:
+        # recover() passes the time from before configure() waited; never start in the past.
+        now_ns = max(now_ns, self.clock.now_ns())
         self._last_data_ns = now_ns
         self._next_check_ns = now_ns + round(self.CONFIG_CHECK_S * 1e9)
         return now_ns + round(r.MEASUREMENT_S * 1e9)

@@ -205,6 +205,8 @@ class BMP280Driver(Driver):
         self._triggered_ns = None
 
     def start(self, now_ns: int) -> int:
+        # recover() passes the time from before configure() waited; never start in the past.
+        now_ns = max(now_ns, self.clock.now_ns())
         if self.settings.mode == "normal":
             # The first cycle ends one measurement after the ctrl_meas write.
             self._next_ns = now_ns + round(self.settings.measurement_time_s(maximum=True) * 1e9)

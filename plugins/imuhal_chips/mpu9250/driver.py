@@ -201,6 +201,8 @@ class MPU9250Driver(Driver):
                                      + "; ".join(wrong))
 
     def start(self, now_ns: int) -> int:
+        # recover() passes the time from before configure() waited; never start in the past.
+        now_ns = max(now_ns, self.clock.now_ns())
         self._last_data_ns = now_ns
         self._next_check_ns = now_ns + round(self.CONFIG_CHECK_S * 1e9)
         return now_ns + self._period_ns
