@@ -5,8 +5,10 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from imuhal.core.frames import parse_mount
 from imuhal_chips.ak8963.decode import asa_factor, decode_burst, decode_counts, to_mpu9250_axes
 
 VECTORS = json.loads((Path(__file__).parent.parent / "data/chips/ak8963_vectors.json")
@@ -52,3 +54,12 @@ def test_hofl_and_dor_and_range_limit_are_reported() -> None:
 def test_axes_relative_to_mpu9250_follow_the_reference_example() -> None:
     ex = VECTORS["orientation_vs_mpu9250_accel_gyro"]["example"]
     assert to_mpu9250_axes(tuple(ex["mag_xyz"])) == tuple(ex["in_accel_frame"])
+
+
+def test_gy91_mount_string_takes_the_ak8963_frame_to_the_same_body_axes_as_the_mpu() -> None:
+    # GY-91 with the MPU-9250 mounted "+X-Y-Z" (chip X forward, Y left, Z up -> NED body):
+    # the AK8963 needs "+Y-X+Z" so both land on the same body axes.
+    mag = (10.0, 20.0, 30.0)
+    via_mpu = parse_mount("+X-Y-Z") @ np.array(to_mpu9250_axes(mag))
+    direct = parse_mount("+Y-X+Z") @ np.array(mag)
+    assert direct.tolist() == via_mpu.tolist()
