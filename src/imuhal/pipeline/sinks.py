@@ -11,12 +11,12 @@ import io
 import math
 import os
 import sys
-import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Protocol
 
+from imuhal.core.atomic import AtomicFile
 from imuhal.core.samples import (
     AccelSample,
     GyroSample,
@@ -115,11 +115,8 @@ class CsvSink:
         self.path = Path(path)
         self.include_samples = include_samples
         self.rows = 0
-        folder = self.path.parent if str(self.path.parent) else Path(".")
-        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=folder)
-        self._tmp = Path(tmp)
-        self._file: IO[str] | None = os.fdopen(fd, "w", newline="", encoding="utf-8")
-        self._writer = csv.DictWriter(self._file, fieldnames=CSV_COLUMNS, restval="")
+        self._out: AtomicFile | None = AtomicFile(self.path, newline="")
+        self._writer = csv.DictWriter(self._out, fieldnames=CSV_COLUMNS, restval="")
         self._writer.writeheader()
 
     def handle(self, event: Event) -> None:
@@ -129,20 +126,15 @@ class CsvSink:
         self.rows += 1
 
     def close(self) -> None:
-        if self._file is None:
-            return
-        self._file.flush()
-        os.fsync(self._file.fileno())
-        self._file.close()
-        self._file = None
-        os.replace(self._tmp, self.path)
+        if self._out is not None:
+            self._out.commit()
+            self._out = None
 
     def abort(self) -> None:
         """Drop the temporary file; ``path`` keeps whatever it had before."""
-        if self._file is not None:
-            self._file.close()
-            self._file = None
-        self._tmp.unlink(missing_ok=True)
+        if self._out is not None:
+            self._out.abort()
+            self._out = None
 
 
 class ConsoleSink:
