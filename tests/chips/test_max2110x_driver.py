@@ -259,11 +259,32 @@ def test_bus_error_surfaces_and_recover_resumes_sampling() -> None:
     assert all(s.valid for s in samples)
 
 
-def test_each_poll_is_one_bus_transaction() -> None:
+def test_each_sample_costs_one_burst_plus_an_occasional_phase_retry() -> None:
     rig = make_rig(Max21105Driver, Max21105Emulator, reset_check_s=60)
     before = rig.bus.transfers
-    samples = rig.run(0.1)
-    assert rig.bus.transfers - before == len(of(samples, GyroSample))
+    samples = rig.run(1.0)
+    n = len(of(samples, GyroSample))
+    assert n == pytest.approx(200, abs=1)
+    assert n <= rig.bus.transfers - before <= 1.15 * n
+
+
+@pytest.mark.parametrize("clock_error", [-0.01, 0.0, 0.01])
+def test_polling_stays_locked_to_a_chip_whose_clock_is_a_little_off(
+    clock_error: float,
+) -> None:
+    class Drifting(Max21100Emulator):
+        def _odr_hz(self, channel: Channel) -> float | None:
+            odr = super()._odr_hz(channel)
+            return odr * (1 + clock_error) if odr else None
+
+    rig = make_rig(Max21100Driver, Drifting)
+    before = rig.bus.transfers
+    samples = rig.run(2.0)
+    gyro = of(samples, GyroSample)
+    produced = 2.0 * 250 * (1 + clock_error)
+    assert len(gyro) == pytest.approx(produced, abs=3)  # no sample lost or repeated
+    assert all(s.valid for s in samples)
+    assert (rig.bus.transfers - before) / len(gyro) < 1.25  # few retry polls
 
 
 def test_drivers_are_registered_through_the_plugin_hooks() -> None:

@@ -57,6 +57,13 @@ STALE_POLLS_BEFORE_RESET = 4
 """Consecutive stale polls after which the driver resets and reconfigures the chip itself."""
 TEMPERATURE_PERIOD_NS = 100_000_000
 """Temperature samples are emitted at most every 100 ms (it changes slowly)."""
+GUARD_FRACTION = 8
+"""Polls aim 1/8 period after the chip's measurement instant, and retry 1/8 period later
+when a poll finds no new data (see ``poll``)."""
+EARLY_FRACTION = 64
+"""The poll grid steps 1/64 period short of the nominal period, so it creeps earlier than a
+chip whose clock runs up to ~1.5 % fast instead of falling behind it; with an exact clock one
+poll in about eight finds nothing and re-anchors a guard later."""
 
 
 class Max2110xDriver(Driver):
@@ -79,6 +86,9 @@ class Max2110xDriver(Driver):
         self._channel_period_ns: dict[Channel, int] = {}
         self._grid_start_ns = 0
         self._grid_k = 0
+        self._power_on_ns = 0
+        self._fast: Channel = Channel.GYRO
+        self._searching = False
         self._last_fresh_ns: dict[Channel, int] = {}
         self._last_temp_ns: int | None = None
         self._stale_polls = 0
@@ -150,6 +160,7 @@ class Max2110xDriver(Driver):
         plan = self.register_plan()
         for reg, value in plan.items():
             self.regs.write(reg, value)
+        self._power_on_ns = self.clock.now_ns()  # measurements are timed from here
         self._verify(plan)
         self._expected = plan
         s = self.settings
@@ -162,6 +173,7 @@ class Max2110xDriver(Driver):
             Channel.ACCEL: round(1e9 / s.accel_odr_hz),
         }
         self._period_ns = min(self._channel_period_ns.values())
+        self._fast = min(self._channel_period_ns, key=lambda c: self._channel_period_ns[c])
 
     def _verify(self, plan: dict[int, int]) -> None:
         wrong = self._mismatches(plan)
@@ -191,21 +203,36 @@ class Max2110xDriver(Driver):
         # configure() may have waited on the clock since the caller read it (the base
         # recover() passes the time from before its configure()): never start in the past
         now_ns = max(now_ns, self.clock.now_ns())
-        self._grid_start_ns = now_ns
-        self._grid_k = 1
+        # The chip measures one period after the power mode write and every period after;
+        # the poll grid sits a guard after those instants.
+        self._grid_start_ns = self._power_on_ns + self._guard_ns()
+        self._grid_k = 0
+        self._searching = False
         self._last_fresh_ns = {Channel.GYRO: now_ns, Channel.ACCEL: now_ns}
         self._last_temp_ns = None
         self._stale_polls = 0
         self._next_check_ns = now_ns + round(self.settings.reset_check_s * 1e9)
-        return now_ns + self._period_ns
+        return self._next_poll(now_ns)
+
+    def _guard_ns(self) -> int:
+        return max(1, self._period_ns // GUARD_FRACTION)
 
     def _next_poll(self, now_ns: int) -> int:
         """Next point of the poll grid strictly after ``now_ns`` (late polls skip ahead)."""
-        k = max(self._grid_k + 1, (now_ns - self._grid_start_ns) // self._period_ns + 1)
+        step = self._period_ns - self._period_ns // EARLY_FRACTION
+        k = max(self._grid_k + 1, (now_ns - self._grid_start_ns) // step + 1)
         self._grid_k = k
-        return self._grid_start_ns + k * self._period_ns
+        return self._grid_start_ns + k * step
 
     def poll(self, now_ns: int) -> PollResult:
+        """Read one burst; emit a sample per channel with new data.
+
+        Scheduling keeps the polls phase-locked just after the chip's measurements, so a
+        late poll (another device on the bus, a busy host) still finds its sample unread:
+        a poll that finds no new data on the fastest channel retries a guard later and
+        re-anchors the grid where the data appeared; an overrun (a sample overwritten
+        before it was read) moves the grid half a period earlier to re-acquire the phase.
+        """
         if self.scales is None:
             raise ConfigurationError(f"{self.describe()}: poll() before configure()")
         if now_ns >= self._next_check_ns and self._reset_detected(now_ns):
@@ -244,6 +271,15 @@ class Max2110xDriver(Driver):
                 return PollResult(samples, self.start(self.clock.now_ns()))
         else:
             self._stale_polls = 0
+        fast_ready = burst.gyro_ready if self._fast is Channel.GYRO else burst.accel_ready
+        if fast_ready and burst.overrun:
+            self._grid_start_ns, self._grid_k = now_ns - self._period_ns // 2, 0
+        elif fast_ready and self._searching:
+            self._grid_start_ns, self._grid_k = now_ns, 0
+        self._searching = False
+        if not fast_ready and not stale:
+            self._searching = True
+            return PollResult(samples, now_ns + self._guard_ns())
         return PollResult(samples, self._next_poll(now_ns))
 
     def _vector_sample(
