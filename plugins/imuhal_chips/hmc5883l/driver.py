@@ -93,6 +93,7 @@ class Hmc5883lDriver(Driver):
         self._expected = b""
         self._period_ns = round(1e9 / self.settings.odr_hz)
         self._grid_start_ns = 0
+        self._mode_written_ns = 0
         self._grid_k = 0
         self._last_ready_ns = 0
         self._skip_next = False
@@ -142,6 +143,7 @@ class Hmc5883lDriver(Driver):
         """Write Config A/B and continuous mode, read them back, release the data lock."""
         plan = self.register_plan()
         self._write(Reg.CONFIG_A, plan)
+        self._mode_written_ns = self.clock.now_ns()  # continuous measurements start here
         got = self._read(Reg.CONFIG_A, 3)
         self._read(Reg.X_MSB, 6)  # reading MODE locked the outputs; six data reads unlock
         if got != plan:
@@ -157,12 +159,16 @@ class Hmc5883lDriver(Driver):
         # configure() may have waited on the clock since the caller read it (the base
         # recover() passes the time from before its configure()): never start in the past
         now_ns = max(now_ns, self.clock.now_ns())
-        self._grid_start_ns = now_ns
-        self._grid_k = 1
+        # Poll a guard (1/8 period) after each measurement instant, counted from the Mode
+        # write. RDY stays set in continuous mode, so unlike the MAX2110x the phase cannot
+        # be searched for; a chip clock off by a few percent occasionally repeats or skips
+        # one output (each sample is still coherent thanks to the data lock).
+        self._grid_start_ns = self._mode_written_ns + self._period_ns // 8
+        self._grid_k = 0
         self._last_ready_ns = now_ns
         self._stale_polls = 0
         self._next_check_ns = now_ns + round(self.settings.reset_check_s * 1e9)
-        return now_ns + self._period_ns
+        return self._next_poll(now_ns)
 
     def _next_poll(self, now_ns: int) -> int:
         k = max(self._grid_k + 1, (now_ns - self._grid_start_ns) // self._period_ns + 1)
