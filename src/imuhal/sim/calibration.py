@@ -37,8 +37,12 @@ class CalibrationParams(WorldParams):
     yaw_deg: float = 30.0
     figure8_cycles: int = Field(3, ge=0)
     figure8_period_s: float = Field(10.0, gt=0)
-    figure8_roll_deg: float = Field(70.0, ge=0)
-    figure8_pitch_deg: float = Field(50.0, ge=0)
+    figure8_roll_deg: float = Field(130.0, ge=0)
+    """Well past 90 deg, so the board's z axis also points up into steep fields (64 deg dip)."""
+    figure8_pitch_deg: float = Field(60.0, ge=0)
+    figure8_yaw_turns_per_cycle: float = 0.618
+    """Heading turns per figure-8 cycle; not a simple ratio, so successive cycles visit new
+    orientations instead of retracing the same curve."""
     figure8_ramp_s: float = Field(2.0, gt=0)
     final_hold_s: float = Field(2.0, ge=0)
 
@@ -78,7 +82,8 @@ class CalibrationScenario(MotionScenario):
             pitch.oscillate(math.radians(p.figure8_pitch_deg), p.figure8_period_s / 2,
                             t_on=t, t_off=t + span, ramp_s=ramp,
                             phase_rad=-4 * math.pi * t / p.figure8_period_s)
-            yaw.sweep(t, span, 2 * math.pi * p.figure8_cycles, ramp)
+            yaw.sweep(t, span, 2 * math.pi * p.figure8_cycles * p.figure8_yaw_turns_per_cycle,
+                      ramp)
             self.add_phase("figure-8", t, t + span)
             t += span
         self.add_phase("final hold", t, t + p.final_hold_s)

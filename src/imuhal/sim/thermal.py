@@ -34,7 +34,7 @@ class ThermalParams(WorldParams):
         (60.0, -1.1),   # glide
     )
     """(start time s, climb rate m/s, up +) segments; the last lasts to the end."""
-    transition_s: float = Field(2.0, gt=0)
+    transition_s: float = Field(3.0, gt=0)
     """Each change of climb rate (and of turn rate, airspeed) takes this long (raised cosine)."""
     launch_s: float = Field(5.0, ge=0)
     """Still on launch until then; the airspeed builds up over ``transition_s``."""
