@@ -1,0 +1,1 @@
+"""Running estimators over logged samples (CSV) without a board: ``imuhal estimate``."""

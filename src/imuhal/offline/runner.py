@@ -1,0 +1,117 @@
+"""Feeding a sample table through any registered estimator, as the pipeline would.
+
+The input becomes the same sample and estimate objects the pipeline produces (body frame,
+project units), so an estimator behaves identically live and offline. Rows are fed in time
+order; within a row accelerometer and magnetometer come before the gyro, so an AHRS stepping
+on the gyro uses that row's accel and mag.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from typing import Any
+
+from imuhal.core.atmosphere import SEA_LEVEL_PRESSURE_PA, pressure_pa_at_altitude
+from imuhal.core.frames import IDENTITY_QUATERNION
+from imuhal.core.samples import (
+    AccelSample,
+    Frame,
+    GyroSample,
+    MagSample,
+    PressureSample,
+    Sample,
+)
+from imuhal.estimation.base import Estimator
+from imuhal.estimation.outputs import AttitudeEstimate, Estimate
+from imuhal.offline.csv_input import (
+    ACCEL,
+    ACCEL_UP,
+    ALTITUDE,
+    GYRO,
+    MAG,
+    PRESSURE,
+    TIME,
+    InputError,
+    SampleTable,
+    require,
+)
+
+DEVICE = "input"
+
+
+def imu_events(table: SampleTable) -> Iterator[Sample]:
+    """Accel, mag (when present on the row), pressure (idem), gyro, per row."""
+    require(table, (TIME, *GYRO, *ACCEL), "an attitude estimator")
+    c = table.columns
+    has_mag = table.has(*MAG)
+    has_p = table.has(PRESSURE)
+    for i in range(len(table)):
+        t_ns = round(float(c[TIME][i]) * 1e9)
+        yield AccelSample(t_ns=t_ns, device=DEVICE, frame=Frame.BODY_NED,
+                          accel_m_s2=(c[ACCEL[0]][i], c[ACCEL[1]][i], c[ACCEL[2]][i]))
+        if has_mag and not math.isnan(c[MAG[0]][i]):
+            yield MagSample(t_ns=t_ns, device=DEVICE, frame=Frame.BODY_NED,
+                            mag_ut=(c[MAG[0]][i], c[MAG[1]][i], c[MAG[2]][i]))
+        if has_p and not math.isnan(c[PRESSURE][i]):
+            yield PressureSample(t_ns=t_ns, device=DEVICE, pressure_pa=float(c[PRESSURE][i]))
+        yield GyroSample(t_ns=t_ns, device=DEVICE, frame=Frame.BODY_NED,
+                         gyro_rad_s=(c[GYRO[0]][i], c[GYRO[1]][i], c[GYRO[2]][i]))
+
+
+def vario_events(table: SampleTable, sea_level_pa: float) -> Iterator[Sample | Estimate]:
+    """From ``t_s, altitude_m, accel_up_m_s2``: the gravity-compensated acceleration as a
+    level attitude estimate carrying it, then the altitude as the pressure that reads it."""
+    require(table, (TIME, ALTITUDE), "a vario filter")
+    c = table.columns
+    has_accel = ACCEL_UP in c
+    for i in range(len(table)):
+        t_ns = round(float(c[TIME][i]) * 1e9)
+        if has_accel:
+            yield AttitudeEstimate(t_ns=t_ns, source=DEVICE,
+                                   q_body_to_ned=tuple(IDENTITY_QUATERNION),  # type: ignore[arg-type]
+                                   linear_accel_ned_m_s2=(0.0, 0.0, -float(c[ACCEL_UP][i])))
+        try:
+            p = pressure_pa_at_altitude(float(c[ALTITUDE][i]), sea_level_pa)
+        except ValueError as exc:
+            raise InputError(f"{table.path}: line {table.lines[i]}, column '{ALTITUDE}': "
+                             f"{exc}") from None
+        yield PressureSample(t_ns=t_ns, device=DEVICE, pressure_pa=p)
+
+
+def run_offline(
+    estimator: Estimator, table: SampleTable, *, ahrs: Estimator | None = None,
+) -> list[Estimate]:
+    """Run ``estimator`` over ``table``; ``ahrs`` supplies attitude to a vario filter fed
+    full IMU columns plus ``pressure_pa`` (imuhal then does the gravity compensation)."""
+    consumes = tuple(estimator.consumes)
+    wants_imu = any(issubclass(t, (GyroSample, AccelSample)) for t in consumes) and not any(
+        issubclass(t, PressureSample) for t in consumes)
+    outputs: list[Estimate] = []
+    if wants_imu:
+        for sample in imu_events(table):
+            if isinstance(sample, consumes):
+                outputs += estimator.process(sample)
+        return outputs
+    if not any(issubclass(t, PressureSample) for t in consumes):
+        raise InputError(f"estimator {estimator.name!r} consumes "
+                         f"{', '.join(t.__name__ for t in consumes)}: imuhal estimate cannot "
+                         "build those from a CSV")
+    if table.has(ALTITUDE):
+        sea_level = float(getattr(estimator.settings, "sea_level_pa", SEA_LEVEL_PRESSURE_PA))
+        for item in vario_events(table, sea_level):
+            if isinstance(item, consumes):
+                outputs += estimator.process(item)
+        return outputs
+    require(table, (TIME, *GYRO, *ACCEL, PRESSURE),
+            "a vario filter (or give t_s, altitude_m, accel_up_m_s2)")
+    if ahrs is None:
+        raise InputError("full IMU input needs an attitude estimator for gravity compensation")
+    for sample in imu_events(table):
+        upstream: list[Any] = [sample]
+        if isinstance(sample, tuple(ahrs.consumes)):
+            upstream += ahrs.process(sample)
+        for item in upstream:
+            if isinstance(item, consumes):
+                outputs += estimator.process(item)
+    return outputs

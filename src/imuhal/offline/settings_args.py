@@ -1,0 +1,55 @@
+"""``--set key=value`` arguments into an estimator's own pydantic settings."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import yaml
+from pydantic import BaseModel, ValidationError
+
+from imuhal.core.errors import ImuhalError
+
+
+class SettingsArgumentError(ImuhalError):
+    pass
+
+
+def parse_set_arguments(items: list[str]) -> dict[str, Any]:
+    """``["beta=0.1", "accel_gate_g=0.6,1.4"]`` -> ``{"beta": 0.1, "accel_gate_g": [0.6, 1.4]}``.
+
+    Values are YAML scalars (numbers, true/false, null, strings); commas make a list.
+    """
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, raw = item.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise SettingsArgumentError(f"--set {item!r}: write KEY=VALUE, e.g. --set beta=0.1")
+        if key in out:
+            raise SettingsArgumentError(f"--set {key}: given twice")
+        parts = [_scalar(p) for p in raw.split(",")] if "," in raw else _scalar(raw)
+        out[key] = parts
+    return out
+
+
+def _scalar(text: str) -> Any:
+    try:
+        return yaml.safe_load(text.strip()) if text.strip() else ""
+    except yaml.YAMLError:
+        return text.strip()
+
+
+def build_settings(model: type[BaseModel], values: dict[str, Any], owner: str) -> BaseModel:
+    """Validate ``values`` with ``model``; every problem names its --set key and the allowed."""
+    try:
+        return model.model_validate(values)
+    except ValidationError as exc:
+        problems = []
+        for err in exc.errors(include_url=False):
+            key = ".".join(str(p) for p in err["loc"]) or "(settings)"
+            if err["type"] == "extra_forbidden":
+                allowed = ", ".join(model.model_fields)
+                problems.append(f"--set {key}: {owner} has no such setting; settings: {allowed}")
+            else:
+                problems.append(f"--set {key}: {err['msg']} (found {err.get('input')!r})")
+        raise SettingsArgumentError("; ".join(problems)) from None
