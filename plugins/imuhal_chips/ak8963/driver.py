@@ -25,7 +25,7 @@ from imuhal.bus.base import BusKind, Link
 from imuhal.bus.registers import RegisterView
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
-from imuhal.core.samples import Channel, MagSample, Sample, SampleFlag
+from imuhal.core.samples import Channel, MagSample, SampleFlag
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
 from imuhal_chips.ak8963 import registers as r
 from imuhal_chips.ak8963.decode import Measurement, decode_burst
@@ -142,17 +142,6 @@ class AK8963Driver(Driver):
         self._last_data_ns = now_ns
         if flags == SampleFlag.OK:
             self.last = m
-        _count(self, [sample])
+        self.health.record([sample])
         return PollResult([sample], now_ns + self._period_ns)
 
-
-def _count(driver: Driver, samples: list[Sample]) -> None:
-    health = driver.health
-    for sample in samples:
-        health.samples += 1
-        if sample.flags != SampleFlag.OK:
-            health.flagged += 1
-            for flag in SampleFlag:
-                if flag and flag in sample.flags:
-                    key = flag.name or str(int(flag))
-                    health.flags_seen[key] = health.flags_seen.get(key, 0) + 1

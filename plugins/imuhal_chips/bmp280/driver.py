@@ -281,7 +281,7 @@ class BMP280Driver(Driver):
             TemperatureSample(t_ns=t_ns, device=self.device, flags=flags_t,
                               temperature_degc=temperature),
         ]
-        _count(self, samples)
+        self.health.record(samples)
         return samples
 
     def child_buses(self) -> dict[str, Bus]:
@@ -296,14 +296,3 @@ def _range_flags(adc: int, value: float, limits: tuple[float, float]) -> SampleF
         flags |= SampleFlag.OUT_OF_RANGE
     return flags
 
-
-def _count(driver: Driver, samples: list[Sample]) -> None:
-    health = driver.health
-    for sample in samples:
-        health.samples += 1
-        if sample.flags != SampleFlag.OK:
-            health.flagged += 1
-            for flag in SampleFlag:
-                if flag and flag in sample.flags:
-                    key = flag.name or str(int(flag))
-                    health.flags_seen[key] = health.flags_seen.get(key, 0) + 1

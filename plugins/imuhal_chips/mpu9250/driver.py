@@ -247,17 +247,6 @@ class MPU9250Driver(Driver):
                               temperature_degc=temp),
         ]
         self._last_data_ns = now_ns
-        _count(self, samples)
+        self.health.record(samples)
         return PollResult(samples, now_ns + self._period_ns)
 
-
-def _count(driver: Driver, samples: list[Sample]) -> None:
-    health = driver.health
-    for sample in samples:
-        health.samples += 1
-        if sample.flags != SampleFlag.OK:
-            health.flagged += 1
-            for flag in SampleFlag:
-                if flag and flag in sample.flags:
-                    key = flag.name or str(int(flag))
-                    health.flags_seen[key] = health.flags_seen.get(key, 0) + 1

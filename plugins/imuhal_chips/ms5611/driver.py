@@ -304,7 +304,7 @@ class MS5611Driver(Driver):
                                              temperature_degc=result.temperature_degc))
         if pressure_flags == SampleFlag.OK:
             self.last = result
-        self._count(samples)
+        self.health.record(samples)
         return samples
 
     def _stale(self, now_ns: int) -> PollResult:
@@ -317,21 +317,10 @@ class MS5611Driver(Driver):
             TemperatureSample(t_ns=now_ns, device=self.device, flags=SampleFlag.STALE,
                               temperature_degc=last.temperature_degc if last else math.nan),
         ]
-        self._count(samples)
+        self.health.record(samples)
         self._state = _State.IDLE
         self._need_temperature = True
         self._since_temperature = 0
         self._fresh_temperature = False
         self._target_ns = now_ns + self._cycle_ns(True)
         return PollResult(samples, now_ns)
-
-    def _count(self, samples: list[Sample]) -> None:
-        health = self.health
-        for sample in samples:
-            health.samples += 1
-            if sample.flags != SampleFlag.OK:
-                health.flagged += 1
-                for flag in SampleFlag:
-                    if flag and flag in sample.flags:
-                        name = flag.name or str(int(flag))
-                        health.flags_seen[name] = health.flags_seen.get(name, 0) + 1

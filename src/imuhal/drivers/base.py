@@ -8,6 +8,7 @@ units in the chip's own sensor frame; calibration and mounting are applied by th
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import ClassVar
 
@@ -15,7 +16,7 @@ from pydantic import BaseModel, ConfigDict
 
 from imuhal.bus.base import Bus, BusKind, Link
 from imuhal.core.clock import Clock
-from imuhal.core.samples import Channel, Sample
+from imuhal.core.samples import Channel, Sample, SampleFlag
 
 
 class DriverSettings(BaseModel):
@@ -54,6 +55,18 @@ class DeviceHealth:
     resets_detected: int = 0
     reconfigurations: int = 0
     flags_seen: dict[str, int] = field(default_factory=dict)
+
+    def record(self, samples: Iterable[Sample]) -> None:
+        """Count produced samples, and the flagged ones by flag name."""
+        for sample in samples:
+            self.samples += 1
+            if sample.flags == SampleFlag.OK:
+                continue
+            self.flagged += 1
+            for flag in SampleFlag:
+                if flag and flag in sample.flags:
+                    key = flag.name or str(int(flag))
+                    self.flags_seen[key] = self.flags_seen.get(key, 0) + 1
 
 
 class Driver(ABC):
@@ -110,7 +123,8 @@ class Driver(ABC):
         self.probe()
         self.configure()
         self.health.reconfigurations += 1
-        return self.start(now_ns)
+        # configure() may have waited on the clock (resets, reloads): start from after it.
+        return self.start(max(now_ns, self.clock.now_ns()))
 
     def child_buses(self) -> dict[str, Bus]:
         """Buses this chip exposes to others (an I2C master or bypass), by local name."""

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock, SimulatedClock
+from imuhal.core.samples import Channel
 
 if TYPE_CHECKING:
     from imuhal.emulation.bus import EmulatedBus
@@ -55,6 +56,20 @@ class ChipEmulator(ABC):
 
     def now_ns(self) -> int:
         return self.clock.now_ns()
+
+    # -- conventions every emulator follows where its chip has the feature ----------------
+
+    def resolution(self, channel: Channel) -> float:
+        """SI units per count of ``channel`` in the current configuration."""
+        raise NotImplementedError(f"{type(self).__name__} does not report its resolution")
+
+    def full_scale(self, channel: Channel) -> float:
+        """The largest magnitude (SI) ``channel`` can report in the current configuration."""
+        raise NotImplementedError(f"{type(self).__name__} does not report its full scale")
+
+    def silent_reset(self) -> None:
+        """Fault injection: the chip resets without telling anyone (configuration lost)."""
+        raise NotImplementedError(f"{type(self).__name__} does not model a silent reset")
 
     def child_buses(self) -> dict[str, EmulatedBus]:
         """Downstream buses this chip masters (e.g. the MAX21100's I2C master), by the same
