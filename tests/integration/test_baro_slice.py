@@ -7,29 +7,24 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from imuhal.bus import plugin as bus_plugin
 from imuhal.estimation.outputs import VerticalEstimate
 from imuhal.pipeline import Pipeline
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.loader import load_profile
 from imuhal.profiles_dir import default_profile_path
-from imuhal.sim import plugin as sim_plugin
-from imuhal_chips.ms5611 import plugin as ms5611_plugin
-from imuhal_filters.vario import plugin as vario_plugin
 
 
 @pytest.fixture(scope="module")
 def slice_registry() -> Registry:
-    return load_registry(entry_point_plugins=False, extra=[
-        ("buses", bus_plugin), ("scenarios", sim_plugin), ("ms5611", ms5611_plugin),
-        ("vario", vario_plugin)])
+    return load_registry()
 
 
 @pytest.fixture(scope="module")
 def flight(slice_registry: Registry) -> tuple[np.ndarray, np.ndarray, np.ndarray, Pipeline]:
     profile = load_profile(default_profile_path(), slice_registry)
+    # Only the barometer and the barometer-only filter: the slice under test.
     profile = profile.model_copy(update={"devices": {"baro": profile.devices["baro"]},
-                                         "estimators": {"vario": profile.estimators["vario"]}})
+                                         "estimators": {"vario": profile.estimators["baro-only"]}})
     with Pipeline.open(profile, slice_registry, emulate="thermal") as p:
         rows = [(e.t_ns / 1e9, e.altitude_m, e.climb_m_s) for e in p.events(60.0)
                 if isinstance(e, VerticalEstimate)]

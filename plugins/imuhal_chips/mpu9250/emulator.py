@@ -82,6 +82,11 @@ class MPU9250Emulator(ChipEmulator):
         for target in self.aux_bus.targets:
             host_bus.attach(target, _BypassGate(self, target))
 
+    def connect_host(self, host_bus: EmulatedBus) -> None:
+        """On an I2C host bus the bypass switch can join the aux bus to it."""
+        if host_bus.kind is BusKind.I2C:
+            self.connect_bypass(host_bus)
+
     def bypass_active(self) -> bool:
         return bool(self._regs[r.INT_PIN_CFG] & r.INT_PIN_BYPASS_EN) and not (
             self._regs[r.USER_CTRL] & r.USER_I2C_MST_EN)

@@ -71,6 +71,10 @@ class ChipEmulator(ABC):
         """Fault injection: the chip resets without telling anyone (configuration lost)."""
         raise NotImplementedError(f"{type(self).__name__} does not model a silent reset")
 
+    def connect_host(self, host_bus: EmulatedBus) -> None:  # noqa: B027 - optional hook
+        """Called once the whole board is attached, with the bus this chip sits on. A chip
+        with an I2C bypass switch joins its child bus to ``host_bus`` here."""
+
     def child_buses(self) -> dict[str, EmulatedBus]:
         """Downstream buses this chip masters (e.g. the MAX21100's I2C master), by the same
         local names its driver's ``child_buses`` uses. Emulators of chips behind it are

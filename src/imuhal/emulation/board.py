@@ -41,6 +41,7 @@ class EmulatedBoard:
             factory = registry.buses.get(cfg.kind)
             self.buses[name] = EmulatedBus(f"emul://{name}", factory.kind)
         self.emulators: dict[str, ChipEmulator] = {}
+        hosts: dict[str, EmulatedBus] = {}
         for name in device_order(profile):
             dev = profile.devices[name]
             reg = registry.emulators.entries.get(dev.driver)
@@ -51,8 +52,12 @@ class EmulatedBoard:
                     f"{', '.join(registry.emulators.names()) or 'none'}"
                 )
             emulator = reg.obj(clock=clock)
-            self._bus_for(dev.bus).attach(dev.address, emulator)
+            host = self._bus_for(dev.bus)
+            host.attach(dev.address, emulator)
             self.emulators[name] = emulator
+            hosts[name] = host
+        for name, emulator in self.emulators.items():
+            emulator.connect_host(hosts[name])
         self._sensor_from_body = {n: np.asarray(r).T for n, r in chip_to_body.items()}
         self._errors = error_models or {}
         self._last_t_ns: int | None = None
