@@ -4,12 +4,19 @@ Inertial (accel, gyro): corrected = M @ diag(s) @ (raw - b), with b in the chann
 Magnetic: corrected = S @ (raw - h), h in uT. Both act in the chip's sensor frame, before the
 mount rotation (docs/units-and-frames.md). Each record is bound to the device it was measured
 on; the pipeline refuses to apply a record whose binding does not match the probed chip.
+
+Besides the three records a device's calibration may hold:
+
+* ``previous``: the records each procedure replaced, one per channel, so a bad calibration can
+  be undone by hand (``imuhal calibrate`` moves the old record here before writing);
+* ``gyro_at_startup``: measure the gyro offsets again at every start-up, with the board kept
+  still (see :mod:`imuhal.calibration.startup`), overriding the stored offsets only.
 """
 
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Annotated
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
@@ -17,6 +24,8 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 Vec3 = tuple[float, float, float]
 Mat3 = tuple[Vec3, Vec3, Vec3]
 IDENTITY3: Mat3 = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+ChannelName = Literal["accel", "gyro", "mag"]
+CHANNELS: tuple[ChannelName, ...] = ("accel", "gyro", "mag")
 
 
 class _Strict(BaseModel):
@@ -24,7 +33,12 @@ class _Strict(BaseModel):
 
 
 class CalibrationBinding(_Strict):
-    """The device a calibration was measured on."""
+    """The device a calibration was measured on.
+
+    ``bus`` is the profile's bus reference (``spi0``, ``imu/aux``), ``identity`` the probe's
+    evidence (``WHO_AM_I=0x11``) and ``calibration_version`` the driver's: a driver bumps it
+    when a change to its decoding would make old calibrations wrong.
+    """
 
     driver: str
     bus: str
@@ -36,8 +50,11 @@ class CalibrationBinding(_Strict):
 class _Record(_Strict):
     binding: CalibrationBinding | None = None
     procedure: str = "manual"
+    """How the record was measured (``gyro-at-rest``, ``accel-six-position``,
+    ``accel-six-position-lsq``, ``mag-ellipsoid``, ``mag-minmax``, or ``manual``)."""
     date: datetime | None = None
     quality: dict[str, float] = Field(default_factory=dict)
+    """Figures of merit of the measurement; names carry units (``residual_rms_mg``)."""
 
 
 def _check_matrix(m: Mat3) -> Mat3:
@@ -50,6 +67,9 @@ def _check_matrix(m: Mat3) -> Mat3:
 
 
 class AccelCalibration(_Record):
+    """Accelerometer: offset in m/s^2 (raw units), per-axis scale, unit-diagonal
+    misalignment; ``apply`` maps a raw sensor-frame reading to a corrected one."""
+
     offset_m_s2: Vec3 = (0.0, 0.0, 0.0)
     scale: Annotated[Vec3, Field(description="multiplier per axis (1/sensitivity error)")] = (
         1.0, 1.0, 1.0)
@@ -62,6 +82,8 @@ class AccelCalibration(_Record):
 
 
 class GyroCalibration(_Record):
+    """Gyroscope: offset in rad/s, per-axis scale, unit-diagonal misalignment."""
+
     offset_rad_s: Vec3 = (0.0, 0.0, 0.0)
     scale: Vec3 = (1.0, 1.0, 1.0)
     misalignment: Mat3 = IDENTITY3
@@ -73,6 +95,8 @@ class GyroCalibration(_Record):
 
 
 class MagCalibration(_Record):
+    """Magnetometer: hard iron h in uT and soft-iron matrix S (symmetric when fitted)."""
+
     hard_iron_ut: Vec3 = (0.0, 0.0, 0.0)
     soft_iron: Mat3 = IDENTITY3
 
@@ -83,10 +107,50 @@ class MagCalibration(_Record):
         return (float(v[0]), float(v[1]), float(v[2]))
 
 
+class GyroStartupSettings(_Strict):
+    """Re-measure gyro offsets at every start-up (the seed: "ideally ... each time on power
+    up"). The board must be kept still for ``samples`` gyro samples; when it moves or an axis
+    reads more than ``max_offset_dps`` the measurement waits ``retry_wait_s`` and repeats, at
+    most ``max_attempts`` times, after which the stored offsets are kept."""
+
+    enabled: bool = True
+    samples: int = Field(100, ge=10, le=100_000)
+    max_offset_dps: float = Field(10.0, gt=0)
+    max_gyro_std_dps: float = Field(0.5, gt=0)
+    max_accel_std_m_s2: float = Field(0.1, gt=0)
+    retry_wait_s: float = Field(2.0, ge=0)
+    max_attempts: int = Field(5, ge=1)
+
+
+class PreviousCalibration(_Strict):
+    """The records the last run of each procedure replaced (a backup, never applied)."""
+
+    accel: AccelCalibration | None = None
+    gyro: GyroCalibration | None = None
+    mag: MagCalibration | None = None
+
+
+Record = AccelCalibration | GyroCalibration | MagCalibration
+
+
 class DeviceCalibration(_Strict):
     accel: AccelCalibration | None = None
     gyro: GyroCalibration | None = None
     mag: MagCalibration | None = None
+    gyro_at_startup: GyroStartupSettings | None = None
+    previous: PreviousCalibration | None = None
+
+    def replaced(self, channel: ChannelName, record: Record) -> DeviceCalibration:
+        """A copy with ``channel`` set to ``record``; the record it replaces (if any) is kept
+        in ``previous``."""
+        old = getattr(self, channel)
+        previous = self.previous or PreviousCalibration()
+        if old is not None:
+            previous = previous.model_copy(update={channel: old})
+        return self.model_copy(update={
+            channel: record,
+            "previous": previous if previous != PreviousCalibration() else None,
+        })
 
 
 def _inertial(raw: Vec3, offset: Vec3, scale: Vec3, m: Mat3) -> Vec3:
