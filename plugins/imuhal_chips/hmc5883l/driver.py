@@ -17,6 +17,8 @@ throw-away data read).
 
 from __future__ import annotations
 
+from typing import Any
+
 from pydantic import Field, field_validator
 
 from imuhal.bus.base import BusKind, Link
@@ -24,6 +26,7 @@ from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
 from imuhal.core.samples import Channel, Frame, MagSample, Sample, SampleFlag
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
+from imuhal.drivers.settings import pick
 from imuhal_chips.hmc5883l import decode
 from imuhal_chips.hmc5883l.registers import (
     AVERAGING,
@@ -35,7 +38,6 @@ from imuhal_chips.hmc5883l.registers import (
     Reg,
     config_a,
     config_b,
-    pick,
 )
 
 STALE_AFTER_PERIODS = 1.5
@@ -57,6 +59,11 @@ class Hmc5883lSettings(DriverSettings):
     """Samples averaged per output: 1, 2, 4, 8."""
     reset_check_s: float = Field(default=0.5, gt=0, le=60)
     """How often (s) the configuration is read back to catch a silent chip reset."""
+
+    @classmethod
+    def choices(cls) -> dict[str, tuple[Any, ...]]:
+        return {"range_gauss": tuple(RANGE_GAUSS), "odr_hz": tuple(ODR_HZ),
+                "averaging": tuple(AVERAGING)}
 
     @field_validator("range_gauss", mode="before")
     @classmethod

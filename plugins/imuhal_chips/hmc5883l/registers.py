@@ -6,7 +6,6 @@ drivers/iio/magnetometer/hmc5843_core.c (facts/chips.md section 3, chip-vectors.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from enum import IntEnum
 
@@ -91,15 +90,6 @@ AVERAGING: Mapping[int, int] = {1: 0b00, 2: 0b01, 4: 0b10, 8: 0b11}
 SINGLE_MEASUREMENT_NS = 6_000_000
 """Single-measurement mode: data ready about 6 ms after the mode write."""
 
-
-def pick(table: Mapping[float, object], value: float, name: str, unit: str) -> float:
-    """The table key equal to ``value`` (floats compared to 1e-9), or ValueError listing
-    the allowed values."""
-    for key in table:
-        if math.isclose(float(key), float(value), rel_tol=1e-9, abs_tol=1e-12):
-            return key  # type: ignore[return-value]
-    allowed = ", ".join(f"{k:g}" for k in sorted(table))
-    raise ValueError(f"{name} = {value:g} {unit} is not supported; allowed: {allowed} {unit}")
 
 
 def config_a(averaging: int, odr_hz: float) -> int:

@@ -165,15 +165,6 @@ GYRO_ON_MODES = frozenset({0b0010, 0b0011, 0b1110, 0b1111})
 ACCEL_ON_MODES = frozenset({0b1000, 0b1100, 0b1101, 0b1110, 0b1111})
 
 
-def pick(table: Mapping[float, object], value: float, name: str, unit: str) -> float:
-    """The table key equal to ``value`` (floats compared to 1e-9), or ValueError listing
-    the allowed values."""
-    for key in table:
-        if math.isclose(float(key), float(value), rel_tol=1e-9, abs_tol=1e-12):
-            return key  # type: ignore[return-value]
-    allowed = ", ".join(f"{k:g}" for k in sorted(table))
-    raise ValueError(f"{name} = {value:g} {unit} is not supported; allowed: {allowed} {unit}")
-
 
 @dataclass(frozen=True)
 class PartSpec:

@@ -8,11 +8,12 @@ LPF ODR/48, 250 Hz ODR. MAX21105 RC: gyro +/-1000 dps, 10 Hz, 200 Hz; accel +/-8
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import Any, ClassVar
 
 from pydantic import Field, field_validator
 
 from imuhal.drivers.base import DriverSettings
+from imuhal.drivers.settings import pick
 from imuhal_chips.max2110x.registers import (
     ACCEL_LPF_DIVISOR,
     ACCEL_RANGE_G,
@@ -21,7 +22,6 @@ from imuhal_chips.max2110x.registers import (
     MAX21100,
     MAX21105,
     PartSpec,
-    pick,
 )
 
 
@@ -45,6 +45,17 @@ class Max2110xSettings(DriverSettings):
     """Accelerometer output data rate, Hz (part-specific table)."""
     reset_check_s: float = Field(default=0.5, gt=0, le=60)
     """How often (s) the driver reads back its configuration to catch a silent chip reset."""
+
+    @classmethod
+    def choices(cls) -> dict[str, tuple[Any, ...]]:
+        return {
+            "gyro_range_dps": tuple(GYRO_RANGE_DPS),
+            "gyro_bandwidth_hz": tuple(GYRO_BANDWIDTH_HZ),
+            "gyro_odr_hz": tuple(cls.part.gyro_odr_hz),
+            "accel_range_g": tuple(ACCEL_RANGE_G),
+            "accel_lpf": tuple(ACCEL_LPF_DIVISOR),
+            "accel_odr_hz": tuple(cls.part.accel_odr_hz),
+        }
 
     @field_validator("gyro_range_dps", mode="before")
     @classmethod

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock
+from imuhal.core.samples import Channel
 from imuhal.emulation.base import ChipEmulator
 from imuhal_chips.ms5611.commands import (
     ADC_MAX,
@@ -96,6 +97,22 @@ class MS5611Emulator(ChipEmulator):
         self.aborted_conversions = 0
 
     # -- fault injection --------------------------------------------------------------------
+
+    def resolution(self, channel: Channel) -> float:
+        """The compensated output's step: 1 Pa (0.01 mbar) and 0.01 degC."""
+        if channel is Channel.PRESSURE:
+            return 1.0
+        if channel is Channel.TEMPERATURE:
+            return 0.01
+        raise ValueError(f"the MS5611 has no {channel.value} channel")
+
+    def full_scale(self, channel: Channel) -> float:
+        """Upper end of the datasheet range: 120000 Pa (1200 mbar), 85 degC."""
+        if channel is Channel.PRESSURE:
+            return 120_000.0
+        if channel is Channel.TEMPERATURE:
+            return 85.0
+        raise ValueError(f"the MS5611 has no {channel.value} channel")
 
     def corrupt_prom(self, word: int, bit: int) -> None:
         """Flip ``bit`` of PROM ``word``; the stored CRC4 then no longer matches."""

@@ -10,19 +10,27 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import Any, ClassVar
 
 from pydantic import BaseModel, ConfigDict
 
 from imuhal.bus.base import Bus, BusKind, Link
 from imuhal.core.clock import Clock
 from imuhal.core.samples import Channel, Sample, SampleFlag
+from imuhal.drivers.settings import literal_choices
 
 
 class DriverSettings(BaseModel):
     """Base of every driver's settings: physical values only (``odr_hz: 250``), never codes."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
+
+    @classmethod
+    def choices(cls) -> dict[str, tuple[Any, ...]]:
+        """Every enumerable setting and its allowed values: documentation, error messages
+        and the generic conformance sweep use it. Literal and Enum fields are found
+        automatically; a driver whose values come from a register table adds them."""
+        return literal_choices(cls)
 
 
 @dataclass(frozen=True)
