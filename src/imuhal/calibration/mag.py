@@ -165,7 +165,7 @@ def evaluate(raw: FloatArray, settings: MagSettings | None = None) -> MagResult:
     if len(x) < s.min_samples:
         raise CalibrationError(f"only {len(x)} magnetometer readings (need {s.min_samples})",
                                f"{TURN_ADVICE.capitalize()}, for longer")
-    rough = coverage(x - (x.max(axis=0) + x.min(axis=0)) / 2.0)
+    rough = rough_coverage(x, s.field_range_ut[0])
     if rough.fraction < s.min_coverage:
         raise _coverage_error(rough, s)
     fit = ellipsoid_fit(x, s.field_ut) if s.method == "ellipsoid" else minmax_fit(x, s.field_ut)
@@ -182,8 +182,9 @@ def evaluate(raw: FloatArray, settings: MagSettings | None = None) -> MagResult:
         if s.method == "minmax" and _ellipsoid_would_fit(x, s):
             raise CalibrationError(
                 f"min/max leaves {residual:.2f} uT RMS "
-                f"({100 * residual / fit.field_ut:.1f} %) because this board's soft iron "
-                "couples the axes, which min/max cannot model",
+                f"({100 * residual / fit.field_ut:.1f} %): the motion did not reach every "
+                "axis's extremes, or the soft iron couples the axes, which min/max cannot "
+                "model; the ellipsoid fit of the same readings passes",
                 "use the ellipsoid fit (--method ellipsoid) on the same motion", figures)
         raise CalibrationError(
             f"the field was disturbed: readings scatter {residual:.2f} uT RMS "
@@ -204,6 +205,15 @@ def evaluate(raw: FloatArray, settings: MagSettings | None = None) -> MagResult:
             f"{s.max_axis_ratio:g})", f"the data are disturbed or too sparse; {TURN_ADVICE}",
             figures)
     return result
+
+
+def rough_coverage(raw: FloatArray, min_radius_ut: float) -> Coverage:
+    """Coverage of directions seen from the min/max centre, counting only readings at least
+    ``min_radius_ut`` from it: a board held still gives a small noise cloud whose directions
+    from its own centre point everywhere and must not count as coverage."""
+    centre = (raw.max(axis=0) + raw.min(axis=0)) / 2.0
+    d = raw - centre
+    return coverage(d[np.linalg.norm(d, axis=1) >= min_radius_ut])
 
 
 def _ellipsoid_would_fit(x: FloatArray, s: MagSettings) -> bool:
@@ -255,7 +265,7 @@ class MagCalibrationProcedure(Procedure[MagResult]):
             return True
         if n % 50 == 0:
             x = self.readings
-            self.coverage = coverage(x - (x.max(axis=0) + x.min(axis=0)) / 2.0).fraction
+            self.coverage = rough_coverage(x, s.field_range_ut[0]).fraction
             self.say(ProgressKind.PROGRESS, f"coverage {100 * self.coverage:.0f} % "
                      f"(target {100 * s.target_coverage:.0f} %), {n} readings",
                      min(1.0, self.coverage / s.target_coverage))

@@ -1,0 +1,81 @@
+"""Gyro offsets measured again at every start-up (profile option ``gyro_at_startup``).
+
+Gyro offsets drift from one power-up to the next (the seed: calibrate "ideally ... each time
+on power up"). A device whose calibration holds ``gyro_at_startup: {enabled: true}`` gets its
+offsets measured over the first still ``samples`` gyro readings of the run; the stored record
+keeps its scale and misalignment and only its offsets are replaced, in memory (the profile
+file is not touched). If the board never stays still within ``max_attempts``, the stored
+offsets are used and a warning says so.
+
+:func:`events_with_startup_gyro` wraps ``Pipeline.events``: during the start-up phase it puts
+the pipeline in raw mode, feeds the gyro procedure and yields nothing; then it installs the
+offsets and yields the pipeline's events as usual.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+from imuhal.calibration.errors import CalibrationError
+from imuhal.calibration.gyro import GyroOffsetProcedure
+from imuhal.calibration.model import DeviceCalibration, GyroCalibration, GyroStartupSettings
+from imuhal.calibration.progress import ProgressCallback
+from imuhal.calibration.session import binding_for, now
+from imuhal.core.samples import Channel, Sample
+from imuhal.pipeline.pipeline import Event, Pipeline
+
+
+def startup_settings(pipeline: Pipeline) -> dict[str, GyroStartupSettings]:
+    """Devices of the pipeline that ask for start-up gyro offsets, with their settings."""
+    out = {}
+    for name, dev in pipeline.devices.items():
+        cal = pipeline.profile.devices[name].calibration
+        opt = cal.gyro_at_startup if cal is not None else None
+        if opt is not None and opt.enabled and Channel.GYRO in type(dev.driver).channels:
+            out[name] = opt
+    return out
+
+
+def events_with_startup_gyro(pipeline: Pipeline, duration_s: float | None = None,
+                             progress: ProgressCallback | None = None) -> Iterator[Event]:
+    """``pipeline.events(duration_s)``, preceded by the start-up gyro measurement of every
+    device that asks for it (see the module docstring)."""
+    pending = {name: GyroOffsetProcedure(opt, device=name, progress=progress)
+               for name, opt in startup_settings(pipeline).items()}
+    if not pending:
+        yield from pipeline.events(duration_s)
+        return
+    calibrated = pipeline.calibrated
+    pipeline.calibrated = False
+    try:
+        for event in pipeline.events(duration_s):
+            if not pending:
+                yield event
+                continue
+            if not isinstance(event, Sample) or event.device not in pending:
+                continue
+            proc = pending[event.device]
+            try:
+                finished = proc.feed(event)
+            except CalibrationError as exc:
+                pipeline.warnings.append(f"{event.device}: start-up gyro offsets not measured "
+                                         f"({exc}); using the stored offsets")
+                del pending[event.device]
+                finished = False
+            if finished:
+                _install(pipeline, event.device, proc)
+                del pending[event.device]
+            if not pending:
+                pipeline.calibrated = calibrated
+    finally:
+        pipeline.calibrated = calibrated
+
+
+def _install(pipeline: Pipeline, device: str, proc: GyroOffsetProcedure) -> None:
+    dev = pipeline.devices[device]
+    cal = dev.calibration or DeviceCalibration()
+    result = proc.finish()
+    record = result.record(cal.gyro or GyroCalibration(), date=now())
+    record = record.model_copy(update={"binding": binding_for(pipeline, device),
+                                       "procedure": "gyro-at-startup"})
+    dev.calibration = cal.model_copy(update={"gyro": record})

@@ -1,0 +1,227 @@
+"""``imuhal calibrate gyro|accel|mag PROFILE``: measure a calibration and store it in the
+profile; ``imuhal calibrate --show PROFILE``: print what is stored."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+from typing import Any, TextIO
+
+import numpy as np
+
+from imuhal.calibration.accel import AccelSixPosition, AccelSixSettings
+from imuhal.calibration.gyro import GyroOffsetProcedure, GyroOffsetSettings
+from imuhal.calibration.mag import MagCalibrationProcedure, MagSettings
+from imuhal.calibration.model import DeviceCalibration, GyroStartupSettings
+from imuhal.calibration.progress import Progress, ProgressKind
+from imuhal.calibration.session import (
+    binding_for,
+    describe_position,
+    guided_order,
+    now,
+    open_raw_pipeline,
+    pick_device,
+    run_procedure,
+)
+from imuhal.calibration.store import write_device_calibration
+from imuhal.core.frames import parse_mount
+from imuhal.core.samples import Channel
+from imuhal.plugins.manager import Registry
+from imuhal.profile.loader import load_profile
+
+DEG = math.pi / 180.0
+MG = 9.80665e-3
+TIMEOUTS_S = {"gyro": 60.0, "accel": 300.0, "mag": 180.0}
+CHANNELS = {"gyro": Channel.GYRO, "accel": Channel.ACCEL, "mag": Channel.MAG}
+
+
+def add_parser(sub: Any) -> None:
+    cal = sub.add_parser(
+        "calibrate", help="calibrate a board's gyro, accelerometer or magnetometer",
+        description="Run a calibration procedure on the board in PROFILE (real, or emulated "
+        "with --emulate calibration: the simulator performs the motions), print the result "
+        "and its quality, and store it in the profile (atomically; the old file is kept as "
+        "PROFILE.bak and the replaced record under calibration.previous).",
+    )
+    cal.add_argument("procedure", nargs="?", choices=["gyro", "accel", "mag"],
+                     help="gyro: offsets at rest; accel: six positions; mag: figure of 8")
+    cal.add_argument("profile", nargs="?", help="board profile YAML")
+    cal.add_argument("--show", metavar="PROFILE", help="print the calibration stored in PROFILE")
+    cal.add_argument("--device", metavar="NAME", help="device to calibrate (default: the only "
+                     "one with the channel)")
+    cal.add_argument("--emulate", metavar="SCENARIO", help="emulated board flying SCENARIO "
+                     "(use 'calibration'); its chips get their datasheet error models")
+    cal.add_argument("--ideal", action="store_true", help="with --emulate: chips without errors")
+    cal.add_argument("--seed", type=int, help="seed of the simulated world and sensor errors")
+    cal.add_argument("--timeout", type=float, metavar="SECONDS",
+                     help="give up after this long (default: gyro 60, accel 300, mag 180; "
+                     "emulated: the scenario's length)")
+    cal.add_argument("--samples", type=int, metavar="N",
+                     help="readings averaged (gyro default 100, accel per position 250)")
+    cal.add_argument("--misalignment", action="store_true",
+                     help="accel: also fit the full 3x3 misalignment by least squares")
+    cal.add_argument("--method", choices=["ellipsoid", "minmax"], default="ellipsoid",
+                     help="mag: ellipsoid fit (hard + full soft iron) or the seed's min/max")
+    cal.add_argument("--field", type=float, metavar="UT",
+                     help="mag: local field strength in uT (default: fitted)")
+    cal.add_argument("--at-startup", action="store_true",
+                     help="gyro: also re-measure the offsets at every start-up")
+    cal.add_argument("--dry-run", action="store_true", help="print the result, write nothing")
+    cal.set_defaults(func=cmd_calibrate, _parser=cal)
+
+
+def cmd_calibrate(args: argparse.Namespace, registry: Registry) -> int:
+    if args.show:
+        return show(Path(args.show), registry, sys.stdout)
+    if args.procedure is None or args.profile is None:
+        args._parser.error("give a procedure and a PROFILE (or --show PROFILE)")
+    path = Path(args.profile)
+    profile = load_profile(path, registry)
+    channel = CHANNELS[args.procedure]
+    device = pick_device(profile, registry, channel, args.device)
+    cfg = profile.devices[device]
+    chip_to_body = parse_mount(profile.board_to_body) @ parse_mount(cfg.mount)
+    err = sys.stderr
+    where = f"emulated, scenario '{args.emulate}'" if args.emulate else "real hardware"
+    print(f"calibrating {args.procedure} of {device} ({cfg.driver}) in {profile.name} ({where})",
+          file=err)
+    reporter = _Reporter(err)
+    proc: Any
+    if args.procedure == "gyro":
+        gs = GyroOffsetSettings(**({"samples": args.samples} if args.samples else {}))
+        proc = GyroOffsetProcedure(gs, device=device, progress=reporter)
+    elif args.procedure == "accel":
+        acc = AccelSixSettings(positions=guided_order(chip_to_body),
+                               misalignment=args.misalignment,
+                               **({"samples": args.samples} if args.samples else {}))
+        proc = AccelSixPosition(acc, device=device, progress=reporter,
+                                describe=lambda p: describe_position(p, chip_to_body))
+    else:
+        proc = MagCalibrationProcedure(MagSettings(method=args.method, field_ut=args.field),
+                                       device=device, progress=reporter)
+    timeout = args.timeout
+    if timeout is None:
+        timeout = (registry.scenarios.get(args.emulate).default_duration_s if args.emulate
+                   else TIMEOUTS_S[args.procedure])
+    with open_raw_pipeline(profile, registry, emulate=args.emulate, seed=args.seed,
+                           realtime=False, sensor_errors=False if args.ideal else None
+                           ) as pipeline:
+        for w in pipeline.warnings:
+            print(f"warning: {w}", file=err)
+        binding = binding_for(pipeline, device)
+        try:
+            result = run_procedure(proc, pipeline, timeout)
+        finally:
+            reporter.end_line()
+    stored = cfg.calibration or DeviceCalibration()
+    date = now()
+    if args.procedure == "gyro":
+        record = result.record(stored.gyro, date=date)
+    else:
+        record = result.record(date=date)
+    record = record.model_copy(update={"binding": binding})
+    new = stored.replaced(args.procedure, record)
+    if args.at_startup:
+        new = new.model_copy(update={"gyro_at_startup": GyroStartupSettings()})
+    print(f"{device} {args.procedure} calibration ({record.procedure}):")
+    print(_describe_record(args.procedure, record.model_dump(), indent="  "))
+    if args.dry_run:
+        print("dry run: profile not written", file=err)
+        return 0
+    bak, warnings = write_device_calibration(path, device, new, registry)
+    for w in warnings:
+        print(f"warning: {w}", file=err)
+    print(f"wrote devices.{device}.calibration.{args.procedure} to {path}"
+          + (f" (previous file kept as {bak})" if bak else ""), file=err)
+    return 0
+
+
+class _Reporter:
+    """Prints procedure progress: instructions and retries on their own lines, progress as one
+    updating line on a terminal (every quarter otherwise)."""
+
+    def __init__(self, out: TextIO) -> None:
+        self.out = out
+        self.tty = out.isatty()
+        self._open = False
+        self._last_quarter: tuple[str, int] | None = None
+
+    def __call__(self, p: Progress) -> None:
+        if p.kind is ProgressKind.PROGRESS:
+            frac = p.fraction or 0.0
+            if self.tty:
+                bar = "#" * int(20 * frac)
+                print(f"\r  [{bar:<20}] {p.message}", end="", file=self.out, flush=True)
+                self._open = True
+                return
+            quarter = (p.step, int(4 * frac))
+            if quarter == self._last_quarter:
+                return
+            self._last_quarter = quarter
+        self.end_line()
+        prefix = {ProgressKind.INSTRUCTION: ">> ", ProgressKind.RETRY: "!! "}.get(p.kind, "   ")
+        print(f"{prefix}{p.message}", file=self.out, flush=True)
+
+    def end_line(self) -> None:
+        if self._open:
+            print(file=self.out)
+            self._open = False
+
+
+# --------------------------------------------------------------------------- --show
+def show(path: Path, registry: Registry, out: TextIO) -> int:
+    profile = load_profile(path, registry)
+    any_cal = False
+    for name, dev in profile.devices.items():
+        cal = dev.calibration
+        if cal is None:
+            continue
+        any_cal = True
+        print(f"{name} ({dev.driver} on {dev.bus} at 0x{dev.address:02X}):", file=out)
+        for channel in ("gyro", "accel", "mag"):
+            rec = getattr(cal, channel)
+            if rec is None:
+                continue
+            when = rec.date.isoformat() if rec.date else "undated"
+            print(f"  {channel}: {rec.procedure}, {when}", file=out)
+            print(_describe_record(channel, rec.model_dump(), indent="    "), file=out)
+            b = rec.binding
+            print("    bound to: " + (f"{b.driver} at {b.bus}/0x{b.address:02X} ({b.identity}, "
+                                       f"calibration version {b.calibration_version})"
+                                       if b else "any chip (no binding)"), file=out)
+        if cal.gyro_at_startup is not None:
+            state = "on" if cal.gyro_at_startup.enabled else "off"
+            print(f"  gyro offsets at start-up: {state} ({cal.gyro_at_startup.samples} "
+                  "samples)", file=out)
+        if cal.previous is not None:
+            kept = [c for c in ("gyro", "accel", "mag") if getattr(cal.previous, c) is not None]
+            print(f"  previous records kept: {', '.join(kept)}", file=out)
+    if not any_cal:
+        print(f"{path}: no calibration stored; run `imuhal calibrate gyro|accel|mag {path}`",
+              file=out)
+    return 0
+
+
+def _vec(v: Any, unit_scale: float = 1.0, fmt: str = "+.4f") -> str:
+    return "(" + ", ".join(format(float(x) / unit_scale, fmt) for x in v) + ")"
+
+
+def _describe_record(channel: str, rec: dict[str, Any], indent: str) -> str:
+    lines = []
+    if channel == "gyro":
+        lines.append(f"offset: {_vec(rec['offset_rad_s'], DEG)} deg/s")
+        lines.append(f"scale: {_vec(rec['scale'], fmt='.5f')}")
+    elif channel == "accel":
+        lines.append(f"offset: {_vec(rec['offset_m_s2'], MG, '+.2f')} mg")
+        lines.append(f"scale: {_vec(rec['scale'], fmt='.5f')}")
+        m = np.asarray(rec["misalignment"])
+        if not np.allclose(m, np.eye(3)):
+            lines += [f"misalignment: {_vec(row, fmt='+.5f')}" for row in m]
+    else:
+        lines.append(f"hard iron: {_vec(rec['hard_iron_ut'], fmt='+.2f')} uT")
+        lines += [f"soft iron: {_vec(row, fmt='+.4f')}" for row in rec["soft_iron"]]
+    if rec.get("quality"):
+        lines.append("quality: " + ", ".join(f"{k} {v:.4g}" for k, v in rec["quality"].items()))
+    return "\n".join(indent + line for line in lines)
