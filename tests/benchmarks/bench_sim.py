@@ -15,10 +15,11 @@ import numpy as np
 import pytest
 
 from imuhal.core.frames import quat_from_euler_deg, quat_to_matrix
-from imuhal.sim.errors import SensorErrorModel, chip_error_spec
+from imuhal.sim.errors import SensorErrorModel, error_spec_of
 from imuhal.sim.rc_flight import RcFlightScenario
 from imuhal.sim.thermal import ThermalScenario
 from imuhal.sim.world import physical_inputs
+from imuhal_chips.mpu9250.emulator import MPU9250Emulator
 
 PERIOD = 0.005
 
@@ -50,7 +51,7 @@ def test_truth_per_sample(benchmark, cls):
 
 def test_truth_plus_imu_error_model_per_sample(benchmark):
     scenario = ThermalScenario(seed=0)
-    model = SensorErrorModel(chip_error_spec("mpu9250"), seed=0)
+    model = SensorErrorModel(error_spec_of(MPU9250Emulator), seed=0)
     clock = iter(np.arange(0.0, 1e6, PERIOD).tolist())
     scenario.truth(scenario.duration_s)
 

@@ -15,15 +15,16 @@ import pytest
 from pydantic import ValidationError
 
 from imuhal.emulation.base import PhysicalInputs
-from imuhal.sim.chip_errors import CHIP_ERROR_SPECS
+from imuhal.plugins.manager import load_registry
 from imuhal.sim.errors import (
     MagErrorSpec,
     ScalarErrorSpec,
     SensorErrorModel,
     SensorErrorSpec,
     VectorErrorSpec,
-    chip_error_spec,
+    error_spec_of,
 )
+from imuhal_chips.mpu9250.emulator import MPU9250Emulator
 
 LEVEL = PhysicalInputs(specific_force_m_s2=(0.0, 0.0, -9.80665),
                        angular_rate_rad_s=(0.0, 0.0, 0.0),
@@ -111,7 +112,7 @@ def test_scalar_noise_bias_and_drift():
 
 
 def test_same_seed_same_output_other_seed_different():
-    spec = chip_error_spec("mpu9250")
+    spec = error_spec_of(MPU9250Emulator)
     a = [o.angular_rate_rad_s for o in run(SensorErrorModel(spec, 11), 50, 0.005)]
     b = [o.angular_rate_rad_s for o in run(SensorErrorModel(spec, 11), 50, 0.005)]
     c = [o.angular_rate_rad_s for o in run(SensorErrorModel(spec, 12), 50, 0.005)]
@@ -147,11 +148,18 @@ def test_cross_axis_diagonal_is_rejected():
         VectorErrorSpec(cross_axis=((0.1, 0, 0), (0, 0, 0), (0, 0, 0)))
 
 
-def test_every_seed_board_chip_has_a_valid_default_spec():
-    assert set(CHIP_ERROR_SPECS) == {"ms5611", "max21100", "max21105", "hmc5883l",
-                                     "mpu9250", "ak8963", "bmp280"}
-    for chip in CHIP_ERROR_SPECS:
-        assert isinstance(chip_error_spec(chip), SensorErrorSpec)
-    assert chip_error_spec("ms5611").pressure.noise_std == pytest.approx(1.2)
-    with pytest.raises(ValueError, match="known"):
-        chip_error_spec("bmp180")
+def test_every_installed_chip_emulator_declares_a_valid_error_spec():
+    registry = load_registry()
+    assert set(registry.emulators.names()) >= {"ms5611", "max21100", "max21105", "hmc5883l",
+                                               "mpu9250", "ak8963", "bmp280"}
+    for name in registry.emulators.names():
+        assert isinstance(error_spec_of(registry.emulators.get(name)), SensorErrorSpec), name
+    assert error_spec_of(registry.emulators.get("ms5611")).pressure.noise_std == \
+        pytest.approx(1.2)
+
+
+def test_an_emulator_without_a_spec_is_ideal():
+    class Ideal:
+        error_spec = None
+
+    assert error_spec_of(Ideal) is None

@@ -31,6 +31,7 @@ from imuhal.core.samples import Channel
 from imuhal.emulation.base import ChipEmulator
 from imuhal_chips.ak8963 import registers as r
 from imuhal_chips.ak8963.decode import asa_factor
+from imuhal_chips.ak8963.error_spec import AK8963_ERROR_SPEC
 
 DEFAULT_ASA = (176, 177, 165)
 """Fuse-ROM adjustment of the emulated part (values from the shared ASA examples)."""
@@ -40,6 +41,7 @@ class AK8963Emulator(ChipEmulator):
     """Register-level stand-in for an AK8963 (standalone or inside an MPU-9250)."""
 
     chip = "ak8963"
+    error_spec = AK8963_ERROR_SPEC
 
     def __init__(self, clock: Clock | None = None, *,
                  asa: tuple[int, int, int] = DEFAULT_ASA) -> None:

@@ -42,6 +42,7 @@ from imuhal_chips.bmp280.compensation import (
     compensate_temperature_int32,
     encode_adc,
 )
+from imuhal_chips.bmp280.error_spec import BMP280_ERROR_SPEC
 
 DEFAULT_PRESSURE_PA = 101325.0
 DEFAULT_TEMPERATURE_DEGC = 25.0
@@ -51,6 +52,7 @@ class BMP280Emulator(ChipEmulator):
     """Register-level stand-in for a BMP280 on I2C or SPI."""
 
     chip = "bmp280"
+    error_spec = BMP280_ERROR_SPEC
 
     def __init__(self, clock: Clock | None = None, *, trim: Trim = DATASHEET_TRIM) -> None:
         super().__init__(clock)

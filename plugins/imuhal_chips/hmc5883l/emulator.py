@@ -32,6 +32,7 @@ from imuhal.core.errors import BusError
 from imuhal.core.samples import Channel
 from imuhal.emulation.base import ChipEmulator, PhysicalInputs
 from imuhal_chips.hmc5883l.decode import data_bytes_from_counts, encode_axis
+from imuhal_chips.hmc5883l.error_spec import HMC5883L_ERROR_SPEC
 from imuhal_chips.hmc5883l.registers import (
     CRA_RATE_SHIFT,
     CRA_WRITABLE,
@@ -66,6 +67,7 @@ class Hmc5883lEmulator(ChipEmulator):
     """HMC5883L at I2C 0x1E; attach it to an EmulatedBus (or the MAX21100 aux bus)."""
 
     chip = "hmc5883l"
+    error_spec = HMC5883L_ERROR_SPEC
 
     def __init__(self, clock: Clock | None = None, *, name: str | None = None) -> None:
         super().__init__(clock)

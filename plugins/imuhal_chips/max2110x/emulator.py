@@ -33,6 +33,7 @@ from imuhal.core.errors import BusError, NackError
 from imuhal.core.samples import Channel
 from imuhal.emulation.base import ChipEmulator, PhysicalInputs
 from imuhal.emulation.bus import EmulatedBus
+from imuhal_chips.max2110x.error_spec import MAX21100_ERROR_SPEC, MAX21105_ERROR_SPEC
 from imuhal_chips.max2110x.registers import (
     ACCEL_ON_MODES,
     ACCEL_RANGE_G,
@@ -321,6 +322,7 @@ class Max21105Emulator(Max2110xEmulator):
     """MAX21105 (WHO_AM_I 0xB4): gyro + accel + temperature at 0x30."""
 
     chip = "max21105"
+    error_spec = MAX21105_ERROR_SPEC
     part = MAX21105
 
 
@@ -328,6 +330,7 @@ class Max21100Emulator(Max2110xEmulator):
     """MAX21100 (WHO_AM_I 0xB2): gyro + accel + temperature at 0x36, aux I2C master."""
 
     chip = "max21100"
+    error_spec = MAX21100_ERROR_SPEC
     part = MAX21100
 
     def __init__(self, clock: Clock | None = None, *, name: str | None = None) -> None:

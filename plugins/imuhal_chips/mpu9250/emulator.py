@@ -40,6 +40,7 @@ from imuhal.core.samples import Channel
 from imuhal.emulation.base import ChipEmulator
 from imuhal.emulation.bus import EmulatedBus
 from imuhal_chips.mpu9250 import registers as r
+from imuhal_chips.mpu9250.error_spec import MPU9250_ERROR_SPEC
 
 SLV4_TRANSACTION_S = 100e-6
 """A single-byte transaction at 400 kHz, address + register + data with (re)starts."""
@@ -54,6 +55,7 @@ class MPU9250Emulator(ChipEmulator):
     """Register-level stand-in for an MPU-9250 (accel, gyro, temperature, aux I2C)."""
 
     chip = "mpu9250"
+    error_spec = MPU9250_ERROR_SPEC
 
     def __init__(self, clock: Clock | None = None, *, name: str = "mpu9250") -> None:
         super().__init__(clock)

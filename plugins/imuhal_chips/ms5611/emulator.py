@@ -40,6 +40,7 @@ from imuhal_chips.ms5611.commands import (
     decode_command,
 )
 from imuhal_chips.ms5611.conversion import Coefficients, encode_raw, with_crc4
+from imuhal_chips.ms5611.error_spec import MS5611_ERROR_SPEC
 
 DATASHEET_COEFFICIENTS = (40127, 36924, 23317, 23282, 33464, 28312)
 """C1..C6 of the datasheet's worked example (p.7)."""
@@ -69,6 +70,7 @@ class MS5611Emulator(ChipEmulator):
     """
 
     chip = "ms5611"
+    error_spec = MS5611_ERROR_SPEC
 
     def __init__(
         self,

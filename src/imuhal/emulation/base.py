@@ -9,8 +9,9 @@ its measurement completes.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, ClassVar
 
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock, SimulatedClock
@@ -40,6 +41,9 @@ class ChipEmulator(ABC):
 
     #: The driver name this emulator stands in for (the registry pairs them by it).
     chip: str = ""
+    #: The chip's datasheet noise and bias figures (fields of imuhal.sim.errors.SensorErrorSpec)
+    #: that the simulator applies to the truth before this emulator encodes it; None: ideal.
+    error_spec: ClassVar[Mapping[str, Any] | None] = None
 
     def __init__(self, clock: Clock | None = None) -> None:
         self.clock: Clock = clock if clock is not None else SimulatedClock()

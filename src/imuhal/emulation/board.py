@@ -7,21 +7,20 @@ The simulation knows the truth in the body frame; each chip sees it in its own s
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
-import numpy as np
-
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import PluginError
 from imuhal.core.frames import FloatArray
-from imuhal.emulation.base import ChipEmulator, PhysicalInputs
+from imuhal.emulation.base import ChipEmulator
 from imuhal.emulation.bus import EmulatedBus
-from imuhal.pipeline.topology import device_order, split_bus_ref
+from imuhal.profile.topology import device_order, split_bus_ref
 from imuhal.plugins.manager import Registry
 from imuhal.profile.model import BoardProfile
+from imuhal.sim.errors import SensorErrorModel, device_seed, error_spec_of
 from imuhal.sim.scenario import Scenario, TruthState
+from imuhal.sim.world import physical_inputs
 
-ErrorModel = Callable[[float, PhysicalInputs], PhysicalInputs]
+DEFAULT_PERIOD_S = 0.004
+"""Sample period assumed for a device's first error-model draw (before it has been polled)."""
 
 
 class EmulatedBoard:
@@ -32,7 +31,7 @@ class EmulatedBoard:
         clock: SimulatedClock,
         scenario: Scenario,
         chip_to_body: dict[str, FloatArray],
-        error_models: dict[str, ErrorModel] | None = None,
+        error_models: dict[str, SensorErrorModel] | None = None,
     ) -> None:
         self.clock = clock
         self.scenario = scenario
@@ -58,9 +57,10 @@ class EmulatedBoard:
             hosts[name] = host
         for name, emulator in self.emulators.items():
             emulator.connect_host(hosts[name])
-        self._sensor_from_body = {n: np.asarray(r).T for n, r in chip_to_body.items()}
+        self._chip_to_body = chip_to_body
         self._errors = error_models or {}
-        self._last_t_ns: int | None = None
+        self._device_t_ns: dict[str, int] = {}
+        self._truth_t_ns: int | None = None
         self.truth: TruthState | None = None
 
     def _bus_for(self, ref: str) -> EmulatedBus:
@@ -75,27 +75,40 @@ class EmulatedBoard:
             )
         return provided[child]
 
-    def update(self, t_ns: int) -> TruthState:
-        """Set every chip's physical inputs to the truth at ``t_ns``."""
-        if t_ns == self._last_t_ns and self.truth is not None:
-            return self.truth
-        t_s = t_ns / 1e9
-        truth = self.scenario.truth(t_s)
-        for name, emulator in self.emulators.items():
-            r = self._sensor_from_body[name]
-            inputs = PhysicalInputs(
-                specific_force_m_s2=_t3(r @ truth.specific_force_body_m_s2),
-                angular_rate_rad_s=_t3(r @ truth.angular_rate_body_rad_s),
-                magnetic_field_ut=_t3(r @ truth.magnetic_field_body_ut),
-                pressure_pa=truth.pressure_pa,
-                temperature_degc=truth.temperature_degc,
-            )
+    def truth_at(self, t_ns: int) -> TruthState:
+        """The scenario's truth at ``t_ns`` (cached for repeated calls at one time)."""
+        if t_ns != self._truth_t_ns or self.truth is None:
+            self.truth = self.scenario.truth(t_ns / 1e9)
+            self._truth_t_ns = t_ns
+        return self.truth
+
+    def update(self, t_ns: int, device: str | None = None) -> TruthState:
+        """Hand ``device`` (default: every chip) its inputs at ``t_ns``: the truth in its
+        sensor frame, through its error model when the board has one for it. The error
+        model's noise bandwidth follows the time since that device's previous update."""
+        truth = self.truth_at(t_ns)
+        for name in (self.emulators if device is None else (device,)):
+            inputs = physical_inputs(truth, self._chip_to_body[name])
             model = self._errors.get(name)
-            emulator.set_physics(model(t_s, inputs) if model else inputs)
-        self._last_t_ns = t_ns
-        self.truth = truth
+            if model is not None:
+                last = self._device_t_ns.get(name)
+                period = (t_ns - last) / 1e9 if last is not None and t_ns > last \
+                    else DEFAULT_PERIOD_S
+                inputs = model.apply(t_ns / 1e9, inputs, period)
+            self._device_t_ns[name] = t_ns
+            self.emulators[name].set_physics(inputs)
         return truth
 
 
-def _t3(v: FloatArray) -> tuple[float, float, float]:
-    return (float(v[0]), float(v[1]), float(v[2]))
+def error_models_for(profile: BoardProfile, registry: Registry, seed: int
+                     ) -> dict[str, SensorErrorModel]:
+    """Each enabled device's datasheet error model (as its emulator declares), seeded per
+    device from the run seed so adding a device does not change the others' noise."""
+    models = {}
+    for name in device_order(profile):
+        driver = profile.devices[name].driver
+        reg = registry.emulators.entries.get(driver)
+        spec = error_spec_of(reg.obj) if reg is not None else None
+        if spec is not None:
+            models[name] = SensorErrorModel(spec, seed=device_seed(seed, name))
+    return models

@@ -22,12 +22,12 @@ from imuhal.core.errors import BusError, ImuhalError, PluginError
 from imuhal.core.frames import FloatArray, parse_mount
 from imuhal.core.samples import Sample, SampleFlag
 from imuhal.drivers.base import DeviceIdentity, Driver
-from imuhal.emulation.board import EmulatedBoard
+from imuhal.emulation.board import EmulatedBoard, error_models_for
 from imuhal.estimation.base import Estimator
 from imuhal.estimation.outputs import Estimate
 from imuhal.pipeline.processing import calibrate, quality_flags, to_body
 from imuhal.pipeline.sinks import Sink
-from imuhal.pipeline.topology import device_order, split_bus_ref
+from imuhal.profile.topology import device_order, split_bus_ref
 from imuhal.plugins.manager import Registry
 from imuhal.profile.model import BoardProfile
 
@@ -138,11 +138,14 @@ class Pipeline:
         seed: int | None = None,
         scenario_params: dict[str, Any] | None = None,
         calibrated: bool = True,
+        sensor_errors: bool | None = None,
     ) -> Pipeline:
         """Open the profile's real buses, or (``emulate=SCENARIO``) an emulated board.
 
         ``calibrated=False`` yields raw sensor-frame samples (no calibration, no mount
-        rotation, no estimators): what calibration procedures measure.
+        rotation, no estimators): what calibration procedures measure. ``sensor_errors``
+        (default: the profile's ``emulation.sensor_errors``) applies each chip's datasheet
+        noise and bias model; False gives ideal chips (quantisation and range only).
         """
         if emulate is None:
             buses = {}
@@ -162,9 +165,12 @@ class Pipeline:
         params = dict(profile.emulation.scenario_params) if emulate == profile.emulation.scenario \
             else {}
         params.update(scenario_params or {})
-        scenario = scenario_cls(params or None,
-                                seed=profile.emulation.seed if seed is None else seed)
-        board = EmulatedBoard(profile, registry, clock, scenario, _chip_to_body(profile))
+        run_seed = profile.emulation.seed if seed is None else seed
+        scenario = scenario_cls(params or None, seed=run_seed)
+        use_errors = profile.emulation.sensor_errors if sensor_errors is None else sensor_errors
+        errors = error_models_for(profile, registry, run_seed) if use_errors else None
+        board = EmulatedBoard(profile, registry, clock, scenario, _chip_to_body(profile),
+                              errors)
         board.update(0)
         return cls(profile, registry, clock=clock, buses=dict(board.buses), board=board,
                    calibrated=calibrated)
@@ -225,7 +231,7 @@ class Pipeline:
                 break
             self.clock.sleep_until(t_ns)
             if self.board is not None:
-                self.board.update(t_ns)
+                self.board.update(t_ns, name)
             dev = self.devices[name]
             try:
                 result = dev.driver.poll(t_ns)

@@ -72,6 +72,9 @@ class EmulationConfig(_Strict):
     scenario: str = "thermal"
     seed: int = 1
     scenario_params: dict[str, Any] = Field(default_factory=dict)
+    sensor_errors: bool = True
+    """Apply each chip's datasheet noise, bias, scale and misalignment model (as its
+    emulator declares); false: ideal chips, limited only by their resolution and range."""
 
 
 class BoardProfile(_Strict):

@@ -35,6 +35,7 @@ enabling the magnetometer does not change the gyro noise.
 from __future__ import annotations
 
 import math
+import zlib
 from dataclasses import replace
 from typing import Any
 
@@ -312,14 +313,25 @@ class SensorErrorModel:
         return np.asarray(ch.gain).reshape(3, 3)
 
 
-def chip_error_spec(chip: str, **overrides: Any) -> SensorErrorSpec:
-    """The datasheet-derived default error spec of ``chip`` (see ``chip_errors``), with any
-    top-level channel replaced by ``overrides`` (e.g. ``mag=None``)."""
-    from imuhal.sim.chip_errors import CHIP_ERROR_SPECS
-
-    try:
-        data = CHIP_ERROR_SPECS[chip]
-    except KeyError:
-        raise ValueError(f"no default error spec for chip {chip!r} "
-                         f"(known: {', '.join(sorted(CHIP_ERROR_SPECS))})") from None
+def error_spec_of(emulator: type[Any], **overrides: Any) -> SensorErrorSpec | None:
+    """The error spec a chip emulator declares (``error_spec``: its datasheet figures, kept
+    with the chip's plugin), with any top-level channel replaced by ``overrides``
+    (e.g. ``mag=None``). None when the emulator declares none (an ideal chip)."""
+    data = getattr(emulator, "error_spec", None)
+    if data is None:
+        return None
     return SensorErrorSpec.model_validate({**data, **overrides})
+
+
+def chip_error_spec(driver: str, **overrides: Any) -> SensorErrorSpec | None:
+    """The error spec declared by the installed emulator of ``driver`` (plugins loaded from
+    entry points), with ``overrides``; None for an ideal chip."""
+    from imuhal.plugins.manager import load_registry
+
+    return error_spec_of(load_registry().emulators.get(driver), **overrides)
+
+
+def device_seed(seed: int, device: str) -> int:
+    """A per-device seed derived from a run seed, stable across runs and Python versions."""
+    return int(np.random.SeedSequence([int(seed), zlib.crc32(device.encode())])
+               .generate_state(1)[0])

@@ -1,0 +1,25 @@
+"""Datasheet noise and bias figures of the BMP280, for the simulator's error model.
+
+Data only: the fields of ``imuhal.sim.errors.SensorErrorSpec`` in SI units (rad/s, m/s^2,
+uT, Pa, degC). Each figure names its source: ``chips.md`` (the project's register-facts
+file), a datasheet figure (recalled from the named document; worth re-checking), or
+``assumed`` (plausible, no source). Tolerances quoted as +-X are read as 3 sigma for the
+``*_std`` per-device draws.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+BMP280_ERROR_SPEC: dict[str, Any] = {
+    "pressure": {
+        "noise_std": 1.3,                 # BMP280 datasheet: RMS noise 1.3 Pa, ultra high
+        # resolution, filter off (chips.md lists only resolution: 0.16 Pa at x16)
+        "bias_std": 100 / 3,              # BMP280 datasheet: absolute accuracy +-1 hPa
+        "temp_coeff": 0.5,                # assumed (datasheet TCO +-1.5 Pa/K)
+    },
+    "temperature": {
+        "noise_std": 0.005,               # assumed (chips.md: 0.005 degC resolution at x1)
+        "bias_std": 0.5 / 3,              # BMP280 datasheet: +-0.5 degC at 25 degC
+    },
+}
