@@ -12,9 +12,9 @@ from imuhal.core.errors import PluginError
 from imuhal.core.frames import FloatArray
 from imuhal.emulation.base import ChipEmulator
 from imuhal.emulation.bus import EmulatedBus
-from imuhal.profile.topology import device_order, split_bus_ref
 from imuhal.plugins.manager import Registry
 from imuhal.profile.model import BoardProfile
+from imuhal.profile.topology import device_order, split_bus_ref
 from imuhal.sim.errors import SensorErrorModel, device_seed, error_spec_of
 from imuhal.sim.scenario import Scenario, TruthState
 from imuhal.sim.world import physical_inputs

@@ -27,9 +27,9 @@ from imuhal.estimation.base import Estimator
 from imuhal.estimation.outputs import Estimate
 from imuhal.pipeline.processing import calibrate, quality_flags, to_body
 from imuhal.pipeline.sinks import Sink
-from imuhal.profile.topology import device_order, split_bus_ref
 from imuhal.plugins.manager import Registry
 from imuhal.profile.model import BoardProfile
+from imuhal.profile.topology import device_order, split_bus_ref
 
 Event = Sample | Estimate
 RECOVERY_BACKOFF_NS = 100_000_000
