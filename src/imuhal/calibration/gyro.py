@@ -79,6 +79,7 @@ class GyroOffsetProcedure(Procedure[GyroOffsetResult]):
         self._resume_ns: int | None = None
         self._result: GyroOffsetResult | None = None
         self._started = False
+        self._only_large = False
 
     def _take(self, sample: Sample) -> bool:
         if not self._started:
@@ -111,6 +112,7 @@ class GyroOffsetProcedure(Procedure[GyroOffsetResult]):
         large = [f"gyro {'xyz'[i]} reads {gyro.mean[i] / DEG:+.2f} deg/s (more than the "
                  f"expected {s.max_offset_dps:g} deg/s)"
                  for i in range(3) if abs(gyro.mean[i]) > s.max_offset_dps * DEG]
+        self._only_large = bool(large) and not problems
         problems += large
         self._gyro, self._accel = [], []
         if not problems:
@@ -130,9 +132,8 @@ class GyroOffsetProcedure(Procedure[GyroOffsetResult]):
     def _fail(self) -> None:
         s = self.settings
         last = self.failures[-1] if self.failures else "no gyro samples arrived"
-        big = any("more than the expected" in f for f in self.failures[-1:])
         advice = ("if the board really was still, this chip's offset is larger than "
-                  f"{s.max_offset_dps:g} deg/s: raise max_offset_dps" if big else
+                  f"{s.max_offset_dps:g} deg/s: raise max_offset_dps" if self._only_large else
                   "put the board on a steady table, do not touch it, and run again")
         raise CalibrationError(
             f"gyro offsets not measured after {self.attempts} attempt(s): {last}", advice,

@@ -1,0 +1,74 @@
+"""Synthetic raw streams for the calibration tests: the simulator's scenarios seen through
+sensor error models with known offsets, scale errors, misalignment, hard and soft iron.
+
+Streams are built straight from the scenario truth and ``SensorErrorModel`` (sensor frame =
+body frame), without register-level emulation, so each procedure test is fast; the CLI tests
+run the real drivers on an emulated board.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import pytest
+
+from imuhal.core.samples import AccelSample, GyroSample, MagSample, Sample
+from imuhal.sim.calibration import CalibrationScenario
+from imuhal.sim.errors import SensorErrorModel, SensorErrorSpec
+from imuhal.sim.scenario import Scenario
+from imuhal.sim.world import physical_inputs
+
+DPS = math.pi / 180.0
+MG = 9.80665e-3
+
+# A board with large, known errors (well beyond a typical part, so recovering them means
+# something). Scale errors are fractions; cross-axis terms make the misalignment.
+GYRO_BIAS_DPS = (0.8, -1.2, 0.5)
+ACCEL_BIAS_MG = (40.0, -25.0, 60.0)
+ACCEL_SCALE = (0.02, -0.015, 0.01)
+ACCEL_CROSS = ((0.0, 0.01, -0.005), (0.004, 0.0, 0.008), (-0.006, 0.003, 0.0))
+HARD_IRON_UT = (20.0, -15.0, 35.0)
+SOFT_IRON = ((1.05, 0.03, 0.01), (0.03, 0.97, -0.02), (0.01, -0.02, 1.02))
+
+BOARD_ERRORS = SensorErrorSpec.model_validate({
+    "gyro": {"noise_density": 0.005 * DPS, "bias": tuple(b * DPS for b in GYRO_BIAS_DPS)},
+    "accel": {"noise_density": 150e-6 * 9.80665, "bias": tuple(b * MG for b in ACCEL_BIAS_MG),
+              "scale_factor_error": ACCEL_SCALE, "cross_axis": ACCEL_CROSS},
+    "mag": {"noise_std": 0.2, "hard_iron_ut": HARD_IRON_UT, "soft_iron": SOFT_IRON},
+})
+
+
+def make_stream(scenario: Scenario, spec: SensorErrorSpec = BOARD_ERRORS, *, t0: float = 0.0,
+                t1: float | None = None, rate_hz: float = 250.0, mag_every: int = 3,
+                seed: int = 11, device: str = "imu",
+                transform: Callable[[float, Any], Any] | None = None) -> list[Sample]:
+    """Raw sensor-frame samples: accel and gyro at ``rate_hz``, mag every ``mag_every``-th
+    step. ``transform(t_s, inputs)`` may alter the measured inputs (e.g. a disturbance)."""
+    model = SensorErrorModel(spec, seed=seed)
+    period = 1.0 / rate_hz
+    end = t1 if t1 is not None else getattr(scenario, "default_duration_s", 60.0)
+    out: list[Sample] = []
+    for i, t in enumerate(np.arange(t0, end, period)):
+        meas = model.apply(float(t), physical_inputs(scenario.truth(float(t))), period)
+        if transform is not None:
+            meas = transform(float(t), meas)
+        t_ns = round(t * 1e9)
+        out.append(AccelSample(t_ns=t_ns, device=device, accel_m_s2=meas.specific_force_m_s2))
+        out.append(GyroSample(t_ns=t_ns, device=device, gyro_rad_s=meas.angular_rate_rad_s))
+        if i % mag_every == 0:
+            out.append(MagSample(t_ns=t_ns, device=device, mag_ut=meas.magnetic_field_ut))
+    return out
+
+
+@pytest.fixture(scope="session")
+def calibration_scenario() -> CalibrationScenario:
+    return CalibrationScenario(seed=3)
+
+
+@pytest.fixture(scope="session")
+def calibration_run(calibration_scenario: CalibrationScenario) -> list[Sample]:
+    """The whole calibration scenario (six positions, then the figure of 8) on the board."""
+    return make_stream(calibration_scenario)
