@@ -44,6 +44,8 @@ class DeviceRuntime:
     calibration: DeviceCalibration | None
     next_poll_ns: int = 0
     bus_errors: int = 0
+    device_errors: int = 0
+    warned: set[str] = field(default_factory=set)
     samples: int = 0
     flagged: Counter[str] = field(default_factory=Counter)
 
@@ -64,6 +66,7 @@ class RunSummary:
     samples: dict[str, int]
     flagged: dict[str, dict[str, int]]
     bus_errors: dict[str, int]
+    device_errors: dict[str, int]
     estimates: dict[str, int]
     warnings: list[str]
 
@@ -73,7 +76,9 @@ class RunSummary:
             bad = sum(self.flagged.get(dev, {}).values())
             extra = f", {bad} flagged {dict(self.flagged[dev])}" if bad else ""
             errs = self.bus_errors.get(dev, 0)
-            lines.append(f"  {dev}: {n} samples{extra}" + (f", {errs} bus errors" if errs else ""))
+            faults = self.device_errors.get(dev, 0)
+            lines.append(f"  {dev}: {n} samples{extra}" + (f", {errs} bus errors" if errs else "")
+                         + (f", {faults} device errors" if faults else ""))
         for est, n in self.estimates.items():
             lines.append(f"  {est}: {n} estimates")
         lines += [f"  warning: {w}" for w in self.warnings]
@@ -240,6 +245,12 @@ class Pipeline:
                 dev.bus_errors += 1
                 dev.driver.health.bus_errors += 1
                 samples, next_ns = [], self._recover(dev, t_ns)
+            except ImuhalError as exc:
+                # A driver that found its chip gone or misconfigured mid-run: the device is
+                # recovered like after a bus error; the run goes on for the others.
+                dev.device_errors += 1
+                self._warn_once(dev, type(exc).__name__, f"{dev.name}: {exc}")
+                samples, next_ns = [], self._recover(dev, t_ns)
             for raw in samples:
                 yield from self._process(dev, raw)
             heapq.heappush(heap, (max(next_ns, t_ns + 1), order[name], name))
@@ -248,8 +259,16 @@ class Pipeline:
         try:
             return dev.driver.recover(t_ns)
         except ImuhalError as exc:
-            self.warnings.append(f"{dev.name}: recovery failed at t={t_ns / 1e9:.3f} s: {exc}")
+            self._warn_once(dev, "recovery", f"{dev.name}: recovery failed (first at "
+                            f"t={t_ns / 1e9:.3f} s, retrying every "
+                            f"{RECOVERY_BACKOFF_NS / 1e9:g} s): {exc}")
             return t_ns + RECOVERY_BACKOFF_NS
+
+    def _warn_once(self, dev: DeviceRuntime, key: str, message: str) -> None:
+        """Record a device's warning of one kind once, not at every retry."""
+        if key not in dev.warned:
+            dev.warned.add(key)
+            self.warnings.append(message)
 
     def _process(self, dev: DeviceRuntime, raw: Sample) -> Iterator[Event]:
         flags = quality_flags(raw)
@@ -312,6 +331,7 @@ class Pipeline:
             samples={n: d.samples for n, d in self.devices.items()},
             flagged={n: dict(d.flagged) for n, d in self.devices.items()},
             bus_errors={n: d.bus_errors for n, d in self.devices.items()},
+            device_errors={n: d.device_errors for n, d in self.devices.items()},
             estimates={e.name: e.outputs for e in self.estimators},
             warnings=list(self.warnings),
         )
