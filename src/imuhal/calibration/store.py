@@ -138,10 +138,12 @@ def _block_end(lines: list[str], start: int, key_col: int) -> int:
     column ``key_col`` (0-based): lines indented deeper than the key belong to it."""
     last = start
     for i in range(start + 1, len(lines)):
-        if not _is_content(lines[i]):
+        if not lines[i].strip():
             continue
         if _indent(lines[i]) <= key_col:
-            break
+            if _is_content(lines[i]):
+                break
+            continue  # a comment at the key's level may introduce the next key: look on
         last = i
     return last + 1
 
