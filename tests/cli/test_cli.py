@@ -93,3 +93,22 @@ def test_the_default_run_of_60_s_finishes_when_not_paced() -> None:
                              "--quiet"], capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
     assert "ran 60.0 s" in result.stderr
+
+
+def test_run_records_ground_truth_at_the_output_timestamps(tmp_path: Path) -> None:
+    out, truth = tmp_path / "est.csv", tmp_path / "truth.csv"
+    assert main(["run", "--emulate", "elevator", "--duration", "2", "--output", str(out),
+                 "--truth", str(truth), "--quiet"]) == 0
+    est_times = sorted({r["t_s"] for r in csv.DictReader(out.open())})
+    lines = [li for li in truth.read_text().splitlines() if not li.startswith("#")]
+    truth_rows = list(csv.DictReader(lines))
+    assert len(truth_rows) == len(est_times)
+    assert [f"{float(r['t_s']):.6f}" for r in truth_rows] == est_times
+
+
+def test_truth_is_refused_for_real_hardware(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["run", str(default_profile_path()), "--truth", str(tmp_path / "t.csv"),
+                 "--duration", "1", "--quiet"]) == 2
+    assert "--truth needs an emulated run" in capsys.readouterr().err

@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from imuhal import __version__
+from imuhal.core.errors import ImuhalError
 from imuhal.plugins.manager import Registry
 from imuhal.profile.loader import load_profile
 from imuhal.profiles_dir import default_profile_path
@@ -31,13 +32,16 @@ def add_parser(sub: Any) -> None:
     run.add_argument("--output", metavar="FILE.csv", help="write estimates to a CSV file")
     run.add_argument("--samples", action="store_true",
                      help="with --output, also write every sample (flagged ones included)")
+    run.add_argument("--truth", metavar="FILE.csv",
+                     help="emulated runs: write the simulated ground truth at the same "
+                     "timestamps as the --output rows (docs/simulation.md)")
     run.add_argument("--seed", type=int, help="seed of the simulated world (default: profile's)")
     run.add_argument("--quiet", action="store_true", help="no live status line")
     run.set_defaults(func=cmd_run)
 
 
 def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
-    from imuhal.pipeline import ConsoleSink, CsvSink, Pipeline
+    from imuhal.pipeline import ConsoleSink, CsvSink, Pipeline, TruthSink
 
     path = Path(args.profile) if args.profile else default_profile_path()
     profile = load_profile(path, registry)
@@ -45,6 +49,9 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     if args.profile is None and emulate is None:
         emulate = profile.emulation.scenario
     realtime = args.realtime or emulate is None  # real buses always run in real time
+    if args.truth and emulate is None:
+        raise ImuhalError("--truth needs an emulated run (--emulate SCENARIO): real "
+                          "hardware has no ground truth")
     duration = args.duration
     if duration is None and emulate is not None:
         duration = registry.scenarios.get(emulate).default_duration_s
@@ -61,6 +68,11 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
         if args.output:
             csv_sink = CsvSink(args.output, include_samples=args.samples)
             sinks.append(csv_sink)
+        truth_sink = None
+        if args.truth and pipeline.board is not None:
+            truth_sink = TruthSink(args.truth, pipeline.board.scenario,
+                                   include_samples=args.samples)
+            sinks.append(truth_sink)
         try:
             summary = pipeline.run(duration, sinks)
         except KeyboardInterrupt:
@@ -69,4 +81,6 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     print(summary.describe(), file=sys.stderr)
     if csv_sink is not None:
         print(f"wrote {csv_sink.rows} rows to {args.output}", file=sys.stderr)
+    if truth_sink is not None:
+        print(f"wrote {truth_sink.rows} truth rows to {args.truth}", file=sys.stderr)
     return 0

@@ -26,6 +26,8 @@ from imuhal.core.samples import (
     TemperatureSample,
 )
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate, VerticalEstimate
+from imuhal.sim.scenario import Scenario
+from imuhal.sim.truth_csv import record_truth
 
 Event = Sample | Estimate
 
@@ -135,6 +137,32 @@ class CsvSink:
         if self._out is not None:
             self._out.abort()
             self._out = None
+
+
+class TruthSink:
+    """Records the simulated ground truth at the timestamps of the run's estimates (all
+    events with ``include_samples``), written atomically as the documented truth CSV
+    (docs/simulation.md) when the run closes, for computing any estimator's error."""
+
+    def __init__(self, path: str | os.PathLike[str], scenario: Scenario, *,
+                 include_samples: bool = False) -> None:
+        self.path = Path(path)
+        self.scenario = scenario
+        self.include_samples = include_samples
+        self._times_ns: list[int] = []
+
+    def handle(self, event: Event) -> None:
+        if isinstance(event, Sample) and not self.include_samples:
+            return
+        if not self._times_ns or self._times_ns[-1] != event.t_ns:
+            self._times_ns.append(event.t_ns)
+
+    @property
+    def rows(self) -> int:
+        return len(self._times_ns)
+
+    def close(self) -> None:
+        record_truth(self.path, self.scenario, (t / 1e9 for t in self._times_ns))
 
 
 class ConsoleSink:

@@ -8,17 +8,16 @@ read back bit for bit; a missing disturbance is written as empty cells.
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import io
 import json
 import os
-import tempfile
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 import numpy as np
 
+from imuhal.core.atomic import atomic_write_text
 from imuhal.sim.scenario import Scenario, TruthState
 
 FORMAT_LINE = "imuhal-truth v1"
@@ -54,25 +53,6 @@ def _fmt(x: float | str) -> str:
     return x if isinstance(x, str) else repr(float(x))
 
 
-def atomic_write_text(path: str | os.PathLike[str], text: str) -> Path:
-    """Write ``text`` to ``path`` atomically: temp file in the same folder, flush, fsync,
-    ``os.replace``; a crash leaves either the old file or the new one, never half of one."""
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, target)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
-    return target
-
-
 def write_truth_csv(path: str | os.PathLike[str], states: Iterable[TruthState], *,
                     metadata: Mapping[str, object] | None = None) -> Path:
     """Write truth states (in the given order) to ``path`` atomically."""
@@ -87,6 +67,7 @@ def write_truth_csv(path: str | os.PathLike[str], states: Iterable[TruthState], 
     w.writerow(COLUMNS)
     for s in states:
         w.writerow([_fmt(x) for x in truth_row(s)])
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
     return atomic_write_text(path, buf.getvalue())
 
 
