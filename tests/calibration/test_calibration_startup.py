@@ -1,0 +1,65 @@
+"""Gyro offsets re-measured at start-up (``gyro_at_startup``): the measured offsets replace
+the stored ones in memory only, events then flow calibrated in the body frame; a board that
+never stays still keeps the stored offsets with a warning."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from imuhal.calibration.session import open_raw_pipeline
+from imuhal.calibration.startup import events_with_startup_gyro
+from imuhal.core.samples import Frame, GyroSample
+from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.loader import parse_profile
+from imuhal.sim.errors import SensorErrorSpec
+
+DATA = Path(__file__).resolve().parent.parent / "data" / "calibration"
+DPS = math.pi / 180.0
+BIAS_DPS = (1.5, -0.7, 0.9)
+SPEC = SensorErrorSpec.model_validate(
+    {"gyro": {"noise_density": 0.005 * DPS, "bias": tuple(b * DPS for b in BIAS_DPS)}})
+STARTUP = """    calibration:
+      gyro: {offset_rad_s: [0.1, 0.1, 0.1]}
+      gyro_at_startup: {samples: 100, retry_wait_s: 0.5, max_attempts: 2}
+"""
+
+
+@pytest.fixture(scope="module")
+def chips() -> Registry:
+    return load_registry()
+
+
+def _profile(chips: Registry):  # type: ignore[no-untyped-def]
+    text = (DATA / "seed-board.yaml").read_text()
+    text = text.replace('    address: 0          # chip select 0\n    mount: "-Y-X-Z"\n',
+                        '    address: 0          # chip select 0\n    mount: "-Y-X-Z"\n' + STARTUP)
+    return parse_profile(text, "startup.yaml", chips)
+
+
+def test_offsets_measured_at_start_up_replace_the_stored_ones(chips: Registry) -> None:
+    with open_raw_pipeline(_profile(chips), chips, emulate="static",
+                           error_specs={"imu": SPEC}) as p:
+        p.calibrated = True
+        events = list(events_with_startup_gyro(p, 3.0))
+        stored = p.devices["imu"].calibration.gyro  # type: ignore[union-attr]
+    assert stored is not None and stored.procedure == "gyro-at-startup"
+    assert np.abs(np.array(stored.offset_rad_s) / DPS - BIAS_DPS).max() < 0.05
+    gyros = [e for e in events if isinstance(e, GyroSample)]
+    assert gyros and all(g.frame is Frame.BODY_NED for g in gyros)
+    assert gyros[0].t_ns >= 0.39e9  # the first 100 samples at 250 Hz went to the measurement
+    mean = np.mean([g.gyro_rad_s for g in gyros], axis=0) / DPS
+    assert np.abs(mean).max() < 0.05  # at rest, calibrated: no rate left
+
+
+def test_a_board_that_never_stays_still_keeps_the_stored_offsets(chips: Registry) -> None:
+    with open_raw_pipeline(_profile(chips), chips, emulate="tumble",
+                           scenario_params={"hold_s": 0.0}, error_specs={"imu": SPEC}) as p:
+        p.calibrated = True
+        list(events_with_startup_gyro(p, 3.0))
+        stored = p.devices["imu"].calibration.gyro  # type: ignore[union-attr]
+    assert stored is not None and stored.offset_rad_s == (0.1, 0.1, 0.1)
+    assert any("start-up gyro offsets not measured" in w for w in p.warnings)
