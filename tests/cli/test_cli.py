@@ -112,3 +112,21 @@ def test_truth_is_refused_for_real_hardware(
     assert main(["run", str(default_profile_path()), "--truth", str(tmp_path / "t.csv"),
                  "--duration", "1", "--quiet"]) == 2
     assert "--truth needs an emulated run" in capsys.readouterr().err
+
+
+def test_trace_logs_every_bus_transaction(tmp_path: Path) -> None:
+    trace = tmp_path / "bus.txt"
+    assert main(["run", "--duration", "0.1", "--trace", str(trace), "--quiet"]) == 0
+    lines = trace.read_text().splitlines()
+    assert any(" @01 W:a2 R:" in li for li in lines)  # MS5611 PROM word 1 on chip select 1
+    # MAX21100 WHO_AM_I: 0x20 | 0x80 (read) | 0x40 (single register, no auto-increment)
+    assert any(" @00 W:e0 R:b2" in li for li in lines)
+
+
+def test_trace_is_written_even_when_the_board_cannot_be_opened(tmp_path: Path) -> None:
+    trace = tmp_path / "bus.txt"
+    profile = tmp_path / "hw.yaml"
+    profile.write_text(default_profile_path().read_text().replace("bus: 0\n", "bus: 97\n"))
+    assert main(["run", str(profile), "--duration", "0.1", "--trace", str(trace),
+                 "--quiet"]) == 2
+    assert trace.exists()

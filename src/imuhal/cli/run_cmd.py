@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 from pathlib import Path
 from typing import Any
 
 from imuhal import __version__
+from imuhal.bus.spy import format_transfer
+from imuhal.core.atomic import AtomicFile
 from imuhal.core.errors import ImuhalError
 from imuhal.plugins.manager import Registry
 from imuhal.profile.loader import load_profile
@@ -35,6 +38,8 @@ def add_parser(sub: Any) -> None:
     run.add_argument("--truth", metavar="FILE.csv",
                      help="emulated runs: write the simulated ground truth at the same "
                      "timestamps as the --output rows (docs/simulation.md)")
+    run.add_argument("--trace", metavar="FILE.txt",
+                     help="log every bus transaction (time, bus, address, bytes) to a file")
     run.add_argument("--seed", type=int, help="seed of the simulated world (default: profile's)")
     run.add_argument("--quiet", action="store_true", help="no live status line")
     run.set_defaults(func=cmd_run)
@@ -61,8 +66,15 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     if not args.quiet:
         sinks.append(ConsoleSink(sys.stdout))
     csv_sink = None
-    with Pipeline.open(profile, registry, emulate=emulate, realtime=realtime,
-                       seed=args.seed) as pipeline:
+    trace_file = AtomicFile(args.trace) if args.trace else None
+    trace = (lambda t: trace_file.write(format_transfer(t) + "\n")) if trace_file else None
+    with contextlib.ExitStack() as stack:
+        if trace_file is not None:
+            # Committed even when opening the board fails: the trace of a failed probe is
+            # exactly what a bug report needs.
+            stack.callback(trace_file.commit)
+        pipeline = stack.enter_context(Pipeline.open(
+            profile, registry, emulate=emulate, realtime=realtime, seed=args.seed, trace=trace))
         for w in pipeline.warnings:
             print(f"warning: {w}", file=sys.stderr)
         if args.output:

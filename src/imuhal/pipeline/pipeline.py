@@ -11,11 +11,12 @@ from __future__ import annotations
 import heapq
 import time
 from collections import Counter
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 from imuhal.bus.base import Bus, Link
+from imuhal.bus.spy import SpyBus, Transfer
 from imuhal.calibration.model import DeviceCalibration
 from imuhal.core.clock import Clock, MonotonicClock, SimulatedClock
 from imuhal.core.errors import BusError, ImuhalError, PluginError
@@ -95,12 +96,14 @@ class Pipeline:
         buses: dict[str, Bus],
         board: EmulatedBoard | None = None,
         calibrated: bool = True,
+        trace: Callable[[Transfer], None] | None = None,
     ) -> None:
         self.profile = profile
         self.calibrated = calibrated
         self.registry = registry
         self.clock = clock
-        self.buses = dict(buses)
+        self.buses = dict(buses) if trace is None else {
+            name: SpyBus(bus, trace, clock) for name, bus in buses.items()}
         self.board = board
         self.warnings: list[str] = []
         self.devices: dict[str, DeviceRuntime] = {}
@@ -144,6 +147,7 @@ class Pipeline:
         scenario_params: dict[str, Any] | None = None,
         calibrated: bool = True,
         sensor_errors: bool | None = None,
+        trace: Callable[[Transfer], None] | None = None,
     ) -> Pipeline:
         """Open the profile's real buses, or (``emulate=SCENARIO``) an emulated board.
 
@@ -151,6 +155,7 @@ class Pipeline:
         rotation, no estimators): what calibration procedures measure. ``sensor_errors``
         (default: the profile's ``emulation.sensor_errors``) applies each chip's datasheet
         noise and bias model; False gives ideal chips (quantisation and range only).
+        ``trace`` receives every bus transaction (see imuhal.bus.spy).
         """
         if emulate is None:
             buses = {}
@@ -160,7 +165,7 @@ class Pipeline:
                     settings = factory.Settings.model_validate(cfg.plugin_settings())
                     buses[name] = factory.open(name, settings)
                 return cls(profile, registry, clock=MonotonicClock(), buses=buses,
-                           calibrated=calibrated)
+                           calibrated=calibrated, trace=trace)
             except BaseException:
                 for bus in buses.values():
                     bus.close()
@@ -178,7 +183,7 @@ class Pipeline:
                               errors)
         board.update(0)
         return cls(profile, registry, clock=clock, buses=dict(board.buses), board=board,
-                   calibrated=calibrated)
+                   calibrated=calibrated, trace=trace)
 
     def _link(self, bus_ref: str, address: int) -> Link:
         parent, child = split_bus_ref(bus_ref)

@@ -1,0 +1,33 @@
+"""The spy bus records every transaction without changing it."""
+
+from __future__ import annotations
+
+import pytest
+from tests.support.testchip import TC3Emulator
+
+from imuhal.bus.base import BusKind
+from imuhal.bus.spy import SpyBus, Transfer, format_transfer
+from imuhal.core.clock import SimulatedClock
+from imuhal.core.errors import NackError
+from imuhal.emulation.bus import EmulatedBus
+
+
+def _spied() -> tuple[SpyBus, list[Transfer]]:
+    inner = EmulatedBus("emul://i2c", BusKind.I2C)
+    inner.attach(0x19, TC3Emulator())
+    log: list[Transfer] = []
+    return SpyBus(inner, log.append, SimulatedClock(5_000_000)), log
+
+
+def test_a_transaction_passes_through_and_is_recorded() -> None:
+    spy, log = _spied()
+    assert spy.transfer(0x19, b"\x0f", 1) == b"\x5a"
+    assert log == [Transfer(5_000_000, "emul://i2c", 0x19, b"\x0f", b"\x5a")]
+    assert format_transfer(log[0]).endswith("emul://i2c @19 W:0f R:5a")
+
+
+def test_a_failed_transaction_is_recorded_and_still_raises() -> None:
+    spy, log = _spied()
+    with pytest.raises(NackError):
+        spy.transfer(0x18, b"\x0f", 1)
+    assert "ERR:NackError" in format_transfer(log[0])
