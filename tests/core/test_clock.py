@@ -1,0 +1,40 @@
+"""Clocks: a simulated clock jumps, or paces itself against the wall clock when asked."""
+
+from __future__ import annotations
+
+import pytest
+
+from imuhal.core import clock as clock_module
+from imuhal.core.clock import MonotonicClock, SimulatedClock
+
+
+def test_a_simulated_clock_moves_only_forward_when_told() -> None:
+    c = SimulatedClock(100)
+    c.sleep_until(50)
+    assert c.now_ns() == 100
+    c.sleep(0.5)
+    assert c.now_ns() == 500_000_100
+
+
+def test_an_unpaced_simulated_clock_never_sleeps(monkeypatch: pytest.MonkeyPatch) -> None:
+    slept: list[float] = []
+    monkeypatch.setattr(clock_module.time, "sleep", slept.append)
+    SimulatedClock().sleep_until(10_000_000_000)
+    assert slept == []
+
+
+def test_a_paced_simulated_clock_waits_for_the_wall_clock(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    wall = [1_000_000_000]
+    slept: list[float] = []
+    monkeypatch.setattr(clock_module.time, "monotonic_ns", lambda: wall[0])
+    monkeypatch.setattr(clock_module.time, "sleep", slept.append)
+    c = SimulatedClock(realtime=True)
+    wall[0] += 200_000_000  # 0.2 s of wall time passed
+    c.sleep_until(500_000_000)  # simulated 0.5 s: 0.3 s still to wait
+    assert slept == [pytest.approx(0.3)]
+
+
+def test_the_monotonic_clock_starts_near_zero() -> None:
+    assert 0 <= MonotonicClock().now_ns() < 1_000_000_000
