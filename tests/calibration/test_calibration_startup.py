@@ -10,9 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from imuhal.calibration.session import open_raw_pipeline
-from imuhal.calibration.startup import events_with_startup_gyro
 from imuhal.core.samples import Frame, GyroSample
+from imuhal.pipeline import Pipeline
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.loader import parse_profile
 from imuhal.sim.errors import SensorErrorSpec
@@ -41,10 +40,9 @@ def _profile(chips: Registry):  # type: ignore[no-untyped-def]
 
 
 def test_offsets_measured_at_start_up_replace_the_stored_ones(chips: Registry) -> None:
-    with open_raw_pipeline(_profile(chips), chips, emulate="static",
-                           error_specs={"imu": SPEC}) as p:
-        p.calibrated = True
-        events = list(events_with_startup_gyro(p, 3.0))
+    with Pipeline.open(_profile(chips), chips, emulate="static",
+                       error_specs={"imu": SPEC}) as p:
+        events = list(p.events(3.0))
         stored = p.devices["imu"].calibration.gyro  # type: ignore[union-attr]
     assert stored is not None and stored.procedure == "gyro-at-startup"
     assert np.abs(np.array(stored.offset_rad_s) / DPS - BIAS_DPS).max() < 0.05
@@ -56,10 +54,9 @@ def test_offsets_measured_at_start_up_replace_the_stored_ones(chips: Registry) -
 
 
 def test_a_board_that_never_stays_still_keeps_the_stored_offsets(chips: Registry) -> None:
-    with open_raw_pipeline(_profile(chips), chips, emulate="tumble",
-                           scenario_params={"hold_s": 0.0}, error_specs={"imu": SPEC}) as p:
-        p.calibrated = True
-        list(events_with_startup_gyro(p, 3.0))
+    with Pipeline.open(_profile(chips), chips, emulate="tumble",
+                       scenario_params={"hold_s": 0.0}, error_specs={"imu": SPEC}) as p:
+        list(p.events(3.0))
         stored = p.devices["imu"].calibration.gyro  # type: ignore[union-attr]
     assert stored is not None and stored.offset_rad_s == (0.1, 0.1, 0.1)
     assert any("start-up gyro offsets not measured" in w for w in p.warnings)

@@ -18,14 +18,13 @@ from imuhal.calibration.accel import SIX_POSITIONS, Position, position_name
 from imuhal.calibration.errors import CalibrationError
 from imuhal.calibration.model import CalibrationBinding
 from imuhal.calibration.procedure import Procedure
-from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import ImuhalError
-from imuhal.core.frames import FloatArray, parse_mount
+from imuhal.core.frames import FloatArray
 from imuhal.core.samples import Channel, Sample
 from imuhal.pipeline.pipeline import Pipeline
 from imuhal.plugins.manager import Registry
 from imuhal.profile.model import BoardProfile
-from imuhal.sim.errors import SensorErrorModel, SensorErrorSpec, device_seed
+from imuhal.sim.errors import SensorErrorSpec
 
 R = TypeVar("R")
 
@@ -93,27 +92,9 @@ def open_raw_pipeline(
     ``error_specs`` replaces those models by the given specs (device name -> spec; devices
     not named are ideal), for tests that need known offsets, scale errors and iron.
     """
-    if emulate is None or error_specs is None:
-        return Pipeline.open(profile, registry, emulate=emulate, seed=seed, realtime=realtime,
-                             scenario_params=scenario_params, calibrated=False,
-                             sensor_errors=sensor_errors)
-    from imuhal.emulation.board import EmulatedBoard  # here: board imports the pipeline package
-
-    seed = profile.emulation.seed if seed is None else seed
-    clock = SimulatedClock(realtime=realtime)
-    params = dict(profile.emulation.scenario_params) if emulate == profile.emulation.scenario \
-        else {}
-    params.update(scenario_params or {})
-    scenario = registry.scenarios.get(emulate)(params or None, seed=seed)
-    board_to_body = parse_mount(profile.board_to_body)
-    chip_to_body = {n: board_to_body @ parse_mount(d.mount) for n, d in profile.devices.items()
-                    if d.enabled}
-    models = {name: SensorErrorModel(spec, seed=device_seed(seed, name))
-              for name, spec in error_specs.items()}
-    board = EmulatedBoard(profile, registry, clock, scenario, chip_to_body, models)
-    board.update(0)
-    return Pipeline(profile, registry, clock=clock, buses=dict(board.buses), board=board,
-                    calibrated=False)
+    return Pipeline.open(profile, registry, emulate=emulate, seed=seed, realtime=realtime,
+                         scenario_params=scenario_params, calibrated=False,
+                         sensor_errors=sensor_errors, error_specs=error_specs)
 
 
 def run_procedure(procedure: Procedure[R], pipeline: Pipeline,

@@ -7,9 +7,9 @@ keeps its scale and misalignment and only its offsets are replaced, in memory (t
 file is not touched). If the board never stays still within ``max_attempts``, the stored
 offsets are used and a warning says so.
 
-:func:`events_with_startup_gyro` wraps ``Pipeline.events``: during the start-up phase it puts
-the pipeline in raw mode, feeds the gyro procedure and yields nothing; then it installs the
-offsets and yields the pipeline's events as usual.
+:func:`startup_gyro_phase` is applied by ``Pipeline.events`` on its first call: during the
+start-up phase it puts the pipeline in raw mode, feeds the gyro procedure and yields nothing;
+then it installs the offsets and passes the pipeline's events on as usual.
 """
 
 from __future__ import annotations
@@ -36,19 +36,19 @@ def startup_settings(pipeline: Pipeline) -> dict[str, GyroStartupSettings]:
     return out
 
 
-def events_with_startup_gyro(pipeline: Pipeline, duration_s: float | None = None,
-                             progress: ProgressCallback | None = None) -> Iterator[Event]:
-    """``pipeline.events(duration_s)``, preceded by the start-up gyro measurement of every
-    device that asks for it (see the module docstring)."""
+def startup_gyro_phase(pipeline: Pipeline, source: Iterator[Event],
+                       progress: ProgressCallback | None = None) -> Iterator[Event]:
+    """``source`` (the pipeline's event stream), preceded by the start-up gyro measurement
+    of every device that asks for it (see the module docstring)."""
     pending = {name: GyroOffsetProcedure(opt, device=name, progress=progress)
                for name, opt in startup_settings(pipeline).items()}
     if not pending:
-        yield from pipeline.events(duration_s)
+        yield from source
         return
     calibrated = pipeline.calibrated
     pipeline.calibrated = False
     try:
-        for event in pipeline.events(duration_s):
+        for event in source:
             if not pending:
                 yield event
                 continue

@@ -11,7 +11,7 @@ from __future__ import annotations
 import heapq
 import time
 from collections import Counter
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -31,6 +31,7 @@ from imuhal.pipeline.sinks import Sink
 from imuhal.plugins.manager import Registry
 from imuhal.profile.model import BoardProfile
 from imuhal.profile.topology import device_order, split_bus_ref
+from imuhal.sim.errors import SensorErrorModel, SensorErrorSpec, device_seed
 
 Event = Sample | Estimate
 RECOVERY_BACKOFF_NS = 100_000_000
@@ -106,6 +107,7 @@ class Pipeline:
             name: SpyBus(bus, trace, clock) for name, bus in buses.items()}
         self.board = board
         self.warnings: list[str] = []
+        self._started = False
         self.devices: dict[str, DeviceRuntime] = {}
         self.estimators: list[EstimatorRuntime] = []
         board_to_body = parse_mount(profile.board_to_body)
@@ -147,6 +149,7 @@ class Pipeline:
         scenario_params: dict[str, Any] | None = None,
         calibrated: bool = True,
         sensor_errors: bool | None = None,
+        error_specs: Mapping[str, SensorErrorSpec | None] | None = None,
         trace: Callable[[Transfer], None] | None = None,
     ) -> Pipeline:
         """Open the profile's real buses, or (``emulate=SCENARIO``) an emulated board.
@@ -155,6 +158,8 @@ class Pipeline:
         rotation, no estimators): what calibration procedures measure. ``sensor_errors``
         (default: the profile's ``emulation.sensor_errors``) applies each chip's datasheet
         noise and bias model; False gives ideal chips (quantisation and range only).
+        ``error_specs`` (device -> spec; devices not named are ideal) replaces those models,
+        for tests and studies that need known offsets, scale errors and iron.
         ``trace`` receives every bus transaction (see imuhal.bus.spy).
         """
         if emulate is None:
@@ -178,7 +183,11 @@ class Pipeline:
         run_seed = profile.emulation.seed if seed is None else seed
         scenario = scenario_cls(params or None, seed=run_seed)
         use_errors = profile.emulation.sensor_errors if sensor_errors is None else sensor_errors
-        errors = error_models_for(profile, registry, run_seed) if use_errors else None
+        if error_specs is not None:
+            errors = {name: SensorErrorModel(spec, seed=device_seed(run_seed, name))
+                      for name, spec in error_specs.items() if spec is not None}
+        else:
+            errors = error_models_for(profile, registry, run_seed) if use_errors else None
         board = EmulatedBoard(profile, registry, clock, scenario, _chip_to_body(profile),
                               errors)
         board.update(0)
@@ -227,7 +236,21 @@ class Pipeline:
     # -- running ------------------------------------------------------------------------
 
     def events(self, duration_s: float | None = None) -> Iterator[Event]:
-        """Samples (body frame, flagged ones included) and estimates, in time order."""
+        """Samples (body frame, flagged ones included) and estimates, in time order.
+
+        On the first call, devices whose calibration asks for ``gyro_at_startup`` first have
+        their gyro offsets measured while the board is still (imuhal.calibration.startup);
+        that phase is part of ``duration_s`` and yields nothing.
+        """
+        source = self._poll_events(duration_s)
+        if self.calibrated and not self._started:
+            from imuhal.calibration.startup import startup_gyro_phase  # calibration uses us
+
+            source = startup_gyro_phase(self, source)
+        self._started = True
+        yield from source
+
+    def _poll_events(self, duration_s: float | None) -> Iterator[Event]:
         start = self.clock.now_ns()
         end = None if duration_s is None else start + round(duration_s * 1e9)
         heap: list[tuple[int, int, str]] = []
