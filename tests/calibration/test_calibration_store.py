@@ -18,6 +18,7 @@ from imuhal.calibration.model import (
     MagCalibration,
 )
 from imuhal.calibration.store import replace_device_calibration, write_device_calibration
+from imuhal.core import atomic
 from imuhal.profile.loader import parse_profile
 
 PROFILE = """\
@@ -104,7 +105,7 @@ def test_a_crash_between_write_and_rename_leaves_the_old_profile_intact(
             raise KeyboardInterrupt("power cut")  # the new text is written and fsync'ed
         real_replace(src, dst)
 
-    monkeypatch.setattr(store.os, "replace", crash_on_profile)
+    monkeypatch.setattr(atomic.os, "replace", crash_on_profile)
     with pytest.raises(KeyboardInterrupt):
         write_device_calibration(path, "imu", DeviceCalibration(gyro=GYRO))
     assert path.read_text() == PROFILE

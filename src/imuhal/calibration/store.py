@@ -13,10 +13,7 @@ profile under ``calibration.previous``.
 
 from __future__ import annotations
 
-import contextlib
 import math
-import os
-import shutil
 from collections.abc import Mapping, Sequence
 from datetime import datetime
 from pathlib import Path
@@ -26,6 +23,7 @@ import yaml
 
 from imuhal.calibration.errors import CalibrationWriteError
 from imuhal.calibration.model import DeviceCalibration
+from imuhal.core.atomic import atomic_write_bytes
 from imuhal.plugins.manager import Registry
 from imuhal.profile.loader import parse_profile
 from imuhal.profile.yaml_source import load_located
@@ -219,39 +217,9 @@ def atomic_write_text(path: str | Path, text: str, *, backup: bool = True) -> Pa
     bak = None
     if backup and p.exists():
         bak = p.with_name(p.name + ".bak")
-        _write_then_rename(bak, p.read_bytes(), p)
-    _write_then_rename(p, text.encode("utf-8"), p)
+        atomic_write_bytes(bak, p.read_bytes(), mode_from=p)
+    atomic_write_bytes(p, text.encode("utf-8"), mode_from=p)
     return bak
-
-
-def _write_then_rename(target: Path, data: bytes, mode_from: Path) -> None:
-    tmp = target.with_name(f".{target.name}.{os.getpid()}.tmp")
-    try:
-        with open(tmp, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        if mode_from.exists():
-            shutil.copymode(mode_from, tmp)
-        os.replace(tmp, target)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        raise
-    _fsync_dir(target.parent)
-
-
-def _fsync_dir(directory: Path) -> None:
-    try:
-        fd = os.open(directory, os.O_RDONLY)
-    except OSError:  # e.g. Windows: directories cannot be opened; the rename is still atomic
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
 
 
 def write_device_calibration(path: str | Path, device: str, calibration: DeviceCalibration,
