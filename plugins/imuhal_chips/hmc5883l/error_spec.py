@@ -1,11 +1,5 @@
-"""Datasheet noise and bias figures of the HMC5883L, for the simulator's error model.
-
-Data only: the fields of ``imuhal.sim.errors.SensorErrorSpec`` in SI units (rad/s, m/s^2,
-uT, Pa, degC). Each figure names its source: ``chips.md`` (the project's register-facts
-file), a datasheet figure (recalled from the named document; worth re-checking), or
-``assumed`` (plausible, no source). Tolerances quoted as +-X are read as 3 sigma for the
-``*_std`` per-device draws.
-"""
+"""Datasheet noise and bias figures of the HMC5883L for the simulator (data only; units,
+field meanings and the source tags used in the comments: docs/simulation.md)."""
 
 from __future__ import annotations
 
