@@ -1,7 +1,7 @@
 """HMC5883L driver (Honeywell 3-axis magnetometer, I2C 0x1E).
 
 Register facts: HMC5883L datasheet Form 900405 Rev E and Linux hmc5843_core.c, summarised in
-/work/shared/facts/chips.md section 3. Tables in registers.py, decoding in decode.py.
+imuhal's chip-facts notes (chips.md, section 3). Tables in registers.py, decoding in decode.py.
 
 The driver runs the chip in continuous mode and polls at the output rate: per poll it reads
 the status register and, when RDY is set, the six data bytes X, Z, Y in one transaction

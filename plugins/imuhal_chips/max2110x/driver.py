@@ -1,6 +1,6 @@
 """MAX21100 and MAX21105 drivers (Maxim 6-axis IMUs; the MAX21100 adds an aux I2C master).
 
-Register facts: /work/shared/facts/chips.md sections 5 (MAX21105 user guide rev 1.4) and 6
+Register facts: imuhal's chip-facts notes (chips.md) sections 5 (MAX21105 user guide rev 1.4) and 6
 (MAX21100, from four independent code bases; no datasheet). Tables live in registers.py,
 decoding in decode.py; this module only talks to the bus and keeps time.
 

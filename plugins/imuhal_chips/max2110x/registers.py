@@ -1,6 +1,6 @@
 """MAX21100 / MAX21105 register map and setting tables (one family, two parts).
 
-Sources (see /work/shared/facts/chips.md sections 5 and 6):
+Sources (see imuhal's chip-facts notes, chips.md sections 5 and 6):
 - MAX21105: Maxim MAX21105 User Guide rev 1.4 (Jul 2015) and datasheet; har-in-air max21105.c.
 - MAX21100: no Maxim datasheet was found; addresses and fields agree across Kris Winer's
   sketch, AutoQuad max21100.c, har-in-air max21100.c and Hypereal max21100.c. Facts tagged

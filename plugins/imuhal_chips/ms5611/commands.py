@@ -6,7 +6,7 @@ emulator alike.
 
 Source of facts: MS5611-01BA03 datasheet (DA5611-01BA03_011, Fig.4 command table, p.2
 conversion-time table, Fig.5/6 reset sequence), cross-checked against the Linux IIO
-``ms5611_core.c`` and Betaflight drivers; summarised in /work/shared/facts/chips.md section 1.
+``ms5611_core.c`` and Betaflight drivers; summarised in chips.md section 1.
 """
 
 from __future__ import annotations

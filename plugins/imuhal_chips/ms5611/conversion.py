@@ -10,7 +10,7 @@
 
 Source of facts: MS5611-01BA03 datasheet (DA5611-01BA03_011) Fig.2 (first order) and Fig.3
 (second order), AN520 (CRC4), Betaflight ``baro_ms5611_unittest.cc`` (vectors); summarised in
-/work/shared/facts/chips.md section 1 and /work/shared/facts/chip-vectors.json "ms5611".
+imuhal's chip-facts notes (chips.md section 1, chip-vectors.json "ms5611").
 """
 
 from __future__ import annotations

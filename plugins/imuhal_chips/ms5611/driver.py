@@ -12,7 +12,7 @@ chip-select assertion). The MS5611 has no configuration registers: OSR travels i
 convert command.
 
 Source of facts: MS5611-01BA03 datasheet (DA5611-01BA03_011); AN520; Linux IIO
-``ms5611_core.c``; /work/shared/facts/chips.md section 1.
+``ms5611_core.c``; chips.md section 1.
 """
 
 from __future__ import annotations

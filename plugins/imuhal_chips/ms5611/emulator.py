@@ -18,7 +18,7 @@ Physics face: ``physics.pressure_pa`` and ``physics.temperature_degc`` (defaults
 corrupting the PROM changes what a driver reads, not what the sensor element measures.
 
 Source of facts: MS5611-01BA03 datasheet (DA5611-01BA03_011) commands, timing and the
-"ADC read returns 0" rules; /work/shared/facts/chips.md section 1.
+"ADC read returns 0" rules; chips.md section 1.
 """
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""Provenance of the AHRS test slices: cuts them from /work/shared/conformance (run by hand).
+"""Provenance of the AHRS test slices: cuts them from the conformance vectors (run by hand:
+``python make_ahrs_slices.py CONFORMANCE_DIR``, the folder holding inputs/ and outputs/).
 
 Inputs keep the columns the filters need; reference outputs keep the quaternion (and the gate
 flag). Rows 0..N-1 so that a filter started from its documented initial state can be checked
@@ -11,7 +12,6 @@ import csv
 import sys
 from pathlib import Path
 
-SHARED = Path("/work/shared/conformance")
 HERE = Path(__file__).resolve().parent
 N_ROWS = 1400  # 5 s static + 2 s of the motion ramp at 200 Hz
 MID = (6000, 6400)  # large rates, yaw through north
@@ -41,20 +41,23 @@ def _cut(src: Path, dst: Path, cols: list[str], rows: range) -> None:
 
 
 def main() -> None:
+    if len(sys.argv) != 2:
+        sys.exit("usage: make_ahrs_slices.py CONFORMANCE_DIR")
+    conformance = Path(sys.argv[1])
     head = range(N_ROWS)
     mid = range(MID[0], MID[1])
     mid_with_prior = range(MID[0] - 1, MID[1])
-    _cut(SHARED / "inputs/imu_A.csv", HERE / "imu_A_head.csv", INPUT_COLS, head)
-    _cut(SHARED / "inputs/imu_truth.csv", HERE / "imu_A_truth_head.csv", TRUTH_COLS, head)
-    _cut(SHARED / "inputs/imu_A.csv", HERE / "imu_A_mid.csv", INPUT_COLS, mid)
+    _cut(conformance / "inputs/imu_A.csv", HERE / "imu_A_head.csv", INPUT_COLS, head)
+    _cut(conformance / "inputs/imu_truth.csv", HERE / "imu_A_truth_head.csv", TRUTH_COLS, head)
+    _cut(conformance / "inputs/imu_A.csv", HERE / "imu_A_mid.csv", INPUT_COLS, mid)
     for name, cols in OUTPUTS.items():
         prefix = "imufilter" if name.startswith("imufilter") else (
             "hari" if name.startswith("hari") else "madgwick")
         stem = name.removesuffix(".csv")
         if not stem.startswith(prefix):
             stem = f"{prefix}_{stem}"
-        _cut(SHARED / "outputs" / name, HERE / f"{stem}_head.csv", cols, head)
-    _cut(SHARED / "outputs/madgwick_xio_exact_9dof_A.csv",
+        _cut(conformance / "outputs" / name, HERE / f"{stem}_head.csv", cols, head)
+    _cut(conformance / "outputs/madgwick_xio_exact_9dof_A.csv",
          HERE / "madgwick_xio_exact_9dof_A_mid.csv", Q_COLS, mid_with_prior)
 
 
