@@ -70,10 +70,22 @@ ONESHOT_DURATION_NS = 100_000
 ABSENT_SLAVE_BYTE = 0xFF
 """What a one-shot read returns when the slave does not acknowledge (released bus)."""
 
-_GYRO_WORDS = range(Reg.GYRO_X_H, Reg.GYRO_X_H + 6)
-_ACCEL_WORDS = range(Reg.ACC_X_H, Reg.ACC_X_H + 6)
+_GYRO_WORDS = frozenset(range(Reg.GYRO_X_H, Reg.GYRO_X_H + 6))
+_ACCEL_WORDS = frozenset(range(Reg.ACC_X_H, Reg.ACC_X_H + 6))
 _CONFIG_REGS = frozenset({Reg.POWER_CFG, Reg.GYRO_CFG1, Reg.GYRO_CFG2, Reg.PWR_ACC_CFG,
                           Reg.ACC_CFG1})
+_DATA_READY = ((Channel.GYRO, _GYRO_WORDS, Status.GYRO_DR),
+               (Channel.ACCEL, _ACCEL_WORDS, Status.ACC_DR))
+"""Per channel: its data registers and the data-ready bit reading them clears."""
+
+# The bus face runs for every SPI transaction, about 2600 per simulated second on the seed
+# board (each aux byte is five of them); an IntEnum member lookup costs as much as the rest
+# of a register access in CPython, so the hot paths compare against plain ints.
+_I2C_MST_DATA = int(Reg.I2C_MST_DATA)
+_DR_CFG = int(Reg.DR_CFG)
+_I2C_CFG = int(Reg.I2C_CFG)
+_SYSTEM_STATUS = int(Reg.SYSTEM_STATUS)
+_NEVER = float("inf")
 
 
 class Max2110xEmulator(ChipEmulator):
@@ -104,6 +116,7 @@ class Max2110xEmulator(ChipEmulator):
         self._next_ns: dict[Channel, int | None] = {Channel.GYRO: None, Channel.ACCEL: None}
         self._mst_data = 0
         self._mst_pending: tuple[int, int] | None = None
+        self._wake_ns: float = _NEVER
         self.stuck_data_ready = False
         self.power_on_resets += 1
 
@@ -198,9 +211,20 @@ class Max2110xEmulator(ChipEmulator):
                 self._next_ns[channel] = now + round(1e9 / odr)
             else:
                 self._next_ns[channel] = None
+        self._schedule()
+
+    def _schedule(self) -> None:
+        """Note when ``_advance`` next has something to do (a measurement or the end of a
+        one-shot transaction), so the accesses in between skip it."""
+        times = [t for t in self._next_ns.values() if t is not None]
+        if self._mst_pending is not None:
+            times.append(self._mst_pending[0])
+        self._wake_ns = min(times, default=_NEVER)
 
     def _advance(self) -> None:
         now = self.now_ns()
+        if now < self._wake_ns:
+            return
         for channel in (Channel.GYRO, Channel.ACCEL):
             due = self._next_ns[channel]
             if due is None or now < due:
@@ -218,11 +242,13 @@ class Max2110xEmulator(ChipEmulator):
         if self._mst_pending is not None and now >= self._mst_pending[0]:
             self._mst_data = self._mst_pending[1]
             self._mst_pending = None
+        self._schedule()
 
     # --- bus face -------------------------------------------------------------------------
 
     def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes:
-        if kind is BusKind.I2C and self.bank0(Reg.I2C_CFG) & I2C_CFG_I2C_OFF:
+        spi = kind is BusKind.SPI
+        if not spi and self.banks[0][_I2C_CFG] & I2C_CFG_I2C_OFF:
             raise NackError(f"{self.name}: I2C slave disabled (I2C_CFG bit 0)")
         self._advance()
         if not write:
@@ -230,14 +256,14 @@ class Max2110xEmulator(ChipEmulator):
         first = write[0]
         reg = first & ADDRESS_MASK
         increment = not first & NO_INCREMENT_BIT
-        is_read = bool(first & READ_BIT) if kind is BusKind.SPI else read_len > 0
-        if kind is BusKind.SPI and is_read and len(write) > 1:
+        is_read = bool(first & READ_BIT) if spi else read_len > 0
+        if spi and is_read and len(write) > 1:
             raise BusError(f"{self.name}: SPI read with data bytes after the address")
         for value in write[1:]:
             self._write(reg, value)
             reg = self._step(reg, increment)
         if not is_read:
-            return bytes(read_len) if kind is BusKind.SPI else b""
+            return bytes(read_len) if spi else b""
         out = bytearray()
         touched: list[int] = []
         for _ in range(read_len):
@@ -255,7 +281,7 @@ class Max2110xEmulator(ChipEmulator):
         if reg < 0x20:
             if self.bank > 2:
                 return 0
-            if self.part.has_aux_master and self.bank == 0 and reg == Reg.I2C_MST_DATA:
+            if reg == _I2C_MST_DATA and self.bank == 0 and self.part.has_aux_master:
                 return self._mst_data
             return self.banks[self.bank][reg]
         if reg == Reg.WHO_AM_I:
@@ -276,15 +302,18 @@ class Max2110xEmulator(ChipEmulator):
         return 0  # FIFO and unmodelled registers
 
     def _after_read(self, touched: list[int]) -> None:
-        mode = (self.bank0(Reg.DR_CFG) >> DR_CFG_CLEAR_SHIFT) & 0x03
-        if Reg.SYSTEM_STATUS in touched:
+        mode = (self.banks[0][_DR_CFG] >> DR_CFG_CLEAR_SHIFT) & 0x03
+        if _SYSTEM_STATUS in touched:
             if mode == 2:
                 self.status &= ~(Status.GYRO_DR | Status.ACC_DR)
             self.status &= ~(Status.GYRO_ERR | Status.ACC_ERR)
-        for channel, regs, dr in ((Channel.GYRO, _GYRO_WORDS, Status.GYRO_DR),
-                                  (Channel.ACCEL, _ACCEL_WORDS, Status.ACC_DR)):
+        for channel, regs, dr in _DATA_READY:
+            if not self.status & dr:
+                # Nothing to clear, and what was read since the latch no longer matters:
+                # the bit comes back only with the next latch, which forgets it.
+                continue
             seen = self._read_since_latch[channel]
-            seen.update(r for r in touched if r in regs)
+            seen.update(regs.intersection(touched))
             if (mode == 0 and len(seen) == 6) or (mode == 1 and seen):
                 self.status &= ~dr
 
@@ -308,7 +337,7 @@ class Max2110xEmulator(ChipEmulator):
     def _bank0_written(self, reg: int, value: int) -> None:
         if reg in _CONFIG_REGS:
             self._restart_timing()
-        if self.part.has_aux_master and reg == Reg.DR_CFG:
+        if reg == _DR_CFG and self.part.has_aux_master:
             trigger = value & DR_CFG_ONESHOT_MASK
             if trigger == DR_CFG_ONESHOT_WRITE:
                 self._oneshot(write=True)
@@ -355,3 +384,4 @@ class Max21100Emulator(Max2110xEmulator):
                 return
             value = ABSENT_SLAVE_BYTE
         self._mst_pending = (done, value)
+        self._schedule()
