@@ -30,6 +30,8 @@ Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
 Mat3 = tuple[float, float, float, float, float, float, float, float, float]
 """A 3x3 matrix as a row-major 9-tuple."""
+Triple = tuple[float, float, float]
+"""A signal's (value, first derivative, second derivative)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -181,14 +183,22 @@ class FlightMotion(Motion):
         self._tp: list[Vec3] = []
 
     # ------------------------------------------------------------------ attitude + velocity
-    def _attitude(self, t: float) -> tuple[Quat, Vec3]:
-        psi, dpsi, ddpsi = self.yaw(t)
+    def _speeds(self, t: float) -> tuple[Triple | None, Triple | None]:
+        """(speed along the heading, speed along the nose) signals at ``t``, None if absent;
+        evaluated once per time and shared by the bank and the tabulated velocity."""
+        heading = self.speed_along_heading
+        nose = self.speed_along_nose
+        return (None if heading is None else heading(t), None if nose is None else nose(t))
+
+    def _attitude(self, t: float, yaw: Triple, bank_speed: Triple | None) -> tuple[Quat, Vec3]:
+        """Attitude and body rate at ``t`` given the yaw signal's state there and the speed
+        the coordinated bank is computed for."""
+        psi, dpsi, ddpsi = yaw
         th, dth, _ = self.pitch(t)
         ph, dph, _ = self.roll(t)
         if self.coordinated_bank:
-            sig = self.speed_along_heading or self.speed_along_nose
-            assert sig is not None
-            v, dv, _ = sig(t)
+            assert bank_speed is not None
+            v, dv, _ = bank_speed
             x = v * dpsi / self.gravity_m_s2
             ph += math.atan(x)
             dph += (dv * dpsi + v * ddpsi) / self.gravity_m_s2 / (1.0 + x * x)
@@ -210,19 +220,21 @@ class FlightMotion(Motion):
             q = quat_mul(q, right)
         return q, w
 
-    def _tab_velocity(self, t: float, q: Quat, rot: Mat3, w: Vec3) -> tuple[Vec3, Vec3]:
-        """Velocity and acceleration (NED) of the parts without closed-form position."""
+    def _tab_velocity(self, yaw: Triple, heading: Triple | None, nose: Triple | None,
+                      rot: Mat3, w: Vec3) -> tuple[Vec3, Vec3]:
+        """Velocity and acceleration (NED) of the parts without closed-form position, from
+        the states of the yaw and speed signals, the rotation and the body rate."""
         vn = ve = vd = an = ae = ad = 0.0
-        if self.speed_along_heading is not None:
-            v, dv, _ = self.speed_along_heading(t)
-            psi, dpsi, _ = self.yaw(t)
+        if heading is not None:
+            v, dv, _ = heading
+            psi, dpsi, _ = yaw
             c, s = math.cos(psi), math.sin(psi)
             vn += v * c
             ve += v * s
             an += dv * c - v * dpsi * s
             ae += dv * s + v * dpsi * c
-        if self.speed_along_nose is not None:
-            v, dv, _ = self.speed_along_nose(t)
+        if nose is not None:
+            v, dv, _ = nose
             vn += v * rot[0]
             ve += v * rot[3]
             vd += v * rot[6]
@@ -235,8 +247,10 @@ class FlightMotion(Motion):
     # ------------------------------------------------------------------ position quadrature
     def _node(self, k: int) -> tuple[Vec3, Vec3]:
         t = k * self.grid_step_s
-        q, w = self._attitude(t)
-        return self._tab_velocity(t, q, quat_matrix(q), w)
+        yaw = self.yaw(t)
+        heading, nose = self._speeds(t)
+        q, w = self._attitude(t, yaw, heading if heading is not None else nose)
+        return self._tab_velocity(yaw, heading, nose, quat_matrix(q), w)
 
     def _extend_table(self, k_needed: int) -> None:
         h = self.grid_step_s
@@ -267,15 +281,20 @@ class FlightMotion(Motion):
         i11 = -s3 / 3.0 + 0.25 * s4
         v0, a0, v1, a1, p0 = self._tv[k], self._ta[k], self._tv[k + 1], self._ta[k + 1], \
             self._tp[k]
-        return tuple(p0[i] + h * (v0[i] * i00 + h * a0[i] * i10 + v1[i] * i01
-                                  + h * a1[i] * i11) for i in range(3))  # type: ignore[return-value]
+
+        def axis(i: int) -> float:
+            return p0[i] + h * (v0[i] * i00 + h * a0[i] * i10 + v1[i] * i01 + h * a1[i] * i11)
+
+        return axis(0), axis(1), axis(2)
 
     # ------------------------------------------------------------------ public
     def kinematics(self, t_s: float) -> Kinematics:
         if t_s < 0:
             raise ValueError(f"trajectories start at t = 0 s, got {t_s}")
         t = float(t_s)
-        q, w = self._attitude(t)
+        yaw = self.yaw(t)
+        heading, nose = self._speeds(t)
+        q, w = self._attitude(t, yaw, heading if heading is not None else nose)
         rot = quat_matrix(q)
         wn, we, wd = self.wind
         pn, pe, pd = wn * t, we * t, wd * t
@@ -292,7 +311,7 @@ class FlightMotion(Motion):
             else:
                 pd, vd, ad = pd + p, vd + v, ad + a
         if self._tabulated:
-            tv, ta = self._tab_velocity(t, q, rot, w)
+            tv, ta = self._tab_velocity(yaw, heading, nose, rot, w)
             tp = self._tab_position(t)
             pn, pe, pd = pn + tp[0], pe + tp[1], pd + tp[2]
             vn, ve, vd = vn + tv[0], ve + tv[1], vd + tv[2]

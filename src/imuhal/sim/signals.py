@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from bisect import bisect_right
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -52,6 +52,12 @@ class _Tones:
     amplitudes: tuple[float, ...]
     omegas: tuple[float, ...]
     phases: tuple[float, ...]
+    terms: tuple[tuple[float, float, float], ...] = field(init=False)
+    """(amplitude, omega, phase) of each tone, zipped once for the evaluation loop."""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "terms",
+                           tuple(zip(self.amplitudes, self.omegas, self.phases, strict=True)))
 
 
 def _smootherstep(x: float) -> tuple[float, float, float]:
@@ -225,8 +231,17 @@ class Signal:
                 e, e1, e2 = _smootherstep((g.t_off - t) / ramp)
                 e1, e2 = -e1 / ramp, e2 / (ramp * ramp)
             else:
-                e, e1, e2 = 1.0, 0.0, 0.0
-            for amp, w, ph in zip(g.amplitudes, g.omegas, g.phases, strict=True):
+                # Full amplitude, where a run spends nearly all its time: the loop below
+                # with e = 1 and e1 = e2 = 0 written out, which gives the same floats (the
+                # dropped terms are exact zeros) at about half the cost.
+                for amp, w, ph in g.terms:
+                    th = w * t + ph
+                    sn = math.sin(th)
+                    v += amp * sn
+                    r += amp * (w * math.cos(th))
+                    a -= amp * (w * w * sn)
+                continue
+            for amp, w, ph in g.terms:
                 th = w * t + ph
                 sn, cs = math.sin(th), math.cos(th)
                 v += amp * e * sn
