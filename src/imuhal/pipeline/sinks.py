@@ -187,6 +187,8 @@ class ConsoleSink:
         elif isinstance(event, Sample) and not event.valid:
             self.flagged += 1
         t_ns = event.t_ns
+        if self.vertical is None and self.attitude is None:
+            return  # nothing to show yet (e.g. start-up gyro offsets being measured)
         if self.tty:
             now = time.monotonic()
             if now - self._last_wall < 0.2:
