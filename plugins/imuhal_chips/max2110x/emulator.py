@@ -85,6 +85,7 @@ _I2C_MST_DATA = int(Reg.I2C_MST_DATA)
 _DR_CFG = int(Reg.DR_CFG)
 _I2C_CFG = int(Reg.I2C_CFG)
 _SYSTEM_STATUS = int(Reg.SYSTEM_STATUS)
+_GYRO_X_H = int(Reg.GYRO_X_H)
 _NEVER = float("inf")
 
 
@@ -284,22 +285,24 @@ class Max2110xEmulator(ChipEmulator):
             if reg == _I2C_MST_DATA and self.bank == 0 and self.part.has_aux_master:
                 return self._mst_data
             return self.banks[self.bank][reg]
+        if reg >= _GYRO_X_H:  # data words first: they are most of every burst
+            high = reg & ~1
+            if high in self.words or reg < self.part.temp_register + 2:
+                word = self.words.get(high, 0) & 0xFFFF
+                big_endian = not self.banks[0][_I2C_CFG] & I2C_CFG_LITTLE_ENDIAN
+                first_byte = word >> 8 if big_endian else word & 0xFF
+                second_byte = word & 0xFF if big_endian else word >> 8
+                return first_byte if reg == high else second_byte
+            return 0  # FIFO and unmodelled registers
+        if reg == Reg.SYSTEM_STATUS:
+            return self.status
         if reg == Reg.WHO_AM_I:
             return self.who_am_i
         if reg == Reg.REVISION:
             return self.part.revision
         if reg == Reg.BANK_SELECT:
             return self.bank & 0x0F
-        if reg == Reg.SYSTEM_STATUS:
-            return self.status
-        high = reg & ~1
-        if high in self.words or Reg.GYRO_X_H <= reg < self.part.temp_register + 2:
-            word = self.words.get(high, 0) & 0xFFFF
-            big_endian = not self.bank0(Reg.I2C_CFG) & I2C_CFG_LITTLE_ENDIAN
-            first_byte = word >> 8 if big_endian else word & 0xFF
-            second_byte = word & 0xFF if big_endian else word >> 8
-            return first_byte if reg == high else second_byte
-        return 0  # FIFO and unmodelled registers
+        return 0  # unreachable: 0x20..0x23 are the four above
 
     def _after_read(self, touched: list[int]) -> None:
         mode = (self.banks[0][_DR_CFG] >> DR_CFG_CLEAR_SHIFT) & 0x03
