@@ -86,7 +86,17 @@ _DR_CFG = int(Reg.DR_CFG)
 _I2C_CFG = int(Reg.I2C_CFG)
 _SYSTEM_STATUS = int(Reg.SYSTEM_STATUS)
 _GYRO_X_H = int(Reg.GYRO_X_H)
+_ACC_X_H = int(Reg.ACC_X_H)
+_POWER_CFG = int(Reg.POWER_CFG)
+_PWR_ACC_CFG = int(Reg.PWR_ACC_CFG)
 _NEVER = float("inf")
+
+
+def _encode(value: float, per_count: float, limit: int) -> int:
+    """``value`` (SI) in counts of ``per_count``, rounded and clipped to +/-``limit``."""
+    if not math.isfinite(value):
+        return limit if value > 0 else -limit
+    return max(-limit, min(limit, round(value / per_count)))
 
 
 class Max2110xEmulator(ChipEmulator):
@@ -156,34 +166,26 @@ class Max2110xEmulator(ChipEmulator):
             return 32767 / TEMP_LSB_PER_DEGC
         return FULL_SCALE_COUNTS * self.resolution(channel)
 
-    @staticmethod
-    def _encode(value: float, per_count: float, limit: int) -> int:
-        if not math.isfinite(value):
-            return limit if value > 0 else -limit
-        return max(-limit, min(limit, round(value / per_count)))
-
     def _latch(self, channel: Channel) -> None:
         p = self.physics
-        if channel is Channel.GYRO:
-            rate = p.angular_rate_rad_s or (0.0, 0.0, 0.0)
-            k = self.resolution(Channel.GYRO)
-            enabled = self.bank0(Reg.POWER_CFG) & 0x07 if self.part.has_aux_master else 0x07
-            for axis in range(3):
-                counts = self._encode(rate[axis], k, FULL_SCALE_COUNTS)
-                self.words[Reg.GYRO_X_H + 2 * axis] = counts if enabled & (1 << axis) else 0
-            if self.bank0(Reg.DR_CFG) & DR_CFG_TEMP_EN:
-                t = p.temperature_degc if p.temperature_degc is not None else 25.0
-                self.words[self.part.temp_register] = self._encode(
-                    t, 1.0 / TEMP_LSB_PER_DEGC, 32767)
+        bank0 = self.banks[0]
+        gyro = channel is Channel.GYRO
+        if gyro:
+            values, first, enable_reg = p.angular_rate_rad_s, _GYRO_X_H, _POWER_CFG
             dr, err = Status.GYRO_DR, Status.GYRO_ERR
         else:
-            force = p.specific_force_m_s2 or (0.0, 0.0, 0.0)
-            k = self.resolution(Channel.ACCEL)
-            enabled = (self.bank0(Reg.PWR_ACC_CFG) & 0x07) if self.part.has_aux_master else 0x07
-            for axis in range(3):
-                counts = self._encode(force[axis], k, FULL_SCALE_COUNTS)
-                self.words[Reg.ACC_X_H + 2 * axis] = counts if enabled & (1 << axis) else 0
+            values, first, enable_reg = p.specific_force_m_s2, _ACC_X_H, _PWR_ACC_CFG
             dr, err = Status.ACC_DR, Status.ACC_ERR
+        values = values or (0.0, 0.0, 0.0)
+        k = self.resolution(channel)
+        enabled = bank0[enable_reg] & 0x07 if self.part.has_aux_master else 0x07
+        words = self.words
+        for axis in range(3):
+            counts = _encode(values[axis], k, FULL_SCALE_COUNTS)
+            words[first + 2 * axis] = counts if enabled & (1 << axis) else 0
+        if gyro and bank0[_DR_CFG] & DR_CFG_TEMP_EN:
+            t = p.temperature_degc if p.temperature_degc is not None else 25.0
+            words[self.part.temp_register] = _encode(t, 1.0 / TEMP_LSB_PER_DEGC, 32767)
         if self.status & dr:
             self.status |= err  # the previous sample was never read: it is lost
         self.status |= dr
@@ -217,13 +219,16 @@ class Max2110xEmulator(ChipEmulator):
     def _schedule(self) -> None:
         """Note when ``_advance`` next has something to do (a measurement or the end of a
         one-shot transaction), so the accesses in between skip it."""
-        times = [t for t in self._next_ns.values() if t is not None]
-        if self._mst_pending is not None:
-            times.append(self._mst_pending[0])
-        self._wake_ns = min(times, default=_NEVER)
+        wake: float = _NEVER
+        for t in self._next_ns.values():
+            if t is not None and t < wake:
+                wake = t
+        if self._mst_pending is not None and self._mst_pending[0] < wake:
+            wake = self._mst_pending[0]
+        self._wake_ns = wake
 
     def _advance(self) -> None:
-        now = self.now_ns()
+        now = self.clock.now_ns()
         if now < self._wake_ns:
             return
         for channel in (Channel.GYRO, Channel.ACCEL):
@@ -260,9 +265,10 @@ class Max2110xEmulator(ChipEmulator):
         is_read = bool(first & READ_BIT) if spi else read_len > 0
         if spi and is_read and len(write) > 1:
             raise BusError(f"{self.name}: SPI read with data bytes after the address")
+        step = 1 if increment else 0  # the address pointer moves by this after each byte
         for value in write[1:]:
             self._write(reg, value)
-            reg = self._step(reg, increment)
+            reg = (reg + step) & ADDRESS_MASK
         if not is_read:
             return bytes(read_len) if spi else b""
         out = bytearray()
@@ -270,13 +276,9 @@ class Max2110xEmulator(ChipEmulator):
         for _ in range(read_len):
             out.append(self._read(reg))
             touched.append(reg)
-            reg = self._step(reg, increment)
+            reg = (reg + step) & ADDRESS_MASK
         self._after_read(touched)
         return bytes(out)
-
-    @staticmethod
-    def _step(reg: int, increment: bool) -> int:
-        return (reg + 1) & ADDRESS_MASK if increment else reg
 
     def _read(self, reg: int) -> int:
         if reg < 0x20:
@@ -387,4 +389,4 @@ class Max21100Emulator(Max2110xEmulator):
                 return
             value = ABSENT_SLAVE_BYTE
         self._mst_pending = (done, value)
-        self._schedule()
+        self._wake_ns = min(self._wake_ns, done)

@@ -169,18 +169,23 @@ class _VectorChannel:
         self.turn_on_bias = (float(b[0]), float(b[1]), float(b[2]))
         self.walk = [0.0, 0.0, 0.0]
         self.normal = _Normals(rng)
+        # Spec figures read at every sample, copied out of the (slower to read) model once.
+        self._t_ref = spec.reference_temperature_degc
+        self._temp_coeff = spec.bias_temp_coeff
+        self._random_walk = spec.bias_random_walk
+        self._density_sq = spec.noise_density * spec.noise_density
+        self._std_sq = spec.noise_std * spec.noise_std
 
     def bias_at(self, temperature: float | None) -> Vec3:
         """The total bias (constant + thermal + random walk) now."""
-        sp = self.spec
         b = self.turn_on_bias
-        dt = 0.0 if temperature is None else temperature - sp.reference_temperature_degc
-        tc = sp.bias_temp_coeff
+        dt = 0.0 if temperature is None else temperature - self._t_ref
+        tc = self._temp_coeff
         return (b[0] + tc[0] * dt + self.walk[0], b[1] + tc[1] * dt + self.walk[1],
                 b[2] + tc[2] * dt + self.walk[2])
 
     def step(self, elapsed_s: float) -> None:
-        rw = self.spec.bias_random_walk
+        rw = self._random_walk
         if rw and elapsed_s > 0:
             k = rw * math.sqrt(elapsed_s)
             n = self.normal
@@ -193,7 +198,7 @@ class _VectorChannel:
         if not sp.noise_density:
             return sp.noise_std
         bw = sp.bandwidth_hz or 0.5 / period_s
-        return math.sqrt(sp.noise_density * sp.noise_density * bw + sp.noise_std * sp.noise_std)
+        return math.sqrt(self._density_sq * bw + self._std_sq)
 
     def apply(self, v: Vec3, temperature: float | None, period_s: float) -> Vec3:
         g = self.gain

@@ -281,11 +281,9 @@ class FlightMotion(Motion):
         i11 = -s3 / 3.0 + 0.25 * s4
         v0, a0, v1, a1, p0 = self._tv[k], self._ta[k], self._tv[k + 1], self._ta[k + 1], \
             self._tp[k]
-
-        def axis(i: int) -> float:
-            return p0[i] + h * (v0[i] * i00 + h * a0[i] * i10 + v1[i] * i01 + h * a1[i] * i11)
-
-        return axis(0), axis(1), axis(2)
+        return (p0[0] + h * (v0[0] * i00 + h * a0[0] * i10 + v1[0] * i01 + h * a1[0] * i11),
+                p0[1] + h * (v0[1] * i00 + h * a0[1] * i10 + v1[1] * i01 + h * a1[1] * i11),
+                p0[2] + h * (v0[2] * i00 + h * a0[2] * i10 + v1[2] * i01 + h * a1[2] * i11))
 
     # ------------------------------------------------------------------ public
     def kinematics(self, t_s: float) -> Kinematics:
@@ -300,16 +298,15 @@ class FlightMotion(Motion):
         pn, pe, pd = wn * t, we * t, wd * t
         vn, ve, vd = wn, we, wd
         an = ae = ad = 0.0
-        for idx, sig in enumerate((self.north, self.east, self.down)):
-            if sig is None:
-                continue
-            p, v, a = sig(t)
-            if idx == 0:
-                pn, vn, an = pn + p, vn + v, an + a
-            elif idx == 1:
-                pe, ve, ae = pe + p, ve + v, ae + a
-            else:
-                pd, vd, ad = pd + p, vd + v, ad + a
+        if self.north is not None:
+            p, v, a = self.north(t)
+            pn, vn, an = pn + p, vn + v, an + a
+        if self.east is not None:
+            p, v, a = self.east(t)
+            pe, ve, ae = pe + p, ve + v, ae + a
+        if self.down is not None:
+            p, v, a = self.down(t)
+            pd, vd, ad = pd + p, vd + v, ad + a
         if self._tabulated:
             tv, ta = self._tab_velocity(yaw, heading, nose, rot, w)
             tp = self._tab_position(t)
