@@ -150,15 +150,10 @@ def _temperature_terms(c: Coefficients, d2: int) -> tuple[int, int, int]:
     return dt, temp, t2
 
 
-def compensate(coeffs: Coefficients, d1: int, d2: int) -> Compensated:
-    """Raw D1 (pressure) and D2 (temperature) counts -> compensated TEMP and P, datasheet
-    integer arithmetic with floor shifts; second order applies below 20 degC."""
-    c = coeffs
-    dt, temp, t2 = _temperature_terms(c, d2)
+def _offset_terms(c: Coefficients, dt: int, temp: int) -> tuple[int, int, int, int]:
+    """(first-order OFF, first-order SENS, OFF2, SENS2) for dT and the first-order TEMP."""
     off = (c.c2 << 16) + ((c.c4 * dt) >> 7)
     sens = (c.c1 << 15) + ((c.c3 * dt) >> 8)
-    p_1st = _pressure(d1, sens, off)
-
     off2 = sens2 = 0
     if temp < 2000:
         # OFF2/SENS2 use the first-order TEMP; the order of these steps is the datasheet's.
@@ -169,7 +164,16 @@ def compensate(coeffs: Coefficients, d1: int, d2: int) -> Compensated:
             very_low = (temp + 1500) ** 2
             off2 += 7 * very_low
             sens2 += (11 * very_low) >> 1
+    return off, sens, off2, sens2
 
+
+def compensate(coeffs: Coefficients, d1: int, d2: int) -> Compensated:
+    """Raw D1 (pressure) and D2 (temperature) counts -> compensated TEMP and P, datasheet
+    integer arithmetic with floor shifts; second order applies below 20 degC."""
+    c = coeffs
+    dt, temp, t2 = _temperature_terms(c, d2)
+    off, sens, off2, sens2 = _offset_terms(c, dt, temp)
+    p_1st = _pressure(d1, sens, off)
     temp_2 = temp - t2
     off_2 = off - off2
     sens_2 = sens - sens2
@@ -251,8 +255,9 @@ def encode_raw(
 
     d2 = _closest_raw(temp_of, target_temp, _d2_guess(c, target_temp))
     # Second-order terms depend on D2 only, so fix them once and search D1 on the P formula.
-    base = compensate(c, 0, d2)
-    sens, off = base.SENS, base.OFF
+    dt, temp, _ = _temperature_terms(c, d2)
+    off_1st, sens_1st, off2, sens2 = _offset_terms(c, dt, temp)
+    off, sens = off_1st - off2, sens_1st - sens2
     d1 = _closest_raw(lambda raw: _pressure(raw, sens, off), pressure_pa,
                       _d1_guess(sens, off, pressure_pa))
     return d1, d2

@@ -33,6 +33,8 @@ Mat3 = tuple[float, float, float, float, float, float, float, float, float]
 Triple = tuple[float, float, float]
 """A signal's (value, first derivative, second derivative)."""
 
+_IDENTITY_MAT: Mat3 = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+
 
 @dataclass(frozen=True, slots=True)
 class Kinematics:
@@ -249,6 +251,9 @@ class FlightMotion(Motion):
         t = k * self.grid_step_s
         yaw = self.yaw(t)
         heading, nose = self._speeds(t)
+        if nose is None:
+            # Along the heading only: the velocity needs neither the attitude nor the rate.
+            return self._tab_velocity(yaw, heading, None, _IDENTITY_MAT, (0.0, 0.0, 0.0))
         q, w = self._attitude(t, yaw, heading if heading is not None else nose)
         return self._tab_velocity(yaw, heading, nose, quat_matrix(q), w)
 
