@@ -271,14 +271,10 @@ class Max2110xEmulator(ChipEmulator):
             reg = (reg + step) & ADDRESS_MASK
         if not is_read:
             return bytes(read_len) if spi else b""
-        out = bytearray()
-        touched: list[int] = []
-        for _ in range(read_len):
-            out.append(self._read(reg))
-            touched.append(reg)
-            reg = (reg + step) & ADDRESS_MASK
+        touched = [(reg + k * step) & ADDRESS_MASK for k in range(read_len)]
+        out = bytes([self._read(r) for r in touched])  # reads have no side effects
         self._after_read(touched)
-        return bytes(out)
+        return out
 
     def _read(self, reg: int) -> int:
         if reg < 0x20:

@@ -26,7 +26,7 @@ from imuhal.drivers.base import DeviceIdentity, Driver
 from imuhal.emulation.board import EmulatedBoard, error_models_for
 from imuhal.estimation.base import Estimator
 from imuhal.estimation.outputs import Estimate
-from imuhal.pipeline.processing import calibrate, quality_flags, to_body
+from imuhal.pipeline.processing import calibrate_to_body, quality_flags
 from imuhal.pipeline.sinks import Sink
 from imuhal.plugins.manager import Registry
 from imuhal.profile.model import BoardProfile
@@ -307,9 +307,9 @@ class Pipeline:
                 self._count_flags(dev, sample)
             yield sample
             return
-        if sample.valid:
-            sample = calibrate(sample, dev.calibration)
-        sample = to_body(sample, dev.chip_to_body)
+        # Flagged samples are only rotated, not calibrated.
+        sample = calibrate_to_body(sample, dev.calibration if sample.valid else None,
+                                   dev.chip_to_body)
         if not sample.valid:
             self._count_flags(dev, sample)
             yield sample

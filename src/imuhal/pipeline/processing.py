@@ -8,6 +8,7 @@ sinks can still log it; it is never handed to an estimator.
 from __future__ import annotations
 
 import math
+from typing import Protocol
 
 import numpy as np
 
@@ -21,8 +22,15 @@ from imuhal.core.samples import (
     Sample,
     SampleFlag,
     ScalarSample,
+    Vec3,
     VectorSample,
 )
+
+
+class _Correction(Protocol):
+    """A calibration record: corrects a sensor-frame vector."""
+
+    def apply(self, raw: Vec3) -> Vec3: ...
 
 
 def quality_flags(sample: Sample) -> SampleFlag:
@@ -38,29 +46,53 @@ def quality_flags(sample: Sample) -> SampleFlag:
     return sample.flags
 
 
+def _record(sample: VectorSample, calibration: DeviceCalibration | None) -> _Correction | None:
+    """The calibration record of the sample's channel, if any."""
+    if calibration is None:
+        return None
+    if isinstance(sample, AccelSample):
+        return calibration.accel
+    if isinstance(sample, GyroSample):
+        return calibration.gyro
+    if isinstance(sample, MagSample):
+        return calibration.mag
+    return None
+
+
 def calibrate(sample: Sample, calibration: DeviceCalibration | None) -> Sample:
     """Apply the stored calibration of the sample's channel, in the sensor frame."""
-    if calibration is None or not isinstance(sample, VectorSample):
+    if not isinstance(sample, VectorSample):
         return sample
-    record = None
-    if isinstance(sample, AccelSample):
-        record = calibration.accel
-    elif isinstance(sample, GyroSample):
-        record = calibration.gyro
-    elif isinstance(sample, MagSample):
-        record = calibration.mag
+    record = _record(sample, calibration)
     if record is None:
         return sample
     return sample.with_vector(record.apply(sample.vector), sample.frame)
+
+
+def _rotate(m: FloatArray, v: Vec3) -> Vec3:
+    """``m @ v`` in plain floats: cheaper than a numpy product for one vector (every sample
+    comes through here). The same floats as numpy's own loop; BLAS, which numpy may use
+    instead, can differ in the last bit for a matrix that is not a signed permutation."""
+    (a, b, c), (d, e, f), (g, h, i) = np.asarray(m, dtype=float).tolist()
+    x, y, z = v
+    return (a * x + b * y + c * z, d * x + e * y + f * z, g * x + h * y + i * z)
 
 
 def to_body(sample: Sample, chip_to_body: FloatArray) -> Sample:
     """Rotate a sensor-frame vector sample into the NED body frame."""
     if not isinstance(sample, VectorSample) or sample.frame is Frame.BODY_NED:
         return sample
-    # Plain floats: cheaper than a numpy product for one vector (every sample comes through
-    # here), and the same floats as ``chip_to_body @ v``.
-    (a, b, c), (d, e, f), (g, h, i) = np.asarray(chip_to_body, dtype=float).tolist()
-    x, y, z = sample.vector
-    return sample.with_vector((a * x + b * y + c * z, d * x + e * y + f * z,
-                               g * x + h * y + i * z), Frame.BODY_NED)
+    return sample.with_vector(_rotate(chip_to_body, sample.vector), Frame.BODY_NED)
+
+
+def calibrate_to_body(sample: Sample, calibration: DeviceCalibration | None,
+                      chip_to_body: FloatArray) -> Sample:
+    """``to_body(calibrate(sample, calibration), chip_to_body)``, copying the sample once
+    instead of twice (copying a frozen sample costs more than the arithmetic)."""
+    if not isinstance(sample, VectorSample):
+        return sample
+    record = _record(sample, calibration)
+    vector = sample.vector if record is None else record.apply(sample.vector)
+    if sample.frame is Frame.BODY_NED:
+        return sample if record is None else sample.with_vector(vector, sample.frame)
+    return sample.with_vector(_rotate(chip_to_body, vector), Frame.BODY_NED)
