@@ -59,8 +59,14 @@ class RegisterView:
         return self.read(register, 1)[0]
 
     def write(self, register: int, data: bytes | int) -> None:
-        payload = bytes([data]) if isinstance(data, int) else bytes(data)
         c = self.convention
+        if isinstance(data, int):
+            # One register, the common case (configuration writes, every aux-master byte):
+            # the same bytes as the general path below, built in one step.
+            self.link.transfer(bytes((((register & ~c.write_clear) | c.single_set) & 0xFF,
+                                      data)), 0)
+            return
+        payload = bytes(data)
         if c.pairwise_burst_write and len(payload) > 1:
             pairs = bytearray()
             for offset, value in enumerate(payload):

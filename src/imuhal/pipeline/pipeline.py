@@ -315,7 +315,8 @@ class Pipeline:
             yield sample
             return
         yield sample
-        yield from self._estimate(sample)
+        if self.estimators:
+            yield from self._estimate(sample)
 
     @staticmethod
     def _count_flags(dev: DeviceRuntime, sample: Sample) -> None:

@@ -150,6 +150,16 @@ class _Normals:
         self._i += 1
         return x
 
+    def three(self) -> tuple[float, float, float]:
+        """The next three draws, as three calls would return them (one call per vector
+        sample instead of three)."""
+        i = self._i
+        if i + 3 > len(self._buf):
+            return self(), self(), self()
+        self._i = i + 3
+        b = self._buf
+        return b[i], b[i + 1], b[i + 2]
+
 
 class _VectorChannel:
     def __init__(self, spec: VectorErrorSpec, rng: np.random.Generator) -> None:
@@ -188,10 +198,10 @@ class _VectorChannel:
         rw = self._random_walk
         if rw and elapsed_s > 0:
             k = rw * math.sqrt(elapsed_s)
-            n = self.normal
-            self.walk[0] += k * n()
-            self.walk[1] += k * n()
-            self.walk[2] += k * n()
+            nx, ny, nz = self.normal.three()
+            self.walk[0] += k * nx
+            self.walk[1] += k * ny
+            self.walk[2] += k * nz
 
     def noise_sigma(self, period_s: float) -> float:
         sp = self.spec
@@ -210,10 +220,8 @@ class _VectorChannel:
                g[6] * x + g[7] * y + g[8] * z + oz + bz]
         sigma = self.noise_sigma(period_s)
         if sigma:
-            n = self.normal
-            out[0] += sigma * n()
-            out[1] += sigma * n()
-            out[2] += sigma * n()
+            nx, ny, nz = self.normal.three()
+            return (out[0] + sigma * nx, out[1] + sigma * ny, out[2] + sigma * nz)
         return (out[0], out[1], out[2])
 
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 from bisect import bisect_right
 from dataclasses import dataclass, field
+from math import cos, sin
 
 import numpy as np
 
@@ -52,12 +53,13 @@ class _Tones:
     amplitudes: tuple[float, ...]
     omegas: tuple[float, ...]
     phases: tuple[float, ...]
-    terms: tuple[tuple[float, float, float], ...] = field(init=False)
-    """(amplitude, omega, phase) of each tone, zipped once for the evaluation loop."""
+    terms: tuple[tuple[float, float, float, float], ...] = field(init=False)
+    """(amplitude, omega, phase, omega^2) of each tone, gathered once for the evaluation."""
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "terms",
-                           tuple(zip(self.amplitudes, self.omegas, self.phases, strict=True)))
+        object.__setattr__(self, "terms", tuple(
+            (a, w, ph, w * w)
+            for a, w, ph in zip(self.amplitudes, self.omegas, self.phases, strict=True)))
 
 
 def _smootherstep(x: float) -> tuple[float, float, float]:
@@ -234,14 +236,14 @@ class Signal:
                 # Full amplitude, where a run spends nearly all its time: the loop below
                 # with e = 1 and e1 = e2 = 0 written out, which gives the same floats (the
                 # dropped terms are exact zeros) at about half the cost.
-                for amp, w, ph in g.terms:
+                for amp, w, ph, w2 in g.terms:
                     th = w * t + ph
-                    sn = math.sin(th)
+                    sn = sin(th)
                     v += amp * sn
-                    r += amp * (w * math.cos(th))
-                    a -= amp * (w * w * sn)
+                    r += amp * (w * cos(th))
+                    a -= amp * (w2 * sn)
                 continue
-            for amp, w, ph in g.terms:
+            for amp, w, ph, _ in g.terms:
                 th = w * t + ph
                 sn, cs = math.sin(th), math.cos(th)
                 v += amp * e * sn
