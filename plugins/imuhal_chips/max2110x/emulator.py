@@ -125,6 +125,10 @@ class Max2110xEmulator(ChipEmulator):
         self._read_since_latch: dict[Channel, set[int]] = {Channel.GYRO: set(),
                                                             Channel.ACCEL: set()}
         self._next_ns: dict[Channel, int | None] = {Channel.GYRO: None, Channel.ACCEL: None}
+        # Measurement period and SI units per count of each running channel: they follow the
+        # configuration registers, which change only through _restart_timing.
+        self._period_ns: dict[Channel, int] = {}
+        self._per_count: dict[Channel, float] = {}
         self._mst_data = 0
         self._mst_pending: tuple[int, int] | None = None
         self._wake_ns: float = _NEVER
@@ -177,7 +181,7 @@ class Max2110xEmulator(ChipEmulator):
             values, first, enable_reg = p.specific_force_m_s2, _ACC_X_H, _PWR_ACC_CFG
             dr, err = Status.ACC_DR, Status.ACC_ERR
         values = values or (0.0, 0.0, 0.0)
-        k = self.resolution(channel)
+        k = self._per_count[channel]
         enabled = bank0[enable_reg] & 0x07 if self.part.has_aux_master else 0x07
         words = self.words
         for axis in range(3):
@@ -211,9 +215,11 @@ class Max2110xEmulator(ChipEmulator):
         for channel in (Channel.GYRO, Channel.ACCEL):
             odr = self._odr_hz(channel)
             if self._active(channel) and odr:
-                self._next_ns[channel] = now + round(1e9 / odr)
+                self._period_ns[channel] = round(1e9 / odr)
+                self._next_ns[channel] = now + self._period_ns[channel]
             else:
                 self._next_ns[channel] = None
+            self._per_count[channel] = self.resolution(channel)
         self._schedule()
 
     def _schedule(self) -> None:
@@ -235,9 +241,7 @@ class Max2110xEmulator(ChipEmulator):
             due = self._next_ns[channel]
             if due is None or now < due:
                 continue
-            odr = self._odr_hz(channel)
-            assert odr
-            period = round(1e9 / odr)
+            period = self._period_ns[channel]
             missed = (now - due) // period
             self._next_ns[channel] = due + (missed + 1) * period
             if self.stuck_data_ready:
