@@ -82,6 +82,10 @@ _DATA_READY = ((Channel.GYRO, _GYRO_WORDS, Status.GYRO_DR),
 # board (each aux byte is five of them); an IntEnum member lookup costs as much as the rest
 # of a register access in CPython, so the hot paths compare against plain ints.
 _I2C_MST_DATA = int(Reg.I2C_MST_DATA)
+_I2C_MST_ADD = int(Reg.I2C_MST_ADD)
+_MAG_SLV_ADD = int(Reg.MAG_SLV_ADD)
+_DR_BITS = Status.GYRO_DR | Status.ACC_DR
+_ERR_BITS = Status.GYRO_ERR | Status.ACC_ERR
 _DR_CFG = int(Reg.DR_CFG)
 _I2C_CFG = int(Reg.I2C_CFG)
 _SYSTEM_STATUS = int(Reg.SYSTEM_STATUS)
@@ -310,8 +314,8 @@ class Max2110xEmulator(ChipEmulator):
         mode = (self.banks[0][_DR_CFG] >> DR_CFG_CLEAR_SHIFT) & 0x03
         if _SYSTEM_STATUS in touched:
             if mode == 2:
-                self.status &= ~(Status.GYRO_DR | Status.ACC_DR)
-            self.status &= ~(Status.GYRO_ERR | Status.ACC_ERR)
+                self.status &= ~_DR_BITS
+            self.status &= ~_ERR_BITS
         for channel, regs, dr in _DATA_READY:
             if not self.status & dr:
                 # Nothing to clear, and what was read since the latch no longer matters:
@@ -376,12 +380,13 @@ class Max21100Emulator(Max2110xEmulator):
 
     def _oneshot(self, *, write: bool) -> None:
         """Carry out a one-shot byte transaction on the aux bus (result after 100 us)."""
-        slave = self.bank0(Reg.MAG_SLV_ADD) & 0x7F
-        register = self.bank0(Reg.I2C_MST_ADD)
-        done = self.now_ns() + ONESHOT_DURATION_NS
+        bank0 = self.banks[0]
+        slave = bank0[_MAG_SLV_ADD] & 0x7F
+        register = bank0[_I2C_MST_ADD]
+        done = self.clock.now_ns() + ONESHOT_DURATION_NS
         try:
             if write:
-                self._aux.transfer(slave, bytes([register, self.bank0(Reg.I2C_MST_DATA)]), 0)
+                self._aux.transfer(slave, bytes([register, bank0[_I2C_MST_DATA]]), 0)
                 return
             value = self._aux.transfer(slave, bytes([register]), 1)[0]
         except BusError:

@@ -273,6 +273,9 @@ class SensorErrorModel:
             _ScalarChannel(sp.pressure, rngs["pressure"])
         self._temperature = None if sp.temperature is None else \
             _ScalarChannel(sp.temperature, rngs["temperature"])
+        self._channels = tuple(ch for ch in (self._accel, self._gyro, self._mag,
+                                             self._pressure, self._temperature)
+                               if ch is not None)
         self._last_t: float | None = None
 
     def apply(self, t_s: float, inputs: PhysicalInputs, sample_period_s: float) -> PhysicalInputs:
@@ -283,9 +286,8 @@ class SensorErrorModel:
             raise ValueError(f"time went backwards: {t_s} s after {self._last_t} s")
         elapsed = 0.0 if self._last_t is None else t_s - self._last_t
         self._last_t = t_s
-        for ch in (self._accel, self._gyro, self._mag, self._pressure, self._temperature):
-            if ch is not None:
-                ch.step(elapsed)
+        for ch in self._channels:
+            ch.step(elapsed)
         temp = inputs.temperature_degc  # the true one: thermal bias terms depend on it
         accel, gyro, mag = inputs.specific_force_m_s2, inputs.angular_rate_rad_s, \
             inputs.magnetic_field_ut
