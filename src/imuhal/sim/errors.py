@@ -215,14 +215,14 @@ class _VectorChannel:
         x, y, z = v
         bx, by, bz = self.bias_at(temperature)
         ox, oy, oz = self.offset
-        out = [g[0] * x + g[1] * y + g[2] * z + ox + bx,
-               g[3] * x + g[4] * y + g[5] * z + oy + by,
-               g[6] * x + g[7] * y + g[8] * z + oz + bz]
+        mx = g[0] * x + g[1] * y + g[2] * z + ox + bx
+        my = g[3] * x + g[4] * y + g[5] * z + oy + by
+        mz = g[6] * x + g[7] * y + g[8] * z + oz + bz
         sigma = self.noise_sigma(period_s)
         if sigma:
             nx, ny, nz = self.normal.three()
-            return (out[0] + sigma * nx, out[1] + sigma * ny, out[2] + sigma * nz)
-        return (out[0], out[1], out[2])
+            return (mx + sigma * nx, my + sigma * ny, mz + sigma * nz)
+        return (mx, my, mz)
 
 
 class _ScalarChannel:
@@ -231,21 +231,26 @@ class _ScalarChannel:
         self.turn_on_bias = spec.bias + float(rng.normal()) * spec.bias_std
         self.walk = 0.0
         self.normal = _Normals(rng)
+        # Spec figures read at every sample, copied out of the model once.
+        self._t_ref = spec.reference_temperature_degc
+        self._drift_per_hour = spec.drift_per_hour
+        self._temp_coeff = spec.temp_coeff
+        self._random_walk = spec.random_walk
+        self._noise_std = spec.noise_std
 
     def bias_at(self, t_s: float, temperature: float | None) -> float:
-        sp = self.spec
-        dt = 0.0 if temperature is None else temperature - sp.reference_temperature_degc
-        return (self.turn_on_bias + sp.drift_per_hour * t_s / 3600.0 + self.walk
-                + sp.temp_coeff * dt)
+        dt = 0.0 if temperature is None else temperature - self._t_ref
+        return (self.turn_on_bias + self._drift_per_hour * t_s / 3600.0 + self.walk
+                + self._temp_coeff * dt)
 
     def step(self, elapsed_s: float) -> None:
-        if self.spec.random_walk and elapsed_s > 0:
-            self.walk += self.spec.random_walk * math.sqrt(elapsed_s) * self.normal()
+        if self._random_walk and elapsed_s > 0:
+            self.walk += self._random_walk * math.sqrt(elapsed_s) * self.normal()
 
     def apply(self, t_s: float, v: float, temperature: float | None) -> float:
         out = v + self.bias_at(t_s, temperature)
-        if self.spec.noise_std:
-            out += self.spec.noise_std * self.normal()
+        if self._noise_std:
+            out += self._noise_std * self.normal()
         return out
 
 

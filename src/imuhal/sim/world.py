@@ -100,21 +100,22 @@ def physical_inputs(truth: TruthState, sensor_to_body: Sequence[Sequence[float]]
     :func:`imuhal.core.frames.parse_mount` returns); None means the chip is aligned with the
     body. Flags leave out quantities the chip does not measure (None in the result).
     """
-    # Plain floats: a rotation of three components costs less in Python than a numpy call
-    # (this runs for every chip at every poll), and gives the same floats as ``m.T @ v``.
     m = None if sensor_to_body is None else np.asarray(sensor_to_body, dtype=float).tolist()
-
-    def to_sensor(v: np.ndarray) -> tuple[float, float, float]:
-        x, y, z = np.asarray(v, dtype=float).tolist()
-        if m is None:
-            return (x, y, z)
-        (a, b, c), (d, e, f), (g, h, i) = m
-        return (a * x + d * y + g * z, b * x + e * y + h * z, c * x + f * y + i * z)
-
     return PhysicalInputs(
-        specific_force_m_s2=to_sensor(truth.specific_force_body_m_s2) if accel else None,
-        angular_rate_rad_s=to_sensor(truth.angular_rate_body_rad_s) if gyro else None,
-        magnetic_field_ut=to_sensor(truth.magnetic_field_body_ut) if mag else None,
+        specific_force_m_s2=_to_sensor(truth.specific_force_body_m_s2, m) if accel else None,
+        angular_rate_rad_s=_to_sensor(truth.angular_rate_body_rad_s, m) if gyro else None,
+        magnetic_field_ut=_to_sensor(truth.magnetic_field_body_ut, m) if mag else None,
         pressure_pa=truth.pressure_pa if pressure else None,
         temperature_degc=truth.temperature_degc if temperature else None,
     )
+
+
+def _to_sensor(v: np.ndarray, m: list[list[float]] | None) -> tuple[float, float, float]:
+    """``M^T v`` for the sensor-to-body matrix M (as nested lists), in plain floats: a
+    rotation of three components costs less in Python than a numpy call (this runs for
+    every chip at every poll), and gives the same floats as ``m.T @ v``."""
+    x, y, z = np.asarray(v, dtype=float).tolist()
+    if m is None:
+        return (x, y, z)
+    (a, b, c), (d, e, f), (g, h, i) = m
+    return (a * x + d * y + g * z, b * x + e * y + h * z, c * x + f * y + i * z)
