@@ -71,11 +71,14 @@ def calibrate(sample: Sample, calibration: DeviceCalibration | None) -> Sample:
 
 def _rotate(m: FloatArray, v: Vec3) -> Vec3:
     """``m @ v`` in plain floats: cheaper than a numpy product for one vector (every sample
-    comes through here). The same floats as numpy's own loop; BLAS, which numpy may use
-    instead, can differ in the last bit for a matrix that is not a signed permutation."""
+    comes through here). The same floats as numpy's own loop, signed zeros included; BLAS,
+    which numpy may use instead, can differ in the last bit for a matrix that is not a
+    signed permutation."""
     (a, b, c), (d, e, f), (g, h, i) = np.asarray(m, dtype=float).tolist()
     x, y, z = v
-    return (a * x + b * y + c * z, d * x + e * y + f * z, g * x + h * y + i * z)
+    # Each sum starts from +0.0 as numpy's does, so an exact zero keeps numpy's sign (+0.0).
+    return (0.0 + a * x + b * y + c * z, 0.0 + d * x + e * y + f * z,
+            0.0 + g * x + h * y + i * z)
 
 
 def to_body(sample: Sample, chip_to_body: FloatArray) -> Sample:

@@ -118,4 +118,6 @@ def _to_sensor(v: np.ndarray, m: list[list[float]] | None) -> tuple[float, float
     if m is None:
         return (x, y, z)
     (a, b, c), (d, e, f), (g, h, i) = m
-    return (a * x + d * y + g * z, b * x + e * y + h * z, c * x + f * y + i * z)
+    # Each sum starts from +0.0 as numpy's does, so an exact zero keeps numpy's sign (+0.0).
+    return (0.0 + a * x + d * y + g * z, 0.0 + b * x + e * y + h * z,
+            0.0 + c * x + f * y + i * z)
