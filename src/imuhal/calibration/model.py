@@ -103,8 +103,8 @@ class MagCalibration(_Record):
     _m = field_validator("soft_iron")(_check_matrix)
 
     def apply(self, raw: Vec3) -> Vec3:
-        v = np.asarray(self.soft_iron) @ (np.asarray(raw) - np.asarray(self.hard_iron_ut))
-        return (float(v[0]), float(v[1]), float(v[2]))
+        h = self.hard_iron_ut
+        return _mat_vec(self.soft_iron, (raw[0] - h[0], raw[1] - h[1], raw[2] - h[2]))
 
 
 class GyroStartupSettings(_Strict):
@@ -154,5 +154,13 @@ class DeviceCalibration(_Strict):
 
 
 def _inertial(raw: Vec3, offset: Vec3, scale: Vec3, m: Mat3) -> Vec3:
-    v = np.asarray(m) @ (np.asarray(scale) * (np.asarray(raw) - np.asarray(offset)))
-    return (float(v[0]), float(v[1]), float(v[2]))
+    return _mat_vec(m, ((raw[0] - offset[0]) * scale[0], (raw[1] - offset[1]) * scale[1],
+                        (raw[2] - offset[2]) * scale[2]))
+
+
+def _mat_vec(m: Mat3, v: Vec3) -> Vec3:
+    # Plain floats: this runs for every calibrated sample, where numpy's per-call overhead
+    # on 3-vectors costs more than the arithmetic.
+    return (m[0][0] * v[0] + m[0][1] * v[1] + m[0][2] * v[2],
+            m[1][0] * v[0] + m[1][1] * v[1] + m[1][2] * v[2],
+            m[2][0] * v[0] + m[2][1] * v[1] + m[2][2] * v[2])

@@ -49,9 +49,6 @@ def startup_gyro_phase(pipeline: Pipeline, source: Iterator[Event],
     pipeline.calibrated = False
     try:
         for event in source:
-            if not pending:
-                yield event
-                continue
             if not isinstance(event, Sample) or event.device not in pending:
                 continue
             proc = pending[event.device]
@@ -66,9 +63,11 @@ def startup_gyro_phase(pipeline: Pipeline, source: Iterator[Event],
                 _install(pipeline, event.device, proc)
                 del pending[event.device]
             if not pending:
-                pipeline.calibrated = calibrated
+                break
     finally:
         pipeline.calibrated = calibrated
+    # Hand the rest of the stream straight through: no per-event work once the phase is over.
+    yield from source
 
 
 def _install(pipeline: Pipeline, device: str, proc: GyroOffsetProcedure) -> None:
