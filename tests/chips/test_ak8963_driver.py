@@ -7,11 +7,12 @@ from dataclasses import dataclass
 from typing import Any
 
 import pytest
+from tests.support.driving import poll_count
 
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import BusError, DeviceNotFoundError
-from imuhal.core.samples import Channel, MagSample, SampleFlag
+from imuhal.core.samples import Channel, SampleFlag
 from imuhal.emulation.base import PhysicalInputs
 from imuhal.emulation.bus import EmulatedBus
 from imuhal_chips.ak8963 import registers as r
@@ -31,17 +32,8 @@ class Rig:
         self.driver.configure()
         return self
 
-    def run(self, n: int, start: int | None = None) -> list[MagSample]:
-        t = self.driver.start(self.clock.now_ns()) if start is None else start
-        out: list[Any] = []
-        for _ in range(20 * n + 20):
-            self.clock.sleep_until(t)
-            result = self.driver.poll(self.clock.now_ns())
-            out.extend(result.samples)
-            t = result.next_poll_ns
-            if len(out) >= n:
-                break
-        return out
+    def run(self, n: int, start: int | None = None) -> list[Any]:
+        return poll_count(self.driver, self.clock, n, start=start, max_polls=20 * n + 20)
 
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
+from tests.support.driving import poll_count
 
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import SimulatedClock
@@ -31,16 +32,7 @@ def rig(kind: BusKind = BusKind.I2C, **settings: Any) -> tuple[
 def run(clock: SimulatedClock, driver: BMP280Driver, n_samples: int,
         start: int | None = None) -> list[Any]:
     """Poll on the shared clock until ``n_samples`` samples (both channels) came out."""
-    t = driver.start(clock.now_ns()) if start is None else start
-    out: list[Any] = []
-    for _ in range(10 * n_samples + 20):
-        clock.sleep_until(t)
-        result = driver.poll(clock.now_ns())
-        out.extend(result.samples)
-        t = result.next_poll_ns
-        if len(out) >= n_samples:
-            break
-    return out
+    return poll_count(driver, clock, n_samples, start=start)
 
 
 def pressures(samples: list[Any]) -> list[PressureSample]:

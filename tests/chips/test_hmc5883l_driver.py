@@ -8,6 +8,7 @@ import random
 from dataclasses import dataclass
 
 import pytest
+from tests.support.driving import poll_until
 
 from imuhal.bus.base import BusKind, Link
 from imuhal.core.clock import SimulatedClock
@@ -33,12 +34,7 @@ class Rig:
 
     def run(self, seconds: float) -> list[Sample]:
         end = self.clock.now_ns() + round(seconds * 1e9)
-        out: list[Sample] = []
-        while self.next_ns <= end:
-            self.clock.sleep_until(self.next_ns)
-            result = self.driver.poll(self.clock.now_ns())
-            out += result.samples
-            self.next_ns = result.next_poll_ns
+        out, self.next_ns = poll_until(self.driver, self.clock, self.next_ns, end)
         return out
 
 

@@ -9,6 +9,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 
 import pytest
+from tests.support.driving import poll_until
 
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import SimulatedClock
@@ -42,12 +43,7 @@ class Rig:
     def run(self, seconds: float) -> list[Sample]:
         """Poll on the driver's schedule for ``seconds`` of simulated time."""
         end = self.clock.now_ns() + round(seconds * 1e9)
-        out: list[Sample] = []
-        while self.next_ns <= end:
-            self.clock.sleep_until(self.next_ns)
-            result = self.driver.poll(self.clock.now_ns())
-            out += result.samples
-            self.next_ns = result.next_poll_ns
+        out, self.next_ns = poll_until(self.driver, self.clock, self.next_ns, end)
         return out
 
 
