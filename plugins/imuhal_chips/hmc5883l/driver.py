@@ -17,16 +17,14 @@ throw-away data read).
 
 from __future__ import annotations
 
-from typing import Any
-
-from pydantic import Field, field_validator
+from pydantic import Field
 
 from imuhal.bus.base import BusKind, Link
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
 from imuhal.core.samples import Channel, Frame, MagSample, Sample, SampleFlag
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
-from imuhal.drivers.settings import pick
+from imuhal.drivers.settings import table_setting
 from imuhal_chips.hmc5883l import decode
 from imuhal_chips.hmc5883l.registers import (
     AVERAGING,
@@ -51,34 +49,14 @@ NOT_READY_RETRY_NS = 500_000
 class Hmc5883lSettings(DriverSettings):
     """HMC5883L settings; defaults are the seed's: +/-1.3 Ga, 75 Hz, 8-sample average."""
 
-    range_gauss: float = 1.3
+    range_gauss: table_setting(RANGE_GAUSS, "Ga") = 1.3  # type: ignore[valid-type]
     """Field range +/- gauss: 0.88, 1.3, 1.9, 2.5, 4.0, 4.7, 5.6, 8.1 (sets the gain)."""
-    odr_hz: float = 75
+    odr_hz: table_setting(ODR_HZ, "Hz") = 75  # type: ignore[valid-type]
     """Continuous-mode output rate, Hz: 0.75, 1.5, 3, 7.5, 15, 30, 75."""
-    averaging: int = 8
+    averaging: table_setting(AVERAGING, "samples", kind=int) = 8  # type: ignore[valid-type]
     """Samples averaged per output: 1, 2, 4, 8."""
     reset_check_s: float = Field(default=0.5, gt=0, le=60)
     """How often (s) the configuration is read back to catch a silent chip reset."""
-
-    @classmethod
-    def choices(cls) -> dict[str, tuple[Any, ...]]:
-        return {"range_gauss": tuple(RANGE_GAUSS), "odr_hz": tuple(ODR_HZ),
-                "averaging": tuple(AVERAGING)}
-
-    @field_validator("range_gauss", mode="before")
-    @classmethod
-    def _range(cls, v: float) -> float:
-        return float(pick(RANGE_GAUSS, v, "range_gauss", "Ga"))
-
-    @field_validator("odr_hz", mode="before")
-    @classmethod
-    def _odr(cls, v: float) -> float:
-        return float(pick(ODR_HZ, v, "odr_hz", "Hz"))
-
-    @field_validator("averaging", mode="before")
-    @classmethod
-    def _averaging(cls, v: float) -> int:
-        return int(pick(AVERAGING, v, "averaging", "samples"))
 
 
 class Hmc5883lDriver(Driver):

@@ -6,10 +6,11 @@ import math
 import types
 import typing
 from collections.abc import Mapping
+from dataclasses import dataclass
 from enum import Enum
-from typing import Any
+from typing import Annotated, Any
 
-from pydantic import BaseModel
+from pydantic import BaseModel, BeforeValidator
 
 
 def pick(table: Mapping[float, object], value: float, name: str, unit: str) -> float:
@@ -22,10 +23,36 @@ def pick(table: Mapping[float, object], value: float, name: str, unit: str) -> f
     raise ValueError(f"{name} = {value:g} {unit} is not supported; allowed: {allowed} {unit}")
 
 
+@dataclass(frozen=True)
+class Allowed:
+    """Field metadata: the values a table-backed setting accepts (see ``table_setting``)."""
+
+    values: tuple[Any, ...]
+
+
+def table_setting(table: Mapping[Any, object], unit: str, *, kind: type = float,
+                  label: str = "") -> Any:
+    """A settings field type accepting exactly the keys of a register table.
+
+    ``gyro_odr_hz: table_setting(GYRO_ODR_HZ, "Hz") = 250`` validates against the table
+    (floats compared to 1e-9), names the allowed values in its error, and reports them in
+    ``DriverSettings.choices()`` without any further code.
+    """
+
+    def check(value: Any, info: Any) -> Any:
+        return kind(pick(table, value, label or info.field_name, unit))
+
+    return Annotated[kind, BeforeValidator(check), Allowed(tuple(table))]
+
+
 def literal_choices(model: type[BaseModel]) -> dict[str, tuple[Any, ...]]:
-    """The allowed values of every Literal or Enum field of ``model``."""
+    """The allowed values of every Literal, Enum or table-backed field of ``model``."""
     out: dict[str, tuple[Any, ...]] = {}
     for name, field in model.model_fields.items():
+        allowed = next((m for m in field.metadata if isinstance(m, Allowed)), None)
+        if allowed is not None:
+            out[name] = allowed.values
+            continue
         annotation = field.annotation
         if typing.get_origin(annotation) in (typing.Union, types.UnionType):
             args = [a for a in typing.get_args(annotation) if a is not type(None)]
