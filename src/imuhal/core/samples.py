@@ -9,6 +9,7 @@ sinks marked invalid.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from enum import Enum, IntFlag
 from typing import ClassVar, TypeAlias
@@ -124,7 +125,9 @@ class AccelSample(VectorSample):
         return self.accel_m_s2
 
     def with_vector(self, vector: Vec3, frame: Frame) -> AccelSample:
-        return replace(self, accel_m_s2=_vec3(vector), frame=frame)
+        # Direct construction: runs for every sample, where dataclasses.replace is slow.
+        return AccelSample(t_ns=self.t_ns, device=self.device, flags=self.flags, frame=frame,
+                     accel_m_s2=_vec3(vector))
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -139,7 +142,9 @@ class GyroSample(VectorSample):
         return self.gyro_rad_s
 
     def with_vector(self, vector: Vec3, frame: Frame) -> GyroSample:
-        return replace(self, gyro_rad_s=_vec3(vector), frame=frame)
+        # Direct construction: runs for every sample, where dataclasses.replace is slow.
+        return GyroSample(t_ns=self.t_ns, device=self.device, flags=self.flags, frame=frame,
+                     gyro_rad_s=_vec3(vector))
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -154,7 +159,9 @@ class MagSample(VectorSample):
         return self.mag_ut
 
     def with_vector(self, vector: Vec3, frame: Frame) -> MagSample:
-        return replace(self, mag_ut=_vec3(vector), frame=frame)
+        # Direct construction: runs for every sample, where dataclasses.replace is slow.
+        return MagSample(t_ns=self.t_ns, device=self.device, flags=self.flags, frame=frame,
+                     mag_ut=_vec3(vector))
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -190,9 +197,8 @@ SAMPLE_TYPES: dict[Channel, type[Sample]] = {
 }
 
 
-def _vec3(v: object) -> Vec3:
-    x, y, z = (float(c) for c in v)  # type: ignore[attr-defined]
-    return (x, y, z)
+def _vec3(v: Sequence[float]) -> Vec3:
+    return (float(v[0]), float(v[1]), float(v[2]))
 
 
 def non_finite_flag(values: tuple[float, ...] | list[float]) -> SampleFlag:
