@@ -45,7 +45,6 @@ class DeviceRuntime:
     chip_to_body: FloatArray
     calibration: DeviceCalibration | None
     next_poll_ns: int = 0
-    bus_errors: int = 0
     device_errors: int = 0
     warned: set[str] = field(default_factory=set)
     samples: int = 0
@@ -110,7 +109,7 @@ class Pipeline:
         self._started = False
         self.devices: dict[str, DeviceRuntime] = {}
         self.estimators: list[EstimatorRuntime] = []
-        board_to_body = parse_mount(profile.board_to_body)
+        chip_to_body = _chip_to_body(profile)
         for name in device_order(profile):
             cfg = profile.devices[name]
             driver_cls = registry.drivers.get(cfg.driver)
@@ -122,7 +121,7 @@ class Pipeline:
             self.devices[name] = DeviceRuntime(
                 name=name,
                 driver=driver,
-                chip_to_body=board_to_body @ parse_mount(cfg.mount),
+                chip_to_body=chip_to_body[name],
                 calibration=self._checked_calibration(name, cfg.bus, cfg.calibration,
                                                       identity, driver_cls.calibration_version),
             )
@@ -270,7 +269,6 @@ class Pipeline:
                 result = dev.driver.poll(t_ns)
                 samples, next_ns = result.samples, result.next_poll_ns
             except BusError:
-                dev.bus_errors += 1
                 dev.driver.health.bus_errors += 1
                 samples, next_ns = [], self._recover(dev, t_ns)
             except ImuhalError as exc:
@@ -359,7 +357,7 @@ class Pipeline:
             wall_s=wall_s,
             samples={n: d.samples for n, d in self.devices.items()},
             flagged={n: dict(d.flagged) for n, d in self.devices.items()},
-            bus_errors={n: d.bus_errors for n, d in self.devices.items()},
+            bus_errors={n: d.driver.health.bus_errors for n, d in self.devices.items()},
             device_errors={n: d.device_errors for n, d in self.devices.items()},
             estimates={e.name: e.outputs for e in self.estimators},
             warnings=list(self.warnings),

@@ -112,6 +112,15 @@ def _describe(exc: ValidationError, doc: LocatedDocument, prefix: Path,
     return out
 
 
+def _validate(model: type[BaseModel], data: Any, doc: LocatedDocument, path: Path) -> list[str]:
+    """A plugin's settings checked by its own model: located problems, or none."""
+    try:
+        model.model_validate(data)
+    except ValidationError as exc:
+        return _describe(exc, doc, path, model)
+    return []
+
+
 def _clean_loc(loc: tuple[Any, ...]) -> Path:
     # pydantic inserts union-branch tags such as 'str' or 'list[list[float]]' into loc
     return tuple(p for p in loc if not (isinstance(p, str) and ("[" in p or p in {"str"})))
@@ -181,10 +190,7 @@ def _check_plugins(profile: BoardProfile, doc: LocatedDocument, registry: Regist
             bus_kinds[name] = None
             continue
         bus_kinds[name] = factory.obj.kind
-        try:
-            factory.obj.Settings.model_validate(bus.plugin_settings())
-        except ValidationError as exc:
-            out += _describe(exc, doc, path, factory.obj.Settings)
+        out += _validate(factory.obj.Settings, bus.plugin_settings(), doc, path)
     for name, dev in profile.devices.items():
         path = ("devices", name)
         reg = registry.drivers.entries.get(dev.driver)
@@ -199,10 +205,7 @@ def _check_plugins(profile: BoardProfile, doc: LocatedDocument, registry: Regist
             allowed = ", ".join(sorted(k.value for k in driver.bus_kinds))
             out.append(f"{doc.where((*path, 'bus'))}: {dotted((*path, 'bus'))}: {dev.driver} "
                        f"cannot sit on a {kind.value} bus; it supports: {allowed}")
-        try:
-            driver.Settings.model_validate(dev.settings)
-        except ValidationError as exc:
-            out += _describe(exc, doc, (*path, "settings"), driver.Settings)
+        out += _validate(driver.Settings, dev.settings, doc, (*path, "settings"))
     for name, est in profile.estimators.items():
         path = ("estimators", name)
         reg_e = registry.estimators.entries.get(est.estimator)
@@ -211,10 +214,7 @@ def _check_plugins(profile: BoardProfile, doc: LocatedDocument, registry: Regist
                        f"estimator named {est.estimator!r} is installed; installed: "
                        f"{', '.join(registry.estimators.names()) or 'none'}")
             continue
-        try:
-            reg_e.obj.Settings.model_validate(est.settings)
-        except ValidationError as exc:
-            out += _describe(exc, doc, (*path, "settings"), reg_e.obj.Settings)
+        out += _validate(reg_e.obj.Settings, est.settings, doc, (*path, "settings"))
     scenario = profile.emulation.scenario
     if registry.scenarios.entries and scenario not in registry.scenarios.entries:
         p: Path = ("emulation", "scenario")
