@@ -23,7 +23,7 @@ from typing import Any, ClassVar, Literal
 from pydantic import Field
 
 from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
-from imuhal_filters.common.gate import AccelGate
+from imuhal_filters.common.gate import AccelGate, GateBounds
 from imuhal_filters.madgwick.core import MagReference, madgwick_step
 from imuhal_filters.madgwick.inv_sqrt import INV_SQRT
 
@@ -35,7 +35,7 @@ class MadgwickSettings(AhrsSettings):
     """``paper`` (default, corrected) or ``xio_release`` (the release's halved reference)."""
     inv_sqrt: Literal["exact", "fast32"] = "exact"
     """``fast32`` reproduces the release's 0x5f3759df normalisation (reference mode only)."""
-    accel_gate_g: tuple[float, float] | None = (0.6, 1.4)
+    accel_gate_g: GateBounds | None = (0.6, 1.4)
     """Use the accelerometer only while lower < |a| < upper (g); None disables the gate."""
     use_mag: bool = True
     """Fuse magnetometer samples (9-DOF); False runs the 6-DOF update even when mag arrives."""

@@ -16,7 +16,7 @@ from typing import Any, ClassVar
 from pydantic import Field
 
 from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
-from imuhal_filters.common.gate import AccelGate
+from imuhal_filters.common.gate import AccelGate, GateBounds
 from imuhal_filters.common.quat import Vec
 from imuhal_filters.mahony.core import mahony_step
 
@@ -26,7 +26,7 @@ class MahonySettings(AhrsSettings):
     """Proportional gain (1/s); the firmware's twoKp = 2 * 5. x-io's default is 0.5."""
     ki: float = Field(0.0, ge=0.0)
     """Integral gain (1/s^2); 0 in the firmware (integral held at zero)."""
-    accel_gate_g: tuple[float, float] | None = (0.75, 1.25)
+    accel_gate_g: GateBounds | None = (0.75, 1.25)
     """Feedback only while lower < |a| < upper (g); None disables the gate."""
     use_mag: bool = True
     """Fuse magnetometer samples (9-DOF); False runs the 6-DOF update."""

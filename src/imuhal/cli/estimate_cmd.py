@@ -6,6 +6,8 @@ import argparse
 import sys
 from typing import Any
 
+from imuhal.cli import args as types
+from imuhal.core.atomic import check_outputs
 from imuhal.offline.csv_input import read_sample_csv
 from imuhal.offline.csv_output import write_estimates
 from imuhal.offline.runner import run_offline
@@ -35,7 +37,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--output", "-o", metavar="OUT.csv", required=True)
     p.add_argument("--set", dest="settings", action="append", default=[], metavar="KEY=VALUE",
                    help="an estimator setting (repeatable)")
-    p.add_argument("--rate", type=float, metavar="HZ",
+    p.add_argument("--rate", type=types.rate_hz, metavar="HZ",
                    help="sample rate, when the input has no t_s column")
     p.add_argument("--ahrs", default="madgwick", metavar="NAME",
                    help="attitude estimator for gravity compensation of full IMU input to a "
@@ -44,6 +46,7 @@ def add_parser(sub: Any) -> None:
 
 
 def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
+    check_outputs({"--output": args.output}, {"INPUT.csv": args.input})
     est_cls = registry.estimators.get(args.name)
     settings = build_settings(est_cls.Settings, parse_set_arguments(args.settings), args.name)
     estimator = est_cls(settings)

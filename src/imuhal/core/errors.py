@@ -66,6 +66,10 @@ class ProfileError(ImuhalError):
         )
 
 
+class OutputError(ImuhalError):
+    """A file cannot be written where the user asked, or writing it would destroy an input."""
+
+
 class PluginError(ImuhalError):
     """A plugin failed to load, registered something twice, or a name is not installed."""
 

@@ -12,6 +12,7 @@ import csv
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -24,6 +25,9 @@ MAG = ("mx_ut", "my_ut", "mz_ut")
 PRESSURE = "pressure_pa"
 ALTITUDE = "altitude_m"
 ACCEL_UP = "accel_up_m_s2"
+
+MAX_TIME_S = 1e9
+"""Largest |t_s| accepted (31 years): times become integer nanoseconds, which must fit 64 bits."""
 
 SPARSE_COLUMNS = frozenset({PRESSURE, *MAG})
 """Columns whose cells may be empty: a slower sensor has no sample on that row."""
@@ -52,7 +56,8 @@ def read_sample_csv(path: str | Path, *, rate_hz: float | None = None) -> Sample
     """Read and check a sample CSV. Without a ``t_s`` column, ``rate_hz`` gives the times."""
     p = Path(path)
     try:
-        handle = p.open(newline="", encoding="utf-8")
+        # utf-8-sig: a byte-order mark (spreadsheets write one) is not part of the first name
+        handle = p.open(newline="", encoding="utf-8-sig")
     except OSError as exc:
         raise InputError(f"{p}: cannot read: {exc.strerror or exc}") from None
     with handle:
@@ -61,20 +66,23 @@ def read_sample_csv(path: str | Path, *, rate_hz: float | None = None) -> Sample
             header = [h.strip() for h in next(reader)]
         except StopIteration:
             raise InputError(f"{p}: the file is empty; expected a header line") from None
+        except (UnicodeDecodeError, csv.Error) as exc:
+            raise InputError(f"{p}: not a CSV text file ({exc})") from None
+        if len(header) == 1:
+            for sep, name in ((";", "semicolons"), ("\t", "tabs"), ("|", "bars")):
+                if sep in header[0]:
+                    raise InputError(f"{p}: line 1: the columns are separated by {name}; imuhal "
+                                     "reads comma-separated values: save the file with ',' as "
+                                     "the delimiter")
         dupes = {h for h in header if header.count(h) > 1}
         if dupes:
             raise InputError(f"{p}: line 1: duplicate column(s) {', '.join(sorted(dupes))}")
         rows: list[list[float]] = []
         lines: list[int] = []
-        for line_no, cells in enumerate(reader, start=2):
-            if not cells or all(not c.strip() for c in cells):
-                continue
-            if len(cells) != len(header):
-                raise InputError(f"{p}: line {line_no}: {len(cells)} cells, but the header has "
-                                 f"{len(header)} columns")
-            rows.append([_cell(p, line_no, name, cell) for name, cell in zip(header, cells,
-                                                                              strict=True)])
-            lines.append(line_no)
+        try:
+            _read_rows(p, reader, header, rows, lines)
+        except (UnicodeDecodeError, csv.Error) as exc:
+            raise InputError(f"{p}: line {reader.line_num + 1}: not CSV text ({exc})") from None
     if not rows:
         raise InputError(f"{p}: no data rows after the header")
     data = np.array(rows, dtype=float)
@@ -86,6 +94,19 @@ def read_sample_csv(path: str | Path, *, rate_hz: float | None = None) -> Sample
         columns[TIME] = np.arange(len(rows)) / rate_hz
     _check_time(p, columns[TIME], line_arr)
     return SampleTable(p, columns, line_arr)
+
+
+def _read_rows(p: Path, reader: Any, header: list[str], rows: list[list[float]],
+               lines: list[int]) -> None:
+    for line_no, cells in enumerate(reader, start=2):
+        if not cells or all(not c.strip() for c in cells):
+            continue
+        if len(cells) != len(header):
+            raise InputError(f"{p}: line {line_no}: {len(cells)} cells, but the header has "
+                             f"{len(header)} columns")
+        rows.append([_cell(p, line_no, name, cell) for name, cell in zip(header, cells,
+                                                                          strict=True)])
+        lines.append(line_no)
 
 
 def _cell(path: Path, line_no: int, column: str, cell: str) -> float:
@@ -106,6 +127,11 @@ def _cell(path: Path, line_no: int, column: str, cell: str) -> float:
 
 
 def _check_time(path: Path, t: np.ndarray, lines: np.ndarray) -> None:
+    far = np.flatnonzero(np.abs(t) > MAX_TIME_S)
+    if far.size:
+        i = int(far[0])
+        raise InputError(f"{path}: line {lines[i]}, column '{TIME}': {t[i]:g} s is beyond "
+                         f"{MAX_TIME_S:g} s; times are seconds since the log started")
     steps = np.diff(t)
     bad = np.flatnonzero(steps <= 0)
     if bad.size:

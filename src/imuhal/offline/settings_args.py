@@ -51,5 +51,8 @@ def build_settings(model: type[BaseModel], values: dict[str, Any], owner: str) -
                 allowed = ", ".join(model.model_fields)
                 problems.append(f"--set {key}: {owner} has no such setting; settings: {allowed}")
             else:
-                problems.append(f"--set {key}: {err['msg']} (found {err.get('input')!r})")
+                msg = err["msg"]
+                if isinstance(err.get("ctx"), dict) and "error" in err["ctx"]:
+                    msg = str(err["ctx"]["error"])  # a validator's own words, no pydantic prefix
+                problems.append(f"--set {key}: {msg} (found {err.get('input')!r})")
         raise SettingsArgumentError("; ".join(problems)) from None
