@@ -33,12 +33,16 @@ def _number(text: str, what: str, example: str) -> float:
     return value
 
 
-def positive_float(what: str, example: str) -> Callable[[str], float]:
-    """A finite number > 0 (durations, rates, field strengths)."""
+def positive_float(what: str, example: str,
+                   maximum: float = math.inf) -> Callable[[str], float]:
+    """A finite number > 0 and <= ``maximum`` (durations, rates, field strengths)."""
     def parse(text: str) -> float:
         value = _number(text, what, example)
         if value <= 0:
             raise argparse.ArgumentTypeError(f"{text!r} must be greater than 0; give {what}, "
+                                             f"e.g. {example}")
+        if value > maximum:
+            raise argparse.ArgumentTypeError(f"{text!r} is more than {maximum:g}; give {what}, "
                                              f"e.g. {example}")
         return value
     parse.__name__ = what  # argparse names the type in its own messages
@@ -61,6 +65,9 @@ def int_at_least(minimum: int, what: str, example: str) -> Callable[[str], int]:
     return parse
 
 
-seconds = positive_float("a duration in seconds", "60")
+MAX_SECONDS = 1e9
+"""Longest duration accepted (31 years): times are int64 nanoseconds."""
+
+seconds = positive_float("a duration in seconds", "60", MAX_SECONDS)
 rate_hz = positive_float("a sample rate in Hz", "100")
 seed = int_at_least(0, "a seed (0 or more)", "1")

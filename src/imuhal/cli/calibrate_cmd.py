@@ -103,15 +103,15 @@ def cmd_calibrate(args: argparse.Namespace, registry: Registry) -> int:
     cfg = profile.devices[device]
     chip_to_body = parse_mount(profile.board_to_body) @ parse_mount(cfg.mount)
     err = sys.stderr
-    where = f"emulated, scenario '{args.emulate}'" if args.emulate else "real hardware"
-    print(f"calibrating {args.procedure} of {device} ({cfg.driver}) in {profile.name} ({where})",
-          file=err)
     reporter = _Reporter(err)
     timeout = args.timeout
     if timeout is None:
         timeout = (registry.scenarios.get(args.emulate).default_duration_s if args.emulate
                    else TIMEOUTS_S[args.procedure])
     proc = _procedure(args, device, chip_to_body, reporter, None)  # settings checked early
+    where = f"emulated, scenario '{args.emulate}'" if args.emulate else "real hardware"
+    print(f"calibrating {args.procedure} of {device} ({cfg.driver}) in {profile.name} ({where})",
+          file=err)
     with open_raw_pipeline(profile, registry, emulate=args.emulate, seed=args.seed,
                            realtime=False, sensor_errors=False if args.ideal else None
                            ) as pipeline:

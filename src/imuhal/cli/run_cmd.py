@@ -69,6 +69,8 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     if args.truth and emulate is None:
         raise ImuhalError("--truth needs an emulated run (--emulate SCENARIO): real "
                           "hardware has no ground truth")
+    if emulate is not None:
+        registry.scenarios.get(emulate)  # an unknown name fails here, before any output
     scenario_params = _replay_params(args, emulate, registry)
     duration = args.duration
     if duration is None and emulate is not None:

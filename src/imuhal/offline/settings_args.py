@@ -8,6 +8,7 @@ import yaml
 from pydantic import BaseModel, ValidationError
 
 from imuhal.core.errors import ImuhalError
+from imuhal.profile.loader import validate_strict
 
 
 class SettingsArgumentError(ImuhalError):
@@ -42,7 +43,7 @@ def _scalar(text: str) -> Any:
 def build_settings(model: type[BaseModel], values: dict[str, Any], owner: str) -> BaseModel:
     """Validate ``values`` with ``model``; every problem names its --set key and the allowed."""
     try:
-        return model.model_validate(values)
+        return validate_strict(model, values)
     except ValidationError as exc:
         problems = []
         for err in exc.errors(include_url=False):
