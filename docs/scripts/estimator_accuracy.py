@@ -49,7 +49,7 @@ from imuhal.calibration.model import DeviceCalibration, GyroStartupSettings
 from imuhal.core.atomic import atomic_write_text
 from imuhal.core.frames import parse_mount
 from imuhal.core.samples import PressureSample, Sample
-from imuhal.emulation import open_emulated
+from imuhal.emulation import EmulatedBoard, open_emulated
 from imuhal.estimation.outputs import AttitudeEstimate, VerticalEstimate
 from imuhal.pipeline.pipeline import Event, Pipeline
 from imuhal.plugins.manager import Registry, load_registry
@@ -260,7 +260,7 @@ def measure_attitude(profile: BoardProfile, registry: Registry, scenario: str,
     for event, pipeline in _events(profile, registry, scenario, duration_s, seed):
         if not isinstance(event, AttitudeEstimate) or event.t_ns < settle_s * 1e9:
             continue
-        assert pipeline.board is not None
+        assert isinstance(pipeline.board, EmulatedBoard)
         truth = pipeline.board.truth_at(event.t_ns)
         est[event.source].append(event.q_body_to_ned)
         true[event.source].append(tuple(truth.q_body_to_ned))
@@ -328,7 +328,7 @@ def measure_vario(profile: BoardProfile, registry: Registry, scenario: str, dura
     for event, pipeline in _events(profile, registry, scenario, duration_s, seed):
         if not isinstance(event, VerticalEstimate):
             continue
-        assert pipeline.board is not None
+        assert isinstance(pipeline.board, EmulatedBoard)
         truth = pipeline.board.truth_at(event.t_ns)
         t.setdefault(event.source, []).append(event.t_ns / 1e9)
         climb.setdefault(event.source, []).append(event.climb_m_s - truth.climb_m_s)
