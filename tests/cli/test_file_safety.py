@@ -20,13 +20,14 @@ import pytest
 from imuhal.cli import main as cli_main
 from imuhal.core.errors import ImuhalError
 from imuhal.core.samples import PressureSample
+from imuhal.emulation import open_emulated
 from imuhal.estimation.base import Estimator, EstimatorSettings
-from imuhal.pipeline import CallbackSink, CsvSink, Pipeline
-from imuhal.pipeline.sinks import CSV_COLUMNS
+from imuhal.pipeline import CallbackSink, CsvSink
 from imuhal.plugins.hookspecs import hookimpl
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.loader import load_profile
 from imuhal.profiles_dir import default_profile_path
+from imuhal.sinks.builtin import CSV_COLUMNS
 
 DATA = Path(__file__).resolve().parent.parent / "data"
 SEED_BOARD = DATA / "calibration" / "seed-board.yaml"
@@ -131,8 +132,8 @@ def test_a_failing_sink_aborts_the_log_instead_of_committing_it(tmp_path: Path) 
         if getattr(event, "t_ns", 0) > 500_000_000:
             raise OSError(28, "No space left on device")
 
-    with Pipeline.open(load_profile(default_profile_path(), registry), registry,
-                       emulate="static") as pipeline, pytest.raises(OSError):
+    with open_emulated(load_profile(default_profile_path(), registry), registry,
+                       scenario="static") as pipeline, pytest.raises(OSError):
         pipeline.run(2.0, [log, CallbackSink(disk_full)])
     assert out.read_text() == "the good flight\n"
     assert log.partial_path == tmp_path / "flight.csv.partial"

@@ -12,6 +12,14 @@ from typing import Any, TextIO
 import numpy as np
 from pydantic import ValidationError
 
+from imuhal.calibrate.session import (
+    describe_position,
+    guided_order,
+    open_raw_pipeline,
+    pick_device,
+    run_procedure,
+)
+from imuhal.calibrate.store import write_device_calibration
 from imuhal.calibration.accel import (
     AccelSixPosition,
     AccelSixSettings,
@@ -20,18 +28,8 @@ from imuhal.calibration.accel import (
 )
 from imuhal.calibration.gyro import GyroOffsetProcedure, GyroOffsetSettings
 from imuhal.calibration.mag import MagCalibrationProcedure, MagSettings
-from imuhal.calibration.model import DeviceCalibration, GyroStartupSettings
+from imuhal.calibration.model import DeviceCalibration, GyroStartupSettings, now
 from imuhal.calibration.progress import Progress, ProgressKind
-from imuhal.calibration.session import (
-    binding_for,
-    describe_position,
-    guided_order,
-    now,
-    open_raw_pipeline,
-    pick_device,
-    run_procedure,
-)
-from imuhal.calibration.store import write_device_calibration
 from imuhal.cli import args as types
 from imuhal.core.atomic import check_outputs, check_writable, resolve_target
 from imuhal.core.errors import ImuhalError
@@ -120,7 +118,7 @@ def cmd_calibrate(args: argparse.Namespace, registry: Registry) -> int:
         order = _scenario_order(pipeline, chip_to_body)
         if args.procedure == "accel" and order is not None:
             proc = _procedure(args, device, chip_to_body, reporter, order)
-        binding = binding_for(pipeline, device)
+        binding = pipeline.calibration_binding(device)
         try:
             result = run_procedure(proc, pipeline, timeout)
         finally:
@@ -192,12 +190,12 @@ def _scenario_order(pipeline: Any, chip_to_body: np.ndarray) -> tuple[str, ...] 
     """Emulated: the sensor positions in the order the scenario holds them (its phases are
     named after the body axis pointing down), so each prompt names the position the
     simulated hand is about to hold. None on hardware or when the scenario has no six."""
-    board = getattr(pipeline, "board", None)
-    if board is None:
+    scenario = getattr(getattr(pipeline, "board", None), "scenario", None)
+    if scenario is None:
         return None
     order: list[str] = []
     body_to_chip = np.asarray(chip_to_body, dtype=float).T
-    for phase in board.scenario.phases():
+    for phase in scenario.phases():
         try:
             axis, sign = parse_position(phase.name)
         except ValueError:

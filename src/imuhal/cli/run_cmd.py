@@ -52,7 +52,8 @@ def add_parser(sub: Any) -> None:
 
 
 def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
-    from imuhal.pipeline import ConsoleSink, CsvSink, Pipeline, TruthSink
+    from imuhal.emulation import EmulatedBoard, TruthSink, open_emulated
+    from imuhal.pipeline import ConsoleSink, CsvSink, Pipeline
 
     path = Path(args.profile) if args.profile else default_profile_path()
     # Before anything is opened: no output may overwrite an input, and each must be writable.
@@ -88,19 +89,23 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
             # Committed even when opening the board fails: the trace of a failed probe is
             # exactly what a bug report needs.
             stack.callback(trace_file.commit)
-        pipeline = stack.enter_context(Pipeline.open(
-            profile, registry, emulate=emulate, realtime=realtime, seed=args.seed, trace=trace,
-            scenario_params=scenario_params))
+        if emulate is None:
+            pipeline = stack.enter_context(Pipeline.open(profile, registry, trace=trace))
+        else:
+            pipeline = stack.enter_context(open_emulated(
+                profile, registry, scenario=emulate, realtime=realtime, seed=args.seed,
+                trace=trace, scenario_params=scenario_params))
         for w in pipeline.warnings:
             print(f"warning: {w}", file=sys.stderr)
-        if emulate == "replay" and args.duration is None and pipeline.board is not None:
+        if emulate == "replay" and args.duration is None and \
+                isinstance(pipeline.board, EmulatedBoard):
             # the rest of the record (opening the board took some simulated time)
             duration = pipeline.board.scenario.duration_s - pipeline.clock.now_ns() / 1e9
         if args.output:
             csv_sink = CsvSink(args.output, include_samples=args.samples)
             sinks.append(csv_sink)
         truth_sink = None
-        if args.truth and pipeline.board is not None:
+        if args.truth and isinstance(pipeline.board, EmulatedBoard):
             truth_sink = TruthSink(args.truth, pipeline.board.scenario,
                                    include_samples=args.samples)
             sinks.append(truth_sink)
