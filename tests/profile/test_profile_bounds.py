@@ -69,7 +69,7 @@ def test_a_file_larger_than_the_cap_is_refused_unread(tmp_path: Path,
     big = tmp_path / "big.yaml"
     big.write_text(GOOD + "#" * MAX_PROFILE_BYTES + "\n")
     problems = check_profile(big, registry)
-    assert len(problems) == 1 and "larger than 1000 kB" in problems[0]
+    assert len(problems) == 1 and "larger than 1 MB" in problems[0]
 
 
 @pytest.fixture(scope="module")
@@ -146,3 +146,13 @@ def test_settings_errors_come_in_the_same_report_as_structural_ones(installed: R
     assert "name: required key is missing" in joined
     assert "devices.mag.settings.odr_hz" in joined
     assert "estimators.ahrs.settings.beta" in joined
+
+
+@pytest.mark.parametrize("value", ["true", '"500"'])
+def test_a_table_setting_takes_only_numbers(value: str, installed: Registry) -> None:
+    text = default_profile_path().read_text().replace("gyro_range_dps: 500",
+                                                      f"gyro_range_dps: {value}")
+    problems = _problems(text, installed)
+    assert len(problems) == 1
+    assert "devices.imu.settings.gyro_range_dps" in problems[0]
+    assert "must be a number in dps; allowed: 250, 500" in problems[0]

@@ -82,7 +82,7 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     if not args.quiet:
         sinks.append(ConsoleSink(sys.stdout))
     csv_sink = None
-    trace_file = AtomicFile(args.trace) if args.trace else None
+    trace_file = AtomicFile(args.trace, partial=True) if args.trace else None
     trace = (lambda t: trace_file.write(format_transfer(t) + "\n")) if trace_file else None
     with contextlib.ExitStack() as stack:
         if trace_file is not None:

@@ -39,8 +39,14 @@ PathLike = str | os.PathLike[str]
 
 def resolve_target(path: PathLike) -> Path:
     """The file a write to ``path`` must change: ``path`` with every symlink followed (a
-    dangling link yields the path it points to, which will be created)."""
-    return Path(os.path.realpath(os.fspath(path)))
+    dangling link yields the path it points to, which will be created). A special file
+    reached through links (``/dev/stdout`` -> ``/proc/self/fd/1`` -> a pipe) is opened by
+    the path given, since its resolved name may not be openable."""
+    try:
+        special = not stat.S_ISREG(os.stat(path).st_mode)
+    except OSError:
+        special = False
+    return Path(path) if special else Path(os.path.realpath(os.fspath(path)))
 
 
 def _special_kind(mode: int) -> str | None:

@@ -75,7 +75,7 @@ def read_profile_text(path: str | FsPath) -> str:
     except OSError as exc:
         raise ProfileError(str(p), [f"cannot read: {exc.strerror or exc}"]) from None
     if len(data) > MAX_PROFILE_BYTES:
-        raise ProfileError(str(p), [f"the file is larger than {MAX_PROFILE_BYTES // 1000} kB; a "
+        raise ProfileError(str(p), [f"the file is larger than {MAX_PROFILE_BYTES / 1e6:g} MB; a "
                                     "board profile is a few kB - is this the right file?"])
     try:
         return data.decode("utf-8")
