@@ -201,3 +201,12 @@ def test_a_truth_file_written_by_run_is_replayed(tmp_path: Path) -> None:
     # the replay runs to the end of the record, not past it
     assert float(rows[-1].split(",")[0]) <= float(truth.read_text().splitlines()[-1]
                                                   .split(",")[0])
+
+
+def test_a_replay_asked_to_run_past_its_record_stops_at_its_end(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    truth = truth_csv(tmp_path / "truth.csv", "1.5")
+    assert cli_main.main(["run", "--emulate", "replay", "--replay-truth", str(truth),
+                          "--duration", "100", "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert "ends after" in err and "ran 1.5 s" in err

@@ -97,10 +97,13 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
                 trace=trace, scenario_params=scenario_params))
         for w in pipeline.warnings:
             print(f"warning: {w}", file=sys.stderr)
-        if emulate == "replay" and args.duration is None and \
-                isinstance(pipeline.board, EmulatedBoard):
+        if emulate == "replay" and isinstance(pipeline.board, EmulatedBoard):
             # the rest of the record (opening the board took some simulated time)
-            duration = pipeline.board.scenario.duration_s - pipeline.clock.now_ns() / 1e9
+            left = pipeline.board.scenario.duration_s - pipeline.clock.now_ns() / 1e9
+            if args.duration is not None and args.duration > left:
+                print(f"warning: --replay-truth {args.replay_truth} ends after {left:.3f} s; "
+                      "the run stops there", file=sys.stderr)
+            duration = left if args.duration is None else min(args.duration, left)
         if args.output:
             csv_sink = CsvSink(args.output, include_samples=args.samples)
             sinks.append(csv_sink)
