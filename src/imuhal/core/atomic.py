@@ -196,6 +196,8 @@ class AtomicFile:
             self.target if st is not None else None)
         self.file: IO[Any] | None = (os.fdopen(fd, "wb") if binary else
                                      os.fdopen(fd, "w", newline=newline, encoding="utf-8"))
+        if partial and not self.direct:
+            _fsync_dir(self.tmp_path.parent)  # the visible name itself survives a power cut
 
     def write(self, data: str | bytes) -> int:
         assert self.file is not None, "file already committed or aborted"
