@@ -5,11 +5,14 @@ edits a bundled profile, and its prompts name the position being recorded."""
 from __future__ import annotations
 
 import csv
+import os
 import re
 import shutil
 import signal
+import stat
 import subprocess
 import sys
+import threading
 import time
 import types
 from pathlib import Path
@@ -68,6 +71,33 @@ def test_a_stop_signal_finalizes_the_log_under_its_own_name(signum: int, tmp_pat
     rows = _complete_log(out)
     assert len(rows) > 20
     assert not partial.exists()
+
+
+def test_run_output_through_a_symlink_writes_the_target_and_keeps_the_link(
+        tmp_path: Path) -> None:
+    real = tmp_path / "logs" / "flight.csv"
+    real.parent.mkdir()
+    real.write_text("old\n")
+    link = tmp_path / "latest.csv"
+    link.symlink_to(real)
+    assert cli_main.main(["run", "--emulate", "static", "--duration", "1", "--quiet",
+                          "--output", str(link)]) == 0
+    assert link.is_symlink() and link.resolve() == real.resolve()
+    assert len(_complete_log(real)) > 20
+
+
+def test_run_output_to_a_fifo_streams_into_it(tmp_path: Path) -> None:
+    fifo = tmp_path / "live"
+    os.mkfifo(fifo)
+    received: list[str] = []
+    reader = threading.Thread(target=lambda: received.append(fifo.read_text()))
+    reader.start()
+    assert cli_main.main(["run", "--emulate", "static", "--duration", "1", "--quiet",
+                          "--output", str(fifo)]) == 0
+    reader.join(timeout=30)
+    assert stat.S_ISFIFO(fifo.stat().st_mode)
+    rows = list(csv.reader(received[0].splitlines()))
+    assert tuple(rows[0]) == CSV_COLUMNS and len(rows) > 20
 
 
 class _GivesUp(Estimator):
