@@ -49,15 +49,16 @@ class StopRequested(KeyboardInterrupt):
         self.signum = signum
 
 
-STOP_SIGNALS = tuple(s for s in (getattr(signal, "SIGTERM", None), getattr(signal, "SIGHUP", None))
-                     if s is not None)
+STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP", "SIGINT")
+                     if hasattr(signal, name))
 
 
 @contextlib.contextmanager
 def stop_signals_as_interrupts() -> Iterator[None]:
-    """While the command runs, SIGTERM and SIGHUP raise :class:`StopRequested` (SIGINT already
-    raises KeyboardInterrupt). Once a stop is under way, further signals are ignored so that
-    finalizing the files is not interrupted. Previous handlers are restored afterwards."""
+    """While the command runs, SIGTERM, SIGHUP and SIGINT raise :class:`StopRequested` (a
+    KeyboardInterrupt, as Ctrl-C always did). Once a stop is under way, further signals are
+    ignored so that finalizing the files is not interrupted. Previous handlers are restored
+    afterwards."""
     stopping = False
 
     def handler(signum: int, frame: FrameType | None) -> None:
@@ -67,16 +68,8 @@ def stop_signals_as_interrupts() -> Iterator[None]:
         stopping = True
         raise StopRequested(signum)
 
-    def on_int(signum: int, frame: FrameType | None) -> None:
-        nonlocal stopping
-        if stopping:
-            return
-        stopping = True
-        raise KeyboardInterrupt
-
     try:
         previous = {s: signal.signal(s, handler) for s in STOP_SIGNALS}
-        previous[signal.SIGINT] = signal.signal(signal.SIGINT, on_int)
     except ValueError:  # not the main thread (embedded use): leave signals alone
         yield
         return

@@ -72,7 +72,7 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
                           "hardware has no ground truth")
     if emulate is not None:
         registry.scenarios.get(emulate)  # an unknown name fails here, before any output
-    scenario_params = _replay_params(args, emulate, registry)
+    scenario_params = _replay_params(args, emulate)
     duration = args.duration
     if duration is None and emulate is not None:
         duration = registry.scenarios.get(emulate).default_duration_s
@@ -143,8 +143,7 @@ def _kept_note(output: str | None, sink: Any) -> str:
     return f"; nothing was written to {output}"
 
 
-def _replay_params(args: argparse.Namespace, emulate: str | None,
-                   registry: Registry) -> dict[str, Any] | None:
+def _replay_params(args: argparse.Namespace, emulate: str | None) -> dict[str, Any] | None:
     """Scenario parameters from --replay-truth; the replay scenario cannot run without one."""
     if emulate == "replay":
         if not args.replay_truth:
