@@ -22,10 +22,12 @@ goes through here. The rules:
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
 import stat
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import IO, Any
 
@@ -160,6 +162,7 @@ class AtomicFile:
         self.path = Path(path)
         self.target = resolve_target(self.path)
         self.mode_from = Path(mode_from) if mode_from is not None else None
+        self.partial = partial
         self.direct = False
         st: os.stat_result | None
         try:
@@ -213,25 +216,28 @@ class AtomicFile:
             os.fsync(self.file.fileno())
 
     def commit(self) -> Path:
-        """Flush, fsync and rename over the target; returns the path written."""
+        """Flush, fsync and rename over the target; returns the path written. Stop signals
+        arriving meanwhile are held until it is done (a stop must not cut the commit)."""
         if self.file is None:
             raise ValueError(f"{self.path}: already committed or aborted")
-        self.sync()
-        self.file.close()
-        self.file = None
-        if self.direct:
-            return self.target
-        try:
-            keep = self._keep_mode_of
-            if keep is not None and keep.exists():
-                os.chmod(self.tmp_path, stat.S_IMODE(os.stat(keep).st_mode))
-            os.replace(self.tmp_path, self.target)
-        except BaseException:
-            # Interrupted before the rename took effect: the target is untouched; leave no
-            # temporary file behind either.
-            self.tmp_path.unlink(missing_ok=True)
-            raise
-        _fsync_dir(self.target.parent)
+        with _stop_signals_held():
+            self.sync()
+            self.file.close()
+            self.file = None
+            if self.direct:
+                return self.target
+            try:
+                keep = self._keep_mode_of
+                if keep is not None and keep.exists():
+                    os.chmod(self.tmp_path, stat.S_IMODE(os.stat(keep).st_mode))
+                os.replace(self.tmp_path, self.target)
+            except BaseException:
+                # The rename did not happen: the target is untouched. A visible partial file
+                # is the only copy of the data, so it stays; a hidden temporary one goes.
+                if not self.partial:
+                    self.tmp_path.unlink(missing_ok=True)
+                raise
+            _fsync_dir(self.target.parent)
         return self.target
 
     def abort(self, *, keep_partial: bool = False) -> Path | None:
@@ -272,6 +278,23 @@ def atomic_write_bytes(path: PathLike, data: bytes, *,
     with AtomicFile(path, binary=True, mode_from=mode_from) as f:
         f.write(data)
     return f.target
+
+
+_HELD_SIGNALS = {getattr(signal, n) for n in ("SIGTERM", "SIGHUP", "SIGINT")
+                 if hasattr(signal, n)}
+
+
+@contextlib.contextmanager
+def _stop_signals_held() -> Iterator[None]:
+    """Hold SIGTERM, SIGHUP and SIGINT (delivered when the block ends) where the platform can."""
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD_SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 def _fsync_dir(folder: Path) -> None:
