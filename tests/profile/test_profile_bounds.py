@@ -4,6 +4,7 @@ schema version) is in one report."""
 
 from __future__ import annotations
 
+import signal
 import textwrap
 from pathlib import Path
 
@@ -46,9 +47,21 @@ def _problems(text: str, registry: Registry) -> list[str]:
     return info.value.problems
 
 
+def _hang(signum: int, frame: object) -> None:
+    raise AssertionError("the alias bomb was expanded (still running after 5 s)")
+
+
 def test_an_alias_bomb_is_refused_before_it_expands(registry: Registry) -> None:
     assert len(BILLION_LAUGHS.encode()) < 400  # 9**9 values once expanded
-    problems = _problems(BILLION_LAUGHS, registry)
+    # A hang guard, not a speed test: refusing takes about 2 ms, expanding would take minutes
+    # and gigabytes (docs/profiles.md).
+    previous = signal.signal(signal.SIGALRM, _hang)
+    signal.alarm(5)
+    try:
+        problems = _problems(BILLION_LAUGHS, registry)
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)
     assert len(problems) == 1
     assert "expands to more than" in problems[0] and "aliases" in problems[0]
     assert problems[0].startswith("board.yaml:")
