@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from tests.filters.test_freescale_conformance import ANGLE_TOL_DEG, _quat_angle_deg, _wrapped
-from tests.filters.test_freescale_magnetic import FS, _scenario
+from tests.filters.test_freescale_magnetic import magnet_inputs
 
 from imuhal.core.conventions import VectorKind, convert_quat, convert_vector
 from imuhal_filters.freescale.batch import BatchResult, run_6dof, run_9dof
@@ -124,13 +124,7 @@ def magnet_in_each_system() -> dict[str, BatchResult]:
     """The magnet run of test_freescale_magnetic (200 uT sideways, 100 uT up from 10 s to
     14 s while turning) in each build, its inputs converted exactly with the core
     conventions from the Aerospace (gravity-positive NED) sensor readings."""
-    t = np.arange(int(40 * FS)) / FS
-    turning = (t >= 10.0) & (t < 14.0)
-    rate = np.where(turning, 30.0, 0.0)
-    yaw = 20.0 + np.cumsum(rate) / FS
-    disturbance = np.where(turning[:, None], [0.0, 200.0, -100.0], 0.0)
-    accel, gyro, mag, _ = _scenario(yaw, rate, gyro_scale=np.where(turning, 0.95, 1.0),
-                                    disturbance_ut=disturbance)
+    accel, gyro, mag, _ = magnet_inputs()
     out = {}
     for cs in CoordinateSystem:
         dst = "aerospace" if cs is CoordinateSystem.NED else cs.value
