@@ -64,7 +64,7 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     print(f"imuhal {__version__}: {profile.name} ({where}) from {path}", file=sys.stderr)
     sinks: list[Any] = []
     if not args.quiet:
-        sinks.append(ConsoleSink(sys.stdout))
+        sinks.append(ConsoleSink(sys.stdout, frame=profile.output_frame))
     csv_sink = None
     trace_file = AtomicFile(args.trace) if args.trace else None
     trace = (lambda t: trace_file.write(format_transfer(t) + "\n")) if trace_file else None
@@ -78,7 +78,8 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
         for w in pipeline.warnings:
             print(f"warning: {w}", file=sys.stderr)
         if args.output:
-            csv_sink = CsvSink(args.output, include_samples=args.samples)
+            csv_sink = CsvSink(args.output, include_samples=args.samples,
+                               frame=profile.output_frame)
             sinks.append(csv_sink)
         truth_sink = None
         if args.truth and pipeline.board is not None:
