@@ -142,3 +142,36 @@ def test_an_unknown_frame_is_a_one_line_usage_error(tmp_path: Path,
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert "--input-frame" in err and "'nwu'" in err and "enu" in err
     assert not (tmp_path / "o.csv").exists()
+
+
+def test_frame_suffixed_columns_say_their_frame_without_the_option(tmp_path: Path) -> None:
+    """Columns named as imuhal writes them in another frame (gx_rad_s_enu ...) are read in
+    that frame; a slower magnetometer's empty cells stay allowed."""
+    rows = [(t, g * [1, -1, -1], f * [1, -1, -1], m * [1, -1, -1])
+            for t, g, f, m in _dataset_a_rows()[:400]]
+    plain = _write(tmp_path / "plain.csv", rows)
+    suffixed = tmp_path / "suffixed.csv"
+    lines = plain.read_text().splitlines()
+    header = ",".join(h if h == "t_s" else f"{h}_enu" for h in lines[0].split(","))
+    body = [",".join([*line.split(",")[:7], "", "", ""]) if i % 2 else line
+            for i, line in enumerate(lines[1:])]
+    suffixed.write_text("\n".join([header, *body]) + "\n")
+    sparse_plain = tmp_path / "sparse_plain.csv"
+    sparse_plain.write_text("\n".join([lines[0], *body]) + "\n")
+    out_a, out_b = tmp_path / "a.csv", tmp_path / "b.csv"
+    assert main(["estimate", "madgwick", str(suffixed), "--output", str(out_a)]) == 0
+    assert main(["estimate", "madgwick", str(sparse_plain), "--output", str(out_b),
+                 "--input-frame", "enu"]) == 0
+    np.testing.assert_array_equal(_quats(_read(out_a)), _quats(_read(out_b)))
+
+
+def test_a_suffix_contradicting_the_option_is_an_error(tmp_path: Path,
+                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    src = tmp_path / "in.csv"
+    lines = _write(tmp_path / "plain.csv", _dataset_a_rows()[:10]).read_text().splitlines()
+    header = ",".join(h if h == "t_s" else f"{h}_android" for h in lines[0].split(","))
+    src.write_text("\n".join([header, *lines[1:]]) + "\n")
+    assert main(["estimate", "madgwick", str(src), "--output", str(tmp_path / "o.csv"),
+                 "--input-frame", "enu"]) == 2
+    err = capsys.readouterr().err
+    assert "gx_rad_s_android" in err and "'android'" in err and "--input-frame enu" in err

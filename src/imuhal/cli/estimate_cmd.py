@@ -9,7 +9,7 @@ from typing import Any
 from imuhal.core.conventions import CONVENTIONS, NED
 from imuhal.offline.csv_input import read_sample_csv
 from imuhal.offline.csv_output import write_estimates
-from imuhal.offline.frames import frame_argument, table_to_ned
+from imuhal.offline.frames import frame_argument, resolve_input_frame, table_to_ned
 from imuhal.offline.runner import run_offline
 from imuhal.offline.settings_args import build_settings, parse_set_arguments
 from imuhal.plugins.manager import Registry
@@ -48,9 +48,10 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--ahrs", default="madgwick", metavar="NAME",
                    help="attitude estimator for gravity compensation of full IMU input to a "
                    "vario filter (default: madgwick)")
-    p.add_argument("--input-frame", type=frame_argument, default=NED, metavar="NAME",
+    p.add_argument("--input-frame", type=frame_argument, metavar="NAME",
                    help="convention of the input's gyro/accel/mag columns: "
-                   f"{', '.join(CONVENTIONS)} (ros = enu; default: ned)")
+                   f"{', '.join(CONVENTIONS)} (ros = enu; default: the columns' frame "
+                   "suffix, e.g. ax_m_s2_enu, else ned)")
     p.add_argument("--output-frame", type=frame_argument, default=NED, metavar="NAME",
                    help="convention of the output's attitude columns (default: ned)")
     p.set_defaults(func=cmd_estimate)
@@ -60,7 +61,9 @@ def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
     est_cls = registry.estimators.get(args.name)
     settings = build_settings(est_cls.Settings, parse_set_arguments(args.settings), args.name)
     estimator = est_cls(settings)
-    table = table_to_ned(read_sample_csv(args.input, rate_hz=args.rate), args.input_frame)
+    table, frame = resolve_input_frame(read_sample_csv(args.input, rate_hz=args.rate),
+                                       args.input_frame)
+    table = table_to_ned(table, frame)
     ahrs = None
     if "altitude_m" not in table.columns and args.name != args.ahrs:
         ahrs_cls = registry.estimators.get(args.ahrs)
