@@ -27,7 +27,8 @@ convention's body axes and accelerometer sign (enu/ros: forward-left-up, specifi
 android: right-forward-up, specific force; win8: right-forward-up, gravity positive;
 aerospace: forward-right-down, gravity positive). --output-frame NAME writes the quaternion
 (body -> that earth frame) and that convention's Euler angles, with the name as a column
-suffix (qw_enu ...). Estimators always run in ned. See docs/units-and-frames.md.
+suffix (qw_enu ...); input columns named that way (ax_m_s2_enu ...) need no --input-frame.
+Estimators always run in ned. See docs/units-and-frames.md.
 Settings are the estimator's own fields: --set beta=0.1 --set accel_gate_g=0.6,1.4
 """
 
