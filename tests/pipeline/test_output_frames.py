@@ -144,3 +144,11 @@ def test_express_converts_attitudes_and_leaves_frameless_events_alone() -> None:
     assert np.linalg.norm(framed.q_body_to_earth) == pytest.approx(1.0)
     vertical = VerticalEstimate(t_ns=0, source="vario", altitude_m=1.0, climb_m_s=0.5)
     assert express(vertical, "win8") is vertical
+
+
+def test_a_chip_frame_sample_keeps_its_row_but_no_vector_in_another_frame(tmp_path: Path) -> None:
+    sink = CsvSink(tmp_path / "log.csv", include_samples=True, frame="enu")
+    sink.handle(AccelSample(t_ns=0, device="imu", frame=Frame.SENSOR, accel_m_s2=(1.0, 2.0, 3.0)))
+    sink.close()
+    (row,) = _rows(tmp_path / "log.csv")
+    assert row["kind"] == "accel" and row["ax_m_s2_enu"] == ""

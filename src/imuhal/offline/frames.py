@@ -10,6 +10,8 @@ columns (``altitude_m``, ``accel_up_m_s2``, ``pressure_pa``) have no frame.
 
 from __future__ import annotations
 
+import argparse
+
 import numpy as np
 
 from imuhal.core.conventions import (
@@ -30,8 +32,6 @@ _VECTORS = ((GYRO, VectorKind.ANGULAR_RATE), (ACCEL, VectorKind.SPECIFIC_FORCE),
 
 def frame_argument(text: str) -> Convention:
     """An argparse ``type``: the named convention, or a one-line usage error listing them."""
-    import argparse
-
     try:
         return get_convention(text)
     except UnknownConvention as exc:

@@ -96,8 +96,9 @@ def event_row(event: Event, frame: str | Convention = NED) -> dict[str, str]:
             if event.frame is Frame.BODY_NED:
                 cols = express_sample(event, frame).columns()
                 _put(row, tuple(cols), tuple(cols.values()))
-            else:
+            elif get_convention(frame) is NED:
                 _put(row, VECTOR_COLUMNS[event.channel], event.vector)
+            # a chip-frame vector has no body axes to re-express: other frames leave it out
         elif isinstance(event, PressureSample):
             _put(row, ("pressure_pa",), (event.pressure_pa,))
         elif isinstance(event, TemperatureSample):
