@@ -29,6 +29,8 @@ from imuhal.core.samples import (
     VectorSample,
 )
 from imuhal.estimation.framed import (
+    EULER_COLUMNS,
+    QUAT_COLUMNS,
     VECTOR_COLUMNS,
     attitude_columns,
     express_attitude,
@@ -59,6 +61,7 @@ def csv_columns(frame: str | Convention = NED) -> tuple[str, ...]:
 
 CSV_COLUMNS = csv_columns(NED)
 """The header in imuhal's own convention (body-frame NED samples, body -> NED quaternions)."""
+NED_LINEAR_ACCEL = linear_accel_columns(NED)
 
 
 class Sink(Protocol):
@@ -86,6 +89,7 @@ class CallbackSink:
 def event_row(event: Event, frame: str | Convention = NED) -> dict[str, str]:
     """The CSV row of one event: only the columns its kind fills; body-frame vectors and
     attitudes expressed in ``frame``."""
+    conv = get_convention(frame)
     row: dict[str, str] = {}
     if isinstance(event, Sample):
         row["t_s"] = f"{event.t_ns / 1e9:.6f}"
@@ -93,11 +97,11 @@ def event_row(event: Event, frame: str | Convention = NED) -> dict[str, str]:
         row["kind"] = event.channel.value
         row["flags"] = str(int(event.flags))
         if isinstance(event, VectorSample):
-            if event.frame is Frame.BODY_NED:
-                cols = express_sample(event, frame).columns()
-                _put(row, tuple(cols), tuple(cols.values()))
-            elif get_convention(frame) is NED:
+            if conv is NED:
                 _put(row, VECTOR_COLUMNS[event.channel], event.vector)
+            elif event.frame is Frame.BODY_NED:
+                cols = express_sample(event, conv).columns()
+                _put(row, tuple(cols), tuple(cols.values()))
             # a chip-frame vector has no body axes to re-express: other frames leave it out
         elif isinstance(event, PressureSample):
             _put(row, ("pressure_pa",), (event.pressure_pa,))
@@ -109,8 +113,14 @@ def event_row(event: Event, frame: str | Convention = NED) -> dict[str, str]:
     row["flags"] = "0"
     if isinstance(event, AttitudeEstimate):
         row["kind"] = "attitude"
-        cols = express_attitude(event, frame).columns()
-        _put(row, tuple(cols), tuple(cols.values()))
+        if conv is NED:
+            _put(row, QUAT_COLUMNS, event.q_body_to_ned)
+            _put(row, EULER_COLUMNS, event.roll_pitch_yaw_deg)
+            if event.linear_accel_ned_m_s2 is not None:
+                _put(row, NED_LINEAR_ACCEL, event.linear_accel_ned_m_s2)
+        else:
+            cols = express_attitude(event, conv).columns()
+            _put(row, tuple(cols), tuple(cols.values()))
     elif isinstance(event, VerticalEstimate):
         row["kind"] = "vertical"
         _put(row, ("altitude_m", "climb_m_s"), (event.altitude_m, event.climb_m_s))
