@@ -98,7 +98,7 @@ def test_freescale_android_and_win8_see_the_aerospace_board_as_the_reference_hal
 def test_freescale_enu_quaternion_is_q0_q2_q1_minus_q3_of_the_ned_one(q: np.ndarray) -> None:
     for dst in ("android", "win8"):
         np.testing.assert_allclose(convert_quat(q, "aerospace", dst),
-                                   (q[0], q[2], q[1], -q[3]), atol=1e-15)
+                                   (q[0], q[2], q[1], -q[3]), atol=1e-14)
 
 
 def test_ros_output_of_a_board_pitched_nose_up_30_deg_heading_east() -> None:
@@ -146,7 +146,7 @@ def test_vector_conversions_compose(v: np.ndarray, a: str, b: str, c: str,
 @given(q=unit_quats, a=names, b=names)
 def test_quaternion_round_trip_returns_the_same_quaternion(q: np.ndarray, a: str,
                                                            b: str) -> None:
-    np.testing.assert_allclose(convert_quat(convert_quat(q, a, b), b, a), q, atol=1e-15)
+    np.testing.assert_allclose(convert_quat(convert_quat(q, a, b), b, a), q, atol=1e-14)
 
 
 @settings(max_examples=200, deadline=None)
@@ -183,6 +183,8 @@ def test_gravity_is_read_consistently_with_the_attitude(q: np.ndarray, dst: str)
 @given(q=unit_quats, a=names, b=names)
 def test_compass_heading_does_not_depend_on_the_convention(q: np.ndarray, a: str,
                                                            b: str) -> None:
+    forward_ned = quat_to_matrix(q)[:, 0]
+    assume(math.hypot(forward_ned[0], forward_ned[1]) > 1e-3)  # nose vertical: no heading
     h_a = compass_heading_deg(a, convert_quat(q, "ned", a))
     h_b = compass_heading_deg(b, convert_quat(q, "ned", b))
     assert abs((h_a - h_b + 180.0) % 360.0 - 180.0) < 1e-9
@@ -217,12 +219,20 @@ def test_euler_angles_survive_a_round_trip_in_every_convention(
     assert got == pytest.approx(angles, abs=1e-6)
 
 
+def _gimbal_angle(style: EulerStyle, angles: tuple[float, float, float]) -> float:
+    """The angle whose +-90 deg is the style's gimbal lock."""
+    return angles[0] if style is EulerStyle.FREESCALE_ANDROID else angles[1]
+
+
 @settings(max_examples=200, deadline=None)
 @given(case=named_euler(), dst=names)
 def test_euler_conversion_is_the_quaternion_conversion(
         case: tuple[str, tuple[float, float, float]], dst: str) -> None:
     src, angles = case
     via_quat = convert_quat(quat_from_euler_deg(src, *angles), src, dst)
+    # near the destination's gimbal lock its angles cannot hold the attitude precisely
+    dst_angles = euler_deg_from_quat(dst, via_quat)
+    assume(abs(abs(_gimbal_angle(get_convention(dst).euler, dst_angles)) - 90.0) > 1.0)
     assert _same_rotation(quat_from_euler_deg(dst, *convert_euler_deg(angles, src, dst)),
                           via_quat / np.linalg.norm(via_quat))
 
