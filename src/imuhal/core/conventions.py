@@ -413,7 +413,8 @@ def _freescale_win8(r: FloatArray) -> EulerDeg:
 
 
 def compass_heading_deg(conv: str | Convention, q: ArrayLike) -> float:
-    """Heading clockwise from north, [0, 360), of the body's forward axis (any convention)."""
+    """Heading clockwise from north, [0, 360), of the body's forward axis (any convention).
+    Undefined (whatever atan2 gives) when the forward axis is vertical."""
     q_ned = convert_quat(q, conv, NED)
     fwd = quat_to_matrix(q_ned / np.linalg.norm(q_ned))[:, 0]
     return _wrap_360(_atan2_deg(fwd[1], fwd[0]))
