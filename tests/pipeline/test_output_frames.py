@@ -18,6 +18,7 @@ from tests.pipeline.test_pipeline import PROFILE
 from imuhal.core.errors import ProfileError
 from imuhal.core.frames import quat_from_euler_deg
 from imuhal.core.samples import AccelSample, Channel, Frame, GyroSample, MagSample
+from imuhal.emulation import open_emulated
 from imuhal.estimation.framed import (
     FramedAttitude,
     FramedSample,
@@ -26,10 +27,9 @@ from imuhal.estimation.framed import (
     sample_from_frame,
 )
 from imuhal.estimation.outputs import AttitudeEstimate, VerticalEstimate
-from imuhal.pipeline import Pipeline
-from imuhal.pipeline.sinks import ConsoleSink, CsvSink, csv_columns
 from imuhal.plugins.manager import Registry
 from imuhal.profile.loader import parse_profile
+from imuhal.sinks.builtin import ConsoleSink, CsvSink, csv_columns
 
 G = 9.80665
 C15, S15 = math.cos(math.radians(15.0)), math.sin(math.radians(15.0))
@@ -127,7 +127,7 @@ def test_profile_output_frame_accepts_aliases_and_rejects_unknown_names(
 def test_framed_events_follow_the_profiles_output_frame(registry: Registry) -> None:
     profile = parse_profile(textwrap.dedent(PROFILE) + "output_frame: android\n", "t.yaml",
                             registry)
-    with Pipeline.open(profile, registry, emulate="thermal") as p:
+    with open_emulated(profile, registry, scenario="thermal") as p:
         events = list(p.framed_events(0.2))
     accel = [e for e in events if isinstance(e, FramedSample)]
     assert accel and all(e.frame.name == "android" for e in accel)
