@@ -246,3 +246,19 @@ def test_freescale_android_yaw_is_the_compass_and_win8_yaw_its_complement() -> N
         pytest.approx(330.0)
     assert euler_deg_from_quat("enu", convert_quat(q_ned, "ned", "enu")).yaw == \
         pytest.approx(60.0)
+
+
+def test_the_worked_example_of_units_and_frames_md() -> None:
+    """Nose 30 deg up, facing east, at rest: the numbers docs/units-and-frames.md prints."""
+    q_ned = ned_quat_from_euler(0.0, 30.0, 90.0)
+    force_ned = quat_to_matrix(q_ned).T @ [0.0, 0.0, -1.0]  # g
+    np.testing.assert_allclose(force_ned * 9.80665, (4.903, 0.0, -8.493), atol=1e-3)
+    np.testing.assert_allclose(convert_vector(force_ned * 9.80665, "ned", "enu",
+                                              VectorKind.SPECIFIC_FORCE), (4.903, 0.0, 8.493),
+                               atol=1e-3)
+    np.testing.assert_allclose(q_ned, (0.6830, -0.1830, 0.1830, 0.6830), atol=1e-4)
+    for name, reading in (("aerospace", (-0.5, 0.0, 0.866)), ("android", (0.0, 0.5, 0.866)),
+                          ("win8", (0.0, -0.5, -0.866))):
+        np.testing.assert_allclose(
+            convert_vector(force_ned, "ned", name, VectorKind.SPECIFIC_FORCE), reading,
+            atol=1e-3)
