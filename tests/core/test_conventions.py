@@ -262,3 +262,12 @@ def test_the_worked_example_of_units_and_frames_md() -> None:
         np.testing.assert_allclose(
             convert_vector(force_ned, "ned", name, VectorKind.SPECIFIC_FORCE), reading,
             atol=1e-3)
+
+
+def test_ros_roll_has_the_sense_of_ned_roll_while_pitch_and_yaw_flip() -> None:
+    """Right wing 20 deg down, facing north: ROS roll +20 (both turn about the forward axis);
+    nose 20 deg up: ROS pitch -20; facing north: ROS yaw +90 (anticlockwise from east)."""
+    rolled = convert_quat(ned_quat_from_euler(20.0, 0.0, 0.0), "ned", "ros")
+    pitched = convert_quat(ned_quat_from_euler(0.0, 20.0, 0.0), "ned", "ros")
+    assert euler_deg_from_quat("ros", rolled) == pytest.approx((20.0, 0.0, 90.0))
+    assert euler_deg_from_quat("ros", pitched) == pytest.approx((0.0, -20.0, 90.0))

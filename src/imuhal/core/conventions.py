@@ -89,7 +89,7 @@ class EulerStyle(str, Enum):
     ZYX = "zyx"
     """R = Rz(yaw) Ry(pitch) Rx(roll) about the convention's own axes: aerospace for NED/FRD
     (yaw clockwise from north, pitch nose up, roll right wing down), ROS RPY for ENU/FLU
-    (yaw anticlockwise from east, pitch nose *down* positive, roll right wing up).
+    (yaw anticlockwise from east, pitch nose *down* positive, roll right wing down as well).
     Roll and yaw in [-180, 180], pitch in [-90, 90]."""
     FREESCALE_NED = "freescale_ned"
     """The note's aerospace angles: ZYX as above with yaw (= compass heading) in [0, 360) and
