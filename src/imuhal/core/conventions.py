@@ -138,11 +138,6 @@ class Convention:
         """What a level accelerometer at rest reads in this convention (g, body axes)."""
         return vector_from_ned(np.array([0.0, 0.0, -1.0]), self, VectorKind.SPECIFIC_FORCE)
 
-    def axis_summary(self) -> str:
-        """One line naming the frames, e.g. ``earth east-north-up, body forward-left-up``."""
-        return (f"earth {'-'.join(self.earth_axes)}, body {'-'.join(self.body_axes)}, "
-                f"accelerometer {self.accel_sign.value.replace('_', ' ')}")
-
 
 def _axes_matrix(name: str, what: str, axes: Sequence[str],
                  directions: dict[str, tuple[float, float, float]]) -> FloatArray:
@@ -190,9 +185,6 @@ CONVENTIONS: dict[str, Convention] = {c.name: c for c in (NED, AEROSPACE, ENU, A
 """The named conventions by name."""
 
 ALIASES: dict[str, str] = {"ros": "enu", "flu": "enu", "frd": "ned"}
-
-DEFAULT = NED
-"""What imuhal uses inside: every estimator consumes and produces this convention."""
 
 
 class UnknownConvention(ValueError):
@@ -429,7 +421,7 @@ def convert_euler_deg(angles: Sequence[float], src: str | Convention,
 
 
 __all__ = [
-    "AEROSPACE", "ALIASES", "ANDROID", "CONVENTIONS", "DEFAULT", "ENU", "NED", "WIN8",
+    "AEROSPACE", "ALIASES", "ANDROID", "CONVENTIONS", "ENU", "NED", "WIN8",
     "AccelSign", "Convention", "EulerDeg", "EulerStyle", "UnknownConvention", "VectorKind",
     "compass_heading_deg", "convert_earth_vector", "convert_euler_deg", "convert_quat",
     "convert_vector", "euler_deg_from_quat", "get_convention", "quat_from_euler_deg",
