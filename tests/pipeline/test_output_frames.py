@@ -15,8 +15,9 @@ import numpy as np
 import pytest
 from tests.pipeline.test_pipeline import PROFILE
 
+from imuhal.cli.main import main
 from imuhal.core.errors import ProfileError
-from imuhal.core.frames import quat_from_euler_deg
+from imuhal.core.frames import quat_from_euler_deg, quat_to_matrix
 from imuhal.core.samples import AccelSample, Channel, Frame, GyroSample, MagSample
 from imuhal.emulation import open_emulated
 from imuhal.estimation.framed import (
@@ -152,3 +153,24 @@ def test_a_chip_frame_sample_keeps_its_row_but_no_vector_in_another_frame(tmp_pa
     sink.close()
     (row,) = _rows(tmp_path / "log.csv")
     assert row["kind"] == "accel" and row["ax_m_s2_enu"] == ""
+
+
+def test_run_output_frame_option_overrides_the_profile_and_renames_the_columns(
+        tmp_path: Path) -> None:
+    """The same seeded emulated run logged in ned and in ros: the same attitudes, the ros log's
+    quaternions re-expressed by hand (R_enu = E R_ned B^T, E and B the axis renames)."""
+    logs = {}
+    for frame in ("ned", "ros"):
+        out = tmp_path / f"{frame}.csv"
+        assert main(["run", "--duration", "1", "--output", str(out), "--quiet",
+                     "--output-frame", frame]) == 0
+        logs[frame] = [r for r in _rows(out) if r["kind"] == "attitude"]
+    assert logs["ned"] and len(logs["ned"]) == len(logs["ros"])
+    enu_from_ned = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+    flu_from_frd = np.diag([1.0, -1.0, -1.0])
+    for ned, ros in zip(logs["ned"][::10], logs["ros"][::10], strict=True):
+        q_ned = [float(ned[c]) for c in ("qw", "qx", "qy", "qz")]
+        q_ros = [float(ros[c]) for c in ("qw_enu", "qx_enu", "qy_enu", "qz_enu")]
+        np.testing.assert_allclose(quat_to_matrix(q_ros),
+                                   enu_from_ned @ quat_to_matrix(q_ned) @ flu_from_frd.T,
+                                   atol=1e-12)

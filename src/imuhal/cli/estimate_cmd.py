@@ -6,10 +6,11 @@ import argparse
 import sys
 from typing import Any
 
+from imuhal.cli.frame_option import frame_argument
 from imuhal.core.conventions import CONVENTIONS, NED
 from imuhal.offline.csv_input import read_sample_csv
 from imuhal.offline.csv_output import write_estimates
-from imuhal.offline.frames import frame_argument, resolve_input_frame, table_to_ned
+from imuhal.offline.frames import resolve_input_frame, table_to_ned
 from imuhal.offline.runner import run_offline
 from imuhal.offline.settings_args import build_settings, parse_set_arguments
 from imuhal.plugins.manager import Registry

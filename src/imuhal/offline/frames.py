@@ -10,15 +10,12 @@ columns (``altitude_m``, ``accel_up_m_s2``, ``pressure_pa``) have no frame.
 
 from __future__ import annotations
 
-import argparse
-
 import numpy as np
 
 from imuhal.core.conventions import (
     CONVENTIONS,
     NED,
     Convention,
-    UnknownConvention,
     VectorKind,
     get_convention,
     vector_to_ned,
@@ -28,14 +25,6 @@ from imuhal.offline.csv_input import ACCEL, GYRO, MAG, InputError, SampleTable
 
 _VECTORS = ((GYRO, VectorKind.ANGULAR_RATE), (ACCEL, VectorKind.SPECIFIC_FORCE),
             (MAG, VectorKind.MAGNETIC_FIELD))
-
-
-def frame_argument(text: str) -> Convention:
-    """An argparse ``type``: the named convention, or a one-line usage error listing them."""
-    try:
-        return get_convention(text)
-    except UnknownConvention as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def table_to_ned(table: SampleTable, frame: str | Convention) -> SampleTable:
