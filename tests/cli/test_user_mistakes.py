@@ -64,6 +64,9 @@ MISTAKES: dict[str, Mistake] = {
     "output folder missing": Mistake(
         lambda t: ["run", "--duration", "1", "--output", str(t / "nodir" / "x.csv")], "nodir"),
     "output folder not writable": Mistake(_unwritable, "locked"),
+    "output on a file system that takes no files": Mistake(
+        lambda t: ["run", "--duration", "1", "--output", "/sys/imuhal-log.csv"],
+        "not writable"),
     "output is a directory": Mistake(
         lambda t: ["estimate", "madgwick", str(imu_csv(t / "in.csv")), "-o", str(t)],
         "is a directory"),
@@ -163,6 +166,8 @@ def test_a_user_mistake_is_one_line_naming_the_input(
         request: pytest.FixtureRequest) -> None:
     if case == "output folder not writable" and os.geteuid() == 0:
         pytest.skip("root writes into any folder")
+    if case == "output on a file system that takes no files" and not Path("/sys/kernel").is_dir():
+        pytest.skip("needs Linux sysfs")
     if case == "emulator without clock":
         request.getfixturevalue("with_noclock_plugin")
     mistake = MISTAKES[case]

@@ -101,9 +101,13 @@ def check_writable(path: PathLike, what: str = "output") -> Path:
     if not folder.is_dir():
         raise OutputError(f"{what} {given}: folder {folder} does not exist; create it first "
                           f"(mkdir -p {folder}) or choose another path")
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise OutputError(f"{what} {given}: folder {folder} is not writable; choose a folder "
-                          "you can write to")
+    try:  # really create a file there: permissions, ACLs and read-only mounts all show
+        fd, probe = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".probe", dir=folder)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise OutputError(f"{what} {given}: folder {folder} is not writable "
+                          f"({exc.strerror or exc}); choose a folder you can write to") from None
     if st is not None and not os.access(target, os.W_OK) and os.geteuid() != 0:
         # Replacing it by rename would succeed, but the user marked it read-only on purpose.
         raise OutputError(f"{what} {given}: the file is read-only; make it writable or "
