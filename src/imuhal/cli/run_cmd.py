@@ -6,6 +6,8 @@ import argparse
 import contextlib
 import math
 import sys
+import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -88,7 +90,7 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
         sinks.append(ConsoleSink(sys.stdout, frame=frame))
     csv_sink = None
     trace_file = AtomicFile(args.trace, partial=True) if args.trace else None
-    trace = (lambda t: trace_file.write(format_transfer(t) + "\n")) if trace_file else None
+    trace = _trace_writer(trace_file) if trace_file else None
     with contextlib.ExitStack() as stack:
         if trace_file is not None:
             # Committed even when opening the board fails: the trace of a failed probe is
@@ -135,6 +137,22 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     if truth_sink is not None:
         print(f"wrote {truth_sink.rows} truth rows to {args.truth}", file=sys.stderr)
     return 0
+
+
+def _trace_writer(out: AtomicFile, every_s: float = 2.0) -> Callable[[Any], None]:
+    """Writes each bus transaction as a line, syncing ``out`` every ``every_s`` seconds of
+    wall time like the CSV log (a power cut loses at most that much of the trace)."""
+    last = time.monotonic()
+
+    def write(transfer: Any) -> None:
+        nonlocal last
+        out.write(format_transfer(transfer) + "\n")
+        now = time.monotonic()
+        if now - last >= every_s:
+            out.sync()
+            last = now
+
+    return write
 
 
 def _kept_note(output: str | None, sink: Any) -> str:
