@@ -217,6 +217,9 @@ class BMP280Emulator(ChipEmulator):
             pointer = self._pointer
         if not read_len or pointer is None:
             return bytes(read_len)
+        if kind is BusKind.I2C:
+            # Auto-increment: a following read without a register byte continues here.
+            self._pointer = (pointer + read_len) & 0xFF
         return bytes(self._read((pointer + i) & 0xFF) for i in range(read_len))
 
     def _read(self, address: int) -> int:
