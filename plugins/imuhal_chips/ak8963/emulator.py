@@ -50,6 +50,7 @@ class AK8963Emulator(ChipEmulator):
 
     chip = "ak8963"
     error_spec = AK8963_ERROR_SPEC
+    conformance_sweep = True
 
     def __init__(self, clock: Clock | None = None, *,
                  asa: tuple[int, int, int] = DEFAULT_ASA) -> None:

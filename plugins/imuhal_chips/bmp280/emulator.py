@@ -58,6 +58,7 @@ class BMP280Emulator(ChipEmulator):
 
     chip = "bmp280"
     error_spec = BMP280_ERROR_SPEC
+    conformance_sweep = True
 
     def __init__(
         self, clock: Clock | None = None, *, trim: FactoryTrimming = DATASHEET_TRIMMING

@@ -378,6 +378,7 @@ class Max21105Emulator(Max2110xEmulator):
 
     chip = "max21105"
     error_spec = MAX21105_ERROR_SPEC
+    conformance_sweep = True
     part = MAX21105
 
 
@@ -386,6 +387,7 @@ class Max21100Emulator(Max2110xEmulator):
 
     chip = "max21100"
     error_spec = MAX21100_ERROR_SPEC
+    conformance_sweep = True
     part = MAX21100
 
     def __init__(self, clock: Clock | None = None, *, name: str | None = None) -> None:

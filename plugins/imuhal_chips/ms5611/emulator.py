@@ -73,6 +73,7 @@ class MS5611Emulator(ChipEmulator):
 
     chip = "ms5611"
     error_spec = MS5611_ERROR_SPEC
+    conformance_sweep = True
 
     def __init__(
         self,

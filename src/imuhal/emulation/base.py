@@ -44,6 +44,9 @@ class ChipEmulator(ABC):
     #: The chip's datasheet noise and bias figures (fields of imuhal.sim.errors.SensorErrorSpec)
     #: that the simulator applies to the truth before this emulator encodes it; None: ideal.
     error_spec: ClassVar[Mapping[str, Any] | None] = None
+    #: Opt-in to imuhal's generic conformance sweep, which checks the pair against an
+    #: independent table in imuhal's own test data; a third-party emulator leaves it False.
+    conformance_sweep: ClassVar[bool] = False
 
     def __init__(self, clock: Clock | None = None) -> None:
         self.clock: Clock = clock if clock is not None else SimulatedClock()
