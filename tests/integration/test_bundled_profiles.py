@@ -27,8 +27,8 @@ import pytest
 
 from imuhal.core.frames import quat_to_matrix
 from imuhal.core.samples import PressureSample, Sample, VectorSample
+from imuhal.emulation import open_emulated
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate, VerticalEstimate
-from imuhal.pipeline import Pipeline
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile
@@ -59,7 +59,7 @@ def flights(installed: Registry) -> dict[str, tuple[BoardProfile, Scenario, list
         e = profile.emulation
         scenario = installed.scenarios.get(e.scenario)(dict(e.scenario_params) or None,
                                                        seed=e.seed)
-        with Pipeline.open(profile, installed, emulate=e.scenario) as p:
+        with open_emulated(profile, installed, scenario=e.scenario) as p:
             events = list(p.events(FLIGHT_S))
             summary = p.summary()
         out[name] = (profile, scenario, events, summary)

@@ -25,7 +25,7 @@ import numpy as np
 import pytest
 
 from imuhal.core.samples import Channel, VectorSample
-from imuhal.pipeline import Pipeline
+from imuhal.emulation import open_emulated
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile
@@ -96,7 +96,7 @@ def installed() -> Registry:
 def _fly(profile: BoardProfile, registry: Registry, *, calibrated: bool
          ) -> dict[tuple[str, Channel], list[VectorSample]]:
     out: dict[tuple[str, Channel], list[VectorSample]] = defaultdict(list)
-    with Pipeline.open(profile, registry, emulate="tumble", scenario_params=TUMBLE, seed=3,
+    with open_emulated(profile, registry, scenario="tumble", scenario_params=TUMBLE, seed=3,
                        calibrated=calibrated, sensor_errors=False) as p:
         for e in p.events(FLIGHT_S):
             if isinstance(e, VectorSample) and e.valid:

@@ -25,6 +25,7 @@ from imuhal.core.samples import (
     Sample,
     VectorSample,
 )
+from imuhal.emulation import open_emulated
 from imuhal.estimation.outputs import VerticalEstimate
 from imuhal.pipeline import Pipeline
 from imuhal.plugins.manager import Registry, load_registry
@@ -72,7 +73,7 @@ def _assert_on_truth(registry: Registry, events: list[object],
 @pytest.fixture
 def pipeline(registry: Registry) -> Iterator[Pipeline]:
     profile = load_profile(default_profile_path(), registry)
-    with Pipeline.open(profile, registry, emulate="thermal", seed=SEED) as p:
+    with open_emulated(profile, registry, scenario="thermal", seed=SEED) as p:
         yield p
 
 
