@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from tests.support.testchip import TC3Driver, TC3Emulator
 
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import SimulatedClock
@@ -33,7 +34,14 @@ from imuhal.plugins.manager import Registry, load_registry
 REGISTRY: Registry = load_registry()
 TABLE: dict[str, Any] = json.loads(
     (Path(__file__).parent.parent / "data" / "chips" / "conformance_sweep.json").read_text())
-SWEPT = [n for n in REGISTRY.emulators.names() if REGISTRY.emulators.get(n).conformance_sweep]
+
+
+def swept(registry: Registry) -> list[str]:
+    """The emulators the sweep covers: those whose class opts in."""
+    return [n for n in registry.emulators.names() if registry.emulators.get(n).conformance_sweep]
+
+
+SWEPT = swept(REGISTRY)
 DIRECTION = (0.41, -0.29, 0.19)
 """Fraction of full scale set on each axis: inside the range, all axes different, and
 summing below 1 (the AK8963 overflows when |x|+|y|+|z| reaches its 4912 uT range)."""
@@ -186,3 +194,12 @@ def test_every_bundled_emulator_opts_in_and_has_a_datasheet_table() -> None:
     for name in bundled:
         assert name in SWEPT, f"{name} does not opt in to the conformance sweep"
         assert name in TABLE, f"{name} has no entry in conformance_sweep.json"
+
+
+def test_a_third_party_emulator_that_does_not_opt_in_is_left_out() -> None:
+    registry = load_registry()
+    registry.drivers(TC3Driver)
+    registry.emulators(TC3Emulator)
+    assert "tc3" in registry.emulators.names()
+    assert "tc3" not in swept(registry)
+    assert set(swept(registry)) == set(SWEPT)

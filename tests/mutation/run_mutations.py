@@ -73,9 +73,11 @@ MUTATIONS: tuple[Mutation, ...] = (
              "src/imuhal/emulation/mounting.py",
              "_product(board, _matrix(dev.mount))", "_product(_matrix(dev.mount), board)",
              FRAMES),
-    Mutation("M5", "emulated board reads a mount string's signs inverted",
+    # (Inverting every sign the emulated board reads is an equivalent mutant: each matrix
+    # becomes its negative and board_to_body @ mount = (-B) @ (-M) is unchanged.)
+    Mutation("M5", "emulated board ignores the signs of a mount string",
              "src/imuhal/emulation/mounting.py",
-             'sign = -1.0 if ch == "-" else 1.0', 'sign = 1.0 if ch == "-" else -1.0', FRAMES),
+             "row[_AXIS_INDEX[ch]] = sign", "row[_AXIS_INDEX[ch]] = 1.0", FRAMES),
     # -- the four shared-fact mistakes of issue 16 item 3 (no datasheet-vector tests) --------
     Mutation("F1", "MS5611 driver: wrong sign of the C4 (TCO) offset term",
              "plugins/imuhal_chips/ms5611/conversion.py",
