@@ -3,6 +3,7 @@
     .venv/bin/python tests/mutation/run_mutations.py            # every mutation
     .venv/bin/python tests/mutation/run_mutations.py --only F1 M2
     .venv/bin/python tests/mutation/run_mutations.py --list
+    .venv/bin/python tests/mutation/run_mutations.py --check   # every mutation still applies
 
 Each mutation is one deliberate mistake of the kind a reviewer worries about (a wrong sign,
 a swapped axis, a wrong datasheet fact) in drivers, pipeline processing, calibration and
@@ -266,12 +267,20 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", nargs="+", metavar="ID", help="run only these mutations")
     parser.add_argument("--list", action="store_true", help="list the mutations and exit")
+    parser.add_argument("--check", action="store_true",
+                        help="check that every mutation still applies to the tree, run nothing")
     args = parser.parse_args()
     chosen = [m for m in MUTATIONS if not args.only or m.id in args.only]
     if args.list:
         for m in chosen:
             print(f"{m.id:3} {m.path}: {m.what}")
         return 0
+    if args.check:
+        stale = [m for m in chosen
+                 if (ROOT / m.path).read_text().count(m.old) < m.occurrence]
+        for m in stale:
+            print(f"{m.id}: {m.path} no longer contains {m.old!r}", file=sys.stderr)
+        return 1 if stale else 0
     unknown = set(args.only or ()) - {m.id for m in MUTATIONS}
     if unknown:
         print(f"unknown mutation ids: {', '.join(sorted(unknown))}", file=sys.stderr)
