@@ -38,6 +38,12 @@ DEFAULT_ASA = (176, 177, 165)
 
 _SENSITIVITY = {True: (0.15, 32760), False: (0.6, 8190)}
 """CNTL1.BIT set (16-bit output) or clear (14-bit) -> (uT per LSB, largest |count|)."""
+_PERIOD_S_BY_MODE = {0b0010: 1 / 8, 0b0110: 1 / 100}
+"""CNTL1.MODE continuous measurement mode 1 (8 Hz) and mode 2 (100 Hz)."""
+_MEASUREMENT_S = 7.2e-3
+"""Single measurement time (max, register map section 5)."""
+_RANGE_UT = 4912.0
+"""Measurement range: HOFL when |X| + |Y| + |Z| reaches it."""
 
 
 def _adjustment(asa: int) -> float:
@@ -90,7 +96,7 @@ class AK8963Emulator(ChipEmulator):
             raise ValueError(f"the AK8963 has no {channel.value} channel")
         ut_per_lsb, max_count = self._resolution()
         axis = max_count * ut_per_lsb * min(_adjustment(a) for a in self.asa)
-        return min(axis, r.OVERFLOW_SUM_UT)
+        return min(axis, _RANGE_UT)
 
     # -- state ------------------------------------------------------------------------------
 
@@ -113,8 +119,8 @@ class AK8963Emulator(ChipEmulator):
     def _start_mode(self) -> None:
         mode = self._mode()
         now = self.now_ns()
-        if mode in r.MODE_PERIOD_S or mode == r.MODE_SINGLE:
-            self._next_ns = now + round(r.MEASUREMENT_S * 1e9)
+        if mode in _PERIOD_S_BY_MODE or mode == r.MODE_SINGLE:
+            self._next_ns = now + round(_MEASUREMENT_S * 1e9)
         else:
             self._next_ns = None
 
@@ -127,7 +133,7 @@ class AK8963Emulator(ChipEmulator):
                 self._cntl1 &= ~r.MODE_MASK
                 self._next_ns = None
             else:
-                period = round(r.MODE_PERIOD_S[mode] * 1e9)
+                period = round(_PERIOD_S_BY_MODE[mode] * 1e9)
                 # Long gaps: skip ahead, keeping the last two measurements (enough for DOR).
                 missed = (now - self._next_ns) // period
                 self._next_ns += (max(missed - 1, 0) + 1) * period
@@ -140,7 +146,7 @@ class AK8963Emulator(ChipEmulator):
             count = round(value / (ut_per_lsb * _adjustment(asa)))
             counts.append(max(-max_count, min(max_count, count)))
         st2 = r.ST2_BITM if self._cntl1 & r.CNTL1_BIT else 0
-        if sum(abs(v) for v in field) >= r.OVERFLOW_SUM_UT:
+        if sum(abs(v) for v in field) >= _RANGE_UT:
             st2 |= r.ST2_HOFL
         return struct.pack("<hhh", *counts), st2
 

@@ -48,6 +48,30 @@ DEFAULT_PRESSURE_PA = 101325.0
 DEFAULT_TEMPERATURE_DEGC = 25.0
 
 
+# Register-field meanings written here from the datasheet (sections 3.3-3.8, 4.3), never taken
+# from the driver's setting tables, so a wrong code in the driver shows as a wrong rate or
+# resolution.
+_OVERSAMPLING_BY_CODE = (0, 1, 2, 4, 8, 16, 16, 16)
+"""osrs_t / osrs_p [2:0] -> oversampling factor (000: measurement skipped)."""
+_IIR_BY_CODE = (0, 2, 4, 8, 16, 16, 16, 16)
+"""config filter [4:2] -> IIR coefficient (000: off)."""
+_STANDBY_MS_BY_CODE = (0.5, 62.5, 125.0, 250.0, 500.0, 1000.0, 2000.0, 4000.0)
+"""config t_sb [7:5] -> normal-mode standby time."""
+_ADC_BITS = {1: 16, 2: 17, 4: 18, 8: 19, 16: 20}
+"""Oversampling factor -> ADC resolution (table 4 and 5: 16 to 20 bit; the IIR filter gives 20)."""
+_ADC_SKIPPED = 0x80000
+"""What a skipped or never-run measurement reads (datasheet: 0x80000)."""
+_ADC_FULL = (1 << 20) - 1
+_STARTUP_S = 0.002
+"""Start-up time after power-on or soft reset (NVM copy, im_update set)."""
+
+
+def _measurement_ms(osrs_t: int, osrs_p: int) -> float:
+    """Typical measurement time (datasheet 9.1 / 3.8.1): 1 + 2 osrs_t + (2 osrs_p + 0.5) ms,
+    the pressure term dropped when pressure is skipped."""
+    return 1.0 + 2.0 * osrs_t + ((2.0 * osrs_p + 0.5) if osrs_p else 0.0)
+
+
 def _adc_registers(adc: int) -> bytes:
     """msb, lsb, xlsb of a 20-bit ADC value: bits 19..12, 11..4 and 3..0 in xlsb[7:4]."""
     return bytes([(adc >> 12) & 0xFF, (adc >> 4) & 0xFF, (adc & 0x0F) << 4])
@@ -91,12 +115,12 @@ class BMP280Emulator(ChipEmulator):
 
     def _oversampling(self) -> tuple[int, int]:
         """(temperature, pressure) oversampling factors from ctrl_meas (0 = skipped)."""
-        return (r.oversampling_from_code(self._ctrl >> 5),
-                r.oversampling_from_code((self._ctrl >> 2) & 0b111))
+        return (_OVERSAMPLING_BY_CODE[self._ctrl >> 5 & 0b111],
+                _OVERSAMPLING_BY_CODE[(self._ctrl >> 2) & 0b111])
 
     def _bits(self, oversampling: int) -> int:
-        iir = r.iir_from_code((self._config >> 2) & 0b111)
-        return 20 if iir else r.OVERSAMPLING_BITS[oversampling]
+        iir = _IIR_BY_CODE[(self._config >> 2) & 0b111]
+        return 20 if iir else _ADC_BITS[oversampling]
 
     def resolution(self, channel: Channel) -> float:
         """One output LSB at the current settings and physics, in Pa or degC.
@@ -134,8 +158,8 @@ class BMP280Emulator(ChipEmulator):
         self.resets += 1
         self._ctrl = 0x00
         self._config = 0x00
-        self._data = bytearray(_adc_registers(r.ADC_SKIPPED) * 2)
-        self._im_update_until = self.now_ns() + round(r.STARTUP_S * 1e9)
+        self._data = bytearray(_adc_registers(_ADC_SKIPPED) * 2)
+        self._im_update_until = self.now_ns() + round(_STARTUP_S * 1e9)
         self._cycle_start = 0
         self._cycles_done = 0
         self._forced_done: int | None = None
@@ -146,10 +170,10 @@ class BMP280Emulator(ChipEmulator):
 
     def _meas_ns(self) -> int:
         osrs_t, osrs_p = self._oversampling()
-        return round(r.measurement_time_s(osrs_t, osrs_p, maximum=False) * 1e9)
+        return round(_measurement_ms(osrs_t, osrs_p) * 1e6)
 
     def _period_ns(self) -> int:
-        standby = r.standby_ms_from_code(self._config >> 5)
+        standby = _STANDBY_MS_BY_CODE[self._config >> 5 & 0b111]
         return self._meas_ns() + round(standby * 1e6)
 
     def _advance(self) -> None:
@@ -184,20 +208,20 @@ class BMP280Emulator(ChipEmulator):
         osrs_t, osrs_p = self._oversampling()
         adc_t = adc_t_for(temperature, self.trim)
         adc_p = adc_p_for(pressure, t_fine_of(adc_t, self.trim), self.trim)
-        iir = r.iir_from_code((self._config >> 2) & 0b111)
+        iir = _IIR_BY_CODE[(self._config >> 2) & 0b111]
         if self._filter is None or not iir:
             self._filter = (float(adc_p), float(adc_t))
         else:
             fp, ft = self._filter
             self._filter = ((fp * (iir - 1) + adc_p) / iir, (ft * (iir - 1) + adc_t) / iir)
         fp, ft = self._filter
-        out_p = self._quantise(fp, osrs_p) if osrs_p else r.ADC_SKIPPED
-        out_t = self._quantise(ft, osrs_t) if osrs_t else r.ADC_SKIPPED
+        out_p = self._quantise(fp, osrs_p) if osrs_p else _ADC_SKIPPED
+        out_t = self._quantise(ft, osrs_t) if osrs_t else _ADC_SKIPPED
         self._data[:] = _adc_registers(out_p) + _adc_registers(out_t)
 
     def _quantise(self, adc: float, oversampling: int) -> int:
         step = 1 << (20 - self._bits(oversampling))
-        return min(max(round(adc / step) * step, 0), r.ADC_MAX)
+        return min(max(round(adc / step) * step, 0), _ADC_FULL)
 
     # -- bus face ---------------------------------------------------------------------------
 

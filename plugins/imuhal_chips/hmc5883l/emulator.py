@@ -45,10 +45,8 @@ from imuhal_chips.hmc5883l.registers import (
     MODE_MD_MASK,
     MODE_SINGLE,
     MODE_WRITABLE,
-    ODR_BY_CODE,
     POINTER_WRAP_TO,
     POWER_ON_DEFAULTS,
-    SINGLE_MEASUREMENT_NS,
     STATUS_LOCK,
     STATUS_RDY,
     Reg,
@@ -62,6 +60,10 @@ _LSB_PER_GAUSS_BY_GN = (1370, 1090, 820, 660, 440, 390, 330, 230)
 _COUNT_LIMIT = 2047
 """Data registers hold -2048..2047; anything beyond reads -4096 until the next measurement."""
 _OVERFLOW = -4096
+_ODR_HZ_BY_DO = (0.75, 1.5, 3.0, 7.5, 15.0, 30.0, 75.0, None)
+"""Config A DO[2:0] (bits 4..2) -> continuous-mode output rate (Table 5; 111 is reserved)."""
+_SINGLE_MEASUREMENT_NS = 6_000_000
+"""A single measurement is ready 6 ms after the Mode write (the datasheet's wait)."""
 _MICROTESLA_PER_GAUSS = 100.0
 
 
@@ -151,7 +153,7 @@ class Hmc5883lEmulator(ChipEmulator):
     # --- timing ---------------------------------------------------------------------------
 
     def _period_ns(self) -> int | None:
-        odr = ODR_BY_CODE.get((self.regs[Reg.CONFIG_A] >> CRA_RATE_SHIFT) & 0x07)
+        odr = _ODR_HZ_BY_DO[(self.regs[Reg.CONFIG_A] >> CRA_RATE_SHIFT) & 0x07]
         return round(1e9 / odr) if odr else None
 
     def _start_mode(self) -> None:
@@ -161,7 +163,7 @@ class Hmc5883lEmulator(ChipEmulator):
             period = self._period_ns()
             self._next_ns = now + period if period else None
         elif md == MODE_SINGLE:
-            self._next_ns = now + SINGLE_MEASUREMENT_NS
+            self._next_ns = now + _SINGLE_MEASUREMENT_NS
         else:
             self._next_ns = None
 

@@ -54,7 +54,6 @@ from imuhal_chips.max2110x.registers import (
     PartSpec,
     Reg,
     Status,
-    odr_from_code,
 )
 
 # Conversion facts written here from the MAX21100/MAX21105 datasheets (sensitivity tables;
@@ -110,9 +109,13 @@ def _encode(value: float, per_count: float, limit: int) -> int:
 
 
 class Max2110xEmulator(ChipEmulator):
-    """Family base; subclasses set ``chip`` and ``part``."""
+    """Family base; subclasses set ``chip``, ``part`` and their rate tables."""
 
     part: ClassVar[PartSpec]
+    gyro_odr_by_code: ClassVar[tuple[float, ...]]
+    """GYRO_CFG2 ODR code -> Hz, written here from the part's datasheet (not the driver's)."""
+    accel_odr_by_code: ClassVar[tuple[float, ...]]
+    """ACC_CFG1 ODR code -> Hz, likewise."""
 
     def __init__(self, clock: Clock | None = None, *, name: str | None = None) -> None:
         super().__init__(clock)
@@ -210,13 +213,12 @@ class Max2110xEmulator(ChipEmulator):
     # --- timing ---------------------------------------------------------------------------
 
     def _odr_hz(self, channel: Channel) -> float | None:
+        """The output data rate the configuration codes select (None: a reserved code)."""
         if channel is Channel.GYRO:
-            code = self.bank0(Reg.GYRO_CFG2) & 0x0F
-            return odr_from_code(self.part.gyro_odr_hz, code)
-        code = self.bank0(Reg.ACC_CFG1) & 0x0F
-        if self.part is MAX21105 and code & 0x08:
-            return 5.0  # 1xxx: 5 Hz
-        return odr_from_code(self.part.accel_odr_hz, code)
+            table, code = self.gyro_odr_by_code, self.bank0(Reg.GYRO_CFG2) & 0x0F
+        else:
+            table, code = self.accel_odr_by_code, self.bank0(Reg.ACC_CFG1) & 0x0F
+        return table[code] if code < len(table) else None
 
     def _active(self, channel: Channel) -> bool:
         mode = (self.bank0(Reg.POWER_CFG) >> POWER_MODE_SHIFT) & 0x0F
@@ -380,6 +382,9 @@ class Max21105Emulator(Max2110xEmulator):
     error_spec = MAX21105_ERROR_SPEC
     conformance_sweep = True
     part = MAX21105
+    gyro_odr_by_code = (8000.0, 4000.0, 2000.0, 800.0, 400.0, 200.0, 100.0, 50.0, 25.0, 10.0)
+    accel_odr_by_code = (2000.0, 800.0, 400.0, 200.0, 100.0, 50.0, 25.0, 10.0,
+                         *(5.0,) * 8)  # 1xxx: 5 Hz
 
 
 class Max21100Emulator(Max2110xEmulator):
@@ -389,6 +394,9 @@ class Max21100Emulator(Max2110xEmulator):
     error_spec = MAX21100_ERROR_SPEC
     conformance_sweep = True
     part = MAX21100
+    gyro_odr_by_code = (8000.0, 4000.0, 2000.0, 1000.0, 500.0, 250.0, 125.0, 62.5, 31.25,
+                        15.625, 7.8125, 3.90625)
+    accel_odr_by_code = (2000.0, 1000.0, 500.0, 250.0, 125.0, 62.5, 31.25)
 
     def __init__(self, clock: Clock | None = None, *, name: str | None = None) -> None:
         self._aux = EmulatedBus(f"{name or self.chip}/aux", BusKind.I2C)

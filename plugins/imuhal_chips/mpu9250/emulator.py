@@ -144,9 +144,16 @@ class MPU9250Emulator(ChipEmulator):
         self._taken = 0
 
     def period_ns(self) -> int:
-        internal, divided = r.gyro_filter_from_config(self._regs[r.CONFIG],
-                                                      self._regs[r.GYRO_CONFIG])
-        rate = internal / (1 + self._regs[r.SMPLRT_DIV]) if divided else internal
+        """The sample period the register map gives for CONFIG, GYRO_CONFIG and SMPLRT_DIV:
+        Fchoice_b != 00 runs at 32 kHz; DLPF_CFG 0 and 7 at 8 kHz; DLPF_CFG 1..6 at 1 kHz,
+        divided by 1 + SMPLRT_DIV (the divider applies only there)."""
+        dlpf = self._regs[r.CONFIG] & 0b111
+        if self._regs[r.GYRO_CONFIG] & 0b11:
+            rate = 32_000.0
+        elif dlpf in (0, 7):
+            rate = 8_000.0
+        else:
+            rate = 1_000.0 / (1 + self._regs[r.SMPLRT_DIV])
         return round(1e9 / rate)
 
     def _advance(self) -> None:

@@ -34,10 +34,7 @@ from imuhal.core.clock import Clock
 from imuhal.core.samples import Channel
 from imuhal.emulation.base import ChipEmulator
 from imuhal_chips.ms5611.commands import (
-    ADC_MAX,
-    OSR_TIMING,
     PROM_WORDS,
-    RESET_RELOAD_NS,
     Measurement,
     decode_command,
 )
@@ -52,6 +49,13 @@ DEFAULT_PROM_WORDS: tuple[int, ...] = tuple(
 )
 """Word 0 (factory data) 0x0A5C and serial bits 0x7D3 in word 7 are arbitrary; the CRC
 nibble is computed."""
+
+_CONVERSION_NS = {256: 540_000, 512: 1_060_000, 1024: 2_080_000, 2048: 4_130_000,
+                  4096: 8_220_000}
+"""Typical ADC conversion time per OSR (datasheet p.3), written here, not the driver's table."""
+_RELOAD_NS = 2_800_000
+"""PROM reload after a reset (datasheet: 2.8 ms)."""
+_ADC_FULL = (1 << 24) - 1
 
 DEFAULT_PRESSURE_PA = 101325.0
 DEFAULT_TEMPERATURE_DEGC = 20.0
@@ -174,7 +178,7 @@ class MS5611Emulator(ChipEmulator):
         self._result = None
         self._out = b""
         self._prom = list(self.factory_prom)
-        self._reload_until_ns = self.now_ns() + RESET_RELOAD_NS
+        self._reload_until_ns = self.now_ns() + _RELOAD_NS
 
     def _start_conversion(self, measurement: Measurement, osr: int) -> None:
         now = self.now_ns()
@@ -183,11 +187,11 @@ class MS5611Emulator(ChipEmulator):
         if self._conversion is not None:
             # Overlapping conversions: the running one is lost, the new one is garbage.
             self.aborted_conversions += 1
-            result = self._rng.randint(1, ADC_MAX)
+            result = self._rng.randint(1, _ADC_FULL)
         else:
             result = self._measure(measurement)
         self._result = None
-        self._conversion = _Conversion(measurement, now + OSR_TIMING[osr].typ_ns, result)
+        self._conversion = _Conversion(measurement, now + _CONVERSION_NS[osr], result)
 
     def _measure(self, measurement: Measurement) -> int:
         p = self.physics.pressure_pa
