@@ -72,9 +72,16 @@ def _open(name: str, settings: dict[str, Any]) -> tuple[Driver, ChipEmulator, Si
     return driver, emulator, clock
 
 
+def _setting_value(driver: Driver, name: str) -> Any:
+    if not hasattr(driver.settings, name):
+        raise AssertionError(f"{driver.name} has no setting {name!r}: update "
+                             "tests/data/chips/conformance_sweep.json to its new name")
+    return getattr(driver.settings, name)
+
+
 def _setting(driver: Driver, entry: dict[str, Any], key: str) -> str:
     """The driver's configured value of the table entry's setting, as the table's key."""
-    value = float(getattr(driver.settings, entry[key]))
+    value = float(_setting_value(driver, entry[key]))
     table = entry.get("lsb_per_unit_by_value") or entry["lsb_si_by_value"]
     return next(k for k in table if float(k) == value)
 
@@ -84,7 +91,7 @@ def expected_lsb(driver: Driver, channel: Channel) -> float:
     entry = TABLE[driver.name][channel.value]
     if "lsb_si" in entry:
         step = entry["lsb_si"]
-    elif "filtered_by" in entry and getattr(driver.settings, entry["filtered_by"]):
+    elif "filtered_by" in entry and _setting_value(driver, entry["filtered_by"]):
         step = entry["filtered_lsb_si"]
     elif "lsb_si_by_value" in entry:
         step = entry["lsb_si_by_value"][_setting(driver, entry, "setting")]
