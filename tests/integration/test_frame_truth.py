@@ -26,6 +26,7 @@ import pytest
 
 from imuhal.core.samples import Channel, VectorSample
 from imuhal.emulation import open_emulated
+from imuhal.emulation.mounting import chip_rotations
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile
@@ -155,3 +156,17 @@ def test_board_to_body_is_applied_after_the_mount(installed: Registry) -> None:
     profile = load_profile(bundled_profiles()[name], installed)
     profile = profile.model_copy(update={"board_to_body": BOARD_YAWED_SPEC})
     _check(profile, installed, EXPECTED[name], BOARD_YAWED)
+
+
+def test_the_emulated_board_reads_a_matrix_mount_like_its_string(installed: Registry) -> None:
+    """The emulation's own mount reading (imuhal.emulation.mounting) for both spellings a
+    profile may use: the signed-axis string and the 3x3 matrix (v_body = M v_sensor)."""
+    profile = load_profile(bundled_profiles()["seed-rc-vario.yaml"], installed)
+    devices = dict(profile.devices)
+    devices["imu"] = devices["imu"].model_copy(update={"mount": SEED_GYRO_MAG.tolist()})
+    as_matrix = profile.model_copy(update={"devices": devices,
+                                           "board_to_body": BOARD_YAWED.tolist()})
+    as_string = profile.model_copy(update={"board_to_body": BOARD_YAWED_SPEC})
+    want = BOARD_YAWED @ SEED_GYRO_MAG
+    assert np.array_equal(chip_rotations(as_matrix)["imu"], want)
+    assert np.array_equal(chip_rotations(as_string)["imu"], want)
