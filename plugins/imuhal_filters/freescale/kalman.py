@@ -170,6 +170,8 @@ class FreescaleKalman:
         if not self.locked:
             if self.use_mag:
                 r0, self.inclination_deg = ecompass(cs, accel, mag)
+                if self._s9().lock_sets_inclination:
+                    self._set_inclination(self.inclination_deg)
             else:
                 r0 = tilt_matrix(cs, accel)
             self.q = quat_from_matrix_fsl(r0)
@@ -262,6 +264,18 @@ class FreescaleKalman:
         else:
             inv = _inverse_or_identity(innov)
         return qw_ct @ inv
+
+    def _set_inclination(self, inclination_deg: float) -> None:
+        """Point the reference geomagnetic vector at ``inclination_deg`` (clamped), length B."""
+        s9 = self._s9()
+        lim = s9.max_inclination_deg
+        d = math.radians(max(-lim, min(lim, inclination_deg)))
+        ned = s9.coordinate_system is CoordinateSystem.NED
+        north, sign_down = (0, 1.0) if ned else (1, -1.0)
+        self.inclination_deg = math.degrees(d)
+        self.m_global[:] = 0.0
+        self.m_global[north] = s9.field_strength_ut * math.cos(d)
+        self.m_global[2] = sign_down * s9.field_strength_ut * math.sin(d)
 
     def _track_inclination(self, d_global: FloatArray) -> None:
         """Rotate the reference geomagnetic vector towards the observed disturbance, keeping

@@ -37,6 +37,13 @@ from imuhal_filters.imufilter.velocity import ZERO, VelocityState, velocity_step
 
 
 class ImuFilterSettings(AhrsSettings):
+    PRESETS: ClassVar[dict[str, dict[str, Any]]] = {
+        "reference": {"turn_compensation": False},
+        "seed": {"turn_compensation": False},
+    }
+
+    initial_attitude: Literal["first_sample"] = "first_sample"
+    """The library itself starts from the first accelerometer sample (tilt, yaw 0)."""
     gain: float = Field(0.5, ge=0.0)
     """The library's ALPHA (DEFAULT_GAIN): correction rate; smaller = smoother, slower."""
     sd_acc_g: float = Field(0.2, gt=0.0)
