@@ -52,7 +52,7 @@ def _quats(name: str) -> np.ndarray:
 )
 def test_matches_xio_release_row_by_row(reference: str, settings: dict, with_mag: bool) -> None:
     gyro, accel, mag = _inputs()
-    est = MadgwickEstimator({"initial_attitude": "identity", "beta": 0.1,
+    est = MadgwickEstimator({"preset": "reference", "inv_sqrt": "exact",
                              "sample_period_s": 1 / 200, **settings})
     q = run_batch(est, gyro, accel, mag if with_mag else None)
     ref = _quats(reference)
@@ -72,8 +72,7 @@ def test_continues_mid_flight_from_the_reference_state() -> None:
     """Rows 6000-6399 (rates up to ~100 deg/s): start from the reference quaternion of 5999."""
     gyro, accel, mag = _inputs("imu_A_mid.csv")
     ref = _quats("madgwick_xio_exact_9dof_A_mid.csv")
-    est = MadgwickEstimator({"initial_attitude": "identity", "beta": 0.1,
-                             "mag_reference": "xio_release"})
+    est = MadgwickEstimator({"preset": "reference", "inv_sqrt": "exact"})
     state = est.get_state()
     est.set_state({**state, "q": list(ref[0])})
     q = run_batch(est, gyro, accel, mag)

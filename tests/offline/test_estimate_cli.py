@@ -40,9 +40,8 @@ def test_madgwick_over_a_log_matches_the_x_io_reference(tmp_path: Path) -> None:
     src, out = tmp_path / "imu.csv", tmp_path / "out.csv"
     _conformance_input(src)
     assert main(["estimate", "madgwick", str(src), "--output", str(out),
-                 "--set", "beta=0.1", "--set", "mag_reference=xio_release",
-                 "--set", "accel_gate_g=null", "--set", "dt_from_timestamps=false",
-                 "--set", "initial_attitude=identity"]) == 0
+                 "--set", "preset=reference", "--set", "inv_sqrt=exact",
+                 "--set", "dt_from_timestamps=false"]) == 0
     got = _read(out)
     ref = _read(DATA / "madgwick_xio_exact_9dof_A_head.csv")
     q = np.column_stack([got[k] for k in ("qw", "qx", "qy", "qz")])

@@ -299,7 +299,7 @@ class AhrsEstimator(Estimator):
     def _run_step(self, t_ns: int | None, gyro: Vec, accel: Vec | None, mag: Vec | None,
                   dt: float) -> dict[str, Any] | None:
         """Compensate, align if needed, and run one kernel step; None: no estimate yet."""
-        kin = self._kinematics.step(t_ns, self._q if self._tilt_aligned else None, gyro, dt)
+        kin = self._kinematics.step(t_ns, gyro)
         if accel is not None and kin != (0.0, 0.0, 0.0):
             accel = compensated(accel, kin)
         if not self._align(accel, mag):

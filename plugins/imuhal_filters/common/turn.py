@@ -9,16 +9,17 @@ acceleration they publish still comes from the raw f.
 
 Sources, best first (the first one available at a gyro step is used):
 
-1. **Velocity over ground** (``VelocitySample``, NED, e.g. a GNSS receiver; its ``t_ns`` is
-   the measurement epoch, so its latency is accounted for). The velocity through the air u
-   turns with the vehicle; the wind w does not. A small observer propagates u with the
-   earth-frame angular rate from the gyro at the gyro rate (u' = Omega x u + s' u/|u|) and
-   corrects u, the wind and the longitudinal acceleration s' from each velocity sample
-   compared with the propagated u + w at the sample's epoch. The kinematic acceleration is
-   Omega x u + s' u/|u|: the centripetal term from the gyro and the speed, the longitudinal
-   term from the rate of change of the velocity source.
-2. **Airspeed** (``AirspeedSample``, along body x): a = omega x (V, 0, 0) + V' (1, 0, 0), V'
-   from the low-passed rate of change of the airspeed samples.
+1. **Velocity over ground** (``VelocitySample``, NED, e.g. a GNSS receiver). The speed
+   through the air is what turns with the vehicle; the wind only drifts it. While circling,
+   the horizontal ground velocities of the last ``wind_window_s`` lie on a circle whose
+   centre is the wind and whose radius is the airspeed (a least-squares circle fit, used
+   once the samples cover at least half the circle); otherwise the last wind found (zero at
+   first) is taken off the ground velocity. The airspeed V and its rate of change V' then
+   give a = omega x (V, 0, 0) + V' (1, 0, 0): the centripetal term from the gyro and the
+   speed, the longitudinal term from the rate of change of the velocity source. This needs
+   no heading, so 6-DOF filters (arbitrary yaw) use it too.
+2. **Airspeed** (``AirspeedSample``, along body x): the same formula, V' from the low-passed
+   rate of change of the airspeed samples.
 3. **Nominal airspeed** (``nominal_airspeed_m_s`` setting, along body x): a = omega x (V, 0,
    0). Cheap and good for a paraglider or a glider at trim speed (``thermal`` flies 10 m/s).
 
@@ -27,19 +28,20 @@ With none of them there is nothing to compensate and f is fused unchanged.
 
 from __future__ import annotations
 
+import itertools
+import math
 from collections import deque
+from collections.abc import Iterable
 from typing import Any
 
 from pydantic import Field
 
 from imuhal.core.samples import AirspeedSample, VelocitySample
 from imuhal.estimation.base import EstimatorSettings
-from imuhal_filters.common.quat import Quat, Vec, cross, norm3, to_global, to_local
+from imuhal_filters.common.quat import Vec
 
 _NS = 1e-9
 _ZERO: Vec = (0.0, 0.0, 0.0)
-_HISTORY_S = 1.0
-"""How far back the propagated airspeed vector is kept to meet a late velocity sample."""
 
 
 class TurnCompensationSettings(EstimatorSettings):
@@ -52,14 +54,14 @@ class TurnCompensationSettings(EstimatorSettings):
     """Speed along body x (m/s) when no velocity or airspeed sample is fresh; None: none."""
     speed_max_age_s: float = Field(default=1.0, gt=0.0)
     """A velocity or airspeed sample older than this no longer counts as a source."""
-    velocity_gain: float = Field(default=0.3, gt=0.0, le=1.0)
-    """Share of each velocity sample's innovation given to the airspeed vector."""
-    wind_gain: float = Field(default=0.02, ge=0.0, le=1.0)
-    """Share given to the wind estimate (horizontal); small: the wind changes slowly."""
-    speed_rate_gain: float = Field(default=0.1, ge=0.0, le=1.0)
-    """Share given to the longitudinal acceleration (per velocity sample interval)."""
-    airspeed_rate_tau_s: float = Field(default=0.5, gt=0.0)
-    """Low-pass time constant of the airspeed's rate of change (s)."""
+    wind_window_s: float = Field(default=25.0, gt=0.0)
+    """Ground velocities of this long (s) are fitted with a circle to find wind and airspeed
+    while circling (a thermal circle takes about 20 s)."""
+    airspeed_rate_tau_s: float = Field(default=0.3, gt=0.0)
+    """Low-pass time constant of an airspeed sensor's rate of change (s)."""
+    velocity_rate_tau_s: float = Field(default=1.0, gt=0.0)
+    """Low-pass time constant of the rate of change of the speed from velocity samples (s):
+    a GNSS receiver's 0.1 m/s noise differentiated at 5 Hz would otherwise be 0.7 m/s^2."""
 
 
 class KinematicAcceleration:
@@ -70,71 +72,46 @@ class KinematicAcceleration:
         self.reset()
 
     def reset(self) -> None:
-        self.u: Vec | None = None
-        """Velocity through the air, NED (m/s); None until a velocity sample arrived."""
-        self.wind: Vec = _ZERO
-        self.speed_rate = 0.0
-        self.velocity_t_ns: int | None = None
-        self.airspeed: float | None = None
-        self.airspeed_t_ns: int | None = None
-        self.airspeed_rate = 0.0
-        self._history: deque[tuple[int, Vec]] = deque()
+        self.wind_ne_m_s: tuple[float, float] = (0.0, 0.0)
+        self._ground: deque[tuple[int, float, float]] = deque()
+        self._speed = _Speed()
+        self._airspeed = _Speed()
         self.source = "none"
-        self.counts = {"velocity_samples": 0, "airspeed_samples": 0, "compensated_steps": 0}
+        self.counts = {"velocity_samples": 0, "airspeed_samples": 0, "wind_fits": 0,
+                       "compensated_steps": 0}
 
     # -- inputs -----------------------------------------------------------------------------
 
     def on_velocity(self, sample: VelocitySample) -> None:
-        v = sample.velocity_ned_m_s
+        """A ground velocity: refit the wind when circling, update the airspeed."""
         self.counts["velocity_samples"] += 1
-        if self.u is None:
-            self.u, self.wind, self.speed_rate = v, _ZERO, 0.0
-            self.velocity_t_ns = sample.t_ns
-            self._history.clear()
-            return
-        u_then = self._u_at(sample.t_ns)
-        e = (v[0] - u_then[0] - self.wind[0], v[1] - u_then[1] - self.wind[1],
-             v[2] - u_then[2] - self.wind[2])
-        ku, kw = self.s.velocity_gain, self.s.wind_gain
-        u = self.u
-        self.u = (u[0] + ku * e[0], u[1] + ku * e[1], u[2] + ku * e[2])
-        self.wind = (self.wind[0] + kw * e[0], self.wind[1] + kw * e[1], self.wind[2])
-        speed = norm3(self.u)
-        if self.velocity_t_ns is not None and speed > 1.0:
-            interval = (sample.t_ns - self.velocity_t_ns) * _NS
-            if interval > 0.0:
-                along = (e[0] * self.u[0] + e[1] * self.u[1] + e[2] * self.u[2]) / speed
-                self.speed_rate += self.s.speed_rate_gain * along / interval
-        self.velocity_t_ns = max(sample.t_ns, self.velocity_t_ns or sample.t_ns)
+        vn, ve, _ = sample.velocity_ned_m_s
+        self._ground.append((sample.t_ns, vn, ve))
+        while (sample.t_ns - self._ground[0][0]) * _NS > self.s.wind_window_s:
+            self._ground.popleft()
+        fit = _circle_fit(self._ground)
+        if fit is not None:
+            self.wind_ne_m_s = fit
+            self.counts["wind_fits"] += 1
+        wn, we = self.wind_ne_m_s
+        self._speed.add(sample.t_ns, math.hypot(vn - wn, ve - we), self.s.velocity_rate_tau_s)
 
     def on_airspeed(self, sample: AirspeedSample) -> None:
         self.counts["airspeed_samples"] += 1
-        v = sample.airspeed_m_s
-        if self.airspeed is not None and self.airspeed_t_ns is not None:
-            dt = (sample.t_ns - self.airspeed_t_ns) * _NS
-            if dt > 0.0:
-                k = min(1.0, dt / self.s.airspeed_rate_tau_s)
-                self.airspeed_rate += k * ((v - self.airspeed) / dt - self.airspeed_rate)
-        self.airspeed, self.airspeed_t_ns = v, sample.t_ns
+        self._airspeed.add(sample.t_ns, sample.airspeed_m_s, self.s.airspeed_rate_tau_s)
 
     # -- per gyro step ----------------------------------------------------------------------
 
-    def step(self, t_ns: int | None, q: Quat | None, gyro_rad_s: Vec, dt_s: float) -> Vec:
-        """Kinematic acceleration (body axes, m/s^2) at this gyro step; ``q`` is the current
-        body -> NED estimate (None before the filter has one). Propagates the observer."""
+    def step(self, t_ns: int | None, gyro_rad_s: Vec) -> Vec:
+        """Kinematic acceleration (body axes, m/s^2) at this gyro step."""
         if not self.s.turn_compensation:
             self.source = "off"
             return _ZERO
-        if self.u is not None and q is not None and self._fresh(self.velocity_t_ns, t_ns):
-            self.source = "velocity"
-            self.counts["compensated_steps"] += 1
-            return self._velocity_step(t_ns, q, gyro_rad_s, dt_s)
-        if self.u is not None and not self._fresh(self.velocity_t_ns, t_ns):
-            self.u = None  # the source stopped: start over when it comes back
-        if self.airspeed is not None and self._fresh(self.airspeed_t_ns, t_ns):
-            self.source = "airspeed"
-            self.counts["compensated_steps"] += 1
-            return _along_x(gyro_rad_s, self.airspeed, self.airspeed_rate)
+        for source, speed in (("velocity", self._speed), ("airspeed", self._airspeed)):
+            if speed.fresh(t_ns, self.s.speed_max_age_s):
+                self.source = source
+                self.counts["compensated_steps"] += 1
+                return _along_x(gyro_rad_s, speed.value, speed.rate)
         if self.s.nominal_airspeed_m_s is not None:
             self.source = "nominal"
             self.counts["compensated_steps"] += 1
@@ -142,59 +119,112 @@ class KinematicAcceleration:
         self.source = "none"
         return _ZERO
 
-    def _velocity_step(self, t_ns: int | None, q: Quat, gyro_rad_s: Vec, dt_s: float) -> Vec:
-        assert self.u is not None
-        omega = to_global(q, gyro_rad_s)
-        u = self.u
-        speed = norm3(u)
-        a = cross(omega, u)
-        if speed > 1.0:
-            k = self.speed_rate / speed
-            a = (a[0] + k * u[0], a[1] + k * u[1], a[2] + k * u[2])
-        self.u = (u[0] + a[0] * dt_s, u[1] + a[1] * dt_s, u[2] + a[2] * dt_s)
-        if t_ns is not None:
-            self._history.append((t_ns, self.u))
-            while self._history and (t_ns - self._history[0][0]) * _NS > _HISTORY_S:
-                self._history.popleft()
-        return to_local(q, a)
-
-    def _u_at(self, t_ns: int) -> Vec:
-        """The propagated airspeed vector at ``t_ns`` (a velocity sample's epoch)."""
-        assert self.u is not None
-        best = self.u
-        for t, u in reversed(self._history):
-            best = u
-            if t <= t_ns:
-                break
-        return best
-
-    def _fresh(self, sample_t_ns: int | None, now_ns: int | None) -> bool:
-        if sample_t_ns is None:
-            return False
-        if now_ns is None:
-            return True
-        return (now_ns - sample_t_ns) * _NS <= self.s.speed_max_age_s
-
     # -- state ------------------------------------------------------------------------------
 
     def as_dict(self) -> dict[str, Any]:
-        return {
-            "u": None if self.u is None else list(self.u), "wind": list(self.wind),
-            "speed_rate": self.speed_rate, "velocity_t_ns": self.velocity_t_ns,
-            "airspeed": self.airspeed, "airspeed_t_ns": self.airspeed_t_ns,
-            "airspeed_rate": self.airspeed_rate, "counts": dict(self.counts),
-        }
+        return {"wind_ne_m_s": list(self.wind_ne_m_s),
+                "ground": [list(g) for g in self._ground],
+                "speed": self._speed.as_dict(), "airspeed": self._airspeed.as_dict(),
+                "counts": dict(self.counts)}
 
     def load_dict(self, d: dict[str, Any]) -> None:
-        self.u = None if d["u"] is None else _vec(d["u"])
-        self.wind = _vec(d["wind"])
-        self.speed_rate = float(d["speed_rate"])
-        self.velocity_t_ns = d["velocity_t_ns"]
-        self.airspeed = d["airspeed"]
-        self.airspeed_t_ns = d["airspeed_t_ns"]
-        self.airspeed_rate = float(d["airspeed_rate"])
+        wn, we = d["wind_ne_m_s"]
+        self.wind_ne_m_s = (float(wn), float(we))
+        self._ground = deque((int(t), float(n), float(e)) for t, n, e in d["ground"])
+        self._speed.load_dict(d["speed"])
+        self._airspeed.load_dict(d["airspeed"])
         self.counts = {k: int(v) for k, v in d["counts"].items()}
-        self._history.clear()
+
+
+class _Speed:
+    """A speed (m/s) from a sampled source and its low-passed rate of change (m/s^2)."""
+
+    def __init__(self) -> None:
+        self.value = 0.0
+        self.rate = 0.0
+        self.t_ns: int | None = None
+
+    def add(self, t_ns: int, value: float, tau_s: float) -> None:
+        if self.t_ns is not None:
+            dt = (t_ns - self.t_ns) * _NS
+            if dt <= 0.0:
+                return
+            k = min(1.0, dt / tau_s)
+            self.rate += k * ((value - self.value) / dt - self.rate)
+        self.value, self.t_ns = value, t_ns
+
+    def fresh(self, now_ns: int | None, max_age_s: float) -> bool:
+        if self.t_ns is None:
+            return False
+        return now_ns is None or (now_ns - self.t_ns) * _NS <= max_age_s
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"value": self.value, "rate": self.rate, "t_ns": self.t_ns}
+
+    def load_dict(self, d: dict[str, Any]) -> None:
+        self.value, self.rate, self.t_ns = float(d["value"]), float(d["rate"]), d["t_ns"]
+
+
+_MIN_AIRSPEED_M_S = 2.0
+_MIN_ARC_RAD = math.pi
+"""A circle fit counts only when the samples span at least half a turn around its centre."""
+
+
+def _circle_fit(points: Iterable[tuple[int, float, float]]) -> tuple[float, float] | None:
+    """Centre (north, east; m/s) of the circle through the ground velocities, or None when
+    they do not describe one (too few, too little of the circle, too small a radius)."""
+    pts = [(n, e) for _, n, e in points]
+    if len(pts) < 10:
+        return None
+    # algebraic (Kasa) fit: n^2 + e^2 + D n + E e + F = 0, linear least squares
+    sxx = sxy = syy = sx = sy = 0.0
+    sxz = syz = sz = 0.0
+    for n, e in pts:
+        z = n * n + e * e
+        sxx += n * n
+        sxy += n * e
+        syy += e * e
+        sx += n
+        sy += e
+        sxz += n * z
+        syz += e * z
+        sz += z
+    m = len(pts)
+    a = ((sxx, sxy, sx), (sxy, syy, sy), (sx, sy, float(m)))
+    b = (-sxz, -syz, -sz)
+    sol = _solve3(a, b)
+    if sol is None:
+        return None
+    d, e_, f = sol
+    cn, ce = -d / 2.0, -e_ / 2.0
+    r2 = cn * cn + ce * ce - f
+    if r2 < _MIN_AIRSPEED_M_S**2:
+        return None
+    angles = sorted(math.atan2(e - ce, n - cn) for n, e in pts)
+    gaps = [b2 - a2 for a2, b2 in itertools.pairwise(angles)]
+    gaps.append(angles[0] + 2.0 * math.pi - angles[-1])
+    if 2.0 * math.pi - max(gaps) < _MIN_ARC_RAD:
+        return None
+    return cn, ce
+
+
+def _solve3(a: tuple[tuple[float, float, float], ...], b: tuple[float, float, float]
+            ) -> tuple[float, float, float] | None:
+    """Cramer's rule for a 3x3 system; None when it is (nearly) singular."""
+    def det(m: tuple[tuple[float, float, float], ...]) -> float:
+        return (m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+                - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+                + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]))
+
+    d = det(a)
+    scale = max(abs(c) for row in a for c in row)
+    if scale == 0.0 or abs(d) < 1e-12 * scale**3:
+        return None
+    out = []
+    for col in range(3):
+        m = tuple(tuple(b[r] if c == col else a[r][c] for c in range(3)) for r in range(3))
+        out.append(det(m) / d)
+    return out[0], out[1], out[2]
 
 
 def _vec(v: Any) -> Vec:

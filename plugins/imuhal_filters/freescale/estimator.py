@@ -128,8 +128,8 @@ class _FreescaleEstimator(Estimator):
             if self._pending:  # the window's accel/mag never caught up: use what there is
                 out += self._run_step()
             self._counts["gyro_samples"] += 1
-            self._kinematic_body_m_s2 = np.array(self._kinematics.step(
-                item.t_ns, self._current_q(), item.gyro_rad_s, self.settings.fast_dt_s))
+            self._kinematic_body_m_s2 = np.array(self._kinematics.step(item.t_ns,
+                                                                       item.gyro_rad_s))
             self._gyro.append(to_sensor_vector(cs, np.degrees(vec)))
             self._gyro_t_ns = item.t_ns
             if len(self._gyro) == self.settings.oversample_ratio:
@@ -162,14 +162,6 @@ class _FreescaleEstimator(Estimator):
         if isinstance(item, AccelSample):
             return within_full_scale(item.accel_m_s2, s.accel_full_scale_m_s2)
         return True
-
-    def _current_q(self) -> tuple[float, float, float, float] | None:
-        """The body -> NED estimate for the velocity-based turn compensation (None: no
-        attitude yet, or no velocity source that needs one)."""
-        if not self._kf.locked or self._kinematics.u is None:
-            return None
-        q = quat_body_to_ned(self.settings.coordinate_system, self._kf.q)
-        return (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
 
     def _caught_up(self) -> bool:
         """The accel (and mag) samples of the tick that closed the gyro window have arrived."""

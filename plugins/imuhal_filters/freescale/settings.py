@@ -17,7 +17,7 @@ from imuhal_filters.common.turn import TurnCompensationSettings
 from imuhal_filters.freescale.coords import CoordinateSystem
 
 _REFERENCE: dict[str, Any] = {"initialise_on_first_step": True, "turn_compensation": False,
-                              "qw_accel_g2": 1e-4, "accel_decay": 0.5}
+                              "accel_soft_gate_g": None, "accel_mag_input": "latest"}
 """Build 422 as published (the values the conformance tests run)."""
 _REFERENCE_9DOF: dict[str, Any] = {**_REFERENCE, "max_inclination_deg": 65.0,
                                    "lock_sets_inclination": False}
@@ -39,14 +39,20 @@ class FreescaleCommonSettings(PresetSettings, AhrsLimitSettings, TurnCompensatio
     coordinate_system: CoordinateSystem = CoordinateSystem.NED
     """THISCOORDSYSTEM. Estimators always take body-NED samples and emit body -> NED
     quaternions; this only chooses which of the reference's equivalent formulations runs."""
-    accel_mag_input: str = Field(default="latest", pattern="^(latest|average)$")
+    accel_mag_input: str = Field(default="average", pattern="^(latest|average)$")
     """What the Kalman step measures: ``latest`` is the reference (the newest fast accel and
-    mag sample, "to reduce phase errors"); ``average`` uses the mean of the decimation window."""
+    mag sample, "to reduce phase errors"); ``average`` (default) uses the mean of the
+    decimation window: less noise, and a loop's or a pull-up's peaks are averaged rather than
+    sampled (``rc-flight`` tilt max 8 against 12-19 deg, docs/estimators.md)."""
     initialise_on_first_step: bool = False
     """Reference start-up (True): the first Kalman step only initialises (no estimate); the
     second locks to the accelerometer tilt (6DOF) or eCompass (9DOF) and fuses. Default: the
     first Kalman step locks (the alignment every imuhal AHRS does on its first sample)."""
 
+    accel_soft_gate_g: float | None = Field(default=0.02, gt=0.0)
+    """Trust the accelerometer less as its (turn-compensated) magnitude departs from 1 g:
+    its noise variance is multiplied by (1 + (| |a| - 1 | / this)^2)^2. None: build 422,
+    which loses the attitude in ``rc-flight``'s loop (docs/estimators.md)."""
     qv_accel_g2: float = Field(default=2e-6, gt=0.0)
     """FQVA: accelerometer noise variance (g^2)."""
     qv_gyro_dps2: float = Field(default=0.3, gt=0.0)

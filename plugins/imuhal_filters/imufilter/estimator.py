@@ -22,7 +22,7 @@ from pydantic import Field
 
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.core.frames import FloatArray
-from imuhal.core.samples import AccelSample, GyroSample
+from imuhal.core.samples import AccelSample, AirspeedSample, GyroSample, VelocitySample
 from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
 from imuhal_filters.common.gate import specific_force_m_s2
 from imuhal_filters.common.quat import Vec, to_global, to_local
@@ -62,7 +62,8 @@ class ImuFilterEstimator(AhrsEstimator):
         "RCmags imuFilter: 6-DOF quaternion filter with a Kalman-like accel band, and velocity"
     )
     Settings: ClassVar[type[ImuFilterSettings]] = ImuFilterSettings  # type: ignore[assignment]
-    consumes: ClassVar[tuple[type, ...]] = (GyroSample, AccelSample)
+    consumes: ClassVar[tuple[type, ...]] = (GyroSample, AccelSample, VelocitySample,
+                                            AirspeedSample)
     uses_mag: ClassVar[bool] = False
     settings: ImuFilterSettings
 
