@@ -43,10 +43,11 @@ class MadgwickSettings(AhrsSettings, SoftGateSettings):
                  "accel_gate_g": SEED_GATE_G, "mag_reference": "xio_release", "beta": 0.6},
     }
 
-    beta: float = Field(0.05, ge=0.0)
-    """Gradient step gain (rad/s). Default 0.05 with the soft gate: thermal and rc-flight
-    (docs/estimators.md); x-io's default is 0.1 (``preset: reference``), the seed
-    firmware's 0.6 (``preset: seed``)."""
+    beta: float = Field(0.03, ge=0.0)
+    """Gradient step gain (rad/s). Default 0.03 with the soft gate, measured on the emulated
+    ``thermal`` and ``rc-flight`` (docs/estimators.md) and the value that did best on BROAD;
+    x-io's default is 0.1 (``preset: reference``), the seed firmware's 0.6 (``preset:
+    seed``)."""
     mag_reference: MagReference = MagReference.PAPER
     """``paper`` (default, corrected) or ``xio_release`` (the release's halved reference)."""
     inv_sqrt: Literal["exact", "fast32"] = "exact"
