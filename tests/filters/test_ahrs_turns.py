@@ -105,9 +105,12 @@ def test_the_wind_and_airspeed_come_from_circling_ground_velocities() -> None:
     for item in _turn(16.0, velocity=True):
         if isinstance(item, VelocitySample):
             kin.on_velocity(item)
+        elif isinstance(item, GyroSample):
+            kin.step(item.t_ns, item.gyro_rad_s)
     assert kin.wind_ne_m_s == pytest.approx(WIND_NE, abs=0.05)
     assert kin.step(None, (0.0, 0.0, 0.1)) == pytest.approx((0.0, 0.1 * SPEED_M_S, 0.0),
                                                             abs=0.05)
+    assert kin.source == "velocity"
 
 
 def test_turn_compensation_off_ignores_every_source() -> None:

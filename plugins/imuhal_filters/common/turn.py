@@ -13,8 +13,9 @@ Sources, best first (the first one available at a gyro step is used):
    through the air is what turns with the vehicle; the wind only drifts it. While circling,
    the horizontal ground velocities of the last ``wind_window_s`` lie on a circle whose
    centre is the wind and whose radius is the airspeed (a least-squares circle fit, used
-   once the samples cover at least half the circle); otherwise the last wind found (zero at
-   first) is taken off the ground velocity. The airspeed V and its rate of change V' then
+   once the samples taken while turning cover at least a third of the circle); otherwise
+   the last wind found (zero at first) is taken off the ground velocity. The airspeed V and
+   its rate of change V' then
    give a = omega x (V, 0, 0) + V' (1, 0, 0): the centripetal term from the gyro and the
    speed, the longitudinal term from the rate of change of the velocity source. This needs
    no heading, so 6-DOF filters (arbitrary yaw) use it too.
@@ -74,6 +75,8 @@ class KinematicAcceleration:
     def reset(self) -> None:
         self.wind_ne_m_s: tuple[float, float] = (0.0, 0.0)
         self._ground: deque[tuple[int, float, float]] = deque()
+        self._turn_sum = 0.0
+        self._turn_n = 0
         self._speed = _Speed()
         self._airspeed = _Speed()
         self.source = "none"
@@ -86,8 +89,11 @@ class KinematicAcceleration:
         """A ground velocity: refit the wind when circling, update the airspeed."""
         self.counts["velocity_samples"] += 1
         vn, ve, _ = sample.velocity_ned_m_s
-        self._ground.append((sample.t_ns, vn, ve))
-        while (sample.t_ns - self._ground[0][0]) * _NS > self.s.wind_window_s:
+        turning = self._turn_n > 0 and self._turn_sum / self._turn_n >= _MIN_TURN_RAD_S
+        self._turn_sum, self._turn_n = 0.0, 0
+        if turning:  # straight-line points all sit at one angle: they only bias the circle
+            self._ground.append((sample.t_ns, vn, ve))
+        while self._ground and (sample.t_ns - self._ground[0][0]) * _NS > self.s.wind_window_s:
             self._ground.popleft()
         fit = _circle_fit(self._ground)
         if fit is not None:
@@ -107,6 +113,8 @@ class KinematicAcceleration:
         if not self.s.turn_compensation:
             self.source = "off"
             return _ZERO
+        self._turn_sum += math.sqrt(gyro_rad_s[0] ** 2 + gyro_rad_s[1] ** 2 + gyro_rad_s[2] ** 2)
+        self._turn_n += 1
         for source, speed in (("velocity", self._speed), ("airspeed", self._airspeed)):
             if speed.fresh(t_ns, self.s.speed_max_age_s):
                 self.source = source
@@ -166,8 +174,10 @@ class _Speed:
 
 
 _MIN_AIRSPEED_M_S = 2.0
-_MIN_ARC_RAD = math.pi
-"""A circle fit counts only when the samples span at least half a turn around its centre."""
+_MIN_TURN_RAD_S = 0.1
+"""Ground velocities enter the wind fit only while the vehicle turns at least this fast."""
+_MIN_ARC_RAD = 2.0 * math.pi / 3.0
+"""A circle fit counts only when the samples span at least a third of a turn around it."""
 
 
 def _circle_fit(points: Iterable[tuple[int, float, float]]) -> tuple[float, float] | None:
