@@ -161,13 +161,13 @@ class AhrsEstimator(Estimator):
         self._reset_filter()
 
     def process(self, item: Sample | Estimate) -> list[Estimate]:
-        if isinstance(item, (VelocitySample, AirspeedSample)):
-            if item.valid and within_full_scale((item.scalar,) if isinstance(
-                    item, AirspeedSample) else item.velocity_ned_m_s, None):
-                if isinstance(item, VelocitySample):
-                    self._kinematics.on_velocity(item)
-                else:
-                    self._kinematics.on_airspeed(item)
+        if isinstance(item, VelocitySample):
+            if item.valid and within_full_scale(item.velocity_ned_m_s, None):
+                self._kinematics.on_velocity(item)
+            return []
+        if isinstance(item, AirspeedSample):
+            if item.valid and within_full_scale((item.airspeed_m_s,), None):
+                self._kinematics.on_airspeed(item)
             return []
         if not isinstance(item, (GyroSample, AccelSample, MagSample)):
             return []

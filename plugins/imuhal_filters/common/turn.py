@@ -13,9 +13,9 @@ Sources, best first (the first one available at a gyro step is used):
    through the air is what turns with the vehicle; the wind only drifts it. While circling,
    the horizontal ground velocities of the last ``wind_window_s`` lie on a circle whose
    centre is the wind and whose radius is the airspeed (a least-squares circle fit, used
-   once the samples taken while turning cover at least a third of the circle); otherwise
-   the last wind found (zero at first) is taken off the ground velocity. The airspeed V and
-   its rate of change V' then
+   once the samples taken while turning cover at least a third of the circle); until then
+   the nominal airspeed, if one is configured, stands for V, else the ground speed (later
+   fits are used as they come). The airspeed V and its rate of change V' then
    give a = omega x (V, 0, 0) + V' (1, 0, 0): the centripetal term from the gyro and the
    speed, the longitudinal term from the rate of change of the velocity source. This needs
    no heading, so 6-DOF filters (arbitrary yaw) use it too.
@@ -60,9 +60,10 @@ class TurnCompensationSettings(EstimatorSettings):
     while circling (a thermal circle takes about 20 s)."""
     airspeed_rate_tau_s: float = Field(default=0.3, gt=0.0)
     """Low-pass time constant of an airspeed sensor's rate of change (s)."""
-    velocity_rate_tau_s: float = Field(default=1.0, gt=0.0)
-    """Low-pass time constant of the rate of change of the speed from velocity samples (s):
-    a GNSS receiver's 0.1 m/s noise differentiated at 5 Hz would otherwise be 0.7 m/s^2."""
+    velocity_rate_window_s: float = Field(default=1.0, gt=0.0)
+    """The rate of change of the speed from velocity samples is the least-squares slope over
+    this window (s): a GNSS receiver's 0.1 m/s noise differentiated sample to sample at 5 Hz
+    would be 0.7 m/s^2; the slope over 1 s has about 0.14 m/s^2 and lags half a window."""
 
 
 class KinematicAcceleration:
@@ -77,7 +78,8 @@ class KinematicAcceleration:
         self._ground: deque[tuple[int, float, float]] = deque()
         self._turn_sum = 0.0
         self._turn_n = 0
-        self._speed = _Speed()
+        self._turning = False
+        self._speed = _SlopeSpeed()
         self._airspeed = _Speed()
         self.source = "none"
         self.counts = {"velocity_samples": 0, "airspeed_samples": 0, "wind_fits": 0,
@@ -90,6 +92,7 @@ class KinematicAcceleration:
         self.counts["velocity_samples"] += 1
         vn, ve, _ = sample.velocity_ned_m_s
         turning = self._turn_n > 0 and self._turn_sum / self._turn_n >= _MIN_TURN_RAD_S
+        self._turning = turning
         self._turn_sum, self._turn_n = 0.0, 0
         if turning:  # straight-line points all sit at one angle: they only bias the circle
             self._ground.append((sample.t_ns, vn, ve))
@@ -99,8 +102,8 @@ class KinematicAcceleration:
         if fit is not None:
             self.wind_ne_m_s = fit
             self.counts["wind_fits"] += 1
-        wn, we = self.wind_ne_m_s
-        self._speed.add(sample.t_ns, math.hypot(vn - wn, ve - we), self.s.velocity_rate_tau_s)
+        self._speed.add_ground(sample.t_ns, vn, ve, self.wind_ne_m_s,
+                               self.s.velocity_rate_window_s)
 
     def on_airspeed(self, sample: AirspeedSample) -> None:
         self.counts["airspeed_samples"] += 1
@@ -115,15 +118,27 @@ class KinematicAcceleration:
             return _ZERO
         self._turn_sum += math.sqrt(gyro_rad_s[0] ** 2 + gyro_rad_s[1] ** 2 + gyro_rad_s[2] ** 2)
         self._turn_n += 1
-        for source, speed in (("velocity", self._speed), ("airspeed", self._airspeed)):
-            if speed.fresh(t_ns, self.s.speed_max_age_s):
-                self.source = source
-                self.counts["compensated_steps"] += 1
-                return _along_x(gyro_rad_s, speed.value, speed.rate)
-        if self.s.nominal_airspeed_m_s is not None:
+        nominal = self.s.nominal_airspeed_m_s
+        if self._speed.fresh(t_ns, self.s.speed_max_age_s):
+            self.source = "velocity"
+            self.counts["compensated_steps"] += 1
+            # until a circle has shown the wind, a configured trim speed is the better guess
+            # of the airspeed, and while turning the ground speed swings with the heading
+            # (wind), so its rate of change is not the airspeed's
+            wind_known = self.counts["wind_fits"] > 0
+            if self._speed.value < _MIN_AIRSPEED_M_S:
+                return _ZERO  # standing: the velocity is noise, and so would its rate be
+            speed = self._speed.value if wind_known or nominal is None else nominal
+            rate = self._speed.rate if wind_known or not self._turning else 0.0
+            return _along_x(gyro_rad_s, speed, rate)
+        if self._airspeed.fresh(t_ns, self.s.speed_max_age_s):
+            self.source = "airspeed"
+            self.counts["compensated_steps"] += 1
+            return _along_x(gyro_rad_s, self._airspeed.value, self._airspeed.rate)
+        if nominal is not None:
             self.source = "nominal"
             self.counts["compensated_steps"] += 1
-            return _along_x(gyro_rad_s, self.s.nominal_airspeed_m_s, 0.0)
+            return _along_x(gyro_rad_s, nominal, 0.0)
         self.source = "none"
         return _ZERO
 
@@ -171,6 +186,41 @@ class _Speed:
 
     def load_dict(self, d: dict[str, Any]) -> None:
         self.value, self.rate, self.t_ns = float(d["value"]), float(d["rate"]), d["t_ns"]
+
+
+class _SlopeSpeed(_Speed):
+    """Airspeed from ground velocities and a wind, and the least-squares slope of the
+    airspeed over a window (m/s^2). The whole window is re-evaluated with the newest wind, so
+    a better wind estimate is not mistaken for an acceleration."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._window: deque[tuple[int, float, float]] = deque()
+
+    def add_ground(self, t_ns: int, vn: float, ve: float, wind_ne: tuple[float, float],
+                   window_s: float) -> None:
+        if self.t_ns is not None and t_ns <= self.t_ns:
+            return
+        self._window.append((t_ns, vn, ve))
+        while (t_ns - self._window[0][0]) * _NS > window_s:
+            self._window.popleft()
+        wn, we = wind_ne
+        speeds = [math.hypot(n - wn, e - we) for _, n, e in self._window]
+        self.value, self.t_ns = speeds[-1], t_ns
+        count = len(speeds)
+        ts = [(t - t_ns) * _NS for t, _, _ in self._window]
+        mt = sum(ts) / count
+        mv = sum(speeds) / count
+        den = sum((t - mt) ** 2 for t in ts)
+        self.rate = 0.0 if count < 2 or den == 0.0 else sum(
+            (t - mt) * (v - mv) for t, v in zip(ts, speeds, strict=True)) / den
+
+    def as_dict(self) -> dict[str, Any]:
+        return {**super().as_dict(), "window": [list(w) for w in self._window]}
+
+    def load_dict(self, d: dict[str, Any]) -> None:
+        super().load_dict(d)
+        self._window = deque((int(t), float(n), float(e)) for t, n, e in d.get("window", []))
 
 
 _MIN_AIRSPEED_M_S = 2.0
