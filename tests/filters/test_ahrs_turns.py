@@ -118,3 +118,18 @@ def test_turn_compensation_off_ignores_every_source() -> None:
                                                          nominal_airspeed_m_s=10.0))
     assert kin.step(0, (0.0, 0.0, 0.3)) == (0.0, 0.0, 0.0)
     assert kin.source == "off"
+
+
+@pytest.mark.parametrize("name", ["madgwick", "freescale-9dof"])
+def test_state_with_a_velocity_source_round_trips_through_json(name: str) -> None:
+    import json
+
+    samples = [s for s in _turn(14.0, velocity=True) if not isinstance(s, tuple)]
+    cut = len(samples) // 2
+    straight, first = make(name), make(name)
+    whole = run(straight, iter(samples))
+    head = run(first, iter(samples[:cut]))
+    resumed = make(name)
+    resumed.set_state(json.loads(json.dumps(first.get_state())))
+    tail = run(resumed, iter(samples[cut:]))
+    assert [e.q_body_to_ned for e in head + tail] == [e.q_body_to_ned for e in whole]

@@ -148,6 +148,7 @@ class KinematicAcceleration:
         return {"wind_ne_m_s": list(self.wind_ne_m_s),
                 "ground": [list(g) for g in self._ground],
                 "speed": self._speed.as_dict(), "airspeed": self._airspeed.as_dict(),
+                "turn": [self._turn_sum, self._turn_n, self._turning],
                 "counts": dict(self.counts)}
 
     def load_dict(self, d: dict[str, Any]) -> None:
@@ -156,6 +157,8 @@ class KinematicAcceleration:
         self._ground = deque((int(t), float(n), float(e)) for t, n, e in d["ground"])
         self._speed.load_dict(d["speed"])
         self._airspeed.load_dict(d["airspeed"])
+        turn_sum, turn_n, turning = d["turn"]
+        self._turn_sum, self._turn_n, self._turning = float(turn_sum), int(turn_n), bool(turning)
         self.counts = {k: int(v) for k, v in d["counts"].items()}
 
 
