@@ -15,9 +15,11 @@ Sources, best first (the first one available at a gyro step is used):
    centre is the wind and whose radius is the airspeed (a least-squares circle fit, used
    once the samples taken while turning cover at least a third of the circle); until then
    the nominal airspeed, if one is configured, stands for V, else the ground speed (later
-   fits are used as they come). The airspeed V and its rate of change V' then
-   give a = omega x (V, 0, 0) + V' (1, 0, 0): the centripetal term from the gyro and the
-   speed, the longitudinal term from the rate of change of the velocity source. This needs
+   fits are used as they come). The airspeed V and its rate of change V' (least-squares
+   slope over ``velocity_rate_window_s``; not used while turning before the wind is known,
+   when the ground speed swings with the heading) give a = omega x (V, 0, 0) + V' (1, 0, 0):
+   the centripetal term from the gyro and the speed, the longitudinal term from the rate of
+   change of the velocity source. Below 2 m/s (standing) nothing is compensated. This needs
    no heading, so 6-DOF filters (arbitrary yaw) use it too.
 2. **Airspeed** (``AirspeedSample``, along body x): the same formula, V' from the low-passed
    rate of change of the airspeed samples.
@@ -288,10 +290,6 @@ def _solve3(a: tuple[tuple[float, float, float], ...], b: tuple[float, float, fl
         m = tuple(tuple(b[r] if c == col else a[r][c] for c in range(3)) for r in range(3))
         out.append(det(m) / d)
     return out[0], out[1], out[2]
-
-
-def _vec(v: Any) -> Vec:
-    return (float(v[0]), float(v[1]), float(v[2]))
 
 
 def _along_x(gyro_rad_s: Vec, speed_m_s: float, speed_rate_m_s2: float) -> Vec:
