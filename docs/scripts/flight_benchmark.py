@@ -84,7 +84,7 @@ AHRS_SETTINGS: dict[str, tuple[dict[str, Any], bool, float | None]] = {
 }
 """Setting label -> (settings on top of the board's, feed the GNSS velocity, the `thermal`
 tilt RMS target of issue 10 or None where it sets none)."""
-VARIO_VALUES: tuple[float | None, ...] = (0.03, 0.1, 0.3, 1.0, 3.0, None)
+VARIO_VALUES: tuple[float | None, ...] = (0.02, 0.05, 0.1, 0.3, 1.0, 3.0, None)
 """accel_variance_m2_s4 values measured; None is ``preset: reference`` (esp32: 5 m^2/s^4)."""
 
 
