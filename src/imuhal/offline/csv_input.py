@@ -4,6 +4,10 @@ Header names carry units and frames (project convention): ``t_s``; gyro ``gx_rad
 accelerometer specific force ``ax_m_s2`` ... in NED body axes (level at rest: az = -9.81);
 magnetometer ``mx_ut`` ...; ``pressure_pa``; for the vario filters also ``altitude_m`` and
 ``accel_up_m_s2`` (gravity-compensated vertical acceleration, up positive).
+
+Sensors at different rates share one file: a slower sensor's cells are empty on the rows
+where it had no sample (magnetometer, pressure, and in the vertical form both altitude and
+acceleration), so each row carries what was measured at its time.
 """
 
 from __future__ import annotations
@@ -29,7 +33,7 @@ ACCEL_UP = "accel_up_m_s2"
 MAX_TIME_S = 1e9
 """Largest |t_s| accepted (31 years): times become integer nanoseconds, which must fit 64 bits."""
 
-SPARSE_COLUMNS = frozenset({PRESSURE, *MAG})
+SPARSE_COLUMNS = frozenset({PRESSURE, *MAG, ALTITUDE, ACCEL_UP})
 """Columns whose cells may be empty: a slower sensor has no sample on that row."""
 
 

@@ -6,15 +6,13 @@ Every check runs on every profile and all problems go into one report, each read
 each bus, device and estimator against the Settings model of the plugin it names. An
 unsupported ``schema_version`` is one more problem, not the only one.
 
-Types are strict: values are validated as JSON would be (``true`` is not a number, ``"5"`` is
-not a number, an integer is a valid float). Input is bounded: at most ``MAX_PROFILE_BYTES``
+Numbers are strict: ``true`` is not a number and neither is ``"5"`` (an integer is a valid
+float). Input is bounded: at most ``MAX_PROFILE_BYTES``
 bytes, and a bounded alias expansion (profile/yaml_source.py).
 """
 
 from __future__ import annotations
 
-import datetime
-import json
 import types
 import typing
 from pathlib import Path as FsPath
@@ -121,20 +119,49 @@ def _check(
 
 
 def validate_strict(model: type[BaseModel], data: Any) -> Any:
-    """``model`` validated from ``data`` as from JSON in strict mode: YAML lists are fine for
-    tuples and strings for enums and dates, but a bool, a string or a null is never taken for
-    a number (``rate_hz: true`` is an error, not 1 Hz)."""
-    try:
-        text = json.dumps(data, default=_json_value, allow_nan=True)
-    except (TypeError, ValueError):  # keys JSON cannot hold (YAML complex keys): lax check
-        return model.model_validate(data)
-    return model.model_validate_json(text, strict=True)
+    """``model`` validated from ``data``, with numbers strict: pydantic turns ``true`` into 1
+    and ``"500"`` into 500, which a profile must not (``rate_hz: true`` is an error, not
+    1 Hz). YAML lists are still fine for tuples and strings for choices and dates.
+
+    Validation is pydantic's own (so models' validators run as written); afterwards every
+    bool or string of ``data`` that came out as a number is an error at its path.
+    """
+    result = model.model_validate(data)
+    coerced = [{"type": "float_type", "loc": path, "input": value}
+               for path, value in _coerced_numbers(data, result, ())]
+    if coerced:
+        raise ValidationError.from_exception_data(model.__name__, coerced)  # type: ignore[arg-type]
+    return result
 
 
-def _json_value(value: Any) -> Any:
-    if isinstance(value, datetime.datetime | datetime.date):
-        return value.isoformat()
-    return repr(value)  # bytes and other YAML oddities: a string the model will refuse
+_MISSING = object()
+
+
+def _coerced_numbers(given: Any, made: Any, path: Path) -> typing.Iterator[tuple[Path, Any]]:
+    """(path, value) of each bool or string in ``given`` whose validated value in ``made``
+    is a number."""
+    if isinstance(given, bool | str):
+        if isinstance(made, int | float) and not isinstance(made, bool):
+            yield path, given
+        return
+    items = given.items() if isinstance(given, dict) else (
+        enumerate(given) if isinstance(given, list) else ())
+    for key, value in items:
+        child = _child(made, key)
+        if child is not _MISSING:
+            yield from _coerced_numbers(value, child, (*path, key))
+
+
+def _child(made: Any, key: Any) -> Any:
+    if isinstance(made, BaseModel):
+        if isinstance(key, str) and key in type(made).model_fields:
+            return getattr(made, key)
+        return (made.model_extra or {}).get(key, _MISSING)
+    if isinstance(made, dict):
+        return made.get(key, _MISSING)
+    if isinstance(made, list | tuple) and isinstance(key, int) and 0 <= key < len(made):
+        return made[key]
+    return _MISSING
 
 
 def _describe(exc: ValidationError, doc: LocatedDocument, prefix: Path,
