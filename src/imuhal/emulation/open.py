@@ -16,10 +16,12 @@ from typing import Any
 
 from imuhal.bus.spy import Transfer
 from imuhal.core.clock import SimulatedClock
+from imuhal.core.errors import ImuhalError
+from imuhal.core.frames import parse_mount
 from imuhal.emulation.board import EmulatedBoard
 from imuhal.pipeline.pipeline import Pipeline
 from imuhal.plugins.manager import Registry
-from imuhal.profile.model import BoardProfile
+from imuhal.profile.model import BoardProfile, MountSpec
 from imuhal.profile.topology import chip_to_body_rotations, device_order
 from imuhal.sim.errors import SensorErrorModel, SensorErrorSpec, device_seed, error_spec_of
 
@@ -36,6 +38,7 @@ def open_emulated(
     error_specs: Mapping[str, SensorErrorSpec | None] | None = None,
     calibrated: bool = True,
     trace: Callable[[Transfer], None] | None = None,
+    physical_mounts: Mapping[str, MountSpec] | None = None,
 ) -> Pipeline:
     """A pipeline over ``profile``'s board, emulated, flying ``scenario``.
 
@@ -48,6 +51,9 @@ def open_emulated(
     range only). ``error_specs`` (device -> spec; devices not named are ideal) replaces
     those models, for tests and studies that need known offsets, scale errors and iron.
     ``calibrated`` and ``trace`` are the pipeline's (see :class:`Pipeline`).
+    ``physical_mounts`` (device -> mount, as in a profile) places those chips on the board
+    differently from what the profile says: the pipeline still rotates by the profile's
+    mount, so a wrong profile can be emulated (``imuhal check-mounts`` finds it).
     """
     name = profile.emulation.scenario if scenario is None else scenario
     clock = SimulatedClock(realtime=realtime)
@@ -63,8 +69,13 @@ def open_emulated(
                   for dev, spec in error_specs.items() if spec is not None}
     else:
         errors = error_models_for(profile, registry, run_seed) if use_errors else None
-    board = EmulatedBoard(profile, registry, clock, world, chip_to_body_rotations(profile),
-                          errors)
+    rotations = chip_to_body_rotations(profile)
+    for device, mount in (physical_mounts or {}).items():
+        if device not in rotations:
+            raise ImuhalError(f"physical mount for {device!r}: the profile has no enabled "
+                              f"device of that name; it has {', '.join(rotations)}")
+        rotations[device] = parse_mount(profile.board_to_body) @ parse_mount(mount)
+    board = EmulatedBoard(profile, registry, clock, world, rotations, errors)
     board.update(0)
     return Pipeline(profile, registry, board, calibrated=calibrated, trace=trace)
 
