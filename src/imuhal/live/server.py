@@ -38,6 +38,7 @@ from imuhal.pipeline import Pipeline
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_RATE_HZ = 20.0
 MAX_CLIENTS = 16
+SEND_BUFFER_BYTES = 64 * 1024
 STATIC = {
     "/": ("index.html", "text/html; charset=utf-8"),
     "/index.html": ("index.html", "text/html; charset=utf-8"),
@@ -158,7 +159,9 @@ class LiveView:
                               f"({exc.strerror or exc}); pick another port with --web PORT "
                               f"or name an address this machine has") from None
         self._publish()
-        for target, name in ((self._server.serve_forever, "imuhal-live-http"),
+        server = self._server
+        for target, name in ((lambda: server.serve_forever(poll_interval=0.1),
+                              "imuhal-live-http"),
                              (self._publisher, "imuhal-live-publisher")):
             thread = threading.Thread(target=target, name=name, daemon=True)
             thread.start()
@@ -294,6 +297,9 @@ class _LiveHandler(BaseHTTPRequestHandler):
             return
         self.close_connection = True
         try:
+            # A small send buffer bounds what a stuck client costs and makes it time out
+            # within seconds rather than after megabytes.
+            self.connection.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SEND_BUFFER_BYTES)
             self.connection.settimeout(live.client_timeout_s)
             self.send_response(HTTPStatus.OK)
             self.send_header("Content-Type", "text/event-stream")

@@ -37,6 +37,9 @@ STALE_MIN_S = 0.5
 """... or this long (s), whichever is longer, of pipeline time."""
 RATE_LOW = 0.8
 """A device achieving less than this fraction of its configured rate is marked faulty."""
+FLAGGED_FAULTY = 0.05
+"""More than this fraction of a device's samples flagged in the window marks it faulty (a
+chip that flags the odd late sample is not)."""
 UNITS = {c.value: c.unit for c in Channel}
 
 
@@ -216,8 +219,13 @@ class Snapshotter:
             if d is not None:
                 recent_flags = sum(d.flagged.values()) - (
                     past.flagged.get(name, 0) if past is not None else 0)
-            if recent_flags > 0:
-                problems.append(f"{recent_flags} flagged samples in the last {WINDOW_S:g} s")
+            recent_samples = 0
+            if d is not None:
+                recent_samples = sum(d.counts.values()) - (
+                    sum(past.counts.get(name, {}).values()) if past is not None else 0)
+            if recent_flags > FLAGGED_FAULTY * max(recent_samples, 1):
+                problems.append(f"{recent_flags} of {recent_samples} samples flagged in the "
+                                f"last {WINDOW_S:g} s")
             health[name] = {
                 "driver": self._drivers.get(name),
                 "configured_hz": configured,

@@ -1,0 +1,112 @@
+"""End to end in a real headless Chromium (Debian's package): the page follows an emulated
+board, shows its health, and cannot write anything.
+
+Skips when /usr/bin/chromium is absent, except in CI (CI=true), where .ci/run installs it
+and a missing browser is a failure.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import threading
+import time
+
+import pytest
+from tests.support.headless import CHROMIUM, Chromium
+
+from imuhal.emulation import open_emulated
+from imuhal.live import LiveView
+
+if not (os.path.exists(CHROMIUM) or shutil.which("chromium")):
+    if os.environ.get("CI") == "true":
+        raise RuntimeError(f"CI needs {CHROMIUM} for the live view's browser test; .ci/run "
+                           f"installs it (apt-get install chromium)")
+    pytest.skip(f"{CHROMIUM} is not installed (apt-get install chromium); the live view's "
+                f"browser test needs it", allow_module_level=True)
+
+ROLL_DEG = 20.0
+START_HOLD_S = 8.0      # the AHRS converges from level to the 20 deg roll in this time
+LIFT_SPEED_M_S = 2.0
+SPEED = 2.0             # the emulated run is paced at twice the wall clock once watched
+END_S = 12.0
+
+STATE = "JSON.stringify(window.imuhalState)"
+
+
+def _run(pipeline, sink, go: threading.Event) -> None:
+    """Free-running until the AHRS has converged, then paced at SPEED x the wall clock
+    once the page is open (go), as an embedding program would feed the view."""
+    wall0 = None
+    for event in pipeline.events(END_S):
+        sink.handle(event)
+        if event.t_ns < (START_HOLD_S - 1.0) * 1e9:
+            continue
+        if wall0 is None:
+            go.wait(30)
+            wall0 = time.monotonic() - event.t_ns / 1e9 / SPEED
+        ahead = event.t_ns / 1e9 / SPEED - (time.monotonic() - wall0)
+        if ahead > 0:
+            time.sleep(ahead)
+    sink.close()
+
+
+def test_the_page_follows_an_emulated_board_and_issues_no_write(plugins, seed_board,
+                                                                tmp_path):
+    params = {"roll_deg": ROLL_DEG, "start_hold_s": START_HOLD_S, "ramp_s": 0.5,
+              "speed_m_s": LIFT_SPEED_M_S, "floors": 10}
+    go = threading.Event()
+    with open_emulated(seed_board, plugins, scenario="elevator", scenario_params=params,
+                       seed=4) as pipeline, LiveView.for_pipeline(pipeline) as live, \
+            Chromium() as browser:
+        runner = threading.Thread(target=_run, args=(pipeline, live.sink, go), daemon=True)
+        runner.start()
+        browser.navigate(live.url)
+        browser.wait_for("window.imuhalState && window.imuhalState.messages > 0")
+        go.set()
+        # Still on the ground floor, banked 20 deg: the horizon shows the roll, the vario 0.
+        still = browser.wait_for(f"imuhalState.t_s > {START_HOLD_S - 0.8} && {STATE}")
+        # Riding up at 2 m/s: the vario follows.
+        riding = browser.wait_for(f"imuhalState.truth && imuhalState.truth.climb_m_s > "
+                                  f"{LIFT_SPEED_M_S - 0.05} && imuhalState.t_s > "
+                                  f"{START_HOLD_S + 1.5} && {STATE}")
+        shot = browser.screenshot()
+        dom = browser.evaluate(
+            "JSON.stringify({roll: document.getElementById('horizon').dataset.rollDeg,"
+            " climb: document.getElementById('vario-bar').dataset.climbMS,"
+            " bad: document.querySelectorAll('#health-table tr.bad').length,"
+            " rows: document.querySelectorAll('#health-table tbody tr').length,"
+            " forms: document.querySelectorAll('form, input, textarea, [formaction]').length,"
+            " buttons: Array.from(document.querySelectorAll('button')).map(b => b.type),"
+            " status: document.body.dataset.status})")
+        # The drawing itself: banked right, the horizon is low on the left and high on the
+        # right, so left of centre just below the centre line is still sky, right of centre
+        # just above it is already ground.
+        sky_left, ground_right = browser.evaluate(
+            "(() => { const c = document.getElementById('horizon'), g = c.getContext('2d');"
+            " const cx = c.width / 2, cy = (c.height - 40) / 2, r = Math.min(cx, cy) - 4;"
+            " const px = (x, y) => Array.from(g.getImageData(x, y, 1, 1).data);"
+            " return [px(cx - 0.7 * r, cy + 0.12 * r), px(cx + 0.7 * r, cy - 0.12 * r)]; })()")
+        requests = browser.requests()
+        runner.join(timeout=30)
+    still, riding, dom = json.loads(still), json.loads(riding), json.loads(dom)
+    assert still["status"] == "live"
+    assert abs(still["roll_deg"] - ROLL_DEG) < 3.0, still["roll_deg"]
+    assert abs(still["climb_m_s"]) < 0.3
+    assert abs(riding["roll_deg"] - ROLL_DEG) < 3.0
+    assert abs(riding["climb_m_s"] - riding["truth"]["climb_m_s"]) < 0.5, riding["climb_m_s"]
+    assert riding["errors"]["climb_m_s"] == pytest.approx(
+        riding["climb_m_s"] - riding["truth"]["climb_m_s"])
+    # What is drawn is what is exposed.
+    assert float(dom["roll"]) == pytest.approx(riding["roll_deg"], abs=5.0)
+    assert sky_left[2] > sky_left[0], sky_left            # blue: sky
+    assert ground_right[0] > ground_right[2], ground_right  # brown: ground
+    assert dom["rows"] == 3 and dom["bad"] == 0  # imu, mag, baro: healthy
+    # Nothing on the page can write: no form or input, only plain buttons, and every
+    # request it made was a GET to this server.
+    assert dom["forms"] == 0 and set(dom["buttons"]) == {"button"}
+    assert requests and {r["method"] for r in requests} == {"GET"}
+    assert all(r["url"].startswith(live.url) for r in requests)
+    assert shot.startswith(b"\x89PNG")
+    (tmp_path / "live-view.png").write_bytes(shot)
