@@ -136,7 +136,7 @@ function draw() {
   ]);
   drawPlot($("alt-plot"), "altitude", "m", HISTORY_S, [
     { label: S.vario || "estimate", color: "#5aa9ff", pts: vh.map((p) => [p[0], p[2]]) },
-    ...(S.truth ? [{ label: "truth (aligned at start)", color: "#9aa5b1", dash: true,
+    ...(S.truth ? [{ label: "truth", color: "#9aa5b1", dash: true,
                      pts: vh.filter((p) => p[4] !== null).map((p) => [p[0], p[4]]) }] : []),
   ]);
   drawTruth();
@@ -288,7 +288,7 @@ function drawPlot(c, title, unit, span, series) {
     g.beginPath(); g.moveTo(x, T); g.lineTo(x, h - B); g.stroke();
     g.fillText(s === 0 ? "now" : "-" + s, x, h - B + 3);
   }
-  g.textAlign = "right"; g.fillText("time, s", w - R, h - 10);
+  g.textAlign = "left"; g.fillText("time, s", 2, h - B + 3);
   g.textAlign = "left"; g.fillStyle = "#e6e9ec"; g.fillText(title + ", " + unit, 4, 2);
   let lx = L + 90;
   for (const s of series) {
@@ -333,8 +333,8 @@ function drawHealth() {
     tr.dataset.device = name; tr.dataset.stale = h.stale; tr.dataset.faulty = h.faulty;
     const rates = Object.keys({ ...h.configured_hz, ...h.achieved_hz })
       .filter((ch) => ch !== "temperature" || h.configured_hz[ch])
-      .map((ch) => ch + " " + fmt(h.achieved_hz[ch], 0) + " / " +
-        (h.configured_hz[ch] ? h.configured_hz[ch] : "?") + " Hz").join(", ");
+      .map((ch) => ch + " " + fmt(h.achieved_hz[ch], 0) + "/" +
+        (h.configured_hz[ch] ? h.configured_hz[ch] : "?")).join(", ");
     const flags = Object.entries(h.flagged).map(([k, n]) => k + " " + n).join(", ") || "none";
     const status = h.stale ? "STALE" : h.faulty ? "FAULT: " + h.problems.join("; ") : "ok";
     for (const text of [name + (h.driver ? " (" + h.driver + ")" : ""), rates || "\u2013",
@@ -349,6 +349,12 @@ function drawHealth() {
   }));
 }
 
+function plotOrder(dev, ch) {
+  const d = Object.keys(S.health).indexOf(dev);
+  const k = ["accel", "gyro", "mag", "pressure"].indexOf(ch);
+  return String(d < 0 ? 99 : d).padStart(2, "0") + String(k < 0 ? 9 : k) + dev + ch;
+}
+
 function drawSensors() {
   const box = $("sensor-plots");
   for (const [key, buf] of Object.entries(hist.sensors)) {
@@ -359,7 +365,10 @@ function drawSensors() {
       const h3 = document.createElement("h3"); h3.textContent = dev + " \u2014 " + ch;
       c = document.createElement("canvas"); c.id = "plot-" + key; c.className = "plot";
       c.width = 380; c.height = 150;
-      div.append(h3, c); box.appendChild(div);
+      div.append(h3, c); div.dataset.order = plotOrder(dev, ch); box.appendChild(div);
+      // Devices in the profile's order, then accel, gyro, mag, pressure.
+      const sorted = Array.from(box.children).sort((a, b) => a.dataset.order.localeCompare(b.dataset.order));
+      box.replaceChildren(...sorted);
     }
     const entry = (S.sensors[dev] || {})[ch] || {};
     const unit = entry.unit || "";
