@@ -35,13 +35,20 @@ END_S = 12.0
 STATE = "JSON.stringify(window.imuhalState)"
 
 
-def _run(pipeline, sink, go: threading.Event) -> None:
-    """Free-running until the AHRS has converged, then paced at SPEED x the wall clock
-    once the page is open (go), as an embedding program would feed the view."""
+@pytest.fixture(scope="module")
+def browser():
+    with Chromium() as chromium:
+        yield chromium
+
+
+def _run(pipeline, sink, go: threading.Event, *, paced_from_s: float = START_HOLD_S - 1.0,
+         end_s: float = END_S) -> None:
+    """Free-running up to ``paced_from_s`` (the AHRS converges), then paced at SPEED x the
+    wall clock once the page is ready (go), as an embedding program would feed the view."""
     wall0 = None
-    for event in pipeline.events(END_S):
+    for event in pipeline.events(end_s):
         sink.handle(event)
-        if event.t_ns < (START_HOLD_S - 1.0) * 1e9:
+        if event.t_ns < paced_from_s * 1e9:
             continue
         if wall0 is None:
             go.wait(30)
@@ -53,15 +60,15 @@ def _run(pipeline, sink, go: threading.Event) -> None:
 
 
 def test_the_page_follows_an_emulated_board_and_issues_no_write(plugins, seed_board,
-                                                                tmp_path):
+                                                                browser, tmp_path):
     params = {"roll_deg": ROLL_DEG, "start_hold_s": START_HOLD_S, "ramp_s": 0.5,
               "speed_m_s": LIFT_SPEED_M_S, "floors": 10}
     go = threading.Event()
     with open_emulated(seed_board, plugins, scenario="elevator", scenario_params=params,
-                       seed=4) as pipeline, LiveView.for_pipeline(pipeline) as live, \
-            Chromium() as browser:
+                       seed=4) as pipeline, LiveView.for_pipeline(pipeline) as live:
         runner = threading.Thread(target=_run, args=(pipeline, live.sink, go), daemon=True)
         runner.start()
+        browser.events.clear()
         browser.navigate(live.url)
         browser.wait_for("window.imuhalState && window.imuhalState.messages > 0")
         go.set()
@@ -110,3 +117,29 @@ def test_the_page_follows_an_emulated_board_and_issues_no_write(plugins, seed_bo
     assert all(r["url"].startswith(live.url) for r in requests)
     assert shot.startswith(b"\x89PNG")
     (tmp_path / "live-view.png").write_bytes(shot)
+
+
+def test_the_bring_up_check_on_the_page_finds_a_wrong_mount(plugins, seed_board, browser):
+    """The user presses "tilt nose up" and tilts the board (the bringup scenario does, from
+    2 s); the MAX21100 really sits otherwise than the profile says, the HMC5883L does not."""
+    go = threading.Event()
+    with open_emulated(seed_board, plugins, scenario="bringup", seed=4,
+                       physical_mounts={"imu": "-X+Y-Z"}) as pipeline, \
+            LiveView.for_pipeline(pipeline) as live:
+        runner = threading.Thread(target=_run, args=(pipeline, live.sink, go), daemon=True,
+                                  kwargs={"paced_from_s": 1.6, "end_s": 5.5})
+        runner.start()
+        browser.navigate(live.url)
+        browser.wait_for("window.imuhalState && imuhalState.t_s > 1.5 && "
+                         "document.querySelector('button[data-motion=nose-up]') !== null")
+        browser.evaluate("document.querySelector('button[data-motion=nose-up]').click()")
+        go.set()
+        results = json.loads(browser.wait_for(
+            "imuhalState.t_s > 5.0 && imuhalState.bringup.results['imu/gyro'] && "
+            "JSON.stringify(imuhalState.bringup.results)", timeout=20))
+        shown = browser.evaluate("document.getElementById('bringup-results').innerText")
+        runner.join(timeout=30)
+    assert results["imu/gyro"]["ok"] is False and "roll left" in results["imu/gyro"]["seen"]
+    assert results["imu/accel"]["ok"] is False
+    assert results["mag/mag"]["ok"] is True
+    assert "check the mount of 'imu'" in shown
