@@ -10,13 +10,15 @@ the state at the display rate, and browsers only ever see those copies.
 from __future__ import annotations
 
 import threading
-import time
 from collections import Counter
 from dataclasses import dataclass, field
 
-from imuhal.core.samples import Channel, Frame, Sample, SampleFlag, VectorSample
-from imuhal.estimation.outputs import AttitudeEstimate, Estimate, VerticalEstimate
+from imuhal.core.samples import Channel, Frame, Sample, SampleFlag
+from imuhal.estimation.outputs import AttitudeEstimate, VerticalEstimate
 from imuhal.sinks.base import Event
+
+_GYRO = Channel.GYRO
+_BODY_NED = Frame.BODY_NED  # module constants: an enum member looked up per event costs
 
 
 @dataclass
@@ -26,7 +28,7 @@ class DeviceState:
 
     latest: dict[Channel, Sample] = field(default_factory=dict)
     latest_valid: dict[Channel, Sample] = field(default_factory=dict)
-    counts: Counter[Channel] = field(default_factory=Counter)
+    counts: dict[Channel, int] = field(default_factory=dict)
     flagged: Counter[str] = field(default_factory=Counter)
     rotation_rad: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
     last_gyro_ns: int | None = None
@@ -38,7 +40,6 @@ class Copy:
     """A consistent copy of the sink's state, taken by :meth:`LiveSink.copy`."""
 
     t_ns: int | None
-    wall_s: float | None
     events: int
     closed: bool
     devices: dict[str, DeviceState]
@@ -56,11 +57,11 @@ class LiveSink:
         self._attitudes: dict[str, AttitudeEstimate] = {}
         self._verticals: dict[str, VerticalEstimate] = {}
         self._t_ns: int | None = None
-        self._wall_s: float | None = None
         self._events = 0
         self.closed = False
 
     def handle(self, event: Event) -> None:
+        # Runs for every event on the pipeline's thread: keep it to a few dict operations.
         with self._lock:
             self._events += 1
             self._t_ns = event.t_ns
@@ -70,9 +71,7 @@ class LiveSink:
                 self._attitudes[event.source] = event
             elif isinstance(event, VerticalEstimate):
                 self._verticals[event.source] = event
-            elif isinstance(event, Estimate):
-                pass  # other estimate types: nothing on the page shows them yet
-        self._wall_s = time.monotonic()
+            # other estimate types: nothing on the page shows them yet
 
     def _sample(self, sample: Sample) -> None:
         dev = self._devices.get(sample.device)
@@ -80,20 +79,20 @@ class LiveSink:
             dev = self._devices[sample.device] = DeviceState()
         channel = sample.channel
         dev.latest[channel] = sample
-        dev.counts[channel] += 1
+        counts = dev.counts
+        counts[channel] = counts.get(channel, 0) + 1
         dev.last_t_ns = sample.t_ns
-        if sample.flags != SampleFlag.OK:
+        if sample.flags:
             for flag in SampleFlag:
                 if flag and flag in sample.flags:
                     dev.flagged[flag.name or str(int(flag))] += 1
             return
         dev.latest_valid[channel] = sample
-        if (channel is Channel.GYRO and isinstance(sample, VectorSample)
-                and sample.frame is Frame.BODY_NED):
+        if channel is _GYRO and sample.frame is _BODY_NED:  # type: ignore[attr-defined]
             last = dev.last_gyro_ns
             if last is not None and sample.t_ns > last:
                 dt = (sample.t_ns - last) * 1e-9
-                w = sample.vector
+                w = sample.gyro_rad_s  # type: ignore[attr-defined]
                 r = dev.rotation_rad
                 r[0] += w[0] * dt
                 r[1] += w[1] * dt
@@ -105,11 +104,11 @@ class LiveSink:
         with self._lock:
             devices = {
                 name: DeviceState(latest=dict(d.latest), latest_valid=dict(d.latest_valid),
-                                  counts=Counter(d.counts), flagged=Counter(d.flagged),
+                                  counts=dict(d.counts), flagged=Counter(d.flagged),
                                   rotation_rad=list(d.rotation_rad),
                                   last_gyro_ns=d.last_gyro_ns, last_t_ns=d.last_t_ns)
                 for name, d in self._devices.items()}
-            return Copy(t_ns=self._t_ns, wall_s=self._wall_s, events=self._events,
+            return Copy(t_ns=self._t_ns, events=self._events,
                         closed=self.closed, devices=devices,
                         attitudes=dict(self._attitudes), verticals=dict(self._verticals))
 

@@ -102,6 +102,8 @@ class Snapshotter:
         self._configured: dict[str, dict[str, float]] = {}
         self._drivers: dict[str, str] = {}
         self._bringup_state: dict[str, Any] | None = None
+        self._last_events = 0
+        self._last_change_wall = 0.0
         if pipeline is not None:
             for name, dev in pipeline.devices.items():
                 drv = dev.driver
@@ -117,7 +119,7 @@ class Snapshotter:
         out: dict[str, Any] = {
             "seq": self.seq,
             "t_s": None if copy.t_ns is None else copy.t_ns / 1e9,
-            "age_s": None if copy.wall_s is None else max(0.0, now_wall - copy.wall_s),
+            "age_s": self._age_s(copy.events, now_wall),
             "events": copy.events,
             "ended": copy.closed,
             "board": {
@@ -149,6 +151,16 @@ class Snapshotter:
             self._bringup_state = self._bringup(copy, past)
         out["bringup"] = self._bringup_state
         return out
+
+    def _age_s(self, events: int, now_wall: float) -> float | None:
+        """Wall seconds since the pipeline's last event, as seen by successive snapshots
+        (the sink itself reads no clock: that would cost every event)."""
+        if events == 0:
+            return None
+        if events != self._last_events:
+            self._last_events = events
+            self._last_change_wall = now_wall
+        return now_wall - self._last_change_wall
 
     def _ordered(self, names: dict[str, Any]) -> list[str]:
         """``names`` in the profile's estimator order (unknown ones last, sorted)."""
