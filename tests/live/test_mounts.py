@@ -74,7 +74,7 @@ def test_a_recorder_integrates_the_gyro_between_start_and_evidence():
     assert [v.ok for v in check(NOSE_UP, [evidence])] == [True]
 
 
-def _verdicts(plugins, board, **mounts):
+def _verdicts(plugins, board, **mounts):  # the wrong-mount case: tests/live/test_live_cli.py
     """Every sensor's verdict on every motion of an emulated bring-up run."""
     with open_emulated(board, plugins, scenario="bringup", seed=2,
                        physical_mounts=mounts) as pipeline:
@@ -105,12 +105,3 @@ def test_the_seed_board_passes_every_bring_up_motion(plugins, seed_board):
     assert verdicts["nose-up"][("imu", "accel")] is True
     assert verdicts["turn-right"][("mag", "mag")] is True
     assert verdicts["turn-right"][("imu", "accel")] is None  # a level turn: gravity stays
-
-
-def test_a_chip_mounted_otherwise_than_the_profile_says_fails_only_its_own_checks(
-        plugins, seed_board):
-    # The MAX21100 really sits at "-X+Y-Z" (a proper rotation, not the seed's "-Y-X-Z").
-    verdicts = _verdicts(plugins, seed_board, imu="-X+Y-Z")
-    assert verdicts["nose-up"][("imu", "gyro")] is False
-    assert verdicts["roll-right"][("imu", "accel")] is False
-    assert verdicts["nose-up"][("mag", "mag")] is True

@@ -32,12 +32,12 @@ def _samples_per_s(plugins, board, live_kwargs: dict | None) -> float:
     a live view and a stalled client when ``live_kwargs`` is given."""
     with open_emulated(board, plugins, scenario="thermal", seed=5) as pipeline:
         if live_kwargs is None:
-            summary = pipeline.run(3.0, [])
+            summary = pipeline.run(2.0, [])
         else:
             with LiveView.for_pipeline(pipeline, **live_kwargs) as live, \
                     stalled_client(live.url):
                 time.sleep(0.2)  # the client is connected and its stream has started
-                summary = pipeline.run(3.0, [live.sink])
+                summary = pipeline.run(2.0, [live.sink])
                 assert live.clients == 1  # still connected: stalled, not yet dropped
     return sum(summary.samples.values()) / summary.wall_s
 
