@@ -19,7 +19,8 @@ from tests.support.headless import CHROMIUM, Chromium
 from imuhal.emulation import open_emulated
 from imuhal.live import LiveView
 
-if not (os.path.exists(CHROMIUM) or shutil.which("chromium")):
+EXECUTABLE = CHROMIUM if os.path.exists(CHROMIUM) else shutil.which("chromium")
+if EXECUTABLE is None:
     if os.environ.get("CI") == "true":
         raise RuntimeError(f"CI needs {CHROMIUM} for the live view's browser test; .ci/run "
                            f"installs it (apt-get install chromium)")
@@ -37,7 +38,7 @@ STATE = "JSON.stringify(window.imuhalState)"
 
 @pytest.fixture(scope="module")
 def browser():
-    with Chromium() as chromium:
+    with Chromium(EXECUTABLE) as chromium:
         yield chromium
 
 
