@@ -17,12 +17,13 @@ from typing import Any
 from imuhal.bus.spy import Transfer
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import ImuhalError
-from imuhal.core.frames import parse_mount
+from imuhal.core.frames import MountError, parse_mount
 from imuhal.emulation.board import EmulatedBoard
+from imuhal.emulation.mounting import chip_rotations
 from imuhal.pipeline.pipeline import Pipeline
 from imuhal.plugins.manager import Registry
 from imuhal.profile.model import BoardProfile, MountSpec
-from imuhal.profile.topology import chip_to_body_rotations, device_order
+from imuhal.profile.topology import device_order
 from imuhal.sim.errors import SensorErrorModel, SensorErrorSpec, device_seed, error_spec_of
 
 
@@ -69,15 +70,30 @@ def open_emulated(
                   for dev, spec in error_specs.items() if spec is not None}
     else:
         errors = error_models_for(profile, registry, run_seed) if use_errors else None
-    rotations = chip_to_body_rotations(profile)
-    for device, mount in (physical_mounts or {}).items():
-        if device not in rotations:
-            raise ImuhalError(f"physical mount for {device!r}: the profile has no enabled "
-                              f"device of that name; it has {', '.join(rotations)}")
-        rotations[device] = parse_mount(profile.board_to_body) @ parse_mount(mount)
+    # The emulation's own reading of the mounts, not the pipeline's: see emulation.mounting.
+    rotations = chip_rotations(_physically_mounted(profile, physical_mounts or {}))
     board = EmulatedBoard(profile, registry, clock, world, rotations, errors)
     board.update(0)
     return Pipeline(profile, registry, board, calibrated=calibrated, trace=trace)
+
+
+def _physically_mounted(profile: BoardProfile, mounts: Mapping[str, MountSpec]
+                        ) -> BoardProfile:
+    """``profile`` with the named devices' mounts replaced by where the chips really sit."""
+    if not mounts:
+        return profile
+    devices = dict(profile.devices)
+    for device, mount in mounts.items():
+        if device not in devices or not devices[device].enabled:
+            enabled = ", ".join(n for n, d in devices.items() if d.enabled)
+            raise ImuhalError(f"physical mount for {device!r}: the profile has no enabled "
+                              f"device of that name; it has {enabled}")
+        try:
+            parse_mount(mount)
+        except MountError as exc:
+            raise ImuhalError(f"physical mount for {device!r}: {exc}") from None
+        devices[device] = devices[device].model_copy(update={"mount": mount})
+    return profile.model_copy(update={"devices": devices})
 
 
 def error_models_for(profile: BoardProfile, registry: Registry, seed: int
