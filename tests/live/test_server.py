@@ -110,3 +110,9 @@ def test_the_page_loads_nothing_from_outside_the_package():
         assert "http://" not in text and "https://" not in text and "//cdn" not in text, name
     html = static.joinpath("index.html").read_text().lower()
     assert "<form" not in html and "<input" not in html
+
+
+def test_a_port_in_use_is_a_one_line_error_naming_the_fix(live):
+    port = live._server.server_address[1]
+    with pytest.raises(ImuhalError, match="pick another port with --web PORT"):
+        LiveView(port=port).start()
