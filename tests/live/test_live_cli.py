@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import pytest
 
 from imuhal.cli.main import EXIT_ERROR, main
@@ -40,3 +42,33 @@ def test_check_mounts_mistakes_are_one_line_errors(capsys, args, words):
     assert main(["check-mounts", *args]) == EXIT_ERROR
     err = capsys.readouterr().err.strip().splitlines()
     assert words in err[-1] and err[-1].startswith("imuhal: error:")
+
+
+def test_the_guided_check_records_each_motion_after_its_prompt(plugins, seed_board, capsys):
+    """The interactive path of ``imuhal check-mounts`` on hardware, run against an emulated
+    board paced in real time whose user (the bringup scenario, compressed) performs each
+    motion right after its prompt is answered."""
+    from imuhal.cli.check_mounts_cmd import guided_check
+    from imuhal.emulation import open_emulated
+
+    params = {"settle_s": 0.6, "window_s": 1.0, "move_s": 0.4, "return_s": 0.5}
+    with open_emulated(seed_board, plugins, scenario="bringup", scenario_params=params,
+                       realtime=True, seed=6) as pipeline:
+        phases = {p.name: p for p in pipeline.board.scenario.phases()}
+        prompts = []
+
+        def user(prompt: str) -> str:
+            prompts.append(prompt)
+            for key, phase in phases.items():
+                if key in ("nose-up", "roll-right", "turn-right") and \
+                        phase.name.replace("-", " ") in prompt.replace("tilt ", ""):
+                    while pipeline.clock.now_ns() < phase.start_s * 1e9:
+                        time.sleep(0.005)
+            return ""
+
+        verdicts = guided_check(pipeline, window_s=1.0, ask=user)
+    assert len(prompts) == 6  # level; each motion, and back to level after the first two
+    for key in ("nose-up", "roll-right", "turn-right"):
+        gyro = next(v for v in verdicts[key] if v.channel.value == "gyro")
+        assert gyro.ok is True, (key, gyro.message)
+    assert "ok   imu gyro: saw turn right" in capsys.readouterr().out

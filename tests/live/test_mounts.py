@@ -55,12 +55,19 @@ def test_gravity_turns_the_opposite_way_to_the_body():
     assert abs(rot[0]) < 1e-9 and abs(rot[2]) < 1e-9
 
 
-def test_an_accelerometer_cannot_see_a_level_turn_but_fails_a_tilt_during_one():
+def test_an_accelerometer_cannot_see_a_level_turn_so_it_gives_no_verdict_on_one():
     level = (0.0, 0.0, -1.0)
     unseen = judge(TURN_RIGHT, Evidence("imu", Channel.ACCEL, (0.0, 0.0, 0.0), level))
     assert unseen.ok is None and "gravity" in unseen.message
-    tilted = judge(TURN_RIGHT, Evidence("imu", Channel.ACCEL, (25.0, 0.0, 0.0), level))
-    assert tilted.ok is False
+    # What it shows then is its own error (or the user's tilt): reported, not judged.
+    tilted = judge(TURN_RIGHT, Evidence("imu", Channel.ACCEL, (12.0, 0.0, 0.0), level))
+    assert tilted.ok is None and "roll right 12 deg" in tilted.message
+
+
+def test_an_accelerometer_judges_the_tilts_it_can_see():
+    level = (0.0, 0.0, -1.0)
+    assert judge(NOSE_UP, Evidence("imu", Channel.ACCEL, (0.0, 29.0, 0.0), level)).ok is True
+    assert judge(NOSE_UP, Evidence("imu", Channel.ACCEL, (0.0, -29.0, 0.0), level)).ok is False
 
 
 def test_a_recorder_integrates_the_gyro_between_start_and_evidence():

@@ -17,7 +17,7 @@ import threading
 import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from imuhal.core.errors import ImuhalError
 from imuhal.core.frames import MountError, parse_mount
@@ -25,6 +25,9 @@ from imuhal.live.mounts import MOTIONS, Motion, MotionRecorder, Verdict, check
 from imuhal.plugins.manager import Registry
 from imuhal.profile.loader import load_profile
 from imuhal.profiles_dir import default_profile_path
+
+if TYPE_CHECKING:
+    from imuhal.pipeline import Pipeline
 
 EXIT_WRONG = 1
 MARKS = {True: "ok  ", False: "FAIL", None: "--  "}
@@ -118,12 +121,23 @@ def _emulated(profile: Any, registry: Registry, scenario: str, seed: int | None,
 def _hardware(profile: Any, registry: Registry, window_s: float) -> dict[str, list[Verdict]]:
     from imuhal.pipeline import Pipeline
 
+    with Pipeline.open(profile, registry) as pipeline:
+        for w in pipeline.warnings:
+            print(f"warning: {w}", file=sys.stderr)
+        return guided_check(pipeline, window_s=window_s)
+
+
+def guided_check(pipeline: Pipeline, *, window_s: float,
+                 ask: Callable[[str], str] = input) -> dict[str, list[Verdict]]:
+    """Prompt for each motion (``ask`` shows a prompt and waits for Enter) and record
+    ``window_s`` wall seconds of it while the pipeline runs on its own thread, at its own
+    pace; every sensor's verdict per motion."""
     recorder = MotionRecorder()
     lock = threading.Lock()
     stop = threading.Event()
     failure: list[BaseException] = []
 
-    def run(pipeline: Pipeline) -> None:
+    def run() -> None:
         try:
             for event in pipeline.events():
                 if stop.is_set():
@@ -133,32 +147,28 @@ def _hardware(profile: Any, registry: Registry, window_s: float) -> dict[str, li
         except BaseException as exc:  # reported by the main thread
             failure.append(exc)
 
-    with Pipeline.open(profile, registry) as pipeline:
-        for w in pipeline.warnings:
-            print(f"warning: {w}", file=sys.stderr)
-        thread = threading.Thread(target=run, args=(pipeline,), daemon=True)
-        thread.start()
-        verdicts: dict[str, list[Verdict]] = {}
-        try:
-            ask: Callable[[str], str] = input
-            ask("Put the board level and still, then press Enter ")
-            for motion in MOTIONS:
-                ask(f"\n{motion.label}: press Enter, then {motion.prompt} "
-                    f"(within {window_s:g} s) ")
-                with lock:
-                    recorder.start()
-                time.sleep(window_s)
-                if failure:
-                    raise failure[0]
-                with lock:
-                    evidence = recorder.evidence()
-                verdicts[motion.key] = _announce(motion, check(motion, evidence))
-                if motion is not MOTIONS[-1]:
-                    ask("Put the board back level and still, then press Enter ")
-        finally:
-            stop.set()
-            thread.join(timeout=2.0)
-        return verdicts
+    thread = threading.Thread(target=run, name="imuhal-check-mounts", daemon=True)
+    thread.start()
+    verdicts: dict[str, list[Verdict]] = {}
+    try:
+        ask("Put the board level and still, then press Enter ")
+        for motion in MOTIONS:
+            ask(f"\n{motion.label}: press Enter, then {motion.prompt} "
+                f"(within {window_s:g} s) ")
+            with lock:
+                recorder.start()
+            time.sleep(window_s)
+            if failure:
+                raise failure[0]
+            with lock:
+                evidence = recorder.evidence()
+            verdicts[motion.key] = _announce(motion, check(motion, evidence))
+            if motion is not MOTIONS[-1]:
+                ask("Put the board back level and still, then press Enter ")
+    finally:
+        stop.set()
+        thread.join(timeout=2.0)
+    return verdicts
 
 
 def _announce(motion: Motion, verdicts: list[Verdict]) -> list[Verdict]:
