@@ -29,28 +29,37 @@ def stalled_client(url: str):
 
 def _samples_per_s(plugins, board, live_kwargs: dict | None) -> float:
     """Samples per wall second of a free-running emulated run (as fast as it can go), with
-    a live view and a stalled client when ``live_kwargs`` is given."""
+    a live view and a client stalled for the whole run when ``live_kwargs`` is given."""
     with open_emulated(board, plugins, scenario="thermal", seed=5) as pipeline:
         if live_kwargs is None:
+            pipeline.run(0.5, [])
             summary = pipeline.run(2.0, [])
         else:
             with LiveView.for_pipeline(pipeline, **live_kwargs) as live, \
                     stalled_client(live.url):
-                time.sleep(0.2)  # the client is connected and its stream has started
+                pipeline.run(0.5, [live.sink])  # full-size messages from here on
+                # 40 messages of about 5 kB fill the client's and the server's buffers:
+                # from then on the client's thread is stuck in its send.
+                built = live.messages_built
+                while live.messages_built < built + 40:
+                    time.sleep(0.02)
                 summary = pipeline.run(2.0, [live.sink])
                 assert live.clients == 1  # still connected: stalled, not yet dropped
     return sum(summary.samples.values()) / summary.wall_s
 
 
 def test_a_stalled_client_does_not_slow_the_pipeline(plugins, seed_board):
-    """Generous bound (timing on a shared machine); the 5 % figure is measured by
-    docs/scripts/live_view_overhead.py (docs/live-view.md)."""
+    """Samples per wall second with and without the view and a client that never reads,
+    interleaved, best of two. The bound is generous (timing on a shared machine): a
+    pipeline waiting for the client would stall for the whole 60 s send timeout. The 5 %
+    figure is measured by tests/benchmarks/bench_live_view.py (docs/live-view.md)."""
     _samples_per_s(plugins, seed_board, None)  # warm-up: imports, caches
-    alone = max(_samples_per_s(plugins, seed_board, None) for _ in range(2))
-    watched = max(_samples_per_s(plugins, seed_board, {"rate_hz": 30.0,
-                                                       "client_timeout_s": 60.0})
-                  for _ in range(2))
-    assert watched > 0.6 * alone, (watched, alone)
+    alone = watched = 0.0
+    for _ in range(2):
+        alone = max(alone, _samples_per_s(plugins, seed_board, None))
+        watched = max(watched, _samples_per_s(plugins, seed_board, {
+            "rate_hz": 60.0, "client_timeout_s": 60.0}))
+    assert watched > 0.5 * alone, (watched, alone)
 
 
 def test_a_client_that_stops_reading_is_dropped_and_the_others_keep_their_stream(
