@@ -2,18 +2,40 @@
 
 from __future__ import annotations
 
+import json
+import subprocess
+import sys
 import time
+import urllib.request
 
 import pytest
 
 from imuhal.cli.main import EXIT_ERROR, main
 
 
-def test_run_with_web_serves_on_the_loopback_while_the_run_lasts(capsys):
-    assert main(["run", "--web", "0", "--duration", "0.6", "--quiet"]) == 0
-    err = capsys.readouterr().err
-    assert "live view: http://127.0.0.1:" in err
-    assert "reachable from the network" not in err
+def test_run_with_web_serves_the_running_board_on_the_loopback():
+    """``imuhal run --web 0`` as a user starts it: the printed address answers with the
+    live state of the default emulated board while the run lasts."""
+    proc = subprocess.Popen([sys.executable, "-m", "imuhal.cli.main", "run", "--web", "0",
+                             "--duration", "2", "--quiet"],
+                            stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)
+    try:
+        url = None
+        for line in proc.stderr:
+            if line.startswith("live view: "):
+                url = line.split()[2]
+                break
+        assert url is not None and url.startswith("http://127.0.0.1:")
+        assert "reachable from the network" not in line
+        time.sleep(1.0)
+        with urllib.request.urlopen(url + "state.json", timeout=5) as resp:
+            state = json.load(resp)
+    finally:
+        proc.communicate(timeout=30)
+    assert proc.returncode == 0
+    assert state["board"] == {"profile": "seed-paraglider-vario", "scenario": "thermal",
+                              "emulated": True}
+    assert state["t_s"] > 0.5 and "ahrs" in state["attitude"]
 
 
 @pytest.mark.parametrize("spec", ["eighty", "localhost:99999"])

@@ -65,6 +65,8 @@ class LiveSink:
         with self._lock:
             self._events += 1
             self._t_ns = event.t_ns
+            if self.closed:
+                self.closed = False  # events after close: the same view watches a new run
             if isinstance(event, Sample):
                 self._sample(event)
             elif isinstance(event, AttitudeEstimate):
