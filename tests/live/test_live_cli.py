@@ -52,6 +52,7 @@ def test_check_mounts_finds_a_chip_mounted_otherwise_than_its_profile_says(capsy
     assert "FAIL imu gyro: saw roll left" in out
     assert "ok   mag mag: saw nose up" in out
     assert "mounts WRONG" in out and "fix the mount of imu" in out
+    assert 'imu: its gyro moved as a chip mounted "-X+Y-Z" would' in out
 
 
 @pytest.mark.parametrize(("args", "words"), [

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 
+from imuhal.core.frames import parse_mount
 from imuhal.core.samples import Channel, GyroSample
 from imuhal.emulation import open_emulated
 from imuhal.live.mounts import (
@@ -15,6 +16,7 @@ from imuhal.live.mounts import (
     judge,
     motion_name,
     rotation_between,
+    suggest_mount,
 )
 
 NOSE_UP = MOTION_BY_KEY["nose-up"]
@@ -112,3 +114,21 @@ def test_the_seed_board_passes_every_bring_up_motion(plugins, seed_board):
     assert verdicts["nose-up"][("imu", "accel")] is True
     assert verdicts["turn-right"][("mag", "mag")] is True
     assert verdicts["turn-right"][("imu", "accel")] is None  # a level turn: gravity stays
+
+
+@pytest.mark.parametrize(("profile_mount", "real_mount", "board"), [
+    ("-Y-X-Z", "-X+Y-Z", "+X+Y+Z"), ("+X+Y+Z", "+Y-X+Z", "+X+Y+Z"),
+    ("-Y-X-Z", "-Y-X-Z", "+Y-X+Z"), ("+X-Y-Z", "+Z+X+Y", "-X-Y+Z")])
+def test_the_three_motions_name_the_mount_the_chip_really_has(profile_mount, real_mount,
+                                                             board):
+    b = parse_mount(board)
+    said, real = b @ parse_mount(profile_mount), b @ parse_mount(real_mount)
+    seen = {m.key: tuple(30.0 * (said @ real.T)[:, m.axis]) for m in MOTIONS}
+    assert suggest_mount(said, b, seen) == real_mount
+
+
+def test_no_mount_is_suggested_from_an_unclear_motion():
+    b = parse_mount("+X+Y+Z")
+    seen = {"nose-up": (0.0, 30.0, 0.0), "roll-right": (20.0, 20.0, 0.0),
+            "turn-right": (0.0, 0.0, 90.0)}
+    assert suggest_mount(b, b, seen) is None

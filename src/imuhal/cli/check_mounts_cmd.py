@@ -21,9 +21,11 @@ from typing import TYPE_CHECKING, Any
 
 from imuhal.core.errors import ImuhalError
 from imuhal.core.frames import MountError, parse_mount
-from imuhal.live.mounts import MOTIONS, Motion, MotionRecorder, Verdict, check
+from imuhal.core.samples import Channel
+from imuhal.live.mounts import MOTIONS, Motion, MotionRecorder, Verdict, check, suggest_mount
 from imuhal.plugins.manager import Registry
 from imuhal.profile.loader import load_profile
+from imuhal.profile.topology import chip_to_body_rotations
 from imuhal.profiles_dir import default_profile_path
 
 if TYPE_CHECKING:
@@ -84,7 +86,7 @@ def cmd_check_mounts(args: argparse.Namespace, registry: Registry) -> int:
         verdicts = _emulated(profile, registry, emulate, args.seed, mounts)
     else:
         verdicts = _hardware(profile, registry, args.window)
-    return _report(verdicts)
+    return _report(verdicts, profile)
 
 
 def _emulated(profile: Any, registry: Registry, scenario: str, seed: int | None,
@@ -180,13 +182,15 @@ def _announce(motion: Motion, verdicts: list[Verdict]) -> list[Verdict]:
     return verdicts
 
 
-def _report(verdicts: dict[str, list[Verdict]]) -> int:
+def _report(verdicts: dict[str, list[Verdict]], profile: Any) -> int:
     wrong = [v for vs in verdicts.values() for v in vs if v.ok is False]
     unseen = [key for key, vs in verdicts.items() if not any(v.ok for v in vs)]
     if wrong:
         devices = sorted({v.device for v in wrong})
         print(f"\nmounts WRONG: {len(wrong)} checks failed; fix the mount of "
               f"{', '.join(devices)} in the profile (docs/live-view.md, bring-up)")
+        for device in devices:
+            _suggest(device, verdicts, profile)
         return EXIT_WRONG
     if unseen:
         print(f"\nnot seen: {', '.join(unseen)}; repeat and move further (about 30 "
@@ -194,3 +198,14 @@ def _report(verdicts: dict[str, list[Verdict]]) -> int:
         return EXIT_WRONG
     print("\nmounts right: every sensor saw every motion the right way (or could not see it)")
     return 0
+
+
+def _suggest(device: str, verdicts: dict[str, list[Verdict]], profile: Any) -> None:
+    """Print the mount that explains what ``device``'s gyro saw, when it has one."""
+    seen = {key: v.rotation_deg for key, vs in verdicts.items() for v in vs
+            if v.device == device and v.channel is Channel.GYRO}
+    mount = suggest_mount(chip_to_body_rotations(profile)[device],
+                          parse_mount(profile.board_to_body), seen)
+    if mount is not None:
+        print(f"  {device}: its gyro moved as a chip mounted \"{mount}\" would (the profile "
+              f"says {profile.devices[device].mount!r}): set `mount: \"{mount}\"`")

@@ -25,6 +25,8 @@ from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numpy as np
+
 from imuhal.core.samples import Channel, Vec3, VectorSample
 from imuhal.sinks.base import Event
 
@@ -104,6 +106,8 @@ class Verdict:
     message: str
     angle_deg: float = 0.0
     """How far the sensor saw the body turn (deg), whatever the direction."""
+    rotation_deg: Vec3 = (0.0, 0.0, 0.0)
+    """The body rotation it saw (deg, body axes)."""
 
     def as_dict(self) -> dict[str, object]:
         return {"device": self.device, "channel": self.channel.value, "motion": self.motion,
@@ -142,7 +146,8 @@ def judge(motion: Motion, evidence: Evidence) -> Verdict:
     what = f"{evidence.device} {evidence.channel.value}"
 
     def verdict(ok: bool | None, message: str) -> Verdict:
-        return Verdict(evidence.device, evidence.channel, motion.key, ok, seen, message, size)
+        return Verdict(evidence.device, evidence.channel, motion.key, ok, seen, message, size,
+                       tuple(rot))  # type: ignore[arg-type]
 
     if visible < MIN_OBSERVABLE:
         # No verdict either way: what such a sensor shows about this motion is mostly the
@@ -258,3 +263,35 @@ def _unit(v: Sequence[float]) -> Vec3 | None:
     if n == 0.0 or not math.isfinite(n):
         return None
     return (v[0] / n, v[1] / n, v[2] / n)
+
+
+def suggest_mount(chip_to_body: Sequence[Sequence[float]],
+                  board_to_body: Sequence[Sequence[float]],
+                  seen_deg: dict[str, Sequence[float]]) -> str | None:
+    """The mount (chip -> board, signed axes) that explains what a gyro saw, or None.
+
+    ``seen_deg`` holds the body rotation (deg) the gyro showed for each motion of
+    :data:`MOTIONS`, through the profile's ``chip_to_body`` rotation C. If the chip really
+    sits at C', the gyro shows M e for a true rotation e, with M = C C'^T; the three motions
+    give M column by column (rounded to the nearest signed axis), so C' = M^T C and the mount
+    is ``board_to_body^T C'``. None unless every motion was clear and the result is a proper
+    signed-axis rotation.
+    """
+    m = np.zeros((3, 3))
+    for motion in MOTIONS:
+        rot = seen_deg.get(motion.key)
+        if rot is None or _norm(rot) < MIN_MOTION_DEG:
+            return None
+        axis = max(range(3), key=lambda i: abs(rot[i]))
+        if abs(rot[axis]) < MIN_AGREEMENT * _norm(rot):
+            return None
+        m[axis, motion.axis] = 1.0 if rot[axis] > 0 else -1.0
+    if abs(np.linalg.det(m) - 1.0) > 1e-9:
+        return None
+    mount = np.asarray(board_to_body, dtype=float).T @ m.T @ np.asarray(chip_to_body,
+                                                                         dtype=float)
+    terms = []
+    for row in np.rint(mount):
+        (j,) = np.flatnonzero(row)
+        terms.append(("+" if row[j] > 0 else "-") + "XYZ"[j])
+    return "".join(terms)
