@@ -101,3 +101,15 @@ def test_health_reports_configured_and_achieved_rates_per_channel(plugins, seed_
     assert state["health"]["baro"]["configured_hz"] == {"pressure": 50.0}
     assert state["health"]["mag"]["configured_hz"] == {"mag": 75.0}
     assert not any(h["stale"] or h["faulty"] for h in state["health"].values()), state["health"]
+
+
+def test_a_diverged_estimate_reaches_the_page_as_null_not_as_invalid_json():
+    from imuhal.estimation.outputs import VerticalEstimate
+
+    with LiveView() as live:
+        live.sink.handle(VerticalEstimate(t_ns=1, source="vario", altitude_m=float("nan"),
+                                          climb_m_s=float("inf")))
+        live._publish()
+        message = next(sse_messages(live.url + "events", timeout_s=5))
+    assert message["vertical"]["vario"] == {"t_s": 1e-9, "altitude_m": None,
+                                            "climb_m_s": None}

@@ -20,7 +20,9 @@ from __future__ import annotations
 
 import ipaddress
 import json
+import math
 import socket
+import sys
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -114,6 +116,7 @@ class LiveView:
         self.clients = 0
         self.dropped_clients = 0
         self.messages_built = 0
+        self.publish_errors = 0
         self._cond = threading.Condition()
         self._message: bytes = b""
         self._state: dict[str, Any] = {}
@@ -189,11 +192,22 @@ class LiveView:
 
     def _publisher(self) -> None:
         while not self._stop.wait(self.period_s):
-            self._publish()
+            try:
+                self._publish()
+            except Exception as exc:  # the view must outlive any one bad snapshot
+                self.publish_errors += 1
+                if self.publish_errors == 1:
+                    print(f"imuhal live view: a snapshot failed ({type(exc).__name__}: "
+                          f"{exc}); the page keeps the last good one", file=sys.stderr)
 
     def _publish(self) -> None:
         state = self.snapshotter.snapshot()
-        data = json.dumps(state, separators=(",", ":"), allow_nan=False)
+        try:
+            data = json.dumps(state, separators=(",", ":"), allow_nan=False)
+        except ValueError:
+            # A diverged estimator's NaN: JSON has no NaN, the page shows "-" for null.
+            state = _finite_only(state)
+            data = json.dumps(state, separators=(",", ":"), allow_nan=False)
         message = f"id: {state['seq']}\ndata: {data}\n\n".encode()
         with self._cond:
             self._state = state
@@ -220,6 +234,17 @@ class LiveView:
     @property
     def stopping(self) -> bool:
         return self._stop.is_set()
+
+
+def _finite_only(value: Any) -> Any:
+    """``value`` with every NaN or infinite float replaced by None."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite_only(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite_only(v) for v in value]
+    return value
 
 
 def _static(name: str) -> bytes:
