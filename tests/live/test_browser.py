@@ -16,6 +16,7 @@ import time
 import pytest
 from tests.support.headless import CHROMIUM, Chromium
 
+from imuhal.core.samples import GyroSample, PressureSample
 from imuhal.emulation import open_emulated
 from imuhal.live import LiveView
 
@@ -144,3 +145,25 @@ def test_the_bring_up_check_on_the_page_finds_a_wrong_mount(plugins, seed_board,
     assert results["imu/accel"]["ok"] is False
     assert results["mag/mag"]["ok"] is True
     assert "check the mount of 'imu'" in shown
+
+
+def test_a_device_that_goes_stale_turns_red_on_the_page(browser):
+    """Fed by an embedding program (no pipeline): the barometer stops, the gyro goes on."""
+    with LiveView(rate_hz=30.0) as live:
+        browser.navigate(live.url)
+
+        def feed(t0_s: float, t1_s: float, baro: bool) -> None:
+            for i in range(round(t0_s * 100), round(t1_s * 100)):
+                t_ns = i * 10_000_000
+                live.sink.handle(GyroSample(t_ns=t_ns, device="imu",
+                                            gyro_rad_s=(0.0, 0.0, 0.0)))
+                if baro and i % 2 == 0:
+                    live.sink.handle(PressureSample(t_ns=t_ns, device="baro",
+                                                    pressure_pa=90000.0))
+
+        feed(0.0, 1.0, baro=True)
+        browser.wait_for("document.querySelectorAll('#health-table tr.good').length == 2")
+        feed(1.0, 2.0, baro=False)
+        red = browser.wait_for("Array.from(document.querySelectorAll('#health-table tr.bad'))"
+                               ".map(r => r.dataset.device + ': ' + r.innerText).join('|')")
+    assert red.startswith("baro: ") and "STALE" in red and "imu" not in red
