@@ -126,7 +126,11 @@ def _hardware(profile: Any, registry: Registry, window_s: float) -> dict[str, li
     with Pipeline.open(profile, registry) as pipeline:
         for w in pipeline.warnings:
             print(f"warning: {w}", file=sys.stderr)
-        return guided_check(pipeline, window_s=window_s)
+        try:
+            return guided_check(pipeline, window_s=window_s)
+        except EOFError:
+            raise ImuhalError("check-mounts on hardware prompts for each motion: run it in "
+                              "a terminal (standard input ended)") from None
 
 
 def guided_check(pipeline: Pipeline, *, window_s: float,
