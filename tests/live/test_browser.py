@@ -98,6 +98,7 @@ def test_the_page_follows_an_emulated_board_and_issues_no_write(plugins, seed_bo
             " const px = (x, y) => Array.from(g.getImageData(x, y, 1, 1).data);"
             " return [px(cx - 0.7 * r, cy + 0.12 * r), px(cx + 0.7 * r, cy - 0.12 * r)]; })()")
         requests = browser.requests()
+        problems = browser.problems()
         runner.join(timeout=30)
     still, riding, dom = json.loads(still), json.loads(riding), json.loads(dom)
     assert still["status"] == "live"
@@ -117,6 +118,7 @@ def test_the_page_follows_an_emulated_board_and_issues_no_write(plugins, seed_bo
     assert dom["forms"] == 0 and set(dom["buttons"]) == {"button"}
     assert requests and {r["method"] for r in requests} == {"GET"}
     assert all(r["url"].startswith(live.url) for r in requests)
+    assert problems == []  # no script error, no CSP violation, no failed load
     assert shot.startswith(b"\x89PNG")
     (tmp_path / "live-view.png").write_bytes(shot)
 

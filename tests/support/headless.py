@@ -59,7 +59,7 @@ class Chromium:
         target = self.send("Target.createTarget", {"url": "about:blank"})["targetId"]
         self.session = self.send("Target.attachToTarget",
                                  {"targetId": target, "flatten": True})["sessionId"]
-        for method in ("Page.enable", "Network.enable", "Runtime.enable"):
+        for method in ("Page.enable", "Network.enable", "Runtime.enable", "Log.enable"):
             self.page(method)
         self.page("Emulation.setDeviceMetricsOverride",
                   {"width": width, "height": height, "deviceScaleFactor": 1, "mobile": False})
@@ -137,6 +137,19 @@ class Chromium:
         """Every request the page issued (DevTools Network.requestWillBeSent)."""
         return [e["params"]["request"] for e in self.events
                 if e.get("method") == "Network.requestWillBeSent"]
+
+    def problems(self) -> list[str]:
+        """Errors the page reported: uncaught exceptions, console errors, failed loads."""
+        out = []
+        for e in self.events:
+            method, params = e.get("method"), e.get("params", {})
+            if method == "Runtime.exceptionThrown":
+                out.append(str(params.get("exceptionDetails", {}).get("text")))
+            elif method == "Log.entryAdded" and params["entry"]["level"] == "error":
+                out.append(f"{params['entry']['text']} {params['entry'].get('url', '')}")
+            elif method == "Runtime.consoleAPICalled" and params.get("type") == "error":
+                out.append(str(params.get("args")))
+        return out
 
     def close(self) -> None:
         with contextlib.suppress(BrowserError, OSError):
