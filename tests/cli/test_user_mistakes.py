@@ -75,6 +75,7 @@ MISTAKES: dict[str, Mistake] = {
     "duration negative": Mistake(lambda t: ["run", "--duration", "-5"], "--duration"),
     "duration 1e300": Mistake(lambda t: ["run", "--duration", "1e300"], "--duration"),
     "seed negative": Mistake(lambda t: ["run", "--duration", "1", "--seed", "-1"], "--seed"),
+    "check-mounts seed negative": Mistake(lambda t: ["check-mounts", "--seed", "-1"], "--seed"),
     "rate 0": Mistake(lambda t: ["estimate", "madgwick", str(imu_csv(t / "in.csv")), "-o",
                                  str(t / "o.csv"), "--rate", "0"], "--rate"),
     "rate nan": Mistake(lambda t: ["estimate", "madgwick", str(imu_csv(t / "in.csv")), "-o",

@@ -17,6 +17,7 @@ from imuhal.cli import args as types
 from imuhal.cli.frame_option import frame_argument
 from imuhal.core.atomic import AtomicFile, check_outputs
 from imuhal.core.errors import ImuhalError
+from imuhal.live import LiveView, parse_bind
 from imuhal.plugins.manager import Registry
 from imuhal.profile.loader import load_profile
 from imuhal.profiles_dir import default_profile_path
@@ -54,6 +55,10 @@ def add_parser(sub: Any) -> None:
                      help="with --emulate replay: the truth CSV to fly again (e.g. one that "
                      "`imuhal run --truth` wrote)")
     run.add_argument("--quiet", action="store_true", help="no live status line")
+    run.add_argument("--web", metavar="[HOST:]PORT",
+                     help="serve a live dashboard (read-only) on PORT of this machine only, "
+                     "or of HOST when named (0.0.0.0: every interface); emulated runs are "
+                     "paced in real time (docs/live-view.md)")
     run.set_defaults(func=cmd_run)
 
 
@@ -73,7 +78,9 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     emulate = args.emulate
     if args.profile is None and emulate is None:
         emulate = profile.emulation.scenario
-    realtime = args.realtime or emulate is None  # real buses always run in real time
+    web = parse_bind(args.web) if args.web is not None else None
+    # Real buses always run in real time; a dashboard of an emulated run is watched live.
+    realtime = args.realtime or emulate is None or web is not None
     if args.truth and emulate is None:
         raise ImuhalError("--truth needs an emulated run (--emulate SCENARIO): real "
                           "hardware has no ground truth")
@@ -111,6 +118,13 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
                 print(f"warning: --replay-truth {args.replay_truth} ends after {left:.3f} s; "
                       "the run stops there", file=sys.stderr)
             duration = left if args.duration is None else min(args.duration, left)
+        if web is not None:
+            live = stack.enter_context(LiveView.for_pipeline(pipeline, host=web.host,
+                                                             port=web.port))
+            sinks.append(live.sink)
+            print(f"live view: {live.url}" + ("" if web.loopback else
+                  " (reachable from the network at this machine's address: read-only, "
+                  "no password; docs/live-view.md)"), file=sys.stderr)
         if args.output:
             csv_sink = CsvSink(args.output, include_samples=args.samples, frame=frame)
             sinks.append(csv_sink)
