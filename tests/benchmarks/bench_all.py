@@ -161,7 +161,7 @@ def peer_rows(n: int, gyro: np.ndarray, accel: np.ndarray, mag: np.ndarray) -> l
             vqf.VQF(1 / RATE_HZ).updateBatch(gyr[:k], acc[:k], mg[:k])
 
         big = max(n, 100_000)
-        reps = int(math.ceil(big / len(gyr)))
+        reps = math.ceil(big / len(gyr))
         gyr, acc, mg = (np.ascontiguousarray(np.tile(x, (reps, 1))) for x in (gyr, acc, mg))
         rows.append(Row("peer", "vqf.VQF.updateBatch 9-DOF",
                         1.0 / cpu_per_call(vqf_batch, big), "samples/s"))
@@ -224,7 +224,7 @@ def estimator_rows(n: int, gyro: np.ndarray, accel: np.ndarray, mag: np.ndarray,
             continue
         uses_mag = getattr(cls, "uses_mag", True)
 
-        def make():
+        def make(cls=cls, uses_mag=uses_mag):  # type: ignore[no-untyped-def]
             est = cls(cls.Settings())
             est.update(g[0], a[0], m[0] if uses_mag else None, dt)  # aligned
             return est
