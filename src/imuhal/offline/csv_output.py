@@ -10,8 +10,10 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from imuhal.core.atomic import AtomicFile
-from imuhal.core.conventions import NED, Convention
+from imuhal.core.conventions import NED, Convention, get_convention
 from imuhal.core.errors import ImuhalError
 from imuhal.estimation.framed import attitude_columns, express_attitude
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate, VerticalEstimate
@@ -97,22 +99,22 @@ class EstimateCsvWriter:
         self._csv = csv.writer(self._spill)
 
     def write(self, estimates: Iterable[Estimate]) -> None:
-        writerow = self._csv.writerow
-        fixed = self._fixed
-        known = self._index.keys()
-        for e in estimates:
-            fields = estimate_fields(e, self.frame)
-            diag = flatten_diagnostics(e.diagnostics)
-            merged = {**diag, **fields}
-            if fixed is not None:
-                if self.rows == 0:
-                    self._check_columns(merged)
-                writerow([_fmt(merged.get(h, "")) for h in fixed])
-            else:
-                if not (fields.keys() <= known and diag.keys() <= known):
-                    self._extend([*fields, *diag])
-                writerow([_fmt(merged.get(h, "")) for h in self._header])
-            self.rows += 1
+        """Append ``estimates`` (one chunk: formatted column by column, written at once)."""
+        chunk = list(estimates)
+        if not chunk:
+            return
+        leading = _leading_columns(chunk, self.frame)
+        diags = [flatten_diagnostics(e.diagnostics) for e in chunk]
+        if self._fixed is None:
+            known = self._index.keys()
+            if not (leading.keys() <= known and all(d.keys() <= known for d in diags)):
+                self._extend([*leading, *(k for d in diags for k in d)])
+        elif self.rows == 0:
+            self._check_columns({**diags[0], **{k: v[0] for k, v in leading.items()}})
+        cells = [leading[h] if h in leading else [_fmt(d.get(h, "")) for d in diags]
+                 for h in self._header]
+        self._csv.writerows(zip(*cells, strict=True))
+        self.rows += len(chunk)
 
     def commit(self) -> int:
         """Write the header and the rows to ``path`` (atomically); returns the row count."""
@@ -154,6 +156,38 @@ class EstimateCsvWriter:
         if missing:
             raise ColumnError(f"--columns: {', '.join(missing)} not written by this estimator; "
                               f"its columns are: {', '.join(merged)}")
+
+
+def _leading_columns(chunk: list[Estimate], frame: str | Convention) -> dict[str, list[str]]:
+    """The estimate fields of a chunk, formatted, column by column. NED attitudes (every row
+    of a plain ``imuhal estimate``) in whole arrays; anything else row by row."""
+    if get_convention(frame) is NED and all(type(e) is AttitudeEstimate for e in chunk):
+        q = np.array([e.q_body_to_ned for e in chunk], dtype=float)
+        t_s = np.array([e.t_ns for e in chunk], dtype=float) / 1e9
+        values = [t_s, *q.T, *euler_deg_from_quats(q).T]
+        return {name: _fmt_floats(v) for name, v in zip(ATTITUDE_COLUMNS, values, strict=True)}
+    rows = [estimate_fields(e, frame) for e in chunk]
+    names = dict.fromkeys(k for r in rows for k in r)
+    return {n: [_fmt(r.get(n, "")) for r in rows] for n in names}
+
+
+def euler_deg_from_quats(q: np.ndarray) -> np.ndarray:
+    """(n, 3) roll, pitch, yaw in degrees from (n, 4) body -> NED quaternions: the array
+    form of :func:`imuhal.core.frames.euler_deg_from_quat` (same formula, same conventions)."""
+    n = np.sqrt(np.einsum("ij,ij->i", q, q))
+    if not np.all((n > 0) & np.isfinite(n)):
+        raise ValueError("cannot normalise a zero or non-finite quaternion")
+    w, x, y, z = (q / n[:, None]).T
+    roll = np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    pitch = np.arcsin(np.clip(2 * (w * y - z * x), -1.0, 1.0))
+    yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    return np.degrees(np.column_stack([roll, pitch, yaw]))
+
+
+def _fmt_floats(values: np.ndarray) -> list[str]:
+    if np.all(np.isfinite(values)):
+        return [repr(v) for v in values.tolist()]
+    return [_fmt(v) for v in values.tolist()]
 
 
 def _fmt(v: Any) -> str:
