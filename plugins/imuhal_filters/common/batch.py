@@ -36,13 +36,25 @@ def run_batch(
     else:
         dts = np.broadcast_to(np.asarray(dt_s, dtype=float), (n,))
     out = np.full((n, 4), np.nan)
-    for i in range(n):
-        a: Any = None if accel is None or np.isnan(accel[i]).any() else accel[i]
-        m: Any = None if mag is None or np.isnan(mag[i]).any() else mag[i]
-        q = estimator.update(gyro[i], a, m, float(dts[i]))
+    # rows as plain float tuples and the "no sample" rows found once for the whole array:
+    # per-row numpy indexing and isnan cost more than the filter step itself
+    no_sample = [None] * n
+    accel_rows: list[Any] = no_sample if accel is None else _rows(accel)
+    mag_rows: list[Any] = no_sample if mag is None else _rows(mag)
+    update = estimator.update
+    for i, (g, a, m, dt) in enumerate(zip(gyro.tolist(), accel_rows, mag_rows, dts.tolist(),
+                                          strict=True)):
+        q = update(g, a, m, dt)
         if q is not None:
             out[i] = q
     return out
+
+
+def _rows(values: FloatArray) -> list[tuple[float, ...] | None]:
+    """Each row as a tuple, None where any component is NaN ("no sample this step")."""
+    missing = np.isnan(values).any(axis=1).tolist()
+    return [None if gap else tuple(row) for row, gap in zip(values.tolist(), missing,
+                                                             strict=True)]
 
 
 def _optional(values: ArrayLike | None, n: int, what: str) -> FloatArray | None:
