@@ -317,6 +317,17 @@ class AhrsEstimator(Estimator):
             return None
         return np.array(self._q)
 
+    # ------------------------------------------------------------------ batch kernels
+    def aligned_for_batch(self, has_mag: bool) -> bool:
+        """No alignment is left to happen: a compiled kernel may take over from here."""
+        return self._tilt_aligned and (self._heading_aligned or not has_mag)
+
+    def _compiled_batch(self, gyro: FloatArray, accel: FloatArray | None,
+                        mag: FloatArray | None, dts: FloatArray, out: FloatArray) -> bool:
+        """Step every row in a compiled kernel, writing ``out``; False when this estimator
+        has none for its settings (``run_batch`` then stays in Python)."""
+        return False
+
     # ------------------------------------------------------------------ internals
     def _within_limits(self, item: GyroSample | AccelSample | MagSample) -> bool:
         """False (and counted) for a value no sensor can report: beyond full scale, NaN, inf."""

@@ -20,11 +20,15 @@ from __future__ import annotations
 
 from typing import Any, ClassVar, Literal
 
+import numpy as np
 from pydantic import Field
 
+from imuhal.core.frames import FloatArray
+from imuhal.core.samples import Channel
 from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
 from imuhal_filters.common.gate import AccelGate, SoftGateSettings, soft_gate_weight
 from imuhal_filters.madgwick.core import MagReference, madgwick_step
+from imuhal_filters.madgwick.fast import madgwick_rows
 from imuhal_filters.madgwick.inv_sqrt import INV_SQRT
 
 SEED_GATE_G = (0.6, 1.4)
@@ -98,6 +102,37 @@ class MadgwickEstimator(AhrsEstimator):
             "mag_used": gate_open and mag is not None,
             "accel_weight": weight,
         }
+
+    def _compiled_batch(self, gyro: FloatArray, accel: FloatArray | None,
+                        mag: FloatArray | None, dts: FloatArray, out: FloatArray) -> bool:
+        """Run the rows in the compiled kernel (``fast`` extra) when it covers this setup;
+        False (nothing done) otherwise. Called by ``run_batch`` once the attitude is aligned."""
+        s = self.settings
+        kin = self._kinematics
+        if (madgwick_rows is None or s.inv_sqrt != "exact"
+                or (s.turn_compensation and (s.nominal_airspeed_m_s is not None
+                                             or kin.has_speed_source))):
+            return False
+        n = gyro.shape[0]
+        nan3 = np.full((n, 3), np.nan)
+        counts = np.zeros(4, dtype=np.int64)
+        gate = self._gate
+        q, turn_sum = madgwick_rows(
+            np.array(self._q), gyro, nan3 if accel is None else accel,
+            nan3 if mag is None else mag, dts, float(s.gyro_full_scale_rad_s),
+            float(s.accel_full_scale_m_s2), float(s.beta), gate.lower_g, gate.upper_g,
+            0.0 if s.accel_soft_gate_g is None else float(s.accel_soft_gate_g),
+            s.mag_reference is MagReference.PAPER, s.use_mag, s.turn_compensation, out, counts,
+            kin.turn_sum)
+        self._q = (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
+        steps, bad_gyro, bad_accel, closed = (int(c) for c in counts)
+        kin.add_turn_steps(float(turn_sum), steps)
+        self._counters["steps"] += steps
+        self._counters["gate_closed_steps"] += closed
+        beyond = self._counters["beyond_full_scale"]
+        beyond[Channel.GYRO.value] += bad_gyro
+        beyond[Channel.ACCEL.value] += bad_accel
+        return True
 
     def _filter_state(self) -> dict[str, Any]:
         return {}
