@@ -16,7 +16,7 @@ Sections:
 * batch: every estimator's batch function in samples/s (the compiled kernel when numba is
   installed, see ``imuhal_filters.common.fast``), next to ``vqf.VQF.updateBatch``;
 * ``imuhal estimate madgwick`` on a generated ``--rows`` CSV, in a child process: rows/s and
-  peak RSS (``ru_maxrss`` of the child);
+  peak RSS (``VmHWM`` of the child, Linux);
 * the emulated seed board with its estimators: x real time by CPU time.
 
 OPENBLAS_CORETYPE may be set on this machine (an old OpenBLAS needs it); it only matters to
@@ -352,10 +352,12 @@ def estimate_rows(n_rows: int, madgwick_update_us: float) -> list[Row]:
         log = Path(tmp) / "log.csv"
         write_log(log, n_rows)
         out = Path(tmp) / "out.csv"
-        code = ("import resource,sys,time;from imuhal.cli.main import main;"
+        # VmHWM, not ru_maxrss: Linux keeps ru_maxrss across exec, so a child's would start
+        # at this (larger) process's peak
+        code = ("import sys,time;from imuhal.cli.main import main;"
                 "t=time.process_time();rc=main(sys.argv[1:]);"
-                "print(time.process_time()-t,resource.getrusage(resource.RUSAGE_SELF)"
-                ".ru_maxrss,file=sys.stderr);sys.exit(rc)")
+                "hwm=[l.split()[1] for l in open('/proc/self/status') if l.startswith('VmHWM')];"
+                "print(time.process_time()-t,hwm[0],file=sys.stderr);sys.exit(rc)")
         proc = subprocess.run([sys.executable, "-c", code, "estimate", "madgwick", str(log),
                                "-o", str(out)], capture_output=True, text=True, check=False)
         if proc.returncode != 0:

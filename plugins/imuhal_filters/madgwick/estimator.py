@@ -25,6 +25,7 @@ from pydantic import Field
 
 from imuhal.core.frames import FloatArray
 from imuhal.core.samples import Channel
+from imuhal_filters.common import fast
 from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
 from imuhal_filters.common.gate import AccelGate, SoftGateSettings, soft_gate_weight
 from imuhal_filters.madgwick.core import MagReference, madgwick_step
@@ -109,7 +110,7 @@ class MadgwickEstimator(AhrsEstimator):
         False (nothing done) otherwise. Called by ``run_batch`` once the attitude is aligned."""
         s = self.settings
         kin = self._kinematics
-        if (madgwick_rows is None or s.inv_sqrt != "exact"
+        if (not fast.available() or s.inv_sqrt != "exact"
                 or (s.turn_compensation and (s.nominal_airspeed_m_s is not None
                                              or kin.has_speed_source))):
             return False

@@ -122,4 +122,4 @@ def _madgwick_rows(q_in, gyro, accel, mag, dts, gyro_fs, accel_fs, beta, gate_lo
 
 
 madgwick_rows = jit(_madgwick_rows)
-"""The compiled kernel, or None without numba."""
+"""The compiled kernel (numba compiles it on the first call; see common/fast.py)."""
