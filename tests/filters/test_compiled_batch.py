@@ -8,6 +8,8 @@ leaves with the same counters and turn bookkeeping, so batches chain either way.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 from tests.filters.dataset_a import load_head
@@ -15,6 +17,7 @@ from tests.filters.dataset_a import load_head
 from imuhal_filters.common import fast
 from imuhal_filters.common.batch import run_batch
 from imuhal_filters.madgwick.estimator import MadgwickEstimator
+from imuhal_filters.mahony.estimator import MahonyEstimator
 
 pytestmark = pytest.mark.skipif(
     not fast.available(),
@@ -40,11 +43,11 @@ def _data() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     return gyro, accel, mag, np.diff(t, prepend=t[0] - 0.005)
 
 
-def _both(settings: dict, monkeypatch: pytest.MonkeyPatch, mag: bool = True
-          ) -> tuple[np.ndarray, np.ndarray, MadgwickEstimator, MadgwickEstimator]:
+def _both(settings: dict, monkeypatch: pytest.MonkeyPatch, mag: bool = True,
+          cls: type = MadgwickEstimator) -> tuple[np.ndarray, np.ndarray, Any, Any]:
     gyro, accel, m, dt = _data()
-    compiled = MadgwickEstimator(MadgwickEstimator.Settings(**settings))
-    python = MadgwickEstimator(MadgwickEstimator.Settings(**settings))
+    compiled = cls(cls.Settings(**settings))
+    python = cls(cls.Settings(**settings))
     q_fast = run_batch(compiled, gyro, accel, m if mag else None, dt)
     monkeypatch.setenv("IMUHAL_NO_JIT", "1")
     q_ref = run_batch(python, gyro, accel, m if mag else None, dt)
@@ -64,6 +67,22 @@ def test_compiled_madgwick_batch_equals_pure_python_on_data_set_a(
     turn, turn_ref = state["kinematics"].pop("turn"), ref["kinematics"].pop("turn")
     assert state["kinematics"] == ref["kinematics"]
     assert turn == pytest.approx(turn_ref, rel=1e-12)
+
+
+MAHONY_CASES = [{}, {"preset": "seed"}, {"ki": 0.3, "use_mag": False},
+                {"ki": 0.1, "turn_compensation": False, "accel_gate_g": (0.8, 1.2)}]
+
+
+@pytest.mark.parametrize("settings", MAHONY_CASES,
+                         ids=lambda s: ",".join(map(str, s.values())) or "defaults")
+def test_compiled_mahony_batch_equals_pure_python_on_data_set_a(
+        settings: dict, monkeypatch: pytest.MonkeyPatch) -> None:
+    q_fast, q_ref, compiled, python = _both(settings, monkeypatch, cls=MahonyEstimator)
+    assert np.array_equal(np.isnan(q_fast), np.isnan(q_ref))
+    assert np.nanmax(np.abs(q_fast - q_ref)) <= 1e-12
+    state, ref = compiled.get_state(), python.get_state()
+    assert state["counters"] == ref["counters"]
+    assert state["filter"]["integral"] == pytest.approx(ref["filter"]["integral"], abs=1e-12)
 
 
 def test_compiled_6dof_batch_equals_pure_python(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -51,6 +51,7 @@ from imuhal.core.samples import (
 )
 from imuhal.estimation.base import Estimator, EstimatorSettings
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate
+from imuhal_filters.common import fast
 from imuhal_filters.common.alignment import aligned_quaternion
 from imuhal_filters.common.gate import gravity_positive_g
 from imuhal_filters.common.limits import (
@@ -327,6 +328,33 @@ class AhrsEstimator(Estimator):
         """Step every row in a compiled kernel, writing ``out``; False when this estimator
         has none for its settings (``run_batch`` then stays in Python)."""
         return False
+
+    def _kernel_allowed(self) -> bool:
+        """The compiled kernels cover no turn compensation by a speed (nominal airspeed,
+        velocity, airspeed): only its bookkeeping."""
+        s = self.settings
+        return fast.available() and not (s.turn_compensation and (
+            s.nominal_airspeed_m_s is not None or self._kinematics.has_speed_source))
+
+    def _kernel_inputs(self, n: int, accel: FloatArray | None, mag: FloatArray | None
+                       ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """(accel, mag, counts) as the kernels take them: NaN rows for an absent sensor;
+        counts = steps, gyro and accel beyond full scale, gate closed."""
+        nan3 = np.full((n, 3), np.nan)
+        return (nan3 if accel is None else accel, nan3 if mag is None else mag,
+                np.zeros(4, dtype=np.int64))
+
+    def _kernel_finished(self, q: FloatArray, counts: FloatArray, turn_sum: float) -> None:
+        """Take over what a kernel left: the quaternion, counters, turn bookkeeping."""
+        self._q = (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
+        steps, bad_gyro, bad_accel, closed = (int(c) for c in counts)
+        self._kinematics.add_turn_steps(float(turn_sum), steps)
+        self._counters["steps"] += steps
+        if "gate_closed_steps" in self._counters:
+            self._counters["gate_closed_steps"] += closed
+        beyond = self._counters["beyond_full_scale"]
+        beyond[Channel.GYRO.value] += bad_gyro
+        beyond[Channel.ACCEL.value] += bad_accel
 
     # ------------------------------------------------------------------ internals
     def _within_limits(self, item: GyroSample | AccelSample | MagSample) -> bool:

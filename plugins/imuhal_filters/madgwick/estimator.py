@@ -24,8 +24,6 @@ import numpy as np
 from pydantic import Field
 
 from imuhal.core.frames import FloatArray
-from imuhal.core.samples import Channel
-from imuhal_filters.common import fast
 from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
 from imuhal_filters.common.gate import AccelGate, SoftGateSettings, soft_gate_weight
 from imuhal_filters.madgwick.core import MagReference, madgwick_step
@@ -109,30 +107,17 @@ class MadgwickEstimator(AhrsEstimator):
         """Run the rows in the compiled kernel (``fast`` extra) when it covers this setup;
         False (nothing done) otherwise. Called by ``run_batch`` once the attitude is aligned."""
         s = self.settings
-        kin = self._kinematics
-        if (not fast.available() or s.inv_sqrt != "exact"
-                or (s.turn_compensation and (s.nominal_airspeed_m_s is not None
-                                             or kin.has_speed_source))):
+        if s.inv_sqrt != "exact" or not self._kernel_allowed():
             return False
-        n = gyro.shape[0]
-        nan3 = np.full((n, 3), np.nan)
-        counts = np.zeros(4, dtype=np.int64)
+        accel, mag, counts = self._kernel_inputs(gyro.shape[0], accel, mag)
         gate = self._gate
         q, turn_sum = madgwick_rows(
-            np.array(self._q), gyro, nan3 if accel is None else accel,
-            nan3 if mag is None else mag, dts, float(s.gyro_full_scale_rad_s),
+            np.array(self._q), gyro, accel, mag, dts, float(s.gyro_full_scale_rad_s),
             float(s.accel_full_scale_m_s2), float(s.beta), gate.lower_g, gate.upper_g,
             0.0 if s.accel_soft_gate_g is None else float(s.accel_soft_gate_g),
             s.mag_reference is MagReference.PAPER, s.use_mag, s.turn_compensation, out, counts,
-            kin.turn_sum)
-        self._q = (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
-        steps, bad_gyro, bad_accel, closed = (int(c) for c in counts)
-        kin.add_turn_steps(float(turn_sum), steps)
-        self._counters["steps"] += steps
-        self._counters["gate_closed_steps"] += closed
-        beyond = self._counters["beyond_full_scale"]
-        beyond[Channel.GYRO.value] += bad_gyro
-        beyond[Channel.ACCEL.value] += bad_accel
+            self._kinematics.turn_sum)
+        self._kernel_finished(q, counts, turn_sum)
         return True
 
     def _filter_state(self) -> dict[str, Any]:
