@@ -98,7 +98,8 @@ class VqfEstimator(AhrsEstimator):
         bias_ned = vector_to_vqf(tuple(bias_flu), VectorKind.ANGULAR_RATE)
         return {
             "rest_detected": bool(v.getRestDetected()),
-            "mag_disturbed": bool(v.getMagDistDetected()),
+            # None without a magnetometer: VQF then reports its initial "disturbed" state
+            "mag_disturbed": bool(v.getMagDistDetected()) if self._mag_seen else None,
             "gyro_bias_rad_s": [float(c) for c in bias_ned],
             "accel_used": step.accel_g is not None,
             "mag_used": mag is not None,
