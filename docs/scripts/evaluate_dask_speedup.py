@@ -18,11 +18,12 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from imuhal.evaluate.dask_runner import evaluate_dask  # noqa: E402
-from imuhal.evaluate.recording import RecordingSource  # noqa: E402
-from imuhal.evaluate.runner import EstimatorSpec, evaluate_serial  # noqa: E402
-from imuhal.plugins import load_registry  # noqa: E402
-from tests.support.broad_synthetic import synthetic_trial, write_hdf5  # noqa: E402
+from tests.support.broad_synthetic import synthetic_trial, write_hdf5
+
+from imuhal.evaluate.dask_runner import evaluate_dask
+from imuhal.evaluate.recording import RecordingSource
+from imuhal.evaluate.runner import EstimatorSpec, evaluate_serial
+from imuhal.plugins import load_registry
 
 
 def main() -> None:
