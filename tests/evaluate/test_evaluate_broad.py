@@ -65,10 +65,10 @@ def test_vqf_and_madgwick_track_a_clean_synthetic_trial(trial_dir):
 
 
 def test_evaluate_command_writes_table_csv_and_json(trial_dir, tmp_path, capsys):
-    out_csv, out_json = tmp_path / "r.csv", tmp_path / "r.json"
+    out_csv, out_json, out_md = tmp_path / "r.csv", tmp_path / "r.json", tmp_path / "r.md"
     rc = main(["evaluate", str(trial_dir), "-e", "madgwick", "-e", "madgwick:beta=0.1",
                "--dof", "9", "-o", str(out_csv), "--json", str(out_json), "-q",
-               "--group", "disturbed"])
+               "--group", "disturbed", "--markdown", str(out_md)])
     assert rc == 0
     table = capsys.readouterr().out
     assert "madgwick beta=0.1" in table and "group disturbed" in table
@@ -76,6 +76,7 @@ def test_evaluate_command_writes_table_csv_and_json(trial_dir, tmp_path, capsys)
     assert len(data["trials"]) == 4
     assert {g["group"] for g in data["groups"]} == {"all", "undisturbed", "disturbed"}
     assert out_csv.read_text().count("\n") == 5
+    assert "| madgwick beta=0.1 |" in out_md.read_text()
 
 
 def test_a_grid_runs_every_value(trial_dir, capsys):
@@ -115,3 +116,33 @@ def test_dask_gives_the_serial_results(trial_dir):
              for r in serial]
     assert strip == [(r.trial, r.label, r.dof, r.total_deg, r.heading_deg, r.inclination_deg)
                      for r in parallel]
+
+
+def test_an_imuhal_sample_csv_with_truth_csv_evaluates_like_the_same_broad_trial(tmp_path):
+    from imuhal.core.conventions import ENU, NED, VectorKind, convert_quat, vector_to_ned
+
+    trial = synthetic_trial(seconds=2.0, seed=5)
+    broad = RecordingSource(str(write_hdf5(tmp_path / "t.hdf5", trial)))
+    n = len(trial["imu_gyr"])
+    t = np.arange(n) / trial["sampling_rate"]
+    cols = [vector_to_ned(trial["imu_gyr"], ENU, VectorKind.ANGULAR_RATE),
+            vector_to_ned(trial["imu_acc"], ENU, VectorKind.SPECIFIC_FORCE),
+            vector_to_ned(trial["imu_mag"], ENU, VectorKind.MAGNETIC_FIELD)]
+    rows = np.column_stack([t, *cols])
+    samples = tmp_path / "samples.csv"
+    header = "t_s,gx_rad_s,gy_rad_s,gz_rad_s,ax_m_s2,ay_m_s2,az_m_s2,mx_ut,my_ut,mz_ut"
+    samples.write_text(header + "\n" + "\n".join(",".join(repr(float(v)) for v in r)
+                                                 for r in rows) + "\n")
+    q = convert_quat(trial["opt_quat"], ENU, NED)
+    truth = tmp_path / "truth.csv"
+    truth.write_text("# imuhal-truth v1\nt_s,qw,qx,qy,qz\n" + "\n".join(
+        ",".join(repr(float(v)) for v in (ti, *qi)) for ti, qi in zip(t, q, strict=True)) + "\n")
+    from imuhal.evaluate.runner import estimate_quaternions
+
+    a, b = broad.load(), RecordingSource(str(samples), str(truth)).load()
+    np.testing.assert_allclose(b.q_truth, a.q_truth, atol=1e-12)
+    spec = EstimatorSpec("madgwick")
+    np.testing.assert_allclose(estimate_quaternions(b, spec, load_registry()),
+                               estimate_quaternions(a, spec, load_registry()), atol=1e-9)
+    # the CSV truth covers every row; BROAD's mask only its movement phase
+    assert b.mask.all() and not a.mask.all()

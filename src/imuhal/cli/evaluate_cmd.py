@@ -12,7 +12,13 @@ from imuhal.core.errors import ImuhalError
 from imuhal.core.samples import GyroSample, PressureSample
 from imuhal.evaluate.download import BROAD_URL, default_cache, download_broad
 from imuhal.evaluate.recording import BROAD_SUFFIXES, RecordingSource
-from imuhal.evaluate.report import aggregate, summary_table, write_csv, write_json
+from imuhal.evaluate.report import (
+    aggregate,
+    summary_table,
+    write_csv,
+    write_json,
+    write_markdown,
+)
 from imuhal.evaluate.runner import EstimatorSpec, TrialResult, evaluate_serial, expand_grid
 from imuhal.offline.settings_args import parse_set_arguments
 from imuhal.plugins.manager import Registry
@@ -63,6 +69,8 @@ def add_parser(sub: Any) -> None:
                    help="also print this group's table (default: only all trials)")
     p.add_argument("--output", "-o", metavar="RESULTS.csv", help="per-trial results (CSV)")
     p.add_argument("--json", metavar="RESULTS.json", help="per-trial and group results (JSON)")
+    p.add_argument("--markdown", metavar="TABLES.md",
+                   help="per-group tables in Markdown (as in docs/evaluation.md)")
     p.add_argument("--dask", action="store_true", help="run the jobs on Dask")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="Dask scheduler to use (default: a local cluster); implies --dask")
@@ -143,7 +151,7 @@ def _progress(quiet: bool) -> Any:
 
 
 def cmd_evaluate(args: argparse.Namespace, registry: Registry) -> int:
-    for out in (args.output, args.json):
+    for out in (args.output, args.json, args.markdown):
         if out and any(Path(out).resolve() == Path(r).resolve() for r in args.recordings):
             raise EvaluateUsageError(f"{out}: is an input; choose another output file")
     specs_in = [parse_spec(s, registry) for s in args.estimator] or [
@@ -171,4 +179,6 @@ def cmd_evaluate(args: argparse.Namespace, registry: Registry) -> int:
         write_csv(args.output, results)
     if args.json:
         write_json(args.json, results, groups)
+    if args.markdown:
+        write_markdown(args.markdown, groups)
     return 0

@@ -80,6 +80,22 @@ def group_table(groups: Sequence[GroupResult], metric: str, dof: int) -> str:
     return "\n".join(out)
 
 
+def markdown_report(groups: Sequence[GroupResult]) -> str:
+    """The tables docs/evaluation.md shows: per DOF, total/heading/inclination by group."""
+    parts = []
+    for dof in sorted({g.dof for g in groups}, reverse=True):
+        for metric in METRICS:
+            name = metric.removesuffix("_deg")
+            parts.append(f"**{dof}-DOF, {name} RMSE (deg), mean over the group's trials**\n\n"
+                         + group_table(groups, metric, dof))
+    return "\n\n".join(parts) + "\n"
+
+
+def write_markdown(path: str | Path, groups: Sequence[GroupResult]) -> None:
+    with AtomicFile(path) as f:
+        f.write(markdown_report(groups))
+
+
 def write_csv(path: str | Path, results: Sequence[TrialResult]) -> None:
     """One row per trial x setting x DOF (atomically)."""
     buf = io.StringIO()
