@@ -61,3 +61,23 @@ def test_offline_mode_refuses_to_run_live():
     est = VqfEstimator({"offline": True})
     with pytest.raises(ValueError, match="offline"):
         est.update((0.0, 0.0, 0.0), (0.0, 0.0, -9.81))
+
+
+def test_estimate_runs_the_offline_mode_over_a_whole_csv(tmp_path):
+    from imuhal.cli.main import main
+
+    n = 300
+    g = _ned("imu_gyr", VectorKind.ANGULAR_RATE)[:n]
+    a = _ned("imu_acc", VectorKind.SPECIFIC_FORCE)[:n]
+    m = _ned("imu_mag", VectorKind.MAGNETIC_FIELD)[:n]
+    rows = np.column_stack([np.arange(n) * TS, g, a, m])
+    src = tmp_path / "in.csv"
+    src.write_text("t_s,gx_rad_s,gy_rad_s,gz_rad_s,ax_m_s2,ay_m_s2,az_m_s2,mx_ut,my_ut,mz_ut\n"
+                   + "\n".join(",".join(repr(float(v)) for v in r) for r in rows) + "\n")
+    out = tmp_path / "out.csv"
+    assert main(["estimate", "vqf", str(src), "-o", str(out), "--set", "offline=true",
+                 "--set", f"sample_period_s={TS!r}"]) == 0
+    got = np.loadtxt(out, delimiter=",", skiprows=1, usecols=(1, 2, 3, 4))
+    ref = vqf.offlineVQF(TRIAL["imu_gyr"][:n], TRIAL["imu_acc"][:n], TRIAL["imu_mag"][:n], TS,
+                         None)
+    np.testing.assert_allclose(got, convert_quat(ref["quat9D"], ENU, NED), atol=1e-9)

@@ -69,7 +69,7 @@ def evaluate_dask(sources: Sequence[RecordingSource], specs: Sequence[EstimatorS
     cluster = None
     if scheduler is None:
         cluster = LocalCluster(n_workers=workers or 1, threads_per_worker=1,
-                               processes=True, dashboard_address=None)
+                               processes=True, dashboard_address=":0")
         client = Client(cluster)
     else:
         try:

@@ -4,8 +4,8 @@ A job builds the estimator from its registry name and settings, feeds the record
 through the same offline path as ``imuhal estimate`` (imuhal.offline.runner: the samples and
 estimates the pipeline would produce), matches each estimate to its row by time stamp and
 takes BROAD's errors over the recording's mask. Rows the estimator gave no attitude for stay
-NaN and are counted as ``missing``. Estimators with ``offline: true`` and a ``smooth``
-method (the whole recording known in advance) are run through it instead.
+NaN and are counted as ``missing``. Estimators with ``offline: true`` (the whole recording
+known in advance) run through their ``smooth`` method, as in ``imuhal estimate``.
 
 A setting the user did not give that the estimator has, ``sample_period_s``, is set from the
 recording's rate, as a profile would set it for its board.
@@ -113,10 +113,6 @@ def estimate_quaternions(rec: Recording, spec: EstimatorSpec, registry: Registry
         values["sample_period_s"] = 1.0 / rec.rate_hz
     settings = build_settings(cls.Settings, values, spec.name)
     estimator = cls(settings)
-    smooth = getattr(estimator, "smooth", None)
-    if getattr(settings, "offline", False) and smooth is not None:
-        mag = rec.mag_ut if spec.dof == 9 else None
-        return np.asarray(smooth(rec.gyro_rad_s, rec.accel_m_s2, mag), dtype=float)
     outputs = run_offline(estimator, recording_table(rec, spec.dof))
     t_ns = np.round(rec.t_s * 1e9).astype(np.int64)
     q = np.full((len(rec), 4), np.nan)
