@@ -146,3 +146,18 @@ def test_an_imuhal_sample_csv_with_truth_csv_evaluates_like_the_same_broad_trial
                                estimate_quaternions(a, spec, load_registry()), atol=1e-9)
     # the CSV truth covers every row; BROAD's mask only its movement phase
     assert b.mask.all() and not a.mask.all()
+
+
+def test_rate_settings_follow_the_recording_unless_given():
+    from imuhal.evaluate.runner import with_rate_settings
+
+    fields = {"sensor_rate_hz", "sample_period_s", "beta"}
+    got = with_rate_settings(fields, {"beta": 0.1}, 250.0)
+    assert got == {"beta": 0.1, "sensor_rate_hz": 250.0, "sample_period_s": 0.004}
+    assert with_rate_settings(fields, {"sensor_rate_hz": 100.0}, 250.0)["sensor_rate_hz"] == 100.0
+
+
+def test_freescale_tracks_a_recording_away_from_its_nominal_rate(trial_dir):
+    results = evaluate_serial([RecordingSource(str(trial_dir / "01_a.hdf5"))],
+                              [EstimatorSpec("freescale-6dof", {}, 6)], load_registry())
+    assert results[0].inclination_deg < 2.0, results[0]

@@ -7,8 +7,9 @@ takes BROAD's errors over the recording's mask. Rows the estimator gave no attit
 NaN and are counted as ``missing``. Estimators with ``offline: true`` (the whole recording
 known in advance) run through their ``smooth`` method, as in ``imuhal estimate``.
 
-A setting the user did not give that the estimator has, ``sample_period_s``, is set from the
-recording's rate, as a profile would set it for its board.
+The rate settings the user did not give are set from the recording's rate, as a profile
+would set them for its board (``RATE_SETTINGS``): an estimator that integrates over a nominal
+period would otherwise integrate the gyro with the wrong step.
 """
 
 from __future__ import annotations
@@ -29,6 +30,12 @@ from imuhal.offline.csv_input import ACCEL, GYRO, MAG, TIME, SampleTable
 from imuhal.offline.runner import run_offline
 from imuhal.offline.settings_args import build_settings
 from imuhal.plugins.manager import Registry
+
+RATE_SETTINGS: dict[str, Callable[[float], float]] = {
+    "sample_period_s": lambda rate_hz: 1.0 / rate_hz,  # every AHRS (common/ahrs.py), vqf
+    "sensor_rate_hz": lambda rate_hz: rate_hz,  # the Freescale filters' SENSORFS
+}
+"""Setting name -> its value from the recording's sample rate (Hz)."""
 
 
 @dataclass(frozen=True)
@@ -105,12 +112,20 @@ def recording_table(rec: Recording, dof: int) -> SampleTable:
     return SampleTable(Path(rec.name), columns, np.arange(2, len(rec) + 2))
 
 
+def with_rate_settings(fields: Iterable[str], values: dict[str, Any],
+                       rate_hz: float) -> dict[str, Any]:
+    """``values`` plus every ``RATE_SETTINGS`` entry the estimator has and the user left out."""
+    out = dict(values)
+    for key, from_rate in RATE_SETTINGS.items():
+        if key in fields and key not in out:
+            out[key] = from_rate(rate_hz)
+    return out
+
+
 def estimate_quaternions(rec: Recording, spec: EstimatorSpec, registry: Registry) -> FloatArray:
     """(N, 4) body -> NED estimates on the recording's rows (NaN where none)."""
     cls = registry.estimators.get(spec.name)
-    values = dict(spec.settings)
-    if "sample_period_s" in cls.Settings.model_fields and "sample_period_s" not in values:
-        values["sample_period_s"] = 1.0 / rec.rate_hz
+    values = with_rate_settings(cls.Settings.model_fields, spec.settings, rec.rate_hz)
     settings = build_settings(cls.Settings, values, spec.name)
     estimator = cls(settings)
     outputs = run_offline(estimator, recording_table(rec, spec.dof))
