@@ -19,7 +19,7 @@ from imuhal.bus.base import Bus, Link
 from imuhal.bus.spy import SpyBus, Transfer
 from imuhal.calibration.model import DeviceCalibration
 from imuhal.core.clock import Clock, MonotonicClock, SimulatedClock
-from imuhal.core.errors import BusError, ImuhalError, PluginError
+from imuhal.core.errors import BusError, ConfigurationError, ImuhalError, PluginError
 from imuhal.core.frames import FloatArray, parse_mount
 from imuhal.core.samples import Sample, SampleFlag
 from imuhal.drivers.base import DeviceIdentity, Driver
@@ -29,13 +29,19 @@ from imuhal.estimation.outputs import Estimate
 from imuhal.pipeline.processing import calibrate_to_body, quality_flags
 from imuhal.pipeline.sinks import Sink
 from imuhal.plugins.manager import Registry
+from imuhal.profile.faults import FaultSpec
 from imuhal.profile.model import BoardProfile
 from imuhal.profile.topology import device_order, split_bus_ref
 from imuhal.sim.errors import SensorErrorModel, SensorErrorSpec, device_seed
 
 Event = Sample | Estimate
 RECOVERY_BACKOFF_NS = 100_000_000
-"""After a failed recovery, wait this long before trying the device again (100 ms)."""
+"""After failed recoveries, wait at most this long before trying the device again (100 ms)."""
+RETRY_FIRST_NS = 2_000_000
+"""The first retry after a failed recovery comes 2 ms later; each further one waits twice
+as long, up to RECOVERY_BACKOFF_NS."""
+REPORT_AFTER_FAILURES = 4
+"""Consecutive failed recoveries (about 30 ms of trying) before the run reports the device."""
 
 
 @dataclass
@@ -46,6 +52,8 @@ class DeviceRuntime:
     calibration: DeviceCalibration | None
     next_poll_ns: int = 0
     device_errors: int = 0
+    failures: int = 0
+    """Consecutive failed recoveries (0 while the device works)."""
     warned: set[str] = field(default_factory=set)
     samples: int = 0
     flagged: Counter[str] = field(default_factory=Counter)
@@ -150,6 +158,7 @@ class Pipeline:
         sensor_errors: bool | None = None,
         error_specs: Mapping[str, SensorErrorSpec | None] | None = None,
         trace: Callable[[Transfer], None] | None = None,
+        faults: Sequence[FaultSpec] = (),
     ) -> Pipeline:
         """Open the profile's real buses, or (``emulate=SCENARIO``) an emulated board.
 
@@ -159,9 +168,14 @@ class Pipeline:
         noise and bias model; False gives ideal chips (quantisation and range only).
         ``error_specs`` (device -> spec; devices not named are ideal) replaces those models,
         for tests and studies that need known offsets, scale errors and iron.
-        ``trace`` receives every bus transaction (see imuhal.bus.spy).
+        ``trace`` receives every bus transaction (see imuhal.bus.spy). ``faults`` are
+        injected into the emulated board on top of the profile's ``emulation.faults``
+        (imuhal.emulation.faults, docs/reliability.md).
         """
         if emulate is None:
+            if faults:
+                raise ConfigurationError("faults can only be injected into an emulated board; "
+                                         "pass emulate=SCENARIO")
             buses = {}
             try:
                 for name, cfg in profile.buses.items():
@@ -188,7 +202,8 @@ class Pipeline:
         else:
             errors = error_models_for(profile, registry, run_seed) if use_errors else None
         board = EmulatedBoard(profile, registry, clock, scenario, _chip_to_body(profile),
-                              errors)
+                              errors, faults=[*profile.emulation.faults, *faults],
+                              seed=run_seed)
         board.update(0)
         return cls(profile, registry, clock=clock, buses=dict(board.buses), board=board,
                    calibrated=calibrated, trace=trace)
@@ -263,7 +278,7 @@ class Pipeline:
                 break
             self.clock.sleep_until(t_ns)
             if self.board is not None:
-                self.board.update(t_ns, name)
+                t_ns = self.board.before_poll(t_ns, name)
             dev = self.devices[name]
             try:
                 result = dev.driver.poll(t_ns)
@@ -282,13 +297,23 @@ class Pipeline:
             heapq.heappush(heap, (max(next_ns, t_ns + 1), order[name], name))
 
     def _recover(self, dev: DeviceRuntime, t_ns: int) -> int:
+        """Bring a device back after a failed poll. A failed attempt is retried after a
+        backoff that doubles from RETRY_FIRST_NS up to RECOVERY_BACKOFF_NS; a glitch costs
+        a few milliseconds, a chip that stays away is retried every 100 ms and reported."""
         try:
-            return dev.driver.recover(t_ns)
+            next_ns = dev.driver.recover(t_ns)
         except ImuhalError as exc:
-            self._warn_once(dev, "recovery", f"{dev.name}: recovery failed (first at "
-                            f"t={t_ns / 1e9:.3f} s, retrying every "
-                            f"{RECOVERY_BACKOFF_NS / 1e9:g} s): {exc}")
-            return t_ns + RECOVERY_BACKOFF_NS
+            if isinstance(exc, BusError):
+                dev.driver.health.bus_errors += 1
+            dev.failures += 1
+            backoff = min(RECOVERY_BACKOFF_NS, RETRY_FIRST_NS << min(dev.failures - 1, 16))
+            if dev.failures >= REPORT_AFTER_FAILURES:
+                self._warn_once(dev, "recovery", f"{dev.name}: recovery failed (first at "
+                                f"t={t_ns / 1e9:.3f} s, retrying every "
+                                f"{RECOVERY_BACKOFF_NS / 1e9:g} s): {exc}")
+            return t_ns + backoff
+        dev.failures = 0
+        return next_ns
 
     def _warn_once(self, dev: DeviceRuntime, key: str, message: str) -> None:
         """Record a device's warning of one kind once, not at every retry."""
