@@ -64,7 +64,7 @@ def _at(p: Pipeline, t_s: float) -> None:
 
 
 def _raw_transfer(p: Pipeline) -> bytes:
-    return p.buses["spi0"].transfer(0, SPI_READ_WHO_AM_I, 1)
+    return p.board.buses["spi0"].transfer(0, SPI_READ_WHO_AM_I, 1)
 
 
 # -- specs, from a profile ------------------------------------------------------------------
@@ -168,7 +168,7 @@ def test_all_ones_and_all_zeros_replace_every_byte_read(registry: Registry, faul
                                                         byte: int) -> None:
     p = _open(registry, fault(device="imu", start_s=1.0, end_s=2.0))
     _at(p, 1.5)
-    assert p.buses["spi0"].transfer(0, bytes([0x80 | 0x20]), 4) == bytes([byte]) * 4
+    assert p.board.buses["spi0"].transfer(0, bytes([0x80 | 0x20]), 4) == bytes([byte]) * 4
 
 
 def test_an_unplugged_chip_nacks_then_comes_back_in_its_reset_state(registry: Registry) -> None:
@@ -177,9 +177,9 @@ def test_an_unplugged_chip_nacks_then_comes_back_in_its_reset_state(registry: Re
     resets = baro.resets
     _at(p, 1.5)
     with pytest.raises(NackError, match="unplugged"):
-        p.buses["spi0"].transfer(1, b"\x00", 3)
+        p.board.buses["spi0"].transfer(1, b"\x00", 3)
     _at(p, 2.0)
-    p.buses["spi0"].transfer(1, b"\x00", 3)
+    p.board.buses["spi0"].transfer(1, b"\x00", 3)
     assert baro.resets == resets + 1
 
 

@@ -247,6 +247,5 @@ class MPU9250Driver(Driver):
                               temperature_degc=temp),
         ]
         self._last_data_ns = now_ns
-        self.health.record(samples)
         return PollResult(samples, now_ns + self._period_ns)
 

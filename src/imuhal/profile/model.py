@@ -55,6 +55,9 @@ class DeviceConfig(_Strict):
     settings: dict[str, Any] = Field(default_factory=dict)
     calibration: DeviceCalibration | None = None
     enabled: bool = True
+    required: bool = True
+    """False: the run starts without this device if it does not answer, and the device
+    joins when it appears (it is probed again every second)."""
 
     _mount = field_validator("mount")(_valid_mount)
 
