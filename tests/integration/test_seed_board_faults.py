@@ -8,6 +8,7 @@ from __future__ import annotations
 import pytest
 
 from imuhal.core.samples import AccelSample, GyroSample, MagSample, PressureSample, Sample
+from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import (
     BusErrors,
     ChipAbsent,
@@ -29,7 +30,7 @@ def registry() -> Registry:
 
 def _open(registry: Registry, *faults: FaultSpec) -> Pipeline:
     profile = load_profile(default_profile_path(), registry)
-    return Pipeline.open(profile, registry, emulate="thermal", seed=3, faults=faults)
+    return open_emulated(profile, registry, scenario="thermal", seed=3, faults=faults)
 
 
 def _valid(events: list[object], kind: type, device: str) -> list[Sample]:

@@ -1,5 +1,7 @@
 """An emulated board: the profile's buses and chips as register-level emulators, driven by a
-simulated scenario on the pipeline's simulated clock.
+simulated scenario on a simulated clock. It is a :class:`~imuhal.pipeline.board.Board`: the
+pipeline calls :meth:`EmulatedBoard.before_poll` before each poll, which hands the chip its
+inputs at that instant.
 
 The simulation knows the truth in the body frame; each chip sees it in its own sensor frame
 (the inverse of its chip -> body rotation), optionally through that chip's error model.
@@ -12,14 +14,14 @@ from collections.abc import Iterable
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import PluginError
 from imuhal.core.frames import FloatArray
-from imuhal.emulation.base import ChipEmulator
-from imuhal.emulation.bus import EmulatedBus
 from imuhal.emulation.faults import BoardFaults
 from imuhal.plugins.manager import Registry
 from imuhal.profile.faults import FaultSpec
 from imuhal.profile.model import BoardProfile
 from imuhal.profile.topology import device_order, split_bus_ref
-from imuhal.sim.errors import SensorErrorModel, device_seed, error_spec_of
+from imuhal.sim.chip import ChipEmulator
+from imuhal.sim.emulated_bus import EmulatedBus
+from imuhal.sim.errors import SensorErrorModel
 from imuhal.sim.scenario import Scenario, TruthState
 from imuhal.sim.world import physical_inputs
 
@@ -39,8 +41,8 @@ class EmulatedBoard:
         faults: Iterable[FaultSpec] = (),
         seed: int = 0,
     ) -> None:
-        """``faults``: injected faults (imuhal.emulation.faults), on top of the profile's own
-        ``emulation.faults``, which the caller passes in; ``seed`` seeds their draws."""
+        """``faults``: injected faults (imuhal.emulation.faults; the caller passes the
+        profile's ``emulation.faults`` and any others); ``seed`` seeds their draws."""
         self.clock = clock
         self.scenario = scenario
         self.buses: dict[str, EmulatedBus] = {}
@@ -95,7 +97,7 @@ class EmulatedBoard:
 
     def before_poll(self, t_ns: int, device: str) -> int:
         """The pipeline is about to poll ``device``, due at ``t_ns``: apply the faults due
-        (a late poll moves the clock) and hand the chip its inputs. Returns the time the
+        (a late poll moves the clock) and give its chip its inputs. Returns the time the
         poll actually happens."""
         t_ns = self.faults.before_poll(device, t_ns)
         self.update(t_ns, device)
@@ -119,16 +121,3 @@ class EmulatedBoard:
             self.emulators[name].set_physics(inputs)
         return truth
 
-
-def error_models_for(profile: BoardProfile, registry: Registry, seed: int
-                     ) -> dict[str, SensorErrorModel]:
-    """Each enabled device's datasheet error model (as its emulator declares), seeded per
-    device from the run seed so adding a device does not change the others' noise."""
-    models = {}
-    for name in device_order(profile):
-        driver = profile.devices[name].driver
-        reg = registry.emulators.entries.get(driver)
-        spec = error_spec_of(reg.obj) if reg is not None else None
-        if spec is not None:
-            models[name] = SensorErrorModel(spec, seed=device_seed(seed, name))
-    return models

@@ -2,8 +2,8 @@
 
 Faults are typed specs (imuhal.profile.faults, re-exported here), each naming a device, a
 start and an end time in simulated seconds. A profile lists them under ``emulation: faults``;
-Python code passes them to ``open_emulated_board``/``Pipeline.open(..., faults=[...])`` or
-adds them to a running board with ``board.faults.add(spec)``.
+Python code passes them to ``imuhal.emulation.open_emulated(..., faults=[...])`` or adds
+them to a running board with ``pipeline.board.faults.add(spec)``.
 
 Three places act on them, each at the level where the fault happens on real hardware:
 
@@ -30,7 +30,6 @@ from typing import TYPE_CHECKING
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError, ConfigurationError, NackError
-from imuhal.emulation.base import ChipEmulator, PhysicalInputs
 from imuhal.profile.faults import (
     CHIP_FAULT_KINDS,
     AllOnes,
@@ -48,9 +47,11 @@ from imuhal.profile.faults import (
     WildValue,
     WrongPressure,
 )
+from imuhal.sim.chip import ChipEmulator
+from imuhal.sim.inputs import PhysicalInputs
 
 if TYPE_CHECKING:
-    from imuhal.emulation.bus import EmulatedBus
+    from imuhal.sim.emulated_bus import EmulatedBus
 
 __all__ = [
     "AllOnes", "AllZeros", "BoardFaults", "BusErrors", "BusOSError", "ChipAbsent", "ChipReset",

@@ -1,0 +1,128 @@
+"""What a chip emulator is: a bus face (register file, state machines) and a physics face.
+
+A driver talks to an emulator only through a bus, exactly as to silicon. The simulation talks
+to it only through ``set_physics``, handing it true values in the chip's own sensor frame and
+in SI units; the emulator encodes them with the chip's configured range and resolution when
+its measurement completes.
+"""
+
+from __future__ import annotations
+
+import random
+from abc import ABC, abstractmethod
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any, ClassVar
+
+from pydantic import ValidationError
+
+from imuhal.bus.base import BusKind
+from imuhal.core.clock import Clock, SimulatedClock
+from imuhal.core.samples import Channel
+from imuhal.sim.errors import SensorErrorSpec
+from imuhal.sim.inputs import PhysicalInputs
+
+if TYPE_CHECKING:
+    from imuhal.sim.emulated_bus import EmulatedBus
+
+
+class ChipEmulator(ABC):
+    """Base of every chip emulator.
+
+    ``clock`` is the simulated clock the emulator measures conversion and data-ready timing
+    against.
+
+    Fault-injection hook (driven by imuhal.emulation.faults; docs/reliability.md). Generic
+    parts, here: ``absent`` makes the chip NACK every transfer; ``frozen`` makes the chip
+    keep measuring the physics it had when the freeze began, so it keeps producing the same
+    raw words (a hung conversion). Parts each emulator implements where its chip has them:
+    ``silent_reset()`` (power-on register state, unannounced), ``stuck_data_ready`` (set
+    True: no measurement completes, data-ready never comes; the chip's own soft reset may
+    clear it; the class sets ``models_stuck_data_ready``), ``corrupt_trim(rng, bits)`` (flip
+    bits of the factory calibration the driver reads). ``chip_faults()`` lists what an
+    emulator class models.
+    """
+
+    #: The driver name this emulator stands in for (the registry pairs them by it).
+    chip: str = ""
+    #: The chip's datasheet noise and bias figures that the simulator applies to the truth
+    #: before this emulator encodes it; None: an ideal chip. A subclass may give a
+    #: :class:`~imuhal.sim.errors.SensorErrorSpec` or a mapping of its fields; the mapping is
+    #: validated when the class is defined, so a typo in a plugin fails at import, naming it.
+    error_spec: ClassVar[SensorErrorSpec | None] = None
+    #: Set True by an emulator whose measurement engine honours ``stuck_data_ready``.
+    models_stuck_data_ready: ClassVar[bool] = False
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        spec = cls.__dict__.get("error_spec")
+        if spec is not None and not isinstance(spec, SensorErrorSpec):
+            if not isinstance(spec, Mapping):
+                raise TypeError(f"{cls.__name__}.error_spec must be a SensorErrorSpec or a "
+                                f"mapping of its fields, not {type(spec).__name__}")
+            try:
+                cls.error_spec = SensorErrorSpec.model_validate(spec)
+            except ValidationError as exc:
+                raise TypeError(f"{cls.__name__}.error_spec is not a valid SensorErrorSpec: "
+                                f"{exc}") from None
+
+    def __init__(self, clock: Clock | None = None) -> None:
+        self.clock: Clock = clock if clock is not None else SimulatedClock()
+        self.absent = False
+        self.frozen = False
+        self.stuck_data_ready = False
+        self.physics = PhysicalInputs()
+
+    @abstractmethod
+    def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes:
+        """Answer one bus transaction (write then read) as the chip would."""
+
+    def set_physics(self, inputs: PhysicalInputs) -> None:
+        """Hand the emulator the true values it should measure from now on (ignored while
+        ``frozen``: the chip keeps converting what it had)."""
+        if not self.frozen:
+            self.physics = inputs
+
+    def now_ns(self) -> int:
+        return self.clock.now_ns()
+
+    # -- conventions every emulator follows where its chip has the feature ----------------
+
+    def resolution(self, channel: Channel) -> float:
+        """SI units per count of ``channel`` in the current configuration."""
+        raise NotImplementedError(f"{type(self).__name__} does not report its resolution")
+
+    def full_scale(self, channel: Channel) -> float:
+        """The largest magnitude (SI) ``channel`` can report in the current configuration."""
+        raise NotImplementedError(f"{type(self).__name__} does not report its full scale")
+
+    def silent_reset(self) -> None:
+        """Fault injection: the chip resets without telling anyone (configuration lost)."""
+        raise NotImplementedError(f"{type(self).__name__} does not model a silent reset")
+
+    def corrupt_trim(self, rng: random.Random, bits: int = 1) -> str:
+        """Fault injection: flip ``bits`` random bits of the factory calibration (PROM,
+        trimming, sensitivity adjustment) as the driver reads it; what the sensor element
+        measures is unchanged. Returns what was changed, for the run's log."""
+        raise NotImplementedError(f"{type(self).__name__} has no factory calibration to corrupt")
+
+    @classmethod
+    def chip_faults(cls) -> frozenset[str]:
+        """The chip-level fault kinds this emulator models (imuhal.profile.faults)."""
+        kinds = {"frozen"}
+        if cls.silent_reset is not ChipEmulator.silent_reset:
+            kinds.add("reset")
+        if cls.corrupt_trim is not ChipEmulator.corrupt_trim:
+            kinds.add("corrupt_trim")
+        if cls.models_stuck_data_ready:
+            kinds.add("stuck_data_ready")
+        return frozenset(kinds)
+
+    def connect_host(self, host_bus: EmulatedBus) -> None:  # noqa: B027 - optional hook
+        """Called once the whole board is attached, with the bus this chip sits on. A chip
+        with an I2C bypass switch joins its child bus to ``host_bus`` here."""
+
+    def child_buses(self) -> dict[str, EmulatedBus]:
+        """Downstream buses this chip masters (e.g. the MAX21100's I2C master), by the same
+        local names its driver's ``child_buses`` uses. Emulators of chips behind it are
+        attached to these, and this emulator performs real transfers on them."""
+        return {}

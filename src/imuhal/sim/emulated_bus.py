@@ -1,0 +1,59 @@
+"""An emulated bus: routes transactions to chip emulators by address or chip select."""
+
+from __future__ import annotations
+
+from typing import Protocol, TypeVar
+
+from imuhal.bus.base import Bus, BusKind
+from imuhal.core.errors import BusError, NackError
+
+
+class BusTarget(Protocol):
+    """What answers at one address or chip select: a ChipEmulator, or a line in front of
+    one (imuhal.emulation.faults.FaultLine, the MPU-9250's bypass gate)."""
+
+    @property
+    def absent(self) -> bool: ...
+
+    def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes: ...
+
+
+_T = TypeVar("_T", bound=BusTarget)
+
+
+class EmulatedBus(Bus):
+    """A bus whose far end is register-level chip emulators.
+
+    Fault injection on a whole board goes through imuhal.emulation.faults (per device, in
+    simulated time). For driver unit tests without a board, ``fail_transfers({n, ...})``
+    makes the n-th transfer from now (1-based) raise a bus error.
+    """
+
+    def __init__(self, name: str, kind: BusKind) -> None:
+        super().__init__(name)
+        self.kind = kind
+        self.targets: dict[int, BusTarget] = {}
+        self._fail_at: set[int] = set()
+        self._count = 0
+
+    def attach(self, target: int, emulator: _T) -> _T:
+        if target in self.targets:
+            raise ValueError(f"{self.name}: target 0x{target:02X} already has an emulator")
+        self.targets[target] = emulator
+        return emulator
+
+    def fail_transfers(self, which: set[int]) -> None:
+        """Make the given future transfers (1 = the next one) fail with a BusError."""
+        self._fail_at |= {self._count + n for n in which}
+
+    def _transfer(self, target: int, write: bytes, read_len: int) -> bytes:
+        self._count += 1
+        if self._count in self._fail_at:
+            self._fail_at.discard(self._count)
+            raise BusError("injected transfer failure", bus=self.name, target=target)
+        emulator = self.targets.get(target)
+        if emulator is None or emulator.absent:
+            what = "address" if self.kind is BusKind.I2C else "chip select"
+            raise NackError(f"no device answered at {what} 0x{target:02X}", bus=self.name,
+                            target=target)
+        return emulator.bus_transfer(self.kind, write, read_len)
