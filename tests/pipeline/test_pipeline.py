@@ -11,7 +11,7 @@ import pytest
 
 from imuhal.core.samples import AccelSample, Frame, PressureSample, SampleFlag
 from imuhal.emulation import open_emulated
-from imuhal.emulation.faults import BusErrors, ChipAbsent
+from imuhal.emulation.faults import BusErrors, ChipAbsent, WildValue
 from imuhal.estimation.outputs import VerticalEstimate
 from imuhal.pipeline import CallbackSink, Pipeline
 from imuhal.plugins.manager import Registry
@@ -62,9 +62,8 @@ def test_estimates_follow_the_samples_they_came_from(registry: Registry) -> None
 
 
 def test_a_nan_sample_is_flagged_counted_and_never_fused(registry: Registry) -> None:
-    with _open(registry) as p:
-        emulator = p.board.emulators["acc"]
-        emulator.force_pressure = math.nan
+    nan = WildValue(device="acc", channel="pressure", value=math.nan, start_s=0.0, end_s=1.0)
+    with _open(registry, faults=[nan]) as p:
         events = list(p.events(0.2))
         recorder = p.estimators[0].estimator
     bad = [e for e in events if isinstance(e, PressureSample)]

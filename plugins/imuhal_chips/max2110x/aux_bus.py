@@ -77,9 +77,8 @@ class Max21100AuxBus(Bus):
     def _transfer(self, target: int, write: bytes, read_len: int) -> bytes:
         if not 0 <= target <= 0x7F:
             raise ConfigurationError(f"{self.name}: 0x{target:X} is not a 7-bit I2C address")
-        regs = self.host.regs
         with self.host.link.bus.lock:
-            regs.write(Reg.MAG_SLV_ADD, target)
+            self._retried(self._select, target)
             if write:
                 self._pointer[target] = write[0]
             pointer = self._pointer.get(target, 0)
@@ -106,6 +105,9 @@ class Max21100AuxBus(Bus):
             except BusError:
                 continue
         return step(*args)
+
+    def _select(self, target: int) -> None:
+        self.host.regs.write(Reg.MAG_SLV_ADD, target)
 
     def _oneshot_write(self, register: int, value: int) -> None:
         regs, base = self.host.regs, self._base()

@@ -144,7 +144,9 @@ class WildValue(_Fault):
     channel: Literal["accel", "gyro", "mag", "pressure", "temperature"]
     axis: int = Field(default=0, ge=0, le=2)
     """0, 1, 2 for x, y, z of a vector channel; ignored for pressure and temperature."""
-    value: float = Field(allow_inf_nan=False)
+    value: float
+    """May be NaN or infinite (``.nan``, ``.inf`` in YAML): what a chip with a floating-point
+    output register would then report."""
     hold_s: float = Field(default=0.004, gt=0.0, le=1.0)
     """How long a one-off (no ``end_s``) lasts: what the chip measures in that time."""
 
