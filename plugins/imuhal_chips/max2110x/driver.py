@@ -311,6 +311,16 @@ class Max2110xDriver(Driver):
         self.health.reconfigurations += 1
         return True
 
+    def full_scale(self, channel: Channel) -> float | None:
+        """What the 16-bit data word can hold at the configured range (SI): the most
+        negative count through this driver's own conversion."""
+        if self.scales is None or channel not in (Channel.GYRO, Channel.ACCEL):
+            return None
+        if channel is Channel.GYRO:
+            return abs(decode.gyro_counts_to_rad_s((-32768, 0, 0),
+                                                   self.scales.gyro_lsb_per_dps)[0])
+        return abs(decode.accel_counts_to_m_s2((-32768, 0, 0), self.scales.accel_lsb_per_g)[0])
+
 
 class Max21105Driver(Max2110xDriver):
     """Maxim MAX21105 6-axis IMU on I2C (0x58/0x59) or SPI (mode 3)."""
