@@ -84,3 +84,13 @@ def test_each_imu_and_magnetometer_declares_the_full_scale_its_chip_has(
         # the data word's limit: at or a little above the chip's own (datasheet) full scale
         assert chips[key] <= fs <= 1.15 * chips[key], key
     assert not any("OUT_OF_RANGE" in flags for flags in p.summary().flagged.values())
+
+
+def test_the_start_up_gyro_phase_carries_over_short_events_calls(registry: Registry) -> None:
+    profile = load_profile(default_profile_path(), registry)
+    with open_emulated(profile, registry, scenario="static") as p:
+        for _ in range(10):  # 0.1 s each; the phase needs 100 samples at 250 Hz
+            list(p.events(0.1))
+        gyro = p.devices["imu"].calibration.gyro  # type: ignore[union-attr]
+    assert gyro is not None and gyro.procedure == "gyro-at-startup"
+    assert not [w for w in p.warnings if "start-up gyro" in w]
