@@ -206,7 +206,7 @@ def test_frozen_data_repeats_the_same_raw_word(registry: Registry) -> None:
     frozen = {v for v, t in zip(pressures, times, strict=True) if 1.1e9 < t < 2.0e9}
     after = {v for v, t in zip(pressures, times, strict=True) if t > 2.1e9}
     assert len(frozen) == 1
-    assert len(after) > 5
+    assert len(after) > 2  # noise moves it again
 
 
 def test_corrupt_trim_flips_prom_bits_the_driver_then_rejects(registry: Registry) -> None:
