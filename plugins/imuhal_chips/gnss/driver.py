@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from datetime import date, datetime, timezone
 from typing import ClassVar, Literal
 
 from pydantic import Field
@@ -288,7 +289,7 @@ class GnssDriver(Driver):
             return []
         merged = Fragment(kind="epoch")
         for part in epoch.parts:
-            for name in ("latitude_deg", "longitude_deg", "height_msl_m", "satellites",
+            for name in ("day", "latitude_deg", "longitude_deg", "height_msl_m", "satellites",
                          "hdop", "ground_speed_m_s", "course_deg", "velocity_ned_m_s",
                          "horizontal_accuracy_m", "vertical_accuracy_m",
                          "speed_accuracy_m_s"):
@@ -319,7 +320,8 @@ class GnssDriver(Driver):
             height_m=math.nan if height is None else height, height_datum=HeightDatum.MSL,
             horizontal_accuracy_m=merged.horizontal_accuracy_m,
             vertical_accuracy_m=merged.vertical_accuracy_m,
-            fix_type=fix, satellites=merged.satellites or 0))
+            fix_type=fix, satellites=merged.satellites or 0,
+            utc_s=_utc_s(merged.day, epoch.time_of_day_s)))
         velocity = merged.velocity_ned_m_s
         if velocity is None and merged.ground_speed_m_s is not None and \
                 merged.course_deg is not None and height is not None:
@@ -339,3 +341,10 @@ class GnssDriver(Driver):
 
     def start(self, now_ns: int) -> int:
         return now_ns
+
+
+def _utc_s(day: date | None, time_of_day_s: float) -> float | None:
+    if day is None:
+        return None
+    midnight = datetime(day.year, day.month, day.day, tzinfo=timezone.utc)
+    return midnight.timestamp() + time_of_day_s

@@ -89,12 +89,23 @@ class GnssEmulator(ChipEmulator):
         self._last_err_ns: int | None = None
         self._rng = np.random.default_rng(self.model.seed)
         self.epochs_sent = 0
+        self._corrupt = 0
+        self._cut = False
 
     # -- settings -----------------------------------------------------------------------
 
     def lose_fix(self, start_s: float, end_s: float) -> None:
         """Fault: no fix between ``start_s`` and ``end_s`` of simulated time (sky blocked)."""
         self._fix_lost.append((start_s, end_s))
+
+    def corrupt_checksums(self, count: int) -> None:
+        """Fault: the next ``count`` sentences or frames go out with a wrong checksum (a
+        flipped bit on the wire after the checksum was computed)."""
+        self._corrupt += count
+
+    def cut_next_frame(self) -> None:
+        """Fault: the second half of the next epoch's first UBX frame is lost on the line."""
+        self._cut = True
 
     def use_model(self, model: GnssErrorModel) -> None:
         self.model = model
@@ -246,10 +257,25 @@ class GnssEmulator(ChipEmulator):
                                 satellite_ids=list(range(2, 2 + sats)),
                                 pdop=1.6 if fix else 99.9, hdop=hdop,
                                 vdop=1.3 if fix else 99.9)
-            out += text.encode("ascii")
+            out += self._faulty(text.encode("ascii"))
         if self.nav_pvt:
-            out += self._nav_pvt(utc, fix, lat, lon, h_msl, vel, speed, course, sats)
+            frame = self._faulty(self._nav_pvt(utc, fix, lat, lon, h_msl, vel, speed,
+                                               course, sats))
+            if self._cut:
+                self._cut = False
+                frame = frame[:len(frame) // 2]
+            out += frame
         return bytes(out)
+
+    def _faulty(self, data: bytes) -> bytes:
+        if not self._corrupt:
+            return data
+        self._corrupt -= 1
+        if data[:1] == b"$":  # change one checksum digit
+            star = data.rindex(b"*")
+            digit = data[star + 2:star + 3]
+            return data[:star + 2] + (b"0" if digit != b"0" else b"1") + data[star + 3:]
+        return data[:-1] + bytes(((data[-1] + 1) & 0xFF,))
 
     def _position_error(self, t_ns: int) -> np.ndarray:
         m = self.model

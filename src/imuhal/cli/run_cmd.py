@@ -44,6 +44,16 @@ def add_parser(sub: Any) -> None:
                      "timestamps as the --output rows (docs/simulation.md)")
     run.add_argument("--trace", metavar="FILE.txt",
                      help="log every bus transaction (time, bus, address, bytes) to a file")
+    run.add_argument("--nmea", action="append", default=[], metavar="OUTPUT",
+                     help="send LK8EX1, POV, _PRS, XCTRC, GGA and RMC sentences to a flight "
+                     "app: serial:PORT@BAUD, pty, pty:LINK (a symlink to the pty) or "
+                     "tcp:PORT (loopback); repeatable (docs/flight-instrument.md)")
+    run.add_argument("--nmea-sentences", metavar="LIST",
+                     help="comma-separated subset of LK8EX1,POV,PRS,XCTRC,GGA,RMC")
+    run.add_argument("--audio", action="store_true",
+                     help="play the vario tones live (needs imuhal[audio] and a sound device)")
+    run.add_argument("--audio-wav", metavar="FILE.wav",
+                     help="write the vario tones to a WAV file (the profile's audio curve)")
     run.add_argument("--seed", type=int, help="seed of the simulated world (default: profile's)")
     run.add_argument("--quiet", action="store_true", help="no live status line")
     run.set_defaults(func=cmd_run)
@@ -90,6 +100,7 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
         if args.output:
             csv_sink = CsvSink(args.output, include_samples=args.samples, frame=frame)
             sinks.append(csv_sink)
+        sinks.extend(_flight_sinks(args, profile, stack))
         truth_sink = None
         if args.truth and isinstance(pipeline.board, EmulatedBoard):
             truth_sink = TruthSink(args.truth, pipeline.board.scenario,
@@ -106,3 +117,37 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     if truth_sink is not None:
         print(f"wrote {truth_sink.rows} truth rows to {args.truth}", file=sys.stderr)
     return 0
+
+
+def _flight_sinks(args: argparse.Namespace, profile: Any, stack: contextlib.ExitStack
+                  ) -> list[Any]:
+    """The --nmea outputs and the --audio / --audio-wav sink, closed with the run."""
+    from imuhal.sinks.flight.audio import AudioSink
+    from imuhal.sinks.flight.sink import SENTENCES, FlightOutputSettings, FlightSink
+    from imuhal.sinks.flight.transports import PtyTransport, open_transport
+
+    out: list[Any] = []
+    settings = FlightOutputSettings()
+    if args.nmea_sentences:
+        chosen = tuple(x.strip().upper() for x in args.nmea_sentences.split(",") if x.strip())
+        unknown = [x for x in chosen if x not in SENTENCES]
+        if unknown:
+            raise ImuhalError(f"--nmea-sentences: unknown {', '.join(unknown)}; choose from "
+                              f"{','.join(SENTENCES)}")
+        settings = FlightOutputSettings(sentences=chosen)
+    for spec in args.nmea:
+        transport = open_transport(spec)
+        stack.callback(transport.close)
+        where = transport.description
+        if isinstance(transport, PtyTransport):
+            where += f" (open {transport.path} in the flight app)"
+        print(f"nmea: {where}", file=sys.stderr)
+        out.append(FlightSink(transport, settings))
+    if args.audio or args.audio_wav:
+        out_path = Path(args.audio_wav) if args.audio_wav else None
+        if out_path is not None and args.profile and out_path.resolve() == Path(
+                args.profile).resolve():
+            raise ImuhalError(f"--audio-wav {out_path}: that is the profile; name a new file")
+        audio = AudioSink(profile.audio, wav_path=out_path, live=args.audio)
+        out.append(audio)
+    return out

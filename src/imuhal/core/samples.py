@@ -265,6 +265,8 @@ class PositionSample(Sample):
     vertical_accuracy_m: float | None = None
     fix_type: FixType = FixType.NO_FIX
     satellites: int = 0
+    utc_s: float | None = None
+    """The epoch in UTC as the receiver stamped it (s since 1970-01-01; None: unknown)."""
     channel: ClassVar[Channel] = Channel.POSITION
 
 

@@ -115,14 +115,16 @@ def _time(utc: datetime) -> str:
 
 
 def gga(*, utc: datetime, latitude_deg: float, longitude_deg: float, quality: int,
-        satellites: int, hdop: float | None, altitude_msl_m: float, geoid_separation_m: float,
+        satellites: int, hdop: float | None, altitude_msl_m: float,
+        geoid_separation_m: float | None,
         talker: str = "GP") -> str:
     """``$GPGGA``: time, position (ddmm.mmmm), fix quality (0 none, 1 GPS, 2 DGPS),
-    satellites used, HDOP, altitude above MSL (m), geoid separation (m)."""
+    satellites used, HDOP, altitude above MSL (m), geoid separation (m; empty when
+    unknown)."""
     lat, ns = _lat(latitude_deg)
     lon, ew = _lon(longitude_deg)
     body = (f"{talker}GGA,{_time(utc)},{lat},{ns},{lon},{ew},{quality},{satellites:02d},"
-            f"{_fmt(hdop, '.1f')},{altitude_msl_m:.1f},M,{geoid_separation_m:.1f},M,,")
+            f"{_fmt(hdop, '.1f')},{altitude_msl_m:.1f},M,{_fmt(geoid_separation_m, '.1f')},M,,")
     return sentence(body)
 
 
