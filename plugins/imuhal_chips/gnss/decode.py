@@ -78,7 +78,8 @@ def decode_nmea(line: bytes) -> Fragment:
     except pynmea2.ChecksumError:
         checksum_ok = False
         try:
-            msg = pynmea2.parse(text, check=False)
+            # pynmea2 rejects a wrong checksum even unchecked: read the fields without it.
+            msg = pynmea2.parse(text.rsplit("*", 1)[0], check=False)
         except pynmea2.ParseError as exc:
             raise DecodeError(str(exc)) from exc
     except pynmea2.ParseError as exc:
