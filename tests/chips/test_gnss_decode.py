@@ -14,9 +14,9 @@ import pytest
 pytest.importorskip("pynmea2", reason="the gps extra (pynmea2, pyubx2) is not installed")
 pytest.importorskip("pyubx2", reason="the gps extra (pynmea2, pyubx2) is not installed")
 
-from imuhal.core.samples import FixType  # noqa: E402
-from imuhal_chips.gnss.decode import DecodeError, decode_nmea, decode_ubx  # noqa: E402
-from imuhal_chips.gnss.framing import StreamSplitter  # noqa: E402
+from imuhal.core.samples import FixType
+from imuhal_chips.gnss.decode import DecodeError, decode_nmea, decode_ubx
+from imuhal_chips.gnss.framing import StreamSplitter
 
 GGA = b"$GPGGA,123519,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,*47\r\n"
 RMC = b"$GPRMC,123519,A,4807.038,N,01131.000,E,022.4,084.4,230394,003.1,W*6A\r\n"
@@ -73,7 +73,7 @@ def nav_pvt_frame(*, lat_deg: float, lon_deg: float, h_msl_m: float, vel_ned_m_s
                      round((h_msl_m + 48.0) * 1000), round(h_msl_m * 1000))
     struct.pack_into("<II", payload, 40, round(h_acc_m * 1000), round(v_acc_m * 1000))
     vn, ve, vd = (round(v * 1000) for v in vel_ned_m_s)
-    struct.pack_into("<iiii i I I H", payload, 48, vn, ve, vd, round(((vn**2 + ve**2) ** 0.5)),
+    struct.pack_into("<iiii i I I H", payload, 48, vn, ve, vd, round((vn**2 + ve**2) ** 0.5),
                      0, round(s_acc_m_s * 1000), 0, 150)
     body = bytes((0x01, 0x07)) + struct.pack("<H", 92) + bytes(payload)
     a = b = 0
