@@ -313,15 +313,6 @@ class GnssDriver(Driver):
                                           fix_type=fix, satellites=merged.satellites or 0))
             return out
         height = merged.height_msl_m
-        flags = SampleFlag.OK if has_fix and height is not None else SampleFlag.STALE
-        out.append(PositionSample(
-            t_ns=t_ns, device=self.device, flags=flags,
-            latitude_deg=merged.latitude_deg, longitude_deg=merged.longitude_deg,
-            height_m=math.nan if height is None else height, height_datum=HeightDatum.MSL,
-            horizontal_accuracy_m=merged.horizontal_accuracy_m,
-            vertical_accuracy_m=merged.vertical_accuracy_m,
-            fix_type=fix, satellites=merged.satellites or 0,
-            utc_s=_utc_s(merged.day, epoch.time_of_day_s)))
         velocity = merged.velocity_ned_m_s
         if velocity is None and merged.ground_speed_m_s is not None and \
                 merged.course_deg is not None and height is not None:
@@ -334,9 +325,19 @@ class GnssDriver(Driver):
                 g = merged.ground_speed_m_s
                 velocity = (g * math.cos(c), g * math.sin(c), down)
         if velocity is not None and has_fix:
+            # Before the position: a consumer of the fix then has the same epoch's velocity.
             out.append(VelocitySample(t_ns=t_ns, device=self.device,
                                       velocity_ned_m_s=velocity,
                                       accuracy_m_s=merged.speed_accuracy_m_s))
+        flags = SampleFlag.OK if has_fix and height is not None else SampleFlag.STALE
+        out.append(PositionSample(
+            t_ns=t_ns, device=self.device, flags=flags,
+            latitude_deg=merged.latitude_deg, longitude_deg=merged.longitude_deg,
+            height_m=math.nan if height is None else height, height_datum=HeightDatum.MSL,
+            horizontal_accuracy_m=merged.horizontal_accuracy_m,
+            vertical_accuracy_m=merged.vertical_accuracy_m,
+            fix_type=fix, satellites=merged.satellites or 0,
+            utc_s=_utc_s(merged.day, epoch.time_of_day_s)))
         return out
 
     def start(self, now_ns: int) -> int:
