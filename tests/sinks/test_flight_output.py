@@ -168,7 +168,7 @@ def test_a_flight_app_on_the_pty_and_one_on_tcp_read_sentences_matching_the_esti
     fd, read_pty = _pty_reader(pty.path)
     sock, read_tcp = _tcp_reader(tcp.port)
     apps = [App(read_pty), App(read_tcp)]
-    sinks = [FlightSink(pty), FlightSink(tcp)]
+    sinks = [FlightSink(transport=pty), FlightSink(transport=tcp)]
     now = Latest()
     seen: list[dict[str, int]] = [{}, {}]
     try:

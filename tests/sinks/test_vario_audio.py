@@ -96,7 +96,7 @@ def test_the_thermal_wav_beeps_in_the_climb_and_is_silent_on_the_ground(tmp_path
     registry = load_registry()
     profile = load_profile(bundled_profiles()["seed-gps-vario.yaml"], registry)
     out = tmp_path / "thermal.wav"
-    sink = AudioSink(profile.audio, wav_path=out)
+    sink = AudioSink({"curve": profile.audio, "wav": str(out)})
     estimates: list[VerticalEstimate] = []
     with open_emulated(profile, registry, scenario="thermal") as pipeline:
         scenario = pipeline.board.scenario

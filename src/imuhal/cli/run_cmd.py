@@ -100,7 +100,7 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
         if args.output:
             csv_sink = CsvSink(args.output, include_samples=args.samples, frame=frame)
             sinks.append(csv_sink)
-        sinks.extend(_flight_sinks(args, profile, stack))
+        sinks.extend(_flight_sinks(args, profile, registry, stack))
         truth_sink = None
         if args.truth and isinstance(pipeline.board, EmulatedBoard):
             truth_sink = TruthSink(args.truth, pipeline.board.scenario,
@@ -119,35 +119,32 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     return 0
 
 
-def _flight_sinks(args: argparse.Namespace, profile: Any, stack: contextlib.ExitStack
-                  ) -> list[Any]:
-    """The --nmea outputs and the --audio / --audio-wav sink, closed with the run."""
-    from imuhal.sinks.flight.audio import AudioSink
-    from imuhal.sinks.flight.sink import SENTENCES, FlightOutputSettings, FlightSink
-    from imuhal.sinks.flight.transports import PtyTransport, open_transport
+def _flight_sinks(args: argparse.Namespace, profile: Any, registry: Registry,
+                  stack: contextlib.ExitStack) -> list[Any]:
+    """The --nmea outputs and the --audio / --audio-wav sink (the plugins registered as
+    ``nmea`` and ``vario-audio``), closed with the run."""
+    from imuhal.sinks.flight.transports import PtyTransport
 
     out: list[Any] = []
-    settings = FlightOutputSettings()
+    extra: dict[str, Any] = {}
     if args.nmea_sentences:
-        chosen = tuple(x.strip().upper() for x in args.nmea_sentences.split(",") if x.strip())
-        unknown = [x for x in chosen if x not in SENTENCES]
-        if unknown:
-            raise ImuhalError(f"--nmea-sentences: unknown {', '.join(unknown)}; choose from "
-                              f"{','.join(SENTENCES)}")
-        settings = FlightOutputSettings(sentences=chosen)
+        extra["sentences"] = tuple(x.strip().upper() for x in args.nmea_sentences.split(",")
+                                   if x.strip())
+    nmea = registry.sinks.get("nmea")
     for spec in args.nmea:
-        transport = open_transport(spec)
-        stack.callback(transport.close)
+        sink = nmea({"output": spec, **extra})
+        stack.callback(sink.close)
+        transport = sink.transport
         where = transport.description
         if isinstance(transport, PtyTransport):
             where += f" (open {transport.path} in the flight app)"
         print(f"nmea: {where}", file=sys.stderr)
-        out.append(FlightSink(transport, settings))
+        out.append(sink)
     if args.audio or args.audio_wav:
-        out_path = Path(args.audio_wav) if args.audio_wav else None
-        if out_path is not None and args.profile and out_path.resolve() == Path(
+        if args.audio_wav and args.profile and Path(args.audio_wav).resolve() == Path(
                 args.profile).resolve():
-            raise ImuhalError(f"--audio-wav {out_path}: that is the profile; name a new file")
-        audio = AudioSink(profile.audio, wav_path=out_path, live=args.audio)
-        out.append(audio)
+            raise ImuhalError(f"--audio-wav {args.audio_wav}: that is the profile; name a new "
+                              "file")
+        out.append(registry.sinks.get("vario-audio")(
+            {"curve": profile.audio, "wav": args.audio_wav, "live": args.audio}))
     return out

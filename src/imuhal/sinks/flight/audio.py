@@ -20,14 +20,16 @@ from __future__ import annotations
 import math
 import os
 import wave
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any, ClassVar
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from imuhal.core.errors import ImuhalError
 from imuhal.estimation.outputs import VerticalEstimate
-from imuhal.sinks.base import Event
+from imuhal.sinks.base import Event, SinkPlugin
 
 BEEP_TABLE_TICKS = ((16, 10), (14, 9), (12, 8), (10, 7), (9, 6), (8, 5), (7, 4), (6, 3),
                     (5, 2), (4, 2))
@@ -121,23 +123,41 @@ class ToneGenerator:
         return wave_.astype(np.int16)
 
 
-class AudioSink:
-    """Sonifies one vertical estimator's climb rate (``source``; default the first seen).
+class AudioOutputSettings(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
 
-    Each estimate's climb is held until the next one, in the run's time. ``wav_path``: the
-    sound is written there when the run closes (to a temporary file first, so a failed run
-    never replaces a good file). ``live``: played through sounddevice (``imuhal[audio]``).
+    curve: VarioAudioSettings = Field(default_factory=VarioAudioSettings)
+    """The tone curve (``imuhal run`` takes the profile's ``audio:`` section)."""
+    wav: str | None = None
+    """Write the sound to this WAV file when the run closes."""
+    live: bool = False
+    """Play through sounddevice (``imuhal[audio]``)."""
+    source: str | None = None
+    """The vertical estimator to sonify (default: the first seen)."""
+
+
+class AudioSink(SinkPlugin):
+    """Sonifies one vertical estimator's climb rate.
+
+    Each estimate's climb is held until the next one, in the run's time. ``wav``: the sound
+    is written there when the run closes (to a temporary file first, so a failed run never
+    replaces a good file). ``live``: played through sounddevice.
     """
 
-    def __init__(self, settings: VarioAudioSettings | None = None, *,
-                 wav_path: str | os.PathLike[str] | None = None, live: bool = False,
-                 source: str | None = None) -> None:
-        self.generator = ToneGenerator(settings)
-        self.settings = self.generator.settings
-        self.wav_path = Path(wav_path) if wav_path is not None else None
-        self.source = source
+    name: ClassVar[str] = "vario-audio"
+    description: ClassVar[str] = "vario tones from the climb rate: a WAV file or live sound"
+    Settings = AudioOutputSettings
+
+    def __init__(self, settings: AudioOutputSettings | Mapping[str, Any] | None = None
+                 ) -> None:
+        super().__init__(settings)
+        self.settings: AudioOutputSettings
+        s = self.settings
+        self.generator = ToneGenerator(s.curve)
+        self.curve = s.curve
+        self.wav_path = Path(s.wav) if s.wav is not None else None
+        self.source = s.source
         self._last: VerticalEstimate | None = None
-        self._chunks: list[np.ndarray] = []
         self.samples_written = 0
         self._stream = None
         self._wav: wave.Wave_write | None = None
@@ -151,9 +171,9 @@ class AudioSink:
                                   ) from None
             self._wav.setnchannels(1)
             self._wav.setsampwidth(2)
-            self._wav.setframerate(self.settings.sample_rate_hz)
-        if live:
-            self._stream = _open_live(self.settings.sample_rate_hz)
+            self._wav.setframerate(s.curve.sample_rate_hz)
+        if s.live:
+            self._stream = _open_live(s.curve.sample_rate_hz)
 
     def handle(self, event: Event) -> None:
         if not isinstance(event, VerticalEstimate):

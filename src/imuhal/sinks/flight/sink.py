@@ -10,10 +10,13 @@ run's time (simulated or real), so an app sees the rates its format expects.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from datetime import datetime, timezone
+from typing import Any, ClassVar
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from imuhal.core.errors import ImuhalError
 from imuhal.core.samples import (
     FixType,
     PositionSample,
@@ -23,18 +26,20 @@ from imuhal.core.samples import (
     VelocitySample,
 )
 from imuhal.estimation.outputs import VerticalEstimate
-from imuhal.sinks.base import Event
+from imuhal.sinks.base import Event, SinkPlugin
 from imuhal.sinks.flight import sentences as fmt
-from imuhal.sinks.flight.transports import Transport
+from imuhal.sinks.flight.transports import Transport, open_transport
 
 SENTENCES = ("LK8EX1", "POV", "PRS", "XCTRC", "GGA", "RMC")
 
 
 class FlightOutputSettings(BaseModel):
-    """Which sentences to send and how often (Hz; 0 = with every new value)."""
+    """Where to send, which sentences and how often (Hz; 0 = with every new value)."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
+    output: str = "pty"
+    """serial:PORT@BAUD, pty, pty:LINK, tcp:PORT or tcp:HOST:PORT (transports.py)."""
     sentences: tuple[str, ...] = SENTENCES
     lk8ex1_hz: float = Field(10.0, ge=0)
     pov_hz: float = Field(10.0, ge=0)
@@ -49,19 +54,25 @@ class FlightOutputSettings(BaseModel):
     battery_percent: float | None = Field(None, ge=0, le=100)
 
 
-class FlightSink:
-    """Writes sentences to a :class:`Transport`; ``counts`` says how many of each went out."""
+class FlightSink(SinkPlugin):
+    """Writes sentences to a :class:`Transport` (``settings.output``, or one handed over);
+    ``counts`` says how many of each went out."""
 
-    def __init__(self, transport: Transport,
-                 settings: FlightOutputSettings | None = None) -> None:
-        self.transport = transport
-        self.settings = settings or FlightOutputSettings()
+    name: ClassVar[str] = "nmea"
+    description: ClassVar[str] = ("LK8EX1, POV, _PRS, XCTRC, GGA, RMC to a flight app over "
+                                  "serial, a pty or TCP")
+    Settings = FlightOutputSettings
+
+    def __init__(self, settings: FlightOutputSettings | Mapping[str, Any] | None = None, *,
+                 transport: Transport | None = None) -> None:
+        super().__init__(settings)
+        self.settings: FlightOutputSettings
         unknown = set(self.settings.sentences) - set(SENTENCES)
         if unknown:
-            from imuhal.core.errors import ImuhalError
-
             raise ImuhalError(f"unknown flight sentences {sorted(unknown)}; known: "
                               f"{', '.join(SENTENCES)}")
+        self.transport = transport if transport is not None else \
+            open_transport(self.settings.output)
         self.counts = dict.fromkeys(SENTENCES, 0)
         self._last_ns: dict[str, int] = {}
         self._pressure: PressureSample | None = None
