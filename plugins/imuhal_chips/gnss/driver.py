@@ -107,6 +107,12 @@ class GnssDriver(Driver):
 
     def probe(self) -> DeviceIdentity:
         s = self.settings
+        try:
+            import pynmea2  # noqa: F401
+            import pyubx2  # noqa: F401
+        except ImportError as exc:
+            raise ConfigurationError(f"{self.describe()}: the GNSS driver needs pynmea2 and "
+                                     f"pyubx2 ({exc}); install imuhal[gps]") from None
         bus = self.link.bus
         set_baud = getattr(bus, "set_baudrate", None)
         seen: list[str] = []
