@@ -62,3 +62,23 @@ def test_unknown_sentences_are_named(capsys: pytest.CaptureFixture[str]) -> None
     assert main(["run", GPS_VARIO, "--emulate", "thermal", "--duration", "1", "--quiet",
                  "--nmea", "tcp:0", "--nmea-sentences", "LK8EX1,FOO"]) == 2
     assert "FOO" in capsys.readouterr().err
+
+
+def _has_sound_device() -> bool:
+    try:
+        import sounddevice
+    except (ImportError, OSError):
+        return False
+    try:
+        return any(d["max_output_channels"] > 0 for d in sounddevice.query_devices())
+    except Exception:
+        return False
+
+
+@pytest.mark.skipif(_has_sound_device(), reason="a sound device exists: --audio would play")
+def test_live_audio_without_a_sound_device_is_one_line_and_exit_2(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["run", GPS_VARIO, "--emulate", "thermal", "--duration", "1", "--quiet",
+                 "--audio"]) == 2
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert last.startswith("imuhal: error: --audio") and "--audio-wav" in last

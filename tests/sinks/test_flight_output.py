@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 import os
 import socket
+import time
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -223,3 +224,37 @@ def test_a_serial_output_that_does_not_exist_is_one_clear_error() -> None:
 
     with pytest.raises(ImuhalError, match="cannot open /dev/imuhal-missing"):
         open_transport("serial:/dev/imuhal-missing@115200")
+
+
+def test_the_serial_transport_writes_sentences_a_device_reads(tmp_path: Path) -> None:
+    """pyserial on one end of a pty stands in for a UART; the other end reads."""
+    from imuhal.sinks.flight.sentences import lk8ex1
+    from imuhal.sinks.flight.transports import open_transport
+
+    master, slave = os.openpty()
+    import tty
+
+    tty.setraw(slave)
+    transport = open_transport(f"serial:{os.ttyname(slave)}@115200")
+    try:
+        sink = FlightSink({"sentences": ("LK8EX1",)}, transport=transport)
+        sink.handle(PressureSample(t_ns=0, device="baro", pressure_pa=95000.4))
+        sink.handle(VerticalEstimate(t_ns=0, source="vario", altitude_m=510.2, climb_m_s=0.73))
+        sink.handle(VerticalEstimate(t_ns=50_000_000, source="vario", altitude_m=510.3,
+                                     climb_m_s=0.9))  # within 100 ms: rate-limited away
+        sink.handle(VerticalEstimate(t_ns=100_000_000, source="vario", altitude_m=510.4,
+                                     climb_m_s=1.1))
+        got = b""
+        deadline = time.monotonic() + 2
+        while got.count(b"\n") < 2 and time.monotonic() < deadline:
+            got += os.read(master, 4096)
+        lines = got.decode().splitlines()
+        assert lines == [lk8ex1(pressure_pa=95000.4, altitude_m=510.2, climb_m_s=0.73,
+                                temperature_degc=None).strip(),
+                         lk8ex1(pressure_pa=95000.4, altitude_m=510.4, climb_m_s=1.1,
+                                temperature_degc=None).strip()]
+        assert [read_sentence(line)[1][2] for line in lines] == ["73", "110"]
+    finally:
+        transport.close()
+        os.close(master)
+        os.close(slave)
