@@ -273,3 +273,24 @@ def test_the_driver_reads_published_sentences_from_a_real_pseudo_terminal() -> N
         bus.close()
         os.close(master)
         os.close(slave)
+
+
+def test_a_receiver_that_restarts_in_factory_nmea_is_reconfigured_through_recovery() -> None:
+    """Through the pipeline: the driver notices NMEA where it configured UBX, the pipeline
+    recovers it (re-probe, reconfigure) and UBX fixes resume."""
+    from imuhal.emulation import open_emulated
+    from imuhal.profile.loader import load_profile
+    from imuhal.profiles_dir import bundled_profiles
+
+    registry = load_registry()
+    profile = load_profile(bundled_profiles()["seed-gps-vario.yaml"], registry)
+    with open_emulated(profile, registry, scenario="thermal") as pipeline:
+        events = list(pipeline.events(10.0))
+        pipeline.board.emulators["gps"].silent_reset()
+        events = list(pipeline.events(20.0))
+        driver = pipeline.devices["gps"].driver
+        warnings = list(pipeline.warnings)
+    assert driver.health.resets_detected == 1 and driver.health.reconfigurations == 1
+    assert any("restarted" in w for w in warnings)
+    fixes = [e for e in events if isinstance(e, PositionSample) and e.valid]
+    assert fixes[-1].t_ns > 28e9 and fixes[-1].horizontal_accuracy_m == 2.5  # UBX again

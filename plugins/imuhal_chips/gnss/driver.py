@@ -44,6 +44,8 @@ from imuhal_chips.gnss.ubx import NMEA_IDS, UBX_NAV_PVT, cfg_msg, cfg_rate
 NMEA_MESSAGES = ("GGA", "RMC", "VTG", "GSA")
 READ_CHUNK = 4096
 DAY_NS = 86_400 * 10**9
+FOREIGN_LIMIT = 8
+"""Valid sentences of the other protocol in a row that mean the receiver was reset."""
 
 
 class GnssSettings(DriverSettings):
@@ -102,6 +104,7 @@ class GnssDriver(Driver):
         self._epoch: _Epoch | None = None
         self._offset_ns: int | None = None
         self._prev_height: tuple[int, float] | None = None
+        self._foreign = 0
 
     # -- probe --------------------------------------------------------------------------
 
@@ -185,6 +188,7 @@ class GnssDriver(Driver):
             raise ConfigurationError(f"{self.describe()}: configure() before probe()")
         self._splitter = StreamSplitter()
         self._epoch = None
+        self._foreign = 0
         if not s.configure_receiver:
             return
         wanted = set(s.messages or (("NAV-PVT",) if self.protocol == "ubx" else NMEA_MESSAGES))
@@ -258,9 +262,19 @@ class GnssDriver(Driver):
             return [self._flagged(frag, now_ns)]
         if frag.kind not in ("GGA", "RMC", "VTG", "GSA", "NAV-PVT"):
             return []
-        if (self.protocol == "ubx" and kind == "nmea") or (self.protocol == "nmea" and \
-                kind == "ubx"):
+        if self.protocol == "ubx" and kind == "nmea":
+            # A receiver configured for UBX that talks NMEA has restarted with its factory
+            # settings: the pipeline's recovery re-probes and reconfigures it.
+            self._foreign += 1
+            if self._foreign >= FOREIGN_LIMIT and self.settings.configure_receiver:
+                self._foreign = 0
+                self.health.resets_detected += 1
+                raise ConfigurationError(f"{self.describe()}: the receiver sends NMEA although "
+                                         "configured for UBX (it restarted); reconfiguring")
             return []
+        if self.protocol == "nmea" and kind == "ubx":
+            return []
+        self._foreign = 0
         out: list[Sample] = []
         if frag.time_of_day_s is not None:
             if self._epoch is not None and \

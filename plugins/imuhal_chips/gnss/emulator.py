@@ -107,6 +107,13 @@ class GnssEmulator(ChipEmulator):
         """Fault: the second half of the next epoch's first UBX frame is lost on the line."""
         self._cut = True
 
+    def silent_reset(self) -> None:
+        """Fault: the receiver restarts with its factory configuration (NMEA at 1 Hz), as a
+        u-blox without a saved configuration does after a brown-out."""
+        self.rate_hz = 1.0
+        self.nmea_enabled = set(NMEA_DEFAULT)
+        self.nav_pvt = False
+
     def use_model(self, model: GnssErrorModel) -> None:
         self.model = model
         self._rng = np.random.default_rng(model.seed)

@@ -48,10 +48,6 @@ class SerialBus(Bus):
             raise BusError(f"serial read failed: {exc}", bus=self.name) from exc
         return bytes(data)
 
-    @property
-    def baudrate(self) -> int:
-        return int(self._port.baudrate)
-
     def set_baudrate(self, baudrate: int) -> None:
         """Change the line speed (a driver probing for a receiver's baud rate)."""
         try:

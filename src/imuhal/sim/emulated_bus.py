@@ -49,12 +49,8 @@ class EmulatedBus(Bus):
             return b""  # a silent UART: nothing arrives
         return emulator.bus_receive(self.kind, max_len)
 
-    @property
-    def baudrate(self) -> int:
-        return int(getattr(self.targets.get(0), "host_baudrate", 0))
-
     def set_baudrate(self, baudrate: int) -> None:
-        """The host UART's line speed: the emulated receiver on target 0 garbles what it
-        sends when it differs from its own (as a real UART at the wrong speed reads noise)."""
+        """The host UART's line speed: an emulated serial chip garbles what it sends when it
+        differs from its own (as a real UART at the wrong speed reads noise)."""
         for emulator in self.targets.values():
             emulator.host_baudrate = baudrate
