@@ -275,6 +275,7 @@ def test_the_driver_reads_published_sentences_from_a_real_pseudo_terminal() -> N
         os.close(slave)
 
 
+@pytest.mark.slow
 def test_a_receiver_that_restarts_in_factory_nmea_is_reconfigured_through_recovery() -> None:
     """Through the pipeline: the driver notices NMEA where it configured UBX, the pipeline
     recovers it (re-probe, reconfigure) and UBX fixes resume."""

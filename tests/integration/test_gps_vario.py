@@ -59,6 +59,7 @@ def _profile(registry: Any) -> Any:
     return parse_profile(text, "seed-gps-vario+gps-climb", registry)
 
 
+@pytest.mark.slow
 def test_gnss_samples_reach_an_estimator_and_its_climb_follows_the_truth() -> None:
     plugin = types.ModuleType("gps_climb_plugin")
     plugin.imuhal_register_estimators = imuhal_register_estimators  # type: ignore[attr-defined]
@@ -76,6 +77,7 @@ def test_gnss_samples_reach_an_estimator_and_its_climb_follows_the_truth() -> No
     assert summary.bus_errors["gps"] == 0 and summary.warnings == []
 
 
+@pytest.mark.slow
 def test_a_lost_fix_flags_gnss_samples_while_the_vario_runs_on() -> None:
     registry = load_registry()
     profile = parse_profile(bundled_profiles()["seed-gps-vario.yaml"].read_text(),

@@ -91,6 +91,7 @@ def test_a_custom_curve_from_the_profile_moves_the_thresholds() -> None:
         VarioAudioSettings(climb_threshold_m_s=-3.0)
 
 
+@pytest.mark.slow
 def test_the_thermal_wav_beeps_in_the_climb_and_is_silent_on_the_ground(tmp_path: Path
                                                                          ) -> None:
     registry = load_registry()
