@@ -295,3 +295,38 @@ def test_a_receiver_that_restarts_in_factory_nmea_is_reconfigured_through_recove
     assert any("restarted" in w for w in warnings)
     fixes = [e for e in events if isinstance(e, PositionSample) and e.valid]
     assert fixes[-1].t_ns > 28e9 and fixes[-1].horizontal_accuracy_m == 2.5  # UBX again
+
+
+def emulator_latency() -> float:
+    return GnssErrorModel().latency_s
+
+
+def test_an_nmea_burst_spread_over_many_reads_at_9600_baud_is_one_epoch() -> None:
+    """RMC VTG GGA GSA take about 0.3 s at 9600 baud, six 20 Hz reads: still one fix per
+    epoch, with what each sentence contributes (RMC time and date, GGA height and
+    satellites, GSA 3D fix) and the velocity from RMC plus the change of height. With the
+    receiver's output latency stated, epochs are time-stamped to within one read."""
+    clock, emulator, driver = started(latency_s=emulator_latency())
+    samples, scenario = fly(clock, emulator, driver, 12)
+    pos = [s for s in samples if isinstance(s, PositionSample) and s.valid]
+    vel = [s for s in samples if isinstance(s, VelocitySample)]
+    assert 9 <= len(pos) <= 12 and driver.stats.epochs == len(pos) + sum(
+        isinstance(s, PositionSample) and not s.valid for s in samples)
+    assert all(s.satellites == 9 and s.fix_type is FixType.FIX_3D and s.utc_s for s in pos)
+    assert len(vel) == len(pos) - 1  # the first fix has no earlier height to difference
+    for v in vel:
+        epoch_s = round(v.t_ns / 1e9)  # the emulator measures on whole seconds at 1 Hz
+        assert v.t_ns / 1e9 - epoch_s == pytest.approx(0.025, abs=0.026)
+        truth = scenario.truth(epoch_s).velocity_ned_m_s
+        assert np.hypot(*v.velocity_ned_m_s[:2]) == pytest.approx(np.hypot(*truth[:2]),
+                                                                  abs=0.6)
+
+
+def test_asking_more_than_the_line_carries_is_a_configuration_error_naming_the_fix() -> None:
+    from imuhal.core.errors import ConfigurationError
+
+    _, _, driver = rig(rate_hz=5)
+    driver.probe()
+    with pytest.raises(ConfigurationError, match=r"GGA, GSA, RMC, VTG at 5 Hz need about "
+                       r"1500 bytes/s, but 9600 baud carries 960; lower rate_hz"):
+        driver.configure()

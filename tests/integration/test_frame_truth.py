@@ -90,10 +90,11 @@ BOARD_YAWED_SPEC = "-Y+X+Z"
 """The same rotation as a profile writes it: body x = board -Y, y = board +X, z = +Z."""
 
 TUMBLE = {"axes": [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], "rotation_s": 1.5,
-          "ramp_s": 0.4, "hold_s": 0.8, "free_tumble_s": 0.0}
+          "ramp_s": 0.4, "hold_s": 1.2, "free_tumble_s": 0.0}
 """One full turn about body x, then y, then z (the ``tumble`` scenario, shortened); the first
-hold is long enough for the profiles' startup gyro-offset measurement (100 samples)."""
-FLIGHT_S = 0.8 + 3 * (1.5 + 0.8)
+hold is long enough for the profiles' startup gyro-offset measurement (100 samples), also
+after a GNSS receiver's probe and configuration (about 0.4 s of the hold)."""
+FLIGHT_S = 1.2 + 3 * (1.5 + 1.2)
 BOUND = 0.10
 TRUTH_CHANNEL = {Channel.ACCEL: "specific_force_body_m_s2",
                  Channel.GYRO: "angular_rate_body_rad_s",

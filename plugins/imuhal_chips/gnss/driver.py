@@ -45,6 +45,13 @@ NMEA_MESSAGES = ("GGA", "RMC", "VTG", "GSA")
 READ_CHUNK = 4096
 DAY_NS = 86_400 * 10**9
 FOREIGN_LIMIT = 8
+UBX_NAV_PVT_BYTES = 100
+NMEA_SENTENCE_BYTES = 75
+"""A typical GGA/RMC/VTG/GSA length with CR LF (the line budget in configure)."""
+ACK_POLL_NS = 5_000_000
+"""How often configure looks for an ACK: an ACK is 10 bytes, 10 ms at 9600 baud."""
+QUIET_NS = 100_000_000
+"""A line quiet this long (or 2.5 polls) has finished the epoch's burst."""
 """Valid sentences of the other protocol in a row that mean the receiver was reset."""
 
 
@@ -53,8 +60,9 @@ class GnssSettings(DriverSettings):
     """What to decode; ``auto``: whatever probe finds (UBX preferred when both are seen)."""
     baud_rates: tuple[int, ...] = (9600, 38400, 115200, 57600, 4800)
     """Line speeds probe tries, in order (u-blox default: 9600; MTK: 9600 or 38400)."""
-    rate_hz: float = Field(5.0, gt=0, le=25)
-    """Navigation rate set with CFG-RATE (u-blox) when ``configure_receiver``."""
+    rate_hz: float = Field(1.0, gt=0, le=25)
+    """Navigation rate set with CFG-RATE (u-blox) when ``configure_receiver`` (default: the
+    factory 1 Hz, which four NMEA sentences fit into at 9600 baud)."""
     messages: tuple[str, ...] | None = None
     """Messages to enable (NMEA names or NAV-PVT); default: NAV-PVT for UBX, GGA RMC VTG GSA
     for NMEA."""
@@ -105,6 +113,8 @@ class GnssDriver(Driver):
         self._offset_ns: int | None = None
         self._prev_height: tuple[int, float] | None = None
         self._foreign = 0
+        self._last_byte_ns = 0
+        self._quiet_ns = max(QUIET_NS, round(2.5e9 / self.settings.poll_hz))
 
     # -- probe --------------------------------------------------------------------------
 
@@ -148,7 +158,7 @@ class GnssDriver(Driver):
         valid = {"nmea": 0, "ubx": 0}
         bad = 0
         end = self.clock.now_ns() + round(window_s * 1e9)
-        step = round(1e9 / self.settings.poll_hz)
+        step = min(round(1e9 / self.settings.poll_hz), 20_000_000)
         while True:
             data = self.link.receive(READ_CHUNK)
             got += data
@@ -164,7 +174,7 @@ class GnssDriver(Driver):
                     bad += 1
             if valid["ubx"]:
                 return "ubx", ""
-            if valid["nmea"] >= 2:
+            if valid["nmea"]:
                 return "nmea", ""
             if self.clock.now_ns() >= end:
                 break
@@ -197,6 +207,15 @@ class GnssDriver(Driver):
             raise ConfigurationError(
                 f"{self.describe()}: cannot enable {sorted(unknown)}; known messages: "
                 f"NAV-PVT, {', '.join(NMEA_IDS)}")
+        need = (UBX_NAV_PVT_BYTES * ("NAV-PVT" in wanted)
+                + NMEA_SENTENCE_BYTES * len(wanted - {"NAV-PVT"})) * s.rate_hz
+        line = self.baudrate / 10 if self.baudrate else math.inf
+        if need > line:
+            raise ConfigurationError(
+                f"{self.describe()}: {', '.join(sorted(wanted))} at {s.rate_hz:g} Hz need "
+                f"about {need:.0f} bytes/s, but {self.baudrate} baud carries {line:.0f}; "
+                "lower rate_hz, enable fewer messages, or set the receiver to a faster baud "
+                "rate")
         self._send_checked(cfg_rate(s.rate_hz), (0x06, 0x08), f"CFG-RATE {s.rate_hz:g} Hz")
         self._send_checked(cfg_msg(*UBX_NAV_PVT, 1 if "NAV-PVT" in wanted else 0),
                            (0x06, 0x01), "CFG-MSG NAV-PVT")
@@ -208,7 +227,7 @@ class GnssDriver(Driver):
         """Write a CFG message and wait (up to 1 s) for its ACK-ACK in the stream."""
         self.link.transfer(frame, 0)
         end = self.clock.now_ns() + 10**9
-        step = round(1e9 / self.settings.poll_hz)
+        step = ACK_POLL_NS
         splitter = self._splitter
         while True:
             for kind, item in splitter.feed(self.link.receive(READ_CHUNK)):
@@ -240,11 +259,26 @@ class GnssDriver(Driver):
         samples: list[Sample] = []
         for kind, item in items:
             samples += self._take(kind, item, now_ns)
-        if self._epoch is not None and not self._splitter.buffer:
-            # The burst of one epoch arrives together: an empty buffer closes it.
+        if data:
+            self._last_byte_ns = now_ns
+        if self._epoch is not None and (self._epoch_complete() or
+                                        now_ns - self._last_byte_ns >= self._quiet_ns):
+            # At 9600 baud an epoch's burst spans several reads: it is complete when every
+            # configured message has come, or when the line has been quiet for a while.
             samples += self._close_epoch()
         self.health.record(samples)
         return PollResult(samples, now_ns + round(1e9 / self.settings.poll_hz))
+
+    def _expected(self) -> set[str] | None:
+        s = self.settings
+        if not s.configure_receiver:
+            return None  # what the receiver sends is its own business: wait for quiet
+        return set(s.messages or (("NAV-PVT",) if self.protocol == "ubx" else NMEA_MESSAGES))
+
+    def _epoch_complete(self) -> bool:
+        expected = self._expected()
+        return self._epoch is not None and expected is not None and \
+            expected <= {p.kind for p in self._epoch.parts}
 
     def _take(self, kind: str, item: bytes, now_ns: int) -> list[Sample]:
         if kind == "nmea":
@@ -281,7 +315,9 @@ class GnssDriver(Driver):
                     abs(self._epoch.time_of_day_s - frag.time_of_day_s) > 1e-3:
                 out += self._close_epoch()
             if self._epoch is None:
-                self._epoch = _Epoch(frag.time_of_day_s, now_ns)
+                # The item began arriving its own transmit time before the end of the read.
+                sent_ns = round(len(item) * 10e9 / self.baudrate) if self.baudrate else 0
+                self._epoch = _Epoch(frag.time_of_day_s, now_ns - sent_ns)
         if self._epoch is not None:
             self._epoch.parts.append(frag)
         return out

@@ -83,6 +83,8 @@ class GnssEmulator(ChipEmulator):
         self._fix_lost: list[tuple[float, float]] = []
         self._history: deque[tuple[int, PhysicalInputs]] = deque(maxlen=64)
         self._queue: deque[tuple[int, bytes]] = deque()
+        """(time ready to send, bytes) in order; bytes leave at the line rate."""
+        self._line_free_ns = 0
         self._pending = bytearray()
         self._next_epoch_ns = 0
         self._pos_err = np.zeros(3)
@@ -146,15 +148,27 @@ class GnssEmulator(ChipEmulator):
         return b"\x00" * read_len  # nothing is clocked back on a UART write
 
     def bus_receive(self, kind: BusKind, max_len: int) -> bytes:
+        """What has come down the line by now: each queued message starts when it is ready
+        and the line is free, and its bytes arrive at the line rate (10 bits per byte), so
+        a long burst at 9600 baud spans several reads, as on a real UART."""
         now = self.now_ns()
         self._generate(now)
         out = bytearray()
-        while self._queue and self._queue[0][0] <= now and len(out) < max_len:
-            t, data = self._queue.popleft()
-            take = data[:max_len - len(out)]
-            out += take
-            if len(take) < len(data):
-                self._queue.appendleft((t, data[len(take):]))
+        ns_per_byte = 10 * 10**9 // self.baudrate
+        while self._queue and len(out) < max_len:
+            ready, data = self._queue[0]
+            start = max(ready, self._line_free_ns)
+            if start > now:
+                break
+            arrived = min(len(data), (now - start) // ns_per_byte, max_len - len(out))
+            if arrived <= 0:
+                break
+            out += data[:arrived]
+            self._line_free_ns = start + arrived * ns_per_byte
+            if arrived < len(data):
+                self._queue[0] = (self._line_free_ns, data[arrived:])
+                break
+            self._queue.popleft()
         if self.host_baudrate and self.host_baudrate != self.baudrate:
             return self._garble(bytes(out))
         return bytes(out)
