@@ -37,7 +37,8 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, TypeVar
 
 from imuhal.bus.base import Bus, BusKind
-from imuhal.core.errors import BusError, ConfigurationError
+from imuhal.bus.retry import retried
+from imuhal.core.errors import ConfigurationError
 from imuhal_chips.max2110x.registers import (
     DR_CFG_ONESHOT_MASK,
     DR_CFG_ONESHOT_READ,
@@ -95,16 +96,9 @@ class Max21100AuxBus(Bus):
         return bytes(data)
 
     def _retried(self, step: Callable[..., _R], *args: int) -> _R:
-        """One one-shot byte, repeated after a failed host transfer. A slave byte costs four
-        host transfers, so without this a 6-byte read would fail about 28 times as often as
-        one host transfer does; each step is safe to repeat (it rewrites the same address,
-        data and trigger)."""
-        for _ in range(ONESHOT_ATTEMPTS - 1):
-            try:
-                return step(*args)
-            except BusError:
-                continue
-        return step(*args)
+        """One one-shot byte (four host transfers), repeated after a failed host transfer;
+        each step is safe to repeat (it rewrites the same address, data and trigger)."""
+        return retried(step, *args, attempts=ONESHOT_ATTEMPTS)
 
     def _select(self, target: int) -> None:
         self.host.regs.write(Reg.MAG_SLV_ADD, target)

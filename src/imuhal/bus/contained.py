@@ -27,8 +27,24 @@ class ContainedBus(Bus):
         except ImuhalError:
             raise
         except Exception as exc:
-            raise BusError(f"{type(exc).__name__} from the bus plugin: {exc}", bus=self.name,
-                           target=target) from exc
+            raise self._contained(exc, target) from exc
+
+    def receive(self, target: int, max_len: int) -> bytes:
+        try:
+            return self.inner.receive(target, max_len)
+        except ImuhalError:
+            raise
+        except Exception as exc:
+            raise self._contained(exc, target) from exc
+
+    def _contained(self, exc: Exception, target: int) -> BusError:
+        return BusError(f"{type(exc).__name__} from the bus plugin: {exc}", bus=self.name,
+                        target=target)
+
+    def __getattr__(self, name: str) -> object:
+        # Optional capabilities of the wrapped bus (a UART's set_baudrate) stay reachable;
+        # only called for names this wrapper does not define itself.
+        return getattr(self.inner, name)
 
     def _transfer(self, target: int, write: bytes, read_len: int) -> bytes:
         return self.transfer(target, write, read_len)  # pragma: no cover - transfer overrides

@@ -49,6 +49,16 @@ def add_parser(sub: Any) -> None:
                      "timestamps as the --output rows (docs/simulation.md)")
     run.add_argument("--trace", metavar="FILE.txt",
                      help="log every bus transaction (time, bus, address, bytes) to a file")
+    run.add_argument("--nmea", action="append", default=[], metavar="OUTPUT",
+                     help="send LK8EX1, POV, _PRS, XCTRC, GGA and RMC sentences to a flight "
+                     "app: serial:PORT@BAUD, pty, pty:LINK (a symlink to the pty) or "
+                     "tcp:PORT (loopback); repeatable (docs/flight-instrument.md)")
+    run.add_argument("--nmea-sentences", metavar="LIST",
+                     help="comma-separated subset of LK8EX1,POV,PRS,XCTRC,GGA,RMC")
+    run.add_argument("--audio", action="store_true",
+                     help="play the vario tones live (needs imuhal[audio] and a sound device)")
+    run.add_argument("--audio-wav", metavar="FILE.wav",
+                     help="write the vario tones to a WAV file (the profile's audio curve)")
     run.add_argument("--seed", type=types.seed,
                      help="seed of the simulated world, 0 or more (default: the profile's)")
     run.add_argument("--replay-truth", metavar="TRUTH.csv",
@@ -68,7 +78,8 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
 
     path = Path(args.profile) if args.profile else default_profile_path()
     # Before anything is opened: no output may overwrite an input, and each must be writable.
-    check_outputs({"--output": args.output, "--truth": args.truth, "--trace": args.trace},
+    check_outputs({"--output": args.output, "--truth": args.truth, "--trace": args.trace,
+                   "--audio-wav": args.audio_wav},
                   {"PROFILE": path, "--replay-truth": args.replay_truth})
     if args.samples and not args.output:
         raise ImuhalError("--samples writes the samples into the --output log; add "
@@ -128,6 +139,7 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
         if args.output:
             csv_sink = CsvSink(args.output, include_samples=args.samples, frame=frame)
             sinks.append(csv_sink)
+        sinks.extend(_flight_sinks(args, profile, registry, stack))
         truth_sink = None
         if args.truth and isinstance(pipeline.board, EmulatedBoard):
             truth_sink = TruthSink(args.truth, pipeline.board.scenario,
@@ -153,6 +165,31 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     return 0
 
 
+def _flight_sinks(args: argparse.Namespace, profile: Any, registry: Registry,
+                  stack: contextlib.ExitStack) -> list[Any]:
+    """The --nmea outputs and the --audio / --audio-wav sink (the plugins registered as
+    ``nmea`` and ``vario-audio``), closed with the run."""
+    from imuhal.sinks.flight.transports import PtyTransport
+
+    out: list[Any] = []
+    extra: dict[str, Any] = {}
+    if args.nmea_sentences:
+        extra["sentences"] = tuple(x.strip().upper() for x in args.nmea_sentences.split(",")
+                                   if x.strip())
+    nmea = registry.sinks.get("nmea")
+    for spec in args.nmea:
+        sink = nmea({"output": spec, **extra})
+        stack.callback(sink.close)
+        transport = sink.transport
+        where = transport.description
+        if isinstance(transport, PtyTransport):
+            where += f" (open {transport.path} in the flight app)"
+        print(f"nmea: {where}", file=sys.stderr)
+        out.append(sink)
+    if args.audio or args.audio_wav:
+        out.append(registry.sinks.get("vario-audio")(
+            {"curve": profile.audio, "wav": args.audio_wav, "live": args.audio}))
+    return out
 def _trace_writer(out: AtomicFile, every_s: float = 2.0) -> Callable[[Any], None]:
     """Writes each bus transaction as a line, syncing ``out`` every ``every_s`` seconds of
     wall time like the CSV log (a power cut loses at most that much of the trace)."""

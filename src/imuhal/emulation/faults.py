@@ -275,6 +275,19 @@ class FaultLine:
     def absent(self) -> bool:
         return self.emulator.absent
 
+    @property
+    def host_baudrate(self) -> int:
+        return self.emulator.host_baudrate
+
+    @host_baudrate.setter
+    def host_baudrate(self, baudrate: int) -> None:
+        self.emulator.host_baudrate = baudrate
+
+    def bus_receive(self, kind: BusKind, max_len: int) -> bytes:
+        """Byte streams (a UART) pass straight through: a serial chip's faults are its own
+        emulator's (docs/flight-instrument.md)."""
+        return self.emulator.bus_receive(kind, max_len)
+
     def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes:
         faults = self.faults
         if not faults._by_device.get(self.device):

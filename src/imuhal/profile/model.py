@@ -16,6 +16,7 @@ from imuhal.calibration.model import DeviceCalibration
 from imuhal.core.conventions import UnknownConvention, get_convention
 from imuhal.core.frames import MountError, parse_mount
 from imuhal.profile.faults import FaultSpec
+from imuhal.sinks.flight.audio import VarioAudioSettings
 
 SCHEMA_VERSION = 1
 MountSpec = str | list[list[float]]
@@ -95,6 +96,8 @@ class BoardProfile(_Strict):
     devices: dict[str, DeviceConfig]
     estimators: dict[str, EstimatorConfig] = Field(default_factory=dict)
     emulation: EmulationConfig = Field(default_factory=EmulationConfig)
+    audio: VarioAudioSettings = Field(default_factory=VarioAudioSettings)
+    """The vario audio curve (``imuhal run --audio``; docs/flight-instrument.md)."""
 
     output_frame: str = "ned"
     """Convention of what the run hands out: its CSV and console sinks and

@@ -73,11 +73,18 @@ class ChipEmulator(ABC):
         self.absent = False
         self.frozen = False
         self.stuck_data_ready = False
+        self.host_baudrate = 0
+        """Serial chips: the line speed the host's UART is set to (0: not a UART)."""
         self.physics = PhysicalInputs()
 
     @abstractmethod
     def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes:
         """Answer one bus transaction (write then read) as the chip would."""
+
+    def bus_receive(self, kind: BusKind, max_len: int) -> bytes:
+        """Byte-stream chips (a UART device): up to ``max_len`` bytes the chip has sent by
+        now. Register-mapped chips never send unprompted."""
+        return b""
 
     def set_physics(self, inputs: PhysicalInputs) -> None:
         """Hand the emulator the true values it should measure from now on (ignored while

@@ -57,3 +57,15 @@ class EmulatedBus(Bus):
             raise NackError(f"no device answered at {what} 0x{target:02X}", bus=self.name,
                             target=target)
         return emulator.bus_transfer(self.kind, write, read_len)
+
+    def _receive(self, target: int, max_len: int) -> bytes:
+        emulator = self.targets.get(target)
+        if emulator is None or emulator.absent:
+            return b""  # a silent UART: nothing arrives
+        return emulator.bus_receive(self.kind, max_len)
+
+    def set_baudrate(self, baudrate: int) -> None:
+        """The host UART's line speed: an emulated serial chip garbles what it sends when it
+        differs from its own (as a real UART at the wrong speed reads noise)."""
+        for emulator in self.targets.values():
+            emulator.host_baudrate = baudrate

@@ -22,10 +22,12 @@ from imuhal.core.conventions import NED, Convention, get_convention
 from imuhal.core.samples import (
     Channel,
     Frame,
+    PositionSample,
     PressureSample,
     Sample,
     TemperatureSample,
     VectorSample,
+    VelocitySample,
 )
 from imuhal.estimation.framed import (
     EULER_COLUMNS,
@@ -53,7 +55,17 @@ def csv_columns(frame: str | Convention = NED) -> tuple[str, ...]:
         *attitude_columns(frame),
         *linear_accel_columns(frame),
         "altitude_m", "climb_m_s", "accel_bias_m_s2",
+        *GNSS_COLUMNS,
     )
+
+
+GNSS_COLUMNS = (
+    "latitude_deg", "longitude_deg", "height_msl_m", "fix_type", "satellites",
+    "horizontal_accuracy_m", "vertical_accuracy_m", "vn_m_s", "ve_m_s", "vd_m_s",
+    "speed_accuracy_m_s",
+)
+"""GNSS position and earth-frame velocity (frame-independent: NED velocity in every
+convention, WGS-84 degrees)."""
 
 
 CSV_COLUMNS = csv_columns(NED)
@@ -98,6 +110,19 @@ def event_row(event: Event, frame: str | Convention = NED) -> dict[str, str]:
             _put(row, ("pressure_pa",), (event.pressure_pa,))
         elif isinstance(event, TemperatureSample):
             _put(row, ("temperature_degc",), (event.temperature_degc,))
+        elif isinstance(event, PositionSample):
+            _put(row, ("latitude_deg", "longitude_deg", "height_msl_m"),
+                 (event.latitude_deg, event.longitude_deg, event.height_m))
+            row["fix_type"] = str(int(event.fix_type))
+            row["satellites"] = str(event.satellites)
+            for name, value in (("horizontal_accuracy_m", event.horizontal_accuracy_m),
+                                ("vertical_accuracy_m", event.vertical_accuracy_m)):
+                if value is not None:
+                    _put(row, (name,), (value,))
+        elif isinstance(event, VelocitySample):
+            _put(row, ("vn_m_s", "ve_m_s", "vd_m_s"), event.velocity_ned_m_s)
+            if event.accuracy_m_s is not None:
+                _put(row, ("speed_accuracy_m_s",), (event.accuracy_m_s,))
         return row
     row["t_s"] = f"{event.t_ns / 1e9:.6f}"
     row["source"] = event.source
