@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import pytest
+
+from imuhal.core.quantities import BUILTIN_QUANTITIES, Quantity
 from imuhal.core.samples import AccelSample, Channel, Frame, PressureSample, SampleFlag
 
 
@@ -16,8 +19,15 @@ def test_flagging_returns_an_invalid_copy() -> None:
     assert s.valid and not bad.valid and SampleFlag.CRC_ERROR in bad.flags
 
 
-def test_channels_document_their_units() -> None:
-    assert {c.unit for c in Channel} == {"m/s^2", "rad/s", "uT", "Pa", "degC"}
+def test_builtin_quantities_document_their_units_and_shapes() -> None:
+    assert {(q.name, q.unit, q.shape) for q in BUILTIN_QUANTITIES} == {
+        ("accel", "m/s^2", (3,)), ("gyro", "rad/s", (3,)), ("mag", "uT", (3,)),
+        ("pressure", "Pa", ()), ("temperature", "degC", ())}
+
+
+def test_a_quantity_must_be_a_scalar_or_a_three_axis_vector() -> None:
+    with pytest.raises(ValueError, match="shape"):
+        Quantity("strain", "1", (2, 2))
 
 
 def test_with_vector_changes_value_and_frame_only() -> None:

@@ -12,6 +12,7 @@ from imuhal import __version__
 from imuhal.bus.spy import format_transfer
 from imuhal.core.atomic import AtomicFile
 from imuhal.core.errors import ImuhalError
+from imuhal.offline.settings_args import build_settings, parse_set_arguments
 from imuhal.plugins.manager import Registry
 from imuhal.profile.loader import load_profile
 from imuhal.profiles_dir import default_profile_path
@@ -40,6 +41,11 @@ def add_parser(sub: Any) -> None:
                      "timestamps as the --output rows (docs/simulation.md)")
     run.add_argument("--trace", metavar="FILE.txt",
                      help="log every bus transaction (time, bus, address, bytes) to a file")
+    run.add_argument("--sink", action="append", default=[], metavar="NAME",
+                     help="also send every event to the sink a plugin registered as NAME "
+                     "(see `imuhal plugins`); repeatable")
+    run.add_argument("--sink-set", action="append", default=[], metavar="NAME.KEY=VALUE",
+                     help="a setting of sink NAME (YAML scalar; commas make a list)")
     run.add_argument("--seed", type=int, help="seed of the simulated world (default: profile's)")
     run.add_argument("--quiet", action="store_true", help="no live status line")
     run.set_defaults(func=cmd_run)
@@ -61,6 +67,7 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     duration = args.duration
     if duration is None and emulate is not None:
         duration = registry.scenarios.get(emulate).default_duration_s
+    plugin_sinks = _plugin_sinks(args.sink, args.sink_set, registry)  # checked before opening
     where = f"emulated, scenario '{emulate}'" if emulate else "real hardware"
     print(f"imuhal {__version__}: {profile.name} ({where}) from {path}", file=sys.stderr)
     sinks: list[Any] = []
@@ -90,6 +97,7 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
             truth_sink = TruthSink(args.truth, pipeline.board.scenario,
                                    include_samples=args.samples)
             sinks.append(truth_sink)
+        sinks.extend(plugin_sinks)
         try:
             summary = pipeline.run(duration, sinks)
         except KeyboardInterrupt:
@@ -101,3 +109,21 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     if truth_sink is not None:
         print(f"wrote {truth_sink.rows} truth rows to {args.truth}", file=sys.stderr)
     return 0
+
+
+def _plugin_sinks(names: list[str], settings: list[str], registry: Registry) -> list[Any]:
+    """The sinks named by ``--sink``, each with its ``--sink-set NAME.KEY=VALUE`` settings."""
+    per_sink: dict[str, list[str]] = {name: [] for name in names}
+    for item in settings:
+        name, dot, rest = item.partition(".")
+        if not dot or name not in per_sink:
+            raise ImuhalError(f"--sink-set {item!r}: write NAME.KEY=VALUE for a sink named by "
+                              f"--sink (named: {', '.join(names) or 'none'})")
+        per_sink[name].append(rest)
+    out = []
+    for name, items in per_sink.items():
+        cls = registry.sinks.get(name)
+        values = parse_set_arguments(items, option=f"--sink-set {name}.")
+        out.append(cls(build_settings(cls.Settings, values, f"sink {name!r}",
+                                      prefix=f"--sink-set {name}.")))
+    return out

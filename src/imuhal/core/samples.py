@@ -14,35 +14,9 @@ from dataclasses import dataclass, field, replace
 from enum import Enum, IntFlag
 from typing import ClassVar, TypeAlias
 
+from imuhal.core.quantities import Channel, Quantity
+
 Vec3: TypeAlias = tuple[float, float, float]
-
-
-class Channel(str, Enum):
-    """A physical quantity a device provides, with its unit at the pipeline boundary."""
-
-    ACCEL = "accel"
-    """Specific force, m/s^2 (a level board at rest reads (0, 0, -9.81) in NED)."""
-    GYRO = "gyro"
-    """Angular rate, rad/s, right-handed about each axis."""
-    MAG = "mag"
-    """Magnetic flux density, uT."""
-    PRESSURE = "pressure"
-    """Static pressure, Pa."""
-    TEMPERATURE = "temperature"
-    """Die temperature, degC."""
-
-    @property
-    def unit(self) -> str:
-        return _UNITS[self]
-
-
-_UNITS = {
-    Channel.ACCEL: "m/s^2",
-    Channel.GYRO: "rad/s",
-    Channel.MAG: "uT",
-    Channel.PRESSURE: "Pa",
-    Channel.TEMPERATURE: "degC",
-}
 
 
 class Frame(str, Enum):
@@ -81,7 +55,8 @@ class Sample:
     t_ns: int
     device: str
     flags: SampleFlag = SampleFlag.OK
-    channel: ClassVar[Channel]
+    channel: ClassVar[Quantity]
+    """The quantity measured (a plugin's sample class names its own)."""
 
     @property
     def valid(self) -> bool:
@@ -186,15 +161,6 @@ class TemperatureSample(ScalarSample):
     @property
     def scalar(self) -> float:
         return self.temperature_degc
-
-
-SAMPLE_TYPES: dict[Channel, type[Sample]] = {
-    Channel.ACCEL: AccelSample,
-    Channel.GYRO: GyroSample,
-    Channel.MAG: MagSample,
-    Channel.PRESSURE: PressureSample,
-    Channel.TEMPERATURE: TemperatureSample,
-}
 
 
 def _vec3(v: Sequence[float]) -> Vec3:

@@ -3,27 +3,46 @@
 Allow/block lists: ``IMUHAL_PLUGINS`` (comma-separated entry-point names: load only these) and
 ``IMUHAL_DISABLE_PLUGINS`` (never load these). Hook implementations with names that match no
 hook specification are rejected, so a typo in a plugin fails loudly instead of doing nothing.
+
+Every hook is called through pluggy's hook caller (``pm.hook.NAME(register=registrar)``), so
+hook wrappers and tracing work. So that each registration still records the plugin that made
+it, each plugin is registered with pluggy as a stand-in whose hook implementations first tell
+the registrar which plugin is calling (``Registrar.registering``), then call the plugin's own.
 """
 
 from __future__ import annotations
 
+import inspect
 import os
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
-from types import ModuleType
+from types import ModuleType, SimpleNamespace
 from typing import Any
 
 import pluggy
 
 from imuhal.bus.factory import BusFactory
 from imuhal.core.errors import PluginError
+from imuhal.core.samples import (
+    AccelSample,
+    GyroSample,
+    MagSample,
+    PressureSample,
+    Sample,
+    ScalarSample,
+    TemperatureSample,
+    VectorSample,
+)
 from imuhal.drivers.base import Driver
 from imuhal.estimation.base import Estimator
 from imuhal.plugins import hookspecs
+from imuhal.plugins.commands import Command
 from imuhal.plugins.registrars import Registrar
 from imuhal.sim.chip import ChipEmulator
 from imuhal.sim.scenario import Scenario
+from imuhal.sinks.base import SinkPlugin
 
 ENV_ALLOW = "IMUHAL_PLUGINS"
 ENV_BLOCK = "IMUHAL_DISABLE_PLUGINS"
@@ -46,17 +65,51 @@ class Registry:
     scenarios: Registrar[Scenario] = field(
         default_factory=lambda: Registrar("scenario", Scenario)
     )
+    quantities: Registrar[Sample] = field(default_factory=lambda: _quantities())
+    """Sample classes by the name of the quantity they carry (``channel.name``); imuhal's
+    own (accel, gyro, mag, pressure, temperature) are always there."""
+    sinks: Registrar[SinkPlugin] = field(default_factory=lambda: Registrar("sink", SinkPlugin))
+    commands: Registrar[Command] = field(
+        default_factory=lambda: Registrar("command", Command)
+    )
     plugins: dict[str, str] = field(default_factory=dict)
     """Loaded plugin name -> distribution name."""
 
-    def registrar_for(self, hook: str) -> Registrar[Any]:
+    def hooks(self) -> dict[str, Registrar[Any]]:
+        """Each hook's name and the registrar its implementations are called with, in the
+        order the loader calls them."""
         return {
+            "imuhal_register_quantities": self.quantities,
+            "imuhal_register_buses": self.buses,
             "imuhal_register_drivers": self.drivers,
             "imuhal_register_emulators": self.emulators,
             "imuhal_register_estimators": self.estimators,
-            "imuhal_register_buses": self.buses,
             "imuhal_register_scenarios": self.scenarios,
-        }[hook]
+            "imuhal_register_sinks": self.sinks,
+            "imuhal_register_commands": self.commands,
+        }
+
+    def registrar_for(self, hook: str) -> Registrar[Any]:
+        return self.hooks()[hook]
+
+    @contextmanager
+    def registering(self, plugin: str) -> Iterator[None]:
+        """Registrations made inside (by any registrar) are recorded as ``plugin``'s."""
+        package = self.plugins.get(plugin, "")
+        with ExitStack() as stack:
+            for registrar in self.hooks().values():
+                stack.enter_context(registrar.registering(plugin, package))
+            yield
+
+
+def _quantities() -> Registrar[Sample]:
+    registrar: Registrar[Sample] = Registrar(
+        "quantity", Sample, name_attr="channel",
+        name_of=lambda cls: getattr(getattr(cls, "channel", None), "name", ""))
+    with registrar.registering("imuhal", "imuhal"):
+        for cls in (AccelSample, GyroSample, MagSample, PressureSample, TemperatureSample):
+            registrar(cls)
+    return registrar
 
 
 def _split_env(name: str) -> set[str] | None:
@@ -82,6 +135,7 @@ def load_registry(
     registry = Registry()
     allow = _split_env(ENV_ALLOW)
     block = _split_env(ENV_BLOCK) or set()
+    loaded: list[tuple[str, object]] = []
 
     if entry_point_plugins:
         for ep in sorted(entry_points(group=hookspecs.ENTRY_POINT_GROUP), key=lambda e: e.name):
@@ -94,37 +148,61 @@ def load_registry(
                     f"plugin {ep.name!r} ({ep.value}) failed to load: "
                     f"{type(exc).__name__}: {exc}; set {ENV_BLOCK}={ep.name} to skip it"
                 ) from exc
-            dist = ep.dist.name if ep.dist is not None else ""
-            pm.register(module, name=ep.name)
-            registry.plugins[ep.name] = dist
+            registry.plugins[ep.name] = ep.dist.name if ep.dist is not None else ""
+            loaded.append((ep.name, module))
     for name, module in extra:
         if name in block:
             continue
-        pm.register(module, name=name)
         registry.plugins[name] = ""
+        loaded.append((name, module))
+    # pluggy calls the last registered implementation first: registering in reverse makes
+    # plugins register in load order (sorted entry points, then ``extra``).
+    for name, module in reversed(loaded):
+        pm.register(_attributed(pm, module, name, registry), name=name)
 
     try:
         pm.check_pending()
     except pluggy.PluginValidationError as exc:
         raise PluginError(f"a plugin implements a hook that does not exist: {exc}") from exc
 
-    for hook_name in (
-        "imuhal_register_buses",
-        "imuhal_register_drivers",
-        "imuhal_register_emulators",
-        "imuhal_register_estimators",
-        "imuhal_register_scenarios",
-    ):
-        registrar = registry.registrar_for(hook_name)
-        caller = getattr(pm.hook, hook_name)
-        # Called one implementation at a time so each registration records its plugin.
-        for impl in caller.get_hookimpls():
-            plugin_name = impl.plugin_name
-            registrar._bind(plugin_name, registry.plugins.get(plugin_name, ""))
-            impl.function(register=registrar)
-        registrar._bind("", "")
+    for hook_name, registrar in registry.hooks().items():
+        getattr(pm.hook, hook_name)(register=registrar)
     _check_emulators(registry)
+    _check_quantities(registry)
     return registry
+
+
+def _attributed(pm: pluggy.PluginManager, plugin: object, name: str,
+                registry: Registry) -> object:
+    """A stand-in for ``plugin`` with the same hook implementations (same options), each of
+    which records ``name`` as the registering plugin before calling the original. Hook
+    wrappers are passed through unchanged (they run around the whole call)."""
+    stand_in = SimpleNamespace(__name__=getattr(plugin, "__name__", name))
+    for attr in dir(plugin):
+        fn = getattr(plugin, attr, None)
+        opts = pm.parse_hookimpl_opts(plugin, attr)
+        if opts is None or not callable(fn):
+            continue
+        if not (opts.get("wrapper") or opts.get("hookwrapper")):
+            fn = _recording(fn, name, registry)
+        setattr(stand_in, attr, hookspecs.hookimpl(**opts)(fn))
+    return stand_in
+
+
+def _recording(fn: Callable[..., Any], plugin: str, registry: Registry) -> Callable[..., Any]:
+    # The stand-in takes exactly the arguments the original asks for (pluggy passes a hook
+    # implementation only the arguments it names).
+    if "register" in inspect.signature(fn).parameters:
+        def call(register: Registrar[Any]) -> Any:
+            with registry.registering(plugin):
+                return fn(register=register)
+    else:
+        def call() -> Any:  # type: ignore[misc]
+            with registry.registering(plugin):
+                return fn()
+    call.__name__ = getattr(fn, "__name__", "hook")
+    call.__qualname__ = call.__name__
+    return call
 
 
 def _check_emulators(registry: Registry) -> None:
@@ -134,3 +212,15 @@ def _check_emulators(registry: Registry) -> None:
                 f"plugin {reg.plugin!r} registered an emulator for {name!r}, "
                 f"but no driver of that name is installed"
             )
+
+
+def _check_quantities(registry: Registry) -> None:
+    """A quantity's sample class must carry a value of its declared shape."""
+    for name, reg in registry.quantities.entries.items():
+        vector = reg.obj.channel.is_vector
+        if not issubclass(reg.obj, VectorSample if vector else ScalarSample):
+            need = "VectorSample" if vector else "ScalarSample"
+            raise PluginError(
+                f"plugin {reg.plugin!r}: quantity {name!r} has shape "
+                f"{reg.obj.channel.shape}, so its sample class {reg.obj.__name__} must "
+                f"subclass {need}")
