@@ -8,7 +8,7 @@ units in the chip's own sensor frame; calibration and mounting are applied by th
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -89,6 +89,9 @@ class Driver(ABC):
     Settings: ClassVar[type[DriverSettings]]
     channels: ClassVar[tuple[Channel, ...]]
     bus_kinds: ClassVar[frozenset[BusKind]]
+    child_bus_kinds: ClassVar[Mapping[str, BusKind]] = {}
+    """The buses ``child_buses()`` provides, by local name, and their kind (any kind: an I2C
+    master, an SPI master, a serial port); profiles check devices behind them against it."""
     calibration_version: ClassVar[int] = 1
     """Bumped when a change to decoding would invalidate stored user calibration."""
 
@@ -135,7 +138,8 @@ class Driver(ABC):
         return self.start(max(now_ns, self.clock.now_ns()))
 
     def child_buses(self) -> dict[str, Bus]:
-        """Buses this chip exposes to others (an I2C master or bypass), by local name."""
+        """Buses this chip exposes to others (an I2C master or bypass, ...), by local name;
+        declare each name and kind in ``child_bus_kinds``."""
         return {}
 
     def describe(self) -> str:

@@ -178,6 +178,24 @@ def _check_references(profile: BoardProfile, doc: LocatedDocument) -> list[str]:
     return out
 
 
+def _bus_kind(profile: BoardProfile, ref: str, bus_kinds: dict[str, BusKind | None],
+              registry: Registry) -> tuple[BusKind | None, str]:
+    """The kind of bus ``ref`` (a profile bus, or ``DEVICE/CHILD``: a bus a chip provides, of
+    the kind its driver declares), or None when unknown; and a problem to report, if any."""
+    if "/" not in ref:
+        return bus_kinds.get(ref), ""
+    parent, child = ref.split("/", 1)
+    cfg = profile.devices.get(parent)
+    reg = registry.drivers.entries.get(cfg.driver) if cfg is not None else None
+    if reg is None:
+        return None, ""  # the topology check names a missing parent device
+    provided = reg.obj.child_bus_kinds
+    if child not in provided:
+        return None, (f"device {parent!r} ({cfg.driver}) provides no bus {child!r}; it "
+                      f"provides: {', '.join(provided) or 'none'}")
+    return provided[child], ""
+
+
 def _check_plugins(profile: BoardProfile, doc: LocatedDocument, registry: Registry) -> list[str]:
     out: list[str] = []
     bus_kinds: dict[str, BusKind | None] = {}
@@ -200,7 +218,9 @@ def _check_plugins(profile: BoardProfile, doc: LocatedDocument, registry: Regist
                        f"{', '.join(registry.drivers.names()) or 'none'} (see `imuhal plugins`)")
             continue
         driver = reg.obj
-        kind = bus_kinds.get(dev.bus) if "/" not in dev.bus else BusKind.I2C
+        kind, problem = _bus_kind(profile, dev.bus, bus_kinds, registry)
+        if problem:
+            out.append(f"{doc.where((*path, 'bus'))}: {dotted((*path, 'bus'))}: {problem}")
         if kind is not None and kind not in driver.bus_kinds:
             allowed = ", ".join(sorted(k.value for k in driver.bus_kinds))
             out.append(f"{doc.where((*path, 'bus'))}: {dotted((*path, 'bus'))}: {dev.driver} "
