@@ -28,6 +28,7 @@ version = "1.0"
 [project.entry-points.imuhal]
 acme_tc3 = "acme_tc3.plugin"
 acme_humidity = "acme_tc3.humidity"
+acme_airflow = "acme_tc3.airflow"
 
 [tool.setuptools]
 packages = ["acme_tc3"]
@@ -63,6 +64,16 @@ emulation:
   scenario: static
 """
 
+AIRFLOW_PROFILE = """
+schema_version: 1
+name: acme-flow
+buses:
+  i2c1: {kind: i2c, device: /dev/i2c-1}
+devices:
+  flow: {driver: af3, bus: i2c1, address: 0x28}
+emulation: {scenario: static}
+"""
+
 
 @pytest.fixture(scope="module")
 def installed_plugin(tmp_path_factory: pytest.TempPathFactory) -> Path:
@@ -74,6 +85,7 @@ def installed_plugin(tmp_path_factory: pytest.TempPathFactory) -> Path:
     # The plugin's code is the test chip module: a driver and emulator that core never saw.
     shutil.copy(ROOT / "tests" / "support" / "testchip.py", pkg / "plugin.py")
     shutil.copy(ROOT / "tests" / "support" / "humidity_plugin.py", pkg / "humidity.py")
+    shutil.copy(ROOT / "tests" / "support" / "airflow_plugin.py", pkg / "airflow.py")
     target = tmp_path_factory.mktemp("acme-site")
     subprocess.run(
         [sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation",
@@ -164,3 +176,19 @@ def test_an_unknown_sink_setting_is_a_one_line_error_naming_it(
     assert out.returncode == 2
     assert "--sink-set humidity-log.colour: sink 'humidity-log' has no such setting" \
         in out.stderr
+
+
+@pytest.mark.slow
+def test_the_plugin_vector_quantity_is_calibrated_and_stored_by_imuhal_calibrate(
+        installed_plugin: Path, tmp_path: Path) -> None:
+    profile = tmp_path / "flow.yaml"
+    profile.write_text(textwrap.dedent(AIRFLOW_PROFILE))
+    out = _imuhal(installed_plugin, "calibrate", "vector-zero", str(profile), "--quantity",
+                  "airflow", "--emulate", "static", "--set", "samples=20")
+    assert out.returncode == 0, out.stderr
+    assert "wrote devices.flow.calibration.airflow" in out.stderr
+    shown = _imuhal(installed_plugin, "calibrate", "--show", str(profile))
+    assert shown.returncode == 0, shown.stderr
+    # The emulated AF3 reads (0.5, -0.25, 0.125) m/s in still air.
+    assert "airflow: vector-zero" in shown.stdout
+    assert "offset: (+0.5, -0.25, +0.125)" in shown.stdout

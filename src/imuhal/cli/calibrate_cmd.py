@@ -24,8 +24,10 @@ from imuhal.calibration.gyro import GyroOffsetProcedure, GyroOffsetSettings
 from imuhal.calibration.mag import MagCalibrationProcedure, MagSettings
 from imuhal.calibration.model import DeviceCalibration, GyroStartupSettings, now
 from imuhal.calibration.progress import Progress, ProgressKind
+from imuhal.core.errors import ImuhalError
 from imuhal.core.frames import parse_mount
 from imuhal.core.samples import Channel
+from imuhal.offline.settings_args import build_settings, parse_set_arguments
 from imuhal.plugins.manager import Registry
 from imuhal.profile.loader import load_profile
 
@@ -43,8 +45,9 @@ def add_parser(sub: Any) -> None:
         "and its quality, and store it in the profile (atomically; the old file is kept as "
         "PROFILE.bak and the replaced record under calibration.previous).",
     )
-    cal.add_argument("procedure", nargs="?", choices=["gyro", "accel", "mag"],
-                     help="gyro: offsets at rest; accel: six positions; mag: figure of 8")
+    cal.add_argument("procedure", nargs="?",
+                     help="gyro: offsets at rest; accel: six positions; mag: figure of 8; or "
+                     "a procedure a plugin registered (`imuhal plugins`), e.g. vector-zero")
     cal.add_argument("profile", nargs="?", help="board profile YAML")
     cal.add_argument("--show", metavar="PROFILE", help="print the calibration stored in PROFILE")
     cal.add_argument("--device", metavar="NAME", help="device to calibrate (default: the only "
@@ -66,6 +69,10 @@ def add_parser(sub: Any) -> None:
                      help="mag: local field strength in uT (default: fitted)")
     cal.add_argument("--at-startup", action="store_true",
                      help="gyro: also re-measure the offsets at every start-up")
+    cal.add_argument("--quantity", metavar="NAME",
+                     help="registered procedures: the vector quantity to calibrate")
+    cal.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                     help="registered procedures: a setting of the procedure")
     cal.add_argument("--dry-run", action="store_true", help="print the result, write nothing")
     cal.set_defaults(func=cmd_calibrate, _parser=cal)
 
@@ -76,18 +83,30 @@ def cmd_calibrate(args: argparse.Namespace, registry: Registry) -> int:
     if args.procedure is None or args.profile is None:
         args._parser.error("give a procedure and a PROFILE (or --show PROFILE)")
     path = Path(args.profile)
+    registered = args.procedure not in CHANNELS
+    if registered and args.procedure not in registry.calibrations.entries:
+        raise ImuhalError(
+            f"no calibration procedure named {args.procedure!r}; choose gyro, accel, mag or "
+            f"one a plugin registered: {', '.join(registry.calibrations.names()) or 'none'}")
     profile = load_profile(path, registry)
-    channel = CHANNELS[args.procedure]
+    key = _registered_quantity(args, registry) if registered else args.procedure
+    channel = registry.quantities.get(key).channel if registered else CHANNELS[key]
     device = pick_device(profile, registry, channel, args.device)
     cfg = profile.devices[device]
     chip_to_body = parse_mount(profile.board_to_body) @ parse_mount(cfg.mount)
     err = sys.stderr
     where = f"emulated, scenario '{args.emulate}'" if args.emulate else "real hardware"
-    print(f"calibrating {args.procedure} of {device} ({cfg.driver}) in {profile.name} ({where})",
+    what = f"{key} ({args.procedure})" if registered else args.procedure
+    print(f"calibrating {what} of {device} ({cfg.driver}) in {profile.name} ({where})",
           file=err)
     reporter = _Reporter(err)
     proc: Any
-    if args.procedure == "gyro":
+    if registered:
+        cls = registry.calibrations.get(args.procedure)
+        settings = build_settings(cls.Settings, parse_set_arguments(args.set),
+                                  f"procedure {args.procedure!r}")
+        proc = cls(settings, quantity=key, device=device, progress=reporter)
+    elif args.procedure == "gyro":
         gs = GyroOffsetSettings(**({"samples": args.samples} if args.samples else {}))
         proc = GyroOffsetProcedure(gs, device=device, progress=reporter)
     elif args.procedure == "accel":
@@ -102,7 +121,7 @@ def cmd_calibrate(args: argparse.Namespace, registry: Registry) -> int:
     timeout = args.timeout
     if timeout is None:
         timeout = (registry.scenarios.get(args.emulate).default_duration_s if args.emulate
-                   else TIMEOUTS_S[args.procedure])
+                   else proc.default_timeout_s if registered else TIMEOUTS_S[args.procedure])
     with open_raw_pipeline(profile, registry, emulate=args.emulate, seed=args.seed,
                            realtime=False, sensor_errors=False if args.ideal else None
                            ) as pipeline:
@@ -115,23 +134,25 @@ def cmd_calibrate(args: argparse.Namespace, registry: Registry) -> int:
             reporter.end_line()
     stored = cfg.calibration or DeviceCalibration()
     date = now()
-    if args.procedure == "gyro":
+    if registered:
+        record = result.model_copy(update={"date": date})
+    elif args.procedure == "gyro":
         record = result.record(stored.gyro, date=date)
     else:
         record = result.record(date=date)
     record = record.model_copy(update={"binding": binding})
-    new = stored.replaced(args.procedure, record)
+    new = stored.replaced(key, record)
     if args.at_startup:
         new = new.model_copy(update={"gyro_at_startup": GyroStartupSettings()})
-    print(f"{device} {args.procedure} calibration ({record.procedure}):")
-    print(_describe_record(args.procedure, record.model_dump(), indent="  "))
+    print(f"{device} {key} calibration ({record.procedure}):")
+    print(_describe_record(key, record.model_dump(), indent="  "))
     if args.dry_run:
         print("dry run: profile not written", file=err)
         return 0
     bak, warnings = write_device_calibration(path, device, new, registry)
     for w in warnings:
         print(f"warning: {w}", file=err)
-    print(f"wrote devices.{device}.calibration.{args.procedure} to {path}"
+    print(f"wrote devices.{device}.calibration.{key} to {path}"
           + (f" (previous file kept as {bak})" if bak else ""), file=err)
     return 0
 
@@ -178,10 +199,9 @@ def show(path: Path, registry: Registry, out: TextIO) -> int:
             continue
         any_cal = True
         print(f"{name} ({dev.driver} on {dev.bus} at 0x{dev.address:02X}):", file=out)
-        for channel in ("gyro", "accel", "mag"):
-            rec = getattr(cal, channel)
-            if rec is None:
-                continue
+        records = cal.records()
+        for channel in sorted(records, key=lambda c: (c not in ("gyro", "accel", "mag"), c)):
+            rec = records[channel]
             when = rec.date.isoformat() if rec.date else "undated"
             print(f"  {channel}: {rec.procedure}, {when}", file=out)
             print(_describe_record(channel, rec.model_dump(), indent="    "), file=out)
@@ -194,7 +214,7 @@ def show(path: Path, registry: Registry, out: TextIO) -> int:
             print(f"  gyro offsets at start-up: {state} ({cal.gyro_at_startup.samples} "
                   "samples)", file=out)
         if cal.previous is not None:
-            kept = [c for c in ("gyro", "accel", "mag") if getattr(cal.previous, c) is not None]
+            kept = list(cal.previous.records())
             print(f"  previous records kept: {', '.join(kept)}", file=out)
     if not any_cal:
         print(f"{path}: no calibration stored; run `imuhal calibrate gyro|accel|mag {path}`",
@@ -217,9 +237,33 @@ def _describe_record(channel: str, rec: dict[str, Any], indent: str) -> str:
         m = np.asarray(rec["misalignment"])
         if not np.allclose(m, np.eye(3)):
             lines += [f"misalignment: {_vec(row, fmt='+.5f')}" for row in m]
-    else:
+    elif channel == "mag":
         lines.append(f"hard iron: {_vec(rec['hard_iron_ut'], fmt='+.2f')} uT")
         lines += [f"soft iron: {_vec(row, fmt='+.4f')}" for row in rec["soft_iron"]]
+    else:  # any other vector quantity (VectorCalibration), in its own unit
+        lines.append(f"offset: {_vec(rec['offset'], fmt='+.5g')}")
+        m = np.asarray(rec["matrix"])
+        if not np.allclose(m, np.eye(3)):
+            lines += [f"matrix: {_vec(row, fmt='+.5f')}" for row in m]
     if rec.get("quality"):
         lines.append("quality: " + ", ".join(f"{k} {v:.4g}" for k, v in rec["quality"].items()))
     return "\n".join(indent + line for line in lines)
+
+
+def _registered_quantity(args: argparse.Namespace, registry: Registry) -> str:
+    """The quantity a registered procedure calibrates: its own, or ``--quantity``."""
+    cls = registry.calibrations.get(args.procedure)
+    name = cls.quantity or args.quantity
+    if name is None:
+        raise ImuhalError(f"procedure {args.procedure!r} works on any vector quantity: name "
+                          "one with --quantity NAME (see `imuhal plugins`)")
+    if args.quantity is not None and cls.quantity is not None and args.quantity != name:
+        raise ImuhalError(f"procedure {args.procedure!r} calibrates {name!r} only; drop "
+                          f"--quantity {args.quantity}")
+    if name in CHANNELS:
+        raise ImuhalError(f"{name} has its own procedure: run `imuhal calibrate {name}`")
+    quantity = registry.quantities.get(name).channel
+    if not quantity.is_vector:
+        raise ImuhalError(f"{name} is a scalar quantity; calibration applies to vector "
+                          "quantities only")
+    return name

@@ -24,6 +24,7 @@ def cmd_plugins(args: argparse.Namespace, registry: Registry) -> int:
         ("quantities", registry.quantities),
         ("sinks", registry.sinks),
         ("commands", registry.commands),
+        ("calibration procedures", registry.calibrations),
     ]
     for title, registrar in sections:
         print(f"{title}:")

@@ -47,7 +47,7 @@ def quality_flags(sample: Sample) -> SampleFlag:
 
 
 def _record(sample: VectorSample, calibration: DeviceCalibration | None) -> _Correction | None:
-    """The calibration record of the sample's channel, if any."""
+    """The calibration record of the sample's quantity, if any."""
     if calibration is None:
         return None
     if isinstance(sample, AccelSample):
@@ -56,7 +56,7 @@ def _record(sample: VectorSample, calibration: DeviceCalibration | None) -> _Cor
         return calibration.gyro
     if isinstance(sample, MagSample):
         return calibration.mag
-    return None
+    return calibration.record_for(sample.channel.name)  # a plugin's vector quantity
 
 
 def _rotate(m: FloatArray, v: Vec3) -> Vec3:

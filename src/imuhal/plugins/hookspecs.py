@@ -61,3 +61,8 @@ def imuhal_register_sinks(register: Registrar) -> None:
 @hookspec
 def imuhal_register_commands(register: Registrar) -> None:
     """Register Command subclasses: each becomes an ``imuhal`` subcommand."""
+
+
+@hookspec
+def imuhal_register_calibrations(register: Registrar) -> None:
+    """Register CalibrationProcedure subclasses (``imuhal calibrate NAME PROFILE``)."""

@@ -24,6 +24,7 @@ from typing import Any
 import pluggy
 
 from imuhal.bus.factory import BusFactory
+from imuhal.calibration.procedure import CalibrationProcedure
 from imuhal.core.errors import PluginError
 from imuhal.core.samples import (
     AccelSample,
@@ -72,6 +73,9 @@ class Registry:
     commands: Registrar[Command] = field(
         default_factory=lambda: Registrar("command", Command)
     )
+    calibrations: Registrar[CalibrationProcedure] = field(
+        default_factory=lambda: Registrar("calibration procedure", CalibrationProcedure)
+    )
     plugins: dict[str, str] = field(default_factory=dict)
     """Loaded plugin name -> distribution name."""
 
@@ -87,6 +91,7 @@ class Registry:
             "imuhal_register_scenarios": self.scenarios,
             "imuhal_register_sinks": self.sinks,
             "imuhal_register_commands": self.commands,
+            "imuhal_register_calibrations": self.calibrations,
         }
 
     def registrar_for(self, hook: str) -> Registrar[Any]:

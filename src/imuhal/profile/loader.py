@@ -226,6 +226,14 @@ def _check_plugins(profile: BoardProfile, doc: LocatedDocument, registry: Regist
             out.append(f"{doc.where((*path, 'bus'))}: {dotted((*path, 'bus'))}: {dev.driver} "
                        f"cannot sit on a {kind.value} bus; it supports: {allowed}")
         out += _validate(driver.Settings, dev.settings, doc, (*path, "settings"))
+        if dev.calibration is not None:
+            vectors = [q.name for q in driver.channels if q.is_vector]
+            for key in dev.calibration.records():
+                if key not in vectors:
+                    where = (*path, "calibration", key)
+                    out.append(f"{doc.where(where)}: {dotted(where)}: {dev.driver} measures no "
+                               f"vector quantity {key!r}; it can hold calibration for: "
+                               f"{', '.join(vectors) or 'nothing'}")
     for name, est in profile.estimators.items():
         path = ("estimators", name)
         reg_e = registry.estimators.entries.get(est.estimator)
