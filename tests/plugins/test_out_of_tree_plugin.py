@@ -132,20 +132,20 @@ def test_the_plugin_quantity_sink_and_command_are_listed(installed_plugin: Path)
 
 
 @pytest.mark.slow
-def test_a_plugin_quantity_flows_through_the_pipeline_into_a_plugin_sink(
+def test_a_plugin_quantity_flows_from_its_scenario_through_the_pipeline_into_its_sink(
         installed_plugin: Path, tmp_path: Path) -> None:
     profile = tmp_path / "weather.yaml"
     profile.write_text(textwrap.dedent(HUMIDITY_PROFILE))
     log = tmp_path / "humidity.csv"
-    result = _imuhal(installed_plugin, "run", str(profile), "--emulate", "static",
+    result = _imuhal(installed_plugin, "run", str(profile), "--emulate", "humid-static",
                      "--duration", "2", "--sink", "humidity-log",
                      "--sink-set", f"humidity-log.path={log}", "--quiet")
     assert result.returncode == 0, result.stderr
     assert "hum: 20 samples" in result.stderr  # 10 Hz x 2 s, none flagged
-    rows = log.read_text().splitlines()[1:]
+    rows = [r.split(",") for r in log.read_text().splitlines()[1:]]
     assert len(rows) == 20
-    # The emulated chip reads 41.5 %RH; one count of its 16 bits is 0.0015 %RH.
-    assert all(abs(float(r.split(",")[2]) - 41.5) < 0.002 for r in rows)
+    # The plugin's world: 40 %RH + 10 %RH/s, read back within one 16-bit count (0.0015 %RH).
+    assert all(abs(float(rh) - (40.0 + 10.0 * float(t))) < 0.002 for t, _, rh in rows)
 
 
 @pytest.mark.slow

@@ -1,7 +1,7 @@
 """A third party's plugin for a fictional relative-humidity chip, written only against
 imuhal's public plugin API: it adds a quantity (humidity, %RH), its sample class, a driver and
-emulator, a sink and a command. tests/plugins/test_out_of_tree_plugin.py installs it as a
-separate package.
+emulator, a scenario whose world has humidity, a sink and a command.
+tests/plugins/test_out_of_tree_plugin.py installs it as a separate package.
 
 HH1 registers: 0x0F WHO_AM_I = 0xA7; 0x00..0x01 humidity, uint16 big-endian, 65535 = 100 %RH.
 """
@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import argparse
 import csv
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -24,12 +24,14 @@ from imuhal.core.samples import ScalarSample
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
 from imuhal.emulation import ChipEmulator
 from imuhal.plugins import Command, Registry, hookimpl
+from imuhal.sim.scenario import TruthState
+from imuhal.sim.static import StaticScenario
 from imuhal.sinks import Event, SinkPlugin
 
 HUMIDITY = Quantity("humidity", "%RH", (), "Relative humidity.")
 WHO_AM_I, DATA, IDENTITY = 0x0F, 0x00, 0xA7
 EMULATED_RH_PCT = 41.5
-"""What the emulated chip measures (the simulated world has no weather of this kind)."""
+"""What the emulated chip measures when the scenario's world has no humidity."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -83,8 +85,20 @@ class HH1Emulator(ChipEmulator):
     def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes:
         if write and write[0] == WHO_AM_I:
             return bytes([IDENTITY])[:read_len]
-        raw = round(EMULATED_RH_PCT / 100.0 * 65535)
+        rh = float(self.physics.other.get("humidity", EMULATED_RH_PCT))  # type: ignore[arg-type]
+        raw = round(min(max(rh, 0.0), 100.0) / 100.0 * 65535)
         return bytes([raw >> 8, raw & 0xFF])[:read_len]
+
+
+class HumidStatic(StaticScenario):
+    """The static bench, in air whose humidity rises 10 %RH per second from 40 %RH."""
+
+    name: ClassVar[str] = "humid-static"
+    description: ClassVar[str] = "static bench, humidity rising 10 %RH/s from 40 %RH"
+
+    def truth(self, t_s: float) -> TruthState:
+        truth = super().truth(t_s)
+        return replace(truth, other={**truth.other, "humidity": 40.0 + 10.0 * t_s})
 
 
 class HumidityLogSettings(BaseModel):
@@ -146,6 +160,11 @@ def imuhal_register_drivers(register: Any) -> None:
 @hookimpl
 def imuhal_register_emulators(register: Any) -> None:
     register(HH1Emulator)
+
+
+@hookimpl
+def imuhal_register_scenarios(register: Any) -> None:
+    register(HumidStatic)
 
 
 @hookimpl

@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any
+
+NO_OTHER: Mapping[str, Any] = MappingProxyType({})
+"""The shared empty mapping of quantities imuhal does not model."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -14,3 +20,7 @@ class PhysicalInputs:
     magnetic_field_ut: tuple[float, float, float] | None = None
     pressure_pa: float | None = None
     temperature_degc: float | None = None
+    other: Mapping[str, float | tuple[float, float, float]] = field(
+        default_factory=lambda: NO_OTHER)
+    """Quantities imuhal does not model, by quantity name, as a plugin's scenario provides
+    them (``TruthState.other``): scalars, and 3-vectors in the chip's sensor frame."""

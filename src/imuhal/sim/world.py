@@ -9,13 +9,13 @@ kinematics into a :class:`~imuhal.sim.scenario.TruthState` at any time. The help
 from __future__ import annotations
 
 from abc import abstractmethod
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
 
 from imuhal.sim.environment import Environment
-from imuhal.sim.inputs import PhysicalInputs
+from imuhal.sim.inputs import NO_OTHER, PhysicalInputs
 from imuhal.sim.magnetic import MagneticDisturbance, MagneticDisturbanceSpec
 from imuhal.sim.motion import Kinematics, Motion, mat_t_vec
 from imuhal.sim.scenario import Phase, Scenario, ScenarioParams, TruthState
@@ -107,7 +107,16 @@ def physical_inputs(truth: TruthState, sensor_to_body: Sequence[Sequence[float]]
         magnetic_field_ut=_to_sensor(truth.magnetic_field_body_ut, m) if mag else None,
         pressure_pa=truth.pressure_pa if pressure else None,
         temperature_degc=truth.temperature_degc if temperature else None,
+        other=_other_to_sensor(truth.other, m) if truth.other else NO_OTHER,
     )
+
+
+def _other_to_sensor(other: Mapping[str, Any], m: list[list[float]] | None
+                     ) -> dict[str, float | tuple[float, float, float]]:
+    """Plugin quantities' truth for one chip: scalars as they are, 3-vectors rotated into its
+    sensor frame like the built-in vectors."""
+    return {name: float(v) if np.ndim(v) == 0 else _to_sensor(np.asarray(v), m)
+            for name, v in other.items()}
 
 
 def _to_sensor(v: np.ndarray, m: list[list[float]] | None) -> tuple[float, float, float]:
