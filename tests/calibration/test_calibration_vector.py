@@ -5,8 +5,8 @@ applied by the pipeline in the sensor frame before the mount rotation."""
 from __future__ import annotations
 
 import pytest
-from tests.support import airflow_plugin
-from tests.support.airflow_plugin import ZERO_OFFSET_M_S, AirflowSample
+from tests.support import sensor_plugin
+from tests.support.sensor_plugin import ZERO_OFFSET_M_S, AirflowSample
 
 from imuhal.calibrate.session import open_raw_pipeline, run_procedure
 from imuhal.calibrate.store import write_device_calibration
@@ -30,6 +30,7 @@ devices:
     bus: i2c1
     address: 0x28
     mount: "+Y-X+Z"
+    settings: {odr_hz: 50}
 emulation:
   scenario: static
   sensor_errors: false
@@ -40,7 +41,7 @@ emulation:
 def flow_registry() -> Registry:
     return load_registry(entry_point_plugins=False, extra=[
         ("buses", builtin_buses), ("scenarios", builtin_scenarios),
-        ("calibrations", builtin_calibrations), ("airflow", airflow_plugin)])
+        ("calibrations", builtin_calibrations), ("sensors", sensor_plugin)])
 
 
 def _samples(values: list[tuple[float, float, float]]) -> list[AirflowSample]:

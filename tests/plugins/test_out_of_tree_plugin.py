@@ -1,7 +1,8 @@
 """A third-party plugin package, built and installed in a temporary directory, is found
 through its entry points and works with no change to imuhal itself: its driver runs in a
 profile, and it adds a physical quantity (relative humidity: its sample class, driver and
-emulator), a sink and a command-line command (tests/support/humidity_plugin.py)."""
+emulator), a sink and a command-line command, and a vector quantity imuhal calibrates
+(tests/support/sensor_plugin.py)."""
 
 from __future__ import annotations
 
@@ -27,8 +28,7 @@ version = "1.0"
 
 [project.entry-points.imuhal]
 acme_tc3 = "acme_tc3.plugin"
-acme_humidity = "acme_tc3.humidity"
-acme_airflow = "acme_tc3.airflow"
+acme_sensors = "acme_tc3.sensors"
 
 [tool.setuptools]
 packages = ["acme_tc3"]
@@ -84,8 +84,7 @@ def installed_plugin(tmp_path_factory: pytest.TempPathFactory) -> Path:
     (pkg / "__init__.py").write_text("")
     # The plugin's code is the test chip module: a driver and emulator that core never saw.
     shutil.copy(ROOT / "tests" / "support" / "testchip.py", pkg / "plugin.py")
-    shutil.copy(ROOT / "tests" / "support" / "humidity_plugin.py", pkg / "humidity.py")
-    shutil.copy(ROOT / "tests" / "support" / "airflow_plugin.py", pkg / "airflow.py")
+    shutil.copy(ROOT / "tests" / "support" / "sensor_plugin.py", pkg / "sensors.py")
     target = tmp_path_factory.mktemp("acme-site")
     subprocess.run(
         [sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation",
@@ -127,8 +126,8 @@ def test_the_plugin_quantity_sink_and_command_are_listed(installed_plugin: Path)
     assert out.returncode == 0, out.stderr
     lines = {li.split()[0]: li for li in out.stdout.splitlines() if li.startswith("  ")}
     assert "scalar, %RH" in lines["humidity"]
-    assert "imuhal-acme-tc3:acme_humidity" in lines["humidity-log"]
-    assert "imuhal-acme-tc3:acme_humidity" in lines["humidity-stats"]
+    assert "imuhal-acme-tc3:acme_sensors" in lines["humidity-log"]
+    assert "imuhal-acme-tc3:acme_sensors" in lines["humidity-stats"]
 
 
 @pytest.mark.slow

@@ -1,16 +1,23 @@
-"""A third party's plugin for a fictional relative-humidity chip, written only against
-imuhal's public plugin API: it adds a quantity (humidity, %RH), its sample class, a driver and
-emulator, a scenario whose world has humidity, a sink and a command.
-tests/plugins/test_out_of_tree_plugin.py installs it as a separate package.
+"""A third party's plugin for two fictional chips measuring quantities imuhal does not know,
+written only against imuhal's public plugin API (tests/plugins/test_out_of_tree_plugin.py
+installs it as a separate package; tests/calibration/test_calibration_vector.py loads it):
 
-HH1 registers: 0x0F WHO_AM_I = 0xA7; 0x00..0x01 humidity, uint16 big-endian, 65535 = 100 %RH.
+* HH1, relative humidity (a scalar, %RH): 0x00..0x01 uint16 big-endian, 65535 = 100 %RH;
+  with a scenario whose world has humidity, a sink logging it and a command summarising
+  the log.
+* AF3, air flow (a 3-vector, m/s): 0x00..0x05 int16 little-endian, 1/1024 m/s per count;
+  the emulated chip reads a fixed zero offset in still air (``ZERO_OFFSET_M_S``), which a
+  calibration should remove.
+
+Both answer WHO_AM_I at 0x0F (HH1 0xA7, AF3 0xAF) and measure continuously.
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
-from dataclasses import dataclass, replace
+import struct
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -20,7 +27,7 @@ from imuhal.bus.base import BusKind
 from imuhal.bus.registers import RegisterView
 from imuhal.core.errors import DeviceNotFoundError, ImuhalError
 from imuhal.core.quantities import Quantity
-from imuhal.core.samples import ScalarSample
+from imuhal.core.samples import Frame, Sample, ScalarSample, Vec3, VectorSample
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
 from imuhal.emulation import ChipEmulator
 from imuhal.plugins import Command, Registry, hookimpl
@@ -28,10 +35,15 @@ from imuhal.sim.scenario import TruthState
 from imuhal.sim.static import StaticScenario
 from imuhal.sinks import Event, SinkPlugin
 
+WHO_AM_I, DATA = 0x0F, 0x00
+
 HUMIDITY = Quantity("humidity", "%RH", (), "Relative humidity.")
-WHO_AM_I, DATA, IDENTITY = 0x0F, 0x00, 0xA7
 EMULATED_RH_PCT = 41.5
-"""What the emulated chip measures when the scenario's world has no humidity."""
+"""What the emulated HH1 measures when the scenario's world has no humidity."""
+
+AIRFLOW = Quantity("airflow", "m/s", (3,), "Air velocity relative to the board.")
+M_S_PER_COUNT = 1.0 / 1024
+ZERO_OFFSET_M_S: Vec3 = (0.5, -0.25, 0.125)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -46,15 +58,33 @@ class HumiditySample(ScalarSample):
         return self.humidity_pct
 
 
-class HH1Settings(DriverSettings):
+@dataclass(frozen=True, slots=True, kw_only=True)
+class AirflowSample(VectorSample):
+    """Air velocity in m/s."""
+
+    airflow_m_s: Vec3 = field(default=(0.0, 0.0, 0.0))
+    channel: ClassVar[Quantity] = AIRFLOW
+
+    @property
+    def vector(self) -> Vec3:
+        return self.airflow_m_s
+
+    def with_vector(self, vector: Vec3, frame: Frame) -> AirflowSample:
+        return AirflowSample(t_ns=self.t_ns, device=self.device, flags=self.flags, frame=frame,
+                             airflow_m_s=(float(vector[0]), float(vector[1]), float(vector[2])))
+
+
+class RateSettings(DriverSettings):
     odr_hz: float = 10.0
 
 
-class HH1Driver(Driver):
-    name: ClassVar[str] = "hh1"
-    description: ClassVar[str] = "fictional relative-humidity chip"
-    Settings = HH1Settings
-    channels = (HUMIDITY,)
+class _ContinuousDriver(Driver):
+    """A chip identified by WHO_AM_I that measures continuously; ``_decode`` turns the
+    ``data_len`` bytes at DATA into a sample."""
+
+    who_am_i: ClassVar[int]
+    data_len: ClassVar[int]
+    Settings = RateSettings
     bus_kinds = frozenset({BusKind.I2C})
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
@@ -63,31 +93,82 @@ class HH1Driver(Driver):
 
     def probe(self) -> DeviceIdentity:
         found = self.regs.read_u8(WHO_AM_I)
-        if found != IDENTITY:
+        expected = f"WHO_AM_I=0x{self.who_am_i:02X}"
+        if found != self.who_am_i:
             raise DeviceNotFoundError(driver=self.name, bus=self.link.bus.name,
-                                      address=self.link.target, expected="WHO_AM_I=0xA7",
+                                      address=self.link.target, expected=expected,
                                       found=f"WHO_AM_I=0x{found:02X}")
-        return DeviceIdentity(self.name, self.link.bus.name, self.link.target, "WHO_AM_I=0xA7")
+        return DeviceIdentity(self.name, self.link.bus.name, self.link.target, expected)
 
     def configure(self) -> None:
         """Nothing to set: the chip measures continuously."""
 
     def poll(self, now_ns: int) -> PollResult:
-        hi, lo = self.regs.read(DATA, 2)
-        sample = HumiditySample(t_ns=now_ns, device=self.device,
-                                humidity_pct=((hi << 8) | lo) * 100.0 / 65535)
+        sample = self._decode(now_ns, self.regs.read(DATA, self.data_len))
         return PollResult([sample], now_ns + round(1e9 / self.settings.odr_hz))
 
+    def _decode(self, now_ns: int, raw: bytes) -> Sample:
+        raise NotImplementedError
 
-class HH1Emulator(ChipEmulator):
-    chip = "hh1"
+
+class HH1Driver(_ContinuousDriver):
+    name: ClassVar[str] = "hh1"
+    description: ClassVar[str] = "fictional relative-humidity chip"
+    channels = (HUMIDITY,)
+    who_am_i = 0xA7
+    data_len = 2
+
+    def _decode(self, now_ns: int, raw: bytes) -> Sample:
+        return HumiditySample(t_ns=now_ns, device=self.device,
+                              humidity_pct=((raw[0] << 8) | raw[1]) * 100.0 / 65535)
+
+
+class AF3Driver(_ContinuousDriver):
+    name: ClassVar[str] = "af3"
+    description: ClassVar[str] = "fictional 3-axis air-flow sensor"
+    channels = (AIRFLOW,)
+    who_am_i = 0xAF
+    data_len = 6
+
+    def _decode(self, now_ns: int, raw: bytes) -> Sample:
+        x, y, z = struct.unpack("<hhh", raw)
+        return AirflowSample(t_ns=now_ns, device=self.device,
+                             airflow_m_s=(x * M_S_PER_COUNT, y * M_S_PER_COUNT,
+                                          z * M_S_PER_COUNT))
+
+
+class _ContinuousEmulator(ChipEmulator):
+    """Answers WHO_AM_I, and any other read with ``data()`` (the current measurement)."""
+
+    who_am_i: ClassVar[int]
 
     def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes:
         if write and write[0] == WHO_AM_I:
-            return bytes([IDENTITY])[:read_len]
+            return bytes([self.who_am_i])[:read_len]
+        return self.data()[:read_len]
+
+    def data(self) -> bytes:
+        raise NotImplementedError
+
+
+class HH1Emulator(_ContinuousEmulator):
+    chip = "hh1"
+    who_am_i = 0xA7
+
+    def data(self) -> bytes:
         rh = float(self.physics.other.get("humidity", EMULATED_RH_PCT))  # type: ignore[arg-type]
         raw = round(min(max(rh, 0.0), 100.0) / 100.0 * 65535)
-        return bytes([raw >> 8, raw & 0xFF])[:read_len]
+        return bytes([raw >> 8, raw & 0xFF])
+
+
+class AF3Emulator(_ContinuousEmulator):
+    """Still air: the chip reads only its zero offset."""
+
+    chip = "af3"
+    who_am_i = 0xAF
+
+    def data(self) -> bytes:
+        return struct.pack("<hhh", *(round(v / M_S_PER_COUNT) for v in ZERO_OFFSET_M_S))
 
 
 class HumidStatic(StaticScenario):
@@ -150,16 +231,19 @@ class HumidityStats(Command):
 @hookimpl
 def imuhal_register_quantities(register: Any) -> None:
     register(HumiditySample)
+    register(AirflowSample)
 
 
 @hookimpl
 def imuhal_register_drivers(register: Any) -> None:
     register(HH1Driver)
+    register(AF3Driver)
 
 
 @hookimpl
 def imuhal_register_emulators(register: Any) -> None:
     register(HH1Emulator)
+    register(AF3Emulator)
 
 
 @hookimpl
