@@ -98,8 +98,8 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
             csv_sink = CsvSink(args.output, include_samples=args.samples, frame=frame)
             sinks.append(csv_sink)
         truth_sink = None
-        if args.truth and isinstance(pipeline.board, EmulatedBoard):
-            truth_sink = TruthSink(args.truth, pipeline.board.scenario,
+        if args.truth:
+            truth_sink = TruthSink(args.truth, EmulatedBoard.of(pipeline).scenario,
                                    include_samples=args.samples)
             sinks.append(truth_sink)
         sinks.extend(plugin_sinks)

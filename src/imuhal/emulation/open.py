@@ -4,9 +4,8 @@
 flying a scenario on a simulated clock, and returns an ordinary
 :class:`~imuhal.pipeline.Pipeline` over them. Everything simulation-specific (scenario,
 seed, sensor error models, pacing against the wall clock) is chosen here; the pipeline only
-sees a :class:`~imuhal.pipeline.board.Board`. The board stays reachable as
-``pipeline.board`` (an :class:`~imuhal.emulation.board.EmulatedBoard`: its ``emulators`` by
-device name, its ``scenario`` and ``truth_at(t_ns)``).
+sees a :class:`~imuhal.pipeline.board.Board`. ``EmulatedBoard.of(pipeline)`` returns the
+board, typed (its ``emulators`` by device name, its ``scenario`` and ``truth_at(t_ns)``).
 """
 
 from __future__ import annotations
