@@ -1,5 +1,5 @@
-"""The emulated bus, as emulator plugins import it (defined in :mod:`imuhal.sim.emulated_bus`)."""
+"""The emulated bus, as emulator plugins import it (defined in :mod:`imuhal.sim.chip`)."""
 
-from imuhal.sim.emulated_bus import EmulatedBus
+from imuhal.sim.chip import EmulatedBus
 
 __all__ = ["EmulatedBus"]

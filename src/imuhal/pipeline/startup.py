@@ -14,12 +14,13 @@ then it installs the offsets and passes the pipeline's events on as usual.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from typing import TYPE_CHECKING
+from collections.abc import Iterator, Mapping
+from typing import Protocol
 
 from imuhal.calibration.errors import CalibrationError
 from imuhal.calibration.gyro import GyroOffsetProcedure
 from imuhal.calibration.model import (
+    CalibrationBinding,
     DeviceCalibration,
     GyroCalibration,
     GyroStartupSettings,
@@ -27,13 +28,28 @@ from imuhal.calibration.model import (
 )
 from imuhal.calibration.progress import ProgressCallback
 from imuhal.core.samples import Channel, Sample
+from imuhal.pipeline.runtime import DeviceRuntime
+from imuhal.profile.model import BoardProfile
 from imuhal.sinks.base import Event
 
-if TYPE_CHECKING:  # the pipeline applies this phase to itself
-    from imuhal.pipeline.pipeline import Pipeline
+
+class Host(Protocol):
+    """What the start-up phase needs of the pipeline that runs it."""
+
+    calibrated: bool
+    """False while the phase runs: the host then yields raw sensor-frame samples."""
+    warnings: list[str]
+
+    @property
+    def profile(self) -> BoardProfile: ...
+
+    @property
+    def devices(self) -> Mapping[str, DeviceRuntime]: ...
+
+    def calibration_binding(self, device: str) -> CalibrationBinding: ...
 
 
-def startup_settings(pipeline: Pipeline) -> dict[str, GyroStartupSettings]:
+def startup_settings(pipeline: Host) -> dict[str, GyroStartupSettings]:
     """Devices of the pipeline that ask for start-up gyro offsets, with their settings."""
     out = {}
     for name, dev in pipeline.devices.items():
@@ -44,7 +60,7 @@ def startup_settings(pipeline: Pipeline) -> dict[str, GyroStartupSettings]:
     return out
 
 
-def startup_gyro_phase(pipeline: Pipeline, source: Iterator[Event],
+def startup_gyro_phase(pipeline: Host, source: Iterator[Event],
                        progress: ProgressCallback | None = None) -> Iterator[Event]:
     """``source`` (the pipeline's event stream), preceded by the start-up gyro measurement
     of every device that asks for it (see the module docstring)."""
@@ -78,7 +94,7 @@ def startup_gyro_phase(pipeline: Pipeline, source: Iterator[Event],
     yield from source
 
 
-def _install(pipeline: Pipeline, device: str, proc: GyroOffsetProcedure) -> None:
+def _install(pipeline: Host, device: str, proc: GyroOffsetProcedure) -> None:
     dev = pipeline.devices[device]
     cal = dev.calibration or DeviceCalibration()
     result = proc.finish()

@@ -14,107 +14,23 @@ from __future__ import annotations
 
 import inspect
 import os
-from collections.abc import Callable, Iterable, Iterator
-from contextlib import ExitStack, contextmanager
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterable
 from importlib.metadata import entry_points
 from types import ModuleType, SimpleNamespace
 from typing import Any
 
 import pluggy
 
-from imuhal.bus.factory import BusFactory
-from imuhal.calibration.procedure import CalibrationProcedure
 from imuhal.core.errors import PluginError
-from imuhal.core.samples import (
-    AccelSample,
-    GyroSample,
-    MagSample,
-    PressureSample,
-    Sample,
-    ScalarSample,
-    TemperatureSample,
-    VectorSample,
-)
-from imuhal.drivers.base import Driver
-from imuhal.estimation.base import Estimator
+from imuhal.core.samples import ScalarSample, VectorSample
 from imuhal.plugins import hookspecs
-from imuhal.plugins.commands import Command
 from imuhal.plugins.registrars import Registrar
-from imuhal.sim.chip import ChipEmulator
-from imuhal.sim.scenario import Scenario
-from imuhal.sinks.base import SinkPlugin
+from imuhal.plugins.registry import Registry
+
+__all__ = ["ENV_ALLOW", "ENV_BLOCK", "Registry", "load_registry"]
 
 ENV_ALLOW = "IMUHAL_PLUGINS"
 ENV_BLOCK = "IMUHAL_DISABLE_PLUGINS"
-
-
-@dataclass
-class Registry:
-    """Everything the installed plugins registered."""
-
-    drivers: Registrar[Driver] = field(default_factory=lambda: Registrar("driver", Driver))
-    emulators: Registrar[ChipEmulator] = field(
-        default_factory=lambda: Registrar("emulator", ChipEmulator, name_attr="chip")
-    )
-    estimators: Registrar[Estimator] = field(
-        default_factory=lambda: Registrar("estimator", Estimator)
-    )
-    buses: Registrar[BusFactory] = field(
-        default_factory=lambda: Registrar("bus kind", BusFactory, name_attr="scheme")
-    )
-    scenarios: Registrar[Scenario] = field(
-        default_factory=lambda: Registrar("scenario", Scenario)
-    )
-    quantities: Registrar[Sample] = field(default_factory=lambda: _quantities())
-    """Sample classes by the name of the quantity they carry (``channel.name``); imuhal's
-    own (accel, gyro, mag, pressure, temperature) are always there."""
-    sinks: Registrar[SinkPlugin] = field(default_factory=lambda: Registrar("sink", SinkPlugin))
-    commands: Registrar[Command] = field(
-        default_factory=lambda: Registrar("command", Command)
-    )
-    calibrations: Registrar[CalibrationProcedure] = field(
-        default_factory=lambda: Registrar("calibration procedure", CalibrationProcedure)
-    )
-    plugins: dict[str, str] = field(default_factory=dict)
-    """Loaded plugin name -> distribution name."""
-
-    def hooks(self) -> dict[str, Registrar[Any]]:
-        """Each hook's name and the registrar its implementations are called with, in the
-        order the loader calls them."""
-        return {
-            "imuhal_register_quantities": self.quantities,
-            "imuhal_register_buses": self.buses,
-            "imuhal_register_drivers": self.drivers,
-            "imuhal_register_emulators": self.emulators,
-            "imuhal_register_estimators": self.estimators,
-            "imuhal_register_scenarios": self.scenarios,
-            "imuhal_register_sinks": self.sinks,
-            "imuhal_register_commands": self.commands,
-            "imuhal_register_calibrations": self.calibrations,
-        }
-
-    def registrar_for(self, hook: str) -> Registrar[Any]:
-        return self.hooks()[hook]
-
-    @contextmanager
-    def registering(self, plugin: str) -> Iterator[None]:
-        """Registrations made inside (by any registrar) are recorded as ``plugin``'s."""
-        package = self.plugins.get(plugin, "")
-        with ExitStack() as stack:
-            for registrar in self.hooks().values():
-                stack.enter_context(registrar.registering(plugin, package))
-            yield
-
-
-def _quantities() -> Registrar[Sample]:
-    registrar: Registrar[Sample] = Registrar(
-        "quantity", Sample, name_attr="channel",
-        name_of=lambda cls: getattr(getattr(cls, "channel", None), "name", ""))
-    with registrar.registering("imuhal", "imuhal"):
-        for cls in (AccelSample, GyroSample, MagSample, PressureSample, TemperatureSample):
-            registrar(cls)
-    return registrar
 
 
 def _split_env(name: str) -> set[str] | None:
