@@ -36,7 +36,7 @@ class VectorZeroSettings(BaseModel):
 class VectorZeroProcedure(CalibrationProcedure):
     """Offsets of a vector quantity at rest (any vector quantity; ``--quantity``)."""
 
-    name: ClassVar[str] = "vector-zero"
+    name = "vector-zero"
     description: ClassVar[str] = "zero offsets of any vector quantity, measured at rest"
     Settings = VectorZeroSettings
 

@@ -6,6 +6,7 @@ import argparse
 from typing import Any
 
 from imuhal.plugins.manager import Registry
+from imuhal.plugins.registrars import Registrar
 
 
 def add_parser(sub: Any) -> None:
@@ -15,7 +16,7 @@ def add_parser(sub: Any) -> None:
 
 
 def cmd_plugins(args: argparse.Namespace, registry: Registry) -> int:
-    sections = [
+    sections: list[tuple[str, Registrar[Any]]] = [
         ("drivers", registry.drivers),
         ("emulators", registry.emulators),
         ("estimators", registry.estimators),

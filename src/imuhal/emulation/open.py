@@ -57,6 +57,7 @@ def open_emulated(
     run_seed = profile.emulation.seed if seed is None else seed
     world = scenario_cls(params or None, seed=run_seed)
     use_errors = profile.emulation.sensor_errors if sensor_errors is None else sensor_errors
+    errors: dict[str, SensorErrorModel] | None
     if error_specs is not None:
         errors = {dev: SensorErrorModel(spec, seed=device_seed(run_seed, dev))
                   for dev, spec in error_specs.items() if spec is not None}

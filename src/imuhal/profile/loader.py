@@ -187,7 +187,7 @@ def _bus_kind(profile: BoardProfile, ref: str, bus_kinds: dict[str, BusKind | No
     parent, child = ref.split("/", 1)
     cfg = profile.devices.get(parent)
     reg = registry.drivers.entries.get(cfg.driver) if cfg is not None else None
-    if reg is None:
+    if cfg is None or reg is None:
         return None, ""  # the topology check names a missing parent device
     provided = reg.obj.child_bus_kinds
     if child not in provided:
