@@ -4,8 +4,15 @@ from __future__ import annotations
 
 import pytest
 
-from imuhal.core.quantities import BUILTIN_QUANTITIES, Quantity
-from imuhal.core.samples import AccelSample, Channel, Frame, PressureSample, SampleFlag
+from imuhal.core.quantities import Quantity
+from imuhal.core.samples import (
+    SAMPLE_TYPES,
+    AccelSample,
+    Channel,
+    Frame,
+    PressureSample,
+    SampleFlag,
+)
 
 
 def test_a_new_sample_is_valid_and_in_the_sensor_frame() -> None:
@@ -20,7 +27,7 @@ def test_flagging_returns_an_invalid_copy() -> None:
 
 
 def test_builtin_quantities_document_their_units_and_shapes() -> None:
-    assert {(q.name, q.unit, q.shape) for q in BUILTIN_QUANTITIES} == {
+    assert {(q.name, q.unit, q.shape) for q in SAMPLE_TYPES} == {
         ("accel", "m/s^2", (3,)), ("gyro", "rad/s", (3,)), ("mag", "uT", (3,)),
         ("pressure", "Pa", ()), ("temperature", "degC", ())}
 

@@ -60,8 +60,5 @@ Quantity.MAG = Quantity("mag", "uT", (3,), "Magnetic flux density.")
 Quantity.PRESSURE = Quantity("pressure", "Pa", (), "Static pressure.")
 Quantity.TEMPERATURE = Quantity("temperature", "degC", (), "Die temperature.")
 
-BUILTIN_QUANTITIES: tuple[Quantity, ...] = (
-    Quantity.ACCEL, Quantity.GYRO, Quantity.MAG, Quantity.PRESSURE, Quantity.TEMPERATURE)
-
 Channel = Quantity
 """The former name of :class:`Quantity` (``Channel.ACCEL`` is ``Quantity.ACCEL``)."""

@@ -163,6 +163,17 @@ class TemperatureSample(ScalarSample):
         return self.temperature_degc
 
 
+SAMPLE_TYPES: dict[Channel, type[Sample]] = {
+    Channel.ACCEL: AccelSample,
+    Channel.GYRO: GyroSample,
+    Channel.MAG: MagSample,
+    Channel.PRESSURE: PressureSample,
+    Channel.TEMPERATURE: TemperatureSample,
+}
+"""imuhal's own quantities and their sample classes (always in ``Registry.quantities``;
+plugins add theirs through ``imuhal_register_quantities``)."""
+
+
 def _vec3(v: Sequence[float]) -> Vec3:
     return (float(v[0]), float(v[1]), float(v[2]))
 

@@ -19,14 +19,7 @@ from typing import Any, ClassVar
 
 from imuhal.bus.factory import BusFactory
 from imuhal.calibration.procedure import CalibrationProcedure
-from imuhal.core.samples import (
-    AccelSample,
-    GyroSample,
-    MagSample,
-    PressureSample,
-    Sample,
-    TemperatureSample,
-)
+from imuhal.core.samples import SAMPLE_TYPES, Sample
 from imuhal.drivers.base import Driver
 from imuhal.estimation.base import Estimator
 from imuhal.plugins.registrars import Registrar
@@ -115,6 +108,6 @@ def _quantities() -> Registrar[Sample]:
         "quantity", Sample, name_attr="channel",
         name_of=lambda cls: getattr(getattr(cls, "channel", None), "name", ""))
     with registrar.registering("imuhal", "imuhal"):
-        for cls in (AccelSample, GyroSample, MagSample, PressureSample, TemperatureSample):
+        for cls in SAMPLE_TYPES.values():
             registrar(cls)
     return registrar
