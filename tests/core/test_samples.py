@@ -12,6 +12,7 @@ from imuhal.core.samples import (
     Frame,
     PressureSample,
     SampleFlag,
+    VelocitySample,
 )
 
 
@@ -29,12 +30,21 @@ def test_flagging_returns_an_invalid_copy() -> None:
 def test_builtin_quantities_document_their_units_and_shapes() -> None:
     assert {(q.name, q.unit, q.shape) for q in SAMPLE_TYPES} == {
         ("accel", "m/s^2", (3,)), ("gyro", "rad/s", (3,)), ("mag", "uT", (3,)),
-        ("pressure", "Pa", ()), ("temperature", "degC", ())}
+        ("pressure", "Pa", ()), ("temperature", "degC", ()), ("velocity", "m/s", (3,)),
+        ("airspeed", "m/s", ())}
 
 
 def test_a_quantity_must_be_a_scalar_or_a_three_axis_vector() -> None:
     with pytest.raises(ValueError, match="shape"):
         Quantity("strain", "1", (2, 2))
+
+
+def test_a_velocity_sample_is_earth_frame_and_carries_its_accuracy() -> None:
+    v = VelocitySample(t_ns=3, device="gps", velocity_ned_m_s=(9.0, 2.0, -1.5),
+                       accuracy_m_s=0.1)
+    assert v.channel is Channel.VELOCITY and v.valid
+    assert not hasattr(v, "frame")  # NED by definition: no mount rotation applies to it
+    assert (v.velocity_ned_m_s, v.accuracy_m_s) == ((9.0, 2.0, -1.5), 0.1)
 
 
 def test_with_vector_changes_value_and_frame_only() -> None:

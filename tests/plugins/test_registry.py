@@ -123,7 +123,7 @@ def test_a_quantity_whose_sample_class_has_the_wrong_shape_is_rejected() -> None
         register(WindSample)
 
     bad = _module("bad", imuhal_register_quantities=imuhal_register_quantities)
-    with pytest.raises(PluginError, match=r"plugin 'bad'.*'wind'.*must subclass VectorSample"):
+    with pytest.raises(PluginError, match=r"plugin 'bad'.*'wind'.*must carry a vector"):
         load_registry(entry_point_plugins=False, extra=[("bad", bad)])
 
 

@@ -26,7 +26,7 @@ from imuhal.calibration.model import DeviceCalibration, GyroStartupSettings, now
 from imuhal.calibration.progress import Progress, ProgressKind
 from imuhal.core.errors import ImuhalError
 from imuhal.core.frames import parse_mount
-from imuhal.core.samples import Channel
+from imuhal.core.samples import Channel, VectorSample
 from imuhal.offline.settings_args import build_settings, parse_set_arguments
 from imuhal.plugins.manager import Registry
 from imuhal.profile.loader import load_profile
@@ -262,8 +262,7 @@ def _registered_quantity(args: argparse.Namespace, registry: Registry) -> str:
                           f"--quantity {args.quantity}")
     if name in CHANNELS:
         raise ImuhalError(f"{name} has its own procedure: run `imuhal calibrate {name}`")
-    quantity = registry.quantities.get(name).channel
-    if not quantity.is_vector:
-        raise ImuhalError(f"{name} is a scalar quantity; calibration applies to vector "
-                          "quantities only")
+    if not issubclass(registry.quantities.get(name), VectorSample):
+        raise ImuhalError(f"{name} is not a vector in the chip's frame; calibration applies "
+                          "to those only")
     return name

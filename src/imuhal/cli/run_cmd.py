@@ -128,7 +128,7 @@ def _plugin_sinks(names: list[str], settings: list[str], registry: Registry) -> 
     out = []
     for name, items in per_sink.items():
         cls = registry.sinks.get(name)
-        values = parse_set_arguments(items, option=f"--sink-set {name}.")
+        values = parse_set_arguments(items, f"--sink-set {name}.")
         out.append(cls(build_settings(cls.Settings, values, f"sink {name!r}",
-                                      prefix=f"--sink-set {name}.")))
+                                      flag=f"--sink-set {name}.")))
     return out

@@ -31,6 +31,8 @@ class Quantity:
     MAG: ClassVar[Quantity]
     PRESSURE: ClassVar[Quantity]
     TEMPERATURE: ClassVar[Quantity]
+    VELOCITY: ClassVar[Quantity]
+    AIRSPEED: ClassVar[Quantity]
 
     def __post_init__(self) -> None:
         if not self.name.isidentifier() or self.name != self.name.lower():
@@ -59,6 +61,11 @@ Quantity.GYRO = Quantity("gyro", "rad/s", (3,), "Angular rate, right-handed abou
 Quantity.MAG = Quantity("mag", "uT", (3,), "Magnetic flux density.")
 Quantity.PRESSURE = Quantity("pressure", "Pa", (), "Static pressure.")
 Quantity.TEMPERATURE = Quantity("temperature", "degC", (), "Die temperature.")
+Quantity.VELOCITY = Quantity(
+    "velocity", "m/s", (3,),
+    "Velocity over ground in NED (north, east, down), e.g. from a GNSS receiver.")
+Quantity.AIRSPEED = Quantity(
+    "airspeed", "m/s", (), "True airspeed along the body x axis, e.g. from a pitot tube.")
 
 Channel = Quantity
 """The former name of :class:`Quantity` (``Channel.ACCEL`` is ``Quantity.ACCEL``)."""

@@ -14,7 +14,7 @@ class SettingsArgumentError(ImuhalError):
     pass
 
 
-def parse_set_arguments(items: list[str], option: str = "--set") -> dict[str, Any]:
+def parse_set_arguments(items: list[str], flag: str = "--set") -> dict[str, Any]:
     """``["beta=0.1", "accel_gate_g=0.6,1.4"]`` -> ``{"beta": 0.1, "accel_gate_g": [0.6, 1.4]}``.
 
     Values are YAML scalars (numbers, true/false, null, strings); commas make a list.
@@ -24,10 +24,9 @@ def parse_set_arguments(items: list[str], option: str = "--set") -> dict[str, An
         key, sep, raw = item.partition("=")
         key = key.strip()
         if not sep or not key:
-            example = ", e.g. --set beta=0.1" if option == "--set" else ""
-            raise SettingsArgumentError(f"{option} {item!r}: write KEY=VALUE{example}")
+            raise SettingsArgumentError(f"{flag} {item!r}: write KEY=VALUE, e.g. {flag} beta=0.1")
         if key in out:
-            raise SettingsArgumentError(f"{option} {key}: given twice")
+            raise SettingsArgumentError(f"{_named(flag, key)}: given twice")
         parts = [_scalar(p) for p in raw.split(",")] if "," in raw else _scalar(raw)
         out[key] = parts
     return out
@@ -41,9 +40,9 @@ def _scalar(text: str) -> Any:
 
 
 def build_settings(model: type[BaseModel], values: dict[str, Any], owner: str,
-                   prefix: str = "--set ") -> BaseModel:
-    """Validate ``values`` with ``model``; every problem names its key (after ``prefix``,
-    the option as the user wrote it) and the allowed ones."""
+                   flag: str = "--set") -> BaseModel:
+    """Validate ``values`` with ``model``; every problem names its ``flag`` key and the
+    allowed."""
     try:
         return model.model_validate(values)
     except ValidationError as exc:
@@ -52,8 +51,15 @@ def build_settings(model: type[BaseModel], values: dict[str, Any], owner: str,
             key = ".".join(str(p) for p in err["loc"]) or "(settings)"
             if err["type"] == "extra_forbidden":
                 allowed = ", ".join(model.model_fields)
-                problems.append(f"{prefix}{key}: {owner} has no such setting; "
+                problems.append(f"{_named(flag, key)}: {owner} has no such setting; "
                                 f"settings: {allowed or 'none'}")
             else:
-                problems.append(f"{prefix}{key}: {err['msg']} (found {err.get('input')!r})")
+                problems.append(f"{_named(flag, key)}: {err['msg']} "
+                                f"(found {err.get('input')!r})")
         raise SettingsArgumentError("; ".join(problems)) from None
+
+
+def _named(flag: str, key: str) -> str:
+    """How the user wrote the setting: ``--set beta``, or ``--sink-set log.path`` for a flag
+    that takes ``NAME.KEY`` (given as ``--sink-set log.``)."""
+    return f"{flag}{key}" if flag.endswith(".") else f"{flag} {key}"

@@ -22,7 +22,7 @@ from typing import Any
 import pluggy
 
 from imuhal.core.errors import PluginError
-from imuhal.core.samples import ScalarSample, VectorSample
+from imuhal.core.samples import ScalarSample
 from imuhal.plugins import hookspecs
 from imuhal.plugins.registrars import Registrar
 from imuhal.plugins.registry import Registry
@@ -136,12 +136,18 @@ def _check_emulators(registry: Registry) -> None:
 
 
 def _check_quantities(registry: Registry) -> None:
-    """A quantity's sample class must carry a value of its declared shape."""
+    """A scalar quantity's sample class must carry a scalar. A vector quantity's is a
+    VectorSample when its vector is in the chip's frame (calibrated and rotated into the body
+    frame by the pipeline), or any Sample that carries a vector in a frame of its own (e.g.
+    VelocitySample, NED), which the pipeline passes on unchanged."""
     for name, reg in registry.quantities.entries.items():
-        vector = reg.obj.channel.is_vector
-        if not issubclass(reg.obj, VectorSample if vector else ScalarSample):
-            need = "VectorSample" if vector else "ScalarSample"
+        quantity = reg.obj.channel
+        if not quantity.is_vector and not issubclass(reg.obj, ScalarSample):
             raise PluginError(
-                f"plugin {reg.plugin!r}: quantity {name!r} has shape "
-                f"{reg.obj.channel.shape}, so its sample class {reg.obj.__name__} must "
-                f"subclass {need}")
+                f"plugin {reg.plugin!r}: quantity {name!r} is a scalar, so its sample class "
+                f"{reg.obj.__name__} must subclass ScalarSample")
+        if quantity.is_vector and issubclass(reg.obj, ScalarSample):
+            raise PluginError(
+                f"plugin {reg.plugin!r}: quantity {name!r} has shape {quantity.shape}, so its "
+                f"sample class {reg.obj.__name__} must carry a vector (subclass VectorSample "
+                "for one in the chip's frame), not subclass ScalarSample")

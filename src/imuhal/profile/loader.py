@@ -17,6 +17,7 @@ from pydantic import BaseModel, ValidationError
 
 from imuhal.bus.base import BusKind
 from imuhal.core.errors import ProfileError
+from imuhal.core.samples import VectorSample
 from imuhal.plugins.manager import Registry
 from imuhal.profile.model import SCHEMA_VERSION, BoardProfile
 from imuhal.profile.yaml_source import LocatedDocument, Path, dotted, load_located
@@ -178,6 +179,13 @@ def _check_references(profile: BoardProfile, doc: LocatedDocument) -> list[str]:
     return out
 
 
+def _calibratable(quantity: str, registry: Registry) -> bool:
+    """Whether ``quantity`` is a vector in the chip's frame (a VectorSample): what a
+    calibration record corrects."""
+    reg = registry.quantities.entries.get(quantity)
+    return reg is not None and issubclass(reg.obj, VectorSample)
+
+
 def _bus_kind(profile: BoardProfile, ref: str, bus_kinds: dict[str, BusKind | None],
               registry: Registry) -> tuple[BusKind | None, str]:
     """The kind of bus ``ref`` (a profile bus, or ``DEVICE/CHILD``: a bus a chip provides, of
@@ -227,7 +235,7 @@ def _check_plugins(profile: BoardProfile, doc: LocatedDocument, registry: Regist
                        f"cannot sit on a {kind.value} bus; it supports: {allowed}")
         out += _validate(driver.Settings, dev.settings, doc, (*path, "settings"))
         if dev.calibration is not None:
-            vectors = [q.name for q in driver.channels if q.is_vector]
+            vectors = [q.name for q in driver.channels if _calibratable(q.name, registry)]
             for key in dev.calibration.records():
                 if key not in vectors:
                     where = (*path, "calibration", key)
