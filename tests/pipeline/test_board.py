@@ -16,7 +16,7 @@ from imuhal.emulation import EmulatedBoard, open_emulated
 from imuhal.pipeline import Pipeline
 from imuhal.plugins.manager import Registry
 from imuhal.profile.loader import parse_profile
-from imuhal.sim.chip import EmulatedBus
+from imuhal.sim.emulated_bus import EmulatedBus
 
 PROFILE = """\
 schema_version: 1

@@ -16,7 +16,8 @@ from imuhal.pipeline.pipeline import Pipeline
 from imuhal.plugins.manager import Registry
 from imuhal.profile.model import BoardProfile
 from imuhal.profile.topology import device_order, split_bus_ref
-from imuhal.sim.chip import ChipEmulator, EmulatedBus
+from imuhal.sim.chip import ChipEmulator
+from imuhal.sim.emulated_bus import EmulatedBus
 from imuhal.sim.errors import SensorErrorModel
 from imuhal.sim.scenario import Scenario, TruthState
 from imuhal.sim.world import physical_inputs

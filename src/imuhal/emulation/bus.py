@@ -1,5 +1,5 @@
-"""The emulated bus, as emulator plugins import it (defined in :mod:`imuhal.sim.chip`)."""
+"""The emulated bus, as emulator plugins import it (defined in :mod:`imuhal.sim.emulated_bus`)."""
 
-from imuhal.sim.chip import EmulatedBus
+from imuhal.sim.emulated_bus import EmulatedBus
 
 __all__ = ["EmulatedBus"]

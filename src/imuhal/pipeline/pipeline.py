@@ -12,20 +12,22 @@ from __future__ import annotations
 
 import heapq
 import time
+from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from imuhal.bus.base import Bus, Link
 from imuhal.bus.spy import SpyBus, Transfer
 from imuhal.calibration.model import CalibrationBinding, DeviceCalibration
 from imuhal.core.conventions import get_convention
 from imuhal.core.errors import BusError, ImuhalError, PluginError
+from imuhal.core.frames import FloatArray
 from imuhal.core.samples import Sample, SampleFlag
-from imuhal.drivers.base import DeviceIdentity
+from imuhal.drivers.base import DeviceIdentity, Driver
+from imuhal.estimation.base import Estimator
 from imuhal.estimation.framed import FramedEvent, express
 from imuhal.pipeline.board import Board, open_hardware_board
 from imuhal.pipeline.processing import calibrate_to_body, quality_flags
-from imuhal.pipeline.runtime import DeviceRuntime, EstimatorRuntime
 from imuhal.pipeline.startup import startup_gyro_phase
 from imuhal.plugins.manager import Registry
 from imuhal.profile.model import BoardProfile
@@ -34,6 +36,28 @@ from imuhal.sinks.base import Event, Sink
 
 RECOVERY_BACKOFF_NS = 100_000_000
 """After a failed recovery, wait this long before trying the device again (100 ms)."""
+
+
+@dataclass
+class DeviceRuntime:
+    name: str
+    driver: Driver
+    chip_to_body: FloatArray
+    calibration: DeviceCalibration | None
+    next_poll_ns: int = 0
+    device_errors: int = 0
+    warned: set[str] = field(default_factory=set)
+    samples: int = 0
+    flagged: Counter[str] = field(default_factory=Counter)
+
+
+@dataclass
+class EstimatorRuntime:
+    name: str
+    estimator: Estimator
+    inputs: frozenset[str] | None
+    consumes: tuple[type, ...]
+    outputs: int = 0
 
 
 @dataclass

@@ -14,13 +14,12 @@ then it installs the offsets and passes the pipeline's events on as usual.
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
-from typing import Protocol
+from collections.abc import Iterator
+from typing import TYPE_CHECKING
 
 from imuhal.calibration.errors import CalibrationError
 from imuhal.calibration.gyro import GyroOffsetProcedure
 from imuhal.calibration.model import (
-    CalibrationBinding,
     DeviceCalibration,
     GyroCalibration,
     GyroStartupSettings,
@@ -28,28 +27,13 @@ from imuhal.calibration.model import (
 )
 from imuhal.calibration.progress import ProgressCallback
 from imuhal.core.samples import Channel, Sample
-from imuhal.pipeline.runtime import DeviceRuntime
-from imuhal.profile.model import BoardProfile
 from imuhal.sinks.base import Event
 
-
-class Host(Protocol):
-    """What the start-up phase needs of the pipeline that runs it."""
-
-    calibrated: bool
-    """False while the phase runs: the host then yields raw sensor-frame samples."""
-    warnings: list[str]
-
-    @property
-    def profile(self) -> BoardProfile: ...
-
-    @property
-    def devices(self) -> Mapping[str, DeviceRuntime]: ...
-
-    def calibration_binding(self, device: str) -> CalibrationBinding: ...
+if TYPE_CHECKING:  # the pipeline applies this phase to itself
+    from imuhal.pipeline.pipeline import Pipeline
 
 
-def startup_settings(pipeline: Host) -> dict[str, GyroStartupSettings]:
+def startup_settings(pipeline: Pipeline) -> dict[str, GyroStartupSettings]:
     """Devices of the pipeline that ask for start-up gyro offsets, with their settings."""
     out = {}
     for name, dev in pipeline.devices.items():
@@ -60,7 +44,7 @@ def startup_settings(pipeline: Host) -> dict[str, GyroStartupSettings]:
     return out
 
 
-def startup_gyro_phase(pipeline: Host, source: Iterator[Event],
+def startup_gyro_phase(pipeline: Pipeline, source: Iterator[Event],
                        progress: ProgressCallback | None = None) -> Iterator[Event]:
     """``source`` (the pipeline's event stream), preceded by the start-up gyro measurement
     of every device that asks for it (see the module docstring)."""
@@ -94,7 +78,7 @@ def startup_gyro_phase(pipeline: Host, source: Iterator[Event],
     yield from source
 
 
-def _install(pipeline: Host, device: str, proc: GyroOffsetProcedure) -> None:
+def _install(pipeline: Pipeline, device: str, proc: GyroOffsetProcedure) -> None:
     dev = pipeline.devices[device]
     cal = dev.calibration or DeviceCalibration()
     result = proc.finish()

@@ -1,6 +1,4 @@
-"""What a chip emulator is: a bus face (register file, state machines) and a physics face;
-and the emulated bus that routes transactions to chip emulators (the two refer to each
-other: a chip may master a bus of its own).
+"""What a chip emulator is: a bus face (register file, state machines) and a physics face.
 
 A driver talks to an emulator only through a bus, exactly as to silicon. The simulation talks
 to it only through ``set_physics``, handing it true values in the chip's own sensor frame and
@@ -12,16 +10,18 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 from pydantic import ValidationError
 
-from imuhal.bus.base import Bus, BusKind
+from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock, SimulatedClock
-from imuhal.core.errors import BusError, NackError
 from imuhal.core.samples import Channel
 from imuhal.sim.errors import SensorErrorSpec
 from imuhal.sim.inputs import PhysicalInputs
+
+if TYPE_CHECKING:
+    from imuhal.sim.emulated_bus import EmulatedBus
 
 
 class ChipEmulator(ABC):
@@ -94,40 +94,3 @@ class ChipEmulator(ABC):
         local names its driver's ``child_buses`` uses. Emulators of chips behind it are
         attached to these, and this emulator performs real transfers on them."""
         return {}
-
-
-class EmulatedBus(Bus):
-    """A bus whose far end is register-level chip emulators.
-
-    Fault injection: ``fail_transfers({n, ...})`` makes the n-th transfer from now (1-based)
-    raise a bus error, as a glitch on real wiring would.
-    """
-
-    def __init__(self, name: str, kind: BusKind) -> None:
-        super().__init__(name)
-        self.kind = kind
-        self.targets: dict[int, ChipEmulator] = {}
-        self._fail_at: set[int] = set()
-        self._count = 0
-
-    def attach(self, target: int, emulator: ChipEmulator) -> ChipEmulator:
-        if target in self.targets:
-            raise ValueError(f"{self.name}: target 0x{target:02X} already has an emulator")
-        self.targets[target] = emulator
-        return emulator
-
-    def fail_transfers(self, which: set[int]) -> None:
-        """Make the given future transfers (1 = the next one) fail with a BusError."""
-        self._fail_at |= {self._count + n for n in which}
-
-    def _transfer(self, target: int, write: bytes, read_len: int) -> bytes:
-        self._count += 1
-        if self._count in self._fail_at:
-            self._fail_at.discard(self._count)
-            raise BusError("injected transfer failure", bus=self.name, target=target)
-        emulator = self.targets.get(target)
-        if emulator is None or emulator.absent:
-            what = "address" if self.kind is BusKind.I2C else "chip select"
-            raise NackError(f"no device answered at {what} 0x{target:02X}", bus=self.name,
-                            target=target)
-        return emulator.bus_transfer(self.kind, write, read_len)
