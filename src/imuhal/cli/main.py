@@ -17,6 +17,7 @@ from imuhal.cli import (
     calibrate_cmd,
     check_mounts_cmd,
     estimate_cmd,
+    evaluate_cmd,
     plugins_cmd,
     profile_cmd,
     run_cmd,
@@ -28,7 +29,8 @@ EXIT_ERROR = 2
 EXIT_INTERNAL = 70
 EXIT_INTERRUPTED = 130
 
-COMMANDS = [run_cmd, estimate_cmd, calibrate_cmd, check_mounts_cmd, plugins_cmd, profile_cmd]
+COMMANDS = [run_cmd, estimate_cmd, evaluate_cmd, calibrate_cmd, check_mounts_cmd, plugins_cmd,
+            profile_cmd]
 """Modules providing ``add_parser(subparsers)``; the order is the order in --help."""
 
 
