@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 import numpy as np
+from pydantic import ValidationError
 
 from imuhal.calibrate.session import (
     describe_position,
@@ -19,17 +20,25 @@ from imuhal.calibrate.session import (
     run_procedure,
 )
 from imuhal.calibrate.store import write_device_calibration
-from imuhal.calibration.accel import AccelSixPosition, AccelSixSettings
+from imuhal.calibration.accel import (
+    AccelSixPosition,
+    AccelSixSettings,
+    parse_position,
+    position_name,
+)
 from imuhal.calibration.gyro import GyroOffsetProcedure, GyroOffsetSettings
 from imuhal.calibration.mag import MagCalibrationProcedure, MagSettings
 from imuhal.calibration.model import DeviceCalibration, GyroStartupSettings, now
 from imuhal.calibration.progress import Progress, ProgressKind
+from imuhal.cli import args as types
+from imuhal.core.atomic import check_outputs, check_writable, resolve_target
 from imuhal.core.errors import ImuhalError
 from imuhal.core.frames import parse_mount
 from imuhal.core.samples import Channel, VectorSample
 from imuhal.offline.settings_args import build_settings, parse_set_arguments
 from imuhal.plugins.manager import Registry
 from imuhal.profile.loader import load_profile
+from imuhal.profiles_dir import bundled_profiles
 
 DEG = math.pi / 180.0
 MG = 9.80665e-3
@@ -43,7 +52,9 @@ def add_parser(sub: Any) -> None:
         description="Run a calibration procedure on the board in PROFILE (real, or emulated "
         "with --emulate calibration: the simulator performs the motions), print the result "
         "and its quality, and store it in the profile (atomically; the old file is kept as "
-        "PROFILE.bak and the replaced record under calibration.previous).",
+        "PROFILE.bak and the replaced record under calibration.previous), or in a copy with "
+        "--output. A bundled profile of the installed package is never edited: copy it first "
+        "or give --output.",
     )
     cal.add_argument("procedure", nargs="?",
                      help="gyro: offsets at rest; accel: six positions; mag: figure of 8; or "
@@ -55,20 +66,26 @@ def add_parser(sub: Any) -> None:
     cal.add_argument("--emulate", metavar="SCENARIO", help="emulated board flying SCENARIO "
                      "(use 'calibration'); its chips get their datasheet error models")
     cal.add_argument("--ideal", action="store_true", help="with --emulate: chips without errors")
-    cal.add_argument("--seed", type=int, help="seed of the simulated world and sensor errors")
-    cal.add_argument("--timeout", type=float, metavar="SECONDS",
+    cal.add_argument("--seed", type=types.seed,
+                     help="seed of the simulated world and sensor errors (0 or more)")
+    cal.add_argument("--timeout", type=types.seconds, metavar="SECONDS",
                      help="give up after this long (default: gyro 60, accel 300, mag 180; "
                      "emulated: the scenario's length)")
-    cal.add_argument("--samples", type=int, metavar="N",
+    cal.add_argument("--samples", type=types.int_at_least(1, "a number of readings", "250"),
+                     metavar="N",
                      help="readings averaged (gyro default 100, accel per position 250)")
     cal.add_argument("--misalignment", action="store_true",
                      help="accel: also fit the full 3x3 misalignment by least squares")
     cal.add_argument("--method", choices=["ellipsoid", "minmax"], default="ellipsoid",
                      help="mag: ellipsoid fit (hard + full soft iron) or the seed's min/max")
-    cal.add_argument("--field", type=float, metavar="UT",
+    cal.add_argument("--field", type=types.positive_float("a field strength in uT", "48"),
+                     metavar="UT",
                      help="mag: local field strength in uT (default: fitted)")
     cal.add_argument("--at-startup", action="store_true",
                      help="gyro: also re-measure the offsets at every start-up")
+    cal.add_argument("--output", "-o", metavar="FILE.yaml",
+                     help="write the calibrated profile here instead of updating PROFILE "
+                     "(needed for a bundled profile)")
     cal.add_argument("--quantity", metavar="NAME",
                      help="registered procedures: the vector quantity to calibrate")
     cal.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
@@ -88,6 +105,7 @@ def cmd_calibrate(args: argparse.Namespace, registry: Registry) -> int:
         raise ImuhalError(
             f"no calibration procedure named {args.procedure!r}; choose gyro, accel, mag or "
             f"one a plugin registered: {', '.join(registry.calibrations.names()) or 'none'}")
+    target = None if args.dry_run else _writable_target(path, args.output)
     profile = load_profile(path, registry)
     key = _registered_quantity(args, registry) if registered else args.procedure
     channel = registry.quantities.get(key).channel if registered else CHANNELS[key]
@@ -95,38 +113,26 @@ def cmd_calibrate(args: argparse.Namespace, registry: Registry) -> int:
     cfg = profile.devices[device]
     chip_to_body = parse_mount(profile.board_to_body) @ parse_mount(cfg.mount)
     err = sys.stderr
+    reporter = _Reporter(err)
+    timeout = args.timeout
+    if timeout is None:
+        timeout = (registry.scenarios.get(args.emulate).default_duration_s if args.emulate
+                   else _registered(args, registry).default_timeout_s if registered
+                   else TIMEOUTS_S[args.procedure])
+    proc = (_registered_procedure(args, registry, key, device, reporter) if registered
+            else _procedure(args, device, chip_to_body, reporter, None))  # settings checked early
     where = f"emulated, scenario '{args.emulate}'" if args.emulate else "real hardware"
     what = f"{key} ({args.procedure})" if registered else args.procedure
     print(f"calibrating {what} of {device} ({cfg.driver}) in {profile.name} ({where})",
           file=err)
-    reporter = _Reporter(err)
-    proc: Any
-    if registered:
-        cls = registry.calibrations.get(args.procedure)
-        settings = build_settings(cls.Settings, parse_set_arguments(args.set),
-                                  f"procedure {args.procedure!r}")
-        proc = cls(settings, quantity=key, device=device, progress=reporter)
-    elif args.procedure == "gyro":
-        gs = GyroOffsetSettings(**({"samples": args.samples} if args.samples else {}))
-        proc = GyroOffsetProcedure(gs, device=device, progress=reporter)
-    elif args.procedure == "accel":
-        acc = AccelSixSettings(positions=guided_order(chip_to_body),
-                               misalignment=args.misalignment,
-                               **({"samples": args.samples} if args.samples else {}))
-        proc = AccelSixPosition(acc, device=device, progress=reporter,
-                                describe=lambda p: describe_position(p, chip_to_body))
-    else:
-        proc = MagCalibrationProcedure(MagSettings(method=args.method, field_ut=args.field),
-                                       device=device, progress=reporter)
-    timeout = args.timeout
-    if timeout is None:
-        timeout = (registry.scenarios.get(args.emulate).default_duration_s if args.emulate
-                   else proc.default_timeout_s if registered else TIMEOUTS_S[args.procedure])
     with open_raw_pipeline(profile, registry, emulate=args.emulate, seed=args.seed,
                            realtime=False, sensor_errors=False if args.ideal else None
                            ) as pipeline:
         for w in pipeline.warnings:
             print(f"warning: {w}", file=err)
+        order = _scenario_order(pipeline, chip_to_body)
+        if args.procedure == "accel" and order is not None:
+            proc = _procedure(args, device, chip_to_body, reporter, order)
         binding = pipeline.calibration_binding(device)
         try:
             result = run_procedure(proc, pipeline, timeout)
@@ -149,12 +155,107 @@ def cmd_calibrate(args: argparse.Namespace, registry: Registry) -> int:
     if args.dry_run:
         print("dry run: profile not written", file=err)
         return 0
-    bak, warnings = write_device_calibration(path, device, new, registry)
+    assert target is not None
+    bak, warnings = write_device_calibration(path, device, new, registry, output=target)
     for w in warnings:
         print(f"warning: {w}", file=err)
-    print(f"wrote devices.{device}.calibration.{key} to {path}"
+    print(f"wrote devices.{device}.calibration.{key} to {target}"
           + (f" (previous file kept as {bak})" if bak else ""), file=err)
     return 0
+
+
+def _writable_target(profile: Path, output: str | None) -> Path:
+    """Where the calibrated profile goes, checked before any measurement: ``--output``, or
+    the profile itself unless it is one of the installed package's bundled profiles."""
+    if output is not None:
+        check_outputs({"--output": output}, {"PROFILE": profile})
+        return Path(output)
+    real = resolve_target(profile)
+    bundled = {resolve_target(p) for p in bundled_profiles().values()}
+    if real in bundled:
+        raise ImuhalError(
+            f"{profile}: is a profile bundled with imuhal ({real}); calibration is never "
+            f"written into it. Copy it first (cp {profile} my-board.yaml) and calibrate the "
+            "copy, or add --output my-board.yaml")
+    check_writable(profile, "PROFILE")
+    return profile
+
+
+def _procedure(args: argparse.Namespace, device: str, chip_to_body: np.ndarray,
+               reporter: _Reporter, scenario_order: tuple[str, ...] | None) -> Any:
+    """The procedure the arguments ask for; settings mistakes are one-line errors."""
+    try:
+        if args.procedure == "gyro":
+            gs = GyroOffsetSettings(**({"samples": args.samples} if args.samples else {}))
+            return GyroOffsetProcedure(gs, device=device, progress=reporter)
+        if args.procedure == "accel":
+            acc = AccelSixSettings(positions=scenario_order or guided_order(chip_to_body),
+                                   misalignment=args.misalignment,
+                                   **({"samples": args.samples} if args.samples else {}))
+            return AccelSixPosition(acc, device=device, progress=reporter,
+                                    describe=lambda p: describe_position(p, chip_to_body))
+        return MagCalibrationProcedure(MagSettings(method=args.method, field_ut=args.field),
+                                       device=device, progress=reporter)
+    except ValidationError as exc:
+        first = exc.errors(include_url=False)[0]
+        option = {"samples": "--samples", "field_ut": "--field"}.get(
+            str(first["loc"][0]) if first["loc"] else "", "settings")
+        raise ImuhalError(f"{option}: {first['msg']} (found {first.get('input')!r})") from None
+
+
+def _registered(args: argparse.Namespace, registry: Registry) -> Any:
+    return registry.calibrations.get(args.procedure)
+
+
+def _registered_procedure(args: argparse.Namespace, registry: Registry, quantity: str,
+                          device: str, reporter: _Reporter) -> Any:
+    """A procedure a plugin registered, with its ``--set`` settings."""
+    cls = _registered(args, registry)
+    settings = build_settings(cls.Settings, parse_set_arguments(args.set),
+                              f"procedure {args.procedure!r}")
+    return cls(settings, quantity=quantity, device=device, progress=reporter)
+
+
+def _registered_quantity(args: argparse.Namespace, registry: Registry) -> str:
+    """The quantity a registered procedure calibrates: its own, or ``--quantity``."""
+    cls = _registered(args, registry)
+    name = cls.quantity or args.quantity
+    if name is None:
+        raise ImuhalError(f"procedure {args.procedure!r} works on any vector quantity: name "
+                          "one with --quantity NAME (see `imuhal plugins`)")
+    if args.quantity is not None and cls.quantity is not None and args.quantity != name:
+        raise ImuhalError(f"procedure {args.procedure!r} calibrates {name!r} only; drop "
+                          f"--quantity {args.quantity}")
+    if name in CHANNELS:
+        raise ImuhalError(f"{name} has its own procedure: run `imuhal calibrate {name}`")
+    if not issubclass(registry.quantities.get(name), VectorSample):
+        raise ImuhalError(f"{name} is not a vector in the chip's frame; calibration applies "
+                          "to those only")
+    return name
+
+
+def _scenario_order(pipeline: Any, chip_to_body: np.ndarray) -> tuple[str, ...] | None:
+    """Emulated: the sensor positions in the order the scenario holds them (its phases are
+    named after the body axis pointing down), so each prompt names the position the
+    simulated hand is about to hold. None on hardware or when the scenario has no six."""
+    scenario = getattr(getattr(pipeline, "board", None), "scenario", None)
+    if scenario is None:
+        return None
+    order: list[str] = []
+    body_to_chip = np.asarray(chip_to_body, dtype=float).T
+    for phase in scenario.phases():
+        try:
+            axis, sign = parse_position(phase.name)
+        except ValueError:
+            continue
+        down_chip = body_to_chip @ (sign * np.eye(3)[axis])
+        i = int(np.argmax(np.abs(down_chip)))
+        if abs(down_chip[i]) < 0.99:
+            return None  # mounted at an angle: no sensor axis points straight down
+        name = position_name((i, 1 if down_chip[i] > 0 else -1))
+        if name not in order:
+            order.append(name)
+    return tuple(order) if len(order) == 6 else None
 
 
 class _Reporter:
@@ -248,21 +349,3 @@ def _describe_record(channel: str, rec: dict[str, Any], indent: str) -> str:
     if rec.get("quality"):
         lines.append("quality: " + ", ".join(f"{k} {v:.4g}" for k, v in rec["quality"].items()))
     return "\n".join(indent + line for line in lines)
-
-
-def _registered_quantity(args: argparse.Namespace, registry: Registry) -> str:
-    """The quantity a registered procedure calibrates: its own, or ``--quantity``."""
-    cls = registry.calibrations.get(args.procedure)
-    name = cls.quantity or args.quantity
-    if name is None:
-        raise ImuhalError(f"procedure {args.procedure!r} works on any vector quantity: name "
-                          "one with --quantity NAME (see `imuhal plugins`)")
-    if args.quantity is not None and cls.quantity is not None and args.quantity != name:
-        raise ImuhalError(f"procedure {args.procedure!r} calibrates {name!r} only; drop "
-                          f"--quantity {args.quantity}")
-    if name in CHANNELS:
-        raise ImuhalError(f"{name} has its own procedure: run `imuhal calibrate {name}`")
-    if not issubclass(registry.quantities.get(name), VectorSample):
-        raise ImuhalError(f"{name} is not a vector in the chip's frame; calibration applies "
-                          "to those only")
-    return name
