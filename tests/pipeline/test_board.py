@@ -41,9 +41,10 @@ class BenchBoard:
         bus.attach(0x19, TC3Emulator(clock=self.clock))
         self.buses: dict[str, Bus] = {"i2c1": bus}
 
-    def before_poll(self, t_ns: int, device: str) -> None:
+    def before_poll(self, t_ns: int, device: str) -> int:
         assert self.clock.now_ns() == t_ns  # the pipeline moved the clock there first
         self.polls.append((t_ns, device))
+        return t_ns  # poll on time
 
 
 def test_the_pipeline_runs_on_any_board_and_calls_its_hook_before_every_poll(

@@ -8,7 +8,6 @@ sinks marked invalid.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from enum import Enum, IntFlag
@@ -45,7 +44,10 @@ class SampleFlag(IntFlag):
     STALE = 1 << 5
     """The chip had no new data (data-ready not set when it should have been)."""
     OUT_OF_RANGE = 1 << 6
-    """The value is outside what the chip can physically report (datasheet limits)."""
+    """The value is outside what the chip can physically report (datasheet limits, or
+    beyond the configured full scale)."""
+    OUT_OF_ORDER = 1 << 7
+    """The sample is older than one its device already delivered for the same quantity."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -206,8 +208,3 @@ plugins add theirs through ``imuhal_register_quantities``)."""
 
 def _vec3(v: Sequence[float]) -> Vec3:
     return (float(v[0]), float(v[1]), float(v[2]))
-
-
-def non_finite_flag(values: tuple[float, ...] | list[float]) -> SampleFlag:
-    """``SampleFlag.NAN`` if any value is NaN or infinite, else ``OK``."""
-    return SampleFlag.NAN if any(not math.isfinite(v) for v in values) else SampleFlag.OK

@@ -25,6 +25,7 @@ from imuhal.bus.base import BusKind
 from imuhal.core.errors import ProfileError
 from imuhal.core.samples import VectorSample
 from imuhal.plugins.manager import Registry
+from imuhal.profile.faults import CHIP_FAULT_KINDS, FAULT_KINDS
 from imuhal.profile.model import SCHEMA_VERSION, BoardProfile
 from imuhal.profile.yaml_source import (
     ExpansionError,
@@ -36,6 +37,8 @@ from imuhal.profile.yaml_source import (
 
 MAX_PROFILE_BYTES = 1_000_000
 """Largest profile file read (1 MB); a board profile is a few kB."""
+
+_FAULT_TAGS = frozenset(k.model_fields["kind"].default for k in FAULT_KINDS)
 
 
 def load_profile(path: str | FsPath, registry: Registry | None = None) -> BoardProfile:
@@ -116,6 +119,8 @@ def _check(
     problems += _check_references(data, doc)
     if registry is not None:
         problems += _check_plugins(data, doc, registry)
+        if profile is not None:
+            problems += _check_fault_support(profile, doc, registry)
     return problems, (profile if not problems else None)
 
 
@@ -198,8 +203,16 @@ def _validate(model: type[BaseModel], data: Any, doc: LocatedDocument, path: Pat
 
 
 def _clean_loc(loc: tuple[Any, ...]) -> Path:
-    # pydantic inserts union-branch tags such as 'str' or 'list[list[float]]' into loc
-    return tuple(p for p in loc if not (isinstance(p, str) and ("[" in p or p in {"str"})))
+    # pydantic inserts union-branch tags such as 'str' or 'list[list[float]]' into loc, and
+    # the ``kind`` of a tagged union member (a fault) after its list index
+    out: list[Any] = []
+    for p in loc:
+        if isinstance(p, str) and ("[" in p or p in {"str"}):
+            continue
+        if isinstance(p, str) and out and isinstance(out[-1], int) and p in _FAULT_TAGS:
+            continue
+        out.append(p)
+    return tuple(out)
 
 
 def _allowed_keys(model: type[BaseModel], loc: Path) -> list[str]:
@@ -280,6 +293,14 @@ def _check_references(data: dict[str, Any], doc: LocatedDocument) -> list[str]:
                 path = ("estimators", name, "inputs", i)
                 out.append(f"{doc.where(path)}: {dotted(path)}: {ref!r} is neither a device nor "
                            f"an estimator of this profile")
+    enabled = sorted(str(n) for n, d in devices.items() if d.get("enabled", True) is not False)
+    faults = _mapping(data.get("emulation")).get("faults")
+    for i, fault in enumerate(faults if isinstance(faults, list) else []):
+        device = _text(fault.get("device")) if isinstance(fault, dict) else None
+        if device is not None and device not in enabled:
+            path = ("emulation", "faults", i, "device")
+            out.append(f"{doc.where(path)}: {dotted(path)}: {device!r} is not an enabled "
+                       f"device of this profile; devices: {', '.join(enabled) or 'none'}")
     return out
 
 
@@ -386,4 +407,23 @@ def _check_plugins(data: dict[str, Any], doc: LocatedDocument, registry: Registr
         p: Path = ("emulation", "scenario")
         out.append(f"{doc.where(p)}: {dotted(p)}: unknown scenario {scenario!r}; installed: "
                    f"{', '.join(registry.scenarios.names())}")
+    return out
+
+
+def _check_fault_support(profile: BoardProfile, doc: LocatedDocument,
+                         registry: Registry) -> list[str]:
+    """Chip-level faults need an emulator that models them (ChipEmulator.chip_faults)."""
+    out = []
+    for i, fault in enumerate(profile.emulation.faults):
+        dev = profile.devices.get(fault.device)
+        if fault.kind not in CHIP_FAULT_KINDS or dev is None:
+            continue
+        reg = registry.emulators.entries.get(dev.driver)
+        if reg is None:
+            continue  # running emulated reports the missing emulator itself
+        supported = reg.obj.chip_faults()
+        if fault.kind not in supported:
+            path: Path = ("emulation", "faults", i, "kind")
+            out.append(f"{doc.where(path)}: {dotted(path)}: the {dev.driver} emulator does not "
+                       f"model {fault.kind!r}; it models: {', '.join(sorted(supported))}")
     return out
