@@ -134,7 +134,9 @@ def test_a_disabled_device_may_share_an_address(registry: Registry) -> None:
 def test_a_degenerate_calibration_value_is_a_located_error(record: str, field: str,
                                                             registry: Registry) -> None:
     text = GOOD + f"    calibration:\n      {record}\n"
-    problems = _problems(text, registry)
+    # (The test chip has no gyro or magnetometer, which is a second, separate problem for
+    # the gyro and mag records: only the located value error is checked here.)
+    problems = [p for p in _problems(text, registry) if "measures no vector quantity" not in p]
     assert len(problems) == 1
     assert problems[0].startswith("board.yaml:12:")
     assert f"devices.acc.calibration.{field}" in problems[0]

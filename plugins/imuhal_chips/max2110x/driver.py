@@ -11,6 +11,7 @@ gyro rad/s, accel m/s^2 specific force, temperature degC.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import ClassVar
 
 from imuhal.bus.base import Bus, BusKind, Link
@@ -339,6 +340,7 @@ class Max21100Driver(Max2110xDriver):
                    "I2C master exposed as child bus 'aux'")
     Settings = Max21100Settings
     part = MAX21100
+    child_bus_kinds: ClassVar[Mapping[str, BusKind]] = {"aux": BusKind.I2C}
 
     def __init__(
         self, link: Link, settings: DriverSettings | dict[str, object], *, device: str,

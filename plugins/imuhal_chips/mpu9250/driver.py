@@ -18,6 +18,7 @@ Outputs are in the MPU-9250's own sensor frame, SI units.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import ClassVar, Literal
 
 from pydantic import model_validator
@@ -107,6 +108,7 @@ class MPU9250Driver(Driver):
     Settings = MPU9250Settings
     channels: ClassVar[tuple[Channel, ...]] = (Channel.ACCEL, Channel.GYRO, Channel.TEMPERATURE)
     bus_kinds: ClassVar[frozenset[BusKind]] = frozenset({BusKind.I2C, BusKind.SPI})
+    child_bus_kinds: ClassVar[Mapping[str, BusKind]] = {"aux": BusKind.I2C}
 
     STALE_AFTER_PERIODS = 2.5
     CONFIG_CHECK_S = 1.0

@@ -8,6 +8,7 @@ units in the chip's own sensor frame; calibration and mounting are applied by th
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -79,6 +80,9 @@ class Driver(ABC):
     Settings: ClassVar[type[DriverSettings]]
     channels: ClassVar[tuple[Channel, ...]]
     bus_kinds: ClassVar[frozenset[BusKind]]
+    child_bus_kinds: ClassVar[Mapping[str, BusKind]] = {}
+    """The buses ``child_buses()`` provides, by local name, and their kind (any kind: an I2C
+    master, an SPI master, a serial port); profiles check devices behind them against it."""
     calibration_version: ClassVar[int] = 1
     """Bumped when a change to decoding would invalidate stored user calibration."""
 
@@ -131,7 +135,8 @@ class Driver(ABC):
         return None
 
     def child_buses(self) -> dict[str, Bus]:
-        """Buses this chip exposes to others (an I2C master or bypass), by local name."""
+        """Buses this chip exposes to others (an I2C master or bypass, ...), by local name;
+        declare each name and kind in ``child_bus_kinds``."""
         return {}
 
     def describe(self) -> str:

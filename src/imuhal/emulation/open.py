@@ -4,9 +4,8 @@
 flying a scenario on a simulated clock, and returns an ordinary
 :class:`~imuhal.pipeline.Pipeline` over them. Everything simulation-specific (scenario,
 seed, sensor error models, pacing against the wall clock) is chosen here; the pipeline only
-sees a :class:`~imuhal.pipeline.board.Board`. The board stays reachable as
-``pipeline.board`` (an :class:`~imuhal.emulation.board.EmulatedBoard`: its ``emulators`` by
-device name, its ``scenario`` and ``truth_at(t_ns)``).
+sees a :class:`~imuhal.pipeline.board.Board`. ``EmulatedBoard.of(pipeline)`` returns the
+board, typed (its ``emulators`` by device name, its ``scenario`` and ``truth_at(t_ns)``).
 """
 
 from __future__ import annotations
@@ -66,6 +65,7 @@ def open_emulated(
     run_seed = profile.emulation.seed if seed is None else seed
     world = scenario_cls(params or None, seed=run_seed)
     use_errors = profile.emulation.sensor_errors if sensor_errors is None else sensor_errors
+    errors: dict[str, SensorErrorModel] | None
     if error_specs is not None:
         errors = {dev: SensorErrorModel(spec, seed=device_seed(run_seed, dev))
                   for dev, spec in error_specs.items() if spec is not None}
