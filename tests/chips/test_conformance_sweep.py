@@ -13,6 +13,7 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
+from tests.support.dither import Dither
 
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import SimulatedClock
@@ -23,9 +24,10 @@ from imuhal.emulation.bus import EmulatedBus
 from imuhal.plugins.manager import Registry, load_registry
 
 REGISTRY: Registry = load_registry()
-DIRECTION = (0.41, -0.29, 0.19)
-"""Fraction of full scale set on each axis: inside the range, all axes different, and
-summing below 1 (the AK8963 overflows when |x|+|y|+|z| reaches its 4912 uT range)."""
+DIRECTION = (0.41037, -0.28963, 0.19021)
+"""Fraction of full scale set on each axis: inside the range, all axes different, between
+counts (so the dither below moves the raw words), and summing below 1 (the AK8963 overflows
+when |x|+|y|+|z| reaches its 4912 uT range)."""
 SCALAR_VALUES = {Channel.PRESSURE: 90_123.0, Channel.TEMPERATURE: 23.4}
 SETTLE_SAMPLES = 20
 """Samples per channel before comparing: on-chip filters (BMP280 IIR) settle on a constant."""
@@ -70,13 +72,17 @@ def _physics(emulator: ChipEmulator, channels: tuple[Channel, ...], x_fraction: 
     )
 
 
-def _run(driver: Driver, clock: SimulatedClock) -> dict[Channel, Any]:
-    """Poll as the pipeline would until every channel gave SETTLE_SAMPLES samples."""
+def _run(driver: Driver, clock: SimulatedClock, emulator: ChipEmulator) -> dict[Channel, Any]:
+    """Poll as the pipeline would until every channel gave SETTLE_SAMPLES samples, the
+    inputs dithered by under half an LSB as a real chip's noise would (a constant input
+    read back unchanged for ever is a frozen chip)."""
+    dither = Dither(emulator, seed=20)
     last: dict[Channel, Any] = {}
     counts = dict.fromkeys(driver.channels, 0)
     t = driver.start(clock.now_ns())
     while min(counts.values()) < SETTLE_SAMPLES and clock.now_ns() < MAX_SIMULATED_NS:
         clock.sleep_until(t)
+        dither()
         result = driver.poll(clock.now_ns())
         for s in result.samples:
             last[s.channel] = s
@@ -105,7 +111,7 @@ def test_a_physical_value_reads_back_within_one_lsb(name: str, field: str, value
     driver.probe()
     driver.configure()
     emulator.set_physics(_physics(emulator, driver.channels, DIRECTION[0]))
-    got = _run(driver, clock)
+    got = _run(driver, clock, emulator)
     for ch in driver.channels:
         sample = got[ch]
         assert sample.valid, (ch, sample.flags)
@@ -130,7 +136,7 @@ def test_beyond_full_scale_is_flagged_never_valid(name: str) -> None:
     driver.probe()
     driver.configure()
     emulator.set_physics(_physics(emulator, driver.channels, 1.6))  # x at 1.6 x full scale
-    got = _run(driver, clock)
+    got = _run(driver, clock, emulator)
     for ch in vector_channels:
         flags = got[ch].flags
         assert flags & (SampleFlag.SATURATED | SampleFlag.OVERFLOW), (ch, flags)

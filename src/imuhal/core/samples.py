@@ -72,6 +72,12 @@ class SampleFlag(IntFlag):
     """The chip had no new data (data-ready not set when it should have been)."""
     OUT_OF_RANGE = 1 << 6
     """The value is outside what the chip can physically report (datasheet limits)."""
+    BLANK = 1 << 7
+    """The frame read all 0x00 or all 0xFF: nothing drove the bus (chip absent or
+    unpowered, a slave missing behind an I2C master, a data line stuck)."""
+    FROZEN = 1 << 8
+    """The chip repeated the same raw frame for longer than its noise allows: its
+    conversions hung (a real sensor's noise never repeats one raw word for long)."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
