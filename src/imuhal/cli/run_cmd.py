@@ -46,7 +46,8 @@ def add_parser(sub: Any) -> None:
 
 
 def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
-    from imuhal.pipeline import ConsoleSink, CsvSink, Pipeline, TruthSink
+    from imuhal.emulation import EmulatedBoard, TruthSink, open_emulated
+    from imuhal.pipeline import ConsoleSink, CsvSink, Pipeline
 
     path = Path(args.profile) if args.profile else default_profile_path()
     profile = load_profile(path, registry)
@@ -73,15 +74,19 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
             # Committed even when opening the board fails: the trace of a failed probe is
             # exactly what a bug report needs.
             stack.callback(trace_file.commit)
-        pipeline = stack.enter_context(Pipeline.open(
-            profile, registry, emulate=emulate, realtime=realtime, seed=args.seed, trace=trace))
+        if emulate is None:
+            pipeline = stack.enter_context(Pipeline.open(profile, registry, trace=trace))
+        else:
+            pipeline = stack.enter_context(open_emulated(
+                profile, registry, scenario=emulate, realtime=realtime, seed=args.seed,
+                trace=trace))
         for w in pipeline.warnings:
             print(f"warning: {w}", file=sys.stderr)
         if args.output:
             csv_sink = CsvSink(args.output, include_samples=args.samples)
             sinks.append(csv_sink)
         truth_sink = None
-        if args.truth and pipeline.board is not None:
+        if args.truth and isinstance(pipeline.board, EmulatedBoard):
             truth_sink = TruthSink(args.truth, pipeline.board.scenario,
                                    include_samples=args.samples)
             sinks.append(truth_sink)
