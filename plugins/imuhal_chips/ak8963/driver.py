@@ -128,13 +128,17 @@ class AK8963Driver(Driver):
     def _config_lost(self) -> bool:
         return self.regs.read_u8(r.REG_CNTL1) != self._cntl1
 
+    def full_scale(self, channel: Channel) -> float | None:
+        """The measurement range, +-4912 uT per axis."""
+        return r.OVERFLOW_SUM_UT if channel is Channel.MAG else None
+
     def _frozen_flag(self, frame: bytes) -> SampleFlag:
         return self._frozen.observe(Channel.MAG, frame)
 
     def poll(self, now_ns: int) -> PollResult:
         overdue = self._ready.overdue(Channel.MAG, now_ns)
         if self._watch.check_due(now_ns, overdue=overdue) and self._config_lost():
-            return self.result([], self.restart(reset_detected=True))
+            return PollResult([], self.restart(reset_detected=True))
         data = self.regs.read(r.DATA_BURST_START, r.DATA_BURST_LENGTH)
         m = decode_burst(data, self.asa)
         bad = blank_flag(data)
@@ -155,12 +159,12 @@ class AK8963Driver(Driver):
             if flags == SampleFlag.OK:
                 self.last = m
             self._grid.anchor(now_ns)  # phase-lock: next poll one period after new data
-            return self.result([sample], self._grid.next_after(now_ns))
+            return PollResult([sample], self._grid.next_after(now_ns))
         if not m.data_ready and not overdue:
-            return self.result([], now_ns + self._period_ns // 10)
+            return PollResult([], now_ns + self._period_ns // 10)
         flags = bad if m.data_ready else SampleFlag.STALE | bad
         sample = MagSample(t_ns=now_ns, device=self.device, flags=flags, mag_ut=NAN3)
         if self._watch.stale_poll():
             # CNTL1 intact but no new data: a reset and reconfiguration restarts measuring
-            return self.result([sample], self.restart(reset_detected=False))
-        return self.result([sample], self._grid.next_after(now_ns))
+            return PollResult([sample], self.restart(reset_detected=False))
+        return PollResult([sample], self._grid.next_after(now_ns))

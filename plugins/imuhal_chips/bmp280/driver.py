@@ -254,7 +254,7 @@ class BMP280Driver(Driver):
             return self._poll_forced(now_ns)
         _status, ctrl, config, adc_p, adc_t = self._read_burst()
         if self._config_lost(ctrl, config):
-            return self.result([], self.restart(reset_detected=True))
+            return PollResult([], self.restart(reset_detected=True))
         stale = adc_p == r.ADC_SKIPPED and adc_t == r.ADC_SKIPPED
         return self._finish(now_ns, adc_p, adc_t, stale, self._grid.next_after(now_ns))
 
@@ -262,17 +262,17 @@ class BMP280Driver(Driver):
         s = self.settings
         if self._triggered_ns is None:
             if now_ns < self._next_ns:
-                return self.result([], self._next_ns)
+                return PollResult([], self._next_ns)
             self.regs.write(r.REG_CTRL_MEAS, (self._ctrl & ~r.MODE_MASK) | r.MODE_FORCED)
             self._triggered_ns = now_ns
-            return self.result([], now_ns + round(s.measurement_time_s(maximum=True) * 1e9))
+            return PollResult([], now_ns + round(s.measurement_time_s(maximum=True) * 1e9))
         status, ctrl, config, adc_p, adc_t = self._read_burst()
         if self._config_lost(ctrl, config):
-            return self.result([], self.restart(reset_detected=True))
+            return PollResult([], self.restart(reset_detected=True))
         done = not status & r.STATUS_MEASURING and ctrl & r.MODE_MASK == r.MODE_SLEEP
         t_max_ns = round(s.measurement_time_s(maximum=True) * 1e9)
         if not done and now_ns - self._triggered_ns < self.STALE_AFTER_MAX_TIMES * t_max_ns:
-            return self.result([], now_ns + t_max_ns // 10)
+            return PollResult([], now_ns + t_max_ns // 10)
         trigger = self._triggered_ns
         self._triggered_ns = None
         self._next_ns = max(trigger + self._period_ns, now_ns)
@@ -287,8 +287,8 @@ class BMP280Driver(Driver):
         if not bad:
             self._watch.fresh_poll()
         elif self._watch.stale_poll():
-            return self.result(samples, self.restart(reset_detected=False))
-        return self.result(samples, next_ns)
+            return PollResult(samples, self.restart(reset_detected=False))
+        return PollResult(samples, next_ns)
 
     def _frozen_flag(self, adc_p: int, adc_t: int) -> SampleFlag:
         return self._frozen.observe("adc", adc_p.to_bytes(3, "big") + adc_t.to_bytes(3, "big"))

@@ -27,6 +27,8 @@ Source of facts: BMP280 datasheet BST-BMP280-DS001-19; imuhal shared chip facts 
 
 from __future__ import annotations
 
+import random
+
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock
 from imuhal.core.samples import Channel
@@ -53,10 +55,14 @@ class BMP280Emulator(ChipEmulator):
 
     chip = "bmp280"
     error_spec = BMP280_ERROR_SPEC
+    models_stuck_data_ready = True
 
     def __init__(self, clock: Clock | None = None, *, trim: Trim = DATASHEET_TRIM) -> None:
         super().__init__(clock)
         self.trim = trim
+        self.trim_read: bytearray | None = None
+        """What the trimming registers read when it differs from ``trim`` (fault injection:
+        corrupted NVM); the sensor element still follows ``trim``."""
         self.chip_id = r.CHIP_ID
         """What 0xD0 reads (fault injection: 0x60 is a BME280, anything else a clone)."""
         self.stuck_data_ready = False
@@ -67,6 +73,17 @@ class BMP280Emulator(ChipEmulator):
         """Resets seen (soft reset command or silent reset), for tests."""
 
     # -- fault injection --------------------------------------------------------------------
+
+    def corrupt_trim(self, rng: random.Random, bits: int = 1) -> str:
+        """Flip ``bits`` random bits of the 24 trimming bytes the driver reads."""
+        stored = bytearray(self.trim.to_bytes()) if self.trim_read is None else self.trim_read
+        changed = []
+        for _ in range(bits):
+            index, bit = rng.randrange(r.CALIB_LENGTH), rng.randrange(8)
+            stored[index] ^= 1 << bit
+            changed.append(f"0x{r.REG_CALIB + index:02X} bit {bit}")
+        self.trim_read = stored
+        return "trimming " + ", ".join(changed)
 
     def silent_reset(self) -> None:
         """The chip resets without being asked (brown-out): back to sleep, defaults."""
@@ -215,7 +232,8 @@ class BMP280Emulator(ChipEmulator):
 
     def _read(self, address: int) -> int:
         if r.REG_CALIB <= address < r.REG_CALIB + r.CALIB_LENGTH:
-            return self.trim.to_bytes()[address - r.REG_CALIB]
+            stored = self.trim.to_bytes() if self.trim_read is None else self.trim_read
+            return stored[address - r.REG_CALIB]
         if address == r.REG_CHIP_ID:
             return self.chip_id
         if address == r.REG_STATUS:

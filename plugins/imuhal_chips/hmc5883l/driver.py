@@ -28,11 +28,13 @@ from imuhal.drivers.validity import NAN3, FrozenWatch, blank_flag
 from imuhal_chips.hmc5883l import decode
 from imuhal_chips.hmc5883l.registers import (
     AVERAGING,
+    DATA_MAX,
     IDENTITY,
     MODE_CONTINUOUS,
     ODR_HZ,
     RANGE_GAUSS,
     STATUS_RDY,
+    UT_PER_GAUSS,
     Reg,
     config_a,
     config_b,
@@ -158,7 +160,7 @@ class Hmc5883lDriver(Driver):
         if self.gain_lsb_per_gauss is None:
             raise ConfigurationError(f"{self.describe()}: poll() before configure()")
         if self._watch.check_due(now_ns) and self._config_lost():
-            return self.result([], self.restart(reset_detected=True))
+            return PollResult([], self.restart(reset_detected=True))
         status = self._read(Reg.STATUS, 1)[0]
         if status & STATUS_RDY:
             sample = self._sample(now_ns)
@@ -167,20 +169,20 @@ class Hmc5883lDriver(Driver):
                 self._watch.fresh_poll()
                 if self._skip_next:
                     self._skip_next = False
-                    return self.result([], self._grid.next_after(now_ns))
-                return self.result([sample], self._grid.next_after(now_ns))
+                    return PollResult([], self._grid.next_after(now_ns))
+                return PollResult([sample], self._grid.next_after(now_ns))
         elif not self._ready.overdue(Channel.MAG, now_ns):
-            return self.result([], now_ns + NOT_READY_RETRY_NS)
+            return PollResult([], now_ns + NOT_READY_RETRY_NS)
         else:
             sample = MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                                mag_ut=NAN3, flags=SampleFlag.STALE)
         # No usable measurement: check the configuration at once, and restart the chip when
         # it keeps producing nothing (rewriting the mode restarts continuous measuring).
         if self._watch.check_due(now_ns, overdue=True) and self._config_lost():
-            return self.result([sample], self.restart(reset_detected=True))
+            return PollResult([sample], self.restart(reset_detected=True))
         if self._watch.stale_poll():
-            return self.result([sample], self.restart(reset_detected=False))
-        return self.result([sample], self._grid.next_after(now_ns))
+            return PollResult([sample], self.restart(reset_detected=False))
+        return PollResult([sample], self._grid.next_after(now_ns))
 
     def _sample(self, now_ns: int) -> Sample:
         """Read the six data bytes (X, Z, Y) and decode them, flagging a blank or frozen
@@ -195,6 +197,12 @@ class Hmc5883lDriver(Driver):
         return MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                          mag_ut=decode.counts_to_ut(counts, self.gain_lsb_per_gauss),
                          flags=decode.counts_flags(counts))
+
+    def full_scale(self, channel: Channel) -> float | None:
+        """The largest field a data word can hold at the configured gain (uT)."""
+        if channel is not Channel.MAG:
+            return None
+        return DATA_MAX * UT_PER_GAUSS / RANGE_GAUSS[self.settings.range_gauss][1]
 
     def _frozen_flag(self, raw: bytes) -> SampleFlag:
         return self._frozen.observe(Channel.MAG, raw)

@@ -68,6 +68,7 @@ class Hmc5883lEmulator(ChipEmulator):
 
     chip = "hmc5883l"
     error_spec = HMC5883L_ERROR_SPEC
+    models_stuck_data_ready = True
 
     def __init__(self, clock: Clock | None = None, *, name: str | None = None) -> None:
         super().__init__(clock)

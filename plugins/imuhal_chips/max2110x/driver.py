@@ -11,6 +11,7 @@ gyro rad/s, accel m/s^2 specific force, temperature degC.
 
 from __future__ import annotations
 
+import math
 from typing import ClassVar
 
 from imuhal.bus.base import Bus, BusKind, Link
@@ -25,7 +26,6 @@ from imuhal.core.samples import (
     Sample,
     SampleFlag,
     TemperatureSample,
-    non_finite_flag,
 )
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
 from imuhal.drivers.polling import DataReady, PollGrid, ResetWatch
@@ -40,6 +40,7 @@ from imuhal_chips.max2110x.registers import (
     MAX21105,
     PARTS_BY_WHO_AM_I,
     RST_SW_RESET,
+    STANDARD_GRAVITY_M_S2,
     PartSpec,
     Reg,
     Scales,
@@ -228,7 +229,7 @@ class Max2110xDriver(Driver):
         if self.scales is None:
             raise ConfigurationError(f"{self.describe()}: poll() before configure()")
         if self._watch.check_due(now_ns) and self._config_lost():
-            return self.result([], self.restart(reset_detected=True))
+            return PollResult([], self.restart(reset_detected=True))
         raw = self.regs.read(self.part.burst_start, self.part.burst_length)
         burst = decode.split_burst(raw)
         bad = blank_flag(raw)
@@ -252,10 +253,10 @@ class Max2110xDriver(Driver):
             samples.append(self._temperature_sample(burst, now_ns, bad))
         if stale:
             if self._watch.check_due(now_ns, overdue=True) and self._config_lost():
-                return self.result(samples, self.restart(reset_detected=True))
+                return PollResult(samples, self.restart(reset_detected=True))
             if self._watch.stale_poll():
-                return self.result(samples, self.restart(reset_detected=False))
-            return self.result(samples, self._grid.next_after(now_ns))
+                return PollResult(samples, self.restart(reset_detected=False))
+            return PollResult(samples, self._grid.next_after(now_ns))
         self._watch.fresh_poll()
         fast_ready = burst.gyro_ready if self._fast is Channel.GYRO else burst.accel_ready
         if fast_ready and burst.overrun:
@@ -265,8 +266,8 @@ class Max2110xDriver(Driver):
         self._searching = False
         if not fast_ready:
             self._searching = True
-            return self.result(samples, now_ns + self._grid.guard_ns)
-        return self.result(samples, self._grid.next_after(now_ns))
+            return PollResult(samples, now_ns + self._grid.guard_ns)
+        return PollResult(samples, self._grid.next_after(now_ns))
 
     def _frozen_flag(self, raw: bytes) -> SampleFlag:
         """FROZEN when the gyro, accel and temperature words repeat FROZEN_AFTER_FRAMES
@@ -277,9 +278,9 @@ class Max2110xDriver(Driver):
                             bad: SampleFlag) -> Sample:
         if bad:
             return TemperatureSample(t_ns=now_ns, device=self.device, flags=bad,
-                                     temperature_degc=float("nan"))
+                                     temperature_degc=math.nan)
         temp = decode.temp_counts_to_degc(burst.temperature)
-        flags = non_finite_flag([temp]) | range_flag([temp], *TEMPERATURE_RANGE_DEGC)
+        flags = range_flag([temp], *TEMPERATURE_RANGE_DEGC)
         return TemperatureSample(t_ns=now_ns, device=self.device, temperature_degc=temp,
                                  flags=flags)
 
@@ -295,15 +296,23 @@ class Max2110xDriver(Driver):
             value = decode.accel_counts_to_m_s2(counts, self.scales.accel_lsb_per_g)
         if flags:
             value = NAN3  # stale, blank or frozen: not a measurement
-        else:
-            if decode.saturated(counts):
-                flags |= SampleFlag.SATURATED
-            flags |= non_finite_flag(value)
+        elif decode.saturated(counts):
+            flags |= SampleFlag.SATURATED
         if channel is Channel.GYRO:
             return GyroSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                               gyro_rad_s=value, flags=flags)
         return AccelSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                            accel_m_s2=value, flags=flags)
+
+    def full_scale(self, channel: Channel) -> float | None:
+        """The configured range (rad/s, m/s^2): the chip's nominal full scale is 30000
+        counts, so a larger word is not a measurement."""
+        s = self.settings
+        if channel is Channel.GYRO:
+            return math.radians(s.gyro_range_dps)
+        if channel is Channel.ACCEL:
+            return s.accel_range_g * STANDARD_GRAVITY_M_S2
+        return None
 
     def _config_lost(self) -> bool:
         """True when the configuration reads back different from what was written (a

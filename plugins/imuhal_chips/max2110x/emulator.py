@@ -107,6 +107,7 @@ class Max2110xEmulator(ChipEmulator):
     """Family base; subclasses set ``chip`` and ``part``."""
 
     part: ClassVar[PartSpec]
+    models_stuck_data_ready = True
 
     def __init__(self, clock: Clock | None = None, *, name: str | None = None) -> None:
         super().__init__(clock)

@@ -19,6 +19,7 @@ OUT_OF_RANGE. Outputs are in the MPU-9250's own sensor frame, SI units.
 
 from __future__ import annotations
 
+import math
 from typing import ClassVar, Literal
 
 from pydantic import model_validator
@@ -236,13 +237,22 @@ class MPU9250Driver(Driver):
         return (pin_cfg != self._expected[r.INT_PIN_CFG]
                 or int_enable != self._expected[r.INT_ENABLE])
 
+    def full_scale(self, channel: Channel) -> float | None:
+        """The configured range (rad/s, m/s^2)."""
+        s = self.settings
+        if channel is Channel.GYRO:
+            return math.radians(s.gyro_range_dps)
+        if channel is Channel.ACCEL:
+            return s.accel_range_g * r.STANDARD_GRAVITY_M_S2
+        return None
+
     def _frozen_flag(self, frame: bytes) -> SampleFlag:
         return self._frozen.observe("frame", frame)
 
     def poll(self, now_ns: int) -> PollResult:
         overdue = self._ready.overdue(Channel.GYRO, now_ns)
         if self._watch.check_due(now_ns, overdue=overdue) and self._config_lost():
-            return self.result([], self.restart(reset_detected=True))
+            return PollResult([], self.restart(reset_detected=True))
         data = self.regs.read(r.DATA_BURST_START, r.DATA_BURST_LENGTH)
         ready = bool(data[0] & r.INT_RAW_RDY)
         bad = blank_flag(data)
@@ -253,20 +263,20 @@ class MPU9250Driver(Driver):
             self._watch.fresh_poll()
             # Phase-lock on the chip: the next poll one period after data appeared.
             self._grid.anchor(now_ns)
-            return self.result(self._samples(data, now_ns), self._grid.next_after(now_ns))
+            return PollResult(self._samples(data, now_ns), self._grid.next_after(now_ns))
         if not ready and not overdue:
-            return self.result([], now_ns + max(self._period_ns // 10, 50_000))
+            return PollResult([], now_ns + max(self._period_ns // 10, 50_000))
         flags = bad if ready else SampleFlag.STALE | bad
         samples: list[Sample] = [
             AccelSample(t_ns=now_ns, device=self.device, flags=flags, accel_m_s2=NAN3),
             GyroSample(t_ns=now_ns, device=self.device, flags=flags, gyro_rad_s=NAN3),
             TemperatureSample(t_ns=now_ns, device=self.device, flags=flags,
-                              temperature_degc=float("nan")),
+                              temperature_degc=math.nan),
         ]
         if self._watch.stale_poll():
             # the chip answers and kept its configuration but produces no new data
-            return self.result(samples, self.restart(reset_detected=False))
-        return self.result(samples, self._grid.next_after(now_ns))
+            return PollResult(samples, self.restart(reset_detected=False))
+        return PollResult(samples, self._grid.next_after(now_ns))
 
     def _samples(self, data: bytes, now_ns: int) -> list[Sample]:
         raw = decode_counts(data[1:])

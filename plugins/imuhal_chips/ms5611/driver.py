@@ -278,18 +278,18 @@ class MS5611Driver(Driver):
             if self._need_temperature:
                 start = self._cycle_start_ns()
                 if now_ns < start:
-                    return self.result([], start)
+                    return PollResult([], start)
                 # Late beyond the slack: slide this cycle rather than shorten a wait.
                 self._target_ns = max(self._target_ns, now_ns + self._cycle_ns(True))
-                return self.result([], self._start_conversion(Measurement.D2, now_ns))
+                return PollResult([], self._start_conversion(Measurement.D2, now_ns))
             self._target_ns = max(self._target_ns, now_ns + self._t_d1_ns)
-            return self.result([], self._start_pressure_when_due(now_ns))
+            return PollResult([], self._start_pressure_when_due(now_ns))
 
         ready = self._conv_start_ns + (
             self._t_d2_ns if self._state is _State.CONVERTING_D2 else self._t_d1_ns
         )
         if now_ns < ready:
-            return self.result([], ready)
+            return PollResult([], ready)
 
         if self._state is _State.CONVERTING_D2:
             d2, bad = self._read_adc()
@@ -300,7 +300,7 @@ class MS5611Driver(Driver):
             self._need_temperature = False
             self._state = _State.IDLE
             self._target_ns = max(self._target_ns, now_ns + self._t_d1_ns)
-            return self.result([], self._start_pressure_when_due(now_ns))
+            return PollResult([], self._start_pressure_when_due(now_ns))
 
         d1, bad = self._read_adc()
         if not bad:
@@ -310,7 +310,7 @@ class MS5611Driver(Driver):
         self._watch.fresh_poll()
         samples = self._emit(d1, t_ns=ready)
         self._next_cycle(now_ns)
-        return self.result(samples, self._cycle_start_ns())
+        return PollResult(samples, self._cycle_start_ns())
 
     def _frozen_flag(self, d1: int) -> SampleFlag:
         return self._frozen.observe(Measurement.D1, d1.to_bytes(3, "big"))
@@ -358,10 +358,10 @@ class MS5611Driver(Driver):
                               temperature_degc=math.nan),
         ]
         if self._watch.stale_poll():
-            return self.result(samples, self.restart(reset_detected=False))
+            return PollResult(samples, self.restart(reset_detected=False))
         self._state = _State.IDLE
         self._need_temperature = True
         self._since_temperature = 0
         self._fresh_temperature = False
         self._target_ns = now_ns + self._cycle_ns(True)
-        return self.result(samples, now_ns)
+        return PollResult(samples, now_ns)

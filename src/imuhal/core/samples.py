@@ -8,7 +8,6 @@ sinks marked invalid.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from enum import Enum, IntFlag
@@ -71,11 +70,14 @@ class SampleFlag(IntFlag):
     STALE = 1 << 5
     """The chip had no new data (data-ready not set when it should have been)."""
     OUT_OF_RANGE = 1 << 6
-    """The value is outside what the chip can physically report (datasheet limits)."""
-    BLANK = 1 << 7
+    """The value is outside what the chip can physically report (datasheet limits, or
+    beyond the configured full scale)."""
+    OUT_OF_ORDER = 1 << 7
+    """The sample is older than one its device already delivered for the same quantity."""
+    BLANK = 1 << 8
     """The frame read all 0x00 or all 0xFF: nothing drove the bus (chip absent or
     unpowered, a slave missing behind an I2C master, a data line stuck)."""
-    FROZEN = 1 << 8
+    FROZEN = 1 << 9
     """The chip repeated the same raw frame for longer than its noise allows: its
     conversions hung (a real sensor's noise never repeats one raw word for long)."""
 
@@ -205,8 +207,3 @@ SAMPLE_TYPES: dict[Channel, type[Sample]] = {
 
 def _vec3(v: Sequence[float]) -> Vec3:
     return (float(v[0]), float(v[1]), float(v[2]))
-
-
-def non_finite_flag(values: tuple[float, ...] | list[float]) -> SampleFlag:
-    """``SampleFlag.NAN`` if any value is NaN or infinite, else ``OK``."""
-    return SampleFlag.NAN if any(not math.isfinite(v) for v in values) else SampleFlag.OK

@@ -9,15 +9,14 @@ from __future__ import annotations
 
 import warnings
 from abc import ABC, abstractmethod
-from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
 from pydantic import BaseModel, ConfigDict, model_validator
 
 from imuhal.bus.base import Bus, BusKind, Link
 from imuhal.core.clock import Clock
-from imuhal.core.samples import Channel, Sample, SampleFlag
+from imuhal.core.samples import Channel, Sample
 from imuhal.drivers.settings import literal_choices
 
 
@@ -78,26 +77,17 @@ class PollResult:
 
 @dataclass
 class DeviceHealth:
-    """Running counts the pipeline reports; a driver increments what it detects."""
+    """What only the driver can see, reported in the run summary beside the pipeline's own
+    counts (samples, flags and bus errors are counted by the pipeline, once)."""
 
-    samples: int = 0
-    flagged: int = 0
-    bus_errors: int = 0
     resets_detected: int = 0
+    """Times the driver found its chip had reset on its own (configuration lost)."""
     reconfigurations: int = 0
-    flags_seen: dict[str, int] = field(default_factory=dict)
+    """Times the driver reprogrammed its chip (after a reset, a hang, a recovery)."""
 
-    def record(self, samples: Iterable[Sample]) -> None:
-        """Count produced samples, and the flagged ones by flag name."""
-        for sample in samples:
-            self.samples += 1
-            if sample.flags == SampleFlag.OK:
-                continue
-            self.flagged += 1
-            for flag in SampleFlag:
-                if flag and flag in sample.flags:
-                    key = flag.name or str(int(flag))
-                    self.flags_seen[key] = self.flags_seen.get(key, 0) + 1
+    def counts(self) -> dict[str, int]:
+        return {"resets_detected": self.resets_detected,
+                "reconfigurations": self.reconfigurations}
 
 
 class Driver(ABC):
@@ -146,12 +136,6 @@ class Driver(ABC):
         """Called once after configure(); returns the time of the first poll."""
         return now_ns
 
-    def result(self, samples: list[Sample], next_poll_ns: int) -> PollResult:
-        """The PollResult of a poll, with its samples counted in ``health``: every driver
-        returns through here so health is recorded the same way everywhere."""
-        self.health.record(samples)
-        return PollResult(samples, next_poll_ns)
-
     def restart(self, *, reset_detected: bool) -> int:
         """Reconfigure the chip mid-run and return the next poll time: after a silent reset
         (``reset_detected``: the configuration read back wrong) or a stuck sensor (it kept
@@ -172,6 +156,12 @@ class Driver(ABC):
         self.health.reconfigurations += 1
         # configure() may have waited on the clock (resets, reloads): start from after it.
         return self.start(max(now_ns, self.clock.now_ns()))
+
+    def full_scale(self, channel: Channel) -> float | None:
+        """The largest magnitude (SI) a correct ``channel`` value can have in the current
+        configuration; the pipeline flags anything beyond it OUT_OF_RANGE. None: not
+        declared (only NaN/inf are then caught)."""
+        return None
 
     def child_buses(self) -> dict[str, Bus]:
         """Buses this chip exposes to others (an I2C master or bypass), by local name."""

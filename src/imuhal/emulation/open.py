@@ -11,7 +11,7 @@ device name, its ``scenario`` and ``truth_at(t_ns)``).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from imuhal.bus.spy import Transfer
@@ -19,6 +19,7 @@ from imuhal.core.clock import SimulatedClock
 from imuhal.emulation.board import EmulatedBoard
 from imuhal.pipeline.pipeline import Pipeline
 from imuhal.plugins.manager import Registry
+from imuhal.profile.faults import FaultSpec
 from imuhal.profile.model import BoardProfile
 from imuhal.profile.topology import chip_to_body_rotations, device_order
 from imuhal.sim.errors import SensorErrorModel, SensorErrorSpec, device_seed, error_spec_of
@@ -36,6 +37,7 @@ def open_emulated(
     error_specs: Mapping[str, SensorErrorSpec | None] | None = None,
     calibrated: bool = True,
     trace: Callable[[Transfer], None] | None = None,
+    faults: Sequence[FaultSpec] = (),
 ) -> Pipeline:
     """A pipeline over ``profile``'s board, emulated, flying ``scenario``.
 
@@ -47,7 +49,9 @@ def open_emulated(
     and bias model (as its emulator declares); False gives ideal chips (quantisation and
     range only). ``error_specs`` (device -> spec; devices not named are ideal) replaces
     those models, for tests and studies that need known offsets, scale errors and iron.
-    ``calibrated`` and ``trace`` are the pipeline's (see :class:`Pipeline`).
+    ``faults`` are injected into the board on top of the profile's ``emulation.faults``
+    (imuhal.emulation.faults, docs/reliability.md). ``calibrated`` and ``trace`` are the
+    pipeline's (see :class:`Pipeline`).
     """
     name = profile.emulation.scenario if scenario is None else scenario
     clock = SimulatedClock(realtime=realtime)
@@ -64,7 +68,7 @@ def open_emulated(
     else:
         errors = error_models_for(profile, registry, run_seed) if use_errors else None
     board = EmulatedBoard(profile, registry, clock, world, chip_to_body_rotations(profile),
-                          errors)
+                          errors, faults=[*profile.emulation.faults, *faults], seed=run_seed)
     board.update(0)
     return Pipeline(profile, registry, board, calibrated=calibrated, trace=trace)
 

@@ -18,8 +18,11 @@ from pydantic import BaseModel, ValidationError
 from imuhal.bus.base import BusKind
 from imuhal.core.errors import ProfileError
 from imuhal.plugins.manager import Registry
+from imuhal.profile.faults import CHIP_FAULT_KINDS, FAULT_KINDS
 from imuhal.profile.model import SCHEMA_VERSION, BoardProfile
 from imuhal.profile.yaml_source import LocatedDocument, Path, dotted, load_located
+
+_FAULT_TAGS = frozenset(k.model_fields["kind"].default for k in FAULT_KINDS)
 
 
 def load_profile(path: str | FsPath, registry: Registry | None = None) -> BoardProfile:
@@ -122,8 +125,16 @@ def _validate(model: type[BaseModel], data: Any, doc: LocatedDocument, path: Pat
 
 
 def _clean_loc(loc: tuple[Any, ...]) -> Path:
-    # pydantic inserts union-branch tags such as 'str' or 'list[list[float]]' into loc
-    return tuple(p for p in loc if not (isinstance(p, str) and ("[" in p or p in {"str"})))
+    # pydantic inserts union-branch tags such as 'str' or 'list[list[float]]' into loc, and
+    # the ``kind`` of a tagged union member (a fault) after its list index
+    out: list[Any] = []
+    for p in loc:
+        if isinstance(p, str) and ("[" in p or p in {"str"}):
+            continue
+        if isinstance(p, str) and out and isinstance(out[-1], int) and p in _FAULT_TAGS:
+            continue
+        out.append(p)
+    return tuple(out)
 
 
 def _allowed_keys(model: type[BaseModel], loc: Path) -> list[str]:
@@ -175,6 +186,12 @@ def _check_references(profile: BoardProfile, doc: LocatedDocument) -> list[str]:
                 path = ("estimators", name, "inputs", i)
                 out.append(f"{doc.where(path)}: {dotted(path)}: {ref!r} is neither a device nor "
                            f"an estimator of this profile")
+    enabled = sorted(n for n, d in profile.devices.items() if d.enabled)
+    for i, fault in enumerate(profile.emulation.faults):
+        if fault.device not in enabled:
+            path = ("emulation", "faults", i, "device")
+            out.append(f"{doc.where(path)}: {dotted(path)}: {fault.device!r} is not an enabled "
+                       f"device of this profile; devices: {', '.join(enabled) or 'none'}")
     return out
 
 
@@ -215,9 +232,29 @@ def _check_plugins(profile: BoardProfile, doc: LocatedDocument, registry: Regist
                        f"{', '.join(registry.estimators.names()) or 'none'}")
             continue
         out += _validate(reg_e.obj.Settings, est.settings, doc, (*path, "settings"))
+    out += _check_fault_support(profile, doc, registry)
     scenario = profile.emulation.scenario
     if registry.scenarios.entries and scenario not in registry.scenarios.entries:
         p: Path = ("emulation", "scenario")
         out.append(f"{doc.where(p)}: {dotted(p)}: unknown scenario {scenario!r}; installed: "
                    f"{', '.join(registry.scenarios.names())}")
+    return out
+
+
+def _check_fault_support(profile: BoardProfile, doc: LocatedDocument,
+                         registry: Registry) -> list[str]:
+    """Chip-level faults need an emulator that models them (ChipEmulator.chip_faults)."""
+    out = []
+    for i, fault in enumerate(profile.emulation.faults):
+        dev = profile.devices.get(fault.device)
+        if fault.kind not in CHIP_FAULT_KINDS or dev is None:
+            continue
+        reg = registry.emulators.entries.get(dev.driver)
+        if reg is None:
+            continue  # running emulated reports the missing emulator itself
+        supported = reg.obj.chip_faults()
+        if fault.kind not in supported:
+            path: Path = ("emulation", "faults", i, "kind")
+            out.append(f"{doc.where(path)}: {dotted(path)}: the {dev.driver} emulator does not "
+                       f"model {fault.kind!r}; it models: {', '.join(sorted(supported))}")
     return out

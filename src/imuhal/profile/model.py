@@ -14,6 +14,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from imuhal.calibration.model import DeviceCalibration
 from imuhal.core.frames import MountError, parse_mount
+from imuhal.profile.faults import FaultSpec
 
 SCHEMA_VERSION = 1
 MountSpec = str | list[list[float]]
@@ -54,6 +55,9 @@ class DeviceConfig(_Strict):
     settings: dict[str, Any] = Field(default_factory=dict)
     calibration: DeviceCalibration | None = None
     enabled: bool = True
+    required: bool = True
+    """False: the run starts without this device if it does not answer, and the device
+    joins when it appears (it is probed again every second)."""
 
     _mount = field_validator("mount")(_valid_mount)
 
@@ -75,6 +79,9 @@ class EmulationConfig(_Strict):
     sensor_errors: bool = True
     """Apply each chip's datasheet noise, bias, scale and misalignment model (as its
     emulator declares); false: ideal chips, limited only by their resolution and range."""
+    faults: list[FaultSpec] = Field(default_factory=list)
+    """Faults injected into the emulated board (docs/reliability.md): each names a device,
+    a kind, and a start and end time in simulated seconds."""
 
 
 class BoardProfile(_Strict):
