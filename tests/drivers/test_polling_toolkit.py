@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 
 from imuhal.drivers.polling import (
+    MAX_STALE_POLLS_BEFORE_RESTART,
     STALE_AFTER_PERIODS,
     STALE_POLLS_BEFORE_RESTART,
     DataReady,
@@ -72,3 +73,32 @@ def test_reset_watch_asks_for_a_restart_after_consecutive_stale_polls_only() -> 
 def test_a_grid_needs_a_positive_period() -> None:
     with pytest.raises(ValueError, match="positive"):
         PollGrid(0)
+
+
+def test_a_restart_that_did_not_help_waits_twice_as_long_before_the_next() -> None:
+    watch = ResetWatch(1.0)
+    watch.start(0)
+
+    def polls_until_restart() -> int:
+        n = 1
+        while not watch.stale_poll():
+            n += 1
+        return n
+
+    first, second, third = (polls_until_restart() for _ in range(3))
+    assert (first, second, third) == (STALE_POLLS_BEFORE_RESTART, 2 * STALE_POLLS_BEFORE_RESTART,
+                                       4 * STALE_POLLS_BEFORE_RESTART)
+    watch.fresh_poll()
+    assert polls_until_restart() == STALE_POLLS_BEFORE_RESTART
+
+
+def test_restarts_of_a_dead_chip_are_spaced_at_most_the_cap_apart() -> None:
+    watch = ResetWatch(1.0)
+    watch.start(0)
+    gaps = []
+    for _ in range(12):
+        n = 1
+        while not watch.stale_poll():
+            n += 1
+        gaps.append(n)
+    assert max(gaps) == MAX_STALE_POLLS_BEFORE_RESTART

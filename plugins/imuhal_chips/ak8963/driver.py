@@ -121,7 +121,6 @@ class AK8963Driver(Driver):
         now_ns = max(now_ns, self.clock.now_ns())
         self._ready.start(now_ns)
         self._watch.start(now_ns)
-        self._frozen.reset()
         self._grid.anchor(now_ns)
         return now_ns + round(r.MEASUREMENT_S * 1e9)
 

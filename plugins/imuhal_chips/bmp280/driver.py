@@ -227,7 +227,6 @@ class BMP280Driver(Driver):
         # recover() passes the time from before configure() waited; never start in the past.
         now_ns = max(now_ns, self.clock.now_ns())
         self._watch.start(now_ns)
-        self._frozen.reset()
         if self.settings.mode == "normal":
             # The first cycle ends one measurement after the ctrl_meas write.
             self._next_ns = now_ns + round(self.settings.measurement_time_s(maximum=True) * 1e9)

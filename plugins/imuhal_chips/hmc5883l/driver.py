@@ -151,7 +151,6 @@ class Hmc5883lDriver(Driver):
         self._grid.anchor(self._mode_written_ns + self._grid.guard_ns)
         self._ready.start(now_ns)
         self._watch.start(now_ns)
-        self._frozen.reset()
         return self._grid.next_after(now_ns)
 
     # --- sampling -------------------------------------------------------------------------

@@ -212,7 +212,6 @@ class Max2110xDriver(Driver):
         self._ready.start(now_ns)
         self._last_temp_ns = None
         self._watch.start(now_ns)
-        self._frozen.reset()
         return self._grid.next_after(now_ns)
 
     def poll(self, now_ns: int) -> PollResult:

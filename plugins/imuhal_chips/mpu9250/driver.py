@@ -223,7 +223,6 @@ class MPU9250Driver(Driver):
         now_ns = max(now_ns, self.clock.now_ns())
         self._ready.start(now_ns)
         self._watch.start(now_ns)
-        self._frozen.reset()
         self._grid.anchor(now_ns)
         return self._grid.next_after(now_ns)
 

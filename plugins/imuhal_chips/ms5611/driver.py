@@ -245,7 +245,6 @@ class MS5611Driver(Driver):
     def start(self, now_ns: int) -> int:
         self._reset_state()
         self._watch.start(now_ns)
-        self._frozen.reset()
         self._target_ns = now_ns + self._cycle_ns(True)
         return now_ns
 
@@ -260,12 +259,16 @@ class MS5611Driver(Driver):
         osr = (self.settings.pressure_oversampling if measurement is Measurement.D1
                else self.settings.temperature_oversampling)
         self._command(convert_command(measurement, osr))
-        self._conv_start_ns = now_ns
+        # The conversion starts when the command reaches the chip, which may be later than
+        # the poll's nominal time (other devices' transfers ran first): wait from then, or
+        # the ADC read lands inside the conversion and aborts it.
+        start = max(now_ns, self.clock.now_ns())
+        self._conv_start_ns = start
         if measurement is Measurement.D2:
             self._state = _State.CONVERTING_D2
-            return now_ns + self._t_d2_ns
+            return start + self._t_d2_ns
         self._state = _State.CONVERTING_D1
-        return now_ns + self._t_d1_ns
+        return start + self._t_d1_ns
 
     def _start_pressure_when_due(self, now_ns: int) -> int:
         due = self._target_ns - self._t_d1_ns
@@ -363,5 +366,7 @@ class MS5611Driver(Driver):
         self._need_temperature = True
         self._since_temperature = 0
         self._fresh_temperature = False
-        self._target_ns = now_ns + self._cycle_ns(True)
-        return PollResult(samples, now_ns)
+        # the next slot of the sample grid: never report missing slots faster than odr_hz
+        self._target_ns = max(self._target_ns + self._period_ns,
+                              now_ns + self._cycle_ns(True))
+        return PollResult(samples, self._cycle_start_ns())

@@ -25,6 +25,9 @@ STALE_POLLS_BEFORE_RESTART = 4
 """Consecutive stale (or frozen) polls after which a driver restarts the chip itself: the
 chip answers and kept its configuration but produces no new data (a hung measurement
 engine), which a soft reset and reconfiguration cures."""
+MAX_STALE_POLLS_BEFORE_RESTART = 256
+"""A chip that a restart did not cure is restarted after twice as many stale polls each
+time, up to this many, so a dead sensor is not reset continuously."""
 
 RESET_CHECK_S_DEFAULT = 0.5
 """Default of the ``reset_check_s`` setting: how often a driver reads back its
@@ -107,6 +110,7 @@ class ResetWatch:
         self.check_ns = round(check_s * 1e9) if check_s is not None else None
         self._next_check_ns = 0
         self._stale_polls = 0
+        self._restart_after = STALE_POLLS_BEFORE_RESTART
 
     def start(self, now_ns: int) -> None:
         self._next_check_ns = now_ns + (self.check_ns or 0)
@@ -121,9 +125,17 @@ class ResetWatch:
         return True
 
     def stale_poll(self) -> bool:
-        """Count a poll that found no new data; True once the chip should be restarted."""
+        """Count a poll that found no new measurement; True once the chip should be
+        restarted (after STALE_POLLS_BEFORE_RESTART in a row, twice as many after each
+        restart that did not help, at most MAX_STALE_POLLS_BEFORE_RESTART)."""
         self._stale_polls += 1
-        return self._stale_polls >= STALE_POLLS_BEFORE_RESTART
+        if self._stale_polls < self._restart_after:
+            return False
+        self._stale_polls = 0
+        self._restart_after = min(2 * self._restart_after, MAX_STALE_POLLS_BEFORE_RESTART)
+        return True
 
     def fresh_poll(self) -> None:
+        """A poll found a new measurement: the chip works, restart early again next time."""
         self._stale_polls = 0
+        self._restart_after = STALE_POLLS_BEFORE_RESTART

@@ -46,6 +46,8 @@ class FrozenWatch:
 
     ``observe`` is called with each frame the chip presents as a *new* measurement; it
     returns ``FROZEN`` from the ``n``-th identical frame in a row on, until the frame changes.
+    The history survives a restart of the chip: a chip still repeating the frame after a
+    reset is still frozen, and a working one changes its frame with its first measurement.
     ``n`` must make a real sensor's repeat improbable: with per-axis noise of sigma LSB,
     two frames of ``a`` axes match with probability about ``(1 / (2 sqrt(pi) sigma))**a``.
     """
@@ -56,11 +58,6 @@ class FrozenWatch:
         self.n = n
         self._last: dict[Hashable, bytes] = {}
         self._repeats: dict[Hashable, int] = {}
-
-    def reset(self) -> None:
-        """Forget every channel's history (after a restart the chip starts afresh)."""
-        self._last.clear()
-        self._repeats.clear()
 
     def observe(self, key: Hashable, frame: bytes) -> SampleFlag:
         if self._last.get(key) == frame:
