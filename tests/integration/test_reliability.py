@@ -10,7 +10,7 @@ import random
 import pytest
 from tests.support.noise import noise_only_specs
 
-from imuhal.core.samples import MagSample, PressureSample, Sample, TemperatureSample
+from imuhal.core.samples import Channel, MagSample, PressureSample, Sample, TemperatureSample
 from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import BusErrors
 from imuhal.plugins.manager import Registry, load_registry
@@ -72,3 +72,29 @@ def test_the_magnetometer_behind_the_imu_master_sees_the_host_error_rate(
     # the issue: 26 of 75 Hz delivered at 1 %; now a few percent lost at most
     assert glitchy >= 0.95 * clean
     assert errors <= 0.02 * clean
+
+
+@pytest.mark.parametrize("board", sorted(bundled_profiles()))
+def test_each_imu_and_magnetometer_declares_the_full_scale_its_chip_has(
+        registry: Registry, board: str) -> None:
+    profile = load_profile(bundled_profiles()[board], registry)
+    with open_emulated(profile, registry, scenario="tumble", calibrated=False) as p:
+        list(p.events(3.0))
+        declared = {(n, ch): fs for n, d in p.devices.items() for ch, fs in d.full_scale.items()
+                    if fs is not None}
+        chips = {key: p.board.emulators[key[0]].full_scale(key[1]) for key in declared}
+    assert {ch for _, ch in declared} >= {Channel.GYRO, Channel.ACCEL}
+    for key, fs in declared.items():
+        # the data word's limit: at or a little above the chip's own (datasheet) full scale
+        assert chips[key] <= fs <= 1.15 * chips[key], key
+    assert not any("OUT_OF_RANGE" in flags for flags in p.summary().flagged.values())
+
+
+def test_the_start_up_gyro_phase_carries_over_short_events_calls(registry: Registry) -> None:
+    profile = load_profile(default_profile_path(), registry)
+    with open_emulated(profile, registry, scenario="static") as p:
+        for _ in range(10):  # 0.1 s each; the phase needs 100 samples at 250 Hz
+            list(p.events(0.1))
+        gyro = p.devices["imu"].calibration.gyro  # type: ignore[union-attr]
+    assert gyro is not None and gyro.procedure == "gyro-at-startup"
+    assert not [w for w in p.warnings if "start-up gyro" in w]

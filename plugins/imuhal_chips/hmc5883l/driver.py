@@ -28,13 +28,12 @@ from imuhal.drivers.validity import NAN3, FrozenWatch, blank_flag
 from imuhal_chips.hmc5883l import decode
 from imuhal_chips.hmc5883l.registers import (
     AVERAGING,
-    DATA_MAX,
+    DATA_MIN,
     IDENTITY,
     MODE_CONTINUOUS,
     ODR_HZ,
     RANGE_GAUSS,
     STATUS_RDY,
-    UT_PER_GAUSS,
     Reg,
     config_a,
     config_b,
@@ -155,6 +154,13 @@ class Hmc5883lDriver(Driver):
 
     # --- sampling -------------------------------------------------------------------------
 
+    def full_scale(self, channel: Channel) -> float | None:
+        """The largest field a data word can carry at the configured gain (uT): the most
+        negative count before the overflow value, through this driver's conversion."""
+        if self.gain_lsb_per_gauss is None or channel is not Channel.MAG:
+            return None
+        return abs(decode.counts_to_ut((DATA_MIN, 0, 0), self.gain_lsb_per_gauss)[0])
+
     def poll(self, now_ns: int) -> PollResult:
         if self.gain_lsb_per_gauss is None:
             raise ConfigurationError(f"{self.describe()}: poll() before configure()")
@@ -196,12 +202,6 @@ class Hmc5883lDriver(Driver):
         return MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                          mag_ut=decode.counts_to_ut(counts, self.gain_lsb_per_gauss),
                          flags=decode.counts_flags(counts))
-
-    def full_scale(self, channel: Channel) -> float | None:
-        """The largest field a data word can hold at the configured gain (uT)."""
-        if channel is not Channel.MAG:
-            return None
-        return DATA_MAX * UT_PER_GAUSS / RANGE_GAUSS[self.settings.range_gauss][1]
 
     def _frozen_flag(self, raw: bytes) -> SampleFlag:
         return self._frozen.observe(Channel.MAG, raw)

@@ -226,6 +226,15 @@ class MPU9250Driver(Driver):
         self._grid.anchor(now_ns)
         return self._grid.next_after(now_ns)
 
+    def full_scale(self, channel: Channel) -> float | None:
+        """What the 16-bit data word can hold at the configured range (SI): the most
+        negative count through this driver's own conversion."""
+        if channel is Channel.GYRO:
+            return abs(gyro_rad_s((-32768, 0, 0), self._gyro.lsb_per_unit)[0])
+        if channel is Channel.ACCEL:
+            return abs(accel_m_s2((-32768, 0, 0), self._accel.lsb_per_unit)[0])
+        return None
+
     def child_buses(self) -> dict[str, Bus]:
         return {"aux": self._aux_bus} if self._aux_bus is not None else {}
 
@@ -235,15 +244,6 @@ class MPU9250Driver(Driver):
         pin_cfg, int_enable = self.regs.read(r.INT_PIN_CFG, 2)
         return (pin_cfg != self._expected[r.INT_PIN_CFG]
                 or int_enable != self._expected[r.INT_ENABLE])
-
-    def full_scale(self, channel: Channel) -> float | None:
-        """The configured range (rad/s, m/s^2)."""
-        s = self.settings
-        if channel is Channel.GYRO:
-            return math.radians(s.gyro_range_dps)
-        if channel is Channel.ACCEL:
-            return s.accel_range_g * r.STANDARD_GRAVITY_M_S2
-        return None
 
     def _frozen_flag(self, frame: bytes) -> SampleFlag:
         return self._frozen.observe("frame", frame)

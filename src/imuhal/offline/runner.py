@@ -2,8 +2,9 @@
 
 The input becomes the same sample and estimate objects the pipeline produces (body frame,
 project units), so an estimator behaves identically live and offline. Rows are fed in time
-order; within a row accelerometer and magnetometer come before the gyro, so an AHRS stepping
-on the gyro uses that row's accel and mag.
+order, and the samples of one row in the pipeline's fusion order
+(imuhal.estimation.ordering: accelerometer, magnetometer, pressure, then gyro), so an AHRS
+stepping on the gyro uses that row's accel and mag, as it does live.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from imuhal.core.samples import (
     Sample,
 )
 from imuhal.estimation.base import Estimator
+from imuhal.estimation.ordering import fusion_order
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate
 from imuhal.offline.csv_input import (
     ACCEL,
@@ -41,22 +43,26 @@ DEVICE = "input"
 
 
 def imu_events(table: SampleTable) -> Iterator[Sample]:
-    """Accel, mag (when present on the row), pressure (idem), gyro, per row."""
+    """Each row's accel, mag (when present on the row), pressure (idem) and gyro samples, in
+    fusion order (the CSV reader has already refused non-finite values)."""
     require(table, (TIME, *GYRO, *ACCEL), "an attitude estimator")
     c = table.columns
     has_mag = table.has(*MAG)
     has_p = table.has(PRESSURE)
     for i in range(len(table)):
         t_ns = round(float(c[TIME][i]) * 1e9)
-        yield AccelSample(t_ns=t_ns, device=DEVICE, frame=Frame.BODY_NED,
-                          accel_m_s2=(c[ACCEL[0]][i], c[ACCEL[1]][i], c[ACCEL[2]][i]))
+        row: list[Sample] = [
+            GyroSample(t_ns=t_ns, device=DEVICE, frame=Frame.BODY_NED,
+                       gyro_rad_s=(c[GYRO[0]][i], c[GYRO[1]][i], c[GYRO[2]][i])),
+            AccelSample(t_ns=t_ns, device=DEVICE, frame=Frame.BODY_NED,
+                        accel_m_s2=(c[ACCEL[0]][i], c[ACCEL[1]][i], c[ACCEL[2]][i]))]
         if has_mag and not math.isnan(c[MAG[0]][i]):
-            yield MagSample(t_ns=t_ns, device=DEVICE, frame=Frame.BODY_NED,
-                            mag_ut=(c[MAG[0]][i], c[MAG[1]][i], c[MAG[2]][i]))
+            row.append(MagSample(t_ns=t_ns, device=DEVICE, frame=Frame.BODY_NED,
+                                 mag_ut=(c[MAG[0]][i], c[MAG[1]][i], c[MAG[2]][i])))
         if has_p and not math.isnan(c[PRESSURE][i]):
-            yield PressureSample(t_ns=t_ns, device=DEVICE, pressure_pa=float(c[PRESSURE][i]))
-        yield GyroSample(t_ns=t_ns, device=DEVICE, frame=Frame.BODY_NED,
-                         gyro_rad_s=(c[GYRO[0]][i], c[GYRO[1]][i], c[GYRO[2]][i]))
+            row.append(PressureSample(t_ns=t_ns, device=DEVICE,
+                                      pressure_pa=float(c[PRESSURE][i])))
+        yield from fusion_order(row)
 
 
 def vario_events(table: SampleTable, sea_level_pa: float) -> Iterator[Sample | Estimate]:

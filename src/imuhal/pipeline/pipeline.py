@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from imuhal.bus.base import Bus, Link
 from imuhal.bus.contained import ContainedBus
 from imuhal.bus.spy import SpyBus, Transfer
+from imuhal.calibration.gyro import GyroOffsetProcedure
 from imuhal.calibration.model import CalibrationBinding, DeviceCalibration
 from imuhal.core.conventions import get_convention
 from imuhal.core.errors import BusError, ImuhalError, PluginError
@@ -31,7 +32,7 @@ from imuhal.estimation.ordering import fusion_order
 from imuhal.pipeline.board import Board, open_hardware_board
 from imuhal.pipeline.bringup import bring_up
 from imuhal.pipeline.processing import calibrate_to_body, validity_flags
-from imuhal.pipeline.startup import startup_gyro_phase
+from imuhal.pipeline.startup import startup_gyro_phase, startup_procedures
 from imuhal.plugins.manager import Registry
 from imuhal.profile.model import BoardProfile
 from imuhal.profile.topology import chip_to_body_rotations, device_order, split_bus_ref
@@ -145,8 +146,8 @@ class Pipeline:
         # Whatever a bus plugin raises reaches the drivers as a BusError (contained per device).
         self.buses: dict[str, Bus] = {name: ContainedBus(bus) for name, bus in spied.items()}
         self.warnings: list[str] = []
-        self._started = False
         self._heap: list[tuple[int, int, str]] | None = None
+        self._startup: dict[str, GyroOffsetProcedure] | None = None
         self._fusion: list[Sample] = []
         self.devices: dict[str, DeviceRuntime] = {}
         self.estimators: list[EstimatorRuntime] = []
@@ -272,14 +273,17 @@ class Pipeline:
         once, so no chip is restarted mid-conversion. Breaking out of the iteration early is
         safe; the next call carries on from the next poll.
 
-        On the first call, devices whose calibration asks for ``gyro_at_startup`` first have
-        their gyro offsets measured while the board is still (imuhal.pipeline.startup);
-        that phase is part of ``duration_s`` and yields nothing.
+        At the start of the run, devices whose calibration asks for ``gyro_at_startup`` first
+        have their gyro offsets measured while the board is still (imuhal.pipeline.startup);
+        that phase is part of ``duration_s``, yields nothing, and carries on into the next
+        call when a call ends before it does.
         """
         source = self._poll_events(duration_s)
-        if self.calibrated and not self._started:
-            source = startup_gyro_phase(self, source)
-        self._started = True
+        if self.calibrated and self._startup is None:
+            self._startup = startup_procedures(self)
+        if self.calibrated and self._startup:
+            # The phase carries over to the next call when this one ends before it does.
+            source = startup_gyro_phase(self, source, pending=self._startup)
         yield from source
 
     def framed_events(self, duration_s: float | None = None, *,
