@@ -6,10 +6,9 @@ call ``Dither`` before each poll: it re-sets the inputs the test last gave the e
 (``emulator.physics``), each value moved by just under half an LSB (``emulator.resolution``)
 up or down at random. That plus the chip's own rounding keeps every reading within one LSB
 of the input, and a value that does not sit exactly on a count changes its raw word between
-the two moves. With ``continuous=True`` the move is uniform in +-0.5 LSB instead: for a chip
-whose raw word is much finer than its reported resolution (the MS5611's 24-bit ADC), so the
-word takes many values. Temperatures are left alone by default (some chips truncate them,
-and the other channels suffice). Seeded: deterministic.
+the two moves (``amplitude`` just over a half also moves values that sit on a count, for
+tests whose tolerance is one whole LSB inclusive). Temperatures are left alone by default
+(some chips truncate them, and the other channels suffice). Seeded: deterministic.
 """
 
 from __future__ import annotations
@@ -33,10 +32,11 @@ DITHERED = frozenset({Channel.ACCEL, Channel.GYRO, Channel.MAG, Channel.PRESSURE
 
 
 class Dither:
-    def __init__(self, emulator: ChipEmulator, *, seed: int = 0, continuous: bool = False,
-                 channels: frozenset[Channel] = DITHERED) -> None:
+    def __init__(self, emulator: ChipEmulator, *, seed: int = 0,
+                 channels: frozenset[Channel] = DITHERED, amplitude: float = HALF) -> None:
         self.emulator = emulator
-        self.continuous = continuous
+        self.amplitude = amplitude
+        """Size of the up-or-down move, in LSB (just under a half by default)."""
         self.channels = channels
         self._rng = random.Random(seed)
         self._base: PhysicalInputs = emulator.physics
@@ -51,9 +51,7 @@ class Dither:
             return None
 
     def _move(self, lsb: float) -> float:
-        if self.continuous:
-            return self._rng.uniform(-0.5, 0.5) * lsb
-        return self._rng.choice((-HALF, HALF)) * lsb
+        return self._rng.choice((-self.amplitude, self.amplitude)) * lsb
 
     def __call__(self) -> None:
         """Re-set the inputs, dithered; a test that set new inputs since the last call sets
