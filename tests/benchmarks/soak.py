@@ -178,6 +178,8 @@ class Report:
     worst: dict[str, float] = field(default_factory=dict)
     out_of_order: Counter[str] = field(default_factory=Counter)
     flagged_out_of_order: int = 0
+    flagged_spans: dict[str, tuple[int, int, int]] = field(default_factory=dict)
+    """Per device, quantity and flag: first and last time stamp (ns), count."""
     startups: dict[str, tuple[int, int]] = field(default_factory=dict)
     rss_mb: dict[str, float] = field(default_factory=dict)
     summary: str = ""
@@ -236,6 +238,11 @@ class Checker:
         if SampleFlag.OUT_OF_ORDER in s.flags:
             self.report.flagged_out_of_order += 1
         if not s.valid:
+            for flag in SampleFlag:
+                if flag and flag in s.flags:
+                    key = f"{s.device} {s.channel.value} {flag.name}"
+                    first, last, n = self.report.flagged_spans.get(key, (s.t_ns, s.t_ns, 0))
+                    self.report.flagged_spans[key] = (first, s.t_ns, n + 1)
             return
         key = f"{s.device} {s.channel.value}"
         values = s.vector if isinstance(s, VectorSample) else (
@@ -387,6 +394,11 @@ def markdown(report: Report) -> str:
         lines += ["", "Wrong valid samples by quantity and the faults in force:", "",
                   "| samples | count |", "|---|---|"]
         lines += [f"| {k} | {v} |" for k, v in sorted(report.wrong_by_fault.items())]
+    lines += ["", "Flagged samples, by quantity and flag (first and last time):", "",
+              "| samples | flag | count | first | last |", "|---|---|---|---|---|"]
+    for key, (first, last, n) in sorted(report.flagged_spans.items()):
+        what, flag = key.rsplit(" ", 1)
+        lines.append(f"| {what} | {flag} | {n} | {first / 1e9:.1f} s | {last / 1e9:.1f} s |")
     lines += ["", "Worst error / tolerance among valid samples, per quantity:", "",
               "| quantity | checked | worst ratio |", "|---|---|---|"]
     lines += [f"| {k} | {report.checked[k]} | {report.worst[k]:.2f} |"

@@ -215,7 +215,7 @@ def test_frozen_data_repeats_the_same_raw_word(registry: Registry) -> None:
     # the same raw word until the driver's frozen-data check flags it (values NaN)
     assert len({e.pressure_pa for e in in_window if e.valid}) == 1
     assert any(e.flags & SampleFlag.FROZEN for e in in_window)
-    assert len(after) > 5
+    assert len(after) > 2  # noise moves it again
 
 
 def test_corrupt_trim_flips_prom_bits_the_driver_then_rejects(registry: Registry) -> None:

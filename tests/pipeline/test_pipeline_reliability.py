@@ -182,3 +182,14 @@ def test_fusion_order_is_time_then_accel_mag_pressure_temperature_gyro_then_devi
         ("PressureSample", "p"), ("AccelSample", "a"), ("AccelSample", "b"),
         ("MagSample", "m"), ("TemperatureSample", "a"), ("GyroSample", "a")]
     assert fusion_order(batch, {"a": 0, "b": 1, "m": 2, "p": 3}) == ordered
+
+
+def test_a_later_different_cause_of_failure_is_reported_too(registry: Registry) -> None:
+    faults = [ChipAbsent(device="acc2", start_s=0.2, end_s=0.5),
+              BusOSError(device="acc2", start_s=1.0, end_s=1.5)]
+    with _open(registry, faults=faults) as p:
+        list(p.events(2.0))
+    reports = [w for w in p.warnings if w.startswith("acc2: recovery failed")]
+    assert len(reports) == 2
+    assert "no answer" in reports[0] and "from t=0.2" in reports[0]
+    assert "OSError from the bus plugin" in reports[1] and "from t=1.0" in reports[1]

@@ -68,6 +68,7 @@ class DeviceRuntime:
     bus_errors: int = 0
     failures: int = 0
     """Consecutive failed recoveries (0 while the device works)."""
+    failing_since_ns: int = 0
     warned: set[str] = field(default_factory=set)
     samples: int = 0
     flagged: Counter[str] = field(default_factory=Counter)
@@ -369,13 +370,19 @@ class Pipeline:
         except ImuhalError as exc:
             if isinstance(exc, BusError):
                 dev.bus_errors += 1
+            if not dev.failures:
+                dev.failing_since_ns = t_ns
             dev.failures += 1
             dev.needs_recovery = True
             backoff = min(RECOVERY_BACKOFF_NS, RETRY_FIRST_NS << min(dev.failures - 1, 16))
             if dev.failures >= REPORT_AFTER_FAILURES:
-                self._warn_once(dev, "recovery", f"{dev.name}: recovery failed (first at "
-                                f"t={t_ns / 1e9:.3f} s, retrying every "
-                                f"{RECOVERY_BACKOFF_NS / 1e9:g} s): {exc}")
+                # once per kind of error (and what a probe found), so a later, different
+                # cause is reported too
+                kind = f"recovery {type(exc).__name__} {getattr(exc, 'found', '')}"
+                self._warn_once(dev, kind,
+                                f"{dev.name}: recovery failed {dev.failures} times in a row "
+                                f"from t={dev.failing_since_ns / 1e9:.3f} s (retrying every "
+                                f"{RECOVERY_BACKOFF_NS / 1e9:g} s at most): {exc}")
             return t_ns + backoff
         dev.failures = 0
         dev.needs_recovery = False

@@ -51,6 +51,9 @@ class ChipEmulator(ABC):
     error_spec: ClassVar[SensorErrorSpec | None] = None
     #: Set True by an emulator whose measurement engine honours ``stuck_data_ready``.
     models_stuck_data_ready: ClassVar[bool] = False
+    #: Opt-in to imuhal's generic conformance sweep, which checks the pair against an
+    #: independent table in imuhal's own test data; a third-party emulator leaves it False.
+    conformance_sweep: ClassVar[bool] = False
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
