@@ -23,9 +23,6 @@ from imuhal.core.samples import SampleFlag
 NAN3 = (math.nan, math.nan, math.nan)
 """The value of a vector sample that is not a measurement (stale, blank, frozen)."""
 
-NOT_A_MEASUREMENT = SampleFlag.STALE | SampleFlag.BLANK | SampleFlag.FROZEN
-"""Flags that mean the sample carries no measurement: its values are NaN."""
-
 
 def blank_flag(frame: bytes) -> SampleFlag:
     """``BLANK`` when every byte of ``frame`` is 0x00 or every byte is 0xFF, else ``OK``."""
@@ -66,7 +63,3 @@ class FrozenWatch:
             self._last[key] = bytes(frame)
             self._repeats[key] = 1
         return SampleFlag.FROZEN if self._repeats[key] >= self.n else SampleFlag.OK
-
-    def frozen(self, key: Hashable) -> bool:
-        """Whether ``key``'s last observed frame was flagged."""
-        return self._repeats.get(key, 0) >= self.n
