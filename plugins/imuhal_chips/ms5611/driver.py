@@ -124,10 +124,12 @@ class MS5611Driver(Driver):
     channels: ClassVar[tuple[Channel, ...]] = (Channel.PRESSURE, Channel.TEMPERATURE)
     bus_kinds: ClassVar[frozenset[BusKind]] = frozenset({BusKind.I2C, BusKind.SPI})
 
-    FROZEN_AFTER_FRAMES = 12
+    FROZEN_AFTER_FRAMES = 16
     """Identical D1 (pressure ADC) words in a row that mean the converter hung. Its noise is
     tens of counts at every OSR (1.2 Pa RMS at OSR 4096, about 0.02 Pa per count), so even
-    two equal words in a row are rare; 12 (0.24 s at 50 Hz) never happen on a working chip."""
+    two equal words in a row are rare. Sized for a coarser word too: an emulator that
+    encodes whole pascals repeats with probability about 0.23 under 1.2 Pa noise, so 16 in
+    a row (0.32 s at 50 Hz) come about once in 4e9 samples."""
 
     settings: MS5611Settings
 
