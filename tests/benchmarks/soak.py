@@ -4,7 +4,8 @@
 Run:  .venv/bin/python tests/benchmarks/soak.py [--duration 3600] [--startups 40] [--seed 1]
 
 The seed paraglider vario board (profiles/seed-paraglider-vario.yaml), every chip emulated at
-register level with its datasheet error model, flies the ``thermal`` scenario for
+register level with its datasheet error model, flies the ``thermal`` scenario (glides and
+thermals repeated, so the altitude stays near launch however long the run) for
 ``--duration`` simulated seconds with 1 % random bus errors on every device on the SPI bus
 (each transfer fails with probability 0.01) plus one instance of every fault kind of
 imuhal.emulation.faults, spread over the run (the plan is printed). It reports:
@@ -88,6 +89,18 @@ ERROR_RATE = 0.01
 SPI_DEVICES = ("imu", "baro")
 """The seed board's devices on the SPI bus; the magnetometer's transfers go through the
 IMU's (its I2C master performs them), so the IMU's 1 % covers them."""
+
+
+def flight_schedule(duration_s: float) -> tuple[tuple[float, float], ...]:
+    """A thermal-scenario climb schedule that stays near launch altitude for any duration:
+    60 s gliding at -1.1 m/s then 30 s climbing at 2.2 m/s, over and over (the scenario's
+    default ends in an endless glide, which after an hour would leave the MS5611's range)."""
+    schedule: list[tuple[float, float]] = [(0.0, 0.0)]
+    t = 5.0
+    while t < duration_s:
+        schedule += [(t, -1.1), (t + 60.0, 2.2)]
+        t += 90.0
+    return tuple(schedule)
 
 
 def fault_plan(duration_s: float) -> list[FaultSpec]:
@@ -337,7 +350,8 @@ def soak(duration_s: float, seed: int, startups: int, progress: bool = True) -> 
     wall0 = time.perf_counter()
     report.rss_mb["start"] = rss_mb()
     try:
-        pipeline = open_emulated(profile, registry, seed=seed, faults=plan)
+        pipeline = open_emulated(profile, registry, seed=seed, faults=plan,
+                                 scenario_params={"schedule": flight_schedule(duration_s)})
     except Exception:
         report.crashes.append(traceback.format_exc())
         return report
