@@ -4,10 +4,14 @@ same rule, so an estimator fed the recorded valid samples offline repeats the li
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from imuhal.core.samples import AccelSample, GyroSample, MagSample
 from imuhal.emulation import open_emulated
 from imuhal.estimation.ordering import fusion_order
 from imuhal.estimation.outputs import AttitudeEstimate
+from imuhal.offline.csv_input import read_sample_csv
+from imuhal.offline.runner import imu_events
 from imuhal.plugins.manager import load_registry
 from imuhal.profile.loader import load_profile
 from imuhal.profiles_dir import default_profile_path
@@ -29,3 +33,14 @@ def test_the_seed_board_ahrs_repeats_offline_from_the_samples_it_was_fed() -> No
     assert len(live) > 500
     assert replayed == live
 
+
+
+def test_the_offline_runner_feeds_each_row_in_fusion_order(tmp_path: Path) -> None:
+    path = tmp_path / "imu.csv"
+    path.write_text("t_s,gx_rad_s,gy_rad_s,gz_rad_s,ax_m_s2,ay_m_s2,az_m_s2,mx_ut,my_ut,mz_ut,"
+                    "pressure_pa\n"
+                    "0.0,0.1,0,0,0,0,-9.8,20,0,40,90000\n0.004,0.1,0,0,0,0,-9.8,,,,\n")
+    fed = list(imu_events(read_sample_csv(path)))
+    assert [type(s).__name__ for s in fed] == ["AccelSample", "MagSample", "PressureSample",
+                                               "GyroSample", "AccelSample", "GyroSample"]
+    assert fed == fusion_order(reversed(fed))

@@ -3,15 +3,16 @@
 from __future__ import annotations
 
 import argparse
+import itertools
 import sys
 from typing import Any
 
 from imuhal.cli.frame_option import frame_argument
 from imuhal.core.conventions import CONVENTIONS, NED
-from imuhal.offline.csv_input import read_sample_csv
-from imuhal.offline.csv_output import write_estimates
+from imuhal.offline.csv_input import iter_sample_chunks
+from imuhal.offline.csv_output import ColumnError, EstimateCsvWriter
 from imuhal.offline.frames import resolve_input_frame, table_to_ned
-from imuhal.offline.runner import run_offline
+from imuhal.offline.runner import iter_offline
 from imuhal.offline.settings_args import build_settings, parse_set_arguments
 from imuhal.plugins.manager import Registry
 
@@ -61,7 +62,20 @@ def add_parser(sub: Any) -> None:
                    "suffix, e.g. ax_m_s2_enu, else ned)")
     p.add_argument("--output-frame", type=frame_argument, default=NED, metavar="NAME",
                    help="convention of the output's attitude columns (default: ned)")
+    p.add_argument("--columns", metavar="A,B,...",
+                   help="write only these output columns, in this order (e.g. "
+                   "t_s,qw,qx,qy,qz); default: every estimate and diagnostics column")
     p.set_defaults(func=cmd_estimate)
+
+
+def _column_list(text: str | None) -> list[str] | None:
+    if text is None:
+        return None
+    names = [c.strip() for c in text.split(",") if c.strip()]
+    if not names:
+        raise ColumnError("--columns: give at least one column name, e.g. --columns t_s,qw,qx,"
+                         "qy,qz")
+    return names
 
 
 def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
@@ -72,16 +86,26 @@ def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
     ahrs_settings = build_settings(ahrs_cls.Settings,
                                    parse_set_arguments(args.ahrs_settings, "--ahrs-set"),
                                    args.ahrs, "--ahrs-set")
-    table, frame = resolve_input_frame(read_sample_csv(args.input, rate_hz=args.rate),
-                                       args.input_frame)
-    table = table_to_ned(table, frame)
+    # the log is read, run and written one chunk at a time: memory stays flat in its length
+    chunks = (table_to_ned(*resolve_input_frame(t, args.input_frame))
+              for t in iter_sample_chunks(args.input, rate_hz=args.rate))
+    first = next(chunks)
     ahrs = None
-    if ("altitude_m" not in table.columns and args.name != args.ahrs
+    if ("altitude_m" not in first.columns and args.name != args.ahrs
             and not any(t.__name__ == "PressureSample" for t in ahrs_cls.consumes)):
         ahrs = ahrs_cls(ahrs_settings)
-    outputs = run_offline(estimator, table, ahrs=ahrs)
-    rows = write_estimates(args.output, outputs, args.output_frame)
-    print(f"{args.name}: {len(table)} input rows -> {rows} estimates in {args.output}",
+    columns = _column_list(args.columns)
+    writer = EstimateCsvWriter(args.output, args.output_frame, columns)
+    n_in = 0
+    try:
+        for table in itertools.chain([first], chunks):
+            n_in += len(table)
+            writer.write(next(iter_offline(estimator, [table], ahrs=ahrs)))
+        rows = writer.commit()
+    except BaseException:
+        writer.abort()
+        raise
+    print(f"{args.name}: {n_in} input rows -> {rows} estimates in {args.output}",
           file=sys.stderr)
     for est in (estimator, ahrs):
         if est is not None:
