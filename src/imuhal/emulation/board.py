@@ -9,6 +9,7 @@ The simulation knows the truth in the body frame; each chip sees it in its own s
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Iterable
 
 from imuhal.core.clock import SimulatedClock
@@ -61,6 +62,15 @@ class EmulatedBoard:
                     f"this profile cannot run emulated; emulators exist for: "
                     f"{', '.join(registry.emulators.names()) or 'none'}"
                 )
+            try:
+                inspect.signature(reg.obj).bind(clock=clock)
+            except TypeError:
+                raise PluginError(
+                    f"device {name!r}: the emulator {reg.obj.__qualname__} registered for "
+                    f"{dev.driver!r} by plugin {reg.plugin!r} ({reg.package or 'local'}) cannot "
+                    "be built as Emulator(clock=...); its constructor must accept the keyword "
+                    "argument clock (see docs/writing-a-driver.md) - update the plugin"
+                ) from None
             emulator = reg.obj(clock=clock)
             host = self._bus_for(dev.bus)
             host.attach(dev.address, self.faults.line(name, emulator, host, dev.address))

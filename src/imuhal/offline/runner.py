@@ -13,6 +13,8 @@ import math
 from collections.abc import Iterable, Iterator
 from typing import Any
 
+import numpy as np
+
 from imuhal.core.atmosphere import SEA_LEVEL_PRESSURE_PA, pressure_pa_at_altitude
 from imuhal.core.frames import IDENTITY_QUATERNION
 from imuhal.core.samples import (
@@ -89,6 +91,28 @@ def vario_events(table: SampleTable, sea_level_pa: float) -> Iterator[Sample | E
         yield PressureSample(t_ns=t_ns, device=DEVICE, pressure_pa=p)
 
 
+def _stack(table: SampleTable, names: tuple[str, ...]) -> np.ndarray:
+    return np.stack([table.columns[n] for n in names], axis=1)
+
+
+def smoothed_estimates(estimator: Estimator, table: SampleTable) -> list[Estimate]:
+    """An estimator's offline mode (``offline: true``): its ``smooth`` method over the whole
+    table at once (the recording known in advance), one attitude per row. The magnetometer
+    is used only when every row has a sample (an offline smoother takes one rate)."""
+    smooth = getattr(estimator, "smooth", None)
+    if smooth is None:
+        raise InputError(f"estimator {estimator.name!r} has no offline mode; drop offline")
+    require(table, (TIME, *GYRO, *ACCEL), "an attitude estimator")
+    c = table.columns
+    mag = _stack(table, MAG) if table.has(*MAG) else None
+    if mag is not None and np.isnan(mag).any():
+        mag = None
+    q = smooth(_stack(table, GYRO), _stack(table, ACCEL), mag)
+    return [AttitudeEstimate(t_ns=round(float(t) * 1e9), source=estimator.instance,
+                             q_body_to_ned=(float(w), float(x), float(y), float(z)))
+            for t, (w, x, y, z) in zip(c[TIME], q, strict=True)]
+
+
 def run_offline(
     estimator: Estimator, table: SampleTable, *, ahrs: Estimator | None = None,
 ) -> list[Estimate]:
@@ -112,6 +136,8 @@ def _run_table(estimator: Estimator, table: SampleTable,
     wants_imu = any(issubclass(t, (GyroSample, AccelSample)) for t in consumes) and not any(
         issubclass(t, PressureSample) for t in consumes)
     outputs: list[Estimate] = []
+    if wants_imu and getattr(estimator.settings, "offline", False):
+        return smoothed_estimates(estimator, table)
     if wants_imu:
         process = estimator.process
         extend = outputs.extend

@@ -450,16 +450,27 @@ class Pipeline:
                     pending.append(out)
 
     def run(self, duration_s: float | None, sinks: Sequence[Sink] = ()) -> RunSummary:
-        """Run for ``duration_s`` simulated (or real) seconds, feeding every sink."""
+        """Run for ``duration_s`` simulated (or real) seconds, feeding every sink.
+
+        Sinks are closed when the run ends or is stopped (KeyboardInterrupt, which the CLI
+        also raises for SIGTERM and SIGHUP); when it fails, sinks that have an ``abort()``
+        are aborted instead, so a failed run never replaces a good file.
+        """
         wall0 = time.perf_counter()
         t0 = self.clock.now_ns()
+        failed = True
         try:
             for event in self.events(duration_s):
                 for sink in sinks:
                     sink.handle(event)
+            failed = False
+        except KeyboardInterrupt:
+            failed = False
+            raise
         finally:
             for sink in sinks:
-                sink.close()
+                abort = getattr(sink, "abort", None) if failed else None
+                (abort or sink.close)()
         return self.summary(wall_s=time.perf_counter() - wall0,
                             simulated_s=(self.clock.now_ns() - t0) / 1e9)
 

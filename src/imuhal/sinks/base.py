@@ -13,8 +13,11 @@ Event = Sample | Estimate
 
 @runtime_checkable
 class Sink(Protocol):
-    """Receives every event of a run in time order; ``close`` is called once, also when the
-    run fails (a file sink commits or discards its output there)."""
+    """Receives every event of a run in time order; ``close`` is called once when the run
+    ends or is stopped (a file sink commits its output there). When the run fails,
+    ``Pipeline.run`` calls the sink's ``abort()`` instead if it has one (a file sink then keeps
+    the previous file; :class:`~imuhal.sinks.builtin.CsvSink` keeps its rows beside it), else
+    ``close``."""
 
     def handle(self, event: Event) -> None: ...
 

@@ -1,0 +1,125 @@
+"""The "vqf" estimator: VQF (Laidig and Seel, "VQF: Highly Accurate IMU Orientation
+Estimation with Bias Estimation and Magnetic Disturbance Rejection", Information Fusion 91,
+2023) through the maintained ``vqf`` package, as an imuhal AHRS plugin.
+
+Each gyro step hands the package the latest accelerometer and magnetometer sample, converted
+at the edge to its conventions (frames.py), and reports its rest detection, magnetic
+disturbance detection and gyro bias estimate on every estimate. VQF runs at a fixed sample
+period (``sample_period_s``: set it to the gyro rate), starts from its own initial state (its
+accelerometer low-pass starts at the first sample, so it needs no alignment step) and its
+9-DOF heading converges from the magnetometer within seconds.
+
+``use_mag: false`` gives the 6-DOF estimate (gyro + accelerometer, heading drifts with the
+gyro) even when magnetometer samples arrive. ``offline: true`` is the package's acausal
+variant (the whole recording known in advance: forward-backward bias and disturbance
+estimation); it has no live form, so only ``imuhal estimate`` and ``imuhal evaluate`` run it
+(``smooth``).
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar, Literal
+
+from pydantic import Field
+from vqf import VQF, offlineVQF
+
+from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
+from imuhal.core.conventions import VectorKind
+from imuhal.core.frames import FloatArray
+from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
+from imuhal_filters.vqf.frames import from_vqf, quat_from_vqf, to_vqf, vector_to_vqf
+
+
+class VqfSettings(AhrsSettings):
+    initial_attitude: Literal["identity", "first_sample"] = "identity"
+    """VQF initialises itself from the first accelerometer (and magnetometer) samples; the
+    default ``identity`` leaves that to it so outputs equal the package's own.
+    ``first_sample`` is refused for this estimator (its internal state would disagree)."""
+    sample_period_s: float = Field(0.005, gt=0.0)
+    """The gyro period VQF runs at (s); it takes no per-step time."""
+    use_mag: bool = True
+    """Fuse the magnetometer (9-DOF); False: the 6-DOF quaternion."""
+    offline: bool = False
+    """The package's offline (forward-backward) variant; estimate/evaluate only."""
+    tau_acc_s: float = Field(3.0, gt=0.0)
+    """Accelerometer low-pass/correction time constant (s), VQF's ``tauAcc`` (default 3)."""
+    tau_mag_s: float = Field(9.0, gt=0.0)
+    """Magnetometer correction time constant (s), VQF's ``tauMag`` (default 9)."""
+    motion_bias_estimation: bool = True
+    """Gyro bias estimation during motion (VQF's ``motionBiasEstEnabled``)."""
+    rest_bias_estimation: bool = True
+    """Gyro bias estimation during rest (``restBiasEstEnabled``)."""
+    mag_disturbance_rejection: bool = True
+    """Magnetic disturbance detection and rejection (``magDistRejectionEnabled``)."""
+
+    def vqf_params(self) -> dict[str, Any]:
+        return {"tauAcc": self.tau_acc_s, "tauMag": self.tau_mag_s,
+                "motionBiasEstEnabled": self.motion_bias_estimation,
+                "restBiasEstEnabled": self.rest_bias_estimation,
+                "magDistRejectionEnabled": self.mag_disturbance_rejection}
+
+
+class VqfEstimator(AhrsEstimator):
+    """VQF via the ``vqf`` package (6-DOF, or 9-DOF when magnetometer samples arrive)."""
+
+    name: ClassVar[str] = "vqf"
+    description: ClassVar[str] = (
+        "VQF (Laidig and Seel 2023): rest and motion gyro bias estimation, magnetic "
+        "disturbance rejection (optional `vqf` package)"
+    )
+    Settings: ClassVar[type[VqfSettings]] = VqfSettings  # type: ignore[assignment]
+    settings: VqfSettings
+
+    def _reset_filter(self) -> None:
+        if self.settings.initial_attitude != "identity":
+            raise ValueError(f"{self.instance}: vqf aligns itself; initial_attitude must be "
+                             "'identity'")
+        self._vqf = VQF(self.settings.sample_period_s, **self.settings.vqf_params())
+        self._mag_seen = False
+
+    def _step(self, step: ImuStep) -> dict[str, Any]:
+        if self.settings.offline:
+            raise ValueError(f"{self.instance}: offline: true needs the whole recording; run it "
+                             "with `imuhal estimate` or `imuhal evaluate`, not live")
+        v = self._vqf
+        v.updateGyr(vector_to_vqf(step.gyro_rad_s, VectorKind.ANGULAR_RATE))
+        if step.accel_g is not None:
+            g = -STANDARD_GRAVITY_M_S2
+            f_ned = (step.accel_g[0] * g, step.accel_g[1] * g, step.accel_g[2] * g)
+            v.updateAcc(vector_to_vqf(f_ned, VectorKind.SPECIFIC_FORCE))
+        mag = step.mag_ut if self.settings.use_mag else None
+        if mag is not None:
+            v.updateMag(vector_to_vqf(mag, VectorKind.MAGNETIC_FIELD))
+            self._mag_seen = True
+        q = v.getQuat9D() if self._mag_seen else v.getQuat6D()
+        self._q = quat_from_vqf(q)
+        bias_flu = v.getBiasEstimate()[0]
+        # FRD <-> FLU is its own inverse
+        bias_ned = vector_to_vqf(tuple(bias_flu), VectorKind.ANGULAR_RATE)
+        return {
+            "rest_detected": bool(v.getRestDetected()),
+            # None without a magnetometer: VQF then reports its initial "disturbed" state
+            "mag_disturbed": bool(v.getMagDistDetected()) if self._mag_seen else None,
+            "gyro_bias_rad_s": [float(c) for c in bias_ned],
+            "accel_used": step.accel_g is not None,
+            "mag_used": mag is not None,
+        }
+
+    def _filter_state(self) -> dict[str, Any]:
+        # the package's state is plain lists, floats and bools
+        return {"vqf": dict(self._vqf.state), "mag_seen": self._mag_seen}
+
+    def _set_filter_state(self, state: dict[str, Any]) -> None:
+        self._vqf.state = dict(state["vqf"])
+        self._mag_seen = bool(state["mag_seen"])
+
+    def smooth(self, gyro_rad_s: FloatArray, accel_m_s2: FloatArray,
+               mag_ut: FloatArray | None) -> FloatArray:
+        """The offline variant over a whole recording: (N, 3) body NED arrays (specific
+        force), one row per gyro sample at ``sample_period_s``; returns (N, 4) body -> NED."""
+        use_mag = mag_ut is not None and self.settings.use_mag
+        out = offlineVQF(to_vqf(gyro_rad_s, VectorKind.ANGULAR_RATE),
+                         to_vqf(accel_m_s2, VectorKind.SPECIFIC_FORCE),
+                         to_vqf(mag_ut, VectorKind.MAGNETIC_FIELD) if use_mag else None,
+                         self.settings.sample_period_s, self.settings.vqf_params())
+        return from_vqf(out["quat9D"] if use_mag else out["quat6D"])

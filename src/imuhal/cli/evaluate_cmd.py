@@ -1,0 +1,184 @@
+"""``imuhal evaluate``: estimators x settings x recordings with ground truth -> errors."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from imuhal.cli.frame_option import frame_argument
+from imuhal.core.errors import ImuhalError
+from imuhal.core.samples import GyroSample, PressureSample
+from imuhal.evaluate.download import BROAD_URL, default_cache, download_broad
+from imuhal.evaluate.recording import BROAD_SUFFIXES, RecordingSource
+from imuhal.evaluate.report import (
+    aggregate,
+    summary_table,
+    write_csv,
+    write_json,
+    write_markdown,
+)
+from imuhal.evaluate.runner import EstimatorSpec, TrialResult, evaluate_serial, expand_grid
+from imuhal.offline.settings_args import parse_set_arguments
+from imuhal.plugins.manager import Registry
+
+HELP = """\
+Recordings: BROAD trials (.hdf5 or .mat; a folder means every trial in it, HDF5 preferred
+when a trial is there in both forms; groups come from the trials.json next to them), or
+imuhal sample CSVs each followed by --truth TRUTH.csv (from `imuhal run --truth`).
+--broad uses the BROAD cache (filled by --download-broad, which alone uses the network).
+
+Estimators: -e NAME[:KEY=VALUE[:KEY=VALUE...]], repeatable, e.g. -e madgwick
+-e madgwick:accel_gate_g=null -e vqf:offline=true (default: every installed attitude
+estimator with its defaults). --grid NAME.KEY=V1,V2,... runs every combination of the values
+given for NAME. --dof 9 (gyro+accel+mag) and/or 6 (the magnetometer withheld).
+
+Errors follow BROAD (Laidig et al. 2021): the estimate's error quaternion in the earth
+frame; total angle, heading (about the vertical) and inclination RMSE in degrees over the
+recording's movement mask; group figures are means over their trials.
+"""
+
+
+class EvaluateUsageError(ImuhalError):
+    pass
+
+
+def add_parser(sub: Any) -> None:
+    p = sub.add_parser(
+        "evaluate", help="errors of estimators on recordings with ground truth (BROAD, CSV)",
+        description="Run estimators over recordings with ground truth and report BROAD's "
+        "total, heading and inclination RMSE per trial, per group and overall.",
+        epilog=HELP, formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("recordings", nargs="*", metavar="RECORDING")
+    p.add_argument("--truth", action="append", default=[], metavar="TRUTH.csv",
+                   help="truth CSV of each sample CSV, in the same order")
+    p.add_argument("--input-frame", type=frame_argument, metavar="NAME",
+                   help="convention of the sample CSVs' vectors (as for `imuhal estimate`)")
+    p.add_argument("--broad", action="store_true", help="evaluate the cached BROAD trials")
+    p.add_argument("--download-broad", action="store_true",
+                   help="download BROAD into the cache first (uses the network)")
+    p.add_argument("--cache", metavar="DIR", help=f"BROAD cache (default {default_cache()})")
+    p.add_argument("--broad-url", default=BROAD_URL, help="where BROAD's files are fetched")
+    p.add_argument("-e", "--estimator", action="append", default=[], metavar="SPEC")
+    p.add_argument("--grid", action="append", default=[], metavar="NAME.KEY=V1,V2")
+    p.add_argument("--dof", action="append", type=int, choices=(6, 9), default=[],
+                   help="9 and/or 6 (default: both)")
+    p.add_argument("--group", action="append", default=[], metavar="NAME",
+                   help="also print this group's table (default: only all trials)")
+    p.add_argument("--output", "-o", metavar="RESULTS.csv", help="per-trial results (CSV)")
+    p.add_argument("--json", metavar="RESULTS.json", help="per-trial and group results (JSON)")
+    p.add_argument("--markdown", metavar="TABLES.md",
+                   help="per-group tables in Markdown (as in docs/evaluation.md)")
+    p.add_argument("--dask", action="store_true", help="run the jobs on Dask")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="Dask scheduler to use (default: a local cluster); implies --dask")
+    p.add_argument("--workers", type=int, metavar="N", help="local Dask cluster size")
+    p.add_argument("--quiet", "-q", action="store_true", help="no progress lines")
+    p.set_defaults(func=cmd_evaluate)
+
+
+def parse_spec(text: str, registry: Registry) -> tuple[str, dict[str, Any]]:
+    name, *items = text.split(":")
+    registry.estimators.get(name)  # an unknown name is a one-line error listing the known
+    return name, parse_set_arguments(items, f"-e {name}:")
+
+
+def parse_grid(items: list[str], registry: Registry) -> dict[str, dict[str, list[Any]]]:
+    grid: dict[str, dict[str, list[Any]]] = {}
+    for item in items:
+        head, sep, _ = item.partition("=")
+        name, dot, key = head.partition(".")
+        if not sep or not dot or not key:
+            raise EvaluateUsageError(f"--grid {item!r}: write NAME.KEY=V1,V2, e.g. --grid "
+                                     "madgwick.beta=0.01,0.03,0.1")
+        registry.estimators.get(name)
+        value = parse_set_arguments([item[len(name) + 1:]], "--grid")[key]
+        grid.setdefault(name, {})[key] = value if isinstance(value, list) else [value]
+    return grid
+
+
+def attitude_estimators(registry: Registry) -> list[str]:
+    """Installed estimators that take gyro samples and no pressure (the AHRS kind)."""
+    return [n for n in registry.estimators.names()
+            if GyroSample in registry.estimators.get(n).consumes
+            and PressureSample not in registry.estimators.get(n).consumes]
+
+
+def recording_sources(args: argparse.Namespace) -> list[RecordingSource]:
+    paths = [Path(p) for p in args.recordings]
+    if args.broad or args.download_broad:
+        paths.append(Path(args.cache) if args.cache else default_cache())
+    sources: list[RecordingSource] = []
+    csvs: list[Path] = []
+    for p in paths:
+        if p.is_dir():
+            trials: dict[str, Path] = {}
+            for f in sorted(p.iterdir()):
+                if f.suffix.lower() in BROAD_SUFFIXES and (
+                        f.stem not in trials or f.suffix.lower() != ".mat"):
+                    trials[f.stem] = f
+            if not trials:
+                raise EvaluateUsageError(f"{p}: no BROAD trials (.hdf5/.mat) in this folder"
+                                         + ("; fetch them with --download-broad"
+                                            if args.broad else ""))
+            sources += [RecordingSource(str(trials[k])) for k in sorted(trials)]
+        elif p.suffix.lower() == ".csv":
+            csvs.append(p)
+        elif p.is_file():
+            sources.append(RecordingSource(str(p)))
+        else:
+            raise EvaluateUsageError(f"{p}: no such file or folder")
+    if len(csvs) != len(args.truth):
+        raise EvaluateUsageError(f"{len(csvs)} sample CSV(s) but {len(args.truth)} --truth "
+                                 "file(s); give one --truth TRUTH.csv per sample CSV")
+    frame = args.input_frame.name if args.input_frame is not None else None
+    sources += [RecordingSource(str(c), t, frame) for c, t in zip(csvs, args.truth, strict=True)]
+    if not sources:
+        raise EvaluateUsageError("no recordings; give BROAD trials, a folder of them, "
+                                 "--broad, or a sample CSV with --truth")
+    return sources
+
+
+def _progress(quiet: bool) -> Any:
+    def show(done: int, total: int, r: TrialResult) -> None:
+        if not quiet:
+            print(f"[{done}/{total}] {r.trial}  {r.label} ({r.dof}-DOF): total "
+                  f"{r.total_deg:.2f}, heading {r.heading_deg:.2f}, inclination "
+                  f"{r.inclination_deg:.2f} deg ({r.seconds:.1f} s)", file=sys.stderr)
+    return show
+
+
+def cmd_evaluate(args: argparse.Namespace, registry: Registry) -> int:
+    for out in (args.output, args.json, args.markdown):
+        if out and any(Path(out).resolve() == Path(r).resolve() for r in args.recordings):
+            raise EvaluateUsageError(f"{out}: is an input; choose another output file")
+    specs_in = [parse_spec(s, registry) for s in args.estimator] or [
+        (n, {}) for n in attitude_estimators(registry)]
+    dofs = args.dof or [9, 6]
+    grid = parse_grid(args.grid, registry)
+    specs = expand_grid([EstimatorSpec(n, s, d) for d in dofs for n, s in specs_in], grid)
+    if args.download_broad:
+        download_broad(args.cache, base_url=args.broad_url,
+                       progress=None if args.quiet else lambda m: print(m, file=sys.stderr))
+    sources = recording_sources(args)
+    progress = _progress(args.quiet)
+    if args.dask or args.scheduler:
+        from imuhal.evaluate.dask_runner import evaluate_dask
+
+        results = evaluate_dask(sources, specs, scheduler=args.scheduler,
+                                workers=args.workers, progress=progress)
+    else:
+        results = evaluate_serial(sources, specs, registry, progress)
+    groups = aggregate(results)
+    print(summary_table(groups))
+    for g in args.group:
+        print(f"\ngroup {g}:\n{summary_table(groups, g)}")
+    if args.output:
+        write_csv(args.output, results)
+    if args.json:
+        write_json(args.json, results, groups)
+    if args.markdown:
+        write_markdown(args.markdown, groups)
+    return 0
