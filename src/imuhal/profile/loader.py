@@ -292,12 +292,11 @@ def _check_references(data: dict[str, Any], doc: LocatedDocument) -> list[str]:
                 path = ("estimators", name, "inputs", i)
                 out.append(f"{doc.where(path)}: {dotted(path)}: {ref!r} is neither a device nor "
                            f"an estimator of this profile")
-    enabled = sorted(n for n, d in _mapping(data.get("devices")).items()
-                     if not (isinstance(d, dict) and d.get("enabled") is False))
+    enabled = sorted(str(n) for n, d in devices.items() if d.get("enabled", True) is not False)
     faults = _mapping(data.get("emulation")).get("faults")
     for i, fault in enumerate(faults if isinstance(faults, list) else []):
-        device = fault.get("device") if isinstance(fault, dict) else None
-        if isinstance(device, str) and device not in enabled:
+        device = _text(fault.get("device")) if isinstance(fault, dict) else None
+        if device is not None and device not in enabled:
             path = ("emulation", "faults", i, "device")
             out.append(f"{doc.where(path)}: {dotted(path)}: {device!r} is not an enabled "
                        f"device of this profile; devices: {', '.join(enabled) or 'none'}")
