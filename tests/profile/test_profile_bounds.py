@@ -98,10 +98,10 @@ def test_a_number_setting_takes_no_bool_and_no_string(value: str,
 
 
 def test_a_bool_is_not_a_rate_in_a_bundled_board(installed: Registry) -> None:
-    text = default_profile_path().read_text().replace("rate_hz: 50", "rate_hz: true")
+    text = default_profile_path().read_text().replace("odr_hz: 50", "odr_hz: true")
     problems = _problems(text, installed)
     assert len(problems) == 1
-    assert "devices.baro.settings.rate_hz" in problems[0] and "True" in problems[0]
+    assert "devices.baro.settings.odr_hz" in problems[0] and "True" in problems[0]
 
 
 def test_a_bool_is_not_an_address(registry: Registry) -> None:

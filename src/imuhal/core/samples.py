@@ -48,6 +48,12 @@ class SampleFlag(IntFlag):
     beyond the configured full scale)."""
     OUT_OF_ORDER = 1 << 7
     """The sample is older than one its device already delivered for the same quantity."""
+    BLANK = 1 << 8
+    """The frame read all 0x00 or all 0xFF: nothing drove the bus (chip absent or
+    unpowered, a slave missing behind an I2C master, a data line stuck)."""
+    FROZEN = 1 << 9
+    """The chip repeated the same raw frame for longer than its noise allows: its
+    conversions hung (a real sensor's noise never repeats one raw word for long)."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

@@ -52,9 +52,12 @@ def open_emulated(
     and bias model (as its emulator declares); False gives ideal chips (quantisation and
     range only). ``error_specs`` (device -> spec; devices not named are ideal) replaces
     those models, for tests and studies that need known offsets, scale errors and iron.
-    rotations = chip_rotations(_physically_mounted(profile, physical_mounts or {}))
-    board = EmulatedBoard(profile, registry, clock, world, rotations, errors,
-                          faults=[*profile.emulation.faults, *faults], seed=run_seed)
+    ``faults`` are injected into the board on top of the profile's ``emulation.faults``
+    (imuhal.emulation.faults, docs/reliability.md). ``calibrated`` and ``trace`` are the
+    pipeline's (see :class:`Pipeline`).
+    ``physical_mounts`` (device -> mount, as in a profile) places those chips on the board
+    differently from what the profile says: the pipeline still rotates by the profile's
+    mount, so a wrong profile can be emulated (``imuhal check-mounts`` finds it).
     """
     name = profile.emulation.scenario if scenario is None else scenario
     clock = SimulatedClock(realtime=realtime)
