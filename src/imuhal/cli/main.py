@@ -12,7 +12,14 @@ import sys
 from collections.abc import Sequence
 
 from imuhal import __version__
-from imuhal.cli import calibrate_cmd, estimate_cmd, plugins_cmd, profile_cmd, run_cmd
+from imuhal.cli import (
+    calibrate_cmd,
+    estimate_cmd,
+    plugins_cmd,
+    profile_cmd,
+    replay_cmd,
+    run_cmd,
+)
 from imuhal.core.errors import ImuhalError
 from imuhal.plugins.manager import load_registry
 
@@ -20,7 +27,7 @@ EXIT_ERROR = 2
 EXIT_INTERNAL = 70
 EXIT_INTERRUPTED = 130
 
-COMMANDS = [run_cmd, estimate_cmd, calibrate_cmd, plugins_cmd, profile_cmd]
+COMMANDS = [run_cmd, replay_cmd, estimate_cmd, calibrate_cmd, plugins_cmd, profile_cmd]
 """Modules providing ``add_parser(subparsers)``; the order is the order in --help."""
 
 

@@ -15,6 +15,7 @@ from imuhal.core.errors import ImuhalError
 from imuhal.plugins.manager import Registry
 from imuhal.profile.loader import load_profile
 from imuhal.profiles_dir import default_profile_path
+from imuhal.recording.recorder import BusRecorder, run_header
 
 
 def add_parser(sub: Any) -> None:
@@ -40,6 +41,9 @@ def add_parser(sub: Any) -> None:
                      "timestamps as the --output rows (docs/simulation.md)")
     run.add_argument("--trace", metavar="FILE.txt",
                      help="log every bus transaction (time, bus, address, bytes) to a file")
+    run.add_argument("--record", metavar="FILE",
+                     help="record every bus transaction and clock reading to a new binary "
+                     "file, for `imuhal replay` (docs/recording.md)")
     run.add_argument("--seed", type=int, help="seed of the simulated world (default: profile's)")
     run.add_argument("--quiet", action="store_true", help="no live status line")
     run.set_defaults(func=cmd_run)
@@ -68,13 +72,20 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     csv_sink = None
     trace_file = AtomicFile(args.trace) if args.trace else None
     trace = (lambda t: trace_file.write(format_transfer(t) + "\n")) if trace_file else None
+    recorder = None
+    ended = ["failed"]  # how the run ended, for the recording's end mark
     with contextlib.ExitStack() as stack:
         if trace_file is not None:
             # Committed even when opening the board fails: the trace of a failed probe is
             # exactly what a bug report needs.
             stack.callback(trace_file.commit)
+        if args.record:
+            recorder = BusRecorder(args.record, run_header(
+                path.read_text(encoding="utf-8"), str(path), emulate=emulate, seed=args.seed))
+            stack.callback(lambda: recorder.close(ended[0]))
         pipeline = stack.enter_context(Pipeline.open(
-            profile, registry, emulate=emulate, realtime=realtime, seed=args.seed, trace=trace))
+            profile, registry, emulate=emulate, realtime=realtime, seed=args.seed, trace=trace,
+            recorder=recorder))
         for w in pipeline.warnings:
             print(f"warning: {w}", file=sys.stderr)
         if args.output:
@@ -87,12 +98,17 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
             sinks.append(truth_sink)
         try:
             summary = pipeline.run(duration, sinks)
+            ended[0] = "complete"
         except KeyboardInterrupt:
             summary = pipeline.summary()
+            ended[0] = "interrupted"
             print("\ninterrupted", file=sys.stderr)
     print(summary.describe(), file=sys.stderr)
     if csv_sink is not None:
         print(f"wrote {csv_sink.rows} rows to {args.output}", file=sys.stderr)
     if truth_sink is not None:
         print(f"wrote {truth_sink.rows} truth rows to {args.truth}", file=sys.stderr)
+    if recorder is not None:
+        print(f"recorded {recorder.transfers} bus transactions to {args.record}",
+              file=sys.stderr)
     return 0

@@ -31,6 +31,7 @@ from imuhal.pipeline.sinks import Sink
 from imuhal.plugins.manager import Registry
 from imuhal.profile.model import BoardProfile
 from imuhal.profile.topology import device_order, split_bus_ref
+from imuhal.recording.recorder import BusRecorder
 from imuhal.sim.errors import SensorErrorModel, SensorErrorSpec, device_seed
 
 Event = Sample | Estimate
@@ -97,13 +98,20 @@ class Pipeline:
         board: EmulatedBoard | None = None,
         calibrated: bool = True,
         trace: Callable[[Transfer], None] | None = None,
+        recorder: BusRecorder | None = None,
     ) -> None:
         self.profile = profile
         self.calibrated = calibrated
         self.registry = registry
+        taps = [tap for tap in (trace, recorder.on_transfer if recorder else None) if tap]
+        # The spies stamp transactions with the plain clock: their own readings are not part
+        # of the run, so a replay does not have to make them.
+        self.buses = dict(buses) if not taps else {
+            name: SpyBus(bus, _fan_out(taps), clock) for name, bus in buses.items()}
+        if recorder is not None:
+            recorder.attach(buses)
+            clock = recorder.wrap_clock(clock)
         self.clock = clock
-        self.buses = dict(buses) if trace is None else {
-            name: SpyBus(bus, trace, clock) for name, bus in buses.items()}
         self.board = board
         self.warnings: list[str] = []
         self._started = False
@@ -150,6 +158,7 @@ class Pipeline:
         sensor_errors: bool | None = None,
         error_specs: Mapping[str, SensorErrorSpec | None] | None = None,
         trace: Callable[[Transfer], None] | None = None,
+        recorder: BusRecorder | None = None,
     ) -> Pipeline:
         """Open the profile's real buses, or (``emulate=SCENARIO``) an emulated board.
 
@@ -159,7 +168,8 @@ class Pipeline:
         noise and bias model; False gives ideal chips (quantisation and range only).
         ``error_specs`` (device -> spec; devices not named are ideal) replaces those models,
         for tests and studies that need known offsets, scale errors and iron.
-        ``trace`` receives every bus transaction (see imuhal.bus.spy).
+        ``trace`` receives every bus transaction (see imuhal.bus.spy); ``recorder`` also
+        records every clock reading, for ``imuhal replay`` (see imuhal.recording).
         """
         if emulate is None:
             buses = {}
@@ -169,7 +179,7 @@ class Pipeline:
                     settings = factory.Settings.model_validate(cfg.plugin_settings())
                     buses[name] = factory.open(name, settings)
                 return cls(profile, registry, clock=MonotonicClock(), buses=buses,
-                           calibrated=calibrated, trace=trace)
+                           calibrated=calibrated, trace=trace, recorder=recorder)
             except BaseException:
                 for bus in buses.values():
                     bus.close()
@@ -191,7 +201,7 @@ class Pipeline:
                               errors)
         board.update(0)
         return cls(profile, registry, clock=clock, buses=dict(board.buses), board=board,
-                   calibrated=calibrated, trace=trace)
+                   calibrated=calibrated, trace=trace, recorder=recorder)
 
     def _link(self, bus_ref: str, address: int) -> Link:
         parent, child = split_bus_ref(bus_ref)
@@ -372,6 +382,17 @@ class Pipeline:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _fan_out(taps: list[Callable[[Transfer], None]]) -> Callable[[Transfer], None]:
+    if len(taps) == 1:
+        return taps[0]
+
+    def each(transfer: Transfer) -> None:
+        for tap in taps:
+            tap(transfer)
+
+    return each
 
 
 def _chip_to_body(profile: BoardProfile) -> dict[str, FloatArray]:
