@@ -8,12 +8,15 @@ from typing import Any
 
 from imuhal.offline.csv_input import read_sample_csv
 from imuhal.offline.csv_output import write_estimates
-from imuhal.offline.runner import run_offline
+from imuhal.offline.run_log import is_run_log, read_run_log
+from imuhal.offline.runner import run_offline, run_offline_samples
 from imuhal.offline.settings_args import build_settings, parse_set_arguments
 from imuhal.plugins.manager import Registry
 
 HELP = """\
-Input columns (project units and frames; see docs/units-and-frames.md):
+INPUT is a log of `imuhal run --output LOG.csv --samples` (one row per event; flagged
+samples are skipped) or a wide CSV with one row per time.
+Wide input columns (project units and frames; see docs/units-and-frames.md):
   attitude estimators: t_s, gx_rad_s, gy_rad_s, gz_rad_s, ax_m_s2, ay_m_s2, az_m_s2
                        [, mx_ut, my_ut, mz_ut]   (accel = specific force, NED body:
                        a level board at rest reads az_m_s2 = -9.81)
@@ -26,8 +29,9 @@ Settings are the estimator's own fields: --set beta=0.1 --set accel_gate_g=0.6,1
 
 def add_parser(sub: Any) -> None:
     p = sub.add_parser(
-        "estimate", help="run an estimator over a CSV of samples",
-        description="Run any registered estimator over a CSV log of samples.",
+        "estimate", help="run an estimator over a run log or a CSV of samples",
+        description="Run any registered estimator over a log of `imuhal run --samples` or a "
+        "wide CSV of samples.",
         epilog=HELP, formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("name", help="estimator name (see `imuhal plugins`)")
@@ -47,14 +51,27 @@ def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
     est_cls = registry.estimators.get(args.name)
     settings = build_settings(est_cls.Settings, parse_set_arguments(args.settings), args.name)
     estimator = est_cls(settings)
-    table = read_sample_csv(args.input, rate_hz=args.rate)
-    ahrs = None
-    if "altitude_m" not in table.columns and args.name != args.ahrs:
-        ahrs_cls = registry.estimators.get(args.ahrs)
-        if not any(t.__name__ == "PressureSample" for t in ahrs_cls.consumes):
-            ahrs = ahrs_cls()
-    outputs = run_offline(estimator, table, ahrs=ahrs)
+    if is_run_log(args.input):
+        log = read_run_log(args.input)
+        outputs = run_offline_samples(estimator, log.samples,
+                                      ahrs=_gravity_ahrs(args, registry, True))
+        read = (f"{log.rows} log rows ({len(log.samples)} valid samples, {log.flagged} "
+                "flagged skipped)")
+    else:
+        table = read_sample_csv(args.input, rate_hz=args.rate)
+        ahrs = _gravity_ahrs(args, registry, "altitude_m" not in table.columns)
+        outputs = run_offline(estimator, table, ahrs=ahrs)
+        read = f"{len(table)} input rows"
     rows = write_estimates(args.output, outputs)
-    print(f"{args.name}: {len(table)} input rows -> {rows} estimates in {args.output}",
-          file=sys.stderr)
+    print(f"{args.name}: {read} -> {rows} estimates in {args.output}", file=sys.stderr)
     return 0
+
+
+def _gravity_ahrs(args: argparse.Namespace, registry: Registry, needed: bool) -> Any:
+    """The --ahrs estimator a vario filter fed IMU samples needs (None when it does not)."""
+    if not needed or args.name == args.ahrs:
+        return None
+    ahrs_cls = registry.estimators.get(args.ahrs)
+    if any(t.__name__ == "PressureSample" for t in ahrs_cls.consumes):
+        return None
+    return ahrs_cls()

@@ -17,6 +17,9 @@ from imuhal.profile.loader import load_profile
 from imuhal.profiles_dir import default_profile_path
 from imuhal.recording.recorder import BusRecorder, run_header
 
+REPLAY_SCENARIO = "replay"
+"""The scenario that flies a recorded truth file (imuhal.sim.recorded)."""
+
 
 def add_parser(sub: Any) -> None:
     run = sub.add_parser(
@@ -38,7 +41,8 @@ def add_parser(sub: Any) -> None:
                      help="with --output, also write every sample (flagged ones included)")
     run.add_argument("--truth", metavar="FILE.csv",
                      help="emulated runs: write the simulated ground truth at the same "
-                     "timestamps as the --output rows (docs/simulation.md)")
+                     "timestamps as the --output rows (docs/simulation.md); with "
+                     "--emulate replay: the truth file to fly again (read, never written)")
     run.add_argument("--trace", metavar="FILE.txt",
                      help="log every bus transaction (time, bus, address, bytes) to a file")
     run.add_argument("--record", metavar="FILE",
@@ -61,8 +65,18 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     if args.truth and emulate is None:
         raise ImuhalError("--truth needs an emulated run (--emulate SCENARIO): real "
                           "hardware has no ground truth")
+    truth_out, scenario_params = args.truth, None
+    if emulate == REPLAY_SCENARIO:
+        # The truth is the input here: the trajectory to fly again.
+        if not args.truth:
+            raise ImuhalError("--emulate replay flies a recorded truth file again: name it "
+                              "with --truth FILE.csv (one that `imuhal run --truth` wrote)")
+        if not Path(args.truth).is_file():
+            raise ImuhalError(f"{args.truth}: no such truth file to replay; write one with "
+                              "`imuhal run --emulate SCENARIO --truth FILE.csv`")
+        truth_out, scenario_params = None, {"path": args.truth}
     duration = args.duration
-    if duration is None and emulate is not None:
+    if duration is None and emulate is not None and scenario_params is None:
         duration = registry.scenarios.get(emulate).default_duration_s
     where = f"emulated, scenario '{emulate}'" if emulate else "real hardware"
     print(f"imuhal {__version__}: {profile.name} ({where}) from {path}", file=sys.stderr)
@@ -83,17 +97,24 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
             recorder = BusRecorder(args.record, run_header(
                 path.read_text(encoding="utf-8"), str(path), emulate=emulate, seed=args.seed))
             stack.callback(lambda: recorder.close(ended[0]))
-        pipeline = stack.enter_context(Pipeline.open(
-            profile, registry, emulate=emulate, realtime=realtime, seed=args.seed, trace=trace,
-            recorder=recorder))
+        try:
+            pipeline = stack.enter_context(Pipeline.open(
+                profile, registry, emulate=emulate, realtime=realtime, seed=args.seed,
+                trace=trace, recorder=recorder, scenario_params=scenario_params))
+        except ValueError as exc:
+            if scenario_params is None:
+                raise
+            raise ImuhalError(f"{args.truth}: cannot replay this truth file: {exc}") from None
+        if duration is None and scenario_params is not None and pipeline.board is not None:
+            duration = pipeline.board.scenario.duration_s  # type: ignore[attr-defined]
         for w in pipeline.warnings:
             print(f"warning: {w}", file=sys.stderr)
         if args.output:
             csv_sink = CsvSink(args.output, include_samples=args.samples)
             sinks.append(csv_sink)
         truth_sink = None
-        if args.truth and pipeline.board is not None:
-            truth_sink = TruthSink(args.truth, pipeline.board.scenario,
+        if truth_out and pipeline.board is not None:
+            truth_sink = TruthSink(truth_out, pipeline.board.scenario,
                                    include_samples=args.samples)
             sinks.append(truth_sink)
         try:
@@ -107,7 +128,7 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     if csv_sink is not None:
         print(f"wrote {csv_sink.rows} rows to {args.output}", file=sys.stderr)
     if truth_sink is not None:
-        print(f"wrote {truth_sink.rows} truth rows to {args.truth}", file=sys.stderr)
+        print(f"wrote {truth_sink.rows} truth rows to {truth_out}", file=sys.stderr)
     if recorder is not None:
         print(f"recorded {recorder.transfers} bus transactions to {args.record}",
               file=sys.stderr)

@@ -9,7 +9,7 @@ on the gyro uses that row's accel and mag.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from typing import Any
 
 from imuhal.core.atmosphere import SEA_LEVEL_PRESSURE_PA, pressure_pa_at_altitude
@@ -84,34 +84,58 @@ def run_offline(
 ) -> list[Estimate]:
     """Run ``estimator`` over ``table``; ``ahrs`` supplies attitude to a vario filter fed
     full IMU columns plus ``pressure_pa`` (imuhal then does the gravity compensation)."""
-    consumes = tuple(estimator.consumes)
-    wants_imu = any(issubclass(t, (GyroSample, AccelSample)) for t in consumes) and not any(
-        issubclass(t, PressureSample) for t in consumes)
-    outputs: list[Estimate] = []
-    if wants_imu:
-        for sample in imu_events(table):
-            if isinstance(sample, consumes):
-                outputs += estimator.process(sample)
-        return outputs
-    if not any(issubclass(t, PressureSample) for t in consumes):
-        raise InputError(f"estimator {estimator.name!r} consumes "
-                         f"{', '.join(t.__name__ for t in consumes)}: imuhal estimate cannot "
-                         "build those from a CSV")
+    if _wants_imu(estimator):
+        return feed(estimator, imu_events(table))
+    _require_pressure_consumer(estimator)
     if table.has(ALTITUDE):
         sea_level = float(getattr(estimator.settings, "sea_level_pa", SEA_LEVEL_PRESSURE_PA))
-        for item in vario_events(table, sea_level):
-            if isinstance(item, consumes):
-                outputs += estimator.process(item)
-        return outputs
+        return feed(estimator, vario_events(table, sea_level))
     require(table, (TIME, *GYRO, *ACCEL, PRESSURE),
             "a vario filter (or give t_s, altitude_m, accel_up_m_s2)")
     if ahrs is None:
         raise InputError("full IMU input needs an attitude estimator for gravity compensation")
-    for sample in imu_events(table):
-        upstream: list[Any] = [sample]
-        if isinstance(sample, tuple(ahrs.consumes)):
-            upstream += ahrs.process(sample)
-        for item in upstream:
-            if isinstance(item, consumes):
-                outputs += estimator.process(item)
+    return feed(estimator, imu_events(table), ahrs=ahrs)
+
+
+def run_offline_samples(
+    estimator: Estimator, samples: Iterable[Sample], *, ahrs: Estimator | None = None,
+) -> list[Estimate]:
+    """Run ``estimator`` over samples as the pipeline produced them (a run log, in order);
+    a vario filter gets its attitude from ``ahrs`` run over the same samples."""
+    if _wants_imu(estimator):
+        return feed(estimator, samples)
+    _require_pressure_consumer(estimator)
+    if ahrs is None:
+        raise InputError("a vario filter over a run log needs an attitude estimator for "
+                         "gravity compensation (--ahrs NAME)")
+    return feed(estimator, samples, ahrs=ahrs)
+
+
+def feed(estimator: Estimator, items: Iterable[Sample | Estimate], *,
+         ahrs: Estimator | None = None) -> list[Estimate]:
+    """Each item (and what ``ahrs`` makes of it) to ``estimator`` when it consumes it."""
+    consumes = tuple(estimator.consumes)
+    ahrs_consumes = tuple(ahrs.consumes) if ahrs is not None else ()
+    outputs: list[Estimate] = []
+    for item in items:
+        upstream: list[Any] = [item]
+        if ahrs is not None and isinstance(item, ahrs_consumes):
+            upstream += ahrs.process(item)
+        for x in upstream:
+            if isinstance(x, consumes):
+                outputs += estimator.process(x)
     return outputs
+
+
+def _wants_imu(estimator: Estimator) -> bool:
+    consumes = tuple(estimator.consumes)
+    return any(issubclass(t, (GyroSample, AccelSample)) for t in consumes) and not any(
+        issubclass(t, PressureSample) for t in consumes)
+
+
+def _require_pressure_consumer(estimator: Estimator) -> None:
+    consumes = tuple(estimator.consumes)
+    if not any(issubclass(t, PressureSample) for t in consumes):
+        raise InputError(f"estimator {estimator.name!r} consumes "
+                         f"{', '.join(t.__name__ for t in consumes)}: imuhal estimate cannot "
+                         "build those from a CSV")

@@ -1,0 +1,111 @@
+"""Reading the log ``imuhal run --output LOG.csv --samples`` writes (docs/output-csv.md).
+
+That log is long: one row per event, ``kind`` saying which columns it fills. Its sample rows
+become the same sample objects the pipeline produced (body frame NED, project units) in the
+same order, so an estimator run over it offline sees what it would have seen live. Flagged
+samples (``flags`` not 0) are skipped, as the pipeline never fuses them; estimate rows are
+the run's own outputs and are not inputs.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+from imuhal.core.samples import (
+    AccelSample,
+    Frame,
+    GyroSample,
+    MagSample,
+    PressureSample,
+    Sample,
+    TemperatureSample,
+)
+from imuhal.offline.csv_input import InputError
+
+LONG_FORMAT_COLUMNS = frozenset({"t_s", "source", "kind", "flags"})
+"""A header with all of these is a run log (long format), not a wide sample table."""
+
+_VECTORS = {
+    "accel": (("ax_m_s2", "ay_m_s2", "az_m_s2"), AccelSample, "accel_m_s2"),
+    "gyro": (("gx_rad_s", "gy_rad_s", "gz_rad_s"), GyroSample, "gyro_rad_s"),
+    "mag": (("mx_ut", "my_ut", "mz_ut"), MagSample, "mag_ut"),
+}
+_ESTIMATE_KINDS = frozenset({"attitude", "vertical"})
+
+
+@dataclass
+class RunLog:
+    path: Path
+    samples: list[Sample]
+    """Valid samples in log order."""
+    rows: int
+    """Data rows in the file."""
+    flagged: int
+    """Sample rows skipped because they were flagged."""
+    estimates: int
+    """Estimate rows (not inputs)."""
+
+
+def is_run_log(path: str | Path) -> bool:
+    """True when the file's header is a run log's (``t_s, source, kind, flags, ...``)."""
+    try:
+        with Path(path).open(newline="", encoding="utf-8") as f:
+            header = next(csv.reader(f), [])
+    except (OSError, UnicodeDecodeError):
+        return False  # the wide reader reports unreadable files with their reason
+    return {h.strip() for h in header} >= LONG_FORMAT_COLUMNS
+
+
+def read_run_log(path: str | Path) -> RunLog:
+    """Every valid sample of a run log; each bad cell is an error naming line and column."""
+    p = Path(path)
+    samples: list[Sample] = []
+    rows = flagged = estimates = 0
+    with p.open(newline="", encoding="utf-8") as f:
+        for line_no, row in enumerate(csv.DictReader(f), start=2):
+            rows += 1
+            kind = (row.get("kind") or "").strip()
+            if kind in _ESTIMATE_KINDS:
+                estimates += 1
+                continue
+            if _number(p, line_no, row, "flags") != 0:
+                flagged += 1
+                continue
+            t_ns = round(_number(p, line_no, row, "t_s") * 1e9)
+            device = (row.get("source") or "").strip()
+            if kind in _VECTORS:
+                names, cls, field = _VECTORS[kind]
+                vector = tuple(_number(p, line_no, row, n) for n in names)
+                samples.append(cls(t_ns=t_ns, device=device, frame=Frame.BODY_NED,
+                                   **{field: vector}))
+            elif kind == "pressure":
+                samples.append(PressureSample(t_ns=t_ns, device=device, pressure_pa=_number(
+                    p, line_no, row, "pressure_pa")))
+            elif kind == "temperature":
+                samples.append(TemperatureSample(t_ns=t_ns, device=device,
+                                                 temperature_degc=_number(
+                                                     p, line_no, row, "temperature_degc")))
+            else:
+                raise InputError(f"{p}: line {line_no}, column 'kind': {kind!r} is not a "
+                                 "sample or estimate kind (docs/output-csv.md)")
+    if not samples:
+        why = (f"it holds {estimates} estimate rows and no valid samples; write samples with "
+               "`imuhal run --output LOG.csv --samples`") if rows else "it has no data rows"
+        raise InputError(f"{p}: no samples to estimate from: {why}")
+    return RunLog(p, samples, rows, flagged, estimates)
+
+
+def _number(path: Path, line_no: int, row: dict[str, str | None], column: str) -> float:
+    text = (row.get(column) or "").strip()
+    try:
+        value = float(text)
+    except ValueError:
+        raise InputError(f"{path}: line {line_no}, column '{column}': {text!r} is not a "
+                         "number") from None
+    if not math.isfinite(value):
+        raise InputError(f"{path}: line {line_no}, column '{column}': {text!r} is not finite "
+                         "in a valid (flags 0) sample row")
+    return value
