@@ -1,0 +1,114 @@
+"""``imuhal plot``: the figure's series are the log's and the truth's (checked on the Line2D
+data, not on pixels)."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from imuhal.cli.main import main
+
+pytest.importorskip("matplotlib", reason="plots need the 'plot' extra (in the test extra)")
+
+from imuhal.plotting import plot_log, read_log, read_truth  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    folder = tmp_path_factory.mktemp("plot")
+    log, truth = folder / "log.csv", folder / "truth.csv"
+    assert main(["run", "profiles/seed-rc-vario.yaml", "--emulate", "rc-flight", "--duration",
+                 "8", "--quiet", "--output", str(log), "--samples", "--truth", str(truth)]) == 0
+    return log, truth
+
+
+def _column(log: Path, source: str, column: str) -> tuple[np.ndarray, np.ndarray]:
+    with log.open(newline="") as f:
+        rows = [r for r in csv.DictReader(f) if r["source"] == source and r[column]]
+    return np.array([float(r["t_s"]) for r in rows]), np.array([float(r[column]) for r in rows])
+
+
+def _line(ax: object, label: str) -> tuple[np.ndarray, np.ndarray]:
+    for line in ax.get_lines():  # type: ignore[attr-defined]
+        if line.get_label() == label:
+            return np.asarray(line.get_xdata()), np.asarray(line.get_ydata())
+    raise AssertionError(f"no line {label!r}")
+
+
+def test_plot_writes_a_png_with_every_panel(run: tuple[Path, Path], tmp_path: Path) -> None:
+    log, truth = run
+    figure = tmp_path / "flight.png"
+    assert main(["plot", str(log), "--truth", str(truth), "-o", str(figure)]) == 0
+    assert figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_the_plotted_attitude_and_vertical_series_are_the_logs(run: tuple[Path, Path]) -> None:
+    log, truth = run
+    fig = plot_log(read_log(log), read_truth(truth))
+    assert set(fig.axes) >= {"attitude", "attitude error", "altitude", "climb",
+                             "vertical error", "accel", "gyro", "mag", "pressure", "flags",
+                             "sample rate"}
+    for panel, source, column in (("attitude", "ahrs", "roll_deg"),
+                                  ("attitude", "ahrs", "yaw_deg"),
+                                  ("altitude", "vario", "altitude_m"),
+                                  ("climb", "vario", "climb_m_s"),
+                                  ("gyro", "imu", "gz_rad_s"),
+                                  ("pressure", "baro", "pressure_pa")):
+        x, y = _line(fig.axes[panel], f"{source} {column}")
+        t, v = _column(log, source, column)
+        np.testing.assert_array_equal(x, t)
+        np.testing.assert_array_equal(y, v)
+
+
+def test_the_truth_is_overlaid_and_the_error_is_estimate_minus_truth(
+        run: tuple[Path, Path]) -> None:
+    log, truth_path = run
+    truth = read_truth(truth_path)
+    fig = plot_log(read_log(log), truth)
+    x, y = _line(fig.axes["climb"], "truth climb_m_s")
+    np.testing.assert_array_equal(x, truth.t_s)
+    np.testing.assert_array_equal(y, truth.columns["climb_m_s"])
+    # The truth file has a row at every estimate's time: the error there is exact.
+    t, climb = _column(log, "vario", "climb_m_s")
+    ex, ey = _line(fig.axes["vertical error"], "vario climb_m_s error")
+    true_at = dict(zip(np.round(truth.t_s, 6), truth.columns["climb_m_s"], strict=True))
+    np.testing.assert_array_equal(ex, t)
+    np.testing.assert_allclose(ey, climb - np.array([true_at[round(s, 6)] for s in t]),
+                               atol=1e-12)
+    _, yaw_error = _line(fig.axes["attitude error"], "ahrs yaw_deg error")
+    assert np.nanmax(np.abs(yaw_error)) <= 180.0
+
+
+def test_device_health_counts_flagged_samples_per_flag(tmp_path: Path) -> None:
+    log = tmp_path / "log.csv"
+    with log.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["t_s", "source", "kind", "flags", "pressure_pa"])
+        for i in range(300):
+            flags = 32 if i in (50, 51, 200) else 0  # three stale samples
+            w.writerow([f"{i * 0.01:.6f}", "baro", "pressure", flags, 100000.0])
+    fig = plot_log(read_log(log))
+    t, count = _line(fig.axes["flags"], "baro STALE")
+    assert count[-1] == 3 and t[np.argmax(count == 1)] == pytest.approx(0.5)
+    _, rate = _line(fig.axes["sample rate"], "baro samples/s")
+    assert list(rate) == [100, 100]
+
+
+def test_plot_refuses_to_overwrite_its_input(run: tuple[Path, Path],
+                                             capsys: pytest.CaptureFixture[str]) -> None:
+    log, _ = run
+    before = log.read_bytes()
+    assert main(["plot", str(log), "-o", str(log)]) == 2
+    assert "overwrite its input" in capsys.readouterr().err
+    assert log.read_bytes() == before
+
+
+def test_an_unknown_figure_format_is_one_clear_error(run: tuple[Path, Path], tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]
+                                                     ) -> None:
+    assert main(["plot", str(run[0]), "-o", str(tmp_path / "fig.jpgg")]) == 2
+    assert "unknown figure format" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
