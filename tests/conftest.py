@@ -5,9 +5,9 @@ from __future__ import annotations
 import pytest
 from tests.support import testchip
 
-from imuhal.bus import plugin as bus_plugin
+from imuhal.plugins import builtin_buses as bus_plugin
+from imuhal.plugins import builtin_scenarios as sim_plugin
 from imuhal.plugins.manager import Registry, load_registry
-from imuhal.sim import plugin as sim_plugin
 
 
 @pytest.fixture(scope="session")

@@ -13,7 +13,7 @@ from imuhal.cli.main import main
 
 pytest.importorskip("matplotlib", reason="plots need the 'plot' extra (in the test extra)")
 
-from imuhal.plotting import plot_log, read_log, read_truth
+from imuhal.offline.plotting import plot_log, read_log, read_truth
 
 
 @pytest.fixture(scope="module")

@@ -42,13 +42,14 @@ from typing import Any
 
 import numpy as np
 
+from imuhal.calibrate.session import guided_order, open_raw_pipeline
 from imuhal.calibration.accel import AccelSixPosition, AccelSixSettings
 from imuhal.calibration.mag import MagCalibrationProcedure, MagSettings
 from imuhal.calibration.model import DeviceCalibration, GyroStartupSettings
-from imuhal.calibration.session import guided_order, open_raw_pipeline
 from imuhal.core.atomic import atomic_write_text
 from imuhal.core.frames import parse_mount
 from imuhal.core.samples import PressureSample, Sample
+from imuhal.emulation import EmulatedBoard, open_emulated
 from imuhal.estimation.outputs import AttitudeEstimate, VerticalEstimate
 from imuhal.pipeline.pipeline import Event, Pipeline
 from imuhal.plugins.manager import Registry, load_registry
@@ -241,7 +242,7 @@ def condition_profile(profile: BoardProfile, condition: Condition,
 
 def _events(profile: BoardProfile, registry: Registry, scenario: str, duration_s: float,
             seed: int) -> Iterator[tuple[Event, Pipeline]]:
-    with Pipeline.open(profile, registry, emulate=scenario, seed=seed,
+    with open_emulated(profile, registry, scenario=scenario, seed=seed,
                        sensor_errors=True) as pipeline:
         # a profile asking for gyro_at_startup gets it inside events()
         for event in pipeline.events(duration_s):
@@ -259,7 +260,7 @@ def measure_attitude(profile: BoardProfile, registry: Registry, scenario: str,
     for event, pipeline in _events(profile, registry, scenario, duration_s, seed):
         if not isinstance(event, AttitudeEstimate) or event.t_ns < settle_s * 1e9:
             continue
-        assert pipeline.board is not None
+        assert isinstance(pipeline.board, EmulatedBoard)
         truth = pipeline.board.truth_at(event.t_ns)
         est[event.source].append(event.q_body_to_ned)
         true[event.source].append(tuple(truth.q_body_to_ned))
@@ -284,7 +285,7 @@ def tuned_altitude_variance_m2(profile: BoardProfile, registry: Registry,
     from imuhal.core.atmosphere import altitude_m_from_pressure
 
     altitudes = []
-    with Pipeline.open(with_estimators(profile, {}), registry, emulate="static",
+    with open_emulated(with_estimators(profile, {}), registry, scenario="static",
                        seed=seed) as pipeline:
         for event in pipeline.events(TUNING_WINDOW_S + 0.5):
             if isinstance(event, PressureSample) and event.valid and event.t_ns >= 0.5e9:
@@ -327,7 +328,7 @@ def measure_vario(profile: BoardProfile, registry: Registry, scenario: str, dura
     for event, pipeline in _events(profile, registry, scenario, duration_s, seed):
         if not isinstance(event, VerticalEstimate):
             continue
-        assert pipeline.board is not None
+        assert isinstance(pipeline.board, EmulatedBoard)
         truth = pipeline.board.truth_at(event.t_ns)
         t.setdefault(event.source, []).append(event.t_ns / 1e9)
         climb.setdefault(event.source, []).append(event.climb_m_s - truth.climb_m_s)

@@ -38,7 +38,7 @@ from pathlib import Path
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-from imuhal.pipeline.pipeline import Pipeline
+from imuhal.emulation import open_emulated
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile
@@ -75,7 +75,7 @@ def _timed(label: str, simulated_s: float, body: Callable[[], int]) -> Timing:
 def run_board(label: str, profile: BoardProfile, registry: Registry, duration_s: float,
               **open_kwargs: object) -> Timing:
     """Time ``pipeline.events(duration_s)`` (opening the pipeline is not timed)."""
-    pipeline = Pipeline.open(profile, registry, emulate=SCENARIO, **open_kwargs)
+    pipeline = open_emulated(profile, registry, scenario=SCENARIO, **open_kwargs)
 
     def body() -> int:
         n = 0

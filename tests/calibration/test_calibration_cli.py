@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from imuhal.cli.main import main
-from imuhal.pipeline.pipeline import Pipeline
+from imuhal.emulation import open_emulated
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.loader import load_profile
 from imuhal.sim.calibration import CalibrationScenario
@@ -60,11 +60,11 @@ def test_gyro_calibration_is_measured_bound_and_written_keeping_comments(
 def test_the_pipeline_applies_what_was_written_and_reports_a_foreign_binding(
         board: Path, chips: Registry) -> None:
     assert main(["calibrate", "gyro", str(board), "--emulate", "calibration"]) == 0
-    with Pipeline.open(load_profile(board, chips), chips, emulate="static") as p:
+    with open_emulated(load_profile(board, chips), chips, scenario="static") as p:
         assert p.warnings == []
         assert p.devices["imu"].calibration.gyro is not None  # type: ignore[union-attr]
     board.write_text(board.read_text().replace("identity: WHO_AM_I", "identity: OTHER"))
-    with Pipeline.open(load_profile(board, chips), chips, emulate="static") as p:
+    with open_emulated(load_profile(board, chips), chips, scenario="static") as p:
         assert any("imu: stored gyro calibration" in w and "NOT applied" in w
                    for w in p.warnings)
 

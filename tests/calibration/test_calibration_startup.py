@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from imuhal.core.samples import Frame, GyroSample
-from imuhal.pipeline import Pipeline
+from imuhal.emulation import open_emulated
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.loader import parse_profile
 from imuhal.sim.errors import SensorErrorSpec
@@ -40,7 +40,7 @@ def _profile(chips: Registry):  # type: ignore[no-untyped-def]
 
 
 def test_offsets_measured_at_start_up_replace_the_stored_ones(chips: Registry) -> None:
-    with Pipeline.open(_profile(chips), chips, emulate="static",
+    with open_emulated(_profile(chips), chips, scenario="static",
                        error_specs={"imu": SPEC}) as p:
         events = list(p.events(3.0))
         stored = p.devices["imu"].calibration.gyro  # type: ignore[union-attr]
@@ -54,7 +54,7 @@ def test_offsets_measured_at_start_up_replace_the_stored_ones(chips: Registry) -
 
 
 def test_a_board_that_never_stays_still_keeps_the_stored_offsets(chips: Registry) -> None:
-    with Pipeline.open(_profile(chips), chips, emulate="tumble",
+    with open_emulated(_profile(chips), chips, scenario="tumble",
                        scenario_params={"hold_s": 0.0}, error_specs={"imu": SPEC}) as p:
         list(p.events(3.0))
         stored = p.devices["imu"].calibration.gyro  # type: ignore[union-attr]

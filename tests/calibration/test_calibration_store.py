@@ -10,14 +10,14 @@ from pathlib import Path
 
 import pytest
 
-from imuhal.calibration import store
+from imuhal.calibrate import store
+from imuhal.calibrate.store import replace_device_calibration, write_device_calibration
 from imuhal.calibration.model import (
     CalibrationBinding,
     DeviceCalibration,
     GyroCalibration,
     MagCalibration,
 )
-from imuhal.calibration.store import replace_device_calibration, write_device_calibration
 from imuhal.core import atomic
 from imuhal.profile.loader import parse_profile
 

@@ -19,7 +19,7 @@ from imuhal.core.samples import (
     PressureSample,
     TemperatureSample,
 )
-from imuhal.pipeline import Pipeline
+from imuhal.pipeline import HardwareBoard, Pipeline
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.loader import parse_profile
 from imuhal_chips.iio.driver import IIODriver
@@ -166,8 +166,8 @@ def test_a_device_that_disappears_is_retried_while_the_others_run_on(
     FakeIIODevice(tmp_path, tmp_path, 1, "hmc5883l",
                   {f"in_magn_{a}_raw": "100" for a in "xyz"} | {"in_magn_scale": "0.001"})
     profile = parse_profile(PROFILE.format(root=tmp_path), "kernel-board.yaml", full_registry)
-    pipeline = Pipeline(profile, full_registry, clock=SimulatedClock(),
-                        buses={"iio": LinuxIIOBus(tmp_path, tmp_path)})
+    board = HardwareBoard({"iio": LinuxIIOBus(tmp_path, tmp_path)}, SimulatedClock())
+    pipeline = Pipeline(profile, full_registry, board)
     times: dict[str, list[float]] = {"baro": [], "mag": []}
     for event in pipeline.events(3.0):
         t = event.t_ns / 1e9

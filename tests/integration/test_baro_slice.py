@@ -8,8 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from imuhal.emulation import open_emulated
 from imuhal.estimation.outputs import VerticalEstimate
-from imuhal.pipeline import Pipeline
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.loader import load_profile
 from imuhal.profiles_dir import default_profile_path
@@ -27,7 +27,7 @@ def ride() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     # Only the barometer and the barometer-only filter: the slice under test.
     profile = profile.model_copy(update={"devices": {"baro": profile.devices["baro"]},
                                          "estimators": {"vario": profile.estimators["baro-only"]}})
-    with Pipeline.open(profile, registry, emulate="elevator", seed=7) as p:
+    with open_emulated(profile, registry, scenario="elevator", seed=7) as p:
         rows = [(e.t_ns / 1e9, e.altitude_m, e.climb_m_s) for e in p.events(40.0)
                 if isinstance(e, VerticalEstimate)]
         truth = [p.board.scenario.truth(t) for t, _, _ in rows]

@@ -5,8 +5,8 @@ from __future__ import annotations
 import pytest
 
 from imuhal.core.samples import Sample
+from imuhal.emulation import open_emulated
 from imuhal.estimation.outputs import Estimate
-from imuhal.pipeline import Pipeline
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.loader import load_profile
 from imuhal.profiles_dir import bundled_profiles
@@ -28,7 +28,7 @@ def test_profile_runs_emulated_with_every_device_and_estimator_producing(
     installed: Registry, name: str
 ) -> None:
     profile = load_profile(bundled_profiles()[name], installed)
-    with Pipeline.open(profile, installed, emulate=profile.emulation.scenario) as p:
+    with open_emulated(profile, installed, scenario=profile.emulation.scenario) as p:
         events = list(p.events(3.0))
         summary = p.summary()
     for device in profile.devices:

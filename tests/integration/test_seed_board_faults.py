@@ -9,6 +9,7 @@ from collections.abc import Iterator
 import pytest
 
 from imuhal.core.samples import AccelSample, GyroSample, MagSample, PressureSample, Sample
+from imuhal.emulation import open_emulated
 from imuhal.estimation.outputs import VerticalEstimate
 from imuhal.pipeline import Pipeline
 from imuhal.plugins.manager import Registry, load_registry
@@ -24,7 +25,7 @@ def registry() -> Registry:
 @pytest.fixture
 def pipeline(registry: Registry) -> Iterator[Pipeline]:
     profile = load_profile(default_profile_path(), registry)
-    with Pipeline.open(profile, registry, emulate="thermal", seed=3) as p:
+    with open_emulated(profile, registry, scenario="thermal", seed=3) as p:
         yield p
 
 

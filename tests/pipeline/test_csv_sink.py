@@ -7,7 +7,7 @@ from pathlib import Path
 
 from imuhal.core.samples import PressureSample, SampleFlag
 from imuhal.estimation.outputs import AttitudeEstimate, VerticalEstimate
-from imuhal.pipeline.sinks import CSV_COLUMNS, CsvSink
+from imuhal.sinks import CSV_COLUMNS, CsvSink
 
 DOCUMENTED = Path(__file__).resolve().parents[2] / "docs" / "output-csv.md"
 

@@ -10,6 +10,7 @@ import textwrap
 import pytest
 
 from imuhal.core.samples import AccelSample, Frame, PressureSample, SampleFlag
+from imuhal.emulation import open_emulated
 from imuhal.estimation.outputs import VerticalEstimate
 from imuhal.pipeline import CallbackSink, Pipeline
 from imuhal.plugins.manager import Registry
@@ -34,7 +35,7 @@ estimators:
 
 def _open(registry: Registry, text: str = PROFILE, **kw: object) -> Pipeline:
     profile = parse_profile(textwrap.dedent(text), "test.yaml", registry)
-    return Pipeline.open(profile, registry, emulate="thermal", **kw)  # type: ignore[arg-type]
+    return open_emulated(profile, registry, scenario="thermal", **kw)  # type: ignore[arg-type]
 
 
 def test_samples_arrive_at_the_configured_rate_in_time_order(registry: Registry) -> None:

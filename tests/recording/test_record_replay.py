@@ -6,21 +6,20 @@ from pathlib import Path
 
 import pytest
 
+from imuhal.bus.recording.format import open_recording
+from imuhal.bus.recording.recorder import BusRecorder, run_header
 from imuhal.cli.main import main
-from imuhal.pipeline import Pipeline
-from imuhal.pipeline.pipeline import Event
-from imuhal.pipeline.sinks import CallbackSink
-from imuhal.plugins.manager import Registry, load_registry
-from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import bundled_profiles
-from imuhal.recording.format import open_recording
-from imuhal.recording.recorder import BusRecorder, run_header
-from imuhal.recording.replay import (
+from imuhal.emulation import open_emulated
+from imuhal.offline.replay import (
     ReplayDivergence,
     open_replay,
     replay_pipeline,
     replay_run,
 )
+from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.loader import load_profile
+from imuhal.profiles_dir import bundled_profiles
+from imuhal.sinks import CallbackSink, Event
 
 
 @pytest.fixture(scope="module")
@@ -42,8 +41,7 @@ def _record(registry: Registry, profile_path: Path, out: Path, duration_s: float
         if flush_every and len(events) % flush_every == 0:
             recorder.writer.flush()
 
-    with Pipeline.open(profile, registry, emulate=profile.emulation.scenario,
-                       recorder=recorder) as pipeline:
+    with open_emulated(profile, registry, recorder=recorder) as pipeline:
         assert pipeline.board is not None
         for bus, which in (inject or {}).items():
             pipeline.board.buses[bus].fail_transfers(which)

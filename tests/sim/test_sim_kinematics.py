@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from imuhal.sim.plugin import BUILTIN_SCENARIOS
+from imuhal.sim.builtin import BUILTIN_SCENARIOS
 from imuhal.sim.world import MotionScenario
 
 SCENARIOS = [c for c in BUILTIN_SCENARIOS if c.name != "replay"]

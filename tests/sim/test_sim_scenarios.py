@@ -9,11 +9,11 @@ import pytest
 from pydantic import ValidationError
 
 from imuhal.plugins.manager import load_registry
+from imuhal.sim.builtin import BUILTIN_SCENARIOS
 from imuhal.sim.calibration import CalibrationScenario
 from imuhal.sim.elevator import ElevatorScenario
 from imuhal.sim.environment import Environment
 from imuhal.sim.magnet import MagnetScenario
-from imuhal.sim.plugin import BUILTIN_SCENARIOS
 from imuhal.sim.rc_flight import RcFlightScenario
 from imuhal.sim.static import StaticScenario
 from imuhal.sim.thermal import ThermalScenario

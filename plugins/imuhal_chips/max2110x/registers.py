@@ -12,7 +12,6 @@ scale, to the sensitivity. Full scale maps to +/-30000 counts (not +/-32768) on 
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from enum import IntEnum
@@ -237,13 +236,6 @@ class Scales:
     gyro_lsb_per_dps: float
     accel_lsb_per_g: float
 
-    @property
-    def gyro_rad_s_per_lsb(self) -> float:
-        return math.radians(1.0) / self.gyro_lsb_per_dps
-
-    @property
-    def accel_m_s2_per_lsb(self) -> float:
-        return STANDARD_GRAVITY_M_S2 / self.accel_lsb_per_g
 
 
 def gyro_cfg1(range_dps: int, bandwidth_hz: float) -> int:

@@ -61,10 +61,6 @@ class CoordinateSystem(str, Enum):
         """True where a level board at rest reads +1 g *along the down direction*."""
         return self is not CoordinateSystem.ANDROID
 
-    @property
-    def z_up(self) -> bool:
-        return self is not CoordinateSystem.NED
-
 
 # ---------------------------------------------------------------------------------------------
 # quaternions and rotation vectors (Freescale convention: q rotates sensor -> global)

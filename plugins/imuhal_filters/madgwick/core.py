@@ -125,20 +125,3 @@ def madgwick_step(
     w, x, y, z = q[0] + d0 * dt_s, q[1] + d1 * dt_s, q[2] + d2 * dt_s, q[3] + d3 * dt_s
     r = inv_sqrt(w * w + x * x + y * y + z * z)
     return (w * r, x * r, y * r, z * r)
-
-
-def madgwick_imu_step(
-    q: Quat, gyro_rad_s: Vec, accel: Vec | None, beta: float, dt_s: float,
-    *, inv_sqrt: InvSqrt = exact_inv_sqrt,
-) -> Quat:
-    """The 6-DOF update (MadgwickAHRSupdateIMU)."""
-    return madgwick_step(q, gyro_rad_s, accel, None, beta, dt_s, inv_sqrt=inv_sqrt)
-
-
-def madgwick_marg_step(
-    q: Quat, gyro_rad_s: Vec, accel: Vec | None, mag: Vec, beta: float, dt_s: float,
-    *, mag_reference: MagReference = MagReference.PAPER, inv_sqrt: InvSqrt = exact_inv_sqrt,
-) -> Quat:
-    """The 9-DOF update (MadgwickAHRSupdate)."""
-    return madgwick_step(q, gyro_rad_s, accel, mag, beta, dt_s,
-                         mag_reference=mag_reference, inv_sqrt=inv_sqrt)

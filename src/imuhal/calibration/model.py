@@ -10,12 +10,12 @@ Besides the three records a device's calibration may hold:
 * ``previous``: the records each procedure replaced, one per channel, so a bad calibration can
   be undone by hand (``imuhal calibrate`` moves the old record here before writing);
 * ``gyro_at_startup``: measure the gyro offsets again at every start-up, with the board kept
-  still (see :mod:`imuhal.calibration.startup`), overriding the stored offsets only.
+  still (see :mod:`imuhal.pipeline.startup`), overriding the stored offsets only.
 """
 
 from __future__ import annotations
 
-from datetime import datetime
+from datetime import UTC, datetime
 from typing import Annotated, Literal
 
 import numpy as np
@@ -26,6 +26,11 @@ Mat3 = tuple[Vec3, Vec3, Vec3]
 IDENTITY3: Mat3 = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 ChannelName = Literal["accel", "gyro", "mag"]
 CHANNELS: tuple[ChannelName, ...] = ("accel", "gyro", "mag")
+
+
+def now() -> datetime:
+    """The date stored with a record measured now: UTC, whole seconds."""
+    return datetime.now(UTC).replace(microsecond=0)
 
 
 class _Strict(BaseModel):

@@ -11,21 +11,19 @@ from typing import Any, TextIO
 
 import numpy as np
 
-from imuhal.calibration.accel import AccelSixPosition, AccelSixSettings
-from imuhal.calibration.gyro import GyroOffsetProcedure, GyroOffsetSettings
-from imuhal.calibration.mag import MagCalibrationProcedure, MagSettings
-from imuhal.calibration.model import DeviceCalibration, GyroStartupSettings
-from imuhal.calibration.progress import Progress, ProgressKind
-from imuhal.calibration.session import (
-    binding_for,
+from imuhal.calibrate.session import (
     describe_position,
     guided_order,
-    now,
     open_raw_pipeline,
     pick_device,
     run_procedure,
 )
-from imuhal.calibration.store import write_device_calibration
+from imuhal.calibrate.store import write_device_calibration
+from imuhal.calibration.accel import AccelSixPosition, AccelSixSettings
+from imuhal.calibration.gyro import GyroOffsetProcedure, GyroOffsetSettings
+from imuhal.calibration.mag import MagCalibrationProcedure, MagSettings
+from imuhal.calibration.model import DeviceCalibration, GyroStartupSettings, now
+from imuhal.calibration.progress import Progress, ProgressKind
 from imuhal.core.frames import parse_mount
 from imuhal.core.samples import Channel
 from imuhal.plugins.manager import Registry
@@ -110,7 +108,7 @@ def cmd_calibrate(args: argparse.Namespace, registry: Registry) -> int:
                            ) as pipeline:
         for w in pipeline.warnings:
             print(f"warning: {w}", file=err)
-        binding = binding_for(pipeline, device)
+        binding = pipeline.calibration_binding(device)
         try:
             result = run_procedure(proc, pipeline, timeout)
         finally:

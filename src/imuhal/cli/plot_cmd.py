@@ -29,7 +29,7 @@ def add_parser(sub: Any) -> None:
 
 
 def cmd_plot(args: argparse.Namespace, registry: Registry) -> int:
-    from imuhal.plotting import plot_log, read_log, read_truth
+    from imuhal.offline.plotting import plot_log, read_log, read_truth
 
     out = Path(args.output)
     for given in (args.log, args.truth):

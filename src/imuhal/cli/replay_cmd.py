@@ -9,14 +9,14 @@ from pathlib import Path
 from typing import Any
 
 from imuhal.core.errors import ImuhalError
-from imuhal.plugins.manager import Registry
-from imuhal.profile.loader import load_profile
-from imuhal.recording.replay import (
+from imuhal.offline.replay import (
     ReplayDivergence,
     open_replay,
     replay_pipeline,
     replay_run,
 )
+from imuhal.plugins.manager import Registry
+from imuhal.profile.loader import load_profile
 
 
 def add_parser(sub: Any) -> None:

@@ -9,13 +9,13 @@ from pathlib import Path
 from typing import Any
 
 from imuhal import __version__
+from imuhal.bus.recording.recorder import BusRecorder, run_header
 from imuhal.bus.spy import format_transfer
 from imuhal.core.atomic import AtomicFile
 from imuhal.core.errors import ImuhalError
 from imuhal.plugins.manager import Registry
 from imuhal.profile.loader import load_profile
 from imuhal.profiles_dir import default_profile_path
-from imuhal.recording.recorder import BusRecorder, run_header
 
 REPLAY_SCENARIO = "replay"
 """The scenario that flies a recorded truth file (imuhal.sim.recorded)."""
@@ -54,7 +54,8 @@ def add_parser(sub: Any) -> None:
 
 
 def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
-    from imuhal.pipeline import ConsoleSink, CsvSink, Pipeline, TruthSink
+    from imuhal.emulation import EmulatedBoard, TruthSink, open_emulated
+    from imuhal.pipeline import ConsoleSink, CsvSink, Pipeline
 
     path = Path(args.profile) if args.profile else default_profile_path()
     profile = load_profile(path, registry)
@@ -97,15 +98,20 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
             recorder = BusRecorder(args.record, run_header(
                 path.read_text(encoding="utf-8"), str(path), emulate=emulate, seed=args.seed))
             stack.callback(lambda: recorder.close(ended[0]))
-        try:
-            pipeline = stack.enter_context(Pipeline.open(
-                profile, registry, emulate=emulate, realtime=realtime, seed=args.seed,
-                trace=trace, recorder=recorder, scenario_params=scenario_params))
-        except ValueError as exc:
-            if scenario_params is None:
-                raise
-            raise ImuhalError(f"{args.truth}: cannot replay this truth file: {exc}") from None
-        if duration is None and scenario_params is not None and pipeline.board is not None:
+        if emulate is None:
+            pipeline = stack.enter_context(Pipeline.open(profile, registry, trace=trace,
+                                                         recorder=recorder))
+        else:
+            try:
+                pipeline = stack.enter_context(open_emulated(
+                    profile, registry, scenario=emulate, realtime=realtime, seed=args.seed,
+                    trace=trace, recorder=recorder, scenario_params=scenario_params))
+            except ValueError as exc:
+                if scenario_params is None:
+                    raise
+                raise ImuhalError(f"{args.truth}: cannot replay this truth file: {exc}"
+                                  ) from None
+        if duration is None and isinstance(pipeline.board, EmulatedBoard):
             duration = pipeline.board.scenario.duration_s  # type: ignore[attr-defined]
         for w in pipeline.warnings:
             print(f"warning: {w}", file=sys.stderr)
@@ -113,7 +119,7 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
             csv_sink = CsvSink(args.output, include_samples=args.samples)
             sinks.append(csv_sink)
         truth_sink = None
-        if truth_out and pipeline.board is not None:
+        if truth_out and isinstance(pipeline.board, EmulatedBoard):
             truth_sink = TruthSink(truth_out, pipeline.board.scenario,
                                    include_samples=args.samples)
             sinks.append(truth_sink)

@@ -68,7 +68,3 @@ class ProfileError(ImuhalError):
 
 class PluginError(ImuhalError):
     """A plugin failed to load, registered something twice, or a name is not installed."""
-
-
-class SampleError(ImuhalError):
-    """A sample could not be decoded (used inside drivers; the pipeline turns it into a flag)."""

@@ -34,10 +34,6 @@ def quat_multiply(p: Sequence[float], q: Sequence[float]) -> FloatArray:
     )
 
 
-def quat_conjugate(q: Sequence[float]) -> FloatArray:
-    return np.array([q[0], -q[1], -q[2], -q[3]], dtype=float)
-
-
 def quat_normalize(q: Sequence[float]) -> FloatArray:
     a = np.asarray(q, dtype=float)
     n = float(np.linalg.norm(a))

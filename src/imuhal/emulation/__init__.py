@@ -1,6 +1,17 @@
-"""Register-level chip emulation infrastructure (chip-agnostic)."""
+"""Emulated boards: a profile's buses and chips as register-level emulators flying a
+simulated scenario, behind the same pipeline as real hardware.
 
-from imuhal.emulation.base import ChipEmulator, PhysicalInputs
-from imuhal.emulation.bus import EmulatedBus
+``open_emulated(profile, registry, scenario=...)`` is the entry point for emulated runs.
+Emulator plugins import the chip-emulator interface from here (``ChipEmulator``,
+``PhysicalInputs``, ``EmulatedBus``; defined in :mod:`imuhal.sim`).
+"""
 
-__all__ = ["ChipEmulator", "EmulatedBus", "PhysicalInputs"]
+from imuhal.emulation.board import EmulatedBoard
+from imuhal.emulation.open import error_models_for, open_emulated
+from imuhal.emulation.truth import TruthSink
+from imuhal.sim.chip import ChipEmulator
+from imuhal.sim.emulated_bus import EmulatedBus
+from imuhal.sim.inputs import PhysicalInputs
+
+__all__ = ["ChipEmulator", "EmulatedBoard", "EmulatedBus", "PhysicalInputs", "TruthSink",
+           "error_models_for", "open_emulated"]

@@ -1,5 +1,7 @@
 """An emulated board: the profile's buses and chips as register-level emulators, driven by a
-simulated scenario on the pipeline's simulated clock.
+simulated scenario on a simulated clock. It is a :class:`~imuhal.pipeline.board.Board`: the
+pipeline calls :meth:`EmulatedBoard.before_poll` before each poll, which hands the chip its
+inputs at that instant.
 
 The simulation knows the truth in the body frame; each chip sees it in its own sensor frame
 (the inverse of its chip -> body rotation), optionally through that chip's error model.
@@ -10,12 +12,12 @@ from __future__ import annotations
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import PluginError
 from imuhal.core.frames import FloatArray
-from imuhal.emulation.base import ChipEmulator
-from imuhal.emulation.bus import EmulatedBus
 from imuhal.plugins.manager import Registry
 from imuhal.profile.model import BoardProfile
 from imuhal.profile.topology import device_order, split_bus_ref
-from imuhal.sim.errors import SensorErrorModel, device_seed, error_spec_of
+from imuhal.sim.chip import ChipEmulator
+from imuhal.sim.emulated_bus import EmulatedBus
+from imuhal.sim.errors import SensorErrorModel
 from imuhal.sim.scenario import Scenario, TruthState
 from imuhal.sim.world import physical_inputs
 
@@ -82,6 +84,10 @@ class EmulatedBoard:
             self._truth_t_ns = t_ns
         return self.truth
 
+    def before_poll(self, t_ns: int, device: str) -> None:
+        """The pipeline is about to poll ``device`` at ``t_ns``: give its chip its inputs."""
+        self.update(t_ns, device)
+
     def update(self, t_ns: int, device: str | None = None) -> TruthState:
         """Hand ``device`` (default: every chip) its inputs at ``t_ns``: the truth in its
         sensor frame, through its error model when the board has one for it. The error
@@ -99,16 +105,3 @@ class EmulatedBoard:
             self.emulators[name].set_physics(inputs)
         return truth
 
-
-def error_models_for(profile: BoardProfile, registry: Registry, seed: int
-                     ) -> dict[str, SensorErrorModel]:
-    """Each enabled device's datasheet error model (as its emulator declares), seeded per
-    device from the run seed so adding a device does not change the others' noise."""
-    models = {}
-    for name in device_order(profile):
-        driver = profile.devices[name].driver
-        reg = registry.emulators.entries.get(driver)
-        spec = error_spec_of(reg.obj) if reg is not None else None
-        if spec is not None:
-            models[name] = SensorErrorModel(spec, seed=device_seed(seed, name))
-    return models

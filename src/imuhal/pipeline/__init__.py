@@ -1,8 +1,8 @@
-"""The pipeline: poll devices on one clock, decode, calibrate, rotate, estimate, sink."""
+"""The runtime pipeline: polls a board's devices, processes samples, feeds estimators/sinks."""
 
+from imuhal.pipeline.board import Board, HardwareBoard
 from imuhal.pipeline.pipeline import Pipeline, RunSummary
-from imuhal.pipeline.sinks import CallbackSink, ConsoleSink, CsvSink, Sink, TruthSink
+from imuhal.sinks import CallbackSink, ConsoleSink, CsvSink, Event, Sink
 
-__all__ = [
-    "CallbackSink", "ConsoleSink", "CsvSink", "Pipeline", "RunSummary", "Sink", "TruthSink",
-]
+__all__ = ["Board", "CallbackSink", "ConsoleSink", "CsvSink", "Event", "HardwareBoard",
+           "Pipeline", "RunSummary", "Sink"]

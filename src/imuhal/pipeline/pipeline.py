@@ -1,9 +1,11 @@
 """The pipeline: one clock, every device polled when it asks to be, every sample through the
 same steps, estimators fed only valid body-frame samples, sinks fed everything.
 
-Embedding: ``Pipeline.open(profile, registry, emulate="thermal")`` then iterate
-``pipeline.events(duration_s)`` (samples and estimates in time order) or call
-``pipeline.run(duration_s, sinks)``.
+Embedding: ``Pipeline.open(profile, registry)`` (the profile's real buses) or
+``imuhal.emulation.open_emulated(profile, registry, scenario="thermal")`` (an emulated board),
+then iterate ``pipeline.events(duration_s)`` (samples and estimates in time order) or call
+``pipeline.run(duration_s, sinks)``. The pipeline sees a board only through
+:class:`~imuhal.pipeline.board.Board`; it knows nothing of simulation.
 """
 
 from __future__ import annotations
@@ -11,30 +13,26 @@ from __future__ import annotations
 import heapq
 import time
 from collections import Counter
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Any
 
 from imuhal.bus.base import Bus, Link
+from imuhal.bus.recording.recorder import BusRecorder
 from imuhal.bus.spy import SpyBus, Transfer
-from imuhal.calibration.model import DeviceCalibration
-from imuhal.core.clock import Clock, MonotonicClock, SimulatedClock
+from imuhal.calibration.model import CalibrationBinding, DeviceCalibration
 from imuhal.core.errors import BusError, ImuhalError, PluginError
-from imuhal.core.frames import FloatArray, parse_mount
+from imuhal.core.frames import FloatArray
 from imuhal.core.samples import Sample, SampleFlag
 from imuhal.drivers.base import DeviceIdentity, Driver
-from imuhal.emulation.board import EmulatedBoard, error_models_for
 from imuhal.estimation.base import Estimator
-from imuhal.estimation.outputs import Estimate
+from imuhal.pipeline.board import Board, open_hardware_board
 from imuhal.pipeline.processing import calibrate_to_body, quality_flags
-from imuhal.pipeline.sinks import Sink
+from imuhal.pipeline.startup import startup_gyro_phase
 from imuhal.plugins.manager import Registry
 from imuhal.profile.model import BoardProfile
-from imuhal.profile.topology import device_order, split_bus_ref
-from imuhal.recording.recorder import BusRecorder
-from imuhal.sim.errors import SensorErrorModel, SensorErrorSpec, device_seed
+from imuhal.profile.topology import chip_to_body_rotations, device_order, split_bus_ref
+from imuhal.sinks.base import Event, Sink
 
-Event = Sample | Estimate
 RECOVERY_BACKOFF_NS = 100_000_000
 """After a failed recovery, wait this long before trying the device again (100 ms)."""
 
@@ -92,32 +90,40 @@ class Pipeline:
         self,
         profile: BoardProfile,
         registry: Registry,
+        board: Board,
         *,
-        clock: Clock,
-        buses: dict[str, Bus],
-        board: EmulatedBoard | None = None,
         calibrated: bool = True,
         trace: Callable[[Transfer], None] | None = None,
         recorder: BusRecorder | None = None,
     ) -> None:
+        """Probe and configure every enabled device of ``profile`` on ``board``'s buses.
+
+        Usually called through :meth:`open` (real buses) or
+        :func:`imuhal.emulation.open_emulated`. ``calibrated=False`` yields raw sensor-frame
+        samples (no calibration, no mount rotation, no estimators): what calibration
+        procedures measure. ``trace`` receives every bus transaction (see imuhal.bus.spy);
+        ``recorder`` also records every clock reading, for ``imuhal replay``
+        (imuhal.bus.recording).
+        """
         self.profile = profile
         self.calibrated = calibrated
         self.registry = registry
+        self.board = board
+        clock = board.clock
         taps = [tap for tap in (trace, recorder.on_transfer if recorder else None) if tap]
         # The spies stamp transactions with the plain clock: their own readings are not part
         # of the run, so a replay does not have to make them.
-        self.buses = dict(buses) if not taps else {
-            name: SpyBus(bus, _fan_out(taps), clock) for name, bus in buses.items()}
+        self.buses: dict[str, Bus] = dict(board.buses) if not taps else {
+            name: SpyBus(bus, _fan_out(taps), clock) for name, bus in board.buses.items()}
         if recorder is not None:
-            recorder.attach(buses)
+            recorder.attach(board.buses)
             clock = recorder.wrap_clock(clock)
         self.clock = clock
-        self.board = board
         self.warnings: list[str] = []
         self._started = False
         self.devices: dict[str, DeviceRuntime] = {}
         self.estimators: list[EstimatorRuntime] = []
-        chip_to_body = _chip_to_body(profile)
+        chip_to_body = chip_to_body_rotations(profile)
         for name in device_order(profile):
             cfg = profile.devices[name]
             driver_cls = registry.drivers.get(cfg.driver)
@@ -150,58 +156,21 @@ class Pipeline:
         profile: BoardProfile,
         registry: Registry,
         *,
-        emulate: str | None = None,
-        realtime: bool = False,
-        seed: int | None = None,
-        scenario_params: dict[str, Any] | None = None,
         calibrated: bool = True,
-        sensor_errors: bool | None = None,
-        error_specs: Mapping[str, SensorErrorSpec | None] | None = None,
         trace: Callable[[Transfer], None] | None = None,
         recorder: BusRecorder | None = None,
     ) -> Pipeline:
-        """Open the profile's real buses, or (``emulate=SCENARIO``) an emulated board.
-
-        ``calibrated=False`` yields raw sensor-frame samples (no calibration, no mount
-        rotation, no estimators): what calibration procedures measure. ``sensor_errors``
-        (default: the profile's ``emulation.sensor_errors``) applies each chip's datasheet
-        noise and bias model; False gives ideal chips (quantisation and range only).
-        ``error_specs`` (device -> spec; devices not named are ideal) replaces those models,
-        for tests and studies that need known offsets, scale errors and iron.
-        ``trace`` receives every bus transaction (see imuhal.bus.spy); ``recorder`` also
-        records every clock reading, for ``imuhal replay`` (see imuhal.recording).
-        """
-        if emulate is None:
-            buses = {}
-            try:
-                for name, cfg in profile.buses.items():
-                    factory = registry.buses.get(cfg.kind)
-                    settings = factory.Settings.model_validate(cfg.plugin_settings())
-                    buses[name] = factory.open(name, settings)
-                return cls(profile, registry, clock=MonotonicClock(), buses=buses,
-                           calibrated=calibrated, trace=trace, recorder=recorder)
-            except BaseException:
-                for bus in buses.values():
-                    bus.close()
-                raise
-        clock = SimulatedClock(realtime=realtime)
-        scenario_cls = registry.scenarios.get(emulate)
-        params = dict(profile.emulation.scenario_params) if emulate == profile.emulation.scenario \
-            else {}
-        params.update(scenario_params or {})
-        run_seed = profile.emulation.seed if seed is None else seed
-        scenario = scenario_cls(params or None, seed=run_seed)
-        use_errors = profile.emulation.sensor_errors if sensor_errors is None else sensor_errors
-        if error_specs is not None:
-            errors = {name: SensorErrorModel(spec, seed=device_seed(run_seed, name))
-                      for name, spec in error_specs.items() if spec is not None}
-        else:
-            errors = error_models_for(profile, registry, run_seed) if use_errors else None
-        board = EmulatedBoard(profile, registry, clock, scenario, _chip_to_body(profile),
-                              errors)
-        board.update(0)
-        return cls(profile, registry, clock=clock, buses=dict(board.buses), board=board,
-                   calibrated=calibrated, trace=trace, recorder=recorder)
+        """Open the profile's real buses and probe its devices (see ``__init__`` for
+        ``calibrated`` and ``trace``). For an emulated board use
+        :func:`imuhal.emulation.open_emulated`."""
+        board = open_hardware_board(profile, registry)
+        try:
+            return cls(profile, registry, board, calibrated=calibrated, trace=trace,
+                       recorder=recorder)
+        except BaseException:
+            for bus in board.buses.values():
+                bus.close()
+            raise
 
     def _link(self, bus_ref: str, address: int) -> Link:
         parent, child = split_bus_ref(bus_ref)
@@ -242,19 +211,28 @@ class Pipeline:
             kept[channel] = record
         return DeviceCalibration(**kept)
 
+    def calibration_binding(self, device: str) -> CalibrationBinding:
+        """The probed identity of ``device``, as stored with a calibration measured on it."""
+        dev = self.devices[device]
+        ident = dev.driver.identity
+        if ident is None:
+            raise ImuhalError(f"device {device!r} was not probed")
+        return CalibrationBinding(
+            driver=ident.driver, bus=self.profile.devices[device].bus,
+            address=ident.address, identity=ident.identity,
+            calibration_version=type(dev.driver).calibration_version)
+
     # -- running ------------------------------------------------------------------------
 
     def events(self, duration_s: float | None = None) -> Iterator[Event]:
         """Samples (body frame, flagged ones included) and estimates, in time order.
 
         On the first call, devices whose calibration asks for ``gyro_at_startup`` first have
-        their gyro offsets measured while the board is still (imuhal.calibration.startup);
+        their gyro offsets measured while the board is still (imuhal.pipeline.startup);
         that phase is part of ``duration_s`` and yields nothing.
         """
         source = self._poll_events(duration_s)
         if self.calibrated and not self._started:
-            from imuhal.calibration.startup import startup_gyro_phase  # calibration uses us
-
             source = startup_gyro_phase(self, source)
         self._started = True
         yield from source
@@ -272,8 +250,7 @@ class Pipeline:
             if end is not None and t_ns >= end:
                 break
             self.clock.sleep_until(t_ns)
-            if self.board is not None:
-                self.board.update(t_ns, name)
+            self.board.before_poll(t_ns, name)
             dev = self.devices[name]
             try:
                 result = dev.driver.poll(t_ns)
@@ -393,10 +370,3 @@ def _fan_out(taps: list[Callable[[Transfer], None]]) -> Callable[[Transfer], Non
             tap(transfer)
 
     return each
-
-
-def _chip_to_body(profile: BoardProfile) -> dict[str, FloatArray]:
-    board_to_body = parse_mount(profile.board_to_body)
-    return {n: board_to_body @ parse_mount(d.mount) for n, d in profile.devices.items()
-            if d.enabled}
-

@@ -59,16 +59,6 @@ def _record(sample: VectorSample, calibration: DeviceCalibration | None) -> _Cor
     return None
 
 
-def calibrate(sample: Sample, calibration: DeviceCalibration | None) -> Sample:
-    """Apply the stored calibration of the sample's channel, in the sensor frame."""
-    if not isinstance(sample, VectorSample):
-        return sample
-    record = _record(sample, calibration)
-    if record is None:
-        return sample
-    return sample.with_vector(record.apply(sample.vector), sample.frame)
-
-
 def _rotate(m: FloatArray, v: Vec3) -> Vec3:
     """``m @ v`` in plain floats: cheaper than a numpy product for one vector (every sample
     comes through here). The same floats as numpy's own loop, signed zeros included; BLAS,
@@ -81,17 +71,11 @@ def _rotate(m: FloatArray, v: Vec3) -> Vec3:
             0.0 + g * x + h * y + i * z)
 
 
-def to_body(sample: Sample, chip_to_body: FloatArray) -> Sample:
-    """Rotate a sensor-frame vector sample into the NED body frame."""
-    if not isinstance(sample, VectorSample) or sample.frame is Frame.BODY_NED:
-        return sample
-    return sample.with_vector(_rotate(chip_to_body, sample.vector), Frame.BODY_NED)
-
-
 def calibrate_to_body(sample: Sample, calibration: DeviceCalibration | None,
                       chip_to_body: FloatArray) -> Sample:
-    """``to_body(calibrate(sample, calibration), chip_to_body)``, copying the sample once
-    instead of twice (copying a frozen sample costs more than the arithmetic)."""
+    """Apply the stored calibration of the sample's channel (sensor frame), then rotate the
+    vector into the NED body frame; the sample is copied once (copying a frozen sample costs
+    more than the arithmetic). Scalar samples pass unchanged."""
     if not isinstance(sample, VectorSample):
         return sample
     record = _record(sample, calibration)

@@ -19,10 +19,10 @@ import pluggy
 from imuhal.bus.factory import BusFactory
 from imuhal.core.errors import PluginError
 from imuhal.drivers.base import Driver
-from imuhal.emulation.base import ChipEmulator
 from imuhal.estimation.base import Estimator
 from imuhal.plugins import hookspecs
 from imuhal.plugins.registrars import Registrar
+from imuhal.sim.chip import ChipEmulator
 from imuhal.sim.scenario import Scenario
 
 ENV_ALLOW = "IMUHAL_PLUGINS"

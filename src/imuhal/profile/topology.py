@@ -1,8 +1,10 @@
-"""Ordering devices so that a chip providing a bus comes before the chips behind it."""
+"""Board topology: devices ordered so that a chip providing a bus comes before the chips
+behind it, and each device's rotation into the body frame."""
 
 from __future__ import annotations
 
 from imuhal.core.errors import ProfileError
+from imuhal.core.frames import FloatArray, parse_mount
 from imuhal.profile.model import BoardProfile
 
 
@@ -39,3 +41,10 @@ def split_bus_ref(bus: str) -> tuple[str, str | None]:
         parent, child = bus.split("/", 1)
         return parent, child
     return bus, None
+
+
+def chip_to_body_rotations(profile: BoardProfile) -> dict[str, FloatArray]:
+    """Each enabled device's rotation chip -> body: ``board_to_body @ mount``."""
+    board_to_body = parse_mount(profile.board_to_body)
+    return {n: board_to_body @ parse_mount(d.mount) for n, d in profile.devices.items()
+            if d.enabled}

@@ -56,9 +56,6 @@ class Environment(ScenarioParams):
     """Time constant of that self-heating."""
 
     # ------------------------------------------------------------------ gravity and field
-    def gravity_ned(self) -> FloatArray:
-        return np.array([0.0, 0.0, self.gravity_m_s2])
-
     def magnetic_field_ned_tuple(self) -> tuple[float, float, float]:
         """Earth field in NED (uT) as plain floats."""
         inc, dec = math.radians(self.inclination_deg), math.radians(self.declination_deg)

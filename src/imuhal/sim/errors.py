@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from imuhal.emulation.base import PhysicalInputs
+from imuhal.sim.inputs import PhysicalInputs
 
 Vec3 = tuple[float, float, float]
 Mat3 = tuple[Vec3, Vec3, Vec3]
@@ -327,30 +327,19 @@ class SensorErrorModel:
             return ch.bias_at(t_s if t_s is not None else (self._last_t or 0.0), temperature_degc)
         return ch.bias_at(temperature_degc)
 
-    def gain_matrix(self, channel: str) -> np.ndarray:
-        """The 3x3 matrix applied to the true vector (soft iron, cross-axis, scale)."""
-        ch = getattr(self, f"_{channel}", None)
-        if not isinstance(ch, _VectorChannel):
-            raise ValueError(f"{channel!r} is not a modelled vector channel")
-        return np.asarray(ch.gain).reshape(3, 3)
-
 
 def error_spec_of(emulator: type[Any], **overrides: Any) -> SensorErrorSpec | None:
     """The error spec a chip emulator declares (``error_spec``: its datasheet figures, kept
     with the chip's plugin), with any top-level channel replaced by ``overrides``
     (e.g. ``mag=None``). None when the emulator declares none (an ideal chip)."""
-    data = getattr(emulator, "error_spec", None)
-    if data is None:
+    spec = getattr(emulator, "error_spec", None)
+    if spec is None:
         return None
-    return SensorErrorSpec.model_validate({**data, **overrides})
-
-
-def chip_error_spec(driver: str, **overrides: Any) -> SensorErrorSpec | None:
-    """The error spec declared by the installed emulator of ``driver`` (plugins loaded from
-    entry points), with ``overrides``; None for an ideal chip."""
-    from imuhal.plugins.manager import load_registry
-
-    return error_spec_of(load_registry().emulators.get(driver), **overrides)
+    if isinstance(spec, SensorErrorSpec):
+        if not overrides:
+            return spec
+        spec = spec.model_dump()
+    return SensorErrorSpec.model_validate({**spec, **overrides})
 
 
 def device_seed(seed: int, device: str) -> int:

@@ -192,11 +192,6 @@ class Signal:
         self._tones.append(_Tones(t_on, t_off, ramp_s, amps, omegas, phases))
         return self
 
-    @property
-    def end_of_transitions_s(self) -> float:
-        """When the last transition ends (-inf when there is none)."""
-        return self._end_t
-
     # ----------------------------------------------------------------------------- evaluation
     def _ramps(self, t: float) -> tuple[float, float, float]:
         i = bisect_right(self._starts, t) - 1
@@ -250,10 +245,3 @@ class Signal:
                 r += amp * (e1 * sn + e * w * cs)
                 a += amp * (e2 * sn + 2.0 * e1 * w * cs - e * w * w * sn)
         return v, r, a
-
-    def is_constant(self) -> bool:
-        return not self._transitions and not self._tones and self._r0 == 0.0
-
-
-def constant(value: float) -> Signal:
-    return Signal(value)

@@ -14,8 +14,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from imuhal.emulation.base import PhysicalInputs
 from imuhal.sim.environment import Environment
+from imuhal.sim.inputs import PhysicalInputs
 from imuhal.sim.magnetic import MagneticDisturbance, MagneticDisturbanceSpec
 from imuhal.sim.motion import Kinematics, Motion, mat_t_vec
 from imuhal.sim.scenario import Phase, Scenario, ScenarioParams, TruthState

@@ -1,9 +1,7 @@
-"""Registers the built-in scenarios through the same hook any plugin uses."""
+"""The scenarios imuhal ships (registered by :mod:`imuhal.plugins.builtin_scenarios`)."""
 
 from __future__ import annotations
 
-from imuhal.plugins.hookspecs import hookimpl
-from imuhal.plugins.registrars import Registrar
 from imuhal.sim.calibration import CalibrationScenario
 from imuhal.sim.elevator import ElevatorScenario
 from imuhal.sim.magnet import MagnetScenario
@@ -15,9 +13,3 @@ from imuhal.sim.tumble import TumbleScenario
 
 BUILTIN_SCENARIOS = (StaticScenario, CalibrationScenario, TumbleScenario, ThermalScenario,
                      RcFlightScenario, MagnetScenario, ElevatorScenario, ReplayScenario)
-
-
-@hookimpl
-def imuhal_register_scenarios(register: Registrar) -> None:
-    for cls in BUILTIN_SCENARIOS:
-        register(cls)

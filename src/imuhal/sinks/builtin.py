@@ -1,4 +1,4 @@
-"""Where pipeline events go: a live console line, a CSV log, or your own callback.
+"""The built-in sinks: a live console line, a CSV log, or your own callback.
 
 CSV format (docs/output-csv.md): one row per event; ``kind`` says which columns it fills.
 Columns carry their unit and frame: body-frame NED samples, body -> NED quaternions.
@@ -7,14 +7,13 @@ Columns carry their unit and frame: body-frame NED samples, body -> NED quaterni
 from __future__ import annotations
 
 import csv
-import io
 import math
 import os
 import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import IO, Protocol
+from typing import IO
 
 from imuhal.core.atomic import AtomicFile
 from imuhal.core.samples import (
@@ -26,10 +25,7 @@ from imuhal.core.samples import (
     TemperatureSample,
 )
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate, VerticalEstimate
-from imuhal.sim.scenario import Scenario
-from imuhal.sim.truth_csv import record_truth
-
-Event = Sample | Estimate
+from imuhal.sinks.base import Event
 
 CSV_COLUMNS = (
     "t_s", "source", "kind", "flags",
@@ -41,12 +37,6 @@ CSV_COLUMNS = (
     "lin_an_m_s2", "lin_ae_m_s2", "lin_ad_m_s2",
     "altitude_m", "climb_m_s", "accel_bias_m_s2",
 )
-
-
-class Sink(Protocol):
-    def handle(self, event: Event) -> None: ...
-
-    def close(self) -> None: ...
 
 
 class CallbackSink:
@@ -139,32 +129,6 @@ class CsvSink:
             self._out = None
 
 
-class TruthSink:
-    """Records the simulated ground truth at the timestamps of the run's estimates (all
-    events with ``include_samples``), written atomically as the documented truth CSV
-    (docs/simulation.md) when the run closes, for computing any estimator's error."""
-
-    def __init__(self, path: str | os.PathLike[str], scenario: Scenario, *,
-                 include_samples: bool = False) -> None:
-        self.path = Path(path)
-        self.scenario = scenario
-        self.include_samples = include_samples
-        self._times_ns: list[int] = []
-
-    def handle(self, event: Event) -> None:
-        if isinstance(event, Sample) and not self.include_samples:
-            return
-        if not self._times_ns or self._times_ns[-1] != event.t_ns:
-            self._times_ns.append(event.t_ns)
-
-    @property
-    def rows(self) -> int:
-        return len(self._times_ns)
-
-    def close(self) -> None:
-        record_truth(self.path, self.scenario, (t / 1e9 for t in self._times_ns))
-
-
 class ConsoleSink:
     """A live one-line status: latest altitude, climb rate and attitude, refreshed a few
     times per second of wall time (or every ``every_s`` simulated seconds when not a TTY)."""
@@ -222,13 +186,3 @@ class ConsoleSink:
         if self.tty:
             self.stream.write("\n")
             self.stream.flush()
-
-
-def rows_as_text(events: list[Event]) -> str:
-    """The CSV text for ``events`` (header included); handy in tests and notebooks."""
-    buf = io.StringIO()
-    writer = csv.DictWriter(buf, fieldnames=CSV_COLUMNS, restval="")
-    writer.writeheader()
-    for e in events:
-        writer.writerow(event_row(e))
-    return buf.getvalue()

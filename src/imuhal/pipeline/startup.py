@@ -15,14 +15,22 @@ then it installs the offsets and passes the pipeline's events on as usual.
 from __future__ import annotations
 
 from collections.abc import Iterator
+from typing import TYPE_CHECKING
 
 from imuhal.calibration.errors import CalibrationError
 from imuhal.calibration.gyro import GyroOffsetProcedure
-from imuhal.calibration.model import DeviceCalibration, GyroCalibration, GyroStartupSettings
+from imuhal.calibration.model import (
+    DeviceCalibration,
+    GyroCalibration,
+    GyroStartupSettings,
+    now,
+)
 from imuhal.calibration.progress import ProgressCallback
-from imuhal.calibration.session import binding_for, now
 from imuhal.core.samples import Channel, Sample
-from imuhal.pipeline.pipeline import Event, Pipeline
+from imuhal.sinks.base import Event
+
+if TYPE_CHECKING:  # the pipeline applies this phase to itself
+    from imuhal.pipeline.pipeline import Pipeline
 
 
 def startup_settings(pipeline: Pipeline) -> dict[str, GyroStartupSettings]:
@@ -75,6 +83,6 @@ def _install(pipeline: Pipeline, device: str, proc: GyroOffsetProcedure) -> None
     cal = dev.calibration or DeviceCalibration()
     result = proc.finish()
     record = result.record(cal.gyro or GyroCalibration(), date=now())
-    record = record.model_copy(update={"binding": binding_for(pipeline, device),
+    record = record.model_copy(update={"binding": pipeline.calibration_binding(device),
                                        "procedure": "gyro-at-startup"})
     dev.calibration = cal.model_copy(update={"gyro": record})

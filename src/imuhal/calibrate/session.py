@@ -1,26 +1,23 @@
 """Wiring procedures to a board: pick the device, open the pipeline in uncalibrated mode
 (real buses or an emulated board whose chips carry sensor errors), feed the procedure, and
-bind the result to the probed chip.
+bind the result to the probed chip (``Pipeline.calibration_binding``).
 
-This is the only calibration module that touches a Pipeline; the procedures themselves only
-see samples.
+The procedures themselves (:mod:`imuhal.calibration`) only see samples.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from datetime import UTC, datetime
 from typing import Any, TypeVar
 
 import numpy as np
 
 from imuhal.calibration.accel import SIX_POSITIONS, Position, position_name
 from imuhal.calibration.errors import CalibrationError
-from imuhal.calibration.model import CalibrationBinding
 from imuhal.calibration.procedure import Procedure
-from imuhal.core.errors import ImuhalError
 from imuhal.core.frames import FloatArray
 from imuhal.core.samples import Channel, Sample
+from imuhal.emulation.open import open_emulated
 from imuhal.pipeline.pipeline import Pipeline
 from imuhal.plugins.manager import Registry
 from imuhal.profile.model import BoardProfile
@@ -62,22 +59,6 @@ def pick_device(profile: BoardProfile, registry: Registry, channel: Channel,
     return found[0]
 
 
-def binding_for(pipeline: Pipeline, device: str) -> CalibrationBinding:
-    """The probed identity of ``device``, as stored with its calibration."""
-    dev = pipeline.devices[device]
-    ident = dev.driver.identity
-    if ident is None:
-        raise ImuhalError(f"device {device!r} was not probed")
-    return CalibrationBinding(
-        driver=ident.driver, bus=pipeline.profile.devices[device].bus,
-        address=ident.address, identity=ident.identity,
-        calibration_version=type(dev.driver).calibration_version)
-
-
-def now() -> datetime:
-    return datetime.now(UTC).replace(microsecond=0)
-
-
 def open_raw_pipeline(
     profile: BoardProfile, registry: Registry, *, emulate: str | None = None,
     seed: int | None = None, realtime: bool = False, sensor_errors: bool | None = None,
@@ -92,7 +73,9 @@ def open_raw_pipeline(
     ``error_specs`` replaces those models by the given specs (device name -> spec; devices
     not named are ideal), for tests that need known offsets, scale errors and iron.
     """
-    return Pipeline.open(profile, registry, emulate=emulate, seed=seed, realtime=realtime,
+    if emulate is None:
+        return Pipeline.open(profile, registry, calibrated=False)
+    return open_emulated(profile, registry, scenario=emulate, seed=seed, realtime=realtime,
                          scenario_params=scenario_params, calibrated=False,
                          sensor_errors=sensor_errors, error_specs=error_specs)
 

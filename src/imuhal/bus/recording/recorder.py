@@ -14,9 +14,9 @@ from typing import Any
 
 from imuhal import __version__
 from imuhal.bus.base import Bus
+from imuhal.bus.recording.format import BusInfo, RecordingWriter
 from imuhal.bus.spy import Transfer
 from imuhal.core.clock import Clock
-from imuhal.recording.format import BusInfo, RecordingWriter
 
 
 class RecordingClock:

@@ -15,12 +15,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from imuhal.bus.base import Bus, BusKind
-from imuhal.core import errors as error_types
-from imuhal.core.errors import BusError, ImuhalError
-from imuhal.plugins.manager import Registry
-from imuhal.profile.loader import parse_profile
-from imuhal.profile.model import BoardProfile
-from imuhal.recording.format import (
+from imuhal.bus.recording.format import (
     BusInfo,
     ClockReading,
     EndMark,
@@ -30,10 +25,15 @@ from imuhal.recording.format import (
     RecordingError,
     open_recording,
 )
+from imuhal.core import errors as error_types
+from imuhal.core.errors import BusError, ImuhalError
+from imuhal.pipeline.pipeline import Pipeline
+from imuhal.plugins.manager import Registry
+from imuhal.profile.loader import parse_profile
+from imuhal.profile.model import BoardProfile
 
 if TYPE_CHECKING:
-    from imuhal.pipeline.pipeline import Event, Pipeline
-    from imuhal.pipeline.sinks import Sink
+    from imuhal.sinks.base import Event, Sink
 
 
 class ReplayDivergence(Exception):
@@ -197,12 +197,22 @@ def open_replay(path: str | os.PathLike[str], registry: Registry,
     return Replay(recording, profile, source, buses, ReplayClock(source))
 
 
+@dataclass
+class ReplayBoard:
+    """The recorded board as the pipeline sees it (imuhal.pipeline.board.Board)."""
+
+    buses: dict[str, Bus]
+    clock: ReplayClock
+
+    def before_poll(self, t_ns: int, device: str) -> None:
+        """Nothing to do: the chips' answers are in the recording."""
+
+
 def replay_pipeline(replay: Replay, registry: Registry) -> Pipeline:
     """The pipeline of the recorded run, opened (probe, configure) from the recording."""
-    from imuhal.pipeline.pipeline import Pipeline  # the pipeline records through us
-
+    board = ReplayBoard(replay.buses, replay.clock)
     try:
-        return Pipeline(replay.profile, registry, clock=replay.clock, buses=replay.buses)
+        return Pipeline(replay.profile, registry, board)
     except EndOfRecording:
         raise RecordingError(f"{replay.recording.path}: the recording ends before the board "
                              "was opened (probe and configuration are incomplete)") from None
