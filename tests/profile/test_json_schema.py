@@ -82,3 +82,10 @@ def test_profile_schema_prints_the_schema_and_one_drivers_settings(
     settings = json.loads(capsys.readouterr().out)
     assert "pressure_oversampling" in settings["properties"]
     assert settings["additionalProperties"] is False
+
+
+def test_each_setting_carries_its_documentation_for_editor_hovers(full_registry: Registry
+                                                                  ) -> None:
+    definitions = profile_schema(full_registry)["$defs"]
+    assert "spidev" in definitions["SpiBus"]["properties"]["bus"]["description"]
+    assert "kernel" in definitions["IIODriverSettings"]["properties"]["name"]["description"]

@@ -10,6 +10,10 @@ underlines a typo while it is typed (docs/profiles.md, "Editor support").
 
 from __future__ import annotations
 
+import ast
+import inspect
+import itertools
+import textwrap
 from typing import Annotated, Any, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, create_model
@@ -90,23 +94,72 @@ def _estimator_models(registry: Registry) -> list[type[BaseModel]]:
     return models
 
 
+def attribute_docstrings(model: type[BaseModel]) -> dict[str, str]:
+    """The docstrings written under fields (``x: int = 0`` then ``\"\"\"units...\"\"\"``),
+    from ``model`` and its bases: the project documents settings this way, and editors show
+    them as the schema's descriptions."""
+    docs: dict[str, str] = {}
+    for cls in reversed(model.__mro__):
+        if not (isinstance(cls, type) and issubclass(cls, BaseModel)) or cls is BaseModel:
+            continue
+        try:
+            tree = ast.parse(textwrap.dedent(inspect.getsource(cls)))
+        except (OSError, TypeError, SyntaxError):
+            continue  # built at run time (create_model) or without source: nothing to add
+        body = tree.body[0].body if tree.body and isinstance(tree.body[0], ast.ClassDef) else []
+        for node, after in itertools.pairwise(body):
+            if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) and \
+                    isinstance(after, ast.Expr) and isinstance(after.value, ast.Constant) and \
+                    isinstance(after.value.value, str):
+                docs[node.target.id] = inspect.cleandoc(after.value.value)
+    return docs
+
+
+def _describe(schema: dict[str, Any], models: list[type[BaseModel]]) -> None:
+    """Add each model's field docstrings to its definition, where pydantic put none."""
+    definitions = schema.get("$defs", {})
+    for model in models:
+        props = definitions.get(model.__name__, {}).get("properties", {})
+        for name, doc in attribute_docstrings(model).items():
+            if name in props:
+                props[name].setdefault("description", doc)
+
+
+def _settings_models(registry: Registry) -> list[type[BaseModel]]:
+    models: list[type[BaseModel]] = [BoardProfile, DeviceConfig, EstimatorConfig]
+    models += [registry.buses.get(n).Settings for n in registry.buses.names()]
+    models += [registry.drivers.get(n).Settings for n in registry.drivers.names()]
+    models += [registry.estimators.get(n).Settings for n in registry.estimators.names()]
+    return models
+
+
 def profile_schema(registry: Registry) -> dict[str, Any]:
     """The JSON Schema (draft 2020-12) of a profile for the installed plugins."""
     strict = ConfigDict(extra="forbid", frozen=True)
+    buses, devices = _bus_models(registry), _device_models(registry)
+    estimators = _estimator_models(registry)
     model = create_model(
         "BoardProfile", __base__=BoardProfile, __doc__=BoardProfile.__doc__,
-        buses=(dict[str, _union(_bus_models(registry), "kind")], ...),  # type: ignore[misc]
-        devices=(dict[str, _union(_device_models(registry), "driver")], ...),  # type: ignore[misc]
-        estimators=(dict[str, _union(_estimator_models(registry), "estimator")],  # type: ignore[misc]
+        buses=(dict[str, _union(buses, "kind")], ...),  # type: ignore[misc]
+        devices=(dict[str, _union(devices, "driver")], ...),  # type: ignore[misc]
+        estimators=(dict[str, _union(estimators, "estimator")],  # type: ignore[misc]
                     Field(default_factory=dict)),
     )
     model.model_config = {**model.model_config, **strict}
     schema = model.model_json_schema(mode="validation")
+    _describe(schema, [*_settings_models(registry), *buses, *devices, *estimators])
+    for name, field_schema in schema.get("properties", {}).items():
+        doc = attribute_docstrings(BoardProfile).get(name)
+        if doc:
+            field_schema.setdefault("description", doc)
     return {"$schema": SCHEMA_DIALECT, "$id": SCHEMA_ID, **schema,
             "title": "imuhal board profile (schema_version 1)"}
 
 
 def driver_settings_schema(registry: Registry, driver: str) -> dict[str, Any]:
     """The JSON Schema of one driver's ``settings`` mapping."""
-    schema = _with_choices(registry.drivers.get(driver).Settings).model_json_schema()
+    settings = registry.drivers.get(driver).Settings
+    schema = _with_choices(settings).model_json_schema()
+    for name, doc in attribute_docstrings(settings).items():
+        schema.get("properties", {}).get(name, {}).setdefault("description", doc)
     return {"$schema": SCHEMA_DIALECT, **schema, "title": f"settings of the {driver} driver"}
