@@ -10,6 +10,7 @@ from tests.support.driving import poll_until
 from tests.support.fake_iio import Element, FakeIIODevice
 
 from imuhal.bus.linux_iio import LinuxIIOBus
+from imuhal.bus.recording.recorder import BusRecorder, run_header
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import DeviceNotFoundError
 from imuhal.core.samples import (
@@ -19,7 +20,8 @@ from imuhal.core.samples import (
     PressureSample,
     TemperatureSample,
 )
-from imuhal.pipeline import HardwareBoard, Pipeline
+from imuhal.offline.replay import open_replay, replay_pipeline, replay_run
+from imuhal.pipeline import CallbackSink, HardwareBoard, Pipeline
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.loader import parse_profile
 from imuhal_chips.iio.driver import IIODriver
@@ -184,3 +186,33 @@ def test_a_device_that_disappears_is_retried_while_the_others_run_on(
     assert summary.bus_errors["baro"] >= 1
     assert [w for w in summary.warnings if w.startswith("baro: recovery failed")
             and "expected IIO device named 'bmp280'" in w]
+
+
+def test_a_kernel_driven_run_records_and_replays_to_the_same_samples(
+        tmp_path: Path, full_registry: Registry) -> None:
+    sysfs = tmp_path / "sys"
+    baro = _bmp280(sysfs, number=0)
+    mag = FakeIIODevice(sysfs, sysfs, 1, "hmc5883l",
+                        {f"in_magn_{a}_raw": "100" for a in "xyz"} | {"in_magn_scale": "0.001"})
+    text = PROFILE.format(root=sysfs)
+    profile = parse_profile(text, "kernel-board.yaml", full_registry)
+    recorder = BusRecorder(tmp_path / "run.imurec", run_header(text, "kernel-board.yaml",
+                                                               emulate=None, seed=None))
+    board = HardwareBoard({"iio": LinuxIIOBus(sysfs, sysfs)}, SimulatedClock())
+    live: list[str] = []
+    pipeline = Pipeline(profile, full_registry, board, recorder=recorder)
+    for event in pipeline.events(2.0):
+        live.append(repr(event))
+        t = event.t_ns / 1e9
+        (mag.folder / "in_magn_x_raw").write_text(f"{round(t * 1000)}\n")  # a changing field
+        if 0.5 <= t < 1.0 and baro.folder.exists():
+            baro.remove()
+        elif t >= 1.0 and not baro.folder.exists():
+            baro.create()
+    recorder.close()
+    replayed: list[str] = []
+    replay = open_replay(tmp_path / "run.imurec", full_registry)
+    replay_run(replay_pipeline(replay, full_registry),
+               [CallbackSink(lambda e: replayed.append(repr(e)))])
+    assert len(live) > 40
+    assert replayed == live

@@ -98,8 +98,8 @@ class ReplaySource:
         rec = self._next()
         asked = _describe(self.buses[bus].label, target, written, read_len)
         if isinstance(rec, ClockReading):
-            # The live run's last records are the clock readings of its wind-down (the
-            # summary): when only readings are left, the run is over, not diverged.
+            # A recording cut off (or ended) after a poll's clock readings but before its
+            # transfers: when only readings are left, the run is over, not diverged.
             while isinstance(self._peek(), ClockReading):
                 self._take()
             if self._peek() is None or isinstance(self._peek(), EndMark):
@@ -221,9 +221,8 @@ def replay_pipeline(replay: Replay, registry: Registry) -> Pipeline:
 def replay_run(pipeline: Pipeline, sinks: Sequence[Sink]) -> None:
     """Run the replayed pipeline into ``sinks`` until the recording ends.
 
-    Drives the pipeline as ``imuhal run`` does (``Pipeline.run``), so the pipeline's own clock
-    readings come in the recorded order. The sinks are not closed: the caller commits them
-    after a complete replay, or drops them when :class:`ReplayDivergence` is raised.
+    The sinks are not closed: the caller commits them after a complete replay, or drops them
+    when :class:`ReplayDivergence` is raised.
     """
     try:
         pipeline.run(None, [_Unclosed(sinks)])
