@@ -112,3 +112,29 @@ def test_an_unknown_figure_format_is_one_clear_error(run: tuple[Path, Path], tmp
     assert main(["plot", str(run[0]), "-o", str(tmp_path / "fig.jpgg")]) == 2
     assert "unknown figure format" in capsys.readouterr().err
     assert not list(tmp_path.iterdir())
+
+
+def test_events_in_memory_plot_as_their_csv_log_does(tmp_path: Path) -> None:
+    from imuhal.emulation import open_emulated
+    from imuhal.offline.plotting import log_from_events
+    from imuhal.pipeline import CsvSink
+    from imuhal.plugins.manager import load_registry
+    from imuhal.profile.loader import load_profile
+
+    registry = load_registry()
+    profile = load_profile("profiles/gy91.yaml", registry)
+    events: list[object] = []
+    with open_emulated(profile, registry, scenario="static") as pipeline:
+        sink = CsvSink(tmp_path / "log.csv", include_samples=True)
+        for event in pipeline.events(2.0):
+            events.append(event)
+            sink.handle(event)
+        sink.close()
+    from_memory = log_from_events(events)  # type: ignore[arg-type]
+    from_file = read_log(tmp_path / "log.csv")
+    assert from_memory.series.keys() == from_file.series.keys()
+    for key, series in from_file.series.items():
+        np.testing.assert_array_equal(from_memory.series[key].t_s, series.t_s)
+        assert from_memory.series[key].columns.keys() == series.columns.keys()
+        for name, values in series.columns.items():
+            np.testing.assert_array_equal(from_memory.series[key].columns[name], values)

@@ -23,6 +23,7 @@ import csv
 import math
 import os
 from collections import defaultdict
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -34,6 +35,7 @@ from imuhal.core.atomic import AtomicFile
 from imuhal.core.errors import ImuhalError
 from imuhal.core.samples import SampleFlag
 from imuhal.sim.truth_csv import read_truth_csv
+from imuhal.sinks import Event, event_row
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -85,6 +87,19 @@ def read_log(path: str | os.PathLike[str]) -> LogData:
         raise PlotError(f"{p}: cannot read: {getattr(exc, 'strerror', None) or exc}") from None
     if not rows:
         raise PlotError(f"{p}: no data rows; give a log of `imuhal run --output LOG.csv`")
+    return _log_from_rows(p, rows)
+
+
+def log_from_events(events: Iterable[Event], label: str = "run") -> LogData:
+    """The log of events still in memory (a pipeline's, a script's), as the CSV would hold
+    them, so scripts and other commands plot without writing a file first."""
+    rows = [{k: v for k, v in event_row(e).items()} for e in events]
+    if not rows:
+        raise PlotError(f"{label}: no events to plot")
+    return _log_from_rows(Path(label), rows)
+
+
+def _log_from_rows(p: Path, rows: list[dict[str, str]]) -> LogData:
     header = set(rows[0])
     if "t_s" not in header:
         raise PlotError(f"{p}: no t_s column; this is not an imuhal log")
@@ -100,7 +115,7 @@ def read_log(path: str | os.PathLike[str]) -> LogData:
         grouped[(p.stem, kind)] = rows
     data = LogData(p)
     for key, group in grouped.items():
-        names = [n for n in group[0] if n not in ("t_s", "source", "kind", "flags")]
+        names = sorted({n for r in group for n in r} - {"t_s", "source", "kind", "flags"})
         cols = {n: np.array([_num(r.get(n)) for r in group]) for n in names}
         cols = {n: v for n, v in cols.items() if not np.all(np.isnan(v))}
         flags = np.array([_num(r.get("flags")) if r.get("flags") else 0.0 for r in group])

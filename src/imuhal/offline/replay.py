@@ -96,7 +96,6 @@ class ReplaySource:
 
     def transfer(self, bus: int, target: int, written: bytes, read_len: int) -> bytes:
         rec = self._next()
-        asked = _describe(self.buses[bus].label, target, written, read_len)
         if isinstance(rec, ClockReading):
             # A recording cut off (or ended) after a poll's clock readings but before its
             # transfers: when only readings are left, the run is over, not diverged.
@@ -107,8 +106,9 @@ class ReplaySource:
             raise ReplayDivergence(
                 f"replay diverged after transaction {self.transfers - 1} (t="
                 f"{rec.t_ns / 1e9:.6f} s): the recording reads the clock here, the driver "
-                f"asked {asked}")
+                f"asked {_describe(self.buses[bus].label, target, written, read_len)}")
         if (rec.bus, rec.target, rec.written, rec.read_len) != (bus, target, written, read_len):
+            asked = _describe(self.buses[bus].label, target, written, read_len)
             raise self._divergence(rec, f"the driver asked {asked}")
         self.transfers += 1
         self.t_ns = rec.t_ns
