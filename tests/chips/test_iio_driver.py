@@ -216,3 +216,13 @@ def test_a_kernel_driven_run_records_and_replays_to_the_same_samples(
                [CallbackSink(lambda e: replayed.append(repr(e)))])
     assert len(live) > 40
     assert replayed == live
+
+
+def test_the_documented_kernel_board_profile_is_valid(full_registry: Registry) -> None:
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "drivers.md").read_text()
+    section = doc.split("## Chips bound to kernel drivers (Linux IIO)", 1)[1]
+    example = section.split("```yaml\n", 1)[1].split("```", 1)[0]
+    profile = parse_profile("schema_version: 1\nname: kernel-board\n" + example,
+                            "docs/drivers.md", full_registry)
+    assert {d.driver for d in profile.devices.values()} == {"iio"}
+    assert profile.buses["kernel"].kind == "iio"

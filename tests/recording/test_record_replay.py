@@ -9,7 +9,9 @@ import pytest
 from imuhal.bus.recording.format import open_recording
 from imuhal.bus.recording.recorder import BusRecorder, run_header
 from imuhal.cli.main import main
+from imuhal.core.samples import Sample
 from imuhal.emulation import open_emulated
+from imuhal.estimation.outputs import AttitudeEstimate
 from imuhal.offline.replay import (
     ReplayDivergence,
     open_replay,
@@ -159,3 +161,20 @@ def test_a_file_that_is_not_a_recording_is_one_clear_error(
     bogus.write_text("t_s,source\n")
     assert main(["replay", str(bogus)]) == 2
     assert "not an imuhal bus recording" in capsys.readouterr().err
+
+
+def test_replay_with_other_estimator_settings_decodes_the_same_samples(
+        full_registry: Registry, tmp_path: Path) -> None:
+    board = Path("profiles/gy91.yaml")
+    live = _record(full_registry, board, tmp_path / "run.imurec", 3.0)
+    retuned = tmp_path / "retuned.yaml"
+    text = board.read_text()
+    assert "beta: 0.1" in text
+    retuned.write_text(text.replace("beta: 0.1", "beta: 0.5"))
+    replayed = _replay(full_registry, tmp_path / "run.imurec", retuned)
+    samples = [e for e in live if isinstance(e, Sample)]
+    assert _exact([e for e in replayed if isinstance(e, Sample)]) == _exact(samples)
+    live_att = [e for e in live if isinstance(e, AttitudeEstimate)]
+    new_att = [e for e in replayed if isinstance(e, AttitudeEstimate)]
+    assert len(new_att) == len(live_att) > 100
+    assert _exact(new_att) != _exact(live_att)  # the new tuning, on the recorded data
