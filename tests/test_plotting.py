@@ -138,3 +138,17 @@ def test_events_in_memory_plot_as_their_csv_log_does(tmp_path: Path) -> None:
         assert from_memory.series[key].columns.keys() == series.columns.keys()
         for name, values in series.columns.items():
             np.testing.assert_array_equal(from_memory.series[key].columns[name], values)
+
+
+def test_a_log_in_another_frame_plots_its_own_columns_and_refuses_ned_truth(
+        run: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    log = tmp_path / "enu.csv"
+    assert main(["run", "profiles/seed-rc-vario.yaml", "--emulate", "rc-flight", "--duration",
+                 "3", "--quiet", "--output", str(log), "--output-frame", "enu"]) == 0
+    fig = plot_log(read_log(log))
+    x, y = _line(fig.axes["attitude"], "ahrs roll_deg")
+    t, v = _column(log, "ahrs", "roll_deg_enu")
+    np.testing.assert_array_equal(x, t)
+    np.testing.assert_array_equal(y, v)
+    assert main(["plot", str(log), "--truth", str(run[1]), "-o", str(tmp_path / "f.png")]) == 2
+    assert "truth files are ned" in capsys.readouterr().err

@@ -54,18 +54,26 @@ def _tilt_deg(a: np.ndarray, b: np.ndarray) -> float:
     return math.degrees(math.atan2(float(np.linalg.norm(np.cross(da, db))), float(da @ db)))
 
 
-@pytest.fixture(scope="module")
-def magnet() -> Magnet:
+MAGNET_S = (10.0, 14.0)
+
+
+def magnet_inputs() -> tuple[np.ndarray, ...]:
     """A magnet (200 uT sideways, 100 uT up, body frame) held to the board from 10 s to 14 s
     while it turns 120 deg at 30 deg/s; the gyro under-reads that turn by 5 %, so only the
-    magnetometer can correct the heading."""
+    magnetometer can correct the heading. Returns accel, gyro, mag, true q (200 Hz)."""
     t = np.arange(int(40 * FS)) / FS
-    turning = (t >= 10.0) & (t < 14.0)
+    turning = (t >= MAGNET_S[0]) & (t < MAGNET_S[1])
     rate = np.where(turning, 30.0, 0.0)
     yaw = 20.0 + np.cumsum(rate) / FS
     disturbance = np.where(turning[:, None], [0.0, 200.0, -100.0], 0.0)
-    accel, gyro, mag, q = _scenario(yaw, rate, gyro_scale=np.where(turning, 0.95, 1.0),
-                                    disturbance_ut=disturbance)
+    return _scenario(yaw, rate, gyro_scale=np.where(turning, 0.95, 1.0),
+                     disturbance_ut=disturbance)
+
+
+@pytest.fixture(scope="module")
+def magnet() -> Magnet:
+    """The 9DOF filter over ``magnet_inputs``."""
+    accel, gyro, mag, q = magnet_inputs()
     result = run_9dof(accel, gyro, mag)
     return result, result.row / FS, q[result.row]
 

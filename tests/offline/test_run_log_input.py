@@ -81,3 +81,21 @@ def test_a_run_log_without_samples_says_how_to_write_one(
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0
     assert "no valid samples" in err and "--samples" in err
+
+
+def test_a_run_log_written_in_another_frame_is_read_back_into_ned(
+        run_log: Path, tmp_path: Path) -> None:
+    enu_log = tmp_path / "enu.csv"
+    assert main(["run", "profiles/gy91.yaml", "--emulate", "thermal", "--duration", "6",
+                 "--quiet", "--output", str(enu_log), "--samples", "--output-frame", "enu"]) == 0
+    assert "ax_m_s2_enu" in enu_log.read_text().splitlines()[0]
+    from_ned, from_enu = tmp_path / "a.csv", tmp_path / "b.csv"
+    for log, out in ((run_log, from_ned), (enu_log, from_enu)):
+        assert main(["estimate", "madgwick", str(log), "-o", str(out), "--set", "beta=0.1",
+                     "--set", "sample_period_s=0.005"]) == 0
+    a, b = _rows(from_ned), _rows(from_enu)
+    assert len(a) == len(b) > 500
+    for name in ("qw", "qx", "qy", "qz"):
+        got = np.array([float(r[name]) for r in b])
+        want = np.array([float(r[name]) for r in a])
+        assert np.max(np.abs(got - want)) < 1e-12, name

@@ -23,10 +23,11 @@ ANDROID      east, north, up     right, forward, up        accel (0, 0, +1) g
 WIN8         east, north, up     right, forward, up        accel (0, 0, -1) g
 ===========  ==================  ========================  ==================
 
-The Android/Windows 8 frames are the NED ones with x and y swapped and z negated; the same
-swap ``ENU_FROM_NED`` applies to both the sensor and the global frame, which is how the
-estimators hand NED body data to an Android or Windows 8 filter and turn its orientation
-back into a body -> NED quaternion.
+The Android/Windows 8 frames are the NED ones with x and y swapped and z negated, in both the
+sensor and the global frame (a proper rotation: 180 deg about the north-east diagonal). These
+are the core conventions ``aerospace``, ``android`` and ``win8`` (imuhal.core.conventions),
+whose exact conversions hand NED body data to a filter and turn its orientation back into a
+body -> NED quaternion.
 """
 
 from __future__ import annotations
@@ -36,14 +37,20 @@ from enum import Enum
 
 import numpy as np
 
+from imuhal.core.conventions import (
+    AEROSPACE,
+    ANDROID,
+    NED,
+    WIN8,
+    VectorKind,
+    convert_quat,
+    euler_deg_from_quat,
+    vector_from_ned,
+)
 from imuhal.core.frames import FloatArray, quat_from_matrix, quat_to_matrix
 
 DEG = math.pi / 180.0
 """Degrees -> radians (the reference's FDEGTORAD)."""
-
-ENU_FROM_NED: FloatArray = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
-"""Swap x/y and negate z: NED (or FRD) axes -> ENU (or right-forward-up) axes. Its own
-inverse; a reflection, so it is applied on both sides of a rotation (M R M)."""
 
 
 class CoordinateSystem(str, Enum):
@@ -217,21 +224,17 @@ def ecompass(cs: CoordinateSystem, accel_g: FloatArray,
 # Euler angles in each system's own convention
 
 
-def _asin_deg(x: float) -> float:
-    return math.degrees(math.asin(max(-1.0, min(1.0, x))))
-
-
 def _acos_deg(x: float) -> float:
     return math.degrees(math.acos(max(-1.0, min(1.0, x))))
 
 
-def _atan2_deg(y: float, x: float) -> float:
-    return math.degrees(math.atan2(y, x))
+def _asin_deg(x: float) -> float:
+    return math.degrees(math.asin(max(-1.0, min(1.0, x))))
 
 
-def _wrap_360(a: float) -> float:
-    a = a + 360.0 if a < 0.0 else a
-    return 0.0 if a >= 360.0 else a
+_CONVENTION = {CoordinateSystem.NED: AEROSPACE, CoordinateSystem.ANDROID: ANDROID,
+               CoordinateSystem.WIN8: WIN8}
+"""The core convention each build's axes, accelerometer sign and Euler angles are."""
 
 
 def euler_angles_deg(cs: CoordinateSystem, r: FloatArray) -> dict[str, float]:
@@ -240,53 +243,17 @@ def euler_angles_deg(cs: CoordinateSystem, r: FloatArray) -> dict[str, float]:
 
     Each coordinate system has its own rotation sequence and signs (NED: aerospace ZYX, yaw
     clockwise from north; Android: roll about y and pitch about x; Windows 8: pitch about x
-    from -180 to 180 and roll about y from -90 to 90, heading anticlockwise).
+    from -180 to 180 and roll about y from -90 to 90, heading anticlockwise); the definitions
+    live in ``imuhal.core.conventions`` (styles freescale_ned / _android / _win8).
     """
-    if cs is CoordinateSystem.NED:
-        theta = _asin_deg(-r[0, 2])
-        phi = _atan2_deg(r[1, 2], r[2, 2])
-        phi = -180.0 if phi == 180.0 else phi
-        if theta == 90.0:
-            psi = _atan2_deg(r[2, 1], r[1, 1]) + phi
-        elif theta == -90.0:
-            psi = _atan2_deg(-r[2, 1], r[1, 1]) - phi
-        else:
-            psi = _atan2_deg(r[0, 1], r[0, 0])
-        psi = _wrap_360(psi)
-        rho = psi
-    elif cs is CoordinateSystem.ANDROID:
-        phi = _asin_deg(r[0, 2])
-        theta = _atan2_deg(-r[1, 2], r[2, 2])
-        theta = -180.0 if theta == 180.0 else theta
-        if phi == 90.0:
-            psi = _atan2_deg(r[1, 0], r[1, 1]) - theta
-        elif phi == -90.0:
-            psi = _atan2_deg(r[1, 0], r[1, 1]) + theta
-        else:
-            psi = _atan2_deg(-r[0, 1], r[0, 0])
-        psi = _wrap_360(psi)
-        rho = psi
-    else:
-        if r[2, 2] == 0.0:
-            phi = -90.0 if r[0, 2] >= 0.0 else 90.0
-        else:
-            phi = math.degrees(math.atan(-r[0, 2] / r[2, 2]))
-        theta = _asin_deg(r[1, 2])
-        if r[2, 2] < 0.0:
-            theta = 180.0 - theta
-        if theta >= 180.0:
-            theta -= 360.0
-        if theta == 90.0:
-            psi = _atan2_deg(r[0, 1], r[0, 0]) - phi
-        elif theta == -90.0:
-            psi = _atan2_deg(r[0, 1], r[0, 0]) + phi
-        else:
-            psi = _atan2_deg(-r[1, 0], r[1, 1])
-            if abs(theta) >= 90.0:
-                psi += 180.0
-        psi = _wrap_360(psi)
-        rho = _wrap_360(360.0 - psi)
+    phi, theta, psi = euler_deg_from_quat(_CONVENTION[cs], quat_from_matrix_fsl(r))
+    rho = _wrap_360(360.0 - psi) if cs is CoordinateSystem.WIN8 else psi
     return {"phi": phi, "theta": theta, "psi": psi, "rho": rho, "chi": _acos_deg(r[2, 2])}
+
+
+def _wrap_360(a: float) -> float:
+    a = a + 360.0 if a < 0.0 else a
+    return 0.0 if a >= 360.0 else a
 
 
 # ---------------------------------------------------------------------------------------------
@@ -295,19 +262,14 @@ def euler_angles_deg(cs: CoordinateSystem, r: FloatArray) -> dict[str, float]:
 
 def to_sensor_vector(cs: CoordinateSystem, v_body_ned: FloatArray) -> FloatArray:
     """A body-NED (forward, right, down) vector in the sensor axes of ``cs``."""
-    v = np.asarray(v_body_ned, dtype=float)
-    return v if cs is CoordinateSystem.NED else ENU_FROM_NED @ v
+    return vector_from_ned(v_body_ned, _CONVENTION[cs], VectorKind.ANGULAR_RATE)
 
 
 def accel_reading_g(cs: CoordinateSystem, specific_force_body_ned_g: FloatArray) -> FloatArray:
     """The accelerometer reading ``cs`` expects (g, its axes and sign) from specific force."""
-    f = to_sensor_vector(cs, specific_force_body_ned_g)
-    return -f if cs.gravity_positive else f
+    return vector_from_ned(specific_force_body_ned_g, _CONVENTION[cs], VectorKind.SPECIFIC_FORCE)
 
 
 def quat_body_to_ned(cs: CoordinateSystem, q_fsl: FloatArray) -> FloatArray:
     """Body -> NED quaternion (scalar >= 0) from the filter's sensor -> global quaternion."""
-    if cs is CoordinateSystem.NED:
-        return normalise_positive(q_fsl)
-    m = ENU_FROM_NED
-    return quat_from_matrix(m @ quat_to_matrix(q_fsl) @ m)
+    return normalise_positive(convert_quat(q_fsl, _CONVENTION[cs], NED))

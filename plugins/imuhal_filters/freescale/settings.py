@@ -21,8 +21,12 @@ class FreescaleCommonSettings(EstimatorSettings):
     oversample_ratio: int = Field(default=8, ge=1, le=64)
     """OVERSAMPLE_RATIO: gyro samples per Kalman step (200 Hz / 8 = 25 Hz Kalman)."""
     coordinate_system: CoordinateSystem = CoordinateSystem.NED
-    """THISCOORDSYSTEM. Estimators always take body-NED samples and emit body -> NED
-    quaternions; this only chooses which of the reference's equivalent formulations runs."""
+    """THISCOORDSYSTEM: which of the reference's three builds runs (``ned``, ``android``,
+    ``win8``; the core conventions aerospace, android, win8). Each has its own sensor model,
+    eCompass/tilt lock and inclination update, and reproduces the reference compiled for that
+    system; estimators still take body-NED samples and emit body -> NED quaternions. The
+    9DOF builds agree within float round-off; the Android 6DOF tilt lock picks a heading a
+    fraction of a degree apart (docs/units-and-frames.md)."""
     accel_mag_input: str = Field(default="latest", pattern="^(latest|average)$")
     """What the Kalman step measures: ``latest`` is the reference (the newest fast accel and
     mag sample, "to reduce phase errors"); ``average`` uses the mean of the decimation window."""

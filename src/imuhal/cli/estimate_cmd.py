@@ -6,8 +6,11 @@ import argparse
 import sys
 from typing import Any
 
+from imuhal.cli.frame_option import frame_argument
+from imuhal.core.conventions import CONVENTIONS, NED
 from imuhal.offline.csv_input import read_sample_csv
 from imuhal.offline.csv_output import write_estimates
+from imuhal.offline.frames import resolve_input_frame, table_to_ned
 from imuhal.offline.run_log import is_run_log, read_run_log
 from imuhal.offline.runner import run_offline, run_offline_samples
 from imuhal.offline.settings_args import build_settings, parse_set_arguments
@@ -23,6 +26,13 @@ Wide input columns (project units and frames; see docs/units-and-frames.md):
   vario filters:       t_s, altitude_m, accel_up_m_s2
                        or the attitude columns plus pressure_pa (imuhal runs --ahrs
                        and does the gravity compensation)
+Other conventions: --input-frame NAME reads the gyro, accel and mag columns in that
+convention's body axes and accelerometer sign (enu/ros: forward-left-up, specific force;
+android: right-forward-up, specific force; win8: right-forward-up, gravity positive;
+aerospace: forward-right-down, gravity positive). --output-frame NAME writes the quaternion
+(body -> that earth frame) and that convention's Euler angles, with the name as a column
+suffix (qw_enu ...); input columns named that way (ax_m_s2_enu ...) need no --input-frame.
+Estimators always run in ned. See docs/units-and-frames.md.
 Settings are the estimator's own fields: --set beta=0.1 --set accel_gate_g=0.6,1.4
 """
 
@@ -44,6 +54,12 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--ahrs", default="madgwick", metavar="NAME",
                    help="attitude estimator for gravity compensation of full IMU input to a "
                    "vario filter (default: madgwick)")
+    p.add_argument("--input-frame", type=frame_argument, metavar="NAME",
+                   help="convention of the input's gyro/accel/mag columns: "
+                   f"{', '.join(CONVENTIONS)} (ros = enu; default: the columns' frame "
+                   "suffix, e.g. ax_m_s2_enu, else ned)")
+    p.add_argument("--output-frame", type=frame_argument, default=NED, metavar="NAME",
+                   help="convention of the output's attitude columns (default: ned)")
     p.set_defaults(func=cmd_estimate)
 
 
@@ -52,17 +68,19 @@ def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
     settings = build_settings(est_cls.Settings, parse_set_arguments(args.settings), args.name)
     estimator = est_cls(settings)
     if is_run_log(args.input):
-        log = read_run_log(args.input)
+        log = read_run_log(args.input, args.input_frame)
         outputs = run_offline_samples(estimator, log.samples,
                                       ahrs=_gravity_ahrs(args, registry, True))
         read = (f"{log.rows} log rows ({len(log.samples)} valid samples, {log.flagged} "
                 "flagged skipped)")
     else:
-        table = read_sample_csv(args.input, rate_hz=args.rate)
+        table, frame = resolve_input_frame(read_sample_csv(args.input, rate_hz=args.rate),
+                                           args.input_frame)
+        table = table_to_ned(table, frame)
         ahrs = _gravity_ahrs(args, registry, "altitude_m" not in table.columns)
         outputs = run_offline(estimator, table, ahrs=ahrs)
         read = f"{len(table)} input rows"
-    rows = write_estimates(args.output, outputs)
+    rows = write_estimates(args.output, outputs, args.output_frame)
     print(f"{args.name}: {read} -> {rows} estimates in {args.output}", file=sys.stderr)
     return 0
 

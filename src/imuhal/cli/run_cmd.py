@@ -11,6 +11,7 @@ from typing import Any
 from imuhal import __version__
 from imuhal.bus.recording.recorder import BusRecorder, run_header
 from imuhal.bus.spy import format_transfer
+from imuhal.cli.frame_option import frame_argument
 from imuhal.core.atomic import AtomicFile
 from imuhal.core.errors import ImuhalError
 from imuhal.plugins.manager import Registry
@@ -37,6 +38,9 @@ def add_parser(sub: Any) -> None:
     run.add_argument("--realtime", action="store_true",
                      help="pace an emulated run at wall-clock speed")
     run.add_argument("--output", metavar="FILE.csv", help="write estimates to a CSV file")
+    run.add_argument("--output-frame", type=frame_argument, metavar="NAME",
+                     help="convention of the CSV log and console line (ned, aerospace, "
+                     "enu/ros, android, win8; default: the profile's output_frame)")
     run.add_argument("--samples", action="store_true",
                      help="with --output, also write every sample (flagged ones included)")
     run.add_argument("--truth", metavar="FILE.csv",
@@ -59,6 +63,7 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
 
     path = Path(args.profile) if args.profile else default_profile_path()
     profile = load_profile(path, registry)
+    frame = args.output_frame or profile.output_frame
     emulate = args.emulate
     if args.profile is None and emulate is None:
         emulate = profile.emulation.scenario
@@ -83,7 +88,7 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     print(f"imuhal {__version__}: {profile.name} ({where}) from {path}", file=sys.stderr)
     sinks: list[Any] = []
     if not args.quiet:
-        sinks.append(ConsoleSink(sys.stdout))
+        sinks.append(ConsoleSink(sys.stdout, frame=frame))
     csv_sink = None
     trace_file = AtomicFile(args.trace) if args.trace else None
     trace = (lambda t: trace_file.write(format_transfer(t) + "\n")) if trace_file else None
@@ -116,7 +121,7 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
         for w in pipeline.warnings:
             print(f"warning: {w}", file=sys.stderr)
         if args.output:
-            csv_sink = CsvSink(args.output, include_samples=args.samples)
+            csv_sink = CsvSink(args.output, include_samples=args.samples, frame=frame)
             sinks.append(csv_sink)
         truth_sink = None
         if truth_out and isinstance(pipeline.board, EmulatedBoard):

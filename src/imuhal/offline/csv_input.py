@@ -91,7 +91,8 @@ def read_sample_csv(path: str | Path, *, rate_hz: float | None = None) -> Sample
 def _cell(path: Path, line_no: int, column: str, cell: str) -> float:
     text = cell.strip()
     if not text:
-        if column in SPARSE_COLUMNS:
+        # a frame suffix (mx_ut_enu, see offline/frames.py) keeps the column sparse
+        if column in SPARSE_COLUMNS or column.rsplit("_", 1)[0] in SPARSE_COLUMNS:
             return math.nan
         raise InputError(f"{path}: line {line_no}, column '{column}': empty cell")
     try:

@@ -9,17 +9,21 @@ from pathlib import Path
 from typing import Any
 
 from imuhal.core.atomic import AtomicFile
+from imuhal.core.conventions import NED, Convention
+from imuhal.estimation.framed import attitude_columns, express_attitude
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate, VerticalEstimate
 
-ATTITUDE_COLUMNS = ("t_s", "qw", "qx", "qy", "qz", "roll_deg", "pitch_deg", "yaw_deg")
+ATTITUDE_COLUMNS = ("t_s", *attitude_columns(NED))
 VERTICAL_COLUMNS = ("t_s", "altitude_m", "climb_m_s", "accel_bias_m_s2")
 
 
-def estimate_fields(e: Estimate) -> dict[str, Any]:
+def estimate_fields(e: Estimate, frame: str | Convention = NED) -> dict[str, Any]:
+    """The leading columns of one estimate; an attitude's quaternion (body -> earth) and
+    Euler angles in ``frame``, named with its suffix (none for ned)."""
     if isinstance(e, AttitudeEstimate):
-        r, p, y = e.roll_pitch_yaw_deg
-        return dict(zip(ATTITUDE_COLUMNS, (e.t_ns / 1e9, *e.q_body_to_ned, r, p, y),
-                        strict=True))
+        a = express_attitude(e, frame)
+        return dict(zip(("t_s", *attitude_columns(frame)),
+                        (e.t_ns / 1e9, *a.q_body_to_earth, *a.euler_deg), strict=True))
     if isinstance(e, VerticalEstimate):
         bias = e.accel_bias_m_s2
         return {"t_s": e.t_ns / 1e9, "altitude_m": e.altitude_m, "climb_m_s": e.climb_m_s,
@@ -44,13 +48,15 @@ def flatten_diagnostics(diag: dict[str, Any], prefix: str = "") -> dict[str, Any
     return out
 
 
-def write_estimates(path: str | Path, estimates: Sequence[Estimate]) -> int:
-    """Write ``estimates`` atomically; returns the number of rows."""
+def write_estimates(path: str | Path, estimates: Sequence[Estimate],
+                    frame: str | Convention = NED) -> int:
+    """Write ``estimates`` atomically, attitudes in ``frame``; returns the number of rows.
+    Diagnostic columns stay as each estimator reports them (its internal NED body frame)."""
     rows = []
     diag_cols: dict[str, None] = {}
     base: tuple[str, ...] = ("t_s",)
     for e in estimates:
-        fields = estimate_fields(e)
+        fields = estimate_fields(e, frame)
         if len(fields) > len(base):
             base = tuple(fields)
         diag = flatten_diagnostics(e.diagnostics)

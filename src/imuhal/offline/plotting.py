@@ -34,6 +34,8 @@ from imuhal.core.atmosphere import altitude_m_from_pressure
 from imuhal.core.atomic import AtomicFile
 from imuhal.core.errors import ImuhalError
 from imuhal.core.samples import SampleFlag
+from imuhal.estimation.framed import frame_suffix
+from imuhal.offline.run_log import log_frame
 from imuhal.sim.truth_csv import read_truth_csv
 from imuhal.sinks import Event, event_row
 
@@ -72,6 +74,8 @@ class LogData:
     path: Path
     series: dict[tuple[str, str], Series] = field(default_factory=dict)
     """(source, kind) -> series: ("ahrs", "attitude"), ("imu", "gyro"), ..."""
+    frame: str = "ned"
+    """The convention of the body vectors and attitude (the log's ``output_frame``)."""
 
     def of_kind(self, kind: str) -> dict[str, Series]:
         return {src: s for (src, k), s in self.series.items() if k == kind}
@@ -100,6 +104,11 @@ def log_from_events(events: Iterable[Event], label: str = "run") -> LogData:
 
 
 def _log_from_rows(p: Path, rows: list[dict[str, str]]) -> LogData:
+    frame = log_frame(p, list(rows[0]), None)
+    sfx = frame_suffix(frame)
+    if sfx:  # a log written in another frame: plot its columns under the plain names
+        rows = [{(k[: -len(sfx)] if k.endswith(sfx) else k): v for k, v in r.items()}
+                for r in rows]
     header = set(rows[0])
     if "t_s" not in header:
         raise PlotError(f"{p}: no t_s column; this is not an imuhal log")
@@ -113,7 +122,7 @@ def _log_from_rows(p: Path, rows: list[dict[str, str]]) -> LogData:
             raise PlotError(f"{p}: neither a run log (source, kind columns) nor estimate "
                             "output (qw or altitude_m columns)")
         grouped[(p.stem, kind)] = rows
-    data = LogData(p)
+    data = LogData(p, frame=frame.name)
     for key, group in grouped.items():
         names = sorted({n for r in group for n in r} - {"t_s", "source", "kind", "flags"})
         cols = {n: np.array([_num(r.get(n)) for r in group]) for n in names}
@@ -207,6 +216,9 @@ def _figure_class() -> Any:
 
 def plot_log(log: LogData, truth: Truth | None = None, *, title: str = "") -> LogFigure:
     """Every panel the log has data for, truth overlaid and errors shown when given."""
+    if truth is not None and log.frame != "ned":
+        raise PlotError(f"{log.path}: the log is in frame '{log.frame}' but truth files are "
+                        "ned; compare with truth a log written in ned (the default)")
     panels: list[str] = []
     attitude, vertical = log.of_kind("attitude"), log.of_kind("vertical")
     if attitude:
@@ -226,7 +238,8 @@ def plot_log(log: LogData, truth: Truth | None = None, *, title: str = "") -> Lo
     figure = _figure_class()(figsize=(11, 2.3 * len(panels)), layout="constrained")
     grid = figure.subplots(len(panels), 1, sharex=True, squeeze=False)[:, 0]
     axes = dict(zip(panels, grid, strict=True))
-    figure.suptitle(title or str(log.path))
+    frame_note = "" if log.frame == "ned" else f" (body vectors and attitude in {log.frame})"
+    figure.suptitle((title or str(log.path)) + frame_note)
     if attitude:
         _attitude(axes, attitude, truth)
     if vertical:

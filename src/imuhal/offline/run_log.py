@@ -14,6 +14,7 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+from imuhal.core.conventions import CONVENTIONS, NED, Convention, VectorKind, vector_to_ned
 from imuhal.core.samples import (
     AccelSample,
     Frame,
@@ -23,15 +24,18 @@ from imuhal.core.samples import (
     Sample,
     TemperatureSample,
 )
+from imuhal.estimation.framed import frame_suffix
 from imuhal.offline.csv_input import InputError
 
 LONG_FORMAT_COLUMNS = frozenset({"t_s", "source", "kind", "flags"})
 """A header with all of these is a run log (long format), not a wide sample table."""
 
 _VECTORS = {
-    "accel": (("ax_m_s2", "ay_m_s2", "az_m_s2"), AccelSample, "accel_m_s2"),
-    "gyro": (("gx_rad_s", "gy_rad_s", "gz_rad_s"), GyroSample, "gyro_rad_s"),
-    "mag": (("mx_ut", "my_ut", "mz_ut"), MagSample, "mag_ut"),
+    "accel": (("ax_m_s2", "ay_m_s2", "az_m_s2"), AccelSample, "accel_m_s2",
+              VectorKind.SPECIFIC_FORCE),
+    "gyro": (("gx_rad_s", "gy_rad_s", "gz_rad_s"), GyroSample, "gyro_rad_s",
+             VectorKind.ANGULAR_RATE),
+    "mag": (("mx_ut", "my_ut", "mz_ut"), MagSample, "mag_ut", VectorKind.MAGNETIC_FIELD),
 }
 _ESTIMATE_KINDS = frozenset({"attitude", "vertical"})
 
@@ -59,13 +63,34 @@ def is_run_log(path: str | Path) -> bool:
     return {h.strip() for h in header} >= LONG_FORMAT_COLUMNS
 
 
-def read_run_log(path: str | Path) -> RunLog:
-    """Every valid sample of a run log; each bad cell is an error naming line and column."""
+def log_frame(path: Path, header: list[str], requested: Convention | None) -> Convention:
+    """The frame of a run log's body vectors: the suffix its columns carry (``ax_m_s2_enu``,
+    written with ``output_frame``), else ``requested``, else ned."""
+    suffixed = {c.name: c for c in CONVENTIONS.values() if c is not NED
+                and f"ax_m_s2{frame_suffix(c)}" in header}
+    if len(suffixed) > 1:
+        raise InputError(f"{path}: vector columns in more than one frame "
+                         f"({', '.join(sorted(suffixed))}); keep one frame per file")
+    if not suffixed:
+        return requested or NED
+    (frame,) = suffixed.values()
+    if requested is not None and requested is not frame:
+        raise InputError(f"{path}: the log's columns are in frame '{frame.name}' but "
+                         f"--input-frame {requested.name} was given; drop --input-frame")
+    return frame
+
+
+def read_run_log(path: str | Path, frame: Convention | None = None) -> RunLog:
+    """Every valid sample of a run log, in NED body axes (from the frame its column names
+    carry, else ``frame``, else ned); each bad cell is an error naming line and column."""
     p = Path(path)
     samples: list[Sample] = []
     rows = flagged = estimates = 0
     with p.open(newline="", encoding="utf-8") as f:
-        for line_no, row in enumerate(csv.DictReader(f), start=2):
+        reader = csv.DictReader(f)
+        conv = log_frame(p, list(reader.fieldnames or []), frame)
+        suffix = frame_suffix(conv)
+        for line_no, row in enumerate(reader, start=2):
             rows += 1
             kind = (row.get("kind") or "").strip()
             if kind in _ESTIMATE_KINDS:
@@ -77,8 +102,10 @@ def read_run_log(path: str | Path) -> RunLog:
             t_ns = round(_number(p, line_no, row, "t_s") * 1e9)
             device = (row.get("source") or "").strip()
             if kind in _VECTORS:
-                names, cls, field = _VECTORS[kind]
-                vector = tuple(_number(p, line_no, row, n) for n in names)
+                names, cls, field, vector_kind = _VECTORS[kind]
+                vector = tuple(_number(p, line_no, row, n + suffix) for n in names)
+                if conv is not NED:
+                    vector = tuple(float(x) for x in vector_to_ned(vector, conv, vector_kind))
                 samples.append(cls(t_ns=t_ns, device=device, frame=Frame.BODY_NED,
                                    **{field: vector}))
             elif kind == "pressure":

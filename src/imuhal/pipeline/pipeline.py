@@ -20,11 +20,13 @@ from imuhal.bus.base import Bus, Link
 from imuhal.bus.recording.recorder import BusRecorder
 from imuhal.bus.spy import SpyBus, Transfer
 from imuhal.calibration.model import CalibrationBinding, DeviceCalibration
+from imuhal.core.conventions import get_convention
 from imuhal.core.errors import BusError, ImuhalError, PluginError
 from imuhal.core.frames import FloatArray
 from imuhal.core.samples import Sample, SampleFlag
 from imuhal.drivers.base import DeviceIdentity, Driver
 from imuhal.estimation.base import Estimator
+from imuhal.estimation.framed import FramedEvent, express
 from imuhal.pipeline.board import Board, open_hardware_board
 from imuhal.pipeline.processing import calibrate_to_body, quality_flags
 from imuhal.pipeline.startup import startup_gyro_phase
@@ -238,6 +240,15 @@ class Pipeline:
             source = startup_gyro_phase(self, source)
         self._started = True
         yield from source
+
+    def framed_events(self, duration_s: float | None = None, *,
+                      frame: str | None = None) -> Iterator[FramedEvent]:
+        """``events`` expressed in ``frame`` (default: the profile's ``output_frame``): body
+        samples and attitudes become FramedSample / FramedAttitude views in that convention;
+        pressure, temperature and vertical estimates (up positive) come through unchanged."""
+        target = get_convention(frame if frame is not None else self.profile.output_frame)
+        for event in self.events(duration_s):
+            yield express(event, target)
 
     def _poll_events(self, duration_s: float | None) -> Iterator[Event]:
         start = self.clock.now_ns()

@@ -13,6 +13,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from imuhal.calibration.model import DeviceCalibration
+from imuhal.core.conventions import UnknownConvention, get_convention
 from imuhal.core.frames import MountError, parse_mount
 
 SCHEMA_VERSION = 1
@@ -88,4 +89,17 @@ class BoardProfile(_Strict):
     estimators: dict[str, EstimatorConfig] = Field(default_factory=dict)
     emulation: EmulationConfig = Field(default_factory=EmulationConfig)
 
+    output_frame: str = "ned"
+    """Convention of what the run hands out: its CSV and console sinks and
+    ``Pipeline.framed_events`` (ned, aerospace, enu/ros, android, win8; see
+    docs/units-and-frames.md). Estimators always work in ned; this converts at the edge."""
+
     _mount = field_validator("board_to_body")(_valid_mount)
+
+    @field_validator("output_frame")
+    @classmethod
+    def _known_frame(cls, value: str) -> str:
+        try:
+            return get_convention(value).name
+        except UnknownConvention as exc:
+            raise ValueError(str(exc)) from None

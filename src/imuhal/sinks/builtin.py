@@ -1,7 +1,9 @@
 """The built-in sinks: a live console line, a CSV log, or your own callback.
 
 CSV format (docs/output-csv.md): one row per event; ``kind`` says which columns it fills.
-Columns carry their unit and frame: body-frame NED samples, body -> NED quaternions.
+Columns carry their unit and frame: body-frame NED samples, body -> NED quaternions by
+default; with ``frame`` (the profile's ``output_frame``) body-frame vectors, quaternions and
+Euler angles are in that convention and their column names carry its suffix.
 """
 
 from __future__ import annotations
@@ -16,27 +18,47 @@ from pathlib import Path
 from typing import IO
 
 from imuhal.core.atomic import AtomicFile
+from imuhal.core.conventions import NED, Convention, get_convention
 from imuhal.core.samples import (
-    AccelSample,
-    GyroSample,
-    MagSample,
+    Channel,
+    Frame,
     PressureSample,
     Sample,
     TemperatureSample,
+    VectorSample,
+)
+from imuhal.estimation.framed import (
+    EULER_COLUMNS,
+    QUAT_COLUMNS,
+    VECTOR_COLUMNS,
+    attitude_columns,
+    express_attitude,
+    express_sample,
+    linear_accel_columns,
+    vector_columns,
 )
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate, VerticalEstimate
 from imuhal.sinks.base import Event
 
-CSV_COLUMNS = (
-    "t_s", "source", "kind", "flags",
-    "ax_m_s2", "ay_m_s2", "az_m_s2",
-    "gx_rad_s", "gy_rad_s", "gz_rad_s",
-    "mx_ut", "my_ut", "mz_ut",
-    "pressure_pa", "temperature_degc",
-    "qw", "qx", "qy", "qz", "roll_deg", "pitch_deg", "yaw_deg",
-    "lin_an_m_s2", "lin_ae_m_s2", "lin_ad_m_s2",
-    "altitude_m", "climb_m_s", "accel_bias_m_s2",
-)
+
+def csv_columns(frame: str | Convention = NED) -> tuple[str, ...]:
+    """The CSV header for events expressed in ``frame`` (docs/output-csv.md): frame-dependent
+    columns carry its name as a suffix (none for ned), linear acceleration its earth axes."""
+    return (
+        "t_s", "source", "kind", "flags",
+        *vector_columns(Channel.ACCEL, frame),
+        *vector_columns(Channel.GYRO, frame),
+        *vector_columns(Channel.MAG, frame),
+        "pressure_pa", "temperature_degc",
+        *attitude_columns(frame),
+        *linear_accel_columns(frame),
+        "altitude_m", "climb_m_s", "accel_bias_m_s2",
+    )
+
+
+CSV_COLUMNS = csv_columns(NED)
+"""The header in imuhal's own convention (body-frame NED samples, body -> NED quaternions)."""
+NED_LINEAR_ACCEL = linear_accel_columns(NED)
 
 
 class CallbackSink:
@@ -55,20 +77,23 @@ class CallbackSink:
         return None
 
 
-def event_row(event: Event) -> dict[str, str]:
-    """The CSV row of one event: only the columns its kind fills."""
+def event_row(event: Event, frame: str | Convention = NED) -> dict[str, str]:
+    """The CSV row of one event: only the columns its kind fills; body-frame vectors and
+    attitudes expressed in ``frame``."""
+    conv = get_convention(frame)
     row: dict[str, str] = {}
     if isinstance(event, Sample):
         row["t_s"] = f"{event.t_ns / 1e9:.6f}"
         row["source"] = event.device
         row["kind"] = event.channel.value
         row["flags"] = str(int(event.flags))
-        if isinstance(event, AccelSample):
-            _put(row, ("ax_m_s2", "ay_m_s2", "az_m_s2"), event.accel_m_s2)
-        elif isinstance(event, GyroSample):
-            _put(row, ("gx_rad_s", "gy_rad_s", "gz_rad_s"), event.gyro_rad_s)
-        elif isinstance(event, MagSample):
-            _put(row, ("mx_ut", "my_ut", "mz_ut"), event.mag_ut)
+        if isinstance(event, VectorSample):
+            if conv is NED:
+                _put(row, VECTOR_COLUMNS[event.channel], event.vector)
+            elif event.frame is Frame.BODY_NED:
+                cols = express_sample(event, conv).columns()
+                _put(row, tuple(cols), tuple(cols.values()))
+            # a chip-frame vector has no body axes to re-express: other frames leave it out
         elif isinstance(event, PressureSample):
             _put(row, ("pressure_pa",), (event.pressure_pa,))
         elif isinstance(event, TemperatureSample):
@@ -79,10 +104,14 @@ def event_row(event: Event) -> dict[str, str]:
     row["flags"] = "0"
     if isinstance(event, AttitudeEstimate):
         row["kind"] = "attitude"
-        _put(row, ("qw", "qx", "qy", "qz"), event.q_body_to_ned)
-        _put(row, ("roll_deg", "pitch_deg", "yaw_deg"), event.roll_pitch_yaw_deg)
-        if event.linear_accel_ned_m_s2 is not None:
-            _put(row, ("lin_an_m_s2", "lin_ae_m_s2", "lin_ad_m_s2"), event.linear_accel_ned_m_s2)
+        if conv is NED:
+            _put(row, QUAT_COLUMNS, event.q_body_to_ned)
+            _put(row, EULER_COLUMNS, event.roll_pitch_yaw_deg)
+            if event.linear_accel_ned_m_s2 is not None:
+                _put(row, NED_LINEAR_ACCEL, event.linear_accel_ned_m_s2)
+        else:
+            cols = express_attitude(event, conv).columns()
+            _put(row, tuple(cols), tuple(cols.values()))
     elif isinstance(event, VerticalEstimate):
         row["kind"] = "vertical"
         _put(row, ("altitude_m", "climb_m_s"), (event.altitude_m, event.climb_m_s))
@@ -103,18 +132,21 @@ class CsvSink:
     folder, which replaces ``path`` (after flush and fsync) only when the run closes, so an
     interrupted run never leaves a half-written log under the final name."""
 
-    def __init__(self, path: str | os.PathLike[str], *, include_samples: bool = False) -> None:
+    def __init__(self, path: str | os.PathLike[str], *, include_samples: bool = False,
+                 frame: str | Convention = NED) -> None:
         self.path = Path(path)
         self.include_samples = include_samples
+        self.frame = get_convention(frame)
         self.rows = 0
         self._out: AtomicFile | None = AtomicFile(self.path, newline="")
-        self._writer = csv.DictWriter(self._out, fieldnames=CSV_COLUMNS, restval="")
+        self._writer = csv.DictWriter(self._out, fieldnames=csv_columns(self.frame),
+                                      restval="")
         self._writer.writeheader()
 
     def handle(self, event: Event) -> None:
         if isinstance(event, Sample) and not self.include_samples:
             return
-        self._writer.writerow(event_row(event))
+        self._writer.writerow(event_row(event, self.frame))
         self.rows += 1
 
     def close(self) -> None:
@@ -133,7 +165,9 @@ class ConsoleSink:
     """A live one-line status: latest altitude, climb rate and attitude, refreshed a few
     times per second of wall time (or every ``every_s`` simulated seconds when not a TTY)."""
 
-    def __init__(self, stream: IO[str] | None = None, *, every_s: float = 1.0) -> None:
+    def __init__(self, stream: IO[str] | None = None, *, every_s: float = 1.0,
+                 frame: str | Convention = NED) -> None:
+        self.frame = get_convention(frame)
         self.stream = stream if stream is not None else sys.stdout
         self.tty = getattr(self.stream, "isatty", lambda: False)()
         self.every_ns = round(every_s * 1e9)
@@ -169,8 +203,9 @@ class ConsoleSink:
             v = self.vertical
             parts.append(f"alt {v.altitude_m:8.2f} m  climb {v.climb_m_s:+6.2f} m/s")
         if self.attitude is not None:
-            r, p, y = self.attitude.roll_pitch_yaw_deg
-            parts.append(f"roll {r:+6.1f} pitch {p:+6.1f} yaw {y:+7.1f} deg")
+            r, p, y = express_attitude(self.attitude, self.frame).euler_deg
+            where = "" if self.frame is NED else f" ({self.frame.name})"
+            parts.append(f"roll {r:+6.1f} pitch {p:+6.1f} yaw {y:+7.1f} deg{where}")
         if self.flagged:
             parts.append(f"flagged {self.flagged}")
         return "  ".join(parts)
