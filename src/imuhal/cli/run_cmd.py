@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from imuhal import __version__
+from imuhal.bus.recording.format import RecordingWriteFailed
 from imuhal.bus.recording.recorder import BusRecorder, run_header
 from imuhal.bus.spy import format_transfer
 from imuhal.cli.frame_option import frame_argument
@@ -131,6 +132,9 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
         try:
             summary = pipeline.run(duration, sinks)
             ended[0] = "complete"
+        except RecordingWriteFailed as exc:
+            raise ImuhalError(f"{exc}; the run stopped (the file keeps what was flushed)"
+                              ) from None
         except KeyboardInterrupt:
             summary = pipeline.summary()
             ended[0] = "interrupted"

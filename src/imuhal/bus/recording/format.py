@@ -48,6 +48,14 @@ class RecordingError(ImuhalError):
     """A file is not a recording this imuhal can read; the message names the file."""
 
 
+class RecordingWriteFailed(Exception):
+    """The recording could not be written (disk full, medium gone).
+
+    Not an ImuhalError: it surfaces inside a bus transaction, where the pipeline would take
+    an ImuhalError for a device fault and keep retrying; the run has to stop instead.
+    """
+
+
 @dataclass(frozen=True, slots=True)
 class BusInfo:
     index: int
@@ -215,9 +223,13 @@ class RecordingWriter:
 
     def _write_chunk(self, payload: bytes) -> None:
         assert self._file is not None
-        self._file.write(_CHUNK_HEAD.pack(len(payload), zlib.crc32(payload)) + payload)
-        self._file.flush()
-        os.fsync(self._file.fileno())
+        try:
+            self._file.write(_CHUNK_HEAD.pack(len(payload), zlib.crc32(payload)) + payload)
+            self._file.flush()
+            os.fsync(self._file.fileno())
+        except OSError as exc:
+            raise RecordingWriteFailed(f"{self.path}: cannot write the recording: "
+                                       f"{exc.strerror or exc}") from exc
 
     @property
     def closed(self) -> bool:
@@ -225,9 +237,11 @@ class RecordingWriter:
 
     def close(self) -> None:
         if self._file is not None:
-            self.flush()
-            self._file.close()
-            self._file = None
+            try:
+                self.flush()
+            finally:
+                self._file.close()
+                self._file = None
 
 
 # -- reading -------------------------------------------------------------------------------

@@ -14,7 +14,12 @@ from typing import Any
 
 from imuhal import __version__
 from imuhal.bus.base import Bus
-from imuhal.bus.recording.format import BusInfo, RecordingWriter
+from imuhal.bus.recording.format import (
+    BusInfo,
+    RecordingError,
+    RecordingWriteFailed,
+    RecordingWriter,
+)
 from imuhal.bus.spy import Transfer
 from imuhal.core.clock import Clock
 
@@ -75,9 +80,16 @@ class BusRecorder:
 
     def close(self, how: str = "complete") -> None:
         """Mark how the run ended and make everything durable."""
-        if not self.writer.closed:
+        if self.writer.closed:
+            return
+        try:
             self.writer.end(how)
-            self.writer.close()
+        finally:
+            try:
+                self.writer.close()
+            except RecordingWriteFailed as exc:
+                # Outside the pipeline now: an ordinary error the CLI reports in one line.
+                raise RecordingError(str(exc)) from None
 
 
 def run_header(profile_text: str, profile_source: str, *, emulate: str | None,
