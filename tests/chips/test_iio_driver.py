@@ -12,7 +12,7 @@ from tests.support.fake_iio import Element, FakeIIODevice
 from imuhal.bus.linux_iio import LinuxIIOBus
 from imuhal.bus.recording.recorder import BusRecorder, run_header
 from imuhal.core.clock import SimulatedClock
-from imuhal.core.errors import DeviceNotFoundError
+from imuhal.core.errors import DeviceNotFoundError, NackError
 from imuhal.core.samples import (
     AccelSample,
     GyroSample,
@@ -226,3 +226,22 @@ def test_the_documented_kernel_board_profile_is_valid(full_registry: Registry) -
                             "docs/drivers.md", full_registry)
     assert {d.driver for d in profile.devices.values()} == {"iio"}
     assert profile.buses["kernel"].kind == "iio"
+
+
+def test_a_buffered_device_that_goes_and_comes_back_is_reconfigured(tmp_path: Path) -> None:
+    device = _mpu(tmp_path / "sys", tmp_path / "dev")
+    clock = SimulatedClock()
+    driver = _driver(LinuxIIOBus(tmp_path / "sys", tmp_path / "dev"), clock, name="mpu9250")
+    device.remove()
+    with pytest.raises(NackError, match="no IIO device iio:device0"):
+        driver.poll(driver.start(0))
+    with pytest.raises(DeviceNotFoundError, match="no IIO devices"):
+        driver.recover(0)
+    device.create()  # rebound: scan elements disabled, buffer off, as after a fresh probe
+    assert device.read("buffer/enable") == "0"
+    next_ns = driver.recover(0)
+    assert device.read("buffer/enable") == "1" and len(device.enabled()) == 8
+    device.push({e.name: 1 for e in device.enabled()})
+    samples = driver.poll(next_ns).samples
+    assert [type(s).__name__ for s in samples] == ["AccelSample", "GyroSample",
+                                                    "TemperatureSample"]

@@ -16,7 +16,7 @@ import itertools
 import textwrap
 from typing import Annotated, Any, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Field, create_model
+from pydantic import BaseModel, Field, create_model
 
 from imuhal.drivers.settings import Allowed
 from imuhal.plugins.manager import Registry
@@ -135,7 +135,6 @@ def _settings_models(registry: Registry) -> list[type[BaseModel]]:
 
 def profile_schema(registry: Registry) -> dict[str, Any]:
     """The JSON Schema (draft 2020-12) of a profile for the installed plugins."""
-    strict = ConfigDict(extra="forbid", frozen=True)
     buses, devices = _bus_models(registry), _device_models(registry)
     estimators = _estimator_models(registry)
     model = create_model(
@@ -145,7 +144,6 @@ def profile_schema(registry: Registry) -> dict[str, Any]:
         estimators=(dict[str, _union(estimators, "estimator")],  # type: ignore[misc]
                     Field(default_factory=dict)),
     )
-    model.model_config = {**model.model_config, **strict}
     schema = model.model_json_schema(mode="validation")
     _describe(schema, [*_settings_models(registry), *buses, *devices, *estimators])
     for name, field_schema in schema.get("properties", {}).items():
