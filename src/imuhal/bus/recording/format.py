@@ -113,6 +113,9 @@ def _put_bytes(out: bytearray, data: bytes) -> None:
 
 
 def _get_uvarint(buf: bytes, pos: int) -> tuple[int, int]:
+    value = buf[pos]
+    if value < 0x80:  # most lengths, buses and targets: one byte
+        return value, pos + 1
     value = 0
     shift = 0
     while True:
@@ -274,50 +277,61 @@ class Recording:
                     return
                 if payload is None:
                     return
-                pos = 0
-                while pos < len(payload):
-                    length, pos = _get_uvarint(payload, pos)
-                    body = payload[pos:pos + length]
-                    pos += length
-                    kind = body[0]
-                    if kind in (REC_TRANSFER, REC_FAILED):
-                        dt, p = _get_svarint(body, 1)
-                        t_ns += dt
-                        bus, p = _get_uvarint(body, p)
-                        target, p = _get_uvarint(body, p)
-                        written, p = _get_bytes(body, p)
-                        if kind == REC_TRANSFER:
-                            read, p = _get_bytes(body, p)
-                            yield RecordedTransfer(index, t_ns, bus, target, written, read,
-                                                   len(read))
-                        else:
-                            read_len, p = _get_uvarint(body, p)
-                            etype, p = _get_bytes(body, p)
-                            error, p = _get_bytes(body, p)
-                            yield RecordedTransfer(index, t_ns, bus, target, written, b"",
-                                                   read_len, etype.decode(), error.decode())
-                        index += 1
-                    elif kind == REC_CLOCK:
-                        dt, _ = _get_svarint(body, 1)
-                        t_ns += dt
-                        yield ClockReading(t_ns)
-                    elif kind == REC_BUS:
-                        bus_index, p = _get_uvarint(body, 1)
-                        texts = []
-                        for _ in range(3):
-                            raw, p = _get_bytes(body, p)
-                            texts.append(raw.decode("utf-8"))
-                        info = BusInfo(bus_index, *texts)
-                        self.buses[bus_index] = info
-                        yield info
-                    elif kind == REC_END:
-                        how, _ = _get_bytes(body, 1)
-                        self.end = EndMark(t_ns, how.decode("utf-8"))
-                        yield self.end
-                    else:
-                        self.damage = (f"{self.path}: unknown record type {kind} (written "
-                                       "by a newer imuhal?)")
+                for record in self._decode(payload, t_ns, index):
+                    if isinstance(record, str):  # a record type this reader does not know
+                        self.damage = record
                         return
+                    if isinstance(record, RecordedTransfer):
+                        t_ns, index = record.t_ns, record.index + 1
+                    elif isinstance(record, ClockReading):
+                        t_ns = record.t_ns
+                    yield record
+
+    def _decode(self, payload: bytes, t_ns: int, index: int) -> Iterator[Record | str]:
+        """The records of one chunk (times and transaction numbers go on from ``t_ns`` and
+        ``index``); a string instead of a record says why decoding stopped."""
+        pos = 0
+        while pos < len(payload):
+            length, p = _get_uvarint(payload, pos)
+            pos = p + length
+            kind = payload[p]
+            p += 1
+            if kind in (REC_TRANSFER, REC_FAILED):
+                dt, p = _get_svarint(payload, p)
+                t_ns += dt
+                bus, p = _get_uvarint(payload, p)
+                target, p = _get_uvarint(payload, p)
+                written, p = _get_bytes(payload, p)
+                if kind == REC_TRANSFER:
+                    read, p = _get_bytes(payload, p)
+                    yield RecordedTransfer(index, t_ns, bus, target, written, read, len(read))
+                else:
+                    read_len, p = _get_uvarint(payload, p)
+                    etype, p = _get_bytes(payload, p)
+                    error, p = _get_bytes(payload, p)
+                    yield RecordedTransfer(index, t_ns, bus, target, written, b"", read_len,
+                                           etype.decode(), error.decode())
+                index += 1
+            elif kind == REC_CLOCK:
+                dt, _ = _get_svarint(payload, p)
+                t_ns += dt
+                yield ClockReading(t_ns)
+            elif kind == REC_BUS:
+                bus_index, p = _get_uvarint(payload, p)
+                texts = []
+                for _ in range(3):
+                    raw, p = _get_bytes(payload, p)
+                    texts.append(raw.decode("utf-8"))
+                info = BusInfo(bus_index, *texts)
+                self.buses[bus_index] = info
+                yield info
+            elif kind == REC_END:
+                how, _ = _get_bytes(payload, p)
+                self.end = EndMark(t_ns, how.decode("utf-8"))
+                yield self.end
+            else:
+                yield f"{self.path}: unknown record type {kind} (written by a newer imuhal?)"
+                return
 
 
 def _read_chunk(f: IO[bytes], path: Path) -> bytes | None:
