@@ -152,3 +152,15 @@ def test_a_log_in_another_frame_plots_its_own_columns_and_refuses_ned_truth(
     np.testing.assert_array_equal(y, v)
     assert main(["plot", str(log), "--truth", str(run[1]), "-o", str(tmp_path / "f.png")]) == 2
     assert "truth files are ned" in capsys.readouterr().err
+
+
+def test_the_output_of_imuhal_estimate_plots_as_one_source(run: tuple[Path, Path],
+                                                           tmp_path: Path) -> None:
+    out = tmp_path / "mahony.csv"
+    assert main(["estimate", "mahony", str(run[0]), "-o", str(out)]) == 0
+    fig = plot_log(read_log(out))
+    x, y = _line(fig.axes["attitude"], "mahony pitch_deg")
+    with out.open(newline="") as f:
+        rows = list(csv.DictReader(f))
+    np.testing.assert_array_equal(x, [float(r["t_s"]) for r in rows])
+    np.testing.assert_array_equal(y, [float(r["pitch_deg"]) for r in rows])
