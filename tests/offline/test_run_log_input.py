@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from imuhal.cli.main import main
 
@@ -14,6 +15,18 @@ from imuhal.cli.main import main
 def _rows(path: Path) -> list[dict[str, str]]:
     with path.open(newline="") as f:
         return list(csv.DictReader(f))
+
+
+def _ahrs_settings() -> list[str]:
+    """--set arguments giving madgwick the gy91 profile's own ahrs settings."""
+    ahrs = yaml.safe_load(Path("profiles/gy91.yaml").read_text())["estimators"]["ahrs"]
+    assert ahrs["estimator"] == "madgwick"
+    args = []
+    for key, value in ahrs.get("settings", {}).items():
+        text = ",".join(map(str, value)) if isinstance(value, list) else \
+            "null" if value is None else str(value)
+        args += ["--set", f"{key}={text}"]
+    return args
 
 
 @pytest.fixture(scope="module")
@@ -27,9 +40,7 @@ def run_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_an_attitude_estimator_over_a_run_log_reproduces_the_live_estimates(
         run_log: Path, tmp_path: Path) -> None:
     out = tmp_path / "attitude.csv"
-    # The gy91 profile's ahrs: madgwick, beta 0.1, fixed 5 ms step.
-    assert main(["estimate", "madgwick", str(run_log), "-o", str(out), "--set", "beta=0.1",
-                 "--set", "sample_period_s=0.005"]) == 0
+    assert main(["estimate", "madgwick", str(run_log), "-o", str(out), *_ahrs_settings()]) == 0
     live = [r for r in _rows(run_log) if r["source"] == "ahrs"]
     offline = _rows(out)
     assert len(offline) == len(live) > 500
@@ -91,8 +102,8 @@ def test_a_run_log_written_in_another_frame_is_read_back_into_ned(
     assert "ax_m_s2_enu" in enu_log.read_text().splitlines()[0]
     from_ned, from_enu = tmp_path / "a.csv", tmp_path / "b.csv"
     for log, out in ((run_log, from_ned), (enu_log, from_enu)):
-        assert main(["estimate", "madgwick", str(log), "-o", str(out), "--set", "beta=0.1",
-                     "--set", "sample_period_s=0.005"]) == 0
+        assert main(["estimate", "madgwick", str(log), "-o", str(out),
+                     *_ahrs_settings()]) == 0
     a, b = _rows(from_ned), _rows(from_enu)
     assert len(a) == len(b) > 500
     for name in ("qw", "qx", "qy", "qz"):

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+import yaml
 
 from imuhal.bus.recording.format import open_recording
 from imuhal.bus.recording.recorder import BusRecorder, run_header
@@ -88,17 +89,33 @@ def test_recorded_bus_errors_are_raised_again_and_recovered_the_same_way(
     assert _exact(_replay(full_registry, tmp_path / "run.imurec")) == _exact(live)
 
 
+def _edited(board: Path, out: Path, section: str, name: str, key: str, value: object) -> Path:
+    """A copy of ``board`` with one setting changed."""
+    doc = yaml.safe_load(board.read_text())
+    settings = doc[section][name].setdefault("settings", {})
+    assert settings.get(key) != value
+    settings[key] = value
+    out.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return out
+
+
+def _other_osr(board: Path) -> int:
+    """A barometer oversampling the board does not use: its conversion commands differ."""
+    used = yaml.safe_load(board.read_text())["devices"]["baro"]["settings"].get("pressure_osr")
+    return 1024 if used != 1024 else 4096
+
+
 def test_a_driver_asking_for_other_registers_stops_at_the_first_divergent_transaction(
         full_registry: Registry, tmp_path: Path) -> None:
     board = Path("profiles/seed-paraglider-vario.yaml")
     _record(full_registry, board, tmp_path / "run.imurec", 1.0)
-    changed = tmp_path / "changed.yaml"
-    text = board.read_text()
-    assert "pressure_osr: 4096" in text
-    changed.write_text(text.replace("pressure_osr: 4096", "pressure_osr: 1024"))
+    changed = _edited(board, tmp_path / "changed.yaml", "devices", "baro", "pressure_osr",
+                      _other_osr(board))
+    # The MS5611 (chip select 1) now asks for a conversion at another oversampling: one
+    # command byte, no reply.
     with pytest.raises(ReplayDivergence, match=r"^replay diverged at transaction \d+ "
-                       r"\(t=\d+\.\d{6} s\): the recording has emul://spi0 @01 W:48 R\(0\), "
-                       r"the driver asked emul://spi0 @01 W:44 R\(0\)$"):
+                       r"\(t=\d+\.\d{6} s\): the recording has emul://spi0 @01 W:[0-9a-f]{2} "
+                       r"R\(0\), the driver asked emul://spi0 @01 W:[0-9a-f]{2} R\(0\)$"):
         _replay(full_registry, tmp_path / "run.imurec", changed)
 
 
@@ -134,9 +151,9 @@ def test_a_divergent_replay_is_one_line_and_keeps_the_old_output(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     rec = tmp_path / "run.imurec"
     assert main(["run", "--duration", "0.5", "--quiet", "--record", str(rec)]) == 0
-    changed = tmp_path / "changed.yaml"
-    changed.write_text(Path("profiles/seed-paraglider-vario.yaml").read_text()
-                       .replace("pressure_osr: 4096", "pressure_osr: 1024"))
+    board = Path("profiles/seed-paraglider-vario.yaml")
+    changed = _edited(board, tmp_path / "changed.yaml", "devices", "baro", "pressure_osr",
+                      _other_osr(board))
     out = tmp_path / "out.csv"
     out.write_text("old\n")
     capsys.readouterr()
@@ -167,10 +184,7 @@ def test_replay_with_other_estimator_settings_decodes_the_same_samples(
         full_registry: Registry, tmp_path: Path) -> None:
     board = Path("profiles/gy91.yaml")
     live = _record(full_registry, board, tmp_path / "run.imurec", 3.0)
-    retuned = tmp_path / "retuned.yaml"
-    text = board.read_text()
-    assert "beta: 0.1" in text
-    retuned.write_text(text.replace("beta: 0.1", "beta: 0.5"))
+    retuned = _edited(board, tmp_path / "retuned.yaml", "estimators", "ahrs", "beta", 0.777)
     replayed = _replay(full_registry, tmp_path / "run.imurec", retuned)
     samples = [e for e in live if isinstance(e, Sample)]
     assert _exact([e for e in replayed if isinstance(e, Sample)]) == _exact(samples)
