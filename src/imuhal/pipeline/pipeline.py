@@ -123,8 +123,7 @@ class Pipeline:
         self.clock = clock
         self.warnings: list[str] = []
         self._started = False
-        self._span_ns = [0, 0]
-        """First and last poll time of the latest poll loop (ns): what run() reports."""
+        self._span_ns = [0, 0]  # first and last poll time of the latest poll loop (ns)
         self.devices: dict[str, DeviceRuntime] = {}
         self.estimators: list[EstimatorRuntime] = []
         chip_to_body = chip_to_body_rotations(profile)
