@@ -26,6 +26,7 @@ from pydantic import Field
 
 from imuhal.bus.base import BusKind, Link
 from imuhal.bus.linux_iio import ATTR_LEN, FOUND, LIST_LEN
+from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError, ConfigurationError, DeviceNotFoundError, NackError
 from imuhal.core.samples import (
     AccelSample,
@@ -101,8 +102,9 @@ class IIODriver(Driver):
 
     settings: IIODriverSettings
 
-    def __init__(self, *args: object, **kwargs: object) -> None:
-        super().__init__(*args, **kwargs)  # type: ignore[arg-type]
+    def __init__(self, link: Link, settings: DriverSettings, *, device: str,
+                 clock: Clock) -> None:
+        super().__init__(link, settings, device=device, clock=clock)
         self._dev: Link | None = None
         self._channels: dict[str, list[IIOChannel]] = {}
         self._scan: list[ScanElement] = []
@@ -110,6 +112,7 @@ class IIODriver(Driver):
         self._period_ns = round(1e9 / self.settings.poll_hz)
         self._ts_offset_ns: int | None = None
         self._last_t_ns = -1
+        self._rate_hz = 0.0
 
     # -- sysfs access through the bus --------------------------------------------------------
 
@@ -207,7 +210,7 @@ class IIODriver(Driver):
         dev.transfer(b"c", 0)  # a fresh buffer after any reconfiguration
         if s.sampling_frequency_hz is not None:
             self._write("sampling_frequency", f"{s.sampling_frequency_hz:g}")
-        rate = self._number("sampling_frequency", 0.0)
+        self._rate_hz = rate = self._number("sampling_frequency", 0.0)
         self._scan, self._scan_size = [], 0
         if s.buffered and self._list("scan_elements"):
             self._configure_buffer()
@@ -301,8 +304,7 @@ class IIODriver(Driver):
                 self._ts_offset_ns = offset
             times = [ts + self._ts_offset_ns for ts in stamps]
         else:
-            rate = self._number("sampling_frequency", 0.0)
-            step = round(1e9 / rate) if rate > 0 else 0
+            step = round(1e9 / self._rate_hz) if self._rate_hz > 0 else 0
             times = [now_ns - (len(scans) - 1 - i) * step for i in range(len(scans))]
         ordered = []
         for t in times:  # never before an earlier sample
