@@ -245,3 +245,19 @@ def test_a_buffered_device_that_goes_and_comes_back_is_reconfigured(tmp_path: Pa
     samples = driver.poll(next_ns).samples
     assert [type(s).__name__ for s in samples] == ["AccelSample", "GyroSample",
                                                     "TemperatureSample"]
+
+
+def test_scans_without_timestamps_are_spaced_by_the_sampling_period(tmp_path: Path) -> None:
+    elements = [Element(f"in_magn_{a}", i, "le:s16/16>>0", "<h") for i, a in enumerate("xyz")]
+    sysfs, dev = tmp_path / "sys", tmp_path / "dev"
+    device = FakeIIODevice(sysfs, dev, 0, "hmc5883l",
+                           {f"in_magn_{a}_raw": "0" for a in "xyz"}
+                           | {"in_magn_scale": "0.001", "sampling_frequency": "75"}, elements)
+    clock = SimulatedClock()
+    driver = _driver(LinuxIIOBus(sysfs, dev), clock, name="hmc5883l", poll_hz=25)
+    device.push(*({"in_magn_x": 10 * i, "in_magn_y": 0, "in_magn_z": -1} for i in range(3)))
+    now = driver.start(0)
+    samples = driver.poll(now).samples
+    assert [s.t_ns for s in samples] == [now - 2 * 13_333_333, now - 13_333_333, now]
+    for sample, x_ut in zip(samples, (0.0, 1.0, 2.0), strict=True):
+        assert sample.mag_ut == pytest.approx((x_ut, 0.0, -0.1))  # type: ignore[attr-defined]
