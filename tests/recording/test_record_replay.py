@@ -192,3 +192,14 @@ def test_replay_with_other_estimator_settings_decodes_the_same_samples(
     new_att = [e for e in replayed if isinstance(e, AttitudeEstimate)]
     assert len(new_att) == len(live_att) > 100
     assert _exact(new_att) != _exact(live_att)  # the new tuning, on the recorded data
+
+
+def test_trace_and_record_together_see_the_same_transactions(tmp_path: Path) -> None:
+    rec, trace = tmp_path / "run.imurec", tmp_path / "bus.txt"
+    assert main(["run", "--duration", "0.5", "--quiet", "--record", str(rec),
+                 "--trace", str(trace)]) == 0
+    transfers = [r for r in open_recording(rec).records() if hasattr(r, "written")]
+    lines = trace.read_text().splitlines()
+    assert len(lines) == len(transfers) > 100
+    assert all(f"W:{t.written.hex(' ')}" in line  # type: ignore[union-attr]
+               for t, line in zip(transfers, lines, strict=True))
