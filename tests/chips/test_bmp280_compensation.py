@@ -10,13 +10,17 @@ import pytest
 from imuhal_chips.bmp280.compensation import (
     DATASHEET_TRIM,
     Trim,
-    adc_for_pressure,
-    adc_for_temperature,
     compensate_pressure_int32,
     compensate_pressure_int64,
     compensate_temperature_int32,
     decode_adc,
     encode_adc,
+)
+from imuhal_chips.bmp280.emulator_encoding import (
+    DATASHEET_TRIMMING,
+    adc_p_for,
+    adc_t_for,
+    t_fine_of,
 )
 
 VECTORS = json.loads((Path(__file__).parent.parent / "data/chips/bmp280_vectors.json")
@@ -74,11 +78,24 @@ def test_int32_path_wraps_like_c_at_extreme_inputs() -> None:
     assert 0 <= p < 2**32
 
 
-@pytest.mark.parametrize("bits", [16, 18, 20])
-def test_inverse_search_finds_the_worked_example_adc_values(bits: int) -> None:
-    adc_t = adc_for_temperature(25.08247793081682, DATASHEET_TRIM, bits)
-    assert adc_t % (1 << (20 - bits)) == 0
-    assert abs(adc_t - VECTORS["adc_T"]) <= (1 << (20 - bits)) // 2
-    if bits == 20:
-        assert adc_t == VECTORS["adc_T"]
-        assert adc_for_pressure(100653.2539, 128422, DATASHEET_TRIM) == VECTORS["adc_P"]
+def test_emulator_encoding_inverts_to_the_worked_example_adc_values() -> None:
+    """The emulator's closed-form inverse of the double formula lands on the example's ADC
+    values; the driver's compensation of those values is the worked example."""
+    adc_t = adc_t_for(25.08247793081682, DATASHEET_TRIMMING)
+    assert round(adc_t) == VECTORS["adc_T"]
+    t_fine = t_fine_of(VECTORS["adc_T"], DATASHEET_TRIMMING)
+    assert round(adc_p_for(100653.2668, t_fine, DATASHEET_TRIMMING)) == VECTORS["adc_P"]
+
+
+@pytest.mark.parametrize("temperature_degc", [-40.0, -10.0, 0.0, 25.0, 60.0, 85.0])
+def test_driver_compensates_emulator_encoding_to_the_truth(temperature_degc: float) -> None:
+    """Against the emulator's independent encoding: within one 20-bit step plus the 0.45 Pa
+    by which the 64-bit integer and double formulas differ."""
+    for pressure_pa in (30_000.0, 50_000.0, 70_000.0, 90_123.0, 101_325.0, 110_000.0):
+        adc_t = round(adc_t_for(temperature_degc, DATASHEET_TRIMMING))
+        adc_p = round(adc_p_for(pressure_pa, t_fine_of(adc_t, DATASHEET_TRIMMING),
+                                DATASHEET_TRIMMING))
+        t_centi, t_fine = compensate_temperature_int32(adc_t, DATASHEET_TRIM)
+        assert abs(t_centi / 100 - temperature_degc) <= 0.01
+        got = compensate_pressure_int64(adc_p, t_fine, DATASHEET_TRIM) / 256
+        assert abs(got - pressure_pa) <= 0.5, (pressure_pa, temperature_degc)

@@ -18,6 +18,10 @@ from imuhal_chips.bmp280.driver import BMP280Driver, BMP280Settings
 from imuhal_chips.bmp280.emulator import BMP280Emulator
 
 ADDRESS = 0x76
+FORMULAS_AGREE_PA = 0.5
+"""The driver compensates with the datasheet's 64-bit integer formula (integer t_fine), the
+emulator encodes with the inverse of its double-precision formula: over the operating range
+the two differ by up to 0.45 Pa, on top of one ADC step."""
 
 
 def rig(kind: BusKind = BusKind.I2C, **settings: Any) -> tuple[
@@ -64,7 +68,7 @@ def test_reads_the_true_pressure_and_temperature(kind: BusKind, mode: str) -> No
     p = pressures(samples)[-1]
     t = [s for s in samples if isinstance(s, TemperatureSample)][-1]
     assert p.valid and t.valid
-    assert abs(p.pressure_pa - 95_432.1) <= emu.resolution(Channel.PRESSURE)
+    assert abs(p.pressure_pa - 95_432.1) <= emu.resolution(Channel.PRESSURE) + FORMULAS_AGREE_PA
     assert abs(t.temperature_degc - 17.3) <= emu.resolution(Channel.TEMPERATURE)
 
 
@@ -88,7 +92,7 @@ def test_every_setting_reads_within_one_lsb(setting: dict[str, Any]) -> None:
     samples = run(clock, driver, 4)
     p = pressures(samples)[-1]
     t = [s for s in samples if isinstance(s, TemperatureSample)][-1]
-    assert abs(p.pressure_pa - truth_p) <= emu.resolution(Channel.PRESSURE)
+    assert abs(p.pressure_pa - truth_p) <= emu.resolution(Channel.PRESSURE) + FORMULAS_AGREE_PA
     assert abs(t.temperature_degc - truth_t) <= emu.resolution(Channel.TEMPERATURE)
 
 

@@ -1,8 +1,10 @@
-"""MS5611 PROM CRC4 (AN520), integer compensation (datasheet Fig.2/3) and its inverse."""
+"""MS5611 PROM CRC4 (AN520) and integer compensation (datasheet Fig.2/3); the driver's
+compensation against the emulator's independent encoding."""
 
 from __future__ import annotations
 
 import json
+import random
 from dataclasses import asdict
 from pathlib import Path
 
@@ -12,10 +14,10 @@ from imuhal_chips.ms5611.conversion import (
     Coefficients,
     compensate,
     crc4,
-    encode_raw,
     prom_is_valid,
     with_crc4,
 )
+from imuhal_chips.ms5611.emulator_encoding import PromCoefficients, counts_for, prom_crc4
 
 VECTORS = json.loads(
     (Path(__file__).parent.parent / "data" / "chips" / "ms5611_vectors.json").read_text()
@@ -89,7 +91,24 @@ def test_with_crc4_makes_a_prom_valid() -> None:
     assert with_crc4(CRC[0]["prom_words"]) == CRC[1]["prom_words"]
 
 
-# Chip resolution: P is an integer Pa, TEMP an integer 0.01 degC; encode_raw picks the
+ELEMENT = PromCoefficients(40127, 36924, 23317, 23282, 33464, 28312)
+"""The same part as the emulator's sensor element sees it."""
+
+
+def encode_raw(_: Coefficients, pressure_pa: float, temperature_degc: float
+               ) -> tuple[int, int]:
+    """The emulator's counts for the truth (written from the datasheet, not the driver)."""
+    return counts_for(ELEMENT, pressure_pa, temperature_degc)
+
+
+def test_driver_and_emulator_crc4_agree_on_random_proms() -> None:
+    rng = random.Random(5611)
+    for _ in range(500):
+        words = [rng.randrange(1 << 16) for _ in range(8)]
+        assert crc4(words) == prom_crc4(words), words
+
+
+# Chip resolution: P is an integer Pa, TEMP an integer 0.01 degC; the emulator picks the
 # counts whose output is the nearest representable value, so the error is at most half a
 # step of each.
 P_TOL_PA = 0.5
@@ -97,7 +116,7 @@ T_TOL_DEGC = 0.005 + 1e-9
 
 
 @pytest.mark.parametrize("temperature_degc", [-20.0 + 5.0 * i + 0.123 for i in range(17)])
-def test_encode_then_compensate_round_trip(temperature_degc: float) -> None:
+def test_driver_compensates_emulator_counts_to_the_truth(temperature_degc: float) -> None:
     for i in range(17):
         pressure_pa = 30000.0 + 5000.0 * i + 0.37
         d1, d2 = encode_raw(DATASHEET, pressure_pa, temperature_degc)
@@ -106,7 +125,7 @@ def test_encode_then_compensate_round_trip(temperature_degc: float) -> None:
         assert abs(result.TEMP / 100.0 - temperature_degc) <= T_TOL_DEGC
 
 
-def test_encode_reproduces_datasheet_raw_neighbourhood() -> None:
+def test_emulator_counts_for_datasheet_outputs_compensate_back() -> None:
     """The datasheet's (D1, D2) give (100009 Pa, 20.07 degC); encoding those values must land
     on counts that compensate to exactly the same outputs."""
     d1, d2 = encode_raw(DATASHEET, 100009.0, 20.07)
@@ -114,6 +133,6 @@ def test_encode_reproduces_datasheet_raw_neighbourhood() -> None:
     assert (result.P, result.TEMP) == (100009, 2007)
 
 
-def test_encode_clamps_to_24_bit_and_never_returns_zero() -> None:
+def test_emulator_counts_clamp_to_24_bit_and_never_zero() -> None:
     assert encode_raw(DATASHEET, 1e7, 1000.0) == (0xFFFFFF, 0xFFFFFF)
     assert encode_raw(DATASHEET, -1e7, -1000.0) == (1, 1)

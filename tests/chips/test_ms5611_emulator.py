@@ -18,8 +18,9 @@ from imuhal_chips.ms5611.commands import (
     convert_command,
     prom_read_command,
 )
-from imuhal_chips.ms5611.conversion import Coefficients, crc4, encode_raw, prom_is_valid
+from imuhal_chips.ms5611.conversion import crc4, prom_is_valid
 from imuhal_chips.ms5611.emulator import MS5611Emulator
+from imuhal_chips.ms5611.emulator_encoding import PromCoefficients, counts_for
 
 DATASHEET_C = (40127, 36924, 23317, 23282, 33464, 28312)
 OSR = 4096
@@ -66,7 +67,7 @@ def test_adc_read_without_conversion_returns_zero() -> None:
 @pytest.mark.parametrize("kind", [BusKind.I2C, BusKind.SPI])
 def test_finished_conversion_returns_encoded_physics_once(kind: BusKind) -> None:
     clock, _, link = setup(kind)
-    d1, d2 = encode_raw(Coefficients(*DATASHEET_C), 95000.0, 15.0)
+    d1, d2 = counts_for(PromCoefficients(*DATASHEET_C), 95000.0, 15.0)
     convert(link, Measurement.D2)
     clock.sleep_until(TYP_NS)  # the emulator converts in the typical time
     assert adc(link) == d2
@@ -88,7 +89,7 @@ def test_early_adc_read_returns_zero_and_aborts_the_conversion() -> None:
 
 def test_physics_is_captured_at_conversion_start() -> None:
     clock, emulator, link = setup()
-    d1_start, _ = encode_raw(Coefficients(*DATASHEET_C), 95000.0, 15.0)
+    d1_start, _ = counts_for(PromCoefficients(*DATASHEET_C), 95000.0, 15.0)
     convert(link, Measurement.D1)
     emulator.set_physics(PhysicalInputs(pressure_pa=80000.0, temperature_degc=15.0))
     clock.sleep_until(TYP_NS)
@@ -97,7 +98,7 @@ def test_physics_is_captured_at_conversion_start() -> None:
 
 def test_new_conversion_during_one_gives_a_wrong_result() -> None:
     clock, _, link = setup()
-    d1, _ = encode_raw(Coefficients(*DATASHEET_C), 95000.0, 15.0)
+    d1, _ = counts_for(PromCoefficients(*DATASHEET_C), 95000.0, 15.0)
     convert(link, Measurement.D1)
     clock.sleep_until(TYP_NS // 2)
     convert(link, Measurement.D1)

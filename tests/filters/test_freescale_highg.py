@@ -1,7 +1,9 @@
 """High-g behaviour of the Freescale filters: the loop of ``rc-flight``, step by step against
 the public reference (fusion.c build 422, NED build).
 
-Data (tests/data/filters, produced outside the repo; each file's header says how):
+Data (tests/data/filters; each file's header says how, and docs/scripts/fsl_highg rebuilds
+all four byte for byte: make_inputs.py for the inputs, harness.c with the public library for
+the reference outputs):
 ``fsl_highg_counts.csv`` is 560 fast samples (200 Hz, t = 15.600-18.395 s) of imuhal's
 ``rc-flight`` scenario, seed 1, with the conformance field (50 uT, 60 deg inclination) and
 ideal sensors, as int16 counts (accel 1/2048 g gravity positive, gyro 1/128 deg/s, mag 1/16

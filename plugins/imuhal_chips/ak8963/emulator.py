@@ -13,7 +13,8 @@ successive registers; reads auto-increment, wrapping 0x0C -> 0x00 and 0x12 -> 0x
 
 Physics face: ``physics.magnetic_field_ut`` in the AK8963's own axes (uT), divided by the
 sensitivity (0.15 or 0.6 uT/LSB) times the part's ASA adjustment, so the driver's Hadj
-recovers the true field.
+recovers the true field. Sensitivities and the adjustment are this module's own, written
+from the register map (Hadj = H * ((ASA - 128) * 0.5 / 128 + 1)), never the driver's.
 
 Faults: ``wia`` (clone), ``stuck_data_ready`` (no measurement completes), ``silent_reset()``,
 ``absent`` and bus errors through the bus.
@@ -30,11 +31,24 @@ from imuhal.core.clock import Clock
 from imuhal.core.samples import Channel
 from imuhal.emulation.base import ChipEmulator
 from imuhal_chips.ak8963 import registers as r
-from imuhal_chips.ak8963.decode import asa_factor
 from imuhal_chips.ak8963.error_spec import AK8963_ERROR_SPEC
 
 DEFAULT_ASA = (176, 177, 165)
 """Fuse-ROM adjustment of the emulated part (values from the shared ASA examples)."""
+
+_SENSITIVITY = {True: (0.15, 32760), False: (0.6, 8190)}
+"""CNTL1.BIT set (16-bit output) or clear (14-bit) -> (uT per LSB, largest |count|)."""
+_PERIOD_S_BY_MODE = {0b0010: 1 / 8, 0b0110: 1 / 100}
+"""CNTL1.MODE continuous measurement mode 1 (8 Hz) and mode 2 (100 Hz)."""
+_MEASUREMENT_S = 7.2e-3
+"""Single measurement time (max, register map section 5)."""
+_RANGE_UT = 4912.0
+"""Measurement range: HOFL when |X| + |Y| + |Z| reaches it."""
+
+
+def _adjustment(asa: int) -> float:
+    """The register map's sensitivity adjustment: Hadj = H * ((ASA - 128) * 0.5 / 128 + 1)."""
+    return (asa - 128) * 0.5 / 128 + 1
 
 
 class AK8963Emulator(ChipEmulator):
@@ -42,6 +56,7 @@ class AK8963Emulator(ChipEmulator):
 
     chip = "ak8963"
     error_spec = AK8963_ERROR_SPEC
+    conformance_sweep = True
 
     def __init__(self, clock: Clock | None = None, *,
                  asa: tuple[int, int, int] = DEFAULT_ASA) -> None:
@@ -65,22 +80,23 @@ class AK8963Emulator(ChipEmulator):
 
     # -- conformance face -------------------------------------------------------------------
 
-    def _resolution(self) -> r.Resolution:
-        return r.RESOLUTIONS[16 if self._cntl1 & r.CNTL1_BIT else 14]
+    def _resolution(self) -> tuple[float, int]:
+        """(uT per LSB before adjustment, largest |count|) at the current CNTL1.BIT."""
+        return _SENSITIVITY[bool(self._cntl1 & r.CNTL1_BIT)]
 
     def resolution(self, channel: Channel) -> float:
         """The largest per-axis LSB (uT) at the current resolution and this part's ASA."""
         if channel is not Channel.MAG:
             raise ValueError(f"the AK8963 has no {channel.value} channel")
-        return self._resolution().ut_per_lsb * max(asa_factor(a) for a in self.asa)
+        return self._resolution()[0] * max(_adjustment(a) for a in self.asa)
 
     def full_scale(self, channel: Channel) -> float:
         """The smallest per-axis range (uT), at most the 4912 uT overflow limit."""
         if channel is not Channel.MAG:
             raise ValueError(f"the AK8963 has no {channel.value} channel")
-        res = self._resolution()
-        axis = res.max_count * res.ut_per_lsb * min(asa_factor(a) for a in self.asa)
-        return min(axis, r.OVERFLOW_SUM_UT)
+        ut_per_lsb, max_count = self._resolution()
+        axis = max_count * ut_per_lsb * min(_adjustment(a) for a in self.asa)
+        return min(axis, _RANGE_UT)
 
     # -- state ------------------------------------------------------------------------------
 
@@ -103,8 +119,8 @@ class AK8963Emulator(ChipEmulator):
     def _start_mode(self) -> None:
         mode = self._mode()
         now = self.now_ns()
-        if mode in r.MODE_PERIOD_S or mode == r.MODE_SINGLE:
-            self._next_ns = now + round(r.MEASUREMENT_S * 1e9)
+        if mode in _PERIOD_S_BY_MODE or mode == r.MODE_SINGLE:
+            self._next_ns = now + round(_MEASUREMENT_S * 1e9)
         else:
             self._next_ns = None
 
@@ -117,20 +133,20 @@ class AK8963Emulator(ChipEmulator):
                 self._cntl1 &= ~r.MODE_MASK
                 self._next_ns = None
             else:
-                period = round(r.MODE_PERIOD_S[mode] * 1e9)
+                period = round(_PERIOD_S_BY_MODE[mode] * 1e9)
                 # Long gaps: skip ahead, keeping the last two measurements (enough for DOR).
                 missed = (now - self._next_ns) // period
                 self._next_ns += (max(missed - 1, 0) + 1) * period
 
     def _measure(self) -> tuple[bytes, int]:
         field = self.physics.magnetic_field_ut or (0.0, 0.0, 0.0)
-        res = self._resolution()
+        ut_per_lsb, max_count = self._resolution()
         counts = []
         for value, asa in zip(field, self.asa, strict=True):
-            count = round(value / (res.ut_per_lsb * asa_factor(asa)))
-            counts.append(max(-res.max_count, min(res.max_count, count)))
-        st2 = r.ST2_BITM if res.bits == 16 else 0
-        if sum(abs(v) for v in field) >= r.OVERFLOW_SUM_UT:
+            count = round(value / (ut_per_lsb * _adjustment(asa)))
+            counts.append(max(-max_count, min(max_count, count)))
+        st2 = r.ST2_BITM if self._cntl1 & r.CNTL1_BIT else 0
+        if sum(abs(v) for v in field) >= _RANGE_UT:
             st2 |= r.ST2_HOFL
         return struct.pack("<hhh", *counts), st2
 

@@ -9,16 +9,15 @@ true division in the 64-bit path truncates toward zero, as C does. The 32-bit pr
 wraps to int32/uint32 after every operation, as the C code does on a 32-bit machine.
 
 Inputs are raw 20-bit ADC counts; outputs are degC x 100 (int), Pa x 256 (Q24.8, int) or Pa.
-The inverse functions (``adc_for_*``) are what the emulator uses to encode true values.
+The emulator encodes true values with its own code (``emulator_encoding``), never this module.
 """
 
 from __future__ import annotations
 
 import struct
-from collections.abc import Callable
 from dataclasses import dataclass
 
-from imuhal_chips.bmp280.registers import ADC_MAX, CALIB_LENGTH
+from imuhal_chips.bmp280.registers import CALIB_LENGTH
 
 
 @dataclass(frozen=True)
@@ -166,38 +165,3 @@ def compensate_pressure_double(adc_p: int, t_fine: float, trim: Trim) -> float:
     var1 = trim.P9 * p * p / 2147483648.0
     var2 = p * trim.P8 / 32768.0
     return p + (var1 + var2 + trim.P7) / 16.0
-
-
-# -- inverse (for the emulator) -------------------------------------------------------------
-
-def _nearest(f: Callable[[int], float], target: float, steps: int, increasing: bool) -> int:
-    """The k in [0, steps) whose f(k) is nearest ``target``, for monotone f (bisection)."""
-    lo, hi = 0, steps - 1
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if (f(mid) < target) == increasing:
-            lo = mid
-        else:
-            hi = mid
-    return min((lo, hi), key=lambda k: abs(f(k) - target))
-
-
-def adc_for_temperature(temperature_degc: float, trim: Trim, bits: int = 20) -> int:
-    """The ``bits``-resolution ADC value whose compensated temperature is nearest the target.
-
-    Searches the (monotone) datasheet double formula; the result is a multiple of
-    2^(20-bits), as the chip's lower-resolution conversions are.
-    """
-    step = 1 << (20 - bits)
-    k = _nearest(lambda k: compensate_temperature_double(k * step, trim)[0],
-                 temperature_degc, (ADC_MAX + 1) // step, increasing=trim.T2 >= 0)
-    return k * step
-
-
-def adc_for_pressure(pressure_pa: float, t_fine: int, trim: Trim, bits: int = 20) -> int:
-    """The ``bits``-resolution ADC value whose compensated pressure is nearest the target,
-    at temperature ``t_fine`` (pressure falls as adc_P rises)."""
-    step = 1 << (20 - bits)
-    k = _nearest(lambda k: compensate_pressure_double(k * step, t_fine, trim),
-                 pressure_pa, (ADC_MAX + 1) // step, increasing=False)
-    return k * step

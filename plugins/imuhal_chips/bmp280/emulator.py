@@ -15,8 +15,9 @@ Bus face:
   the ADC values of successive measurements, seeded with the first.
 
 Physics face: ``physics.pressure_pa`` and ``physics.temperature_degc`` (defaults 101325 Pa,
-25 degC) are turned into ADC counts by searching the inverse of the chip's own compensation
-with its trimming (default: the datasheet worked example), at the configured resolution.
+25 degC) are turned into ADC counts by ``emulator_encoding``, the closed-form inverse of the
+datasheet's floating-point compensation written independently of the driver, with the part's
+trimming (default: the datasheet worked example), at the configured resolution.
 
 Faults: ``chip_id`` (a clone or another part), ``stuck_data_ready`` (conversions never finish:
 ``measuring`` stays set, forced mode never returns to sleep, data freeze), ``silent_reset()``,
@@ -32,15 +33,14 @@ from imuhal.core.clock import Clock
 from imuhal.core.samples import Channel
 from imuhal.emulation.base import ChipEmulator
 from imuhal_chips.bmp280 import registers as r
-from imuhal_chips.bmp280.compensation import (
-    DATASHEET_TRIM,
-    Trim,
-    adc_for_pressure,
-    adc_for_temperature,
-    compensate_pressure_double,
-    compensate_temperature_double,
-    compensate_temperature_int32,
-    encode_adc,
+from imuhal_chips.bmp280.emulator_encoding import (
+    DATASHEET_TRIMMING,
+    FactoryTrimming,
+    adc_p_for,
+    adc_t_for,
+    pressure_pa_of,
+    t_fine_of,
+    temperature_degc_of,
 )
 from imuhal_chips.bmp280.error_spec import BMP280_ERROR_SPEC
 
@@ -48,15 +48,48 @@ DEFAULT_PRESSURE_PA = 101325.0
 DEFAULT_TEMPERATURE_DEGC = 25.0
 
 
+# Register-field meanings written here from the datasheet (sections 3.3-3.8, 4.3), never taken
+# from the driver's setting tables, so a wrong code in the driver shows as a wrong rate or
+# resolution.
+_OVERSAMPLING_BY_CODE = (0, 1, 2, 4, 8, 16, 16, 16)
+"""osrs_t / osrs_p [2:0] -> oversampling factor (000: measurement skipped)."""
+_IIR_BY_CODE = (0, 2, 4, 8, 16, 16, 16, 16)
+"""config filter [4:2] -> IIR coefficient (000: off)."""
+_STANDBY_MS_BY_CODE = (0.5, 62.5, 125.0, 250.0, 500.0, 1000.0, 2000.0, 4000.0)
+"""config t_sb [7:5] -> normal-mode standby time."""
+_ADC_BITS = {1: 16, 2: 17, 4: 18, 8: 19, 16: 20}
+"""Oversampling factor -> ADC resolution (table 4 and 5: 16 to 20 bit; the IIR filter gives 20)."""
+_ADC_SKIPPED = 0x80000
+"""What a skipped or never-run measurement reads (datasheet: 0x80000)."""
+_ADC_FULL = (1 << 20) - 1
+_STARTUP_S = 0.002
+"""Start-up time after power-on or soft reset (NVM copy, im_update set)."""
+
+
+def _measurement_ms(osrs_t: int, osrs_p: int) -> float:
+    """Typical measurement time (datasheet 9.1 / 3.8.1): 1 + 2 osrs_t + (2 osrs_p + 0.5) ms,
+    the pressure term dropped when pressure is skipped."""
+    return 1.0 + 2.0 * osrs_t + ((2.0 * osrs_p + 0.5) if osrs_p else 0.0)
+
+
+def _adc_registers(adc: int) -> bytes:
+    """msb, lsb, xlsb of a 20-bit ADC value: bits 19..12, 11..4 and 3..0 in xlsb[7:4]."""
+    return bytes([(adc >> 12) & 0xFF, (adc >> 4) & 0xFF, (adc & 0x0F) << 4])
+
+
 class BMP280Emulator(ChipEmulator):
     """Register-level stand-in for a BMP280 on I2C or SPI."""
 
     chip = "bmp280"
     error_spec = BMP280_ERROR_SPEC
+    conformance_sweep = True
 
-    def __init__(self, clock: Clock | None = None, *, trim: Trim = DATASHEET_TRIM) -> None:
+    def __init__(
+        self, clock: Clock | None = None, *, trim: FactoryTrimming = DATASHEET_TRIMMING
+    ) -> None:
         super().__init__(clock)
         self.trim = trim
+        self._trim_image = trim.register_image()
         self.chip_id = r.CHIP_ID
         """What 0xD0 reads (fault injection: 0x60 is a BME280, anything else a clone)."""
         self.stuck_data_ready = False
@@ -82,12 +115,12 @@ class BMP280Emulator(ChipEmulator):
 
     def _oversampling(self) -> tuple[int, int]:
         """(temperature, pressure) oversampling factors from ctrl_meas (0 = skipped)."""
-        return (r.oversampling_from_code(self._ctrl >> 5),
-                r.oversampling_from_code((self._ctrl >> 2) & 0b111))
+        return (_OVERSAMPLING_BY_CODE[self._ctrl >> 5 & 0b111],
+                _OVERSAMPLING_BY_CODE[(self._ctrl >> 2) & 0b111])
 
     def _bits(self, oversampling: int) -> int:
-        iir = r.iir_from_code((self._config >> 2) & 0b111)
-        return 20 if iir else r.OVERSAMPLING_BITS[oversampling]
+        iir = _IIR_BY_CODE[(self._config >> 2) & 0b111]
+        return 20 if iir else _ADC_BITS[oversampling]
 
     def resolution(self, channel: Channel) -> float:
         """One output LSB at the current settings and physics, in Pa or degC.
@@ -98,17 +131,16 @@ class BMP280Emulator(ChipEmulator):
         pressure, temperature = self._true_values()
         if channel is Channel.TEMPERATURE:
             step = 1 << (20 - self._bits(max(osrs_t, 1)))
-            adc = adc_for_temperature(temperature, self.trim)
-            t0 = compensate_temperature_double(adc, self.trim)[0]
-            t1 = compensate_temperature_double(adc + step, self.trim)[0]
+            adc = adc_t_for(temperature, self.trim)
+            t0 = temperature_degc_of(adc, self.trim)
+            t1 = temperature_degc_of(adc + step, self.trim)
             return max(abs(t1 - t0), 0.01)
         if channel is Channel.PRESSURE:
             step = 1 << (20 - self._bits(max(osrs_p, 1)))
-            t_fine = compensate_temperature_int32(
-                adc_for_temperature(temperature, self.trim), self.trim)[1]
-            adc = adc_for_pressure(pressure, t_fine, self.trim)
-            p0 = compensate_pressure_double(adc, t_fine, self.trim)
-            p1 = compensate_pressure_double(adc + step, t_fine, self.trim)
+            t_fine = t_fine_of(adc_t_for(temperature, self.trim), self.trim)
+            adc = adc_p_for(pressure, t_fine, self.trim)
+            p0 = pressure_pa_of(adc, t_fine, self.trim)
+            p1 = pressure_pa_of(adc + step, t_fine, self.trim)
             return abs(p1 - p0)
         raise ValueError(f"the BMP280 has no {channel.value} channel")
 
@@ -126,8 +158,8 @@ class BMP280Emulator(ChipEmulator):
         self.resets += 1
         self._ctrl = 0x00
         self._config = 0x00
-        self._data = bytearray(encode_adc(r.ADC_SKIPPED) * 2)
-        self._im_update_until = self.now_ns() + round(r.STARTUP_S * 1e9)
+        self._data = bytearray(_adc_registers(_ADC_SKIPPED) * 2)
+        self._im_update_until = self.now_ns() + round(_STARTUP_S * 1e9)
         self._cycle_start = 0
         self._cycles_done = 0
         self._forced_done: int | None = None
@@ -138,10 +170,10 @@ class BMP280Emulator(ChipEmulator):
 
     def _meas_ns(self) -> int:
         osrs_t, osrs_p = self._oversampling()
-        return round(r.measurement_time_s(osrs_t, osrs_p, maximum=False) * 1e9)
+        return round(_measurement_ms(osrs_t, osrs_p) * 1e6)
 
     def _period_ns(self) -> int:
-        standby = r.standby_ms_from_code(self._config >> 5)
+        standby = _STANDBY_MS_BY_CODE[self._config >> 5 & 0b111]
         return self._meas_ns() + round(standby * 1e6)
 
     def _advance(self) -> None:
@@ -174,23 +206,22 @@ class BMP280Emulator(ChipEmulator):
     def _measure(self) -> None:
         pressure, temperature = self._true_values()
         osrs_t, osrs_p = self._oversampling()
-        adc_t = adc_for_temperature(temperature, self.trim)
-        t_fine = compensate_temperature_int32(adc_t, self.trim)[1]
-        adc_p = adc_for_pressure(pressure, t_fine, self.trim)
-        iir = r.iir_from_code((self._config >> 2) & 0b111)
+        adc_t = adc_t_for(temperature, self.trim)
+        adc_p = adc_p_for(pressure, t_fine_of(adc_t, self.trim), self.trim)
+        iir = _IIR_BY_CODE[(self._config >> 2) & 0b111]
         if self._filter is None or not iir:
             self._filter = (float(adc_p), float(adc_t))
         else:
             fp, ft = self._filter
             self._filter = ((fp * (iir - 1) + adc_p) / iir, (ft * (iir - 1) + adc_t) / iir)
         fp, ft = self._filter
-        out_p = self._quantise(fp, osrs_p) if osrs_p else r.ADC_SKIPPED
-        out_t = self._quantise(ft, osrs_t) if osrs_t else r.ADC_SKIPPED
-        self._data[:] = encode_adc(out_p) + encode_adc(out_t)
+        out_p = self._quantise(fp, osrs_p) if osrs_p else _ADC_SKIPPED
+        out_t = self._quantise(ft, osrs_t) if osrs_t else _ADC_SKIPPED
+        self._data[:] = _adc_registers(out_p) + _adc_registers(out_t)
 
     def _quantise(self, adc: float, oversampling: int) -> int:
         step = 1 << (20 - self._bits(oversampling))
-        return min(max(round(adc / step) * step, 0), r.ADC_MAX)
+        return min(max(round(adc / step) * step, 0), _ADC_FULL)
 
     # -- bus face ---------------------------------------------------------------------------
 
@@ -211,11 +242,14 @@ class BMP280Emulator(ChipEmulator):
             pointer = self._pointer
         if not read_len or pointer is None:
             return bytes(read_len)
+        if kind is BusKind.I2C:
+            # Auto-increment: a following read without a register byte continues here.
+            self._pointer = (pointer + read_len) & 0xFF
         return bytes(self._read((pointer + i) & 0xFF) for i in range(read_len))
 
     def _read(self, address: int) -> int:
         if r.REG_CALIB <= address < r.REG_CALIB + r.CALIB_LENGTH:
-            return self.trim.to_bytes()[address - r.REG_CALIB]
+            return self._trim_image[address - r.REG_CALIB]
         if address == r.REG_CHIP_ID:
             return self.chip_id
         if address == r.REG_STATUS:

@@ -31,7 +31,6 @@ from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError
 from imuhal.core.samples import Channel
 from imuhal.emulation.base import ChipEmulator, PhysicalInputs
-from imuhal_chips.hmc5883l.decode import data_bytes_from_counts, encode_axis
 from imuhal_chips.hmc5883l.error_spec import HMC5883L_ERROR_SPEC
 from imuhal_chips.hmc5883l.registers import (
     CRA_RATE_SHIFT,
@@ -39,7 +38,6 @@ from imuhal_chips.hmc5883l.registers import (
     CRB_WRITABLE,
     DATA_FIRST,
     DATA_LAST,
-    DATA_MAX,
     IDENTITY,
     LAST_REGISTER,
     MODE_CONTINUOUS,
@@ -47,17 +45,43 @@ from imuhal_chips.hmc5883l.registers import (
     MODE_MD_MASK,
     MODE_SINGLE,
     MODE_WRITABLE,
-    ODR_BY_CODE,
-    OVERFLOW_VALUE,
     POINTER_WRAP_TO,
     POWER_ON_DEFAULTS,
-    SINGLE_MEASUREMENT_NS,
     STATUS_LOCK,
     STATUS_RDY,
-    UT_PER_GAUSS,
     Reg,
-    gain_from_config_b,
 )
+
+# Conversion facts written here from the datasheet (Form 900405 Rev E, Table 9 and the data
+# output register description), never taken from the driver's tables, so a wrong gain in the
+# driver shows as a wrong field.
+_LSB_PER_GAUSS_BY_GN = (1370, 1090, 820, 660, 440, 390, 330, 230)
+"""Config B GN[2:0] (bits 7..5) -> gain, LSB per gauss."""
+_COUNT_LIMIT = 2047
+"""Data registers hold -2048..2047; anything beyond reads -4096 until the next measurement."""
+_OVERFLOW = -4096
+_ODR_HZ_BY_DO = (0.75, 1.5, 3.0, 7.5, 15.0, 30.0, 75.0, None)
+"""Config A DO[2:0] (bits 4..2) -> continuous-mode output rate (Table 5; 111 is reserved)."""
+_SINGLE_MEASUREMENT_NS = 6_000_000
+"""A single measurement is ready 6 ms after the Mode write (the datasheet's wait)."""
+_MICROTESLA_PER_GAUSS = 100.0
+
+
+def _gain_of(config_b: int) -> int:
+    return _LSB_PER_GAUSS_BY_GN[config_b >> 5 & 0x07]
+
+
+def _axis_counts(field_ut: float, gain: int) -> int:
+    if not math.isfinite(field_ut):
+        return _OVERFLOW
+    counts = round(field_ut / _MICROTESLA_PER_GAUSS * gain)
+    return counts if -_COUNT_LIMIT - 1 <= counts <= _COUNT_LIMIT else _OVERFLOW
+
+
+def _register_bytes(x: int, y: int, z: int) -> bytes:
+    """Data output registers 0x03..0x08 hold X, Z, Y (in that order), MSB first."""
+    return b"".join(v.to_bytes(2, "big", signed=True) for v in (x, z, y))
+
 
 _WRITE_MASKS = {Reg.CONFIG_A: CRA_WRITABLE, Reg.CONFIG_B: CRB_WRITABLE, Reg.MODE: MODE_WRITABLE}
 _DATA = range(DATA_FIRST, DATA_LAST + 1)
@@ -68,6 +92,7 @@ class Hmc5883lEmulator(ChipEmulator):
 
     chip = "hmc5883l"
     error_spec = HMC5883L_ERROR_SPEC
+    conformance_sweep = True
 
     def __init__(self, clock: Clock | None = None, *, name: str | None = None) -> None:
         super().__init__(clock)
@@ -82,12 +107,12 @@ class Hmc5883lEmulator(ChipEmulator):
     def power_on_reset(self) -> None:
         self.regs = {reg: value for reg, value in POWER_ON_DEFAULTS.items()}
         self.pointer = 0
-        self.data = data_bytes_from_counts((0, 0, 0))
+        self.data = _register_bytes(0, 0, 0)
         self.rdy = False
         self.locked = False
         self._read_mask: set[int] = set()
         self._pending: bytes | None = None
-        self._gain = gain_from_config_b(self.regs[Reg.CONFIG_B])
+        self._gain = _gain_of(self.regs[Reg.CONFIG_B])
         self._gain_next = self._gain
         self._next_ns: int | None = None
         self._start_mode()
@@ -106,22 +131,19 @@ class Hmc5883lEmulator(ChipEmulator):
         """uT per count at the current gain."""
         if channel is not Channel.MAG:
             raise ValueError(f"{self.chip} has no {channel.value} channel")
-        return UT_PER_GAUSS / gain_from_config_b(self.regs[Reg.CONFIG_B])
+        return _MICROTESLA_PER_GAUSS / _gain_of(self.regs[Reg.CONFIG_B])
 
     def full_scale(self, channel: Channel) -> float:
         """Largest field (uT) encoded before the -4096 overflow value: 2047 counts."""
-        return DATA_MAX * self.resolution(channel)
+        return _COUNT_LIMIT * self.resolution(channel)
 
     def _measure(self) -> None:
         field = self.physics.magnetic_field_ut or (0.0, 0.0, 0.0)
         gain = self._gain
-        counts = tuple(
-            encode_axis(b / UT_PER_GAUSS, gain) if math.isfinite(b) else OVERFLOW_VALUE
-            for b in field
-        )
+        x, y, z = (_axis_counts(b, gain) for b in field)
         self._gain = self._gain_next  # a gain change takes effect one measurement late
         self.measurements += 1
-        new = data_bytes_from_counts(counts)  # type: ignore[arg-type]
+        new = _register_bytes(x, y, z)
         if self.locked:
             self._pending = new
         else:
@@ -131,7 +153,7 @@ class Hmc5883lEmulator(ChipEmulator):
     # --- timing ---------------------------------------------------------------------------
 
     def _period_ns(self) -> int | None:
-        odr = ODR_BY_CODE.get((self.regs[Reg.CONFIG_A] >> CRA_RATE_SHIFT) & 0x07)
+        odr = _ODR_HZ_BY_DO[(self.regs[Reg.CONFIG_A] >> CRA_RATE_SHIFT) & 0x07]
         return round(1e9 / odr) if odr else None
 
     def _start_mode(self) -> None:
@@ -141,7 +163,7 @@ class Hmc5883lEmulator(ChipEmulator):
             period = self._period_ns()
             self._next_ns = now + period if period else None
         elif md == MODE_SINGLE:
-            self._next_ns = now + SINGLE_MEASUREMENT_NS
+            self._next_ns = now + _SINGLE_MEASUREMENT_NS
         else:
             self._next_ns = None
 
@@ -210,7 +232,7 @@ class Hmc5883lEmulator(ChipEmulator):
             return  # data, status and ID registers are read-only; invalid addresses ignored
         self.regs[reg] = value & mask
         if reg == Reg.CONFIG_B:
-            self._gain_next = gain_from_config_b(self.regs[reg])
+            self._gain_next = _gain_of(self.regs[reg])
         else:  # a Mode or Config A write releases the lock and restarts measuring
             self._unlock()
             if reg == Reg.MODE:

@@ -36,16 +36,13 @@ from imuhal.emulation.bus import EmulatedBus
 from imuhal_chips.max2110x.error_spec import MAX21100_ERROR_SPEC, MAX21105_ERROR_SPEC
 from imuhal_chips.max2110x.registers import (
     ACCEL_ON_MODES,
-    ACCEL_RANGE_G,
     ADDRESS_MASK,
     DR_CFG_CLEAR_SHIFT,
     DR_CFG_ONESHOT_MASK,
     DR_CFG_ONESHOT_READ,
     DR_CFG_ONESHOT_WRITE,
     DR_CFG_TEMP_EN,
-    FULL_SCALE_COUNTS,
     GYRO_ON_MODES,
-    GYRO_RANGE_DPS,
     I2C_CFG_I2C_OFF,
     I2C_CFG_LITTLE_ENDIAN,
     MAX21100,
@@ -54,15 +51,23 @@ from imuhal_chips.max2110x.registers import (
     POWER_MODE_SHIFT,
     READ_BIT,
     RST_SW_RESET,
-    STANDARD_GRAVITY_M_S2,
-    TEMP_LSB_PER_DEGC,
     PartSpec,
     Reg,
     Status,
-    accel_range_from_code,
-    gyro_range_from_code,
-    odr_from_code,
 )
+
+# Conversion facts written here from the MAX21100/MAX21105 datasheets (sensitivity tables;
+# GYRO_CFG1[1:0] and PWR_ACC_CFG[7:6] full-scale codes), never taken from the driver's
+# setting tables, so a wrong sensitivity in the driver shows as a wrong rate or force.
+_GYRO_LSB_PER_DPS_BY_CODE = (15.0, 30.0, 60.0, 120.0)
+"""GYRO_CFG1[1:0]: 00 = +/-2000, 01 = 1000, 10 = 500, 11 = 250 dps."""
+_ACCEL_LSB_PER_G_BY_CODE = (1875.0, 3750.0, 7500.0, 15000.0)
+"""PWR_ACC_CFG[7:6]: 00 = +/-16, 01 = 8, 10 = 4, 11 = 2 g."""
+_COUNTS_AT_FULL_SCALE = 30000
+"""Every range is 30000 counts wide (e.g. 2000 dps x 15 LSB/dps); outputs clip there."""
+_TEMP_LSB_PER_DEGC = 256.0
+_G_M_S2 = 9.80665
+"""Standard gravity: the accelerometer's sensitivity is specified per g."""
 
 ONESHOT_DURATION_NS = 100_000
 """A one-shot aux byte transaction completes 100 us after its trigger (about 4 bytes at
@@ -104,9 +109,13 @@ def _encode(value: float, per_count: float, limit: int) -> int:
 
 
 class Max2110xEmulator(ChipEmulator):
-    """Family base; subclasses set ``chip`` and ``part``."""
+    """Family base; subclasses set ``chip``, ``part`` and their rate tables."""
 
     part: ClassVar[PartSpec]
+    gyro_odr_by_code: ClassVar[tuple[float, ...]]
+    """GYRO_CFG2 ODR code -> Hz, written here from the part's datasheet (not the driver's)."""
+    accel_odr_by_code: ClassVar[tuple[float, ...]]
+    """ACC_CFG1 ODR code -> Hz, likewise."""
 
     def __init__(self, clock: Clock | None = None, *, name: str | None = None) -> None:
         super().__init__(clock)
@@ -125,6 +134,8 @@ class Max2110xEmulator(ChipEmulator):
             self.banks[0][reg] = value
         self.bank = 0
         self.status = 0
+        self._i2c_pointer = 0
+        """Register (and no-increment bit) an I2C read without a register byte starts at."""
         self.words: dict[int, int] = {}  # high-byte address -> int16 value
         self._read_since_latch: dict[Channel, set[int]] = {Channel.GYRO: set(),
                                                             Channel.ACCEL: set()}
@@ -153,26 +164,26 @@ class Max2110xEmulator(ChipEmulator):
         super().set_physics(inputs)
 
     def _gyro_lsb_per_dps(self) -> float:
-        return GYRO_RANGE_DPS[gyro_range_from_code(self.bank0(Reg.GYRO_CFG1))][1]
+        return _GYRO_LSB_PER_DPS_BY_CODE[self.bank0(Reg.GYRO_CFG1) & 0x03]
 
     def _accel_lsb_per_g(self) -> float:
-        return ACCEL_RANGE_G[accel_range_from_code(self.bank0(Reg.PWR_ACC_CFG))][1]
+        return _ACCEL_LSB_PER_G_BY_CODE[self.bank0(Reg.PWR_ACC_CFG) >> 6 & 0x03]
 
     def resolution(self, channel: Channel) -> float:
         """SI units per count for the current configuration."""
         if channel is Channel.GYRO:
             return math.radians(1.0) / self._gyro_lsb_per_dps()
         if channel is Channel.ACCEL:
-            return STANDARD_GRAVITY_M_S2 / self._accel_lsb_per_g()
+            return _G_M_S2 / self._accel_lsb_per_g()
         if channel is Channel.TEMPERATURE:
-            return 1.0 / TEMP_LSB_PER_DEGC
+            return 1.0 / _TEMP_LSB_PER_DEGC
         raise ValueError(f"{self.chip} has no {channel.value} channel")
 
     def full_scale(self, channel: Channel) -> float:
         """Largest SI magnitude the chip reports before saturating (current configuration)."""
         if channel is Channel.TEMPERATURE:
-            return 32767 / TEMP_LSB_PER_DEGC
-        return FULL_SCALE_COUNTS * self.resolution(channel)
+            return 32767 / _TEMP_LSB_PER_DEGC
+        return _COUNTS_AT_FULL_SCALE * self.resolution(channel)
 
     def _latch(self, channel: Channel) -> None:
         p = self.physics
@@ -189,11 +200,11 @@ class Max2110xEmulator(ChipEmulator):
         enabled = bank0[enable_reg] & 0x07 if self.part.has_aux_master else 0x07
         words = self.words
         for axis in range(3):
-            counts = _encode(values[axis], k, FULL_SCALE_COUNTS)
+            counts = _encode(values[axis], k, _COUNTS_AT_FULL_SCALE)
             words[first + 2 * axis] = counts if enabled & (1 << axis) else 0
         if gyro and bank0[_DR_CFG] & DR_CFG_TEMP_EN:
             t = p.temperature_degc if p.temperature_degc is not None else 25.0
-            words[self.part.temp_register] = _encode(t, 1.0 / TEMP_LSB_PER_DEGC, 32767)
+            words[self.part.temp_register] = _encode(t, 1.0 / _TEMP_LSB_PER_DEGC, 32767)
         if self.status & dr:
             self.status |= err  # the previous sample was never read: it is lost
         self.status |= dr
@@ -202,13 +213,12 @@ class Max2110xEmulator(ChipEmulator):
     # --- timing ---------------------------------------------------------------------------
 
     def _odr_hz(self, channel: Channel) -> float | None:
+        """The output data rate the configuration codes select (None: a reserved code)."""
         if channel is Channel.GYRO:
-            code = self.bank0(Reg.GYRO_CFG2) & 0x0F
-            return odr_from_code(self.part.gyro_odr_hz, code)
-        code = self.bank0(Reg.ACC_CFG1) & 0x0F
-        if self.part is MAX21105 and code & 0x08:
-            return 5.0  # 1xxx: 5 Hz
-        return odr_from_code(self.part.accel_odr_hz, code)
+            table, code = self.gyro_odr_by_code, self.bank0(Reg.GYRO_CFG2) & 0x0F
+        else:
+            table, code = self.accel_odr_by_code, self.bank0(Reg.ACC_CFG1) & 0x0F
+        return table[code] if code < len(table) else None
 
     def _active(self, channel: Channel) -> bool:
         mode = (self.bank0(Reg.POWER_CFG) >> POWER_MODE_SHIFT) & 0x0F
@@ -266,8 +276,12 @@ class Max2110xEmulator(ChipEmulator):
             raise NackError(f"{self.name}: I2C slave disabled (I2C_CFG bit 0)")
         self._advance()
         if not write:
-            raise BusError(f"{self.name}: a transaction must start with an address byte")
-        first = write[0]
+            if spi:
+                raise BusError(f"{self.name}: a transaction must start with an address byte")
+            # I2C: a read without a register byte continues from the register pointer.
+            first = self._i2c_pointer | READ_BIT
+        else:
+            first = write[0]
         reg = first & ADDRESS_MASK
         increment = not first & NO_INCREMENT_BIT
         is_read = bool(first & READ_BIT) if spi else read_len > 0
@@ -278,10 +292,15 @@ class Max2110xEmulator(ChipEmulator):
             self._write(reg, value)
             reg = (reg + step) & ADDRESS_MASK
         if not is_read:
+            if not spi:
+                self._i2c_pointer = reg | (first & NO_INCREMENT_BIT)
             return bytes(read_len) if spi else b""
         touched = [(reg + k * step) & ADDRESS_MASK for k in range(read_len)]
         out = bytes([self._read(r) for r in touched])  # reads have no side effects
         self._after_read(touched)
+        if not spi:
+            self._i2c_pointer = ((reg + read_len * step) & ADDRESS_MASK) | (
+                first & NO_INCREMENT_BIT)
         return out
 
     def _read(self, reg: int) -> int:
@@ -361,7 +380,11 @@ class Max21105Emulator(Max2110xEmulator):
 
     chip = "max21105"
     error_spec = MAX21105_ERROR_SPEC
+    conformance_sweep = True
     part = MAX21105
+    gyro_odr_by_code = (8000.0, 4000.0, 2000.0, 800.0, 400.0, 200.0, 100.0, 50.0, 25.0, 10.0)
+    accel_odr_by_code = (2000.0, 800.0, 400.0, 200.0, 100.0, 50.0, 25.0, 10.0,
+                         *(5.0,) * 8)  # 1xxx: 5 Hz
 
 
 class Max21100Emulator(Max2110xEmulator):
@@ -369,7 +392,11 @@ class Max21100Emulator(Max2110xEmulator):
 
     chip = "max21100"
     error_spec = MAX21100_ERROR_SPEC
+    conformance_sweep = True
     part = MAX21100
+    gyro_odr_by_code = (8000.0, 4000.0, 2000.0, 1000.0, 500.0, 250.0, 125.0, 62.5, 31.25,
+                        15.625, 7.8125, 3.90625)
+    accel_odr_by_code = (2000.0, 1000.0, 500.0, 250.0, 125.0, 62.5, 31.25)
 
     def __init__(self, clock: Clock | None = None, *, name: str | None = None) -> None:
         self._aux = EmulatedBus(f"{name or self.chip}/aux", BusKind.I2C)

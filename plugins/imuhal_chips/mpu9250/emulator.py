@@ -2,6 +2,9 @@
 
 Bus face (I2C: first written byte is the register pointer, further bytes go to successive
 registers; SPI: bit 7 of the first byte set = read; both auto-increment):
+- A read with no register byte (I2C) continues from the register pointer, which every read
+  advances byte by byte (auto-increment), so a driver that writes the register in one
+  transaction and reads in the next gets that register.
 - Power-on defaults (PWR_MGMT_1 0x01, WHO_AM_I 0x71, the rest 0x00); PWR_MGMT_1.H_RESET
   restores them and self-clears; read-only registers (WHO_AM_I, INT_STATUS, sensor and
   EXT_SENS_DATA, I2C_MST_STATUS, I2C_SLV4_DI) ignore writes.
@@ -16,8 +19,10 @@ registers; SPI: bit 7 of the first byte set = read; both auto-increment):
   * master (USER_CTRL.I2C_MST_EN): writing I2C_SLV4_CTRL with EN performs one single-byte
     transaction on the aux bus, which completes 100 us later (I2C_MST_STATUS.SLV4_DONE, DI
     valid; SLV4_NACK if nobody answered). I2C_MST_STATUS clears when read. Slave 0, when
-    enabled for reading, copies LENG bytes into EXT_SENS_DATA at every sample (BYTE_SW/GRP
-    swap the bytes of each register pair).
+    enabled for reading (I2C_SLV0_ADDR bit 7 set), copies LENG bytes into EXT_SENS_DATA at
+    every sample (BYTE_SW/GRP swap the bytes of each register pair); enabled for writing
+    (bit 7 clear), it writes I2C_SLV0_DO to I2C_SLV0_REG of the slave at every sample.
+    I2C_SLV0_CTRL.REG_DIS drops the register byte from either transaction.
 
 Physics face (sensor frame, SI): ``specific_force_m_s2`` (default (0, 0, 9.80665): lying
 flat, face up), ``angular_rate_rad_s`` (default 0), ``temperature_degc`` (default 25).
@@ -47,8 +52,15 @@ SLV4_TRANSACTION_S = 100e-6
 
 _READ_ONLY = {r.WHO_AM_I, r.INT_STATUS, r.I2C_MST_STATUS, r.I2C_SLV4_DI, 0x72, 0x73,
               *range(r.ACCEL_XOUT_H, r.EXT_SENS_DATA_00 + 24)}
-_GYRO_FS = {v.fs_sel: v for v in r.GYRO_RANGES.values()}
-_ACCEL_FS = {v.fs_sel: v for v in r.ACCEL_RANGES.values()}
+# Conversion facts written here from the register map (GYRO_CONFIG / ACCEL_CONFIG FS_SEL
+# and the product specification's sensitivity table), never taken from the driver's range
+# tables, so a wrong sensitivity in the driver shows as a wrong rate or force.
+_GYRO_LSB_PER_DPS_BY_FS_SEL = (131.0, 65.5, 32.8, 16.4)
+_ACCEL_LSB_PER_G_BY_FS_SEL = (16384.0, 8192.0, 4096.0, 2048.0)
+_TEMP_LSB_PER_DEGC = 333.87
+_TEMP_ROOM_DEGC = 21.0
+"""TEMP_degC = TEMP_OUT / 333.87 + 21 (RoomTemp_Offset 0)."""
+_G_M_S2 = 9.80665
 
 
 class MPU9250Emulator(ChipEmulator):
@@ -56,6 +68,7 @@ class MPU9250Emulator(ChipEmulator):
 
     chip = "mpu9250"
     error_spec = MPU9250_ERROR_SPEC
+    conformance_sweep = True
 
     def __init__(self, clock: Clock | None = None, *, name: str = "mpu9250") -> None:
         super().__init__(clock)
@@ -95,26 +108,26 @@ class MPU9250Emulator(ChipEmulator):
 
     # -- conformance face -------------------------------------------------------------------
 
-    def _gyro_range(self) -> r.Range:
-        return _GYRO_FS[(self._regs[r.GYRO_CONFIG] >> 3) & 0b11]
+    def _gyro_lsb_per_dps(self) -> float:
+        return _GYRO_LSB_PER_DPS_BY_FS_SEL[(self._regs[r.GYRO_CONFIG] >> 3) & 0b11]
 
-    def _accel_range(self) -> r.Range:
-        return _ACCEL_FS[(self._regs[r.ACCEL_CONFIG] >> 3) & 0b11]
+    def _accel_lsb_per_g(self) -> float:
+        return _ACCEL_LSB_PER_G_BY_FS_SEL[(self._regs[r.ACCEL_CONFIG] >> 3) & 0b11]
 
     def resolution(self, channel: Channel) -> float:
         """One LSB in SI units at the current ranges."""
         if channel is Channel.ACCEL:
-            return r.STANDARD_GRAVITY_M_S2 / self._accel_range().lsb_per_unit
+            return _G_M_S2 / self._accel_lsb_per_g()
         if channel is Channel.GYRO:
-            return math.radians(1.0) / self._gyro_range().lsb_per_unit
+            return math.radians(1.0) / self._gyro_lsb_per_dps()
         if channel is Channel.TEMPERATURE:
-            return 1.0 / r.TEMP_LSB_PER_DEGC
+            return 1.0 / _TEMP_LSB_PER_DEGC
         raise ValueError(f"the MPU-9250 has no {channel.value} channel")
 
     def full_scale(self, channel: Channel) -> float:
         """The largest magnitude representable (32767 counts) in SI units."""
         if channel is Channel.TEMPERATURE:
-            return 32767 / r.TEMP_LSB_PER_DEGC + r.TEMP_OFFSET_DEGC
+            return 32767 / _TEMP_LSB_PER_DEGC + _TEMP_ROOM_DEGC
         return 32767 * self.resolution(channel)
 
     # -- state ------------------------------------------------------------------------------
@@ -131,9 +144,16 @@ class MPU9250Emulator(ChipEmulator):
         self._taken = 0
 
     def period_ns(self) -> int:
-        internal, divided = r.gyro_filter_from_config(self._regs[r.CONFIG],
-                                                      self._regs[r.GYRO_CONFIG])
-        rate = internal / (1 + self._regs[r.SMPLRT_DIV]) if divided else internal
+        """The sample period the register map gives for CONFIG, GYRO_CONFIG and SMPLRT_DIV:
+        Fchoice_b != 00 runs at 32 kHz; DLPF_CFG 0 and 7 at 8 kHz; DLPF_CFG 1..6 at 1 kHz,
+        divided by 1 + SMPLRT_DIV (the divider applies only there)."""
+        dlpf = self._regs[r.CONFIG] & 0b111
+        if self._regs[r.GYRO_CONFIG] & 0b11:
+            rate = 32_000.0
+        elif dlpf in (0, 7):
+            rate = 8_000.0
+        else:
+            rate = 1_000.0 / (1 + self._regs[r.SMPLRT_DIV])
         return round(1e9 / rate)
 
     def _advance(self) -> None:
@@ -153,31 +173,44 @@ class MPU9250Emulator(ChipEmulator):
 
     def _latch(self) -> None:
         p = self.physics
-        force = p.specific_force_m_s2 or (0.0, 0.0, r.STANDARD_GRAVITY_M_S2)
+        force = p.specific_force_m_s2 or (0.0, 0.0, _G_M_S2)
         rate = p.angular_rate_rad_s or (0.0, 0.0, 0.0)
         temp = 25.0 if p.temperature_degc is None else p.temperature_degc
-        a_lsb = self._accel_range().lsb_per_unit / r.STANDARD_GRAVITY_M_S2
-        g_lsb = self._gyro_range().lsb_per_unit / math.radians(1.0)
+        a_lsb = self._accel_lsb_per_g() / _G_M_S2
+        g_lsb = self._gyro_lsb_per_dps() / math.radians(1.0)
         counts = [*(v * a_lsb for v in force),
-                  (temp - r.TEMP_OFFSET_DEGC) * r.TEMP_LSB_PER_DEGC,
+                  (temp - _TEMP_ROOM_DEGC) * _TEMP_LSB_PER_DEGC,
                   *(v * g_lsb for v in rate)]
         clipped = [max(-32768, min(32767, round(c))) for c in counts]
         self._regs[r.ACCEL_XOUT_H:r.ACCEL_XOUT_H + 14] = struct.pack(">7h", *clipped)
         if self._regs[r.INT_ENABLE] & r.INT_RAW_RDY and not self.stuck_data_ready:
             self._regs[r.INT_STATUS] |= r.INT_RAW_RDY
-        self._slave0_read()
+        self._slave0()
 
     def _master_on(self) -> bool:
         return bool(self._regs[r.USER_CTRL] & r.USER_I2C_MST_EN)
 
-    def _slave0_read(self) -> None:
+    def _slave0(self) -> None:
+        """Slave 0's transaction of this sample: a write of I2C_SLV0_DO or a read of LENG
+        bytes into EXT_SENS_DATA, as I2C_SLV0_ADDR bit 7 says."""
         ctrl = self._regs[r.I2C_SLV0_CTRL]
         address = self._regs[r.I2C_SLV0_ADDR]
-        if not (self._master_on() and ctrl & r.SLV_EN and address & r.SLV_READ):
+        if not (self._master_on() and ctrl & r.SLV_EN):
             return
-        register, length = self._regs[r.I2C_SLV0_REG], ctrl & r.SLV_LENG
+        register = self._regs[r.I2C_SLV0_REG]
+        prefix = b"" if ctrl & r.SLV_REG_DIS else bytes([register])
+        if not address & r.SLV_READ:
+            try:
+                self.aux_bus.transfer(address & 0x7F, prefix + bytes([self._regs[r.I2C_SLV0_DO]]),
+                                      0)
+            except BusError:
+                self._regs[r.I2C_MST_STATUS] |= r.MST_SLV0_NACK
+            return
+        length = ctrl & r.SLV_LENG
+        if not length:
+            return
         try:
-            data = bytearray(self.aux_bus.transfer(address & 0x7F, bytes([register]), length))
+            data = bytearray(self.aux_bus.transfer(address & 0x7F, prefix, length))
         except BusError:
             self._regs[r.I2C_MST_STATUS] |= r.MST_SLV0_NACK
             return
@@ -212,17 +245,17 @@ class MPU9250Emulator(ChipEmulator):
 
     def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes:
         self._advance()
-        if not write:
-            return bytes(read_len)
-        if kind is BusKind.SPI and write[0] & r.SPI_READ:
+        if not write and kind is BusKind.SPI:
+            return bytes(read_len)  # no address byte: nothing is clocked out of the chip
+        if write:
             self._pointer = write[0] & 0x7F
-        else:
-            self._pointer = write[0] & 0x7F
-            for offset, value in enumerate(write[1:]):
-                self._write((self._pointer + offset) & 0x7F, value)
+            if not (kind is BusKind.SPI and write[0] & r.SPI_READ):
+                for offset, value in enumerate(write[1:]):
+                    self._write((self._pointer + offset) & 0x7F, value)
         out = bytearray()
-        for i in range(read_len):
-            out.append(self._read((self._pointer + i) & 0x7F))
+        for _ in range(read_len):
+            out.append(self._read(self._pointer))
+            self._pointer = (self._pointer + 1) & 0x7F
         if read_len and self._regs[r.INT_PIN_CFG] & r.INT_PIN_ANYRD_2CLEAR:
             self._regs[r.INT_STATUS] = 0
         return bytes(out)

@@ -5,8 +5,7 @@
   P (Pa = 0.01 mbar), first and second order, in the datasheet's integer arithmetic. Every
   "/2^n" is an arithmetic right shift (floor), as in the Linux and Betaflight drivers whose
   published test vectors only reproduce with floor semantics; Python ``>>`` floors.
-- ``encode_raw``: the inverse, used by the emulator to turn a true pressure and temperature
-  into the D1/D2 counts a chip with these coefficients would report.
+The emulator encodes true values with its own code (``emulator_encoding``), never this module.
 
 Source of facts: MS5611-01BA03 datasheet (DA5611-01BA03_011) Fig.2 (first order) and Fig.3
 (second order), AN520 (CRC4), Betaflight ``baro_ms5611_unittest.cc`` (vectors); summarised in
@@ -15,11 +14,10 @@ imuhal's chip-facts notes (chips.md section 1, chip-vectors.json "ms5611").
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
-from imuhal_chips.ms5611.commands import ADC_MAX, PROM_WORDS
+from imuhal_chips.ms5611.commands import PROM_WORDS
 
 TEMP_MIN_CENTI_DEGC = -4000
 TEMP_MAX_CENTI_DEGC = 8500
@@ -191,103 +189,3 @@ def compensate(coeffs: Coefficients, d1: int, d2: int) -> Compensated:
         SENS=sens_2,
         P=_pressure(d1, sens_2, off_2),
     )
-
-
-def _closest_raw(value_of: Callable[[int], int], target: float, guess: int) -> int:
-    """The raw count in 1..ADC_MAX whose non-decreasing ``value_of`` is closest to ``target``.
-
-    0 is excluded because the protocol reserves an ADC result of 0 for "no conversion".
-    ``guess`` only decides where the search starts, never its result: the search brackets
-    the smallest raw with value >= target by doubling steps away from the guess, then
-    bisects the bracket. A guess from the inverted formula is exact or within a few counts,
-    so this costs a handful of evaluations instead of the 24 of a bisection of the whole
-    range (the emulator encodes every conversion of a run).
-    """
-    lo = hi = min(max(guess, 1), ADC_MAX)
-    step = 1
-    if value_of(lo) >= target:
-        # Walk down until a raw below the target (or raw 1): the answer is in [lo, hi].
-        while lo > 1:
-            lo = max(1, hi - step)
-            if value_of(lo) < target:
-                lo += 1
-                break
-            hi = lo
-            step *= 2
-    else:
-        # Walk up until a raw at or above the target (or ADC_MAX, the answer when none is).
-        while hi < ADC_MAX:
-            hi = min(ADC_MAX, lo + step)
-            if value_of(hi) >= target:
-                break
-            lo = hi
-            step *= 2
-        lo = min(lo + 1, hi)
-    # Smallest raw with value >= target in [lo, hi] (hi if none): bisection on a monotone
-    # function, exactly as over the whole range.
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if value_of(mid) >= target:
-            hi = mid
-        else:
-            lo = mid + 1
-    if lo > 1 and abs(value_of(lo - 1) - target) < abs(value_of(lo) - target):
-        return lo - 1
-    return lo
-
-
-def encode_raw(
-    coeffs: Coefficients, pressure_pa: float, temperature_degc: float
-) -> tuple[int, int]:
-    """(D1, D2) counts for which ``compensate`` reports ``pressure_pa`` and ``temperature_degc``
-    to the chip's output resolution (1 Pa, 0.01 degC), clamped to 1..2^24-1.
-
-    TEMP is non-decreasing in D2 (second order included) and, for a chip whose SENS is
-    positive (any real one in range), P is non-decreasing in D1, so each is a search on a
-    monotone function, started where the inverted formula puts the answer.
-    """
-    c = coeffs
-    target_temp = temperature_degc * 100.0
-
-    def temp_of(raw: int) -> int:
-        _, temp, t2 = _temperature_terms(c, raw)
-        return temp - t2
-
-    d2 = _closest_raw(temp_of, target_temp, _d2_guess(c, target_temp))
-    # Second-order terms depend on D2 only, so fix them once and search D1 on the P formula.
-    dt, temp, _ = _temperature_terms(c, d2)
-    off_1st, sens_1st, off2, sens2 = _offset_terms(c, dt, temp)
-    off, sens = off_1st - off2, sens_1st - sens2
-    d1 = _closest_raw(lambda raw: _pressure(raw, sens, off), pressure_pa,
-                      _d1_guess(sens, off, pressure_pa))
-    return d1, d2
-
-
-_NO_GUESS = ADC_MAX // 2
-"""Where a search starts when the formula cannot be inverted (the result is the same)."""
-
-
-def _ceil_div(a: int, b: int) -> int:
-    return -(-a // b)
-
-
-def _d1_guess(sens: int, off: int, target_pa: float) -> int:
-    """The smallest D1 whose P reaches ``ceil(target_pa)``, from the floor-shift algebra:
-    P >= k  <=>  D1 * SENS >= ((k << 15) + OFF) << 21 (for SENS > 0)."""
-    if sens <= 0 or not math.isfinite(target_pa):
-        return _NO_GUESS
-    return _ceil_div(((math.ceil(target_pa) << 15) + off) << 21, sens)
-
-
-def _d2_guess(c: Coefficients, target_centi_degc: float) -> int:
-    """The smallest D2 whose TEMP reaches ``ceil(target)``: TEMP >= k  <=>  first-order TEMP
-    >= k + T2, solved by fixed-point iteration on T2 (each round shrinks the error about
-    tenfold, since T2 moves slowly with D2)."""
-    if c.c6 <= 0 or not math.isfinite(target_centi_degc):
-        return _NO_GUESS
-    k = math.ceil(target_centi_degc)
-    d2 = (c.c5 << 8) + _ceil_div((k - 2000) << 23, c.c6)
-    for _ in range(3 if k < 2000 else 0):
-        t2 = _temperature_terms(c, d2)[2]
-        d2 = (c.c5 << 8) + _ceil_div((k + t2 - 2000) << 23, c.c6)
-    return d2

@@ -14,8 +14,10 @@ A read with no command in the same transaction returns what the last command lef
 output register (I2C drivers that write the command and read in two transactions).
 
 Physics face: ``physics.pressure_pa`` and ``physics.temperature_degc`` (defaults 101325 Pa,
-20 degC when not simulated) are encoded with ``encode_raw`` and the *factory* coefficients:
-corrupting the PROM changes what a driver reads, not what the sensor element measures.
+20 degC when not simulated) are encoded with the *factory* coefficients by
+``emulator_encoding.counts_for``, written from the datasheet independently of the driver's
+conversion code: corrupting the PROM changes what a driver reads, not what the sensor
+element measures, and a wrong fact in the driver shows as a wrong pressure.
 
 Source of facts: MS5611-01BA03 datasheet (DA5611-01BA03_011) commands, timing and the
 "ADC read returns 0" rules; chips.md section 1.
@@ -32,24 +34,28 @@ from imuhal.core.clock import Clock
 from imuhal.core.samples import Channel
 from imuhal.emulation.base import ChipEmulator
 from imuhal_chips.ms5611.commands import (
-    ADC_MAX,
-    OSR_TIMING,
     PROM_WORDS,
-    RESET_RELOAD_NS,
     Measurement,
     decode_command,
 )
-from imuhal_chips.ms5611.conversion import Coefficients, encode_raw, with_crc4
+from imuhal_chips.ms5611.emulator_encoding import PromCoefficients, counts_for, prom_with_crc4
 from imuhal_chips.ms5611.error_spec import MS5611_ERROR_SPEC
 
 DATASHEET_COEFFICIENTS = (40127, 36924, 23317, 23282, 33464, 28312)
 """C1..C6 of the datasheet's worked example (p.7)."""
 
 DEFAULT_PROM_WORDS: tuple[int, ...] = tuple(
-    with_crc4([0x0A5C, *DATASHEET_COEFFICIENTS, 0x7D30])
+    prom_with_crc4([0x0A5C, *DATASHEET_COEFFICIENTS, 0x7D30])
 )
 """Word 0 (factory data) 0x0A5C and serial bits 0x7D3 in word 7 are arbitrary; the CRC
 nibble is computed."""
+
+_CONVERSION_NS = {256: 540_000, 512: 1_060_000, 1024: 2_080_000, 2048: 4_130_000,
+                  4096: 8_220_000}
+"""Typical ADC conversion time per OSR (datasheet p.3), written here, not the driver's table."""
+_RELOAD_NS = 2_800_000
+"""PROM reload after a reset (datasheet: 2.8 ms)."""
+_ADC_FULL = (1 << 24) - 1
 
 DEFAULT_PRESSURE_PA = 101325.0
 DEFAULT_TEMPERATURE_DEGC = 20.0
@@ -71,6 +77,7 @@ class MS5611Emulator(ChipEmulator):
 
     chip = "ms5611"
     error_spec = MS5611_ERROR_SPEC
+    conformance_sweep = True
 
     def __init__(
         self,
@@ -85,7 +92,7 @@ class MS5611Emulator(ChipEmulator):
             raise ValueError(f"MS5611 PROM has {PROM_WORDS} words, got {len(words)}")
         self.factory_prom: list[int] = [w & 0xFFFF for w in words]
         """The PROM contents (fault injection edits these; a reset reloads them)."""
-        self.coefficients = Coefficients.from_prom(self.factory_prom)
+        self.coefficients = PromCoefficients.of(self.factory_prom)
         """The sensor element's true calibration, used to encode physics."""
         self._prom: list[int] = list(self.factory_prom)
         self._reload_until_ns = -1
@@ -171,7 +178,7 @@ class MS5611Emulator(ChipEmulator):
         self._result = None
         self._out = b""
         self._prom = list(self.factory_prom)
-        self._reload_until_ns = self.now_ns() + RESET_RELOAD_NS
+        self._reload_until_ns = self.now_ns() + _RELOAD_NS
 
     def _start_conversion(self, measurement: Measurement, osr: int) -> None:
         now = self.now_ns()
@@ -180,16 +187,16 @@ class MS5611Emulator(ChipEmulator):
         if self._conversion is not None:
             # Overlapping conversions: the running one is lost, the new one is garbage.
             self.aborted_conversions += 1
-            result = self._rng.randint(1, ADC_MAX)
+            result = self._rng.randint(1, _ADC_FULL)
         else:
             result = self._measure(measurement)
         self._result = None
-        self._conversion = _Conversion(measurement, now + OSR_TIMING[osr].typ_ns, result)
+        self._conversion = _Conversion(measurement, now + _CONVERSION_NS[osr], result)
 
     def _measure(self, measurement: Measurement) -> int:
         p = self.physics.pressure_pa
         t = self.physics.temperature_degc
-        d1, d2 = encode_raw(
+        d1, d2 = counts_for(
             self.coefficients,
             DEFAULT_PRESSURE_PA if p is None else p,
             DEFAULT_TEMPERATURE_DEGC if t is None else t,

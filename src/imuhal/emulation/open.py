@@ -18,10 +18,11 @@ from imuhal.bus.recording.recorder import BusRecorder
 from imuhal.bus.spy import Transfer
 from imuhal.core.clock import SimulatedClock
 from imuhal.emulation.board import EmulatedBoard
+from imuhal.emulation.mounting import chip_rotations
 from imuhal.pipeline.pipeline import Pipeline
 from imuhal.plugins.manager import Registry
 from imuhal.profile.model import BoardProfile
-from imuhal.profile.topology import chip_to_body_rotations, device_order
+from imuhal.profile.topology import device_order
 from imuhal.sim.errors import SensorErrorModel, SensorErrorSpec, device_seed, error_spec_of
 
 
@@ -65,8 +66,8 @@ def open_emulated(
                   for dev, spec in error_specs.items() if spec is not None}
     else:
         errors = error_models_for(profile, registry, run_seed) if use_errors else None
-    board = EmulatedBoard(profile, registry, clock, world, chip_to_body_rotations(profile),
-                          errors)
+    # The emulation's own reading of the mounts, not the pipeline's: see emulation.mounting.
+    board = EmulatedBoard(profile, registry, clock, world, chip_rotations(profile), errors)
     board.update(0)
     return Pipeline(profile, registry, board, calibrated=calibrated, trace=trace,
                     recorder=recorder)

@@ -38,6 +38,9 @@ class ChipEmulator(ABC):
     #: :class:`~imuhal.sim.errors.SensorErrorSpec` or a mapping of its fields; the mapping is
     #: validated when the class is defined, so a typo in a plugin fails at import, naming it.
     error_spec: ClassVar[SensorErrorSpec | None] = None
+    #: Opt-in to imuhal's generic conformance sweep, which checks the pair against an
+    #: independent table in imuhal's own test data; a third-party emulator leaves it False.
+    conformance_sweep: ClassVar[bool] = False
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
