@@ -164,3 +164,20 @@ def test_the_output_of_imuhal_estimate_plots_as_one_source(run: tuple[Path, Path
         rows = list(csv.DictReader(f))
     np.testing.assert_array_equal(x, [float(r["t_s"]) for r in rows])
     np.testing.assert_array_equal(y, [float(r["pitch_deg"]) for r in rows])
+
+
+def test_yaw_error_across_north_is_the_short_way_round() -> None:
+    from imuhal.offline.plotting import Series, Truth, errors
+
+    t = np.array([0.0, 1.0, 2.0])
+    estimate = Series(t, {"yaw_deg": np.array([179.0, -179.0, 178.0])}, np.zeros(3))
+    truth = Truth(t, {"yaw_deg": np.array([-179.0, 179.0, 178.5])})
+    np.testing.assert_allclose(errors(estimate, truth, "yaw_deg"), [-2.0, 2.0, -0.5])
+
+
+def test_truth_yaw_is_interpolated_across_north_not_through_south() -> None:
+    from imuhal.offline.plotting import Series, Truth, errors
+
+    truth = Truth(np.array([0.0, 1.0]), {"yaw_deg": np.array([179.0, -179.0])})
+    estimate = Series(np.array([0.5]), {"yaw_deg": np.array([-180.0])}, np.zeros(1))
+    np.testing.assert_allclose(errors(estimate, truth, "yaw_deg"), [0.0], atol=1e-9)

@@ -261,3 +261,17 @@ def test_scans_without_timestamps_are_spaced_by_the_sampling_period(tmp_path: Pa
     assert [s.t_ns for s in samples] == [now - 2 * 13_333_333, now - 13_333_333, now]
     for sample, x_ut in zip(samples, (0.0, 1.0, 2.0), strict=True):
         assert sample.mag_ut == pytest.approx((x_ut, 0.0, -0.1))  # type: ignore[attr-defined]
+
+
+def test_a_late_poll_does_not_shift_the_kernels_sample_times(tmp_path: Path) -> None:
+    device = _mpu(tmp_path / "sys", tmp_path / "dev")
+    clock = SimulatedClock()
+    driver = _driver(LinuxIIOBus(tmp_path / "sys", tmp_path / "dev"), clock, name="mpu9250")
+    scan = {e.name: 0 for e in device.elements}
+    device.push(scan | {"in_timestamp": 7_000_000_000})
+    first = driver.start(0)
+    assert [s.t_ns for s in driver.poll(first).samples] == [first] * 3
+    # Two more scans 5 ms apart, read 30 ms after the first poll: 20 ms late.
+    device.push(*(scan | {"in_timestamp": 7_000_000_000 + k * 5_000_000} for k in (1, 2)))
+    times = sorted({s.t_ns for s in driver.poll(first + 30_000_000).samples})
+    assert times == [first + 5_000_000, first + 10_000_000]
