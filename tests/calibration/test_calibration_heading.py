@@ -42,7 +42,9 @@ def _arrays(samples: list[Sample], cal: dict | None) -> tuple[np.ndarray, ...]:
 def _heading_rms_deg(samples: list[Sample], scenario: CalibrationScenario,
                      cal: dict | None) -> float:
     t, gyro, accel, mag = _arrays(samples, cal)
-    q = run_batch(MadgwickEstimator(), gyro, accel, mag, dt_s=1.0 / RATE_HZ)
+    # the settings the figures above were measured with (the defaults before issue 10)
+    est = MadgwickEstimator({"beta": 0.1, "accel_soft_gate_g": None})
+    q = run_batch(est, gyro, accel, mag, dt_s=1.0 / RATE_HZ)
     errors = []
     for i in range(0, len(t), 25):
         if t[i] < 45.0:  # converged, in the figure of 8 and the final hold

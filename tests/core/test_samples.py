@@ -2,7 +2,14 @@
 
 from __future__ import annotations
 
-from imuhal.core.samples import AccelSample, Channel, Frame, PressureSample, SampleFlag
+from imuhal.core.samples import (
+    AccelSample,
+    Channel,
+    Frame,
+    PressureSample,
+    SampleFlag,
+    VelocitySample,
+)
 
 
 def test_a_new_sample_is_valid_and_in_the_sensor_frame() -> None:
@@ -17,7 +24,15 @@ def test_flagging_returns_an_invalid_copy() -> None:
 
 
 def test_channels_document_their_units() -> None:
-    assert {c.unit for c in Channel} == {"m/s^2", "rad/s", "uT", "Pa", "degC"}
+    assert {c.unit for c in Channel} == {"m/s^2", "rad/s", "uT", "Pa", "degC", "m/s"}
+
+
+def test_a_velocity_sample_is_earth_frame_and_carries_its_accuracy() -> None:
+    v = VelocitySample(t_ns=3, device="gps", velocity_ned_m_s=(9.0, 2.0, -1.5),
+                       accuracy_m_s=0.1)
+    assert v.channel is Channel.VELOCITY and v.valid
+    assert not hasattr(v, "frame")  # NED by definition: no mount rotation applies to it
+    assert (v.velocity_ned_m_s, v.accuracy_m_s) == ((9.0, 2.0, -1.5), 0.1)
 
 
 def test_with_vector_changes_value_and_frame_only() -> None:

@@ -54,9 +54,11 @@ def _run(system: str, dof: str) -> tuple[BatchResult, np.ndarray]:
     if (system, dof) not in _RUNS:
         acc, gyr, mag = _inputs(system)
         if dof == "9dof":
-            result = run_9dof(acc, gyr, mag, Freescale9DofSettings(coordinate_system=system))
+            result = run_9dof(acc, gyr, mag, Freescale9DofSettings(preset="reference",
+                                                                   coordinate_system=system))
         else:
-            result = run_6dof(acc, gyr, Freescale6DofSettings(coordinate_system=system))
+            result = run_6dof(acc, gyr, Freescale6DofSettings(preset="reference",
+                                                              coordinate_system=system))
         _RUNS[(system, dof)] = (result, _reference(dof, system))
     return _RUNS[(system, dof)]
 
@@ -137,7 +139,7 @@ def magnet_in_each_system() -> dict[str, BatchResult]:
             convert_vector(accel, "aerospace", dst, VectorKind.SPECIFIC_FORCE),
             convert_vector(gyro, "aerospace", dst, VectorKind.ANGULAR_RATE),
             convert_vector(mag, "aerospace", dst, VectorKind.MAGNETIC_FIELD),
-            Freescale9DofSettings(coordinate_system=cs))
+            Freescale9DofSettings(preset="reference", coordinate_system=cs))
     return out
 
 
@@ -162,7 +164,7 @@ def test_estimator_fed_the_systems_log_through_the_edge_conversion_matches_the_r
     body -> NED output against the reference's sensor -> ENU quaternion converted to NED."""
     n_rows = 2000
     acc, gyr, mag = (a[:n_rows] for a in _inputs(system))
-    est = Freescale9DofEstimator({"coordinate_system": system})
+    est = Freescale9DofEstimator({"preset": "reference", "coordinate_system": system})
     out: list[AttitudeEstimate] = []
     for i in range(n_rows):
         t = i * 5_000_000

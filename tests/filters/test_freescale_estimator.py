@@ -70,7 +70,7 @@ def _angle_deg(a: tuple[float, ...] | np.ndarray, b: np.ndarray) -> float:
 @pytest.mark.parametrize("order", ["agm", "gam", "mga"])
 def test_estimator_reproduces_reference_in_project_units_in_any_sample_order(
         cls: type[Freescale9DofEstimator], name: str, order: str) -> None:
-    estimates = _run(cls(), _counts(), order=order)
+    estimates = _run(cls({"preset": "reference"}), _counts(), order=order)
     ref = _reference(name)
     assert [e.t_ns for e in estimates] == [int(i) * DT_NS for i in ref["idx"]]
     worst = max(_angle_deg(e.q_body_to_ned, np.array([r["q0"], r["q1"], r["q2"], r["q3"]]))
@@ -79,7 +79,7 @@ def test_estimator_reproduces_reference_in_project_units_in_any_sample_order(
 
 
 def test_9dof_diagnostics_carry_offset_inclination_and_jamming_in_project_units() -> None:
-    est = Freescale9DofEstimator()
+    est = Freescale9DofEstimator({"preset": "reference"})
     last = _run(est, _counts())[-1]
     ref = _reference("fsl_9dof_gby_kalman_A")[-1]
     d = last.diagnostics
@@ -101,7 +101,7 @@ def test_linear_acceleration_is_near_zero_for_this_slow_motion() -> None:
 
 
 def test_first_kalman_step_emits_nothing_and_the_second_emits_an_estimate() -> None:
-    est = Freescale9DofEstimator()
+    est = Freescale9DofEstimator({"preset": "reference"})
     rows = _counts()
     assert _run(est, rows[:8]) == []
     assert est.diagnostics()["kalman_steps"] == 1
@@ -130,7 +130,7 @@ def test_windows_without_accel_are_dropped_and_stale_accel_is_reused_but_counted
 
 
 def test_invalid_samples_are_skipped_and_counted_without_advancing_the_window() -> None:
-    est = Freescale6DofEstimator()
+    est = Freescale6DofEstimator({"preset": "reference"})
     rows = _counts()[:16]
     bad = GyroSample(t_ns=1, device="imu", frame=Frame.BODY_NED, gyro_rad_s=(0.0, 0.0, 0.0),
                      flags=SampleFlag.SATURATED)
@@ -175,7 +175,7 @@ def test_state_round_trips_through_json_and_continues_identically() -> None:
 def test_oversample_ratio_sets_the_kalman_rate() -> None:
     """Ratio 4 at 200 Hz: a Kalman step every 4 gyro samples (50 Hz); still tracks."""
     rows = _counts()[:1000]
-    est = Freescale9DofEstimator({"oversample_ratio": 4})
+    est = Freescale9DofEstimator({"preset": "reference", "oversample_ratio": 4})
     estimates = _run(est, rows)
     assert len(estimates) == 1000 // 4 - 1
     ref = _reference("fsl_9dof_gby_kalman_A")

@@ -14,6 +14,7 @@ import pytest
 
 from imuhal.core.frames import quat_from_euler_deg, quat_multiply, quat_to_matrix
 from imuhal_filters.freescale.batch import BatchResult, run_9dof
+from imuhal_filters.freescale.settings import Freescale9DofSettings
 
 FS = 200.0
 Magnet = tuple[BatchResult, np.ndarray, np.ndarray]
@@ -111,12 +112,12 @@ def test_heading_recovers_once_the_magnet_is_removed(magnet: Magnet) -> None:
     assert np.sqrt(np.mean(err[t >= 30.0] ** 2)) < 2.5
 
 
-def test_inclination_is_learnt_from_zero_and_tilt_settles() -> None:
-    """The filter starts assuming a horizontal field; until it has learnt the 60 deg dip the
+def test_reference_learns_the_inclination_from_zero_and_tilt_settles() -> None:
+    """Build 422 starts assuming a horizontal field; until it has learnt the 60 deg dip the
     magnetometer tilts the estimate by up to about 1.5 deg, then it settles."""
     n = int(40 * FS)
     accel, gyro, mag, q = _scenario(np.full(n, 20.0), np.zeros(n))
-    result = run_9dof(accel, gyro, mag)
+    result = run_9dof(accel, gyro, mag, Freescale9DofSettings(preset="reference"))
     t = result.row / FS
     assert result.inclination_deg[1] < 50.0
     assert np.abs(result.inclination_deg[t >= 10.0] - 60.0).max() < 1.5
@@ -126,11 +127,22 @@ def test_inclination_is_learnt_from_zero_and_tilt_settles() -> None:
     assert np.sqrt(np.mean(tilt[t >= 30.0] ** 2)) < 0.2
 
 
+@pytest.mark.parametrize("true_deg", [75.0, 85.0, -72.0])
+def test_default_tracks_the_dip_of_the_whole_inhabited_earth(true_deg: float) -> None:
+    n = int(20 * FS)
+    accel, gyro, mag, q = _scenario(np.full(n, 20.0), np.zeros(n), inclination_deg=true_deg)
+    result = run_9dof(accel, gyro, mag)
+    assert np.median(result.inclination_deg[-100:]) == pytest.approx(true_deg, abs=1.0)
+    tilt = np.array([_tilt_deg(a, q[i]) for a, i in zip(result.q_body_to_ned, result.row,
+                                                        strict=True)])
+    assert tilt.max() < 0.5
+
+
 @pytest.mark.parametrize(("true_deg", "tracked_deg"), [(75.0, 65.0), (-40.0, -40.0)])
-def test_inclination_tracking_is_clamped_to_65_deg_and_follows_southern_dips(
+def test_reference_clamps_inclination_tracking_at_65_deg_and_follows_southern_dips(
         true_deg: float, tracked_deg: float) -> None:
     n = int(30 * FS)
     accel, gyro, mag, _ = _scenario(np.full(n, 20.0), np.zeros(n), inclination_deg=true_deg)
-    result = run_9dof(accel, gyro, mag)
+    result = run_9dof(accel, gyro, mag, Freescale9DofSettings(preset="reference"))
     assert np.abs(result.inclination_deg).max() <= 65.0 + 1e-9
     assert np.median(result.inclination_deg[-100:]) == pytest.approx(tracked_deg, abs=1.0)

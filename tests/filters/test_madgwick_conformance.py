@@ -52,7 +52,8 @@ def _quats(name: str) -> np.ndarray:
 )
 def test_matches_xio_release_row_by_row(reference: str, settings: dict, with_mag: bool) -> None:
     gyro, accel, mag = _inputs()
-    est = MadgwickEstimator({"beta": 0.1, "sample_period_s": 1 / 200, **settings})
+    est = MadgwickEstimator({"preset": "reference", "inv_sqrt": "exact",
+                             "sample_period_s": 1 / 200, **settings})
     q = run_batch(est, gyro, accel, mag if with_mag else None)
     ref = _quats(reference)
     assert q.shape == ref.shape
@@ -61,7 +62,7 @@ def test_matches_xio_release_row_by_row(reference: str, settings: dict, with_mag
 
 def test_fast32_mode_keeps_the_releases_short_quaternion() -> None:
     gyro, accel, mag = _inputs()
-    est = MadgwickEstimator({"mag_reference": "xio_release", "inv_sqrt": "fast32"})
+    est = MadgwickEstimator({"preset": "reference"})
     q = run_batch(est, gyro, accel, mag)
     norms = np.linalg.norm(q, axis=1)
     assert np.all(np.abs(norms - 0.9983) < 1e-3)
@@ -71,7 +72,7 @@ def test_continues_mid_flight_from_the_reference_state() -> None:
     """Rows 6000-6399 (rates up to ~100 deg/s): start from the reference quaternion of 5999."""
     gyro, accel, mag = _inputs("imu_A_mid.csv")
     ref = _quats("madgwick_xio_exact_9dof_A_mid.csv")
-    est = MadgwickEstimator({"beta": 0.1, "mag_reference": "xio_release"})
+    est = MadgwickEstimator({"preset": "reference", "inv_sqrt": "exact"})
     state = est.get_state()
     est.set_state({**state, "q": list(ref[0])})
     q = run_batch(est, gyro, accel, mag)
@@ -82,8 +83,7 @@ def test_gated_seed_copy_through_samples_matches_reference_and_gate_column() -> 
     """har-in-air IMU.cpp: beta 0.6, dt 5 ms, gate 0.6-1.4 g, fed as timestamped samples."""
     gyro, accel, mag = _inputs()
     ref = _load("hari_madgwick_gated_A_head.csv")
-    est = MadgwickEstimator({"beta": 0.6, "mag_reference": "xio_release",
-                             "accel_gate_g": (0.6, 1.4)})
+    est = MadgwickEstimator({"preset": "seed"})
     out: list[AttitudeEstimate] = []
     for i in range(len(gyro)):
         t = i * 5_000_000

@@ -106,7 +106,7 @@ def test_step_length_comes_from_gyro_timestamps() -> None:
     """A constant 90 deg/s yaw rate sampled irregularly still integrates to the right angle."""
     rng = np.random.default_rng(5)
     times = np.cumsum(rng.uniform(2e6, 8e6, 400)).astype(int)  # 2-8 ms jitter
-    est = MadgwickEstimator({"beta": 0.0})
+    est = MadgwickEstimator({"beta": 0.0, "initial_attitude": "identity"})
     rate = math.radians(90.0)
     for t in times:
         est.process(GyroSample(t_ns=int(t), device="imu", frame=Frame.BODY_NED,

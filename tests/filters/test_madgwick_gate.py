@@ -34,7 +34,7 @@ def _step(est: MadgwickEstimator, t_ns: int, accel_g_level: float, with_mag: boo
 
 @pytest.mark.parametrize("magnitude_g", [0.3, 0.59, 1.41, 2.5])
 def test_closed_gate_skips_the_whole_gradient_step_including_mag(magnitude_g: float) -> None:
-    est = MadgwickEstimator()
+    est = MadgwickEstimator({"preset": "seed"})
     q0 = _tilted(est)
     for i in range(50):
         e = _step(est, i * 5_000_000, magnitude_g)
@@ -47,7 +47,7 @@ def test_closed_gate_skips_the_whole_gradient_step_including_mag(magnitude_g: fl
 
 @pytest.mark.parametrize("magnitude_g", [0.61, 1.0, 1.39])
 def test_open_gate_corrects_towards_the_accelerometer(magnitude_g: float) -> None:
-    est = MadgwickEstimator({"beta": 0.5})
+    est = MadgwickEstimator({"preset": "seed", "beta": 0.5})
     _tilted(est)
     for i in range(400):  # 2 s at beta 0.5 rad/s: enough to remove a 10 deg tilt
         e = _step(est, i * 5_000_000, magnitude_g, with_mag=False)
@@ -58,9 +58,9 @@ def test_open_gate_corrects_towards_the_accelerometer(magnitude_g: float) -> Non
 
 
 def test_gate_bounds_are_settings_and_none_disables_it() -> None:
-    narrow = MadgwickEstimator({"accel_gate_g": (0.9, 1.1)})
+    narrow = MadgwickEstimator({"preset": "seed", "accel_gate_g": (0.9, 1.1)})
     assert _step(narrow, 0, 1.15).diagnostics["gate_open"] is False
-    off = MadgwickEstimator({"accel_gate_g": None, "beta": 0.5})
+    off = MadgwickEstimator({"preset": "seed", "accel_gate_g": None, "beta": 0.5})
     _tilted(off)
     for i in range(400):
         e = _step(off, i * 5_000_000, 2.5, with_mag=False)
@@ -69,7 +69,7 @@ def test_gate_bounds_are_settings_and_none_disables_it() -> None:
 
 
 def test_gate_opening_again_resumes_correction() -> None:
-    est = MadgwickEstimator({"beta": 0.5})
+    est = MadgwickEstimator({"preset": "seed", "beta": 0.5})
     _tilted(est)
     for i in range(100):
         _step(est, i * 5_000_000, 2.0, with_mag=False)

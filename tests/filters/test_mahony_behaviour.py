@@ -49,14 +49,25 @@ def test_registered_under_its_name() -> None:
     assert reg.estimators.get("mahony") is MahonyEstimator
 
 
-def test_defaults_are_the_esp32_firmware_settings() -> None:
-    s = MahonyEstimator().settings
+def test_seed_preset_is_the_esp32_firmware_settings() -> None:
+    s = MahonyEstimator({"preset": "seed"}).settings
     assert (s.kp, s.ki, s.accel_gate_g) == (5.0, 0.0, (0.75, 1.25))
+    assert s.initial_attitude == "identity"
+
+
+def test_a_preset_only_fills_what_the_settings_leave_out() -> None:
+    s = MahonyEstimator({"preset": "seed", "kp": 2.0}).settings
+    assert (s.kp, s.accel_gate_g) == (2.0, (0.75, 1.25))
+
+
+def test_an_unknown_preset_names_the_known_ones() -> None:
+    with pytest.raises(ValueError, match="presets: default, reference, seed"):
+        MahonyEstimator({"preset": "fast"})
 
 
 @pytest.mark.parametrize("accel_g", [0.5, 0.74, 1.26, 3.0])
 def test_outside_the_gate_no_feedback_at_all(accel_g: float) -> None:
-    est = MahonyEstimator()
+    est = MahonyEstimator({"preset": "seed"})
     q0 = _tilt(est)
     out = _feed(est, 100, accel_g)
     assert not any(e.diagnostics["gate_open"] for e in out)
@@ -66,7 +77,7 @@ def test_outside_the_gate_no_feedback_at_all(accel_g: float) -> None:
 
 @pytest.mark.parametrize("accel_g", [0.76, 1.0, 1.24])
 def test_inside_the_gate_converges_to_level_and_north(accel_g: float) -> None:
-    est = MahonyEstimator()
+    est = MahonyEstimator({"preset": "seed"})
     _tilt(est)
     # tilt settles with 1/Kp = 0.2 s; heading slower (the horizontal field is half of |B|)
     out = _feed(est, 2000, accel_g)
@@ -79,14 +90,14 @@ def test_integral_gain_learns_the_gyro_bias() -> None:
     """Ki > 0 on a static board with a biased gyro: the integral converges to the bias
     (within 2 %) and the attitude error caused by the bias vanishes (< 0.01 deg). Heading
     is the slow axis (only the horizontal field, half of |B|, observes it): 80 s."""
-    est = MahonyEstimator({"kp": 1.0, "ki": 0.2})
+    est = MahonyEstimator({"preset": "seed", "kp": 1.0, "ki": 0.2})
     out = _feed(est, 16000, gyro=BIAS_RAD_S)
     assert np.allclose(est.gyro_bias_rad_s, BIAS_RAD_S, rtol=0.02)
     assert max(abs(a) for a in out[-1].roll_pitch_yaw_deg) < 0.01
 
 
 def test_without_integral_the_bias_leaves_an_error_of_bias_over_kp() -> None:
-    est = MahonyEstimator({"kp": 1.0})
+    est = MahonyEstimator({"preset": "seed", "kp": 1.0})
     out = _feed(est, 4000, gyro=BIAS_RAD_S, mag=False)  # 6-DOF: no heading coupling
     assert est.gyro_bias_rad_s == (0.0, 0.0, 0.0)
     roll, pitch, _ = out[-1].roll_pitch_yaw_deg
@@ -94,21 +105,21 @@ def test_without_integral_the_bias_leaves_an_error_of_bias_over_kp() -> None:
 
 
 def test_invalid_samples_are_skipped_and_counted() -> None:
-    clean = _feed(MahonyEstimator(), 50)
-    est = MahonyEstimator()
+    clean = _feed(MahonyEstimator({"preset": "seed"}), 50)
+    est = MahonyEstimator({"preset": "seed"})
     noisy = _feed(est, 50, bad_every=5)
     assert [e.q_body_to_ned for e in noisy] == [e.q_body_to_ned for e in clean]
     assert est.diagnostics()["invalid"]["gyro"] == 10
 
 
 def test_state_round_trip_continues_identically() -> None:
-    ref = MahonyEstimator({"ki": 0.3})
+    ref = MahonyEstimator({"preset": "seed", "ki": 0.3})
     _tilt(ref)
     whole = _feed(ref, 400, gyro=BIAS_RAD_S)
-    a = MahonyEstimator({"ki": 0.3})
+    a = MahonyEstimator({"preset": "seed", "ki": 0.3})
     _tilt(a)
     _feed(a, 150, gyro=BIAS_RAD_S)
-    b = MahonyEstimator({"ki": 0.3})
+    b = MahonyEstimator({"preset": "seed", "ki": 0.3})
     b.set_state(json.loads(json.dumps(a.get_state())))
     rest = _feed(b, 250, gyro=BIAS_RAD_S, t0=150 * 5_000_000)
     assert [e.q_body_to_ned for e in rest] == [e.q_body_to_ned for e in whole[150:]]

@@ -1,4 +1,4 @@
-"""mahony (ESP32 firmware defaults: Kp 5, Ki 0, gate 0.75-1.25 g) against data set A's truth.
+"""mahony, ``preset: seed`` (ESP32 firmware: Kp 5, Ki 0, gate 0.75-1.25 g), vs data set A's truth.
 
 First 7 s (5 s static, 2 s motion ramp), started at the identity. Bounds (degrees), set from
 this port's errors with about 50 % margin: 9-DOF, t in [5, 7] s: total RMS 0.24 (bound 0.4),
@@ -17,7 +17,7 @@ from imuhal_filters.mahony.estimator import MahonyEstimator
 
 def test_9dof_converges_to_truth_within_stated_bounds() -> None:
     t, gyro, accel, mag, truth = load_head()
-    q = run_batch(MahonyEstimator(), gyro, accel, mag)
+    q = run_batch(MahonyEstimator({"preset": "seed"}), gyro, accel, mag)
     total, tilt = attitude_errors(q, truth, np.flatnonzero(t >= 5.0))
     assert np.sqrt(np.mean(total**2)) < 0.4
     assert total.max() < 0.6
@@ -26,7 +26,7 @@ def test_9dof_converges_to_truth_within_stated_bounds() -> None:
 
 def test_heading_error_shrinks_while_static() -> None:
     _, gyro, accel, mag, truth = load_head()
-    q = run_batch(MahonyEstimator(), gyro, accel, mag)
+    q = run_batch(MahonyEstimator({"preset": "seed"}), gyro, accel, mag)
     total, _ = attitude_errors(q, truth, np.array([0, 200, 600, 999]))
     assert total[0] > 19.0  # starts 20 deg off in heading
     assert total[0] > total[1] > total[2] > total[3]
@@ -35,6 +35,6 @@ def test_heading_error_shrinks_while_static() -> None:
 
 def test_6dof_tilt_stays_within_bound() -> None:
     t, gyro, accel, _, truth = load_head()
-    q = run_batch(MahonyEstimator(), gyro, accel, None)
+    q = run_batch(MahonyEstimator({"preset": "seed"}), gyro, accel, None)
     _, tilt = attitude_errors(q, truth, np.flatnonzero(t >= 1.0))
     assert tilt.max() < 0.4

@@ -20,6 +20,9 @@ SETTLED = 200  # rows: the first 5 s
 # The barometer-only filter at its best on this data (sigma_a swept 0.1..12 m/s^2: the
 # climb-rate error is smallest near 3), so the comparison is not against a straw man.
 BARO_TUNED = {"accel_noise_m_s2": 3.0, "altitude_noise_m": 0.3}
+ESP32 = {"preset": "reference"}
+"""The esp32 reference tuning, whose figures the bounds below quote (data set C's barometer
+is noisier than the seed boards' that the defaults are tuned for)."""
 
 
 def _flight() -> np.ndarray:
@@ -33,7 +36,7 @@ def _rms(x: np.ndarray) -> float:
 def test_kf3_climb_rate_error_is_well_below_the_barometer_only_filter() -> None:
     d = _flight()
     z, a, v_true = d["z_baro_cm"] / 100, d["a_meas_cms2"] / 100, d["v_true_cms"] / 100
-    kf3 = run_batch(z, a, DT_S)
+    kf3 = run_batch(z, a, DT_S, ESP32)
     baro = run_baro_batch(z, DT_S, BARO_TUNED)
     kf3_rms = _rms((kf3.climb_m_s - v_true)[SETTLED:])
     baro_rms = _rms((baro.climb_m_s - v_true)[SETTLED:])
@@ -45,7 +48,7 @@ def test_kf3_climb_rate_error_is_well_below_the_barometer_only_filter() -> None:
 def test_kf3_altitude_error_is_a_third_of_the_raw_barometer_noise() -> None:
     d = _flight()
     z, z_true = d["z_baro_cm"] / 100, d["z_true_cm"] / 100
-    kf3 = run_batch(z, d["a_meas_cms2"] / 100, DT_S)
+    kf3 = run_batch(z, d["a_meas_cms2"] / 100, DT_S, ESP32)
     raw_rms = _rms((z - z_true)[SETTLED:])
     assert 0.25 < raw_rms < 0.35  # the data is what the README says
     assert _rms((kf3.altitude_m - z_true)[SETTLED:]) < raw_rms / 3
@@ -53,7 +56,7 @@ def test_kf3_altitude_error_is_a_third_of_the_raw_barometer_noise() -> None:
 
 def test_accel_bias_converges_to_the_true_bias_within_5_cm_s2_rms() -> None:
     d = _flight()
-    kf3 = run_batch(d["z_baro_cm"] / 100, d["a_meas_cms2"] / 100, DT_S)
+    kf3 = run_batch(d["z_baro_cm"] / 100, d["a_meas_cms2"] / 100, DT_S, ESP32)
     assert kf3.accel_bias_m_s2 is not None
     error = kf3.accel_bias_m_s2 - d["bias_true_cms2"] / 100
     # starts at 0 against a true 0.15 m/s^2; after the 5 s static start it tracks the slowly
@@ -93,7 +96,8 @@ def test_step_climb_is_detected_without_the_barometer_only_lag() -> None:
     for seed in range(5):
         t, z_baro, a_meas, v_true, t_step = _step_climb(seed)
         truth = _delay_s(t, v_true, t_step, 1.0)
-        kf3_lag.append(_delay_s(t, run_batch(z_baro, a_meas, DT_S).climb_m_s, t_step, 1.0) - truth)
+        kf3 = run_batch(z_baro, a_meas, DT_S, ESP32)
+        kf3_lag.append(_delay_s(t, kf3.climb_m_s, t_step, 1.0) - truth)
         baro_lag.append(
             _delay_s(t, run_baro_batch(z_baro, DT_S, BARO_TUNED).climb_m_s, t_step, 1.0) - truth
         )

@@ -69,8 +69,10 @@ def test_mode_defaults_are_the_reference_parameters(mode: Kf3Mode) -> None:
     tag, _ = REFERENCE_RUNS[mode]
     ref = _reference(tag)
     d = _inputs()
-    # The project-unit batch with only `mode` set: defaults, P0 and m <-> cm conversion.
-    r = run_batch(d["z_baro_cm"] / 100.0, d["a_meas_cms2"] / 100.0, DT_S, {"mode": mode.value})
+    # The project-unit batch with `mode` and the reference preset: the mode's variances, P0
+    # and m <-> cm conversion.
+    r = run_batch(d["z_baro_cm"] / 100.0, d["a_meas_cms2"] / 100.0, DT_S,
+                  {"mode": mode.value, "preset": "reference"})
     rows = ref["idx"].astype(int)
     np.testing.assert_allclose(r.altitude_m[rows] * 100.0, ref["z_cm"], rtol=0, atol=ALT_TOL_CM)
     np.testing.assert_allclose(r.climb_m_s[rows] * 100.0, ref["v_cms"], rtol=0, atol=CLIMB_TOL_CMS)

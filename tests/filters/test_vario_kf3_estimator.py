@@ -77,12 +77,15 @@ def test_runs_once_per_baro_sample_on_the_mean_of_the_imu_accels_since_the_last_
     out = _run(VarioKf3Estimator(), _stream(accel_up, z))
     assert len(out) == len(z)
 
-    # The same filter driven by hand in cm: boxcar means of each 5 IMU samples, dt 25 ms.
+    # The same filter driven by hand in cm: boxcar means of each 5 IMU samples, dt 25 ms,
+    # and, as the references do, a step on the first sample too
     kf = configured_core(VarioKf3Settings(), float(z[0]))
     means = accel_up.reshape(-1, BARO_EVERY).mean(axis=1)
-    for k in range(1, len(z)):
+    for k in range(len(z)):
         kf.predict(means[k] * 100.0, 0.025)
         kf.update(z[k] * 100.0)
+        if k == 0:
+            continue
         assert out[k].altitude_m == pytest.approx(kf.z / 100.0, abs=1e-9)
         assert out[k].climb_m_s == pytest.approx(kf.v / 100.0, abs=1e-9)
         assert out[k].accel_bias_m_s2 == pytest.approx(kf.bias / 100.0, abs=1e-9)
@@ -106,18 +109,21 @@ def test_accel_sample_with_attitude_quaternion_equals_ahrs_linear_accel() -> Non
             # same vertical acceleration plus some horizontal: specific force = R^T (a - g)
             a_ned = np.array([0.3, -0.2, item.linear_accel_ned_m_s2[2]])  # type: ignore[index]
             f_body = r.T @ (a_ned - np.array([0.0, 0.0, STANDARD_GRAVITY_M_S2]))
+            raw.append(_attitude(item.t_ns, None, q=q))
             raw.append(AccelSample(t_ns=item.t_ns, device="imu", frame=Frame.BODY_NED,
                                    accel_m_s2=tuple(f_body)))
-            raw.append(_attitude(item.t_ns, None, q=q))
         else:
             raw.append(item)
     out_linear = _run(VarioKf3Estimator(), linear)
     est_raw = VarioKf3Estimator()
     out_raw = _run(est_raw, raw)
-    # the very first accel sample precedes any quaternion and is counted, not used
-    assert est_raw.diagnostics()["accel_samples_without_attitude"] == 1
-    np.testing.assert_allclose([e.climb_m_s for e in out_raw[1:]],
-                               [e.climb_m_s for e in out_linear[1:]], rtol=0, atol=1e-9)
+    assert est_raw.diagnostics()["accel_samples_without_attitude"] == 0
+    np.testing.assert_allclose([e.climb_m_s for e in out_raw],
+                               [e.climb_m_s for e in out_linear], rtol=0, atol=1e-9)
+    # an accel sample before any quaternion is counted, not used
+    early = VarioKf3Estimator()
+    early.process(raw[1])
+    assert early.diagnostics()["accel_samples_without_attitude"] == 1
 
 
 def test_accel_samples_are_ignored_when_the_ahrs_supplies_linear_accel() -> None:
@@ -193,7 +199,7 @@ def test_reset_forgets_everything() -> None:
 
 
 def test_si_settings_reach_the_core_in_cm_units() -> None:
-    default = configured_core(VarioKf3Settings(), 12.0)
+    default = configured_core(VarioKf3Settings(preset="reference"), 12.0)
     assert (default.z_meas_variance, default.accel_variance, default.bias_variance) == (
         300.0, 50_000.0, 1.0)
     assert default.z == pytest.approx(1200.0)

@@ -12,6 +12,13 @@ What every AHRS plugin shares lives here so the filters themselves are only thei
   reference code), magnetometer values in uT, gyro in rad/s, all in body NED axes;
 - each step emits an :class:`AttitudeEstimate` with the body -> NED quaternion and, when an
   accel sample is at hand, the gravity-compensated acceleration in NED (m/s^2);
+- gyro and accelerometer values beyond the configured physical full scale, NaN or infinite
+  are never fused: they are counted (``beyond_full_scale``) and dropped (``limits``);
+- with ``initial_attitude: first_sample`` (the default) the first accelerometer sample (and
+  the first magnetometer sample, for a filter that uses one) sets the attitude (``alignment``)
+  and nothing is emitted before it; ``identity`` is the references' start;
+- the kinematic acceleration from a velocity, airspeed or nominal airspeed source is removed
+  from the specific force before the kernel sees it (``turn``);
 - the state (quaternion, held samples, counters, filter internals) can be saved and restored.
 
 Subclasses implement ``_reset_filter``, ``_step``, ``_filter_state`` and ``_set_filter_state``
@@ -23,7 +30,7 @@ from __future__ import annotations
 from abc import abstractmethod
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from pydantic import Field
@@ -31,23 +38,51 @@ from pydantic import Field
 from imuhal.core.frames import FloatArray
 from imuhal.core.samples import (
     AccelSample,
+    AirspeedSample,
     Channel,
     Frame,
     GyroSample,
     MagSample,
     Sample,
+    VelocitySample,
 )
 from imuhal.estimation.base import Estimator, EstimatorSettings
 from imuhal.estimation.gravity import linear_accel_ned_m_s2
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate
+from imuhal_filters.common.alignment import aligned_quaternion
 from imuhal_filters.common.gate import gravity_positive_g
+from imuhal_filters.common.limits import (
+    DEFAULT_ACCEL_FULL_SCALE_M_S2,
+    DEFAULT_GYRO_FULL_SCALE_RAD_S,
+    within_full_scale,
+)
+from imuhal_filters.common.presets import PresetSettings
 from imuhal_filters.common.quat import IDENTITY, Quat, Vec
+from imuhal_filters.common.turn import (
+    KinematicAcceleration,
+    TurnCompensationSettings,
+    compensated,
+)
 
 _NS = 1e-9
 
 
-class AhrsSettings(EstimatorSettings):
+class AhrsLimitSettings(EstimatorSettings):
+    """The physical full scales beyond which a value is never fused (``limits``)."""
+
+    gyro_full_scale_rad_s: float = Field(DEFAULT_GYRO_FULL_SCALE_RAD_S, gt=0.0)
+    """A gyro component beyond +-this (rad/s) is impossible: the sample is dropped, counted."""
+    accel_full_scale_m_s2: float = Field(DEFAULT_ACCEL_FULL_SCALE_M_S2, gt=0.0)
+    """An accelerometer component beyond +-this (m/s^2) is dropped and counted."""
+
+
+class AhrsSettings(PresetSettings, AhrsLimitSettings, TurnCompensationSettings):
     """Settings every AHRS shares. Times in seconds."""
+
+    initial_attitude: Literal["first_sample", "identity"] = "first_sample"
+    """``first_sample``: the first accel (and mag) sample sets the attitude (tilt from
+    gravity, heading from the tilt-compensated field); ``identity``: start level, facing
+    north, as the reference implementations do (``preset: reference``)."""
 
     sample_period_s: float = Field(0.005, gt=0.0)
     """Nominal gyro period: the first step, and any step whose timestamps cannot be used."""
@@ -79,7 +114,8 @@ class AhrsEstimator(Estimator):
     """An attitude estimator stepped once per gyro sample. See the module docstring."""
 
     Settings: ClassVar[type[EstimatorSettings]] = AhrsSettings
-    consumes: ClassVar[tuple[type, ...]] = (GyroSample, AccelSample, MagSample)
+    consumes: ClassVar[tuple[type, ...]] = (GyroSample, AccelSample, MagSample,
+                                            VelocitySample, AirspeedSample)
     uses_mag: ClassVar[bool] = True
 
     settings: AhrsSettings
@@ -115,15 +151,30 @@ class AhrsEstimator(Estimator):
             "dt_fallbacks": 0,
             "stale_accel": 0,
             "stale_mag": 0,
+            "beyond_full_scale": {Channel.GYRO.value: 0, Channel.ACCEL.value: 0},
         }
         self._q = IDENTITY
+        identity = self.settings.initial_attitude == "identity"
+        self._tilt_aligned = identity
+        self._heading_aligned = identity or not self.uses_mag
+        self._kinematics = KinematicAcceleration(self.settings)
         self._reset_filter()
 
     def process(self, item: Sample | Estimate) -> list[Estimate]:
+        if isinstance(item, VelocitySample):
+            if item.valid and within_full_scale(item.velocity_ned_m_s, None):
+                self._kinematics.on_velocity(item)
+            return []
+        if isinstance(item, AirspeedSample):
+            if item.valid and within_full_scale((item.airspeed_m_s,), None):
+                self._kinematics.on_airspeed(item)
+            return []
         if not isinstance(item, (GyroSample, AccelSample, MagSample)):
             return []
         if not item.valid:
             self._counters["invalid"][item.channel.value] += 1
+            return []
+        if not self._within_limits(item):
             return []
         if item.frame is not Frame.BODY_NED:
             raise ValueError(
@@ -148,7 +199,10 @@ class AhrsEstimator(Estimator):
             "accel_t_ns": self._accel_t_ns,
             "mag_ut": None if self._mag_ut is None else list(self._mag_ut),
             "mag_t_ns": self._mag_t_ns,
-            "counters": {**self._counters, "invalid": dict(self._counters["invalid"])},
+            "counters": {**self._counters, "invalid": dict(self._counters["invalid"]),
+                         "beyond_full_scale": dict(self._counters["beyond_full_scale"])},
+            "aligned": [self._tilt_aligned, self._heading_aligned],
+            "kinematics": self._kinematics.as_dict(),
             "filter": self._filter_state(),
         }
 
@@ -161,11 +215,17 @@ class AhrsEstimator(Estimator):
         self._mag_ut = None if state["mag_ut"] is None else _vec(state["mag_ut"])
         self._mag_t_ns = state["mag_t_ns"]
         counters = state["counters"]
-        self._counters = {**counters, "invalid": dict(counters["invalid"])}
+        self._counters = {**counters, "invalid": dict(counters["invalid"]),
+                          "beyond_full_scale": dict(counters["beyond_full_scale"])}
+        self._tilt_aligned, self._heading_aligned = (bool(v) for v in state["aligned"])
+        self._kinematics.load_dict(state["kinematics"])
         self._set_filter_state(state["filter"])
 
     def diagnostics(self) -> dict[str, Any]:
-        return {**self._counters, "invalid": dict(self._counters["invalid"])}
+        return {**self._counters, "invalid": dict(self._counters["invalid"]),
+                "beyond_full_scale": dict(self._counters["beyond_full_scale"]),
+                "turn_compensation": {**self._kinematics.counts,
+                                      "source": self._kinematics.source}}
 
     # ------------------------------------------------------------------ Python API
     @property
@@ -183,25 +243,78 @@ class AhrsEstimator(Estimator):
         """One step from plain vectors (body NED; rad/s, specific force m/s^2, uT).
 
         ``dt_s`` defaults to ``sample_period_s``. Returns the new quaternion, or None while the
-        filter has no attitude yet (imufilter before its first accelerometer sample).
+        filter has no attitude yet (before the first accelerometer sample unless
+        ``initial_attitude`` is ``identity``). Values beyond the full scales are not fused (a
+        bad gyro returns None; a bad accelerometer is dropped). Only the nominal airspeed
+        compensates turns here (velocity and airspeed need time stamps: use ``process``).
         """
-        accel_g = None if accel_m_s2 is None else gravity_positive_g(_vec(accel_m_s2))
+        s = self.settings
+        gyro = _vec(gyro_rad_s)
+        if not within_full_scale(gyro, s.gyro_full_scale_rad_s):
+            self._counters["beyond_full_scale"][Channel.GYRO.value] += 1
+            return None
+        accel = None if accel_m_s2 is None else _vec(accel_m_s2)
+        if accel is not None and not within_full_scale(accel, s.accel_full_scale_m_s2):
+            self._counters["beyond_full_scale"][Channel.ACCEL.value] += 1
+            accel = None
         mag = _vec(mag_ut) if (mag_ut is not None and self.uses_mag) else None
-        dt = self.settings.sample_period_s if dt_s is None else float(dt_s)
-        self._counters["steps"] += 1
-        if self._step(ImuStep(_vec(gyro_rad_s), accel_g, mag, dt)) is None:
+        if mag is not None and not within_full_scale(mag, None):
+            mag = None
+        dt = s.sample_period_s if dt_s is None else float(dt_s)
+        if self._run_step(None, gyro, accel, mag, dt) is None:
             return None
         return np.array(self._q)
 
     # ------------------------------------------------------------------ internals
+    def _within_limits(self, item: GyroSample | AccelSample | MagSample) -> bool:
+        """False (and counted) for a value no sensor can report: beyond full scale, NaN, inf."""
+        s = self.settings
+        if isinstance(item, GyroSample):
+            ok = within_full_scale(item.gyro_rad_s, s.gyro_full_scale_rad_s)
+        elif isinstance(item, AccelSample):
+            ok = within_full_scale(item.accel_m_s2, s.accel_full_scale_m_s2)
+        else:
+            ok = within_full_scale(item.mag_ut, None)
+        if not ok:
+            self._counters["beyond_full_scale"].setdefault(item.channel.value, 0)
+            self._counters["beyond_full_scale"][item.channel.value] += 1
+        return ok
+
+    def _align(self, accel: Vec | None, mag: Vec | None) -> bool:
+        """Set the attitude from the first accel (and mag) sample; True once tilt is set."""
+        if accel is None:
+            return self._tilt_aligned
+        if not self._tilt_aligned or (not self._heading_aligned and mag is not None):
+            q = aligned_quaternion(gravity_positive_g(accel), mag)
+            if q is None:
+                return self._tilt_aligned
+            self._q = q
+            self._tilt_aligned = True
+            self._heading_aligned = self._heading_aligned or mag is not None
+            self._on_aligned()
+        return True
+
+    def _on_aligned(self) -> None:
+        """Hook: the attitude was just set from the sensors (filters may reset internals)."""
+
+    def _run_step(self, t_ns: int | None, gyro: Vec, accel: Vec | None, mag: Vec | None,
+                  dt: float) -> dict[str, Any] | None:
+        """Compensate, align if needed, and run one kernel step; None: no estimate yet."""
+        kin = self._kinematics.step(t_ns, gyro)
+        if accel is not None and kin != (0.0, 0.0, 0.0):
+            accel = compensated(accel, kin)
+        if not self._align(accel, mag):
+            return None
+        accel_g = None if accel is None else gravity_positive_g(accel)
+        self._counters["steps"] += 1
+        return self._step(ImuStep(gyro, accel_g, mag, dt))
+
     def _on_gyro(self, gyro: GyroSample) -> list[Estimate]:
         dt = self._dt_for(gyro.t_ns)
         self._last_gyro_t_ns = gyro.t_ns
         accel = self._fresh(self._accel_m_s2, self._accel_t_ns, gyro.t_ns, "stale_accel")
         mag = self._fresh(self._mag_ut, self._mag_t_ns, gyro.t_ns, "stale_mag")
-        accel_g = None if accel is None else gravity_positive_g(accel)
-        self._counters["steps"] += 1
-        diag = self._step(ImuStep(_vec(gyro.gyro_rad_s), accel_g, mag, dt))
+        diag = self._run_step(gyro.t_ns, _vec(gyro.gyro_rad_s), accel, mag, dt)
         if diag is None:
             return []
         lin = None
@@ -214,7 +327,8 @@ class AhrsEstimator(Estimator):
                 source=self.instance,
                 q_body_to_ned=self._q,
                 linear_accel_ned_m_s2=lin,
-                diagnostics={"dt_s": dt, **diag},
+                diagnostics={"dt_s": dt, "turn_compensation": self._kinematics.source,
+                             **diag},
             )
         ]
 

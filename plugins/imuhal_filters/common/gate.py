@@ -12,7 +12,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from pydantic import Field
+
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
+from imuhal.estimation.base import EstimatorSettings
 from imuhal_filters.common.quat import Vec
 
 
@@ -54,3 +57,30 @@ class AccelGate:
         """True when the magnitude of ``accel_g`` (any sign convention, in g) is in the window."""
         n = math.sqrt(accel_g[0] ** 2 + accel_g[1] ** 2 + accel_g[2] ** 2)
         return self.lower_g < n < self.upper_g
+
+
+def soft_gate_weight(accel_g: Vec, width_g: float | None) -> float:
+    """How much of its correction an AHRS applies for an accelerometer reading (any sign
+    convention, in g, turn-compensated): 1 / (1 + (| |a| - 1 | / width)^2).
+
+    A hard window (``AccelGate``) trusts a reading at 1.39 g fully and one at 1.41 g not at
+    all; this weight fades the correction smoothly as the reading departs from 1 g, so a
+    launch, a pull-up or hand-held shaking, whose accelerations the turn compensation does not
+    know, tilt the filter much less, and the correction is back in full as soon as the board
+    moves steadily again. ``width_g`` None: weight 1 always.
+    """
+    if width_g is None:
+        return 1.0
+    n = math.sqrt(accel_g[0] ** 2 + accel_g[1] ** 2 + accel_g[2] ** 2)
+    d = (n - 1.0) / width_g
+    return 1.0 / (1.0 + d * d)
+
+
+class SoftGateSettings(EstimatorSettings):
+    """The soft accelerometer gate of the complementary filters (madgwick, mahony)."""
+
+    accel_soft_gate_g: float | None = Field(0.05, gt=0.0)
+    """Fade the accelerometer correction as the (turn-compensated) reading departs from 1 g:
+    weight 1 / (1 + (| |a| - 1 g | / this)^2); None: full correction at any magnitude (the
+    references). 0.05 g chosen on the emulated ``thermal`` launch and ``rc-flight``
+    (docs/estimators.md)."""

@@ -21,10 +21,20 @@ import numpy as np
 
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.core.frames import FloatArray
-from imuhal.core.samples import AccelSample, Frame, GyroSample, MagSample, Sample
+from imuhal.core.samples import (
+    AccelSample,
+    AirspeedSample,
+    Frame,
+    GyroSample,
+    MagSample,
+    Sample,
+    VelocitySample,
+)
 from imuhal.estimation.base import Estimator, EstimatorSettings
 from imuhal.estimation.gravity import linear_accel_ned_m_s2
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate
+from imuhal_filters.common.limits import within_full_scale
+from imuhal_filters.common.turn import KinematicAcceleration
 from imuhal_filters.freescale.coords import (
     accel_reading_g,
     quat_body_to_ned,
@@ -39,7 +49,7 @@ from imuhal_filters.freescale.settings import (
 
 _COUNTERS = ("gyro_samples", "accel_samples", "mag_samples", "kalman_steps",
              "skipped_invalid", "skipped_not_body_frame", "windows_without_accel_or_mag",
-             "windows_with_stale_accel_or_mag")
+             "windows_with_stale_accel_or_mag", "beyond_full_scale")
 
 
 class _Latest:
@@ -90,11 +100,16 @@ class _FreescaleEstimator(Estimator):
         self._pending = False
         self._last_step: KalmanStep | None = None
         self._counts = dict.fromkeys(_COUNTERS, 0)
+        self._kinematics = KinematicAcceleration(self.settings)
+        self._kinematic_body_m_s2 = np.zeros(3)
 
     # -- Estimator interface ----------------------------------------------------------------
 
     def process(self, item: Sample | Estimate) -> list[Estimate]:
         if not isinstance(item, self.consumes):
+            return []
+        if isinstance(item, VelocitySample | AirspeedSample):
+            self._on_speed(item)
             return []
         assert isinstance(item, GyroSample | AccelSample | MagSample)
         vec = np.asarray(item.vector, dtype=float)
@@ -104,18 +119,24 @@ class _FreescaleEstimator(Estimator):
         if item.frame is not Frame.BODY_NED:
             self._counts["skipped_not_body_frame"] += 1
             return []
+        if not self._within_full_scale(item):
+            self._counts["beyond_full_scale"] += 1
+            return []
         cs = self.settings.coordinate_system
         out: list[Estimate] = []
         if isinstance(item, GyroSample):
             if self._pending:  # the window's accel/mag never caught up: use what there is
                 out += self._run_step()
             self._counts["gyro_samples"] += 1
+            self._kinematic_body_m_s2 = np.array(self._kinematics.step(item.t_ns,
+                                                                       item.gyro_rad_s))
             self._gyro.append(to_sensor_vector(cs, np.degrees(vec)))
             self._gyro_t_ns = item.t_ns
             if len(self._gyro) == self.settings.oversample_ratio:
                 self._pending = True
         elif isinstance(item, AccelSample):
             self._counts["accel_samples"] += 1
+            vec = vec - self._kinematic_body_m_s2  # turn compensation (zero without a source)
             self._accel.add(item.t_ns, accel_reading_g(cs, vec / STANDARD_GRAVITY_M_S2))
         else:
             self._counts["mag_samples"] += 1
@@ -123,6 +144,24 @@ class _FreescaleEstimator(Estimator):
         if self._pending and self._caught_up():
             out += self._run_step()
         return out
+
+    def _on_speed(self, item: VelocitySample | AirspeedSample) -> None:
+        if not item.valid:
+            self._counts["skipped_invalid"] += 1
+        elif isinstance(item, VelocitySample):
+            if within_full_scale(item.velocity_ned_m_s, None):
+                self._kinematics.on_velocity(item)
+        elif within_full_scale((item.airspeed_m_s,), None):
+            self._kinematics.on_airspeed(item)
+
+    def _within_full_scale(self, item: GyroSample | AccelSample | MagSample) -> bool:
+        """A gyro or accel value beyond the physical full scale is never fused (counted)."""
+        s = self.settings
+        if isinstance(item, GyroSample):
+            return within_full_scale(item.gyro_rad_s, s.gyro_full_scale_rad_s)
+        if isinstance(item, AccelSample):
+            return within_full_scale(item.accel_m_s2, s.accel_full_scale_m_s2)
+        return True
 
     def _caught_up(self) -> bool:
         """The accel (and mag) samples of the tick that closed the gyro window have arrived."""
@@ -134,7 +173,10 @@ class _FreescaleEstimator(Estimator):
         self._pending = False
         gyro = np.array(self._gyro)
         self._gyro = []
-        average = self.settings.accel_mag_input == "average"
+        # the lock that replaces the reference's init-only step uses the window's mean: a
+        # single sample's noise would stay in the heading for seconds
+        average = self.settings.accel_mag_input == "average" or not (
+            self._kf.locked or self.settings.initialise_on_first_step)
         sensors = (self._accel, self._mag) if self.use_mag else (self._accel,)
         stale = any(s.count == 0 for s in sensors)
         accel = self._accel.take(average)
@@ -191,6 +233,8 @@ class _FreescaleEstimator(Estimator):
             "mag": self._mag.as_dict(),
             "pending": self._pending,
             "counts": dict(self._counts),
+            "kinematics": self._kinematics.as_dict(),
+            "kinematic_body_m_s2": self._kinematic_body_m_s2.tolist(),
         }
 
     def set_state(self, state: dict[str, Any]) -> None:
@@ -202,6 +246,9 @@ class _FreescaleEstimator(Estimator):
         self._mag.load_dict(state["mag"])
         self._pending = bool(state["pending"])
         self._counts = {k: int(state["counts"].get(k, 0)) for k in _COUNTERS}
+        if "kinematics" in state:
+            self._kinematics.load_dict(state["kinematics"])
+            self._kinematic_body_m_s2 = np.array(state["kinematic_body_m_s2"], dtype=float)
 
     def diagnostics(self) -> dict[str, Any]:
         out: dict[str, Any] = dict(self._counts)
@@ -224,7 +271,8 @@ class Freescale9DofEstimator(_FreescaleEstimator):
         "disturbance, jamming detection, inclination tracking)"
     )
     Settings: ClassVar[type[EstimatorSettings]] = Freescale9DofSettings
-    consumes: ClassVar[tuple[type, ...]] = (GyroSample, AccelSample, MagSample)
+    consumes: ClassVar[tuple[type, ...]] = (GyroSample, AccelSample, MagSample,
+                                            VelocitySample, AirspeedSample)
     use_mag: ClassVar[bool] = True
 
 
@@ -242,5 +290,6 @@ class Freescale6DofEstimator(_FreescaleEstimator):
         "acceleration)"
     )
     Settings: ClassVar[type[EstimatorSettings]] = Freescale6DofSettings
-    consumes: ClassVar[tuple[type, ...]] = (GyroSample, AccelSample)
+    consumes: ClassVar[tuple[type, ...]] = (GyroSample, AccelSample, VelocitySample,
+                                            AirspeedSample)
     use_mag: ClassVar[bool] = False

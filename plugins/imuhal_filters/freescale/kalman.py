@@ -170,6 +170,8 @@ class FreescaleKalman:
         if not self.locked:
             if self.use_mag:
                 r0, self.inclination_deg = ecompass(cs, accel, mag)
+                if self._s9().lock_sets_inclination:
+                    self._set_inclination(self.inclination_deg)
             else:
                 r0 = tilt_matrix(cs, accel)
             self.q = quat_from_matrix_fsl(r0)
@@ -192,7 +194,7 @@ class FreescaleKalman:
         m_err = mag - m_gyro
 
         c = self._measurement_matrix(g_gyro, m_gyro)
-        k = self._gain(c)
+        k = self._gain(c, self._accel_noise_factor(accel))
 
         # a posteriori error vector; d always sees both measurements
         xe = k[:, :3] @ g_err
@@ -250,10 +252,23 @@ class FreescaleKalman:
         qv_mm = s9.qv_mag_ut2 + s9.qw_mag_disturbance_ut2 + DEG * DEG * dt2 * field**2 * gyro_var
         return np.array([qv_aa] * 3 + [qv_mm] * 3)
 
-    def _gain(self, c: FloatArray) -> FloatArray:
+    def _accel_noise_factor(self, accel_g: FloatArray) -> float:
+        """How much less the accelerometer is trusted this step: (1 + (| |a| - 1 | / w)^2)^2
+        for the soft gate width w (g), 1 without one (the reference). Accelerations the
+        linear-acceleration model cannot follow (a loop, a pull-up, a launch) then move the
+        attitude much less."""
+        width = self.s.accel_soft_gate_g
+        if width is None:
+            return 1.0
+        d = (float(np.linalg.norm(accel_g)) - 1.0) / width
+        return (1.0 + d * d) ** 2
+
+    def _gain(self, c: FloatArray, accel_noise_factor: float = 1.0) -> FloatArray:
         """K = Qw C^T S^-1 with S = C Qw C^T + Qv (Qw stands in for the a priori P)."""
         qw_ct = self.qw @ c.T
-        innov = c @ qw_ct + np.diag(self._measurement_noise())
+        noise = self._measurement_noise()
+        noise[:3] *= accel_noise_factor
+        innov = c @ qw_ct + np.diag(noise)
         innov = np.triu(innov) + np.triu(innov, 1).T  # the reference fills S from its top half
         if self.use_mag and not self._s9().full_innovation_inverse:
             # build 422: only the gravity block is inverted in place; the rest stays S
@@ -262,6 +277,18 @@ class FreescaleKalman:
         else:
             inv = _inverse_or_identity(innov)
         return qw_ct @ inv
+
+    def _set_inclination(self, inclination_deg: float) -> None:
+        """Point the reference geomagnetic vector at ``inclination_deg`` (clamped), length B."""
+        s9 = self._s9()
+        lim = s9.max_inclination_deg
+        d = math.radians(max(-lim, min(lim, inclination_deg)))
+        ned = s9.coordinate_system is CoordinateSystem.NED
+        north, sign_down = (0, 1.0) if ned else (1, -1.0)
+        self.inclination_deg = math.degrees(d)
+        self.m_global[:] = 0.0
+        self.m_global[north] = s9.field_strength_ut * math.cos(d)
+        self.m_global[2] = sign_down * s9.field_strength_ut * math.sin(d)
 
     def _track_inclination(self, d_global: FloatArray) -> None:
         """Rotate the reference geomagnetic vector towards the observed disturbance, keeping

@@ -22,7 +22,7 @@ from pydantic import Field
 
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.core.frames import FloatArray
-from imuhal.core.samples import AccelSample, GyroSample
+from imuhal.core.samples import AccelSample, AirspeedSample, GyroSample, VelocitySample
 from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
 from imuhal_filters.common.gate import specific_force_m_s2
 from imuhal_filters.common.quat import Vec, to_global, to_local
@@ -37,6 +37,13 @@ from imuhal_filters.imufilter.velocity import ZERO, VelocityState, velocity_step
 
 
 class ImuFilterSettings(AhrsSettings):
+    PRESETS: ClassVar[dict[str, dict[str, Any]]] = {
+        "reference": {"turn_compensation": False},
+        "seed": {"turn_compensation": False},
+    }
+
+    initial_attitude: Literal["first_sample"] = "first_sample"
+    """The library itself starts from the first accelerometer sample (tilt, yaw 0)."""
     gain: float = Field(0.5, ge=0.0)
     """The library's ALPHA (DEFAULT_GAIN): correction rate; smaller = smoother, slower."""
     sd_acc_g: float = Field(0.2, gt=0.0)
@@ -55,7 +62,8 @@ class ImuFilterEstimator(AhrsEstimator):
         "RCmags imuFilter: 6-DOF quaternion filter with a Kalman-like accel band, and velocity"
     )
     Settings: ClassVar[type[ImuFilterSettings]] = ImuFilterSettings  # type: ignore[assignment]
-    consumes: ClassVar[tuple[type, ...]] = (GyroSample, AccelSample)
+    consumes: ClassVar[tuple[type, ...]] = (GyroSample, AccelSample, VelocitySample,
+                                            AirspeedSample)
     uses_mag: ClassVar[bool] = False
     settings: ImuFilterSettings
 

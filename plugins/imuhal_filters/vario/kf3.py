@@ -148,7 +148,8 @@ class Kalman3:
 
         if ref.adaptive_accel_variance:
             lo, hi = AVARIO_ACCEL_VARIANCE_RANGE
-            self.accel_variance = min(max(abs(accel) / AVARIO_ACCEL_VARIANCE_DIVISOR, lo), hi)
+            variance = abs(accel) / AVARIO_ACCEL_VARIANCE_DIVISOR
+            self.accel_variance = float(min(max(variance, lo), hi))
         # The covariance follows the exact transition F either way: the references differ
         # only in how they advance the state.
         dt2 = dt * dt

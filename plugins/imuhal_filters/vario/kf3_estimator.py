@@ -11,9 +11,24 @@ Inputs (project units, converted to the cm-unit core at this boundary only):
 
 The IMU-rate upward accelerations are averaged over each barometer interval (low-pass and
 down-sample, as the seed does) and the filter runs predict(mean accel, dt) then update(altitude)
-once per valid pressure sample, dt from the pressure samples' ``t_ns``. The first valid
-pressure sample only initialises (altitude = measurement, climb 0, bias = initial_bias). An
-interval with no acceleration at all predicts with zero true acceleration (a_meas = bias
+once per valid pressure sample, dt from the pressure samples' ``t_ns``. The acceleration paired
+with a barometer sample is the mean over the interval that sample closes (the seed author's
+firmware pairs it with the previous interval's mean instead; on the author's log the
+innovation was no better either way, and the current interval is the one the prediction
+integrates across: docs/estimators.md, "Timing").
+
+The first valid pressure sample initialises (altitude = measurement, climb 0, bias =
+initial_bias) and, as in the references, also gets its own predict/update step with the
+acceleration that came with it. The references know their fixed period; here the step length
+is only known at the second sample, so the first sample's step runs then, just before the
+second one's (the estimate emitted at the first sample is the initial state).
+
+Innovation gate: an altitude further than ``innovation_gate_sigma`` standard deviations of
+the innovation from the prediction is not fused (counted ``gated``); if altitudes keep being
+rejected for ``gate_reacquire_s``, the level really changed and the filter re-acquires it
+(altitude reset to the measurement, climb and bias kept; counted ``reacquired``).
+
+An interval with no acceleration at all predicts with zero true acceleration (a_meas = bias
 estimate), i.e. it falls back to the constant-velocity model, and is counted.
 """
 
@@ -40,6 +55,8 @@ _COUNTERS = (
     "accel_samples_skipped_frame",
     "accel_samples_without_attitude",
     "intervals_without_accel",
+    "gated",
+    "reacquired",
 )
 
 
@@ -62,13 +79,18 @@ class VarioKf3Estimator(Estimator):
         self._q: tuple[float, float, float, float] | None = None
         self._attitude_has_linear_accel = False
         self._counts = dict.fromkeys(_COUNTERS, 0)
+        self._first: tuple[float, float | None] | None = None
+        """The first sample's (altitude m, mean accel m/s^2), waiting for its step length."""
+        self._rejected_since_ns: int | None = None
 
     # -- the filter steps, in project units -------------------------------------------------
 
     def initialise(self, t_ns: int, altitude_m: float) -> None:
         self._kf = configured_core(self.settings, altitude_m)
         self._last_t_ns = t_ns
-        self._accel.take()  # acceleration before the first altitude belongs to no interval
+        self._rejected_since_ns = None
+        # the references' first step uses the acceleration that came with the first altitude
+        self._first = (altitude_m, self._accel.take())
 
     def predict(self, accel_up_m_s2: float, dt_seconds: float) -> None:
         """Propagate ``dt_seconds`` with the interval's mean upward acceleration (m/s^2)."""
@@ -134,13 +156,47 @@ class VarioKf3Estimator(Estimator):
                 if accel is None:
                     self._counts["intervals_without_accel"] += 1
                     accel = self._kf.bias / CM_PER_M  # zero true acceleration
+                if self._first is not None:
+                    z0, a0 = self._first
+                    self._first = None
+                    self.predict(self._kf.bias / CM_PER_M if a0 is None else a0, dt)
+                    self.update(z0)
                 self.predict(accel, dt)
-                innovation = self.update(altitude)
                 self._last_t_ns = sample.t_ns
+                innovation = altitude - self._kf.z / CM_PER_M
+                if not self._accept(sample.t_ns, altitude, innovation):
+                    return [self._estimate(sample.t_ns, innovation, gated=True)]
+                innovation = self.update(altitude)
         self._counts["fused"] += 1
         return [self._estimate(sample.t_ns, innovation)]
 
-    def _estimate(self, t_ns: int, innovation_m: float) -> VerticalEstimate:
+    def _accept(self, t_ns: int, altitude_m: float, innovation_m: float) -> bool:
+        """The innovation gate: False (counted) to skip this altitude's update."""
+        k = self.settings.innovation_gate_sigma
+        kf = self._kf
+        assert kf is not None
+        if k is None:
+            return True
+        sigma_m = math.sqrt(max(kf.P[0, 0], 0.0) + kf.z_meas_variance) / CM_PER_M
+        if abs(innovation_m) <= max(k * sigma_m, self.settings.innovation_gate_min_m):
+            self._rejected_since_ns = None
+            return True
+        if self._rejected_since_ns is None:
+            self._rejected_since_ns = t_ns
+        if (t_ns - self._rejected_since_ns) / 1e9 < self.settings.gate_reacquire_s:
+            self._counts["gated"] += 1
+            return False
+        # a sustained change of level: take it, keeping climb and bias
+        self._counts["reacquired"] += 1
+        self._rejected_since_ns = None
+        kf.x[0] = altitude_m * CM_PER_M
+        kf.P[0, :] = 0.0
+        kf.P[:, 0] = 0.0
+        kf.P[0, 0] = kf.z_meas_variance
+        return True
+
+    def _estimate(self, t_ns: int, innovation_m: float, *, gated: bool = False
+                  ) -> VerticalEstimate:
         kf = self._kf
         assert kf is not None
         p = kf.P
@@ -152,6 +208,7 @@ class VarioKf3Estimator(Estimator):
             accel_bias_m_s2=kf.bias / CM_PER_M,
             diagnostics={
                 "innovation_m": innovation_m,
+                "altitude_gated": gated,
                 "altitude_sigma_m": math.sqrt(max(p[0, 0], 0.0)) / CM_PER_M,
                 "climb_sigma_m_s": math.sqrt(max(p[1, 1], 0.0)) / CM_PER_M,
                 "bias_sigma_m_s2": math.sqrt(max(p[2, 2], 0.0)) / CM_PER_M,
@@ -168,6 +225,8 @@ class VarioKf3Estimator(Estimator):
             "q": None if self._q is None else list(self._q),
             "attitude_has_linear_accel": self._attitude_has_linear_accel,
             "counts": dict(self._counts),
+            "first": None if self._first is None else list(self._first),
+            "rejected_since_ns": self._rejected_since_ns,
         }
 
     def set_state(self, state: dict[str, Any]) -> None:
@@ -183,6 +242,9 @@ class VarioKf3Estimator(Estimator):
         self._q = None if q is None else (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
         self._attitude_has_linear_accel = bool(state["attitude_has_linear_accel"])
         self._counts = {k: int(v) for k, v in state["counts"].items()}
+        first = state.get("first")
+        self._first = None if first is None else (float(first[0]), first[1])
+        self._rejected_since_ns = state.get("rejected_since_ns")
 
     def diagnostics(self) -> dict[str, Any]:
         return dict(self._counts)

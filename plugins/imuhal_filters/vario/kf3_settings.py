@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from typing import Any, ClassVar
+
 from pydantic import Field
 
 from imuhal.core.atmosphere import SEA_LEVEL_PRESSURE_PA
-from imuhal.estimation.base import EstimatorSettings
+from imuhal_filters.common.presets import PresetSettings
 from imuhal_filters.vario.kf3 import REFERENCES, Kalman3, Kf3Mode
 
 CM_PER_M = 100.0
@@ -13,30 +15,59 @@ CM2_PER_M2 = CM_PER_M * CM_PER_M
 """m^2 -> cm^2, and equally (m/s^2)^2 -> (cm/s^2)^2."""
 
 
-class VarioKf3Settings(EstimatorSettings):
+DEFAULT_ALTITUDE_VARIANCE_M2 = 0.015
+"""The seed boards' MS5611 at OSR 4096, 50 Hz: 1.5 s of emulated altitude at rest (the seed's
+tuning recipe, ``estimate_altitude_variance``) gave 0.0153 m^2, 0.0185 m^2 with today's
+emulator timing (docs/estimators.md)."""
+DEFAULT_ACCEL_VARIANCE_M2_S4 = 0.05
+"""Chosen on the emulated seed board (docs/scripts/flight_benchmark.py): quiet at rest and
+still within 0.2 s of a 2 m/s climb step; see the lag/quietness table in docs/estimators.md."""
+DEFAULT_BIAS_VARIANCE_M2_S4 = 1e-6
+"""Per barometer step (1e-2 cm^2/s^4; esp32: 1 cm^2/s^4): at 50 Hz the reference value lets
+the bias wander enough to double the climb noise at rest (docs/estimators.md)."""
+_REFERENCE: dict[str, Any] = {"altitude_variance_m2": None, "accel_variance_m2_s4": None,
+                              "bias_variance_m2_s4": None, "innovation_gate_sigma": None}
+
+
+class VarioKf3Settings(PresetSettings):
     """Tuning of the 3-state variometer filter (SI units; the core works in cm).
 
-    Leave a variance at None to take the reference value of ``mode`` (``esp32``: altitude
-    0.03 m^2 = 300 cm^2, acceleration 5 m^2/s^4 = 50000 cm^2/s^4, bias 1e-4 m^2/s^4 = 1 cm^2/s^4
-    per step). See ``imuhal_filters.vario.kf3`` for the modes and the seed's tuning advice:
-    ``accel_variance_m2_s4`` is the environment's (air, pilot) acceleration variance, not the
-    sensor's noise; start near ``altitude_variance_m2`` numerically; a small
-    ``bias_variance_m2_s4`` means a slower start-up.
+    Defaults are tuned on the seed boards' barometer and accelerometer (docs/estimators.md);
+    ``preset: reference`` (or ``seed``) takes the reference values of ``mode`` (``esp32``:
+    altitude 0.03 m^2 = 300 cm^2, acceleration 5 m^2/s^4 = 50000 cm^2/s^4, bias 1e-4 m^2/s^4
+    = 1 cm^2/s^4 per step) and no innovation gate. A variance left at None takes the
+    reference value of ``mode``. See ``imuhal_filters.vario.kf3`` for the modes and the
+    seed's tuning advice: ``accel_variance_m2_s4`` is the environment's (air, pilot)
+    acceleration variance, not the sensor's noise; it trades lag for quietness.
     """
+
+    PRESETS: ClassVar[dict[str, dict[str, Any]]] = {"reference": _REFERENCE, "seed": _REFERENCE}
 
     mode: Kf3Mode = Kf3Mode.ESP32
     """Reference implementation to reproduce: esp32 (default), avario or y2021."""
-    altitude_variance_m2: float | None = Field(default=None, gt=0.0)
+    altitude_variance_m2: float | None = Field(default=DEFAULT_ALTITUDE_VARIANCE_M2, gt=0.0)
     """sigma_zmeas^2 (m^2): barometric altitude noise; see ``estimate_altitude_variance``."""
-    accel_variance_m2_s4: float | None = Field(default=None, gt=0.0)
-    """sigma_acc^2 ((m/s^2)^2): unmodelled environment acceleration. Ignored by ``avario``,
-    which replaces it every step."""
-    bias_variance_m2_s4: float | None = Field(default=None, ge=0.0)
+    accel_variance_m2_s4: float | None = Field(default=DEFAULT_ACCEL_VARIANCE_M2_S4, gt=0.0)
+    """sigma_acc^2 ((m/s^2)^2): unmodelled environment acceleration; smaller is quieter at
+    rest and slower to follow what the accelerometer misses. Ignored by ``avario``, which
+    replaces it every step."""
+    bias_variance_m2_s4: float | None = Field(default=DEFAULT_BIAS_VARIANCE_M2_S4, ge=0.0)
     """sigma_accbias^2 ((m/s^2)^2), added once per filter step (not scaled by dt)."""
     initial_bias_m_s2: float = 0.0
     """Accelerometer bias at start-up (m/s^2; true accel = measured - bias)."""
     sea_level_pa: float = Field(default=SEA_LEVEL_PRESSURE_PA, gt=0.0)
     """Pressure reference (QNH, Pa) for pressure -> altitude."""
+    innovation_gate_sigma: float | None = Field(default=5.0, gt=0.0)
+    """A barometric altitude further than this many standard deviations of the innovation
+    (sqrt(P_zz + sigma_zmeas^2)) from the prediction is not fused (counted as
+    ``gated``): one wild but in-range pressure sample must not throw the climb rate.
+    None: no gate (the references)."""
+    innovation_gate_min_m: float = Field(default=1.0, ge=0.0)
+    """The gate never closes for innovations within this (m): a barometer noisier than its
+    configured variance must not be gated on ordinary noise."""
+    gate_reacquire_s: float = Field(default=0.3, gt=0.0)
+    """Altitudes rejected without a break for this long are a real level change (a jump the
+    accelerometer did not see, a QNH change): the filter re-acquires the new level."""
     max_gap_s: float = Field(default=1.0, gt=0.0)
     """A gap between valid pressure samples longer than this restarts the filter."""
     attitude_source: str | None = None

@@ -23,7 +23,8 @@ Wide input columns (project units and frames; see docs/units-and-frames.md):
   attitude estimators: t_s, gx_rad_s, gy_rad_s, gz_rad_s, ax_m_s2, ay_m_s2, az_m_s2
                        [, mx_ut, my_ut, mz_ut]   (accel = specific force, NED body:
                        a level board at rest reads az_m_s2 = -9.81)
-  vario filters:       t_s, altitude_m, accel_up_m_s2
+  vario filters:       t_s, altitude_m, accel_up_m_s2 (either cell may be empty: a
+                       multi-rate log carries on each row what was measured then)
                        or the attitude columns plus pressure_pa (imuhal runs --ahrs
                        and does the gravity compensation)
 Other conventions: --input-frame NAME reads the gyro, accel and mag columns in that
@@ -34,6 +35,8 @@ aerospace: forward-right-down, gravity positive). --output-frame NAME writes the
 suffix (qw_enu ...); input columns named that way (ax_m_s2_enu ...) need no --input-frame.
 Estimators always run in ned. See docs/units-and-frames.md.
 Settings are the estimator's own fields: --set beta=0.1 --set accel_gate_g=0.6,1.4
+(--set preset=reference: the reference implementation's values); --ahrs-set sets those of
+the --ahrs estimator behind a vario filter.
 """
 
 
@@ -54,6 +57,8 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--ahrs", default="madgwick", metavar="NAME",
                    help="attitude estimator for gravity compensation of full IMU input to a "
                    "vario filter (default: madgwick)")
+    p.add_argument("--ahrs-set", dest="ahrs_settings", action="append", default=[],
+                   metavar="KEY=VALUE", help="a setting of the --ahrs estimator (repeatable)")
     p.add_argument("--input-frame", type=frame_argument, metavar="NAME",
                    help="convention of the input's gyro/accel/mag columns: "
                    f"{', '.join(CONVENTIONS)} (ros = enu; default: the columns' frame "
@@ -67,29 +72,51 @@ def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
     est_cls = registry.estimators.get(args.name)
     settings = build_settings(est_cls.Settings, parse_set_arguments(args.settings), args.name)
     estimator = est_cls(settings)
+    ahrs_cls = registry.estimators.get(args.ahrs)
+    ahrs_settings = build_settings(ahrs_cls.Settings,
+                                   parse_set_arguments(args.ahrs_settings, "--ahrs-set"),
+                                   args.ahrs, "--ahrs-set")
     if is_run_log(args.input):
         log = read_run_log(args.input, args.input_frame)
-        outputs = run_offline_samples(estimator, log.samples,
-                                      ahrs=_gravity_ahrs(args, registry, True))
+        ahrs = _gravity_ahrs(args, ahrs_cls, ahrs_settings, True)
+        outputs = run_offline_samples(estimator, log.samples, ahrs=ahrs)
         read = (f"{log.rows} log rows ({len(log.samples)} valid samples, {log.flagged} "
                 "flagged skipped)")
     else:
         table, frame = resolve_input_frame(read_sample_csv(args.input, rate_hz=args.rate),
                                            args.input_frame)
         table = table_to_ned(table, frame)
-        ahrs = _gravity_ahrs(args, registry, "altitude_m" not in table.columns)
+        ahrs = _gravity_ahrs(args, ahrs_cls, ahrs_settings, "altitude_m" not in table.columns)
         outputs = run_offline(estimator, table, ahrs=ahrs)
         read = f"{len(table)} input rows"
     rows = write_estimates(args.output, outputs, args.output_frame)
     print(f"{args.name}: {read} -> {rows} estimates in {args.output}", file=sys.stderr)
+    for est in (estimator, ahrs):
+        if est is not None:
+            _report_rejected(est)
     return 0
 
 
-def _gravity_ahrs(args: argparse.Namespace, registry: Registry, needed: bool) -> Any:
+def _gravity_ahrs(args: argparse.Namespace, ahrs_cls: Any, settings: Any, needed: bool
+                  ) -> Any:
     """The --ahrs estimator a vario filter fed IMU samples needs (None when it does not)."""
     if not needed or args.name == args.ahrs:
         return None
-    ahrs_cls = registry.estimators.get(args.ahrs)
     if any(t.__name__ == "PressureSample" for t in ahrs_cls.consumes):
         return None
-    return ahrs_cls()
+    return ahrs_cls(settings)
+
+
+def _report_rejected(estimator: Any) -> None:
+    """Say how many input values no sensor could have reported were dropped, if any."""
+    counts = estimator.diagnostics().get("beyond_full_scale")
+    if not counts:
+        return
+    if isinstance(counts, dict):
+        parts = [f"{n} {channel}" for channel, n in counts.items() if n]
+    else:
+        parts = [f"{counts} gyro/accel"]
+    if parts:
+        print(f"{estimator.name}: dropped {', '.join(parts)} value(s) beyond the full scale "
+              "(not fused; see the gyro_full_scale_rad_s / accel_full_scale_m_s2 settings)",
+              file=sys.stderr)

@@ -14,6 +14,7 @@ from collections.abc import Sequence
 from imuhal import __version__
 from imuhal.cli import (
     calibrate_cmd,
+    check_mounts_cmd,
     estimate_cmd,
     plot_cmd,
     plugins_cmd,
@@ -28,8 +29,8 @@ EXIT_ERROR = 2
 EXIT_INTERNAL = 70
 EXIT_INTERRUPTED = 130
 
-COMMANDS = [run_cmd, replay_cmd, estimate_cmd, plot_cmd, calibrate_cmd, plugins_cmd,
-            profile_cmd]
+COMMANDS = [run_cmd, replay_cmd, estimate_cmd, plot_cmd, calibrate_cmd, check_mounts_cmd,
+            plugins_cmd, profile_cmd]
 """Modules providing ``add_parser(subparsers)``; the order is the order in --help."""
 
 

@@ -15,6 +15,7 @@ from imuhal.bus.spy import format_transfer
 from imuhal.cli.frame_option import frame_argument
 from imuhal.core.atomic import AtomicFile
 from imuhal.core.errors import ImuhalError
+from imuhal.live import LiveView, parse_bind
 from imuhal.plugins.manager import Registry
 from imuhal.profile.loader import load_profile
 from imuhal.profiles_dir import default_profile_path
@@ -55,6 +56,10 @@ def add_parser(sub: Any) -> None:
                      "file, for `imuhal replay` (docs/recording.md)")
     run.add_argument("--seed", type=int, help="seed of the simulated world (default: profile's)")
     run.add_argument("--quiet", action="store_true", help="no live status line")
+    run.add_argument("--web", metavar="[HOST:]PORT",
+                     help="serve a live dashboard (read-only) on PORT of this machine only, "
+                     "or of HOST when named (0.0.0.0: every interface); emulated runs are "
+                     "paced in real time (docs/live-view.md)")
     run.set_defaults(func=cmd_run)
 
 
@@ -68,7 +73,9 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     emulate = args.emulate
     if args.profile is None and emulate is None:
         emulate = profile.emulation.scenario
-    realtime = args.realtime or emulate is None  # real buses always run in real time
+    web = parse_bind(args.web) if args.web is not None else None
+    # Real buses always run in real time; a dashboard of an emulated run is watched live.
+    realtime = args.realtime or emulate is None or web is not None
     if args.truth and emulate is None:
         raise ImuhalError("--truth needs an emulated run (--emulate SCENARIO): real "
                           "hardware has no ground truth")
@@ -121,6 +128,13 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
             duration = pipeline.board.scenario.duration_s  # type: ignore[attr-defined]
         for w in pipeline.warnings:
             print(f"warning: {w}", file=sys.stderr)
+        if web is not None:
+            live = stack.enter_context(LiveView.for_pipeline(pipeline, host=web.host,
+                                                             port=web.port))
+            sinks.append(live.sink)
+            print(f"live view: {live.url}" + ("" if web.loopback else
+                  " (reachable from the network at this machine's address: read-only, "
+                  "no password; docs/live-view.md)"), file=sys.stderr)
         if args.output:
             csv_sink = CsvSink(args.output, include_samples=args.samples, frame=frame)
             sinks.append(csv_sink)

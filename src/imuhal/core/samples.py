@@ -30,6 +30,10 @@ class Channel(str, Enum):
     """Static pressure, Pa."""
     TEMPERATURE = "temperature"
     """Die temperature, degC."""
+    VELOCITY = "velocity"
+    """Velocity over ground in NED (north, east, down), m/s (e.g. a GNSS receiver)."""
+    AIRSPEED = "airspeed"
+    """True airspeed along the body x axis, m/s (e.g. a pitot tube)."""
 
     @property
     def unit(self) -> str:
@@ -42,6 +46,8 @@ _UNITS = {
     Channel.MAG: "uT",
     Channel.PRESSURE: "Pa",
     Channel.TEMPERATURE: "degC",
+    Channel.VELOCITY: "m/s",
+    Channel.AIRSPEED: "m/s",
 }
 
 
@@ -188,12 +194,42 @@ class TemperatureSample(ScalarSample):
         return self.temperature_degc
 
 
+@dataclass(frozen=True, slots=True, kw_only=True)
+class VelocitySample(Sample):
+    """Velocity over ground in the earth NED frame (m/s), as a GNSS receiver reports it.
+
+    Not a body-frame vector: no mount rotation applies. ``t_ns`` is the time the velocity was
+    *valid* (the receiver's measurement epoch on the pipeline clock), not when it arrived, so
+    a consumer can account for the receiver's latency. ``accuracy_m_s`` is the 1-sigma speed
+    accuracy the source claims (None: unknown).
+    """
+
+    velocity_ned_m_s: Vec3 = field(default=(0.0, 0.0, 0.0))
+    accuracy_m_s: float | None = None
+    channel: ClassVar[Channel] = Channel.VELOCITY
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class AirspeedSample(ScalarSample):
+    """True airspeed along the body x axis (m/s, forward +), e.g. from a pitot tube."""
+
+    airspeed_m_s: float = 0.0
+    accuracy_m_s: float | None = None
+    channel: ClassVar[Channel] = Channel.AIRSPEED
+
+    @property
+    def scalar(self) -> float:
+        return self.airspeed_m_s
+
+
 SAMPLE_TYPES: dict[Channel, type[Sample]] = {
     Channel.ACCEL: AccelSample,
     Channel.GYRO: GyroSample,
     Channel.MAG: MagSample,
     Channel.PRESSURE: PressureSample,
     Channel.TEMPERATURE: TemperatureSample,
+    Channel.VELOCITY: VelocitySample,
+    Channel.AIRSPEED: AirspeedSample,
 }
 
 

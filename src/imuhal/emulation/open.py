@@ -17,11 +17,13 @@ from typing import Any
 from imuhal.bus.recording.recorder import BusRecorder
 from imuhal.bus.spy import Transfer
 from imuhal.core.clock import SimulatedClock
+from imuhal.core.errors import ImuhalError
+from imuhal.core.frames import MountError, parse_mount
 from imuhal.emulation.board import EmulatedBoard
 from imuhal.emulation.mounting import chip_rotations
 from imuhal.pipeline.pipeline import Pipeline
 from imuhal.plugins.manager import Registry
-from imuhal.profile.model import BoardProfile
+from imuhal.profile.model import BoardProfile, MountSpec
 from imuhal.profile.topology import device_order
 from imuhal.sim.errors import SensorErrorModel, SensorErrorSpec, device_seed, error_spec_of
 
@@ -38,6 +40,7 @@ def open_emulated(
     error_specs: Mapping[str, SensorErrorSpec | None] | None = None,
     calibrated: bool = True,
     trace: Callable[[Transfer], None] | None = None,
+    physical_mounts: Mapping[str, MountSpec] | None = None,
     recorder: BusRecorder | None = None,
 ) -> Pipeline:
     """A pipeline over ``profile``'s board, emulated, flying ``scenario``.
@@ -51,6 +54,9 @@ def open_emulated(
     range only). ``error_specs`` (device -> spec; devices not named are ideal) replaces
     those models, for tests and studies that need known offsets, scale errors and iron.
     ``calibrated``, ``trace`` and ``recorder`` are the pipeline's (see :class:`Pipeline`).
+    ``physical_mounts`` (device -> mount, as in a profile) places those chips on the board
+    differently from what the profile says: the pipeline still rotates by the profile's
+    mount, so a wrong profile can be emulated (``imuhal check-mounts`` finds it).
     """
     name = profile.emulation.scenario if scenario is None else scenario
     clock = SimulatedClock(realtime=realtime)
@@ -67,10 +73,30 @@ def open_emulated(
     else:
         errors = error_models_for(profile, registry, run_seed) if use_errors else None
     # The emulation's own reading of the mounts, not the pipeline's: see emulation.mounting.
-    board = EmulatedBoard(profile, registry, clock, world, chip_rotations(profile), errors)
+    rotations = chip_rotations(_physically_mounted(profile, physical_mounts or {}))
+    board = EmulatedBoard(profile, registry, clock, world, rotations, errors)
     board.update(0)
     return Pipeline(profile, registry, board, calibrated=calibrated, trace=trace,
                     recorder=recorder)
+
+
+def _physically_mounted(profile: BoardProfile, mounts: Mapping[str, MountSpec]
+                        ) -> BoardProfile:
+    """``profile`` with the named devices' mounts replaced by where the chips really sit."""
+    if not mounts:
+        return profile
+    devices = dict(profile.devices)
+    for device, mount in mounts.items():
+        if device not in devices or not devices[device].enabled:
+            enabled = ", ".join(n for n, d in devices.items() if d.enabled)
+            raise ImuhalError(f"physical mount for {device!r}: the profile has no enabled "
+                              f"device of that name; it has {enabled}")
+        try:
+            parse_mount(mount)
+        except MountError as exc:
+            raise ImuhalError(f"physical mount for {device!r}: {exc}") from None
+        devices[device] = devices[device].model_copy(update={"mount": mount})
+    return profile.model_copy(update={"devices": devices})
 
 
 def error_models_for(profile: BoardProfile, registry: Registry, seed: int

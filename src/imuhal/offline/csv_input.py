@@ -4,6 +4,10 @@ Header names carry units and frames (project convention): ``t_s``; gyro ``gx_rad
 accelerometer specific force ``ax_m_s2`` ... in NED body axes (level at rest: az = -9.81);
 magnetometer ``mx_ut`` ...; ``pressure_pa``; for the vario filters also ``altitude_m`` and
 ``accel_up_m_s2`` (gravity-compensated vertical acceleration, up positive).
+
+Sensors at different rates share one file: a slower sensor's cells are empty on the rows
+where it had no sample (magnetometer, pressure, and in the vertical form both altitude and
+acceleration), so each row carries what was measured at its time.
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ PRESSURE = "pressure_pa"
 ALTITUDE = "altitude_m"
 ACCEL_UP = "accel_up_m_s2"
 
-SPARSE_COLUMNS = frozenset({PRESSURE, *MAG})
+SPARSE_COLUMNS = frozenset({PRESSURE, *MAG, ALTITUDE, ACCEL_UP})
 """Columns whose cells may be empty: a slower sensor has no sample on that row."""
 
 

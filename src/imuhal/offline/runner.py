@@ -61,16 +61,19 @@ def imu_events(table: SampleTable) -> Iterator[Sample]:
 
 def vario_events(table: SampleTable, sea_level_pa: float) -> Iterator[Sample | Estimate]:
     """From ``t_s, altitude_m, accel_up_m_s2``: the gravity-compensated acceleration as a
-    level attitude estimate carrying it, then the altitude as the pressure that reads it."""
+    level attitude estimate carrying it, then the altitude as the pressure that reads it.
+    Either cell may be empty (a multi-rate log): only what the row carries is fed."""
     require(table, (TIME, ALTITUDE), "a vario filter")
     c = table.columns
     has_accel = ACCEL_UP in c
     for i in range(len(table)):
         t_ns = round(float(c[TIME][i]) * 1e9)
-        if has_accel:
+        if has_accel and not math.isnan(c[ACCEL_UP][i]):
             yield AttitudeEstimate(t_ns=t_ns, source=DEVICE,
                                    q_body_to_ned=tuple(IDENTITY_QUATERNION),  # type: ignore[arg-type]
                                    linear_accel_ned_m_s2=(0.0, 0.0, -float(c[ACCEL_UP][i])))
+        if math.isnan(c[ALTITUDE][i]):
+            continue
         try:
             p = pressure_pa_at_altitude(float(c[ALTITUDE][i]), sea_level_pa)
         except ValueError as exc:

@@ -14,7 +14,7 @@ class SettingsArgumentError(ImuhalError):
     pass
 
 
-def parse_set_arguments(items: list[str]) -> dict[str, Any]:
+def parse_set_arguments(items: list[str], flag: str = "--set") -> dict[str, Any]:
     """``["beta=0.1", "accel_gate_g=0.6,1.4"]`` -> ``{"beta": 0.1, "accel_gate_g": [0.6, 1.4]}``.
 
     Values are YAML scalars (numbers, true/false, null, strings); commas make a list.
@@ -24,9 +24,9 @@ def parse_set_arguments(items: list[str]) -> dict[str, Any]:
         key, sep, raw = item.partition("=")
         key = key.strip()
         if not sep or not key:
-            raise SettingsArgumentError(f"--set {item!r}: write KEY=VALUE, e.g. --set beta=0.1")
+            raise SettingsArgumentError(f"{flag} {item!r}: write KEY=VALUE, e.g. {flag} beta=0.1")
         if key in out:
-            raise SettingsArgumentError(f"--set {key}: given twice")
+            raise SettingsArgumentError(f"{flag} {key}: given twice")
         parts = [_scalar(p) for p in raw.split(",")] if "," in raw else _scalar(raw)
         out[key] = parts
     return out
@@ -39,8 +39,10 @@ def _scalar(text: str) -> Any:
         return text.strip()
 
 
-def build_settings(model: type[BaseModel], values: dict[str, Any], owner: str) -> BaseModel:
-    """Validate ``values`` with ``model``; every problem names its --set key and the allowed."""
+def build_settings(model: type[BaseModel], values: dict[str, Any], owner: str,
+                   flag: str = "--set") -> BaseModel:
+    """Validate ``values`` with ``model``; every problem names its ``flag`` key and the
+    allowed."""
     try:
         return model.model_validate(values)
     except ValidationError as exc:
@@ -49,7 +51,7 @@ def build_settings(model: type[BaseModel], values: dict[str, Any], owner: str) -
             key = ".".join(str(p) for p in err["loc"]) or "(settings)"
             if err["type"] == "extra_forbidden":
                 allowed = ", ".join(model.model_fields)
-                problems.append(f"--set {key}: {owner} has no such setting; settings: {allowed}")
+                problems.append(f"{flag} {key}: {owner} has no such setting; settings: {allowed}")
             else:
-                problems.append(f"--set {key}: {err['msg']} (found {err.get('input')!r})")
+                problems.append(f"{flag} {key}: {err['msg']} (found {err.get('input')!r})")
         raise SettingsArgumentError("; ".join(problems)) from None

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from imuhal.sim.bringup import BringupScenario
 from imuhal.sim.calibration import CalibrationScenario
 from imuhal.sim.elevator import ElevatorScenario
 from imuhal.sim.magnet import MagnetScenario
@@ -12,4 +13,5 @@ from imuhal.sim.thermal import ThermalScenario
 from imuhal.sim.tumble import TumbleScenario
 
 BUILTIN_SCENARIOS = (StaticScenario, CalibrationScenario, TumbleScenario, ThermalScenario,
-                     RcFlightScenario, MagnetScenario, ElevatorScenario, ReplayScenario)
+                     RcFlightScenario, MagnetScenario, ElevatorScenario, ReplayScenario,
+                     BringupScenario)

@@ -1,0 +1,358 @@
+"""The live view's web server: standard library only (http.server + server-sent events).
+
+Why the standard library: the page needs a handful of GET routes and a one-way stream of
+JSON at 10-30 Hz. Server-sent events are plain HTTP (``text/event-stream``) that every
+browser reconnects by itself, so ``ThreadingHTTPServer`` covers it with no dependency to
+install on a Raspberry Pi in a field, and nothing to keep patched (docs/live-view.md).
+
+Threads: the pipeline thread only calls :meth:`LiveSink.handle`. One publisher thread builds
+a snapshot every ``1 / rate_hz`` s, encodes it once and wakes the clients. Each client has its
+own thread that sends the newest message when it is ready for one (older ones are skipped,
+never queued) with a send timeout: a client that stops reading is dropped after
+``client_timeout_s`` and never holds anyone else up.
+
+Read-only: GET is the only method (anything else is 405), no route changes the board or
+writes a file, and a server bound to the loopback answers only to loopback host names (a web
+page elsewhere cannot reach it through DNS rebinding).
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import json
+import math
+import socket
+import sys
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+from http import HTTPStatus
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from importlib import resources
+from typing import Any
+from urllib.parse import urlsplit
+
+from imuhal.core.errors import ImuhalError
+from imuhal.live.sink import LiveSink
+from imuhal.live.snapshot import Snapshotter, Truth
+from imuhal.pipeline import Pipeline
+
+DEFAULT_HOST = "127.0.0.1"
+DEFAULT_RATE_HZ = 20.0
+MAX_CLIENTS = 16
+SEND_BUFFER_BYTES = 64 * 1024
+STATIC = {
+    "/": ("index.html", "text/html; charset=utf-8"),
+    "/index.html": ("index.html", "text/html; charset=utf-8"),
+    "/app.js": ("app.js", "text/javascript; charset=utf-8"),
+    "/style.css": ("style.css", "text/css; charset=utf-8"),
+    "/favicon.svg": ("favicon.svg", "image/svg+xml"),
+    "/favicon.ico": ("favicon.svg", "image/svg+xml"),
+}
+SECURITY_HEADERS = {
+    "Content-Security-Policy": "default-src 'none'; script-src 'self'; style-src 'self'; "
+                               "connect-src 'self'; img-src 'self'; form-action 'none'; "
+                               "frame-ancestors 'none'; base-uri 'none'",
+    "X-Content-Type-Options": "nosniff",
+    "Referrer-Policy": "no-referrer",
+    "Cache-Control": "no-store",
+}
+LOOPBACK_NAMES = {"localhost", "127.0.0.1", "::1", "[::1]"}
+
+
+@dataclass(frozen=True)
+class BindAddress:
+    host: str
+    port: int
+
+    @property
+    def loopback(self) -> bool:
+        if self.host == "localhost":
+            return True
+        try:
+            return ipaddress.ip_address(self.host).is_loopback
+        except ValueError:
+            return False
+
+
+def parse_bind(spec: str | int) -> BindAddress:
+    """``"8080"`` -> 127.0.0.1:8080; ``"0.0.0.0:8080"``, ``"192.168.1.5:8080"``,
+    ``"[::]:8080"`` bind that interface. Port 0 picks a free port."""
+    text = str(spec).strip()
+    host, sep, port_text = text.rpartition(":")
+    if not sep:
+        host, port_text = DEFAULT_HOST, text
+    host = host.strip("[]") or DEFAULT_HOST
+    try:
+        port = int(port_text)
+    except ValueError:
+        port = -1
+    if not 0 <= port <= 65535:
+        raise ImuhalError(f"--web {spec!r}: give [HOST:]PORT with a port from 0 to 65535, "
+                          f"e.g. --web 8080 (this machine only) or --web 0.0.0.0:8080 "
+                          f"(reachable from the network)")
+    return BindAddress(host, port)
+
+
+class LiveView:
+    """A dashboard for a running pipeline, served over HTTP.
+
+    Feed ``live.sink`` every event (``pipeline.run(duration, [live.sink])``, or call
+    ``live.sink.handle(event)`` in your own loop). Use as a context manager, or call
+    :meth:`start` and :meth:`close`.
+    """
+
+    def __init__(self, pipeline: Pipeline | None = None, *, host: str = DEFAULT_HOST,
+                 port: int = 0, rate_hz: float = DEFAULT_RATE_HZ,
+                 truth: Callable[[], Truth | None] | None = None,
+                 scenario: str | None = None, client_timeout_s: float = 2.0,
+                 sink: LiveSink | None = None) -> None:
+        if not 1.0 <= rate_hz <= 60.0:
+            raise ImuhalError(f"live view rate {rate_hz:g} Hz: use 1 to 60 Hz (10-30 is a "
+                              f"display rate)")
+        self.sink = sink if sink is not None else LiveSink()
+        self.snapshotter = Snapshotter(self.sink, pipeline, truth=truth, scenario=scenario)
+        self.bind = BindAddress(host, port)
+        self.period_s = 1.0 / rate_hz
+        self.client_timeout_s = client_timeout_s
+        self.clients = 0
+        self.dropped_clients = 0
+        self.messages_built = 0
+        self.publish_errors = 0
+        self._cond = threading.Condition()
+        self._message: bytes = b""
+        self._state: dict[str, Any] = {}
+        self._seq = 0
+        self._stop = threading.Event()
+        self._server: ThreadingHTTPServer | None = None
+        self._threads: list[threading.Thread] = []
+
+    @classmethod
+    def for_pipeline(cls, pipeline: Pipeline, **kwargs: Any) -> LiveView:
+        """A live view of ``pipeline``; an emulated board's truth is shown beside the
+        estimates."""
+        from imuhal.emulation import EmulatedBoard
+
+        board = pipeline.board
+        if isinstance(board, EmulatedBoard):
+            kwargs.setdefault("truth", lambda: board.truth)
+            kwargs.setdefault("scenario", board.scenario.name)
+        return cls(pipeline, **kwargs)
+
+    # -- lifecycle ------------------------------------------------------------------------
+
+    @property
+    def url(self) -> str:
+        if self._server is None:
+            raise ImuhalError("the live view is not started")
+        host, port = self._server.server_address[:2]
+        shown = str(host)
+        if ":" in shown:
+            shown = f"[{shown}]"
+        return f"http://{shown}:{port}/"
+
+    def start(self) -> LiveView:
+        handler = _handler_for(self)
+        try:
+            family = socket.AF_INET6 if ":" in self.bind.host else socket.AF_INET
+            server_cls = type("LiveHTTPServer", (ThreadingHTTPServer,),
+                              {"address_family": family, "daemon_threads": True,
+                               "allow_reuse_address": True})
+            self._server = server_cls((self.bind.host, self.bind.port), handler)
+        except OSError as exc:
+            raise ImuhalError(f"live view: cannot listen on {self.bind.host}:{self.bind.port} "
+                              f"({exc.strerror or exc}); pick another port with --web PORT "
+                              f"or name an address this machine has") from None
+        self._publish()
+        server = self._server
+        for target, name in ((lambda: server.serve_forever(poll_interval=0.1),
+                              "imuhal-live-http"),
+                             (self._publisher, "imuhal-live-publisher")):
+            thread = threading.Thread(target=target, name=name, daemon=True)
+            thread.start()
+            self._threads.append(thread)
+        return self
+
+    def close(self) -> None:
+        self._stop.set()
+        with self._cond:
+            self._cond.notify_all()
+        if self._server is not None:
+            self._server.shutdown()
+            self._server.server_close()
+        for thread in self._threads:
+            thread.join(timeout=2.0)
+        self._threads.clear()
+
+    def __enter__(self) -> LiveView:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- publishing -----------------------------------------------------------------------
+
+    def _publisher(self) -> None:
+        while not self._stop.wait(self.period_s):
+            try:
+                self._publish()
+            except Exception as exc:  # the view must outlive any one bad snapshot
+                self.publish_errors += 1
+                if self.publish_errors == 1:
+                    print(f"imuhal live view: a snapshot failed ({type(exc).__name__}: "
+                          f"{exc}); the page keeps the last good one", file=sys.stderr)
+
+    def _publish(self) -> None:
+        state = self.snapshotter.snapshot()
+        try:
+            data = json.dumps(state, separators=(",", ":"), allow_nan=False)
+        except ValueError:
+            # A diverged estimator's NaN: JSON has no NaN, the page shows "-" for null.
+            state = _finite_only(state)
+            data = json.dumps(state, separators=(",", ":"), allow_nan=False)
+        message = f"id: {state['seq']}\ndata: {data}\n\n".encode()
+        with self._cond:
+            self._state = state
+            self._message = message
+            self._seq = state["seq"]
+            self.messages_built += 1
+            self._cond.notify_all()
+
+    def latest(self) -> dict[str, Any]:
+        """The last snapshot sent to the clients."""
+        with self._cond:
+            return self._state
+
+    def next_message(self, after: int, timeout: float) -> tuple[int, bytes] | None:
+        """The newest message after sequence number ``after`` (waiting up to ``timeout``
+        s for one); messages a client was too slow for are skipped, not queued."""
+        with self._cond:
+            if self._seq <= after and not self._stop.is_set():
+                self._cond.wait(timeout)
+            if self._seq <= after or self._stop.is_set():
+                return None
+            return self._seq, self._message
+
+    @property
+    def stopping(self) -> bool:
+        return self._stop.is_set()
+
+
+def _finite_only(value: Any) -> Any:
+    """``value`` with every NaN or infinite float replaced by None."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite_only(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite_only(v) for v in value]
+    return value
+
+
+def _static(name: str) -> bytes:
+    return resources.files("imuhal.live").joinpath("static", name).read_bytes()
+
+
+def _handler_for(view: LiveView) -> type[BaseHTTPRequestHandler]:
+    class Handler(_LiveHandler):
+        live = view
+
+    return Handler
+
+
+class _LiveHandler(BaseHTTPRequestHandler):
+    live: LiveView
+    server_version = "imuhal-live"
+    protocol_version = "HTTP/1.1"
+
+    def log_message(self, format: str, *args: Any) -> None:
+        return None  # the dashboard's requests are not news on the console
+
+    def parse_request(self) -> bool:
+        if not super().parse_request():
+            return False
+        if self.command != "GET":
+            # Read-only by construction: one method, whatever the request.
+            self.close_connection = True
+            self._reply(HTTPStatus.METHOD_NOT_ALLOWED, b"GET only: this view is read-only\n",
+                        "text/plain; charset=utf-8", {"Allow": "GET"})
+            return False
+        if self.live.bind.loopback and not self._loopback_host():
+            self.close_connection = True
+            self._reply(HTTPStatus.FORBIDDEN, b"this view answers to localhost only\n",
+                        "text/plain; charset=utf-8")
+            return False
+        return True
+
+    def _loopback_host(self) -> bool:
+        host = self.headers.get("Host", "")
+        name = urlsplit(f"//{host}").hostname or ""
+        return name in LOOPBACK_NAMES
+
+    def _reply(self, status: HTTPStatus, body: bytes, ctype: str,
+               extra: dict[str, str] | None = None) -> None:
+        self.send_response(status)
+        self.send_header("Content-Type", ctype)
+        self.send_header("Content-Length", str(len(body)))
+        for key, value in {**SECURITY_HEADERS, **(extra or {})}.items():
+            self.send_header(key, value)
+        self.end_headers()
+        self.wfile.write(body)
+
+    def do_GET(self) -> None:
+        path = urlsplit(self.path).path
+        if path in STATIC:
+            name, ctype = STATIC[path]
+            self._reply(HTTPStatus.OK, _static(name), ctype)
+        elif path == "/state.json":
+            body = json.dumps(self.live.latest(), allow_nan=False).encode()
+            self._reply(HTTPStatus.OK, body, "application/json")
+        elif path == "/events":
+            self._events()
+        else:
+            self._reply(HTTPStatus.NOT_FOUND, b"not found\n", "text/plain; charset=utf-8")
+
+    def _events(self) -> None:
+        live = self.live
+        with live._cond:
+            full = live.clients >= MAX_CLIENTS
+            if not full:
+                live.clients += 1
+        if full:
+            self._reply(HTTPStatus.SERVICE_UNAVAILABLE, b"too many viewers\n",
+                        "text/plain; charset=utf-8", {"Retry-After": "5"})
+            return
+        self.close_connection = True
+        try:
+            # A small send buffer bounds what a stuck client costs and makes it time out
+            # within seconds rather than after megabytes.
+            self.connection.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SEND_BUFFER_BYTES)
+            self.connection.settimeout(live.client_timeout_s)
+            self.send_response(HTTPStatus.OK)
+            self.send_header("Content-Type", "text/event-stream")
+            for key, value in SECURITY_HEADERS.items():
+                self.send_header(key, value)
+            self.end_headers()
+            self.wfile.write(b"retry: 1000\n\n")
+            seq = 0
+            idle = 0.0
+            while not live.stopping:
+                got = live.next_message(seq, timeout=1.0)
+                if got is None:
+                    idle += 1.0
+                    if idle >= 15.0:  # a comment keeps proxies from closing a quiet stream
+                        self.wfile.write(b": keep-alive\n\n")
+                        idle = 0.0
+                    continue
+                idle = 0.0
+                seq, message = got
+                self.wfile.write(message)
+        except TimeoutError:
+            # The client stopped reading for client_timeout_s: drop it.
+            with live._cond:
+                live.dropped_clients += 1
+        except OSError:
+            pass  # the browser went away
+        finally:
+            with live._cond:
+                live.clients -= 1

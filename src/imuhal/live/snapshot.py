@@ -1,0 +1,323 @@
+"""What the page receives: the live state as one JSON-ready dict, built at the display rate.
+
+:class:`Snapshotter` runs on the publisher thread (never on the pipeline's). Each call copies
+the :class:`~imuhal.live.sink.LiveSink`, reads the pipeline's counters (plain integers and a
+list, safe to read while the pipeline runs) and the emulated truth if there is one, and keeps
+a short history of its own copies to derive rates (samples per second of pipeline time) and
+the bring-up evidence (the body rotation each sensor saw in the last seconds).
+
+Units are in every key: SI at the boundary (m/s^2, rad/s, uT, Pa, degC, m, m/s), angles in
+degrees for display (roll right +, pitch nose up +, heading clockwise from north), times in
+seconds of pipeline time (``t_s``). Vectors are in the body frame (NED: x forward, y right,
+z down).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from imuhal.core.samples import Channel, Sample, ScalarSample, VectorSample
+from imuhal.live.mounts import MOTIONS, Evidence, judge, mean_vector, rotation_between
+from imuhal.live.sink import Copy, LiveSink
+from imuhal.pipeline import Pipeline
+
+WINDOW_S = 2.0
+"""The bring-up checks and the achieved rates look at the last this many seconds."""
+ENDS_S = 0.3
+"""Accelerometer and magnetometer vectors are averaged over this long at each end of the
+window (s)."""
+STALE_PERIODS = 5.0
+"""A device is stale when it has produced nothing for this many of its periods..."""
+STALE_MIN_S = 0.5
+"""... or this long (s), whichever is longer, of pipeline time."""
+RATE_LOW = 0.8
+"""A device achieving less than this fraction of its configured rate is marked faulty."""
+BRINGUP_EVERY = 4
+"""The bring-up evidence is rebuilt every this many snapshots (5 Hz at the default 20 Hz):
+plenty for motions that last a second, and it is half of a snapshot's cost."""
+FLAGGED_FAULTY = 0.05
+"""More than this fraction of a device's samples flagged in the window marks it faulty (a
+chip that flags the odd late sample is not)."""
+UNITS = {c.value: c.unit for c in Channel}
+
+
+class Truth(Protocol):
+    """The simulated truth of an emulated run (imuhal.sim.scenario.TruthState has these)."""
+
+    t_s: float
+
+    @property
+    def euler_deg(self) -> tuple[float, float, float]: ...
+
+    @property
+    def altitude_m(self) -> float: ...
+
+    @property
+    def climb_m_s(self) -> float: ...
+
+
+def configured_rates_hz(settings: dict[str, Any], channels: tuple[Channel, ...]
+                        ) -> dict[str, float]:
+    """The output rate each channel was configured for, read from a driver's settings by the
+    naming guide's names: ``<channel>_odr_hz``, else ``odr_hz`` or ``rate_hz`` for the
+    device (its vector and pressure channels; a chip measures temperature at its own pace)."""
+    device_rate = settings.get("odr_hz", settings.get("rate_hz"))
+    rates = {}
+    for channel in channels:
+        own = settings.get(f"{channel.value}_odr_hz")
+        if own is None and channel is not Channel.TEMPERATURE:
+            own = device_rate
+        if isinstance(own, int | float) and own > 0:
+            rates[channel.value] = float(own)
+    return rates
+
+
+@dataclass
+class _Past:
+    t_ns: int
+    counts: dict[str, dict[Channel, int]]
+    rotation: dict[str, tuple[float, float, float]]
+    vectors: dict[tuple[str, Channel], tuple[float, float, float]]
+    faults: dict[str, int]
+    flagged: dict[str, int]
+
+
+class Snapshotter:
+    """Builds successive snapshots of one run (keep one per live view)."""
+
+    def __init__(self, sink: LiveSink, pipeline: Pipeline | None = None, *,
+                 truth: Callable[[], Truth | None] | None = None,
+                 scenario: str | None = None) -> None:
+        self.sink = sink
+        self.pipeline = pipeline
+        self.truth = truth
+        self.scenario = scenario
+        self.seq = 0
+        self._past: deque[_Past] = deque()
+        self._configured: dict[str, dict[str, float]] = {}
+        self._drivers: dict[str, str] = {}
+        self._bringup_state: dict[str, Any] | None = None
+        self._last_events = 0
+        self._last_change_wall = 0.0
+        if pipeline is not None:
+            for name, dev in pipeline.devices.items():
+                drv = dev.driver
+                self._drivers[name] = drv.name
+                self._configured[name] = configured_rates_hz(
+                    drv.settings.model_dump(), tuple(drv.channels))
+
+    def snapshot(self) -> dict[str, Any]:
+        """The state now, as the page receives it (one SSE message, JSON)."""
+        copy = self.sink.copy()
+        self.seq += 1
+        now_wall = time.monotonic()
+        out: dict[str, Any] = {
+            "seq": self.seq,
+            "t_s": None if copy.t_ns is None else copy.t_ns / 1e9,
+            "age_s": self._age_s(copy.events, now_wall),
+            "events": copy.events,
+            "ended": copy.closed,
+            "board": {
+                "profile": self.pipeline.profile.name if self.pipeline is not None else None,
+                "scenario": self.scenario,
+                "emulated": self.truth is not None,
+            },
+            # In the profile's order: the page offers the first one by default.
+            "attitude": {name: _attitude(copy.attitudes[name])
+                         for name in self._ordered(copy.attitudes)},
+            "vertical": {name: {"t_s": v.t_ns / 1e9, "altitude_m": v.altitude_m,
+                                "climb_m_s": v.climb_m_s}
+                         for name, v in ((n, copy.verticals[n])
+                                         for n in self._ordered(copy.verticals))},
+            "sensors": {name: _sensors(d.latest_valid, d.latest)
+                        for name, d in sorted(copy.devices.items())},
+            "truth": None,
+            "warnings": list(self.pipeline.warnings) if self.pipeline is not None else [],
+        }
+        truth = self.truth() if self.truth is not None else None
+        if truth is not None:
+            roll, pitch, yaw = truth.euler_deg
+            out["truth"] = {"t_s": float(truth.t_s), "roll_deg": roll, "pitch_deg": pitch,
+                            "heading_deg": yaw % 360.0, "altitude_m": truth.altitude_m,
+                            "climb_m_s": truth.climb_m_s}
+        past = self._remember(copy)
+        out["health"] = self._health(copy, past)
+        if self._bringup_state is None or self.seq % BRINGUP_EVERY == 0:
+            self._bringup_state = self._bringup(copy, past)
+        out["bringup"] = self._bringup_state
+        return out
+
+    def _age_s(self, events: int, now_wall: float) -> float | None:
+        """Wall seconds since the pipeline's last event, as seen by successive snapshots
+        (the sink itself reads no clock: that would cost every event)."""
+        if events == 0:
+            return None
+        if events != self._last_events:
+            self._last_events = events
+            self._last_change_wall = now_wall
+        return now_wall - self._last_change_wall
+
+    def _ordered(self, names: dict[str, Any]) -> list[str]:
+        """``names`` in the profile's estimator order (unknown ones last, sorted)."""
+        order = ([e.name for e in self.pipeline.estimators]
+                 if self.pipeline is not None else [])
+        known = [n for n in order if n in names]
+        return known + sorted(n for n in names if n not in order)
+
+    # -- history ------------------------------------------------------------------------
+
+    def _faults(self, name: str) -> int:
+        """Bus errors plus device errors of ``name`` so far (0 without a pipeline)."""
+        if self.pipeline is None or name not in self.pipeline.devices:
+            return 0
+        dev = self.pipeline.devices[name]
+        return dev.driver.health.bus_errors + dev.device_errors
+
+    def _remember(self, copy: Copy) -> _Past | None:
+        """Store this copy's essentials; return the oldest one within the window."""
+        if copy.t_ns is None:
+            return None
+        if self._past and copy.t_ns < self._past[-1].t_ns:
+            self._past.clear()  # a new run on the same sink: start over
+        vectors = {}
+        for name, d in copy.devices.items():
+            for channel in (Channel.ACCEL, Channel.MAG):
+                s = d.latest_valid.get(channel)
+                if isinstance(s, VectorSample):
+                    vectors[(name, channel)] = s.vector
+        self._past.append(_Past(
+            t_ns=copy.t_ns,
+            counts={n: dict(d.counts) for n, d in copy.devices.items()},
+            rotation={n: (d.rotation_rad[0], d.rotation_rad[1], d.rotation_rad[2])
+                      for n, d in copy.devices.items() if d.last_gyro_ns is not None},
+            vectors=vectors,
+            faults={n: self._faults(n) for n in copy.devices},
+            flagged={n: sum(d.flagged.values()) for n, d in copy.devices.items()}))
+        while copy.t_ns - self._past[0].t_ns > WINDOW_S * 1e9:
+            self._past.popleft()
+        return self._past[0]
+
+    def _health(self, copy: Copy, past: _Past | None) -> dict[str, Any]:
+        names = list(self._drivers) + [n for n in copy.devices if n not in self._drivers]
+        span_s = (copy.t_ns - past.t_ns) / 1e9 if past is not None and copy.t_ns else 0.0
+        health: dict[str, Any] = {}
+        for name in names:
+            d = copy.devices.get(name)
+            configured = self._configured.get(name, {})
+            achieved: dict[str, float] = {}
+            if d is not None and past is not None and span_s >= 0.5:
+                before = past.counts.get(name, {})
+                for channel, n in d.counts.items():
+                    achieved[channel.value] = (n - before.get(channel, 0)) / span_s
+            fastest = max(configured.values(), default=None)
+            stale_after = max(STALE_PERIODS / fastest if fastest else 0.0, STALE_MIN_S)
+            last_t = None if d is None or d.last_t_ns is None else d.last_t_ns / 1e9
+            now_t = None if copy.t_ns is None else copy.t_ns / 1e9
+            stale = now_t is not None and (last_t is None or now_t - last_t > stale_after)
+            faults = self._faults(name)
+            recent_faults = faults - (past.faults.get(name, 0) if past is not None else 0)
+            problems = []
+            if stale:
+                problems.append("stale: no sample for "
+                                + (f"{now_t - last_t:.1f} s" if last_t is not None and
+                                   now_t is not None else "the whole run"))
+            if recent_faults > 0:
+                problems.append(f"{recent_faults} bus/device errors in the last "
+                                f"{WINDOW_S:g} s")
+            for channel, want in configured.items():
+                got = achieved.get(channel)
+                if got is not None and got < RATE_LOW * want:
+                    problems.append(f"{channel} at {got:.0f} of {want:g} Hz")
+            recent_flags = 0
+            if d is not None:
+                recent_flags = sum(d.flagged.values()) - (
+                    past.flagged.get(name, 0) if past is not None else 0)
+            recent_samples = 0
+            if d is not None:
+                recent_samples = sum(d.counts.values()) - (
+                    sum(past.counts.get(name, {}).values()) if past is not None else 0)
+            if recent_flags > FLAGGED_FAULTY * max(recent_samples, 1):
+                problems.append(f"{recent_flags} of {recent_samples} samples flagged in the "
+                                f"last {WINDOW_S:g} s")
+            health[name] = {
+                "driver": self._drivers.get(name),
+                "configured_hz": configured,
+                "achieved_hz": achieved,
+                "samples": sum(d.counts.values()) if d is not None else 0,
+                "flagged": dict(d.flagged) if d is not None else {},
+                "flagged_recent": recent_flags,
+                "bus_errors": (self.pipeline.devices[name].driver.health.bus_errors
+                               if self.pipeline is not None and name in self.pipeline.devices
+                               else 0),
+                "device_errors": (self.pipeline.devices[name].device_errors
+                                  if self.pipeline is not None and name in self.pipeline.devices
+                                  else 0),
+                "last_t_s": last_t,
+                "stale": stale,
+                "faulty": bool(problems) and not (stale and len(problems) == 1),
+                "problems": problems,
+            }
+        return health
+
+    def _bringup(self, copy: Copy, past: _Past | None) -> dict[str, Any]:
+        """The rotation each sensor saw in the last window and, for each bring-up motion,
+        its verdict (the page latches the first clear verdict after the user starts one)."""
+        evidence: list[Evidence] = []
+        if past is not None:
+            for name, d in copy.devices.items():
+                before = past.rotation.get(name)
+                if before is not None and d.last_gyro_ns is not None:
+                    evidence.append(Evidence(name, Channel.GYRO, tuple(  # type: ignore[arg-type]
+                        math.degrees(d.rotation_rad[i] - before[i]) for i in range(3))))
+            ends_ns = ENDS_S * 1e9
+            first = [p for p in self._past if p.t_ns - past.t_ns <= ends_ns]
+            last = [p for p in self._past if copy.t_ns is not None
+                    and copy.t_ns - p.t_ns <= ends_ns]
+            keys = {k for p in first for k in p.vectors} & {k for p in last for k in p.vectors}
+            for key in sorted(keys, key=lambda k: (k[0], k[1].value)):
+                v0 = mean_vector([p.vectors[key] for p in first if key in p.vectors])
+                v1 = mean_vector([p.vectors[key] for p in last if key in p.vectors])
+                n0 = math.sqrt(sum(c * c for c in v0)) or 1.0
+                evidence.append(Evidence(key[0], key[1], rotation_between(v0, v1),
+                                         (v0[0] / n0, v0[1] / n0, v0[2] / n0)))
+        return {
+            "window_s": WINDOW_S,
+            "window_start_t_s": None if past is None else past.t_ns / 1e9,
+            "seen": [{"device": e.device, "channel": e.channel.value,
+                      "rotation_deg": list(e.rotation_deg)} for e in evidence],
+            "verdicts": {m.key: [judge(m, e).as_dict() for e in evidence] for m in MOTIONS},
+            "motions": [{"key": m.key, "label": m.label, "prompt": m.prompt}
+                        for m in MOTIONS],
+        }
+
+
+def _attitude(a: Any) -> dict[str, Any]:
+    roll, pitch, yaw = a.roll_pitch_yaw_deg
+    return {"t_s": a.t_ns / 1e9, "roll_deg": roll, "pitch_deg": pitch,
+            "heading_deg": yaw % 360.0, "q_body_to_ned": list(a.q_body_to_ned)}
+
+
+def _sensors(valid: dict[Channel, Sample], latest: dict[Channel, Sample]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for channel, sample in latest.items():
+        good = valid.get(channel)
+        entry: dict[str, Any] = {"unit": channel.unit, "t_s": sample.t_ns / 1e9,
+                                 "valid": sample.valid, "value": None}
+        if good is not None:
+            entry["value_t_s"] = good.t_ns / 1e9
+            if isinstance(good, VectorSample):
+                entry["value"] = [_finite(v) for v in good.vector]
+                entry["frame"] = good.frame.value
+            elif isinstance(good, ScalarSample):
+                entry["value"] = _finite(good.scalar)
+        out[channel.value] = entry
+    return out
+
+
+def _finite(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
