@@ -62,7 +62,7 @@ def test_a_vario_filter_over_a_run_log_follows_the_live_altitude(
     assert abs(float(last["altitude_m"]) - live[f"{float(last['t_s']):.6f}"]) < 0.05
 
 
-def test_flagged_samples_in_a_run_log_are_skipped_not_fused(tmp_path: Path,
+def test_flagged_samples_and_rows_without_columns_are_skipped_not_fused(tmp_path: Path,
                                                             capsys: pytest.CaptureFixture[str]
                                                             ) -> None:
     log = tmp_path / "log.csv"
@@ -77,6 +77,7 @@ def test_flagged_samples_in_a_run_log_are_skipped_not_fused(tmp_path: Path,
             az = "nan" if i == 10 else "-9.80665"
             w.writerow([t, "imu", "accel", flags, "0", "0", az, "", "", ""])
             w.writerow([t, "imu", "gyro", "0", "", "", "", "0", "0", "0"])
+            w.writerow([t, "gnss", "velocity", "0", "", "", "", "", "", ""])  # no columns
     out = tmp_path / "out.csv"
     assert main(["estimate", "madgwick", str(log), "-o", str(out)]) == 0
     assert "1 flagged skipped" in capsys.readouterr().err

@@ -37,7 +37,7 @@ _VECTORS = {
              VectorKind.ANGULAR_RATE),
     "mag": (("mx_ut", "my_ut", "mz_ut"), MagSample, "mag_ut", VectorKind.MAGNETIC_FIELD),
 }
-_ESTIMATE_KINDS = frozenset({"attitude", "vertical"})
+_DECODED_KINDS = frozenset({*_VECTORS, "pressure", "temperature"})
 
 
 @dataclass
@@ -49,8 +49,9 @@ class RunLog:
     """Data rows in the file."""
     flagged: int
     """Sample rows skipped because they were flagged."""
-    estimates: int
-    """Estimate rows (not inputs)."""
+    skipped: dict[str, int]
+    """Rows of other kinds by kind: estimates (outputs, not inputs) and samples the log has
+    no columns for (velocity, airspeed)."""
 
 
 def is_run_log(path: str | Path) -> bool:
@@ -85,7 +86,8 @@ def read_run_log(path: str | Path, frame: Convention | None = None) -> RunLog:
     carry, else ``frame``, else ned); each bad cell is an error naming line and column."""
     p = Path(path)
     samples: list[Sample] = []
-    rows = flagged = estimates = 0
+    rows = flagged = 0
+    skipped: dict[str, int] = {}
     with p.open(newline="", encoding="utf-8") as f:
         reader = csv.DictReader(f)
         conv = log_frame(p, list(reader.fieldnames or []), frame)
@@ -93,8 +95,13 @@ def read_run_log(path: str | Path, frame: Convention | None = None) -> RunLog:
         for line_no, row in enumerate(reader, start=2):
             rows += 1
             kind = (row.get("kind") or "").strip()
-            if kind in _ESTIMATE_KINDS:
-                estimates += 1
+            if not kind:
+                raise InputError(f"{p}: line {line_no}, column 'kind': empty; every row of a "
+                                 "run log names its kind (docs/output-csv.md)")
+            if kind not in _DECODED_KINDS:
+                # Estimates are outputs; other samples (velocity, airspeed) have no columns
+                # in the log to rebuild them from.
+                skipped[kind] = skipped.get(kind, 0) + 1
                 continue
             if _number(p, line_no, row, "flags") != 0:
                 flagged += 1
@@ -111,18 +118,17 @@ def read_run_log(path: str | Path, frame: Convention | None = None) -> RunLog:
             elif kind == "pressure":
                 samples.append(PressureSample(t_ns=t_ns, device=device, pressure_pa=_number(
                     p, line_no, row, "pressure_pa")))
-            elif kind == "temperature":
+            else:  # temperature
                 samples.append(TemperatureSample(t_ns=t_ns, device=device,
                                                  temperature_degc=_number(
                                                      p, line_no, row, "temperature_degc")))
-            else:
-                raise InputError(f"{p}: line {line_no}, column 'kind': {kind!r} is not a "
-                                 "sample or estimate kind (docs/output-csv.md)")
     if not samples:
-        why = (f"it holds {estimates} estimate rows and no valid samples; write samples with "
-               "`imuhal run --output LOG.csv --samples`") if rows else "it has no data rows"
+        others = ", ".join(f"{n} {k}" for k, n in sorted(skipped.items())) or "none"
+        why = (f"it holds no valid samples to rebuild (accel, gyro, mag, pressure, "
+               f"temperature; other rows: {others}); write samples with `imuhal run --output "
+               "LOG.csv --samples`") if rows else "it has no data rows"
         raise InputError(f"{p}: no samples to estimate from: {why}")
-    return RunLog(p, samples, rows, flagged, estimates)
+    return RunLog(p, samples, rows, flagged, skipped)
 
 
 def _number(path: Path, line_no: int, row: dict[str, str | None], column: str) -> float:
