@@ -27,6 +27,7 @@ and expose their quaternion through ``_q``.
 
 from __future__ import annotations
 
+import math
 from abc import abstractmethod
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -35,6 +36,7 @@ from typing import Any, ClassVar, Literal
 import numpy as np
 from pydantic import Field
 
+from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.core.frames import FloatArray
 from imuhal.core.samples import (
     AccelSample,
@@ -44,11 +46,12 @@ from imuhal.core.samples import (
     GyroSample,
     MagSample,
     Sample,
+    SampleFlag,
     VelocitySample,
 )
 from imuhal.estimation.base import Estimator, EstimatorSettings
-from imuhal.estimation.gravity import linear_accel_ned_m_s2
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate
+from imuhal_filters.common import fast
 from imuhal_filters.common.alignment import aligned_quaternion
 from imuhal_filters.common.gate import gravity_positive_g
 from imuhal_filters.common.limits import (
@@ -106,8 +109,24 @@ class ImuStep:
 
 
 def _vec(v: Sequence[float]) -> Vec:
-    x, y, z = (float(c) for c in v)
-    return (x, y, z)
+    x, y, z = v
+    return (float(x), float(y), float(z))
+
+
+_OK = SampleFlag.OK
+
+
+def _linear_accel_ned(q: Quat, f: Vec) -> Vec:
+    """:func:`imuhal.estimation.gravity.linear_accel_ned_m_s2` on plain floats (R(q) f + g):
+    the same rotation, without building two numpy arrays per step."""
+    w, x, y, z = q
+    fx, fy, fz = f
+    return (
+        (w * w + x * x - y * y - z * z) * fx + 2 * (x * y - w * z) * fy + 2 * (x * z + w * y) * fz,
+        2 * (x * y + w * z) * fx + (w * w - x * x + y * y - z * z) * fy + 2 * (y * z - w * x) * fz,
+        2 * (x * z - w * y) * fx + 2 * (y * z + w * x) * fy + (w * w - x * x - y * y + z * z) * fz
+        + STANDARD_GRAVITY_M_S2,
+    )
 
 
 class AhrsEstimator(Estimator):
@@ -158,9 +177,40 @@ class AhrsEstimator(Estimator):
         self._tilt_aligned = identity
         self._heading_aligned = identity or not self.uses_mag
         self._kinematics = KinematicAcceleration(self.settings)
+        self._gyro_fs = float(self.settings.gyro_full_scale_rad_s)
+        self._accel_fs = float(self.settings.accel_full_scale_m_s2)
         self._reset_filter()
 
     def process(self, item: Sample | Estimate) -> list[Estimate]:
+        # The pipeline calls this for every sample (three per IMU tick): the common samples
+        # take a direct path (exact type, one bound check per component); anything else,
+        # subclasses of the sample types included, takes the general one below.
+        kind = type(item)
+        if kind is GyroSample or kind is AccelSample or kind is MagSample:
+            if item.flags != _OK:
+                self._counters["invalid"][item.channel.value] += 1
+                return []
+            x, y, z = item.vector  # type: ignore[union-attr]
+            fs = (self._gyro_fs if kind is GyroSample else
+                  self._accel_fs if kind is AccelSample else math.inf)
+            # NaN and +-inf fail every comparison: one test covers finite and in range
+            if not (-fs <= x <= fs and -fs <= y <= fs and -fs <= z <= fs
+                    and abs(x) < math.inf and abs(y) < math.inf and abs(z) < math.inf):
+                self._reject(item.channel.value)
+                return []
+            if item.frame is not Frame.BODY_NED:  # type: ignore[union-attr]
+                return self._wrong_frame(item)  # type: ignore[arg-type]
+            if kind is AccelSample:
+                self._accel_m_s2, self._accel_t_ns = (float(x), float(y), float(z)), item.t_ns
+                return []
+            if kind is MagSample:
+                if self.uses_mag:
+                    self._mag_ut, self._mag_t_ns = (float(x), float(y), float(z)), item.t_ns
+                return []
+            return self._on_gyro(item, (float(x), float(y), float(z)))  # type: ignore[arg-type]
+        return self._process_general(item)
+
+    def _process_general(self, item: Sample | Estimate) -> list[Estimate]:
         if isinstance(item, VelocitySample):
             if item.valid and within_full_scale(item.velocity_ned_m_s, None):
                 self._kinematics.on_velocity(item)
@@ -177,11 +227,7 @@ class AhrsEstimator(Estimator):
         if not self._within_limits(item):
             return []
         if item.frame is not Frame.BODY_NED:
-            raise ValueError(
-                f"{self.instance}: {type(item).__name__} from {item.device!r} is in the "
-                f"{item.frame.value!r} frame; AHRS estimators take body NED samples (apply the "
-                "mount first)"
-            )
+            return self._wrong_frame(item)
         if isinstance(item, AccelSample):
             self._accel_m_s2, self._accel_t_ns = _vec(item.accel_m_s2), item.t_ns
             return []
@@ -189,7 +235,14 @@ class AhrsEstimator(Estimator):
             if self.uses_mag:
                 self._mag_ut, self._mag_t_ns = _vec(item.mag_ut), item.t_ns
             return []
-        return self._on_gyro(item)
+        return self._on_gyro(item, _vec(item.gyro_rad_s))
+
+    def _wrong_frame(self, item: GyroSample | AccelSample | MagSample) -> list[Estimate]:
+        raise ValueError(
+            f"{self.instance}: {type(item).__name__} from {item.device!r} is in the "
+            f"{item.frame.value!r} frame; AHRS estimators take body NED samples (apply the "
+            "mount first)"
+        )
 
     def get_state(self) -> dict[str, Any]:
         return {
@@ -265,6 +318,44 @@ class AhrsEstimator(Estimator):
             return None
         return np.array(self._q)
 
+    # ------------------------------------------------------------------ batch kernels
+    def aligned_for_batch(self, has_mag: bool) -> bool:
+        """No alignment is left to happen: a compiled kernel may take over from here."""
+        return self._tilt_aligned and (self._heading_aligned or not has_mag)
+
+    def _compiled_batch(self, gyro: FloatArray, accel: FloatArray | None,
+                        mag: FloatArray | None, dts: FloatArray, out: FloatArray) -> bool:
+        """Step every row in a compiled kernel, writing ``out``; False when this estimator
+        has none for its settings (``run_batch`` then stays in Python)."""
+        return False
+
+    def _kernel_allowed(self) -> bool:
+        """The compiled kernels cover no turn compensation by a speed (nominal airspeed,
+        velocity, airspeed): only its bookkeeping."""
+        s = self.settings
+        return fast.available() and not (s.turn_compensation and (
+            s.nominal_airspeed_m_s is not None or self._kinematics.has_speed_source))
+
+    def _kernel_inputs(self, n: int, accel: FloatArray | None, mag: FloatArray | None
+                       ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """(accel, mag, counts) as the kernels take them: NaN rows for an absent sensor;
+        counts = steps, gyro and accel beyond full scale, gate closed."""
+        nan3 = np.full((n, 3), np.nan)
+        return (nan3 if accel is None else accel, nan3 if mag is None else mag,
+                np.zeros(4, dtype=np.int64))
+
+    def _kernel_finished(self, q: FloatArray, counts: FloatArray, turn_sum: float) -> None:
+        """Take over what a kernel left: the quaternion, counters, turn bookkeeping."""
+        self._q = (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
+        steps, bad_gyro, bad_accel, closed = (int(c) for c in counts)
+        self._kinematics.add_turn_steps(float(turn_sum), steps)
+        self._counters["steps"] += steps
+        if "gate_closed_steps" in self._counters:
+            self._counters["gate_closed_steps"] += closed
+        beyond = self._counters["beyond_full_scale"]
+        beyond[Channel.GYRO.value] += bad_gyro
+        beyond[Channel.ACCEL.value] += bad_accel
+
     # ------------------------------------------------------------------ internals
     def _within_limits(self, item: GyroSample | AccelSample | MagSample) -> bool:
         """False (and counted) for a value no sensor can report: beyond full scale, NaN, inf."""
@@ -276,9 +367,13 @@ class AhrsEstimator(Estimator):
         else:
             ok = within_full_scale(item.mag_ut, None)
         if not ok:
-            self._counters["beyond_full_scale"].setdefault(item.channel.value, 0)
-            self._counters["beyond_full_scale"][item.channel.value] += 1
+            self._reject(item.channel.value)
         return ok
+
+    def _reject(self, channel: str) -> None:
+        """Count a value beyond the full scale (or not finite) on ``channel``."""
+        self._counters["beyond_full_scale"].setdefault(channel, 0)
+        self._counters["beyond_full_scale"][channel] += 1
 
     def _align(self, accel: Vec | None, mag: Vec | None) -> bool:
         """Set the attitude from the first accel (and mag) sample; True once tilt is set."""
@@ -309,18 +404,15 @@ class AhrsEstimator(Estimator):
         self._counters["steps"] += 1
         return self._step(ImuStep(gyro, accel_g, mag, dt))
 
-    def _on_gyro(self, gyro: GyroSample) -> list[Estimate]:
+    def _on_gyro(self, gyro: GyroSample, rate: Vec) -> list[Estimate]:
         dt = self._dt_for(gyro.t_ns)
         self._last_gyro_t_ns = gyro.t_ns
         accel = self._fresh(self._accel_m_s2, self._accel_t_ns, gyro.t_ns, "stale_accel")
         mag = self._fresh(self._mag_ut, self._mag_t_ns, gyro.t_ns, "stale_mag")
-        diag = self._run_step(gyro.t_ns, _vec(gyro.gyro_rad_s), accel, mag, dt)
+        diag = self._run_step(gyro.t_ns, rate, accel, mag, dt)
         if diag is None:
             return []
-        lin = None
-        if accel is not None:
-            a = linear_accel_ned_m_s2(self._q, accel)
-            lin = (float(a[0]), float(a[1]), float(a[2]))
+        lin = None if accel is None else _linear_accel_ned(self._q, accel)
         return [
             AttitudeEstimate(
                 t_ns=gyro.t_ns,

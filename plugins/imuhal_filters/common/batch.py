@@ -8,6 +8,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from imuhal.core.frames import FloatArray
+from imuhal_filters.common import fast
 from imuhal_filters.common.ahrs import AhrsEstimator
 
 
@@ -24,6 +25,10 @@ def run_batch(
     is a scalar or N values (default: the estimator's ``sample_period_s``). A row of NaN in
     ``accel_m_s2`` or ``mag_ut`` means "no sample this step". Rows for which the filter had no
     attitude yet are NaN. The estimator keeps its state, so batches can be chained.
+
+    With numba installed (the ``fast`` extra) the rows after alignment run in the estimator's
+    compiled kernel where it has one; the results equal this loop's to 1e-12
+    (``IMUHAL_NO_JIT=1`` forces the pure-Python loop).
     """
     gyro = np.asarray(gyro_rad_s, dtype=float)
     n = gyro.shape[0]
@@ -36,13 +41,51 @@ def run_batch(
     else:
         dts = np.broadcast_to(np.asarray(dt_s, dtype=float), (n,))
     out = np.full((n, 4), np.nan)
-    for i in range(n):
-        a: Any = None if accel is None or np.isnan(accel[i]).any() else accel[i]
-        m: Any = None if mag is None or np.isnan(mag[i]).any() else mag[i]
-        q = estimator.update(gyro[i], a, m, float(dts[i]))
+    start = _compiled_tail(estimator, gyro, accel, mag, dts, out) if fast.available() else 0
+    if start == n:
+        return out
+    # rows as plain float tuples and the "no sample" rows found once for the whole array:
+    # per-row numpy indexing and isnan cost more than the filter step itself
+    rest = slice(start, n)
+    no_sample = [None] * (n - start)
+    accel_rows: list[Any] = no_sample if accel is None else _rows(accel[rest])
+    mag_rows: list[Any] = no_sample if mag is None else _rows(mag[rest])
+    update = estimator.update
+    for i, (g, a, m, dt) in enumerate(zip(gyro[rest].tolist(), accel_rows, mag_rows,
+                                          dts[rest].tolist(), strict=True), start=start):
+        q = update(g, a, m, dt)
         if q is not None:
             out[i] = q
     return out
+
+
+def _compiled_tail(estimator: AhrsEstimator, gyro: FloatArray, accel: FloatArray | None,
+                   mag: FloatArray | None, dts: FloatArray, out: FloatArray) -> int:
+    """Step rows in Python until nothing is left to align, then the rest in the estimator's
+    compiled kernel, if it has one for its settings. Returns the first row not yet run."""
+    n = gyro.shape[0]
+    for i in range(n):
+        if estimator.aligned_for_batch(mag is not None):
+            rest = slice(i, n)
+            done = estimator._compiled_batch(
+                np.ascontiguousarray(gyro[rest]),
+                None if accel is None else np.ascontiguousarray(accel[rest]),
+                None if mag is None else np.ascontiguousarray(mag[rest]),
+                np.ascontiguousarray(dts[rest], dtype=float), out[rest])
+            return n if done else i
+        a = None if accel is None else _rows(accel[i : i + 1])[0]
+        m = None if mag is None else _rows(mag[i : i + 1])[0]
+        q = estimator.update(tuple(gyro[i].tolist()), a, m, float(dts[i]))
+        if q is not None:
+            out[i] = q
+    return n
+
+
+def _rows(values: FloatArray) -> list[tuple[float, ...] | None]:
+    """Each row as a tuple, None where any component is NaN ("no sample this step")."""
+    missing = np.isnan(values).any(axis=1).tolist()
+    return [None if gap else tuple(row) for row, gap in zip(values.tolist(), missing,
+                                                             strict=True)]
 
 
 def _optional(values: ArrayLike | None, n: int, what: str) -> FloatArray | None:

@@ -144,6 +144,29 @@ class KinematicAcceleration:
         self.source = "none"
         return _ZERO
 
+    # -- batch kernels ----------------------------------------------------------------------
+
+    @property
+    def has_speed_source(self) -> bool:
+        """A velocity or airspeed sample has arrived (``update()`` would compensate with it)."""
+        return self._speed.t_ns is not None or self._airspeed.t_ns is not None
+
+    @property
+    def turn_sum(self) -> float:
+        """Running sum of |gyro| over the steps (the turn detector's input)."""
+        return self._turn_sum
+
+    def add_turn_steps(self, turn_sum: float, steps: int) -> None:
+        """What ``steps`` calls of ``step`` without a speed source would have left: a compiled
+        batch kernel accumulated ``turn_sum`` from :attr:`turn_sum` in the same order."""
+        if not self.s.turn_compensation:
+            self.source = "off"
+            return
+        self._turn_sum = turn_sum
+        self._turn_n += steps
+        if steps:
+            self.source = "none"
+
     # -- state ------------------------------------------------------------------------------
 
     def as_dict(self) -> dict[str, Any]:

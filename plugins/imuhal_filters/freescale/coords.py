@@ -265,6 +265,24 @@ def to_sensor_vector(cs: CoordinateSystem, v_body_ned: FloatArray) -> FloatArray
     return vector_from_ned(v_body_ned, _CONVENTION[cs], VectorKind.ANGULAR_RATE)
 
 
+SignedAxes = tuple[tuple[int, float], tuple[int, float], tuple[int, float]]
+"""Per sensor axis: (index of the body NED component, sign). Every convention's body axes are
+a signed permutation of NED's, so a sample's vector converts on plain floats, exactly."""
+
+
+def sensor_axes(cs: CoordinateSystem, *, specific_force: bool = False) -> SignedAxes:
+    """:func:`to_sensor_vector` (or, with ``specific_force``, :func:`accel_reading_g`) as a
+    signed permutation: ``out[i] = sign * v[index]``, the same floats without numpy."""
+    c = _CONVENTION[cs]
+    m = c.body_from_frd.T  # vector_from_ned computes v @ M.T
+    factor = c.accel_sign.factor if specific_force else 1.0
+    axes = []
+    for i in range(3):
+        (k,) = np.flatnonzero(m[:, i])
+        axes.append((int(k), float(m[k, i]) * factor))
+    return (axes[0], axes[1], axes[2])
+
+
 def accel_reading_g(cs: CoordinateSystem, specific_force_body_ned_g: FloatArray) -> FloatArray:
     """The accelerometer reading ``cs`` expects (g, its axes and sign) from specific force."""
     return vector_from_ned(specific_force_body_ned_g, _CONVENTION[cs], VectorKind.SPECIFIC_FORCE)

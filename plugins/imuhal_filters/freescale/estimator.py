@@ -34,10 +34,12 @@ from imuhal.estimation.base import Estimator, EstimatorSettings
 from imuhal.estimation.gravity import linear_accel_ned_m_s2
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate
 from imuhal_filters.common.limits import within_full_scale
+from imuhal_filters.common.quat import Vec
 from imuhal_filters.common.turn import KinematicAcceleration
 from imuhal_filters.freescale.coords import (
-    accel_reading_g,
+    SignedAxes,
     quat_body_to_ned,
+    sensor_axes,
     to_sensor_vector,
 )
 from imuhal_filters.freescale.kalman import FreescaleKalman, KalmanStep
@@ -55,34 +57,47 @@ _COUNTERS = ("gyro_samples", "accel_samples", "mag_samples", "kalman_steps",
 class _Latest:
     """The newest sample of one sensor (reference units) and the sum over the window."""
 
+    # plain float tuples per sample (a numpy array per 3-vector costs more than it saves);
+    # arrays only once per Kalman step, in take()
     def __init__(self) -> None:
-        self.value: FloatArray | None = None
+        self.value: Vec | None = None
         self.t_ns: int | None = None
-        self.sum = np.zeros(3)
+        self.sum: Vec = (0.0, 0.0, 0.0)
         self.count = 0
 
-    def add(self, t_ns: int, v: FloatArray) -> None:
+    def add(self, t_ns: int, v: Vec) -> None:
         self.value, self.t_ns = v, t_ns
-        self.sum = self.sum + v
+        s = self.sum
+        self.sum = (s[0] + v[0], s[1] + v[1], s[2] + v[2])
         self.count += 1
 
     def take(self, average: bool) -> FloatArray | None:
         """The value a Kalman step fuses; restarts the window sum."""
-        out = self.value
+        out = None if self.value is None else np.array(self.value)
         if average and self.count:
-            out = self.sum / self.count
-        self.sum, self.count = np.zeros(3), 0
+            out = np.array(self.sum) / self.count
+        self.sum, self.count = (0.0, 0.0, 0.0), 0
         return out
 
     def as_dict(self) -> dict[str, Any]:
-        return {"value": None if self.value is None else self.value.tolist(), "t_ns": self.t_ns,
-                "sum": self.sum.tolist(), "count": self.count}
+        return {"value": None if self.value is None else list(self.value), "t_ns": self.t_ns,
+                "sum": list(self.sum), "count": self.count}
 
     def load_dict(self, d: dict[str, Any]) -> None:
-        self.value = None if d["value"] is None else np.array(d["value"], dtype=float)
+        self.value = None if d["value"] is None else _floats(d["value"])
         self.t_ns = None if d["t_ns"] is None else int(d["t_ns"])
-        self.sum = np.array(d["sum"], dtype=float)
+        self.sum = _floats(d["sum"])
         self.count = int(d["count"])
+
+
+def _floats(v: Any) -> Vec:
+    x, y, z = v
+    return (float(x), float(y), float(z))
+
+
+def _permute(v: Vec, axes: SignedAxes) -> Vec:
+    (i, a), (j, b), (k, c) = axes
+    return (a * v[i], b * v[j], c * v[k])
 
 
 class _FreescaleEstimator(Estimator):
@@ -93,7 +108,7 @@ class _FreescaleEstimator(Estimator):
 
     def reset(self) -> None:
         self._kf = FreescaleKalman(self.settings, use_mag=self.use_mag)
-        self._gyro: list[FloatArray] = []
+        self._gyro: list[Vec] = []
         self._gyro_t_ns: int | None = None
         self._accel = _Latest()
         self._mag = _Latest()
@@ -101,7 +116,10 @@ class _FreescaleEstimator(Estimator):
         self._last_step: KalmanStep | None = None
         self._counts = dict.fromkeys(_COUNTERS, 0)
         self._kinematics = KinematicAcceleration(self.settings)
-        self._kinematic_body_m_s2 = np.zeros(3)
+        self._kinematic_body_m_s2: Vec = (0.0, 0.0, 0.0)
+        cs = self.settings.coordinate_system
+        self._axes = sensor_axes(cs)
+        self._accel_axes = sensor_axes(cs, specific_force=True)
 
     # -- Estimator interface ----------------------------------------------------------------
 
@@ -112,8 +130,9 @@ class _FreescaleEstimator(Estimator):
             self._on_speed(item)
             return []
         assert isinstance(item, GyroSample | AccelSample | MagSample)
-        vec = np.asarray(item.vector, dtype=float)
-        if not item.valid or not np.all(np.isfinite(vec)):
+        vec = _floats(item.vector)
+        if not item.valid or not (math.isfinite(vec[0]) and math.isfinite(vec[1])
+                                  and math.isfinite(vec[2])):
             self._counts["skipped_invalid"] += 1
             return []
         if item.frame is not Frame.BODY_NED:
@@ -122,25 +141,26 @@ class _FreescaleEstimator(Estimator):
         if not self._within_full_scale(item):
             self._counts["beyond_full_scale"] += 1
             return []
-        cs = self.settings.coordinate_system
         out: list[Estimate] = []
         if isinstance(item, GyroSample):
             if self._pending:  # the window's accel/mag never caught up: use what there is
                 out += self._run_step()
             self._counts["gyro_samples"] += 1
-            self._kinematic_body_m_s2 = np.array(self._kinematics.step(item.t_ns,
-                                                                       item.gyro_rad_s))
-            self._gyro.append(to_sensor_vector(cs, np.degrees(vec)))
+            self._kinematic_body_m_s2 = self._kinematics.step(item.t_ns, vec)
+            deg = (math.degrees(vec[0]), math.degrees(vec[1]), math.degrees(vec[2]))
+            self._gyro.append(_permute(deg, self._axes))
             self._gyro_t_ns = item.t_ns
             if len(self._gyro) == self.settings.oversample_ratio:
                 self._pending = True
         elif isinstance(item, AccelSample):
             self._counts["accel_samples"] += 1
-            vec = vec - self._kinematic_body_m_s2  # turn compensation (zero without a source)
-            self._accel.add(item.t_ns, accel_reading_g(cs, vec / STANDARD_GRAVITY_M_S2))
+            k = self._kinematic_body_m_s2  # turn compensation (zero without a source)
+            g = STANDARD_GRAVITY_M_S2
+            force_g = ((vec[0] - k[0]) / g, (vec[1] - k[1]) / g, (vec[2] - k[2]) / g)
+            self._accel.add(item.t_ns, _permute(force_g, self._accel_axes))
         else:
             self._counts["mag_samples"] += 1
-            self._mag.add(item.t_ns, to_sensor_vector(cs, vec))
+            self._mag.add(item.t_ns, _permute(vec, self._axes))
         if self._pending and self._caught_up():
             out += self._run_step()
         return out
@@ -227,19 +247,19 @@ class _FreescaleEstimator(Estimator):
     def get_state(self) -> dict[str, Any]:
         return {
             "kf": self._kf.as_dict(),
-            "gyro": [g.tolist() for g in self._gyro],
+            "gyro": [list(g) for g in self._gyro],
             "gyro_t_ns": self._gyro_t_ns,
             "accel": self._accel.as_dict(),
             "mag": self._mag.as_dict(),
             "pending": self._pending,
             "counts": dict(self._counts),
             "kinematics": self._kinematics.as_dict(),
-            "kinematic_body_m_s2": self._kinematic_body_m_s2.tolist(),
+            "kinematic_body_m_s2": list(self._kinematic_body_m_s2),
         }
 
     def set_state(self, state: dict[str, Any]) -> None:
         self._kf.load_dict(state["kf"])
-        self._gyro = [np.array(g, dtype=float) for g in state["gyro"]]
+        self._gyro = [_floats(g) for g in state["gyro"]]
         t = state["gyro_t_ns"]
         self._gyro_t_ns = None if t is None else int(t)
         self._accel.load_dict(state["accel"])
@@ -248,7 +268,7 @@ class _FreescaleEstimator(Estimator):
         self._counts = {k: int(state["counts"].get(k, 0)) for k in _COUNTERS}
         if "kinematics" in state:
             self._kinematics.load_dict(state["kinematics"])
-            self._kinematic_body_m_s2 = np.array(state["kinematic_body_m_s2"], dtype=float)
+            self._kinematic_body_m_s2 = _floats(state["kinematic_body_m_s2"])
 
     def diagnostics(self) -> dict[str, Any]:
         out: dict[str, Any] = dict(self._counts)

@@ -20,11 +20,14 @@ from __future__ import annotations
 
 from typing import Any, ClassVar, Literal
 
+import numpy as np
 from pydantic import Field
 
+from imuhal.core.frames import FloatArray
 from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
 from imuhal_filters.common.gate import AccelGate, SoftGateSettings, soft_gate_weight
 from imuhal_filters.madgwick.core import MagReference, madgwick_step
+from imuhal_filters.madgwick.fast import madgwick_rows
 from imuhal_filters.madgwick.inv_sqrt import INV_SQRT
 
 SEED_GATE_G = (0.6, 1.4)
@@ -98,6 +101,24 @@ class MadgwickEstimator(AhrsEstimator):
             "mag_used": gate_open and mag is not None,
             "accel_weight": weight,
         }
+
+    def _compiled_batch(self, gyro: FloatArray, accel: FloatArray | None,
+                        mag: FloatArray | None, dts: FloatArray, out: FloatArray) -> bool:
+        """Run the rows in the compiled kernel (``fast`` extra) when it covers this setup;
+        False (nothing done) otherwise. Called by ``run_batch`` once the attitude is aligned."""
+        s = self.settings
+        if s.inv_sqrt != "exact" or not self._kernel_allowed():
+            return False
+        accel, mag, counts = self._kernel_inputs(gyro.shape[0], accel, mag)
+        gate = self._gate
+        q, turn_sum = madgwick_rows(
+            np.array(self._q), gyro, accel, mag, dts, float(s.gyro_full_scale_rad_s),
+            float(s.accel_full_scale_m_s2), float(s.beta), gate.lower_g, gate.upper_g,
+            0.0 if s.accel_soft_gate_g is None else float(s.accel_soft_gate_g),
+            s.mag_reference is MagReference.PAPER, s.use_mag, s.turn_compensation, out, counts,
+            self._kinematics.turn_sum)
+        self._kernel_finished(q, counts, turn_sum)
+        return True
 
     def _filter_state(self) -> dict[str, Any]:
         return {}

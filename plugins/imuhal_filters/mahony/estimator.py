@@ -13,12 +13,15 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
+import numpy as np
 from pydantic import Field
 
+from imuhal.core.frames import FloatArray
 from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
 from imuhal_filters.common.gate import AccelGate, SoftGateSettings, soft_gate_weight
 from imuhal_filters.common.quat import Vec
 from imuhal_filters.mahony.core import mahony_step
+from imuhal_filters.mahony.fast import mahony_rows
 
 _FIRMWARE: dict[str, Any] = {"initial_attitude": "identity", "turn_compensation": False,
                              "accel_soft_gate_g": None,
@@ -78,6 +81,24 @@ class MahonyEstimator(AhrsEstimator):
             "gyro_bias_rad_s": self.gyro_bias_rad_s,
             "accel_weight": weight,
         }
+
+    def _compiled_batch(self, gyro: FloatArray, accel: FloatArray | None,
+                        mag: FloatArray | None, dts: FloatArray, out: FloatArray) -> bool:
+        """The rows in the compiled kernel (``fast`` extra), once aligned; see run_batch."""
+        if not self._kernel_allowed():
+            return False
+        s = self.settings
+        accel, mag, counts = self._kernel_inputs(gyro.shape[0], accel, mag)
+        gate = self._gate
+        q, integral, turn_sum = mahony_rows(
+            np.array(self._q), np.array(self._integral), gyro, accel, mag, dts,
+            float(s.gyro_full_scale_rad_s), float(s.accel_full_scale_m_s2), float(s.kp),
+            float(s.ki), gate.lower_g, gate.upper_g,
+            0.0 if s.accel_soft_gate_g is None else float(s.accel_soft_gate_g), s.use_mag,
+            s.turn_compensation, out, counts, self._kinematics.turn_sum)
+        self._integral = (float(integral[0]), float(integral[1]), float(integral[2]))
+        self._kernel_finished(q, counts, turn_sum)
+        return True
 
     @property
     def gyro_bias_rad_s(self) -> Vec:

@@ -3,16 +3,17 @@
 from __future__ import annotations
 
 import argparse
+import itertools
 import sys
 from typing import Any
 
 from imuhal.cli.frame_option import frame_argument
 from imuhal.core.conventions import CONVENTIONS, NED
-from imuhal.offline.csv_input import read_sample_csv
-from imuhal.offline.csv_output import write_estimates
+from imuhal.offline.csv_input import iter_sample_chunks
+from imuhal.offline.csv_output import ColumnError, EstimateCsvWriter
 from imuhal.offline.frames import resolve_input_frame, table_to_ned
 from imuhal.offline.run_log import is_run_log, read_run_log
-from imuhal.offline.runner import run_offline, run_offline_samples
+from imuhal.offline.runner import iter_offline, run_offline_samples
 from imuhal.offline.settings_args import build_settings, parse_set_arguments
 from imuhal.plugins.manager import Registry
 
@@ -65,7 +66,20 @@ def add_parser(sub: Any) -> None:
                    "suffix, e.g. ax_m_s2_enu, else ned)")
     p.add_argument("--output-frame", type=frame_argument, default=NED, metavar="NAME",
                    help="convention of the output's attitude columns (default: ned)")
+    p.add_argument("--columns", metavar="A,B,...",
+                   help="write only these output columns, in this order (e.g. "
+                   "t_s,qw,qx,qy,qz); default: every estimate and diagnostics column")
     p.set_defaults(func=cmd_estimate)
+
+
+def _column_list(text: str | None) -> list[str] | None:
+    if text is None:
+        return None
+    names = [c.strip() for c in text.split(",") if c.strip()]
+    if not names:
+        raise ColumnError("--columns: give at least one column name, e.g. --columns t_s,qw,qx,"
+                         "qy,qz")
+    return names
 
 
 def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
@@ -76,20 +90,34 @@ def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
     ahrs_settings = build_settings(ahrs_cls.Settings,
                                    parse_set_arguments(args.ahrs_settings, "--ahrs-set"),
                                    args.ahrs, "--ahrs-set")
-    if is_run_log(args.input):
-        log = read_run_log(args.input, args.input_frame)
-        ahrs = _gravity_ahrs(args, ahrs_cls, ahrs_settings, True)
-        outputs = run_offline_samples(estimator, log.samples, ahrs=ahrs)
-        read = (f"{log.rows} log rows ({len(log.samples)} valid samples, {log.flagged} "
-                "flagged skipped)")
-    else:
-        table, frame = resolve_input_frame(read_sample_csv(args.input, rate_hz=args.rate),
-                                           args.input_frame)
-        table = table_to_ned(table, frame)
-        ahrs = _gravity_ahrs(args, ahrs_cls, ahrs_settings, "altitude_m" not in table.columns)
-        outputs = run_offline(estimator, table, ahrs=ahrs)
-        read = f"{len(table)} input rows"
-    rows = write_estimates(args.output, outputs, args.output_frame)
+    columns = _column_list(args.columns)
+    writer = EstimateCsvWriter(args.output, args.output_frame, columns)
+    try:
+        if is_run_log(args.input):
+            # A run log is read whole: its rows are events of many kinds, and the samples are
+            # rebuilt in the pipeline's order.
+            log = read_run_log(args.input, args.input_frame)
+            ahrs = _gravity_ahrs(args, ahrs_cls, ahrs_settings, True)
+            writer.write(run_offline_samples(estimator, log.samples, ahrs=ahrs))
+            read = (f"{log.rows} log rows ({len(log.samples)} valid samples, {log.flagged} "
+                    "flagged skipped)")
+        else:
+            # the log is read, run and written one chunk at a time: memory stays flat in its
+            # length
+            chunks = (table_to_ned(*resolve_input_frame(t, args.input_frame))
+                      for t in iter_sample_chunks(args.input, rate_hz=args.rate))
+            first = next(chunks)
+            ahrs = _gravity_ahrs(args, ahrs_cls, ahrs_settings,
+                                 "altitude_m" not in first.columns)
+            n_in = 0
+            for table in itertools.chain([first], chunks):
+                n_in += len(table)
+                writer.write(next(iter_offline(estimator, [table], ahrs=ahrs)))
+            read = f"{n_in} input rows"
+        rows = writer.commit()
+    except BaseException:
+        writer.abort()
+        raise
     print(f"{args.name}: {read} -> {rows} estimates in {args.output}", file=sys.stderr)
     for est in (estimator, ahrs):
         if est is not None:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import csv
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -52,8 +53,32 @@ class SampleTable:
         return all(n in self.columns for n in names)
 
 
+CHUNK_ROWS = 8_192
+"""Rows per chunk of :func:`iter_sample_chunks`: memory stays flat in the length of the log."""
+
+
 def read_sample_csv(path: str | Path, *, rate_hz: float | None = None) -> SampleTable:
-    """Read and check a sample CSV. Without a ``t_s`` column, ``rate_hz`` gives the times."""
+    """Read and check a whole sample CSV into memory (small files, tests; ``imuhal
+    estimate`` streams with :func:`iter_sample_chunks`). Without a ``t_s`` column,
+    ``rate_hz`` gives the times."""
+    chunks = list(iter_sample_chunks(path, rate_hz=rate_hz))
+    first = chunks[0]
+    if len(chunks) == 1:
+        return first
+    columns = {name: np.concatenate([c.columns[name] for c in chunks]) for name in first.columns}
+    return SampleTable(first.path, columns, np.concatenate([c.lines for c in chunks]))
+
+
+def iter_sample_chunks(path: str | Path, *, rate_hz: float | None = None,
+                       chunk_rows: int | None = None) -> Iterator[SampleTable]:
+    """Read and check a sample CSV in tables of at most ``chunk_rows`` rows, in file order.
+
+    The checks are those of the whole file (every bad cell an :class:`InputError` naming its
+    line and column; times increasing across chunks too), but only one chunk is in memory.
+    At least one chunk is yielded (a file without data rows is an error). ``chunk_rows``
+    defaults to :data:`CHUNK_ROWS`.
+    """
+    chunk_rows = chunk_rows or CHUNK_ROWS
     p = Path(path)
     try:
         handle = p.open(newline="", encoding="utf-8")
@@ -68,35 +93,100 @@ def read_sample_csv(path: str | Path, *, rate_hz: float | None = None) -> Sample
         dupes = {h for h in header if header.count(h) > 1}
         if dupes:
             raise InputError(f"{p}: line 1: duplicate column(s) {', '.join(sorted(dupes))}")
-        rows: list[list[float]] = []
+        if TIME not in header and rate_hz is None:
+            raise InputError(f"{p}: missing column '{TIME}' (seconds); add it or give --rate HZ")
+        width = len(header)
+        done = 0
+        last_t: float | None = None
+        rows: list[list[str]] = []
         lines: list[int] = []
         for line_no, cells in enumerate(reader, start=2):
-            if not cells or all(not c.strip() for c in cells):
-                continue
-            if len(cells) != len(header):
+            if len(cells) != width:
+                if not cells or all(not c.strip() for c in cells):
+                    continue
                 raise InputError(f"{p}: line {line_no}: {len(cells)} cells, but the header has "
-                                 f"{len(header)} columns")
-            rows.append([_cell(p, line_no, name, cell) for name, cell in zip(header, cells,
-                                                                              strict=True)])
+                                 f"{width} columns")
+            rows.append(cells)
             lines.append(line_no)
-    if not rows:
+            if len(rows) == chunk_rows:
+                table = _chunk(p, header, rows, lines, done, rate_hz, last_t)
+                if len(table):
+                    yield table
+                    done += len(table)
+                    last_t = float(table.columns[TIME][-1])
+                rows, lines = [], []
+        if rows:
+            table = _chunk(p, header, rows, lines, done, rate_hz, last_t)
+            if len(table):
+                done += len(table)
+                yield table
+    if not done:
         raise InputError(f"{p}: no data rows after the header")
-    data = np.array(rows, dtype=float)
-    columns = {name: data[:, i] for i, name in enumerate(header)}
+
+
+def _sparse(column: str) -> bool:
+    # a frame suffix (mx_ut_enu, see offline/frames.py) keeps the column sparse
+    return column in SPARSE_COLUMNS or column.rsplit("_", 1)[0] in SPARSE_COLUMNS
+
+
+def _chunk(path: Path, header: list[str], rows: list[list[str]], lines: list[int], start: int,
+           rate_hz: float | None, last_t: float | None) -> SampleTable:
+    """One chunk as a table: whole columns at C speed where every cell is a plain number,
+    else the strict cell-by-cell reading (blank rows skipped, a one-line error per bad cell)."""
+    if all(_sparse(n) for n in header):  # no required column would catch a blank row
+        rows, lines = _drop_blank(rows, lines)
+    columns: dict[str, np.ndarray] = {}
+    fast = True
+    for name, cells in zip(header, zip(*rows, strict=True), strict=False):
+        values = _fast_column(name, cells)
+        if values is None:
+            fast = False
+            break
+        columns[name] = values
+    if not fast:
+        rows, lines = _drop_blank(rows, lines)
+        strict = [[_cell(path, n, name, c) for name, c in zip(header, r, strict=True)]
+                  for r, n in zip(rows, lines, strict=True)]
+        data = np.array(strict, dtype=float).reshape(len(rows), len(header))
+        columns = {name: data[:, i] for i, name in enumerate(header)}
+    if not rows:
+        return SampleTable(path, {}, np.array([], dtype=int))
     line_arr = np.array(lines)
     if TIME not in columns:
-        if rate_hz is None:
-            raise InputError(f"{p}: missing column '{TIME}' (seconds); add it or give --rate HZ")
-        columns[TIME] = np.arange(len(rows)) / rate_hz
-    _check_time(p, columns[TIME], line_arr)
-    return SampleTable(p, columns, line_arr)
+        assert rate_hz is not None
+        columns[TIME] = (start + np.arange(len(rows))) / rate_hz
+    t = columns[TIME]
+    if last_t is not None:
+        _check_time(path, np.concatenate([[last_t], t]), np.concatenate([[lines[0]], line_arr]))
+    else:
+        _check_time(path, t, line_arr)
+    return SampleTable(path, columns, line_arr)
+
+
+def _fast_column(name: str, cells: tuple[str, ...]) -> np.ndarray | None:
+    """The column's values when every cell is a finite number (or, in a sparse column,
+    empty); None when any cell needs the strict reading."""
+    try:
+        if _sparse(name):
+            values = np.array([float(c) if c else math.nan for c in cells])
+            ok = np.isfinite(values) | np.array([not c for c in cells], dtype=bool)
+        else:
+            values = np.array(list(map(float, cells)))
+            ok = np.isfinite(values)
+    except ValueError:
+        return None
+    return values if bool(ok.all()) else None
+
+
+def _drop_blank(rows: list[list[str]], lines: list[int]) -> tuple[list[list[str]], list[int]]:
+    keep = [i for i, r in enumerate(rows) if any(c.strip() for c in r)]
+    return [rows[i] for i in keep], [lines[i] for i in keep]
 
 
 def _cell(path: Path, line_no: int, column: str, cell: str) -> float:
     text = cell.strip()
     if not text:
-        # a frame suffix (mx_ut_enu, see offline/frames.py) keeps the column sparse
-        if column in SPARSE_COLUMNS or column.rsplit("_", 1)[0] in SPARSE_COLUMNS:
+        if _sparse(column):
             return math.nan
         raise InputError(f"{path}: line {line_no}, column '{column}': empty cell")
     try:

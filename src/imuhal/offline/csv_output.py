@@ -4,12 +4,17 @@ from __future__ import annotations
 
 import csv
 import math
-from collections.abc import Sequence
+import shutil
+import tempfile
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from imuhal.core.atomic import AtomicFile
-from imuhal.core.conventions import NED, Convention
+from imuhal.core.conventions import NED, Convention, get_convention
+from imuhal.core.errors import ImuhalError
 from imuhal.estimation.framed import attitude_columns, express_attitude
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate, VerticalEstimate
 
@@ -52,25 +57,137 @@ def write_estimates(path: str | Path, estimates: Sequence[Estimate],
                     frame: str | Convention = NED) -> int:
     """Write ``estimates`` atomically, attitudes in ``frame``; returns the number of rows.
     Diagnostic columns stay as each estimator reports them (its internal NED body frame)."""
-    rows = []
-    diag_cols: dict[str, None] = {}
-    base: tuple[str, ...] = ("t_s",)
-    for e in estimates:
-        fields = estimate_fields(e, frame)
-        if len(fields) > len(base):
-            base = tuple(fields)
-        diag = flatten_diagnostics(e.diagnostics)
-        for k in diag:
-            diag_cols.setdefault(k, None)
-        rows.append((fields, diag))
-    header = list(base) + [k for k in diag_cols if k not in base]
-    with AtomicFile(path, newline="") as f:
-        writer = csv.writer(f)
-        writer.writerow(header)
-        for fields, diag in rows:
-            merged = {**diag, **fields}
-            writer.writerow([_fmt(merged.get(h, "")) for h in header])
-    return len(rows)
+    writer = EstimateCsvWriter(path, frame)
+    try:
+        writer.write(estimates)
+        return writer.commit()
+    except BaseException:
+        writer.abort()
+        raise
+
+
+class ColumnError(ImuhalError):
+    """``--columns`` names a column the estimator does not write."""
+
+
+class EstimateCsvWriter:
+    """Writes estimates as they come, in flat memory; the file appears only on ``commit()``.
+
+    The header is every column seen, in order of first appearance: the leading columns of the
+    estimate type, then the diagnostics. Rows go to a spill file beside the output as they
+    are written; ``commit`` writes the header and copies them behind it (padding the rows
+    written before a later column first appeared), then renames over ``path`` atomically.
+    ``columns`` fixes the header to those names, in that order (no other work is done for
+    the rest: only the quaternion, say); a name the first estimate does not have is a
+    :class:`ColumnError` listing the ones it has.
+    """
+
+    def __init__(self, path: str | Path, frame: str | Convention = NED,
+                 columns: Sequence[str] | None = None) -> None:
+        self.path = Path(path)
+        self.frame = frame
+        self._fixed = None if columns is None else list(columns)
+        self._header: list[str] = [] if columns is None else list(columns)
+        self._index: dict[str, int] = {h: i for i, h in enumerate(self._header)}
+        self._growth: list[tuple[int, int]] = []
+        """(first row, header width) whenever the header grew after rows were written."""
+        self.rows = 0
+        self._out = AtomicFile(self.path, newline="")
+        self._spill = tempfile.TemporaryFile(  # noqa: SIM115 (closed by commit/abort)
+            "w+", newline="", encoding="utf-8", dir=self._out.tmp_path.parent,
+            prefix=f".{self.path.name}.", suffix=".rows")
+        self._csv = csv.writer(self._spill)
+
+    def write(self, estimates: Iterable[Estimate]) -> None:
+        """Append ``estimates`` (one chunk: formatted column by column, written at once)."""
+        chunk = list(estimates)
+        if not chunk:
+            return
+        leading = _leading_columns(chunk, self.frame)
+        diags = [flatten_diagnostics(e.diagnostics) for e in chunk]
+        if self._fixed is None:
+            known = self._index.keys()
+            if not (leading.keys() <= known and all(d.keys() <= known for d in diags)):
+                self._extend([*leading, *(k for d in diags for k in d)])
+        elif self.rows == 0:
+            self._check_columns({**diags[0], **{k: v[0] for k, v in leading.items()}})
+        cells = [leading[h] if h in leading else [_fmt(d.get(h, "")) for d in diags]
+                 for h in self._header]
+        self._csv.writerows(zip(*cells, strict=True))
+        self.rows += len(chunk)
+
+    def commit(self) -> int:
+        """Write the header and the rows to ``path`` (atomically); returns the row count."""
+        out = self._out
+        csv.writer(out).writerow(self._header)
+        self._spill.seek(0)
+        if not self._growth:
+            shutil.copyfileobj(self._spill, out)  # type: ignore[misc]
+        else:
+            # rows before growth mark (k, w) and after the previous mark have w cells
+            final = len(self._header)
+            marks = iter(self._growth)
+            until, width = next(marks)
+            for row, line in enumerate(self._spill):
+                while row >= until:
+                    until, width = next(marks, (self.rows + 1, final))
+                pad = final - width
+                out.write(line[:-2] + "," * pad + "\r\n" if pad else line)
+        self._spill.close()
+        out.commit()
+        return self.rows
+
+    def abort(self) -> None:
+        """Drop everything written: ``path`` keeps what it had."""
+        self._spill.close()
+        self._out.abort()
+
+    def _extend(self, keys: list[str]) -> None:
+        """Append the columns not yet in the header (estimate fields before diagnostics)."""
+        names = [k for k in dict.fromkeys(keys) if k not in self._index]
+        if self.rows and names:
+            self._growth.append((self.rows, len(self._header)))
+        for k in names:
+            self._index[k] = len(self._header)
+            self._header.append(k)
+
+    def _check_columns(self, merged: dict[str, Any]) -> None:
+        missing = [c for c in self._header if c not in merged]
+        if missing:
+            raise ColumnError(f"--columns: {', '.join(missing)} not written by this estimator; "
+                              f"its columns are: {', '.join(merged)}")
+
+
+def _leading_columns(chunk: list[Estimate], frame: str | Convention) -> dict[str, list[str]]:
+    """The estimate fields of a chunk, formatted, column by column. NED attitudes (every row
+    of a plain ``imuhal estimate``) in whole arrays; anything else row by row."""
+    if get_convention(frame) is NED and all(type(e) is AttitudeEstimate for e in chunk):
+        q = np.array([e.q_body_to_ned for e in chunk], dtype=float)
+        t_s = np.array([e.t_ns for e in chunk], dtype=float) / 1e9
+        values = [t_s, *q.T, *euler_deg_from_quats(q).T]
+        return {name: _fmt_floats(v) for name, v in zip(ATTITUDE_COLUMNS, values, strict=True)}
+    rows = [estimate_fields(e, frame) for e in chunk]
+    names = dict.fromkeys(k for r in rows for k in r)
+    return {n: [_fmt(r.get(n, "")) for r in rows] for n in names}
+
+
+def euler_deg_from_quats(q: np.ndarray) -> np.ndarray:
+    """(n, 3) roll, pitch, yaw in degrees from (n, 4) body -> NED quaternions: the array
+    form of :func:`imuhal.core.frames.euler_deg_from_quat` (same formula, same conventions)."""
+    n = np.sqrt(np.einsum("ij,ij->i", q, q))
+    if not np.all((n > 0) & np.isfinite(n)):
+        raise ValueError("cannot normalise a zero or non-finite quaternion")
+    w, x, y, z = (q / n[:, None]).T
+    roll = np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    pitch = np.arcsin(np.clip(2 * (w * y - z * x), -1.0, 1.0))
+    yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    return np.degrees(np.column_stack([roll, pitch, yaw]))
+
+
+def _fmt_floats(values: np.ndarray) -> list[str]:
+    if np.all(np.isfinite(values)):
+        return [repr(v) for v in values.tolist()]
+    return [_fmt(v) for v in values.tolist()]
 
 
 def _fmt(v: Any) -> str:

@@ -44,19 +44,22 @@ def imu_events(table: SampleTable) -> Iterator[Sample]:
     """Accel, mag (when present on the row), pressure (idem), gyro, per row."""
     require(table, (TIME, *GYRO, *ACCEL), "an attitude estimator")
     c = table.columns
-    has_mag = table.has(*MAG)
-    has_p = table.has(PRESSURE)
-    for i in range(len(table)):
-        t_ns = round(float(c[TIME][i]) * 1e9)
-        yield AccelSample(t_ns=t_ns, device=DEVICE, frame=Frame.BODY_NED,
-                          accel_m_s2=(c[ACCEL[0]][i], c[ACCEL[1]][i], c[ACCEL[2]][i]))
-        if has_mag and not math.isnan(c[MAG[0]][i]):
-            yield MagSample(t_ns=t_ns, device=DEVICE, frame=Frame.BODY_NED,
-                            mag_ut=(c[MAG[0]][i], c[MAG[1]][i], c[MAG[2]][i]))
-        if has_p and not math.isnan(c[PRESSURE][i]):
-            yield PressureSample(t_ns=t_ns, device=DEVICE, pressure_pa=float(c[PRESSURE][i]))
-        yield GyroSample(t_ns=t_ns, device=DEVICE, frame=Frame.BODY_NED,
-                         gyro_rad_s=(c[GYRO[0]][i], c[GYRO[1]][i], c[GYRO[2]][i]))
+    # plain Python floats (not numpy scalars) row by row: what a driver hands the pipeline,
+    # and several times cheaper for the per-sample arithmetic downstream
+    t_ns_list = [round(t * 1e9) for t in c[TIME].tolist()]
+    gyro = zip(*(c[n].tolist() for n in GYRO), strict=True)
+    accel = zip(*(c[n].tolist() for n in ACCEL), strict=True)
+    mag = zip(*(c[n].tolist() for n in MAG), strict=True) if table.has(*MAG) else None
+    pressure = c[PRESSURE].tolist() if table.has(PRESSURE) else None
+    for i, (t_ns, g, a) in enumerate(zip(t_ns_list, gyro, accel, strict=True)):
+        yield AccelSample(t_ns=t_ns, device=DEVICE, frame=Frame.BODY_NED, accel_m_s2=a)
+        if mag is not None:
+            m = next(mag)
+            if not math.isnan(m[0]):
+                yield MagSample(t_ns=t_ns, device=DEVICE, frame=Frame.BODY_NED, mag_ut=m)
+        if pressure is not None and not math.isnan(pressure[i]):
+            yield PressureSample(t_ns=t_ns, device=DEVICE, pressure_pa=pressure[i])
+        yield GyroSample(t_ns=t_ns, device=DEVICE, frame=Frame.BODY_NED, gyro_rad_s=g)
 
 
 def vario_events(table: SampleTable, sea_level_pa: float) -> Iterator[Sample | Estimate]:
@@ -87,6 +90,20 @@ def run_offline(
 ) -> list[Estimate]:
     """Run ``estimator`` over ``table``; ``ahrs`` supplies attitude to a vario filter fed
     full IMU columns plus ``pressure_pa`` (imuhal then does the gravity compensation)."""
+    return _run_table(estimator, table, ahrs)
+
+
+def iter_offline(
+    estimator: Estimator, tables: Iterable[SampleTable], *, ahrs: Estimator | None = None,
+) -> Iterator[list[Estimate]]:
+    """:func:`run_offline` over a stream of tables (chunks of one log, in time order): the
+    estimators keep their state from one chunk to the next; one list of estimates per chunk."""
+    for table in tables:
+        yield _run_table(estimator, table, ahrs)
+
+
+def _run_table(estimator: Estimator, table: SampleTable,
+               ahrs: Estimator | None) -> list[Estimate]:
     if _wants_imu(estimator):
         return feed(estimator, imu_events(table))
     _require_pressure_consumer(estimator)
@@ -118,11 +135,17 @@ def feed(estimator: Estimator, items: Iterable[Sample | Estimate], *,
          ahrs: Estimator | None = None) -> list[Estimate]:
     """Each item (and what ``ahrs`` makes of it) to ``estimator`` when it consumes it."""
     consumes = tuple(estimator.consumes)
-    ahrs_consumes = tuple(ahrs.consumes) if ahrs is not None else ()
     outputs: list[Estimate] = []
+    process, extend = estimator.process, outputs.extend
+    if ahrs is None:  # the common case, kept lean: it runs once per input row
+        for item in items:
+            if isinstance(item, consumes):
+                extend(process(item))
+        return outputs
+    ahrs_consumes = tuple(ahrs.consumes)
     for item in items:
         upstream: list[Any] = [item]
-        if ahrs is not None and isinstance(item, ahrs_consumes):
+        if isinstance(item, ahrs_consumes):
             upstream += ahrs.process(item)
         for x in upstream:
             if isinstance(x, consumes):

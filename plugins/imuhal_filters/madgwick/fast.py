@@ -1,0 +1,125 @@
+"""The Madgwick batch step loop as one compiled kernel (``fast`` extra; see common/fast.py).
+
+It repeats, row by row and in the same order of operations, what ``AhrsEstimator.update``
+then ``MadgwickEstimator._step`` and ``madgwick_step`` (exact 1/sqrt) do once the attitude is
+aligned: full-scale checks, the nominal-free turn bookkeeping, the hard and soft accelerometer
+gates and the gradient step. Anything it does not cover (fast32 square root, turn compensation
+with a speed source, rows before alignment) stays on the pure-Python path.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from imuhal_filters.common.fast import jit
+
+_G = 9.80665  # STANDARD_GRAVITY_M_S2, as gravity_positive_g uses it
+
+
+def _madgwick_rows(q_in, gyro, accel, mag, dts, gyro_fs, accel_fs, beta, gate_lo, gate_hi,
+                   soft_width, paper, use_mag, turn_on, out, counts, turn_sum):
+    """Step over every row; ``out`` gets the quaternion after each stepped row (others keep
+    NaN). ``counts``: steps, gyro beyond full scale, accel beyond full scale, gate closed.
+    Returns the final quaternion and the turn-rate sum (turn bookkeeping)."""
+    q0, q1, q2, q3 = q_in[0], q_in[1], q_in[2], q_in[3]
+    k = -1.0 / _G
+    for i in range(gyro.shape[0]):
+        gx, gy, gz = gyro[i, 0], gyro[i, 1], gyro[i, 2]
+        ok = True
+        for c in (gx, gy, gz):
+            if not (math.isfinite(c) and abs(c) <= gyro_fs):
+                ok = False
+        if not ok:
+            counts[1] += 1
+            continue
+        have_a = not (math.isnan(accel[i, 0]) or math.isnan(accel[i, 1])
+                      or math.isnan(accel[i, 2]))
+        if have_a:
+            for c in (accel[i, 0], accel[i, 1], accel[i, 2]):
+                if not (math.isfinite(c) and abs(c) <= accel_fs):
+                    have_a = False
+            if not have_a:
+                counts[2] += 1
+        have_m = not (math.isnan(mag[i, 0]) or math.isnan(mag[i, 1]) or math.isnan(mag[i, 2]))
+        if have_m:
+            for c in (mag[i, 0], mag[i, 1], mag[i, 2]):
+                if not math.isfinite(c):
+                    have_m = False
+        if turn_on:
+            turn_sum += math.sqrt(gx ** 2 + gy ** 2 + gz ** 2)
+        counts[0] += 1
+        dt = dts[i]
+        # _step: gates on the gravity-positive reading in g
+        gate_open = False
+        weight = 1.0
+        ax = ay = az = 0.0
+        if have_a:
+            ax, ay, az = accel[i, 0] * k, accel[i, 1] * k, accel[i, 2] * k
+            n = math.sqrt(ax ** 2 + ay ** 2 + az ** 2)
+            gate_open = gate_lo < n < gate_hi
+            if not gate_open:
+                counts[3] += 1
+            if soft_width > 0.0:
+                d = (n - 1.0) / soft_width
+                weight = 1.0 / (1.0 + d * d)
+        use_m = have_m and use_mag
+        b = beta * weight
+        # madgwick_step (exact inverse square root)
+        d0 = 0.5 * (-q1 * gx - q2 * gy - q3 * gz)
+        d1 = 0.5 * (q0 * gx + q2 * gz - q3 * gy)
+        d2 = 0.5 * (q0 * gy - q1 * gz + q3 * gx)
+        d3 = 0.5 * (q0 * gz + q1 * gy - q2 * gx)
+        if gate_open:
+            n2 = ax * ax + ay * ay + az * az
+            if n2 != 0.0:
+                r = 1.0 / math.sqrt(n2)
+                a0, a1, a2 = ax * r, ay * r, az * r
+                f1 = 2.0 * (q1 * q3 - q0 * q2) - a0
+                f2 = 2.0 * (q0 * q1 + q2 * q3) - a1
+                f3 = 2.0 * (0.5 - q1 * q1 - q2 * q2) - a2
+                s0 = -2.0 * q2 * f1 + 2.0 * q1 * f2
+                s1 = 2.0 * q3 * f1 + 2.0 * q0 * f2 - 4.0 * q1 * f3
+                s2 = -2.0 * q0 * f1 + 2.0 * q3 * f2 - 4.0 * q2 * f3
+                s3 = 2.0 * q1 * f1 + 2.0 * q2 * f2
+                if use_m:
+                    mx0, my0, mz0 = mag[i, 0], mag[i, 1], mag[i, 2]
+                    m2 = mx0 * mx0 + my0 * my0 + mz0 * mz0
+                    if m2 != 0.0:
+                        r = 1.0 / math.sqrt(m2)
+                        mx, my, mz = mx0 * r, my0 * r, mz0 * r
+                        q00, q11, q22, q33 = q0 * q0, q1 * q1, q2 * q2, q3 * q3
+                        hx = (mx * (q00 + q11 - q22 - q33) + 2.0 * my * (q1 * q2 - q0 * q3)
+                              + 2.0 * mz * (q1 * q3 + q0 * q2))
+                        hy = (2.0 * mx * (q1 * q2 + q0 * q3) + my * (q00 - q11 + q22 - q33)
+                              + 2.0 * mz * (q2 * q3 - q0 * q1))
+                        hz = (2.0 * mx * (q1 * q3 - q0 * q2) + 2.0 * my * (q2 * q3 + q0 * q1)
+                              + mz * (q00 - q11 - q22 + q33))
+                        scale = 2.0 if paper else 1.0
+                        bx2 = scale * math.sqrt(hx * hx + hy * hy)
+                        bz2 = scale * hz
+                        f4 = bx2 * (0.5 - q22 - q33) + bz2 * (q1 * q3 - q0 * q2) - mx
+                        f5 = bx2 * (q1 * q2 - q0 * q3) + bz2 * (q0 * q1 + q2 * q3) - my
+                        f6 = bx2 * (q0 * q2 + q1 * q3) + bz2 * (0.5 - q11 - q22) - mz
+                        g0 = -bz2 * q2 * f4 + (-bx2 * q3 + bz2 * q1) * f5 + bx2 * q2 * f6
+                        g1 = (bz2 * q3 * f4 + (bx2 * q2 + bz2 * q0) * f5
+                              + (bx2 * q3 - 2.0 * bz2 * q1) * f6)
+                        g2 = ((-2.0 * bx2 * q2 - bz2 * q0) * f4 + (bx2 * q1 + bz2 * q3) * f5
+                              + (bx2 * q0 - 2.0 * bz2 * q2) * f6)
+                        g3 = ((-2.0 * bx2 * q3 + bz2 * q1) * f4 + (-bx2 * q0 + bz2 * q2) * f5
+                              + bx2 * q1 * f6)
+                        s0, s1, s2, s3 = s0 + g0, s1 + g1, s2 + g2, s3 + g3
+                n2 = s0 * s0 + s1 * s1 + s2 * s2 + s3 * s3
+                if n2 > 0.0:
+                    kk = b * (1.0 / math.sqrt(n2))
+                    d0, d1, d2, d3 = d0 - kk * s0, d1 - kk * s1, d2 - kk * s2, d3 - kk * s3
+        w, x, y, z = q0 + d0 * dt, q1 + d1 * dt, q2 + d2 * dt, q3 + d3 * dt
+        r = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
+        q0, q1, q2, q3 = w * r, x * r, y * r, z * r
+        out[i, 0], out[i, 1], out[i, 2], out[i, 3] = q0, q1, q2, q3
+    return np.array([q0, q1, q2, q3]), turn_sum
+
+
+madgwick_rows = jit(_madgwick_rows)
+"""The compiled kernel (numba compiles it on the first call; see common/fast.py)."""

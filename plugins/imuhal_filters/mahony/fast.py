@@ -1,0 +1,116 @@
+"""The Mahony batch step loop as one compiled kernel (``fast`` extra; see common/fast.py).
+
+Row by row and in the same order of operations as ``AhrsEstimator.update`` then
+``MahonyEstimator._step`` and ``mahony_step``, once the attitude is aligned: full-scale checks,
+the nominal-free turn bookkeeping, the hard and soft accelerometer gates, the PI feedback.
+The row checks are those of ``madgwick/fast.py`` (numba inlines no Python helper).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from imuhal_filters.common.fast import jit
+
+_G = 9.80665  # STANDARD_GRAVITY_M_S2, as gravity_positive_g uses it
+
+
+def _mahony_rows(q_in, integral_in, gyro, accel, mag, dts, gyro_fs, accel_fs, kp, ki, gate_lo,
+                 gate_hi, soft_width, use_mag, turn_on, out, counts, turn_sum):
+    """Step over every row; see ``madgwick_rows`` for ``out``, ``counts`` and ``turn_sum``.
+    Returns the final quaternion, integral feedback and turn-rate sum."""
+    q0, q1, q2, q3 = q_in[0], q_in[1], q_in[2], q_in[3]
+    ix, iy, iz = integral_in[0], integral_in[1], integral_in[2]
+    k = -1.0 / _G
+    for i in range(gyro.shape[0]):
+        gx, gy, gz = gyro[i, 0], gyro[i, 1], gyro[i, 2]
+        ok = True
+        for c in (gx, gy, gz):
+            if not (math.isfinite(c) and abs(c) <= gyro_fs):
+                ok = False
+        if not ok:
+            counts[1] += 1
+            continue
+        have_a = not (math.isnan(accel[i, 0]) or math.isnan(accel[i, 1])
+                      or math.isnan(accel[i, 2]))
+        if have_a:
+            for c in (accel[i, 0], accel[i, 1], accel[i, 2]):
+                if not (math.isfinite(c) and abs(c) <= accel_fs):
+                    have_a = False
+            if not have_a:
+                counts[2] += 1
+        have_m = not (math.isnan(mag[i, 0]) or math.isnan(mag[i, 1]) or math.isnan(mag[i, 2]))
+        if have_m:
+            for c in (mag[i, 0], mag[i, 1], mag[i, 2]):
+                if not math.isfinite(c):
+                    have_m = False
+        if turn_on:
+            turn_sum += math.sqrt(gx ** 2 + gy ** 2 + gz ** 2)
+        counts[0] += 1
+        dt = dts[i]
+        gate_open = False
+        weight = 1.0
+        ax = ay = az = 0.0
+        if have_a:
+            ax, ay, az = accel[i, 0] * k, accel[i, 1] * k, accel[i, 2] * k
+            n = math.sqrt(ax ** 2 + ay ** 2 + az ** 2)
+            gate_open = gate_lo < n < gate_hi
+            if not gate_open:
+                counts[3] += 1
+            if soft_width > 0.0:
+                d = (n - 1.0) / soft_width
+                weight = 1.0 / (1.0 + d * d)
+        kpw, kiw = kp * weight, ki * weight
+        # mahony_step
+        if gate_open:
+            n = math.sqrt(ax * ax + ay * ay + az * az)
+            if n != 0.0 and math.isfinite(n):
+                a0, a1, a2 = ax / n, ay / n, az / n
+                hvx = q1 * q3 - q0 * q2
+                hvy = q0 * q1 + q2 * q3
+                hvz = q0 * q0 - 0.5 + q3 * q3
+                ex = a1 * hvz - a2 * hvy
+                ey = a2 * hvx - a0 * hvz
+                ez = a0 * hvy - a1 * hvx
+                if have_m and use_mag:
+                    mx0, my0, mz0 = mag[i, 0], mag[i, 1], mag[i, 2]
+                    nm = math.sqrt(mx0 * mx0 + my0 * my0 + mz0 * mz0)
+                    if nm != 0.0 and math.isfinite(nm):
+                        mx, my, mz = mx0 / nm, my0 / nm, mz0 / nm
+                        q11, q22, q33 = q1 * q1, q2 * q2, q3 * q3
+                        hx = 2.0 * (mx * (0.5 - q22 - q33) + my * (q1 * q2 - q0 * q3)
+                                    + mz * (q1 * q3 + q0 * q2))
+                        hy = 2.0 * (mx * (q1 * q2 + q0 * q3) + my * (0.5 - q11 - q33)
+                                    + mz * (q2 * q3 - q0 * q1))
+                        bx = math.sqrt(hx * hx + hy * hy)
+                        bz = 2.0 * (mx * (q1 * q3 - q0 * q2) + my * (q2 * q3 + q0 * q1)
+                                    + mz * (0.5 - q11 - q22))
+                        hwx = bx * (0.5 - q22 - q33) + bz * (q1 * q3 - q0 * q2)
+                        hwy = bx * (q1 * q2 - q0 * q3) + bz * (q0 * q1 + q2 * q3)
+                        hwz = bx * (q0 * q2 + q1 * q3) + bz * (0.5 - q11 - q22)
+                        ex += my * hwz - mz * hwy
+                        ey += mz * hwx - mx * hwz
+                        ez += mx * hwy - my * hwx
+                if kiw > 0.0:
+                    ix, iy, iz = (ix + 2.0 * kiw * ex * dt, iy + 2.0 * kiw * ey * dt,
+                                  iz + 2.0 * kiw * ez * dt)
+                    gx, gy, gz = gx + ix, gy + iy, gz + iz
+                else:
+                    ix, iy, iz = 0.0, 0.0, 0.0
+                gx, gy, gz = gx + 2.0 * kpw * ex, gy + 2.0 * kpw * ey, gz + 2.0 * kpw * ez
+        h = 0.5 * dt
+        gx, gy, gz = gx * h, gy * h, gz * h
+        w = q0 + (-q1 * gx - q2 * gy - q3 * gz)
+        x = q1 + (q0 * gx + q2 * gz - q3 * gy)
+        y = q2 + (q0 * gy - q1 * gz + q3 * gx)
+        z = q3 + (q0 * gz + q1 * gy - q2 * gx)
+        r = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
+        q0, q1, q2, q3 = w * r, x * r, y * r, z * r
+        out[i, 0], out[i, 1], out[i, 2], out[i, 3] = q0, q1, q2, q3
+    return np.array([q0, q1, q2, q3]), np.array([ix, iy, iz]), turn_sum
+
+
+mahony_rows = jit(_mahony_rows)
+"""The compiled kernel (numba compiles it on the first call; see common/fast.py)."""

@@ -1,0 +1,475 @@
+"""imuhal's speed in one command, next to peers measured in the same run (not collected by pytest).
+
+Run:  .venv/bin/python -m tests.benchmarks.bench_all [--rows 2000000] [--board-s 60]
+      [--samples 20000] [--markdown]
+
+Install the peers with ``pip install -e ".[bench]"`` (vqf, imufusion, ahrs); a hand-written
+pure-Python Madgwick is always measured. Every figure is CPU time of this process (or of the
+child process, for ``imuhal estimate``), so other jobs on a shared machine disturb it less;
+ratios between rows of one run are what to compare across machines.
+
+Sections:
+
+* per sample: for every AHRS, the filter core (``_step`` on a prepared step: the kernel
+  and its diagnostics), ``update()`` and ``process()`` (the pipeline's path: one accel, one
+  mag and one gyro sample per step), in us per step, and ``process / core``;
+* batch: every estimator's batch function in samples/s (the compiled kernel when numba is
+  installed, see ``imuhal_filters.common.fast``), next to ``vqf.VQF.updateBatch``;
+* ``imuhal estimate madgwick`` on a generated ``--rows`` CSV, in a child process: rows/s and
+  peak RSS (``VmHWM`` of the child, Linux);
+* the emulated seed board with its estimators: x real time by CPU time.
+
+OPENBLAS_CORETYPE may be set on this machine (an old OpenBLAS needs it); it only matters to
+BLAS calls, which none of the measured paths make, and it is left as it is.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import numpy as np
+
+from imuhal.core.samples import AccelSample, Frame, GyroSample, MagSample
+from imuhal.plugins.manager import load_registry
+
+ROOT = Path(__file__).resolve().parents[2]
+AHRS_NAMES = ("madgwick", "mahony", "imufilter", "freescale-6dof", "freescale-9dof")
+RATE_HZ = 250.0
+
+
+@dataclass
+class Row:
+    section: str
+    case: str
+    value: float
+    unit: str
+    peer: str = ""
+    ratio: float | None = None
+    target: str = ""
+
+
+def cpu_per_call(fn: Callable[[int], None], n: int, repeat: int = 3) -> float:
+    """Best-of-``repeat`` CPU seconds per iteration of ``fn(n)``."""
+    best = math.inf
+    for _ in range(repeat):
+        t0 = time.process_time()
+        fn(n)
+        best = min(best, time.process_time() - t0)
+    return best / n
+
+
+def motion(n: int, seed: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A gently moving board: gyro rad/s, specific force m/s^2 (NED, level az = -9.81), uT."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / RATE_HZ
+    gyro = np.stack([0.3 * np.sin(0.7 * t), 0.2 * np.sin(0.5 * t + 1), 0.1 * np.cos(0.3 * t)],
+                    axis=1) + rng.normal(0, 0.01, (n, 3))
+    accel = np.array([0.0, 0.0, -9.81]) + rng.normal(0, 0.2, (n, 3))
+    mag = np.array([20.0, 1.0, 45.0]) + rng.normal(0, 0.5, (n, 3))
+    return gyro, accel, mag
+
+
+# --------------------------------------------------------------------------- peers
+def plain_madgwick(q: list[float], g: tuple[float, float, float], a: tuple[float, float, float],
+                   m: tuple[float, float, float], beta: float, dt: float) -> list[float]:
+    """The x-io MARG update as one would write it by hand in Python (the always-there peer)."""
+    q0, q1, q2, q3 = q
+    gx, gy, gz = g
+    ax, ay, az = a
+    mx, my, mz = m
+    qd0 = 0.5 * (-q1 * gx - q2 * gy - q3 * gz)
+    qd1 = 0.5 * (q0 * gx + q2 * gz - q3 * gy)
+    qd2 = 0.5 * (q0 * gy - q1 * gz + q3 * gx)
+    qd3 = 0.5 * (q0 * gz + q1 * gy - q2 * gx)
+    r = 1.0 / math.sqrt(ax * ax + ay * ay + az * az)
+    ax, ay, az = ax * r, ay * r, az * r
+    r = 1.0 / math.sqrt(mx * mx + my * my + mz * mz)
+    mx, my, mz = mx * r, my * r, mz * r
+    hx = (mx * (q0 * q0 + q1 * q1 - q2 * q2 - q3 * q3) + 2 * my * (q1 * q2 - q0 * q3)
+          + 2 * mz * (q1 * q3 + q0 * q2))
+    hy = (2 * mx * (q1 * q2 + q0 * q3) + my * (q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3)
+          + 2 * mz * (q2 * q3 - q0 * q1))
+    bx = 2 * math.sqrt(hx * hx + hy * hy)
+    bz = 2 * (2 * mx * (q1 * q3 - q0 * q2) + 2 * my * (q2 * q3 + q0 * q1)
+              + mz * (q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3))
+    f1 = 2 * (q1 * q3 - q0 * q2) - ax
+    f2 = 2 * (q0 * q1 + q2 * q3) - ay
+    f3 = 2 * (0.5 - q1 * q1 - q2 * q2) - az
+    f4 = bx * (0.5 - q2 * q2 - q3 * q3) + bz * (q1 * q3 - q0 * q2) - mx
+    f5 = bx * (q1 * q2 - q0 * q3) + bz * (q0 * q1 + q2 * q3) - my
+    f6 = bx * (q0 * q2 + q1 * q3) + bz * (0.5 - q1 * q1 - q2 * q2) - mz
+    s0 = -2 * q2 * f1 + 2 * q1 * f2 - bz * q2 * f4 + (-bx * q3 + bz * q1) * f5 + bx * q2 * f6
+    s1 = (2 * q3 * f1 + 2 * q0 * f2 - 4 * q1 * f3 + bz * q3 * f4 + (bx * q2 + bz * q0) * f5
+          + (bx * q3 - 2 * bz * q1) * f6)
+    s2 = (-2 * q0 * f1 + 2 * q3 * f2 - 4 * q2 * f3 + (-2 * bx * q2 - bz * q0) * f4
+          + (bx * q1 + bz * q3) * f5 + (bx * q0 - 2 * bz * q2) * f6)
+    s3 = (2 * q1 * f1 + 2 * q2 * f2 + (-2 * bx * q3 + bz * q1) * f4 + (-bx * q0 + bz * q2) * f5
+          + bx * q1 * f6)
+    r = beta / math.sqrt(s0 * s0 + s1 * s1 + s2 * s2 + s3 * s3)
+    q0 += (qd0 - r * s0) * dt
+    q1 += (qd1 - r * s1) * dt
+    q2 += (qd2 - r * s2) * dt
+    q3 += (qd3 - r * s3) * dt
+    r = 1.0 / math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+    return [q0 * r, q1 * r, q2 * r, q3 * r]
+
+
+def peer_rows(n: int, gyro: np.ndarray, accel: np.ndarray, mag: np.ndarray) -> list[Row]:
+    rows: list[Row] = []
+    g = [tuple(r) for r in gyro.tolist()]
+    a = [tuple(r) for r in (-accel).tolist()]
+    m = [tuple(r) for r in mag.tolist()]
+
+    def plain(k: int) -> None:
+        q = [1.0, 0.0, 0.0, 0.0]
+        for i in range(k):
+            q = plain_madgwick(q, g[i], a[i], m[i], 0.1, 1 / RATE_HZ)
+
+    rows.append(Row("peer", "plain-Python Madgwick 9-DOF loop", cpu_per_call(plain, n) * 1e6,
+                    "us/sample"))
+    try:
+        import vqf
+    except ImportError:
+        print("vqf not installed: pip install -e '.[bench]'", file=sys.stderr)
+    else:
+        gyr = np.ascontiguousarray(gyro)
+        acc = np.ascontiguousarray(-accel)
+        mg = np.ascontiguousarray(mag)
+
+        def vqf_loop(k: int) -> None:
+            f = vqf.VQF(1 / RATE_HZ)
+            for i in range(k):
+                f.update(gyr[i], acc[i], mg[i])
+
+        rows.append(Row("peer", "vqf.VQF.update loop 9-DOF", cpu_per_call(vqf_loop, n) * 1e6,
+                        "us/sample"))
+
+        def vqf_batch(k: int) -> None:
+            vqf.VQF(1 / RATE_HZ).updateBatch(gyr[:k], acc[:k], mg[:k])
+
+        big = max(n, 100_000)
+        reps = math.ceil(big / len(gyr))
+        gyr, acc, mg = (np.ascontiguousarray(np.tile(x, (reps, 1))) for x in (gyr, acc, mg))
+        rows.append(Row("peer", "vqf.VQF.updateBatch 9-DOF",
+                        1.0 / cpu_per_call(vqf_batch, big), "samples/s"))
+    try:
+        import imufusion
+    except ImportError:
+        print("imufusion not installed", file=sys.stderr)
+    else:
+        gdeg = np.degrees(gyro)
+        ag = -accel / 9.80665
+
+        def fusion(k: int) -> None:
+            ahrs = imufusion.Ahrs()
+            for i in range(k):
+                ahrs.update(gdeg[i], ag[i], mag[i])
+
+        rows.append(Row("peer", "imufusion.Ahrs.update loop 9-DOF",
+                        cpu_per_call(fusion, n) * 1e6, "us/sample"))
+    try:
+        from ahrs.filters import Madgwick as AhrsMadgwick
+    except ImportError:
+        print("ahrs not installed", file=sys.stderr)
+    else:
+        acc2 = -accel
+
+        def ahrs_loop(k: int) -> None:
+            f = AhrsMadgwick(frequency=RATE_HZ)
+            q = np.array([1.0, 0, 0, 0])
+            for i in range(k):
+                q = f.updateMARG(q, gyro[i], acc2[i], mag[i])
+
+        rows.append(Row("peer", "ahrs.filters.Madgwick.updateMARG loop",
+                        cpu_per_call(ahrs_loop, min(n, 5000)) * 1e6, "us/sample"))
+    return rows
+
+
+# --------------------------------------------------------------------------- imuhal
+def estimator_rows(n: int, gyro: np.ndarray, accel: np.ndarray, mag: np.ndarray,
+                   vqf_loop_us: float | None, vqf_batch: float | None) -> list[Row]:
+    from imuhal_filters.common.ahrs import ImuStep
+    from imuhal_filters.common.gate import gravity_positive_g
+
+    registry = load_registry()
+    rows: list[Row] = []
+    g = [tuple(r) for r in gyro.tolist()]
+    a = [tuple(r) for r in accel.tolist()]
+    m = [tuple(r) for r in mag.tolist()]
+    dt = 1 / RATE_HZ
+    step_ns = round(dt * 1e9)
+    samples = []
+    for i in range(n):
+        t = 1_000_000 + i * step_ns
+        samples.append((AccelSample(t_ns=t, device="b", frame=Frame.BODY_NED, accel_m_s2=a[i]),
+                        MagSample(t_ns=t, device="b", frame=Frame.BODY_NED, mag_ut=m[i]),
+                        GyroSample(t_ns=t, device="b", frame=Frame.BODY_NED, gyro_rad_s=g[i])))
+    for name in AHRS_NAMES:
+        cls = registry.estimators.get(name)
+        if name.startswith("freescale"):
+            rows += freescale_rows(name, cls, samples, gyro, accel, mag)
+            continue
+        uses_mag = getattr(cls, "uses_mag", True)
+
+        def make(cls=cls, uses_mag=uses_mag):  # type: ignore[no-untyped-def]
+            est = cls(cls.Settings())
+            est.update(g[0], a[0], m[0] if uses_mag else None, dt)  # aligned
+            return est
+
+        steps = [ImuStep(g[i], gravity_positive_g(a[i]), m[i] if uses_mag else None, dt)
+                 for i in range(n)]
+
+        def core(k: int, est_factory=make, steps=steps) -> None:
+            est = est_factory()
+            for i in range(k):
+                est._step(steps[i])
+
+        def update(k: int, est_factory=make, uses_mag=uses_mag) -> None:
+            est = est_factory()
+            for i in range(k):
+                est.update(g[i], a[i], m[i] if uses_mag else None, dt)
+
+        def process(k: int, est_factory=make) -> None:
+            est = est_factory()
+            for i in range(k):
+                acc, mg, gy = samples[i]
+                est.process(acc)
+                est.process(mg)
+                est.process(gy)
+
+        c = cpu_per_call(core, n) * 1e6
+        u = cpu_per_call(update, n) * 1e6
+        p = cpu_per_call(process, n) * 1e6
+        rows.append(Row("per sample", f"{name} core (_step)", c, "us/sample"))
+        rows.append(Row("per sample", f"{name} update()", u, "us/sample", "core", u / c))
+        rows.append(Row("per sample", f"{name} process()", p, "us/sample", "core", p / c,
+                        "<= 1.3"))
+        if name == "madgwick" and vqf_loop_us:
+            rows.append(Row("per sample", "madgwick process()", p, "us/sample", "vqf loop",
+                            p / vqf_loop_us, "<= 6"))
+    rows += batch_rows(registry, gyro, accel, mag, vqf_batch)
+    return rows
+
+
+def freescale_rows(name: str, cls, samples: list, gyro: np.ndarray, accel: np.ndarray,
+                   mag: np.ndarray) -> list[Row]:
+    """The Freescale filters step once per oversampled window: their core is the Kalman
+    step over the window (timed through the batch function), per input sample."""
+    from imuhal_filters.freescale.batch import run_6dof, run_9dof
+
+    n = len(samples)
+    nine = name.endswith("9dof")
+    ag, gd = -accel / 9.80665, np.degrees(gyro)
+
+    def core(k: int) -> None:
+        if nine:
+            run_9dof(ag[:k], gd[:k], mag[:k], cls.Settings())
+        else:
+            run_6dof(ag[:k], gd[:k], cls.Settings())
+
+    def process(k: int) -> None:
+        est = cls(cls.Settings())
+        for i in range(k):
+            acc, mg, gy = samples[i]
+            est.process(gy)
+            est.process(acc)
+            est.process(mg)
+
+    c = cpu_per_call(core, n) * 1e6
+    p = cpu_per_call(process, n) * 1e6
+    return [Row("per sample", f"{name} core (batch)", c, "us/sample"),
+            Row("per sample", f"{name} process()", p, "us/sample", "core", p / c, "<= 1.3")]
+
+
+def batch_rows(registry, gyro: np.ndarray, accel: np.ndarray, mag: np.ndarray,
+               vqf_batch: float | None) -> list[Row]:
+    from imuhal_filters.common import fast
+    from imuhal_filters.common.ahrs import AhrsEstimator
+    from imuhal_filters.common.batch import run_batch
+
+    rows: list[Row] = []
+    n = len(gyro)
+    for name in ("madgwick", "mahony", "imufilter"):
+        cls = registry.estimators.get(name)
+
+        def batch(k: int, cls=cls) -> None:  # type: ignore[no-untyped-def]
+            run_batch(cls(cls.Settings()), gyro[:k], accel[:k], mag[:k], 1 / RATE_HZ)
+
+        os.environ["IMUHAL_NO_JIT"] = "1"
+        py = 1.0 / cpu_per_call(batch, n, repeat=2)
+        del os.environ["IMUHAL_NO_JIT"]
+        rows.append(Row("batch", f"{name} run_batch 9-DOF, pure Python", py, "samples/s",
+                        "vqf updateBatch" if vqf_batch else "",
+                        py / vqf_batch if vqf_batch else None))
+        if not fast.available() or cls._compiled_batch is AhrsEstimator._compiled_batch:
+            continue  # no compiled kernel (yet) for this estimator
+        batch(100)  # compile (or load the cached kernel) outside the timing
+        big = np.tile(gyro, (10, 1)), np.tile(accel, (10, 1)), np.tile(mag, (10, 1))
+
+        def compiled(k: int, cls=cls, big=big) -> None:  # type: ignore[no-untyped-def]
+            run_batch(cls(cls.Settings()), big[0][:k], big[1][:k], big[2][:k], 1 / RATE_HZ)
+
+        c = 1.0 / cpu_per_call(compiled, 10 * n, repeat=3)
+        rows.append(Row("batch", f"{name} run_batch 9-DOF, compiled", c, "samples/s",
+                        "vqf updateBatch" if vqf_batch else "",
+                        c / vqf_batch if vqf_batch else None,
+                        ">= 2" if name == "madgwick" else ""))
+        rows.append(Row("batch", f"{name} compiled / pure Python", c / py, "x", "", None,
+                        "" if name == "madgwick" else ">= 10"))
+    from imuhal_filters.freescale.batch import run_9dof
+    from imuhal_filters.freescale.settings import Freescale9DofSettings
+
+    def fsl(k: int) -> None:
+        run_9dof(-accel[:k] / 9.80665, np.degrees(gyro[:k]), mag[:k], Freescale9DofSettings())
+
+    sps = 1.0 / cpu_per_call(fsl, min(n, 5000), repeat=2)
+    rows.append(Row("batch", "freescale run_9dof", sps, "samples/s",
+                    "vqf updateBatch" if vqf_batch else "",
+                    sps / vqf_batch if vqf_batch else None))
+    from imuhal_filters.vario.batch import run_batch as vario_batch
+
+    z = np.cumsum(np.random.default_rng(3).normal(0, 0.1, n))
+
+    def kf3(k: int) -> None:
+        vario_batch(z[:k], np.zeros(k), 1 / RATE_HZ)
+
+    rows.append(Row("batch", "vario-kf3 run_batch", 1.0 / cpu_per_call(kf3, n, repeat=2),
+                    "samples/s"))
+    return rows
+
+
+def write_log(path: Path, rows: int) -> None:
+    """A 250 Hz 9-DOF log in the CSV form ``imuhal estimate`` reads (chunks of 100k rows)."""
+    with path.open("w") as f:
+        f.write("t_s,gx_rad_s,gy_rad_s,gz_rad_s,ax_m_s2,ay_m_s2,az_m_s2,mx_ut,my_ut,mz_ut\n")
+        done = 0
+        while done < rows:
+            k = min(100_000, rows - done)
+            gyro, accel, mag = motion(k, seed=done)
+            t = (done + np.arange(k)) / RATE_HZ
+            block = np.column_stack([t, gyro, accel, mag])
+            np.savetxt(f, block, delimiter=",", fmt="%.9g")
+            done += k
+
+
+def estimate_rows(n_rows: int, madgwick_update_us: float) -> list[Row]:
+    with tempfile.TemporaryDirectory() as tmp:
+        log = Path(tmp) / "log.csv"
+        write_log(log, n_rows)
+        out = Path(tmp) / "out.csv"
+        # VmHWM, not ru_maxrss: Linux keeps ru_maxrss across exec, so a child's would start
+        # at this (larger) process's peak
+        code = ("import sys,time;from imuhal.cli.main import main;"
+                "t=time.process_time();rc=main(sys.argv[1:]);"
+                "hwm=[l.split()[1] for l in open('/proc/self/status') if l.startswith('VmHWM')];"
+                "print(time.process_time()-t,hwm[0],file=sys.stderr);sys.exit(rc)")
+        proc = subprocess.run([sys.executable, "-c", code, "estimate", "madgwick", str(log),
+                               "-o", str(out)], capture_output=True, text=True, check=False)
+        if proc.returncode != 0:
+            raise SystemExit(f"imuhal estimate failed:\n{proc.stderr}")
+        cpu_s, rss_kb = proc.stderr.strip().splitlines()[-1].split()
+        cpu = float(cpu_s)
+        rss_mb = int(rss_kb) / 1024
+        size_mb = log.stat().st_size / 1e6
+    us_row = cpu / n_rows * 1e6
+    return [
+        Row("estimate", f"imuhal estimate madgwick, {n_rows} rows ({size_mb:.0f} MB)",
+            n_rows / cpu, "rows/s (cpu)"),
+        Row("estimate", "  cpu per row", us_row, "us/row", "madgwick update()",
+            us_row / madgwick_update_us),
+        Row("estimate", "  peak RSS", rss_mb, "MB", "", None, "<= 150 at 2,000,000 rows"),
+    ]
+
+
+def board_rows(duration_s: float) -> list[Row]:
+    from imuhal.emulation import open_emulated
+    from imuhal.profile.loader import load_profile
+
+    registry = load_registry()
+    profile = load_profile(ROOT / "profiles" / "seed-paraglider-vario.yaml", registry)
+    scenario = registry.scenarios.get("thermal")(None, seed=0)
+    t0 = time.process_time()
+    for k in range(int(duration_s * RATE_HZ)):
+        scenario.truth(k / RATE_HZ)
+    truth_cpu = time.process_time() - t0
+    pipeline = open_emulated(profile, registry, scenario="thermal")
+    with pipeline:
+        t0 = time.process_time()
+        for _ in pipeline.events(duration_s):
+            pass
+        cpu = time.process_time() - t0
+    return [Row("board", f"emulated seed board + estimators, {duration_s:g} s", duration_s / cpu,
+                "x real time (cpu)", "bare truth at 250 Hz", cpu / truth_cpu, ">= 40 x real"),
+            Row("board", "hardware path (recorded bus replay)", math.nan, "us/IMU sample", "",
+                None, "<= 60 (needs `imuhal run --record`, not on main yet)")]
+
+
+def render(rows: list[Row], markdown: bool) -> str:
+    if markdown:
+        out = ["| section | case | value | unit | ratio | against | target |",
+               "| --- | --- | ---: | --- | ---: | --- | --- |"]
+        for r in rows:
+            ratio = "" if r.ratio is None else f"{r.ratio:.2f}"
+            out.append(f"| {r.section} | {r.case} | {r.value:,.1f} | {r.unit} | {ratio} | "
+                       f"{r.peer} | {r.target} |")
+        return "\n".join(out)
+    out = [f"{'section':<11} {'case':<52} {'value':>12} {'unit':<18} {'ratio':>7}  against"]
+    for r in rows:
+        ratio = "" if r.ratio is None else f"{r.ratio:.2f}"
+        out.append(f"{r.section:<11} {r.case:<52} {r.value:>12,.1f} {r.unit:<18} {ratio:>7}  "
+                   f"{r.peer}{'  target ' + r.target if r.target else ''}")
+    return "\n".join(out)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--samples", type=int, default=20_000, help="steps per per-sample case")
+    p.add_argument("--rows", type=int, default=200_000,
+                   help="rows of the `imuhal estimate` case (the issue's target is 2000000)")
+    p.add_argument("--board-s", type=float, default=60.0, help="simulated s of the board case")
+    p.add_argument("--skip", action="append", default=[],
+                   choices=["peers", "estimators", "estimate", "board"])
+    p.add_argument("--markdown", action="store_true", help="print a Markdown table")
+    args = p.parse_args(argv)
+    gyro, accel, mag = motion(args.samples)
+    rows: list[Row] = []
+    if "peers" not in args.skip:
+        rows += peer_rows(args.samples, gyro, accel, mag)
+    by_case = {r.case: r.value for r in rows}
+    vqf_loop = by_case.get("vqf.VQF.update loop 9-DOF")
+    vqf_batch = by_case.get("vqf.VQF.updateBatch 9-DOF")
+    plain = by_case.get("plain-Python Madgwick 9-DOF loop")
+    if "estimators" not in args.skip:
+        est = estimator_rows(args.samples, gyro, accel, mag, vqf_loop, vqf_batch)
+        if plain:
+            p_us = next(r.value for r in est if r.case == "madgwick process()")
+            est.append(Row("per sample", "madgwick process()", p_us, "us/sample",
+                           "plain-Python Madgwick", p_us / plain))
+        rows += est
+    if "estimate" not in args.skip:
+        upd = next((r.value for r in rows if r.case == "madgwick update()"), 1.0)
+        rows += estimate_rows(args.rows, upd)
+    if "board" not in args.skip:
+        rows += board_rows(args.board_s)
+    print(render(rows, args.markdown))
+    print(f"\nCPU time; {sys.version.split()[0]}, numpy {np.__version__}, "
+          f"maxrss of this process {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024}"
+          " MB", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,110 @@
+"""``imuhal estimate`` streams: a log read, run and written in chunks gives the same file as in
+one piece, ``--columns`` chooses the output columns, and a bad row late in the log leaves no
+output behind."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import pytest
+
+from imuhal.cli.main import main
+from imuhal.estimation.outputs import AttitudeEstimate
+from imuhal.offline import csv_input
+from imuhal.offline.csv_input import InputError, iter_sample_chunks, read_sample_csv
+from imuhal.offline.csv_output import EstimateCsvWriter
+
+HEADER = ["t_s", "gx_rad_s", "gy_rad_s", "gz_rad_s", "ax_m_s2", "ay_m_s2", "az_m_s2",
+          "mx_ut", "my_ut", "mz_ut"]
+
+
+def _log(path: Path, rows: int, *, bad_line: int | None = None) -> None:
+    with path.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(HEADER)
+        for i in range(rows):
+            mag = ["20.5", "1.25", "44"] if i % 3 == 0 else ["", "", ""]
+            gx = "x" if bad_line == i + 2 else f"{0.01 * (i % 7):.3f}"
+            w.writerow([f"{i * 0.004:.3f}", gx, "-0.02", "0.1", "0.3", "-0.2", "-9.7", *mag])
+
+
+def test_chunks_carry_the_whole_file_and_check_time_across_chunk_edges(tmp_path: Path) -> None:
+    src = tmp_path / "imu.csv"
+    _log(src, 25)
+    chunks = list(iter_sample_chunks(src, chunk_rows=10))
+    assert [len(c) for c in chunks] == [10, 10, 5]
+    assert chunks[1].lines[0] == 12
+    rows = src.read_text().splitlines()
+    rows[12], rows[11] = rows[11], rows[12]  # lines 12 and 13 swap: time goes back at an edge
+    src.write_text("\n".join(rows) + "\n")
+    with pytest.raises(InputError, match=r"line 13, column 't_s'.*does not increase"):
+        list(iter_sample_chunks(src, chunk_rows=11))
+
+
+def test_estimate_in_small_chunks_writes_the_same_file_as_in_one(tmp_path: Path,
+                                                                 monkeypatch: pytest.MonkeyPatch
+                                                                 ) -> None:
+    src = tmp_path / "imu.csv"
+    _log(src, 300)
+    whole, chunked = tmp_path / "whole.csv", tmp_path / "chunked.csv"
+    assert main(["estimate", "madgwick", str(src), "-o", str(whole)]) == 0
+    monkeypatch.setattr(csv_input, "CHUNK_ROWS", 7)
+    assert len(list(iter_sample_chunks(src))) > 40
+    assert main(["estimate", "madgwick", str(src), "-o", str(chunked)]) == 0
+    assert chunked.read_text() == whole.read_text()
+
+
+def test_columns_option_writes_only_the_named_columns_in_that_order(tmp_path: Path) -> None:
+    src, out = tmp_path / "imu.csv", tmp_path / "q.csv"
+    _log(src, 50)
+    assert main(["estimate", "madgwick", str(src), "-o", str(out),
+                 "--columns", "t_s,qw,qx,qy,qz"]) == 0
+    with out.open() as f:
+        rows = list(csv.reader(f))
+    assert rows[0] == ["t_s", "qw", "qx", "qy", "qz"]
+    assert len(rows) == 51 and all(len(r) == 5 for r in rows)
+
+
+def test_unknown_column_is_a_one_line_error_and_no_file(tmp_path: Path,
+                                                        capsys: pytest.CaptureFixture[str]
+                                                        ) -> None:
+    src, out = tmp_path / "imu.csv", tmp_path / "q.csv"
+    _log(src, 20)
+    assert main(["estimate", "madgwick", str(src), "-o", str(out),
+                 "--columns", "t_s,quaternion"]) == 2
+    err = capsys.readouterr().err
+    assert "--columns: quaternion not written by this estimator" in err and "qw" in err
+    assert not out.exists()
+
+
+def test_bad_row_late_in_a_long_log_keeps_the_previous_output(tmp_path: Path) -> None:
+    src, out = tmp_path / "imu.csv", tmp_path / "out.csv"
+    _log(src, 20_000, bad_line=19_000)
+    out.write_text("previous result\n")
+    assert main(["estimate", "madgwick", str(src), "-o", str(out)]) == 2
+    assert out.read_text() == "previous result\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["imu.csv", "out.csv"]
+
+
+def test_a_column_first_seen_late_is_added_and_earlier_rows_padded(tmp_path: Path) -> None:
+    out = tmp_path / "out.csv"
+    writer = EstimateCsvWriter(out)
+    q = (1.0, 0.0, 0.0, 0.0)
+    writer.write([AttitudeEstimate(t_ns=1, source="a", q_body_to_ned=q,
+                                   diagnostics={"steps": 1})])
+    writer.write([AttitudeEstimate(t_ns=2, source="a", q_body_to_ned=q,
+                                   diagnostics={"steps": 2, "late": 0.5})])
+    assert writer.commit() == 2
+    with out.open() as f:
+        rows = list(csv.DictReader(f))
+    assert list(rows[0])[-2:] == ["steps", "late"]
+    assert rows[0]["late"] == "" and rows[1]["late"] == "0.5"
+    assert rows[0]["steps"] == "1"
+
+
+def test_whole_file_reader_is_the_chunks_joined(tmp_path: Path) -> None:
+    src = tmp_path / "imu.csv"
+    _log(src, 30)
+    table = read_sample_csv(src)
+    assert len(table) == 30 and table.lines[-1] == 31
