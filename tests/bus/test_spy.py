@@ -22,7 +22,7 @@ def _spied() -> tuple[SpyBus, list[Transfer]]:
 def test_a_transaction_passes_through_and_is_recorded() -> None:
     spy, log = _spied()
     assert spy.transfer(0x19, b"\x0f", 1) == b"\x5a"
-    assert log == [Transfer(5_000_000, "emul://i2c", 0x19, b"\x0f", b"\x5a")]
+    assert log == [Transfer(5_000_000, "emul://i2c", 0x19, b"\x0f", b"\x5a", read_len=1)]
     assert format_transfer(log[0]).endswith("emul://i2c @19 W:0f R:5a")
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -26,8 +27,8 @@ def test_help_lists_the_commands(capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit):
         main(["--help"])
     out = capsys.readouterr().out
-    for command in ("run", "plugins", "profile"):
-        assert command in out
+    for command in ("run", "replay", "estimate", "plot", "calibrate", "plugins", "profile"):
+        assert re.search(rf"^\s+{command}\s", out, flags=re.M), command
 
 
 def test_plugins_lists_drivers_and_estimators_with_their_package(

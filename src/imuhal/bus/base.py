@@ -18,6 +18,9 @@ class BusKind(str, Enum):
     I2C = "i2c"
     SPI = "spi"
     SERIAL = "serial"
+    IIO = "iio"
+    """Linux Industrial I/O: chips bound to kernel drivers, read through sysfs and
+    /dev/iio:deviceN (imuhal.bus.linux_iio)."""
 
 
 class Bus(ABC):

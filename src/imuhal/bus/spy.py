@@ -22,6 +22,9 @@ class Transfer:
     written: bytes
     read: bytes
     error: str = ""
+    """``Type: message`` of the exception the transaction raised; empty when it completed."""
+    read_len: int = -1
+    """Bytes asked for (-1: not noted); a failed transaction read none of them."""
 
 
 class SpyBus(Bus):
@@ -38,9 +41,10 @@ class SpyBus(Bus):
             data = self.inner.transfer(target, write, read_len)
         except Exception as exc:
             self.record(Transfer(self.clock.now_ns(), self.name, target, write, b"",
-                                 f"{type(exc).__name__}: {exc}"))
+                                 f"{type(exc).__name__}: {exc}", read_len))
             raise
-        self.record(Transfer(self.clock.now_ns(), self.name, target, write, data))
+        self.record(Transfer(self.clock.now_ns(), self.name, target, write, data,
+                             read_len=read_len))
         return data
 
     def link(self, target: int) -> Link:

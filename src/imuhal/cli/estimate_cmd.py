@@ -14,12 +14,15 @@ from imuhal.core.conventions import CONVENTIONS, NED
 from imuhal.offline.csv_input import iter_sample_chunks
 from imuhal.offline.csv_output import ColumnError, EstimateCsvWriter
 from imuhal.offline.frames import resolve_input_frame, table_to_ned
-from imuhal.offline.runner import iter_offline
+from imuhal.offline.run_log import is_run_log, read_run_log
+from imuhal.offline.runner import iter_offline, run_offline_samples
 from imuhal.offline.settings_args import build_settings, parse_set_arguments
 from imuhal.plugins.manager import Registry
 
 HELP = """\
-Input columns (project units and frames; see docs/units-and-frames.md):
+INPUT is a log of `imuhal run --output LOG.csv --samples` (one row per event; flagged
+samples are skipped) or a wide CSV with one row per time.
+Wide input columns (project units and frames; see docs/units-and-frames.md):
   attitude estimators: t_s, gx_rad_s, gy_rad_s, gz_rad_s, ax_m_s2, ay_m_s2, az_m_s2
                        [, mx_ut, my_ut, mz_ut]   (accel = specific force, NED body:
                        a level board at rest reads az_m_s2 = -9.81)
@@ -42,8 +45,9 @@ the --ahrs estimator behind a vario filter.
 
 def add_parser(sub: Any) -> None:
     p = sub.add_parser(
-        "estimate", help="run an estimator over a CSV of samples",
-        description="Run any registered estimator over a CSV log of samples.",
+        "estimate", help="run an estimator over a run log or a CSV of samples",
+        description="Run any registered estimator over a log of `imuhal run --samples` or a "
+        "wide CSV of samples.",
         epilog=HELP, formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("name", help="estimator name (see `imuhal plugins`)")
@@ -89,31 +93,49 @@ def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
     ahrs_settings = build_settings(ahrs_cls.Settings,
                                    parse_set_arguments(args.ahrs_settings, "--ahrs-set"),
                                    args.ahrs, "--ahrs-set")
-    # the log is read, run and written one chunk at a time: memory stays flat in its length
-    chunks = (table_to_ned(*resolve_input_frame(t, args.input_frame))
-              for t in iter_sample_chunks(args.input, rate_hz=args.rate))
-    first = next(chunks)
-    ahrs = None
-    if ("altitude_m" not in first.columns and args.name != args.ahrs
-            and not any(t.__name__ == "PressureSample" for t in ahrs_cls.consumes)):
-        ahrs = ahrs_cls(ahrs_settings)
     columns = _column_list(args.columns)
     writer = EstimateCsvWriter(args.output, args.output_frame, columns)
-    n_in = 0
     try:
-        for table in itertools.chain([first], chunks):
-            n_in += len(table)
-            writer.write(next(iter_offline(estimator, [table], ahrs=ahrs)))
+        if is_run_log(args.input):
+            # A run log is read whole: its rows are events of many kinds, and the samples are
+            # rebuilt in the pipeline's order.
+            log = read_run_log(args.input, args.input_frame)
+            ahrs = _gravity_ahrs(args, ahrs_cls, ahrs_settings, True)
+            writer.write(run_offline_samples(estimator, log.samples, ahrs=ahrs))
+            read = (f"{log.rows} log rows ({len(log.samples)} valid samples, {log.flagged} "
+                    "flagged skipped)")
+        else:
+            # the log is read, run and written one chunk at a time: memory stays flat in its
+            # length
+            chunks = (table_to_ned(*resolve_input_frame(t, args.input_frame))
+                      for t in iter_sample_chunks(args.input, rate_hz=args.rate))
+            first = next(chunks)
+            ahrs = _gravity_ahrs(args, ahrs_cls, ahrs_settings,
+                                 "altitude_m" not in first.columns)
+            n_in = 0
+            for table in itertools.chain([first], chunks):
+                n_in += len(table)
+                writer.write(next(iter_offline(estimator, [table], ahrs=ahrs)))
+            read = f"{n_in} input rows"
         rows = writer.commit()
     except BaseException:
         writer.abort()
         raise
-    print(f"{args.name}: {n_in} input rows -> {rows} estimates in {args.output}",
-          file=sys.stderr)
+    print(f"{args.name}: {read} -> {rows} estimates in {args.output}", file=sys.stderr)
     for est in (estimator, ahrs):
         if est is not None:
             _report_rejected(est)
     return 0
+
+
+def _gravity_ahrs(args: argparse.Namespace, ahrs_cls: Any, settings: Any, needed: bool
+                  ) -> Any:
+    """The --ahrs estimator a vario filter fed IMU samples needs (None when it does not)."""
+    if not needed or args.name == args.ahrs:
+        return None
+    if any(t.__name__ == "PressureSample" for t in ahrs_cls.consumes):
+        return None
+    return ahrs_cls(settings)
 
 
 def _report_rejected(estimator: Any) -> None:

@@ -21,8 +21,10 @@ from imuhal.cli import (
     check_mounts_cmd,
     estimate_cmd,
     evaluate_cmd,
+    plot_cmd,
     plugins_cmd,
     profile_cmd,
+    replay_cmd,
     run_cmd,
 )
 from imuhal.cli.args import OneLineParser
@@ -33,8 +35,8 @@ EXIT_ERROR = 2
 EXIT_INTERNAL = 70
 EXIT_INTERRUPTED = 130
 
-COMMANDS = [run_cmd, estimate_cmd, evaluate_cmd, calibrate_cmd, check_mounts_cmd, plugins_cmd,
-            profile_cmd]
+COMMANDS = [run_cmd, replay_cmd, estimate_cmd, evaluate_cmd, plot_cmd, calibrate_cmd,
+            check_mounts_cmd, plugins_cmd, profile_cmd]
 """Modules providing ``add_parser(subparsers)``; the order is the order in --help."""
 
 

@@ -12,6 +12,8 @@ from pathlib import Path
 from typing import Any
 
 from imuhal import __version__
+from imuhal.bus.recording.format import RecordingWriteFailed
+from imuhal.bus.recording.recorder import BusRecorder, run_header
 from imuhal.bus.spy import format_transfer
 from imuhal.cli import args as types
 from imuhal.cli.frame_option import frame_argument
@@ -22,6 +24,8 @@ from imuhal.offline.settings_args import build_settings, parse_set_arguments
 from imuhal.plugins.manager import Registry
 from imuhal.profile.loader import load_profile
 from imuhal.profiles_dir import default_profile_path
+
+"""The scenario that flies a recorded truth file (imuhal.sim.recorded)."""
 
 
 def add_parser(sub: Any) -> None:
@@ -47,7 +51,8 @@ def add_parser(sub: Any) -> None:
                      help="with --output, also write every sample (flagged ones included)")
     run.add_argument("--truth", metavar="FILE.csv",
                      help="emulated runs: write the simulated ground truth at the same "
-                     "timestamps as the --output rows (docs/simulation.md)")
+                     "timestamps as the --output rows (docs/simulation.md); with "
+                     "--emulate replay: the truth file to fly again (read, never written)")
     run.add_argument("--trace", metavar="FILE.txt",
                      help="log every bus transaction (time, bus, address, bytes) to a file")
     run.add_argument("--nmea", action="append", default=[], metavar="OUTPUT",
@@ -70,6 +75,9 @@ def add_parser(sub: Any) -> None:
     run.add_argument("--replay-truth", metavar="TRUTH.csv",
                      help="with --emulate replay: the truth CSV to fly again (e.g. one that "
                      "`imuhal run --truth` wrote)")
+    run.add_argument("--record", metavar="FILE",
+                     help="record every bus transaction and clock reading to a new binary "
+                     "file, for `imuhal replay` (docs/recording.md)")
     run.add_argument("--quiet", action="store_true", help="no live status line")
     run.add_argument("--web", metavar="[HOST:]PORT",
                      help="serve a live dashboard (read-only) on PORT of this machine only, "
@@ -105,7 +113,7 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
         registry.scenarios.get(emulate)  # an unknown name fails here, before any output
     scenario_params = _replay_params(args, emulate)
     duration = args.duration
-    if duration is None and emulate is not None:
+    if duration is None and emulate is not None and scenario_params is None:
         duration = registry.scenarios.get(emulate).default_duration_s
     plugin_sinks = _plugin_sinks(args.sink, args.sink_set, registry)  # checked before opening
     where = f"emulated, scenario '{emulate}'" if emulate else "real hardware"
@@ -116,17 +124,24 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     csv_sink = None
     trace_file = AtomicFile(args.trace, partial=True) if args.trace else None
     trace = _trace_writer(trace_file) if trace_file else None
+    recorder = None
+    ended = ["failed"]  # how the run ended, for the recording's end mark
     with contextlib.ExitStack() as stack:
         if trace_file is not None:
             # Committed even when opening the board fails: the trace of a failed probe is
             # exactly what a bug report needs.
             stack.callback(trace_file.commit)
+        if args.record:
+            recorder = BusRecorder(args.record, run_header(
+                path.read_text(encoding="utf-8"), str(path), emulate=emulate, seed=args.seed))
+            stack.callback(lambda: recorder.close(ended[0]))
         if emulate is None:
-            pipeline = stack.enter_context(Pipeline.open(profile, registry, trace=trace))
+            pipeline = stack.enter_context(Pipeline.open(profile, registry, trace=trace,
+                                                         recorder=recorder))
         else:
             pipeline = stack.enter_context(open_emulated(
                 profile, registry, scenario=emulate, realtime=realtime, seed=args.seed,
-                trace=trace, scenario_params=scenario_params))
+                trace=trace, recorder=recorder, scenario_params=scenario_params))
         for w in pipeline.warnings:
             print(f"warning: {w}", file=sys.stderr)
         if emulate == "replay" and isinstance(pipeline.board, EmulatedBoard):
@@ -155,8 +170,13 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
         sinks.extend(plugin_sinks)
         try:
             summary = pipeline.run(duration, sinks)
+            ended[0] = "complete"
+        except RecordingWriteFailed as exc:
+            raise ImuhalError(f"{exc}; the run stopped (the recording keeps what was "
+                              f"flushed){_kept_note(args.output, csv_sink)}") from None
         except KeyboardInterrupt as stop:
             summary = pipeline.summary()
+            ended[0] = "interrupted"
             why = f"stopped by {stop}" if str(stop) else "interrupted"
             print(f"\n{why}; the files are complete up to here", file=sys.stderr)
         except ImuhalError as exc:
@@ -170,6 +190,9 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
         print(f"wrote {csv_sink.rows} rows to {args.output}", file=sys.stderr)
     if truth_sink is not None:
         print(f"wrote {truth_sink.rows} truth rows to {args.truth}", file=sys.stderr)
+    if recorder is not None:
+        print(f"recorded {recorder.transfers} bus transactions to {args.record}",
+              file=sys.stderr)
     return 0
 
 
@@ -198,6 +221,8 @@ def _flight_sinks(args: argparse.Namespace, profile: Any, registry: Registry,
         out.append(registry.sinks.get("vario-audio")(
             {"curve": profile.audio, "wav": args.audio_wav, "live": args.audio}))
     return out
+
+
 def _plugin_sinks(names: list[str], settings: list[str], registry: Registry) -> list[Any]:
     """The sinks named by ``--sink``, each with its ``--sink-set NAME.KEY=VALUE`` settings."""
     per_sink: dict[str, list[str]] = {name: [] for name in names}

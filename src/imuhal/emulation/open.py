@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
+from imuhal.bus.recording.recorder import BusRecorder
 from imuhal.bus.spy import Transfer
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import ImuhalError
@@ -41,6 +42,7 @@ def open_emulated(
     trace: Callable[[Transfer], None] | None = None,
     faults: Sequence[FaultSpec] = (),
     physical_mounts: Mapping[str, MountSpec] | None = None,
+    recorder: BusRecorder | None = None,
 ) -> Pipeline:
     """A pipeline over ``profile``'s board, emulated, flying ``scenario``.
 
@@ -53,8 +55,8 @@ def open_emulated(
     range only). ``error_specs`` (device -> spec; devices not named are ideal) replaces
     those models, for tests and studies that need known offsets, scale errors and iron.
     ``faults`` are injected into the board on top of the profile's ``emulation.faults``
-    (imuhal.emulation.faults, docs/reliability.md). ``calibrated`` and ``trace`` are the
-    pipeline's (see :class:`Pipeline`).
+    (imuhal.emulation.faults, docs/reliability.md). ``calibrated``, ``trace`` and
+    ``recorder`` are the pipeline's (see :class:`Pipeline`).
     ``physical_mounts`` (device -> mount, as in a profile) places those chips on the board
     differently from what the profile says: the pipeline still rotates by the profile's
     mount, so a wrong profile can be emulated (``imuhal check-mounts`` finds it).
@@ -79,7 +81,8 @@ def open_emulated(
     board = EmulatedBoard(profile, registry, clock, world, rotations, errors,
                           faults=[*profile.emulation.faults, *faults], seed=run_seed)
     board.update(0)
-    return Pipeline(profile, registry, board, calibrated=calibrated, trace=trace)
+    return Pipeline(profile, registry, board, calibrated=calibrated, trace=trace,
+                    recorder=recorder)
 
 
 def _physically_mounted(profile: BoardProfile, mounts: Mapping[str, MountSpec]

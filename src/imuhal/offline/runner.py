@@ -132,38 +132,66 @@ def iter_offline(
 
 def _run_table(estimator: Estimator, table: SampleTable,
                ahrs: Estimator | None) -> list[Estimate]:
-    consumes = tuple(estimator.consumes)
-    wants_imu = any(issubclass(t, (GyroSample, AccelSample)) for t in consumes) and not any(
-        issubclass(t, PressureSample) for t in consumes)
-    outputs: list[Estimate] = []
-    if wants_imu and getattr(estimator.settings, "offline", False):
-        return smoothed_estimates(estimator, table)
-    if wants_imu:
-        process = estimator.process
-        extend = outputs.extend
-        for sample in imu_events(table):
-            if isinstance(sample, consumes):
-                extend(process(sample))
-        return outputs
-    if not any(issubclass(t, PressureSample) for t in consumes):
-        raise InputError(f"estimator {estimator.name!r} consumes "
-                         f"{', '.join(t.__name__ for t in consumes)}: imuhal estimate cannot "
-                         "build those from a CSV")
+    if _wants_imu(estimator):
+        if getattr(estimator.settings, "offline", False):
+            return smoothed_estimates(estimator, table)
+        return feed(estimator, imu_events(table))
+    _require_pressure_consumer(estimator)
     if table.has(ALTITUDE):
         sea_level = float(getattr(estimator.settings, "sea_level_pa", SEA_LEVEL_PRESSURE_PA))
-        for item in vario_events(table, sea_level):
-            if isinstance(item, consumes):
-                outputs += estimator.process(item)
-        return outputs
+        return feed(estimator, vario_events(table, sea_level))
     require(table, (TIME, *GYRO, *ACCEL, PRESSURE),
             "a vario filter (or give t_s, altitude_m, accel_up_m_s2)")
     if ahrs is None:
         raise InputError("full IMU input needs an attitude estimator for gravity compensation")
-    for sample in imu_events(table):
-        upstream: list[Any] = [sample]
-        if isinstance(sample, tuple(ahrs.consumes)):
-            upstream += ahrs.process(sample)
-        for item in upstream:
+    return feed(estimator, imu_events(table), ahrs=ahrs)
+
+
+def run_offline_samples(
+    estimator: Estimator, samples: Iterable[Sample], *, ahrs: Estimator | None = None,
+) -> list[Estimate]:
+    """Run ``estimator`` over samples as the pipeline produced them (a run log, in order);
+    a vario filter gets its attitude from ``ahrs`` run over the same samples."""
+    if _wants_imu(estimator):
+        return feed(estimator, samples)
+    _require_pressure_consumer(estimator)
+    if ahrs is None:
+        raise InputError("a vario filter over a run log needs an attitude estimator for "
+                         "gravity compensation (--ahrs NAME)")
+    return feed(estimator, samples, ahrs=ahrs)
+
+
+def feed(estimator: Estimator, items: Iterable[Sample | Estimate], *,
+         ahrs: Estimator | None = None) -> list[Estimate]:
+    """Each item (and what ``ahrs`` makes of it) to ``estimator`` when it consumes it."""
+    consumes = tuple(estimator.consumes)
+    outputs: list[Estimate] = []
+    process, extend = estimator.process, outputs.extend
+    if ahrs is None:  # the common case, kept lean: it runs once per input row
+        for item in items:
             if isinstance(item, consumes):
-                outputs += estimator.process(item)
+                extend(process(item))
+        return outputs
+    ahrs_consumes = tuple(ahrs.consumes)
+    for item in items:
+        upstream: list[Any] = [item]
+        if isinstance(item, ahrs_consumes):
+            upstream += ahrs.process(item)
+        for x in upstream:
+            if isinstance(x, consumes):
+                outputs += estimator.process(x)
     return outputs
+
+
+def _wants_imu(estimator: Estimator) -> bool:
+    consumes = tuple(estimator.consumes)
+    return any(issubclass(t, (GyroSample, AccelSample)) for t in consumes) and not any(
+        issubclass(t, PressureSample) for t in consumes)
+
+
+def _require_pressure_consumer(estimator: Estimator) -> None:
+    consumes = tuple(estimator.consumes)
+    if not any(issubclass(t, PressureSample) for t in consumes):
+        raise InputError(f"estimator {estimator.name!r} consumes "
+                         f"{', '.join(t.__name__ for t in consumes)}: imuhal estimate cannot "
+                         "build those from a CSV")

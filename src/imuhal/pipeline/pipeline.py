@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 from imuhal.bus.base import Bus, Link
 from imuhal.bus.contained import ContainedBus
+from imuhal.bus.recording.recorder import BusRecorder
 from imuhal.bus.spy import SpyBus, Transfer
 from imuhal.calibration.gyro import GyroOffsetProcedure
 from imuhal.calibration.model import CalibrationBinding, DeviceCalibration
@@ -129,27 +130,38 @@ class Pipeline:
         *,
         calibrated: bool = True,
         trace: Callable[[Transfer], None] | None = None,
+        recorder: BusRecorder | None = None,
     ) -> None:
         """Probe and configure every enabled device of ``profile`` on ``board``'s buses.
 
         Usually called through :meth:`open` (real buses) or
         :func:`imuhal.emulation.open_emulated`. ``calibrated=False`` yields raw sensor-frame
         samples (no calibration, no mount rotation, no estimators): what calibration
-        procedures measure. ``trace`` receives every bus transaction (see imuhal.bus.spy).
+        procedures measure. ``trace`` receives every bus transaction (see imuhal.bus.spy);
+        ``recorder`` also records every clock reading, for ``imuhal replay``
+        (imuhal.bus.recording).
         """
         self.profile = profile
         self.calibrated = calibrated
         self.registry = registry
         self.board = board
-        self.clock = clock = board.clock
-        spied = dict(board.buses) if trace is None else {
-            name: SpyBus(bus, trace, clock) for name, bus in board.buses.items()}
+        clock = board.clock
+        taps = [tap for tap in (trace, recorder.on_transfer if recorder else None) if tap]
+        # The spies stamp transactions with the plain clock: their own readings are not part
+        # of the run, so a replay does not have to make them.
+        spied = dict(board.buses) if not taps else {
+            name: SpyBus(bus, _fan_out(taps), clock) for name, bus in board.buses.items()}
+        if recorder is not None:
+            recorder.attach(board.buses)
+            clock = recorder.wrap_clock(clock)
+        self.clock = clock
         # Whatever a bus plugin raises reaches the drivers as a BusError (contained per device).
         self.buses: dict[str, Bus] = {name: ContainedBus(bus) for name, bus in spied.items()}
         self.warnings: list[str] = []
         self._heap: list[tuple[int, int, str]] | None = None
         self._startup: dict[str, GyroOffsetProcedure] | None = None
         self._fusion: list[Sample] = []
+        self._span_ns = [0, 0]  # first and last poll time of the latest poll loop (ns)
         self.devices: dict[str, DeviceRuntime] = {}
         self.estimators: list[EstimatorRuntime] = []
         chip_to_body = chip_to_body_rotations(profile)
@@ -191,13 +203,15 @@ class Pipeline:
         *,
         calibrated: bool = True,
         trace: Callable[[Transfer], None] | None = None,
+        recorder: BusRecorder | None = None,
     ) -> Pipeline:
         """Open the profile's real buses and probe its devices (see ``__init__`` for
         ``calibrated`` and ``trace``). For an emulated board use
         :func:`imuhal.emulation.open_emulated`."""
         board = open_hardware_board(profile, registry)
         try:
-            return cls(profile, registry, board, calibrated=calibrated, trace=trace)
+            return cls(profile, registry, board, calibrated=calibrated, trace=trace,
+                       recorder=recorder)
         except BaseException:
             for bus in board.buses.values():
                 bus.close()
@@ -307,15 +321,18 @@ class Pipeline:
         heap = self._schedule()
         start = self.clock.now_ns()
         end = None if duration_s is None else start + round(duration_s * 1e9)
+        self._span_ns = [start, start]
         while heap:
             t_ns, rank, name = heap[0]
             if end is not None and t_ns >= end:
+                self._span_ns[1] = end
                 break
             heapq.heappop(heap)
             self.clock.sleep_until(t_ns)
             # Estimator inputs wait until every sample of their instant is in (fusion order).
             yield from self._fuse(before_ns=t_ns)
             t_ns = self.board.before_poll(t_ns, name)
+            self._span_ns[1] = t_ns
             dev = self.devices[name]
             samples, next_ns = self._service(dev, t_ns)
             dev.next_poll_ns = max(next_ns, t_ns + 1)
@@ -454,7 +471,6 @@ class Pipeline:
         are aborted instead, so a failed run never replaces a good file.
         """
         wall0 = time.perf_counter()
-        t0 = self.clock.now_ns()
         failed = True
         try:
             for event in self.events(duration_s):
@@ -468,8 +484,10 @@ class Pipeline:
             for sink in sinks:
                 abort = getattr(sink, "abort", None) if failed else None
                 (abort or sink.close)()
-        return self.summary(wall_s=time.perf_counter() - wall0,
-                            simulated_s=(self.clock.now_ns() - t0) / 1e9)
+        # The span comes from the poll loop, not from reading the clock here: a run and an
+        # events() loop then read the clock alike, so either replays a recording of the other.
+        first, last = self._span_ns
+        return self.summary(wall_s=time.perf_counter() - wall0, simulated_s=(last - first) / 1e9)
 
     def summary(self, *, wall_s: float = 0.0, simulated_s: float = 0.0) -> RunSummary:
         return RunSummary(
@@ -494,3 +512,13 @@ class Pipeline:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
+
+def _fan_out(taps: list[Callable[[Transfer], None]]) -> Callable[[Transfer], None]:
+    if len(taps) == 1:
+        return taps[0]
+
+    def each(transfer: Transfer) -> None:
+        for tap in taps:
+            tap(transfer)
+
+    return each

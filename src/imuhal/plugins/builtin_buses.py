@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from imuhal.bus.linux_i2c import LinuxI2CFactory
+from imuhal.bus.linux_iio import LinuxIIOFactory
 from imuhal.bus.linux_spi import LinuxSPIFactory
 from imuhal.bus.serial_port import SerialFactory
 from imuhal.plugins.hookspecs import hookimpl
@@ -14,3 +15,4 @@ def imuhal_register_buses(register: Registrar) -> None:
     register(LinuxI2CFactory)
     register(LinuxSPIFactory)
     register(SerialFactory)
+    register(LinuxIIOFactory)

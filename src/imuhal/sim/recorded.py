@@ -68,17 +68,10 @@ class RecordedMotion(Motion):
 
     def kinematics(self, t_s: float) -> Kinematics:
         t = float(t_s)
-        if 0.0 <= t < self._t0:
-            # Before the record starts (a truth file written by `imuhal run --truth` begins
-            # at the run's first estimate, not at 0): the board rests at the first pose.
-            q0 = self._q[0]
-            rot0 = quat_matrix(q0)
-            f0 = mat_t_vec(rot0, (0.0, 0.0, -self.gravity_m_s2))
-            zero = (0.0, 0.0, 0.0)
-            return Kinematics(t, q0, rot0, zero, f0, zero, self._p[0],  # type: ignore[arg-type]
-                              zero)
-        if not self._t0 <= t <= self._t1:
-            raise ValueError(f"t = {t} s is outside the record [{self._t0}, {self._t1}] s")
+        if t < self._t0:
+            return self._extrapolated(t, 0, 0)
+        if t > self._t1:
+            return self._extrapolated(t, len(self.t) - 1, len(self._w) - 1)
         i = min(bisect_right(self.t, t) - 1, len(self.t) - 2)
         t0, t1 = self.t[i], self.t[i + 1]
         h = t1 - t0
@@ -100,6 +93,22 @@ class RecordedMotion(Motion):
         acc = tuple(e[0] * p0[k] + e[1] * v0[k] + e[2] * p1[k] + e[3] * v1[k] for k in range(3))
         f = mat_t_vec(rot, (acc[0], acc[1], acc[2] - self.gravity_m_s2))
         return Kinematics(t, q, rot, w, f, acc, pos, vel)  # type: ignore[arg-type]
+
+    def _extrapolated(self, t: float, i: int, interval: int) -> Kinematics:
+        """Outside the record: the end sample's attitude turning at its interval's body rate,
+        its position moving at its velocity, no acceleration. A truth file written by
+        ``imuhal run --truth`` starts at the first estimate, after t = 0, where a run starts."""
+        tau = t - self.t[i]
+        w = self._w[interval]
+        wn = math.sqrt(w[0] ** 2 + w[1] ** 2 + w[2] ** 2)
+        q = self._q[i]
+        if wn > 0:
+            q = quat_mul(q, quat_axis_angle((w[0] / wn, w[1] / wn, w[2] / wn), wn * tau))
+        rot = quat_matrix(q)
+        p, v = self._p[i], self._v[i]
+        pos = (p[0] + v[0] * tau, p[1] + v[1] * tau, p[2] + v[2] * tau)
+        f = mat_t_vec(rot, (0.0, 0.0, -self.gravity_m_s2))
+        return Kinematics(t, q, rot, w, f, (0.0, 0.0, 0.0), pos, v)  # type: ignore[arg-type]
 
     @classmethod
     def from_truth_csv(cls, path: str, *, gravity_m_s2: float = STANDARD_GRAVITY_M_S2,

@@ -1,0 +1,377 @@
+"""The bus recording file format (version 1), documented in docs/recording.md.
+
+A file is the 8-byte magic, a little-endian u16 format version, then chunks. A chunk is a u32
+payload length, the u32 CRC-32 of the payload and the payload. The first chunk holds the
+header (UTF-8 JSON: the profile's YAML text and what the run was); every later chunk holds
+records, each a varint length followed by that many bytes (a type byte, then its fields).
+Chunks are only ever appended, each once the writer flushes (every ``flush_interval_s`` of wall
+time), so a power cut loses at most the records of the last interval and a reader stops cleanly
+at the first incomplete or damaged chunk.
+
+Times are int nanoseconds on the run's clock, stored as the signed difference from the time of
+the previous record (zig-zag varint): a few bytes each.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import struct
+import time
+import zlib
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any
+
+from imuhal.core.errors import ImuhalError
+
+MAGIC = b"\x89IMUREC\n"
+"""High bit first (catches 7-bit transfers), a name, a newline (catches newline mangling)."""
+FORMAT_VERSION = 1
+_CHUNK_HEAD = struct.Struct("<II")  # payload length, CRC-32 of the payload
+_MAX_CHUNK = 1 << 26  # a length beyond this is damage, not data
+
+REC_BUS = 1
+"""A bus of the run: index, profile name, the bus's own name, its kind."""
+REC_TRANSFER = 2
+"""A completed transaction: dt, bus index, target, bytes written, bytes read."""
+REC_FAILED = 3
+"""A transaction that raised: dt, bus index, target, written, read length, error type, text."""
+REC_CLOCK = 4
+"""A reading of the run's clock by a driver or the pipeline: dt."""
+REC_END = 5
+"""The run closed the recording: how it ended (UTF-8)."""
+
+
+class RecordingError(ImuhalError):
+    """A file is not a recording this imuhal can read; the message names the file."""
+
+
+class RecordingWriteFailed(Exception):
+    """The recording could not be written (disk full, medium gone).
+
+    Not an ImuhalError: it surfaces inside a bus transaction, where the pipeline would take
+    an ImuhalError for a device fault and keep retrying; the run has to stop instead.
+    """
+
+
+@dataclass(frozen=True, slots=True)
+class BusInfo:
+    index: int
+    name: str
+    """The bus's name in the profile (``buses:`` key)."""
+    label: str
+    """The name the bus reported at run time (``emul://spi0``, ``i2c:///dev/i2c-1``)."""
+    kind: str
+
+
+@dataclass(frozen=True, slots=True)
+class RecordedTransfer:
+    index: int
+    """Position among the recording's transactions, from 0."""
+    t_ns: int
+    bus: int
+    target: int
+    written: bytes
+    read: bytes
+    read_len: int
+    error_type: str = ""
+    error: str = ""
+
+
+@dataclass(frozen=True, slots=True)
+class ClockReading:
+    t_ns: int
+
+
+@dataclass(frozen=True, slots=True)
+class EndMark:
+    t_ns: int
+    how: str
+
+
+Record = BusInfo | RecordedTransfer | ClockReading | EndMark
+
+
+# -- varints -------------------------------------------------------------------------------
+
+def _put_uvarint(out: bytearray, value: int) -> None:
+    while value > 0x7F:
+        out.append((value & 0x7F) | 0x80)
+        value >>= 7
+    out.append(value)
+
+
+def _put_svarint(out: bytearray, value: int) -> None:
+    _put_uvarint(out, (value << 1) if value >= 0 else ((-value << 1) - 1))
+
+
+def _put_bytes(out: bytearray, data: bytes) -> None:
+    _put_uvarint(out, len(data))
+    out += data
+
+
+def _get_uvarint(buf: bytes, pos: int) -> tuple[int, int]:
+    value = buf[pos]
+    if value < 0x80:  # most lengths, buses and targets: one byte
+        return value, pos + 1
+    value = 0
+    shift = 0
+    while True:
+        byte = buf[pos]
+        pos += 1
+        value |= (byte & 0x7F) << shift
+        if byte < 0x80:
+            return value, pos
+        shift += 7
+
+
+def _get_svarint(buf: bytes, pos: int) -> tuple[int, int]:
+    raw, pos = _get_uvarint(buf, pos)
+    return (raw >> 1) if not raw & 1 else -((raw + 1) >> 1), pos
+
+
+def _get_bytes(buf: bytes, pos: int) -> tuple[bytes, int]:
+    n, pos = _get_uvarint(buf, pos)
+    return bytes(buf[pos:pos + n]), pos + n
+
+
+# -- writing -------------------------------------------------------------------------------
+
+class RecordingWriter:
+    """Appends records to a new file. ``header`` is any JSON-able mapping.
+
+    The file is created exclusively: a recording is never overwritten. Records are buffered
+    and written as one chunk, flushed and fsync'ed, every ``flush_interval_s`` of wall time
+    (checked at each record) and on ``close``.
+    """
+
+    def __init__(self, path: str | os.PathLike[str], header: dict[str, Any], *,
+                 flush_interval_s: float = 1.0) -> None:
+        self.path = Path(path)
+        try:
+            self._file: IO[bytes] | None = self.path.open("xb")
+        except FileExistsError:
+            raise RecordingError(f"{self.path}: already exists; a recording is never "
+                                 "overwritten - give a new file name or remove the old "
+                                 "one") from None
+        except OSError as exc:
+            raise RecordingError(f"{self.path}: cannot create: {exc.strerror or exc}") from None
+        self.flush_interval_s = flush_interval_s
+        self._buffer = bytearray()
+        self._last_t_ns = 0
+        self._last_flush = time.monotonic()
+        self.transfers = 0
+        self._file.write(MAGIC + struct.pack("<H", FORMAT_VERSION))
+        self._write_chunk(json.dumps(header, sort_keys=True).encode("utf-8"))
+
+    def _dt(self, t_ns: int) -> int:
+        dt = t_ns - self._last_t_ns
+        self._last_t_ns = t_ns
+        return dt
+
+    def _append(self, body: bytearray) -> None:
+        _put_uvarint(self._buffer, len(body))
+        self._buffer += body
+        if time.monotonic() - self._last_flush >= self.flush_interval_s:
+            self.flush()
+
+    def bus(self, info: BusInfo) -> None:
+        body = bytearray((REC_BUS,))
+        _put_uvarint(body, info.index)
+        for text in (info.name, info.label, info.kind):
+            _put_bytes(body, text.encode("utf-8"))
+        self._append(body)
+
+    def transfer(self, t_ns: int, bus: int, target: int, written: bytes, read: bytes) -> None:
+        body = bytearray((REC_TRANSFER,))
+        _put_svarint(body, self._dt(t_ns))
+        _put_uvarint(body, bus)
+        _put_uvarint(body, target)
+        _put_bytes(body, written)
+        _put_bytes(body, read)
+        self.transfers += 1
+        self._append(body)
+
+    def failed(self, t_ns: int, bus: int, target: int, written: bytes, read_len: int,
+               error_type: str, error: str) -> None:
+        body = bytearray((REC_FAILED,))
+        _put_svarint(body, self._dt(t_ns))
+        _put_uvarint(body, bus)
+        _put_uvarint(body, target)
+        _put_bytes(body, written)
+        _put_uvarint(body, read_len)
+        _put_bytes(body, error_type.encode("utf-8"))
+        _put_bytes(body, error.encode("utf-8"))
+        self.transfers += 1
+        self._append(body)
+
+    def clock(self, t_ns: int) -> None:
+        body = bytearray((REC_CLOCK,))
+        _put_svarint(body, self._dt(t_ns))
+        self._append(body)
+
+    def end(self, how: str) -> None:
+        body = bytearray((REC_END,))
+        _put_bytes(body, how.encode("utf-8"))
+        self._append(body)
+
+    def flush(self) -> None:
+        """Write the buffered records as one chunk and make them durable."""
+        self._last_flush = time.monotonic()
+        if self._buffer and self._file is not None:
+            self._write_chunk(bytes(self._buffer))
+            self._buffer.clear()
+
+    def _write_chunk(self, payload: bytes) -> None:
+        assert self._file is not None
+        try:
+            self._file.write(_CHUNK_HEAD.pack(len(payload), zlib.crc32(payload)) + payload)
+            self._file.flush()
+            os.fsync(self._file.fileno())
+        except OSError as exc:
+            raise RecordingWriteFailed(f"{self.path}: cannot write the recording: "
+                                       f"{exc.strerror or exc}") from exc
+
+    @property
+    def closed(self) -> bool:
+        return self._file is None
+
+    def close(self) -> None:
+        if self._file is not None:
+            try:
+                self.flush()
+            finally:
+                self._file.close()
+                self._file = None
+
+
+# -- reading -------------------------------------------------------------------------------
+
+@dataclass
+class Recording:
+    """An open recording: ``header`` now, ``records()`` streamed from the file."""
+
+    path: Path
+    version: int
+    header: dict[str, Any]
+    damage: str = ""
+    """Set once ``records()`` stopped early: why (a power cut leaves an incomplete chunk)."""
+    buses: dict[int, BusInfo] = field(default_factory=dict)
+    end: EndMark | None = None
+
+    def records(self) -> Iterator[Record]:
+        """Every record in order; stops at the first incomplete or damaged chunk."""
+        index = 0
+        t_ns = 0
+        with self.path.open("rb") as f:
+            f.seek(len(MAGIC) + 2)
+            _read_chunk(f, self.path)  # the header, already parsed
+            while True:
+                offset = f.tell()
+                try:
+                    payload = _read_chunk(f, self.path)
+                except RecordingError as exc:
+                    self.damage = f"{exc} (at byte {offset})"
+                    return
+                if payload is None:
+                    return
+                for record in self._decode(payload, t_ns, index):
+                    if isinstance(record, str):  # a record type this reader does not know
+                        self.damage = record
+                        return
+                    if isinstance(record, RecordedTransfer):
+                        t_ns, index = record.t_ns, record.index + 1
+                    elif isinstance(record, ClockReading):
+                        t_ns = record.t_ns
+                    yield record
+
+    def _decode(self, payload: bytes, t_ns: int, index: int) -> Iterator[Record | str]:
+        """The records of one chunk (times and transaction numbers go on from ``t_ns`` and
+        ``index``); a string instead of a record says why decoding stopped."""
+        pos = 0
+        while pos < len(payload):
+            length, p = _get_uvarint(payload, pos)
+            pos = p + length
+            kind = payload[p]
+            p += 1
+            if kind in (REC_TRANSFER, REC_FAILED):
+                dt, p = _get_svarint(payload, p)
+                t_ns += dt
+                bus, p = _get_uvarint(payload, p)
+                target, p = _get_uvarint(payload, p)
+                written, p = _get_bytes(payload, p)
+                if kind == REC_TRANSFER:
+                    read, p = _get_bytes(payload, p)
+                    yield RecordedTransfer(index, t_ns, bus, target, written, read, len(read))
+                else:
+                    read_len, p = _get_uvarint(payload, p)
+                    etype, p = _get_bytes(payload, p)
+                    error, p = _get_bytes(payload, p)
+                    yield RecordedTransfer(index, t_ns, bus, target, written, b"", read_len,
+                                           etype.decode(), error.decode())
+                index += 1
+            elif kind == REC_CLOCK:
+                dt, _ = _get_svarint(payload, p)
+                t_ns += dt
+                yield ClockReading(t_ns)
+            elif kind == REC_BUS:
+                bus_index, p = _get_uvarint(payload, p)
+                texts = []
+                for _ in range(3):
+                    raw, p = _get_bytes(payload, p)
+                    texts.append(raw.decode("utf-8"))
+                info = BusInfo(bus_index, *texts)
+                self.buses[bus_index] = info
+                yield info
+            elif kind == REC_END:
+                how, _ = _get_bytes(payload, p)
+                self.end = EndMark(t_ns, how.decode("utf-8"))
+                yield self.end
+            else:
+                yield f"{self.path}: unknown record type {kind} (written by a newer imuhal?)"
+                return
+
+
+def _read_chunk(f: IO[bytes], path: Path) -> bytes | None:
+    head = f.read(_CHUNK_HEAD.size)
+    if not head:
+        return None
+    if len(head) < _CHUNK_HEAD.size:
+        raise RecordingError(f"{path}: the last chunk is cut short")
+    length, crc = _CHUNK_HEAD.unpack(head)
+    if length > _MAX_CHUNK:
+        raise RecordingError(f"{path}: a chunk claims {length} bytes: damaged")
+    payload = f.read(length)
+    if len(payload) < length:
+        raise RecordingError(f"{path}: the last chunk is cut short")
+    if zlib.crc32(payload) != crc:
+        raise RecordingError(f"{path}: a chunk fails its CRC check: damaged")
+    return payload
+
+
+def open_recording(path: str | os.PathLike[str]) -> Recording:
+    """Check the magic, version and header of the recording at ``path``."""
+    p = Path(path)
+    try:
+        f = p.open("rb")
+    except OSError as exc:
+        raise RecordingError(f"{p}: cannot read: {exc.strerror or exc}") from None
+    with f:
+        start = f.read(len(MAGIC) + 2)
+        if start[:len(MAGIC)] != MAGIC:
+            raise RecordingError(f"{p}: not an imuhal bus recording (make one with "
+                                 "`imuhal run --record FILE`)")
+        (version,) = struct.unpack("<H", start[len(MAGIC):])
+        if version != FORMAT_VERSION:
+            raise RecordingError(f"{p}: recording format version {version}; this imuhal "
+                                 f"reads version {FORMAT_VERSION}")
+        try:
+            payload = _read_chunk(f, p)
+            if payload is None:
+                raise RecordingError(f"{p}: the header is missing")
+            header = json.loads(payload.decode("utf-8"))
+        except (ValueError, RecordingError) as exc:
+            raise RecordingError(f"{p}: unreadable header ({exc})") from None
+    return Recording(p, version, header)

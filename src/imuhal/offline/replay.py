@@ -1,0 +1,243 @@
+"""The replay side: a Bus and a Clock that answer from a recording, checking every question.
+
+Each transaction a driver asks for must be the next one recorded (same bus, target, bytes
+written and read length), and each clock reading must come where one was recorded; the first
+difference stops the replay with :class:`ReplayDivergence`, one line naming the transaction.
+Recorded failures are raised again as the same error types, so the pipeline's recovery runs
+exactly as it did live.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from imuhal.bus.base import Bus, BusKind
+from imuhal.bus.recording.format import (
+    BusInfo,
+    ClockReading,
+    EndMark,
+    Record,
+    RecordedTransfer,
+    Recording,
+    RecordingError,
+    open_recording,
+)
+from imuhal.core import errors as error_types
+from imuhal.core.errors import BusError, ImuhalError
+from imuhal.pipeline.pipeline import Pipeline
+from imuhal.plugins.manager import Registry
+from imuhal.profile.loader import parse_profile
+from imuhal.profile.model import BoardProfile
+
+if TYPE_CHECKING:
+    from imuhal.sinks.base import Event, Sink
+
+
+class ReplayDivergence(Exception):
+    """The drivers asked for something other than what was recorded.
+
+    Deliberately not an ImuhalError: the pipeline treats those as device faults and recovers,
+    which here would only diverge further.
+    """
+
+
+class EndOfRecording(Exception):
+    """The recording has no more records: the replayed run is over."""
+
+
+def _describe(bus: str, target: int, written: bytes, read_len: int) -> str:
+    return f"{bus} @{target:02X} W:{written.hex(' ') or '-'} R({read_len})"
+
+
+class ReplaySource:
+    """The shared cursor over a recording's records."""
+
+    def __init__(self, recording: Recording) -> None:
+        self.recording = recording
+        self._records = recording.records()
+        self._pending: Record | None = None
+        self.buses: dict[int, BusInfo] = {}
+        self.transfers = 0
+        """Transactions replayed so far."""
+        self.t_ns = 0
+        """Time of the last record replayed."""
+        while isinstance(self._peek(), BusInfo):
+            info = self._take()
+            assert isinstance(info, BusInfo)
+            self.buses[info.index] = info
+
+    def _peek(self) -> Record | None:
+        if self._pending is None:
+            self._pending = next(self._records, None)
+        return self._pending
+
+    def _take(self) -> Record | None:
+        rec = self._peek()
+        self._pending = None
+        return rec
+
+    def _next(self) -> ClockReading | RecordedTransfer:
+        rec = self._take()
+        while isinstance(rec, BusInfo):
+            rec = self._take()
+        if rec is None or isinstance(rec, EndMark):
+            raise EndOfRecording()
+        return rec
+
+    def clock(self) -> int:
+        rec = self._next()
+        if isinstance(rec, RecordedTransfer):
+            raise self._divergence(rec, "the run read the clock here")
+        self.t_ns = rec.t_ns
+        return rec.t_ns
+
+    def transfer(self, bus: int, target: int, written: bytes, read_len: int) -> bytes:
+        rec = self._next()
+        if isinstance(rec, ClockReading):
+            # A recording cut off (or ended) after a poll's clock readings but before its
+            # transfers: when only readings are left, the run is over, not diverged.
+            while isinstance(self._peek(), ClockReading):
+                self._take()
+            if self._peek() is None or isinstance(self._peek(), EndMark):
+                raise EndOfRecording()
+            raise ReplayDivergence(
+                f"replay diverged after transaction {self.transfers - 1} (t="
+                f"{rec.t_ns / 1e9:.6f} s): the recording reads the clock here, the driver "
+                f"asked {_describe(self.buses[bus].label, target, written, read_len)}")
+        if (rec.bus, rec.target, rec.written, rec.read_len) != (bus, target, written, read_len):
+            asked = _describe(self.buses[bus].label, target, written, read_len)
+            raise self._divergence(rec, f"the driver asked {asked}")
+        self.transfers += 1
+        self.t_ns = rec.t_ns
+        if rec.error_type:
+            raise _recorded_error(rec.error_type, rec.error, self.buses[bus].label, target)
+        return rec.read
+
+    def _divergence(self, rec: RecordedTransfer, asked: str) -> ReplayDivergence:
+        label = self.buses[rec.bus].label if rec.bus in self.buses else f"bus#{rec.bus}"
+        recorded = _describe(label, rec.target, rec.written, rec.read_len)
+        return ReplayDivergence(f"replay diverged at transaction {rec.index} (t="
+                                f"{rec.t_ns / 1e9:.6f} s): the recording has {recorded}, "
+                                f"{asked}")
+
+
+def _recorded_error(error_type: str, message: str, bus: str, target: int) -> Exception:
+    """The recorded failure as the same exception type with the same text."""
+    cls = getattr(error_types, error_type, None)
+    if not (isinstance(cls, type) and issubclass(cls, ImuhalError)):
+        cls = BusError  # a bus backend's own error type: the pipeline sees a bus error
+    exc = cls.__new__(cls)
+    Exception.__init__(exc, message)
+    if isinstance(exc, BusError):
+        exc.bus, exc.target = bus, target
+    return exc
+
+
+class ReplayBus(Bus):
+    """One recorded bus; its name is the one the bus had live, so messages read the same."""
+
+    def __init__(self, info: BusInfo, source: ReplaySource) -> None:
+        super().__init__(info.label)
+        self.kind = BusKind(info.kind)
+        self.index = info.index
+        self.source = source
+
+    def _transfer(self, target: int, write: bytes, read_len: int) -> bytes:
+        return self.source.transfer(self.index, target, write, read_len)
+
+
+class ReplayClock:
+    """Reads are the recorded readings, in order; waits take no time."""
+
+    def __init__(self, source: ReplaySource) -> None:
+        self.source = source
+
+    def now_ns(self) -> int:
+        return self.source.clock()
+
+    def sleep_until(self, t_ns: int) -> None:
+        return None
+
+    def sleep(self, seconds: float) -> None:
+        return None
+
+
+@dataclass
+class Replay:
+    """What :func:`open_replay` sets up: the profile, the buses and clock, the source."""
+
+    recording: Recording
+    profile: BoardProfile
+    source: ReplaySource
+    buses: dict[str, Bus]
+    clock: ReplayClock
+
+
+def open_replay(path: str | os.PathLike[str], registry: Registry,
+                profile: BoardProfile | None = None) -> Replay:
+    """Open a recording for replay with its own profile, or ``profile`` (same bus names)."""
+    recording = open_recording(path)
+    if profile is None:
+        text = recording.header.get("profile_yaml")
+        if not isinstance(text, str):
+            raise RecordingError(f"{path}: the header has no profile; give one with --profile")
+        origin = recording.header.get("profile_source", "?")
+        profile = parse_profile(text, f"{path} (profile recorded from {origin})", registry)
+    source = ReplaySource(recording)
+    buses: dict[str, Bus] = {info.name: ReplayBus(info, source)
+                             for info in source.buses.values()}
+    missing = sorted(set(profile.buses) - set(buses))
+    if missing:
+        raise RecordingError(f"{path}: the profile names bus(es) {', '.join(missing)} but the "
+                             f"recording has {', '.join(sorted(buses)) or 'none'}; use a "
+                             "profile with the recorded buses")
+    return Replay(recording, profile, source, buses, ReplayClock(source))
+
+
+@dataclass
+class ReplayBoard:
+    """The recorded board as the pipeline sees it (imuhal.pipeline.board.Board)."""
+
+    buses: dict[str, Bus]
+    clock: ReplayClock
+
+    def before_poll(self, t_ns: int, device: str) -> int:
+        """Nothing to do: the chips' answers are in the recording; the poll is at ``t_ns``."""
+        return t_ns
+
+
+def replay_pipeline(replay: Replay, registry: Registry) -> Pipeline:
+    """The pipeline of the recorded run, opened (probe, configure) from the recording."""
+    board = ReplayBoard(replay.buses, replay.clock)
+    try:
+        return Pipeline(replay.profile, registry, board)
+    except EndOfRecording:
+        raise RecordingError(f"{replay.recording.path}: the recording ends before the board "
+                             "was opened (probe and configuration are incomplete)") from None
+
+
+def replay_run(pipeline: Pipeline, sinks: Sequence[Sink]) -> None:
+    """Run the replayed pipeline into ``sinks`` until the recording ends.
+
+    The sinks are not closed: the caller commits them after a complete replay, or drops them
+    when :class:`ReplayDivergence` is raised.
+    """
+    try:
+        pipeline.run(None, [_Unclosed(sinks)])
+    except EndOfRecording:
+        return
+
+
+class _Unclosed:
+    def __init__(self, sinks: Sequence[Sink]) -> None:
+        self.sinks = sinks
+
+    def handle(self, event: Event) -> None:
+        for sink in self.sinks:
+            sink.handle(event)
+
+    def close(self) -> None:
+        return None

@@ -1,0 +1,205 @@
+"""Recording a run's bus traffic and replaying it: the same events, or a named divergence."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from imuhal.bus.recording.format import open_recording
+from imuhal.bus.recording.recorder import BusRecorder, run_header
+from imuhal.cli.main import main
+from imuhal.core.samples import Sample
+from imuhal.emulation import open_emulated
+from imuhal.estimation.outputs import AttitudeEstimate
+from imuhal.offline.replay import (
+    ReplayDivergence,
+    open_replay,
+    replay_pipeline,
+    replay_run,
+)
+from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.loader import load_profile
+from imuhal.profiles_dir import bundled_profiles
+from imuhal.sinks import CallbackSink, Event
+
+
+@pytest.fixture(scope="module")
+def full_registry() -> Registry:
+    return load_registry()
+
+
+def _record(registry: Registry, profile_path: Path, out: Path, duration_s: float, *,
+            inject: dict[str, set[int]] | None = None, flush_every: int = 0,
+            ) -> list[Event]:
+    """A live emulated run of the profile's own scenario, recorded; returns its events."""
+    profile = load_profile(profile_path, registry)
+    recorder = BusRecorder(out, run_header(profile_path.read_text(), str(profile_path),
+                                           emulate=profile.emulation.scenario, seed=None))
+    events: list[Event] = []
+
+    def keep(event: Event) -> None:
+        events.append(event)
+        if flush_every and len(events) % flush_every == 0:
+            recorder.writer.flush()
+
+    with open_emulated(profile, registry, recorder=recorder) as pipeline:
+        assert pipeline.board is not None
+        for bus, which in (inject or {}).items():
+            pipeline.board.buses[bus].fail_transfers(which)
+        pipeline.run(duration_s, [CallbackSink(keep)])
+    recorder.close()
+    return events
+
+
+def _replay(registry: Registry, path: Path, profile_path: Path | None = None) -> list[Event]:
+    profile = load_profile(profile_path, registry) if profile_path else None
+    replay = open_replay(path, registry, profile)
+    events: list[Event] = []
+    replay_run(replay_pipeline(replay, registry), [CallbackSink(events.append)])
+    return events
+
+
+def _exact(events: list[Event]) -> list[str]:
+    # repr of a float round-trips exactly (and tells -0.0 and NaN apart): bit-for-bit.
+    return [repr(e) for e in events]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("board", list(bundled_profiles().values()), ids=lambda p: p.stem)
+def test_a_60_s_run_of_every_bundled_board_replays_to_the_same_floats(
+        full_registry: Registry, board: Path, tmp_path: Path) -> None:
+    live = _record(full_registry, board, tmp_path / "run.imurec", 60.0)
+    replayed = _replay(full_registry, tmp_path / "run.imurec")
+    assert len(live) > 10_000
+    assert _exact(replayed) == _exact(live)
+
+
+def test_recorded_bus_errors_are_raised_again_and_recovered_the_same_way(
+        full_registry: Registry, tmp_path: Path) -> None:
+    board = Path("profiles/seed-rc-vario.yaml")
+    profile = load_profile(board, full_registry)
+    bus = next(iter(profile.buses))
+    live = _record(full_registry, board, tmp_path / "run.imurec", 2.0,
+                   inject={bus: {40, 41, 300}})
+    summary_errors = [t for t in open_recording(tmp_path / "run.imurec").records()
+                      if getattr(t, "error_type", "")]
+    assert len(summary_errors) == 3
+    assert _exact(_replay(full_registry, tmp_path / "run.imurec")) == _exact(live)
+
+
+def _edited(board: Path, out: Path, section: str, name: str, key: str, value: object) -> Path:
+    """A copy of ``board`` with one setting changed."""
+    doc = yaml.safe_load(board.read_text())
+    settings = doc[section][name].setdefault("settings", {})
+    assert settings.get(key) != value
+    settings[key] = value
+    out.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return out
+
+
+def _other_osr(board: Path) -> int:
+    """A barometer oversampling the board does not use: its conversion commands differ."""
+    used = yaml.safe_load(board.read_text())["devices"]["baro"]["settings"].get("pressure_osr")
+    return 1024 if used != 1024 else 4096
+
+
+def test_a_driver_asking_for_other_registers_stops_at_the_first_divergent_transaction(
+        full_registry: Registry, tmp_path: Path) -> None:
+    board = Path("profiles/seed-paraglider-vario.yaml")
+    _record(full_registry, board, tmp_path / "run.imurec", 1.0)
+    changed = _edited(board, tmp_path / "changed.yaml", "devices", "baro", "pressure_osr",
+                      _other_osr(board))
+    # The MS5611 (chip select 1) now asks for a conversion at another oversampling: one
+    # command byte, no reply.
+    with pytest.raises(ReplayDivergence, match=r"^replay diverged at transaction \d+ "
+                       r"\(t=\d+\.\d{6} s\): the recording has emul://spi0 @01 W:[0-9a-f]{2} "
+                       r"R\(0\), the driver asked emul://spi0 @01 W:[0-9a-f]{2} R\(0\)$"):
+        _replay(full_registry, tmp_path / "run.imurec", changed)
+
+
+def test_a_recording_cut_off_mid_chunk_replays_its_complete_chunks_exactly(
+        full_registry: Registry, tmp_path: Path) -> None:
+    board = Path("profiles/seed-rc-vario.yaml")
+    path = tmp_path / "run.imurec"
+    live = _record(full_registry, board, path, 2.0, flush_every=500)
+    data = path.read_bytes()
+    path.write_bytes(data[:len(data) * 2 // 3])  # the power went off while writing
+    replayed = _replay(full_registry, path)
+    assert 0 < len(replayed) < len(live)
+    assert _exact(replayed) == _exact(live[:len(replayed)])
+    recording = open_recording(path)
+    list(recording.records())
+    assert "cut short" in recording.damage and recording.end is None
+
+
+def test_replay_uses_the_profile_stored_in_the_recording(
+        full_registry: Registry, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    profile = tmp_path / "board.yaml"
+    profile.write_text(Path("profiles/gy91.yaml").read_text())
+    rec = tmp_path / "run.imurec"
+    assert main(["run", str(profile), "--emulate", "static", "--duration", "1", "--quiet",
+                 "--record", str(rec), "--output", str(tmp_path / "live.csv")]) == 0
+    profile.unlink()
+    assert main(["replay", str(rec), "--quiet", "--output", str(tmp_path / "replay.csv")]) == 0
+    assert (tmp_path / "replay.csv").read_text() == (tmp_path / "live.csv").read_text()
+    assert "replayed" in capsys.readouterr().err
+
+
+def test_a_divergent_replay_is_one_line_and_keeps_the_old_output(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rec = tmp_path / "run.imurec"
+    assert main(["run", "--duration", "0.5", "--quiet", "--record", str(rec)]) == 0
+    board = Path("profiles/seed-paraglider-vario.yaml")
+    changed = _edited(board, tmp_path / "changed.yaml", "devices", "baro", "pressure_osr",
+                      _other_osr(board))
+    out = tmp_path / "out.csv"
+    out.write_text("old\n")
+    capsys.readouterr()
+    assert main(["replay", str(rec), "--profile", str(changed), "--output", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("imuhal: error: replay diverged at transaction ")
+    assert out.read_text() == "old\n"
+
+
+def test_a_recording_is_never_overwritten(tmp_path: Path,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    rec = tmp_path / "run.imurec"
+    rec.write_bytes(b"precious")
+    assert main(["run", "--duration", "0.1", "--quiet", "--record", str(rec)]) == 2
+    assert "already exists" in capsys.readouterr().err
+    assert rec.read_bytes() == b"precious"
+
+
+def test_a_file_that_is_not_a_recording_is_one_clear_error(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bogus = tmp_path / "log.csv"
+    bogus.write_text("t_s,source\n")
+    assert main(["replay", str(bogus)]) == 2
+    assert "not an imuhal bus recording" in capsys.readouterr().err
+
+
+def test_replay_with_other_estimator_settings_decodes_the_same_samples(
+        full_registry: Registry, tmp_path: Path) -> None:
+    board = Path("profiles/gy91.yaml")
+    live = _record(full_registry, board, tmp_path / "run.imurec", 3.0)
+    retuned = _edited(board, tmp_path / "retuned.yaml", "estimators", "ahrs", "beta", 0.777)
+    replayed = _replay(full_registry, tmp_path / "run.imurec", retuned)
+    samples = [e for e in live if isinstance(e, Sample)]
+    assert _exact([e for e in replayed if isinstance(e, Sample)]) == _exact(samples)
+    live_att = [e for e in live if isinstance(e, AttitudeEstimate)]
+    new_att = [e for e in replayed if isinstance(e, AttitudeEstimate)]
+    assert len(new_att) == len(live_att) > 100
+    assert _exact(new_att) != _exact(live_att)  # the new tuning, on the recorded data
+
+
+def test_trace_and_record_together_see_the_same_transactions(tmp_path: Path) -> None:
+    rec, trace = tmp_path / "run.imurec", tmp_path / "bus.txt"
+    assert main(["run", "--duration", "0.5", "--quiet", "--record", str(rec),
+                 "--trace", str(trace)]) == 0
+    transfers = [r for r in open_recording(rec).records() if hasattr(r, "written")]
+    lines = trace.read_text().splitlines()
+    assert len(lines) == len(transfers) > 100
+    assert all(f"W:{t.written.hex(' ')}" in line  # type: ignore[union-attr]
+               for t, line in zip(transfers, lines, strict=True))
