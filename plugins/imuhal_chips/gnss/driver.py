@@ -39,7 +39,7 @@ from imuhal.core.samples import (
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
 from imuhal_chips.gnss.decode import DecodeError, Fragment, decode_nmea, decode_ubx
 from imuhal_chips.gnss.framing import StreamSplitter
-from imuhal_chips.gnss.ubx import NMEA_IDS, UBX_NAV_PVT, cfg_msg, cfg_rate
+from imuhal_chips.gnss.ubx import CFG_MSG, CFG_RATE, NMEA_IDS, UBX_NAV_PVT, cfg_msg, cfg_rate
 
 NMEA_MESSAGES = ("GGA", "RMC", "VTG", "GSA")
 READ_CHUNK = 4096
@@ -48,6 +48,11 @@ FOREIGN_LIMIT = 8
 UBX_NAV_PVT_BYTES = 100
 NMEA_SENTENCE_BYTES = 75
 """A typical GGA/RMC/VTG/GSA length with CR LF (the line budget in configure)."""
+ACK_TIMEOUT_NS = 10**9
+"""How long configure waits for one CFG message's ACK (a full 9600-baud burst ahead of it
+takes up to 1 s)."""
+CFG_SENDS = 3
+"""Sends of one CFG message before configure gives up on its ACK."""
 ACK_POLL_NS = 5_000_000
 """How often configure looks for an ACK: an ACK is 10 bytes, 10 ms at 9600 baud."""
 QUIET_NS = 100_000_000
@@ -216,17 +221,34 @@ class GnssDriver(Driver):
                 f"about {need:.0f} bytes/s, but {self.baudrate} baud carries {line:.0f}; "
                 "lower rate_hz, enable fewer messages, or set the receiver to a faster baud "
                 "rate")
-        self._send_checked(cfg_rate(s.rate_hz), (0x06, 0x08), f"CFG-RATE {s.rate_hz:g} Hz")
-        self._send_checked(cfg_msg(*UBX_NAV_PVT, 1 if "NAV-PVT" in wanted else 0),
-                           (0x06, 0x01), "CFG-MSG NAV-PVT")
-        for name, (cls, mid) in NMEA_IDS.items():
-            self._send_checked(cfg_msg(cls, mid, 1 if name in wanted else 0), (0x06, 0x01),
-                               f"CFG-MSG {name}")
+        # Off first, then on, then the rate: every state on the way (and the half-configured
+        # state a failed attempt leaves for bring_up's retry) carries no more than the
+        # factory output or the wanted one, both within the line budget. Raising the rate
+        # first meant 5 Hz of NAV-PVT plus the factory NMEA: 2000 bytes/s on a 960 bytes/s
+        # line, a backlog that grew without bound and held every later ACK back for seconds.
+        messages = {"NAV-PVT": UBX_NAV_PVT, **NMEA_IDS}
+        for enable in (False, True):
+            for name, (cls, mid) in messages.items():
+                if (name in wanted) == enable:
+                    self._send_checked(cfg_msg(cls, mid, int(enable)), CFG_MSG,
+                                       f"CFG-MSG {name}")
+        self._send_checked(cfg_rate(s.rate_hz), CFG_RATE, f"CFG-RATE {s.rate_hz:g} Hz")
 
     def _send_checked(self, frame: bytes, ident: tuple[int, int], what: str) -> None:
-        """Write a CFG message and wait (up to 1 s) for its ACK-ACK in the stream."""
+        """Write a CFG message and wait (up to 1 s) for its ACK-ACK in the stream; send it
+        again, up to ``CFG_SENDS`` times in all, when no ACK comes (a frame garbled or cut
+        on the line is dropped silently by the receiver). Each CFG message sets a value, so
+        sending it twice is harmless."""
+        for send in range(1, CFG_SENDS + 1):
+            if self._await_ack(frame, ident, what, last=send == CFG_SENDS):
+                return
+
+    def _await_ack(self, frame: bytes, ident: tuple[int, int], what: str, *,
+                   last: bool) -> bool:
+        """One send of ``frame`` and the wait for its ACK: True when it came, False when it
+        did not within 1 s (raises instead when ``last``)."""
         self.link.transfer(frame, 0)
-        end = self.clock.now_ns() + 10**9
+        end = self.clock.now_ns() + ACK_TIMEOUT_NS
         step = ACK_POLL_NS
         splitter = self._splitter
         while True:
@@ -238,15 +260,18 @@ class GnssDriver(Driver):
                 except DecodeError:
                     continue
                 if frag.acked == ident and frag.kind == "ACK-ACK":
-                    return
+                    return True
                 if frag.acked == ident and frag.kind == "ACK-NAK":
                     raise ConfigurationError(f"{self.describe()}: the receiver refused {what} "
                                              "(ACK-NAK); is it a u-blox receiver? Set "
                                              "configure_receiver: false for others")
             if self.clock.now_ns() >= end:
+                if not last:
+                    return False
                 raise ConfigurationError(
-                    f"{self.describe()}: no ACK for {what} within 1 s; a receiver that does "
-                    "not speak UBX needs configure_receiver: false")
+                    f"{self.describe()}: no ACK for {what} within 1 s after {CFG_SENDS} "
+                    "sends; a receiver that does not speak UBX needs configure_receiver: "
+                    "false")
             self.clock.sleep_until(min(end, self.clock.now_ns() + step))
 
     # -- poll ---------------------------------------------------------------------------
