@@ -9,7 +9,8 @@ form. The attitude is the product of three parts, body -> NED::
 - ``q_gyro`` integrates the bias-corrected gyro (strapdown) from the aligned start into an
   almost-inertial frame I (it drifts only by the residual gyro bias);
 - the accelerometer (gravity positive, in g) is rotated into I and low-pass filtered there
-  (time constant ``tau_acc_s``): in an inertial frame the kinematic acceleration integrates to
+  (second order, mean delay ``tau_acc_s``; optionally slowed for readings away from 1 g,
+  ``accel_soft_gate_g``): in an inertial frame the kinematic acceleration integrates to
   a velocity change, so over seconds it averages out and what remains is gravity. The
   inclination correction ``q_inclination`` then turns the filtered vector to the vertical each
   step; all smoothing is in the filter, so a transient linear acceleration barely tilts it;
@@ -30,10 +31,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from imuhal_filters.common.gate import soft_gate_weight
 from imuhal_filters.common.quat import IDENTITY, Quat, Vec, multiply, to_global, to_local
-
-_UP: Vec = (0.0, 0.0, 1.0)
-"""The gravity-positive accelerometer reading of a level board, NED: what I is corrected to."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -42,6 +41,7 @@ class DecoupledParams:
 
     tau_acc_s: float = 3.0
     tau_mag_s: float = 9.0
+    accel_soft_gate_g: float | None = None
     rest_gyro_th_rad_s: float = math.radians(2.0)
     rest_acc_th_g: float = 0.05
     rest_filter_tau_s: float = 0.5
@@ -69,45 +69,25 @@ def _unit_quat(q: Quat) -> Quat:
     return (q[0] * n, q[1] * n, q[2] * n, q[3] * n)
 
 
-class Butterworth2:
-    """Second-order Butterworth low-pass on a 3-vector, cut-off sqrt(2) / (2 pi tau) (VQF's
-    choice: the step response settles like a first-order filter of time constant tau, but
-    rejects faster content at 40 dB/decade). Starts at its first input (steady state)."""
+class SecondOrderLowPass:
+    """Two cascaded first-order low-passes of time constant tau / 2 on a 3-vector: the same
+    mean delay as one stage of tau (and as VQF's Butterworth of cut-off sqrt(2) / (2 pi tau)),
+    40 dB/decade above it. Exact for any step length, so a step may be shortened per sample
+    (a step of zero holds the state). Starts at its first input."""
 
     def __init__(self, tau_s: float) -> None:
-        self.tau_s = tau_s
+        self.half_tau_s = 0.5 * tau_s
         self.state: list[float] | None = None
-        self._dt = -1.0
-        self._c = (0.0, 0.0, 0.0, 0.0, 0.0)
-
-    def _coefficients(self, dt: float) -> tuple[float, float, float, float, float]:
-        if dt != self._dt:
-            fc = math.sqrt(2.0) / (2.0 * math.pi * self.tau_s)
-            c = math.tan(math.pi * min(fc * dt, 0.49))
-            d = c * c + math.sqrt(2.0) * c + 1.0
-            b0 = c * c / d
-            self._c = (b0, 2.0 * b0, b0, 2.0 * (c * c - 1.0) / d,
-                       (1.0 - math.sqrt(2.0) * c + c * c) / d)
-            self._dt = dt
-        return self._c
 
     def step(self, x: Vec, dt: float) -> Vec:
-        b0, b1, b2, a1, a2 = self._coefficients(dt)
         s = self.state
         if s is None:
-            # steady state for a constant input x: y = x
-            s = self.state = [0.0] * 6
-            for i in range(3):
-                s[2 * i + 1] = (b2 - a2) * x[i]
-                s[2 * i] = (b1 - a1) * x[i] + s[2 * i + 1]
-        out = []
+            s = self.state = [x[0], x[1], x[2], x[0], x[1], x[2]]
+        k = 1.0 - math.exp(-dt / self.half_tau_s)
         for i in range(3):
-            xi = x[i]
-            y = b0 * xi + s[2 * i]
-            s[2 * i] = b1 * xi - a1 * y + s[2 * i + 1]
-            s[2 * i + 1] = b2 * xi - a2 * y
-            out.append(y)
-        return (out[0], out[1], out[2])
+            s[i] += k * (x[i] - s[i])
+            s[3 + i] += k * (s[i] - s[3 + i])
+        return (s[3], s[4], s[5])
 
 
 def _wrap(a: float) -> float:
@@ -126,7 +106,7 @@ class DecoupledKernel:
         self.q_inc: Quat = IDENTITY
         self.delta_rad = 0.0
         self.acc_i: Vec | None = None
-        self._acc_filter = Butterworth2(self.p.tau_acc_s)
+        self._acc_filter = SecondOrderLowPass(self.p.tau_acc_s)
         self.bias: Vec = bias
         self.gyro_lp: Vec | None = None
         self.acc_lp: Vec | None = None
@@ -198,7 +178,12 @@ class DecoupledKernel:
         """Low-pass the accelerometer in I, turn q_inc so it points up; returns the
         correction's rotation vector (rad) in the frame after q_inc."""
         a = to_global(self.q_gyro, acc_g)
-        f = self._acc_filter.step(a, dt)
+        # a reading away from 1 g carries kinematic acceleration the turn compensation did
+        # not remove (a sustained turn does not average out within tau): the filter advances
+        # by only the weight's share of the step (it holds still for a zero weight; feeding
+        # it its own estimate instead would close a loop around the second-order filter)
+        w = soft_gate_weight(acc_g, self.p.accel_soft_gate_g)
+        f = self._acc_filter.step(a, dt * w)
         self.acc_i = f
         ex, ey, ez = to_global(self.q_inc, f)
         n = math.sqrt(ex * ex + ey * ey + ez * ez)

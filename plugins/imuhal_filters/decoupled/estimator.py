@@ -26,6 +26,12 @@ class DecoupledSettings(AhrsSettings):
     tau_acc_s: float = Field(3.0, gt=0.0)
     """Time constant (s) of the accelerometer low-pass in the almost-inertial frame: the
     inclination correction's speed (VQF's published default, 3 s)."""
+    accel_soft_gate_g: float | None = Field(None, gt=0.0)
+    """Share of each step the inclination filter advances by, 1 / (1 + (| |a| - 1 g | /
+    width)^2) (common/gate.py): a reading away from 1 g is trusted less. None (default, VQF's
+    choice): every reading in full. On BROAD (hand-held) 0.05 g made it worse (trials 05, 16,
+    32: 4.44 against 1.18 deg 9-DOF total); in the flight benchmark it helps (0.02 g:
+    `thermal` 1.40 against 1.66 deg RMS): docs/estimators.md."""
     tau_mag_s: float = Field(9.0, gt=0.0)
     """Heading correction time constant (s) (VQF's published default, 9 s)."""
     rest_gyro_th_deg_s: float = Field(2.0, gt=0.0)
@@ -57,6 +63,7 @@ class DecoupledSettings(AhrsSettings):
         g = 9.80665
         return DecoupledParams(
             tau_acc_s=self.tau_acc_s, tau_mag_s=self.tau_mag_s,
+            accel_soft_gate_g=self.accel_soft_gate_g,
             rest_gyro_th_rad_s=math.radians(self.rest_gyro_th_deg_s),
             rest_acc_th_g=self.rest_acc_th_m_s2 / g, rest_min_s=self.rest_min_s,
             bias_clip_rad_s=math.radians(self.bias_clip_deg_s),
