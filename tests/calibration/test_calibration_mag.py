@@ -4,6 +4,8 @@ per-axis scale; too little coverage and a disturbed field are refused with what 
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from tests.calibration.conftest import HARD_IRON_UT, SOFT_IRON, make_stream
@@ -121,3 +123,16 @@ def test_coverage_counts_equal_area_cells_and_names_missing_axes() -> None:
     half = coverage(upper)
     assert half.fraction == pytest.approx(0.5)
     assert half.missing_axes == ("-z",)
+
+
+def test_minmax_on_the_calibration_scenario_names_the_axes_never_turned_onto_the_field(
+        calibration_run: list[Sample]) -> None:
+    # The scenario's figure of 8 covers directions well enough for the ellipsoid but never
+    # points every axis along the field: min/max cannot work, and says which axes and by how
+    # much (issue 12 item 5).
+    with pytest.raises(CalibrationError) as exc:
+        evaluate(_mag(calibration_run), MagSettings(method="minmax"))
+    message = str(exc.value)
+    assert re.search(r"never turned these sensor axes onto the field direction: [+-][xyz] by "
+                     r"\d+ deg", message), message
+    assert "--method ellipsoid" in message

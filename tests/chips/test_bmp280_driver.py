@@ -167,7 +167,6 @@ def test_stuck_conversion_in_forced_mode_is_stale_and_recover_works() -> None:
     emu.stuck_data_ready = True
     samples = run(clock, driver, 2)
     assert all(s.flags == SampleFlag.STALE for s in samples)
-    assert driver.health.flags_seen["STALE"] == 2
     emu.stuck_data_ready = False
     start = driver.recover(clock.now_ns())
     assert all(s.valid for s in run(clock, driver, 2, start))

@@ -242,7 +242,6 @@ def test_silent_reset_gives_one_stale_slot_then_recovers(
     samples = rig.run_until(300_000_000)
     stale = [s for s in samples if s.flags & SampleFlag.STALE]
     assert len(pressures(stale)) == 1
-    assert rig.driver.health.flags_seen["STALE"] == len(stale)
     after = pressures(samples)[-5:]
     assert all(s.valid and abs(s.pressure_pa - 98000.0) <= P_TOL_PA for s in after)
 
@@ -257,7 +256,6 @@ def test_out_of_datasheet_range_values_are_flagged() -> None:
     rig.physics(100000.0, 90.0)  # TEMP above 85 degC taints the compensated pressure too
     samples = rig.run_until(200_000_000)[-4:]
     assert all(s.flags & SampleFlag.OUT_OF_RANGE for s in samples)
-    assert rig.driver.health.flags_seen["OUT_OF_RANGE"] == rig.driver.health.flagged
 
 
 def test_settings_reject_an_unknown_osr_listing_the_allowed_ones() -> None:

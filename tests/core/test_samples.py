@@ -24,7 +24,8 @@ def test_flagging_returns_an_invalid_copy() -> None:
 
 
 def test_channels_document_their_units() -> None:
-    assert {c.unit for c in Channel} == {"m/s^2", "rad/s", "uT", "Pa", "degC", "m/s"}
+    assert {c.unit for c in Channel} == {"m/s^2", "rad/s", "uT", "Pa", "degC", "m/s",
+                                        "deg, deg, m"}
 
 
 def test_a_velocity_sample_is_earth_frame_and_carries_its_accuracy() -> None:
@@ -40,3 +41,14 @@ def test_with_vector_changes_value_and_frame_only() -> None:
     moved = s.with_vector((3.0, 2.0, 1.0), Frame.BODY_NED)
     assert moved.accel_m_s2 == (3.0, 2.0, 1.0) and moved.frame is Frame.BODY_NED
     assert (moved.t_ns, moved.device) == (9, "imu")
+
+
+def test_a_position_sample_states_its_height_datum_and_fix() -> None:
+    from imuhal.core.samples import FixType, HeightDatum, PositionSample
+
+    p = PositionSample(t_ns=5, device="gps", latitude_deg=46.5, longitude_deg=7.9,
+                       height_m=1200.0, height_datum=HeightDatum.MSL, fix_type=FixType.FIX_3D,
+                       satellites=9, horizontal_accuracy_m=2.5, vertical_accuracy_m=4.0)
+    assert p.channel is Channel.POSITION and p.valid
+    assert not hasattr(p, "frame")
+    assert (p.height_datum, p.fix_type, p.satellites) == (HeightDatum.MSL, FixType.FIX_3D, 9)

@@ -1,6 +1,7 @@
 """The seed board keeps running through transient faults of its real drivers: each fault is
 detected, flagged or counted, the device is brought back, and the other devices never stop.
-Every fault is injected into the register-level emulators mid-flight.
+Every fault is injected mid-flight through the fault-injection interface
+(imuhal.emulation.faults).
 
 "Brought back" means reading the truth again, not only producing samples: after each fault,
 the valid samples of the second half of the run are checked against the scenario's truth
@@ -11,8 +12,6 @@ board's HMC5883L has 11.5 uT of hard iron and 2 uT offsets, and a reading of zer
 """
 
 from __future__ import annotations
-
-from collections.abc import Iterator
 
 import numpy as np
 import pytest
@@ -26,6 +25,13 @@ from imuhal.core.samples import (
     VectorSample,
 )
 from imuhal.emulation import open_emulated
+from imuhal.emulation.faults import (
+    BusErrors,
+    ChipAbsent,
+    ChipReset,
+    FaultSpec,
+    StuckDataReady,
+)
 from imuhal.estimation.outputs import VerticalEstimate
 from imuhal.pipeline import Pipeline
 from imuhal.plugins.manager import Registry, load_registry
@@ -70,21 +76,18 @@ def _assert_on_truth(registry: Registry, events: list[object],
     assert all(checked[kind] for kind in expected), checked
 
 
-@pytest.fixture
-def pipeline(registry: Registry) -> Iterator[Pipeline]:
+def _open(registry: Registry, *faults: FaultSpec) -> Pipeline:
     profile = load_profile(default_profile_path(), registry)
-    with open_emulated(profile, registry, scenario="thermal", seed=SEED) as p:
-        yield p
+    return open_emulated(profile, registry, scenario="thermal", seed=SEED, faults=faults)
 
 
 def _valid(events: list[object], kind: type, device: str) -> list[Sample]:
     return [e for e in events if isinstance(e, kind) and e.device == device and e.valid]
 
 
-def test_a_silent_imu_reset_is_detected_and_the_imu_reconfigured(
-        registry: Registry, pipeline: Pipeline) -> None:
+def test_a_silent_imu_reset_is_detected_and_the_imu_reconfigured(registry: Registry) -> None:
+    pipeline = _open(registry, ChipReset(device="imu", start_s=1.0))
     list(pipeline.events(1.0))
-    pipeline.board.emulators["imu"].silent_reset()
     after = list(pipeline.events(2.0))
     health = pipeline.devices["imu"].driver.health
     assert health.resets_detected == 1
@@ -94,13 +97,14 @@ def test_a_silent_imu_reset_is_detected_and_the_imu_reconfigured(
     _assert_on_truth(registry, after)
 
 
-def test_bus_errors_on_the_shared_spi_bus_are_counted_and_recovered(
-        registry: Registry, pipeline: Pipeline) -> None:
+def test_bus_errors_on_the_shared_spi_bus_are_counted_and_recovered(registry: Registry) -> None:
+    pipeline = _open(registry, BusErrors(device="imu", start_s=1.0, end_s=1.5, rate=0.02),
+                     BusErrors(device="baro", start_s=1.0, end_s=1.5, rate=0.05))
     list(pipeline.events(1.0))
-    pipeline.buses["spi0"].fail_transfers({1, 50, 200})
     events = list(pipeline.events(2.0))
     summary = pipeline.summary()
-    assert sum(summary.bus_errors.values()) == 3
+    assert summary.bus_errors["baro"] == pipeline.board.faults.log.injected["baro"]["bus_errors"]
+    assert summary.bus_errors["baro"] > 0
     assert summary.warnings == []
     tail = events[len(events) // 2:]
     for kind, device in ((GyroSample, "imu"), (MagSample, "mag"), (PressureSample, "baro")):
@@ -109,30 +113,27 @@ def test_bus_errors_on_the_shared_spi_bus_are_counted_and_recovered(
     _assert_on_truth(registry, events)
 
 
-def test_stuck_data_ready_is_flagged_stale_then_cleared_by_a_reset(
-        registry: Registry, pipeline: Pipeline) -> None:
+def test_stuck_data_ready_is_flagged_stale_then_cleared_by_a_reset(registry: Registry) -> None:
+    pipeline = _open(registry, StuckDataReady(device="imu", start_s=1.0))
     list(pipeline.events(1.0))
-    pipeline.board.emulators["imu"].stuck_data_ready = True
     events = list(pipeline.events(2.0))
     assert pipeline.summary().flagged["imu"].get("STALE", 0) > 0
     assert [e for e in _valid(events, AccelSample, "imu") if e.t_ns >= 2.5e9]
     _assert_on_truth(registry, events)
 
 
-def test_a_barometer_reset_mid_conversion_costs_one_stale_sample(
-        registry: Registry, pipeline: Pipeline) -> None:
+def test_a_barometer_reset_mid_conversion_costs_one_stale_sample(registry: Registry) -> None:
+    pipeline = _open(registry, ChipReset(device="baro", start_s=1.0))
     list(pipeline.events(1.0))
-    pipeline.board.emulators["baro"].silent_reset()
     events = list(pipeline.events(1.0))
     assert pipeline.summary().flagged["baro"].get("STALE", 0) >= 1
     assert len(_valid(events, PressureSample, "baro")) >= 45
     _assert_on_truth(registry, events)
 
 
-def test_a_magnetometer_that_vanishes_leaves_the_rest_running(
-        registry: Registry, pipeline: Pipeline) -> None:
+def test_a_magnetometer_that_vanishes_leaves_the_rest_running(registry: Registry) -> None:
+    pipeline = _open(registry, ChipAbsent(device="mag", start_s=1.0))
     list(pipeline.events(1.0))
-    pipeline.board.emulators["mag"].absent = True
     events = list(pipeline.events(2.0))
     mag_warnings = [w for w in pipeline.warnings if w.startswith("mag:")]
     assert 1 <= len(mag_warnings) <= 2  # reported once per kind, not at every retry

@@ -52,11 +52,31 @@ def test_nothing_appears_under_the_final_name_until_close(tmp_path: Path) -> Non
     assert list(tmp_path.iterdir()) == [path]
 
 
-def test_an_aborted_run_leaves_the_previous_log_intact(tmp_path: Path) -> None:
+def test_an_aborted_run_leaves_the_previous_log_intact_and_its_rows_beside_it(
+        tmp_path: Path) -> None:
     path = tmp_path / "log.csv"
     path.write_text("previous\n")
     sink = CsvSink(path)
     sink.handle(VerticalEstimate(t_ns=0, source="v", altitude_m=1.0, climb_m_s=0.0))
-    sink.abort()
+    partial = sink.abort()
     assert path.read_text() == "previous\n"
+    assert partial == tmp_path / "log.csv.partial"
+    assert [r["kind"] for r in csv.DictReader(partial.open())] == ["vertical"]
+
+
+def test_an_aborted_run_without_rows_writes_nothing(tmp_path: Path) -> None:
+    path = tmp_path / "log.csv"
+    path.write_text("previous\n")
+    sink = CsvSink(path)
+    assert sink.abort() is None
     assert list(tmp_path.iterdir()) == [path]
+
+
+def test_the_log_is_on_disk_under_its_partial_name_from_the_start(tmp_path: Path) -> None:
+    # A power cut loses at most sync_every_s of rows: they are in log.csv.partial.
+    path = tmp_path / "log.csv"
+    sink = CsvSink(path, sync_every_s=0.0)
+    sink.handle(VerticalEstimate(t_ns=0, source="v", altitude_m=1.0, climb_m_s=0.0))
+    rows = list(csv.DictReader((tmp_path / "log.csv.partial").open()))
+    assert [r["kind"] for r in rows] == ["vertical"]
+    sink.close()

@@ -11,6 +11,7 @@ import pytest
 
 from imuhal.core.samples import AccelSample, Frame, PressureSample, SampleFlag
 from imuhal.emulation import open_emulated
+from imuhal.emulation.faults import BusErrors, ChipAbsent, WildValue
 from imuhal.estimation.outputs import VerticalEstimate
 from imuhal.pipeline import CallbackSink, Pipeline
 from imuhal.plugins.manager import Registry
@@ -61,9 +62,8 @@ def test_estimates_follow_the_samples_they_came_from(registry: Registry) -> None
 
 
 def test_a_nan_sample_is_flagged_counted_and_never_fused(registry: Registry) -> None:
-    with _open(registry) as p:
-        emulator = p.board.emulators["acc"]
-        emulator.force_pressure = math.nan
+    nan = WildValue(device="acc", channel="pressure", value=math.nan, start_s=0.0, end_s=1.0)
+    with _open(registry, faults=[nan]) as p:
         events = list(p.events(0.2))
         recorder = p.estimators[0].estimator
     bad = [e for e in events if isinstance(e, PressureSample)]
@@ -73,11 +73,11 @@ def test_a_nan_sample_is_flagged_counted_and_never_fused(registry: Registry) -> 
 
 
 def test_a_bus_error_is_counted_and_the_device_recovers(registry: Registry) -> None:
-    with _open(registry) as p:
-        p.buses["i2c1"].fail_transfers({3})
+    fault = BusErrors(device="acc", start_s=0.1, end_s=0.1005, rate=1.0)
+    with _open(registry, faults=[fault]) as p:
         events = list(p.events(1.0))
     summary = p.summary()
-    assert summary.bus_errors["acc"] == 1
+    assert summary.bus_errors["acc"] == p.board.faults.log.injected["acc"]["bus_errors"] >= 1
     assert sum(isinstance(e, AccelSample) for e in events) >= 48
     assert p.devices["acc"].driver.health.reconfigurations == 1
 
@@ -88,8 +88,7 @@ def test_an_unrecoverable_device_does_not_stop_the_others(registry: Registry) ->
     bus: i2c1
     address: 0x18
 estimators:""")
-    with _open(registry, text) as p:
-        p.board.emulators["acc2"].absent = True
+    with _open(registry, text, faults=[ChipAbsent(device="acc2", start_s=0.001)]) as p:
         events = list(p.events(1.0))
     assert sum(isinstance(e, AccelSample) and e.device == "acc" for e in events) == 50
     assert any("acc2: recovery failed" in w for w in p.warnings)

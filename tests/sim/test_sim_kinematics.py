@@ -42,3 +42,21 @@ def test_truth_state_matches_the_kinematics_it_is_built_from(cls):
         np.testing.assert_allclose(a, k.acceleration_ned_m_s2, atol=1e-9)
         assert s.altitude_m == pytest.approx(-k.position_ned_m[2])
         assert s.climb_m_s == pytest.approx(-k.velocity_ned_m_s[2])
+
+
+def test_a_long_run_keeps_a_bounded_position_table_and_the_same_positions():
+    from imuhal.sim.motion import FlightMotion
+    from imuhal.sim.signals import Signal
+
+    def glider() -> FlightMotion:
+        yaw = Signal().rate_step(5.0, 2.0, 0.2)
+        return FlightMotion(yaw=yaw, speed_along_heading=Signal(10.0))
+
+    forward = glider()
+    along = [forward.kinematics(t).position_ned_m for t in range(0, 600, 3)]
+    # ten minutes of 0.01 s nodes: a bounded number kept (not 60 000)
+    kept = sum(len(seg[0]) for seg in forward._segments.values())
+    assert kept <= 5 * 1025
+    backward = glider()
+    late_first = [backward.kinematics(t).position_ned_m for t in reversed(range(0, 600, 3))]
+    assert list(reversed(late_first)) == along

@@ -31,6 +31,8 @@ ODR_CODES = {50: 1, 100: 2}
 
 class TC3Settings(DriverSettings):
     odr_hz: Literal[50, 100] = 50
+    pressure_first: bool = False
+    """Emit the pressure sample before the accelerometer sample of the same poll."""
 
 
 class TC3Driver(Driver):
@@ -75,7 +77,12 @@ class TC3Driver(Driver):
         if max(abs(x), abs(y), abs(z)) >= 32767:
             accel = accel.flagged(SampleFlag.SATURATED)
         pressure = PressureSample(t_ns=now_ns, device=self.device, pressure_pa=p)
-        return PollResult([accel, pressure], now_ns + self.period_ns)
+        samples = [pressure, accel] if self.settings.pressure_first else [accel, pressure]
+        return PollResult(samples, now_ns + self.period_ns)
+
+    def full_scale(self, channel: Channel) -> float | None:
+        """Accel: 32767 counts of 1 mg; pressure: not declared (float32 register)."""
+        return 32.767 * G if channel is Channel.ACCEL else None
 
 
 class TC3Emulator(ChipEmulator):
@@ -87,7 +94,6 @@ class TC3Emulator(ChipEmulator):
         self.regs[WHO_AM_I] = IDENTITY
         self.pointer = 0
         self.last_sample_ns: int | None = None
-        self.force_pressure: float | None = None
 
     def _refresh(self) -> None:
         code = self.regs[CTRL] & 3
@@ -101,8 +107,7 @@ class TC3Emulator(ChipEmulator):
         f = self.physics.specific_force_m_s2 or (0.0, 0.0, 0.0)
         counts = [max(-32767, min(32767, round(v / G * 1e3))) for v in f]
         struct.pack_into("<hhh", self.regs, DATA, *counts)
-        p = self.force_pressure if self.force_pressure is not None else (
-            self.physics.pressure_pa or 0.0)
+        p = self.physics.pressure_pa if self.physics.pressure_pa is not None else 0.0
         struct.pack_into("<f", self.regs, PRESSURE, p)
         self.regs[STATUS] = 1
 

@@ -142,6 +142,5 @@ class AK8963Driver(Driver):
         self._last_data_ns = now_ns
         if flags == SampleFlag.OK:
             self.last = m
-        self.health.record([sample])
         return PollResult([sample], now_ns + self._period_ns)
 

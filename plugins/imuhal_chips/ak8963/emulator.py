@@ -24,6 +24,7 @@ Source of facts: MPU-9250 Register Map rev 1.4 section 5; imuhal shared chip fac
 
 from __future__ import annotations
 
+import random
 import struct
 
 from imuhal.bus.base import BusKind
@@ -56,12 +57,16 @@ class AK8963Emulator(ChipEmulator):
 
     chip = "ak8963"
     error_spec = AK8963_ERROR_SPEC
+    models_stuck_data_ready = True
     conformance_sweep = True
 
     def __init__(self, clock: Clock | None = None, *,
                  asa: tuple[int, int, int] = DEFAULT_ASA) -> None:
         super().__init__(clock)
         self.asa = asa
+        self.asa_read: list[int] | None = None
+        """What the fuse ROM reads when it differs from ``asa`` (fault injection); the
+        sensor element still follows ``asa``."""
         self.wia = r.WIA
         """What WIA reads (fault injection: a clone or another part)."""
         self.stuck_data_ready = False
@@ -72,6 +77,17 @@ class AK8963Emulator(ChipEmulator):
         self._reset()
 
     # -- fault injection --------------------------------------------------------------------
+
+    def corrupt_trim(self, rng: random.Random, bits: int = 1) -> str:
+        """Flip ``bits`` random bits of the fuse-ROM sensitivity adjustment (ASAX..ASAZ)."""
+        stored = list(self.asa) if self.asa_read is None else self.asa_read
+        changed = []
+        for _ in range(bits):
+            axis, bit = rng.randrange(3), rng.randrange(8)
+            stored[axis] ^= 1 << bit
+            changed.append(f"ASA{'XYZ'[axis]} bit {bit}")
+        self.asa_read = stored
+        return "fuse ROM " + ", ".join(changed)
 
     def silent_reset(self) -> None:
         """The chip resets on its own: power-down, registers at their defaults."""
@@ -208,7 +224,8 @@ class AK8963Emulator(ChipEmulator):
         if address == r.REG_ASTC:
             return self._astc
         if r.REG_ASAX <= address <= r.REG_ASAX + 2:
-            return self.asa[address - r.REG_ASAX] if self._mode() == r.MODE_FUSE_ROM else 0
+            stored = self.asa if self.asa_read is None else self.asa_read
+            return stored[address - r.REG_ASAX] if self._mode() == r.MODE_FUSE_ROM else 0
         return 0x00
 
     def _write(self, address: int, value: int) -> None:

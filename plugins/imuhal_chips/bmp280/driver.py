@@ -281,7 +281,6 @@ class BMP280Driver(Driver):
             TemperatureSample(t_ns=t_ns, device=self.device, flags=flags_t,
                               temperature_degc=temperature),
         ]
-        self.health.record(samples)
         return samples
 
     def child_buses(self) -> dict[str, Bus]:

@@ -28,6 +28,8 @@ Source of facts: BMP280 datasheet BST-BMP280-DS001-19; imuhal shared chip facts 
 
 from __future__ import annotations
 
+import random
+
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock
 from imuhal.core.samples import Channel
@@ -82,6 +84,7 @@ class BMP280Emulator(ChipEmulator):
 
     chip = "bmp280"
     error_spec = BMP280_ERROR_SPEC
+    models_stuck_data_ready = True
     conformance_sweep = True
 
     def __init__(
@@ -89,7 +92,8 @@ class BMP280Emulator(ChipEmulator):
     ) -> None:
         super().__init__(clock)
         self.trim = trim
-        self._trim_image = trim.register_image()
+        self._trim_image = bytearray(trim.register_image())
+        """What the trimming registers read (fault injection may flip bits of it)."""
         self.chip_id = r.CHIP_ID
         """What 0xD0 reads (fault injection: 0x60 is a BME280, anything else a clone)."""
         self.stuck_data_ready = False
@@ -100,6 +104,16 @@ class BMP280Emulator(ChipEmulator):
         """Resets seen (soft reset command or silent reset), for tests."""
 
     # -- fault injection --------------------------------------------------------------------
+
+    def corrupt_trim(self, rng: random.Random, bits: int = 1) -> str:
+        """Flip ``bits`` random bits of the 24 trimming bytes the driver reads; the sensor
+        element keeps encoding with the true ``trim``."""
+        changed = []
+        for _ in range(bits):
+            index, bit = rng.randrange(r.CALIB_LENGTH), rng.randrange(8)
+            self._trim_image[index] ^= 1 << bit
+            changed.append(f"0x{r.REG_CALIB + index:02X} bit {bit}")
+        return "trimming " + ", ".join(changed)
 
     def silent_reset(self) -> None:
         """The chip resets without being asked (brown-out): back to sleep, defaults."""

@@ -28,6 +28,7 @@ from imuhal.drivers.settings import table_setting
 from imuhal_chips.hmc5883l import decode
 from imuhal_chips.hmc5883l.registers import (
     AVERAGING,
+    DATA_MIN,
     IDENTITY,
     MODE_CONTINUOUS,
     ODR_HZ,
@@ -161,6 +162,13 @@ class Hmc5883lDriver(Driver):
         return self._grid_start_ns + k * self._period_ns
 
     # --- sampling -------------------------------------------------------------------------
+
+    def full_scale(self, channel: Channel) -> float | None:
+        """The largest field a data word can carry at the configured gain (uT): the most
+        negative count before the overflow value, through this driver's conversion."""
+        if self.gain_lsb_per_gauss is None or channel is not Channel.MAG:
+            return None
+        return abs(decode.counts_to_ut((DATA_MIN, 0, 0), self.gain_lsb_per_gauss)[0])
 
     def poll(self, now_ns: int) -> PollResult:
         if self.gain_lsb_per_gauss is None:

@@ -92,6 +92,7 @@ class Hmc5883lEmulator(ChipEmulator):
 
     chip = "hmc5883l"
     error_spec = HMC5883L_ERROR_SPEC
+    models_stuck_data_ready = True
     conformance_sweep = True
 
     def __init__(self, clock: Clock | None = None, *, name: str | None = None) -> None:

@@ -22,6 +22,8 @@ How an I2C transaction maps onto one-shot bytes:
   the HMC5883L locks its data outputs from the first data byte read until all six are read.
 - ``write=[reg]`` alone sets a remembered pointer; a read with no register byte continues
   from it. The master cannot do a bare read without a register, so the pointer is emulated.
+- A host transfer that fails during a one-shot byte repeats that byte (ONESHOT_ATTEMPTS),
+  so the slave's driver sees about the host's error rate per transaction, not 28 times it.
 - The master reports no NACK that any source documents; a missing slave shows as 0xFF data
   (released bus), which the slave's driver turns into DeviceNotFoundError when probing.
 
@@ -31,9 +33,11 @@ interleave with a half-done one-shot transaction.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Callable
+from typing import TYPE_CHECKING, TypeVar
 
 from imuhal.bus.base import Bus, BusKind
+from imuhal.bus.retry import retried
 from imuhal.core.errors import ConfigurationError
 from imuhal_chips.max2110x.registers import (
     DR_CFG_ONESHOT_MASK,
@@ -49,6 +53,10 @@ if TYPE_CHECKING:
 ONESHOT_WAIT_S = 200e-6
 """Time allowed for one one-shot byte transaction to finish (about 4 bytes at 400 kHz plus
 margin) before the next step. [UNVERIFIED: har-in-air waits an unspecified delay.]"""
+ONESHOT_ATTEMPTS = 3
+"""Tries of one one-shot byte before a host bus error is passed on to the slave's driver."""
+
+_R = TypeVar("_R")
 
 
 class Max21100AuxBus(Bus):
@@ -70,23 +78,30 @@ class Max21100AuxBus(Bus):
     def _transfer(self, target: int, write: bytes, read_len: int) -> bytes:
         if not 0 <= target <= 0x7F:
             raise ConfigurationError(f"{self.name}: 0x{target:X} is not a 7-bit I2C address")
-        regs = self.host.regs
         with self.host.link.bus.lock:
-            regs.write(Reg.MAG_SLV_ADD, target)
+            self._retried(self._select, target)
             if write:
                 self._pointer[target] = write[0]
             pointer = self._pointer.get(target, 0)
             for offset, value in enumerate(write[1:]):
-                self._oneshot_write((pointer + offset) & 0xFF, value)
+                self._retried(self._oneshot_write, (pointer + offset) & 0xFF, value)
             if len(write) > 1:
                 pointer = (pointer + len(write) - 1) & 0xFF
                 self._pointer[target] = pointer
             data = bytearray()
             for offset in range(read_len):
-                data.append(self._oneshot_read((pointer + offset) & 0xFF))
+                data.append(self._retried(self._oneshot_read, (pointer + offset) & 0xFF))
             if read_len:
                 self._pointer[target] = (pointer + read_len) & 0xFF
         return bytes(data)
+
+    def _retried(self, step: Callable[..., _R], *args: int) -> _R:
+        """One one-shot byte (four host transfers), repeated after a failed host transfer;
+        each step is safe to repeat (it rewrites the same address, data and trigger)."""
+        return retried(step, *args, attempts=ONESHOT_ATTEMPTS)
+
+    def _select(self, target: int) -> None:
+        self.host.regs.write(Reg.MAG_SLV_ADD, target)
 
     def _oneshot_write(self, register: int, value: int) -> None:
         regs, base = self.host.regs, self._base()

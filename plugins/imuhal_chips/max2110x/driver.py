@@ -25,7 +25,6 @@ from imuhal.core.samples import (
     Sample,
     SampleFlag,
     TemperatureSample,
-    non_finite_flag,
 )
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
 from imuhal_chips.max2110x import decode
@@ -257,8 +256,7 @@ class Max2110xDriver(Driver):
             self._last_temp_ns = now_ns
             temp = decode.temp_counts_to_degc(burst.temperature)
             samples.append(TemperatureSample(t_ns=now_ns, device=self.device,
-                                             temperature_degc=temp,
-                                             flags=non_finite_flag([temp])))
+                                             temperature_degc=temp))
         if stale:
             self._stale_polls += 1
             if self._reset_detected(now_ns):
@@ -296,7 +294,6 @@ class Max2110xDriver(Driver):
             cls = AccelSample
         if decode.saturated(counts):
             flags |= SampleFlag.SATURATED
-        flags |= non_finite_flag(value)
         if cls is GyroSample:
             return GyroSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                               gyro_rad_s=value, flags=flags)
@@ -313,6 +310,16 @@ class Max2110xDriver(Driver):
         self.configure()
         self.health.reconfigurations += 1
         return True
+
+    def full_scale(self, channel: Channel) -> float | None:
+        """What the 16-bit data word can hold at the configured range (SI): the most
+        negative count through this driver's own conversion."""
+        if self.scales is None or channel not in (Channel.GYRO, Channel.ACCEL):
+            return None
+        if channel is Channel.GYRO:
+            return abs(decode.gyro_counts_to_rad_s((-32768, 0, 0),
+                                                   self.scales.gyro_lsb_per_dps)[0])
+        return abs(decode.accel_counts_to_m_s2((-32768, 0, 0), self.scales.accel_lsb_per_g)[0])
 
 
 class Max21105Driver(Max2110xDriver):

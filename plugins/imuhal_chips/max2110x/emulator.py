@@ -112,6 +112,7 @@ class Max2110xEmulator(ChipEmulator):
     """Family base; subclasses set ``chip``, ``part`` and their rate tables."""
 
     part: ClassVar[PartSpec]
+    models_stuck_data_ready = True
     gyro_odr_by_code: ClassVar[tuple[float, ...]]
     """GYRO_CFG2 ODR code -> Hz, written here from the part's datasheet (not the driver's)."""
     accel_odr_by_code: ClassVar[tuple[float, ...]]

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from imuhal.bus.base import Bus, BusKind
 from imuhal.bus.registers import RegisterView
+from imuhal.bus.retry import retried
 from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError, NackError
 from imuhal_chips.mpu9250 import registers as r
@@ -29,6 +30,9 @@ from imuhal_chips.mpu9250 import registers as r
 SLV4_POLL_S = 50e-6
 """Interval between I2C_MST_STATUS polls; a 400 kHz single-byte read takes ~100 us."""
 SLV4_TIMEOUT_S = 5e-3
+SLV4_ATTEMPTS = 3
+"""Tries of one slave-4 byte before a host bus error reaches the slave's driver: a slave
+byte costs three or more host transfers, whose error rate must not be multiplied."""
 
 
 class MasterAuxBus(Bus):
@@ -49,8 +53,10 @@ class MasterAuxBus(Bus):
         with self.mpu.link.bus.lock:
             register = write[0]
             for offset, value in enumerate(write[1:]):
-                self._slv4(target, (register + offset) & 0xFF, value)
-            return bytes(self._slv4(target, (register + i) & 0xFF) for i in range(read_len))
+                retried(self._slv4, target, (register + offset) & 0xFF, value,
+                        attempts=SLV4_ATTEMPTS)
+            return bytes(retried(self._slv4, target, (register + i) & 0xFF,
+                                 attempts=SLV4_ATTEMPTS) for i in range(read_len))
 
     def _slv4(self, target: int, register: int, value: int | None = None) -> int:
         """One slave-4 transaction: write ``value`` (or read when None); returns DI."""

@@ -207,6 +207,15 @@ class MPU9250Driver(Driver):
         self._next_check_ns = now_ns + round(self.CONFIG_CHECK_S * 1e9)
         return now_ns + self._period_ns
 
+    def full_scale(self, channel: Channel) -> float | None:
+        """What the 16-bit data word can hold at the configured range (SI): the most
+        negative count through this driver's own conversion."""
+        if channel is Channel.GYRO:
+            return abs(gyro_rad_s((-32768, 0, 0), self._gyro.lsb_per_unit)[0])
+        if channel is Channel.ACCEL:
+            return abs(accel_m_s2((-32768, 0, 0), self._accel.lsb_per_unit)[0])
+        return None
+
     def child_buses(self) -> dict[str, Bus]:
         return {"aux": self._aux_bus} if self._aux_bus is not None else {}
 
@@ -247,6 +256,5 @@ class MPU9250Driver(Driver):
                               temperature_degc=temp),
         ]
         self._last_data_ns = now_ns
-        self.health.record(samples)
         return PollResult(samples, now_ns + self._period_ns)
 

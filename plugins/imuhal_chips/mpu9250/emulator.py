@@ -68,6 +68,7 @@ class MPU9250Emulator(ChipEmulator):
 
     chip = "mpu9250"
     error_spec = MPU9250_ERROR_SPEC
+    models_stuck_data_ready = True
     conformance_sweep = True
 
     def __init__(self, clock: Clock | None = None, *, name: str = "mpu9250") -> None:

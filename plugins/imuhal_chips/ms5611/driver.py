@@ -304,7 +304,6 @@ class MS5611Driver(Driver):
                                              temperature_degc=result.temperature_degc))
         if pressure_flags == SampleFlag.OK:
             self.last = result
-        self.health.record(samples)
         return samples
 
     def _stale(self, now_ns: int) -> PollResult:
@@ -317,7 +316,6 @@ class MS5611Driver(Driver):
             TemperatureSample(t_ns=now_ns, device=self.device, flags=SampleFlag.STALE,
                               temperature_degc=last.temperature_degc if last else math.nan),
         ]
-        self.health.record(samples)
         self._state = _State.IDLE
         self._need_temperature = True
         self._since_temperature = 0

@@ -77,6 +77,8 @@ class MS5611Emulator(ChipEmulator):
 
     chip = "ms5611"
     error_spec = MS5611_ERROR_SPEC
+    models_stuck_data_ready = True
+    """Stuck: a started conversion never finishes (ADC reads during it return 0)."""
     conformance_sweep = True
 
     def __init__(
@@ -132,6 +134,15 @@ class MS5611Emulator(ChipEmulator):
         """Make every PROM word read ``value`` (0xFFFF: bus floating high; 0x0000: blank)."""
         self.factory_prom = [value & 0xFFFF] * PROM_WORDS
         self._prom = list(self.factory_prom)
+
+    def corrupt_trim(self, rng: random.Random, bits: int = 1) -> str:
+        """Flip ``bits`` random bits of the coefficient words C1..C6 (the CRC then fails)."""
+        changed = []
+        for _ in range(bits):
+            word, bit = rng.randint(1, 6), rng.randrange(16)
+            self.corrupt_prom(word, bit)
+            changed.append(f"C{word} bit {bit}")
+        return "PROM " + ", ".join(changed)
 
     def silent_reset(self) -> None:
         """The chip resets without the driver asking (brown-out, ESD): any running or
@@ -205,6 +216,8 @@ class MS5611Emulator(ChipEmulator):
 
     def _settle(self, now: int) -> None:
         """Move a conversion that has finished by ``now`` into the result register."""
+        if self.stuck_data_ready:
+            return
         if self._conversion is not None and now >= self._conversion.done_ns:
             self._result = self._conversion.result
             self._conversion = None

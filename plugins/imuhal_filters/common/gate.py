@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Annotated
 
-from pydantic import Field
+from pydantic import AfterValidator, Field
 
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.estimation.base import EstimatorSettings
@@ -31,6 +32,17 @@ def specific_force_m_s2(gravity_positive: Vec) -> Vec:
     k = -STANDARD_GRAVITY_M_S2
     ax, ay, az = gravity_positive
     return (ax * k, ay * k, az * k)
+
+
+def _ordered_bounds(bounds: tuple[float, float]) -> tuple[float, float]:
+    if not 0.0 <= bounds[0] < bounds[1]:
+        raise ValueError(f"give (lower, upper) in g with 0 <= lower < upper, e.g. (0.6, 1.4); "
+                         f"got ({bounds[0]:g}, {bounds[1]:g})")
+    return bounds
+
+
+GateBounds = Annotated[tuple[float, float], AfterValidator(_ordered_bounds)]
+"""An ``accel_gate_g`` setting: (lower, upper) in g, checked when the settings are read."""
 
 
 @dataclass(frozen=True, slots=True)

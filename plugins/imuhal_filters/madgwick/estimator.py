@@ -25,7 +25,7 @@ from pydantic import Field
 
 from imuhal.core.frames import FloatArray
 from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
-from imuhal_filters.common.gate import AccelGate, SoftGateSettings, soft_gate_weight
+from imuhal_filters.common.gate import AccelGate, GateBounds, SoftGateSettings, soft_gate_weight
 from imuhal_filters.madgwick.core import MagReference, madgwick_step
 from imuhal_filters.madgwick.fast import madgwick_rows
 from imuhal_filters.madgwick.inv_sqrt import INV_SQRT
@@ -59,7 +59,7 @@ class MadgwickSettings(AhrsSettings, SoftGateSettings):
     """``paper`` (default, corrected) or ``xio_release`` (the release's halved reference)."""
     inv_sqrt: Literal["exact", "fast32"] = "exact"
     """``fast32`` reproduces the release's 0x5f3759df normalisation (reference mode only)."""
-    accel_gate_g: tuple[float, float] | None = None
+    accel_gate_g: GateBounds | None = None
     """Use the accelerometer only while lower < |a| < upper (g); None (default) disables the
     gate: it hurts hand-held use (BROAD 4.75 deg without, 5.87 deg with the seed's 0.6-1.4 g)
     and turn compensation removes what it was meant to keep out (docs/estimators.md)."""

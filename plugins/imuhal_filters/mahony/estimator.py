@@ -18,7 +18,7 @@ from pydantic import Field
 
 from imuhal.core.frames import FloatArray
 from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
-from imuhal_filters.common.gate import AccelGate, SoftGateSettings, soft_gate_weight
+from imuhal_filters.common.gate import AccelGate, GateBounds, SoftGateSettings, soft_gate_weight
 from imuhal_filters.common.quat import Vec
 from imuhal_filters.mahony.core import mahony_step
 from imuhal_filters.mahony.fast import mahony_rows
@@ -41,7 +41,7 @@ class MahonySettings(AhrsSettings, SoftGateSettings):
     and the launch tilt it (docs/estimators.md)."""
     ki: float = Field(0.0, ge=0.0)
     """Integral gain (1/s^2); 0 in the firmware (integral held at zero)."""
-    accel_gate_g: tuple[float, float] | None = None
+    accel_gate_g: GateBounds | None = None
     """Feedback only while lower < |a| < upper (g); None (default: the soft gate does the
     job without cutting off) disables it; the firmware's is 0.75-1.25 g (``preset: seed``)."""
     use_mag: bool = True

@@ -45,6 +45,19 @@ class Bus(ABC):
     @abstractmethod
     def _transfer(self, target: int, write: bytes, read_len: int) -> bytes: ...
 
+    def receive(self, target: int, max_len: int) -> bytes:
+        """Byte streams (a UART): up to ``max_len`` bytes that have already arrived from
+        ``target``, without waiting (b"" when none). A device that talks unprompted (a GNSS
+        receiver) is read this way; register-mapped chips use :meth:`transfer`."""
+        with self.lock:
+            return self._receive(target, max_len)
+
+    def _receive(self, target: int, max_len: int) -> bytes:
+        from imuhal.core.errors import BusError
+
+        raise BusError(f"a {self.kind.value} bus carries transactions, not a byte stream",
+                       bus=self.name, target=target)
+
     def link(self, target: int) -> Link:
         """A handle bound to one target, which is what a driver keeps."""
         return Link(self, target)
@@ -75,6 +88,10 @@ class Link:
 
     def transfer(self, write: bytes = b"", read_len: int = 0) -> bytes:
         return self.bus.transfer(self.target, write, read_len)
+
+    def receive(self, max_len: int) -> bytes:
+        """Up to ``max_len`` bytes already received (byte-stream buses only)."""
+        return self.bus.receive(self.target, max_len)
 
     def describe(self) -> str:
         return f"{self.bus.name} target 0x{self.target:02X}"

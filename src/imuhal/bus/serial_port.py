@@ -40,6 +40,22 @@ class SerialBus(Bus):
             raise BusError(f"timeout: read {len(data)} of {read_len} bytes", bus=self.name)
         return bytes(data)
 
+    def _receive(self, target: int, max_len: int) -> bytes:
+        try:
+            waiting = self._port.in_waiting
+            data = self._port.read(min(max_len, waiting)) if waiting else b""
+        except Exception as exc:
+            raise BusError(f"serial read failed: {exc}", bus=self.name) from exc
+        return bytes(data)
+
+    def set_baudrate(self, baudrate: int) -> None:
+        """Change the line speed (a driver probing for a receiver's baud rate)."""
+        try:
+            self._port.baudrate = baudrate
+            self._port.reset_input_buffer()
+        except Exception as exc:
+            raise BusError(f"cannot set {baudrate} baud: {exc}", bus=self.name) from exc
+
     def close(self) -> None:
         if self._port is not None:
             self._port.close()

@@ -23,9 +23,10 @@ import yaml
 
 from imuhal.calibration.errors import CalibrationWriteError
 from imuhal.calibration.model import DeviceCalibration
-from imuhal.core.atomic import atomic_write_bytes
+from imuhal.core.atomic import atomic_write_bytes, resolve_target
+from imuhal.core.errors import OutputError, ProfileError
 from imuhal.plugins.manager import Registry
-from imuhal.profile.loader import parse_profile
+from imuhal.profile.loader import parse_profile, read_profile_text
 from imuhal.profile.yaml_source import load_located
 
 INDENT = 2
@@ -209,46 +210,54 @@ def _plain(v: Any) -> Any:
 def atomic_write_text(path: str | Path, text: str, *, backup: bool = True) -> Path | None:
     """Replace ``path`` by ``text`` atomically; return the backup's path (None if none).
 
-    Temporary file in the same directory (so the rename stays on one file system), flushed
-    and fsync'ed, file mode copied from the old file, then ``os.replace`` and an fsync of the
-    directory. On any failure before the rename the old file is untouched.
+    A symlink is followed: the file it points to is replaced (the backup goes beside that
+    file) and the link stays. Temporary file in the same directory (so the rename stays on one
+    file system), flushed and fsync'ed, file mode copied from the old file, then
+    ``os.replace`` and an fsync of the directory. On any failure before the rename the old
+    file is untouched.
     """
-    p = Path(path)
+    p = resolve_target(path)
     bak = None
     if backup and p.exists():
         bak = p.with_name(p.name + ".bak")
         atomic_write_bytes(bak, p.read_bytes(), mode_from=p)
-    atomic_write_bytes(p, text.encode("utf-8"), mode_from=p)
+    atomic_write_bytes(p, text.encode("utf-8"), mode_from=p if p.exists() else None)
     return bak
 
 
 def write_device_calibration(path: str | Path, device: str, calibration: DeviceCalibration,
-                             registry: Registry | None = None) -> tuple[Path | None, list[str]]:
-    """Store ``calibration`` under ``devices.DEVICE`` of the profile at ``path``.
+                             registry: Registry | None = None, *,
+                             output: str | Path | None = None) -> tuple[Path | None, list[str]]:
+    """Store ``calibration`` under ``devices.DEVICE`` of the profile at ``path`` (or, with
+    ``output``, in a copy of it written there; ``path`` is then only read).
 
     The new text must load as a valid profile holding exactly ``calibration`` before it
     replaces the file. Returns (backup path, warnings).
     """
     p = Path(path)
+    out = Path(output) if output is not None else p
     calibration = rounded(calibration)
     try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise CalibrationWriteError(f"{p}: cannot read the profile: {exc}") from None
+        text = read_profile_text(p)
+    except ProfileError as exc:
+        raise CalibrationWriteError(f"{p}: cannot read the profile: "
+                                    f"{'; '.join(exc.problems)}") from None
     new_text, warnings = replace_device_calibration(text, str(p), device, calibration)
     try:
-        profile = parse_profile(new_text, str(p), registry)
+        profile = parse_profile(new_text, str(out), registry)
     except Exception as exc:  # our own output must always load; refuse to write otherwise
         raise CalibrationWriteError(
-            f"{p}: the rewritten profile would not load, so nothing was written: {exc}") from None
+            f"{out}: the rewritten profile would not load, so nothing was written: "
+            f"{exc}") from None
     stored = profile.devices[device].calibration or DeviceCalibration()
     if calibration_data(stored) != calibration_data(calibration):
         raise CalibrationWriteError(
-            f"{p}: the rewritten profile does not read back the calibration written, so "
+            f"{out}: the rewritten profile does not read back the calibration written, so "
             "nothing was written; please report this with the profile attached")
     try:
-        bak = atomic_write_text(p, new_text)
-    except OSError as exc:
-        raise CalibrationWriteError(f"{p}: could not write ({exc}); the profile is "
+        bak = atomic_write_text(out, new_text)
+    except (OSError, OutputError) as exc:
+        raise CalibrationWriteError(f"{out}: could not write ({exc}); "
+                                    f"{'the profile is' if out == p else 'nothing was'} "
                                     "unchanged") from None
     return bak, warnings

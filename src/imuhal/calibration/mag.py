@@ -23,6 +23,7 @@ what to do.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from datetime import datetime
 from typing import Literal
@@ -179,13 +180,21 @@ def evaluate(raw: FloatArray, settings: MagSettings | None = None) -> MagResult:
     if cov.fraction < s.min_coverage:
         raise _coverage_error(cov, s)
     if residual > s.max_residual_pct / 100.0 * fit.field_ut:
-        if s.method == "minmax" and _ellipsoid_would_fit(x, s):
+        ellipsoid = _ellipsoid_fit_passing(x, s) if s.method == "minmax" else None
+        if ellipsoid is not None:
+            gaps = _extreme_gaps_deg(x, ellipsoid)
+            missed = [f"{axis} by {gap:.0f} deg" for axis, gap in gaps.items() if gap > 5.0]
+            why = (f"the motion never turned these sensor axes onto the field direction: "
+                   f"{', '.join(missed)} (min/max needs every axis pointed along and against "
+                   "the field)" if missed else
+                   "the soft iron couples the axes, which min/max cannot model")
             raise CalibrationError(
                 f"min/max leaves {residual:.2f} uT RMS "
-                f"({100 * residual / fit.field_ut:.1f} %): the motion did not reach every "
-                "axis's extremes, or the soft iron couples the axes, which min/max cannot "
-                "model; the ellipsoid fit of the same readings passes",
-                "use the ellipsoid fit (--method ellipsoid) on the same motion", figures)
+                f"({100 * residual / fit.field_ut:.1f} %): {why}; the ellipsoid fit of the "
+                "same readings passes",
+                "use the ellipsoid fit (--method ellipsoid) on the same motion"
+                + (", or turn the board until each of those axes points along and against "
+                   "the field" if missed else ""), figures)
         raise CalibrationError(
             f"the field was disturbed: readings scatter {residual:.2f} uT RMS "
             f"({100 * residual / fit.field_ut:.1f} %, limit {s.max_residual_pct:g} %) around the "
@@ -216,12 +225,25 @@ def rough_coverage(raw: FloatArray, min_radius_ut: float) -> Coverage:
     return coverage(d[np.linalg.norm(d, axis=1) >= min_radius_ut])
 
 
-def _ellipsoid_would_fit(x: FloatArray, s: MagSettings) -> bool:
+def _ellipsoid_fit_passing(x: FloatArray, s: MagSettings) -> MagFit | None:
+    """The ellipsoid fit of ``x`` when it passes every check, else None."""
     try:
-        evaluate(x, s.model_copy(update={"method": "ellipsoid"}))
+        return evaluate(x, s.model_copy(update={"method": "ellipsoid"})).fit
     except CalibrationError:
-        return False
-    return True
+        return None
+
+
+def _extreme_gaps_deg(x: FloatArray, fit: MagFit) -> dict[str, float]:
+    """For each sensor axis and sign (``+x`` ...), how far (deg) the readings stayed from the
+    extreme that axis reaches when it points along the field, per the ellipsoid ``fit``."""
+    reach = fit.field_ut * np.linalg.norm(np.linalg.inv(fit.soft_iron), axis=1)
+    out: dict[str, float] = {}
+    for i, name in enumerate("xyz"):
+        for sign, seen in (("+", x[:, i].max() - fit.hard_iron_ut[i]),
+                           ("-", fit.hard_iron_ut[i] - x[:, i].min())):
+            out[f"{sign}{name}"] = math.degrees(math.acos(float(np.clip(seen / reach[i],
+                                                                        -1.0, 1.0))))
+    return out
 
 
 def _coverage_error(cov: Coverage, s: MagSettings) -> CalibrationError:

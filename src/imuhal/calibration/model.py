@@ -21,7 +21,12 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-Vec3 = tuple[float, float, float]
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+"""A finite float: NaN or inf in a stored calibration would poison every sample it touches."""
+Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+Vec3 = tuple[Finite, Finite, Finite]
+Scale3 = tuple[Positive, Positive, Positive]
+"""Per-axis scale factors: finite and > 0 (0 would erase an axis, a sign flip is a mount)."""
 Mat3 = tuple[Vec3, Vec3, Vec3]
 IDENTITY3: Mat3 = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 ChannelName = Literal["accel", "gyro", "mag"]
@@ -76,7 +81,7 @@ class AccelCalibration(_Record):
     misalignment; ``apply`` maps a raw sensor-frame reading to a corrected one."""
 
     offset_m_s2: Vec3 = (0.0, 0.0, 0.0)
-    scale: Annotated[Vec3, Field(description="multiplier per axis (1/sensitivity error)")] = (
+    scale: Annotated[Scale3, Field(description="multiplier per axis (1/sensitivity error)")] = (
         1.0, 1.0, 1.0)
     misalignment: Mat3 = IDENTITY3
 
@@ -90,7 +95,7 @@ class GyroCalibration(_Record):
     """Gyroscope: offset in rad/s, per-axis scale, unit-diagonal misalignment."""
 
     offset_rad_s: Vec3 = (0.0, 0.0, 0.0)
-    scale: Vec3 = (1.0, 1.0, 1.0)
+    scale: Scale3 = (1.0, 1.0, 1.0)
     misalignment: Mat3 = IDENTITY3
 
     _m = field_validator("misalignment")(_check_matrix)

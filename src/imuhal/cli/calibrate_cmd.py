@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 import numpy as np
+from pydantic import ValidationError
 
 from imuhal.calibrate.session import (
     describe_position,
@@ -19,15 +20,24 @@ from imuhal.calibrate.session import (
     run_procedure,
 )
 from imuhal.calibrate.store import write_device_calibration
-from imuhal.calibration.accel import AccelSixPosition, AccelSixSettings
+from imuhal.calibration.accel import (
+    AccelSixPosition,
+    AccelSixSettings,
+    parse_position,
+    position_name,
+)
 from imuhal.calibration.gyro import GyroOffsetProcedure, GyroOffsetSettings
 from imuhal.calibration.mag import MagCalibrationProcedure, MagSettings
 from imuhal.calibration.model import DeviceCalibration, GyroStartupSettings, now
 from imuhal.calibration.progress import Progress, ProgressKind
+from imuhal.cli import args as types
+from imuhal.core.atomic import check_outputs, check_writable, resolve_target
+from imuhal.core.errors import ImuhalError
 from imuhal.core.frames import parse_mount
 from imuhal.core.samples import Channel
 from imuhal.plugins.manager import Registry
 from imuhal.profile.loader import load_profile
+from imuhal.profiles_dir import bundled_profiles
 
 DEG = math.pi / 180.0
 MG = 9.80665e-3
@@ -41,7 +51,9 @@ def add_parser(sub: Any) -> None:
         description="Run a calibration procedure on the board in PROFILE (real, or emulated "
         "with --emulate calibration: the simulator performs the motions), print the result "
         "and its quality, and store it in the profile (atomically; the old file is kept as "
-        "PROFILE.bak and the replaced record under calibration.previous).",
+        "PROFILE.bak and the replaced record under calibration.previous), or in a copy with "
+        "--output. A bundled profile of the installed package is never edited: copy it first "
+        "or give --output.",
     )
     cal.add_argument("procedure", nargs="?", choices=["gyro", "accel", "mag"],
                      help="gyro: offsets at rest; accel: six positions; mag: figure of 8")
@@ -52,20 +64,26 @@ def add_parser(sub: Any) -> None:
     cal.add_argument("--emulate", metavar="SCENARIO", help="emulated board flying SCENARIO "
                      "(use 'calibration'); its chips get their datasheet error models")
     cal.add_argument("--ideal", action="store_true", help="with --emulate: chips without errors")
-    cal.add_argument("--seed", type=int, help="seed of the simulated world and sensor errors")
-    cal.add_argument("--timeout", type=float, metavar="SECONDS",
+    cal.add_argument("--seed", type=types.seed,
+                     help="seed of the simulated world and sensor errors (0 or more)")
+    cal.add_argument("--timeout", type=types.seconds, metavar="SECONDS",
                      help="give up after this long (default: gyro 60, accel 300, mag 180; "
                      "emulated: the scenario's length)")
-    cal.add_argument("--samples", type=int, metavar="N",
+    cal.add_argument("--samples", type=types.int_at_least(1, "a number of readings", "250"),
+                     metavar="N",
                      help="readings averaged (gyro default 100, accel per position 250)")
     cal.add_argument("--misalignment", action="store_true",
                      help="accel: also fit the full 3x3 misalignment by least squares")
     cal.add_argument("--method", choices=["ellipsoid", "minmax"], default="ellipsoid",
                      help="mag: ellipsoid fit (hard + full soft iron) or the seed's min/max")
-    cal.add_argument("--field", type=float, metavar="UT",
+    cal.add_argument("--field", type=types.positive_float("a field strength in uT", "48"),
+                     metavar="UT",
                      help="mag: local field strength in uT (default: fitted)")
     cal.add_argument("--at-startup", action="store_true",
                      help="gyro: also re-measure the offsets at every start-up")
+    cal.add_argument("--output", "-o", metavar="FILE.yaml",
+                     help="write the calibrated profile here instead of updating PROFILE "
+                     "(needed for a bundled profile)")
     cal.add_argument("--dry-run", action="store_true", help="print the result, write nothing")
     cal.set_defaults(func=cmd_calibrate, _parser=cal)
 
@@ -76,38 +94,30 @@ def cmd_calibrate(args: argparse.Namespace, registry: Registry) -> int:
     if args.procedure is None or args.profile is None:
         args._parser.error("give a procedure and a PROFILE (or --show PROFILE)")
     path = Path(args.profile)
+    target = None if args.dry_run else _writable_target(path, args.output)
     profile = load_profile(path, registry)
     channel = CHANNELS[args.procedure]
     device = pick_device(profile, registry, channel, args.device)
     cfg = profile.devices[device]
     chip_to_body = parse_mount(profile.board_to_body) @ parse_mount(cfg.mount)
     err = sys.stderr
-    where = f"emulated, scenario '{args.emulate}'" if args.emulate else "real hardware"
-    print(f"calibrating {args.procedure} of {device} ({cfg.driver}) in {profile.name} ({where})",
-          file=err)
     reporter = _Reporter(err)
-    proc: Any
-    if args.procedure == "gyro":
-        gs = GyroOffsetSettings(**({"samples": args.samples} if args.samples else {}))
-        proc = GyroOffsetProcedure(gs, device=device, progress=reporter)
-    elif args.procedure == "accel":
-        acc = AccelSixSettings(positions=guided_order(chip_to_body),
-                               misalignment=args.misalignment,
-                               **({"samples": args.samples} if args.samples else {}))
-        proc = AccelSixPosition(acc, device=device, progress=reporter,
-                                describe=lambda p: describe_position(p, chip_to_body))
-    else:
-        proc = MagCalibrationProcedure(MagSettings(method=args.method, field_ut=args.field),
-                                       device=device, progress=reporter)
     timeout = args.timeout
     if timeout is None:
         timeout = (registry.scenarios.get(args.emulate).default_duration_s if args.emulate
                    else TIMEOUTS_S[args.procedure])
+    proc = _procedure(args, device, chip_to_body, reporter, None)  # settings checked early
+    where = f"emulated, scenario '{args.emulate}'" if args.emulate else "real hardware"
+    print(f"calibrating {args.procedure} of {device} ({cfg.driver}) in {profile.name} ({where})",
+          file=err)
     with open_raw_pipeline(profile, registry, emulate=args.emulate, seed=args.seed,
                            realtime=False, sensor_errors=False if args.ideal else None
                            ) as pipeline:
         for w in pipeline.warnings:
             print(f"warning: {w}", file=err)
+        order = _scenario_order(pipeline, chip_to_body)
+        if args.procedure == "accel" and order is not None:
+            proc = _procedure(args, device, chip_to_body, reporter, order)
         binding = pipeline.calibration_binding(device)
         try:
             result = run_procedure(proc, pipeline, timeout)
@@ -128,12 +138,76 @@ def cmd_calibrate(args: argparse.Namespace, registry: Registry) -> int:
     if args.dry_run:
         print("dry run: profile not written", file=err)
         return 0
-    bak, warnings = write_device_calibration(path, device, new, registry)
+    assert target is not None
+    bak, warnings = write_device_calibration(path, device, new, registry, output=target)
     for w in warnings:
         print(f"warning: {w}", file=err)
-    print(f"wrote devices.{device}.calibration.{args.procedure} to {path}"
+    print(f"wrote devices.{device}.calibration.{args.procedure} to {target}"
           + (f" (previous file kept as {bak})" if bak else ""), file=err)
     return 0
+
+
+def _writable_target(profile: Path, output: str | None) -> Path:
+    """Where the calibrated profile goes, checked before any measurement: ``--output``, or
+    the profile itself unless it is one of the installed package's bundled profiles."""
+    if output is not None:
+        check_outputs({"--output": output}, {"PROFILE": profile})
+        return Path(output)
+    real = resolve_target(profile)
+    bundled = {resolve_target(p) for p in bundled_profiles().values()}
+    if real in bundled:
+        raise ImuhalError(
+            f"{profile}: is a profile bundled with imuhal ({real}); calibration is never "
+            f"written into it. Copy it first (cp {profile} my-board.yaml) and calibrate the "
+            "copy, or add --output my-board.yaml")
+    check_writable(profile, "PROFILE")
+    return profile
+
+
+def _procedure(args: argparse.Namespace, device: str, chip_to_body: np.ndarray,
+               reporter: _Reporter, scenario_order: tuple[str, ...] | None) -> Any:
+    """The procedure the arguments ask for; settings mistakes are one-line errors."""
+    try:
+        if args.procedure == "gyro":
+            gs = GyroOffsetSettings(**({"samples": args.samples} if args.samples else {}))
+            return GyroOffsetProcedure(gs, device=device, progress=reporter)
+        if args.procedure == "accel":
+            acc = AccelSixSettings(positions=scenario_order or guided_order(chip_to_body),
+                                   misalignment=args.misalignment,
+                                   **({"samples": args.samples} if args.samples else {}))
+            return AccelSixPosition(acc, device=device, progress=reporter,
+                                    describe=lambda p: describe_position(p, chip_to_body))
+        return MagCalibrationProcedure(MagSettings(method=args.method, field_ut=args.field),
+                                       device=device, progress=reporter)
+    except ValidationError as exc:
+        first = exc.errors(include_url=False)[0]
+        option = {"samples": "--samples", "field_ut": "--field"}.get(
+            str(first["loc"][0]) if first["loc"] else "", "settings")
+        raise ImuhalError(f"{option}: {first['msg']} (found {first.get('input')!r})") from None
+
+
+def _scenario_order(pipeline: Any, chip_to_body: np.ndarray) -> tuple[str, ...] | None:
+    """Emulated: the sensor positions in the order the scenario holds them (its phases are
+    named after the body axis pointing down), so each prompt names the position the
+    simulated hand is about to hold. None on hardware or when the scenario has no six."""
+    scenario = getattr(getattr(pipeline, "board", None), "scenario", None)
+    if scenario is None:
+        return None
+    order: list[str] = []
+    body_to_chip = np.asarray(chip_to_body, dtype=float).T
+    for phase in scenario.phases():
+        try:
+            axis, sign = parse_position(phase.name)
+        except ValueError:
+            continue
+        down_chip = body_to_chip @ (sign * np.eye(3)[axis])
+        i = int(np.argmax(np.abs(down_chip)))
+        if abs(down_chip[i]) < 0.99:
+            return None  # mounted at an angle: no sensor axis points straight down
+        name = position_name((i, 1 if down_chip[i] > 0 else -1))
+        if name not in order:
+            order.append(name)
+    return tuple(order) if len(order) == 6 else None
 
 
 class _Reporter:

@@ -19,6 +19,7 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from imuhal.cli import args as types
 from imuhal.core.errors import ImuhalError
 from imuhal.core.frames import MountError, parse_mount
 from imuhal.core.samples import Channel
@@ -50,7 +51,7 @@ def add_parser(sub: Any) -> None:
     cmd.add_argument("--physical-mount", action="append", default=[], metavar="DEVICE=MOUNT",
                      help="emulated: DEVICE's chip really sits so (e.g. imu=-X+Y-Z), "
                      "whatever the profile says; repeatable")
-    cmd.add_argument("--seed", type=int, help="seed of the simulated world")
+    cmd.add_argument("--seed", type=types.seed, help="seed of the simulated world (0 or more)")
     cmd.add_argument("--window", type=float, default=3.0, metavar="SECONDS",
                      help="hardware: how long each motion is recorded (default 3 s)")
     cmd.set_defaults(func=cmd_check_mounts)

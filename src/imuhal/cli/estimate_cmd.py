@@ -7,7 +7,9 @@ import itertools
 import sys
 from typing import Any
 
+from imuhal.cli import args as types
 from imuhal.cli.frame_option import frame_argument
+from imuhal.core.atomic import check_outputs
 from imuhal.core.conventions import CONVENTIONS, NED
 from imuhal.offline.csv_input import iter_sample_chunks
 from imuhal.offline.csv_output import ColumnError, EstimateCsvWriter
@@ -49,7 +51,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--output", "-o", metavar="OUT.csv", required=True)
     p.add_argument("--set", dest="settings", action="append", default=[], metavar="KEY=VALUE",
                    help="an estimator setting (repeatable)")
-    p.add_argument("--rate", type=float, metavar="HZ",
+    p.add_argument("--rate", type=types.rate_hz, metavar="HZ",
                    help="sample rate, when the input has no t_s column")
     p.add_argument("--ahrs", default="madgwick", metavar="NAME",
                    help="attitude estimator for gravity compensation of full IMU input to a "
@@ -79,6 +81,7 @@ def _column_list(text: str | None) -> list[str] | None:
 
 
 def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
+    check_outputs({"--output": args.output}, {"INPUT.csv": args.input})
     est_cls = registry.estimators.get(args.name)
     settings = build_settings(est_cls.Settings, parse_set_arguments(args.settings), args.name)
     estimator = est_cls(settings)

@@ -9,7 +9,8 @@ from imuhal.plugins.manager import Registry
 
 
 def add_parser(sub: Any) -> None:
-    plugins = sub.add_parser("plugins", help="list installed drivers, estimators, buses, scenarios")
+    plugins = sub.add_parser("plugins", help="list installed drivers, estimators, buses, "
+                             "scenarios, sinks")
     plugins.set_defaults(func=cmd_plugins)
 
 
@@ -20,6 +21,7 @@ def cmd_plugins(args: argparse.Namespace, registry: Registry) -> int:
         ("estimators", registry.estimators),
         ("bus kinds", registry.buses),
         ("scenarios", registry.scenarios),
+        ("sinks", registry.sinks),
     ]
     for title, registrar in sections:
         print(f"{title}:")

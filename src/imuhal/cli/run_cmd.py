@@ -4,14 +4,18 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import math
 import sys
+import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from imuhal import __version__
 from imuhal.bus.spy import format_transfer
+from imuhal.cli import args as types
 from imuhal.cli.frame_option import frame_argument
-from imuhal.core.atomic import AtomicFile
+from imuhal.core.atomic import AtomicFile, check_outputs
 from imuhal.core.errors import ImuhalError
 from imuhal.live import LiveView, parse_bind
 from imuhal.plugins.manager import Registry
@@ -29,7 +33,7 @@ def add_parser(sub: Any) -> None:
     run.add_argument("profile", nargs="?", help="board profile YAML (default: bundled seed board)")
     run.add_argument("--emulate", metavar="SCENARIO",
                      help="emulate the board's chips flying SCENARIO (see `imuhal plugins`)")
-    run.add_argument("--duration", type=float, metavar="SECONDS",
+    run.add_argument("--duration", type=types.seconds, metavar="SECONDS",
                      help="stop after this many seconds (default: the scenario's length, "
                      "or until Ctrl-C on hardware)")
     run.add_argument("--realtime", action="store_true",
@@ -45,7 +49,21 @@ def add_parser(sub: Any) -> None:
                      "timestamps as the --output rows (docs/simulation.md)")
     run.add_argument("--trace", metavar="FILE.txt",
                      help="log every bus transaction (time, bus, address, bytes) to a file")
-    run.add_argument("--seed", type=int, help="seed of the simulated world (default: profile's)")
+    run.add_argument("--nmea", action="append", default=[], metavar="OUTPUT",
+                     help="send LK8EX1, POV, _PRS, XCTRC, GGA and RMC sentences to a flight "
+                     "app: serial:PORT@BAUD, pty, pty:LINK (a symlink to the pty) or "
+                     "tcp:PORT (loopback); repeatable (docs/flight-instrument.md)")
+    run.add_argument("--nmea-sentences", metavar="LIST",
+                     help="comma-separated subset of LK8EX1,POV,PRS,XCTRC,GGA,RMC")
+    run.add_argument("--audio", action="store_true",
+                     help="play the vario tones live (needs imuhal[audio] and a sound device)")
+    run.add_argument("--audio-wav", metavar="FILE.wav",
+                     help="write the vario tones to a WAV file (the profile's audio curve)")
+    run.add_argument("--seed", type=types.seed,
+                     help="seed of the simulated world, 0 or more (default: the profile's)")
+    run.add_argument("--replay-truth", metavar="TRUTH.csv",
+                     help="with --emulate replay: the truth CSV to fly again (e.g. one that "
+                     "`imuhal run --truth` wrote)")
     run.add_argument("--quiet", action="store_true", help="no live status line")
     run.add_argument("--web", metavar="[HOST:]PORT",
                      help="serve a live dashboard (read-only) on PORT of this machine only, "
@@ -59,6 +77,13 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     from imuhal.pipeline import ConsoleSink, CsvSink, Pipeline
 
     path = Path(args.profile) if args.profile else default_profile_path()
+    # Before anything is opened: no output may overwrite an input, and each must be writable.
+    check_outputs({"--output": args.output, "--truth": args.truth, "--trace": args.trace,
+                   "--audio-wav": args.audio_wav},
+                  {"PROFILE": path, "--replay-truth": args.replay_truth})
+    if args.samples and not args.output:
+        raise ImuhalError("--samples writes the samples into the --output log; add "
+                          "--output FILE.csv")
     profile = load_profile(path, registry)
     frame = args.output_frame or profile.output_frame
     emulate = args.emulate
@@ -70,6 +95,9 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     if args.truth and emulate is None:
         raise ImuhalError("--truth needs an emulated run (--emulate SCENARIO): real "
                           "hardware has no ground truth")
+    if emulate is not None:
+        registry.scenarios.get(emulate)  # an unknown name fails here, before any output
+    scenario_params = _replay_params(args, emulate)
     duration = args.duration
     if duration is None and emulate is not None:
         duration = registry.scenarios.get(emulate).default_duration_s
@@ -79,8 +107,8 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     if not args.quiet:
         sinks.append(ConsoleSink(sys.stdout, frame=frame))
     csv_sink = None
-    trace_file = AtomicFile(args.trace) if args.trace else None
-    trace = (lambda t: trace_file.write(format_transfer(t) + "\n")) if trace_file else None
+    trace_file = AtomicFile(args.trace, partial=True) if args.trace else None
+    trace = _trace_writer(trace_file) if trace_file else None
     with contextlib.ExitStack() as stack:
         if trace_file is not None:
             # Committed even when opening the board fails: the trace of a failed probe is
@@ -91,9 +119,16 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
         else:
             pipeline = stack.enter_context(open_emulated(
                 profile, registry, scenario=emulate, realtime=realtime, seed=args.seed,
-                trace=trace))
+                trace=trace, scenario_params=scenario_params))
         for w in pipeline.warnings:
             print(f"warning: {w}", file=sys.stderr)
+        if emulate == "replay" and isinstance(pipeline.board, EmulatedBoard):
+            # the rest of the record (opening the board took some simulated time)
+            left = pipeline.board.scenario.duration_s - pipeline.clock.now_ns() / 1e9
+            if args.duration is not None and args.duration > left:
+                print(f"warning: --replay-truth {args.replay_truth} ends after {left:.3f} s; "
+                      "the run stops there", file=sys.stderr)
+            duration = left if args.duration is None else min(args.duration, left)
         if web is not None:
             live = stack.enter_context(LiveView.for_pipeline(pipeline, host=web.host,
                                                              port=web.port))
@@ -104,6 +139,7 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
         if args.output:
             csv_sink = CsvSink(args.output, include_samples=args.samples, frame=frame)
             sinks.append(csv_sink)
+        sinks.extend(_flight_sinks(args, profile, registry, stack))
         truth_sink = None
         if args.truth and isinstance(pipeline.board, EmulatedBoard):
             truth_sink = TruthSink(args.truth, pipeline.board.scenario,
@@ -111,12 +147,121 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
             sinks.append(truth_sink)
         try:
             summary = pipeline.run(duration, sinks)
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as stop:
             summary = pipeline.summary()
-            print("\ninterrupted", file=sys.stderr)
+            why = f"stopped by {stop}" if str(stop) else "interrupted"
+            print(f"\n{why}; the files are complete up to here", file=sys.stderr)
+        except ImuhalError as exc:
+            raise ImuhalError(f"{exc}{_kept_note(args.output, csv_sink)}") from exc
+        except Exception:
+            if args.output:
+                print(f"imuhal: note{_kept_note(args.output, csv_sink)}", file=sys.stderr)
+            raise
     print(summary.describe(), file=sys.stderr)
     if csv_sink is not None:
         print(f"wrote {csv_sink.rows} rows to {args.output}", file=sys.stderr)
     if truth_sink is not None:
         print(f"wrote {truth_sink.rows} truth rows to {args.truth}", file=sys.stderr)
     return 0
+
+
+def _flight_sinks(args: argparse.Namespace, profile: Any, registry: Registry,
+                  stack: contextlib.ExitStack) -> list[Any]:
+    """The --nmea outputs and the --audio / --audio-wav sink (the plugins registered as
+    ``nmea`` and ``vario-audio``), closed with the run."""
+    from imuhal.sinks.flight.transports import PtyTransport
+
+    out: list[Any] = []
+    extra: dict[str, Any] = {}
+    if args.nmea_sentences:
+        extra["sentences"] = tuple(x.strip().upper() for x in args.nmea_sentences.split(",")
+                                   if x.strip())
+    nmea = registry.sinks.get("nmea")
+    for spec in args.nmea:
+        sink = nmea({"output": spec, **extra})
+        stack.callback(sink.close)
+        transport = sink.transport
+        where = transport.description
+        if isinstance(transport, PtyTransport):
+            where += f" (open {transport.path} in the flight app)"
+        print(f"nmea: {where}", file=sys.stderr)
+        out.append(sink)
+    if args.audio or args.audio_wav:
+        out.append(registry.sinks.get("vario-audio")(
+            {"curve": profile.audio, "wav": args.audio_wav, "live": args.audio}))
+    return out
+def _trace_writer(out: AtomicFile, every_s: float = 2.0) -> Callable[[Any], None]:
+    """Writes each bus transaction as a line, syncing ``out`` every ``every_s`` seconds of
+    wall time like the CSV log (a power cut loses at most that much of the trace)."""
+    last = time.monotonic()
+
+    def write(transfer: Any) -> None:
+        nonlocal last
+        out.write(format_transfer(transfer) + "\n")
+        now = time.monotonic()
+        if now - last >= every_s:
+            out.sync()
+            last = now
+
+    return write
+
+
+def _kept_note(output: str | None, sink: Any) -> str:
+    """What a failed run did to --output, for the end of its error message."""
+    if not output:
+        return ""
+    partial = getattr(sink, "partial_path", None)
+    if partial is not None:
+        return (f"; {output} was left as it was and the {sink.rows} rows written before the "
+                f"failure are in {partial}")
+    return f"; nothing was written to {output}"
+
+
+def _replay_params(args: argparse.Namespace, emulate: str | None) -> dict[str, Any] | None:
+    """Scenario parameters from --replay-truth; the replay scenario cannot run without one."""
+    if emulate == "replay":
+        if not args.replay_truth:
+            raise ImuhalError("--emulate replay needs the truth CSV to fly: add --replay-truth "
+                              "FILE.csv (e.g. one written by `imuhal run --truth`)")
+        _check_replay_file(args.replay_truth)
+        return {"path": args.replay_truth}
+    if args.replay_truth:
+        raise ImuhalError("--replay-truth is read by the replay scenario; add --emulate replay")
+    return None
+
+
+MAX_REPLAY_S = 1e6
+"""Longest record --replay-truth accepts (11.6 days): beyond it, a time column is wrong."""
+
+
+def _check_replay_file(path: str) -> None:
+    """A truth CSV that the replay scenario can fly, or one line saying what is wrong."""
+    from imuhal.sim.truth_csv import read_truth_csv
+
+    try:
+        cols, _ = read_truth_csv(path)
+    except FileNotFoundError:
+        raise ImuhalError(f"--replay-truth {path}: file not found") from None
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise ImuhalError(f"--replay-truth {path}: not a truth CSV ({exc}); give a file "
+                          "written by `imuhal run --truth` (docs/simulation.md)") from None
+    needed = ("t_s", "qw", "qx", "qy", "qz", "pn_m", "pe_m", "pd_m")
+    missing = [c for c in needed if c not in cols]
+    if missing:
+        raise ImuhalError(f"--replay-truth {path}: missing column(s) {', '.join(missing)}; "
+                          "give a file written by `imuhal run --truth` (docs/simulation.md)")
+    t = cols["t_s"]
+    if len(t) < 2:
+        raise ImuhalError(f"--replay-truth {path}: needs at least two rows to fly")
+    for name in needed:
+        bad = [i for i, v in enumerate(cols[name]) if not math.isfinite(v)]
+        if bad:
+            raise ImuhalError(f"--replay-truth {path}: data row {bad[0] + 1}, column "
+                              f"'{name}': not a finite number")
+    if t[0] < 0 or t[-1] > MAX_REPLAY_S:
+        raise ImuhalError(f"--replay-truth {path}: times run from {t[0]:g} to {t[-1]:g} s; "
+                          f"they must lie between 0 and {MAX_REPLAY_S:g} s")
+    steps = [i for i in range(1, len(t)) if t[i] <= t[i - 1]]
+    if steps:
+        raise ImuhalError(f"--replay-truth {path}: data row {steps[0] + 1}: time {t[steps[0]]:g}"
+                          " s does not increase; rows must be in time order")

@@ -1,66 +1,263 @@
-"""Atomic file writing: a crash leaves either the old file or the new one, never half of one.
+"""Safe file writing: a crash or a failed run never destroys a good file, and never leaves
+half of one under the final name.
 
-Everything imuhal writes for a user (CSV logs, truth files, profiles with calibration) goes
-through here: the data go to a temporary file in the same folder (so the final rename never
-crosses file systems), are flushed and fsync'ed, and only then replace the target.
+Everything imuhal writes for a user (CSV logs, truth files, traces, profiles with calibration)
+goes through here. The rules:
+
+* **Atomic replace.** Data go to a temporary file in the target's folder (so the final rename
+  never crosses file systems), are flushed and fsync'ed, and only then replace the target.
+  With ``partial=True`` the temporary file has a visible, documented name, ``TARGET.partial``,
+  so a long log survives a power cut there up to its last ``sync()``; otherwise a hidden
+  ``.TARGET.*.tmp``.
+* **Symlinks are followed**: the file a link points to is replaced and the link is kept.
+* **FIFOs and character devices** (``/dev/stdout``, a named pipe) are written directly: they
+  cannot be replaced, and nothing could be lost there. Other special files (block devices,
+  sockets, directories) are refused with an :class:`OutputError`.
+* **Modes**: a replaced file keeps its permission bits; a new file gets ``0666`` minus the
+  umask, like any file a shell redirection creates.
+* **Inputs are never outputs**: :func:`check_outputs` refuses a command whose output is one of
+  its inputs (same path after resolving links, or the same file through a hard link), and an
+  output folder that is missing or not writable, before any work starts.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
-import shutil
+import signal
+import stat
 import tempfile
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import IO, Any
+
+from imuhal.core.errors import OutputError
+
+PARTIAL_SUFFIX = ".partial"
+"""Suffix of the visible temporary file of a ``partial=True`` write (``log.csv.partial``)."""
+
+PathLike = str | os.PathLike[str]
+
+
+def resolve_target(path: PathLike) -> Path:
+    """The file a write to ``path`` must change: ``path`` with every symlink followed (a
+    dangling link yields the path it points to, which will be created). A special file
+    reached through links (``/dev/stdout`` -> ``/proc/self/fd/1`` -> a pipe) is opened by
+    the path given, since its resolved name may not be openable."""
+    try:
+        special = not stat.S_ISREG(os.stat(path).st_mode)
+    except OSError:
+        special = False
+    return Path(path) if special else Path(os.path.realpath(os.fspath(path)))
+
+
+def _special_kind(mode: int) -> str | None:
+    if stat.S_ISREG(mode):
+        return None
+    if stat.S_ISFIFO(mode) or stat.S_ISCHR(mode):
+        return "direct"
+    if stat.S_ISDIR(mode):
+        return "a directory"
+    if stat.S_ISBLK(mode):
+        return "a block device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "a special file"
+
+
+def current_umask() -> int:
+    """The process umask, read without changing it where Linux allows."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o022)  # no way to read it without setting it: put it straight back
+    os.umask(mask)
+    return mask
+
+
+def check_writable(path: PathLike, what: str = "output") -> Path:
+    """Fail early, before a board is opened or a long computation runs, when ``path`` cannot
+    be written: its folder is missing or not writable, or it is a directory or a block
+    device. Returns the resolved target."""
+    given = Path(path)
+    target = resolve_target(given)
+    try:
+        st = os.stat(target)
+    except FileNotFoundError:
+        st = None
+    except OSError as exc:
+        raise OutputError(f"{what} {given}: cannot be used: {exc.strerror or exc}") from None
+    if st is not None:
+        kind = _special_kind(st.st_mode)
+        if kind == "direct":
+            return target
+        if kind is not None:
+            raise OutputError(f"{what} {given}: is {kind}; give the path of a file to write")
+    folder = target.parent
+    if not folder.is_dir():
+        raise OutputError(f"{what} {given}: folder {folder} does not exist; create it first "
+                          f"(mkdir -p {folder}) or choose another path")
+    try:  # really create a file there: permissions, ACLs and read-only mounts all show
+        fd, probe = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".probe", dir=folder)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise OutputError(f"{what} {given}: folder {folder} is not writable "
+                          f"({exc.strerror or exc}); choose a folder you can write to") from None
+    if st is not None and not os.access(target, os.W_OK) and os.geteuid() != 0:
+        # Replacing it by rename would succeed, but the user marked it read-only on purpose.
+        raise OutputError(f"{what} {given}: the file is read-only; make it writable or "
+                          "choose another path")
+    return target
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    if resolve_target(a) == resolve_target(b):
+        return True
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def check_outputs(outputs: Mapping[str, PathLike | None],
+                  inputs: Mapping[str, PathLike | None] | None = None) -> None:
+    """Refuse before any work when an output is also an input of the same command, when two
+    outputs are the same file, or when an output cannot be written (:func:`check_writable`).
+
+    Keys are how the user gave each path (``"--output"``, ``"INPUT.csv"``): every message
+    names the two options and the file.
+    """
+    outs = [(label, Path(p)) for label, p in outputs.items() if p is not None]
+    ins = [(label, Path(p)) for label, p in (inputs or {}).items() if p is not None]
+    for label, out in outs:
+        for in_label, inp in ins:
+            if _same_file(out, inp):
+                raise OutputError(
+                    f"{label} {out}: is the same file as {in_label} {inp}; writing it would "
+                    "destroy the input - choose another output path")
+    for i, (label, out) in enumerate(outs):
+        for other_label, other in outs[i + 1:]:
+            if _same_file(out, other):
+                raise OutputError(f"{label} {out} and {other_label} {other}: are the same file; "
+                                  "give each output its own path")
+    for label, out in outs:
+        check_writable(out, label)
 
 
 class AtomicFile:
     """A file that appears under ``path`` only on ``commit()`` (or a clean ``with``).
 
     Text (UTF-8) by default, bytes with ``binary=True``. ``mode_from`` copies the permission
-    bits of an existing file (a profile rewritten in place keeps its mode).
+    bits of an existing file; otherwise a replaced target keeps its own mode and a new one
+    follows the umask. ``partial=True`` writes to the visible ``TARGET.partial`` (replaced if
+    left over from an earlier run), which :meth:`sync` makes durable and :meth:`abort` can
+    keep. When ``path`` is a FIFO or character device, data are written to it directly and
+    commit only flushes (``direct`` is then True).
     """
 
-    def __init__(self, path: str | os.PathLike[str], *, newline: str | None = None,
-                 binary: bool = False, mode_from: str | os.PathLike[str] | None = None) -> None:
+    def __init__(self, path: PathLike, *, newline: str | None = None,
+                 binary: bool = False, mode_from: PathLike | None = None,
+                 partial: bool = False) -> None:
         self.path = Path(path)
+        self.target = resolve_target(self.path)
         self.mode_from = Path(mode_from) if mode_from is not None else None
-        folder = self.path.parent if str(self.path.parent) else Path(".")
-        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=folder)
-        self.tmp_path = Path(tmp)
+        self.partial = partial
+        self.direct = False
+        st: os.stat_result | None
+        try:
+            st = os.stat(self.target)
+        except FileNotFoundError:
+            st = None
+        except OSError as exc:
+            raise OutputError(f"{self.path}: cannot be written: {exc.strerror or exc}") from None
+        kind = _special_kind(st.st_mode) if st is not None else None
+        if kind not in (None, "direct"):
+            raise OutputError(f"{self.path}: is {kind}; give the path of a file to write")
+        try:
+            if kind == "direct":
+                self.direct = True
+                self.tmp_path = self.target
+                fd = os.open(self.target, os.O_WRONLY | os.O_APPEND)
+            elif partial:
+                self.tmp_path = self.target.with_name(self.target.name + PARTIAL_SUFFIX)
+                if self.tmp_path.is_symlink():
+                    self.tmp_path.unlink()  # never write through a link at our scratch name
+                fd = os.open(self.tmp_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NOFOLLOW,
+                             0o666)  # the kernel applies the umask
+            else:
+                fd, tmp = tempfile.mkstemp(prefix=f".{self.target.name}.", suffix=".tmp",
+                                           dir=self.target.parent)
+                self.tmp_path = Path(tmp)
+                os.chmod(fd, 0o666 & ~current_umask())  # mkstemp makes 0600
+        except FileNotFoundError:
+            raise OutputError(f"{self.path}: folder {self.target.parent} does not exist; create "
+                              "it first or choose another path") from None
+        except OSError as exc:
+            raise OutputError(f"{self.path}: cannot be written: {exc.strerror or exc}") from None
+        self._keep_mode_of = self.mode_from if self.mode_from is not None else (
+            self.target if st is not None else None)
         self.file: IO[Any] | None = (os.fdopen(fd, "wb") if binary else
                                      os.fdopen(fd, "w", newline=newline, encoding="utf-8"))
+        if partial and not self.direct:
+            _fsync_dir(self.tmp_path.parent)  # the visible name itself survives a power cut
 
     def write(self, data: str | bytes) -> int:
         assert self.file is not None, "file already committed or aborted"
         return self.file.write(data)
 
+    def sync(self) -> None:
+        """Make everything written so far durable (flush and fsync), without committing: after
+        a power cut it is in the temporary file (``TARGET.partial`` with ``partial=True``)."""
+        if self.file is None:
+            return
+        self.file.flush()
+        if not self.direct:
+            os.fsync(self.file.fileno())
+
     def commit(self) -> Path:
-        """Flush, fsync and rename over the target; returns the target path."""
+        """Flush, fsync and rename over the target; returns the path written. Stop signals
+        arriving meanwhile are held until it is done (a stop must not cut the commit)."""
         if self.file is None:
             raise ValueError(f"{self.path}: already committed or aborted")
-        self.file.flush()
-        os.fsync(self.file.fileno())
-        self.file.close()
-        self.file = None
-        try:
-            if self.mode_from is not None and self.mode_from.exists():
-                shutil.copymode(self.mode_from, self.tmp_path)
-            os.replace(self.tmp_path, self.path)
-        except BaseException:
-            # Interrupted before the rename took effect: the target is untouched; leave no
-            # temporary file behind either.
-            self.tmp_path.unlink(missing_ok=True)
-            raise
-        _fsync_dir(self.path.parent)
-        return self.path
-
-    def abort(self) -> None:
-        """Drop the temporary file; the target keeps whatever it had."""
-        if self.file is not None:
+        with _stop_signals_held():
+            self.sync()
             self.file.close()
             self.file = None
+            if self.direct:
+                return self.target
+            try:
+                keep = self._keep_mode_of
+                if keep is not None and keep.exists():
+                    os.chmod(self.tmp_path, stat.S_IMODE(os.stat(keep).st_mode))
+                os.replace(self.tmp_path, self.target)
+            except BaseException:
+                # The rename did not happen: the target is untouched. A visible partial file
+                # is the only copy of the data, so it stays; a hidden temporary one goes.
+                if not self.partial:
+                    self.tmp_path.unlink(missing_ok=True)
+                raise
+            _fsync_dir(self.target.parent)
+        return self.target
+
+    def abort(self, *, keep_partial: bool = False) -> Path | None:
+        """Leave the target as it was. The data written so far are dropped, or with
+        ``keep_partial`` kept (synced) in the temporary file, whose path is returned."""
+        if self.file is not None:
+            if keep_partial:
+                self.sync()
+            self.file.close()
+            self.file = None
+        if self.direct:
+            return None
+        if keep_partial and self.tmp_path.exists():
+            return self.tmp_path
         self.tmp_path.unlink(missing_ok=True)
+        return None
 
     def __enter__(self) -> AtomicFile:
         return self
@@ -72,19 +269,36 @@ class AtomicFile:
             self.abort()
 
 
-def atomic_write_text(path: str | os.PathLike[str], text: str) -> Path:
-    """Write ``text`` to ``path`` atomically."""
+def atomic_write_text(path: PathLike, text: str) -> Path:
+    """Write ``text`` to ``path`` atomically; returns the path written (links followed)."""
     with AtomicFile(path) as f:
         f.write(text)
-    return Path(path)
+    return f.target
 
 
-def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, *,
-                       mode_from: str | os.PathLike[str] | None = None) -> Path:
+def atomic_write_bytes(path: PathLike, data: bytes, *,
+                       mode_from: PathLike | None = None) -> Path:
     """Write ``data`` to ``path`` atomically (keeping ``mode_from``'s permissions)."""
     with AtomicFile(path, binary=True, mode_from=mode_from) as f:
         f.write(data)
-    return Path(path)
+    return f.target
+
+
+_HELD_SIGNALS = {getattr(signal, n) for n in ("SIGTERM", "SIGHUP", "SIGINT")
+                 if hasattr(signal, n)}
+
+
+@contextlib.contextmanager
+def _stop_signals_held() -> Iterator[None]:
+    """Hold SIGTERM, SIGHUP and SIGINT (delivered when the block ends) where the platform can."""
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD_SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 def _fsync_dir(folder: Path) -> None:

@@ -59,11 +59,19 @@ class ProfileError(ImuhalError):
     def __init__(self, source: str, problems: list[str]) -> None:
         self.source = source
         self.problems = problems
+        if len(problems) == 1:  # one problem, one line (it usually starts with its file:line)
+            only = problems[0]
+            super().__init__(only if only.startswith(source) else f"{source}: {only}")
+            return
         lines = "\n".join(f"  - {p}" for p in problems)
         count = len(problems)
         super().__init__(
             f"{source}: {count} problem{'s' if count != 1 else ''} in board profile:\n{lines}"
         )
+
+
+class OutputError(ImuhalError):
+    """A file cannot be written where the user asked, or writing it would destroy an input."""
 
 
 class PluginError(ImuhalError):

@@ -8,10 +8,9 @@ sinks marked invalid.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from enum import Enum, IntFlag
+from enum import Enum, IntEnum, IntFlag
 from typing import ClassVar, TypeAlias
 
 Vec3: TypeAlias = tuple[float, float, float]
@@ -34,6 +33,8 @@ class Channel(str, Enum):
     """Velocity over ground in NED (north, east, down), m/s (e.g. a GNSS receiver)."""
     AIRSPEED = "airspeed"
     """True airspeed along the body x axis, m/s (e.g. a pitot tube)."""
+    POSITION = "position"
+    """Geodetic position: latitude and longitude in degrees (WGS-84), height in m."""
 
     @property
     def unit(self) -> str:
@@ -48,6 +49,7 @@ _UNITS = {
     Channel.TEMPERATURE: "degC",
     Channel.VELOCITY: "m/s",
     Channel.AIRSPEED: "m/s",
+    Channel.POSITION: "deg, deg, m",
 }
 
 
@@ -77,7 +79,10 @@ class SampleFlag(IntFlag):
     STALE = 1 << 5
     """The chip had no new data (data-ready not set when it should have been)."""
     OUT_OF_RANGE = 1 << 6
-    """The value is outside what the chip can physically report (datasheet limits)."""
+    """The value is outside what the chip can physically report (datasheet limits, or
+    beyond the configured full scale)."""
+    OUT_OF_ORDER = 1 << 7
+    """The sample is older than one its device already delivered for the same quantity."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -222,6 +227,51 @@ class AirspeedSample(ScalarSample):
         return self.airspeed_m_s
 
 
+class FixType(IntEnum):
+    """What a GNSS receiver says its position solution is (the u-blox NAV-PVT ``fixType``
+    codes; NMEA GGA quality and GSA mode map onto them)."""
+
+    NO_FIX = 0
+    DEAD_RECKONING = 1
+    FIX_2D = 2
+    FIX_3D = 3
+    GNSS_DEAD_RECKONING = 4
+    TIME_ONLY = 5
+
+
+class HeightDatum(str, Enum):
+    """What a GNSS height is measured from."""
+
+    MSL = "msl"
+    """Mean sea level (the geoid: NMEA GGA altitude, NAV-PVT hMSL)."""
+    ELLIPSOID = "ellipsoid"
+    """The WGS-84 ellipsoid (NAV-PVT height; GGA altitude + geoid separation)."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class PositionSample(Sample):
+    """A geodetic position fix, as a GNSS receiver reports it.
+
+    ``latitude_deg``/``longitude_deg`` are WGS-84 degrees (north/east positive);
+    ``height_m`` is measured from ``height_datum``. Accuracies are the receiver's 1-sigma
+    estimates (m; None: not reported). Like :class:`VelocitySample` it is an earth-frame
+    quantity (no mount rotation) and ``t_ns`` is the measurement epoch on the pipeline clock.
+    A sample without a fix is flagged (``SampleFlag.STALE``), never fused.
+    """
+
+    latitude_deg: float = 0.0
+    longitude_deg: float = 0.0
+    height_m: float = 0.0
+    height_datum: HeightDatum = HeightDatum.MSL
+    horizontal_accuracy_m: float | None = None
+    vertical_accuracy_m: float | None = None
+    fix_type: FixType = FixType.NO_FIX
+    satellites: int = 0
+    utc_s: float | None = None
+    """The epoch in UTC as the receiver stamped it (s since 1970-01-01; None: unknown)."""
+    channel: ClassVar[Channel] = Channel.POSITION
+
+
 SAMPLE_TYPES: dict[Channel, type[Sample]] = {
     Channel.ACCEL: AccelSample,
     Channel.GYRO: GyroSample,
@@ -230,13 +280,9 @@ SAMPLE_TYPES: dict[Channel, type[Sample]] = {
     Channel.TEMPERATURE: TemperatureSample,
     Channel.VELOCITY: VelocitySample,
     Channel.AIRSPEED: AirspeedSample,
+    Channel.POSITION: PositionSample,
 }
 
 
 def _vec3(v: Sequence[float]) -> Vec3:
     return (float(v[0]), float(v[1]), float(v[2]))
-
-
-def non_finite_flag(values: tuple[float, ...] | list[float]) -> SampleFlag:
-    """``SampleFlag.NAN`` if any value is NaN or infinite, else ``OK``."""
-    return SampleFlag.NAN if any(not math.isfinite(v) for v in values) else SampleFlag.OK

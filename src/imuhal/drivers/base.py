@@ -8,15 +8,14 @@ units in the chip's own sensor frame; calibration and mounting are applied by th
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
 from pydantic import BaseModel, ConfigDict
 
 from imuhal.bus.base import Bus, BusKind, Link
 from imuhal.core.clock import Clock
-from imuhal.core.samples import Channel, Sample, SampleFlag
+from imuhal.core.samples import Channel, Sample
 from imuhal.drivers.settings import literal_choices
 
 
@@ -55,26 +54,17 @@ class PollResult:
 
 @dataclass
 class DeviceHealth:
-    """Running counts the pipeline reports; a driver increments what it detects."""
+    """What only the driver can see, reported in the run summary beside the pipeline's own
+    counts (samples, flags and bus errors are counted by the pipeline, once)."""
 
-    samples: int = 0
-    flagged: int = 0
-    bus_errors: int = 0
     resets_detected: int = 0
+    """Times the driver found its chip had reset on its own (configuration lost)."""
     reconfigurations: int = 0
-    flags_seen: dict[str, int] = field(default_factory=dict)
+    """Times the driver reprogrammed its chip (after a reset, a hang, a recovery)."""
 
-    def record(self, samples: Iterable[Sample]) -> None:
-        """Count produced samples, and the flagged ones by flag name."""
-        for sample in samples:
-            self.samples += 1
-            if sample.flags == SampleFlag.OK:
-                continue
-            self.flagged += 1
-            for flag in SampleFlag:
-                if flag and flag in sample.flags:
-                    key = flag.name or str(int(flag))
-                    self.flags_seen[key] = self.flags_seen.get(key, 0) + 1
+    def counts(self) -> dict[str, int]:
+        return {"resets_detected": self.resets_detected,
+                "reconfigurations": self.reconfigurations}
 
 
 class Driver(ABC):
@@ -133,6 +123,12 @@ class Driver(ABC):
         self.health.reconfigurations += 1
         # configure() may have waited on the clock (resets, reloads): start from after it.
         return self.start(max(now_ns, self.clock.now_ns()))
+
+    def full_scale(self, channel: Channel) -> float | None:
+        """The largest magnitude (SI) a correct ``channel`` value can have in the current
+        configuration; the pipeline flags anything beyond it OUT_OF_RANGE. None: not
+        declared (only NaN/inf are then caught)."""
+        return None
 
     def child_buses(self) -> dict[str, Bus]:
         """Buses this chip exposes to others (an I2C master or bypass), by local name."""

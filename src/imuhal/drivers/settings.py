@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import numbers
 import types
 import typing
 from collections.abc import Mapping
@@ -40,7 +41,13 @@ def table_setting(table: Mapping[Any, object], unit: str, *, kind: type = float,
     """
 
     def check(value: Any, info: Any) -> Any:
-        return kind(pick(table, value, label or info.field_name, unit))
+        name = label or info.field_name
+        if isinstance(value, bool) or not isinstance(value, numbers.Real):
+            # strict like every other number in a profile: true is not 1, "500" is not 500
+            allowed = ", ".join(f"{k:g}" if isinstance(k, int | float) else str(k)
+                                for k in sorted(table))
+            raise ValueError(f"{name} must be a number in {unit}; allowed: {allowed} {unit}")
+        return kind(pick(table, value, name, unit))
 
     return Annotated[kind, BeforeValidator(check), Allowed(tuple(table))]
 

@@ -9,10 +9,15 @@ The simulation knows the truth in the body frame; each chip sees it in its own s
 
 from __future__ import annotations
 
+import inspect
+from collections.abc import Iterable
+
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import PluginError
 from imuhal.core.frames import FloatArray
+from imuhal.emulation.faults import BoardFaults
 from imuhal.plugins.manager import Registry
+from imuhal.profile.faults import FaultSpec
 from imuhal.profile.model import BoardProfile
 from imuhal.profile.topology import device_order, split_bus_ref
 from imuhal.sim.chip import ChipEmulator
@@ -34,7 +39,11 @@ class EmulatedBoard:
         scenario: Scenario,
         chip_to_body: dict[str, FloatArray],
         error_models: dict[str, SensorErrorModel] | None = None,
+        faults: Iterable[FaultSpec] = (),
+        seed: int = 0,
     ) -> None:
+        """``faults``: injected faults (imuhal.emulation.faults; the caller passes the
+        profile's ``emulation.faults`` and any others); ``seed`` seeds their draws."""
         self.clock = clock
         self.scenario = scenario
         self.buses: dict[str, EmulatedBus] = {}
@@ -42,6 +51,7 @@ class EmulatedBoard:
             factory = registry.buses.get(cfg.kind)
             self.buses[name] = EmulatedBus(f"emul://{name}", factory.kind)
         self.emulators: dict[str, ChipEmulator] = {}
+        self.faults = BoardFaults(clock, self.emulators, seed=seed)
         hosts: dict[str, EmulatedBus] = {}
         for name in device_order(profile):
             dev = profile.devices[name]
@@ -52,13 +62,24 @@ class EmulatedBoard:
                     f"this profile cannot run emulated; emulators exist for: "
                     f"{', '.join(registry.emulators.names()) or 'none'}"
                 )
+            try:
+                inspect.signature(reg.obj).bind(clock=clock)
+            except TypeError:
+                raise PluginError(
+                    f"device {name!r}: the emulator {reg.obj.__qualname__} registered for "
+                    f"{dev.driver!r} by plugin {reg.plugin!r} ({reg.package or 'local'}) cannot "
+                    "be built as Emulator(clock=...); its constructor must accept the keyword "
+                    "argument clock (see docs/writing-a-driver.md) - update the plugin"
+                ) from None
             emulator = reg.obj(clock=clock)
             host = self._bus_for(dev.bus)
-            host.attach(dev.address, emulator)
+            host.attach(dev.address, self.faults.line(name, emulator, host, dev.address))
             self.emulators[name] = emulator
             hosts[name] = host
         for name, emulator in self.emulators.items():
             emulator.connect_host(hosts[name])
+        for spec in faults:
+            self.faults.add(spec)
         self._chip_to_body = chip_to_body
         self._errors = error_models or {}
         self._device_t_ns: dict[str, int] = {}
@@ -84,9 +105,13 @@ class EmulatedBoard:
             self._truth_t_ns = t_ns
         return self.truth
 
-    def before_poll(self, t_ns: int, device: str) -> None:
-        """The pipeline is about to poll ``device`` at ``t_ns``: give its chip its inputs."""
+    def before_poll(self, t_ns: int, device: str) -> int:
+        """The pipeline is about to poll ``device``, due at ``t_ns``: apply the faults due
+        (a late poll moves the clock) and give its chip its inputs. Returns the time the
+        poll actually happens."""
+        t_ns = self.faults.before_poll(device, t_ns)
         self.update(t_ns, device)
+        return t_ns
 
     def update(self, t_ns: int, device: str | None = None) -> TruthState:
         """Hand ``device`` (default: every chip) its inputs at ``t_ns``: the truth in its
@@ -101,6 +126,7 @@ class EmulatedBoard:
                 period = (t_ns - last) / 1e9 if last is not None and t_ns > last \
                     else DEFAULT_PERIOD_S
                 inputs = model.apply(t_ns / 1e9, inputs, period)
+            inputs = self.faults.physics(name, t_ns, inputs)
             self._device_t_ns[name] = t_ns
             self.emulators[name].set_physics(inputs)
         return truth

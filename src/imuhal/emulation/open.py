@@ -11,7 +11,7 @@ device name, its ``scenario`` and ``truth_at(t_ns)``).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from imuhal.bus.spy import Transfer
@@ -22,6 +22,7 @@ from imuhal.emulation.board import EmulatedBoard
 from imuhal.emulation.mounting import chip_rotations
 from imuhal.pipeline.pipeline import Pipeline
 from imuhal.plugins.manager import Registry
+from imuhal.profile.faults import FaultSpec
 from imuhal.profile.model import BoardProfile, MountSpec
 from imuhal.profile.topology import device_order
 from imuhal.sim.errors import SensorErrorModel, SensorErrorSpec, device_seed, error_spec_of
@@ -39,6 +40,7 @@ def open_emulated(
     error_specs: Mapping[str, SensorErrorSpec | None] | None = None,
     calibrated: bool = True,
     trace: Callable[[Transfer], None] | None = None,
+    faults: Sequence[FaultSpec] = (),
     physical_mounts: Mapping[str, MountSpec] | None = None,
 ) -> Pipeline:
     """A pipeline over ``profile``'s board, emulated, flying ``scenario``.
@@ -51,10 +53,9 @@ def open_emulated(
     and bias model (as its emulator declares); False gives ideal chips (quantisation and
     range only). ``error_specs`` (device -> spec; devices not named are ideal) replaces
     those models, for tests and studies that need known offsets, scale errors and iron.
-    ``calibrated`` and ``trace`` are the pipeline's (see :class:`Pipeline`).
-    ``physical_mounts`` (device -> mount, as in a profile) places those chips on the board
-    differently from what the profile says: the pipeline still rotates by the profile's
-    mount, so a wrong profile can be emulated (``imuhal check-mounts`` finds it).
+    rotations = chip_rotations(_physically_mounted(profile, physical_mounts or {}))
+    board = EmulatedBoard(profile, registry, clock, world, rotations, errors,
+                          faults=[*profile.emulation.faults, *faults], seed=run_seed)
     """
     name = profile.emulation.scenario if scenario is None else scenario
     clock = SimulatedClock(realtime=realtime)
@@ -72,7 +73,8 @@ def open_emulated(
         errors = error_models_for(profile, registry, run_seed) if use_errors else None
     # The emulation's own reading of the mounts, not the pipeline's: see emulation.mounting.
     rotations = chip_rotations(_physically_mounted(profile, physical_mounts or {}))
-    board = EmulatedBoard(profile, registry, clock, world, rotations, errors)
+    board = EmulatedBoard(profile, registry, clock, world, rotations, errors,
+                          faults=[*profile.emulation.faults, *faults], seed=run_seed)
     board.update(0)
     return Pipeline(profile, registry, board, calibrated=calibrated, trace=trace)
 

@@ -35,3 +35,7 @@ class TruthSink:
 
     def close(self) -> None:
         record_truth(self.path, self.scenario, (t / 1e9 for t in self._times_ns))
+
+    def abort(self) -> None:
+        """A failed run: write nothing, ``path`` keeps what it had."""
+        self._times_ns.clear()

@@ -176,7 +176,7 @@ class Snapshotter:
         if self.pipeline is None or name not in self.pipeline.devices:
             return 0
         dev = self.pipeline.devices[name]
-        return dev.driver.health.bus_errors + dev.device_errors
+        return dev.bus_errors + dev.device_errors
 
     def _remember(self, copy: Copy) -> _Past | None:
         """Store this copy's essentials; return the oldest one within the window."""
@@ -251,7 +251,7 @@ class Snapshotter:
                 "samples": sum(d.counts.values()) if d is not None else 0,
                 "flagged": dict(d.flagged) if d is not None else {},
                 "flagged_recent": recent_flags,
-                "bus_errors": (self.pipeline.devices[name].driver.health.bus_errors
+                "bus_errors": (self.pipeline.devices[name].bus_errors
                                if self.pipeline is not None and name in self.pipeline.devices
                                else 0),
                 "device_errors": (self.pipeline.devices[name].device_errors

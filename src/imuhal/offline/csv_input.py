@@ -17,6 +17,7 @@ import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -29,6 +30,9 @@ MAG = ("mx_ut", "my_ut", "mz_ut")
 PRESSURE = "pressure_pa"
 ALTITUDE = "altitude_m"
 ACCEL_UP = "accel_up_m_s2"
+
+MAX_TIME_S = 1e9
+"""Largest |t_s| accepted (31 years): times become integer nanoseconds, which must fit 64 bits."""
 
 SPARSE_COLUMNS = frozenset({PRESSURE, *MAG, ALTITUDE, ACCEL_UP})
 """Columns whose cells may be empty: a slower sensor has no sample on that row."""
@@ -81,7 +85,8 @@ def iter_sample_chunks(path: str | Path, *, rate_hz: float | None = None,
     chunk_rows = chunk_rows or CHUNK_ROWS
     p = Path(path)
     try:
-        handle = p.open(newline="", encoding="utf-8")
+        # utf-8-sig: a byte-order mark (spreadsheets write one) is not part of the first name
+        handle = p.open(newline="", encoding="utf-8-sig")
     except OSError as exc:
         raise InputError(f"{p}: cannot read: {exc.strerror or exc}") from None
     with handle:
@@ -90,6 +95,14 @@ def iter_sample_chunks(path: str | Path, *, rate_hz: float | None = None,
             header = [h.strip() for h in next(reader)]
         except StopIteration:
             raise InputError(f"{p}: the file is empty; expected a header line") from None
+        except (UnicodeDecodeError, csv.Error) as exc:
+            raise InputError(f"{p}: not a CSV text file ({exc})") from None
+        if len(header) == 1:
+            for sep, name in ((";", "semicolons"), ("\t", "tabs"), ("|", "bars")):
+                if sep in header[0]:
+                    raise InputError(f"{p}: line 1: the columns are separated by {name}; imuhal "
+                                     "reads comma-separated values: save the file with ',' as "
+                                     "the delimiter")
         dupes = {h for h in header if header.count(h) > 1}
         if dupes:
             raise InputError(f"{p}: line 1: duplicate column(s) {', '.join(sorted(dupes))}")
@@ -100,7 +113,8 @@ def iter_sample_chunks(path: str | Path, *, rate_hz: float | None = None,
         last_t: float | None = None
         rows: list[list[str]] = []
         lines: list[int] = []
-        for line_no, cells in enumerate(reader, start=2):
+        numbered = _numbered_rows(p, reader)
+        for line_no, cells in numbered:
             if len(cells) != width:
                 if not cells or all(not c.strip() for c in cells):
                     continue
@@ -122,6 +136,20 @@ def iter_sample_chunks(path: str | Path, *, rate_hz: float | None = None,
                 yield table
     if not done:
         raise InputError(f"{p}: no data rows after the header")
+
+
+def _numbered_rows(p: Path, reader: Any) -> Iterator[tuple[int, list[str]]]:
+    """(line number, cells) of each data row; a file that is not CSV text is an InputError."""
+    line_no = 1
+    while True:
+        try:
+            cells = next(reader)
+        except StopIteration:
+            return
+        except (UnicodeDecodeError, csv.Error) as exc:
+            raise InputError(f"{p}: line {line_no + 1}: not CSV text ({exc})") from None
+        line_no += 1
+        yield line_no, cells
 
 
 def _sparse(column: str) -> bool:
@@ -201,6 +229,11 @@ def _cell(path: Path, line_no: int, column: str, cell: str) -> float:
 
 
 def _check_time(path: Path, t: np.ndarray, lines: np.ndarray) -> None:
+    far = np.flatnonzero(np.abs(t) > MAX_TIME_S)
+    if far.size:
+        i = int(far[0])
+        raise InputError(f"{path}: line {lines[i]}, column '{TIME}': {t[i]:g} s is beyond "
+                         f"{MAX_TIME_S:g} s; times are seconds since the log started")
     steps = np.diff(t)
     bad = np.flatnonzero(steps <= 0)
     if bad.size:

@@ -2,8 +2,9 @@
 
 The input becomes the same sample and estimate objects the pipeline produces (body frame,
 project units), so an estimator behaves identically live and offline. Rows are fed in time
-order; within a row accelerometer and magnetometer come before the gyro, so an AHRS stepping
-on the gyro uses that row's accel and mag.
+order, and the samples of one row in the pipeline's fusion order
+(imuhal.estimation.ordering: accelerometer, magnetometer, pressure, then gyro), so an AHRS
+stepping on the gyro uses that row's accel and mag, as it does live.
 """
 
 from __future__ import annotations
@@ -43,9 +44,12 @@ DEVICE = "input"
 
 
 def imu_events(table: SampleTable) -> Iterator[Sample]:
-    """Accel, mag (when present on the row), pressure (idem), gyro, per row."""
+    """Each row's accel, mag (when present on the row), pressure (idem) and gyro samples, in
+    fusion order (the CSV reader has already refused non-finite values)."""
     require(table, (TIME, *GYRO, *ACCEL), "an attitude estimator")
     c = table.columns
+    # The yield order below is the fusion order (imuhal.estimation.ordering.FUSION_RANK:
+    # accelerometer, magnetometer, pressure, then gyro), written out for speed.
     # plain Python floats (not numpy scalars) row by row: what a driver hands the pipeline,
     # and several times cheaper for the per-sample arithmetic downstream
     t_ns_list = [round(t * 1e9) for t in c[TIME].tolist()]

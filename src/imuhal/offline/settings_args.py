@@ -8,6 +8,7 @@ import yaml
 from pydantic import BaseModel, ValidationError
 
 from imuhal.core.errors import ImuhalError
+from imuhal.profile.loader import validate_strict
 
 
 class SettingsArgumentError(ImuhalError):
@@ -44,7 +45,7 @@ def build_settings(model: type[BaseModel], values: dict[str, Any], owner: str,
     """Validate ``values`` with ``model``; every problem names its ``flag`` key and the
     allowed."""
     try:
-        return model.model_validate(values)
+        return validate_strict(model, values)
     except ValidationError as exc:
         problems = []
         for err in exc.errors(include_url=False):
@@ -53,5 +54,8 @@ def build_settings(model: type[BaseModel], values: dict[str, Any], owner: str,
                 allowed = ", ".join(model.model_fields)
                 problems.append(f"{flag} {key}: {owner} has no such setting; settings: {allowed}")
             else:
-                problems.append(f"{flag} {key}: {err['msg']} (found {err.get('input')!r})")
+                msg = err["msg"]
+                if isinstance(err.get("ctx"), dict) and "error" in err["ctx"]:
+                    msg = str(err["ctx"]["error"])  # a validator's own words, no pydantic prefix
+                problems.append(f"{flag} {key}: {msg} (found {err.get('input')!r})")
         raise SettingsArgumentError("; ".join(problems)) from None

@@ -33,8 +33,10 @@ class Board(Protocol):
         """The clock the pipeline sleeps on and timestamps with (int ns)."""
         ...
 
-    def before_poll(self, t_ns: int, device: str) -> None:
-        """Called at ``t_ns`` (the clock already there), just before ``device`` is polled."""
+    def before_poll(self, t_ns: int, device: str) -> int:
+        """Called at ``t_ns`` (the clock already there), just before ``device`` is polled.
+        Returns the time the poll happens: ``t_ns``, or later when the host was late (an
+        emulated board's injected late polls and jitter move the clock)."""
         ...
 
 
@@ -45,8 +47,9 @@ class HardwareBoard:
     buses: dict[str, Bus]
     clock: Clock = field(default_factory=MonotonicClock)
 
-    def before_poll(self, t_ns: int, device: str) -> None:
+    def before_poll(self, t_ns: int, device: str) -> int:
         """Nothing to do: real chips measure the real world on their own."""
+        return t_ns
 
 
 def open_hardware_board(profile: BoardProfile, registry: Registry) -> HardwareBoard:

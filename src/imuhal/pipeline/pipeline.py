@@ -17,38 +17,64 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 
 from imuhal.bus.base import Bus, Link
+from imuhal.bus.contained import ContainedBus
 from imuhal.bus.spy import SpyBus, Transfer
+from imuhal.calibration.gyro import GyroOffsetProcedure
 from imuhal.calibration.model import CalibrationBinding, DeviceCalibration
 from imuhal.core.conventions import get_convention
 from imuhal.core.errors import BusError, ImuhalError, PluginError
 from imuhal.core.frames import FloatArray
-from imuhal.core.samples import Sample, SampleFlag
+from imuhal.core.samples import Channel, Sample, SampleFlag
 from imuhal.drivers.base import DeviceIdentity, Driver
 from imuhal.estimation.base import Estimator
 from imuhal.estimation.framed import FramedEvent, express
+from imuhal.estimation.ordering import fusion_order
 from imuhal.pipeline.board import Board, open_hardware_board
-from imuhal.pipeline.processing import calibrate_to_body, quality_flags
-from imuhal.pipeline.startup import startup_gyro_phase
+from imuhal.pipeline.bringup import bring_up
+from imuhal.pipeline.processing import calibrate_to_body, validity_flags
+from imuhal.pipeline.startup import startup_gyro_phase, startup_procedures
 from imuhal.plugins.manager import Registry
 from imuhal.profile.model import BoardProfile
 from imuhal.profile.topology import chip_to_body_rotations, device_order, split_bus_ref
 from imuhal.sinks.base import Event, Sink
 
 RECOVERY_BACKOFF_NS = 100_000_000
-"""After a failed recovery, wait this long before trying the device again (100 ms)."""
+"""After failed recoveries, wait at most this long before trying the device again (100 ms)."""
+RETRY_FIRST_NS = 2_000_000
+"""The first retry after a failed recovery comes 2 ms later; each further one waits twice
+as long, up to RECOVERY_BACKOFF_NS."""
+REPORT_AFTER_FAILURES = 4
+"""Consecutive failed recoveries (about 30 ms of trying) before the run reports the device."""
+JOIN_RETRY_NS = 1_000_000_000
+"""An optional device that is not there is looked for again every second."""
 
 
 @dataclass
 class DeviceRuntime:
+    """One device as the pipeline runs it. The pipeline owns every sample, flag and bus
+    error count; the driver's ``health`` holds what only the driver can see (resets it
+    detected, reconfigurations)."""
+
     name: str
     driver: Driver
     chip_to_body: FloatArray
     calibration: DeviceCalibration | None
+    required: bool = True
+    present: bool = False
+    """Probed and configured: polled. False: an optional device not (yet) found."""
+    needs_recovery: bool = False
     next_poll_ns: int = 0
     device_errors: int = 0
+    bus_errors: int = 0
+    failures: int = 0
+    """Consecutive failed recoveries (0 while the device works)."""
+    failing_since_ns: int = 0
     warned: set[str] = field(default_factory=set)
     samples: int = 0
     flagged: Counter[str] = field(default_factory=Counter)
+    full_scale: dict[Channel, float | None] = field(default_factory=dict)
+    last_valid_ns: dict[Channel, int] = field(default_factory=dict)
+    """Per quantity, the time of the last valid sample (samples must not go back)."""
 
 
 @dataclass
@@ -62,6 +88,10 @@ class EstimatorRuntime:
 
 @dataclass
 class RunSummary:
+    """What a run did, per device: samples, flagged samples by flag, bus errors, device
+    errors (chip gone or misconfigured), and the driver's own counts (``driver``: resets
+    detected, reconfigurations)."""
+
     simulated_s: float
     wall_s: float
     samples: dict[str, int]
@@ -70,6 +100,7 @@ class RunSummary:
     device_errors: dict[str, int]
     estimates: dict[str, int]
     warnings: list[str]
+    driver: dict[str, dict[str, int]] = field(default_factory=dict)
 
     def describe(self) -> str:
         lines = [f"ran {self.simulated_s:.1f} s in {self.wall_s:.2f} s wall time"]
@@ -78,8 +109,11 @@ class RunSummary:
             extra = f", {bad} flagged {dict(self.flagged[dev])}" if bad else ""
             errs = self.bus_errors.get(dev, 0)
             faults = self.device_errors.get(dev, 0)
+            own = ", ".join(f"{k.replace('_', ' ')} {v}"
+                            for k, v in self.driver.get(dev, {}).items() if v)
             lines.append(f"  {dev}: {n} samples{extra}" + (f", {errs} bus errors" if errs else "")
-                         + (f", {faults} device errors" if faults else ""))
+                         + (f", {faults} device errors" if faults else "")
+                         + (f", driver: {own}" if own else ""))
         for est, n in self.estimates.items():
             lines.append(f"  {est}: {n} estimates")
         lines += [f"  warning: {w}" for w in self.warnings]
@@ -108,10 +142,14 @@ class Pipeline:
         self.registry = registry
         self.board = board
         self.clock = clock = board.clock
-        self.buses: dict[str, Bus] = dict(board.buses) if trace is None else {
+        spied = dict(board.buses) if trace is None else {
             name: SpyBus(bus, trace, clock) for name, bus in board.buses.items()}
+        # Whatever a bus plugin raises reaches the drivers as a BusError (contained per device).
+        self.buses: dict[str, Bus] = {name: ContainedBus(bus) for name, bus in spied.items()}
         self.warnings: list[str] = []
-        self._started = False
+        self._heap: list[tuple[int, int, str]] | None = None
+        self._startup: dict[str, GyroOffsetProcedure] | None = None
+        self._fusion: list[Sample] = []
         self.devices: dict[str, DeviceRuntime] = {}
         self.estimators: list[EstimatorRuntime] = []
         chip_to_body = chip_to_body_rotations(profile)
@@ -120,16 +158,20 @@ class Pipeline:
             driver_cls = registry.drivers.get(cfg.driver)
             driver = driver_cls(self._link(cfg.bus, cfg.address), cfg.settings, device=name,
                                 clock=clock)
-            identity = driver.probe()
-            driver.identity = identity
-            driver.configure()
-            self.devices[name] = DeviceRuntime(
-                name=name,
-                driver=driver,
-                chip_to_body=chip_to_body[name],
-                calibration=self._checked_calibration(name, cfg.bus, cfg.calibration,
-                                                      identity, driver_cls.calibration_version),
-            )
+            dev = DeviceRuntime(name=name, driver=driver, chip_to_body=chip_to_body[name],
+                                calibration=None, required=cfg.required)
+            self.devices[name] = dev
+            try:
+                bring_up(driver, clock)
+            except ImuhalError as exc:
+                if dev.required:
+                    raise
+                self._warn_once(dev, "absent", f"{name}: not found at start-up, running "
+                                f"without it and looking for it every "
+                                f"{JOIN_RETRY_NS / 1e9:g} s ({exc})")
+                continue
+            self._joined(dev)
+        self._device_rank = {name: i for i, name in enumerate(self.devices)}
         for name, ecfg in profile.estimators.items():
             est_cls = registry.estimators.get(ecfg.estimator)
             self.estimators.append(EstimatorRuntime(
@@ -213,17 +255,36 @@ class Pipeline:
 
     # -- running ------------------------------------------------------------------------
 
+    def _joined(self, dev: DeviceRuntime) -> None:
+        """``dev`` answered as its chip and is configured: check its stored calibration
+        against what was found and start polling it."""
+        driver = dev.driver
+        assert driver.identity is not None
+        cfg = self.profile.devices[dev.name]
+        dev.calibration = self._checked_calibration(dev.name, cfg.bus, cfg.calibration,
+                                                    driver.identity,
+                                                    type(driver).calibration_version)
+        dev.full_scale = {ch: driver.full_scale(ch) for ch in type(driver).channels}
+        dev.present = True
+
     def events(self, duration_s: float | None = None) -> Iterator[Event]:
         """Samples (body frame, flagged ones included) and estimates, in time order.
 
-        On the first call, devices whose calibration asks for ``gyro_at_startup`` first have
-        their gyro offsets measured while the board is still (imuhal.pipeline.startup);
-        that phase is part of ``duration_s`` and yields nothing.
+        Repeated calls continue the run where the previous one stopped: devices are started
+        once, so no chip is restarted mid-conversion. Breaking out of the iteration early is
+        safe; the next call carries on from the next poll.
+
+        At the start of the run, devices whose calibration asks for ``gyro_at_startup`` first
+        have their gyro offsets measured while the board is still (imuhal.pipeline.startup);
+        that phase is part of ``duration_s``, yields nothing, and carries on into the next
+        call when a call ends before it does.
         """
         source = self._poll_events(duration_s)
-        if self.calibrated and not self._started:
-            source = startup_gyro_phase(self, source)
-        self._started = True
+        if self.calibrated and self._startup is None:
+            self._startup = startup_procedures(self)
+        if self.calibrated and self._startup:
+            # The phase carries over to the next call when this one ends before it does.
+            source = startup_gyro_phase(self, source, pending=self._startup)
         yield from source
 
     def framed_events(self, duration_s: float | None = None, *,
@@ -235,45 +296,97 @@ class Pipeline:
         for event in self.events(duration_s):
             yield express(event, target)
 
+    def _schedule(self) -> list[tuple[int, int, str]]:
+        """The poll heap, built at the first ``events`` call: (due time, rank, device)."""
+        if self._heap is None:
+            now = self.clock.now_ns()
+            self._heap = []
+            for name, dev in self.devices.items():
+                dev.next_poll_ns = dev.driver.start(now) if dev.present else now + JOIN_RETRY_NS
+                heapq.heappush(self._heap, (dev.next_poll_ns, self._device_rank[name], name))
+        return self._heap
+
     def _poll_events(self, duration_s: float | None) -> Iterator[Event]:
+        heap = self._schedule()
         start = self.clock.now_ns()
         end = None if duration_s is None else start + round(duration_s * 1e9)
-        heap: list[tuple[int, int, str]] = []
-        for seq, (name, dev) in enumerate(self.devices.items()):
-            dev.next_poll_ns = dev.driver.start(start)
-            heapq.heappush(heap, (dev.next_poll_ns, seq, name))
-        order = {name: i for i, name in enumerate(self.devices)}
         while heap:
-            t_ns, _, name = heapq.heappop(heap)
+            t_ns, rank, name = heap[0]
             if end is not None and t_ns >= end:
                 break
+            heapq.heappop(heap)
             self.clock.sleep_until(t_ns)
-            self.board.before_poll(t_ns, name)
+            # Estimator inputs wait until every sample of their instant is in (fusion order).
+            yield from self._fuse(before_ns=t_ns)
+            t_ns = self.board.before_poll(t_ns, name)
             dev = self.devices[name]
-            try:
-                result = dev.driver.poll(t_ns)
-                samples, next_ns = result.samples, result.next_poll_ns
-            except BusError:
-                dev.driver.health.bus_errors += 1
-                samples, next_ns = [], self._recover(dev, t_ns)
-            except ImuhalError as exc:
-                # A driver that found its chip gone or misconfigured mid-run: the device is
-                # recovered like after a bus error; the run goes on for the others.
-                dev.device_errors += 1
-                self._warn_once(dev, type(exc).__name__, f"{dev.name}: {exc}")
-                samples, next_ns = [], self._recover(dev, t_ns)
+            samples, next_ns = self._service(dev, t_ns)
+            dev.next_poll_ns = max(next_ns, t_ns + 1)
+            heapq.heappush(heap, (dev.next_poll_ns, rank, name))
             for raw in samples:
                 yield from self._process(dev, raw)
-            heapq.heappush(heap, (max(next_ns, t_ns + 1), order[name], name))
+        if end is not None:
+            self.clock.sleep_until(end)
+        yield from self._fuse(before_ns=None)
+
+    def _service(self, dev: DeviceRuntime, t_ns: int) -> tuple[list[Sample], int]:
+        """Whatever ``dev`` needs at ``t_ns``: a poll, a recovery, or a look for an optional
+        device not yet found. Returns its samples and when it is next due."""
+        if not dev.present:
+            return [], self._look_for(dev, t_ns)
+        if dev.needs_recovery:
+            return [], self._recover(dev, t_ns)
+        try:
+            result = dev.driver.poll(t_ns)
+        except BusError:
+            dev.bus_errors += 1
+            return [], self._recover(dev, t_ns)
+        except ImuhalError as exc:
+            # A driver that found its chip gone or misconfigured mid-run: the device is
+            # recovered like after a bus error; the run goes on for the others.
+            dev.device_errors += 1
+            self._warn_once(dev, type(exc).__name__, f"{dev.name}: {exc}")
+            return [], self._recover(dev, t_ns)
+        return result.samples, result.next_poll_ns
+
+    def _look_for(self, dev: DeviceRuntime, t_ns: int) -> int:
+        """An optional device that was not found: probe it once more."""
+        try:
+            bring_up(dev.driver, self.clock, attempts=1)
+        except ImuhalError as exc:
+            if isinstance(exc, BusError):
+                dev.bus_errors += 1
+            return t_ns + JOIN_RETRY_NS
+        self._joined(dev)
+        self.warnings.append(f"{dev.name}: found at t={t_ns / 1e9:.3f} s; it joins the run")
+        return dev.driver.start(max(t_ns, self.clock.now_ns()))
 
     def _recover(self, dev: DeviceRuntime, t_ns: int) -> int:
+        """Bring a device back after a failed poll. A failed attempt is retried after a
+        backoff that doubles from RETRY_FIRST_NS up to RECOVERY_BACKOFF_NS; a glitch costs
+        a few milliseconds, a chip that stays away is retried every 100 ms and reported."""
         try:
-            return dev.driver.recover(t_ns)
+            next_ns = dev.driver.recover(t_ns)
         except ImuhalError as exc:
-            self._warn_once(dev, "recovery", f"{dev.name}: recovery failed (first at "
-                            f"t={t_ns / 1e9:.3f} s, retrying every "
-                            f"{RECOVERY_BACKOFF_NS / 1e9:g} s): {exc}")
-            return t_ns + RECOVERY_BACKOFF_NS
+            if isinstance(exc, BusError):
+                dev.bus_errors += 1
+            if not dev.failures:
+                dev.failing_since_ns = t_ns
+            dev.failures += 1
+            dev.needs_recovery = True
+            backoff = min(RECOVERY_BACKOFF_NS, RETRY_FIRST_NS << min(dev.failures - 1, 16))
+            if dev.failures >= REPORT_AFTER_FAILURES:
+                # once per kind of error (and what a probe found), so a later, different
+                # cause is reported too
+                kind = f"recovery {type(exc).__name__} {getattr(exc, 'found', '')}"
+                self._warn_once(dev, kind,
+                                f"{dev.name}: recovery failed {dev.failures} times in a row "
+                                f"from t={dev.failing_since_ns / 1e9:.3f} s (retrying every "
+                                f"{RECOVERY_BACKOFF_NS / 1e9:g} s at most): {exc}")
+            return t_ns + backoff
+        dev.failures = 0
+        dev.needs_recovery = False
+        return next_ns
 
     def _warn_once(self, dev: DeviceRuntime, key: str, message: str) -> None:
         """Record a device's warning of one kind once, not at every retry."""
@@ -282,23 +395,37 @@ class Pipeline:
             self.warnings.append(message)
 
     def _process(self, dev: DeviceRuntime, raw: Sample) -> Iterator[Event]:
-        flags = quality_flags(raw)
+        channel = raw.channel
+        flags = validity_flags(raw, dev.full_scale.get(channel), dev.last_valid_ns.get(channel))
         sample = raw if flags == raw.flags else raw.flagged(flags)
         dev.samples += 1
+        if not sample.valid:
+            self._count_flags(dev, sample)
+        else:
+            dev.last_valid_ns[channel] = sample.t_ns
         if not self.calibrated:
-            if not sample.valid:
-                self._count_flags(dev, sample)
             yield sample
             return
         # Flagged samples are only rotated, not calibrated.
         sample = calibrate_to_body(sample, dev.calibration if sample.valid else None,
                                    dev.chip_to_body)
-        if not sample.valid:
-            self._count_flags(dev, sample)
-            yield sample
-            return
         yield sample
-        if self.estimators:
+        if sample.valid and self.estimators:
+            self._fusion.append(sample)
+
+    def _fuse(self, before_ns: int | None) -> Iterator[Event]:
+        """Hand the estimators the valid samples older than ``before_ns`` (all: None), in
+        fusion order (imuhal.estimation.ordering), and yield their estimates."""
+        if not self._fusion:
+            return
+        if before_ns is None:
+            due, self._fusion = self._fusion, []
+        else:
+            due = [s for s in self._fusion if s.t_ns < before_ns]
+            if not due:
+                return
+            self._fusion = [s for s in self._fusion if s.t_ns >= before_ns]
+        for sample in fusion_order(due, self._device_rank):
             yield from self._estimate(sample)
 
     @staticmethod
@@ -323,16 +450,27 @@ class Pipeline:
                     pending.append(out)
 
     def run(self, duration_s: float | None, sinks: Sequence[Sink] = ()) -> RunSummary:
-        """Run for ``duration_s`` simulated (or real) seconds, feeding every sink."""
+        """Run for ``duration_s`` simulated (or real) seconds, feeding every sink.
+
+        Sinks are closed when the run ends or is stopped (KeyboardInterrupt, which the CLI
+        also raises for SIGTERM and SIGHUP); when it fails, sinks that have an ``abort()``
+        are aborted instead, so a failed run never replaces a good file.
+        """
         wall0 = time.perf_counter()
         t0 = self.clock.now_ns()
+        failed = True
         try:
             for event in self.events(duration_s):
                 for sink in sinks:
                     sink.handle(event)
+            failed = False
+        except KeyboardInterrupt:
+            failed = False
+            raise
         finally:
             for sink in sinks:
-                sink.close()
+                abort = getattr(sink, "abort", None) if failed else None
+                (abort or sink.close)()
         return self.summary(wall_s=time.perf_counter() - wall0,
                             simulated_s=(self.clock.now_ns() - t0) / 1e9)
 
@@ -342,10 +480,11 @@ class Pipeline:
             wall_s=wall_s,
             samples={n: d.samples for n, d in self.devices.items()},
             flagged={n: dict(d.flagged) for n, d in self.devices.items()},
-            bus_errors={n: d.driver.health.bus_errors for n, d in self.devices.items()},
+            bus_errors={n: d.bus_errors for n, d in self.devices.items()},
             device_errors={n: d.device_errors for n, d in self.devices.items()},
             estimates={e.name: e.outputs for e in self.estimators},
             warnings=list(self.warnings),
+            driver={n: d.driver.health.counts() for n, d in self.devices.items()},
         )
 
     def close(self) -> None:

@@ -1,6 +1,6 @@
 """The per-sample steps between a driver and the estimators, as plain functions.
 
-Order (fixed, docs/units-and-frames.md): quality check -> calibration (sensor frame) ->
+Order (fixed, docs/units-and-frames.md): validity check -> calibration (sensor frame) ->
 rotation chip -> body. A flagged sample goes through unchanged apart from the rotation, so
 sinks can still log it; it is never handed to an estimator.
 """
@@ -33,17 +33,30 @@ class _Correction(Protocol):
     def apply(self, raw: Vec3) -> Vec3: ...
 
 
-def quality_flags(sample: Sample) -> SampleFlag:
-    """NaN/inf check on top of whatever the driver flagged."""
+def values_of(sample: Sample) -> tuple[float, ...]:
+    """The sample's numbers (a vector's three components, or the scalar)."""
     if isinstance(sample, VectorSample):
-        values = sample.vector
-    elif isinstance(sample, ScalarSample):
-        values = (sample.scalar,)
-    else:
-        return sample.flags
+        return sample.vector
+    if isinstance(sample, ScalarSample):
+        return (sample.scalar,)
+    return ()
+
+
+def validity_flags(sample: Sample, full_scale: float | None, last_t_ns: int | None
+                   ) -> SampleFlag:
+    """The pipeline's part of validity, on top of what the driver flagged: every value
+    finite (else NAN), none beyond ``full_scale`` (the chip's configured full scale, SI;
+    None: not declared; else OUT_OF_RANGE), and not older than ``last_t_ns``, the last valid
+    sample of the same device and quantity (else OUT_OF_ORDER). This is the only NaN check."""
+    flags = sample.flags
+    values = values_of(sample)
     if not all(map(math.isfinite, values)):
-        return sample.flags | SampleFlag.NAN
-    return sample.flags
+        flags |= SampleFlag.NAN
+    elif full_scale is not None and any(abs(v) > full_scale for v in values):
+        flags |= SampleFlag.OUT_OF_RANGE
+    if last_t_ns is not None and sample.t_ns < last_t_ns:
+        flags |= SampleFlag.OUT_OF_ORDER
+    return flags
 
 
 def _record(sample: VectorSample, calibration: DeviceCalibration | None) -> _Correction | None:

@@ -44,12 +44,23 @@ def startup_settings(pipeline: Pipeline) -> dict[str, GyroStartupSettings]:
     return out
 
 
+def startup_procedures(pipeline: Pipeline, progress: ProgressCallback | None = None
+                       ) -> dict[str, GyroOffsetProcedure]:
+    """One gyro offset procedure per device that asks for start-up offsets."""
+    return {name: GyroOffsetProcedure(opt, device=name, progress=progress)
+            for name, opt in startup_settings(pipeline).items()}
+
+
 def startup_gyro_phase(pipeline: Pipeline, source: Iterator[Event],
-                       progress: ProgressCallback | None = None) -> Iterator[Event]:
+                       progress: ProgressCallback | None = None, *,
+                       pending: dict[str, GyroOffsetProcedure] | None = None
+                       ) -> Iterator[Event]:
     """``source`` (the pipeline's event stream), preceded by the start-up gyro measurement
-    of every device that asks for it (see the module docstring)."""
-    pending = {name: GyroOffsetProcedure(opt, device=name, progress=progress)
-               for name, opt in startup_settings(pipeline).items()}
+    of every device that asks for it (see the module docstring). ``pending`` (default: new
+    procedures) carries an unfinished phase from one ``events()`` call to the next; finished
+    devices are removed from it."""
+    if pending is None:
+        pending = startup_procedures(pipeline, progress)
     if not pending:
         yield from source
         return

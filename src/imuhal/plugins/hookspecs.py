@@ -43,3 +43,8 @@ def imuhal_register_buses(register: Registrar) -> None:
 @hookspec
 def imuhal_register_scenarios(register: Registrar) -> None:
     """Register Scenario subclasses for the simulator."""
+
+
+@hookspec
+def imuhal_register_sinks(register: Registrar) -> None:
+    """Register SinkPlugin subclasses (outputs users pick by name, e.g. ``--nmea``)."""

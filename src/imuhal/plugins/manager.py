@@ -24,6 +24,7 @@ from imuhal.plugins import hookspecs
 from imuhal.plugins.registrars import Registrar
 from imuhal.sim.chip import ChipEmulator
 from imuhal.sim.scenario import Scenario
+from imuhal.sinks.base import SinkPlugin
 
 ENV_ALLOW = "IMUHAL_PLUGINS"
 ENV_BLOCK = "IMUHAL_DISABLE_PLUGINS"
@@ -46,6 +47,7 @@ class Registry:
     scenarios: Registrar[Scenario] = field(
         default_factory=lambda: Registrar("scenario", Scenario)
     )
+    sinks: Registrar[SinkPlugin] = field(default_factory=lambda: Registrar("sink", SinkPlugin))
     plugins: dict[str, str] = field(default_factory=dict)
     """Loaded plugin name -> distribution name."""
 
@@ -56,6 +58,7 @@ class Registry:
             "imuhal_register_estimators": self.estimators,
             "imuhal_register_buses": self.buses,
             "imuhal_register_scenarios": self.scenarios,
+            "imuhal_register_sinks": self.sinks,
         }[hook]
 
 
@@ -114,6 +117,7 @@ def load_registry(
         "imuhal_register_emulators",
         "imuhal_register_estimators",
         "imuhal_register_scenarios",
+        "imuhal_register_sinks",
     ):
         registrar = registry.registrar_for(hook_name)
         caller = getattr(pm.hook, hook_name)

@@ -1,8 +1,14 @@
 """Loading and checking board profiles, reporting every problem at once with its location.
 
-Two passes: the board schema (profile/model.py), then each bus, device and estimator against
-the Settings model of the plugin it names. Both passes collect problems instead of stopping at
-the first, and each problem reads ``file:line:column: path: what is wrong (value); allowed``.
+Every check runs on every profile and all problems go into one report, each reading
+``file:line:column: path: what is wrong (value); allowed``: the board schema
+(profile/model.py), references between buses and devices, unique (bus, address) pairs, and
+each bus, device and estimator against the Settings model of the plugin it names. An
+unsupported ``schema_version`` is one more problem, not the only one.
+
+Numbers are strict: ``true`` is not a number and neither is ``"5"`` (an integer is a valid
+float). Input is bounded: at most ``MAX_PROFILE_BYTES``
+bytes, and a bounded alias expansion (profile/yaml_source.py).
 """
 
 from __future__ import annotations
@@ -18,14 +24,25 @@ from pydantic import BaseModel, ValidationError
 from imuhal.bus.base import BusKind
 from imuhal.core.errors import ProfileError
 from imuhal.plugins.manager import Registry
+from imuhal.profile.faults import CHIP_FAULT_KINDS, FAULT_KINDS
 from imuhal.profile.model import SCHEMA_VERSION, BoardProfile
-from imuhal.profile.yaml_source import LocatedDocument, Path, dotted, load_located
+from imuhal.profile.yaml_source import (
+    ExpansionError,
+    LocatedDocument,
+    Path,
+    dotted,
+    load_located,
+)
+
+MAX_PROFILE_BYTES = 1_000_000
+"""Largest profile file read (1 MB); a board profile is a few kB."""
+
+_FAULT_TAGS = frozenset(k.model_fields["kind"].default for k in FAULT_KINDS)
 
 
 def load_profile(path: str | FsPath, registry: Registry | None = None) -> BoardProfile:
     """Load and fully validate a profile; raise ProfileError listing every problem."""
-    text, source = _read(path)
-    return parse_profile(text, source, registry)
+    return parse_profile(read_profile_text(path), str(path), registry)
 
 
 def parse_profile(text: str, source: str, registry: Registry | None = None) -> BoardProfile:
@@ -38,21 +55,34 @@ def parse_profile(text: str, source: str, registry: Registry | None = None) -> B
 def check_profile(path: str | FsPath, registry: Registry | None = None) -> list[str]:
     """Every problem in the profile at ``path`` (empty when it is valid)."""
     try:
-        text, source = _read(path)
+        text = read_profile_text(path)
     except ProfileError as exc:
         return exc.problems
-    return _check(text, source, registry)[0]
+    return _check(text, str(path), registry)[0]
 
 
-def _read(path: str | FsPath) -> tuple[str, str]:
+def read_profile_text(path: str | FsPath) -> str:
+    """The text of the profile at ``path``: at most MAX_PROFILE_BYTES of UTF-8, or a
+    ProfileError saying what is wrong with the file."""
     p = FsPath(path)
     try:
-        return p.read_text(encoding="utf-8"), str(p)
+        with p.open("rb") as f:
+            data = f.read(MAX_PROFILE_BYTES + 1)
     except FileNotFoundError:
         raise ProfileError(str(p), ["file not found; give the path of a .yaml profile "
                                     "(see profiles/ for examples)"]) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ProfileError(str(p), [f"cannot read: {exc}"]) from None
+    except IsADirectoryError:
+        raise ProfileError(str(p), ["is a directory; give the path of a .yaml profile"]) from None
+    except OSError as exc:
+        raise ProfileError(str(p), [f"cannot read: {exc.strerror or exc}"]) from None
+    if len(data) > MAX_PROFILE_BYTES:
+        raise ProfileError(str(p), [f"the file is larger than {MAX_PROFILE_BYTES / 1e6:g} MB; a "
+                                    "board profile is a few kB - is this the right file?"])
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ProfileError(str(p), [f"not UTF-8 text (byte {exc.start}); save the profile as "
+                                    "UTF-8"]) from None
 
 
 def _check(
@@ -64,29 +94,79 @@ def _check(
         mark = getattr(exc, "problem_mark", None)
         where = f"{source}:{mark.line + 1}:{mark.column + 1}" if mark else source
         problem = getattr(exc, "problem", None) or str(exc)
-        label = "not allowed" if isinstance(exc, yaml.constructor.ConstructorError) \
-            else "YAML syntax error"
+        refused = isinstance(exc, yaml.constructor.ConstructorError | ExpansionError)
+        label = "not allowed" if refused else "YAML syntax error"
         return [f"{where}: {label}: {problem}"], None
     problems = list(doc.problems)
     if not isinstance(doc.data, dict):
         return [*problems, f"{source}:1:1: a profile is a YAML mapping with schema_version, "
                 f"name, buses and devices"], None
-    version = doc.data.get("schema_version")
-    if version is not None and version != SCHEMA_VERSION:
+    data = doc.data
+    version = data.get("schema_version", SCHEMA_VERSION)
+    if type(version) is not int or version != SCHEMA_VERSION:
         problems.append(
             f"{doc.where(('schema_version',))}: schema_version: {version!r} is not supported; "
             f"this imuhal reads schema_version {SCHEMA_VERSION}"
         )
-        return problems, None
+        # Checked as if it were right, so that every other problem is reported too.
+        data = {**data, "schema_version": SCHEMA_VERSION}
+    profile = None
     try:
-        profile = BoardProfile.model_validate(doc.data)
+        profile = validate_strict(BoardProfile, data)
     except ValidationError as exc:
         problems += _describe(exc, doc, (), BoardProfile)
-        return problems, None
-    problems += _check_references(profile, doc)
+    problems += _check_references(data, doc)
     if registry is not None:
-        problems += _check_plugins(profile, doc, registry)
+        problems += _check_plugins(data, doc, registry)
+        if profile is not None:
+            problems += _check_fault_support(profile, doc, registry)
     return problems, (profile if not problems else None)
+
+
+def validate_strict(model: type[BaseModel], data: Any) -> Any:
+    """``model`` validated from ``data``, with numbers strict: pydantic turns ``true`` into 1
+    and ``"500"`` into 500, which a profile must not (``rate_hz: true`` is an error, not
+    1 Hz). YAML lists are still fine for tuples and strings for choices and dates.
+
+    Validation is pydantic's own (so models' validators run as written); afterwards every
+    bool or string of ``data`` that came out as a number is an error at its path.
+    """
+    result = model.model_validate(data)
+    coerced = [{"type": "float_type", "loc": path, "input": value}
+               for path, value in _coerced_numbers(data, result, ())]
+    if coerced:
+        raise ValidationError.from_exception_data(model.__name__, coerced)  # type: ignore[arg-type]
+    return result
+
+
+_MISSING = object()
+
+
+def _coerced_numbers(given: Any, made: Any, path: Path) -> typing.Iterator[tuple[Path, Any]]:
+    """(path, value) of each bool or string in ``given`` whose validated value in ``made``
+    is a number."""
+    if isinstance(given, bool | str):
+        if isinstance(made, int | float) and not isinstance(made, bool):
+            yield path, given
+        return
+    items = given.items() if isinstance(given, dict) else (
+        enumerate(given) if isinstance(given, list) else ())
+    for key, value in items:
+        child = _child(made, key)
+        if child is not _MISSING:
+            yield from _coerced_numbers(value, child, (*path, key))
+
+
+def _child(made: Any, key: Any) -> Any:
+    if isinstance(made, BaseModel):
+        if isinstance(key, str) and key in type(made).model_fields:
+            return getattr(made, key)
+        return (made.model_extra or {}).get(key, _MISSING)
+    if isinstance(made, dict):
+        return made.get(key, _MISSING)
+    if isinstance(made, list | tuple) and isinstance(key, int) and 0 <= key < len(made):
+        return made[key]
+    return _MISSING
 
 
 def _describe(exc: ValidationError, doc: LocatedDocument, prefix: Path,
@@ -115,15 +195,23 @@ def _describe(exc: ValidationError, doc: LocatedDocument, prefix: Path,
 def _validate(model: type[BaseModel], data: Any, doc: LocatedDocument, path: Path) -> list[str]:
     """A plugin's settings checked by its own model: located problems, or none."""
     try:
-        model.model_validate(data)
+        validate_strict(model, data)
     except ValidationError as exc:
         return _describe(exc, doc, path, model)
     return []
 
 
 def _clean_loc(loc: tuple[Any, ...]) -> Path:
-    # pydantic inserts union-branch tags such as 'str' or 'list[list[float]]' into loc
-    return tuple(p for p in loc if not (isinstance(p, str) and ("[" in p or p in {"str"})))
+    # pydantic inserts union-branch tags such as 'str' or 'list[list[float]]' into loc, and
+    # the ``kind`` of a tagged union member (a fault) after its list index
+    out: list[Any] = []
+    for p in loc:
+        if isinstance(p, str) and ("[" in p or p in {"str"}):
+            continue
+        if isinstance(p, str) and out and isinstance(out[-1], int) and p in _FAULT_TAGS:
+            continue
+        out.append(p)
+    return tuple(out)
 
 
 def _allowed_keys(model: type[BaseModel], loc: Path) -> list[str]:
@@ -152,72 +240,148 @@ def _unwrap(annotation: Any) -> Any:
     return annotation
 
 
-def _check_references(profile: BoardProfile, doc: LocatedDocument) -> list[str]:
+def _mapping(value: Any) -> dict[Any, Any]:
+    return value if isinstance(value, dict) else {}
+
+
+def _text(value: Any) -> str | None:
+    return value if isinstance(value, str) else None
+
+
+def _check_references(data: dict[str, Any], doc: LocatedDocument) -> list[str]:
+    """Buses, parent devices and estimator inputs that do not exist, and two enabled devices
+    at one (bus, address), checked on the raw document so that they are reported even when
+    other parts of the profile are malformed."""
     out = []
-    device_names = set(profile.devices)
-    for name, dev in profile.devices.items():
+    buses = _mapping(data.get("buses"))
+    devices = {n: d for n, d in _mapping(data.get("devices")).items() if isinstance(d, dict)}
+    device_names = set(devices)
+    taken: dict[tuple[str, int], str] = {}
+    for name, dev in devices.items():
         path: Path = ("devices", name, "bus")
-        if "/" in dev.bus:
-            parent = dev.bus.split("/", 1)[0]
+        bus = _text(dev.get("bus"))
+        if bus is None:
+            continue
+        if "/" in bus:
+            parent = bus.split("/", 1)[0]
             if parent not in device_names:
-                names = ", ".join(sorted(device_names))
-                out.append(f"{doc.where(path)}: {dotted(path)}: {dev.bus!r} names device "
+                names = ", ".join(sorted(map(str, device_names)))
+                out.append(f"{doc.where(path)}: {dotted(path)}: {bus!r} names device "
                            f"{parent!r}, which is not in devices ({names})")
             elif parent == name:
                 out.append(f"{doc.where(path)}: {dotted(path)}: a device cannot sit on its own bus")
-        elif dev.bus not in profile.buses:
-            out.append(f"{doc.where(path)}: {dotted(path)}: no bus named {dev.bus!r}; "
-                       f"defined buses: {', '.join(sorted(profile.buses)) or 'none'}")
-    known = device_names | set(profile.estimators)
-    for name, est in profile.estimators.items():
-        for i, ref in enumerate(est.inputs or []):
-            if ref not in known:
+        elif bus not in buses:
+            out.append(f"{doc.where(path)}: {dotted(path)}: no bus named {bus!r}; "
+                       f"defined buses: {', '.join(sorted(map(str, buses))) or 'none'}")
+        address = dev.get("address")
+        if type(address) is int and dev.get("enabled", True) is not False:
+            other = taken.setdefault((bus, address), str(name))
+            if other != name:
+                apath: Path = ("devices", name, "address")
+                out.append(f"{doc.where(apath)}: {dotted(apath)}: 0x{address:02X} on bus {bus!r} "
+                           f"is already taken by devices.{other} "
+                           f"({doc.where(('devices', other, 'address'))}); two chips cannot "
+                           "answer at one address - fix the address or disable one device")
+    estimators = {n: e for n, e in _mapping(data.get("estimators")).items()
+                  if isinstance(e, dict)}
+    known = device_names | set(estimators)
+    for name, est in estimators.items():
+        inputs = est.get("inputs")
+        for i, ref in enumerate(inputs if isinstance(inputs, list) else []):
+            if isinstance(ref, str) and ref not in known:
                 path = ("estimators", name, "inputs", i)
                 out.append(f"{doc.where(path)}: {dotted(path)}: {ref!r} is neither a device nor "
                            f"an estimator of this profile")
+    enabled = sorted(str(n) for n, d in devices.items() if d.get("enabled", True) is not False)
+    faults = _mapping(data.get("emulation")).get("faults")
+    for i, fault in enumerate(faults if isinstance(faults, list) else []):
+        device = _text(fault.get("device")) if isinstance(fault, dict) else None
+        if device is not None and device not in enabled:
+            path = ("emulation", "faults", i, "device")
+            out.append(f"{doc.where(path)}: {dotted(path)}: {device!r} is not an enabled "
+                       f"device of this profile; devices: {', '.join(enabled) or 'none'}")
     return out
 
 
-def _check_plugins(profile: BoardProfile, doc: LocatedDocument, registry: Registry) -> list[str]:
+def _check_plugins(data: dict[str, Any], doc: LocatedDocument, registry: Registry) -> list[str]:
+    """Each bus, device and estimator against its plugin's Settings model (on the raw
+    document, skipping parts too malformed to tell which plugin they name)."""
     out: list[str] = []
     bus_kinds: dict[str, BusKind | None] = {}
-    for name, bus in profile.buses.items():
+    for name, bus in _mapping(data.get("buses")).items():
         path: Path = ("buses", name)
-        factory = registry.buses.entries.get(bus.kind)
+        kind_name = _text(_mapping(bus).get("kind"))
+        if kind_name is None:
+            continue
+        factory = registry.buses.entries.get(kind_name)
         if factory is None:
             out.append(f"{doc.where((*path, 'kind'))}: {dotted((*path, 'kind'))}: unknown bus kind "
-                       f"{bus.kind!r}; installed: {', '.join(registry.buses.names())}")
+                       f"{kind_name!r}; installed: {', '.join(registry.buses.names())}")
             bus_kinds[name] = None
             continue
         bus_kinds[name] = factory.obj.kind
-        out += _validate(factory.obj.Settings, bus.plugin_settings(), doc, path)
-    for name, dev in profile.devices.items():
+        settings = {k: v for k, v in bus.items() if k != "kind"}
+        out += _validate(factory.obj.Settings, settings, doc, path)
+    for name, dev in _mapping(data.get("devices")).items():
         path = ("devices", name)
-        reg = registry.drivers.entries.get(dev.driver)
+        dev = _mapping(dev)
+        driver_name = _text(dev.get("driver"))
+        if driver_name is None:
+            continue
+        reg = registry.drivers.entries.get(driver_name)
         if reg is None:
             out.append(f"{doc.where((*path, 'driver'))}: {dotted((*path, 'driver'))}: no driver "
-                       f"named {dev.driver!r} is installed; installed: "
+                       f"named {driver_name!r} is installed; installed: "
                        f"{', '.join(registry.drivers.names()) or 'none'} (see `imuhal plugins`)")
             continue
         driver = reg.obj
-        kind = bus_kinds.get(dev.bus) if "/" not in dev.bus else BusKind.I2C
+        bus_ref = _text(dev.get("bus")) or ""
+        kind = bus_kinds.get(bus_ref) if "/" not in bus_ref else BusKind.I2C
         if kind is not None and kind not in driver.bus_kinds:
             allowed = ", ".join(sorted(k.value for k in driver.bus_kinds))
-            out.append(f"{doc.where((*path, 'bus'))}: {dotted((*path, 'bus'))}: {dev.driver} "
+            out.append(f"{doc.where((*path, 'bus'))}: {dotted((*path, 'bus'))}: {driver_name} "
                        f"cannot sit on a {kind.value} bus; it supports: {allowed}")
-        out += _validate(driver.Settings, dev.settings, doc, (*path, "settings"))
-    for name, est in profile.estimators.items():
+        settings = dev.get("settings", {})
+        if isinstance(settings, dict):
+            out += _validate(driver.Settings, settings, doc, (*path, "settings"))
+    for name, est in _mapping(data.get("estimators")).items():
         path = ("estimators", name)
-        reg_e = registry.estimators.entries.get(est.estimator)
+        est = _mapping(est)
+        est_name = _text(est.get("estimator"))
+        if est_name is None:
+            continue
+        reg_e = registry.estimators.entries.get(est_name)
         if reg_e is None:
             out.append(f"{doc.where((*path, 'estimator'))}: {dotted((*path, 'estimator'))}: no "
-                       f"estimator named {est.estimator!r} is installed; installed: "
+                       f"estimator named {est_name!r} is installed; installed: "
                        f"{', '.join(registry.estimators.names()) or 'none'}")
             continue
-        out += _validate(reg_e.obj.Settings, est.settings, doc, (*path, "settings"))
-    scenario = profile.emulation.scenario
-    if registry.scenarios.entries and scenario not in registry.scenarios.entries:
+        settings = est.get("settings", {})
+        if isinstance(settings, dict):
+            out += _validate(reg_e.obj.Settings, settings, doc, (*path, "settings"))
+    scenario = _text(_mapping(data.get("emulation")).get("scenario", "thermal"))
+    if registry.scenarios.entries and scenario is not None and \
+            scenario not in registry.scenarios.entries:
         p: Path = ("emulation", "scenario")
         out.append(f"{doc.where(p)}: {dotted(p)}: unknown scenario {scenario!r}; installed: "
                    f"{', '.join(registry.scenarios.names())}")
+    return out
+
+
+def _check_fault_support(profile: BoardProfile, doc: LocatedDocument,
+                         registry: Registry) -> list[str]:
+    """Chip-level faults need an emulator that models them (ChipEmulator.chip_faults)."""
+    out = []
+    for i, fault in enumerate(profile.emulation.faults):
+        dev = profile.devices.get(fault.device)
+        if fault.kind not in CHIP_FAULT_KINDS or dev is None:
+            continue
+        reg = registry.emulators.entries.get(dev.driver)
+        if reg is None:
+            continue  # running emulated reports the missing emulator itself
+        supported = reg.obj.chip_faults()
+        if fault.kind not in supported:
+            path: Path = ("emulation", "faults", i, "kind")
+            out.append(f"{doc.where(path)}: {dotted(path)}: the {dev.driver} emulator does not "
+                       f"model {fault.kind!r}; it models: {', '.join(sorted(supported))}")
     return out

@@ -15,6 +15,8 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 from imuhal.calibration.model import DeviceCalibration
 from imuhal.core.conventions import UnknownConvention, get_convention
 from imuhal.core.frames import MountError, parse_mount
+from imuhal.profile.faults import FaultSpec
+from imuhal.sinks.flight.audio import VarioAudioSettings
 
 SCHEMA_VERSION = 1
 MountSpec = str | list[list[float]]
@@ -55,6 +57,9 @@ class DeviceConfig(_Strict):
     settings: dict[str, Any] = Field(default_factory=dict)
     calibration: DeviceCalibration | None = None
     enabled: bool = True
+    required: bool = True
+    """False: the run starts without this device if it does not answer, and the device
+    joins when it appears (it is probed again every second)."""
 
     _mount = field_validator("mount")(_valid_mount)
 
@@ -76,6 +81,9 @@ class EmulationConfig(_Strict):
     sensor_errors: bool = True
     """Apply each chip's datasheet noise, bias, scale and misalignment model (as its
     emulator declares); false: ideal chips, limited only by their resolution and range."""
+    faults: list[FaultSpec] = Field(default_factory=list)
+    """Faults injected into the emulated board (docs/reliability.md): each names a device,
+    a kind, and a start and end time in simulated seconds."""
 
 
 class BoardProfile(_Strict):
@@ -88,6 +96,8 @@ class BoardProfile(_Strict):
     devices: dict[str, DeviceConfig]
     estimators: dict[str, EstimatorConfig] = Field(default_factory=dict)
     emulation: EmulationConfig = Field(default_factory=EmulationConfig)
+    audio: VarioAudioSettings = Field(default_factory=VarioAudioSettings)
+    """The vario audio curve (``imuhal run --audio``; docs/flight-instrument.md)."""
 
     output_frame: str = "ned"
     """Convention of what the run hands out: its CSV and console sinks and

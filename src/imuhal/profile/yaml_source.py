@@ -3,6 +3,11 @@
 PyYAML's safe loader is used for scalars; composing the node tree first lets us keep each
 node's position, so a validation error on ``devices.imu.settings.odr_hz`` can point at the
 exact line. Duplicate mapping keys, which YAML silently collapses, are reported as errors.
+
+Hostile input is bounded: before anything is built, the size the document would have with
+every alias (``*name``) expanded is computed on the composed node graph (each shared node
+once), and a document expanding to more than ``MAX_VALUES`` values ("billion laughs") or
+holding a recursive alias is refused with a located error, in time linear in the file.
 """
 
 from __future__ import annotations
@@ -13,6 +18,19 @@ from typing import Any
 import yaml
 
 Path = tuple[str | int, ...]
+
+MAX_VALUES = 100_000
+"""Most values (scalars, mappings, sequences, keys) a profile may expand to; a real board
+profile has a few hundred."""
+
+
+class ExpansionError(yaml.YAMLError):
+    """The document is too large once its aliases are expanded, or an alias is recursive."""
+
+    def __init__(self, problem: str, mark: yaml.Mark | None) -> None:
+        super().__init__(problem)
+        self.problem = problem
+        self.problem_mark = mark
 
 
 @dataclass
@@ -52,9 +70,50 @@ def load_located(text: str, source: str) -> LocatedDocument:
     doc = LocatedDocument(data=None, source=source)
     if node is None:
         return doc
+    _check_expansion(node)
     constructor = yaml.SafeLoader("")
     doc.data = _build(node, (), doc, constructor)
     return doc
+
+
+def _check_expansion(root: yaml.Node) -> None:
+    """Raise ExpansionError when ``root`` expands to more than MAX_VALUES values."""
+    sizes: dict[int, int] = {}
+    active: set[int] = set()
+    # Iterative post-order walk: a deep document must not hit Python's recursion limit.
+    stack: list[tuple[yaml.Node, bool]] = [(root, False)]
+    while stack:
+        node, children_done = stack.pop()
+        key = id(node)
+        if key in sizes:
+            continue
+        if isinstance(node, yaml.MappingNode):
+            children = [n for pair in node.value for n in pair]
+        elif isinstance(node, yaml.SequenceNode):
+            children = list(node.value)
+        else:
+            sizes[key] = 1
+            continue
+        if children_done:
+            active.discard(key)
+            sizes[key] = 1 + sum(sizes[id(c)] for c in children)
+            if sizes[key] > MAX_VALUES:
+                raise ExpansionError(
+                    f"the document expands to more than {MAX_VALUES} values through its aliases "
+                    "(*name); a board profile needs far fewer - write the values out or remove "
+                    "the aliases", node.start_mark)
+            continue
+        if key in active:
+            raise ExpansionError("an alias refers to a node that contains it (a recursive "
+                                 "alias); a profile must be a tree", node.start_mark)
+        active.add(key)
+        stack.append((node, True))
+        for c in children:
+            if id(c) in active:
+                raise ExpansionError("an alias refers to a node that contains it (a recursive "
+                                     "alias); a profile must be a tree", c.start_mark)
+            if id(c) not in sizes:
+                stack.append((c, False))
 
 
 _PLAIN_COLLECTION_TAGS = {"tag:yaml.org,2002:map", "tag:yaml.org,2002:seq",

@@ -8,6 +8,7 @@ its measurement completes.
 
 from __future__ import annotations
 
+import random
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -28,7 +29,17 @@ class ChipEmulator(ABC):
     """Base of every chip emulator.
 
     ``clock`` is the simulated clock the emulator measures conversion and data-ready timing
-    against. ``absent`` makes the chip NACK every transfer (fault injection).
+    against.
+
+    Fault-injection hook (driven by imuhal.emulation.faults; docs/reliability.md). Generic
+    parts, here: ``absent`` makes the chip NACK every transfer; ``frozen`` makes the chip
+    keep measuring the physics it had when the freeze began, so it keeps producing the same
+    raw words (a hung conversion). Parts each emulator implements where its chip has them:
+    ``silent_reset()`` (power-on register state, unannounced), ``stuck_data_ready`` (set
+    True: no measurement completes, data-ready never comes; the chip's own soft reset may
+    clear it; the class sets ``models_stuck_data_ready``), ``corrupt_trim(rng, bits)`` (flip
+    bits of the factory calibration the driver reads). ``chip_faults()`` lists what an
+    emulator class models.
     """
 
     #: The driver name this emulator stands in for (the registry pairs them by it).
@@ -38,6 +49,8 @@ class ChipEmulator(ABC):
     #: :class:`~imuhal.sim.errors.SensorErrorSpec` or a mapping of its fields; the mapping is
     #: validated when the class is defined, so a typo in a plugin fails at import, naming it.
     error_spec: ClassVar[SensorErrorSpec | None] = None
+    #: Set True by an emulator whose measurement engine honours ``stuck_data_ready``.
+    models_stuck_data_ready: ClassVar[bool] = False
     #: Opt-in to imuhal's generic conformance sweep, which checks the pair against an
     #: independent table in imuhal's own test data; a third-party emulator leaves it False.
     conformance_sweep: ClassVar[bool] = False
@@ -58,15 +71,26 @@ class ChipEmulator(ABC):
     def __init__(self, clock: Clock | None = None) -> None:
         self.clock: Clock = clock if clock is not None else SimulatedClock()
         self.absent = False
+        self.frozen = False
+        self.stuck_data_ready = False
+        self.host_baudrate = 0
+        """Serial chips: the line speed the host's UART is set to (0: not a UART)."""
         self.physics = PhysicalInputs()
 
     @abstractmethod
     def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes:
         """Answer one bus transaction (write then read) as the chip would."""
 
+    def bus_receive(self, kind: BusKind, max_len: int) -> bytes:
+        """Byte-stream chips (a UART device): up to ``max_len`` bytes the chip has sent by
+        now. Register-mapped chips never send unprompted."""
+        return b""
+
     def set_physics(self, inputs: PhysicalInputs) -> None:
-        """Hand the emulator the true values it should measure from now on."""
-        self.physics = inputs
+        """Hand the emulator the true values it should measure from now on (ignored while
+        ``frozen``: the chip keeps converting what it had)."""
+        if not self.frozen:
+            self.physics = inputs
 
     def now_ns(self) -> int:
         return self.clock.now_ns()
@@ -84,6 +108,24 @@ class ChipEmulator(ABC):
     def silent_reset(self) -> None:
         """Fault injection: the chip resets without telling anyone (configuration lost)."""
         raise NotImplementedError(f"{type(self).__name__} does not model a silent reset")
+
+    def corrupt_trim(self, rng: random.Random, bits: int = 1) -> str:
+        """Fault injection: flip ``bits`` random bits of the factory calibration (PROM,
+        trimming, sensitivity adjustment) as the driver reads it; what the sensor element
+        measures is unchanged. Returns what was changed, for the run's log."""
+        raise NotImplementedError(f"{type(self).__name__} has no factory calibration to corrupt")
+
+    @classmethod
+    def chip_faults(cls) -> frozenset[str]:
+        """The chip-level fault kinds this emulator models (imuhal.profile.faults)."""
+        kinds = {"frozen"}
+        if cls.silent_reset is not ChipEmulator.silent_reset:
+            kinds.add("reset")
+        if cls.corrupt_trim is not ChipEmulator.corrupt_trim:
+            kinds.add("corrupt_trim")
+        if cls.models_stuck_data_ready:
+            kinds.add("stuck_data_ready")
+        return frozenset(kinds)
 
     def connect_host(self, host_bus: EmulatedBus) -> None:  # noqa: B027 - optional hook
         """Called once the whole board is attached, with the bus this chip sits on. A chip

@@ -2,26 +2,41 @@
 
 from __future__ import annotations
 
+from typing import Protocol, TypeVar
+
 from imuhal.bus.base import Bus, BusKind
 from imuhal.core.errors import BusError, NackError
-from imuhal.sim.chip import ChipEmulator
+
+
+class BusTarget(Protocol):
+    """What answers at one address or chip select: a ChipEmulator, or a line in front of
+    one (imuhal.emulation.faults.FaultLine, the MPU-9250's bypass gate)."""
+
+    @property
+    def absent(self) -> bool: ...
+
+    def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes: ...
+
+
+_T = TypeVar("_T", bound=BusTarget)
 
 
 class EmulatedBus(Bus):
     """A bus whose far end is register-level chip emulators.
 
-    Fault injection: ``fail_transfers({n, ...})`` makes the n-th transfer from now (1-based)
-    raise a bus error, as a glitch on real wiring would.
+    Fault injection on a whole board goes through imuhal.emulation.faults (per device, in
+    simulated time). For driver unit tests without a board, ``fail_transfers({n, ...})``
+    makes the n-th transfer from now (1-based) raise a bus error.
     """
 
     def __init__(self, name: str, kind: BusKind) -> None:
         super().__init__(name)
         self.kind = kind
-        self.targets: dict[int, ChipEmulator] = {}
+        self.targets: dict[int, BusTarget] = {}
         self._fail_at: set[int] = set()
         self._count = 0
 
-    def attach(self, target: int, emulator: ChipEmulator) -> ChipEmulator:
+    def attach(self, target: int, emulator: _T) -> _T:
         if target in self.targets:
             raise ValueError(f"{self.name}: target 0x{target:02X} already has an emulator")
         self.targets[target] = emulator
@@ -42,3 +57,15 @@ class EmulatedBus(Bus):
             raise NackError(f"no device answered at {what} 0x{target:02X}", bus=self.name,
                             target=target)
         return emulator.bus_transfer(self.kind, write, read_len)
+
+    def _receive(self, target: int, max_len: int) -> bytes:
+        emulator = self.targets.get(target)
+        if emulator is None or emulator.absent:
+            return b""  # a silent UART: nothing arrives
+        return emulator.bus_receive(self.kind, max_len)
+
+    def set_baudrate(self, baudrate: int) -> None:
+        """The host UART's line speed: an emulated serial chip garbles what it sends when it
+        differs from its own (as a real UART at the wrong speed reads noise)."""
+        for emulator in self.targets.values():
+            emulator.host_baudrate = baudrate

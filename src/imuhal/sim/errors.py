@@ -311,7 +311,9 @@ class SensorErrorModel:
         # arithmetic above (this runs for every chip at every poll).
         return PhysicalInputs(specific_force_m_s2=accel, angular_rate_rad_s=gyro,
                               magnetic_field_ut=mag, pressure_pa=pressure,
-                              temperature_degc=measured_temp)
+                              temperature_degc=measured_temp,
+                              position_ned_m=inputs.position_ned_m,
+                              velocity_ned_m_s=inputs.velocity_ned_m_s)
 
     # ------------------------------------------------------------------ truth of the errors
     def bias(self, channel: str, temperature_degc: float | None = None,

@@ -14,3 +14,8 @@ class PhysicalInputs:
     magnetic_field_ut: tuple[float, float, float] | None = None
     pressure_pa: float | None = None
     temperature_degc: float | None = None
+    position_ned_m: tuple[float, float, float] | None = None
+    """Earth-frame position relative to the scenario origin (NED, m): not rotated into the
+    chip's frame (a GNSS receiver reports where the board is, not how it is mounted)."""
+    velocity_ned_m_s: tuple[float, float, float] | None = None
+    """Earth-frame velocity over ground (NED, m/s), likewise not rotated."""

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
+from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -33,6 +34,10 @@ Mat3 = tuple[float, float, float, float, float, float, float, float, float]
 Triple = tuple[float, float, float]
 """A signal's (value, first derivative, second derivative)."""
 
+_SEGMENT = 1024
+"""Quadrature nodes per segment of the position table (10.24 s at the default 0.01 s)."""
+_SEGMENTS_KEPT = 4
+"""Segments kept computed: the current one and a few recently queried (truth lookups)."""
 _IDENTITY_MAT: Mat3 = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
 
 
@@ -179,10 +184,13 @@ class FlightMotion(Motion):
         self.gravity_m_s2 = float(gravity_m_s2)
         self.grid_step_s = float(grid_step_s)
         self._tabulated = speed_along_heading is not None or speed_along_nose is not None
-        # Quadrature table of the tabulated velocity: node k at t = k * h.
-        self._tv: list[Vec3] = []
-        self._ta: list[Vec3] = []
-        self._tp: list[Vec3] = []
+        # Quadrature table of the tabulated velocity (node k at t = k * h), kept bounded: the
+        # state (v, a, p) at the start of every segment of _SEGMENT nodes is kept for the
+        # whole run (a few bytes per 10 s), the nodes themselves only for the last few
+        # segments used; an older segment is recomputed from its start, to the same floats.
+        self._starts: list[tuple[Vec3, Vec3, Vec3]] = []
+        self._segments: OrderedDict[int, tuple[list[Vec3], list[Vec3], list[Vec3]]] = \
+            OrderedDict()
 
     # ------------------------------------------------------------------ attitude + velocity
     def _speeds(self, t: float) -> tuple[Triple | None, Triple | None]:
@@ -257,35 +265,50 @@ class FlightMotion(Motion):
         q, w = self._attitude(t, yaw, heading if heading is not None else nose)
         return self._tab_velocity(yaw, heading, nose, quat_matrix(q), w)
 
-    def _extend_table(self, k_needed: int) -> None:
-        h = self.grid_step_s
-        if not self._tv:
+    def _segment(self, index: int) -> tuple[list[Vec3], list[Vec3], list[Vec3]]:
+        """Nodes ``index * _SEGMENT`` .. ``(index + 1) * _SEGMENT`` (inclusive): velocity,
+        acceleration and position lists, computed from the segment's start state."""
+        cached = self._segments.get(index)
+        if cached is not None:
+            self._segments.move_to_end(index)
+            return cached
+        if not self._starts:
             v, a = self._node(0)
-            self._tv.append(v)
-            self._ta.append(a)
-            self._tp.append((0.0, 0.0, 0.0))
-        while len(self._tv) <= k_needed:
-            k = len(self._tv)
+            self._starts.append((v, a, (0.0, 0.0, 0.0)))
+        while len(self._starts) <= index:  # segments before it first (their start states)
+            self._segment(len(self._starts) - 1)
+        h = self.grid_step_s
+        v0, a0, p0 = self._starts[index]
+        tv, ta, tp = [v0], [a0], [p0]
+        first = index * _SEGMENT
+        for k in range(first + 1, first + _SEGMENT + 1):
             v1, a1 = self._node(k)
-            v0, a0, p0 = self._tv[-1], self._ta[-1], self._tp[-1]
             # Integral of the cubic Hermite interpolant of v (exact for cubic velocity).
-            self._tp.append(tuple(p0[i] + 0.5 * h * (v0[i] + v1[i])
-                                  + h * h / 12.0 * (a0[i] - a1[i]) for i in range(3)))
-            self._tv.append(v1)
-            self._ta.append(a1)
+            p1 = tuple(p0[i] + 0.5 * h * (v0[i] + v1[i]) + h * h / 12.0 * (a0[i] - a1[i])
+                       for i in range(3))
+            tv.append(v1)
+            ta.append(a1)
+            tp.append(p1)  # type: ignore[arg-type]
+            v0, a0, p0 = v1, a1, p1  # type: ignore[assignment]
+        if len(self._starts) == index + 1:
+            self._starts.append((v0, a0, p0))
+        self._segments[index] = (tv, ta, tp)
+        if len(self._segments) > _SEGMENTS_KEPT:
+            self._segments.popitem(last=False)
+        return tv, ta, tp
 
     def _tab_position(self, t: float) -> Vec3:
         h = self.grid_step_s
         k = int(t / h)
-        self._extend_table(k + 1)
+        tv, ta, tp = self._segment(k // _SEGMENT)
+        j = k % _SEGMENT
         s = t / h - k
         s2, s3, s4 = s * s, s * s * s, s * s * s * s
         i00 = s - s3 + 0.5 * s4
         i10 = 0.5 * s2 - 2.0 / 3.0 * s3 + 0.25 * s4
         i01 = s3 - 0.5 * s4
         i11 = -s3 / 3.0 + 0.25 * s4
-        v0, a0, v1, a1, p0 = self._tv[k], self._ta[k], self._tv[k + 1], self._ta[k + 1], \
-            self._tp[k]
+        v0, a0, v1, a1, p0 = tv[j], ta[j], tv[j + 1], ta[j + 1], tp[j]
         return (p0[0] + h * (v0[0] * i00 + h * a0[0] * i10 + v1[0] * i01 + h * a1[0] * i11),
                 p0[1] + h * (v0[1] * i00 + h * a0[1] * i10 + v1[1] * i01 + h * a1[1] * i11),
                 p0[2] + h * (v0[2] * i00 + h * a0[2] * i10 + v1[2] * i01 + h * a1[2] * i11))

@@ -68,6 +68,15 @@ class RecordedMotion(Motion):
 
     def kinematics(self, t_s: float) -> Kinematics:
         t = float(t_s)
+        if 0.0 <= t < self._t0:
+            # Before the record starts (a truth file written by `imuhal run --truth` begins
+            # at the run's first estimate, not at 0): the board rests at the first pose.
+            q0 = self._q[0]
+            rot0 = quat_matrix(q0)
+            f0 = mat_t_vec(rot0, (0.0, 0.0, -self.gravity_m_s2))
+            zero = (0.0, 0.0, 0.0)
+            return Kinematics(t, q0, rot0, zero, f0, zero, self._p[0],  # type: ignore[arg-type]
+                              zero)
         if not self._t0 <= t <= self._t1:
             raise ValueError(f"t = {t} s is outside the record [{self._t0}, {self._t1}] s")
         i = min(bisect_right(self.t, t) - 1, len(self.t) - 2)

@@ -107,7 +107,14 @@ def physical_inputs(truth: TruthState, sensor_to_body: Sequence[Sequence[float]]
         magnetic_field_ut=_to_sensor(truth.magnetic_field_body_ut, m) if mag else None,
         pressure_pa=truth.pressure_pa if pressure else None,
         temperature_degc=truth.temperature_degc if temperature else None,
+        position_ned_m=_earth(truth.position_ned_m),
+        velocity_ned_m_s=_earth(truth.velocity_ned_m_s),
     )
+
+
+def _earth(v: np.ndarray) -> tuple[float, float, float]:
+    x, y, z = np.asarray(v, dtype=float).tolist()
+    return (x, y, z)
 
 
 def _to_sensor(v: np.ndarray, m: list[list[float]] | None) -> tuple[float, float, float]:

@@ -22,10 +22,12 @@ from imuhal.core.conventions import NED, Convention, get_convention
 from imuhal.core.samples import (
     Channel,
     Frame,
+    PositionSample,
     PressureSample,
     Sample,
     TemperatureSample,
     VectorSample,
+    VelocitySample,
 )
 from imuhal.estimation.framed import (
     EULER_COLUMNS,
@@ -53,7 +55,17 @@ def csv_columns(frame: str | Convention = NED) -> tuple[str, ...]:
         *attitude_columns(frame),
         *linear_accel_columns(frame),
         "altitude_m", "climb_m_s", "accel_bias_m_s2",
+        *GNSS_COLUMNS,
     )
+
+
+GNSS_COLUMNS = (
+    "latitude_deg", "longitude_deg", "height_msl_m", "fix_type", "satellites",
+    "horizontal_accuracy_m", "vertical_accuracy_m", "vn_m_s", "ve_m_s", "vd_m_s",
+    "speed_accuracy_m_s",
+)
+"""GNSS position and earth-frame velocity (frame-independent: NED velocity in every
+convention, WGS-84 degrees)."""
 
 
 CSV_COLUMNS = csv_columns(NED)
@@ -98,6 +110,19 @@ def event_row(event: Event, frame: str | Convention = NED) -> dict[str, str]:
             _put(row, ("pressure_pa",), (event.pressure_pa,))
         elif isinstance(event, TemperatureSample):
             _put(row, ("temperature_degc",), (event.temperature_degc,))
+        elif isinstance(event, PositionSample):
+            _put(row, ("latitude_deg", "longitude_deg", "height_msl_m"),
+                 (event.latitude_deg, event.longitude_deg, event.height_m))
+            row["fix_type"] = str(int(event.fix_type))
+            row["satellites"] = str(event.satellites)
+            for name, value in (("horizontal_accuracy_m", event.horizontal_accuracy_m),
+                                ("vertical_accuracy_m", event.vertical_accuracy_m)):
+                if value is not None:
+                    _put(row, (name,), (value,))
+        elif isinstance(event, VelocitySample):
+            _put(row, ("vn_m_s", "ve_m_s", "vd_m_s"), event.velocity_ned_m_s)
+            if event.accuracy_m_s is not None:
+                _put(row, ("speed_accuracy_m_s",), (event.accuracy_m_s,))
         return row
     row["t_s"] = f"{event.t_ns / 1e9:.6f}"
     row["source"] = event.source
@@ -128,37 +153,55 @@ def _put(row: dict[str, str], names: tuple[str, ...], values: tuple[float, ...])
 
 
 class CsvSink:
-    """Writes events to a CSV file atomically: rows go to a temporary file in the same
-    folder, which replaces ``path`` (after flush and fsync) only when the run closes, so an
-    interrupted run never leaves a half-written log under the final name."""
+    """Writes events to a CSV log that is never lost and never replaces a good file by a
+    failed run's output (docs/output-csv.md, "Safety"):
+
+    * rows go to ``PATH.partial`` beside ``PATH``, flushed and fsync'ed at least every
+      ``sync_every_s`` seconds of wall time, so a power cut loses at most that much;
+    * :meth:`close` (the run ended, or was stopped by a signal) renames it over ``PATH``;
+    * :meth:`abort` (the run failed) leaves ``PATH`` as it was and keeps the rows written so
+      far in ``PATH.partial`` (nothing, when there were none); ``partial_path`` says where.
+
+    A FIFO or character device as ``path`` is written directly. ``frame`` names the
+    convention of the vector columns (default NED).
+    """
 
     def __init__(self, path: str | os.PathLike[str], *, include_samples: bool = False,
-                 frame: str | Convention = NED) -> None:
+                 frame: str | Convention = NED, sync_every_s: float = 2.0) -> None:
         self.path = Path(path)
         self.include_samples = include_samples
         self.frame = get_convention(frame)
+        self.sync_every_s = sync_every_s
         self.rows = 0
-        self._out: AtomicFile | None = AtomicFile(self.path, newline="")
+        self.partial_path: Path | None = None
+        self._out: AtomicFile | None = AtomicFile(self.path, newline="", partial=True)
         self._writer = csv.DictWriter(self._out, fieldnames=csv_columns(self.frame),
                                       restval="")
         self._writer.writeheader()
+        self._out.sync()  # the log's name is on disk from the start
+        self._last_sync = time.monotonic()
 
     def handle(self, event: Event) -> None:
         if isinstance(event, Sample) and not self.include_samples:
             return
         self._writer.writerow(event_row(event, self.frame))
         self.rows += 1
+        if self._out is not None and time.monotonic() - self._last_sync >= self.sync_every_s:
+            self._out.sync()
+            self._last_sync = time.monotonic()
 
     def close(self) -> None:
         if self._out is not None:
             self._out.commit()
             self._out = None
 
-    def abort(self) -> None:
-        """Drop the temporary file; ``path`` keeps whatever it had before."""
+    def abort(self) -> Path | None:
+        """Leave ``path`` as it was; keep the rows written so far in ``path.partial`` (returned)
+        when there are any, else write nothing."""
         if self._out is not None:
-            self._out.abort()
+            self.partial_path = self._out.abort(keep_partial=self.rows > 0)
             self._out = None
+        return self.partial_path
 
 
 class ConsoleSink:

@@ -1,0 +1,1 @@
+"""GNSS receivers on a UART (NMEA 0183 and u-blox UBX): driver and byte-stream emulator."""

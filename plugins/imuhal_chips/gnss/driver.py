@@ -1,0 +1,406 @@
+"""GNSS receiver on a UART: NMEA 0183 (pynmea2) or u-blox UBX NAV-PVT (pyubx2).
+
+Probe listens at each baud rate in turn until it sees a sentence or frame with a valid
+checksum, and so learns the protocol and the line speed; configure (u-blox receivers) sets
+the navigation rate and the messages with UBX CFG-RATE / CFG-MSG and checks each ACK; poll
+reads what has arrived, splits it into sentences and frames, decodes them and turns each
+navigation epoch into a :class:`PositionSample` and a :class:`VelocitySample`.
+
+Timestamps: ``t_ns`` is the measurement epoch on the pipeline clock. The receiver stamps its
+epochs in UTC; the driver maps UTC to the pipeline clock with the smallest arrival delay seen
+so far, less the receiver's stated output latency (``latency_s``).
+
+Nothing wrong is fused: a sentence or frame with a bad checksum becomes a sample flagged
+CRC_ERROR (counted; values NaN where unreadable); an epoch without a fix is flagged STALE;
+garbled bytes are counted in ``stats``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from datetime import date, datetime, timezone
+from typing import ClassVar, Literal
+
+from pydantic import Field
+
+from imuhal.bus.base import BusKind, Link
+from imuhal.core.clock import Clock
+from imuhal.core.errors import ConfigurationError, DeviceNotFoundError
+from imuhal.core.samples import (
+    Channel,
+    FixType,
+    HeightDatum,
+    PositionSample,
+    Sample,
+    SampleFlag,
+    VelocitySample,
+)
+from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
+from imuhal_chips.gnss.decode import DecodeError, Fragment, decode_nmea, decode_ubx
+from imuhal_chips.gnss.framing import StreamSplitter
+from imuhal_chips.gnss.ubx import NMEA_IDS, UBX_NAV_PVT, cfg_msg, cfg_rate
+
+NMEA_MESSAGES = ("GGA", "RMC", "VTG", "GSA")
+READ_CHUNK = 4096
+DAY_NS = 86_400 * 10**9
+FOREIGN_LIMIT = 8
+UBX_NAV_PVT_BYTES = 100
+NMEA_SENTENCE_BYTES = 75
+"""A typical GGA/RMC/VTG/GSA length with CR LF (the line budget in configure)."""
+ACK_POLL_NS = 5_000_000
+"""How often configure looks for an ACK: an ACK is 10 bytes, 10 ms at 9600 baud."""
+QUIET_NS = 100_000_000
+"""A line quiet this long (or 2.5 polls) has finished the epoch's burst."""
+"""Valid sentences of the other protocol in a row that mean the receiver was reset."""
+
+
+class GnssSettings(DriverSettings):
+    protocol: Literal["auto", "nmea", "ubx"] = "auto"
+    """What to decode; ``auto``: whatever probe finds (UBX preferred when both are seen)."""
+    baud_rates: tuple[int, ...] = (9600, 38400, 115200, 57600, 4800)
+    """Line speeds probe tries, in order (u-blox default: 9600; MTK: 9600 or 38400)."""
+    rate_hz: float = Field(1.0, gt=0, le=25)
+    """Navigation rate set with CFG-RATE (u-blox) when ``configure_receiver`` (default: the
+    factory 1 Hz, which four NMEA sentences fit into at 9600 baud)."""
+    messages: tuple[str, ...] | None = None
+    """Messages to enable (NMEA names or NAV-PVT); default: NAV-PVT for UBX, GGA RMC VTG GSA
+    for NMEA."""
+    configure_receiver: bool = True
+    """Send UBX CFG messages (u-blox receivers); False leaves the receiver as it is."""
+    poll_hz: float = Field(20.0, gt=0, le=200)
+    """How often the UART buffer is read."""
+    probe_window_s: float = Field(1.5, gt=0)
+    """How long probe listens at each baud rate (longer than the slowest output period)."""
+    latency_s: float = Field(0.0, ge=0)
+    """The receiver's output latency (epoch to first byte), subtracted from arrival times."""
+
+
+@dataclass
+class GnssStats:
+    sentences: int = 0
+    ubx_frames: int = 0
+    checksum_errors: int = 0
+    decode_errors: int = 0
+    garbage_bytes: int = 0
+    epochs: int = 0
+    last_error: str = ""
+
+
+@dataclass
+class _Epoch:
+    time_of_day_s: float
+    arrival_ns: int
+    parts: list[Fragment] = field(default_factory=list)
+
+
+class GnssDriver(Driver):
+    name: ClassVar[str] = "gnss"
+    description: ClassVar[str] = "GNSS receiver on a UART (NMEA 0183 or u-blox UBX NAV-PVT)"
+    Settings = GnssSettings
+    channels: ClassVar[tuple[Channel, ...]] = (Channel.POSITION, Channel.VELOCITY)
+    bus_kinds: ClassVar[frozenset[BusKind]] = frozenset({BusKind.SERIAL})
+
+    def __init__(self, link: Link, settings: DriverSettings, *, device: str,
+                 clock: Clock) -> None:
+        super().__init__(link, settings, device=device, clock=clock)
+        self.settings: GnssSettings
+        self.protocol: str = ""
+        self.baudrate = 0
+        self.stats = GnssStats()
+        self._splitter = StreamSplitter()
+        self._epoch: _Epoch | None = None
+        self._offset_ns: int | None = None
+        self._prev_height: tuple[int, float] | None = None
+        self._foreign = 0
+        self._last_byte_ns = 0
+        self._quiet_ns = max(QUIET_NS, round(2.5e9 / self.settings.poll_hz))
+
+    # -- probe --------------------------------------------------------------------------
+
+    def probe(self) -> DeviceIdentity:
+        s = self.settings
+        try:
+            import pynmea2  # noqa: F401
+            import pyubx2  # noqa: F401
+        except ImportError as exc:
+            raise ConfigurationError(f"{self.describe()}: the GNSS driver needs pynmea2 and "
+                                     f"pyubx2 ({exc}); install imuhal[gps]") from None
+        bus = self.link.bus
+        set_baud = getattr(bus, "set_baudrate", None)
+        seen: list[str] = []
+        for baud in s.baud_rates:
+            if set_baud is not None:
+                set_baud(baud)
+            found, what = self._listen(s.probe_window_s)
+            if found:
+                # A u-blox receiver heard speaking NMEA is switched to UBX by configure().
+                self.protocol = found if s.protocol == "auto" else s.protocol
+                self.baudrate = baud
+                self.identity = DeviceIdentity(self.name, bus.name, self.link.target,
+                                               f"{found.upper()} at {baud} baud")
+                return self.identity
+            seen.append(f"{baud}: {what}")
+            if set_baud is None:
+                break  # the bus cannot change speed: trying others would repeat this
+        raise DeviceNotFoundError(
+            driver=self.name, bus=bus.name, address=self.link.target,
+            expected=f"NMEA or UBX with valid checksums at one of {list(s.baud_rates)} baud",
+            found="; ".join(seen),
+            hint="check the receiver's TX goes to the host's RX, its power, and that its "
+                 "baud rate is in settings.baud_rates")
+
+    def _listen(self, window_s: float) -> tuple[str, str]:
+        """Read for ``window_s``; the protocol seen with a valid checksum ('' if none) and
+        what was seen, in words."""
+        splitter = StreamSplitter()
+        got = bytearray()
+        valid = {"nmea": 0, "ubx": 0}
+        bad = 0
+        end = self.clock.now_ns() + round(window_s * 1e9)
+        step = min(round(1e9 / self.settings.poll_hz), 20_000_000)
+        while True:
+            data = self.link.receive(READ_CHUNK)
+            got += data
+            for kind, item in splitter.feed(data):
+                try:
+                    frag = decode_nmea(item) if kind == "nmea" else decode_ubx(item)
+                except DecodeError:
+                    bad += 1
+                    continue
+                if frag.checksum_ok:
+                    valid[kind] += 1
+                else:
+                    bad += 1
+            if valid["ubx"]:
+                return "ubx", ""
+            if valid["nmea"]:
+                return "nmea", ""
+            if self.clock.now_ns() >= end:
+                break
+            self.clock.sleep_until(min(end, self.clock.now_ns() + step))
+        if valid["nmea"]:
+            return "nmea", ""
+        if not got:
+            return "", "nothing received"
+        what = f"{len(got)} bytes, no sentence or frame with a valid checksum"
+        if splitter.garbage_bytes > len(got) // 2:
+            what += " (unreadable: wrong baud rate?)"
+        elif bad:
+            what += f" ({bad} with bad checksums)"
+        return "", what
+
+    # -- configure ----------------------------------------------------------------------
+
+    def configure(self) -> None:
+        s = self.settings
+        if not self.protocol:
+            raise ConfigurationError(f"{self.describe()}: configure() before probe()")
+        self._splitter = StreamSplitter()
+        self._epoch = None
+        self._foreign = 0
+        if not s.configure_receiver:
+            return
+        wanted = set(s.messages or (("NAV-PVT",) if self.protocol == "ubx" else NMEA_MESSAGES))
+        unknown = wanted - set(NMEA_IDS) - {"NAV-PVT"}
+        if unknown:
+            raise ConfigurationError(
+                f"{self.describe()}: cannot enable {sorted(unknown)}; known messages: "
+                f"NAV-PVT, {', '.join(NMEA_IDS)}")
+        need = (UBX_NAV_PVT_BYTES * ("NAV-PVT" in wanted)
+                + NMEA_SENTENCE_BYTES * len(wanted - {"NAV-PVT"})) * s.rate_hz
+        line = self.baudrate / 10 if self.baudrate else math.inf
+        if need > line:
+            raise ConfigurationError(
+                f"{self.describe()}: {', '.join(sorted(wanted))} at {s.rate_hz:g} Hz need "
+                f"about {need:.0f} bytes/s, but {self.baudrate} baud carries {line:.0f}; "
+                "lower rate_hz, enable fewer messages, or set the receiver to a faster baud "
+                "rate")
+        self._send_checked(cfg_rate(s.rate_hz), (0x06, 0x08), f"CFG-RATE {s.rate_hz:g} Hz")
+        self._send_checked(cfg_msg(*UBX_NAV_PVT, 1 if "NAV-PVT" in wanted else 0),
+                           (0x06, 0x01), "CFG-MSG NAV-PVT")
+        for name, (cls, mid) in NMEA_IDS.items():
+            self._send_checked(cfg_msg(cls, mid, 1 if name in wanted else 0), (0x06, 0x01),
+                               f"CFG-MSG {name}")
+
+    def _send_checked(self, frame: bytes, ident: tuple[int, int], what: str) -> None:
+        """Write a CFG message and wait (up to 1 s) for its ACK-ACK in the stream."""
+        self.link.transfer(frame, 0)
+        end = self.clock.now_ns() + 10**9
+        step = ACK_POLL_NS
+        splitter = self._splitter
+        while True:
+            for kind, item in splitter.feed(self.link.receive(READ_CHUNK)):
+                if kind != "ubx":
+                    continue
+                try:
+                    frag = decode_ubx(item)
+                except DecodeError:
+                    continue
+                if frag.acked == ident and frag.kind == "ACK-ACK":
+                    return
+                if frag.acked == ident and frag.kind == "ACK-NAK":
+                    raise ConfigurationError(f"{self.describe()}: the receiver refused {what} "
+                                             "(ACK-NAK); is it a u-blox receiver? Set "
+                                             "configure_receiver: false for others")
+            if self.clock.now_ns() >= end:
+                raise ConfigurationError(
+                    f"{self.describe()}: no ACK for {what} within 1 s; a receiver that does "
+                    "not speak UBX needs configure_receiver: false")
+            self.clock.sleep_until(min(end, self.clock.now_ns() + step))
+
+    # -- poll ---------------------------------------------------------------------------
+
+    def poll(self, now_ns: int) -> PollResult:
+        data = self.link.receive(READ_CHUNK)
+        before = self._splitter.garbage_bytes
+        items = self._splitter.feed(data)
+        self.stats.garbage_bytes += self._splitter.garbage_bytes - before
+        samples: list[Sample] = []
+        for kind, item in items:
+            samples += self._take(kind, item, now_ns)
+        if data:
+            self._last_byte_ns = now_ns
+        if self._epoch is not None and (self._epoch_complete() or
+                                        now_ns - self._last_byte_ns >= self._quiet_ns):
+            # At 9600 baud an epoch's burst spans several reads: it is complete when every
+            # configured message has come, or when the line has been quiet for a while.
+            samples += self._close_epoch()
+        return PollResult(samples, now_ns + round(1e9 / self.settings.poll_hz))
+
+    def _expected(self) -> set[str] | None:
+        s = self.settings
+        if not s.configure_receiver:
+            return None  # what the receiver sends is its own business: wait for quiet
+        return set(s.messages or (("NAV-PVT",) if self.protocol == "ubx" else NMEA_MESSAGES))
+
+    def _epoch_complete(self) -> bool:
+        expected = self._expected()
+        return self._epoch is not None and expected is not None and \
+            expected <= {p.kind for p in self._epoch.parts}
+
+    def _take(self, kind: str, item: bytes, now_ns: int) -> list[Sample]:
+        if kind == "nmea":
+            self.stats.sentences += 1
+        else:
+            self.stats.ubx_frames += 1
+        try:
+            frag = decode_nmea(item) if kind == "nmea" else decode_ubx(item)
+        except DecodeError as exc:
+            self.stats.decode_errors += 1
+            self.stats.last_error = str(exc)
+            return []
+        if not frag.checksum_ok:
+            self.stats.checksum_errors += 1
+            return [self._flagged(frag, now_ns)]
+        if frag.kind not in ("GGA", "RMC", "VTG", "GSA", "NAV-PVT"):
+            return []
+        if self.protocol == "ubx" and kind == "nmea":
+            # A receiver configured for UBX that talks NMEA has restarted with its factory
+            # settings: the pipeline's recovery re-probes and reconfigures it.
+            self._foreign += 1
+            if self._foreign >= FOREIGN_LIMIT and self.settings.configure_receiver:
+                self._foreign = 0
+                self.health.resets_detected += 1
+                raise ConfigurationError(f"{self.describe()}: the receiver sends NMEA although "
+                                         "configured for UBX (it restarted); reconfiguring")
+            return []
+        if self.protocol == "nmea" and kind == "ubx":
+            return []
+        self._foreign = 0
+        out: list[Sample] = []
+        if frag.time_of_day_s is not None:
+            if self._epoch is not None and \
+                    abs(self._epoch.time_of_day_s - frag.time_of_day_s) > 1e-3:
+                out += self._close_epoch()
+            if self._epoch is None:
+                # The item began arriving its own transmit time before the end of the read.
+                sent_ns = round(len(item) * 10e9 / self.baudrate) if self.baudrate else 0
+                self._epoch = _Epoch(frag.time_of_day_s, now_ns - sent_ns)
+        if self._epoch is not None:
+            self._epoch.parts.append(frag)
+        return out
+
+    def _flagged(self, frag: Fragment, now_ns: int) -> PositionSample:
+        nan = math.nan
+        return PositionSample(
+            t_ns=now_ns, device=self.device, flags=SampleFlag.CRC_ERROR,
+            latitude_deg=nan if frag.latitude_deg is None else frag.latitude_deg,
+            longitude_deg=nan if frag.longitude_deg is None else frag.longitude_deg,
+            height_m=nan if frag.height_msl_m is None else frag.height_msl_m)
+
+    def _epoch_time_ns(self, epoch: _Epoch) -> int:
+        """The epoch on the pipeline clock: UTC time of day plus the smallest delay (arrival
+        minus UTC, modulo a day) seen so far, less the stated output latency."""
+        tod_ns = round(epoch.time_of_day_s * 1e9)
+        delay = (epoch.arrival_ns - tod_ns) % DAY_NS
+        if self._offset_ns is None or delay < self._offset_ns:
+            self._offset_ns = delay
+        return epoch.arrival_ns - delay + self._offset_ns - round(self.settings.latency_s * 1e9)
+
+    def _close_epoch(self) -> list[Sample]:
+        epoch, self._epoch = self._epoch, None
+        if epoch is None:
+            return []
+        merged = Fragment(kind="epoch")
+        for part in epoch.parts:
+            for name in ("day", "latitude_deg", "longitude_deg", "height_msl_m", "satellites",
+                         "hdop", "ground_speed_m_s", "course_deg", "velocity_ned_m_s",
+                         "horizontal_accuracy_m", "vertical_accuracy_m",
+                         "speed_accuracy_m_s"):
+                value = getattr(part, name)
+                if value is not None:
+                    setattr(merged, name, value)
+            # GGA says fix or not, GSA says 2D or 3D: the more specific one wins.
+            if part.fix_type is not None and (merged.fix_type is None
+                                              or part.kind in ("GSA", "NAV-PVT")):
+                merged.fix_type = part.fix_type
+        self.stats.epochs += 1
+        t_ns = self._epoch_time_ns(epoch)
+        fix = merged.fix_type if merged.fix_type is not None else FixType.NO_FIX
+        has_fix = fix in (FixType.FIX_2D, FixType.FIX_3D, FixType.GNSS_DEAD_RECKONING)
+        out: list[Sample] = []
+        if merged.latitude_deg is None or merged.longitude_deg is None:
+            if not has_fix:
+                out.append(PositionSample(t_ns=t_ns, device=self.device,
+                                          flags=SampleFlag.STALE, latitude_deg=math.nan,
+                                          longitude_deg=math.nan, height_m=math.nan,
+                                          fix_type=fix, satellites=merged.satellites or 0))
+            return out
+        height = merged.height_msl_m
+        velocity = merged.velocity_ned_m_s
+        if velocity is None and merged.ground_speed_m_s is not None and \
+                merged.course_deg is not None and height is not None:
+            # NMEA has no vertical velocity: it is the change of the GGA height between
+            # consecutive epochs (what NMEA-only flight apps do).
+            prev, self._prev_height = self._prev_height, (t_ns, height)
+            if prev is not None and t_ns > prev[0]:
+                down = -(height - prev[1]) / ((t_ns - prev[0]) / 1e9)
+                c = math.radians(merged.course_deg)
+                g = merged.ground_speed_m_s
+                velocity = (g * math.cos(c), g * math.sin(c), down)
+        if velocity is not None and has_fix:
+            # Before the position: a consumer of the fix then has the same epoch's velocity.
+            out.append(VelocitySample(t_ns=t_ns, device=self.device,
+                                      velocity_ned_m_s=velocity,
+                                      accuracy_m_s=merged.speed_accuracy_m_s))
+        flags = SampleFlag.OK if has_fix and height is not None else SampleFlag.STALE
+        out.append(PositionSample(
+            t_ns=t_ns, device=self.device, flags=flags,
+            latitude_deg=merged.latitude_deg, longitude_deg=merged.longitude_deg,
+            height_m=math.nan if height is None else height, height_datum=HeightDatum.MSL,
+            horizontal_accuracy_m=merged.horizontal_accuracy_m,
+            vertical_accuracy_m=merged.vertical_accuracy_m,
+            fix_type=fix, satellites=merged.satellites or 0,
+            utc_s=_utc_s(merged.day, epoch.time_of_day_s)))
+        return out
+
+    def start(self, now_ns: int) -> int:
+        return now_ns
+
+
+def _utc_s(day: date | None, time_of_day_s: float) -> float | None:
+    if day is None:
+        return None
+    midnight = datetime(day.year, day.month, day.day, tzinfo=timezone.utc)
+    return midnight.timestamp() + time_of_day_s

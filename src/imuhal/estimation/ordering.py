@@ -1,0 +1,34 @@
+"""The order in which samples of one instant reach the estimators, live and offline alike.
+
+A driver may emit the samples of one burst in any order (the MAX2110x emits the gyro before
+the accelerometer, the MPU-9250 the other way round), and two devices may produce samples
+with the same timestamp. An AHRS steps on each gyro sample with the latest accelerometer and
+magnetometer samples, so without a rule the result would depend on emission order. The rule:
+samples with the same ``t_ns`` are handed over accelerometer, magnetometer, pressure,
+temperature, then gyro (the gyro step uses the other measurements of its own instant); ties
+are broken by device rank (profile order live; one device offline).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+
+from imuhal.core.samples import Channel, Sample
+
+FUSION_RANK: dict[Channel, int] = {
+    Channel.ACCEL: 0,
+    Channel.MAG: 1,
+    Channel.PRESSURE: 2,
+    Channel.TEMPERATURE: 3,
+    Channel.GYRO: 4,
+}
+"""Position of each quantity among the samples of one instant (gyro last)."""
+
+
+def fusion_order(samples: Iterable[Sample],
+                 device_rank: Mapping[str, int] | None = None) -> list[Sample]:
+    """``samples`` sorted by time, then FUSION_RANK, then device rank: the order estimators
+    receive them in. Independent of the order they were given in."""
+    ranks = device_rank or {}
+    return sorted(samples, key=lambda s: (s.t_ns, FUSION_RANK.get(s.channel, 2),
+                                          ranks.get(s.device, 0)))

@@ -1,0 +1,14 @@
+"""Registers the built-in flight-app sinks through the same hook any plugin uses."""
+
+from __future__ import annotations
+
+from imuhal.plugins.hookspecs import hookimpl
+from imuhal.plugins.registrars import Registrar
+from imuhal.sinks.flight.audio import AudioSink
+from imuhal.sinks.flight.sink import FlightSink
+
+
+@hookimpl
+def imuhal_register_sinks(register: Registrar) -> None:
+    register(FlightSink)
+    register(AudioSink)

@@ -1,0 +1,16 @@
+"""Flight-app output: NMEA-style sentences (LK8EX1, OpenVario POV, FlyNet _PRS, XC Tracer
+XCTRC, GGA/RMC) over a serial port, a pseudo-terminal or TCP, and vario audio.
+Formats and sources: docs/flight-instrument.md."""
+
+from imuhal.sinks.flight.audio import AudioSink, ToneGenerator, VarioAudioSettings
+from imuhal.sinks.flight.sink import FlightOutputSettings, FlightSink
+from imuhal.sinks.flight.transports import (
+    PtyTransport,
+    SerialTransport,
+    TcpTransport,
+    open_transport,
+)
+
+__all__ = ["AudioSink", "FlightOutputSettings", "FlightSink", "PtyTransport",
+           "SerialTransport", "TcpTransport", "ToneGenerator", "VarioAudioSettings",
+           "open_transport"]

@@ -1,0 +1,188 @@
+"""The flight-app sink: the run's estimates as LK8EX1, POV, _PRS, XCTRC, GGA and RMC.
+
+Values come from the latest events of their kind: static pressure and the barometer's
+temperature (valid samples of the device that gives pressure), altitude and climb rate from
+one vertical estimator (``source``, default the first seen), position and velocity from the
+GNSS samples. Flagged samples are never sent. Each sentence has its own rate limit in the
+run's time (simulated or real), so an app sees the rates its format expects.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from datetime import datetime, timezone
+from typing import Any, ClassVar
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from imuhal.core.errors import ImuhalError
+from imuhal.core.samples import (
+    FixType,
+    PositionSample,
+    PressureSample,
+    Sample,
+    TemperatureSample,
+    VelocitySample,
+)
+from imuhal.estimation.outputs import VerticalEstimate
+from imuhal.sinks.base import Event, SinkPlugin
+from imuhal.sinks.flight import sentences as fmt
+from imuhal.sinks.flight.transports import Transport, open_transport
+
+SENTENCES = ("LK8EX1", "POV", "PRS", "XCTRC", "GGA", "RMC")
+
+
+class FlightOutputSettings(BaseModel):
+    """Where to send, which sentences and how often (Hz; 0 = with every new value)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    output: str = "pty"
+    """serial:PORT@BAUD, pty, pty:LINK, tcp:PORT or tcp:HOST:PORT (transports.py)."""
+    sentences: tuple[str, ...] = SENTENCES
+    lk8ex1_hz: float = Field(10.0, ge=0)
+    pov_hz: float = Field(10.0, ge=0)
+    prs_hz: float = Field(1 / 0.048, ge=0)
+    """FlyNet sends _PRS every 48 ms (XCSoar's FlyNet driver assumes that rate)."""
+    xctrc_hz: float = Field(10.0, ge=0)
+    gps_hz: float = Field(0.0, ge=0)
+    """GGA/RMC: 0 = one pair per GNSS epoch."""
+    source: str | None = None
+    """The vertical estimator whose altitude and climb are sent (default: the first seen)."""
+    battery_v: float | None = None
+    battery_percent: float | None = Field(None, ge=0, le=100)
+
+
+class FlightSink(SinkPlugin):
+    """Writes sentences to a :class:`Transport` (``settings.output``, or one handed over);
+    ``counts`` says how many of each went out."""
+
+    name: ClassVar[str] = "nmea"
+    description: ClassVar[str] = ("LK8EX1, POV, _PRS, XCTRC, GGA, RMC to a flight app over "
+                                  "serial, a pty or TCP")
+    Settings = FlightOutputSettings
+
+    def __init__(self, settings: FlightOutputSettings | Mapping[str, Any] | None = None, *,
+                 transport: Transport | None = None) -> None:
+        super().__init__(settings)
+        self.settings: FlightOutputSettings
+        unknown = set(self.settings.sentences) - set(SENTENCES)
+        if unknown:
+            raise ImuhalError(f"unknown flight sentences {sorted(unknown)}; known: "
+                              f"{', '.join(SENTENCES)}")
+        self.transport = transport if transport is not None else \
+            open_transport(self.settings.output)
+        self.counts = dict.fromkeys(SENTENCES, 0)
+        self._last_ns: dict[str, int] = {}
+        self._pressure: PressureSample | None = None
+        self._temperature: float | None = None
+        self._vertical: VerticalEstimate | None = None
+        self._position: PositionSample | None = None
+        self._velocity: VelocitySample | None = None
+
+    def handle(self, event: Event) -> None:
+        if isinstance(event, Sample):
+            if not event.valid:
+                return
+            if isinstance(event, PressureSample):
+                self._pressure = event
+                self._maybe("PRS", event.t_ns)
+            elif isinstance(event, TemperatureSample):
+                if self._pressure is not None and event.device == self._pressure.device:
+                    self._temperature = event.temperature_degc
+            elif isinstance(event, VelocitySample):
+                self._velocity = event
+            elif isinstance(event, PositionSample) and \
+                    event.fix_type in (FixType.FIX_2D, FixType.FIX_3D):
+                self._position = event
+                self._maybe("GGA", event.t_ns)
+                self._maybe("RMC", event.t_ns)
+            return
+        if isinstance(event, VerticalEstimate):
+            if self.settings.source is None:
+                self.settings = self.settings.model_copy(update={"source": event.source})
+            if event.source != self.settings.source:
+                return
+            self._vertical = event
+            for name in ("LK8EX1", "POV", "XCTRC"):
+                self._maybe(name, event.t_ns)
+
+    def _rate(self, name: str) -> float:
+        s = self.settings
+        return {"LK8EX1": s.lk8ex1_hz, "POV": s.pov_hz, "PRS": s.prs_hz,
+                "XCTRC": s.xctrc_hz, "GGA": s.gps_hz, "RMC": s.gps_hz}[name]
+
+    def _maybe(self, name: str, t_ns: int) -> None:
+        if name not in self.settings.sentences:
+            return
+        rate = self._rate(name)
+        last = self._last_ns.get(name)
+        # Half a microsecond of slack: a 10 Hz limit must pass events 100 ms apart.
+        if rate > 0 and last is not None and t_ns - last < 1e9 / rate - 500:
+            return
+        text = self._encode(name)
+        if text is None:
+            return
+        self._last_ns[name] = t_ns
+        self.counts[name] += 1
+        self.transport.write(text.encode("ascii"))
+
+    def _encode(self, name: str) -> str | None:
+        s = self.settings
+        p = self._pressure.pressure_pa if self._pressure is not None else None
+        v = self._vertical
+        if name == "PRS":
+            return None if p is None else fmt.prs(p)
+        if name == "LK8EX1":
+            if v is None:
+                return None
+            return fmt.lk8ex1(pressure_pa=p, altitude_m=v.altitude_m, climb_m_s=v.climb_m_s,
+                              temperature_degc=self._temperature, battery_v=s.battery_v,
+                              battery_percent=s.battery_percent)
+        if name == "POV":
+            if v is None:
+                return None
+            return fmt.pov(pressure_pa=p, climb_m_s=v.climb_m_s,
+                           temperature_degc=self._temperature, battery_v=s.battery_v)
+        pos = self._position
+        if name == "XCTRC":
+            if v is None:
+                return None
+            course, speed = self._course_speed()
+            utc = self._utc(pos) if pos is not None else None
+            return fmt.xctrc(
+                utc=utc or datetime(1970, 1, 1, tzinfo=timezone.utc),
+                latitude_deg=pos.latitude_deg if pos else None,
+                longitude_deg=pos.longitude_deg if pos else None,
+                gps_altitude_m=pos.height_m if pos else None, ground_speed_m_s=speed,
+                course_deg=course, climb_m_s=v.climb_m_s, pressure_pa=p,
+                battery_percent=s.battery_percent) if utc is not None else None
+        if pos is None:
+            return None
+        utc = self._utc(pos)
+        if utc is None:
+            return None
+        if name == "GGA":
+            return fmt.gga(utc=utc, latitude_deg=pos.latitude_deg,
+                           longitude_deg=pos.longitude_deg, quality=1,
+                           satellites=pos.satellites, hdop=None,
+                           altitude_msl_m=pos.height_m, geoid_separation_m=None)
+        course, speed = self._course_speed()
+        return fmt.rmc(utc=utc, valid=True, latitude_deg=pos.latitude_deg,
+                       longitude_deg=pos.longitude_deg, ground_speed_m_s=speed or 0.0,
+                       course_deg=course or 0.0)
+
+    def _course_speed(self) -> tuple[float | None, float | None]:
+        if self._velocity is None:
+            return None, None
+        return fmt.course_and_speed(self._velocity.velocity_ned_m_s)
+
+    @staticmethod
+    def _utc(pos: PositionSample) -> datetime | None:
+        if pos.utc_s is None or not math.isfinite(pos.utc_s):
+            return None
+        return datetime.fromtimestamp(pos.utc_s, tz=timezone.utc)
+
+    def close(self) -> None:
+        self.transport.close()

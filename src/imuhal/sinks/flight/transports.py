@@ -1,0 +1,189 @@
+"""Where flight-app sentences go: a serial port, a pseudo-terminal, or a TCP server.
+
+Every transport only writes and never blocks the pipeline: what cannot be written now (no
+reader on the pty, a TCP client that stopped reading) is dropped and counted, as a serial
+line with nobody listening would lose it.
+
+``open_transport(spec)`` reads the CLI's form: ``serial:PORT@BAUD``, ``pty`` or
+``pty:LINK`` (a symlink to the pty's slave at LINK, so the flight app's setting survives
+restarts), ``tcp:PORT`` (loopback) or ``tcp:HOST:PORT``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import os
+import socket
+import termios
+import tty
+from pathlib import Path
+from typing import Protocol
+
+from imuhal.core.errors import ImuhalError
+
+TRANSPORT_FORMS = "serial:PORT@BAUD, pty, pty:LINK, tcp:PORT or tcp:HOST:PORT"
+
+
+class Transport(Protocol):
+    description: str
+    dropped_bytes: int
+
+    def write(self, data: bytes) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class SerialTransport:
+    """A UART (or Bluetooth SPP device) through pyserial."""
+
+    def __init__(self, port: str, baudrate: int, *, serial_factory: object | None = None
+                 ) -> None:
+        import serial
+
+        factory = serial_factory or serial.serial_for_url
+        try:
+            self._port = factory(port, baudrate=baudrate, timeout=0, write_timeout=0)
+        except (OSError, serial.SerialException, ValueError) as exc:
+            raise ImuhalError(f"--nmea serial:{port}@{baudrate}: cannot open {port} ({exc}); "
+                              "check the device path and its permissions") from None
+        self.description = f"serial port {port} at {baudrate} baud"
+        self.dropped_bytes = 0
+
+    def write(self, data: bytes) -> None:
+        try:
+            self._port.write(data)
+        except Exception:  # pyserial's write timeout: the line cannot take more now
+            self.dropped_bytes += len(data)
+
+    def close(self) -> None:
+        self._port.close()
+
+
+class PtyTransport:
+    """A pseudo-terminal: a flight app on the same machine opens ``slave_path`` (or
+    ``link``) as if it were a serial device. The slave side is raw (no echo, no newline
+    translation), so sentences arrive byte for byte."""
+
+    def __init__(self, link: str | os.PathLike[str] | None = None) -> None:
+        self._link = Path(link) if link is not None else None
+        if self._link is not None and (self._link.exists() or self._link.is_symlink()) \
+                and not self._link.is_symlink():
+            raise ImuhalError(f"--nmea pty:{self._link}: {self._link} exists and is not a "
+                              "symlink; name a new path (imuhal only replaces its own links)")
+        self._master, self._slave = os.openpty()
+        tty.setraw(self._slave, termios.TCSANOW)
+        os.set_blocking(self._master, False)
+        self.slave_path = os.ttyname(self._slave)
+        if self._link is not None:
+            tmp = self._link.with_name(f".{self._link.name}.{os.getpid()}")
+            with contextlib.suppress(FileNotFoundError):
+                tmp.unlink()
+            os.symlink(self.slave_path, tmp)
+            os.replace(tmp, self._link)  # atomic: an app never sees the link missing
+        where = f"{self._link} -> {self.slave_path}" if self._link else self.slave_path
+        self.description = f"pseudo-terminal {where}"
+        self.dropped_bytes = 0
+
+    @property
+    def path(self) -> str:
+        """What the flight app opens: the link if there is one, else the slave device."""
+        return str(self._link) if self._link is not None else self.slave_path
+
+    def write(self, data: bytes) -> None:
+        try:
+            sent = os.write(self._master, data)
+        except OSError as exc:
+            if exc.errno not in (errno.EAGAIN, errno.EIO):
+                raise
+            sent = 0
+        self.dropped_bytes += len(data) - sent
+
+    def close(self) -> None:
+        if self._link is not None and self._link.is_symlink() and \
+                os.readlink(self._link) == self.slave_path:
+            self._link.unlink()
+        for fd in (self._master, self._slave):
+            with contextlib.suppress(OSError):
+                os.close(fd)
+
+
+class TcpTransport:
+    """A TCP server (XCSoar and XCTrack connect as clients); every connected client gets
+    every sentence. Loopback only unless a host is named."""
+
+    def __init__(self, port: int, host: str = "127.0.0.1") -> None:
+        self._server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        self._server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            self._server.bind((host, port))
+        except OSError as exc:
+            self._server.close()
+            raise ImuhalError(f"--nmea tcp:{port}: cannot listen on {host}:{port} ({exc}); "
+                              "choose another port") from None
+        self._server.listen(4)
+        self._server.setblocking(False)
+        self.port = self._server.getsockname()[1]
+        self.host = host
+        self.description = f"TCP server {host}:{self.port}"
+        self._clients: list[socket.socket] = []
+        self.dropped_bytes = 0
+
+    def _accept(self) -> None:
+        while True:
+            try:
+                client, _ = self._server.accept()
+            except (BlockingIOError, InterruptedError):
+                return
+            client.setblocking(False)
+            client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            self._clients.append(client)
+
+    @property
+    def clients(self) -> int:
+        self._accept()
+        return len(self._clients)
+
+    def write(self, data: bytes) -> None:
+        self._accept()
+        for client in list(self._clients):
+            try:
+                sent = client.send(data)
+            except BlockingIOError:
+                sent = 0
+            except OSError:  # the app went away
+                self._clients.remove(client)
+                client.close()
+                continue
+            self.dropped_bytes += len(data) - sent
+
+    def close(self) -> None:
+        for client in self._clients:
+            client.close()
+        self._clients.clear()
+        self._server.close()
+
+
+def open_transport(spec: str) -> Transport:
+    """A transport from its CLI form (see the module docstring); a mistake is an
+    ImuhalError naming the form expected."""
+    kind, _, rest = spec.partition(":")
+    if kind == "pty":
+        return PtyTransport(rest or None)
+    if kind == "tcp" and rest:
+        host, _, port_text = rest.rpartition(":")
+        try:
+            port = int(port_text)
+        except ValueError:
+            port = -1
+        if not 0 <= port <= 65535:
+            raise ImuhalError(f"--nmea {spec}: the port must be a number 0-65535 "
+                              f"(forms: {TRANSPORT_FORMS})")
+        return TcpTransport(port, host or "127.0.0.1")
+    if kind == "serial" and rest:
+        port_path, at, baud_text = rest.rpartition("@")
+        if not at or not port_path or not baud_text.isdigit():
+            raise ImuhalError(f"--nmea {spec}: write serial:PORT@BAUD, e.g. "
+                              "serial:/dev/ttyUSB0@115200")
+        return SerialTransport(port_path, int(baud_text))
+    raise ImuhalError(f"--nmea {spec!r}: unknown output; use one of {TRANSPORT_FORMS}")

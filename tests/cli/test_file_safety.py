@@ -1,0 +1,227 @@
+"""Files are never lost: a stopped logger finalizes its log under its own name, a failed run
+keeps the previous log (and its own rows beside it), calibration follows links and never
+edits a bundled profile, and its prompts name the position being recorded."""
+
+from __future__ import annotations
+
+import csv
+import os
+import re
+import shutil
+import signal
+import stat
+import subprocess
+import sys
+import threading
+import time
+import types
+from pathlib import Path
+from typing import ClassVar
+
+import pytest
+
+from imuhal.cli import main as cli_main
+from imuhal.core.errors import ImuhalError
+from imuhal.core.samples import PressureSample
+from imuhal.emulation import open_emulated
+from imuhal.estimation.base import Estimator, EstimatorSettings
+from imuhal.pipeline import CallbackSink, CsvSink
+from imuhal.plugins.hookspecs import hookimpl
+from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.loader import load_profile
+from imuhal.profiles_dir import default_profile_path
+from imuhal.sinks.builtin import CSV_COLUMNS
+
+DATA = Path(__file__).resolve().parent.parent / "data"
+SEED_BOARD = DATA / "calibration" / "seed-board.yaml"
+
+
+def _complete_log(path: Path) -> list[dict[str, str]]:
+    """The rows of a CSV log that is whole: header, every row full, last line terminated."""
+    text = path.read_text()
+    assert text.endswith("\n")
+    rows = list(csv.reader(text.splitlines()))
+    assert tuple(rows[0]) == CSV_COLUMNS
+    assert all(len(r) == len(CSV_COLUMNS) for r in rows[1:])
+    return list(csv.DictReader(text.splitlines()))
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP, signal.SIGINT])
+def test_a_stop_signal_finalizes_the_log_under_its_own_name(signum: int, tmp_path: Path) -> None:
+    out = tmp_path / "flight.csv"
+    partial = tmp_path / "flight.csv.partial"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "imuhal.cli.main", "run", "--emulate", "static", "--realtime",
+         "--duration", "120", "--quiet", "--output", str(out)],
+        stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while not (partial.exists() and partial.stat().st_size > 4096):
+            assert proc.poll() is None, proc.stderr.read() if proc.stderr else ""
+            assert time.monotonic() < deadline, "the log never reached the disk"
+            time.sleep(0.05)
+        proc.send_signal(signum)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 0, err
+    assert "the files are complete up to here" in err
+    rows = _complete_log(out)
+    assert len(rows) > 20
+    assert not partial.exists()
+
+
+def test_run_output_through_a_symlink_writes_the_target_and_keeps_the_link(
+        tmp_path: Path) -> None:
+    real = tmp_path / "logs" / "flight.csv"
+    real.parent.mkdir()
+    real.write_text("old\n")
+    link = tmp_path / "latest.csv"
+    link.symlink_to(real)
+    assert cli_main.main(["run", "--emulate", "static", "--duration", "1", "--quiet",
+                          "--output", str(link)]) == 0
+    assert link.is_symlink() and link.resolve() == real.resolve()
+    assert len(_complete_log(real)) > 20
+
+
+def test_run_output_to_a_fifo_streams_into_it(tmp_path: Path) -> None:
+    fifo = tmp_path / "live"
+    os.mkfifo(fifo)
+    received: list[str] = []
+    reader = threading.Thread(target=lambda: received.append(fifo.read_text()))
+    reader.start()
+    assert cli_main.main(["run", "--emulate", "static", "--duration", "1", "--quiet",
+                          "--output", str(fifo)]) == 0
+    reader.join(timeout=30)
+    assert stat.S_ISFIFO(fifo.stat().st_mode)
+    rows = list(csv.reader(received[0].splitlines()))
+    assert tuple(rows[0]) == CSV_COLUMNS and len(rows) > 20
+
+
+class _GivesUp(Estimator):
+    """A plugin estimator that fails for good one second into the run."""
+
+    name: ClassVar[str] = "gives-up"
+    Settings = EstimatorSettings
+    consumes = (PressureSample,)
+
+    def reset(self) -> None:
+        pass
+
+    def process(self, item):  # type: ignore[no-untyped-def]
+        if item.t_ns > 1_000_000_000:
+            raise ImuhalError("gives-up: the estimator diverged")
+        return []
+
+    def get_state(self) -> dict:  # type: ignore[type-arg]
+        return {}
+
+    def set_state(self, state) -> None:  # type: ignore[no-untyped-def]
+        pass
+
+
+_gives_up_plugin = types.SimpleNamespace(
+    imuhal_register_estimators=hookimpl(lambda register: register(_GivesUp)))
+
+
+@pytest.fixture
+def failing_board(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """The seed board with one more estimator, from a plugin, that fails mid-run."""
+    monkeypatch.setattr(cli_main, "load_registry",
+                        lambda: load_registry(extra=[("gives-up", _gives_up_plugin)]))
+    path = tmp_path / "board.yaml"
+    path.write_text(default_profile_path().read_text().replace(
+        "\nestimators:\n", "\nestimators:\n  doomed: {estimator: gives-up, inputs: [baro]}\n"))
+    return path
+
+
+def test_a_failed_run_keeps_the_previous_log_and_leaves_its_rows_beside_it(
+        failing_board: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "flight.csv"
+    out.write_text("the good flight\n")
+    code = cli_main.main(["run", str(failing_board), "--emulate", "static", "--duration", "5",
+                          "--quiet", "--output", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert out.read_text() == "the good flight\n"
+    partial = tmp_path / "flight.csv.partial"
+    rows = _complete_log(partial)
+    assert rows and float(rows[-1]["t_s"]) <= 1.1
+    assert f"{out} was left as it was" in err and str(partial) in err
+
+
+def test_a_failing_sink_aborts_the_log_instead_of_committing_it(tmp_path: Path) -> None:
+    registry = load_registry()
+    out = tmp_path / "flight.csv"
+    out.write_text("the good flight\n")
+    log = CsvSink(out)
+
+    def disk_full(event: object) -> None:
+        if getattr(event, "t_ns", 0) > 500_000_000:
+            raise OSError(28, "No space left on device")
+
+    with open_emulated(load_profile(default_profile_path(), registry), registry,
+                       scenario="static") as pipeline, pytest.raises(OSError):
+        pipeline.run(2.0, [log, CallbackSink(disk_full)])
+    assert out.read_text() == "the good flight\n"
+    assert log.partial_path == tmp_path / "flight.csv.partial"
+
+
+# --------------------------------------------------------------------------- calibrate
+@pytest.fixture
+def board(tmp_path: Path) -> Path:
+    path = tmp_path / "boards" / "board.yaml"
+    path.parent.mkdir()
+    shutil.copy(SEED_BOARD, path)
+    return path
+
+
+@pytest.fixture(scope="module")
+def chips() -> Registry:
+    return load_registry()
+
+
+def test_calibrating_through_a_symlink_updates_the_real_profile_and_keeps_the_link(
+        board: Path, tmp_path: Path, chips: Registry) -> None:
+    link = tmp_path / "link.yaml"
+    link.symlink_to(board)
+    assert cli_main.main(["calibrate", "gyro", str(link), "--emulate", "calibration"]) == 0
+    assert link.is_symlink()
+    assert load_profile(board, chips).devices["imu"].calibration.gyro is not None  # type: ignore[union-attr]
+    assert (board.parent / "board.yaml.bak").read_text() == SEED_BOARD.read_text()
+    assert not (tmp_path / "link.yaml.bak").exists()
+
+
+def test_calibrate_output_writes_a_calibrated_copy_and_leaves_the_profile(
+        board: Path, tmp_path: Path, chips: Registry) -> None:
+    copy = tmp_path / "calibrated.yaml"
+    assert cli_main.main(["calibrate", "gyro", str(board), "--emulate", "calibration",
+                          "--output", str(copy)]) == 0
+    assert board.read_text() == SEED_BOARD.read_text()
+    assert load_profile(copy, chips).devices["imu"].calibration.gyro is not None  # type: ignore[union-attr]
+    assert "# chip select 0" in copy.read_text()
+
+
+def test_a_bundled_profile_is_never_calibrated_in_place(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bundled = default_profile_path()
+    before = bundled.read_bytes()
+    assert cli_main.main(["calibrate", "gyro", str(bundled), "--emulate", "calibration"]) == 2
+    assert "Copy it first" in capsys.readouterr().err
+    assert bundled.read_bytes() == before
+    copy = tmp_path / "mine.yaml"
+    assert cli_main.main(["calibrate", "gyro", str(bundled), "--emulate", "calibration",
+                          "-o", str(copy)]) == 0
+    assert bundled.read_bytes() == before and copy.exists()
+
+
+def test_emulated_accel_prompts_name_the_position_being_recorded(
+        board: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert cli_main.main(["calibrate", "accel", str(board), "--emulate", "calibration",
+                          "--dry-run"]) == 0
+    err = capsys.readouterr().err
+    asked = re.findall(r">> position \d/6: (.*), and hold it still", err)
+    recorded = re.findall(r"   recorded (.*)", err)
+    assert len(asked) == 6 and asked == recorded

@@ -1,0 +1,96 @@
+"""Issue 9 reproductions on the bundled boards, through the fault-injection interface: runs
+continue across events() calls without restarting chips, start-up rides through 1 %
+transient bus errors on every board, and a chip behind the MAX21100's I2C master sees about
+the host bus's error rate, not a multiple of it."""
+
+from __future__ import annotations
+
+import random
+
+import pytest
+
+from imuhal.core.samples import Channel, MagSample, PressureSample, Sample, TemperatureSample
+from imuhal.emulation import open_emulated
+from imuhal.emulation.faults import BusErrors
+from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.loader import load_profile
+from imuhal.profiles_dir import bundled_profiles, default_profile_path
+
+
+@pytest.fixture(scope="module")
+def registry() -> Registry:
+    return load_registry()
+
+
+def test_many_short_events_calls_never_restart_the_barometer_mid_conversion(
+        registry: Registry) -> None:
+    profile = load_profile(default_profile_path(), registry)
+    rng = random.Random(9)
+    with open_emulated(profile, registry, sensor_errors=False, calibrated=False) as p:
+        events: list[Sample] = []
+        for _ in range(100):
+            events += [e for e in p.events(rng.uniform(0.005, 0.08)) if isinstance(e, Sample)]
+        truth = p.board.truth_at
+        pressures = [e for e in events if isinstance(e, PressureSample) and e.valid]
+        temps = [e for e in events if isinstance(e, TemperatureSample) and e.valid
+                 and e.device == "baro"]
+        assert len(pressures) > 100
+        # an ideal MS5611: 1 Pa steps; the board climbs at most a few m/s (12 Pa/m)
+        assert max(abs(e.pressure_pa - truth(e.t_ns).pressure_pa) for e in pressures) < 40
+        assert max(abs(e.temperature_degc - truth(e.t_ns).temperature_degc)
+                   for e in temps) < 0.5
+        assert p.board.emulators["baro"].aborted_conversions == 0
+
+
+@pytest.mark.parametrize("board", sorted(bundled_profiles()))
+def test_startup_succeeds_40_of_40_times_with_1_percent_bus_errors(
+        registry: Registry, board: str) -> None:
+    profile = load_profile(bundled_profiles()[board], registry)
+    devices = [n for n, d in profile.devices.items() if d.enabled]
+    for seed in range(40):
+        faults = [BusErrors(device=d, rate=0.01) for d in devices]
+        with open_emulated(profile, registry, seed=seed, faults=faults) as p:
+            assert all(d.present for d in p.devices.values())
+
+
+def test_the_magnetometer_behind_the_imu_master_sees_the_host_error_rate(
+        registry: Registry) -> None:
+    profile = load_profile(default_profile_path(), registry)
+
+    def valid_mag(*faults: BusErrors) -> tuple[int, int]:
+        with open_emulated(profile, registry, faults=faults, calibrated=False) as p:
+            events = list(p.events(10.5))
+        valid = sum(isinstance(e, MagSample) and e.valid and e.t_ns > 0.5e9 for e in events)
+        return valid, p.summary().bus_errors["mag"]
+
+    clean, _ = valid_mag()
+    glitchy, errors = valid_mag(BusErrors(device="imu", rate=0.01, start_s=0.5))
+    # the issue: 26 of 75 Hz delivered at 1 %; now a few percent lost at most
+    assert glitchy >= 0.95 * clean
+    assert errors <= 0.02 * clean
+
+
+@pytest.mark.parametrize("board", sorted(bundled_profiles()))
+def test_each_imu_and_magnetometer_declares_the_full_scale_its_chip_has(
+        registry: Registry, board: str) -> None:
+    profile = load_profile(bundled_profiles()[board], registry)
+    with open_emulated(profile, registry, scenario="tumble", calibrated=False) as p:
+        list(p.events(3.0))
+        declared = {(n, ch): fs for n, d in p.devices.items() for ch, fs in d.full_scale.items()
+                    if fs is not None}
+        chips = {key: p.board.emulators[key[0]].full_scale(key[1]) for key in declared}
+    assert {ch for _, ch in declared} >= {Channel.GYRO, Channel.ACCEL}
+    for key, fs in declared.items():
+        # the data word's limit: at or a little above the chip's own (datasheet) full scale
+        assert chips[key] <= fs <= 1.15 * chips[key], key
+    assert not any("OUT_OF_RANGE" in flags for flags in p.summary().flagged.values())
+
+
+def test_the_start_up_gyro_phase_carries_over_short_events_calls(registry: Registry) -> None:
+    profile = load_profile(default_profile_path(), registry)
+    with open_emulated(profile, registry, scenario="static") as p:
+        for _ in range(10):  # 0.1 s each; the phase needs 100 samples at 250 Hz
+            list(p.events(0.1))
+        gyro = p.devices["imu"].calibration.gyro  # type: ignore[union-attr]
+    assert gyro is not None and gyro.procedure == "gyro-at-startup"
+    assert not [w for w in p.warnings if "start-up gyro" in w]
