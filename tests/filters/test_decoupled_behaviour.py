@@ -105,3 +105,8 @@ def test_state_round_trips_and_continues_identically() -> None:
     qb = run(b, iter(samples[1800:]))[-1].q_body_to_ned
     assert qa == qb
     assert FIELD_NED_UT.shape == (3,)
+
+
+def test_preset_flight_turns_the_soft_gate_on() -> None:
+    assert DecoupledEstimator().settings.accel_soft_gate_g is None
+    assert DecoupledEstimator({"preset": "flight"}).settings.accel_soft_gate_g == 0.02

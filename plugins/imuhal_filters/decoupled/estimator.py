@@ -23,6 +23,12 @@ from imuhal_filters.decoupled.core import DecoupledKernel, DecoupledParams
 
 
 class DecoupledSettings(AhrsSettings):
+    PRESETS: ClassVar[dict[str, dict[str, Any]]] = {
+        # a glider or aircraft: sustained turns and pull-ups do not average out within
+        # tau_acc_s; the soft gate keeps rc-flight under 10 deg (docs/estimators.md)
+        "flight": {"accel_soft_gate_g": 0.02},
+    }
+
     tau_acc_s: float = Field(3.0, gt=0.0)
     """Time constant (s) of the accelerometer low-pass in the almost-inertial frame: the
     inclination correction's speed (VQF's published default, 3 s)."""
@@ -30,8 +36,8 @@ class DecoupledSettings(AhrsSettings):
     """Share of each step the inclination filter advances by, 1 / (1 + (| |a| - 1 g | /
     width)^2) (common/gate.py): a reading away from 1 g is trusted less. None (default, VQF's
     choice): every reading in full. On BROAD (hand-held) 0.05 g made it worse (trials 05, 16,
-    32: 4.44 against 1.18 deg 9-DOF total); in the flight benchmark it helps (0.02 g:
-    `thermal` 1.40 against 1.66 deg RMS): docs/estimators.md."""
+    32: 4.44 against 1.18 deg 9-DOF total); in flight it is needed (``preset: flight``,
+    0.02 g: `rc-flight` max 6.0 against 42.7 deg without): docs/estimators.md."""
     tau_mag_s: float = Field(9.0, gt=0.0)
     """Heading correction time constant (s) (VQF's published default, 9 s)."""
     rest_gyro_th_deg_s: float = Field(2.0, gt=0.0)
