@@ -4,7 +4,8 @@ Live, it steps once per gyro sample through the shared AHRS machinery (aligned s
 full-scale rejection, turn compensation: ``common/ahrs.py``) and reports its rest detection,
 magnetic disturbance detection and gyro bias on every estimate. ``offline: true`` (``imuhal
 estimate`` / ``imuhal evaluate`` only: the whole recording known in advance) runs the filter
-forwards and backwards in time and averages the two attitudes: each pass lags the truth by the
+forwards and then backwards in time from where the forward pass ended, and averages the two
+attitudes: each pass lags the truth by the
 accelerometer filter's delay in opposite directions, and each pass's start-up (bias and field
 reference not yet learnt) is covered by the other pass's converged end.
 """
@@ -142,10 +143,14 @@ class DecoupledEstimator(AhrsEstimator):
 
     # ------------------------------------------------------------------ offline
     def _pass(self, gyro: FloatArray, accel: FloatArray, mag: FloatArray | None,
-              sign: float) -> FloatArray:
-        """One causal pass of a fresh copy of this estimator; ``sign`` -1 runs reversed
-        rows with the gyro negated (time reversal). Rows before alignment are NaN."""
+              sign: float, state: dict[str, Any] | None = None
+              ) -> tuple[FloatArray, dict[str, Any]]:
+        """One causal pass of a fresh copy of this estimator over the rows (``sign`` -1: rows
+        already reversed, gyro negated: time reversal), from ``state`` when given. Returns
+        the quaternions (NaN before alignment) and the final state."""
         live = type(self)({**self.settings.model_dump(), "offline": False})
+        if state is not None:
+            live.set_state(state)
         n = gyro.shape[0]
         out = np.full((n, 4), np.nan)
         dt = self.settings.sample_period_s
@@ -154,7 +159,18 @@ class DecoupledEstimator(AhrsEstimator):
                             None if mag is None else mag[i], dt)
             if q is not None:
                 out[i] = q
-        return out
+        return out, live.get_state()
+
+    @staticmethod
+    def _reversed_state(state: dict[str, Any]) -> dict[str, Any]:
+        """The end state of a forward pass as the start of the time-reversed one: the same
+        attitude, accelerometer filter and field reference; the gyro (and so its bias and
+        low-pass) negated."""
+        f = dict(state["filter"])
+        f["bias"] = [-c for c in f["bias"]]
+        if f["gyro_lp"] is not None:
+            f["gyro_lp"] = [-c for c in f["gyro_lp"]]
+        return {**state, "filter": f}
 
     def smooth(self, gyro_rad_s: FloatArray, accel_m_s2: FloatArray,
                mag_ut: FloatArray | None) -> FloatArray:
@@ -162,10 +178,12 @@ class DecoupledEstimator(AhrsEstimator):
         specific force m/s^2, uT), one row per gyro sample at ``sample_period_s``; returns
         the (N, 4) body -> NED quaternions, the normalised mean of the two passes."""
         mag = mag_ut if self.settings.use_mag else None
-        fwd = self._pass(gyro_rad_s, accel_m_s2, mag, 1.0)
+        fwd, end = self._pass(gyro_rad_s, accel_m_s2, mag, 1.0)
         rev = slice(None, None, -1)
+        # the backward pass starts where the forward one ended (bias and field reference
+        # learnt), so neither pass's start-up is left uncovered
         bwd = self._pass(gyro_rad_s[rev], accel_m_s2[rev], None if mag is None else mag[rev],
-                         -1.0)[rev]
+                         -1.0, self._reversed_state(end))[0][rev]
         bwd = np.where(np.isnan(bwd), fwd, bwd)
         fwd = np.where(np.isnan(fwd), bwd, fwd)
         sign = np.where(np.sum(fwd * bwd, axis=1) < 0.0, -1.0, 1.0)[:, None]
