@@ -261,8 +261,7 @@ def measure_attitude(profile: BoardProfile, registry: Registry, scenario: str,
     for event, pipeline in _events(profile, registry, scenario, duration_s, seed):
         if not isinstance(event, AttitudeEstimate) or event.t_ns < settle_s * 1e9:
             continue
-        assert isinstance(pipeline.board, EmulatedBoard)
-        truth = pipeline.board.truth_at(event.t_ns)
+        truth = EmulatedBoard.of(pipeline).truth_at(event.t_ns)
         est[event.source].append(event.q_body_to_ned)
         true[event.source].append(tuple(truth.q_body_to_ned))
         times[event.source].append(event.t_ns / 1e9)
@@ -329,8 +328,7 @@ def measure_vario(profile: BoardProfile, registry: Registry, scenario: str, dura
     for event, pipeline in _events(profile, registry, scenario, duration_s, seed):
         if not isinstance(event, VerticalEstimate):
             continue
-        assert isinstance(pipeline.board, EmulatedBoard)
-        truth = pipeline.board.truth_at(event.t_ns)
+        truth = EmulatedBoard.of(pipeline).truth_at(event.t_ns)
         t.setdefault(event.source, []).append(event.t_ns / 1e9)
         climb.setdefault(event.source, []).append(event.climb_m_s - truth.climb_m_s)
         alt_err.setdefault(event.source, []).append(event.altitude_m - truth.altitude_m)

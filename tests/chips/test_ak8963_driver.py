@@ -134,7 +134,7 @@ def test_stuck_data_ready_gives_stale_samples_and_recover_works() -> None:
     k = rig(odr_hz=100).ready()
     k.emu.stuck_data_ready = True
     samples = k.run(2)
-    assert [s.flags for s in samples] == [SampleFlag.STALE, SampleFlag.STALE]
+    assert len(samples) == 2 and all(s.flags & SampleFlag.STALE for s in samples)
     assert all(math.isnan(v) for v in samples[0].mag_ut)
     k.emu.stuck_data_ready = False
     start = k.driver.recover(k.clock.now_ns())

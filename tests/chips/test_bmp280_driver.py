@@ -75,7 +75,7 @@ def test_reads_the_true_pressure_and_temperature(kind: BusKind, mode: str) -> No
 SWEEP = (
     [{"pressure_oversampling": v} for v in (1, 2, 4, 8, 16)]
     + [{"temperature_oversampling": v, "odr_hz": 10.0} for v in (1, 2, 4, 8, 16)]
-    + [{"iir_filter": v} for v in (0, 2, 4, 8, 16)]
+    + [{"iir_coefficient": v} for v in (0, 2, 4, 8, 16)]
     + [{"standby_ms": v} for v in (0.5, 62.5, 125.0, 250.0)]
     + [{"mode": "forced", "odr_hz": 10.0}, {"mode": "normal", "odr_hz": 1.0}]
 )
@@ -98,7 +98,7 @@ def test_every_setting_reads_within_one_lsb(setting: dict[str, Any]) -> None:
 
 def test_configure_programs_the_table_codes() -> None:
     _clock, _bus, emu, driver = rig(pressure_oversampling=16, temperature_oversampling=2,
-                                  iir_filter=16, standby_ms=62.5)
+                                  iir_coefficient=16, standby_ms=62.5)
     driver.probe()
     driver.configure()
     # osrs_t x2 = 010, osrs_p x16 = 101, normal = 11; t_sb 62.5 = 001, filter 16 = 100
@@ -134,7 +134,7 @@ def test_forced_mode_returns_to_sleep_after_one_measurement() -> None:
 
 
 def test_pressure_at_the_adc_limit_is_saturated() -> None:
-    clock, _bus, emu, driver = rig(iir_filter=0)
+    clock, _bus, emu, driver = rig(iir_coefficient=0)
     # Beyond what the 20-bit ADC can encode with this trim (adc_P = 0 at ~171.7 kPa).
     emu.set_physics(PhysicalInputs(pressure_pa=200_000.0, temperature_degc=20.0))
     driver.probe()

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from tests.support.dither import Dither
 from tests.support.testchip import TC3Driver, TC3Emulator
 
 from imuhal.bus.base import BusKind
@@ -42,10 +43,12 @@ def swept(registry: Registry) -> list[str]:
 
 
 SWEPT = swept(REGISTRY)
-DIRECTION = (0.41, -0.29, 0.19)
-"""Fraction of full scale set on each axis: inside the range, all axes different, and
-summing below 1 (the AK8963 overflows when |x|+|y|+|z| reaches its 4912 uT range)."""
-SCALAR_VALUES = {Channel.PRESSURE: 90_123.0, Channel.TEMPERATURE: 23.4}
+DIRECTION = (0.41037, -0.28963, 0.19021)
+"""Fraction of full scale set on each axis: inside the range, all axes different, between
+counts (so the dither below moves the raw words), and summing below 1 (the AK8963 overflows
+when |x|+|y|+|z| reaches its 4912 uT range)."""
+SCALAR_VALUES = {Channel.PRESSURE: 90_123.3, Channel.TEMPERATURE: 23.4}
+"""Between whole pascals, so the dither in _run moves an emulator that rounds to them."""
 SETTLE_SAMPLES = 20
 """Samples per channel before comparing: on-chip filters (BMP280 IIR) settle on a constant."""
 MAX_SIMULATED_NS = 60_000_000_000
@@ -128,13 +131,17 @@ def _physics(driver: Driver, x_fraction: float) -> PhysicalInputs:
     )
 
 
-def _run(driver: Driver, clock: SimulatedClock) -> dict[Channel, Any]:
-    """Poll as the pipeline would until every channel gave SETTLE_SAMPLES samples."""
+def _run(driver: Driver, clock: SimulatedClock, emulator: ChipEmulator) -> dict[Channel, Any]:
+    """Poll as the pipeline would until every channel gave SETTLE_SAMPLES samples, the
+    inputs dithered by under half an LSB as a real chip's noise would (a constant input
+    read back unchanged for ever is a frozen chip)."""
+    dither = Dither(emulator, seed=20)
     last: dict[Channel, Any] = {}
     counts = dict.fromkeys(driver.channels, 0)
     t = driver.start(clock.now_ns())
     while min(counts.values()) < SETTLE_SAMPLES and clock.now_ns() < MAX_SIMULATED_NS:
         clock.sleep_until(t)
+        dither()
         result = driver.poll(clock.now_ns())
         for s in result.samples:
             last[s.channel] = s
@@ -163,7 +170,7 @@ def test_a_physical_value_reads_back_within_one_lsb(name: str, field: str, value
     driver.probe()
     driver.configure()
     emulator.set_physics(_physics(driver, DIRECTION[0]))
-    got = _run(driver, clock)
+    got = _run(driver, clock, emulator)
     for ch in driver.channels:
         sample = got[ch]
         assert sample.valid, (ch, sample.flags)
@@ -188,7 +195,7 @@ def test_beyond_full_scale_is_flagged_never_valid(name: str) -> None:
     driver.probe()
     driver.configure()
     emulator.set_physics(_physics(driver, 1.6))  # x at 1.6 x full scale
-    got = _run(driver, clock)
+    got = _run(driver, clock, emulator)
     for ch in vector_channels:
         flags = got[ch].flags
         assert flags & (SampleFlag.SATURATED | SampleFlag.OVERFLOW), (ch, flags)

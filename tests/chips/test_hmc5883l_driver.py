@@ -8,6 +8,7 @@ import random
 from dataclasses import dataclass
 
 import pytest
+from tests.support.dither import Dither
 from tests.support.driving import poll_until
 
 from imuhal.bus.base import BusKind, Link
@@ -22,6 +23,7 @@ from imuhal_chips.max2110x.driver import Max21100Driver
 from imuhal_chips.max2110x.emulator import Max21100Emulator
 
 PATHS = ["i2c", "max21100-aux"]
+EARTH_UT = (20.0, -3.0, 43.0)
 
 
 @dataclass
@@ -31,10 +33,14 @@ class Rig:
     emu: Hmc5883lEmulator
     driver: Hmc5883lDriver
     next_ns: int = 0
+    dither: Dither | None = None
 
     def run(self, seconds: float) -> list[Sample]:
+        """Poll for ``seconds``, the field dithered by half an LSB as a real chip's noise
+        would (tests/support/dither.py)."""
         end = self.clock.now_ns() + round(seconds * 1e9)
-        out, self.next_ns = poll_until(self.driver, self.clock, self.next_ns, end)
+        out, self.next_ns = poll_until(self.driver, self.clock, self.next_ns, end,
+                                       self.dither)
         return out
 
 
@@ -53,8 +59,10 @@ def make_rig(path: str = "i2c", *, start: bool = True, **settings: object) -> Ri
         imu.probe()
         imu.configure()
         link = imu.child_buses()["aux"].link(0x1E)
+    # An Earth-like field: an all-zero data frame is what an undriven bus reads (BLANK).
+    emu.set_physics(PhysicalInputs(magnetic_field_ut=EARTH_UT))
     driver = Hmc5883lDriver(link, settings, device="mag", clock=clock)
-    rig = Rig(clock, bus, emu, driver)
+    rig = Rig(clock, bus, emu, driver, dither=Dither(emu, seed=5883))
     if start:
         driver.probe()
         driver.configure()
@@ -125,7 +133,7 @@ def test_every_range_reads_a_field_near_its_limit_within_one_lsb(range_gauss: fl
 @pytest.mark.parametrize("odr_hz", sorted(ODR_HZ))
 def test_every_output_rate_gives_that_many_samples_per_second(odr_hz: float) -> None:
     rig = make_rig(odr_hz=odr_hz, averaging=1)
-    rig.emu.set_physics(PhysicalInputs(magnetic_field_ut=(20.0, 0.0, 40.0)))
+    rig.emu.set_physics(PhysicalInputs(magnetic_field_ut=(20.3, -1.7, 40.6)))
     seconds = max(1.0, 4 / odr_hz)
     got = mags(rig.run(seconds))
     # one sample per output period; the first period's sample is dropped (old gain)
@@ -133,7 +141,7 @@ def test_every_output_rate_gives_that_many_samples_per_second(odr_hz: float) -> 
     gaps = {b.t_ns - a.t_ns for a, b in itertools.pairwise(got)}
     assert gaps and all(abs(g - 1e9 / odr_hz) <= 1 for g in gaps)
     assert all(s.valid for s in got)
-    assert got[-1].mag_ut == pytest.approx((20.0, 0.0, 40.0), abs=0.1)
+    assert got[-1].mag_ut == pytest.approx((20.3, -1.7, 40.6), abs=0.1)
 
 
 @pytest.mark.parametrize("averaging", sorted(AVERAGING))

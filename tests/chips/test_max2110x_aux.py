@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import pytest
+from tests.support.dither import Dither
 
 from imuhal.bus.base import Bus, BusKind
 from imuhal.core.clock import SimulatedClock
@@ -89,7 +90,7 @@ def test_one_shot_data_is_not_there_before_the_transaction_completes() -> None:
 
 
 def _run(clock: SimulatedClock, drivers: list[Driver], seconds: float,
-         schedule: dict[Driver, int]) -> list[Sample]:
+         schedule: dict[Driver, int], dithers: tuple[Dither, ...] = ()) -> list[Sample]:
     end = clock.now_ns() + round(seconds * 1e9)
     out: list[Sample] = []
     while True:
@@ -97,6 +98,8 @@ def _run(clock: SimulatedClock, drivers: list[Driver], seconds: float,
         if schedule[driver] > end:
             return out
         clock.sleep_until(schedule[driver])
+        for dither in dithers:
+            dither()
         result = driver.poll(clock.now_ns())
         out += result.samples
         schedule[driver] = result.next_poll_ns
@@ -109,14 +112,15 @@ def test_seed_board_reads_gyro_accel_and_mag_all_over_spi() -> None:
     assert mag.probe().bus == "spi0/imu/aux"
     mag.configure()
     # level board at rest: +1 g specific force on the chip's Z (up), earth field tilted down
+    # (values between counts, so the half-LSB dither moves every raw word as noise would)
     field = (21.0, -1.5, -43.0)
-    rate = (0.0, 0.0, math.radians(10.0))
-    imu_emu.set_physics(PhysicalInputs(angular_rate_rad_s=rate,
-                                       specific_force_m_s2=(0.0, 0.0, 9.80665)))
+    rate = (0.0011, -0.0007, math.radians(10.03))
+    force = (0.0123, -0.0071, 9.7913)
+    imu_emu.set_physics(PhysicalInputs(angular_rate_rad_s=rate, specific_force_m_s2=force))
     mag_emu.set_physics(PhysicalInputs(magnetic_field_ut=field))
     now = clock.now_ns()
     schedule: dict[Driver, int] = {imu: imu.start(now), mag: mag.start(now)}
-    samples = _run(clock, [imu, mag], 1.0, schedule)
+    samples = _run(clock, [imu, mag], 1.0, schedule, (Dither(imu_emu), Dither(mag_emu)))
     gyro = [s for s in samples if isinstance(s, GyroSample)]
     accel = [s for s in samples if isinstance(s, AccelSample)]
     mags = [s for s in samples if isinstance(s, MagSample)]
@@ -126,7 +130,7 @@ def test_seed_board_reads_gyro_accel_and_mag_all_over_spi() -> None:
     assert len(gyro) >= 249 and len(accel) >= 249
     assert 70 <= len(mags) <= 75
     assert gyro[-1].gyro_rad_s == pytest.approx(rate, abs=math.radians(1 / 60))
-    assert accel[-1].accel_m_s2 == pytest.approx((0, 0, 9.80665), abs=9.80665 / 7500)
+    assert accel[-1].accel_m_s2 == pytest.approx(force, abs=9.80665 / 7500)
     assert mags[-1].mag_ut == pytest.approx(field, abs=100 / 1090)
     assert spi.kind is BusKind.SPI and {type(t) for t in spi.targets.values()} == {
         Max21100Emulator}

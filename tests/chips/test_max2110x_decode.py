@@ -130,18 +130,18 @@ def test_spi_address_bytes_match_user_guide_default_mode_examples() -> None:
 
 def test_seed_configurations_are_the_settings_defaults() -> None:
     s0 = Max21100Settings()
-    assert (s0.gyro_range_dps, s0.gyro_bandwidth_hz, s0.gyro_odr_hz) == (500, 14, 250)
-    assert (s0.accel_range_g, s0.accel_lpf, s0.accel_odr_hz) == (4, 48, 250)
+    assert (s0.gyro_range_dps, s0.gyro_lpf_hz, s0.gyro_odr_hz) == (500, 14, 250)
+    assert (s0.accel_range_g, s0.accel_lpf_divisor, s0.accel_odr_hz) == (4, 48, 250)
     s5 = Max21105Settings()
-    assert (s5.gyro_range_dps, s5.gyro_bandwidth_hz, s5.gyro_odr_hz) == (1000, 10, 200)
-    assert (s5.accel_range_g, s5.accel_lpf, s5.accel_odr_hz) == (8, 48, 200)
+    assert (s5.gyro_range_dps, s5.gyro_lpf_hz, s5.gyro_odr_hz) == (1000, 10, 200)
+    assert (s5.accel_range_g, s5.accel_lpf_divisor, s5.accel_odr_hz) == (8, 48, 200)
 
 
 def test_unsupported_setting_error_lists_the_allowed_values() -> None:
     with pytest.raises(ValidationError, match=r"allowed: 250, 500, 1000, 2000 dps"):
         Max21100Settings(gyro_range_dps=300)
     with pytest.raises(ValidationError, match=r"accel_lpf.*allowed: 3, 9, 22, 48"):
-        Max21100Settings(accel_lpf=10)
+        Max21100Settings(accel_lpf_divisor=10)
 
 
 def test_odr_validation_uses_each_parts_own_table() -> None:

@@ -9,6 +9,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 
 import pytest
+from tests.support.dither import Dither
 from tests.support.driving import poll_until
 
 from imuhal.bus.base import BusKind
@@ -39,12 +40,20 @@ class Rig:
     emu: Max2110xEmulator
     driver: Max2110xDriver
     next_ns: int = 0
+    dither: Dither | None = None
 
     def run(self, seconds: float) -> list[Sample]:
-        """Poll on the driver's schedule for ``seconds`` of simulated time."""
+        """Poll on the driver's schedule for ``seconds`` of simulated time, the inputs
+        dithered by half an LSB as a real chip's noise would (tests/support/dither.py)."""
         end = self.clock.now_ns() + round(seconds * 1e9)
-        out, self.next_ns = poll_until(self.driver, self.clock, self.next_ns, end)
+        out, self.next_ns = poll_until(self.driver, self.clock, self.next_ns, end,
+                                       self.dither)
         return out
+
+
+AT_REST = PhysicalInputs(specific_force_m_s2=(0.31, -0.17, 9.79),
+                         angular_rate_rad_s=(0.0123, -0.0071, 0.0042), temperature_degc=24.3)
+"""A chip lying nearly level and still: every axis reads something, as a real one does."""
 
 
 def make_rig(driver_cls: type[Max2110xDriver], emu_cls: type[Max2110xEmulator],
@@ -55,7 +64,8 @@ def make_rig(driver_cls: type[Max2110xDriver], emu_cls: type[Max2110xEmulator],
     target = 0 if kind is BusKind.SPI else 0x58
     emu = bus.attach(target, emu_cls(clock))
     driver = driver_cls(bus.link(target), settings, device="imu", clock=clock)
-    rig = Rig(clock, bus, emu, driver)
+    emu.set_physics(AT_REST)
+    rig = Rig(clock, bus, emu, driver, dither=Dither(emu, seed=21100))
     if start:
         driver.probe()
         driver.configure()
@@ -121,7 +131,7 @@ def test_configure_writes_the_seed_configuration(driver_cls: type, emu_cls: type
     rig = make_rig(driver_cls, emu_cls, kind)
     s = rig.driver.settings
     bank0 = rig.emu.banks[0]
-    assert (bank0[0x01] >> 2) == GYRO_BANDWIDTH_HZ[s.gyro_bandwidth_hz]
+    assert (bank0[0x01] >> 2) == GYRO_BANDWIDTH_HZ[s.gyro_lpf_hz]
     assert (bank0[0x05] >> 4) & 0x03 == ACCEL_LPF_DIVISOR[48]
     assert bank0[0x00] == driver_cls.part.power_cfg_on
     assert bank0[0x16] & 0x01 == (1 if kind is BusKind.SPI else 0)
@@ -132,7 +142,7 @@ def test_configure_read_back_mismatch_raises_configuration_error() -> None:
         def _write(self, reg: int, value: int) -> None:
             super()._write(reg, value & ~0x20 if reg == 0x01 else value)
 
-    rig = make_rig(Max21100Driver, StuckBit, start=False, gyro_bandwidth_hz=100)
+    rig = make_rig(Max21100Driver, StuckBit, start=False, gyro_lpf_hz=100)
     rig.driver.probe()
     with pytest.raises(ConfigurationError, match=r"0x01 wrote 0x2A read 0x0A"):
         rig.driver.configure()
@@ -171,7 +181,8 @@ def test_every_supported_setting_reads_physical_values_within_one_lsb(
     rig = make_rig(driver_cls, emu_cls, **{name: value})
     rate = (0.7 * rig.emu.full_scale(Channel.GYRO), -0.3 * rig.emu.full_scale(Channel.GYRO),
             0.01)
-    force = (-0.2 * rig.emu.full_scale(Channel.ACCEL), 0.0, 9.80665)
+    # between counts (not on one), so the half-LSB dither moves the raw words
+    force = (-0.2013 * rig.emu.full_scale(Channel.ACCEL), 0.0123, 9.79)
     rig.emu.set_physics(PhysicalInputs(angular_rate_rad_s=rate, specific_force_m_s2=force))
     gyro_period = 1.0 / rig.driver.settings.gyro_odr_hz
     accel_period = 1.0 / rig.driver.settings.accel_odr_hz
@@ -219,7 +230,7 @@ def test_stuck_data_ready_gives_stale_samples_then_the_driver_resets_the_chip() 
 def test_recover_after_stuck_data_ready_restores_valid_samples() -> None:
     rig = make_rig(Max21105Driver, Max21105Emulator, BusKind.I2C)
     rig.emu.stuck_data_ready = True
-    assert any(s.flags & SampleFlag.STALE for s in rig.run(0.012))
+    assert any(s.flags & SampleFlag.STALE for s in rig.run(0.02))
     rig.next_ns = rig.driver.recover(rig.clock.now_ns())
     assert rig.driver.health.reconfigurations == 1
     samples = rig.run(0.1)

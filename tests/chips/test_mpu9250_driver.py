@@ -84,9 +84,9 @@ def test_level_chip_reads_plus_one_g_on_z(kind: BusKind) -> None:
 SWEEP = (
     [{"gyro_range_dps": v} for v in (250, 500, 1000, 2000)]
     + [{"accel_range_g": v} for v in (2, 4, 8, 16)]
-    + [{"gyro_dlpf_hz": v} for v in (184, 92, 41, 20, 10, 5)]
-    + [{"gyro_dlpf_hz": v, "odr_hz": 8000} for v in (250, 3600)]
-    + [{"accel_dlpf_hz": v} for v in (460, 184, 92, 41, 20, 10, 5, 1130)]
+    + [{"gyro_lpf_hz": v} for v in (184, 92, 41, 20, 10, 5)]
+    + [{"gyro_lpf_hz": v, "odr_hz": 8000} for v in (250, 3600)]
+    + [{"accel_lpf_hz": v} for v in (460, 184, 92, 41, 20, 10, 5, 1130)]
     + [{"odr_hz": v} for v in (1000, 500, 250, 100, 50, 1000 / 256)]
 )
 
@@ -118,7 +118,7 @@ def test_settings_errors_list_the_allowed_values() -> None:
     with pytest.raises(ValueError, match="nearest allowed"):
         MPU9250Settings(odr_hz=300)
     with pytest.raises(ValueError, match="fixed at 8000"):
-        MPU9250Settings(gyro_dlpf_hz=250, odr_hz=1000)
+        MPU9250Settings(gyro_lpf_hz=250, odr_hz=1000)
 
 
 def test_bypass_on_spi_is_refused_with_the_alternative() -> None:

@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import pytest
+
+from imuhal.core.quantities import Quantity
 from imuhal.core.samples import (
+    SAMPLE_TYPES,
     AccelSample,
     Channel,
     Frame,
@@ -23,9 +27,17 @@ def test_flagging_returns_an_invalid_copy() -> None:
     assert s.valid and not bad.valid and SampleFlag.CRC_ERROR in bad.flags
 
 
-def test_channels_document_their_units() -> None:
-    assert {c.unit for c in Channel} == {"m/s^2", "rad/s", "uT", "Pa", "degC", "m/s",
-                                        "deg, deg, m"}
+def test_builtin_quantities_document_their_units_and_shapes() -> None:
+    assert {(q.name, q.unit, q.shape) for q in SAMPLE_TYPES} == {
+        ("accel", "m/s^2", (3,)), ("gyro", "rad/s", (3,)), ("mag", "uT", (3,)),
+        ("pressure", "Pa", ()), ("temperature", "degC", ()), ("velocity", "m/s", (3,)),
+        ("airspeed", "m/s", ()),
+        ("position", "deg, deg, m", (3,))}
+
+
+def test_a_quantity_must_be_a_scalar_or_a_three_axis_vector() -> None:
+    with pytest.raises(ValueError, match="shape"):
+        Quantity("strain", "1", (2, 2))
 
 
 def test_a_velocity_sample_is_earth_frame_and_carries_its_accuracy() -> None:

@@ -9,9 +9,16 @@ import textwrap
 from pathlib import Path
 
 import pytest
+from tests.support.noise import noise_only_specs
 
 from imuhal.core.errors import BusError, ConfigurationError, NackError, ProfileError
-from imuhal.core.samples import GyroSample, PressureSample, Sample, TemperatureSample
+from imuhal.core.samples import (
+    GyroSample,
+    PressureSample,
+    Sample,
+    SampleFlag,
+    TemperatureSample,
+)
 from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import (
     AllOnes,
@@ -52,11 +59,13 @@ def _faults_yaml(items: str) -> str:
 
 
 def _open(registry: Registry, *faults: FaultSpec, noise: bool = False) -> Pipeline:
-    """The seed board at rest, raw samples; ideal chips unless ``noise`` (so any deviation
-    is the fault's)."""
+    """The seed board at rest, raw samples; chips with their datasheet white noise only
+    (no bias: any deviation is the fault's; an ideal chip at rest would repeat one raw frame
+    for ever, which its driver flags FROZEN), or their whole error model with ``noise``."""
     profile = load_profile(default_profile_path(), registry)
+    specs = None if noise else noise_only_specs(profile, registry)
     return open_emulated(profile, registry, scenario="static", seed=5, faults=faults,
-                         calibrated=False, sensor_errors=noise)
+                         calibrated=False, sensor_errors=True, error_specs=specs)
 
 
 def _at(p: Pipeline, t_s: float) -> None:
@@ -201,11 +210,11 @@ def test_stuck_data_ready_holds_the_chip_between_start_and_end(registry: Registr
 def test_frozen_data_repeats_the_same_raw_word(registry: Registry) -> None:
     p = _open(registry, FrozenData(device="baro", start_s=1.0, end_s=2.0), noise=True)
     events = list(p.events(2.5))
-    pressures = [e.pressure_pa for e in events if isinstance(e, PressureSample)]
-    times = [e.t_ns for e in events if isinstance(e, PressureSample)]
-    frozen = {v for v, t in zip(pressures, times, strict=True) if 1.1e9 < t < 2.0e9}
-    after = {v for v, t in zip(pressures, times, strict=True) if t > 2.1e9}
-    assert len(frozen) == 1
+    in_window = [e for e in events if isinstance(e, PressureSample) and 1.1e9 < e.t_ns < 2.0e9]
+    after = {e.pressure_pa for e in events if isinstance(e, PressureSample) and e.t_ns > 2.1e9}
+    # the same raw word until the driver's frozen-data check flags it (values NaN)
+    assert len({e.pressure_pa for e in in_window if e.valid}) == 1
+    assert any(e.flags & SampleFlag.FROZEN for e in in_window)
     assert len(after) > 2  # noise moves it again
 
 

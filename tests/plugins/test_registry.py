@@ -3,13 +3,20 @@
 from __future__ import annotations
 
 import types
+from dataclasses import dataclass
+from typing import ClassVar
 
 import pytest
 from tests.support import testchip
 
+from imuhal.cli.main import build_parser
 from imuhal.core.errors import PluginError
+from imuhal.core.quantities import Quantity
+from imuhal.core.samples import AccelSample, ScalarSample
+from imuhal.plugins import Command
 from imuhal.plugins.hookspecs import hookimpl
 from imuhal.plugins.manager import load_registry
+from imuhal.sim.errors import SensorErrorSpec
 
 
 def _module(name: str, **attrs: object) -> types.ModuleType:
@@ -89,3 +96,70 @@ def test_allow_list_loads_only_the_named_entry_points(monkeypatch: pytest.Monkey
     monkeypatch.setenv("IMUHAL_PLUGINS", "buses")
     registry = load_registry()
     assert set(registry.plugins) == {"buses"}
+
+
+def test_hooks_are_called_through_pluggy_so_a_wrapper_sees_every_registration() -> None:
+    seen: list[str] = []
+
+    @hookimpl(wrapper=True)
+    def imuhal_register_drivers(register):  # type: ignore[no-untyped-def]
+        yield
+        seen.extend(register.names())
+
+    tracer = _module("tracer", imuhal_register_drivers=imuhal_register_drivers)
+    registry = load_registry(entry_point_plugins=False,
+                             extra=[("testchip", testchip), ("tracer", tracer)])
+    assert seen == ["tc3"]
+    assert registry.drivers.entries["tc3"].plugin == "testchip"  # still attributed
+
+
+def test_a_quantity_whose_sample_class_has_the_wrong_shape_is_rejected() -> None:
+    @dataclass(frozen=True, slots=True, kw_only=True)
+    class WindSample(ScalarSample):
+        channel: ClassVar[Quantity] = Quantity("wind", "m/s", (3,))
+
+    @hookimpl
+    def imuhal_register_quantities(register):  # type: ignore[no-untyped-def]
+        register(WindSample)
+
+    bad = _module("bad", imuhal_register_quantities=imuhal_register_quantities)
+    with pytest.raises(PluginError, match=r"plugin 'bad'.*'wind'.*must carry a vector"):
+        load_registry(entry_point_plugins=False, extra=[("bad", bad)])
+
+
+def test_a_plugin_cannot_take_over_a_built_in_quantity() -> None:
+    @hookimpl
+    def imuhal_register_quantities(register):  # type: ignore[no-untyped-def]
+        register(AccelSample)
+
+    again = _module("again", imuhal_register_quantities=imuhal_register_quantities)
+    with pytest.raises(PluginError, match=r"quantity 'accel' registered twice.*'imuhal'"):
+        load_registry(entry_point_plugins=False, extra=[("again", again)])
+
+
+def test_a_plugin_command_named_like_a_built_in_one_is_refused() -> None:
+    class Run(Command):
+        name = "run"
+
+        def run(self, args, registry):  # type: ignore[no-untyped-def]
+            return 0
+
+    @hookimpl
+    def imuhal_register_commands(register):  # type: ignore[no-untyped-def]
+        register(Run)
+
+    clash = _module("clash", imuhal_register_commands=imuhal_register_commands)
+    registry = load_registry(entry_point_plugins=False, extra=[("clash", clash)])
+    with pytest.raises(PluginError, match=r"plugin 'clash'.*'run'.*must rename"):
+        build_parser(registry)
+
+
+def test_an_emulator_error_spec_is_typed_and_a_typo_fails_when_the_class_is_defined() -> None:
+    class Good(testchip.TC3Emulator):
+        error_spec = {"accel": {"noise_std": 0.01}}  # type: ignore[assignment]  # noqa: RUF012
+
+    assert isinstance(Good.error_spec, SensorErrorSpec)
+    assert Good.error_spec.accel is not None and Good.error_spec.accel.noise_std == 0.01
+    with pytest.raises(TypeError, match=r"Typo.error_spec is not a valid SensorErrorSpec"):
+        class Typo(testchip.TC3Emulator):
+            error_spec = {"accel": {"noise_stdev": 0.01}}  # type: ignore[assignment]  # noqa: RUF012

@@ -98,10 +98,10 @@ def test_a_number_setting_takes_no_bool_and_no_string(value: str,
 
 
 def test_a_bool_is_not_a_rate_in_a_bundled_board(installed: Registry) -> None:
-    text = default_profile_path().read_text().replace("rate_hz: 50", "rate_hz: true")
+    text = default_profile_path().read_text().replace("odr_hz: 50", "odr_hz: true")
     problems = _problems(text, installed)
     assert len(problems) == 1
-    assert "devices.baro.settings.rate_hz" in problems[0] and "True" in problems[0]
+    assert "devices.baro.settings.odr_hz" in problems[0] and "True" in problems[0]
 
 
 def test_a_bool_is_not_an_address(registry: Registry) -> None:
@@ -134,7 +134,9 @@ def test_a_disabled_device_may_share_an_address(registry: Registry) -> None:
 def test_a_degenerate_calibration_value_is_a_located_error(record: str, field: str,
                                                             registry: Registry) -> None:
     text = GOOD + f"    calibration:\n      {record}\n"
-    problems = _problems(text, registry)
+    # (The test chip has no gyro or magnetometer, which is a second, separate problem for
+    # the gyro and mag records: only the located value error is checked here.)
+    problems = [p for p in _problems(text, registry) if "measures no vector quantity" not in p]
     assert len(problems) == 1
     assert problems[0].startswith("board.yaml:12:")
     assert f"devices.acc.calibration.{field}" in problems[0]

@@ -11,14 +11,17 @@ configure(): soft reset, fuse-ROM mode to read the sensitivity adjustment ASAX..
 power-down, then continuous mode at ``odr_hz`` and ``resolution_bits``, read back and verified.
 poll(): one burst ST1..ST2 (0x02..0x09): ST1.DRDY says whether it is new, and reading ST2 last
 releases the data for the next measurement. HOFL -> SampleFlag.OVERFLOW (never valid);
-a count at the data range limit -> SATURATED. Output: uT in the AK8963's own axes
+a count at the data range limit -> SATURATED, beyond it -> OUT_OF_RANGE; a burst of all
+0x00/0xFF -> BLANK, a repeated frame -> FROZEN. The shared polling toolkit
+(imuhal.drivers.polling) decides staleness, re-reads CNTL1 every ``reset_check_s`` to catch a
+silent reset, and restarts a magnetometer that keeps its mode but stops converting.
+Output: uT in the AK8963's own axes
 (mag X = MPU accel Y, mag Y = MPU accel X, mag Z = -MPU accel Z); the profile's mount
 rotation takes it to the body frame.
 """
 
 from __future__ import annotations
 
-import math
 from typing import ClassVar, Literal
 
 from imuhal.bus.base import BusKind, Link
@@ -27,6 +30,8 @@ from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
 from imuhal.core.samples import Channel, MagSample, SampleFlag
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
+from imuhal.drivers.polling import DataReady, PollGrid, ResetWatch, reset_check_field
+from imuhal.drivers.validity import NAN3, FrozenWatch, blank_flag
 from imuhal_chips.ak8963 import registers as r
 from imuhal_chips.ak8963.decode import Measurement, decode_burst
 
@@ -43,6 +48,8 @@ class AK8963Settings(DriverSettings):
     """Continuous mode 1 (8 Hz) or 2 (100 Hz)."""
     resolution_bits: Literal[14, 16] = 16
     """14-bit (0.6 uT/LSB) or 16-bit (0.15 uT/LSB) output."""
+    reset_check_s: float = reset_check_field()
+    """How often (s) CNTL1 is read back to catch a silent chip reset."""
 
 
 class AK8963Driver(Driver):
@@ -54,10 +61,10 @@ class AK8963Driver(Driver):
     channels: ClassVar[tuple[Channel, ...]] = (Channel.MAG,)
     bus_kinds: ClassVar[frozenset[BusKind]] = frozenset({BusKind.I2C})
 
-    STALE_AFTER_PERIODS = 2.5
-    """No DRDY for this many periods: the sample slot is reported STALE."""
-    CONFIG_CHECK_S = 1.0
-    """How often CNTL1 is re-read to catch a silent reset."""
+    FROZEN_AFTER_FRAMES = 30
+    """Identical data frames in a row that mean the chip stopped measuring. The quietest
+    setting (14 bits, 0.6 uT/LSB, about 0.3 uT noise: 0.5 LSB per axis) repeats a three-axis
+    frame with probability about 0.2; 30 in a row (0.3 s at 100 Hz), about 1e-21 per sample."""
 
     def __init__(self, link: Link, settings: DriverSettings, *, device: str,
                  clock: Clock) -> None:
@@ -67,8 +74,10 @@ class AK8963Driver(Driver):
         self.asa: tuple[int, int, int] = (128, 128, 128)
         self._cntl1 = r.cntl1_value(self.settings.odr_hz, self.settings.resolution_bits)
         self._period_ns = round(1e9 / self.settings.odr_hz)
-        self._last_data_ns = 0
-        self._next_check_ns = 0
+        self._grid = PollGrid(self._period_ns)
+        self._ready = DataReady({Channel.MAG: self._period_ns})
+        self._watch = ResetWatch(self.settings.reset_check_s)
+        self._frozen = FrozenWatch(self.FROZEN_AFTER_FRAMES)
         self.last: Measurement | None = None
 
     def _not_found(self, found: str, hint: str) -> DeviceNotFoundError:
@@ -110,37 +119,51 @@ class AK8963Driver(Driver):
     def start(self, now_ns: int) -> int:
         # recover() passes the time from before configure() waited; never start in the past.
         now_ns = max(now_ns, self.clock.now_ns())
-        self._last_data_ns = now_ns
-        self._next_check_ns = now_ns + round(self.CONFIG_CHECK_S * 1e9)
+        self._ready.start(now_ns)
+        self._watch.start(now_ns)
+        self._grid.anchor(now_ns)
         return now_ns + round(r.MEASUREMENT_S * 1e9)
 
     def _config_lost(self) -> bool:
         return self.regs.read_u8(r.REG_CNTL1) != self._cntl1
 
+    def full_scale(self, channel: Channel) -> float | None:
+        """The measurement range, +-4912 uT per axis."""
+        return r.OVERFLOW_SUM_UT if channel is Channel.MAG else None
+
+    def _frozen_flag(self, frame: bytes) -> SampleFlag:
+        return self._frozen.observe(Channel.MAG, frame)
+
     def poll(self, now_ns: int) -> PollResult:
-        overdue = now_ns - self._last_data_ns > self.STALE_AFTER_PERIODS * self._period_ns
-        if overdue or now_ns >= self._next_check_ns:
-            self._next_check_ns = now_ns + round(self.CONFIG_CHECK_S * 1e9)
-            if self._config_lost():
-                self.health.resets_detected += 1
-                self.configure()
-                self.health.reconfigurations += 1
-                return PollResult([], self.start(self.clock.now_ns()))
-        m = decode_burst(self.regs.read(r.DATA_BURST_START, r.DATA_BURST_LENGTH), self.asa)
+        overdue = self._ready.overdue(Channel.MAG, now_ns)
+        if self._watch.check_due(now_ns, overdue=overdue) and self._config_lost():
+            return PollResult([], self.restart(reset_detected=True))
+        data = self.regs.read(r.DATA_BURST_START, r.DATA_BURST_LENGTH)
+        m = decode_burst(data, self.asa)
+        bad = blank_flag(data)
+        if m.data_ready and not bad:
+            bad = self._frozen_flag(data[1:7])
+        if m.data_ready and not bad:
+            self._ready.fresh(Channel.MAG, now_ns)
+            self._watch.fresh_poll()
+            flags = SampleFlag.OK
+            if m.overflow:
+                flags |= SampleFlag.OVERFLOW
+            if m.saturated:
+                flags |= SampleFlag.SATURATED
+            if any(abs(c) > r.RESOLUTIONS[m.bits].max_count for c in m.counts):
+                flags |= SampleFlag.OUT_OF_RANGE
+            sample = MagSample(t_ns=now_ns, device=self.device, flags=flags,
+                               mag_ut=m.field_ut)
+            if flags == SampleFlag.OK:
+                self.last = m
+            self._grid.anchor(now_ns)  # phase-lock: next poll one period after new data
+            return PollResult([sample], self._grid.next_after(now_ns))
         if not m.data_ready and not overdue:
             return PollResult([], now_ns + self._period_ns // 10)
-        flags = SampleFlag.OK
-        if not m.data_ready:
-            flags |= SampleFlag.STALE
-        if m.overflow:
-            flags |= SampleFlag.OVERFLOW
-        if m.saturated:
-            flags |= SampleFlag.SATURATED
-        field = m.field_ut if not (flags & SampleFlag.STALE) else (math.nan,) * 3
-        sample = MagSample(t_ns=now_ns, device=self.device, flags=flags,
-                           mag_ut=(field[0], field[1], field[2]))
-        self._last_data_ns = now_ns
-        if flags == SampleFlag.OK:
-            self.last = m
-        return PollResult([sample], now_ns + self._period_ns)
-
+        flags = bad if m.data_ready else SampleFlag.STALE | bad
+        sample = MagSample(t_ns=now_ns, device=self.device, flags=flags, mag_ut=NAN3)
+        if self._watch.stale_poll():
+            # CNTL1 intact but no new data: a reset and reconfiguration restarts measuring
+            return PollResult([sample], self.restart(reset_detected=False))
+        return PollResult([sample], self._grid.next_after(now_ns))

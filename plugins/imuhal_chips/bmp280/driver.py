@@ -35,6 +35,8 @@ from imuhal.core.samples import (
     TemperatureSample,
 )
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
+from imuhal.drivers.polling import PollGrid, ResetWatch
+from imuhal.drivers.validity import FrozenWatch
 from imuhal_chips.bmp280 import registers as r
 from imuhal_chips.bmp280.compensation import (
     Trim,
@@ -64,10 +66,12 @@ class BMP280Settings(DriverSettings):
     unless ``standby_ms`` names one; in forced mode it triggers at ``odr_hz``.
     """
 
+    renamed: ClassVar[dict[str, str]] = {"iir_filter": "iir_coefficient"}
+
     mode: Literal["normal", "forced"] = "normal"
     pressure_oversampling: Literal[1, 2, 4, 8, 16] = 8
     temperature_oversampling: Literal[1, 2, 4, 8, 16] = 1
-    iir_filter: Literal[0, 2, 4, 8, 16] = 4
+    iir_coefficient: Literal[0, 2, 4, 8, 16] = 4
     """IIR filter coefficient; 0 switches the filter off."""
     odr_hz: float = Field(25.0, gt=0)
     standby_ms: float | None = None
@@ -125,6 +129,14 @@ class BMP280Driver(Driver):
 
     STALE_AFTER_MAX_TIMES = 3
     """Forced mode: a measurement unfinished after this many maximum conversion times is stale."""
+    FROZEN_AFTER_FRAMES = 25
+    """Identical pressure + temperature ADC words in a row that mean the conversions hung
+    (normal mode keeps the last result readable forever). Unfiltered, the quietest setting
+    (x1 oversampling, 2.6 Pa/LSB, 1.3 Pa noise) repeats the pair with probability about 0.3;
+    25 in a row (1 s at 25 Hz), about 1e-13 per sample. The IIR filter makes consecutive
+    outputs follow each other over about ``iir_coefficient`` samples, so the window grows by
+    ``FROZEN_IIR_FACTOR`` times the coefficient (41 samples, 1.6 s at 25 Hz by default)."""
+    FROZEN_IIR_FACTOR = 4
 
     def __init__(self, link: Link, settings: DriverSettings, *, device: str,
                  clock: Clock) -> None:
@@ -143,6 +155,12 @@ class BMP280Driver(Driver):
         self._period_ns = 0
         self._triggered_ns: int | None = None
         self._next_ns = 0
+        self._grid = PollGrid(1)
+        # The BMP280 keeps its configuration in every poll burst, so the watch only counts
+        # polls without a measurement; it never schedules a separate read-back.
+        self._watch = ResetWatch(check_s=None)
+        self._frozen = FrozenWatch(self.FROZEN_AFTER_FRAMES
+                                   + self.FROZEN_IIR_FACTOR * self.settings.iir_coefficient)
 
     # -- identity ---------------------------------------------------------------------------
 
@@ -188,7 +206,7 @@ class BMP280Driver(Driver):
         self.trim = trim
 
         standby = s.chosen_standby_ms() if s.mode == "normal" else 0.5
-        self._config = r.config_value(standby, s.iir_filter)
+        self._config = r.config_value(standby, s.iir_coefficient)
         mode = r.MODE_NORMAL if s.mode == "normal" else r.MODE_SLEEP
         self._ctrl = r.ctrl_meas_value(s.temperature_oversampling, s.pressure_oversampling, mode)
         # config first: the chip may ignore config writes once in normal mode.
@@ -202,14 +220,17 @@ class BMP280Driver(Driver):
         t_meas = s.measurement_time_s(maximum=False)
         period_s = t_meas + standby / 1000.0 if s.mode == "normal" else 1.0 / s.odr_hz
         self._period_ns = round(period_s * 1e9)
+        self._grid = PollGrid(self._period_ns)
         self._triggered_ns = None
 
     def start(self, now_ns: int) -> int:
         # recover() passes the time from before configure() waited; never start in the past.
         now_ns = max(now_ns, self.clock.now_ns())
+        self._watch.start(now_ns)
         if self.settings.mode == "normal":
             # The first cycle ends one measurement after the ctrl_meas write.
             self._next_ns = now_ns + round(self.settings.measurement_time_s(maximum=True) * 1e9)
+            self._grid.anchor(self._next_ns)
         else:
             self._next_ns = now_ns
         return self._next_ns
@@ -227,21 +248,14 @@ class BMP280Driver(Driver):
             return ctrl != self._ctrl or config != self._config
         return (ctrl & ~r.MODE_MASK) != (self._ctrl & ~r.MODE_MASK) or config != self._config
 
-    def _reconfigure(self, now_ns: int) -> PollResult:
-        self.health.resets_detected += 1
-        self.configure()
-        self.health.reconfigurations += 1
-        return PollResult([], self.start(self.clock.now_ns()))
-
     def poll(self, now_ns: int) -> PollResult:
         if self.settings.mode == "forced":
             return self._poll_forced(now_ns)
         _status, ctrl, config, adc_p, adc_t = self._read_burst()
         if self._config_lost(ctrl, config):
-            return self._reconfigure(now_ns)
+            return PollResult([], self.restart(reset_detected=True))
         stale = adc_p == r.ADC_SKIPPED and adc_t == r.ADC_SKIPPED
-        self._next_ns = max(self._next_ns + self._period_ns, now_ns + self._period_ns // 4)
-        return PollResult(self._emit(now_ns, adc_p, adc_t, stale=stale), self._next_ns)
+        return self._finish(now_ns, adc_p, adc_t, stale, self._grid.next_after(now_ns))
 
     def _poll_forced(self, now_ns: int) -> PollResult:
         s = self.settings
@@ -253,7 +267,7 @@ class BMP280Driver(Driver):
             return PollResult([], now_ns + round(s.measurement_time_s(maximum=True) * 1e9))
         status, ctrl, config, adc_p, adc_t = self._read_burst()
         if self._config_lost(ctrl, config):
-            return self._reconfigure(now_ns)
+            return PollResult([], self.restart(reset_detected=True))
         done = not status & r.STATUS_MEASURING and ctrl & r.MODE_MASK == r.MODE_SLEEP
         t_max_ns = round(s.measurement_time_s(maximum=True) * 1e9)
         if not done and now_ns - self._triggered_ns < self.STALE_AFTER_MAX_TIMES * t_max_ns:
@@ -262,12 +276,26 @@ class BMP280Driver(Driver):
         self._triggered_ns = None
         self._next_ns = max(trigger + self._period_ns, now_ns)
         stale = not done or (adc_p == r.ADC_SKIPPED and adc_t == r.ADC_SKIPPED)
-        return PollResult(self._emit(now_ns, adc_p, adc_t, stale=stale), self._next_ns)
+        return self._finish(now_ns, adc_p, adc_t, stale, self._next_ns)
 
-    def _emit(self, t_ns: int, adc_p: int, adc_t: int, *, stale: bool) -> list[Sample]:
+    def _finish(self, now_ns: int, adc_p: int, adc_t: int, stale: bool,
+                next_ns: int) -> PollResult:
+        """Emit one measurement slot; a chip that keeps producing none is restarted."""
+        bad = SampleFlag.STALE if stale else self._frozen_flag(adc_p, adc_t)
+        samples = self._emit(now_ns, adc_p, adc_t, bad)
+        if not bad:
+            self._watch.fresh_poll()
+        elif self._watch.stale_poll():
+            return PollResult(samples, self.restart(reset_detected=False))
+        return PollResult(samples, next_ns)
+
+    def _frozen_flag(self, adc_p: int, adc_t: int) -> SampleFlag:
+        return self._frozen.observe("adc", adc_p.to_bytes(3, "big") + adc_t.to_bytes(3, "big"))
+
+    def _emit(self, t_ns: int, adc_p: int, adc_t: int, bad: SampleFlag) -> list[Sample]:
         assert self.trim is not None, "poll() before configure()"
-        if stale:
-            flags_p = flags_t = SampleFlag.STALE
+        if bad:
+            flags_p = flags_t = bad
             pressure = temperature = math.nan
         else:
             t_centi, t_fine = compensate_temperature_int32(adc_t, self.trim)
@@ -276,12 +304,11 @@ class BMP280Driver(Driver):
             flags_t = _range_flags(adc_t, temperature, TEMPERATURE_RANGE_DEGC)
             # Pressure is compensated with the temperature, so its flags carry over.
             flags_p = flags_t | _range_flags(adc_p, pressure, PRESSURE_RANGE_PA)
-        samples: list[Sample] = [
+        return [
             PressureSample(t_ns=t_ns, device=self.device, flags=flags_p, pressure_pa=pressure),
             TemperatureSample(t_ns=t_ns, device=self.device, flags=flags_t,
                               temperature_degc=temperature),
         ]
-        return samples
 
     def child_buses(self) -> dict[str, Bus]:
         return {}

@@ -17,14 +17,14 @@ throw-away data read).
 
 from __future__ import annotations
 
-from pydantic import Field
-
 from imuhal.bus.base import BusKind, Link
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
 from imuhal.core.samples import Channel, Frame, MagSample, Sample, SampleFlag
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
+from imuhal.drivers.polling import DataReady, PollGrid, ResetWatch, reset_check_field
 from imuhal.drivers.settings import table_setting
+from imuhal.drivers.validity import NAN3, FrozenWatch, blank_flag
 from imuhal_chips.hmc5883l import decode
 from imuhal_chips.hmc5883l.registers import (
     AVERAGING,
@@ -39,12 +39,12 @@ from imuhal_chips.hmc5883l.registers import (
     config_b,
 )
 
-STALE_AFTER_PERIODS = 1.5
-"""No RDY for longer than this many output periods: the sample is stale."""
-STALE_POLLS_BEFORE_RESTART = 4
-"""Consecutive stale polls after which the driver rewrites its configuration."""
 NOT_READY_RETRY_NS = 500_000
 """RDY is low for about 250 us while the chip writes new data: retry this much later."""
+FROZEN_AFTER_FRAMES = 30
+"""Identical data frames in a row that mean the chip stopped measuring. The quietest setting
+(+/-8.1 Ga, 230 LSB/Ga, 2 mG noise: about 0.5 LSB per axis) repeats a three-axis frame with
+probability about 0.2; 30 in a row (0.4 s at 75 Hz), about 1e-21 per sample."""
 
 
 class Hmc5883lSettings(DriverSettings):
@@ -56,7 +56,7 @@ class Hmc5883lSettings(DriverSettings):
     """Continuous-mode output rate, Hz: 0.75, 1.5, 3, 7.5, 15, 30, 75."""
     averaging: table_setting(AVERAGING, "samples", kind=int) = 8  # type: ignore[valid-type]
     """Samples averaged per output: 1, 2, 4, 8."""
-    reset_check_s: float = Field(default=0.5, gt=0, le=60)
+    reset_check_s: float = reset_check_field()
     """How often (s) the configuration is read back to catch a silent chip reset."""
 
 
@@ -77,14 +77,12 @@ class Hmc5883lDriver(Driver):
         super().__init__(link, settings, device=device, clock=clock)  # type: ignore[arg-type]
         self.gain_lsb_per_gauss: float | None = None
         self._expected = b""
-        self._period_ns = round(1e9 / self.settings.odr_hz)
-        self._grid_start_ns = 0
         self._mode_written_ns = 0
-        self._grid_k = 0
-        self._last_ready_ns = 0
         self._skip_next = False
-        self._stale_polls = 0
-        self._next_check_ns = 0
+        self._grid = PollGrid(round(1e9 / self.settings.odr_hz))
+        self._ready = DataReady({Channel.MAG: self._grid.period_ns})
+        self._watch = ResetWatch(self.settings.reset_check_s)
+        self._frozen = FrozenWatch(FROZEN_AFTER_FRAMES)
 
     # --- bus helpers (plain I2C register protocol: write pointer, then read) --------------
 
@@ -149,17 +147,10 @@ class Hmc5883lDriver(Driver):
         # write. RDY stays set in continuous mode, so unlike the MAX2110x the phase cannot
         # be searched for; a chip clock off by a few percent occasionally repeats or skips
         # one output (each sample is still coherent thanks to the data lock).
-        self._grid_start_ns = self._mode_written_ns + self._period_ns // 8
-        self._grid_k = 0
-        self._last_ready_ns = now_ns
-        self._stale_polls = 0
-        self._next_check_ns = now_ns + round(self.settings.reset_check_s * 1e9)
-        return self._next_poll(now_ns)
-
-    def _next_poll(self, now_ns: int) -> int:
-        k = max(self._grid_k + 1, (now_ns - self._grid_start_ns) // self._period_ns + 1)
-        self._grid_k = k
-        return self._grid_start_ns + k * self._period_ns
+        self._grid.anchor(self._mode_written_ns + self._grid.guard_ns)
+        self._ready.start(now_ns)
+        self._watch.start(now_ns)
+        return self._grid.next_after(now_ns)
 
     # --- sampling -------------------------------------------------------------------------
 
@@ -173,50 +164,54 @@ class Hmc5883lDriver(Driver):
     def poll(self, now_ns: int) -> PollResult:
         if self.gain_lsb_per_gauss is None:
             raise ConfigurationError(f"{self.describe()}: poll() before configure()")
-        if now_ns >= self._next_check_ns and self._reset_detected(now_ns):
-            return PollResult([], self.start(self.clock.now_ns()))
+        if self._watch.check_due(now_ns) and self._config_lost():
+            return PollResult([], self.restart(reset_detected=True))
         status = self._read(Reg.STATUS, 1)[0]
         if status & STATUS_RDY:
-            self._last_ready_ns = now_ns
-            self._stale_polls = 0
-            sample = self._sample(now_ns, SampleFlag.OK)
-            if self._skip_next:
-                self._skip_next = False
-                return PollResult([], self._next_poll(now_ns))
-            return PollResult([sample], self._next_poll(now_ns))
-        if now_ns - self._last_ready_ns <= STALE_AFTER_PERIODS * self._period_ns:
+            sample = self._sample(now_ns)
+            if not sample.flags & (SampleFlag.BLANK | SampleFlag.FROZEN):
+                self._ready.fresh(Channel.MAG, now_ns)
+                self._watch.fresh_poll()
+                if self._skip_next:
+                    self._skip_next = False
+                    return PollResult([], self._grid.next_after(now_ns))
+                return PollResult([sample], self._grid.next_after(now_ns))
+        elif not self._ready.overdue(Channel.MAG, now_ns):
             return PollResult([], now_ns + NOT_READY_RETRY_NS)
-        sample = self._sample(now_ns, SampleFlag.STALE)
-        self._stale_polls += 1
-        if self._reset_detected(now_ns):
-            return PollResult([sample], self.start(self.clock.now_ns()))
-        if self._stale_polls >= STALE_POLLS_BEFORE_RESTART:
-            # configuration intact but no data: rewriting the mode restarts measuring
-            self.configure()
-            self.health.reconfigurations += 1
-            return PollResult([sample], self.start(self.clock.now_ns()))
-        return PollResult([sample], self._next_poll(now_ns))
+        else:
+            sample = MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
+                               mag_ut=NAN3, flags=SampleFlag.STALE)
+        # No usable measurement: check the configuration at once, and restart the chip when
+        # it keeps producing nothing (rewriting the mode restarts continuous measuring).
+        if self._watch.check_due(now_ns, overdue=True) and self._config_lost():
+            return PollResult([sample], self.restart(reset_detected=True))
+        if self._watch.stale_poll():
+            return PollResult([sample], self.restart(reset_detected=False))
+        return PollResult([sample], self._grid.next_after(now_ns))
 
-    def _sample(self, now_ns: int, flags: SampleFlag) -> Sample:
+    def _sample(self, now_ns: int) -> Sample:
+        """Read the six data bytes (X, Z, Y) and decode them, flagging a blank or frozen
+        frame (values NaN) and out-of-range or overflowed counts."""
         assert self.gain_lsb_per_gauss is not None
-        counts = decode.data_counts_xyz(self._read(Reg.X_MSB, 6))
-        flags |= decode.counts_flags(counts)
+        raw = self._read(Reg.X_MSB, 6)
+        bad = blank_flag(raw) or self._frozen_flag(raw)
+        if bad:
+            return MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
+                             mag_ut=NAN3, flags=bad)
+        counts = decode.data_counts_xyz(raw)
         return MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                          mag_ut=decode.counts_to_ut(counts, self.gain_lsb_per_gauss),
-                         flags=flags)
+                         flags=decode.counts_flags(counts))
 
-    def _reset_detected(self, now_ns: int) -> bool:
-        """Read Config A/B and Mode back; on a mismatch (silent reset: defaults 0x10, 0x20,
-        single mode) count it and reconfigure. Returns True when it did."""
-        self._next_check_ns = now_ns + round(self.settings.reset_check_s * 1e9)
+    def _frozen_flag(self, raw: bytes) -> SampleFlag:
+        return self._frozen.observe(Channel.MAG, raw)
+
+    def _config_lost(self) -> bool:
+        """Read Config A/B and Mode back: a mismatch is a silent reset (defaults 0x10, 0x20,
+        single mode) or nothing answering."""
         got = self._read(Reg.CONFIG_A, 3)
         self._read(Reg.X_MSB, 6)  # release the lock that reading MODE set
-        if got == self._expected:
-            return False
-        self.health.resets_detected += 1
-        self.configure()
-        self.health.reconfigurations += 1
-        return True
+        return got != self._expected
 
 
 def _show(found: bytes) -> str:

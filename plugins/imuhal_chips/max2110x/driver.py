@@ -11,6 +11,8 @@ gyro rad/s, accel m/s^2 specific force, temperature degC.
 
 from __future__ import annotations
 
+import math
+from collections.abc import Mapping
 from typing import ClassVar
 
 from imuhal.bus.base import Bus, BusKind, Link
@@ -27,6 +29,8 @@ from imuhal.core.samples import (
     TemperatureSample,
 )
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
+from imuhal.drivers.polling import DataReady, PollGrid, ResetWatch
+from imuhal.drivers.validity import NAN3, FrozenWatch, blank_flag, range_flag
 from imuhal_chips.max2110x import decode
 from imuhal_chips.max2110x.registers import (
     ACCEL_RANGE_G,
@@ -37,6 +41,7 @@ from imuhal_chips.max2110x.registers import (
     MAX21105,
     PARTS_BY_WHO_AM_I,
     RST_SW_RESET,
+    STANDARD_GRAVITY_M_S2,
     PartSpec,
     Reg,
     Scales,
@@ -50,20 +55,21 @@ from imuhal_chips.max2110x.settings import Max2110xSettings, Max21100Settings, M
 SOFT_RESET_WAIT_S = 0.010
 """Wait after a soft reset before touching registers. [UNVERIFIED: no documented figure;
 10 ms is generous for an OTP reload.]"""
-STALE_AFTER_PERIODS = 1.5
-"""A channel with no data-ready for longer than this many of its periods is stale."""
-STALE_POLLS_BEFORE_RESET = 4
-"""Consecutive stale polls after which the driver resets and reconfigures the chip itself."""
 TEMPERATURE_PERIOD_NS = 100_000_000
 """Temperature samples are emitted at most every 100 ms (it changes slowly)."""
-GUARD_FRACTION = 8
-"""Polls aim 1/8 period after the chip's measurement instant, and retry 1/8 period later
-when a poll finds no new data (see ``poll``)."""
 EARLY_FRACTION = 64
 """The poll grid steps 1/64 period short of the nominal period, so it creeps earlier than a
 chip whose clock runs up to ~1.5 % fast instead of falling behind it; with an exact clock one
 poll in about eight finds nothing and re-anchors a guard later."""
-
+FROZEN_AFTER_FRAMES = 50
+"""Identical gyro + accel + temperature frames in a row that mean the measurement engine
+hung. At rest the quietest setting (gyro +/-2000 dps, 15 LSB/dps, 0.005 dps/sqrt(Hz) over
+a 2 Hz bandwidth: about 0.1 LSB) can repeat gyro words, but the accelerometer (150 ug/sqrt(Hz),
+at least 5 LSB at +/-16 g) and the temperature word (about 5 LSB) do not: ten repeats of the
+whole frame have a probability far below once per year of samples; 50 (0.2 s at 250 Hz)
+leaves a wide margin for a chip quieter than its error model."""
+TEMPERATURE_RANGE_DEGC = (-40.0, 85.0)
+"""Operating range of the die; a temperature word outside it is not a real reading."""
 
 class Max2110xDriver(Driver):
     """Family base. Subclasses set ``name``, ``Settings`` and ``part``."""
@@ -81,17 +87,14 @@ class Max2110xDriver(Driver):
         self.regs = RegisterView(link, convention_for(link.kind))
         self.scales: Scales | None = None
         self._expected: dict[int, int] = {}
-        self._period_ns = 0
-        self._channel_period_ns: dict[Channel, int] = {}
-        self._grid_start_ns = 0
-        self._grid_k = 0
         self._power_on_ns = 0
         self._fast: Channel = Channel.GYRO
         self._searching = False
-        self._last_fresh_ns: dict[Channel, int] = {}
         self._last_temp_ns: int | None = None
-        self._stale_polls = 0
-        self._next_check_ns = 0
+        self._grid = PollGrid(1, early_fraction=EARLY_FRACTION)
+        self._ready = DataReady({})
+        self._watch = ResetWatch(self.settings.reset_check_s)
+        self._frozen = FrozenWatch(FROZEN_AFTER_FRAMES)
 
     # --- identity -------------------------------------------------------------------------
 
@@ -139,10 +142,10 @@ class Max2110xDriver(Driver):
         i2c_cfg = I2C_CFG_I2C_OFF if self.link.kind is BusKind.SPI else 0x00
         return {
             Reg.I2C_CFG: i2c_cfg,
-            Reg.GYRO_CFG1: gyro_cfg1(s.gyro_range_dps, s.gyro_bandwidth_hz),
+            Reg.GYRO_CFG1: gyro_cfg1(s.gyro_range_dps, s.gyro_lpf_hz),
             Reg.GYRO_CFG2: p.gyro_odr_hz[s.gyro_odr_hz],
             Reg.PWR_ACC_CFG: pwr_acc_cfg(p, s.accel_range_g),
-            Reg.ACC_CFG1: acc_cfg1(p, s.accel_lpf, s.accel_odr_hz),
+            Reg.ACC_CFG1: acc_cfg1(p, s.accel_lpf_divisor, s.accel_odr_hz),
             # data-ready cleared once all words of a channel are read; temperature on
             Reg.DR_CFG: DR_CFG_TEMP_EN,
             Reg.POWER_CFG: p.power_cfg_on,  # last: start measuring with everything set
@@ -167,12 +170,13 @@ class Max2110xDriver(Driver):
             gyro_lsb_per_dps=GYRO_RANGE_DPS[s.gyro_range_dps][1],
             accel_lsb_per_g=ACCEL_RANGE_G[s.accel_range_g][1],
         )
-        self._channel_period_ns = {
+        periods = {
             Channel.GYRO: round(1e9 / s.gyro_odr_hz),
             Channel.ACCEL: round(1e9 / s.accel_odr_hz),
         }
-        self._period_ns = min(self._channel_period_ns.values())
-        self._fast = min(self._channel_period_ns, key=lambda c: self._channel_period_ns[c])
+        self._ready = DataReady(periods)
+        self._fast = min(periods, key=lambda c: periods[c])
+        self._grid = PollGrid(periods[self._fast], early_fraction=EARLY_FRACTION)
 
     def _verify(self, plan: dict[int, int]) -> None:
         wrong = self._mismatches(plan)
@@ -204,24 +208,12 @@ class Max2110xDriver(Driver):
         now_ns = max(now_ns, self.clock.now_ns())
         # The chip measures one period after the power mode write and every period after;
         # the poll grid sits a guard after those instants.
-        self._grid_start_ns = self._power_on_ns + self._guard_ns()
-        self._grid_k = 0
+        self._grid.anchor(self._power_on_ns + self._grid.guard_ns)
         self._searching = False
-        self._last_fresh_ns = {Channel.GYRO: now_ns, Channel.ACCEL: now_ns}
+        self._ready.start(now_ns)
         self._last_temp_ns = None
-        self._stale_polls = 0
-        self._next_check_ns = now_ns + round(self.settings.reset_check_s * 1e9)
-        return self._next_poll(now_ns)
-
-    def _guard_ns(self) -> int:
-        return max(1, self._period_ns // GUARD_FRACTION)
-
-    def _next_poll(self, now_ns: int) -> int:
-        """Next point of the poll grid strictly after ``now_ns`` (late polls skip ahead)."""
-        step = self._period_ns - self._period_ns // EARLY_FRACTION
-        k = max(self._grid_k + 1, (now_ns - self._grid_start_ns) // step + 1)
-        self._grid_k = k
-        return self._grid_start_ns + k * step
+        self._watch.start(now_ns)
+        return self._grid.next_after(now_ns)
 
     def poll(self, now_ns: int) -> PollResult:
         """Read one burst; emit a sample per channel with new data.
@@ -231,54 +223,66 @@ class Max2110xDriver(Driver):
         a poll that finds no new data on the fastest channel retries a guard later and
         re-anchors the grid where the data appeared; an overrun (a sample overwritten
         before it was read) moves the grid half a period earlier to re-acquire the phase.
+        A burst of all 0x00 or all 0xFF (nothing drives the bus) is no measurement, whatever
+        its data-ready bits say; nor is a frame repeated FROZEN_AFTER_FRAMES times.
         """
         if self.scales is None:
             raise ConfigurationError(f"{self.describe()}: poll() before configure()")
-        if now_ns >= self._next_check_ns and self._reset_detected(now_ns):
-            return PollResult([], self.start(self.clock.now_ns()))
+        if self._watch.check_due(now_ns) and self._config_lost():
+            return PollResult([], self.restart(reset_detected=True))
         raw = self.regs.read(self.part.burst_start, self.part.burst_length)
         burst = decode.split_burst(raw)
+        bad = blank_flag(raw)
+        if not bad and (burst.gyro_ready or burst.accel_ready):
+            bad = self._frozen_flag(raw)
         samples: list[Sample] = []
         stale = False
         for channel, ready in ((Channel.GYRO, burst.gyro_ready),
                                (Channel.ACCEL, burst.accel_ready)):
-            if ready:
-                self._last_fresh_ns[channel] = now_ns
+            if ready and not bad:
+                self._ready.fresh(channel, now_ns)
                 samples.append(self._vector_sample(channel, burst, now_ns, SampleFlag.OK))
-            elif now_ns - self._last_fresh_ns[channel] > (
-                STALE_AFTER_PERIODS * self._channel_period_ns[channel]
-            ):
+            elif self._ready.overdue(channel, now_ns) or (ready and bad):
                 stale = True
-                samples.append(self._vector_sample(channel, burst, now_ns, SampleFlag.STALE))
+                flag = bad if ready else SampleFlag.STALE | bad
+                samples.append(self._vector_sample(channel, burst, now_ns, flag))
         if burst.gyro_ready and (
             self._last_temp_ns is None or now_ns - self._last_temp_ns >= TEMPERATURE_PERIOD_NS
         ):
             self._last_temp_ns = now_ns
-            temp = decode.temp_counts_to_degc(burst.temperature)
-            samples.append(TemperatureSample(t_ns=now_ns, device=self.device,
-                                             temperature_degc=temp))
+            samples.append(self._temperature_sample(burst, now_ns, bad))
         if stale:
-            self._stale_polls += 1
-            if self._reset_detected(now_ns):
-                return PollResult(samples, self.start(self.clock.now_ns()))
-            if self._stale_polls >= STALE_POLLS_BEFORE_RESET:
-                # the chip answers and keeps its configuration but produces no data: a hung
-                # measurement engine; a soft reset and reconfiguration is the cure
-                self.configure()
-                self.health.reconfigurations += 1
-                return PollResult(samples, self.start(self.clock.now_ns()))
-        else:
-            self._stale_polls = 0
+            if self._watch.check_due(now_ns, overdue=True) and self._config_lost():
+                return PollResult(samples, self.restart(reset_detected=True))
+            if self._watch.stale_poll():
+                return PollResult(samples, self.restart(reset_detected=False))
+            return PollResult(samples, self._grid.next_after(now_ns))
+        self._watch.fresh_poll()
         fast_ready = burst.gyro_ready if self._fast is Channel.GYRO else burst.accel_ready
         if fast_ready and burst.overrun:
-            self._grid_start_ns, self._grid_k = now_ns - self._period_ns // 2, 0
+            self._grid.anchor(now_ns - self._grid.period_ns // 2)
         elif fast_ready and self._searching:
-            self._grid_start_ns, self._grid_k = now_ns, 0
+            self._grid.anchor(now_ns)
         self._searching = False
-        if not fast_ready and not stale:
+        if not fast_ready:
             self._searching = True
-            return PollResult(samples, now_ns + self._guard_ns())
-        return PollResult(samples, self._next_poll(now_ns))
+            return PollResult(samples, now_ns + self._grid.guard_ns)
+        return PollResult(samples, self._grid.next_after(now_ns))
+
+    def _frozen_flag(self, raw: bytes) -> SampleFlag:
+        """FROZEN when the gyro, accel and temperature words repeat FROZEN_AFTER_FRAMES
+        times in a row while the chip reports new data."""
+        return self._frozen.observe("frame", raw[1:13] + raw[-2:])
+
+    def _temperature_sample(self, burst: decode.Burst, now_ns: int,
+                            bad: SampleFlag) -> Sample:
+        if bad:
+            return TemperatureSample(t_ns=now_ns, device=self.device, flags=bad,
+                                     temperature_degc=math.nan)
+        temp = decode.temp_counts_to_degc(burst.temperature)
+        flags = range_flag([temp], *TEMPERATURE_RANGE_DEGC)
+        return TemperatureSample(t_ns=now_ns, device=self.device, temperature_degc=temp,
+                                 flags=flags)
 
     def _vector_sample(
         self, channel: Channel, burst: decode.Burst, now_ns: int, flags: SampleFlag
@@ -287,39 +291,33 @@ class Max2110xDriver(Driver):
         if channel is Channel.GYRO:
             counts = burst.gyro
             value = decode.gyro_counts_to_rad_s(counts, self.scales.gyro_lsb_per_dps)
-            cls: type[GyroSample] | type[AccelSample] = GyroSample
         else:
             counts = burst.accel
             value = decode.accel_counts_to_m_s2(counts, self.scales.accel_lsb_per_g)
-            cls = AccelSample
-        if decode.saturated(counts):
+        if flags:
+            value = NAN3  # stale, blank or frozen: not a measurement
+        elif decode.saturated(counts):
             flags |= SampleFlag.SATURATED
-        if cls is GyroSample:
+        if channel is Channel.GYRO:
             return GyroSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                               gyro_rad_s=value, flags=flags)
         return AccelSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                            accel_m_s2=value, flags=flags)
 
-    def _reset_detected(self, now_ns: int) -> bool:
-        """Read the configuration back; if the chip lost it (silent reset, brown-out),
-        count it and reconfigure. Returns True when it did."""
-        self._next_check_ns = now_ns + round(self.settings.reset_check_s * 1e9)
-        if not self._mismatches(self._expected):
-            return False
-        self.health.resets_detected += 1
-        self.configure()
-        self.health.reconfigurations += 1
-        return True
-
     def full_scale(self, channel: Channel) -> float | None:
-        """What the 16-bit data word can hold at the configured range (SI): the most
-        negative count through this driver's own conversion."""
-        if self.scales is None or channel not in (Channel.GYRO, Channel.ACCEL):
-            return None
+        """The configured range (rad/s, m/s^2): the chip's nominal full scale is 30000
+        counts, so a larger word is not a measurement."""
+        s = self.settings
         if channel is Channel.GYRO:
-            return abs(decode.gyro_counts_to_rad_s((-32768, 0, 0),
-                                                   self.scales.gyro_lsb_per_dps)[0])
-        return abs(decode.accel_counts_to_m_s2((-32768, 0, 0), self.scales.accel_lsb_per_g)[0])
+            return math.radians(s.gyro_range_dps)
+        if channel is Channel.ACCEL:
+            return s.accel_range_g * STANDARD_GRAVITY_M_S2
+        return None
+
+    def _config_lost(self) -> bool:
+        """True when the configuration reads back different from what was written (a
+        silent reset, a brown-out, or nothing answering)."""
+        return bool(self._mismatches(self._expected))
 
 
 class Max21105Driver(Max2110xDriver):
@@ -339,6 +337,7 @@ class Max21100Driver(Max2110xDriver):
                    "I2C master exposed as child bus 'aux'")
     Settings = Max21100Settings
     part = MAX21100
+    child_bus_kinds: ClassVar[Mapping[str, BusKind]] = {"aux": BusKind.I2C}
 
     def __init__(
         self, link: Link, settings: DriverSettings | dict[str, object], *, device: str,

@@ -10,9 +10,8 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
-from pydantic import Field
-
 from imuhal.drivers.base import DriverSettings
+from imuhal.drivers.polling import reset_check_field
 from imuhal.drivers.settings import table_setting
 from imuhal_chips.max2110x.registers import (
     ACCEL_LPF_DIVISOR,
@@ -29,22 +28,24 @@ class Max2110xSettings(DriverSettings):
     """Common fields; each part's subclass sets ``part`` and its own ODR tables and defaults."""
 
     part: ClassVar[PartSpec] = MAX21100
+    renamed: ClassVar[dict[str, str]] = {
+        "gyro_bandwidth_hz": "gyro_lpf_hz", "accel_lpf": "accel_lpf_divisor"}
 
     gyro_range_dps: table_setting(GYRO_RANGE_DPS, "dps", kind=int) = 500  # type: ignore[valid-type]
     """Gyro full scale, +/- deg/s: 250, 500, 1000, 2000."""
-    gyro_bandwidth_hz: table_setting(GYRO_BANDWIDTH_HZ, "Hz") = 14  # type: ignore[valid-type]
+    gyro_lpf_hz: table_setting(GYRO_BANDWIDTH_HZ, "Hz") = 14  # type: ignore[valid-type]
     """Gyro low-pass bandwidth, Hz: 2, 4, 6, 8, 10, 14, 22, 32, 50, 75, 100, 150, 200, 250,
     300, 400."""
     gyro_odr_hz: float = 250
     """Gyro output data rate, Hz (part-specific table, set by each part's subclass)."""
     accel_range_g: table_setting(ACCEL_RANGE_G, "g", kind=int) = 4  # type: ignore[valid-type]
     """Accelerometer full scale, +/- g: 2, 4, 8, 16."""
-    accel_lpf: table_setting(ACCEL_LPF_DIVISOR, "", kind=int,  # type: ignore[valid-type]
-                             label="accel_lpf (ODR divisor)") = 48
+    accel_lpf_divisor: table_setting(ACCEL_LPF_DIVISOR, "",  # type: ignore[valid-type]
+                                     kind=int, label="accel_lpf_divisor (ODR divisor)") = 48
     """Accelerometer low-pass cutoff as the ODR divisor (ODR/48, /22, /9, /3)."""
     accel_odr_hz: float = 250
     """Accelerometer output data rate, Hz (part-specific table, set by each part's subclass)."""
-    reset_check_s: float = Field(default=0.5, gt=0, le=60)
+    reset_check_s: float = reset_check_field()
     """How often (s) the driver reads back its configuration to catch a silent chip reset."""
 
 
@@ -68,7 +69,7 @@ class Max21105Settings(Max2110xSettings):
     part: ClassVar[PartSpec] = MAX21105
 
     gyro_range_dps: table_setting(GYRO_RANGE_DPS, "dps", kind=int) = 1000  # type: ignore[valid-type]
-    gyro_bandwidth_hz: table_setting(GYRO_BANDWIDTH_HZ, "Hz") = 10  # type: ignore[valid-type]
+    gyro_lpf_hz: table_setting(GYRO_BANDWIDTH_HZ, "Hz") = 10  # type: ignore[valid-type]
     gyro_odr_hz: _odr(MAX21105, "gyro") = 200  # type: ignore[valid-type]
     accel_range_g: table_setting(ACCEL_RANGE_G, "g", kind=int) = 8  # type: ignore[valid-type]
     accel_odr_hz: _odr(MAX21105, "accel") = 200  # type: ignore[valid-type]

@@ -9,15 +9,18 @@ configure(): H_RESET, wake with the auto-selected PLL clock, then the registers 
 declarative tables (ranges, DLPFs, SMPLRT_DIV, INT_ENABLE.RAW_RDY_EN, aux mode); each is read
 back and verified; scales are cached.
 poll(): one burst INT_STATUS..GYRO_ZOUT_L (0x3A..0x48): the data-ready bit and one coherent
-sample. No data-ready for 2.5 sample periods -> the slot is reported STALE. A count at the
-16-bit limit -> SATURATED. INT_PIN_CFG/INT_ENABLE are re-read every second (and whenever data
-are overdue) to catch a silent reset, which is then counted and repaired by reconfiguring.
-Outputs are in the MPU-9250's own sensor frame, SI units.
+sample. The shared polling toolkit (imuhal.drivers.polling) decides staleness (no data-ready
+for STALE_AFTER_PERIODS -> STALE), re-reads INT_PIN_CFG/INT_ENABLE every ``reset_check_s``
+(and whenever data are overdue) to catch a silent reset, and restarts a chip that keeps its
+configuration but stops converting. A burst of all 0x00/0xFF is BLANK, a repeated frame
+FROZEN; a count at the 16-bit limit -> SATURATED; a die temperature outside -40..85 degC ->
+OUT_OF_RANGE. Outputs are in the MPU-9250's own sensor frame, SI units.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import ClassVar, Literal
 
 from pydantic import model_validator
@@ -35,6 +38,8 @@ from imuhal.core.samples import (
     TemperatureSample,
 )
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
+from imuhal.drivers.polling import DataReady, PollGrid, ResetWatch, reset_check_field
+from imuhal.drivers.validity import NAN3, FrozenWatch, blank_flag, range_flag
 from imuhal_chips.mpu9250 import registers as r
 from imuhal_chips.mpu9250.aux import MasterAuxBus
 from imuhal_chips.mpu9250.decode import (
@@ -64,12 +69,19 @@ class MPU9250Settings(DriverSettings):
     or ``off``.
     """
 
+    renamed: ClassVar[dict[str, str]] = {
+        "gyro_dlpf_hz": "gyro_lpf_hz", "accel_dlpf_hz": "accel_lpf_hz"}
+
     gyro_range_dps: Literal[250, 500, 1000, 2000] = 500
     accel_range_g: Literal[2, 4, 8, 16] = 4
-    gyro_dlpf_hz: Literal[250, 184, 92, 41, 20, 10, 5, 3600] = 41
-    accel_dlpf_hz: Literal[460, 184, 92, 41, 20, 10, 5, 1130] = 41
+    gyro_lpf_hz: Literal[250, 184, 92, 41, 20, 10, 5, 3600] = 41
+    """Gyro (and temperature) digital low-pass bandwidth, Hz (DLPF_CFG / FCHOICE)."""
+    accel_lpf_hz: Literal[460, 184, 92, 41, 20, 10, 5, 1130] = 41
+    """Accelerometer digital low-pass bandwidth, Hz (A_DLPFCFG / ACCEL_FCHOICE)."""
     odr_hz: float = 200.0
     aux: Literal["auto", "bypass", "master", "off"] = "auto"
+    reset_check_s: float = reset_check_field()
+    """How often (s) INT_PIN_CFG/INT_ENABLE are read back to catch a silent chip reset."""
 
     @model_validator(mode="after")
     def _odr_reachable(self) -> MPU9250Settings:
@@ -78,13 +90,13 @@ class MPU9250Settings(DriverSettings):
 
     def smplrt_div(self) -> int:
         """The SMPLRT_DIV that gives exactly ``odr_hz`` (0.1 % tolerance), or ValueError."""
-        gyro_filter = r.GYRO_DLPF[self.gyro_dlpf_hz]
+        gyro_filter = r.GYRO_DLPF[self.gyro_lpf_hz]
         if not gyro_filter.divider_applies:
             if abs(self.odr_hz - gyro_filter.internal_rate_hz) > 1e-3 * self.odr_hz:
                 raise ValueError(
-                    f"with gyro_dlpf_hz {self.gyro_dlpf_hz} the output rate is fixed at "
+                    f"with gyro_lpf_hz {self.gyro_lpf_hz} the output rate is fixed at "
                     f"{gyro_filter.internal_rate_hz} Hz (odr_hz {self.odr_hz:g}); choose "
-                    "gyro_dlpf_hz 184, 92, 41, 20, 10 or 5 for lower rates")
+                    "gyro_lpf_hz 184, 92, 41, 20, 10 or 5 for lower rates")
             return 0
         div = round(gyro_filter.internal_rate_hz / self.odr_hz) - 1 if self.odr_hz > 0 else -1
         if 0 <= div <= 255:
@@ -107,9 +119,15 @@ class MPU9250Driver(Driver):
     Settings = MPU9250Settings
     channels: ClassVar[tuple[Channel, ...]] = (Channel.ACCEL, Channel.GYRO, Channel.TEMPERATURE)
     bus_kinds: ClassVar[frozenset[BusKind]] = frozenset({BusKind.I2C, BusKind.SPI})
+    child_bus_kinds: ClassVar[Mapping[str, BusKind]] = {"aux": BusKind.I2C}
 
-    STALE_AFTER_PERIODS = 2.5
-    CONFIG_CHECK_S = 1.0
+    FROZEN_AFTER_FRAMES = 40
+    """Identical accel + temperature + gyro frames in a row that mean the chip stopped
+    measuring. At rest at the quietest setting (+/-16 g, 2048 LSB/g, 300 ug/sqrt(Hz) over a
+    5 Hz bandwidth: about 1.4 LSB; gyro +/-2000 dps, about 0.4 LSB; temperature about 3 LSB)
+    a whole frame repeats with probability below 1e-3; 40 in a row (0.2 s at 200 Hz) never."""
+    TEMPERATURE_RANGE_DEGC = (-40.0, 85.0)
+    """Operating range of the die; a temperature word outside it is not a real reading."""
 
     def __init__(self, link: Link, settings: DriverSettings, *, device: str,
                  clock: Clock) -> None:
@@ -132,11 +150,13 @@ class MPU9250Driver(Driver):
         s = self.settings
         self._gyro = r.GYRO_RANGES[s.gyro_range_dps]
         self._accel = r.ACCEL_RANGES[s.accel_range_g]
-        self._period_ns = round(1e9 / r.sample_rate_hz(r.GYRO_DLPF[s.gyro_dlpf_hz],
+        self._period_ns = round(1e9 / r.sample_rate_hz(r.GYRO_DLPF[s.gyro_lpf_hz],
                                                         s.smplrt_div()))
         self._expected = self._register_plan()
-        self._last_data_ns = 0
-        self._next_check_ns = 0
+        self._grid = PollGrid(self._period_ns)
+        self._ready = DataReady({Channel.GYRO: self._period_ns})
+        self._watch = ResetWatch(s.reset_check_s)
+        self._frozen = FrozenWatch(self.FROZEN_AFTER_FRAMES)
 
     # -- identity ---------------------------------------------------------------------------
 
@@ -175,10 +195,10 @@ class MPU9250Driver(Driver):
             r.USER_CTRL: user_ctrl,
             r.PWR_MGMT_2: 0x00,
             r.SMPLRT_DIV: s.smplrt_div(),
-            r.CONFIG: r.GYRO_DLPF[s.gyro_dlpf_hz].dlpf_cfg,
+            r.CONFIG: r.GYRO_DLPF[s.gyro_lpf_hz].dlpf_cfg,
             r.GYRO_CONFIG: self._gyro.config_value,  # Fchoice_b = 00: DLPF in use
             r.ACCEL_CONFIG: self._accel.config_value,
-            r.ACCEL_CONFIG2: r.ACCEL_DLPF[s.accel_dlpf_hz],
+            r.ACCEL_CONFIG2: r.ACCEL_DLPF[s.accel_lpf_hz],
             r.I2C_MST_CTRL: r.I2C_MST_CLK_400KHZ if self.aux_mode == "master" else 0x00,
             r.INT_PIN_CFG: r.INT_PIN_BYPASS_EN if self.aux_mode == "bypass" else 0x00,
             r.INT_ENABLE: r.INT_RAW_RDY,
@@ -203,9 +223,10 @@ class MPU9250Driver(Driver):
     def start(self, now_ns: int) -> int:
         # recover() passes the time from before configure() waited; never start in the past.
         now_ns = max(now_ns, self.clock.now_ns())
-        self._last_data_ns = now_ns
-        self._next_check_ns = now_ns + round(self.CONFIG_CHECK_S * 1e9)
-        return now_ns + self._period_ns
+        self._ready.start(now_ns)
+        self._watch.start(now_ns)
+        self._grid.anchor(now_ns)
+        return self._grid.next_after(now_ns)
 
     def full_scale(self, channel: Channel) -> float | None:
         """What the 16-bit data word can hold at the configured range (SI): the most
@@ -226,35 +247,49 @@ class MPU9250Driver(Driver):
         return (pin_cfg != self._expected[r.INT_PIN_CFG]
                 or int_enable != self._expected[r.INT_ENABLE])
 
+    def _frozen_flag(self, frame: bytes) -> SampleFlag:
+        return self._frozen.observe("frame", frame)
+
     def poll(self, now_ns: int) -> PollResult:
-        overdue = now_ns - self._last_data_ns > self.STALE_AFTER_PERIODS * self._period_ns
-        if overdue or now_ns >= self._next_check_ns:
-            self._next_check_ns = now_ns + round(self.CONFIG_CHECK_S * 1e9)
-            if self._config_lost():
-                self.health.resets_detected += 1
-                self.configure()
-                self.health.reconfigurations += 1
-                return PollResult([], self.start(self.clock.now_ns()))
+        overdue = self._ready.overdue(Channel.GYRO, now_ns)
+        if self._watch.check_due(now_ns, overdue=overdue) and self._config_lost():
+            return PollResult([], self.restart(reset_detected=True))
         data = self.regs.read(r.DATA_BURST_START, r.DATA_BURST_LENGTH)
         ready = bool(data[0] & r.INT_RAW_RDY)
+        bad = blank_flag(data)
+        if ready and not bad:
+            bad = self._frozen_flag(data[1:])
+        if ready and not bad:
+            self._ready.fresh(Channel.GYRO, now_ns)
+            self._watch.fresh_poll()
+            # Phase-lock on the chip: the next poll one period after data appeared.
+            self._grid.anchor(now_ns)
+            return PollResult(self._samples(data, now_ns), self._grid.next_after(now_ns))
         if not ready and not overdue:
             return PollResult([], now_ns + max(self._period_ns // 10, 50_000))
+        flags = bad if ready else SampleFlag.STALE | bad
+        samples: list[Sample] = [
+            AccelSample(t_ns=now_ns, device=self.device, flags=flags, accel_m_s2=NAN3),
+            GyroSample(t_ns=now_ns, device=self.device, flags=flags, gyro_rad_s=NAN3),
+            TemperatureSample(t_ns=now_ns, device=self.device, flags=flags,
+                              temperature_degc=math.nan),
+        ]
+        if self._watch.stale_poll():
+            # the chip answers and kept its configuration but produces no new data
+            return PollResult(samples, self.restart(reset_detected=False))
+        return PollResult(samples, self._grid.next_after(now_ns))
+
+    def _samples(self, data: bytes, now_ns: int) -> list[Sample]:
         raw = decode_counts(data[1:])
-        stale = SampleFlag.OK if ready else SampleFlag.STALE
         accel = accel_m_s2(raw.accel, self._accel.lsb_per_unit)
         gyro = gyro_rad_s(raw.gyro, self._gyro.lsb_per_unit)
         temp = temperature_degc(raw.temperature)
-        if stale:
-            accel = gyro = (math.nan, math.nan, math.nan)
-            temp = math.nan
         sat_a = SampleFlag.SATURATED if saturated(raw.accel) else SampleFlag.OK
         sat_g = SampleFlag.SATURATED if saturated(raw.gyro) else SampleFlag.OK
-        samples: list[Sample] = [
-            AccelSample(t_ns=now_ns, device=self.device, flags=stale | sat_a, accel_m_s2=accel),
-            GyroSample(t_ns=now_ns, device=self.device, flags=stale | sat_g, gyro_rad_s=gyro),
-            TemperatureSample(t_ns=now_ns, device=self.device, flags=stale,
+        return [
+            AccelSample(t_ns=now_ns, device=self.device, flags=sat_a, accel_m_s2=accel),
+            GyroSample(t_ns=now_ns, device=self.device, flags=sat_g, gyro_rad_s=gyro),
+            TemperatureSample(t_ns=now_ns, device=self.device,
+                              flags=range_flag([temp], *self.TEMPERATURE_RANGE_DEGC),
                               temperature_degc=temp),
         ]
-        self._last_data_ns = now_ns
-        return PollResult(samples, now_ns + self._period_ns)
-

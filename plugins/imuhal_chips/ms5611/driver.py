@@ -3,8 +3,13 @@
 One cycle: [convert D2 (temperature) -> wait -> ADC read] -> convert D1 (pressure) -> wait ->
 ADC read -> compensate -> emit. The D2 part runs every ``temperature_every`` cycles. Waits are
 the datasheet *maximum* conversion time, so a read never catches a running conversion.
-Cycles are placed so that pressure conversions complete on a grid of ``1/rate_hz``; a late
+Cycles are placed so that pressure conversions complete on a grid of ``1/odr_hz``; a late
 poll slides the cycle rather than reading early.
+
+Validity: an ADC read of 0 (conversion aborted by a reset or a glitch) or all ones (nothing
+drives the bus) is no measurement (STALE / BLANK), and the same D1 word FROZEN_AFTER_FRAMES
+times in a row is a hung converter (FROZEN); such slots carry NaN. A chip that keeps
+producing no measurement is reset (the shared reset watch, imuhal.drivers.polling).
 
 Transactions: every command is one byte; ADC read (3 bytes) and PROM read (2 bytes) are the
 command and the read in one ``Link.transfer`` (I2C: write + repeated-start read; SPI: one
@@ -34,6 +39,8 @@ from imuhal.core.samples import (
     TemperatureSample,
 )
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
+from imuhal.drivers.polling import ResetWatch
+from imuhal.drivers.validity import FrozenWatch, blank_flag
 from imuhal_chips.ms5611.commands import (
     ADC_READ,
     ADC_READ_LEN,
@@ -59,37 +66,44 @@ from imuhal_chips.ms5611.conversion import (
 EXPECTED_IDENTITY = "MS5611 PROM with valid CRC4"
 
 
-def max_rate_hz(pressure_osr: int, temperature_osr: int) -> float:
+def max_rate_hz(pressure_oversampling: int, temperature_oversampling: int) -> float:
     """Highest pressure sample rate at which every sample slot can hold a temperature and a
     pressure conversion, each given its datasheet maximum time."""
-    cycle_ms = OSR_TIMING[pressure_osr].max_ms + OSR_TIMING[temperature_osr].max_ms
+    cycle_ms = (OSR_TIMING[pressure_oversampling].max_ms
+                + OSR_TIMING[temperature_oversampling].max_ms)
     return 1000.0 / cycle_ms
 
 
 class MS5611Settings(DriverSettings):
     """MS5611 settings, physical values only.
 
-    ``pressure_osr`` / ``temperature_osr``: oversampling ratio of each conversion (higher:
-    less noise, longer conversion). ``rate_hz``: pressure samples per second. A temperature
+    ``pressure_oversampling`` / ``temperature_oversampling``: oversampling ratio (OSR) of
+    each conversion (higher: less noise, longer conversion). ``odr_hz``: pressure samples
+    per second. A temperature
     conversion is made every ``temperature_every`` pressure samples (fewer conversions, less
     self-heating); the sample grid still reserves room for one in every slot so samples stay
     evenly spaced.
     """
 
-    pressure_osr: Osr = 4096
-    temperature_osr: Osr = 4096
-    rate_hz: float = Field(default=50.0, gt=0)
+    renamed: ClassVar[dict[str, str]] = {
+        "pressure_osr": "pressure_oversampling", "temperature_osr": "temperature_oversampling",
+        "rate_hz": "odr_hz"}
+
+    pressure_oversampling: Osr = 4096
+    temperature_oversampling: Osr = 4096
+    odr_hz: float = Field(default=50.0, gt=0)
     temperature_every: int = Field(default=1, ge=1)
 
     @model_validator(mode="after")
     def _rate_fits_conversions(self) -> MS5611Settings:
-        limit = max_rate_hz(self.pressure_osr, self.temperature_osr)
-        if self.rate_hz > limit:
+        limit = max_rate_hz(self.pressure_oversampling, self.temperature_oversampling)
+        if self.odr_hz > limit:
             raise ValueError(
-                f"rate_hz {self.rate_hz:g} is too high for pressure_osr {self.pressure_osr} "
-                f"and temperature_osr {self.temperature_osr}: the maximum is {limit:.2f} Hz "
-                f"(the two conversions take {1000.0 / limit:.2f} ms at their datasheet "
-                f"maximum); lower rate_hz or choose smaller OSRs"
+                f"odr_hz {self.odr_hz:g} is too high for pressure_oversampling "
+                f"{self.pressure_oversampling} and temperature_oversampling "
+                f"{self.temperature_oversampling}: the maximum is {limit:.2f} Hz (the two "
+                f"conversions take {1000.0 / limit:.2f} ms at their datasheet maximum); "
+                "lower odr_hz or choose smaller oversampling ratios"
             )
         return self
 
@@ -110,6 +124,13 @@ class MS5611Driver(Driver):
     channels: ClassVar[tuple[Channel, ...]] = (Channel.PRESSURE, Channel.TEMPERATURE)
     bus_kinds: ClassVar[frozenset[BusKind]] = frozenset({BusKind.I2C, BusKind.SPI})
 
+    FROZEN_AFTER_FRAMES = 16
+    """Identical D1 (pressure ADC) words in a row that mean the converter hung. Its noise is
+    tens of counts at every OSR (1.2 Pa RMS at OSR 4096, about 0.02 Pa per count), so even
+    two equal words in a row are rare. Sized for a coarser word too: an emulator that
+    encodes whole pascals repeats with probability about 0.23 under 1.2 Pa noise, so 16 in
+    a row (0.32 s at 50 Hz) come about once in 4e9 samples."""
+
     settings: MS5611Settings
 
     def __init__(
@@ -121,9 +142,12 @@ class MS5611Driver(Driver):
         self.last: Compensated | None = None
         """The last good compensated reading."""
         s = self.settings
-        self._t_d1_ns = OSR_TIMING[s.pressure_osr].max_ns
-        self._t_d2_ns = OSR_TIMING[s.temperature_osr].max_ns
-        self._period_ns = round(1e9 / s.rate_hz)
+        self._t_d1_ns = OSR_TIMING[s.pressure_oversampling].max_ns
+        self._t_d2_ns = OSR_TIMING[s.temperature_oversampling].max_ns
+        self._period_ns = round(1e9 / s.odr_hz)
+        self._watch = ResetWatch(check_s=None)  # no configuration to read back
+        self._frozen = FrozenWatch(self.FROZEN_AFTER_FRAMES)
+        self._just_reset = False
         self._reset_state()
 
     # -- probe / configure ------------------------------------------------------------------
@@ -164,6 +188,7 @@ class MS5611Driver(Driver):
         except NackError as err:
             raise self._not_found("no acknowledge (NACK)", self._wiring_hint()) from err
         self._reset_state()
+        self._just_reset = True
         if all(w == 0xFFFF for w in words):
             raise self._not_found("all-0xFFFF PROM", self._wiring_hint())
         if all(w == 0x0000 for w in words):
@@ -191,9 +216,14 @@ class MS5611Driver(Driver):
 
     def configure(self) -> None:
         """Nothing to program (OSR is part of each convert command); probe if not done and
-        start from a clean state machine. probe()'s reset already aborted any conversion."""
+        start from a clean state machine. probe()'s reset already aborted any conversion;
+        a configure() without a probe just before (a restart) resets the chip itself."""
         if self.coefficients is None:
             self.probe()
+        elif not self._just_reset:
+            self._command(RESET)
+            self.clock.sleep(RESET_RELOAD_MS / 1000.0)
+        self._just_reset = False
         self._reset_state()
 
     # -- conversion state machine -----------------------------------------------------------
@@ -216,22 +246,31 @@ class MS5611Driver(Driver):
 
     def start(self, now_ns: int) -> int:
         self._reset_state()
+        self._watch.start(now_ns)
         self._target_ns = now_ns + self._cycle_ns(True)
         return now_ns
 
-    def _read_adc(self) -> int:
-        return int.from_bytes(self.link.transfer(bytes([ADC_READ]), ADC_READ_LEN), "big")
+    def _read_adc(self) -> tuple[int, SampleFlag]:
+        """The 24-bit ADC result and why it is no measurement (OK when it is one): 0 means
+        no conversion completed (STALE), all ones that nothing drove the bus (BLANK)."""
+        raw = self.link.transfer(bytes([ADC_READ]), ADC_READ_LEN)
+        value = int.from_bytes(raw, "big")
+        return value, (SampleFlag.STALE if value == 0 else blank_flag(raw))
 
     def _start_conversion(self, measurement: Measurement, now_ns: int) -> int:
-        osr = (self.settings.pressure_osr if measurement is Measurement.D1
-               else self.settings.temperature_osr)
+        osr = (self.settings.pressure_oversampling if measurement is Measurement.D1
+               else self.settings.temperature_oversampling)
         self._command(convert_command(measurement, osr))
-        self._conv_start_ns = now_ns
+        # The conversion starts when the command reaches the chip, which may be later than
+        # the poll's nominal time (other devices' transfers ran first): wait from then, or
+        # the ADC read lands inside the conversion and aborts it.
+        start = max(now_ns, self.clock.now_ns())
+        self._conv_start_ns = start
         if measurement is Measurement.D2:
             self._state = _State.CONVERTING_D2
-            return now_ns + self._t_d2_ns
+            return start + self._t_d2_ns
         self._state = _State.CONVERTING_D1
-        return now_ns + self._t_d1_ns
+        return start + self._t_d1_ns
 
     def _start_pressure_when_due(self, now_ns: int) -> int:
         due = self._target_ns - self._t_d1_ns
@@ -258,9 +297,9 @@ class MS5611Driver(Driver):
             return PollResult([], ready)
 
         if self._state is _State.CONVERTING_D2:
-            d2 = self._read_adc()
-            if d2 == 0:
-                return self._stale(now_ns)
+            d2, bad = self._read_adc()
+            if bad:
+                return self._no_measurement(now_ns, bad)
             self._d2 = d2
             self._fresh_temperature = True
             self._need_temperature = False
@@ -268,12 +307,18 @@ class MS5611Driver(Driver):
             self._target_ns = max(self._target_ns, now_ns + self._t_d1_ns)
             return PollResult([], self._start_pressure_when_due(now_ns))
 
-        d1 = self._read_adc()
-        if d1 == 0:
-            return self._stale(now_ns)
+        d1, bad = self._read_adc()
+        if not bad:
+            bad = self._frozen_flag(d1)
+        if bad:
+            return self._no_measurement(now_ns, bad)
+        self._watch.fresh_poll()
         samples = self._emit(d1, t_ns=ready)
         self._next_cycle(now_ns)
         return PollResult(samples, self._cycle_start_ns())
+
+    def _frozen_flag(self, d1: int) -> SampleFlag:
+        return self._frozen.observe(Measurement.D1, d1.to_bytes(3, "big"))
 
     def _next_cycle(self, now_ns: int) -> None:
         self._state = _State.IDLE
@@ -306,19 +351,24 @@ class MS5611Driver(Driver):
             self.last = result
         return samples
 
-    def _stale(self, now_ns: int) -> PollResult:
-        """An ADC read returned 0: the conversion did not happen (chip reset, reload, or a
-        glitch). Report the slot as stale and restart the cycle with a temperature."""
-        last = self.last
+    def _no_measurement(self, now_ns: int, flags: SampleFlag) -> PollResult:
+        """An ADC read carried no measurement (``flags`` says why: the conversion did not
+        happen after a chip reset or glitch, nothing drove the bus, or the converter hung).
+        Report the slot with NaN values and restart the cycle with a temperature; reset the
+        chip when this keeps happening."""
         samples: list[Sample] = [
-            PressureSample(t_ns=now_ns, device=self.device, flags=SampleFlag.STALE,
-                           pressure_pa=last.pressure_pa if last else math.nan),
-            TemperatureSample(t_ns=now_ns, device=self.device, flags=SampleFlag.STALE,
-                              temperature_degc=last.temperature_degc if last else math.nan),
+            PressureSample(t_ns=now_ns, device=self.device, flags=flags,
+                           pressure_pa=math.nan),
+            TemperatureSample(t_ns=now_ns, device=self.device, flags=flags,
+                              temperature_degc=math.nan),
         ]
+        if self._watch.stale_poll():
+            return PollResult(samples, self.restart(reset_detected=False))
         self._state = _State.IDLE
         self._need_temperature = True
         self._since_temperature = 0
         self._fresh_temperature = False
-        self._target_ns = now_ns + self._cycle_ns(True)
-        return PollResult(samples, now_ns)
+        # the next slot of the sample grid: never report missing slots faster than odr_hz
+        self._target_ns = max(self._target_ns + self._period_ns,
+                              now_ns + self._cycle_ns(True))
+        return PollResult(samples, self._cycle_start_ns())

@@ -132,35 +132,69 @@ class GyroStartupSettings(_Strict):
     max_attempts: int = Field(5, ge=1)
 
 
-class PreviousCalibration(_Strict):
+class VectorCalibration(_Record):
+    """Any other vector quantity (one a plugin adds): corrected = matrix @ (raw - offset),
+    ``offset`` in the quantity's own unit, in the sensor frame. Stored under the quantity's
+    name (``calibration: {airflow: {offset: [...]}}``)."""
+
+    offset: Vec3 = (0.0, 0.0, 0.0)
+    matrix: Mat3 = IDENTITY3
+
+    _m = field_validator("matrix")(_check_matrix)
+
+    def apply(self, raw: Vec3) -> Vec3:
+        o = self.offset
+        return _mat_vec(self.matrix, (raw[0] - o[0], raw[1] - o[1], raw[2] - o[2]))
+
+
+class _Records(BaseModel):
+    """accel, gyro and mag records by name, and any other vector quantity's
+    :class:`VectorCalibration` under its quantity name (extra keys)."""
+
+    model_config = ConfigDict(extra="allow", frozen=True)
+    __pydantic_extra__: dict[str, VectorCalibration] = Field(init=False)  # type: ignore[assignment]
+
+    accel: AccelCalibration | None = None
+    gyro: GyroCalibration | None = None
+    mag: MagCalibration | None = None
+
+    def records(self) -> dict[str, Record]:
+        """Every record held, by quantity name (accel, gyro, mag first)."""
+        out: dict[str, Record] = {c: r for c in CHANNELS if (r := getattr(self, c)) is not None}
+        out.update({k: v for k, v in (self.model_extra or {}).items() if v is not None})
+        return out
+
+    def record_for(self, quantity: str) -> Record | None:
+        """The record of ``quantity`` (a quantity name), or None."""
+        if quantity in CHANNELS:
+            return getattr(self, quantity)  # type: ignore[no-any-return]
+        extra = self.model_extra
+        return extra.get(quantity) if extra else None
+
+
+class PreviousCalibration(_Records):
     """The records the last run of each procedure replaced (a backup, never applied)."""
 
-    accel: AccelCalibration | None = None
-    gyro: GyroCalibration | None = None
-    mag: MagCalibration | None = None
+
+Record = AccelCalibration | GyroCalibration | MagCalibration | VectorCalibration
 
 
-Record = AccelCalibration | GyroCalibration | MagCalibration
-
-
-class DeviceCalibration(_Strict):
-    accel: AccelCalibration | None = None
-    gyro: GyroCalibration | None = None
-    mag: MagCalibration | None = None
+class DeviceCalibration(_Records):
     gyro_at_startup: GyroStartupSettings | None = None
     previous: PreviousCalibration | None = None
 
-    def replaced(self, channel: ChannelName, record: Record) -> DeviceCalibration:
-        """A copy with ``channel`` set to ``record``; the record it replaces (if any) is kept
-        in ``previous``."""
-        old = getattr(self, channel)
+    def replaced(self, channel: str, record: Record) -> DeviceCalibration:
+        """A copy with ``channel`` (a quantity name) set to ``record``; the record it replaces
+        (if any) is kept in ``previous``."""
+        old = self.record_for(channel)
         previous = self.previous or PreviousCalibration()
         if old is not None:
-            previous = previous.model_copy(update={channel: old})
-        return self.model_copy(update={
-            channel: record,
-            "previous": previous if previous != PreviousCalibration() else None,
-        })
+            previous = PreviousCalibration.model_validate(
+                {**previous.records(), channel: old})
+        data = {**self.records(), channel: record,
+                "gyro_at_startup": self.gyro_at_startup,
+                "previous": previous if previous.records() else None}
+        return DeviceCalibration.model_validate(data)
 
 
 def _inertial(raw: Vec3, offset: Vec3, scale: Vec3, m: Mat3) -> Vec3:

@@ -10,8 +10,11 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Iterable
-from typing import Generic, TypeVar
+from typing import ClassVar, Generic, TypeVar
 
+from pydantic import BaseModel
+
+from imuhal.calibration.model import Record
 from imuhal.calibration.progress import Progress, ProgressCallback, ProgressKind, ignore
 from imuhal.core.samples import Frame, Sample, VectorSample
 
@@ -69,3 +72,28 @@ class Procedure(ABC, Generic[R]):
     def say(self, kind: ProgressKind, message: str, fraction: float | None = None,
             step: str = "") -> None:
         self._progress(Progress(self.name, kind, message, fraction, step))
+
+
+class CalibrationProcedure(Procedure[Record]):
+    """A procedure a plugin registers (``imuhal_register_calibrations``) so that
+    ``imuhal calibrate NAME PROFILE`` runs it and stores what :meth:`finish` returns.
+
+    ``quantity`` names the quantity it calibrates, or None for a procedure that works on any
+    vector quantity (``imuhal calibrate NAME --quantity Q``). ``Settings`` (a pydantic model)
+    takes ``--set KEY=VALUE``. :meth:`finish` returns the record to store under the
+    quantity's name (for a plugin's quantity: a
+    :class:`~imuhal.calibration.model.VectorCalibration`); the runner adds the binding to
+    the probed chip and the date.
+    """
+
+    quantity: ClassVar[str | None] = None
+    description: ClassVar[str] = ""
+    Settings: ClassVar[type[BaseModel]]
+    default_timeout_s: ClassVar[float] = 60.0
+    """How long ``imuhal calibrate`` waits on real hardware before giving up."""
+
+    def __init__(self, settings: BaseModel, *, quantity: str, device: str | None = None,
+                 progress: ProgressCallback | None = None) -> None:
+        super().__init__(device=device, progress=progress)
+        self.settings = settings
+        self.calibrated_quantity = quantity

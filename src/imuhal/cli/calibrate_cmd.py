@@ -34,7 +34,8 @@ from imuhal.cli import args as types
 from imuhal.core.atomic import check_outputs, check_writable, resolve_target
 from imuhal.core.errors import ImuhalError
 from imuhal.core.frames import parse_mount
-from imuhal.core.samples import Channel
+from imuhal.core.samples import Channel, VectorSample
+from imuhal.offline.settings_args import build_settings, parse_set_arguments
 from imuhal.plugins.manager import Registry
 from imuhal.profile.loader import load_profile
 from imuhal.profiles_dir import bundled_profiles
@@ -55,8 +56,9 @@ def add_parser(sub: Any) -> None:
         "--output. A bundled profile of the installed package is never edited: copy it first "
         "or give --output.",
     )
-    cal.add_argument("procedure", nargs="?", choices=["gyro", "accel", "mag"],
-                     help="gyro: offsets at rest; accel: six positions; mag: figure of 8")
+    cal.add_argument("procedure", nargs="?",
+                     help="gyro: offsets at rest; accel: six positions; mag: figure of 8; or "
+                     "a procedure a plugin registered (`imuhal plugins`), e.g. vector-zero")
     cal.add_argument("profile", nargs="?", help="board profile YAML")
     cal.add_argument("--show", metavar="PROFILE", help="print the calibration stored in PROFILE")
     cal.add_argument("--device", metavar="NAME", help="device to calibrate (default: the only "
@@ -84,6 +86,10 @@ def add_parser(sub: Any) -> None:
     cal.add_argument("--output", "-o", metavar="FILE.yaml",
                      help="write the calibrated profile here instead of updating PROFILE "
                      "(needed for a bundled profile)")
+    cal.add_argument("--quantity", metavar="NAME",
+                     help="registered procedures: the vector quantity to calibrate")
+    cal.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                     help="registered procedures: a setting of the procedure")
     cal.add_argument("--dry-run", action="store_true", help="print the result, write nothing")
     cal.set_defaults(func=cmd_calibrate, _parser=cal)
 
@@ -94,9 +100,15 @@ def cmd_calibrate(args: argparse.Namespace, registry: Registry) -> int:
     if args.procedure is None or args.profile is None:
         args._parser.error("give a procedure and a PROFILE (or --show PROFILE)")
     path = Path(args.profile)
+    registered = args.procedure not in CHANNELS
+    if registered and args.procedure not in registry.calibrations.entries:
+        raise ImuhalError(
+            f"no calibration procedure named {args.procedure!r}; choose gyro, accel, mag or "
+            f"one a plugin registered: {', '.join(registry.calibrations.names()) or 'none'}")
     target = None if args.dry_run else _writable_target(path, args.output)
     profile = load_profile(path, registry)
-    channel = CHANNELS[args.procedure]
+    key = _registered_quantity(args, registry) if registered else args.procedure
+    channel = registry.quantities.get(key).channel if registered else CHANNELS[key]
     device = pick_device(profile, registry, channel, args.device)
     cfg = profile.devices[device]
     chip_to_body = parse_mount(profile.board_to_body) @ parse_mount(cfg.mount)
@@ -105,10 +117,13 @@ def cmd_calibrate(args: argparse.Namespace, registry: Registry) -> int:
     timeout = args.timeout
     if timeout is None:
         timeout = (registry.scenarios.get(args.emulate).default_duration_s if args.emulate
+                   else _registered(args, registry).default_timeout_s if registered
                    else TIMEOUTS_S[args.procedure])
-    proc = _procedure(args, device, chip_to_body, reporter, None)  # settings checked early
+    proc = (_registered_procedure(args, registry, key, device, reporter) if registered
+            else _procedure(args, device, chip_to_body, reporter, None))  # settings checked early
     where = f"emulated, scenario '{args.emulate}'" if args.emulate else "real hardware"
-    print(f"calibrating {args.procedure} of {device} ({cfg.driver}) in {profile.name} ({where})",
+    what = f"{key} ({args.procedure})" if registered else args.procedure
+    print(f"calibrating {what} of {device} ({cfg.driver}) in {profile.name} ({where})",
           file=err)
     with open_raw_pipeline(profile, registry, emulate=args.emulate, seed=args.seed,
                            realtime=False, sensor_errors=False if args.ideal else None
@@ -125,16 +140,18 @@ def cmd_calibrate(args: argparse.Namespace, registry: Registry) -> int:
             reporter.end_line()
     stored = cfg.calibration or DeviceCalibration()
     date = now()
-    if args.procedure == "gyro":
+    if registered:
+        record = result.model_copy(update={"date": date})
+    elif args.procedure == "gyro":
         record = result.record(stored.gyro, date=date)
     else:
         record = result.record(date=date)
     record = record.model_copy(update={"binding": binding})
-    new = stored.replaced(args.procedure, record)
+    new = stored.replaced(key, record)
     if args.at_startup:
         new = new.model_copy(update={"gyro_at_startup": GyroStartupSettings()})
-    print(f"{device} {args.procedure} calibration ({record.procedure}):")
-    print(_describe_record(args.procedure, record.model_dump(), indent="  "))
+    print(f"{device} {key} calibration ({record.procedure}):")
+    print(_describe_record(key, record.model_dump(), indent="  "))
     if args.dry_run:
         print("dry run: profile not written", file=err)
         return 0
@@ -142,7 +159,7 @@ def cmd_calibrate(args: argparse.Namespace, registry: Registry) -> int:
     bak, warnings = write_device_calibration(path, device, new, registry, output=target)
     for w in warnings:
         print(f"warning: {w}", file=err)
-    print(f"wrote devices.{device}.calibration.{args.procedure} to {target}"
+    print(f"wrote devices.{device}.calibration.{key} to {target}"
           + (f" (previous file kept as {bak})" if bak else ""), file=err)
     return 0
 
@@ -184,6 +201,37 @@ def _procedure(args: argparse.Namespace, device: str, chip_to_body: np.ndarray,
         option = {"samples": "--samples", "field_ut": "--field"}.get(
             str(first["loc"][0]) if first["loc"] else "", "settings")
         raise ImuhalError(f"{option}: {first['msg']} (found {first.get('input')!r})") from None
+
+
+def _registered(args: argparse.Namespace, registry: Registry) -> Any:
+    return registry.calibrations.get(args.procedure)
+
+
+def _registered_procedure(args: argparse.Namespace, registry: Registry, quantity: str,
+                          device: str, reporter: _Reporter) -> Any:
+    """A procedure a plugin registered, with its ``--set`` settings."""
+    cls = _registered(args, registry)
+    settings = build_settings(cls.Settings, parse_set_arguments(args.set),
+                              f"procedure {args.procedure!r}")
+    return cls(settings, quantity=quantity, device=device, progress=reporter)
+
+
+def _registered_quantity(args: argparse.Namespace, registry: Registry) -> str:
+    """The quantity a registered procedure calibrates: its own, or ``--quantity``."""
+    cls = _registered(args, registry)
+    name = cls.quantity or args.quantity
+    if name is None:
+        raise ImuhalError(f"procedure {args.procedure!r} works on any vector quantity: name "
+                          "one with --quantity NAME (see `imuhal plugins`)")
+    if args.quantity is not None and cls.quantity is not None and args.quantity != name:
+        raise ImuhalError(f"procedure {args.procedure!r} calibrates {name!r} only; drop "
+                          f"--quantity {args.quantity}")
+    if name in CHANNELS:
+        raise ImuhalError(f"{name} has its own procedure: run `imuhal calibrate {name}`")
+    if not issubclass(registry.quantities.get(name), VectorSample):
+        raise ImuhalError(f"{name} is not a vector in the chip's frame; calibration applies "
+                          "to those only")
+    return name
 
 
 def _scenario_order(pipeline: Any, chip_to_body: np.ndarray) -> tuple[str, ...] | None:
@@ -252,10 +300,9 @@ def show(path: Path, registry: Registry, out: TextIO) -> int:
             continue
         any_cal = True
         print(f"{name} ({dev.driver} on {dev.bus} at 0x{dev.address:02X}):", file=out)
-        for channel in ("gyro", "accel", "mag"):
-            rec = getattr(cal, channel)
-            if rec is None:
-                continue
+        records = cal.records()
+        for channel in sorted(records, key=lambda c: (c not in ("gyro", "accel", "mag"), c)):
+            rec = records[channel]
             when = rec.date.isoformat() if rec.date else "undated"
             print(f"  {channel}: {rec.procedure}, {when}", file=out)
             print(_describe_record(channel, rec.model_dump(), indent="    "), file=out)
@@ -268,7 +315,7 @@ def show(path: Path, registry: Registry, out: TextIO) -> int:
             print(f"  gyro offsets at start-up: {state} ({cal.gyro_at_startup.samples} "
                   "samples)", file=out)
         if cal.previous is not None:
-            kept = [c for c in ("gyro", "accel", "mag") if getattr(cal.previous, c) is not None]
+            kept = list(cal.previous.records())
             print(f"  previous records kept: {', '.join(kept)}", file=out)
     if not any_cal:
         print(f"{path}: no calibration stored; run `imuhal calibrate gyro|accel|mag {path}`",
@@ -291,9 +338,14 @@ def _describe_record(channel: str, rec: dict[str, Any], indent: str) -> str:
         m = np.asarray(rec["misalignment"])
         if not np.allclose(m, np.eye(3)):
             lines += [f"misalignment: {_vec(row, fmt='+.5f')}" for row in m]
-    else:
+    elif channel == "mag":
         lines.append(f"hard iron: {_vec(rec['hard_iron_ut'], fmt='+.2f')} uT")
         lines += [f"soft iron: {_vec(row, fmt='+.4f')}" for row in rec["soft_iron"]]
+    else:  # any other vector quantity (VectorCalibration), in its own unit
+        lines.append(f"offset: {_vec(rec['offset'], fmt='+.5g')}")
+        m = np.asarray(rec["matrix"])
+        if not np.allclose(m, np.eye(3)):
+            lines += [f"matrix: {_vec(row, fmt='+.5f')}" for row in m]
     if rec.get("quality"):
         lines.append("quality: " + ", ".join(f"{k} {v:.4g}" for k, v in rec["quality"].items()))
     return "\n".join(indent + line for line in lines)

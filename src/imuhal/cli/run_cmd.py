@@ -18,6 +18,7 @@ from imuhal.cli.frame_option import frame_argument
 from imuhal.core.atomic import AtomicFile, check_outputs
 from imuhal.core.errors import ImuhalError
 from imuhal.live import LiveView, parse_bind
+from imuhal.offline.settings_args import build_settings, parse_set_arguments
 from imuhal.plugins.manager import Registry
 from imuhal.profile.loader import load_profile
 from imuhal.profiles_dir import default_profile_path
@@ -59,6 +60,11 @@ def add_parser(sub: Any) -> None:
                      help="play the vario tones live (needs imuhal[audio] and a sound device)")
     run.add_argument("--audio-wav", metavar="FILE.wav",
                      help="write the vario tones to a WAV file (the profile's audio curve)")
+    run.add_argument("--sink", action="append", default=[], metavar="NAME",
+                     help="also send every event to the sink a plugin registered as NAME "
+                     "(see `imuhal plugins`); repeatable")
+    run.add_argument("--sink-set", action="append", default=[], metavar="NAME.KEY=VALUE",
+                     help="a setting of sink NAME (YAML scalar; commas make a list)")
     run.add_argument("--seed", type=types.seed,
                      help="seed of the simulated world, 0 or more (default: the profile's)")
     run.add_argument("--replay-truth", metavar="TRUTH.csv",
@@ -101,6 +107,7 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     duration = args.duration
     if duration is None and emulate is not None:
         duration = registry.scenarios.get(emulate).default_duration_s
+    plugin_sinks = _plugin_sinks(args.sink, args.sink_set, registry)  # checked before opening
     where = f"emulated, scenario '{emulate}'" if emulate else "real hardware"
     print(f"imuhal {__version__}: {profile.name} ({where}) from {path}", file=sys.stderr)
     sinks: list[Any] = []
@@ -141,10 +148,11 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
             sinks.append(csv_sink)
         sinks.extend(_flight_sinks(args, profile, registry, stack))
         truth_sink = None
-        if args.truth and isinstance(pipeline.board, EmulatedBoard):
-            truth_sink = TruthSink(args.truth, pipeline.board.scenario,
+        if args.truth:
+            truth_sink = TruthSink(args.truth, EmulatedBoard.of(pipeline).scenario,
                                    include_samples=args.samples)
             sinks.append(truth_sink)
+        sinks.extend(plugin_sinks)
         try:
             summary = pipeline.run(duration, sinks)
         except KeyboardInterrupt as stop:
@@ -190,6 +198,24 @@ def _flight_sinks(args: argparse.Namespace, profile: Any, registry: Registry,
         out.append(registry.sinks.get("vario-audio")(
             {"curve": profile.audio, "wav": args.audio_wav, "live": args.audio}))
     return out
+def _plugin_sinks(names: list[str], settings: list[str], registry: Registry) -> list[Any]:
+    """The sinks named by ``--sink``, each with its ``--sink-set NAME.KEY=VALUE`` settings."""
+    per_sink: dict[str, list[str]] = {name: [] for name in names}
+    for item in settings:
+        name, dot, rest = item.partition(".")
+        if not dot or name not in per_sink:
+            raise ImuhalError(f"--sink-set {item!r}: write NAME.KEY=VALUE for a sink named by "
+                              f"--sink (named: {', '.join(names) or 'none'})")
+        per_sink[name].append(rest)
+    out = []
+    for name, items in per_sink.items():
+        cls = registry.sinks.get(name)
+        values = parse_set_arguments(items, f"--sink-set {name}.")
+        out.append(cls(build_settings(cls.Settings, values, f"sink {name!r}",
+                                      flag=f"--sink-set {name}.")))
+    return out
+
+
 def _trace_writer(out: AtomicFile, every_s: float = 2.0) -> Callable[[Any], None]:
     """Writes each bus transaction as a line, syncing ``out`` every ``every_s`` seconds of
     wall time like the CSV log (a power cut loses at most that much of the trace)."""

@@ -13,44 +13,9 @@ from dataclasses import dataclass, field, replace
 from enum import Enum, IntEnum, IntFlag
 from typing import ClassVar, TypeAlias
 
+from imuhal.core.quantities import Channel, Quantity
+
 Vec3: TypeAlias = tuple[float, float, float]
-
-
-class Channel(str, Enum):
-    """A physical quantity a device provides, with its unit at the pipeline boundary."""
-
-    ACCEL = "accel"
-    """Specific force, m/s^2 (a level board at rest reads (0, 0, -9.81) in NED)."""
-    GYRO = "gyro"
-    """Angular rate, rad/s, right-handed about each axis."""
-    MAG = "mag"
-    """Magnetic flux density, uT."""
-    PRESSURE = "pressure"
-    """Static pressure, Pa."""
-    TEMPERATURE = "temperature"
-    """Die temperature, degC."""
-    VELOCITY = "velocity"
-    """Velocity over ground in NED (north, east, down), m/s (e.g. a GNSS receiver)."""
-    AIRSPEED = "airspeed"
-    """True airspeed along the body x axis, m/s (e.g. a pitot tube)."""
-    POSITION = "position"
-    """Geodetic position: latitude and longitude in degrees (WGS-84), height in m."""
-
-    @property
-    def unit(self) -> str:
-        return _UNITS[self]
-
-
-_UNITS = {
-    Channel.ACCEL: "m/s^2",
-    Channel.GYRO: "rad/s",
-    Channel.MAG: "uT",
-    Channel.PRESSURE: "Pa",
-    Channel.TEMPERATURE: "degC",
-    Channel.VELOCITY: "m/s",
-    Channel.AIRSPEED: "m/s",
-    Channel.POSITION: "deg, deg, m",
-}
 
 
 class Frame(str, Enum):
@@ -83,6 +48,12 @@ class SampleFlag(IntFlag):
     beyond the configured full scale)."""
     OUT_OF_ORDER = 1 << 7
     """The sample is older than one its device already delivered for the same quantity."""
+    BLANK = 1 << 8
+    """The frame read all 0x00 or all 0xFF: nothing drove the bus (chip absent or
+    unpowered, a slave missing behind an I2C master, a data line stuck)."""
+    FROZEN = 1 << 9
+    """The chip repeated the same raw frame for longer than its noise allows: its
+    conversions hung (a real sensor's noise never repeats one raw word for long)."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -92,7 +63,8 @@ class Sample:
     t_ns: int
     device: str
     flags: SampleFlag = SampleFlag.OK
-    channel: ClassVar[Channel]
+    channel: ClassVar[Quantity]
+    """The quantity measured (a plugin's sample class names its own)."""
 
     @property
     def valid(self) -> bool:
@@ -282,6 +254,8 @@ SAMPLE_TYPES: dict[Channel, type[Sample]] = {
     Channel.AIRSPEED: AirspeedSample,
     Channel.POSITION: PositionSample,
 }
+"""imuhal's own quantities and their sample classes (always in ``Registry.quantities``;
+plugins add theirs through ``imuhal_register_quantities``)."""
 
 
 def _vec3(v: Sequence[float]) -> Vec3:

@@ -7,11 +7,13 @@ units in the chip's own sensor frame; calibration and mounting are applied by th
 
 from __future__ import annotations
 
+import warnings
 from abc import ABC, abstractmethod
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, model_validator
 
 from imuhal.bus.base import Bus, BusKind, Link
 from imuhal.core.clock import Clock
@@ -23,6 +25,28 @@ class DriverSettings(BaseModel):
     """Base of every driver's settings: physical values only (``odr_hz: 250``), never codes."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
+
+    renamed: ClassVar[dict[str, str]] = {}
+    """Old setting name -> current name (docs/writing-a-driver.md, "Naming settings").
+    Profiles written with an old name still load, with a DeprecationWarning."""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _accept_old_names(cls, data: Any) -> Any:
+        if not cls.renamed or not isinstance(data, dict):
+            return data
+        data = dict(data)
+        for old, new in cls.renamed.items():
+            if old not in data:
+                continue
+            if new in data:
+                raise ValueError(
+                    f"{old!r} is the old name of {new!r}; give only {new!r}")
+            warnings.warn(
+                f"driver setting {old!r} is deprecated: rename it to {new!r}",
+                DeprecationWarning, stacklevel=2)
+            data[new] = data.pop(old)
+        return data
 
     @classmethod
     def choices(cls) -> dict[str, tuple[Any, ...]]:
@@ -79,6 +103,9 @@ class Driver(ABC):
     Settings: ClassVar[type[DriverSettings]]
     channels: ClassVar[tuple[Channel, ...]]
     bus_kinds: ClassVar[frozenset[BusKind]]
+    child_bus_kinds: ClassVar[Mapping[str, BusKind]] = {}
+    """The buses ``child_buses()`` provides, by local name, and their kind (any kind: an I2C
+    master, an SPI master, a serial port); profiles check devices behind them against it."""
     calibration_version: ClassVar[int] = 1
     """Bumped when a change to decoding would invalidate stored user calibration."""
 
@@ -113,6 +140,16 @@ class Driver(ABC):
         """Called once after configure(); returns the time of the first poll."""
         return now_ns
 
+    def restart(self, *, reset_detected: bool) -> int:
+        """Reconfigure the chip mid-run and return the next poll time: after a silent reset
+        (``reset_detected``: the configuration read back wrong) or a stuck sensor (it kept
+        its configuration but stopped converting). Both are counted in ``health``."""
+        if reset_detected:
+            self.health.resets_detected += 1
+        self.configure()
+        self.health.reconfigurations += 1
+        return self.start(self.clock.now_ns())
+
     def recover(self, now_ns: int) -> int:
         """Bring the chip back after a failed poll; returns the next poll time.
 
@@ -131,7 +168,8 @@ class Driver(ABC):
         return None
 
     def child_buses(self) -> dict[str, Bus]:
-        """Buses this chip exposes to others (an I2C master or bypass), by local name."""
+        """Buses this chip exposes to others (an I2C master or bypass, ...), by local name;
+        declare each name and kind in ``child_bus_kinds``."""
         return {}
 
     def describe(self) -> str:

@@ -13,9 +13,10 @@ import inspect
 from collections.abc import Iterable
 
 from imuhal.core.clock import SimulatedClock
-from imuhal.core.errors import PluginError
+from imuhal.core.errors import ImuhalError, PluginError
 from imuhal.core.frames import FloatArray
 from imuhal.emulation.faults import BoardFaults
+from imuhal.pipeline.pipeline import Pipeline
 from imuhal.plugins.manager import Registry
 from imuhal.profile.faults import FaultSpec
 from imuhal.profile.model import BoardProfile
@@ -85,6 +86,16 @@ class EmulatedBoard:
         self._device_t_ns: dict[str, int] = {}
         self._truth_t_ns: int | None = None
         self.truth: TruthState | None = None
+
+    @staticmethod
+    def of(pipeline: Pipeline) -> EmulatedBoard:
+        """The emulated board ``pipeline`` polls (typed access to its emulators, scenario and
+        truth); an ImuhalError when the pipeline runs on real hardware."""
+        board = pipeline.board
+        if not isinstance(board, EmulatedBoard):
+            raise ImuhalError("this pipeline runs on real hardware, not an emulated board; "
+                              "open it with imuhal.emulation.open_emulated")
+        return board
 
     def _bus_for(self, ref: str) -> EmulatedBus:
         parent, child = split_bus_ref(ref)

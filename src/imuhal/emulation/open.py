@@ -4,9 +4,8 @@
 flying a scenario on a simulated clock, and returns an ordinary
 :class:`~imuhal.pipeline.Pipeline` over them. Everything simulation-specific (scenario,
 seed, sensor error models, pacing against the wall clock) is chosen here; the pipeline only
-sees a :class:`~imuhal.pipeline.board.Board`. The board stays reachable as
-``pipeline.board`` (an :class:`~imuhal.emulation.board.EmulatedBoard`: its ``emulators`` by
-device name, its ``scenario`` and ``truth_at(t_ns)``).
+sees a :class:`~imuhal.pipeline.board.Board`. ``EmulatedBoard.of(pipeline)`` returns the
+board, typed (its ``emulators`` by device name, its ``scenario`` and ``truth_at(t_ns)``).
 """
 
 from __future__ import annotations
@@ -53,9 +52,12 @@ def open_emulated(
     and bias model (as its emulator declares); False gives ideal chips (quantisation and
     range only). ``error_specs`` (device -> spec; devices not named are ideal) replaces
     those models, for tests and studies that need known offsets, scale errors and iron.
-    rotations = chip_rotations(_physically_mounted(profile, physical_mounts or {}))
-    board = EmulatedBoard(profile, registry, clock, world, rotations, errors,
-                          faults=[*profile.emulation.faults, *faults], seed=run_seed)
+    ``faults`` are injected into the board on top of the profile's ``emulation.faults``
+    (imuhal.emulation.faults, docs/reliability.md). ``calibrated`` and ``trace`` are the
+    pipeline's (see :class:`Pipeline`).
+    ``physical_mounts`` (device -> mount, as in a profile) places those chips on the board
+    differently from what the profile says: the pipeline still rotates by the profile's
+    mount, so a wrong profile can be emulated (``imuhal check-mounts`` finds it).
     """
     name = profile.emulation.scenario if scenario is None else scenario
     clock = SimulatedClock(realtime=realtime)
@@ -66,6 +68,7 @@ def open_emulated(
     run_seed = profile.emulation.seed if seed is None else seed
     world = scenario_cls(params or None, seed=run_seed)
     use_errors = profile.emulation.sensor_errors if sensor_errors is None else sensor_errors
+    errors: dict[str, SensorErrorModel] | None
     if error_specs is not None:
         errors = {dev: SensorErrorModel(spec, seed=device_seed(run_seed, dev))
                   for dev, spec in error_specs.items() if spec is not None}

@@ -43,7 +43,6 @@ plenty for motions that last a second, and it is half of a snapshot's cost."""
 FLAGGED_FAULTY = 0.05
 """More than this fraction of a device's samples flagged in the window marks it faulty (a
 chip that flags the odd late sample is not)."""
-UNITS = {c.value: c.unit for c in Channel}
 
 
 class Truth(Protocol):

@@ -27,7 +27,7 @@ def parse_set_arguments(items: list[str], flag: str = "--set") -> dict[str, Any]
         if not sep or not key:
             raise SettingsArgumentError(f"{flag} {item!r}: write KEY=VALUE, e.g. {flag} beta=0.1")
         if key in out:
-            raise SettingsArgumentError(f"{flag} {key}: given twice")
+            raise SettingsArgumentError(f"{_named(flag, key)}: given twice")
         parts = [_scalar(p) for p in raw.split(",")] if "," in raw else _scalar(raw)
         out[key] = parts
     return out
@@ -52,10 +52,17 @@ def build_settings(model: type[BaseModel], values: dict[str, Any], owner: str,
             key = ".".join(str(p) for p in err["loc"]) or "(settings)"
             if err["type"] == "extra_forbidden":
                 allowed = ", ".join(model.model_fields)
-                problems.append(f"{flag} {key}: {owner} has no such setting; settings: {allowed}")
+                problems.append(f"{_named(flag, key)}: {owner} has no such setting; "
+                                f"settings: {allowed or 'none'}")
             else:
                 msg = err["msg"]
                 if isinstance(err.get("ctx"), dict) and "error" in err["ctx"]:
                     msg = str(err["ctx"]["error"])  # a validator's own words, no pydantic prefix
-                problems.append(f"{flag} {key}: {msg} (found {err.get('input')!r})")
+                problems.append(f"{_named(flag, key)}: {msg} (found {err.get('input')!r})")
         raise SettingsArgumentError("; ".join(problems)) from None
+
+
+def _named(flag: str, key: str) -> str:
+    """How the user wrote the setting: ``--set beta``, or ``--sink-set log.path`` for a flag
+    that takes ``NAME.KEY`` (given as ``--sink-set log.``)."""
+    return f"{flag}{key}" if flag.endswith(".") else f"{flag} {key}"

@@ -222,10 +222,7 @@ class Pipeline:
         if cal is None:
             return None
         kept = {}
-        for channel in ("accel", "gyro", "mag"):
-            record = getattr(cal, channel)
-            if record is None:
-                continue
+        for channel, record in cal.records().items():
             b = record.binding
             if b is not None:
                 found = (identity.driver, bus_ref, identity.address, identity.identity, version)
@@ -240,7 +237,7 @@ class Pipeline:
                     )
                     continue
             kept[channel] = record
-        return DeviceCalibration(**kept)
+        return DeviceCalibration.model_validate(kept)
 
     def calibration_binding(self, device: str) -> CalibrationBinding:
         """The probed identity of ``device``, as stored with a calibration measured on it."""

@@ -60,7 +60,7 @@ def validity_flags(sample: Sample, full_scale: float | None, last_t_ns: int | No
 
 
 def _record(sample: VectorSample, calibration: DeviceCalibration | None) -> _Correction | None:
-    """The calibration record of the sample's channel, if any."""
+    """The calibration record of the sample's quantity, if any."""
     if calibration is None:
         return None
     if isinstance(sample, AccelSample):
@@ -69,7 +69,7 @@ def _record(sample: VectorSample, calibration: DeviceCalibration | None) -> _Cor
         return calibration.gyro
     if isinstance(sample, MagSample):
         return calibration.mag
-    return None
+    return calibration.record_for(sample.channel.name)  # a plugin's vector quantity
 
 
 def _rotate(m: FloatArray, v: Vec3) -> Vec3:

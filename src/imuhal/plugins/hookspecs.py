@@ -2,6 +2,8 @@
 
 Each hook receives a registrar: call it with the class to register. Built-in chips and
 filters use exactly these hooks, through the same ``imuhal`` entry-point group as anyone's.
+The loader calls every hook through pluggy's hook caller (``pm.hook.NAME(register=...)``), so
+hook wrappers and tracing work as pluggy documents.
 """
 
 from __future__ import annotations
@@ -46,5 +48,21 @@ def imuhal_register_scenarios(register: Registrar) -> None:
 
 
 @hookspec
+def imuhal_register_quantities(register: Registrar) -> None:
+    """Register Sample subclasses for new physical quantities: each names its
+    :class:`~imuhal.core.quantities.Quantity` as ``channel`` (``HumiditySample``)."""
+
+
+@hookspec
 def imuhal_register_sinks(register: Registrar) -> None:
-    """Register SinkPlugin subclasses (outputs users pick by name, e.g. ``--nmea``)."""
+    """Register SinkPlugin subclasses (``imuhal run --sink NAME``)."""
+
+
+@hookspec
+def imuhal_register_commands(register: Registrar) -> None:
+    """Register Command subclasses: each becomes an ``imuhal`` subcommand."""
+
+
+@hookspec
+def imuhal_register_calibrations(register: Registrar) -> None:
+    """Register CalibrationProcedure subclasses (``imuhal calibrate NAME PROFILE``)."""

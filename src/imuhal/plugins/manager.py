@@ -3,63 +3,34 @@
 Allow/block lists: ``IMUHAL_PLUGINS`` (comma-separated entry-point names: load only these) and
 ``IMUHAL_DISABLE_PLUGINS`` (never load these). Hook implementations with names that match no
 hook specification are rejected, so a typo in a plugin fails loudly instead of doing nothing.
+
+Every hook is called through pluggy's hook caller (``pm.hook.NAME(register=registrar)``), so
+hook wrappers and tracing work. So that each registration still records the plugin that made
+it, each plugin is registered with pluggy as a stand-in whose hook implementations first tell
+the registrar which plugin is calling (``Registrar.registering``), then call the plugin's own.
 """
 
 from __future__ import annotations
 
+import inspect
 import os
-from collections.abc import Iterable
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterable
 from importlib.metadata import entry_points
-from types import ModuleType
+from types import ModuleType, SimpleNamespace
 from typing import Any
 
 import pluggy
 
-from imuhal.bus.factory import BusFactory
 from imuhal.core.errors import PluginError
-from imuhal.drivers.base import Driver
-from imuhal.estimation.base import Estimator
+from imuhal.core.samples import ScalarSample
 from imuhal.plugins import hookspecs
 from imuhal.plugins.registrars import Registrar
-from imuhal.sim.chip import ChipEmulator
-from imuhal.sim.scenario import Scenario
-from imuhal.sinks.base import SinkPlugin
+from imuhal.plugins.registry import Registry
+
+__all__ = ["ENV_ALLOW", "ENV_BLOCK", "Registry", "load_registry"]
 
 ENV_ALLOW = "IMUHAL_PLUGINS"
 ENV_BLOCK = "IMUHAL_DISABLE_PLUGINS"
-
-
-@dataclass
-class Registry:
-    """Everything the installed plugins registered."""
-
-    drivers: Registrar[Driver] = field(default_factory=lambda: Registrar("driver", Driver))
-    emulators: Registrar[ChipEmulator] = field(
-        default_factory=lambda: Registrar("emulator", ChipEmulator, name_attr="chip")
-    )
-    estimators: Registrar[Estimator] = field(
-        default_factory=lambda: Registrar("estimator", Estimator)
-    )
-    buses: Registrar[BusFactory] = field(
-        default_factory=lambda: Registrar("bus kind", BusFactory, name_attr="scheme")
-    )
-    scenarios: Registrar[Scenario] = field(
-        default_factory=lambda: Registrar("scenario", Scenario)
-    )
-    sinks: Registrar[SinkPlugin] = field(default_factory=lambda: Registrar("sink", SinkPlugin))
-    plugins: dict[str, str] = field(default_factory=dict)
-    """Loaded plugin name -> distribution name."""
-
-    def registrar_for(self, hook: str) -> Registrar[Any]:
-        return {
-            "imuhal_register_drivers": self.drivers,
-            "imuhal_register_emulators": self.emulators,
-            "imuhal_register_estimators": self.estimators,
-            "imuhal_register_buses": self.buses,
-            "imuhal_register_scenarios": self.scenarios,
-            "imuhal_register_sinks": self.sinks,
-        }[hook]
 
 
 def _split_env(name: str) -> set[str] | None:
@@ -85,6 +56,7 @@ def load_registry(
     registry = Registry()
     allow = _split_env(ENV_ALLOW)
     block = _split_env(ENV_BLOCK) or set()
+    loaded: list[tuple[str, object]] = []
 
     if entry_point_plugins:
         for ep in sorted(entry_points(group=hookspecs.ENTRY_POINT_GROUP), key=lambda e: e.name):
@@ -97,38 +69,61 @@ def load_registry(
                     f"plugin {ep.name!r} ({ep.value}) failed to load: "
                     f"{type(exc).__name__}: {exc}; set {ENV_BLOCK}={ep.name} to skip it"
                 ) from exc
-            dist = ep.dist.name if ep.dist is not None else ""
-            pm.register(module, name=ep.name)
-            registry.plugins[ep.name] = dist
+            registry.plugins[ep.name] = ep.dist.name if ep.dist is not None else ""
+            loaded.append((ep.name, module))
     for name, module in extra:
         if name in block:
             continue
-        pm.register(module, name=name)
         registry.plugins[name] = ""
+        loaded.append((name, module))
+    # pluggy calls the last registered implementation first: registering in reverse makes
+    # plugins register in load order (sorted entry points, then ``extra``).
+    for name, module in reversed(loaded):
+        pm.register(_attributed(pm, module, name, registry), name=name)
 
     try:
         pm.check_pending()
     except pluggy.PluginValidationError as exc:
         raise PluginError(f"a plugin implements a hook that does not exist: {exc}") from exc
 
-    for hook_name in (
-        "imuhal_register_buses",
-        "imuhal_register_drivers",
-        "imuhal_register_emulators",
-        "imuhal_register_estimators",
-        "imuhal_register_scenarios",
-        "imuhal_register_sinks",
-    ):
-        registrar = registry.registrar_for(hook_name)
-        caller = getattr(pm.hook, hook_name)
-        # Called one implementation at a time so each registration records its plugin.
-        for impl in caller.get_hookimpls():
-            plugin_name = impl.plugin_name
-            registrar._bind(plugin_name, registry.plugins.get(plugin_name, ""))
-            impl.function(register=registrar)
-        registrar._bind("", "")
+    for hook_name, registrar in registry.hooks().items():
+        getattr(pm.hook, hook_name)(register=registrar)
     _check_emulators(registry)
+    _check_quantities(registry)
     return registry
+
+
+def _attributed(pm: pluggy.PluginManager, plugin: object, name: str,
+                registry: Registry) -> object:
+    """A stand-in for ``plugin`` with the same hook implementations (same options), each of
+    which records ``name`` as the registering plugin before calling the original. Hook
+    wrappers are passed through unchanged (they run around the whole call)."""
+    stand_in = SimpleNamespace(__name__=getattr(plugin, "__name__", name))
+    for attr in dir(plugin):
+        fn = getattr(plugin, attr, None)
+        opts = pm.parse_hookimpl_opts(plugin, attr)
+        if opts is None or not callable(fn):
+            continue
+        if not (opts.get("wrapper") or opts.get("hookwrapper")):
+            fn = _recording(fn, name, registry)
+        setattr(stand_in, attr, hookspecs.hookimpl(**opts)(fn))
+    return stand_in
+
+
+def _recording(fn: Callable[..., Any], plugin: str, registry: Registry) -> Callable[..., Any]:
+    # The stand-in takes exactly the arguments the original asks for (pluggy passes a hook
+    # implementation only the arguments it names).
+    if "register" in inspect.signature(fn).parameters:
+        def call(register: Registrar[Any]) -> Any:
+            with registry.registering(plugin):
+                return fn(register=register)
+    else:
+        def call() -> Any:  # type: ignore[misc]
+            with registry.registering(plugin):
+                return fn()
+    call.__name__ = getattr(fn, "__name__", "hook")
+    call.__qualname__ = call.__name__
+    return call
 
 
 def _check_emulators(registry: Registry) -> None:
@@ -138,3 +133,21 @@ def _check_emulators(registry: Registry) -> None:
                 f"plugin {reg.plugin!r} registered an emulator for {name!r}, "
                 f"but no driver of that name is installed"
             )
+
+
+def _check_quantities(registry: Registry) -> None:
+    """A scalar quantity's sample class must carry a scalar. A vector quantity's is a
+    VectorSample when its vector is in the chip's frame (calibrated and rotated into the body
+    frame by the pipeline), or any Sample that carries a vector in a frame of its own (e.g.
+    VelocitySample, NED), which the pipeline passes on unchanged."""
+    for name, reg in registry.quantities.entries.items():
+        quantity = reg.obj.channel
+        if not quantity.is_vector and not issubclass(reg.obj, ScalarSample):
+            raise PluginError(
+                f"plugin {reg.plugin!r}: quantity {name!r} is a scalar, so its sample class "
+                f"{reg.obj.__name__} must subclass ScalarSample")
+        if quantity.is_vector and issubclass(reg.obj, ScalarSample):
+            raise PluginError(
+                f"plugin {reg.plugin!r}: quantity {name!r} has shape {quantity.shape}, so its "
+                f"sample class {reg.obj.__name__} must carry a vector (subclass VectorSample "
+                "for one in the chip's frame), not subclass ScalarSample")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Generic, TypeVar
 
@@ -21,19 +23,29 @@ class Registration(Generic[T]):
 
 
 class Registrar(Generic[T]):
-    """Registers classes of one kind under their ``name`` attribute."""
+    """Registers classes of one kind under their ``name`` attribute (or the name
+    ``name_of(cls)`` gives, for kinds named by something else)."""
 
-    def __init__(self, kind: str, base: type[T], name_attr: str = "name") -> None:
+    def __init__(self, kind: str, base: type[T], name_attr: str = "name",
+                 name_of: Callable[[type[T]], object] | None = None) -> None:
         self.kind = kind
         self.base = base
         self.name_attr = name_attr
+        self._name_of = name_of or (lambda cls: getattr(cls, name_attr, ""))
         self.entries: dict[str, Registration[T]] = {}
         self._plugin = ""
         self._package = ""
 
-    def _bind(self, plugin: str, package: str) -> Registrar[T]:
+    @contextmanager
+    def registering(self, plugin: str, package: str) -> Iterator[Registrar[T]]:
+        """Registrations made inside are recorded as coming from ``plugin`` (the entry-point
+        name) of distribution ``package``."""
+        before = self._plugin, self._package
         self._plugin, self._package = plugin, package
-        return self
+        try:
+            yield self
+        finally:
+            self._plugin, self._package = before
 
     def __call__(self, cls: type[T]) -> type[T]:
         if not (isinstance(cls, type) and issubclass(cls, self.base)):
@@ -41,7 +53,7 @@ class Registrar(Generic[T]):
                 f"plugin {self._plugin!r} registered {cls!r} as a {self.kind}, "
                 f"but it is not a subclass of {self.base.__name__}"
             )
-        name = getattr(cls, self.name_attr, "")
+        name = self._name_of(cls)
         if not isinstance(name, str) or not name:
             raise PluginError(
                 f"plugin {self._plugin!r}: {self.kind} {cls.__name__} has no "

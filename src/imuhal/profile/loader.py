@@ -23,6 +23,7 @@ from pydantic import BaseModel, ValidationError
 
 from imuhal.bus.base import BusKind
 from imuhal.core.errors import ProfileError
+from imuhal.core.samples import VectorSample
 from imuhal.plugins.manager import Registry
 from imuhal.profile.faults import CHIP_FAULT_KINDS, FAULT_KINDS
 from imuhal.profile.model import SCHEMA_VERSION, BoardProfile
@@ -303,6 +304,38 @@ def _check_references(data: dict[str, Any], doc: LocatedDocument) -> list[str]:
     return out
 
 
+def _calibration_keys(calibration: Any) -> list[str]:
+    """The quantity names a device's raw ``calibration`` mapping holds records for (the keys
+    that are not settings of the calibration itself)."""
+    return [k for k in _mapping(calibration) if isinstance(k, str)
+            and k not in ("gyro_at_startup", "previous")]
+
+
+def _calibratable(quantity: str, registry: Registry) -> bool:
+    """Whether ``quantity`` is a vector in the chip's frame (a VectorSample): what a
+    calibration record corrects."""
+    reg = registry.quantities.entries.get(quantity)
+    return reg is not None and issubclass(reg.obj, VectorSample)
+
+
+def _bus_kind(devices: dict[Any, Any], ref: str, bus_kinds: dict[str, BusKind | None],
+              registry: Registry) -> tuple[BusKind | None, str]:
+    """The kind of bus ``ref`` (a profile bus, or ``DEVICE/CHILD``: a bus a chip provides, of
+    the kind its driver declares), or None when unknown; and a problem to report, if any."""
+    if "/" not in ref:
+        return bus_kinds.get(ref), ""
+    parent, child = ref.split("/", 1)
+    parent_driver = _text(_mapping(devices.get(parent)).get("driver"))
+    reg = registry.drivers.entries.get(parent_driver) if parent_driver is not None else None
+    if reg is None:
+        return None, ""  # the topology check names a missing parent device
+    provided = reg.obj.child_bus_kinds
+    if child not in provided:
+        return None, (f"device {parent!r} ({parent_driver}) provides no bus {child!r}; it "
+                      f"provides: {', '.join(provided) or 'none'}")
+    return provided[child], ""
+
+
 def _check_plugins(data: dict[str, Any], doc: LocatedDocument, registry: Registry) -> list[str]:
     """Each bus, device and estimator against its plugin's Settings model (on the raw
     document, skipping parts too malformed to tell which plugin they name)."""
@@ -336,7 +369,9 @@ def _check_plugins(data: dict[str, Any], doc: LocatedDocument, registry: Registr
             continue
         driver = reg.obj
         bus_ref = _text(dev.get("bus")) or ""
-        kind = bus_kinds.get(bus_ref) if "/" not in bus_ref else BusKind.I2C
+        kind, problem = _bus_kind(_mapping(data.get("devices")), bus_ref, bus_kinds, registry)
+        if problem:
+            out.append(f"{doc.where((*path, 'bus'))}: {dotted((*path, 'bus'))}: {problem}")
         if kind is not None and kind not in driver.bus_kinds:
             allowed = ", ".join(sorted(k.value for k in driver.bus_kinds))
             out.append(f"{doc.where((*path, 'bus'))}: {dotted((*path, 'bus'))}: {driver_name} "
@@ -344,6 +379,13 @@ def _check_plugins(data: dict[str, Any], doc: LocatedDocument, registry: Registr
         settings = dev.get("settings", {})
         if isinstance(settings, dict):
             out += _validate(driver.Settings, settings, doc, (*path, "settings"))
+        vectors = [q.name for q in driver.channels if _calibratable(q.name, registry)]
+        for key in _calibration_keys(dev.get("calibration")):
+            if key not in vectors:
+                where = (*path, "calibration", key)
+                out.append(f"{doc.where(where)}: {dotted(where)}: {driver_name} measures no "
+                           f"vector quantity {key!r}; it can hold calibration for: "
+                           f"{', '.join(vectors) or 'nothing'}")
     for name, est in _mapping(data.get("estimators")).items():
         path = ("estimators", name)
         est = _mapping(est)

@@ -313,7 +313,7 @@ class SensorErrorModel:
                               magnetic_field_ut=mag, pressure_pa=pressure,
                               temperature_degc=measured_temp,
                               position_ned_m=inputs.position_ned_m,
-                              velocity_ned_m_s=inputs.velocity_ned_m_s)
+                              velocity_ned_m_s=inputs.velocity_ned_m_s, other=inputs.other)
 
     # ------------------------------------------------------------------ truth of the errors
     def bias(self, channel: str, temperature_degc: float | None = None,

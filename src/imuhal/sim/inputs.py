@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any
+
+NO_OTHER: Mapping[str, Any] = MappingProxyType({})
+"""The shared empty mapping of quantities imuhal does not model."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -19,3 +25,7 @@ class PhysicalInputs:
     chip's frame (a GNSS receiver reports where the board is, not how it is mounted)."""
     velocity_ned_m_s: tuple[float, float, float] | None = None
     """Earth-frame velocity over ground (NED, m/s), likewise not rotated."""
+    other: Mapping[str, float | tuple[float, float, float]] = field(
+        default_factory=lambda: NO_OTHER)
+    """Quantities imuhal does not model, by quantity name, as a plugin's scenario provides
+    them (``TruthState.other``): scalars, and 3-vectors in the chip's sensor frame."""

@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict
 
 from imuhal.core.frames import FloatArray, euler_deg_from_quat
+from imuhal.sim.inputs import NO_OTHER
 
 
 class ScenarioParams(BaseModel):
@@ -37,6 +39,10 @@ class TruthState:
     """The board's temperature (what the chips' thermometers measure)."""
     magnetic_disturbance_ned_ut: FloatArray | None = None
     """The disturbance part of the field in NED (None: the scenario has none)."""
+    other: Mapping[str, float | tuple[float, float, float]] = field(
+        default_factory=lambda: NO_OTHER)
+    """Truth of quantities imuhal does not model (a plugin's scenario fills them), by quantity
+    name: a scalar, or a 3-vector in body axes. Chips see it as ``PhysicalInputs.other``."""
 
     @property
     def euler_deg(self) -> tuple[float, float, float]:

@@ -9,13 +9,13 @@ kinematics into a :class:`~imuhal.sim.scenario.TruthState` at any time. The help
 from __future__ import annotations
 
 from abc import abstractmethod
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
 
 from imuhal.sim.environment import Environment
-from imuhal.sim.inputs import PhysicalInputs
+from imuhal.sim.inputs import NO_OTHER, PhysicalInputs
 from imuhal.sim.magnetic import MagneticDisturbance, MagneticDisturbanceSpec
 from imuhal.sim.motion import Kinematics, Motion, mat_t_vec
 from imuhal.sim.scenario import Phase, Scenario, ScenarioParams, TruthState
@@ -109,7 +109,16 @@ def physical_inputs(truth: TruthState, sensor_to_body: Sequence[Sequence[float]]
         temperature_degc=truth.temperature_degc if temperature else None,
         position_ned_m=_earth(truth.position_ned_m),
         velocity_ned_m_s=_earth(truth.velocity_ned_m_s),
+        other=_other_to_sensor(truth.other, m) if truth.other else NO_OTHER,
     )
+
+
+def _other_to_sensor(other: Mapping[str, Any], m: list[list[float]] | None
+                     ) -> dict[str, float | tuple[float, float, float]]:
+    """Plugin quantities' truth for one chip: scalars as they are, 3-vectors rotated into its
+    sensor frame like the built-in vectors."""
+    return {name: float(v) if np.ndim(v) == 0 else _to_sensor(np.asarray(v), m)
+            for name, v in other.items()}
 
 
 def _earth(v: np.ndarray) -> tuple[float, float, float]:

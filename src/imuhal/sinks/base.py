@@ -36,9 +36,10 @@ class NoSettings(BaseModel):
 
 class SinkPlugin(ABC):
     """Base of a sink a plugin registers (``imuhal_register_sinks``) so that users can pick
-    it by name, or ``registry.sinks.get(NAME)(settings)`` from Python.
+    it by name: ``imuhal run --sink NAME[:KEY=VALUE,...]``, or
+    ``registry.sinks.get(NAME)(settings)`` from Python.
 
-    ``Settings`` (a pydantic model) checks the options; units go in the names.
+    ``Settings`` (a pydantic model) checks the ``KEY=VALUE`` options; units go in the names.
     """
 
     name: ClassVar[str] = ""

@@ -1,0 +1,141 @@
+"""The polling toolkit every driver shares: a poll grid, data-ready tracking with one stale
+policy, and a reset watch that restarts a chip that lost its configuration or stopped
+producing data.
+
+A driver keeps the chip-specific parts (which register says "new data", which registers to
+read back) and hands the timing decisions to these helpers, so every driver flags a missing
+sample after the same number of periods and restarts a stuck chip after the same number of
+stale polls. Times are ``int`` nanoseconds on the driver's clock.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Hashable, Mapping
+from typing import Any
+
+from pydantic import Field
+
+STALE_AFTER_PERIODS = 2.5
+"""A channel with no new data for longer than this many of its output periods is stale.
+
+Two and a half periods tolerate one output lost to a chip clock a few percent slow, or to a
+late poll that read a sample the period before, and flag the second one in a row."""
+
+STALE_POLLS_BEFORE_RESTART = 4
+"""Consecutive stale (or frozen) polls after which a driver restarts the chip itself: the
+chip answers and kept its configuration but produces no new data (a hung measurement
+engine), which a soft reset and reconfiguration cures."""
+MAX_STALE_POLLS_BEFORE_RESTART = 256
+"""A chip that a restart did not cure is restarted after twice as many stale polls each
+time, up to this many, so a dead sensor is not reset continuously."""
+
+RESET_CHECK_S_DEFAULT = 0.5
+"""Default of the ``reset_check_s`` setting: how often a driver reads back its
+configuration to catch a silent reset (brown-out, ESD)."""
+
+
+def reset_check_field(default: float = RESET_CHECK_S_DEFAULT) -> Any:
+    """The ``reset_check_s`` settings field, declared the same way in every driver."""
+    return Field(
+        default=default, gt=0, le=60,
+        description="How often (s) the driver reads back its configuration to catch a "
+                    "silent chip reset.",
+    )
+
+
+class PollGrid:
+    """Poll instants on a grid ``anchor + k * step``; a late poll skips ahead to the next
+    grid point instead of bunching polls.
+
+    ``early_fraction`` (n > 0) shortens the step by ``period / n``: the grid then creeps
+    earlier than a chip whose clock runs up to about ``1/n`` fast, and the driver re-anchors
+    where data appears (see ``anchor``).
+    """
+
+    def __init__(self, period_ns: int, *, early_fraction: int = 0) -> None:
+        if period_ns <= 0:
+            raise ValueError(f"poll period must be positive, got {period_ns} ns")
+        self.period_ns = period_ns
+        self.step_ns = period_ns - (period_ns // early_fraction if early_fraction else 0)
+        self._anchor_ns = 0
+        self._k = 0
+
+    @property
+    def guard_ns(self) -> int:
+        """An eighth of a period: how far after a measurement instant a poll aims, and how
+        much later a poll that found nothing new retries."""
+        return max(1, self.period_ns // 8)
+
+    def anchor(self, t_ns: int) -> None:
+        """Restart the grid with a point at ``t_ns``."""
+        self._anchor_ns = t_ns
+        self._k = 0
+
+    def next_after(self, now_ns: int) -> int:
+        """The next grid point strictly after ``now_ns`` and after the previous one handed out."""
+        k = max(self._k + 1, (now_ns - self._anchor_ns) // self.step_ns + 1)
+        self._k = k
+        return self._anchor_ns + k * self.step_ns
+
+
+class DataReady:
+    """When each channel last had new data, and whether it is now stale (one policy:
+    ``STALE_AFTER_PERIODS``)."""
+
+    def __init__(self, periods_ns: Mapping[Hashable, int]) -> None:
+        self.periods_ns = dict(periods_ns)
+        self._last_ns: dict[Hashable, int] = dict.fromkeys(self.periods_ns, 0)
+
+    def start(self, now_ns: int) -> None:
+        """Every channel counts as fresh at ``now_ns`` (the chip was just configured)."""
+        for key in self._last_ns:
+            self._last_ns[key] = now_ns
+
+    def fresh(self, key: Hashable, now_ns: int) -> None:
+        """``key`` delivered new data at ``now_ns``."""
+        self._last_ns[key] = now_ns
+
+    def overdue(self, key: Hashable, now_ns: int) -> bool:
+        """True when ``key`` has had no new data for more than STALE_AFTER_PERIODS periods."""
+        return now_ns - self._last_ns[key] > STALE_AFTER_PERIODS * self.periods_ns[key]
+
+
+class ResetWatch:
+    """Schedules the configuration read-back (every ``check_s``, and at once when data are
+    overdue) and counts stale polls towards restarting a stuck chip."""
+
+    def __init__(self, check_s: float | None) -> None:
+        """``check_s``: read-back interval; None for a chip whose every poll already reads
+        its configuration (the watch then only counts stale polls)."""
+        self.check_ns = round(check_s * 1e9) if check_s is not None else None
+        self._next_check_ns = 0
+        self._stale_polls = 0
+        self._restart_after = STALE_POLLS_BEFORE_RESTART
+
+    def start(self, now_ns: int) -> None:
+        self._next_check_ns = now_ns + (self.check_ns or 0)
+        self._stale_polls = 0
+
+    def check_due(self, now_ns: int, *, overdue: bool = False) -> bool:
+        """True when the driver should read its configuration back now; schedules the next
+        check. ``overdue``: data are late, so check at once."""
+        if self.check_ns is None or (not overdue and now_ns < self._next_check_ns):
+            return False
+        self._next_check_ns = now_ns + self.check_ns
+        return True
+
+    def stale_poll(self) -> bool:
+        """Count a poll that found no new measurement; True once the chip should be
+        restarted (after STALE_POLLS_BEFORE_RESTART in a row, twice as many after each
+        restart that did not help, at most MAX_STALE_POLLS_BEFORE_RESTART)."""
+        self._stale_polls += 1
+        if self._stale_polls < self._restart_after:
+            return False
+        self._stale_polls = 0
+        self._restart_after = min(2 * self._restart_after, MAX_STALE_POLLS_BEFORE_RESTART)
+        return True
+
+    def fresh_poll(self) -> None:
+        """A poll found a new measurement: the chip works, restart early again next time."""
+        self._stale_polls = 0
+        self._restart_after = STALE_POLLS_BEFORE_RESTART

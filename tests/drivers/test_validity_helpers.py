@@ -1,0 +1,47 @@
+"""The shared validity checks: blank frames, frozen frames, range limits."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from imuhal.core.samples import SampleFlag
+from imuhal.drivers.validity import FrozenWatch, blank_flag, range_flag
+
+
+@pytest.mark.parametrize("frame", [b"\xff" * 15, b"\x00" * 6, b"\xff"])
+def test_a_frame_of_all_ones_or_all_zeros_is_blank(frame: bytes) -> None:
+    assert blank_flag(frame) is SampleFlag.BLANK
+
+
+@pytest.mark.parametrize("frame", [b"\xff\xfe", b"\x00\x01\x00", b"\x12" * 6, b""])
+def test_any_other_frame_is_not_blank(frame: bytes) -> None:
+    assert blank_flag(frame) is SampleFlag.OK
+
+
+def test_a_frame_is_frozen_from_its_nth_repeat_until_it_changes() -> None:
+    watch = FrozenWatch(3)
+    flags = [watch.observe("gyro", b"\x01\x02") for _ in range(4)]
+    assert flags == [SampleFlag.OK, SampleFlag.OK, SampleFlag.FROZEN, SampleFlag.FROZEN]
+    assert watch.observe("gyro", b"\x01\x03") is SampleFlag.OK
+    assert watch.observe("gyro", b"\x01\x03") is SampleFlag.OK
+
+
+def test_channels_are_watched_apart() -> None:
+    watch = FrozenWatch(2)
+    watch.observe("accel", b"\x05")
+    assert watch.observe("gyro", b"\x05") is SampleFlag.OK
+    assert watch.observe("accel", b"\x05") is SampleFlag.FROZEN
+
+
+def test_a_frozen_window_needs_at_least_two_frames() -> None:
+    with pytest.raises(ValueError, match="at least 2"):
+        FrozenWatch(1)
+
+
+def test_values_outside_the_limits_are_out_of_range_and_nan_is_left_to_the_nan_check() -> None:
+    assert range_flag([25.0], -40.0, 85.0) is SampleFlag.OK
+    assert range_flag([-40.0, 85.0], -40.0, 85.0) is SampleFlag.OK
+    assert range_flag([85.1], -40.0, 85.0) is SampleFlag.OUT_OF_RANGE
+    assert range_flag([math.nan], -40.0, 85.0) is SampleFlag.OK
