@@ -10,6 +10,7 @@ from imuhal.core.frames import quat_from_euler_deg, quat_to_matrix
 from imuhal.core.samples import AccelSample, Frame, GyroSample, MagSample, Sample
 from imuhal.estimation.base import Estimator
 from imuhal.estimation.outputs import AttitudeEstimate
+from imuhal_filters.decoupled.estimator import DecoupledEstimator
 from imuhal_filters.freescale.estimator import Freescale6DofEstimator, Freescale9DofEstimator
 from imuhal_filters.imufilter.estimator import ImuFilterEstimator
 from imuhal_filters.madgwick.estimator import MadgwickEstimator
@@ -26,6 +27,7 @@ AHRS = {
     "imufilter": ImuFilterEstimator,
     "freescale-9dof": Freescale9DofEstimator,
     "freescale-6dof": Freescale6DofEstimator,
+    "decoupled": DecoupledEstimator,
 }
 SIX_DOF = {"imufilter", "freescale-6dof"}
 

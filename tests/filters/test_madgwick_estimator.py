@@ -157,3 +157,9 @@ def test_release_form_halves_the_heading_gradient_of_a_level_board(heading_error
     paper = np.linalg.norm(mag_gradient(q, m, MagReference.PAPER))
     release = np.linalg.norm(mag_gradient(q, m, MagReference.XIO_RELEASE))
     assert release / paper == pytest.approx(0.5, abs=0.01)
+
+
+def test_preset_handheld_is_beta_0_1_without_the_soft_gate() -> None:
+    s = MadgwickEstimator({"preset": "handheld"}).settings
+    assert (s.beta, s.accel_soft_gate_g) == (0.1, None)
+    assert MadgwickEstimator().settings.accel_soft_gate_g is not None

@@ -1,0 +1,1 @@
+"""The "decoupled" estimator: inclination and heading corrected separately, gyro bias at rest."""

@@ -1,0 +1,240 @@
+"""The per-sample kernel of the "decoupled" estimator, on plain floats.
+
+The method follows Laidig and Seel, "VQF: Highly Accurate IMU Orientation Estimation with Bias
+Estimation and Magnetic Disturbance Rejection" (Information Fusion 91, 2023), in imuhal's own
+form. The attitude is the product of three parts, body -> NED::
+
+    q = q_heading(delta) * q_inclination * q_gyro
+
+- ``q_gyro`` integrates the bias-corrected gyro (strapdown) from the aligned start into an
+  almost-inertial frame I (it drifts only by the residual gyro bias);
+- the accelerometer (gravity positive, in g) is rotated into I and low-pass filtered there
+  (second order, mean delay ``tau_acc_s``; optionally slowed for readings away from 1 g,
+  ``accel_soft_gate_g``): in an inertial frame the kinematic acceleration integrates to
+  a velocity change, so over seconds it averages out and what remains is gravity. The
+  inclination correction ``q_inclination`` then turns the filtered vector to the vertical each
+  step; all smoothing is in the filter, so a transient linear acceleration barely tilts it;
+- the heading is a separate angle ``delta`` about the NED vertical, pulled towards the
+  magnetometer's horizontal direction with time constant ``tau_mag_s``; it never touches the
+  inclination. The field's norm and dip are compared with a reference; a reading off by more
+  than ``mag_norm_th`` (relative) or ``mag_dip_th_deg`` is a disturbance and is not fused. A
+  new field that stays consistent for ``mag_new_s`` (e.g. moving to another room) becomes the
+  reference;
+- rest (gyro and accelerometer both steady for ``rest_min_s``, gyro slower than
+  ``bias_clip_rad_s``) lets the gyro bias follow the low-passed gyro (``tau_bias_rest_s``); in
+  motion the bias follows the corrections slowly (``tau_bias_motion_s``): a persistent
+  correction rate about a body axis is a bias on it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from imuhal_filters.common.gate import soft_gate_weight
+from imuhal_filters.common.quat import IDENTITY, Quat, Vec, multiply, to_global, to_local
+
+
+@dataclass(frozen=True, slots=True)
+class DecoupledParams:
+    """The kernel's constants (seconds, rad/s, g; see the module docstring)."""
+
+    tau_acc_s: float = 3.0
+    tau_mag_s: float = 9.0
+    accel_soft_gate_g: float | None = None
+    rest_gyro_th_rad_s: float = math.radians(2.0)
+    rest_acc_th_g: float = 0.05
+    rest_filter_tau_s: float = 0.5
+    rest_min_s: float = 1.5
+    bias_clip_rad_s: float = math.radians(2.0)
+    tau_bias_rest_s: float = 2.0
+    tau_bias_motion_s: float | None = None
+    mag_norm_th: float = 0.1
+    mag_dip_th_deg: float = 10.0
+    mag_ref_tau_s: float = 20.0
+    mag_new_s: float = 20.0
+
+
+def _rotvec_quat(x: float, y: float, z: float) -> Quat:
+    """Quaternion of the rotation vector (x, y, z) (rad)."""
+    a = math.sqrt(x * x + y * y + z * z)
+    if a < 1e-12:
+        return (1.0, 0.5 * x, 0.5 * y, 0.5 * z)
+    s = math.sin(0.5 * a) / a
+    return (math.cos(0.5 * a), x * s, y * s, z * s)
+
+
+def _unit_quat(q: Quat) -> Quat:
+    n = 1.0 / math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    return (q[0] * n, q[1] * n, q[2] * n, q[3] * n)
+
+
+class SecondOrderLowPass:
+    """Two cascaded first-order low-passes of time constant tau / 2 on a 3-vector: the same
+    mean delay as one stage of tau (and as VQF's Butterworth of cut-off sqrt(2) / (2 pi tau)),
+    40 dB/decade above it. Exact for any step length, so a step may be shortened per sample
+    (a step of zero holds the state). Starts at its first input."""
+
+    def __init__(self, tau_s: float) -> None:
+        self.half_tau_s = 0.5 * tau_s
+        self.state: list[float] | None = None
+
+    def step(self, x: Vec, dt: float) -> Vec:
+        s = self.state
+        if s is None:
+            s = self.state = [x[0], x[1], x[2], x[0], x[1], x[2]]
+        k = 1.0 - math.exp(-dt / self.half_tau_s)
+        for i in range(3):
+            s[i] += k * (x[i] - s[i])
+            s[3 + i] += k * (s[i] - s[3 + i])
+        return (s[3], s[4], s[5])
+
+
+def _wrap(a: float) -> float:
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+class DecoupledKernel:
+    """State and one step of the filter. ``start(q)`` sets the aligned attitude."""
+
+    def __init__(self, params: DecoupledParams) -> None:
+        self.p = params
+        self.start(IDENTITY)
+
+    def start(self, q: Quat, bias: Vec = (0.0, 0.0, 0.0)) -> None:
+        self.q_gyro: Quat = q
+        self.q_inc: Quat = IDENTITY
+        self.delta_rad = 0.0
+        self.acc_i: Vec | None = None
+        self._acc_filter = SecondOrderLowPass(self.p.tau_acc_s)
+        self.bias: Vec = bias
+        self.gyro_lp: Vec | None = None
+        self.acc_lp: Vec | None = None
+        self.rest_s = 0.0
+        self.mag_ref: tuple[float, float] | None = None
+        self.mag_cand: tuple[float, float] | None = None
+        self.mag_cand_s = 0.0
+        self.mag_disturbed = False
+
+    @property
+    def rest(self) -> bool:
+        return self.rest_s >= self.p.rest_min_s
+
+    def quaternion(self) -> Quat:
+        half = 0.5 * self.delta_rad
+        qh = (math.cos(half), 0.0, 0.0, math.sin(half))
+        return multiply(qh, multiply(self.q_inc, self.q_gyro))
+
+    # ------------------------------------------------------------------ step
+    def step(self, gyro: Vec, acc_g: Vec | None, mag: Vec | None, dt: float) -> Quat:
+        """One gyro sample (rad/s), the latest accelerometer (gravity positive, g) and
+        magnetometer (any unit) or None; returns the body -> NED quaternion."""
+        p = self.p
+        bx, by, bz = self.bias
+        wx, wy, wz = gyro[0] - bx, gyro[1] - by, gyro[2] - bz
+        self.q_gyro = _unit_quat(multiply(self.q_gyro, _rotvec_quat(wx * dt, wy * dt, wz * dt)))
+        self._rest_step(gyro, acc_g, dt)
+        corr_e = (0.0, 0.0, 0.0)
+        if acc_g is not None:
+            corr_e = self._inclination_step(acc_g, dt)
+        if mag is not None:
+            dz = self._heading_step(mag, dt)
+            corr_e = (corr_e[0], corr_e[1], corr_e[2] + dz)
+        if p.tau_bias_motion_s is not None and not self.rest and dt > 0.0:
+            # a correction that keeps turning the same body axis is a gyro bias on it
+            c_body = to_local(multiply(self.q_inc, self.q_gyro), corr_e)
+            k = 1.0 / p.tau_bias_motion_s  # rate c/dt, followed with dt/tau
+            self._set_bias((self.bias[0] - k * c_body[0], self.bias[1] - k * c_body[1],
+                            self.bias[2] - k * c_body[2]))
+        return self.quaternion()
+
+    def _set_bias(self, b: Vec) -> None:
+        clip = self.p.bias_clip_rad_s
+        self.bias = (max(-clip, min(clip, b[0])), max(-clip, min(clip, b[1])),
+                     max(-clip, min(clip, b[2])))
+
+    def _rest_step(self, gyro: Vec, acc_g: Vec | None, dt: float) -> None:
+        p = self.p
+        k = 1.0 - math.exp(-dt / p.rest_filter_tau_s)
+        g = self.gyro_lp
+        self.gyro_lp = g = gyro if g is None else (
+            g[0] + k * (gyro[0] - g[0]), g[1] + k * (gyro[1] - g[1]), g[2] + k * (gyro[2] - g[2]))
+        still = (sum((gyro[i] - g[i]) ** 2 for i in range(3)) < p.rest_gyro_th_rad_s ** 2
+                 and max(abs(g[0]), abs(g[1]), abs(g[2])) < p.bias_clip_rad_s)
+        if acc_g is not None:
+            a = self.acc_lp
+            self.acc_lp = a = acc_g if a is None else (
+                a[0] + k * (acc_g[0] - a[0]), a[1] + k * (acc_g[1] - a[1]),
+                a[2] + k * (acc_g[2] - a[2]))
+            still = still and sum((acc_g[i] - a[i]) ** 2 for i in range(3)) < p.rest_acc_th_g ** 2
+        self.rest_s = self.rest_s + dt if still else 0.0
+        if self.rest:
+            kb = 1.0 - math.exp(-dt / p.tau_bias_rest_s)
+            b = self.bias
+            self._set_bias((b[0] + kb * (g[0] - b[0]), b[1] + kb * (g[1] - b[1]),
+                            b[2] + kb * (g[2] - b[2])))
+
+    def _inclination_step(self, acc_g: Vec, dt: float) -> Vec:
+        """Low-pass the accelerometer in I, turn q_inc so it points up; returns the
+        correction's rotation vector (rad) in the frame after q_inc."""
+        a = to_global(self.q_gyro, acc_g)
+        # a reading away from 1 g carries kinematic acceleration the turn compensation did
+        # not remove (a sustained turn does not average out within tau): the filter advances
+        # by only the weight's share of the step (it holds still for a zero weight; feeding
+        # it its own estimate instead would close a loop around the second-order filter)
+        w = soft_gate_weight(acc_g, self.p.accel_soft_gate_g)
+        f = self._acc_filter.step(a, dt * w)
+        self.acc_i = f
+        ex, ey, ez = to_global(self.q_inc, f)
+        n = math.sqrt(ex * ex + ey * ey + ez * ez)
+        if n < 1e-9:
+            return (0.0, 0.0, 0.0)
+        ex, ey, ez = ex / n, ey / n, ez / n
+        # rotation taking e to up: axis e x up = (ey, -ex, 0), angle acos(ez)
+        s = math.hypot(ex, ey)
+        if s < 1e-12:
+            return (0.0, 0.0, 0.0)
+        angle = math.atan2(s, ez)
+        rx, ry = ey / s * angle, -ex / s * angle
+        self.q_inc = _unit_quat(multiply(_rotvec_quat(rx, ry, 0.0), self.q_inc))
+        return (rx, ry, 0.0)
+
+    def _heading_step(self, mag: Vec, dt: float) -> float:
+        """Check the field against the reference, correct delta; returns the correction (rad)."""
+        p = self.p
+        mx, my, mz = to_global(multiply(self.q_inc, self.q_gyro), mag)
+        norm = math.sqrt(mx * mx + my * my + mz * mz)
+        horizontal = math.hypot(mx, my)
+        if norm < 1e-9 or horizontal < 1e-3 * norm:
+            return 0.0
+        dip = math.atan2(mz, horizontal)
+        ref = self.mag_ref
+        if ref is None:
+            self.mag_ref = ref = (norm, dip)
+        ok = (abs(norm - ref[0]) < p.mag_norm_th * ref[0]
+              and abs(dip - ref[1]) < math.radians(p.mag_dip_th_deg))
+        self.mag_disturbed = not ok
+        if not ok:
+            self._track_candidate(norm, dip, dt)
+            return 0.0
+        self.mag_cand, self.mag_cand_s = None, 0.0
+        kr = 1.0 - math.exp(-dt / p.mag_ref_tau_s)
+        self.mag_ref = (ref[0] + kr * (norm - ref[0]), ref[1] + kr * (dip - ref[1]))
+        err = _wrap(math.atan2(my, mx) + self.delta_rad)
+        dz = -(1.0 - math.exp(-dt / p.tau_mag_s)) * err
+        self.delta_rad = _wrap(self.delta_rad + dz)
+        return dz
+
+    def _track_candidate(self, norm: float, dip: float, dt: float) -> None:
+        """A disturbed field that stays the same for ``mag_new_s`` becomes the reference."""
+        p = self.p
+        c = self.mag_cand
+        if c is None or not (abs(norm - c[0]) < p.mag_norm_th * c[0]
+                             and abs(dip - c[1]) < math.radians(p.mag_dip_th_deg)):
+            self.mag_cand, self.mag_cand_s = (norm, dip), 0.0
+            return
+        k = 1.0 - math.exp(-dt / 1.0)
+        self.mag_cand = (c[0] + k * (norm - c[0]), c[1] + k * (dip - c[1]))
+        self.mag_cand_s += dt
+        if self.mag_cand_s >= p.mag_new_s:
+            self.mag_ref, self.mag_cand, self.mag_cand_s = self.mag_cand, None, 0.0

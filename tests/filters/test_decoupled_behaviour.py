@@ -1,0 +1,112 @@
+"""The "decoupled" estimator (VQF's method in imuhal): what each of its parts must do.
+
+Synthetic boards at rest (tests/filters/ahrs_cases.py: 200 Hz, small white noise); the aligned
+start, full-scale rejection and turn compensation are covered with every AHRS in
+test_ahrs_alignment.py, test_ahrs_limits.py and test_ahrs_turns.py.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+from tests.filters.ahrs_cases import FIELD_NED_UT, at_rest, attitude, error_deg, run
+
+from imuhal.core.samples import GyroSample, MagSample, Sample
+from imuhal_filters.decoupled.estimator import DecoupledEstimator
+
+BIAS_RAD_S = (0.01, -0.015, 0.008)
+"""About 0.6-0.9 deg/s per axis: an uncalibrated MEMS gyro."""
+
+
+def _with_gyro_bias(samples: list[Sample]) -> list[Sample]:
+    return [dataclasses.replace(s, gyro_rad_s=tuple(
+        g + b for g, b in zip(s.gyro_rad_s, BIAS_RAD_S, strict=True)))
+            if isinstance(s, GyroSample) else s for s in samples]
+
+
+def _heading_deg(q: tuple[float, ...]) -> float:
+    w, x, y, z = q
+    return math.degrees(math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+
+
+def test_gyro_bias_is_estimated_at_rest_and_the_attitude_holds() -> None:
+    q_true = attitude(10.0, -5.0, 30.0)
+    est = DecoupledEstimator({"sample_period_s": 0.005})
+    out = run(est, iter(_with_gyro_bias(list(at_rest(q_true, 20.0)))))
+    assert out[-1].diagnostics["rest_detected"]
+    bias = np.array(out[-1].diagnostics["gyro_bias_rad_s"])
+    assert np.abs(bias - BIAS_RAD_S).max() < 0.001
+    assert error_deg("decoupled", out[-1], q_true) < 1.0
+
+
+def test_without_rest_bias_estimation_the_same_bias_turns_the_heading() -> None:
+    # the check above can fail: a filter that ignored the bias would drift this much
+    q_true = attitude(0.0, 0.0, 0.0)
+    est = DecoupledEstimator({"sample_period_s": 0.005, "use_mag": False,
+                              "rest_min_s": 1e6})
+    out = run(est, iter(_with_gyro_bias(list(at_rest(q_true, 20.0)))))
+    assert abs(_heading_deg(out[-1].q_body_to_ned)) > 5.0
+
+
+def test_a_magnetic_disturbance_is_detected_and_does_not_turn_the_heading() -> None:
+    q_true = attitude(0.0, 0.0, 0.0)
+    samples = list(at_rest(q_true, 20.0))
+    # a magnet next to the board from 5 s on: +30 uT along body y (the field turns 40 deg)
+    disturbed = [dataclasses.replace(s, mag_ut=(s.mag_ut[0], s.mag_ut[1] + 30.0, s.mag_ut[2]))
+                 if isinstance(s, MagSample) and s.t_ns >= 5e9 else s for s in samples]
+    est = DecoupledEstimator({"sample_period_s": 0.005})
+    out = run(est, iter(disturbed))
+    late = [e for e in out if e.t_ns >= 6e9]
+    assert all(e.diagnostics["mag_disturbed"] for e in late[:: 100])
+    assert abs(_heading_deg(out[-1].q_body_to_ned)) < 1.0
+    undefended = run(DecoupledEstimator({"sample_period_s": 0.005, "mag_norm_th": 10.0,
+                                         "mag_dip_th_deg": 90.0}), iter(disturbed))
+    assert abs(_heading_deg(undefended[-1].q_body_to_ned)) > 20.0
+
+
+def test_a_lasting_new_field_becomes_the_reference() -> None:
+    samples = list(at_rest(attitude(0.0, 0.0, 0.0), 12.0))
+    moved = [dataclasses.replace(s, mag_ut=tuple(0.7 * np.asarray(s.mag_ut)))
+             if isinstance(s, MagSample) and s.t_ns >= 2e9 else s for s in samples]
+    out = run(DecoupledEstimator({"sample_period_s": 0.005, "mag_new_s": 5.0}), iter(moved))
+    assert out[int(4e9 / 5e6)].diagnostics["mag_disturbed"]
+    assert not out[-1].diagnostics["mag_disturbed"]
+
+
+def test_offline_mode_smooths_a_whole_recording_and_refuses_to_run_live() -> None:
+    q_true = attitude(20.0, 10.0, -40.0)
+    samples = _with_gyro_bias(list(at_rest(q_true, 6.0)))
+    gyro = np.array([s.gyro_rad_s for s in samples if isinstance(s, GyroSample)])
+    accel = np.array([s.accel_m_s2 for s in samples if type(s).__name__ == "AccelSample"])
+    mag = np.array([s.mag_ut for s in samples if isinstance(s, MagSample)])
+    est = DecoupledEstimator({"sample_period_s": 0.005, "offline": True})
+    q = est.smooth(gyro, accel, mag)
+    assert q.shape == (gyro.shape[0], 4)
+    np.testing.assert_allclose(np.linalg.norm(q, axis=1), 1.0, atol=1e-12)
+    err = np.degrees(2 * np.arccos(np.minimum(1.0, np.abs(q @ q_true))))
+    assert err.max() < 1.5  # the bias is learnt after 1.5 s of rest: about 1.2 deg of heading
+    try:
+        run(est, iter(samples[:30]))
+    except ValueError as exc:
+        assert "offline" in str(exc)
+    else:
+        raise AssertionError("offline: true ran live")
+
+
+def test_state_round_trips_and_continues_identically() -> None:
+    samples = _with_gyro_bias(list(at_rest(attitude(5.0, 5.0, 5.0), 4.0)))
+    a = DecoupledEstimator({"sample_period_s": 0.005})
+    run(a, iter(samples[:1800]))
+    b = DecoupledEstimator({"sample_period_s": 0.005})
+    b.set_state(a.get_state())
+    qa = run(a, iter(samples[1800:]))[-1].q_body_to_ned
+    qb = run(b, iter(samples[1800:]))[-1].q_body_to_ned
+    assert qa == qb
+    assert FIELD_NED_UT.shape == (3,)
+
+
+def test_preset_flight_turns_the_soft_gate_on() -> None:
+    assert DecoupledEstimator().settings.accel_soft_gate_g is None
+    assert DecoupledEstimator({"preset": "flight"}).settings.accel_soft_gate_g == 0.02
