@@ -66,8 +66,12 @@ def _exact(events: list[Event]) -> list[str]:
     return [repr(e) for e in events]
 
 
+# The GPS vario's UART byte stream is not recorded yet (recorder.attach refuses it).
+RECORDABLE = [p for p in bundled_profiles().values() if p.stem != "seed-gps-vario"]
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("board", list(bundled_profiles().values()), ids=lambda p: p.stem)
+@pytest.mark.parametrize("board", RECORDABLE, ids=lambda p: p.stem)
 def test_a_60_s_run_of_every_bundled_board_replays_to_the_same_floats(
         full_registry: Registry, board: Path, tmp_path: Path) -> None:
     live = _record(full_registry, board, tmp_path / "run.imurec", 60.0)
@@ -101,7 +105,8 @@ def _edited(board: Path, out: Path, section: str, name: str, key: str, value: ob
 
 def _other_osr(board: Path) -> int:
     """A barometer oversampling the board does not use: its conversion commands differ."""
-    used = yaml.safe_load(board.read_text())["devices"]["baro"]["settings"].get("pressure_osr")
+    baro = yaml.safe_load(board.read_text())["devices"]["baro"]["settings"]
+    used = baro.get("pressure_oversampling")
     return 1024 if used != 1024 else 4096
 
 
@@ -109,7 +114,7 @@ def test_a_driver_asking_for_other_registers_stops_at_the_first_divergent_transa
         full_registry: Registry, tmp_path: Path) -> None:
     board = Path("profiles/seed-paraglider-vario.yaml")
     _record(full_registry, board, tmp_path / "run.imurec", 1.0)
-    changed = _edited(board, tmp_path / "changed.yaml", "devices", "baro", "pressure_osr",
+    changed = _edited(board, tmp_path / "changed.yaml", "devices", "baro", "pressure_oversampling",
                       _other_osr(board))
     # The MS5611 (chip select 1) now asks for a conversion at another oversampling: one
     # command byte, no reply.
@@ -152,7 +157,7 @@ def test_a_divergent_replay_is_one_line_and_keeps_the_old_output(
     rec = tmp_path / "run.imurec"
     assert main(["run", "--duration", "0.5", "--quiet", "--record", str(rec)]) == 0
     board = Path("profiles/seed-paraglider-vario.yaml")
-    changed = _edited(board, tmp_path / "changed.yaml", "devices", "baro", "pressure_osr",
+    changed = _edited(board, tmp_path / "changed.yaml", "devices", "baro", "pressure_oversampling",
                       _other_osr(board))
     out = tmp_path / "out.csv"
     out.write_text("old\n")
@@ -203,3 +208,13 @@ def test_trace_and_record_together_see_the_same_transactions(tmp_path: Path) -> 
     assert len(lines) == len(transfers) > 100
     assert all(f"W:{t.written.hex(' ')}" in line  # type: ignore[union-attr]
                for t, line in zip(transfers, lines, strict=True))
+
+
+def test_a_board_with_a_byte_stream_bus_is_refused_by_record_in_one_line(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+
+    rec = tmp_path / "gps.rec"
+    assert main(["run", str(bundled_profiles()["seed-gps-vario.yaml"]), "--emulate", "static",
+                 "--duration", "1", "--quiet", "--record", str(rec)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert "byte streams" in err[-1] and "internal error" not in err[-1]

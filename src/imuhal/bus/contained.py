@@ -9,7 +9,7 @@ naming the original, so one flaky bus plugin cannot end the whole run.
 from __future__ import annotations
 
 from imuhal.bus.base import Bus, Link
-from imuhal.core.errors import BusError, ImuhalError
+from imuhal.core.errors import BusError, ImuhalError, RunEnded
 
 
 class ContainedBus(Bus):
@@ -24,7 +24,7 @@ class ContainedBus(Bus):
     def transfer(self, target: int, write: bytes = b"", read_len: int = 0) -> bytes:
         try:
             return self.inner.transfer(target, write, read_len)
-        except ImuhalError:
+        except (ImuhalError, RunEnded):
             raise
         except Exception as exc:
             raise self._contained(exc, target) from exc
@@ -32,7 +32,7 @@ class ContainedBus(Bus):
     def receive(self, target: int, max_len: int) -> bytes:
         try:
             return self.inner.receive(target, max_len)
-        except ImuhalError:
+        except (ImuhalError, RunEnded):
             raise
         except Exception as exc:
             raise self._contained(exc, target) from exc

@@ -17,6 +17,12 @@ class BusError(ImuhalError):
         self.target = target
 
 
+class RunEnded(Exception):
+    """Raised by a bus to end the whole run instead of failing one device: a replayed
+    recording that has run out or diverged. Deliberately not an ImuhalError (the pipeline
+    contains those to their device and recovers it), and never wrapped by ContainedBus."""
+
+
 class NackError(BusError):
     """No device acknowledged the address (I2C) or answered on the chip select (SPI)."""
 

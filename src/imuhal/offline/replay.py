@@ -26,7 +26,7 @@ from imuhal.bus.recording.format import (
     open_recording,
 )
 from imuhal.core import errors as error_types
-from imuhal.core.errors import BusError, ImuhalError
+from imuhal.core.errors import BusError, ImuhalError, RunEnded
 from imuhal.pipeline.pipeline import Pipeline
 from imuhal.plugins.manager import Registry
 from imuhal.profile.loader import parse_profile
@@ -36,7 +36,7 @@ if TYPE_CHECKING:
     from imuhal.sinks.base import Event, Sink
 
 
-class ReplayDivergence(Exception):
+class ReplayDivergence(RunEnded):
     """The drivers asked for something other than what was recorded.
 
     Deliberately not an ImuhalError: the pipeline treats those as device faults and recovers,
@@ -44,7 +44,7 @@ class ReplayDivergence(Exception):
     """
 
 
-class EndOfRecording(Exception):
+class EndOfRecording(RunEnded):
     """The recording has no more records: the replayed run is over."""
 
 

@@ -13,7 +13,7 @@ from datetime import datetime, timezone
 from typing import Any
 
 from imuhal import __version__
-from imuhal.bus.base import Bus
+from imuhal.bus.base import Bus, BusKind
 from imuhal.bus.recording.format import (
     BusInfo,
     RecordingError,
@@ -22,6 +22,7 @@ from imuhal.bus.recording.format import (
 )
 from imuhal.bus.spy import Transfer
 from imuhal.core.clock import Clock
+from imuhal.core.errors import ImuhalError
 
 
 class RecordingClock:
@@ -60,7 +61,15 @@ class BusRecorder:
         return self.writer.transfers
 
     def attach(self, buses: Mapping[str, Bus]) -> None:
-        """Note the run's buses (profile name, run-time name, kind) before any transfer."""
+        """Note the run's buses (profile name, run-time name, kind) before any transfer.
+
+        Byte-stream buses (a UART with a GNSS receiver) are refused: their unprompted bytes
+        are not recorded yet, so a replay could not reproduce the run."""
+        streams = [name for name, bus in buses.items() if bus.kind is BusKind.SERIAL]
+        if streams:
+            raise ImuhalError(f"--record: the serial bus(es) {', '.join(streams)} carry byte "
+                              "streams, which recordings do not hold yet; record a profile "
+                              "without them, or use --trace for a readable log")
         for name, bus in buses.items():
             index = len(self._bus_index)
             self._bus_index[bus.name] = index
