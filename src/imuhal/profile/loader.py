@@ -275,7 +275,11 @@ def _check_references(data: dict[str, Any], doc: LocatedDocument) -> list[str]:
             out.append(f"{doc.where(path)}: {dotted(path)}: no bus named {bus!r}; "
                        f"defined buses: {', '.join(sorted(map(str, buses))) or 'none'}")
         address = dev.get("address")
-        if type(address) is int and dev.get("enabled", True) is not False:
+        # Addresses name a chip on I2C and SPI (and behind a chip's I2C master); other bus
+        # kinds (serial, iio) find their device otherwise and may leave the address at 0.
+        kind = "i2c" if "/" in bus else _text(_mapping(buses.get(bus)).get("kind"))
+        if type(address) is int and kind in ("i2c", "spi") and \
+                dev.get("enabled", True) is not False:
             other = taken.setdefault((bus, address), str(name))
             if other != name:
                 apath: Path = ("devices", name, "address")
