@@ -1,7 +1,7 @@
 """A seeded synthetic hand-held recording with known truth, for the decoupled estimator's tests.
 
-The board turns (roll, pitch and yaw sinusoids) and is shaken back and forth (a horizontal
-translation of 0.3 m at 0.7 Hz), body NED axes, 100 Hz. The gyro is the exact incremental
+The board turns (roll, pitch and yaw sinusoids) and is shaken back and forth from 2 s on (a
+horizontal translation of 0.3 m at 0.7 Hz), body NED axes, 100 Hz. The gyro is the exact incremental
 rotation between consecutive truth samples plus a constant bias and white noise, so the only
 errors an estimator meets are the bias, the noise and the linear acceleration.
 """
@@ -61,8 +61,10 @@ def hand_motion(seconds: float, bias_rad_s: tuple[float, float, float], seed: in
     q = np.array([quat_from_euler_deg(r, p, y) for r, p, y in zip(roll, pitch, yaw, strict=True)])
     w = 2 * np.pi * 0.7
     a_ned = np.zeros((n, 3))
-    a_ned[:, 0] = -shake_m * w * w * np.sin(w * t)
-    a_ned[:, 1] = -0.5 * shake_m * w * w * np.cos(w * t)
+    # the shaking starts after 2 s, so the aligned start sees gravity alone
+    on = t >= 2.0
+    a_ned[on, 0] = -shake_m * w * w * np.sin(w * (t[on] - 2.0))
+    a_ned[on, 1] = -0.5 * shake_m * w * w * np.sin(w * (t[on] - 2.0))
     gyro = np.zeros((n, 3))
     acc = np.zeros((n, 3))
     mag = np.zeros((n, 3))
