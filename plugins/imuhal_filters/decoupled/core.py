@@ -41,6 +41,7 @@ class DecoupledParams:
     """The kernel's constants (seconds, rad/s, g; see the module docstring)."""
 
     tau_acc_s: float = 3.0
+    tau_acc_rest_s: float | None = None
     tau_mag_s: float = 9.0
     accel_soft_gate_g: float | None = None
     rest_gyro_th_rad_s: float = math.radians(2.0)
@@ -261,6 +262,10 @@ class DecoupledKernel:
         # by only the weight's share of the step (it holds still for a zero weight; feeding
         # it its own estimate instead would close a loop around the second-order filter)
         dt_filter = dt * soft_gate_weight(acc_g, self.p.accel_soft_gate_g)
+        if self.p.tau_acc_rest_s is not None and self.rest:
+            # at rest the specific force is gravity alone: what is left to correct is gyro
+            # drift, so the filter may run faster (time scaled: the same filter, shorter tau)
+            dt_filter *= self.p.tau_acc_s / self.p.tau_acc_rest_s
         f = self._acc_filter.step(a, dt_filter)
         self.acc_i = (f[0], f[1], f[2])
         self.q_inc, corr = inclination_correction(self.q_inc, to_global(self.q_inc, self.acc_i))

@@ -42,14 +42,19 @@ class DecoupledSettings(AhrsSettings):
         # hand-held motion (BROAD): VQF's published settings, every accelerometer reading in
         # full; the inertial-frame filter averages the hand's acceleration out, a gate would
         # weight it unevenly (docs/evaluation.md)
-        "handheld": {"accel_soft_gate_g": None, "tau_acc_s": 3.0},
-        # kept for profiles written when the flight behaviour was a preset
-        "flight": {"accel_soft_gate_g": 0.02, "tau_acc_s": 3.0},
+        "handheld": {"accel_soft_gate_g": None, "tau_acc_s": 3.0, "tau_acc_rest_s": None},
+        # the defaults by name (a profile can say what it relies on)
+        "flight": {"accel_soft_gate_g": 0.02, "tau_acc_s": 10.0, "tau_acc_rest_s": 3.0},
     }
 
-    tau_acc_s: float = Field(3.0, gt=0.0)
+    tau_acc_s: float = Field(10.0, gt=0.0)
     """Time constant (s) of the accelerometer low-pass in the almost-inertial frame: the
     inclination correction's speed (VQF's published default, 3 s)."""
+    tau_acc_rest_s: float | None = Field(3.0, gt=0.0)
+    """At rest (``rest_detected``) the accelerometer filter runs with this time constant (s)
+    instead: the specific force is gravity alone, what is left is gyro drift (flight default
+    3 s: on the ground before launch the flight filter converges as fast as the hand-held
+    one). None: ``tau_acc_s`` always (VQF, ``preset: handheld``)."""
     accel_soft_gate_g: float | None = Field(0.02, gt=0.0)
     """Share of each step the inclination filter advances by, 1 / (1 + (| |a| - 1 g | /
     width)^2) (common/gate.py): a reading away from 1 g is trusted less. None (default, VQF's
@@ -94,7 +99,8 @@ class DecoupledSettings(AhrsSettings):
     def params(self) -> DecoupledParams:
         g = 9.80665
         return DecoupledParams(
-            tau_acc_s=self.tau_acc_s, tau_mag_s=self.tau_mag_s,
+            tau_acc_s=self.tau_acc_s, tau_acc_rest_s=self.tau_acc_rest_s,
+            tau_mag_s=self.tau_mag_s,
             accel_soft_gate_g=self.accel_soft_gate_g,
             rest_gyro_th_rad_s=math.radians(self.rest_gyro_th_deg_s),
             rest_acc_th_g=self.rest_acc_th_m_s2 / g, rest_min_s=self.rest_min_s,
