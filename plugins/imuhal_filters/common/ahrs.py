@@ -351,7 +351,7 @@ class AhrsEstimator(Estimator):
         py_diags: list[dict[str, Any]] = []
         stop = 0
         if self._kernel_allowed():
-            while stop < m and not (self._tilt_aligned
+            while stop < m and not (self._tilt_aligned and self._kernel_ready()
                                     and (self._heading_aligned or not mag_left[stop])):
                 py_diags += self._python_rows(steps, stop + 1, out, emitted, diagnostics, stop)
                 stop += 1
@@ -408,6 +408,10 @@ class AhrsEstimator(Estimator):
         (:meth:`_kernel_finished`); False, with nothing done, when this estimator has no
         kernel for its settings. A NaN row of ``accel``/``mag``: none this step."""
         return False
+
+    def _kernel_ready(self) -> bool:
+        """Nothing but the kernel's step is left to happen (a filter's own set-up is done)."""
+        return True
 
     def _kernel_diagnostics(self, diag: FloatArray) -> dict[str, DiagnosticColumn]:
         """The kernel's ``diag`` array as the columns ``_step``'s dictionary flattens to."""

@@ -126,7 +126,9 @@ class EstimateCsvWriter:
         blank = [""] * n
         cells = [leading[h] if h in leading else _fmt_column(rows.diagnostics.get(h), blank)
                  for h in self._header]
-        self._csv.writerows(zip(*cells, strict=True))
+        # every cell is a number or empty, which the csv module would never quote: the lines
+        # are joined directly (its per-field quoting checks cost more than the formatting)
+        self._spill.write("\r\n".join(map(",".join, zip(*cells, strict=True))) + "\r\n")
         self.rows += n
 
     def _leading_rows(self, rows: AttitudeRows) -> dict[str, list[str]]:
@@ -225,15 +227,23 @@ def _fmt_column(values: np.ndarray | list | None, blank: list[str]) -> list[str]
         return blank
     if isinstance(values, np.ndarray):
         if values.dtype.kind in "iub":
-            return [str(v) for v in values.tolist()]
+            return _reprs(values.astype(np.int64).tolist())
         return _fmt_floats(values)
     return ["" if v is None else _fmt(v) for v in values]
 
 
 def _fmt_floats(values: np.ndarray) -> list[str]:
     if np.all(np.isfinite(values)):
-        return [repr(v) for v in values.tolist()]
+        return _reprs(values.tolist())
     return [_fmt(v) for v in values.tolist()]
+
+
+def _reprs(values: list[float] | list[int]) -> list[str]:
+    """``[repr(v) for v in values]`` for finite floats or ints, in one C-level pass (the
+    list's repr joins its items' reprs with ", ")."""
+    if not values:
+        return []
+    return repr(values)[1:-1].split(", ")
 
 
 def _fmt(v: Any) -> str:
