@@ -337,14 +337,16 @@ class AhrsEstimator(Estimator):
         t_ns = steps.t_ns if steps.t_ns is not None else np.zeros(0, dtype=np.int64)
         return AttitudeRows(self.instance, t_ns[emitted], q[emitted], diagnostics)
 
-    def _step_rows(self, steps: StepRows, *, diagnostics: bool
+    def _step_rows(self, steps: StepRows, *, diagnostics: bool, out: FloatArray | None = None
                    ) -> tuple[FloatArray, np.ndarray, dict[str, DiagnosticColumn]]:
         """One filter step per row of ``steps``: the quaternion after each (NaN where there
-        was no attitude yet), which rows made an estimate, and the diagnostics columns of
-        those rows (when asked). Rows run in Python until nothing is left to align, the rest
-        in the compiled kernel when there is one (else in Python too)."""
+        was no attitude yet; written into ``out`` when given, NaN-filled), which rows made
+        an estimate, and the diagnostics columns of those rows (when asked). Rows run in
+        Python until nothing is left to align, the rest in the compiled kernel when there
+        is one (else in Python too)."""
         m = len(steps)
-        out = np.full((m, 4), np.nan)
+        if out is None:
+            out = np.full((m, 4), np.nan)
         emitted = np.zeros(m, dtype=bool)
         has_mag = ~np.isnan(steps.mag[:, 0])
         mag_left = np.logical_or.accumulate(has_mag[::-1])[::-1]
@@ -362,7 +364,8 @@ class AhrsEstimator(Estimator):
         in_kernel = 0
         if stop < m:
             rest = slice(stop, m)
-            diag = np.empty((m - stop, self._kernel_diag_width))
+            # without diagnostics the kernel writes every row's into one scratch row
+            diag = np.empty((m - stop if diagnostics else 1, self._kernel_diag_width))
             if self._run_kernel(steps.gyro[rest], steps.accel[rest], steps.mag[rest],
                                 steps.dts[rest], out[rest], diag):
                 emitted[rest] = True

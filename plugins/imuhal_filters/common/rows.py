@@ -13,6 +13,7 @@ estimator are updated exactly as the row-by-row path would have left them.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -51,7 +52,10 @@ class StepRows:
 
 def _within(values: FloatArray, full_scale: float) -> np.ndarray:
     """Per row: every component finite and within +-full_scale (NaN fails)."""
-    return np.all(np.isfinite(values) & (np.abs(values) <= full_scale), axis=1)
+    inside = np.abs(values) <= full_scale  # NaN fails; so does inf below an infinite scale
+    if math.isinf(full_scale):
+        inside &= np.isfinite(values)
+    return inside.all(axis=1)
 
 
 def _count(est: AhrsEstimator, channel: str, n: int) -> None:
@@ -66,22 +70,33 @@ def update_rows(est: AhrsEstimator, gyro: FloatArray, accel: FloatArray | None,
     beyond the full scale are counted (the accel only on rows whose gyro steps)."""
     n = gyro.shape[0]
     g_ok = _within(gyro, est._gyro_fs)
-    _count(est, Channel.GYRO.value, int(n - np.count_nonzero(g_ok)))
-    idx = np.flatnonzero(g_ok)
-    nan3 = np.full((len(idx), 3), np.nan)
-    a = nan3
+    bad = int(n - np.count_nonzero(g_ok))
+    _count(est, Channel.GYRO.value, bad)
+    # the common case, every gyro row valid, takes the arrays as they are (no copies)
+    idx: np.ndarray | slice = slice(0, n) if not bad else np.flatnonzero(g_ok)
+    g, step_dts = gyro[idx], dts[idx]
+    m_rows = len(g)
+    a = m = None
     if accel is not None:
         a = accel[idx]
-        present = ~np.isnan(a).any(axis=1)
-        ok = present & _within(a, est._accel_fs)
-        _count(est, Channel.ACCEL.value, int(np.count_nonzero(present & ~ok)))
-        a = np.where(ok[:, None], a, np.nan)
-    m = nan3
+        ok = _within(a, est._accel_fs)
+        if not ok.all():
+            present = ~np.isnan(a).any(axis=1)
+            _count(est, Channel.ACCEL.value, int(np.count_nonzero(present & ~ok)))
+            a = np.where(ok[:, None], a, np.nan)
     if mag is not None and est.uses_mag:
         m = mag[idx]
-        m = np.where(np.isfinite(m).all(axis=1)[:, None], m, np.nan)
-    return StepRows(idx, None, np.ascontiguousarray(gyro[idx]), np.ascontiguousarray(a),
-                    np.ascontiguousarray(m), np.ascontiguousarray(dts[idx], dtype=float))
+        ok = np.isfinite(m).all(axis=1)
+        if not ok.all():
+            m = np.where(ok[:, None], m, np.nan)
+    return StepRows(np.arange(n)[idx], None, _c(g), _c(a, m_rows), _c(m, m_rows), _c(step_dts))
+
+
+def _c(values: FloatArray | None, n: int = 0) -> FloatArray:
+    """A C-contiguous float array (a copy only when needed); None: n NaN rows."""
+    if values is None:
+        return np.full((n, 3), np.nan)
+    return np.ascontiguousarray(values, dtype=float)
 
 
 def process_rows(est: AhrsEstimator, rows: ImuRows) -> StepRows:

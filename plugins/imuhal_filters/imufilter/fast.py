@@ -63,7 +63,9 @@ def _imufilter_rows(state, gyro, accel, dts, alpha, sd_acc_g, velocity_on, sd_ac
     k = -1.0 / _G
     var_a = sd_acc_m_s2 * sd_acc_m_s2
     var_comb = var_a * sd_vel_m_s * sd_vel_m_s
+    keep = diag.shape[0] == gyro.shape[0]  # else one scratch row (no diagnostics asked)
     for i in range(gyro.shape[0]):
+        di = i if keep else 0
         gx, gy, gz = gyro[i, 0], gyro[i, 1], gyro[i, 2]
         dt = dts[i]
         if turn_on:
@@ -105,9 +107,9 @@ def _imufilter_rows(state, gyro, accel, dts, alpha, sd_acc_g, velocity_on, sd_ac
                 v2 = v2 + (a2 + l2) * h + d2 * gain_vel
                 l0, l1, l2 = a0, a1, a2
         out[i, 0], out[i, 1], out[i, 2], out[i, 3] = w, x, y, z
-        diag[i, 0] = 1.0 if used else 0.0
-        diag[i, 1], diag[i, 2] = gain, var
-        diag[i, 3], diag[i, 4], diag[i, 5] = v0, v1, v2
+        diag[di, 0] = 1.0 if used else 0.0
+        diag[di, 1], diag[di, 2] = gain, var
+        diag[di, 3], diag[di, 4], diag[di, 5] = v0, v1, v2
     state[0], state[1], state[2], state[3] = w, x, y, z
     state[4], state[5] = var, gain
     state[6], state[7], state[8] = v0, v1, v2

@@ -29,7 +29,9 @@ def _madgwick_rows(q_in, gyro, accel, mag, dts, beta, gate_lo, gate_hi, soft_wid
     q0, q1, q2, q3 = q_in[0], q_in[1], q_in[2], q_in[3]
     k = -1.0 / _G
     closed = 0
+    keep = diag.shape[0] == gyro.shape[0]  # else one scratch row (no diagnostics asked)
     for i in range(gyro.shape[0]):
+        di = i if keep else 0
         gx, gy, gz = gyro[i, 0], gyro[i, 1], gyro[i, 2]
         have_a = not math.isnan(accel[i, 0])
         have_m = not math.isnan(mag[i, 0])
@@ -50,9 +52,9 @@ def _madgwick_rows(q_in, gyro, accel, mag, dts, beta, gate_lo, gate_hi, soft_wid
                 d = (n - 1.0) / soft_width
                 weight = 1.0 / (1.0 + d * d)
         use_m = have_m and use_mag
-        diag[i, 0] = 1.0 if gate_open else 0.0
-        diag[i, 1] = 1.0 if gate_open and use_m else 0.0
-        diag[i, 2] = weight
+        diag[di, 0] = 1.0 if gate_open else 0.0
+        diag[di, 1] = 1.0 if gate_open and use_m else 0.0
+        diag[di, 2] = weight
         b = beta * weight
         # madgwick_step (exact inverse square root)
         d0 = 0.5 * (-q1 * gx - q2 * gy - q3 * gz)

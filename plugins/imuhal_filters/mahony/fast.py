@@ -25,7 +25,9 @@ def _mahony_rows(q_in, integral_in, gyro, accel, mag, dts, kp, ki, gate_lo, gate
     ix, iy, iz = integral_in[0], integral_in[1], integral_in[2]
     k = -1.0 / _G
     closed = 0
+    keep = diag.shape[0] == gyro.shape[0]  # else one scratch row (no diagnostics asked)
     for i in range(gyro.shape[0]):
+        di = i if keep else 0
         gx, gy, gz = gyro[i, 0], gyro[i, 1], gyro[i, 2]
         have_a = not math.isnan(accel[i, 0])
         have_m = not math.isnan(mag[i, 0])
@@ -44,9 +46,9 @@ def _mahony_rows(q_in, integral_in, gyro, accel, mag, dts, kp, ki, gate_lo, gate
             if soft_width > 0.0:
                 d = (n - 1.0) / soft_width
                 weight = 1.0 / (1.0 + d * d)
-        diag[i, 0] = 1.0 if gate_open else 0.0
-        diag[i, 1] = 1.0 if gate_open and have_m and use_mag else 0.0
-        diag[i, 2] = weight
+        diag[di, 0] = 1.0 if gate_open else 0.0
+        diag[di, 1] = 1.0 if gate_open and have_m and use_mag else 0.0
+        diag[di, 2] = weight
         kpw, kiw = kp * weight, ki * weight
         # mahony_step
         if gate_open:
@@ -94,7 +96,7 @@ def _mahony_rows(q_in, integral_in, gyro, accel, mag, dts, kp, ki, gate_lo, gate
         r = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
         q0, q1, q2, q3 = w * r, x * r, y * r, z * r
         out[i, 0], out[i, 1], out[i, 2], out[i, 3] = q0, q1, q2, q3
-        diag[i, 3], diag[i, 4], diag[i, 5] = -ix, -iy, -iz
+        diag[di, 3], diag[di, 4], diag[di, 5] = -ix, -iy, -iz
     return np.array([q0, q1, q2, q3]), np.array([ix, iy, iz]), turn_sum, closed
 
 
