@@ -266,17 +266,15 @@ class ReplayBoard:
     buses: dict[str, Bus]
     clock: ReplayClock
 
-    source: ReplaySource
-
     def before_poll(self, t_ns: int, device: str) -> int:
         """The chips' answers are in the recording; the poll is at ``t_ns``, or at the
         recorded time when the recorded run polled ``device`` late."""
-        return self.source.poll_time(t_ns, device)
+        return self.clock.source.poll_time(t_ns, device)
 
 
 def replay_pipeline(replay: Replay, registry: Registry) -> Pipeline:
     """The pipeline of the recorded run, opened (probe, configure) from the recording."""
-    board = ReplayBoard(replay.buses, replay.clock, replay.source)
+    board = ReplayBoard(replay.buses, replay.clock)
     try:
         return Pipeline(replay.profile, registry, board)
     except EndOfRecording:
