@@ -12,7 +12,7 @@ exactly as it did live.
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -88,8 +88,8 @@ class ReplaySource:
         self._pending = None
         return rec
 
-    def _next(self, asked: str) -> ClockReading | RecordedTransfer:
-        """The next clock reading or transaction; ``asked`` (what the run asks for, in
+    def _next(self, asked: Callable[[], str]) -> ClockReading | RecordedTransfer:
+        """The next clock reading or transaction; ``asked()`` (what the run asks for, in
         words) names the divergence when the recording has a late poll here instead."""
         rec = self._take()
         while isinstance(rec, BusInfo):
@@ -100,11 +100,11 @@ class ReplaySource:
             raise ReplayDivergence(
                 f"replay diverged after transaction {self.transfers - 1} (t="
                 f"{rec.t_ns / 1e9:.6f} s): the recording polls {rec.device} late here, "
-                f"{asked}")
+                f"{asked()}")
         return rec
 
     def clock(self) -> int:
-        rec = self._next("the run read the clock")
+        rec = self._next(lambda: "the run read the clock")
         if isinstance(rec, RecordedTransfer):
             raise self._divergence(rec, "the run read the clock here")
         self.t_ns = rec.t_ns
@@ -136,8 +136,11 @@ class ReplaySource:
 
     def _transaction(self, op: str, bus: int, target: int, written: bytes, read_len: int,
                      baudrate: int = 0) -> bytes:
-        asked = _describe(self.buses[bus].label, target, written, read_len, op, baudrate)
-        rec = self._next(f"the driver asked {asked}")
+        def asked() -> str:  # only needed when the replay diverges
+            return "the driver asked " + _describe(self.buses[bus].label, target, written,
+                                                   read_len, op, baudrate)
+
+        rec = self._next(asked)
         if isinstance(rec, ClockReading):
             # A recording cut off (or ended) after a poll's clock readings but before its
             # transfers: when only readings are left, the run is over, not diverged.
@@ -147,11 +150,10 @@ class ReplaySource:
                 raise EndOfRecording()
             raise ReplayDivergence(
                 f"replay diverged after transaction {self.transfers - 1} (t="
-                f"{rec.t_ns / 1e9:.6f} s): the recording reads the clock here, the driver "
-                f"asked {asked}")
+                f"{rec.t_ns / 1e9:.6f} s): the recording reads the clock here, {asked()}")
         if (rec.op, rec.bus, rec.target, rec.written, rec.read_len, rec.baudrate) != (
                 op, bus, target, written, read_len, baudrate):
-            raise self._divergence(rec, f"the driver asked {asked}")
+            raise self._divergence(rec, asked())
         self.transfers += 1
         self.t_ns = rec.t_ns
         if rec.error_type:
