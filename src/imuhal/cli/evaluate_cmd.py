@@ -26,7 +26,8 @@ from imuhal.plugins.manager import Registry
 HELP = """\
 Recordings: BROAD trials (.hdf5 or .mat; a folder means every trial in it, HDF5 preferred
 when a trial is there in both forms; groups come from the trials.json next to them), or
-imuhal sample CSVs each followed by --truth TRUTH.csv (from `imuhal run --truth`).
+imuhal sample CSVs (a run log of `imuhal run --output LOG.csv --samples`, or the wide
+CSV of `imuhal estimate`), each with a --truth TRUTH.csv (from `imuhal run --truth`).
 --broad uses the BROAD cache (filled by --download-broad, which alone uses the network).
 
 Estimators: -e NAME[:KEY=VALUE[:KEY=VALUE...]], repeatable, e.g. -e madgwick
