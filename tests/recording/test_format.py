@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from imuhal.bus.recording.format import (
@@ -26,6 +26,8 @@ def _writer(path: Path, interval_s: float = 3600.0) -> RecordingWriter:
     return RecordingWriter(path, {"what": "test"}, flush_interval_s=interval_s)
 
 
+# Each example writes and fsyncs a file: a loaded disk must not fail it on hypothesis' deadline.
+@settings(deadline=None)
 @given(st.lists(st.tuples(st.integers(-(2**62), 2**62), st.integers(0, 0x3FF),
                           st.binary(max_size=40), st.binary(max_size=300)), max_size=30))
 def test_transfers_and_clock_readings_read_back_exactly(
@@ -92,6 +94,7 @@ def test_the_file_starts_with_the_magic_and_the_version(tmp_path: Path) -> None:
     assert path.read_bytes()[:10] == MAGIC + b"\x02\x00"
 
 
+@settings(deadline=None)
 @given(st.lists(st.tuples(st.integers(0, 2**40), st.integers(1, 4096), st.binary(max_size=300),
                           st.sampled_from([4800, 9600, 115200, 921600])), max_size=20))
 def test_byte_stream_receives_and_baud_changes_read_back_exactly(
