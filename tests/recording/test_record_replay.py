@@ -231,11 +231,14 @@ GPS_BOARD = Path("profiles/seed-gps-vario.yaml")
 
 
 def test_a_gps_board_records_and_replays_from_the_command_line_to_the_same_log(
-        tmp_path: Path) -> None:
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     rec, live, replayed = tmp_path / "gps.imurec", tmp_path / "live.csv", tmp_path / "rep.csv"
     assert main(["run", str(GPS_BOARD), "--emulate", "thermal", "--duration", "3", "--quiet",
                  "--record", str(rec), "--output", str(live), "--samples"]) == 0
+    assert "ran 3.0 s" in capsys.readouterr().err
     assert main(["replay", str(rec), "--quiet", "--output", str(replayed), "--samples"]) == 0
+    # The same length: the receiver's probe (listening before the run) is not counted.
+    assert "ran 3.0 s" in capsys.readouterr().err
     text = live.read_text()
     assert ",gps,position," in text  # the receiver's fixes came through the UART
     assert replayed.read_text() == text
