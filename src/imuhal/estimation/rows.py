@@ -49,7 +49,7 @@ class AttitudeRows:
     """The attitude estimates of one chunk, as columns (one row per estimate, in time order).
 
     ``diagnostics`` holds the columns ``imuhal estimate`` writes after the attitude, named
-    and ordered as :func:`imuhal.offline.csv_output.flatten_diagnostics` names them (booleans
+    and ordered as :func:`flatten_diagnostics` names them for the CSV writer (booleans
     as 0/1, vectors as ``name_0``...); text-valued diagnostics are left out, as the CSV
     leaves them out. The gravity-compensated acceleration is not carried."""
 
