@@ -48,8 +48,10 @@ class DecoupledSettings(AhrsSettings):
     }
 
     tau_acc_s: float = Field(10.0, gt=0.0)
-    """Time constant (s) of the accelerometer low-pass in the almost-inertial frame: the
-    inclination correction's speed (VQF's published default, 3 s)."""
+    """Mean delay (s) of the accelerometer low-pass in the almost-inertial frame: the
+    inclination correction's speed. Default 10 s, for flight: turns last longer than hand
+    motion (flight benchmark `thermal` tilt RMS 0.92 against 2.58 deg at 3 s); VQF's published
+    3 s is ``preset: handheld`` (docs/estimators.md)."""
     tau_acc_rest_s: float | None = Field(3.0, gt=0.0)
     """At rest (``rest_detected``) the accelerometer filter runs with this time constant (s)
     instead: the specific force is gravity alone, what is left is gyro drift (flight default
@@ -57,10 +59,10 @@ class DecoupledSettings(AhrsSettings):
     one). None: ``tau_acc_s`` always (VQF, ``preset: handheld``)."""
     accel_soft_gate_g: float | None = Field(0.02, gt=0.0)
     """Share of each step the inclination filter advances by, 1 / (1 + (| |a| - 1 g | /
-    width)^2) (common/gate.py): a reading away from 1 g is trusted less. None (default, VQF's
-    choice): every reading in full. On BROAD (hand-held) 0.05 g made it worse (trials 05, 16,
-    32: 4.44 against 1.18 deg 9-DOF total); in flight it is needed (``preset: flight``,
-    0.02 g: `rc-flight` max 6.0 against 42.7 deg without): docs/estimators.md."""
+    width)^2) (common/gate.py): a reading away from 1 g is trusted less. Default 0.02 g:
+    in flight it is needed (`rc-flight` max 5.4 deg, 40.7 without); None (VQF's choice,
+    ``preset: handheld``): every reading in full, which hand-held motion needs (BROAD 9-DOF
+    total 2.33 deg, 6.04 with the flight defaults): docs/estimators.md."""
     tau_mag_s: float = Field(9.0, gt=0.0)
     """Heading correction time constant (s) (VQF's published default, 9 s)."""
     rest_gyro_th_deg_s: float = Field(2.0, gt=0.0)
