@@ -9,9 +9,10 @@ form. The attitude is the product of three parts, body -> NED::
 - ``q_gyro`` integrates the bias-corrected gyro (strapdown) from the aligned start into an
   almost-inertial frame I (it drifts only by the residual gyro bias);
 - the accelerometer (gravity positive, in g) is rotated into I and low-pass filtered there
-  (second order, mean delay ``tau_acc_s``; optionally slowed for readings away from 1 g,
-  ``accel_soft_gate_g``): in an inertial frame the kinematic acceleration integrates to
-  a velocity change, so over seconds it averages out and what remains is gravity. The
+  (second-order Butterworth, mean delay ``tau_acc_s``; slowed for readings away from 1 g,
+  ``accel_soft_gate_g``, and sped up at rest, ``tau_acc_rest_s``): in an inertial frame the
+  kinematic acceleration integrates to a velocity change, so over seconds it averages out
+  and what remains is gravity. The
   inclination correction ``q_inclination`` then turns the filtered vector to the vertical each
   step; all smoothing is in the filter, so a transient linear acceleration barely tilts it;
 - the heading is a separate angle ``delta`` about the NED vertical, pulled towards the
@@ -70,34 +71,13 @@ def _unit_quat(q: Quat) -> Quat:
     return (q[0] * n, q[1] * n, q[2] * n, q[3] * n)
 
 
-class SecondOrderLowPass:
-    """Two cascaded first-order low-passes of time constant tau / 2 on an n-vector: the same
-    mean delay as one stage of tau (and as VQF's Butterworth of cut-off sqrt(2) / (2 pi tau)),
-    40 dB/decade above it. Exact for any step length, so a step may be shortened per sample
-    (a step of zero holds the state). Starts at its first input."""
-
-    def __init__(self, tau_s: float) -> None:
-        self.half_tau_s = 0.5 * tau_s
-        self.state: list[float] | None = None
-
-    def step(self, x: tuple[float, ...], dt: float) -> tuple[float, ...]:
-        s = self.state
-        n = len(x)
-        if s is None:
-            s = self.state = [*x, *x]
-        k = 1.0 - math.exp(-dt / self.half_tau_s)
-        for i in range(n):
-            s[i] += k * (x[i] - s[i])
-            s[n + i] += k * (s[i] - s[n + i])
-        return tuple(s[n:])
-
-
 class ButterworthLowPass:
-    """The second-order Butterworth low-pass of cut-off sqrt(2) / (2 pi tau) (VQF's choice:
-    mean delay tau, 40 dB/decade above the cut-off, and about twice the attenuation of the
-    two cascaded stages above it at hand motion's 0.5 Hz) on an n-vector, simulated exactly
-    for any step length with the input held over the step, so a step may be shortened per
-    sample (a step of zero holds the state). Starts at rest at its first input."""
+    """The second-order Butterworth low-pass of cut-off sqrt(2) / (2 pi tau) on an n-vector
+    (VQF's choice: mean delay tau, 40 dB/decade above the cut-off, and about twice the
+    attenuation of two cascaded first-order stages of the same delay at hand motion's
+    0.5 Hz), simulated exactly for any step length with the input held over the step, so a
+    step may be shortened per sample (a step of zero holds the state). Starts at rest at its
+    first input."""
 
     def __init__(self, tau_s: float) -> None:
         # poles at sigma (-1 +- i): sigma = omega_c / sqrt(2) = 1 / tau
