@@ -12,6 +12,8 @@ from __future__ import annotations
 import inspect
 from collections.abc import Iterable
 
+import numpy as np
+
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import ImuhalError, PluginError
 from imuhal.core.frames import FloatArray
@@ -24,8 +26,8 @@ from imuhal.profile.topology import device_order, split_bus_ref
 from imuhal.sim.chip import ChipEmulator
 from imuhal.sim.emulated_bus import EmulatedBus
 from imuhal.sim.errors import SensorErrorModel
-from imuhal.sim.scenario import Scenario, TruthState
-from imuhal.sim.world import physical_inputs
+from imuhal.sim.scenario import ChipTruth, Scenario, TruthState
+from imuhal.sim.world import chip_inputs
 
 DEFAULT_PERIOD_S = 0.004
 """Sample period assumed for a device's first error-model draw (before it has been polled)."""
@@ -82,10 +84,20 @@ class EmulatedBoard:
         for spec in faults:
             self.faults.add(spec)
         self._chip_to_body = chip_to_body
+        # Per device, what the per-poll path needs: its rotation as nested lists (plain
+        # floats rotate three components faster than numpy) and whether it measures motion.
+        self._mounts = {name: np.asarray(m, dtype=float).tolist()
+                        for name, m in chip_to_body.items()}
+        self._motion = {name: type(emu).measures_motion for name, emu in self.emulators.items()}
         self._errors = error_models or {}
         self._device_t_ns: dict[str, int] = {}
         self._truth_t_ns: int | None = None
-        self.truth: TruthState | None = None
+        self._truth: TruthState | None = None
+        self._updated_ns: int | None = None
+        # The chip truth of the latest instant, full and light (computed once per instant
+        # and shared by every chip polled then).
+        self._chip_t_ns: int | None = None
+        self._chip_truths: dict[bool, ChipTruth] = {}
 
     @staticmethod
     def of(pipeline: Pipeline) -> EmulatedBoard:
@@ -109,12 +121,33 @@ class EmulatedBoard:
             )
         return provided[child]
 
+    @property
+    def truth(self) -> TruthState | None:
+        """The scenario's truth at the latest update (None before the first)."""
+        if self._updated_ns is None:
+            return None
+        return self.truth_at(self._updated_ns)
+
     def truth_at(self, t_ns: int) -> TruthState:
         """The scenario's truth at ``t_ns`` (cached for repeated calls at one time)."""
-        if t_ns != self._truth_t_ns or self.truth is None:
-            self.truth = self.scenario.truth(t_ns / 1e9)
+        if t_ns != self._truth_t_ns or self._truth is None:
+            self._truth = self.scenario.truth(t_ns / 1e9)
             self._truth_t_ns = t_ns
-        return self.truth
+        return self._truth
+
+    def _chip_truth(self, t_ns: int, motion: bool) -> ChipTruth:
+        """The chip truth at ``t_ns`` (light when ``motion`` is False), once per instant."""
+        if t_ns != self._chip_t_ns:
+            self._chip_t_ns = t_ns
+            self._chip_truths = {}
+        truth = self._chip_truths.get(motion)
+        if truth is None:
+            full = self._chip_truths.get(True)
+            # A full truth of the instant serves a light request as well (same floats).
+            truth = full if full is not None else self.scenario.chip_truth(t_ns / 1e9,
+                                                                           motion=motion)
+            self._chip_truths[motion] = truth
+        return truth
 
     def before_poll(self, t_ns: int, device: str) -> int:
         """The pipeline is about to poll ``device``, due at ``t_ns``: apply the faults due
@@ -124,13 +157,16 @@ class EmulatedBoard:
         self.update(t_ns, device)
         return t_ns
 
-    def update(self, t_ns: int, device: str | None = None) -> TruthState:
+    def update(self, t_ns: int, device: str | None = None) -> None:
         """Hand ``device`` (default: every chip) its inputs at ``t_ns``: the truth in its
         sensor frame, through its error model when the board has one for it. The error
-        model's noise bandwidth follows the time since that device's previous update."""
-        truth = self.truth_at(t_ns)
+        model's noise bandwidth follows the time since that device's previous update.
+        A chip that measures no motion (``ChipEmulator.measures_motion``) gets a light
+        truth: pressure, temperature and position only."""
+        self._updated_ns = t_ns
         for name in (self.emulators if device is None else (device,)):
-            inputs = physical_inputs(truth, self._chip_to_body[name])
+            inputs = chip_inputs(self._chip_truth(t_ns, self._motion[name]),
+                                 self._mounts[name])
             model = self._errors.get(name)
             if model is not None:
                 last = self._device_t_ns.get(name)
@@ -140,5 +176,4 @@ class EmulatedBoard:
             inputs = self.faults.physics(name, t_ns, inputs)
             self._device_t_ns[name] = t_ns
             self.emulators[name].set_physics(inputs)
-        return truth
 

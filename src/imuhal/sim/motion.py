@@ -132,6 +132,10 @@ class Motion(ABC):
     def kinematics(self, t_s: float) -> Kinematics:
         """The state at ``t_s`` (s since the start)."""
 
+    def position_ned(self, t_s: float) -> Vec3:
+        """``kinematics(t_s).position_ned_m`` alone (a subclass may compute it for less)."""
+        return self.kinematics(t_s).position_ned_m
+
 
 @dataclass(frozen=True, slots=True)
 class BodyRotation:
@@ -314,6 +318,25 @@ class FlightMotion(Motion):
                 p0[2] + h * (v0[2] * i00 + h * a0[2] * i10 + v1[2] * i01 + h * a1[2] * i11))
 
     # ------------------------------------------------------------------ public
+    def position_ned(self, t_s: float) -> Vec3:
+        """The position alone, without the attitude: the same operations as in
+        :meth:`kinematics`, so the same floats (a barometer's truth needs only this)."""
+        if t_s < 0:
+            raise ValueError(f"trajectories start at t = 0 s, got {t_s}")
+        t = float(t_s)
+        wn, we, wd = self.wind
+        pn, pe, pd = wn * t, we * t, wd * t
+        if self.north is not None:
+            pn = pn + self.north(t)[0]
+        if self.east is not None:
+            pe = pe + self.east(t)[0]
+        if self.down is not None:
+            pd = pd + self.down(t)[0]
+        if self._tabulated:
+            tp = self._tab_position(t)
+            pn, pe, pd = pn + tp[0], pe + tp[1], pd + tp[2]
+        return (pn, pe, pd)
+
     def kinematics(self, t_s: float) -> Kinematics:
         if t_s < 0:
             raise ValueError(f"trajectories start at t = 0 s, got {t_s}")

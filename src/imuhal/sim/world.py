@@ -18,7 +18,7 @@ from imuhal.sim.environment import Environment
 from imuhal.sim.inputs import NO_OTHER, PhysicalInputs
 from imuhal.sim.magnetic import MagneticDisturbance, MagneticDisturbanceSpec
 from imuhal.sim.motion import Kinematics, Motion, mat_t_vec
-from imuhal.sim.scenario import Phase, Scenario, ScenarioParams, TruthState
+from imuhal.sim.scenario import ChipTruth, Phase, Scenario, ScenarioParams, TruthState
 
 
 class WorldParams(ScenarioParams):
@@ -91,6 +91,43 @@ class MotionScenario(Scenario):
         )
 
 
+    def chip_truth(self, t_s: float, *, motion: bool = True) -> ChipTruth:
+        """:meth:`truth`'s values in plain floats, computed the same way (the same floats);
+        ``motion=False``: the position, pressure and temperature only (no attitude)."""
+        env = self.environment
+        if not motion:
+            p = self.motion.position_ned(t_s)
+            alt = -p[2]
+            return ChipTruth(float(t_s), None, None, None, env.pressure_pa(alt, t_s),
+                             env.temperature_degc(alt, t_s), p, None)
+        k = self.motion.kinematics(t_s)
+        field, _ = self.field_ned_ut(t_s)
+        alt = -k.position_ned_m[2]
+        return ChipTruth(float(t_s), k.specific_force_body_m_s2, k.angular_rate_body_rad_s,
+                         mat_t_vec(k.rotation, field), env.pressure_pa(alt, t_s),
+                         env.temperature_degc(alt, t_s), k.position_ned_m,
+                         k.velocity_ned_m_s)
+
+
+def chip_inputs(truth: ChipTruth, sensor_to_body: list[list[float]] | None) -> PhysicalInputs:
+    """:func:`physical_inputs` for a :class:`ChipTruth` (the emulated board's per-poll
+    path): vectors rotated into the chip's sensor frame with ``sensor_to_body`` as nested
+    lists (None: aligned with the body); vectors the truth leaves out stay None."""
+    f, w, b = truth.specific_force_body_m_s2, truth.angular_rate_body_rad_s, \
+        truth.magnetic_field_body_ut
+    other = truth.other
+    return PhysicalInputs(
+        specific_force_m_s2=None if f is None else _rotate(f, sensor_to_body),
+        angular_rate_rad_s=None if w is None else _rotate(w, sensor_to_body),
+        magnetic_field_ut=None if b is None else _rotate(b, sensor_to_body),
+        pressure_pa=truth.pressure_pa,
+        temperature_degc=truth.temperature_degc,
+        position_ned_m=truth.position_ned_m,
+        velocity_ned_m_s=truth.velocity_ned_m_s,
+        other=_other_to_sensor(other, sensor_to_body) if other else NO_OTHER,
+    )
+
+
 def physical_inputs(truth: TruthState, sensor_to_body: Sequence[Sequence[float]] | None = None,
                     *, accel: bool = True, gyro: bool = True, mag: bool = True,
                     pressure: bool = True, temperature: bool = True) -> PhysicalInputs:
@@ -131,6 +168,13 @@ def _to_sensor(v: np.ndarray, m: list[list[float]] | None) -> tuple[float, float
     rotation of three components costs less in Python than a numpy call (this runs for
     every chip at every poll), and gives the same floats as ``m.T @ v``."""
     x, y, z = np.asarray(v, dtype=float).tolist()
+    return _rotate((x, y, z), m)
+
+
+def _rotate(v: tuple[float, float, float], m: list[list[float]] | None
+            ) -> tuple[float, float, float]:
+    """``M^T v`` on plain floats (see :func:`_to_sensor`)."""
+    x, y, z = v
     if m is None:
         return (x, y, z)
     (a, b, c), (d, e, f), (g, h, i) = m
