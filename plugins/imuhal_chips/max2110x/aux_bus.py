@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING, TypeVar
 
 from imuhal.bus.base import Bus, BusKind
 from imuhal.bus.retry import retried
-from imuhal.core.errors import ConfigurationError
+from imuhal.core.errors import BusError, ConfigurationError, NackError
 from imuhal_chips.max2110x.registers import (
     DR_CFG_ONESHOT_MASK,
     DR_CFG_ONESHOT_READ,
@@ -57,6 +57,13 @@ ONESHOT_ATTEMPTS = 3
 """Tries of one one-shot byte before a host bus error is passed on to the slave's driver."""
 
 _R = TypeVar("_R")
+
+# Plain ints: every slave byte writes these (an IntEnum member lookup costs more than the
+# register access around it).
+_MAG_SLV_ADD = int(Reg.MAG_SLV_ADD)
+_I2C_MST_ADD = int(Reg.I2C_MST_ADD)
+_I2C_MST_DATA = int(Reg.I2C_MST_DATA)
+_DR_CFG = int(Reg.DR_CFG)
 
 
 class Max21100AuxBus(Bus):
@@ -83,14 +90,27 @@ class Max21100AuxBus(Bus):
             if write:
                 self._pointer[target] = write[0]
             pointer = self._pointer.get(target, 0)
+            # The driver's DR_CFG cannot change during the sequence (the bus lock is held).
+            base = self._base()
             for offset, value in enumerate(write[1:]):
-                self._retried(self._oneshot_write, (pointer + offset) & 0xFF, value)
+                self._retried(self._oneshot_write, (pointer + offset) & 0xFF, value, base)
             if len(write) > 1:
                 pointer = (pointer + len(write) - 1) & 0xFF
                 self._pointer[target] = pointer
             data = bytearray()
+            read = self._oneshot_read
             for offset in range(read_len):
-                data.append(self._retried(self._oneshot_read, (pointer + offset) & 0xFF))
+                register = (pointer + offset) & 0xFF
+                # retried() written out for the one step run once per slave byte read
+                for attempt in range(ONESHOT_ATTEMPTS, 0, -1):
+                    try:
+                        data.append(read(register, base))
+                        break
+                    except NackError:
+                        raise
+                    except BusError:
+                        if attempt == 1:
+                            raise
             if read_len:
                 self._pointer[target] = (pointer + read_len) & 0xFF
         return bytes(data)
@@ -101,19 +121,19 @@ class Max21100AuxBus(Bus):
         return retried(step, *args, attempts=ONESHOT_ATTEMPTS)
 
     def _select(self, target: int) -> None:
-        self.host.regs.write(Reg.MAG_SLV_ADD, target)
+        self.host.regs.write(_MAG_SLV_ADD, target)
 
-    def _oneshot_write(self, register: int, value: int) -> None:
-        regs, base = self.host.regs, self._base()
-        regs.write(Reg.I2C_MST_ADD, bytes([register, value]))  # 0x0B, 0x0C auto-increment
-        regs.write(Reg.DR_CFG, base | DR_CFG_ONESHOT_WRITE)
-        regs.write(Reg.DR_CFG, base)
+    def _oneshot_write(self, register: int, value: int, base: int) -> None:
+        regs = self.host.regs
+        regs.write(_I2C_MST_ADD, bytes([register, value]))  # 0x0B, 0x0C auto-increment
+        regs.write(_DR_CFG, base | DR_CFG_ONESHOT_WRITE)
+        regs.write(_DR_CFG, base)
         self.host.clock.sleep(ONESHOT_WAIT_S)
 
-    def _oneshot_read(self, register: int) -> int:
-        regs, base = self.host.regs, self._base()
-        regs.write(Reg.I2C_MST_ADD, register)
-        regs.write(Reg.DR_CFG, base | DR_CFG_ONESHOT_READ)
-        regs.write(Reg.DR_CFG, base)
+    def _oneshot_read(self, register: int, base: int) -> int:
+        regs = self.host.regs
+        regs.write(_I2C_MST_ADD, register)
+        regs.write(_DR_CFG, base | DR_CFG_ONESHOT_READ)
+        regs.write(_DR_CFG, base)
         self.host.clock.sleep(ONESHOT_WAIT_S)
-        return regs.read_u8(Reg.I2C_MST_DATA)
+        return regs.read(_I2C_MST_DATA, 1)[0]
