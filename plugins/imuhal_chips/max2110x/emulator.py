@@ -288,6 +288,11 @@ class Max2110xEmulator(ChipEmulator):
             raise NackError(f"{self.name}: I2C slave disabled (I2C_CFG bit 0)")
         if self.clock.now_ns() >= self._wake_ns:
             self._advance()
+        if spi and len(write) == 2 and not write[0] & READ_BIT:
+            # One register written over SPI (every configuration write, and four of these
+            # per aux master byte): the general path below, for this case alone.
+            self._write(write[0] & ADDRESS_MASK, write[1])
+            return bytes(read_len)
         if not write:
             if spi:
                 raise BusError(f"{self.name}: a transaction must start with an address byte")
