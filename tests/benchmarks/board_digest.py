@@ -95,8 +95,9 @@ def main(argv: list[str] | None = None) -> int:
                               scenario=args.scenario, every=args.every, faults=args.faults)
     what = ("without estimators" if args.bare else "with its estimators") + \
         (", faults injected" if args.faults else "")
+    by_type = ", ".join(f"{k} {v}" for k, v in sorted(counts.items()))
     print(f"seed board {what}, {args.scenario}, {args.duration:g} s: "
-          f"{sum(counts.values())} events ({', '.join(f'{k} {v}' for k, v in sorted(counts.items()))})")
+          f"{sum(counts.values())} events ({by_type})")
     print(f"sha256 {sha}")
     print(f"cpu {cpu:.2f} s = {args.duration / cpu:.1f} x real time", file=sys.stderr)
     return 0
