@@ -42,6 +42,10 @@ class RegisterView:
 
     def __init__(self, link: Link, convention: RegisterConvention | None = None) -> None:
         self.link = link
+        # The link's bus and target, so each access is one call less (every register
+        # access of every driver comes through here).
+        self._bus = link.bus
+        self._target = link.target
         if convention is None:
             convention = (
                 RegisterConvention.spi_read_bit7()
@@ -53,7 +57,7 @@ class RegisterView:
     def read(self, register: int, length: int = 1) -> bytes:
         c = self.convention
         addr = register | c.read_set | (c.burst_set if length > 1 else c.single_set)
-        return self.link.transfer(bytes([addr & 0xFF]), length)
+        return self._bus.transfer(self._target, bytes((addr & 0xFF,)), length)
 
     def read_u8(self, register: int) -> int:
         return self.read(register, 1)[0]
@@ -63,8 +67,8 @@ class RegisterView:
         if isinstance(data, int):
             # One register, the common case (configuration writes, every aux-master byte):
             # the same bytes as the general path below, built in one step.
-            self.link.transfer(bytes((((register & ~c.write_clear) | c.single_set) & 0xFF,
-                                      data)), 0)
+            self._bus.transfer(self._target, bytes((((register & ~c.write_clear)
+                                                     | c.single_set) & 0xFF, data)), 0)
             return
         payload = bytes(data)
         if c.pairwise_burst_write and len(payload) > 1:

@@ -330,7 +330,8 @@ class Pipeline:
             heapq.heappop(heap)
             self.clock.sleep_until(t_ns)
             # Estimator inputs wait until every sample of their instant is in (fusion order).
-            yield from self._fuse(before_ns=t_ns)
+            if self._fusion:
+                yield from self._fuse(before_ns=t_ns)
             t_ns = self.board.before_poll(t_ns, name)
             self._span_ns[1] = t_ns
             dev = self.devices[name]

@@ -52,7 +52,7 @@ def validity_flags(sample: Sample, full_scale: float | None, last_t_ns: int | No
     values = values_of(sample)
     if not all(map(math.isfinite, values)):
         flags |= SampleFlag.NAN
-    elif full_scale is not None and any(abs(v) > full_scale for v in values):
+    elif full_scale is not None and values and max(map(abs, values)) > full_scale:
         flags |= SampleFlag.OUT_OF_RANGE
     if last_t_ns is not None and sample.t_ns < last_t_ns:
         flags |= SampleFlag.OUT_OF_ORDER
