@@ -189,3 +189,15 @@ def test_chip_truth_gives_the_same_floats_as_truth_and_the_light_one_skips_the_a
             assert (truth.pressure_pa, truth.temperature_degc) == (full.pressure_pa,
                                                                    full.temperature_degc)
         assert light.specific_force_body_m_s2 is None and light.velocity_ned_m_s is None
+
+
+def test_chip_truth_of_a_scenario_that_overrides_truth_reads_its_truth():
+    # A plugin's scenario adds its own quantities by overriding truth(); the emulated board's
+    # per-poll chip truth must carry them too.
+    from dataclasses import replace
+
+    class Humid(StaticScenario):
+        def truth(self, t_s):
+            return replace(super().truth(t_s), other={"humidity": 40.0 + t_s})
+
+    assert Humid(seed=0).chip_truth(2.5).other == {"humidity": 42.5}

@@ -26,8 +26,9 @@ from imuhal.profile.topology import device_order, split_bus_ref
 from imuhal.sim.chip import ChipEmulator
 from imuhal.sim.emulated_bus import EmulatedBus
 from imuhal.sim.errors import SensorErrorModel
+from imuhal.sim.inputs import PhysicalInputs
 from imuhal.sim.scenario import ChipTruth, Scenario, TruthState
-from imuhal.sim.world import chip_inputs
+from imuhal.sim.world import chip_other, chip_vectors
 
 DEFAULT_PERIOD_S = 0.004
 """Sample period assumed for a device's first error-model draw (before it has been polled)."""
@@ -165,14 +166,24 @@ class EmulatedBoard:
         truth: pressure, temperature and position only."""
         self._updated_ns = t_ns
         for name in (self.emulators if device is None else (device,)):
-            inputs = chip_inputs(self._chip_truth(t_ns, self._motion[name]),
-                                 self._mounts[name])
+            truth = self._chip_truth(t_ns, self._motion[name])
+            mount = self._mounts[name]
+            force, rate, field = chip_vectors(truth, mount)
+            pressure, temperature = truth.pressure_pa, truth.temperature_degc
             model = self._errors.get(name)
             if model is not None:
                 last = self._device_t_ns.get(name)
                 period = (t_ns - last) / 1e9 if last is not None and t_ns > last \
                     else DEFAULT_PERIOD_S
-                inputs = model.apply(t_ns / 1e9, inputs, period)
+                force, rate, field, pressure, temperature = model.apply_values(
+                    t_ns / 1e9, force, rate, field, pressure, temperature, period)
+            # One inputs object per chip and poll (building one costs more than the
+            # error model's arithmetic).
+            inputs = PhysicalInputs(
+                specific_force_m_s2=force, angular_rate_rad_s=rate, magnetic_field_ut=field,
+                pressure_pa=pressure, temperature_degc=temperature,
+                position_ned_m=truth.position_ned_m, velocity_ned_m_s=truth.velocity_ned_m_s,
+                other=chip_other(truth, mount))
             inputs = self.faults.physics(name, t_ns, inputs)
             self._device_t_ns[name] = t_ns
             self.emulators[name].set_physics(inputs)
