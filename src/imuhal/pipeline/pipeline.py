@@ -16,6 +16,8 @@ from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from imuhal.bus.base import Bus, Link
 from imuhal.bus.contained import ContainedBus
 from imuhal.bus.recording.recorder import BusRecorder
@@ -76,6 +78,11 @@ class DeviceRuntime:
     full_scale: dict[Channel, float | None] = field(default_factory=dict)
     last_valid_ns: dict[Channel, int] = field(default_factory=dict)
     """Per quantity, the time of the last valid sample (samples must not go back)."""
+    chip_to_body_rows: list[list[float]] = field(default_factory=list)
+    """``chip_to_body`` as nested lists of floats (every sample is rotated with it)."""
+
+    def __post_init__(self) -> None:
+        self.chip_to_body_rows = np.asarray(self.chip_to_body, dtype=float).tolist()
 
 
 @dataclass
@@ -423,7 +430,7 @@ class Pipeline:
             return
         # Flagged samples are only rotated, not calibrated.
         sample = calibrate_to_body(sample, dev.calibration if sample.valid else None,
-                                   dev.chip_to_body)
+                                   dev.chip_to_body_rows)
         yield sample
         if sample.valid and self.estimators:
             self._fusion.append(sample)
