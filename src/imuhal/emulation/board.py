@@ -10,6 +10,7 @@ The simulation knows the truth in the body frame; each chip sees it in its own s
 from __future__ import annotations
 
 import inspect
+import threading
 from collections.abc import Iterable
 
 import numpy as np
@@ -92,13 +93,17 @@ class EmulatedBoard:
         self._motion = {name: type(emu).measures_motion for name, emu in self.emulators.items()}
         self._errors = error_models or {}
         self._device_t_ns: dict[str, int] = {}
-        self._truth_t_ns: int | None = None
-        self._truth: TruthState | None = None
+        self._truth_cache: tuple[int, TruthState] | None = None
+        """(time, truth) of the latest ``truth_at``: one attribute, replaced whole, so a
+        reader on another thread never pairs one time with another time's truth."""
         self._updated_ns: int | None = None
         # The chip truth of the latest instant, full and light (computed once per instant
         # and shared by every chip polled then).
         self._chip_t_ns: int | None = None
         self._chip_truths: dict[bool, ChipTruth] = {}
+        # ``truth`` may be read from another thread (the live view) while the run polls:
+        # scenarios fill caches as they go, so one thread at a time evaluates the scenario.
+        self._scenario_lock = threading.Lock()
 
     @staticmethod
     def of(pipeline: Pipeline) -> EmulatedBoard:
@@ -131,10 +136,13 @@ class EmulatedBoard:
 
     def truth_at(self, t_ns: int) -> TruthState:
         """The scenario's truth at ``t_ns`` (cached for repeated calls at one time)."""
-        if t_ns != self._truth_t_ns or self._truth is None:
-            self._truth = self.scenario.truth(t_ns / 1e9)
-            self._truth_t_ns = t_ns
-        return self._truth
+        cached = self._truth_cache
+        if cached is not None and cached[0] == t_ns:
+            return cached[1]
+        with self._scenario_lock:
+            truth = self.scenario.truth(t_ns / 1e9)
+        self._truth_cache = (t_ns, truth)
+        return truth
 
     def _chip_truth(self, t_ns: int, motion: bool) -> ChipTruth:
         """The chip truth at ``t_ns`` (light when ``motion`` is False), once per instant."""
@@ -145,8 +153,11 @@ class EmulatedBoard:
         if truth is None:
             full = self._chip_truths.get(True)
             # A full truth of the instant serves a light request as well (same floats).
-            truth = full if full is not None else self.scenario.chip_truth(t_ns / 1e9,
-                                                                           motion=motion)
+            if full is not None:
+                truth = full
+            else:
+                with self._scenario_lock:
+                    truth = self.scenario.chip_truth(t_ns / 1e9, motion=motion)
             self._chip_truths[motion] = truth
         return truth
 
