@@ -75,6 +75,7 @@ class Max21100AuxBus(Bus):
         super().__init__(f"{host.link.bus.name}/{host.device}/aux")
         self.host = host
         self._pointer: dict[int, int] = {}
+        self._frames: dict[int, tuple[int, bytes, bytes, bytes]] = {}
         # Share the parent's lock: a one-shot sequence is several parent transfers.
         self.lock = host.link.bus.lock
 
@@ -99,12 +100,13 @@ class Max21100AuxBus(Bus):
                 self._pointer[target] = pointer
             data = bytearray()
             read = self._oneshot_read
+            frames = self._read_frames(base) if read_len else None
             for offset in range(read_len):
                 register = (pointer + offset) & 0xFF
                 # retried() written out for the one step run once per slave byte read
                 for attempt in range(ONESHOT_ATTEMPTS, 0, -1):
                     try:
-                        data.append(read(register, base))
+                        data.append(read(register, frames))
                         break
                     except NackError:
                         raise
@@ -130,10 +132,27 @@ class Max21100AuxBus(Bus):
         regs.write(_DR_CFG, base)
         self.host.clock.sleep(ONESHOT_WAIT_S)
 
-    def _oneshot_read(self, register: int, base: int) -> int:
-        regs = self.host.regs
-        regs.write(_I2C_MST_ADD, register)
-        regs.write(_DR_CFG, base | DR_CFG_ONESHOT_READ)
-        regs.write(_DR_CFG, base)
+    def _read_frames(self, base: int) -> tuple[int, bytes, bytes, bytes]:
+        """What a one-shot read sends besides the slave register: the I2C_MST_ADD address
+        byte, the DR_CFG trigger and restore writes, the I2C_MST_DATA read (formed by the
+        host's register convention once per ``base``, not at every slave byte)."""
+        frames = self._frames.get(base)
+        if frames is None:
+            regs = self.host.regs
+            cfg = regs.write_address(_DR_CFG)
+            frames = (regs.write_address(_I2C_MST_ADD),
+                      bytes((cfg, base | DR_CFG_ONESHOT_READ)), bytes((cfg, base)),
+                      bytes((regs.read_address(_I2C_MST_DATA, 1),)))
+            self._frames[base] = frames
+        return frames
+
+    def _oneshot_read(self, register: int, frames: tuple[int, bytes, bytes, bytes]) -> int:
+        """I2C_MST_ADD <- register, DR_CFG <- base | read trigger, DR_CFG <- base, wait,
+        then read I2C_MST_DATA: the same transfers as through ``regs.write``/``regs.read``."""
+        send = self.host.regs.send
+        address, trigger, restore, read_data = frames
+        send(bytes((address, register)))
+        send(trigger)
+        send(restore)
         self.host.clock.sleep(ONESHOT_WAIT_S)
-        return regs.read(_I2C_MST_DATA, 1)[0]
+        return send(read_data, 1)[0]

@@ -59,6 +59,21 @@ class RegisterView:
         addr = register | c.read_set | (c.burst_set if length > 1 else c.single_set)
         return self._bus.transfer(self._target, bytes((addr & 0xFF,)), length)
 
+    def read_address(self, register: int, length: int = 1) -> int:
+        """The address byte a read of ``length`` bytes from ``register`` sends."""
+        c = self.convention
+        return (register | c.read_set | (c.burst_set if length > 1 else c.single_set)) & 0xFF
+
+    def write_address(self, register: int) -> int:
+        """The address byte a one-register write to ``register`` sends."""
+        c = self.convention
+        return ((register & ~c.write_clear) | c.single_set) & 0xFF
+
+    def send(self, frame: bytes, read_len: int = 0) -> bytes:
+        """One transaction of bytes prepared with :meth:`read_address` / :meth:`write_address`
+        (for a sequence repeated many times, such as an I2C master's per-byte accesses)."""
+        return self._bus.transfer(self._target, frame, read_len)
+
     def read_u8(self, register: int) -> int:
         return self.read(register, 1)[0]
 
