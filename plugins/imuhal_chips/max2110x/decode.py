@@ -69,7 +69,7 @@ def saturated(counts: Counts3) -> bool:
     The chip's words can hold up to +/-32767; what it outputs beyond the nominal range is
     not documented, so any value at or past +/-30000 is treated as possibly clipped.
     """
-    return any(abs(c) >= FULL_SCALE_COUNTS for c in counts)
+    return max(map(abs, counts)) >= FULL_SCALE_COUNTS
 
 
 class Burst(NamedTuple):
