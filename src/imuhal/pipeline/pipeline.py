@@ -449,7 +449,7 @@ class Pipeline:
             if not due:
                 return
             self._fusion = [s for s in self._fusion if s.t_ns >= before_ns]
-        for sample in fusion_order(due, self._device_rank):
+        for sample in (due if len(due) == 1 else fusion_order(due, self._device_rank)):
             yield from self._estimate(sample)
 
     @staticmethod
@@ -472,11 +472,15 @@ class Pipeline:
         return routes
 
     def _estimate(self, item: Event) -> Iterator[Event]:
+        routes_of = self._route_cache
         pending: deque[Event] = deque((item,))
         while pending:
             current = pending.popleft()
             source = current.device if isinstance(current, Sample) else current.source
-            for est in self._routes(source, type(current)):
+            routes = routes_of.get((source, type(current)))
+            if routes is None:
+                routes = self._routes(source, type(current))
+            for est in routes:
                 for out in est.estimator.process(current):
                     est.outputs += 1
                     yield out
