@@ -44,9 +44,9 @@ from imuhal.emulation import open_emulated
 from imuhal.offline.replay import (
     EndOfRecording,
     Replay,
-    ReplayBus,
     ReplayClock,
     ReplaySource,
+    replay_bus,
     replay_pipeline,
 )
 from imuhal.plugins.manager import Registry, load_registry
@@ -118,7 +118,7 @@ def decoded_replay(path: Path, registry: Registry, *, estimators: bool = True) -
     if not estimators:
         profile = profile.model_copy(update={"estimators": {}})
     source = ReplaySource(decoded)  # type: ignore[arg-type]
-    buses: dict[str, Bus] = {info.name: ReplayBus(info, source)
+    buses: dict[str, Bus] = {info.name: replay_bus(info, source)
                              for info in source.buses.values()}
     return Replay(recording, profile, source, buses, ReplayClock(source))
 
