@@ -25,6 +25,7 @@ MAX21100 slave auto-read (MAG_SLV_CFG) and on-chip fusion.
 from __future__ import annotations
 
 import math
+import struct
 from collections.abc import Sequence
 from typing import ClassVar
 
@@ -89,6 +90,8 @@ _DATA_READY = ((_GYRO, _GYRO_WORDS, int(Status.GYRO_DR)),
 """Per channel: its data registers and the data-ready bit reading them clears."""
 _DATA_FIRST = int(Reg.GYRO_X_H)
 """The data words run from here to the end of the common area (0x3F)."""
+_WORDS_BE = struct.Struct(f">{(0x40 - _DATA_FIRST) // 2}H")
+_WORDS_LE = struct.Struct(f"<{(0x40 - _DATA_FIRST) // 2}H")
 
 # The bus face runs for every SPI transaction, about 2600 per simulated second on the seed
 # board (each aux byte is five of them); an IntEnum member lookup costs as much as the rest
@@ -346,8 +349,18 @@ class Max2110xEmulator(ChipEmulator):
             low = bytes(self.banks[bank])
         data = self._data_image
         if data is None:
-            data = self._data_image = bytes(self._read(r) for r in range(_DATA_FIRST, 0x40))
+            data = self._data_image = self._data_bytes()
         return low + bytes((self.who_am_i, self.part.revision, bank & 0x0F, self.status)) + data
+
+    def _data_bytes(self) -> bytes:
+        """Registers 0x24..0x3F as ``_read`` gives them: each word in the configured byte
+        order, a word never latched reads 0 (up to the temperature word: 0 too), the FIFO
+        and unmodelled registers beyond it read 0."""
+        words, limit = self.words, self.part.temp_register + 2
+        values = [(words.get(high, 0) & 0xFFFF) if high in words or high < limit else 0
+                  for high in range(_DATA_FIRST, 0x40, 2)]
+        little = self.banks[0][_I2C_CFG] & I2C_CFG_LITTLE_ENDIAN
+        return (_WORDS_LE if little else _WORDS_BE).pack(*values)
 
     def _read(self, reg: int) -> int:
         if reg < 0x20:
