@@ -43,10 +43,10 @@ class Rig:
             clock=self.clock,
         )
         self.next_ns = 0
-        # the pressure moved just over half a 1 Pa step up or down, as the chip's own noise
-        # would (tests/support/dither.py): the tests' pressures sit on whole pascals, which a
-        # move of under half a step would never change; readings stay within P_TOL_PA
-        self.dither = Dither(self.emulator, seed=5611, amplitude=0.5 + 1e-6)
+        # the pressure moved by up to half a 1 Pa step up or down, as the chip's own noise
+        # would (tests/support/dither.py): D1 resolves about 0.02 Pa, so it takes many
+        # values and never repeats like a hung converter's; readings stay within P_TOL_PA
+        self.dither = Dither(self.emulator, seed=5611, amplitude=0.5 + 1e-6, spread=0.9)
 
     def physics(self, pressure_pa: float, temperature_degc: float) -> None:
         self.emulator.set_physics(
@@ -144,6 +144,7 @@ def test_early_polls_do_nothing() -> None:
     samples: list[Sample] = []
     for t in range(0, 200_000_000, 700_000):
         rig.clock.sleep_until(t)
+        rig.dither()  # the chip's own noise: a constant D1 word is a hung converter
         samples += rig.driver.poll(rig.clock.now_ns()).samples
     assert rig.emulator.aborted_conversions == 0
     assert len(pressures(samples)) >= 9 and all(s.valid for s in samples)
@@ -312,3 +313,34 @@ def test_a_poll_that_runs_late_waits_for_the_conversion_from_when_it_really_star
         rig.next_ns = max(result.next_poll_ns, rig.clock.now_ns())
     assert rig.emulator.aborted_conversions == 0
     assert len(pressures(samples)) > 20 and all(s.valid for s in samples)
+
+
+def test_the_slot_that_ends_a_frozen_run_is_frozen_too() -> None:
+    """Issue 9 item 3 (frozen data): the converter hangs, then recovers between a cycle's
+    temperature conversion and its pressure conversion. That pressure word is new, but the
+    temperature word is the hung converter's (15 degC against a true 25 degC), and D2 words
+    cannot show it (temperature noise is under a count): the slot is FROZEN, and the next
+    cycle converts a new temperature."""
+    rig = Rig()
+    rig.physics(95000.0, 15.0)
+    rig.begin()
+    assert all(s.valid for s in rig.run_until(200_000_000))
+    rig.emulator.frozen = True
+    frozen = rig.run_until(500_000_000)
+    assert pressures(frozen)[-1].flags & SampleFlag.FROZEN
+    # step one poll at a time until the temperature conversion of a cycle is running
+    for _ in range(1000):
+        rig.run_until(rig.next_ns)
+        if rig.emulator.running is Measurement.D2:
+            break
+    else:
+        pytest.fail("no temperature conversion started")
+    rig.emulator.frozen = False
+    rig.physics(96000.0, 25.0)
+    rig.dither = lambda: None  # type: ignore[assignment]  # exact values from here
+    after = rig.run_until(rig.clock.now_ns() + 200_000_000)
+    assert pressures(after)[0].flags & SampleFlag.FROZEN
+    assert temperatures(after)[0].flags & SampleFlag.FROZEN
+    valid = [s for s in after if s.valid]
+    assert valid and all(abs(s.temperature_degc - 25.0) <= T_TOL_DEGC
+                         for s in temperatures(valid))
