@@ -98,3 +98,23 @@ def test_the_start_up_gyro_phase_carries_over_short_events_calls(registry: Regis
         gyro = p.devices["imu"].calibration.gyro  # type: ignore[union-attr]
     assert gyro is not None and gyro.procedure == "gyro-at-startup"
     assert not [w for w in p.warnings if "start-up gyro" in w]
+
+
+def test_recovery_from_1_percent_bus_errors_is_proportionate(registry: Registry) -> None:
+    """Issue 9 (proportionate recovery): at 1 % transient bus errors every error reset the
+    MS5611 (losing its conversion in flight and a cycle) and reconfigured the MAX21100. A
+    glitch now costs at most the sample it hit: the barometer and the IMU keep at least
+    98 % of their samples, and a chip is reset only after two failures in a row."""
+    profile = load_profile(default_profile_path(), registry)
+    seconds = 20.0
+    faults = [BusErrors(device=d, rate=0.01) for d in ("imu", "baro")]
+    with open_emulated(profile, registry, seed=3, faults=faults, calibrated=False) as p:
+        samples = [e for e in p.events(seconds) if isinstance(e, Sample) and e.valid]
+        baro, imu = p.devices["baro"], p.devices["imu"]
+        assert baro.bus_errors > 20 and imu.bus_errors > 20
+        assert baro.driver.health.reconfigurations <= baro.bus_errors // 10
+        assert imu.driver.health.reconfigurations <= imu.bus_errors // 10
+    pressures = [s for s in samples if s.channel is Channel.PRESSURE]
+    gyros = [s for s in samples if s.device == "imu" and s.channel is Channel.GYRO]
+    assert len(pressures) >= 0.98 * 50 * seconds
+    assert len(gyros) >= 0.98 * 250 * seconds

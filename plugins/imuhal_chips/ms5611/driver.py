@@ -153,6 +153,9 @@ class MS5611Driver(Driver):
         self._frozen_run = False
         """The last D1 word was FROZEN: the next changed one ends the run."""
         self._just_reset = False
+        self._in_flight: Measurement | str | None = None
+        """The poll's transfer under way (a convert command or an ADC read): what
+        ``resume`` retries when it failed."""
         self._reset_state()
 
     # -- probe / configure ------------------------------------------------------------------
@@ -231,10 +234,32 @@ class MS5611Driver(Driver):
         self._just_reset = False
         self._reset_state()
 
+    def resume(self, now_ns: int) -> int | None:
+        """One transfer of a poll failed; carry on without a reset (which would lose the
+        conversion in flight and cost a 2.8 ms PROM reload and a whole cycle):
+
+        - an ADC read: read again at once. If the failed read reached the chip, the result
+          is gone and the retry reads 0, a STALE slot, never a wrong value;
+        - a convert command: it may have started the conversion, and a second convert
+          while one runs gives a wrong result, so wait that conversion's maximum time and
+          start it again (a result left unread is simply overwritten).
+
+        Anything else that failed (a reset while restarting a stuck chip): full recovery.
+        """
+        in_flight, self._in_flight = self._in_flight, None
+        if self.coefficients is None or in_flight is None:
+            return None
+        if in_flight == "adc_read":
+            return now_ns
+        wait_ns = self._t_d1_ns if in_flight is Measurement.D1 else self._t_d2_ns
+        self._state = _State.IDLE  # the conversion starts again at the next poll
+        return max(now_ns, self.clock.now_ns()) + wait_ns
+
     # -- conversion state machine -----------------------------------------------------------
 
     def _reset_state(self) -> None:
         self._state = _State.IDLE
+        self._in_flight = None
         self._need_temperature = True
         self._since_temperature = 0
         self._fresh_temperature = False
@@ -258,14 +283,18 @@ class MS5611Driver(Driver):
     def _read_adc(self) -> tuple[int, SampleFlag]:
         """The 24-bit ADC result and why it is no measurement (OK when it is one): 0 means
         no conversion completed (STALE), all ones that nothing drove the bus (BLANK)."""
+        self._in_flight = "adc_read"
         raw = self.link.transfer(bytes([ADC_READ]), ADC_READ_LEN)
+        self._in_flight = None
         value = int.from_bytes(raw, "big")
         return value, (SampleFlag.STALE if value == 0 else blank_flag(raw))
 
     def _start_conversion(self, measurement: Measurement, now_ns: int) -> int:
         osr = (self.settings.pressure_oversampling if measurement is Measurement.D1
                else self.settings.temperature_oversampling)
+        self._in_flight = measurement
         self._command(convert_command(measurement, osr))
+        self._in_flight = None
         # The conversion starts when the command reaches the chip, which may be later than
         # the poll's nominal time (other devices' transfers ran first): wait from then, or
         # the ADC read lands inside the conversion and aborts it.

@@ -150,6 +150,19 @@ class Driver(ABC):
         self.health.reconfigurations += 1
         return self.start(self.clock.now_ns())
 
+    def resume(self, now_ns: int) -> int | None:
+        """Continue after one transfer of ``poll()`` failed, without resetting the chip:
+        return the next poll time, or None when only the full ``recover()`` will do.
+
+        The pipeline calls it after a bus error that followed a good poll (a glitch, most
+        likely), and calls ``recover()`` instead when the resumed driver fails again before
+        a poll completes. A driver resumes only when it can tell its chip kept its state (a
+        configuration that still reads back, a conversion whose result can be read again)
+        and never so that a wrong value could come out valid; a transfer that fails here
+        raises BusError (the pipeline then recovers). The default: None (always recover).
+        """
+        return None
+
     def recover(self, now_ns: int) -> int:
         """Bring the chip back after a failed poll; returns the next poll time.
 
