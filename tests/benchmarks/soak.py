@@ -307,11 +307,11 @@ class Checker:
             self.report.out_of_order[key] += 1
         self.last[(s.device, s.channel)] = s.t_ns
         error, tolerance = self._error(s, values)
+        if error > tolerance and self._wrong_by_design(s, values):
+            return
         self.report.checked[key] += 1
         ratio = error / tolerance if tolerance > 0 else math.inf
         self.report.worst[key] = max(self.report.worst.get(key, 0.0), ratio)
-        if error > tolerance and self._wrong_by_design(s, values):
-            return
         if error > tolerance:
             self.report.wrong_valid[key] += 1
             t_s = s.t_ns / 1e9

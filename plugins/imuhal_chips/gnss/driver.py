@@ -221,13 +221,16 @@ class GnssDriver(Driver):
                 f"about {need:.0f} bytes/s, but {self.baudrate} baud carries {line:.0f}; "
                 "lower rate_hz, enable fewer messages, or set the receiver to a faster baud "
                 "rate")
-        # Off first, then on, then the rate: every state on the way (and the half-configured
-        # state a failed attempt leaves for bring_up's retry) carries no more than the
-        # factory output or the wanted one, both within the line budget. Raising the rate
-        # first meant 5 Hz of NAV-PVT plus the factory NMEA: 2000 bytes/s on a 960 bytes/s
-        # line, a backlog that grew without bound and held every later ACK back for seconds.
+        # On first, then off, then the rate: every state on the way (and the half-configured
+        # state a failed attempt leaves for bring_up's retry) carries at most the factory
+        # output plus the wanted one at the factory 1 Hz (under 600 bytes/s, within even
+        # 9600 baud), and is never silent, so a retry's probe still hears the receiver
+        # (turning the factory messages off first left a receiver that said nothing after
+        # a CFG write failed there: "nothing received", once in 40 start-ups at 1 % line
+        # noise). Raising the rate first meant 5 Hz of NAV-PVT plus the factory NMEA: 2000
+        # bytes/s on a 960 bytes/s line, a backlog that held every later ACK back.
         messages = {"NAV-PVT": UBX_NAV_PVT, **NMEA_IDS}
-        for enable in (False, True):
+        for enable in (True, False):
             for name, (cls, mid) in messages.items():
                 if (name in wanted) == enable:
                     self._send_checked(cfg_msg(cls, mid, int(enable)), CFG_MSG,
