@@ -26,7 +26,7 @@ from pydantic import Field
 
 from imuhal.bus.base import BusKind, Link
 from imuhal.core.clock import Clock
-from imuhal.core.errors import ConfigurationError, DeviceNotFoundError
+from imuhal.core.errors import BusError, ConfigurationError, DeviceNotFoundError
 from imuhal.core.samples import (
     Channel,
     FixType,
@@ -138,6 +138,10 @@ class GnssDriver(Driver):
             if set_baud is not None:
                 set_baud(baud)
             found, what = self._listen(s.probe_window_s)
+            if not found and what.endswith("with bad checksums)"):
+                # The receiver speaks at this speed but the line garbled what came in the
+                # window (noise): listen once more before calling it missing.
+                found, what = self._listen(s.probe_window_s)
             if found:
                 # A u-blox receiver heard speaking NMEA is switched to UBX by configure().
                 self.protocol = found if s.protocol == "auto" else s.protocol
@@ -249,8 +253,14 @@ class GnssDriver(Driver):
     def _await_ack(self, frame: bytes, ident: tuple[int, int], what: str, *,
                    last: bool) -> bool:
         """One send of ``frame`` and the wait for its ACK: True when it came, False when it
-        did not within 1 s (raises instead when ``last``)."""
-        self.link.transfer(frame, 0)
+        did not within 1 s (raises instead when ``last``). A write the port reports failed
+        counts as a send whose ACK did not come: CFG messages are idempotent."""
+        try:
+            self.link.transfer(frame, 0)
+        except BusError:
+            if last:
+                raise
+            return False
         end = self.clock.now_ns() + ACK_TIMEOUT_NS
         step = ACK_POLL_NS
         splitter = self._splitter
