@@ -17,6 +17,7 @@ from pydantic import BaseModel, ConfigDict, model_validator
 
 from imuhal.bus.base import Bus, BusKind, Link
 from imuhal.core.clock import Clock
+from imuhal.core.errors import ImuhalDeprecationWarning
 from imuhal.core.samples import Channel, Sample
 from imuhal.drivers.settings import literal_choices
 
@@ -44,7 +45,7 @@ class DriverSettings(BaseModel):
                     f"{old!r} is the old name of {new!r}; give only {new!r}")
             warnings.warn(
                 f"driver setting {old!r} is deprecated: rename it to {new!r}",
-                DeprecationWarning, stacklevel=2)
+                ImuhalDeprecationWarning, stacklevel=2)
             data[new] = data.pop(old)
         return data
 
