@@ -21,7 +21,7 @@ from imuhal.calibration.procedure import Procedure
 from imuhal.calibration.progress import ProgressCallback, ProgressKind
 from imuhal.calibration.stillness import DEG, Spread, StillnessLimits
 from imuhal.core.frames import FloatArray
-from imuhal.core.samples import AccelSample, GyroSample, Sample
+from imuhal.core.samples import AccelSample, GyroSample, Sample, SampleFlag
 
 PROCEDURE = "gyro-at-rest"
 GyroOffsetSettings = GyroStartupSettings
@@ -58,6 +58,10 @@ class GyroOffsetResult:
         off = tuple(float(x) for x in self.offset_rad_s)
         return base.model_copy(update={"offset_rad_s": off, "procedure": PROCEDURE,
                                        "date": date, "quality": self.quality, "binding": None})
+
+
+NOT_A_MEASUREMENT = SampleFlag.STALE | SampleFlag.BLANK | SampleFlag.FROZEN
+"""Flags of a sample that is no measurement at all (the driver says so)."""
 
 
 class GyroOffsetProcedure(Procedure[GyroOffsetResult]):
@@ -103,6 +107,25 @@ class GyroOffsetProcedure(Procedure[GyroOffsetResult]):
                 return self._evaluate(sample.t_ns)
         return False
 
+    def _flagged(self, sample: Sample) -> None:
+        """A sample the driver says is no measurement (FROZEN, STALE, BLANK) taints the
+        window: a frozen run is flagged only from its Nth repeat, so the samples before it
+        may be the hung chip's too, and would pass as a perfectly still board (or, joined
+        to live ones, as one that moved). Start the window again after the retry wait; it
+        counts as an attempt, so a chip that stays frozen ends the procedure."""
+        if not sample.flags & NOT_A_MEASUREMENT:
+            return
+        if self._resume_ns is not None:
+            if sample.t_ns < self._resume_ns:
+                return  # still waiting after the last attempt
+            self._resume_ns = None
+        reason = " ".join(f.name for f in SampleFlag
+                          if f and f in sample.flags & NOT_A_MEASUREMENT)
+        self._gyro, self._accel = [], []
+        self.attempts += 1
+        self._retry(sample.t_ns, [f"the {sample.channel.value} data are not measurements "
+                                  f"(flagged {reason}: the chip is not converting)"])
+
     def _evaluate(self, t_ns: int) -> bool:
         s = self.settings
         self.attempts += 1
@@ -121,13 +144,19 @@ class GyroOffsetProcedure(Procedure[GyroOffsetResult]):
                                             gyro.count, self.attempts)
             self.say(ProgressKind.STEP_DONE, "gyro offsets measured")
             return True
+        self._retry(t_ns, problems)
+        return False
+
+    def _retry(self, t_ns: int, problems: list[str]) -> None:
+        """A failed attempt (counted): give up after ``max_attempts``, else wait and measure
+        again."""
+        s = self.settings
         self.failures.append("; ".join(problems))
         if self.attempts >= s.max_attempts:
             self._fail()
         self.say(ProgressKind.RETRY, f"attempt {self.attempts}: {'; '.join(problems)}; keep the "
                  f"board still, retrying in {s.retry_wait_s:g} s")
         self._resume_ns = t_ns + round(s.retry_wait_s * 1e9)
-        return False
 
     def _fail(self) -> None:
         s = self.settings
