@@ -339,7 +339,7 @@ def test_output_the_line_cannot_carry_is_dropped_by_the_receiver_not_queued_for_
     bound, holding every later message (and ACK) back by minutes."""
     from imuhal_chips.gnss.emulator import TX_BUFFER_BYTES
 
-    clock, emulator, driver = rig()
+    clock, emulator, _ = rig()
     emulator.rate_hz, emulator.nav_pvt = 10.0, True
     backlog = []
     for k in range(1, 601):  # a host reading every 0.1 s for 60 s
