@@ -62,23 +62,6 @@ def test_a_board_that_never_stays_still_keeps_the_stored_offsets(chips: Registry
     assert any("start-up gyro offsets not measured" in w for w in p.warnings)
 
 
-def test_a_frozen_gyro_at_start_up_is_reported_as_frozen_and_the_run_goes_on(
-        chips: Registry) -> None:
-    """A chip whose conversions hang from power-up: its first repeats pass as valid (a
-    frozen run is flagged only from its Nth repeat) and looked like a perfectly still board,
-    or, joined to live samples, like one that moved. The measurement restarts at each flagged
-    sample and, the chip staying frozen, gives up saying so; the run then goes on."""
-    from imuhal.emulation.faults import FrozenData
-
-    with open_emulated(_profile(chips), chips, scenario="static", error_specs={"imu": SPEC},
-                       faults=[FrozenData(device="imu", start_s=0.0)]) as p:
-        list(p.events(3.0))
-        stored = p.devices["imu"].calibration.gyro  # type: ignore[union-attr]
-    assert stored is not None and stored.offset_rad_s == (0.1, 0.1, 0.1)
-    warning = next(w for w in p.warnings if "start-up gyro offsets not measured" in w)
-    assert "FROZEN" in warning and "moved" not in warning
-
-
 def test_a_gyro_frozen_for_a_moment_at_start_up_is_measured_from_live_data(
         chips: Registry) -> None:
     from imuhal.emulation.faults import FrozenData

@@ -84,6 +84,8 @@ class GyroOffsetProcedure(Procedure[GyroOffsetResult]):
         self._result: GyroOffsetResult | None = None
         self._started = False
         self._only_large = False
+        self._not_measured: dict[str, int] = {}
+        """Flagged samples (no measurement) in the current window, by flag."""
 
     def _take(self, sample: Sample) -> bool:
         if not self._started:
@@ -108,23 +110,21 @@ class GyroOffsetProcedure(Procedure[GyroOffsetResult]):
         return False
 
     def _flagged(self, sample: Sample) -> None:
-        """A sample the driver says is no measurement (FROZEN, STALE, BLANK) taints the
-        window: a frozen run is flagged only from its Nth repeat, so the samples before it
-        may be the hung chip's too, and would pass as a perfectly still board (or, joined
-        to live ones, as one that moved). Start the window again after the retry wait; it
-        counts as an attempt, so a chip that stays frozen ends the procedure."""
-        if not sample.flags & NOT_A_MEASUREMENT:
+        """A sample the driver says is no measurement (FROZEN, STALE, BLANK) is counted for
+        the window's verdict: a frozen run is flagged only from its Nth repeat, so the
+        repeats before it came in valid and, joined to live samples, looked like a board
+        that moved. A failed window then says its data were not all measurements."""
+        flags = sample.flags & NOT_A_MEASUREMENT
+        if not flags or (self._resume_ns is not None and sample.t_ns < self._resume_ns):
             return
-        if self._resume_ns is not None:
-            if sample.t_ns < self._resume_ns:
-                return  # still waiting after the last attempt
-            self._resume_ns = None
-        reason = " ".join(f.name for f in SampleFlag
-                          if f and f in sample.flags & NOT_A_MEASUREMENT)
-        self._gyro, self._accel = [], []
-        self.attempts += 1
-        self._retry(sample.t_ns, [f"the {sample.channel.value} data are not measurements "
-                                  f"(flagged {reason}: the chip is not converting)"])
+        for flag in SampleFlag:
+            if flag and flag in flags:
+                self._not_measured[flag.name] = self._not_measured.get(flag.name, 0) + 1
+
+    def _not_measured_text(self) -> str:
+        counts = ", ".join(f"{n} {name}" for name, n in sorted(self._not_measured.items()))
+        self._not_measured = {}
+        return f"samples flagged as no measurement ({counts}): the chip may be hung"
 
     def _evaluate(self, t_ns: int) -> bool:
         s = self.settings
@@ -137,6 +137,10 @@ class GyroOffsetProcedure(Procedure[GyroOffsetResult]):
                  for i in range(3) if abs(gyro.mean[i]) > s.max_offset_dps * DEG]
         self._only_large = bool(large) and not problems
         problems += large
+        if self._not_measured:
+            text = self._not_measured_text()
+            if problems:  # the spread may be a hung chip's repeats joined to live samples
+                problems.insert(0, text)
         self._gyro, self._accel = [], []
         if not problems:
             self._result = GyroOffsetResult(gyro.mean, gyro.std,
