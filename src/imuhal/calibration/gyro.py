@@ -62,6 +62,10 @@ class GyroOffsetResult:
 
 NOT_A_MEASUREMENT = SampleFlag.STALE | SampleFlag.BLANK | SampleFlag.FROZEN
 """Flags of a sample that is no measurement at all (the driver says so)."""
+NO_MEASUREMENT_GIVE_UP_NS = 30_000_000_000
+"""A chip that has sent nothing but samples flagged as no measurement (FROZEN, STALE, BLANK)
+for 30 s ends the procedure: a hung gyro would otherwise hold it, and a start-up phase with
+the whole run's output, for ever. Far longer than the attempts of a working chip take."""
 
 
 class GyroOffsetProcedure(Procedure[GyroOffsetResult]):
@@ -86,8 +90,11 @@ class GyroOffsetProcedure(Procedure[GyroOffsetResult]):
         self._only_large = False
         self._not_measured: dict[str, int] = {}
         """Flagged samples (no measurement) in the current window, by flag."""
+        self._only_flagged_since_ns: int | None = None
+        """Since when the device has sent only flagged samples (None: a valid one came)."""
 
     def _take(self, sample: Sample) -> bool:
+        self._only_flagged_since_ns = None  # a measurement came
         if not self._started:
             self._started = True
             self.say(ProgressKind.INSTRUCTION,
@@ -120,6 +127,13 @@ class GyroOffsetProcedure(Procedure[GyroOffsetResult]):
         for flag in SampleFlag:
             if flag and flag in flags:
                 self._not_measured[flag.name] = self._not_measured.get(flag.name, 0) + 1
+        if self._only_flagged_since_ns is None:
+            self._only_flagged_since_ns = sample.t_ns
+        elif sample.t_ns - self._only_flagged_since_ns >= NO_MEASUREMENT_GIVE_UP_NS:
+            self.failures.append(
+                f"for {NO_MEASUREMENT_GIVE_UP_NS / 1e9:g} s only "
+                f"{self._not_measured_text()}")
+            self._fail()
 
     def _not_measured_text(self) -> str:
         counts = ", ".join(f"{n} {name}" for name, n in sorted(self._not_measured.items()))
@@ -165,9 +179,13 @@ class GyroOffsetProcedure(Procedure[GyroOffsetResult]):
     def _fail(self) -> None:
         s = self.settings
         last = self.failures[-1] if self.failures else "no gyro samples arrived"
-        advice = ("if the board really was still, this chip's offset is larger than "
-                  f"{s.max_offset_dps:g} deg/s: raise max_offset_dps" if self._only_large else
-                  "put the board on a steady table, do not touch it, and run again")
+        if self._only_large:
+            advice = ("if the board really was still, this chip's offset is larger than "
+                      f"{s.max_offset_dps:g} deg/s: raise max_offset_dps")
+        elif self._only_flagged_since_ns is not None:
+            advice = "the chip sends no measurements: check its power and wiring, restart it"
+        else:
+            advice = "put the board on a steady table, do not touch it, and run again"
         raise CalibrationError(
             f"gyro offsets not measured after {self.attempts} attempt(s): {last}", advice,
             {"attempts": float(self.attempts)})
