@@ -1,4 +1,4 @@
-"""The Freescale filters' innovation gate (defaults; build 422 has none).
+"""The Freescale filters' innovation gate (defaults; build 422 has none), and what they publish.
 
 An acceleration across gravity that nothing reported neither tilts the attitude nor
 corrupts the gyro offset estimate: a level board at rest at 250 Hz, then 0.15 g forward for
@@ -9,6 +9,10 @@ as a pitch and drives its gyro offset estimate to explain it.
 And the gate does not hold on to a wrong attitude: after a gyro glitch (30 deg/s for 1 s
 that did not happen), the gate stays closed for ``accel_gate_reacquire_s`` and then lets the
 accelerometer bring the tilt back.
+
+Last, the acceleration the filter publishes (gravity-compensated, for the vario) comes from
+the measured specific force, not from the turn-compensated one the gate and the tilt
+correction see.
 """
 
 from __future__ import annotations
@@ -96,3 +100,26 @@ def test_after_a_30_deg_gyro_glitch_the_tilt_is_back_within_2_deg_in_10_s() -> N
 
 def test_without_reacquiring_the_gate_would_hold_the_wrong_attitude() -> None:
     assert _tilt_10_s_after_a_glitch({"accel_gate_reacquire_s": 1000.0}) > 5.0
+
+
+def test_the_published_vertical_acceleration_ignores_the_turn_compensation() -> None:
+    """A board pitching slowly on the spot with a nominal airspeed configured: the
+    compensation subtracts q * V = 0.5 m/s^2 along body z from what the tilt correction sees,
+    but that is the filter's guess; the gravity-compensated acceleration it publishes (what
+    vario-kf3 integrates) comes from the measured specific force and stays near zero."""
+    rate = 0.05  # rad/s about body y
+    out = []
+    est = Freescale6DofEstimator({"sensor_rate_hz": RATE_HZ, "nominal_airspeed_m_s": 10.0})
+    for i in range(int(4 * RATE_HZ)):
+        t_ns = round(i * 1e9 / RATE_HZ)
+        pitch = rate * i / RATE_HZ
+        # level-start pitch-up by `pitch`: gravity in body axes is (sin, 0, cos) * g down
+        force = (G * math.sin(pitch), 0.0, -G * math.cos(pitch))
+        out += est.process(AccelSample(t_ns=t_ns, device="imu", frame=Frame.BODY_NED,
+                                       accel_m_s2=force))
+        out += est.process(GyroSample(t_ns=t_ns, device="imu", frame=Frame.BODY_NED,
+                                      gyro_rad_s=(0.0, rate, 0.0)))
+    vertical = [abs(e.linear_accel_ned_m_s2[2]) for e in out
+                if isinstance(e, AttitudeEstimate) and e.linear_accel_ned_m_s2 is not None]
+    assert len(vertical) > 100
+    assert max(vertical) < 0.1
