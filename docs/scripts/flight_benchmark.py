@@ -257,6 +257,8 @@ class Results:
     attitude: list[list[str]] = field(default_factory=list)
     vario: list[list[str]] = field(default_factory=list)
     targets: list[list[str]] = field(default_factory=list)
+    per_ahrs: dict[str, dict[str, float]] = field(default_factory=dict)
+    """AHRS name -> target key (of TARGETS) -> measured figure."""
 
 
 def make(registry: Registry, name: str, settings: dict[str, Any]) -> Estimator:
@@ -334,6 +336,11 @@ def measure(duration_s: float, say: Callable[[str], None]) -> Results:
         nominal = figures["nominal airspeed 10 m/s"][0]
         velocity = figures["GNSS velocity"][0]
         defaults = figures["defaults"]
+        res.per_ahrs[name] = {
+            "thermal_nominal_deg": nominal.rms_deg, "thermal_velocity_deg": velocity.rms_deg,
+            "climb_thermal_m_s": vf.thermal_m_s, "climb_rest_m_s": vf.rest_m_s,
+            "step_delay_s": vf.step_delay_s, "upside_down_s": defaults[2],
+            "rc_max_deg": defaults[1].max_deg}
         res.targets.append([
             name,
             f"{_mark(nominal.rms_deg, tg['thermal_nominal_deg'])} / {_f(nominal.max_deg)}",
@@ -356,6 +363,50 @@ def measure(duration_s: float, say: Callable[[str], None]) -> Results:
     return res
 
 
+STATUS_ROWS: tuple[tuple[str, str, str, bool], ...] = (
+    ("thermal_nominal_deg", "`thermal` tilt RMS, nominal airspeed only", "deg", False),
+    ("thermal_velocity_deg", "`thermal` tilt RMS, GNSS velocity", "deg", False),
+    ("climb_thermal_m_s", "`thermal` climb-rate RMS", "m/s", True),
+    ("climb_rest_m_s", "at rest: climb RMS", "m/s", True),
+    ("step_delay_s", "at rest: 90 % of a 2 m/s step, delay", "s", True),
+    ("upside_down_s", "upside down at rest to within 1 deg", "s", False),
+    ("rc_max_deg", "`rc-flight` tilt max, default settings", "deg", False),
+)
+"""Issue 10's target lines: key, label, unit, and whether the target is the seed profile's
+chain (vario-kf3 behind its madgwick) rather than every AHRS."""
+SEED_AHRS = "madgwick"
+
+
+def target_status(res: Results) -> list[list[str]]:
+    """One row per target line of issue 10: the bound, the figure(s), met or the gaps."""
+    rows = []
+    for key, label, unit, seed_chain in STATUS_ROWS:
+        bound = TARGETS[key]
+        op = "<" if key == "rc_max_deg" else "<="
+        digits = 3 if unit == "m/s" else 2
+        figures = {n: f[key] for n, f in res.per_ahrs.items()}
+        if seed_chain:
+            value = figures[SEED_AHRS]
+            others = [f"{n} {_f(v, digits)}" for n, v in figures.items()
+                      if v > bound and n != SEED_AHRS]
+            status = "met" if value <= bound else f"**gap** {_f(value - bound, digits)}"
+            if others:
+                status += "; over it behind other AHRS: " + ", ".join(others)
+            rows.append([label, f"{op} {bound:g} {unit}",
+                         f"{_f(value, digits)} (seed profile: vario-kf3 behind madgwick)",
+                         status])
+            continue
+        worst = max(figures, key=lambda n: figures[n])
+        missed = [f"{n} {_f(v, digits)} (+{_f(v - bound, digits)})"
+                  for n, v in figures.items() if v > bound]
+        status = ("met by every AHRS" if not missed else
+                  f"met by {len(figures) - len(missed)} of {len(figures)}; **gap**: "
+                  + ", ".join(missed))
+        rows.append([label, f"{op} {bound:g} {unit}",
+                     f"worst {_f(figures[worst], digits)} ({worst})", status])
+    return rows
+
+
 def report(res: Results, duration_s: float) -> str:
     att_head = ["estimator", "setting", "thermal tilt RMS", "thermal tilt max",
                 "rc-flight tilt RMS", "rc-flight tilt max", "upside down to 1 deg (s)"]
@@ -371,6 +422,14 @@ def report(res: Results, duration_s: float) -> str:
         f"{SEED}; calibrated seed board; errors over t >= {SETTLE_S:g} s; `thermal` "
         f"{duration_s:g} s, `rc-flight` {min(duration_s, 60.0):g} s). Degrees unless stated; "
         "a missed target shows its gap in bold.",
+        "",
+        "**Issue 10's targets and where they stand** (every AHRS installed; the vario "
+        "targets are the seed profile's chain, and the per-AHRS table below gives vario-kf3 "
+        "behind every AHRS):",
+        "",
+        _row(["target (issue 10)", "bound", "measured", "status"]),
+        _row(["---", "---", "---", "---"]),
+        *(_row(r) for r in target_status(res)),
         "",
         "**Issue 10's targets, per AHRS** (its defaults plus what the column names; the "
         "vario columns are vario-kf3 with its defaults behind this AHRS with the nominal "
