@@ -199,6 +199,7 @@ class FreescaleKalman:
         noise_factor = self._accel_noise_factor(accel)
         noise_factor *= self._innovation_noise_factor(c, noise_factor, g_err)
         k = self._gain(c, noise_factor)
+        mag_steers = self._mag_may_steer(noise_factor)
 
         # a posteriori error vector; d always sees both measurements
         xe = k[:, :3] @ g_err
@@ -207,7 +208,7 @@ class FreescaleKalman:
             xe[D] += k[D, 3:] @ m_err
             field = self._field()
             jamming = bool(xe[D] @ xe[D] > 4.0 * field * field)
-            if not jamming:
+            if not jamming and mag_steers:
                 xe[:9] += k[:9, 3:] @ m_err
 
         # apply the corrections
@@ -302,6 +303,20 @@ class FreescaleKalman:
         if self.gate_closed_s > self.s.accel_gate_reacquire_s:
             return 1.0
         return ratio2 * ratio2
+
+    def _mag_may_steer(self, accel_noise_factor: float) -> bool:
+        """Whether the magnetometer may correct orientation and gyro offset this step: not
+        while the gates distrust the accelerometer by more than ``mag_max_accel_distrust``
+        (9DOF; always without the setting, as in build 422).
+
+        With the accelerometer gated the magnetometer alone would steer the tilt, and the
+        offset, through its two axes: any hard-iron residual or nearby magnet then turns
+        the attitude (uncalibrated seed board, `rc-flight`: 68 deg tilt RMS; BROAD fast
+        rotation, trial 07: 99 deg total). The gyro carries those moments instead."""
+        if not self.use_mag:
+            return False
+        limit = self._s9().mag_max_accel_distrust
+        return limit is None or accel_noise_factor <= limit
 
     def _gain(self, c: FloatArray, accel_noise_factor: float = 1.0) -> FloatArray:
         """K = Qw C^T S^-1 with S = C Qw C^T + Qv (Qw stands in for the a priori P)."""
