@@ -27,8 +27,21 @@ def test_help_lists_the_commands(capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit):
         main(["--help"])
     out = capsys.readouterr().out
-    for command in ("run", "replay", "estimate", "plot", "calibrate", "plugins", "profile"):
+    for command in ("run", "replay", "estimate", "evaluate", "plot", "calibrate",
+                    "check-mounts", "plugins", "profile"):
         assert re.search(rf"^\s+{command}\s", out, flags=re.M), command
+    assert "JSON Schema" in out  # `imuhal profile schema` is named where `profile` is
+
+
+@pytest.mark.parametrize(("command", "option"), [
+    (["run"], "--record FILE"), (["run"], "--trace FILE.txt"),
+    (["evaluate"], "--plot FIGURE.png"), (["plot"], "--truth TRUTH.csv"),
+    (["profile", "schema"], "--driver NAME")])
+def test_the_help_of_each_tool_names_its_options(
+        capsys: pytest.CaptureFixture[str], command: list[str], option: str) -> None:
+    with pytest.raises(SystemExit):
+        main([*command, "--help"])
+    assert option in capsys.readouterr().out
 
 
 def test_plugins_lists_drivers_and_estimators_with_their_package(

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from hypothesis import given
+import pytest
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from imuhal.bus.recording.format import (
@@ -13,7 +14,9 @@ from imuhal.bus.recording.format import (
     BusInfo,
     ClockReading,
     EndMark,
+    LatePoll,
     RecordedTransfer,
+    RecordingError,
     RecordingWriter,
     open_recording,
 )
@@ -23,6 +26,8 @@ def _writer(path: Path, interval_s: float = 3600.0) -> RecordingWriter:
     return RecordingWriter(path, {"what": "test"}, flush_interval_s=interval_s)
 
 
+# Each example writes and fsyncs a file: a loaded disk must not fail it on hypothesis' deadline.
+@settings(deadline=None)
 @given(st.lists(st.tuples(st.integers(-(2**62), 2**62), st.integers(0, 0x3FF),
                           st.binary(max_size=40), st.binary(max_size=300)), max_size=30))
 def test_transfers_and_clock_readings_read_back_exactly(
@@ -86,4 +91,53 @@ def test_a_damaged_chunk_ends_the_readable_part_and_says_where(tmp_path: Path) -
 def test_the_file_starts_with_the_magic_and_the_version(tmp_path: Path) -> None:
     path = tmp_path / "r.imurec"
     _writer(path).close()
-    assert path.read_bytes()[:10] == MAGIC + b"\x01\x00"
+    assert path.read_bytes()[:10] == MAGIC + b"\x02\x00"
+
+
+@settings(deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 2**40), st.integers(1, 4096), st.binary(max_size=300),
+                          st.sampled_from([4800, 9600, 115200, 921600])), max_size=20))
+def test_byte_stream_receives_and_baud_changes_read_back_exactly(
+        tmp_path_factory: object, items: list[tuple[int, int, bytes, int]]) -> None:
+    path = tmp_path_factory.mktemp("rec") / "r.imurec"  # type: ignore[attr-defined]
+    w = _writer(path)
+    w.bus(BusInfo(0, "uart", "serial:///dev/ttyS0", "serial"))
+    for t, max_len, data, baud in items:
+        w.baudrate(t, 0, baud)
+        w.received(t + 1, 0, 0, max_len, data)
+        w.late_poll(t + 2, "gps")
+    w.stream_failed(3, 0, "receive", 0, 64, "BusError", "serial read failed: EIO")
+    w.stream_failed(4, 0, "baud", 0, 57600, "BusError", "cannot set 57600 baud")
+    w.close()
+    got = list(open_recording(path).records())[1:]
+    want: list[object] = []
+    for i, (t, max_len, data, baud) in enumerate(items):
+        want += [RecordedTransfer(2 * i, t, 0, 0, b"", b"", 0, op="baud", baudrate=baud),
+                 RecordedTransfer(2 * i + 1, t + 1, 0, 0, b"", data, max_len, op="receive"),
+                 LatePoll(t + 2, "gps")]
+    n = 2 * len(items)
+    want += [RecordedTransfer(n, 3, 0, 0, b"", b"", 64, "BusError", "serial read failed: EIO",
+                              op="receive"),
+             RecordedTransfer(n + 1, 4, 0, 0, b"", b"", 0, "BusError", "cannot set 57600 baud",
+                              op="baud", baudrate=57600)]
+    assert got == want
+
+
+def test_a_version_1_recording_still_reads(tmp_path: Path) -> None:
+    # Written by imuhal before byte streams were recorded (gy91, static, 1.5 s).
+    rec = open_recording(Path("tests/data/recording/gy91-static-1.5s-v1.imurec"))
+    records = list(rec.records())
+    assert rec.version == 1 and rec.damage == ""
+    assert sum(isinstance(r, RecordedTransfer) for r in records) == 564
+    assert rec.end is not None and rec.end.how == "complete"
+
+
+def test_a_recording_of_a_newer_format_is_refused_in_one_line(tmp_path: Path) -> None:
+    path = tmp_path / "r.imurec"
+    _writer(path).close()
+    data = bytearray(path.read_bytes())
+    data[len(MAGIC)] = 3
+    path.write_bytes(bytes(data))
+    with pytest.raises(RecordingError, match=r"format version 3; this imuhal reads versions "
+                                             r"1-2 \(upgrade imuhal to replay it\)$"):
+        open_recording(path)

@@ -26,7 +26,8 @@ from imuhal.plugins.manager import Registry
 HELP = """\
 Recordings: BROAD trials (.hdf5 or .mat; a folder means every trial in it, HDF5 preferred
 when a trial is there in both forms; groups come from the trials.json next to them), or
-imuhal sample CSVs each followed by --truth TRUTH.csv (from `imuhal run --truth`).
+imuhal sample CSVs (a run log of `imuhal run --output LOG.csv --samples`, or the wide
+CSV of `imuhal estimate`), each with a --truth TRUTH.csv (from `imuhal run --truth`).
 --broad uses the BROAD cache (filled by --download-broad, which alone uses the network).
 
 Estimators: -e NAME[:KEY=VALUE[:KEY=VALUE...]], repeatable, e.g. -e madgwick
@@ -71,6 +72,9 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--json", metavar="RESULTS.json", help="per-trial and group results (JSON)")
     p.add_argument("--markdown", metavar="TABLES.md",
                    help="per-group tables in Markdown (as in docs/evaluation.md)")
+    p.add_argument("--plot", metavar="FIGURE.png",
+                   help="a figure of each estimator's errors per trial and their means "
+                   "(.png, .pdf or .svg; needs matplotlib: pip install 'imuhal[plot]')")
     p.add_argument("--dask", action="store_true", help="run the jobs on Dask")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="Dask scheduler to use (default: a local cluster); implies --dask")
@@ -151,9 +155,14 @@ def _progress(quiet: bool) -> Any:
 
 
 def cmd_evaluate(args: argparse.Namespace, registry: Registry) -> int:
-    for out in (args.output, args.json, args.markdown):
-        if out and any(Path(out).resolve() == Path(r).resolve() for r in args.recordings):
+    for out in (args.output, args.json, args.markdown, args.plot):
+        if out and any(Path(out).resolve() == Path(r).resolve()
+                       for r in (*args.recordings, *args.truth)):
             raise EvaluateUsageError(f"{out}: is an input; choose another output file")
+    if args.plot:
+        from imuhal.offline.plotting import check_figure_path
+
+        check_figure_path(args.plot)  # before the evaluation, not after it
     specs_in = [parse_spec(s, registry) for s in args.estimator] or [
         (n, {}) for n in attitude_estimators(registry)]
     dofs = args.dof or [9, 6]
@@ -181,4 +190,9 @@ def cmd_evaluate(args: argparse.Namespace, registry: Registry) -> int:
         write_json(args.json, results, groups)
     if args.markdown:
         write_markdown(args.markdown, groups)
+    if args.plot:
+        from imuhal.offline.plotting import plot_trial_errors
+
+        plot_trial_errors(results, title="imuhal evaluate: RMSE per trial").save(args.plot)
+        print(f"wrote {args.plot}", file=sys.stderr)
     return 0

@@ -16,7 +16,8 @@ EXIT_INVALID = 2
 
 
 def add_parser(sub: Any) -> None:
-    profile = sub.add_parser("profile", help="work with board profiles")
+    profile = sub.add_parser("profile",
+                             help="work with board profiles: check them, print their JSON Schema")
     psub = profile.add_subparsers(dest="profile_command", metavar="ACTION")
     check = psub.add_parser("check", help="validate profiles; exit 0 when all are valid")
     check.add_argument("files", nargs="+", metavar="FILE")

@@ -51,6 +51,7 @@ def cmd_replay(args: argparse.Namespace, registry: Registry) -> int:
         pipeline = replay_pipeline(replay, registry)
     except ReplayDivergence as exc:
         raise ImuhalError(f"{exc} (while opening the board)") from None
+    opened_ns = replay.source.t_ns  # the run's time counts from here, as live
     for w in pipeline.warnings:
         print(f"warning: {w}", file=sys.stderr)
     sinks: list[Any] = [] if args.quiet else [ConsoleSink(sys.stdout)]
@@ -66,7 +67,7 @@ def cmd_replay(args: argparse.Namespace, registry: Registry) -> int:
     for sink in sinks:
         sink.close()
     summary = pipeline.summary(wall_s=time.perf_counter() - wall0,
-                               simulated_s=replay.source.t_ns / 1e9)
+                               simulated_s=(replay.source.t_ns - opened_ns) / 1e9)
     print(summary.describe(), file=sys.stderr)
     recording = replay.recording
     if recording.damage:

@@ -51,8 +51,8 @@ def add_parser(sub: Any) -> None:
                      help="with --output, also write every sample (flagged ones included)")
     run.add_argument("--truth", metavar="FILE.csv",
                      help="emulated runs: write the simulated ground truth at the same "
-                     "timestamps as the --output rows (docs/simulation.md); with "
-                     "--emulate replay: the truth file to fly again (read, never written)")
+                     "timestamps as the --output rows (docs/simulation.md); the truth file "
+                     "to fly again is --replay-truth")
     run.add_argument("--trace", metavar="FILE.txt",
                      help="log every bus transaction (time, bus, address, bytes) to a file")
     run.add_argument("--nmea", action="append", default=[], metavar="OUTPUT",

@@ -14,7 +14,10 @@ the mask of rows to evaluate. Readers:
 - imuhal's own sample CSV (``imuhal estimate`` input, any ``--input-frame``) plus a truth CSV
   (``imuhal run --truth``: ``t_s, qw, qx, qy, qz`` body -> NED): the truth is interpolated
   (normalised linear, sign-continuous) at the sample times; rows outside the truth's time
-  span are not evaluated.
+  span are not evaluated. The sample CSV may also be a run log (``imuhal run --output LOG.csv
+  --samples``, as ``imuhal estimate`` reads it): its valid samples become rows at the IMU's
+  gyro times, each with the IMU's accelerometer sample of that time (else its latest before)
+  and a magnetometer sample on the first row at or after it, as the pipeline fused them.
 
 Loading needs h5py (HDF5) or scipy (MAT): ``pip install imuhal[eval]``.
 """
@@ -33,8 +36,10 @@ import numpy as np
 from imuhal.core.conventions import ENU, NED, Convention, VectorKind, convert_quat, vector_to_ned
 from imuhal.core.errors import ImuhalError
 from imuhal.core.frames import FloatArray
+from imuhal.core.samples import AccelSample, GyroSample, MagSample
 from imuhal.offline.csv_input import ACCEL, GYRO, MAG, TIME, read_sample_csv, require
 from imuhal.offline.frames import resolve_input_frame, table_to_ned
+from imuhal.offline.run_log import is_run_log, read_run_log
 
 BROAD_SUFFIXES = (".hdf5", ".h5", ".mat")
 
@@ -199,16 +204,53 @@ def read_csv_recording(samples: str | Path, truth: str | Path,
     from imuhal.core.conventions import get_convention
 
     requested = None if input_frame is None else get_convention(input_frame)
-    table, frame = resolve_input_frame(read_sample_csv(samples), requested)
-    table = table_to_ned(table, frame)
-    require(table, (TIME, *GYRO, *ACCEL), "evaluation")
-    c = table.columns
-    t = np.asarray(c[TIME], float)
+    if is_run_log(samples):
+        t, gyro, accel, mag = run_log_rows(samples, requested)
+    else:
+        table, frame = resolve_input_frame(read_sample_csv(samples), requested)
+        table = table_to_ned(table, frame)
+        require(table, (TIME, *GYRO, *ACCEL), "evaluation")
+        c = table.columns
+        t = np.asarray(c[TIME], float)
+        gyro = np.stack([c[n] for n in GYRO], axis=1)
+        accel = np.stack([c[n] for n in ACCEL], axis=1)
+        mag = np.stack([c[n] for n in MAG], axis=1) if table.has(*MAG) else None
     t_truth, q_truth = read_truth_quaternions(truth)
     q = interpolate_quaternions(t_truth, q_truth, t)
-    mag = np.stack([c[n] for n in MAG], axis=1) if table.has(*MAG) else None
     rate = float(1.0 / np.median(np.diff(t))) if len(t) > 1 else 1.0
-    return Recording(name=Path(samples).stem, t_s=t,
-                     gyro_rad_s=np.stack([c[n] for n in GYRO], axis=1),
-                     accel_m_s2=np.stack([c[n] for n in ACCEL], axis=1), mag_ut=mag,
-                     q_truth=q, mask=~np.isnan(q[:, 0]), rate_hz=rate)
+    return Recording(name=Path(samples).stem, t_s=t, gyro_rad_s=gyro, accel_m_s2=accel,
+                     mag_ut=mag, q_truth=q, mask=~np.isnan(q[:, 0]), rate_hz=rate)
+
+
+def run_log_rows(path: str | Path, frame: Convention | None = None
+                 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray | None]:
+    """A run log's valid IMU samples as rows: times (s), gyro, accel and magnetometer (NaN on
+    rows without one; None when the log has none), body NED."""
+    log = read_run_log(path, frame)
+    gyros = [s for s in log.samples if isinstance(s, GyroSample)]
+    devices = list(dict.fromkeys(s.device for s in gyros))
+    if len(devices) != 1:
+        raise RecordingError(f"{path}: the run log has valid gyro samples from "
+                             f"{len(devices)} devices ({', '.join(devices) or 'none'}); "
+                             "evaluation reads a log of one IMU")
+    imu = devices[0]
+    accels = [s for s in log.samples if isinstance(s, AccelSample) and s.device == imu]
+    if not accels:
+        raise RecordingError(f"{path}: no valid accelerometer samples from {imu}")
+    gyro_t = np.array([s.t_ns for s in gyros], dtype=np.int64)
+    accel_t = np.array([s.t_ns for s in accels], dtype=np.int64)
+    # The accelerometer sample of the gyro's instant, else the latest before it.
+    which = np.searchsorted(accel_t, gyro_t, side="right") - 1
+    keep = which >= 0
+    gyro_t, which = gyro_t[keep], which[keep]
+    gyro = np.array([s.gyro_rad_s for s in gyros], dtype=float)[keep]
+    accel = np.array([s.accel_m_s2 for s in accels], dtype=float)[which]
+    mags = [s for s in log.samples if isinstance(s, MagSample)]
+    mag = None
+    if mags:
+        mag = np.full((len(gyro_t), 3), np.nan)
+        rows = np.searchsorted(gyro_t, [s.t_ns for s in mags], side="left")
+        for row, sample in zip(rows, mags, strict=True):
+            if row < len(gyro_t):  # fused with the next gyro update, as in the pipeline
+                mag[row] = sample.mag_ut
+    return gyro_t / 1e9, gyro, accel, mag

@@ -14,6 +14,12 @@ matplotlib's object API on the Agg canvas (no pyplot, no display needed):
 * device health: flagged samples per device and flag, cumulative, and each device's sample
   rate per second (a bus that fails shows as a dip; bus errors flag no sample of their own).
 
+``plot_trial_errors`` draws what ``imuhal evaluate --plot`` shows: each estimator's RMSE per
+trial as grouped bars, and its mean over the trials, one panel per DOF and error.
+
+Scripts and benchmarks draw their figures through this module too (tests/test_plotting.py
+checks that nothing else imports matplotlib).
+
 matplotlib is an optional extra: ``pip install 'imuhal[plot]'``.
 """
 
@@ -23,10 +29,10 @@ import csv
 import math
 import os
 from collections import defaultdict
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -185,18 +191,16 @@ def errors(series: Series, truth: Truth, column: str) -> FloatArray:
 
 @dataclass
 class LogFigure:
-    """The figure and its panels by name (``attitude``, ``altitude``, ``gyro``, ...)."""
+    """A figure and its panels by name (``attitude``, ``altitude``, ``gyro``, ...; for
+    :func:`plot_trial_errors` ``9-DOF total``, ...)."""
 
     figure: Figure
     axes: dict[str, Axes]
 
     def save(self, path: str | os.PathLike[str]) -> Path:
         """Write atomically; the format is the file's extension (png, pdf, svg)."""
-        target = Path(path)
+        target = check_figure_path(path)
         fmt = target.suffix.lower().lstrip(".")
-        if fmt not in FIGURE_FORMATS:
-            raise PlotError(f"{target}: unknown figure format {fmt!r}; name the file "
-                            f".{', .'.join(FIGURE_FORMATS)}")
         out = AtomicFile(target, binary=True)
         try:
             self.figure.savefig(out.file, format=fmt, dpi=100)
@@ -212,6 +216,18 @@ def _figure_class() -> Any:
     except ImportError:
         raise PlotError("plotting needs matplotlib: pip install 'imuhal[plot]'") from None
     return Figure
+
+
+def check_figure_path(path: str | os.PathLike[str]) -> Path:
+    """``path`` if a figure can be written there (known format, matplotlib installed):
+    commands check before long work, not after it."""
+    target = Path(path)
+    fmt = target.suffix.lower().lstrip(".")
+    if fmt not in FIGURE_FORMATS:
+        raise PlotError(f"{target}: unknown figure format {fmt!r}; name the file "
+                        f".{', .'.join(FIGURE_FORMATS)}")
+    _figure_class()
+    return target
 
 
 def plot_log(log: LogData, truth: Truth | None = None, *, title: str = "") -> LogFigure:
@@ -326,3 +342,61 @@ def _health(flags_ax: Axes, rate_ax: Axes, samples: dict[tuple[str, str], Series
         flags_ax.text(0.5, 0.5, "no flagged samples", transform=flags_ax.transAxes,
                       ha="center", va="center")
     rate_ax.set_ylabel("samples per second")
+
+
+# -- evaluation errors ---------------------------------------------------------------------
+
+class TrialErrors(Protocol):
+    """One trial's errors for one estimator setting (imuhal.evaluate's TrialResult)."""
+
+    @property
+    def trial(self) -> str: ...
+    @property
+    def label(self) -> str: ...
+    @property
+    def dof(self) -> int: ...
+    @property
+    def total_deg(self) -> float: ...
+    @property
+    def heading_deg(self) -> float: ...
+    @property
+    def inclination_deg(self) -> float: ...
+
+
+TRIAL_PANELS = {9: ("total_deg", "heading_deg", "inclination_deg"), 6: ("inclination_deg",)}
+"""Errors drawn per DOF: a 6-DOF estimate has no heading reference, so only its inclination."""
+MEAN = "mean"
+"""The last bar group: each estimator's mean over the trials (as the tables give it)."""
+
+
+def plot_trial_errors(results: Sequence[TrialErrors], *, title: str = "") -> LogFigure:
+    """Each estimator setting's RMSE (deg) per trial as grouped bars, and its mean over the
+    trials, in one panel per DOF and error (``9-DOF total``, ``9-DOF heading``,
+    ``9-DOF inclination``, ``6-DOF inclination``). A bar missing is a job not run."""
+    if not results:
+        raise PlotError("no results to plot")
+    panels = [(dof, metric) for dof in (9, 6) if any(r.dof == dof for r in results)
+              for metric in TRIAL_PANELS[dof]]
+    trials = list(dict.fromkeys(r.trial for r in results))
+    categories = [*trials, MEAN]
+    width_in = min(30.0, max(8.0, 0.6 * len(categories)))  # BROAD's 30 trials: 18.6 in
+    figure = _figure_class()(figsize=(width_in, 3.0 * len(panels)), layout="constrained")
+    grid = figure.subplots(len(panels), 1, squeeze=False)[:, 0]
+    axes = {f"{dof}-DOF {metric.removesuffix('_deg')}": ax
+            for (dof, metric), ax in zip(panels, grid, strict=True)}
+    figure.suptitle(title or "RMSE per trial")
+    x = np.arange(len(categories), dtype=float)
+    for (dof, metric), (name, ax) in zip(panels, axes.items(), strict=True):
+        rows = [r for r in results if r.dof == dof]
+        labels = list(dict.fromkeys(r.label for r in rows))
+        width = 0.8 / len(labels)
+        for i, label in enumerate(labels):
+            by_trial = {r.trial: float(getattr(r, metric)) for r in rows if r.label == label}
+            heights = np.array([by_trial.get(t, math.nan) for t in trials]
+                               + [float(np.mean(list(by_trial.values())))])
+            ax.bar(x - 0.4 + width * (i + 0.5), heights, width, label=label)
+        ax.set_xticks(x, categories, rotation=60, ha="right", fontsize="x-small")
+        ax.set_ylabel(f"{name} RMSE, deg")
+        ax.legend(loc="upper left", fontsize="x-small", ncols=min(4, len(labels)))
+        ax.grid(True, axis="y", alpha=0.3)
+    return LogFigure(figure, axes)

@@ -1,8 +1,10 @@
 """The replay side: a Bus and a Clock that answer from a recording, checking every question.
 
 Each transaction a driver asks for must be the next one recorded (same bus, target, bytes
-written and read length), and each clock reading must come where one was recorded; the first
-difference stops the replay with :class:`ReplayDivergence`, one line naming the transaction.
+written and read length; for a UART the same receive or baud-rate change), and each clock
+reading must come where one was recorded; the first difference stops the replay with
+:class:`ReplayDivergence`, one line naming the transaction. A poll the recorded run made late
+is made at the recorded time.
 Recorded failures are raised again as the same error types, so the pipeline's recovery runs
 exactly as it did live.
 """
@@ -10,7 +12,7 @@ exactly as it did live.
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -19,12 +21,14 @@ from imuhal.bus.recording.format import (
     BusInfo,
     ClockReading,
     EndMark,
+    LatePoll,
     Record,
     RecordedTransfer,
     Recording,
     RecordingError,
     open_recording,
 )
+from imuhal.bus.spy import OP_BAUD, OP_RECEIVE, OP_TRANSFER
 from imuhal.core import errors as error_types
 from imuhal.core.errors import BusError, ImuhalError, RunEnded
 from imuhal.pipeline.pipeline import Pipeline
@@ -48,7 +52,12 @@ class EndOfRecording(RunEnded):
     """The recording has no more records: the replayed run is over."""
 
 
-def _describe(bus: str, target: int, written: bytes, read_len: int) -> str:
+def _describe(bus: str, target: int, written: bytes, read_len: int, op: str = OP_TRANSFER,
+              baudrate: int = 0) -> str:
+    if op == OP_RECEIVE:
+        return f"{bus} @{target:02X} RX({read_len})"
+    if op == OP_BAUD:
+        return f"{bus} BAUD {baudrate}"
     return f"{bus} @{target:02X} W:{written.hex(' ') or '-'} R({read_len})"
 
 
@@ -79,23 +88,59 @@ class ReplaySource:
         self._pending = None
         return rec
 
-    def _next(self) -> ClockReading | RecordedTransfer:
+    def _next(self, asked: Callable[[], str]) -> ClockReading | RecordedTransfer:
+        """The next clock reading or transaction; ``asked()`` (what the run asks for, in
+        words) names the divergence when the recording has a late poll here instead."""
         rec = self._take()
         while isinstance(rec, BusInfo):
             rec = self._take()
         if rec is None or isinstance(rec, EndMark):
             raise EndOfRecording()
+        if isinstance(rec, LatePoll):
+            raise ReplayDivergence(
+                f"replay diverged after transaction {self.transfers - 1} (t="
+                f"{rec.t_ns / 1e9:.6f} s): the recording polls {rec.device} late here, "
+                f"{asked()}")
         return rec
 
     def clock(self) -> int:
-        rec = self._next()
+        rec = self._next(lambda: "the run read the clock")
         if isinstance(rec, RecordedTransfer):
             raise self._divergence(rec, "the run read the clock here")
         self.t_ns = rec.t_ns
         return rec.t_ns
 
+    def poll_time(self, t_ns: int, device: str) -> int:
+        """When the recorded run polled ``device``, due at ``t_ns``: later when it was late."""
+        rec = self._peek()
+        if not isinstance(rec, LatePoll):
+            return t_ns
+        if rec.device != device:
+            raise ReplayDivergence(
+                f"replay diverged after transaction {self.transfers - 1} (t="
+                f"{rec.t_ns / 1e9:.6f} s): the recording polls {rec.device} late here, the "
+                f"run polls {device}")
+        self._take()
+        self.t_ns = rec.t_ns
+        return rec.t_ns
+
     def transfer(self, bus: int, target: int, written: bytes, read_len: int) -> bytes:
-        rec = self._next()
+        return self._transaction(OP_TRANSFER, bus, target, written, read_len)
+
+    def receive(self, bus: int, target: int, max_len: int) -> bytes:
+        """The bytes the byte-stream bus had received at this point of the recorded run."""
+        return self._transaction(OP_RECEIVE, bus, target, b"", max_len)
+
+    def set_baudrate(self, bus: int, baudrate: int) -> None:
+        self._transaction(OP_BAUD, bus, 0, b"", 0, baudrate)
+
+    def _transaction(self, op: str, bus: int, target: int, written: bytes, read_len: int,
+                     baudrate: int = 0) -> bytes:
+        def asked() -> str:  # only needed when the replay diverges
+            return "the driver asked " + _describe(self.buses[bus].label, target, written,
+                                                   read_len, op, baudrate)
+
+        rec = self._next(asked)
         if isinstance(rec, ClockReading):
             # A recording cut off (or ended) after a poll's clock readings but before its
             # transfers: when only readings are left, the run is over, not diverged.
@@ -105,11 +150,10 @@ class ReplaySource:
                 raise EndOfRecording()
             raise ReplayDivergence(
                 f"replay diverged after transaction {self.transfers - 1} (t="
-                f"{rec.t_ns / 1e9:.6f} s): the recording reads the clock here, the driver "
-                f"asked {_describe(self.buses[bus].label, target, written, read_len)}")
-        if (rec.bus, rec.target, rec.written, rec.read_len) != (bus, target, written, read_len):
-            asked = _describe(self.buses[bus].label, target, written, read_len)
-            raise self._divergence(rec, f"the driver asked {asked}")
+                f"{rec.t_ns / 1e9:.6f} s): the recording reads the clock here, {asked()}")
+        if (rec.op, rec.bus, rec.target, rec.written, rec.read_len, rec.baudrate) != (
+                op, bus, target, written, read_len, baudrate):
+            raise self._divergence(rec, asked())
         self.transfers += 1
         self.t_ns = rec.t_ns
         if rec.error_type:
@@ -118,7 +162,8 @@ class ReplaySource:
 
     def _divergence(self, rec: RecordedTransfer, asked: str) -> ReplayDivergence:
         label = self.buses[rec.bus].label if rec.bus in self.buses else f"bus#{rec.bus}"
-        recorded = _describe(label, rec.target, rec.written, rec.read_len)
+        recorded = _describe(label, rec.target, rec.written, rec.read_len, rec.op,
+                             rec.baudrate)
         return ReplayDivergence(f"replay diverged at transaction {rec.index} (t="
                                 f"{rec.t_ns / 1e9:.6f} s): the recording has {recorded}, "
                                 f"{asked}")
@@ -147,6 +192,25 @@ class ReplayBus(Bus):
 
     def _transfer(self, target: int, write: bytes, read_len: int) -> bytes:
         return self.source.transfer(self.index, target, write, read_len)
+
+    def _receive(self, target: int, max_len: int) -> bytes:
+        if self.kind is not BusKind.SERIAL:
+            return super()._receive(target, max_len)
+        return self.source.receive(self.index, target, max_len)
+
+
+class ReplaySerialBus(ReplayBus):
+    """A recorded UART: its line-speed changes are transactions too."""
+
+    def set_baudrate(self, baudrate: int) -> None:
+        self.source.set_baudrate(self.index, baudrate)
+
+
+def replay_bus(info: BusInfo, source: ReplaySource) -> ReplayBus:
+    """The replay bus of a recorded bus: a UART's can change its line speed, like the live
+    one (a driver looks for ``set_baudrate``)."""
+    cls = ReplaySerialBus if info.kind == BusKind.SERIAL.value else ReplayBus
+    return cls(info, source)
 
 
 class ReplayClock:
@@ -187,7 +251,7 @@ def open_replay(path: str | os.PathLike[str], registry: Registry,
         origin = recording.header.get("profile_source", "?")
         profile = parse_profile(text, f"{path} (profile recorded from {origin})", registry)
     source = ReplaySource(recording)
-    buses: dict[str, Bus] = {info.name: ReplayBus(info, source)
+    buses: dict[str, Bus] = {info.name: replay_bus(info, source)
                              for info in source.buses.values()}
     missing = sorted(set(profile.buses) - set(buses))
     if missing:
@@ -205,8 +269,9 @@ class ReplayBoard:
     clock: ReplayClock
 
     def before_poll(self, t_ns: int, device: str) -> int:
-        """Nothing to do: the chips' answers are in the recording; the poll is at ``t_ns``."""
-        return t_ns
+        """The chips' answers are in the recording; the poll is at ``t_ns``, or at the
+        recorded time when the recorded run polled ``device`` late."""
+        return self.clock.source.poll_time(t_ns, device)
 
 
 def replay_pipeline(replay: Replay, registry: Registry) -> Pipeline:

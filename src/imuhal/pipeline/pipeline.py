@@ -151,9 +151,11 @@ class Pipeline:
         # of the run, so a replay does not have to make them.
         spied = dict(board.buses) if not taps else {
             name: SpyBus(bus, _fan_out(taps), clock) for name, bus in board.buses.items()}
+        self._before_poll = board.before_poll
         if recorder is not None:
             recorder.attach(board.buses)
             clock = recorder.wrap_clock(clock)
+            self._before_poll = recorder.wrap_before_poll(board.before_poll)
         self.clock = clock
         # Whatever a bus plugin raises reaches the drivers as a BusError (contained per device).
         self.buses: dict[str, Bus] = {name: ContainedBus(bus) for name, bus in spied.items()}
@@ -331,7 +333,7 @@ class Pipeline:
             self.clock.sleep_until(t_ns)
             # Estimator inputs wait until every sample of their instant is in (fusion order).
             yield from self._fuse(before_ns=t_ns)
-            t_ns = self.board.before_poll(t_ns, name)
+            t_ns = self._before_poll(t_ns, name)
             self._span_ns[1] = t_ns
             dev = self.devices[name]
             samples, next_ns = self._service(dev, t_ns)

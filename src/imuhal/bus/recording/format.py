@@ -1,4 +1,4 @@
-"""The bus recording file format (version 1), documented in docs/recording.md.
+"""The bus recording file format (version 2), documented in docs/recording.md.
 
 A file is the 8-byte magic, a little-endian u16 format version, then chunks. A chunk is a u32
 payload length, the u32 CRC-32 of the payload and the payload. The first chunk holds the
@@ -10,6 +10,9 @@ at the first incomplete or damaged chunk.
 
 Times are int nanoseconds on the run's clock, stored as the signed difference from the time of
 the previous record (zig-zag varint): a few bytes each.
+
+Version 2 added byte streams (a UART's received bytes and baud-rate changes) and late polls;
+a version-1 file has none of those records and reads as before.
 """
 
 from __future__ import annotations
@@ -24,11 +27,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
+from imuhal.bus.spy import OP_BAUD, OP_RECEIVE, OP_TRANSFER
 from imuhal.core.errors import ImuhalError
 
 MAGIC = b"\x89IMUREC\n"
 """High bit first (catches 7-bit transfers), a name, a newline (catches newline mangling)."""
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+READABLE_VERSIONS = (1, 2)
+"""Version 1 is version 2 without record types 6-9: the same reader reads both."""
 _CHUNK_HEAD = struct.Struct("<II")  # payload length, CRC-32 of the payload
 _MAX_CHUNK = 1 << 26  # a length beyond this is damage, not data
 
@@ -42,6 +48,17 @@ REC_CLOCK = 4
 """A reading of the run's clock by a driver or the pipeline: dt."""
 REC_END = 5
 """The run closed the recording: how it ended (UTF-8)."""
+REC_RECEIVE = 6
+"""Bytes a byte-stream bus (a UART) had received: dt, bus index, target, max length, bytes."""
+REC_BAUD = 7
+"""A byte-stream bus changed its line speed: dt, bus index, baud rate."""
+REC_LATE_POLL = 8
+"""A poll that happened after it was due (the board was late): dt (the poll's time), device."""
+REC_STREAM_FAILED = 9
+"""A receive or baud change that raised: dt, bus index, operation (6 receive, 7 baud),
+target, max length or baud rate, error type, error text."""
+
+_STREAM_OPS = {REC_RECEIVE: OP_RECEIVE, REC_BAUD: OP_BAUD}
 
 
 class RecordingError(ImuhalError):
@@ -68,6 +85,10 @@ class BusInfo:
 
 @dataclass(frozen=True, slots=True)
 class RecordedTransfer:
+    """One transaction: a transfer (write, then read ``read_len`` bytes), a receive from a
+    byte stream (``read`` is what had arrived, ``read_len`` the most asked for) or a baud-rate
+    change (``baudrate``; ``target`` 0, nothing written or read)."""
+
     index: int
     """Position among the recording's transactions, from 0."""
     t_ns: int
@@ -78,6 +99,9 @@ class RecordedTransfer:
     read_len: int
     error_type: str = ""
     error: str = ""
+    op: str = OP_TRANSFER
+    """``transfer``, ``receive`` or ``baud``."""
+    baudrate: int = 0
 
 
 @dataclass(frozen=True, slots=True)
@@ -91,7 +115,16 @@ class EndMark:
     how: str
 
 
-Record = BusInfo | RecordedTransfer | ClockReading | EndMark
+@dataclass(frozen=True, slots=True)
+class LatePoll:
+    """The board polled ``device`` late, at ``t_ns`` (an injected late poll or jitter on an
+    emulated board): a replay polls it at the same time."""
+
+    t_ns: int
+    device: str
+
+
+Record = BusInfo | RecordedTransfer | ClockReading | EndMark | LatePoll
 
 
 # -- varints -------------------------------------------------------------------------------
@@ -207,6 +240,44 @@ class RecordingWriter:
         self.transfers += 1
         self._append(body)
 
+    def received(self, t_ns: int, bus: int, target: int, max_len: int, data: bytes) -> None:
+        body = bytearray((REC_RECEIVE,))
+        _put_svarint(body, self._dt(t_ns))
+        _put_uvarint(body, bus)
+        _put_uvarint(body, target)
+        _put_uvarint(body, max_len)
+        _put_bytes(body, data)
+        self.transfers += 1
+        self._append(body)
+
+    def baudrate(self, t_ns: int, bus: int, baudrate: int) -> None:
+        body = bytearray((REC_BAUD,))
+        _put_svarint(body, self._dt(t_ns))
+        _put_uvarint(body, bus)
+        _put_uvarint(body, baudrate)
+        self.transfers += 1
+        self._append(body)
+
+    def stream_failed(self, t_ns: int, bus: int, op: str, target: int, value: int,
+                      error_type: str, error: str) -> None:
+        """A failed receive (``value``: the most bytes asked for) or baud change (the rate)."""
+        body = bytearray((REC_STREAM_FAILED,))
+        _put_svarint(body, self._dt(t_ns))
+        _put_uvarint(body, bus)
+        body.append(REC_RECEIVE if op == OP_RECEIVE else REC_BAUD)
+        _put_uvarint(body, target)
+        _put_uvarint(body, value)
+        _put_bytes(body, error_type.encode("utf-8"))
+        _put_bytes(body, error.encode("utf-8"))
+        self.transfers += 1
+        self._append(body)
+
+    def late_poll(self, t_ns: int, device: str) -> None:
+        body = bytearray((REC_LATE_POLL,))
+        _put_svarint(body, self._dt(t_ns))
+        _put_bytes(body, device.encode("utf-8"))
+        self._append(body)
+
     def clock(self, t_ns: int) -> None:
         body = bytearray((REC_CLOCK,))
         _put_svarint(body, self._dt(t_ns))
@@ -283,7 +354,7 @@ class Recording:
                         return
                     if isinstance(record, RecordedTransfer):
                         t_ns, index = record.t_ns, record.index + 1
-                    elif isinstance(record, ClockReading):
+                    elif isinstance(record, ClockReading | LatePoll):
                         t_ns = record.t_ns
                     yield record
 
@@ -296,6 +367,9 @@ class Recording:
             pos = p + length
             kind = payload[p]
             p += 1
+            if kind > REC_END and self.version < 2:
+                yield f"{self.path}: record type {kind} in a version-1 recording: damaged"
+                return
             if kind in (REC_TRANSFER, REC_FAILED):
                 dt, p = _get_svarint(payload, p)
                 t_ns += dt
@@ -316,6 +390,46 @@ class Recording:
                 dt, _ = _get_svarint(payload, p)
                 t_ns += dt
                 yield ClockReading(t_ns)
+            elif kind == REC_RECEIVE:
+                dt, p = _get_svarint(payload, p)
+                t_ns += dt
+                bus, p = _get_uvarint(payload, p)
+                target, p = _get_uvarint(payload, p)
+                max_len, p = _get_uvarint(payload, p)
+                data, p = _get_bytes(payload, p)
+                yield RecordedTransfer(index, t_ns, bus, target, b"", data, max_len,
+                                       op=OP_RECEIVE)
+                index += 1
+            elif kind == REC_BAUD:
+                dt, p = _get_svarint(payload, p)
+                t_ns += dt
+                bus, p = _get_uvarint(payload, p)
+                baud, p = _get_uvarint(payload, p)
+                yield RecordedTransfer(index, t_ns, bus, 0, b"", b"", 0, op=OP_BAUD,
+                                       baudrate=baud)
+                index += 1
+            elif kind == REC_STREAM_FAILED:
+                dt, p = _get_svarint(payload, p)
+                t_ns += dt
+                bus, p = _get_uvarint(payload, p)
+                op = _STREAM_OPS.get(payload[p], "")
+                target, p = _get_uvarint(payload, p + 1)
+                value, p = _get_uvarint(payload, p)
+                etype, p = _get_bytes(payload, p)
+                error, p = _get_bytes(payload, p)
+                if not op:
+                    yield f"{self.path}: a failed stream record names an unknown operation"
+                    return
+                yield RecordedTransfer(
+                    index, t_ns, bus, target, b"", b"", value if op == OP_RECEIVE else 0,
+                    etype.decode(), error.decode(), op=op,
+                    baudrate=value if op == OP_BAUD else 0)
+                index += 1
+            elif kind == REC_LATE_POLL:
+                dt, p = _get_svarint(payload, p)
+                t_ns += dt
+                device, p = _get_bytes(payload, p)
+                yield LatePoll(t_ns, device.decode("utf-8"))
             elif kind == REC_BUS:
                 bus_index, p = _get_uvarint(payload, p)
                 texts = []
@@ -364,9 +478,11 @@ def open_recording(path: str | os.PathLike[str]) -> Recording:
             raise RecordingError(f"{p}: not an imuhal bus recording (make one with "
                                  "`imuhal run --record FILE`)")
         (version,) = struct.unpack("<H", start[len(MAGIC):])
-        if version != FORMAT_VERSION:
-            raise RecordingError(f"{p}: recording format version {version}; this imuhal "
-                                 f"reads version {FORMAT_VERSION}")
+        if version not in READABLE_VERSIONS:
+            raise RecordingError(
+                f"{p}: recording format version {version}; this imuhal reads versions "
+                f"{READABLE_VERSIONS[0]}-{READABLE_VERSIONS[-1]}"
+                + (" (upgrade imuhal to replay it)" if version > FORMAT_VERSION else ""))
         try:
             payload = _read_chunk(f, p)
             if payload is None:

@@ -2,27 +2,28 @@
 
 Replaying a hardware run exactly needs more than the bytes: drivers read the clock (data-ready
 deadlines, sample times), so every ``now_ns()`` the drivers and the pipeline make is recorded
-too, in order with the transactions.
+too, in order with the transactions, and so is every poll the board made late. A byte-stream
+bus (a UART) is recorded as what the driver saw of it: each receive's bytes and each
+baud-rate change.
 """
 
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from datetime import datetime, timezone
 from typing import Any
 
 from imuhal import __version__
-from imuhal.bus.base import Bus, BusKind
+from imuhal.bus.base import Bus
 from imuhal.bus.recording.format import (
     BusInfo,
     RecordingError,
     RecordingWriteFailed,
     RecordingWriter,
 )
-from imuhal.bus.spy import Transfer
+from imuhal.bus.spy import OP_BAUD, OP_RECEIVE, Transfer
 from imuhal.core.clock import Clock
-from imuhal.core.errors import ImuhalError
 
 
 class RecordingClock:
@@ -61,15 +62,7 @@ class BusRecorder:
         return self.writer.transfers
 
     def attach(self, buses: Mapping[str, Bus]) -> None:
-        """Note the run's buses (profile name, run-time name, kind) before any transfer.
-
-        Byte-stream buses (a UART with a GNSS receiver) are refused: their unprompted bytes
-        are not recorded yet, so a replay could not reproduce the run."""
-        streams = [name for name, bus in buses.items() if bus.kind is BusKind.SERIAL]
-        if streams:
-            raise ImuhalError(f"--record: the serial bus(es) {', '.join(streams)} carry byte "
-                              "streams, which recordings do not hold yet; record a profile "
-                              "without them, or use --trace for a readable log")
+        """Note the run's buses (profile name, run-time name, kind) before any transfer."""
         for name, bus in buses.items():
             index = len(self._bus_index)
             self._bus_index[bus.name] = index
@@ -78,10 +71,33 @@ class BusRecorder:
     def wrap_clock(self, clock: Clock) -> RecordingClock:
         return RecordingClock(clock, self.writer)
 
+    def wrap_before_poll(self, before_poll: Callable[[int, str], int]
+                         ) -> Callable[[int, str], int]:
+        """The board's ``before_poll``, recording each poll it makes late (an emulated
+        board's injected late polls and jitter): a replay polls at the recorded time."""
+        def recorded(t_ns: int, device: str) -> int:
+            at_ns = before_poll(t_ns, device)
+            if at_ns != t_ns:
+                self.writer.late_poll(at_ns, device)
+            return at_ns
+        return recorded
+
     def on_transfer(self, t: Transfer) -> None:
         bus = self._bus_index[t.bus]
-        if t.error:
-            error_type, _, message = t.error.partition(": ")
+        error_type, _, message = t.error.partition(": ")
+        if t.op == OP_RECEIVE:
+            if t.error:
+                self.writer.stream_failed(t.t_ns, bus, t.op, t.target, t.read_len, error_type,
+                                          message)
+            else:
+                self.writer.received(t.t_ns, bus, t.target, t.read_len, t.read)
+        elif t.op == OP_BAUD:
+            if t.error:
+                self.writer.stream_failed(t.t_ns, bus, t.op, 0, t.baudrate, error_type,
+                                          message)
+            else:
+                self.writer.baudrate(t.t_ns, bus, t.baudrate)
+        elif t.error:
             self.writer.failed(t.t_ns, bus, t.target, t.written, t.read_len, error_type,
                                message)
         else:
