@@ -9,7 +9,7 @@ run, climb, a 4 s loop (3-5 g), an axial roll, a pull-up and push-over, a coordi
 turn. The recorded samples are fed to each AHRS with its defaults (only the board's rates
 and field strength set; no speed source, so no turn compensation). Issue 10's bound: tilt
 error under 10 deg throughout (from 5 s, after the still start). Measured: madgwick 3.6,
-mahony 5.7, imufilter 4.7, freescale-9dof 5.1, freescale-6dof 4.5 deg at worst; build 422's
+mahony 5.7, imufilter 4.7, freescale-9dof 5.9, freescale-6dof 4.5 deg at worst; build 422's
 Freescale filters (`preset: reference`) lose the attitude in the loop (178 deg), the seed's
 gated madgwick reaches 44 deg (docs/estimators.md, flight benchmark).
 """
