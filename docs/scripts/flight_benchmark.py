@@ -244,8 +244,17 @@ def _mark(value: float, target: float | None, digits: int = 2) -> str:
     text = _f(value, digits)
     if target is None or value <= target:
         return text
-    return f"{text} (**missed**)" if math.isinf(value) else \
-        f"{text} (**+{_f(value - target, digits)}**)"
+    if math.isinf(value):
+        return f"{text} (**missed**)"
+    return f"{text} (**+{_gap(value, target, digits)}**)"
+
+
+def _gap(value: float, target: float, digits: int) -> str:
+    """How far ``value`` is over ``target``, never shown as zero."""
+    gap = _f(value - target, digits)
+    if not math.isinf(value) and float(gap) == 0.0:  # less than the last digit shown
+        gap = "<" + _f(10.0 ** -digits, digits)
+    return gap
 
 
 def _row(cells: Sequence[str]) -> str:
@@ -389,7 +398,7 @@ def target_status(res: Results) -> list[list[str]]:
             value = figures[SEED_AHRS]
             others = [f"{n} {_f(v, digits)}" for n, v in figures.items()
                       if v > bound and n != SEED_AHRS]
-            status = "met" if value <= bound else f"**gap** {_f(value - bound, digits)}"
+            status = "met" if value <= bound else f"**gap** {_gap(value, bound, digits)}"
             if others:
                 status += "; over it behind other AHRS: " + ", ".join(others)
             rows.append([label, f"{op} {bound:g} {unit}",
@@ -397,7 +406,7 @@ def target_status(res: Results) -> list[list[str]]:
                          status])
             continue
         worst = max(figures, key=lambda n: figures[n])
-        missed = [f"{n} {_f(v, digits)} (+{_f(v - bound, digits)})"
+        missed = [f"{n} {_f(v, digits)} (+{_gap(v, bound, digits)})"
                   for n, v in figures.items() if v > bound]
         status = ("met by every AHRS" if not missed else
                   f"met by {len(figures) - len(missed)} of {len(figures)}; **gap**: "
