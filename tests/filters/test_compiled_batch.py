@@ -16,6 +16,7 @@ from tests.filters.dataset_a import load_head
 
 from imuhal_filters.common import fast
 from imuhal_filters.common.batch import run_batch
+from imuhal_filters.imufilter.estimator import ImuFilterEstimator
 from imuhal_filters.madgwick.estimator import MadgwickEstimator
 from imuhal_filters.mahony.estimator import MahonyEstimator
 
@@ -102,3 +103,23 @@ def test_fast32_mode_stays_on_the_python_path(monkeypatch: pytest.MonkeyPatch) -
     """The float32 square root of the reference mode has no kernel: same results anyway."""
     q_fast, q_ref, _, _ = _both({"preset": "reference"}, monkeypatch)
     assert np.array_equal(q_fast, q_ref, equal_nan=True)
+
+
+IMUFILTER_CASES = [{}, {"velocity": False}, {"gain": 2.0, "sd_acc_g": 0.05},
+                   {"turn_compensation": False, "dt_from_timestamps": False}]
+
+
+@pytest.mark.parametrize("settings", IMUFILTER_CASES,
+                         ids=lambda s: ",".join(map(str, s.values())) or "defaults")
+def test_compiled_imufilter_batch_equals_pure_python_on_data_set_a(
+        settings: dict, monkeypatch: pytest.MonkeyPatch) -> None:
+    q_fast, q_ref, compiled, python = _both(settings, monkeypatch, cls=ImuFilterEstimator)
+    assert np.array_equal(np.isnan(q_fast), np.isnan(q_ref))
+    assert np.nanmax(np.abs(q_fast - q_ref)) <= 1e-12
+    state, ref = compiled.get_state(), python.get_state()
+    assert state["counters"] == ref["counters"]
+    f, f_ref = state["filter"], ref["filter"]
+    assert f["var"] == pytest.approx(f_ref["var"], rel=1e-12, abs=1e-15)
+    assert f["gain"] == pytest.approx(f_ref["gain"], rel=1e-12)
+    for key, value in f["velocity"].items():
+        assert value == pytest.approx(f_ref["velocity"][key], rel=1e-12, abs=1e-12), key

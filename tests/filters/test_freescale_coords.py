@@ -153,3 +153,13 @@ def test_6dof_tilt_is_the_same_in_all_three_systems() -> None:
                 for a, b in zip(runs[CoordinateSystem.WIN8], runs[CoordinateSystem.NED],
                                 strict=True))
     assert worst < 1e-6
+
+
+@pytest.mark.parametrize("cs", list(CoordinateSystem))
+def test_the_array_form_of_body_to_ned_equals_the_row_form(cs: CoordinateSystem) -> None:
+    from imuhal_filters.freescale.batch import quats_body_to_ned
+
+    q = np.random.default_rng(5).normal(size=(50, 4))
+    q[3] = 0.0  # corrupt: identity, as the row form gives
+    rows = np.array([quat_body_to_ned(cs, r) for r in q])
+    assert np.allclose(quats_body_to_ned(cs, q), rows, rtol=0, atol=1e-15)

@@ -51,6 +51,13 @@ from imuhal.core.samples import (
 )
 from imuhal.estimation.base import Estimator, EstimatorSettings
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate
+from imuhal.estimation.rows import (
+    AttitudeRows,
+    DiagnosticColumn,
+    ImuRows,
+    flatten_diagnostics,
+    merge_columns,
+)
 from imuhal_filters.common import fast
 from imuhal_filters.common.alignment import aligned_quaternion
 from imuhal_filters.common.gate import gravity_positive_g
@@ -61,6 +68,7 @@ from imuhal_filters.common.limits import (
 )
 from imuhal_filters.common.presets import PresetSettings
 from imuhal_filters.common.quat import IDENTITY, Quat, Vec
+from imuhal_filters.common.rows import StepRows, process_rows
 from imuhal_filters.common.turn import (
     KinematicAcceleration,
     TurnCompensationSettings,
@@ -318,16 +326,99 @@ class AhrsEstimator(Estimator):
             return None
         return np.array(self._q)
 
-    # ------------------------------------------------------------------ batch kernels
-    def aligned_for_batch(self, has_mag: bool) -> bool:
-        """No alignment is left to happen: a compiled kernel may take over from here."""
-        return self._tilt_aligned and (self._heading_aligned or not has_mag)
+    # ------------------------------------------------------------------ whole chunks
+    def process_imu_rows(self, rows: ImuRows) -> AttitudeRows:
+        """What ``process()`` makes of each row's accel, mag and gyro sample, as columns
+        (:mod:`imuhal.estimation.rows`); the state carries on as it would row by row. With
+        numba installed the rows after alignment run in the estimator's compiled kernel,
+        where it has one for its settings (equal to the per-sample path to 1e-12)."""
+        steps = process_rows(self, rows)
+        q, emitted, diagnostics = self._step_rows(steps, diagnostics=True)
+        t_ns = steps.t_ns if steps.t_ns is not None else np.zeros(0, dtype=np.int64)
+        return AttitudeRows(self.instance, t_ns[emitted], q[emitted], diagnostics)
 
-    def _compiled_batch(self, gyro: FloatArray, accel: FloatArray | None,
-                        mag: FloatArray | None, dts: FloatArray, out: FloatArray) -> bool:
-        """Step every row in a compiled kernel, writing ``out``; False when this estimator
-        has none for its settings (``run_batch`` then stays in Python)."""
+    def _step_rows(self, steps: StepRows, *, diagnostics: bool, out: FloatArray | None = None
+                   ) -> tuple[FloatArray, np.ndarray, dict[str, DiagnosticColumn]]:
+        """One filter step per row of ``steps``: the quaternion after each (NaN where there
+        was no attitude yet; written into ``out`` when given, NaN-filled), which rows made
+        an estimate, and the diagnostics columns of those rows (when asked). Rows run in
+        Python until nothing is left to align, the rest in the compiled kernel when there
+        is one (else in Python too)."""
+        m = len(steps)
+        if out is None:
+            out = np.full((m, 4), np.nan)
+        emitted = np.zeros(m, dtype=bool)
+        has_mag = ~np.isnan(steps.mag[:, 0])
+        mag_left = np.logical_or.accumulate(has_mag[::-1])[::-1]
+        py_diags: list[dict[str, Any]] = []
+        stop = 0
+        if self._kernel_allowed():
+            while stop < m and not (self._tilt_aligned and self._kernel_ready()
+                                    and (self._heading_aligned or not mag_left[stop])):
+                py_diags += self._python_rows(steps, stop + 1, out, emitted, diagnostics, stop)
+                stop += 1
+        else:
+            py_diags = self._python_rows(steps, m, out, emitted, diagnostics)
+            stop = m
+        kernel_diag: dict[str, DiagnosticColumn] = {}
+        in_kernel = 0
+        if stop < m:
+            rest = slice(stop, m)
+            # without diagnostics the kernel writes every row's into one scratch row
+            diag = np.empty((m - stop if diagnostics else 1, self._kernel_diag_width))
+            if self._run_kernel(steps.gyro[rest], steps.accel[rest], steps.mag[rest],
+                                steps.dts[rest], out[rest], diag):
+                emitted[rest] = True
+                in_kernel = m - stop
+                if diagnostics:
+                    kernel_diag = {"dt_s": steps.dts[rest], **self._kernel_diagnostics(diag)}
+            else:
+                py_diags += self._python_rows(steps, m, out, emitted, diagnostics, stop)
+        return out, emitted, merge_columns(py_diags, kernel_diag, in_kernel)
+
+    def _python_rows(self, steps: StepRows, stop: int, out: FloatArray, emitted: np.ndarray,
+                     diagnostics: bool, start: int = 0) -> list[dict[str, Any]]:
+        """Rows ``start:stop`` of ``steps`` through the Python step (the reference path)."""
+        rows = slice(start, stop)
+        gyro = steps.gyro[rows].tolist()
+        accel = steps.accel[rows].tolist()
+        mag = steps.mag[rows].tolist()
+        dts = steps.dts[rows].tolist()
+        t_ns = [None] * (stop - start) if steps.t_ns is None else steps.t_ns[rows].tolist()
+        diags: list[dict[str, Any]] = []
+        run, kin = self._run_step, self._kinematics
+        for i, g, a, mg, dt, t in zip(range(start, stop), gyro, accel, mag, dts, t_ns,
+                                      strict=True):
+            diag = run(t, (g[0], g[1], g[2]), None if a[0] != a[0] else (a[0], a[1], a[2]),
+                       None if mg[0] != mg[0] else (mg[0], mg[1], mg[2]), dt)
+            if diag is None:
+                continue
+            out[i] = self._q
+            emitted[i] = True
+            if diagnostics:
+                diags.append(flatten_diagnostics({"dt_s": dt, "turn_compensation": kin.source,
+                                                  **diag}))
+        return diags
+
+    # ------------------------------------------------------------------ compiled kernels
+    _kernel_diag_width: ClassVar[int] = 0
+    """Columns of the per-row diagnostics array the compiled kernel fills."""
+
+    def _run_kernel(self, gyro: FloatArray, accel: FloatArray, mag: FloatArray,
+                    dts: FloatArray, out: FloatArray, diag: FloatArray) -> bool:
+        """Step every (resolved, aligned) row in the compiled kernel, writing the quaternion
+        after each into ``out`` and its diagnostics into ``diag``, then take over its state
+        (:meth:`_kernel_finished`); False, with nothing done, when this estimator has no
+        kernel for its settings. A NaN row of ``accel``/``mag``: none this step."""
         return False
+
+    def _kernel_ready(self) -> bool:
+        """Nothing but the kernel's step is left to happen (a filter's own set-up is done)."""
+        return True
+
+    def _kernel_diagnostics(self, diag: FloatArray) -> dict[str, DiagnosticColumn]:
+        """The kernel's ``diag`` array as the columns ``_step``'s dictionary flattens to."""
+        return {}
 
     def _kernel_allowed(self) -> bool:
         """The compiled kernels cover no turn compensation by a speed (nominal airspeed,
@@ -336,25 +427,13 @@ class AhrsEstimator(Estimator):
         return fast.available() and not (s.turn_compensation and (
             s.nominal_airspeed_m_s is not None or self._kinematics.has_speed_source))
 
-    def _kernel_inputs(self, n: int, accel: FloatArray | None, mag: FloatArray | None
-                       ) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """(accel, mag, counts) as the kernels take them: NaN rows for an absent sensor;
-        counts = steps, gyro and accel beyond full scale, gate closed."""
-        nan3 = np.full((n, 3), np.nan)
-        return (nan3 if accel is None else accel, nan3 if mag is None else mag,
-                np.zeros(4, dtype=np.int64))
-
-    def _kernel_finished(self, q: FloatArray, counts: FloatArray, turn_sum: float) -> None:
+    def _kernel_finished(self, q: FloatArray, steps: int, closed: int, turn_sum: float) -> None:
         """Take over what a kernel left: the quaternion, counters, turn bookkeeping."""
         self._q = (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
-        steps, bad_gyro, bad_accel, closed = (int(c) for c in counts)
         self._kinematics.add_turn_steps(float(turn_sum), steps)
         self._counters["steps"] += steps
         if "gate_closed_steps" in self._counters:
-            self._counters["gate_closed_steps"] += closed
-        beyond = self._counters["beyond_full_scale"]
-        beyond[Channel.GYRO.value] += bad_gyro
-        beyond[Channel.ACCEL.value] += bad_accel
+            self._counters["gate_closed_steps"] += int(closed)
 
     # ------------------------------------------------------------------ internals
     def _within_limits(self, item: GyroSample | AccelSample | MagSample) -> bool:

@@ -8,8 +8,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from imuhal.core.frames import FloatArray
-from imuhal_filters.common import fast
 from imuhal_filters.common.ahrs import AhrsEstimator
+from imuhal_filters.common.rows import update_rows
 
 
 def run_batch(
@@ -41,44 +41,26 @@ def run_batch(
     else:
         dts = np.broadcast_to(np.asarray(dt_s, dtype=float), (n,))
     out = np.full((n, 4), np.nan)
-    start = _compiled_tail(estimator, gyro, accel, mag, dts, out) if fast.available() else 0
-    if start == n:
+    if estimator._kernel_allowed():
+        steps = update_rows(estimator, gyro, accel, mag, dts)
+        if len(steps) == n:  # every row steps: the kernel writes the output in place
+            estimator._step_rows(steps, diagnostics=False, out=out)
+            return out
+        q, emitted, _ = estimator._step_rows(steps, diagnostics=False)
+        out[steps.index[emitted]] = q[emitted]
         return out
     # rows as plain float tuples and the "no sample" rows found once for the whole array:
     # per-row numpy indexing and isnan cost more than the filter step itself
-    rest = slice(start, n)
-    no_sample = [None] * (n - start)
-    accel_rows: list[Any] = no_sample if accel is None else _rows(accel[rest])
-    mag_rows: list[Any] = no_sample if mag is None else _rows(mag[rest])
+    no_sample = [None] * n
+    accel_rows: list[Any] = no_sample if accel is None else _rows(accel)
+    mag_rows: list[Any] = no_sample if mag is None else _rows(mag)
     update = estimator.update
-    for i, (g, a, m, dt) in enumerate(zip(gyro[rest].tolist(), accel_rows, mag_rows,
-                                          dts[rest].tolist(), strict=True), start=start):
+    for i, (g, a, m, dt) in enumerate(zip(gyro.tolist(), accel_rows, mag_rows, dts.tolist(),
+                                          strict=True)):
         q = update(g, a, m, dt)
         if q is not None:
             out[i] = q
     return out
-
-
-def _compiled_tail(estimator: AhrsEstimator, gyro: FloatArray, accel: FloatArray | None,
-                   mag: FloatArray | None, dts: FloatArray, out: FloatArray) -> int:
-    """Step rows in Python until nothing is left to align, then the rest in the estimator's
-    compiled kernel, if it has one for its settings. Returns the first row not yet run."""
-    n = gyro.shape[0]
-    for i in range(n):
-        if estimator.aligned_for_batch(mag is not None):
-            rest = slice(i, n)
-            done = estimator._compiled_batch(
-                np.ascontiguousarray(gyro[rest]),
-                None if accel is None else np.ascontiguousarray(accel[rest]),
-                None if mag is None else np.ascontiguousarray(mag[rest]),
-                np.ascontiguousarray(dts[rest], dtype=float), out[rest])
-            return n if done else i
-        a = None if accel is None else _rows(accel[i : i + 1])[0]
-        m = None if mag is None else _rows(mag[i : i + 1])[0]
-        q = estimator.update(tuple(gyro[i].tolist()), a, m, float(dts[i]))
-        if q is not None:
-            out[i] = q
-    return n
 
 
 def _rows(values: FloatArray) -> list[tuple[float, ...] | None]:

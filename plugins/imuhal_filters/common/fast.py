@@ -38,6 +38,13 @@ class Kernel:
 def _compiled(fn: Callable[..., Any]) -> Callable[..., Any]:
     import numba
 
+    # a kernel may call helpers that are kernels themselves (shared quaternion arithmetic):
+    # numba needs them compiled before it types the caller, so they are, and the module's
+    # name for each is pointed at the compiled one
+    for name in fn.__code__.co_names:
+        helper = fn.__globals__.get(name)
+        if isinstance(helper, Kernel):
+            fn.__globals__[name] = _compiled(helper.fn)
     return numba.njit(cache=True, nogil=True)(fn)
 
 

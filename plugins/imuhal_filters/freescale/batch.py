@@ -13,8 +13,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from imuhal.core.conventions import NED, convert_quat
 from imuhal.core.frames import FloatArray
-from imuhal_filters.freescale.coords import quat_body_to_ned
+from imuhal_filters.common import fast
+from imuhal_filters.freescale.coords import CONVENTION, CoordinateSystem
+from imuhal_filters.freescale.fast import KERNEL_SETTINGS, freescale_rows
 from imuhal_filters.freescale.kalman import FreescaleKalman
 from imuhal_filters.freescale.settings import (
     Freescale6DofSettings,
@@ -65,8 +68,12 @@ def _run(settings: FreescaleCommonSettings, accel_g: FloatArray, gyro_dps: Float
     kf = FreescaleKalman(settings, use_mag=use_mag)
     ratio = settings.oversample_ratio
     average = settings.accel_mag_input == "average"
+    ends = list(range(ratio - 1, len(accel), ratio))
+    compiled = fast.available() and set(type(settings).model_fields) <= KERNEL_SETTINGS
     rows, steps = [], []
-    for end in range(ratio - 1, len(accel), ratio):
+    for end in ends:
+        if compiled and kf.initialised and kf.locked:
+            break  # the rest in the compiled kernel
         window = slice(end - ratio + 1, end + 1)
         a = accel[window].mean(axis=0) if average else accel[end]
         m = None
@@ -75,15 +82,77 @@ def _run(settings: FreescaleCommonSettings, accel_g: FloatArray, gyro_dps: Float
         steps.append(kf.step(a, gyro[window], m))
         rows.append(end)
     cs = settings.coordinate_system
+    q = np.array([st.q_sensor_to_global for st in steps]).reshape(-1, 4)
+    euler = np.array([[st.euler_deg[k] for k in ("phi", "theta", "psi")]
+                      for st in steps]).reshape(-1, 3)
+    offset = np.array([st.gyro_offset_dps for st in steps]).reshape(-1, 3)
+    incl = np.array([st.inclination_deg for st in steps])
+    jam = np.array([st.mag_jamming for st in steps], dtype=bool)
+    valid = np.array([st.valid for st in steps], dtype=bool)
+    if len(rows) < len(ends):
+        k_q, k_off, k_incl, k_jam, k_euler = _compiled_steps(kf, accel, gyro, mag, len(rows),
+                                                             ratio, average)
+        rows += ends[len(rows):]
+        q, euler = np.concatenate([q, k_q]), np.concatenate([euler, k_euler])
+        offset, incl = np.concatenate([offset, k_off]), np.concatenate([incl, k_incl])
+        jam = np.concatenate([jam, k_jam])
+        valid = np.concatenate([valid, np.ones(len(k_q), dtype=bool)])
     return BatchResult(
-        row=np.array(rows, dtype=int),
-        valid=np.array([st.valid for st in steps], dtype=bool),
-        q_sensor_to_global=np.array([st.q_sensor_to_global for st in steps]).reshape(-1, 4),
-        q_body_to_ned=np.array([quat_body_to_ned(cs, st.q_sensor_to_global)
-                                for st in steps]).reshape(-1, 4),
-        euler_deg=np.array([[st.euler_deg[k] for k in ("phi", "theta", "psi")]
-                            for st in steps]).reshape(-1, 3),
-        gyro_offset_dps=np.array([st.gyro_offset_dps for st in steps]).reshape(-1, 3),
-        inclination_deg=np.array([st.inclination_deg for st in steps]),
-        mag_jamming=np.array([st.mag_jamming for st in steps], dtype=bool),
+        row=np.array(rows, dtype=int), valid=valid, q_sensor_to_global=q,
+        q_body_to_ned=quats_body_to_ned(cs, q),
+        euler_deg=euler, gyro_offset_dps=offset, inclination_deg=incl, mag_jamming=jam,
     )
+
+
+def _compiled_steps(kf: FreescaleKalman, accel: FloatArray, gyro: FloatArray,
+                    mag: FloatArray | None, done: int, ratio: int, average: bool
+                    ) -> tuple[FloatArray, FloatArray, FloatArray, np.ndarray, FloatArray]:
+    """The Kalman steps of windows ``done``... in the compiled kernel (the filter is
+    initialised and locked); ``kf`` is left as the Python steps would leave it."""
+    s = kf.s
+    n_win = len(accel) // ratio - done
+    span = slice(done * ratio, (done + n_win) * ratio)
+    g = np.ascontiguousarray(gyro[span].reshape(n_win, ratio, 3))
+
+    def measured(values: FloatArray) -> FloatArray:
+        w = values[span].reshape(n_win, ratio, 3)
+        return np.ascontiguousarray(w.mean(axis=1) if average else w[:, -1])
+
+    a = measured(accel)
+    m = measured(mag) if mag is not None else np.zeros((n_win, 3))
+    noise = kf._measurement_noise()
+    nine = kf.use_mag
+    s9 = kf._s9() if nine else None
+    out_q, out_b = np.empty((n_win, 4)), np.empty((n_win, 3))
+    out_incl, out_jam = np.empty(n_win), np.zeros(n_win, dtype=bool)
+    out_euler = np.empty((n_win, 3))
+    incl = np.array([kf.inclination_deg])
+    kf.qw = np.ascontiguousarray(kf.qw)
+    freescale_rows(
+        kf.q, kf.b, kf.a_sensor, kf.m_global, kf.qw, incl, a, g, m, nine,
+        s.coordinate_system is CoordinateSystem.NED, s.coordinate_system.gravity_positive,
+        s.fast_dt_s, s.kalman_dt_s, s.accel_decay,
+        0.0 if s.accel_soft_gate_g is None else float(s.accel_soft_gate_g), noise,
+        bool(s9 and s9.full_innovation_inverse), s9.field_strength_ut if s9 else 0.0,
+        s.qw_gyro_offset_dps2, s.qv_gyro_dps2, s.qw_accel_g2,
+        s9.disturbance_decay if s9 else 0.0, s9.qw_mag_disturbance_ut2 if s9 else 0.0,
+        s9.max_inclination_deg if s9 else 90.0, _STYLE[s.coordinate_system], out_q, out_b,
+        out_incl, out_jam, out_euler)
+    kf.inclination_deg = float(incl[0])
+    return out_q, out_b, out_incl, out_jam, out_euler
+
+
+_STYLE = {CoordinateSystem.NED: 0, CoordinateSystem.ANDROID: 1, CoordinateSystem.WIN8: 2}
+"""The kernel's code for each system's Euler style."""
+
+
+def quats_body_to_ned(cs: CoordinateSystem, q: FloatArray) -> FloatArray:
+    """:func:`coords.quat_body_to_ned` of every row of ``q`` (n, 4) at once."""
+    if not len(q):
+        return np.zeros((0, 4))
+    out = np.asarray(convert_quat(q, CONVENTION[cs], NED), dtype=float).reshape(-1, 4)
+    n = np.sqrt(np.einsum("ij,ij->i", out, out))
+    good = n > 1e-3
+    out = np.where(good[:, None], out / np.where(good, n, 1.0)[:, None],
+                   np.array([1.0, 0.0, 0.0, 0.0]))
+    return np.where((out[:, 0] < 0.0)[:, None], -out, out)

@@ -232,7 +232,7 @@ def _asin_deg(x: float) -> float:
     return math.degrees(math.asin(max(-1.0, min(1.0, x))))
 
 
-_CONVENTION = {CoordinateSystem.NED: AEROSPACE, CoordinateSystem.ANDROID: ANDROID,
+CONVENTION = {CoordinateSystem.NED: AEROSPACE, CoordinateSystem.ANDROID: ANDROID,
                CoordinateSystem.WIN8: WIN8}
 """The core convention each build's axes, accelerometer sign and Euler angles are."""
 
@@ -246,7 +246,7 @@ def euler_angles_deg(cs: CoordinateSystem, r: FloatArray) -> dict[str, float]:
     from -180 to 180 and roll about y from -90 to 90, heading anticlockwise); the definitions
     live in ``imuhal.core.conventions`` (styles freescale_ned / _android / _win8).
     """
-    phi, theta, psi = euler_deg_from_quat(_CONVENTION[cs], quat_from_matrix_fsl(r))
+    phi, theta, psi = euler_deg_from_quat(CONVENTION[cs], quat_from_matrix_fsl(r))
     rho = _wrap_360(360.0 - psi) if cs is CoordinateSystem.WIN8 else psi
     return {"phi": phi, "theta": theta, "psi": psi, "rho": rho, "chi": _acos_deg(r[2, 2])}
 
@@ -262,7 +262,7 @@ def _wrap_360(a: float) -> float:
 
 def to_sensor_vector(cs: CoordinateSystem, v_body_ned: FloatArray) -> FloatArray:
     """A body-NED (forward, right, down) vector in the sensor axes of ``cs``."""
-    return vector_from_ned(v_body_ned, _CONVENTION[cs], VectorKind.ANGULAR_RATE)
+    return vector_from_ned(v_body_ned, CONVENTION[cs], VectorKind.ANGULAR_RATE)
 
 
 SignedAxes = tuple[tuple[int, float], tuple[int, float], tuple[int, float]]
@@ -273,7 +273,7 @@ a signed permutation of NED's, so a sample's vector converts on plain floats, ex
 def sensor_axes(cs: CoordinateSystem, *, specific_force: bool = False) -> SignedAxes:
     """:func:`to_sensor_vector` (or, with ``specific_force``, :func:`accel_reading_g`) as a
     signed permutation: ``out[i] = sign * v[index]``, the same floats without numpy."""
-    c = _CONVENTION[cs]
+    c = CONVENTION[cs]
     m = c.body_from_frd.T  # vector_from_ned computes v @ M.T
     factor = c.accel_sign.factor if specific_force else 1.0
     axes = []
@@ -285,9 +285,9 @@ def sensor_axes(cs: CoordinateSystem, *, specific_force: bool = False) -> Signed
 
 def accel_reading_g(cs: CoordinateSystem, specific_force_body_ned_g: FloatArray) -> FloatArray:
     """The accelerometer reading ``cs`` expects (g, its axes and sign) from specific force."""
-    return vector_from_ned(specific_force_body_ned_g, _CONVENTION[cs], VectorKind.SPECIFIC_FORCE)
+    return vector_from_ned(specific_force_body_ned_g, CONVENTION[cs], VectorKind.SPECIFIC_FORCE)
 
 
 def quat_body_to_ned(cs: CoordinateSystem, q_fsl: FloatArray) -> FloatArray:
     """Body -> NED quaternion (scalar >= 0) from the filter's sensor -> global quaternion."""
-    return normalise_positive(convert_quat(q_fsl, _CONVENTION[cs], NED))
+    return normalise_positive(convert_quat(q_fsl, CONVENTION[cs], NED))

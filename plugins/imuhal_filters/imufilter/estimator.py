@@ -33,6 +33,7 @@ from imuhal_filters.imufilter.core import (
     rotate_heading,
     setup_quaternion,
 )
+from imuhal_filters.imufilter.fast import imufilter_rows, pack_state
 from imuhal_filters.imufilter.velocity import ZERO, VelocityState, velocity_step
 
 
@@ -110,6 +111,35 @@ class ImuFilterEstimator(AhrsEstimator):
         if self.settings.velocity:
             d["velocity_ned_m_s"] = self._vel.velocity
         return d
+
+    # ------------------------------------------------------------------ compiled kernel
+    _kernel_diag_width: ClassVar[int] = 6
+
+    def _kernel_ready(self) -> bool:
+        return self._initialized
+
+    def _run_kernel(self, gyro: FloatArray, accel: FloatArray, mag: FloatArray,
+                    dts: FloatArray, out: FloatArray, diag: FloatArray) -> bool:
+        """The rows in the compiled kernel (``fast`` extra); see ``AhrsEstimator._run_kernel``."""
+        s = self.settings
+        state = pack_state(self._q, self._var, self._gain, self._vel, self._vel_target)
+        turn_sum = imufilter_rows(
+            state, gyro, accel, dts, float(s.gain), float(s.sd_acc_g), s.velocity,
+            s.sd_acc_g * STANDARD_GRAVITY_M_S2, s.sd_vel_g_s * STANDARD_GRAVITY_M_S2,
+            s.turn_compensation, self._kinematics.turn_sum, out, diag)
+        v = state.tolist()
+        self._var, self._gain = v[4], v[5]
+        self._vel = VelocityState((v[6], v[7], v[8]), (v[9], v[10], v[11]),
+                                  (v[12], v[13], v[14]), v[15], v[16])
+        self._kernel_finished(state[:4], len(gyro), 0, turn_sum)
+        return True
+
+    def _kernel_diagnostics(self, diag: FloatArray) -> dict[str, Any]:
+        cols: dict[str, Any] = {"accel_used": diag[:, 0].astype(np.int64),
+                                "accel_gain": diag[:, 1], "accel_variance_g2": diag[:, 2]}
+        if self.settings.velocity:
+            cols.update({f"velocity_ned_m_s_{i}": diag[:, 3 + i] for i in range(3)})
+        return cols
 
     # ------------------------------------------------------------------ library functions
     @property

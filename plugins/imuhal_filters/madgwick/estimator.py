@@ -106,23 +106,28 @@ class MadgwickEstimator(AhrsEstimator):
             "accel_weight": weight,
         }
 
-    def _compiled_batch(self, gyro: FloatArray, accel: FloatArray | None,
-                        mag: FloatArray | None, dts: FloatArray, out: FloatArray) -> bool:
-        """Run the rows in the compiled kernel (``fast`` extra) when it covers this setup;
-        False (nothing done) otherwise. Called by ``run_batch`` once the attitude is aligned."""
+    _kernel_diag_width: ClassVar[int] = 3
+
+    def _run_kernel(self, gyro: FloatArray, accel: FloatArray, mag: FloatArray,
+                    dts: FloatArray, out: FloatArray, diag: FloatArray) -> bool:
+        """The rows in the compiled kernel (``fast`` extra) when it covers this setup; see
+        ``AhrsEstimator._run_kernel``."""
         s = self.settings
-        if s.inv_sqrt != "exact" or not self._kernel_allowed():
+        if s.inv_sqrt != "exact":
             return False
-        accel, mag, counts = self._kernel_inputs(gyro.shape[0], accel, mag)
         gate = self._gate
-        q, turn_sum = madgwick_rows(
-            np.array(self._q), gyro, accel, mag, dts, float(s.gyro_full_scale_rad_s),
-            float(s.accel_full_scale_m_s2), float(s.beta), gate.lower_g, gate.upper_g,
-            0.0 if s.accel_soft_gate_g is None else float(s.accel_soft_gate_g),
-            s.mag_reference is MagReference.PAPER, s.use_mag, s.turn_compensation, out, counts,
-            self._kinematics.turn_sum)
-        self._kernel_finished(q, counts, turn_sum)
+        q, turn_sum, closed = madgwick_rows(
+            np.array(self._q), gyro, accel, mag, dts, float(s.beta), gate.lower_g,
+            gate.upper_g, 0.0 if s.accel_soft_gate_g is None else float(s.accel_soft_gate_g),
+            s.mag_reference is MagReference.PAPER, s.use_mag, s.turn_compensation,
+            self._kinematics.turn_sum, out, diag)
+        self._kernel_finished(q, len(gyro), closed, turn_sum)
         return True
+
+    def _kernel_diagnostics(self, diag: FloatArray) -> dict[str, Any]:
+        gate_open = diag[:, 0].astype(np.int64)
+        return {"gate_open": gate_open, "accel_used": gate_open,
+                "mag_used": diag[:, 1].astype(np.int64), "accel_weight": diag[:, 2]}
 
     def _filter_state(self) -> dict[str, Any]:
         return {}

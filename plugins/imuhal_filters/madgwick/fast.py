@@ -1,10 +1,12 @@
 """The Madgwick batch step loop as one compiled kernel (``fast`` extra; see common/fast.py).
 
-It repeats, row by row and in the same order of operations, what ``AhrsEstimator.update``
-then ``MadgwickEstimator._step`` and ``madgwick_step`` (exact 1/sqrt) do once the attitude is
-aligned: full-scale checks, the nominal-free turn bookkeeping, the hard and soft accelerometer
-gates and the gradient step. Anything it does not cover (fast32 square root, turn compensation
-with a speed source, rows before alignment) stays on the pure-Python path.
+It repeats, row by row and in the same order of operations, what
+``MadgwickEstimator._step`` and ``madgwick_step`` (exact 1/sqrt) do once the attitude is
+aligned: the nominal-free turn bookkeeping, the hard and soft accelerometer gates and the
+gradient step. Which rows step and with which accel and mag (full scales, held and stale
+samples, step lengths) is decided before, for every AHRS alike, by ``common/rows.py``.
+Anything it does not cover (fast32 square root, turn compensation with a speed source, rows
+before alignment) stays on the pure-Python path.
 """
 
 from __future__ import annotations
@@ -18,38 +20,23 @@ from imuhal_filters.common.fast import jit
 _G = 9.80665  # STANDARD_GRAVITY_M_S2, as gravity_positive_g uses it
 
 
-def _madgwick_rows(q_in, gyro, accel, mag, dts, gyro_fs, accel_fs, beta, gate_lo, gate_hi,
-                   soft_width, paper, use_mag, turn_on, out, counts, turn_sum):
-    """Step over every row; ``out`` gets the quaternion after each stepped row (others keep
-    NaN). ``counts``: steps, gyro beyond full scale, accel beyond full scale, gate closed.
-    Returns the final quaternion and the turn-rate sum (turn bookkeeping)."""
+def _madgwick_rows(q_in, gyro, accel, mag, dts, beta, gate_lo, gate_hi, soft_width, paper,
+                   use_mag, turn_on, turn_sum, out, diag):
+    """One step per row (rows resolved by ``common/rows.py``: a NaN accel or mag row means
+    none this step). ``out`` gets the quaternion after each row, ``diag`` its gate_open,
+    mag_used and accel_weight. Returns the final quaternion, the turn-rate sum (turn
+    bookkeeping) and the number of steps with the gate closed."""
     q0, q1, q2, q3 = q_in[0], q_in[1], q_in[2], q_in[3]
     k = -1.0 / _G
+    closed = 0
+    keep = diag.shape[0] == gyro.shape[0]  # else one scratch row (no diagnostics asked)
     for i in range(gyro.shape[0]):
+        di = i if keep else 0
         gx, gy, gz = gyro[i, 0], gyro[i, 1], gyro[i, 2]
-        ok = True
-        for c in (gx, gy, gz):
-            if not (math.isfinite(c) and abs(c) <= gyro_fs):
-                ok = False
-        if not ok:
-            counts[1] += 1
-            continue
-        have_a = not (math.isnan(accel[i, 0]) or math.isnan(accel[i, 1])
-                      or math.isnan(accel[i, 2]))
-        if have_a:
-            for c in (accel[i, 0], accel[i, 1], accel[i, 2]):
-                if not (math.isfinite(c) and abs(c) <= accel_fs):
-                    have_a = False
-            if not have_a:
-                counts[2] += 1
-        have_m = not (math.isnan(mag[i, 0]) or math.isnan(mag[i, 1]) or math.isnan(mag[i, 2]))
-        if have_m:
-            for c in (mag[i, 0], mag[i, 1], mag[i, 2]):
-                if not math.isfinite(c):
-                    have_m = False
+        have_a = not math.isnan(accel[i, 0])
+        have_m = not math.isnan(mag[i, 0])
         if turn_on:
             turn_sum += math.sqrt(gx ** 2 + gy ** 2 + gz ** 2)
-        counts[0] += 1
         dt = dts[i]
         # _step: gates on the gravity-positive reading in g
         gate_open = False
@@ -60,11 +47,14 @@ def _madgwick_rows(q_in, gyro, accel, mag, dts, gyro_fs, accel_fs, beta, gate_lo
             n = math.sqrt(ax ** 2 + ay ** 2 + az ** 2)
             gate_open = gate_lo < n < gate_hi
             if not gate_open:
-                counts[3] += 1
+                closed += 1
             if soft_width > 0.0:
                 d = (n - 1.0) / soft_width
                 weight = 1.0 / (1.0 + d * d)
         use_m = have_m and use_mag
+        diag[di, 0] = 1.0 if gate_open else 0.0
+        diag[di, 1] = 1.0 if gate_open and use_m else 0.0
+        diag[di, 2] = weight
         b = beta * weight
         # madgwick_step (exact inverse square root)
         d0 = 0.5 * (-q1 * gx - q2 * gy - q3 * gz)
@@ -118,7 +108,7 @@ def _madgwick_rows(q_in, gyro, accel, mag, dts, gyro_fs, accel_fs, beta, gate_lo
         r = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
         q0, q1, q2, q3 = w * r, x * r, y * r, z * r
         out[i, 0], out[i, 1], out[i, 2], out[i, 3] = q0, q1, q2, q3
-    return np.array([q0, q1, q2, q3]), turn_sum
+    return np.array([q0, q1, q2, q3]), turn_sum, closed
 
 
 madgwick_rows = jit(_madgwick_rows)

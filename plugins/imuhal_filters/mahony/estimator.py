@@ -82,23 +82,28 @@ class MahonyEstimator(AhrsEstimator):
             "accel_weight": weight,
         }
 
-    def _compiled_batch(self, gyro: FloatArray, accel: FloatArray | None,
-                        mag: FloatArray | None, dts: FloatArray, out: FloatArray) -> bool:
-        """The rows in the compiled kernel (``fast`` extra), once aligned; see run_batch."""
-        if not self._kernel_allowed():
-            return False
+    _kernel_diag_width: ClassVar[int] = 6
+
+    def _run_kernel(self, gyro: FloatArray, accel: FloatArray, mag: FloatArray,
+                    dts: FloatArray, out: FloatArray, diag: FloatArray) -> bool:
+        """The rows in the compiled kernel (``fast`` extra); see ``AhrsEstimator._run_kernel``."""
         s = self.settings
-        accel, mag, counts = self._kernel_inputs(gyro.shape[0], accel, mag)
         gate = self._gate
-        q, integral, turn_sum = mahony_rows(
-            np.array(self._q), np.array(self._integral), gyro, accel, mag, dts,
-            float(s.gyro_full_scale_rad_s), float(s.accel_full_scale_m_s2), float(s.kp),
+        q, integral, turn_sum, closed = mahony_rows(
+            np.array(self._q), np.array(self._integral), gyro, accel, mag, dts, float(s.kp),
             float(s.ki), gate.lower_g, gate.upper_g,
             0.0 if s.accel_soft_gate_g is None else float(s.accel_soft_gate_g), s.use_mag,
-            s.turn_compensation, out, counts, self._kinematics.turn_sum)
+            s.turn_compensation, self._kinematics.turn_sum, out, diag)
         self._integral = (float(integral[0]), float(integral[1]), float(integral[2]))
-        self._kernel_finished(q, counts, turn_sum)
+        self._kernel_finished(q, len(gyro), closed, turn_sum)
         return True
+
+    def _kernel_diagnostics(self, diag: FloatArray) -> dict[str, Any]:
+        gate_open = diag[:, 0].astype(np.int64)
+        return {"gate_open": gate_open, "accel_used": gate_open,
+                "mag_used": diag[:, 1].astype(np.int64), "gyro_bias_rad_s_0": diag[:, 3],
+                "gyro_bias_rad_s_1": diag[:, 4], "gyro_bias_rad_s_2": diag[:, 5],
+                "accel_weight": diag[:, 2]}
 
     @property
     def gyro_bias_rad_s(self) -> Vec:

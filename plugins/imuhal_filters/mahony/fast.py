@@ -1,9 +1,8 @@
 """The Mahony batch step loop as one compiled kernel (``fast`` extra; see common/fast.py).
 
-Row by row and in the same order of operations as ``AhrsEstimator.update`` then
-``MahonyEstimator._step`` and ``mahony_step``, once the attitude is aligned: full-scale checks,
-the nominal-free turn bookkeeping, the hard and soft accelerometer gates, the PI feedback.
-The row checks are those of ``madgwick/fast.py`` (numba inlines no Python helper).
+Row by row and in the same order of operations as ``MahonyEstimator._step`` and
+``mahony_step``, once the attitude is aligned: the nominal-free turn bookkeeping, the hard and
+soft accelerometer gates, the PI feedback. The rows are resolved before by ``common/rows.py``.
 """
 
 from __future__ import annotations
@@ -17,38 +16,23 @@ from imuhal_filters.common.fast import jit
 _G = 9.80665  # STANDARD_GRAVITY_M_S2, as gravity_positive_g uses it
 
 
-def _mahony_rows(q_in, integral_in, gyro, accel, mag, dts, gyro_fs, accel_fs, kp, ki, gate_lo,
-                 gate_hi, soft_width, use_mag, turn_on, out, counts, turn_sum):
-    """Step over every row; see ``madgwick_rows`` for ``out``, ``counts`` and ``turn_sum``.
-    Returns the final quaternion, integral feedback and turn-rate sum."""
+def _mahony_rows(q_in, integral_in, gyro, accel, mag, dts, kp, ki, gate_lo, gate_hi,
+                 soft_width, use_mag, turn_on, turn_sum, out, diag):
+    """One step per row; see ``madgwick_rows`` for the rows, ``out`` and ``diag`` (here
+    gate_open, mag_used, accel_weight and the three gyro bias components). Returns the final
+    quaternion, integral feedback, turn-rate sum and steps with the gate closed."""
     q0, q1, q2, q3 = q_in[0], q_in[1], q_in[2], q_in[3]
     ix, iy, iz = integral_in[0], integral_in[1], integral_in[2]
     k = -1.0 / _G
+    closed = 0
+    keep = diag.shape[0] == gyro.shape[0]  # else one scratch row (no diagnostics asked)
     for i in range(gyro.shape[0]):
+        di = i if keep else 0
         gx, gy, gz = gyro[i, 0], gyro[i, 1], gyro[i, 2]
-        ok = True
-        for c in (gx, gy, gz):
-            if not (math.isfinite(c) and abs(c) <= gyro_fs):
-                ok = False
-        if not ok:
-            counts[1] += 1
-            continue
-        have_a = not (math.isnan(accel[i, 0]) or math.isnan(accel[i, 1])
-                      or math.isnan(accel[i, 2]))
-        if have_a:
-            for c in (accel[i, 0], accel[i, 1], accel[i, 2]):
-                if not (math.isfinite(c) and abs(c) <= accel_fs):
-                    have_a = False
-            if not have_a:
-                counts[2] += 1
-        have_m = not (math.isnan(mag[i, 0]) or math.isnan(mag[i, 1]) or math.isnan(mag[i, 2]))
-        if have_m:
-            for c in (mag[i, 0], mag[i, 1], mag[i, 2]):
-                if not math.isfinite(c):
-                    have_m = False
+        have_a = not math.isnan(accel[i, 0])
+        have_m = not math.isnan(mag[i, 0])
         if turn_on:
             turn_sum += math.sqrt(gx ** 2 + gy ** 2 + gz ** 2)
-        counts[0] += 1
         dt = dts[i]
         gate_open = False
         weight = 1.0
@@ -58,10 +42,13 @@ def _mahony_rows(q_in, integral_in, gyro, accel, mag, dts, gyro_fs, accel_fs, kp
             n = math.sqrt(ax ** 2 + ay ** 2 + az ** 2)
             gate_open = gate_lo < n < gate_hi
             if not gate_open:
-                counts[3] += 1
+                closed += 1
             if soft_width > 0.0:
                 d = (n - 1.0) / soft_width
                 weight = 1.0 / (1.0 + d * d)
+        diag[di, 0] = 1.0 if gate_open else 0.0
+        diag[di, 1] = 1.0 if gate_open and have_m and use_mag else 0.0
+        diag[di, 2] = weight
         kpw, kiw = kp * weight, ki * weight
         # mahony_step
         if gate_open:
@@ -109,7 +96,8 @@ def _mahony_rows(q_in, integral_in, gyro, accel, mag, dts, gyro_fs, accel_fs, kp
         r = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
         q0, q1, q2, q3 = w * r, x * r, y * r, z * r
         out[i, 0], out[i, 1], out[i, 2], out[i, 3] = q0, q1, q2, q3
-    return np.array([q0, q1, q2, q3]), np.array([ix, iy, iz]), turn_sum
+        diag[di, 3], diag[di, 4], diag[di, 5] = -ix, -iy, -iz
+    return np.array([q0, q1, q2, q3]), np.array([ix, iy, iz]), turn_sum, closed
 
 
 mahony_rows = jit(_mahony_rows)

@@ -115,7 +115,7 @@ def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
             n_in = 0
             for table in itertools.chain([first], chunks):
                 n_in += len(table)
-                writer.write(next(iter_offline(estimator, [table], ahrs=ahrs)))
+                writer.write(next(iter_offline(estimator, [table], ahrs=ahrs, columnar=True)))
             read = f"{n_in} input rows"
         rows = writer.commit()
     except BaseException:

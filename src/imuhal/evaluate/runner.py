@@ -24,10 +24,11 @@ import numpy as np
 
 from imuhal.core.frames import FloatArray
 from imuhal.estimation.outputs import AttitudeEstimate
+from imuhal.estimation.rows import AttitudeRows
 from imuhal.evaluate.metrics import rmse_deg
 from imuhal.evaluate.recording import Recording, RecordingSource
 from imuhal.offline.csv_input import ACCEL, GYRO, MAG, TIME, SampleTable
-from imuhal.offline.runner import run_offline
+from imuhal.offline.runner import run_offline_columns
 from imuhal.offline.settings_args import build_settings
 from imuhal.plugins.manager import Registry
 
@@ -128,15 +129,20 @@ def estimate_quaternions(rec: Recording, spec: EstimatorSpec, registry: Registry
     values = with_rate_settings(cls.Settings.model_fields, spec.settings, rec.rate_hz)
     settings = build_settings(cls.Settings, values, spec.name)
     estimator = cls(settings)
-    outputs = run_offline(estimator, recording_table(rec, spec.dof))
+    # whole rows at once where the estimator takes them (compiled with numba): same values
+    outputs = run_offline_columns(estimator, recording_table(rec, spec.dof))
     t_ns = np.round(rec.t_s * 1e9).astype(np.int64)
     q = np.full((len(rec), 4), np.nan)
-    atts = [e for e in outputs if isinstance(e, AttitudeEstimate)]
-    if atts:
+    if isinstance(outputs, AttitudeRows):
+        est_t, est_q = outputs.t_ns, outputs.q_body_to_ned
+    else:
+        atts = [e for e in outputs if isinstance(e, AttitudeEstimate)]
         est_t = np.array([e.t_ns for e in atts], dtype=np.int64)
+        est_q = np.array([e.q_body_to_ned for e in atts]).reshape(-1, 4)
+    if len(est_t):
         rows = np.searchsorted(t_ns, est_t)
         ok = (rows < len(t_ns)) & (t_ns[np.minimum(rows, len(t_ns) - 1)] == est_t)
-        q[rows[ok]] = np.array([e.q_body_to_ned for e in atts])[ok]
+        q[rows[ok]] = est_q[ok]
     return q
 
 

@@ -17,6 +17,7 @@ from imuhal.core.conventions import NED, Convention, get_convention
 from imuhal.core.errors import ImuhalError
 from imuhal.estimation.framed import attitude_columns, express_attitude
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate, VerticalEstimate
+from imuhal.estimation.rows import AttitudeRows, flatten_diagnostics
 
 ATTITUDE_COLUMNS = ("t_s", *attitude_columns(NED))
 VERTICAL_COLUMNS = ("t_s", "altitude_m", "climb_m_s", "accel_bias_m_s2")
@@ -34,23 +35,6 @@ def estimate_fields(e: Estimate, frame: str | Convention = NED) -> dict[str, Any
         return {"t_s": e.t_ns / 1e9, "altitude_m": e.altitude_m, "climb_m_s": e.climb_m_s,
                 "accel_bias_m_s2": "" if bias is None else bias}
     return {"t_s": e.t_ns / 1e9}
-
-
-def flatten_diagnostics(diag: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-    """Numbers, booleans and short vectors as columns (``gyro_bias_rad_s_0`` ...)."""
-    out: dict[str, Any] = {}
-    for key, value in diag.items():
-        name = f"{prefix}{key}"
-        if isinstance(value, bool):
-            out[name] = int(value)
-        elif isinstance(value, int | float):
-            out[name] = value
-        elif isinstance(value, list | tuple) and all(isinstance(v, int | float) for v in value):
-            for i, v in enumerate(value):
-                out[f"{name}_{i}"] = v
-        elif isinstance(value, dict):
-            out.update(flatten_diagnostics(value, f"{name}_"))
-    return out
 
 
 def write_estimates(path: str | Path, estimates: Sequence[Estimate],
@@ -98,8 +82,12 @@ class EstimateCsvWriter:
             prefix=f".{self.path.name}.", suffix=".rows")
         self._csv = csv.writer(self._spill)
 
-    def write(self, estimates: Iterable[Estimate]) -> None:
-        """Append ``estimates`` (one chunk: formatted column by column, written at once)."""
+    def write(self, estimates: Iterable[Estimate] | AttitudeRows) -> None:
+        """Append ``estimates`` (one chunk: formatted column by column, written at once);
+        :class:`AttitudeRows` are written as they are, without estimate objects."""
+        if isinstance(estimates, AttitudeRows):
+            self._write_rows(estimates)
+            return
         chunk = list(estimates)
         if not chunk:
             return
@@ -115,6 +103,50 @@ class EstimateCsvWriter:
                  for h in self._header]
         self._csv.writerows(zip(*cells, strict=True))
         self.rows += len(chunk)
+
+    def _write_rows(self, rows: AttitudeRows) -> None:
+        """The column form of :meth:`write`: the same header and the same cells."""
+        n = len(rows)
+        if not n:
+            return
+        if self._fixed is None or self.rows == 0:
+            if get_convention(self.frame) is NED:
+                names: Sequence[str] = ATTITUDE_COLUMNS
+            else:
+                names = tuple(estimate_fields(_attitude(rows, 0), self.frame))
+            # a name whose column has no value on any row is not a column (as row by row)
+            present = [k for k, v in rows.diagnostics.items()
+                       if not isinstance(v, list) or any(x is not None for x in v)]
+            if self._fixed is None:
+                if not (set(names) <= self._index.keys() and set(present) <= self._index.keys()):
+                    self._extend([*names, *present])
+            else:
+                self._check_columns(dict.fromkeys([*names, *present]))
+        leading = self._leading_rows(rows)
+        blank = [""] * n
+        cells = [leading[h] if h in leading else _fmt_column(rows.diagnostics.get(h), blank)
+                 for h in self._header]
+        # every cell is a number or empty, which the csv module would never quote: the lines
+        # are joined directly (its per-field quoting checks cost more than the formatting)
+        self._spill.write("\r\n".join(map(",".join, zip(*cells, strict=True))) + "\r\n")
+        self.rows += n
+
+    def _leading_rows(self, rows: AttitudeRows) -> dict[str, list[str]]:
+        if get_convention(self.frame) is NED:
+            # only the columns written: --columns t_s,qw,qx,qy,qz skips the Euler angles
+            wanted = self._index.keys()
+            t_s = rows.t_ns.astype(float) / 1e9
+            q = rows.q_body_to_ned
+            out = {"t_s": _fmt_floats(t_s)} if "t_s" in wanted else {}
+            for name, col in zip(ATTITUDE_COLUMNS[1:5], q.T, strict=True):
+                if name in wanted:
+                    out[name] = _fmt_floats(col)
+            if wanted & set(ATTITUDE_COLUMNS[5:]):
+                euler = euler_deg_from_quats(q).T
+                out.update({name: _fmt_floats(col)
+                            for name, col in zip(ATTITUDE_COLUMNS[5:], euler, strict=True)})
+            return out
+        return _leading_columns([_attitude(rows, i) for i in range(len(rows))], self.frame)
 
     def commit(self) -> int:
         """Write the header and the rows to ``path`` (atomically); returns the row count."""
@@ -184,10 +216,34 @@ def euler_deg_from_quats(q: np.ndarray) -> np.ndarray:
     return np.degrees(np.column_stack([roll, pitch, yaw]))
 
 
+def _attitude(rows: AttitudeRows, i: int) -> AttitudeEstimate:
+    w, x, y, z = rows.q_body_to_ned[i].tolist()
+    return AttitudeEstimate(t_ns=int(rows.t_ns[i]), source=rows.source, q_body_to_ned=(w, x, y, z))
+
+
+def _fmt_column(values: np.ndarray | list | None, blank: list[str]) -> list[str]:
+    """One diagnostics column of :class:`AttitudeRows` as the row-by-row writer formats it."""
+    if values is None:
+        return blank
+    if isinstance(values, np.ndarray):
+        if values.dtype.kind in "iub":
+            return _reprs(values.astype(np.int64).tolist())
+        return _fmt_floats(values)
+    return ["" if v is None else _fmt(v) for v in values]
+
+
 def _fmt_floats(values: np.ndarray) -> list[str]:
     if np.all(np.isfinite(values)):
-        return [repr(v) for v in values.tolist()]
+        return _reprs(values.tolist())
     return [_fmt(v) for v in values.tolist()]
+
+
+def _reprs(values: list[float] | list[int]) -> list[str]:
+    """``[repr(v) for v in values]`` for finite floats or ints, in one C-level pass (the
+    list's repr joins its items' reprs with ", ")."""
+    if not values:
+        return []
+    return repr(values)[1:-1].split(", ")
 
 
 def _fmt(v: Any) -> str:

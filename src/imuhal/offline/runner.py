@@ -27,6 +27,7 @@ from imuhal.core.samples import (
 )
 from imuhal.estimation.base import Estimator
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate
+from imuhal.estimation.rows import AttitudeRows, ImuRows, RowsEstimator
 from imuhal.offline.csv_input import (
     ACCEL,
     ACCEL_UP,
@@ -118,23 +119,41 @@ def run_offline(
 ) -> list[Estimate]:
     """Run ``estimator`` over ``table``; ``ahrs`` supplies attitude to a vario filter fed
     full IMU columns plus ``pressure_pa`` (imuhal then does the gravity compensation)."""
-    return _run_table(estimator, table, ahrs)
+    return _run_table(estimator, table, ahrs)  # type: ignore[return-value]
 
 
 def iter_offline(
     estimator: Estimator, tables: Iterable[SampleTable], *, ahrs: Estimator | None = None,
-) -> Iterator[list[Estimate]]:
+    columnar: bool = False,
+) -> Iterator[list[Estimate] | AttitudeRows]:
     """:func:`run_offline` over a stream of tables (chunks of one log, in time order): the
-    estimators keep their state from one chunk to the next; one list of estimates per chunk."""
+    estimators keep their state from one chunk to the next; one list of estimates per chunk.
+    ``columnar``: an attitude estimator that takes whole chunks (:class:`RowsEstimator`)
+    gets them, and the chunk's estimates come as :class:`AttitudeRows` (same values)."""
     for table in tables:
-        yield _run_table(estimator, table, ahrs)
+        yield _run_table(estimator, table, ahrs, columnar)
 
 
-def _run_table(estimator: Estimator, table: SampleTable,
-               ahrs: Estimator | None) -> list[Estimate]:
+def run_offline_columns(estimator: Estimator, table: SampleTable) -> list[Estimate] | AttitudeRows:
+    """:func:`run_offline`, as :class:`AttitudeRows` when the estimator takes whole chunks."""
+    return _run_table(estimator, table, None, True)
+
+
+def imu_rows(table: SampleTable) -> ImuRows:
+    """The rows :func:`imu_events` would feed, as arrays (the same integer timestamps)."""
+    require(table, (TIME, *GYRO, *ACCEL), "an attitude estimator")
+    c = table.columns
+    return ImuRows(np.round(c[TIME] * 1e9).astype(np.int64), _stack(table, GYRO),
+                   _stack(table, ACCEL), _stack(table, MAG) if table.has(*MAG) else None)
+
+
+def _run_table(estimator: Estimator, table: SampleTable, ahrs: Estimator | None,
+               columnar: bool = False) -> list[Estimate] | AttitudeRows:
     if _wants_imu(estimator):
         if getattr(estimator.settings, "offline", False):
             return smoothed_estimates(estimator, table)
+        if columnar and isinstance(estimator, RowsEstimator):
+            return estimator.process_imu_rows(imu_rows(table))
         return feed(estimator, imu_events(table))
     _require_pressure_consumer(estimator)
     if table.has(ALTITUDE):

@@ -1,0 +1,189 @@
+"""Row bookkeeping shared by every AHRS batch path: which rows step, with which inputs.
+
+Before a filter step, ``update()`` and ``process()`` decide things that depend only on the
+input and on a few held values, never on the filter: a gyro value beyond the full scale (or
+not finite) means no step; an accelerometer beyond its full scale is dropped and counted; the
+magnetometer must be finite; ``process()`` also holds the latest accepted accelerometer and
+magnetometer sample, drops them when older than ``max_aux_age_s`` and takes the step length
+from the gyro timestamps. This module makes those decisions for a whole array at once, in
+numpy, and hands the kernels (compiled or not) only the rows that step, already resolved:
+NaN rows in ``accel``/``mag`` mean "none this step". The counters and held values of the
+estimator are updated exactly as the row-by-row path would have left them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from imuhal.core.frames import FloatArray
+from imuhal.core.samples import Channel, MagSample
+from imuhal.estimation.rows import ImuRows
+
+if TYPE_CHECKING:
+    from imuhal_filters.common.ahrs import AhrsEstimator
+
+_NS = 1e-9
+
+
+@dataclass(frozen=True)
+class StepRows:
+    """The rows that make one filter step each, with their inputs resolved (body NED)."""
+
+    index: np.ndarray
+    """(m,) position of each step's row in the input."""
+    t_ns: np.ndarray | None
+    """(m,) int64 gyro timestamps, or None (``update()`` semantics: no time stamps)."""
+    gyro: FloatArray
+    """(m, 3) rad/s."""
+    accel: FloatArray
+    """(m, 3) specific force m/s^2; a NaN row: no accelerometer this step."""
+    mag: FloatArray
+    """(m, 3) uT; a NaN row: no magnetometer this step."""
+    dts: FloatArray
+    """(m,) step lengths, s."""
+
+    def __len__(self) -> int:
+        return len(self.index)
+
+
+def _within(values: FloatArray, full_scale: float) -> np.ndarray:
+    """Per row: every component finite and within +-full_scale (NaN fails)."""
+    inside = np.abs(values) <= full_scale  # NaN fails; so does inf below an infinite scale
+    if math.isinf(full_scale):
+        inside &= np.isfinite(values)
+    return inside.all(axis=1)
+
+
+def _count(est: AhrsEstimator, channel: str, n: int) -> None:
+    if n:  # the row-by-row path creates the key on the first rejection only
+        beyond = est._counters["beyond_full_scale"]
+        beyond[channel] = beyond.get(channel, 0) + n
+
+
+def update_rows(est: AhrsEstimator, gyro: FloatArray, accel: FloatArray | None,
+                mag: FloatArray | None, dts: FloatArray) -> StepRows:
+    """``update()`` once per row (``run_batch``): a NaN row is "no sample"; gyro and accel
+    beyond the full scale are counted (the accel only on rows whose gyro steps)."""
+    n = gyro.shape[0]
+    g_ok = _within(gyro, est._gyro_fs)
+    bad = int(n - np.count_nonzero(g_ok))
+    _count(est, Channel.GYRO.value, bad)
+    # the common case, every gyro row valid, takes the arrays as they are (no copies)
+    idx: np.ndarray | slice = slice(0, n) if not bad else np.flatnonzero(g_ok)
+    g, step_dts = gyro[idx], dts[idx]
+    m_rows = len(g)
+    a = m = None
+    if accel is not None:
+        a = accel[idx]
+        ok = _within(a, est._accel_fs)
+        if not ok.all():
+            present = ~np.isnan(a).any(axis=1)
+            _count(est, Channel.ACCEL.value, int(np.count_nonzero(present & ~ok)))
+            a = np.where(ok[:, None], a, np.nan)
+    if mag is not None and est.uses_mag:
+        m = mag[idx]
+        ok = np.isfinite(m).all(axis=1)
+        if not ok.all():
+            m = np.where(ok[:, None], m, np.nan)
+    return StepRows(np.arange(n)[idx], None, _c(g), _c(a, m_rows), _c(m, m_rows), _c(step_dts))
+
+
+def _c(values: FloatArray | None, n: int = 0) -> FloatArray:
+    """A C-contiguous float array (a copy only when needed); None: n NaN rows."""
+    if values is None:
+        return np.full((n, 3), np.nan)
+    return np.ascontiguousarray(values, dtype=float)
+
+
+def process_rows(est: AhrsEstimator, rows: ImuRows) -> StepRows:
+    """``process()`` of each row's accel, mag (when present) and gyro sample, in that order.
+
+    Updates the rejection and staleness counters, the step-length fallbacks and the held
+    accel, mag and last gyro time exactly as the samples one by one would."""
+    t = np.asarray(rows.t_ns, dtype=np.int64)
+    n = len(t)
+    rownum = np.arange(n)
+    g_ok = _within(rows.gyro_rad_s, est._gyro_fs)
+    a_ok = _within(rows.accel_m_s2, est._accel_fs)
+    _count(est, Channel.ACCEL.value, int(n - np.count_nonzero(a_ok)))
+    m_ok = np.zeros(n, dtype=bool)
+    # the runner feeds magnetometer samples only to an estimator that consumes them
+    fed_mag = rows.mag_ut is not None and issubclass(MagSample, tuple(est.consumes))
+    if fed_mag:
+        present = ~np.isnan(rows.mag_ut[:, 0])
+        m_ok = present & np.isfinite(rows.mag_ut).all(axis=1)
+        _count(est, Channel.MAG.value, int(np.count_nonzero(present & ~m_ok)))
+    _count(est, Channel.GYRO.value, int(n - np.count_nonzero(g_ok)))
+    idx = np.flatnonzero(g_ok)
+    t_step = t[idx]
+    accel = _held(est, rows.accel_m_s2, a_ok, rownum, t, idx, t_step, "accel", "stale_accel")
+    mag = np.full((len(idx), 3), np.nan)
+    if est.uses_mag:  # process() holds no magnetometer for a filter that uses none
+        values = rows.mag_ut if fed_mag else np.zeros((n, 3))
+        mag = _held(est, values, m_ok, rownum, t, idx, t_step, "mag", "stale_mag")
+    dts = _step_lengths(est, t_step)
+    if len(idx):
+        est._last_gyro_t_ns = int(t_step[-1])
+    return StepRows(idx, t_step, np.ascontiguousarray(rows.gyro_rad_s[idx]),
+                    accel, mag, dts)
+
+
+def _held(est: AhrsEstimator, values: FloatArray, ok: np.ndarray, rownum: np.ndarray,
+          t: np.ndarray, idx: np.ndarray, t_step: np.ndarray, what: str,
+          stale_counter: str) -> FloatArray:
+    """The latest accepted ``what`` sample at each step (NaN: none, or too old), and the
+    estimator's held sample left as the row-by-row path leaves it."""
+    held_v = getattr(est, f"_{'accel_m_s2' if what == 'accel' else 'mag_ut'}")
+    held_t = getattr(est, f"_{what}_t_ns")
+    last = np.maximum.accumulate(np.where(ok, rownum, -1))
+    src = last[idx]
+    out = np.full((len(idx), 3), np.nan)
+    t_src = np.zeros(len(idx), dtype=np.int64)
+    have = src >= 0
+    out[have] = values[src[have]]
+    t_src[have] = t[src[have]]
+    if held_v is not None and held_t is not None:
+        before = ~have
+        out[before] = held_v
+        t_src[before] = held_t
+        have = np.ones(len(idx), dtype=bool)
+    max_age = est.settings.max_aux_age_s
+    if max_age is not None:
+        stale = have & ((t_step - t_src) * _NS > max_age)
+        est._counters[stale_counter] += int(np.count_nonzero(stale))
+        have &= ~stale
+    out[~have] = np.nan
+    if len(last) and last[-1] >= 0:
+        x, y, z = values[last[-1]].tolist()
+        value = (float(x), float(y), float(z))
+        if what == "accel":
+            est._accel_m_s2, est._accel_t_ns = value, int(t[last[-1]])
+        else:
+            est._mag_ut, est._mag_t_ns = value, int(t[last[-1]])
+    return out
+
+
+def _step_lengths(est: AhrsEstimator, t_step: np.ndarray) -> FloatArray:
+    """Each step's length from the previous stepped gyro time (nominal for the first step,
+    when timestamps are off, and for gaps that are not in (0, max_dt_s])."""
+    s = est.settings
+    nominal = float(s.sample_period_s)
+    m = len(t_step)
+    if not s.dt_from_timestamps or m == 0:
+        return np.full(m, nominal)
+    prev = np.empty(m, dtype=np.int64)
+    prev[1:] = t_step[:-1]
+    first_known = est._last_gyro_t_ns is not None
+    prev[0] = est._last_gyro_t_ns if first_known else t_step[0]
+    dt = (t_step - prev) * _NS
+    bad = ~((dt > 0.0) & (dt <= s.max_dt_s))
+    if not first_known:
+        bad[0] = False  # nominal, not counted: there was no previous gyro sample
+        dt[0] = nominal
+    est._counters["dt_fallbacks"] += int(np.count_nonzero(bad))
+    dt[bad] = nominal
+    return dt

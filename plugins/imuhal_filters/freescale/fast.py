@@ -1,0 +1,342 @@
+"""The Freescale Kalman steps of ``run_6dof``/``run_9dof`` as one compiled kernel (``fast``).
+
+Window by window and in the same order of operations as ``FreescaleKalman.step`` once the
+filter is initialised and locked: the a priori orientation from the window's gyro samples,
+the measurement matrix, the gain (build 422's partial or the full innovation inverse, the
+soft gate's noise factor), the corrections, magnetic jamming, the inclination tracking and
+the next process covariance. The matrix products are written out as loops (numba's ``@``
+needs scipy's BLAS) and the inverse is a Gauss-Jordan with partial pivoting (identity for a
+singular matrix, as the reference); they differ from numpy's BLAS/LAPACK results in the last
+bits only (the tests compare with the Python step to 1e-12).
+
+``KERNEL_SETTINGS`` lists the settings the kernel knows: ``batch.py`` uses it only for a
+settings class with no other field, so a behaviour added to the filter later (with its own
+setting) runs in Python until the kernel learns it, never wrongly compiled.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from imuhal_filters.common.fast import jit
+
+KERNEL_SETTINGS = frozenset({
+    "preset", "gyro_full_scale_rad_s", "accel_full_scale_m_s2", "turn_compensation",
+    "nominal_airspeed_m_s", "speed_max_age_s", "wind_window_s", "airspeed_rate_tau_s",
+    "velocity_rate_window_s", "sensor_rate_hz", "oversample_ratio", "coordinate_system",
+    "accel_mag_input", "initialise_on_first_step", "accel_soft_gate_g", "qv_accel_g2",
+    "qv_gyro_dps2", "qw_gyro_offset_dps2", "qw_accel_g2", "qw_init_theta_deg2",
+    "qw_init_offset_dps2", "qw_init_theta_offset", "qw_init_accel_g2", "accel_decay",
+    "qv_mag_ut2", "qw_mag_disturbance_ut2", "qw_init_disturbance_ut2", "disturbance_decay",
+    "max_inclination_deg", "lock_sets_inclination", "field_strength_ut",
+    "full_innovation_inverse",
+})
+
+_DEG = math.pi / 180.0
+
+
+def _quat_rotvec(q0, q1, q2, q3, rx, ry, rz):
+    """quat_mul(q, quat_from_rotvec_deg(r)) of coords.py."""
+    eta = math.sqrt(rx * rx + ry * ry + rz * rz) * _DEG
+    if eta == 0.0:
+        w, x, y, z = 1.0, 0.0, 0.0, 0.0
+    else:
+        f = math.sin(0.5 * eta) / eta
+        w, x, y, z = math.cos(0.5 * eta), rx * _DEG * f, ry * _DEG * f, rz * _DEG * f
+    return (q0 * w - q1 * x - q2 * y - q3 * z, q0 * x + q1 * w + q2 * z - q3 * y,
+            q0 * y - q1 * z + q2 * w + q3 * x, q0 * z + q1 * y - q2 * x + q3 * w)
+
+
+quat_rotvec = jit(_quat_rotvec)
+
+
+def _matrix(q, r):
+    """coords.matrix_from_quat: R (global -> sensor) = quat_to_matrix(q).T, into ``r``."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    r[0, 0] = w * w + x * x - y * y - z * z
+    r[1, 0] = 2 * (x * y - w * z)
+    r[2, 0] = 2 * (x * z + w * y)
+    r[0, 1] = 2 * (x * y + w * z)
+    r[1, 1] = w * w - x * x + y * y - z * z
+    r[2, 1] = 2 * (y * z - w * x)
+    r[0, 2] = 2 * (x * z - w * y)
+    r[1, 2] = 2 * (y * z + w * x)
+    r[2, 2] = w * w - x * x - y * y + z * z
+
+
+matrix = jit(_matrix)
+
+
+def _matmul(a, b, out):
+    """out = a @ b, terms summed in index order."""
+    for i in range(a.shape[0]):
+        for j in range(b.shape[1]):
+            s = 0.0
+            for k in range(a.shape[1]):
+                s += a[i, k] * b[k, j]
+            out[i, j] = s
+
+
+matmul = jit(_matmul)
+
+
+def _inverse_or_identity(m, out):
+    """Inverse of the square ``m`` into ``out``; identity when singular."""
+    n = m.shape[0]
+    a = m.copy()
+    for i in range(n):
+        for j in range(n):
+            out[i, j] = 1.0 if i == j else 0.0
+    for col in range(n):
+        piv = col
+        for r in range(col + 1, n):
+            if abs(a[r, col]) > abs(a[piv, col]):
+                piv = r
+        if a[piv, col] == 0.0:
+            for i in range(n):
+                for j in range(n):
+                    out[i, j] = 1.0 if i == j else 0.0
+            return
+        if piv != col:
+            for j in range(n):
+                a[col, j], a[piv, j] = a[piv, j], a[col, j]
+                out[col, j], out[piv, j] = out[piv, j], out[col, j]
+        d = a[col, col]
+        for j in range(n):
+            a[col, j] /= d
+            out[col, j] /= d
+        for r in range(n):
+            if r != col:
+                f = a[r, col]
+                if f != 0.0:
+                    for j in range(n):
+                        a[r, j] -= f * a[col, j]
+                        out[r, j] -= f * out[col, j]
+
+
+inverse_or_identity = jit(_inverse_or_identity)
+
+
+def _wrap_360(a):
+    a = a + 360.0 if a < 0.0 else a
+    return 0.0 if a >= 360.0 else a
+
+
+wrap_360 = jit(_wrap_360)
+
+
+def _euler_deg(style, r):
+    """The system's own (phi, theta, psi) of R (global -> sensor): the freescale_ned (0),
+    _android (1) and _win8 (2) styles of imuhal.core.conventions, gimbal branches included."""
+    if style == 0:
+        theta = math.degrees(math.asin(max(-1.0, min(1.0, -r[0, 2]))))
+        phi = math.degrees(math.atan2(r[1, 2], r[2, 2]))
+        phi = -180.0 if phi == 180.0 else phi
+        if theta == 90.0:
+            psi = math.degrees(math.atan2(r[2, 1], r[1, 1])) + phi
+        elif theta == -90.0:
+            psi = math.degrees(math.atan2(-r[2, 1], r[1, 1])) - phi
+        else:
+            psi = math.degrees(math.atan2(r[0, 1], r[0, 0]))
+        return phi, theta, wrap_360(psi)
+    if style == 1:
+        phi = math.degrees(math.asin(max(-1.0, min(1.0, r[0, 2]))))
+        theta = math.degrees(math.atan2(-r[1, 2], r[2, 2]))
+        theta = -180.0 if theta == 180.0 else theta
+        if phi == 90.0:
+            psi = math.degrees(math.atan2(r[1, 0], r[1, 1])) - theta
+        elif phi == -90.0:
+            psi = math.degrees(math.atan2(r[1, 0], r[1, 1])) + theta
+        else:
+            psi = math.degrees(math.atan2(-r[0, 1], r[0, 0]))
+        return phi, theta, wrap_360(psi)
+    if r[2, 2] == 0.0:
+        phi = -90.0 if r[0, 2] >= 0.0 else 90.0
+    else:
+        phi = math.degrees(math.atan(-r[0, 2] / r[2, 2]))
+    theta = math.degrees(math.asin(max(-1.0, min(1.0, r[1, 2]))))
+    if r[2, 2] < 0.0:
+        theta = 180.0 - theta
+    if theta >= 180.0:
+        theta -= 360.0
+    if theta == 90.0:
+        psi = math.degrees(math.atan2(r[0, 1], r[0, 0])) - phi
+    elif theta == -90.0:
+        psi = math.degrees(math.atan2(r[0, 1], r[0, 0])) + phi
+    else:
+        psi = math.degrees(math.atan2(-r[1, 0], r[1, 1]))
+        if abs(theta) >= 90.0:
+            psi += 180.0
+    return phi, theta, wrap_360(psi)
+
+
+euler_deg = jit(_euler_deg)
+
+
+def _freescale_rows(q, b, a_sensor, m_global, qw, incl, accel, gyro, mag, use_mag, ned,
+                    gravity_positive, fast_dt, kalman_dt, accel_decay, soft_width, noise,
+                    full_inverse, field, qw_gyro_offset, qv_gyro, qw_accel, dist_decay,
+                    qw_dist, max_incl_deg, style, out_q, out_b, out_incl, out_jam,
+                    out_euler):
+    """One Kalman step per window ``k``: ``accel[k]``, ``mag[k]`` the measurements, ``gyro[k]``
+    (ratio x 3) the fast samples. The state arrays (q, b, a_sensor, m_global, qw, incl[0])
+    are updated in place; per step the a posteriori q, b, inclination, jamming flag and the
+    system's Euler angles (``style``: 0 ned, 1 android, 2 win8)."""
+    n = qw.shape[0]
+    nm = 6 if use_mag else 3
+    r_mi = np.empty((3, 3))
+    c = np.zeros((nm, n))
+    ct = np.empty((n, nm))
+    qw_ct = np.empty((n, nm))
+    innov = np.empty((nm, nm))
+    inv = np.empty((nm, nm))
+    k = np.empty((n, nm))
+    cq = np.empty((nm, n))
+    kcq = np.empty((n, n))
+    xe = np.empty(n)
+    err = np.empty(nm)
+    qm = np.empty(4)
+    for step in range(accel.shape[0]):
+        qm[0], qm[1], qm[2], qm[3] = q[0], q[1], q[2], q[3]
+        for s in range(gyro.shape[1]):
+            qm[0], qm[1], qm[2], qm[3] = quat_rotvec(
+                qm[0], qm[1], qm[2], qm[3], (gyro[step, s, 0] - b[0]) * fast_dt,
+                (gyro[step, s, 1] - b[1]) * fast_dt, (gyro[step, s, 2] - b[2]) * fast_dt)
+        matrix(qm, r_mi)
+        sg = 1.0 if ned else -1.0
+        ax, ay, az = accel[step, 0], accel[step, 1], accel[step, 2]
+        sa = 1.0 if gravity_positive else -1.0
+        gg0, gg1, gg2 = sg * r_mi[0, 2], sg * r_mi[1, 2], sg * r_mi[2, 2]
+        am0, am1, am2 = accel_decay * a_sensor[0], accel_decay * a_sensor[1], \
+            accel_decay * a_sensor[2]
+        err[0] = sa * ax + am0 - gg0
+        err[1] = sa * ay + am1 - gg1
+        err[2] = sa * az + am2 - gg2
+        mg0 = r_mi[0, 0] * m_global[0] + r_mi[0, 1] * m_global[1] + r_mi[0, 2] * m_global[2]
+        mg1 = r_mi[1, 0] * m_global[0] + r_mi[1, 1] * m_global[1] + r_mi[1, 2] * m_global[2]
+        mg2 = r_mi[2, 0] * m_global[0] + r_mi[2, 1] * m_global[1] + r_mi[2, 2] * m_global[2]
+        # measurement matrix
+        for i in range(nm):
+            for j in range(n):
+                c[i, j] = 0.0
+        for blk in range(2 if use_mag else 1):
+            v0, v1, v2 = (gg0, gg1, gg2) if blk == 0 else (mg0, mg1, mg2)
+            o = 3 * blk
+            sk = ((0.0, -v2, v1), (v2, 0.0, -v0), (-v1, v0, 0.0))
+            for i in range(3):
+                for j in range(3):
+                    c[o + i, j] = -_DEG * sk[i][j]
+                    c[o + i, 3 + j] = kalman_dt * _DEG * sk[i][j]
+                c[o + i, (6 if blk == 0 else 9) + i] = 1.0 if blk == 0 else -1.0
+        if use_mag:
+            err[3] = mag[step, 0] - mg0
+            err[4] = mag[step, 1] - mg1
+            err[5] = mag[step, 2] - mg2
+        # gain
+        factor = 1.0
+        if soft_width > 0.0:
+            d = (math.sqrt(ax * ax + ay * ay + az * az) - 1.0) / soft_width
+            factor = (1.0 + d * d) ** 2
+        for i in range(n):
+            for j in range(nm):
+                ct[i, j] = c[j, i]
+        matmul(qw, ct, qw_ct)
+        matmul(c, qw_ct, innov)
+        for i in range(nm):
+            innov[i, i] += noise[i] * factor if i < 3 else noise[i]
+        for i in range(nm):
+            for j in range(i):
+                innov[i, j] = innov[j, i]  # the reference fills S from its top half
+        if use_mag and not full_inverse:
+            for i in range(nm):
+                for j in range(nm):
+                    inv[i, j] = innov[i, j]
+            g3 = np.empty((3, 3))
+            inverse_or_identity(innov[:3, :3].copy(), g3)
+            for i in range(3):
+                for j in range(3):
+                    inv[i, j] = g3[i, j]
+        else:
+            inverse_or_identity(innov, inv)
+        matmul(qw_ct, inv, k)
+        # a posteriori error vector
+        for i in range(n):
+            xe[i] = k[i, 0] * err[0] + k[i, 1] * err[1] + k[i, 2] * err[2]
+        jamming = False
+        if use_mag:
+            for i in range(9, 12):
+                xe[i] += k[i, 3] * err[3] + k[i, 4] * err[4] + k[i, 5] * err[5]
+            jamming = xe[9] * xe[9] + xe[10] * xe[10] + xe[11] * xe[11] > 4.0 * field * field
+            if not jamming:
+                for i in range(9):
+                    xe[i] += k[i, 3] * err[3] + k[i, 4] * err[4] + k[i, 5] * err[5]
+        # corrections
+        p0, p1, p2, p3 = quat_rotvec(qm[0], qm[1], qm[2], qm[3], -xe[0], -xe[1], -xe[2])
+        nq = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2 + p3 * p3)
+        if not nq > 1e-3:
+            p0, p1, p2, p3 = 1.0, 0.0, 0.0, 0.0
+        else:
+            p0, p1, p2, p3 = p0 / nq, p1 / nq, p2 / nq, p3 / nq
+            if p0 < 0.0:
+                p0, p1, p2, p3 = -p0, -p1, -p2, -p3
+        q[0], q[1], q[2], q[3] = p0, p1, p2, p3
+        for i in range(3):
+            b[i] = b[i] - xe[3 + i]
+        a_sensor[0], a_sensor[1], a_sensor[2] = am0 - xe[6], am1 - xe[7], am2 - xe[8]
+        if use_mag and not jamming:
+            matrix(q, r_mi)
+            # d in the global frame: r_pl.T @ xe[D]
+            d0 = r_mi[0, 0] * xe[9] + r_mi[1, 0] * xe[10] + r_mi[2, 0] * xe[11]
+            d1 = r_mi[0, 1] * xe[9] + r_mi[1, 1] * xe[10] + r_mi[2, 1] * xe[11]
+            d2 = r_mi[0, 2] * xe[9] + r_mi[1, 2] * xe[10] + r_mi[2, 2] * xe[11]
+            north = 0 if ned else 1
+            sign_down = 1.0 if ned else -1.0
+            down = sign_down * (m_global[2] - d2)
+            horiz = max(m_global[north] - (d0 if north == 0 else d1), 0.0)
+            hyp = math.hypot(down, horiz)
+            if hyp != 0.0:
+                sin_d, cos_d = down / hyp, horiz / hyp
+                lim = math.radians(max_incl_deg)
+                if abs(sin_d) > math.sin(lim):
+                    sin_d, cos_d = math.copysign(math.sin(lim), sin_d), math.cos(lim)
+                incl[0] = math.degrees(math.asin(max(-1.0, min(1.0, sin_d))))
+                m_global[north] = field * cos_d
+                m_global[2] = sign_down * field * sin_d
+        # covariance: P+ = Qw - K C Qw (upper triangle mirrored), then the next Qw
+        matmul(c, qw, cq)
+        matmul(k, cq, kcq)
+        for i in range(3):
+            poo = qw[3 + i, 3 + i] - kcq[3 + i, 3 + i]
+            ptt = qw[i, i] - kcq[i, i]
+            paa = qw[6 + i, 6 + i] - kcq[6 + i, 6 + i]
+            pdd = 0.0
+            if use_mag:
+                pdd = qw[9 + i, 9 + i] - kcq[9 + i, 9 + i]
+            qw_oo = poo + qw_gyro_offset
+            qw_tt = ptt + kalman_dt * kalman_dt * (poo + qw_gyro_offset + qv_gyro)
+            qw_aa = accel_decay ** 2 * paa + qw_accel
+            qw_dd = dist_decay ** 2 * pdd + qw_dist
+            # stored below, after every diagonal term was read
+            kcq[3 + i, 3 + i], kcq[i, i], kcq[6 + i, 6 + i] = qw_oo, qw_tt, qw_aa
+            if use_mag:
+                kcq[9 + i, 9 + i] = qw_dd
+        for i in range(n):
+            for j in range(n):
+                if i != j:
+                    qw[i, j] = 0.0
+        for i in range(n):
+            qw[i, i] = kcq[i, i]
+        for i in range(3):
+            qw[i, 3 + i] = qw[3 + i, i] = -kalman_dt * qw[3 + i, 3 + i]
+        out_q[step, 0], out_q[step, 1], out_q[step, 2], out_q[step, 3] = p0, p1, p2, p3
+        out_b[step, 0], out_b[step, 1], out_b[step, 2] = b[0], b[1], b[2]
+        out_incl[step] = incl[0]
+        out_jam[step] = jamming
+        matrix(q, r_mi)
+        out_euler[step, 0], out_euler[step, 1], out_euler[step, 2] = euler_deg(style, r_mi)
+
+
+freescale_rows = jit(_freescale_rows)
+"""The compiled kernel (numba compiles it on the first call; see common/fast.py)."""
