@@ -20,6 +20,7 @@ Source: MS5611-01BA03 datasheet DA5611-01BA03_011 p.7-8; application note AN520 
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -151,6 +152,21 @@ def counts_for(c: PromCoefficients, pressure_pa: float, temperature_degc: float
         10**9 if temperature_degc > 0 else -10**9)
     want_p = round(pressure_pa) if math.isfinite(pressure_pa) else (
         10**9 if pressure_pa > 0 else -10**9)
+    d2 = _d2_for(c, want_t)
+    off, sens = _off_sens(c, d2)
+    # P = (D1*SENS/2^21 - OFF)/2^15  =>  D1 = (P*2^15 + OFF) * 2^21 / SENS
+    guess_d1 = (math.ceil((want_p * 32_768 + off) * 2_097_152 / sens)
+                if sens > 0 and abs(want_p) < 10**7 else ADC_FULL // 2)
+    # true_pressure_pa(c, n, d2) with OFF and SENS of this D2 worked out once, not at every
+    # step of the search (the same integer arithmetic).
+    d1 = _settle(lambda n: (n * sens // 2_097_152 - off) // 32_768, want_p, guess_d1)
+    return d1, d2
+
+
+@functools.lru_cache(maxsize=4096)
+def _d2_for(c: PromCoefficients, want_t: int) -> int:
+    """The D2 whose temperature is closest to ``want_t`` (0.01 degC); cached, since the
+    board's temperature takes few distinct values in a run (a pure function of both)."""
     # TEMP = 2000 + dT*C6/2^23 (- dT^2/2^31 below 20 degC): solve for dT in reals.
     k = c.tempsens / 2**23
     if want_t >= 2000 or c.tempsens <= 0:
@@ -159,10 +175,4 @@ def counts_for(c: PromCoefficients, pressure_pa: float, temperature_degc: float
         a = 1 / 2**31
         dt_real = (k - math.sqrt(k * k - 4 * a * (want_t - 2000))) / (2 * a)
     guess_d2 = c.t_ref * 256 + math.ceil(dt_real) if abs(dt_real) < 2**25 else ADC_FULL // 2
-    d2 = _settle(lambda n: true_temperature_centi(c, n), want_t, guess_d2)
-    off, sens = _off_sens(c, d2)
-    # P = (D1*SENS/2^21 - OFF)/2^15  =>  D1 = (P*2^15 + OFF) * 2^21 / SENS
-    guess_d1 = (math.ceil((want_p * 32_768 + off) * 2_097_152 / sens)
-                if sens > 0 and abs(want_p) < 10**7 else ADC_FULL // 2)
-    d1 = _settle(lambda n: true_pressure_pa(c, n, d2), want_p, guess_d1)
-    return d1, d2
+    return _settle(lambda n: true_temperature_centi(c, n), want_t, guess_d2)
