@@ -15,7 +15,7 @@ full figures are in docs/estimators.md's flight benchmark.
   the attitude in the loop (178 deg), the seed's gated madgwick reaches 44 deg.
 - At rest (`static`, 30 s) and on a 2 m/s lift (`elevator`): vario-kf3 with its defaults
   behind each AHRS (with the seed profile's nominal airspeed) is quiet, climb RMS under
-  3 cm/s over 5-30 s (measured 2.4-2.5 cm/s), and fast, 90 % of the 2 m/s step within 0.2 s
+  3 cm/s over 5-30 s (measured 2.8 cm/s), and fast, 90 % of the 2 m/s step within 0.2 s
   of the truth (measured 0.02 s, one barometer period).
 """
 
