@@ -11,6 +11,7 @@ from imuhal.cli import args as types
 from imuhal.cli.frame_option import frame_argument
 from imuhal.core.atomic import check_outputs
 from imuhal.core.conventions import CONVENTIONS, NED
+from imuhal.core.errors import ImuhalError
 from imuhal.offline.csv_input import iter_sample_chunks
 from imuhal.offline.csv_output import ColumnError, EstimateCsvWriter
 from imuhal.offline.frames import resolve_input_frame, table_to_ned
@@ -81,11 +82,17 @@ def _column_list(text: str | None) -> list[str] | None:
     if not names:
         raise ColumnError("--columns: give at least one column name, e.g. --columns t_s,qw,qx,"
                          "qy,qz")
+    twice = sorted({c for c in names if names.count(c) > 1})
+    if twice:
+        raise ColumnError(f"--columns: {', '.join(twice)} named twice; name each column once")
     return names
 
 
 def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
     check_outputs({"--output": args.output}, {"INPUT.csv": args.input})
+    if args.rate is not None and is_run_log(args.input):
+        raise ImuhalError(f"{args.input}: a run log has its own times (t_s); --rate is for a "
+                          "wide CSV without them - drop --rate")
     est_cls = registry.estimators.get(args.name)
     settings = build_settings(est_cls.Settings, parse_set_arguments(args.settings), args.name)
     estimator = est_cls(settings)

@@ -208,16 +208,28 @@ class AtomicFile:
 
     def write(self, data: str | bytes) -> int:
         assert self.file is not None, "file already committed or aborted"
-        return self.file.write(data)
+        with self._write_errors():
+            return self.file.write(data)
+
+    @contextlib.contextmanager
+    def _write_errors(self) -> Iterator[None]:
+        """A full disk, a quota or an I/O error is the user's to fix, not a bug: one line
+        naming the file (the target itself is untouched until commit)."""
+        try:
+            yield
+        except OSError as exc:
+            raise OutputError(f"{self.path}: cannot be written: {exc.strerror or exc}; free "
+                              "some space or choose another path") from None
 
     def sync(self) -> None:
         """Make everything written so far durable (flush and fsync), without committing: after
         a power cut it is in the temporary file (``TARGET.partial`` with ``partial=True``)."""
         if self.file is None:
             return
-        self.file.flush()
-        if not self.direct:
-            os.fsync(self.file.fileno())
+        with self._write_errors():
+            self.file.flush()
+            if not self.direct:
+                os.fsync(self.file.fileno())
 
     def commit(self) -> Path:
         """Flush, fsync and rename over the target; returns the path written. Stop signals
@@ -225,7 +237,11 @@ class AtomicFile:
         if self.file is None:
             raise ValueError(f"{self.path}: already committed or aborted")
         with _stop_signals_held():
-            self.sync()
+            try:
+                self.sync()
+            except OutputError:
+                self.abort(keep_partial=self.partial)  # the target stays as it was
+                raise
             self.file.close()
             self.file = None
             if self.direct:
@@ -248,9 +264,13 @@ class AtomicFile:
         """Leave the target as it was. The data written so far are dropped, or with
         ``keep_partial`` kept (synced) in the temporary file, whose path is returned."""
         if self.file is not None:
-            if keep_partial:
-                self.sync()
-            self.file.close()
+            # Best effort: abort runs after a failure, often the very write error (a full
+            # disk) that would fail again here; what reached the file stays.
+            with contextlib.suppress(OSError, OutputError):
+                if keep_partial:
+                    self.sync()
+            with contextlib.suppress(OSError):
+                self.file.close()
             self.file = None
         if self.direct:
             return None
