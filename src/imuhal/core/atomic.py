@@ -217,6 +217,8 @@ class AtomicFile:
         naming the file (the target itself is untouched until commit)."""
         try:
             yield
+        except BrokenPipeError:
+            raise  # a reader that went away (`| head`): the CLI ends quietly, as before
         except OSError as exc:
             raise OutputError(f"{self.path}: cannot be written: {exc.strerror or exc}; free "
                               "some space or choose another path") from None
