@@ -17,7 +17,11 @@ Sections:
   installed, see ``imuhal_filters.common.fast``), next to ``vqf.VQF.updateBatch``;
 * ``imuhal estimate madgwick`` on a generated ``--rows`` CSV, in a child process: rows/s and
   peak RSS (``VmHWM`` of the child, Linux);
-* the emulated seed board with its estimators: x real time by CPU time.
+* the emulated seed board with its estimators: x real time by CPU time, next to the bare
+  scenario truth at 250 Hz;
+* the hardware path: the same board's drivers, decoding, calibration, mount rotation and
+  estimators replayed from a recording of its bus traffic (no simulation, no emulators), in
+  us of CPU per IMU sample (tests/benchmarks/bench_hardware_path.py).
 
 OPENBLAS_CORETYPE may be set on this machine (an old OpenBLAS needs it); it only matters to
 BLAS calls, which none of the measured paths make, and it is left as it is.
@@ -478,9 +482,22 @@ def board_rows(duration_s: float) -> list[Row]:
             pass
         cpu = time.process_time() - t0
     return [Row("board", f"emulated seed board + estimators, {duration_s:g} s", duration_s / cpu,
-                "x real time (cpu)", "bare truth at 250 Hz", cpu / truth_cpu, ">= 40 x real"),
-            Row("board", "hardware path (recorded bus replay)", math.nan, "us/IMU sample", "",
-                None, "<= 60 (needs `imuhal run --record`, not on main yet)")]
+                "x real time (cpu)", "bare truth at 250 Hz", cpu / truth_cpu, ">= 40 x real")]
+
+
+def hardware_path_rows(duration_s: float) -> list[Row]:
+    """The seed board's host side alone (drivers, decoding, calibration, mount rotation,
+    estimators) from a recorded bus replay (tests/benchmarks/bench_hardware_path.py)."""
+    from tests.benchmarks.bench_hardware_path import measure
+
+    r = measure(duration_s)
+    return [Row("board", f"hardware path (recorded bus replay, {duration_s:g} s)",
+                r.us_per_imu_sample, "us/IMU sample", "decoding the recording alone",
+                r.replay_cpu_s / r.decode_cpu_s, "<= 60"),
+            Row("board", "  the same without the estimators", r.bare_us_per_imu_sample,
+                "us/IMU sample"),
+            Row("board", "  decoding the recording (not in the rows above)",
+                r.decode_us_per_imu_sample, "us/IMU sample")]
 
 
 def render(rows: list[Row], markdown: bool) -> str:
@@ -530,6 +547,7 @@ def main(argv: list[str] | None = None) -> int:
         rows += estimate_rows(args.rows, upd)
     if "board" not in args.skip:
         rows += board_rows(args.board_s)
+        rows += hardware_path_rows(args.board_s)
     print(render(rows, args.markdown))
     print(f"\nCPU time; {sys.version.split()[0]}, numpy {np.__version__}, "
           f"maxrss of this process {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024}"

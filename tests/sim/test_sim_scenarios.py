@@ -167,3 +167,37 @@ def test_elevator_moves_only_vertically():
         alts.append(tr.altitude_m)
     assert max(alts) == pytest.approx(4 * 3.2)
     assert s.truth(s.duration_s).altitude_m == pytest.approx(0.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("name", ["thermal", "rc-flight", "magnet", "calibration"])
+def test_chip_truth_gives_the_same_floats_as_truth_and_the_light_one_skips_the_attitude(name):
+    # The emulated board reads the plain-float chip truth at every poll; a barometer gets the
+    # light one. Both must be truth() to the last bit, or a speed-up changes every run.
+    scenario = load_registry().scenarios.get(name)(None, seed=3)
+    for t in (0.0, 0.0137, 7.3, 41.004, scenario.duration_s * 0.9):
+        full = scenario.truth(t)
+        chip = scenario.chip_truth(t)
+        light = scenario.chip_truth(t, motion=False)
+        for got, want in ((chip.specific_force_body_m_s2, full.specific_force_body_m_s2),
+                          (chip.angular_rate_body_rad_s, full.angular_rate_body_rad_s),
+                          (chip.magnetic_field_body_ut, full.magnetic_field_body_ut),
+                          (chip.position_ned_m, full.position_ned_m),
+                          (chip.velocity_ned_m_s, full.velocity_ned_m_s),
+                          (light.position_ned_m, full.position_ned_m)):
+            assert got == tuple(want.tolist())
+        for truth in (chip, light):
+            assert (truth.pressure_pa, truth.temperature_degc) == (full.pressure_pa,
+                                                                   full.temperature_degc)
+        assert light.specific_force_body_m_s2 is None and light.velocity_ned_m_s is None
+
+
+def test_chip_truth_of_a_scenario_that_overrides_truth_reads_its_truth():
+    # A plugin's scenario adds its own quantities by overriding truth(); the emulated board's
+    # per-poll chip truth must carry them too.
+    from dataclasses import replace
+
+    class Humid(StaticScenario):
+        def truth(self, t_s):
+            return replace(super().truth(t_s), other={"humidity": 40.0 + t_s})
+
+    assert Humid(seed=0).chip_truth(2.5).other == {"humidity": 42.5}

@@ -84,6 +84,7 @@ class BMP280Emulator(ChipEmulator):
 
     chip = "bmp280"
     error_spec = BMP280_ERROR_SPEC
+    measures_motion = False  # pressure and temperature only: a light truth is enough
     models_stuck_data_ready = True
     conformance_sweep = True
 

@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING, TypeVar
 
 from imuhal.bus.base import Bus, BusKind
 from imuhal.bus.retry import retried
-from imuhal.core.errors import ConfigurationError
+from imuhal.core.errors import BusError, ConfigurationError, NackError
 from imuhal_chips.max2110x.registers import (
     DR_CFG_ONESHOT_MASK,
     DR_CFG_ONESHOT_READ,
@@ -58,6 +58,13 @@ ONESHOT_ATTEMPTS = 3
 
 _R = TypeVar("_R")
 
+# Plain ints: every slave byte writes these (an IntEnum member lookup costs more than the
+# register access around it).
+_MAG_SLV_ADD = int(Reg.MAG_SLV_ADD)
+_I2C_MST_ADD = int(Reg.I2C_MST_ADD)
+_I2C_MST_DATA = int(Reg.I2C_MST_DATA)
+_DR_CFG = int(Reg.DR_CFG)
+
 
 class Max21100AuxBus(Bus):
     """An I2C bus whose transfers are carried out by a MAX21100's one-shot master."""
@@ -68,6 +75,7 @@ class Max21100AuxBus(Bus):
         super().__init__(f"{host.link.bus.name}/{host.device}/aux")
         self.host = host
         self._pointer: dict[int, int] = {}
+        self._frames: dict[int, tuple[int, bytes, bytes, bytes]] = {}
         # Share the parent's lock: a one-shot sequence is several parent transfers.
         self.lock = host.link.bus.lock
 
@@ -83,14 +91,28 @@ class Max21100AuxBus(Bus):
             if write:
                 self._pointer[target] = write[0]
             pointer = self._pointer.get(target, 0)
+            # The driver's DR_CFG cannot change during the sequence (the bus lock is held).
+            base = self._base()
             for offset, value in enumerate(write[1:]):
-                self._retried(self._oneshot_write, (pointer + offset) & 0xFF, value)
+                self._retried(self._oneshot_write, (pointer + offset) & 0xFF, value, base)
             if len(write) > 1:
                 pointer = (pointer + len(write) - 1) & 0xFF
                 self._pointer[target] = pointer
             data = bytearray()
+            read = self._oneshot_read
+            frames = self._read_frames(base) if read_len else None
             for offset in range(read_len):
-                data.append(self._retried(self._oneshot_read, (pointer + offset) & 0xFF))
+                register = (pointer + offset) & 0xFF
+                # retried() written out for the one step run once per slave byte read
+                for attempt in range(ONESHOT_ATTEMPTS, 0, -1):
+                    try:
+                        data.append(read(register, frames))
+                        break
+                    except NackError:
+                        raise
+                    except BusError:
+                        if attempt == 1:
+                            raise
             if read_len:
                 self._pointer[target] = (pointer + read_len) & 0xFF
         return bytes(data)
@@ -101,19 +123,36 @@ class Max21100AuxBus(Bus):
         return retried(step, *args, attempts=ONESHOT_ATTEMPTS)
 
     def _select(self, target: int) -> None:
-        self.host.regs.write(Reg.MAG_SLV_ADD, target)
+        self.host.regs.write(_MAG_SLV_ADD, target)
 
-    def _oneshot_write(self, register: int, value: int) -> None:
-        regs, base = self.host.regs, self._base()
-        regs.write(Reg.I2C_MST_ADD, bytes([register, value]))  # 0x0B, 0x0C auto-increment
-        regs.write(Reg.DR_CFG, base | DR_CFG_ONESHOT_WRITE)
-        regs.write(Reg.DR_CFG, base)
+    def _oneshot_write(self, register: int, value: int, base: int) -> None:
+        regs = self.host.regs
+        regs.write(_I2C_MST_ADD, bytes([register, value]))  # 0x0B, 0x0C auto-increment
+        regs.write(_DR_CFG, base | DR_CFG_ONESHOT_WRITE)
+        regs.write(_DR_CFG, base)
         self.host.clock.sleep(ONESHOT_WAIT_S)
 
-    def _oneshot_read(self, register: int) -> int:
-        regs, base = self.host.regs, self._base()
-        regs.write(Reg.I2C_MST_ADD, register)
-        regs.write(Reg.DR_CFG, base | DR_CFG_ONESHOT_READ)
-        regs.write(Reg.DR_CFG, base)
+    def _read_frames(self, base: int) -> tuple[int, bytes, bytes, bytes]:
+        """What a one-shot read sends besides the slave register: the I2C_MST_ADD address
+        byte, the DR_CFG trigger and restore writes, the I2C_MST_DATA read (formed by the
+        host's register convention once per ``base``, not at every slave byte)."""
+        frames = self._frames.get(base)
+        if frames is None:
+            regs = self.host.regs
+            cfg = regs.write_address(_DR_CFG)
+            frames = (regs.write_address(_I2C_MST_ADD),
+                      bytes((cfg, base | DR_CFG_ONESHOT_READ)), bytes((cfg, base)),
+                      bytes((regs.read_address(_I2C_MST_DATA, 1),)))
+            self._frames[base] = frames
+        return frames
+
+    def _oneshot_read(self, register: int, frames: tuple[int, bytes, bytes, bytes]) -> int:
+        """I2C_MST_ADD <- register, DR_CFG <- base | read trigger, DR_CFG <- base, wait,
+        then read I2C_MST_DATA: the same transfers as through ``regs.write``/``regs.read``."""
+        send = self.host.regs.send
+        address, trigger, restore, read_data = frames
+        send(bytes((address, register)))
+        send(trigger)
+        send(restore)
         self.host.clock.sleep(ONESHOT_WAIT_S)
-        return regs.read_u8(Reg.I2C_MST_DATA)
+        return send(read_data, 1)[0]

@@ -16,7 +16,8 @@ accelerometer measures specific force: a chip lying level at rest reads +1 g on 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+import struct
+from typing import NamedTuple
 
 from imuhal_chips.max2110x.registers import (
     FULL_SCALE_COUNTS,
@@ -27,6 +28,12 @@ from imuhal_chips.max2110x.registers import (
 
 Counts3 = tuple[int, int, int]
 Vec3 = tuple[float, float, float]
+
+_SIX_WORDS = struct.Struct(">6h")
+"""Gyro X, Y, Z then accel X, Y, Z: signed big-endian words, as a burst carries them."""
+_GYRO_DR = int(Status.GYRO_DR)
+_ACC_DR = int(Status.ACC_DR)
+_OVERRUN = int(Status.GYRO_ERR | Status.ACC_ERR)
 
 
 def be_int16(data: bytes, offset: int) -> int:
@@ -62,12 +69,12 @@ def saturated(counts: Counts3) -> bool:
     The chip's words can hold up to +/-32767; what it outputs beyond the nominal range is
     not documented, so any value at or past +/-30000 is treated as possibly clipped.
     """
-    return any(abs(c) >= FULL_SCALE_COUNTS for c in counts)
+    return max(map(abs, counts)) >= FULL_SCALE_COUNTS
 
 
-@dataclass(frozen=True)
-class Burst:
-    """One decoded status+data burst (raw counts; scale applied by the helpers above)."""
+class Burst(NamedTuple):
+    """One decoded status+data burst (raw counts; scale applied by the helpers above). A
+    named tuple: one is built at every poll, faster than a frozen dataclass."""
 
     status: int
     gyro: Counts3
@@ -76,25 +83,22 @@ class Burst:
 
     @property
     def gyro_ready(self) -> bool:
-        return bool(self.status & Status.GYRO_DR)
+        return bool(self.status & _GYRO_DR)
 
     @property
     def accel_ready(self) -> bool:
-        return bool(self.status & Status.ACC_DR)
+        return bool(self.status & _ACC_DR)
 
     @property
     def overrun(self) -> bool:
         """New data overwrote unread data (a sample was lost) on gyro or accel."""
-        return bool(self.status & (Status.GYRO_ERR | Status.ACC_ERR))
+        return bool(self.status & _OVERRUN)
 
 
 def split_burst(data: bytes) -> Burst:
     """Split a burst read from SYSTEM_STATUS (see module docstring) into counts."""
     if len(data) < 15:
         raise ValueError(f"MAX2110x burst needs at least 15 bytes, got {len(data)}")
-    return Burst(
-        status=data[0],
-        gyro=words3(data, 1),
-        accel=words3(data, 7),
-        temperature=be_int16(data, len(data) - 2),
-    )
+    gx, gy, gz, ax, ay, az = _SIX_WORDS.unpack_from(data, 1)
+    return Burst(status=data[0], gyro=(gx, gy, gz), accel=(ax, ay, az),
+                 temperature=be_int16(data, len(data) - 2))

@@ -25,6 +25,8 @@ MAX21100 slave auto-read (MAG_SLV_CFG) and on-chip fusion.
 from __future__ import annotations
 
 import math
+import struct
+from collections.abc import Sequence
 from typing import ClassVar
 
 from imuhal.bus.base import BusKind
@@ -79,9 +81,17 @@ _GYRO_WORDS = frozenset(range(Reg.GYRO_X_H, Reg.GYRO_X_H + 6))
 _ACCEL_WORDS = frozenset(range(Reg.ACC_X_H, Reg.ACC_X_H + 6))
 _CONFIG_REGS = frozenset({Reg.POWER_CFG, Reg.GYRO_CFG1, Reg.GYRO_CFG2, Reg.PWR_ACC_CFG,
                           Reg.ACC_CFG1})
-_DATA_READY = ((Channel.GYRO, _GYRO_WORDS, Status.GYRO_DR),
-               (Channel.ACCEL, _ACCEL_WORDS, Status.ACC_DR))
+_GYRO, _ACCEL = 0, 1
+"""Indexes of the two measurement channels in the per-channel lists (an Enum-keyed dict
+lookup costs more than the rest of a register access)."""
+_CHANNELS = (Channel.GYRO, Channel.ACCEL)
+_DATA_READY = ((_GYRO, _GYRO_WORDS, int(Status.GYRO_DR)),
+               (_ACCEL, _ACCEL_WORDS, int(Status.ACC_DR)))
 """Per channel: its data registers and the data-ready bit reading them clears."""
+_DATA_FIRST = int(Reg.GYRO_X_H)
+"""The data words run from here to the end of the common area (0x3F)."""
+_WORDS_BE = struct.Struct(f">{(0x40 - _DATA_FIRST) // 2}H")
+_WORDS_LE = struct.Struct(f"<{(0x40 - _DATA_FIRST) // 2}H")
 
 # The bus face runs for every SPI transaction, about 2600 per simulated second on the seed
 # board (each aux byte is five of them); an IntEnum member lookup costs as much as the rest
@@ -138,13 +148,15 @@ class Max2110xEmulator(ChipEmulator):
         self._i2c_pointer = 0
         """Register (and no-increment bit) an I2C read without a register byte starts at."""
         self.words: dict[int, int] = {}  # high-byte address -> int16 value
-        self._read_since_latch: dict[Channel, set[int]] = {Channel.GYRO: set(),
-                                                            Channel.ACCEL: set()}
-        self._next_ns: dict[Channel, int | None] = {Channel.GYRO: None, Channel.ACCEL: None}
-        # Measurement period and SI units per count of each running channel: they follow the
-        # configuration registers, which change only through _restart_timing.
-        self._period_ns: dict[Channel, int] = {}
-        self._per_count: dict[Channel, float] = {}
+        self._data_image: bytes | None = None
+        """Registers 0x24..0x3F as the bus reads them (None: to be rebuilt from ``words``)."""
+        # Per channel (_GYRO, _ACCEL): registers read since the latch, next measurement,
+        # measurement period and SI units per count; the last two follow the configuration
+        # registers, which change only through _restart_timing.
+        self._read_since_latch: list[set[int]] = [set(), set()]
+        self._next_ns: list[int | None] = [None, None]
+        self._period_ns: list[int] = [0, 0]
+        self._per_count: list[float] = [0.0, 0.0]
         self._mst_data = 0
         self._mst_pending: tuple[int, int] | None = None
         self._wake_ns: float = _NEVER
@@ -186,10 +198,10 @@ class Max2110xEmulator(ChipEmulator):
             return 32767 / _TEMP_LSB_PER_DEGC
         return _COUNTS_AT_FULL_SCALE * self.resolution(channel)
 
-    def _latch(self, channel: Channel) -> None:
+    def _latch(self, index: int) -> None:
         p = self.physics
         bank0 = self.banks[0]
-        gyro = channel is Channel.GYRO
+        gyro = index == _GYRO
         if gyro:
             values, first, enable_reg = p.angular_rate_rad_s, _GYRO_X_H, _POWER_CFG
             dr, err = Status.GYRO_DR, Status.GYRO_ERR
@@ -197,7 +209,7 @@ class Max2110xEmulator(ChipEmulator):
             values, first, enable_reg = p.specific_force_m_s2, _ACC_X_H, _PWR_ACC_CFG
             dr, err = Status.ACC_DR, Status.ACC_ERR
         values = values or (0.0, 0.0, 0.0)
-        k = self._per_count[channel]
+        k = self._per_count[index]
         enabled = bank0[enable_reg] & 0x07 if self.part.has_aux_master else 0x07
         words = self.words
         for axis in range(3):
@@ -209,7 +221,8 @@ class Max2110xEmulator(ChipEmulator):
         if self.status & dr:
             self.status |= err  # the previous sample was never read: it is lost
         self.status |= dr
-        self._read_since_latch[channel] = set()
+        self._read_since_latch[index] = set()
+        self._data_image = None
 
     # --- timing ---------------------------------------------------------------------------
 
@@ -227,21 +240,21 @@ class Max2110xEmulator(ChipEmulator):
 
     def _restart_timing(self) -> None:
         now = self.now_ns()
-        for channel in (Channel.GYRO, Channel.ACCEL):
+        for index, channel in enumerate(_CHANNELS):
             odr = self._odr_hz(channel)
             if self._active(channel) and odr:
-                self._period_ns[channel] = round(1e9 / odr)
-                self._next_ns[channel] = now + self._period_ns[channel]
+                self._period_ns[index] = round(1e9 / odr)
+                self._next_ns[index] = now + self._period_ns[index]
             else:
-                self._next_ns[channel] = None
-            self._per_count[channel] = self.resolution(channel)
+                self._next_ns[index] = None
+            self._per_count[index] = self.resolution(channel)
         self._schedule()
 
     def _schedule(self) -> None:
         """Note when ``_advance`` next has something to do (a measurement or the end of a
         one-shot transaction), so the accesses in between skip it."""
         wake: float = _NEVER
-        for t in self._next_ns.values():
+        for t in self._next_ns:
             if t is not None and t < wake:
                 wake = t
         if self._mst_pending is not None and self._mst_pending[0] < wake:
@@ -252,18 +265,19 @@ class Max2110xEmulator(ChipEmulator):
         now = self.clock.now_ns()
         if now < self._wake_ns:
             return
-        for channel in (Channel.GYRO, Channel.ACCEL):
-            due = self._next_ns[channel]
+        next_ns = self._next_ns
+        for index in (_GYRO, _ACCEL):
+            due = next_ns[index]
             if due is None or now < due:
                 continue
-            period = self._period_ns[channel]
+            period = self._period_ns[index]
             missed = (now - due) // period
-            self._next_ns[channel] = due + (missed + 1) * period
+            next_ns[index] = due + (missed + 1) * period
             if self.stuck_data_ready:
                 continue
             if missed:
-                self.status |= Status.GYRO_ERR if channel is Channel.GYRO else Status.ACC_ERR
-            self._latch(channel)
+                self.status |= Status.GYRO_ERR if index == _GYRO else Status.ACC_ERR
+            self._latch(index)
         if self._mst_pending is not None and now >= self._mst_pending[0]:
             self._mst_data = self._mst_pending[1]
             self._mst_pending = None
@@ -275,7 +289,13 @@ class Max2110xEmulator(ChipEmulator):
         spi = kind is BusKind.SPI
         if not spi and self.banks[0][_I2C_CFG] & I2C_CFG_I2C_OFF:
             raise NackError(f"{self.name}: I2C slave disabled (I2C_CFG bit 0)")
-        self._advance()
+        if self.clock.now_ns() >= self._wake_ns:
+            self._advance()
+        if spi and len(write) == 2 and not write[0] & READ_BIT:
+            # One register written over SPI (every configuration write, and four of these
+            # per aux master byte): the general path below, for this case alone.
+            self._write(write[0] & ADDRESS_MASK, write[1])
+            return bytes(read_len)
         if not write:
             if spi:
                 raise BusError(f"{self.name}: a transaction must start with an address byte")
@@ -296,13 +316,51 @@ class Max2110xEmulator(ChipEmulator):
             if not spi:
                 self._i2c_pointer = reg | (first & NO_INCREMENT_BIT)
             return bytes(read_len) if spi else b""
-        touched = [(reg + k * step) & ADDRESS_MASK for k in range(read_len)]
-        out = bytes([self._read(r) for r in touched])  # reads have no side effects
+        # Reads have no side effects, so a burst is served as a slice of the register
+        # image; one register (status polls, the aux master's data) is read directly.
+        touched: Sequence[int]
+        if read_len <= 1 or not step:
+            touched = (reg,) if read_len else ()
+            out = bytes((self._read(reg),)) * read_len
+        elif reg + read_len <= ADDRESS_MASK + 1:
+            touched = range(reg, reg + read_len)
+            out = self._image()[reg:reg + read_len]
+        else:  # the pointer wraps past 0x3F
+            touched = [(reg + k) & ADDRESS_MASK for k in range(read_len)]
+            image = self._image()
+            out = bytes([image[r] for r in touched])
         self._after_read(touched)
         if not spi:
             self._i2c_pointer = ((reg + read_len * step) & ADDRESS_MASK) | (
                 first & NO_INCREMENT_BIT)
         return out
+
+    def _image(self) -> bytes:
+        """The 64 registers as reads see them now (the selected bank, then the common
+        area): what ``_read`` returns for each address."""
+        bank = self.bank
+        if bank > 2:
+            low = bytes(32)
+        elif bank == 0 and self.part.has_aux_master:
+            b0 = self.banks[0]
+            low = bytes(b0[:_I2C_MST_DATA]) + bytes((self._mst_data,)) + \
+                bytes(b0[_I2C_MST_DATA + 1:])
+        else:
+            low = bytes(self.banks[bank])
+        data = self._data_image
+        if data is None:
+            data = self._data_image = self._data_bytes()
+        return low + bytes((self.who_am_i, self.part.revision, bank & 0x0F, self.status)) + data
+
+    def _data_bytes(self) -> bytes:
+        """Registers 0x24..0x3F as ``_read`` gives them: each word in the configured byte
+        order, a word never latched reads 0 (up to the temperature word: 0 too), the FIFO
+        and unmodelled registers beyond it read 0."""
+        words, limit = self.words, self.part.temp_register + 2
+        values = [(words.get(high, 0) & 0xFFFF) if high in words or high < limit else 0
+                  for high in range(_DATA_FIRST, 0x40, 2)]
+        little = self.banks[0][_I2C_CFG] & I2C_CFG_LITTLE_ENDIAN
+        return (_WORDS_LE if little else _WORDS_BE).pack(*values)
 
     def _read(self, reg: int) -> int:
         if reg < 0x20:
@@ -330,18 +388,18 @@ class Max2110xEmulator(ChipEmulator):
             return self.bank & 0x0F
         return 0  # unreachable: 0x20..0x23 are the four above
 
-    def _after_read(self, touched: list[int]) -> None:
+    def _after_read(self, touched: Sequence[int]) -> None:
         mode = (self.banks[0][_DR_CFG] >> DR_CFG_CLEAR_SHIFT) & 0x03
         if _SYSTEM_STATUS in touched:
             if mode == 2:
                 self.status &= ~_DR_BITS
             self.status &= ~_ERR_BITS
-        for channel, regs, dr in _DATA_READY:
+        for index, regs, dr in _DATA_READY:
             if not self.status & dr:
                 # Nothing to clear, and what was read since the latch no longer matters:
                 # the bit comes back only with the next latch, which forgets it.
                 continue
-            seen = self._read_since_latch[channel]
+            seen = self._read_since_latch[index]
             seen.update(regs.intersection(touched))
             if (mode == 0 and len(seen) == 6) or (mode == 1 and seen):
                 self.status &= ~dr
@@ -352,6 +410,8 @@ class Max2110xEmulator(ChipEmulator):
                 return
             self.banks[self.bank][reg] = value
             if self.bank == 0:
+                if reg == _I2C_CFG:
+                    self._data_image = None  # the byte order of the data words
                 self._bank0_written(reg, value)
             return
         if reg == Reg.BANK_SELECT:

@@ -116,6 +116,10 @@ _DECODE: dict[int, Decoded] = {
 }
 
 
+_UNKNOWN = Decoded("unknown")
+
+
 def decode_command(byte: int) -> Decoded:
     """What the chip does on receiving ``byte``; unlisted bytes decode as ``unknown``."""
-    return _DECODE.get(byte, Decoded("unknown"))
+    decoded = _DECODE.get(byte)
+    return _UNKNOWN if decoded is None else decoded

@@ -77,6 +77,7 @@ class MS5611Emulator(ChipEmulator):
 
     chip = "ms5611"
     error_spec = MS5611_ERROR_SPEC
+    measures_motion = False  # pressure and temperature only: a light truth is enough
     models_stuck_data_ready = True
     """Stuck: a started conversion never finishes (ADC reads during it return 0)."""
     conformance_sweep = True

@@ -9,9 +9,10 @@ form. The attitude is the product of three parts, body -> NED::
 - ``q_gyro`` integrates the bias-corrected gyro (strapdown) from the aligned start into an
   almost-inertial frame I (it drifts only by the residual gyro bias);
 - the accelerometer (gravity positive, in g) is rotated into I and low-pass filtered there
-  (second order, mean delay ``tau_acc_s``; optionally slowed for readings away from 1 g,
-  ``accel_soft_gate_g``): in an inertial frame the kinematic acceleration integrates to
-  a velocity change, so over seconds it averages out and what remains is gravity. The
+  (second-order Butterworth, mean delay ``tau_acc_s``; slowed for readings away from 1 g,
+  ``accel_soft_gate_g``, and sped up at rest, ``tau_acc_rest_s``): in an inertial frame the
+  kinematic acceleration integrates to a velocity change, so over seconds it averages out
+  and what remains is gravity. The
   inclination correction ``q_inclination`` then turns the filtered vector to the vertical each
   step; all smoothing is in the filter, so a transient linear acceleration barely tilts it;
 - the heading is a separate angle ``delta`` about the NED vertical, pulled towards the
@@ -20,19 +21,20 @@ form. The attitude is the product of three parts, body -> NED::
   than ``mag_norm_th`` (relative) or ``mag_dip_th_deg`` is a disturbance and is not fused. A
   new field that stays consistent for ``mag_new_s`` (e.g. moving to another room) becomes the
   reference;
-- rest (gyro and accelerometer both steady for ``rest_min_s``, gyro slower than
-  ``bias_clip_rad_s``) lets the gyro bias follow the low-passed gyro (``tau_bias_rest_s``); in
-  motion the bias follows the corrections slowly (``tau_bias_motion_s``): a persistent
-  correction rate about a body axis is a bias on it.
+- the gyro bias is a Kalman filter (``bias.py``): at rest (gyro and accelerometer both steady
+  for ``rest_min_s``, gyro slower than the bias clip) the low-passed gyro measures it; in
+  motion the inclination correction does (a bias error turns the strapdown, the
+  accelerometer turns it back: the correction rate is the bias seen in the earth frame).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from imuhal_filters.common.gate import soft_gate_weight
-from imuhal_filters.common.quat import IDENTITY, Quat, Vec, multiply, to_global, to_local
+from imuhal_filters.common.quat import IDENTITY, Quat, Vec, multiply, to_global
+from imuhal_filters.decoupled.bias import BiasParams, GyroBiasKalman
 
 
 @dataclass(frozen=True, slots=True)
@@ -40,6 +42,7 @@ class DecoupledParams:
     """The kernel's constants (seconds, rad/s, g; see the module docstring)."""
 
     tau_acc_s: float = 3.0
+    tau_acc_rest_s: float | None = None
     tau_mag_s: float = 9.0
     accel_soft_gate_g: float | None = None
     rest_gyro_th_rad_s: float = math.radians(2.0)
@@ -47,8 +50,7 @@ class DecoupledParams:
     rest_filter_tau_s: float = 0.5
     rest_min_s: float = 1.5
     bias_clip_rad_s: float = math.radians(2.0)
-    tau_bias_rest_s: float = 2.0
-    tau_bias_motion_s: float | None = None
+    bias: BiasParams = field(default_factory=BiasParams)
     mag_norm_th: float = 0.1
     mag_dip_th_deg: float = 10.0
     mag_ref_tau_s: float = 20.0
@@ -69,25 +71,67 @@ def _unit_quat(q: Quat) -> Quat:
     return (q[0] * n, q[1] * n, q[2] * n, q[3] * n)
 
 
-class SecondOrderLowPass:
-    """Two cascaded first-order low-passes of time constant tau / 2 on a 3-vector: the same
-    mean delay as one stage of tau (and as VQF's Butterworth of cut-off sqrt(2) / (2 pi tau)),
-    40 dB/decade above it. Exact for any step length, so a step may be shortened per sample
-    (a step of zero holds the state). Starts at its first input."""
+class ButterworthLowPass:
+    """The second-order Butterworth low-pass of cut-off sqrt(2) / (2 pi tau) on an n-vector
+    (VQF's choice: mean delay tau, 40 dB/decade above the cut-off, and about twice the
+    attenuation of two cascaded first-order stages of the same delay at hand motion's
+    0.5 Hz), simulated exactly for any step length with the input held over the step, so a
+    step may be shortened per sample (a step of zero holds the state). Starts at rest at its
+    first input."""
 
     def __init__(self, tau_s: float) -> None:
-        self.half_tau_s = 0.5 * tau_s
+        # poles at sigma (-1 +- i): sigma = omega_c / sqrt(2) = 1 / tau
+        self.sigma = 1.0 / tau_s
         self.state: list[float] | None = None
+        self._dt = -1.0
+        self._m = (1.0, 0.0, 0.0, 1.0)
 
-    def step(self, x: Vec, dt: float) -> Vec:
-        s = self.state
-        if s is None:
-            s = self.state = [x[0], x[1], x[2], x[0], x[1], x[2]]
-        k = 1.0 - math.exp(-dt / self.half_tau_s)
-        for i in range(3):
-            s[i] += k * (x[i] - s[i])
-            s[3 + i] += k * (s[i] - s[3 + i])
-        return (s[3], s[4], s[5])
+    def _matrix(self, dt: float) -> tuple[float, float, float, float]:
+        """(a, b, c, d): [z, z'] -> [a z + b z', c z + d z'] for the error z = y - u."""
+        if dt != self._dt:
+            s = self.sigma
+            e = math.exp(-s * dt)
+            c, si = math.cos(s * dt), math.sin(s * dt)
+            self._m = (e * (c + si), e * si / s, -2.0 * s * e * si, e * (c - si))
+            self._dt = dt
+        return self._m
+
+    def step(self, x: tuple[float, ...], dt: float) -> tuple[float, ...]:
+        st = self.state
+        n = len(x)
+        if st is None:
+            st = self.state = [*x, *([0.0] * n)]
+        a, b, c, d = self._matrix(dt)
+        for i in range(n):
+            z, zd = st[i] - x[i], st[n + i]
+            st[i] = x[i] + a * z + b * zd
+            st[n + i] = c * z + d * zd
+        return tuple(st[:n])
+
+
+def rotation_rows(q: Quat) -> tuple[float, ...]:
+    """The rotation matrix of ``q`` (local -> global), row by row (9 values)."""
+    w, x, y, z = q
+    return (1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+            2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+            2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y))
+
+
+def inclination_correction(q_inc: Quat, e: Vec) -> tuple[Quat, Vec]:
+    """Turn ``q_inc`` so the filtered accelerometer ``e`` (already in the frame after q_inc)
+    points up: returns the new q_inc and the correction's rotation vector (rad)."""
+    ex, ey, ez = e
+    n = math.sqrt(ex * ex + ey * ey + ez * ez)
+    if n < 1e-9:
+        return q_inc, (0.0, 0.0, 0.0)
+    ex, ey, ez = ex / n, ey / n, ez / n
+    # rotation taking e to up: axis e x up = (ey, -ex, 0), angle acos(ez)
+    s = math.hypot(ex, ey)
+    if s < 1e-12:
+        return q_inc, (0.0, 0.0, 0.0)
+    angle = math.atan2(s, ez)
+    rx, ry = ey / s * angle, -ex / s * angle
+    return _unit_quat(multiply(_rotvec_quat(rx, ry, 0.0), q_inc)), (rx, ry, 0.0)
 
 
 def _wrap(a: float) -> float:
@@ -106,8 +150,11 @@ class DecoupledKernel:
         self.q_inc: Quat = IDENTITY
         self.delta_rad = 0.0
         self.acc_i: Vec | None = None
-        self._acc_filter = SecondOrderLowPass(self.p.tau_acc_s)
-        self.bias: Vec = bias
+        self._acc_filter = ButterworthLowPass(self.p.tau_acc_s)
+        # the motion bias model low-passes R and R b exactly as the accelerometer
+        self._r_filter = ButterworthLowPass(self.p.tau_acc_s)
+        self._rb_filter = ButterworthLowPass(self.p.tau_acc_s)
+        self.kf = GyroBiasKalman(self.p.bias, bias)
         self.gyro_lp: Vec | None = None
         self.acc_lp: Vec | None = None
         self.rest_s = 0.0
@@ -115,6 +162,11 @@ class DecoupledKernel:
         self.mag_cand: tuple[float, float] | None = None
         self.mag_cand_s = 0.0
         self.mag_disturbed = False
+
+    @property
+    def bias(self) -> Vec:
+        """The gyro bias estimate (body, rad/s)."""
+        return self.kf.b
 
     @property
     def rest(self) -> bool:
@@ -129,29 +181,16 @@ class DecoupledKernel:
     def step(self, gyro: Vec, acc_g: Vec | None, mag: Vec | None, dt: float) -> Quat:
         """One gyro sample (rad/s), the latest accelerometer (gravity positive, g) and
         magnetometer (any unit) or None; returns the body -> NED quaternion."""
-        p = self.p
-        bx, by, bz = self.bias
+        bx, by, bz = self.kf.b
         wx, wy, wz = gyro[0] - bx, gyro[1] - by, gyro[2] - bz
         self.q_gyro = _unit_quat(multiply(self.q_gyro, _rotvec_quat(wx * dt, wy * dt, wz * dt)))
         self._rest_step(gyro, acc_g, dt)
-        corr_e = (0.0, 0.0, 0.0)
         if acc_g is not None:
-            corr_e = self._inclination_step(acc_g, dt)
+            corr, dt_filter = self._inclination_step(acc_g, dt)
+            self._bias_step(corr, dt, dt_filter)
         if mag is not None:
-            dz = self._heading_step(mag, dt)
-            corr_e = (corr_e[0], corr_e[1], corr_e[2] + dz)
-        if p.tau_bias_motion_s is not None and not self.rest and dt > 0.0:
-            # a correction that keeps turning the same body axis is a gyro bias on it
-            c_body = to_local(multiply(self.q_inc, self.q_gyro), corr_e)
-            k = 1.0 / p.tau_bias_motion_s  # rate c/dt, followed with dt/tau
-            self._set_bias((self.bias[0] - k * c_body[0], self.bias[1] - k * c_body[1],
-                            self.bias[2] - k * c_body[2]))
+            self._heading_step(mag, dt)
         return self.quaternion()
-
-    def _set_bias(self, b: Vec) -> None:
-        clip = self.p.bias_clip_rad_s
-        self.bias = (max(-clip, min(clip, b[0])), max(-clip, min(clip, b[1])),
-                     max(-clip, min(clip, b[2])))
 
     def _rest_step(self, gyro: Vec, acc_g: Vec | None, dt: float) -> None:
         p = self.p
@@ -168,36 +207,49 @@ class DecoupledKernel:
                 a[2] + k * (acc_g[2] - a[2]))
             still = still and sum((acc_g[i] - a[i]) ** 2 for i in range(3)) < p.rest_acc_th_g ** 2
         self.rest_s = self.rest_s + dt if still else 0.0
-        if self.rest:
-            kb = 1.0 - math.exp(-dt / p.tau_bias_rest_s)
-            b = self.bias
-            self._set_bias((b[0] + kb * (g[0] - b[0]), b[1] + kb * (g[1] - b[1]),
-                            b[2] + kb * (g[2] - b[2])))
 
-    def _inclination_step(self, acc_g: Vec, dt: float) -> Vec:
+    def _bias_step(self, corr: Vec, dt: float, dt_filter: float) -> None:
+        """One Kalman step of the gyro bias after an inclination correction ``corr`` (rad,
+        earth frame) made over ``dt`` s, the accelerometer filter having advanced by
+        ``dt_filter`` s (bias.py states the model)."""
+        kf = self.kf
+        r = rotation_rows(multiply(self.q_inc, self.q_gyro))
+        b = kf.b
+        rb = (r[0] * b[0] + r[1] * b[1] + r[2] * b[2], r[3] * b[0] + r[4] * b[1] + r[5] * b[2])
+        h = self._r_filter.step(r, dt_filter)
+        rb_lp = self._rb_filter.step(rb, dt_filter)
+        if dt <= 0.0:
+            return
+        kf.predict(dt)
+        if self.rest:
+            assert self.gyro_lp is not None
+            kf.rest_update(self.gyro_lp, dt)
+            return
+        if self.p.bias.sigma_motion_deg_s is None:
+            return
+        hb = (h[0] * b[0] + h[1] * b[1] + h[2] * b[2], h[3] * b[0] + h[4] * b[1] + h[5] * b[2],
+              h[6] * b[0] + h[7] * b[1] + h[8] * b[2])
+        e = (-corr[0] / dt + rb_lp[0] - hb[0], -corr[1] / dt + rb_lp[1] - hb[1], -hb[2])
+        kf.motion_update(e, [list(h[0:3]), list(h[3:6]), list(h[6:9])], dt)
+
+    def _inclination_step(self, acc_g: Vec, dt: float) -> tuple[Vec, float]:
         """Low-pass the accelerometer in I, turn q_inc so it points up; returns the
-        correction's rotation vector (rad) in the frame after q_inc."""
+        correction's rotation vector (rad) in the frame after q_inc and the step the filter
+        advanced by (s)."""
         a = to_global(self.q_gyro, acc_g)
         # a reading away from 1 g carries kinematic acceleration the turn compensation did
         # not remove (a sustained turn does not average out within tau): the filter advances
         # by only the weight's share of the step (it holds still for a zero weight; feeding
         # it its own estimate instead would close a loop around the second-order filter)
-        w = soft_gate_weight(acc_g, self.p.accel_soft_gate_g)
-        f = self._acc_filter.step(a, dt * w)
-        self.acc_i = f
-        ex, ey, ez = to_global(self.q_inc, f)
-        n = math.sqrt(ex * ex + ey * ey + ez * ez)
-        if n < 1e-9:
-            return (0.0, 0.0, 0.0)
-        ex, ey, ez = ex / n, ey / n, ez / n
-        # rotation taking e to up: axis e x up = (ey, -ex, 0), angle acos(ez)
-        s = math.hypot(ex, ey)
-        if s < 1e-12:
-            return (0.0, 0.0, 0.0)
-        angle = math.atan2(s, ez)
-        rx, ry = ey / s * angle, -ex / s * angle
-        self.q_inc = _unit_quat(multiply(_rotvec_quat(rx, ry, 0.0), self.q_inc))
-        return (rx, ry, 0.0)
+        dt_filter = dt * soft_gate_weight(acc_g, self.p.accel_soft_gate_g)
+        if self.p.tau_acc_rest_s is not None and self.rest:
+            # at rest the specific force is gravity alone: what is left to correct is gyro
+            # drift, so the filter may run faster (time scaled: the same filter, shorter tau)
+            dt_filter *= self.p.tau_acc_s / self.p.tau_acc_rest_s
+        f = self._acc_filter.step(a, dt_filter)
+        self.acc_i = (f[0], f[1], f[2])
+        self.q_inc, corr = inclination_correction(self.q_inc, to_global(self.q_inc, self.acc_i))
+        return corr, dt_filter
 
     def _heading_step(self, mag: Vec, dt: float) -> float:
         """Check the field against the reference, correct delta; returns the correction (rad)."""

@@ -18,27 +18,51 @@ from typing import Any, ClassVar
 import numpy as np
 from pydantic import Field
 
+from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.core.frames import FloatArray
 from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
+from imuhal_filters.common.alignment import aligned_quaternion
+from imuhal_filters.common.quat import IDENTITY
+from imuhal_filters.decoupled.bias import BiasParams
 from imuhal_filters.decoupled.core import DecoupledKernel, DecoupledParams
+from imuhal_filters.decoupled.smoother import (
+    PassRecord,
+    apply_heading,
+    fused_bias,
+    heading,
+    inclination,
+    rotate_rows,
+    strapdown,
+    zero_phase,
+)
 
 
 class DecoupledSettings(AhrsSettings):
     PRESETS: ClassVar[dict[str, dict[str, Any]]] = {
-        # a glider or aircraft: sustained turns and pull-ups do not average out within
-        # tau_acc_s; the soft gate keeps rc-flight under 10 deg (docs/estimators.md)
-        "flight": {"accel_soft_gate_g": 0.02},
+        # hand-held motion (BROAD): VQF's published settings, every accelerometer reading in
+        # full; the inertial-frame filter averages the hand's acceleration out, a gate would
+        # weight it unevenly (docs/evaluation.md)
+        "handheld": {"accel_soft_gate_g": None, "tau_acc_s": 3.0, "tau_acc_rest_s": None},
+        # the defaults by name (a profile can say what it relies on)
+        "flight": {"accel_soft_gate_g": 0.02, "tau_acc_s": 10.0, "tau_acc_rest_s": 3.0},
     }
 
-    tau_acc_s: float = Field(3.0, gt=0.0)
-    """Time constant (s) of the accelerometer low-pass in the almost-inertial frame: the
-    inclination correction's speed (VQF's published default, 3 s)."""
-    accel_soft_gate_g: float | None = Field(None, gt=0.0)
+    tau_acc_s: float = Field(10.0, gt=0.0)
+    """Mean delay (s) of the accelerometer low-pass in the almost-inertial frame: the
+    inclination correction's speed. Default 10 s, for flight: turns last longer than hand
+    motion (flight benchmark `thermal` tilt RMS 0.92 against 2.58 deg at 3 s); VQF's published
+    3 s is ``preset: handheld`` (docs/estimators.md)."""
+    tau_acc_rest_s: float | None = Field(3.0, gt=0.0)
+    """At rest (``rest_detected``) the accelerometer filter runs with this time constant (s)
+    instead: the specific force is gravity alone, what is left is gyro drift (flight default
+    3 s: on the ground before launch the flight filter converges as fast as the hand-held
+    one). None: ``tau_acc_s`` always (VQF, ``preset: handheld``)."""
+    accel_soft_gate_g: float | None = Field(0.02, gt=0.0)
     """Share of each step the inclination filter advances by, 1 / (1 + (| |a| - 1 g | /
-    width)^2) (common/gate.py): a reading away from 1 g is trusted less. None (default, VQF's
-    choice): every reading in full. On BROAD (hand-held) 0.05 g made it worse (trials 05, 16,
-    32: 4.44 against 1.18 deg 9-DOF total); in flight it is needed (``preset: flight``,
-    0.02 g: `rc-flight` max 6.0 against 42.7 deg without): docs/estimators.md."""
+    width)^2) (common/gate.py): a reading away from 1 g is trusted less. Default 0.02 g:
+    in flight it is needed (`rc-flight` max 5.4 deg, 40.7 without); None (VQF's choice,
+    ``preset: handheld``): every reading in full, which hand-held motion needs (BROAD 9-DOF
+    total 2.33 deg, 6.04 with the flight defaults): docs/estimators.md."""
     tau_mag_s: float = Field(9.0, gt=0.0)
     """Heading correction time constant (s) (VQF's published default, 9 s)."""
     rest_gyro_th_deg_s: float = Field(2.0, gt=0.0)
@@ -49,12 +73,20 @@ class DecoupledSettings(AhrsSettings):
     """Rest is declared after this long still (s)."""
     bias_clip_deg_s: float = Field(2.0, gt=0.0)
     """Largest gyro bias estimated (deg/s); a steadier rotation is motion, not bias."""
-    tau_bias_rest_s: float = Field(2.0, gt=0.0)
-    """At rest the bias follows the low-passed gyro with this time constant (s)."""
-    tau_bias_motion_s: float | None = Field(None, gt=0.0)
-    """In motion the bias follows the correction rates with this time constant (s); None
-    (default): bias only at rest (200 s made BROAD's fast translation worse: 2.77 against
-    1.95 deg inclination on trial 16)."""
+    motion_bias: bool = True
+    """Estimate the gyro bias in motion too, from the inclination corrections (VQF's motion
+    bias estimation); False: at rest only."""
+    bias_sigma_init_deg_s: float = Field(0.5, gt=0.0)
+    """Uncertainty of the gyro bias at the start (deg/s) (VQF: 0.5)."""
+    bias_forgetting_s: float = Field(100.0, gt=0.0)
+    """A bias known exactly is uncertain by 0.1 deg/s after this long (s) (VQF: 100)."""
+    bias_sigma_motion_deg_s: float = Field(0.1, gt=0.0)
+    """Uncertainty the motion updates settle the bias at (deg/s) (VQF: 0.1)."""
+    bias_vertical_forgetting: float = Field(1e-4, gt=0.0)
+    """Weight of the "no earth-vertical bias" pseudo-measurement relative to the motion
+    updates (VQF: 1e-4): the vertical part is unobservable from the accelerometer."""
+    bias_sigma_rest_deg_s: float = Field(0.03, gt=0.0)
+    """Uncertainty the rest updates settle the bias at (deg/s) (VQF: 0.03)."""
     mag_norm_th: float = Field(0.1, gt=0.0)
     """A field whose norm differs from the reference by more than this fraction is disturbed."""
     mag_dip_th_deg: float = Field(10.0, gt=0.0)
@@ -69,12 +101,19 @@ class DecoupledSettings(AhrsSettings):
     def params(self) -> DecoupledParams:
         g = 9.80665
         return DecoupledParams(
-            tau_acc_s=self.tau_acc_s, tau_mag_s=self.tau_mag_s,
+            tau_acc_s=self.tau_acc_s, tau_acc_rest_s=self.tau_acc_rest_s,
+            tau_mag_s=self.tau_mag_s,
             accel_soft_gate_g=self.accel_soft_gate_g,
             rest_gyro_th_rad_s=math.radians(self.rest_gyro_th_deg_s),
             rest_acc_th_g=self.rest_acc_th_m_s2 / g, rest_min_s=self.rest_min_s,
             bias_clip_rad_s=math.radians(self.bias_clip_deg_s),
-            tau_bias_rest_s=self.tau_bias_rest_s, tau_bias_motion_s=self.tau_bias_motion_s,
+            bias=BiasParams(
+                sigma_init_deg_s=self.bias_sigma_init_deg_s,
+                forgetting_s=self.bias_forgetting_s,
+                sigma_motion_deg_s=self.bias_sigma_motion_deg_s if self.motion_bias else None,
+                vertical_forgetting=self.bias_vertical_forgetting,
+                sigma_rest_deg_s=self.bias_sigma_rest_deg_s,
+                clip_rad_s=math.radians(self.bias_clip_deg_s)),
             mag_norm_th=self.mag_norm_th, mag_dip_th_deg=self.mag_dip_th_deg,
             mag_new_s=self.mag_new_s)
 
@@ -118,7 +157,9 @@ class DecoupledEstimator(AhrsEstimator):
         k = self._kernel
         return {"q_gyro": list(k.q_gyro), "q_inc": list(k.q_inc), "delta_rad": k.delta_rad,
                 "acc_i": None if k.acc_i is None else list(k.acc_i),
-                "acc_filter": k._acc_filter.state, "bias": list(k.bias),
+                "acc_filter": k._acc_filter.state, "r_filter": k._r_filter.state,
+                "rb_filter": k._rb_filter.state, "bias": list(k.bias),
+                "bias_p": [list(row) for row in k.kf.p],
                 "gyro_lp": None if k.gyro_lp is None else list(k.gyro_lp),
                 "acc_lp": None if k.acc_lp is None else list(k.acc_lp), "rest_s": k.rest_s,
                 "mag_ref": None if k.mag_ref is None else list(k.mag_ref),
@@ -132,60 +173,63 @@ class DecoupledEstimator(AhrsEstimator):
             return None if v is None else tuple(float(c) for c in v)
 
         k.q_gyro, k.q_inc = tup(state["q_gyro"]), tup(state["q_inc"])
-        k.delta_rad, k.acc_i, k.bias = float(state["delta_rad"]), tup(state["acc_i"]), \
-            tup(state["bias"])
-        k._acc_filter.state = None if state["acc_filter"] is None else [
-            float(c) for c in state["acc_filter"]]
+        k.delta_rad, k.acc_i = float(state["delta_rad"]), tup(state["acc_i"])
+        k.kf.b = tup(state["bias"])
+        k.kf.p = [[float(c) for c in row] for row in state["bias_p"]]
+        for name, filt in (("acc_filter", k._acc_filter), ("r_filter", k._r_filter),
+                           ("rb_filter", k._rb_filter)):
+            filt.state = None if state[name] is None else [float(c) for c in state[name]]
         k.gyro_lp, k.acc_lp, k.rest_s = tup(state["gyro_lp"]), tup(state["acc_lp"]), \
             float(state["rest_s"])
         k.mag_ref, k.mag_cand = tup(state["mag_ref"]), tup(state["mag_cand"])
         k.mag_cand_s, k.mag_disturbed = float(state["mag_cand_s"]), bool(state["mag_disturbed"])
 
     # ------------------------------------------------------------------ offline
-    def _pass(self, gyro: FloatArray, accel: FloatArray, mag: FloatArray | None,
-              sign: float, state: dict[str, Any] | None = None
-              ) -> tuple[FloatArray, dict[str, Any]]:
-        """One causal pass of a fresh copy of this estimator over the rows (``sign`` -1: rows
-        already reversed, gyro negated: time reversal), from ``state`` when given. Returns
-        the quaternions (NaN before alignment) and the final state."""
-        live = type(self)({**self.settings.model_dump(), "offline": False})
-        if state is not None:
-            live.set_state(state)
+    def _pass(self, gyro: FloatArray, acc_g: FloatArray, mag: FloatArray | None,
+              sign: float) -> PassRecord:
+        """One causal pass of the kernel over the rows (``sign`` -1: rows already reversed,
+        gyro negated: time reversal) from the attitude aligned on the first row; what it
+        learnt, in its row order, the bias in forward time's sign."""
+        k = DecoupledKernel(self.settings.params())
+        q0 = aligned_quaternion(tuple(acc_g[0]),  # type: ignore[arg-type]
+                                None if mag is None else tuple(mag[0]))  # type: ignore[arg-type]
+        k.start(IDENTITY if q0 is None else q0)
         n = gyro.shape[0]
-        out = np.full((n, 4), np.nan)
+        bias, info = np.zeros((n, 3)), np.zeros((n, 3, 3))
+        disturbed = np.zeros(n, dtype=bool)
         dt = self.settings.sample_period_s
+        gyros, accs = (sign * gyro).tolist(), acc_g.tolist()
+        mags = None if mag is None else mag.tolist()
         for i in range(n):
-            q = live.update(sign * gyro[i], accel[i],
-                            None if mag is None else mag[i], dt)
-            if q is not None:
-                out[i] = q
-        return out, live.get_state()
-
-    @staticmethod
-    def _reversed_state(state: dict[str, Any]) -> dict[str, Any]:
-        """The end state of a forward pass as the start of the time-reversed one: the same
-        attitude, accelerometer filter and field reference; the gyro (and so its bias and
-        low-pass) negated."""
-        f = dict(state["filter"])
-        f["bias"] = [-c for c in f["bias"]]
-        if f["gyro_lp"] is not None:
-            f["gyro_lp"] = [-c for c in f["gyro_lp"]]
-        return {**state, "filter": f}
+            k.step(gyros[i], accs[i], None if mags is None else mags[i], dt)
+            bias[i] = k.bias
+            info[i] = k.kf.information()
+            disturbed[i] = k.mag_disturbed
+        return PassRecord(sign * bias, info, disturbed)
 
     def smooth(self, gyro_rad_s: FloatArray, accel_m_s2: FloatArray,
                mag_ut: FloatArray | None) -> FloatArray:
-        """Forward-backward smoothing over a whole recording: (N, 3) body NED arrays (rad/s,
-        specific force m/s^2, uT), one row per gyro sample at ``sample_period_s``; returns
-        the (N, 4) body -> NED quaternions, the normalised mean of the two passes."""
+        """Forward-backward smoothing over a whole recording (``smoother.py``): (N, 3) body
+        NED arrays (rad/s, specific force m/s^2, uT), one row per gyro sample at
+        ``sample_period_s``, no gaps; returns the (N, 4) body -> NED quaternions. Turn
+        compensation needs live speed samples and is not applied here."""
         mag = mag_ut if self.settings.use_mag else None
-        fwd, end = self._pass(gyro_rad_s, accel_m_s2, mag, 1.0)
+        n = gyro_rad_s.shape[0]
+        if n == 0:
+            return np.zeros((0, 4))
         rev = slice(None, None, -1)
-        # the backward pass starts where the forward one ended (bias and field reference
-        # learnt), so neither pass's start-up is left uncovered
-        bwd = self._pass(gyro_rad_s[rev], accel_m_s2[rev], None if mag is None else mag[rev],
-                         -1.0, self._reversed_state(end))[0][rev]
-        bwd = np.where(np.isnan(bwd), fwd, bwd)
-        fwd = np.where(np.isnan(fwd), bwd, fwd)
-        sign = np.where(np.sum(fwd * bwd, axis=1) < 0.0, -1.0, 1.0)[:, None]
-        mean = fwd + sign * bwd
-        return mean / np.linalg.norm(mean, axis=1, keepdims=True)
+        acc_g = -accel_m_s2 / STANDARD_GRAVITY_M_S2
+        fwd = self._pass(gyro_rad_s, acc_g, mag, 1.0)
+        bwd = self._pass(gyro_rad_s[rev], acc_g[rev], None if mag is None else mag[rev], -1.0)
+        bwd = PassRecord(bwd.bias_rad_s[rev], bwd.information[rev], bwd.mag_disturbed[rev])
+        bias = fused_bias(fwd, bwd)
+        first = aligned_quaternion(tuple(acc_g[0]),  # type: ignore[arg-type]
+                                   None if mag is None else tuple(mag[0]))  # type: ignore[arg-type]
+        dt = self.settings.sample_period_s
+        q_gyro = strapdown(IDENTITY if first is None else first, gyro_rad_s, bias, dt)
+        acc_i = zero_phase(rotate_rows(q_gyro, acc_g), self.settings.tau_acc_s, dt)
+        q6 = inclination(q_gyro, acc_i)
+        if mag is None:
+            return q6
+        disturbed = fwd.mag_disturbed & bwd.mag_disturbed
+        return apply_heading(q6, heading(q6, mag, disturbed, self.settings.tau_mag_s, dt))

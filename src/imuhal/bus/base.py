@@ -35,9 +35,11 @@ class Bus(ABC):
 
     def transfer(self, target: int, write: bytes = b"", read_len: int = 0) -> bytes:
         """One transaction with ``target``; returns exactly ``read_len`` bytes."""
+        if type(write) is not bytes:  # a bytearray or memoryview: the callee gets a copy
+            write = bytes(write)
         with self.lock:
             self.transfers += 1
-            data = self._transfer(target, bytes(write), read_len)
+            data = self._transfer(target, write, read_len)
         if len(data) != read_len:
             from imuhal.core.errors import BusError
 

@@ -42,6 +42,10 @@ class RegisterView:
 
     def __init__(self, link: Link, convention: RegisterConvention | None = None) -> None:
         self.link = link
+        # The link's bus and target, so each access is one call less (every register
+        # access of every driver comes through here).
+        self._bus = link.bus
+        self._target = link.target
         if convention is None:
             convention = (
                 RegisterConvention.spi_read_bit7()
@@ -53,7 +57,22 @@ class RegisterView:
     def read(self, register: int, length: int = 1) -> bytes:
         c = self.convention
         addr = register | c.read_set | (c.burst_set if length > 1 else c.single_set)
-        return self.link.transfer(bytes([addr & 0xFF]), length)
+        return self._bus.transfer(self._target, bytes((addr & 0xFF,)), length)
+
+    def read_address(self, register: int, length: int = 1) -> int:
+        """The address byte a read of ``length`` bytes from ``register`` sends."""
+        c = self.convention
+        return (register | c.read_set | (c.burst_set if length > 1 else c.single_set)) & 0xFF
+
+    def write_address(self, register: int) -> int:
+        """The address byte a one-register write to ``register`` sends."""
+        c = self.convention
+        return ((register & ~c.write_clear) | c.single_set) & 0xFF
+
+    def send(self, frame: bytes, read_len: int = 0) -> bytes:
+        """One transaction of bytes prepared with :meth:`read_address` / :meth:`write_address`
+        (for a sequence repeated many times, such as an I2C master's per-byte accesses)."""
+        return self._bus.transfer(self._target, frame, read_len)
 
     def read_u8(self, register: int) -> int:
         return self.read(register, 1)[0]
@@ -63,8 +82,8 @@ class RegisterView:
         if isinstance(data, int):
             # One register, the common case (configuration writes, every aux-master byte):
             # the same bytes as the general path below, built in one step.
-            self.link.transfer(bytes((((register & ~c.write_clear) | c.single_set) & 0xFF,
-                                      data)), 0)
+            self._bus.transfer(self._target, bytes((((register & ~c.write_clear)
+                                                     | c.single_set) & 0xFF, data)), 0)
             return
         payload = bytes(data)
         if c.pairwise_burst_write and len(payload) > 1:

@@ -54,6 +54,12 @@ class Quantity:
     def __str__(self) -> str:
         return self.name
 
+    def __hash__(self) -> int:
+        # Quantities key dicts on every sample's path (full scales, last times, fusion
+        # ranks); the generated hash would hash all four fields at every lookup. Equal
+        # quantities have equal names, so the name's (cached) hash is a valid hash.
+        return hash(self.name)
+
 
 Quantity.ACCEL = Quantity(
     "accel", "m/s^2", (3,),

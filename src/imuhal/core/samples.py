@@ -68,7 +68,7 @@ class Sample:
 
     @property
     def valid(self) -> bool:
-        return self.flags == SampleFlag.OK
+        return not self.flags  # SampleFlag.OK is 0 (asked for every sample, several times)
 
     def flagged(self, flag: SampleFlag) -> Sample:
         """A copy with ``flag`` added."""

@@ -10,7 +10,10 @@ The simulation knows the truth in the body frame; each chip sees it in its own s
 from __future__ import annotations
 
 import inspect
+import threading
 from collections.abc import Iterable
+
+import numpy as np
 
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import ImuhalError, PluginError
@@ -24,8 +27,9 @@ from imuhal.profile.topology import device_order, split_bus_ref
 from imuhal.sim.chip import ChipEmulator
 from imuhal.sim.emulated_bus import EmulatedBus
 from imuhal.sim.errors import SensorErrorModel
-from imuhal.sim.scenario import Scenario, TruthState
-from imuhal.sim.world import physical_inputs
+from imuhal.sim.inputs import PhysicalInputs
+from imuhal.sim.scenario import ChipTruth, Scenario, TruthState
+from imuhal.sim.world import chip_other, chip_vectors
 
 DEFAULT_PERIOD_S = 0.004
 """Sample period assumed for a device's first error-model draw (before it has been polled)."""
@@ -82,10 +86,24 @@ class EmulatedBoard:
         for spec in faults:
             self.faults.add(spec)
         self._chip_to_body = chip_to_body
+        # Per device, what the per-poll path needs: its rotation as nested lists (plain
+        # floats rotate three components faster than numpy) and whether it measures motion.
+        self._mounts = {name: np.asarray(m, dtype=float).tolist()
+                        for name, m in chip_to_body.items()}
+        self._motion = {name: type(emu).measures_motion for name, emu in self.emulators.items()}
         self._errors = error_models or {}
         self._device_t_ns: dict[str, int] = {}
-        self._truth_t_ns: int | None = None
-        self.truth: TruthState | None = None
+        self._truth_cache: tuple[int, TruthState] | None = None
+        """(time, truth) of the latest ``truth_at``: one attribute, replaced whole, so a
+        reader on another thread never pairs one time with another time's truth."""
+        self._updated_ns: int | None = None
+        # The chip truth of the latest instant, full and light (computed once per instant
+        # and shared by every chip polled then).
+        self._chip_t_ns: int | None = None
+        self._chip_truths: dict[bool, ChipTruth] = {}
+        # ``truth`` may be read from another thread (the live view) while the run polls:
+        # scenarios fill caches as they go, so one thread at a time evaluates the scenario.
+        self._scenario_lock = threading.Lock()
 
     @staticmethod
     def of(pipeline: Pipeline) -> EmulatedBoard:
@@ -109,12 +127,39 @@ class EmulatedBoard:
             )
         return provided[child]
 
+    @property
+    def truth(self) -> TruthState | None:
+        """The scenario's truth at the latest update (None before the first)."""
+        if self._updated_ns is None:
+            return None
+        return self.truth_at(self._updated_ns)
+
     def truth_at(self, t_ns: int) -> TruthState:
         """The scenario's truth at ``t_ns`` (cached for repeated calls at one time)."""
-        if t_ns != self._truth_t_ns or self.truth is None:
-            self.truth = self.scenario.truth(t_ns / 1e9)
-            self._truth_t_ns = t_ns
-        return self.truth
+        cached = self._truth_cache
+        if cached is not None and cached[0] == t_ns:
+            return cached[1]
+        with self._scenario_lock:
+            truth = self.scenario.truth(t_ns / 1e9)
+        self._truth_cache = (t_ns, truth)
+        return truth
+
+    def _chip_truth(self, t_ns: int, motion: bool) -> ChipTruth:
+        """The chip truth at ``t_ns`` (light when ``motion`` is False), once per instant."""
+        if t_ns != self._chip_t_ns:
+            self._chip_t_ns = t_ns
+            self._chip_truths = {}
+        truth = self._chip_truths.get(motion)
+        if truth is None:
+            full = self._chip_truths.get(True)
+            # A full truth of the instant serves a light request as well (same floats).
+            if full is not None:
+                truth = full
+            else:
+                with self._scenario_lock:
+                    truth = self.scenario.chip_truth(t_ns / 1e9, motion=motion)
+            self._chip_truths[motion] = truth
+        return truth
 
     def before_poll(self, t_ns: int, device: str) -> int:
         """The pipeline is about to poll ``device``, due at ``t_ns``: apply the faults due
@@ -124,21 +169,33 @@ class EmulatedBoard:
         self.update(t_ns, device)
         return t_ns
 
-    def update(self, t_ns: int, device: str | None = None) -> TruthState:
+    def update(self, t_ns: int, device: str | None = None) -> None:
         """Hand ``device`` (default: every chip) its inputs at ``t_ns``: the truth in its
         sensor frame, through its error model when the board has one for it. The error
-        model's noise bandwidth follows the time since that device's previous update."""
-        truth = self.truth_at(t_ns)
+        model's noise bandwidth follows the time since that device's previous update.
+        A chip that measures no motion (``ChipEmulator.measures_motion``) gets a light
+        truth: pressure, temperature and position only."""
+        self._updated_ns = t_ns
         for name in (self.emulators if device is None else (device,)):
-            inputs = physical_inputs(truth, self._chip_to_body[name])
+            truth = self._chip_truth(t_ns, self._motion[name])
+            mount = self._mounts[name]
+            force, rate, field = chip_vectors(truth, mount)
+            pressure, temperature = truth.pressure_pa, truth.temperature_degc
             model = self._errors.get(name)
             if model is not None:
                 last = self._device_t_ns.get(name)
                 period = (t_ns - last) / 1e9 if last is not None and t_ns > last \
                     else DEFAULT_PERIOD_S
-                inputs = model.apply(t_ns / 1e9, inputs, period)
+                force, rate, field, pressure, temperature = model.apply_values(
+                    t_ns / 1e9, force, rate, field, pressure, temperature, period)
+            # One inputs object per chip and poll (building one costs more than the
+            # error model's arithmetic).
+            inputs = PhysicalInputs(
+                specific_force_m_s2=force, angular_rate_rad_s=rate, magnetic_field_ut=field,
+                pressure_pa=pressure, temperature_degc=temperature,
+                position_ned_m=truth.position_ned_m, velocity_ned_m_s=truth.velocity_ned_m_s,
+                other=chip_other(truth, mount))
             inputs = self.faults.physics(name, t_ns, inputs)
             self._device_t_ns[name] = t_ns
             self.emulators[name].set_physics(inputs)
-        return truth
 

@@ -12,9 +12,11 @@ from __future__ import annotations
 
 import heapq
 import time
-from collections import Counter
+from collections import Counter, deque
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
+
+import numpy as np
 
 from imuhal.bus.base import Bus, Link
 from imuhal.bus.contained import ContainedBus
@@ -64,6 +66,9 @@ class DeviceRuntime:
     present: bool = False
     """Probed and configured: polled. False: an optional device not (yet) found."""
     needs_recovery: bool = False
+    resumed: bool = False
+    """The driver resumed after a bus error and has not completed a poll since: another
+    bus error now gets the full recovery."""
     next_poll_ns: int = 0
     device_errors: int = 0
     bus_errors: int = 0
@@ -76,6 +81,11 @@ class DeviceRuntime:
     full_scale: dict[Channel, float | None] = field(default_factory=dict)
     last_valid_ns: dict[Channel, int] = field(default_factory=dict)
     """Per quantity, the time of the last valid sample (samples must not go back)."""
+    chip_to_body_rows: list[list[float]] = field(default_factory=list)
+    """``chip_to_body`` as nested lists of floats (every sample is rotated with it)."""
+
+    def __post_init__(self) -> None:
+        self.chip_to_body_rows = np.asarray(self.chip_to_body, dtype=float).tolist()
 
 
 @dataclass
@@ -163,6 +173,7 @@ class Pipeline:
         self._heap: list[tuple[int, int, str]] | None = None
         self._startup: dict[str, GyroOffsetProcedure] | None = None
         self._fusion: list[Sample] = []
+        self._route_cache: dict[tuple[str, type], tuple[EstimatorRuntime, ...]] = {}
         self._span_ns = [0, 0]  # first and last poll time of the latest poll loop (ns)
         self.devices: dict[str, DeviceRuntime] = {}
         self.estimators: list[EstimatorRuntime] = []
@@ -332,7 +343,8 @@ class Pipeline:
             heapq.heappop(heap)
             self.clock.sleep_until(t_ns)
             # Estimator inputs wait until every sample of their instant is in (fusion order).
-            yield from self._fuse(before_ns=t_ns)
+            if self._fusion:
+                yield from self._fuse(before_ns=t_ns)
             t_ns = self._before_poll(t_ns, name)
             self._span_ns[1] = t_ns
             dev = self.devices[name]
@@ -340,7 +352,7 @@ class Pipeline:
             dev.next_poll_ns = max(next_ns, t_ns + 1)
             heapq.heappush(heap, (dev.next_poll_ns, rank, name))
             for raw in samples:
-                yield from self._process(dev, raw)
+                yield self._process(dev, raw)
         if end is not None:
             self.clock.sleep_until(end)
         yield from self._fuse(before_ns=None)
@@ -356,14 +368,35 @@ class Pipeline:
             result = dev.driver.poll(t_ns)
         except BusError:
             dev.bus_errors += 1
-            return [], self._recover(dev, t_ns)
+            return [], self._after_bus_error(dev, t_ns)
         except ImuhalError as exc:
             # A driver that found its chip gone or misconfigured mid-run: the device is
             # recovered like after a bus error; the run goes on for the others.
             dev.device_errors += 1
             self._warn_once(dev, type(exc).__name__, f"{dev.name}: {exc}")
+            dev.resumed = False
             return [], self._recover(dev, t_ns)
+        dev.resumed = False
         return result.samples, result.next_poll_ns
+
+    def _after_bus_error(self, dev: DeviceRuntime, t_ns: int) -> int:
+        """Recovery in proportion: a transfer that fails after a good poll is most likely a
+        glitch, so the driver first resumes (``Driver.resume``: retry the transfer, or check
+        the chip kept its state) without resetting the chip and losing its measurement in
+        flight; a second failure before a poll completes, a chip that lost its state, or a
+        driver that cannot tell gets the full recovery (re-probe and reconfigure)."""
+        if not dev.resumed:
+            try:
+                next_ns = dev.driver.resume(t_ns)
+            except ImuhalError as exc:
+                if isinstance(exc, BusError):
+                    dev.bus_errors += 1
+                next_ns = None
+            if next_ns is not None:
+                dev.resumed = True
+                return next_ns
+        dev.resumed = False
+        return self._recover(dev, t_ns)
 
     def _look_for(self, dev: DeviceRuntime, t_ns: int) -> int:
         """An optional device that was not found: probe it once more."""
@@ -410,7 +443,9 @@ class Pipeline:
             dev.warned.add(key)
             self.warnings.append(message)
 
-    def _process(self, dev: DeviceRuntime, raw: Sample) -> Iterator[Event]:
+    def _process(self, dev: DeviceRuntime, raw: Sample) -> Sample:
+        """One sample of ``dev`` through validity, calibration and rotation; a valid one is
+        queued for the estimators (fused in order by ``_fuse``)."""
         channel = raw.channel
         flags = validity_flags(raw, dev.full_scale.get(channel), dev.last_valid_ns.get(channel))
         sample = raw if flags == raw.flags else raw.flagged(flags)
@@ -420,14 +455,13 @@ class Pipeline:
         else:
             dev.last_valid_ns[channel] = sample.t_ns
         if not self.calibrated:
-            yield sample
-            return
+            return sample
         # Flagged samples are only rotated, not calibrated.
         sample = calibrate_to_body(sample, dev.calibration if sample.valid else None,
-                                   dev.chip_to_body)
-        yield sample
+                                   dev.chip_to_body_rows)
         if sample.valid and self.estimators:
             self._fusion.append(sample)
+        return sample
 
     def _fuse(self, before_ns: int | None) -> Iterator[Event]:
         """Hand the estimators the valid samples older than ``before_ns`` (all: None), in
@@ -441,7 +475,7 @@ class Pipeline:
             if not due:
                 return
             self._fusion = [s for s in self._fusion if s.t_ns >= before_ns]
-        for sample in fusion_order(due, self._device_rank):
+        for sample in (due if len(due) == 1 else fusion_order(due, self._device_rank)):
             yield from self._estimate(sample)
 
     @staticmethod
@@ -450,16 +484,29 @@ class Pipeline:
             if flag and flag in sample.flags:
                 dev.flagged[flag.name or str(flag)] += 1
 
+    def _routes(self, source: str, kind: type) -> tuple[EstimatorRuntime, ...]:
+        """The estimators an event of type ``kind`` from ``source`` goes to, in profile
+        order: those whose inputs name the source (or take every source), that consume the
+        type, and that are not the source itself. Worked out once per (source, type)."""
+        key = (source, kind)
+        routes = self._route_cache.get(key)
+        if routes is None:
+            routes = tuple(est for est in self.estimators
+                           if (est.inputs is None or source in est.inputs)
+                           and source != est.name and issubclass(kind, est.consumes))
+            self._route_cache[key] = routes
+        return routes
+
     def _estimate(self, item: Event) -> Iterator[Event]:
-        pending: list[Event] = [item]
+        routes_of = self._route_cache
+        pending: deque[Event] = deque((item,))
         while pending:
-            current = pending.pop(0)
+            current = pending.popleft()
             source = current.device if isinstance(current, Sample) else current.source
-            for est in self.estimators:
-                if est.inputs is not None and source not in est.inputs:
-                    continue
-                if source == est.name or not isinstance(current, est.consumes):
-                    continue
+            routes = routes_of.get((source, type(current)))
+            if routes is None:
+                routes = self._routes(source, type(current))
+            for est in routes:
                 for out in est.estimator.process(current):
                     est.outputs += 1
                     yield out

@@ -52,7 +52,7 @@ def validity_flags(sample: Sample, full_scale: float | None, last_t_ns: int | No
     values = values_of(sample)
     if not all(map(math.isfinite, values)):
         flags |= SampleFlag.NAN
-    elif full_scale is not None and any(abs(v) > full_scale for v in values):
+    elif full_scale is not None and values and max(map(abs, values)) > full_scale:
         flags |= SampleFlag.OUT_OF_RANGE
     if last_t_ns is not None and sample.t_ns < last_t_ns:
         flags |= SampleFlag.OUT_OF_ORDER
@@ -72,12 +72,13 @@ def _record(sample: VectorSample, calibration: DeviceCalibration | None) -> _Cor
     return calibration.record_for(sample.channel.name)  # a plugin's vector quantity
 
 
-def _rotate(m: FloatArray, v: Vec3) -> Vec3:
+def _rotate(m: FloatArray | list[list[float]], v: Vec3) -> Vec3:
     """``m @ v`` in plain floats: cheaper than a numpy product for one vector (every sample
     comes through here). The same floats as numpy's own loop, signed zeros included; BLAS,
     which numpy may use instead, can differ in the last bit for a matrix that is not a
-    signed permutation."""
-    (a, b, c), (d, e, f), (g, h, i) = np.asarray(m, dtype=float).tolist()
+    signed permutation. ``m`` may be given as nested lists of floats already."""
+    rows = m if type(m) is list else np.asarray(m, dtype=float).tolist()
+    (a, b, c), (d, e, f), (g, h, i) = rows
     x, y, z = v
     # Each sum starts from +0.0 as numpy's does, so an exact zero keeps numpy's sign (+0.0).
     return (0.0 + a * x + b * y + c * z, 0.0 + d * x + e * y + f * z,
@@ -85,7 +86,7 @@ def _rotate(m: FloatArray, v: Vec3) -> Vec3:
 
 
 def calibrate_to_body(sample: Sample, calibration: DeviceCalibration | None,
-                      chip_to_body: FloatArray) -> Sample:
+                      chip_to_body: FloatArray | list[list[float]]) -> Sample:
     """Apply the stored calibration of the sample's channel (sensor frame), then rotate the
     vector into the NED body frame; the sample is copied once (copying a frozen sample costs
     more than the arithmetic). Scalar samples pass unchanged."""

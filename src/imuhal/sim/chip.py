@@ -51,6 +51,10 @@ class ChipEmulator(ABC):
     error_spec: ClassVar[SensorErrorSpec | None] = None
     #: Set True by an emulator whose measurement engine honours ``stuck_data_ready``.
     models_stuck_data_ready: ClassVar[bool] = False
+    #: False for a chip that measures no motion quantity (a barometer: pressure and
+    #: temperature only): an emulated board then hands it a light truth, without the
+    #: attitude, body rate, specific force, field and velocity (None in its inputs).
+    measures_motion: ClassVar[bool] = True
     #: Opt-in to imuhal's generic conformance sweep, which checks the pair against an
     #: independent table in imuhal's own test data; a third-party emulator leaves it False.
     conformance_sweep: ClassVar[bool] = False

@@ -48,7 +48,7 @@ class EmulatedBus(Bus):
 
     def _transfer(self, target: int, write: bytes, read_len: int) -> bytes:
         self._count += 1
-        if self._count in self._fail_at:
+        if self._fail_at and self._count in self._fail_at:
             self._fail_at.discard(self._count)
             raise BusError("injected transfer failure", bus=self.name, target=target)
         emulator = self.targets.get(target)

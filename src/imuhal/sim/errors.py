@@ -285,6 +285,26 @@ class SensorErrorModel:
 
     def apply(self, t_s: float, inputs: PhysicalInputs, sample_period_s: float) -> PhysicalInputs:
         """Measured values for true ``inputs`` sampled at ``t_s`` every ``sample_period_s``."""
+        accel, gyro, mag, pressure, measured_temp = self.apply_values(
+            t_s, inputs.specific_force_m_s2, inputs.angular_rate_rad_s,
+            inputs.magnetic_field_ut, inputs.pressure_pa, inputs.temperature_degc,
+            sample_period_s)
+        # Built directly rather than with dataclasses.replace, which costs more than all the
+        # arithmetic above (this runs for every chip at every poll).
+        return PhysicalInputs(specific_force_m_s2=accel, angular_rate_rad_s=gyro,
+                              magnetic_field_ut=mag, pressure_pa=pressure,
+                              temperature_degc=measured_temp,
+                              position_ned_m=inputs.position_ned_m,
+                              velocity_ned_m_s=inputs.velocity_ned_m_s, other=inputs.other)
+
+    def apply_values(self, t_s: float, accel: Vec3 | None, gyro: Vec3 | None,
+                     mag: Vec3 | None, pressure: float | None, temp: float | None,
+                     sample_period_s: float
+                     ) -> tuple[Vec3 | None, Vec3 | None, Vec3 | None, float | None,
+                                float | None]:
+        """:meth:`apply` on the values themselves (sensor frame, SI; None: not simulated):
+        the measured (accel, gyro, mag, pressure, temperature). The emulated board calls
+        this and builds the chip's inputs once."""
         if sample_period_s <= 0:
             raise ValueError(f"sample_period_s must be positive, got {sample_period_s}")
         if self._last_t is not None and t_s < self._last_t:
@@ -293,10 +313,7 @@ class SensorErrorModel:
         self._last_t = t_s
         for ch in self._channels:
             ch.step(elapsed)
-        temp = inputs.temperature_degc  # the true one: thermal bias terms depend on it
-        accel, gyro, mag = inputs.specific_force_m_s2, inputs.angular_rate_rad_s, \
-            inputs.magnetic_field_ut
-        pressure, measured_temp = inputs.pressure_pa, temp
+        measured_temp = temp  # ``temp`` stays the true one: thermal bias terms depend on it
         if self._accel is not None and accel is not None:
             accel = self._accel.apply(accel, temp, sample_period_s)
         if self._gyro is not None and gyro is not None:
@@ -307,13 +324,7 @@ class SensorErrorModel:
             pressure = self._pressure.apply(t_s, pressure, temp)
         if self._temperature is not None and temp is not None:
             measured_temp = self._temperature.apply(t_s, temp, None)
-        # Built directly rather than with dataclasses.replace, which costs more than all the
-        # arithmetic above (this runs for every chip at every poll).
-        return PhysicalInputs(specific_force_m_s2=accel, angular_rate_rad_s=gyro,
-                              magnetic_field_ut=mag, pressure_pa=pressure,
-                              temperature_degc=measured_temp,
-                              position_ned_m=inputs.position_ned_m,
-                              velocity_ned_m_s=inputs.velocity_ned_m_s, other=inputs.other)
+        return accel, gyro, mag, pressure, measured_temp
 
     # ------------------------------------------------------------------ truth of the errors
     def bias(self, channel: str, temperature_degc: float | None = None,

@@ -40,6 +40,9 @@ _SEGMENTS_KEPT = 4
 """Segments kept computed: the current one and a few recently queried (truth lookups)."""
 _IDENTITY_MAT: Mat3 = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
 
+KinematicsFields = tuple[float, Quat, Mat3, Vec3, Vec3, Vec3, Vec3, Vec3]
+"""The fields of :class:`Kinematics`, in order, as a plain tuple."""
+
 
 @dataclass(frozen=True, slots=True)
 class Kinematics:
@@ -131,6 +134,18 @@ class Motion(ABC):
     @abstractmethod
     def kinematics(self, t_s: float) -> Kinematics:
         """The state at ``t_s`` (s since the start)."""
+
+    def position_ned(self, t_s: float) -> Vec3:
+        """``kinematics(t_s).position_ned_m`` alone (a subclass may compute it for less)."""
+        return self.kinematics(t_s).position_ned_m
+
+    def kinematics_fields(self, t_s: float) -> KinematicsFields:
+        """The fields of ``kinematics(t_s)`` in order, as a plain tuple (a subclass may
+        build them without the dataclass, for the per-poll path)."""
+        k = self.kinematics(t_s)
+        return (k.t_s, k.q_body_to_ned, k.rotation, k.angular_rate_body_rad_s,
+                k.specific_force_body_m_s2, k.acceleration_ned_m_s2, k.position_ned_m,
+                k.velocity_ned_m_s)
 
 
 @dataclass(frozen=True, slots=True)
@@ -314,7 +329,29 @@ class FlightMotion(Motion):
                 p0[2] + h * (v0[2] * i00 + h * a0[2] * i10 + v1[2] * i01 + h * a1[2] * i11))
 
     # ------------------------------------------------------------------ public
+    def position_ned(self, t_s: float) -> Vec3:
+        """The position alone, without the attitude: the same operations as in
+        :meth:`kinematics`, so the same floats (a barometer's truth needs only this)."""
+        if t_s < 0:
+            raise ValueError(f"trajectories start at t = 0 s, got {t_s}")
+        t = float(t_s)
+        wn, we, wd = self.wind
+        pn, pe, pd = wn * t, we * t, wd * t
+        if self.north is not None:
+            pn = pn + self.north(t)[0]
+        if self.east is not None:
+            pe = pe + self.east(t)[0]
+        if self.down is not None:
+            pd = pd + self.down(t)[0]
+        if self._tabulated:
+            tp = self._tab_position(t)
+            pn, pe, pd = pn + tp[0], pe + tp[1], pd + tp[2]
+        return (pn, pe, pd)
+
     def kinematics(self, t_s: float) -> Kinematics:
+        return Kinematics(*self.kinematics_fields(t_s))
+
+    def kinematics_fields(self, t_s: float) -> KinematicsFields:
         if t_s < 0:
             raise ValueError(f"trajectories start at t = 0 s, got {t_s}")
         t = float(t_s)
@@ -342,4 +379,4 @@ class FlightMotion(Motion):
             vn, ve, vd = vn + tv[0], ve + tv[1], vd + tv[2]
             an, ae, ad = an + ta[0], ae + ta[1], ad + ta[2]
         f = mat_t_vec(rot, (an, ae, ad - self.gravity_m_s2))
-        return Kinematics(t, q, rot, w, f, (an, ae, ad), (pn, pe, pd), (vn, ve, vd))
+        return (t, q, rot, w, f, (an, ae, ad), (pn, pe, pd), (vn, ve, vd))

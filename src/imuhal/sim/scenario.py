@@ -5,7 +5,7 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict
@@ -60,6 +60,33 @@ class TruthState:
         return float(-self.velocity_ned_m_s[2])
 
 
+class ChipTruth(NamedTuple):
+    """The part of the truth at ``t_s`` that chips measure, in plain floats: what an
+    emulated board computes at every poll of every chip (a :class:`TruthState` holds numpy
+    arrays, which cost more to build and to read back than the arithmetic that fills them;
+    a named tuple is built faster than a frozen dataclass). Body frame FRD, earth frame
+    NED, SI units, as in :class:`TruthState`.
+
+    ``motion=False`` (:meth:`Scenario.chip_truth`): a light truth for chips that measure no
+    motion (barometers): the vectors that need the attitude are None.
+    """
+
+    t_s: float
+    specific_force_body_m_s2: tuple[float, float, float] | None
+    angular_rate_body_rad_s: tuple[float, float, float] | None
+    magnetic_field_body_ut: tuple[float, float, float] | None
+    pressure_pa: float
+    temperature_degc: float
+    position_ned_m: tuple[float, float, float]
+    velocity_ned_m_s: tuple[float, float, float] | None
+    other: Mapping[str, float | tuple[float, float, float]] = NO_OTHER
+
+
+def _floats3(v: FloatArray) -> tuple[float, float, float]:
+    x, y, z = np.asarray(v, dtype=float).tolist()
+    return (x, y, z)
+
+
 @dataclass(frozen=True, slots=True)
 class Phase:
     """A labelled interval of a scenario (e.g. one calibration position held still)."""
@@ -94,6 +121,23 @@ class Scenario(ABC):
     @abstractmethod
     def truth(self, t_s: float) -> TruthState:
         """The true state at ``t_s``; must be a pure function of ``t_s`` and the seed."""
+
+    def chip_truth(self, t_s: float, *, motion: bool = True) -> ChipTruth:
+        """What chips measure at ``t_s``, in plain floats: the same values as
+        ``truth(t_s)``. ``motion=False`` may leave out what needs the attitude (the base
+        computes it all; a scenario that can skip it cheaply overrides this)."""
+        s = self.truth(t_s)
+        return ChipTruth(
+            t_s=s.t_s,
+            specific_force_body_m_s2=_floats3(s.specific_force_body_m_s2),
+            angular_rate_body_rad_s=_floats3(s.angular_rate_body_rad_s),
+            magnetic_field_body_ut=_floats3(s.magnetic_field_body_ut),
+            pressure_pa=s.pressure_pa,
+            temperature_degc=s.temperature_degc,
+            position_ned_m=_floats3(s.position_ned_m),
+            velocity_ned_m_s=_floats3(s.velocity_ned_m_s),
+            other=s.other,
+        )
 
     def phases(self) -> tuple[Phase, ...]:
         """Labelled intervals of the run (holds, manoeuvres); empty unless a scenario has any."""

@@ -17,8 +17,8 @@ import numpy as np
 from imuhal.sim.environment import Environment
 from imuhal.sim.inputs import NO_OTHER, PhysicalInputs
 from imuhal.sim.magnetic import MagneticDisturbance, MagneticDisturbanceSpec
-from imuhal.sim.motion import Kinematics, Motion, mat_t_vec
-from imuhal.sim.scenario import Phase, Scenario, ScenarioParams, TruthState
+from imuhal.sim.motion import Kinematics, Motion, Vec3, mat_t_vec
+from imuhal.sim.scenario import ChipTruth, Phase, Scenario, ScenarioParams, TruthState
 
 
 class WorldParams(ScenarioParams):
@@ -91,6 +91,57 @@ class MotionScenario(Scenario):
         )
 
 
+    def chip_truth(self, t_s: float, *, motion: bool = True) -> ChipTruth:
+        """:meth:`truth`'s values in plain floats, computed the same way (the same floats);
+        ``motion=False``: the position, pressure and temperature only (no attitude). A
+        subclass that overrides :meth:`truth` (a plugin's scenario adding ``other``
+        quantities) gets the base's ``chip_truth``, which reads its ``truth``."""
+        if type(self).truth is not MotionScenario.truth:
+            return super().chip_truth(t_s, motion=motion)
+        env = self.environment
+        if not motion:
+            p = self.motion.position_ned(t_s)
+            alt = -p[2]
+            return ChipTruth(float(t_s), None, None, None, env.pressure_pa(alt, t_s),
+                             env.temperature_degc(alt, t_s), p, None)
+        _, _, rotation, rate, force, _, position, velocity = \
+            self.motion.kinematics_fields(t_s)
+        field, _ = self.field_ned_ut(t_s)
+        alt = -position[2]
+        return ChipTruth(float(t_s), force, rate, mat_t_vec(rotation, field),
+                         env.pressure_pa(alt, t_s), env.temperature_degc(alt, t_s), position,
+                         velocity)
+
+
+def chip_vectors(truth: ChipTruth, sensor_to_body: list[list[float]] | None
+                 ) -> tuple[Vec3 | None, Vec3 | None, Vec3 | None]:
+    """The truth's specific force, body rate and field rotated into a chip's sensor frame
+    (``sensor_to_body`` as nested lists; None: aligned with the body); a vector the truth
+    leaves out stays None. The same floats as :func:`physical_inputs`."""
+    f, w, b = truth.specific_force_body_m_s2, truth.angular_rate_body_rad_s, \
+        truth.magnetic_field_body_ut
+    return (None if f is None else _rotate(f, sensor_to_body),
+            None if w is None else _rotate(w, sensor_to_body),
+            None if b is None else _rotate(b, sensor_to_body))
+
+
+def chip_other(truth: ChipTruth, sensor_to_body: list[list[float]] | None
+               ) -> Mapping[str, float | Vec3]:
+    """The truth's plugin quantities for one chip (3-vectors in its sensor frame)."""
+    return _other_to_sensor(truth.other, sensor_to_body) if truth.other else NO_OTHER
+
+
+def chip_inputs(truth: ChipTruth, sensor_to_body: list[list[float]] | None) -> PhysicalInputs:
+    """:func:`physical_inputs` for a :class:`ChipTruth`: its vectors rotated into the chip's
+    sensor frame (:func:`chip_vectors`)."""
+    f, w, b = chip_vectors(truth, sensor_to_body)
+    return PhysicalInputs(
+        specific_force_m_s2=f, angular_rate_rad_s=w, magnetic_field_ut=b,
+        pressure_pa=truth.pressure_pa, temperature_degc=truth.temperature_degc,
+        position_ned_m=truth.position_ned_m, velocity_ned_m_s=truth.velocity_ned_m_s,
+        other=chip_other(truth, sensor_to_body))
+
+
 def physical_inputs(truth: TruthState, sensor_to_body: Sequence[Sequence[float]] | None = None,
                     *, accel: bool = True, gyro: bool = True, mag: bool = True,
                     pressure: bool = True, temperature: bool = True) -> PhysicalInputs:
@@ -131,6 +182,13 @@ def _to_sensor(v: np.ndarray, m: list[list[float]] | None) -> tuple[float, float
     rotation of three components costs less in Python than a numpy call (this runs for
     every chip at every poll), and gives the same floats as ``m.T @ v``."""
     x, y, z = np.asarray(v, dtype=float).tolist()
+    return _rotate((x, y, z), m)
+
+
+def _rotate(v: tuple[float, float, float], m: list[list[float]] | None
+            ) -> tuple[float, float, float]:
+    """``M^T v`` on plain floats (see :func:`_to_sensor`)."""
+    x, y, z = v
     if m is None:
         return (x, y, z)
     (a, b, c), (d, e, f), (g, h, i) = m

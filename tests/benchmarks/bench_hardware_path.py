@@ -1,0 +1,200 @@
+"""What a real board pays per IMU sample: the seed board's drivers, decoding, calibration, mount
+rotation and estimators, replayed from a recording of its bus traffic (plain script; not
+collected by pytest).
+
+Run:  .venv/bin/python -m tests.benchmarks.bench_hardware_path [--duration 60] [--profile]
+
+A ``--duration`` s emulated run of the seed paraglider vario (profiles/seed-paraglider-vario.yaml,
+``thermal``, its estimators) is recorded once (``imuhal run --record``'s recorder); then
+``imuhal replay``'s pipeline runs it again with no simulation and no emulator: every bus
+transaction and clock reading is answered from the recording, so what is timed is the host's
+side of a run. The figure is CPU time per IMU sample (one gyro + accel burst of the MAX21100,
+250 per second; the magnetometer, barometer and estimators they feed are included).
+
+The records are decoded from the file before the timed replay (decoding is timed on its own,
+as the peer: ``imuhal replay`` pays it, real hardware does not); what stays in the figure of
+the recording machinery is matching each transaction against the next record, which stands
+in for the kernel's SPI transfer on a real board.
+
+``--profile`` prints the replay's cProfile, sorted by own time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import os
+import pstats
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+from collections.abc import Iterator
+
+from imuhal.bus.base import Bus
+from imuhal.bus.recording.format import Record, Recording, open_recording
+from imuhal.bus.recording.recorder import BusRecorder, run_header
+from imuhal.core.samples import GyroSample
+from imuhal.emulation import open_emulated
+from imuhal.offline.replay import (
+    EndOfRecording,
+    Replay,
+    ReplayClock,
+    ReplaySource,
+    replay_bus,
+    replay_pipeline,
+)
+from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.loader import load_profile, parse_profile
+
+PROFILE = Path(__file__).resolve().parents[2] / "profiles" / "seed-paraglider-vario.yaml"
+IMU = "imu"
+
+
+@dataclass(frozen=True)
+class HardwarePath:
+    """One measurement: the replay's CPU time, its IMU samples and the peer's CPU time."""
+
+    duration_s: float
+    imu_samples: int
+    events: int
+    replay_cpu_s: float
+    decode_cpu_s: float
+    bare_cpu_s: float
+    """The same replay without the profile's estimators (drivers and pipeline alone)."""
+
+    @property
+    def us_per_imu_sample(self) -> float:
+        return self.replay_cpu_s / self.imu_samples * 1e6
+
+    @property
+    def bare_us_per_imu_sample(self) -> float:
+        return self.bare_cpu_s / self.imu_samples * 1e6
+
+    @property
+    def decode_us_per_imu_sample(self) -> float:
+        return self.decode_cpu_s / self.imu_samples * 1e6
+
+
+def record(registry: Registry, path: Path, duration_s: float) -> int:
+    """Record ``duration_s`` of the emulated seed board to ``path``; returns its events."""
+    profile = load_profile(PROFILE, registry)
+    recorder = BusRecorder(path, run_header(PROFILE.read_text(), str(PROFILE),
+                                            emulate=profile.emulation.scenario, seed=None))
+    n = 0
+    try:
+        with open_emulated(profile, registry, recorder=recorder) as pipeline:
+            for _ in pipeline.events(duration_s):
+                n += 1
+    finally:
+        recorder.close()
+    return n
+
+
+class DecodedRecording:
+    """A recording whose records were decoded beforehand (what ``ReplaySource`` reads)."""
+
+    def __init__(self, recording: Recording, records: list[Record]) -> None:
+        self.path = recording.path
+        self.version = recording.version
+        self.header = recording.header
+        self._records = records
+
+    def records(self) -> Iterator[Record]:
+        return iter(self._records)
+
+
+def decoded_replay(path: Path, registry: Registry, *, estimators: bool = True) -> Replay:
+    """``open_replay`` of ``path`` with every record decoded first (its own profile;
+    ``estimators=False``: without its estimators, which ask nothing of the buses)."""
+    recording = open_recording(path)
+    decoded = DecodedRecording(recording, list(recording.records()))
+    profile = parse_profile(recording.header["profile_yaml"], str(path), registry)
+    if not estimators:
+        profile = profile.model_copy(update={"estimators": {}})
+    source = ReplaySource(decoded)  # type: ignore[arg-type]
+    buses: dict[str, Bus] = {info.name: replay_bus(info, source)
+                             for info in source.buses.values()}
+    return Replay(recording, profile, source, buses, ReplayClock(source))
+
+
+def replay(registry: Registry, path: Path, *, profiler: cProfile.Profile | None = None,
+           estimators: bool = True) -> tuple[int, int, float]:
+    """Replay ``path`` (decoded beforehand) to its end: (IMU samples, events, CPU seconds).
+    Opening the pipeline (probe and configuration) is not timed."""
+    pipeline = replay_pipeline(decoded_replay(path, registry, estimators=estimators),
+                               registry)
+    imu = events = 0
+    t0 = time.process_time()
+    if profiler is not None:
+        profiler.enable()
+    try:
+        for event in pipeline.events(None):
+            events += 1
+            if type(event) is GyroSample and event.device == IMU:
+                imu += 1
+    except EndOfRecording:
+        pass
+    finally:
+        if profiler is not None:
+            profiler.disable()
+    return imu, events, time.process_time() - t0
+
+
+def decode_only(path: Path) -> float:
+    """The peer: CPU seconds to decode every record of ``path``."""
+    t0 = time.process_time()
+    for _ in open_recording(path).records():
+        pass
+    return time.process_time() - t0
+
+
+def measure(duration_s: float = 60.0, *, repeat: int = 3, registry: Registry | None = None,
+            profile_to: Path | None = None) -> HardwarePath:
+    """Record once, then replay ``repeat`` times and keep the fastest (least disturbed)."""
+    registry = registry or load_registry()
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "seed.imurec"
+        record(registry, path, duration_s)
+        best: tuple[int, int, float] | None = None
+        for _ in range(max(1, repeat)):
+            run = replay(registry, path)
+            if best is None or run[2] < best[2]:
+                best = run
+        assert best is not None
+        bare = min(replay(registry, path, estimators=False)[2] for _ in range(max(1, repeat)))
+        decode = min(decode_only(path) for _ in range(max(1, repeat)))
+        if profile_to is not None:
+            prof = cProfile.Profile()
+            replay(registry, path, profiler=prof)
+            prof.dump_stats(profile_to)
+    imu, events, cpu = best
+    return HardwarePath(duration_s, imu, events, cpu, decode, bare)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--duration", type=float, default=60.0, help="recorded simulated s")
+    p.add_argument("--repeat", type=int, default=3, help="replays; the fastest counts")
+    p.add_argument("--profile", action="store_true", help="print the replay's cProfile")
+    args = p.parse_args(argv)
+    with tempfile.TemporaryDirectory() as tmp:
+        prof = Path(tmp) / "replay.prof" if args.profile else None
+        r = measure(args.duration, repeat=args.repeat, profile_to=prof)
+        if prof is not None:
+            pstats.Stats(str(prof)).sort_stats("tottime").print_stats(30)
+    print(f"seed board replay, {r.duration_s:g} s recorded: {r.imu_samples} IMU samples, "
+          f"{r.events} events")
+    print(f"hardware path: {r.us_per_imu_sample:.1f} us of CPU per IMU sample "
+          f"(target <= 60), {r.bare_us_per_imu_sample:.1f} us of it without the estimators; "
+          f"decoding the recording (not included) {r.decode_us_per_imu_sample:.1f} us")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
