@@ -81,7 +81,11 @@ MISTAKES: dict[str, Mistake] = {
     "estimate: unknown --ahrs": m("estimate vario-kf3 imu.csv -o o.csv --ahrs nosuch",
                                   "nosuch"),
     "estimate: unknown --ahrs-set key": m(
-        "estimate madgwick imu.csv -o o.csv --ahrs-set nosuch=1", "--ahrs-set nosuch"),
+        "estimate vario-kf3 imu.csv -o o.csv --ahrs-set nosuch=1", "--ahrs-set nosuch"),
+    "estimate: --ahrs for an attitude estimator": m(
+        "estimate madgwick imu.csv -o o.csv --ahrs mahony", "--ahrs"),
+    "estimate: --ahrs-set for an attitude estimator": m(
+        "estimate madgwick imu.csv -o o.csv --ahrs-set beta=0.1", "--ahrs-set"),
     "estimate: a setting given twice": m(
         "estimate madgwick imu.csv -o o.csv --set beta=1 --set beta=2", "beta"),
     "estimate: unknown preset": m("estimate madgwick imu.csv -o o.csv --set preset=nosuch",
@@ -159,6 +163,8 @@ MISTAKES: dict[str, Mistake] = {
         "calibrate gyro board.yaml --emulate calibration --dry-run --output x.yaml",
         "--dry-run"),
     "calibrate: --show with a procedure": m("calibrate gyro --show board.yaml", "--show"),
+    "calibrate: --show with --output": m("calibrate --show board.yaml --output x.yaml",
+                                         "--show"),
     "calibrate: an absurd --field": m(
         "calibrate mag board.yaml --emulate calibration --field 1e300", "--field"),
     "calibrate: output through a link to an input": m(

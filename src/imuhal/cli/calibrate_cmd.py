@@ -99,9 +99,9 @@ def add_parser(sub: Any) -> None:
 
 def cmd_calibrate(args: argparse.Namespace, registry: Registry) -> int:
     if args.show:
-        if args.procedure is not None:
-            args._parser.error("--show prints a stored calibration; give either --show "
-                               "PROFILE or a procedure and a PROFILE")
+        if args.procedure is not None or args.output or args.dry_run:
+            args._parser.error("--show prints a stored calibration and writes nothing; give "
+                               "either --show PROFILE or a procedure and a PROFILE")
         return show(Path(args.show), registry, sys.stdout)
     if args.procedure is None or args.profile is None:
         args._parser.error("give a procedure and a PROFILE (or --show PROFILE)")

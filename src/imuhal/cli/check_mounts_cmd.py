@@ -81,6 +81,8 @@ def cmd_check_mounts(args: argparse.Namespace, registry: Registry) -> int:
         raise ImuhalError("--physical-mount places emulated chips: add --emulate bringup")
     if not args.window > 0:
         raise ImuhalError(f"--window {args.window:g}: give a positive number of seconds")
+    if emulate is not None:
+        registry.scenarios.get(emulate)  # an unknown name fails here, before the board opens
     where = f"emulated, scenario '{emulate}'" if emulate else "real hardware"
     print(f"checking the mounts of {profile.name} ({where}) from {path}", file=sys.stderr)
     if emulate is not None:

@@ -12,6 +12,7 @@ from imuhal.cli.frame_option import frame_argument
 from imuhal.core.atomic import check_outputs
 from imuhal.core.conventions import CONVENTIONS, NED
 from imuhal.core.errors import ImuhalError
+from imuhal.core.samples import PressureSample
 from imuhal.offline.csv_input import iter_sample_chunks
 from imuhal.offline.csv_output import ColumnError, EstimateCsvWriter
 from imuhal.offline.frames import resolve_input_frame, table_to_ned
@@ -19,6 +20,9 @@ from imuhal.offline.run_log import is_run_log, read_run_log
 from imuhal.offline.runner import iter_offline, run_offline_samples
 from imuhal.offline.settings_args import build_settings, parse_set_arguments
 from imuhal.plugins.manager import Registry
+
+AHRS_DEFAULT = "madgwick"
+"""The --ahrs that gravity-compensates full IMU input to a vario filter."""
 
 HELP = """\
 INPUT is a log of `imuhal run --output LOG.csv --samples` (one row per event; flagged
@@ -58,7 +62,7 @@ def add_parser(sub: Any) -> None:
                    help="an estimator setting (repeatable)")
     p.add_argument("--rate", type=types.rate_hz, metavar="HZ",
                    help="sample rate, when the input has no t_s column")
-    p.add_argument("--ahrs", default="madgwick", metavar="NAME",
+    p.add_argument("--ahrs", default=AHRS_DEFAULT, metavar="NAME",
                    help="attitude estimator for gravity compensation of full IMU input to a "
                    "vario filter (default: madgwick)")
     p.add_argument("--ahrs-set", dest="ahrs_settings", action="append", default=[],
@@ -94,6 +98,12 @@ def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
         raise ImuhalError(f"{args.input}: a run log has its own times (t_s); --rate is for a "
                           "wide CSV without them - drop --rate")
     est_cls = registry.estimators.get(args.name)
+    if PressureSample not in est_cls.consumes and (args.ahrs_settings or
+                                                   args.ahrs != AHRS_DEFAULT):
+        option = "--ahrs-set" if args.ahrs_settings else "--ahrs"
+        raise ImuhalError(f"{option} configures the attitude estimator behind a vario filter; "
+                          f"{args.name} is not one - drop {option} (settings of {args.name} "
+                          "go in --set)")
     settings = build_settings(est_cls.Settings, parse_set_arguments(args.settings), args.name)
     estimator = est_cls(settings)
     ahrs_cls = registry.estimators.get(args.ahrs)
