@@ -171,6 +171,10 @@ MISTAKES: dict[str, Mistake] = {
         "calibrate gyro link.csv --emulate calibration --output imu.csv", "imu.csv"),
     # check-mounts
     "check-mounts: unknown scenario": m("check-mounts --emulate nosuch", "nosuch"),
+    "check-mounts: --window for an emulated board": m("check-mounts --window 5", "--window"),
+    "check-mounts: an endless --window": m("check-mounts board.yaml --window 1e300",
+                                           "--window"),
+    "run: --seed on hardware": m("run board.yaml --seed 3", "--seed"),
 }
 
 

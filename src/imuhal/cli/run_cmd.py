@@ -109,6 +109,9 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     web = parse_bind(args.web) if args.web is not None else None
     # Real buses always run in real time; a dashboard of an emulated run is watched live.
     realtime = args.realtime or emulate is None or web is not None
+    if args.seed is not None and emulate is None:
+        raise ImuhalError("--seed seeds the simulated world of an emulated run; add --emulate "
+                          "SCENARIO (or drop --seed): real hardware has no seed")
     if args.truth and emulate is None:
         raise ImuhalError("--truth needs an emulated run (--emulate SCENARIO): real "
                           "hardware has no ground truth")
