@@ -35,6 +35,7 @@ def made(tmp_path_factory: pytest.TempPathFactory) -> Path:
     (d / "notime.csv").write_text(IMU_HEADER.partition(",")[2] + "0,0,0,0,0,-9.81\n" * 50)
     (d / "garbage.bin").write_bytes(bytes(range(256)) * 8)
     shutil.copy(SEED_BOARD, d / "board.yaml")
+    shutil.copy(d / "truth.csv", d / "flight.csv.partial")  # a truth recovered after a cut
     return d
 
 
@@ -108,6 +109,11 @@ MISTAKES: dict[str, Mistake] = {
     "run: recording over the profile": m(
         "run board.yaml --emulate static --duration 0.2 --quiet --record board.yaml",
         "board.yaml"),
+    "run: the log's scratch file is the replayed truth": m(
+        "run --emulate replay --quiet --replay-truth flight.csv.partial --output flight.csv",
+        "flight.csv.partial"),
+    "run: one output is the other's scratch file": m(
+        "run --duration 0.2 --quiet --output a.csv --trace a.csv.partial", "a.csv"),
     "run: --nmea-sentences without --nmea": m(
         "run --duration 0.2 --quiet --nmea-sentences LK8EX1", "--nmea"),
     "run: an empty --nmea-sentences": m(

@@ -124,6 +124,12 @@ def _same_file(a: Path, b: Path) -> bool:
         return False
 
 
+def _partial_of(path: Path) -> Path:
+    """The visible scratch file a ``partial=True`` write of ``path`` uses."""
+    target = resolve_target(path)
+    return target.with_name(target.name + PARTIAL_SUFFIX)
+
+
 def check_outputs(outputs: Mapping[str, PathLike | None],
                   inputs: Mapping[str, PathLike | None] | None = None) -> None:
     """Refuse before any work when an output is also an input of the same command, when two
@@ -140,11 +146,18 @@ def check_outputs(outputs: Mapping[str, PathLike | None],
                 raise OutputError(
                     f"{label} {out}: is the same file as {in_label} {inp}; writing it would "
                     "destroy the input - choose another output path")
+            if _same_file(_partial_of(out), inp):
+                raise OutputError(
+                    f"{label} {out}: its rows go to {_partial_of(out).name} while it is "
+                    f"written, which is {in_label} {inp}; rename the input or choose another "
+                    "output path")
     for i, (label, out) in enumerate(outs):
         for other_label, other in outs[i + 1:]:
-            if _same_file(out, other):
-                raise OutputError(f"{label} {out} and {other_label} {other}: are the same file; "
-                                  "give each output its own path")
+            if (_same_file(out, other) or _same_file(_partial_of(out), other)
+                    or _same_file(out, _partial_of(other))):
+                raise OutputError(f"{label} {out} and {other_label} {other}: are the same file "
+                                  "(or one is the other's .partial); give each output its own "
+                                  "path")
     for label, out in outs:
         check_writable(out, label)
 
