@@ -114,6 +114,8 @@ MISTAKES: dict[str, Mistake] = {
         "flight.csv.partial"),
     "run: one output is the other's scratch file": m(
         "run --duration 0.2 --quiet --output a.csv --trace a.csv.partial", "a.csv"),
+    "run: a pty link in a missing folder": m(
+        "run --duration 0.2 --quiet --nmea pty:nodir/vario", "pty:nodir/vario"),
     "run: --nmea-sentences without --nmea": m(
         "run --duration 0.2 --quiet --nmea-sentences LK8EX1", "--nmea"),
     "run: an empty --nmea-sentences": m(
