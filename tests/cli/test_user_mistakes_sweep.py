@@ -184,6 +184,19 @@ MISTAKES: dict[str, Mistake] = {
                                            "--window"),
     "run: --seed on hardware": m("run board.yaml --seed 3", "--seed"),
 }
+# `--output "$LOG"` with LOG unset: an empty path, for every option that names a file
+MISTAKES.update({f"empty path: {' '.join(argv)}": Mistake(argv, "empty path") for argv in (
+    ["run", "--duration", "0.2", "--quiet", "--output", ""],
+    ["run", "--duration", "0.2", "--quiet", "--trace", ""],
+    ["run", "--duration", "0.2", "--quiet", "--record", ""],
+    ["run", "--duration", "0.2", "--quiet", "--audio-wav", ""],
+    ["estimate", "madgwick", "imu.csv", "-o", ""],
+    ["estimate", "madgwick", "", "-o", "o.csv"],
+    ["replay", "rec.imr", "--output", ""],
+    ["plot", "log.csv", "-o", ""],
+    ["evaluate", "log.csv", "--truth", "truth.csv", "-e", "madgwick", "--json", ""],
+    ["calibrate", "gyro", "board.yaml", "--emulate", "calibration", "--output", ""],
+)})
 
 
 @pytest.mark.parametrize("case", sorted(MISTAKES))

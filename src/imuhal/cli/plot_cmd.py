@@ -33,7 +33,7 @@ def cmd_plot(args: argparse.Namespace, registry: Registry) -> int:
 
     out = Path(args.output)
     # links and hard links too: the figure never replaces the log or the truth it shows
-    check_outputs({"--output": out}, {"LOG.csv": args.log, "--truth": args.truth})
+    check_outputs({"--output": args.output}, {"LOG.csv": args.log, "--truth": args.truth})
     log = read_log(args.log)
     truth = read_truth(args.truth) if args.truth else None
     figure = plot_log(log, truth)

@@ -138,6 +138,10 @@ def check_outputs(outputs: Mapping[str, PathLike | None],
     Keys are how the user gave each path (``"--output"``, ``"INPUT.csv"``): every message
     names the two options and the file.
     """
+    for label, p in (*outputs.items(), *(inputs or {}).items()):
+        if p is not None and not os.fspath(p):  # `--output "$LOG"` with LOG unset
+            raise OutputError(f"{label}: an empty path was given (an unset shell variable?); "
+                              "give a file name")
     outs = [(label, Path(p)) for label, p in outputs.items() if p is not None]
     ins = [(label, Path(p)) for label, p in (inputs or {}).items() if p is not None]
     for label, out in outs:
