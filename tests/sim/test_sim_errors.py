@@ -51,6 +51,36 @@ def test_explicit_bandwidth_sets_the_noise_band():
     np.testing.assert_allclose(out.std(axis=0), 0.003 * math.sqrt(92.0), rtol=0.03)
 
 
+def test_a_channel_period_given_per_channel_sets_that_channels_band():
+    """``periods_s`` gives each channel its own sample period (the board passes the chip's
+    per-channel output rates); channels not named use ``sample_period_s``."""
+    density, n = 0.01, 20_000
+    spec = SensorErrorSpec(gyro=VectorErrorSpec(noise_density=density),
+                           accel=VectorErrorSpec(noise_density=density))
+    model = SensorErrorModel(spec, 3)
+    out = [model.apply_values(i * 0.01, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), None, None, None,
+                              0.01, {"gyro": 0.0005}) for i in range(n)]
+    gyro, accel = np.array([o[1] for o in out]), np.array([o[0] for o in out])
+    np.testing.assert_allclose(gyro.std(axis=0), density * math.sqrt(1000.0), rtol=0.03)
+    np.testing.assert_allclose(accel.std(axis=0), density * math.sqrt(50.0), rtol=0.03)
+    assert model.period_channels == ("accel", "gyro")
+
+
+def test_a_period_for_an_unknown_channel_is_refused():
+    model = SensorErrorModel(SensorErrorSpec(gyro=VectorErrorSpec(noise_density=0.01)), 3)
+    with pytest.raises(ValueError, match="unknown vector channel 'pressure'"):
+        model.apply_values(0.0, None, (0.0, 0.0, 0.0), None, None, None, 0.01,
+                           {"pressure": 0.01})
+
+
+def test_only_density_channels_without_a_fixed_band_depend_on_the_period():
+    model = SensorErrorModel(SensorErrorSpec(
+        gyro=VectorErrorSpec(noise_density=0.01, bandwidth_hz=92.0),
+        accel=VectorErrorSpec(noise_std=0.01),
+        mag=MagErrorSpec(noise_density=0.1)), 3)
+    assert model.period_channels == ("mag",)
+
+
 def test_constant_bias_is_the_mean_of_a_static_run():
     bias = (0.02, -0.01, 0.005)
     model = SensorErrorModel(SensorErrorSpec(

@@ -59,6 +59,7 @@ class AK8963Emulator(ChipEmulator):
     error_spec = AK8963_ERROR_SPEC
     models_stuck_data_ready = True
     conformance_sweep = True
+    min_output_period_s = _MEASUREMENT_S  # back-to-back single measurements
 
     def __init__(self, clock: Clock | None = None, *,
                  asa: tuple[int, int, int] = DEFAULT_ASA) -> None:
@@ -99,6 +100,13 @@ class AK8963Emulator(ChipEmulator):
     def _resolution(self) -> tuple[float, int]:
         """(uT per LSB before adjustment, largest |count|) at the current CNTL1.BIT."""
         return _SENSITIVITY[bool(self._cntl1 & r.CNTL1_BIT)]
+
+    def noise_period_s(self, channel: Channel) -> float | None:
+        """Continuous mode 1 / 2: 1/8 s / 1/100 s; None otherwise (single measurements
+        come at the host's pace)."""
+        if channel is not Channel.MAG:
+            return None
+        return _PERIOD_S_BY_MODE.get(self._mode())
 
     def resolution(self, channel: Channel) -> float:
         """The largest per-axis LSB (uT) at the current resolution and this part's ASA."""

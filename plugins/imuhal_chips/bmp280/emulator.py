@@ -87,6 +87,8 @@ class BMP280Emulator(ChipEmulator):
     measures_motion = False  # pressure and temperature only: a light truth is enough
     models_stuck_data_ready = True
     conformance_sweep = True
+    # Normal mode at x1/x1 oversampling and the shortest standby: measurement + 0.5 ms.
+    min_output_period_s = (_measurement_ms(1, 1) + _STANDBY_MS_BY_CODE[0]) / 1e3
 
     def __init__(
         self, clock: Clock | None = None, *, trim: FactoryTrimming = DATASHEET_TRIMMING
@@ -136,6 +138,13 @@ class BMP280Emulator(ChipEmulator):
     def _bits(self, oversampling: int) -> int:
         iir = _IIR_BY_CODE[(self._config >> 2) & 0b111]
         return 20 if iir else _ADC_BITS[oversampling]
+
+    def noise_period_s(self, channel: Channel) -> float | None:
+        """Normal mode: measurement plus standby (:meth:`_period_ns`); None in forced and
+        sleep mode, where the host sets the pace."""
+        if channel in (Channel.PRESSURE, Channel.TEMPERATURE) and self._mode() == r.MODE_NORMAL:
+            return self._period_ns() / 1e9
+        return None
 
     def resolution(self, channel: Channel) -> float:
         """One output LSB at the current settings and physics, in Pa or degC.

@@ -94,6 +94,7 @@ class Hmc5883lEmulator(ChipEmulator):
     error_spec = HMC5883L_ERROR_SPEC
     models_stuck_data_ready = True
     conformance_sweep = True
+    min_output_period_s = _SINGLE_MEASUREMENT_NS / 1e9  # back-to-back single measurements
 
     def __init__(self, clock: Clock | None = None, *, name: str | None = None) -> None:
         super().__init__(clock)
@@ -127,6 +128,14 @@ class Hmc5883lEmulator(ChipEmulator):
     def set_physics(self, inputs: PhysicalInputs) -> None:
         self._advance()
         super().set_physics(inputs)
+
+    def noise_period_s(self, channel: Channel) -> float | None:
+        """Continuous mode: 1 / the Config A output rate; None otherwise (single
+        measurements come at the host's pace) or for the reserved rate code."""
+        if channel is not Channel.MAG or self.regs[Reg.MODE] & MODE_MD_MASK != MODE_CONTINUOUS:
+            return None
+        period = self._period_ns()
+        return None if period is None else period / 1e9
 
     def resolution(self, channel: Channel) -> float:
         """uT per count at the current gain."""

@@ -121,6 +121,8 @@ def _encode(value: float, per_count: float, limit: int) -> int:
 class Max2110xEmulator(ChipEmulator):
     """Family base; subclasses set ``chip``, ``part`` and their rate tables."""
 
+    min_output_period_s = 1.0 / 8000.0  # the fastest gyro ODR code of both parts
+
     part: ClassVar[PartSpec]
     models_stuck_data_ready = True
     gyro_odr_by_code: ClassVar[tuple[float, ...]]
@@ -233,6 +235,16 @@ class Max2110xEmulator(ChipEmulator):
         else:
             table, code = self.accel_odr_by_code, self.bank0(Reg.ACC_CFG1) & 0x0F
         return table[code] if code < len(table) else None
+
+    def noise_period_s(self, channel: Channel) -> float | None:
+        """1 / the ODR the configuration codes select (temperature: the gyro's). None: a
+        reserved code, or the channel is powered down (it outputs nothing at any rate)."""
+        if channel is Channel.TEMPERATURE:
+            channel = Channel.GYRO
+        if channel not in _CHANNELS or not self._active(channel):
+            return None
+        odr = self._odr_hz(channel)
+        return 1.0 / odr if odr else None
 
     def _active(self, channel: Channel) -> bool:
         mode = (self.bank0(Reg.POWER_CFG) >> POWER_MODE_SHIFT) & 0x0F

@@ -70,6 +70,7 @@ class MPU9250Emulator(ChipEmulator):
     error_spec = MPU9250_ERROR_SPEC
     models_stuck_data_ready = True
     conformance_sweep = True
+    min_output_period_s = 1.0 / 32_000.0  # Fchoice_b != 00: 32 kHz
 
     def __init__(self, clock: Clock | None = None, *, name: str = "mpu9250") -> None:
         super().__init__(clock)
@@ -114,6 +115,15 @@ class MPU9250Emulator(ChipEmulator):
 
     def _accel_lsb_per_g(self) -> float:
         return _ACCEL_LSB_PER_G_BY_FS_SEL[(self._regs[r.ACCEL_CONFIG] >> 3) & 0b11]
+
+    def noise_period_s(self, channel: Channel) -> float | None:
+        """Accel, gyro and temperature are sampled together every :meth:`period_ns`;
+        None while the chip sleeps (it outputs nothing at any rate)."""
+        if self._regs[r.PWR_MGMT_1] & r.PWR1_SLEEP:
+            return None
+        if channel in (Channel.ACCEL, Channel.GYRO, Channel.TEMPERATURE):
+            return self.period_ns() / 1e9
+        return None
 
     def resolution(self, channel: Channel) -> float:
         """One LSB in SI units at the current ranges."""

@@ -81,6 +81,7 @@ class MS5611Emulator(ChipEmulator):
     models_stuck_data_ready = True
     """Stuck: a started conversion never finishes (ADC reads during it return 0)."""
     conformance_sweep = True
+    min_output_period_s = min(_CONVERSION_NS.values()) / 1e9  # OSR 256
 
     def __init__(
         self,
@@ -107,8 +108,18 @@ class MS5611Emulator(ChipEmulator):
         self.resets = 0
         self.conversions_started = 0
         self.aborted_conversions = 0
+        self._osr: dict[Measurement, int] = {}
+        """The OSR of the latest conversion started, per measurement (D1, D2)."""
 
     # -- fault injection --------------------------------------------------------------------
+
+    def noise_period_s(self, channel: Channel) -> float | None:
+        """The conversion time of the OSR the latest D1 (pressure) / D2 (temperature)
+        conversion used; None before the first, or for other channels."""
+        measurement = {Channel.PRESSURE: Measurement.D1,
+                       Channel.TEMPERATURE: Measurement.D2}.get(channel)
+        osr = None if measurement is None else self._osr.get(measurement)
+        return None if osr is None else _CONVERSION_NS[osr] / 1e9
 
     def resolution(self, channel: Channel) -> float:
         """The compensated output's step: 1 Pa (0.01 mbar) and 0.01 degC."""
@@ -196,6 +207,7 @@ class MS5611Emulator(ChipEmulator):
         now = self.now_ns()
         self._settle(now)
         self.conversions_started += 1
+        self._osr[measurement] = osr
         if self._conversion is not None:
             # Overlapping conversions: the running one is lost, the new one is garbage.
             self.aborted_conversions += 1

@@ -18,6 +18,7 @@ import numpy as np
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import ImuhalError, PluginError
 from imuhal.core.frames import FloatArray
+from imuhal.core.quantities import Quantity
 from imuhal.emulation.faults import BoardFaults
 from imuhal.pipeline.pipeline import Pipeline
 from imuhal.plugins.manager import Registry
@@ -32,7 +33,10 @@ from imuhal.sim.scenario import ChipTruth, Scenario, TruthState
 from imuhal.sim.world import chip_other, chip_vectors
 
 DEFAULT_PERIOD_S = 0.004
-"""Sample period assumed for a device's first error-model draw (before it has been polled)."""
+"""Sample period assumed for a device's first error-model draw (before it has been polled)
+when its emulator does not know its own output period."""
+
+_QUANTITY_BY_NAME = {"accel": Quantity.ACCEL, "gyro": Quantity.GYRO, "mag": Quantity.MAG}
 
 
 class EmulatedBoard:
@@ -169,10 +173,28 @@ class EmulatedBoard:
         self.update(t_ns, device)
         return t_ns
 
+    def _noise_periods(self, name: str, model: SensorErrorModel,
+                       poll_period_s: float) -> dict[str, float]:
+        """Per noise-density channel of ``name``'s error model, the sample period (s) its
+        noise band follows: the chip's configured output period, else the poll interval
+        ``poll_period_s`` floored at the shortest period the chip supports (a poll right
+        after another must not widen the band past anything the chip can output)."""
+        emulator = self.emulators[name]
+        floor = emulator.min_output_period_s
+        periods: dict[str, float] = {}
+        for channel in model.period_channels:
+            own = emulator.noise_period_s(_QUANTITY_BY_NAME[channel])
+            periods[channel] = own if own is not None and own > 0 else \
+                max(poll_period_s, floor)
+        return periods
+
     def update(self, t_ns: int, device: str | None = None) -> None:
         """Hand ``device`` (default: every chip) its inputs at ``t_ns``: the truth in its
         sensor frame, through its error model when the board has one for it. The error
-        model's noise bandwidth follows the time since that device's previous update.
+        model's noise bandwidth follows the chip's own output period
+        (:meth:`ChipEmulator.noise_period_s`), not how often the host polls; where the
+        emulator does not know it, the time since that device's previous update, never
+        below the chip's ``min_output_period_s``.
         A chip that measures no motion (``ChipEmulator.measures_motion``) gets a light
         truth: pressure, temperature and position only."""
         self._updated_ns = t_ns
@@ -186,8 +208,10 @@ class EmulatedBoard:
                 last = self._device_t_ns.get(name)
                 period = (t_ns - last) / 1e9 if last is not None and t_ns > last \
                     else DEFAULT_PERIOD_S
+                periods = self._noise_periods(name, model, period) \
+                    if model.period_channels else None
                 force, rate, field, pressure, temperature = model.apply_values(
-                    t_ns / 1e9, force, rate, field, pressure, temperature, period)
+                    t_ns / 1e9, force, rate, field, pressure, temperature, period, periods)
             # One inputs object per chip and poll (building one costs more than the
             # error model's arithmetic).
             inputs = PhysicalInputs(

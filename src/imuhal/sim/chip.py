@@ -58,6 +58,10 @@ class ChipEmulator(ABC):
     #: Opt-in to imuhal's generic conformance sweep, which checks the pair against an
     #: independent table in imuhal's own test data; a third-party emulator leaves it False.
     conformance_sweep: ClassVar[bool] = False
+    #: The shortest output period (s) the chip can be configured to: the floor under the
+    #: host's poll interval when :meth:`noise_period_s` does not know the chip's own period.
+    #: A subclass states its chip's; 1/8 kHz is the fastest common MEMS output rate.
+    min_output_period_s: ClassVar[float] = 1.0 / 8000.0
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
@@ -108,6 +112,16 @@ class ChipEmulator(ABC):
     def full_scale(self, channel: Channel) -> float:
         """The largest magnitude (SI) ``channel`` can report in the current configuration."""
         raise NotImplementedError(f"{type(self).__name__} does not report its full scale")
+
+    def noise_period_s(self, channel: Channel) -> float | None:
+        """The period (s) of the samples the chip outputs on ``channel`` in its current
+        configuration (output data rate, standby plus measurement, conversion time), as the
+        datasheet gives it for the configuration registers. The simulator draws white noise
+        in the Nyquist band of this period (``noise_density`` specs without a
+        ``bandwidth_hz``): a chip's noise depends on its own rate, not on how often the host
+        polls it. None: unknown (e.g. a reserved rate code); the simulator then uses the
+        time since the previous poll, never below ``min_output_period_s``."""
+        return None
 
     def silent_reset(self) -> None:
         """Fault injection: the chip resets without telling anyone (configuration lost)."""

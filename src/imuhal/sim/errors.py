@@ -14,7 +14,9 @@ Vector sensors (per axis, ``true`` the true vector, ``T`` the chip temperature):
   gets Gaussian noise of std ``noise_density * sqrt(bandwidth_hz)`` with the bandwidth
   defaulting to the Nyquist band ``1 / (2 * sample_period_s)`` (set ``bandwidth_hz`` to the
   chip's low-pass filter bandwidth when it has one; e.g. 0.01 dps/sqrt(Hz) in 92 Hz gives the
-  MPU-9250's 0.1 dps RMS).
+  MPU-9250's 0.1 dps RMS). ``sample_period_s`` is the chip's own output period: the
+  emulated board takes it from the emulator's configuration
+  (:meth:`~imuhal.sim.chip.ChipEmulator.noise_period_s`), not from the host's poll interval.
 * ``noise_std`` is a per-sample std for chips specified by RMS noise at their output rate.
 * ``bias_random_walk`` (unit/sqrt(s), i.e. unit/s/sqrt(Hz)): the bias performs a Wiener
   process, std ``bias_random_walk * sqrt(t)`` after t seconds.
@@ -282,6 +284,12 @@ class SensorErrorModel:
                                              self._pressure, self._temperature)
                                if ch is not None)
         self._last_t: float | None = None
+        self.period_channels: tuple[str, ...] = tuple(
+            name for name in ("accel", "gyro", "mag")
+            if (ch_spec := getattr(sp, name)) is not None and ch_spec.noise_density
+            and ch_spec.bandwidth_hz is None)
+        """The vector channels whose noise depends on the sample period (a density without
+        a fixed ``bandwidth_hz``): the ones ``apply_values``' ``periods_s`` matters for."""
 
     def apply(self, t_s: float, inputs: PhysicalInputs, sample_period_s: float) -> PhysicalInputs:
         """Measured values for true ``inputs`` sampled at ``t_s`` every ``sample_period_s``."""
@@ -299,14 +307,27 @@ class SensorErrorModel:
 
     def apply_values(self, t_s: float, accel: Vec3 | None, gyro: Vec3 | None,
                      mag: Vec3 | None, pressure: float | None, temp: float | None,
-                     sample_period_s: float
+                     sample_period_s: float, periods_s: dict[str, float] | None = None,
                      ) -> tuple[Vec3 | None, Vec3 | None, Vec3 | None, float | None,
                                 float | None]:
         """:meth:`apply` on the values themselves (sensor frame, SI; None: not simulated):
-        the measured (accel, gyro, mag, pressure, temperature). The emulated board calls
-        this and builds the chip's inputs once."""
+        the measured (accel, gyro, mag, pressure, temperature). ``periods_s``: a channel's
+        own sample period (s) by name ("accel", "gyro", "mag") where it differs from
+        ``sample_period_s``. The emulated board calls this and builds the chip's inputs
+        once."""
         if sample_period_s <= 0:
             raise ValueError(f"sample_period_s must be positive, got {sample_period_s}")
+        accel_p = gyro_p = mag_p = sample_period_s
+        if periods_s:
+            for name, p in periods_s.items():
+                if name not in ("accel", "gyro", "mag"):
+                    raise ValueError(f"periods_s: unknown vector channel {name!r} "
+                                     "(known: accel, gyro, mag)")
+                if not p > 0:
+                    raise ValueError(f"periods_s[{name!r}] must be positive, got {p}")
+            accel_p = periods_s.get("accel", accel_p)
+            gyro_p = periods_s.get("gyro", gyro_p)
+            mag_p = periods_s.get("mag", mag_p)
         if self._last_t is not None and t_s < self._last_t:
             raise ValueError(f"time went backwards: {t_s} s after {self._last_t} s")
         elapsed = 0.0 if self._last_t is None else t_s - self._last_t
@@ -315,11 +336,11 @@ class SensorErrorModel:
             ch.step(elapsed)
         measured_temp = temp  # ``temp`` stays the true one: thermal bias terms depend on it
         if self._accel is not None and accel is not None:
-            accel = self._accel.apply(accel, temp, sample_period_s)
+            accel = self._accel.apply(accel, temp, accel_p)
         if self._gyro is not None and gyro is not None:
-            gyro = self._gyro.apply(gyro, temp, sample_period_s)
+            gyro = self._gyro.apply(gyro, temp, gyro_p)
         if self._mag is not None and mag is not None:
-            mag = self._mag.apply(mag, temp, sample_period_s)
+            mag = self._mag.apply(mag, temp, mag_p)
         if self._pressure is not None and pressure is not None:
             pressure = self._pressure.apply(t_s, pressure, temp)
         if self._temperature is not None and temp is not None:

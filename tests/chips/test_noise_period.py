@@ -1,0 +1,38 @@
+"""Each emulator reports the output period its registers configure
+(``ChipEmulator.noise_period_s``), which the simulator's noise band follows; None where the
+chip outputs at no rate of its own."""
+
+from __future__ import annotations
+
+import pytest
+
+from imuhal.bus.base import BusKind
+from imuhal.core.quantities import Quantity
+from imuhal_chips.ak8963 import registers as ak
+from imuhal_chips.ak8963.emulator import AK8963Emulator
+from imuhal_chips.mpu9250 import registers as mpu
+from imuhal_chips.mpu9250.emulator import MPU9250Emulator
+
+
+def _write(emulator, reg: int, value: int) -> None:  # type: ignore[no-untyped-def]
+    emulator.bus_transfer(BusKind.I2C, bytes([reg, value]), 0)
+
+
+def test_mpu9250_period_is_the_sample_rate_of_its_divider() -> None:
+    imu = MPU9250Emulator()
+    _write(imu, mpu.PWR_MGMT_1, 0x00)
+    _write(imu, mpu.CONFIG, 3)        # DLPF 41 Hz: 1 kHz internal rate
+    _write(imu, mpu.SMPLRT_DIV, 4)    # / (1 + 4): 200 Hz
+    assert imu.noise_period_s(Quantity.GYRO) == pytest.approx(0.005)
+    assert imu.noise_period_s(Quantity.ACCEL) == pytest.approx(0.005)
+    assert imu.noise_period_s(Quantity.MAG) is None  # the AK8963 is its own chip
+    _write(imu, mpu.PWR_MGMT_1, mpu.PWR1_SLEEP)
+    assert imu.noise_period_s(Quantity.GYRO) is None  # asleep: no output rate
+
+
+@pytest.mark.parametrize(("mode", "period_s"), [(0x12, 1 / 8), (0x16, 1 / 100), (0x11, None)])
+def test_ak8963_period_follows_the_continuous_mode(mode: int, period_s: float | None) -> None:
+    mag = AK8963Emulator()
+    _write(mag, ak.REG_CNTL1, mode)
+    assert mag.noise_period_s(Quantity.MAG) == period_s  # single (0x11): the host's pace
+    assert mag.min_output_period_s == pytest.approx(7.2e-3)

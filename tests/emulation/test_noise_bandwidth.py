@@ -1,0 +1,123 @@
+"""The emulated board draws a chip's white noise in the band of the chip's own output rate
+(``ChipEmulator.noise_period_s``), whatever the host's poll interval: a real chip's output
+noise is set by its ODR and filters, not by how often it is read."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from imuhal.core.quantities import Quantity
+from imuhal.emulation import open_emulated
+from imuhal.emulation.board import EmulatedBoard
+from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.loader import load_profile
+from imuhal.sim.errors import SensorErrorSpec
+
+SEED = Path(__file__).resolve().parents[2] / "profiles" / "seed-paraglider-vario.yaml"
+DPS = math.pi / 180.0
+UG = 9.80665e-6
+GYRO_DENSITY = 0.005 * DPS      # rad/s/sqrt(Hz)
+ACCEL_DENSITY = 300 * UG        # m/s^2/sqrt(Hz)
+# White noise only: biases and scale errors would not change the spread, but keep the
+# expected value exact.
+SPEC = SensorErrorSpec.model_validate(
+    {"gyro": {"noise_density": GYRO_DENSITY}, "accel": {"noise_density": ACCEL_DENSITY}})
+ODR_PERIOD_NS = 4_000_000       # the seed profile's MAX21100 runs gyro and accel at 250 Hz
+
+
+@pytest.fixture(scope="module")
+def registry() -> Registry:
+    return load_registry()
+
+
+def _configured_board(registry: Registry):  # type: ignore[no-untyped-def]
+    """The seed board after its driver configured the IMU (0.1 s of the static scenario)."""
+    pipeline = open_emulated(load_profile(SEED, registry), registry, scenario="static",
+                             error_specs={"imu": SPEC}, seed=7)
+    list(pipeline.events(0.1))
+    board = EmulatedBoard.of(pipeline)
+    imu = board.emulators["imu"]
+    assert imu.noise_period_s(Quantity.GYRO) == ODR_PERIOD_NS / 1e9  # precondition
+    return pipeline, board
+
+
+def _handed(registry: Registry, intervals_ns: list[int], quantity: str
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """What the board hands the IMU when the host polls it after each of ``intervals_ns``,
+    and the truth at those instants (sensor frame): (measured, true), shape (n, 3)."""
+    pipeline, board = _configured_board(registry)
+    with pipeline:
+        t_ns = board.clock.now_ns() + ODR_PERIOD_NS
+        imu = board.emulators["imu"]
+        board.update(t_ns, "imu")
+        measured, true = [], []
+        for dt in intervals_ns:
+            t_ns += dt
+            board.update(t_ns, "imu")
+            physics = imu.physics
+            measured.append(physics.specific_force_m_s2 if quantity == "accel"
+                            else physics.angular_rate_rad_s)
+            truth = board.truth_at(t_ns)
+            # The seed IMU is mounted -Y-X-Z: its axes are (-y, -x, -z) of the body's.
+            body = (truth.specific_force_body_m_s2 if quantity == "accel"
+                    else truth.angular_rate_body_rad_s).tolist()
+            true.append((-body[1], -body[0], -body[2]))
+    return np.asarray(measured), np.asarray(true)
+
+
+def test_noise_std_does_not_depend_on_the_host_poll_interval(registry: Registry) -> None:
+    """Polled at 2x and at 0.5x the chip's 250 Hz ODR, the gyro noise std is the density
+    in the chip's Nyquist band (125 Hz) both times. With n = 3 x 4000 draws the sample std's
+    relative standard error is 1/sqrt(2n) = 0.65 %, so 3 % is a 4.6 sigma bound; the bug
+    (band from the poll interval) gave sqrt(2) too much and sqrt(2) too little."""
+    n = 4000
+    expected = GYRO_DENSITY * math.sqrt(0.5e9 / ODR_PERIOD_NS)
+    stds = {}
+    for factor, interval_ns in (("2x", ODR_PERIOD_NS // 2), ("0.5x", ODR_PERIOD_NS * 2)):
+        measured, true = _handed(registry, [interval_ns] * n, "gyro")
+        stds[factor] = float(np.std(measured - true))
+    for factor, std in stds.items():
+        assert abs(std / expected - 1.0) < 0.03, (factor, std, expected)
+    assert abs(stds["2x"] / stds["0.5x"] - 1.0) < 0.05, stds
+
+
+def test_a_poll_a_microsecond_after_the_previous_gives_no_spike(registry: Registry) -> None:
+    """Polls at the ODR, each followed 1 us later by another: the accelerometer noise of
+    the quick polls stays that of the 250 Hz band (0.033 m/s^2 std). 6 sigma over 3 x 300
+    draws is exceeded with probability 2e-6; the bug's 500 kHz band gave 2 m/s^2 std
+    (spikes of several g)."""
+    intervals = [ODR_PERIOD_NS - 1_000, 1_000] * 300
+    measured, true = _handed(registry, intervals, "accel")
+    quick = (measured - true)[1::2]
+    sigma = ACCEL_DENSITY * math.sqrt(0.5e9 / ODR_PERIOD_NS)
+    assert np.abs(quick).max() < 6 * sigma, (np.abs(quick).max(), sigma)
+
+
+def test_a_chip_without_an_output_rate_gets_the_poll_interval_floored_at_its_fastest(
+        registry: Registry) -> None:
+    """After a silent reset (the fault-injection hook) the IMU is powered down and outputs
+    at no rate (``noise_period_s`` None):
+    the band falls back to the poll interval, but never wider than the Nyquist band of the
+    chip's fastest output (MAX21100: 8 kHz). Polls 1 us apart then draw the 4 kHz band's
+    std (bound as in the poll-interval test: 3 x 3000 draws, 3.2 % is 4.6 sigma)."""
+    pipeline = open_emulated(load_profile(SEED, registry), registry, scenario="static",
+                             error_specs={"imu": SPEC}, seed=7)
+    with pipeline:
+        board = EmulatedBoard.of(pipeline)
+        imu = board.emulators["imu"]
+        imu.silent_reset()  # power-on register state: gyro and accel powered down
+        assert imu.noise_period_s(Quantity.GYRO) is None  # precondition
+        t_ns = 1_000_000_000
+        board.update(t_ns, "imu")
+        rates = []
+        for _ in range(3000):
+            t_ns += 1_000
+            board.update(t_ns, "imu")
+            rates.append(imu.physics.angular_rate_rad_s)
+    expected = GYRO_DENSITY * math.sqrt(0.5 / imu.min_output_period_s)
+    std = float(np.std(np.asarray(rates) - np.mean(rates, axis=0)))
+    assert abs(std / expected - 1.0) < 0.032, (std, expected)
