@@ -117,7 +117,7 @@ def clean_field(disturbed: np.ndarray, min_clean_s: float, margin_s: float,
     are not disturbances (no margin there)."""
     use = ~np.asarray(disturbed, dtype=bool)
     out = np.zeros_like(use)
-    n_min, n_margin = int(round(min_clean_s / dt)), int(round(margin_s / dt))
+    n_min, n_margin = round(min_clean_s / dt), round(margin_s / dt)
     edges = np.diff(np.concatenate([[0], use.astype(np.int8), [0]]))
     for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True):
         if b - a < max(n_min, 1):
