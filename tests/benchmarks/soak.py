@@ -21,6 +21,14 @@ imuhal.emulation.faults, spread over the run (the plan is printed). It reports:
   can do at all: constant and turn-on bias at 6 sigma, bias random walk over the run,
   temperature coefficient, scale and cross-axis error at 6 sigma, hard and soft iron,
   6 sigma noise and two resolution steps, per axis, times sqrt(3);
+* **in range by design**: a valid pressure that matches what the ``wrong_pressure`` fault
+  made the world measure (truth plus its offset, within the same tolerance) is no driver's
+  failure (in range and plausible: no sensor can tell) and is not counted wrong; it is
+  reported apart with whether the vario's innovation gate rejected it (the estimate at its
+  time stamp says ``altitude_gated``) and the vario's climb-rate error in the 2 s before and
+  after it. The run fails if the gate let it through;
+* **delivered**: valid samples of each quantity against what its configured rate promises
+  over the run (what bus errors, recoveries and the faults cost);
 * **out of order**: valid samples older than a valid sample their device already gave for
   the same quantity (and how many the pipeline flagged OUT_OF_ORDER);
 * **start-up**: successful opens of every bundled board with 1 % bus errors on all its
@@ -40,7 +48,7 @@ import os
 import sys
 import time
 import traceback
-from collections import Counter, OrderedDict
+from collections import Counter, OrderedDict, deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -85,6 +93,14 @@ LATENCY_S = {Channel.ACCEL: 0.008, Channel.GYRO: 0.008, Channel.MAG: 0.027,
 """How far before its time stamp a sample's measurement may lie (two sample periods at the
 seed board's rates: 250 Hz IMU, 75 Hz magnetometer, 50 Hz barometer with 9 ms
 conversions)."""
+NOMINAL_RATE_SETTINGS = {
+    Channel.PRESSURE: {"ms5611": "odr_hz", "bmp280": "odr_hz"},
+    Channel.GYRO: {"max21100": "gyro_odr_hz"},
+    Channel.ACCEL: {"max21100": "accel_odr_hz"},
+    Channel.MAG: {"hmc5883l": "odr_hz"},
+}
+"""Per quantity and driver: the setting that says how many samples a second it promises
+(the delivered fraction is valid samples over that rate times the run)."""
 ERROR_RATE = 0.01
 SPI_DEVICES = ("imu", "baro")
 """The seed board's devices on the SPI bus; the magnetometer's transfers go through the
@@ -193,6 +209,11 @@ class Report:
     flagged_out_of_order: int = 0
     flagged_spans: dict[str, tuple[int, int, int]] = field(default_factory=dict)
     """Per device, quantity and flag: first and last time stamp (ns), count."""
+    by_design: list[dict[str, Any]] = field(default_factory=list)
+    """Valid samples that are wrong because the world was (``wrong_pressure``: in range and
+    plausible, no driver can tell): where each was, and what the vario made of it."""
+    delivered: dict[str, tuple[int, float]] = field(default_factory=dict)
+    """Per quantity with a nominal rate: (valid samples, samples the rate promises)."""
     startups: dict[str, tuple[int, int]] = field(default_factory=dict)
     rss_mb: dict[str, float] = field(default_factory=dict)
     summary: str = ""
@@ -215,6 +236,10 @@ class Checker:
         self.specs: dict[str, SensorErrorSpec | None] = {
             name: type(emu).error_spec
             for name, emu in pipeline.board.emulators.items()}  # type: ignore[attr-defined]
+        self.wrong_world = [(s.device, s.offset_pa, *_window(s, report.duration_s))
+                            for s in plan if isinstance(s, WrongPressure)]
+        self._recent_climb: deque[tuple[int, float]] = deque(maxlen=512)
+        """(t_ns, |climb - true climb|) of the last vario estimates."""
         self.last: dict[tuple[str, Channel], int] = {}
         self._truth: OrderedDict[int, TruthState] = OrderedDict()
         self._resolution: dict[tuple[str, Channel], float] = {}
@@ -243,9 +268,23 @@ class Checker:
         elif isinstance(event, AttitudeEstimate):
             if not all(map(math.isfinite, event.q_body_to_ned)):
                 self.report.nan[f"{event.source} attitude"] += 1
-        elif isinstance(event, VerticalEstimate) and not (
-                math.isfinite(event.altitude_m) and math.isfinite(event.climb_m_s)):
-            self.report.nan[f"{event.source} vertical"] += 1
+        elif isinstance(event, VerticalEstimate):
+            if not (math.isfinite(event.altitude_m) and math.isfinite(event.climb_m_s)):
+                self.report.nan[f"{event.source} vertical"] += 1
+            elif "altitude_gated" in event.diagnostics:
+                self._vario(event)
+
+    def _vario(self, e: VerticalEstimate) -> None:
+        """A gated vario's estimate near a by-design wrong pressure: was that pressure
+        gated out, and how far did the climb rate stray from the truth before and after?"""
+        climb_error = abs(e.climb_m_s - self.truth(e.t_ns).climb_m_s)
+        self._recent_climb.append((e.t_ns, climb_error))
+        for entry in self.report.by_design:
+            if entry["t_ns"] == e.t_ns:
+                entry["gated"] = bool(e.diagnostics["altitude_gated"])
+            if 0 <= e.t_ns - entry["t_ns"] <= 2_000_000_000:
+                entry["climb_error_after"] = max(entry.get("climb_error_after", 0.0),
+                                                 climb_error)
 
     def _sample(self, s: Sample) -> None:
         if SampleFlag.OUT_OF_ORDER in s.flags:
@@ -268,6 +307,8 @@ class Checker:
             self.report.out_of_order[key] += 1
         self.last[(s.device, s.channel)] = s.t_ns
         error, tolerance = self._error(s, values)
+        if error > tolerance and self._wrong_by_design(s, values):
+            return
         self.report.checked[key] += 1
         ratio = error / tolerance if tolerance > 0 else math.inf
         self.report.worst[key] = max(self.report.worst.get(key, 0.0), ratio)
@@ -277,7 +318,30 @@ class Checker:
             active = [name for name, a, b in self.windows if a <= t_s <= b]
             self.report.wrong_by_fault[f"{key} during {', '.join(active) or 'no fault'}"] += 1
 
-    def _error(self, s: Sample, values: tuple[float, ...]) -> tuple[float, float]:
+    def _wrong_by_design(self, s: Sample, values: tuple[float, ...]) -> bool:
+        """A pressure that matches what a ``wrong_pressure`` fault made the world measure
+        (truth + offset, within the same tolerance): valid by design, recorded apart."""
+        if s.channel is not Channel.PRESSURE:
+            return False
+        t_s = s.t_ns / 1e9
+        for device, offset, start, end in self.wrong_world:
+            if device != s.device or not start <= t_s <= end:
+                continue
+            error, tolerance = self._error(s, values, offset=offset)
+            if error <= tolerance:
+                before = [err for t, err in self._recent_climb
+                          if s.t_ns - t <= 2_000_000_000]
+                self.report.by_design.append({
+                    "t_ns": s.t_ns, "quantity": f"{s.device} pressure",
+                    "fault": f"wrong_pressure {offset:+g} Pa", "gated": None,
+                    "climb_error_before": max(before, default=math.nan)})
+                return True
+        return False
+
+    def _error(self, s: Sample, values: tuple[float, ...], offset: float = 0.0
+               ) -> tuple[float, float]:
+        """The sample's error against the truth (plus ``offset``, scalars) and the
+        tolerance its chip's error model allows."""
         spec = self.specs.get(s.device)
         channel = s.channel
         lag_ns = round(LATENCY_S[channel] * 1e9)
@@ -305,7 +369,7 @@ class Checker:
         exact = sub is not None and model is not None and not sub.random_walk
         for t in times:
             state = self.truth(t)
-            expected = getattr(state, attr)
+            expected = getattr(state, attr) + offset
             if exact:
                 assert model is not None
                 expected += float(model.bias(channel.value, state.temperature_degc,  # type: ignore[arg-type]
@@ -374,6 +438,12 @@ def soak(duration_s: float, seed: int, startups: int, progress: bool = True) -> 
         report.crashes.append(traceback.format_exc())
     report.rss_mb["end"] = rss_mb()
     report.wall_s = time.perf_counter() - wall0
+    for name, dev in pipeline.devices.items():
+        for channel, setting in NOMINAL_RATE_SETTINGS.items():
+            rate = getattr(dev.driver.settings, setting.get(dev.driver.name, ""), None)
+            key = f"{name} {channel.value}"
+            if rate and key in report.checked:
+                report.delivered[key] = (report.checked[key], float(rate) * done)
     summary = pipeline.summary(simulated_s=done, wall_s=report.wall_s)
     report.summary = summary.describe()
     report.flagged = summary.flagged  # type: ignore[attr-defined]
@@ -402,6 +472,13 @@ def markdown(report: Report) -> str:
         f"({report.rss_mb.get('after 1 min', 0):.0f} -> {report.rss_mb.get('end', 0):.0f} MB)"
         f" | < 10 MB |",
     ]
+    for entry in report.by_design:
+        gated = {True: "yes", False: "NO", None: "no estimate"}[entry["gated"]]
+        lines.append(
+            f"| in range by design ({entry['fault']}, {entry['quantity']} at "
+            f"{entry['t_ns'] / 1e9:.2f} s): rejected by the vario's gate | {gated}; climb "
+            f"error in the 2 s after {entry.get('climb_error_after', math.nan):.2f} m/s "
+            f"(before {entry.get('climb_error_before', math.nan):.2f}) | yes |")
     for board, (ok, n) in report.startups.items():
         lines.append(f"| start-ups with 1 % bus errors, {board} | {ok}/{n} | {n}/{n} |")
     if report.wrong_by_fault:
@@ -413,6 +490,12 @@ def markdown(report: Report) -> str:
     for key, (first, last, n) in sorted(report.flagged_spans.items()):
         what, flag = key.rsplit(" ", 1)
         lines.append(f"| {what} | {flag} | {n} | {first / 1e9:.1f} s | {last / 1e9:.1f} s |")
+    if report.delivered:
+        lines += ["", "Valid samples delivered against the configured rate (bus errors, "
+                  "recoveries and the fault windows cost the rest):", "",
+                  "| quantity | valid | promised | delivered |", "|---|---|---|---|"]
+        lines += [f"| {k} | {n} | {promised:.0f} | {100 * n / promised:.1f} % |"
+                  for k, (n, promised) in sorted(report.delivered.items())]
     lines += ["", "Worst error / tolerance among valid samples, per quantity:", "",
               "| quantity | checked | worst ratio |", "|---|---|---|"]
     lines += [f"| {k} | {report.checked[k]} | {report.worst[k]:.2f} |"
@@ -443,7 +526,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         data: dict[str, Any] = {k: v for k, v in vars(report).items()}
         with open(args.json, "w", encoding="utf-8") as f:
             json.dump(data, f, indent=1, default=str)
-    bad = report.crashes or sum(report.nan.values()) or sum(report.out_of_order.values())
+    bad = (report.crashes or sum(report.nan.values()) or sum(report.out_of_order.values())
+           or sum(report.wrong_valid.values())
+           or any(entry["gated"] is not True for entry in report.by_design))
     return 1 if bad else 0
 
 

@@ -84,3 +84,28 @@ def test_the_record_keeps_stored_scale_and_misalignment(calibration_run: list[Sa
     assert rec.scale == (1.01, 0.99, 1.0)
     assert rec.offset_rad_s == pytest.approx(tuple(result.offset_rad_s))
     assert rec.procedure == "gyro-at-rest" and rec.quality["samples"] == 100
+
+
+def test_a_window_with_frozen_samples_says_the_data_may_be_hung_not_only_moved() -> None:
+    """A gyro that hangs: its first repeats come in valid (a frozen run is flagged only from
+    its Nth repeat), then FROZEN samples, then live ones again. The window's spread looks
+    like a board that moved; the verdict says the data were not all measurements."""
+    from imuhal.core.samples import SampleFlag
+
+    def gyro(k: int, value: tuple[float, float, float], flags: SampleFlag = SampleFlag.OK
+             ) -> GyroSample:
+        return GyroSample(t_ns=k * 4_000_000, device="imu", frame=Frame.SENSOR,
+                          gyro_rad_s=value, flags=flags)
+
+    frozen, live = (0.0, 0.0, 0.0), (0.05, -0.03, 0.02)  # rad/s: the hung word, the truth
+    stream = [gyro(k, frozen) for k in range(49)]
+    stream += [gyro(k, (math.nan,) * 3, SampleFlag.FROZEN | SampleFlag.NAN)
+               for k in range(49, 60)]
+    stream += [gyro(k, live) for k in range(60, 111)]
+    messages: list[str] = []
+    proc = GyroOffsetProcedure(GyroOffsetSettings(samples=100, max_attempts=3),
+                               device="imu", progress=lambda p: messages.append(p.message))
+    for sample in stream:
+        proc.feed(sample)
+    retry = next(m for m in messages if m.startswith("attempt 1"))
+    assert "11 FROZEN" in retry and "hung" in retry and "moved" in retry

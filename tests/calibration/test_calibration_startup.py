@@ -60,3 +60,33 @@ def test_a_board_that_never_stays_still_keeps_the_stored_offsets(chips: Registry
         stored = p.devices["imu"].calibration.gyro  # type: ignore[union-attr]
     assert stored is not None and stored.offset_rad_s == (0.1, 0.1, 0.1)
     assert any("start-up gyro offsets not measured" in w for w in p.warnings)
+
+
+def test_a_gyro_frozen_for_a_moment_at_start_up_is_measured_from_live_data(
+        chips: Registry) -> None:
+    from imuhal.emulation.faults import FrozenData
+
+    with open_emulated(_profile(chips), chips, scenario="static", error_specs={"imu": SPEC},
+                       faults=[FrozenData(device="imu", start_s=0.0, end_s=0.3)]) as p:
+        list(p.events(3.0))
+        stored = p.devices["imu"].calibration.gyro  # type: ignore[union-attr]
+    assert stored is not None and stored.procedure == "gyro-at-startup"
+    assert np.abs(np.array(stored.offset_rad_s) / DPS - BIAS_DPS).max() < 0.05
+
+
+def test_a_gyro_frozen_for_good_ends_the_start_up_phase_and_the_run_goes_on(
+        chips: Registry) -> None:
+    """A chip hung from power-up sends only FROZEN samples after its first repeats: the
+    start-up phase waited for still samples for ever and the run yielded nothing. After 30 s
+    of nothing but flagged samples it gives up, says why, and the run goes on."""
+    from imuhal.core.samples import Sample
+    from imuhal.emulation.faults import FrozenData
+
+    with open_emulated(_profile(chips), chips, scenario="static", error_specs={"imu": SPEC},
+                       faults=[FrozenData(device="imu", start_s=0.0)]) as p:
+        events = [e for e in p.events(32.0) if isinstance(e, Sample) and e.device != "imu"]
+        stored = p.devices["imu"].calibration.gyro  # type: ignore[union-attr]
+    assert stored is not None and stored.offset_rad_s == (0.1, 0.1, 0.1)
+    warning = next(w for w in p.warnings if "start-up gyro offsets not measured" in w)
+    assert "FROZEN" in warning and "hung" in warning and "no measurements" in warning
+    assert events and events[0].t_ns < 31.0e9  # the rest of the board's output flows

@@ -330,3 +330,21 @@ def test_asking_more_than_the_line_carries_is_a_configuration_error_naming_the_f
     with pytest.raises(ConfigurationError, match=r"GGA, GSA, RMC, VTG at 5 Hz need about "
                        r"1500 bytes/s, but 9600 baud carries 960; lower rate_hz"):
         driver.configure()
+
+
+def test_output_the_line_cannot_carry_is_dropped_by_the_receiver_not_queued_for_ever() -> None:
+    """A receiver set to more than its line carries (10 Hz of NAV-PVT and four NMEA
+    sentences at 9600 baud) keeps a bounded backlog: its transmit buffer drops whole
+    messages, as a u-blox receiver does; the emulator's send queue used to grow without
+    bound, holding every later message (and ACK) back by minutes."""
+    from imuhal_chips.gnss.emulator import TX_BUFFER_BYTES
+
+    clock, emulator, _ = rig()
+    emulator.rate_hz, emulator.nav_pvt = 10.0, True
+    backlog = []
+    for k in range(1, 601):  # a host reading every 0.1 s for 60 s
+        clock.sleep_until(k * 100_000_000)
+        emulator.bus_receive(BusKind.SERIAL, 4096)
+        backlog.append(emulator.backlog_bytes)
+    assert max(backlog) <= TX_BUFFER_BYTES
+    assert emulator.messages_dropped > 0

@@ -136,3 +136,12 @@ def test_emulator_counts_for_datasheet_outputs_compensate_back() -> None:
 def test_emulator_counts_clamp_to_24_bit_and_never_zero() -> None:
     assert encode_raw(DATASHEET, 1e7, 1000.0) == (0xFFFFFF, 0xFFFFFF)
     assert encode_raw(DATASHEET, -1e7, -1000.0) == (1, 1)
+
+
+def test_emulator_d1_resolves_a_fraction_of_a_pascal_like_the_chips_adc() -> None:
+    """About 50 D1 counts per pascal: a 0.1 Pa change moves the word by a few counts, so the
+    chip's own noise shows in D1 (and a frozen converter's repeated word stands out)."""
+    d1, d2 = encode_raw(DATASHEET, 95000.2, 15.0)
+    d1_up, d2_up = encode_raw(DATASHEET, 95000.3, 15.0)
+    assert d2_up == d2
+    assert 2 <= d1_up - d1 <= 10

@@ -43,10 +43,10 @@ class Rig:
             clock=self.clock,
         )
         self.next_ns = 0
-        # the pressure moved just over half a 1 Pa step up or down, as the chip's own noise
-        # would (tests/support/dither.py): the tests' pressures sit on whole pascals, which a
-        # move of under half a step would never change; readings stay within P_TOL_PA
-        self.dither = Dither(self.emulator, seed=5611, amplitude=0.5 + 1e-6)
+        # the pressure moved by up to half a 1 Pa step up or down, as the chip's own noise
+        # would (tests/support/dither.py): D1 resolves about 0.02 Pa, so it takes many
+        # values and never repeats like a hung converter's; readings stay within P_TOL_PA
+        self.dither = Dither(self.emulator, seed=5611, amplitude=0.5 + 1e-6, spread=0.9)
 
     def physics(self, pressure_pa: float, temperature_degc: float) -> None:
         self.emulator.set_physics(
@@ -144,6 +144,7 @@ def test_early_polls_do_nothing() -> None:
     samples: list[Sample] = []
     for t in range(0, 200_000_000, 700_000):
         rig.clock.sleep_until(t)
+        rig.dither()  # the chip's own noise: a constant D1 word is a hung converter
         samples += rig.driver.poll(rig.clock.now_ns()).samples
     assert rig.emulator.aborted_conversions == 0
     assert len(pressures(samples)) >= 9 and all(s.valid for s in samples)
@@ -312,3 +313,102 @@ def test_a_poll_that_runs_late_waits_for_the_conversion_from_when_it_really_star
         rig.next_ns = max(result.next_poll_ns, rig.clock.now_ns())
     assert rig.emulator.aborted_conversions == 0
     assert len(pressures(samples)) > 20 and all(s.valid for s in samples)
+
+
+def test_the_slot_that_ends_a_frozen_run_is_frozen_too() -> None:
+    """Issue 9 item 3 (frozen data): the converter hangs, then recovers between a cycle's
+    temperature conversion and its pressure conversion. That pressure word is new, but the
+    temperature word is the hung converter's (15 degC against a true 25 degC), and D2 words
+    cannot show it (temperature noise is under a count): the slot is FROZEN, and the next
+    cycle converts a new temperature."""
+    rig = Rig()
+    rig.physics(95000.0, 15.0)
+    rig.begin()
+    assert all(s.valid for s in rig.run_until(200_000_000))
+    rig.emulator.frozen = True
+    frozen = rig.run_until(500_000_000)
+    assert pressures(frozen)[-1].flags & SampleFlag.FROZEN
+    # step one poll at a time until the temperature conversion of a cycle is running
+    for _ in range(1000):
+        rig.run_until(rig.next_ns)
+        if rig.emulator.running is Measurement.D2:
+            break
+    else:
+        pytest.fail("no temperature conversion started")
+    rig.emulator.frozen = False
+    rig.physics(96000.0, 25.0)
+    rig.dither = lambda: None  # type: ignore[assignment]  # exact values from here
+    after = rig.run_until(rig.clock.now_ns() + 200_000_000)
+    assert pressures(after)[0].flags & SampleFlag.FROZEN
+    assert temperatures(after)[0].flags & SampleFlag.FROZEN
+    valid = [s for s in after if s.valid]
+    assert valid and all(abs(s.temperature_degc - 25.0) <= T_TOL_DEGC
+                         for s in temperatures(valid))
+
+
+def _fail_next_transfer_of(rig: Rig, in_state: Measurement | None) -> None:
+    """Step polls until the next poll's transfer is an ADC read (``in_state``: the running
+    conversion) or a convert command (None: no conversion running), then fail it."""
+    for _ in range(1000):
+        rig.run_until(rig.next_ns)
+        running = rig.emulator.running
+        if in_state is None and running is None and rig.clock.now_ns() > 100_000_000:
+            rig.clock.sleep_until(rig.next_ns)
+            if rig.emulator.running is None:
+                break
+        if in_state is not None and running is in_state:
+            break
+    rig.bus.fail_transfers({1})
+    rig.clock.sleep_until(rig.next_ns)
+    with pytest.raises(BusError):
+        rig.driver.poll(rig.clock.now_ns())
+
+
+@pytest.mark.parametrize("running", [Measurement.D2, Measurement.D1],
+                         ids=["temperature", "pressure"])
+def test_a_failed_adc_read_is_retried_without_a_reset_and_keeps_the_sample(
+        running: Measurement) -> None:
+    """Issue 9 (proportionate recovery): a glitch on the ADC read costs no reset, no PROM
+    reload and no sample; the next slots are all valid."""
+    rig = Rig()
+    rig.physics(98000.0, 18.0)
+    rig.begin()
+    _fail_next_transfer_of(rig, running)
+    resets = rig.emulator.resets
+    next_ns = rig.driver.resume(rig.clock.now_ns())
+    assert next_ns is not None
+    rig.next_ns = next_ns
+    samples = rig.run_until(rig.clock.now_ns() + 200_000_000)
+    assert rig.emulator.resets == resets
+    assert rig.emulator.aborted_conversions == 0
+    assert len(pressures(samples)) >= 10
+    assert all(s.valid and abs(s.pressure_pa - 98000.0) <= P_TOL_PA
+               for s in pressures(samples))
+
+
+def test_a_failed_convert_command_waits_out_a_conversion_it_may_have_started() -> None:
+    """A convert command that failed may still have reached the chip; converting again at
+    once would overlap it and give a wrong result. resume() waits the conversion's maximum
+    time, then the cycle goes on without a reset."""
+    rig = Rig()
+    rig.physics(98000.0, 18.0)
+    rig.begin()
+    _fail_next_transfer_of(rig, None)
+    now = rig.clock.now_ns()
+    next_ns = rig.driver.resume(now)
+    assert next_ns is not None and next_ns - now >= 9_000_000  # OSR 4096 maximum time
+    rig.next_ns = next_ns
+    samples = rig.run_until(now + 200_000_000)
+    assert rig.emulator.aborted_conversions == 0
+    assert pressures(samples) and all(s.valid for s in samples)
+
+
+def test_resume_declines_when_the_failed_transfer_is_not_a_poll_transfer() -> None:
+    """Before probing (no PROM) or after a failure outside a conversion's transfers, only
+    the full recovery will do."""
+    rig = Rig()
+    assert rig.driver.resume(0) is None
+    rig.physics(98000.0, 18.0)
+    rig.begin()
+    rig.run_until(100_000_000)
+    assert rig.driver.resume(rig.clock.now_ns()) is None

@@ -64,3 +64,20 @@ def test_bundled_profiles_use_only_current_setting_names(path: Path) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("error", DeprecationWarning)
         load_profile(path, REGISTRY)
+
+
+def test_a_cli_user_sees_one_line_naming_the_old_and_the_new_key(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """DeprecationWarnings are hidden outside __main__: a CLI user never learnt that a key
+    had been renamed. Now each shows once, on one line, however often the profile loads."""
+    from imuhal.cli.main import main
+
+    seed = next(p for p in PROFILES if p.name == "seed-paraglider-vario.yaml")
+    text = seed.read_text(encoding="utf-8")
+    assert "      odr_hz: 50\n" in text
+    board = tmp_path / "board.yaml"
+    board.write_text(text.replace("      odr_hz: 50\n", "      rate_hz: 50\n"), encoding="utf-8")
+    assert main(["profile", "check", str(board), str(board)]) == 0
+    warned = [line for line in capsys.readouterr().err.splitlines() if "warning" in line]
+    assert warned == ["imuhal: warning: driver setting 'rate_hz' is deprecated: rename it to "
+                      "'odr_hz'"]

@@ -48,6 +48,7 @@ def _complete_log(path: Path) -> list[dict[str, str]]:
 
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP, signal.SIGINT])
 def test_a_stop_signal_finalizes_the_log_under_its_own_name(signum: int, tmp_path: Path) -> None:
+    """Issue 9 item 13."""
     out = tmp_path / "flight.csv"
     partial = tmp_path / "flight.csv.partial"
     proc = subprocess.Popen(
@@ -75,6 +76,7 @@ def test_a_stop_signal_finalizes_the_log_under_its_own_name(signum: int, tmp_pat
 
 def test_run_output_through_a_symlink_writes_the_target_and_keeps_the_link(
         tmp_path: Path) -> None:
+    """Issue 9 item 14."""
     real = tmp_path / "logs" / "flight.csv"
     real.parent.mkdir()
     real.write_text("old\n")
@@ -87,6 +89,7 @@ def test_run_output_through_a_symlink_writes_the_target_and_keeps_the_link(
 
 
 def test_run_output_to_a_fifo_streams_into_it(tmp_path: Path) -> None:
+    """Issue 9 item 14."""
     fifo = tmp_path / "live"
     os.mkfifo(fifo)
     received: list[str] = []
@@ -139,6 +142,7 @@ def failing_board(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
 
 def test_a_failed_run_keeps_the_previous_log_and_leaves_its_rows_beside_it(
         failing_board: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 9 item 12."""
     out = tmp_path / "flight.csv"
     out.write_text("the good flight\n")
     code = cli_main.main(["run", str(failing_board), "--emulate", "static", "--duration", "5",
@@ -185,6 +189,7 @@ def chips() -> Registry:
 
 def test_calibrating_through_a_symlink_updates_the_real_profile_and_keeps_the_link(
         board: Path, tmp_path: Path, chips: Registry) -> None:
+    """Issue 9 item 14."""
     link = tmp_path / "link.yaml"
     link.symlink_to(board)
     assert cli_main.main(["calibrate", "gyro", str(link), "--emulate", "calibration"]) == 0

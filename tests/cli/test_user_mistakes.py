@@ -216,3 +216,24 @@ def test_a_replay_asked_to_run_past_its_record_stops_at_its_end(
                           "--duration", "100", "--quiet"]) == 0
     err = capsys.readouterr().err
     assert "ends after" in err and "ran 1.5 s" in err
+
+
+def test_a_profile_that_is_a_fifo_is_refused_without_waiting_for_a_writer(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``imuhal profile check`` on a FIFO used to block for ever opening it."""
+    import threading
+
+    fifo = tmp_path / "board.yaml"
+    os.mkfifo(fifo)
+    codes: list[int] = []
+    worker = threading.Thread(target=lambda: codes.append(
+        cli_main.main(["profile", "check", str(fifo)])), daemon=True)
+    worker.start()
+    worker.join(timeout=20)
+    if worker.is_alive():  # unblock the reader so the thread ends, then fail
+        os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
+        worker.join(timeout=5)
+        pytest.fail("profile check blocked on a FIFO")
+    out = capsys.readouterr().out
+    assert codes == [2]
+    assert "board.yaml: INVALID" in out and "not a regular file" in out

@@ -29,6 +29,7 @@ def _mode(path: Path) -> int:
 
 
 def test_a_new_file_follows_the_umask(tmp_path: Path, umask_027: None) -> None:
+    """Issue 9 item 14."""
     path = atomic_write_text(tmp_path / "new.csv", "x\n")
     assert _mode(path) == 0o640
 
@@ -105,6 +106,7 @@ def test_abort_keeps_the_partial_file_only_when_asked(tmp_path: Path) -> None:
 
 
 def test_an_output_that_is_an_input_is_refused(tmp_path: Path) -> None:
+    """Issue 9 item 11."""
     src = tmp_path / "in.csv"
     src.write_text("x\n")
     with pytest.raises(OutputError, match=r"same file as INPUT\.csv"):

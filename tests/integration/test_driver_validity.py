@@ -75,6 +75,7 @@ def _of(samples: list[Sample], device: str, t0_s: float = 0.0,
 @pytest.mark.parametrize(("board", "device"), DEVICES)
 def test_an_undriven_bus_never_yields_a_valid_sample(registry: Registry, board: str,
                                                      device: str, kind: type) -> None:
+    """Issue 9 item 2."""
     samples, _ = _run(registry, board, 3.5, kind(device=device, start_s=1.0, end_s=2.0))
     during = _of(samples, device, 1.0, 2.0)
     assert not [s for s in during if s.valid]
@@ -137,9 +138,9 @@ def test_a_hung_bmp280_is_not_valid_while_the_board_climbs(registry: Registry) -
 @pytest.mark.parametrize(("board", "device"), DEVICES)
 def test_a_stuck_sensor_is_flagged_and_restarted_by_its_driver(
         registry: Registry, board: str, device: str) -> None:
-    """No new data while the chip keeps its configuration: the slots are flagged and the
-    driver restarts the chip itself (a soft reset cures the MAX21100, HMC5883L and BMP280;
-    the MPU-9250, AK8963 and MS5611 stay stuck until the fault ends)."""
+    """Issue 9 item 10. No new data while the chip keeps its configuration: the slots are
+    flagged and the driver restarts the chip itself (a soft reset cures the MAX21100,
+    HMC5883L and BMP280; the MPU-9250, AK8963 and MS5611 stay stuck until the fault ends)."""
     samples, p = _run(registry, board, 3.0,
                       StuckDataReady(device=device, start_s=1.0, end_s=2.0))
     assert p.devices[device].driver.health.reconfigurations >= 1
@@ -167,6 +168,7 @@ def test_a_silent_reset_is_repaired_and_only_real_measurements_are_valid(
 @pytest.mark.parametrize("board", [SEED, GY91])
 def test_an_imu_die_temperature_beyond_its_operating_range_is_never_valid(
         registry: Registry, board: str) -> None:
+    """Issue 9 item 10."""
     samples, _ = _run(registry, board, 2.0,
                       WildValue(device="imu", channel="temperature", value=150.0,
                                 start_s=1.0, hold_s=0.3))

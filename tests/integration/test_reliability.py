@@ -5,12 +5,20 @@ the host bus's error rate, not a multiple of it."""
 
 from __future__ import annotations
 
+import math
 import random
 
 import pytest
 from tests.support.noise import noise_only_specs
 
-from imuhal.core.samples import Channel, MagSample, PressureSample, Sample, TemperatureSample
+from imuhal.core.samples import (
+    Channel,
+    MagSample,
+    PressureSample,
+    Sample,
+    SampleFlag,
+    TemperatureSample,
+)
 from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import BusErrors
 from imuhal.plugins.manager import Registry, load_registry
@@ -25,6 +33,7 @@ def registry() -> Registry:
 
 def test_many_short_events_calls_never_restart_the_barometer_mid_conversion(
         registry: Registry) -> None:
+    """Issue 9 item 1."""
     profile = load_profile(default_profile_path(), registry)
     rng = random.Random(9)
     # datasheet white noise only: an ideal chip would repeat one raw word (flagged FROZEN)
@@ -49,6 +58,7 @@ def test_many_short_events_calls_never_restart_the_barometer_mid_conversion(
 @pytest.mark.parametrize("board", sorted(bundled_profiles()))
 def test_startup_succeeds_40_of_40_times_with_1_percent_bus_errors(
         registry: Registry, board: str) -> None:
+    """Issue 9 item 5."""
     profile = load_profile(bundled_profiles()[board], registry)
     devices = [n for n, d in profile.devices.items() if d.enabled]
     for seed in range(40):
@@ -59,6 +69,7 @@ def test_startup_succeeds_40_of_40_times_with_1_percent_bus_errors(
 
 def test_the_magnetometer_behind_the_imu_master_sees_the_host_error_rate(
         registry: Registry) -> None:
+    """Issue 9 item 10."""
     profile = load_profile(default_profile_path(), registry)
 
     def valid_mag(*faults: BusErrors) -> tuple[int, int]:
@@ -98,3 +109,43 @@ def test_the_start_up_gyro_phase_carries_over_short_events_calls(registry: Regis
         gyro = p.devices["imu"].calibration.gyro  # type: ignore[union-attr]
     assert gyro is not None and gyro.procedure == "gyro-at-startup"
     assert not [w for w in p.warnings if "start-up gyro" in w]
+
+
+def test_recovery_from_1_percent_bus_errors_is_proportionate(registry: Registry) -> None:
+    """Issue 9 (proportionate recovery): at 1 % transient bus errors every error reset the
+    MS5611 (losing its conversion in flight and a cycle) and reconfigured the MAX21100. A
+    glitch now costs at most the sample it hit: the barometer and the IMU keep at least
+    98 % of their samples, and a chip is reset only after two failures in a row."""
+    profile = load_profile(default_profile_path(), registry)
+    seconds = 20.0
+    faults = [BusErrors(device=d, rate=0.01) for d in ("imu", "baro")]
+    with open_emulated(profile, registry, seed=3, faults=faults, calibrated=False) as p:
+        samples = [e for e in p.events(seconds) if isinstance(e, Sample) and e.valid]
+        baro, imu = p.devices["baro"], p.devices["imu"]
+        assert baro.bus_errors > 20 and imu.bus_errors > 20
+        assert baro.driver.health.reconfigurations <= baro.bus_errors // 10
+        assert imu.driver.health.reconfigurations <= imu.bus_errors // 10
+    pressures = [s for s in samples if s.channel is Channel.PRESSURE]
+    gyros = [s for s in samples if s.device == "imu" and s.channel is Channel.GYRO]
+    assert len(pressures) >= 0.98 * 50 * seconds
+    assert len(gyros) >= 0.98 * 250 * seconds
+
+
+def test_every_sample_with_a_nan_value_carries_the_nan_flag(registry: Registry) -> None:
+    """Issue 9 item 9: NaN samples carried flags 0 although a NaN flag exists. The drivers
+    report what is no measurement (a stuck sensor, an ADC that read 0, a frozen converter)
+    as NaN values with their reason; whatever the reason, a NaN or infinite value also
+    carries NAN, and a sample with it is never valid."""
+    from imuhal.emulation.faults import AllZeros, FrozenData, StuckDataReady
+    from imuhal.pipeline.processing import values_of
+
+    profile = load_profile(default_profile_path(), registry)
+    faults = [StuckDataReady(device="mag", start_s=0.3, end_s=0.9),
+              StuckDataReady(device="imu", start_s=1.0, end_s=1.5),
+              AllZeros(device="baro", start_s=0.3, end_s=0.6),
+              FrozenData(device="baro", start_s=1.0, end_s=1.8)]
+    with open_emulated(profile, registry, seed=2, faults=faults, calibrated=False) as p:
+        samples = [e for e in p.events(2.0) if isinstance(e, Sample)]
+    not_finite = [s for s in samples if not all(map(math.isfinite, values_of(s)))]
+    assert {s.device for s in not_finite} == {"imu", "mag", "baro"}
+    assert all(s.flags & SampleFlag.NAN and not s.valid for s in not_finite)

@@ -62,6 +62,7 @@ def test_estimates_follow_the_samples_they_came_from(registry: Registry) -> None
 
 
 def test_a_nan_sample_is_flagged_counted_and_never_fused(registry: Registry) -> None:
+    """Issue 9 item 9."""
     nan = WildValue(device="acc", channel="pressure", value=math.nan, start_s=0.0, end_s=1.0)
     with _open(registry, faults=[nan]) as p:
         events = list(p.events(0.2))

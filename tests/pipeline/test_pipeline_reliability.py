@@ -53,6 +53,7 @@ def _accel(events: list[object], device: str) -> list[AccelSample]:
 # -- containment ------------------------------------------------------------------------------
 
 def test_an_oserror_from_a_bus_is_contained_to_its_device_and_counted(registry: Registry) -> None:
+    """Issue 9 item 4."""
     fault = BusOSError(device="acc2", start_s=0.3, end_s=0.5)
     with _open(registry, faults=[fault]) as p:
         events = list(p.events(1.0))
@@ -75,6 +76,7 @@ def test_a_device_that_stays_away_is_reported_once_and_retried(registry: Registr
 # -- start-up -----------------------------------------------------------------------------
 
 def test_startup_rides_through_transient_bus_errors(registry: Registry) -> None:
+    """Issue 9 item 5."""
     faults = [BusErrors(device=d, rate=0.3) for d in ("acc", "acc2")]
     for seed in range(10):
         with _open(registry, faults=faults, seed=seed) as p:
@@ -82,6 +84,7 @@ def test_startup_rides_through_transient_bus_errors(registry: Registry) -> None:
 
 
 def test_a_wrong_chip_is_reported_at_once_not_retried_as_a_glitch(registry: Registry) -> None:
+    """Issue 9 item 5."""
     p = None
     with pytest.raises(DeviceNotFoundError, match="found WHO_AM_I=0x00"):
         p = _open(registry, faults=[AllZeros(device="acc2")])
@@ -89,6 +92,7 @@ def test_a_wrong_chip_is_reported_at_once_not_retried_as_a_glitch(registry: Regi
 
 
 def test_an_optional_device_that_is_missing_joins_when_it_appears(registry: Registry) -> None:
+    """Issue 9 item 5."""
     text = PROFILE.replace("    settings: {odr_hz: 100}\n",
                            "    settings: {odr_hz: 100}\n    required: false\n")
     with _open(registry, text, faults=[ChipAbsent(device="acc2", end_s=2.5)]) as p:
@@ -109,6 +113,7 @@ def test_a_required_device_that_is_missing_stops_the_start(registry: Registry) -
 # -- continuation and order -----------------------------------------------------------------
 
 def test_repeated_events_calls_continue_the_run(registry: Registry) -> None:
+    """Issue 9 item 1."""
     with _open(registry) as one_go:
         whole = [e for e in one_go.events(1.0) if isinstance(e, Sample)]
     with _open(registry) as pieces:
@@ -135,6 +140,7 @@ def test_breaking_out_of_events_loses_nothing(registry: Registry) -> None:
 
 
 def test_valid_samples_of_a_device_never_go_back_in_time(registry: Registry) -> None:
+    """Issue 9 item 6."""
     assert validity_flags(PressureSample(t_ns=5, device="b", pressure_pa=1.0), None, 6) \
         == SampleFlag.OUT_OF_ORDER
     assert validity_flags(PressureSample(t_ns=6, device="b", pressure_pa=1.0), None, 6) \

@@ -52,6 +52,7 @@ def _hang(signum: int, frame: object) -> None:
 
 
 def test_an_alias_bomb_is_refused_before_it_expands(registry: Registry) -> None:
+    """Issue 9 item 15."""
     assert len(BILLION_LAUGHS.encode()) < 400  # 9**9 values once expanded
     # A hang guard, not a speed test: refusing takes about 2 ms, expanding would take minutes
     # and gigabytes (docs/profiles.md).
@@ -79,6 +80,7 @@ def test_aliases_of_a_real_profile_size_are_fine(registry: Registry) -> None:
 
 def test_a_file_larger_than_the_cap_is_refused_unread(tmp_path: Path,
                                                       registry: Registry) -> None:
+    """Issue 9 item 15."""
     big = tmp_path / "big.yaml"
     big.write_text(GOOD + "#" * MAX_PROFILE_BYTES + "\n")
     problems = check_profile(big, registry)
@@ -98,6 +100,7 @@ def test_a_number_setting_takes_no_bool_and_no_string(value: str,
 
 
 def test_a_bool_is_not_a_rate_in_a_bundled_board(installed: Registry) -> None:
+    """Issue 9 item 16."""
     text = default_profile_path().read_text().replace("odr_hz: 50", "odr_hz: true")
     problems = _problems(text, installed)
     assert len(problems) == 1
@@ -110,6 +113,7 @@ def test_a_bool_is_not_an_address(registry: Registry) -> None:
 
 
 def test_two_devices_at_one_address_are_located(registry: Registry) -> None:
+    """Issue 9 item 16."""
     text = GOOD + "  acc2:\n    driver: tc3\n    bus: i2c1\n    address: 0x19\n"
     problems = _problems(text, registry)
     assert len(problems) == 1
@@ -133,6 +137,7 @@ def test_a_disabled_device_may_share_an_address(registry: Registry) -> None:
 ])
 def test_a_degenerate_calibration_value_is_a_located_error(record: str, field: str,
                                                             registry: Registry) -> None:
+    """Issue 9 item 9."""
     text = GOOD + f"    calibration:\n      {record}\n"
     # (The test chip has no gyro or magnetometer, which is a second, separate problem for
     # the gyro and mag records: only the located value error is checked here.)
@@ -143,6 +148,7 @@ def test_a_degenerate_calibration_value_is_a_located_error(record: str, field: s
 
 
 def test_a_wrong_schema_version_does_not_hide_other_problems(registry: Registry) -> None:
+    """Issue 9 item 16."""
     text = GOOD.replace("schema_version: 1", "schema_version: 2").replace("bus: i2c1", "bus: x")
     joined = "\n".join(_problems(text, registry))
     assert "schema_version: 2 is not supported" in joined
@@ -155,6 +161,7 @@ def test_a_bool_schema_version_is_not_version_1(registry: Registry) -> None:
 
 
 def test_settings_errors_come_in_the_same_report_as_structural_ones(installed: Registry) -> None:
+    """Issue 9 item 16."""
     text = default_profile_path().read_text().replace("name: seed-paraglider-vario\n", "")
     text = text.replace("odr_hz: 75", "odr_hz: 76").replace("sample_period_s: 0.004",
                                                                "sample_period_s: yes")

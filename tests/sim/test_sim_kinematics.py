@@ -45,6 +45,7 @@ def test_truth_state_matches_the_kinematics_it_is_built_from(cls):
 
 
 def test_a_long_run_keeps_a_bounded_position_table_and_the_same_positions():
+    """Issue 9 item 10."""
     from imuhal.sim.motion import FlightMotion
     from imuhal.sim.signals import Signal
 

@@ -33,10 +33,16 @@ DITHERED = frozenset({Channel.ACCEL, Channel.GYRO, Channel.MAG, Channel.PRESSURE
 
 class Dither:
     def __init__(self, emulator: ChipEmulator, *, seed: int = 0,
-                 channels: frozenset[Channel] = DITHERED, amplitude: float = HALF) -> None:
+                 channels: frozenset[Channel] = DITHERED, amplitude: float = HALF,
+                 spread: float = 0.0) -> None:
         self.emulator = emulator
         self.amplitude = amplitude
         """Size of the up-or-down move, in LSB (just under a half by default)."""
+        self.spread = spread
+        """Each move shrinks by a random fraction up to this (0: every move is exactly
+        ``amplitude``). For a chip whose raw word resolves far finer than its output (the
+        MS5611's D1, about 0.02 Pa per count under a 1 Pa output), so the word takes many
+        values, as under the chip's own noise, not two."""
         self.channels = channels
         self._rng = random.Random(seed)
         self._base: PhysicalInputs = emulator.physics
@@ -51,7 +57,8 @@ class Dither:
             return None
 
     def _move(self, lsb: float) -> float:
-        return self._rng.choice((-self.amplitude, self.amplitude)) * lsb
+        size = self.amplitude * (1.0 - self.spread * self._rng.random())
+        return self._rng.choice((-size, size)) * lsb
 
     def __call__(self) -> None:
         """Re-set the inputs, dithered; a test that set new inputs since the last call sets

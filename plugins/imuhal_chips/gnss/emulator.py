@@ -70,6 +70,12 @@ class GnssErrorModel(BaseModel):
     seed: int = 0
 
 
+TX_BUFFER_BYTES = 4096
+"""The receiver's transmit buffer: output that would queue beyond it (more than the line
+carries, or a host that does not read) is dropped whole, as a u-blox receiver drops
+messages when its port's buffer is full, so the backlog stays bounded."""
+
+
 class GnssEmulator(ChipEmulator):
     chip = "gnss"
 
@@ -91,6 +97,8 @@ class GnssEmulator(ChipEmulator):
         self._last_err_ns: int | None = None
         self._rng = np.random.default_rng(self.model.seed)
         self.epochs_sent = 0
+        self.messages_dropped = 0
+        """Epochs' output and answers dropped because the transmit buffer was full."""
         self._corrupt = 0
         self._cut = False
 
@@ -218,7 +226,21 @@ class GnssEmulator(ChipEmulator):
                 ok = True
         if cls == 0x06:
             ack = 0x01 if ok else 0x00
-            self._queue.append((self.now_ns(), _ubx_frame(0x05, ack, bytes((cls, mid)))))
+            self._send(self.now_ns(), _ubx_frame(0x05, ack, bytes((cls, mid))))
+
+    @property
+    def backlog_bytes(self) -> int:
+        """Bytes queued in the transmit buffer and not yet on the line."""
+        return sum(len(d) for _, d in self._queue)
+
+    def _send(self, ready_ns: int, data: bytes) -> bool:
+        """Queue ``data`` for the line at ``ready_ns``, unless the transmit buffer (what is
+        queued and not yet sent) has no room for it: then it is dropped (False)."""
+        if self.backlog_bytes + len(data) > TX_BUFFER_BYTES:
+            self.messages_dropped += 1
+            return False
+        self._queue.append((ready_ns, data))
+        return True
 
     # -- output -------------------------------------------------------------------------
 
@@ -232,9 +254,8 @@ class GnssEmulator(ChipEmulator):
             if m.dropout_probability and self._rng.random() < m.dropout_probability:
                 continue
             data = self._epoch_bytes(te)
-            if data:
+            if data and self._send(te + latency, data):
                 self.epochs_sent += 1
-                self._queue.append((te + latency, data))
 
     def _has_fix(self, t_s: float) -> bool:
         if t_s < self.model.time_to_first_fix_s:

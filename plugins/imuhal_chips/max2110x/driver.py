@@ -269,6 +269,17 @@ class Max2110xDriver(Driver):
             return PollResult(samples, now_ns + self._grid.guard_ns)
         return PollResult(samples, self._grid.next_after(now_ns))
 
+    def resume(self, now_ns: int) -> int | None:
+        """One transfer of a poll failed: when the configuration still reads back as
+        written, the chip kept its state (a glitch on the wire), so carry on at the next
+        point of the poll grid instead of a soft reset and reconfiguration (which loses
+        about 10 ms of data); anything else gets the full recovery. A sample the failed
+        burst did not fetch is overwritten by then (the chip flags the overrun and the grid
+        re-anchors): one period lost, nothing wrong."""
+        if self.scales is None or not self._expected or self._config_lost():
+            return None
+        return self._grid.next_after(max(now_ns, self.clock.now_ns()))
+
     def _frozen_flag(self, raw: bytes) -> SampleFlag:
         """FROZEN when the gyro, accel and temperature words repeat FROZEN_AFTER_FRAMES
         times in a row while the chip reports new data."""

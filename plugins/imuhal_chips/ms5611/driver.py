@@ -8,7 +8,8 @@ poll slides the cycle rather than reading early.
 
 Validity: an ADC read of 0 (conversion aborted by a reset or a glitch) or all ones (nothing
 drives the bus) is no measurement (STALE / BLANK), and the same D1 word FROZEN_AFTER_FRAMES
-times in a row is a hung converter (FROZEN); such slots carry NaN. A chip that keeps
+times in a row is a hung converter (FROZEN, and so is the slot that ends the run: its
+temperature may be the hung converter's); such slots carry NaN. A chip that keeps
 producing no measurement is reset (the shared reset watch, imuhal.drivers.polling).
 
 Transactions: every command is one byte; ADC read (3 bytes) and PROM read (2 bytes) are the
@@ -124,12 +125,14 @@ class MS5611Driver(Driver):
     channels: ClassVar[tuple[Channel, ...]] = (Channel.PRESSURE, Channel.TEMPERATURE)
     bus_kinds: ClassVar[frozenset[BusKind]] = frozenset({BusKind.I2C, BusKind.SPI})
 
-    FROZEN_AFTER_FRAMES = 16
-    """Identical D1 (pressure ADC) words in a row that mean the converter hung. Its noise is
-    tens of counts at every OSR (1.2 Pa RMS at OSR 4096, about 0.02 Pa per count), so even
-    two equal words in a row are rare. Sized for a coarser word too: an emulator that
-    encodes whole pascals repeats with probability about 0.23 under 1.2 Pa noise, so 16 in
-    a row (0.32 s at 50 Hz) come about once in 4e9 samples."""
+    FROZEN_AFTER_FRAMES = 5
+    """Identical D1 (pressure ADC) words in a row that mean the converter hung. One D1
+    count is about 0.019 Pa (SENS / 2^36 with typical coefficients) and the noise is 1.2 Pa
+    RMS at OSR 4096, the quietest setting: about 63 counts, so two equal words in a row
+    come with probability about 1 / (2 sqrt(pi) 63) = 0.0045 and five about 4e-10 (once
+    in about 1,500 years at 50 Hz). A short window matters: the samples a hung converter
+    gives before the window fills are emitted valid, and 4 of them (80 ms at 50 Hz) stay
+    within the noise of the truth even in a 5 m/s climb."""
 
     settings: MS5611Settings
 
@@ -147,7 +150,12 @@ class MS5611Driver(Driver):
         self._period_ns = round(1e9 / s.odr_hz)
         self._watch = ResetWatch(check_s=None)  # no configuration to read back
         self._frozen = FrozenWatch(self.FROZEN_AFTER_FRAMES)
+        self._frozen_run = False
+        """The last D1 word was FROZEN: the next changed one ends the run."""
         self._just_reset = False
+        self._in_flight: Measurement | str | None = None
+        """The poll's transfer under way (a convert command or an ADC read): what
+        ``resume`` retries when it failed."""
         self._reset_state()
 
     # -- probe / configure ------------------------------------------------------------------
@@ -226,10 +234,32 @@ class MS5611Driver(Driver):
         self._just_reset = False
         self._reset_state()
 
+    def resume(self, now_ns: int) -> int | None:
+        """One transfer of a poll failed; carry on without a reset (which would lose the
+        conversion in flight and cost a 2.8 ms PROM reload and a whole cycle):
+
+        - an ADC read: read again at once. If the failed read reached the chip, the result
+          is gone and the retry reads 0, a STALE slot, never a wrong value;
+        - a convert command: it may have started the conversion, and a second convert
+          while one runs gives a wrong result, so wait that conversion's maximum time and
+          start it again (a result left unread is simply overwritten).
+
+        Anything else that failed (a reset while restarting a stuck chip): full recovery.
+        """
+        in_flight, self._in_flight = self._in_flight, None
+        if self.coefficients is None or in_flight is None:
+            return None
+        if in_flight == "adc_read":
+            return now_ns
+        wait_ns = self._t_d1_ns if in_flight is Measurement.D1 else self._t_d2_ns
+        self._state = _State.IDLE  # the conversion starts again at the next poll
+        return max(now_ns, self.clock.now_ns()) + wait_ns
+
     # -- conversion state machine -----------------------------------------------------------
 
     def _reset_state(self) -> None:
         self._state = _State.IDLE
+        self._in_flight = None
         self._need_temperature = True
         self._since_temperature = 0
         self._fresh_temperature = False
@@ -253,14 +283,18 @@ class MS5611Driver(Driver):
     def _read_adc(self) -> tuple[int, SampleFlag]:
         """The 24-bit ADC result and why it is no measurement (OK when it is one): 0 means
         no conversion completed (STALE), all ones that nothing drove the bus (BLANK)."""
+        self._in_flight = "adc_read"
         raw = self.link.transfer(bytes([ADC_READ]), ADC_READ_LEN)
+        self._in_flight = None
         value = int.from_bytes(raw, "big")
         return value, (SampleFlag.STALE if value == 0 else blank_flag(raw))
 
     def _start_conversion(self, measurement: Measurement, now_ns: int) -> int:
         osr = (self.settings.pressure_oversampling if measurement is Measurement.D1
                else self.settings.temperature_oversampling)
+        self._in_flight = measurement
         self._command(convert_command(measurement, osr))
+        self._in_flight = None
         # The conversion starts when the command reaches the chip, which may be later than
         # the poll's nominal time (other devices' transfers ran first): wait from then, or
         # the ADC read lands inside the conversion and aborts it.
@@ -318,7 +352,15 @@ class MS5611Driver(Driver):
         return PollResult(samples, self._cycle_start_ns())
 
     def _frozen_flag(self, d1: int) -> SampleFlag:
-        return self._frozen.observe(Measurement.D1, d1.to_bytes(3, "big"))
+        """FROZEN from the FROZEN_AFTER_FRAMES-th identical D1 word on, and for the slot that
+        ends a frozen run: its temperature was converted before its pressure, maybe while
+        the converter was still hung, and a D2 word cannot tell (the temperature noise is
+        under one D2 count, so equal D2 words are normal). The next cycle converts a new
+        temperature."""
+        flag = self._frozen.observe(Measurement.D1, d1.to_bytes(3, "big"))
+        ended = self._frozen_run and not flag
+        self._frozen_run = bool(flag)
+        return SampleFlag.FROZEN if ended else flag
 
     def _next_cycle(self, now_ns: int) -> None:
         self._state = _State.IDLE

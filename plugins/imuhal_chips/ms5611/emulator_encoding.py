@@ -11,9 +11,11 @@ wrong fact in either one makes a driver-against-emulator test fail instead of ca
   (Fig. 2 first order, Fig. 3 second order), written with Python's floor division ``//`` by
   the powers of two the datasheet prints ("/2^n" on a 32/64-bit integer).
 - ``counts_for``: D1 and D2 for a true pressure and temperature, solved in closed form from
-  the real-valued formulas (a quadratic for TEMP below 20 degC) and then settled onto the
-  integer formulas by stepping a few counts, so the chip reports the true values to its
-  output resolution (1 Pa, 0.01 degC).
+  the real-valued formulas (a quadratic for TEMP below 20 degC). D2 is then settled onto the
+  integer formulas by stepping a few counts, so the chip reports the true temperature to its
+  output resolution (0.01 degC); D1 is the real-valued count rounded, so it keeps the
+  pressure's sub-pascal part (and its noise) as the element's 24-bit ADC does, and the
+  compensated output is the nearest pascal.
 
 Source: MS5611-01BA03 datasheet DA5611-01BA03_011 p.7-8; application note AN520 (CRC-4).
 """
@@ -154,6 +156,14 @@ def counts_for(c: PromCoefficients, pressure_pa: float, temperature_degc: float
         10**9 if pressure_pa > 0 else -10**9)
     d2 = _d2_for(c, want_t)
     off, sens = _off_sens(c, d2)
+    if sens > 0 and math.isfinite(pressure_pa) and abs(pressure_pa) < 10**7:
+        # P = (D1*SENS/2^21 - OFF)/2^15  =>  D1 = (P*2^15 + OFF) * 2^21 / SENS, in reals:
+        # the count keeps the sub-pascal part of the pressure, as the element's ADC does
+        # (about 50 counts per Pa), so its noise shows in D1 and a D1 word repeats only as
+        # rarely as on the chip. Encoding P + 0.5 makes the floors of the integer formula
+        # output the nearest pascal.
+        d1_real = ((pressure_pa + 0.5) * 32_768 + off) * 2_097_152 / sens
+        return min(max(round(d1_real), 1), ADC_FULL), d2
     # P = (D1*SENS/2^21 - OFF)/2^15  =>  D1 = (P*2^15 + OFF) * 2^21 / SENS
     guess_d1 = (math.ceil((want_p * 32_768 + off) * 2_097_152 / sens)
                 if sens > 0 and abs(want_p) < 10**7 else ADC_FULL // 2)

@@ -23,7 +23,7 @@ import yaml
 
 from imuhal.calibration.errors import CalibrationWriteError
 from imuhal.calibration.model import DeviceCalibration
-from imuhal.core.atomic import atomic_write_bytes, resolve_target
+from imuhal.core.atomic import atomic_write_text, keep_backup
 from imuhal.core.errors import OutputError, ProfileError
 from imuhal.plugins.manager import Registry
 from imuhal.profile.loader import parse_profile, read_profile_text
@@ -207,24 +207,6 @@ def _plain(v: Any) -> Any:
 
 
 # --------------------------------------------------------------------------- writing
-def atomic_write_text(path: str | Path, text: str, *, backup: bool = True) -> Path | None:
-    """Replace ``path`` by ``text`` atomically; return the backup's path (None if none).
-
-    A symlink is followed: the file it points to is replaced (the backup goes beside that
-    file) and the link stays. Temporary file in the same directory (so the rename stays on one
-    file system), flushed and fsync'ed, file mode copied from the old file, then
-    ``os.replace`` and an fsync of the directory. On any failure before the rename the old
-    file is untouched.
-    """
-    p = resolve_target(path)
-    bak = None
-    if backup and p.exists():
-        bak = p.with_name(p.name + ".bak")
-        atomic_write_bytes(bak, p.read_bytes(), mode_from=p)
-    atomic_write_bytes(p, text.encode("utf-8"), mode_from=p if p.exists() else None)
-    return bak
-
-
 def write_device_calibration(path: str | Path, device: str, calibration: DeviceCalibration,
                              registry: Registry | None = None, *,
                              output: str | Path | None = None) -> tuple[Path | None, list[str]]:
@@ -255,7 +237,8 @@ def write_device_calibration(path: str | Path, device: str, calibration: DeviceC
             f"{out}: the rewritten profile does not read back the calibration written, so "
             "nothing was written; please report this with the profile attached")
     try:
-        bak = atomic_write_text(out, new_text)
+        bak = keep_backup(out)
+        atomic_write_text(out, new_text)
     except (OSError, OutputError) as exc:
         raise CalibrationWriteError(f"{out}: could not write ({exc}); "
                                     f"{'the profile is' if out == p else 'nothing was'} "

@@ -21,7 +21,7 @@ from imuhal.calibration.procedure import Procedure
 from imuhal.calibration.progress import ProgressCallback, ProgressKind
 from imuhal.calibration.stillness import DEG, Spread, StillnessLimits
 from imuhal.core.frames import FloatArray
-from imuhal.core.samples import AccelSample, GyroSample, Sample
+from imuhal.core.samples import AccelSample, GyroSample, Sample, SampleFlag
 
 PROCEDURE = "gyro-at-rest"
 GyroOffsetSettings = GyroStartupSettings
@@ -60,6 +60,14 @@ class GyroOffsetResult:
                                        "date": date, "quality": self.quality, "binding": None})
 
 
+NOT_A_MEASUREMENT = SampleFlag.STALE | SampleFlag.BLANK | SampleFlag.FROZEN
+"""Flags of a sample that is no measurement at all (the driver says so)."""
+NO_MEASUREMENT_GIVE_UP_NS = 30_000_000_000
+"""A chip that has sent nothing but samples flagged as no measurement (FROZEN, STALE, BLANK)
+for 30 s ends the procedure: a hung gyro would otherwise hold it, and a start-up phase with
+the whole run's output, for ever. Far longer than the attempts of a working chip take."""
+
+
 class GyroOffsetProcedure(Procedure[GyroOffsetResult]):
     """Feed raw samples of one device (gyro, and accel when it has one)."""
 
@@ -80,8 +88,13 @@ class GyroOffsetProcedure(Procedure[GyroOffsetResult]):
         self._result: GyroOffsetResult | None = None
         self._started = False
         self._only_large = False
+        self._not_measured: dict[str, int] = {}
+        """Flagged samples (no measurement) in the current window, by flag."""
+        self._only_flagged_since_ns: int | None = None
+        """Since when the device has sent only flagged samples (None: a valid one came)."""
 
     def _take(self, sample: Sample) -> bool:
+        self._only_flagged_since_ns = None  # a measurement came
         if not self._started:
             self._started = True
             self.say(ProgressKind.INSTRUCTION,
@@ -103,6 +116,30 @@ class GyroOffsetProcedure(Procedure[GyroOffsetResult]):
                 return self._evaluate(sample.t_ns)
         return False
 
+    def _flagged(self, sample: Sample) -> None:
+        """A sample the driver says is no measurement (FROZEN, STALE, BLANK) is counted for
+        the window's verdict: a frozen run is flagged only from its Nth repeat, so the
+        repeats before it came in valid and, joined to live samples, looked like a board
+        that moved. A failed window then says its data were not all measurements."""
+        flags = sample.flags & NOT_A_MEASUREMENT
+        if not flags or (self._resume_ns is not None and sample.t_ns < self._resume_ns):
+            return
+        for flag in SampleFlag:
+            if flag and flag in flags:
+                self._not_measured[flag.name] = self._not_measured.get(flag.name, 0) + 1
+        if self._only_flagged_since_ns is None:
+            self._only_flagged_since_ns = sample.t_ns
+        elif sample.t_ns - self._only_flagged_since_ns >= NO_MEASUREMENT_GIVE_UP_NS:
+            self.failures.append(
+                f"for {NO_MEASUREMENT_GIVE_UP_NS / 1e9:g} s only "
+                f"{self._not_measured_text()}")
+            self._fail()
+
+    def _not_measured_text(self) -> str:
+        counts = ", ".join(f"{n} {name}" for name, n in sorted(self._not_measured.items()))
+        self._not_measured = {}
+        return f"samples flagged as no measurement ({counts}): the chip may be hung"
+
     def _evaluate(self, t_ns: int) -> bool:
         s = self.settings
         self.attempts += 1
@@ -114,6 +151,10 @@ class GyroOffsetProcedure(Procedure[GyroOffsetResult]):
                  for i in range(3) if abs(gyro.mean[i]) > s.max_offset_dps * DEG]
         self._only_large = bool(large) and not problems
         problems += large
+        if self._not_measured:
+            text = self._not_measured_text()
+            if problems:  # the spread may be a hung chip's repeats joined to live samples
+                problems.insert(0, text)
         self._gyro, self._accel = [], []
         if not problems:
             self._result = GyroOffsetResult(gyro.mean, gyro.std,
@@ -121,20 +162,30 @@ class GyroOffsetProcedure(Procedure[GyroOffsetResult]):
                                             gyro.count, self.attempts)
             self.say(ProgressKind.STEP_DONE, "gyro offsets measured")
             return True
+        self._retry(t_ns, problems)
+        return False
+
+    def _retry(self, t_ns: int, problems: list[str]) -> None:
+        """A failed attempt (counted): give up after ``max_attempts``, else wait and measure
+        again."""
+        s = self.settings
         self.failures.append("; ".join(problems))
         if self.attempts >= s.max_attempts:
             self._fail()
         self.say(ProgressKind.RETRY, f"attempt {self.attempts}: {'; '.join(problems)}; keep the "
                  f"board still, retrying in {s.retry_wait_s:g} s")
         self._resume_ns = t_ns + round(s.retry_wait_s * 1e9)
-        return False
 
     def _fail(self) -> None:
         s = self.settings
         last = self.failures[-1] if self.failures else "no gyro samples arrived"
-        advice = ("if the board really was still, this chip's offset is larger than "
-                  f"{s.max_offset_dps:g} deg/s: raise max_offset_dps" if self._only_large else
-                  "put the board on a steady table, do not touch it, and run again")
+        if self._only_large:
+            advice = ("if the board really was still, this chip's offset is larger than "
+                      f"{s.max_offset_dps:g} deg/s: raise max_offset_dps")
+        elif self._only_flagged_since_ns is not None:
+            advice = "the chip sends no measurements: check its power and wiring, restart it"
+        else:
+            advice = "put the board on a steady table, do not touch it, and run again"
         raise CalibrationError(
             f"gyro offsets not measured after {self.attempts} attempt(s): {last}", advice,
             {"attempts": float(self.attempts)})

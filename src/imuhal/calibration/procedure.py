@@ -50,9 +50,14 @@ class Procedure(ABC, Generic[R]):
                 "calibrated=False)")
         if not sample.valid:
             self.skipped += 1
+            self._flagged(sample)
             return False
         self.done = self._take(sample)
         return self.done
+
+    def _flagged(self, sample: Sample) -> None:
+        """A flagged sample of the device arrived (it is skipped); a procedure whose window
+        it taints restarts the window here."""
 
     def run(self, samples: Iterable[Sample]) -> R:
         """Feed ``samples`` until done (or exhausted), then :meth:`finish`."""

@@ -12,6 +12,7 @@ import contextlib
 import os
 import signal
 import sys
+import warnings
 from collections.abc import Iterator, Sequence
 from types import FrameType
 
@@ -28,7 +29,7 @@ from imuhal.cli import (
     run_cmd,
 )
 from imuhal.cli.args import OneLineParser
-from imuhal.core.errors import ImuhalError, PluginError
+from imuhal.core.errors import ImuhalDeprecationWarning, ImuhalError, PluginError
 from imuhal.plugins.manager import Registry, load_registry
 
 EXIT_ERROR = 2
@@ -106,6 +107,28 @@ def stop_signals_as_interrupts() -> Iterator[None]:
             signal.signal(s, h)
 
 
+@contextlib.contextmanager
+def old_names_shown() -> Iterator[None]:
+    """Show each old-name warning (``ImuhalDeprecationWarning``: an old setting name that
+    still works) once, as one line on stderr naming the old and the new key; Python would
+    hide it from a CLI user."""
+    seen: set[str] = set()
+
+    def show(message: Warning | str, category: type[Warning], *rest: object) -> None:
+        text = str(message)
+        if text not in seen:
+            seen.add(text)
+            print(f"imuhal: warning: {text}", file=sys.stderr)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", ImuhalDeprecationWarning)
+        previous, warnings.showwarning = warnings.showwarning, show  # type: ignore[assignment]
+        try:
+            yield
+        finally:
+            warnings.showwarning = previous
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     debug = os.environ.get("IMUHAL_DEBUG") == "1"
     # Plugins are loaded first (they may add commands); when one is broken, --help and
@@ -123,7 +146,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 0
     try:
-        with stop_signals_as_interrupts():
+        with stop_signals_as_interrupts(), old_names_shown():
             if load_error is not None:
                 raise load_error
             return int(args.func(args, registry))

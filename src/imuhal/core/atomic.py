@@ -276,6 +276,16 @@ def atomic_write_text(path: PathLike, text: str) -> Path:
     return f.target
 
 
+def keep_backup(path: PathLike) -> Path | None:
+    """Copy the file ``path`` is (links followed) to ``NAME.bak`` beside it, atomically and
+    with its permissions, before it is replaced; None when there is no such file."""
+    target = resolve_target(path)
+    if not target.is_file():
+        return None
+    return atomic_write_bytes(target.with_name(target.name + ".bak"), target.read_bytes(),
+                              mode_from=target)
+
+
 def atomic_write_bytes(path: PathLike, data: bytes, *,
                        mode_from: PathLike | None = None) -> Path:
     """Write ``data`` to ``path`` atomically (keeping ``mode_from``'s permissions)."""

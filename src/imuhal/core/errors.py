@@ -82,3 +82,9 @@ class OutputError(ImuhalError):
 
 class PluginError(ImuhalError):
     """A plugin failed to load, registered something twice, or a name is not installed."""
+
+
+class ImuhalDeprecationWarning(DeprecationWarning):
+    """An input uses an old name that still works (a renamed driver setting): the
+    message names the old and the new key. The CLI shows each such message once, on one
+    line (Python hides DeprecationWarning outside ``__main__``)."""

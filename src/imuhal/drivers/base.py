@@ -17,6 +17,7 @@ from pydantic import BaseModel, ConfigDict, model_validator
 
 from imuhal.bus.base import Bus, BusKind, Link
 from imuhal.core.clock import Clock
+from imuhal.core.errors import ImuhalDeprecationWarning
 from imuhal.core.samples import Channel, Sample
 from imuhal.drivers.settings import literal_choices
 
@@ -44,7 +45,7 @@ class DriverSettings(BaseModel):
                     f"{old!r} is the old name of {new!r}; give only {new!r}")
             warnings.warn(
                 f"driver setting {old!r} is deprecated: rename it to {new!r}",
-                DeprecationWarning, stacklevel=2)
+                ImuhalDeprecationWarning, stacklevel=2)
             data[new] = data.pop(old)
         return data
 
@@ -149,6 +150,19 @@ class Driver(ABC):
         self.configure()
         self.health.reconfigurations += 1
         return self.start(self.clock.now_ns())
+
+    def resume(self, now_ns: int) -> int | None:
+        """Continue after one transfer of ``poll()`` failed, without resetting the chip:
+        return the next poll time, or None when only the full ``recover()`` will do.
+
+        The pipeline calls it after a bus error that followed a good poll (a glitch, most
+        likely), and calls ``recover()`` instead when the resumed driver fails again before
+        a poll completes. A driver resumes only when it can tell its chip kept its state (a
+        configuration that still reads back, a conversion whose result can be read again)
+        and never so that a wrong value could come out valid; a transfer that fails here
+        raises BusError (the pipeline then recovers). The default: None (always recover).
+        """
+        return None
 
     def recover(self, now_ns: int) -> int:
         """Bring the chip back after a failed poll; returns the next poll time.

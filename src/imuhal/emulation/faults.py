@@ -270,6 +270,8 @@ class FaultLine:
         self.emulator = emulator
         self.bus = bus
         self.target = target
+        self._last_receive_ns: int | None = None
+        """When the host last read a byte stream from this line (for a break's bytes)."""
 
     @property
     def absent(self) -> bool:
@@ -284,9 +286,54 @@ class FaultLine:
         self.emulator.host_baudrate = baudrate
 
     def bus_receive(self, kind: BusKind, max_len: int) -> bytes:
-        """Byte streams (a UART) pass straight through: a serial chip's faults are its own
-        emulator's (docs/flight-instrument.md)."""
-        return self.emulator.bus_receive(kind, max_len)
+        """What a byte-stream chip (a UART) sent that reaches the host, through the line's
+        faults: ``absent`` and ``all_ones`` (RX idle high) deliver nothing, ``all_zeros`` (RX
+        held low: a break) delivers 0x00 bytes at the host's line rate, ``os_error`` raises
+        ``OSError`` from the port, and ``bus_errors`` corrupts (one bit flipped) or loses each
+        byte with probability ``rate``, as noise on a serial line does: a UART reports
+        nothing, the sentence or frame checksums must catch it. What the chip sent while
+        nothing reached the host is lost, as on a real line."""
+        faults = self.faults
+        if not faults._by_device.get(self.device):
+            return self.emulator.bus_receive(kind, max_len)
+        faults.sync()
+        now_ns = faults.clock.now_ns()
+        since_ns, self._last_receive_ns = self._last_receive_ns, now_ns
+        active = faults.line_faults(self.device, now_ns / 1e9)
+        for a in active:
+            spec = a.spec
+            if isinstance(spec, BusOSError) and a.rng.random() < spec.rate:
+                faults.log.count(self.device, spec.kind)
+                raise OSError(errno.EIO, f"{self.bus.name}: injected I/O error")
+        data = self.emulator.bus_receive(kind, max_len)
+        for a in active:
+            spec = a.spec
+            if isinstance(spec, ChipAbsent | AllOnes):
+                faults.log.count(self.device, spec.kind)
+                return b""
+            if isinstance(spec, AllZeros):
+                faults.log.count(self.device, spec.kind)
+                baud = self.emulator.host_baudrate
+                n = (now_ns - since_ns) * baud // 10_000_000_000 if since_ns is not None else 0
+                return bytes(min(max(n, 0), max_len))
+        for a in active:
+            if isinstance(a.spec, BusErrors) and data:
+                data = self._noisy(data, a)
+        return data
+
+    def _noisy(self, data: bytes, a: _Active) -> bytes:
+        """Each byte, with probability ``rate``: one bit flipped or (as often) lost."""
+        assert isinstance(a.spec, BusErrors)
+        rate, rng = a.spec.rate, a.rng
+        out = bytearray()
+        for byte in data:
+            if rng.random() >= rate:
+                out.append(byte)
+                continue
+            self.faults.log.count(self.device, a.spec.kind)
+            if rng.random() < 0.5:
+                out.append(byte ^ (1 << rng.randrange(8)))
+        return bytes(out)
 
     def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes:
         faults = self.faults
@@ -298,6 +345,10 @@ class FaultLine:
         target = self.target
         for a in active:
             spec = a.spec
+            if isinstance(spec, ChipAbsent) and kind is BusKind.SERIAL:
+                # A UART has no acknowledge: what is written to an unplugged chip is lost.
+                faults.log.count(self.device, spec.kind)
+                return bytes(read_len)
             if isinstance(spec, ChipAbsent):
                 faults.log.count(self.device, spec.kind)
                 what = "address" if kind is BusKind.I2C else "chip select"

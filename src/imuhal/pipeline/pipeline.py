@@ -66,6 +66,9 @@ class DeviceRuntime:
     present: bool = False
     """Probed and configured: polled. False: an optional device not (yet) found."""
     needs_recovery: bool = False
+    resumed: bool = False
+    """The driver resumed after a bus error and has not completed a poll since: another
+    bus error now gets the full recovery."""
     next_poll_ns: int = 0
     device_errors: int = 0
     bus_errors: int = 0
@@ -365,14 +368,35 @@ class Pipeline:
             result = dev.driver.poll(t_ns)
         except BusError:
             dev.bus_errors += 1
-            return [], self._recover(dev, t_ns)
+            return [], self._after_bus_error(dev, t_ns)
         except ImuhalError as exc:
             # A driver that found its chip gone or misconfigured mid-run: the device is
             # recovered like after a bus error; the run goes on for the others.
             dev.device_errors += 1
             self._warn_once(dev, type(exc).__name__, f"{dev.name}: {exc}")
+            dev.resumed = False
             return [], self._recover(dev, t_ns)
+        dev.resumed = False
         return result.samples, result.next_poll_ns
+
+    def _after_bus_error(self, dev: DeviceRuntime, t_ns: int) -> int:
+        """Recovery in proportion: a transfer that fails after a good poll is most likely a
+        glitch, so the driver first resumes (``Driver.resume``: retry the transfer, or check
+        the chip kept its state) without resetting the chip and losing its measurement in
+        flight; a second failure before a poll completes, a chip that lost its state, or a
+        driver that cannot tell gets the full recovery (re-probe and reconfigure)."""
+        if not dev.resumed:
+            try:
+                next_ns = dev.driver.resume(t_ns)
+            except ImuhalError as exc:
+                if isinstance(exc, BusError):
+                    dev.bus_errors += 1
+                next_ns = None
+            if next_ns is not None:
+                dev.resumed = True
+                return next_ns
+        dev.resumed = False
+        return self._recover(dev, t_ns)
 
     def _look_for(self, dev: DeviceRuntime, t_ns: int) -> int:
         """An optional device that was not found: probe it once more."""

@@ -67,6 +67,10 @@ def read_profile_text(path: str | FsPath) -> str:
     ProfileError saying what is wrong with the file."""
     p = FsPath(path)
     try:
+        # Opening a FIFO would wait for a writer for ever, and a device never ends.
+        if p.exists() and not p.is_dir() and not p.is_file():
+            raise ProfileError(str(p), ["is not a regular file (a FIFO, socket or device); "
+                                        "give the path of a .yaml profile"])
         with p.open("rb") as f:
             data = f.read(MAX_PROFILE_BYTES + 1)
     except FileNotFoundError:

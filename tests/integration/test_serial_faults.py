@@ -1,0 +1,78 @@
+"""The fault-injection interface's bus-line faults on a UART (issue 9): the seed GPS vario's
+u-blox receiver, emulated as a byte stream, behind a noisy, broken or unplugged line. Noise
+is caught by the UBX checksums (flagged or dropped, never valid and wrong), a silent or
+broken line gives nothing, an OSError from the port is contained, and an unplugged receiver
+is reconfigured when it comes back."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import pytest
+
+pytest.importorskip("pyubx2", reason="the gps extra (pynmea2, pyubx2) is not installed")
+
+from imuhal.core.samples import PositionSample, SampleFlag
+from imuhal.emulation import open_emulated
+from imuhal.emulation.faults import (
+    AllOnes,
+    AllZeros,
+    BusErrors,
+    BusOSError,
+    ChipAbsent,
+    FaultSpec,
+)
+from imuhal.pipeline.pipeline import RunSummary
+from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.loader import load_profile
+from imuhal.profiles_dir import bundled_profiles
+
+
+@pytest.fixture(scope="module")
+def registry() -> Registry:
+    return load_registry()
+
+
+def _fixes(registry: Registry, seconds: float, *faults: FaultSpec
+           ) -> tuple[list[PositionSample], RunSummary]:
+    profile = load_profile(bundled_profiles()["seed-gps-vario.yaml"], registry)
+    with open_emulated(profile, registry, seed=1, faults=faults, calibrated=False) as p:
+        fixes = [e for e in p.events(seconds) if isinstance(e, PositionSample)]
+        return fixes, p.summary()
+
+
+def _between(fixes: Sequence[PositionSample], t0_s: float, t1_s: float
+             ) -> list[PositionSample]:
+    return [f for f in fixes if t0_s * 1e9 <= f.t_ns < t1_s * 1e9]
+
+
+def test_line_noise_is_caught_by_the_checksums_never_valid_and_wrong(
+        registry: Registry) -> None:
+    """1 % of the bytes flipped or lost: every fix that stays valid is exactly the one the
+    receiver sent (the same UTC epoch on a clean line), the rest are flagged or dropped."""
+    clean, _ = _fixes(registry, 30.0)
+    sent = {f.utc_s: (f.latitude_deg, f.longitude_deg, f.height_m) for f in clean if f.valid}
+    noisy, _ = _fixes(registry, 30.0, BusErrors(device="gps", rate=0.01, start_s=5.0))
+    valid = [f for f in _between(noisy, 5.5, 30.0) if f.valid]
+    assert valid and len(valid) < len(_between(clean, 5.5, 30.0))
+    assert all(sent.get(f.utc_s) == (f.latitude_deg, f.longitude_deg, f.height_m)
+               for f in valid)
+    assert any(f.flags & SampleFlag.CRC_ERROR for f in noisy)
+
+
+@pytest.mark.parametrize("fault", [ChipAbsent, AllOnes, AllZeros],
+                         ids=["unplugged", "rx-idle-high", "rx-held-low"])
+def test_a_silent_or_broken_line_gives_no_fix_and_the_receiver_is_back_after(
+        registry: Registry, fault: type) -> None:
+    fixes, summary = _fixes(registry, 14.0, fault(device="gps", start_s=4.0, end_s=8.0))
+    assert not [f for f in _between(fixes, 4.2, 8.0) if f.valid]
+    assert [f for f in _between(fixes, 8.0, 14.0) if f.valid]
+    assert summary.bus_errors["gps"] == 0  # a UART reports nothing: no fix is the sign
+
+
+def test_an_oserror_from_the_serial_port_is_contained_and_counted(registry: Registry) -> None:
+    fixes, summary = _fixes(registry, 12.0,
+                            BusOSError(device="gps", start_s=4.0, end_s=6.0, rate=0.2))
+    assert summary.bus_errors["gps"] > 0
+    assert [f for f in _between(fixes, 6.5, 12.0) if f.valid]
+    assert summary.samples["baro"] >= 0.99 * 50 * 12.0  # the rest of the board ran on
