@@ -127,6 +127,9 @@ def _compiled_steps(kf: FreescaleKalman, accel: FloatArray, gyro: FloatArray,
     out_incl, out_jam = np.empty(n_win), np.zeros(n_win, dtype=bool)
     out_euler = np.empty((n_win, 3))
     incl = np.array([kf.inclination_deg])
+    gate_closed = np.array([kf.gate_closed_s])
+    gate = s.accel_innovation_gate_sigma
+    mag_limit = s9.mag_max_accel_distrust if s9 else None
     kf.qw = np.ascontiguousarray(kf.qw)
     freescale_rows(
         kf.q, kf.b, kf.a_sensor, kf.m_global, kf.qw, incl, a, g, m, nine,
@@ -136,9 +139,12 @@ def _compiled_steps(kf: FreescaleKalman, accel: FloatArray, gyro: FloatArray,
         bool(s9 and s9.full_innovation_inverse), s9.field_strength_ut if s9 else 0.0,
         s.qw_gyro_offset_dps2, s.qv_gyro_dps2, s.qw_accel_g2,
         s9.disturbance_decay if s9 else 0.0, s9.qw_mag_disturbance_ut2 if s9 else 0.0,
-        s9.max_inclination_deg if s9 else 90.0, _STYLE[s.coordinate_system], out_q, out_b,
-        out_incl, out_jam, out_euler)
+        s9.max_inclination_deg if s9 else 90.0, _STYLE[s.coordinate_system],
+        0.0 if gate is None else float(gate), s.accel_gate_reacquire_s, gate_closed,
+        0.0 if mag_limit is None else float(mag_limit), out_q, out_b, out_incl, out_jam,
+        out_euler)
     kf.inclination_deg = float(incl[0])
+    kf.gate_closed_s = float(gate_closed[0])
     return out_q, out_b, out_incl, out_jam, out_euler
 
 

@@ -111,6 +111,7 @@ class _FreescaleEstimator(Estimator):
         self._gyro: list[Vec] = []
         self._gyro_t_ns: int | None = None
         self._accel = _Latest()
+        self._force = _Latest()  # the raw specific force, for the published linear accel
         self._mag = _Latest()
         self._pending = False
         self._last_step: KalmanStep | None = None
@@ -156,6 +157,7 @@ class _FreescaleEstimator(Estimator):
             self._counts["accel_samples"] += 1
             k = self._kinematic_body_m_s2  # turn compensation (zero without a source)
             g = STANDARD_GRAVITY_M_S2
+            self._force.add(item.t_ns, vec)
             force_g = ((vec[0] - k[0]) / g, (vec[1] - k[1]) / g, (vec[2] - k[2]) / g)
             self._accel.add(item.t_ns, _permute(force_g, self._accel_axes))
         else:
@@ -200,6 +202,7 @@ class _FreescaleEstimator(Estimator):
         sensors = (self._accel, self._mag) if self.use_mag else (self._accel,)
         stale = any(s.count == 0 for s in sensors)
         accel = self._accel.take(average)
+        force = self._force.take(average)
         mag = self._mag.take(average) if self.use_mag else None
         if accel is None or (self.use_mag and mag is None):
             self._counts["windows_without_accel_or_mag"] += 1
@@ -211,15 +214,17 @@ class _FreescaleEstimator(Estimator):
         self._last_step = step
         if not step.valid:
             return []
-        return [self._estimate(step, accel)]
+        assert force is not None  # taken with accel
+        return [self._estimate(step, force)]
 
-    def _estimate(self, step: KalmanStep, accel_reading: FloatArray) -> AttitudeEstimate:
+    def _estimate(self, step: KalmanStep, force_body_m_s2: FloatArray) -> AttitudeEstimate:
+        """The estimate; its gravity-compensated acceleration comes from the raw specific
+        force (body NED, m/s^2) the step fused, as every AHRS publishes it: the turn
+        compensation's estimate is for the tilt correction only (its errors, e.g. a
+        pendulum's pitch rate times the airspeed, would be false vertical acceleration)."""
         cs = self.settings.coordinate_system
         q = quat_body_to_ned(cs, step.q_sensor_to_global)
-        # back to specific force in body NED (m/s^2) for the shared gravity compensation
-        signed = -accel_reading if cs.gravity_positive else accel_reading
-        force_body = to_sensor_vector(cs, signed) * STANDARD_GRAVITY_M_S2
-        lin = linear_accel_ned_m_s2(q, force_body)
+        lin = linear_accel_ned_m_s2(q, force_body_m_s2)
         assert self._gyro_t_ns is not None
         return AttitudeEstimate(
             t_ns=self._gyro_t_ns,
@@ -250,6 +255,7 @@ class _FreescaleEstimator(Estimator):
             "gyro": [list(g) for g in self._gyro],
             "gyro_t_ns": self._gyro_t_ns,
             "accel": self._accel.as_dict(),
+            "force": self._force.as_dict(),
             "mag": self._mag.as_dict(),
             "pending": self._pending,
             "counts": dict(self._counts),
@@ -263,6 +269,8 @@ class _FreescaleEstimator(Estimator):
         t = state["gyro_t_ns"]
         self._gyro_t_ns = None if t is None else int(t)
         self._accel.load_dict(state["accel"])
+        if "force" in state:
+            self._force.load_dict(state["force"])
         self._mag.load_dict(state["mag"])
         self._pending = bool(state["pending"])
         self._counts = {k: int(state["counts"].get(k, 0)) for k in _COUNTERS}

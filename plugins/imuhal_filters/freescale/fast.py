@@ -3,11 +3,12 @@
 Window by window and in the same order of operations as ``FreescaleKalman.step`` once the
 filter is initialised and locked: the a priori orientation from the window's gyro samples,
 the measurement matrix, the gain (build 422's partial or the full innovation inverse, the
-soft gate's noise factor), the corrections, magnetic jamming, the inclination tracking and
-the next process covariance. The matrix products are written out as loops (numba's ``@``
-needs scipy's BLAS) and the inverse is a Gauss-Jordan with partial pivoting (identity for a
-singular matrix, as the reference); they differ from numpy's BLAS/LAPACK results in the last
-bits only (the tests compare with the Python step to 1e-12).
+soft gate's and the innovation gate's noise factors), the magnetometer rule, the
+corrections, magnetic jamming, the inclination tracking and the next process covariance.
+The matrix products are written out as loops (numba's ``@`` needs scipy's BLAS) and the
+inverse is a Gauss-Jordan with partial pivoting (identity for a singular matrix, as the
+reference); they differ from numpy's BLAS/LAPACK results in the last bits only (the tests
+compare with the Python step to 1e-12).
 
 ``KERNEL_SETTINGS`` lists the settings the kernel knows: ``batch.py`` uses it only for a
 settings class with no other field, so a behaviour added to the filter later (with its own
@@ -31,7 +32,8 @@ KERNEL_SETTINGS = frozenset({
     "qw_init_offset_dps2", "qw_init_theta_offset", "qw_init_accel_g2", "accel_decay",
     "qv_mag_ut2", "qw_mag_disturbance_ut2", "qw_init_disturbance_ut2", "disturbance_decay",
     "max_inclination_deg", "lock_sets_inclination", "field_strength_ut",
-    "full_innovation_inverse",
+    "full_innovation_inverse", "accel_innovation_gate_sigma", "accel_gate_reacquire_s",
+    "mag_max_accel_distrust",
 })
 
 _DEG = math.pi / 180.0
@@ -178,12 +180,15 @@ euler_deg = jit(_euler_deg)
 def _freescale_rows(q, b, a_sensor, m_global, qw, incl, accel, gyro, mag, use_mag, ned,
                     gravity_positive, fast_dt, kalman_dt, accel_decay, soft_width, noise,
                     full_inverse, field, qw_gyro_offset, qv_gyro, qw_accel, dist_decay,
-                    qw_dist, max_incl_deg, style, out_q, out_b, out_incl, out_jam,
+                    qw_dist, max_incl_deg, style, gate_sigma, gate_reacquire_s,
+                    gate_closed, mag_max_distrust, out_q, out_b, out_incl, out_jam,
                     out_euler):
     """One Kalman step per window ``k``: ``accel[k]``, ``mag[k]`` the measurements, ``gyro[k]``
     (ratio x 3) the fast samples. The state arrays (q, b, a_sensor, m_global, qw, incl[0])
     are updated in place; per step the a posteriori q, b, inclination, jamming flag and the
-    system's Euler angles (``style``: 0 ned, 1 android, 2 win8)."""
+    system's Euler angles (``style``: 0 ned, 1 android, 2 win8). ``gate_sigma`` (0: none),
+    ``gate_reacquire_s`` and the state ``gate_closed[0]`` (s) are the innovation gate's,
+    ``mag_max_distrust`` (0: none) the magnetometer rule's (kalman.py)."""
     n = qw.shape[0]
     nm = 6 if use_mag else 3
     r_mi = np.empty((3, 3))
@@ -244,6 +249,29 @@ def _freescale_rows(q, b, a_sensor, m_global, qw, incl, accel, gyro, mag, use_ma
                 ct[i, j] = c[j, i]
         matmul(qw, ct, qw_ct)
         matmul(c, qw_ct, innov)
+        if gate_sigma > 0.0:
+            # the gravity innovation's Mahalanobis distance against S (kalman.py's
+            # _innovation_noise_factor): 3 x 3 inverse by cofactors, none if singular
+            s00, s01, s02 = innov[0, 0] + noise[0] * factor, innov[0, 1], innov[0, 2]
+            s10, s11, s12 = innov[1, 0], innov[1, 1] + noise[1] * factor, innov[1, 2]
+            s20, s21, s22 = innov[2, 0], innov[2, 1], innov[2, 2] + noise[2] * factor
+            c00, c01, c02 = s11 * s22 - s12 * s21, s02 * s21 - s01 * s22, s01 * s12 - s02 * s11
+            c10, c11, c12 = s12 * s20 - s10 * s22, s00 * s22 - s02 * s20, s02 * s10 - s00 * s12
+            c20, c21, c22 = s10 * s21 - s11 * s20, s01 * s20 - s00 * s21, s00 * s11 - s01 * s10
+            det = s00 * c00 + s01 * c10 + s02 * c20
+            if det != 0.0:
+                e0, e1, e2 = err[0], err[1], err[2]
+                m2 = (e0 * (c00 * e0 + c01 * e1 + c02 * e2)
+                      + e1 * (c10 * e0 + c11 * e1 + c12 * e2)
+                      + e2 * (c20 * e0 + c21 * e1 + c22 * e2)) / det
+                ratio2 = m2 / (gate_sigma * gate_sigma)
+                if ratio2 <= 1.0:
+                    gate_closed[0] = 0.0
+                else:
+                    gate_closed[0] += kalman_dt
+                    if gate_closed[0] <= gate_reacquire_s:
+                        factor *= ratio2 * ratio2
+        mag_steers = mag_max_distrust <= 0.0 or factor <= mag_max_distrust
         for i in range(nm):
             innov[i, i] += noise[i] * factor if i < 3 else noise[i]
         for i in range(nm):
@@ -269,7 +297,7 @@ def _freescale_rows(q, b, a_sensor, m_global, qw, incl, accel, gyro, mag, use_ma
             for i in range(9, 12):
                 xe[i] += k[i, 3] * err[3] + k[i, 4] * err[4] + k[i, 5] * err[5]
             jamming = xe[9] * xe[9] + xe[10] * xe[10] + xe[11] * xe[11] > 4.0 * field * field
-            if not jamming:
+            if not jamming and mag_steers:
                 for i in range(9):
                     xe[i] += k[i, 3] * err[3] + k[i, 4] * err[4] + k[i, 5] * err[5]
         # corrections

@@ -96,6 +96,7 @@ class FreescaleKalman:
     def _init_state(self) -> None:
         s = self.s
         self.locked = False
+        self.gate_closed_s = 0.0
         self.q = np.array([1.0, 0.0, 0.0, 0.0])
         self.b = np.zeros(3)
         self.a_sensor = np.zeros(3)
@@ -129,7 +130,7 @@ class FreescaleKalman:
             "initialised": self.initialised, "locked": self.locked,
             "q": self.q.tolist(), "b": self.b.tolist(), "a_sensor": self.a_sensor.tolist(),
             "inclination_deg": self.inclination_deg, "m_global": self.m_global.tolist(),
-            "qw": self.qw.tolist(),
+            "qw": self.qw.tolist(), "gate_closed_s": self.gate_closed_s,
         }
 
     def load_dict(self, d: dict[str, Any]) -> None:
@@ -139,6 +140,7 @@ class FreescaleKalman:
         self.b = np.array(d["b"], dtype=float)
         self.a_sensor = np.array(d["a_sensor"], dtype=float)
         self.inclination_deg = float(d["inclination_deg"])
+        self.gate_closed_s = float(d.get("gate_closed_s", 0.0))
         self.m_global = np.array(d["m_global"], dtype=float)
         qw = np.array(d["qw"], dtype=float)
         if qw.shape != (self.n, self.n):
@@ -194,7 +196,10 @@ class FreescaleKalman:
         m_err = mag - m_gyro
 
         c = self._measurement_matrix(g_gyro, m_gyro)
-        k = self._gain(c, self._accel_noise_factor(accel))
+        noise_factor = self._accel_noise_factor(accel)
+        noise_factor *= self._innovation_noise_factor(c, noise_factor, g_err)
+        k = self._gain(c, noise_factor)
+        mag_steers = self._mag_may_steer(noise_factor)
 
         # a posteriori error vector; d always sees both measurements
         xe = k[:, :3] @ g_err
@@ -203,7 +208,7 @@ class FreescaleKalman:
             xe[D] += k[D, 3:] @ m_err
             field = self._field()
             jamming = bool(xe[D] @ xe[D] > 4.0 * field * field)
-            if not jamming:
+            if not jamming and mag_steers:
                 xe[:9] += k[:9, 3:] @ m_err
 
         # apply the corrections
@@ -262,6 +267,56 @@ class FreescaleKalman:
             return 1.0
         d = (float(np.linalg.norm(accel_g)) - 1.0) / width
         return (1.0 + d * d) ** 2
+
+    def _innovation_noise_factor(self, c: FloatArray, accel_noise_factor: float,
+                                 g_err: FloatArray) -> float:
+        """How much less the accelerometer is trusted because its innovation is implausible:
+        (m / k)^4 while the gravity innovation's Mahalanobis distance m = sqrt(e^T S^-1 e)
+        exceeds the gate k (``accel_innovation_gate_sigma``), else 1; always 1 without a gate
+        (the reference).
+
+        The filter models linear acceleration as a small, fast-decaying process, so a
+        sustained acceleration across gravity that it was not told about (a launch run, a
+        turn whose compensation lags) reads as a tilt, and the soft gate hardly sees it: 0.2 g
+        sideways is 1.02 g. Fused at full weight it tilts the attitude and, worse, drives the
+        gyro offset estimate, which then tilts it for tens of seconds (``thermal``, build
+        422's measurement: 2.5 deg/s of pitch offset at the launch). The innovation shows it:
+        many standard deviations of S, where the calibrated gyro's own drift stays within a
+        few. A gate closed for ``accel_gate_reacquire_s`` without a break is taken to be the
+        attitude, not the accelerometer, being wrong (a gyro glitch, a saturated spin): the
+        accelerometer is then fused at full weight until the innovation is back within the
+        gate, as build 422 would."""
+        gate = self.s.accel_innovation_gate_sigma
+        if gate is None:
+            return 1.0
+        noise = self._measurement_noise()[:3] * accel_noise_factor
+        s_gg = c[:3] @ self.qw @ c[:3].T + np.diag(noise)
+        try:
+            m2 = float(g_err @ np.linalg.solve(s_gg, g_err))
+        except np.linalg.LinAlgError:
+            return 1.0
+        ratio2 = m2 / (gate * gate)
+        if ratio2 <= 1.0:
+            self.gate_closed_s = 0.0
+            return 1.0
+        self.gate_closed_s += self.s.kalman_dt_s
+        if self.gate_closed_s > self.s.accel_gate_reacquire_s:
+            return 1.0
+        return ratio2 * ratio2
+
+    def _mag_may_steer(self, accel_noise_factor: float) -> bool:
+        """Whether the magnetometer may correct orientation and gyro offset this step: not
+        while the gates distrust the accelerometer by more than ``mag_max_accel_distrust``
+        (9DOF; always without the setting, as in build 422).
+
+        With the accelerometer gated the magnetometer alone would steer the tilt, and the
+        offset, through its two axes: any hard-iron residual or nearby magnet then turns
+        the attitude (uncalibrated seed board, `rc-flight`: 68 deg tilt RMS; BROAD fast
+        rotation, trial 07: 99 deg total). The gyro carries those moments instead."""
+        if not self.use_mag:
+            return False
+        limit = self._s9().mag_max_accel_distrust
+        return limit is None or accel_noise_factor <= limit
 
     def _gain(self, c: FloatArray, accel_noise_factor: float = 1.0) -> FloatArray:
         """K = Qw C^T S^-1 with S = C Qw C^T + Qv (Qw stands in for the a priori P)."""
