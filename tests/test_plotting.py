@@ -102,7 +102,7 @@ def test_plot_refuses_to_overwrite_its_input(run: tuple[Path, Path],
     log, _ = run
     before = log.read_bytes()
     assert main(["plot", str(log), "-o", str(log)]) == 2
-    assert "overwrite its input" in capsys.readouterr().err
+    assert "would destroy the input" in capsys.readouterr().err
     assert log.read_bytes() == before
 
 

@@ -69,5 +69,8 @@ MAX_SECONDS = 1e9
 """Longest duration accepted (31 years): times are int64 nanoseconds."""
 
 seconds = positive_float("a duration in seconds", "60", MAX_SECONDS)
-rate_hz = positive_float("a sample rate in Hz", "100")
+MAX_RATE_HZ = 1e6
+"""Highest sample rate accepted: beyond it, consecutive int-nanosecond times would collide."""
+
+rate_hz = positive_float("a sample rate in Hz", "100", MAX_RATE_HZ)
 seed = int_at_least(0, "a seed (0 or more)", "1")

@@ -43,6 +43,8 @@ from imuhal.profiles_dir import bundled_profiles
 DEG = math.pi / 180.0
 MG = 9.80665e-3
 TIMEOUTS_S = {"gyro": 60.0, "accel": 300.0, "mag": 180.0}
+MAX_FIELD_UT = 1000.0
+"""Largest --field accepted: the Earth's field is 25-65 uT; beyond this it is a typo."""
 CHANNELS = {"gyro": Channel.GYRO, "accel": Channel.ACCEL, "mag": Channel.MAG}
 
 
@@ -76,9 +78,10 @@ def add_parser(sub: Any) -> None:
                      help="readings averaged (gyro default 100, accel per position 250)")
     cal.add_argument("--misalignment", action="store_true",
                      help="accel: also fit the full 3x3 misalignment by least squares")
-    cal.add_argument("--method", choices=["ellipsoid", "minmax"], default="ellipsoid",
+    cal.add_argument("--method", choices=["ellipsoid", "minmax"],
                      help="mag: ellipsoid fit (hard + full soft iron) or the seed's min/max")
-    cal.add_argument("--field", type=types.positive_float("a field strength in uT", "48"),
+    cal.add_argument("--field", type=types.positive_float("a field strength in uT", "48",
+                                                          MAX_FIELD_UT),
                      metavar="UT",
                      help="mag: local field strength in uT (default: fitted)")
     cal.add_argument("--at-startup", action="store_true",
@@ -96,9 +99,13 @@ def add_parser(sub: Any) -> None:
 
 def cmd_calibrate(args: argparse.Namespace, registry: Registry) -> int:
     if args.show:
+        if args.procedure is not None or args.output or args.dry_run:
+            args._parser.error("--show prints a stored calibration and writes nothing; give "
+                               "either --show PROFILE or a procedure and a PROFILE")
         return show(Path(args.show), registry, sys.stdout)
     if args.procedure is None or args.profile is None:
         args._parser.error("give a procedure and a PROFILE (or --show PROFILE)")
+    _refuse_unused_options(args)
     path = Path(args.profile)
     registered = args.procedure not in CHANNELS
     if registered and args.procedure not in registry.calibrations.entries:
@@ -164,6 +171,36 @@ def cmd_calibrate(args: argparse.Namespace, registry: Registry) -> int:
     return 0
 
 
+OPTION_FOR = {
+    "--misalignment": ("misalignment", ("accel",)),
+    "--method": ("method", ("mag",)),
+    "--field": ("field", ("mag",)),
+    "--at-startup": ("at_startup", ("gyro",)),
+    "--samples": ("samples", ("gyro", "accel")),
+}
+"""Options that only some built-in procedures read: option -> (attribute, procedures)."""
+
+
+def _refuse_unused_options(args: argparse.Namespace) -> None:
+    """An option the chosen procedure would silently ignore is a mistake worth a line."""
+    builtin = args.procedure in CHANNELS
+    for option, (attr, procedures) in OPTION_FOR.items():
+        if getattr(args, attr) not in (None, False) and (not builtin or
+                                                         args.procedure not in procedures):
+            raise ImuhalError(f"{option} applies to `imuhal calibrate {' or '.join(procedures)}`"
+                              f", not to {args.procedure}; drop {option}")
+    if builtin and (args.quantity is not None or args.set):
+        option = "--quantity" if args.quantity is not None else "--set"
+        raise ImuhalError(f"{option} sets a procedure a plugin registered; `imuhal calibrate "
+                          f"{args.procedure}` has none - drop {option}")
+    for option, given in (("--ideal", args.ideal), ("--seed", args.seed is not None)):
+        if given and not args.emulate:
+            raise ImuhalError(f"{option} applies to an emulated board; add --emulate "
+                              "calibration (or drop it)")
+    if args.dry_run and args.output:
+        raise ImuhalError("--dry-run writes nothing; drop --output (or --dry-run)")
+
+
 def _writable_target(profile: Path, output: str | None) -> Path:
     """Where the calibrated profile goes, checked before any measurement: ``--output``, or
     the profile itself unless it is one of the installed package's bundled profiles."""
@@ -194,7 +231,8 @@ def _procedure(args: argparse.Namespace, device: str, chip_to_body: np.ndarray,
                                    **({"samples": args.samples} if args.samples else {}))
             return AccelSixPosition(acc, device=device, progress=reporter,
                                     describe=lambda p: describe_position(p, chip_to_body))
-        return MagCalibrationProcedure(MagSettings(method=args.method, field_ut=args.field),
+        return MagCalibrationProcedure(MagSettings(method=args.method or "ellipsoid",
+                                                   field_ut=args.field),
                                        device=device, progress=reporter)
     except ValidationError as exc:
         first = exc.errors(include_url=False)[0]

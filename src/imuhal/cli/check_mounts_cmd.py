@@ -33,6 +33,10 @@ if TYPE_CHECKING:
     from imuhal.pipeline import Pipeline
 
 EXIT_WRONG = 1
+WINDOW_S = 3.0
+"""How long each motion is recorded on hardware, by default."""
+MAX_WINDOW_S = 600.0
+"""Longest --window accepted: a motion takes seconds; beyond ten minutes it is a typo."""
 MARKS = {True: "ok  ", False: "FAIL", None: "--  "}
 
 
@@ -52,7 +56,7 @@ def add_parser(sub: Any) -> None:
                      help="emulated: DEVICE's chip really sits so (e.g. imu=-X+Y-Z), "
                      "whatever the profile says; repeatable")
     cmd.add_argument("--seed", type=types.seed, help="seed of the simulated world (0 or more)")
-    cmd.add_argument("--window", type=float, default=3.0, metavar="SECONDS",
+    cmd.add_argument("--window", type=float, metavar="SECONDS",
                      help="hardware: how long each motion is recorded (default 3 s)")
     cmd.set_defaults(func=cmd_check_mounts)
 
@@ -79,14 +83,21 @@ def cmd_check_mounts(args: argparse.Namespace, registry: Registry) -> int:
     mounts = _physical_mounts(args.physical_mount)
     if mounts and emulate is None:
         raise ImuhalError("--physical-mount places emulated chips: add --emulate bringup")
-    if not args.window > 0:
-        raise ImuhalError(f"--window {args.window:g}: give a positive number of seconds")
+    if args.window is not None and emulate is not None:
+        raise ImuhalError("--window times the motions on hardware; an emulated scenario times "
+                          "its own phases - drop --window")
+    window = WINDOW_S if args.window is None else args.window
+    if not window > 0 or window > MAX_WINDOW_S:
+        raise ImuhalError(f"--window {window:g}: give a number of seconds from 0 to "
+                          f"{MAX_WINDOW_S:g}, e.g. 3")
+    if emulate is not None:
+        registry.scenarios.get(emulate)  # an unknown name fails here, before the board opens
     where = f"emulated, scenario '{emulate}'" if emulate else "real hardware"
     print(f"checking the mounts of {profile.name} ({where}) from {path}", file=sys.stderr)
     if emulate is not None:
         verdicts = _emulated(profile, registry, emulate, args.seed, mounts)
     else:
-        verdicts = _hardware(profile, registry, args.window)
+        verdicts = _hardware(profile, registry, window)
     return _report(verdicts, profile)
 
 

@@ -11,6 +11,8 @@ from imuhal.cli import args as types
 from imuhal.cli.frame_option import frame_argument
 from imuhal.core.atomic import check_outputs
 from imuhal.core.conventions import CONVENTIONS, NED
+from imuhal.core.errors import ImuhalError
+from imuhal.core.samples import PressureSample
 from imuhal.offline.csv_input import iter_sample_chunks
 from imuhal.offline.csv_output import ColumnError, EstimateCsvWriter
 from imuhal.offline.frames import resolve_input_frame, table_to_ned
@@ -18,6 +20,9 @@ from imuhal.offline.run_log import is_run_log, read_run_log
 from imuhal.offline.runner import iter_offline, run_offline_samples
 from imuhal.offline.settings_args import build_settings, parse_set_arguments
 from imuhal.plugins.manager import Registry
+
+AHRS_DEFAULT = "madgwick"
+"""The --ahrs that gravity-compensates full IMU input to a vario filter."""
 
 HELP = """\
 INPUT is a log of `imuhal run --output LOG.csv --samples` (one row per event; flagged
@@ -57,7 +62,7 @@ def add_parser(sub: Any) -> None:
                    help="an estimator setting (repeatable)")
     p.add_argument("--rate", type=types.rate_hz, metavar="HZ",
                    help="sample rate, when the input has no t_s column")
-    p.add_argument("--ahrs", default="madgwick", metavar="NAME",
+    p.add_argument("--ahrs", default=AHRS_DEFAULT, metavar="NAME",
                    help="attitude estimator for gravity compensation of full IMU input to a "
                    "vario filter (default: madgwick)")
     p.add_argument("--ahrs-set", dest="ahrs_settings", action="append", default=[],
@@ -81,12 +86,24 @@ def _column_list(text: str | None) -> list[str] | None:
     if not names:
         raise ColumnError("--columns: give at least one column name, e.g. --columns t_s,qw,qx,"
                          "qy,qz")
+    twice = sorted({c for c in names if names.count(c) > 1})
+    if twice:
+        raise ColumnError(f"--columns: {', '.join(twice)} named twice; name each column once")
     return names
 
 
 def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
     check_outputs({"--output": args.output}, {"INPUT.csv": args.input})
+    if args.rate is not None and is_run_log(args.input):
+        raise ImuhalError(f"{args.input}: a run log has its own times (t_s); --rate is for a "
+                          "wide CSV without them - drop --rate")
     est_cls = registry.estimators.get(args.name)
+    if PressureSample not in est_cls.consumes and (args.ahrs_settings or
+                                                   args.ahrs != AHRS_DEFAULT):
+        option = "--ahrs-set" if args.ahrs_settings else "--ahrs"
+        raise ImuhalError(f"{option} configures the attitude estimator behind a vario filter; "
+                          f"{args.name} is not one - drop {option} (settings of {args.name} "
+                          "go in --set)")
     settings = build_settings(est_cls.Settings, parse_set_arguments(args.settings), args.name)
     estimator = est_cls(settings)
     ahrs_cls = registry.estimators.get(args.ahrs)

@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from imuhal.cli.frame_option import frame_argument
+from imuhal.core.atomic import check_outputs
 from imuhal.core.errors import ImuhalError
 from imuhal.core.samples import GyroSample, PressureSample
 from imuhal.evaluate.download import BROAD_URL, default_cache, download_broad
@@ -19,8 +20,14 @@ from imuhal.evaluate.report import (
     write_json,
     write_markdown,
 )
-from imuhal.evaluate.runner import EstimatorSpec, TrialResult, evaluate_serial, expand_grid
-from imuhal.offline.settings_args import parse_set_arguments
+from imuhal.evaluate.runner import (
+    EstimatorSpec,
+    TrialResult,
+    evaluate_serial,
+    expand_grid,
+    with_rate_settings,
+)
+from imuhal.offline.settings_args import build_settings, parse_set_arguments
 from imuhal.plugins.manager import Registry
 
 HELP = """\
@@ -155,10 +162,21 @@ def _progress(quiet: bool) -> Any:
 
 
 def cmd_evaluate(args: argparse.Namespace, registry: Registry) -> int:
-    for out in (args.output, args.json, args.markdown, args.plot):
-        if out and any(Path(out).resolve() == Path(r).resolve()
-                       for r in (*args.recordings, *args.truth)):
-            raise EvaluateUsageError(f"{out}: is an input; choose another output file")
+    # No output may replace an input (links and hard links included) or another output.
+    check_outputs({"--output": args.output, "--json": args.json, "--markdown": args.markdown,
+                   "--plot": args.plot},
+                  {**{"RECORDING" + (f" #{i + 1}" if i else ""): r
+                      for i, r in enumerate(args.recordings)},
+                   **{"--truth" + (f" #{i + 1}" if i else ""): t
+                      for i, t in enumerate(args.truth)}})
+    if args.workers is not None and not (args.dask or args.scheduler):
+        raise EvaluateUsageError("--workers sizes the local Dask cluster; add --dask (or drop "
+                                 "--workers)")
+    if args.workers is not None and args.workers < 1:
+        raise EvaluateUsageError(f"--workers {args.workers}: give 1 or more workers")
+    if args.cache and not (args.broad or args.download_broad):
+        raise EvaluateUsageError("--cache is where --broad and --download-broad keep BROAD; "
+                                 "add one of them (or drop --cache)")
     if args.plot:
         from imuhal.offline.plotting import check_figure_path
 
@@ -167,7 +185,16 @@ def cmd_evaluate(args: argparse.Namespace, registry: Registry) -> int:
         (n, {}) for n in attitude_estimators(registry)]
     dofs = args.dof or [9, 6]
     grid = parse_grid(args.grid, registry)
+    unused = sorted(set(grid) - {n for n, _ in specs_in})
+    if unused:
+        raise EvaluateUsageError(f"--grid {unused[0]}.*: {unused[0]} is not evaluated; add -e "
+                                 f"{unused[0]} (or drop the --grid)")
     specs = expand_grid([EstimatorSpec(n, s, d) for d in dofs for n, s in specs_in], grid)
+    for spec in specs:  # every settings mistake before the first job, not after some ran
+        cls = registry.estimators.get(spec.name)
+        build_settings(cls.Settings,
+                       with_rate_settings(cls.Settings.model_fields, spec.settings, 100.0),
+                       spec.name, f"-e {spec.name}: / --grid {spec.name}.")
     if args.download_broad:
         download_broad(args.cache, base_url=args.broad_url,
                        progress=None if args.quiet else lambda m: print(m, file=sys.stderr))
@@ -181,6 +208,11 @@ def cmd_evaluate(args: argparse.Namespace, registry: Registry) -> int:
     else:
         results = evaluate_serial(sources, specs, registry, progress)
     groups = aggregate(results)
+    known = list(dict.fromkeys(g.group for g in groups))
+    for g in args.group:
+        if g not in known:
+            raise EvaluateUsageError(f"--group {g}: no trial is in that group; groups: "
+                                     f"{', '.join(known)}")
     print(summary_table(groups))
     for g in args.group:
         print(f"\ngroup {g}:\n{summary_table(groups, g)}")

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from imuhal.core.errors import ImuhalError
+from imuhal.core.atomic import check_outputs
 from imuhal.plugins.manager import Registry
 
 
@@ -32,10 +32,8 @@ def cmd_plot(args: argparse.Namespace, registry: Registry) -> int:
     from imuhal.offline.plotting import plot_log, read_log, read_truth
 
     out = Path(args.output)
-    for given in (args.log, args.truth):
-        if given is not None and Path(given).resolve() == out.resolve():
-            raise ImuhalError(f"{out}: the figure would overwrite its input; give another "
-                              "--output name")
+    # links and hard links too: the figure never replaces the log or the truth it shows
+    check_outputs({"--output": args.output}, {"LOG.csv": args.log, "--truth": args.truth})
     log = read_log(args.log)
     truth = read_truth(args.truth) if args.truth else None
     figure = plot_log(log, truth)

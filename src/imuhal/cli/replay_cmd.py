@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from imuhal.core.atomic import check_outputs
 from imuhal.core.errors import ImuhalError
 from imuhal.offline.replay import (
     ReplayDivergence,
@@ -40,6 +41,11 @@ def add_parser(sub: Any) -> None:
 def cmd_replay(args: argparse.Namespace, registry: Registry) -> int:
     from imuhal.pipeline import ConsoleSink, CsvSink
 
+    # Before anything is decoded: the log must not replace the recording or the profile.
+    check_outputs({"--output": args.output}, {"FILE": args.recording, "--profile": args.profile})
+    if args.samples and not args.output:
+        raise ImuhalError("--samples writes the samples into the --output log; add "
+                          "--output FILE.csv")
     profile = load_profile(args.profile, registry) if args.profile else None
     replay = open_replay(args.recording, registry, profile)
     header = replay.recording.header

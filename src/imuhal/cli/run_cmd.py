@@ -93,11 +93,14 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     path = Path(args.profile) if args.profile else default_profile_path()
     # Before anything is opened: no output may overwrite an input, and each must be writable.
     check_outputs({"--output": args.output, "--truth": args.truth, "--trace": args.trace,
-                   "--audio-wav": args.audio_wav},
+                   "--audio-wav": args.audio_wav, "--record": args.record},
                   {"PROFILE": path, "--replay-truth": args.replay_truth})
     if args.samples and not args.output:
         raise ImuhalError("--samples writes the samples into the --output log; add "
                           "--output FILE.csv")
+    if args.nmea_sentences is not None and not args.nmea:
+        raise ImuhalError("--nmea-sentences chooses the sentences of an --nmea output; add "
+                          "--nmea OUTPUT (e.g. --nmea pty)")
     profile = load_profile(path, registry)
     frame = args.output_frame or profile.output_frame
     emulate = args.emulate
@@ -106,6 +109,9 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     web = parse_bind(args.web) if args.web is not None else None
     # Real buses always run in real time; a dashboard of an emulated run is watched live.
     realtime = args.realtime or emulate is None or web is not None
+    if args.seed is not None and emulate is None:
+        raise ImuhalError("--seed seeds the simulated world of an emulated run; add --emulate "
+                          "SCENARIO (or drop --seed): real hardware has no seed")
     if args.truth and emulate is None:
         raise ImuhalError("--truth needs an emulated run (--emulate SCENARIO): real "
                           "hardware has no ground truth")
@@ -204,9 +210,12 @@ def _flight_sinks(args: argparse.Namespace, profile: Any, registry: Registry,
 
     out: list[Any] = []
     extra: dict[str, Any] = {}
-    if args.nmea_sentences:
+    if args.nmea_sentences is not None:
         extra["sentences"] = tuple(x.strip().upper() for x in args.nmea_sentences.split(",")
                                    if x.strip())
+        if not extra["sentences"]:
+            raise ImuhalError(f"--nmea-sentences {args.nmea_sentences!r}: name at least one "
+                              "sentence, e.g. --nmea-sentences LK8EX1,GGA")
     nmea = registry.sinks.get("nmea")
     for spec in args.nmea:
         sink = nmea({"output": spec, **extra})
@@ -261,6 +270,8 @@ def _kept_note(output: str | None, sink: Any) -> str:
     """What a failed run did to --output, for the end of its error message."""
     if not output:
         return ""
+    if getattr(sink, "committed", False):  # another output failed after the log was closed
+        return f"; {output} is complete ({sink.rows} rows)"
     partial = getattr(sink, "partial_path", None)
     if partial is not None:
         return (f"; {output} was left as it was and the {sink.rows} rows written before the "

@@ -124,6 +124,12 @@ def _same_file(a: Path, b: Path) -> bool:
         return False
 
 
+def _partial_of(path: Path) -> Path:
+    """The visible scratch file a ``partial=True`` write of ``path`` uses."""
+    target = resolve_target(path)
+    return target.with_name(target.name + PARTIAL_SUFFIX)
+
+
 def check_outputs(outputs: Mapping[str, PathLike | None],
                   inputs: Mapping[str, PathLike | None] | None = None) -> None:
     """Refuse before any work when an output is also an input of the same command, when two
@@ -132,6 +138,10 @@ def check_outputs(outputs: Mapping[str, PathLike | None],
     Keys are how the user gave each path (``"--output"``, ``"INPUT.csv"``): every message
     names the two options and the file.
     """
+    for label, p in (*outputs.items(), *(inputs or {}).items()):
+        if p is not None and not os.fspath(p):  # `--output "$LOG"` with LOG unset
+            raise OutputError(f"{label}: an empty path was given (an unset shell variable?); "
+                              "give a file name")
     outs = [(label, Path(p)) for label, p in outputs.items() if p is not None]
     ins = [(label, Path(p)) for label, p in (inputs or {}).items() if p is not None]
     for label, out in outs:
@@ -140,11 +150,18 @@ def check_outputs(outputs: Mapping[str, PathLike | None],
                 raise OutputError(
                     f"{label} {out}: is the same file as {in_label} {inp}; writing it would "
                     "destroy the input - choose another output path")
+            if _same_file(_partial_of(out), inp):
+                raise OutputError(
+                    f"{label} {out}: its rows go to {_partial_of(out).name} while it is "
+                    f"written, which is {in_label} {inp}; rename the input or choose another "
+                    "output path")
     for i, (label, out) in enumerate(outs):
         for other_label, other in outs[i + 1:]:
-            if _same_file(out, other):
-                raise OutputError(f"{label} {out} and {other_label} {other}: are the same file; "
-                                  "give each output its own path")
+            if (_same_file(out, other) or _same_file(_partial_of(out), other)
+                    or _same_file(out, _partial_of(other))):
+                raise OutputError(f"{label} {out} and {other_label} {other}: are the same file "
+                                  "(or one is the other's .partial); give each output its own "
+                                  "path")
     for label, out in outs:
         check_writable(out, label)
 
@@ -208,16 +225,30 @@ class AtomicFile:
 
     def write(self, data: str | bytes) -> int:
         assert self.file is not None, "file already committed or aborted"
-        return self.file.write(data)
+        with self._write_errors():
+            return self.file.write(data)
+
+    @contextlib.contextmanager
+    def _write_errors(self) -> Iterator[None]:
+        """A full disk, a quota or an I/O error is the user's to fix, not a bug: one line
+        naming the file (the target itself is untouched until commit)."""
+        try:
+            yield
+        except BrokenPipeError:
+            raise  # a reader that went away (`| head`): the CLI ends quietly, as before
+        except OSError as exc:
+            raise OutputError(f"{self.path}: cannot be written: {exc.strerror or exc}; free "
+                              "some space or choose another path") from None
 
     def sync(self) -> None:
         """Make everything written so far durable (flush and fsync), without committing: after
         a power cut it is in the temporary file (``TARGET.partial`` with ``partial=True``)."""
         if self.file is None:
             return
-        self.file.flush()
-        if not self.direct:
-            os.fsync(self.file.fileno())
+        with self._write_errors():
+            self.file.flush()
+            if not self.direct:
+                os.fsync(self.file.fileno())
 
     def commit(self) -> Path:
         """Flush, fsync and rename over the target; returns the path written. Stop signals
@@ -225,7 +256,11 @@ class AtomicFile:
         if self.file is None:
             raise ValueError(f"{self.path}: already committed or aborted")
         with _stop_signals_held():
-            self.sync()
+            try:
+                self.sync()
+            except OutputError:
+                self.abort(keep_partial=self.partial)  # the target stays as it was
+                raise
             self.file.close()
             self.file = None
             if self.direct:
@@ -248,9 +283,13 @@ class AtomicFile:
         """Leave the target as it was. The data written so far are dropped, or with
         ``keep_partial`` kept (synced) in the temporary file, whose path is returned."""
         if self.file is not None:
-            if keep_partial:
-                self.sync()
-            self.file.close()
+            # Best effort: abort runs after a failure, often the very write error (a full
+            # disk) that would fail again here; what reached the file stays.
+            with contextlib.suppress(OSError, OutputError):
+                if keep_partial:
+                    self.sync()
+            with contextlib.suppress(OSError):
+                self.file.close()
             self.file = None
         if self.direct:
             return None

@@ -169,6 +169,9 @@ def read_truth_quaternions(path: str | Path) -> tuple[FloatArray, FloatArray]:
                  if ln.strip() and not ln.startswith("#")]
     except OSError as exc:
         raise RecordingError(f"{p}: cannot read: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise RecordingError(f"{p}: not a text file; a truth CSV is written by `imuhal run "
+                             "--truth`") from None
     rows = list(csv.reader(lines))
     if len(rows) < 2:
         raise RecordingError(f"{p}: no truth rows; expected a header and t_s, qw, qx, qy, qz")

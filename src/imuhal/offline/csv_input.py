@@ -108,6 +108,9 @@ def iter_sample_chunks(path: str | Path, *, rate_hz: float | None = None,
             raise InputError(f"{p}: line 1: duplicate column(s) {', '.join(sorted(dupes))}")
         if TIME not in header and rate_hz is None:
             raise InputError(f"{p}: missing column '{TIME}' (seconds); add it or give --rate HZ")
+        if TIME in header and rate_hz is not None:
+            raise InputError(f"{p}: has a '{TIME}' column, which gives the times; --rate is "
+                             "for input without one - drop --rate")
         width = len(header)
         done = 0
         last_t: float | None = None

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import math
 import shutil
@@ -14,7 +15,7 @@ import numpy as np
 
 from imuhal.core.atomic import AtomicFile
 from imuhal.core.conventions import NED, Convention, get_convention
-from imuhal.core.errors import ImuhalError
+from imuhal.core.errors import ImuhalError, OutputError
 from imuhal.estimation.framed import attitude_columns, express_attitude
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate, VerticalEstimate
 from imuhal.estimation.rows import AttitudeRows, flatten_diagnostics
@@ -85,6 +86,13 @@ class EstimateCsvWriter:
     def write(self, estimates: Iterable[Estimate] | AttitudeRows) -> None:
         """Append ``estimates`` (one chunk: formatted column by column, written at once);
         :class:`AttitudeRows` are written as they are, without estimate objects."""
+        try:
+            self._write(estimates)
+        except OSError as exc:  # the spill file beside the output: a full disk, a quota
+            raise OutputError(f"{self.path}: cannot be written: {exc.strerror or exc}; free "
+                              "some space or choose another path") from None
+
+    def _write(self, estimates: Iterable[Estimate] | AttitudeRows) -> None:
         if isinstance(estimates, AttitudeRows):
             self._write_rows(estimates)
             return
@@ -171,7 +179,8 @@ class EstimateCsvWriter:
 
     def abort(self) -> None:
         """Drop everything written: ``path`` keeps what it had."""
-        self._spill.close()
+        with contextlib.suppress(OSError):  # after a write error, closing may fail again
+            self._spill.close()
         self._out.abort()
 
     def _extend(self, keys: list[str]) -> None:

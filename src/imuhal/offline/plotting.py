@@ -157,11 +157,16 @@ def read_truth(path: str | os.PathLike[str]) -> Truth:
     """A truth CSV (docs/simulation.md) with its pressure altitude as ``pressure_altitude_m``."""
     try:
         cols, _ = read_truth_csv(path)
-    except (OSError, ValueError) as exc:
-        raise PlotError(f"{path}: cannot read the truth file: {exc}") from None
+    except (OSError, ValueError) as exc:  # UnicodeDecodeError is a ValueError
+        raise PlotError(f"{path}: cannot read the truth file: {exc}; give a file written by "
+                        "`imuhal run --truth FILE.csv`") from None
     if "t_s" not in cols or len(cols["t_s"]) < 2:
         raise PlotError(f"{path}: a truth file needs t_s and at least two rows "
                         "(write one with `imuhal run --truth FILE.csv`)")
+    missing = [c for c in (*ATTITUDE, "climb_m_s") if c not in cols]
+    if missing:
+        raise PlotError(f"{path}: not a truth file: missing column(s) {', '.join(missing)}; "
+                        "give a file written by `imuhal run --truth FILE.csv`")
     cols = dict(cols)
     if "pressure_pa" in cols:
         cols["pressure_altitude_m"] = np.array(

@@ -90,8 +90,10 @@ def read_run_log(path: str | Path, frame: Convention | None = None) -> RunLog:
     skipped: dict[str, int] = {}
     with p.open(newline="", encoding="utf-8") as f:
         reader = csv.DictReader(f)
-        conv = log_frame(p, list(reader.fieldnames or []), frame)
-        suffix = frame_suffix(conv)
+        header = [h.strip() for h in reader.fieldnames or []]
+        conv = log_frame(p, header, frame)
+        # Columns without a frame suffix are read in the frame --input-frame names.
+        suffix = frame_suffix(conv) if f"ax_m_s2{frame_suffix(conv)}" in header else ""
         for line_no, row in enumerate(reader, start=2):
             rows += 1
             kind = (row.get("kind") or "").strip()

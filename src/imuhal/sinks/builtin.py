@@ -174,6 +174,8 @@ class CsvSink:
         self.sync_every_s = sync_every_s
         self.rows = 0
         self.partial_path: Path | None = None
+        self.committed = False
+        """True once :meth:`close` put the whole log under ``path``."""
         self._out: AtomicFile | None = AtomicFile(self.path, newline="", partial=True)
         self._writer = csv.DictWriter(self._out, fieldnames=csv_columns(self.frame),
                                       restval="")
@@ -194,6 +196,7 @@ class CsvSink:
         if self._out is not None:
             self._out.commit()
             self._out = None
+            self.committed = True
 
     def abort(self) -> Path | None:
         """Leave ``path`` as it was; keep the rows written so far in ``path.partial`` (returned)

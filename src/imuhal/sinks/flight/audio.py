@@ -18,7 +18,6 @@ WAV file (standard library ``wave``) and/or plays live through ``sounddevice``.
 from __future__ import annotations
 
 import math
-import os
 import wave
 from collections.abc import Mapping
 from pathlib import Path
@@ -27,7 +26,8 @@ from typing import Any, ClassVar
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from imuhal.core.errors import ImuhalError
+from imuhal.core.atomic import AtomicFile
+from imuhal.core.errors import ImuhalError, OutputError
 from imuhal.estimation.outputs import VerticalEstimate
 from imuhal.sinks.base import Event, SinkPlugin
 
@@ -161,14 +161,22 @@ class AudioSink(SinkPlugin):
         self.samples_written = 0
         self._stream = None
         self._wav: wave.Wave_write | None = None
-        self._tmp: Path | None = None
+        self._file: AtomicFile | None = None
         if self.wav_path is not None:
-            self._tmp = self.wav_path.with_name(f".{self.wav_path.name}.{os.getpid()}.tmp")
+            # The safe-writing rules of every imuhal output: links followed, the umask's
+            # mode, the old file kept until the run closes.
             try:
-                self._wav = wave.open(str(self._tmp), "wb")  # noqa: SIM115 - open until close()
-            except OSError as exc:
-                raise ImuhalError(f"--audio-wav {self.wav_path}: cannot write there ({exc})"
-                                  ) from None
+                self._file = AtomicFile(self.wav_path, binary=True)
+            except OutputError as exc:
+                raise ImuhalError(f"--audio-wav {exc}") from None
+            if self._file.direct:
+                # A WAV header is patched at the end: it needs a seekable, regular file.
+                self._file.abort()
+                self._file = None
+                raise ImuhalError(f"--audio-wav {self.wav_path}: is a pipe or device; a WAV "
+                                  "file must be a regular file - give a file path")
+            assert self._file.file is not None
+            self._wav = wave.open(self._file.file, "wb")  # noqa: SIM115 - open until close()
             self._wav.setnchannels(1)
             self._wav.setsampwidth(2)
             self._wav.setframerate(s.curve.sample_rate_hz)
@@ -193,7 +201,12 @@ class AudioSink(SinkPlugin):
             return
         self.samples_written += pcm.size
         if self._wav is not None:
-            self._wav.writeframes(pcm.astype("<i2").tobytes())
+            try:
+                self._wav.writeframes(pcm.astype("<i2").tobytes())
+            except OSError as exc:
+                raise ImuhalError(f"--audio-wav {self.wav_path}: cannot be written: "
+                                  f"{exc.strerror or exc}; free some space or choose another "
+                                  "path") from None
         if self._stream is not None:
             self._stream.write(pcm.reshape(-1, 1))
 
@@ -202,17 +215,18 @@ class AudioSink(SinkPlugin):
             self._stream.stop()
             self._stream.close()
             self._stream = None
-        if self._wav is not None and self._tmp is not None and self.wav_path is not None:
-            self._wav.close()
+        if self._wav is not None and self._file is not None:
+            self._wav.close()  # patches the header; the file stays open for the commit
             self._wav = None
-            os.replace(self._tmp, self.wav_path)
+            self._file.commit()
+            self._file = None
 
     def abort(self) -> None:
         """Drop the temporary WAV; ``wav_path`` keeps what it had."""
-        if self._wav is not None and self._tmp is not None:
-            self._wav.close()
+        if self._wav is not None and self._file is not None:
             self._wav = None
-            self._tmp.unlink(missing_ok=True)
+            self._file.abort()
+            self._file = None
 
 
 def _open_live(sample_rate_hz: int):  # type: ignore[no-untyped-def]

@@ -79,8 +79,17 @@ class PtyTransport:
             tmp = self._link.with_name(f".{self._link.name}.{os.getpid()}")
             with contextlib.suppress(FileNotFoundError):
                 tmp.unlink()
-            os.symlink(self.slave_path, tmp)
-            os.replace(tmp, self._link)  # atomic: an app never sees the link missing
+            try:
+                os.symlink(self.slave_path, tmp)
+                os.replace(tmp, self._link)  # atomic: an app never sees the link missing
+            except OSError as exc:
+                os.close(self._master)
+                os.close(self._slave)
+                with contextlib.suppress(OSError):
+                    tmp.unlink()
+                raise ImuhalError(f"--nmea pty:{self._link}: cannot make the link there "
+                                  f"({exc.strerror or exc}); name a path in a folder you can "
+                                  "write to, e.g. pty:/tmp/vario") from None
         where = f"{self._link} -> {self.slave_path}" if self._link else self.slave_path
         self.description = f"pseudo-terminal {where}"
         self.dropped_bytes = 0
