@@ -15,7 +15,9 @@ from tests.filters.ahrs_cases import FIELD_NED_UT, at_rest, attitude, error_deg,
 from tests.filters.decoupled_motion import Motion, hand_motion, tilt_error_deg
 
 from imuhal.core.samples import GyroSample, MagSample, Sample
+from imuhal.evaluate.metrics import rmse_deg
 from imuhal_filters.decoupled.estimator import DecoupledEstimator
+from imuhal_filters.decoupled.smoother import clean_field, field_weights
 
 BIAS_RAD_S = (0.01, -0.015, 0.008)
 """About 0.6-0.9 deg/s per axis: an uncalibrated MEMS gyro."""
@@ -152,3 +154,48 @@ def test_offline_smoother_is_more_accurate_than_the_forward_filter() -> None:
                 return np.degrees(2 * np.arccos(np.minimum(1.0, np.abs(np.sum(q * m.q_true,
                                                                                 axis=1)))))
             assert _rms(total(q_off)) < 0.5 * _rms(total(q_live))
+
+
+def test_offline_trusts_the_field_only_in_long_undisturbed_stretches_away_from_disturbances(
+) -> None:
+    dt = 0.1
+    disturbed = np.zeros(200, dtype=bool)  # 20 s
+    disturbed[50:60] = True   # a disturbance at 5-6 s
+    disturbed[63:100] = True  # a chance pass at 6.0-6.3 s, then disturbed to 10 s
+    trusted = clean_field(disturbed, min_clean_s=5.0, margin_s=2.0, dt=dt)
+    assert trusted[:30].all()  # the recording's start needs no margin
+    assert not trusted[30:120].any()  # 2 s either side, and the 0.3 s pass
+    assert trusted[120:].all()  # to the recording's end
+    assert not clean_field(disturbed[:130], 5.0, 2.0, dt)[100:].any()  # 3 s: too short
+
+
+def test_offline_field_weight_falls_with_the_deviation_from_the_recordings_reference() -> None:
+    ref = np.array([20.0, 0.0, 44.0])
+    m = np.array([ref, ref, 1.1 * ref, ref + np.array([0.0, 0.0, 20.0])])
+    w = field_weights(m, np.array([True, True, True, False]), norm_th=0.1,
+                      dip_th_rad=math.radians(10.0))
+    assert w[0] == w[1] == 1.0  # the reference is the trusted samples' median
+    assert abs(w[2] - 0.5) < 1e-9  # a norm off by the threshold: half the gain
+    assert w[3] == 0.0  # not trusted: never fused
+
+
+def test_offline_heading_is_not_pulled_by_an_attached_magnet_s_approach_and_chance_passes(
+) -> None:
+    # a magnet fixed to the turning board (body-frame field, 15 / -7.5 / 5 uT, 3 s ramps in
+    # and out): while it comes and goes the field deviates below the thresholds, and as
+    # the board turns some readings pass the norm and dip check by chance
+    m = hand_motion(40.0, BIAS_RAD_S)
+    t = np.arange(len(m.q_true)) * m.dt_s
+    s = np.clip((t - 10.0) / 3.0, 0.0, 1.0) * np.clip((28.0 - t) / 3.0, 0.0, 1.0)
+    mag = m.mag_ut + s[:, None] * np.array([12.5, -7.5, 5.0])
+
+    def heading_rms(settings: dict) -> float:
+        q = DecoupledEstimator({"sample_period_s": m.dt_s, "preset": "handheld",
+                                "offline": True, **settings}).smooth(
+            m.gyro_rad_s, m.accel_m_s2, mag)
+        return rmse_deg(q, m.q_true).heading_deg
+
+    guarded = heading_rms({})
+    assert guarded < 2.0
+    # every reading the check passes fused: the magnet turns the heading
+    assert heading_rms({"mag_min_clean_s": 0.0, "mag_margin_s": 0.0}) > 1.25 * guarded

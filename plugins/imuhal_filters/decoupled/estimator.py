@@ -28,6 +28,8 @@ from imuhal_filters.decoupled.core import DecoupledKernel, DecoupledParams
 from imuhal_filters.decoupled.smoother import (
     PassRecord,
     apply_heading,
+    clean_field,
+    field_weights,
     fused_bias,
     heading,
     inclination,
@@ -93,6 +95,12 @@ class DecoupledSettings(AhrsSettings):
     """A field whose dip differs from the reference by more than this (deg) is disturbed."""
     mag_new_s: float = Field(20.0, gt=0.0)
     """A disturbed field that stays consistent this long (s) becomes the new reference."""
+    mag_min_clean_s: float = Field(5.0, ge=0.0)
+    """Offline only: the field is fused only in undisturbed stretches at least this long (s);
+    near a magnet single readings pass the check by chance."""
+    mag_margin_s: float = Field(2.0, ge=0.0)
+    """Offline only: nor within this long (s) of a disturbance (the field deviates below the
+    thresholds while a magnet approaches and leaves)."""
     use_mag: bool = True
     """Fuse the magnetometer (9-DOF); False: 6-DOF even when magnetometer samples arrive."""
     offline: bool = False
@@ -231,5 +239,9 @@ class DecoupledEstimator(AhrsEstimator):
         q6 = inclination(q_gyro, acc_i)
         if mag is None:
             return q6
-        disturbed = fwd.mag_disturbed & bwd.mag_disturbed
-        return apply_heading(q6, heading(q6, mag, disturbed, self.settings.tau_mag_s, dt))
+        st = self.settings
+        trusted = clean_field(fwd.mag_disturbed & bwd.mag_disturbed, st.mag_min_clean_s,
+                              st.mag_margin_s, dt)
+        w = field_weights(rotate_rows(q6, mag), trusted, st.mag_norm_th,
+                          math.radians(st.mag_dip_th_deg))
+        return apply_heading(q6, heading(q6, mag, w, st.tau_mag_s, dt))

@@ -14,8 +14,11 @@ every state is estimated from both directions first, then the attitude is built 
    forwards and then backwards (zero phase: no delay), and the inclination correction turns
    the filtered vector to the vertical at each sample.
 4. **Heading**: the magnetometer's heading in the corrected frame is filtered forwards and
-   backwards with ``tau_mag_s``; samples both passes flagged as magnetically disturbed are
-   not fused (a disturbance is recognised from whichever side it is first seen).
+   backwards with ``tau_mag_s``. A sample both passes flagged as magnetically disturbed is
+   not fused, nor is one in a short undisturbed stretch or near a disturbance
+   (``clean_field``); the others are fused with a gain weighted by how close the field's
+   norm and dip are to the reference learnt over the whole recording (``field_weights``):
+   the heading drifts most while a magnet approaches, before the check flags it.
 """
 
 from __future__ import annotations
@@ -104,27 +107,72 @@ def inclination(q_gyro: FloatArray, acc_i: FloatArray) -> FloatArray:
     return out
 
 
-def heading(q6: FloatArray, mag: FloatArray, disturbed: np.ndarray, tau_mag_s: float,
+def clean_field(disturbed: np.ndarray, min_clean_s: float, margin_s: float,
+                dt: float) -> np.ndarray:
+    """(N,) bool: the samples whose field is trusted offline. A field is trusted only inside
+    an undisturbed stretch of at least ``min_clean_s`` and not within ``margin_s`` of a
+    disturbance: near a magnet a few readings pass the norm and dip check by chance (the
+    field sweeps through the reference's values), and the field already deviates, below
+    the thresholds, before and after the stretch the check flags. The recording's own ends
+    are not disturbances (no margin there)."""
+    use = ~np.asarray(disturbed, dtype=bool)
+    out = np.zeros_like(use)
+    n_min, n_margin = round(min_clean_s / dt), round(margin_s / dt)
+    edges = np.diff(np.concatenate([[0], use.astype(np.int8), [0]]))
+    for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True):
+        if b - a < max(n_min, 1):
+            continue
+        a2 = a + n_margin if a > 0 else a
+        b2 = b - n_margin if b < use.shape[0] else b
+        if b2 > a2:
+            out[a2:b2] = True
+    return out
+
+
+def field_weights(m: FloatArray, trusted: np.ndarray, norm_th: float,
+                  dip_th_rad: float) -> FloatArray:
+    """(N,) heading gain weights in [0, 1] for the field ``m`` in the inclination-corrected
+    frame: 0 where not ``trusted``, else 1 / (1 + (norm deviation / (norm_th * ref))^2 +
+    (dip deviation / dip_th_rad)^2), the reference being the median norm and dip of the
+    trusted samples of the whole recording (offline: the field's undisturbed value is
+    known from both sides). A field close to the reference is trusted in full, one near
+    the detector's thresholds at a third."""
+    norm = np.linalg.norm(m, axis=1)
+    dip = np.arctan2(m[:, 2], np.hypot(m[:, 0], m[:, 1]))
+    w = np.zeros(m.shape[0])
+    if not trusted.any():
+        return w
+    ref_norm, ref_dip = float(np.median(norm[trusted])), float(np.median(dip[trusted]))
+    x = ((norm - ref_norm) / (norm_th * ref_norm)) ** 2 + ((dip - ref_dip) / dip_th_rad) ** 2
+    w[trusted] = 1.0 / (1.0 + x[trusted])
+    return w
+
+
+def heading(q6: FloatArray, mag: FloatArray, weight: FloatArray, tau_mag_s: float,
             dt: float) -> FloatArray:
-    """(N,) heading correction delta (rad) about the NED vertical, zero phase, disturbed
-    samples skipped (held)."""
+    """(N,) heading correction delta (rad) about the NED vertical, zero phase: each
+    sample's gain is the filter's (time constant ``tau_mag_s``) times its ``weight``
+    (0: not fused, the correction held)."""
     m = rotate_rows(q6, mag)
     raw = -np.arctan2(m[:, 1], m[:, 0])
-    use = ~disturbed & np.isfinite(raw) & (np.hypot(m[:, 0], m[:, 1]) > 1e-3 *
-                                          np.linalg.norm(m, axis=1))
+    w = np.where(np.isfinite(raw) & (np.hypot(m[:, 0], m[:, 1]) > 1e-3 *
+                                     np.linalg.norm(m, axis=1)), weight, 0.0)
+    use = w > 0.0
     n = raw.shape[0]
     delta = np.zeros(n)
     if not use.any():
         return delta
     k = 1.0 - math.exp(-dt / tau_mag_s)
     d = float(raw[np.argmax(use)])
+    gains = (k * w).tolist()
+    raws = raw.tolist()
     for i in range(n):  # forwards
-        if use[i]:
-            d = _wrap(d + k * _wrap(float(raw[i]) - d))
+        if gains[i] > 0.0:
+            d = _wrap(d + gains[i] * _wrap(raws[i] - d))
         delta[i] = d
     for i in range(n - 1, -1, -1):  # backwards over the forward result
-        if use[i]:
-            d = _wrap(d + k * _wrap(float(delta[i]) - d))
+        if gains[i] > 0.0:
+            d = _wrap(d + gains[i] * _wrap(float(delta[i]) - d))
         delta[i] = d
     return delta
 
