@@ -30,8 +30,7 @@ from __future__ import annotations
 import math
 from abc import abstractmethod
 from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import Any, ClassVar, Literal
+from typing import Any, ClassVar, Literal, NamedTuple
 
 import numpy as np
 from pydantic import Field
@@ -105,9 +104,9 @@ class AhrsSettings(PresetSettings, AhrsLimitSettings, TurnCompensationSettings):
     """An accel or mag sample older than this (relative to the gyro sample) is not used."""
 
 
-@dataclass(frozen=True, slots=True)
-class ImuStep:
-    """What one filter step gets: body NED axes, reference units."""
+class ImuStep(NamedTuple):
+    """What one filter step gets: body NED axes, reference units. (A named tuple: one is
+    made per gyro sample, and a frozen dataclass pays an attribute write per field.)"""
 
     gyro_rad_s: Vec
     accel_g: Vec | None
@@ -129,10 +128,13 @@ def _linear_accel_ned(q: Quat, f: Vec) -> Vec:
     the same rotation, without building two numpy arrays per step."""
     w, x, y, z = q
     fx, fy, fz = f
+    # each product once (the same values as writing them out in every entry)
+    ww, xx, yy, zz = w * w, x * x, y * y, z * z
+    xy, wz, xz, wy, yz, wx = x * y, w * z, x * z, w * y, y * z, w * x
     return (
-        (w * w + x * x - y * y - z * z) * fx + 2 * (x * y - w * z) * fy + 2 * (x * z + w * y) * fz,
-        2 * (x * y + w * z) * fx + (w * w - x * x + y * y - z * z) * fy + 2 * (y * z - w * x) * fz,
-        2 * (x * z - w * y) * fx + 2 * (y * z + w * x) * fy + (w * w - x * x - y * y + z * z) * fz
+        (ww + xx - yy - zz) * fx + 2 * (xy - wz) * fy + 2 * (xz + wy) * fz,
+        2 * (xy + wz) * fx + (ww - xx + yy - zz) * fy + 2 * (yz - wx) * fz,
+        2 * (xz - wy) * fx + 2 * (yz + wx) * fy + (ww - xx - yy + zz) * fz
         + STANDARD_GRAVITY_M_S2,
     )
 
@@ -187,6 +189,11 @@ class AhrsEstimator(Estimator):
         self._kinematics = KinematicAcceleration(self.settings)
         self._gyro_fs = float(self.settings.gyro_full_scale_rad_s)
         self._accel_fs = float(self.settings.accel_full_scale_m_s2)
+        # read at every gyro sample: kept as plain attributes
+        self._nominal_dt_s = self.settings.sample_period_s
+        self._dt_from_timestamps = self.settings.dt_from_timestamps
+        self._max_dt_s = self.settings.max_dt_s
+        self._max_aux_age_s = self.settings.max_aux_age_s
         self._reset_filter()
 
     def process(self, item: Sample | Estimate) -> list[Estimate]:
@@ -201,9 +208,11 @@ class AhrsEstimator(Estimator):
             x, y, z = item.vector  # type: ignore[union-attr]
             fs = (self._gyro_fs if kind is GyroSample else
                   self._accel_fs if kind is AccelSample else math.inf)
-            # NaN and +-inf fail every comparison: one test covers finite and in range
-            if not (-fs <= x <= fs and -fs <= y <= fs and -fs <= z <= fs
-                    and abs(x) < math.inf and abs(y) < math.inf and abs(z) < math.inf):
+            # NaN fails every comparison, and within a finite full scale +-inf fails too:
+            # one test covers finite and in range (the magnetometer's scale is unbounded)
+            if not (-fs <= x <= fs and -fs <= y <= fs and -fs <= z <= fs) or (
+                    fs == math.inf
+                    and not (abs(x) < math.inf and abs(y) < math.inf and abs(z) < math.inf)):
                 self._reject(item.channel.value)
                 return []
             if item.frame is not Frame.BODY_NED:  # type: ignore[union-attr]
@@ -484,40 +493,45 @@ class AhrsEstimator(Estimator):
         return self._step(ImuStep(gyro, accel_g, mag, dt))
 
     def _on_gyro(self, gyro: GyroSample, rate: Vec) -> list[Estimate]:
-        dt = self._dt_for(gyro.t_ns)
-        self._last_gyro_t_ns = gyro.t_ns
-        accel = self._fresh(self._accel_m_s2, self._accel_t_ns, gyro.t_ns, "stale_accel")
-        mag = self._fresh(self._mag_ut, self._mag_t_ns, gyro.t_ns, "stale_mag")
-        diag = self._run_step(gyro.t_ns, rate, accel, mag, dt)
+        # _dt_for and _fresh written out: this runs once per gyro sample
+        t_ns = gyro.t_ns
+        last = self._last_gyro_t_ns
+        dt = self._nominal_dt_s
+        if self._dt_from_timestamps and last is not None:
+            step_s = (t_ns - last) * _NS
+            if 0.0 < step_s <= self._max_dt_s:
+                dt = step_s
+            else:
+                self._counters["dt_fallbacks"] += 1
+        self._last_gyro_t_ns = t_ns
+        max_age = self._max_aux_age_s
+        accel = self._accel_m_s2
+        if accel is not None:
+            a_t = self._accel_t_ns
+            if a_t is None:
+                accel = None
+            elif max_age is not None and (t_ns - a_t) * _NS > max_age:
+                self._counters["stale_accel"] += 1
+                accel = None
+        mag = self._mag_ut
+        if mag is not None:
+            m_t = self._mag_t_ns
+            if m_t is None:
+                mag = None
+            elif max_age is not None and (t_ns - m_t) * _NS > max_age:
+                self._counters["stale_mag"] += 1
+                mag = None
+        diag = self._run_step(t_ns, rate, accel, mag, dt)
         if diag is None:
             return []
-        lin = None if accel is None else _linear_accel_ned(self._q, accel)
         return [
             AttitudeEstimate(
-                t_ns=gyro.t_ns,
+                t_ns=t_ns,
                 source=self.instance,
                 q_body_to_ned=self._q,
-                linear_accel_ned_m_s2=lin,
+                linear_accel_ned_m_s2=None if accel is None else _linear_accel_ned(self._q,
+                                                                                  accel),
                 diagnostics={"dt_s": dt, "turn_compensation": self._kinematics.source,
                              **diag},
             )
         ]
-
-    def _dt_for(self, t_ns: int) -> float:
-        nominal = self.settings.sample_period_s
-        if not self.settings.dt_from_timestamps or self._last_gyro_t_ns is None:
-            return nominal
-        dt = (t_ns - self._last_gyro_t_ns) * _NS
-        if not (0.0 < dt <= self.settings.max_dt_s):
-            self._counters["dt_fallbacks"] += 1
-            return nominal
-        return dt
-
-    def _fresh(self, v: Vec | None, t_ns: int | None, now_ns: int, counter: str) -> Vec | None:
-        if v is None or t_ns is None:
-            return None
-        max_age = self.settings.max_aux_age_s
-        if max_age is not None and (now_ns - t_ns) * _NS > max_age:
-            self._counters[counter] += 1
-            return None
-        return v

@@ -121,7 +121,8 @@ class KinematicAcceleration:
         self._turn_sum += math.sqrt(gyro_rad_s[0] ** 2 + gyro_rad_s[1] ** 2 + gyro_rad_s[2] ** 2)
         self._turn_n += 1
         nominal = self.s.nominal_airspeed_m_s
-        if self._speed.fresh(t_ns, self.s.speed_max_age_s):
+        # (a source that never sent a sample is not fresh: skip the calls, once per step)
+        if self._speed.t_ns is not None and self._speed.fresh(t_ns, self.s.speed_max_age_s):
             self.source = "velocity"
             self.counts["compensated_steps"] += 1
             # until a circle has shown the wind, a configured trim speed is the better guess
@@ -133,7 +134,8 @@ class KinematicAcceleration:
             speed = self._speed.value if wind_known or nominal is None else nominal
             rate = self._speed.rate if wind_known or not self._turning else 0.0
             return _along_x(gyro_rad_s, speed, rate)
-        if self._airspeed.fresh(t_ns, self.s.speed_max_age_s):
+        if self._airspeed.t_ns is not None and self._airspeed.fresh(t_ns,
+                                                                    self.s.speed_max_age_s):
             self.source = "airspeed"
             self.counts["compensated_steps"] += 1
             return _along_x(gyro_rad_s, self._airspeed.value, self._airspeed.rate)

@@ -81,22 +81,27 @@ class MadgwickEstimator(AhrsEstimator):
         self._gate = AccelGate.from_bounds(self.settings.accel_gate_g)
         self._inv_sqrt = INV_SQRT[self.settings.inv_sqrt]
         self._counters["gate_closed_steps"] = 0
+        # read at every step: kept as plain attributes
+        self._use_mag = self.settings.use_mag
+        self._soft_gate_g = self.settings.accel_soft_gate_g
+        self._beta = self.settings.beta
+        self._mag_reference = self.settings.mag_reference
 
     def _step(self, step: ImuStep) -> dict[str, Any]:
         accel = step.accel_g
         gate_open = accel is not None and self._gate.is_open(accel)
         if accel is not None and not gate_open:
             self._counters["gate_closed_steps"] += 1
-        mag = step.mag_ut if self.settings.use_mag else None
-        weight = 1.0 if accel is None else soft_gate_weight(accel, self.settings.accel_soft_gate_g)
+        mag = step.mag_ut if self._use_mag else None
+        weight = 1.0 if accel is None else soft_gate_weight(accel, self._soft_gate_g)
         self._q = madgwick_step(
             self._q,
             step.gyro_rad_s,
             accel if gate_open else None,
             mag,
-            self.settings.beta * weight,
+            self._beta * weight,
             step.dt_s,
-            mag_reference=self.settings.mag_reference,
+            mag_reference=self._mag_reference,
             inv_sqrt=self._inv_sqrt,
         )
         return {

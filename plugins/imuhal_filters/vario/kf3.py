@@ -96,6 +96,10 @@ class Kalman3:
         self.mode = Kf3Mode(mode)
         self.reference = REFERENCES[self.mode]
         ref = self.reference
+        self._F = np.eye(3)
+        """The transition matrix; ``predict`` writes its dt entries."""
+        self._Q = np.zeros((3, 3))
+        """The process noise; ``predict`` writes its entries."""
         self.configure(ref.z_meas_variance, ref.accel_variance, ref.bias_variance, 0.0, 0.0, 0.0)
 
     def configure(
@@ -135,8 +139,11 @@ class Kalman3:
     def predict(self, a_meas: float, dt: float) -> None:
         """Propagate by ``dt`` seconds with measured vertical acceleration ``a_meas`` (cm/s^2,
         up +, gravity removed, bias still in it)."""
+        # The state and the update run on plain floats (the same IEEE operations numpy does
+        # element by element, without a numpy scalar per operation); the covariance product
+        # stays numpy's matrix product, whose summation a plain-float loop need not match.
         ref = self.reference
-        z, v, b = self.x
+        z, v, b = self.x.tolist()
         accel = a_meas - b
         if ref.semi_implicit:
             v = v + accel * dt
@@ -151,25 +158,37 @@ class Kalman3:
             variance = abs(accel) / AVARIO_ACCEL_VARIANCE_DIVISOR
             self.accel_variance = float(min(max(variance, lo), hi))
         # The covariance follows the exact transition F either way: the references differ
-        # only in how they advance the state.
+        # only in how they advance the state. F and Q are filled in place (their other
+        # entries never change).
         dt2 = dt * dt
-        F = np.array([[1.0, dt, -0.5 * dt2], [0.0, 1.0, -dt], [0.0, 0.0, 1.0]])
+        F, Q = self._F, self._Q
+        F[0, 1] = dt
+        F[0, 2] = -0.5 * dt2
+        F[1, 2] = -dt
         sa2 = self.accel_variance
-        Q = np.array([
-            [0.25 * dt2 * dt2 * sa2, 0.5 * dt2 * dt * sa2, 0.0],
-            [0.5 * dt2 * dt * sa2, dt2 * sa2, 0.0],
-            [0.0, 0.0, self.bias_variance],
-        ])
+        Q[0, 0] = 0.25 * dt2 * dt2 * sa2
+        Q[0, 1] = Q[1, 0] = 0.5 * dt2 * dt * sa2
+        Q[1, 1] = dt2 * sa2
+        Q[2, 2] = self.bias_variance
         self.P = F @ self.P @ F.T + Q
 
     def update(self, z_meas: float) -> float:
         """Fuse one barometric altitude (cm); return the innovation (cm)."""
-        innovation = z_meas - self.x[0]
-        k = self.P[:, 0] / (self.P[0, 0] + self.z_meas_variance)
-        self.x = self.x + k * innovation
+        (p00, p01, p02), (p10, p11, p12), (p20, p21, p22) = self.P.tolist()
+        x0, x1, x2 = self.x.tolist()
+        innovation = z_meas - x0
+        s = p00 + self.z_meas_variance
+        k0, k1, k2 = p00 / s, p10 / s, p20 / s
+        self.x = np.array([x0 + k0 * innovation, x1 + k1 * innovation, x2 + k2 * innovation])
         # P = (I - K H) P; symmetrised so float rounding cannot make it drift apart.
-        P = self.P - np.outer(k, self.P[0, :])
-        self.P = 0.5 * (P + P.T)
+        a00, a01, a02 = p00 - k0 * p00, p01 - k0 * p01, p02 - k0 * p02
+        a10, a11, a12 = p10 - k1 * p00, p11 - k1 * p01, p12 - k1 * p02
+        a20, a21, a22 = p20 - k2 * p00, p21 - k2 * p01, p22 - k2 * p02
+        self.P = np.array([
+            [0.5 * (a00 + a00), 0.5 * (a01 + a10), 0.5 * (a02 + a20)],
+            [0.5 * (a10 + a01), 0.5 * (a11 + a11), 0.5 * (a12 + a21)],
+            [0.5 * (a20 + a02), 0.5 * (a21 + a12), 0.5 * (a22 + a22)],
+        ])
         return float(innovation)
 
     def step(self, z_meas: float, a_meas: float, dt: float) -> float:

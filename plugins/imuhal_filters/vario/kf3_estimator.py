@@ -79,6 +79,7 @@ class VarioKf3Estimator(Estimator):
     settings: VarioKf3Settings
 
     def reset(self) -> None:
+        self._attitude_source = self.settings.attitude_source
         self._kf: Kalman3 | None = None
         self._last_t_ns: int | None = None
         self._accel = IntervalMean()
@@ -114,6 +115,9 @@ class VarioKf3Estimator(Estimator):
     # -- Estimator interface ----------------------------------------------------------------
 
     def process(self, item: Any) -> list[Estimate]:
+        if type(item) is AttitudeEstimate:  # the common case: one per gyro sample
+            self._on_attitude(item)
+            return []
         if isinstance(item, PressureSample):
             return self._on_pressure(item)
         if isinstance(item, AttitudeEstimate):
@@ -123,12 +127,13 @@ class VarioKf3Estimator(Estimator):
         return []
 
     def _on_attitude(self, att: AttitudeEstimate) -> None:
-        wanted = self.settings.attitude_source
+        wanted = self._attitude_source
         if wanted is not None and att.source != wanted:
             return
-        if att.linear_accel_ned_m_s2 is not None:
+        lin = att.linear_accel_ned_m_s2
+        if lin is not None:
             self._attitude_has_linear_accel = True
-            self._accel.add(-float(att.linear_accel_ned_m_s2[2]))  # NED z is down
+            self._accel.add(-float(lin[2]))  # NED z is down
         else:
             self._q = att.q_body_to_ned
 

@@ -30,5 +30,13 @@ def fusion_order(samples: Iterable[Sample],
     """``samples`` sorted by time, then FUSION_RANK, then device rank: the order estimators
     receive them in. Independent of the order they were given in."""
     ranks = device_rank or {}
-    return sorted(samples, key=lambda s: (s.t_ns, FUSION_RANK.get(s.channel, 2),
-                                          ranks.get(s.device, 0)))
+
+    def key(s: Sample) -> tuple[int, int, int]:
+        return s.t_ns, FUSION_RANK.get(s.channel, 2), ranks.get(s.device, 0)
+
+    if type(samples) is list and len(samples) == 2:
+        # the common case live (a gyro and an accelerometer sample of one burst): what the
+        # stable sort gives, without setting one up
+        a, b = samples
+        return [b, a] if key(a) > key(b) else [a, b]
+    return sorted(samples, key=key)

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import heapq
 import time
-from collections import Counter, deque
+from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 
@@ -344,7 +344,9 @@ class Pipeline:
             self.clock.sleep_until(t_ns)
             # Estimator inputs wait until every sample of their instant is in (fusion order).
             if self._fusion:
-                yield from self._fuse(before_ns=t_ns)
+                fused = self._fuse(before_ns=t_ns)
+                if fused:
+                    yield from fused
             t_ns = self._before_poll(t_ns, name)
             self._span_ns[1] = t_ns
             dev = self.devices[name]
@@ -355,7 +357,8 @@ class Pipeline:
                 yield self._process(dev, raw)
         if end is not None:
             self.clock.sleep_until(end)
-        yield from self._fuse(before_ns=None)
+        if self._fusion:
+            yield from self._fuse(before_ns=None)
 
     def _service(self, dev: DeviceRuntime, t_ns: int) -> tuple[list[Sample], int]:
         """Whatever ``dev`` needs at ``t_ns``: a poll, a recovery, or a look for an optional
@@ -459,24 +462,36 @@ class Pipeline:
         # Flagged samples are only rotated, not calibrated.
         sample = calibrate_to_body(sample, dev.calibration if sample.valid else None,
                                    dev.chip_to_body_rows)
+        # Only samples some estimator takes are queued: the others would be sorted into
+        # fusion order and handed to nobody.
         if sample.valid and self.estimators:
-            self._fusion.append(sample)
+            routes = self._route_cache.get((sample.device, type(sample)))
+            if routes is None:
+                routes = self._routes(sample.device, type(sample))
+            if routes:
+                self._fusion.append(sample)
         return sample
 
-    def _fuse(self, before_ns: int | None) -> Iterator[Event]:
-        """Hand the estimators the valid samples older than ``before_ns`` (all: None), in
-        fusion order (imuhal.estimation.ordering), and yield their estimates."""
-        if not self._fusion:
-            return
+    def _fuse(self, before_ns: int | None) -> list[Event]:
+        """Hand the estimators the queued samples older than ``before_ns`` (all: None), in
+        fusion order (imuhal.estimation.ordering); returns their estimates, in the order
+        they were made. (A list, not a generator: this runs at every poll, and the queue
+        is taken whole, so a consumer that stops iterating loses no input.)"""
+        fusion = self._fusion
         if before_ns is None:
-            due, self._fusion = self._fusion, []
+            due, self._fusion = fusion, []
         else:
-            due = [s for s in self._fusion if s.t_ns < before_ns]
+            due = [s for s in fusion if s.t_ns < before_ns]
             if not due:
-                return
-            self._fusion = [s for s in self._fusion if s.t_ns >= before_ns]
+                return []
+            # usually every queued sample is due (they come from earlier polls)
+            self._fusion = [] if len(due) == len(fusion) else \
+                [s for s in fusion if s.t_ns >= before_ns]
+        out: list[Event] = []
+        estimate = self._estimate
         for sample in (due if len(due) == 1 else fusion_order(due, self._device_rank)):
-            yield from self._estimate(sample)
+            estimate(sample, out)
+        return out
 
     @staticmethod
     def _count_flags(dev: DeviceRuntime, sample: Sample) -> None:
@@ -497,20 +512,29 @@ class Pipeline:
             self._route_cache[key] = routes
         return routes
 
-    def _estimate(self, item: Event) -> Iterator[Event]:
+    def _estimate(self, item: Event, out: list[Event]) -> None:
+        """``item`` through every estimator it is routed to, and their estimates through
+        theirs, breadth first; every estimate is appended to ``out``."""
         routes_of = self._route_cache
-        pending: deque[Event] = deque((item,))
-        while pending:
-            current = pending.popleft()
+        first = len(out)
+        current = item
+        while True:
             source = current.device if isinstance(current, Sample) else current.source
             routes = routes_of.get((source, type(current)))
             if routes is None:
                 routes = self._routes(source, type(current))
             for est in routes:
-                for out in est.estimator.process(current):
-                    est.outputs += 1
-                    yield out
-                    pending.append(out)
+                made = est.estimator.process(current)
+                if made:
+                    if type(made) is not list:  # any iterable a plugin returns
+                        made = list(made)
+                    est.outputs += len(made)
+                    out.extend(made)
+            # the estimates not yet handed on, in the order they were made (breadth first)
+            if first == len(out):
+                return
+            current = out[first]
+            first += 1
 
     def run(self, duration_s: float | None, sinks: Sequence[Sink] = ()) -> RunSummary:
         """Run for ``duration_s`` simulated (or real) seconds, feeding every sink.
