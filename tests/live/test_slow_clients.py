@@ -27,39 +27,37 @@ def stalled_client(url: str):
         sock.close()
 
 
-def _samples_per_s(plugins, board, live_kwargs: dict | None) -> float:
-    """Samples per wall second of a free-running emulated run (as fast as it can go), with
-    a live view and a client stalled for the whole run when ``live_kwargs`` is given."""
-    with open_emulated(board, plugins, scenario="thermal", seed=5) as pipeline:
-        if live_kwargs is None:
-            pipeline.run(0.5, [])
-            summary = pipeline.run(2.0, [])
-        else:
-            with LiveView.for_pipeline(pipeline, **live_kwargs) as live, \
-                    stalled_client(live.url):
-                pipeline.run(0.5, [live.sink])  # full-size messages from here on
-                # 40 messages of about 5 kB fill the client's and the server's buffers:
-                # from then on the client's thread is stuck in its send.
-                built = live.messages_built
-                while live.messages_built < built + 40:
-                    time.sleep(0.02)
-                summary = pipeline.run(2.0, [live.sink])
-                assert live.clients == 1  # still connected: stalled, not yet dropped
-    return sum(summary.samples.values()) / summary.wall_s
+CLIENT_TIMEOUT_S = 60.0
+
+
+def _stalled_run_wall_s(plugins, board) -> tuple[float, int]:
+    """Wall seconds and samples of 2 simulated seconds run as fast as the board goes, with a
+    live view whose one client has stopped reading (its send buffer full)."""
+    with open_emulated(board, plugins, scenario="thermal", seed=5) as pipeline, \
+            LiveView.for_pipeline(pipeline, rate_hz=60.0,
+                                  client_timeout_s=CLIENT_TIMEOUT_S) as live, \
+            stalled_client(live.url):
+        pipeline.run(0.5, [live.sink])  # full-size messages from here on
+        # 40 messages of about 5 kB fill the client's and the server's buffers: from then
+        # on the client's thread is stuck in its send.
+        built = live.messages_built
+        while live.messages_built < built + 40:
+            time.sleep(0.02)
+        summary = pipeline.run(2.0, [live.sink])
+        assert live.clients == 1  # still connected: stalled, not yet dropped
+        assert live.messages_built > built + 40  # the view kept building for others
+    return summary.wall_s, sum(summary.samples.values())
 
 
 def test_a_stalled_client_does_not_slow_the_pipeline(plugins, seed_board):
-    """Samples per wall second with and without the view and a client that never reads,
-    interleaved, best of two. The bound is generous (timing on a shared machine): a
-    pipeline waiting for the client would stall for the whole 60 s send timeout. The 5 %
-    figure is measured by tests/benchmarks/bench_live_view.py (docs/live-view.md)."""
-    _samples_per_s(plugins, seed_board, None)  # warm-up: imports, caches
-    alone = watched = 0.0
-    for _ in range(2):
-        alone = max(alone, _samples_per_s(plugins, seed_board, None))
-        watched = max(watched, _samples_per_s(plugins, seed_board, {
-            "rate_hz": 60.0, "client_timeout_s": 60.0}))
-    assert watched > 0.5 * alone, (watched, alone)
+    """A pipeline that waited for the stalled client would stand still for the client's
+    whole send timeout (60 s) before the view dropped it; one that does not wait finishes
+    its 2 simulated seconds in about a second. The bound sits halfway, so machine load
+    cannot decide the outcome (no rate is timed here: the 5 % throughput figure is
+    measured by tests/benchmarks/bench_live_view.py, docs/live-view.md)."""
+    wall_s, samples = _stalled_run_wall_s(plugins, seed_board)
+    assert wall_s < CLIENT_TIMEOUT_S / 2, wall_s
+    assert samples > 0
 
 
 def test_a_client_that_stops_reading_is_dropped_and_the_others_keep_their_stream(
