@@ -50,3 +50,17 @@ def test_mpu9250_noise_bandwidth_is_its_low_pass_filter_setting() -> None:
     assert imu.noise_bandwidth_hz(Quantity.GYRO) == 8800.0
     assert imu.noise_bandwidth_hz(Quantity.ACCEL) == 1130.0
     assert imu.noise_bandwidth_hz(Quantity.MAG) is None
+
+
+def test_max21100_noise_bandwidth_is_its_filter_setting() -> None:
+    from imuhal_chips.max2110x.emulator import Max21100Emulator
+    from imuhal_chips.max2110x.registers import Reg
+
+    imu = Max21100Emulator()
+    assert imu.noise_bandwidth_hz(Quantity.GYRO) is None  # powered down at reset
+    _write(imu, Reg.POWER_CFG, 0b1111 << 3)                # gyro and accel on
+    _write(imu, Reg.GYRO_CFG1, 5 << 2)                     # bandwidth code 5: 14 Hz
+    _write(imu, Reg.ACC_CFG1, 0b00 << 4 | 0x06)            # divisor 48 of the accel ODR
+    assert imu.noise_bandwidth_hz(Quantity.GYRO) == 14.0
+    odr_hz = 1.0 / imu.noise_period_s(Quantity.ACCEL)
+    assert imu.noise_bandwidth_hz(Quantity.ACCEL) == pytest.approx(odr_hz / 48)
