@@ -13,7 +13,7 @@ from imuhal.cli.main import main
 
 pytest.importorskip("matplotlib", reason="plots need the 'plot' extra (in the test extra)")
 
-from imuhal.offline.plotting import plot_log, read_log, read_truth
+from imuhal.offline.plotting import Truth, plot_log, read_log, read_truth
 
 
 @pytest.fixture(scope="module")
@@ -58,6 +58,8 @@ def test_the_plotted_attitude_and_vertical_series_are_the_logs(run: tuple[Path, 
                                   ("gyro", "imu", "gz_rad_s"),
                                   ("pressure", "baro", "pressure_pa")):
         x, y = _line(fig.axes[panel], f"{source} {column}")
+        if column.endswith("_deg"):  # the NaN breaks at +/-180 wraps are not log rows
+            x, y = x[~np.isnan(y)], y[~np.isnan(y)]
         t, v = _column(log, source, column)
         np.testing.assert_array_equal(x, t)
         np.testing.assert_array_equal(y, v)
@@ -181,3 +183,25 @@ def test_truth_yaw_is_interpolated_across_north_not_through_south() -> None:
     truth = Truth(np.array([0.0, 1.0]), {"yaw_deg": np.array([179.0, -179.0])})
     estimate = Series(np.array([0.5]), {"yaw_deg": np.array([-180.0])}, np.zeros(1))
     np.testing.assert_allclose(errors(estimate, truth, "yaw_deg"), [0.0], atol=1e-9)
+
+
+def test_yaw_crossing_180_breaks_the_line_instead_of_a_vertical_stroke(tmp_path: Path) -> None:
+    log = tmp_path / "est.csv"
+    yaw = [170.0, 178.0, -178.0, -170.0, -178.0, 179.0]
+    log.write_text("t_s,qw,roll_deg,pitch_deg,yaw_deg\n" + "".join(
+        f"{i * 0.1:.1f},1,0,0,{y}\n" for i, y in enumerate(yaw)))
+    truth = Truth(np.array([0.0, 0.5]), {"yaw_deg": np.array([175.0, -175.0]),
+                                         "roll_deg": np.zeros(2), "pitch_deg": np.zeros(2),
+                                         "climb_m_s": np.zeros(2)})
+    fig = plot_log(read_log(log), truth)
+    x, y = _line(fig.axes["attitude"], "est yaw_deg")
+    # A NaN between the samples of each wrap (178 -> -178, -178 -> 179), the samples kept.
+    np.testing.assert_array_equal(np.isnan(y), [False, False, True, False, False, False,
+                                                True, False])
+    np.testing.assert_array_equal(y[~np.isnan(y)], yaw)
+    np.testing.assert_allclose(x[np.isnan(y)], [0.15, 0.45])
+    tx, ty = _line(fig.axes["attitude"], "truth yaw_deg")
+    np.testing.assert_array_equal(tx, [0.0, 0.25, 0.5])
+    np.testing.assert_array_equal(ty, [175.0, np.nan, -175.0])
+    x, y = _line(fig.axes["attitude"], "est roll_deg")  # nothing wraps: drawn as logged
+    np.testing.assert_array_equal(y, np.zeros(len(yaw)))

@@ -136,3 +136,15 @@ def test_minmax_on_the_calibration_scenario_names_the_axes_never_turned_onto_the
     assert re.search(r"never turned these sensor axes onto the field direction: [+-][xyz] by "
                      r"\d+ deg", message), message
     assert "--method ellipsoid" in message
+
+
+def test_the_final_coverage_is_the_last_coverage_shown_live(
+        calibration_run: list[Sample]) -> None:
+    shown: list[str] = []
+    proc = MagCalibrationProcedure(MagSettings(target_coverage=0.7, field_ut=FIELD_UT),
+                                   progress=lambda p: shown.append(p.message))
+    result = proc.run(calibration_run)
+    live = [float(m) for m in re.findall(r"^coverage (\d+) %", "\n".join(shown), re.M)]
+    assert proc.done and live
+    assert f"{result.quality['coverage_pct']:.0f}" == f"{live[-1]:.0f}"
+    assert result.coverage.fraction == proc.coverage

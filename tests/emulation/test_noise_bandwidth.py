@@ -27,6 +27,8 @@ ACCEL_DENSITY = 300 * UG        # m/s^2/sqrt(Hz)
 SPEC = SensorErrorSpec.model_validate(
     {"gyro": {"noise_density": GYRO_DENSITY}, "accel": {"noise_density": ACCEL_DENSITY}})
 ODR_PERIOD_NS = 4_000_000       # the seed profile's MAX21100 runs gyro and accel at 250 Hz
+GYRO_FILTER_HZ = 14.0           # ... through its 14 Hz gyro filter (GYRO_CFG1 bandwidth)
+ACCEL_FILTER_HZ = 250.0 / 48    # ... and its accelerometer output filter (ODR / 48)
 
 
 @pytest.fixture(scope="module")
@@ -71,11 +73,12 @@ def _handed(registry: Registry, intervals_ns: list[int], quantity: str
 
 def test_noise_std_does_not_depend_on_the_host_poll_interval(registry: Registry) -> None:
     """Polled at 2x and at 0.5x the chip's 250 Hz ODR, the gyro noise std is the density
-    in the chip's Nyquist band (125 Hz) both times. With n = 3 x 4000 draws the sample std's
-    relative standard error is 1/sqrt(2n) = 0.65 %, so 3 % is a 4.6 sigma bound; the bug
-    (band from the poll interval) gave sqrt(2) too much and sqrt(2) too little."""
+    in the chip's 14 Hz filter band (narrower than its 125 Hz Nyquist band) both times.
+    With n = 3 x 4000 draws the sample std's relative standard error is 1/sqrt(2n) = 0.65 %,
+    so 3 % is a 4.6 sigma bound; the bug (band from the poll interval) gave sqrt(2) too much
+    and sqrt(2) too little."""
     n = 4000
-    expected = GYRO_DENSITY * math.sqrt(0.5e9 / ODR_PERIOD_NS)
+    expected = GYRO_DENSITY * math.sqrt(GYRO_FILTER_HZ)
     stds = {}
     for factor, interval_ns in (("2x", ODR_PERIOD_NS // 2), ("0.5x", ODR_PERIOD_NS * 2)):
         measured, true = _handed(registry, [interval_ns] * n, "gyro")
@@ -87,13 +90,13 @@ def test_noise_std_does_not_depend_on_the_host_poll_interval(registry: Registry)
 
 def test_a_poll_a_microsecond_after_the_previous_gives_no_spike(registry: Registry) -> None:
     """Polls at the ODR, each followed 1 us later by another: the accelerometer noise of
-    the quick polls stays that of the 250 Hz band (0.033 m/s^2 std). 6 sigma over 3 x 300
-    draws is exceeded with probability 2e-6; the bug's 500 kHz band gave 2 m/s^2 std
-    (spikes of several g)."""
+    the quick polls stays that of the chip's 5.2 Hz output filter (0.0067 m/s^2 std). 6 sigma
+    over 3 x 300 draws is exceeded with probability 2e-6; the bug's 500 kHz band gave
+    2 m/s^2 std (spikes of several g)."""
     intervals = [ODR_PERIOD_NS - 1_000, 1_000] * 300
     measured, true = _handed(registry, intervals, "accel")
     quick = (measured - true)[1::2]
-    sigma = ACCEL_DENSITY * math.sqrt(0.5e9 / ODR_PERIOD_NS)
+    sigma = ACCEL_DENSITY * math.sqrt(ACCEL_FILTER_HZ)
     assert np.abs(quick).max() < 6 * sigma, (np.abs(quick).max(), sigma)
 
 
@@ -121,3 +124,29 @@ def test_a_chip_without_an_output_rate_gets_the_poll_interval_floored_at_its_fas
     expected = GYRO_DENSITY * math.sqrt(0.5 / imu.min_output_period_s)
     std = float(np.std(np.asarray(rates) - np.mean(rates, axis=0)))
     assert abs(std / expected - 1.0) < 0.032, (std, expected)
+
+
+def test_the_chips_low_pass_filter_narrows_the_noise_band(registry: Registry) -> None:
+    """The GY-91's MPU-9250 outputs at 200 Hz (Nyquist 100 Hz) through its 41 Hz gyro
+    filter (DLPF_CFG 3): the gyro noise std is the density in 41 Hz, not in 100 Hz (0.64x
+    less). 3 x 3000 draws: the sample std's relative standard error is 0.75 %, so 4 % is a
+    5.3 sigma bound; the Nyquist band would be 56 % off."""
+    gy91 = SEED.parent / "gy91.yaml"
+    spec = SensorErrorSpec.model_validate({"gyro": {"noise_density": GYRO_DENSITY}})
+    pipeline = open_emulated(load_profile(gy91, registry), registry, scenario="static",
+                             error_specs={"imu": spec}, seed=7)
+    list(pipeline.events(0.1))
+    board = EmulatedBoard.of(pipeline)
+    imu = board.emulators["imu"]
+    assert imu.noise_period_s(Quantity.GYRO) == pytest.approx(0.005)  # precondition
+    assert imu.noise_bandwidth_hz(Quantity.GYRO) == 41.0
+    with pipeline:
+        t_ns = board.clock.now_ns()
+        rates = []
+        for _ in range(3000):
+            t_ns += 5_000_000
+            board.update(t_ns, "imu")
+            rates.append(imu.physics.angular_rate_rad_s)
+    std = float(np.std(np.asarray(rates) - np.mean(rates, axis=0)))
+    expected = GYRO_DENSITY * math.sqrt(41.0)
+    assert abs(std / expected - 1.0) < 0.04, (std, expected)

@@ -65,6 +65,11 @@ _GYRO_LSB_PER_DPS_BY_CODE = (15.0, 30.0, 60.0, 120.0)
 """GYRO_CFG1[1:0]: 00 = +/-2000, 01 = 1000, 10 = 500, 11 = 250 dps."""
 _ACCEL_LSB_PER_G_BY_CODE = (1875.0, 3750.0, 7500.0, 15000.0)
 """PWR_ACC_CFG[7:6]: 00 = +/-16, 01 = 8, 10 = 4, 11 = 2 g."""
+# Low-pass filters (datasheet GYRO_CFG1[5:2] normal-mode bandwidth table, Hz; ACC_CFG1[5:4]
+# output filter as a divisor of the accelerometer ODR: the cutoff is ODR / divisor).
+_GYRO_BANDWIDTH_HZ_BY_CODE = (2.0, 4.0, 6.0, 8.0, 10.0, 14.0, 22.0, 32.0, 50.0, 75.0, 100.0,
+                              150.0, 200.0, 250.0, 300.0, 400.0)
+_ACCEL_LPF_ODR_DIVISOR_BY_CODE = (48, 22, 9, 3)
 _COUNTS_AT_FULL_SCALE = 30000
 """Every range is 30000 counts wide (e.g. 2000 dps x 15 LSB/dps); outputs clip there."""
 _TEMP_LSB_PER_DEGC = 256.0
@@ -245,6 +250,21 @@ class Max2110xEmulator(ChipEmulator):
             return None
         odr = self._odr_hz(channel)
         return 1.0 / odr if odr else None
+
+    def noise_bandwidth_hz(self, channel: Channel) -> float | None:
+        """The low-pass filter's cutoff the configuration codes select: the gyro's
+        bandwidth code (GYRO_CFG1[5:2]; temperature: the gyro's), the accelerometer's ODR
+        over its output-filter divisor (ACC_CFG1[5:4]). None: powered down or a reserved
+        rate code."""
+        if channel is Channel.TEMPERATURE:
+            channel = Channel.GYRO
+        if channel not in _CHANNELS or not self._active(channel):
+            return None
+        if channel is Channel.GYRO:
+            return _GYRO_BANDWIDTH_HZ_BY_CODE[(self.bank0(Reg.GYRO_CFG1) >> 2) & 0x0F]
+        odr = self._odr_hz(channel)
+        divisor = _ACCEL_LPF_ODR_DIVISOR_BY_CODE[(self.bank0(Reg.ACC_CFG1) >> 4) & 0b11]
+        return odr / divisor if odr else None
 
     def _active(self, channel: Channel) -> bool:
         mode = (self.bank0(Reg.POWER_CFG) >> POWER_MODE_SHIFT) & 0x0F

@@ -57,6 +57,13 @@ _READ_ONLY = {r.WHO_AM_I, r.INT_STATUS, r.I2C_MST_STATUS, r.I2C_SLV4_DI, 0x72, 0
 # tables, so a wrong sensitivity in the driver shows as a wrong rate or force.
 _GYRO_LSB_PER_DPS_BY_FS_SEL = (131.0, 65.5, 32.8, 16.4)
 _ACCEL_LSB_PER_G_BY_FS_SEL = (16384.0, 8192.0, 4096.0, 2048.0)
+# Low-pass filter 3 dB bandwidths (Hz) from the register map's CONFIG and ACCEL_CONFIG2
+# tables: gyro by DLPF_CFG (Fchoice_b 00), or by Fchoice_b (x1: 8800, 10: 3600) when it
+# bypasses the filter; accelerometer by A_DLPF_CFG, or 1130 Hz with accel_fchoice_b set.
+_GYRO_BANDWIDTH_HZ_BY_DLPF_CFG = (250.0, 184.0, 92.0, 41.0, 20.0, 10.0, 5.0, 3600.0)
+_GYRO_BYPASS_BANDWIDTH_HZ = {0b01: 8800.0, 0b10: 3600.0, 0b11: 8800.0}
+_ACCEL_BANDWIDTH_HZ_BY_A_DLPF_CFG = (218.1, 218.1, 99.0, 44.8, 21.2, 10.2, 5.05, 420.0)
+_ACCEL_BYPASS_BANDWIDTH_HZ = 1130.0
 _TEMP_LSB_PER_DEGC = 333.87
 _TEMP_ROOM_DEGC = 21.0
 """TEMP_degC = TEMP_OUT / 333.87 + 21 (RoomTemp_Offset 0)."""
@@ -123,6 +130,22 @@ class MPU9250Emulator(ChipEmulator):
             return None
         if channel in (Channel.ACCEL, Channel.GYRO, Channel.TEMPERATURE):
             return self.period_ns() / 1e9
+        return None
+
+    def noise_bandwidth_hz(self, channel: Channel) -> float | None:
+        """The 3 dB bandwidth of the low-pass filter the register map gives for the gyro
+        (Fchoice_b in GYRO_CONFIG, DLPF_CFG in CONFIG; temperature shares its path) and the
+        accelerometer (accel_fchoice_b and A_DLPF_CFG in ACCEL_CONFIG2)."""
+        if channel in (Channel.GYRO, Channel.TEMPERATURE):
+            fchoice_b = self._regs[r.GYRO_CONFIG] & 0b11
+            if fchoice_b:
+                return _GYRO_BYPASS_BANDWIDTH_HZ[fchoice_b]
+            return _GYRO_BANDWIDTH_HZ_BY_DLPF_CFG[self._regs[r.CONFIG] & 0b111]
+        if channel is Channel.ACCEL:
+            cfg2 = self._regs[r.ACCEL_CONFIG2]
+            if cfg2 & 0b1000:
+                return _ACCEL_BYPASS_BANDWIDTH_HZ
+            return _ACCEL_BANDWIDTH_HZ_BY_A_DLPF_CFG[cfg2 & 0b111]
         return None
 
     def resolution(self, channel: Channel) -> float:

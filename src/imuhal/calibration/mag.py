@@ -166,19 +166,16 @@ def evaluate(raw: FloatArray, settings: MagSettings | None = None) -> MagResult:
     if len(x) < s.min_samples:
         raise CalibrationError(f"only {len(x)} magnetometer readings (need {s.min_samples})",
                                f"{TURN_ADVICE.capitalize()}, for longer")
-    rough = rough_coverage(x, s.field_range_ut[0])
-    if rough.fraction < s.min_coverage:
-        raise _coverage_error(rough, s)
+    cov = field_coverage(x, s)
+    if cov.fraction < s.min_coverage:
+        raise _coverage_error(cov, s)
     fit = ellipsoid_fit(x, s.field_ut) if s.method == "ellipsoid" else minmax_fit(x, s.field_ut)
     corrected = (x - fit.hard_iron_ut) @ fit.soft_iron.T
-    cov = coverage(corrected)
     sv = np.linalg.svd(fit.soft_iron, compute_uv=False)
     ratio = float(sv.max() / sv.min())
     residual = float(np.sqrt(np.mean((np.linalg.norm(corrected, axis=1) - fit.field_ut) ** 2)))
     result = MagResult(fit, cov, residual, len(x), ratio)
     figures = result.quality
-    if cov.fraction < s.min_coverage:
-        raise _coverage_error(cov, s)
     if residual > s.max_residual_pct / 100.0 * fit.field_ut:
         ellipsoid = _ellipsoid_fit_passing(x, s) if s.method == "minmax" else None
         if ellipsoid is not None:
@@ -214,6 +211,14 @@ def evaluate(raw: FloatArray, settings: MagSettings | None = None) -> MagResult:
             f"{s.max_axis_ratio:g})", f"the data are disturbed or too sparse; {TURN_ADVICE}",
             figures)
     return result
+
+
+def field_coverage(raw: FloatArray, settings: MagSettings) -> Coverage:
+    """The coverage of field directions that the live progress shows, the stop decision
+    uses and the result reports: one computation, so the final quality line repeats the last
+    figure the user saw (directions from the min/max centre, which needs no fit)."""
+    return rough_coverage(np.asarray(raw, dtype=float).reshape(-1, 3),
+                          settings.field_range_ut[0])
 
 
 def rough_coverage(raw: FloatArray, min_radius_ut: float) -> Coverage:
@@ -287,7 +292,7 @@ class MagCalibrationProcedure(Procedure[MagResult]):
             return True
         if n % 50 == 0:
             x = self.readings
-            self.coverage = rough_coverage(x, s.field_range_ut[0]).fraction
+            self.coverage = field_coverage(x, s).fraction
             self.say(ProgressKind.PROGRESS, f"coverage {100 * self.coverage:.0f} % "
                      f"(target {100 * s.target_coverage:.0f} %), {n} readings",
                      min(1.0, self.coverage / s.target_coverage))

@@ -178,14 +178,22 @@ class EmulatedBoard:
         """Per noise-density channel of ``name``'s error model, the sample period (s) its
         noise band follows: the chip's configured output period, else the poll interval
         ``poll_period_s`` floored at the shortest period the chip supports (a poll right
-        after another must not widen the band past anything the chip can output)."""
+        after another must not widen the band past anything the chip can output); longer
+        where the chip's low-pass filter (:meth:`ChipEmulator.noise_bandwidth_hz`) is
+        narrower than that period's Nyquist band."""
         emulator = self.emulators[name]
         floor = emulator.min_output_period_s
         periods: dict[str, float] = {}
         for channel in model.period_channels:
-            own = emulator.noise_period_s(_QUANTITY_BY_NAME[channel])
-            periods[channel] = own if own is not None and own > 0 else \
-                max(poll_period_s, floor)
+            quantity = _QUANTITY_BY_NAME[channel]
+            own = emulator.noise_period_s(quantity)
+            period = own if own is not None and own > 0 else max(poll_period_s, floor)
+            # The chip's low-pass filter narrows the band below Nyquist: the period whose
+            # Nyquist band is the filter's bandwidth.
+            bandwidth_hz = emulator.noise_bandwidth_hz(quantity)
+            if bandwidth_hz is not None and bandwidth_hz > 0:
+                period = max(period, 0.5 / bandwidth_hz)
+            periods[channel] = period
         return periods
 
     def update(self, t_ns: int, device: str | None = None) -> None:

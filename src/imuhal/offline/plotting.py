@@ -10,6 +10,8 @@ matplotlib's object API on the Agg canvas (no pyplot, no display needed):
   estimate measures, so the two share a reference;
 * errors (estimate minus truth at the estimate's time, truth interpolated): attitude
   (yaw wrapped to [-180, 180)), altitude, climb;
+* angle lines (attitude, truth, attitude error) break where the angle wraps at +/-180 deg
+  (a NaN point between the two samples), not a vertical stroke across the panel;
 * raw sensors: accelerometer, gyro, magnetometer, pressure per device (body frame NED);
 * device health: flagged samples per device and flag, cumulative, and each device's sample
   rate per second (a bus that fails shows as a dip; bus errors flag no sample of their own).
@@ -187,6 +189,19 @@ def _wrap_deg(x: FloatArray) -> FloatArray:
     return (x + 180.0) % 360.0 - 180.0
 
 
+def break_at_wraps(t_s: FloatArray, angle_deg: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """An angle series (deg) with a NaN point inserted wherever two consecutive values differ
+    by more than 180 deg, so a line crossing +/-180 breaks there instead of being drawn as
+    a vertical stroke across the panel; the points themselves are unchanged."""
+    t = np.asarray(t_s, dtype=float)
+    y = np.asarray(angle_deg, dtype=float)
+    wraps = np.flatnonzero(np.abs(np.diff(y)) > 180.0) + 1
+    if not len(wraps):
+        return t, y
+    gap_t = 0.5 * (t[wraps - 1] + t[wraps])
+    return np.insert(t, wraps, gap_t), np.insert(y, wraps, np.nan)
+
+
 def errors(series: Series, truth: Truth, column: str) -> FloatArray:
     """Estimate minus truth at the estimate's times (angles wrapped to [-180, 180))."""
     truth_column = "pressure_altitude_m" if column == "altitude_m" else column
@@ -287,16 +302,18 @@ def _attitude(axes: dict[str, Axes], attitude: dict[str, Series], truth: Truth |
     ax = axes["attitude"]
     for src, s in attitude.items():
         for c in ATTITUDE:
-            ax.plot(s.t_s, s.columns[c], lw=0.8, label=f"{src} {c}")
+            ax.plot(*break_at_wraps(s.t_s, s.columns[c]), lw=0.8, label=f"{src} {c}")
     ax.set_ylabel("attitude, deg")
     if truth is None:
         return
     for c in ATTITUDE:
-        ax.plot(truth.t_s, truth.columns[c], "--", lw=0.8, color="k", label=f"truth {c}")
+        ax.plot(*break_at_wraps(truth.t_s, truth.columns[c]), "--", lw=0.8, color="k",
+                label=f"truth {c}")
     err = axes["attitude error"]
     for src, s in attitude.items():
         for c in ATTITUDE:
-            err.plot(s.t_s, errors(s, truth, c), lw=0.8, label=f"{src} {c} error")
+            err.plot(*break_at_wraps(s.t_s, errors(s, truth, c)), lw=0.8,
+                     label=f"{src} {c} error")
     err.set_ylabel("estimate - truth, deg")
 
 

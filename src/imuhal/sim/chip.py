@@ -123,6 +123,14 @@ class ChipEmulator(ABC):
         time since the previous poll, never below ``min_output_period_s``."""
         return None
 
+    def noise_bandwidth_hz(self, channel: Channel) -> float | None:
+        """The bandwidth (Hz) of the chip's digital low-pass filter on ``channel`` in its
+        current configuration (the datasheet's 3 dB bandwidth for the filter setting). The
+        simulator draws the noise of ``noise_density`` specs without a ``bandwidth_hz`` in
+        the narrower of this band and the Nyquist band of :meth:`noise_period_s`. None: no
+        filter narrower than the output's Nyquist band is known."""
+        return None
+
     def silent_reset(self) -> None:
         """Fault injection: the chip resets without telling anyone (configuration lost)."""
         raise NotImplementedError(f"{type(self).__name__} does not model a silent reset")
