@@ -10,6 +10,8 @@ from imuhal.core.samples import (
     AccelSample,
     Channel,
     Frame,
+    GyroSample,
+    MagSample,
     PressureSample,
     SampleFlag,
     VelocitySample,
@@ -46,6 +48,20 @@ def test_a_velocity_sample_is_earth_frame_and_carries_its_accuracy() -> None:
     assert v.channel is Channel.VELOCITY and v.valid
     assert not hasattr(v, "frame")  # NED by definition: no mount rotation applies to it
     assert (v.velocity_ned_m_s, v.accuracy_m_s) == ((9.0, 2.0, -1.5), 0.1)
+
+
+@pytest.mark.parametrize(("cls", "value_field"), [
+    (AccelSample, "accel_m_s2"), (GyroSample, "gyro_rad_s"), (MagSample, "mag_ut")])
+def test_build_makes_the_same_sample_as_the_keyword_constructor(cls: type,
+                                                                value_field: str) -> None:
+    value = (1.5, -0.0, 3.25)
+    built = cls.build(7, "imu", SampleFlag.STALE, Frame.BODY_NED, value)
+    kw = cls(t_ns=7, device="imu", flags=SampleFlag.STALE, frame=Frame.BODY_NED,
+             **{value_field: value})
+    assert type(built) is cls and built == kw and repr(built) == repr(kw)
+    assert hash(built) == hash(kw)
+    with pytest.raises(AttributeError):
+        built.t_ns = 8  # still frozen
 
 
 def test_with_vector_changes_value_and_frame_only() -> None:

@@ -199,9 +199,8 @@ class Hmc5883lDriver(Driver):
             return MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                              mag_ut=NAN3, flags=bad)
         counts = decode.data_counts_xyz(raw)
-        return MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
-                         mag_ut=decode.counts_to_ut(counts, self.gain_lsb_per_gauss),
-                         flags=decode.counts_flags(counts))
+        return MagSample.build(now_ns, self.device, decode.counts_flags(counts), Frame.SENSOR,
+                               decode.counts_to_ut(counts, self.gain_lsb_per_gauss))
 
     def _frozen_flag(self, raw: bytes) -> SampleFlag:
         return self._frozen.observe(Channel.MAG, raw)

@@ -310,10 +310,8 @@ class Max2110xDriver(Driver):
         elif decode.saturated(counts):
             flags |= SampleFlag.SATURATED
         if channel is Channel.GYRO:
-            return GyroSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
-                              gyro_rad_s=value, flags=flags)
-        return AccelSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
-                           accel_m_s2=value, flags=flags)
+            return GyroSample.build(now_ns, self.device, flags, Frame.SENSOR, value)
+        return AccelSample.build(now_ns, self.device, flags, Frame.SENSOR, value)
 
     def full_scale(self, channel: Channel) -> float | None:
         """The configured range (rad/s, m/s^2): the chip's nominal full scale is 30000

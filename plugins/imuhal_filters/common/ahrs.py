@@ -525,13 +525,11 @@ class AhrsEstimator(Estimator):
         if diag is None:
             return []
         return [
-            AttitudeEstimate(
-                t_ns=t_ns,
-                source=self.instance,
-                q_body_to_ned=self._q,
-                linear_accel_ned_m_s2=None if accel is None else _linear_accel_ned(self._q,
-                                                                                  accel),
-                diagnostics={"dt_s": dt, "turn_compensation": self._kinematics.source,
-                             **diag},
+            AttitudeEstimate.build(
+                t_ns,
+                self.instance,
+                self._q,
+                None if accel is None else _linear_accel_ned(self._q, accel),
+                {"dt_s": dt, "turn_compensation": self._kinematics.source, **diag},
             )
         ]

@@ -108,9 +108,22 @@ class AccelSample(VectorSample):
         return self.accel_m_s2
 
     def with_vector(self, vector: Vec3, frame: Frame) -> AccelSample:
-        # Direct construction: runs for every sample, where dataclasses.replace is slow.
-        return AccelSample(t_ns=self.t_ns, device=self.device, flags=self.flags, frame=frame,
-                     accel_m_s2=_vec3(vector))
+        return AccelSample.build(self.t_ns, self.device, self.flags, frame, _vec3(vector))
+
+    @classmethod
+    def build(cls, t_ns: int, device: str, flags: SampleFlag, frame: Frame,
+              accel_m_s2: Vec3) -> AccelSample:
+        """The same sample as the keyword constructor, built faster (every sample comes
+        through here): the fields are set through their slots, where the generated
+        ``__init__`` of a frozen class goes through ``object.__setattr__`` per field.
+        ``accel_m_s2`` must already be a tuple of three floats."""
+        s = _new(cls)
+        _set_t_ns(s, t_ns)
+        _set_device(s, device)
+        _set_flags(s, flags)
+        _set_frame(s, frame)
+        _set_accel_m_s2(s, accel_m_s2)
+        return s
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -125,9 +138,22 @@ class GyroSample(VectorSample):
         return self.gyro_rad_s
 
     def with_vector(self, vector: Vec3, frame: Frame) -> GyroSample:
-        # Direct construction: runs for every sample, where dataclasses.replace is slow.
-        return GyroSample(t_ns=self.t_ns, device=self.device, flags=self.flags, frame=frame,
-                     gyro_rad_s=_vec3(vector))
+        return GyroSample.build(self.t_ns, self.device, self.flags, frame, _vec3(vector))
+
+    @classmethod
+    def build(cls, t_ns: int, device: str, flags: SampleFlag, frame: Frame,
+              gyro_rad_s: Vec3) -> GyroSample:
+        """The same sample as the keyword constructor, built faster (every sample comes
+        through here): the fields are set through their slots, where the generated
+        ``__init__`` of a frozen class goes through ``object.__setattr__`` per field.
+        ``gyro_rad_s`` must already be a tuple of three floats."""
+        s = _new(cls)
+        _set_t_ns(s, t_ns)
+        _set_device(s, device)
+        _set_flags(s, flags)
+        _set_frame(s, frame)
+        _set_gyro_rad_s(s, gyro_rad_s)
+        return s
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -142,9 +168,22 @@ class MagSample(VectorSample):
         return self.mag_ut
 
     def with_vector(self, vector: Vec3, frame: Frame) -> MagSample:
-        # Direct construction: runs for every sample, where dataclasses.replace is slow.
-        return MagSample(t_ns=self.t_ns, device=self.device, flags=self.flags, frame=frame,
-                     mag_ut=_vec3(vector))
+        return MagSample.build(self.t_ns, self.device, self.flags, frame, _vec3(vector))
+
+    @classmethod
+    def build(cls, t_ns: int, device: str, flags: SampleFlag, frame: Frame,
+              mag_ut: Vec3) -> MagSample:
+        """The same sample as the keyword constructor, built faster (every sample comes
+        through here): the fields are set through their slots, where the generated
+        ``__init__`` of a frozen class goes through ``object.__setattr__`` per field.
+        ``mag_ut`` must already be a tuple of three floats."""
+        s = _new(cls)
+        _set_t_ns(s, t_ns)
+        _set_device(s, device)
+        _set_flags(s, flags)
+        _set_frame(s, frame)
+        _set_mag_ut(s, mag_ut)
+        return s
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -242,6 +281,17 @@ class PositionSample(Sample):
     utc_s: float | None = None
     """The epoch in UTC as the receiver stamped it (s since 1970-01-01; None: unknown)."""
     channel: ClassVar[Channel] = Channel.POSITION
+
+
+# Slot setters for the ``build`` fast paths (a frozen class forbids plain assignment).
+_new = object.__new__
+_set_t_ns = Sample.t_ns.__set__  # type: ignore[attr-defined]
+_set_device = Sample.device.__set__  # type: ignore[attr-defined]
+_set_flags = Sample.flags.__set__  # type: ignore[attr-defined]
+_set_frame = VectorSample.frame.__set__  # type: ignore[attr-defined]
+_set_accel_m_s2 = AccelSample.accel_m_s2.__set__  # type: ignore[attr-defined]
+_set_gyro_rad_s = GyroSample.gyro_rad_s.__set__  # type: ignore[attr-defined]
+_set_mag_ut = MagSample.mag_ut.__set__  # type: ignore[attr-defined]
 
 
 SAMPLE_TYPES: dict[Channel, type[Sample]] = {

@@ -30,6 +30,21 @@ class AttitudeEstimate(Estimate):
         """Seed conventions: roll right +, pitch up +, yaw [-180, 180] clockwise from north."""
         return euler_deg_from_quat(self.q_body_to_ned)
 
+    @classmethod
+    def build(cls, t_ns: int, source: str, q_body_to_ned: tuple[float, float, float, float],
+              linear_accel_ned_m_s2: Vec3 | None, diagnostics: dict[str, Any]
+              ) -> AttitudeEstimate:
+        """The same estimate as the keyword constructor, built faster (an AHRS makes one
+        per gyro sample): the fields are set through their slots, where the generated
+        ``__init__`` of a frozen class goes through ``object.__setattr__`` per field."""
+        e = _new(cls)
+        _set_t_ns(e, t_ns)
+        _set_source(e, source)
+        _set_diagnostics(e, diagnostics)
+        _set_q(e, q_body_to_ned)
+        _set_linear_accel(e, linear_accel_ned_m_s2)
+        return e
+
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class VerticalEstimate(Estimate):
@@ -38,3 +53,12 @@ class VerticalEstimate(Estimate):
     altitude_m: float
     climb_m_s: float
     accel_bias_m_s2: float | None = None
+
+
+# Slot setters for the ``build`` fast path (a frozen class forbids plain assignment).
+_new = object.__new__
+_set_t_ns = Estimate.t_ns.__set__  # type: ignore[attr-defined]
+_set_source = Estimate.source.__set__  # type: ignore[attr-defined]
+_set_diagnostics = Estimate.diagnostics.__set__  # type: ignore[attr-defined]
+_set_q = AttitudeEstimate.q_body_to_ned.__set__  # type: ignore[attr-defined]
+_set_linear_accel = AttitudeEstimate.linear_accel_ned_m_s2.__set__  # type: ignore[attr-defined]
