@@ -8,10 +8,10 @@ sinks marked invalid.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from enum import Enum, IntEnum, IntFlag
-from typing import ClassVar, TypeAlias
+from typing import ClassVar, Self, TypeAlias
 
 from imuhal.core.quantities import Channel, Quantity
 
@@ -88,6 +88,25 @@ class VectorSample(Sample):
     def with_vector(self, vector: Vec3, frame: Frame) -> VectorSample:
         raise NotImplementedError
 
+    _set_vector: ClassVar[Callable[[VectorSample, Vec3], None]]
+    """The value field's slot setter (assigned below the built-in classes)."""
+
+    @classmethod
+    def build(cls, t_ns: int, device: str, flags: SampleFlag, frame: Frame,
+              vector: Vec3) -> Self:
+        """The same sample as the keyword constructor, built faster (every sample comes
+        through here): the fields are set through their slots, where the generated
+        ``__init__`` of a frozen class goes through ``object.__setattr__`` per field.
+        ``vector`` (the class's value field) must already be a tuple of three floats.
+        For the built-in vector samples; a plugin's class sets ``_set_vector`` to use it."""
+        s = _new(cls)
+        _set_t_ns(s, t_ns)
+        _set_device(s, device)
+        _set_flags(s, flags)
+        _set_frame(s, frame)
+        cls._set_vector(s, vector)
+        return s
+
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class ScalarSample(Sample):
@@ -110,20 +129,6 @@ class AccelSample(VectorSample):
     def with_vector(self, vector: Vec3, frame: Frame) -> AccelSample:
         return AccelSample.build(self.t_ns, self.device, self.flags, frame, _vec3(vector))
 
-    @classmethod
-    def build(cls, t_ns: int, device: str, flags: SampleFlag, frame: Frame,
-              accel_m_s2: Vec3) -> AccelSample:
-        """The same sample as the keyword constructor, built faster (every sample comes
-        through here): the fields are set through their slots, where the generated
-        ``__init__`` of a frozen class goes through ``object.__setattr__`` per field.
-        ``accel_m_s2`` must already be a tuple of three floats."""
-        s = _new(cls)
-        _set_t_ns(s, t_ns)
-        _set_device(s, device)
-        _set_flags(s, flags)
-        _set_frame(s, frame)
-        _set_accel_m_s2(s, accel_m_s2)
-        return s
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -140,20 +145,6 @@ class GyroSample(VectorSample):
     def with_vector(self, vector: Vec3, frame: Frame) -> GyroSample:
         return GyroSample.build(self.t_ns, self.device, self.flags, frame, _vec3(vector))
 
-    @classmethod
-    def build(cls, t_ns: int, device: str, flags: SampleFlag, frame: Frame,
-              gyro_rad_s: Vec3) -> GyroSample:
-        """The same sample as the keyword constructor, built faster (every sample comes
-        through here): the fields are set through their slots, where the generated
-        ``__init__`` of a frozen class goes through ``object.__setattr__`` per field.
-        ``gyro_rad_s`` must already be a tuple of three floats."""
-        s = _new(cls)
-        _set_t_ns(s, t_ns)
-        _set_device(s, device)
-        _set_flags(s, flags)
-        _set_frame(s, frame)
-        _set_gyro_rad_s(s, gyro_rad_s)
-        return s
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -170,20 +161,6 @@ class MagSample(VectorSample):
     def with_vector(self, vector: Vec3, frame: Frame) -> MagSample:
         return MagSample.build(self.t_ns, self.device, self.flags, frame, _vec3(vector))
 
-    @classmethod
-    def build(cls, t_ns: int, device: str, flags: SampleFlag, frame: Frame,
-              mag_ut: Vec3) -> MagSample:
-        """The same sample as the keyword constructor, built faster (every sample comes
-        through here): the fields are set through their slots, where the generated
-        ``__init__`` of a frozen class goes through ``object.__setattr__`` per field.
-        ``mag_ut`` must already be a tuple of three floats."""
-        s = _new(cls)
-        _set_t_ns(s, t_ns)
-        _set_device(s, device)
-        _set_flags(s, flags)
-        _set_frame(s, frame)
-        _set_mag_ut(s, mag_ut)
-        return s
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -289,9 +266,9 @@ _set_t_ns = Sample.t_ns.__set__  # type: ignore[attr-defined]
 _set_device = Sample.device.__set__  # type: ignore[attr-defined]
 _set_flags = Sample.flags.__set__  # type: ignore[attr-defined]
 _set_frame = VectorSample.frame.__set__  # type: ignore[attr-defined]
-_set_accel_m_s2 = AccelSample.accel_m_s2.__set__  # type: ignore[attr-defined]
-_set_gyro_rad_s = GyroSample.gyro_rad_s.__set__  # type: ignore[attr-defined]
-_set_mag_ut = MagSample.mag_ut.__set__  # type: ignore[attr-defined]
+AccelSample._set_vector = AccelSample.accel_m_s2.__set__  # type: ignore[attr-defined]
+GyroSample._set_vector = GyroSample.gyro_rad_s.__set__  # type: ignore[attr-defined]
+MagSample._set_vector = MagSample.mag_ut.__set__  # type: ignore[attr-defined]
 
 
 SAMPLE_TYPES: dict[Channel, type[Sample]] = {
