@@ -38,10 +38,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("runs", nargs="*", default=list(DEFAULT_RUNS))
     args = parser.parse_args(argv)
     reg = load_registry()
-    acc = fb._accuracy_module()
-    base = acc.seed_profile(reg)
-    profile = acc.condition_profile(base, acc.Condition.CALIBRATED,
-                                    acc.measure_board_calibration(base, reg))
+    profile = fb.calibrated_seed_profile(reg)
     thermal = fb.fly(profile, reg, "thermal", args.duration)
     rc = fb.fly(profile, reg, "rc-flight", min(args.duration, 60.0))
     upside = fb.fly(profile, reg, "static", 6.0, {"roll_deg": 180.0})

@@ -41,10 +41,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("runs", nargs="*", default=list(DEFAULT_RUNS))
     args = parser.parse_args(argv)
     reg = load_registry()
-    acc = fb._accuracy_module()
-    base = acc.seed_profile(reg)
-    profile = acc.condition_profile(base, acc.Condition.CALIBRATED,
-                                    acc.measure_board_calibration(base, reg))
+    profile = fb.calibrated_seed_profile(reg)
     rc = fb.fly(profile, reg, "rc-flight", 60.0)
     a_t = np.array([s.t_ns / 1e9 for s in rc.samples if isinstance(s, AccelSample)])
     a_g = [gravity_positive_g(s.accel_m_s2) for s in rc.samples if isinstance(s, AccelSample)]

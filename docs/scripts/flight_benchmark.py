@@ -308,12 +308,18 @@ def vario_figures(registry: Registry, ahrs: str, ahrs_extra: dict[str, Any],
                         step_delay_s(step, outs[2]))
 
 
+def calibrated_seed_profile(registry: Registry) -> BoardProfile:
+    """The seed paraglider board with the calibration its emulated chips give when
+    calibrated (the board every flight figure is measured on)."""
+    acc = _accuracy_module()
+    base = acc.seed_profile(registry)
+    return acc.condition_profile(base, acc.Condition.CALIBRATED,
+                                 acc.measure_board_calibration(base, registry))
+
+
 def measure(duration_s: float, say: Callable[[str], None]) -> Results:
     reg = load_registry()
-    acc = _accuracy_module()
-    base = acc.seed_profile(reg)
-    cals = acc.measure_board_calibration(base, reg)
-    profile = acc.condition_profile(base, acc.Condition.CALIBRATED, cals)
+    profile = calibrated_seed_profile(reg)
     say("calibration measured")
     thermal = fly(profile, reg, "thermal", duration_s)
     rc = fly(profile, reg, "rc-flight", min(duration_s, 60.0))
