@@ -63,7 +63,7 @@ def run_batch(
         lo, hi = AVARIO_ACCEL_VARIANCE_RANGE
         kf3_rows(kf.x, kf.P, variances, ref.semi_implicit, ref.adaptive_accel_variance,
                  lo, hi, AVARIO_ACCEL_VARIANCE_DIVISOR, z * CM_PER_M, a * CM_PER_M,
-                 np.ascontiguousarray(dt), out)
+                 fast.c_array(dt), out)
     else:
         for i in range(z.size):
             kf.step(z[i] * CM_PER_M, a[i] * CM_PER_M, float(dt[i]))
@@ -88,7 +88,7 @@ def run_baro_batch(
     out = np.empty((z.size, 2))
     if fast.available():
         state = np.array([kf.z, kf.v, kf.pzz, kf.pzv, kf.pvv])
-        baro_rows(state, kf.accel_var, kf.meas_var, z, np.ascontiguousarray(dt), out)
+        baro_rows(state, kf.accel_var, kf.meas_var, fast.c_array(z), fast.c_array(dt), out)
     else:
         for i in range(z.size):
             kf.predict(float(dt[i]))
