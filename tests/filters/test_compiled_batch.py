@@ -1,4 +1,4 @@
-"""The compiled batch path (``fast`` extra, numba) gives what the pure-Python path gives.
+"""The compiled batch path (JIT and AOT kernels) gives what the pure-Python path gives.
 
 Pure Python is the reference: on the conformance data (data set A), with every preset and
 the corner cases the kernel handles itself (missing rows, values beyond the full scale, the
@@ -14,15 +14,13 @@ import numpy as np
 import pytest
 from tests.filters.dataset_a import load_head
 
-from imuhal_filters.common import fast
 from imuhal_filters.common.batch import run_batch
 from imuhal_filters.imufilter.estimator import ImuFilterEstimator
 from imuhal_filters.madgwick.estimator import MadgwickEstimator
 from imuhal_filters.mahony.estimator import MahonyEstimator
 
-pytestmark = pytest.mark.skipif(
-    not fast.available(),
-    reason="no compiled kernels: numba not installed (pip install -e '.[fast]') or IMUHAL_NO_JIT=1")
+# every test runs on numba's JIT and on the AOT extension (each skipped where unavailable)
+pytestmark = pytest.mark.usefixtures("compiled_backend")
 
 CASES = [
     {},

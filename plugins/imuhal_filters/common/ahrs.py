@@ -410,6 +410,8 @@ class AhrsEstimator(Estimator):
         return diags
 
     # ------------------------------------------------------------------ compiled kernels
+    _compiled_kernel: ClassVar[fast.Kernel | None] = None
+    """The estimator's compiled kernel (None: it has none; its rows run in Python)."""
     _kernel_diag_width: ClassVar[int] = 0
     """Columns of the per-row diagnostics array the compiled kernel fills."""
 
@@ -433,7 +435,8 @@ class AhrsEstimator(Estimator):
         """The compiled kernels cover no turn compensation by a speed (nominal airspeed,
         velocity, airspeed): only its bookkeeping."""
         s = self.settings
-        return fast.available() and not (s.turn_compensation and (
+        kernel = self._compiled_kernel
+        return kernel is not None and kernel.available() and not (s.turn_compensation and (
             s.nominal_airspeed_m_s is not None or self._kinematics.has_speed_source))
 
     def _kernel_finished(self, q: FloatArray, steps: int, closed: int, turn_sum: float) -> None:

@@ -57,7 +57,7 @@ def run_batch(
         raise ValueError(f"{a.size} accelerations for {z.size} altitudes")
     kf = configured_core(s, float(z[0]))
     out = np.empty((z.size, 3))
-    if fast.available():
+    if kf3_rows.available():
         ref = kf.reference
         variances = np.array([kf.z_meas_variance, kf.accel_variance, kf.bias_variance])
         lo, hi = AVARIO_ACCEL_VARIANCE_RANGE
@@ -86,7 +86,7 @@ def run_baro_batch(
     kf = BaroKalman2(accel_var=s.accel_noise_m_s2**2, meas_var=s.altitude_noise_m**2)
     kf.initialise(float(z[0]), 0.0, s.altitude_noise_m**2, s.initial_climb_sigma_m_s**2)
     out = np.empty((z.size, 2))
-    if fast.available():
+    if baro_rows.available():
         state = np.array([kf.z, kf.v, kf.pzz, kf.pzv, kf.pvv])
         baro_rows(state, kf.accel_var, kf.meas_var, fast.c_array(z), fast.c_array(dt), out)
     else:
