@@ -146,13 +146,19 @@ def build(directory: Path | None = None) -> Built:
         for k in kernels:
             fast.swap_helpers(k.fn, lambda helper: numba.njit(nogil=True)(helper.fn))
             cc.export(k.name, k.signature())(k.fn)
+        saved_tempdir = tempfile.tempdir
+        tempfile.tempdir = str(tmp)  # pycc's own build directory too, removed below
         try:
             with _quiet():
                 cc.compile()
         except Exception as exc:  # the compiler's own errors: name them, keep what was there
-            raise KernelBuildError(f"building the kernel extension failed "
-                                   f"({type(exc).__name__}: {exc}); the kernels keep running "
-                                   "as before (numba's JIT or Python)") from exc
+            first = (str(exc).splitlines() or [""])[0]
+            raise KernelBuildError(
+                f"building the kernel extension failed ({type(exc).__name__}: "
+                f"{first[:300]}{'...' if len(first) > 300 else ''}); nothing was replaced, the "
+                "kernels keep running as before (numba's JIT or Python)") from exc
+        finally:
+            tempfile.tempdir = saved_tempdir
         extension = tmp / (name + aot.ext_suffix())
         manifest = tmp / (name + ".json")
         manifest.write_text(json.dumps(record, indent=1, sort_keys=True))
