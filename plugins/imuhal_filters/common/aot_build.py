@@ -3,9 +3,10 @@
 numba's ``pycc`` compiles each exported kernel (the same function the JIT compiles, with the
 signature declared next to it in its ``*/fast.py``) and the helper kernels it calls into a
 CPython extension that needs neither numba nor LLVM at run time. It needs numba, setuptools
-and a C compiler with Python's headers at build time. numba has deprecated ``pycc`` (its
-documentation points to a successor not yet released); a numba without it is reported as
-such, and the kernels then keep running on the JIT.
+and a C compiler with Python's headers at build time. numba marks ``pycc`` as pending
+deprecation (since 0.57: "Replacement technology is being developed"); the build silences
+that warning, and a numba without ``pycc`` is reported as such (the kernels then keep running
+on the JIT).
 
 The build is atomic: it compiles in a temporary directory inside the kernel directory,
 imports the result to check every kernel is there, then moves the extension and last its
@@ -27,6 +28,7 @@ import sys
 import sysconfig
 import tempfile
 import time
+import warnings
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -75,8 +77,10 @@ def _toolchain() -> Any:
         raise KernelBuildError("imuhal kernels build needs setuptools: "
                                "pip install -e '.[fast]' (or pip install setuptools)") from exc
     try:
-        from numba.pycc import CC
-        from numba.pycc.platform import external_compiler_works
+        with warnings.catch_warnings():  # its pending deprecation: see the module's docstring
+            warnings.simplefilter("ignore", PendingDeprecationWarning)
+            from numba.pycc import CC
+            from numba.pycc.platform import external_compiler_works
     except ImportError as exc:
         raise KernelBuildError(
             f"numba {numba.__version__} has no numba.pycc (deprecated by numba, now "
