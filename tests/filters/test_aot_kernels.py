@@ -21,7 +21,9 @@ from tests.support.kernels import cli_env
 
 import imuhal_filters
 from imuhal.offline.csv_input import ACCEL, GYRO, MAG, TIME
+from imuhal_filters.common import fast
 from imuhal_filters.common.aot_build import exported_kernels
+from imuhal_filters.imufilter.fast import to_global as imufilter_to_global
 
 PLUGINS = Path(imuhal_filters.__file__).resolve().parent
 
@@ -127,3 +129,13 @@ def test_a_manifest_not_matching_its_file_name_is_ignored(
     status = _status(cli_env(IMUHAL_KERNEL_DIR=str(tmp_path), IMUHAL_KERNELS="auto"))
     assert all(backend != "aot" for backend, _ in status.values())
     assert "not built" in status["mahony_rows"][1]
+
+
+def _uses_a_helper_of_another_module(x):  # type: ignore[no-untyped-def]
+    return imufilter_to_global(1.0, 0.0, 0.0, 0.0, x, 0.0, 0.0)
+
+
+def test_a_kernel_fingerprint_covers_the_modules_of_the_helpers_it_calls() -> None:
+    """A helper edited in another file makes the caller's extension stale too."""
+    kernel = fast.Kernel(_uses_a_helper_of_another_module)
+    assert kernel.modules() == [__name__, "imuhal_filters.imufilter.fast"]

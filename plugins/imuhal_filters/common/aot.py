@@ -8,12 +8,13 @@ the SHA-256 of each kernel module's source and of the build's own sources, the e
 suffix (Python version and ABI, platform), numpy's version and numba's. Both files are named
 with the fingerprint, a hash of that record.
 
-A kernel runs from an extension only when the record matches now: its module's source
-(every kernel and helper in it: kernels call only helpers of their own module), the shared
-sources, this Python, this numpy, and the installed numba (an extension needs no numba at
-run time: when numba is absent, the numba it was built with is accepted). A kernel edited
-after the build runs on the JIT or in Python until the next build, never stale compiled code;
-the other kernels keep their extension. Nothing here imports numba.
+A kernel runs from an extension only when the record matches now: its module's source and
+that of every module whose helper kernels it calls (today each calls only helpers of its
+own module), the shared sources, this Python, this numpy, and the installed numba (an
+extension needs no numba at run time: when numba is absent, the numba it was built with is
+accepted). A kernel edited after the build runs on the JIT or in Python until the next
+build, never stale compiled code; the other kernels keep their extension.
+Nothing here imports numba.
 """
 
 from __future__ import annotations
@@ -130,9 +131,10 @@ class Manifest:
             return f"built with numba {env['numba']}, numba {now['numba']} is installed"
         if self.record["kernels"].get(kernel.name) != kernel.module:
             return f"it has no kernel {kernel.name}"
-        if self.record["sources"].get(kernel.module) != source_hash(kernel.module):
-            return (f"stale: built for other sources ({kernel.module.replace('.', '/')}.py "
-                    "changed since)")
+        for module in kernel.modules():
+            if self.record["sources"].get(module) != source_hash(module):
+                return (f"stale: built for other sources ({module.replace('.', '/')}.py "
+                        "changed since)")
         if self.record["shared"] != shared_hash():
             return "stale: built for other sources (common/fast.py or common/aot_build.py)"
         return None

@@ -119,6 +119,7 @@ class Kernel:
         self.name = fn.__name__.lstrip("_")
         self.module = fn.__module__
         self.returns = returns
+        self._modules: list[str] | None = None
         self.args: dict[str, ArgType] | None = None
         if args is not None:
             names = fn.__code__.co_varnames[:fn.__code__.co_argcount]
@@ -126,6 +127,19 @@ class Kernel:
                 raise TypeError(f"kernel {self.name}: declared arguments {tuple(args)} are not "
                                 f"its parameters {names}")
             self.args = {n: ArgType.parse(t) for n, t in args.items()}
+
+    def modules(self) -> list[str]:
+        """The modules whose source this kernel's compiled code comes from: its own and
+        those of the helper kernels it calls, transitively (what its fingerprint covers).
+        Worked out once, before a compilation points the helpers' names elsewhere."""
+        if self._modules is None:
+            found = [self.module]
+            for name in self.fn.__code__.co_names:
+                helper = self.fn.__globals__.get(name)
+                if isinstance(helper, Kernel):
+                    found += [m for m in helper.modules() if m not in found]
+            self._modules = found
+        return self._modules
 
     @property
     def exported(self) -> bool:
@@ -249,6 +263,7 @@ def _jitted(kernel: Kernel) -> Callable[..., Any]:
     signature when it has one."""
     import numba
 
+    kernel.modules()  # while the helpers' names still name them
     swap_helpers(kernel.fn, _jitted)
     if kernel.exported:
         return numba.njit(kernel.signature(), cache=True, nogil=True)(kernel.fn)
