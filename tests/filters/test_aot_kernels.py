@@ -139,3 +139,15 @@ def test_a_kernel_fingerprint_covers_the_modules_of_the_helpers_it_calls() -> No
     """A helper edited in another file makes the caller's extension stale too."""
     kernel = fast.Kernel(_uses_a_helper_of_another_module)
     assert kernel.modules() == [__name__, "imuhal_filters.imufilter.fast"]
+
+
+def test_a_damaged_extension_falls_back_and_says_why(
+        aot_kernel_dir: Path, tmp_path: Path) -> None:
+    for f in aot_kernel_dir.iterdir():
+        shutil.copy(f, tmp_path / f.name)
+    extension = next(tmp_path.glob("imuhal_kernels_*.so"))
+    extension.write_bytes(extension.read_bytes()[:4096])  # a copy cut short
+    status = _status(cli_env(IMUHAL_KERNEL_DIR=str(tmp_path)))
+    backend, reason = status["madgwick_rows"]
+    assert backend != "aot"
+    assert f"damaged: {extension.name}" in reason

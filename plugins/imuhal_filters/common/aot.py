@@ -120,6 +120,10 @@ class Manifest:
     def extension(self) -> Path:
         return self.path.with_name(self.module_name + str(self.record["env"]["ext_suffix"]))
 
+    def intact(self) -> bool:
+        """The extension's bytes are the ones built (SHA-256 in the manifest)."""
+        return _file_hash(self.extension) == self.record.get("extension_sha256")
+
     def mismatch(self, kernel: Kernel) -> str | None:
         """Why ``kernel`` cannot run from this extension now (None: it can)."""
         env, now = self.record["env"], environment(numba_version())
@@ -180,14 +184,28 @@ def find(kernel: Kernel, directory: Path | None = None) -> Found:
     reasons = []
     for m in candidates:
         why = m.mismatch(kernel)
+        if why is None and not m.intact():
+            # loading a damaged shared object can kill the process (SIGBUS), so check first
+            why = f"damaged: {m.extension.name} is not the file its manifest describes"
         if why is None:
-            module = load(m.extension, m.module_name)
-            fn = getattr(module, kernel.name, None)
-            if fn is not None:
-                return Found(fn, f"extension {m.extension.name}", m)
-            why = f"{m.extension.name} lacks {kernel.name}"
+            try:
+                module = load(m.extension, m.module_name)
+            except (ImportError, OSError) as exc:
+                why = f"cannot load {m.extension.name}: {exc}"
+            else:
+                fn = getattr(module, kernel.name, None)
+                if fn is not None:
+                    return Found(fn, f"extension {m.extension.name}", m)
+                why = f"{m.extension.name} lacks {kernel.name}"
         reasons.append(why)
     return Found(None, reasons[0])
+
+
+def _file_hash(path: Path) -> str | None:
+    try:
+        return hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError:
+        return None
 
 
 @cache

@@ -19,6 +19,7 @@ kernel directory in a shared home directory works on every machine of that archi
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import importlib
 import io
 import json
@@ -168,6 +169,7 @@ def build(directory: Path | None = None) -> Built:
             tempfile.tempdir = saved_tempdir
         extension = tmp / (name + aot.ext_suffix())
         manifest = tmp / (name + ".json")
+        record["extension_sha256"] = hashlib.sha256(extension.read_bytes()).hexdigest()
         manifest.write_text(json.dumps(record, indent=1, sort_keys=True))
         built = aot.load(extension, name)
         lacking = [k.name for k in kernels if not hasattr(built, k.name)]
