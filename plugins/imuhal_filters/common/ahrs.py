@@ -339,8 +339,8 @@ class AhrsEstimator(Estimator):
     def process_imu_rows(self, rows: ImuRows) -> AttitudeRows:
         """What ``process()`` makes of each row's accel, mag and gyro sample, as columns
         (:mod:`imuhal.estimation.rows`); the state carries on as it would row by row. With
-        numba installed the rows after alignment run in the estimator's compiled kernel,
-        where it has one for its settings (equal to the per-sample path to 1e-12)."""
+        compiled kernels (common/fast.py) the rows after alignment run in the estimator's
+        kernel, where it has one for its settings (equal to the per-sample path to 1e-12)."""
         steps = process_rows(self, rows)
         q, emitted, diagnostics = self._step_rows(steps, diagnostics=True)
         t_ns = steps.t_ns if steps.t_ns is not None else np.zeros(0, dtype=np.int64)

@@ -2,9 +2,10 @@
 
 Row ``i`` of every output is the state after the step that consumed input row ``i``; this is
 the call sequence of the conformance references (configure with the first altitude, then one
-step per row, row 0 included), so a CSV of references can be compared row by row. With numba
-installed (the ``fast`` extra) the loops run compiled (``vario/fast.py``), equal to the Python
-loops to 1e-12; ``IMUHAL_NO_JIT=1`` forces Python.
+step per row, row 0 included), so a CSV of references can be compared row by row. With
+compiled kernels (``vario/fast.py``: the extension of ``imuhal kernels build``, or numba) the
+loops run compiled, equal to the Python loops to 1e-12; ``IMUHAL_KERNELS=python`` forces
+Python.
 """
 
 from __future__ import annotations

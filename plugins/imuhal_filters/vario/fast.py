@@ -3,7 +3,8 @@
 Row by row and in the same order of operations as ``Kalman3.step`` (predict, then update,
 with the mode's prediction variant and adaptive variance) and as ``BaroKalman2.predict`` then
 ``update``; the 3 x 3 products are written out in numpy's order (row times column, terms
-summed left to right). ``vario/batch.py`` selects them when numba is installed.
+summed left to right). ``vario/batch.py`` selects them when they run compiled (see
+common/fast.py).
 """
 
 from __future__ import annotations
