@@ -24,16 +24,16 @@ def cli_env(**extra: str) -> dict[str, str]:
     return env
 
 
-def _why_no_build() -> str | None:
+def why_no_build() -> str | None:
     """Why this machine cannot build the extension (None: it can, so a failure is a bug)."""
     if importlib.util.find_spec("numba") is None:
         return "numba not installed (pip install -e '.[fast]')"
     if importlib.util.find_spec("numba.pycc") is None:
         return "this numba has no numba.pycc"
-    if shutil.which(os.environ.get("CC", "cc")) is None and shutil.which("gcc") is None:
-        return "no C compiler (apt-get install gcc)"
     if not (Path(sysconfig.get_paths()["include"]) / "Python.h").is_file():
         return "no Python C headers (apt-get install python3-dev)"
+    if shutil.which(os.environ.get("CC", "cc")) is None and shutil.which("gcc") is None:
+        return "no C compiler (apt-get install gcc)"
     return None
 
 
@@ -41,7 +41,7 @@ def _why_no_build() -> str | None:
 def aot_kernel_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A kernel directory with every kernel built by ``imuhal kernels build`` (once per
     session, about 10 s of CPU); skipped with the reason where the tools are missing."""
-    why = _why_no_build()
+    why = why_no_build()
     if why is not None:
         pytest.skip(f"no AOT kernel extension can be built here: {why}")
     d = tmp_path_factory.mktemp("kernels")
