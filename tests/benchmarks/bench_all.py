@@ -31,6 +31,7 @@ BLAS calls, which none of the measured paths make, and it is left as it is.
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import math
 import os
 import resource
@@ -205,7 +206,8 @@ def peer_rows(n: int, gyro: np.ndarray, accel: np.ndarray, mag: np.ndarray) -> l
 
 # --------------------------------------------------------------------------- imuhal
 def estimator_rows(n: int, gyro: np.ndarray, accel: np.ndarray, mag: np.ndarray,
-                   vqf_loop_us: float | None, vqf_batch: float | None) -> list[Row]:
+                   vqf_loop_us: float | None, vqf_batch: float | None,
+                   aot_dir: Path | None = None) -> list[Row]:
     from imuhal_filters.common.ahrs import ImuStep
     from imuhal_filters.common.gate import gravity_positive_g
 
@@ -265,7 +267,7 @@ def estimator_rows(n: int, gyro: np.ndarray, accel: np.ndarray, mag: np.ndarray,
         if name == "madgwick" and vqf_loop_us:
             rows.append(Row("per sample", "madgwick process()", p, "us/sample", "vqf loop",
                             p / vqf_loop_us, "<= 6"))
-    rows += batch_rows(registry, gyro, accel, mag, vqf_batch)
+    rows += batch_rows(registry, gyro, accel, mag, vqf_batch, aot_dir)
     return rows
 
 
@@ -302,7 +304,9 @@ def freescale_rows(name: str, cls, samples: list, gyro: np.ndarray, accel: np.nd
 
 
 def batch_rows(registry, gyro: np.ndarray, accel: np.ndarray, mag: np.ndarray,
-               vqf_batch: float | None) -> list[Row]:
+               vqf_batch: float | None, aot_dir: Path | None = None) -> list[Row]:
+    """Pure Python and compiled (numba's JIT) batch throughput; for the AHRS also the AOT
+    extension in ``aot_dir`` (built by :func:`build_kernels`) when given."""
     from imuhal_filters.common import fast
     from imuhal_filters.common.ahrs import AhrsEstimator
     from imuhal_filters.common.batch import run_batch
@@ -336,6 +340,18 @@ def batch_rows(registry, gyro: np.ndarray, accel: np.ndarray, mag: np.ndarray,
                         ">= 2" if name == "madgwick" else ""))
         rows.append(Row("batch", f"{name} compiled / pure Python", c / py, "x", "", None,
                         "" if name == "madgwick" else ">= 10"))
+        if aot_dir is not None:
+            saved = os.environ["IMUHAL_KERNELS"], os.environ.get("IMUHAL_KERNEL_DIR")
+            os.environ["IMUHAL_KERNELS"], os.environ["IMUHAL_KERNEL_DIR"] = "aot", str(aot_dir)
+            compiled(100)
+            a = 1.0 / cpu_per_call(compiled, 10 * n, repeat=3)
+            os.environ["IMUHAL_KERNELS"] = saved[0]
+            if saved[1] is None:
+                del os.environ["IMUHAL_KERNEL_DIR"]
+            else:
+                os.environ["IMUHAL_KERNEL_DIR"] = saved[1]
+            rows.append(Row("batch", f"{name} run_batch 9-DOF, AOT extension", a, "samples/s",
+                            "JIT (row above)", a / c))
     rows += freescale_batch_rows(gyro, accel, mag, vqf_batch)
     rows += vario_batch_rows(n)
     return rows
@@ -570,7 +586,16 @@ def main(argv: list[str] | None = None) -> int:
     vqf_batch = by_case.get("vqf.VQF.updateBatch 9-DOF")
     plain = by_case.get("plain-Python Madgwick 9-DOF loop")
     if "estimators" not in args.skip:
-        est = estimator_rows(args.samples, gyro, accel, mag, vqf_loop, vqf_batch)
+        # the "compiled" rows are numba's JIT even where an extension is built; the AOT
+        # extension gets rows of its own, built from the sources as they are now
+        os.environ["IMUHAL_KERNELS"] = "jit" if importlib.util.find_spec("numba") else "auto"
+        aot_tmp = tempfile.TemporaryDirectory()
+        aot_dir: Path | None = Path(aot_tmp.name)
+        failed = build_kernels(Path(aot_tmp.name))
+        if failed is not None:
+            print(f"no AOT batch rows: {failed}", file=sys.stderr)
+            aot_dir = None
+        est = estimator_rows(args.samples, gyro, accel, mag, vqf_loop, vqf_batch, aot_dir)
         if plain:
             p_us = next(r.value for r in est if r.case == "madgwick process()")
             est.append(Row("per sample", "madgwick process()", p_us, "us/sample",
