@@ -10,7 +10,8 @@ positions and magnetometer figure-of-8 measured by imuhal's own procedures, gyro
 every power-up: ``estimator_accuracy.py``'s ``calibrated`` condition). Each scenario is flown
 once (seed ``SEED``); the recorded body-frame samples are then fed to every AHRS (madgwick,
 mahony, imufilter, both Freescale filters, decoupled, and vqf when its optional package is
-installed) and setting, so all of them see exactly the same data. Velocity settings add a
+installed) and setting as the pipeline would (imuhal.offline.chain: each instant in fusion
+order), so all of them see exactly the same data. Velocity settings add a
 simulated GNSS receiver (``imuhal.sim.velocity``: 5 Hz, 0.1 m/s noise per axis, 100 ms
 latency), fed in arrival order.
 
@@ -45,10 +46,11 @@ from typing import Any
 import numpy as np
 
 from imuhal.core.atomic import atomic_write_text
-from imuhal.core.samples import PressureSample, Sample
+from imuhal.core.samples import Sample
 from imuhal.emulation import open_emulated
 from imuhal.estimation.base import Estimator
 from imuhal.estimation.outputs import AttitudeEstimate, VerticalEstimate
+from imuhal.offline.chain import run_chain
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.model import BoardProfile
 from imuhal.sim.scenario import Scenario
@@ -168,12 +170,8 @@ def _tilt_deg(q_est: Sequence[float], q_true: np.ndarray) -> float:
 
 
 def run_ahrs(est: Estimator, samples: Iterable[Sample]) -> list[AttitudeEstimate]:
-    out: list[AttitudeEstimate] = []
-    consumes = tuple(est.consumes)
-    for s in samples:
-        if isinstance(s, consumes):
-            out += [e for e in est.process(s) if isinstance(e, AttitudeEstimate)]
-    return out
+    """The AHRS's attitudes from the recorded samples, fed as the pipeline would."""
+    return [e for e in run_chain([est], samples) if isinstance(e, AttitudeEstimate)]
 
 
 @dataclass(frozen=True)
@@ -201,16 +199,10 @@ def time_to_one_degree_s(flight: Flight, estimates: Sequence[AttitudeEstimate]) 
 
 def run_vario(ahrs: Estimator, vario: Estimator, samples: Iterable[Sample]
               ) -> list[VerticalEstimate]:
-    out: list[VerticalEstimate] = []
-    ahrs_in = tuple(ahrs.consumes)
-    for s in samples:
-        items: list[Any] = [s]
-        if isinstance(s, ahrs_in):
-            items += ahrs.process(s)
-        for item in items:
-            if isinstance(item, PressureSample | AttitudeEstimate):
-                out += [e for e in vario.process(item) if isinstance(e, VerticalEstimate)]
-    return out
+    """The vario's estimates behind ``ahrs``, taking the barometer and the AHRS as in the
+    seed profile, fed as the pipeline would."""
+    chained = run_chain([ahrs, vario], samples, inputs={vario.instance: ("baro", ahrs.instance)})
+    return [e for e in chained if isinstance(e, VerticalEstimate)]
 
 
 def climb_rms(flight: Flight, estimates: Sequence[VerticalEstimate]) -> float:
