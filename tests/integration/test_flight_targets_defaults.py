@@ -22,14 +22,11 @@ full figures are in docs/estimators.md's flight benchmark.
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import sys
-from pathlib import Path
-from types import ModuleType
 
 import numpy as np
 import pytest
+from tests.support.docs_scripts import load_docs_script
 
 from imuhal.core.samples import Sample
 from imuhal.emulation import open_emulated
@@ -56,18 +53,7 @@ BOARD: dict[str, dict[str, float]] = {
 NOMINAL_AIRSPEED = {"nominal_airspeed_m_s": 10.0}
 """The seed profile's AHRS setting (a paraglider's trim speed)."""
 
-SCRIPT = Path(__file__).resolve().parents[2] / "docs" / "scripts" / "estimator_accuracy.py"
-
 Flight = tuple[list[Sample], Scenario]
-
-
-def _accuracy_script() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("estimator_accuracy", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up while being built
-    spec.loader.exec_module(module)
-    return module
 
 
 @pytest.fixture(scope="module")
@@ -78,7 +64,7 @@ def registry() -> Registry:
 @pytest.fixture(scope="module")
 def board(registry: Registry) -> BoardProfile:
     """The seed board, calibrated, without estimators (the tests run their own)."""
-    acc = _accuracy_script()
+    acc = load_docs_script("estimator_accuracy")
     base = acc.seed_profile(registry)
     profile = acc.condition_profile(base, acc.Condition.CALIBRATED,
                                     acc.measure_board_calibration(base, registry))
