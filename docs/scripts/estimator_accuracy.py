@@ -443,10 +443,12 @@ def report(attitude: Sequence[AttitudeRow], vario: Sequence[VarioRow], *, durati
     ])
 
 
-def replace_block(text: str, block: str) -> str:
+def replace_block(text: str, block: str, marks: tuple[str, str] = (START_MARK, END_MARK)
+                  ) -> str:
     """``text`` with the lines between the two markers replaced by ``block``."""
-    start = text.index(START_MARK) + len(START_MARK)
-    end = text.index(END_MARK, start)
+    start_mark, end_mark = marks
+    start = text.index(start_mark) + len(start_mark)
+    end = text.index(end_mark, start)
     return text[:start] + "\n" + block.rstrip("\n") + "\n" + text[end:]
 
 

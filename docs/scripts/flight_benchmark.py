@@ -466,9 +466,8 @@ def report(res: Results, duration_s: float) -> str:
 
 
 def replace_block(text: str, block: str) -> str:
-    start = text.index(START_MARK) + len(START_MARK)
-    end = text.index(END_MARK, start)
-    return text[:start] + "\n" + block.rstrip("\n") + "\n" + text[end:]
+    """``text`` with the lines between the flight-table markers replaced by ``block``."""
+    return _accuracy_module().replace_block(text, block, (START_MARK, END_MARK))
 
 
 def main(argv: Sequence[str] | None = None) -> int:
