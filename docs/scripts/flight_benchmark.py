@@ -55,6 +55,7 @@ from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.model import BoardProfile
 from imuhal.sim.scenario import Scenario
 from imuhal.sim.velocity import GnssVelocityModel, gnss_velocity_samples
+from imuhal_filters.common.quat import tilt_error_deg
 from imuhal_filters.vario.kf3_settings import VarioKf3Settings
 
 HERE = Path(__file__).resolve().parent
@@ -159,14 +160,9 @@ def fly(profile: BoardProfile, registry: Registry, scenario: str, duration_s: fl
 # --------------------------------------------------------------------------- measures
 
 
-def _tilt_deg(q_est: Sequence[float], q_true: np.ndarray) -> float:
-    def down(q: Sequence[float]) -> np.ndarray:
-        w, x, y, z = q
-        return np.array([2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z])
-
-    a, b = down(q_est), down(q_true)
-    c = float(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)))
-    return math.degrees(math.acos(max(-1.0, min(1.0, c))))
+def _tilt_deg(q_est: Sequence[float], q_true: Sequence[float]) -> float:
+    w, x, y, z = q_est
+    return tilt_error_deg((w, x, y, z), (q_true[0], q_true[1], q_true[2], q_true[3]))
 
 
 def run_ahrs(est: Estimator, samples: Iterable[Sample]) -> list[AttitudeEstimate]:

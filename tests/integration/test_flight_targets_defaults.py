@@ -22,8 +22,6 @@ full figures are in docs/estimators.md's flight benchmark.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 from tests.support.docs_scripts import load_docs_script
@@ -36,6 +34,7 @@ from imuhal.offline.chain import run_chain
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.model import BoardProfile
 from imuhal.sim.scenario import Scenario
+from imuhal_filters.common.quat import tilt_error_deg
 
 RC_FLIGHT_S = 37.0
 REST_S = 30.0
@@ -99,17 +98,6 @@ def lift(board: BoardProfile, registry: Registry) -> Flight:
     return _fly(board, registry, "elevator", LIFT_S, {"speed_m_s": STEP_M_S})
 
 
-def _tilt_deg(q_est: tuple[float, ...], q_true: np.ndarray) -> float:
-    def down(q: tuple[float, ...] | np.ndarray) -> np.ndarray:
-        w, x, y, z = q
-        return np.array([2 * (x * z - w * y), 2 * (y * z + w * x),
-                         w * w - x * x - y * y + z * z])
-
-    a, b = down(q_est), down(q_true)
-    c = float(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)))
-    return math.degrees(math.acos(max(-1.0, min(1.0, c))))
-
-
 def _ahrs(registry: Registry, name: str, extra: dict[str, float] | None = None) -> Estimator:
     return registry.estimators.get(name)({**BOARD[name], **(extra or {})})
 
@@ -118,7 +106,7 @@ def _ahrs(registry: Registry, name: str, extra: dict[str, float] | None = None) 
 def test_default_settings_keep_the_tilt_under_10_deg_through_rc_flight(
         name: str, rc_flight: Flight, registry: Registry) -> None:
     samples, scenario = rc_flight
-    errors = [_tilt_deg(e.q_body_to_ned, scenario.truth(e.t_ns / 1e9).q_body_to_ned)
+    errors = [tilt_error_deg(e.q_body_to_ned, tuple(scenario.truth(e.t_ns / 1e9).q_body_to_ned))
               for e in run_chain([_ahrs(registry, name)], samples)
               if isinstance(e, AttitudeEstimate) and e.t_ns >= SETTLE_S * 1e9]
     assert len(errors) > 500
