@@ -41,24 +41,29 @@ class EstimatorChain:
         self._routes: dict[tuple[str, type], tuple[Estimator, ...]] = {}
 
     def _routes_of(self, source: str, kind: type) -> tuple[Estimator, ...]:
-        routes = self._routes.get((source, kind))
-        if routes is None:
-            routes = self._routes[(source, kind)] = tuple(
-                est for est in self.estimators
-                if issubclass(kind, tuple(est.consumes)) and est.instance != source
-                and source in self.inputs.get(est.instance, (source,)))
+        routes = self._routes[(source, kind)] = tuple(
+            est for est in self.estimators
+            if issubclass(kind, tuple(est.consumes)) and est.instance != source
+            and source in self.inputs.get(est.instance, (source,)))
         return routes
 
-    def process(self, item: Sample | Estimate) -> list[Estimate]:
+    def process(self, item: Sample | Estimate, out: list[Estimate] | None = None
+                ) -> list[Estimate]:
         """Every estimate ``item`` leads to, in the order made (``item``'s consumers first,
-        then the consumers of their estimates, breadth first)."""
-        out: list[Estimate] = []
+        then the consumers of their estimates, breadth first), appended to ``out`` (a new
+        list by default) and returned."""
+        if out is None:
+            out = []
+        routes_of = self._routes
+        handed_on = len(out)
         current: Sample | Estimate = item
-        handed_on = 0
         while True:
-            source = current.device if isinstance(current, Sample) else current.source
-            for est in self._routes_of(source, type(current)):
-                out.extend(est.process(current))
+            source = current.source if isinstance(current, Estimate) else current.device
+            routes = routes_of.get((source, type(current)))
+            if routes is None:
+                routes = self._routes_of(source, type(current))
+            for est in routes:
+                out += est.process(current)
             if handed_on == len(out):
                 return out
             current = out[handed_on]
@@ -93,6 +98,7 @@ def run_chain(estimators: Sequence[Estimator], samples: Iterable[Sample], *,
     those with ``e.source == est.instance``."""
     chain = EstimatorChain(estimators, inputs)
     out: list[Estimate] = []
+    process = chain.process
     for s in instants_in_fusion_order(samples):
-        out += chain.process(s)
+        process(s, out)
     return out

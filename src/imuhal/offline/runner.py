@@ -187,8 +187,11 @@ def feed(estimator: Estimator, items: Iterable[Sample | Estimate], *,
     """Each item (and what ``ahrs`` makes of it) to ``estimator`` when it consumes it."""
     if ahrs is not None:
         source = estimator.instance
-        chain = EstimatorChain((ahrs, estimator))
-        return [e for item in items for e in chain.process(item) if e.source == source]
+        made: list[Estimate] = []
+        process = EstimatorChain((ahrs, estimator)).process
+        for item in items:
+            process(item, made)
+        return [e for e in made if e.source == source]
     consumes = tuple(estimator.consumes)
     outputs: list[Estimate] = []
     process, extend = estimator.process, outputs.extend
