@@ -45,6 +45,7 @@ from typing import Any
 
 import numpy as np
 
+from imuhal.calibrate.emulated import calibrated_board
 from imuhal.core.atomic import atomic_write_text
 from imuhal.core.samples import Sample
 from imuhal.emulation import open_emulated
@@ -52,7 +53,9 @@ from imuhal.estimation.base import Estimator
 from imuhal.estimation.outputs import AttitudeEstimate, VerticalEstimate
 from imuhal.offline.chain import run_chain
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile
+from imuhal.profiles_dir import default_profile_path
 from imuhal.sim.scenario import Scenario
 from imuhal.sim.velocity import GnssVelocityModel, gnss_velocity_samples
 from imuhal_filters.common.quat import tilt_error_deg
@@ -299,10 +302,8 @@ def vario_figures(registry: Registry, ahrs: str, ahrs_extra: dict[str, Any],
 def calibrated_seed_profile(registry: Registry) -> BoardProfile:
     """The seed paraglider board with the calibration its emulated chips give when
     calibrated (the board every flight figure is measured on)."""
-    acc = _accuracy_module()
-    base = acc.seed_profile(registry)
-    return acc.condition_profile(base, acc.Condition.CALIBRATED,
-                                 acc.measure_board_calibration(base, registry))
+    return calibrated_board(load_profile(default_profile_path(), registry), registry,
+                            seed=SEED)
 
 
 def measure(duration_s: float, say: Callable[[str], None]) -> Results:

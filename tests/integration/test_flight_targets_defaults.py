@@ -2,8 +2,8 @@
 
 The bundled seed paragliding board (MAX21100 at 250 Hz, HMC5883L, MS5611) is emulated with
 the chips' datasheet error models and calibrated as the flight benchmark does
-(docs/scripts/estimator_accuracy.py: accelerometer six positions and magnetometer figure of
-8 measured by imuhal's procedures, gyro offsets at power-up; ideal chips will not do, their
+(imuhal.calibrate.emulated: accelerometer six positions and magnetometer figure of 8
+measured by imuhal's procedures, gyro offsets at power-up; ideal chips will not do, their
 frozen readings at rest are flagged), seed 1. The recorded samples are fed to the estimators
 as the pipeline would (imuhal.offline.chain). Short runs of the benchmark's scenarios; the
 full figures are in docs/estimators.md's flight benchmark.
@@ -24,15 +24,17 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from tests.support.docs_scripts import load_docs_script
 
+from imuhal.calibrate.emulated import calibrated_board
 from imuhal.core.samples import Sample
 from imuhal.emulation import open_emulated
 from imuhal.estimation.base import Estimator
 from imuhal.estimation.outputs import AttitudeEstimate, VerticalEstimate
 from imuhal.offline.chain import run_chain
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile
+from imuhal.profiles_dir import default_profile_path
 from imuhal.sim.scenario import Scenario
 from imuhal_filters.common.quat import tilt_error_deg
 
@@ -63,10 +65,8 @@ def registry() -> Registry:
 @pytest.fixture(scope="module")
 def board(registry: Registry) -> BoardProfile:
     """The seed board, calibrated, without estimators (the tests run their own)."""
-    acc = load_docs_script("estimator_accuracy")
-    base = acc.seed_profile(registry)
-    profile = acc.condition_profile(base, acc.Condition.CALIBRATED,
-                                    acc.measure_board_calibration(base, registry))
+    seed_board = load_profile(default_profile_path(), registry)
+    profile = calibrated_board(seed_board, registry, seed=1)
     return profile.model_copy(update={"estimators": {}})
 
 
