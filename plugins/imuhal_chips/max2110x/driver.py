@@ -15,6 +15,7 @@ import math
 from collections.abc import Mapping
 from typing import ClassVar
 
+from imuhal.bus.auto_read import AUTO_READ, AutoReadFeed
 from imuhal.bus.base import Bus, BusKind, Link
 from imuhal.bus.registers import RegisterView
 from imuhal.core.clock import Clock
@@ -37,6 +38,9 @@ from imuhal_chips.max2110x.registers import (
     DR_CFG_TEMP_EN,
     GYRO_RANGE_DPS,
     I2C_CFG_I2C_OFF,
+    MAG_DATA_BYTES,
+    MAG_MAP_AS_READ,
+    MAG_SLV_CFG_ENABLE,
     MAX21100,
     MAX21105,
     PARTS_BY_WHO_AM_I,
@@ -70,6 +74,8 @@ whole frame have a probability far below once per year of samples; 50 (0.2 s at 
 leaves a wide margin for a chip quieter than its error model."""
 TEMPERATURE_RANGE_DEGC = (-40.0, 85.0)
 """Operating range of the die; a temperature word outside it is not a real reading."""
+_MAG_OFFSET = Reg.MAG_X_H - Reg.SYSTEM_STATUS
+"""Where MAG X/Y/Z (the auto-read slave's bytes) start in a MAX21100 burst."""
 
 class Max2110xDriver(Driver):
     """Family base. Subclasses set ``name``, ``Settings`` and ``part``."""
@@ -95,6 +101,9 @@ class Max2110xDriver(Driver):
         self._ready = DataReady({})
         self._watch = ResetWatch(self.settings.reset_check_s)
         self._frozen = FrozenWatch(FROZEN_AFTER_FRAMES)
+        self._feed: AutoReadFeed | None = None
+        """The slave auto-read, when a driver behind the MAX21100's master asked for one:
+        the slave's bytes (MAG X/Y/Z) of every burst go to it."""
 
     # --- identity -------------------------------------------------------------------------
 
@@ -192,9 +201,11 @@ class Max2110xDriver(Driver):
 
     def _mismatches(self, plan: dict[int, int]) -> list[tuple[int, int, int]]:
         regs = sorted(plan)
-        # one burst covering POWER_CFG..ACC_CFG1, single reads for the rest
-        block = self.regs.read(Reg.POWER_CFG, Reg.ACC_CFG1 + 1)
-        got = {r: block[r] for r in regs if r <= Reg.ACC_CFG1}
+        # one burst from POWER_CFG over the configuration registers up to the auto-read's
+        # (ACC_CFG1, or MAG_MAP_REG), single reads for the rest
+        last = max([Reg.ACC_CFG1, *(r for r in regs if r <= Reg.MAG_MAP_REG)])
+        block = self.regs.read(Reg.POWER_CFG, last + 1)
+        got = {r: block[r] for r in regs if r <= last}
         for r in regs:
             if r not in got:
                 got[r] = self.regs.read_u8(r)
@@ -231,6 +242,8 @@ class Max2110xDriver(Driver):
         if self._watch.check_due(now_ns) and self._config_lost():
             return PollResult([], self.restart(reset_detected=True))
         raw = self.regs.read(self.part.burst_start, self.part.burst_length)
+        if self._feed is not None:
+            self._feed.deliver(now_ns, raw[_MAG_OFFSET:_MAG_OFFSET + self._feed.length])
         burst = decode.split_burst(raw)
         bad = blank_flag(raw)
         if not bad and (burst.gyro_ready or burst.accel_ready):
@@ -347,6 +360,8 @@ class Max21100Driver(Max2110xDriver):
     Settings = Max21100Settings
     part = MAX21100
     child_bus_kinds: ClassVar[Mapping[str, BusKind]] = {"aux": BusKind.I2C}
+    child_bus_features: ClassVar[Mapping[str, frozenset[str]]] = {
+        "aux": frozenset({AUTO_READ})}
 
     def __init__(
         self, link: Link, settings: DriverSettings | dict[str, object], *, device: str,
@@ -361,3 +376,60 @@ class Max21100Driver(Max2110xDriver):
 
             self._aux = Max21100AuxBus(self)
         return {"aux": self._aux}
+
+    def register_plan(self) -> dict[int, int]:
+        """The base plan, with the slave auto-read's registers (when one was asked for)
+        before DR_CFG and POWER_CFG, so a reconfiguration after a reset restores it."""
+        plan = super().register_plan()
+        if self._feed is None:
+            return plan
+        out: dict[int, int] = {}
+        for reg, value in plan.items():
+            if reg == Reg.DR_CFG:
+                out.update(self._auto_read_plan(self._feed))
+            out[reg] = value
+        return out
+
+    @staticmethod
+    def _auto_read_plan(feed: AutoReadFeed) -> dict[int, int]:
+        """har-in-air's sequence (facts section 6, steps 1 and 4), with the slave's bytes
+        kept as read: MAG_MAP_REG 0x00 (not har-in-air's 0x08 remap of the HMC5883L's X, Z,
+        Y order) and MSB first (MAG_SLV_CFG bit 6 clear), so MAG X/Y/Z hold the slave's
+        bytes in its register order and byte order and the slave's driver converts them as
+        if it had read them itself. Enable last."""
+        return {
+            Reg.ACC_CFG2: 0x00,  # [3:1] = 0: the slave at the accelerometer rate
+            Reg.MAG_SLV_ADD: feed.target,
+            Reg.MAG_SLV_REG: feed.register,
+            Reg.MAG_MAP_REG: MAG_MAP_AS_READ,
+            Reg.MAG_SLV_CFG: MAG_SLV_CFG_ENABLE | feed.length,
+        }
+
+    def enable_auto_read(self, target: int, register: int, length: int) -> AutoReadFeed:
+        """Program the slave auto-read (one slave, at most six bytes) and return its feed;
+        the same request again returns the same feed. Registers written now and verified,
+        and part of every later configuration and read-back."""
+        where = f"{self.describe()}: slave auto-read of 0x{target:02X}"
+        if not 1 <= length <= MAG_DATA_BYTES:
+            raise ConfigurationError(f"{where}: {length} bytes asked; the master keeps 1 to "
+                                     f"{MAG_DATA_BYTES} (MAG X/Y/Z)")
+        feed = self._feed
+        if feed is not None:
+            if (feed.target, feed.register, feed.length) == (target, register, length):
+                return feed
+            raise ConfigurationError(
+                f"{where}: the master already auto-reads 0x{feed.target:02X} and reads one "
+                "slave; put the other chip on one-shot reads (read: one-shot)")
+        if self.scales is None:
+            raise ConfigurationError(f"{where}: asked before the MAX21100 was configured")
+        # The slave's bytes are copied at each accelerometer measurement and reach the
+        # host with the next burst, a poll-grid guard after it.
+        latency_ns = round(1e9 / self.settings.accel_odr_hz) + self._grid.guard_ns
+        feed = AutoReadFeed(target, register, length, latency_ns=latency_ns)
+        registers = self._auto_read_plan(feed)
+        for reg, value in registers.items():
+            self.regs.write(reg, value)
+        self._verify(registers)
+        self._feed = feed
+        self._expected = self.register_plan()
+        return feed
