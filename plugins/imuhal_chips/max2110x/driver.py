@@ -12,6 +12,7 @@ gyro rad/s, accel m/s^2 specific force, temperature degC.
 from __future__ import annotations
 
 import math
+import struct
 from collections.abc import Mapping
 from typing import ClassVar
 
@@ -33,6 +34,7 @@ from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResu
 from imuhal.drivers.polling import DataReady, PollGrid, ResetWatch
 from imuhal.drivers.validity import NAN3, FrozenWatch, blank_flag, range_flag
 from imuhal_chips.max2110x import decode
+from imuhal_chips.max2110x.decode import Counts3, be_int16
 from imuhal_chips.max2110x.registers import (
     ACCEL_RANGE_G,
     DR_CFG_TEMP_EN,
@@ -49,6 +51,7 @@ from imuhal_chips.max2110x.registers import (
     PartSpec,
     Reg,
     Scales,
+    Status,
     acc_cfg1,
     convention_for,
     gyro_cfg1,
@@ -75,6 +78,11 @@ leaves a wide margin for a chip quieter than its error model."""
 TEMPERATURE_RANGE_DEGC = (-40.0, 85.0)
 """Operating range of the die; a temperature word outside it is not a real reading."""
 _MAG_OFFSET = Reg.MAG_X_H - Reg.SYSTEM_STATUS
+_SIX_WORDS = struct.Struct(">6h")
+"""Gyro X, Y, Z then accel X, Y, Z after the status byte: signed big-endian words."""
+_GYRO_DR = int(Status.GYRO_DR)
+_ACC_DR = int(Status.ACC_DR)
+_OVERRUN = int(Status.GYRO_ERR | Status.ACC_ERR)
 """Where MAG X/Y/Z (the auto-read slave's bytes) start in a MAX21100 burst."""
 
 class Max2110xDriver(Driver):
@@ -101,6 +109,9 @@ class Max2110xDriver(Driver):
         self._ready = DataReady({})
         self._watch = ResetWatch(self.settings.reset_check_s)
         self._frozen = FrozenWatch(FROZEN_AFTER_FRAMES)
+        self._burst_frame = b""
+        self._burst_length = 0
+        """The status + data burst's address byte and length (set by configure())."""
         self._feed: AutoReadFeed | None = None
         """The slave auto-read, when a driver behind the MAX21100's master asked for one:
         the slave's bytes (MAG X/Y/Z) of every burst go to it."""
@@ -174,6 +185,9 @@ class Max2110xDriver(Driver):
         self._power_on_ns = self.clock.now_ns()  # measurements are timed from here
         self._verify(plan)
         self._expected = plan
+        p = self.part
+        self._burst_frame = bytes((self.regs.read_address(p.burst_start, p.burst_length),))
+        self._burst_length = p.burst_length
         s = self.settings
         self.scales = Scales(
             gyro_lsb_per_dps=GYRO_RANGE_DPS[s.gyro_range_dps][1],
@@ -241,29 +255,38 @@ class Max2110xDriver(Driver):
             raise ConfigurationError(f"{self.describe()}: poll() before configure()")
         if self._watch.check_due(now_ns) and self._config_lost():
             return PollResult([], self.restart(reset_detected=True))
-        raw = self.regs.read(self.part.burst_start, self.part.burst_length)
+        raw = self.regs.send(self._burst_frame, self._burst_length)
         if self._feed is not None:
             self._feed.deliver(now_ns, raw[_MAG_OFFSET:_MAG_OFFSET + self._feed.length])
-        burst = decode.split_burst(raw)
+        status = raw[0]
+        gyro_ready = status & _GYRO_DR
+        accel_ready = status & _ACC_DR
         bad = blank_flag(raw)
-        if not bad and (burst.gyro_ready or burst.accel_ready):
+        if not bad and (gyro_ready or accel_ready):
             bad = self._frozen_flag(raw)
+        gx, gy, gz, ax, ay, az = _SIX_WORDS.unpack_from(raw, 1)
         samples: list[Sample] = []
         stale = False
-        for channel, ready in ((Channel.GYRO, burst.gyro_ready),
-                               (Channel.ACCEL, burst.accel_ready)):
-            if ready and not bad:
-                self._ready.fresh(channel, now_ns)
-                samples.append(self._vector_sample(channel, burst, now_ns, SampleFlag.OK))
-            elif self._ready.overdue(channel, now_ns) or (ready and bad):
-                stale = True
-                flag = bad if ready else SampleFlag.STALE | bad
-                samples.append(self._vector_sample(channel, burst, now_ns, flag))
-        if burst.gyro_ready and (
+        ready_of = self._ready
+        if gyro_ready and not bad:
+            ready_of.fresh(Channel.GYRO, now_ns)
+            samples.append(self._gyro_sample((gx, gy, gz), now_ns, SampleFlag.OK))
+        elif ready_of.overdue(Channel.GYRO, now_ns) or (gyro_ready and bad):
+            stale = True
+            flag = bad if gyro_ready else SampleFlag.STALE | bad
+            samples.append(self._gyro_sample((gx, gy, gz), now_ns, flag))
+        if accel_ready and not bad:
+            ready_of.fresh(Channel.ACCEL, now_ns)
+            samples.append(self._accel_sample((ax, ay, az), now_ns, SampleFlag.OK))
+        elif ready_of.overdue(Channel.ACCEL, now_ns) or (accel_ready and bad):
+            stale = True
+            flag = bad if accel_ready else SampleFlag.STALE | bad
+            samples.append(self._accel_sample((ax, ay, az), now_ns, flag))
+        if gyro_ready and (
             self._last_temp_ns is None or now_ns - self._last_temp_ns >= TEMPERATURE_PERIOD_NS
         ):
             self._last_temp_ns = now_ns
-            samples.append(self._temperature_sample(burst, now_ns, bad))
+            samples.append(self._temperature_sample(be_int16(raw, len(raw) - 2), now_ns, bad))
         if stale:
             if self._watch.check_due(now_ns, overdue=True) and self._config_lost():
                 return PollResult(samples, self.restart(reset_detected=True))
@@ -271,8 +294,8 @@ class Max2110xDriver(Driver):
                 return PollResult(samples, self.restart(reset_detected=False))
             return PollResult(samples, self._grid.next_after(now_ns))
         self._watch.fresh_poll()
-        fast_ready = burst.gyro_ready if self._fast is Channel.GYRO else burst.accel_ready
-        if fast_ready and burst.overrun:
+        fast_ready = gyro_ready if self._fast is Channel.GYRO else accel_ready
+        if fast_ready and status & _OVERRUN:
             self._grid.anchor(now_ns - self._grid.period_ns // 2)
         elif fast_ready and self._searching:
             self._grid.anchor(now_ns)
@@ -298,32 +321,33 @@ class Max2110xDriver(Driver):
         times in a row while the chip reports new data."""
         return self._frozen.observe("frame", raw[1:13] + raw[-2:])
 
-    def _temperature_sample(self, burst: decode.Burst, now_ns: int,
-                            bad: SampleFlag) -> Sample:
+    def _temperature_sample(self, counts: int, now_ns: int, bad: SampleFlag) -> Sample:
         if bad:
             return TemperatureSample(t_ns=now_ns, device=self.device, flags=bad,
                                      temperature_degc=math.nan)
-        temp = decode.temp_counts_to_degc(burst.temperature)
+        temp = decode.temp_counts_to_degc(counts)
         flags = range_flag([temp], *TEMPERATURE_RANGE_DEGC)
         return TemperatureSample(t_ns=now_ns, device=self.device, temperature_degc=temp,
                                  flags=flags)
 
-    def _vector_sample(
-        self, channel: Channel, burst: decode.Burst, now_ns: int, flags: SampleFlag
-    ) -> Sample:
+    def _gyro_sample(self, counts: Counts3, now_ns: int, flags: SampleFlag) -> Sample:
         assert self.scales is not None
-        if channel is Channel.GYRO:
-            counts = burst.gyro
-            value = decode.gyro_counts_to_rad_s(counts, self.scales.gyro_lsb_per_dps)
-        else:
-            counts = burst.accel
-            value = decode.accel_counts_to_m_s2(counts, self.scales.accel_lsb_per_g)
         if flags:
             value = NAN3  # stale, blank or frozen: not a measurement
-        elif decode.saturated(counts):
-            flags |= SampleFlag.SATURATED
-        if channel is Channel.GYRO:
-            return GyroSample.build(now_ns, self.device, flags, Frame.SENSOR, value)
+        else:
+            value = decode.gyro_counts_to_rad_s(counts, self.scales.gyro_lsb_per_dps)
+            if decode.saturated(counts):
+                flags |= SampleFlag.SATURATED
+        return GyroSample.build(now_ns, self.device, flags, Frame.SENSOR, value)
+
+    def _accel_sample(self, counts: Counts3, now_ns: int, flags: SampleFlag) -> Sample:
+        assert self.scales is not None
+        if flags:
+            value = NAN3
+        else:
+            value = decode.accel_counts_to_m_s2(counts, self.scales.accel_lsb_per_g)
+            if decode.saturated(counts):
+                flags |= SampleFlag.SATURATED
         return AccelSample.build(now_ns, self.device, flags, Frame.SENSOR, value)
 
     def full_scale(self, channel: Channel) -> float | None:
