@@ -28,7 +28,9 @@ measurement at its next accelerometer measurement and the host reads it with the
 burst (``AutoReadFeed.latency_ns``: one accelerometer period plus the IMU's poll guard,
 4.5 ms at 250 Hz); the driver polls that long plus its own guard (1/8 period) after each
 measurement instant and stamps the sample with the poll's time, about 6 ms after the
-measurement at the seed's rates (one-shot: 1.7 ms).
+measurement at the seed's rates (one-shot: 1.7 ms). A poll that finds the bytes unchanged
+looks once more one latency later (a copy a failed read or burst delayed), then waits for
+the next measurement.
 """
 
 from __future__ import annotations
@@ -147,6 +149,8 @@ class Hmc5883lDriver(Driver):
         measurement (still at the old gain)."""
         self._fresh_ns = 0
         self._unchanged_limit_ns = 0
+        self._retrying = False
+        """The previous poll found the bytes unchanged and this one looks again."""
 
     # --- bus helpers (plain I2C register protocol: write pointer, then read) --------------
 
@@ -223,6 +227,7 @@ class Hmc5883lDriver(Driver):
         self._grid.anchor(self._mode_written_ns + latency + self._grid.guard_ns)
         self._ready.start(now_ns)
         self._fresh_ns = now_ns
+        self._retrying = False
         self._watch.start(now_ns)
         return self._grid.next_after(now_ns)
 
@@ -273,9 +278,17 @@ class Hmc5883lDriver(Driver):
             if not sample.flags & SampleFlag.BLANK:
                 self._emitted = data
                 self._fresh_ns = now_ns
+                self._retrying = False
                 self._watch.fresh_poll()
                 return PollResult([sample], self._grid.next_after(now_ns))
         elif now_ns - self._fresh_ns <= self._unchanged_limit_ns:
+            if not self._retrying:
+                # The master's copy may have come a burst late (a failed slave read or IMU
+                # burst): look once more one delivery latency later, else the measurement
+                # is lost when the next one overwrites it.
+                self._retrying = True
+                return PollResult([], now_ns + self._feed.latency_ns)
+            self._retrying = False
             return PollResult([], self._grid.next_after(now_ns))
         else:
             sample = MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
