@@ -136,6 +136,10 @@ class BoardFaults:
         self._faults.append(active)
         self._by_device.setdefault(spec.device, []).append(active)
 
+    def has_faults(self, device: str) -> bool:
+        """Whether any fault is scheduled on ``device`` (past, in force or to come)."""
+        return bool(self._by_device.get(device))
+
     def line(self, device: str, emulator: ChipEmulator, bus: EmulatedBus,
              target: int) -> FaultLine:
         """The bus line to ``device``: what its bus attaches instead of the bare emulator."""
@@ -272,6 +276,10 @@ class FaultLine:
         self.target = target
         self._last_receive_ns: int | None = None
         """When the host last read a byte stream from this line (for a break's bytes)."""
+        self.writes = 0
+        """Write-only transactions (``read_len`` 0) sent down this line, failed ones
+        included: a chip's configuration changes only through them, so the emulated board
+        keeps what it asked the emulator about its configuration until this count moves."""
 
     @property
     def absent(self) -> bool:
@@ -336,6 +344,8 @@ class FaultLine:
         return bytes(out)
 
     def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes:
+        if not read_len:
+            self.writes += 1
         faults = self.faults
         if not faults._by_device.get(self.device):
             return self.emulator.bus_transfer(kind, write, read_len)
