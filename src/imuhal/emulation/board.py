@@ -105,8 +105,10 @@ class EmulatedBoard:
         self._updated_ns: int | None = None
         # The chip truth of the latest instant, full and light (computed once per instant
         # and shared by every chip polled then).
-        self._chip_t_ns: int | None = None
-        self._chip_truths: dict[bool, ChipTruth] = {}
+        self._full_ns: int | None = None
+        self._full: ChipTruth | None = None
+        self._light_ns: int | None = None
+        self._light: ChipTruth | None = None
         # ``truth`` may be read from another thread (the live view) while the run polls:
         # scenarios fill caches as they go, so one thread at a time evaluates the scenario.
         self._scenario_lock = threading.Lock()
@@ -152,19 +154,17 @@ class EmulatedBoard:
 
     def _chip_truth(self, t_ns: int, motion: bool) -> ChipTruth:
         """The chip truth at ``t_ns`` (light when ``motion`` is False), once per instant."""
-        if t_ns != self._chip_t_ns:
-            self._chip_t_ns = t_ns
-            self._chip_truths = {}
-        truth = self._chip_truths.get(motion)
-        if truth is None:
-            full = self._chip_truths.get(True)
-            # A full truth of the instant serves a light request as well (same floats).
-            if full is not None:
-                truth = full
-            else:
-                with self._scenario_lock:
-                    truth = self.scenario.chip_truth(t_ns / 1e9, motion=motion)
-            self._chip_truths[motion] = truth
+        # A full truth of the instant serves a light request as well (same floats).
+        if t_ns == self._full_ns:
+            return self._full  # type: ignore[return-value]
+        if not motion and t_ns == self._light_ns:
+            return self._light  # type: ignore[return-value]
+        with self._scenario_lock:
+            truth = self.scenario.chip_truth(t_ns / 1e9, motion=motion)
+        if motion:
+            self._full_ns, self._full = t_ns, truth
+        else:
+            self._light_ns, self._light = t_ns, truth
         return truth
 
     def before_poll(self, t_ns: int, device: str) -> int:
