@@ -28,7 +28,7 @@ from imuhal.profile.topology import device_order, split_bus_ref
 from imuhal.sim.chip import ChipEmulator
 from imuhal.sim.emulated_bus import EmulatedBus
 from imuhal.sim.errors import SensorErrorModel
-from imuhal.sim.inputs import PhysicalInputs
+from imuhal.sim.inputs import NO_OTHER, PhysicalInputs
 from imuhal.sim.scenario import ChipTruth, Scenario, TruthState
 from imuhal.sim.world import chip_other, chip_vectors
 
@@ -245,6 +245,7 @@ class EmulatedBoard:
             truth = self._chip_truth(t_ns, dev.motion)
             mount = dev.mount
             force, rate, field = chip_vectors(truth, mount)
+            other = chip_other(truth, mount) if truth.other else NO_OTHER
             pressure, temperature = truth.pressure_pa, truth.temperature_degc
             model = dev.model
             if model is not None:
@@ -258,7 +259,7 @@ class EmulatedBoard:
             # costs more than the error model's arithmetic).
             inputs = PhysicalInputs.build(
                 force, rate, field, pressure, temperature, truth.position_ned_m,
-                truth.velocity_ned_m_s, chip_other(truth, mount))
+                truth.velocity_ned_m_s, other)
             inputs = self.faults.physics(name, t_ns, inputs)
             dev.last_t_ns = t_ns
             dev.emulator.set_physics(inputs)

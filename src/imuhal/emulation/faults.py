@@ -200,6 +200,8 @@ class BoardFaults:
     def before_poll(self, device: str, t_ns: int) -> int:
         """Called when ``device`` is due at ``t_ns``: start/end due faults, then delay the
         poll as late-poll and jitter faults say. Returns the time the poll happens."""
+        if not self._faults:  # a board without faults: nothing to start, nothing delays
+            return t_ns
         self.sync(t_ns)
         delay_s = 0.0
         t_s = t_ns / 1e9
