@@ -58,3 +58,9 @@ def test_value_is_the_first_component_of_the_full_evaluation() -> None:
     sig = _signal()
     for t in TIMES:
         assert sig.value(t) == sig(t)[0], t
+
+
+def test_value_rate_is_the_first_two_components_of_the_full_evaluation() -> None:
+    sig = _signal()
+    for t in TIMES:
+        assert sig.value_rate(t) == sig(t)[:2], t

@@ -219,8 +219,8 @@ class FlightMotion(Motion):
         """Attitude and body rate at ``t`` given the yaw signal's state there and the speed
         the coordinated bank is computed for."""
         psi, dpsi, ddpsi = yaw
-        th, dth, _ = self.pitch(t)
-        ph, dph, _ = self.roll(t)
+        th, dth = self.pitch.value_rate(t)
+        ph, dph = self.roll.value_rate(t)
         if self.coordinated_bank:
             assert bank_speed is not None
             v, dv, _ = bank_speed

@@ -250,6 +250,34 @@ class Signal:
                 v += amp * e * math.sin(w * t + ph)
         return v
 
+    def value_rate(self, t: float) -> tuple[float, float]:
+        """(value, first derivative) at time ``t`` (s): ``self(t)[:2]``, the same floats,
+        without the second derivative (an attitude angle needs its rate, not its
+        acceleration)."""
+        v, r, _ = self._ramps(t)
+        for g in self._tones:
+            if t <= g.t_on or t >= g.t_off:
+                continue
+            ramp = g.ramp_s
+            if t < g.t_on + ramp:
+                e, e1, _ = _smootherstep((t - g.t_on) / ramp)
+                e1 = e1 / ramp
+            elif t > g.t_off - ramp:
+                e, e1, _ = _smootherstep((g.t_off - t) / ramp)
+                e1 = -e1 / ramp
+            else:  # full amplitude: as in __call__, without the acceleration's terms
+                for amp, w, ph, _ in g.terms:
+                    th = w * t + ph
+                    v += amp * sin(th)
+                    r += amp * (w * cos(th))
+                continue
+            for amp, w, ph, _ in g.terms:
+                th = w * t + ph
+                sn, cs = math.sin(th), math.cos(th)
+                v += amp * e * sn
+                r += amp * (e1 * sn + e * w * cs)
+        return v, r
+
     def __call__(self, t: float) -> tuple[float, float, float]:
         """(value, first derivative, second derivative) at time ``t`` (s)."""
         # _ramps written out (the same operations): this runs for every signal at every
