@@ -199,7 +199,7 @@ class Max2110xDriver(Driver):
         }
         self._ready = DataReady(periods)
         self._fast = min(periods, key=lambda c: periods[c])
-        self._grid = PollGrid(periods[self._fast], early_fraction=EARLY_FRACTION)
+        self._grid = PollGrid(periods[self._fast], early_fraction=EARLY_FRACTION, track=True)
 
     def _verify(self, plan: dict[int, int]) -> None:
         wrong = self._mismatches(plan)
@@ -298,7 +298,7 @@ class Max2110xDriver(Driver):
         if fast_ready and status & _OVERRUN:
             self._grid.anchor(now_ns - self._grid.period_ns // 2)
         elif fast_ready and self._searching:
-            self._grid.anchor(now_ns)
+            self._grid.locate(now_ns)
         self._searching = False
         if not fast_ready:
             self._searching = True
