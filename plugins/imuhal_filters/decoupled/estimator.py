@@ -66,7 +66,7 @@ class DecoupledSettings(AhrsSettings):
     width)^2) (common/gate.py): a reading away from 1 g is trusted less. Default 0.02 g:
     in flight it is needed (`rc-flight` max 5.4 deg, 40.7 without); None (VQF's choice,
     ``preset: handheld``): every reading in full, which hand-held motion needs (BROAD 9-DOF
-    total 2.33 deg, 6.04 with the flight defaults): docs/estimators.md."""
+    total 2.33 deg, 5.45 with the flight defaults): docs/estimators.md."""
     turbulence_rate_deg_s: float | None = Field(3.0, gt=0.0)
     """In straight flight through turbulence (gusts keep |a| off 1 g, so the soft gate stays
     closed; detected from the spread and mean of |a| and the turn rate, ``turbulence.py``)
