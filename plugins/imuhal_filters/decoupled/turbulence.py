@@ -37,7 +37,7 @@ class TurbulenceParams:
     """The detector's constants (s, g, rad/s; see the module docstring)."""
 
     tau_s: float = 1.0
-    sd_min_g: float = 0.1
+    sd_min_g: float = 0.15
     mean_ratio: float = 0.3
     rms_max_g: float = 1.0
     turn_max_rad_s: float = math.radians(1.5)
