@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 from tests.support import testchip
+from tests.support.kernels import aot_kernel_dir, compiled_backend  # noqa: F401 - fixtures
 
 from imuhal.plugins import builtin_buses as bus_plugin
 from imuhal.plugins import builtin_scenarios as sim_plugin

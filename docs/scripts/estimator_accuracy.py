@@ -42,13 +42,10 @@ from typing import Any
 
 import numpy as np
 
-from imuhal.calibrate.session import guided_order, open_raw_pipeline
-from imuhal.calibration.accel import AccelSixPosition, AccelSixSettings
-from imuhal.calibration.mag import MagCalibrationProcedure, MagSettings
-from imuhal.calibration.model import DeviceCalibration, GyroStartupSettings
+from imuhal.calibrate.emulated import measure_board_calibration, with_calibration
+from imuhal.calibration.model import DeviceCalibration
 from imuhal.core.atomic import atomic_write_text
-from imuhal.core.frames import parse_mount
-from imuhal.core.samples import PressureSample, Sample
+from imuhal.core.samples import PressureSample
 from imuhal.emulation import EmulatedBoard, open_emulated
 from imuhal.estimation.outputs import AttitudeEstimate, VerticalEstimate
 from imuhal.pipeline.pipeline import Event, Pipeline
@@ -190,52 +187,14 @@ def ahrs_profile(profile: BoardProfile, names: Sequence[str]) -> BoardProfile:
         for name in names})
 
 
-def with_calibration(profile: BoardProfile, calibrations: dict[str, DeviceCalibration],
-                     gyro_startup: bool) -> BoardProfile:
-    """The profile with exactly ``calibrations`` stored in its devices (whatever its file
-    holds is dropped, so the conditions do not depend on it); with ``gyro_startup`` the IMU
-    re-measures its gyro offsets at power-up (``gyro_at_startup``)."""
-    devices = {}
-    for name, cfg in profile.devices.items():
-        cal = calibrations.get(name)
-        if gyro_startup and name == "imu":
-            cal = (cal or DeviceCalibration()).model_copy(
-                update={"gyro_at_startup": GyroStartupSettings()})
-        devices[name] = cfg.model_copy(update={"calibration": cal})
-    return profile.model_copy(update={"devices": devices})
-
-
-def measure_board_calibration(profile: BoardProfile, registry: Registry, seed: int = SEED
-                              ) -> dict[str, DeviceCalibration]:
-    """Accelerometer six-position and magnetometer ellipsoid calibration of this board (the
-    same per-device error draws as every run with ``seed``), measured by imuhal's procedures
-    while the emulated board flies the ``calibration`` scenario (`imuhal calibrate accel|mag
-    --emulate calibration`)."""
-    imu = profile.devices["imu"]
-    chip_to_body = parse_mount(profile.board_to_body) @ parse_mount(imu.mount)
-    accel = AccelSixPosition(AccelSixSettings(positions=guided_order(chip_to_body)),
-                             device="imu")
-    mag = MagCalibrationProcedure(MagSettings(), device="mag")
-    duration = registry.scenarios.get("calibration").default_duration_s
-    raw = with_calibration(profile, {}, gyro_startup=False)
-    with open_raw_pipeline(raw, registry, emulate="calibration", seed=seed) as pipeline:
-        for event in pipeline.events(duration):
-            if isinstance(event, Sample):
-                accel.feed(event)
-                mag.feed(event)
-                if accel.done and mag.done:
-                    break
-    return {"imu": DeviceCalibration(accel=accel.finish().record()),
-            "mag": DeviceCalibration(mag=mag.finish().record())}
-
-
 def condition_profile(profile: BoardProfile, condition: Condition,
                       calibrations: dict[str, DeviceCalibration]) -> BoardProfile:
     """The profile calibrated as ``condition`` says (``calibrations``: the accel and mag
     records of ``measure_board_calibration``, used by ``calibrated`` only)."""
     if condition is Condition.CALIBRATED:
-        return with_calibration(profile, calibrations, gyro_startup=True)
-    return with_calibration(profile, {}, gyro_startup=condition is Condition.GYRO_STARTUP)
+        return with_calibration(profile, calibrations, gyro_startup="imu")
+    return with_calibration(profile, {}, gyro_startup="imu"
+                            if condition is Condition.GYRO_STARTUP else None)
 
 
 # --------------------------------------------------------------------------- runs
@@ -443,10 +402,12 @@ def report(attitude: Sequence[AttitudeRow], vario: Sequence[VarioRow], *, durati
     ])
 
 
-def replace_block(text: str, block: str) -> str:
+def replace_block(text: str, block: str, marks: tuple[str, str] = (START_MARK, END_MARK)
+                  ) -> str:
     """``text`` with the lines between the two markers replaced by ``block``."""
-    start = text.index(START_MARK) + len(START_MARK)
-    end = text.index(END_MARK, start)
+    start_mark, end_mark = marks
+    start = text.index(start_mark) + len(start_mark)
+    end = text.index(end_mark, start)
     return text[:start] + "\n" + block.rstrip("\n") + "\n" + text[end:]
 
 
@@ -468,7 +429,7 @@ def run(duration_s: float, *, registry: Registry | None = None,
             print(msg, file=log, flush=True)
 
     t0 = time.perf_counter()
-    cals = measure_board_calibration(base, reg)
+    cals = measure_board_calibration(base, reg, seed=SEED)
     say(f"board calibration measured ({time.perf_counter() - t0:.1f} s)")
     attitude: list[AttitudeRow] = []
     for scenario in attitude_scenarios:

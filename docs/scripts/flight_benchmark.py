@@ -10,7 +10,8 @@ positions and magnetometer figure-of-8 measured by imuhal's own procedures, gyro
 every power-up: ``estimator_accuracy.py``'s ``calibrated`` condition). Each scenario is flown
 once (seed ``SEED``); the recorded body-frame samples are then fed to every AHRS (madgwick,
 mahony, imufilter, both Freescale filters, decoupled, and vqf when its optional package is
-installed) and setting, so all of them see exactly the same data. Velocity settings add a
+installed) and setting as the pipeline would (imuhal.offline.chain: each instant in fusion
+order), so all of them see exactly the same data. Velocity settings add a
 simulated GNSS receiver (``imuhal.sim.velocity``: 5 Hz, 0.1 m/s noise per axis, 100 ms
 latency), fed in arrival order.
 
@@ -44,15 +45,20 @@ from typing import Any
 
 import numpy as np
 
+from imuhal.calibrate.emulated import calibrated_board
 from imuhal.core.atomic import atomic_write_text
-from imuhal.core.samples import PressureSample, Sample
+from imuhal.core.samples import Sample
 from imuhal.emulation import open_emulated
 from imuhal.estimation.base import Estimator
 from imuhal.estimation.outputs import AttitudeEstimate, VerticalEstimate
+from imuhal.offline.chain import run_chain
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile
+from imuhal.profiles_dir import default_profile_path
 from imuhal.sim.scenario import Scenario
 from imuhal.sim.velocity import GnssVelocityModel, gnss_velocity_samples
+from imuhal_filters.common.quat import tilt_error_deg
 from imuhal_filters.vario.kf3_settings import VarioKf3Settings
 
 HERE = Path(__file__).resolve().parent
@@ -157,23 +163,14 @@ def fly(profile: BoardProfile, registry: Registry, scenario: str, duration_s: fl
 # --------------------------------------------------------------------------- measures
 
 
-def _tilt_deg(q_est: Sequence[float], q_true: np.ndarray) -> float:
-    def down(q: Sequence[float]) -> np.ndarray:
-        w, x, y, z = q
-        return np.array([2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z])
-
-    a, b = down(q_est), down(q_true)
-    c = float(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)))
-    return math.degrees(math.acos(max(-1.0, min(1.0, c))))
+def _tilt_deg(q_est: Sequence[float], q_true: Sequence[float]) -> float:
+    w, x, y, z = q_est
+    return tilt_error_deg((w, x, y, z), (q_true[0], q_true[1], q_true[2], q_true[3]))
 
 
 def run_ahrs(est: Estimator, samples: Iterable[Sample]) -> list[AttitudeEstimate]:
-    out: list[AttitudeEstimate] = []
-    consumes = tuple(est.consumes)
-    for s in samples:
-        if isinstance(s, consumes):
-            out += [e for e in est.process(s) if isinstance(e, AttitudeEstimate)]
-    return out
+    """The AHRS's attitudes from the recorded samples, fed as the pipeline would."""
+    return [e for e in run_chain([est], samples) if isinstance(e, AttitudeEstimate)]
 
 
 @dataclass(frozen=True)
@@ -201,16 +198,10 @@ def time_to_one_degree_s(flight: Flight, estimates: Sequence[AttitudeEstimate]) 
 
 def run_vario(ahrs: Estimator, vario: Estimator, samples: Iterable[Sample]
               ) -> list[VerticalEstimate]:
-    out: list[VerticalEstimate] = []
-    ahrs_in = tuple(ahrs.consumes)
-    for s in samples:
-        items: list[Any] = [s]
-        if isinstance(s, ahrs_in):
-            items += ahrs.process(s)
-        for item in items:
-            if isinstance(item, PressureSample | AttitudeEstimate):
-                out += [e for e in vario.process(item) if isinstance(e, VerticalEstimate)]
-    return out
+    """The vario's estimates behind ``ahrs``, taking the barometer and the AHRS as in the
+    seed profile, fed as the pipeline would."""
+    chained = run_chain([ahrs, vario], samples, inputs={vario.instance: ("baro", ahrs.instance)})
+    return [e for e in chained if isinstance(e, VerticalEstimate)]
 
 
 def climb_rms(flight: Flight, estimates: Sequence[VerticalEstimate]) -> float:
@@ -311,10 +302,8 @@ def vario_figures(registry: Registry, ahrs: str, ahrs_extra: dict[str, Any],
 def calibrated_seed_profile(registry: Registry) -> BoardProfile:
     """The seed paraglider board with the calibration its emulated chips give when
     calibrated (the board every flight figure is measured on)."""
-    acc = _accuracy_module()
-    base = acc.seed_profile(registry)
-    return acc.condition_profile(base, acc.Condition.CALIBRATED,
-                                 acc.measure_board_calibration(base, registry))
+    return calibrated_board(load_profile(default_profile_path(), registry), registry,
+                            seed=SEED)
 
 
 def measure(duration_s: float, say: Callable[[str], None]) -> Results:
@@ -474,9 +463,8 @@ def report(res: Results, duration_s: float) -> str:
 
 
 def replace_block(text: str, block: str) -> str:
-    start = text.index(START_MARK) + len(START_MARK)
-    end = text.index(END_MARK, start)
-    return text[:start] + "\n" + block.rstrip("\n") + "\n" + text[end:]
+    """``text`` with the lines between the flight-table markers replaced by ``block``."""
+    return _accuracy_module().replace_block(text, block, (START_MARK, END_MARK))
 
 
 def main(argv: Sequence[str] | None = None) -> int:

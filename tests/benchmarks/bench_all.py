@@ -16,7 +16,8 @@ Sections:
 * batch: every estimator's batch function in samples/s (the compiled kernel when numba is
   installed, see ``imuhal_filters.common.fast``), next to ``vqf.VQF.updateBatch``;
 * ``imuhal estimate madgwick`` on a generated ``--rows`` CSV, in a child process: rows/s and
-  peak RSS (``VmHWM`` of the child, Linux);
+  peak RSS (``VmHWM`` of the child, Linux), with each kernel backend: the AOT extension
+  (``imuhal kernels build`` into a temporary directory first), numba's JIT, pure Python;
 * the emulated seed board with its estimators: x real time by CPU time, next to the bare
   scenario truth at 250 Hz;
 * the hardware path: the same board's drivers, decoding, calibration, mount rotation and
@@ -30,6 +31,7 @@ BLAS calls, which none of the measured paths make, and it is left as it is.
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import math
 import os
 import resource
@@ -204,7 +206,8 @@ def peer_rows(n: int, gyro: np.ndarray, accel: np.ndarray, mag: np.ndarray) -> l
 
 # --------------------------------------------------------------------------- imuhal
 def estimator_rows(n: int, gyro: np.ndarray, accel: np.ndarray, mag: np.ndarray,
-                   vqf_loop_us: float | None, vqf_batch: float | None) -> list[Row]:
+                   vqf_loop_us: float | None, vqf_batch: float | None,
+                   aot_dir: Path | None = None) -> list[Row]:
     from imuhal_filters.common.ahrs import ImuStep
     from imuhal_filters.common.gate import gravity_positive_g
 
@@ -264,7 +267,7 @@ def estimator_rows(n: int, gyro: np.ndarray, accel: np.ndarray, mag: np.ndarray,
         if name == "madgwick" and vqf_loop_us:
             rows.append(Row("per sample", "madgwick process()", p, "us/sample", "vqf loop",
                             p / vqf_loop_us, "<= 6"))
-    rows += batch_rows(registry, gyro, accel, mag, vqf_batch)
+    rows += batch_rows(registry, gyro, accel, mag, vqf_batch, aot_dir)
     return rows
 
 
@@ -301,7 +304,9 @@ def freescale_rows(name: str, cls, samples: list, gyro: np.ndarray, accel: np.nd
 
 
 def batch_rows(registry, gyro: np.ndarray, accel: np.ndarray, mag: np.ndarray,
-               vqf_batch: float | None) -> list[Row]:
+               vqf_batch: float | None, aot_dir: Path | None = None) -> list[Row]:
+    """Pure Python and compiled (numba's JIT) batch throughput; for the AHRS also the AOT
+    extension in ``aot_dir`` (built by :func:`build_kernels`) when given."""
     from imuhal_filters.common import fast
     from imuhal_filters.common.ahrs import AhrsEstimator
     from imuhal_filters.common.batch import run_batch
@@ -335,6 +340,18 @@ def batch_rows(registry, gyro: np.ndarray, accel: np.ndarray, mag: np.ndarray,
                         ">= 2" if name == "madgwick" else ""))
         rows.append(Row("batch", f"{name} compiled / pure Python", c / py, "x", "", None,
                         "" if name == "madgwick" else ">= 10"))
+        if aot_dir is not None:
+            saved = os.environ["IMUHAL_KERNELS"], os.environ.get("IMUHAL_KERNEL_DIR")
+            os.environ["IMUHAL_KERNELS"], os.environ["IMUHAL_KERNEL_DIR"] = "aot", str(aot_dir)
+            compiled(100)
+            a = 1.0 / cpu_per_call(compiled, 10 * n, repeat=3)
+            os.environ["IMUHAL_KERNELS"] = saved[0]
+            if saved[1] is None:
+                del os.environ["IMUHAL_KERNEL_DIR"]
+            else:
+                os.environ["IMUHAL_KERNEL_DIR"] = saved[1]
+            rows.append(Row("batch", f"{name} run_batch 9-DOF, AOT extension", a, "samples/s",
+                            "JIT (row above)", a / c))
     rows += freescale_batch_rows(gyro, accel, mag, vqf_batch)
     rows += vario_batch_rows(n)
     return rows
@@ -418,36 +435,69 @@ BEFORE_ESTIMATE_US_ROW = 44.9
 the 4 x target: that code is gone, so it cannot be measured in the same run."""
 
 
-def run_estimate(log: Path, out: Path, no_jit: bool = False) -> tuple[float, float]:
-    """CPU seconds and peak RSS (MB) of ``imuhal estimate madgwick`` in a child process."""
+def run_estimate(log: Path, out: Path, backend: str = "auto",
+                 kernel_dir: Path | None = None) -> tuple[float, float]:
+    """CPU seconds and peak RSS (MB) of ``imuhal estimate madgwick`` in a child process, with
+    the kernel backend forced (``IMUHAL_KERNELS``: aot, jit, python; auto: as installed)."""
     # VmHWM, not ru_maxrss: Linux keeps ru_maxrss across exec, so a child's would start
     # at this (larger) process's peak
     code = ("import sys,time;from imuhal.cli.main import main;"
             "t=time.process_time();rc=main(sys.argv[1:]);"
             "hwm=[l.split()[1] for l in open('/proc/self/status') if l.startswith('VmHWM')];"
-            "print(time.process_time()-t,hwm[0],file=sys.stderr);sys.exit(rc)")
-    env = {**os.environ, **({"IMUHAL_NO_JIT": "1"} if no_jit else {})}
+            "print(time.process_time()-t,hwm[0],'numba' in sys.modules,file=sys.stderr);"
+            "sys.exit(rc)")
+    env = {k: v for k, v in os.environ.items() if k not in ("IMUHAL_NO_JIT", "IMUHAL_KERNELS")}
+    env["IMUHAL_KERNELS"] = backend
+    if kernel_dir is not None:
+        env["IMUHAL_KERNEL_DIR"] = str(kernel_dir)
     proc = subprocess.run([sys.executable, "-c", code, "estimate", "madgwick", str(log),
                            "-o", str(out)], capture_output=True, text=True, check=False,
                           env=env)
     if proc.returncode != 0:
         raise SystemExit(f"imuhal estimate failed:\n{proc.stderr}")
-    cpu_s, rss_kb = proc.stderr.strip().splitlines()[-1].split()
+    cpu_s, rss_kb, numba_loaded = proc.stderr.strip().splitlines()[-1].split()
+    if backend in ("aot", "python") and numba_loaded != "False":
+        raise SystemExit(f"imuhal estimate with IMUHAL_KERNELS={backend} imported numba")
     return float(cpu_s), int(rss_kb) / 1024
 
 
+def build_kernels(directory: Path) -> str | None:
+    """``imuhal kernels build`` into ``directory`` (the sources as they are now); the error
+    line when it cannot build here (no numba, no C compiler)."""
+    proc = subprocess.run([sys.executable, "-m", "imuhal.cli.main", "kernels", "build"],
+                          capture_output=True, text=True, check=False,
+                          env={**os.environ, "IMUHAL_KERNEL_DIR": str(directory)})
+    return None if proc.returncode == 0 else proc.stderr.strip()
+
+
 def estimate_rows(n_rows: int, madgwick_update_us: float) -> list[Row]:
+    """The three kernel backends of ``imuhal estimate`` on one log: the AOT extension (built
+    first into a temporary kernel directory), numba's JIT (its cache warmed on a short log
+    first, as an installed user's would be) and pure Python."""
     with tempfile.TemporaryDirectory() as tmp:
         log = Path(tmp) / "log.csv"
         write_log(log, n_rows)
         out = Path(tmp) / "out.csv"
         size_mb = log.stat().st_size / 1e6
-        cpu, rss_mb = run_estimate(log, out)
-        rows = estimate_table_rows(f"imuhal estimate madgwick, {n_rows} rows ({size_mb:.0f} MB)",
-                                   n_rows, cpu, rss_mb, madgwick_update_us)
-        cpu, rss_mb = run_estimate(log, out, no_jit=True)
-        rows += estimate_table_rows("same, IMUHAL_NO_JIT=1 (no numba)", n_rows, cpu, rss_mb,
+        rows: list[Row] = []
+        kernels = Path(tmp) / "kernels"
+        failed = build_kernels(kernels)
+        head = f"imuhal estimate madgwick, {n_rows} rows ({size_mb:.0f} MB)"
+        if failed is None:
+            cpu, rss_mb = run_estimate(log, out, "aot", kernels)
+            rows += estimate_table_rows(f"{head}, AOT extension (no numba loaded)", n_rows,
+                                        cpu, rss_mb, madgwick_update_us)
+        else:
+            print(f"no AOT rows: {failed}", file=sys.stderr)
+        small = Path(tmp) / "small.csv"
+        write_log(small, 1000)
+        run_estimate(small, out, "jit")  # numba's cache warm for the measured run
+        cpu, rss_mb = run_estimate(log, out, "jit")
+        rows += estimate_table_rows("same, numba JIT (IMUHAL_KERNELS=jit)", n_rows, cpu, rss_mb,
                                     madgwick_update_us)
+        cpu, rss_mb = run_estimate(log, out, "python")
+        rows += estimate_table_rows("same, pure Python (IMUHAL_KERNELS=python)", n_rows, cpu,
+                                    rss_mb, madgwick_update_us)
     return rows
 
 
@@ -536,7 +586,16 @@ def main(argv: list[str] | None = None) -> int:
     vqf_batch = by_case.get("vqf.VQF.updateBatch 9-DOF")
     plain = by_case.get("plain-Python Madgwick 9-DOF loop")
     if "estimators" not in args.skip:
-        est = estimator_rows(args.samples, gyro, accel, mag, vqf_loop, vqf_batch)
+        # the "compiled" rows are numba's JIT even where an extension is built; the AOT
+        # extension gets rows of its own, built from the sources as they are now
+        os.environ["IMUHAL_KERNELS"] = "jit" if importlib.util.find_spec("numba") else "auto"
+        aot_tmp = tempfile.TemporaryDirectory()
+        aot_dir: Path | None = Path(aot_tmp.name)
+        failed = build_kernels(Path(aot_tmp.name))
+        if failed is not None:
+            print(f"no AOT batch rows: {failed}", file=sys.stderr)
+            aot_dir = None
+        est = estimator_rows(args.samples, gyro, accel, mag, vqf_loop, vqf_batch, aot_dir)
         if plain:
             p_us = next(r.value for r in est if r.case == "madgwick process()")
             est.append(Row("per sample", "madgwick process()", p_us, "us/sample",

@@ -7,9 +7,11 @@ Each stage runs in a fresh child process and reports its peak RSS (``VmHWM``, Li
 interpreter with numpy; with scipy as well (numba's ``__init__`` imports scipy, when it is
 installed, to check its version); with numba imported; with one trivial ``njit(cache=True)``
 kernel loaded from numba's on-disk cache (the second of two runs, so nothing is compiled);
-then ``imuhal estimate madgwick`` on a short ``--rows`` log, with and without
-``IMUHAL_NO_JIT=1``. The difference between the last two is numba's fixed cost in the
-command; docs/performance.md keeps the figures.
+then ``imuhal estimate madgwick`` on a short ``--rows`` log with numba's JIT and in pure
+Python (the difference is numba's fixed cost in the command); then, with the kernels built
+ahead of time (``imuhal kernels build`` into a temporary directory), one kernel called from
+the extension and ``imuhal estimate`` on it (no numba loaded). docs/performance.md keeps the
+figures.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from tests.benchmarks.bench_all import run_estimate, write_log
+from tests.benchmarks.bench_all import build_kernels, run_estimate, write_log
 
 _HWM = ("import sys;print([l.split()[1] for l in open('/proc/self/status')"
         " if l.startswith('VmHWM')][0], file=sys.stderr)")
@@ -58,11 +60,24 @@ def stages(rows: int) -> list[tuple[str, float]]:
                      peak_mb(code, cwd=work, env=env)))
         log, result = work / "log.csv", work / "out.csv"
         write_log(log, rows)
-        run_estimate(log, result)  # the kernels' cache is warm for the measured run
-        out.append((f"imuhal estimate madgwick, {rows} rows, compiled",
-                    run_estimate(log, result)[1]))
-        out.append((f"imuhal estimate madgwick, {rows} rows, IMUHAL_NO_JIT=1",
-                    run_estimate(log, result, no_jit=True)[1]))
+        run_estimate(log, result, "jit")  # the kernels' cache is warm for the measured run
+        out.append((f"imuhal estimate madgwick, {rows} rows, numba JIT",
+                    run_estimate(log, result, "jit")[1]))
+        out.append((f"imuhal estimate madgwick, {rows} rows, pure Python",
+                    run_estimate(log, result, "python")[1]))
+        kernels = work / "kernels"
+        failed = build_kernels(kernels)
+        if failed is None:
+            probe = ("import numpy as np; from imuhal_filters.vario.fast import baro_rows; "
+                     "baro_rows(np.zeros(5), 1.0, 1.0, np.zeros(4), np.full(4, 0.1), "
+                     "np.zeros((4, 2))); import sys; assert 'numba' not in sys.modules")
+            aot_env = {"IMUHAL_KERNEL_DIR": str(kernels), "IMUHAL_KERNELS": "aot"}
+            out.append(("python + numpy + imuhal's AOT kernel extension, one call",
+                        peak_mb(probe, env=aot_env)))
+            out.append((f"imuhal estimate madgwick, {rows} rows, AOT extension",
+                        run_estimate(log, result, "aot", kernels)[1]))
+        else:
+            print(f"no AOT rows: {failed}", file=sys.stderr)
     return out
 
 

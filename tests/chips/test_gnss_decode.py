@@ -75,7 +75,12 @@ def nav_pvt_frame(*, lat_deg: float, lon_deg: float, h_msl_m: float, vel_ned_m_s
     vn, ve, vd = (round(v * 1000) for v in vel_ned_m_s)
     struct.pack_into("<iiii i I I H", payload, 48, vn, ve, vd, round((vn**2 + ve**2) ** 0.5),
                      0, round(s_acc_m_s * 1000), 0, 150)
-    body = bytes((0x01, 0x07)) + struct.pack("<H", 92) + bytes(payload)
+    return ubx_frame(0x01, 0x07, bytes(payload))
+
+
+def ubx_frame(msg_class: int, msg_id: int, payload: bytes) -> bytes:
+    """Sync, class, id, little-endian length, payload, 8-bit Fletcher checksum."""
+    body = bytes((msg_class, msg_id)) + struct.pack("<H", len(payload)) + payload
     a = b = 0
     for byte in body:
         a = (a + byte) & 0xFF
@@ -112,6 +117,11 @@ def test_a_ubx_frame_with_a_bad_checksum_is_reported() -> None:
     assert not decode_ubx(bytes(frame)).checksum_ok
 
 
+def _pvt() -> bytes:
+    return nav_pvt_frame(lat_deg=1, lon_deg=2, h_msl_m=3, vel_ned_m_s=(0, 0, 0), fix=3,
+                         num_sv=5, h_acc_m=1, v_acc_m=1, s_acc_m_s=1)
+
+
 def test_the_splitter_waits_for_a_frame_split_across_reads() -> None:
     frame = nav_pvt_frame(lat_deg=1, lon_deg=2, h_msl_m=3, vel_ned_m_s=(0, 0, 0), fix=3,
                           num_sv=5, h_acc_m=1, v_acc_m=1, s_acc_m_s=1)
@@ -122,15 +132,56 @@ def test_the_splitter_waits_for_a_frame_split_across_reads() -> None:
     assert s.garbage_bytes == 0
 
 
-def test_a_frame_cut_in_half_costs_one_checksum_error_and_the_next_frame_decodes() -> None:
-    frame = nav_pvt_frame(lat_deg=1, lon_deg=2, h_msl_m=3, vel_ned_m_s=(0, 0, 0), fix=3,
-                          num_sv=5, h_acc_m=1, v_acc_m=1, s_acc_m_s=1)
+def test_a_frame_cut_in_half_costs_one_checksum_error_and_the_frames_it_covered_decode(
+        ) -> None:
+    frame = _pvt()
     s = StreamSplitter()
     items = s.feed(frame[:50] + frame + frame + GGA)
     decoded = [decode_ubx(i) if k == "ubx" else decode_nmea(i) for k, i in items]
-    assert not decoded[0].checksum_ok  # the cut frame swallowed the start of the next one
-    assert [d.checksum_ok for d in decoded[1:]][-2:] == [True, True]
+    # the cut frame claimed the start of the next one; that one is found all the same
+    assert [d.checksum_ok for d in decoded] == [False, True, True, True]
     assert decoded[-1].kind == "GGA"
+
+
+def test_a_nav_pvt_announcing_another_length_is_dropped_at_its_header() -> None:
+    """NAV-PVT is 92 bytes long: a length byte corrupted to announce 860 is not waited for
+    (it would swallow the next frames); the search resumes after the sync characters."""
+    bad = bytearray(_pvt())
+    bad[5] ^= 0x03
+    s = StreamSplitter()
+    assert s.feed(bytes(bad) + _pvt() + GGA) == [("ubx", _pvt()), ("nmea", GGA)]
+    assert s.resyncs == 1 and s.garbage_bytes == len(bad)
+
+
+def test_a_frame_failing_its_checksum_is_handed_on_and_the_frames_its_length_covered_found(
+        ) -> None:
+    """A message of no fixed length (NAV-POSLLH here) whose length byte grew from 28 to 156:
+    its checksum fails once its bytes are in; it goes to the decoder (counted, flagged),
+    and the NAV-PVT and the sentence it covered are read."""
+    bad = bytearray(ubx_frame(0x01, 0x02, bytes(range(28))))
+    bad[4] ^= 0x80
+    s = StreamSplitter()
+    items = s.feed(bytes(bad) + _pvt() + GGA + bytes(64))
+    assert [k for k, _ in items] == ["ubx", "ubx", "nmea"]
+    assert not decode_ubx(items[0][1]).checksum_ok
+    assert items[1:] == [("ubx", _pvt()), ("nmea", GGA)]
+
+
+def test_a_byte_inside_a_failed_frame_that_looks_like_a_start_is_not_taken() -> None:
+    """A payload holding ``$...\n`` or a UBX sync: inside the bytes a failed frame claimed,
+    only an item with a good checksum is taken."""
+    payload = b"$GPXXX,1*00\r\n" + b"\xb5\x62\x05\x01\x02\x00\x06\x01\x00\x00" + bytes(40)
+    bad = bytearray(ubx_frame(0x01, 0x02, payload))
+    bad[-1] ^= 0xFF
+    s = StreamSplitter()
+    items = s.feed(bytes(bad) + RMC)
+    assert [k for k, _ in items] == ["ubx", "nmea"] and items[1][1] == RMC
+
+
+def test_a_sentence_whose_line_feed_is_corrupted_costs_only_itself() -> None:
+    """NMEA has no length to believe: a sentence ends at its line feed or the next start."""
+    s = StreamSplitter()
+    assert s.feed(GGA[:-1] + b"\x0b" + RMC + VTG) == [("nmea", RMC), ("nmea", VTG)]
 
 
 def test_noise_between_sentences_is_counted_and_skipped() -> None:

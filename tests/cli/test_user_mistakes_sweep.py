@@ -93,6 +93,9 @@ MISTAKES: dict[str, Mistake] = {
                                   "nosuch"),
     "estimate: setting without a value": m("estimate madgwick imu.csv -o o.csv --set beta",
                                            "beta"),
+    # kernels (the compiled-kernel plugin command)
+    "kernels: no action": m("kernels", "ACTION"),
+    "kernels: an unknown action": m("kernels compile", "compile"),
     # replay
     "replay: output over its recording": m("replay rec.imr --output rec.imr --quiet",
                                            "rec.imr"),

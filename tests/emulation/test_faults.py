@@ -27,6 +27,7 @@ from imuhal.emulation.faults import (
     BusOSError,
     ChipAbsent,
     ChipReset,
+    CorruptByte,
     CorruptTrim,
     FaultSpec,
     FrozenData,
@@ -133,6 +134,17 @@ def test_a_chip_fault_its_emulator_does_not_model_is_refused_from_python(
         _open(registry, CorruptTrim(device="imu"))
     with pytest.raises(ConfigurationError, match="no emulated device 'gps'"):
         _open(registry, FrozenData(device="gps"))
+
+
+def test_corrupt_byte_off_a_serial_line_is_refused_in_a_profile_and_from_python(
+        registry: Registry) -> None:
+    text = _seed_text() + "  faults: [{kind: corrupt_byte, device: baro, byte: 4}]\n"
+    with pytest.raises(ProfileError) as info:
+        parse_profile(text, "board.yaml", registry)
+    assert any("emulation.faults.0.kind" in p and "serial line" in p
+               for p in info.value.problems)
+    with pytest.raises(ConfigurationError, match="corrupt_byte acts on a serial line"):
+        _open(registry, CorruptByte(device="imu"))
 
 
 # -- the bus line -----------------------------------------------------------------------------

@@ -8,33 +8,21 @@ docs/estimators.md) and finite numbers. Error measures are checked on exact rota
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import sys
 from pathlib import Path
-from types import ModuleType
 
 import numpy as np
 import pytest
+from tests.support.docs_scripts import load_docs_script
 
 from imuhal.core.frames import quat_from_euler_deg
 from imuhal.plugins.manager import Registry, load_registry
 
 ROOT = Path(__file__).resolve().parents[2]
-SCRIPT = ROOT / "docs" / "scripts" / "estimator_accuracy.py"
 DASH = "—"
 
 
-def _load_script() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("estimator_accuracy", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up while being built
-    spec.loader.exec_module(module)
-    return module
-
-
-ea = _load_script()
+ea = load_docs_script("estimator_accuracy")
 
 
 @pytest.fixture(scope="module")

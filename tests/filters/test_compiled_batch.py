@@ -1,4 +1,4 @@
-"""The compiled batch path (``fast`` extra, numba) gives what the pure-Python path gives.
+"""The compiled batch path (JIT and AOT kernels) gives what the pure-Python path gives.
 
 Pure Python is the reference: on the conformance data (data set A), with every preset and
 the corner cases the kernel handles itself (missing rows, values beyond the full scale, the
@@ -14,15 +14,13 @@ import numpy as np
 import pytest
 from tests.filters.dataset_a import load_head
 
-from imuhal_filters.common import fast
 from imuhal_filters.common.batch import run_batch
 from imuhal_filters.imufilter.estimator import ImuFilterEstimator
 from imuhal_filters.madgwick.estimator import MadgwickEstimator
 from imuhal_filters.mahony.estimator import MahonyEstimator
 
-pytestmark = pytest.mark.skipif(
-    not fast.available(),
-    reason="no compiled kernels: numba not installed (pip install -e '.[fast]') or IMUHAL_NO_JIT=1")
+# every test runs on numba's JIT and on the AOT extension (each skipped where unavailable)
+pytestmark = pytest.mark.usefixtures("compiled_backend")
 
 CASES = [
     {},
@@ -123,3 +121,32 @@ def test_compiled_imufilter_batch_equals_pure_python_on_data_set_a(
     assert f["gain"] == pytest.approx(f_ref["gain"], rel=1e-12)
     for key, value in f["velocity"].items():
         assert value == pytest.approx(f_ref["velocity"][key], rel=1e-12, abs=1e-12), key
+
+
+def test_one_step_length_for_every_row_runs_compiled_like_python(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A scalar ``dt_s`` (broadcast, read-only) reaches the kernel as the array it takes."""
+    gyro, accel, m, _ = _data()
+    compiled = run_batch(MadgwickEstimator(), gyro, accel, m, 0.005)
+    monkeypatch.setenv("IMUHAL_NO_JIT", "1")
+    ref = run_batch(MadgwickEstimator(), gyro, accel, m, 0.005)
+    assert np.nanmax(np.abs(compiled - ref)) <= 1e-12
+
+
+def test_a_kernel_refuses_arguments_of_another_type_naming_them() -> None:
+    """The extension reads memory as its signature says: anything else is refused first."""
+    from imuhal_filters.vario.fast import baro_rows
+
+    z = np.zeros(4)
+    frozen = np.full(4, 0.1)
+    frozen.flags.writeable = False
+    good = (np.zeros(5), 1.0, 1.0, z, np.full(4, 0.1), np.zeros((4, 2)))
+    baro_rows(*good)
+    for i, bad, what in [(3, z.astype(np.float32), "float32"),
+                         (5, np.zeros((2, 4)).T, "not in C order"),
+                         (1, 1, "int"),
+                         (4, frozen, "read-only")]:
+        args = list(good)
+        args[i] = bad
+        with pytest.raises(TypeError, match=f"baro_rows: argument .* must be .*{what}"):
+            baro_rows(*args)

@@ -3,8 +3,8 @@
 On conformance data set A in the three coordinate systems, 9 and 6 DOF, in the reference
 (build 422) and the default configuration, with a magnetic disturbance that jams the
 magnetometer and a hard manoeuvre for the soft gate, every output of ``run_9dof`` and
-``run_6dof`` equals the pure-Python run (the reference) to 1e-12, whenever numba is
-installed. A settings class with a field the kernel does not know runs in Python.
+``run_6dof`` equals the pure-Python run (the reference) to 1e-12, on numba's JIT and on the
+AOT extension. A settings class with a field the kernel does not know runs in Python.
 """
 
 from __future__ import annotations
@@ -14,14 +14,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from imuhal_filters.common import fast
 from imuhal_filters.freescale import batch
 from imuhal_filters.freescale.batch import BatchResult, run_6dof, run_9dof
 from imuhal_filters.freescale.settings import Freescale6DofSettings, Freescale9DofSettings
 
-pytestmark = pytest.mark.skipif(
-    not fast.available(),
-    reason="no compiled kernels: numba not installed (pip install -e '.[fast]') or IMUHAL_NO_JIT=1")
+# every test runs on numba's JIT and on the AOT extension (each skipped where unavailable)
+pytestmark = pytest.mark.usefixtures("compiled_backend")
 
 DATA = Path(__file__).resolve().parent.parent / "data" / "filters"
 

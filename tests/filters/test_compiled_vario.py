@@ -2,7 +2,7 @@
 
 On conformance data set C (40 Hz paraglider flight) in every reference mode, and for the
 barometer-only filter, with uneven step lengths, the compiled rows equal the pure-Python rows
-(the reference) to 1e-12, whenever numba is installed.
+(the reference) to 1e-12, on numba's JIT and on the AOT extension.
 """
 
 from __future__ import annotations
@@ -12,12 +12,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from imuhal_filters.common import fast
 from imuhal_filters.vario.batch import run_baro_batch, run_batch
 
-pytestmark = pytest.mark.skipif(
-    not fast.available(),
-    reason="no compiled kernels: numba not installed (pip install -e '.[fast]') or IMUHAL_NO_JIT=1")
+# every test runs on numba's JIT and on the AOT extension (each skipped where unavailable)
+pytestmark = pytest.mark.usefixtures("compiled_backend")
 
 DATA = Path(__file__).resolve().parent.parent / "data" / "filters"
 

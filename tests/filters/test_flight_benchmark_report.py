@@ -7,26 +7,11 @@ its excess, and the vario targets are judged on the seed profile's chain (behind
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-from types import ModuleType
+from tests.support.docs_scripts import load_docs_script
 
 from imuhal.plugins.manager import load_registry
 
-SCRIPT = Path(__file__).resolve().parents[2] / "docs" / "scripts" / "flight_benchmark.py"
-
-
-def _load_script() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("flight_benchmark", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up while being built
-    spec.loader.exec_module(module)
-    return module
-
-
-fb = _load_script()
+fb = load_docs_script("flight_benchmark")
 MET = {"thermal_nominal_deg": 0.6, "thermal_velocity_deg": 0.9, "climb_thermal_m_s": 0.04,
        "climb_rest_m_s": 0.024, "step_delay_s": 0.02, "upside_down_s": 0.0, "rc_max_deg": 3.6}
 

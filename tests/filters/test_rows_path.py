@@ -5,7 +5,8 @@ same rows fed sample by sample through ``process()``. On conformance data set A,
 log's awkward cases added (a slower and a missing magnetometer, values beyond the full scale,
 a time jump, a repeated timestamp, an accelerometer that goes stale), every written cell
 equals the reference to 1e-12 and the estimator ends in the same state, so chunks chain.
-Run compiled (numba installed) and with ``IMUHAL_NO_JIT=1`` (the Python steps).
+Run compiled (numba's JIT, the AOT extension) and with ``IMUHAL_NO_JIT=1`` (the Python
+steps).
 """
 
 from __future__ import annotations
@@ -21,7 +22,6 @@ from imuhal.offline.csv_input import ACCEL, GYRO, MAG, TIME, SampleTable
 from imuhal.offline.csv_output import EstimateCsvWriter
 from imuhal.offline.runner import iter_offline, run_offline
 from imuhal.plugins.manager import load_registry
-from imuhal_filters.common import fast
 
 CASES = [
     ("madgwick", {}),
@@ -106,9 +106,7 @@ def _run(name: str, settings: dict, tmp_path: Path, chunk: int, with_mag: bool =
                          ids=[f"{n}-{','.join(map(str, s.values())) or 'defaults'}"
                               for n, s in CASES])
 def test_column_path_writes_what_the_sample_path_writes(
-        name: str, settings: dict, tmp_path: Path) -> None:
-    if not fast.available():
-        pytest.skip("numba not installed: the Python-step variant below covers this")
+        name: str, settings: dict, tmp_path: Path, compiled_backend: str) -> None:
     _run(name, settings, tmp_path, chunk=211)
 
 

@@ -2,41 +2,41 @@
 
 The bundled seed paragliding board (MAX21100 at 250 Hz, HMC5883L, MS5611) is emulated with
 the chips' datasheet error models and calibrated as the flight benchmark does
-(docs/scripts/estimator_accuracy.py: accelerometer six positions and magnetometer figure of
-8 measured by imuhal's procedures, gyro offsets at power-up; ideal chips will not do, their
-frozen readings at rest are flagged), seed 1. Short runs of the benchmark's scenarios; the
+(imuhal.calibrate.emulated: accelerometer six positions and magnetometer figure of 8
+measured by imuhal's procedures, gyro offsets at power-up; ideal chips will not do, their
+frozen readings at rest are flagged), seed 1. The recorded samples are fed to the estimators
+as the pipeline would (imuhal.offline.chain). Short runs of the benchmark's scenarios; the
 full figures are in docs/estimators.md's flight benchmark.
 
 - `rc-flight`, first 37 s (take-off run, climb, a 4 s loop at 3-5 g, an axial roll, a
   pull-up and push-over, a coordinated banked turn): each AHRS with its defaults (only the
   board's rates and field strength; no speed source) keeps its tilt error under 10 deg from
-  5 s on. Measured: madgwick 3.6, mahony 5.7, imufilter 4.7, freescale-9dof 5.9,
+  5 s on. Measured: madgwick 3.6, mahony 5.7, imufilter 4.6, freescale-9dof 5.8,
   freescale-6dof 4.5 deg at worst; build 422's Freescale filters (`preset: reference`) lose
   the attitude in the loop (178 deg), the seed's gated madgwick reaches 44 deg.
 - At rest (`static`, 30 s) and on a 2 m/s lift (`elevator`): vario-kf3 with its defaults
   behind each AHRS (with the seed profile's nominal airspeed) is quiet, climb RMS under
-  3 cm/s over 5-30 s (measured 2.8 cm/s), and fast, 90 % of the 2 m/s step within 0.2 s
+  3 cm/s over 5-30 s (measured 2.7 cm/s), and fast, 90 % of the 2 m/s step within 0.2 s
   of the truth (measured 0.02 s, one barometer period).
 """
 
 from __future__ import annotations
 
-import importlib.util
-import math
-import sys
-from pathlib import Path
-from types import ModuleType
-
 import numpy as np
 import pytest
 
-from imuhal.core.samples import PressureSample, Sample
+from imuhal.calibrate.emulated import calibrated_board
+from imuhal.core.samples import Sample
 from imuhal.emulation import open_emulated
 from imuhal.estimation.base import Estimator
 from imuhal.estimation.outputs import AttitudeEstimate, VerticalEstimate
+from imuhal.offline.chain import run_chain
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile
+from imuhal.profiles_dir import default_profile_path
 from imuhal.sim.scenario import Scenario
+from imuhal_filters.common.quat import tilt_error_deg
 
 RC_FLIGHT_S = 37.0
 REST_S = 30.0
@@ -54,18 +54,7 @@ BOARD: dict[str, dict[str, float]] = {
 NOMINAL_AIRSPEED = {"nominal_airspeed_m_s": 10.0}
 """The seed profile's AHRS setting (a paraglider's trim speed)."""
 
-SCRIPT = Path(__file__).resolve().parents[2] / "docs" / "scripts" / "estimator_accuracy.py"
-
 Flight = tuple[list[Sample], Scenario]
-
-
-def _accuracy_script() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("estimator_accuracy", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up while being built
-    spec.loader.exec_module(module)
-    return module
 
 
 @pytest.fixture(scope="module")
@@ -76,10 +65,8 @@ def registry() -> Registry:
 @pytest.fixture(scope="module")
 def board(registry: Registry) -> BoardProfile:
     """The seed board, calibrated, without estimators (the tests run their own)."""
-    acc = _accuracy_script()
-    base = acc.seed_profile(registry)
-    profile = acc.condition_profile(base, acc.Condition.CALIBRATED,
-                                    acc.measure_board_calibration(base, registry))
+    seed_board = load_profile(default_profile_path(), registry)
+    profile = calibrated_board(seed_board, registry, seed=1)
     return profile.model_copy(update={"estimators": {}})
 
 
@@ -111,17 +98,6 @@ def lift(board: BoardProfile, registry: Registry) -> Flight:
     return _fly(board, registry, "elevator", LIFT_S, {"speed_m_s": STEP_M_S})
 
 
-def _tilt_deg(q_est: tuple[float, ...], q_true: np.ndarray) -> float:
-    def down(q: tuple[float, ...] | np.ndarray) -> np.ndarray:
-        w, x, y, z = q
-        return np.array([2 * (x * z - w * y), 2 * (y * z + w * x),
-                         w * w - x * x - y * y + z * z])
-
-    a, b = down(q_est), down(q_true)
-    c = float(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)))
-    return math.degrees(math.acos(max(-1.0, min(1.0, c))))
-
-
 def _ahrs(registry: Registry, name: str, extra: dict[str, float] | None = None) -> Estimator:
     return registry.estimators.get(name)({**BOARD[name], **(extra or {})})
 
@@ -130,36 +106,20 @@ def _ahrs(registry: Registry, name: str, extra: dict[str, float] | None = None) 
 def test_default_settings_keep_the_tilt_under_10_deg_through_rc_flight(
         name: str, rc_flight: Flight, registry: Registry) -> None:
     samples, scenario = rc_flight
-    est = _ahrs(registry, name)
-    consumes = tuple(est.consumes)
-    worst = 0.0
-    count = 0
-    for s in samples:
-        if not isinstance(s, consumes):
-            continue
-        for e in est.process(s):
-            if isinstance(e, AttitudeEstimate) and e.t_ns >= SETTLE_S * 1e9:
-                truth = scenario.truth(e.t_ns / 1e9)
-                worst = max(worst, _tilt_deg(e.q_body_to_ned, truth.q_body_to_ned))
-                count += 1
-    assert count > 500
-    assert worst < 10.0
+    errors = [tilt_error_deg(e.q_body_to_ned, tuple(scenario.truth(e.t_ns / 1e9).q_body_to_ned))
+              for e in run_chain([_ahrs(registry, name)], samples)
+              if isinstance(e, AttitudeEstimate) and e.t_ns >= SETTLE_S * 1e9]
+    assert len(errors) > 500
+    assert max(errors) < 10.0
 
 
 def _vario(registry: Registry, name: str, samples: list[Sample]) -> list[VerticalEstimate]:
-    """vario-kf3 with its defaults behind ``name`` (nominal airspeed), as in the profile."""
+    """vario-kf3 with its defaults behind ``name`` (nominal airspeed), as in the profile: it
+    takes the barometer and the AHRS."""
     ahrs = _ahrs(registry, name, NOMINAL_AIRSPEED)
-    vario = registry.estimators.get("vario-kf3")({})
-    ahrs_in = tuple(ahrs.consumes)
-    out: list[VerticalEstimate] = []
-    for s in samples:
-        items: list[object] = [s]
-        if isinstance(s, ahrs_in):
-            items += ahrs.process(s)
-        for item in items:
-            if isinstance(item, PressureSample | AttitudeEstimate):
-                out += [e for e in vario.process(item) if isinstance(e, VerticalEstimate)]
-    return out
+    vario = registry.estimators.get("vario-kf3")({}, instance="vario")
+    chained = run_chain([ahrs, vario], samples, inputs={"vario": ("baro", ahrs.instance)})
+    return [e for e in chained if isinstance(e, VerticalEstimate)]
 
 
 @pytest.mark.parametrize("name", list(BOARD))

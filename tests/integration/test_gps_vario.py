@@ -105,10 +105,9 @@ def test_the_gps_varios_ahrs_compensates_turns_with_the_gnss_velocity() -> None:
     the first 70 GNSS epochs), over 25-40 s: measured 0.45 deg tilt RMS with the GNSS
     velocity (1.2 deg at worst) against 6.1 deg with the compensation off. Bounds: 1 deg RMS
     with, 5 times that without."""
-    from tests.integration.test_seed_board_turns import _tilt_deg
-
     from imuhal.estimation.outputs import AttitudeEstimate
     from imuhal.profile.loader import load_profile
+    from imuhal_filters.common.quat import tilt_error_deg
 
     registry = load_registry()
     profile = load_profile(bundled_profiles()["seed-gps-vario.yaml"], registry)
@@ -120,7 +119,8 @@ def test_the_gps_varios_ahrs_compensates_turns_with_the_gnss_velocity() -> None:
             for event in pipeline.events(40.0):
                 if isinstance(event, AttitudeEstimate) and event.t_ns >= 25e9:
                     truth = pipeline.board.truth_at(event.t_ns)
-                    errors.append(_tilt_deg(event.q_body_to_ned, truth.q_body_to_ned))
+                    errors.append(tilt_error_deg(event.q_body_to_ned,
+                                                 tuple(truth.q_body_to_ned)))
             ahrs = next(e for e in pipeline.estimators if e.name == "ahrs").estimator
             return float(np.sqrt(np.mean(np.square(errors)))), ahrs.diagnostics()
 

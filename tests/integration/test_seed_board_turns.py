@@ -10,8 +10,6 @@ at worst. Bounds: 1 deg at worst with, more than 5 times the RMS without.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from imuhal.emulation import open_emulated
@@ -20,6 +18,7 @@ from imuhal.plugins.manager import load_registry
 from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile
 from imuhal.profiles_dir import default_profile_path
+from imuhal_filters.common.quat import tilt_error_deg
 
 WINDOW_S = (25.0, 33.0)
 
@@ -33,16 +32,8 @@ def _tilt_errors_deg(profile: BoardProfile) -> np.ndarray:
             if isinstance(event, AttitudeEstimate) and event.t_ns >= WINDOW_S[0] * 1e9:
                 assert pipeline.board is not None
                 truth = pipeline.board.truth_at(event.t_ns)
-                errors.append(_tilt_deg(event.q_body_to_ned, truth.q_body_to_ned))
+                errors.append(tilt_error_deg(event.q_body_to_ned, tuple(truth.q_body_to_ned)))
     return np.array(errors)
-
-
-def _tilt_deg(q_est: tuple[float, ...], q_true: np.ndarray) -> float:
-    def down(q: tuple[float, ...] | np.ndarray) -> np.ndarray:
-        w, x, y, z = q
-        return np.array([2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z])
-
-    return math.degrees(math.acos(min(1.0, float(down(q_est) @ down(q_true)))))
 
 
 def test_the_seed_profile_compensates_the_turn_of_its_own_scenario() -> None:

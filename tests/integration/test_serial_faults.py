@@ -20,6 +20,7 @@ from imuhal.emulation.faults import (
     BusErrors,
     BusOSError,
     ChipAbsent,
+    CorruptByte,
     FaultSpec,
 )
 from imuhal.pipeline.pipeline import RunSummary
@@ -76,3 +77,20 @@ def test_an_oserror_from_the_serial_port_is_contained_and_counted(registry: Regi
     assert summary.bus_errors["gps"] > 0
     assert [f for f in _between(fixes, 6.5, 12.0) if f.valid]
     assert summary.samples["baro"] >= 0.99 * 50 * 12.0  # the rest of the board ran on
+
+
+def test_a_corrupted_ubx_length_costs_its_own_frame_and_the_next_one_arrives(
+        registry: Registry) -> None:
+    """One NAV-PVT's length high byte corrupted (``corrupt_byte``, 92 -> 860 announced, in
+    the line's idle gap before the 3.7 s epoch): the framer does not believe it, searches on
+    from its sync characters, and the next frames arrive. Only that epoch is missing (the
+    old framer waited for 860 bytes and lost nine), no fix is flagged (the frame was
+    dropped at its header, not handed on), and every valid fix is one the receiver sent."""
+    clean, _ = _fixes(registry, 8.0)
+    hit, _ = _fixes(registry, 8.0, CorruptByte(device="gps", start_s=3.65, byte=5, mask=0x03))
+    sent = {f.utc_s: (f.latitude_deg, f.longitude_deg, f.height_m) for f in clean if f.valid}
+    got = {f.utc_s: (f.latitude_deg, f.longitude_deg, f.height_m) for f in hit if f.valid}
+    assert len(sent) > 30
+    assert len(set(sent) - set(got)) == 1
+    assert all(sent.get(utc) == fix for utc, fix in got.items())
+    assert not [f for f in hit if not f.valid and f.t_ns >= 3.65e9]

@@ -88,6 +88,8 @@ class GnssStats:
     checksum_errors: int = 0
     decode_errors: int = 0
     garbage_bytes: int = 0
+    ubx_resyncs: int = 0
+    """UBX frames with an implausible header or a failed checksum, searched past."""
     epochs: int = 0
     last_error: str = ""
 
@@ -291,9 +293,11 @@ class GnssDriver(Driver):
 
     def poll(self, now_ns: int) -> PollResult:
         data = self.link.receive(READ_CHUNK)
-        before = self._splitter.garbage_bytes
-        items = self._splitter.feed(data)
-        self.stats.garbage_bytes += self._splitter.garbage_bytes - before
+        splitter = self._splitter
+        before = splitter.garbage_bytes, splitter.resyncs
+        items = splitter.feed(data)
+        self.stats.garbage_bytes += splitter.garbage_bytes - before[0]
+        self.stats.ubx_resyncs += splitter.resyncs - before[1]
         samples: list[Sample] = []
         for kind, item in items:
             samples += self._take(kind, item, now_ns)

@@ -339,8 +339,8 @@ class AhrsEstimator(Estimator):
     def process_imu_rows(self, rows: ImuRows) -> AttitudeRows:
         """What ``process()`` makes of each row's accel, mag and gyro sample, as columns
         (:mod:`imuhal.estimation.rows`); the state carries on as it would row by row. With
-        numba installed the rows after alignment run in the estimator's compiled kernel,
-        where it has one for its settings (equal to the per-sample path to 1e-12)."""
+        compiled kernels (common/fast.py) the rows after alignment run in the estimator's
+        kernel, where it has one for its settings (equal to the per-sample path to 1e-12)."""
         steps = process_rows(self, rows)
         q, emitted, diagnostics = self._step_rows(steps, diagnostics=True)
         t_ns = steps.t_ns if steps.t_ns is not None else np.zeros(0, dtype=np.int64)
@@ -410,6 +410,8 @@ class AhrsEstimator(Estimator):
         return diags
 
     # ------------------------------------------------------------------ compiled kernels
+    _compiled_kernel: ClassVar[fast.Kernel | None] = None
+    """The estimator's compiled kernel (None: it has none; its rows run in Python)."""
     _kernel_diag_width: ClassVar[int] = 0
     """Columns of the per-row diagnostics array the compiled kernel fills."""
 
@@ -433,7 +435,8 @@ class AhrsEstimator(Estimator):
         """The compiled kernels cover no turn compensation by a speed (nominal airspeed,
         velocity, airspeed): only its bookkeeping."""
         s = self.settings
-        return fast.available() and not (s.turn_compensation and (
+        kernel = self._compiled_kernel
+        return kernel is not None and kernel.available() and not (s.turn_compensation and (
             s.nominal_airspeed_m_s is not None or self._kinematics.has_speed_source))
 
     def _kernel_finished(self, q: FloatArray, steps: int, closed: int, turn_sum: float) -> None:

@@ -26,9 +26,10 @@ def run_batch(
     ``accel_m_s2`` or ``mag_ut`` means "no sample this step". Rows for which the filter had no
     attitude yet are NaN. The estimator keeps its state, so batches can be chained.
 
-    With numba installed (the ``fast`` extra) the rows after alignment run in the estimator's
-    compiled kernel where it has one; the results equal this loop's to 1e-12
-    (``IMUHAL_NO_JIT=1`` forces the pure-Python loop).
+    With compiled kernels (the extension of ``imuhal kernels build``, or numba: the ``fast``
+    extra; see common/fast.py) the rows after alignment run in the estimator's compiled
+    kernel where it has one; the results equal this loop's to 1e-12
+    (``IMUHAL_KERNELS=python`` or ``IMUHAL_NO_JIT=1`` forces the pure-Python loop).
     """
     gyro = np.asarray(gyro_rad_s, dtype=float)
     n = gyro.shape[0]

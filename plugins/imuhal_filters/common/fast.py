@@ -1,53 +1,270 @@
-"""Optional compiled kernels (the ``fast`` extra: numba). Pure Python stays the reference.
+"""Optional compiled kernels. Pure Python stays the reference.
 
-``jit`` wraps a kernel that numba compiles on its first call, when numba is installed and
-``IMUHAL_NO_JIT`` is not 1; callers check :func:`available` first and otherwise run the
-pure-Python path, which gives the same results (the tests compare the two to 1e-12 whenever
-numba is installed). numba is imported only then: it costs about 60 MB and a second, which a
-run that never calls a batch function should not pay. No fast-math: the compiled kernels do
-the same IEEE operations in the same order as the Python code.
+A kernel (``jit(fn, returns=..., **argument_types)``) is one function of plain loops in a
+``*/fast.py`` module, with its argument types declared next to it. Each kernel runs on the
+first backend of these that it can use:
+
+1. **aot**: the ahead-of-time compiled extension that ``imuhal kernels build`` made
+   (:mod:`imuhal_filters.common.aot`), when its fingerprint matches this kernel's source,
+   this Python, numpy and numba. Loading it does not import numba (about 120 MB less).
+2. **jit**: numba (the ``fast`` extra) compiles the same function on its first call, with the
+   same declared signature, cached on disk.
+3. **python**: the caller's own pure-Python path (callers ask :meth:`Kernel.available`).
+
+``IMUHAL_KERNELS=aot|jit|python|auto`` (default ``auto``) forces a backend for benchmarks and
+tests: a forced backend that a kernel cannot use is an error, never a silent fallback.
+``IMUHAL_NO_JIT=1`` (older name) is ``IMUHAL_KERNELS=python``. The compiled backends give the
+same results as the Python path (the tests compare them to 1e-12): no fast-math, the same IEEE
+operations in the same order.
+
+Both compiled backends check each call's arguments against the declared types (dtype, number
+of dimensions, C order, writable; bool, int and float scalars): an AOT extension reads memory
+as its signature says, so a caller passing anything else is a bug to report, not to run.
 """
 
 from __future__ import annotations
 
 import importlib.util
 import os
+import re
 from collections.abc import Callable
+from dataclasses import dataclass
 from functools import cache
 from typing import Any
 
+import numpy as np
+
+from imuhal.core.errors import ImuhalError
+
 _INSTALLED = importlib.util.find_spec("numba") is not None
+
+BACKENDS = ("aot", "jit", "python")
+MODES = ("auto", *BACKENDS)
+
+
+class KernelUnavailable(ImuhalError):
+    """A backend forced by ``IMUHAL_KERNELS`` cannot run this kernel (the message says why
+    and how to fix it)."""
+
+
+def mode() -> str:
+    """The backend choice from the environment: auto, aot, jit or python."""
+    if os.environ.get("IMUHAL_NO_JIT") == "1":
+        return "python"
+    value = os.environ.get("IMUHAL_KERNELS", "auto").strip().lower() or "auto"
+    if value not in MODES:
+        raise KernelUnavailable(
+            f"IMUHAL_KERNELS={value!r} is not a kernel backend: use one of {', '.join(MODES)}")
+    return value
+
+
+def numba_installed() -> bool:
+    """numba can be imported (the ``fast`` extra)."""
+    return _INSTALLED
 
 
 def available() -> bool:
-    """True when compiled kernels are used."""
-    return _INSTALLED and os.environ.get("IMUHAL_NO_JIT") != "1"
+    """True when some kernel may run compiled (an AOT extension or numba, not forced off).
+    Callers ask their own kernel (:meth:`Kernel.available`)."""
+    return any(k.available() for k in KERNELS if k.exported)
+
+
+# ---------------------------------------------------------------------------- signatures
+_SCALARS = {"f8": (float, np.floating), "i8": (int, np.integer), "b1": (bool, np.bool_)}
+_DTYPES = {"f8": np.dtype(np.float64), "i8": np.dtype(np.int64), "b1": np.dtype(np.bool_)}
+
+
+@dataclass(frozen=True)
+class ArgType:
+    """One declared argument type: ``f8``, ``i8`` or ``b1``, a scalar or a C-ordered array
+    (``f8[::1]``, ``f8[:, ::1]``, ``f8[:, :, ::1]``, ``b1[::1]``)."""
+
+    text: str
+    kind: str
+    ndim: int
+
+    @classmethod
+    def parse(cls, text: str) -> ArgType:
+        m = re.fullmatch(r"(f8|i8|b1)(?:\[((?::,\s*)*)::1\])?", text.strip())
+        if m is None:
+            raise ValueError(f"kernel argument type {text!r}: use f8, i8, b1 or a C-ordered "
+                             "array of them such as f8[:, ::1]")
+        ndim = 0 if m.group(2) is None else m.group(2).count(":") + 1
+        return cls(text.strip(), m.group(1), ndim)
+
+    def problem(self, value: Any) -> str | None:
+        """Why ``value`` does not have this type (None: it has)."""
+        if self.ndim == 0:
+            ok = isinstance(value, _SCALARS[self.kind])
+            if self.kind != "b1" and isinstance(value, (bool, np.bool_)):
+                ok = False
+            return None if ok else f"{type(value).__name__} {value!r}"
+        if not isinstance(value, np.ndarray):
+            return type(value).__name__
+        if value.dtype != _DTYPES[self.kind] or value.ndim != self.ndim:
+            return f"{value.dtype} array of {value.ndim} dimensions"
+        if not value.flags.c_contiguous:
+            return "an array not in C order"
+        if not value.flags.writeable:
+            return "a read-only array"
+        return None
 
 
 class Kernel:
-    """``fn``, compiled by numba (no Python objects, cached on disk) on the first call."""
+    """``fn`` with its declared signature, run on the backend :func:`backend` picks."""
 
-    def __init__(self, fn: Callable[..., Any]) -> None:
+    def __init__(self, fn: Callable[..., Any], returns: str | None = None,
+                 args: dict[str, str] | None = None) -> None:
         self.fn = fn
+        self.name = fn.__name__.lstrip("_")
+        self.module = fn.__module__
+        self.returns = returns
+        self._modules: list[str] | None = None
+        self.args: dict[str, ArgType] | None = None
+        if args is not None:
+            names = fn.__code__.co_varnames[:fn.__code__.co_argcount]
+            if tuple(args) != names:
+                raise TypeError(f"kernel {self.name}: declared arguments {tuple(args)} are not "
+                                f"its parameters {names}")
+            self.args = {n: ArgType.parse(t) for n, t in args.items()}
+
+    def modules(self) -> list[str]:
+        """The modules whose source this kernel's compiled code comes from: its own and
+        those of the helper kernels it calls, transitively (what its fingerprint covers).
+        Worked out once, before a compilation points the helpers' names elsewhere."""
+        if self._modules is None:
+            found = [self.module]
+            for name in self.fn.__code__.co_names:
+                helper = self.fn.__globals__.get(name)
+                if isinstance(helper, Kernel):
+                    found += [m for m in helper.modules() if m not in found]
+            self._modules = found
+        return self._modules
+
+    @property
+    def exported(self) -> bool:
+        """Called from Python (declared signature), so built into the AOT extension; a
+        helper kernel without one is compiled into the kernels that call it."""
+        return self.args is not None
+
+    def signature(self) -> str:
+        """The numba signature string, e.g. ``Tuple((f8[::1], f8))(f8[::1], b1)``."""
+        assert self.args is not None and self.returns is not None
+        return f"{self.returns}({', '.join(a.text for a in self.args.values())})"
+
+    def available(self) -> bool:
+        """True when this kernel runs compiled; False: the caller runs its Python path."""
+        return self.choice().backend != "python"
+
+    def backend(self) -> str:
+        """``aot``, ``jit`` or ``python``, for the current environment."""
+        return self.choice().backend
+
+    def choice(self) -> Choice:
+        """The backend for the current environment and why (raises KernelUnavailable when
+        ``IMUHAL_KERNELS`` forces one this kernel cannot use)."""
+        return _choose(self, mode(), _kernel_dir_key())
+
+    def check(self, args: tuple[Any, ...]) -> None:
+        """Raise TypeError naming the argument when ``args`` do not match the signature."""
+        assert self.args is not None
+        if len(args) != len(self.args):
+            raise TypeError(f"kernel {self.name}: {len(args)} arguments for {len(self.args)}")
+        for (name, t), value in zip(self.args.items(), args, strict=True):
+            problem = t.problem(value)
+            if problem is not None:
+                raise TypeError(f"kernel {self.name}: argument {name} must be {t.text}, "
+                                f"got {problem}")
 
     def __call__(self, *args: Any) -> Any:
-        return _compiled(self.fn)(*args)
+        choice = self.choice()
+        if choice.backend == "python":
+            raise RuntimeError(f"kernel {self.name} called without a compiled backend: the "
+                               "caller must check available() first")
+        if self.args is not None:
+            self.check(args)
+        fn = choice.function if choice.backend == "aot" else _jitted(self)
+        return fn(*args)
+
+
+@dataclass(frozen=True)
+class Choice:
+    """A kernel's backend and why it was chosen (what ``imuhal kernels status`` shows)."""
+
+    backend: str
+    reason: str
+    function: Callable[..., Any] | None = None
+    """The extension's function (aot only; the JIT compiles on the first call)."""
+
+
+KERNELS: list[Kernel] = []
+"""Every kernel defined so far (its module imported), in definition order."""
+
+
+def jit(fn: Callable[..., Any], returns: str | None = None, **args: str) -> Kernel:
+    """The kernel of ``fn``. A kernel called from Python declares its return type and every
+    argument's type (names in order, checked against ``fn``'s parameters); a helper called
+    only by other kernels declares none."""
+    kernel = Kernel(fn, returns, args or None)
+    KERNELS.append(kernel)
+    return kernel
+
+
+def c_array(values: Any) -> np.ndarray:
+    """``values`` as a writable C-ordered float64 array (a copy only when needed): what a
+    kernel's ``f8[...::1]`` argument takes."""
+    return np.require(values, dtype=np.float64, requirements=["C", "W"])
+
+
+def _kernel_dir_key() -> str:
+    # the selection depends on where extensions are looked for (tests point it elsewhere)
+    return os.environ.get("IMUHAL_KERNEL_DIR", "") + "\0" + os.environ.get("XDG_CACHE_HOME", "")
 
 
 @cache
-def _compiled(fn: Callable[..., Any]) -> Callable[..., Any]:
-    import numba
+def _choose(kernel: Kernel, chosen: str, dir_key: str) -> Choice:
+    """The backend for ``kernel`` under ``chosen`` (auto or forced); imports no numba."""
+    if chosen == "python":
+        return Choice("python", "IMUHAL_KERNELS=python or IMUHAL_NO_JIT=1")
+    why_not_aot = "a helper kernel: compiled into the kernels that call it"
+    if kernel.exported and chosen in ("auto", "aot"):
+        from imuhal_filters.common import aot
 
-    # a kernel may call helpers that are kernels themselves (shared quaternion arithmetic):
-    # numba needs them compiled before it types the caller, so they are, and the module's
-    # name for each is pointed at the compiled one
+        found = aot.find(kernel)
+        if found.function is not None:
+            return Choice("aot", found.reason, found.function)
+        why_not_aot = found.reason
+    if chosen == "aot":
+        raise KernelUnavailable(
+            f"IMUHAL_KERNELS=aot, but kernel {kernel.name} has no usable extension "
+            f"({why_not_aot}): run `imuhal kernels build` or unset IMUHAL_KERNELS")
+    if _INSTALLED:
+        return Choice("jit", "numba installed" if chosen == "jit" else
+                      f"no extension ({why_not_aot}); numba installed")
+    if chosen == "jit":
+        raise KernelUnavailable("IMUHAL_KERNELS=jit needs numba: pip install -e '.[fast]'")
+    return Choice("python", f"no extension ({why_not_aot}); numba not installed")
+
+
+def swap_helpers(fn: Callable[..., Any], compile_helper: Callable[[Kernel], Any]) -> None:
+    """Point ``fn``'s module names for helper kernels at their compiled form: numba needs
+    them compiled before it types the caller (``compile_helper`` compiles one, recursively
+    through its own helpers)."""
     for name in fn.__code__.co_names:
         helper = fn.__globals__.get(name)
         if isinstance(helper, Kernel):
-            fn.__globals__[name] = _compiled(helper.fn)
-    return numba.njit(cache=True, nogil=True)(fn)
+            swap_helpers(helper.fn, compile_helper)
+            fn.__globals__[name] = compile_helper(helper)
 
 
-def jit(fn: Callable[..., Any]) -> Kernel:
-    """A lazily compiled kernel of ``fn`` (call it only when :func:`available`)."""
-    return Kernel(fn)
+@cache
+def _jitted(kernel: Kernel) -> Callable[..., Any]:
+    """``kernel`` compiled by numba (no Python objects, cached on disk), with its declared
+    signature when it has one."""
+    import numba
+
+    kernel.modules()  # while the helpers' names still name them
+    swap_helpers(kernel.fn, _jitted)
+    if kernel.exported:
+        return numba.njit(kernel.signature(), cache=True, nogil=True)(kernel.fn)
+    return numba.njit(cache=True, nogil=True)(kernel.fn)

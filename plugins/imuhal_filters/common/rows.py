@@ -93,10 +93,11 @@ def update_rows(est: AhrsEstimator, gyro: FloatArray, accel: FloatArray | None,
 
 
 def _c(values: FloatArray | None, n: int = 0) -> FloatArray:
-    """A C-contiguous float array (a copy only when needed); None: n NaN rows."""
+    """A writable C-ordered float array, as the kernels take it (a copy only when needed:
+    a broadcast step length is read-only); None: n NaN rows."""
     if values is None:
         return np.full((n, 3), np.nan)
-    return np.ascontiguousarray(values, dtype=float)
+    return np.require(values, dtype=np.float64, requirements=["C", "W"])
 
 
 def process_rows(est: AhrsEstimator, rows: ImuRows) -> StepRows:

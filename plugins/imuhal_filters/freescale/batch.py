@@ -15,7 +15,6 @@ import numpy as np
 
 from imuhal.core.conventions import NED, convert_quat
 from imuhal.core.frames import FloatArray
-from imuhal_filters.common import fast
 from imuhal_filters.freescale.coords import CONVENTION, CoordinateSystem
 from imuhal_filters.freescale.fast import KERNEL_SETTINGS, freescale_rows
 from imuhal_filters.freescale.kalman import FreescaleKalman
@@ -69,7 +68,7 @@ def _run(settings: FreescaleCommonSettings, accel_g: FloatArray, gyro_dps: Float
     ratio = settings.oversample_ratio
     average = settings.accel_mag_input == "average"
     ends = list(range(ratio - 1, len(accel), ratio))
-    compiled = fast.available() and set(type(settings).model_fields) <= KERNEL_SETTINGS
+    compiled = freescale_rows.available() and set(type(settings).model_fields) <= KERNEL_SETTINGS
     rows, steps = [], []
     for end in ends:
         if compiled and kf.initialised and kf.locked:

@@ -366,5 +366,13 @@ def _freescale_rows(q, b, a_sensor, m_global, qw, incl, accel, gyro, mag, use_ma
         out_euler[step, 0], out_euler[step, 1], out_euler[step, 2] = euler_deg(style, r_mi)
 
 
-freescale_rows = jit(_freescale_rows)
-"""The compiled kernel (numba compiles it on the first call; see common/fast.py)."""
+freescale_rows = jit(
+    _freescale_rows, returns="none", q="f8[::1]", b="f8[::1]", a_sensor="f8[::1]",
+    m_global="f8[::1]", qw="f8[:, ::1]", incl="f8[::1]", accel="f8[:, ::1]",
+    gyro="f8[:, :, ::1]", mag="f8[:, ::1]", use_mag="b1", ned="b1", gravity_positive="b1",
+    fast_dt="f8", kalman_dt="f8", accel_decay="f8", soft_width="f8", noise="f8[::1]",
+    full_inverse="b1", field="f8", qw_gyro_offset="f8", qv_gyro="f8", qw_accel="f8",
+    dist_decay="f8", qw_dist="f8", max_incl_deg="f8", style="i8", gate_sigma="f8",
+    gate_reacquire_s="f8", gate_closed="f8[::1]", mag_max_distrust="f8", out_q="f8[:, ::1]",
+    out_b="f8[:, ::1]", out_incl="f8[::1]", out_jam="b1[::1]", out_euler="f8[:, ::1]")
+"""The compiled kernel (see common/fast.py: the extension, or numba on the first call)."""

@@ -24,6 +24,7 @@ from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.core.frames import FloatArray
 from imuhal.core.samples import AccelSample, AirspeedSample, GyroSample, VelocitySample
 from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
+from imuhal_filters.common.fast import Kernel
 from imuhal_filters.common.gate import specific_force_m_s2
 from imuhal_filters.common.quat import Vec, to_global, to_local
 from imuhal_filters.imufilter.core import (
@@ -113,6 +114,7 @@ class ImuFilterEstimator(AhrsEstimator):
         return d
 
     # ------------------------------------------------------------------ compiled kernel
+    _compiled_kernel: ClassVar[Kernel | None] = imufilter_rows
     _kernel_diag_width: ClassVar[int] = 6
 
     def _kernel_ready(self) -> bool:

@@ -119,8 +119,11 @@ def _imufilter_rows(state, gyro, accel, dts, alpha, sd_acc_g, velocity_on, sd_ac
     return turn_sum
 
 
-imufilter_rows = jit(_imufilter_rows)
-"""The compiled kernel (numba compiles it on the first call; see common/fast.py)."""
+imufilter_rows = jit(
+    _imufilter_rows, returns="f8", state="f8[::1]", gyro="f8[:, ::1]", accel="f8[:, ::1]",
+    dts="f8[::1]", alpha="f8", sd_acc_g="f8", velocity_on="b1", sd_acc_m_s2="f8",
+    sd_vel_m_s="f8", turn_on="b1", turn_sum="f8", out="f8[:, ::1]", diag="f8[:, ::1]")
+"""The compiled kernel (see common/fast.py: the extension, or numba on the first call)."""
 
 
 def pack_state(q, var, gain, vel, target) -> np.ndarray:  # type: ignore[no-untyped-def]

@@ -25,6 +25,7 @@ from pydantic import Field
 
 from imuhal.core.frames import FloatArray
 from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
+from imuhal_filters.common.fast import Kernel
 from imuhal_filters.common.gate import AccelGate, GateBounds, SoftGateSettings, soft_gate_weight
 from imuhal_filters.madgwick.core import MagReference, madgwick_step
 from imuhal_filters.madgwick.fast import madgwick_rows
@@ -111,6 +112,7 @@ class MadgwickEstimator(AhrsEstimator):
             "accel_weight": weight,
         }
 
+    _compiled_kernel: ClassVar[Kernel | None] = madgwick_rows
     _kernel_diag_width: ClassVar[int] = 3
 
     def _run_kernel(self, gyro: FloatArray, accel: FloatArray, mag: FloatArray,

@@ -111,5 +111,9 @@ def _madgwick_rows(q_in, gyro, accel, mag, dts, beta, gate_lo, gate_hi, soft_wid
     return np.array([q0, q1, q2, q3]), turn_sum, closed
 
 
-madgwick_rows = jit(_madgwick_rows)
-"""The compiled kernel (numba compiles it on the first call; see common/fast.py)."""
+madgwick_rows = jit(
+    _madgwick_rows, returns="Tuple((f8[::1], f8, i8))", q_in="f8[::1]", gyro="f8[:, ::1]",
+    accel="f8[:, ::1]", mag="f8[:, ::1]", dts="f8[::1]", beta="f8", gate_lo="f8",
+    gate_hi="f8", soft_width="f8", paper="b1", use_mag="b1", turn_on="b1", turn_sum="f8",
+    out="f8[:, ::1]", diag="f8[:, ::1]")
+"""The compiled kernel (see common/fast.py: the extension, or numba on the first call)."""

@@ -18,6 +18,7 @@ from pydantic import Field
 
 from imuhal.core.frames import FloatArray
 from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
+from imuhal_filters.common.fast import Kernel
 from imuhal_filters.common.gate import AccelGate, GateBounds, SoftGateSettings, soft_gate_weight
 from imuhal_filters.common.quat import Vec
 from imuhal_filters.mahony.core import mahony_step
@@ -82,6 +83,7 @@ class MahonyEstimator(AhrsEstimator):
             "accel_weight": weight,
         }
 
+    _compiled_kernel: ClassVar[Kernel | None] = mahony_rows
     _kernel_diag_width: ClassVar[int] = 6
 
     def _run_kernel(self, gyro: FloatArray, accel: FloatArray, mag: FloatArray,

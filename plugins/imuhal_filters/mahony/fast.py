@@ -100,5 +100,9 @@ def _mahony_rows(q_in, integral_in, gyro, accel, mag, dts, kp, ki, gate_lo, gate
     return np.array([q0, q1, q2, q3]), np.array([ix, iy, iz]), turn_sum, closed
 
 
-mahony_rows = jit(_mahony_rows)
-"""The compiled kernel (numba compiles it on the first call; see common/fast.py)."""
+mahony_rows = jit(
+    _mahony_rows, returns="Tuple((f8[::1], f8[::1], f8, i8))", q_in="f8[::1]",
+    integral_in="f8[::1]", gyro="f8[:, ::1]", accel="f8[:, ::1]", mag="f8[:, ::1]",
+    dts="f8[::1]", kp="f8", ki="f8", gate_lo="f8", gate_hi="f8", soft_width="f8",
+    use_mag="b1", turn_on="b1", turn_sum="f8", out="f8[:, ::1]", diag="f8[:, ::1]")
+"""The compiled kernel (see common/fast.py: the extension, or numba on the first call)."""

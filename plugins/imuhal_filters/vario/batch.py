@@ -2,9 +2,10 @@
 
 Row ``i`` of every output is the state after the step that consumed input row ``i``; this is
 the call sequence of the conformance references (configure with the first altitude, then one
-step per row, row 0 included), so a CSV of references can be compared row by row. With numba
-installed (the ``fast`` extra) the loops run compiled (``vario/fast.py``), equal to the Python
-loops to 1e-12; ``IMUHAL_NO_JIT=1`` forces Python.
+step per row, row 0 included), so a CSV of references can be compared row by row. With
+compiled kernels (``vario/fast.py``: the extension of ``imuhal kernels build``, or numba) the
+loops run compiled, equal to the Python loops to 1e-12; ``IMUHAL_KERNELS=python`` forces
+Python.
 """
 
 from __future__ import annotations
@@ -57,13 +58,13 @@ def run_batch(
         raise ValueError(f"{a.size} accelerations for {z.size} altitudes")
     kf = configured_core(s, float(z[0]))
     out = np.empty((z.size, 3))
-    if fast.available():
+    if kf3_rows.available():
         ref = kf.reference
         variances = np.array([kf.z_meas_variance, kf.accel_variance, kf.bias_variance])
         lo, hi = AVARIO_ACCEL_VARIANCE_RANGE
         kf3_rows(kf.x, kf.P, variances, ref.semi_implicit, ref.adaptive_accel_variance,
                  lo, hi, AVARIO_ACCEL_VARIANCE_DIVISOR, z * CM_PER_M, a * CM_PER_M,
-                 np.ascontiguousarray(dt), out)
+                 fast.c_array(dt), out)
     else:
         for i in range(z.size):
             kf.step(z[i] * CM_PER_M, a[i] * CM_PER_M, float(dt[i]))
@@ -86,9 +87,9 @@ def run_baro_batch(
     kf = BaroKalman2(accel_var=s.accel_noise_m_s2**2, meas_var=s.altitude_noise_m**2)
     kf.initialise(float(z[0]), 0.0, s.altitude_noise_m**2, s.initial_climb_sigma_m_s**2)
     out = np.empty((z.size, 2))
-    if fast.available():
+    if baro_rows.available():
         state = np.array([kf.z, kf.v, kf.pzz, kf.pzv, kf.pvv])
-        baro_rows(state, kf.accel_var, kf.meas_var, z, np.ascontiguousarray(dt), out)
+        baro_rows(state, kf.accel_var, kf.meas_var, fast.c_array(z), fast.c_array(dt), out)
     else:
         for i in range(z.size):
             kf.predict(float(dt[i]))

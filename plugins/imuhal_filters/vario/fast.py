@@ -3,7 +3,8 @@
 Row by row and in the same order of operations as ``Kalman3.step`` (predict, then update,
 with the mode's prediction variant and adaptive variance) and as ``BaroKalman2.predict`` then
 ``update``; the 3 x 3 products are written out in numpy's order (row times column, terms
-summed left to right). ``vario/batch.py`` selects them when numba is installed.
+summed left to right). ``vario/batch.py`` selects them when they run compiled (see
+common/fast.py).
 """
 
 from __future__ import annotations
@@ -65,7 +66,10 @@ def _kf3_rows(x, P, variances, semi_implicit, adaptive, var_lo, var_hi, var_div,
     variances[1] = sa2
 
 
-kf3_rows = jit(_kf3_rows)
+kf3_rows = jit(
+    _kf3_rows, returns="none", x="f8[::1]", P="f8[:, ::1]", variances="f8[::1]",
+    semi_implicit="b1", adaptive="b1", var_lo="f8", var_hi="f8", var_div="f8",
+    z_cm="f8[::1]", a_cm="f8[::1]", dts="f8[::1]", out="f8[:, ::1]")
 
 
 def _baro_rows(state, accel_var, meas_var, z_m, dts, out):
@@ -90,4 +94,5 @@ def _baro_rows(state, accel_var, meas_var, z_m, dts, out):
     state[0], state[1], state[2], state[3], state[4] = z, v, pzz, pzv, pvv
 
 
-baro_rows = jit(_baro_rows)
+baro_rows = jit(_baro_rows, returns="none", state="f8[::1]", accel_var="f8",
+               meas_var="f8", z_m="f8[::1]", dts="f8[::1]", out="f8[:, ::1]")

@@ -38,6 +38,7 @@ from imuhal.profile.faults import (
     BusOSError,
     ChipAbsent,
     ChipReset,
+    CorruptByte,
     CorruptTrim,
     FaultSpec,
     FrozenData,
@@ -55,8 +56,8 @@ if TYPE_CHECKING:
 
 __all__ = [
     "AllOnes", "AllZeros", "BoardFaults", "BusErrors", "BusOSError", "ChipAbsent", "ChipReset",
-    "CorruptTrim", "FaultLine", "FaultSpec", "FrozenData", "LatePolls", "StuckDataReady",
-    "TimingJitter", "WildValue", "WrongPressure",
+    "CorruptByte", "CorruptTrim", "FaultLine", "FaultSpec", "FrozenData", "LatePolls",
+    "StuckDataReady", "TimingJitter", "WildValue", "WrongPressure",
 ]
 
 _LINE_KINDS = (BusErrors, BusOSError, AllOnes, AllZeros, ChipAbsent)
@@ -83,6 +84,8 @@ class _Active:
     """Value faults: polls whose physics carried the wrong value."""
     first_s: float | None = None
     """Value faults without end_s: the first poll at or after start_s."""
+    bytes_seen: int = 0
+    """corrupt_byte: bytes received since start_s."""
 
 
 @dataclass
@@ -132,6 +135,11 @@ class BoardFaults:
             raise ConfigurationError(
                 f"{where}: the {emulator.chip or type(emulator).__name__} emulator does not "
                 f"model it; it models: {', '.join(sorted(emulator.chip_faults()))}")
+        if isinstance(spec, CorruptByte) and \
+                type(emulator).bus_receive is ChipEmulator.bus_receive:
+            raise ConfigurationError(f"{where}: corrupt_byte acts on a serial line; the "
+                                     f"{emulator.chip or type(emulator).__name__} emulator is "
+                                     "not a byte-stream chip (use bus_errors)")
         active = _Active(spec, random.Random(f"{self.seed}/{index}/{spec.device}"))
         self._faults.append(active)
         self._by_device.setdefault(spec.device, []).append(active)
@@ -319,7 +327,22 @@ class FaultLine:
         for a in active:
             if isinstance(a.spec, BusErrors) and data:
                 data = self._noisy(data, a)
+        for a in faults._by_device[self.device]:
+            if isinstance(a.spec, CorruptByte) and data and a.started:
+                data = self._upset(data, a)
         return data
+
+    def _upset(self, data: bytes, a: _Active) -> bytes:
+        """``corrupt_byte``: flip the mask's bits in its byte, when it is in ``data``."""
+        assert isinstance(a.spec, CorruptByte)
+        at = a.spec.byte - a.bytes_seen
+        a.bytes_seen += len(data)
+        if not 0 <= at < len(data):
+            return data
+        self.faults.log.count(self.device, a.spec.kind)
+        out = bytearray(data)
+        out[at] ^= a.spec.mask
+        return bytes(out)
 
     def _noisy(self, data: bytes, a: _Active) -> bytes:
         """Each byte, with probability ``rate``: one bit flipped or (as often) lost."""

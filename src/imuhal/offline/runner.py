@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Iterator
-from typing import Any
 
 import numpy as np
 
@@ -28,6 +27,7 @@ from imuhal.core.samples import (
 from imuhal.estimation.base import Estimator
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate
 from imuhal.estimation.rows import AttitudeRows, ImuRows, RowsEstimator
+from imuhal.offline.chain import EstimatorChain, instants_in_fusion_order
 from imuhal.offline.csv_input import (
     ACCEL,
     ACCEL_UP,
@@ -169,8 +169,10 @@ def _run_table(estimator: Estimator, table: SampleTable, ahrs: Estimator | None,
 def run_offline_samples(
     estimator: Estimator, samples: Iterable[Sample], *, ahrs: Estimator | None = None,
 ) -> list[Estimate]:
-    """Run ``estimator`` over samples as the pipeline produced them (a run log, in order);
-    a vario filter gets its attitude from ``ahrs`` run over the same samples."""
+    """Run ``estimator`` over samples as the pipeline produced them (a run log, in order),
+    each instant's in fusion order as live; a vario filter gets its attitude from ``ahrs``
+    run over the same samples."""
+    samples = instants_in_fusion_order(samples)
     if _wants_imu(estimator):
         return feed(estimator, samples)
     _require_pressure_consumer(estimator)
@@ -183,22 +185,20 @@ def run_offline_samples(
 def feed(estimator: Estimator, items: Iterable[Sample | Estimate], *,
          ahrs: Estimator | None = None) -> list[Estimate]:
     """Each item (and what ``ahrs`` makes of it) to ``estimator`` when it consumes it."""
+    if ahrs is not None:
+        source = estimator.instance
+        made: list[Estimate] = []
+        process = EstimatorChain((ahrs, estimator)).process
+        for item in items:
+            process(item, made)
+        return [e for e in made if e.source == source]
     consumes = tuple(estimator.consumes)
     outputs: list[Estimate] = []
     process, extend = estimator.process, outputs.extend
-    if ahrs is None:  # the common case, kept lean: it runs once per input row
-        for item in items:
-            if isinstance(item, consumes):
-                extend(process(item))
-        return outputs
-    ahrs_consumes = tuple(ahrs.consumes)
+    # the common case, kept lean: it runs once per input row
     for item in items:
-        upstream: list[Any] = [item]
-        if isinstance(item, ahrs_consumes):
-            upstream += ahrs.process(item)
-        for x in upstream:
-            if isinstance(x, consumes):
-                outputs += estimator.process(x)
+        if isinstance(item, consumes):
+            extend(process(item))
     return outputs
 
 

@@ -78,6 +78,20 @@ class AllZeros(_Fault):
     kind: Literal["all_zeros"] = "all_zeros"
 
 
+class CorruptByte(_Fault):
+    """On a serial line (a UART), one received byte arrives with the bits of ``mask``
+    flipped: the ``byte``-th (0: the first) the host receives at or after ``start_s``. One
+    deterministic upset, where ``bus_errors`` is random noise: what a single corrupted
+    field (a UBX length byte) costs."""
+
+    kind: Literal["corrupt_byte"] = "corrupt_byte"
+    instantaneous: ClassVar[bool] = True
+    byte: int = Field(default=0, ge=0)
+    """Which byte from ``start_s`` on, counting from 0."""
+    mask: int = Field(default=0x01, ge=0x01, le=0xFF)
+    """The bits flipped (XOR)."""
+
+
 class ChipAbsent(_Fault):
     """The chip is unplugged: it answers nothing (NACK / no chip select response). At
     ``end_s`` it is plugged back in and powers up in its reset state."""
@@ -164,15 +178,16 @@ class WrongPressure(_Fault):
 
 
 FaultSpec = Annotated[
-    BusErrors | BusOSError | AllOnes | AllZeros | ChipAbsent | ChipReset | StuckDataReady
-    | FrozenData | CorruptTrim | LatePolls | TimingJitter | WildValue | WrongPressure,
+    BusErrors | BusOSError | AllOnes | AllZeros | CorruptByte | ChipAbsent | ChipReset
+    | StuckDataReady | FrozenData | CorruptTrim | LatePolls | TimingJitter | WildValue
+    | WrongPressure,
     Field(discriminator="kind"),
 ]
 """One fault of any kind, chosen by its ``kind`` key."""
 
 FAULT_KINDS: tuple[type[_Fault], ...] = (
-    BusErrors, BusOSError, AllOnes, AllZeros, ChipAbsent, ChipReset, StuckDataReady,
-    FrozenData, CorruptTrim, LatePolls, TimingJitter, WildValue, WrongPressure)
+    BusErrors, BusOSError, AllOnes, AllZeros, CorruptByte, ChipAbsent, ChipReset,
+    StuckDataReady, FrozenData, CorruptTrim, LatePolls, TimingJitter, WildValue, WrongPressure)
 
 CHIP_FAULT_KINDS = frozenset({"reset", "stuck_data_ready", "frozen", "corrupt_trim"})
 """Kinds the chip emulator itself must model (ChipEmulator.chip_faults says which it does)."""

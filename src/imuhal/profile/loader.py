@@ -420,18 +420,29 @@ def _check_plugins(data: dict[str, Any], doc: LocatedDocument, registry: Registr
 
 def _check_fault_support(profile: BoardProfile, doc: LocatedDocument,
                          registry: Registry) -> list[str]:
-    """Chip-level faults need an emulator that models them (ChipEmulator.chip_faults)."""
+    """Chip-level faults need an emulator that models them (ChipEmulator.chip_faults);
+    ``corrupt_byte`` needs a serial line."""
     out = []
     for i, fault in enumerate(profile.emulation.faults):
         dev = profile.devices.get(fault.device)
-        if fault.kind not in CHIP_FAULT_KINDS or dev is None:
+        if dev is None:
+            continue
+        path: Path = ("emulation", "faults", i, "kind")
+        if fault.kind == "corrupt_byte":
+            bus = profile.buses.get(dev.bus)
+            factory = registry.buses.entries.get(bus.kind) if bus is not None else None
+            # a bus a chip provides (no profile bus) is a register bus behind that chip
+            if bus is None or (factory is not None and factory.obj.kind is not BusKind.SERIAL):
+                out.append(f"{doc.where(path)}: {dotted(path)}: corrupt_byte acts on a serial "
+                           f"line; {fault.device!r} is on {dev.bus!r} (use bus_errors)")
+            continue
+        if fault.kind not in CHIP_FAULT_KINDS:
             continue
         reg = registry.emulators.entries.get(dev.driver)
         if reg is None:
             continue  # running emulated reports the missing emulator itself
         supported = reg.obj.chip_faults()
         if fault.kind not in supported:
-            path: Path = ("emulation", "faults", i, "kind")
             out.append(f"{doc.where(path)}: {dotted(path)}: the {dev.driver} emulator does not "
                        f"model {fault.kind!r}; it models: {', '.join(sorted(supported))}")
     return out

@@ -145,6 +145,11 @@ def _put_bytes(out: bytearray, data: bytes) -> None:
     out += data
 
 
+def _put_error(out: bytearray, error_type: str, error: str) -> None:
+    _put_bytes(out, error_type.encode("utf-8"))
+    _put_bytes(out, error.encode("utf-8"))
+
+
 def _get_uvarint(buf: bytes, pos: int) -> tuple[int, int]:
     value = buf[pos]
     if value < 0x80:  # most lengths, buses and targets: one byte
@@ -217,71 +222,58 @@ class RecordingWriter:
             _put_bytes(body, text.encode("utf-8"))
         self._append(body)
 
-    def transfer(self, t_ns: int, bus: int, target: int, written: bytes, read: bytes) -> None:
-        body = bytearray((REC_TRANSFER,))
+    def _timed(self, kind: int, t_ns: int, *numbers: int) -> bytearray:
+        """A record's start: its kind, the time since the previous record, then ``numbers``
+        as unsigned varints (bus, target, ...)."""
+        body = bytearray((kind,))
         _put_svarint(body, self._dt(t_ns))
-        _put_uvarint(body, bus)
-        _put_uvarint(body, target)
-        _put_bytes(body, written)
-        _put_bytes(body, read)
+        for number in numbers:
+            _put_uvarint(body, number)
+        return body
+
+    def _append_bus_op(self, body: bytearray) -> None:
         self.transfers += 1
         self._append(body)
+
+    def transfer(self, t_ns: int, bus: int, target: int, written: bytes, read: bytes) -> None:
+        body = self._timed(REC_TRANSFER, t_ns, bus, target)
+        _put_bytes(body, written)
+        _put_bytes(body, read)
+        self._append_bus_op(body)
 
     def failed(self, t_ns: int, bus: int, target: int, written: bytes, read_len: int,
                error_type: str, error: str) -> None:
-        body = bytearray((REC_FAILED,))
-        _put_svarint(body, self._dt(t_ns))
-        _put_uvarint(body, bus)
-        _put_uvarint(body, target)
+        body = self._timed(REC_FAILED, t_ns, bus, target)
         _put_bytes(body, written)
         _put_uvarint(body, read_len)
-        _put_bytes(body, error_type.encode("utf-8"))
-        _put_bytes(body, error.encode("utf-8"))
-        self.transfers += 1
-        self._append(body)
+        _put_error(body, error_type, error)
+        self._append_bus_op(body)
 
     def received(self, t_ns: int, bus: int, target: int, max_len: int, data: bytes) -> None:
-        body = bytearray((REC_RECEIVE,))
-        _put_svarint(body, self._dt(t_ns))
-        _put_uvarint(body, bus)
-        _put_uvarint(body, target)
-        _put_uvarint(body, max_len)
+        body = self._timed(REC_RECEIVE, t_ns, bus, target, max_len)
         _put_bytes(body, data)
-        self.transfers += 1
-        self._append(body)
+        self._append_bus_op(body)
 
     def baudrate(self, t_ns: int, bus: int, baudrate: int) -> None:
-        body = bytearray((REC_BAUD,))
-        _put_svarint(body, self._dt(t_ns))
-        _put_uvarint(body, bus)
-        _put_uvarint(body, baudrate)
-        self.transfers += 1
-        self._append(body)
+        self._append_bus_op(self._timed(REC_BAUD, t_ns, bus, baudrate))
 
     def stream_failed(self, t_ns: int, bus: int, op: str, target: int, value: int,
                       error_type: str, error: str) -> None:
         """A failed receive (``value``: the most bytes asked for) or baud change (the rate)."""
-        body = bytearray((REC_STREAM_FAILED,))
-        _put_svarint(body, self._dt(t_ns))
-        _put_uvarint(body, bus)
+        body = self._timed(REC_STREAM_FAILED, t_ns, bus)
         body.append(REC_RECEIVE if op == OP_RECEIVE else REC_BAUD)
         _put_uvarint(body, target)
         _put_uvarint(body, value)
-        _put_bytes(body, error_type.encode("utf-8"))
-        _put_bytes(body, error.encode("utf-8"))
-        self.transfers += 1
-        self._append(body)
+        _put_error(body, error_type, error)
+        self._append_bus_op(body)
 
     def late_poll(self, t_ns: int, device: str) -> None:
-        body = bytearray((REC_LATE_POLL,))
-        _put_svarint(body, self._dt(t_ns))
+        body = self._timed(REC_LATE_POLL, t_ns)
         _put_bytes(body, device.encode("utf-8"))
         self._append(body)
 
     def clock(self, t_ns: int) -> None:
-        body = bytearray((REC_CLOCK,))
-        _put_svarint(body, self._dt(t_ns))
-        self._append(body)
+        self._append(self._timed(REC_CLOCK, t_ns))
 
     def end(self, how: str) -> None:
         body = bytearray((REC_END,))

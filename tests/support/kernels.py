@@ -1,0 +1,68 @@
+"""Test fixtures for the compiled kernels: the AOT extension built once per session, and a
+parameter that runs a test on each compiled backend (``IMUHAL_KERNELS``)."""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import shutil
+import subprocess
+import sys
+import sysconfig
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+
+def cli_env(**extra: str) -> dict[str, str]:
+    """The environment for a child ``imuhal`` process: this one's, without any kernel
+    selection the developer has set, plus ``extra``."""
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("IMUHAL_KERNELS", "IMUHAL_NO_JIT", "IMUHAL_KERNEL_DIR")}
+    env.update(extra)
+    return env
+
+
+def why_no_build() -> str | None:
+    """Why this machine cannot build the extension (None: it can, so a failure is a bug)."""
+    if importlib.util.find_spec("numba") is None:
+        return "numba not installed (pip install -e '.[fast]')"
+    if importlib.util.find_spec("numba.pycc") is None:
+        return "this numba has no numba.pycc"
+    if not (Path(sysconfig.get_paths()["include"]) / "Python.h").is_file():
+        return "no Python C headers (apt-get install python3-dev)"
+    if shutil.which(os.environ.get("CC", "cc")) is None and shutil.which("gcc") is None:
+        return "no C compiler (apt-get install gcc)"
+    return None
+
+
+@pytest.fixture(scope="session")
+def aot_kernel_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A kernel directory with every kernel built by ``imuhal kernels build`` (once per
+    session, about 10 s of CPU); skipped with the reason where the tools are missing."""
+    why = why_no_build()
+    if why is not None:
+        pytest.skip(f"no AOT kernel extension can be built here: {why}")
+    d = tmp_path_factory.mktemp("kernels")
+    done = subprocess.run([sys.executable, "-m", "imuhal.cli.main", "kernels", "build"],
+                          env=cli_env(IMUHAL_KERNEL_DIR=str(d)), capture_output=True,
+                          text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    return d
+
+
+@pytest.fixture(params=["jit", "aot"])
+def compiled_backend(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch
+                     ) -> Iterator[str]:
+    """Runs the test once with numba's JIT and once with the AOT extension, forced (a kernel
+    the backend cannot run is an error, not a silent fallback); skipped where unavailable."""
+    backend = request.param
+    monkeypatch.delenv("IMUHAL_NO_JIT", raising=False)
+    if backend == "jit":
+        if importlib.util.find_spec("numba") is None:
+            pytest.skip("numba not installed (pip install -e '.[fast]')")
+    else:
+        monkeypatch.setenv("IMUHAL_KERNEL_DIR", str(request.getfixturevalue("aot_kernel_dir")))
+    monkeypatch.setenv("IMUHAL_KERNELS", backend)
+    yield backend
