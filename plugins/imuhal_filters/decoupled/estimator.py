@@ -72,8 +72,8 @@ class DecoupledSettings(AhrsSettings):
     closed; detected from the spread and mean of |a| and the turn rate, ``turbulence.py``)
     the filtered accelerometer is also turned towards each reading at up to this rate
     (deg/s) times the gate's closed share, as madgwick corrects: the gyro error of
-    aerobatics is walked back instead of kept (flight benchmark `rc-flight` tilt RMS 1.1
-    against 4.1 deg without; `thermal` unchanged). None: off (``preset:
+    aerobatics is walked back instead of kept (flight benchmark `rc-flight` tilt RMS 1.2
+    against 4.2 deg without; `thermal` unchanged). None: off (``preset:
     handheld``; without a soft gate it never acts)."""
     tau_mag_s: float = Field(9.0, gt=0.0)
     """Heading correction time constant (s) (VQF's published default, 9 s)."""
