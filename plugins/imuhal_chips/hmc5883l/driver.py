@@ -13,17 +13,44 @@ Two chip habits shape configure(): the first measurement after a gain change sti
 old gain (so the first sample after configure is dropped), and reading the mode register
 locks the data outputs until the six data bytes are read (so the read-back is followed by one
 throw-away data read).
+
+``read: auto`` (behind a master that can auto-read, imuhal.bus.auto_read: the MAX21100's
+``imu/aux``): the master reads the six data bytes at each of its own measurements and the
+driver takes them from the master's burst, with no transaction of its own; configuration,
+identity and the periodic read-back still use one-shot transactions. The status register is
+not among the six bytes, so a measurement is new when its bytes differ from the previous
+ones (and from the last sample handed out: a measurement that comes back after a blank or a
+master reset is not new). Bytes that stay the same for longer than a healthy chip's noise
+allows (``unchanged_periods``) are a chip that stopped or a master whose reads fail (it
+keeps the last data): flagged STALE at each poll after that, FROZEN once they have not
+changed for FROZEN_AFTER_FRAMES periods, never valid. Latency: the master copies a
+measurement at its next accelerometer measurement and the host reads it with the next
+burst (``AutoReadFeed.latency_ns``: one accelerometer period plus the IMU's poll guard,
+4.5 ms at 250 Hz); the driver polls that long plus its own guard (1/8 period) after each
+measurement instant and stamps the sample with the poll's time, about 6 ms after the
+measurement at the seed's rates (one-shot: 1.7 ms). A poll that finds the bytes unchanged
+looks once more one latency later (a copy a failed read or burst delayed), then waits for
+the next measurement.
 """
 
 from __future__ import annotations
 
+import math
+
+from imuhal.bus.auto_read import AutoReadBus, AutoReadFeed
 from imuhal.bus.base import BusKind, Link
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
 from imuhal.core.samples import Channel, Frame, MagSample, Sample, SampleFlag
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
-from imuhal.drivers.polling import DataReady, PollGrid, ResetWatch, reset_check_field
-from imuhal.drivers.settings import table_setting
+from imuhal.drivers.polling import (
+    STALE_AFTER_PERIODS,
+    DataReady,
+    PollGrid,
+    ResetWatch,
+    reset_check_field,
+)
+from imuhal.drivers.settings import SlaveRead, table_setting
 from imuhal.drivers.validity import NAN3, FrozenWatch, blank_flag
 from imuhal_chips.hmc5883l import decode
 from imuhal_chips.hmc5883l.registers import (
@@ -45,6 +72,24 @@ FROZEN_AFTER_FRAMES = 30
 """Identical data frames in a row that mean the chip stopped measuring. The quietest setting
 (+/-8.1 Ga, 230 LSB/Ga, 2 mG noise: about 0.5 LSB per axis) repeats a three-axis frame with
 probability about 0.2; 30 in a row (0.4 s at 75 Hz), about 1e-21 per sample."""
+NOISE_FLOOR_GAUSS = 0.002
+"""Datasheet noise floor (2 mG): the standard deviation of one axis's output."""
+REPEAT_ODDS = 1e-12
+"""How rarely a healthy chip's six data bytes may stay the same for ``unchanged_periods``
+output periods (about once in 400 years of 75 Hz output)."""
+
+
+def unchanged_periods(gain_lsb_per_gauss: float) -> int:
+    """Output periods in a row for which a healthy chip may repeat its six data bytes:
+    with sigma = noise floor x gain counts per axis, one axis repeats with probability about
+    1 / (2 sqrt(pi) sigma) (the FrozenWatch rule), a frame with p = that cubed, k frames in a
+    row with p**k; the smallest k with p**k below REPEAT_ODDS. 5 at the default +/-1.3 Ga,
+    19 at +/-8.1 Ga."""
+    sigma = NOISE_FLOOR_GAUSS * gain_lsb_per_gauss
+    p = min(1.0, 1.0 / (2.0 * math.sqrt(math.pi) * sigma)) ** 3
+    if p >= 1.0:
+        return FROZEN_AFTER_FRAMES
+    return max(1, math.ceil(math.log(REPEAT_ODDS) / math.log(p)))
 
 
 class Hmc5883lSettings(DriverSettings):
@@ -58,6 +103,11 @@ class Hmc5883lSettings(DriverSettings):
     """Samples averaged per output: 1, 2, 4, 8."""
     reset_check_s: float = reset_check_field()
     """How often (s) the configuration is read back to catch a silent chip reset."""
+    read: SlaveRead = "one-shot"
+    """How the data are read: ``one-shot``, by the driver at each poll (status, then the six
+    data bytes), on any I2C bus; ``auto``, by the I2C master the chip sits behind, at its
+    own rate, handed over in the master's burst (a bus offering slave auto-read: the
+    MAX21100's ``imu/aux``)."""
 
 
 class Hmc5883lDriver(Driver):
@@ -83,6 +133,24 @@ class Hmc5883lDriver(Driver):
         self._ready = DataReady({Channel.MAG: self._grid.period_ns})
         self._watch = ResetWatch(self.settings.reset_check_s)
         self._frozen = FrozenWatch(FROZEN_AFTER_FRAMES)
+        if self.settings.read == "auto" and not isinstance(link.bus, AutoReadBus):
+            raise ConfigurationError(
+                f"{self.describe()}: read: auto needs a bus whose master reads the chip on "
+                f"its own (slave auto-read, e.g. the MAX21100's imu/aux); {link.bus.name} "
+                "cannot: use read: one-shot")
+        # read: auto (see the module docstring)
+        self._feed: AutoReadFeed | None = None
+        self._seen: bytes | None = None
+        """The slave bytes at the previous poll."""
+        self._emitted: bytes | None = None
+        """The bytes of the last sample handed out."""
+        self._settle_ns = 0
+        """Bytes that changed before this are from before configure() or its first
+        measurement (still at the old gain)."""
+        self._fresh_ns = 0
+        self._unchanged_limit_ns = 0
+        self._retrying = False
+        """The previous poll found the bytes unchanged and this one looks again."""
 
     # --- bus helpers (plain I2C register protocol: write pointer, then read) --------------
 
@@ -138,6 +206,14 @@ class Hmc5883lDriver(Driver):
         self._expected = plan
         self.gain_lsb_per_gauss = RANGE_GAUSS[self.settings.range_gauss][1]
         self._skip_next = True  # its first measurement still uses the previous gain
+        if self.settings.read == "auto":
+            assert isinstance(self.link.bus, AutoReadBus)
+            feed = self._feed = self.link.bus.auto_read(self.link.target, Reg.X_MSB, 6)
+            self._seen = feed.data
+            period = self._grid.period_ns
+            self._settle_ns = self._mode_written_ns + period + feed.latency_ns
+            self._unchanged_limit_ns = round(
+                (unchanged_periods(self.gain_lsb_per_gauss) + STALE_AFTER_PERIODS) * period)
 
     def start(self, now_ns: int) -> int:
         # configure() may have waited on the clock since the caller read it (the base
@@ -147,8 +223,11 @@ class Hmc5883lDriver(Driver):
         # write. RDY stays set in continuous mode, so unlike the MAX2110x the phase cannot
         # be searched for; a chip clock off by a few percent occasionally repeats or skips
         # one output (each sample is still coherent thanks to the data lock).
-        self._grid.anchor(self._mode_written_ns + self._grid.guard_ns)
+        latency = self._feed.latency_ns if self._feed is not None else 0
+        self._grid.anchor(self._mode_written_ns + latency + self._grid.guard_ns)
         self._ready.start(now_ns)
+        self._fresh_ns = now_ns
+        self._retrying = False
         self._watch.start(now_ns)
         return self._grid.next_after(now_ns)
 
@@ -166,6 +245,8 @@ class Hmc5883lDriver(Driver):
             raise ConfigurationError(f"{self.describe()}: poll() before configure()")
         if self._watch.check_due(now_ns) and self._config_lost():
             return PollResult([], self.restart(reset_detected=True))
+        if self._feed is not None:
+            return self._poll_auto(now_ns)
         status = self._read(Reg.STATUS, 1)[0]
         if status & STATUS_RDY:
             sample = self._sample(now_ns)
@@ -181,8 +262,43 @@ class Hmc5883lDriver(Driver):
         else:
             sample = MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                                mag_ut=NAN3, flags=SampleFlag.STALE)
-        # No usable measurement: check the configuration at once, and restart the chip when
-        # it keeps producing nothing (rewriting the mode restarts continuous measuring).
+        return self._no_measurement(sample, now_ns)
+
+    def _poll_auto(self, now_ns: int) -> PollResult:
+        """``read: auto``: the bytes the master delivered (see the module docstring)."""
+        assert self._feed is not None
+        data = self._feed.data
+        frozen = self._frozen.observe(Channel.MAG, data) if data is not None \
+            else SampleFlag.OK
+        if data is not None and data != self._seen:
+            self._seen = data
+            if self._feed.changed_ns < self._settle_ns or data == self._emitted:
+                return PollResult([], self._grid.next_after(now_ns))
+            sample = self._decoded(data, now_ns, blank_flag(data))
+            if not sample.flags & SampleFlag.BLANK:
+                self._emitted = data
+                self._fresh_ns = now_ns
+                self._retrying = False
+                self._watch.fresh_poll()
+                return PollResult([sample], self._grid.next_after(now_ns))
+        elif now_ns - self._fresh_ns <= self._unchanged_limit_ns:
+            if not self._retrying:
+                # The master's copy may have come a burst late (a failed slave read or IMU
+                # burst): look once more one delivery latency later, else the measurement
+                # is lost when the next one overwrites it.
+                self._retrying = True
+                return PollResult([], now_ns + self._feed.latency_ns)
+            self._retrying = False
+            return PollResult([], self._grid.next_after(now_ns))
+        else:
+            sample = MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
+                               mag_ut=NAN3, flags=frozen or SampleFlag.STALE)
+        return self._no_measurement(sample, now_ns)
+
+    def _no_measurement(self, sample: Sample, now_ns: int) -> PollResult:
+        """No usable measurement (``sample`` says why): check the configuration at once, and
+        restart the chip when it keeps producing nothing (rewriting the mode restarts
+        continuous measuring)."""
         if self._watch.check_due(now_ns, overdue=True) and self._config_lost():
             return PollResult([sample], self.restart(reset_detected=True))
         if self._watch.stale_poll():
@@ -194,7 +310,12 @@ class Hmc5883lDriver(Driver):
         frame (values NaN) and out-of-range or overflowed counts."""
         assert self.gain_lsb_per_gauss is not None
         raw = self._read(Reg.X_MSB, 6)
-        bad = blank_flag(raw) or self._frozen_flag(raw)
+        return self._decoded(raw, now_ns, blank_flag(raw) or self._frozen_flag(raw))
+
+    def _decoded(self, raw: bytes, now_ns: int, bad: SampleFlag) -> Sample:
+        """The sample of the six data bytes ``raw`` (registers 0x03..0x08), NaN when ``bad``
+        says it is no measurement."""
+        assert self.gain_lsb_per_gauss is not None
         if bad:
             return MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                              mag_ut=NAN3, flags=bad)
@@ -209,7 +330,10 @@ class Hmc5883lDriver(Driver):
         """Read Config A/B and Mode back: a mismatch is a silent reset (defaults 0x10, 0x20,
         single mode) or nothing answering."""
         got = self._read(Reg.CONFIG_A, 3)
-        self._read(Reg.X_MSB, 6)  # release the lock that reading MODE set
+        if self._feed is None:
+            # release the lock that reading MODE set (with read: auto, the master's next
+            # read of the six bytes does)
+            self._read(Reg.X_MSB, 6)
         return got != self._expected
 
 

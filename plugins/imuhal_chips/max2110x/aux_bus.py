@@ -29,6 +29,14 @@ How an I2C transaction maps onto one-shot bytes:
 
 The whole sequence holds the parent bus lock, so the MAX21100 driver's own accesses never
 interleave with a half-done one-shot transaction.
+
+Slave auto-read (imuhal.bus.auto_read): ``auto_read(target, register, length)`` has the
+MAX21100 itself read the slave at every accelerometer measurement into MAG X/Y/Z, which the
+host's 21-byte burst carries anyway (facts section 6, steps 4-5); the MAX21100 driver
+programs it and delivers the bytes of each burst to the returned feed. One-shot transactions
+still work beside it (the slave's driver configures and checks its chip with them); since
+both use MAG_SLV_ADD, a one-shot transaction with another slave puts the auto-read's address
+back when it ends.
 """
 
 from __future__ import annotations
@@ -36,6 +44,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, TypeVar
 
+from imuhal.bus.auto_read import AutoReadFeed
 from imuhal.bus.base import Bus, BusKind
 from imuhal.bus.retry import retried
 from imuhal.core.errors import BusError, ConfigurationError, NackError
@@ -115,7 +124,18 @@ class Max21100AuxBus(Bus):
                             raise
             if read_len:
                 self._pointer[target] = (pointer + read_len) & 0xFF
+            feed = self.host._feed
+            if feed is not None and feed.target != target:
+                self._retried(self._select, feed.target)
         return bytes(data)
+
+    def auto_read(self, target: int, register: int, length: int) -> AutoReadFeed:
+        """Have the MAX21100 read ``length`` bytes (1..6) from ``register`` of ``target`` at
+        every accelerometer measurement (see the module docstring)."""
+        if not 0 <= target <= 0x7F:
+            raise ConfigurationError(f"{self.name}: 0x{target:X} is not a 7-bit I2C address")
+        with self.host.link.bus.lock:
+            return self.host.enable_auto_read(target, register, length)
 
     def _retried(self, step: Callable[..., _R], *args: int) -> _R:
         """One one-shot byte (four host transfers), repeated after a failed host transfer;

@@ -12,9 +12,11 @@ gyro rad/s, accel m/s^2 specific force, temperature degC.
 from __future__ import annotations
 
 import math
+import struct
 from collections.abc import Mapping
 from typing import ClassVar
 
+from imuhal.bus.auto_read import AUTO_READ, AutoReadFeed
 from imuhal.bus.base import Bus, BusKind, Link
 from imuhal.bus.registers import RegisterView
 from imuhal.core.clock import Clock
@@ -32,11 +34,15 @@ from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResu
 from imuhal.drivers.polling import DataReady, PollGrid, ResetWatch
 from imuhal.drivers.validity import NAN3, FrozenWatch, blank_flag, range_flag
 from imuhal_chips.max2110x import decode
+from imuhal_chips.max2110x.decode import Counts3, be_int16
 from imuhal_chips.max2110x.registers import (
     ACCEL_RANGE_G,
     DR_CFG_TEMP_EN,
     GYRO_RANGE_DPS,
     I2C_CFG_I2C_OFF,
+    MAG_DATA_BYTES,
+    MAG_MAP_AS_READ,
+    MAG_SLV_CFG_ENABLE,
     MAX21100,
     MAX21105,
     PARTS_BY_WHO_AM_I,
@@ -45,6 +51,7 @@ from imuhal_chips.max2110x.registers import (
     PartSpec,
     Reg,
     Scales,
+    Status,
     acc_cfg1,
     convention_for,
     gyro_cfg1,
@@ -70,6 +77,13 @@ whole frame have a probability far below once per year of samples; 50 (0.2 s at 
 leaves a wide margin for a chip quieter than its error model."""
 TEMPERATURE_RANGE_DEGC = (-40.0, 85.0)
 """Operating range of the die; a temperature word outside it is not a real reading."""
+_MAG_OFFSET = Reg.MAG_X_H - Reg.SYSTEM_STATUS
+_SIX_WORDS = struct.Struct(">6h")
+"""Gyro X, Y, Z then accel X, Y, Z after the status byte: signed big-endian words."""
+_GYRO_DR = int(Status.GYRO_DR)
+_ACC_DR = int(Status.ACC_DR)
+_OVERRUN = int(Status.GYRO_ERR | Status.ACC_ERR)
+"""Where MAG X/Y/Z (the auto-read slave's bytes) start in a MAX21100 burst."""
 
 class Max2110xDriver(Driver):
     """Family base. Subclasses set ``name``, ``Settings`` and ``part``."""
@@ -95,6 +109,12 @@ class Max2110xDriver(Driver):
         self._ready = DataReady({})
         self._watch = ResetWatch(self.settings.reset_check_s)
         self._frozen = FrozenWatch(FROZEN_AFTER_FRAMES)
+        self._burst_frame = b""
+        self._burst_length = 0
+        """The status + data burst's address byte and length (set by configure())."""
+        self._feed: AutoReadFeed | None = None
+        """The slave auto-read, when a driver behind the MAX21100's master asked for one:
+        the slave's bytes (MAG X/Y/Z) of every burst go to it."""
 
     # --- identity -------------------------------------------------------------------------
 
@@ -165,6 +185,9 @@ class Max2110xDriver(Driver):
         self._power_on_ns = self.clock.now_ns()  # measurements are timed from here
         self._verify(plan)
         self._expected = plan
+        p = self.part
+        self._burst_frame = bytes((self.regs.read_address(p.burst_start, p.burst_length),))
+        self._burst_length = p.burst_length
         s = self.settings
         self.scales = Scales(
             gyro_lsb_per_dps=GYRO_RANGE_DPS[s.gyro_range_dps][1],
@@ -192,9 +215,11 @@ class Max2110xDriver(Driver):
 
     def _mismatches(self, plan: dict[int, int]) -> list[tuple[int, int, int]]:
         regs = sorted(plan)
-        # one burst covering POWER_CFG..ACC_CFG1, single reads for the rest
-        block = self.regs.read(Reg.POWER_CFG, Reg.ACC_CFG1 + 1)
-        got = {r: block[r] for r in regs if r <= Reg.ACC_CFG1}
+        # one burst from POWER_CFG over the configuration registers up to the auto-read's
+        # (ACC_CFG1, or MAG_MAP_REG), single reads for the rest
+        last = max([Reg.ACC_CFG1, *(r for r in regs if r <= Reg.MAG_MAP_REG)])
+        block = self.regs.read(Reg.POWER_CFG, last + 1)
+        got = {r: block[r] for r in regs if r <= last}
         for r in regs:
             if r not in got:
                 got[r] = self.regs.read_u8(r)
@@ -230,27 +255,38 @@ class Max2110xDriver(Driver):
             raise ConfigurationError(f"{self.describe()}: poll() before configure()")
         if self._watch.check_due(now_ns) and self._config_lost():
             return PollResult([], self.restart(reset_detected=True))
-        raw = self.regs.read(self.part.burst_start, self.part.burst_length)
-        burst = decode.split_burst(raw)
+        raw = self.regs.send(self._burst_frame, self._burst_length)
+        if self._feed is not None:
+            self._feed.deliver(now_ns, raw[_MAG_OFFSET:_MAG_OFFSET + self._feed.length])
+        status = raw[0]
+        gyro_ready = status & _GYRO_DR
+        accel_ready = status & _ACC_DR
         bad = blank_flag(raw)
-        if not bad and (burst.gyro_ready or burst.accel_ready):
+        if not bad and (gyro_ready or accel_ready):
             bad = self._frozen_flag(raw)
+        gx, gy, gz, ax, ay, az = _SIX_WORDS.unpack_from(raw, 1)
         samples: list[Sample] = []
         stale = False
-        for channel, ready in ((Channel.GYRO, burst.gyro_ready),
-                               (Channel.ACCEL, burst.accel_ready)):
-            if ready and not bad:
-                self._ready.fresh(channel, now_ns)
-                samples.append(self._vector_sample(channel, burst, now_ns, SampleFlag.OK))
-            elif self._ready.overdue(channel, now_ns) or (ready and bad):
-                stale = True
-                flag = bad if ready else SampleFlag.STALE | bad
-                samples.append(self._vector_sample(channel, burst, now_ns, flag))
-        if burst.gyro_ready and (
+        ready_of = self._ready
+        if gyro_ready and not bad:
+            ready_of.fresh(Channel.GYRO, now_ns)
+            samples.append(self._gyro_sample((gx, gy, gz), now_ns, SampleFlag.OK))
+        elif ready_of.overdue(Channel.GYRO, now_ns) or (gyro_ready and bad):
+            stale = True
+            flag = bad if gyro_ready else SampleFlag.STALE | bad
+            samples.append(self._gyro_sample((gx, gy, gz), now_ns, flag))
+        if accel_ready and not bad:
+            ready_of.fresh(Channel.ACCEL, now_ns)
+            samples.append(self._accel_sample((ax, ay, az), now_ns, SampleFlag.OK))
+        elif ready_of.overdue(Channel.ACCEL, now_ns) or (accel_ready and bad):
+            stale = True
+            flag = bad if accel_ready else SampleFlag.STALE | bad
+            samples.append(self._accel_sample((ax, ay, az), now_ns, flag))
+        if gyro_ready and (
             self._last_temp_ns is None or now_ns - self._last_temp_ns >= TEMPERATURE_PERIOD_NS
         ):
             self._last_temp_ns = now_ns
-            samples.append(self._temperature_sample(burst, now_ns, bad))
+            samples.append(self._temperature_sample(be_int16(raw, len(raw) - 2), now_ns, bad))
         if stale:
             if self._watch.check_due(now_ns, overdue=True) and self._config_lost():
                 return PollResult(samples, self.restart(reset_detected=True))
@@ -258,8 +294,8 @@ class Max2110xDriver(Driver):
                 return PollResult(samples, self.restart(reset_detected=False))
             return PollResult(samples, self._grid.next_after(now_ns))
         self._watch.fresh_poll()
-        fast_ready = burst.gyro_ready if self._fast is Channel.GYRO else burst.accel_ready
-        if fast_ready and burst.overrun:
+        fast_ready = gyro_ready if self._fast is Channel.GYRO else accel_ready
+        if fast_ready and status & _OVERRUN:
             self._grid.anchor(now_ns - self._grid.period_ns // 2)
         elif fast_ready and self._searching:
             self._grid.anchor(now_ns)
@@ -285,32 +321,33 @@ class Max2110xDriver(Driver):
         times in a row while the chip reports new data."""
         return self._frozen.observe("frame", raw[1:13] + raw[-2:])
 
-    def _temperature_sample(self, burst: decode.Burst, now_ns: int,
-                            bad: SampleFlag) -> Sample:
+    def _temperature_sample(self, counts: int, now_ns: int, bad: SampleFlag) -> Sample:
         if bad:
             return TemperatureSample(t_ns=now_ns, device=self.device, flags=bad,
                                      temperature_degc=math.nan)
-        temp = decode.temp_counts_to_degc(burst.temperature)
+        temp = decode.temp_counts_to_degc(counts)
         flags = range_flag([temp], *TEMPERATURE_RANGE_DEGC)
         return TemperatureSample(t_ns=now_ns, device=self.device, temperature_degc=temp,
                                  flags=flags)
 
-    def _vector_sample(
-        self, channel: Channel, burst: decode.Burst, now_ns: int, flags: SampleFlag
-    ) -> Sample:
+    def _gyro_sample(self, counts: Counts3, now_ns: int, flags: SampleFlag) -> Sample:
         assert self.scales is not None
-        if channel is Channel.GYRO:
-            counts = burst.gyro
-            value = decode.gyro_counts_to_rad_s(counts, self.scales.gyro_lsb_per_dps)
-        else:
-            counts = burst.accel
-            value = decode.accel_counts_to_m_s2(counts, self.scales.accel_lsb_per_g)
         if flags:
             value = NAN3  # stale, blank or frozen: not a measurement
-        elif decode.saturated(counts):
-            flags |= SampleFlag.SATURATED
-        if channel is Channel.GYRO:
-            return GyroSample.build(now_ns, self.device, flags, Frame.SENSOR, value)
+        else:
+            value = decode.gyro_counts_to_rad_s(counts, self.scales.gyro_lsb_per_dps)
+            if decode.saturated(counts):
+                flags |= SampleFlag.SATURATED
+        return GyroSample.build(now_ns, self.device, flags, Frame.SENSOR, value)
+
+    def _accel_sample(self, counts: Counts3, now_ns: int, flags: SampleFlag) -> Sample:
+        assert self.scales is not None
+        if flags:
+            value = NAN3
+        else:
+            value = decode.accel_counts_to_m_s2(counts, self.scales.accel_lsb_per_g)
+            if decode.saturated(counts):
+                flags |= SampleFlag.SATURATED
         return AccelSample.build(now_ns, self.device, flags, Frame.SENSOR, value)
 
     def full_scale(self, channel: Channel) -> float | None:
@@ -347,6 +384,8 @@ class Max21100Driver(Max2110xDriver):
     Settings = Max21100Settings
     part = MAX21100
     child_bus_kinds: ClassVar[Mapping[str, BusKind]] = {"aux": BusKind.I2C}
+    child_bus_features: ClassVar[Mapping[str, frozenset[str]]] = {
+        "aux": frozenset({AUTO_READ})}
 
     def __init__(
         self, link: Link, settings: DriverSettings | dict[str, object], *, device: str,
@@ -361,3 +400,60 @@ class Max21100Driver(Max2110xDriver):
 
             self._aux = Max21100AuxBus(self)
         return {"aux": self._aux}
+
+    def register_plan(self) -> dict[int, int]:
+        """The base plan, with the slave auto-read's registers (when one was asked for)
+        before DR_CFG and POWER_CFG, so a reconfiguration after a reset restores it."""
+        plan = super().register_plan()
+        if self._feed is None:
+            return plan
+        out: dict[int, int] = {}
+        for reg, value in plan.items():
+            if reg == Reg.DR_CFG:
+                out.update(self._auto_read_plan(self._feed))
+            out[reg] = value
+        return out
+
+    @staticmethod
+    def _auto_read_plan(feed: AutoReadFeed) -> dict[int, int]:
+        """har-in-air's sequence (facts section 6, steps 1 and 4), with the slave's bytes
+        kept as read: MAG_MAP_REG 0x00 (not har-in-air's 0x08 remap of the HMC5883L's X, Z,
+        Y order) and MSB first (MAG_SLV_CFG bit 6 clear), so MAG X/Y/Z hold the slave's
+        bytes in its register order and byte order and the slave's driver converts them as
+        if it had read them itself. Enable last."""
+        return {
+            Reg.ACC_CFG2: 0x00,  # [3:1] = 0: the slave at the accelerometer rate
+            Reg.MAG_SLV_ADD: feed.target,
+            Reg.MAG_SLV_REG: feed.register,
+            Reg.MAG_MAP_REG: MAG_MAP_AS_READ,
+            Reg.MAG_SLV_CFG: MAG_SLV_CFG_ENABLE | feed.length,
+        }
+
+    def enable_auto_read(self, target: int, register: int, length: int) -> AutoReadFeed:
+        """Program the slave auto-read (one slave, at most six bytes) and return its feed;
+        the same request again returns the same feed. Registers written now and verified,
+        and part of every later configuration and read-back."""
+        where = f"{self.describe()}: slave auto-read of 0x{target:02X}"
+        if not 1 <= length <= MAG_DATA_BYTES:
+            raise ConfigurationError(f"{where}: {length} bytes asked; the master keeps 1 to "
+                                     f"{MAG_DATA_BYTES} (MAG X/Y/Z)")
+        feed = self._feed
+        if feed is not None:
+            if (feed.target, feed.register, feed.length) == (target, register, length):
+                return feed
+            raise ConfigurationError(
+                f"{where}: the master already auto-reads 0x{feed.target:02X} and reads one "
+                "slave; put the other chip on one-shot reads (read: one-shot)")
+        if self.scales is None:
+            raise ConfigurationError(f"{where}: asked before the MAX21100 was configured")
+        # The slave's bytes are copied at each accelerometer measurement and reach the
+        # host with the next burst, a poll-grid guard after it.
+        latency_ns = round(1e9 / self.settings.accel_odr_hz) + self._grid.guard_ns
+        feed = AutoReadFeed(target, register, length, latency_ns=latency_ns)
+        registers = self._auto_read_plan(feed)
+        for reg, value in registers.items():
+            self.regs.write(reg, value)
+        self._verify(registers)
+        self._feed = feed
+        self._expected = self.register_plan()
+        return feed

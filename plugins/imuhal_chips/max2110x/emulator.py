@@ -6,8 +6,24 @@ power-on defaults and soft reset (RST_REG bit 3), read-only identity/status/data
 data-ready and overrun bits with the three DR_CFG clear modes, big/little-endian data
 (I2C_CFG bit 1), I2C slave disable on I2C_CFG bit 0, and measurements on ``self.clock`` at
 the configured ODRs (first sample one period after the power mode or ODR is written).
-MAX21100 only: the one-shot I2C master (DR_CFG [5:4] trigger, MAG_SLV_ADD / I2C_MST_ADD /
-I2C_MST_DATA) performing real transfers on the ``aux`` EmulatedBus.
+MAX21100 only: the I2C master, performing real transfers on the ``aux`` EmulatedBus:
+- one-shot byte transactions (DR_CFG [5:4] trigger, MAG_SLV_ADD / I2C_MST_ADD / I2C_MST_DATA);
+- the slave auto-read (facts section 6, steps 4-5): with MAG_SLV_CFG bit 7 set, every
+  2^ACC_CFG2[3:1]-th accelerometer measurement (0x06 <- 0x00: each one) reads MAG_SLV_CFG
+  [2:0] bytes from register MAG_SLV_REG of the slave at MAG_SLV_ADD in one transaction and
+  stores them as MAG X, Y, Z (0x30..0x35): paired MSB first (bit 6 set: LSB first), ordered
+  by MAG_MAP_REG [5:3] (0x00 as read, 0x08 the HMC5883L's X, Z, Y to X, Y, Z; other codes
+  [UNVERIFIED], see ``_MAG_CHANNEL_ORDER``) and negated per axis by MAG_MAP_REG [2:0]
+  (INV_X bit 0 .. INV_Z bit 2, [SS]). A byte count other than six is [UNVERIFIED]: all are
+  read, the first six at most stored, fewer replace only the first bytes of the block. A
+  transaction the slave NACKs or that fails leaves MAG X/Y/Z as they were (what I2C
+  masters' copies of a slave do; no source describes the MAX21100's), counted in
+  ``slave_read_failures``: the host sees the same words again, never a made-up value. The
+  slave is read when the measurement latches, i.e. at the first access at or after its
+  instant (this emulator is driven by accesses), so a slave measurement completed in
+  between can appear one accelerometer period early. MAG_SLV_CFG bits 5..3 (MAG_SAFE,
+  MAG_GRP, I2C speed), the MAG_OFS registers and the mag data-ready bits of SYSTEM_STATUS
+  (in conflict between sources) are not modelled.
 
 Physics face: ``physics`` (sensor frame, SI) is sampled when a measurement completes
 (at the first bus access or ``set_physics`` after the measurement instant) and encoded with
@@ -18,8 +34,8 @@ Fault injection: ``who_am_i`` (set another value: a clone or the sibling part),
 ``stuck_data_ready`` (the measurement engine hangs: no new data, data-ready never set; a soft
 reset cures it), ``silent_reset()`` (a brown-out: every register back to power-on defaults
 without the host being told), ``absent`` (base class) and bus errors via the EmulatedBus.
-Not modelled: FIFO (reads 0), interrupts, parity address modes, self-test, OIS modes, the
-MAX21100 slave auto-read (MAG_SLV_CFG) and on-chip fusion.
+Not modelled: FIFO (reads 0), interrupts, parity address modes, self-test, OIS modes and
+on-chip fusion.
 """
 
 from __future__ import annotations
@@ -37,6 +53,8 @@ from imuhal.emulation.base import ChipEmulator, PhysicalInputs
 from imuhal.emulation.bus import EmulatedBus
 from imuhal_chips.max2110x.error_spec import MAX21100_ERROR_SPEC, MAX21105_ERROR_SPEC
 from imuhal_chips.max2110x.registers import (
+    ACC_CFG2_MAG_RATE_MASK,
+    ACC_CFG2_MAG_RATE_SHIFT,
     ACCEL_ON_MODES,
     ADDRESS_MASK,
     DR_CFG_CLEAR_SHIFT,
@@ -47,6 +65,12 @@ from imuhal_chips.max2110x.registers import (
     GYRO_ON_MODES,
     I2C_CFG_I2C_OFF,
     I2C_CFG_LITTLE_ENDIAN,
+    MAG_DATA_BYTES,
+    MAG_MAP_INVERT_MASK,
+    MAG_MAP_SHIFT,
+    MAG_SLV_CFG_ENABLE,
+    MAG_SLV_CFG_LENGTH_MASK,
+    MAG_SLV_CFG_SWAP,
     MAX21100,
     MAX21105,
     NO_INCREMENT_BIT,
@@ -107,6 +131,17 @@ _MAG_SLV_ADD = int(Reg.MAG_SLV_ADD)
 _DR_BITS = Status.GYRO_DR | Status.ACC_DR
 _ERR_BITS = Status.GYRO_ERR | Status.ACC_ERR
 _DR_CFG = int(Reg.DR_CFG)
+_MAG_SLV_CFG = int(Reg.MAG_SLV_CFG)
+_MAG_SLV_REG = int(Reg.MAG_SLV_REG)
+_MAG_MAP_REG = int(Reg.MAG_MAP_REG)
+_ACC_CFG2 = int(Reg.ACC_CFG2)
+_MAG_X_H = int(Reg.MAG_X_H)
+_MAG_CHANNEL_ORDER = ((0, 1, 2), (0, 2, 1), (1, 0, 2), (1, 2, 0), (2, 0, 1), (2, 1, 0),
+                      (0, 1, 2), (0, 1, 2))
+"""MAG_MAP_REG [5:3] -> which slave word (0 = first read) becomes MAG X, Y, Z. Codes 0 (as
+read) and 1 (A, C, B: the HMC5883L's X, Z, Y to X, Y, Z) are documented; 2..5 are
+[UNVERIFIED], taken as the remaining permutations in lexicographic order (the order codes 0
+and 1 follow); 6 and 7 [UNVERIFIED] keep the order read."""
 _I2C_CFG = int(Reg.I2C_CFG)
 _SYSTEM_STATUS = int(Reg.SYSTEM_STATUS)
 _GYRO_X_H = int(Reg.GYRO_X_H)
@@ -310,6 +345,8 @@ class Max2110xEmulator(ChipEmulator):
             if missed:
                 self.status |= Status.GYRO_ERR if index == _GYRO else Status.ACC_ERR
             self._latch(index)
+            if index == _ACCEL:
+                self._accel_latched(missed + 1)
         if self._mst_pending is not None and now >= self._mst_pending[0]:
             self._mst_data = self._mst_pending[1]
             self._mst_pending = None
@@ -455,6 +492,10 @@ class Max2110xEmulator(ChipEmulator):
     def _oneshot(self, *, write: bool) -> None:
         """Aux master transaction; only the MAX21100 has the master."""
 
+    def _accel_latched(self, measurements: int) -> None:
+        """``measurements`` accelerometer measurements completed (the latest latched): the
+        MAX21100's slave auto-read follows them."""
+
     def _bank0_written(self, reg: int, value: int) -> None:
         if reg in _CONFIG_REGS:
             self._restart_timing()
@@ -493,10 +534,71 @@ class Max21100Emulator(Max2110xEmulator):
 
     def __init__(self, clock: Clock | None = None, *, name: str | None = None) -> None:
         self._aux = EmulatedBus(f"{name or self.chip}/aux", BusKind.I2C)
+        self.slave_reads = 0
+        """Auto-read transactions the slave answered (since construction)."""
+        self.slave_read_failures = 0
+        """Auto-read transactions that failed (NACK, bus error): MAG X/Y/Z kept their data."""
         super().__init__(clock, name=name)
+
+    def power_on_reset(self) -> None:
+        super().power_on_reset()
+        self._accel_count = 0
+        """Accelerometer measurements since power-on: the auto-read follows every 2^code-th."""
+        self._slave_block = bytes(MAG_DATA_BYTES)
+        """The slave's bytes as last read (slave register order), before swap and map."""
 
     def child_buses(self) -> dict[str, EmulatedBus]:
         return {"aux": self._aux}
+
+    def _accel_latched(self, measurements: int) -> None:
+        """Slave auto-read: with MAG_SLV_CFG enabled, every 2^ACC_CFG2[3:1]-th accelerometer
+        measurement reads the slave's data into MAG X/Y/Z (0x30..0x35)."""
+        bank0 = self.banks[0]
+        cfg = bank0[_MAG_SLV_CFG]
+        if not cfg & MAG_SLV_CFG_ENABLE:
+            return
+        every = 1 << ((bank0[_ACC_CFG2] & ACC_CFG2_MAG_RATE_MASK) >> ACC_CFG2_MAG_RATE_SHIFT)
+        before = self._accel_count
+        self._accel_count = before + measurements
+        if self._accel_count // every != before // every:
+            self._read_slave(cfg)
+
+    def _read_slave(self, cfg: int) -> None:
+        """One auto-read transaction: MAG_SLV_REG written to the slave at MAG_SLV_ADD, then
+        the byte count read (repeated start); the bytes are paired (bit 6: each pair LSB
+        first), mapped and inverted by MAG_MAP_REG, and stored as MAG X, Y, Z words (read
+        out in the configured byte order like every data word). A transaction that fails
+        (the slave NACKs, is absent, or the wire fails) changes nothing: the registers keep
+        the last data, as I2C masters' copies of a slave do."""
+        count = cfg & MAG_SLV_CFG_LENGTH_MASK
+        if not count:
+            return
+        bank0 = self.banks[0]
+        try:
+            data = self._aux.transfer(bank0[_MAG_SLV_ADD] & 0x7F,
+                                      bytes((bank0[_MAG_SLV_REG],)), count)
+        except (BusError, OSError):
+            self.slave_read_failures += 1
+            return
+        self.slave_reads += 1
+        kept = min(count, MAG_DATA_BYTES)
+        block = data[:kept] + self._slave_block[kept:]
+        self._slave_block = block
+        swap = cfg & MAG_SLV_CFG_SWAP
+        slave_words = []
+        for i in (0, 2, 4):
+            high, low = (block[i + 1], block[i]) if swap else (block[i], block[i + 1])
+            word = high << 8 | low
+            slave_words.append(word - 0x10000 if word & 0x8000 else word)
+        mapping = bank0[_MAG_MAP_REG]
+        order = _MAG_CHANNEL_ORDER[(mapping >> MAG_MAP_SHIFT) & 0x07]
+        invert = mapping & MAG_MAP_INVERT_MASK
+        words = self.words
+        for axis in range(3):
+            value = slave_words[order[axis]]
+            # two's complement negation in 16 bits (-(-32768) reads -32768 again)
+            words[_MAG_X_H + 2 * axis] = -value if invert >> axis & 1 else value
+        self._data_image = None
 
     def _oneshot(self, *, write: bool) -> None:
         """Carry out a one-shot byte transaction on the aux bus (result after 100 us)."""

@@ -106,6 +106,29 @@ DR_CFG_ONESHOT_READ = 0x30
 """MAX21100 DR_CFG [5:4]: one-shot aux-master byte transaction trigger, 01 write, 11 read
 [SS: har-in-air 0x15 / 0x35 then 0x05]; the other bits keep their meaning."""
 
+# MAX21100 slave auto-read (facts section 6, "MAX21100 I2C master reading an HMC5883L" steps
+# 4-5). [V] (har-in-air 0x86 for the HMC5883L, Kris Winer 0xC6 for the LSB-first LIS3MDL):
+# MAG_SLV_CFG bit 7 enable, bit 6 byte-order swap, the low bits the byte count; MAG_MAP_REG
+# 0x08 remaps the HMC5883L's X, Z, Y register order to X, Y, Z and 0x00 keeps the order read;
+# ACC_CFG2 [3:1] = 0 samples the slave at the accelerometer rate. [SS] (one more code base,
+# an mraa MAX21100 + HMC5983 driver, names the fields): MAG_SLV_CFG bit 5 MAG_SAFE, bit 4
+# MAG_GRP, bit 3 I2C_STD (400 kHz when 0), [2:0] MAG_I2C_LEN; MAG_MAP_REG [5:3] MAG_CH_MAP
+# (0 = A, B, C; 1 = A, C, B), [2:0] INV_Z, INV_Y, INV_X; ACC_CFG2 [3:1] "SNS_MAG_ODR =
+# ACC_ODR / 2^code".
+MAG_SLV_CFG_ENABLE = 0x80
+MAG_SLV_CFG_SWAP = 0x40
+"""Set: the slave sends each word LSB first (the master swaps the pair)."""
+MAG_SLV_CFG_LENGTH_MASK = 0x07
+MAG_MAP_AS_READ = 0x00
+"""MAG_MAP_REG: MAG X, Y, Z = the slave's first, second and third word, none inverted."""
+MAG_MAP_SHIFT = 3
+MAG_MAP_INVERT_MASK = 0x07
+ACC_CFG2_MAG_RATE_SHIFT = 1
+ACC_CFG2_MAG_RATE_MASK = 0x0E
+"""ACC_CFG2 [3:1]: the slave is read every 2^code accelerometer measurements (0: each)."""
+MAG_DATA_BYTES = 6
+"""MAG X, Y, Z (0x30..0x35): the most the master keeps of a slave's data."""
+
 # --- setting tables: physical value -> code (and sensitivity) ------------------------------
 
 GYRO_RANGE_DPS: Mapping[int, tuple[int, float]] = {

@@ -107,6 +107,10 @@ class Driver(ABC):
     child_bus_kinds: ClassVar[Mapping[str, BusKind]] = {}
     """The buses ``child_buses()`` provides, by local name, and their kind (any kind: an I2C
     master, an SPI master, a serial port); profiles check devices behind them against it."""
+    child_bus_features: ClassVar[Mapping[str, frozenset[str]]] = {}
+    """What each child bus offers beyond transfers, by local name: ``AUTO_READ`` (the master
+    reads a slave's registers on its own, imuhal.bus.auto_read). Profiles check settings
+    that need a feature (``read: auto``) against it."""
     calibration_version: ClassVar[int] = 1
     """Bumped when a change to decoding would invalidate stored user calibration."""
 

@@ -9,9 +9,11 @@ import typing
 from collections.abc import Mapping
 from dataclasses import dataclass
 from enum import Enum
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, BeforeValidator
+from pydantic import AfterValidator, BaseModel, BeforeValidator, ValidationInfo
+
+from imuhal.bus.auto_read import AUTO_READ
 
 
 def pick(table: Mapping[float, object], value: float, name: str, unit: str) -> float:
@@ -69,3 +71,29 @@ def literal_choices(model: type[BaseModel]) -> dict[str, tuple[Any, ...]]:
         elif isinstance(annotation, type) and issubclass(annotation, Enum):
             out[name] = tuple(annotation)
     return out
+
+
+BUS_CONTEXT = "bus"
+"""Validation context key (profile loader): the bus reference a device sits on."""
+BUS_FEATURES_CONTEXT = "bus_features"
+"""Validation context key: the features of that bus (``Driver.child_bus_features``; a bus
+a profile opens itself has none). Absent when settings are validated without a profile."""
+
+
+def _auto_read_possible(value: str, info: ValidationInfo) -> str:
+    context = info.context if isinstance(info.context, dict) else {}
+    features = context.get(BUS_FEATURES_CONTEXT)
+    if value == "auto" and features is not None and AUTO_READ not in features:
+        bus = context.get(BUS_CONTEXT, "this bus")
+        raise ValueError(
+            f"'auto' needs a bus whose master reads the chip on its own (slave auto-read, "
+            f"e.g. the MAX21100's imu/aux); bus {bus!r} cannot: use read: one-shot")
+    return value
+
+
+SlaveRead = Annotated[Literal["one-shot", "auto"], AfterValidator(_auto_read_possible)]
+"""The ``read`` setting of a chip that can sit behind an I2C master: ``one-shot``, the
+driver reads the chip with its own transactions; ``auto``, the master reads the chip's data
+registers on its own and the driver takes them from the master's burst (imuhal.bus.auto_read).
+A profile that asks for ``auto`` on a bus without the feature is refused with a located
+one-line error; a driver built directly raises ConfigurationError at construction."""

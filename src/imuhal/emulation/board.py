@@ -19,7 +19,7 @@ from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import ImuhalError, PluginError
 from imuhal.core.frames import FloatArray
 from imuhal.core.quantities import Quantity
-from imuhal.emulation.faults import BoardFaults
+from imuhal.emulation.faults import BoardFaults, FaultLine
 from imuhal.pipeline.pipeline import Pipeline
 from imuhal.plugins.manager import Registry
 from imuhal.profile.faults import FaultSpec
@@ -28,7 +28,7 @@ from imuhal.profile.topology import device_order, split_bus_ref
 from imuhal.sim.chip import ChipEmulator
 from imuhal.sim.emulated_bus import EmulatedBus
 from imuhal.sim.errors import SensorErrorModel
-from imuhal.sim.inputs import PhysicalInputs
+from imuhal.sim.inputs import NO_OTHER, PhysicalInputs
 from imuhal.sim.scenario import ChipTruth, Scenario, TruthState
 from imuhal.sim.world import chip_other, chip_vectors
 
@@ -62,6 +62,7 @@ class EmulatedBoard:
         self.emulators: dict[str, ChipEmulator] = {}
         self.faults = BoardFaults(clock, self.emulators, seed=seed)
         hosts: dict[str, EmulatedBus] = {}
+        lines: dict[str, FaultLine] = {}
         for name in device_order(profile):
             dev = profile.devices[name]
             reg = registry.emulators.entries.get(dev.driver)
@@ -82,29 +83,32 @@ class EmulatedBoard:
                 ) from None
             emulator = reg.obj(clock=clock)
             host = self._bus_for(dev.bus)
-            host.attach(dev.address, self.faults.line(name, emulator, host, dev.address))
+            line = self.faults.line(name, emulator, host, dev.address)
+            host.attach(dev.address, line)
             self.emulators[name] = emulator
+            lines[name] = line
             hosts[name] = host
         for name, emulator in self.emulators.items():
             emulator.connect_host(hosts[name])
         for spec in faults:
             self.faults.add(spec)
         self._chip_to_body = chip_to_body
-        # Per device, what the per-poll path needs: its rotation as nested lists (plain
-        # floats rotate three components faster than numpy) and whether it measures motion.
-        self._mounts = {name: np.asarray(m, dtype=float).tolist()
-                        for name, m in chip_to_body.items()}
-        self._motion = {name: type(emu).measures_motion for name, emu in self.emulators.items()}
-        self._errors = error_models or {}
-        self._device_t_ns: dict[str, int] = {}
+        errors = error_models or {}
+        self._devices = {
+            name: _Device(emulator, lines[name],
+                          np.asarray(chip_to_body[name], dtype=float).tolist(),
+                          errors.get(name))
+            for name, emulator in self.emulators.items()}
         self._truth_cache: tuple[int, TruthState] | None = None
         """(time, truth) of the latest ``truth_at``: one attribute, replaced whole, so a
         reader on another thread never pairs one time with another time's truth."""
         self._updated_ns: int | None = None
         # The chip truth of the latest instant, full and light (computed once per instant
         # and shared by every chip polled then).
-        self._chip_t_ns: int | None = None
-        self._chip_truths: dict[bool, ChipTruth] = {}
+        self._full_ns: int | None = None
+        self._full: ChipTruth | None = None
+        self._light_ns: int | None = None
+        self._light: ChipTruth | None = None
         # ``truth`` may be read from another thread (the live view) while the run polls:
         # scenarios fill caches as they go, so one thread at a time evaluates the scenario.
         self._scenario_lock = threading.Lock()
@@ -150,19 +154,17 @@ class EmulatedBoard:
 
     def _chip_truth(self, t_ns: int, motion: bool) -> ChipTruth:
         """The chip truth at ``t_ns`` (light when ``motion`` is False), once per instant."""
-        if t_ns != self._chip_t_ns:
-            self._chip_t_ns = t_ns
-            self._chip_truths = {}
-        truth = self._chip_truths.get(motion)
-        if truth is None:
-            full = self._chip_truths.get(True)
-            # A full truth of the instant serves a light request as well (same floats).
-            if full is not None:
-                truth = full
-            else:
-                with self._scenario_lock:
-                    truth = self.scenario.chip_truth(t_ns / 1e9, motion=motion)
-            self._chip_truths[motion] = truth
+        # A full truth of the instant serves a light request as well (same floats).
+        if t_ns == self._full_ns:
+            return self._full  # type: ignore[return-value]
+        if not motion and t_ns == self._light_ns:
+            return self._light  # type: ignore[return-value]
+        with self._scenario_lock:
+            truth = self.scenario.chip_truth(t_ns / 1e9, motion=motion)
+        if motion:
+            self._full_ns, self._full = t_ns, truth
+        else:
+            self._light_ns, self._light = t_ns, truth
         return truth
 
     def before_poll(self, t_ns: int, device: str) -> int:
@@ -173,28 +175,59 @@ class EmulatedBoard:
         self.update(t_ns, device)
         return t_ns
 
-    def _noise_periods(self, name: str, model: SensorErrorModel,
-                       poll_period_s: float) -> dict[str, float]:
-        """Per noise-density channel of ``name``'s error model, the sample period (s) its
+    def _noise_periods(self, dev: _Device, poll_period_s: float) -> dict[str, float]:
+        """Per noise-density channel of the device's error model, the sample period (s) its
         noise band follows: the chip's configured output period, else the poll interval
         ``poll_period_s`` floored at the shortest period the chip supports (a poll right
         after another must not widen the band past anything the chip can output); longer
         where the chip's low-pass filter (:meth:`ChipEmulator.noise_bandwidth_hz`) is
-        narrower than that period's Nyquist band."""
-        emulator = self.emulators[name]
-        floor = emulator.min_output_period_s
+        narrower than that period's Nyquist band.
+
+        What the emulator says about its configuration is kept until the next write-only
+        transaction on the device's line (``FaultLine.writes``: a chip's configuration
+        changes only through them) or, on a device with faults scheduled (a chip reset
+        changes it without one), asked at every poll."""
+        writes = dev.line.writes
+        terms = dev.period_terms
+        if terms is None or writes != dev.period_writes or self.faults.has_faults(dev.name):
+            terms = dev.period_terms = self._period_terms(dev)
+            dev.period_writes = writes
+            dev.periods = None
+        if dev.periods is not None:
+            return dev.periods
         periods: dict[str, float] = {}
-        for channel in model.period_channels:
-            quantity = _QUANTITY_BY_NAME[channel]
-            own = emulator.noise_period_s(quantity)
-            period = own if own is not None and own > 0 else max(poll_period_s, floor)
+        fixed = True
+        for channel, own, floor, filtered in terms:
+            if own is None:
+                fixed = False
+                period = max(poll_period_s, floor)
+            else:
+                period = own
             # The chip's low-pass filter narrows the band below Nyquist: the period whose
             # Nyquist band is the filter's bandwidth.
-            bandwidth_hz = emulator.noise_bandwidth_hz(quantity)
-            if bandwidth_hz is not None and bandwidth_hz > 0:
-                period = max(period, 0.5 / bandwidth_hz)
+            if filtered is not None:
+                period = max(period, filtered)
             periods[channel] = period
+        if fixed:  # the same at every poll until the configuration changes
+            dev.periods = periods
         return periods
+
+    @staticmethod
+    def _period_terms(dev: _Device) -> tuple[tuple[str, float | None, float, float | None], ...]:
+        """(channel, the chip's own output period or None, the floor under the poll
+        interval, the period of the filter's band or None) per period channel."""
+        emulator = dev.emulator
+        floor = emulator.min_output_period_s
+        terms = []
+        assert dev.model is not None
+        for channel in dev.model.period_channels:
+            quantity = _QUANTITY_BY_NAME[channel]
+            own = emulator.noise_period_s(quantity)
+            bandwidth_hz = emulator.noise_bandwidth_hz(quantity)
+            terms.append((channel, own if own is not None and own > 0 else None, floor,
+                          0.5 / bandwidth_hz if bandwidth_hz is not None and bandwidth_hz > 0
+                          else None))
+        return tuple(terms)
 
     def update(self, t_ns: int, device: str | None = None) -> None:
         """Hand ``device`` (default: every chip) its inputs at ``t_ns``: the truth in its
@@ -206,28 +239,62 @@ class EmulatedBoard:
         A chip that measures no motion (``ChipEmulator.measures_motion``) gets a light
         truth: pressure, temperature and position only."""
         self._updated_ns = t_ns
+        devices = self._devices
         for name in (self.emulators if device is None else (device,)):
-            truth = self._chip_truth(t_ns, self._motion[name])
-            mount = self._mounts[name]
+            dev = devices[name]
+            truth = self._chip_truth(t_ns, dev.motion)
+            mount = dev.mount
             force, rate, field = chip_vectors(truth, mount)
+            other = chip_other(truth, mount) if truth.other else NO_OTHER
             pressure, temperature = truth.pressure_pa, truth.temperature_degc
-            model = self._errors.get(name)
+            model = dev.model
             if model is not None:
-                last = self._device_t_ns.get(name)
+                last = dev.last_t_ns
                 period = (t_ns - last) / 1e9 if last is not None and t_ns > last \
                     else DEFAULT_PERIOD_S
-                periods = self._noise_periods(name, model, period) \
-                    if model.period_channels else None
+                periods = self._noise_periods(dev, period) if model.period_channels else None
                 force, rate, field, pressure, temperature = model.apply_values(
                     t_ns / 1e9, force, rate, field, pressure, temperature, period, periods)
-            # One inputs object per chip and poll (building one costs more than the
-            # error model's arithmetic).
-            inputs = PhysicalInputs(
-                specific_force_m_s2=force, angular_rate_rad_s=rate, magnetic_field_ut=field,
-                pressure_pa=pressure, temperature_degc=temperature,
-                position_ned_m=truth.position_ned_m, velocity_ned_m_s=truth.velocity_ned_m_s,
-                other=chip_other(truth, mount))
+            # One inputs object per chip and poll, built through its slots (building one
+            # costs more than the error model's arithmetic).
+            inputs = PhysicalInputs.build(
+                force, rate, field, pressure, temperature, truth.position_ned_m,
+                truth.velocity_ned_m_s, other)
             inputs = self.faults.physics(name, t_ns, inputs)
-            self._device_t_ns[name] = t_ns
-            self.emulators[name].set_physics(inputs)
+            dev.last_t_ns = t_ns
+            dev.emulator.set_physics(inputs)
 
+
+class _Device:
+    """What the per-poll path keeps of one emulated device."""
+
+    __slots__ = (
+        "emulator",
+        "last_t_ns",
+        "line",
+        "model",
+        "motion",
+        "mount",
+        "name",
+        "period_terms",
+        "period_writes",
+        "periods",
+    )
+
+    def __init__(self, emulator: ChipEmulator, line: FaultLine,
+                 mount: list[list[float]] | None, model: SensorErrorModel | None) -> None:
+        self.emulator = emulator
+        self.line = line
+        self.name = line.device
+        self.mount = mount
+        """The chip -> body rotation as nested lists (plain floats rotate three components
+        faster than numpy); None: aligned with the body."""
+        self.motion = type(emulator).measures_motion
+        self.model = model
+        self.last_t_ns: int | None = None
+        """The previous update's time."""
+        self.period_terms: tuple[tuple[str, float | None, float, float | None], ...] | None \
+            = None
+        self.period_writes = -1
+        self.periods: dict[str, float] | None = None
+        """The noise periods, while they do not depend on the poll interval."""

@@ -144,6 +144,10 @@ class BoardFaults:
         self._faults.append(active)
         self._by_device.setdefault(spec.device, []).append(active)
 
+    def has_faults(self, device: str) -> bool:
+        """Whether any fault is scheduled on ``device`` (past, in force or to come)."""
+        return bool(self._by_device.get(device))
+
     def line(self, device: str, emulator: ChipEmulator, bus: EmulatedBus,
              target: int) -> FaultLine:
         """The bus line to ``device``: what its bus attaches instead of the bare emulator."""
@@ -204,6 +208,8 @@ class BoardFaults:
     def before_poll(self, device: str, t_ns: int) -> int:
         """Called when ``device`` is due at ``t_ns``: start/end due faults, then delay the
         poll as late-poll and jitter faults say. Returns the time the poll happens."""
+        if not self._faults:  # a board without faults: nothing to start, nothing delays
+            return t_ns
         self.sync(t_ns)
         delay_s = 0.0
         t_s = t_ns / 1e9
@@ -280,6 +286,10 @@ class FaultLine:
         self.target = target
         self._last_receive_ns: int | None = None
         """When the host last read a byte stream from this line (for a break's bytes)."""
+        self.writes = 0
+        """Write-only transactions (``read_len`` 0) sent down this line, failed ones
+        included: a chip's configuration changes only through them, so the emulated board
+        keeps what it asked the emulator about its configuration until this count moves."""
 
     @property
     def absent(self) -> bool:
@@ -359,6 +369,8 @@ class FaultLine:
         return bytes(out)
 
     def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes:
+        if not read_len:
+            self.writes += 1
         faults = self.faults
         if not faults._by_device.get(self.device):
             return self.emulator.bus_transfer(kind, write, read_len)

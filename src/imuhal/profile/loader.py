@@ -24,6 +24,7 @@ from pydantic import BaseModel, ValidationError
 from imuhal.bus.base import BusKind
 from imuhal.core.errors import ProfileError
 from imuhal.core.samples import VectorSample
+from imuhal.drivers.settings import BUS_CONTEXT, BUS_FEATURES_CONTEXT
 from imuhal.plugins.manager import Registry
 from imuhal.profile.faults import CHIP_FAULT_KINDS, FAULT_KINDS
 from imuhal.profile.model import SCHEMA_VERSION, BoardProfile
@@ -128,7 +129,8 @@ def _check(
     return problems, (profile if not problems else None)
 
 
-def validate_strict(model: type[BaseModel], data: Any) -> Any:
+def validate_strict(model: type[BaseModel], data: Any,
+                    context: dict[str, Any] | None = None) -> Any:
     """``model`` validated from ``data``, with numbers strict: pydantic turns ``true`` into 1
     and ``"500"`` into 500, which a profile must not (``rate_hz: true`` is an error, not
     1 Hz). YAML lists are still fine for tuples and strings for choices and dates.
@@ -136,7 +138,7 @@ def validate_strict(model: type[BaseModel], data: Any) -> Any:
     Validation is pydantic's own (so models' validators run as written); afterwards every
     bool or string of ``data`` that came out as a number is an error at its path.
     """
-    result = model.model_validate(data)
+    result = model.model_validate(data, context=context)
     coerced = [{"type": "float_type", "loc": path, "input": value}
                for path, value in _coerced_numbers(data, result, ())]
     if coerced:
@@ -197,10 +199,12 @@ def _describe(exc: ValidationError, doc: LocatedDocument, prefix: Path,
     return out
 
 
-def _validate(model: type[BaseModel], data: Any, doc: LocatedDocument, path: Path) -> list[str]:
-    """A plugin's settings checked by its own model: located problems, or none."""
+def _validate(model: type[BaseModel], data: Any, doc: LocatedDocument, path: Path,
+              context: dict[str, Any] | None = None) -> list[str]:
+    """A plugin's settings checked by its own model (with ``context`` for its validators):
+    located problems, or none."""
     try:
-        validate_strict(model, data)
+        validate_strict(model, data, context)
     except ValidationError as exc:
         return _describe(exc, doc, path, model)
     return []
@@ -344,6 +348,19 @@ def _bus_kind(devices: dict[Any, Any], ref: str, bus_kinds: dict[str, BusKind | 
     return provided[child], ""
 
 
+def _bus_features(devices: dict[Any, Any], ref: str, registry: Registry) -> frozenset[str]:
+    """What the bus ``ref`` offers beyond transfers: a child bus what its parent's driver
+    declares in ``child_bus_features``; a bus the profile opens itself, nothing."""
+    if "/" not in ref:
+        return frozenset()
+    parent, child = ref.split("/", 1)
+    parent_driver = _text(_mapping(devices.get(parent)).get("driver"))
+    reg = registry.drivers.entries.get(parent_driver) if parent_driver is not None else None
+    if reg is None:
+        return frozenset()
+    return frozenset(reg.obj.child_bus_features.get(child, ()))
+
+
 def _check_plugins(data: dict[str, Any], doc: LocatedDocument, registry: Registry) -> list[str]:
     """Each bus, device and estimator against its plugin's Settings model (on the raw
     document, skipping parts too malformed to tell which plugin they name)."""
@@ -386,7 +403,9 @@ def _check_plugins(data: dict[str, Any], doc: LocatedDocument, registry: Registr
                        f"cannot sit on a {kind.value} bus; it supports: {allowed}")
         settings = dev.get("settings", {})
         if isinstance(settings, dict):
-            out += _validate(driver.Settings, settings, doc, (*path, "settings"))
+            context = {BUS_CONTEXT: bus_ref, BUS_FEATURES_CONTEXT: _bus_features(
+                _mapping(data.get("devices")), bus_ref, registry)}
+            out += _validate(driver.Settings, settings, doc, (*path, "settings"), context)
         vectors = [q.name for q in driver.channels if _calibratable(q.name, registry)]
         for key in _calibration_keys(dev.get("calibration")):
             if key not in vectors:

@@ -120,7 +120,11 @@ class ChipEmulator(ABC):
         in the Nyquist band of this period (``noise_density`` specs without a
         ``bandwidth_hz``): a chip's noise depends on its own rate, not on how often the host
         polls it. None: unknown (e.g. a reserved rate code); the simulator then uses the
-        time since the previous poll, never below ``min_output_period_s``."""
+        time since the previous poll, never below ``min_output_period_s``.
+
+        Like :meth:`noise_bandwidth_hz`, it must follow from the configuration registers
+        alone: an emulated board asks again only after a write-only transaction to the chip
+        (``read_len`` 0), and at every poll of a device with faults scheduled."""
         return None
 
     def noise_bandwidth_hz(self, channel: Channel) -> float | None:

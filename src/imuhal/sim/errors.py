@@ -187,6 +187,8 @@ class _VectorChannel:
         self._random_walk = spec.bias_random_walk
         self._density_sq = spec.noise_density * spec.noise_density
         self._std_sq = spec.noise_std * spec.noise_std
+        self._sigma_period = math.nan  # the period ``_sigma`` was worked out for (none yet)
+        self._sigma = 0.0
 
     def bias_at(self, temperature: float | None) -> Vec3:
         """The total bias (constant + thermal + random walk) now."""
@@ -215,12 +217,20 @@ class _VectorChannel:
     def apply(self, v: Vec3, temperature: float | None, period_s: float) -> Vec3:
         g = self.gain
         x, y, z = v
-        bx, by, bz = self.bias_at(temperature)
+        # bias_at and noise_sigma written out (the same operations): this runs for every
+        # vector channel at every poll.
+        b = self.turn_on_bias
+        dt = 0.0 if temperature is None else temperature - self._t_ref
+        tc = self._temp_coeff
+        w = self.walk
         ox, oy, oz = self.offset
-        mx = g[0] * x + g[1] * y + g[2] * z + ox + bx
-        my = g[3] * x + g[4] * y + g[5] * z + oy + by
-        mz = g[6] * x + g[7] * y + g[8] * z + oz + bz
-        sigma = self.noise_sigma(period_s)
+        mx = g[0] * x + g[1] * y + g[2] * z + ox + (b[0] + tc[0] * dt + w[0])
+        my = g[3] * x + g[4] * y + g[5] * z + oy + (b[1] + tc[1] * dt + w[1])
+        mz = g[6] * x + g[7] * y + g[8] * z + oz + (b[2] + tc[2] * dt + w[2])
+        if period_s != self._sigma_period:  # the period rarely changes: sigma kept for it
+            self._sigma = self.noise_sigma(period_s)
+            self._sigma_period = period_s
+        sigma = self._sigma
         if sigma:
             nx, ny, nz = self.normal.three()
             return (mx + sigma * nx, my + sigma * ny, mz + sigma * nz)
@@ -283,6 +293,8 @@ class SensorErrorModel:
         self._channels = tuple(ch for ch in (self._accel, self._gyro, self._mag,
                                              self._pressure, self._temperature)
                                if ch is not None)
+        # Only channels with a random walk draw anything when time moves on.
+        self._walking = tuple(ch for ch in self._channels if ch._random_walk)
         self._last_t: float | None = None
         self.period_channels: tuple[str, ...] = tuple(
             name for name in ("accel", "gyro", "mag")
@@ -332,7 +344,7 @@ class SensorErrorModel:
             raise ValueError(f"time went backwards: {t_s} s after {self._last_t} s")
         elapsed = 0.0 if self._last_t is None else t_s - self._last_t
         self._last_t = t_s
-        for ch in self._channels:
+        for ch in self._walking:
             ch.step(elapsed)
         measured_temp = temp  # ``temp`` stays the true one: thermal bias terms depend on it
         if self._accel is not None and accel is not None:

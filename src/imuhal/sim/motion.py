@@ -219,8 +219,8 @@ class FlightMotion(Motion):
         """Attitude and body rate at ``t`` given the yaw signal's state there and the speed
         the coordinated bank is computed for."""
         psi, dpsi, ddpsi = yaw
-        th, dth, _ = self.pitch(t)
-        ph, dph, _ = self.roll(t)
+        th, dth = self.pitch.value_rate(t)
+        ph, dph = self.roll.value_rate(t)
         if self.coordinated_bank:
             assert bank_speed is not None
             v, dv, _ = bank_speed
@@ -338,11 +338,11 @@ class FlightMotion(Motion):
         wn, we, wd = self.wind
         pn, pe, pd = wn * t, we * t, wd * t
         if self.north is not None:
-            pn = pn + self.north(t)[0]
+            pn = pn + self.north.value(t)
         if self.east is not None:
-            pe = pe + self.east(t)[0]
+            pe = pe + self.east.value(t)
         if self.down is not None:
-            pd = pd + self.down(t)[0]
+            pd = pd + self.down.value(t)
         if self._tabulated:
             tp = self._tab_position(t)
             pn, pe, pd = pn + tp[0], pe + tp[1], pd + tp[2]

@@ -214,9 +214,86 @@ class Signal:
                 tr.r_start + 0.5 * d * (1.0 - math.cos(ang)),
                 0.5 * d * math.pi / dur * math.sin(ang))
 
+    def _ramp_value(self, t: float) -> float:
+        """The value of :meth:`_ramps` alone (the same operations)."""
+        i = bisect_right(self._starts, t) - 1
+        if i < 0:
+            return self._v0 + self._r0 * t
+        tr = self._transitions[i]
+        tau = t - tr.t0
+        if tau >= tr.duration:
+            return tr.v_end + tr.r_end * (tau - tr.duration)
+        d, dur = tr.delta, tr.duration
+        s = tau / dur
+        v = tr.v_start + tr.r_start * tau
+        if tr.kind == STEP:
+            return v + d * (s - math.sin(_TWO_PI * s) / _TWO_PI)
+        return v + 0.5 * d * (tau - dur / math.pi * math.sin(math.pi * s))
+
+    def value(self, t: float) -> float:
+        """The value at time ``t`` (s) alone: ``self(t)[0]``, the same float, for less (a
+        position needs no derivatives)."""
+        v = self._ramp_value(t)
+        for g in self._tones:
+            if t <= g.t_on or t >= g.t_off:
+                continue
+            ramp = g.ramp_s
+            if t < g.t_on + ramp:
+                e = _smootherstep((t - g.t_on) / ramp)[0]
+            elif t > g.t_off - ramp:
+                e = _smootherstep((g.t_off - t) / ramp)[0]
+            else:  # full amplitude: as in __call__, the value's terms alone
+                for amp, w, ph, _ in g.terms:
+                    v += amp * sin(w * t + ph)
+                continue
+            for amp, w, ph, _ in g.terms:
+                v += amp * e * math.sin(w * t + ph)
+        return v
+
+    def value_rate(self, t: float) -> tuple[float, float]:
+        """(value, first derivative) at time ``t`` (s): ``self(t)[:2]``, the same floats,
+        without the second derivative (an attitude angle needs its rate, not its
+        acceleration)."""
+        v, r, _ = self._ramps(t)
+        for g in self._tones:
+            if t <= g.t_on or t >= g.t_off:
+                continue
+            ramp = g.ramp_s
+            if t < g.t_on + ramp:
+                e, e1, _ = _smootherstep((t - g.t_on) / ramp)
+                e1 = e1 / ramp
+            elif t > g.t_off - ramp:
+                e, e1, _ = _smootherstep((g.t_off - t) / ramp)
+                e1 = -e1 / ramp
+            else:  # full amplitude: as in __call__, without the acceleration's terms
+                for amp, w, ph, _ in g.terms:
+                    th = w * t + ph
+                    v += amp * sin(th)
+                    r += amp * (w * cos(th))
+                continue
+            for amp, w, ph, _ in g.terms:
+                th = w * t + ph
+                sn, cs = math.sin(th), math.cos(th)
+                v += amp * e * sn
+                r += amp * (e1 * sn + e * w * cs)
+        return v, r
+
     def __call__(self, t: float) -> tuple[float, float, float]:
         """(value, first derivative, second derivative) at time ``t`` (s)."""
-        v, r, a = self._ramps(t)
+        # _ramps written out (the same operations): this runs for every signal at every
+        # sensor poll, and most of a signal's time is spent past its last transition.
+        i = bisect_right(self._starts, t) - 1
+        if i < 0:
+            v, r, a = self._v0 + self._r0 * t, self._r0, 0.0
+        else:
+            tr = self._transitions[i]
+            tau = t - tr.t0
+            if tau >= tr.duration:
+                v, r, a = tr.v_end + tr.r_end * (tau - tr.duration), tr.r_end, 0.0
+            else:
+                v, r, a = self._ramps(t)
+        if not self._tones:
+            return v, r, a
         for g in self._tones:
             if t <= g.t_on or t >= g.t_off:
                 continue

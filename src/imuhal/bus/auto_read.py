@@ -1,0 +1,74 @@
+"""Slave auto-read: a bus master that reads a slave's data registers on its own.
+
+Some chips with an I2C master copy a slave's data registers into their own at every
+measurement (the MAX21100's MAG_SLV_* registers, the MPU-9250's I2C_SLV0 into EXT_SENS_DATA),
+so the host gets the slave's bytes in the burst it reads from the master anyway, without one
+transaction per slave byte. The parts:
+
+- the **master's bus** (``child_buses()`` of the master's driver) offers
+  :meth:`AutoReadBus.auto_read` (address, first register, length) and declares the feature
+  ``AUTO_READ`` for that bus in ``Driver.child_bus_features``, so a profile is checked
+  before anything is opened;
+- the **master's driver** programs its chip and, after each burst, hands the slave's bytes
+  to the :class:`AutoReadFeed` (``deliver``);
+- the **slave's driver** reads ``feed.data`` at its own polls and converts the bytes as it
+  would after reading them itself (its gain, byte and axis order, overflow values). Whether
+  a measurement is new is its decision: a master copies the registers whether or not the
+  slave measured again, and a slave whose transaction failed leaves the master's copy as it
+  was (real I2C masters keep the last data), so the same bytes can arrive many times.
+
+Nothing here knows a chip.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol, runtime_checkable
+
+AUTO_READ = "auto_read"
+"""The feature name a driver lists in ``child_bus_features`` for a bus whose master can
+auto-read a slave (see :class:`AutoReadBus`)."""
+
+
+class AutoReadFeed:
+    """The bytes a master last read from one slave on its own, as its driver delivered them.
+
+    ``data`` is None until the first delivery. ``changed_ns`` is the delivery at which
+    ``data`` last changed: the slave's measurement behind it was made at most ``latency_ns``
+    before that (what the master's driver promises: its copy period plus how late after a
+    copy its burst comes).
+    """
+
+    __slots__ = ("changed_ns", "data", "deliveries", "latency_ns", "length", "register",
+                 "t_ns", "target")
+
+    def __init__(self, target: int, register: int, length: int, *, latency_ns: int) -> None:
+        self.target = target
+        self.register = register
+        self.length = length
+        self.latency_ns = latency_ns
+        self.data: bytes | None = None
+        self.t_ns = 0
+        """Time of the latest delivery (ns, the driver clock)."""
+        self.changed_ns = 0
+        self.deliveries = 0
+
+    def deliver(self, t_ns: int, data: bytes) -> None:
+        """The master's driver read ``data`` (``length`` bytes, slave register order) at
+        ``t_ns``."""
+        if data != self.data:
+            self.data = data
+            self.changed_ns = t_ns
+        self.t_ns = t_ns
+        self.deliveries += 1
+
+
+@runtime_checkable
+class AutoReadBus(Protocol):
+    """A bus whose master can read a slave's registers on its own."""
+
+    def auto_read(self, target: int, register: int, length: int) -> AutoReadFeed:
+        """Have the master read ``length`` bytes from ``register`` of the slave at 7-bit
+        address ``target`` at every measurement; returns the feed its driver fills. Asking
+        again for the same read returns the same feed; a ConfigurationError names what the
+        master cannot do (another slave already auto-read, a length it cannot hold)."""
+        ...

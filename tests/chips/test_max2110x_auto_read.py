@@ -1,0 +1,245 @@
+"""The HMC5883L read through the MAX21100's slave auto-read (``read: auto``), drivers against
+emulators: the MAX21100 driver programs the auto-read and hands the slave's bytes of each
+burst to the HMC5883L driver, which converts them and decides what is a new measurement.
+
+The field values are chosen with three different axes and between counts, so a driver that
+maps the axes or orders the bytes wrongly (the MAX21100's remap 0x08 or swap bit, the HMC's
+X, Z, Y order) reads another field and fails."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from tests.support.dither import Dither
+
+from imuhal.bus.auto_read import AutoReadBus
+from imuhal.bus.base import BusKind
+from imuhal.core.clock import SimulatedClock
+from imuhal.core.errors import ConfigurationError, ImuhalError
+from imuhal.core.samples import MagSample, Sample, SampleFlag
+from imuhal.drivers.base import Driver
+from imuhal.emulation import EmulatedBus, PhysicalInputs
+from imuhal_chips.hmc5883l.driver import Hmc5883lDriver, unchanged_periods
+from imuhal_chips.hmc5883l.emulator import Hmc5883lEmulator
+from imuhal_chips.max2110x.driver import Max21100Driver
+from imuhal_chips.max2110x.emulator import Max21100Emulator
+
+FIELD_UT = (21.37, -7.73, -43.11)
+"""Chip frame, uT: three different axes, none on a count at 1090 LSB/Ga (0.092 uT)."""
+LSB_UT = 100 / 1090
+PERIOD_NS = round(1e9 / 75)
+
+
+class Board:
+    """The seed's board on a simulated clock: MAX21100 on SPI, HMC5883L behind its master."""
+
+    def __init__(self, mag_settings: dict[str, object] | None = None) -> None:
+        self.clock = SimulatedClock()
+        self.spi = EmulatedBus("spi0", BusKind.SPI)
+        self.imu_emu = self.spi.attach(0, Max21100Emulator(self.clock))
+        self.mag_emu = self.imu_emu.child_buses()["aux"].attach(
+            0x1E, Hmc5883lEmulator(self.clock))
+        self.imu = Max21100Driver(self.spi.link(0), {"reset_check_s": 0.1}, device="imu",
+                                  clock=self.clock)
+        self.imu.probe()
+        self.imu.configure()
+        self.aux = self.imu.child_buses()["aux"]
+        settings = {"read": "auto", **(mag_settings or {})}
+        self.mag = Hmc5883lDriver(self.aux.link(0x1E), settings, device="mag",
+                                  clock=self.clock)
+        self.mag.probe()
+        self.mag.configure()
+        self.mag_emu.set_physics(PhysicalInputs(magnetic_field_ut=FIELD_UT))
+        self.imu_emu.set_physics(PhysicalInputs(angular_rate_rad_s=(0.01, 0.02, 0.03),
+                                                specific_force_m_s2=(0.1, 0.2, 9.7)))
+        self.dithers = (Dither(self.mag_emu, seed=1), Dither(self.imu_emu, seed=2))
+        self.schedule: dict[Driver, int] = {}
+        self.errors = 0
+        """Polls that raised (the pipeline counts them and recovers the device)."""
+
+    def run(self, seconds: float) -> list[Sample]:
+        """Poll both drivers at the times they ask for (the IMU first at a tie, as the
+        pipeline does); the mag samples."""
+        drivers = (self.imu, self.mag)
+        if not self.schedule:
+            now = self.clock.now_ns()
+            self.schedule = {d: d.start(now) for d in drivers}
+        end = self.clock.now_ns() + round(seconds * 1e9)
+        out: list[Sample] = []
+        while True:
+            driver = min(drivers, key=lambda d: self.schedule[d])
+            if self.schedule[driver] > end:
+                return out
+            self.clock.sleep_until(self.schedule[driver])
+            for dither in self.dithers:
+                dither()
+            now = self.clock.now_ns()
+            try:
+                result = driver.poll(now)
+            except ImuhalError:  # as the pipeline does: recover, retry 10 ms later
+                self.errors += 1
+                try:
+                    self.schedule[driver] = driver.recover(now)
+                except ImuhalError:
+                    self.schedule[driver] = now + 10_000_000
+                continue
+            if driver is self.mag:
+                out += result.samples
+            self.schedule[driver] = max(result.next_poll_ns, self.clock.now_ns() + 1)
+
+
+def _valid(samples: list[Sample]) -> list[MagSample]:
+    return [s for s in samples if isinstance(s, MagSample) and s.valid]
+
+
+def test_the_field_comes_from_the_imu_burst_in_the_hmc5883l_axis_and_byte_order() -> None:
+    board = Board({"reset_check_s": 60})
+    board.run(0.2)
+    aux_transfers = board.aux.transfers
+    samples = board.run(2.0)
+    valid = _valid(samples)
+    # A measurement whose six bytes equal the previous one's cannot be told from no new
+    # measurement and is not handed out: one in eight with this test's half-LSB dither,
+    # about one in 500 with the chip's own 2 mG noise at +/-1.3 Ga.
+    assert len(valid) >= 0.75 * 2.0 * 75 and len(valid) == len(samples)
+    for s in valid:
+        for axis in range(3):
+            assert abs(s.mag_ut[axis] - FIELD_UT[axis]) <= 1.0001 * LSB_UT, (s, axis)
+    assert board.aux.transfers == aux_transfers  # no transaction of the mag's own
+
+
+def test_the_max21100_keeps_the_slave_bytes_as_read() -> None:
+    """har-in-air's registers (facts section 6, steps 1, 2, 4), except the map: 0x00 (as
+    read) instead of 0x08, so the HMC5883L's driver gets its own register order."""
+    board = Board()
+    bank0 = board.imu_emu.banks[0]
+    assert (bank0[0x06], bank0[0x08], bank0[0x09], bank0[0x0A], bank0[0x07]) == \
+        (0x00, 0x1E, 0x03, 0x00, 0x86)
+
+
+def test_samples_are_stamped_a_fixed_latency_after_each_measurement() -> None:
+    """The master copies a measurement within one accelerometer period and the burst comes
+    a guard later: the driver polls that long plus its own guard after each measurement
+    instant (about 6 ms at the seed's rates) and stamps the poll's time."""
+    board = Board()
+    samples = _valid(board.run(1.0))
+    latency = round(1e9 / 250) + round(1e9 / 250) // 8
+    expected = latency + PERIOD_NS // 8
+    origin = board.mag._mode_written_ns
+    assert {(s.t_ns - origin) % PERIOD_NS for s in samples} == {expected}
+
+
+def test_a_stopped_magnetometer_is_flagged_stale_and_restarted() -> None:
+    board = Board({"reset_check_s": 60})
+    board.run(0.5)
+    board.mag_emu.stuck_data_ready = True
+    t_stuck = board.clock.now_ns()
+    samples = board.run(0.5)
+    stale = [s for s in samples if s.flags & SampleFlag.STALE]
+    assert stale and all(math.isnan(s.mag_ut[0]) for s in stale)
+    # flagged once the bytes stayed the same longer than the chip's noise allows ...
+    limit = (unchanged_periods(1090) + 2.5) * PERIOD_NS
+    assert stale[0].t_ns - t_stuck <= limit + 2 * PERIOD_NS
+    # ... nothing valid until then, and the driver's restart (a Mode write) cures it
+    assert not [s for s in _valid(samples) if t_stuck + PERIOD_NS < s.t_ns <= stale[-1].t_ns]
+    assert board.mag.health.reconfigurations >= 1
+    assert [s for s in _valid(samples) if s.t_ns > stale[-1].t_ns]
+
+
+def test_a_slave_that_stops_answering_the_master_gives_no_valid_sample() -> None:
+    """The MAX21100 keeps the last data when its read is not acknowledged: the same bytes
+    arrive at every burst, which is not a new measurement; once they are overdue the
+    driver's configuration check (one-shot reads: 0xFF) finds the chip gone and hands it to
+    the recovery."""
+    board = Board({"reset_check_s": 60})
+    board.run(0.5)
+    board.mag_emu.absent = True
+    t_gone = board.clock.now_ns()
+    samples = board.run(0.5)
+    assert board.imu_emu.slave_read_failures > 0
+    assert not [s for s in _valid(samples) if s.t_ns > t_gone + PERIOD_NS]
+    assert board.errors > 0
+    board.mag_emu.absent = False  # plugged back in: the driver's recovery brings it back
+    assert _valid(board.run(0.5))
+
+
+def test_a_copy_delayed_by_failed_slave_reads_is_still_handed_out() -> None:
+    """A failed auto-read keeps the master's last copy; the measurement arrives with the next
+    one, after the poll planned for it: the driver looks once more and does not lose it."""
+    counts = []
+    for failing in (False, True):
+        board = Board({"reset_check_s": 60})
+        board.run(0.3)
+        if failing:  # every third transaction on the master's bus to the slave fails
+            board.imu_emu.child_buses()["aux"].fail_transfers(set(range(1, 3000, 3)))
+        counts.append(len(_valid(board.run(2.0))))
+    assert board.imu_emu.slave_read_failures > 150
+    assert counts[1] >= counts[0] - 2
+
+
+def test_frozen_conversions_are_flagged_frozen_once_they_outlast_the_frozen_rule() -> None:
+    board = Board({"reset_check_s": 60})
+    board.run(0.5)
+    board.mag_emu.frozen = True
+    samples = board.run(1.5)
+    late = [s for s in samples if s.t_ns > board.clock.now_ns() - 500_000_000]
+    assert late and not _valid(late)
+    assert any(s.flags & SampleFlag.FROZEN for s in late)
+
+
+def test_a_measurement_coming_back_after_a_master_reset_is_not_new() -> None:
+    """A silent MAX21100 reset clears MAG X/Y/Z (blank) and stops the auto-read; once the
+    IMU's driver has reprogrammed it, a stuck magnetometer's old bytes arrive again: they
+    were handed out before, so they are not valid again."""
+    board = Board({"reset_check_s": 60})
+    board.run(0.5)
+    board.mag_emu.frozen = True  # the same bytes at every measurement from now on
+    board.run(0.05)
+    board.imu_emu.silent_reset()
+    reads = board.imu_emu.slave_reads
+    samples = board.run(0.4)
+    assert board.imu.health.resets_detected == 1
+    assert board.imu_emu.slave_reads > reads  # the auto-read is back
+    blank = [s for s in samples if s.flags & SampleFlag.BLANK]
+    assert blank
+    assert not [s for s in _valid(samples) if s.t_ns > blank[0].t_ns]
+
+
+def test_the_first_measurement_after_configure_is_dropped() -> None:
+    """It still uses the previous gain (HMC5883L datasheet): at +/-8.1 Ga after the
+    default +/-1.3 Ga the first new bytes would read 4.7 times the field."""
+    board = Board({"range_gauss": 8.1})
+    samples = _valid(board.run(0.5))
+    lsb = 100 / 230
+    assert samples and all(abs(s.mag_ut[0] - FIELD_UT[0]) <= 1.0001 * lsb for s in samples)
+
+
+def test_a_one_shot_transaction_with_another_slave_puts_the_auto_read_address_back() -> None:
+    board = Board()
+    board.aux.transfer(0x30, b"\x00", 1)  # nothing answers at 0x30: 0xFF
+    assert board.imu_emu.banks[0][0x08] == 0x1E
+
+
+def test_the_master_auto_reads_one_slave_of_at_most_six_bytes() -> None:
+    board = Board()
+    assert isinstance(board.aux, AutoReadBus)
+    assert board.aux.auto_read(0x1E, 0x03, 6) is board.mag._feed
+    with pytest.raises(ConfigurationError, match="already auto-reads 0x1E"):
+        board.aux.auto_read(0x0C, 0x03, 6)
+    with pytest.raises(ConfigurationError, match="7 bytes asked; the master keeps 1 to 6"):
+        board.imu.enable_auto_read(0x1E, 0x03, 7)
+
+
+def test_read_auto_on_a_bus_without_a_master_is_a_one_line_error() -> None:
+    bus = EmulatedBus("i2c1", BusKind.I2C)
+    bus.attach(0x1E, Hmc5883lEmulator())
+    with pytest.raises(ConfigurationError, match=r"^hmc5883l 'mag' on i2c1 target 0x1E: "
+                       r"read: auto needs .*; i2c1 cannot: use read: one-shot$"):
+        Hmc5883lDriver(bus.link(0x1E), {"read": "auto"}, device="mag",
+                       clock=SimulatedClock())
+
+
+def test_unchanged_periods_grow_as_the_gain_makes_repeats_likelier() -> None:
+    assert unchanged_periods(1090) == 5  # the seed's +/-1.3 Ga
+    assert unchanged_periods(230) == 19  # +/-8.1 Ga, about 0.5 LSB of noise per axis
