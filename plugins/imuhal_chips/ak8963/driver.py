@@ -141,7 +141,10 @@ class AK8963Driver(Driver):
         self.asa = (asa[0], asa[1], asa[2])
         self._set_mode(r.MODE_POWER_DOWN)
         self._set_mode(self._cntl1)
-        self._cntl1_written_ns = self.clock.now_ns()
+        if self.settings.read == "auto":
+            # measurements start here (read only when needed: a clock read is part of a
+            # recording, and one-shot recordings must replay as they were made)
+            self._cntl1_written_ns = self.clock.now_ns()
         back = self.regs.read_u8(r.REG_CNTL1)
         if back != self._cntl1:
             raise ConfigurationError(

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import ClassVar, Literal
+from typing import Any, ClassVar, Literal
 
 from pydantic import model_validator
 
@@ -127,6 +127,16 @@ class MPU9250Driver(Driver):
         "aux": frozenset({AUTO_READ})}
     """Slave auto-read works in master mode only (``aux: master``, or ``auto`` on SPI); in
     bypass the aux bus is the host bus and the slave's driver refuses ``read: auto``."""
+
+    @classmethod
+    def child_bus_features_with(cls, child: str,
+                                settings: Mapping[str, Any]) -> frozenset[str]:
+        """No auto-read on an aux bus set to bypass or off (``auto`` depends on the host
+        bus, which the slave's driver checks when it is built)."""
+        if settings.get("aux", MPU9250Settings.model_fields["aux"].default) in ("bypass",
+                                                                                  "off"):
+            return frozenset()
+        return super().child_bus_features_with(child, settings)
 
     FROZEN_AFTER_FRAMES = 40
     """Identical accel + temperature + gyro frames in a row that mean the chip stopped
