@@ -26,7 +26,8 @@ from one measurement) and the bytes differ from the last copy with DRDY: the cop
 DRDY (``AutoReadFeed.keep_ready_only``), so polling at the AK8963's rate while the MPU reads
 faster loses nothing. Two consecutive measurements with identical ST1..ST2 bytes are taken as
 one (a missed sample, never a wrong one). No new measurement for STALE_AFTER_PERIODS -> a
-STALE sample (FROZEN when the copies stay frozen); HOFL -> OVERFLOW; never valid.
+STALE sample (a chip repeating its bytes gives no new copy, so STALE too); HOFL -> OVERFLOW;
+never valid.
 Latency: at most one MPU sample period plus the MPU's poll guard after the measurement
 (``AutoReadFeed.latency_ns``); samples are stamped with the poll's time.
 Output: uT in the AK8963's own axes
