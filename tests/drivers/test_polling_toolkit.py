@@ -35,6 +35,57 @@ def test_an_early_grid_steps_short_of_the_period() -> None:
     assert grid.next_after(0) == PERIOD - PERIOD // 64
 
 
+def _poll_a_chip(grid: PollGrid, chip_period_ns: float, seconds: float) -> tuple[int, int, int]:
+    """Poll a chip that measures every ``chip_period_ns`` the way the MAX2110x driver does
+    (a poll that finds nothing retries a guard later and locates the data there; an overrun
+    re-anchors half a period earlier). Returns (polls, measurements read, overruns)."""
+    end = round(seconds * 1e9)
+    grid.anchor(grid.guard_ns)
+    t, read, polls, overruns, searching = grid.next_after(0), 0, 0, 0, False
+    while t < end:
+        polls += 1
+        measured = int(t // chip_period_ns)  # measurements completed by t
+        if measured == read:
+            searching = True
+            t += grid.guard_ns
+            continue
+        if measured > read + 1:
+            overruns += 1
+            grid.anchor(t - grid.period_ns // 2)
+        elif searching:
+            grid.locate(t)
+        searching = False
+        read = measured
+        t = grid.next_after(t)
+    return polls, read, overruns
+
+
+@pytest.mark.parametrize("clock_error", [-0.015, 0.0, 0.015])
+def test_a_tracking_grid_follows_the_chips_own_period_with_few_empty_polls(
+    clock_error: float,
+) -> None:
+    chip = PERIOD / (1 + clock_error)
+    polls, read, overruns = _poll_a_chip(PollGrid(PERIOD, early_fraction=64, track=True),
+                                         chip, 20.0)
+    assert overruns == 0  # no measurement lost
+    assert polls / read < 1.03  # an empty poll every few dozen periods, not every eight
+
+
+def test_a_grid_that_does_not_track_finds_nothing_about_one_poll_in_eight() -> None:
+    polls, read, overruns = _poll_a_chip(PollGrid(PERIOD, early_fraction=64), PERIOD, 20.0)
+    assert overruns == 0
+    assert polls / read > 1.08
+
+
+def test_a_tracking_grid_steps_a_margin_short_of_the_learnt_period_and_anchor_forgets_it() -> None:
+    grid = PollGrid(PERIOD, early_fraction=64, track=True)
+    chip = PERIOD * 1.01  # a slow chip clock
+    _poll_a_chip(grid, chip, 20.0)
+    assert chip - chip / 256 < grid.step_ns < chip
+    grid.anchor(0)
+    assert grid.step_ns == PERIOD - PERIOD // 64
+
+
 def test_a_channel_is_stale_only_after_the_policy_number_of_periods() -> None:
     ready = DataReady({"gyro": PERIOD})
     ready.start(0)

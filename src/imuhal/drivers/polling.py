@@ -49,16 +49,40 @@ class PollGrid:
 
     ``early_fraction`` (n > 0) shortens the step by ``period / n``: the grid then creeps
     earlier than a chip whose clock runs up to about ``1/n`` fast, and the driver re-anchors
-    where data appears (see ``anchor``).
+    where data appears (see ``anchor`` and ``locate``).
+
+    ``track`` (with ``early_fraction``): the grid learns the chip's own period from the
+    instants ``locate`` reports and steps ``TRACK_MARGIN`` (or the estimate's uncertainty,
+    when larger) short of it instead of ``period / early_fraction``, so an exact chip clock
+    costs a poll that finds nothing every few dozen periods rather than every eight, and a
+    chip clock a few percent off is followed as well as before.
     """
 
-    def __init__(self, period_ns: int, *, early_fraction: int = 0) -> None:
+    TRACK_MARGIN = 512
+    """Once the chip's period is known to better than this fraction of it, the tracking
+    grid steps ``period / TRACK_MARGIN`` short of it (about 0.2 %: a clock that drifts less
+    than this between two re-anchors is still approached from the early side)."""
+
+    def __init__(self, period_ns: int, *, early_fraction: int = 0, track: bool = False
+                 ) -> None:
         if period_ns <= 0:
             raise ValueError(f"poll period must be positive, got {period_ns} ns")
         self.period_ns = period_ns
-        self.step_ns = period_ns - (period_ns // early_fraction if early_fraction else 0)
+        self._early_fraction = early_fraction
+        self._track = track and early_fraction > 0
+        self.step_ns = self._initial_step()
         self._anchor_ns = 0
         self._k = 0
+        self._first_ns: int | None = None
+        """The first located instant of the current count (tracking's baseline)."""
+        self._last_ns: int | None = None
+        self._periods = 0
+        """Chip periods counted from ``_first_ns`` to ``_last_ns``."""
+        self._chip_period_ns = float(period_ns)
+
+    def _initial_step(self) -> int:
+        fraction = self._early_fraction
+        return self.period_ns - (self.period_ns // fraction if fraction else 0)
 
     @property
     def guard_ns(self) -> int:
@@ -67,9 +91,45 @@ class PollGrid:
         return max(1, self.period_ns // 8)
 
     def anchor(self, t_ns: int) -> None:
-        """Restart the grid with a point at ``t_ns``."""
+        """Restart the grid with a point at ``t_ns``; a tracking grid forgets what it
+        learnt of the chip's period (an overrun or a restart: the phase was lost)."""
         self._anchor_ns = t_ns
         self._k = 0
+        if self._track:
+            self._first_ns = self._last_ns = None
+            self._periods = 0
+            self._chip_period_ns = float(self.period_ns)
+            self.step_ns = self._initial_step()
+
+    def locate(self, t_ns: int) -> None:
+        """New data appeared within a guard before ``t_ns`` (a poll a guard earlier found
+        none): restart the grid there and, when tracking, refine the chip's period.
+
+        Between two such instants every grid point found one new measurement (a poll that
+        found none would have located the data; two would have overrun), so the chip
+        measured once per grid point handed out: the periods are counted, not guessed from
+        a nominal period that may be a few percent off. Each instant lies within a guard
+        after its measurement, so the period over the whole count since the first instant is
+        good to ``guard / periods``. A count the elapsed time does not confirm (polls late by
+        half a step or more) starts the count afresh."""
+        steps = self._k
+        self._anchor_ns = t_ns
+        self._k = 0
+        if not self._track:
+            return
+        first, last = self._first_ns, self._last_ns
+        # The located instant is the k-th grid point's retry, a guard after it, unless
+        # polls ran late.
+        if first is None or last is None or steps < 1 \
+                or abs(t_ns - last - steps * self.step_ns - self.guard_ns) > self.step_ns // 2:
+            self._first_ns = self._last_ns = t_ns
+            self._periods = 0
+            return
+        self._last_ns = t_ns
+        self._periods += steps
+        self._chip_period_ns = (t_ns - first) / self._periods
+        margin = max(self.period_ns / self.TRACK_MARGIN, 2 * self.guard_ns / self._periods)
+        self.step_ns = max(1, int(self._chip_period_ns - margin))
 
     def next_after(self, now_ns: int) -> int:
         """The next grid point strictly after ``now_ns`` and after the previous one handed out."""

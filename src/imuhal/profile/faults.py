@@ -151,7 +151,9 @@ class TimingJitter(_Fault):
 class WildValue(_Fault):
     """The chip measures ``value`` (SI, sensor frame) on ``axis`` of ``channel`` instead of
     the truth, from the device's first poll at or after ``start_s`` for ``hold_s`` (one
-    measurement of a 250 Hz IMU), or up to ``end_s``. What the chip reports is then limited
+    measurement of a 250 Hz IMU: the value is handed over at polls, which come about one
+    period apart, so the default is three quarters of a 4 ms period, not a whole one), or up
+    to ``end_s``. What the chip reports is then limited
     by its range, as in silicon."""
 
     kind: Literal["wild_value"] = "wild_value"
@@ -161,7 +163,7 @@ class WildValue(_Fault):
     value: float
     """May be NaN or infinite (``.nan``, ``.inf`` in YAML): what a chip with a floating-point
     output register would then report."""
-    hold_s: float = Field(default=0.004, gt=0.0, le=1.0)
+    hold_s: float = Field(default=0.003, gt=0.0, le=1.0)
     """How long a one-off (no ``end_s``) lasts: what the chip measures in that time."""
 
 
