@@ -77,3 +77,12 @@ def test_every_fault_kind_has_one_row_in_the_fault_model_table() -> None:
     rows = re.findall(r"^\| `(\w+)` \|", table, flags=re.M)
     kinds = [k.model_fields["kind"].default for k in FAULT_KINDS]
     assert sorted(rows) == sorted(kinds)
+
+
+def test_the_estimators_section_shown_for_the_seed_board_is_the_bundled_profiles() -> None:
+    import yaml
+
+    shown = re.findall(r"```yaml\n(.*?)```", (ROOT / "docs/estimators.md").read_text(),
+                       flags=re.S)[0]
+    bundled = yaml.safe_load((ROOT / "profiles/seed-paraglider-vario.yaml").read_text())
+    assert yaml.safe_load(shown)["estimators"] == bundled["estimators"]
