@@ -45,6 +45,8 @@ def test_a_silent_peer_is_a_timeout_error() -> None:
         os.close(slave)
 
 
-def test_a_missing_port_is_reported() -> None:
-    with pytest.raises(BusError, match="cannot open"):
+def test_a_missing_port_is_one_line_naming_the_port_and_what_to_check() -> None:
+    with pytest.raises(BusError, match="cannot open /dev/ttyDOESNOTEXIST") as caught:
         SerialBus("/dev/ttyDOESNOTEXIST")
+    message = str(caught.value)
+    assert "\n" not in message and "port" in message and "dialout" in message

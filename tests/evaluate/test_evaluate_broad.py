@@ -87,6 +87,13 @@ def test_a_grid_runs_every_value(trial_dir, capsys):
     assert "madgwick beta=0.02" in out and "madgwick beta=0.2" in out
 
 
+def test_broad_before_its_download_is_a_one_line_error_naming_the_download(tmp_path, capsys):
+    rc = main(["evaluate", "--broad", "--cache", str(tmp_path / "broad"), "-e", "madgwick"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and len(err.splitlines()) == 1
+    assert str(tmp_path / "broad") in err and "--download-broad" in err
+
+
 def test_a_sample_csv_without_truth_is_a_one_line_error(tmp_path, capsys):
     samples = tmp_path / "s.csv"
     samples.write_text("t_s,gx_rad_s\n0,0\n")

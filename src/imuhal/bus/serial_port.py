@@ -26,7 +26,11 @@ class SerialBus(Bus):
         try:
             self._port = serial_factory(port, baudrate=baudrate, timeout=timeout_s)
         except Exception as exc:  # pyserial raises SerialException (an OSError subclass)
-            raise BusError(f"cannot open {port}: {exc}", bus=self.name) from exc
+            raise BusError(
+                f"cannot open {port}: {getattr(exc, 'strerror', None) or exc}. Is the UART "
+                "enabled (Raspberry Pi: raspi-config, serial port on, login shell off), is the "
+                "profile's bus `port` right, and are you in the 'dialout' group?",
+                bus=self.name) from exc
 
     def _transfer(self, target: int, write: bytes, read_len: int) -> bytes:
         try:

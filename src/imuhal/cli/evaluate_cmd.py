@@ -119,8 +119,10 @@ def attitude_estimators(registry: Registry) -> list[str]:
 
 def recording_sources(args: argparse.Namespace) -> list[RecordingSource]:
     paths = [Path(p) for p in args.recordings]
+    cache = None
     if args.broad or args.download_broad:
-        paths.append(Path(args.cache) if args.cache else default_cache())
+        cache = Path(args.cache) if args.cache else default_cache()
+        paths.append(cache)
     sources: list[RecordingSource] = []
     csvs: list[Path] = []
     for p in paths:
@@ -140,7 +142,9 @@ def recording_sources(args: argparse.Namespace) -> list[RecordingSource]:
         elif p.is_file():
             sources.append(RecordingSource(str(p)))
         else:
-            raise EvaluateUsageError(f"{p}: no such file or folder")
+            raise EvaluateUsageError(f"{p}: no such file or folder" + (
+                "; fetch BROAD into it first with `imuhal evaluate --download-broad`"
+                " (or name a BROAD folder with --cache)" if p == cache else ""))
     if len(csvs) != len(args.truth):
         raise EvaluateUsageError(f"{len(csvs)} sample CSV(s) but {len(args.truth)} --truth "
                                  "file(s); give one --truth TRUTH.csv per sample CSV")
