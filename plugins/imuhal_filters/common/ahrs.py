@@ -423,6 +423,16 @@ class AhrsEstimator(Estimator):
         kernel for its settings. A NaN row of ``accel``/``mag``: none this step."""
         return False
 
+    _sample_kernel: Any = None
+    """The compiled per-sample step (:meth:`fast.Kernel.per_sample`, set by a filter's
+    ``_reset_filter``), or None: ``_step`` runs in Python."""
+
+    def _compiled_step(self, gyro: Vec, accel_m_s2: Vec | None, mag: Vec | None,
+                       dt: float) -> dict[str, Any]:
+        """``_step`` through ``_sample_kernel`` (accelerometer as specific force, m/s^2);
+        the same quaternion and diagnostics. Only filters that set a kernel define it."""
+        raise NotImplementedError
+
     def _kernel_ready(self) -> bool:
         """Nothing but the kernel's step is left to happen (a filter's own set-up is done)."""
         return True
@@ -491,8 +501,10 @@ class AhrsEstimator(Estimator):
             accel = compensated(accel, kin)
         if not self._align(accel, mag):
             return None
-        accel_g = None if accel is None else gravity_positive_g(accel)
         self._counters["steps"] += 1
+        if self._sample_kernel is not None:
+            return self._compiled_step(gyro, accel, mag, dt)
+        accel_g = None if accel is None else gravity_positive_g(accel)
         return self._step(ImuStep(gyro, accel_g, mag, dt))
 
     def _on_gyro(self, gyro: GyroSample, rate: Vec) -> list[Estimate]:

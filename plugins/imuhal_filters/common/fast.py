@@ -165,6 +165,22 @@ class Kernel:
         ``IMUHAL_KERNELS`` forces one this kernel cannot use)."""
         return _choose(self, mode(), _kernel_dir_key())
 
+    def per_sample(self) -> Callable[..., Any] | None:
+        """The compiled function for a caller that runs it once per sample, or None: run
+        the Python step. Only the AOT extension's function is worth calling per sample in
+        ``auto`` mode: a call to it costs about 0.1-0.2 us, while numba's dispatcher costs
+        about 1.7 us per call, more than a Python step saves (docs/performance.md, "The
+        compiled per-sample step"). ``IMUHAL_KERNELS=jit`` forces the JIT here too (for
+        tests and benchmarks). The function is returned unchecked: the caller passes only
+        the declared scalars (Python floats and bools it built itself), since a check per
+        call would cost more than the call."""
+        choice = self.choice()
+        if choice.backend == "aot":
+            return choice.function
+        if choice.backend == "jit" and mode() == "jit":
+            return _jitted(self)
+        return None
+
     def check(self, args: tuple[Any, ...]) -> None:
         """Raise TypeError naming the argument when ``args`` do not match the signature."""
         assert self.args is not None
