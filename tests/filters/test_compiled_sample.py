@@ -1,5 +1,7 @@
 """The compiled per-sample steps (JIT and AOT kernels) give what the Python step gives.
 
+Madgwick and Mahony.
+
 ``process()`` runs each gyro sample's filter step in the compiled per-sample kernel when one
 is selected (the AOT extension in ``auto`` mode; either backend when ``IMUHAL_KERNELS``
 forces it). Pure Python is the reference: on conformance data set A, sample by sample,
@@ -21,17 +23,23 @@ from tests.filters.dataset_a import load_head
 from imuhal.core.samples import AccelSample, Frame, GyroSample, MagSample, Sample
 from imuhal.estimation.outputs import AttitudeEstimate
 from imuhal_filters.madgwick.estimator import MadgwickEstimator
+from imuhal_filters.mahony.estimator import MahonyEstimator
 
 # every test runs on numba's JIT and on the AOT extension (each skipped where unavailable)
 pytestmark = pytest.mark.usefixtures("compiled_backend")
 
 CASES = [
-    {},
-    {"preset": "reference", "inv_sqrt": "exact"},
-    {"preset": "seed"},
-    {"use_mag": False},
-    {"turn_compensation": False, "accel_soft_gate_g": None, "mag_reference": "xio_release"},
-    {"nominal_airspeed_m_s": 10.0},
+    (MadgwickEstimator, {}),
+    (MadgwickEstimator, {"preset": "reference", "inv_sqrt": "exact"}),
+    (MadgwickEstimator, {"preset": "seed"}),
+    (MadgwickEstimator, {"use_mag": False}),
+    (MadgwickEstimator, {"turn_compensation": False, "accel_soft_gate_g": None,
+                         "mag_reference": "xio_release"}),
+    (MadgwickEstimator, {"nominal_airspeed_m_s": 10.0}),
+    (MahonyEstimator, {}),
+    (MahonyEstimator, {"preset": "seed"}),
+    (MahonyEstimator, {"ki": 0.2, "use_mag": False}),
+    (MahonyEstimator, {"ki": 0.1, "accel_soft_gate_g": None, "nominal_airspeed_m_s": 10.0}),
 ]
 
 
@@ -52,21 +60,24 @@ def _samples() -> Iterator[Sample]:
                          gyro_rad_s=tuple(gyro[i]))
 
 
-def _run(settings: dict) -> tuple[list[AttitudeEstimate], dict[str, Any]]:
-    est = MadgwickEstimator(MadgwickEstimator.Settings(**settings))
+def _run(cls: type, settings: dict) -> tuple[list[AttitudeEstimate], dict[str, Any]]:
+    est = cls(cls.Settings(**settings))
     out = [e for s in _samples() for e in est.process(s)]
     return out, est.diagnostics()  # type: ignore[return-value]
 
 
-@pytest.mark.parametrize("settings", CASES, ids=lambda s: ",".join(map(str, s.values())) or
-                         "defaults")
-def test_compiled_madgwick_step_equals_python_step_on_data_set_a(
-        settings: dict, monkeypatch: pytest.MonkeyPatch) -> None:
-    assert MadgwickEstimator(MadgwickEstimator.Settings(**settings))._sample_kernel is not None
-    fast, fast_counts = _run(settings)
+def _case_id(case: Any) -> str:
+    return case.name if isinstance(case, type) else ",".join(map(str, case.values())) or "defaults"
+
+
+@pytest.mark.parametrize(("cls", "settings"), CASES, ids=_case_id)
+def test_compiled_step_equals_python_step_on_data_set_a(
+        cls: type, settings: dict, monkeypatch: pytest.MonkeyPatch) -> None:
+    assert cls(cls.Settings(**settings))._sample_kernel is not None
+    fast, fast_counts = _run(cls, settings)
     monkeypatch.setenv("IMUHAL_KERNELS", "python")
-    assert MadgwickEstimator(MadgwickEstimator.Settings(**settings))._sample_kernel is None
-    ref, ref_counts = _run(settings)
+    assert cls(cls.Settings(**settings))._sample_kernel is None
+    ref, ref_counts = _run(cls, settings)
     assert len(fast) == len(ref) > 1000
     assert np.allclose([e.q_body_to_ned for e in fast], [e.q_body_to_ned for e in ref],
                        rtol=0, atol=1e-12)
@@ -78,6 +89,9 @@ def test_compiled_madgwick_step_equals_python_step_on_data_set_a(
         assert f.diagnostics["gate_open"] == r.diagnostics["gate_open"]
         assert f.diagnostics["mag_used"] == r.diagnostics["mag_used"]
         assert abs(f.diagnostics["accel_weight"] - r.diagnostics["accel_weight"]) <= 1e-12
+        if "gyro_bias_rad_s" in r.diagnostics:
+            assert np.allclose(f.diagnostics["gyro_bias_rad_s"], r.diagnostics["gyro_bias_rad_s"],
+                               rtol=0, atol=1e-12)
     assert fast_counts == ref_counts
     assert fast_counts["beyond_full_scale"]["accel"] == 1
 

@@ -121,6 +121,11 @@ def _vec(v: Sequence[float]) -> Vec:
 
 
 _OK = SampleFlag.OK
+TO_G = -1.0 / STANDARD_GRAVITY_M_S2
+"""gravity_positive_g's factor (m/s^2 specific force -> gravity-positive g): the same product
+for a compiled step's caller."""
+NO_VECTOR: Vec = (0.0, 0.0, 0.0)
+"""What a compiled step gets for an accel or mag it has none of (with its flag False)."""
 
 
 def _linear_accel_ned(q: Quat, f: Vec) -> Vec:

@@ -23,9 +23,8 @@ from typing import Any, ClassVar, Literal
 import numpy as np
 from pydantic import Field
 
-from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.core.frames import FloatArray
-from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
+from imuhal_filters.common.ahrs import NO_VECTOR, TO_G, AhrsEstimator, AhrsSettings, ImuStep
 from imuhal_filters.common.fast import Kernel
 from imuhal_filters.common.gate import AccelGate, GateBounds, SoftGateSettings, soft_gate_weight
 from imuhal_filters.common.quat import Vec
@@ -34,8 +33,6 @@ from imuhal_filters.madgwick.fast import madgwick_rows, madgwick_sample
 from imuhal_filters.madgwick.inv_sqrt import INV_SQRT
 
 SEED_GATE_G = (0.6, 1.4)
-_TO_G = -1.0 / STANDARD_GRAVITY_M_S2  # gravity_positive_g's factor (the same product)
-_ZERO = (0.0, 0.0, 0.0)
 
 
 class MadgwickSettings(AhrsSettings, SoftGateSettings):
@@ -107,9 +104,9 @@ class MadgwickEstimator(AhrsEstimator):
             have_a, ax, ay, az = False, 0.0, 0.0, 0.0
         else:
             have_a = True
-            ax, ay, az = (accel_m_s2[0] * _TO_G, accel_m_s2[1] * _TO_G, accel_m_s2[2] * _TO_G)
+            ax, ay, az = (accel_m_s2[0] * TO_G, accel_m_s2[1] * TO_G, accel_m_s2[2] * TO_G)
         use_m = mag is not None and self._use_mag
-        mx, my, mz = mag if use_m else _ZERO  # type: ignore[misc]
+        mx, my, mz = mag if use_m else NO_VECTOR  # type: ignore[misc]
         q0, q1, q2, q3, gate_open, weight = self._sample_kernel(
             *self._q, gx, gy, gz, have_a, ax, ay, az, use_m, mx, my, mz, self._beta,
             gate.lower_g, gate.upper_g, self._soft_width, self._paper, dt)
