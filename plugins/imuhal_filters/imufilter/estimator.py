@@ -23,9 +23,9 @@ from pydantic import Field
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.core.frames import FloatArray
 from imuhal.core.samples import AccelSample, AirspeedSample, GyroSample, VelocitySample
-from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
+from imuhal_filters.common.ahrs import TO_G, AhrsEstimator, AhrsSettings, ImuStep
 from imuhal_filters.common.fast import Kernel
-from imuhal_filters.common.gate import specific_force_m_s2
+from imuhal_filters.common.gate import gravity_positive_g, specific_force_m_s2
 from imuhal_filters.common.quat import Vec, to_global, to_local
 from imuhal_filters.imufilter.core import (
     axis_unit_vectors,
@@ -34,7 +34,7 @@ from imuhal_filters.imufilter.core import (
     rotate_heading,
     setup_quaternion,
 )
-from imuhal_filters.imufilter.fast import imufilter_rows, pack_state
+from imuhal_filters.imufilter.fast import imufilter_rows, imufilter_sample, pack_state
 from imuhal_filters.imufilter.velocity import ZERO, VelocityState, velocity_step
 
 
@@ -75,6 +75,41 @@ class ImuFilterEstimator(AhrsEstimator):
         self._gain = 1.0
         self._vel = VelocityState()
         self._vel_target: Vec = ZERO
+        s = self.settings
+        self._velocity_on = s.velocity
+        self._alpha, self._sd_acc_g = float(s.gain), float(s.sd_acc_g)
+        # velocity_step's constants, computed as it computes them
+        sd_acc_m_s2 = s.sd_acc_g * STANDARD_GRAVITY_M_S2
+        sd_vel_m_s = s.sd_vel_g_s * STANDARD_GRAVITY_M_S2
+        self._var_a = sd_acc_m_s2 * sd_acc_m_s2
+        self._var_comb = self._var_a * sd_vel_m_s * sd_vel_m_s
+        # the compiled per-sample step where it pays (the AOT extension; common/fast.py)
+        self._sample_kernel = imufilter_sample.per_sample()
+
+    def _compiled_step(self, gyro: Vec, accel_m_s2: Vec | None, mag: Vec | None,
+                       dt: float) -> dict[str, Any] | None:
+        """``_step`` in the compiled per-sample kernel once set up (the set-up step stays in
+        Python): the same floats (tests compare them)."""
+        if not self._initialized:
+            return self._step(ImuStep(gyro, None if accel_m_s2 is None else
+                                      gravity_positive_g(accel_m_s2), mag, dt))
+        gx, gy, gz = gyro
+        if accel_m_s2 is None:
+            have_a, ax, ay, az = False, 0.0, 0.0, 0.0
+        else:
+            have_a = True
+            ax, ay, az = (accel_m_s2[0] * TO_G, accel_m_s2[1] * TO_G, accel_m_s2[2] * TO_G)
+        vel = self._vel
+        (w, x, y, z, var, gain, v0, v1, v2, m0, m1, m2, l0, l1, l2, var_vel,
+         var_acc) = self._sample_kernel(
+            *self._q, self._var, self._gain, gx, gy, gz, have_a, ax, ay, az, dt, self._alpha,
+            self._sd_acc_g, self._velocity_on, self._var_a, self._var_comb, *vel.velocity,
+            *vel.accel_mean, *vel.accel_last, vel.var_vel, vel.var_acc, *self._vel_target)
+        self._q, self._var, self._gain = (w, x, y, z), var, gain
+        if self._velocity_on and have_a:
+            self._vel = VelocityState((v0, v1, v2), (m0, m1, m2), (l0, l1, l2), var_vel,
+                                      var_acc)
+        return self._diag(accel_used=have_a)
 
     def _step(self, step: ImuStep) -> dict[str, Any] | None:
         accel = step.accel_g
