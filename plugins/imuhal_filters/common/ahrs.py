@@ -432,10 +432,16 @@ class AhrsEstimator(Estimator):
     """The compiled per-sample step (:meth:`fast.Kernel.per_sample`, set by a filter's
     ``_reset_filter``), or None: ``_step`` runs in Python."""
 
-    def _compiled_step(self, gyro: Vec, accel_m_s2: Vec | None, mag: Vec | None,
-                       dt: float) -> dict[str, Any]:
-        """``_step`` through ``_sample_kernel`` (accelerometer as specific force, m/s^2);
-        the same quaternion and diagnostics. Only filters that set a kernel define it."""
+    _linear_ned: Vec | None = None
+    """The gravity-compensated acceleration (NED, m/s^2) the last compiled step returned."""
+
+    def _compiled_step(self, gyro: Vec, accel_m_s2: Vec | None, mag: Vec | None, dt: float,
+                       measured_m_s2: Vec | None) -> dict[str, Any] | None:
+        """``_step`` through ``_sample_kernel`` (accelerometer as specific force, m/s^2, turn
+        compensated): the same quaternion and diagnostics; it also leaves in ``_linear_ned``
+        the gravity-compensated acceleration of ``measured_m_s2`` (the specific force before
+        turn compensation) at the new attitude, as ``_linear_accel_ned`` computes it. Only
+        filters that set a kernel define it."""
         raise NotImplementedError
 
     def _kernel_ready(self) -> bool:
@@ -502,13 +508,16 @@ class AhrsEstimator(Estimator):
                   dt: float) -> dict[str, Any] | None:
         """Compensate, align if needed, and run one kernel step; None: no estimate yet."""
         kin = self._kinematics.step(t_ns, gyro)
-        if accel is not None and kin != (0.0, 0.0, 0.0):
+        measured = accel
+        if accel is not None and kin != NO_VECTOR:
             accel = compensated(accel, kin)
-        if not self._align(accel, mag):
+        # once aligned (the heading too, or no mag this step) _align has nothing to do
+        if not (self._tilt_aligned and (self._heading_aligned or mag is None)) and \
+                not self._align(accel, mag):
             return None
         self._counters["steps"] += 1
         if self._sample_kernel is not None:
-            return self._compiled_step(gyro, accel, mag, dt)
+            return self._compiled_step(gyro, accel, mag, dt, measured)
         accel_g = None if accel is None else gravity_positive_g(accel)
         return self._step(ImuStep(gyro, accel_g, mag, dt))
 
@@ -549,7 +558,8 @@ class AhrsEstimator(Estimator):
                 t_ns,
                 self.instance,
                 self._q,
-                None if accel is None else _linear_accel_ned(self._q, accel),
+                None if accel is None else self._linear_ned if self._sample_kernel is not None
+                else _linear_accel_ned(self._q, accel),
                 {"dt_s": dt, "turn_compensation": self._kinematics.source, **diag},
             )
         ]

@@ -23,7 +23,14 @@ from pydantic import Field
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.core.frames import FloatArray
 from imuhal.core.samples import AccelSample, AirspeedSample, GyroSample, VelocitySample
-from imuhal_filters.common.ahrs import TO_G, AhrsEstimator, AhrsSettings, ImuStep
+from imuhal_filters.common.ahrs import (
+    NO_VECTOR,
+    TO_G,
+    AhrsEstimator,
+    AhrsSettings,
+    ImuStep,
+    _linear_accel_ned,
+)
 from imuhal_filters.common.fast import Kernel
 from imuhal_filters.common.gate import gravity_positive_g, specific_force_m_s2
 from imuhal_filters.common.quat import Vec, to_global, to_local
@@ -86,13 +93,16 @@ class ImuFilterEstimator(AhrsEstimator):
         # the compiled per-sample step where it pays (the AOT extension; common/fast.py)
         self._sample_kernel = imufilter_sample.per_sample()
 
-    def _compiled_step(self, gyro: Vec, accel_m_s2: Vec | None, mag: Vec | None,
-                       dt: float) -> dict[str, Any] | None:
+    def _compiled_step(self, gyro: Vec, accel_m_s2: Vec | None, mag: Vec | None, dt: float,
+                       measured_m_s2: Vec | None) -> dict[str, Any] | None:
         """``_step`` in the compiled per-sample kernel once set up (the set-up step stays in
         Python): the same floats (tests compare them)."""
         if not self._initialized:
-            return self._step(ImuStep(gyro, None if accel_m_s2 is None else
+            diag = self._step(ImuStep(gyro, None if accel_m_s2 is None else
                                       gravity_positive_g(accel_m_s2), mag, dt))
+            self._linear_ned = (None if measured_m_s2 is None else
+                                _linear_accel_ned(self._q, measured_m_s2))
+            return diag
         gx, gy, gz = gyro
         if accel_m_s2 is None:
             have_a, ax, ay, az = False, 0.0, 0.0, 0.0
@@ -100,12 +110,14 @@ class ImuFilterEstimator(AhrsEstimator):
             have_a = True
             ax, ay, az = (accel_m_s2[0] * TO_G, accel_m_s2[1] * TO_G, accel_m_s2[2] * TO_G)
         vel = self._vel
-        (w, x, y, z, var, gain, v0, v1, v2, m0, m1, m2, l0, l1, l2, var_vel,
-         var_acc) = self._sample_kernel(
+        (w, x, y, z, var, gain, v0, v1, v2, m0, m1, m2, l0, l1, l2, var_vel, var_acc, lx, ly,
+         lz) = self._sample_kernel(
             *self._q, self._var, self._gain, gx, gy, gz, have_a, ax, ay, az, dt, self._alpha,
             self._sd_acc_g, self._velocity_on, self._var_a, self._var_comb, *vel.velocity,
-            *vel.accel_mean, *vel.accel_last, vel.var_vel, vel.var_acc, *self._vel_target)
+            *vel.accel_mean, *vel.accel_last, vel.var_vel, vel.var_acc, *self._vel_target,
+            *(NO_VECTOR if measured_m_s2 is None else measured_m_s2))
         self._q, self._var, self._gain = (w, x, y, z), var, gain
+        self._linear_ned = (lx, ly, lz)
         if self._velocity_on and have_a:
             self._vel = VelocityState((v0, v1, v2), (m0, m1, m2), (l0, l1, l2), var_vel,
                                       var_acc)

@@ -16,6 +16,7 @@ import math
 import numpy as np
 
 from imuhal_filters.common.fast import jit
+from imuhal_filters.common.fast_frames import linear_accel_ned
 
 _G = 9.80665  # STANDARD_GRAVITY_M_S2, as gravity_positive_g uses it
 
@@ -133,18 +134,24 @@ madgwick_step_kernel = jit(_madgwick_step)
 
 
 def _madgwick_sample(q0, q1, q2, q3, gx, gy, gz, have_a, ax, ay, az, have_m, mx0, my0, mz0,
-                     beta, gate_lo, gate_hi, soft_width, paper, dt):
+                     beta, gate_lo, gate_hi, soft_width, paper, dt, fx, fy, fz):
     """The step called from Python once per sample (``process()``): scalars in, a tuple
     out, nothing allocated, so a call to the AOT extension's function costs about 0.3 us
-    (numba's dispatcher about 0.7-1.7 us)."""
-    return madgwick_step_kernel(q0, q1, q2, q3, gx, gy, gz, have_a, ax, ay, az, have_m, mx0,
-                                my0, mz0, beta, gate_lo, gate_hi, soft_width, paper, dt)
+    (numba's dispatcher about 0.7-1.7 us). Also returns the gravity-compensated
+    acceleration in NED for the measured specific force ``f`` (m/s^2) at the new attitude
+    (what the estimate carries; meaningless without an accelerometer)."""
+    w, x, y, z, gate_open, weight = madgwick_step_kernel(
+        q0, q1, q2, q3, gx, gy, gz, have_a, ax, ay, az, have_m, mx0, my0, mz0, beta, gate_lo,
+        gate_hi, soft_width, paper, dt)
+    lx, ly, lz = linear_accel_ned(w, x, y, z, fx, fy, fz)
+    return w, x, y, z, gate_open, weight, lx, ly, lz
 
 
 madgwick_sample = jit(
-    _madgwick_sample, returns="Tuple((f8, f8, f8, f8, b1, f8))", q0="f8", q1="f8", q2="f8",
-    q3="f8", gx="f8", gy="f8", gz="f8", have_a="b1", ax="f8", ay="f8", az="f8", have_m="b1",
+    _madgwick_sample, returns="Tuple((f8, f8, f8, f8, b1, f8, f8, f8, f8))", q0="f8",
+    q1="f8", q2="f8", q3="f8", gx="f8", gy="f8", gz="f8", have_a="b1", ax="f8", ay="f8",
+    az="f8", have_m="b1",
     mx0="f8", my0="f8", mz0="f8", beta="f8", gate_lo="f8", gate_hi="f8", soft_width="f8",
-    paper="b1", dt="f8")
+    paper="b1", dt="f8", fx="f8", fy="f8", fz="f8")
 """The per-sample kernel (see common/fast.py: used per sample only on the AOT extension,
 :meth:`~imuhal_filters.common.fast.Kernel.per_sample`)."""

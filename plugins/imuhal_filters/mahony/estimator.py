@@ -70,11 +70,12 @@ class MahonyEstimator(AhrsEstimator):
         # the compiled per-sample step where it pays (the AOT extension; common/fast.py)
         self._sample_kernel = mahony_sample.per_sample()
 
-    def _compiled_step(self, gyro: Vec, accel_m_s2: Vec | None, mag: Vec | None,
-                       dt: float) -> dict[str, Any]:
+    def _compiled_step(self, gyro: Vec, accel_m_s2: Vec | None, mag: Vec | None, dt: float,
+                       measured_m_s2: Vec | None) -> dict[str, Any]:
         """``_step`` in the compiled per-sample kernel: the same floats (tests compare them)."""
         gate = self._gate
         gx, gy, gz = gyro
+        f = NO_VECTOR if measured_m_s2 is None else measured_m_s2
         if accel_m_s2 is None:
             have_a, ax, ay, az = False, 0.0, 0.0, 0.0
         else:
@@ -82,10 +83,11 @@ class MahonyEstimator(AhrsEstimator):
             ax, ay, az = (accel_m_s2[0] * TO_G, accel_m_s2[1] * TO_G, accel_m_s2[2] * TO_G)
         use_m = mag is not None and self._use_mag
         mx, my, mz = mag if use_m else NO_VECTOR  # type: ignore[misc]
-        q0, q1, q2, q3, ix, iy, iz, gate_open, weight = self._sample_kernel(
+        q0, q1, q2, q3, ix, iy, iz, gate_open, weight, lx, ly, lz = self._sample_kernel(
             *self._q, *self._integral, gx, gy, gz, have_a, ax, ay, az, use_m, mx, my, mz,
-            self._kp, self._ki, gate.lower_g, gate.upper_g, self._soft_width, dt)
+            self._kp, self._ki, gate.lower_g, gate.upper_g, self._soft_width, dt, *f)
         self._q = (q0, q1, q2, q3)
+        self._linear_ned = (lx, ly, lz)
         self._integral = (ix, iy, iz)
         if have_a and not gate_open:
             self._counters["gate_closed_steps"] += 1
