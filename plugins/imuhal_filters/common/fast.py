@@ -279,8 +279,10 @@ def _jitted(kernel: Kernel) -> Callable[..., Any]:
     signature when it has one."""
     import numba
 
-    kernel.modules()  # while the helpers' names still name them
+    # numba's on-disk cache notices a change to the kernel's own file only: a kernel that
+    # calls a helper of another module (common/fast_frames.py) is compiled afresh per process
+    cache = len(kernel.modules()) == 1  # while the helpers' names still name them
     swap_helpers(kernel.fn, _jitted)
     if kernel.exported:
-        return numba.njit(kernel.signature(), cache=True, nogil=True)(kernel.fn)
-    return numba.njit(cache=True, nogil=True)(kernel.fn)
+        return numba.njit(kernel.signature(), cache=cache, nogil=True)(kernel.fn)
+    return numba.njit(cache=cache, nogil=True)(kernel.fn)

@@ -1,11 +1,11 @@
 """A helper kernel the per-sample steps share (see common/fast.py): the gravity-compensated
 acceleration in NED, as ``common.ahrs._linear_accel_ned`` computes it in Python.
 
-It has no signature of its own: numba compiles it into the per-sample kernels that call it
-(the AOT build covers this module in their fingerprints). numba's on-disk JIT cache does not
-notice a change here in a caller's cache (the batch kernels keep their helpers in their own
-files for that reason); the per-sample kernels run on the JIT only when ``IMUHAL_KERNELS=jit``
-forces it, so after editing this file clear numba's cache (``__pycache__``) before such a run.
+It has no signature of its own: numba compiles it into the per-sample kernels that call it.
+The AOT build covers this module in their fingerprints; numba's on-disk JIT cache would not
+notice a change here, so the JIT compiles kernels that call a helper of another module
+afresh in each process (``fast._jitted``; they run on the JIT only when
+``IMUHAL_KERNELS=jit`` forces it).
 """
 
 from __future__ import annotations
