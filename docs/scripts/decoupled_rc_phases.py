@@ -1,4 +1,4 @@
-"""Where the decoupled estimator loses `rc-flight` to madgwick, phase by phase
+"""The decoupled estimator against madgwick in `rc-flight`, phase by phase
 (docs/estimators.md, decoupled section).
 
 Usage::
@@ -7,10 +7,11 @@ Usage::
 
 Flies ``rc-flight`` once (the flight benchmark's calibrated seed board, seed 1, 60 s) and
 prints, per window of ``--window`` seconds, the mean tilt error (deg) of each estimator and
-settings given (default: madgwick, decoupled, and decoupled with a 1e-4 g gate, which is the
-gyro alone once airborne), with the mean | |a| - 1 g | of the accelerometer samples and the
-mean weight the decoupled default soft gate gives them (the share of each step its
-inclination filter advances by).
+settings given (default: madgwick, decoupled, decoupled without its turbulence correction,
+and decoupled with a 1e-4 g gate and no turbulence correction, which is the gyro alone once
+airborne), with the mean | |a| - 1 g | of the accelerometer samples and the mean weight the
+decoupled default soft gate gives them (the share of each step its inclination filter
+advances by).
 """
 
 from __future__ import annotations
@@ -31,7 +32,8 @@ from imuhal.core.samples import AccelSample
 from imuhal.plugins.manager import load_registry
 from imuhal_filters.common.gate import gravity_positive_g, soft_gate_weight
 
-DEFAULT_RUNS = ('madgwick:{}', 'decoupled:{}', 'decoupled:{"accel_soft_gate_g": 0.0001}')
+DEFAULT_RUNS = ('madgwick:{}', 'decoupled:{}', 'decoupled:{"turbulence_rate_deg_s": null}',
+                'decoupled:{"accel_soft_gate_g": 0.0001, "turbulence_rate_deg_s": null}')
 DEFAULT_GATE_G = 0.02
 
 

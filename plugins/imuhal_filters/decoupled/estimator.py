@@ -44,9 +44,11 @@ class DecoupledSettings(AhrsSettings):
         # hand-held motion (BROAD): VQF's published settings, every accelerometer reading in
         # full; the inertial-frame filter averages the hand's acceleration out, a gate would
         # weight it unevenly (docs/evaluation.md)
-        "handheld": {"accel_soft_gate_g": None, "tau_acc_s": 3.0, "tau_acc_rest_s": None},
+        "handheld": {"accel_soft_gate_g": None, "tau_acc_s": 3.0, "tau_acc_rest_s": None,
+                     "turbulence_rate_deg_s": None},
         # the defaults by name (a profile can say what it relies on)
-        "flight": {"accel_soft_gate_g": 0.02, "tau_acc_s": 10.0, "tau_acc_rest_s": 3.0},
+        "flight": {"accel_soft_gate_g": 0.02, "tau_acc_s": 10.0, "tau_acc_rest_s": 3.0,
+                   "turbulence_rate_deg_s": 3.0},
     }
 
     tau_acc_s: float = Field(10.0, gt=0.0)
@@ -64,7 +66,15 @@ class DecoupledSettings(AhrsSettings):
     width)^2) (common/gate.py): a reading away from 1 g is trusted less. Default 0.02 g:
     in flight it is needed (`rc-flight` max 5.4 deg, 40.7 without); None (VQF's choice,
     ``preset: handheld``): every reading in full, which hand-held motion needs (BROAD 9-DOF
-    total 2.33 deg, 6.04 with the flight defaults): docs/estimators.md."""
+    total 2.33 deg, 5.45 with the flight defaults): docs/estimators.md."""
+    turbulence_rate_deg_s: float | None = Field(3.0, gt=0.0)
+    """In straight flight through turbulence (gusts keep |a| off 1 g, so the soft gate stays
+    closed; detected from the spread and mean of |a| and the turn rate, ``turbulence.py``)
+    the filtered accelerometer is also turned towards each reading at up to this rate
+    (deg/s) times the gate's closed share, as madgwick corrects: the gyro error of
+    aerobatics is walked back instead of kept (flight benchmark `rc-flight` tilt RMS 1.2
+    against 4.2 deg without; `thermal` unchanged). None: off (``preset:
+    handheld``; without a soft gate it never acts)."""
     tau_mag_s: float = Field(9.0, gt=0.0)
     """Heading correction time constant (s) (VQF's published default, 9 s)."""
     rest_gyro_th_deg_s: float = Field(2.0, gt=0.0)
@@ -123,7 +133,9 @@ class DecoupledSettings(AhrsSettings):
                 sigma_rest_deg_s=self.bias_sigma_rest_deg_s,
                 clip_rad_s=math.radians(self.bias_clip_deg_s)),
             mag_norm_th=self.mag_norm_th, mag_dip_th_deg=self.mag_dip_th_deg,
-            mag_new_s=self.mag_new_s)
+            mag_new_s=self.mag_new_s,
+            turbulence_rate_rad_s=None if self.turbulence_rate_deg_s is None
+            else math.radians(self.turbulence_rate_deg_s))
 
 
 class DecoupledEstimator(AhrsEstimator):
@@ -172,7 +184,8 @@ class DecoupledEstimator(AhrsEstimator):
                 "acc_lp": None if k.acc_lp is None else list(k.acc_lp), "rest_s": k.rest_s,
                 "mag_ref": None if k.mag_ref is None else list(k.mag_ref),
                 "mag_cand": None if k.mag_cand is None else list(k.mag_cand),
-                "mag_cand_s": k.mag_cand_s, "mag_disturbed": k.mag_disturbed}
+                "mag_cand_s": k.mag_cand_s, "mag_disturbed": k.mag_disturbed,
+                "straight_flight": k.straight.as_list()}
 
     def _set_filter_state(self, state: dict[str, Any]) -> None:
         k = self._kernel
@@ -191,6 +204,8 @@ class DecoupledEstimator(AhrsEstimator):
             float(state["rest_s"])
         k.mag_ref, k.mag_cand = tup(state["mag_ref"]), tup(state["mag_cand"])
         k.mag_cand_s, k.mag_disturbed = float(state["mag_cand_s"]), bool(state["mag_disturbed"])
+        if "straight_flight" in state:  # absent from states saved before the detector
+            k.straight.load_list(state["straight_flight"])
 
     # ------------------------------------------------------------------ offline
     def _pass(self, gyro: FloatArray, acc_g: FloatArray, mag: FloatArray | None,
