@@ -438,7 +438,9 @@ class AhrsEstimator(Estimator):
     def _compiled_step(self, gyro: Vec, accel_m_s2: Vec | None, mag: Vec | None, dt: float,
                        measured_m_s2: Vec | None) -> dict[str, Any] | None:
         """``_step`` through ``_sample_kernel`` (accelerometer as specific force, m/s^2, turn
-        compensated): the same quaternion and diagnostics; it also leaves in ``_linear_ned``
+        compensated): the same quaternion, and the estimate's whole diagnostics dictionary
+        (``dt_s`` and ``turn_compensation`` first, then what ``_step`` returns, one dictionary
+        built where the Python path merges two); it also leaves in ``_linear_ned``
         the gravity-compensated acceleration of ``measured_m_s2`` (the specific force before
         turn compensation) at the new attitude, as ``_linear_accel_ned`` computes it. Only
         filters that set a kernel define it."""
@@ -553,13 +555,16 @@ class AhrsEstimator(Estimator):
         diag = self._run_step(t_ns, rate, accel, mag, dt)
         if diag is None:
             return []
+        if self._sample_kernel is not None:
+            # the compiled step left the acceleration and built the whole dictionary
+            return [AttitudeEstimate.build(t_ns, self.instance, self._q,
+                                           None if accel is None else self._linear_ned, diag)]
         return [
             AttitudeEstimate.build(
                 t_ns,
                 self.instance,
                 self._q,
-                None if accel is None else self._linear_ned if self._sample_kernel is not None
-                else _linear_accel_ned(self._q, accel),
+                None if accel is None else _linear_accel_ned(self._q, accel),
                 {"dt_s": dt, "turn_compensation": self._kinematics.source, **diag},
             )
         ]

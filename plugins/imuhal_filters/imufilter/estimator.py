@@ -102,7 +102,8 @@ class ImuFilterEstimator(AhrsEstimator):
                                       gravity_positive_g(accel_m_s2), mag, dt))
             self._linear_ned = (None if measured_m_s2 is None else
                                 _linear_accel_ned(self._q, measured_m_s2))
-            return diag
+            return None if diag is None else {
+                "dt_s": dt, "turn_compensation": self._kinematics.source, **diag}
         gx, gy, gz = gyro
         if accel_m_s2 is None:
             have_a, ax, ay, az = False, 0.0, 0.0, 0.0
@@ -121,7 +122,11 @@ class ImuFilterEstimator(AhrsEstimator):
         if self._velocity_on and have_a:
             self._vel = VelocityState((v0, v1, v2), (m0, m1, m2), (l0, l1, l2), var_vel,
                                       var_acc)
-        return self._diag(accel_used=have_a)
+        d: dict[str, Any] = {"dt_s": dt, "turn_compensation": self._kinematics.source,
+                             "accel_used": have_a, "accel_gain": gain, "accel_variance_g2": var}
+        if self._velocity_on:
+            d["velocity_ned_m_s"] = self._vel.velocity
+        return d
 
     def _step(self, step: ImuStep) -> dict[str, Any] | None:
         accel = step.accel_g

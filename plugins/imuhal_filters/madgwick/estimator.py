@@ -115,7 +115,8 @@ class MadgwickEstimator(AhrsEstimator):
         self._linear_ned = (lx, ly, lz)
         if have_a and not gate_open:
             self._counters["gate_closed_steps"] += 1
-        return {"gate_open": gate_open, "accel_used": gate_open,
+        return {"dt_s": dt, "turn_compensation": self._kinematics.source,
+                "gate_open": gate_open, "accel_used": gate_open,
                 "mag_used": gate_open and use_m, "accel_weight": weight}
 
     def _step(self, step: ImuStep) -> dict[str, Any]:

@@ -91,7 +91,8 @@ class MahonyEstimator(AhrsEstimator):
         self._integral = (ix, iy, iz)
         if have_a and not gate_open:
             self._counters["gate_closed_steps"] += 1
-        return {"gate_open": gate_open, "accel_used": gate_open,
+        return {"dt_s": dt, "turn_compensation": self._kinematics.source,
+                "gate_open": gate_open, "accel_used": gate_open,
                 "mag_used": gate_open and use_m, "gyro_bias_rad_s": (-ix, -iy, -iz),
                 "accel_weight": weight}
 
