@@ -109,7 +109,8 @@ def test_status_explains_a_missing_build(
     assert cli_main.main(["kernels", "status"]) == 0
     out = capsys.readouterr().out
     assert f"kernel directory: {no_kernel_env}" in out
-    assert out.count(f"not built: no extension in {no_kernel_env}") == 6
+    # six batch kernels and three per-sample steps
+    assert out.count(f"not built: no extension in {no_kernel_env}") == 9
 
 
 def test_estimate_forced_to_a_missing_extension_names_the_build(
