@@ -119,6 +119,9 @@ class Kernel:
         self.name = fn.__name__.lstrip("_")
         self.module = fn.__module__
         self.returns = returns
+        self.per_sample_step = False
+        """Called once per sample (:meth:`per_sample`): compiled only from the extension in
+        ``auto`` mode (set by :func:`per_sample_kernel`)."""
         self._modules: list[str] | None = None
         self.args: dict[str, ArgType] | None = None
         if args is not None:
@@ -223,6 +226,12 @@ def jit(fn: Callable[..., Any], returns: str | None = None, **args: str) -> Kern
     only by other kernels declares none."""
     kernel = Kernel(fn, returns, args or None)
     KERNELS.append(kernel)
+    return kernel
+
+
+def per_sample_kernel(kernel: Kernel) -> Kernel:
+    """Mark ``kernel`` as a per-sample step (see :meth:`Kernel.per_sample`); returns it."""
+    kernel.per_sample_step = True
     return kernel
 
 

@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from imuhal_filters.common.fast import jit
+from imuhal_filters.common.fast import jit, per_sample_kernel
 from imuhal_filters.common.fast_frames import linear_accel_ned
 
 _G = 9.80665  # STANDARD_GRAVITY_M_S2
@@ -169,10 +169,10 @@ def _imufilter_sample(w, x, y, z, var, gain, gx, gy, gz, have_a, ax, ay, az, dt,
             lz)
 
 
-imufilter_sample = jit(
+imufilter_sample = per_sample_kernel(jit(
     _imufilter_sample, returns="UniTuple(f8, 20)", w="f8", x="f8", y="f8", z="f8", var="f8",
     gain="f8", gx="f8", gy="f8", gz="f8", have_a="b1", ax="f8", ay="f8", az="f8", dt="f8",
     alpha="f8", sd_acc_g="f8", velocity_on="b1", var_a="f8", var_comb="f8", v0="f8", v1="f8",
     v2="f8", m0="f8", m1="f8", m2="f8", l0="f8", l1="f8", l2="f8", var_vel="f8",
-    var_acc="f8", tg0="f8", tg1="f8", tg2="f8", fx="f8", fy="f8", fz="f8")
+    var_acc="f8", tg0="f8", tg1="f8", tg2="f8", fx="f8", fy="f8", fz="f8"))
 """The per-sample kernel (used per sample only on the AOT extension: ``Kernel.per_sample``)."""

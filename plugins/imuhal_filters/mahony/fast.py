@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from imuhal_filters.common.fast import jit
+from imuhal_filters.common.fast import jit, per_sample_kernel
 from imuhal_filters.common.fast_frames import linear_accel_ned
 
 _G = 9.80665  # STANDARD_GRAVITY_M_S2, as gravity_positive_g uses it
@@ -137,10 +137,10 @@ def _mahony_sample(q0, q1, q2, q3, ix, iy, iz, gx, gy, gz, have_a, ax, ay, az, h
     return w, x, y, z, ix, iy, iz, gate_open, weight, lx, ly, lz
 
 
-mahony_sample = jit(
+mahony_sample = per_sample_kernel(jit(
     _mahony_sample, returns="Tuple((f8, f8, f8, f8, f8, f8, f8, b1, f8, f8, f8, f8))",
     q0="f8", q1="f8", q2="f8", q3="f8", ix="f8", iy="f8", iz="f8", gx="f8", gy="f8", gz="f8",
     have_a="b1",
     ax="f8", ay="f8", az="f8", have_m="b1", mx0="f8", my0="f8", mz0="f8", kp="f8", ki="f8",
-    gate_lo="f8", gate_hi="f8", soft_width="f8", dt="f8", fx="f8", fy="f8", fz="f8")
+    gate_lo="f8", gate_hi="f8", soft_width="f8", dt="f8", fx="f8", fy="f8", fz="f8"))
 """The per-sample kernel (used per sample only on the AOT extension: ``Kernel.per_sample``)."""
