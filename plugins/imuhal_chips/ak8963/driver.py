@@ -15,6 +15,21 @@ a count at the data range limit -> SATURATED, beyond it -> OUT_OF_RANGE; a burst
 0x00/0xFF -> BLANK, a repeated frame -> FROZEN. The shared polling toolkit
 (imuhal.drivers.polling) decides staleness, re-reads CNTL1 every ``reset_check_s`` to catch a
 silent reset, and restarts a magnetometer that keeps its mode but stops converting.
+``read: auto`` (behind a master that can auto-read, imuhal.bus.auto_read: the MPU-9250's
+``imu/aux`` in master mode): the MPU's slave 0 reads ST1..ST2 (8 bytes) at each MPU sample
+into EXT_SENS_DATA and the driver takes them from the MPU's burst, with no transaction of its
+own; identity, the fuse-ROM ASA read at configure and the periodic CNTL1 read-back still use
+the master's one-shot path (slave 4). Because ST1 is in the bytes, a measurement is new when
+DRDY is set (the master's read of ST2 released it and cleared DRDY, so a copy with DRDY comes
+from one measurement) and the bytes differ from the last copy with DRDY: the copy a failed
+(NACKed) master read leaves in EXT_SENS_DATA is not new. The feed keeps the last copy with
+DRDY (``AutoReadFeed.keep_ready_only``), so polling at the AK8963's rate while the MPU reads
+faster loses nothing. Two consecutive measurements with identical ST1..ST2 bytes are taken as
+one (a missed sample, never a wrong one). No new measurement for STALE_AFTER_PERIODS -> a
+STALE sample (a chip repeating its bytes gives no new copy, so STALE too); HOFL -> OVERFLOW;
+never valid.
+Latency: at most one MPU sample period plus the MPU's poll guard after the measurement
+(``AutoReadFeed.latency_ns``); samples are stamped with the poll's time.
 Output: uT in the AK8963's own axes
 (mag X = MPU accel Y, mag Y = MPU accel X, mag Z = -MPU accel Z); the profile's mount
 rotation takes it to the body frame.
@@ -24,6 +39,7 @@ from __future__ import annotations
 
 from typing import ClassVar, Literal
 
+from imuhal.bus.auto_read import AutoReadBus, AutoReadFeed
 from imuhal.bus.base import BusKind, Link
 from imuhal.bus.registers import RegisterView
 from imuhal.core.clock import Clock
@@ -31,6 +47,7 @@ from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackErro
 from imuhal.core.samples import Channel, MagSample, SampleFlag
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
 from imuhal.drivers.polling import DataReady, PollGrid, ResetWatch, reset_check_field
+from imuhal.drivers.settings import SlaveRead
 from imuhal.drivers.validity import NAN3, FrozenWatch, blank_flag
 from imuhal_chips.ak8963 import registers as r
 from imuhal_chips.ak8963.decode import Measurement, decode_burst
@@ -50,6 +67,11 @@ class AK8963Settings(DriverSettings):
     """14-bit (0.6 uT/LSB) or 16-bit (0.15 uT/LSB) output."""
     reset_check_s: float = reset_check_field()
     """How often (s) CNTL1 is read back to catch a silent chip reset."""
+    read: SlaveRead = "one-shot"
+    """How the data are read: ``one-shot``, by the driver at each poll (ST1..ST2 in one
+    transfer) on any I2C bus (the host bus, the MPU-9250's bypass or its slave-4 master);
+    ``auto``, by the MPU-9250's slave 0 at every MPU sample, handed over in the MPU's burst
+    (its ``aux`` bus in master mode)."""
 
 
 class AK8963Driver(Driver):
@@ -79,6 +101,15 @@ class AK8963Driver(Driver):
         self._watch = ResetWatch(self.settings.reset_check_s)
         self._frozen = FrozenWatch(self.FROZEN_AFTER_FRAMES)
         self.last: Measurement | None = None
+        if self.settings.read == "auto" and not isinstance(link.bus, AutoReadBus):
+            raise ConfigurationError(
+                f"{self.describe()}: read: auto needs a bus whose master reads the chip on "
+                f"its own (the MPU-9250's imu/aux with aux: master); {link.bus.name} "
+                "cannot: use read: one-shot or set the MPU's aux: master")
+        self._feed: AutoReadFeed | None = None
+        self._taken: bytes | None = None
+        """read: auto: the copy with DRDY behind the last sample (or before configure)."""
+        self._cntl1_written_ns = 0
 
     def _not_found(self, found: str, hint: str) -> DeviceNotFoundError:
         return DeviceNotFoundError(
@@ -111,16 +142,33 @@ class AK8963Driver(Driver):
         self.asa = (asa[0], asa[1], asa[2])
         self._set_mode(r.MODE_POWER_DOWN)
         self._set_mode(self._cntl1)
+        if self.settings.read == "auto":
+            # measurements start here (read only when needed: a clock read is part of a
+            # recording, and one-shot recordings must replay as they were made)
+            self._cntl1_written_ns = self.clock.now_ns()
         back = self.regs.read_u8(r.REG_CNTL1)
         if back != self._cntl1:
             raise ConfigurationError(
                 f"{self.describe()}: CNTL1 reads back 0x{back:02X}, wrote 0x{self._cntl1:02X}")
+        if self.settings.read == "auto":
+            assert isinstance(self.link.bus, AutoReadBus)
+            feed = self._feed = self.link.bus.auto_read(
+                self.link.target, r.DATA_BURST_START, r.DATA_BURST_LENGTH)
+            feed.keep_ready_only(0, r.ST1_DRDY)
+            # A copy from before this configuration is no measurement of it: writing CNTL1
+            # cleared DRDY, so the next copy with DRDY differs from this one or is new.
+            self._taken = feed.data
 
     def start(self, now_ns: int) -> int:
         # recover() passes the time from before configure() waited; never start in the past.
         now_ns = max(now_ns, self.clock.now_ns())
         self._ready.start(now_ns)
         self._watch.start(now_ns)
+        if self._feed is not None:
+            # Poll one delivery latency after each measurement instant (counted from the
+            # CNTL1 write), when the master's copy has reached the host.
+            self._grid.anchor(self._cntl1_written_ns + self._feed.latency_ns)
+            return self._grid.next_after(now_ns)
         self._grid.anchor(now_ns)
         return now_ns + round(r.MEASUREMENT_S * 1e9)
 
@@ -138,7 +186,13 @@ class AK8963Driver(Driver):
         overdue = self._ready.overdue(Channel.MAG, now_ns)
         if self._watch.check_due(now_ns, overdue=overdue) and self._config_lost():
             return PollResult([], self.restart(reset_detected=True))
-        data = self.regs.read(r.DATA_BURST_START, r.DATA_BURST_LENGTH)
+        if self._feed is not None:
+            data = self._feed.data
+            if data is None or data == self._taken or not data[0] & r.ST1_DRDY:
+                return self._no_measurement(now_ns, overdue, SampleFlag.OK)
+            self._taken = data
+        else:
+            data = self.regs.read(r.DATA_BURST_START, r.DATA_BURST_LENGTH)
         m = decode_burst(data, self.asa)
         bad = blank_flag(data)
         if m.data_ready and not bad:
@@ -159,9 +213,20 @@ class AK8963Driver(Driver):
                 self.last = m
             self._grid.anchor(now_ns)  # phase-lock: next poll one period after new data
             return PollResult([sample], self._grid.next_after(now_ns))
-        if not m.data_ready and not overdue:
+        return self._no_measurement(now_ns, overdue or m.data_ready, bad,
+                                    stale=not m.data_ready)
+
+    def _no_measurement(self, now_ns: int, overdue: bool, bad: SampleFlag, *,
+                        stale: bool = True) -> PollResult:
+        """No usable measurement: look again soon while one is not yet overdue, else a
+        flagged NaN sample (STALE when nothing new came, ``bad`` when a frame was bad), and
+        restart a chip that keeps producing nothing."""
+        if not overdue:
+            if self._feed is not None:
+                # the copy may come one MPU burst late; look again when it can have come
+                return PollResult([], now_ns + self._feed.latency_ns // 2)
             return PollResult([], now_ns + self._period_ns // 10)
-        flags = bad if m.data_ready else SampleFlag.STALE | bad
+        flags = SampleFlag.STALE | bad if stale else bad
         sample = MagSample(t_ns=now_ns, device=self.device, flags=flags, mag_ut=NAN3)
         if self._watch.stale_poll():
             # CNTL1 intact but no new data: a reset and reconfiguration restarts measuring

@@ -16,7 +16,7 @@ import struct
 from collections.abc import Mapping
 from typing import ClassVar
 
-from imuhal.bus.auto_read import AUTO_READ, AutoReadFeed
+from imuhal.bus.auto_read import AUTO_READ, AutoReadFeed, same_feed
 from imuhal.bus.base import Bus, BusKind, Link
 from imuhal.bus.registers import RegisterView
 from imuhal.core.clock import Clock
@@ -437,13 +437,9 @@ class Max21100Driver(Max2110xDriver):
         if not 1 <= length <= MAG_DATA_BYTES:
             raise ConfigurationError(f"{where}: {length} bytes asked; the master keeps 1 to "
                                      f"{MAG_DATA_BYTES} (MAG X/Y/Z)")
-        feed = self._feed
+        feed = same_feed(self._feed, target, register, length, where=where)
         if feed is not None:
-            if (feed.target, feed.register, feed.length) == (target, register, length):
-                return feed
-            raise ConfigurationError(
-                f"{where}: the master already auto-reads 0x{feed.target:02X} and reads one "
-                "slave; put the other chip on one-shot reads (read: one-shot)")
+            return feed
         if self.scales is None:
             raise ConfigurationError(f"{where}: asked before the MAX21100 was configured")
         # The slave's bytes are copied at each accelerometer measurement and reach the

@@ -16,15 +16,24 @@ the range read (the AK8963 does, within 0x00..0x0C and 0x10..0x12). The n bytes 
 one I2C transaction on the wire: the AK8963 keeps them coherent by itself (data read starts
 protection, reading ST2 last ends it), which is why its driver always ends a burst at ST2.
 Cost: per byte one 4-byte register write and at least two reads of the MPU (status, DI).
+
+Slave auto-read (imuhal.bus.auto_read): in master mode :meth:`MasterAuxBus.auto_read` has
+slave 0 read the slave at every MPU sample into EXT_SENS_DATA (I2C_SLV0_ADDR/REG/CTRL, the
+Linux ``inv_mpu6050`` recipe, facts section 4); the MPU-9250 driver reads those bytes in the
+same burst as accel and gyro and delivers them to the feed. Slave-4 transactions keep
+working beside it (the slave's driver configures and checks its chip with them).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
+from imuhal.bus.auto_read import AutoReadFeed
 from imuhal.bus.base import Bus, BusKind
 from imuhal.bus.registers import RegisterView
 from imuhal.bus.retry import retried
 from imuhal.core.clock import Clock
-from imuhal.core.errors import BusError, NackError
+from imuhal.core.errors import BusError, ConfigurationError, NackError
 from imuhal_chips.mpu9250 import registers as r
 
 SLV4_POLL_S = 50e-6
@@ -40,10 +49,20 @@ class MasterAuxBus(Bus):
 
     kind = BusKind.I2C
 
-    def __init__(self, name: str, mpu: RegisterView, clock: Clock) -> None:
+    def __init__(self, name: str, mpu: RegisterView, clock: Clock,
+                 enable_auto_read: Callable[[int, int, int], AutoReadFeed]) -> None:
         super().__init__(name)
         self.mpu = mpu
         self.clock = clock
+        self._enable_auto_read = enable_auto_read
+
+    def auto_read(self, target: int, register: int, length: int) -> AutoReadFeed:
+        """Have slave 0 read ``length`` bytes from ``register`` of ``target`` at every MPU
+        sample (see the module docstring)."""
+        if not 0 <= target <= 0x7F:
+            raise ConfigurationError(f"{self.name}: 0x{target:X} is not a 7-bit I2C address")
+        with self.mpu.link.bus.lock:
+            return self._enable_auto_read(target, register, length)
 
     def _transfer(self, target: int, write: bytes, read_len: int) -> bytes:
         if not write:

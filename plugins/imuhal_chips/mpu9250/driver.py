@@ -9,7 +9,9 @@ configure(): H_RESET, wake with the auto-selected PLL clock, then the registers 
 declarative tables (ranges, DLPFs, SMPLRT_DIV, INT_ENABLE.RAW_RDY_EN, aux mode); each is read
 back and verified; scales are cached.
 poll(): one burst INT_STATUS..GYRO_ZOUT_L (0x3A..0x48): the data-ready bit and one coherent
-sample. The shared polling toolkit (imuhal.drivers.polling) decides staleness (no data-ready
+sample; with a slave auto-read (master mode, imuhal.bus.auto_read) the burst runs on into
+EXT_SENS_DATA (0x49..) and each burst with new data hands the slave's bytes to its feed.
+The shared polling toolkit (imuhal.drivers.polling) decides staleness (no data-ready
 for STALE_AFTER_PERIODS -> STALE), re-reads INT_PIN_CFG/INT_ENABLE every ``reset_check_s``
 (and whenever data are overdue) to catch a silent reset, and restarts a chip that keeps its
 configuration but stops converting. A burst of all 0x00/0xFF is BLANK, a repeated frame
@@ -21,10 +23,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import ClassVar, Literal
+from typing import Any, ClassVar, Literal
 
 from pydantic import model_validator
 
+from imuhal.bus.auto_read import AUTO_READ, AutoReadFeed, same_feed
 from imuhal.bus.base import Bus, BusKind, Link
 from imuhal.bus.registers import RegisterView
 from imuhal.core.clock import Clock
@@ -120,6 +123,20 @@ class MPU9250Driver(Driver):
     channels: ClassVar[tuple[Channel, ...]] = (Channel.ACCEL, Channel.GYRO, Channel.TEMPERATURE)
     bus_kinds: ClassVar[frozenset[BusKind]] = frozenset({BusKind.I2C, BusKind.SPI})
     child_bus_kinds: ClassVar[Mapping[str, BusKind]] = {"aux": BusKind.I2C}
+    child_bus_features: ClassVar[Mapping[str, frozenset[str]]] = {
+        "aux": frozenset({AUTO_READ})}
+    """Slave auto-read works in master mode only (``aux: master``, or ``auto`` on SPI); in
+    bypass the aux bus is the host bus and the slave's driver refuses ``read: auto``."""
+
+    @classmethod
+    def child_bus_features_with(cls, child: str,
+                                settings: Mapping[str, Any]) -> frozenset[str]:
+        """No auto-read on an aux bus set to bypass or off (``auto`` depends on the host
+        bus, which the slave's driver checks when it is built)."""
+        if settings.get("aux", MPU9250Settings.model_fields["aux"].default) in ("bypass",
+                                                                                  "off"):
+            return frozenset()
+        return super().child_bus_features_with(child, settings)
 
     FROZEN_AFTER_FRAMES = 40
     """Identical accel + temperature + gyro frames in a row that mean the chip stopped
@@ -143,16 +160,19 @@ class MPU9250Driver(Driver):
                 "needs the MPU-9250 on I2C; on SPI set aux: master")
         self.aux_mode: str = aux
         self._aux_bus: Bus | None = None
+        self._feed: AutoReadFeed | None = None
         if aux == "bypass":
             self._aux_bus = link.bus
         elif aux == "master":
-            self._aux_bus = MasterAuxBus(f"{link.bus.name}.{device}.aux", self.regs, clock)
+            self._aux_bus = MasterAuxBus(f"{link.bus.name}.{device}.aux", self.regs, clock,
+                                         self.enable_auto_read)
         s = self.settings
         self._gyro = r.GYRO_RANGES[s.gyro_range_dps]
         self._accel = r.ACCEL_RANGES[s.accel_range_g]
         self._period_ns = round(1e9 / r.sample_rate_hz(r.GYRO_DLPF[s.gyro_lpf_hz],
                                                         s.smplrt_div()))
         self._expected = self._register_plan()
+        self._burst_length = r.DATA_BURST_LENGTH
         self._grid = PollGrid(self._period_ns)
         self._ready = DataReady({Channel.GYRO: self._period_ns})
         self._watch = ResetWatch(s.reset_check_s)
@@ -201,8 +221,53 @@ class MPU9250Driver(Driver):
             r.ACCEL_CONFIG2: r.ACCEL_DLPF[s.accel_lpf_hz],
             r.I2C_MST_CTRL: r.I2C_MST_CLK_400KHZ if self.aux_mode == "master" else 0x00,
             r.INT_PIN_CFG: r.INT_PIN_BYPASS_EN if self.aux_mode == "bypass" else 0x00,
+            **(self._auto_read_plan(self._feed) if self._feed is not None else {}),
             r.INT_ENABLE: r.INT_RAW_RDY,
         }
+
+    @staticmethod
+    def _auto_read_plan(feed: AutoReadFeed) -> dict[int, int]:
+        """Slave 0 reads the slave at every sample (I2C_MST_DELAY_CTRL 0) into EXT_SENS_DATA,
+        the bytes kept in the slave's register and byte order (no BYTE_SW: the slave's
+        driver converts them as if it had read them itself); the data-ready interrupt waits
+        for them (WAIT_FOR_ES), so a burst with RAW_RDY carries this sample's copy."""
+        return {
+            r.I2C_MST_CTRL: r.I2C_MST_CLK_400KHZ | r.I2C_MST_WAIT_FOR_ES,
+            r.I2C_MST_DELAY_CTRL: 0x00,
+            r.I2C_SLV0_ADDR: r.SLV_READ | feed.target,
+            r.I2C_SLV0_REG: feed.register,
+            r.I2C_SLV0_CTRL: r.SLV_EN | feed.length,
+        }
+
+    def enable_auto_read(self, target: int, register: int, length: int) -> AutoReadFeed:
+        """Program slave 0 to read ``length`` bytes (1..15) from ``register`` of ``target``
+        at every sample and return the feed this driver fills; the same request again
+        returns the same feed. Written now, verified, and part of every later
+        configuration."""
+        where = f"{self.describe()}: slave auto-read of 0x{target:02X}"
+        if self.aux_mode != "master":
+            raise ConfigurationError(f"{where}: needs the MPU's I2C master; set aux: master")
+        if not 1 <= length <= r.SLV_LENG:
+            raise ConfigurationError(f"{where}: {length} bytes asked; slave 0 reads 1 to "
+                                     f"{r.SLV_LENG} (I2C_SLV0_CTRL.LENG)")
+        feed = same_feed(self._feed, target, register, length, where=where)
+        if feed is not None:
+            return feed
+        # Copied at each sample, read by the next burst one poll-grid guard after it.
+        feed = AutoReadFeed(target, register, length,
+                            latency_ns=self._period_ns + self._grid.guard_ns)
+        plan = self._auto_read_plan(feed)
+        for register_, value in plan.items():
+            self.regs.write(register_, value)
+        wrong = [f"0x{reg:02X} reads 0x{back:02X}, wrote 0x{value:02X}"
+                 for reg, value in plan.items()
+                 if (back := self.regs.read_u8(reg)) != value]
+        if wrong:
+            raise ConfigurationError(f"{where}: register read-back failed: " + "; ".join(wrong))
+        self._feed = feed
+        self._expected = self._register_plan()
+        self._burst_length = r.DATA_BURST_LENGTH + length
+        return feed
 
     def configure(self) -> None:
         self.regs.write(r.PWR_MGMT_1, r.PWR1_H_RESET)
@@ -254,12 +319,17 @@ class MPU9250Driver(Driver):
         overdue = self._ready.overdue(Channel.GYRO, now_ns)
         if self._watch.check_due(now_ns, overdue=overdue) and self._config_lost():
             return PollResult([], self.restart(reset_detected=True))
-        data = self.regs.read(r.DATA_BURST_START, r.DATA_BURST_LENGTH)
+        data = self.regs.read(r.DATA_BURST_START, self._burst_length)
+        if self._feed is not None:
+            data, ext = data[:r.DATA_BURST_LENGTH], data[r.DATA_BURST_LENGTH:]
         ready = bool(data[0] & r.INT_RAW_RDY)
         bad = blank_flag(data)
         if ready and not bad:
             bad = self._frozen_flag(data[1:])
         if ready and not bad:
+            if self._feed is not None:
+                # one delivery per sample: one slave-0 read (or its kept copy after a NACK)
+                self._feed.deliver(now_ns, ext)
             self._ready.fresh(Channel.GYRO, now_ns)
             self._watch.fresh_poll()
             # Phase-lock on the chip: the next poll one period after data appeared.

@@ -22,7 +22,14 @@ registers; SPI: bit 7 of the first byte set = read; both auto-increment):
     enabled for reading (I2C_SLV0_ADDR bit 7 set), copies LENG bytes into EXT_SENS_DATA at
     every sample (BYTE_SW/GRP swap the bytes of each register pair); enabled for writing
     (bit 7 clear), it writes I2C_SLV0_DO to I2C_SLV0_REG of the slave at every sample.
-    I2C_SLV0_CTRL.REG_DIS drops the register byte from either transaction.
+    I2C_SLV0_CTRL.REG_DIS drops the register byte from either transaction. With
+    I2C_MST_DELAY_CTRL.I2C_SLV0_DLY_EN slave 0 runs only at every (1 + I2C_MST_DLY)-th
+    sample (I2C_SLV4_CTRL[4:0]; register map rev 1.4, I2C_MST_DELAY_CTRL: the facts name the
+    register, not its bits); clear (the power-on default), at every sample. A slave-0
+    transaction that fails sets I2C_MST_STATUS.I2C_SLV0_NACK and leaves EXT_SENS_DATA as it
+    was. The copy is made within the sample, before RAW_DATA_RDY is set: what
+    I2C_MST_CTRL.WAIT_FOR_ES guarantees (without it a real chip may raise data-ready before
+    the copy; not modelled).
 
 Physics face (sensor frame, SI): ``specific_force_m_s2`` (default (0, 0, 9.80665): lying
 flat, face up), ``angular_rate_rad_s`` (default 0), ``temperature_degc`` (default 25).
@@ -68,6 +75,8 @@ _TEMP_LSB_PER_DEGC = 333.87
 _TEMP_ROOM_DEGC = 21.0
 """TEMP_degC = TEMP_OUT / 333.87 + 21 (RoomTemp_Offset 0)."""
 _G_M_S2 = 9.80665
+_I2C_MST_DLY = 0x1F
+"""I2C_SLV4_CTRL[4:0]: a delayed slave is accessed every 1 + I2C_MST_DLY samples."""
 
 
 class MPU9250Emulator(ChipEmulator):
@@ -231,6 +240,10 @@ class MPU9250Emulator(ChipEmulator):
         address = self._regs[r.I2C_SLV0_ADDR]
         if not (self._master_on() and ctrl & r.SLV_EN):
             return
+        if self._regs[r.I2C_MST_DELAY_CTRL] & r.SLV0_DLY_EN:
+            every = 1 + (self._regs[r.I2C_SLV4_CTRL] & _I2C_MST_DLY)
+            if self._taken % every:
+                return
         register = self._regs[r.I2C_SLV0_REG]
         prefix = b"" if ctrl & r.SLV_REG_DIS else bytes([register])
         if not address & r.SLV_READ:

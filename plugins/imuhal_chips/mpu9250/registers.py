@@ -31,6 +31,7 @@ I2C_SLV4_CTRL: Final = 0x34
 I2C_SLV4_DI: Final = 0x35
 I2C_MST_STATUS: Final = 0x36
 I2C_SLV0_DO: Final = 0x63
+I2C_MST_DELAY_CTRL: Final = 0x67
 INT_PIN_CFG: Final = 0x37
 INT_ENABLE: Final = 0x38
 INT_STATUS: Final = 0x3A
@@ -66,6 +67,14 @@ MST_SLV4_DONE: Final = 0x40
 MST_SLV4_NACK: Final = 0x10
 MST_SLV0_NACK: Final = 0x01
 I2C_MST_CLK_400KHZ: Final = 0x0D
+I2C_MST_WAIT_FOR_ES: Final = 0x40
+"""I2C_MST_CTRL bit 6: the data-ready interrupt waits until the slaves' data are loaded
+into EXT_SENS_DATA (Linux inv_mpu6050 sets it with slave-0 reads)."""
+SLV0_DLY_EN: Final = 0x01
+"""I2C_MST_DELAY_CTRL bit 0: slave 0 is accessed only every 1 + I2C_MST_DLY samples
+(I2C_SLV4_CTRL[4:0]); clear (the default), at every sample."""
+EXT_SENS_DATA_BYTES: Final = 24
+"""EXT_SENS_DATA_00..23 (0x49..0x60)."""
 
 DATA_BURST_START: Final = INT_STATUS
 DATA_BURST_LENGTH: Final = 15

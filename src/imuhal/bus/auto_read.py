@@ -24,6 +24,8 @@ from __future__ import annotations
 
 from typing import Protocol, runtime_checkable
 
+from imuhal.core.errors import ConfigurationError
+
 AUTO_READ = "auto_read"
 """The feature name a driver lists in ``child_bus_features`` for a bus whose master can
 auto-read a slave (see :class:`AutoReadBus`)."""
@@ -38,8 +40,8 @@ class AutoReadFeed:
     copy its burst comes).
     """
 
-    __slots__ = ("changed_ns", "data", "deliveries", "latency_ns", "length", "register",
-                 "t_ns", "target")
+    __slots__ = ("changed_ns", "data", "deliveries", "latency_ns", "length", "ready_bit",
+                 "register", "t_ns", "target")
 
     def __init__(self, target: int, register: int, length: int, *, latency_ns: int) -> None:
         self.target = target
@@ -51,15 +53,44 @@ class AutoReadFeed:
         """Time of the latest delivery (ns, the driver clock)."""
         self.changed_ns = 0
         self.deliveries = 0
+        self.ready_bit: tuple[int, int] | None = None
+        """(byte offset, mask) of the slave's own data-ready bit among the bytes, when its
+        driver set one with :meth:`keep_ready_only`."""
+
+    def keep_ready_only(self, offset: int, mask: int) -> None:
+        """The slave has a data-ready bit among the bytes (byte ``offset``, bit ``mask``),
+        cleared when the master reads the data: a delivery without it says only "no new
+        measurement since the last read" and leaves ``data`` as it was, so a slave driver
+        polling slower than the master reads still finds the measurement."""
+        if not 0 <= offset < self.length:
+            raise ValueError(f"data-ready byte {offset} is outside the {self.length} bytes read")
+        self.ready_bit = (offset, mask)
 
     def deliver(self, t_ns: int, data: bytes) -> None:
         """The master's driver read ``data`` (``length`` bytes, slave register order) at
         ``t_ns``."""
+        ready = self.ready_bit
+        if ready is not None and not data[ready[0]] & ready[1]:
+            data = self.data if self.data is not None else data
         if data != self.data:
             self.data = data
             self.changed_ns = t_ns
         self.t_ns = t_ns
         self.deliveries += 1
+
+
+def same_feed(feed: AutoReadFeed | None, target: int, register: int, length: int, *,
+              where: str) -> AutoReadFeed | None:
+    """For a master that auto-reads one slave: ``feed`` when it is already this read, None
+    when there is none yet, else a ConfigurationError (``where`` names the master and
+    slave) that tells the user to read the other chip with one-shot transactions."""
+    if feed is None:
+        return None
+    if (feed.target, feed.register, feed.length) == (target, register, length):
+        return feed
+    raise ConfigurationError(
+        f"{where}: the master already auto-reads 0x{feed.target:02X} and reads one "
+        "slave; put the other chip on one-shot reads (read: one-shot)")
 
 
 @runtime_checkable

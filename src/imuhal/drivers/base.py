@@ -111,6 +111,14 @@ class Driver(ABC):
     """What each child bus offers beyond transfers, by local name: ``AUTO_READ`` (the master
     reads a slave's registers on its own, imuhal.bus.auto_read). Profiles check settings
     that need a feature (``read: auto``) against it."""
+
+    @classmethod
+    def child_bus_features_with(cls, child: str,
+                                settings: Mapping[str, Any]) -> frozenset[str]:
+        """The features of child bus ``child`` for a device with these profile ``settings``
+        (raw, as written): ``child_bus_features``, narrowed by a driver whose bus offers a
+        feature only in some configurations (the MPU-9250's aux: in master mode)."""
+        return frozenset(cls.child_bus_features.get(child, ()))
     calibration_version: ClassVar[int] = 1
     """Bumped when a change to decoding would invalidate stored user calibration."""
 

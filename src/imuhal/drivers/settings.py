@@ -87,7 +87,8 @@ def _auto_read_possible(value: str, info: ValidationInfo) -> str:
         bus = context.get(BUS_CONTEXT, "this bus")
         raise ValueError(
             f"'auto' needs a bus whose master reads the chip on its own (slave auto-read, "
-            f"e.g. the MAX21100's imu/aux); bus {bus!r} cannot: use read: one-shot")
+            f"e.g. the MAX21100's imu/aux or an MPU-9250's with aux: master); bus {bus!r} "
+            "cannot: use read: one-shot")
     return value
 
 

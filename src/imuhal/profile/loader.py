@@ -350,15 +350,17 @@ def _bus_kind(devices: dict[Any, Any], ref: str, bus_kinds: dict[str, BusKind | 
 
 def _bus_features(devices: dict[Any, Any], ref: str, registry: Registry) -> frozenset[str]:
     """What the bus ``ref`` offers beyond transfers: a child bus what its parent's driver
-    declares in ``child_bus_features``; a bus the profile opens itself, nothing."""
+    declares for it with the parent's settings (``Driver.child_bus_features_with``); a bus
+    the profile opens itself, nothing."""
     if "/" not in ref:
         return frozenset()
     parent, child = ref.split("/", 1)
-    parent_driver = _text(_mapping(devices.get(parent)).get("driver"))
+    parent_device = _mapping(devices.get(parent))
+    parent_driver = _text(parent_device.get("driver"))
     reg = registry.drivers.entries.get(parent_driver) if parent_driver is not None else None
     if reg is None:
         return frozenset()
-    return frozenset(reg.obj.child_bus_features.get(child, ()))
+    return reg.obj.child_bus_features_with(child, _mapping(parent_device.get("settings")))
 
 
 def _check_plugins(data: dict[str, Any], doc: LocatedDocument, registry: Registry) -> list[str]:
