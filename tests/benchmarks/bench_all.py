@@ -12,7 +12,10 @@ Sections:
 
 * per sample: for every AHRS, the filter core (``_step`` on a prepared step: the kernel
   and its diagnostics), ``update()`` and ``process()`` (the pipeline's path: one accel, one
-  mag and one gyro sample per step), in us per step, and ``process / core``;
+  mag and one gyro sample per step), in us per step, and ``process / core``; the core and
+  these rows on the Python step (``IMUHAL_KERNELS=python``), then the compiled per-sample step
+  alone and ``update()``/``process()`` on it, per backend (numba's JIT and the AOT extension
+  forced; ``auto`` takes the AOT one only);
 * batch: every estimator's batch function in samples/s (the compiled kernel when numba is
   installed, see ``imuhal_filters.common.fast``), next to ``vqf.VQF.updateBatch``;
 * ``imuhal estimate madgwick`` on a generated ``--rows`` CSV, in a child process: rows/s and
@@ -31,6 +34,7 @@ BLAS calls, which none of the measured paths make, and it is left as it is.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib.util
 import math
 import os
@@ -39,7 +43,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -205,9 +209,28 @@ def peer_rows(n: int, gyro: np.ndarray, accel: np.ndarray, mag: np.ndarray) -> l
 
 
 # --------------------------------------------------------------------------- imuhal
+@contextlib.contextmanager
+def kernels(backend: str, aot_dir: Path | None = None) -> Iterator[None]:
+    """``IMUHAL_KERNELS=backend`` (and the AOT extension's directory) for the block; the
+    estimators made inside pick their per-sample step then (at reset)."""
+    saved = {k: os.environ.get(k) for k in ("IMUHAL_KERNELS", "IMUHAL_KERNEL_DIR")}
+    os.environ["IMUHAL_KERNELS"] = backend
+    if aot_dir is not None:
+        os.environ["IMUHAL_KERNEL_DIR"] = str(aot_dir)
+    try:
+        yield
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
 def estimator_rows(n: int, gyro: np.ndarray, accel: np.ndarray, mag: np.ndarray,
                    vqf_loop_us: float | None, vqf_batch: float | None,
                    aot_dir: Path | None = None) -> list[Row]:
+    from imuhal_filters.common import fast
     from imuhal_filters.common.ahrs import ImuStep
     from imuhal_filters.common.gate import gravity_positive_g
 
@@ -257,9 +280,17 @@ def estimator_rows(n: int, gyro: np.ndarray, accel: np.ndarray, mag: np.ndarray,
                 est.process(mg)
                 est.process(gy)
 
-        c = cpu_per_call(core, n) * 1e6
-        u = cpu_per_call(update, n) * 1e6
-        p = cpu_per_call(process, n) * 1e6
+        def compiled_step(k: int, est_factory=make, uses_mag=uses_mag) -> None:
+            est = est_factory()
+            step = est._compiled_step
+            for i in range(k):
+                step(g[i], a[i], m[i] if uses_mag else None, dt, a[i])
+
+        # the Python step (the core of the issue's ratio) and the per-sample path on it
+        with kernels("python"):
+            c = cpu_per_call(core, n) * 1e6
+            u = cpu_per_call(update, n) * 1e6
+            p = cpu_per_call(process, n) * 1e6
         rows.append(Row("per sample", f"{name} core (_step)", c, "us/sample"))
         rows.append(Row("per sample", f"{name} update()", u, "us/sample", "core", u / c))
         rows.append(Row("per sample", f"{name} process()", p, "us/sample", "core", p / c,
@@ -267,6 +298,27 @@ def estimator_rows(n: int, gyro: np.ndarray, accel: np.ndarray, mag: np.ndarray,
         if name == "madgwick" and vqf_loop_us:
             rows.append(Row("per sample", "madgwick process()", p, "us/sample", "vqf loop",
                             p / vqf_loop_us, "<= 6"))
+        # the compiled per-sample step, on each backend forced (auto uses only the AOT one)
+        for backend in ("jit", "aot"):
+            if (backend == "jit" and not fast.numba_installed()) or (
+                    backend == "aot" and aot_dir is None):
+                continue
+            with kernels(backend, aot_dir):
+                compiled_step(100)  # compile or load outside the timing
+                cs = cpu_per_call(compiled_step, n) * 1e6
+                cu = cpu_per_call(update, n) * 1e6
+                cp = cpu_per_call(process, n) * 1e6
+            rows.append(Row("per sample", f"{name} compiled step ({backend})", cs, "us/sample",
+                            "core", cs / c))
+            rows.append(Row("per sample", f"{name} update(), {backend} step", cu, "us/sample",
+                            "core", cu / c))
+            rows.append(Row("per sample", f"{name} process(), {backend} step", cp, "us/sample",
+                            "core", cp / c, "<= 1.3"))
+            rows.append(Row("per sample", f"{name} process(), {backend} step", cp, "us/sample",
+                            "compiled step", cp / cs))
+            if name == "madgwick" and vqf_loop_us:
+                rows.append(Row("per sample", f"madgwick process(), {backend} step", cp,
+                                "us/sample", "vqf loop", cp / vqf_loop_us, "<= 6"))
     rows += batch_rows(registry, gyro, accel, mag, vqf_batch, aot_dir)
     return rows
 
@@ -597,9 +649,11 @@ def main(argv: list[str] | None = None) -> int:
             aot_dir = None
         est = estimator_rows(args.samples, gyro, accel, mag, vqf_loop, vqf_batch, aot_dir)
         if plain:
-            p_us = next(r.value for r in est if r.case == "madgwick process()")
-            est.append(Row("per sample", "madgwick process()", p_us, "us/sample",
-                           "plain-Python Madgwick", p_us / plain))
+            for case in ("madgwick process()", "madgwick process(), aot step"):
+                p_us = next((r.value for r in est if r.case == case), None)
+                if p_us is not None:
+                    est.append(Row("per sample", case, p_us, "us/sample",
+                                   "plain-Python Madgwick", p_us / plain))
         rows += est
     if "estimate" not in args.skip:
         upd = next((r.value for r in rows if r.case == "madgwick update()"), 1.0)

@@ -109,7 +109,18 @@ def test_status_explains_a_missing_build(
     assert cli_main.main(["kernels", "status"]) == 0
     out = capsys.readouterr().out
     assert f"kernel directory: {no_kernel_env}" in out
-    assert out.count(f"not built: no extension in {no_kernel_env}") == 6
+    # six batch kernels and three per-sample steps
+    assert out.count(f"not built: no extension in {no_kernel_env}") == 9
+
+
+def test_status_shows_per_sample_steps_on_python_without_an_extension(
+        no_kernel_env: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # numba's JIT is not used per sample in auto mode: status says what process() runs
+    assert cli_main.main(["kernels", "status"]) == 0
+    lines = [line.split() for line in capsys.readouterr().out.splitlines()]
+    steps = {words[0]: words[1] for words in lines if words and words[0].endswith("_sample")}
+    assert steps == {"madgwick_sample": "python", "mahony_sample": "python",
+                     "imufilter_sample": "python"}
 
 
 def test_estimate_forced_to_a_missing_extension_names_the_build(

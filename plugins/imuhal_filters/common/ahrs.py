@@ -121,6 +121,11 @@ def _vec(v: Sequence[float]) -> Vec:
 
 
 _OK = SampleFlag.OK
+TO_G = -1.0 / STANDARD_GRAVITY_M_S2
+"""gravity_positive_g's factor (m/s^2 specific force -> gravity-positive g): the same product
+for a compiled step's caller."""
+NO_VECTOR: Vec = (0.0, 0.0, 0.0)
+"""What a compiled step gets for an accel or mag it has none of (with its flag False)."""
 
 
 def _linear_accel_ned(q: Quat, f: Vec) -> Vec:
@@ -423,6 +428,24 @@ class AhrsEstimator(Estimator):
         kernel for its settings. A NaN row of ``accel``/``mag``: none this step."""
         return False
 
+    _sample_kernel: Any = None
+    """The compiled per-sample step (:meth:`fast.Kernel.per_sample`, set by a filter's
+    ``_reset_filter``), or None: ``_step`` runs in Python."""
+
+    _linear_ned: Vec | None = None
+    """The gravity-compensated acceleration (NED, m/s^2) the last compiled step returned."""
+
+    def _compiled_step(self, gyro: Vec, accel_m_s2: Vec | None, mag: Vec | None, dt: float,
+                       measured_m_s2: Vec | None) -> dict[str, Any] | None:
+        """``_step`` through ``_sample_kernel`` (accelerometer as specific force, m/s^2, turn
+        compensated): the same quaternion, and the estimate's whole diagnostics dictionary
+        (``dt_s`` and ``turn_compensation`` first, then what ``_step`` returns, one dictionary
+        built where the Python path merges two); it also leaves in ``_linear_ned``
+        the gravity-compensated acceleration of ``measured_m_s2`` (the specific force before
+        turn compensation) at the new attitude, as ``_linear_accel_ned`` computes it. Only
+        filters that set a kernel define it."""
+        raise NotImplementedError
+
     def _kernel_ready(self) -> bool:
         """Nothing but the kernel's step is left to happen (a filter's own set-up is done)."""
         return True
@@ -487,12 +510,17 @@ class AhrsEstimator(Estimator):
                   dt: float) -> dict[str, Any] | None:
         """Compensate, align if needed, and run one kernel step; None: no estimate yet."""
         kin = self._kinematics.step(t_ns, gyro)
-        if accel is not None and kin != (0.0, 0.0, 0.0):
+        measured = accel
+        if accel is not None and kin != NO_VECTOR:
             accel = compensated(accel, kin)
-        if not self._align(accel, mag):
+        # once aligned (the heading too, or no mag this step) _align has nothing to do
+        if not (self._tilt_aligned and (self._heading_aligned or mag is None)) and \
+                not self._align(accel, mag):
             return None
-        accel_g = None if accel is None else gravity_positive_g(accel)
         self._counters["steps"] += 1
+        if self._sample_kernel is not None:
+            return self._compiled_step(gyro, accel, mag, dt, measured)
+        accel_g = None if accel is None else gravity_positive_g(accel)
         return self._step(ImuStep(gyro, accel_g, mag, dt))
 
     def _on_gyro(self, gyro: GyroSample, rate: Vec) -> list[Estimate]:
@@ -527,6 +555,10 @@ class AhrsEstimator(Estimator):
         diag = self._run_step(t_ns, rate, accel, mag, dt)
         if diag is None:
             return []
+        if self._sample_kernel is not None:
+            # the compiled step left the acceleration and built the whole dictionary
+            return [AttitudeEstimate.build(t_ns, self.instance, self._q,
+                                           None if accel is None else self._linear_ned, diag)]
         return [
             AttitudeEstimate.build(
                 t_ns,

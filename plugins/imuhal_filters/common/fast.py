@@ -119,6 +119,9 @@ class Kernel:
         self.name = fn.__name__.lstrip("_")
         self.module = fn.__module__
         self.returns = returns
+        self.per_sample_step = False
+        """Called once per sample (:meth:`per_sample`): compiled only from the extension in
+        ``auto`` mode (set by :func:`per_sample_kernel`)."""
         self._modules: list[str] | None = None
         self.args: dict[str, ArgType] | None = None
         if args is not None:
@@ -165,6 +168,22 @@ class Kernel:
         ``IMUHAL_KERNELS`` forces one this kernel cannot use)."""
         return _choose(self, mode(), _kernel_dir_key())
 
+    def per_sample(self) -> Callable[..., Any] | None:
+        """The compiled function for a caller that runs it once per sample, or None: run
+        the Python step. Only the AOT extension's function is worth calling per sample in
+        ``auto`` mode: a call to it costs about 0.1-0.2 us, while numba's dispatcher costs
+        about 1.7 us per call, more than a Python step saves (docs/performance.md, "The
+        compiled per-sample step"). ``IMUHAL_KERNELS=jit`` forces the JIT here too (for
+        tests and benchmarks). The function is returned unchecked: the caller passes only
+        the declared scalars (Python floats and bools it built itself), since a check per
+        call would cost more than the call."""
+        choice = self.choice()
+        if choice.backend == "aot":
+            return choice.function
+        if choice.backend == "jit" and mode() == "jit":
+            return _jitted(self)
+        return None
+
     def check(self, args: tuple[Any, ...]) -> None:
         """Raise TypeError naming the argument when ``args`` do not match the signature."""
         assert self.args is not None
@@ -207,6 +226,12 @@ def jit(fn: Callable[..., Any], returns: str | None = None, **args: str) -> Kern
     only by other kernels declares none."""
     kernel = Kernel(fn, returns, args or None)
     KERNELS.append(kernel)
+    return kernel
+
+
+def per_sample_kernel(kernel: Kernel) -> Kernel:
+    """Mark ``kernel`` as a per-sample step (see :meth:`Kernel.per_sample`); returns it."""
+    kernel.per_sample_step = True
     return kernel
 
 
@@ -263,8 +288,10 @@ def _jitted(kernel: Kernel) -> Callable[..., Any]:
     signature when it has one."""
     import numba
 
-    kernel.modules()  # while the helpers' names still name them
+    # numba's on-disk cache notices a change to the kernel's own file only: a kernel that
+    # calls a helper of another module (common/fast_frames.py) is compiled afresh per process
+    cache = len(kernel.modules()) == 1  # while the helpers' names still name them
     swap_helpers(kernel.fn, _jitted)
     if kernel.exported:
-        return numba.njit(kernel.signature(), cache=True, nogil=True)(kernel.fn)
-    return numba.njit(cache=True, nogil=True)(kernel.fn)
+        return numba.njit(kernel.signature(), cache=cache, nogil=True)(kernel.fn)
+    return numba.njit(cache=cache, nogil=True)(kernel.fn)

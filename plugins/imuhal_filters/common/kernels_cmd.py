@@ -61,6 +61,9 @@ def status() -> int:
             backend, reason = choice.backend, choice.reason
         except fast.KernelUnavailable as exc:
             backend, reason = "none", str(exc)
+        if kernel.per_sample_step and backend == "jit" and chosen == "auto":
+            backend, reason = "python", (f"{reason}; a per-sample step runs compiled only "
+                                         "from the extension (IMUHAL_KERNELS=jit forces it)")
         print(f"  {kernel.name:<16} {backend:<7} {reason}")
     return 0
 

@@ -23,9 +23,16 @@ from pydantic import Field
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.core.frames import FloatArray
 from imuhal.core.samples import AccelSample, AirspeedSample, GyroSample, VelocitySample
-from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
+from imuhal_filters.common.ahrs import (
+    NO_VECTOR,
+    TO_G,
+    AhrsEstimator,
+    AhrsSettings,
+    ImuStep,
+    _linear_accel_ned,
+)
 from imuhal_filters.common.fast import Kernel
-from imuhal_filters.common.gate import specific_force_m_s2
+from imuhal_filters.common.gate import gravity_positive_g, specific_force_m_s2
 from imuhal_filters.common.quat import Vec, to_global, to_local
 from imuhal_filters.imufilter.core import (
     axis_unit_vectors,
@@ -34,7 +41,7 @@ from imuhal_filters.imufilter.core import (
     rotate_heading,
     setup_quaternion,
 )
-from imuhal_filters.imufilter.fast import imufilter_rows, pack_state
+from imuhal_filters.imufilter.fast import imufilter_rows, imufilter_sample, pack_state
 from imuhal_filters.imufilter.velocity import ZERO, VelocityState, velocity_step
 
 
@@ -75,6 +82,51 @@ class ImuFilterEstimator(AhrsEstimator):
         self._gain = 1.0
         self._vel = VelocityState()
         self._vel_target: Vec = ZERO
+        s = self.settings
+        self._velocity_on = s.velocity
+        self._alpha, self._sd_acc_g = float(s.gain), float(s.sd_acc_g)
+        # velocity_step's constants, computed as it computes them
+        sd_acc_m_s2 = s.sd_acc_g * STANDARD_GRAVITY_M_S2
+        sd_vel_m_s = s.sd_vel_g_s * STANDARD_GRAVITY_M_S2
+        self._var_a = sd_acc_m_s2 * sd_acc_m_s2
+        self._var_comb = self._var_a * sd_vel_m_s * sd_vel_m_s
+        # the compiled per-sample step where it pays (the AOT extension; common/fast.py)
+        self._sample_kernel = imufilter_sample.per_sample()
+
+    def _compiled_step(self, gyro: Vec, accel_m_s2: Vec | None, mag: Vec | None, dt: float,
+                       measured_m_s2: Vec | None) -> dict[str, Any] | None:
+        """``_step`` in the compiled per-sample kernel once set up (the set-up step stays in
+        Python): the same floats (tests compare them)."""
+        if not self._initialized:
+            diag = self._step(ImuStep(gyro, None if accel_m_s2 is None else
+                                      gravity_positive_g(accel_m_s2), mag, dt))
+            self._linear_ned = (None if measured_m_s2 is None else
+                                _linear_accel_ned(self._q, measured_m_s2))
+            return None if diag is None else {
+                "dt_s": dt, "turn_compensation": self._kinematics.source, **diag}
+        gx, gy, gz = gyro
+        if accel_m_s2 is None:
+            have_a, ax, ay, az = False, 0.0, 0.0, 0.0
+        else:
+            have_a = True
+            ax, ay, az = (accel_m_s2[0] * TO_G, accel_m_s2[1] * TO_G, accel_m_s2[2] * TO_G)
+        vel = self._vel
+        (w, x, y, z, var, gain, v0, v1, v2, m0, m1, m2, l0, l1, l2, var_vel, var_acc, lx, ly,
+         lz) = self._sample_kernel(
+            *self._q, self._var, self._gain, gx, gy, gz, have_a, ax, ay, az, dt, self._alpha,
+            self._sd_acc_g, self._velocity_on, self._var_a, self._var_comb, *vel.velocity,
+            *vel.accel_mean, *vel.accel_last, vel.var_vel, vel.var_acc, *self._vel_target,
+            *(NO_VECTOR if measured_m_s2 is None else measured_m_s2))
+        self._q, self._var, self._gain = (w, x, y, z), var, gain
+        self._linear_ned = (lx, ly, lz)
+        if self._velocity_on and have_a:
+            self._vel = VelocityState((v0, v1, v2), (m0, m1, m2), (l0, l1, l2), var_vel,
+                                      var_acc)
+        d: dict[str, Any] = {"dt_s": dt, "turn_compensation": self._kinematics.source,
+                             "accel_used": have_a, "accel_gain": gain, "accel_variance_g2": var}
+        if self._velocity_on:
+            d["velocity_ned_m_s"] = self._vel.velocity
+        return d
 
     def _step(self, step: ImuStep) -> dict[str, Any] | None:
         accel = step.accel_g

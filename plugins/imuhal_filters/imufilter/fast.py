@@ -15,7 +15,8 @@ import math
 
 import numpy as np
 
-from imuhal_filters.common.fast import jit
+from imuhal_filters.common.fast import jit, per_sample_kernel
+from imuhal_filters.common.fast_frames import linear_accel_ned
 
 _G = 9.80665  # STANDARD_GRAVITY_M_S2
 
@@ -47,6 +48,55 @@ def _small_step(w, x, y, z, dx, dy, dz):
 small_step = jit(_small_step)
 
 
+def _imufilter_step(w, x, y, z, var, gain, gx, gy, gz, have_a, ax, ay, az, dt, alpha,
+                    sd_acc_g, velocity_on, var_a, var_comb, v0, v1, v2, m0, m1, m2, l0, l1, l2,
+                    var_vel, var_acc, tg0, tg1, tg2):
+    """One step: ``gyro_step`` without an accelerometer, else ``imufilter_step`` and, when on,
+    ``velocity_step``, on scalars in the same order of operations; ``a`` gravity-positive in
+    g, ``var_a`` and ``var_comb`` the velocity filter's constant variances. Returns the new
+    quaternion, variance, gain, velocity (3), accel mean (3), last accel (3), var_vel and
+    var_acc."""
+    if not have_a:
+        w, x, y, z = small_step(w, x, y, z, gx * dt, gy * dt, gz * dt)
+        return (w, x, y, z, var, gain, v0, v1, v2, m0, m1, m2, l0, l1, l2, var_vel, var_acc)
+    # accel_kalman_gain
+    ex, ey, ez = to_global(w, x, y, z, ax, ay, az)
+    ez -= 1.0
+    error = ex * ex + ey * ey + ez * ez
+    gain = 1.0 / (1.0 + var / (sd_acc_g * sd_acc_g))
+    var = error + var * gain
+    n = math.sqrt(ax * ax + ay * ay + az * az)
+    ux, uy, uz = ax / n, ay / n, az / n
+    dx, dy, dz = to_global(w, -x, -y, -z, 0.0, 0.0, 1.0)  # to_local(q, DOWN)
+    vex, vey, vez = uy * dz - uz * dy, uz * dx - ux * dz, ux * dy - uy * dx
+    kk = gain * alpha * dt
+    w, x, y, z = small_step(w, x, y, z, gx * dt + vex * kk, gy * dt + vey * kk,
+                            gz * dt + vez * kk)
+    if velocity_on:
+        # velocity_step with the specific force back in m/s^2
+        fx, fy, fz = ax * -_G, ay * -_G, az * -_G
+        bx, by, bz = to_global(w, -x, -y, -z, v0, v1, v2)  # to_local(q, v)
+        cx, cy, cz = by * gz - bz * gy, bz * gx - bx * gz, bx * gy - by * gx
+        nx, ny, nz = to_global(w, x, y, z, fx - cx, fy - cy, fz - cz)
+        a0, a1, a2 = nx - m0, ny - m1, nz + _G - m2
+        gain_acc = var_a / (var_a + var_acc)
+        var_acc = a0 * a0 + a1 * a1 + a2 * a2 + gain_acc * var_acc
+        m0, m1, m2 = m0 + a0 * gain_acc, m1 + a1 * gain_acc, m2 + a2 * gain_acc
+        d0, d1, d2 = tg0 - v0, tg1 - v1, tg2 - v2
+        gain_vel = var_comb / (var_comb + var_vel * var_acc)
+        var_vel = d0 * d0 + d1 * d1 + d2 * d2 + gain_vel * var_vel
+        h = 0.5 * dt
+        v0 = v0 + (a0 + l0) * h + d0 * gain_vel
+        v1 = v1 + (a1 + l1) * h + d1 * gain_vel
+        v2 = v2 + (a2 + l2) * h + d2 * gain_vel
+        l0, l1, l2 = a0, a1, a2
+    return (w, x, y, z, var, gain, v0, v1, v2, m0, m1, m2, l0, l1, l2, var_vel, var_acc)
+
+
+imufilter_step_kernel = jit(_imufilter_step)
+"""The step as a helper kernel: compiled into ``imufilter_rows`` and ``imufilter_sample``."""
+
+
 def _imufilter_rows(state, gyro, accel, dts, alpha, sd_acc_g, velocity_on, sd_acc_m_s2,
                     sd_vel_m_s, turn_on, turn_sum, out, diag):
     """One step per row (a NaN accel row: none this step). ``state`` in and out: q (4),
@@ -71,41 +121,14 @@ def _imufilter_rows(state, gyro, accel, dts, alpha, sd_acc_g, velocity_on, sd_ac
         if turn_on:
             turn_sum += math.sqrt(gx ** 2 + gy ** 2 + gz ** 2)
         used = not math.isnan(accel[i, 0])
-        if not used:
-            w, x, y, z = small_step(w, x, y, z, gx * dt, gy * dt, gz * dt)
-        else:
+        ax = ay = az = 0.0
+        if used:
             ax, ay, az = accel[i, 0] * k, accel[i, 1] * k, accel[i, 2] * k
-            # accel_kalman_gain
-            ex, ey, ez = to_global(w, x, y, z, ax, ay, az)
-            ez -= 1.0
-            error = ex * ex + ey * ey + ez * ez
-            gain = 1.0 / (1.0 + var / (sd_acc_g * sd_acc_g))
-            var = error + var * gain
-            n = math.sqrt(ax * ax + ay * ay + az * az)
-            ux, uy, uz = ax / n, ay / n, az / n
-            dx, dy, dz = to_global(w, -x, -y, -z, 0.0, 0.0, 1.0)  # to_local(q, DOWN)
-            vex, vey, vez = uy * dz - uz * dy, uz * dx - ux * dz, ux * dy - uy * dx
-            kk = gain * alpha * dt
-            w, x, y, z = small_step(w, x, y, z, gx * dt + vex * kk, gy * dt + vey * kk,
-                                    gz * dt + vez * kk)
-            if velocity_on:
-                # velocity_step with the specific force back in m/s^2
-                fx, fy, fz = ax * -_G, ay * -_G, az * -_G
-                bx, by, bz = to_global(w, -x, -y, -z, v0, v1, v2)  # to_local(q, v)
-                cx, cy, cz = by * gz - bz * gy, bz * gx - bx * gz, bx * gy - by * gx
-                nx, ny, nz = to_global(w, x, y, z, fx - cx, fy - cy, fz - cz)
-                a0, a1, a2 = nx - m0, ny - m1, nz + _G - m2
-                gain_acc = var_a / (var_a + var_acc)
-                var_acc = a0 * a0 + a1 * a1 + a2 * a2 + gain_acc * var_acc
-                m0, m1, m2 = m0 + a0 * gain_acc, m1 + a1 * gain_acc, m2 + a2 * gain_acc
-                d0, d1, d2 = tg0 - v0, tg1 - v1, tg2 - v2
-                gain_vel = var_comb / (var_comb + var_vel * var_acc)
-                var_vel = d0 * d0 + d1 * d1 + d2 * d2 + gain_vel * var_vel
-                h = 0.5 * dt
-                v0 = v0 + (a0 + l0) * h + d0 * gain_vel
-                v1 = v1 + (a1 + l1) * h + d1 * gain_vel
-                v2 = v2 + (a2 + l2) * h + d2 * gain_vel
-                l0, l1, l2 = a0, a1, a2
+        (w, x, y, z, var, gain, v0, v1, v2, m0, m1, m2, l0, l1, l2, var_vel,
+         var_acc) = imufilter_step_kernel(
+            w, x, y, z, var, gain, gx, gy, gz, used, ax, ay, az, dt, alpha, sd_acc_g,
+            velocity_on, var_a, var_comb, v0, v1, v2, m0, m1, m2, l0, l1, l2, var_vel, var_acc,
+            tg0, tg1, tg2)
         out[i, 0], out[i, 1], out[i, 2], out[i, 3] = w, x, y, z
         diag[di, 0] = 1.0 if used else 0.0
         diag[di, 1], diag[di, 2] = gain, var
@@ -130,3 +153,26 @@ def pack_state(q, var, gain, vel, target) -> np.ndarray:  # type: ignore[no-unty
     """The kernel's ``state`` array from the estimator's fields."""
     return np.array([*q, var, gain, *vel.velocity, *vel.accel_mean, *vel.accel_last,
                      vel.var_vel, vel.var_acc, *target], dtype=float)
+
+
+def _imufilter_sample(w, x, y, z, var, gain, gx, gy, gz, have_a, ax, ay, az, dt, alpha,
+                      sd_acc_g, velocity_on, var_a, var_comb, v0, v1, v2, m0, m1, m2, l0, l1,
+                      l2, var_vel, var_acc, tg0, tg1, tg2, fx, fy, fz):
+    """The step called from Python once per sample (``process()``; see ``madgwick_sample``),
+    with the gravity-compensated acceleration in NED last."""
+    (w, x, y, z, var, gain, v0, v1, v2, m0, m1, m2, l0, l1, l2, var_vel,
+     var_acc) = imufilter_step_kernel(w, x, y, z, var, gain, gx, gy, gz, have_a, ax, ay, az, dt,
+                                      alpha, sd_acc_g, velocity_on, var_a, var_comb, v0, v1, v2,
+                                      m0, m1, m2, l0, l1, l2, var_vel, var_acc, tg0, tg1, tg2)
+    lx, ly, lz = linear_accel_ned(w, x, y, z, fx, fy, fz)
+    return (w, x, y, z, var, gain, v0, v1, v2, m0, m1, m2, l0, l1, l2, var_vel, var_acc, lx, ly,
+            lz)
+
+
+imufilter_sample = per_sample_kernel(jit(
+    _imufilter_sample, returns="UniTuple(f8, 20)", w="f8", x="f8", y="f8", z="f8", var="f8",
+    gain="f8", gx="f8", gy="f8", gz="f8", have_a="b1", ax="f8", ay="f8", az="f8", dt="f8",
+    alpha="f8", sd_acc_g="f8", velocity_on="b1", var_a="f8", var_comb="f8", v0="f8", v1="f8",
+    v2="f8", m0="f8", m1="f8", m2="f8", l0="f8", l1="f8", l2="f8", var_vel="f8",
+    var_acc="f8", tg0="f8", tg1="f8", tg2="f8", fx="f8", fy="f8", fz="f8"))
+"""The per-sample kernel (used per sample only on the AOT extension: ``Kernel.per_sample``)."""

@@ -24,11 +24,12 @@ import numpy as np
 from pydantic import Field
 
 from imuhal.core.frames import FloatArray
-from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
+from imuhal_filters.common.ahrs import NO_VECTOR, TO_G, AhrsEstimator, AhrsSettings, ImuStep
 from imuhal_filters.common.fast import Kernel
 from imuhal_filters.common.gate import AccelGate, GateBounds, SoftGateSettings, soft_gate_weight
+from imuhal_filters.common.quat import Vec
 from imuhal_filters.madgwick.core import MagReference, madgwick_step
-from imuhal_filters.madgwick.fast import madgwick_rows
+from imuhal_filters.madgwick.fast import madgwick_rows, madgwick_sample
 from imuhal_filters.madgwick.inv_sqrt import INV_SQRT
 
 SEED_GATE_G = (0.6, 1.4)
@@ -87,6 +88,36 @@ class MadgwickEstimator(AhrsEstimator):
         self._soft_gate_g = self.settings.accel_soft_gate_g
         self._beta = self.settings.beta
         self._mag_reference = self.settings.mag_reference
+        self._paper = self._mag_reference is MagReference.PAPER
+        self._soft_width = 0.0 if self._soft_gate_g is None else float(self._soft_gate_g)
+        # the compiled per-sample step where it pays (the AOT extension; fast.py), for the
+        # exact 1/sqrt it implements; else _step in Python
+        self._sample_kernel = (madgwick_sample.per_sample()
+                               if self.settings.inv_sqrt == "exact" else None)
+
+    def _compiled_step(self, gyro: Vec, accel_m_s2: Vec | None, mag: Vec | None, dt: float,
+                       measured_m_s2: Vec | None) -> dict[str, Any]:
+        """``_step`` in the compiled per-sample kernel: the same floats (tests compare them)."""
+        gate = self._gate
+        gx, gy, gz = gyro
+        f = NO_VECTOR if measured_m_s2 is None else measured_m_s2
+        if accel_m_s2 is None:
+            have_a, ax, ay, az = False, 0.0, 0.0, 0.0
+        else:
+            have_a = True
+            ax, ay, az = (accel_m_s2[0] * TO_G, accel_m_s2[1] * TO_G, accel_m_s2[2] * TO_G)
+        use_m = mag is not None and self._use_mag
+        mx, my, mz = mag if use_m else NO_VECTOR  # type: ignore[misc]
+        q0, q1, q2, q3, gate_open, weight, lx, ly, lz = self._sample_kernel(
+            *self._q, gx, gy, gz, have_a, ax, ay, az, use_m, mx, my, mz, self._beta,
+            gate.lower_g, gate.upper_g, self._soft_width, self._paper, dt, *f)
+        self._q = (q0, q1, q2, q3)
+        self._linear_ned = (lx, ly, lz)
+        if have_a and not gate_open:
+            self._counters["gate_closed_steps"] += 1
+        return {"dt_s": dt, "turn_compensation": self._kinematics.source,
+                "gate_open": gate_open, "accel_used": gate_open,
+                "mag_used": gate_open and use_m, "accel_weight": weight}
 
     def _step(self, step: ImuStep) -> dict[str, Any]:
         accel = step.accel_g

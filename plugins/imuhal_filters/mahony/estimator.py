@@ -17,12 +17,12 @@ import numpy as np
 from pydantic import Field
 
 from imuhal.core.frames import FloatArray
-from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
+from imuhal_filters.common.ahrs import NO_VECTOR, TO_G, AhrsEstimator, AhrsSettings, ImuStep
 from imuhal_filters.common.fast import Kernel
 from imuhal_filters.common.gate import AccelGate, GateBounds, SoftGateSettings, soft_gate_weight
 from imuhal_filters.common.quat import Vec
 from imuhal_filters.mahony.core import mahony_step
-from imuhal_filters.mahony.fast import mahony_rows
+from imuhal_filters.mahony.fast import mahony_rows, mahony_sample
 
 _FIRMWARE: dict[str, Any] = {"initial_attitude": "identity", "turn_compensation": False,
                              "accel_soft_gate_g": None,
@@ -63,6 +63,38 @@ class MahonyEstimator(AhrsEstimator):
         self._gate = AccelGate.from_bounds(self.settings.accel_gate_g)
         self._integral: Vec = (0.0, 0.0, 0.0)
         self._counters["gate_closed_steps"] = 0
+        s = self.settings
+        self._use_mag = s.use_mag
+        self._kp, self._ki = float(s.kp), float(s.ki)
+        self._soft_width = 0.0 if s.accel_soft_gate_g is None else float(s.accel_soft_gate_g)
+        # the compiled per-sample step where it pays (the AOT extension; common/fast.py)
+        self._sample_kernel = mahony_sample.per_sample()
+
+    def _compiled_step(self, gyro: Vec, accel_m_s2: Vec | None, mag: Vec | None, dt: float,
+                       measured_m_s2: Vec | None) -> dict[str, Any]:
+        """``_step`` in the compiled per-sample kernel: the same floats (tests compare them)."""
+        gate = self._gate
+        gx, gy, gz = gyro
+        f = NO_VECTOR if measured_m_s2 is None else measured_m_s2
+        if accel_m_s2 is None:
+            have_a, ax, ay, az = False, 0.0, 0.0, 0.0
+        else:
+            have_a = True
+            ax, ay, az = (accel_m_s2[0] * TO_G, accel_m_s2[1] * TO_G, accel_m_s2[2] * TO_G)
+        use_m = mag is not None and self._use_mag
+        mx, my, mz = mag if use_m else NO_VECTOR  # type: ignore[misc]
+        q0, q1, q2, q3, ix, iy, iz, gate_open, weight, lx, ly, lz = self._sample_kernel(
+            *self._q, *self._integral, gx, gy, gz, have_a, ax, ay, az, use_m, mx, my, mz,
+            self._kp, self._ki, gate.lower_g, gate.upper_g, self._soft_width, dt, *f)
+        self._q = (q0, q1, q2, q3)
+        self._linear_ned = (lx, ly, lz)
+        self._integral = (ix, iy, iz)
+        if have_a and not gate_open:
+            self._counters["gate_closed_steps"] += 1
+        return {"dt_s": dt, "turn_compensation": self._kinematics.source,
+                "gate_open": gate_open, "accel_used": gate_open,
+                "mag_used": gate_open and use_m, "gyro_bias_rad_s": (-ix, -iy, -iz),
+                "accel_weight": weight}
 
     def _step(self, step: ImuStep) -> dict[str, Any]:
         accel = step.accel_g

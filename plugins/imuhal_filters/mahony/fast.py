@@ -11,7 +11,8 @@ import math
 
 import numpy as np
 
-from imuhal_filters.common.fast import jit
+from imuhal_filters.common.fast import jit, per_sample_kernel
+from imuhal_filters.common.fast_frames import linear_accel_ned
 
 _G = 9.80665  # STANDARD_GRAVITY_M_S2, as gravity_positive_g uses it
 
@@ -34,67 +35,18 @@ def _mahony_rows(q_in, integral_in, gyro, accel, mag, dts, kp, ki, gate_lo, gate
         if turn_on:
             turn_sum += math.sqrt(gx ** 2 + gy ** 2 + gz ** 2)
         dt = dts[i]
-        gate_open = False
-        weight = 1.0
         ax = ay = az = 0.0
         if have_a:
             ax, ay, az = accel[i, 0] * k, accel[i, 1] * k, accel[i, 2] * k
-            n = math.sqrt(ax ** 2 + ay ** 2 + az ** 2)
-            gate_open = gate_lo < n < gate_hi
-            if not gate_open:
-                closed += 1
-            if soft_width > 0.0:
-                d = (n - 1.0) / soft_width
-                weight = 1.0 / (1.0 + d * d)
+        use_m = have_m and use_mag
+        q0, q1, q2, q3, ix, iy, iz, gate_open, weight = mahony_step_kernel(
+            q0, q1, q2, q3, ix, iy, iz, gx, gy, gz, have_a, ax, ay, az, use_m, mag[i, 0],
+            mag[i, 1], mag[i, 2], kp, ki, gate_lo, gate_hi, soft_width, dt)
+        if have_a and not gate_open:
+            closed += 1
         diag[di, 0] = 1.0 if gate_open else 0.0
-        diag[di, 1] = 1.0 if gate_open and have_m and use_mag else 0.0
+        diag[di, 1] = 1.0 if gate_open and use_m else 0.0
         diag[di, 2] = weight
-        kpw, kiw = kp * weight, ki * weight
-        # mahony_step
-        if gate_open:
-            n = math.sqrt(ax * ax + ay * ay + az * az)
-            if n != 0.0 and math.isfinite(n):
-                a0, a1, a2 = ax / n, ay / n, az / n
-                hvx = q1 * q3 - q0 * q2
-                hvy = q0 * q1 + q2 * q3
-                hvz = q0 * q0 - 0.5 + q3 * q3
-                ex = a1 * hvz - a2 * hvy
-                ey = a2 * hvx - a0 * hvz
-                ez = a0 * hvy - a1 * hvx
-                if have_m and use_mag:
-                    mx0, my0, mz0 = mag[i, 0], mag[i, 1], mag[i, 2]
-                    nm = math.sqrt(mx0 * mx0 + my0 * my0 + mz0 * mz0)
-                    if nm != 0.0 and math.isfinite(nm):
-                        mx, my, mz = mx0 / nm, my0 / nm, mz0 / nm
-                        q11, q22, q33 = q1 * q1, q2 * q2, q3 * q3
-                        hx = 2.0 * (mx * (0.5 - q22 - q33) + my * (q1 * q2 - q0 * q3)
-                                    + mz * (q1 * q3 + q0 * q2))
-                        hy = 2.0 * (mx * (q1 * q2 + q0 * q3) + my * (0.5 - q11 - q33)
-                                    + mz * (q2 * q3 - q0 * q1))
-                        bx = math.sqrt(hx * hx + hy * hy)
-                        bz = 2.0 * (mx * (q1 * q3 - q0 * q2) + my * (q2 * q3 + q0 * q1)
-                                    + mz * (0.5 - q11 - q22))
-                        hwx = bx * (0.5 - q22 - q33) + bz * (q1 * q3 - q0 * q2)
-                        hwy = bx * (q1 * q2 - q0 * q3) + bz * (q0 * q1 + q2 * q3)
-                        hwz = bx * (q0 * q2 + q1 * q3) + bz * (0.5 - q11 - q22)
-                        ex += my * hwz - mz * hwy
-                        ey += mz * hwx - mx * hwz
-                        ez += mx * hwy - my * hwx
-                if kiw > 0.0:
-                    ix, iy, iz = (ix + 2.0 * kiw * ex * dt, iy + 2.0 * kiw * ey * dt,
-                                  iz + 2.0 * kiw * ez * dt)
-                    gx, gy, gz = gx + ix, gy + iy, gz + iz
-                else:
-                    ix, iy, iz = 0.0, 0.0, 0.0
-                gx, gy, gz = gx + 2.0 * kpw * ex, gy + 2.0 * kpw * ey, gz + 2.0 * kpw * ez
-        h = 0.5 * dt
-        gx, gy, gz = gx * h, gy * h, gz * h
-        w = q0 + (-q1 * gx - q2 * gy - q3 * gz)
-        x = q1 + (q0 * gx + q2 * gz - q3 * gy)
-        y = q2 + (q0 * gy - q1 * gz + q3 * gx)
-        z = q3 + (q0 * gz + q1 * gy - q2 * gx)
-        r = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
-        q0, q1, q2, q3 = w * r, x * r, y * r, z * r
         out[i, 0], out[i, 1], out[i, 2], out[i, 3] = q0, q1, q2, q3
         diag[di, 3], diag[di, 4], diag[di, 5] = -ix, -iy, -iz
     return np.array([q0, q1, q2, q3]), np.array([ix, iy, iz]), turn_sum, closed
@@ -106,3 +58,89 @@ mahony_rows = jit(
     dts="f8[::1]", kp="f8", ki="f8", gate_lo="f8", gate_hi="f8", soft_width="f8",
     use_mag="b1", turn_on="b1", turn_sum="f8", out="f8[:, ::1]", diag="f8[:, ::1]")
 """The compiled kernel (see common/fast.py: the extension, or numba on the first call)."""
+
+
+def _mahony_step(q0, q1, q2, q3, ix, iy, iz, gx, gy, gz, have_a, ax, ay, az, have_m, mx0, my0,
+                 mz0, kp, ki, gate_lo, gate_hi, soft_width, dt):
+    """One step: ``MahonyEstimator._step`` with ``mahony_step`` on scalars, in the same order
+    of operations. ``a`` is the gravity-positive reading in g (``have_a`` False: none), ``m``
+    the magnetometer (``have_m`` False: none or not used), ``i`` the integral feedback.
+    Returns the new quaternion and integral, whether the gate was open and the soft-gate
+    weight."""
+    gate_open = False
+    weight = 1.0
+    if have_a:
+        n = math.sqrt(ax ** 2 + ay ** 2 + az ** 2)
+        gate_open = gate_lo < n < gate_hi
+        if soft_width > 0.0:
+            d = (n - 1.0) / soft_width
+            weight = 1.0 / (1.0 + d * d)
+    kpw, kiw = kp * weight, ki * weight
+    if gate_open:
+        n = math.sqrt(ax * ax + ay * ay + az * az)
+        if n != 0.0 and math.isfinite(n):
+            a0, a1, a2 = ax / n, ay / n, az / n
+            hvx = q1 * q3 - q0 * q2
+            hvy = q0 * q1 + q2 * q3
+            hvz = q0 * q0 - 0.5 + q3 * q3
+            ex = a1 * hvz - a2 * hvy
+            ey = a2 * hvx - a0 * hvz
+            ez = a0 * hvy - a1 * hvx
+            if have_m:
+                nm = math.sqrt(mx0 * mx0 + my0 * my0 + mz0 * mz0)
+                if nm != 0.0 and math.isfinite(nm):
+                    mx, my, mz = mx0 / nm, my0 / nm, mz0 / nm
+                    q11, q22, q33 = q1 * q1, q2 * q2, q3 * q3
+                    hx = 2.0 * (mx * (0.5 - q22 - q33) + my * (q1 * q2 - q0 * q3)
+                                + mz * (q1 * q3 + q0 * q2))
+                    hy = 2.0 * (mx * (q1 * q2 + q0 * q3) + my * (0.5 - q11 - q33)
+                                + mz * (q2 * q3 - q0 * q1))
+                    bx = math.sqrt(hx * hx + hy * hy)
+                    bz = 2.0 * (mx * (q1 * q3 - q0 * q2) + my * (q2 * q3 + q0 * q1)
+                                + mz * (0.5 - q11 - q22))
+                    hwx = bx * (0.5 - q22 - q33) + bz * (q1 * q3 - q0 * q2)
+                    hwy = bx * (q1 * q2 - q0 * q3) + bz * (q0 * q1 + q2 * q3)
+                    hwz = bx * (q0 * q2 + q1 * q3) + bz * (0.5 - q11 - q22)
+                    ex += my * hwz - mz * hwy
+                    ey += mz * hwx - mx * hwz
+                    ez += mx * hwy - my * hwx
+            if kiw > 0.0:
+                ix, iy, iz = (ix + 2.0 * kiw * ex * dt, iy + 2.0 * kiw * ey * dt,
+                              iz + 2.0 * kiw * ez * dt)
+                gx, gy, gz = gx + ix, gy + iy, gz + iz
+            else:
+                ix, iy, iz = 0.0, 0.0, 0.0
+            gx, gy, gz = gx + 2.0 * kpw * ex, gy + 2.0 * kpw * ey, gz + 2.0 * kpw * ez
+    h = 0.5 * dt
+    gx, gy, gz = gx * h, gy * h, gz * h
+    w = q0 + (-q1 * gx - q2 * gy - q3 * gz)
+    x = q1 + (q0 * gx + q2 * gz - q3 * gy)
+    y = q2 + (q0 * gy - q1 * gz + q3 * gx)
+    z = q3 + (q0 * gz + q1 * gy - q2 * gx)
+    r = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
+    q0, q1, q2, q3 = w * r, x * r, y * r, z * r
+    return q0, q1, q2, q3, ix, iy, iz, gate_open, weight
+
+
+mahony_step_kernel = jit(_mahony_step)
+"""The step as a helper kernel: compiled into ``mahony_rows`` and ``mahony_sample``."""
+
+
+def _mahony_sample(q0, q1, q2, q3, ix, iy, iz, gx, gy, gz, have_a, ax, ay, az, have_m, mx0,
+                   my0, mz0, kp, ki, gate_lo, gate_hi, soft_width, dt, fx, fy, fz):
+    """The step called from Python once per sample (``process()``; see ``madgwick_sample``),
+    with the gravity-compensated acceleration in NED last."""
+    w, x, y, z, ix, iy, iz, gate_open, weight = mahony_step_kernel(
+        q0, q1, q2, q3, ix, iy, iz, gx, gy, gz, have_a, ax, ay, az, have_m, mx0, my0, mz0, kp,
+        ki, gate_lo, gate_hi, soft_width, dt)
+    lx, ly, lz = linear_accel_ned(w, x, y, z, fx, fy, fz)
+    return w, x, y, z, ix, iy, iz, gate_open, weight, lx, ly, lz
+
+
+mahony_sample = per_sample_kernel(jit(
+    _mahony_sample, returns="Tuple((f8, f8, f8, f8, f8, f8, f8, b1, f8, f8, f8, f8))",
+    q0="f8", q1="f8", q2="f8", q3="f8", ix="f8", iy="f8", iz="f8", gx="f8", gy="f8", gz="f8",
+    have_a="b1",
+    ax="f8", ay="f8", az="f8", have_m="b1", mx0="f8", my0="f8", mz0="f8", kp="f8", ki="f8",
+    gate_lo="f8", gate_hi="f8", soft_width="f8", dt="f8", fx="f8", fy="f8", fz="f8"))
+"""The per-sample kernel (used per sample only on the AOT extension: ``Kernel.per_sample``)."""
