@@ -197,6 +197,10 @@ class AhrsEstimator(Estimator):
         self._tilt_aligned = identity
         self._heading_aligned = identity or not self.uses_mag
         self._kinematics = KinematicAcceleration(self.settings)
+        self._turn_on = bool(self.settings.turn_compensation)
+        # no speed source (nominal, velocity, airspeed) yet: no turn to compensate, and the
+        # compiled step's caller can skip KinematicAcceleration.step (_on_gyro)
+        self._no_speed = self.settings.nominal_airspeed_m_s is None
         # an infinite full scale still rejects +-inf: the largest float is "unbounded, finite"
         self._gyro_fs = min(float(self.settings.gyro_full_scale_rad_s), _MAX_FLOAT)
         self._accel_fs = min(float(self.settings.accel_full_scale_m_s2), _MAX_FLOAT)
@@ -259,10 +263,12 @@ class AhrsEstimator(Estimator):
         if isinstance(item, VelocitySample):
             if item.valid and within_full_scale(item.velocity_ned_m_s, None):
                 self._kinematics.on_velocity(item)
+                self._no_speed = False
             return []
         if isinstance(item, AirspeedSample):
             if item.valid and within_full_scale((item.airspeed_m_s,), None):
                 self._kinematics.on_airspeed(item)
+                self._no_speed = False
             return []
         if not isinstance(item, (GyroSample, AccelSample, MagSample)):
             return []
@@ -317,6 +323,8 @@ class AhrsEstimator(Estimator):
                           "beyond_full_scale": dict(counters["beyond_full_scale"])}
         self._tilt_aligned, self._heading_aligned = (bool(v) for v in state["aligned"])
         self._kinematics.load_dict(state["kinematics"])
+        self._no_speed = (self.settings.nominal_airspeed_m_s is None
+                          and not self._kinematics.has_speed_source)
         self._set_filter_state(state["filter"])
 
     def diagnostics(self) -> dict[str, Any]:
@@ -575,6 +583,20 @@ class AhrsEstimator(Estimator):
             elif max_age is not None and (t_ns - m_t) * _NS > max_age:
                 self._counters["stale_mag"] += 1
                 mag = None
+        kin = self._kinematics
+        if self._no_speed and self._sample_kernel is not None and self._tilt_aligned and (
+                self._heading_aligned or mag is None):
+            # the common compiled case written out (no speed source: nothing to compensate,
+            # only the turn bookkeeping of KinematicAcceleration.step; aligned: nothing to
+            # align): what _run_step does, without its calls
+            if self._turn_on:
+                kin.count_turn(rate)
+            else:
+                kin.source = "off"
+            self._counters["steps"] += 1
+            diag = self._compiled_step(rate, accel, mag, dt, accel)
+            return [AttitudeEstimate.build(t_ns, self.instance, self._q,
+                                           None if accel is None else self._linear_ned, diag)]
         diag = self._run_step(t_ns, rate, accel, mag, dt)
         if diag is None:
             return []
