@@ -12,13 +12,13 @@ import math
 
 import pytest
 from tests.support.dither import Dither
+from tests.support.master_slave import MasterSlaveBoard, valid_mag
 
 from imuhal.bus.auto_read import AutoReadBus
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import SimulatedClock
-from imuhal.core.errors import ConfigurationError, ImuhalError
-from imuhal.core.samples import MagSample, Sample, SampleFlag
-from imuhal.drivers.base import Driver
+from imuhal.core.errors import ConfigurationError
+from imuhal.core.samples import SampleFlag
 from imuhal.emulation import EmulatedBus, PhysicalInputs
 from imuhal_chips.hmc5883l.driver import Hmc5883lDriver, unchanged_periods
 from imuhal_chips.hmc5883l.emulator import Hmc5883lEmulator
@@ -31,10 +31,11 @@ LSB_UT = 100 / 1090
 PERIOD_NS = round(1e9 / 75)
 
 
-class Board:
+class Board(MasterSlaveBoard):
     """The seed's board on a simulated clock: MAX21100 on SPI, HMC5883L behind its master."""
 
     def __init__(self, mag_settings: dict[str, object] | None = None) -> None:
+        super().__init__()
         self.clock = SimulatedClock()
         self.spi = EmulatedBus("spi0", BusKind.SPI)
         self.imu_emu = self.spi.attach(0, Max21100Emulator(self.clock))
@@ -54,43 +55,6 @@ class Board:
         self.imu_emu.set_physics(PhysicalInputs(angular_rate_rad_s=(0.01, 0.02, 0.03),
                                                 specific_force_m_s2=(0.1, 0.2, 9.7)))
         self.dithers = (Dither(self.mag_emu, seed=1), Dither(self.imu_emu, seed=2))
-        self.schedule: dict[Driver, int] = {}
-        self.errors = 0
-        """Polls that raised (the pipeline counts them and recovers the device)."""
-
-    def run(self, seconds: float) -> list[Sample]:
-        """Poll both drivers at the times they ask for (the IMU first at a tie, as the
-        pipeline does); the mag samples."""
-        drivers = (self.imu, self.mag)
-        if not self.schedule:
-            now = self.clock.now_ns()
-            self.schedule = {d: d.start(now) for d in drivers}
-        end = self.clock.now_ns() + round(seconds * 1e9)
-        out: list[Sample] = []
-        while True:
-            driver = min(drivers, key=lambda d: self.schedule[d])
-            if self.schedule[driver] > end:
-                return out
-            self.clock.sleep_until(self.schedule[driver])
-            for dither in self.dithers:
-                dither()
-            now = self.clock.now_ns()
-            try:
-                result = driver.poll(now)
-            except ImuhalError:  # as the pipeline does: recover, retry 10 ms later
-                self.errors += 1
-                try:
-                    self.schedule[driver] = driver.recover(now)
-                except ImuhalError:
-                    self.schedule[driver] = now + 10_000_000
-                continue
-            if driver is self.mag:
-                out += result.samples
-            self.schedule[driver] = max(result.next_poll_ns, self.clock.now_ns() + 1)
-
-
-def _valid(samples: list[Sample]) -> list[MagSample]:
-    return [s for s in samples if isinstance(s, MagSample) and s.valid]
 
 
 def test_the_field_comes_from_the_imu_burst_in_the_hmc5883l_axis_and_byte_order() -> None:
@@ -98,7 +62,7 @@ def test_the_field_comes_from_the_imu_burst_in_the_hmc5883l_axis_and_byte_order(
     board.run(0.2)
     aux_transfers = board.aux.transfers
     samples = board.run(2.0)
-    valid = _valid(samples)
+    valid = valid_mag(samples)
     # A measurement whose six bytes equal the previous one's cannot be told from no new
     # measurement and is not handed out: one in eight with this test's half-LSB dither,
     # about one in 500 with the chip's own 2 mG noise at +/-1.3 Ga.
@@ -123,7 +87,7 @@ def test_samples_are_stamped_a_fixed_latency_after_each_measurement() -> None:
     a guard later: the driver polls that long plus its own guard after each measurement
     instant (about 6 ms at the seed's rates) and stamps the poll's time."""
     board = Board()
-    samples = _valid(board.run(1.0))
+    samples = valid_mag(board.run(1.0))
     latency = round(1e9 / 250) + round(1e9 / 250) // 8
     expected = latency + PERIOD_NS // 8
     origin = board.mag._mode_written_ns
@@ -142,9 +106,9 @@ def test_a_stopped_magnetometer_is_flagged_stale_and_restarted() -> None:
     limit = (unchanged_periods(1090) + 2.5) * PERIOD_NS
     assert stale[0].t_ns - t_stuck <= limit + 2 * PERIOD_NS
     # ... nothing valid until then, and the driver's restart (a Mode write) cures it
-    assert not [s for s in _valid(samples) if t_stuck + PERIOD_NS < s.t_ns <= stale[-1].t_ns]
+    assert not [s for s in valid_mag(samples) if t_stuck + PERIOD_NS < s.t_ns <= stale[-1].t_ns]
     assert board.mag.health.reconfigurations >= 1
-    assert [s for s in _valid(samples) if s.t_ns > stale[-1].t_ns]
+    assert [s for s in valid_mag(samples) if s.t_ns > stale[-1].t_ns]
 
 
 def test_a_slave_that_stops_answering_the_master_gives_no_valid_sample() -> None:
@@ -158,10 +122,10 @@ def test_a_slave_that_stops_answering_the_master_gives_no_valid_sample() -> None
     t_gone = board.clock.now_ns()
     samples = board.run(0.5)
     assert board.imu_emu.slave_read_failures > 0
-    assert not [s for s in _valid(samples) if s.t_ns > t_gone + PERIOD_NS]
+    assert not [s for s in valid_mag(samples) if s.t_ns > t_gone + PERIOD_NS]
     assert board.errors > 0
     board.mag_emu.absent = False  # plugged back in: the driver's recovery brings it back
-    assert _valid(board.run(0.5))
+    assert valid_mag(board.run(0.5))
 
 
 def test_a_copy_delayed_by_failed_slave_reads_is_still_handed_out() -> None:
@@ -173,7 +137,7 @@ def test_a_copy_delayed_by_failed_slave_reads_is_still_handed_out() -> None:
         board.run(0.3)
         if failing:  # every third transaction on the master's bus to the slave fails
             board.imu_emu.child_buses()["aux"].fail_transfers(set(range(1, 3000, 3)))
-        counts.append(len(_valid(board.run(2.0))))
+        counts.append(len(valid_mag(board.run(2.0))))
     assert board.imu_emu.slave_read_failures > 150
     assert counts[1] >= counts[0] - 2
 
@@ -184,7 +148,7 @@ def test_frozen_conversions_are_flagged_frozen_once_they_outlast_the_frozen_rule
     board.mag_emu.frozen = True
     samples = board.run(1.5)
     late = [s for s in samples if s.t_ns > board.clock.now_ns() - 500_000_000]
-    assert late and not _valid(late)
+    assert late and not valid_mag(late)
     assert any(s.flags & SampleFlag.FROZEN for s in late)
 
 
@@ -203,14 +167,14 @@ def test_a_measurement_coming_back_after_a_master_reset_is_not_new() -> None:
     assert board.imu_emu.slave_reads > reads  # the auto-read is back
     blank = [s for s in samples if s.flags & SampleFlag.BLANK]
     assert blank
-    assert not [s for s in _valid(samples) if s.t_ns > blank[0].t_ns]
+    assert not [s for s in valid_mag(samples) if s.t_ns > blank[0].t_ns]
 
 
 def test_the_first_measurement_after_configure_is_dropped() -> None:
     """It still uses the previous gain (HMC5883L datasheet): at +/-8.1 Ga after the
     default +/-1.3 Ga the first new bytes would read 4.7 times the field."""
     board = Board({"range_gauss": 8.1})
-    samples = _valid(board.run(0.5))
+    samples = valid_mag(board.run(0.5))
     lsb = 100 / 230
     assert samples and all(abs(s.mag_ut[0] - FIELD_UT[0]) <= 1.0001 * lsb for s in samples)
 

@@ -14,13 +14,13 @@ import math
 
 import pytest
 from tests.support.dither import Dither
+from tests.support.master_slave import MasterSlaveBoard, valid_mag
 
 from imuhal.bus.auto_read import AutoReadBus, AutoReadFeed
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import SimulatedClock
-from imuhal.core.errors import ConfigurationError, ImuhalError
-from imuhal.core.samples import MagSample, Sample, SampleFlag
-from imuhal.drivers.base import Driver
+from imuhal.core.errors import ConfigurationError
+from imuhal.core.samples import SampleFlag
 from imuhal.emulation import EmulatedBus, PhysicalInputs
 from imuhal_chips.ak8963.driver import AK8963Driver
 from imuhal_chips.ak8963.emulator import AK8963Emulator
@@ -37,12 +37,13 @@ I2C_MST_CTRL, I2C_SLV0_ADDR, I2C_SLV0_REG, I2C_SLV0_CTRL = 0x24, 0x25, 0x26, 0x2
 I2C_MST_DELAY_CTRL, USER_CTRL = 0x67, 0x6A
 
 
-class Board:
+class Board(MasterSlaveBoard):
     """An MPU-9250 (I2C or SPI, I2C master on) with its AK8963 read by slave 0."""
 
     def __init__(self, mag_settings: dict[str, object] | None = None, *,
                  kind: BusKind = BusKind.I2C, imu_settings: dict[str, object] | None = None,
                  ) -> None:
+        super().__init__()
         self.clock = SimulatedClock()
         self.host = EmulatedBus("host", kind)
         address = 0x68 if kind is BusKind.I2C else 0
@@ -69,42 +70,6 @@ class Board:
         # previous one's bytes and be taken for a kept copy (see the driver's docstring).
         self.dithers = (Dither(self.mag_emu, seed=1, amplitude=2.49, spread=1.0),
                         Dither(self.imu_emu, seed=2))
-        self.schedule: dict[Driver, int] = {}
-        self.errors = 0
-
-    def run(self, seconds: float) -> list[Sample]:
-        """Poll both drivers when they ask (the IMU first at a tie, as the pipeline does);
-        the mag samples."""
-        drivers = (self.imu, self.mag)
-        if not self.schedule:
-            now = self.clock.now_ns()
-            self.schedule = {d: d.start(now) for d in drivers}
-        end = self.clock.now_ns() + round(seconds * 1e9)
-        out: list[Sample] = []
-        while True:
-            driver = min(drivers, key=lambda d: self.schedule[d])
-            if self.schedule[driver] > end:
-                return out
-            self.clock.sleep_until(self.schedule[driver])
-            for dither in self.dithers:
-                dither()
-            now = self.clock.now_ns()
-            try:
-                result = driver.poll(now)
-            except ImuhalError:  # as the pipeline does: recover, retry 10 ms later
-                self.errors += 1
-                try:
-                    self.schedule[driver] = driver.recover(now)
-                except ImuhalError:
-                    self.schedule[driver] = now + 10_000_000
-                continue
-            if driver is self.mag:
-                out += result.samples
-            self.schedule[driver] = max(result.next_poll_ns, self.clock.now_ns() + 1)
-
-
-def _valid(samples: list[Sample]) -> list[MagSample]:
-    return [s for s in samples if isinstance(s, MagSample) and s.valid]
 
 
 @pytest.mark.parametrize("kind", [BusKind.I2C, BusKind.SPI])
@@ -114,7 +79,7 @@ def test_every_measurement_comes_from_the_mpu_burst_in_the_ak8963_byte_and_axis_
     board.run(0.2)
     aux_transfers = board.aux.transfers
     samples = board.run(2.0)
-    valid = _valid(samples)
+    valid = valid_mag(samples)
     # 100 Hz, DRDY in ST1 marks each new copy; a measurement whose eight bytes equal the
     # previous one's is taken for the master's kept copy and not handed out (about one in
     # a hundred here)
@@ -144,7 +109,7 @@ def test_samples_come_one_delivery_latency_after_each_measurement() -> None:
     feed = board.mag._feed
     assert isinstance(feed, AutoReadFeed)
     assert feed.latency_ns == 5_000_000 + 5_000_000 // 8
-    for s in _valid(board.run(1.0)):
+    for s in valid_mag(board.run(1.0)):
         assert s.t_ns - feed.changed_ns < AK_PERIOD_NS
         # the measurement instant: CNTL1 write + k periods (the emulator's own clock)
         age = (s.t_ns - board.mag._cntl1_written_ns) % AK_PERIOD_NS
@@ -160,10 +125,10 @@ def test_a_stopped_magnetometer_is_flagged_stale_never_valid_and_restarted() -> 
     stale = [s for s in samples if s.flags & SampleFlag.STALE]
     assert stale and all(math.isnan(s.mag_ut[0]) for s in stale)
     assert stale[0].t_ns - t_stuck <= 4 * AK_PERIOD_NS  # the polling toolkit's 2.5 periods
-    assert not [s for s in _valid(samples) if t_stuck + AK_PERIOD_NS < s.t_ns]
+    assert not [s for s in valid_mag(samples) if t_stuck + AK_PERIOD_NS < s.t_ns]
     assert board.mag.health.reconfigurations >= 1
     board.mag_emu.stuck_data_ready = False
-    assert len(_valid(board.run(0.5))) >= 40
+    assert len(valid_mag(board.run(0.5))) >= 40
 
 
 def test_a_slave_that_stops_answering_sets_slv0_nack_and_its_kept_copy_is_never_new() -> None:
@@ -177,10 +142,10 @@ def test_a_slave_that_stops_answering_sets_slv0_nack_and_its_kept_copy_is_never_
     board.imu.poll(board.clock.now_ns())
     assert board.imu_emu._regs[0x36] & 0x01  # I2C_MST_STATUS.I2C_SLV0_NACK
     samples = board.run(0.5)
-    assert not [s for s in _valid(samples) if s.t_ns > t_gone + AK_PERIOD_NS]
+    assert not [s for s in valid_mag(samples) if s.t_ns > t_gone + AK_PERIOD_NS]
     assert board.errors > 0  # the overdue CNTL1 check finds nobody and recovery retries
     board.mag_emu.absent = False  # plugged back in: the recovery brings it back
-    assert len(_valid(board.run(0.5))) >= 30
+    assert len(valid_mag(board.run(0.5))) >= 30
 
 
 def test_a_copy_missed_by_failed_slave_reads_comes_with_the_next_read() -> None:
@@ -193,18 +158,18 @@ def test_a_copy_missed_by_failed_slave_reads_comes_with_the_next_read() -> None:
         if failing:
             board.imu_emu.child_buses()["aux"].fail_transfers(set(range(1, 3000, 3)))
         samples = board.run(2.0)
-        assert len(_valid(samples)) == len(samples)
+        assert len(valid_mag(samples)) == len(samples)
         counts.append(len(samples))
     # each measurement once at most (no kept copy handed out again), nearly all of them
     assert 0.9 * counts[0] <= counts[1] <= counts[0] <= 200
 
 
-def test_overflow_is_flagged_never_valid() -> None:
+def test_overflow_is_flagged_nevervalid_mag() -> None:
     board = Board()
     board.run(0.2)
     board.mag_emu.set_physics(PhysicalInputs(magnetic_field_ut=(3000.0, 2000.0, 100.0)))
     samples = [s for s in board.run(0.3) if s.t_ns > board.clock.now_ns() - 0.25e9]
-    assert len(samples) >= 20 and not _valid(samples)
+    assert len(samples) >= 20 and not valid_mag(samples)
     assert all(s.flags & SampleFlag.OVERFLOW for s in samples)
 
 
@@ -213,7 +178,7 @@ def test_the_mpu_slower_than_the_ak8963_still_reads_each_sample_once() -> None:
     each copy is new, handed out once."""
     board = Board(imu_settings={"odr_hz": 50})
     board.run(0.3)
-    valid = _valid(board.run(2.0))
+    valid = valid_mag(board.run(2.0))
     assert 0.95 * 100 <= len(valid) <= 101
 
 
@@ -225,7 +190,7 @@ def test_an_mpu_reset_restores_slave0_and_the_old_copy_is_not_new() -> None:
     samples = board.run(1.0)
     assert board.imu.health.resets_detected == 1
     assert board.imu_emu._regs[I2C_SLV0_CTRL] == 0x88
-    after = _valid(samples)
+    after = valid_mag(samples)
     assert len(after) <= 101  # nothing handed out twice
     assert len([s for s in after if s.t_ns > t_reset + 0.5e9]) >= 45
 

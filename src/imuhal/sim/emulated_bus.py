@@ -48,8 +48,9 @@ class EmulatedBus(Bus):
 
     def transfer(self, target: int, write: bytes = b"", read_len: int = 0) -> bytes:
         """:meth:`Bus.transfer` and :meth:`_transfer` in one call (the same checks in the
-        same order): every register access of an emulated board comes through here, the
-        magnetometer behind the MAX21100's I2C master alone 2,250 times per second."""
+        same order): every register access of an emulated board comes through here, about
+        500 times per simulated second on the seed board. :meth:`_transfer` keeps the
+        base class's path for the bus's other operations."""
         if type(write) is not bytes:  # a bytearray or memoryview: the callee gets a copy
             write = bytes(write)
         with self.lock:
