@@ -110,7 +110,9 @@ def test_status_explains_a_missing_build(
     out = capsys.readouterr().out
     assert f"kernel directory: {no_kernel_env}" in out
     # six batch kernels and three per-sample steps
-    assert out.count(f"not built: no extension in {no_kernel_env}") == 9
+    # said once per kernel, with the fix
+    assert out.count(f"no extension built in {no_kernel_env} (run `imuhal kernels build`)") == 9
+    assert out.count("no extension") == 9
 
 
 def test_status_shows_per_sample_steps_on_python_without_an_extension(

@@ -20,7 +20,14 @@ import numpy as np
 import pytest
 from tests.filters.dataset_a import load_head
 
-from imuhal.core.samples import AccelSample, Frame, GyroSample, MagSample, Sample
+from imuhal.core.samples import (
+    AccelSample,
+    Frame,
+    GyroSample,
+    MagSample,
+    Sample,
+    VelocitySample,
+)
 from imuhal.estimation.outputs import AttitudeEstimate
 from imuhal_filters.imufilter.estimator import ImuFilterEstimator
 from imuhal_filters.madgwick.estimator import MadgwickEstimator
@@ -47,7 +54,9 @@ CASES = [
 ]
 
 
-def _samples() -> Iterator[Sample]:
+def _samples(velocity_from: int | None = None) -> Iterator[Sample]:
+    """Data set A's head with the corner cases; from row ``velocity_from`` on, a 12 m/s
+    ground velocity every 20th row (a speed source arriving mid-stream)."""
     t, gyro, accel, mag, _ = load_head()
     accel = accel.copy()
     accel[700] = (0.0, 0.0, -25.0)  # 2.5 g: the hard gate (seed preset) closes
@@ -60,13 +69,16 @@ def _samples() -> Iterator[Sample]:
         if i % 3 == 0:              # a slower magnetometer
             yield MagSample(t_ns=t_ns, device="mag", frame=Frame.BODY_NED,
                             mag_ut=tuple(mag[i]))
+        if velocity_from is not None and i >= velocity_from and i % 20 == 0:
+            yield VelocitySample(t_ns=t_ns, device="gnss", velocity_ned_m_s=(12.0, 1.0, 0.0))
         yield GyroSample(t_ns=t_ns, device="imu", frame=Frame.BODY_NED,
                          gyro_rad_s=tuple(gyro[i]))
 
 
-def _run(cls: type, settings: dict) -> tuple[list[AttitudeEstimate], dict[str, Any]]:
+def _run(cls: type, settings: dict, velocity_from: int | None = None
+         ) -> tuple[list[AttitudeEstimate], dict[str, Any]]:
     est = cls(cls.Settings(**settings))
-    out = [e for s in _samples() for e in est.process(s)]
+    out = [e for s in _samples(velocity_from) for e in est.process(s)]
     return out, est.diagnostics()  # type: ignore[return-value]
 
 
@@ -104,3 +116,18 @@ def test_fast32_square_root_keeps_the_python_step() -> None:
     # the kernel implements the exact 1/sqrt only: the release's fast32 stays in Python
     est = MadgwickEstimator(MadgwickEstimator.Settings(preset="reference"))
     assert est._sample_kernel is None
+
+
+@pytest.mark.parametrize("cls", [MadgwickEstimator, MahonyEstimator], ids=lambda c: c.name)
+def test_a_velocity_source_arriving_mid_stream_compensates_as_the_python_step_does(
+        cls: type, monkeypatch: pytest.MonkeyPatch) -> None:
+    # the compiled path skips the turn compensation only while no speed source has come
+    fast, fast_counts = _run(cls, {}, velocity_from=800)
+    monkeypatch.setenv("IMUHAL_KERNELS", "python")
+    ref, ref_counts = _run(cls, {}, velocity_from=800)
+    assert [e.diagnostics["turn_compensation"] for e in fast] == \
+        [e.diagnostics["turn_compensation"] for e in ref]
+    assert {e.diagnostics["turn_compensation"] for e in fast} == {"none", "velocity"}
+    assert np.allclose([e.q_body_to_ned for e in fast], [e.q_body_to_ned for e in ref],
+                       rtol=0, atol=1e-12)
+    assert fast_counts == ref_counts

@@ -28,6 +28,7 @@ and expose their quaternion through ``_q``.
 from __future__ import annotations
 
 import math
+import sys
 from abc import abstractmethod
 from collections.abc import Sequence
 from typing import Any, ClassVar, Literal, NamedTuple
@@ -121,6 +122,10 @@ def _vec(v: Sequence[float]) -> Vec:
 
 
 _OK = SampleFlag.OK
+_BODY_NED = Frame.BODY_NED
+_ACCEL, _MAG, _GYRO = Channel.ACCEL.value, Channel.MAG.value, Channel.GYRO.value
+_INF = math.inf
+_MAX_FLOAT = sys.float_info.max
 TO_G = -1.0 / STANDARD_GRAVITY_M_S2
 """gravity_positive_g's factor (m/s^2 specific force -> gravity-positive g): the same product
 for a compiled step's caller."""
@@ -192,8 +197,13 @@ class AhrsEstimator(Estimator):
         self._tilt_aligned = identity
         self._heading_aligned = identity or not self.uses_mag
         self._kinematics = KinematicAcceleration(self.settings)
-        self._gyro_fs = float(self.settings.gyro_full_scale_rad_s)
-        self._accel_fs = float(self.settings.accel_full_scale_m_s2)
+        self._turn_on = bool(self.settings.turn_compensation)
+        # no speed source (nominal, velocity, airspeed) yet: no turn to compensate, and the
+        # compiled step's caller can skip KinematicAcceleration.step (_on_gyro)
+        self._no_speed = self.settings.nominal_airspeed_m_s is None
+        # an infinite full scale still rejects +-inf: the largest float is "unbounded, finite"
+        self._gyro_fs = min(float(self.settings.gyro_full_scale_rad_s), _MAX_FLOAT)
+        self._accel_fs = min(float(self.settings.accel_full_scale_m_s2), _MAX_FLOAT)
         # read at every gyro sample: kept as plain attributes
         self._nominal_dt_s = self.settings.sample_period_s
         self._dt_from_timestamps = self.settings.dt_from_timestamps
@@ -206,29 +216,46 @@ class AhrsEstimator(Estimator):
         # take a direct path (exact type, one bound check per component); anything else,
         # subclasses of the sample types included, takes the general one below.
         kind = type(item)
-        if kind is GyroSample or kind is AccelSample or kind is MagSample:
+        if kind is AccelSample:
+            # the most frequent non-gyro sample, on its own path: its field read directly
+            # (the ``vector`` property is a call), one bound check per component
             if item.flags != _OK:
-                self._counters["invalid"][item.channel.value] += 1
+                self._counters["invalid"][_ACCEL] += 1
                 return []
-            x, y, z = item.vector  # type: ignore[union-attr]
-            fs = (self._gyro_fs if kind is GyroSample else
-                  self._accel_fs if kind is AccelSample else math.inf)
-            # NaN fails every comparison, and within a finite full scale +-inf fails too:
-            # one test covers finite and in range (the magnetometer's scale is unbounded)
-            if not (-fs <= x <= fs and -fs <= y <= fs and -fs <= z <= fs) or (
-                    fs == math.inf
-                    and not (abs(x) < math.inf and abs(y) < math.inf and abs(z) < math.inf)):
-                self._reject(item.channel.value)
+            x, y, z = item.accel_m_s2  # type: ignore[union-attr]
+            fs = self._accel_fs
+            if not (-fs <= x <= fs and -fs <= y <= fs and -fs <= z <= fs):
+                self._reject(_ACCEL)  # NaN and +-inf fail the comparisons too
                 return []
-            if item.frame is not Frame.BODY_NED:  # type: ignore[union-attr]
+            if item.frame is not _BODY_NED:  # type: ignore[union-attr]
                 return self._wrong_frame(item)  # type: ignore[arg-type]
-            if kind is AccelSample:
-                self._accel_m_s2, self._accel_t_ns = (float(x), float(y), float(z)), item.t_ns
+            self._accel_m_s2, self._accel_t_ns = (float(x), float(y), float(z)), item.t_ns
+            return []
+        if kind is MagSample:
+            if item.flags != _OK:
+                self._counters["invalid"][_MAG] += 1
                 return []
-            if kind is MagSample:
-                if self.uses_mag:
-                    self._mag_ut, self._mag_t_ns = (float(x), float(y), float(z)), item.t_ns
+            x, y, z = item.mag_ut  # type: ignore[union-attr]
+            # the magnetometer's scale is unbounded: only finite (NaN fails every test)
+            if not (abs(x) < _INF and abs(y) < _INF and abs(z) < _INF):
+                self._reject(_MAG)
                 return []
+            if item.frame is not _BODY_NED:  # type: ignore[union-attr]
+                return self._wrong_frame(item)  # type: ignore[arg-type]
+            if self.uses_mag:
+                self._mag_ut, self._mag_t_ns = (float(x), float(y), float(z)), item.t_ns
+            return []
+        if kind is GyroSample:
+            if item.flags != _OK:
+                self._counters["invalid"][_GYRO] += 1
+                return []
+            x, y, z = item.gyro_rad_s  # type: ignore[union-attr]
+            fs = self._gyro_fs
+            if not (-fs <= x <= fs and -fs <= y <= fs and -fs <= z <= fs):
+                self._reject(_GYRO)
+                return []
+            if item.frame is not _BODY_NED:  # type: ignore[union-attr]
+                return self._wrong_frame(item)  # type: ignore[arg-type]
             return self._on_gyro(item, (float(x), float(y), float(z)))  # type: ignore[arg-type]
         return self._process_general(item)
 
@@ -236,10 +263,12 @@ class AhrsEstimator(Estimator):
         if isinstance(item, VelocitySample):
             if item.valid and within_full_scale(item.velocity_ned_m_s, None):
                 self._kinematics.on_velocity(item)
+                self._no_speed = False
             return []
         if isinstance(item, AirspeedSample):
             if item.valid and within_full_scale((item.airspeed_m_s,), None):
                 self._kinematics.on_airspeed(item)
+                self._no_speed = False
             return []
         if not isinstance(item, (GyroSample, AccelSample, MagSample)):
             return []
@@ -294,6 +323,8 @@ class AhrsEstimator(Estimator):
                           "beyond_full_scale": dict(counters["beyond_full_scale"])}
         self._tilt_aligned, self._heading_aligned = (bool(v) for v in state["aligned"])
         self._kinematics.load_dict(state["kinematics"])
+        self._no_speed = (self.settings.nominal_airspeed_m_s is None
+                          and not self._kinematics.has_speed_source)
         self._set_filter_state(state["filter"])
 
     def diagnostics(self) -> dict[str, Any]:
@@ -552,6 +583,20 @@ class AhrsEstimator(Estimator):
             elif max_age is not None and (t_ns - m_t) * _NS > max_age:
                 self._counters["stale_mag"] += 1
                 mag = None
+        kin = self._kinematics
+        if self._no_speed and self._sample_kernel is not None and self._tilt_aligned and (
+                self._heading_aligned or mag is None):
+            # the common compiled case written out (no speed source: nothing to compensate,
+            # only the turn bookkeeping of KinematicAcceleration.step; aligned: nothing to
+            # align): what _run_step does, without its calls
+            if self._turn_on:
+                kin.count_turn(rate)
+            else:
+                kin.source = "off"
+            self._counters["steps"] += 1
+            diag = self._compiled_step(rate, accel, mag, dt, accel)
+            return [AttitudeEstimate.build(t_ns, self.instance, self._q,
+                                           None if accel is None else self._linear_ned, diag)]
         diag = self._run_step(t_ns, rate, accel, mag, dt)
         if diag is None:
             return []

@@ -180,7 +180,7 @@ def find(kernel: Kernel, directory: Path | None = None) -> Found:
     d = kernel_dir() if directory is None else directory
     candidates = manifests(d)
     if not candidates:
-        return Found(None, f"not built: no extension in {d}")
+        return Found(None, f"no extension built in {d} (run `imuhal kernels build`)")
     reasons = []
     for m in candidates:
         why = m.mismatch(kernel)

@@ -263,12 +263,16 @@ def _choose(kernel: Kernel, chosen: str, dir_key: str) -> Choice:
         raise KernelUnavailable(
             f"IMUHAL_KERNELS=aot, but kernel {kernel.name} has no usable extension "
             f"({why_not_aot}): run `imuhal kernels build` or unset IMUHAL_KERNELS")
+    # "no extension built in DIR (run ...)" says it once, with the fix; any other reason is
+    # why there is no extension to serve this kernel
+    if not why_not_aot.startswith("no extension built"):
+        why_not_aot = f"no extension ({why_not_aot})"
     if _INSTALLED:
         return Choice("jit", "numba installed" if chosen == "jit" else
-                      f"no extension ({why_not_aot}); numba installed")
+                      f"{why_not_aot}; numba installed")
     if chosen == "jit":
         raise KernelUnavailable("IMUHAL_KERNELS=jit needs numba: pip install -e '.[fast]'")
-    return Choice("python", f"no extension ({why_not_aot}); numba not installed")
+    return Choice("python", f"{why_not_aot}; numba not installed")
 
 
 def swap_helpers(fn: Callable[..., Any], compile_helper: Callable[[Kernel], Any]) -> None:

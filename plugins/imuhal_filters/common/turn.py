@@ -118,8 +118,7 @@ class KinematicAcceleration:
         if not self.s.turn_compensation:
             self.source = "off"
             return _ZERO
-        self._turn_sum += math.sqrt(gyro_rad_s[0] ** 2 + gyro_rad_s[1] ** 2 + gyro_rad_s[2] ** 2)
-        self._turn_n += 1
+        self.count_turn(gyro_rad_s)
         nominal = self.s.nominal_airspeed_m_s
         # (a source that never sent a sample is not fresh: skip the calls, once per step)
         if self._speed.t_ns is not None and self._speed.fresh(t_ns, self.s.speed_max_age_s):
@@ -145,6 +144,14 @@ class KinematicAcceleration:
             return _along_x(gyro_rad_s, nominal, 0.0)
         self.source = "none"
         return _ZERO
+
+    def count_turn(self, gyro_rad_s: Vec) -> None:
+        """The turn detector's bookkeeping of one gyro step with compensation on, and
+        ``source`` "none" (what ``step`` leaves without a speed source; the caller knows
+        there is none)."""
+        self._turn_sum += math.sqrt(gyro_rad_s[0] ** 2 + gyro_rad_s[1] ** 2 + gyro_rad_s[2] ** 2)
+        self._turn_n += 1
+        self.source = "none"
 
     # -- batch kernels ----------------------------------------------------------------------
 

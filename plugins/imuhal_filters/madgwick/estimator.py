@@ -81,6 +81,7 @@ class MadgwickEstimator(AhrsEstimator):
 
     def _reset_filter(self) -> None:
         self._gate = AccelGate.from_bounds(self.settings.accel_gate_g)
+        self._gate_lower_g, self._gate_upper_g = self._gate.lower_g, self._gate.upper_g
         self._inv_sqrt = INV_SQRT[self.settings.inv_sqrt]
         self._counters["gate_closed_steps"] = 0
         # read at every step: kept as plain attributes
@@ -98,7 +99,6 @@ class MadgwickEstimator(AhrsEstimator):
     def _compiled_step(self, gyro: Vec, accel_m_s2: Vec | None, mag: Vec | None, dt: float,
                        measured_m_s2: Vec | None) -> dict[str, Any]:
         """``_step`` in the compiled per-sample kernel: the same floats (tests compare them)."""
-        gate = self._gate
         gx, gy, gz = gyro
         f = NO_VECTOR if measured_m_s2 is None else measured_m_s2
         if accel_m_s2 is None:
@@ -110,7 +110,7 @@ class MadgwickEstimator(AhrsEstimator):
         mx, my, mz = mag if use_m else NO_VECTOR  # type: ignore[misc]
         q0, q1, q2, q3, gate_open, weight, lx, ly, lz = self._sample_kernel(
             *self._q, gx, gy, gz, have_a, ax, ay, az, use_m, mx, my, mz, self._beta,
-            gate.lower_g, gate.upper_g, self._soft_width, self._paper, dt, *f)
+            self._gate_lower_g, self._gate_upper_g, self._soft_width, self._paper, dt, *f)
         self._q = (q0, q1, q2, q3)
         self._linear_ned = (lx, ly, lz)
         if have_a and not gate_open:

@@ -61,6 +61,7 @@ class MahonyEstimator(AhrsEstimator):
 
     def _reset_filter(self) -> None:
         self._gate = AccelGate.from_bounds(self.settings.accel_gate_g)
+        self._gate_lower_g, self._gate_upper_g = self._gate.lower_g, self._gate.upper_g
         self._integral: Vec = (0.0, 0.0, 0.0)
         self._counters["gate_closed_steps"] = 0
         s = self.settings
@@ -73,7 +74,6 @@ class MahonyEstimator(AhrsEstimator):
     def _compiled_step(self, gyro: Vec, accel_m_s2: Vec | None, mag: Vec | None, dt: float,
                        measured_m_s2: Vec | None) -> dict[str, Any]:
         """``_step`` in the compiled per-sample kernel: the same floats (tests compare them)."""
-        gate = self._gate
         gx, gy, gz = gyro
         f = NO_VECTOR if measured_m_s2 is None else measured_m_s2
         if accel_m_s2 is None:
@@ -85,7 +85,7 @@ class MahonyEstimator(AhrsEstimator):
         mx, my, mz = mag if use_m else NO_VECTOR  # type: ignore[misc]
         q0, q1, q2, q3, ix, iy, iz, gate_open, weight, lx, ly, lz = self._sample_kernel(
             *self._q, *self._integral, gx, gy, gz, have_a, ax, ay, az, use_m, mx, my, mz,
-            self._kp, self._ki, gate.lower_g, gate.upper_g, self._soft_width, dt, *f)
+            self._kp, self._ki, self._gate_lower_g, self._gate_upper_g, self._soft_width, dt, *f)
         self._q = (q0, q1, q2, q3)
         self._linear_ned = (lx, ly, lz)
         self._integral = (ix, iy, iz)
