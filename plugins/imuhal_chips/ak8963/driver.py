@@ -39,7 +39,7 @@ from __future__ import annotations
 
 from typing import ClassVar, Literal
 
-from imuhal.bus.auto_read import AutoReadBus, AutoReadFeed
+from imuhal.bus.auto_read import AutoReadBus, AutoReadFeed, require_auto_read
 from imuhal.bus.base import BusKind, Link
 from imuhal.bus.registers import RegisterView
 from imuhal.core.clock import Clock
@@ -101,11 +101,10 @@ class AK8963Driver(Driver):
         self._watch = ResetWatch(self.settings.reset_check_s)
         self._frozen = FrozenWatch(self.FROZEN_AFTER_FRAMES)
         self.last: Measurement | None = None
-        if self.settings.read == "auto" and not isinstance(link.bus, AutoReadBus):
-            raise ConfigurationError(
-                f"{self.describe()}: read: auto needs a bus whose master reads the chip on "
-                f"its own (the MPU-9250's imu/aux with aux: master); {link.bus.name} "
-                "cannot: use read: one-shot or set the MPU's aux: master")
+        if self.settings.read == "auto":
+            require_auto_read(link.bus, who=self.describe(), bus_name=link.bus.name,
+                              example="the MPU-9250's imu/aux with aux: master",
+                              fix="use read: one-shot or set the MPU's aux: master")
         self._feed: AutoReadFeed | None = None
         self._taken: bytes | None = None
         """read: auto: the copy with DRDY behind the last sample (or before configure)."""

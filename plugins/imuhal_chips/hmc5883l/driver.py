@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import math
 
-from imuhal.bus.auto_read import AutoReadBus, AutoReadFeed
+from imuhal.bus.auto_read import AutoReadBus, AutoReadFeed, require_auto_read
 from imuhal.bus.base import BusKind, Link
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
@@ -133,11 +133,10 @@ class Hmc5883lDriver(Driver):
         self._ready = DataReady({Channel.MAG: self._grid.period_ns})
         self._watch = ResetWatch(self.settings.reset_check_s)
         self._frozen = FrozenWatch(FROZEN_AFTER_FRAMES)
-        if self.settings.read == "auto" and not isinstance(link.bus, AutoReadBus):
-            raise ConfigurationError(
-                f"{self.describe()}: read: auto needs a bus whose master reads the chip on "
-                f"its own (slave auto-read, e.g. the MAX21100's imu/aux); {link.bus.name} "
-                "cannot: use read: one-shot")
+        if self.settings.read == "auto":
+            require_auto_read(link.bus, who=self.describe(), bus_name=link.bus.name,
+                              example="slave auto-read, e.g. the MAX21100's imu/aux",
+                              fix="use read: one-shot")
         # read: auto (see the module docstring)
         self._feed: AutoReadFeed | None = None
         self._seen: bytes | None = None

@@ -103,3 +103,15 @@ class AutoReadBus(Protocol):
         again for the same read returns the same feed; a ConfigurationError names what the
         master cannot do (another slave already auto-read, a length it cannot hold)."""
         ...
+
+
+def require_auto_read(bus: object, *, who: str, bus_name: str, example: str,
+                      fix: str) -> None:
+    """A slave driver set to ``read: auto``: a ConfigurationError unless ``bus`` is an
+    :class:`AutoReadBus` (``who`` names the driver, ``example`` a bus that can, ``fix`` what
+    the user does instead). Profiles are checked earlier through ``AUTO_READ``; this covers
+    a driver built directly."""
+    if not isinstance(bus, AutoReadBus):
+        raise ConfigurationError(
+            f"{who}: read: auto needs a bus whose master reads the chip on its own "
+            f"({example}); {bus_name} cannot: {fix}")
