@@ -315,6 +315,19 @@ class MPU9250Driver(Driver):
     def _frozen_flag(self, frame: bytes) -> SampleFlag:
         return self._frozen.observe("frame", frame)
 
+    def resume(self, now_ns: int) -> int | None:
+        """One transfer of a poll failed: when INT_PIN_CFG and INT_ENABLE still read back as
+        written (an H_RESET clears both), the chip kept its state, so read the burst again
+        at once instead of the full recovery, whose H_RESET waits RESET_S + WAKE_S (110 ms,
+        on the clock every device shares: the cause of the quarter of all samples the MPU-9250
+        boards lost at 1 % bus errors, issue 25 item 7). The retry reads the sample the
+        failed burst missed, or (when the failed read reached the chip and cleared
+        RAW_DATA_RDY) finds nothing new and waits for the next one: a sample lost, never a
+        wrong or a repeated one."""
+        if self._config_lost():
+            return None
+        return max(now_ns, self.clock.now_ns())
+
     def poll(self, now_ns: int) -> PollResult:
         overdue = self._ready.overdue(Channel.GYRO, now_ns)
         if self._watch.check_due(now_ns, overdue=overdue) and self._config_lost():
