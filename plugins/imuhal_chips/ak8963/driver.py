@@ -185,6 +185,10 @@ class AK8963Driver(Driver):
             return None
         return max(now_ns, self.clock.now_ns())
 
+    def accounted_stream(self) -> tuple[Channel, int] | None:
+        """One field per continuous-mode period (8 or 100 Hz)."""
+        return Channel.MAG, self._period_ns
+
     def full_scale(self, channel: Channel) -> float | None:
         """The measurement range, +-4912 uT per axis."""
         return r.OVERFLOW_SUM_UT if channel is Channel.MAG else None

@@ -299,6 +299,13 @@ class BMP280Driver(Driver):
             return None
         return max(now_ns, self.clock.now_ns())
 
+    def accounted_stream(self) -> tuple[Channel, int] | None:
+        """Normal mode: one pressure per measurement plus standby (typical measurement
+        time); forced mode measures when the host asks, so it has no period of its own."""
+        if self.settings.mode != "normal" or not self._period_ns:
+            return None
+        return Channel.PRESSURE, self._period_ns
+
     def _frozen_flag(self, adc_p: int, adc_t: int) -> SampleFlag:
         return self._frozen.observe("adc", adc_p.to_bytes(3, "big") + adc_t.to_bytes(3, "big"))
 

@@ -325,6 +325,10 @@ class Hmc5883lDriver(Driver):
     def _frozen_flag(self, raw: bytes) -> SampleFlag:
         return self._frozen.observe(Channel.MAG, raw)
 
+    def accounted_stream(self) -> tuple[Channel, int] | None:
+        """One field per continuous-mode output period (Config A's data output rate)."""
+        return Channel.MAG, self._grid.period_ns
+
     def resume(self, now_ns: int) -> int | None:
         """One transfer of a poll failed: when Config A/B and Mode still read back as
         written (the read-back also releases the data lock a partial data read may have

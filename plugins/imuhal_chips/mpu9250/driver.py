@@ -293,6 +293,11 @@ class MPU9250Driver(Driver):
         self._grid.anchor(now_ns)
         return self._grid.next_after(now_ns)
 
+    def accounted_stream(self) -> tuple[Channel, int] | None:
+        """Gyro frames (accel and temperature come in the same frame), one per sample
+        period of SMPLRT_DIV and the DLPF."""
+        return Channel.GYRO, self._period_ns
+
     def full_scale(self, channel: Channel) -> float | None:
         """What the 16-bit data word can hold at the configured range (SI): the most
         negative count through this driver's own conversion."""

@@ -209,8 +209,13 @@ class MPU9250Emulator(ChipEmulator):
             self._regs[r.I2C_SLV4_CTRL] &= ~r.SLV_EN
         if self._regs[r.PWR_MGMT_1] & r.PWR1_SLEEP:
             return
-        due = (now - self._t0) // self.period_ns()
+        period = self.period_ns()
+        due = (now - self._t0) // period
         if due > self._taken:
+            if self._regs[r.INT_ENABLE] & r.INT_RAW_RDY:
+                # the samples the driver's data-ready stream announces, latched or not
+                self.record_measurements(self._t0 + (self._taken + 1) * period, period,
+                                         due - self._taken)
             self._taken = due
             self._latch()
 

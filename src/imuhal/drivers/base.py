@@ -187,6 +187,12 @@ class Driver(ABC):
         # configure() may have waited on the clock (resets, reloads): start from after it.
         return self.start(max(now_ns, self.clock.now_ns()))
 
+    def accounted_stream(self) -> tuple[Channel, int] | None:
+        """The channel whose frames the pipeline counts (produced, delivered, lost by cause:
+        imuhal.pipeline.accounting) and the chip's frame period on it (ns) in the current
+        configuration; None: not accounted (a chip without a fixed output period)."""
+        return None
+
     def full_scale(self, channel: Channel) -> float | None:
         """The largest magnitude (SI) a correct ``channel`` value can have in the current
         configuration; the pipeline flags anything beyond it OUT_OF_RANGE. None: not

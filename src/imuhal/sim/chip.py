@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import random
 from abc import ABC, abstractmethod
+from array import array
+from bisect import bisect_right
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -84,6 +86,22 @@ class ChipEmulator(ABC):
         self.host_baudrate = 0
         """Serial chips: the line speed the host's UART is set to (0: not a UART)."""
         self.physics = PhysicalInputs()
+        self.measured_ns = array("q")
+        """The instants (ns, ascending) at which the chip completed a measurement of the
+        stream its driver accounts for, recorded by emulators that model it (issue 25
+        item 5: the exact count behind ``frames_between``)."""
+
+    def record_measurements(self, first_ns: int, period_ns: int, count: int) -> None:
+        """``count`` measurements completed at ``first_ns``, ``first_ns + period_ns``, ..."""
+        self.measured_ns.extend(first_ns + k * period_ns for k in range(count))
+
+    def frames_between(self, first_stamp_ns: int, last_stamp_ns: int) -> int:
+        """Measurements from the one a sample stamped ``first_stamp_ns`` carries (the latest
+        completed by then) to the one a sample stamped ``last_stamp_ns`` carries, both
+        included: what the chip produced over a span of delivered samples."""
+        first = bisect_right(self.measured_ns, first_stamp_ns)
+        last = bisect_right(self.measured_ns, last_stamp_ns)
+        return last - first + 1 if first else last
 
     @abstractmethod
     def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes:
