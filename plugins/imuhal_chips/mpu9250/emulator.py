@@ -38,6 +38,10 @@ registers; SPI: bit 7 of the first byte set = read; both auto-increment):
 Physics face (sensor frame, SI): ``specific_force_m_s2`` (default (0, 0, 9.80665): lying
 flat, face up), ``angular_rate_rad_s`` (default 0), ``temperature_degc`` (default 25).
 
+FIFO: :mod:`imuhal_chips.mpu9250.emulator_fifo` (FIFO_EN incl. slave 0's EXT_SENS_DATA
+bytes, FIFO_COUNT, FIFO_R_W, CONFIG.FIFO_MODE, FIFO_OFLOW status, USER_CTRL.FIFO_RST); with
+it streaming, every sample is latched with its own instant's inputs and appended.
+
 Faults: ``who_am_i`` (clone: 0x70 MPU-6500, 0x73 MPU-9255), ``stuck_data_ready`` (RAW_RDY
 never set), ``silent_reset()``, ``absent`` and bus errors through the bus.
 
@@ -56,7 +60,12 @@ from imuhal.core.samples import Channel
 from imuhal.emulation.base import ChipEmulator
 from imuhal.emulation.bus import EmulatedBus
 from imuhal_chips.mpu9250 import registers as r
+from imuhal_chips.mpu9250.emulator_fifo import FifoModel, frame_of
 from imuhal_chips.mpu9250.error_spec import MPU9250_ERROR_SPEC
+
+_FIFO_CATCH_UP_SAMPLES = r.FIFO_SIZE_BYTES
+"""At most this many samples are pushed at one catch-up (a FIFO holds 512 bytes: any
+frame holds at least one, so older samples could not survive)."""
 
 SLV4_TRANSACTION_S = 100e-6
 """A single-byte transaction at 400 kHz, address + register + data with (re)starts."""
@@ -182,6 +191,7 @@ class MPU9250Emulator(ChipEmulator):
     # -- state ------------------------------------------------------------------------------
 
     def _reset(self) -> None:
+        self.fifo = FifoModel()
         self._regs = bytearray(128)
         self._regs[r.PWR_MGMT_1] = r.PWR1_CLKSEL_AUTO
         self._slv4_done_ns: int | None = None
@@ -235,16 +245,39 @@ class MPU9250Emulator(ChipEmulator):
             return
         period = self.period_ns()
         due = (now - self._t0) // period
-        if due > self._taken:
-            # the newest sample is the one measured at its own instant, with that
-            # instant's inputs (an emulated board hands them over when asked)
-            self.pull_physics(self._t0 + due * period)
-            if self._regs[r.INT_ENABLE] & r.INT_RAW_RDY:
-                # the samples the driver's data-ready stream announces, latched or not
-                self.record_measurements(self._t0 + (self._taken + 1) * period, period,
-                                         due - self._taken)
-            self._taken = due
-            self._latch()
+        if due <= self._taken:
+            return
+        if self._regs[r.INT_ENABLE] & r.INT_RAW_RDY:
+            # the samples the driver's data-ready stream announces, latched or not
+            self.record_measurements(self._t0 + (self._taken + 1) * period, period,
+                                     due - self._taken)
+        if self._fifo_streaming():
+            # every sample goes into the FIFO, each with its own instant's inputs; more
+            # than a FIFO's worth at once: the older ones would be overwritten anyway
+            first = max(self._taken + 1, due - _FIFO_CATCH_UP_SAMPLES + 1)
+            if first > self._taken + 1:
+                self._fifo_overflowed()
+            for k in range(first, due + 1):
+                self.pull_physics(self._t0 + k * period)
+                self._taken = k
+                self._latch()
+                frame = frame_of(self._regs)
+                if self.fifo.push(frame, stop_when_full=bool(
+                        self._regs[r.CONFIG] & r.CONFIG_FIFO_MODE)):
+                    self._fifo_overflowed()
+            return
+        # the newest sample is the one measured at its own instant, with that
+        # instant's inputs (an emulated board hands them over when asked)
+        self.pull_physics(self._t0 + due * period)
+        self._taken = due
+        self._latch()
+
+    def _fifo_streaming(self) -> bool:
+        return bool(self._regs[r.USER_CTRL] & r.USER_FIFO_EN and self._regs[r.FIFO_EN])
+
+    def _fifo_overflowed(self) -> None:
+        if self._regs[r.INT_ENABLE] & r.INT_FIFO_OFLOW:
+            self._regs[r.INT_STATUS] |= r.INT_FIFO_OFLOW
 
     def _latch(self) -> None:
         p = self.physics
@@ -334,7 +367,8 @@ class MPU9250Emulator(ChipEmulator):
         out = bytearray()
         for _ in range(read_len):
             out.append(self._read(self._pointer))
-            self._pointer = (self._pointer + 1) & 0x7F
+            if self._pointer != r.FIFO_R_W:  # a burst from FIFO_R_W pops the FIFO
+                self._pointer = (self._pointer + 1) & 0x7F
         if read_len and self._regs[r.INT_PIN_CFG] & r.INT_PIN_ANYRD_2CLEAR:
             self._regs[r.INT_STATUS] = 0
         return bytes(out)
@@ -342,6 +376,10 @@ class MPU9250Emulator(ChipEmulator):
     def _read(self, address: int) -> int:
         if address == r.WHO_AM_I:
             return self.who_am_i
+        if address == r.FIFO_R_W:
+            return self.fifo.pop()
+        if address in (r.FIFO_COUNTH, r.FIFO_COUNTH + 1):
+            return self.fifo.count_registers()[address - r.FIFO_COUNTH]
         value = self._regs[address]
         if address in (r.INT_STATUS, r.I2C_MST_STATUS):
             self._regs[address] = 0  # read to clear
@@ -361,6 +399,8 @@ class MPU9250Emulator(ChipEmulator):
                 self._restart_sampling()
             return
         if address == r.USER_CTRL:
+            if value & r.USER_FIFO_RST:
+                self.fifo.reset()
             value &= ~0x07  # FIFO/I2C master/signal-path resets self-clear
         if address == r.SIGNAL_PATH_RESET:
             value = 0
