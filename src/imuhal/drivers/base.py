@@ -86,10 +86,14 @@ class DeviceHealth:
     """Times the driver found its chip had reset on its own (configuration lost)."""
     reconfigurations: int = 0
     """Times the driver reprogrammed its chip (after a reset, a hang, a recovery)."""
+    fifo_overflows: int = 0
+    """Times the driver found its chip's FIFO overflowed (or corrupt) and reset it: the
+    frames it held are lost."""
 
     def counts(self) -> dict[str, int]:
         return {"resets_detected": self.resets_detected,
-                "reconfigurations": self.reconfigurations}
+                "reconfigurations": self.reconfigurations,
+                **({"fifo_overflows": self.fifo_overflows} if self.fifo_overflows else {})}
 
 
 class Driver(ABC):

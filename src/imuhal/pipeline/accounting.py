@@ -26,8 +26,9 @@ in part of that time. Within a segment the count is the chip's: in emulation the
 record of its measurement instants over each segment's span equals the segment's count
 (tests/integration/test_frame_accounting.py), so a wrong period, a grid that repeats or skips
 frames unseen, or a cause that goes uncounted fails there. ``delivered + sum(lost) ==
-produced`` holds by construction. ``fifo_overflow`` joins the causes with the FIFO readers
-(issue 25 item 2), which have the chip's count.
+produced`` holds by construction. ``fifo_overflow``: a FIFO reader (the MPU-9250's ``read:
+fifo``) found its chip's FIFO overflowed or corrupt and reset it (``DeviceHealth.
+fifo_overflows``); it comes first, since a FIFO rides out the other causes.
 
 Limit: time stamps are the host's poll times, up to a period after the measurement. A gap
 is counted right while the two polls at its ends lie at about the same phase to the chip
@@ -43,7 +44,8 @@ from dataclasses import dataclass, field
 
 from imuhal.core.samples import Channel, Sample, SampleFlag
 
-CAUSES: tuple[str, ...] = ("host_stall", "reset", "bus_error", "stale", "flagged", "missed")
+CAUSES: tuple[str, ...] = ("fifo_overflow", "host_stall", "reset", "bus_error", "stale",
+                           "flagged", "missed")
 """Loss causes, weightiest first: a gap is charged to the first one seen in it."""
 
 

@@ -88,6 +88,8 @@ class DeviceRuntime:
     """Frames produced, delivered and lost by cause (None: the driver accounts for none)."""
     reconfigurations_seen: int = 0
     """The driver's reconfiguration count the ledger last saw."""
+    fifo_overflows_seen: int = 0
+    """The driver's FIFO overflow count the ledger last saw."""
 
     def __post_init__(self) -> None:
         self.chip_to_body_rows = np.asarray(self.chip_to_body, dtype=float).tolist()
@@ -429,6 +431,9 @@ class Pipeline:
         the frame period follows the configuration."""
         assert dev.ledger is not None
         driver = dev.driver
+        if driver.health.fifo_overflows != dev.fifo_overflows_seen:
+            dev.fifo_overflows_seen = driver.health.fifo_overflows
+            dev.ledger.note("fifo_overflow")
         if driver.health.reconfigurations != dev.reconfigurations_seen:
             dev.reconfigurations_seen = driver.health.reconfigurations
             dev.ledger.note("reset")
