@@ -165,10 +165,13 @@ class McapSink(SinkPlugin):
         self._last_seal = time.monotonic()
 
     def _finish(self) -> None:
-        for record in self.records.finish():
-            self._write(record)
+        self._write_pending()
         self._writer.finish()  # summary, indexes and the real footer
         self._file.truncate()  # nothing of an earlier footer may remain past the end
+
+    def _write_pending(self) -> None:
+        for record in self.records.finish():
+            self._write(record)
 
     def close(self) -> None:
         if self._out is None:
@@ -182,9 +185,11 @@ class McapSink(SinkPlugin):
         """Leave ``path`` as it was; keep what was written in ``path.partial`` (returned),
         complete with its summary, when there were messages."""
         if self._out is not None:
+            # if this fails too, the footer of the last sealed chunk keeps it readable
+            with contextlib.suppress(OSError, ValueError):
+                self._write_pending()
             keep = self.messages > 0
             if keep:
-                # if this fails too, the footer of the last sealed chunk keeps it readable
                 with contextlib.suppress(OSError, ValueError):
                     self._finish()
             self.partial_path = self._out.abort(keep_partial=keep)
