@@ -17,7 +17,14 @@ from imuhal.bus.recording.recorder import BusRecorder, run_header
 from imuhal.bus.spy import format_transfer
 from imuhal.cli import args as types
 from imuhal.cli.frame_option import frame_argument
-from imuhal.cli.robot_outputs import add_mcap_argument, mcap_sink, report_mcap
+from imuhal.cli.robot_outputs import (
+    add_mavlink_arguments,
+    add_mcap_argument,
+    mavlink_sink,
+    mcap_sink,
+    report_mavlink,
+    report_mcap,
+)
 from imuhal.core.atomic import AtomicFile, check_outputs
 from imuhal.core.errors import ImuhalError
 from imuhal.live import LiveView, parse_bind
@@ -67,6 +74,7 @@ def add_parser(sub: Any) -> None:
     run.add_argument("--audio-wav", metavar="FILE.wav",
                      help="write the vario tones to a WAV file (the profile's audio curve)")
     add_mcap_argument(run)
+    add_mavlink_arguments(run)
     run.add_argument("--sink", action="append", default=[], metavar="NAME",
                      help="also send every event to the sink a plugin registered as NAME "
                      "(see `imuhal plugins`); repeatable")
@@ -125,6 +133,7 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     if duration is None and emulate is not None and scenario_params is None:
         duration = registry.scenarios.get(emulate).default_duration_s
     plugin_sinks = _plugin_sinks(args.sink, args.sink_set, registry)  # checked before opening
+    mavlink = mavlink_sink(registry, args, profile)  # a socket only: nothing sent yet
     where = f"emulated, scenario '{emulate}'" if emulate else "real hardware"
     print(f"imuhal {__version__}: {profile.name} ({where}) from {path}", file=sys.stderr)
     sinks: list[Any] = []
@@ -174,6 +183,9 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
         mcap = mcap_sink(registry, args.mcap, profile) if args.mcap else None
         if mcap is not None:
             sinks.append(mcap)
+        if mavlink is not None:
+            stack.callback(mavlink.close)  # also when the run fails before it starts
+            sinks.append(mavlink)
         truth_sink = None
         if args.truth:
             truth_sink = TruthSink(args.truth, EmulatedBoard.of(pipeline).scenario,
@@ -202,6 +214,8 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
         print(f"wrote {csv_sink.rows} rows to {args.output}", file=sys.stderr)
     if mcap is not None:
         print(report_mcap(mcap, args.mcap), file=sys.stderr)
+    if mavlink is not None:
+        print(report_mavlink(mavlink, args.mavlink), file=sys.stderr)
     if truth_sink is not None:
         print(f"wrote {truth_sink.rows} truth rows to {args.truth}", file=sys.stderr)
     if recorder is not None:
