@@ -20,7 +20,7 @@ import contextlib
 import os
 import struct
 import time
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any, ClassVar, Literal
 
@@ -121,9 +121,21 @@ class McapSink(SinkPlugin):
     def handle(self, event: Event) -> None:
         if self._log_ns is None or event.t_ns > self._log_ns:
             self._log_ns = event.t_ns
-        for record in self.records.convert(event):
-            self._write(record)
-        self._maybe_seal()
+        with self._write_errors():
+            for record in self.records.convert(event):
+                self._write(record)
+            self._maybe_seal()
+
+    @contextlib.contextmanager
+    def _write_errors(self) -> Iterator[None]:
+        """A full disk or an I/O error is the user's to fix: one line naming the file (the
+        library writes to it directly, past AtomicFile's own wrapping)."""
+        try:
+            yield
+        except OSError as exc:
+            raise ImuhalError(f"--mcap {self.path}: cannot be written: "
+                              f"{exc.strerror or exc}; free some space or choose another "
+                              "path") from None
 
     def _write(self, record: RosRecord) -> None:
         schema = self._schemas.get(record.type)
@@ -151,16 +163,13 @@ class McapSink(SinkPlugin):
     def _seal(self) -> None:
         """Close the chunk, append a footer, make it durable, and step back before the
         footer so that the next chunk overwrites it."""
-        self._writer._writer.flush()  # mcap-ros2's Writer keeps the mcap Writer private
-        try:
+        with self._write_errors():
+            # mcap-ros2's Writer keeps its mcap Writer, whose flush() closes the chunk, private
+            self._writer._writer.flush()
             self._file.write(FOOTER_NO_SUMMARY)
             self._file.flush()
             os.fsync(self._file.fileno())
             self._file.seek(-len(FOOTER_NO_SUMMARY), os.SEEK_CUR)
-        except OSError as exc:
-            raise ImuhalError(f"--mcap {self.path}: cannot be written: "
-                              f"{exc.strerror or exc}; free some space or choose another "
-                              "path") from None
         self._chunk_first_ns = None
         self._last_seal = time.monotonic()
 
@@ -176,7 +185,8 @@ class McapSink(SinkPlugin):
     def close(self) -> None:
         if self._out is None:
             return
-        self._finish()
+        with self._write_errors():
+            self._finish()
         self._out.commit()
         self._out = None
         self.committed = True
