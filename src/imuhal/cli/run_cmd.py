@@ -65,6 +65,14 @@ def add_parser(sub: Any) -> None:
                      help="play the vario tones live (needs imuhal[audio] and a sound device)")
     run.add_argument("--audio-wav", metavar="FILE.wav",
                      help="write the vario tones to a WAV file (the profile's audio curve)")
+    run.add_argument("--igc", metavar="FILE.IGC|FOLDER",
+                     help="write an IGC flight log (B records from the GNSS and the "
+                     "barometer; a folder gets the FAI file name); `imuhal igc verify` "
+                     "checks it (docs/flight-instrument.md)")
+    run.add_argument("--igc-pilot", metavar="NAME",
+                     help="the IGC log's pilot (default: the profile's igc.pilot)")
+    run.add_argument("--igc-glider", metavar="TYPE",
+                     help="the IGC log's glider type (default: the profile's igc.glider_type)")
     run.add_argument("--sink", action="append", default=[], metavar="NAME",
                      help="also send every event to the sink a plugin registered as NAME "
                      "(see `imuhal plugins`); repeatable")
@@ -93,11 +101,19 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     path = Path(args.profile) if args.profile else default_profile_path()
     # Before anything is opened: no output may overwrite an input, and each must be writable.
     check_outputs({"--output": args.output, "--truth": args.truth, "--trace": args.trace,
-                   "--audio-wav": args.audio_wav, "--record": args.record},
+                   "--audio-wav": args.audio_wav, "--record": args.record,
+                   "--igc": args.igc if args.igc and not Path(args.igc).is_dir() else None},
                   {"PROFILE": path, "--replay-truth": args.replay_truth})
     if args.samples and not args.output:
         raise ImuhalError("--samples writes the samples into the --output log; add "
                           "--output FILE.csv")
+    if (args.igc_pilot is not None or args.igc_glider is not None) and not args.igc:
+        raise ImuhalError("--igc-pilot and --igc-glider name who flies in the IGC log; add "
+                          "--igc FILE.IGC (or a folder)")
+    if args.igc:
+        from imuhal.sinks.flight.igc import check_igc_output
+
+        check_igc_output(args.igc)
     if args.nmea_sentences is not None and not args.nmea:
         raise ImuhalError("--nmea-sentences chooses the sentences of an --nmea output; add "
                           "--nmea OUTPUT (e.g. --nmea pty)")
@@ -196,6 +212,10 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
         print(f"wrote {csv_sink.rows} rows to {args.output}", file=sys.stderr)
     if truth_sink is not None:
         print(f"wrote {truth_sink.rows} truth rows to {args.truth}", file=sys.stderr)
+    for sink in sinks:
+        if getattr(sink, "name", None) == "igc":
+            print(f"wrote {sink.b_records} B records to {sink.path}" if sink.path else
+                  "IGC log: no GNSS fix in the run, nothing written", file=sys.stderr)
     if recorder is not None:
         print(f"recorded {recorder.transfers} bus transactions to {args.record}",
               file=sys.stderr)
@@ -229,6 +249,14 @@ def _flight_sinks(args: argparse.Namespace, profile: Any, registry: Registry,
     if args.audio or args.audio_wav:
         out.append(registry.sinks.get("vario-audio")(
             {"curve": profile.audio, "wav": args.audio_wav, "live": args.audio}))
+    if args.igc:
+        log = profile.igc.model_copy(update={
+            k: v for k, v in (("pilot", args.igc_pilot), ("glider_type", args.igc_glider))
+            if v is not None})
+        out.append(registry.sinks.get("igc")({
+            "path": args.igc, "log": log, "logger_type": f"imuhal,{profile.name}",
+            "firmware": __version__,
+            "device_drivers": {name: dev.driver for name, dev in profile.devices.items()}}))
     return out
 
 

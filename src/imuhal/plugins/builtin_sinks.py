@@ -5,6 +5,7 @@ from __future__ import annotations
 from imuhal.plugins.hookspecs import hookimpl
 from imuhal.plugins.registrars import Registrar
 from imuhal.sinks.flight.audio import AudioSink
+from imuhal.sinks.flight.igc import IgcSink
 from imuhal.sinks.flight.sink import FlightSink
 
 
@@ -12,3 +13,4 @@ from imuhal.sinks.flight.sink import FlightSink
 def imuhal_register_sinks(register: Registrar) -> None:
     register(FlightSink)
     register(AudioSink)
+    register(IgcSink)

@@ -17,6 +17,7 @@ from imuhal.core.conventions import UnknownConvention, get_convention
 from imuhal.core.frames import MountError, parse_mount
 from imuhal.profile.faults import FaultSpec
 from imuhal.sinks.flight.audio import VarioAudioSettings
+from imuhal.sinks.flight.igc import IgcLogSettings
 
 SCHEMA_VERSION = 1
 MountSpec = str | list[list[float]]
@@ -98,6 +99,8 @@ class BoardProfile(_Strict):
     emulation: EmulationConfig = Field(default_factory=EmulationConfig)
     audio: VarioAudioSettings = Field(default_factory=VarioAudioSettings)
     """The vario audio curve (``imuhal run --audio``; docs/flight-instrument.md)."""
+    igc: IgcLogSettings = Field(default_factory=IgcLogSettings)
+    """Pilot, glider and fix interval of the IGC log (``imuhal run --igc``)."""
 
     output_frame: str = "ned"
     """Convention of what the run hands out: its CSV and console sinks and
