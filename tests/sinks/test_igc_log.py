@@ -187,3 +187,29 @@ def test_a_folder_that_does_not_exist_is_refused_before_the_run(tmp_path: Path) 
     with pytest.raises(ImuhalError, match="does not exist"):
         IgcSink({"path": str(tmp_path / "no" / "f.igc")})
     assert os.listdir(tmp_path) == []
+
+
+def test_igc_verify_exits_0_for_a_good_file_and_2_with_one_line_for_a_changed_one(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from imuhal.cli.main import main
+
+    path = tmp_path / "f.igc"
+    sink = IgcSink({"path": str(path)})
+    _fly(sink, 3)
+    sink.close()
+    assert main(["igc", "verify", str(path)]) == 0
+    assert "ok (" in capsys.readouterr().out
+    data = bytearray(path.read_bytes())
+    data[60] ^= 1
+    path.write_bytes(bytes(data))
+    assert main(["igc", "verify", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "does not match" in err
+
+
+def test_igc_pilot_without_igc_is_a_one_line_error(capsys: pytest.CaptureFixture[str]
+                                                   ) -> None:
+    from imuhal.cli.main import main
+
+    assert main(["run", "--emulate", "thermal", "--igc-pilot", "Jane"]) == 2
+    assert "add --igc" in capsys.readouterr().err

@@ -56,11 +56,11 @@ def add_parser(sub: Any) -> None:
     run.add_argument("--trace", metavar="FILE.txt",
                      help="log every bus transaction (time, bus, address, bytes) to a file")
     run.add_argument("--nmea", action="append", default=[], metavar="OUTPUT",
-                     help="send LK8EX1, POV, _PRS, XCTRC, GGA and RMC sentences to a flight "
-                     "app: serial:PORT@BAUD, pty, pty:LINK (a symlink to the pty) or "
+                     help="send LK8EX1, LXWP0, POV, _PRS, XCTRC, GGA and RMC sentences to "
+                     "a flight app: serial:PORT@BAUD, pty, pty:LINK (a symlink to the pty) or "
                      "tcp:PORT (loopback); repeatable (docs/flight-instrument.md)")
     run.add_argument("--nmea-sentences", metavar="LIST",
-                     help="comma-separated subset of LK8EX1,POV,PRS,XCTRC,GGA,RMC")
+                     help="comma-separated subset of LK8EX1,LXWP0,POV,PRS,XCTRC,GGA,RMC")
     run.add_argument("--audio", action="store_true",
                      help="play the vario tones live (needs imuhal[audio] and a sound device)")
     run.add_argument("--audio-wav", metavar="FILE.wav",
