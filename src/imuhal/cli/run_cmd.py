@@ -65,6 +65,12 @@ def add_parser(sub: Any) -> None:
                      help="play the vario tones live (needs imuhal[audio] and a sound device)")
     run.add_argument("--audio-wav", metavar="FILE.wav",
                      help="write the vario tones to a WAV file (the profile's audio curve)")
+    run.add_argument("--audio-damping", type=float, metavar="SECONDS",
+                     help="time constant of the climb rate the tones follow (default: the "
+                     "profile's audio.damping_s, 0 = the vario's own output)")
+    run.add_argument("--audio-sink-alarm", type=float, metavar="M_S",
+                     help="sink alarm (a warble) at or below this climb rate, e.g. -5 "
+                     "(default: the profile's audio.sink_alarm_m_s, none)")
     run.add_argument("--igc", metavar="FILE.IGC|FOLDER",
                      help="write an IGC flight log (B records from the GNSS and the "
                      "barometer; a folder gets the FAI file name); `imuhal igc verify` "
@@ -114,6 +120,10 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
         from imuhal.sinks.flight.igc import check_igc_output
 
         check_igc_output(args.igc)
+    if (args.audio_damping is not None or args.audio_sink_alarm is not None) and \
+            not (args.audio or args.audio_wav):
+        raise ImuhalError("--audio-damping and --audio-sink-alarm shape the vario tones; add "
+                          "--audio or --audio-wav FILE.wav")
     if args.nmea_sentences is not None and not args.nmea:
         raise ImuhalError("--nmea-sentences chooses the sentences of an --nmea output; add "
                           "--nmea OUTPUT (e.g. --nmea pty)")
@@ -248,7 +258,8 @@ def _flight_sinks(args: argparse.Namespace, profile: Any, registry: Registry,
         out.append(sink)
     if args.audio or args.audio_wav:
         out.append(registry.sinks.get("vario-audio")(
-            {"curve": profile.audio, "wav": args.audio_wav, "live": args.audio}))
+            {"curve": _audio_curve(args, profile), "wav": args.audio_wav,
+             "live": args.audio}))
     if args.igc:
         log = profile.igc.model_copy(update={
             k: v for k, v in (("pilot", args.igc_pilot), ("glider_type", args.igc_glider))
@@ -258,6 +269,27 @@ def _flight_sinks(args: argparse.Namespace, profile: Any, registry: Registry,
             "firmware": __version__,
             "device_drivers": {name: dev.driver for name, dev in profile.devices.items()}}))
     return out
+
+
+def _audio_curve(args: argparse.Namespace, profile: Any) -> Any:
+    """The profile's audio curve with --audio-damping / --audio-sink-alarm applied."""
+    from pydantic import ValidationError
+
+    from imuhal.sinks.flight.audio import VarioAudioSettings
+
+    update = {k: v for k, v in (("damping_s", args.audio_damping),
+                                ("sink_alarm_m_s", args.audio_sink_alarm)) if v is not None}
+    if not update:
+        return profile.audio
+    try:
+        return VarioAudioSettings.model_validate({**profile.audio.model_dump(), **update})
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        if err["loc"] and err["loc"][0] == "damping_s":
+            raise ImuhalError(f"--audio-damping {args.audio_damping}: a time constant of "
+                              "0 to 10 s, e.g. --audio-damping 1.5") from None
+        raise ImuhalError(f"--audio-sink-alarm {args.audio_sink_alarm}: "
+                          f"{err['msg'].removeprefix('Value error, ')}") from None
 
 
 def _plugin_sinks(names: list[str], settings: list[str], registry: Registry) -> list[Any]:
