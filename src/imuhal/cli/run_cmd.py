@@ -57,8 +57,9 @@ def add_parser(sub: Any) -> None:
                      help="log every bus transaction (time, bus, address, bytes) to a file")
     run.add_argument("--nmea", action="append", default=[], metavar="OUTPUT",
                      help="send LK8EX1, LXWP0, POV, _PRS, XCTRC, GGA and RMC sentences to "
-                     "a flight app: serial:PORT@BAUD, pty, pty:LINK (a symlink to the pty) or "
-                     "tcp:PORT (loopback); repeatable (docs/flight-instrument.md)")
+                     "a flight app: serial:PORT@BAUD, pty, pty:LINK (a symlink to the pty), "
+                     "tcp:PORT (loopback), or ble / ble:NAME (Bluetooth LE; LK8EX1 and LXWP0 "
+                     "by default); repeatable (docs/flight-instrument.md)")
     run.add_argument("--nmea-sentences", metavar="LIST",
                      help="comma-separated subset of LK8EX1,LXWP0,POV,PRS,XCTRC,GGA,RMC")
     run.add_argument("--audio", action="store_true",
@@ -248,7 +249,12 @@ def _flight_sinks(args: argparse.Namespace, profile: Any, registry: Registry,
                               "sentence, e.g. --nmea-sentences LK8EX1,GGA")
     nmea = registry.sinks.get("nmea")
     for spec in args.nmea:
-        sink = nmea({"output": spec, **extra})
+        if spec.partition(":")[0] == "ble" and "sentences" not in extra:
+            from imuhal.sinks.flight.ble import BLE_SENTENCES
+
+            sink = nmea({"output": spec, "sentences": BLE_SENTENCES})
+        else:
+            sink = nmea({"output": spec, **extra})
         stack.callback(sink.close)
         transport = sink.transport
         where = transport.description

@@ -78,6 +78,7 @@ class FlightSink(SinkPlugin):
         self.transport = transport if transport is not None else \
             open_transport(self.settings.output)
         self.counts = dict.fromkeys(SENTENCES, 0)
+        self._set_pressure = getattr(self.transport, "set_pressure_pa", None)
         self._last_ns: dict[str, int] = {}
         self._pressure: PressureSample | None = None
         self._temperature: float | None = None
@@ -92,6 +93,8 @@ class FlightSink(SinkPlugin):
             if isinstance(event, PressureSample):
                 self._pressure = event
                 self._maybe("PRS", event.t_ns)
+                if self._set_pressure is not None:  # a BLE transport's ESS characteristic
+                    self._set_pressure(event.pressure_pa, event.t_ns)
             elif isinstance(event, TemperatureSample):
                 if self._pressure is not None and event.device == self._pressure.device:
                     self._temperature = event.temperature_degc
