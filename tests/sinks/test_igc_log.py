@@ -186,6 +186,8 @@ def test_a_folder_that_does_not_exist_is_refused_before_the_run(tmp_path: Path) 
 
     with pytest.raises(ImuhalError, match="does not exist"):
         IgcSink({"path": str(tmp_path / "no" / "f.igc")})
+    with pytest.raises(ImuhalError, match="mkdir -p"):  # a folder meant, not a file
+        IgcSink({"path": str(tmp_path / "flights") + "/"})
     assert os.listdir(tmp_path) == []
 
 

@@ -115,6 +115,9 @@ def _free_fai_path(folder: Path, date: datetime, logger_id: str) -> Path:
 def check_igc_output(path: str) -> None:
     """Before the run: a folder must exist and be writable; a file path must be writable."""
     p = Path(path)
+    if path.endswith(("/", os.sep)) and not p.is_dir():
+        raise ImuhalError(f"--igc {path}: folder does not exist; create it first "
+                          f"(mkdir -p {path}) or name a file")
     try:
         if p.is_dir():
             probe = p / ".imuhal-igc-probe"
