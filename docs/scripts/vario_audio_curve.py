@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from imuhal.offline.plotting import plot_vario_audio
 from imuhal.sinks.flight.audio import ToneGenerator, VarioAudioSettings
 
 OUT = Path(__file__).resolve().parents[1] / "images" / "vario-audio-curve.png"
@@ -90,50 +91,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--flight", action="store_true",
                         help="also fly 60 s of `thermal` and measure every tone edge")
     args = parser.parse_args(argv)
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    s = VarioAudioSettings()
-    fig, (ax_pitch, ax_beep, ax_damp) = plt.subplots(1, 3, figsize=(13, 4))
-    climb = np.linspace(s.climb_threshold_m_s, s.max_climb_m_s + 1, 300)
-    ax_pitch.plot(climb, [s.climb_hz(c) for c in climb], label="beeps")
-    sink = np.linspace(-s.max_climb_m_s - 1, s.sink_threshold_m_s, 200)
-    ax_pitch.plot(sink, [s.sink_tone_hz(c) for c in sink], label="continuous sink tone")
-    ax_pitch.axvspan(s.sink_threshold_m_s, s.climb_threshold_m_s, color="0.9",
-                     label="silent dead band")
-    for hz in s.sink_alarm_hz:
-        ax_pitch.plot([-s.max_climb_m_s - 1, -5.0], [hz, hz], "r:", lw=1)
-    ax_pitch.text(-10.5, s.sink_alarm_hz[1] + 60, "sink alarm warble\n(sink_alarm_m_s: -5)",
-                  color="r", fontsize=8)
-    ax_pitch.set(xlabel="climb rate (m/s)", ylabel="pitch (Hz)", title="pitch")
-    ax_pitch.legend(fontsize=8, loc="upper left")
-
-    c = np.linspace(s.climb_threshold_m_s, s.max_climb_m_s, 400)
-    ax_beep.step(c, [s.beep(x)[0] for x in c], where="post", label="period")
-    ax_beep.step(c, [s.beep(x)[1] for x in c], where="post", label="on-time")
-    ax_beep.set(xlabel="climb rate (m/s)", ylabel="s", title="beep cadence (40 ms ticks)")
-    ax_beep.legend(fontsize=8)
-
-    t = np.arange(0, 8, 0.02)
-    for tau in (0.0, 0.5, 1.5, 4.0):
-        alpha = 1 - np.exp(-0.02 / tau) if tau > 0 else 1.0
-        y, out = 0.0, []
-        for _ in t:
-            y += alpha * (2.0 - y)
-            out.append(y)
-        ax_damp.plot(t, out, label=f"damping_s {tau:g}")
-    ax_damp.axhline(s.climb_threshold_m_s, color="0.5", ls="--", lw=1)
-    ax_damp.text(5.0, s.climb_threshold_m_s + 0.05, "first beep", fontsize=8)
-    ax_damp.set(xlabel="s after a step 0 -> 2 m/s", ylabel="climb the tones follow (m/s)",
-                title="damping")
-    ax_damp.legend(fontsize=8)
-    fig.tight_layout()
+    figure = plot_vario_audio(VarioAudioSettings())
     args.output.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(args.output, dpi=90)
+    figure.save(args.output)
     print(f"wrote {args.output}")
-    for name, settings in (("5 ms raised-cosine ramps", s),
+    for name, settings in (("5 ms raised-cosine ramps", VarioAudioSettings()),
                            ("hard gate (one sample)", VarioAudioSettings(ramp_s=1 / 16000))):
         worst = max(edge_splatter_db(settings, x) for x in (0.6, 1.5, 3.0, 6.5, 9.5, -4.0))
         print(f"{name}: worst energy > 1 kHz from the pitch at a tone edge {worst:.1f} dB")

@@ -265,3 +265,15 @@ def test_audio_damping_from_the_command_line_reaches_the_tones(tmp_path: Path) -
             pcm = np.frombuffer(w.readframes(w.getnframes()), dtype="<i2")
         firsts.append(on_intervals(pcm)[0][0] / RATE)
     assert firsts[1] > firsts[0] + 0.5
+
+
+def test_the_curve_figure_draws_the_settings_pitch_and_cadence(tmp_path: Path) -> None:
+    pytest.importorskip("matplotlib", reason="the plot extra (matplotlib) is not installed")
+    from imuhal.offline.plotting import plot_vario_audio
+
+    s = VarioAudioSettings()
+    figure = plot_vario_audio(s)
+    assert set(figure.axes) == {"pitch", "cadence", "damping"}
+    x, y = figure.axes["pitch"].lines[0].get_data()
+    assert list(y) == [s.climb_hz(c) for c in x]
+    assert figure.save(tmp_path / "curve.png").stat().st_size > 10_000
