@@ -18,6 +18,8 @@ from imuhal.core.frames import MountError, parse_mount
 from imuhal.profile.faults import FaultSpec
 from imuhal.sinks.flight.audio import VarioAudioSettings
 from imuhal.sinks.flight.igc import IgcLogSettings
+from imuhal.sinks.mavlink.settings import MavlinkSettings
+from imuhal.sinks.ros.settings import RosSettings
 
 SCHEMA_VERSION = 1
 MountSpec = str | list[list[float]]
@@ -101,6 +103,12 @@ class BoardProfile(_Strict):
     """The vario audio curve (``imuhal run --audio``; docs/flight-instrument.md)."""
     igc: IgcLogSettings = Field(default_factory=IgcLogSettings)
     """Pilot, glider and fix interval of the IGC log (``imuhal run --igc``)."""
+    ros: RosSettings = Field(default_factory=RosSettings)
+    """Frame id and sensor noise of the ROS 2 messages (``imuhal run --mcap``;
+    docs/outputs.md)."""
+    mavlink: MavlinkSettings = Field(default_factory=MavlinkSettings)
+    """System and component id and message rates of ``imuhal run --mavlink``
+    (docs/outputs.md)."""
 
     output_frame: str = "ned"
     """Convention of what the run hands out: its CSV and console sinks and
