@@ -601,8 +601,14 @@ class Pipeline:
                 (abort or sink.close)()
         # The span comes from the poll loop, not from reading the clock here: a run and an
         # events() loop then read the clock alike, so either replays a recording of the other.
+        return self.summary(wall_s=time.perf_counter() - wall0, simulated_s=self.span_s)
+
+    @property
+    def span_s(self) -> float:
+        """Seconds (simulated, or real on hardware) the latest run or events() loop has
+        covered so far, from its first poll to its latest."""
         first, last = self._span_ns
-        return self.summary(wall_s=time.perf_counter() - wall0, simulated_s=(last - first) / 1e9)
+        return (last - first) / 1e9
 
     def summary(self, *, wall_s: float = 0.0, simulated_s: float = 0.0) -> RunSummary:
         return RunSummary(
