@@ -1,4 +1,4 @@
-"""Registers the built-in flight-app sinks through the same hook any plugin uses."""
+"""Registers the built-in sinks (flight apps, MQTT) through the same hook any plugin uses."""
 
 from __future__ import annotations
 
@@ -6,9 +6,11 @@ from imuhal.plugins.hookspecs import hookimpl
 from imuhal.plugins.registrars import Registrar
 from imuhal.sinks.flight.audio import AudioSink
 from imuhal.sinks.flight.sink import FlightSink
+from imuhal.sinks.mqtt import MqttSink
 
 
 @hookimpl
 def imuhal_register_sinks(register: Registrar) -> None:
     register(FlightSink)
     register(AudioSink)
+    register(MqttSink)  # paho-mqtt (the mqtt extra) is imported only when one is opened

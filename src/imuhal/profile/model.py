@@ -99,6 +99,11 @@ class BoardProfile(_Strict):
     audio: VarioAudioSettings = Field(default_factory=VarioAudioSettings)
     """The vario audio curve (``imuhal run --audio``; docs/flight-instrument.md)."""
 
+    outputs: dict[str, dict[str, Any]] = Field(default_factory=dict)
+    """Settings of the run's sinks by sink name (``mqtt: {board: glider-7, decimate: ...}``),
+    each checked by that sink's own Settings; ``--sink-set NAME.KEY=VALUE`` overrides them.
+    The sink itself is switched on by its command-line option (``--mqtt URL``, ``--sink``)."""
+
     output_frame: str = "ned"
     """Convention of what the run hands out: its CSV and console sinks and
     ``Pipeline.framed_events`` (ned, aerospace, enu/ros, android, win8; see
