@@ -34,6 +34,7 @@ class DiskQueue:
         self.max_age_s = max_age_s
         self.dropped = 0
         """Messages deleted by the limits (oldest first) since this object was opened."""
+        self._age_checked_unix_s = -float("inf")
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self._db = sqlite3.connect(self.path, check_same_thread=False,
@@ -67,9 +68,18 @@ class DiskQueue:
         acknowledgement pending); returns how many were deleted (also added to ``dropped``)."""
         if self._count == 0:
             return 0
+        # the age limit is checked at most once a second (a query per call costs more than
+        # the publishing itself at low rates); the count limit whenever it is exceeded
+        check_age = now_unix_s - self._age_checked_unix_s >= 1.0
+        if not check_age and self._count <= self.max_messages:
+            return 0
         with self._transaction():
-            gone = self._db.execute("DELETE FROM messages WHERE id > ? AND arrived_unix_s < ?",
-                                    (keep_through_id, now_unix_s - self.max_age_s)).rowcount
+            gone = 0
+            if check_age:
+                self._age_checked_unix_s = now_unix_s
+                gone = self._db.execute(
+                    "DELETE FROM messages WHERE id > ? AND arrived_unix_s < ?",
+                    (keep_through_id, now_unix_s - self.max_age_s)).rowcount
             excess = self._count - gone - self.max_messages
             if excess > 0:
                 gone += self._db.execute(

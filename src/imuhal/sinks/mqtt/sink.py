@@ -310,7 +310,10 @@ class MqttSink(SinkPlugin):
         burst = max(1.0, s.drain_rate_msg_s * 0.05)
         deadline: float | None = None
         while True:
-            self._wake.wait(0.05)
+            # Idle (nothing queued or awaiting an acknowledgement), only a new event, an
+            # acknowledgement or a connection wakes the thread; else it comes back often
+            # enough to pace the drain and to see the queue's age limit.
+            self._wake.wait(0.05 if len(queue) or pending else 1.0)
             self._wake.clear()
             batch = []
             while self._handoff:
@@ -328,7 +331,7 @@ class MqttSink(SinkPlugin):
             self.counts["sent"] += queue.remove(done)
             now = time.monotonic()
             tokens, last = min(burst, tokens + (now - last) * s.drain_rate_msg_s), now
-            room = min(self._inflight - len(pending), int(tokens))
+            room = min(self._inflight - len(pending), int(tokens), len(queue) - len(pending))
             if self._connected.is_set() and room > 0:
                 for qid, topic, payload in queue.after(handed, room):
                     info = self._client.publish(topic, payload, qos=1)
