@@ -27,6 +27,7 @@ from tests.support.mosquitto import (
     deduplicated,
     free_port,
     mosquitto_binary,
+    self_signed_certificate,
 )
 
 if mosquitto_binary() is None:
@@ -38,6 +39,7 @@ from imuhal.plugins.manager import load_registry
 from imuhal.profile.loader import load_profile
 from imuhal.profiles_dir import bundled_profiles
 from imuhal.sinks.mqtt import MqttSink
+from imuhal.sinks.mqtt.broker import PASSWORD_ENV, USERNAME_ENV
 
 pytestmark = pytest.mark.slow
 
@@ -170,3 +172,35 @@ def test_the_queue_limit_drops_the_oldest_counts_them_and_the_next_run_sends_the
     assert runs == sorted(runs) and len(set(runs)) == 2  # the first run's rest, then this one
     assert [(m.topic.encode(), m.payload) for m in got[:300]] == \
         [(t.encode(), json.loads(p)) for t, p in kept]
+
+
+def test_mqtts_with_credentials_from_the_environment_and_a_wrong_password_never_shown(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    tls = self_signed_certificate(tmp_path)
+    if tls is None:
+        pytest.skip("openssl is not installed (it makes the broker's certificate)")
+    registry = load_registry()
+    profile = load_profile(GPS_VARIO, registry)
+    with Mosquitto(tmp_path / "broker", users={"glider7": "s3cret"}, tls=tls) as broker:
+        assert broker.url.startswith("mqtts://")
+        sub = Subscriber(broker.port, username="glider7", password="s3cret", ca_file=tls[0])
+        sub.start()
+        try:
+            runs = {}
+            for password in ("wr0ng-pass", "s3cret"):
+                sink = MqttSink({"url": broker.url, "board": BOARD, "tls_ca_file": str(tls[0]),
+                                 "queue_path": str(tmp_path / f"{password}.sqlite"),
+                                 "streams": "vario/*", "close_timeout_s": 3},
+                                env={USERNAME_ENV: "glider7", PASSWORD_ENV: password})
+                with open_emulated(profile, registry, scenario="thermal") as pipeline:
+                    runs[password] = pipeline.run(2.0, [sink]).sinks["mqtt"]
+            got = sub.wait_for(runs["s3cret"]["published"])
+        finally:
+            sub.stop()
+    refused, accepted = runs["wr0ng-pass"], runs["s3cret"]
+    assert refused["sent"] == 0 and refused["left"] == refused["published"] > 0
+    assert accepted["sent"] == accepted["published"] == len(got) > 0
+    assert {m.topic for m in got} == {f"imuhal/{BOARD}/vario/vertical"}
+    err = capsys.readouterr().err
+    assert "mqtt: the broker refused the connection" in err
+    assert "wr0ng-pass" not in err and "s3cret" not in err

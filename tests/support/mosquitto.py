@@ -9,6 +9,7 @@ broker is down and the publisher's queue fills.
 
 from __future__ import annotations
 
+import getpass
 import json
 import os
 import shutil
@@ -31,6 +32,20 @@ def mosquitto_binary() -> str | None:
     return next((p for p in MOSQUITTO_PATHS if os.access(p, os.X_OK)), None)
 
 
+def self_signed_certificate(directory: Path) -> tuple[Path, Path] | None:
+    """A certificate and key (PEM) for 127.0.0.1, made with the openssl program; None when
+    it is not installed."""
+    openssl = shutil.which("openssl")
+    if openssl is None:
+        return None
+    cert, key = directory / "broker.crt", directory / "broker.key"
+    subprocess.run([openssl, "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "1",
+                    "-subj", "/CN=127.0.0.1", "-addext", "subjectAltName=IP:127.0.0.1",
+                    "-keyout", str(key), "-out", str(cert)], check=True,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    return cert, key
+
+
 def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -41,7 +56,11 @@ class Mosquitto:
     """``start()`` / ``stop()`` (SIGTERM: it saves its sessions) on one port, any number of
     times."""
 
-    def __init__(self, directory: Path, port: int | None = None) -> None:
+    def __init__(self, directory: Path, port: int | None = None, *,
+                 users: dict[str, str] | None = None,
+                 tls: tuple[Path, Path] | None = None) -> None:
+        """``users`` (name -> password): anonymous clients are refused; ``tls`` (certificate,
+        key, PEM): the listener speaks TLS only."""
         binary = mosquitto_binary()
         if binary is None:
             raise FileNotFoundError("mosquitto")
@@ -50,10 +69,26 @@ class Mosquitto:
         self.directory.mkdir(parents=True, exist_ok=True)
         self.port = port if port is not None else free_port()
         self.config = self.directory / "mosquitto.conf"
+        access = "allow_anonymous true\n"
+        if users:
+            passwords = self.directory / "passwords"
+            passwords.touch(mode=0o600)
+            for name, password in users.items():
+                # mosquitto_passwd comes with the broker (same Debian package)
+                subprocess.run([shutil.which("mosquitto_passwd") or "/usr/bin/mosquitto_passwd",
+                                "-b", str(passwords), name, password], check=True,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            access = f"allow_anonymous false\npassword_file {passwords}\n"
+        if tls:
+            access += f"certfile {tls[0]}\nkeyfile {tls[1]}\n"
+        self.scheme = "mqtts" if tls else "mqtt"
         # max_queued_messages 0: a persistent subscriber's backlog is never cut by the broker
+        # user: started by root, mosquitto would switch to the user "mosquitto", which
+        # cannot read this directory (its sessions would then be lost when it stops)
         self.config.write_text(
+            f"user {getpass.getuser()}\n"
             f"listener {self.port} 127.0.0.1\n"
-            "allow_anonymous true\n"
+            f"{access}"
             "persistence true\n"
             f"persistence_location {self.directory}/\n"
             "autosave_interval 0\n"
@@ -65,7 +100,7 @@ class Mosquitto:
 
     @property
     def url(self) -> str:
-        return f"mqtt://127.0.0.1:{self.port}"
+        return f"{self.scheme}://127.0.0.1:{self.port}"
 
     def start(self, timeout_s: float = 10.0) -> None:
         self.process = subprocess.Popen([self.binary, "-c", str(self.config)],
@@ -112,6 +147,10 @@ class Subscriber:
     topic: str = "imuhal/#"
     client_id: str = "imuhal-test-subscriber"
     messages: list[Received] = field(default_factory=list)
+    username: str | None = None
+    password: str | None = None
+    ca_file: Path | None = None
+    """TLS: the broker's certificate (or its CA), PEM."""
 
     def __post_init__(self) -> None:
         import paho.mqtt.client as mqtt
@@ -121,6 +160,10 @@ class Subscriber:
         client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id=self.client_id,
                              clean_session=False, protocol=mqtt.MQTTv311)
         client.reconnect_delay_set(1, 1)
+        if self.username is not None:
+            client.username_pw_set(self.username, self.password)
+        if self.ca_file is not None:
+            client.tls_set(ca_certs=str(self.ca_file))
         client.max_inflight_messages_set(0)
         client.on_connect = lambda c, *_: c.subscribe(self.topic, qos=1)
         client.on_subscribe = lambda *_: self._subscribed.set()

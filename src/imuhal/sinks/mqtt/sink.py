@@ -208,6 +208,7 @@ class MqttSink(SinkPlugin):
         client.reconnect_delay_set(min_delay=1, max_delay=s.reconnect_max_s)
         client.on_connect = self._on_connect
         client.on_disconnect = self._on_disconnect
+        client.on_connect_fail = self._on_connect_fail
         client.on_publish = self._on_publish
         self._client = client
         self._handed_codes = (mqtt.MQTT_ERR_SUCCESS, mqtt.MQTT_ERR_NO_CONN)
@@ -230,15 +231,15 @@ class MqttSink(SinkPlugin):
             return
         seq = self._seq.get(stream, 0)
         self._seq[stream] = seq + 1
-        payload = encode(event_row(event, self.frame), run=self.run_id, seq=seq,
-                         unix_s=time.time())
+        now = time.time()
+        payload = encode(event_row(event, self.frame), run=self.run_id, seq=seq, unix_s=now)
         handoff = self._handoff
         if len(handoff) >= self.settings.handoff_max:  # type: ignore[attr-defined]
             with contextlib.suppress(IndexError):  # the publisher may have emptied it
                 handoff.popleft()
                 self.counts["dropped_handoff"] += 1
         was_empty = not handoff
-        handoff.append((self._topic_root + stream, payload, time.time()))
+        handoff.append((self._topic_root + stream, payload, now))
         self.counts["published"] += 1
         if was_empty:
             self._wake.set()
@@ -272,6 +273,9 @@ class MqttSink(SinkPlugin):
             return
         if self._ever_connected:
             self.counts["reconnects"] += 1
+        if self.last_error is not None:
+            self.last_error = None
+            print("mqtt: connected; sending the queue", file=sys.stderr)
         self._ever_connected = True
         self._connected.set()
         self._wake.set()
@@ -279,6 +283,9 @@ class MqttSink(SinkPlugin):
     def _on_disconnect(self, client: Any, userdata: Any, flags: Any, reason: Any,
                        properties: Any) -> None:
         self._connected.clear()
+
+    def _on_connect_fail(self, client: Any, userdata: Any) -> None:
+        self._note(f"cannot reach {self.broker.display()}; the messages wait in the queue")
 
     def _on_publish(self, client: Any, userdata: Any, mid: int, reason: Any,
                     properties: Any) -> None:
