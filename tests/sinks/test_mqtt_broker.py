@@ -132,10 +132,11 @@ def test_a_broker_outage_loses_nothing_duplicates_nothing_and_never_slows_the_pi
     assert sum(len(v) for v in per_topic.values()) == counts["published"]
     _in_order_once(per_topic)
     # The pipeline kept its pace through the outage: events were handed to the sink without
-    # a pause (a pipeline blocked on the network would leave a gap of seconds).
+    # a pause (a pipeline blocked on the network would leave a gap as long as the outage; a
+    # loaded machine pauses the whole process for a fraction of a second now and then).
     stamps = [m.payload["unix_s"] for m in per_topic[f"imuhal/{BOARD}/imu/accel"]]
     assert stamps[0] < t0_unix + down_at_s and stamps[-1] > t0_unix + up_at_s
-    assert max(b - a for a, b in pairwise(stamps)) < 1.0
+    assert max(b - a for a, b in pairwise(stamps)) < (up_at_s - down_at_s) / 2
 
 
 def test_the_queue_limit_drops_the_oldest_counts_them_and_the_next_run_sends_the_rest(
