@@ -36,7 +36,7 @@ from typing import Any, ClassVar
 
 from pydantic import BaseModel, ConfigDict, Field, SecretStr, field_validator
 
-from imuhal.core.conventions import UnknownConvention, get_convention
+from imuhal.core.conventions import convention_name, get_convention
 from imuhal.core.errors import ImuhalError
 from imuhal.sinks.base import Event, SinkPlugin
 from imuhal.sinks.builtin import event_row
@@ -120,13 +120,7 @@ class MqttSettings(BaseModel):
             raise ValueError(f"decimate {bad[0]!r}: N must be 1 or more (1 = every event)")
         return value
 
-    @field_validator("frame")
-    @classmethod
-    def _known_frame(cls, value: str) -> str:
-        try:
-            return get_convention(value).name
-        except UnknownConvention as exc:
-            raise ValueError(str(exc)) from None
+    _frame = field_validator("frame")(convention_name)
 
 
 def default_client_id(board: str) -> str:
