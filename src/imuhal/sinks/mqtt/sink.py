@@ -181,6 +181,7 @@ class MqttSink(SinkPlugin):
         self._wake = threading.Event()
         self._stop = threading.Event()
         self._connected = threading.Event()
+        self._resending = threading.Event()
         self._ever_connected = False
         self._acked: list[int] = []
         self._acked_lock = threading.Lock()
@@ -271,6 +272,10 @@ class MqttSink(SinkPlugin):
             self.last_error = None
             print("mqtt: connected; sending the queue", file=sys.stderr)
         self._ever_connected = True
+        # paho calls this before it re-sends the unacknowledged messages: new ones wait
+        # until those are acknowledged, or they could overtake them (and a receiver keeping
+        # the highest seq would then drop a re-sent message that is no duplicate)
+        self._resending.set()
         self._connected.set()
         self._wake.set()
 
@@ -333,6 +338,11 @@ class MqttSink(SinkPlugin):
             now = time.monotonic()
             tokens, last = min(burst, tokens + (now - last) * s.drain_rate_msg_s), now
             room = min(self._inflight - len(pending), int(tokens), len(queue) - len(pending))
+            if self._resending.is_set():
+                if pending:
+                    room = 0  # the re-sent messages go first
+                else:
+                    self._resending.clear()
             if self._connected.is_set() and room > 0:
                 for qid, topic, payload in queue.after(handed, room):
                     info = self._client.publish(topic, payload, qos=1)
