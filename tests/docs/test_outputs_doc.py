@@ -22,7 +22,7 @@ def _blocks(lang: str) -> list[str]:
 
 def test_the_ros_and_mavlink_sections_shown_are_valid_profile_sections() -> None:
     sections = {k: v for block in _blocks("yaml") for k, v in yaml.safe_load(block).items()}
-    assert set(sections) == {"ros", "mavlink"}
+    assert set(sections) == {"ros", "mavlink", "outputs"}  # outputs.mqtt: test_outputs_mqtt_doc
     RosSettings.model_validate(sections["ros"])
     MavlinkSettings.model_validate(sections["mavlink"])
 

@@ -90,6 +90,11 @@ def add_parser(sub: Any) -> None:
                      help="the IGC log's glider type (default: the profile's igc.glider_type)")
     add_mcap_argument(run)
     add_mavlink_arguments(run)
+    run.add_argument("--mqtt", metavar="URL",
+                     help="publish every event to an MQTT broker (mqtt://HOST[:PORT], mqtts:// "
+                     "for TLS; credentials in the URL or IMUHAL_MQTT_USERNAME/_PASSWORD), "
+                     "queued on disk while it is unreachable; settings in the profile's "
+                     "outputs.mqtt or --sink-set mqtt.KEY=VALUE (docs/outputs.md)")
     run.add_argument("--sink", action="append", default=[], metavar="NAME",
                      help="also send every event to the sink a plugin registered as NAME "
                      "(see `imuhal plugins`); repeatable")
@@ -159,7 +164,12 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     duration = args.duration
     if duration is None and emulate is not None and scenario_params is None:
         duration = registry.scenarios.get(emulate).default_duration_s
-    plugin_sinks = _plugin_sinks(args.sink, args.sink_set, registry)  # checked before opening
+    names = [*args.sink, *(["mqtt"] if args.mqtt is not None and "mqtt" not in args.sink
+                           else [])]
+    given = {"mqtt": {"url": args.mqtt}} if args.mqtt is not None else {}
+    # checked before the board is opened
+    plugin_sinks = _plugin_sinks(names, args.sink_set, registry, profile=profile, frame=frame,
+                                 given=given)
     mavlink = mavlink_sink(registry, args, profile)  # a socket only: nothing sent yet
     where = f"emulated, scenario '{emulate}'" if emulate else "real hardware"
     print(f"imuhal {__version__}: {profile.name} ({where}) from {path}", file=sys.stderr)
@@ -219,6 +229,10 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
                                    include_samples=args.samples)
             sinks.append(truth_sink)
         sinks.extend(plugin_sinks)
+        for sink in plugin_sinks:
+            describe = getattr(sink, "describe", None)
+            if describe is not None:
+                print(f"{sink.name}: {describe()}", file=sys.stderr)
         try:
             summary = pipeline.run(duration, sinks)
             ended[0] = "complete"
@@ -227,6 +241,8 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
                               f"flushed){_kept_note(args.output, csv_sink)}") from None
         except KeyboardInterrupt as stop:
             summary = pipeline.summary()
+            summary.sinks = {s.name: s.run_counts() for s in plugin_sinks
+                             if hasattr(s, "run_counts")}  # pipeline.run closed them
             ended[0] = "interrupted"
             why = f"stopped by {stop}" if str(stop) else "interrupted"
             print(f"\n{why}; the files are complete up to here", file=sys.stderr)
@@ -320,8 +336,16 @@ def _audio_curve(args: argparse.Namespace, profile: Any) -> Any:
                           f"{err['msg'].removeprefix('Value error, ')}") from None
 
 
-def _plugin_sinks(names: list[str], settings: list[str], registry: Registry) -> list[Any]:
-    """The sinks named by ``--sink``, each with its ``--sink-set NAME.KEY=VALUE`` settings."""
+RUN_DEFAULTS = ("board", "frame")
+"""Settings a plugin sink gets from the run when neither the profile's ``outputs`` nor
+``--sink-set`` give them: the profile's name and the run's output frame."""
+
+
+def _plugin_sinks(names: list[str], settings: list[str], registry: Registry, *,
+                  profile: Any, frame: Any, given: dict[str, dict[str, Any]]) -> list[Any]:
+    """The sinks named by ``--sink`` (and ``--mqtt``), each with its settings: the run's
+    ``given`` ones (``--mqtt URL``) over ``--sink-set NAME.KEY=VALUE`` over the profile's
+    ``outputs.NAME``, over the run's name and frame (``RUN_DEFAULTS``)."""
     per_sink: dict[str, list[str]] = {name: [] for name in names}
     for item in settings:
         name, dot, rest = item.partition(".")
@@ -332,7 +356,12 @@ def _plugin_sinks(names: list[str], settings: list[str], registry: Registry) -> 
     out = []
     for name, items in per_sink.items():
         cls = registry.sinks.get(name)
-        values = parse_set_arguments(items, f"--sink-set {name}.")
+        values = {**profile.outputs.get(name, {}),
+                  **parse_set_arguments(items, f"--sink-set {name}."), **given.get(name, {})}
+        run_values = {"board": profile.name, "frame": getattr(frame, "name", frame)}
+        for key in RUN_DEFAULTS:
+            if key in cls.Settings.model_fields and key not in values:
+                values[key] = run_values[key]
         out.append(cls(build_settings(cls.Settings, values, f"sink {name!r}",
                                       flag=f"--sink-set {name}.")))
     return out

@@ -122,6 +122,9 @@ class RunSummary:
     frames: dict[str, dict[str, int]] = field(default_factory=dict)
     """Per accounted device (imuhal.pipeline.accounting): frames produced, delivered and
     ``lost_<cause>``."""
+    sinks: dict[str, dict[str, int]] = field(default_factory=dict)
+    """Counts of the sinks that keep some (``run_counts()``, e.g. the MQTT sink's sent,
+    queued and dropped messages), by sink name."""
 
     def describe(self) -> str:
         lines = [f"ran {self.simulated_s:.1f} s in {self.wall_s:.2f} s wall time"]
@@ -139,6 +142,9 @@ class RunSummary:
                 lines.append(f"    frames: {describe_frames(self.frames[dev])}")
         for est, n in self.estimates.items():
             lines.append(f"  {est}: {n} estimates")
+        for name, counts in self.sinks.items():
+            lines.append(f"  {name}: " + ", ".join(f"{k.replace('_', ' ')} {v}"
+                                                  for k, v in counts.items()))
         lines += [f"  warning: {w}" for w in self.warnings]
         return "\n".join(lines)
 
@@ -587,6 +593,7 @@ class Pipeline:
         """
         wall0 = time.perf_counter()
         failed = True
+        sink_counts: dict[str, dict[str, int]] = {}
         try:
             for event in self.events(duration_s):
                 for sink in sinks:
@@ -599,9 +606,14 @@ class Pipeline:
             for sink in sinks:
                 abort = getattr(sink, "abort", None) if failed else None
                 (abort or sink.close)()
+                counts = getattr(sink, "run_counts", None)
+                if counts is not None:  # read after closing: a sink may finish sending there
+                    sink_counts[getattr(sink, "name", "") or type(sink).__name__] = counts()
         # The span comes from the poll loop, not from reading the clock here: a run and an
         # events() loop then read the clock alike, so either replays a recording of the other.
-        return self.summary(wall_s=time.perf_counter() - wall0, simulated_s=self.span_s)
+        summary = self.summary(wall_s=time.perf_counter() - wall0, simulated_s=self.span_s)
+        summary.sinks = sink_counts
+        return summary
 
     @property
     def span_s(self) -> float:

@@ -13,7 +13,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from imuhal.calibration.model import DeviceCalibration
-from imuhal.core.conventions import UnknownConvention, get_convention
+from imuhal.core.conventions import convention_name
 from imuhal.core.frames import MountError, parse_mount
 from imuhal.profile.faults import FaultSpec
 from imuhal.sinks.flight.audio import VarioAudioSettings
@@ -110,17 +110,15 @@ class BoardProfile(_Strict):
     """System and component id and message rates of ``imuhal run --mavlink``
     (docs/outputs.md)."""
 
+    outputs: dict[str, dict[str, Any]] = Field(default_factory=dict)
+    """Settings of the run's sinks by sink name (``mqtt: {board: glider-7, decimate: ...}``),
+    each checked by that sink's own Settings; ``--sink-set NAME.KEY=VALUE`` overrides them.
+    The sink itself is switched on by its command-line option (``--mqtt URL``, ``--sink``)."""
+
     output_frame: str = "ned"
     """Convention of what the run hands out: its CSV and console sinks and
     ``Pipeline.framed_events`` (ned, aerospace, enu/ros, android, win8; see
     docs/units-and-frames.md). Estimators always work in ned; this converts at the edge."""
 
     _mount = field_validator("board_to_body")(_valid_mount)
-
-    @field_validator("output_frame")
-    @classmethod
-    def _known_frame(cls, value: str) -> str:
-        try:
-            return get_convention(value).name
-        except UnknownConvention as exc:
-            raise ValueError(str(exc)) from None
+    _frame = field_validator("output_frame")(convention_name)
