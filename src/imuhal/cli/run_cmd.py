@@ -78,6 +78,10 @@ def add_parser(sub: Any) -> None:
     run.add_argument("--record", metavar="FILE",
                      help="record every bus transaction and clock reading to a new binary "
                      "file, for `imuhal replay` (docs/recording.md)")
+    run.add_argument("--skip-calibration", action="store_true",
+                     help="emulated runs: fly the board as the profile stores it; by default "
+                     "the accelerometer and magnetometer calibrations it lacks are measured "
+                     "first on the emulated board, as docs/calibration.md asks of a user")
     run.add_argument("--quiet", action="store_true", help="no live status line")
     run.add_argument("--web", metavar="[HOST:]PORT",
                      help="serve a live dashboard (read-only) on PORT of this machine only, "
@@ -112,6 +116,9 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     if args.seed is not None and emulate is None:
         raise ImuhalError("--seed seeds the simulated world of an emulated run; add --emulate "
                           "SCENARIO (or drop --seed): real hardware has no seed")
+    if args.skip_calibration and emulate is None:
+        raise ImuhalError("--skip-calibration is for emulated runs (real hardware is never "
+                          "calibrated by `imuhal run`); drop it, or add --emulate SCENARIO")
     if args.truth and emulate is None:
         raise ImuhalError("--truth needs an emulated run (--emulate SCENARIO): real "
                           "hardware has no ground truth")
@@ -124,6 +131,7 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     plugin_sinks = _plugin_sinks(args.sink, args.sink_set, registry)  # checked before opening
     where = f"emulated, scenario '{emulate}'" if emulate else "real hardware"
     print(f"imuhal {__version__}: {profile.name} ({where}) from {path}", file=sys.stderr)
+    profile, profile_text = _user_calibration(args, path, profile, emulate, registry)
     sinks: list[Any] = []
     if not args.quiet:
         sinks.append(ConsoleSink(sys.stdout, frame=frame))
@@ -139,7 +147,7 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
             stack.callback(trace_file.commit)
         if args.record:
             recorder = BusRecorder(args.record, run_header(
-                path.read_text(encoding="utf-8"), str(path), emulate=emulate, seed=args.seed))
+                profile_text, str(path), emulate=emulate, seed=args.seed))
             stack.callback(lambda: recorder.close(ended[0]))
         if emulate is None:
             pipeline = stack.enter_context(Pipeline.open(profile, registry, trace=trace,
@@ -200,6 +208,27 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
         print(f"recorded {recorder.transfers} bus transactions to {args.record}",
               file=sys.stderr)
     return 0
+
+
+def _user_calibration(args: argparse.Namespace, path: Path, profile: Any,
+                      emulate: str | None, registry: Registry) -> tuple[Any, str]:
+    """The profile to run and its text: an emulated board with sensor errors is calibrated
+    first where its profile lacks a record (unless --skip-calibration); otherwise each
+    missing record is named once, with what it may cost (imuhal.calibrate.as_user)."""
+    from imuhal.calibrate.as_user import calibrate_emulated, missing_calibration_notes
+
+    text = path.read_text(encoding="utf-8")
+    if emulate is not None and not profile.emulation.sensor_errors:
+        return profile, text  # ideal chips: nothing to calibrate, nothing it costs
+    if emulate is not None and not args.skip_calibration:
+        run = calibrate_emulated(profile, text, str(path), registry, seed=args.seed)
+        if run.measured:
+            seed = profile.emulation.seed if args.seed is None else args.seed
+            print(run.describe(seed), file=sys.stderr)
+        return run.profile, run.text
+    for note in missing_calibration_notes(profile, registry):
+        print(f"note: {note}", file=sys.stderr)
+    return profile, text
 
 
 def _flight_sinks(args: argparse.Namespace, profile: Any, registry: Registry,
