@@ -131,7 +131,8 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     plugin_sinks = _plugin_sinks(args.sink, args.sink_set, registry)  # checked before opening
     where = f"emulated, scenario '{emulate}'" if emulate else "real hardware"
     print(f"imuhal {__version__}: {profile.name} ({where}) from {path}", file=sys.stderr)
-    profile, profile_text = _user_calibration(args, path, profile, emulate, registry)
+    profile, profile_text, calibrated_note = _user_calibration(args, path, profile, emulate,
+                                                               registry)
     sinks: list[Any] = []
     if not args.quiet:
         sinks.append(ConsoleSink(sys.stdout, frame=frame))
@@ -182,6 +183,8 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
                                    include_samples=args.samples)
             sinks.append(truth_sink)
         sinks.extend(plugin_sinks)
+        if calibrated_note:  # once every output is open: a mistake stays a one-line error
+            print(calibrated_note, file=sys.stderr)
         try:
             summary = pipeline.run(duration, sinks)
             ended[0] = "complete"
@@ -211,24 +214,23 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
 
 
 def _user_calibration(args: argparse.Namespace, path: Path, profile: Any,
-                      emulate: str | None, registry: Registry) -> tuple[Any, str]:
-    """The profile to run and its text: an emulated board with sensor errors is calibrated
-    first where its profile lacks a record (unless --skip-calibration); otherwise each
-    missing record is named once, with what it may cost (imuhal.calibrate.as_user)."""
+                      emulate: str | None, registry: Registry) -> tuple[Any, str, str]:
+    """The profile to run, its text and the line saying it was calibrated first (empty:
+    it was not): an emulated board with sensor errors is calibrated first where its profile
+    lacks a record (unless --skip-calibration); otherwise each missing record is named once,
+    with what it may cost (imuhal.calibrate.as_user)."""
     from imuhal.calibrate.as_user import calibrate_emulated, missing_calibration_notes
 
     text = path.read_text(encoding="utf-8")
     if emulate is not None and not profile.emulation.sensor_errors:
-        return profile, text  # ideal chips: nothing to calibrate, nothing it costs
+        return profile, text, ""  # ideal chips: nothing to calibrate, nothing it costs
     if emulate is not None and not args.skip_calibration:
         run = calibrate_emulated(profile, text, str(path), registry, seed=args.seed)
-        if run.measured:
-            seed = profile.emulation.seed if args.seed is None else args.seed
-            print(run.describe(seed), file=sys.stderr)
-        return run.profile, run.text
+        seed = profile.emulation.seed if args.seed is None else args.seed
+        return run.profile, run.text, run.describe(seed) if run.measured else ""
     for note in missing_calibration_notes(profile, registry):
         print(f"note: {note}", file=sys.stderr)
-    return profile, text
+    return profile, text, ""
 
 
 def _flight_sinks(args: argparse.Namespace, profile: Any, registry: Registry,
