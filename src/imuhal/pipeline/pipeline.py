@@ -15,6 +15,7 @@ import time
 from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -23,11 +24,12 @@ from imuhal.bus.contained import ContainedBus
 from imuhal.bus.recording.recorder import BusRecorder
 from imuhal.bus.spy import SpyBus, Transfer
 from imuhal.calibration.gyro import GyroOffsetProcedure
-from imuhal.calibration.model import CalibrationBinding, DeviceCalibration
+from imuhal.calibration.hard_iron import HardIronLearner
+from imuhal.calibration.model import CalibrationBinding, DeviceCalibration, now
 from imuhal.core.conventions import get_convention
 from imuhal.core.errors import BusError, ImuhalError, PluginError
 from imuhal.core.frames import FloatArray
-from imuhal.core.samples import Channel, Sample, SampleFlag
+from imuhal.core.samples import Channel, MagSample, Sample, SampleFlag
 from imuhal.drivers.base import DeviceIdentity, Driver
 from imuhal.estimation.base import Estimator
 from imuhal.estimation.framed import FramedEvent, express
@@ -83,6 +85,8 @@ class DeviceRuntime:
     """Per quantity, the time of the last valid sample (samples must not go back)."""
     chip_to_body_rows: list[list[float]] = field(default_factory=list)
     """``chip_to_body`` as nested lists of floats (every sample is rotated with it)."""
+    mag_learner: HardIronLearner | None = None
+    """Learning the hard iron in flight (``mag_in_flight``, no stored magnetometer record)."""
 
     def __post_init__(self) -> None:
         self.chip_to_body_rows = np.asarray(self.chip_to_body, dtype=float).tolist()
@@ -112,6 +116,8 @@ class RunSummary:
     estimates: dict[str, int]
     warnings: list[str]
     driver: dict[str, dict[str, int]] = field(default_factory=dict)
+    learned: dict[str, dict[str, Any]] = field(default_factory=dict)
+    """Per device learning in flight: :meth:`HardIronLearner.status`."""
 
     def describe(self) -> str:
         lines = [f"ran {self.simulated_s:.1f} s in {self.wall_s:.2f} s wall time"]
@@ -127,8 +133,21 @@ class RunSummary:
                          + (f", driver: {own}" if own else ""))
         for est, n in self.estimates.items():
             lines.append(f"  {est}: {n} estimates")
+        for dev, st in self.learned.items():
+            lines.append(f"  {dev}: {_learned_words(st)}")
         lines += [f"  warning: {w}" for w in self.warnings]
         return "\n".join(lines)
+
+
+def _learned_words(status: dict[str, Any]) -> str:
+    """One line for the run summary: the hard iron learned in flight and how sure it is."""
+    h, std = status.get("hard_iron_ut"), status.get("std_ut")
+    if h is None or std is None:
+        return f"hard iron: learning in flight ({status['readings']} readings, no fit yet)"
+    fit = ", ".join(f"{v:.1f} +- {e:.1f}" for v, e in zip(h, std, strict=True))
+    state = "learned in flight, applied" if status["converged"] else \
+        "learning in flight, not applied yet"
+    return f"hard iron {state}: ({fit}) uT from {status['readings']} readings"
 
 
 class Pipeline:
@@ -289,6 +308,11 @@ class Pipeline:
                                                     driver.identity,
                                                     type(driver).calibration_version)
         dev.full_scale = {ch: driver.full_scale(ch) for ch in type(driver).channels}
+        learn = cfg.calibration.mag_in_flight if cfg.calibration is not None else None
+        if learn is not None and learn.enabled and Channel.MAG in type(driver).channels \
+                and (dev.calibration is None or dev.calibration.mag is None) \
+                and dev.mag_learner is None:
+            dev.mag_learner = HardIronLearner(learn)
         dev.present = True
 
     def events(self, duration_s: float | None = None) -> Iterator[Event]:
@@ -459,6 +483,12 @@ class Pipeline:
             dev.last_valid_ns[channel] = sample.t_ns
         if not self.calibrated:
             return sample
+        learner = dev.mag_learner
+        if learner is not None and sample.valid and isinstance(sample, MagSample) \
+                and learner.feed(sample.mag_ut):
+            cal = dev.calibration or DeviceCalibration()
+            dev.calibration = cal.model_copy(update={"mag": learner.record(
+                binding=self.calibration_binding(dev.name), date=now())})
         # Flagged samples are only rotated, not calibrated.
         sample = calibrate_to_body(sample, dev.calibration if sample.valid else None,
                                    dev.chip_to_body_rows)
@@ -573,6 +603,8 @@ class Pipeline:
             estimates={e.name: e.outputs for e in self.estimators},
             warnings=list(self.warnings),
             driver={n: d.driver.health.counts() for n, d in self.devices.items()},
+            learned={n: d.mag_learner.status() for n, d in self.devices.items()
+                     if d.mag_learner is not None},
         )
 
     def close(self) -> None:
