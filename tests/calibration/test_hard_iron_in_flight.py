@@ -4,6 +4,7 @@ readings taken while the board turns, with its uncertainty and a convergence cri
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,6 +12,7 @@ import pytest
 from imuhal.calibrate.emulated import measure_board_calibration
 from imuhal.calibration.hard_iron import PROCEDURE, HardIronLearner
 from imuhal.calibration.model import DeviceCalibration, MagInFlightSettings
+from imuhal.cli.main import main
 from imuhal.emulation import open_emulated
 from imuhal.plugins.manager import load_registry
 from imuhal.profile.loader import load_profile, parse_profile
@@ -126,3 +128,33 @@ def test_the_uncalibrated_gps_vario_learns_its_hard_iron_in_two_minutes_of_therm
     assert applied is not None and applied.mag is not None
     assert applied.mag.procedure == PROCEDURE
     assert np.allclose(applied.mag.hard_iron_ut, reference.hard_iron_ut, atol=1.0)
+
+
+def _learning_profile(tmp_path: Path) -> Path:
+    text = (default_profile_path().parent / "seed-gps-vario.yaml").read_text(encoding="utf-8")
+    path = tmp_path / "gps-vario.yaml"
+    learning = '    mount: "+Y-X+Z"\n    calibration:\n      mag_in_flight: {}\n'
+    path.write_text(text.replace('    mount: "+Y-X+Z"\n', learning), encoding="utf-8")
+    return path
+
+
+def test_imuhal_run_saves_the_learned_hard_iron_into_a_copy_of_the_profile(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    profile, saved = _learning_profile(tmp_path), tmp_path / "learned.yaml"
+    assert main(["run", str(profile), "--emulate", "thermal", "--duration", "90", "--quiet",
+                 "--skip-calibration", "--save-learned", str(saved)]) == 0
+    err = capsys.readouterr().err
+    assert "hard iron learned in flight, applied" in err
+    mag = load_profile(saved, load_registry()).devices["mag"].calibration
+    assert mag is not None and mag.mag is not None and mag.mag.procedure == PROCEDURE
+    assert "mag_in_flight" in profile.read_text(encoding="utf-8")  # the input is untouched
+    assert "hard_iron_ut" not in profile.read_text(encoding="utf-8")
+
+
+def test_imuhal_run_with_nothing_learned_writes_no_copy(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    profile, saved = _learning_profile(tmp_path), tmp_path / "learned.yaml"
+    assert main(["run", str(profile), "--emulate", "static", "--duration", "2", "--quiet",
+                 "--skip-calibration", "--save-learned", str(saved)]) == 0
+    assert "nothing learned in flight to save" in capsys.readouterr().err
+    assert not saved.exists()

@@ -18,7 +18,9 @@ import math
 from dataclasses import dataclass
 
 from imuhal.calibrate.store import replace_device_calibration, rounded
+from imuhal.calibration.model import DeviceCalibration
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
+from imuhal.core.atomic import atomic_write_text
 from imuhal.core.samples import Channel
 from imuhal.emulation import calibrated_as_user
 from imuhal.emulation.user_calibration import missing_calibrations
@@ -99,3 +101,14 @@ def calibrate_emulated(profile: BoardProfile, text: str, source: str, registry: 
         text, _ = replace_device_calibration(text, source, device, rounded(cal))
     return CalibratedRun(parse_profile(text, source, registry), text,
                          {d: tuple(ch.value for ch in chans) for d, chans in missing.items()})
+
+
+def save_learned(text: str, source: str, output: str,
+                 calibrations: dict[str, DeviceCalibration], registry: Registry) -> None:
+    """Write a copy of the profile (``text``, read from ``source``) to ``output`` with each
+    device's calibration replaced by ``calibrations`` (the records learned in flight, as
+    ``imuhal calibrate`` writes records), atomically; the copy must load as a profile."""
+    for device, cal in calibrations.items():
+        text, _ = replace_device_calibration(text, source, device, rounded(cal))
+    parse_profile(text, output, registry)
+    atomic_write_text(output, text)

@@ -82,6 +82,9 @@ def add_parser(sub: Any) -> None:
                      help="emulated runs: fly the board as the profile stores it; by default "
                      "the accelerometer and magnetometer calibrations it lacks are measured "
                      "first on the emulated board, as docs/calibration.md asks of a user")
+    run.add_argument("--save-learned", metavar="FILE.yaml",
+                     help="write a copy of the profile holding the calibrations learned in "
+                     "flight (mag_in_flight: the magnetometer's hard iron) once converged")
     run.add_argument("--quiet", action="store_true", help="no live status line")
     run.add_argument("--web", metavar="[HOST:]PORT",
                      help="serve a live dashboard (read-only) on PORT of this machine only, "
@@ -97,7 +100,8 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     path = Path(args.profile) if args.profile else default_profile_path()
     # Before anything is opened: no output may overwrite an input, and each must be writable.
     check_outputs({"--output": args.output, "--truth": args.truth, "--trace": args.trace,
-                   "--audio-wav": args.audio_wav, "--record": args.record},
+                   "--audio-wav": args.audio_wav, "--record": args.record,
+                   "--save-learned": args.save_learned},
                   {"PROFILE": path, "--replay-truth": args.replay_truth})
     if args.samples and not args.output:
         raise ImuhalError("--samples writes the samples into the --output log; add "
@@ -202,7 +206,12 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
             if args.output:
                 print(f"imuhal: note{_kept_note(args.output, csv_sink)}", file=sys.stderr)
             raise
+        learned = {n: d.calibration for n, d in pipeline.devices.items()
+                   if d.mag_learner is not None and d.mag_learner.converged
+                   and d.calibration is not None}
     print(summary.describe(), file=sys.stderr)
+    if args.save_learned:
+        _save_learned(args.save_learned, profile_text, path, learned, registry)
     if csv_sink is not None:
         print(f"wrote {csv_sink.rows} rows to {args.output}", file=sys.stderr)
     if truth_sink is not None:
@@ -231,6 +240,20 @@ def _user_calibration(args: argparse.Namespace, path: Path, profile: Any,
     for note in missing_calibration_notes(profile, registry):
         print(f"note: {note}", file=sys.stderr)
     return profile, text, ""
+
+
+def _save_learned(output: str, text: str, path: Path, learned: dict[str, Any],
+                  registry: Registry) -> None:
+    """--save-learned: the profile with what was learned in flight, or why nothing was."""
+    from imuhal.calibrate.as_user import save_learned
+
+    if not learned:
+        print(f"nothing learned in flight to save: {output} not written (a device needs "
+              "mag_in_flight and enough turns, docs/calibration.md)", file=sys.stderr)
+        return
+    save_learned(text, str(path), output, learned, registry)
+    print(f"wrote the profile with the hard iron learned in flight ({', '.join(learned)}) "
+          f"to {output}", file=sys.stderr)
 
 
 def _flight_sinks(args: argparse.Namespace, profile: Any, registry: Registry,

@@ -45,7 +45,8 @@ def with_calibration(profile: BoardProfile, calibrations: Mapping[str, DeviceCal
 def missing_calibrations(profile: BoardProfile, registry: Registry
                          ) -> dict[str, tuple[Channel, ...]]:
     """The accelerometer and magnetometer channels of each enabled device that the profile
-    stores no record for, by device (profile order); devices missing none are left out."""
+    stores no record for, by device (profile order); devices missing none are left out. A
+    magnetometer that learns its hard iron in flight (``mag_in_flight``) is not missing."""
     out: dict[str, tuple[Channel, ...]] = {}
     for name in device_order(profile):
         cfg = profile.devices[name]
@@ -53,8 +54,10 @@ def missing_calibrations(profile: BoardProfile, registry: Registry
         if not cfg.enabled or reg is None:
             continue
         cal = cfg.calibration
+        learned = cal is not None and cal.mag_in_flight is not None and cal.mag_in_flight.enabled
         missing = tuple(ch for ch in USER_CALIBRATED if ch in reg.obj.channels
-                        and (cal is None or getattr(cal, ch.value) is None))
+                        and (cal is None or getattr(cal, ch.value) is None)
+                        and not (ch is Channel.MAG and learned))
         if missing:
             out[name] = missing
     return out
