@@ -3,6 +3,7 @@ readings taken while the board turns, with its uncertainty and a convergence cri
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -14,6 +15,8 @@ from imuhal.calibration.hard_iron import PROCEDURE, HardIronLearner
 from imuhal.calibration.model import DeviceCalibration, MagInFlightSettings
 from imuhal.cli.main import main
 from imuhal.emulation import open_emulated
+from imuhal.live.sink import LiveSink
+from imuhal.live.snapshot import Snapshotter
 from imuhal.plugins.manager import load_registry
 from imuhal.profile.loader import load_profile, parse_profile
 from imuhal.profiles_dir import default_profile_path
@@ -158,3 +161,27 @@ def test_imuhal_run_with_nothing_learned_writes_no_copy(
                  "--skip-calibration", "--save-learned", str(saved)]) == 0
     assert "nothing learned in flight to save" in capsys.readouterr().err
     assert not saved.exists()
+
+
+def test_the_live_views_health_shows_the_hard_iron_and_its_uncertainty() -> None:
+    registry = load_registry()
+    profile = load_profile(default_profile_path().parent / "seed-gps-vario.yaml", registry)
+    devices = dict(profile.devices)
+    devices["mag"] = devices["mag"].model_copy(
+        update={"calibration": DeviceCalibration(mag_in_flight=MagInFlightSettings())})
+    profile = profile.model_copy(update={"devices": devices, "estimators": {}})
+    sink = LiveSink()
+    with open_emulated(profile, registry, scenario="thermal", seed=1) as pipeline:
+        snap = Snapshotter(sink, pipeline)
+        for event in pipeline.events(30.0):
+            sink.handle(event)
+        learning = snap.snapshot()["health"]["mag"]["learned"]
+        for event in pipeline.events(60.0):
+            sink.handle(event)
+        state = snap.snapshot()
+    json.dumps(state, allow_nan=False)  # what the server sends
+    learned = state["health"]["mag"]["learned"]
+    assert not learning["converged"] and learning["readings"] > 0
+    assert learned["converged"] and max(learned["std_ut"]) <= 0.5
+    assert learned["criterion"] == {"min_readings": 100, "max_std_ut": 0.5}
+    assert state["health"]["imu"]["learned"] is None

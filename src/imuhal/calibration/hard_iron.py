@@ -52,6 +52,9 @@ class HardIronLearner:
         self.readings = 0
         """Readings taken into the fit (each min_step_ut from the previous one)."""
         self.converged = False
+        self.latest: dict[str, object] = self.status()
+        """:meth:`status` as of the last tenth reading: what another thread (the live
+        view) reads, replaced whole, never half-updated."""
 
     def feed(self, mag_ut: Vec3) -> bool:
         """Take one raw reading; True when there is a new learned value to apply: when the
@@ -70,11 +73,12 @@ class HardIronLearner:
         self._b2 += b * b
         self.readings += 1
         # checked every 10 readings: a 4 x 4 solve, not one per sample
-        if self.readings < self.settings.min_readings or self.readings % 10:
+        if self.readings % 10:
             return False
-        if not self.converged:
+        if not self.converged and self.readings >= self.settings.min_readings:
             std = self.std_ut()
             self.converged = std is not None and max(std) <= self.settings.max_std_ut
+        self.latest = self.status()
         return self.converged
 
     def _solve(self) -> tuple[np.ndarray, np.ndarray] | None:
@@ -120,10 +124,17 @@ class HardIronLearner:
         return math.sqrt(b2) if b2 > 0 else None
 
     def status(self) -> dict[str, object]:
-        """What the run's health shows: readings, the fit so far and its uncertainty."""
+        """What the run's health shows: readings, the fit so far and its uncertainty (per
+        axis; None for an axis not determined yet), and the convergence criterion."""
+        std = self.std_ut()
         return {"readings": self.readings, "converged": self.converged,
-                "hard_iron_ut": self.hard_iron_ut(), "std_ut": self.std_ut(),
-                "field_ut": self.field_ut()}
+                "hard_iron_ut": self.hard_iron_ut(),
+                # an axis the motion has not determined: None (JSON has no infinity)
+                "std_ut": None if std is None else
+                tuple(v if math.isfinite(v) else None for v in std),
+                "field_ut": self.field_ut(),
+                "criterion": {"min_readings": self.settings.min_readings,
+                              "max_std_ut": self.settings.max_std_ut}}
 
     def record(self, *, binding: CalibrationBinding | None = None,
                date: datetime | None = None) -> MagCalibration:

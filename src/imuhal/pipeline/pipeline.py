@@ -144,7 +144,8 @@ def _learned_words(status: dict[str, Any]) -> str:
     h, std = status.get("hard_iron_ut"), status.get("std_ut")
     if h is None or std is None:
         return f"hard iron: learning in flight ({status['readings']} readings, no fit yet)"
-    fit = ", ".join(f"{v:.1f} +- {e:.1f}" for v, e in zip(h, std, strict=True))
+    fit = ", ".join(f"{v:.1f} +- " + ("?" if e is None else f"{e:.1f}")
+                    for v, e in zip(h, std, strict=True))
     state = "learned in flight, applied" if status["converged"] else \
         "learning in flight, not applied yet"
     return f"hard iron {state}: ({fit}) uT from {status['readings']} readings"
