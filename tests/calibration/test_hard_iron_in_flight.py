@@ -17,8 +17,9 @@ from imuhal.cli.main import main
 from imuhal.emulation import open_emulated
 from imuhal.live.sink import LiveSink
 from imuhal.live.snapshot import Snapshotter
-from imuhal.plugins.manager import load_registry
+from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.loader import load_profile, parse_profile
+from imuhal.profile.model import BoardProfile
 from imuhal.profiles_dir import default_profile_path
 
 HARD_IRON_UT = np.array([12.0, -7.0, 20.0])
@@ -112,13 +113,18 @@ def test_a_profile_asks_for_it_under_the_devices_calibration() -> None:
     assert cal is not None and cal.mag_in_flight == MagInFlightSettings()
 
 
-def test_the_uncalibrated_gps_vario_learns_its_hard_iron_in_two_minutes_of_thermal() -> None:
-    registry = load_registry()
+def _learning_board(registry: Registry) -> BoardProfile:
+    """seed-gps-vario without estimators, its magnetometer learning in flight."""
     profile = load_profile(default_profile_path().parent / "seed-gps-vario.yaml", registry)
     devices = dict(profile.devices)
     devices["mag"] = devices["mag"].model_copy(
         update={"calibration": DeviceCalibration(mag_in_flight=MagInFlightSettings())})
-    profile = profile.model_copy(update={"devices": devices, "estimators": {}})
+    return profile.model_copy(update={"devices": devices, "estimators": {}})
+
+
+def test_the_uncalibrated_gps_vario_learns_its_hard_iron_in_two_minutes_of_thermal() -> None:
+    registry = load_registry()
+    profile = _learning_board(registry)
     with open_emulated(profile, registry, scenario="thermal", seed=1) as pipeline:
         for _ in pipeline.events(120.0):
             pass
@@ -165,11 +171,7 @@ def test_imuhal_run_with_nothing_learned_writes_no_copy(
 
 def test_the_live_views_health_shows_the_hard_iron_and_its_uncertainty() -> None:
     registry = load_registry()
-    profile = load_profile(default_profile_path().parent / "seed-gps-vario.yaml", registry)
-    devices = dict(profile.devices)
-    devices["mag"] = devices["mag"].model_copy(
-        update={"calibration": DeviceCalibration(mag_in_flight=MagInFlightSettings())})
-    profile = profile.model_copy(update={"devices": devices, "estimators": {}})
+    profile = _learning_board(registry)
     sink = LiveSink()
     with open_emulated(profile, registry, scenario="thermal", seed=1) as pipeline:
         snap = Snapshotter(sink, pipeline)

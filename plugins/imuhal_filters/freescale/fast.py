@@ -121,6 +121,29 @@ def _inverse_or_identity(m, out):
 inverse_or_identity = jit(_inverse_or_identity)
 
 
+def _mahalanobis3(innov, noise, factor, err, k):
+    """m^2 = e^T S^-1 e for the 3 x 3 block of S = ``innov`` + diag(``noise`` * ``factor``)
+    starting at row and column ``k`` and the matching rows of ``err``, by cofactors; NaN when
+    the block is singular (no gate then)."""
+    s00, s01, s02 = innov[k, k] + noise[k] * factor, innov[k, k + 1], innov[k, k + 2]
+    s10, s11, s12 = innov[k + 1, k], innov[k + 1, k + 1] + noise[k + 1] * factor, \
+        innov[k + 1, k + 2]
+    s20, s21, s22 = innov[k + 2, k], innov[k + 2, k + 1], \
+        innov[k + 2, k + 2] + noise[k + 2] * factor
+    c00, c01, c02 = s11 * s22 - s12 * s21, s02 * s21 - s01 * s22, s01 * s12 - s02 * s11
+    c10, c11, c12 = s12 * s20 - s10 * s22, s00 * s22 - s02 * s20, s02 * s10 - s00 * s12
+    c20, c21, c22 = s10 * s21 - s11 * s20, s01 * s20 - s00 * s21, s00 * s11 - s01 * s10
+    det = s00 * c00 + s01 * c10 + s02 * c20
+    if det == 0.0:
+        return math.nan
+    e0, e1, e2 = err[k], err[k + 1], err[k + 2]
+    return (e0 * (c00 * e0 + c01 * e1 + c02 * e2) + e1 * (c10 * e0 + c11 * e1 + c12 * e2)
+            + e2 * (c20 * e0 + c21 * e1 + c22 * e2)) / det
+
+
+mahalanobis3 = jit(_mahalanobis3)
+
+
 def _wrap_360(a):
     a = a + 360.0 if a < 0.0 else a
     return 0.0 if a >= 360.0 else a
@@ -252,19 +275,9 @@ def _freescale_rows(q, b, a_sensor, m_global, qw, incl, accel, gyro, mag, use_ma
         matmul(c, qw_ct, innov)
         if gate_sigma > 0.0:
             # the gravity innovation's Mahalanobis distance against S (kalman.py's
-            # _innovation_noise_factor): 3 x 3 inverse by cofactors, none if singular
-            s00, s01, s02 = innov[0, 0] + noise[0] * factor, innov[0, 1], innov[0, 2]
-            s10, s11, s12 = innov[1, 0], innov[1, 1] + noise[1] * factor, innov[1, 2]
-            s20, s21, s22 = innov[2, 0], innov[2, 1], innov[2, 2] + noise[2] * factor
-            c00, c01, c02 = s11 * s22 - s12 * s21, s02 * s21 - s01 * s22, s01 * s12 - s02 * s11
-            c10, c11, c12 = s12 * s20 - s10 * s22, s00 * s22 - s02 * s20, s02 * s10 - s00 * s12
-            c20, c21, c22 = s10 * s21 - s11 * s20, s01 * s20 - s00 * s21, s00 * s11 - s01 * s10
-            det = s00 * c00 + s01 * c10 + s02 * c20
-            if det != 0.0:
-                e0, e1, e2 = err[0], err[1], err[2]
-                m2 = (e0 * (c00 * e0 + c01 * e1 + c02 * e2)
-                      + e1 * (c10 * e0 + c11 * e1 + c12 * e2)
-                      + e2 * (c20 * e0 + c21 * e1 + c22 * e2)) / det
+            # _innovation_noise_factor), none if singular
+            m2 = mahalanobis3(innov, noise, factor, err, 0)
+            if not math.isnan(m2):
                 ratio2 = m2 / (gate_sigma * gate_sigma)
                 if ratio2 <= 1.0:
                     gate_closed[0] = 0.0
@@ -276,18 +289,8 @@ def _freescale_rows(q, b, a_sensor, m_global, qw, incl, accel, gyro, mag, use_ma
         if use_mag and mag_steers and mag_gate_sigma > 0.0:
             # the geomagnetic innovation's Mahalanobis distance against S's magnetometer
             # block (kalman.py's _mag_plausible); no gate if singular
-            s00, s01, s02 = innov[3, 3] + noise[3], innov[3, 4], innov[3, 5]
-            s10, s11, s12 = innov[4, 3], innov[4, 4] + noise[4], innov[4, 5]
-            s20, s21, s22 = innov[5, 3], innov[5, 4], innov[5, 5] + noise[5]
-            c00, c01, c02 = s11 * s22 - s12 * s21, s02 * s21 - s01 * s22, s01 * s12 - s02 * s11
-            c10, c11, c12 = s12 * s20 - s10 * s22, s00 * s22 - s02 * s20, s02 * s10 - s00 * s12
-            c20, c21, c22 = s10 * s21 - s11 * s20, s01 * s20 - s00 * s21, s00 * s11 - s01 * s10
-            det = s00 * c00 + s01 * c10 + s02 * c20
-            if det != 0.0:
-                e0, e1, e2 = err[3], err[4], err[5]
-                m2 = (e0 * (c00 * e0 + c01 * e1 + c02 * e2)
-                      + e1 * (c10 * e0 + c11 * e1 + c12 * e2)
-                      + e2 * (c20 * e0 + c21 * e1 + c22 * e2)) / det
+            m2 = mahalanobis3(innov, noise, 1.0, err, 3)
+            if not math.isnan(m2):
                 mag_steers = m2 <= mag_gate_sigma * mag_gate_sigma
         for i in range(nm):
             innov[i, i] += noise[i] * factor if i < 3 else noise[i]
