@@ -167,5 +167,10 @@ def test_a_gated_accelerometer_leaves_the_tilt_to_the_gyro_not_the_magnetometer(
     assert _tilt_max_turning_under_load_with_hard_iron({}) < 3.0
 
 
-def test_without_that_the_magnetometers_hard_iron_steers_the_tilt() -> None:
-    assert _tilt_max_turning_under_load_with_hard_iron({"mag_max_accel_distrust": None}) > 8.0
+def test_the_magnetometer_innovation_gate_alone_also_keeps_the_hard_iron_off_the_tilt() -> None:
+    assert _tilt_max_turning_under_load_with_hard_iron({"mag_max_accel_distrust": None}) < 3.0
+
+
+def test_without_either_rule_the_magnetometers_hard_iron_steers_the_tilt() -> None:
+    assert _tilt_max_turning_under_load_with_hard_iron(
+        {"mag_max_accel_distrust": None, "mag_innovation_gate_sigma": None}) > 8.0

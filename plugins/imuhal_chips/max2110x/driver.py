@@ -93,6 +93,9 @@ class Max2110xDriver(Driver):
     part: ClassVar[PartSpec]
     channels = (Channel.GYRO, Channel.ACCEL, Channel.TEMPERATURE)
     bus_kinds = frozenset({BusKind.I2C, BusKind.SPI})
+    specified_offset: ClassVar[Mapping[Channel, float]] = {Channel.ACCEL: 0.060 * 9.80665}
+    """No MAX2110x datasheet was found: +-60 mg is assumed, the consumer-MEMS class of the
+    MPU-9250's specified zero-g offset (and three times the emulator's assumed 20 mg spread)."""
     settings: Max2110xSettings
 
     def __init__(

@@ -133,6 +133,10 @@ class MPU9250Driver(Driver):
     Settings = MPU9250Settings
     channels: ClassVar[tuple[Channel, ...]] = (Channel.ACCEL, Channel.GYRO, Channel.TEMPERATURE)
     bus_kinds: ClassVar[frozenset[BusKind]] = frozenset({BusKind.I2C, BusKind.SPI})
+    specified_offset: ClassVar[Mapping[Channel, float]] = {
+        Channel.ACCEL: 0.060 * 9.80665}
+    """Product specification: zero-g offset +-60 mg on X and Y (the axes that lie level in
+    flight and decide the tilt; Z +-80 mg)."""
     child_bus_kinds: ClassVar[Mapping[str, BusKind]] = {"aux": BusKind.I2C}
     child_bus_features: ClassVar[Mapping[str, frozenset[str]]] = {
         "aux": frozenset({AUTO_READ})}

@@ -129,6 +129,7 @@ def _compiled_steps(kf: FreescaleKalman, accel: FloatArray, gyro: FloatArray,
     gate_closed = np.array([kf.gate_closed_s])
     gate = s.accel_innovation_gate_sigma
     mag_limit = s9.mag_max_accel_distrust if s9 else None
+    mag_gate = s9.mag_innovation_gate_sigma if s9 else None
     kf.qw = np.ascontiguousarray(kf.qw)
     freescale_rows(
         kf.q, kf.b, kf.a_sensor, kf.m_global, kf.qw, incl, a, g, m, nine,
@@ -140,7 +141,8 @@ def _compiled_steps(kf: FreescaleKalman, accel: FloatArray, gyro: FloatArray,
         s9.disturbance_decay if s9 else 0.0, s9.qw_mag_disturbance_ut2 if s9 else 0.0,
         s9.max_inclination_deg if s9 else 90.0, _STYLE[s.coordinate_system],
         0.0 if gate is None else float(gate), s.accel_gate_reacquire_s, gate_closed,
-        0.0 if mag_limit is None else float(mag_limit), out_q, out_b, out_incl, out_jam,
+        0.0 if mag_limit is None else float(mag_limit),
+        0.0 if mag_gate is None else float(mag_gate), out_q, out_b, out_incl, out_jam,
         out_euler)
     kf.inclination_deg = float(incl[0])
     kf.gate_closed_s = float(gate_closed[0])

@@ -33,7 +33,7 @@ KERNEL_SETTINGS = frozenset({
     "qv_mag_ut2", "qw_mag_disturbance_ut2", "qw_init_disturbance_ut2", "disturbance_decay",
     "max_inclination_deg", "lock_sets_inclination", "field_strength_ut",
     "full_innovation_inverse", "accel_innovation_gate_sigma", "accel_gate_reacquire_s",
-    "mag_max_accel_distrust",
+    "mag_max_accel_distrust", "mag_innovation_gate_sigma",
 })
 
 _DEG = math.pi / 180.0
@@ -121,6 +121,29 @@ def _inverse_or_identity(m, out):
 inverse_or_identity = jit(_inverse_or_identity)
 
 
+def _mahalanobis3(innov, noise, factor, err, k):
+    """m^2 = e^T S^-1 e for the 3 x 3 block of S = ``innov`` + diag(``noise`` * ``factor``)
+    starting at row and column ``k`` and the matching rows of ``err``, by cofactors; NaN when
+    the block is singular (no gate then)."""
+    s00, s01, s02 = innov[k, k] + noise[k] * factor, innov[k, k + 1], innov[k, k + 2]
+    s10, s11, s12 = innov[k + 1, k], innov[k + 1, k + 1] + noise[k + 1] * factor, \
+        innov[k + 1, k + 2]
+    s20, s21, s22 = innov[k + 2, k], innov[k + 2, k + 1], \
+        innov[k + 2, k + 2] + noise[k + 2] * factor
+    c00, c01, c02 = s11 * s22 - s12 * s21, s02 * s21 - s01 * s22, s01 * s12 - s02 * s11
+    c10, c11, c12 = s12 * s20 - s10 * s22, s00 * s22 - s02 * s20, s02 * s10 - s00 * s12
+    c20, c21, c22 = s10 * s21 - s11 * s20, s01 * s20 - s00 * s21, s00 * s11 - s01 * s10
+    det = s00 * c00 + s01 * c10 + s02 * c20
+    if det == 0.0:
+        return math.nan
+    e0, e1, e2 = err[k], err[k + 1], err[k + 2]
+    return (e0 * (c00 * e0 + c01 * e1 + c02 * e2) + e1 * (c10 * e0 + c11 * e1 + c12 * e2)
+            + e2 * (c20 * e0 + c21 * e1 + c22 * e2)) / det
+
+
+mahalanobis3 = jit(_mahalanobis3)
+
+
 def _wrap_360(a):
     a = a + 360.0 if a < 0.0 else a
     return 0.0 if a >= 360.0 else a
@@ -181,14 +204,15 @@ def _freescale_rows(q, b, a_sensor, m_global, qw, incl, accel, gyro, mag, use_ma
                     gravity_positive, fast_dt, kalman_dt, accel_decay, soft_width, noise,
                     full_inverse, field, qw_gyro_offset, qv_gyro, qw_accel, dist_decay,
                     qw_dist, max_incl_deg, style, gate_sigma, gate_reacquire_s,
-                    gate_closed, mag_max_distrust, out_q, out_b, out_incl, out_jam,
-                    out_euler):
+                    gate_closed, mag_max_distrust, mag_gate_sigma, out_q, out_b, out_incl,
+                    out_jam, out_euler):
     """One Kalman step per window ``k``: ``accel[k]``, ``mag[k]`` the measurements, ``gyro[k]``
     (ratio x 3) the fast samples. The state arrays (q, b, a_sensor, m_global, qw, incl[0])
     are updated in place; per step the a posteriori q, b, inclination, jamming flag and the
     system's Euler angles (``style``: 0 ned, 1 android, 2 win8). ``gate_sigma`` (0: none),
     ``gate_reacquire_s`` and the state ``gate_closed[0]`` (s) are the innovation gate's,
-    ``mag_max_distrust`` (0: none) the magnetometer rule's (kalman.py)."""
+    ``mag_max_distrust`` (0: none) the magnetometer rule's and ``mag_gate_sigma`` (0: none)
+    the magnetometer innovation gate's (kalman.py)."""
     n = qw.shape[0]
     nm = 6 if use_mag else 3
     r_mi = np.empty((3, 3))
@@ -251,19 +275,9 @@ def _freescale_rows(q, b, a_sensor, m_global, qw, incl, accel, gyro, mag, use_ma
         matmul(c, qw_ct, innov)
         if gate_sigma > 0.0:
             # the gravity innovation's Mahalanobis distance against S (kalman.py's
-            # _innovation_noise_factor): 3 x 3 inverse by cofactors, none if singular
-            s00, s01, s02 = innov[0, 0] + noise[0] * factor, innov[0, 1], innov[0, 2]
-            s10, s11, s12 = innov[1, 0], innov[1, 1] + noise[1] * factor, innov[1, 2]
-            s20, s21, s22 = innov[2, 0], innov[2, 1], innov[2, 2] + noise[2] * factor
-            c00, c01, c02 = s11 * s22 - s12 * s21, s02 * s21 - s01 * s22, s01 * s12 - s02 * s11
-            c10, c11, c12 = s12 * s20 - s10 * s22, s00 * s22 - s02 * s20, s02 * s10 - s00 * s12
-            c20, c21, c22 = s10 * s21 - s11 * s20, s01 * s20 - s00 * s21, s00 * s11 - s01 * s10
-            det = s00 * c00 + s01 * c10 + s02 * c20
-            if det != 0.0:
-                e0, e1, e2 = err[0], err[1], err[2]
-                m2 = (e0 * (c00 * e0 + c01 * e1 + c02 * e2)
-                      + e1 * (c10 * e0 + c11 * e1 + c12 * e2)
-                      + e2 * (c20 * e0 + c21 * e1 + c22 * e2)) / det
+            # _innovation_noise_factor), none if singular
+            m2 = mahalanobis3(innov, noise, factor, err, 0)
+            if not math.isnan(m2):
                 ratio2 = m2 / (gate_sigma * gate_sigma)
                 if ratio2 <= 1.0:
                     gate_closed[0] = 0.0
@@ -272,6 +286,12 @@ def _freescale_rows(q, b, a_sensor, m_global, qw, incl, accel, gyro, mag, use_ma
                     if gate_closed[0] <= gate_reacquire_s:
                         factor *= ratio2 * ratio2
         mag_steers = mag_max_distrust <= 0.0 or factor <= mag_max_distrust
+        if use_mag and mag_steers and mag_gate_sigma > 0.0:
+            # the geomagnetic innovation's Mahalanobis distance against S's magnetometer
+            # block (kalman.py's _mag_plausible); no gate if singular
+            m2 = mahalanobis3(innov, noise, 1.0, err, 3)
+            if not math.isnan(m2):
+                mag_steers = m2 <= mag_gate_sigma * mag_gate_sigma
         for i in range(nm):
             innov[i, i] += noise[i] * factor if i < 3 else noise[i]
         for i in range(nm):
@@ -373,6 +393,7 @@ freescale_rows = jit(
     fast_dt="f8", kalman_dt="f8", accel_decay="f8", soft_width="f8", noise="f8[::1]",
     full_inverse="b1", field="f8", qw_gyro_offset="f8", qv_gyro="f8", qw_accel="f8",
     dist_decay="f8", qw_dist="f8", max_incl_deg="f8", style="i8", gate_sigma="f8",
-    gate_reacquire_s="f8", gate_closed="f8[::1]", mag_max_distrust="f8", out_q="f8[:, ::1]",
+    gate_reacquire_s="f8", gate_closed="f8[::1]", mag_max_distrust="f8", mag_gate_sigma="f8",
+    out_q="f8[:, ::1]",
     out_b="f8[:, ::1]", out_incl="f8[::1]", out_jam="b1[::1]", out_euler="f8[:, ::1]")
 """The compiled kernel (see common/fast.py: the extension, or numba on the first call)."""

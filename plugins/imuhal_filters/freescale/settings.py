@@ -22,7 +22,8 @@ _REFERENCE: dict[str, Any] = {"initialise_on_first_step": True, "turn_compensati
 """Build 422 as published (the values the conformance tests run)."""
 _REFERENCE_9DOF: dict[str, Any] = {**_REFERENCE, "max_inclination_deg": 65.0,
                                    "lock_sets_inclination": False,
-                                   "mag_max_accel_distrust": None}
+                                   "mag_max_accel_distrust": None,
+                                   "mag_innovation_gate_sigma": None}
 
 
 class FreescaleCommonSettings(PresetSettings, AhrsLimitSettings, TurnCompensationSettings):
@@ -141,6 +142,14 @@ class Freescale9DofSettings(FreescaleCommonSettings):
     the gyro offset: alone it would steer the tilt (uncalibrated board in `rc-flight`:
     68 -> 4.3 deg tilt RMS; BROAD trial 07, fast rotation: 99 -> 6.8 deg total). None:
     always (build 422)."""
+    mag_innovation_gate_sigma: float | None = Field(default=5.0, gt=0.0)
+    """The magnetometer corrects the orientation and the gyro offset only while its
+    innovation's Mahalanobis distance (against the magnetometer block of the innovation
+    covariance) is within this many standard deviations; beyond it, as with a gated
+    accelerometer, the gyro carries the attitude. 5 sigma: a 3-axis Gaussian innovation
+    exceeds it about once in 70,000 steps. An uncalibrated magnetometer's hard iron, turning
+    with the board, fails it in turns (uncalibrated seed board, `thermal` with the nominal
+    airspeed: tilt max 55 -> 6.0 deg). None: always (build 422)."""
     full_innovation_inverse: bool = False
     """Build 422 inverts only the top-left 3x3 block of the 6x6 innovation covariance
     (``fmatrixAeqInvA(..., 3)``) and uses the other blocks uninverted; False reproduces that.

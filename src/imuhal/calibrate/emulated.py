@@ -13,14 +13,12 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from imuhal.calibrate.session import guided_order, open_raw_pipeline, pick_device
-from imuhal.calibration.accel import AccelSixPosition, AccelSixSettings
-from imuhal.calibration.mag import MagCalibrationProcedure, MagSettings
+from imuhal.calibrate.session import open_raw_pipeline, pick_device
 from imuhal.calibration.model import DeviceCalibration, GyroStartupSettings
-from imuhal.core.samples import Channel, Sample
+from imuhal.core.samples import Channel
+from imuhal.emulation import user_calibration
 from imuhal.plugins.manager import Registry
 from imuhal.profile.model import BoardProfile
-from imuhal.profile.topology import chip_to_body_rotations
 
 
 def with_calibration(profile: BoardProfile, calibrations: Mapping[str, DeviceCalibration],
@@ -28,38 +26,28 @@ def with_calibration(profile: BoardProfile, calibrations: Mapping[str, DeviceCal
     """The profile with exactly ``calibrations`` stored in its devices (whatever its file
     holds is dropped); device ``gyro_startup`` re-measures its gyro offsets at every
     power-up (``gyro_at_startup``)."""
-    devices = {}
-    for name, cfg in profile.devices.items():
-        cal = calibrations.get(name)
-        if name == gyro_startup:
-            cal = (cal or DeviceCalibration()).model_copy(
-                update={"gyro_at_startup": GyroStartupSettings()})
-        devices[name] = cfg.model_copy(update={"calibration": cal})
-    return profile.model_copy(update={"devices": devices})
+    if gyro_startup is not None:
+        cal = calibrations.get(gyro_startup) or DeviceCalibration()
+        calibrations = {**calibrations, gyro_startup: cal.model_copy(
+            update={"gyro_at_startup": GyroStartupSettings()})}
+    return user_calibration.with_calibration(profile, calibrations)
 
 
 def measure_board_calibration(profile: BoardProfile, registry: Registry, *, seed: int
                               ) -> dict[str, DeviceCalibration]:
     """The accelerometer (six positions) and magnetometer (ellipsoid) records of the emulated
     board with ``seed``'s sensor errors, measured by imuhal's procedures on the board flying
-    the ``calibration`` scenario. The board must have one device of each."""
+    the ``calibration`` scenario (imuhal.emulation.user_calibration). The board must have
+    one device of each."""
     accel_dev = pick_device(profile, registry, Channel.ACCEL)
     mag_dev = pick_device(profile, registry, Channel.MAG)
-    chip_to_body = chip_to_body_rotations(profile)[accel_dev]
-    accel = AccelSixPosition(AccelSixSettings(positions=guided_order(chip_to_body)),
-                             device=accel_dev)
-    mag = MagCalibrationProcedure(MagSettings(), device=mag_dev)
-    duration_s = registry.scenarios.get("calibration").default_duration_s
+    channels = {accel_dev: (Channel.ACCEL,)}
+    channels[mag_dev] = (*channels.get(mag_dev, ()), Channel.MAG)
     raw = with_calibration(profile, {})
-    with open_raw_pipeline(raw, registry, emulate="calibration", seed=seed) as pipeline:
-        for event in pipeline.events(duration_s):
-            if isinstance(event, Sample):
-                accel.feed(event)
-                mag.feed(event)
-                if accel.done and mag.done:
-                    break
-    return {accel_dev: DeviceCalibration(accel=accel.finish().record()),
-            mag_dev: DeviceCalibration(mag=mag.finish().record())}
+    duration_s = registry.scenarios.get(user_calibration.CALIBRATION_SCENARIO).default_duration_s
+    with open_raw_pipeline(raw, registry, emulate=user_calibration.CALIBRATION_SCENARIO,
+                           seed=seed) as pipeline:
+        return user_calibration.measure_calibrations(pipeline, raw, channels, duration_s)
 
 
 def calibrated_board(profile: BoardProfile, registry: Registry, *, seed: int) -> BoardProfile:

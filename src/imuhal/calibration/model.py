@@ -10,7 +10,9 @@ Besides the three records a device's calibration may hold:
 * ``previous``: the records each procedure replaced, one per channel, so a bad calibration can
   be undone by hand (``imuhal calibrate`` moves the old record here before writing);
 * ``gyro_at_startup``: measure the gyro offsets again at every start-up, with the board kept
-  still (see :mod:`imuhal.pipeline.startup`), overriding the stored offsets only.
+  still (see :mod:`imuhal.pipeline.startup`), overriding the stored offsets only;
+* ``mag_in_flight``: learn the magnetometer's hard iron from turns while no magnetometer
+  record is stored (see :mod:`imuhal.calibration.hard_iron`).
 """
 
 from __future__ import annotations
@@ -179,8 +181,26 @@ class PreviousCalibration(_Records):
 Record = AccelCalibration | GyroCalibration | MagCalibration | VectorCalibration
 
 
+class MagInFlightSettings(_Strict):
+    """Learn the magnetometer's hard iron in flight, from the field's rotation in turns, while
+    the device has no stored magnetometer record (imuhal.calibration.hard_iron). The learned
+    offset is applied (in memory) once its standard deviation is below ``max_std_ut`` on
+    every axis after at least ``min_readings`` readings, each ``min_step_ut`` away from the
+    previous one taken (readings of a board at rest add no information)."""
+
+    enabled: bool = True
+    min_readings: int = Field(100, ge=10)
+    min_step_ut: float = Field(2.0, gt=0)
+    max_std_ut: float = Field(0.5, gt=0)
+    noise_floor_ut: float = Field(0.15, gt=0)
+    """The least noise a reading is assumed to carry (about one LSB): the fit's uncertainty
+    is never computed from a smaller residual, so readings that fit too well (a circle of a
+    steady turn lies exactly on many spheres) do not look certain."""
+
+
 class DeviceCalibration(_Records):
     gyro_at_startup: GyroStartupSettings | None = None
+    mag_in_flight: MagInFlightSettings | None = None
     previous: PreviousCalibration | None = None
 
     def replaced(self, channel: str, record: Record) -> DeviceCalibration:
@@ -192,7 +212,7 @@ class DeviceCalibration(_Records):
             previous = PreviousCalibration.model_validate(
                 {**previous.records(), channel: old})
         data = {**self.records(), channel: record,
-                "gyro_at_startup": self.gyro_at_startup,
+                "gyro_at_startup": self.gyro_at_startup, "mag_in_flight": self.mag_in_flight,
                 "previous": previous if previous.records() else None}
         return DeviceCalibration.model_validate(data)
 

@@ -108,6 +108,13 @@ def add_parser(sub: Any) -> None:
     run.add_argument("--record", metavar="FILE",
                      help="record every bus transaction and clock reading to a new binary "
                      "file, for `imuhal replay` (docs/recording.md)")
+    run.add_argument("--skip-calibration", action="store_true",
+                     help="emulated runs: fly the board as the profile stores it; by default "
+                     "the accelerometer and magnetometer calibrations it lacks are measured "
+                     "first on the emulated board, as docs/calibration.md asks of a user")
+    run.add_argument("--save-learned", metavar="FILE.yaml",
+                     help="write a copy of the profile holding the calibrations learned in "
+                     "flight (mag_in_flight: the magnetometer's hard iron) once converged")
     run.add_argument("--quiet", action="store_true", help="no live status line")
     run.add_argument("--web", metavar="[HOST:]PORT",
                      help="serve a live dashboard (read-only) on PORT of this machine only, "
@@ -125,7 +132,7 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     check_outputs({"--output": args.output, "--truth": args.truth, "--trace": args.trace,
                    "--audio-wav": args.audio_wav, "--record": args.record,
                    "--igc": args.igc if args.igc and not Path(args.igc).is_dir() else None,
-                   "--mcap": args.mcap},
+                   "--mcap": args.mcap, "--save-learned": args.save_learned},
                   {"PROFILE": path, "--replay-truth": args.replay_truth})
     if args.samples and not args.output:
         raise ImuhalError("--samples writes the samples into the --output log; add "
@@ -155,6 +162,9 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     if args.seed is not None and emulate is None:
         raise ImuhalError("--seed seeds the simulated world of an emulated run; add --emulate "
                           "SCENARIO (or drop --seed): real hardware has no seed")
+    if args.skip_calibration and emulate is None:
+        raise ImuhalError("--skip-calibration is for emulated runs (real hardware is never "
+                          "calibrated by `imuhal run`); drop it, or add --emulate SCENARIO")
     if args.truth and emulate is None:
         raise ImuhalError("--truth needs an emulated run (--emulate SCENARIO): real "
                           "hardware has no ground truth")
@@ -173,6 +183,8 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     mavlink = mavlink_sink(registry, args, profile)  # a socket only: nothing sent yet
     where = f"emulated, scenario '{emulate}'" if emulate else "real hardware"
     print(f"imuhal {__version__}: {profile.name} ({where}) from {path}", file=sys.stderr)
+    profile, profile_text, calibrated_note = _user_calibration(args, path, profile, emulate,
+                                                               registry)
     sinks: list[Any] = []
     if not args.quiet:
         sinks.append(ConsoleSink(sys.stdout, frame=frame))
@@ -188,7 +200,7 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
             stack.callback(trace_file.commit)
         if args.record:
             recorder = BusRecorder(args.record, run_header(
-                path.read_text(encoding="utf-8"), str(path), emulate=emulate, seed=args.seed))
+                profile_text, str(path), emulate=emulate, seed=args.seed))
             stack.callback(lambda: recorder.close(ended[0]))
         if emulate is None:
             pipeline = stack.enter_context(Pipeline.open(profile, registry, trace=trace,
@@ -233,6 +245,8 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
             describe = getattr(sink, "describe", None)
             if describe is not None:
                 print(f"{sink.name}: {describe()}", file=sys.stderr)
+        if calibrated_note:  # once every output is open: a mistake stays a one-line error
+            print(calibrated_note, file=sys.stderr)
         try:
             summary = pipeline.run(duration, sinks)
             ended[0] = "complete"
@@ -252,7 +266,12 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
             if args.output:
                 print(f"imuhal: note{_kept_note(args.output, csv_sink)}", file=sys.stderr)
             raise
+        learned = {n: d.calibration for n, d in pipeline.devices.items()
+                   if d.mag_learner is not None and d.mag_learner.converged
+                   and d.calibration is not None}
     print(summary.describe(), file=sys.stderr)
+    if args.save_learned:
+        _save_learned(args.save_learned, profile_text, path, learned, registry)
     if csv_sink is not None:
         print(f"wrote {csv_sink.rows} rows to {args.output}", file=sys.stderr)
     if mcap is not None:
@@ -269,6 +288,40 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
         print(f"recorded {recorder.transfers} bus transactions to {args.record}",
               file=sys.stderr)
     return 0
+
+
+def _user_calibration(args: argparse.Namespace, path: Path, profile: Any,
+                      emulate: str | None, registry: Registry) -> tuple[Any, str, str]:
+    """The profile to run, its text and the line saying it was calibrated first (empty:
+    it was not): an emulated board with sensor errors is calibrated first where its profile
+    lacks a record (unless --skip-calibration); otherwise each missing record is named once,
+    with what it may cost (imuhal.calibrate.as_user)."""
+    from imuhal.calibrate.as_user import calibrate_emulated, missing_calibration_notes
+
+    text = path.read_text(encoding="utf-8")
+    if emulate is not None and not profile.emulation.sensor_errors:
+        return profile, text, ""  # ideal chips: nothing to calibrate, nothing it costs
+    if emulate is not None and not args.skip_calibration:
+        run = calibrate_emulated(profile, text, str(path), registry, seed=args.seed)
+        seed = profile.emulation.seed if args.seed is None else args.seed
+        return run.profile, run.text, run.describe(seed) if run.measured else ""
+    for note in missing_calibration_notes(profile, registry):
+        print(f"note: {note}", file=sys.stderr)
+    return profile, text, ""
+
+
+def _save_learned(output: str, text: str, path: Path, learned: dict[str, Any],
+                  registry: Registry) -> None:
+    """--save-learned: the profile with what was learned in flight, or why nothing was."""
+    from imuhal.calibrate.as_user import save_learned
+
+    if not learned:
+        print(f"nothing learned in flight to save: {output} not written (a device needs "
+              "mag_in_flight and enough turns, docs/calibration.md)", file=sys.stderr)
+        return
+    save_learned(text, str(path), output, learned, registry)
+    print(f"wrote the profile with the hard iron learned in flight ({', '.join(learned)}) "
+          f"to {output}", file=sys.stderr)
 
 
 def _flight_sinks(args: argparse.Namespace, profile: Any, registry: Registry,

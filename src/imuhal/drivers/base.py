@@ -125,6 +125,11 @@ class Driver(ABC):
         return frozenset(cls.child_bus_features.get(child, ()))
     calibration_version: ClassVar[int] = 1
     """Bumped when a change to decoding would invalidate stored user calibration."""
+    specified_offset: ClassVar[Mapping[Channel, float]] = {}
+    """The largest offset per axis an uncalibrated part may read, by channel, in the
+    channel's unit (accelerometer m/s^2, magnetometer uT), as the chip's datasheet (or the
+    driver, when none is published) specifies it: what ``imuhal run`` quotes when a device
+    has no calibration for that channel (imuhal.calibrate.missing). Empty: not known."""
 
     def __init__(self, link: Link, settings: DriverSettings, *, device: str, clock: Clock) -> None:
         if not isinstance(settings, self.Settings):

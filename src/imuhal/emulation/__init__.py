@@ -7,11 +7,11 @@ Emulator plugins import the chip-emulator interface from here (``ChipEmulator``,
 """
 
 from imuhal.emulation.board import EmulatedBoard
-from imuhal.emulation.open import error_models_for, open_emulated
+from imuhal.emulation.open import calibrated_as_user, error_models_for, open_emulated
 from imuhal.emulation.truth import TruthSink
 from imuhal.sim.chip import ChipEmulator
 from imuhal.sim.emulated_bus import EmulatedBus
 from imuhal.sim.inputs import PhysicalInputs
 
 __all__ = ["ChipEmulator", "EmulatedBoard", "EmulatedBus", "PhysicalInputs", "TruthSink",
-           "error_models_for", "open_emulated"]
+           "calibrated_as_user", "error_models_for", "open_emulated"]

@@ -18,6 +18,8 @@ from imuhal.bus.spy import Transfer
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import ImuhalError
 from imuhal.core.frames import MountError, parse_mount
+from imuhal.core.samples import Channel
+from imuhal.emulation import user_calibration
 from imuhal.emulation.board import EmulatedBoard
 from imuhal.emulation.mounting import chip_rotations
 from imuhal.pipeline.pipeline import Pipeline
@@ -43,6 +45,7 @@ def open_emulated(
     faults: Sequence[FaultSpec] = (),
     physical_mounts: Mapping[str, MountSpec] | None = None,
     recorder: BusRecorder | None = None,
+    calibrate_missing: bool = False,
 ) -> Pipeline:
     """A pipeline over ``profile``'s board, emulated, flying ``scenario``.
 
@@ -60,7 +63,13 @@ def open_emulated(
     ``physical_mounts`` (device -> mount, as in a profile) places those chips on the board
     differently from what the profile says: the pipeline still rotates by the profile's
     mount, so a wrong profile can be emulated (``imuhal check-mounts`` finds it).
+    ``calibrate_missing`` first measures the accelerometer and magnetometer records the
+    profile lacks, as its user would (:func:`calibrated_as_user`), and flies the board with
+    them; default off, so a profile's board flies exactly as its file says.
     """
+    if calibrate_missing:
+        profile, _ = calibrated_as_user(profile, registry, seed=seed,
+                                        sensor_errors=sensor_errors, error_specs=error_specs)
     name = profile.emulation.scenario if scenario is None else scenario
     clock = SimulatedClock(realtime=realtime)
     scenario_cls = registry.scenarios.get(name)
@@ -83,6 +92,30 @@ def open_emulated(
     board.update(0)
     return Pipeline(profile, registry, board, calibrated=calibrated, trace=trace,
                     recorder=recorder)
+
+
+def calibrated_as_user(
+    profile: BoardProfile, registry: Registry, *, seed: int | None = None,
+    sensor_errors: bool | None = None,
+    error_specs: Mapping[str, SensorErrorSpec | None] | None = None,
+) -> tuple[BoardProfile, dict[str, tuple[Channel, ...]]]:
+    """``profile`` after its user followed docs/calibration.md on the emulated board: the
+    accelerometer and magnetometer records it lacks (stored ones are kept) measured by
+    imuhal's procedures while the board, with ``seed``'s sensor errors (default: the
+    profile's seed; ``sensor_errors`` and ``error_specs`` as :func:`open_emulated` takes
+    them), flies the calibration scenario; and what was measured (device -> channels, empty
+    when nothing was missing). Measuring takes a few seconds of the simulated clock per
+    procedure, not of the run that follows (user_calibration)."""
+    missing = user_calibration.missing_calibrations(profile, registry)
+    if not missing:
+        return profile, {}
+    scenario = user_calibration.CALIBRATION_SCENARIO
+    raw = user_calibration.with_calibration(profile, {})
+    with open_emulated(raw, registry, scenario=scenario, seed=seed, calibrated=False,
+                       sensor_errors=sensor_errors, error_specs=error_specs) as pipeline:
+        measured = user_calibration.measure_calibrations(
+            pipeline, raw, missing, registry.scenarios.get(scenario).default_duration_s)
+    return user_calibration.with_measured(profile, measured), missing
 
 
 def _physically_mounted(profile: BoardProfile, mounts: Mapping[str, MountSpec]

@@ -217,6 +217,13 @@ class Snapshotter:
             self._past.popleft()
         return self._past[0]
 
+    def _learned(self, name: str) -> dict[str, Any] | None:
+        """What ``name`` is learning in flight (the hard iron: value, uncertainty, whether
+        applied), as of its last update; None when it learns nothing."""
+        dev = self.pipeline.devices.get(name) if self.pipeline is not None else None
+        learner = dev.mag_learner if dev is not None else None
+        return None if learner is None else dict(learner.latest)
+
     def _health(self, copy: Copy, past: _Past | None) -> dict[str, Any]:
         names = list(self._drivers) + [n for n in copy.devices if n not in self._drivers]
         span_s = (copy.t_ns - past.t_ns) / 1e9 if past is not None and copy.t_ns else 0.0
@@ -272,6 +279,7 @@ class Snapshotter:
                 "device_errors": (self.pipeline.devices[name].device_errors
                                   if self.pipeline is not None and name in self.pipeline.devices
                                   else 0),
+                "learned": self._learned(name),
                 "last_t_s": last_t,
                 "stale": stale,
                 "faulty": bool(problems) and not (stale and len(problems) == 1),

@@ -15,6 +15,7 @@ import time
 from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -23,11 +24,12 @@ from imuhal.bus.contained import ContainedBus
 from imuhal.bus.recording.recorder import BusRecorder
 from imuhal.bus.spy import SpyBus, Transfer
 from imuhal.calibration.gyro import GyroOffsetProcedure
-from imuhal.calibration.model import CalibrationBinding, DeviceCalibration
+from imuhal.calibration.hard_iron import HardIronLearner
+from imuhal.calibration.model import CalibrationBinding, DeviceCalibration, now
 from imuhal.core.conventions import get_convention
 from imuhal.core.errors import BusError, ImuhalError, PluginError
 from imuhal.core.frames import FloatArray
-from imuhal.core.samples import Channel, Sample, SampleFlag
+from imuhal.core.samples import Channel, MagSample, Sample, SampleFlag
 from imuhal.drivers.base import DeviceIdentity, Driver
 from imuhal.estimation.base import Estimator
 from imuhal.estimation.framed import FramedEvent, express
@@ -90,6 +92,8 @@ class DeviceRuntime:
     """The driver's reconfiguration count the ledger last saw."""
     fifo_overflows_seen: int = 0
     """The driver's FIFO overflow count the ledger last saw."""
+    mag_learner: HardIronLearner | None = None
+    """Learning the hard iron in flight (``mag_in_flight``, no stored magnetometer record)."""
 
     def __post_init__(self) -> None:
         self.chip_to_body_rows = np.asarray(self.chip_to_body, dtype=float).tolist()
@@ -125,6 +129,8 @@ class RunSummary:
     sinks: dict[str, dict[str, int]] = field(default_factory=dict)
     """Counts of the sinks that keep some (``run_counts()``, e.g. the MQTT sink's sent,
     queued and dropped messages), by sink name."""
+    learned: dict[str, dict[str, Any]] = field(default_factory=dict)
+    """Per device learning in flight: :meth:`HardIronLearner.status`."""
 
     def describe(self) -> str:
         lines = [f"ran {self.simulated_s:.1f} s in {self.wall_s:.2f} s wall time"]
@@ -145,8 +151,22 @@ class RunSummary:
         for name, counts in self.sinks.items():
             lines.append(f"  {name}: " + ", ".join(f"{k.replace('_', ' ')} {v}"
                                                   for k, v in counts.items()))
+        for dev, st in self.learned.items():
+            lines.append(f"  {dev}: {_learned_words(st)}")
         lines += [f"  warning: {w}" for w in self.warnings]
         return "\n".join(lines)
+
+
+def _learned_words(status: dict[str, Any]) -> str:
+    """One line for the run summary: the hard iron learned in flight and how sure it is."""
+    h, std = status.get("hard_iron_ut"), status.get("std_ut")
+    if h is None or std is None:
+        return f"hard iron: learning in flight ({status['readings']} readings, no fit yet)"
+    fit = ", ".join(f"{v:.1f} +- " + ("?" if e is None else f"{e:.1f}")
+                    for v, e in zip(h, std, strict=True))
+    state = "learned in flight, applied" if status["converged"] else \
+        "learning in flight, not applied yet"
+    return f"hard iron {state}: ({fit}) uT from {status['readings']} readings"
 
 
 class Pipeline:
@@ -307,6 +327,11 @@ class Pipeline:
                                                     driver.identity,
                                                     type(driver).calibration_version)
         dev.full_scale = {ch: driver.full_scale(ch) for ch in type(driver).channels}
+        learn = cfg.calibration.mag_in_flight if cfg.calibration is not None else None
+        if learn is not None and learn.enabled and Channel.MAG in type(driver).channels \
+                and (dev.calibration is None or dev.calibration.mag is None) \
+                and dev.mag_learner is None:
+            dev.mag_learner = HardIronLearner(learn)
         dev.present = True
         stream = driver.accounted_stream()
         if stream is not None and dev.ledger is None:
@@ -507,6 +532,12 @@ class Pipeline:
             dev.ledger.observe(sample)
         if not self.calibrated:
             return sample
+        learner = dev.mag_learner
+        if learner is not None and sample.valid and isinstance(sample, MagSample) \
+                and learner.feed(sample.mag_ut):
+            cal = dev.calibration or DeviceCalibration()
+            dev.calibration = cal.model_copy(update={"mag": learner.record(
+                binding=self.calibration_binding(dev.name), date=now())})
         # Flagged samples are only rotated, not calibrated.
         sample = calibrate_to_body(sample, dev.calibration if sample.valid else None,
                                    dev.chip_to_body_rows)
@@ -635,6 +666,8 @@ class Pipeline:
             driver={n: d.driver.health.counts() for n, d in self.devices.items()},
             frames={n: d.ledger.counts() for n, d in self.devices.items()
                     if d.ledger is not None},
+            learned={n: d.mag_learner.status() for n, d in self.devices.items()
+                     if d.mag_learner is not None},
         )
 
     def close(self) -> None:

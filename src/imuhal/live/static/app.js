@@ -327,6 +327,14 @@ function drawTruth() {
   }));
 }
 
+function learnedText(l) {
+  // the hard iron learned in flight (imuhal.calibration.hard_iron): value +- std, uT
+  if (!l.hard_iron_ut || !l.std_ut) return "hard iron: learning (" + l.readings + " readings)";
+  const fit = l.hard_iron_ut.map((v, i) => fmt(v, 1) + "\u00b1" + fmt(l.std_ut[i], 1)).join(", ");
+  return "hard iron " + (l.converged ? "applied" : "learning") + ": (" + fit + ") \u00b5T, " +
+    l.readings + " readings";
+}
+
 function drawHealth() {
   const body = $("health-table").tBodies[0];
   body.replaceChildren(...Object.entries(S.health).map(([name, h]) => {
@@ -339,7 +347,8 @@ function drawHealth() {
       .map((ch) => ch + " " + fmt(h.achieved_hz[ch], 0) + "/" +
         (h.configured_hz[ch] ? h.configured_hz[ch] : "?")).join(", ");
     const flags = Object.entries(h.flagged).map(([k, n]) => k + " " + n).join(", ") || "none";
-    const status = h.stale ? "STALE" : h.faulty ? "FAULT: " + h.problems.join("; ") : "ok";
+    let status = h.stale ? "STALE" : h.faulty ? "FAULT: " + h.problems.join("; ") : "ok";
+    if (h.learned) status += "; " + learnedText(h.learned);
     for (const text of [name + (h.driver ? " (" + h.driver + ")" : ""), rates || "\u2013",
       flags, String(h.bus_errors + (h.device_errors ? " + " + h.device_errors + " device" : "")),
       status]) {
