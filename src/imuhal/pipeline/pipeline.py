@@ -25,13 +25,15 @@ from imuhal.bus.spy import SpyBus, Transfer
 from imuhal.calibration.gyro import GyroOffsetProcedure
 from imuhal.calibration.model import CalibrationBinding, DeviceCalibration
 from imuhal.core.conventions import get_convention
-from imuhal.core.errors import BusError, ImuhalError, PluginError
+from imuhal.core.errors import BusError, ImuhalError, PluginError, ProfileError
 from imuhal.core.frames import FloatArray
-from imuhal.core.samples import Channel, Sample, SampleFlag
+from imuhal.core.samples import Channel, GyroSample, Sample, SampleFlag
+from imuhal.core.streams import StreamSpec
 from imuhal.drivers.base import DeviceIdentity, Driver
 from imuhal.estimation.base import Estimator
 from imuhal.estimation.framed import FramedEvent, express
 from imuhal.estimation.ordering import fusion_order
+from imuhal.estimation.streams import StreamContradiction
 from imuhal.pipeline.board import Board, open_hardware_board
 from imuhal.pipeline.bringup import bring_up
 from imuhal.pipeline.processing import calibrate_to_body, validity_flags
@@ -50,6 +52,10 @@ REPORT_AFTER_FAILURES = 4
 """Consecutive failed recoveries (about 30 ms of trying) before the run reports the device."""
 JOIN_RETRY_NS = 1_000_000_000
 """An optional device that is not there is looked for again every second."""
+
+
+CLIPPED = SampleFlag.SATURATED | SampleFlag.OUT_OF_RANGE
+"""The flags of a reading that is a measurement cut at the chip's full scale."""
 
 
 @dataclass
@@ -79,6 +85,8 @@ class DeviceRuntime:
     samples: int = 0
     flagged: Counter[str] = field(default_factory=Counter)
     full_scale: dict[Channel, float | None] = field(default_factory=dict)
+    streams: tuple[StreamSpec, ...] = ()
+    """The driver's stream specs as read back at the last (re)configuration."""
     last_valid_ns: dict[Channel, int] = field(default_factory=dict)
     """Per quantity, the time of the last valid sample (samples must not go back)."""
     chip_to_body_rows: list[list[float]] = field(default_factory=list)
@@ -205,6 +213,8 @@ class Pipeline:
                 inputs=frozenset(ecfg.inputs) if ecfg.inputs is not None else None,
                 consumes=tuple(est_cls.consumes),
             ))
+        for runtime in self.estimators:
+            self._bind(runtime)
 
     # -- construction -------------------------------------------------------------------
 
@@ -288,8 +298,39 @@ class Pipeline:
         dev.calibration = self._checked_calibration(dev.name, cfg.bus, cfg.calibration,
                                                     driver.identity,
                                                     type(driver).calibration_version)
-        dev.full_scale = {ch: driver.full_scale(ch) for ch in type(driver).channels}
         dev.present = True
+        self._take_streams(dev)
+
+    @property
+    def streams(self) -> dict[str, tuple[StreamSpec, ...]]:
+        """Every present device's stream specs (imuhal.core.streams), by device: the
+        chip's range, resolution and rate as read back at its last configuration."""
+        return {name: dev.streams for name, dev in self.devices.items() if dev.present}
+
+    def _take_streams(self, dev: DeviceRuntime) -> None:
+        """Collect ``dev``'s stream specs after it joined or was reconfigured: its full
+        scales (the OUT_OF_RANGE check) come from them, and estimators fed by it are bound
+        again when they changed."""
+        driver = dev.driver
+        streams = driver.streams()
+        dev.full_scale = {ch: driver.full_scale(ch) for ch in type(driver).channels}
+        if streams == dev.streams:
+            return
+        dev.streams = streams
+        for runtime in self.estimators:
+            if runtime.inputs is None or dev.name in runtime.inputs:
+                self._bind(runtime)
+
+    def _bind(self, runtime: EstimatorRuntime) -> None:
+        """Hand ``runtime``'s estimator the specs of its input devices' streams."""
+        specs = [spec for name, dev in self.devices.items()
+                 if dev.present and (runtime.inputs is None or name in runtime.inputs)
+                 for spec in dev.streams]
+        try:
+            runtime.estimator.bind(specs)
+        except StreamContradiction as exc:
+            raise ProfileError(self.profile.name, [
+                f"estimators.{runtime.name}.settings.{exc.key}: {exc.problem}"]) from None
 
     def events(self, duration_s: float | None = None) -> Iterator[Event]:
         """Samples (body frame, flagged ones included) and estimates, in time order.
@@ -438,6 +479,7 @@ class Pipeline:
             return t_ns + backoff
         dev.failures = 0
         dev.needs_recovery = False
+        self._take_streams(dev)
         return next_ns
 
     def _warn_once(self, dev: DeviceRuntime, key: str, message: str) -> None:
@@ -464,7 +506,11 @@ class Pipeline:
                                    dev.chip_to_body_rows)
         # Only samples some estimator takes are queued: the others would be sorted into
         # fusion order and handed to nobody.
-        if sample.valid and self.estimators:
+        # a gyro reading clipped at the chip's full scale goes to the estimators too, still
+        # flagged: an AHRS integrates it clipped rather than leave a gap (angular-rate
+        # recovery); nothing else flagged is ever fused
+        if self.estimators and (sample.valid or (
+                not sample.flags & ~CLIPPED and isinstance(sample, GyroSample))):
             routes = self._route_cache.get((sample.device, type(sample)))
             if routes is None:
                 routes = self._routes(sample.device, type(sample))
