@@ -112,3 +112,18 @@ def test_an_estimator_takes_only_the_streams_of_its_inputs(registry: Registry) -
     pipeline = open_profile(registry, **{"  baro-only:": (
         "  fs:\n    estimator: freescale-6dof\n    inputs: [mag]\n  baro-only:")})
     assert ahrs_settings(pipeline, "fs").sensor_rate_hz == 200  # type: ignore[attr-defined]
+
+
+def test_imuhal_run_refuses_a_contradicting_profile_with_exit_2(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from imuhal.cli.main import main
+
+    bad = tmp_path / "bad.yaml"
+    bad.write_text((PROFILES / SEED).read_text().replace(
+        "nominal_airspeed_m_s: 10\n", "nominal_airspeed_m_s: 10\n      sample_period_s: 0.005\n"))
+    assert main(["run", str(bad), "--emulate", "thermal", "--duration", "1", "--quiet"]) == 2
+    errors = [line for line in capsys.readouterr().err.splitlines() if "error" in line]
+    assert errors == [
+        "imuhal: error: seed-paraglider-vario: estimators.ahrs.settings.sample_period_s: "
+        "0.005 s contradicts the gyro stream of 'imu' (250 Hz: 0.004 s); remove "
+        "sample_period_s (it follows the stream) or change the stream's rate"]

@@ -62,14 +62,8 @@ def bound_period(key: str, value: float, hand_set: bool, spec: StreamSpec | None
     raises StreamContradiction when a hand-set ``value`` is off by more than 5 %."""
     if spec is None:
         return None
-    if hand_set:
-        if abs(value - spec.period_s) > RATE_TOLERANCE * spec.period_s:
-            raise StreamContradiction(key, (
-                f"{value:g} s contradicts the {spec.quantity} stream of {spec.device!r} "
-                f"({spec.rate_hz:g} Hz: {spec.period_s:g} s); remove {key} (it follows the "
-                "stream) or change the stream's rate"))
-        return None
-    return spec.period_s if value != spec.period_s else None
+    return _follow(key, value, hand_set, spec, spec.period_s,
+                   f"{value:g} s", f"{spec.rate_hz:g} Hz: {spec.period_s:g} s")
 
 
 def bound_rate(key: str, value: float, hand_set: bool, spec: StreamSpec | None
@@ -77,14 +71,20 @@ def bound_rate(key: str, value: float, hand_set: bool, spec: StreamSpec | None
     """As :func:`bound_period`, for a rate setting in Hz."""
     if spec is None:
         return None
-    if hand_set:
-        if abs(value - spec.rate_hz) > RATE_TOLERANCE * spec.rate_hz:
-            raise StreamContradiction(key, (
-                f"{value:g} Hz contradicts the {spec.quantity} stream of {spec.device!r} "
-                f"({spec.rate_hz:g} Hz); remove {key} (it follows the stream) or change the "
-                "stream's rate"))
-        return None
-    return spec.rate_hz if value != spec.rate_hz else None
+    return _follow(key, value, hand_set, spec, spec.rate_hz, f"{value:g} Hz",
+                   f"{spec.rate_hz:g} Hz")
+
+
+def _follow(key: str, value: float, hand_set: bool, spec: StreamSpec, want: float,
+            shown: str, stream: str) -> float | None:
+    """``want`` unless ``value`` already is it or was given by hand (then checked)."""
+    if not hand_set:
+        return want if value != want else None
+    if abs(value - want) > RATE_TOLERANCE * want:
+        raise StreamContradiction(key, (
+            f"{shown} contradicts the {spec.quantity} stream of {spec.device!r} ({stream}); "
+            f"remove {key} (it follows the stream) or change the stream's rate"))
+    return None
 
 
 def bound_limit(key: str, value: float, hand_set: bool, spec: StreamSpec | None

@@ -27,15 +27,19 @@ LOG_DEVICE = "log"
 
 def measured_gyro_streams(times_s: np.ndarray) -> tuple[StreamSpec, ...]:
     """The gyro stream of rows stamped ``times_s`` (s): its rate is one over the median
-    interval between increasing stamps (robust to a gap or a repeated row). Empty when
-    fewer than two intervals are there to measure."""
+    interval between increasing stamps (robust to a gap or a repeated row), measured on the
+    whole nanoseconds the estimators see (so a log written with rounded seconds, 0.004 s
+    apart, gives 250 Hz exactly, however many rows are measured). Empty when fewer than two
+    intervals are there to measure."""
     t = np.asarray(times_s, dtype=float)
-    steps = np.diff(t[np.isfinite(t)])
+    t_ns = np.round(t[np.isfinite(t)] * 1e9).astype(np.int64)
+    steps = np.diff(t_ns)
     steps = steps[steps > 0]
     if len(steps) < 2:
         return ()
-    return (StreamSpec(LOG_DEVICE, Quantity.GYRO, Frame.BODY_NED,
-                       1.0 / float(np.median(steps)), time_source=TimeSource.LOG),)
+    period_ns = round(float(np.median(steps)))
+    return (StreamSpec(LOG_DEVICE, Quantity.GYRO, Frame.BODY_NED, 1e9 / period_ns,
+                       time_source=TimeSource.LOG),)
 
 
 def table_streams(table: SampleTable) -> tuple[StreamSpec, ...]:
