@@ -127,3 +127,14 @@ def test_imuhal_run_refuses_a_contradicting_profile_with_exit_2(
         "imuhal: error: seed-paraglider-vario: estimators.ahrs.settings.sample_period_s: "
         "0.005 s contradicts the gyro stream of 'imu' (250 Hz: 0.004 s); remove "
         "sample_period_s (it follows the stream) or change the stream's rate"]
+
+
+@pytest.mark.parametrize("estimator", ["mahony", "imufilter", "decoupled", "vqf"])
+def test_every_ahrs_takes_the_gyro_streams_period(registry: Registry, estimator: str) -> None:
+    if estimator == "vqf":
+        pytest.importorskip("vqf", reason="the vqf estimator needs the vqf package")
+    pipeline = open_profile(registry, **{
+        "estimator: madgwick ": f"estimator: {estimator} ",
+        "gyro_odr_hz: 250": "gyro_odr_hz: 500",
+        "accel_odr_hz: 250": "accel_odr_hz: 500"})
+    assert ahrs_settings(pipeline).sample_period_s == 0.002  # type: ignore[attr-defined]
