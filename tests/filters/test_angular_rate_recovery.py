@@ -10,7 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from imuhal.core.quantities import Quantity
 from imuhal.core.samples import Frame, GyroSample, SampleFlag
+from imuhal.core.streams import StreamSpec
 from imuhal.emulation.open import open_emulated
 from imuhal.estimation.outputs import AttitudeEstimate
 from imuhal.plugins.manager import Registry, load_registry
@@ -90,3 +92,32 @@ def test_the_tilt_pull_turns_the_predicted_gravity_towards_the_measured() -> Non
     assert after < before
     # a small pull turns by the gain times the sine of the error
     assert before - after == pytest.approx(np.degrees(0.1 * np.sin(np.radians(20))), rel=0.05)
+
+
+def test_a_reading_only_out_of_range_is_no_clip_and_is_dropped(registry: Registry) -> None:
+    ahrs = registry.estimators.get("madgwick")({"initial_attitude": "identity"})
+    ahrs.bind(_gyro_stream())
+    corrupt = GyroSample(t_ns=1, device="imu", flags=SampleFlag.OUT_OF_RANGE,
+                         frame=Frame.BODY_NED, gyro_rad_s=(9.0, 0.0, 0.0))
+    assert ahrs.process(corrupt) == []
+    diag = ahrs.diagnostics()
+    assert diag["invalid"]["gyro"] == 1
+    assert diag["angular_rate_recovery"]["clipped_samples"] == 0
+
+
+def test_a_saturated_reading_is_integrated_at_the_full_scale(registry: Registry) -> None:
+    ahrs = registry.estimators.get("madgwick")({"initial_attitude": "identity", "beta": 0.0,
+                                                "dt_from_timestamps": False})
+    ahrs.bind(_gyro_stream())  # +-4.363 rad/s (250 deg/s) at 250 Hz
+    clipped = GyroSample(t_ns=4_000_000, device="imu",
+                         flags=SampleFlag.SATURATED | SampleFlag.OUT_OF_RANGE,
+                         frame=Frame.BODY_NED, gyro_rad_s=(4.5, 0.0, 0.0))
+    (estimate,) = ahrs.process(clipped)
+    roll_deg = estimate.roll_pitch_yaw_deg[0]  # type: ignore[attr-defined]
+    assert roll_deg == pytest.approx(250.0 * 0.004, rel=1e-4)  # clipped, one 4 ms step
+    assert ahrs.diagnostics()["angular_rate_recovery"]["active"] is True
+
+
+def _gyro_stream() -> list[StreamSpec]:
+    return [StreamSpec("imu", Quantity.GYRO, Frame.SENSOR, 250.0,
+                       full_scale=float(np.radians(250.0)))]

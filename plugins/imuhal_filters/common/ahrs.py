@@ -108,11 +108,11 @@ class AhrsSettings(PresetSettings, AhrsLimitSettings, TurnCompensationSettings):
     max_aux_age_s: float | None = Field(0.1, gt=0.0)
     """An accel or mag sample older than this (relative to the gyro sample) is not used."""
     gyro_saturation: Literal["recover", "drop"] = "recover"
-    """A gyro sample the chip clipped (flagged SATURATED or OUT_OF_RANGE, at its stream's
-    full scale): ``recover`` integrates it clipped to the full scale and then pulls the tilt
-    back towards the accelerometer with a high gain that decays over ``RECOVERY_S`` (Fusion's
-    angular-rate recovery); ``drop`` skips it (a gap in the integration). Needs the gyro's
-    stream (``bind``); without one every flagged sample is dropped."""
+    """A gyro sample the chip clipped (flagged SATURATED, perhaps OUT_OF_RANGE too: at its
+    stream's full scale): ``recover`` integrates it clipped to the full scale and then pulls
+    the tilt back towards the accelerometer with a high gain that decays over ``RECOVERY_S``
+    (Fusion's angular-rate recovery); ``drop`` skips it (a gap in the integration). Needs the
+    gyro's stream (``bind``); without one every flagged sample is dropped."""
 
 
 class ImuStep(NamedTuple):
@@ -133,7 +133,8 @@ def _vec(v: Sequence[float]) -> Vec:
 
 _OK = SampleFlag.OK
 _CLIPPED = SampleFlag.SATURATED | SampleFlag.OUT_OF_RANGE
-"""The flags of a gyro reading that is a measurement, only cut at the chip's full scale."""
+"""The flags a gyro reading the chip cut at its full scale may carry (SATURATED required:
+OUT_OF_RANGE alone, beyond the range but not at the rail, is a corrupt word)."""
 RECOVERY_S = 3.0
 """Angular-rate recovery: after the last clipped gyro sample, the extra tilt feedback decays
 linearly to nothing over this long (s) (Fusion's start-up period)."""
@@ -326,8 +327,8 @@ class AhrsEstimator(Estimator):
         chip clipped at its full scale and ``gyro_saturation`` is ``recover`` (the rotation
         goes on beyond the range: integrating the clipped rate loses less than a gap)."""
         limit = self._gyro_range_rad_s
-        if (limit is None or item.flags & ~_CLIPPED or item.frame is not _BODY_NED
-                or self.settings.gyro_saturation != "recover"):
+        if (limit is None or not item.flags & SampleFlag.SATURATED or item.flags & ~_CLIPPED
+                or item.frame is not _BODY_NED or self.settings.gyro_saturation != "recover"):
             self._counters["invalid"][_GYRO] += 1
             return []
         x, y, z = item.gyro_rad_s

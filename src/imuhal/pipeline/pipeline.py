@@ -55,7 +55,9 @@ JOIN_RETRY_NS = 1_000_000_000
 
 
 CLIPPED = SampleFlag.SATURATED | SampleFlag.OUT_OF_RANGE
-"""The flags of a reading that is a measurement cut at the chip's full scale."""
+"""The flags a reading the chip cut at its full scale may carry: SATURATED (the driver saw
+the word at its rail), and OUT_OF_RANGE with it (beyond the declared range). OUT_OF_RANGE
+alone is no clip: a word beyond the range but not at the rail is a corrupt reading."""
 
 
 @dataclass
@@ -510,7 +512,8 @@ class Pipeline:
         # flagged: an AHRS integrates it clipped rather than leave a gap (angular-rate
         # recovery); nothing else flagged is ever fused
         if self.estimators and (sample.valid or (
-                not sample.flags & ~CLIPPED and isinstance(sample, GyroSample))):
+                sample.flags & SampleFlag.SATURATED and not sample.flags & ~CLIPPED
+                and isinstance(sample, GyroSample))):
             routes = self._route_cache.get((sample.device, type(sample)))
             if routes is None:
                 routes = self._routes(sample.device, type(sample))
