@@ -254,6 +254,10 @@ class MS5611Driver(Driver):
                        rate_hz / self.settings.temperature_every, scale=0.01,
                        latency_s=latency_s),
         )
+    def accounted_stream(self) -> tuple[Channel, int] | None:
+        """One pressure conversion per cycle of the configured rate (the host starts each
+        one: the cadence is the driver's, kept by its conversion schedule)."""
+        return Channel.PRESSURE, self._period_ns
 
     def resume(self, now_ns: int) -> int | None:
         """One transfer of a poll failed; carry on without a reset (which would lose the

@@ -87,10 +87,14 @@ class DeviceHealth:
     """Times the driver found its chip had reset on its own (configuration lost)."""
     reconfigurations: int = 0
     """Times the driver reprogrammed its chip (after a reset, a hang, a recovery)."""
+    fifo_overflows: int = 0
+    """Times the driver found its chip's FIFO overflowed (or corrupt) and reset it: the
+    frames it held are lost."""
 
     def counts(self) -> dict[str, int]:
         return {"resets_detected": self.resets_detected,
-                "reconfigurations": self.reconfigurations}
+                "reconfigurations": self.reconfigurations,
+                **({"fifo_overflows": self.fifo_overflows} if self.fifo_overflows else {})}
 
 
 class Driver(ABC):
@@ -207,6 +211,12 @@ class Driver(ABC):
         for spec in self.streams():
             if spec.quantity == channel:
                 return spec
+        return None
+
+    def accounted_stream(self) -> tuple[Channel, int] | None:
+        """The channel whose frames the pipeline counts (produced, delivered, lost by cause:
+        imuhal.pipeline.accounting) and the chip's frame period on it (ns) in the current
+        configuration; None: not accounted (a chip without a fixed output period)."""
         return None
 
     def full_scale(self, channel: Channel) -> float | None:

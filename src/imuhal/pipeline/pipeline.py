@@ -34,6 +34,7 @@ from imuhal.estimation.base import Estimator
 from imuhal.estimation.framed import FramedEvent, express
 from imuhal.estimation.ordering import fusion_order
 from imuhal.estimation.streams import StreamContradiction
+from imuhal.pipeline.accounting import FrameLedger, describe_frames
 from imuhal.pipeline.board import Board, open_hardware_board
 from imuhal.pipeline.bringup import bring_up
 from imuhal.pipeline.processing import calibrate_to_body, validity_flags
@@ -93,6 +94,12 @@ class DeviceRuntime:
     """Per quantity, the time of the last valid sample (samples must not go back)."""
     chip_to_body_rows: list[list[float]] = field(default_factory=list)
     """``chip_to_body`` as nested lists of floats (every sample is rotated with it)."""
+    ledger: FrameLedger | None = None
+    """Frames produced, delivered and lost by cause (None: the driver accounts for none)."""
+    reconfigurations_seen: int = 0
+    """The driver's reconfiguration count the ledger last saw."""
+    fifo_overflows_seen: int = 0
+    """The driver's FIFO overflow count the ledger last saw."""
 
     def __post_init__(self) -> None:
         self.chip_to_body_rows = np.asarray(self.chip_to_body, dtype=float).tolist()
@@ -122,6 +129,9 @@ class RunSummary:
     estimates: dict[str, int]
     warnings: list[str]
     driver: dict[str, dict[str, int]] = field(default_factory=dict)
+    frames: dict[str, dict[str, int]] = field(default_factory=dict)
+    """Per accounted device (imuhal.pipeline.accounting): frames produced, delivered and
+    ``lost_<cause>``."""
 
     def describe(self) -> str:
         lines = [f"ran {self.simulated_s:.1f} s in {self.wall_s:.2f} s wall time"]
@@ -135,6 +145,8 @@ class RunSummary:
             lines.append(f"  {dev}: {n} samples{extra}" + (f", {errs} bus errors" if errs else "")
                          + (f", {faults} device errors" if faults else "")
                          + (f", driver: {own}" if own else ""))
+            if dev in self.frames:
+                lines.append(f"    frames: {describe_frames(self.frames[dev])}")
         for est, n in self.estimates.items():
             lines.append(f"  {est}: {n} estimates")
         lines += [f"  warning: {w}" for w in self.warnings]
@@ -301,6 +313,10 @@ class Pipeline:
                                                     driver.identity,
                                                     type(driver).calibration_version)
         dev.present = True
+        stream = driver.accounted_stream()
+        if stream is not None and dev.ledger is None:
+            dev.ledger = FrameLedger(*stream)
+        dev.reconfigurations_seen = driver.health.reconfigurations
         self._take_streams(dev)
 
     @property
@@ -390,10 +406,17 @@ class Pipeline:
                 fused = self._fuse(before_ns=t_ns)
                 if fused:
                     yield from fused
+            due_ns = t_ns
             t_ns = self._before_poll(t_ns, name)
-            self._span_ns[1] = t_ns
             dev = self.devices[name]
+            if dev.ledger is not None and \
+                    max(t_ns, self._span_ns[1]) - due_ns > dev.ledger.period_ns // 2:
+                # the host came late (this device's stall, or another's slow poll)
+                dev.ledger.note("host_stall")
+            self._span_ns[1] = max(t_ns, self._span_ns[1])
             samples, next_ns = self._service(dev, t_ns)
+            if dev.ledger is not None:
+                self._account(dev)
             dev.next_poll_ns = max(next_ns, t_ns + 1)
             heapq.heappush(heap, (dev.next_poll_ns, rank, name))
             for raw in samples:
@@ -414,6 +437,8 @@ class Pipeline:
             result = dev.driver.poll(t_ns)
         except BusError:
             dev.bus_errors += 1
+            if dev.ledger is not None:
+                dev.ledger.note("bus_error")
             return [], self._after_bus_error(dev, t_ns)
         except ImuhalError as exc:
             # A driver that found its chip gone or misconfigured mid-run: the device is
@@ -443,6 +468,21 @@ class Pipeline:
                 return next_ns
         dev.resumed = False
         return self._recover(dev, t_ns)
+
+    def _account(self, dev: DeviceRuntime) -> None:
+        """A reconfiguration of the chip since the ledger last looked costs frames ("reset");
+        the frame period follows the configuration."""
+        assert dev.ledger is not None
+        driver = dev.driver
+        if driver.health.fifo_overflows != dev.fifo_overflows_seen:
+            dev.fifo_overflows_seen = driver.health.fifo_overflows
+            dev.ledger.note("fifo_overflow")
+        if driver.health.reconfigurations != dev.reconfigurations_seen:
+            dev.reconfigurations_seen = driver.health.reconfigurations
+            dev.ledger.note("reset")
+            stream = driver.accounted_stream()
+            if stream is not None:
+                dev.ledger.channel, dev.ledger.period_ns = stream
 
     def _look_for(self, dev: DeviceRuntime, t_ns: int) -> int:
         """An optional device that was not found: probe it once more."""
@@ -501,6 +541,8 @@ class Pipeline:
             self._count_flags(dev, sample)
         else:
             dev.last_valid_ns[channel] = sample.t_ns
+        if dev.ledger is not None:
+            dev.ledger.observe(sample)
         if not self.calibrated:
             return sample
         # Flagged samples are only rotated, not calibrated.
@@ -608,8 +650,14 @@ class Pipeline:
                 (abort or sink.close)()
         # The span comes from the poll loop, not from reading the clock here: a run and an
         # events() loop then read the clock alike, so either replays a recording of the other.
+        return self.summary(wall_s=time.perf_counter() - wall0, simulated_s=self.span_s)
+
+    @property
+    def span_s(self) -> float:
+        """Seconds (simulated, or real on hardware) the latest run or events() loop has
+        covered so far, from its first poll to its latest."""
         first, last = self._span_ns
-        return self.summary(wall_s=time.perf_counter() - wall0, simulated_s=(last - first) / 1e9)
+        return (last - first) / 1e9
 
     def summary(self, *, wall_s: float = 0.0, simulated_s: float = 0.0) -> RunSummary:
         return RunSummary(
@@ -622,6 +670,8 @@ class Pipeline:
             estimates={e.name: e.outputs for e in self.estimators},
             warnings=list(self.warnings),
             driver={n: d.driver.health.counts() for n, d in self.devices.items()},
+            frames={n: d.ledger.counts() for n, d in self.devices.items()
+                    if d.ledger is not None},
         )
 
     def close(self) -> None:

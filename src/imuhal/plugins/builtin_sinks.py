@@ -6,6 +6,7 @@ from __future__ import annotations
 from imuhal.plugins.hookspecs import hookimpl
 from imuhal.plugins.registrars import Registrar
 from imuhal.sinks.flight.audio import AudioSink
+from imuhal.sinks.flight.igc import IgcSink
 from imuhal.sinks.flight.sink import FlightSink
 from imuhal.sinks.mavlink.sink import MavlinkSink
 from imuhal.sinks.ros.mcap_sink import McapSink
@@ -15,5 +16,6 @@ from imuhal.sinks.ros.mcap_sink import McapSink
 def imuhal_register_sinks(register: Registrar) -> None:
     register(FlightSink)
     register(AudioSink)
+    register(IgcSink)
     register(McapSink)
     register(MavlinkSink)

@@ -17,6 +17,7 @@ from imuhal.core.conventions import UnknownConvention, get_convention
 from imuhal.core.frames import MountError, parse_mount
 from imuhal.profile.faults import FaultSpec
 from imuhal.sinks.flight.audio import VarioAudioSettings
+from imuhal.sinks.flight.igc import IgcLogSettings
 from imuhal.sinks.mavlink.settings import MavlinkSettings
 from imuhal.sinks.ros.settings import RosSettings
 
@@ -100,6 +101,8 @@ class BoardProfile(_Strict):
     emulation: EmulationConfig = Field(default_factory=EmulationConfig)
     audio: VarioAudioSettings = Field(default_factory=VarioAudioSettings)
     """The vario audio curve (``imuhal run --audio``; docs/flight-instrument.md)."""
+    igc: IgcLogSettings = Field(default_factory=IgcLogSettings)
+    """Pilot, glider and fix interval of the IGC log (``imuhal run --igc``)."""
     ros: RosSettings = Field(default_factory=RosSettings)
     """Frame id and sensor noise of the ROS 2 messages (``imuhal run --mcap``;
     docs/outputs.md)."""
