@@ -22,11 +22,13 @@ def test_the_seed_board_ahrs_repeats_offline_from_the_samples_it_was_fed() -> No
     profile = load_profile(default_profile_path(), registry)
     with open_emulated(profile, registry, seed=4) as p:
         events = list(p.events(3.0))
+        streams = [spec for device in ("imu", "mag") for spec in p.streams[device]]
     live = [e for e in events if isinstance(e, AttitudeEstimate) and e.source == "ahrs"]
     fed = [e for e in events if isinstance(e, (GyroSample, AccelSample, MagSample))
            and e.valid and e.device in ("imu", "mag")]
     ahrs_cfg = profile.estimators["ahrs"]
     offline = registry.estimators.get(ahrs_cfg.estimator)(ahrs_cfg.settings, instance="ahrs")
+    offline.bind(streams)  # the period and limits the live one took from its inputs' streams
     # the MAX21100 driver emits each burst's gyro before its accelerometer: shuffle further
     replayed = [out for s in fusion_order(reversed(fed), {"imu": 0, "mag": 1})
                 for out in offline.process(s)]

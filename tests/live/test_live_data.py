@@ -98,9 +98,10 @@ def test_health_reports_configured_and_achieved_rates_per_channel(plugins, seed_
             pipeline.run(1.5, [live.sink])
             state = live.snapshotter.snapshot()
     imu = state["health"]["imu"]
-    assert imu["configured_hz"] == {"gyro": 250.0, "accel": 250.0}
+    # the rates the chips' stream specs report (read back from their registers)
+    assert imu["configured_hz"] == {"gyro": 250.0, "accel": 250.0, "temperature": 10.0}
     assert math.isclose(imu["achieved_hz"]["gyro"], 250.0, rel_tol=0.02)
-    assert state["health"]["baro"]["configured_hz"] == {"pressure": 50.0}
+    assert state["health"]["baro"]["configured_hz"] == {"pressure": 50.0, "temperature": 50.0}
     assert state["health"]["mag"]["configured_hz"] == {"mag": 75.0}
     assert not any(h["stale"] or h["faulty"] for h in state["health"].values()), state["health"]
 

@@ -163,12 +163,12 @@ def test_a_bool_schema_version_is_not_version_1(registry: Registry) -> None:
 def test_settings_errors_come_in_the_same_report_as_structural_ones(installed: Registry) -> None:
     """Issue 9 item 16."""
     text = default_profile_path().read_text().replace("name: seed-paraglider-vario\n", "")
-    text = text.replace("odr_hz: 75", "odr_hz: 76").replace("sample_period_s: 0.004",
-                                                               "sample_period_s: yes")
+    text = text.replace("odr_hz: 75", "odr_hz: 76").replace("nominal_airspeed_m_s: 10",
+                                                               "nominal_airspeed_m_s: yes")
     joined = "\n".join(_problems(text, installed))
     assert "name: required key is missing" in joined
     assert "devices.mag.settings.odr_hz" in joined
-    assert "estimators.ahrs.settings.sample_period_s" in joined
+    assert "estimators.ahrs.settings.nominal_airspeed_m_s" in joined
 
 
 @pytest.mark.parametrize("value", ["true", '"500"'])

@@ -44,7 +44,8 @@ from imuhal.bus.base import BusKind, Link
 from imuhal.bus.registers import RegisterView
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
-from imuhal.core.samples import Channel, MagSample, SampleFlag
+from imuhal.core.samples import Channel, Frame, MagSample, SampleFlag
+from imuhal.core.streams import StreamSpec
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
 from imuhal.drivers.polling import DataReady, PollGrid, ResetWatch, reset_check_field
 from imuhal.drivers.settings import SlaveRead
@@ -109,6 +110,7 @@ class AK8963Driver(Driver):
         self._taken: bytes | None = None
         """read: auto: the copy with DRDY behind the last sample (or before configure)."""
         self._cntl1_written_ns = 0
+        self._streams: tuple[StreamSpec, ...] = ()
 
     def _not_found(self, found: str, hint: str) -> DeviceNotFoundError:
         return DeviceNotFoundError(
@@ -157,6 +159,12 @@ class AK8963Driver(Driver):
             # A copy from before this configuration is no measurement of it: writing CNTL1
             # cleared DRDY, so the next copy with DRDY differs from this one or is new.
             self._taken = feed.data
+        # the rate read back sets the poll grid and the stale policy
+        spec = self._spec(back)
+        self._streams = (spec,)
+        self._period_ns = spec.period_ns
+        self._grid = PollGrid(self._period_ns)
+        self._ready = DataReady({Channel.MAG: self._period_ns})
 
     def start(self, now_ns: int) -> int:
         # recover() passes the time from before configure() waited; never start in the past.
@@ -174,6 +182,29 @@ class AK8963Driver(Driver):
     def _config_lost(self) -> bool:
         return self.regs.read_u8(r.REG_CNTL1) != self._cntl1
 
+    def _spec(self, cntl1: int) -> StreamSpec:
+        """The field's spec from CNTL1 as read from the chip: MODE[3:0] (continuous mode 1
+        or 2) gives the rate, BIT the resolution. Full scale: the measurement range,
+        +-4912 uT per axis; scale: uT per count before the fuse-ROM adjustment (ASA, within
+        0.5..1.5 of it per axis)."""
+        period_s = r.MODE_PERIOD_S.get(cntl1 & r.MODE_MASK)
+        if period_s is None:
+            raise ConfigurationError(f"{self.describe()}: CNTL1 reads back 0x{cntl1:02X}, "
+                                     "not a continuous mode; check the bus")
+        bits = 16 if cntl1 & r.CNTL1_BIT else 14
+        latency_s = (self._feed.latency_ns * 1e-9 if self._feed is not None
+                     else r.MEASUREMENT_S)
+        return StreamSpec(self.device, Channel.MAG, Frame.SENSOR, 1.0 / period_s,
+                          scale=r.RESOLUTIONS[bits].ut_per_lsb,
+                          full_scale=r.OVERFLOW_SUM_UT, latency_s=latency_s)
+
+    def streams(self) -> tuple[StreamSpec, ...]:
+        """The magnetic field (uT, the AK8963's sensor frame) as read back at configure()."""
+        return self._streams
+
+    def refresh_streams(self) -> tuple[StreamSpec, ...]:
+        self._streams = (self._spec(self.regs.read_u8(r.REG_CNTL1)),)
+        return self._streams
     def resume(self, now_ns: int) -> int | None:
         """One transfer of a poll failed: when CNTL1 still reads back as written (a soft
         reset or power-on clears it), the chip kept measuring, so poll again at once instead

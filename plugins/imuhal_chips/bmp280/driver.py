@@ -29,11 +29,13 @@ from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
 from imuhal.core.samples import (
     Channel,
+    Frame,
     PressureSample,
     Sample,
     SampleFlag,
     TemperatureSample,
 )
+from imuhal.core.streams import StreamSpec
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
 from imuhal.drivers.polling import PollGrid, ResetWatch
 from imuhal.drivers.validity import FrozenWatch
@@ -153,6 +155,8 @@ class BMP280Driver(Driver):
         self._ctrl = 0
         self._config = 0
         self._period_ns = 0
+        self._readback = b""
+        """ctrl_meas and config as read back from the chip (the stream specs' source)."""
         self._triggered_ns: int | None = None
         self._next_ns = 0
         self._grid = PollGrid(1)
@@ -217,11 +221,41 @@ class BMP280Driver(Driver):
             raise ConfigurationError(
                 f"{self.describe()}: ctrl_meas/config read back 0x{back[0]:02X}/0x{back[1]:02X}"
                 f", wrote 0x{self._ctrl:02X}/0x{self._config:02X}")
-        t_meas = s.measurement_time_s(maximum=False)
-        period_s = t_meas + standby / 1000.0 if s.mode == "normal" else 1.0 / s.odr_hz
-        self._period_ns = round(period_s * 1e9)
+        self._readback = bytes(back)
+        self._period_ns = self._streams_from(self._readback)[0].period_ns
         self._grid = PollGrid(self._period_ns)
         self._triggered_ns = None
+
+    def _streams_from(self, back: bytes) -> tuple[StreamSpec, StreamSpec]:
+        """Pressure (Pa) and temperature (degC) specs from ctrl_meas and config as read
+        from the chip: in normal mode the chip's own cycle, the typical measurement time of
+        the oversamplings read back (osrs_t, osrs_p) plus the standby time (t_sb); in forced
+        mode the driver triggers each measurement on its own grid at ``odr_hz`` (no register
+        holds a rate). Scale: the compensated output's resolution (1/256 Pa, 0.01 degC); no
+        full scale declared. Latency: the measurement time."""
+        ctrl, config = back[0], back[1]
+        t_os = r.oversampling_from_code(ctrl >> 5)
+        p_os = r.oversampling_from_code((ctrl >> 2) & 0b111)
+        t_meas = r.measurement_time_s(t_os, p_os, maximum=False)
+        if ctrl & r.MODE_MASK == r.MODE_NORMAL:
+            period_s = t_meas + r.standby_ms_from_code(config >> 5) / 1000.0
+        else:
+            period_s = 1.0 / self.settings.odr_hz
+        rate_hz = 1e9 / round(period_s * 1e9)
+        return (
+            StreamSpec(self.device, Channel.PRESSURE, Frame.SENSOR, rate_hz, scale=1 / 256,
+                       latency_s=t_meas),
+            StreamSpec(self.device, Channel.TEMPERATURE, Frame.SENSOR, rate_hz, scale=0.01,
+                       latency_s=t_meas),
+        )
+
+    def streams(self) -> tuple[StreamSpec, ...]:
+        """Pressure and temperature, as read back at ``configure()``."""
+        return self._streams_from(self._readback) if self._readback else ()
+
+    def refresh_streams(self) -> tuple[StreamSpec, ...]:
+        self._readback = bytes(self.regs.read(r.REG_CTRL_MEAS, 2))
+        return self.streams()
 
     def start(self, now_ns: int) -> int:
         # recover() passes the time from before configure() waited; never start in the past.

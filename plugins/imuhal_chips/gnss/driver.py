@@ -36,6 +36,7 @@ from imuhal.core.samples import (
     SampleFlag,
     VelocitySample,
 )
+from imuhal.core.streams import StreamSpec, TimeSource
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
 from imuhal_chips.gnss.decode import DecodeError, Fragment, decode_nmea, decode_ubx
 from imuhal_chips.gnss.framing import StreamSplitter
@@ -122,6 +123,9 @@ class GnssDriver(Driver):
         self._foreign = 0
         self._last_byte_ns = 0
         self._quiet_ns = max(QUIET_NS, round(2.5e9 / self.settings.poll_hz))
+        self._nav_rate_hz: float | None = None
+        """The navigation rate the receiver acknowledged (CFG-RATE ACK-ACK), or the
+        profile's statement of it when the receiver is not configured."""
 
     # -- probe --------------------------------------------------------------------------
 
@@ -211,6 +215,8 @@ class GnssDriver(Driver):
         self._epoch = None
         self._foreign = 0
         if not s.configure_receiver:
+            # nothing to ask the receiver: the profile states its rate
+            self._nav_rate_hz = s.rate_hz
             return
         wanted = set(s.messages or (("NAV-PVT",) if self.protocol == "ubx" else NMEA_MESSAGES))
         unknown = wanted - set(NMEA_IDS) - {"NAV-PVT"}
@@ -241,7 +247,23 @@ class GnssDriver(Driver):
                 if (name in wanted) == enable:
                     self._send_checked(cfg_msg(cls, mid, int(enable)), CFG_MSG,
                                        f"CFG-MSG {name}")
+        self._nav_rate_hz = None
         self._send_checked(cfg_rate(s.rate_hz), CFG_RATE, f"CFG-RATE {s.rate_hz:g} Hz")
+        # _send_checked returned: the receiver acknowledged this rate (ACK-ACK)
+        self._nav_rate_hz = s.rate_hz
+
+    def streams(self) -> tuple[StreamSpec, ...]:
+        """Position (deg, deg, m) and NED velocity (m/s) at the navigation rate the
+        receiver acknowledged (CFG-RATE, answered ACK-ACK; with ``configure_receiver:
+        false``, the profile's ``rate_hz``, which nothing can check), stamped with the
+        receiver's epochs. No scale (a solution, not counts) and no full scale."""
+        rate_hz = self._nav_rate_hz
+        if rate_hz is None:
+            return ()
+        latency_s = self.settings.latency_s
+        return tuple(StreamSpec(self.device, quantity, None, rate_hz, latency_s=latency_s,
+                                time_source=TimeSource.RECEIVER_EPOCH)
+                     for quantity in (Channel.POSITION, Channel.VELOCITY))
 
     def _send_checked(self, frame: bytes, ident: tuple[int, int], what: str) -> None:
         """Write a CFG message and wait (up to 1 s) for its ACK-ACK in the stream; send it

@@ -42,6 +42,7 @@ from imuhal.bus.base import BusKind, Link
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
 from imuhal.core.samples import Channel, Frame, MagSample, Sample, SampleFlag
+from imuhal.core.streams import StreamSpec
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
 from imuhal.drivers.polling import (
     STALE_AFTER_PERIODS,
@@ -55,15 +56,18 @@ from imuhal.drivers.validity import NAN3, FrozenWatch, blank_flag
 from imuhal_chips.hmc5883l import decode
 from imuhal_chips.hmc5883l.registers import (
     AVERAGING,
+    CRA_RATE_SHIFT,
     DATA_MIN,
     IDENTITY,
     MODE_CONTINUOUS,
+    ODR_BY_CODE,
     ODR_HZ,
     RANGE_GAUSS,
     STATUS_RDY,
     Reg,
     config_a,
     config_b,
+    gain_from_config_b,
 )
 
 NOT_READY_RETRY_NS = 500_000
@@ -127,6 +131,7 @@ class Hmc5883lDriver(Driver):
         super().__init__(link, settings, device=device, clock=clock)  # type: ignore[arg-type]
         self.gain_lsb_per_gauss: float | None = None
         self._expected = b""
+        self._streams: tuple[StreamSpec, ...] = ()
         self._mode_written_ns = 0
         self._skip_next = False
         self._grid = PollGrid(round(1e9 / self.settings.odr_hz))
@@ -203,7 +208,10 @@ class Hmc5883lDriver(Driver):
                 f"{plan.hex(' ')} to 0x00..0x02, read {got.hex(' ')}; check the bus"
             )
         self._expected = plan
-        self.gain_lsb_per_gauss = RANGE_GAUSS[self.settings.range_gauss][1]
+        spec = self._spec(got)
+        self.gain_lsb_per_gauss = gain_from_config_b(got[1])
+        self._grid = PollGrid(spec.period_ns)
+        self._ready = DataReady({Channel.MAG: self._grid.period_ns})
         self._skip_next = True  # its first measurement still uses the previous gain
         if self.settings.read == "auto":
             assert isinstance(self.link.bus, AutoReadBus)
@@ -213,6 +221,7 @@ class Hmc5883lDriver(Driver):
             self._settle_ns = self._mode_written_ns + period + feed.latency_ns
             self._unchanged_limit_ns = round(
                 (unchanged_periods(self.gain_lsb_per_gauss) + STALE_AFTER_PERIODS) * period)
+        self._streams = (self._spec(got),)  # with the auto-read's latency, when there is one
 
     def start(self, now_ns: int) -> int:
         # configure() may have waited on the clock since the caller read it (the base
@@ -232,12 +241,33 @@ class Hmc5883lDriver(Driver):
 
     # --- sampling -------------------------------------------------------------------------
 
-    def full_scale(self, channel: Channel) -> float | None:
-        """The largest field a data word can carry at the configured gain (uT): the most
-        negative count before the overflow value, through this driver's conversion."""
-        if self.gain_lsb_per_gauss is None or channel is not Channel.MAG:
-            return None
-        return abs(decode.counts_to_ut((DATA_MIN, 0, 0), self.gain_lsb_per_gauss)[0])
+    def _spec(self, config: bytes) -> StreamSpec:
+        """The field's spec from Config A (rate, DO[4:2]) and Config B (gain, GN[7:5]) as
+        read from the chip. Full scale: the largest field a data word can carry at that gain
+        (uT), the most negative count before the overflow value, through this driver's
+        conversion."""
+        rate_hz = ODR_BY_CODE.get((config[0] >> CRA_RATE_SHIFT) & 0x07)
+        if rate_hz is None:
+            raise ConfigurationError(f"{self.describe()}: Config A reads back 0x{config[0]:02X}"
+                                     ", a reserved output rate; check the bus")
+        gain = gain_from_config_b(config[1])
+        latency_s = 0.0 if self._feed is None else self._feed.latency_ns * 1e-9
+        return StreamSpec(
+            self.device, Channel.MAG, Frame.SENSOR, float(rate_hz),
+            scale=decode.counts_to_ut((1, 0, 0), gain)[0],
+            full_scale=abs(decode.counts_to_ut((DATA_MIN, 0, 0), gain)[0]),
+            latency_s=latency_s + 1 / (8 * rate_hz))
+
+    def streams(self) -> tuple[StreamSpec, ...]:
+        """The magnetic field (uT, sensor frame) as configured at the last read-back."""
+        return self._streams
+
+    def refresh_streams(self) -> tuple[StreamSpec, ...]:
+        if not self._expected:
+            raise ConfigurationError(f"{self.describe()}: streams read before configure()")
+        # Config A and B only: reading MODE would lock the data outputs
+        self._streams = (self._spec(self._read(Reg.CONFIG_A, 2)),)
+        return self._streams
 
     def poll(self, now_ns: int) -> PollResult:
         if self.gain_lsb_per_gauss is None:

@@ -31,12 +31,14 @@ from imuhal.core.errors import BusError, ConfigurationError, DeviceNotFoundError
 from imuhal.core.samples import (
     AccelSample,
     Channel,
+    Frame,
     GyroSample,
     MagSample,
     PressureSample,
     Sample,
     TemperatureSample,
 )
+from imuhal.core.streams import StreamSpec, TimeSource
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
 from imuhal_chips.iio.scan import ScanElement, layout, parse_scan_type
 
@@ -46,6 +48,9 @@ MAX_DEVICES = 64
 UNIT_TO_SI = {"accel": 1.0, "anglvel": 1.0, "magn": 100.0, "pressure": 1000.0, "temp": 1e-3}
 """Kernel IIO unit -> pipeline unit, per channel type (see the module docstring)."""
 VECTOR_TYPES = ("accel", "anglvel", "magn")
+QUANTITY_OF = {"accel": Channel.ACCEL, "anglvel": Channel.GYRO, "magn": Channel.MAG,
+               "pressure": Channel.PRESSURE, "temp": Channel.TEMPERATURE}
+"""IIO channel type -> the quantity its samples carry."""
 _CHANNEL = re.compile(r"^in_(accel|anglvel|magn|pressure|temp)(?:_([xyz]))?_(raw|input)$")
 _SCAN_EN = re.compile(r"^(in_(?:accel|anglvel|magn|pressure|temp)(?:_[xyz])?|in_timestamp)_en$")
 
@@ -218,6 +223,28 @@ class IIODriver(Driver):
         else:
             self._period_ns = round(1e9 / (rate if rate > 0 else s.poll_hz))
         self._ts_offset_ns = None
+
+    def streams(self) -> tuple[StreamSpec, ...]:
+        """One stream per channel type found, at the ``sampling_frequency`` the kernel
+        reads back after configure() (the host's ``poll_hz`` where the device has none).
+        Scale: the kernel's ``_scale`` attribute in SI for ``_raw`` channels (None for
+        ``_input`` ones, already scaled); no full scale (IIO publishes none). Time stamps:
+        the kernel's, in a buffer with ``in_timestamp``; else the poll's."""
+        rate_hz = self._rate_hz if self._rate_hz > 0 else self.settings.poll_hz
+        stamped = any(e.name == "in_timestamp" for e in self._scan)
+        source = TimeSource.KERNEL_BUFFER if stamped else TimeSource.HOST_POLL
+        out = []
+        for ctype, chans in self._channels.items():
+            first = chans[0]
+            scale = None if first.processed else first.scale * UNIT_TO_SI[ctype]
+            out.append(StreamSpec(
+                self.device, QUANTITY_OF[ctype], Frame.SENSOR if ctype in VECTOR_TYPES else None,
+                rate_hz, scale=scale, time_source=source))
+        return tuple(out)
+
+    def refresh_streams(self) -> tuple[StreamSpec, ...]:
+        self._rate_hz = self._number("sampling_frequency", 0.0)
+        return self.streams()
 
     def _configure_buffer(self) -> None:
         s = self.settings

@@ -21,6 +21,7 @@ from imuhal.bus.base import Bus, BusKind, Link
 from imuhal.bus.registers import RegisterView
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
+from imuhal.core.quantities import Quantity
 from imuhal.core.samples import (
     AccelSample,
     Channel,
@@ -30,6 +31,7 @@ from imuhal.core.samples import (
     SampleFlag,
     TemperatureSample,
 )
+from imuhal.core.streams import StreamSpec
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
 from imuhal.drivers.polling import DataReady, PollGrid, ResetWatch
 from imuhal.drivers.validity import NAN3, FrozenWatch, blank_flag, range_flag
@@ -48,13 +50,17 @@ from imuhal_chips.max2110x.registers import (
     PARTS_BY_WHO_AM_I,
     RST_SW_RESET,
     STANDARD_GRAVITY_M_S2,
+    TEMP_LSB_PER_DEGC,
     PartSpec,
     Reg,
     Scales,
     Status,
     acc_cfg1,
+    accel_range_from_code,
     convention_for,
     gyro_cfg1,
+    gyro_range_from_code,
+    odr_from_code,
     pwr_acc_cfg,
 )
 from imuhal_chips.max2110x.settings import Max2110xSettings, Max21100Settings, Max21105Settings
@@ -117,6 +123,7 @@ class Max2110xDriver(Driver):
         self._burst_frame = b""
         self._burst_length = 0
         """The status + data burst's address byte and length (set by configure())."""
+        self._streams: tuple[StreamSpec, ...] = ()
         self._feed: AutoReadFeed | None = None
         """The slave auto-read, when a driver behind the MAX21100's master asked for one:
         the slave's bytes (MAG X/Y/Z) of every burst go to it."""
@@ -188,26 +195,71 @@ class Max2110xDriver(Driver):
         for reg, value in plan.items():
             self.regs.write(reg, value)
         self._power_on_ns = self.clock.now_ns()  # measurements are timed from here
-        self._verify(plan)
+        readback = self._verify(plan)
         self._expected = plan
         p = self.part
         self._burst_frame = bytes((self.regs.read_address(p.burst_start, p.burst_length),))
         self._burst_length = p.burst_length
-        s = self.settings
+        self._use_streams(readback)
+
+    def _use_streams(self, readback: Mapping[int, int]) -> None:
+        """Take scales, periods and the poll grid from the specs of the registers read back."""
+        self._streams = self._specs(readback)
+        gyro, accel = self._streams[0], self._streams[1]
         self.scales = Scales(
-            gyro_lsb_per_dps=GYRO_RANGE_DPS[s.gyro_range_dps][1],
-            accel_lsb_per_g=ACCEL_RANGE_G[s.accel_range_g][1],
+            gyro_lsb_per_dps=GYRO_RANGE_DPS[gyro_range_from_code(readback[Reg.GYRO_CFG1])][1],
+            accel_lsb_per_g=ACCEL_RANGE_G[accel_range_from_code(readback[Reg.PWR_ACC_CFG])][1],
         )
-        periods = {
-            Channel.GYRO: round(1e9 / s.gyro_odr_hz),
-            Channel.ACCEL: round(1e9 / s.accel_odr_hz),
-        }
+        periods = {Channel.GYRO: gyro.period_ns, Channel.ACCEL: accel.period_ns}
         self._ready = DataReady(periods)
         self._fast = min(periods, key=lambda c: periods[c])
         self._grid = PollGrid(periods[self._fast], early_fraction=EARLY_FRACTION, track=True)
 
-    def _verify(self, plan: dict[int, int]) -> None:
-        wrong = self._mismatches(plan)
+    def _specs(self, regs: Mapping[int, int]) -> tuple[StreamSpec, StreamSpec, StreamSpec]:
+        """Gyro, accelerometer and temperature specs from configuration register values
+        read from the chip: range from GYRO_CFG1[1:0] and PWR_ACC_CFG[7:6], rates from the
+        ODR codes in GYRO_CFG2[3:0] and ACC_CFG1[3:0]."""
+        p = self.part
+        gyro_dps = gyro_range_from_code(regs[Reg.GYRO_CFG1])
+        accel_g = accel_range_from_code(regs[Reg.PWR_ACC_CFG])
+        gyro_hz = odr_from_code(p.gyro_odr_hz, regs[Reg.GYRO_CFG2] & 0x0F)
+        accel_hz = odr_from_code(p.accel_odr_hz, regs[Reg.ACC_CFG1] & 0x0F)
+        if gyro_hz is None or accel_hz is None:
+            raise ConfigurationError(
+                f"{self.describe()}: the chip reads back a reserved ODR code (GYRO_CFG2 "
+                f"0x{regs[Reg.GYRO_CFG2]:02X}, ACC_CFG1 0x{regs[Reg.ACC_CFG1]:02X}); check "
+                f"that this is a {p.part}")
+        # The poll grid sits an eighth of the fastest period after each measurement.
+        latency_s = min(1 / gyro_hz, 1 / accel_hz) / 8
+        return (
+            StreamSpec(self.device, Quantity.GYRO, Frame.SENSOR, gyro_hz,
+                       scale=math.radians(1.0) / GYRO_RANGE_DPS[gyro_dps][1],
+                       full_scale=math.radians(gyro_dps), latency_s=latency_s),
+            StreamSpec(self.device, Quantity.ACCEL, Frame.SENSOR, accel_hz,
+                       scale=STANDARD_GRAVITY_M_S2 / ACCEL_RANGE_G[accel_g][1],
+                       full_scale=accel_g * STANDARD_GRAVITY_M_S2, latency_s=latency_s),
+            StreamSpec(self.device, Quantity.TEMPERATURE, Frame.SENSOR,
+                       min(gyro_hz, 1e9 / TEMPERATURE_PERIOD_NS),
+                       scale=1.0 / TEMP_LSB_PER_DEGC, latency_s=latency_s),
+        )
+
+    def streams(self) -> tuple[StreamSpec, ...]:
+        """Gyro (rad/s), accelerometer (m/s^2) and temperature (degC) in the chip's sensor
+        frame, from the configuration read back at ``configure()``. Full scale: the
+        configured range (the chip's nominal full scale is 30000 counts, so a larger word
+        is not a measurement)."""
+        return self._streams
+
+    def refresh_streams(self) -> tuple[StreamSpec, ...]:
+        if not self._expected:
+            raise ConfigurationError(f"{self.describe()}: streams read before configure()")
+        self._streams = self._specs(self._read_config(self._expected))
+        return self._streams
+
+    def _verify(self, plan: dict[int, int]) -> dict[int, int]:
+        """Read back every register of ``plan``; raise when one differs; return the values."""
+        got = self._read_config(plan)
+        wrong = [(r, plan[r], got[r]) for r in sorted(plan) if got[r] != plan[r]]
         if wrong:
             detail = ", ".join(
                 f"0x{reg:02X} wrote 0x{want:02X} read 0x{got:02X}" for reg, want, got in wrong
@@ -217,8 +269,10 @@ class Max2110xDriver(Driver):
                 "check the bus (SPI mode 3, signal integrity) and that this is a "
                 f"{self.part.part}"
             )
+        return got
 
-    def _mismatches(self, plan: dict[int, int]) -> list[tuple[int, int, int]]:
+    def _read_config(self, plan: dict[int, int]) -> dict[int, int]:
+        """The chip's current values of the registers of ``plan``."""
         regs = sorted(plan)
         # one burst from POWER_CFG over the configuration registers up to the auto-read's
         # (ACC_CFG1, or MAG_MAP_REG), single reads for the rest
@@ -228,7 +282,11 @@ class Max2110xDriver(Driver):
         for r in regs:
             if r not in got:
                 got[r] = self.regs.read_u8(r)
-        return [(r, plan[r], got[r]) for r in regs if got[r] != plan[r]]
+        return got
+
+    def _mismatches(self, plan: dict[int, int]) -> list[tuple[int, int, int]]:
+        got = self._read_config(plan)
+        return [(r, plan[r], got[r]) for r in sorted(plan) if got[r] != plan[r]]
 
     # --- sampling -------------------------------------------------------------------------
 
@@ -360,16 +418,6 @@ class Max2110xDriver(Driver):
             if decode.saturated(counts):
                 flags |= SampleFlag.SATURATED
         return AccelSample.build(now_ns, self.device, flags, Frame.SENSOR, value)
-
-    def full_scale(self, channel: Channel) -> float | None:
-        """The configured range (rad/s, m/s^2): the chip's nominal full scale is 30000
-        counts, so a larger word is not a measurement."""
-        s = self.settings
-        if channel is Channel.GYRO:
-            return math.radians(s.gyro_range_dps)
-        if channel is Channel.ACCEL:
-            return s.accel_range_g * STANDARD_GRAVITY_M_S2
-        return None
 
     def _config_lost(self) -> bool:
         """True when the configuration reads back different from what was written (a

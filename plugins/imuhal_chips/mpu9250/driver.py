@@ -35,11 +35,13 @@ from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackErro
 from imuhal.core.samples import (
     AccelSample,
     Channel,
+    Frame,
     GyroSample,
     Sample,
     SampleFlag,
     TemperatureSample,
 )
+from imuhal.core.streams import StreamSpec
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
 from imuhal.drivers.polling import DataReady, PollGrid, ResetWatch, reset_check_field
 from imuhal.drivers.validity import NAN3, FrozenWatch, blank_flag, range_flag
@@ -193,6 +195,7 @@ class MPU9250Driver(Driver):
         self._ready = DataReady({Channel.GYRO: self._period_ns})
         self._watch = ResetWatch(s.reset_check_s)
         self._frozen = FrozenWatch(self.FROZEN_AFTER_FRAMES)
+        self._streams: tuple[StreamSpec, ...] = ()
 
     # -- identity ---------------------------------------------------------------------------
 
@@ -299,13 +302,58 @@ class MPU9250Driver(Driver):
         for register, value in self._expected.items():
             self.regs.write(register, value)
         wrong = []
+        got: dict[int, int] = {}
         for register, value in self._expected.items():
-            back = self.regs.read_u8(register)
+            back = got[register] = self.regs.read_u8(register)
             if back != value:
                 wrong.append(f"0x{register:02X} reads 0x{back:02X}, wrote 0x{value:02X}")
         if wrong:
             raise ConfigurationError(f"{self.describe()}: register read-back failed: "
                                      + "; ".join(wrong))
+        # ranges, rate, poll grid and stale policy from what the chip reads back
+        self._streams = self._specs(got)
+        self._gyro = _range_of(r.GYRO_RANGES, got[r.GYRO_CONFIG])
+        self._accel = _range_of(r.ACCEL_RANGES, got[r.ACCEL_CONFIG])
+        self._period_ns = self._streams[0].period_ns
+        self._grid = PollGrid(self._period_ns)
+        self._ready = DataReady({Channel.GYRO: self._period_ns})
+
+    _CONFIG_REGISTERS = (r.SMPLRT_DIV, r.CONFIG, r.GYRO_CONFIG, r.ACCEL_CONFIG)
+    """The registers the stream specs are read from."""
+
+    def _specs(self, regs: Mapping[int, int]) -> tuple[StreamSpec, StreamSpec, StreamSpec]:
+        """Gyro, accelerometer and temperature specs from register values read from the
+        chip: GYRO_CONFIG / ACCEL_CONFIG FS_SEL (ranges), CONFIG.DLPF_CFG, GYRO_CONFIG
+        Fchoice_b and SMPLRT_DIV (the sample rate, one for all three). Full scale: what the
+        16-bit word can hold at the range (the most negative count through this driver's
+        conversion)."""
+        internal_hz, divided = r.gyro_filter_from_config(regs[r.CONFIG], regs[r.GYRO_CONFIG])
+        rate_hz = internal_hz / (1 + regs[r.SMPLRT_DIV]) if divided else float(internal_hz)
+        gyro = _range_of(r.GYRO_RANGES, regs[r.GYRO_CONFIG])
+        accel = _range_of(r.ACCEL_RANGES, regs[r.ACCEL_CONFIG])
+        latency_s = 1.0 / (8 * rate_hz)  # the poll grid's guard after each sample
+        return (
+            StreamSpec(self.device, Channel.GYRO, Frame.SENSOR, rate_hz,
+                       scale=gyro_rad_s((1, 0, 0), gyro.lsb_per_unit)[0],
+                       full_scale=abs(gyro_rad_s((-32768, 0, 0), gyro.lsb_per_unit)[0]),
+                       latency_s=latency_s),
+            StreamSpec(self.device, Channel.ACCEL, Frame.SENSOR, rate_hz,
+                       scale=accel_m_s2((1, 0, 0), accel.lsb_per_unit)[0],
+                       full_scale=abs(accel_m_s2((-32768, 0, 0), accel.lsb_per_unit)[0]),
+                       latency_s=latency_s),
+            StreamSpec(self.device, Channel.TEMPERATURE, Frame.SENSOR, rate_hz,
+                       scale=1.0 / r.TEMP_LSB_PER_DEGC, latency_s=latency_s),
+        )
+
+    def streams(self) -> tuple[StreamSpec, ...]:
+        """Gyro (rad/s), accelerometer (m/s^2) and temperature (degC), sensor frame, as
+        read back at ``configure()``."""
+        return self._streams
+
+    def refresh_streams(self) -> tuple[StreamSpec, ...]:
+        self._streams = self._specs({reg: self.regs.read_u8(reg)
+                                     for reg in self._CONFIG_REGISTERS})
+        return self._streams
 
     def start(self, now_ns: int) -> int:
         # recover() passes the time from before configure() waited; never start in the past.
@@ -325,15 +373,6 @@ class MPU9250Driver(Driver):
         """Gyro frames (accel and temperature come in the same frame), one per sample
         period of SMPLRT_DIV and the DLPF."""
         return Channel.GYRO, self._period_ns
-
-    def full_scale(self, channel: Channel) -> float | None:
-        """What the 16-bit data word can hold at the configured range (SI): the most
-        negative count through this driver's own conversion."""
-        if channel is Channel.GYRO:
-            return abs(gyro_rad_s((-32768, 0, 0), self._gyro.lsb_per_unit)[0])
-        if channel is Channel.ACCEL:
-            return abs(accel_m_s2((-32768, 0, 0), self._accel.lsb_per_unit)[0])
-        return None
 
     def child_buses(self) -> dict[str, Bus]:
         return {"aux": self._aux_bus} if self._aux_bus is not None else {}
@@ -445,3 +484,9 @@ class MPU9250Driver(Driver):
                               flags=range_flag([temp], *self.TEMPERATURE_RANGE_DEGC),
                               temperature_degc=temp),
         ]
+
+
+def _range_of(table: Mapping[int, r.Range], config: int) -> r.Range:
+    """The range whose FS_SEL (bits 4:3) ``config`` holds."""
+    fs_sel = (config >> 3) & 0b11
+    return next(rng for rng in table.values() if rng.fs_sel == fs_sel)

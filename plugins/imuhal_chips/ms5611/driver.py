@@ -34,11 +34,13 @@ from imuhal.core.clock import Clock
 from imuhal.core.errors import DeviceNotFoundError, NackError
 from imuhal.core.samples import (
     Channel,
+    Frame,
     PressureSample,
     Sample,
     SampleFlag,
     TemperatureSample,
 )
+from imuhal.core.streams import StreamSpec
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
 from imuhal.drivers.polling import ResetWatch
 from imuhal.drivers.validity import FrozenWatch, blank_flag
@@ -234,6 +236,24 @@ class MS5611Driver(Driver):
         self._just_reset = False
         self._reset_state()
 
+    def streams(self) -> tuple[StreamSpec, ...]:
+        """Pressure (Pa) and temperature (degC). The MS5611 keeps no configuration: its
+        oversampling travels in each convert command and its rate is this driver's
+        conversion grid (one pressure conversion per ``1 / odr_hz``, a temperature one every
+        ``temperature_every``), so the rates are the grid the driver runs, not a register.
+        Resolution: the compensated output's 0.01 mbar (1 Pa) and 0.01 degC; no full scale
+        declared (compensation bounds the output). Latency: the pressure conversion time."""
+        if self.coefficients is None:
+            return ()
+        rate_hz = 1e9 / self._period_ns
+        latency_s = self._t_d1_ns * 1e-9
+        return (
+            StreamSpec(self.device, Channel.PRESSURE, Frame.SENSOR, rate_hz, scale=1.0,
+                       latency_s=latency_s),
+            StreamSpec(self.device, Channel.TEMPERATURE, Frame.SENSOR,
+                       rate_hz / self.settings.temperature_every, scale=0.01,
+                       latency_s=latency_s),
+        )
     def accounted_stream(self) -> tuple[Channel, int] | None:
         """One pressure conversion per cycle of the configured rate (the host starts each
         one: the cadence is the driver's, kept by its conversion schedule)."""

@@ -38,6 +38,7 @@ from pydantic import Field
 
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.core.frames import FloatArray
+from imuhal.core.quantities import Quantity
 from imuhal.core.samples import (
     AccelSample,
     AirspeedSample,
@@ -49,6 +50,7 @@ from imuhal.core.samples import (
     SampleFlag,
     VelocitySample,
 )
+from imuhal.core.streams import StreamSpec
 from imuhal.estimation.base import Estimator, EstimatorSettings
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate
 from imuhal.estimation.rows import (
@@ -58,12 +60,14 @@ from imuhal.estimation.rows import (
     flatten_diagnostics,
     merge_columns,
 )
+from imuhal.estimation.streams import stream_of
 from imuhal_filters.common import fast
 from imuhal_filters.common.alignment import aligned_quaternion
 from imuhal_filters.common.gate import gravity_positive_g
 from imuhal_filters.common.limits import (
     DEFAULT_ACCEL_FULL_SCALE_M_S2,
     DEFAULT_GYRO_FULL_SCALE_RAD_S,
+    bound_settings,
     within_full_scale,
 )
 from imuhal_filters.common.presets import PresetSettings
@@ -103,6 +107,12 @@ class AhrsSettings(PresetSettings, AhrsLimitSettings, TurnCompensationSettings):
     """A gyro gap longer than this is not integrated over: the nominal period is used instead."""
     max_aux_age_s: float | None = Field(0.1, gt=0.0)
     """An accel or mag sample older than this (relative to the gyro sample) is not used."""
+    gyro_saturation: Literal["recover", "drop"] = "recover"
+    """A gyro sample the chip clipped (flagged SATURATED, perhaps OUT_OF_RANGE too: at its
+    stream's full scale): ``recover`` integrates it clipped to the full scale and then pulls
+    the tilt back towards the accelerometer with a high gain that decays over ``RECOVERY_S``
+    (Fusion's angular-rate recovery); ``drop`` skips it (a gap in the integration). Needs the
+    gyro's stream (``bind``); without one every flagged sample is dropped."""
 
 
 class ImuStep(NamedTuple):
@@ -122,6 +132,16 @@ def _vec(v: Sequence[float]) -> Vec:
 
 
 _OK = SampleFlag.OK
+_CLIPPED = SampleFlag.SATURATED | SampleFlag.OUT_OF_RANGE
+"""The flags a gyro reading the chip cut at its full scale may carry (SATURATED required:
+OUT_OF_RANGE alone, beyond the range but not at the rail, is a corrupt word)."""
+RECOVERY_S = 3.0
+"""Angular-rate recovery: after the last clipped gyro sample, the extra tilt feedback decays
+linearly to nothing over this long (s) (Fusion's start-up period)."""
+RECOVERY_GAIN = 10.0
+"""Angular-rate recovery: the extra tilt feedback's gain at its start (rad/s per unit of
+the sine of the tilt error; Fusion's start-up gain): the tilt error then falls with a time
+constant of 0.1 s, growing to the filter's own as the gain decays."""
 _BODY_NED = Frame.BODY_NED
 _ACCEL, _MAG, _GYRO = Channel.ACCEL.value, Channel.MAG.value, Channel.GYRO.value
 _INF = math.inf
@@ -149,6 +169,27 @@ def _linear_accel_ned(q: Quat, f: Vec) -> Vec:
     )
 
 
+def _tilt_pulled(q: Quat, accel_g: Vec, angle_gain: float) -> Quat:
+    """``q`` (body -> NED) turned so the gravity it predicts in the body frame moves towards
+    the measured gravity-positive ``accel_g`` by ``angle_gain`` times the sine of the angle
+    between them (the Mahony / Fusion accelerometer feedback, integrated over one step)."""
+    ax, ay, az = accel_g
+    norm = math.sqrt(ax * ax + ay * ay + az * az)
+    if not norm > 0.0:
+        return q
+    ax, ay, az = ax / norm, ay / norm, az / norm
+    w, x, y, z = q
+    # gravity's direction in the body frame as q predicts it: R(q)^T (0, 0, 1)
+    vx, vy, vz = 2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z
+    # the body rotation that turns the prediction towards the measurement
+    ex, ey, ez = ay * vz - az * vy, az * vx - ax * vz, ax * vy - ay * vx
+    hx, hy, hz = 0.5 * angle_gain * ex, 0.5 * angle_gain * ey, 0.5 * angle_gain * ez
+    w, x, y, z = (w - x * hx - y * hy - z * hz, x + w * hx + y * hz - z * hy,
+                  y - x * hz + w * hy + z * hx, z + x * hy - y * hx + w * hz)
+    n = math.sqrt(w * w + x * x + y * y + z * z)
+    return (w / n, x / n, y / n, z / n)
+
+
 class AhrsEstimator(Estimator):
     """An attitude estimator stepped once per gyro sample. See the module docstring."""
 
@@ -156,8 +197,14 @@ class AhrsEstimator(Estimator):
     consumes: ClassVar[tuple[type, ...]] = (GyroSample, AccelSample, MagSample,
                                             VelocitySample, AirspeedSample)
     uses_mag: ClassVar[bool] = True
+    owns_quaternion: ClassVar[bool] = True
+    """The kernel steps from ``_q`` (it keeps no attitude of its own): the angular-rate
+    recovery can pull its tilt. False for a wrapper whose kernel holds the attitude (the
+    recovery then only integrates the clipped samples)."""
 
     settings: AhrsSettings
+    _gyro_range_rad_s: float | None = None
+    """The bound gyro stream's full scale (rad/s), where clipped samples are cut."""
     _q: Quat
 
     # ------------------------------------------------------------------ subclass hooks
@@ -191,7 +238,9 @@ class AhrsEstimator(Estimator):
             "stale_accel": 0,
             "stale_mag": 0,
             "beyond_full_scale": {Channel.GYRO.value: 0, Channel.ACCEL.value: 0},
+            "angular_rate_recovery": {"clipped_samples": 0, "recoveries": 0},
         }
+        self._recovery_left_s = 0.0
         self._q = IDENTITY
         identity = self.settings.initial_attitude == "identity"
         self._tilt_aligned = identity
@@ -210,6 +259,18 @@ class AhrsEstimator(Estimator):
         self._max_dt_s = self.settings.max_dt_s
         self._max_aux_age_s = self.settings.max_aux_age_s
         self._reset_filter()
+
+    def bind(self, streams: Sequence[StreamSpec]) -> None:
+        """Gyro and accelerometer limits from the streams' full scales (+10 % for
+        calibration gains) and ``sample_period_s`` from the gyro stream's rate, unless given
+        by hand; a hand setting that contradicts its stream raises StreamContradiction
+        (imuhal.estimation.streams)."""
+        gyro = stream_of(streams, Quantity.GYRO)
+        self._gyro_range_rad_s = None if gyro is None else gyro.full_scale
+        bound = bound_settings(self, streams, period_key="sample_period_s")
+        if bound is not self.settings:
+            self.settings = bound
+            self.reset()
 
     def process(self, item: Sample | Estimate) -> list[Estimate]:
         # The pipeline calls this for every sample (three per IMU tick): the common samples
@@ -247,8 +308,7 @@ class AhrsEstimator(Estimator):
             return []
         if kind is GyroSample:
             if item.flags != _OK:
-                self._counters["invalid"][_GYRO] += 1
-                return []
+                return self._flagged_gyro(item)  # type: ignore[arg-type]
             x, y, z = item.gyro_rad_s  # type: ignore[union-attr]
             fs = self._gyro_fs
             if not (-fs <= x <= fs and -fs <= y <= fs and -fs <= z <= fs):
@@ -256,8 +316,53 @@ class AhrsEstimator(Estimator):
                 return []
             if item.frame is not _BODY_NED:  # type: ignore[union-attr]
                 return self._wrong_frame(item)  # type: ignore[arg-type]
+            if self._recovery_left_s > 0.0:
+                return self._recovering(item, (float(x), float(y), float(z)))  # type: ignore[arg-type]
             return self._on_gyro(item, (float(x), float(y), float(z)))  # type: ignore[arg-type]
         return self._process_general(item)
+
+    # ------------------------------------------------------------------ angular-rate recovery
+    def _flagged_gyro(self, item: GyroSample) -> list[Estimate]:
+        """A gyro sample flagged invalid: dropped and counted, unless it is a reading the
+        chip clipped at its full scale and ``gyro_saturation`` is ``recover`` (the rotation
+        goes on beyond the range: integrating the clipped rate loses less than a gap)."""
+        limit = self._gyro_range_rad_s
+        if (limit is None or not item.flags & SampleFlag.SATURATED or item.flags & ~_CLIPPED
+                or item.frame is not _BODY_NED or self.settings.gyro_saturation != "recover"):
+            self._counters["invalid"][_GYRO] += 1
+            return []
+        x, y, z = item.gyro_rad_s
+        if not (abs(x) < _INF and abs(y) < _INF and abs(z) < _INF):
+            self._counters["invalid"][_GYRO] += 1
+            return []
+        counts = self._counters["angular_rate_recovery"]
+        counts["clipped_samples"] += 1
+        if self._recovery_left_s <= 0.0:
+            counts["recoveries"] += 1
+        self._recovery_left_s = RECOVERY_S
+        clipped = (min(max(float(x), -limit), limit), min(max(float(y), -limit), limit),
+                   min(max(float(z), -limit), limit))
+        return self._recovering(item, clipped)
+
+    def _recovering(self, item: GyroSample, rate: Vec) -> list[Estimate]:
+        """One gyro step during the angular-rate recovery: before the filter's own step, the
+        tilt is pulled towards the newest accelerometer reading with the recovery gain
+        (decaying linearly from RECOVERY_GAIN to 0 over RECOVERY_S after the last clipped
+        sample); the filter's step then runs as usual."""
+        last = self._last_gyro_t_ns
+        dt = self._nominal_dt_s
+        if last is not None and 0.0 < (item.t_ns - last) * _NS <= self._max_dt_s:
+            dt = (item.t_ns - last) * _NS
+        gain = RECOVERY_GAIN * self._recovery_left_s / RECOVERY_S
+        self._recovery_left_s = max(0.0, self._recovery_left_s - dt)
+        accel = self._accel_m_s2
+        fresh = accel is not None and self._accel_t_ns is not None and (
+            self._max_aux_age_s is None
+            or (item.t_ns - self._accel_t_ns) * _NS <= self._max_aux_age_s)
+        if fresh and self.owns_quaternion and self._tilt_aligned:
+            assert accel is not None
+            self._q = _tilt_pulled(self._q, gravity_positive_g(accel), gain * dt)
+        return self._on_gyro(item, rate)
 
     def _process_general(self, item: Sample | Estimate) -> list[Estimate]:
         if isinstance(item, VelocitySample):
@@ -273,6 +378,8 @@ class AhrsEstimator(Estimator):
         if not isinstance(item, (GyroSample, AccelSample, MagSample)):
             return []
         if not item.valid:
+            if isinstance(item, GyroSample):
+                return self._flagged_gyro(item)
             self._counters["invalid"][item.channel.value] += 1
             return []
         if not self._within_limits(item):
@@ -304,7 +411,10 @@ class AhrsEstimator(Estimator):
             "mag_ut": None if self._mag_ut is None else list(self._mag_ut),
             "mag_t_ns": self._mag_t_ns,
             "counters": {**self._counters, "invalid": dict(self._counters["invalid"]),
-                         "beyond_full_scale": dict(self._counters["beyond_full_scale"])},
+                         "beyond_full_scale": dict(self._counters["beyond_full_scale"]),
+                         "angular_rate_recovery": dict(
+                             self._counters["angular_rate_recovery"])},
+            "recovery_left_s": self._recovery_left_s,
             "aligned": [self._tilt_aligned, self._heading_aligned],
             "kinematics": self._kinematics.as_dict(),
             "filter": self._filter_state(),
@@ -320,7 +430,11 @@ class AhrsEstimator(Estimator):
         self._mag_t_ns = state["mag_t_ns"]
         counters = state["counters"]
         self._counters = {**counters, "invalid": dict(counters["invalid"]),
-                          "beyond_full_scale": dict(counters["beyond_full_scale"])}
+                          "beyond_full_scale": dict(counters["beyond_full_scale"]),
+                          "angular_rate_recovery": dict(counters.get(
+                              "angular_rate_recovery",
+                              {"clipped_samples": 0, "recoveries": 0}))}
+        self._recovery_left_s = float(state.get("recovery_left_s", 0.0))
         self._tilt_aligned, self._heading_aligned = (bool(v) for v in state["aligned"])
         self._kinematics.load_dict(state["kinematics"])
         self._no_speed = (self.settings.nominal_airspeed_m_s is None
@@ -330,6 +444,8 @@ class AhrsEstimator(Estimator):
     def diagnostics(self) -> dict[str, Any]:
         return {**self._counters, "invalid": dict(self._counters["invalid"]),
                 "beyond_full_scale": dict(self._counters["beyond_full_scale"]),
+                "angular_rate_recovery": {**self._counters["angular_rate_recovery"],
+                                          "active": self._recovery_left_s > 0.0},
                 "turn_compensation": {**self._kinematics.counts,
                                       "source": self._kinematics.source}}
 

@@ -143,6 +143,8 @@ class DecoupledEstimator(AhrsEstimator):
     low-passed in an almost-inertial frame, rest-detected gyro bias, separate heading with
     magnetic disturbance rejection (6-DOF, or 9-DOF when magnetometer samples arrive)."""
 
+    owns_quaternion = False  # its kernel keeps the attitude (angular-rate recovery)
+
     name: ClassVar[str] = "decoupled"
     description: ClassVar[str] = (
         "VQF-style AHRS: inertial-frame accel filtering, rest gyro bias, separate heading "

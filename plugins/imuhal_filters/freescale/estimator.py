@@ -15,6 +15,7 @@ AttitudeEstimate (body -> NED) stamped with the window's last gyro sample.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -30,10 +31,11 @@ from imuhal.core.samples import (
     Sample,
     VelocitySample,
 )
+from imuhal.core.streams import StreamSpec
 from imuhal.estimation.base import Estimator, EstimatorSettings
 from imuhal.estimation.gravity import linear_accel_ned_m_s2
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate
-from imuhal_filters.common.limits import within_full_scale
+from imuhal_filters.common.limits import bound_settings, within_full_scale
 from imuhal_filters.common.quat import Vec
 from imuhal_filters.common.turn import KinematicAcceleration
 from imuhal_filters.freescale.coords import (
@@ -123,6 +125,15 @@ class _FreescaleEstimator(Estimator):
         self._accel_axes = sensor_axes(cs, specific_force=True)
 
     # -- Estimator interface ----------------------------------------------------------------
+
+    def bind(self, streams: Sequence[StreamSpec]) -> None:
+        """``sensor_rate_hz`` (every gyro sample is integrated over 1 / it, whatever its
+        time stamps) and the limits from the gyro and accelerometer streams, unless given
+        by hand; a hand setting that contradicts its stream raises StreamContradiction."""
+        bound = bound_settings(self, streams, rate_key="sensor_rate_hz")
+        if bound is not self.settings:
+            self.settings = bound
+            self.reset()
 
     def process(self, item: Sample | Estimate) -> list[Estimate]:
         if not isinstance(item, self.consumes):

@@ -62,6 +62,8 @@ class VqfSettings(AhrsSettings):
 class VqfEstimator(AhrsEstimator):
     """VQF via the ``vqf`` package (6-DOF, or 9-DOF when magnetometer samples arrive)."""
 
+    owns_quaternion = False  # its kernel keeps the attitude (angular-rate recovery)
+
     name: ClassVar[str] = "vqf"
     description: ClassVar[str] = (
         "VQF (Laidig and Seel 2023): rest and motion gyro bias estimation, magnetic "

@@ -17,6 +17,7 @@ from imuhal.core.samples import PressureSample
 from imuhal.offline.csv_input import iter_sample_chunks
 from imuhal.offline.csv_output import ColumnError, EstimateCsvWriter
 from imuhal.offline.frames import resolve_input_frame, table_to_ned
+from imuhal.offline.log_streams import bind_to_log, sample_streams, table_streams
 from imuhal.offline.run_log import is_run_log, read_run_log
 from imuhal.offline.runner import iter_offline, run_offline_samples
 from imuhal.offline.settings_args import build_settings, parse_set_arguments
@@ -128,6 +129,7 @@ def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
             # rebuilt in the pipeline's order.
             log = read_run_log(args.input, args.input_frame)
             ahrs = _gravity_ahrs(args, ahrs_cls, ahrs_settings, True)
+            _bind(estimator, ahrs, sample_streams(log.samples))
             estimates = run_offline_samples(estimator, log.samples, ahrs=ahrs)
             writer.write(estimates)
             if args.mcap:
@@ -142,6 +144,7 @@ def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
             first = next(chunks)
             ahrs = _gravity_ahrs(args, ahrs_cls, ahrs_settings,
                                  "altitude_m" not in first.columns)
+            _bind(estimator, ahrs, table_streams(first))
             n_in = 0
             for table in itertools.chain([first], chunks):
                 n_in += len(table)
@@ -162,6 +165,14 @@ def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
         if est is not None:
             _report_rejected(est)
     return 0
+
+
+def _bind(estimator: Any, ahrs: Any, streams: Any) -> None:
+    """Bind the estimators to the stream measured from the log (rates follow the data; a
+    --set or --ahrs-set rate that contradicts it is an error)."""
+    bind_to_log(estimator, streams, "--set")
+    if ahrs is not None:
+        bind_to_log(ahrs, streams, "--ahrs-set")
 
 
 def _write_mcap(args: argparse.Namespace, registry: Registry, samples: list[Any],

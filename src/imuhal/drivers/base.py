@@ -19,6 +19,7 @@ from imuhal.bus.base import Bus, BusKind, Link
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ImuhalDeprecationWarning
 from imuhal.core.samples import Channel, Sample
+from imuhal.core.streams import StreamSpec
 from imuhal.drivers.settings import literal_choices
 
 
@@ -196,6 +197,27 @@ class Driver(ABC):
         # configure() may have waited on the clock (resets, reloads): start from after it.
         return self.start(max(now_ns, self.clock.now_ns()))
 
+    def streams(self) -> tuple[StreamSpec, ...]:
+        """The spec of every stream this driver delivers in its current configuration
+        (imuhal.core.streams), derived from the configuration registers it read back from
+        the chip at the last ``configure()`` (or ``refresh_streams()``), never from its
+        settings. Empty before ``configure()``, and for a driver that declares none (its
+        samples are then only checked for NaN/inf)."""
+        return ()
+
+    def refresh_streams(self) -> tuple[StreamSpec, ...]:
+        """Read the configuration registers again and return the specs they give: what the
+        chip runs now. The pipeline does not call it per poll (it costs bus transfers); the
+        default, for a driver that keeps no register state, returns ``streams()``."""
+        return self.streams()
+
+    def stream(self, channel: Channel) -> StreamSpec | None:
+        """The spec of the stream carrying ``channel``, or None."""
+        for spec in self.streams():
+            if spec.quantity == channel:
+                return spec
+        return None
+
     def accounted_stream(self) -> tuple[Channel, int] | None:
         """The channel whose frames the pipeline counts (produced, delivered, lost by cause:
         imuhal.pipeline.accounting) and the chip's frame period on it (ns) in the current
@@ -204,9 +226,11 @@ class Driver(ABC):
 
     def full_scale(self, channel: Channel) -> float | None:
         """The largest magnitude (SI) a correct ``channel`` value can have in the current
-        configuration; the pipeline flags anything beyond it OUT_OF_RANGE. None: not
-        declared (only NaN/inf are then caught)."""
-        return None
+        configuration: the stream spec's ``full_scale`` (one source of truth). The pipeline
+        flags anything beyond it OUT_OF_RANGE. None: not declared (only NaN/inf are then
+        caught)."""
+        spec = self.stream(channel)
+        return None if spec is None else spec.full_scale
 
     def child_buses(self) -> dict[str, Bus]:
         """Buses this chip exposes to others (an I2C master or bypass, ...), by local name;

@@ -8,11 +8,13 @@ can be saved and restored. It knows nothing about buses or chips.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Sequence
 from typing import Any, ClassVar
 
 from pydantic import BaseModel, ConfigDict
 
 from imuhal.core.samples import Sample
+from imuhal.core.streams import StreamSpec
 from imuhal.estimation.outputs import Estimate
 
 
@@ -38,6 +40,8 @@ class Estimator(ABC):
         elif not isinstance(settings, self.Settings):
             settings = self.Settings.model_validate(settings)
         self.settings = settings
+        self.given_settings: frozenset[str] = frozenset(settings.model_fields_set)
+        """The settings the user gave (the others may follow the streams, ``bind``)."""
         self.instance = instance or self.name
         self.reset()
 
@@ -56,6 +60,16 @@ class Estimator(ABC):
     @abstractmethod
     def set_state(self, state: dict[str, Any]) -> None:
         """Restore a snapshot taken by get_state."""
+
+    def bind(self, streams: Sequence[StreamSpec]) -> None:
+        """Take what this estimator needs from the specs of the streams it is fed
+        (imuhal.core.streams; plain data, never a driver): limits, nominal periods, rates.
+        Called by the pipeline before the first sample and again when an input device joins
+        or comes back reconfigured; ``imuhal estimate`` calls it with specs measured from
+        the log. A setting the user gave (``given_settings``) that contradicts a stream
+        raises imuhal.estimation.streams.StreamContradiction. An estimator whose settings
+        change here starts again from its initial state. The default: nothing to bind."""
+        del streams  # an estimator without rate or limit settings takes nothing
 
     def diagnostics(self) -> dict[str, Any]:
         return {}

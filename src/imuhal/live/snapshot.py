@@ -60,20 +60,14 @@ class Truth(Protocol):
     def climb_m_s(self) -> float: ...
 
 
-def configured_rates_hz(settings: dict[str, Any], channels: tuple[Channel, ...]
-                        ) -> dict[str, float]:
-    """The output rate each channel was configured for, read from a driver's settings by the
-    naming guide's names: ``<channel>_odr_hz``, else ``odr_hz`` or ``rate_hz`` for the
-    device (its vector and pressure channels; a chip measures temperature at its own pace)."""
-    device_rate = settings.get("odr_hz", settings.get("rate_hz"))
-    rates = {}
-    for channel in channels:
-        own = settings.get(f"{channel.value}_odr_hz")
-        if own is None and channel is not Channel.TEMPERATURE:
-            own = device_rate
-        if isinstance(own, int | float) and own > 0:
-            rates[channel.value] = float(own)
-    return rates
+def configured_rates_hz(pipeline: Pipeline, device: str) -> dict[str, float]:
+    """The output rate of each stream of ``device`` as its chip reports it (the stream specs
+    read back at its last configuration, imuhal.core.streams), by quantity name; empty for
+    a device not (yet) configured."""
+    dev = pipeline.devices.get(device)
+    if dev is None:
+        return {}
+    return {spec.quantity.name: spec.rate_hz for spec in dev.streams}
 
 
 @dataclass
@@ -98,7 +92,6 @@ class Snapshotter:
         self.scenario = scenario
         self.seq = 0
         self._past: deque[_Past] = deque()
-        self._configured: dict[str, dict[str, float]] = {}
         self._drivers: dict[str, str] = {}
         self._bringup_state: dict[str, Any] | None = None
         self._last_events = 0
@@ -108,8 +101,6 @@ class Snapshotter:
             for name, dev in pipeline.devices.items():
                 drv = dev.driver
                 self._drivers[name] = drv.name
-                self._configured[name] = configured_rates_hz(
-                    drv.settings.model_dump(), tuple(drv.channels))
 
     def _summary(self, copy: Copy) -> list[str] | None:
         """The run's summary (the lines ``imuhal run`` prints) once it has ended; None while
@@ -230,7 +221,10 @@ class Snapshotter:
         health: dict[str, Any] = {}
         for name in names:
             d = copy.devices.get(name)
-            configured = self._configured.get(name, {})
+            # read at every snapshot: a device that joins late or comes back reconfigured
+            # has its streams then
+            configured = ({} if self.pipeline is None
+                          else configured_rates_hz(self.pipeline, name))
             achieved: dict[str, float] = {}
             if d is not None and past is not None and span_s >= 0.5:
                 before = past.counts.get(name, {})

@@ -27,13 +27,15 @@ from imuhal.calibration.gyro import GyroOffsetProcedure
 from imuhal.calibration.hard_iron import HardIronLearner
 from imuhal.calibration.model import CalibrationBinding, DeviceCalibration, now
 from imuhal.core.conventions import get_convention
-from imuhal.core.errors import BusError, ImuhalError, PluginError
+from imuhal.core.errors import BusError, ImuhalError, PluginError, ProfileError
 from imuhal.core.frames import FloatArray
-from imuhal.core.samples import Channel, MagSample, Sample, SampleFlag
+from imuhal.core.samples import Channel, GyroSample, MagSample, Sample, SampleFlag
+from imuhal.core.streams import StreamSpec
 from imuhal.drivers.base import DeviceIdentity, Driver
 from imuhal.estimation.base import Estimator
 from imuhal.estimation.framed import FramedEvent, express
 from imuhal.estimation.ordering import fusion_order
+from imuhal.estimation.streams import StreamContradiction
 from imuhal.pipeline.accounting import FrameLedger, describe_frames
 from imuhal.pipeline.board import Board, open_hardware_board
 from imuhal.pipeline.bringup import bring_up
@@ -53,6 +55,12 @@ REPORT_AFTER_FAILURES = 4
 """Consecutive failed recoveries (about 30 ms of trying) before the run reports the device."""
 JOIN_RETRY_NS = 1_000_000_000
 """An optional device that is not there is looked for again every second."""
+
+
+CLIPPED = SampleFlag.SATURATED | SampleFlag.OUT_OF_RANGE
+"""The flags a reading the chip cut at its full scale may carry: SATURATED (the driver saw
+the word at its rail), and OUT_OF_RANGE with it (beyond the declared range). OUT_OF_RANGE
+alone is no clip: a word beyond the range but not at the rail is a corrupt reading."""
 
 
 @dataclass
@@ -82,6 +90,8 @@ class DeviceRuntime:
     samples: int = 0
     flagged: Counter[str] = field(default_factory=Counter)
     full_scale: dict[Channel, float | None] = field(default_factory=dict)
+    streams: tuple[StreamSpec, ...] = ()
+    """The driver's stream specs as read back at the last (re)configuration."""
     last_valid_ns: dict[Channel, int] = field(default_factory=dict)
     """Per quantity, the time of the last valid sample (samples must not go back)."""
     chip_to_body_rows: list[list[float]] = field(default_factory=list)
@@ -243,6 +253,8 @@ class Pipeline:
                 inputs=frozenset(ecfg.inputs) if ecfg.inputs is not None else None,
                 consumes=tuple(est_cls.consumes),
             ))
+        for runtime in self.estimators:
+            self._bind(runtime)
 
     # -- construction -------------------------------------------------------------------
 
@@ -326,7 +338,6 @@ class Pipeline:
         dev.calibration = self._checked_calibration(dev.name, cfg.bus, cfg.calibration,
                                                     driver.identity,
                                                     type(driver).calibration_version)
-        dev.full_scale = {ch: driver.full_scale(ch) for ch in type(driver).channels}
         learn = cfg.calibration.mag_in_flight if cfg.calibration is not None else None
         if learn is not None and learn.enabled and Channel.MAG in type(driver).channels \
                 and (dev.calibration is None or dev.calibration.mag is None) \
@@ -337,6 +348,38 @@ class Pipeline:
         if stream is not None and dev.ledger is None:
             dev.ledger = FrameLedger(*stream)
         dev.reconfigurations_seen = driver.health.reconfigurations
+        self._take_streams(dev)
+
+    @property
+    def streams(self) -> dict[str, tuple[StreamSpec, ...]]:
+        """Every present device's stream specs (imuhal.core.streams), by device: the
+        chip's range, resolution and rate as read back at its last configuration."""
+        return {name: dev.streams for name, dev in self.devices.items() if dev.present}
+
+    def _take_streams(self, dev: DeviceRuntime) -> None:
+        """Collect ``dev``'s stream specs after it joined or was reconfigured: its full
+        scales (the OUT_OF_RANGE check) come from them, and estimators fed by it are bound
+        again when they changed."""
+        driver = dev.driver
+        streams = driver.streams()
+        dev.full_scale = {ch: driver.full_scale(ch) for ch in type(driver).channels}
+        if streams == dev.streams:
+            return
+        dev.streams = streams
+        for runtime in self.estimators:
+            if runtime.inputs is None or dev.name in runtime.inputs:
+                self._bind(runtime)
+
+    def _bind(self, runtime: EstimatorRuntime) -> None:
+        """Hand ``runtime``'s estimator the specs of its input devices' streams."""
+        specs = [spec for name, dev in self.devices.items()
+                 if dev.present and (runtime.inputs is None or name in runtime.inputs)
+                 for spec in dev.streams]
+        try:
+            runtime.estimator.bind(specs)
+        except StreamContradiction as exc:
+            raise ProfileError(self.profile.name, [
+                f"estimators.{runtime.name}.settings.{exc.key}: {exc.problem}"]) from None
 
     def events(self, duration_s: float | None = None) -> Iterator[Event]:
         """Samples (body frame, flagged ones included) and estimates, in time order.
@@ -509,6 +552,7 @@ class Pipeline:
             return t_ns + backoff
         dev.failures = 0
         dev.needs_recovery = False
+        self._take_streams(dev)
         return next_ns
 
     def _warn_once(self, dev: DeviceRuntime, key: str, message: str) -> None:
@@ -543,7 +587,12 @@ class Pipeline:
                                    dev.chip_to_body_rows)
         # Only samples some estimator takes are queued: the others would be sorted into
         # fusion order and handed to nobody.
-        if sample.valid and self.estimators:
+        # a gyro reading clipped at the chip's full scale goes to the estimators too, still
+        # flagged: an AHRS integrates it clipped rather than leave a gap (angular-rate
+        # recovery); nothing else flagged is ever fused
+        if self.estimators and (sample.valid or (
+                sample.flags & SampleFlag.SATURATED and not sample.flags & ~CLIPPED
+                and isinstance(sample, GyroSample))):
             routes = self._route_cache.get((sample.device, type(sample)))
             if routes is None:
                 routes = self._routes(sample.device, type(sample))

@@ -1,0 +1,123 @@
+"""Saturation is recovered, not a gap: a rotation faster than the gyro's configured range
+(the ``tumble`` scenario, one quick roll, on the seed board with its gyro set to +-250 deg/s)
+is integrated clipped at the stream's full scale and the tilt is pulled back with Fusion's
+angular-rate recovery; dropping the clipped samples leaves a tilt error for many seconds."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from imuhal.core.quantities import Quantity
+from imuhal.core.samples import Frame, GyroSample, SampleFlag
+from imuhal.core.streams import StreamSpec
+from imuhal.emulation.open import open_emulated
+from imuhal.estimation.outputs import AttitudeEstimate
+from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.loader import parse_profile
+from imuhal_filters.common.ahrs import _tilt_pulled
+from imuhal_filters.common.quat import tilt_error_deg
+
+PROFILE = Path(__file__).resolve().parents[2] / "profiles" / "seed-paraglider-vario.yaml"
+QUICK_ROLL = {"axes": [[1.0, 0.0, 0.0]], "rotation_s": 0.8, "ramp_s": 0.2, "hold_s": 2.0,
+              "free_tumble_s": 0.0}
+"""One full roll in 0.8 s after 2 s still: up to about 10 rad/s, beyond +-250 deg/s
+(4.4 rad/s) for about 0.6 s."""
+ROLL_ENDS_S = 2.8
+AFTER_S = (0.5, 2.0)
+"""The window after the roll where the attitude error is judged (s after it ends)."""
+
+
+@pytest.fixture(scope="module")
+def registry() -> Registry:
+    return load_registry()
+
+
+def _fly(registry: Registry, estimator: str, saturation: str
+         ) -> tuple[np.ndarray, dict[str, object]]:
+    """(t_s, tilt error deg) of the AHRS's estimates, and its diagnostics at the end."""
+    text = PROFILE.read_text().replace("gyro_range_dps: 500", "gyro_range_dps: 250")
+    text = text.replace("estimator: madgwick ", f"estimator: {estimator} ")
+    text = text.replace("nominal_airspeed_m_s: 10\n",
+                        f"nominal_airspeed_m_s: 10\n      gyro_saturation: {saturation}\n")
+    profile = parse_profile(text, "quick-roll", registry)
+    truth = registry.scenarios.get("tumble")(QUICK_ROLL, seed=3)
+    errors = []
+    with open_emulated(profile, registry, scenario="tumble", scenario_params=QUICK_ROLL,
+                       seed=3) as pipeline:
+        for event in pipeline.events(ROLL_ENDS_S + AFTER_S[1]):
+            if isinstance(event, AttitudeEstimate) and event.source == "ahrs":
+                t = event.t_ns / 1e9
+                errors.append((t, tilt_error_deg(event.q_body_to_ned,
+                                                 tuple(truth.truth(t).q_body_to_ned))))
+        ahrs = next(r.estimator for r in pipeline.estimators if r.name == "ahrs")
+        return np.array(errors), ahrs.diagnostics()
+
+
+def _worst_after_the_roll(errors: np.ndarray) -> float:
+    t = errors[:, 0]
+    window = (t >= ROLL_ENDS_S + AFTER_S[0]) & (t <= ROLL_ENDS_S + AFTER_S[1])
+    return float(errors[window, 1].max())
+
+
+@pytest.mark.parametrize("estimator", ["madgwick", "mahony"])
+def test_a_rotation_beyond_the_range_is_recovered_within_a_degree(
+        registry: Registry, estimator: str) -> None:
+    recovered, diag = _fly(registry, estimator, "recover")
+    dropped, _ = _fly(registry, estimator, "drop")
+    assert _worst_after_the_roll(recovered) < 1.0
+    # what dropping the clipped samples leaves: many degrees, for seconds
+    assert _worst_after_the_roll(dropped) > 5.0
+    recovery = diag["angular_rate_recovery"]
+    assert recovery["recoveries"] == 1 and recovery["clipped_samples"] > 50  # type: ignore[index]
+    assert diag["invalid"]["gyro"] == 0  # type: ignore[index]
+
+
+def test_without_a_gyro_stream_a_clipped_sample_is_dropped_and_counted(
+        registry: Registry) -> None:
+    ahrs = registry.estimators.get("madgwick")({"initial_attitude": "identity"})
+    clipped = GyroSample(t_ns=1, device="imu", flags=SampleFlag.SATURATED,
+                         frame=Frame.BODY_NED, gyro_rad_s=(9.0, 0.0, 0.0))
+    assert ahrs.process(clipped) == []
+    assert ahrs.diagnostics()["invalid"]["gyro"] == 1
+
+
+def test_the_tilt_pull_turns_the_predicted_gravity_towards_the_measured() -> None:
+    rolled = (np.cos(np.radians(10)), np.sin(np.radians(10)), 0.0, 0.0)  # 20 deg of roll
+    level = (1.0, 0.0, 0.0, 0.0)
+    pulled = _tilt_pulled(tuple(rolled), (0.0, 0.0, 1.0), 0.1)  # type: ignore[arg-type]
+    before, after = tilt_error_deg(rolled, level), tilt_error_deg(pulled, level)
+    assert after < before
+    # a small pull turns by the gain times the sine of the error
+    assert before - after == pytest.approx(np.degrees(0.1 * np.sin(np.radians(20))), rel=0.05)
+
+
+def test_a_reading_only_out_of_range_is_no_clip_and_is_dropped(registry: Registry) -> None:
+    ahrs = registry.estimators.get("madgwick")({"initial_attitude": "identity"})
+    ahrs.bind(_gyro_stream())
+    corrupt = GyroSample(t_ns=1, device="imu", flags=SampleFlag.OUT_OF_RANGE,
+                         frame=Frame.BODY_NED, gyro_rad_s=(9.0, 0.0, 0.0))
+    assert ahrs.process(corrupt) == []
+    diag = ahrs.diagnostics()
+    assert diag["invalid"]["gyro"] == 1
+    assert diag["angular_rate_recovery"]["clipped_samples"] == 0
+
+
+def test_a_saturated_reading_is_integrated_at_the_full_scale(registry: Registry) -> None:
+    ahrs = registry.estimators.get("madgwick")({"initial_attitude": "identity", "beta": 0.0,
+                                                "dt_from_timestamps": False})
+    ahrs.bind(_gyro_stream())  # +-4.363 rad/s (250 deg/s) at 250 Hz
+    clipped = GyroSample(t_ns=4_000_000, device="imu",
+                         flags=SampleFlag.SATURATED | SampleFlag.OUT_OF_RANGE,
+                         frame=Frame.BODY_NED, gyro_rad_s=(4.5, 0.0, 0.0))
+    (estimate,) = ahrs.process(clipped)
+    roll_deg = estimate.roll_pitch_yaw_deg[0]  # type: ignore[attr-defined]
+    assert roll_deg == pytest.approx(250.0 * 0.004, rel=1e-4)  # clipped, one 4 ms step
+    assert ahrs.diagnostics()["angular_rate_recovery"]["active"] is True
+
+
+def _gyro_stream() -> list[StreamSpec]:
+    return [StreamSpec("imu", Quantity.GYRO, Frame.SENSOR, 250.0,
+                       full_scale=float(np.radians(250.0)))]
