@@ -51,7 +51,7 @@ from imuhal.drivers.polling import (
     reset_check_field,
 )
 from imuhal.drivers.settings import SlaveRead, table_setting
-from imuhal.drivers.validity import NAN3, FrozenWatch, blank_flag
+from imuhal.drivers.validity import NAN3, FilterMemory, FrozenWatch, blank_flag
 from imuhal_chips.hmc5883l import decode
 from imuhal_chips.hmc5883l.registers import (
     AVERAGING,
@@ -133,6 +133,8 @@ class Hmc5883lDriver(Driver):
         self._ready = DataReady({Channel.MAG: self._grid.period_ns})
         self._watch = ResetWatch(self.settings.reset_check_s)
         self._frozen = FrozenWatch(FROZEN_AFTER_FRAMES)
+        self._memory = FilterMemory({Channel.MAG: self.filter_memory_outputs()},
+                                    {Channel.MAG: self._grid.period_ns})
         if self.settings.read == "auto":
             require_auto_read(link.bus, who=self.describe(), bus_name=link.bus.name,
                               example="slave auto-read, e.g. the MAX21100's imu/aux",
@@ -253,7 +255,10 @@ class Hmc5883lDriver(Driver):
                 self._ready.fresh(Channel.MAG, now_ns)
                 self._watch.fresh_poll()
                 if self._skip_next:
+                    # measured at the old gain: its counts say nothing of the field, and
+                    # what the averaging carries over is the same field at another scale
                     self._skip_next = False
+                    self._memory.forget()
                     return PollResult([], self._grid.next_after(now_ns))
                 return PollResult([sample], self._grid.next_after(now_ns))
         elif not self._ready.overdue(Channel.MAG, now_ns):
@@ -319,8 +324,17 @@ class Hmc5883lDriver(Driver):
             return MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                              mag_ut=NAN3, flags=bad)
         counts = decode.data_counts_xyz(raw)
-        return MagSample.build(now_ns, self.device, decode.counts_flags(counts), Frame.SENSOR,
+        flags = decode.counts_flags(counts)
+        flags |= self._memory.flag(Channel.MAG, now_ns, flags)
+        return MagSample.build(now_ns, self.device, flags, Frame.SENSOR,
                                decode.counts_to_ut(counts, self.gain_lsb_per_gauss))
+
+    def filter_memory_outputs(self) -> int:
+        """Outputs after an overflowed or out-of-range one that the averaging (Config A
+        MA1..MA0, 1 to 8 measurements per output) can still carry it. The datasheet does
+        not say whether the average restarts at each output or runs over the last
+        measurements; taken as the running one (the worse case): ``averaging - 1``."""
+        return self.settings.averaging - 1
 
     def _frozen_flag(self, raw: bytes) -> SampleFlag:
         return self._frozen.observe(Channel.MAG, raw)
