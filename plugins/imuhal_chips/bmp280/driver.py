@@ -206,6 +206,18 @@ class BMP280Driver(Driver):
         if not trim.plausible():
             raise ConfigurationError(
                 f"{self.describe()}: trimming reads blank ({trim}); check the wiring")
+        if self.trim is not None and trim != self.trim:
+            # The factory trimming never changes and, unlike the MS5611's PROM, has no CRC:
+            # a re-probe reading other words than the start-up read is a corrupted read (or
+            # another part), and compensating with it would give a constant wrong pressure
+            # (7.5 kPa for one flipped bit of dig_P) that no range check sees.
+            changed = [name for name, old, new in zip(
+                Trim.__dataclass_fields__, _words(self.trim), _words(trim), strict=True)
+                if old != new]
+            raise ConfigurationError(
+                f"{self.describe()}: trimming {', '.join(changed)} reads differently from "
+                "start-up: the chip's calibration read is corrupted or another part answers; "
+                "refused rather than compensating with a wrong trimming")
         self.trim = trim
 
         standby = s.chosen_standby_ms() if s.mode == "normal" else 0.5
@@ -364,6 +376,10 @@ class BMP280Driver(Driver):
 
     def child_buses(self) -> dict[str, Bus]:
         return {}
+
+
+def _words(trim: Trim) -> tuple[int, ...]:
+    return tuple(getattr(trim, name) for name in Trim.__dataclass_fields__)
 
 
 def _range_flags(adc: int, value: float, limits: tuple[float, float]) -> SampleFlag:
