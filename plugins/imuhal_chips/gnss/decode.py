@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from datetime import date, time
+from typing import Any
 
 from imuhal.core.samples import FixType
 
@@ -146,6 +147,14 @@ def decode_ubx(frame: bytes) -> Fragment:
         return Fragment(kind=ident, acked=(int(msg.clsID), int(msg.msgID)))
     if ident != "NAV-PVT":
         return Fragment(kind=ident)
+    try:
+        return _nav_pvt(msg, ident)
+    except (ValueError, TypeError, AttributeError) as exc:
+        # a frame with a good checksum holding impossible fields (month 13, day 0)
+        raise DecodeError(f"{ident}: {exc}") from exc
+
+
+def _nav_pvt(msg: Any, ident: str) -> Fragment:
     fix = FixType(int(msg.fixType)) if int(msg.fixType) in range(6) else FixType.NO_FIX
     fix_ok = bool(int(msg.gnssFixOk))
     frag = Fragment(

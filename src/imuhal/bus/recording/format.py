@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
+from imuhal.bus.base import BusKind
 from imuhal.bus.spy import OP_BAUD, OP_RECEIVE, OP_TRANSFER
 from imuhal.core.errors import ImuhalError
 
@@ -59,6 +60,7 @@ REC_STREAM_FAILED = 9
 target, max length or baud rate, error type, error text."""
 
 _STREAM_OPS = {REC_RECEIVE: OP_RECEIVE, REC_BAUD: OP_BAUD}
+_BUS_KINDS = frozenset(kind.value for kind in BusKind)
 
 
 class RecordingError(ImuhalError):
@@ -340,15 +342,23 @@ class Recording:
                     return
                 if payload is None:
                     return
-                for record in self._decode(payload, t_ns, index):
-                    if isinstance(record, str):  # a record type this reader does not know
-                        self.damage = record
-                        return
-                    if isinstance(record, RecordedTransfer):
-                        t_ns, index = record.t_ns, record.index + 1
-                    elif isinstance(record, ClockReading | LatePoll):
-                        t_ns = record.t_ns
-                    yield record
+                try:
+                    for record in self._decode(payload, t_ns, index):
+                        if isinstance(record, str):  # a record type this reader does not know
+                            self.damage = record
+                            return
+                        if isinstance(record, RecordedTransfer):
+                            t_ns, index = record.t_ns, record.index + 1
+                        elif isinstance(record, ClockReading | LatePoll):
+                            t_ns = record.t_ns
+                        yield record
+                except (IndexError, UnicodeDecodeError, ValueError) as exc:
+                    # The chunk passed its CRC, so it is as written, but its records do not
+                    # parse: a writer that went wrong or a crafted file. Stop there, as at a
+                    # damaged chunk.
+                    self.damage = (f"{self.path}: a chunk holds garbled records "
+                                   f"({type(exc).__name__}): damaged (at byte {offset})")
+                    return
 
     def _decode(self, payload: bytes, t_ns: int, index: int) -> Iterator[Record | str]:
         """The records of one chunk (times and transaction numbers go on from ``t_ns`` and
@@ -357,6 +367,8 @@ class Recording:
         while pos < len(payload):
             length, p = _get_uvarint(payload, pos)
             pos = p + length
+            if pos > len(payload):
+                raise IndexError("a record runs past the end of its chunk")
             kind = payload[p]
             p += 1
             if kind > REC_END and self.version < 2:
@@ -428,6 +440,8 @@ class Recording:
                 for _ in range(3):
                     raw, p = _get_bytes(payload, p)
                     texts.append(raw.decode("utf-8"))
+                if texts[2] not in _BUS_KINDS:
+                    raise ValueError(f"bus kind {texts[2]!r}")
                 info = BusInfo(bus_index, *texts)
                 self.buses[bus_index] = info
                 yield info
@@ -482,4 +496,9 @@ def open_recording(path: str | os.PathLike[str]) -> Recording:
             header = json.loads(payload.decode("utf-8"))
         except (ValueError, RecordingError) as exc:
             raise RecordingError(f"{p}: unreadable header ({exc})") from None
+        except RecursionError:
+            raise RecordingError(f"{p}: unreadable header (nested too deep)") from None
+    if not isinstance(header, dict):
+        raise RecordingError(f"{p}: unreadable header (a JSON {type(header).__name__}, not "
+                             "an object)")
     return Recording(p, version, header)
