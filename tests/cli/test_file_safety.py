@@ -230,3 +230,22 @@ def test_emulated_accel_prompts_name_the_position_being_recorded(
     asked = re.findall(r">> position \d/6: (.*), and hold it still", err)
     recorded = re.findall(r"   recorded (.*)", err)
     assert len(asked) == 6 and asked == recorded
+
+
+def test_a_second_run_writing_the_same_output_is_refused_in_one_line(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 26 item 6: the second run exits 2 naming the output; the first run's rows
+    stay whole (no NUL bytes, no rows of the second)."""
+    from imuhal.cli import main as cli_main
+    from imuhal.core.atomic import AtomicFile
+
+    target = tmp_path / "log.csv"
+    first = AtomicFile(target, partial=True)
+    first.write("the first run's rows\n")
+    first.sync()
+    code = cli_main.main(["run", "--duration", "0.3", "--quiet", "--output", str(target)])
+    err = [line for line in capsys.readouterr().err.splitlines() if "error" in line]
+    assert code == 2
+    assert len(err) == 1 and "another run is writing it" in err[0] and str(target) in err[0]
+    first.commit()
+    assert target.read_text() == "the first run's rows\n"

@@ -5,7 +5,8 @@ payload length, the u32 CRC-32 of the payload and the payload. The first chunk h
 header (UTF-8 JSON: the profile's YAML text and what the run was); every later chunk holds
 records, each a varint length followed by that many bytes (a type byte, then its fields).
 Chunks are only ever appended, each once the writer flushes (every ``flush_interval_s`` of wall
-time), so a power cut loses at most the records of the last interval and a reader stops cleanly
+time or of data time, whichever comes first), so a power cut loses at most the records of the
+last interval and a reader stops cleanly
 at the first incomplete or damaged chunk.
 
 Times are int nanoseconds on the run's clock, stored as the signed difference from the time of
@@ -184,7 +185,8 @@ class RecordingWriter:
 
     The file is created exclusively: a recording is never overwritten. Records are buffered
     and written as one chunk, flushed and fsync'ed, every ``flush_interval_s`` of wall time
-    (checked at each record) and on ``close``.
+    or of the records' own (data) time, whichever comes first (checked at each record), and
+    on ``close``.
     """
 
     def __init__(self, path: str | os.PathLike[str], header: dict[str, Any], *,
@@ -202,6 +204,8 @@ class RecordingWriter:
         self._buffer = bytearray()
         self._last_t_ns = 0
         self._last_flush = time.monotonic()
+        self._flushed_t_ns = 0
+        """Data time of the last record when the last chunk was written."""
         self.transfers = 0
         self._file.write(MAGIC + struct.pack("<H", FORMAT_VERSION))
         self._write_chunk(json.dumps(header, sort_keys=True).encode("utf-8"))
@@ -214,7 +218,11 @@ class RecordingWriter:
     def _append(self, body: bytearray) -> None:
         _put_uvarint(self._buffer, len(body))
         self._buffer += body
-        if time.monotonic() - self._last_flush >= self.flush_interval_s:
+        # Bounded in both times: wall time for a slow run, data time for a run the CPU
+        # races through (an emulated board) or one that a loaded machine starves of wall
+        # clock checks, so a kill loses at most one interval of the recorded run either way.
+        if (time.monotonic() - self._last_flush >= self.flush_interval_s
+                or self._last_t_ns - self._flushed_t_ns >= self.flush_interval_s * 1e9):
             self.flush()
 
     def bus(self, info: BusInfo) -> None:
@@ -285,6 +293,7 @@ class RecordingWriter:
     def flush(self) -> None:
         """Write the buffered records as one chunk and make them durable."""
         self._last_flush = time.monotonic()
+        self._flushed_t_ns = self._last_t_ns
         if self._buffer and self._file is not None:
             self._write_chunk(bytes(self._buffer))
             self._buffer.clear()
