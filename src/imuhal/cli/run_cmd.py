@@ -225,6 +225,9 @@ def _flight_sinks(args: argparse.Namespace, profile: Any, registry: Registry,
         if isinstance(transport, PtyTransport):
             where += f" (open {transport.path} in the flight app)"
         print(f"nmea: {where}", file=sys.stderr)
+        exposure = getattr(transport, "exposure", None)
+        if exposure:
+            print(f"warning: {exposure}", file=sys.stderr)
         out.append(sink)
     if args.audio or args.audio_wav:
         out.append(registry.sinks.get("vario-audio")(
