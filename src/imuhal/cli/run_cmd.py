@@ -164,6 +164,8 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
             print(f"live view: {live.url}" + ("" if web.loopback else
                   " (reachable from the network at this machine's address: read-only, "
                   "no password; docs/live-view.md)"), file=sys.stderr)
+            if live.exposure:
+                print(f"warning: {live.exposure}", file=sys.stderr)
         if args.output:
             csv_sink = CsvSink(args.output, include_samples=args.samples, frame=frame)
             sinks.append(csv_sink)
