@@ -176,6 +176,9 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
                                    include_samples=args.samples)
             sinks.append(truth_sink)
         sinks.extend(plugin_sinks)
+        span = _Span()
+        sinks.append(span)
+        wall0 = time.perf_counter()
         try:
             summary = pipeline.run(duration, sinks)
             ended[0] = "complete"
@@ -183,7 +186,9 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
             raise ImuhalError(f"{exc}; the run stopped (the recording keeps what was "
                               f"flushed){_kept_note(args.output, csv_sink)}") from None
         except KeyboardInterrupt as stop:
-            summary = pipeline.summary()
+            # what ran until the stop, not the zeros of a summary taken out of a run
+            summary = pipeline.summary(wall_s=time.perf_counter() - wall0,
+                                       simulated_s=span.seconds)
             ended[0] = "interrupted"
             why = f"stopped by {stop}" if str(stop) else "interrupted"
             print(f"\n{why}; the files are complete up to here", file=sys.stderr)
@@ -299,6 +304,29 @@ def _replay_params(args: argparse.Namespace, emulate: str | None) -> dict[str, A
 
 MAX_REPLAY_S = 1e6
 """Longest record --replay-truth accepts (11.6 days): beyond it, a time column is wrong."""
+
+
+class _Span:
+    """A sink that notes the time span of the events a run gave (for a stopped run's
+    summary)."""
+
+    def __init__(self) -> None:
+        self.first_ns: int | None = None
+        self.last_ns = 0
+
+    def handle(self, event: object) -> None:
+        t_ns = getattr(event, "t_ns", None)
+        if isinstance(t_ns, int):
+            if self.first_ns is None:
+                self.first_ns = t_ns
+            self.last_ns = t_ns
+
+    def close(self) -> None:
+        return None
+
+    @property
+    def seconds(self) -> float:
+        return 0.0 if self.first_ns is None else (self.last_ns - self.first_ns) / 1e9
 
 
 def _check_replay_file(path: str) -> None:
