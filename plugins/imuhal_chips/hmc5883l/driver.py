@@ -40,7 +40,7 @@ import math
 from imuhal.bus.auto_read import AutoReadBus, AutoReadFeed, require_auto_read
 from imuhal.bus.base import BusKind, Link
 from imuhal.core.clock import Clock
-from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
+from imuhal.core.errors import BusError, ConfigurationError, DeviceNotFoundError, NackError
 from imuhal.core.samples import Channel, Frame, MagSample, Sample, SampleFlag
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
 from imuhal.drivers.polling import (
@@ -173,6 +173,11 @@ class Hmc5883lDriver(Driver):
                 expected=expected, found="no answer (NACK)",
                 hint="check power and SDA/SCL wiring and pull-ups; the HMC5883L is at 0x1E",
             ) from exc
+        if found != IDENTITY and _partly_unanswered(found):
+            # Behind an I2C master a byte the slave did not acknowledge reads 0xFF: the right
+            # chip on a noisy bus, not another chip. A transient error: probed again.
+            raise BusError(f"{self.describe()}: {_show(found)}: the bytes "
+                           "read 0xFF went unanswered (a noisy bus to the chip)")
         if found != IDENTITY:
             raise DeviceNotFoundError(
                 driver=self.name, bus=self.link.bus.name, address=self.link.target,
@@ -348,6 +353,13 @@ class Hmc5883lDriver(Driver):
             # read of the six bytes does)
             self._read(Reg.X_MSB, 6)
         return got != self._expected
+
+
+def _partly_unanswered(found: bytes) -> bool:
+    """Some ID bytes read 0xFF (unanswered) and every other one is the HMC5883L's."""
+    unanswered = [b == 0xFF for b in found]
+    return (any(unanswered) and not all(unanswered) and len(found) == len(IDENTITY)
+            and all(u or b == e for b, e, u in zip(found, IDENTITY, unanswered, strict=True)))
 
 
 def _show(found: bytes) -> str:
