@@ -17,6 +17,14 @@ from imuhal.bus.recording.recorder import BusRecorder, run_header
 from imuhal.bus.spy import format_transfer
 from imuhal.cli import args as types
 from imuhal.cli.frame_option import frame_argument
+from imuhal.cli.robot_outputs import (
+    add_mavlink_arguments,
+    add_mcap_argument,
+    mavlink_sink,
+    mcap_sink,
+    report_mavlink,
+    report_mcap,
+)
 from imuhal.core.atomic import AtomicFile, check_outputs
 from imuhal.core.errors import ImuhalError
 from imuhal.live import LiveView, parse_bind
@@ -65,6 +73,8 @@ def add_parser(sub: Any) -> None:
                      help="play the vario tones live (needs imuhal[audio] and a sound device)")
     run.add_argument("--audio-wav", metavar="FILE.wav",
                      help="write the vario tones to a WAV file (the profile's audio curve)")
+    add_mcap_argument(run)
+    add_mavlink_arguments(run)
     run.add_argument("--sink", action="append", default=[], metavar="NAME",
                      help="also send every event to the sink a plugin registered as NAME "
                      "(see `imuhal plugins`); repeatable")
@@ -93,7 +103,8 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     path = Path(args.profile) if args.profile else default_profile_path()
     # Before anything is opened: no output may overwrite an input, and each must be writable.
     check_outputs({"--output": args.output, "--truth": args.truth, "--trace": args.trace,
-                   "--audio-wav": args.audio_wav, "--record": args.record},
+                   "--audio-wav": args.audio_wav, "--record": args.record,
+                   "--mcap": args.mcap},
                   {"PROFILE": path, "--replay-truth": args.replay_truth})
     if args.samples and not args.output:
         raise ImuhalError("--samples writes the samples into the --output log; add "
@@ -122,6 +133,7 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     if duration is None and emulate is not None and scenario_params is None:
         duration = registry.scenarios.get(emulate).default_duration_s
     plugin_sinks = _plugin_sinks(args.sink, args.sink_set, registry)  # checked before opening
+    mavlink = mavlink_sink(registry, args, profile)  # a socket only: nothing sent yet
     where = f"emulated, scenario '{emulate}'" if emulate else "real hardware"
     print(f"imuhal {__version__}: {profile.name} ({where}) from {path}", file=sys.stderr)
     sinks: list[Any] = []
@@ -170,6 +182,12 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
             csv_sink = CsvSink(args.output, include_samples=args.samples, frame=frame)
             sinks.append(csv_sink)
         sinks.extend(_flight_sinks(args, profile, registry, stack))
+        mcap = mcap_sink(registry, args.mcap, profile) if args.mcap else None
+        if mcap is not None:
+            sinks.append(mcap)
+        if mavlink is not None:
+            stack.callback(mavlink.close)  # also when the run fails before it starts
+            sinks.append(mavlink)
         truth_sink = None
         if args.truth:
             truth_sink = TruthSink(args.truth, EmulatedBoard.of(pipeline).scenario,
@@ -201,6 +219,10 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     print(summary.describe(), file=sys.stderr)
     if csv_sink is not None:
         print(f"wrote {csv_sink.rows} rows to {args.output}", file=sys.stderr)
+    if mcap is not None:
+        print(report_mcap(mcap, args.mcap), file=sys.stderr)
+    if mavlink is not None:
+        print(report_mavlink(mavlink, args.mavlink), file=sys.stderr)
     if truth_sink is not None:
         print(f"wrote {truth_sink.rows} truth rows to {args.truth}", file=sys.stderr)
     if recorder is not None:

@@ -17,6 +17,8 @@ from imuhal.core.conventions import UnknownConvention, get_convention
 from imuhal.core.frames import MountError, parse_mount
 from imuhal.profile.faults import FaultSpec
 from imuhal.sinks.flight.audio import VarioAudioSettings
+from imuhal.sinks.mavlink.settings import MavlinkSettings
+from imuhal.sinks.ros.settings import RosSettings
 
 SCHEMA_VERSION = 1
 MountSpec = str | list[list[float]]
@@ -99,6 +101,12 @@ class BoardProfile(_Strict):
     emulation: EmulationConfig = Field(default_factory=EmulationConfig)
     audio: VarioAudioSettings = Field(default_factory=VarioAudioSettings)
     """The vario audio curve (``imuhal run --audio``; docs/flight-instrument.md)."""
+    ros: RosSettings = Field(default_factory=RosSettings)
+    """Frame id and sensor noise of the ROS 2 messages (``imuhal run --mcap``;
+    docs/outputs.md)."""
+    mavlink: MavlinkSettings = Field(default_factory=MavlinkSettings)
+    """System and component id and message rates of ``imuhal run --mavlink``
+    (docs/outputs.md)."""
 
     output_frame: str = "ned"
     """Convention of what the run hands out: its CSV and console sinks and
