@@ -204,3 +204,10 @@ def test_a_nav_pvt_with_a_good_checksum_and_an_impossible_date_is_a_decode_error
     payload[7] = 1
     with pytest.raises(DecodeError):
         decode_ubx(ubx_frame(0x01, 0x07, bytes(payload)))
+
+
+def test_a_ubx_frame_whose_body_does_not_fit_its_message_is_a_decode_error() -> None:
+    """Found by the 2,000-case run: a class 0x0A frame with a good checksum and a 2-byte
+    body made pyubx2 index past it (IndexError: exit 70 in a run)."""
+    with pytest.raises(DecodeError):
+        decode_ubx(b"\xb5b\n1\x02\x00\x00\x01>:")
