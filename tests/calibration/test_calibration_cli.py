@@ -98,3 +98,33 @@ def test_a_device_without_the_channel_is_named_with_the_alternatives(
         board: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["calibrate", "mag", str(board), "--device", "imu"]) == 2
     assert "Devices with one: compass" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("procedure", ["gyro", "accel"])
+def test_an_ideal_emulated_calibration_succeeds(procedure: str, board: Path,
+                                                tmp_path: Path) -> None:
+    """Issue 26 item 8: ``--ideal`` (docs/calibration.md) always failed: noiseless chips
+    repeat one raw frame, which their drivers flag FROZEN. The ideal chips keep their
+    datasheet noise and lose every other error, so the result is the identity."""
+    out = tmp_path / "calibrated.yaml"
+    assert main(["calibrate", procedure, str(board), "--emulate", "calibration", "--ideal",
+                 "--output", str(out)]) == 0
+    written = load_profile(out, load_registry()).devices
+    cal = next(d.calibration for d in written.values() if d.calibration is not None)
+    if procedure == "gyro":
+        assert np.allclose(cal.gyro.offset_rad_s, 0.0, atol=1e-3)
+    else:
+        assert np.allclose(cal.accel.offset_m_s2, 0.0, atol=0.02)
+        assert np.allclose(cal.accel.scale, 1.0, atol=1e-3)
+
+
+def test_noise_only_keeps_the_noise_and_drops_every_other_error() -> None:
+    from imuhal.sim.errors import noise_only
+    from imuhal_chips.mpu9250.emulator import MPU9250Emulator
+
+    spec = error_spec_of(MPU9250Emulator)
+    ideal = noise_only(spec)
+    assert spec is not None and ideal is not None and spec.gyro is not None
+    assert ideal.gyro is not None and ideal.gyro.noise_density == spec.gyro.noise_density
+    assert ideal.gyro.bias == (0.0, 0.0, 0.0) and ideal.gyro.bias_std == 0.0
+    assert ideal.gyro.scale_factor_std == 0.0 and ideal.gyro.cross_axis_std == 0.0

@@ -221,3 +221,52 @@ def test_spi_reads_set_bit7_and_writes_are_address_data_pairs_with_bit7_clear() 
     writes = [w for w in seen if len(w) >= 2]
     assert all(w[i] & 0x80 == 0 for w in writes for i in range(0, len(w), 2))
     assert driver.trim is not None and driver.trim.T1 == 27504  # 24-byte burst read over SPI
+
+
+def _outputs(clock: SimulatedClock, driver: BMP280Driver, n: int,
+             t: int) -> tuple[list[PressureSample], int]:
+    """Poll from ``t`` until ``n`` pressure outputs came; returns them and the next poll."""
+    got: list[PressureSample] = []
+    while len(got) < n:
+        clock.sleep_until(t)
+        result = driver.poll(clock.now_ns())
+        got += pressures(result.samples)
+        t = result.next_poll_ns
+    return got, t
+
+
+@pytest.mark.parametrize(("coefficient", "samples_to_75_percent"),
+                         [(2, 2), (4, 5), (8, 11), (16, 22)])
+def test_the_emulated_iir_filter_follows_a_step_as_datasheet_table_6_says(
+        coefficient: int, samples_to_75_percent: int) -> None:
+    """Datasheet 3.4.3, table 6: samples to reach >= 75 % of a step response."""
+    clock, _bus, emu, driver = rig(iir_coefficient=coefficient)
+    emu.set_physics(PhysicalInputs(pressure_pa=95_000.0, temperature_degc=20.0))
+    driver.probe()
+    driver.configure()
+    before, t = _outputs(clock, driver, 4, driver.start(clock.now_ns()))
+    emu.set_physics(PhysicalInputs(pressure_pa=96_000.0, temperature_degc=20.0))
+    after, _ = _outputs(clock, driver, 30, t)
+    assert before[-1].pressure_pa == pytest.approx(95_000.0, abs=1.0)
+    # coefficient 2 reaches exactly 75 % at its second output: 1 Pa (0.1 %) for the rounding
+    reached = [s.pressure_pa >= 95_749.0 for s in after]
+    assert reached.index(True) + 1 == samples_to_75_percent
+
+
+def test_a_measurement_at_the_adc_rail_hidden_by_the_iir_filter_is_flagged() -> None:
+    """Issue 26 item 1: the filtered output of a -200 kPa world is in range (a quarter of the
+    way to the rail at coefficient 4); the driver undoes the filter, flags it SATURATED and
+    flags the 49 outputs the filter can still carry it FILTER_SETTLING."""
+    clock, _bus, emu, driver = rig(iir_coefficient=4)
+    emu.set_physics(PhysicalInputs(pressure_pa=95_000.0, temperature_degc=20.0))
+    driver.probe()
+    driver.configure()
+    _, t = _outputs(clock, driver, 10, driver.start(clock.now_ns()))
+    emu.set_physics(PhysicalInputs(pressure_pa=-200_000.0, temperature_degc=20.0))
+    wild, t = _outputs(clock, driver, 1, t)
+    emu.set_physics(PhysicalInputs(pressure_pa=95_000.0, temperature_degc=20.0))
+    after, _ = _outputs(clock, driver, 60, t)
+    assert wild[0].flags == SampleFlag.SATURATED
+    assert 30_000.0 <= wild[0].pressure_pa <= 110_000.0  # the output alone looks fine
+    assert [s.flags for s in after[:49]] == [SampleFlag.FILTER_SETTLING] * 49
+    assert all(s.valid and abs(s.pressure_pa - 95_000.0) < 1.0 for s in after[49:])

@@ -186,3 +186,22 @@ def test_trace_is_written_even_when_the_board_cannot_be_opened(tmp_path: Path) -
     assert main(["run", str(profile), "--duration", "0.1", "--trace", str(trace),
                  "--quiet"]) == 2
     assert trace.exists()
+
+
+def test_ctrl_c_while_plugins_load_ends_quietly(tmp_path: Path) -> None:
+    """Issue 26 item 8: Ctrl-C during plugin loading printed a traceback. A third-party
+    plugin whose import takes the interrupt (it signals itself) stands in for a slow one."""
+    import os
+
+    dist = tmp_path / "slowplugin-1.0.dist-info"
+    dist.mkdir()
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: slowplugin\nVersion: 1.0\n")
+    (dist / "entry_points.txt").write_text("[imuhal]\nslow = slowplugin\n")
+    (tmp_path / "slowplugin.py").write_text(
+        "import os, signal\nos.kill(os.getpid(), signal.SIGINT)\n")
+    env = {**os.environ, "PYTHONPATH": f"{tmp_path}{os.pathsep}"
+           + os.environ.get("PYTHONPATH", "")}
+    done = subprocess.run([sys.executable, "-m", "imuhal.cli.main", "plugins"], env=env,
+                          capture_output=True, text=True, timeout=120)
+    assert "Traceback" not in done.stderr, done.stderr
+    assert done.returncode == 130

@@ -230,3 +230,49 @@ def test_emulated_accel_prompts_name_the_position_being_recorded(
     asked = re.findall(r">> position \d/6: (.*), and hold it still", err)
     recorded = re.findall(r"   recorded (.*)", err)
     assert len(asked) == 6 and asked == recorded
+
+
+def test_a_second_run_writing_the_same_output_is_refused_in_one_line(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 26 item 6: the second run exits 2 naming the output; the first run's rows
+    stay whole (no NUL bytes, no rows of the second)."""
+    from imuhal.cli import main as cli_main
+    from imuhal.core.atomic import AtomicFile
+
+    target = tmp_path / "log.csv"
+    first = AtomicFile(target, partial=True)
+    first.write("the first run's rows\n")
+    first.sync()
+    code = cli_main.main(["run", "--duration", "0.3", "--quiet", "--output", str(target)])
+    err = [line for line in capsys.readouterr().err.splitlines() if "error" in line]
+    assert code == 2
+    assert len(err) == 1 and "another run is writing it" in err[0] and str(target) in err[0]
+    first.commit()
+    assert target.read_text() == "the first run's rows\n"
+
+
+def test_a_stopped_run_reports_how_long_it_ran(tmp_path: Path) -> None:
+    """Issue 26 item 8: after SIGTERM the summary said "ran 0.0 s in 0.00 s wall time"."""
+    out = tmp_path / "flight.csv"
+    partial = tmp_path / "flight.csv.partial"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "imuhal.cli.main", "run", "--emulate", "static", "--realtime",
+         "--duration", "120", "--output", str(out)],
+        stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while not (partial.exists() and partial.stat().st_size > 4096):
+            assert proc.poll() is None, proc.stderr.read() if proc.stderr else ""
+            assert time.monotonic() < deadline, "the log never reached the disk"
+            time.sleep(0.05)
+        time.sleep(1.0)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    ran = re.search(r"ran (\d+\.\d) s in (\d+\.\d+) s wall time", err)
+    assert ran is not None, err
+    simulated, wall = float(ran[1]), float(ran[2])
+    assert simulated >= 1.0 and wall >= 1.0 and abs(simulated - wall) < 1.0

@@ -127,3 +127,20 @@ def test_an_output_symlinked_to_an_input_is_refused(tmp_path: Path) -> None:
     (tmp_path / "link.csv").symlink_to(src)
     with pytest.raises(OutputError, match="same file"):
         check_outputs({"--output": tmp_path / "link.csv"}, {"INPUT.csv": src})
+
+
+def test_a_second_writer_of_the_same_partial_output_is_refused_and_the_first_kept(
+        tmp_path: Path) -> None:
+    """Issue 26 item 6: two runs with one --output both wrote (and emptied) TARGET.partial."""
+    target = tmp_path / "log.csv"
+    first = AtomicFile(target, partial=True)
+    first.write("t_s,x\n0,1\n")
+    first.sync()
+    with pytest.raises(OutputError, match="another run is writing it"):
+        AtomicFile(target, partial=True)
+    first.write("1,2\n")
+    first.commit()
+    assert target.read_text() == "t_s,x\n0,1\n1,2\n"
+    with AtomicFile(target, partial=True) as again:  # the lock went with the first run
+        again.write("t_s,x\n")
+    assert target.read_text() == "t_s,x\n"

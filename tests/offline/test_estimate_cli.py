@@ -240,3 +240,16 @@ def test_vario_from_full_imu_and_pressure_does_the_gravity_compensation(tmp_path
     got = _read(out)
     late = got["t_s"] > 12
     assert np.allclose(got["climb_m_s"][late], 2.0, atol=0.05)
+
+
+def test_a_9dof_filter_on_a_csv_without_magnetometer_columns_is_an_error_not_an_empty_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Issue 26 item 8: it exited 0 with "0 estimates" and an empty file."""
+    body = "".join(f"{i * 0.01:.2f},0,0,0,0.01,0,-9.81\n" for i in range(100))
+    src = _write(tmp_path / "in.csv", HEADER + body)
+    out = tmp_path / "o.csv"
+    assert main(["estimate", "freescale-9dof", str(src), "--output", str(out)]) == 2
+    err = [line for line in capsys.readouterr().err.splitlines() if line]
+    assert len(err) == 1 and "made no estimate from 100 rows" in err[0] and "mag" in err[0]
+    assert not out.exists()

@@ -38,7 +38,7 @@ from imuhal.core.samples import (
 from imuhal.core.streams import StreamSpec
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
 from imuhal.drivers.polling import PollGrid, ResetWatch
-from imuhal.drivers.validity import FrozenWatch
+from imuhal.drivers.validity import FilterMemory, FrozenWatch, iir_memory_outputs
 from imuhal_chips.bmp280 import registers as r
 from imuhal_chips.bmp280.compensation import (
     Trim,
@@ -159,12 +159,15 @@ class BMP280Driver(Driver):
         """ctrl_meas and config as read back from the chip (the stream specs' source)."""
         self._triggered_ns: int | None = None
         self._next_ns = 0
+        self._last_output: tuple[int, int, int] | None = None
+        """(t_ns, adc_P, adc_T) of the last filtered output read since the filter reset."""
         self._grid = PollGrid(1)
         # The BMP280 keeps its configuration in every poll burst, so the watch only counts
         # polls without a measurement; it never schedules a separate read-back.
         self._watch = ResetWatch(check_s=None)
         self._frozen = FrozenWatch(self.FROZEN_AFTER_FRAMES
                                    + self.FROZEN_IIR_FACTOR * self.settings.iir_coefficient)
+        self._memory = FilterMemory({}, {})
 
     # -- identity ---------------------------------------------------------------------------
 
@@ -207,6 +210,18 @@ class BMP280Driver(Driver):
         if not trim.plausible():
             raise ConfigurationError(
                 f"{self.describe()}: trimming reads blank ({trim}); check the wiring")
+        if self.trim is not None and trim != self.trim:
+            # The factory trimming never changes and, unlike the MS5611's PROM, has no CRC:
+            # a re-probe reading other words than the start-up read is a corrupted read (or
+            # another part), and compensating with it would give a constant wrong pressure
+            # (7.5 kPa for one flipped bit of dig_P) that no range check sees.
+            changed = [name for name, old, new in zip(
+                Trim.__dataclass_fields__, _words(self.trim), _words(trim), strict=True)
+                if old != new]
+            raise ConfigurationError(
+                f"{self.describe()}: trimming {', '.join(changed)} reads differently from "
+                "start-up: the chip's calibration read is corrupted or another part answers; "
+                "refused rather than compensating with a wrong trimming")
         self.trim = trim
 
         standby = s.chosen_standby_ms() if s.mode == "normal" else 0.5
@@ -223,6 +238,11 @@ class BMP280Driver(Driver):
                 f", wrote 0x{self._ctrl:02X}/0x{self._config:02X}")
         self._readback = bytes(back)
         self._period_ns = self._streams_from(self._readback)[0].period_ns
+        # Writing config has reset the IIR filter (datasheet 3.4.3: the next measurement
+        # passes unchanged and seeds it), so nothing measured before reaches a later output.
+        self._memory = FilterMemory({"adc": self.filter_memory_outputs()},
+                                    {"adc": self._period_ns})
+        self._last_output: tuple[int, int, int] | None = None
         self._grid = PollGrid(self._period_ns)
         self._triggered_ns = None
 
@@ -340,6 +360,44 @@ class BMP280Driver(Driver):
             return None
         return Channel.PRESSURE, self._period_ns
 
+    def filter_memory_outputs(self) -> int:
+        """Outputs after a wrong measurement that the IIR filter can still carry it (0: the
+        filter is off). The filter runs on the 20-bit ADC words of both quantities (datasheet
+        3.4.3); pressure is compensated with the temperature, so they share one memory."""
+        return iir_memory_outputs(self.settings.iir_coefficient, r.ADC_BITS_FILTERED)
+
+    def _measured_flags(self, t_ns: int, adc_p: int, adc_t: int) -> SampleFlag:
+        """Flags of what the chip *measured* into this filtered output.
+
+        With the IIR filter on, an output is ``(c - 1) / c`` of the previous one plus
+        ``1 / c`` of the new ADC word (datasheet 3.4.3), so a measurement at the ADC's rail or
+        outside the operating range can leave an output that looks in range. The driver
+        undoes the filter: from the last output ``g`` periods before (``g`` > 1 when outputs
+        were lost to bus errors) the weighted mean of the ``g`` ADC words that went in is
+        ``(y - a^g y_prev) / (1 - a^g)`` with ``a = (c - 1) / c``. A mean at the rail is
+        ``SATURATED``, one whose compensated value lies outside the operating range is
+        ``OUT_OF_RANGE``. The tolerance is the output's rounding, ``c`` LSB of the mean.
+        Without a previous output since the filter was reset the output is the ADC word."""
+        assert self.trim is not None
+        c = self.settings.iir_coefficient
+        last, self._last_output = self._last_output, (t_ns, adc_p, adc_t)
+        if c <= 1 or last is None or t_ns <= last[0]:
+            return SampleFlag.OK
+        periods = max(1, round((t_ns - last[0]) / self._period_ns))
+        keep = ((c - 1) / c) ** periods
+        if keep < 1e-6:
+            return SampleFlag.OK  # the previous output no longer weighs in: y is the mean
+        mean_p = (adc_p - keep * last[1]) / (1.0 - keep)
+        mean_t = (adc_t - keep * last[2]) / (1.0 - keep)
+        if any(m <= c or m >= r.ADC_MAX - c for m in (mean_p, mean_t)):
+            return SampleFlag.SATURATED
+        t_centi, t_fine = compensate_temperature_int32(round(mean_t), self.trim)
+        pressure = compensate_pressure_int64(round(mean_p), t_fine, self.trim) / 256.0
+        if not (TEMPERATURE_RANGE_DEGC[0] <= t_centi / 100.0 <= TEMPERATURE_RANGE_DEGC[1]
+                and PRESSURE_RANGE_PA[0] <= pressure <= PRESSURE_RANGE_PA[1]):
+            return SampleFlag.OUT_OF_RANGE
+        return SampleFlag.OK
+
     def _frozen_flag(self, adc_p: int, adc_t: int) -> SampleFlag:
         return self._frozen.observe("adc", adc_p.to_bytes(3, "big") + adc_t.to_bytes(3, "big"))
 
@@ -355,6 +413,12 @@ class BMP280Driver(Driver):
             flags_t = _range_flags(adc_t, temperature, TEMPERATURE_RANGE_DEGC)
             # Pressure is compensated with the temperature, so its flags carry over.
             flags_p = flags_t | _range_flags(adc_p, pressure, PRESSURE_RANGE_PA)
+            measured = self._measured_flags(t_ns, adc_p, adc_t)
+            flags_p |= measured
+            flags_t |= measured
+            settling = self._memory.flag("adc", t_ns, flags_p)
+            flags_p |= settling
+            flags_t |= settling
         return [
             PressureSample(t_ns=t_ns, device=self.device, flags=flags_p, pressure_pa=pressure),
             TemperatureSample(t_ns=t_ns, device=self.device, flags=flags_t,
@@ -363,6 +427,10 @@ class BMP280Driver(Driver):
 
     def child_buses(self) -> dict[str, Bus]:
         return {}
+
+
+def _words(trim: Trim) -> tuple[int, ...]:
+    return tuple(getattr(trim, name) for name in Trim.__dataclass_fields__)
 
 
 def _range_flags(adc: int, value: float, limits: tuple[float, float]) -> SampleFlag:

@@ -235,8 +235,11 @@ class BMP280Emulator(ChipEmulator):
     def _measure(self) -> None:
         pressure, temperature = self._true_values()
         osrs_t, osrs_p = self._oversampling()
-        adc_t = adc_t_for(temperature, self.trim)
-        adc_p = adc_p_for(pressure, t_fine_of(adc_t, self.trim), self.trim)
+        # The ADC delivers 20-bit words: a world beyond the chip's range saturates the ADC
+        # before the filter sees it (the filter runs on ADC output, datasheet 3.4.3).
+        adc_t = min(max(adc_t_for(temperature, self.trim), 0), _ADC_FULL)
+        adc_p = min(max(adc_p_for(pressure, t_fine_of(adc_t, self.trim), self.trim), 0),
+                    _ADC_FULL)
         iir = _IIR_BY_CODE[(self._config >> 2) & 0b111]
         if self._filter is None or not iir:
             self._filter = (float(adc_p), float(adc_t))

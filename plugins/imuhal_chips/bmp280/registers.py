@@ -42,6 +42,8 @@ MODE_MASK: Final = 0b11
 ADC_SKIPPED: Final = 0x80000
 """What a skipped (oversampling 0) or never-run measurement reads as."""
 ADC_MAX: Final = (1 << 20) - 1
+ADC_BITS_FILTERED: Final = 20
+"""Resolution of a filtered output word (datasheet 3.3.2/3.3.3: the IIR filter gives 20 bit)."""
 
 POLL_BURST_START: Final = REG_STATUS
 POLL_BURST_LENGTH: Final = 10

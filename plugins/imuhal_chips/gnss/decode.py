@@ -8,8 +8,10 @@ the driver can flag and count it; it is never merged into a fix.
 from __future__ import annotations
 
 import math
+import struct
 from dataclasses import dataclass
 from datetime import date, time
+from typing import Any
 
 from imuhal.core.samples import FixType
 
@@ -141,11 +143,23 @@ def decode_ubx(frame: bytes) -> Fragment:
         raise DecodeError(str(exc)) from exc
     except (pyubx2.UBXMessageError, pyubx2.UBXTypeError, ValueError) as exc:
         raise DecodeError(str(exc)) from exc
+    except (IndexError, KeyError, TypeError, struct.error) as exc:
+        # pyubx2 indexing past a payload whose repeated groups do not fit its length (a
+        # frame with a good checksum and a garbled body): unreadable, not a crash
+        raise DecodeError(f"unreadable UBX frame ({type(exc).__name__}: {exc})") from exc
     ident = msg.identity
     if ident in ("ACK-ACK", "ACK-NAK"):
         return Fragment(kind=ident, acked=(int(msg.clsID), int(msg.msgID)))
     if ident != "NAV-PVT":
         return Fragment(kind=ident)
+    try:
+        return _nav_pvt(msg, ident)
+    except (ValueError, TypeError, AttributeError) as exc:
+        # a frame with a good checksum holding impossible fields (month 13, day 0)
+        raise DecodeError(f"{ident}: {exc}") from exc
+
+
+def _nav_pvt(msg: Any, ident: str) -> Fragment:
     fix = FixType(int(msg.fixType)) if int(msg.fixType) in range(6) else FixType.NO_FIX
     fix_ok = bool(int(msg.gnssFixOk))
     frag = Fragment(

@@ -132,9 +132,23 @@ class GnssEmulator(ChipEmulator):
 
     def set_physics(self, inputs: PhysicalInputs) -> None:
         super().set_physics(inputs)
-        self._history.append((self.now_ns(), inputs))
+        # Stamped with the time the inputs are true at (a late poll's due time), not the
+        # time they arrived: the epochs are computed at their own times.
+        at = self.physics_t_ns if self.physics_t_ns is not None else self.now_ns()
+        self.physics_t_ns = None
+        if self._history and at < self._history[-1][0]:
+            self._history = deque(((t, i) for t, i in self._history if t <= at), maxlen=64)
+        self._history.append((at, inputs))
 
     def _truth_at(self, t_ns: int) -> tuple[np.ndarray, np.ndarray] | None:
+        # The receiver computes its fixes whether or not the host reads them: while its
+        # device is not polled (recovering, its bus failing) the physics handed over at the
+        # polls grow old, so it asks the world for the epoch's own (a stale velocity kept
+        # for seconds came out as a valid fix after the recovery).
+        newest = self._history[-1][0] if self._history else None
+        if self.physics_at is not None and (newest is None
+                                            or newest < t_ns - round(1e9 / self.rate_hz)):
+            self.physics_at(t_ns)
         chosen = None
         for t, inputs in self._history:
             if t <= t_ns:

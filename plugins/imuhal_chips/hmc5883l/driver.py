@@ -40,7 +40,7 @@ import math
 from imuhal.bus.auto_read import AutoReadBus, AutoReadFeed, require_auto_read
 from imuhal.bus.base import BusKind, Link
 from imuhal.core.clock import Clock
-from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
+from imuhal.core.errors import BusError, ConfigurationError, DeviceNotFoundError, NackError
 from imuhal.core.samples import Channel, Frame, MagSample, Sample, SampleFlag
 from imuhal.core.streams import StreamSpec
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
@@ -52,7 +52,7 @@ from imuhal.drivers.polling import (
     reset_check_field,
 )
 from imuhal.drivers.settings import SlaveRead, table_setting
-from imuhal.drivers.validity import NAN3, FrozenWatch, blank_flag
+from imuhal.drivers.validity import NAN3, FilterMemory, FrozenWatch, blank_flag
 from imuhal_chips.hmc5883l import decode
 from imuhal_chips.hmc5883l.registers import (
     AVERAGING,
@@ -138,6 +138,8 @@ class Hmc5883lDriver(Driver):
         self._ready = DataReady({Channel.MAG: self._grid.period_ns})
         self._watch = ResetWatch(self.settings.reset_check_s)
         self._frozen = FrozenWatch(FROZEN_AFTER_FRAMES)
+        self._memory = FilterMemory({Channel.MAG: self.filter_memory_outputs()},
+                                    {Channel.MAG: self._grid.period_ns})
         if self.settings.read == "auto":
             require_auto_read(link.bus, who=self.describe(), bus_name=link.bus.name,
                               example="slave auto-read, e.g. the MAX21100's imu/aux",
@@ -176,6 +178,11 @@ class Hmc5883lDriver(Driver):
                 expected=expected, found="no answer (NACK)",
                 hint="check power and SDA/SCL wiring and pull-ups; the HMC5883L is at 0x1E",
             ) from exc
+        if found != IDENTITY and _partly_unanswered(found):
+            # Behind an I2C master a byte the slave did not acknowledge reads 0xFF: the right
+            # chip on a noisy bus, not another chip. A transient error: probed again.
+            raise BusError(f"{self.describe()}: {_show(found)}: the bytes "
+                           "read 0xFF went unanswered (a noisy bus to the chip)")
         if found != IDENTITY:
             raise DeviceNotFoundError(
                 driver=self.name, bus=self.link.bus.name, address=self.link.target,
@@ -283,7 +290,10 @@ class Hmc5883lDriver(Driver):
                 self._ready.fresh(Channel.MAG, now_ns)
                 self._watch.fresh_poll()
                 if self._skip_next:
+                    # measured at the old gain: its counts say nothing of the field, and
+                    # what the averaging carries over is the same field at another scale
                     self._skip_next = False
+                    self._memory.forget()
                     return PollResult([], self._grid.next_after(now_ns))
                 return PollResult([sample], self._grid.next_after(now_ns))
         elif not self._ready.overdue(Channel.MAG, now_ns):
@@ -349,8 +359,17 @@ class Hmc5883lDriver(Driver):
             return MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                              mag_ut=NAN3, flags=bad)
         counts = decode.data_counts_xyz(raw)
-        return MagSample.build(now_ns, self.device, decode.counts_flags(counts), Frame.SENSOR,
+        flags = decode.counts_flags(counts)
+        flags |= self._memory.flag(Channel.MAG, now_ns, flags)
+        return MagSample.build(now_ns, self.device, flags, Frame.SENSOR,
                                decode.counts_to_ut(counts, self.gain_lsb_per_gauss))
+
+    def filter_memory_outputs(self) -> int:
+        """Outputs after an overflowed or out-of-range one that the averaging (Config A
+        MA1..MA0, 1 to 8 measurements per output) can still carry it. The datasheet does
+        not say whether the average restarts at each output or runs over the last
+        measurements; taken as the running one (the worse case): ``averaging - 1``."""
+        return self.settings.averaging - 1
 
     def _frozen_flag(self, raw: bytes) -> SampleFlag:
         return self._frozen.observe(Channel.MAG, raw)
@@ -377,6 +396,13 @@ class Hmc5883lDriver(Driver):
             # read of the six bytes does)
             self._read(Reg.X_MSB, 6)
         return got != self._expected
+
+
+def _partly_unanswered(found: bytes) -> bool:
+    """Some ID bytes read 0xFF (unanswered) and every other one is the HMC5883L's."""
+    unanswered = [b == 0xFF for b in found]
+    return (any(unanswered) and not all(unanswered) and len(found) == len(IDENTITY)
+            and all(u or b == e for b, e, u in zip(found, IDENTITY, unanswered, strict=True)))
 
 
 def _show(found: bytes) -> str:

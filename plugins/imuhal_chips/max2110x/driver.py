@@ -34,7 +34,14 @@ from imuhal.core.samples import (
 from imuhal.core.streams import StreamSpec
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
 from imuhal.drivers.polling import DataReady, PollGrid, ResetWatch
-from imuhal.drivers.validity import NAN3, FrozenWatch, blank_flag, range_flag
+from imuhal.drivers.validity import (
+    NAN3,
+    FilterMemory,
+    FrozenWatch,
+    blank_flag,
+    lowpass_memory_outputs,
+    range_flag,
+)
 from imuhal_chips.max2110x import decode
 from imuhal_chips.max2110x.decode import Counts3, be_int16
 from imuhal_chips.max2110x.registers import (
@@ -120,6 +127,10 @@ class Max2110xDriver(Driver):
         self._ready = DataReady({})
         self._watch = ResetWatch(self.settings.reset_check_s)
         self._frozen = FrozenWatch(FROZEN_AFTER_FRAMES)
+        s = self.settings
+        self._memory = FilterMemory(
+            self.filter_memory_outputs(),
+            {Channel.GYRO: round(1e9 / s.gyro_odr_hz), Channel.ACCEL: round(1e9 / s.accel_odr_hz)})
         self._burst_frame = b""
         self._burst_length = 0
         """The status + data burst's address byte and length (set by configure())."""
@@ -385,6 +396,17 @@ class Max2110xDriver(Driver):
             return None
         return self._grid.next_after(max(now_ns, self.clock.now_ns()))
 
+    def filter_memory_outputs(self) -> dict[Channel, int]:
+        """Outputs after a saturated one that each channel's low-pass can still carry it:
+        the gyro's bandwidth (GYRO_CFG1) and the accelerometer's cutoff, its ODR over the
+        output-filter divisor (ACC_CFG1), on 16-bit words (``lowpass_memory_outputs``)."""
+        s = self.settings
+        return {
+            Channel.GYRO: lowpass_memory_outputs(s.gyro_lpf_hz, s.gyro_odr_hz, 16),
+            Channel.ACCEL: lowpass_memory_outputs(s.accel_odr_hz / s.accel_lpf_divisor,
+                                                  s.accel_odr_hz, 16),
+        }
+
     def _frozen_flag(self, raw: bytes) -> SampleFlag:
         """FROZEN when the gyro, accel and temperature words repeat FROZEN_AFTER_FRAMES
         times in a row while the chip reports new data."""
@@ -407,6 +429,7 @@ class Max2110xDriver(Driver):
             value = decode.gyro_counts_to_rad_s(counts, self.scales.gyro_lsb_per_dps)
             if decode.saturated(counts):
                 flags |= SampleFlag.SATURATED
+            flags |= self._memory.flag(Channel.GYRO, now_ns, flags)
         return GyroSample.build(now_ns, self.device, flags, Frame.SENSOR, value)
 
     def _accel_sample(self, counts: Counts3, now_ns: int, flags: SampleFlag) -> Sample:
@@ -417,6 +440,7 @@ class Max2110xDriver(Driver):
             value = decode.accel_counts_to_m_s2(counts, self.scales.accel_lsb_per_g)
             if decode.saturated(counts):
                 flags |= SampleFlag.SATURATED
+            flags |= self._memory.flag(Channel.ACCEL, now_ns, flags)
         return AccelSample.build(now_ns, self.device, flags, Frame.SENSOR, value)
 
     def _config_lost(self) -> bool:

@@ -44,7 +44,14 @@ from imuhal.core.samples import (
 from imuhal.core.streams import StreamSpec
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
 from imuhal.drivers.polling import DataReady, PollGrid, ResetWatch, reset_check_field
-from imuhal.drivers.validity import NAN3, FrozenWatch, blank_flag, range_flag
+from imuhal.drivers.validity import (
+    NAN3,
+    FilterMemory,
+    FrozenWatch,
+    blank_flag,
+    lowpass_memory_outputs,
+    range_flag,
+)
 from imuhal_chips.mpu9250 import registers as r
 from imuhal_chips.mpu9250.aux import MasterAuxBus
 from imuhal_chips.mpu9250.decode import (
@@ -196,6 +203,8 @@ class MPU9250Driver(Driver):
         self._watch = ResetWatch(s.reset_check_s)
         self._frozen = FrozenWatch(self.FROZEN_AFTER_FRAMES)
         self._streams: tuple[StreamSpec, ...] = ()
+        self._memory = FilterMemory(self.filter_memory_outputs(),
+                                    {Channel.GYRO: self._period_ns, Channel.ACCEL: self._period_ns})
 
     # -- identity ---------------------------------------------------------------------------
 
@@ -384,6 +393,15 @@ class MPU9250Driver(Driver):
         return (pin_cfg != self._expected[r.INT_PIN_CFG]
                 or int_enable != self._expected[r.INT_ENABLE])
 
+    def filter_memory_outputs(self) -> dict[Channel, int]:
+        """Outputs after a saturated one that each channel's digital low-pass (DLPF_CFG,
+        A_DLPFCFG) can still carry it, at the output rate, on 16-bit words
+        (``lowpass_memory_outputs``): 9 at the GY-91's 41 Hz and 200 Hz."""
+        s = self.settings
+        rate_hz = 1e9 / self._period_ns
+        return {Channel.GYRO: lowpass_memory_outputs(s.gyro_lpf_hz, rate_hz, 16),
+                Channel.ACCEL: lowpass_memory_outputs(s.accel_lpf_hz, rate_hz, 16)}
+
     def _frozen_flag(self, frame: bytes) -> SampleFlag:
         return self._frozen.observe("frame", frame)
 
@@ -477,6 +495,8 @@ class MPU9250Driver(Driver):
         temp = temperature_degc(raw.temperature)
         sat_a = SampleFlag.SATURATED if saturated(raw.accel) else SampleFlag.OK
         sat_g = SampleFlag.SATURATED if saturated(raw.gyro) else SampleFlag.OK
+        sat_a |= self._memory.flag(Channel.ACCEL, now_ns, sat_a)
+        sat_g |= self._memory.flag(Channel.GYRO, now_ns, sat_g)
         return [
             AccelSample(t_ns=now_ns, device=self.device, flags=sat_a, accel_m_s2=accel),
             GyroSample(t_ns=now_ns, device=self.device, flags=sat_g, gyro_rad_s=gyro),

@@ -39,6 +39,7 @@ from imuhal.offline.settings_args import build_settings, parse_set_arguments
 from imuhal.plugins.manager import Registry
 from imuhal.profile.loader import load_profile
 from imuhal.profiles_dir import bundled_profiles
+from imuhal.sim.errors import SensorErrorSpec, error_spec_of, noise_only
 
 DEG = math.pi / 180.0
 MG = 9.80665e-3
@@ -67,7 +68,8 @@ def add_parser(sub: Any) -> None:
                      "one with the channel)")
     cal.add_argument("--emulate", metavar="SCENARIO", help="emulated board flying SCENARIO "
                      "(use 'calibration'); its chips get their datasheet error models")
-    cal.add_argument("--ideal", action="store_true", help="with --emulate: chips without errors")
+    cal.add_argument("--ideal", action="store_true",
+                     help="with --emulate: chips without errors (their noise kept)")
     cal.add_argument("--seed", type=types.seed,
                      help="seed of the simulated world and sensor errors (0 or more)")
     cal.add_argument("--timeout", type=types.seconds, metavar="SECONDS",
@@ -133,8 +135,8 @@ def cmd_calibrate(args: argparse.Namespace, registry: Registry) -> int:
     print(f"calibrating {what} of {device} ({cfg.driver}) in {profile.name} ({where})",
           file=err)
     with open_raw_pipeline(profile, registry, emulate=args.emulate, seed=args.seed,
-                           realtime=False, sensor_errors=False if args.ideal else None
-                           ) as pipeline:
+                           realtime=False, error_specs=_ideal_specs(profile, registry)
+                           if args.ideal else None) as pipeline:
         for w in pipeline.warnings:
             print(f"warning: {w}", file=err)
         order = _scenario_order(pipeline, chip_to_body)
@@ -387,3 +389,15 @@ def _describe_record(channel: str, rec: dict[str, Any], indent: str) -> str:
     if rec.get("quality"):
         lines.append("quality: " + ", ".join(f"{k} {v:.4g}" for k, v in rec["quality"].items()))
     return "\n".join(indent + line for line in lines)
+
+
+def _ideal_specs(profile: Any, registry: Registry) -> dict[str, SensorErrorSpec]:
+    """``--ideal``: every chip without errors but with its datasheet noise (a noiseless chip
+    at rest repeats one raw frame, which its driver flags FROZEN)."""
+    specs = {}
+    for name, device in profile.devices.items():
+        reg = registry.emulators.entries.get(device.driver)
+        spec = noise_only(error_spec_of(reg.obj)) if reg is not None else None
+        if spec is not None:
+            specs[name] = spec
+    return specs

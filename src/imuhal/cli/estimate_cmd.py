@@ -150,6 +150,8 @@ def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
                 n_in += len(table)
                 writer.write(next(iter_offline(estimator, [table], ahrs=ahrs, columnar=True)))
             read = f"{n_in} input rows"
+            if n_in and not writer.rows:
+                raise ImuhalError(_nothing_estimated(args, est_cls, first.columns, n_in))
         rows = writer.commit()
         if mcap is not None:
             mcap.close()
@@ -214,3 +216,13 @@ def _report_rejected(estimator: Any) -> None:
         print(f"{estimator.name}: dropped {', '.join(parts)} value(s) beyond the full scale "
               "(not fused; see the gyro_full_scale_rad_s / accel_full_scale_m_s2 settings)",
               file=sys.stderr)
+
+
+def _nothing_estimated(args: argparse.Namespace, est_cls: Any, columns: Any, rows: int) -> str:
+    """The one line for an estimator that made no estimate from a CSV with rows: what it
+    takes beside what the CSV has (a 9-DOF filter on a CSV without magnetometer columns)."""
+    takes = ", ".join(t.__name__.removesuffix("Sample").lower()
+                      for t in getattr(est_cls, "consumes", ()))
+    return (f"{args.input}: {args.name} made no estimate from {rows} rows: it takes "
+            f"{takes or 'other inputs'}, and the CSV has columns {', '.join(map(str, columns))}"
+            f"; give the columns it needs (docs/estimators.md) or choose another estimator")

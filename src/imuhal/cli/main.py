@@ -137,11 +137,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     registry: Registry | None = None
     load_error: ImuhalError | None = None
     try:
-        registry = load_registry()
-        parser = build_parser(registry)
+        with stop_signals_as_interrupts():
+            registry = load_registry()
+            parser = build_parser(registry)
     except ImuhalError as exc:
         load_error = exc
         parser = build_parser()
+    except StopRequested as stop:  # SIGTERM/SIGHUP while plugins load: no traceback
+        return 128 + stop.signum
+    except KeyboardInterrupt:  # Ctrl-C while plugins load
+        return EXIT_INTERRUPTED
     args = parser.parse_args(argv)
     if args.command is None:
         parser.print_help()

@@ -225,6 +225,8 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
             print(f"live view: {live.url}" + ("" if web.loopback else
                   " (reachable from the network at this machine's address: read-only, "
                   "no password; docs/live-view.md)"), file=sys.stderr)
+            if live.exposure:
+                print(f"warning: {live.exposure}", file=sys.stderr)
         if args.output:
             csv_sink = CsvSink(args.output, include_samples=args.samples, frame=frame)
             sinks.append(csv_sink)
@@ -247,6 +249,9 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
                 print(f"{sink.name}: {describe()}", file=sys.stderr)
         if calibrated_note:  # once every output is open: a mistake stays a one-line error
             print(calibrated_note, file=sys.stderr)
+        span = _Span()
+        sinks.append(span)
+        wall0 = time.perf_counter()
         try:
             summary = pipeline.run(duration, sinks)
             ended[0] = "complete"
@@ -254,7 +259,9 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
             raise ImuhalError(f"{exc}; the run stopped (the recording keeps what was "
                               f"flushed){_kept_note(args.output, csv_sink)}") from None
         except KeyboardInterrupt as stop:
-            summary = pipeline.summary()
+            # what ran until the stop, not the zeros of a summary taken out of a run
+            summary = pipeline.summary(wall_s=time.perf_counter() - wall0,
+                                       simulated_s=span.seconds)
             summary.sinks = {s.name: s.run_counts() for s in plugin_sinks
                              if hasattr(s, "run_counts")}  # pipeline.run closed them
             ended[0] = "interrupted"
@@ -352,6 +359,9 @@ def _flight_sinks(args: argparse.Namespace, profile: Any, registry: Registry,
         if isinstance(transport, PtyTransport):
             where += f" (open {transport.path} in the flight app)"
         print(f"nmea: {where}", file=sys.stderr)
+        exposure = getattr(transport, "exposure", None)
+        if exposure:
+            print(f"warning: {exposure}", file=sys.stderr)
         out.append(sink)
     if args.audio or args.audio_wav:
         out.append(registry.sinks.get("vario-audio")(
@@ -464,6 +474,29 @@ def _replay_params(args: argparse.Namespace, emulate: str | None) -> dict[str, A
 
 MAX_REPLAY_S = 1e6
 """Longest record --replay-truth accepts (11.6 days): beyond it, a time column is wrong."""
+
+
+class _Span:
+    """A sink that notes the time span of the events a run gave (for a stopped run's
+    summary)."""
+
+    def __init__(self) -> None:
+        self.first_ns: int | None = None
+        self.last_ns = 0
+
+    def handle(self, event: object) -> None:
+        t_ns = getattr(event, "t_ns", None)
+        if isinstance(t_ns, int):
+            if self.first_ns is None:
+                self.first_ns = t_ns
+            self.last_ns = t_ns
+
+    def close(self) -> None:
+        return None
+
+    @property
+    def seconds(self) -> float:
+        return 0.0 if self.first_ns is None else (self.last_ns - self.first_ns) / 1e9
 
 
 def _check_replay_file(path: str) -> None:

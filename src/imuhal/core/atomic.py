@@ -15,6 +15,9 @@ goes through here. The rules:
   sockets, directories) are refused with an :class:`OutputError`.
 * **Modes**: a replaced file keeps its permission bits; a new file gets ``0666`` minus the
   umask, like any file a shell redirection creates.
+* **One writer**: a ``partial=True`` file is locked (``fcntl.flock``) from its creation to
+  its rename, so a second run given the same output is refused with one line instead of
+  both writing (and emptying) the same ``TARGET.partial``.
 * **Inputs are never outputs**: :func:`check_outputs` refuses a command whose output is one of
   its inputs (same path after resolving links, or the same file through a hard link), and an
   output folder that is missing or not writable, before any work starts.
@@ -23,6 +26,8 @@ goes through here. The rules:
 from __future__ import annotations
 
 import contextlib
+import errno
+import fcntl
 import os
 import signal
 import stat
@@ -204,8 +209,12 @@ class AtomicFile:
                 self.tmp_path = self.target.with_name(self.target.name + PARTIAL_SUFFIX)
                 if self.tmp_path.is_symlink():
                     self.tmp_path.unlink()  # never write through a link at our scratch name
-                fd = os.open(self.tmp_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NOFOLLOW,
+                # Not O_TRUNC: the file may be another run's, still writing; it is emptied
+                # only once this run holds its lock.
+                fd = os.open(self.tmp_path, os.O_WRONLY | os.O_CREAT | os.O_NOFOLLOW,
                              0o666)  # the kernel applies the umask
+                _lock_or_refuse(fd, self.path, self.tmp_path)
+                os.ftruncate(fd, 0)
             else:
                 fd, tmp = tempfile.mkstemp(prefix=f".{self.target.name}.", suffix=".tmp",
                                            dir=self.target.parent)
@@ -261,21 +270,27 @@ class AtomicFile:
             except OutputError:
                 self.abort(keep_partial=self.partial)  # the target stays as it was
                 raise
-            self.file.close()
-            self.file = None
             if self.direct:
+                self.file.close()
+                self.file = None
                 return self.target
             try:
                 keep = self._keep_mode_of
                 if keep is not None and keep.exists():
                     os.chmod(self.tmp_path, stat.S_IMODE(os.stat(keep).st_mode))
+                # Renamed while still open: a partial file's lock is held until it has its
+                # final name, so no second run can take the scratch name and empty it first.
                 os.replace(self.tmp_path, self.target)
             except BaseException:
                 # The rename did not happen: the target is untouched. A visible partial file
                 # is the only copy of the data, so it stays; a hidden temporary one goes.
+                self.file.close()
+                self.file = None
                 if not self.partial:
                     self.tmp_path.unlink(missing_ok=True)
                 raise
+            self.file.close()
+            self.file = None
             _fsync_dir(self.target.parent)
         return self.target
 
@@ -306,6 +321,21 @@ class AtomicFile:
             self.commit()
         else:
             self.abort()
+
+
+def _lock_or_refuse(fd: int, path: Path, scratch: Path) -> None:
+    """Take the exclusive lock (``fcntl.flock``) of a partial file, or close it and refuse:
+    another process writes the same output. Released when the file is closed, which
+    happens after its commit renamed it (or on abort, or when the process dies)."""
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError as exc:
+        os.close(fd)
+        if exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+            raise OutputError(f"{path}: another run is writing it ({scratch.name} is locked); "
+                              "wait for it to end or choose another output") from None
+        raise OutputError(f"{path}: cannot lock {scratch.name}: "
+                          f"{exc.strerror or exc}") from None
 
 
 def atomic_write_text(path: PathLike, text: str) -> Path:

@@ -54,6 +54,10 @@ class SampleFlag(IntFlag):
     FROZEN = 1 << 9
     """The chip repeated the same raw frame for longer than its noise allows: its
     conversions hung (a real sensor's noise never repeats one raw word for long)."""
+    FILTER_SETTLING = 1 << 10
+    """The chip's own filter (IIR, digital low-pass, averaging) may still carry an earlier
+    measurement that was flagged wrong (saturated, out of range, overflow): the value can be
+    in range and still off by far more than the noise."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

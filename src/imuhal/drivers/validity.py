@@ -7,6 +7,11 @@ physically plausible for its chip.
   ``n`` identical frames in a row -> ``FROZEN`` (a hung conversion still reporting its old
   result). Each driver derives ``n`` from its chip's noise at its quietest setting.
 - ``range_flag``: a decoded value outside the limits the chip can report -> ``OUT_OF_RANGE``.
+- ``FilterMemory``: a chip that filters its outputs itself (an IIR filter, a digital
+  low-pass, a moving average) carries a wrong measurement into the outputs after it, which
+  can come back in range; those outputs -> ``FILTER_SETTLING``. Each driver derives how many
+  outputs its chip's settings can carry it (``iir_memory_outputs``,
+  ``lowpass_memory_outputs``).
 
 Samples flagged STALE, BLANK or FROZEN carry NaN values (``NAN3``): they are not
 measurements. Samples flagged SATURATED, OVERFLOW or OUT_OF_RANGE keep the value read, so
@@ -16,7 +21,7 @@ a log shows what the chip said.
 from __future__ import annotations
 
 import math
-from collections.abc import Hashable, Iterable
+from collections.abc import Hashable, Iterable, Mapping
 
 from imuhal.core.samples import SampleFlag
 
@@ -63,3 +68,73 @@ class FrozenWatch:
             self._last[key] = bytes(frame)
             self._repeats[key] = 1
         return SampleFlag.FROZEN if self._repeats[key] >= self.n else SampleFlag.OK
+
+
+VALUE_FLAGS = SampleFlag.SATURATED | SampleFlag.OUT_OF_RANGE | SampleFlag.OVERFLOW
+"""Flags saying the chip *measured* something wrong (not a failed transfer, a blank frame or
+a missing measurement): what the chip's own filter then carries into its next outputs."""
+
+
+def iir_memory_outputs(coefficient: int, bits: int) -> int:
+    """Outputs after a wrong input that an IIR filter ``y += (x - y) / coefficient`` (the
+    Bosch barometers' filter, BMP280 datasheet 3.4.3) can still carry it by one LSB or more.
+
+    The wrong input is at most the ADC's whole ``bits``-bit span off; each output keeps
+    ``(coefficient - 1) / coefficient`` of what is left, so it fades below one LSB after
+    ``bits ln 2 / ln(coefficient / (coefficient - 1))`` outputs (coefficient 4, 20 bits: 49).
+    0 or 1: no filter, no memory."""
+    if coefficient <= 1:
+        return 0
+    return math.floor(bits * math.log(2.0) / math.log(coefficient / (coefficient - 1))) + 1
+
+
+def lowpass_memory_outputs(bandwidth_hz: float, output_rate_hz: float, bits: int) -> int:
+    """Outputs after a wrong input that a chip's digital low-pass of 3 dB ``bandwidth_hz``
+    (output at ``output_rate_hz``) can still carry it by one LSB or more.
+
+    The datasheets give the bandwidth, not the filter: it is taken as the first-order
+    filter of that bandwidth (time constant ``1 / (2 pi bandwidth)``), in which a full-scale
+    error (``2**bits`` LSB) fades below one LSB after ``bits ln 2`` time constants, counted
+    in whole outputs (at least one: a filter wider than the output rate still blends the
+    input that arrived between two outputs into the next)."""
+    tau_s = 1.0 / (2.0 * math.pi * bandwidth_hz)
+    return max(1, math.ceil(bits * math.log(2.0) * tau_s * output_rate_hz))
+
+
+class FilterMemory:
+    """The memory of a chip's own filters, per key (a channel, or one key for channels the
+    chip filters together).
+
+    ``flag(key, t_ns, flags)`` is called with every output the driver decodes and the flags
+    it gave it. An output carrying one of ``VALUE_FLAGS`` arms the key: the outputs of the
+    next ``outputs[key]`` output periods (by time, so an output lost to a bus error still
+    counts as one the chip made) get ``FILTER_SETTLING``; a later wrong output arms it
+    again. ``forget()`` is for a driver that reset the chip's filter (a write that
+    re-initialises it, as the BMP280's config register does)."""
+
+    def __init__(self, outputs: Mapping[Hashable, int], period_ns: Mapping[Hashable, int]) -> None:
+        self.outputs = dict(outputs)
+        self.period_ns = dict(period_ns)
+        self._until_ns: dict[Hashable, int] = {}
+
+    def flag(self, key: Hashable, t_ns: int, flags: SampleFlag) -> SampleFlag:
+        """``FILTER_SETTLING`` when the output at ``t_ns`` may still carry a wrong one."""
+        n = self.outputs.get(key, 0)
+        if not n:
+            return SampleFlag.OK
+        period = self.period_ns[key]
+        if flags & VALUE_FLAGS:
+            # Half a period more: an output polled a little late is still one of the n.
+            self._until_ns[key] = t_ns + n * period + period // 2
+            return SampleFlag.OK
+        until = self._until_ns.get(key)
+        if until is None:
+            return SampleFlag.OK
+        if t_ns <= until:
+            return SampleFlag.FILTER_SETTLING
+        del self._until_ns[key]
+        return SampleFlag.OK
+
+    def forget(self) -> None:
+        """The chip's filters were re-initialised: nothing earlier can reach the next output."""
+        self._until_ns.clear()

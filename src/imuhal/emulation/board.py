@@ -10,6 +10,7 @@ The simulation knows the truth in the body frame; each chip sees it in its own s
 
 from __future__ import annotations
 
+import functools
 import inspect
 import threading
 from collections.abc import Callable, Iterable
@@ -103,6 +104,7 @@ class EmulatedBoard:
         for name, emulator in self.emulators.items():
             if type(emulator).pulls_physics:
                 emulator.physics_source = self._physics_source(name)
+            emulator.physics_at = functools.partial(self._give, name=name)
         self._truth_cache: tuple[int, TruthState] | None = None
         """(time, truth) of the latest ``truth_at``: one attribute, replaced whole, so a
         reader on another thread never pairs one time with another time's truth."""
@@ -251,30 +253,36 @@ class EmulatedBoard:
         A chip that measures no motion (``ChipEmulator.measures_motion``) gets a light
         truth: pressure, temperature and position only."""
         self._updated_ns = t_ns
-        devices = self._devices
         for name in (self.emulators if device is None else (device,)):
-            dev = devices[name]
-            truth = self._chip_truth(t_ns, dev.motion)
-            mount = dev.mount
-            force, rate, field = chip_vectors(truth, mount)
-            other = chip_other(truth, mount) if truth.other else NO_OTHER
-            pressure, temperature = truth.pressure_pa, truth.temperature_degc
-            model = dev.model
-            if model is not None:
-                last = dev.last_t_ns
-                period = (t_ns - last) / 1e9 if last is not None and t_ns > last \
-                    else DEFAULT_PERIOD_S
-                periods = self._noise_periods(dev, period) if model.period_channels else None
-                force, rate, field, pressure, temperature = model.apply_values(
-                    t_ns / 1e9, force, rate, field, pressure, temperature, period, periods)
-            # One inputs object per chip and poll, built through its slots (building one
-            # costs more than the error model's arithmetic).
-            inputs = PhysicalInputs.build(
-                force, rate, field, pressure, temperature, truth.position_ned_m,
-                truth.velocity_ned_m_s, other)
-            inputs = self.faults.physics(name, t_ns, inputs)
-            dev.last_t_ns = t_ns
-            dev.emulator.set_physics(inputs)
+            self._give(t_ns, name)
+
+    def _give(self, t_ns: int, name: str) -> None:
+        """Hand the chip of device ``name`` its inputs at ``t_ns`` (what :meth:`update` does
+        per device; also the chips' ``physics_at``, which leaves the board's own time)."""
+        dev = self._devices[name]
+        truth = self._chip_truth(t_ns, dev.motion)
+        mount = dev.mount
+        force, rate, field = chip_vectors(truth, mount)
+        other = chip_other(truth, mount) if truth.other else NO_OTHER
+        pressure, temperature = truth.pressure_pa, truth.temperature_degc
+        model = dev.model
+        if model is not None:
+            last = dev.last_t_ns
+            period = (t_ns - last) / 1e9 if last is not None and t_ns > last \
+                else DEFAULT_PERIOD_S
+            periods = self._noise_periods(dev, period) if model.period_channels else None
+            force, rate, field, pressure, temperature = model.apply_values(
+                t_ns / 1e9, force, rate, field, pressure, temperature, period, periods)
+        # One inputs object per chip and poll, built through its slots (building one
+        # costs more than the error model's arithmetic).
+        inputs = PhysicalInputs.build(
+            force, rate, field, pressure, temperature, truth.position_ned_m,
+            truth.velocity_ned_m_s, other)
+        inputs = self.faults.physics(name, t_ns, inputs)
+        dev.last_t_ns = t_ns
+        # the time the inputs are true at: a late poll hands over its due time's world
+        dev.emulator.physics_t_ns = t_ns
+        dev.emulator.set_physics(inputs)
 
 
 class _Device:

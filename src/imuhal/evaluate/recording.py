@@ -172,7 +172,11 @@ def read_truth_quaternions(path: str | Path) -> tuple[FloatArray, FloatArray]:
     except UnicodeDecodeError:
         raise RecordingError(f"{p}: not a text file; a truth CSV is written by `imuhal run "
                              "--truth`") from None
-    rows = list(csv.reader(lines))
+    try:
+        rows = list(csv.reader(lines))
+    except csv.Error as exc:  # a cell over the csv module's field limit, a NUL byte
+        raise RecordingError(f"{p}: not CSV text ({exc}); a truth CSV is written by "
+                             "`imuhal run --truth`") from None
     if len(rows) < 2:
         raise RecordingError(f"{p}: no truth rows; expected a header and t_s, qw, qx, qy, qz")
     header = [h.strip() for h in rows[0]]

@@ -11,19 +11,26 @@ own thread that sends the newest message when it is ready for one (older ones ar
 never queued) with a send timeout: a client that stops reading is dropped after
 ``client_timeout_s`` and never holds anyone else up.
 
+Bounded: at most ``MAX_CONNECTIONS`` handler threads (more connections are closed at once),
+an idle connection is closed after ``IDLE_TIMEOUT_S``, and a process out of descriptors
+refuses clients rather than failing.
+
 Read-only: GET is the only method (anything else is 405), no route changes the board or
-writes a file, and a server bound to the loopback answers only to loopback host names (a web
-page elsewhere cannot reach it through DNS rebinding).
+writes a file, and the server answers only to Host names that are its own: loopback names
+when bound to the loopback, and beyond it IP addresses, this machine's host name or names
+the caller allows (a web page elsewhere cannot reach it through DNS rebinding).
 """
 
 from __future__ import annotations
 
+import errno
 import ipaddress
 import json
 import math
 import socket
 import sys
 import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from http import HTTPStatus
@@ -58,6 +65,56 @@ SECURITY_HEADERS = {
     "Cache-Control": "no-store",
 }
 LOOPBACK_NAMES = {"localhost", "127.0.0.1", "::1", "[::1]"}
+MAX_CONNECTIONS = MAX_CLIENTS + 8
+"""Connections served at once, each on its own thread: the event streams plus a few page
+and state requests. More are closed at once (counted in ``LiveView.refused_connections``),
+so a flood of sockets costs no more threads than this."""
+IDLE_TIMEOUT_S = 5.0
+"""A connection that sends no (next) request for this long is closed, freeing its thread."""
+_NO_DESCRIPTOR = (errno.EMFILE, errno.ENFILE, errno.ENOBUFS, errno.ENOMEM)
+
+
+class _BoundedHTTPServer(ThreadingHTTPServer):
+    """``ThreadingHTTPServer`` with at most ``max_connections`` handler threads, and a
+    process out of descriptors (EMFILE at accept) refusing clients without spinning."""
+
+    daemon_threads = True
+    allow_reuse_address = True
+    max_connections = MAX_CONNECTIONS
+    request_queue_size = 64  # a burst waits to be served or refused, not SYN-retried
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._slots = threading.BoundedSemaphore(self.max_connections)
+        self.refused = 0
+
+    def get_request(self) -> tuple[socket.socket, Any]:
+        try:
+            return super().get_request()
+        except OSError as exc:
+            if exc.errno in _NO_DESCRIPTOR:
+                # The client stays in the backlog; socketserver drops this OSError, and the
+                # pause keeps the listening socket's readiness from spinning the thread.
+                self.refused += 1
+                time.sleep(0.05)
+            raise
+
+    def process_request(self, request: Any, client_address: Any) -> None:
+        if not self._slots.acquire(blocking=False):
+            self.refused += 1
+            self.shutdown_request(request)
+            return
+        try:
+            super().process_request(request, client_address)
+        except BaseException:
+            self._slots.release()
+            raise
+
+    def process_request_thread(self, request: Any, client_address: Any) -> None:
+        try:
+            super().process_request_thread(request, client_address)
+        finally:
+            self._slots.release()
 
 
 @dataclass(frozen=True)
@@ -106,7 +163,9 @@ class LiveView:
                  port: int = 0, rate_hz: float = DEFAULT_RATE_HZ,
                  truth: Callable[[], Truth | None] | None = None,
                  scenario: str | None = None, client_timeout_s: float = 2.0,
-                 sink: LiveSink | None = None) -> None:
+                 sink: LiveSink | None = None, idle_timeout_s: float = IDLE_TIMEOUT_S,
+                 max_connections: int = MAX_CONNECTIONS,
+                 allowed_hosts: tuple[str, ...] = ()) -> None:
         if not 1.0 <= rate_hz <= 60.0:
             raise ImuhalError(f"live view rate {rate_hz:g} Hz: use 1 to 60 Hz (10-30 is a "
                               f"display rate)")
@@ -115,6 +174,11 @@ class LiveView:
         self.bind = BindAddress(host, port)
         self.period_s = 1.0 / rate_hz
         self.client_timeout_s = client_timeout_s
+        self.idle_timeout_s = idle_timeout_s
+        self.max_connections = max_connections
+        self.allowed_hosts = {h.lower() for h in allowed_hosts}
+        """Host names the view answers to beyond IP literals (bound beyond loopback: this
+        machine's host name and NAME.local are added)."""
         self.clients = 0
         self.dropped_clients = 0
         self.messages_built = 0
@@ -143,6 +207,40 @@ class LiveView:
     # -- lifecycle ------------------------------------------------------------------------
 
     @property
+    def refused_connections(self) -> int:
+        """Connections closed unserved: over ``max_connections``, or no descriptor left."""
+        return self._server.refused if isinstance(self._server, _BoundedHTTPServer) else 0
+
+    @property
+    def exposure(self) -> str | None:
+        """A warning when the view is reachable beyond this machine, else None."""
+        if self.bind.loopback:
+            return None
+        return (f"the live view on {self.bind.host}:{self.bind.port} is reachable from the "
+                "network: anyone on it can watch the flight (read-only, at most "
+                f"{MAX_CLIENTS} viewers); bind 127.0.0.1 unless a phone or tablet needs it")
+
+    def answers_to(self, host_header: str) -> bool:
+        """Whether a request's ``Host`` names this view. Bound to loopback: loopback names
+        only. Beyond: an IP address, a loopback name, this machine's host name (also with
+        ``.local``) or an ``allowed_hosts`` name; never an unknown DNS name, which is what
+        a page using DNS rebinding sends."""
+        name = (urlsplit(f"//{host_header}").hostname or "").lower() if host_header else ""
+        if not name:
+            return False
+        if name in LOOPBACK_NAMES:
+            return True
+        if self.bind.loopback:
+            return False
+        try:
+            ipaddress.ip_address(name)
+            return True
+        except ValueError:
+            pass
+        own = socket.gethostname().lower()
+        return name in self.allowed_hosts or name in (own, f"{own}.local")
+
+    @property
     def url(self) -> str:
         if self._server is None:
             raise ImuhalError("the live view is not started")
@@ -156,9 +254,9 @@ class LiveView:
         handler = _handler_for(self)
         try:
             family = socket.AF_INET6 if ":" in self.bind.host else socket.AF_INET
-            server_cls = type("LiveHTTPServer", (ThreadingHTTPServer,),
-                              {"address_family": family, "daemon_threads": True,
-                               "allow_reuse_address": True})
+            server_cls = type("LiveHTTPServer", (_BoundedHTTPServer,),
+                              {"address_family": family,
+                               "max_connections": self.max_connections})
             self._server = server_cls((self.bind.host, self.bind.port), handler)
         except OSError as exc:
             raise ImuhalError(f"live view: cannot listen on {self.bind.host}:{self.bind.port} "
@@ -277,6 +375,12 @@ class _LiveHandler(BaseHTTPRequestHandler):
     server_version = "imuhal-live"
     protocol_version = "HTTP/1.1"
 
+    def setup(self) -> None:
+        # StreamRequestHandler applies ``timeout`` to the connection: an idle client (no
+        # request, or no next one on a kept-alive connection) is closed after it.
+        self.timeout = self.live.idle_timeout_s
+        super().setup()
+
     def log_message(self, format: str, *args: Any) -> None:
         return None  # the dashboard's requests are not news on the console
 
@@ -289,17 +393,13 @@ class _LiveHandler(BaseHTTPRequestHandler):
             self._reply(HTTPStatus.METHOD_NOT_ALLOWED, b"GET only: this view is read-only\n",
                         "text/plain; charset=utf-8", {"Allow": "GET"})
             return False
-        if self.live.bind.loopback and not self._loopback_host():
+        if not self.live.answers_to(self.headers.get("Host", "")):
             self.close_connection = True
-            self._reply(HTTPStatus.FORBIDDEN, b"this view answers to localhost only\n",
-                        "text/plain; charset=utf-8")
+            body = (b"this view answers to localhost only\n" if self.live.bind.loopback else
+                    b"this view answers to its address or host name only\n")
+            self._reply(HTTPStatus.FORBIDDEN, body, "text/plain; charset=utf-8")
             return False
         return True
-
-    def _loopback_host(self) -> bool:
-        host = self.headers.get("Host", "")
-        name = urlsplit(f"//{host}").hostname or ""
-        return name in LOOPBACK_NAMES
 
     def _reply(self, status: HTTPStatus, body: bytes, ctype: str,
                extra: dict[str, str] | None = None) -> None:

@@ -253,6 +253,11 @@ def open_replay(path: str | os.PathLike[str], registry: Registry,
     buses: dict[str, Bus] = {info.name: replay_bus(info, source)
                              for info in source.buses.values()}
     missing = sorted(set(profile.buses) - set(buses))
+    if not buses:
+        why = f" ({recording.damage})" if recording.damage else ""
+        raise RecordingError(f"{path}: the recording holds no bus records{why}: it was cut "
+                             "before its first chunk of records was written (a run stopped "
+                             "within its first flush interval); nothing to replay")
     if missing:
         raise RecordingError(f"{path}: the profile names bus(es) {', '.join(missing)} but the "
                              f"recording has {', '.join(sorted(buses)) or 'none'}; use a "

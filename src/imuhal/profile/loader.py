@@ -444,6 +444,12 @@ def _check_plugins(data: dict[str, Any], doc: LocatedDocument, registry: Registr
         p: Path = ("emulation", "scenario")
         out.append(f"{doc.where(p)}: {dotted(p)}: unknown scenario {scenario!r}; installed: "
                    f"{', '.join(registry.scenarios.names())}")
+    elif scenario is not None and scenario in registry.scenarios.entries:
+        # what `run --emulate` builds the scenario from: checked here as run would
+        params = _mapping(data.get("emulation")).get("scenario_params", {})
+        if isinstance(params, dict):
+            out += _validate(registry.scenarios.entries[scenario].obj.Params, params, doc,
+                             ("emulation", "scenario_params"))
     return out
 
 

@@ -79,7 +79,8 @@ class EmulationConfig(_Strict):
     """How ``--emulate`` runs this board when no hardware is attached."""
 
     scenario: str = "thermal"
-    seed: int = 1
+    seed: int = Field(1, ge=0)
+    """Seed of the simulated world and sensor errors, 0 or more (as ``--seed``)."""
     scenario_params: dict[str, Any] = Field(default_factory=dict)
     sensor_errors: bool = True
     """Apply each chip's datasheet noise, bias, scale and misalignment model (as its

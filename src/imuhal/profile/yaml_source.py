@@ -60,8 +60,29 @@ class _Constructor(yaml.SafeLoader):
     pass
 
 
+MAX_DEPTH = 32
+"""Deepest nesting of mappings and sequences read (a board profile nests 6 deep); deeper
+documents are refused before PyYAML's recursive composer could exhaust Python's stack."""
+
+
+def _check_depth(text: str) -> None:
+    """Raise ExpansionError at the first collection nested deeper than MAX_DEPTH, from the
+    parser's events (an iterative state machine, unlike the composer)."""
+    depth = 0
+    for event in yaml.parse(text, Loader=yaml.SafeLoader):
+        if isinstance(event, yaml.CollectionStartEvent):
+            depth += 1
+            if depth > MAX_DEPTH:
+                raise ExpansionError(
+                    f"nested more than {MAX_DEPTH} levels deep; a board profile nests a few "
+                    "levels - is this the right file?", event.start_mark)
+        elif isinstance(event, yaml.CollectionEndEvent):
+            depth -= 1
+
+
 def load_located(text: str, source: str) -> LocatedDocument:
     """Parse YAML text safely; raise yaml.YAMLError (with its own mark) on syntax errors."""
+    _check_depth(text)
     loader = _Constructor(text)
     try:
         node = loader.get_single_node()
@@ -118,6 +139,10 @@ def _check_expansion(root: yaml.Node) -> None:
 
 _PLAIN_COLLECTION_TAGS = {"tag:yaml.org,2002:map", "tag:yaml.org,2002:seq",
                           "tag:yaml.org,2002:omap"}
+_PLAIN_SCALAR_TAGS = {f"tag:yaml.org,2002:{name}"
+                      for name in ("str", "int", "float", "bool", "null")}
+"""Scalars a profile holds: text, numbers, booleans and null. ``!!binary`` (bytes),
+``!!timestamp`` (dates) and the like name nothing a profile has."""
 
 
 def _build(node: yaml.Node, path: Path, doc: LocatedDocument, ctor: yaml.SafeLoader) -> Any:
@@ -130,7 +155,11 @@ def _build(node: yaml.Node, path: Path, doc: LocatedDocument, ctor: yaml.SafeLoa
         ctor.flatten_mapping(node)
         out: dict[Any, Any] = {}
         for key_node, value_node in node.value:
-            key = ctor.construct_object(key_node, deep=True)
+            if not isinstance(key_node, yaml.ScalarNode):
+                raise yaml.constructor.ConstructorError(
+                    None, None, "a key must be a plain name or number, not a mapping or a "
+                    "list (a complex '? ' key)", key_node.start_mark)
+            key = _scalar(key_node, ctor)
             if key in out:
                 doc.problems.append(
                     f"{source_pos(doc.source, key_node)}: {_dotted((*path, key))}: "
@@ -143,6 +172,14 @@ def _build(node: yaml.Node, path: Path, doc: LocatedDocument, ctor: yaml.SafeLoa
         return out
     if isinstance(node, yaml.SequenceNode):
         return [_build(item, (*path, i), doc, ctor) for i, item in enumerate(node.value)]
+    return _scalar(node, ctor)
+
+
+def _scalar(node: yaml.Node, ctor: yaml.SafeLoader) -> Any:
+    if node.tag not in _PLAIN_SCALAR_TAGS:
+        raise yaml.constructor.ConstructorError(
+            None, None, f"tag {node.tag!r} is not allowed in a profile (text, numbers, "
+            "true/false and null only)", node.start_mark)
     return ctor.construct_object(node, deep=True)
 
 

@@ -90,6 +90,14 @@ class ChipEmulator(ABC):
         self.host_baudrate = 0
         """Serial chips: the line speed the host's UART is set to (0: not a UART)."""
         self.physics = PhysicalInputs()
+        self.physics_t_ns: int | None = None
+        """The time ``physics`` is true at, as the emulated board hands it over (a poll that
+        comes late gives the world at its due time); None: now."""
+        self.physics_at: Callable[[int], None] | None = None
+        """Set by the emulated board: hands this chip (``set_physics``) the world at a given
+        time. A chip that keeps measuring on its own while its host does not poll it (a GNSS
+        receiver, whose device may be recovering) asks for the world at its own epochs;
+        register chips are given it at each poll and need not."""
         self.physics_source: Callable[[int], None] | None = None
         """Set by an emulated board for a ``pulls_physics`` emulator: hands the chip its
         inputs at a given instant (ns) through ``set_physics``."""

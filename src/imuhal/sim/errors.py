@@ -388,6 +388,25 @@ def error_spec_of(emulator: type[Any], **overrides: Any) -> SensorErrorSpec | No
     return SensorErrorSpec.model_validate({**spec, **overrides})
 
 
+_NOISE_FIELDS = ("noise_density", "noise_std", "bandwidth_hz")
+
+
+def noise_only(spec: SensorErrorSpec | None) -> SensorErrorSpec | None:
+    """``spec`` with its noise kept and every other error (bias, drift, scale, cross-axis,
+    iron, temperature coefficients) off: an "ideal" chip that still converts like a real
+    one. A noiseless chip at rest repeats one raw frame for ever, which drivers rightly
+    flag FROZEN, so an emulated calibration without errors keeps the noise."""
+    if spec is None:
+        return None
+    channels: dict[str, Any] = {}
+    for name in type(spec).model_fields:
+        sub = getattr(spec, name)
+        if sub is not None:
+            kept = {k: getattr(sub, k) for k in _NOISE_FIELDS if k in type(sub).model_fields}
+            channels[name] = type(sub)(**kept)
+    return SensorErrorSpec(**channels)
+
+
 def device_seed(seed: int, device: str) -> int:
     """A per-device seed derived from a run seed, stable across runs and Python versions."""
     return int(np.random.SeedSequence([int(seed), zlib.crc32(device.encode())])

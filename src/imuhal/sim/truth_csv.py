@@ -95,7 +95,10 @@ def read_truth_csv(path: str | os.PathLike[str]) -> tuple[dict[str, np.ndarray],
                     meta.setdefault("format", body)
             else:
                 lines.append(line)
-    rows = list(csv.reader(lines))
+    try:
+        rows = list(csv.reader(lines))
+    except csv.Error as exc:  # a cell over the csv module's field limit, a NUL byte
+        raise ValueError(f"not CSV text: {exc}") from None
     if not rows:
         raise ValueError(f"{path}: no header row")
     header, body_rows = rows[0], rows[1:]

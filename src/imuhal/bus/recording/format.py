@@ -5,7 +5,8 @@ payload length, the u32 CRC-32 of the payload and the payload. The first chunk h
 header (UTF-8 JSON: the profile's YAML text and what the run was); every later chunk holds
 records, each a varint length followed by that many bytes (a type byte, then its fields).
 Chunks are only ever appended, each once the writer flushes (every ``flush_interval_s`` of wall
-time), so a power cut loses at most the records of the last interval and a reader stops cleanly
+time or of data time, whichever comes first), so a power cut loses at most the records of the
+last interval and a reader stops cleanly
 at the first incomplete or damaged chunk.
 
 Times are int nanoseconds on the run's clock, stored as the signed difference from the time of
@@ -27,6 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
+from imuhal.bus.base import BusKind
 from imuhal.bus.spy import OP_BAUD, OP_RECEIVE, OP_TRANSFER
 from imuhal.core.errors import ImuhalError
 
@@ -59,6 +61,7 @@ REC_STREAM_FAILED = 9
 target, max length or baud rate, error type, error text."""
 
 _STREAM_OPS = {REC_RECEIVE: OP_RECEIVE, REC_BAUD: OP_BAUD}
+_BUS_KINDS = frozenset(kind.value for kind in BusKind)
 
 
 class RecordingError(ImuhalError):
@@ -182,7 +185,8 @@ class RecordingWriter:
 
     The file is created exclusively: a recording is never overwritten. Records are buffered
     and written as one chunk, flushed and fsync'ed, every ``flush_interval_s`` of wall time
-    (checked at each record) and on ``close``.
+    or of the records' own (data) time, whichever comes first (checked at each record), and
+    on ``close``.
     """
 
     def __init__(self, path: str | os.PathLike[str], header: dict[str, Any], *,
@@ -200,6 +204,8 @@ class RecordingWriter:
         self._buffer = bytearray()
         self._last_t_ns = 0
         self._last_flush = time.monotonic()
+        self._flushed_t_ns = 0
+        """Data time of the last record when the last chunk was written."""
         self.transfers = 0
         self._file.write(MAGIC + struct.pack("<H", FORMAT_VERSION))
         self._write_chunk(json.dumps(header, sort_keys=True).encode("utf-8"))
@@ -212,7 +218,11 @@ class RecordingWriter:
     def _append(self, body: bytearray) -> None:
         _put_uvarint(self._buffer, len(body))
         self._buffer += body
-        if time.monotonic() - self._last_flush >= self.flush_interval_s:
+        # Bounded in both times: wall time for a slow run, data time for a run the CPU
+        # races through (an emulated board) or one that a loaded machine starves of wall
+        # clock checks, so a kill loses at most one interval of the recorded run either way.
+        if (time.monotonic() - self._last_flush >= self.flush_interval_s
+                or self._last_t_ns - self._flushed_t_ns >= self.flush_interval_s * 1e9):
             self.flush()
 
     def bus(self, info: BusInfo) -> None:
@@ -283,6 +293,7 @@ class RecordingWriter:
     def flush(self) -> None:
         """Write the buffered records as one chunk and make them durable."""
         self._last_flush = time.monotonic()
+        self._flushed_t_ns = self._last_t_ns
         if self._buffer and self._file is not None:
             self._write_chunk(bytes(self._buffer))
             self._buffer.clear()
@@ -340,15 +351,23 @@ class Recording:
                     return
                 if payload is None:
                     return
-                for record in self._decode(payload, t_ns, index):
-                    if isinstance(record, str):  # a record type this reader does not know
-                        self.damage = record
-                        return
-                    if isinstance(record, RecordedTransfer):
-                        t_ns, index = record.t_ns, record.index + 1
-                    elif isinstance(record, ClockReading | LatePoll):
-                        t_ns = record.t_ns
-                    yield record
+                try:
+                    for record in self._decode(payload, t_ns, index):
+                        if isinstance(record, str):  # a record type this reader does not know
+                            self.damage = record
+                            return
+                        if isinstance(record, RecordedTransfer):
+                            t_ns, index = record.t_ns, record.index + 1
+                        elif isinstance(record, ClockReading | LatePoll):
+                            t_ns = record.t_ns
+                        yield record
+                except (IndexError, UnicodeDecodeError, ValueError) as exc:
+                    # The chunk passed its CRC, so it is as written, but its records do not
+                    # parse: a writer that went wrong or a crafted file. Stop there, as at a
+                    # damaged chunk.
+                    self.damage = (f"{self.path}: a chunk holds garbled records "
+                                   f"({type(exc).__name__}): damaged (at byte {offset})")
+                    return
 
     def _decode(self, payload: bytes, t_ns: int, index: int) -> Iterator[Record | str]:
         """The records of one chunk (times and transaction numbers go on from ``t_ns`` and
@@ -357,6 +376,8 @@ class Recording:
         while pos < len(payload):
             length, p = _get_uvarint(payload, pos)
             pos = p + length
+            if pos > len(payload):
+                raise IndexError("a record runs past the end of its chunk")
             kind = payload[p]
             p += 1
             if kind > REC_END and self.version < 2:
@@ -428,6 +449,8 @@ class Recording:
                 for _ in range(3):
                     raw, p = _get_bytes(payload, p)
                     texts.append(raw.decode("utf-8"))
+                if texts[2] not in _BUS_KINDS:
+                    raise ValueError(f"bus kind {texts[2]!r}")
                 info = BusInfo(bus_index, *texts)
                 self.buses[bus_index] = info
                 yield info
@@ -482,4 +505,9 @@ def open_recording(path: str | os.PathLike[str]) -> Recording:
             header = json.loads(payload.decode("utf-8"))
         except (ValueError, RecordingError) as exc:
             raise RecordingError(f"{p}: unreadable header ({exc})") from None
+        except RecursionError:
+            raise RecordingError(f"{p}: unreadable header (nested too deep)") from None
+    if not isinstance(header, dict):
+        raise RecordingError(f"{p}: unreadable header (a JSON {type(header).__name__}, not "
+                             "an object)")
     return Recording(p, version, header)

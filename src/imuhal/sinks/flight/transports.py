@@ -14,9 +14,11 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import ipaddress
 import os
 import socket
 import termios
+import time
 import tty
 from pathlib import Path
 from typing import Protocol
@@ -118,11 +120,35 @@ class PtyTransport:
                 os.close(fd)
 
 
+MAX_TCP_CLIENTS = 8
+"""Flight apps connected at once (a phone, a tablet, a logger); more are refused."""
+TCP_STALL_S = 10.0
+"""A client that has taken no byte for this long (it stopped reading, or its network went
+away without a reset) is disconnected: it costs a descriptor and a send buffer."""
+_NO_DESCRIPTOR = (errno.EMFILE, errno.ENFILE, errno.ENOBUFS, errno.ENOMEM)
+
+
+def is_loopback(host: str) -> bool:
+    """True for a loopback address or ``localhost``."""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
+
+
 class TcpTransport:
     """A TCP server (XCSoar and XCTrack connect as clients); every connected client gets
-    every sentence. Loopback only unless a host is named."""
+    every sentence. Loopback only unless a host is named.
 
-    def __init__(self, port: int, host: str = "127.0.0.1") -> None:
+    Bounded: one thread (the pipeline's; accepting happens at each write), at most
+    ``max_clients`` clients (more are accepted and closed at once, counted in
+    ``refused_clients``), a client that takes nothing for ``stall_s`` is dropped, and a
+    process out of descriptors (EMFILE) refuses the client instead of ending the run."""
+
+    def __init__(self, port: int, host: str = "127.0.0.1", *,
+                 max_clients: int = MAX_TCP_CLIENTS, stall_s: float = TCP_STALL_S) -> None:
         self._server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         self._server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
@@ -136,8 +162,22 @@ class TcpTransport:
         self.port = self._server.getsockname()[1]
         self.host = host
         self.description = f"TCP server {host}:{self.port}"
-        self._clients: list[socket.socket] = []
+        self.max_clients = max_clients
+        self.stall_s = stall_s
+        self._clients: dict[socket.socket, float] = {}
+        """Client -> monotonic time it last took a byte (or connected)."""
         self.dropped_bytes = 0
+        self.refused_clients = 0
+        self.stalled_clients = 0
+
+    @property
+    def exposure(self) -> str | None:
+        """A warning when the server is reachable beyond this machine, else None."""
+        if is_loopback(self.host):
+            return None
+        return (f"--nmea tcp:{self.host}:{self.port} is reachable from the network: anyone on "
+                f"it can read the flight data (at most {self.max_clients} at once); bind "
+                "127.0.0.1 unless an app on another device needs it")
 
     def _accept(self) -> None:
         while True:
@@ -145,9 +185,20 @@ class TcpTransport:
                 client, _ = self._server.accept()
             except (BlockingIOError, InterruptedError):
                 return
+            except OSError as exc:
+                if exc.errno in _NO_DESCRIPTOR:
+                    # Out of descriptors: the client waits in the backlog (or the kernel
+                    # refuses it once that is full); the run goes on.
+                    self.refused_clients += 1
+                    return
+                raise
+            if len(self._clients) >= self.max_clients:
+                self.refused_clients += 1
+                client.close()
+                continue
             client.setblocking(False)
             client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            self._clients.append(client)
+            self._clients[client] = time.monotonic()
 
     @property
     def clients(self) -> int:
@@ -156,16 +207,25 @@ class TcpTransport:
 
     def write(self, data: bytes) -> None:
         self._accept()
-        for client in list(self._clients):
+        now = time.monotonic()
+        for client, last in list(self._clients.items()):
             try:
                 sent = client.send(data)
             except BlockingIOError:
                 sent = 0
             except OSError:  # the app went away
-                self._clients.remove(client)
-                client.close()
+                self._drop(client)
                 continue
             self.dropped_bytes += len(data) - sent
+            if sent:
+                self._clients[client] = now
+            elif now - last >= self.stall_s:
+                self.stalled_clients += 1
+                self._drop(client)
+
+    def _drop(self, client: socket.socket) -> None:
+        del self._clients[client]
+        client.close()
 
     def close(self) -> None:
         for client in self._clients:
