@@ -10,6 +10,7 @@ interface is missing (a kernel built without it) skips naming the interface.
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import time
 from collections.abc import Iterator
@@ -41,7 +42,10 @@ def modules_dir() -> Path:
 
 
 def _run(cmd: list[str]) -> None:
-    result = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    # the guest's PATH may lack the sbin folders where insmod, rmmod and mount live
+    program = shutil.which(cmd[0], path=f"{os.environ.get('PATH', '')}:/usr/sbin:/sbin")
+    result = subprocess.run([program or cmd[0], *cmd[1:]], capture_output=True, text=True,
+                            check=False)
     if result.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed: {result.stderr.strip()}")
 

@@ -267,7 +267,9 @@ def guest_command(modules: Path, pytest_args: list[str]) -> str:
     """The shell line the guest runs: pytest of tests/kernel with the guest's markers set."""
     import shlex
 
-    args = " ".join(shlex.quote(a) for a in (pytest_args or ["tests/kernel"]))
+    if not any(a.startswith("tests/kernel") for a in pytest_args):
+        pytest_args = [*pytest_args, "tests/kernel"]  # options alone: still only this suite
+    args = " ".join(shlex.quote(a) for a in pytest_args)
     return (f"cd {shlex.quote(str(REPO))} && "
             f"IMUHAL_KERNEL_GUEST=1 IMUHAL_KERNEL_MODULES={shlex.quote(str(modules))} "
             f"PYTHONDONTWRITEBYTECODE=1 {shlex.quote(sys.executable)} -m pytest "
