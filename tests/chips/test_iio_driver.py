@@ -284,14 +284,19 @@ def _accel_scans(numbers: list[int], t0_ns: int = 5_000_000_000,
              "in_timestamp": t0_ns + n * period_ns} for n in numbers]
 
 
-def test_scans_a_full_kernel_buffer_dropped_are_counted_from_the_time_stamps(
-        tmp_path: Path) -> None:
+def _buffered_mpu(tmp_path: Path, buffer_length: int) -> tuple[FakeIIODevice, IIODriver, int]:
+    """The fake MPU with its buffer length set through the driver; the first poll time."""
     device = _mpu(tmp_path / "sys", tmp_path / "dev")
     clock = SimulatedClock(1_000_000_000)
     driver = _driver(LinuxIIOBus(tmp_path / "sys", tmp_path / "dev"), clock, name="mpu9250",
-                     buffer_length=4)
+                     buffer_length=buffer_length)
+    return device, driver, driver.start(clock.now_ns())
+
+
+def test_scans_a_full_kernel_buffer_dropped_are_counted_from_the_time_stamps(
+        tmp_path: Path) -> None:
+    device, driver, now = _buffered_mpu(tmp_path, 4)
     assert device.read("buffer/length") == "4"
-    now = driver.start(clock.now_ns())
     device.push(*_accel_scans([0, 1, 2, 3]))  # full: scans 4..9 are dropped by the kernel
     assert len(driver.poll(now).samples) == 4 * 3
     device.push(*_accel_scans([10, 11]))
@@ -302,11 +307,7 @@ def test_scans_a_full_kernel_buffer_dropped_are_counted_from_the_time_stamps(
 
 def test_late_scans_in_a_buffer_that_never_fills_are_not_counted_as_lost(
         tmp_path: Path) -> None:
-    device = _mpu(tmp_path / "sys", tmp_path / "dev")
-    clock = SimulatedClock(1_000_000_000)
-    driver = _driver(LinuxIIOBus(tmp_path / "sys", tmp_path / "dev"), clock, name="mpu9250",
-                     buffer_length=8)
-    now = driver.start(clock.now_ns())
+    device, driver, now = _buffered_mpu(tmp_path, 8)
     scans = _accel_scans([0, 1, 2])
     scans[2]["in_timestamp"] += 9_000_000  # a scan 2.8 periods after the previous one
     device.push(*scans)

@@ -23,6 +23,7 @@ import statistics
 import time
 import uuid
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -49,33 +50,33 @@ def _named(prefix: str, name: str) -> Path:
     raise RuntimeError(f"no {prefix}* named {name!r} in {IIO}")
 
 
-@pytest.fixture
-def trigger() -> Iterator[str]:
-    """An hrtimer trigger at 200 Hz made in configfs; its name."""
-    hrtimer = mounted_configfs() / "iio" / "triggers" / "hrtimer"
-    if not hrtimer.is_dir():
-        pytest.skip("kernel test: no IIO hrtimer trigger (CONFIG_IIO_HRTIMER_TRIGGER)")
-    name = f"tick{uuid.uuid4().hex[:6]}"
-    (hrtimer / name).mkdir()
+@contextmanager
+def _configfs_item(group: str, option: str) -> Iterator[str]:
+    """A uniquely named item made in configfs ``iio/<group>`` (removed after); its name."""
+    folder = mounted_configfs() / "iio" / group
+    if not folder.is_dir():
+        pytest.skip(f"kernel test: no configfs iio/{group} (kernel option {option})")
+    name = f"imuhal{uuid.uuid4().hex[:6]}"
+    (folder / name).mkdir()
     try:
-        (wait_for(_named("trigger", name) / "sampling_frequency")).write_text(str(RATE_HZ))
         yield name
     finally:
-        (hrtimer / name).rmdir()
+        (folder / name).rmdir()
+
+
+@pytest.fixture
+def trigger() -> Iterator[str]:
+    """An hrtimer trigger at 200 Hz; its name."""
+    with _configfs_item("triggers/hrtimer", "CONFIG_IIO_HRTIMER_TRIGGER") as name:
+        (wait_for(_named("trigger", name) / "sampling_frequency")).write_text(str(RATE_HZ))
+        yield name
 
 
 @pytest.fixture
 def dummy() -> Iterator[Path]:
-    """An iio_simple_dummy device made in configfs; its sysfs folder."""
-    devices = mounted_configfs() / "iio" / "devices" / "dummy"
-    if not devices.is_dir():
-        pytest.skip("kernel test: no IIO dummy device (CONFIG_IIO_SIMPLE_DUMMY)")
-    name = f"dummy{uuid.uuid4().hex[:6]}"
-    (devices / name).mkdir()
-    try:
+    """An iio_simple_dummy device; its sysfs folder."""
+    with _configfs_item("devices/dummy", "CONFIG_IIO_SIMPLE_DUMMY") as name:
         yield _named("iio:device", name)
-    finally:
-        (devices / name).rmdir()
 
 
 @pytest.fixture
