@@ -20,8 +20,8 @@ What it does, in order (it installs nothing; a missing tool is a one-line error,
    runs inside unchanged, and runs ``python -m pytest tests/kernel`` there as root with
    IMUHAL_KERNEL_GUEST=1 and IMUHAL_KERNEL_MODULES=<folder of the .ko files>.
 
-Needs: Debian packages qemu-system-x86 busybox-static linux-source-6.1 gcc make bc flex bison
-libelf-dev libssl-dev cpio kmod, and ``pip install -e ".[kernel]"`` (virtme-ng).
+Needs: Debian packages qemu-system-x86 busybox-static udev linux-source-6.1 gcc make bc flex
+bison libelf-dev libssl-dev cpio kmod, and ``pip install -e ".[kernel]"`` (virtme-ng).
 """
 
 from __future__ import annotations
@@ -114,6 +114,10 @@ def check_run_tools() -> None:
     if shutil.which("busybox") is None:
         raise SetupError("busybox not found (virtme-ng's guest init): "
                          "sudo apt-get install busybox-static")
+    if not any(Path(p).exists() for p in ("/lib/systemd/systemd-udevd",
+                                            "/usr/lib/systemd/systemd-udevd")):
+        raise SetupError("systemd-udevd not found (virtme-ng's guest needs it for the "
+                         "command's I/O ports and exit code): sudo apt-get install udev")
     if shutil.which("insmod") is None and not Path("/usr/sbin/insmod").exists():
         raise SetupError("insmod not found (loads the test modules in the guest): "
                          "sudo apt-get install kmod")
@@ -227,6 +231,8 @@ def _run_guest(cmd: list[str], timeout_s: float, env: dict[str, str] | None = No
                capture: bool = False) -> tuple[int | None, str]:
     """Run vng in its own session; on timeout kill the whole group (vng otherwise leaves its
     QEMU child running). Returns (exit code or None on timeout, captured output)."""
+    if env is None:  # vng runs virtme-run from PATH: this environment's scripts first
+        env = dict(os.environ, PATH=f"{Path(sys.executable).parent}:{os.environ.get('PATH', '')}")
     proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, start_new_session=True, env=env,
                             stdout=subprocess.PIPE if capture else None,
                             stderr=subprocess.STDOUT if capture else None, text=capture)
@@ -286,7 +292,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="seconds before the guest is killed (default %(default)s)")
     parser.add_argument("pytest_args", nargs=argparse.REMAINDER,
                         help="arguments for pytest inside the guest (default: tests/kernel)")
-    args = parser.parse_args(argv)
+    args, unknown = parser.parse_known_args(argv)  # pytest's own options pass through
+    args.pytest_args = unknown + args.pytest_args
     try:
         if not args.build_only:
             check_run_tools()

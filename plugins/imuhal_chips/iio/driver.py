@@ -17,18 +17,18 @@ character device with the kernel's timestamps; otherwise each poll reads the sys
 Lost scans: the kernel's buffer holds ``buffer/length`` scans and drops new ones while it is
 full, without telling anyone. A drain that finds it full is counted
 (``health.buffer_overflows``) and, with time stamps, the scans dropped are counted from the
-gap to the next scan that arrives, in periods of the full drain's median scan interval
-(``health.scans_lost``); both show in the run summary. A buffer that never fills claims no
-loss, so scheduling jitter is never counted as one.
+gap to the next scan that arrives, in periods of the mean scan interval over the gap-free
+stretches seen (``health.scans_lost``); both show in the run summary. A buffer that never
+fills claims no loss, so scheduling jitter is never counted as one.
 """
 
 from __future__ import annotations
 
-import itertools
 import re
 import statistics
 from collections import defaultdict
 from dataclasses import dataclass
+from itertools import pairwise
 from typing import ClassVar
 
 from pydantic import Field
@@ -145,6 +145,8 @@ class IIODriver(Driver):
         """The previous drain found the buffer full: the next scan may follow a gap."""
         self._last_stamp: int | None = None
         self._interval_ns = 0.0
+        self._interval_sum_ns = 0
+        self._interval_count = 0
 
     # -- sysfs access through the bus --------------------------------------------------------
 
@@ -280,6 +282,7 @@ class IIODriver(Driver):
             self._write("buffer/length", str(s.buffer_length))
         self._buffer_scans = int(self._number("buffer/length", 0))
         self._overflowed, self._last_stamp = False, None
+        self._interval_sum_ns = self._interval_count = 0
         self._write("buffer/enable", "1")
 
     # -- polling ---------------------------------------------------------------------------
@@ -331,28 +334,40 @@ class IIODriver(Driver):
 
     def _count_losses(self, scans: list[dict[str, float]], *, full: bool) -> None:
         """Count a full buffer and, with time stamps, the scans it dropped (see the module
-        docstring)."""
+        docstring). The scan interval is the mean over every gap-free stretch seen (sums of
+        successive differences: the jitter of single stamps cancels), or, before there is
+        one, the median interval of the full drain's held scans."""
         stamps = [int(s["in_timestamp"]) for s in scans] if "in_timestamp" in scans[0] else []
-        if stamps and self._overflowed and self._last_stamp is not None \
-                and self._interval_ns > 0:
-            gap_ns = stamps[0] - self._last_stamp
-            self.health.scans_lost += max(0, round(gap_ns / self._interval_ns) - 1)
+        if not stamps:
+            self.health.buffer_overflows += full
+            self._overflowed = full
+            return
+        held = stamps[:self._buffer_scans] if full else stamps
+        if self._overflowed and self._last_stamp is not None:
+            interval = self._mean_interval() or self._interval_ns
+            if interval > 0:
+                self.health.scans_lost += max(0, round((stamps[0] - self._last_stamp)
+                                                       / interval) - 1)
+        elif self._last_stamp is not None:
+            held = [self._last_stamp, *held]
+        if len(held) > 1:
+            self._interval_sum_ns += held[-1] - held[0]
+            self._interval_count += len(held) - 1
         if full:
             self.health.buffer_overflows += 1
-            # The first buffer/length scans were queued without a gap; scans read after the
-            # drain made room may follow one.
-            held = stamps[:self._buffer_scans]
             if len(held) > 2:
-                self._interval_ns = statistics.median(
-                    b - a for a, b in itertools.pairwise(held))
-            tail = stamps[len(held) - 1:] if held else []
-            if self._interval_ns > 0:
-                self.health.scans_lost += sum(
-                    max(0, round((b - a) / self._interval_ns) - 1)
-                    for a, b in itertools.pairwise(tail))
+                self._interval_ns = statistics.median(b - a for a, b in pairwise(held))
+            # scans read after the drain made room may follow a gap
+            tail = stamps[len(stamps[:self._buffer_scans]) - 1:]
+            interval = self._mean_interval() or self._interval_ns
+            if interval > 0:
+                self.health.scans_lost += sum(max(0, round((b - a) / interval) - 1)
+                                              for a, b in pairwise(tail))
         self._overflowed = full
-        if stamps:
-            self._last_stamp = stamps[-1]
+        self._last_stamp = stamps[-1]
+
+    def _mean_interval(self) -> float:
+        return self._interval_sum_ns / self._interval_count if self._interval_count else 0.0
 
     def _scan_times(self, now_ns: int, scans: list[dict[str, float]]) -> list[int]:
         """Pipeline times of the scans: the kernel's timestamps moved onto the pipeline clock
