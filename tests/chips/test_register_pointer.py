@@ -27,7 +27,9 @@ from imuhal_chips.mpu9250.emulator import MPU9250Emulator
 CASES: dict[str, tuple[Callable[[SimulatedClock], ChipEmulator], int, bytes, int, int]] = {
     # name: (emulator, identity register, its bytes from the datasheet,
     #        start and length of a split read over registers that are not all equal)
-    "mpu9250": (lambda c: MPU9250Emulator(c), 0x75, bytes([0x71]), 0x74, 1),
+    # (PWR_MGMT_1 reads 0x01 after power-on, PWR_MGMT_2 0x00; FIFO_R_W at 0x74 does not
+    # advance the pointer: a burst from it pops the FIFO)
+    "mpu9250": (lambda c: MPU9250Emulator(c), 0x75, bytes([0x71]), 0x6B, 1),
     "max21105": (lambda c: Max21105Emulator(c), 0x20, bytes([0xB4]), 0x20, 1),
     "max21100": (lambda c: Max21100Emulator(c), 0x20, bytes([0xB2]), 0x20, 1),
     "bmp280": (lambda c: BMP280Emulator(c), 0x88, bytes([0x70, 0x6B, 0x43, 0x67]), 0x88, 6),

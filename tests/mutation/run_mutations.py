@@ -229,6 +229,17 @@ MUTATIONS: tuple[Mutation, ...] = (
              "src/imuhal/sinks/flight/audio.py",
              "index = min(max(int(climb_m_s), 0), len(BEEP_TABLE_TICKS) - 1)",
              "index = 0", ("tests/sinks/test_vario_audio.py",)),
+    Mutation("G8", "LXWP0 vario in cm/s (it is m/s)",
+             "src/imuhal/sinks/flight/sentences.py",
+             '_fmt(climb_m_s, ".2f"), "", "", "", "", "",',
+             '_fmt(None if climb_m_s is None else climb_m_s * 100, ".2f"), "", "", "", "", "",',
+             ("tests/sinks",)),
+    Mutation("I1", "IGC: the G record hashes the records before the new one",
+             "src/imuhal/sinks/flight/igc.py",
+             '        self._sha.update(records)\n        g = b"G" + self._sha.hexdigest()',
+             '        old = self._sha.copy()\n        self._sha.update(records)\n'
+             '        g = b"G" + old.hexdigest()',
+             ("tests/sinks/test_igc_log.py",)),
 )
 
 

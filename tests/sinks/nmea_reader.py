@@ -17,3 +17,17 @@ def read_sentence(line: str) -> tuple[str, list[str]]:
     assert f"{x:02X}" == cs, f"checksum of {line!r}: {x:02X}"
     head, *fields = body.split(",")
     return head, fields
+
+
+def read_lxwp0(line: str) -> dict[str, float | str | None]:
+    """The published LXWP0 layout (LX Navigation's data port; XCSoar Driver/LX/Parser.cpp):
+    12 fields after the type, exactly; empty = not given."""
+    head, f = read_sentence(line)
+    assert head == "LXWP0" and len(f) == 12, line
+    assert f[0] in ("Y", "N")
+    names = ("tas_km_h", "pressure_altitude_m", "vario_m_s", "vario2", "vario3", "vario4",
+             "vario5", "vario6", "heading_deg", "wind_from_deg", "wind_km_h")
+    out: dict[str, float | str | None] = {"logger": f[0]}
+    for name, text in zip(names, f[1:], strict=True):
+        out[name] = float(text) if text else None
+    return out

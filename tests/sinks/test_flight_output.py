@@ -12,6 +12,7 @@ import math
 import os
 import socket
 import time
+from collections import Counter
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -19,8 +20,9 @@ import pytest
 
 pytest.importorskip("pynmea2", reason="the gps extra (pynmea2, pyubx2) is not installed")
 
-from tests.sinks.nmea_reader import read_sentence
+from tests.sinks.nmea_reader import read_lxwp0, read_sentence
 
+from imuhal.core.atmosphere import altitude_m_from_pressure
 from imuhal.core.samples import (
     PositionSample,
     PressureSample,
@@ -89,6 +91,8 @@ class Latest:
         self.temperature: TemperatureSample | None = None
         self.position: PositionSample | None = None
         self.velocity: VelocitySample | None = None
+        self.lxwp0_times: list[int] = []
+        """The estimate each LXWP0 carried (both apps')."""
 
     def take(self, event: object) -> None:
         if isinstance(event, VerticalEstimate) and event.source == "vario":
@@ -118,12 +122,20 @@ def check(line: str, now: Latest, seen: dict[str, int]) -> None:
     elif head == "POV":
         pairs = dict(zip(f[::2], f[1::2], strict=True))
         assert float(pairs["P"]) == pytest.approx(p.pressure_pa / 100, abs=0.005)
-        assert float(pairs["E"]) == pytest.approx(v.climb_m_s, abs=0.005)
+        assert "E" not in pairs  # no airspeed, so no total energy: XCSoar uses P
         if now.temperature is None:
             assert "T" not in pairs
         else:
             assert float(pairs["T"]) == pytest.approx(now.temperature.temperature_degc,
                                                       abs=0.005)
+    elif head == "LXWP0":
+        got = read_lxwp0(line)
+        # one fresh value: the estimate of this instant, the other five slots empty
+        assert got["vario_m_s"] == pytest.approx(v.climb_m_s, abs=0.005)
+        assert [got[f"vario{k}"] for k in range(2, 7)] == [None] * 5
+        assert got["pressure_altitude_m"] == pytest.approx(
+            altitude_m_from_pressure(p.pressure_pa), abs=0.05)
+        now.lxwp0_times.append(v.t_ns)
     elif head == "_PRS":
         assert int(f[0], 16) == round(p.pressure_pa)
     elif head == "XCTRC":
@@ -188,13 +200,15 @@ def test_a_flight_app_on_the_pty_and_one_on_tcp_read_sentences_matching_the_esti
         sock.close()
     assert not (tmp_path / "vario").exists()  # the link goes with the run
     for counts in seen:
-        assert set(counts) == {"LK8EX1", "POV", "_PRS", "XCTRC", "GPGGA", "GPRMC"}
+        assert set(counts) == {"LK8EX1", "LXWP0", "POV", "_PRS", "XCTRC", "GPGGA", "GPRMC"}
         assert now.temperature is not None  # the MS5611's temperature reached the sentences
         # rate limits: 10 Hz vario sentences, _PRS every 48 ms, one GGA/RMC per 5 Hz epoch
         assert 10 * (FLIGHT_S - 3) < counts["LK8EX1"] <= 10 * FLIGHT_S + 1
-        assert counts["POV"] == counts["LK8EX1"]
+        assert counts["POV"] == counts["LK8EX1"] == counts["LXWP0"]
         assert (FLIGHT_S - 3) / 0.048 < counts["_PRS"] <= FLIGHT_S / 0.048 + 1
         assert 5 * (FLIGHT_S - 3) < counts["GPGGA"] == counts["GPRMC"] <= 5 * FLIGHT_S
+    # a fresh estimate in every LXWP0: each estimate sent once to each of the two apps
+    assert set(Counter(now.lxwp0_times).values()) == {2}
     assert sinks[0].transport.dropped_bytes == 0 and sinks[1].transport.dropped_bytes == 0
     assert not math.isnan(now.vertical.climb_m_s)
 

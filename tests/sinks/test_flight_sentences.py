@@ -8,7 +8,7 @@ from __future__ import annotations
 from datetime import datetime, timezone
 
 import pytest
-from tests.sinks.nmea_reader import read_sentence
+from tests.sinks.nmea_reader import read_lxwp0, read_sentence
 
 from imuhal.sinks.flight import sentences as fmt
 
@@ -35,11 +35,35 @@ def test_lk8ex1_uses_the_documented_no_data_values() -> None:
     assert f[4] == "1077"
 
 
-def test_pov_pressure_hpa_te_vario_m_s_temperature() -> None:
-    head, f = read_sentence(fmt.pov(pressure_pa=95123.4, climb_m_s=1.256, temperature_degc=-3.2))
+def test_pov_pressure_hpa_temperature_and_no_total_energy_without_an_airspeed() -> None:
+    head, f = read_sentence(fmt.pov(pressure_pa=95123.4, temperature_degc=-3.2,
+                                    te_vario_m_s=1.256))
     assert head == "POV"
     pairs = dict(zip(f[::2], f[1::2], strict=True))
-    assert pairs == {"P": "951.23", "E": "1.26", "T": "-3.20"}
+    assert pairs == {"P": "951.23", "T": "-3.20"}  # E left out: XCSoar uses P for its vario
+
+
+def test_pov_total_energy_goes_with_the_true_airspeed_in_km_h() -> None:
+    _, f = read_sentence(fmt.pov(pressure_pa=95123.4, true_airspeed_m_s=10.0,
+                                 te_vario_m_s=1.256))
+    assert dict(zip(f[::2], f[1::2], strict=True)) == {"P": "951.23", "S": "36.0", "E": "1.26"}
+
+
+def test_lxwp0_carries_pressure_altitude_and_one_vario_value_in_lx_order() -> None:
+    got = read_lxwp0(fmt.lxwp0(pressure_altitude_m=1665.54, climb_m_s=1.714))
+    assert got == {"logger": "N", "tas_km_h": None, "pressure_altitude_m": 1665.5,
+                   "vario_m_s": 1.71, "vario2": None, "vario3": None, "vario4": None,
+                   "vario5": None, "vario6": None, "heading_deg": None,
+                   "wind_from_deg": None, "wind_km_h": None}
+
+
+def test_lxwp0_speeds_are_km_h_and_directions_degrees() -> None:
+    got = read_lxwp0(fmt.lxwp0(logger_recording=True, true_airspeed_m_s=61.75,
+                               pressure_altitude_m=-20.0, climb_m_s=-0.5, heading_deg=-121,
+                               wind_from_deg=174, wind_speed_m_s=2.8055))
+    assert (got["logger"], got["tas_km_h"], got["pressure_altitude_m"], got["vario_m_s"]) == \
+        ("Y", 222.3, -20.0, -0.5)
+    assert (got["heading_deg"], got["wind_from_deg"], got["wind_km_h"]) == (239, 174, 10.1)
 
 
 def test_prs_is_pressure_in_pa_as_hex() -> None:

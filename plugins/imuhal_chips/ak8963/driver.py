@@ -174,6 +174,21 @@ class AK8963Driver(Driver):
     def _config_lost(self) -> bool:
         return self.regs.read_u8(r.REG_CNTL1) != self._cntl1
 
+    def resume(self, now_ns: int) -> int | None:
+        """One transfer of a poll failed: when CNTL1 still reads back as written (a soft
+        reset or power-on clears it), the chip kept measuring, so poll again at once instead
+        of the full recovery (soft reset, fuse-ROM read and three mode changes: about 30 ms
+        on the clock every device shares). A retry after a read that reached the chip finds
+        DRDY clear (ST2 ended that read) and waits for the next measurement: one lost,
+        none repeated."""
+        if self.asa is None or self._config_lost():
+            return None
+        return max(now_ns, self.clock.now_ns())
+
+    def accounted_stream(self) -> tuple[Channel, int] | None:
+        """One field per continuous-mode period (8 or 100 Hz)."""
+        return Channel.MAG, self._period_ns
+
     def full_scale(self, channel: Channel) -> float | None:
         """The measurement range, +-4912 uT per axis."""
         return r.OVERFLOW_SUM_UT if channel is Channel.MAG else None

@@ -154,13 +154,16 @@ class AK8963Emulator(ChipEmulator):
             self._complete(self._measure())
             mode = self._mode()
             if mode == r.MODE_SINGLE:
+                self.record_measurements(self._next_ns, 0, 1)
                 self._cntl1 &= ~r.MODE_MASK
                 self._next_ns = None
             else:
                 period = round(_PERIOD_S_BY_MODE[mode] * 1e9)
                 # Long gaps: skip ahead, keeping the last two measurements (enough for DOR).
                 missed = (now - self._next_ns) // period
-                self._next_ns += (max(missed - 1, 0) + 1) * period
+                skipped = max(missed - 1, 0)
+                self.record_measurements(self._next_ns, period, 1 + skipped)
+                self._next_ns += (skipped + 1) * period
 
     def _measure(self) -> tuple[bytes, int]:
         field = self.physics.magnetic_field_ut or (0.0, 0.0, 0.0)

@@ -289,6 +289,23 @@ class BMP280Driver(Driver):
             return PollResult(samples, self.restart(reset_detected=False))
         return PollResult(samples, next_ns)
 
+    def resume(self, now_ns: int) -> int | None:
+        """One transfer of a poll failed: read the burst again at once instead of the full
+        recovery (soft reset, NVM copy and trimming read). The burst itself carries
+        ctrl_meas and config, so the retry still catches a chip that reset. In forced mode
+        only a failed read is retried; a failed trigger write may or may not have started a
+        measurement, which the full recovery sorts out."""
+        if self.trim is None or (self.settings.mode == "forced" and self._triggered_ns is None):
+            return None
+        return max(now_ns, self.clock.now_ns())
+
+    def accounted_stream(self) -> tuple[Channel, int] | None:
+        """Normal mode: one pressure per measurement plus standby (typical measurement
+        time); forced mode measures when the host asks, so it has no period of its own."""
+        if self.settings.mode != "normal" or not self._period_ns:
+            return None
+        return Channel.PRESSURE, self._period_ns
+
     def _frozen_flag(self, adc_p: int, adc_t: int) -> SampleFlag:
         return self._frozen.observe("adc", adc_p.to_bytes(3, "big") + adc_t.to_bytes(3, "big"))
 

@@ -209,11 +209,16 @@ class BMP280Emulator(ChipEmulator):
         if mode == r.MODE_NORMAL:
             elapsed = now - self._cycle_start - self._meas_ns()
             if elapsed >= 0:
-                done = elapsed // self._period_ns() + 1
+                period = self._period_ns()
+                done = elapsed // period + 1
                 for _ in range(min(done - self._cycles_done, 64)):
                     self._measure()
+                self.record_measurements(
+                    self._cycle_start + self._meas_ns() + self._cycles_done * period, period,
+                    done - self._cycles_done)
                 self._cycles_done = done
         elif self._forced_done is not None and now >= self._forced_done:
+            self.record_measurements(self._forced_done, 0, 1)
             self._measure()
             self._forced_done = None
             self._ctrl &= ~r.MODE_MASK  # back to sleep

@@ -325,6 +325,19 @@ class Hmc5883lDriver(Driver):
     def _frozen_flag(self, raw: bytes) -> SampleFlag:
         return self._frozen.observe(Channel.MAG, raw)
 
+    def accounted_stream(self) -> tuple[Channel, int] | None:
+        """One field per continuous-mode output period (Config A's data output rate)."""
+        return Channel.MAG, self._grid.period_ns
+
+    def resume(self, now_ns: int) -> int | None:
+        """One transfer of a poll failed: when Config A/B and Mode still read back as
+        written (the read-back also releases the data lock a partial data read may have
+        set), the chip kept measuring, so poll again at once instead of the full recovery
+        (which rewrites the configuration and drops the first measurement after it)."""
+        if self.gain_lsb_per_gauss is None or self._config_lost():
+            return None
+        return max(now_ns, self.clock.now_ns())
+
     def _config_lost(self) -> bool:
         """Read Config A/B and Mode back: a mismatch is a silent reset (defaults 0x10, 0x20,
         single mode) or nothing answering."""

@@ -307,6 +307,12 @@ class Max2110xDriver(Driver):
             return PollResult(samples, now_ns + self._grid.guard_ns)
         return PollResult(samples, self._grid.next_after(now_ns))
 
+    def accounted_stream(self) -> tuple[Channel, int] | None:
+        """The faster of gyro and accelerometer, one frame per its output period."""
+        if self.scales is None:
+            return None
+        return self._fast, self._grid.period_ns
+
     def resume(self, now_ns: int) -> int | None:
         """One transfer of a poll failed: when the configuration still reads back as
         written, the chip kept its state (a glitch on the wire), so carry on at the next

@@ -153,3 +153,25 @@ def gyro_filter_from_config(config: int, gyro_config: int) -> tuple[int, float]:
         return 32000, False
     dlpf = config & 0b111
     return (1000 if 0 < dlpf < 7 else 8000), 0 < dlpf < 7
+
+# -- FIFO (register map rev 1.4; imuhal shared chip facts section 4, "FIFO") ----------------
+FIFO_EN: Final = 0x23
+"""[7] TEMP_OUT, [6] GYRO_XOUT, [5] GYRO_YOUT, [4] GYRO_ZOUT, [3] ACCEL (X, Y, Z), [2] SLV2,
+[1] SLV1, [0] SLV0 (the slave's EXT_SENS_DATA bytes)."""
+FIFO_TEMP: Final = 0x80
+FIFO_GYRO_X: Final = 0x40
+FIFO_GYRO_Y: Final = 0x20
+FIFO_GYRO_Z: Final = 0x10
+FIFO_ACCEL: Final = 0x08
+FIFO_SLV0: Final = 0x01
+FIFO_COUNTH: Final = 0x72
+"""FIFO_COUNTH[4:0] and FIFO_COUNTL: the bytes in the FIFO (13 bits, big-endian)."""
+FIFO_R_W: Final = 0x74
+"""Each byte read pops one byte; a burst read of N bytes pops N (no auto-increment)."""
+FIFO_SIZE_BYTES: Final = 512
+USER_FIFO_EN: Final = 0x40
+USER_FIFO_RST: Final = 0x04
+CONFIG_FIFO_MODE: Final = 0x40
+"""1: when the FIFO is full further writes are dropped; 0: the oldest bytes are overwritten."""
+INT_FIFO_OFLOW: Final = 0x10
+"""INT_ENABLE.FIFO_OFLOW_EN / INT_STATUS.FIFO_OFLOW_INT."""

@@ -234,6 +234,11 @@ class MS5611Driver(Driver):
         self._just_reset = False
         self._reset_state()
 
+    def accounted_stream(self) -> tuple[Channel, int] | None:
+        """One pressure conversion per cycle of the configured rate (the host starts each
+        one: the cadence is the driver's, kept by its conversion schedule)."""
+        return Channel.PRESSURE, self._period_ns
+
     def resume(self, now_ns: int) -> int | None:
         """One transfer of a poll failed; carry on without a reset (which would lose the
         conversion in flight and cost a 2.8 ms PROM reload and a whole cycle):

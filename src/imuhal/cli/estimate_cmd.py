@@ -9,6 +9,7 @@ from typing import Any
 
 from imuhal.cli import args as types
 from imuhal.cli.frame_option import frame_argument
+from imuhal.cli.robot_outputs import add_mcap_argument, report_mcap
 from imuhal.core.atomic import check_outputs
 from imuhal.core.conventions import CONVENTIONS, NED
 from imuhal.core.errors import ImuhalError
@@ -76,6 +77,9 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--columns", metavar="A,B,...",
                    help="write only these output columns, in this order (e.g. "
                    "t_s,qw,qx,qy,qz); default: every estimate and diagnostics column")
+    add_mcap_argument(p)
+    p.add_argument("--frame-id", default="base_link", metavar="NAME",
+                   help="with --mcap: header.frame_id of the messages (default: base_link)")
     p.set_defaults(func=cmd_estimate)
 
 
@@ -93,8 +97,13 @@ def _column_list(text: str | None) -> list[str] | None:
 
 
 def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
-    check_outputs({"--output": args.output}, {"INPUT.csv": args.input})
-    if args.rate is not None and is_run_log(args.input):
+    check_outputs({"--output": args.output, "--mcap": args.mcap}, {"INPUT.csv": args.input})
+    run_log = is_run_log(args.input)
+    if args.mcap and not run_log:
+        raise ImuhalError(f"--mcap {args.mcap}: needs a run log as INPUT (imuhal run --output "
+                          "LOG.csv --samples), whose samples name their devices; "
+                          f"{args.input} is a wide CSV")
+    if args.rate is not None and run_log:
         raise ImuhalError(f"{args.input}: a run log has its own times (t_s); --rate is for a "
                           "wide CSV without them - drop --rate")
     est_cls = registry.estimators.get(args.name)
@@ -112,13 +121,17 @@ def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
                                    args.ahrs, "--ahrs-set")
     columns = _column_list(args.columns)
     writer = EstimateCsvWriter(args.output, args.output_frame, columns)
+    mcap = None
     try:
-        if is_run_log(args.input):
+        if run_log:
             # A run log is read whole: its rows are events of many kinds, and the samples are
             # rebuilt in the pipeline's order.
             log = read_run_log(args.input, args.input_frame)
             ahrs = _gravity_ahrs(args, ahrs_cls, ahrs_settings, True)
-            writer.write(run_offline_samples(estimator, log.samples, ahrs=ahrs))
+            estimates = run_offline_samples(estimator, log.samples, ahrs=ahrs)
+            writer.write(estimates)
+            if args.mcap:
+                mcap = _write_mcap(args, registry, log.samples, estimates)
             read = (f"{log.rows} log rows ({len(log.samples)} valid samples, {log.flagged} "
                     "flagged skipped)")
         else:
@@ -135,14 +148,36 @@ def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
                 writer.write(next(iter_offline(estimator, [table], ahrs=ahrs, columnar=True)))
             read = f"{n_in} input rows"
         rows = writer.commit()
+        if mcap is not None:
+            mcap.close()
     except BaseException:
         writer.abort()
+        if mcap is not None:
+            mcap.abort()
         raise
     print(f"{args.name}: {read} -> {rows} estimates in {args.output}", file=sys.stderr)
+    if mcap is not None:
+        print(report_mcap(mcap, args.mcap), file=sys.stderr)
     for est in (estimator, ahrs):
         if est is not None:
             _report_rejected(est)
     return 0
+
+
+def _write_mcap(args: argparse.Namespace, registry: Registry, samples: list[Any],
+                estimates: list[Any]) -> Any:
+    """The run log's samples and the new estimates, in time order (a sample before the
+    estimates it led to), handed to the ``mcap`` sink; the caller closes it."""
+    from imuhal import __version__
+
+    sink = registry.sinks.get("mcap")({
+        "path": args.mcap, "ros": {"frame_id": args.frame_id},
+        "metadata": {"input": str(args.input), "estimator": args.name,
+                     "imuhal_version": __version__}})
+    events = sorted([*samples, *estimates], key=lambda e: e.t_ns)  # stable: samples first
+    for event in events:
+        sink.handle(event)
+    return sink
 
 
 def _gravity_ahrs(args: argparse.Namespace, ahrs_cls: Any, settings: Any, needed: bool

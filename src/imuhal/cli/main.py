@@ -22,6 +22,7 @@ from imuhal.cli import (
     check_mounts_cmd,
     estimate_cmd,
     evaluate_cmd,
+    igc_cmd,
     plot_cmd,
     plugins_cmd,
     profile_cmd,
@@ -37,7 +38,7 @@ EXIT_INTERNAL = 70
 EXIT_INTERRUPTED = 130
 
 COMMANDS = [run_cmd, replay_cmd, estimate_cmd, evaluate_cmd, plot_cmd, calibrate_cmd,
-            check_mounts_cmd, plugins_cmd, profile_cmd]
+            check_mounts_cmd, igc_cmd, plugins_cmd, profile_cmd]
 """Modules providing ``add_parser(subparsers)``; the order is the order in --help."""
 
 

@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from imuhal.cli.robot_outputs import add_mcap_argument, mcap_sink, report_mcap
 from imuhal.core.atomic import check_outputs
 from imuhal.core.errors import ImuhalError
 from imuhal.offline.replay import (
@@ -34,6 +35,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--output", metavar="FILE.csv", help="write estimates to a CSV file")
     p.add_argument("--samples", action="store_true",
                    help="with --output, also write every sample (flagged ones included)")
+    add_mcap_argument(p)
     p.add_argument("--quiet", action="store_true", help="no status line")
     p.set_defaults(func=cmd_replay)
 
@@ -42,7 +44,8 @@ def cmd_replay(args: argparse.Namespace, registry: Registry) -> int:
     from imuhal.pipeline import ConsoleSink, CsvSink
 
     # Before anything is decoded: the log must not replace the recording or the profile.
-    check_outputs({"--output": args.output}, {"FILE": args.recording, "--profile": args.profile})
+    check_outputs({"--output": args.output, "--mcap": args.mcap},
+                  {"FILE": args.recording, "--profile": args.profile})
     if args.samples and not args.output:
         raise ImuhalError("--samples writes the samples into the --output log; add "
                           "--output FILE.csv")
@@ -64,11 +67,15 @@ def cmd_replay(args: argparse.Namespace, registry: Registry) -> int:
     csv_sink = CsvSink(args.output, include_samples=args.samples) if args.output else None
     if csv_sink is not None:
         sinks.append(csv_sink)
+    mcap = mcap_sink(registry, args.mcap, replay.profile) if args.mcap else None
+    if mcap is not None:
+        sinks.append(mcap)
     try:
         replay_run(pipeline, sinks)
     except ReplayDivergence as exc:
-        if csv_sink is not None:
-            csv_sink.abort()  # a diverged decode must not replace a good log
+        for sink in (csv_sink, mcap):
+            if sink is not None:
+                sink.abort()  # a diverged decode must not replace a good output
         raise ImuhalError(str(exc)) from None
     for sink in sinks:
         sink.close()
@@ -86,4 +93,6 @@ def cmd_replay(args: argparse.Namespace, registry: Registry) -> int:
     print(f"replayed {replay.source.transfers} bus transactions", file=sys.stderr)
     if csv_sink is not None:
         print(f"wrote {csv_sink.rows} rows to {args.output}", file=sys.stderr)
+    if mcap is not None:
+        print(report_mcap(mcap, args.mcap), file=sys.stderr)
     return 0

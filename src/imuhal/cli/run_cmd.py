@@ -17,6 +17,14 @@ from imuhal.bus.recording.recorder import BusRecorder, run_header
 from imuhal.bus.spy import format_transfer
 from imuhal.cli import args as types
 from imuhal.cli.frame_option import frame_argument
+from imuhal.cli.robot_outputs import (
+    add_mavlink_arguments,
+    add_mcap_argument,
+    mavlink_sink,
+    mcap_sink,
+    report_mavlink,
+    report_mcap,
+)
 from imuhal.core.atomic import AtomicFile, check_outputs
 from imuhal.core.errors import ImuhalError
 from imuhal.live import LiveView, parse_bind
@@ -56,15 +64,37 @@ def add_parser(sub: Any) -> None:
     run.add_argument("--trace", metavar="FILE.txt",
                      help="log every bus transaction (time, bus, address, bytes) to a file")
     run.add_argument("--nmea", action="append", default=[], metavar="OUTPUT",
-                     help="send LK8EX1, POV, _PRS, XCTRC, GGA and RMC sentences to a flight "
-                     "app: serial:PORT@BAUD, pty, pty:LINK (a symlink to the pty) or "
-                     "tcp:PORT (loopback); repeatable (docs/flight-instrument.md)")
+                     help="send LK8EX1, LXWP0, POV, _PRS, XCTRC, GGA and RMC sentences to "
+                     "a flight app: serial:PORT@BAUD, pty, pty:LINK (a symlink to the pty), "
+                     "tcp:PORT (loopback), or ble / ble:NAME (Bluetooth LE; LK8EX1 and LXWP0 "
+                     "by default); repeatable (docs/flight-instrument.md)")
     run.add_argument("--nmea-sentences", metavar="LIST",
-                     help="comma-separated subset of LK8EX1,POV,PRS,XCTRC,GGA,RMC")
+                     help="comma-separated subset of LK8EX1,LXWP0,POV,PRS,XCTRC,GGA,RMC")
     run.add_argument("--audio", action="store_true",
                      help="play the vario tones live (needs imuhal[audio] and a sound device)")
     run.add_argument("--audio-wav", metavar="FILE.wav",
                      help="write the vario tones to a WAV file (the profile's audio curve)")
+    run.add_argument("--audio-damping", type=float, metavar="SECONDS",
+                     help="time constant of the climb rate the tones follow (default: the "
+                     "profile's audio.damping_s, 0 = the vario's own output)")
+    run.add_argument("--audio-sink-alarm", type=float, metavar="M_S",
+                     help="sink alarm (a warble) at or below this climb rate, e.g. -5 "
+                     "(default: the profile's audio.sink_alarm_m_s, none)")
+    run.add_argument("--igc", metavar="FILE.IGC|FOLDER",
+                     help="write an IGC flight log (B records from the GNSS and the "
+                     "barometer; a folder gets the FAI file name); `imuhal igc verify` "
+                     "checks it (docs/flight-instrument.md)")
+    run.add_argument("--igc-pilot", metavar="NAME",
+                     help="the IGC log's pilot (default: the profile's igc.pilot)")
+    run.add_argument("--igc-glider", metavar="TYPE",
+                     help="the IGC log's glider type (default: the profile's igc.glider_type)")
+    add_mcap_argument(run)
+    add_mavlink_arguments(run)
+    run.add_argument("--mqtt", metavar="URL",
+                     help="publish every event to an MQTT broker (mqtt://HOST[:PORT], mqtts:// "
+                     "for TLS; credentials in the URL or IMUHAL_MQTT_USERNAME/_PASSWORD), "
+                     "queued on disk while it is unreachable; settings in the profile's "
+                     "outputs.mqtt or --sink-set mqtt.KEY=VALUE (docs/outputs.md)")
     run.add_argument("--sink", action="append", default=[], metavar="NAME",
                      help="also send every event to the sink a plugin registered as NAME "
                      "(see `imuhal plugins`); repeatable")
@@ -93,11 +123,24 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     path = Path(args.profile) if args.profile else default_profile_path()
     # Before anything is opened: no output may overwrite an input, and each must be writable.
     check_outputs({"--output": args.output, "--truth": args.truth, "--trace": args.trace,
-                   "--audio-wav": args.audio_wav, "--record": args.record},
+                   "--audio-wav": args.audio_wav, "--record": args.record,
+                   "--igc": args.igc if args.igc and not Path(args.igc).is_dir() else None,
+                   "--mcap": args.mcap},
                   {"PROFILE": path, "--replay-truth": args.replay_truth})
     if args.samples and not args.output:
         raise ImuhalError("--samples writes the samples into the --output log; add "
                           "--output FILE.csv")
+    if (args.igc_pilot is not None or args.igc_glider is not None) and not args.igc:
+        raise ImuhalError("--igc-pilot and --igc-glider name who flies in the IGC log; add "
+                          "--igc FILE.IGC (or a folder)")
+    if args.igc:
+        from imuhal.sinks.flight.igc import check_igc_output
+
+        check_igc_output(args.igc)
+    if (args.audio_damping is not None or args.audio_sink_alarm is not None) and \
+            not (args.audio or args.audio_wav):
+        raise ImuhalError("--audio-damping and --audio-sink-alarm shape the vario tones; add "
+                          "--audio or --audio-wav FILE.wav")
     if args.nmea_sentences is not None and not args.nmea:
         raise ImuhalError("--nmea-sentences chooses the sentences of an --nmea output; add "
                           "--nmea OUTPUT (e.g. --nmea pty)")
@@ -121,7 +164,13 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     duration = args.duration
     if duration is None and emulate is not None and scenario_params is None:
         duration = registry.scenarios.get(emulate).default_duration_s
-    plugin_sinks = _plugin_sinks(args.sink, args.sink_set, registry)  # checked before opening
+    names = [*args.sink, *(["mqtt"] if args.mqtt is not None and "mqtt" not in args.sink
+                           else [])]
+    given = {"mqtt": {"url": args.mqtt}} if args.mqtt is not None else {}
+    # checked before the board is opened
+    plugin_sinks = _plugin_sinks(names, args.sink_set, registry, profile=profile, frame=frame,
+                                 given=given)
+    mavlink = mavlink_sink(registry, args, profile)  # a socket only: nothing sent yet
     where = f"emulated, scenario '{emulate}'" if emulate else "real hardware"
     print(f"imuhal {__version__}: {profile.name} ({where}) from {path}", file=sys.stderr)
     sinks: list[Any] = []
@@ -168,12 +217,22 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
             csv_sink = CsvSink(args.output, include_samples=args.samples, frame=frame)
             sinks.append(csv_sink)
         sinks.extend(_flight_sinks(args, profile, registry, stack))
+        mcap = mcap_sink(registry, args.mcap, profile) if args.mcap else None
+        if mcap is not None:
+            sinks.append(mcap)
+        if mavlink is not None:
+            stack.callback(mavlink.close)  # also when the run fails before it starts
+            sinks.append(mavlink)
         truth_sink = None
         if args.truth:
             truth_sink = TruthSink(args.truth, EmulatedBoard.of(pipeline).scenario,
                                    include_samples=args.samples)
             sinks.append(truth_sink)
         sinks.extend(plugin_sinks)
+        for sink in plugin_sinks:
+            describe = getattr(sink, "describe", None)
+            if describe is not None:
+                print(f"{sink.name}: {describe()}", file=sys.stderr)
         try:
             summary = pipeline.run(duration, sinks)
             ended[0] = "complete"
@@ -182,6 +241,8 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
                               f"flushed){_kept_note(args.output, csv_sink)}") from None
         except KeyboardInterrupt as stop:
             summary = pipeline.summary()
+            summary.sinks = {s.name: s.run_counts() for s in plugin_sinks
+                             if hasattr(s, "run_counts")}  # pipeline.run closed them
             ended[0] = "interrupted"
             why = f"stopped by {stop}" if str(stop) else "interrupted"
             print(f"\n{why}; the files are complete up to here", file=sys.stderr)
@@ -194,8 +255,16 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
     print(summary.describe(), file=sys.stderr)
     if csv_sink is not None:
         print(f"wrote {csv_sink.rows} rows to {args.output}", file=sys.stderr)
+    if mcap is not None:
+        print(report_mcap(mcap, args.mcap), file=sys.stderr)
+    if mavlink is not None:
+        print(report_mavlink(mavlink, args.mavlink), file=sys.stderr)
     if truth_sink is not None:
         print(f"wrote {truth_sink.rows} truth rows to {args.truth}", file=sys.stderr)
+    for sink in sinks:
+        if getattr(sink, "name", None) == "igc":
+            print(f"wrote {sink.b_records} B records to {sink.path}" if sink.path else
+                  "IGC log: no GNSS fix in the run, nothing written", file=sys.stderr)
     if recorder is not None:
         print(f"recorded {recorder.transfers} bus transactions to {args.record}",
               file=sys.stderr)
@@ -218,7 +287,12 @@ def _flight_sinks(args: argparse.Namespace, profile: Any, registry: Registry,
                               "sentence, e.g. --nmea-sentences LK8EX1,GGA")
     nmea = registry.sinks.get("nmea")
     for spec in args.nmea:
-        sink = nmea({"output": spec, **extra})
+        if spec.partition(":")[0] == "ble" and "sentences" not in extra:
+            from imuhal.sinks.flight.ble import BLE_SENTENCES
+
+            sink = nmea({"output": spec, "sentences": BLE_SENTENCES})
+        else:
+            sink = nmea({"output": spec, **extra})
         stack.callback(sink.close)
         transport = sink.transport
         where = transport.description
@@ -228,12 +302,50 @@ def _flight_sinks(args: argparse.Namespace, profile: Any, registry: Registry,
         out.append(sink)
     if args.audio or args.audio_wav:
         out.append(registry.sinks.get("vario-audio")(
-            {"curve": profile.audio, "wav": args.audio_wav, "live": args.audio}))
+            {"curve": _audio_curve(args, profile), "wav": args.audio_wav,
+             "live": args.audio}))
+    if args.igc:
+        log = profile.igc.model_copy(update={
+            k: v for k, v in (("pilot", args.igc_pilot), ("glider_type", args.igc_glider))
+            if v is not None})
+        out.append(registry.sinks.get("igc")({
+            "path": args.igc, "log": log, "logger_type": f"imuhal,{profile.name}",
+            "firmware": __version__,
+            "device_drivers": {name: dev.driver for name, dev in profile.devices.items()}}))
     return out
 
 
-def _plugin_sinks(names: list[str], settings: list[str], registry: Registry) -> list[Any]:
-    """The sinks named by ``--sink``, each with its ``--sink-set NAME.KEY=VALUE`` settings."""
+def _audio_curve(args: argparse.Namespace, profile: Any) -> Any:
+    """The profile's audio curve with --audio-damping / --audio-sink-alarm applied."""
+    from pydantic import ValidationError
+
+    from imuhal.sinks.flight.audio import VarioAudioSettings
+
+    update = {k: v for k, v in (("damping_s", args.audio_damping),
+                                ("sink_alarm_m_s", args.audio_sink_alarm)) if v is not None}
+    if not update:
+        return profile.audio
+    try:
+        return VarioAudioSettings.model_validate({**profile.audio.model_dump(), **update})
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        if err["loc"] and err["loc"][0] == "damping_s":
+            raise ImuhalError(f"--audio-damping {args.audio_damping}: a time constant of "
+                              "0 to 10 s, e.g. --audio-damping 1.5") from None
+        raise ImuhalError(f"--audio-sink-alarm {args.audio_sink_alarm}: "
+                          f"{err['msg'].removeprefix('Value error, ')}") from None
+
+
+RUN_DEFAULTS = ("board", "frame")
+"""Settings a plugin sink gets from the run when neither the profile's ``outputs`` nor
+``--sink-set`` give them: the profile's name and the run's output frame."""
+
+
+def _plugin_sinks(names: list[str], settings: list[str], registry: Registry, *,
+                  profile: Any, frame: Any, given: dict[str, dict[str, Any]]) -> list[Any]:
+    """The sinks named by ``--sink`` (and ``--mqtt``), each with its settings: the run's
+    ``given`` ones (``--mqtt URL``) over ``--sink-set NAME.KEY=VALUE`` over the profile's
+    ``outputs.NAME``, over the run's name and frame (``RUN_DEFAULTS``)."""
     per_sink: dict[str, list[str]] = {name: [] for name in names}
     for item in settings:
         name, dot, rest = item.partition(".")
@@ -244,7 +356,12 @@ def _plugin_sinks(names: list[str], settings: list[str], registry: Registry) -> 
     out = []
     for name, items in per_sink.items():
         cls = registry.sinks.get(name)
-        values = parse_set_arguments(items, f"--sink-set {name}.")
+        values = {**profile.outputs.get(name, {}),
+                  **parse_set_arguments(items, f"--sink-set {name}."), **given.get(name, {})}
+        run_values = {"board": profile.name, "frame": getattr(frame, "name", frame)}
+        for key in RUN_DEFAULTS:
+            if key in cls.Settings.model_fields and key not in values:
+                values[key] = run_values[key]
         out.append(cls(build_settings(cls.Settings, values, f"sink {name!r}",
                                       flag=f"--sink-set {name}.")))
     return out

@@ -206,6 +206,15 @@ def get_convention(name: str | Convention) -> Convention:
             f"{', '.join(f'{a}={t}' for a, t in ALIASES.items())})") from None
 
 
+def convention_name(value: str) -> str:
+    """The canonical name of the convention called ``value``; as a pydantic field validator,
+    an unknown name is a plain ValueError naming the choices."""
+    try:
+        return get_convention(value).name
+    except UnknownConvention as exc:
+        raise ValueError(str(exc)) from None
+
+
 # ---------------------------------------------------------------------------------------------
 # vectors
 

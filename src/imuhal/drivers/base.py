@@ -86,10 +86,14 @@ class DeviceHealth:
     """Times the driver found its chip had reset on its own (configuration lost)."""
     reconfigurations: int = 0
     """Times the driver reprogrammed its chip (after a reset, a hang, a recovery)."""
+    fifo_overflows: int = 0
+    """Times the driver found its chip's FIFO overflowed (or corrupt) and reset it: the
+    frames it held are lost."""
 
     def counts(self) -> dict[str, int]:
         return {"resets_detected": self.resets_detected,
-                "reconfigurations": self.reconfigurations}
+                "reconfigurations": self.reconfigurations,
+                **({"fifo_overflows": self.fifo_overflows} if self.fifo_overflows else {})}
 
 
 class Driver(ABC):
@@ -186,6 +190,12 @@ class Driver(ABC):
         self.health.reconfigurations += 1
         # configure() may have waited on the clock (resets, reloads): start from after it.
         return self.start(max(now_ns, self.clock.now_ns()))
+
+    def accounted_stream(self) -> tuple[Channel, int] | None:
+        """The channel whose frames the pipeline counts (produced, delivered, lost by cause:
+        imuhal.pipeline.accounting) and the chip's frame period on it (ns) in the current
+        configuration; None: not accounted (a chip without a fixed output period)."""
+        return None
 
     def full_scale(self, channel: Channel) -> float | None:
         """The largest magnitude (SI) a correct ``channel`` value can have in the current

@@ -1,7 +1,8 @@
 """An emulated board: the profile's buses and chips as register-level emulators, driven by a
 simulated scenario on a simulated clock. It is a :class:`~imuhal.pipeline.board.Board`: the
 pipeline calls :meth:`EmulatedBoard.before_poll` before each poll, which hands the chip its
-inputs at that instant.
+inputs at that instant; a chip with a clock of its own (``ChipEmulator.pulls_physics``) is
+instead handed its inputs at each of its measurement instants, which it asks for.
 
 The simulation knows the truth in the body frame; each chip sees it in its own sensor frame
 (the inverse of its chip -> body rotation), optionally through that chip's error model.
@@ -11,7 +12,7 @@ from __future__ import annotations
 
 import inspect
 import threading
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 
 import numpy as np
 
@@ -99,6 +100,9 @@ class EmulatedBoard:
                           np.asarray(chip_to_body[name], dtype=float).tolist(),
                           errors.get(name))
             for name, emulator in self.emulators.items()}
+        for name, emulator in self.emulators.items():
+            if type(emulator).pulls_physics:
+                emulator.physics_source = self._physics_source(name)
         self._truth_cache: tuple[int, TruthState] | None = None
         """(time, truth) of the latest ``truth_at``: one attribute, replaced whole, so a
         reader on another thread never pairs one time with another time's truth."""
@@ -112,6 +116,12 @@ class EmulatedBoard:
         # ``truth`` may be read from another thread (the live view) while the run polls:
         # scenarios fill caches as they go, so one thread at a time evaluates the scenario.
         self._scenario_lock = threading.Lock()
+
+    def _physics_source(self, device: str) -> Callable[[int], None]:
+        """What a chip with its own clock calls at each of its measurement instants."""
+        def pull(t_ns: int) -> None:
+            self.update(t_ns, device)
+        return pull
 
     @staticmethod
     def of(pipeline: Pipeline) -> EmulatedBoard:
@@ -172,7 +182,9 @@ class EmulatedBoard:
         (a late poll moves the clock) and give its chip its inputs. Returns the time the
         poll actually happens."""
         t_ns = self.faults.before_poll(device, t_ns)
-        self.update(t_ns, device)
+        if self.emulators[device].physics_source is None:
+            # a chip with its own clock pulls its inputs when it measures
+            self.update(t_ns, device)
         return t_ns
 
     def _noise_periods(self, dev: _Device, poll_period_s: float) -> dict[str, float]:

@@ -42,6 +42,7 @@ from imuhal.profile.faults import (
     CorruptTrim,
     FaultSpec,
     FrozenData,
+    HostStall,
     LatePolls,
     StuckDataReady,
     TimingJitter,
@@ -56,7 +57,8 @@ if TYPE_CHECKING:
 
 __all__ = [
     "AllOnes", "AllZeros", "BoardFaults", "BusErrors", "BusOSError", "ChipAbsent", "ChipReset",
-    "CorruptByte", "CorruptTrim", "FaultLine", "FaultSpec", "FrozenData", "LatePolls",
+    "CorruptByte", "CorruptTrim", "FaultLine", "FaultSpec", "FrozenData", "HostStall",
+    "LatePolls",
     "StuckDataReady", "TimingJitter", "WildValue", "WrongPressure",
 ]
 
@@ -86,6 +88,8 @@ class _Active:
     """Value faults without end_s: the first poll at or after start_s."""
     bytes_seen: int = 0
     """corrupt_byte: bytes received since start_s."""
+    next_s: float | None = None
+    """host_stall: when the next stall is due."""
 
 
 @dataclass
@@ -219,12 +223,28 @@ class BoardFaults:
                 delay_s += spec.delay_s if isinstance(spec, LatePolls) \
                     else a.rng.uniform(0.0, spec.max_delay_s)
                 self.log.count(spec.device, spec.kind)
+            elif isinstance(spec, HostStall) and spec.active(t_s):
+                delay_s += self._stalls_due(a, spec, t_s)
         if not delay_s:
             return t_ns
         late_ns = t_ns + round(delay_s * 1e9)
         self.clock.sleep_until(late_ns)
         self.sync()
         return late_ns
+
+    def _stalls_due(self, a: _Active, spec: HostStall, t_s: float) -> float:
+        """host_stall: the stall time (s) due by ``t_s``; one stall per poll at most (a
+        stall that falls due during another starts when the host resumes)."""
+        if a.next_s is None:
+            a.next_s = spec.start_s if spec.every_s is not None else \
+                spec.start_s + a.rng.expovariate(spec.rate_hz or 1.0)
+        if t_s < a.next_s:
+            return 0.0
+        gap = spec.every_s if spec.every_s is not None else \
+            a.rng.expovariate(spec.rate_hz or 1.0)
+        a.next_s = max(a.next_s + gap, t_s + spec.stall_s)
+        self.log.count(spec.device, spec.kind)
+        return spec.stall_s
 
     def physics(self, device: str, t_ns: int, inputs: PhysicalInputs) -> PhysicalInputs:
         """What ``device`` measures at ``t_ns``: the truth, unless a value fault replaces it.

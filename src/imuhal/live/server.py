@@ -126,6 +126,7 @@ class LiveView:
         self._stop = threading.Event()
         self._server: ThreadingHTTPServer | None = None
         self._threads: list[threading.Thread] = []
+        self._delivered: dict[int, int] = {}  # client -> last sequence number written to it
 
     @classmethod
     def for_pipeline(cls, pipeline: Pipeline, **kwargs: Any) -> LiveView:
@@ -173,7 +174,18 @@ class LiveView:
             self._threads.append(thread)
         return self
 
-    def close(self) -> None:
+    def close(self, *, linger_s: float = 2.0) -> None:
+        """Stop serving. After a run that ended (the sink closed), the snapshot saying so,
+        with the run's summary, is published first and every connected page is given up to
+        ``linger_s`` to receive it: the page then shows the end and the summary, not a lost
+        connection."""
+        if self._server is not None and self.sink.closed and not self._stop.is_set():
+            self._publish()
+            with self._cond:
+                final = self._seq
+                self._cond.wait_for(
+                    lambda: all(seq >= final for seq in self._delivered.values()),
+                    timeout=linger_s)
         self._stop.set()
         with self._cond:
             self._cond.notify_all()
@@ -335,6 +347,8 @@ class _LiveHandler(BaseHTTPRequestHandler):
             self.end_headers()
             self.wfile.write(b"retry: 1000\n\n")
             seq = 0
+            with live._cond:
+                live._delivered[id(self)] = seq
             idle = 0.0
             while not live.stopping:
                 got = live.next_message(seq, timeout=1.0)
@@ -347,6 +361,10 @@ class _LiveHandler(BaseHTTPRequestHandler):
                 idle = 0.0
                 seq, message = got
                 self.wfile.write(message)
+                self.wfile.flush()
+                with live._cond:
+                    live._delivered[id(self)] = seq
+                    live._cond.notify_all()
         except TimeoutError:
             # The client stopped reading for client_timeout_s: drop it.
             with live._cond:
@@ -356,3 +374,5 @@ class _LiveHandler(BaseHTTPRequestHandler):
         finally:
             with live._cond:
                 live.clients -= 1
+                live._delivered.pop(id(self), None)
+                live._cond.notify_all()

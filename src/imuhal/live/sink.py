@@ -10,6 +10,7 @@ the state at the display rate, and browsers only ever see those copies.
 from __future__ import annotations
 
 import threading
+import time
 from collections import Counter
 from dataclasses import dataclass, field
 
@@ -45,6 +46,10 @@ class Copy:
     devices: dict[str, DeviceState]
     attitudes: dict[str, AttitudeEstimate]
     verticals: dict[str, VerticalEstimate]
+    first_wall_s: float | None = None
+    """The wall clock (time.monotonic) at the run's first event and at its end: the wall
+    time of the run's summary."""
+    closed_wall_s: float | None = None
 
 
 class LiveSink:
@@ -57,6 +62,8 @@ class LiveSink:
         self._attitudes: dict[str, AttitudeEstimate] = {}
         self._verticals: dict[str, VerticalEstimate] = {}
         self._t_ns: int | None = None
+        self._first_wall_s: float | None = None
+        self._closed_wall_s: float | None = None
         self._events = 0
         self.closed = False
 
@@ -65,8 +72,10 @@ class LiveSink:
         with self._lock:
             self._events += 1
             self._t_ns = event.t_ns
-            if self.closed:
-                self.closed = False  # events after close: the same view watches a new run
+            if self.closed or self._first_wall_s is None:
+                # the first event, or one after close: the same view watches a new run
+                self.closed = False
+                self._first_wall_s = time.monotonic()
             if isinstance(event, Sample):
                 self._sample(event)
             elif isinstance(event, AttitudeEstimate):
@@ -112,8 +121,12 @@ class LiveSink:
                 for name, d in self._devices.items()}
             return Copy(t_ns=self._t_ns, events=self._events,
                         closed=self.closed, devices=devices,
-                        attitudes=dict(self._attitudes), verticals=dict(self._verticals))
+                        attitudes=dict(self._attitudes), verticals=dict(self._verticals),
+                        first_wall_s=self._first_wall_s,
+                        closed_wall_s=self._closed_wall_s)
 
     def close(self) -> None:
         """The run ended (the page says so); the server keeps serving the last state."""
-        self.closed = True
+        with self._lock:
+            self.closed = True
+            self._closed_wall_s = time.monotonic()

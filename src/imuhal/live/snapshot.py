@@ -103,12 +103,27 @@ class Snapshotter:
         self._bringup_state: dict[str, Any] | None = None
         self._last_events = 0
         self._last_change_wall = 0.0
+        self._ended_summary: list[str] | None = None
         if pipeline is not None:
             for name, dev in pipeline.devices.items():
                 drv = dev.driver
                 self._drivers[name] = drv.name
                 self._configured[name] = configured_rates_hz(
                     drv.settings.model_dump(), tuple(drv.channels))
+
+    def _summary(self, copy: Copy) -> list[str] | None:
+        """The run's summary (the lines ``imuhal run`` prints) once it has ended; None while
+        it runs. Taken once per end (the pipeline is idle by then); the wall time is the
+        view's, from the first event to the end."""
+        if not copy.closed or self.pipeline is None:
+            self._ended_summary = None
+            return None
+        if self._ended_summary is None:
+            wall_s = 0.0 if copy.first_wall_s is None or copy.closed_wall_s is None else \
+                copy.closed_wall_s - copy.first_wall_s
+            self._ended_summary = self.pipeline.summary(
+                wall_s=wall_s, simulated_s=self.pipeline.span_s).describe().splitlines()
+        return self._ended_summary
 
     def snapshot(self) -> dict[str, Any]:
         """The state now, as the page receives it (one SSE message, JSON)."""
@@ -137,6 +152,7 @@ class Snapshotter:
                         for name, d in sorted(copy.devices.items())},
             "truth": None,
             "warnings": list(self.pipeline.warnings) if self.pipeline is not None else [],
+            "summary": self._summary(copy),
         }
         truth = self.truth() if self.truth is not None else None
         if truth is not None:

@@ -422,3 +422,44 @@ def plot_trial_errors(results: Sequence[TrialErrors], *, title: str = "") -> Log
         ax.legend(loc="upper left", fontsize="x-small", ncols=min(4, len(labels)))
         ax.grid(True, axis="y", alpha=0.3)
     return LogFigure(figure, axes)
+
+
+def plot_vario_audio(curve: Any, *, dampings_s: Sequence[float] = (0.0, 0.5, 1.5, 4.0),
+                     alarm_m_s: float = -5.0) -> LogFigure:
+    """The vario tones of ``curve`` (a :class:`~imuhal.sinks.flight.audio.VarioAudioSettings`)
+    in three panels: ``pitch`` (Hz against climb m/s: beeps, sink tone, dead band, the sink
+    alarm's pitches drawn below ``alarm_m_s``), ``cadence`` (beep period and on-time, s) and
+    ``damping`` (the climb the tones follow after a step 0 -> 2 m/s, per time constant)."""
+    s = curve
+    figure = _figure_class()(figsize=(13, 4), layout="constrained")
+    ax_pitch, ax_beep, ax_damp = figure.subplots(1, 3)
+    climb = np.linspace(s.climb_threshold_m_s, s.max_climb_m_s + 1, 300)
+    ax_pitch.plot(climb, [s.climb_hz(c) for c in climb], label="beeps")
+    sink = np.linspace(-s.max_climb_m_s - 1, s.sink_threshold_m_s, 200)
+    ax_pitch.plot(sink, [s.sink_tone_hz(c) for c in sink], label="continuous sink tone")
+    ax_pitch.axvspan(s.sink_threshold_m_s, s.climb_threshold_m_s, color="0.9",
+                     label="silent dead band")
+    for hz in s.sink_alarm_hz:
+        ax_pitch.plot([-s.max_climb_m_s - 1, alarm_m_s], [hz, hz], "r:", lw=1)
+    ax_pitch.text(-s.max_climb_m_s - 0.5, max(s.sink_alarm_hz) + 60,
+                  f"sink alarm warble\n(sink_alarm_m_s: {alarm_m_s:g})", color="r",
+                  fontsize=8)
+    ax_pitch.set(xlabel="climb rate (m/s)", ylabel="pitch (Hz)", title="pitch")
+    ax_pitch.legend(fontsize=8, loc="upper left")
+    c = np.linspace(s.climb_threshold_m_s, s.max_climb_m_s, 400)
+    ax_beep.step(c, [s.beep(x)[0] for x in c], where="post", label="period")
+    ax_beep.step(c, [s.beep(x)[1] for x in c], where="post", label="on-time")
+    ax_beep.set(xlabel="climb rate (m/s)", ylabel="s",
+                title=f"beep cadence ({s.tick_s * 1000:g} ms ticks)")
+    ax_beep.legend(fontsize=8)
+    t = np.arange(0, 8, 0.02)
+    for tau in dampings_s:
+        # the first-order step response the audio sink applies, 2 m/s step
+        ax_damp.plot(t, 2.0 * (1 - np.exp(-t / tau)) if tau > 0 else np.full_like(t, 2.0),
+                     label=f"damping_s {tau:g}")
+    ax_damp.axhline(s.climb_threshold_m_s, color="0.5", ls="--", lw=1)
+    ax_damp.text(5.0, s.climb_threshold_m_s + 0.05, "first beep", fontsize=8)
+    ax_damp.set(xlabel="s after a step 0 -> 2 m/s", ylabel="climb the tones follow (m/s)",
+                title="damping")
+    ax_damp.legend(fontsize=8)
+    return LogFigure(figure, {"pitch": ax_pitch, "cadence": ax_beep, "damping": ax_damp})

@@ -32,6 +32,7 @@ from imuhal.drivers.base import DeviceIdentity, Driver
 from imuhal.estimation.base import Estimator
 from imuhal.estimation.framed import FramedEvent, express
 from imuhal.estimation.ordering import fusion_order
+from imuhal.pipeline.accounting import FrameLedger, describe_frames
 from imuhal.pipeline.board import Board, open_hardware_board
 from imuhal.pipeline.bringup import bring_up
 from imuhal.pipeline.processing import calibrate_to_body, validity_flags
@@ -83,6 +84,12 @@ class DeviceRuntime:
     """Per quantity, the time of the last valid sample (samples must not go back)."""
     chip_to_body_rows: list[list[float]] = field(default_factory=list)
     """``chip_to_body`` as nested lists of floats (every sample is rotated with it)."""
+    ledger: FrameLedger | None = None
+    """Frames produced, delivered and lost by cause (None: the driver accounts for none)."""
+    reconfigurations_seen: int = 0
+    """The driver's reconfiguration count the ledger last saw."""
+    fifo_overflows_seen: int = 0
+    """The driver's FIFO overflow count the ledger last saw."""
 
     def __post_init__(self) -> None:
         self.chip_to_body_rows = np.asarray(self.chip_to_body, dtype=float).tolist()
@@ -115,6 +122,12 @@ class RunSummary:
     buses: dict[str, str] = field(default_factory=dict)
     """Buses that chose how to reach their devices when opened, by profile name: how (e.g.
     an SMBus-only I2C adapter read through SMBus transfers)."""
+    frames: dict[str, dict[str, int]] = field(default_factory=dict)
+    """Per accounted device (imuhal.pipeline.accounting): frames produced, delivered and
+    ``lost_<cause>``."""
+    sinks: dict[str, dict[str, int]] = field(default_factory=dict)
+    """Counts of the sinks that keep some (``run_counts()``, e.g. the MQTT sink's sent,
+    queued and dropped messages), by sink name."""
 
     def describe(self) -> str:
         lines = [f"ran {self.simulated_s:.1f} s in {self.wall_s:.2f} s wall time"]
@@ -129,8 +142,13 @@ class RunSummary:
             lines.append(f"  {dev}: {n} samples{extra}" + (f", {errs} bus errors" if errs else "")
                          + (f", {faults} device errors" if faults else "")
                          + (f", driver: {own}" if own else ""))
+            if dev in self.frames:
+                lines.append(f"    frames: {describe_frames(self.frames[dev])}")
         for est, n in self.estimates.items():
             lines.append(f"  {est}: {n} estimates")
+        for name, counts in self.sinks.items():
+            lines.append(f"  {name}: " + ", ".join(f"{k.replace('_', ' ')} {v}"
+                                                  for k, v in counts.items()))
         lines += [f"  warning: {w}" for w in self.warnings]
         return "\n".join(lines)
 
@@ -296,6 +314,10 @@ class Pipeline:
                                                     type(driver).calibration_version)
         dev.full_scale = {ch: driver.full_scale(ch) for ch in type(driver).channels}
         dev.present = True
+        stream = driver.accounted_stream()
+        if stream is not None and dev.ledger is None:
+            dev.ledger = FrameLedger(*stream)
+        dev.reconfigurations_seen = driver.health.reconfigurations
 
     def events(self, duration_s: float | None = None) -> Iterator[Event]:
         """Samples (body frame, flagged ones included) and estimates, in time order.
@@ -353,10 +375,17 @@ class Pipeline:
                 fused = self._fuse(before_ns=t_ns)
                 if fused:
                     yield from fused
+            due_ns = t_ns
             t_ns = self._before_poll(t_ns, name)
-            self._span_ns[1] = t_ns
             dev = self.devices[name]
+            if dev.ledger is not None and \
+                    max(t_ns, self._span_ns[1]) - due_ns > dev.ledger.period_ns // 2:
+                # the host came late (this device's stall, or another's slow poll)
+                dev.ledger.note("host_stall")
+            self._span_ns[1] = max(t_ns, self._span_ns[1])
             samples, next_ns = self._service(dev, t_ns)
+            if dev.ledger is not None:
+                self._account(dev)
             dev.next_poll_ns = max(next_ns, t_ns + 1)
             heapq.heappush(heap, (dev.next_poll_ns, rank, name))
             for raw in samples:
@@ -377,6 +406,8 @@ class Pipeline:
             result = dev.driver.poll(t_ns)
         except BusError:
             dev.bus_errors += 1
+            if dev.ledger is not None:
+                dev.ledger.note("bus_error")
             return [], self._after_bus_error(dev, t_ns)
         except ImuhalError as exc:
             # A driver that found its chip gone or misconfigured mid-run: the device is
@@ -406,6 +437,21 @@ class Pipeline:
                 return next_ns
         dev.resumed = False
         return self._recover(dev, t_ns)
+
+    def _account(self, dev: DeviceRuntime) -> None:
+        """A reconfiguration of the chip since the ledger last looked costs frames ("reset");
+        the frame period follows the configuration."""
+        assert dev.ledger is not None
+        driver = dev.driver
+        if driver.health.fifo_overflows != dev.fifo_overflows_seen:
+            dev.fifo_overflows_seen = driver.health.fifo_overflows
+            dev.ledger.note("fifo_overflow")
+        if driver.health.reconfigurations != dev.reconfigurations_seen:
+            dev.reconfigurations_seen = driver.health.reconfigurations
+            dev.ledger.note("reset")
+            stream = driver.accounted_stream()
+            if stream is not None:
+                dev.ledger.channel, dev.ledger.period_ns = stream
 
     def _look_for(self, dev: DeviceRuntime, t_ns: int) -> int:
         """An optional device that was not found: probe it once more."""
@@ -463,6 +509,8 @@ class Pipeline:
             self._count_flags(dev, sample)
         else:
             dev.last_valid_ns[channel] = sample.t_ns
+        if dev.ledger is not None:
+            dev.ledger.observe(sample)
         if not self.calibrated:
             return sample
         # Flagged samples are only rotated, not calibrated.
@@ -551,6 +599,7 @@ class Pipeline:
         """
         wall0 = time.perf_counter()
         failed = True
+        sink_counts: dict[str, dict[str, int]] = {}
         try:
             for event in self.events(duration_s):
                 for sink in sinks:
@@ -563,10 +612,21 @@ class Pipeline:
             for sink in sinks:
                 abort = getattr(sink, "abort", None) if failed else None
                 (abort or sink.close)()
+                counts = getattr(sink, "run_counts", None)
+                if counts is not None:  # read after closing: a sink may finish sending there
+                    sink_counts[getattr(sink, "name", "") or type(sink).__name__] = counts()
         # The span comes from the poll loop, not from reading the clock here: a run and an
         # events() loop then read the clock alike, so either replays a recording of the other.
+        summary = self.summary(wall_s=time.perf_counter() - wall0, simulated_s=self.span_s)
+        summary.sinks = sink_counts
+        return summary
+
+    @property
+    def span_s(self) -> float:
+        """Seconds (simulated, or real on hardware) the latest run or events() loop has
+        covered so far, from its first poll to its latest."""
         first, last = self._span_ns
-        return self.summary(wall_s=time.perf_counter() - wall0, simulated_s=(last - first) / 1e9)
+        return (last - first) / 1e9
 
     def summary(self, *, wall_s: float = 0.0, simulated_s: float = 0.0) -> RunSummary:
         return RunSummary(
@@ -580,6 +640,8 @@ class Pipeline:
             warnings=list(self.warnings),
             driver={n: d.driver.health.counts() for n, d in self.devices.items()},
             buses=dict(self._bus_modes),
+            frames={n: d.ledger.counts() for n, d in self.devices.items()
+                    if d.ledger is not None},
         )
 
     def close(self) -> None:

@@ -148,6 +148,28 @@ class TimingJitter(_Fault):
     max_delay_s: float = Field(gt=0.0, le=10.0, allow_inf_nan=False)
 
 
+class HostStall(_Fault):
+    """The host process pauses for ``stall_s`` (a garbage-collector pause, an SD-card write,
+    a loaded Raspberry Pi) just before a poll of the device, ``every_s`` apart from
+    ``start_s`` (a schedule) or at random at ``rate_hz`` on average (a Poisson process),
+    within the window. The one clock moves, so every device waits: what the chips produce
+    meanwhile is what their buffering can keep (issue 25 item 6)."""
+
+    kind: Literal["host_stall"] = "host_stall"
+    stall_s: float = Field(gt=0.0, le=10.0, allow_inf_nan=False)
+    every_s: float | None = Field(default=None, gt=0.0, allow_inf_nan=False)
+    """A stall every ``every_s`` seconds, the first at ``start_s``."""
+    rate_hz: float | None = Field(default=None, gt=0.0, le=100.0, allow_inf_nan=False)
+    """Stalls at random, ``rate_hz`` a second on average (seeded by the run's seed)."""
+
+    @model_validator(mode="after")
+    def _one_timing(self) -> HostStall:
+        if (self.every_s is None) == (self.rate_hz is None):
+            raise ValueError("host_stall needs exactly one of every_s (a schedule) or "
+                             "rate_hz (at random)")
+        return self
+
+
 class WildValue(_Fault):
     """The chip measures ``value`` (SI, sensor frame) on ``axis`` of ``channel`` instead of
     the truth, from the device's first poll at or after ``start_s`` for ``hold_s`` (one
@@ -181,15 +203,16 @@ class WrongPressure(_Fault):
 
 FaultSpec = Annotated[
     BusErrors | BusOSError | AllOnes | AllZeros | CorruptByte | ChipAbsent | ChipReset
-    | StuckDataReady | FrozenData | CorruptTrim | LatePolls | TimingJitter | WildValue
-    | WrongPressure,
+    | StuckDataReady | FrozenData | CorruptTrim | LatePolls | TimingJitter | HostStall
+    | WildValue | WrongPressure,
     Field(discriminator="kind"),
 ]
 """One fault of any kind, chosen by its ``kind`` key."""
 
 FAULT_KINDS: tuple[type[_Fault], ...] = (
     BusErrors, BusOSError, AllOnes, AllZeros, CorruptByte, ChipAbsent, ChipReset,
-    StuckDataReady, FrozenData, CorruptTrim, LatePolls, TimingJitter, WildValue, WrongPressure)
+    StuckDataReady, FrozenData, CorruptTrim, LatePolls, TimingJitter, HostStall, WildValue,
+    WrongPressure)
 
 CHIP_FAULT_KINDS = frozenset({"reset", "stuck_data_ready", "frozen", "corrupt_trim"})
 """Kinds the chip emulator itself must model (ChipEmulator.chip_faults says which it does)."""

@@ -430,6 +430,14 @@ def _check_plugins(data: dict[str, Any], doc: LocatedDocument, registry: Registr
         settings = est.get("settings", {})
         if isinstance(settings, dict):
             out += _validate(reg_e.obj.Settings, settings, doc, (*path, "settings"))
+    for name, settings in _mapping(data.get("outputs")).items():
+        reg_s = registry.sinks.entries.get(name)
+        if reg_s is None:
+            p_out: Path = ("outputs", name)
+            out.append(f"{doc.where(p_out)}: {dotted(p_out)}: no sink named {name!r} is "
+                       f"installed; installed: {', '.join(registry.sinks.names()) or 'none'}")
+        elif isinstance(settings, dict):
+            out += _validate(reg_s.obj.Settings, settings, doc, ("outputs", name))
     scenario = _text(_mapping(data.get("emulation")).get("scenario", "thermal"))
     if registry.scenarios.entries and scenario is not None and \
             scenario not in registry.scenarios.entries:

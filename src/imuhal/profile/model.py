@@ -13,10 +13,13 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from imuhal.calibration.model import DeviceCalibration
-from imuhal.core.conventions import UnknownConvention, get_convention
+from imuhal.core.conventions import convention_name
 from imuhal.core.frames import MountError, parse_mount
 from imuhal.profile.faults import FaultSpec
 from imuhal.sinks.flight.audio import VarioAudioSettings
+from imuhal.sinks.flight.igc import IgcLogSettings
+from imuhal.sinks.mavlink.settings import MavlinkSettings
+from imuhal.sinks.ros.settings import RosSettings
 
 SCHEMA_VERSION = 1
 MountSpec = str | list[list[float]]
@@ -98,6 +101,19 @@ class BoardProfile(_Strict):
     emulation: EmulationConfig = Field(default_factory=EmulationConfig)
     audio: VarioAudioSettings = Field(default_factory=VarioAudioSettings)
     """The vario audio curve (``imuhal run --audio``; docs/flight-instrument.md)."""
+    igc: IgcLogSettings = Field(default_factory=IgcLogSettings)
+    """Pilot, glider and fix interval of the IGC log (``imuhal run --igc``)."""
+    ros: RosSettings = Field(default_factory=RosSettings)
+    """Frame id and sensor noise of the ROS 2 messages (``imuhal run --mcap``;
+    docs/outputs.md)."""
+    mavlink: MavlinkSettings = Field(default_factory=MavlinkSettings)
+    """System and component id and message rates of ``imuhal run --mavlink``
+    (docs/outputs.md)."""
+
+    outputs: dict[str, dict[str, Any]] = Field(default_factory=dict)
+    """Settings of the run's sinks by sink name (``mqtt: {board: glider-7, decimate: ...}``),
+    each checked by that sink's own Settings; ``--sink-set NAME.KEY=VALUE`` overrides them.
+    The sink itself is switched on by its command-line option (``--mqtt URL``, ``--sink``)."""
 
     output_frame: str = "ned"
     """Convention of what the run hands out: its CSV and console sinks and
@@ -105,11 +121,4 @@ class BoardProfile(_Strict):
     docs/units-and-frames.md). Estimators always work in ned; this converts at the edge."""
 
     _mount = field_validator("board_to_body")(_valid_mount)
-
-    @field_validator("output_frame")
-    @classmethod
-    def _known_frame(cls, value: str) -> str:
-        try:
-            return get_convention(value).name
-        except UnknownConvention as exc:
-            raise ValueError(str(exc)) from None
+    _frame = field_validator("output_frame")(convention_name)

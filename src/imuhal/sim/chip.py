@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import random
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from array import array
+from bisect import bisect_right
+from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any, ClassVar
 
 from pydantic import ValidationError
@@ -58,6 +60,10 @@ class ChipEmulator(ABC):
     #: Opt-in to imuhal's generic conformance sweep, which checks the pair against an
     #: independent table in imuhal's own test data; a third-party emulator leaves it False.
     conformance_sweep: ClassVar[bool] = False
+    #: True for an emulator with a clock of its own (issue 25 item 1): it measures at its
+    #: own instants and pulls its inputs at each (``pull_physics``), so an emulated board
+    #: does not push them at the host's polls.
+    pulls_physics: ClassVar[bool] = False
     #: The shortest output period (s) the chip can be configured to: the floor under the
     #: host's poll interval when :meth:`noise_period_s` does not know the chip's own period.
     #: A subclass states its chip's; 1/8 kHz is the fastest common MEMS output rate.
@@ -84,6 +90,32 @@ class ChipEmulator(ABC):
         self.host_baudrate = 0
         """Serial chips: the line speed the host's UART is set to (0: not a UART)."""
         self.physics = PhysicalInputs()
+        self.physics_source: Callable[[int], None] | None = None
+        """Set by an emulated board for a ``pulls_physics`` emulator: hands the chip its
+        inputs at a given instant (ns) through ``set_physics``."""
+        self.measured_ns = array("q")
+        """The instants (ns, ascending) at which the chip completed a measurement of the
+        stream its driver accounts for, recorded by emulators that model it (issue 25
+        item 5: the exact count behind ``frames_between``)."""
+
+    def pull_physics(self, t_ns: int) -> None:
+        """A measurement happens at ``t_ns`` (never before the previous one): take the
+        inputs of that instant, when a board provides them (a bare emulator keeps what
+        ``set_physics`` gave it)."""
+        if self.physics_source is not None:
+            self.physics_source(t_ns)
+
+    def record_measurements(self, first_ns: int, period_ns: int, count: int) -> None:
+        """``count`` measurements completed at ``first_ns``, ``first_ns + period_ns``, ..."""
+        self.measured_ns.extend(first_ns + k * period_ns for k in range(count))
+
+    def frames_between(self, first_stamp_ns: int, last_stamp_ns: int) -> int:
+        """Measurements from the one a sample stamped ``first_stamp_ns`` carries (the latest
+        completed by then) to the one a sample stamped ``last_stamp_ns`` carries, both
+        included: what the chip produced over a span of delivered samples."""
+        first = bisect_right(self.measured_ns, first_stamp_ns)
+        last = bisect_right(self.measured_ns, last_stamp_ns)
+        return last - first + 1 if first else last
 
     @abstractmethod
     def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes:

@@ -21,7 +21,8 @@ class Sink(Protocol):
     ends or is stopped (a file sink commits its output there). When the run fails,
     ``Pipeline.run`` calls the sink's ``abort()`` instead if it has one (a file sink then keeps
     the previous file; :class:`~imuhal.sinks.builtin.CsvSink` keeps its rows beside it), else
-    ``close``."""
+    ``close``. A sink with a ``run_counts() -> dict[str, int]`` method has those counts in the
+    run summary (read after closing)."""
 
     def handle(self, event: Event) -> None: ...
 

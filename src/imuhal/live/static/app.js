@@ -57,6 +57,9 @@ function choose(select, names, current) {
 function receive(msg) {
   last = msg;
   S.seq = msg.seq; S.t_s = msg.t_s; S.ended = msg.ended; S.warnings = msg.warnings;
+  // The run's end: its summary stays on the page after the server has gone.
+  $("summary-card").hidden = !(msg.ended && msg.summary);
+  $("summary").textContent = msg.summary ? msg.summary.join("\n") : "";
   const board = msg.board || {};
   $("board").textContent = (board.profile || "pipeline") +
     (board.scenario ? " \u2014 emulated, scenario " + board.scenario : "");

@@ -1,7 +1,8 @@
 """Encoders of the sentences flight apps read. Pure functions: values in SI, text out.
 
 Each format's units are the ones its reader expects (docs/flight-instrument.md cites the
-parsers): LK8EX1 pressure in Pa, vario in cm/s; POV pressure in hPa, vario in m/s; _PRS
+parsers): LK8EX1 pressure in Pa, vario in cm/s; POV pressure in hPa, vario in m/s; LXWP0
+pressure altitude in m, vario in m/s, speeds in km/h; _PRS
 pressure in Pa as hexadecimal; XCTRC raw pressure in hPa, speed in m/s (as XCSoar reads it);
 GGA/RMC the NMEA 0183 units (ddmm.mmmm, knots, metres).
 """
@@ -51,20 +52,44 @@ def lk8ex1(*, pressure_pa: float | None, altitude_m: float | None, climb_m_s: fl
     return sentence(f"LK8EX1,{p},{a},{v},{t},{b},")
 
 
-def pov(*, pressure_pa: float | None = None, climb_m_s: float | None = None,
-        temperature_degc: float | None = None, battery_v: float | None = None) -> str:
-    """OpenVario ``$POV,P,hPa,E,m/s,T,degC,V,volts*CS``: key-value pairs, absent ones
-    left out."""
+def pov(*, pressure_pa: float | None = None, temperature_degc: float | None = None,
+        battery_v: float | None = None, true_airspeed_m_s: float | None = None,
+        te_vario_m_s: float | None = None) -> str:
+    """OpenVario ``$POV,P,hPa,S,km/h,E,m/s,T,degC,V,volts*CS``: key-value pairs, absent
+    ones left out. ``E`` is the total-energy vario: only sent with the true airspeed it is
+    compensated with (``S``); without one XCSoar computes its own vario from ``P``, which a
+    plain climb rate labelled total energy would override."""
     parts = ["POV"]
     if pressure_pa is not None:
         parts += ["P", f"{pressure_pa / 100.0:.2f}"]
-    if climb_m_s is not None:
-        parts += ["E", f"{climb_m_s:.2f}"]
+    if true_airspeed_m_s is not None:
+        parts += ["S", f"{true_airspeed_m_s * 3.6:.1f}"]
+        if te_vario_m_s is not None:
+            parts += ["E", f"{te_vario_m_s:.2f}"]
     if temperature_degc is not None:
         parts += ["T", f"{temperature_degc:.2f}"]
     if battery_v is not None:
         parts += ["V", f"{battery_v:.2f}"]
     return sentence(",".join(parts))
+
+
+def lxwp0(*, logger_recording: bool = False, true_airspeed_m_s: float | None = None,
+          pressure_altitude_m: float | None = None, climb_m_s: float | None = None,
+          heading_deg: float | None = None, wind_from_deg: float | None = None,
+          wind_speed_m_s: float | None = None) -> str:
+    """LX ``$LXWP0,logger,TAS,altitude,vario,,,,,,heading,wind direction,wind speed*CS``
+    as XCSoar's LX parser (Driver/LX/Parser.cpp) reads it: logger recording Y/N, true
+    airspeed km/h, pressure altitude m above the 1013.25 hPa datum, vario m/s, five more
+    vario slots (an LX fills them with the rest of the second's samples; left empty: each
+    sentence carries one fresh value, XCSoar reads only the first), heading deg, the
+    direction the wind blows from deg, wind speed km/h. Absent values are empty fields."""
+    fields = ["Y" if logger_recording else "N",
+              _fmt(None if true_airspeed_m_s is None else true_airspeed_m_s * 3.6, ".1f"),
+              _fmt(pressure_altitude_m, ".1f"), _fmt(climb_m_s, ".2f"), "", "", "", "", "",
+              _fmt(None if heading_deg is None else heading_deg % 360.0, ".0f"),
+              _fmt(None if wind_from_deg is None else wind_from_deg % 360.0, ".0f"),
+              _fmt(None if wind_speed_m_s is None else wind_speed_m_s * 3.6, ".1f")]
+    return sentence("LXWP0," + ",".join(fields))
 
 
 def prs(pressure_pa: float) -> str:

@@ -1,4 +1,5 @@
-"""The flight-app sink: the run's estimates as LK8EX1, POV, _PRS, XCTRC, GGA and RMC.
+"""The flight-app sink: the run's estimates as LK8EX1, LXWP0, POV, _PRS, XCTRC, GGA
+and RMC.
 
 Values come from the latest events of their kind: static pressure and the barometer's
 temperature (valid samples of the device that gives pressure), altitude and climb rate from
@@ -16,6 +17,7 @@ from typing import Any, ClassVar
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from imuhal.core.atmosphere import altitude_m_from_pressure
 from imuhal.core.errors import ImuhalError
 from imuhal.core.samples import (
     FixType,
@@ -30,7 +32,7 @@ from imuhal.sinks.base import Event, SinkPlugin
 from imuhal.sinks.flight import sentences as fmt
 from imuhal.sinks.flight.transports import Transport, open_transport
 
-SENTENCES = ("LK8EX1", "POV", "PRS", "XCTRC", "GGA", "RMC")
+SENTENCES = ("LK8EX1", "LXWP0", "POV", "PRS", "XCTRC", "GGA", "RMC")
 
 
 class FlightOutputSettings(BaseModel):
@@ -42,6 +44,8 @@ class FlightOutputSettings(BaseModel):
     """serial:PORT@BAUD, pty, pty:LINK, tcp:PORT or tcp:HOST:PORT (transports.py)."""
     sentences: tuple[str, ...] = SENTENCES
     lk8ex1_hz: float = Field(10.0, ge=0)
+    lxwp0_hz: float = Field(10.0, ge=0)
+    """10 Hz with one fresh vario value each (an LX sends 1 Hz with six: up to 1 s stale)."""
     pov_hz: float = Field(10.0, ge=0)
     prs_hz: float = Field(1 / 0.048, ge=0)
     """FlyNet sends _PRS every 48 ms (XCSoar's FlyNet driver assumes that rate)."""
@@ -59,7 +63,7 @@ class FlightSink(SinkPlugin):
     ``counts`` says how many of each went out."""
 
     name: ClassVar[str] = "nmea"
-    description: ClassVar[str] = ("LK8EX1, POV, _PRS, XCTRC, GGA, RMC to a flight app over "
+    description: ClassVar[str] = ("LK8EX1, LXWP0, POV, _PRS, XCTRC, GGA, RMC to a flight app over "
                                   "serial, a pty or TCP")
     Settings = FlightOutputSettings
 
@@ -74,6 +78,7 @@ class FlightSink(SinkPlugin):
         self.transport = transport if transport is not None else \
             open_transport(self.settings.output)
         self.counts = dict.fromkeys(SENTENCES, 0)
+        self._set_pressure = getattr(self.transport, "set_pressure_pa", None)
         self._last_ns: dict[str, int] = {}
         self._pressure: PressureSample | None = None
         self._temperature: float | None = None
@@ -88,6 +93,8 @@ class FlightSink(SinkPlugin):
             if isinstance(event, PressureSample):
                 self._pressure = event
                 self._maybe("PRS", event.t_ns)
+                if self._set_pressure is not None:  # a BLE transport's ESS characteristic
+                    self._set_pressure(event.pressure_pa, event.t_ns)
             elif isinstance(event, TemperatureSample):
                 if self._pressure is not None and event.device == self._pressure.device:
                     self._temperature = event.temperature_degc
@@ -105,12 +112,12 @@ class FlightSink(SinkPlugin):
             if event.source != self.settings.source:
                 return
             self._vertical = event
-            for name in ("LK8EX1", "POV", "XCTRC"):
+            for name in ("LK8EX1", "LXWP0", "POV", "XCTRC"):
                 self._maybe(name, event.t_ns)
 
     def _rate(self, name: str) -> float:
         s = self.settings
-        return {"LK8EX1": s.lk8ex1_hz, "POV": s.pov_hz, "PRS": s.prs_hz,
+        return {"LK8EX1": s.lk8ex1_hz, "LXWP0": s.lxwp0_hz, "POV": s.pov_hz, "PRS": s.prs_hz,
                 "XCTRC": s.xctrc_hz, "GGA": s.gps_hz, "RMC": s.gps_hz}[name]
 
     def _maybe(self, name: str, t_ns: int) -> None:
@@ -140,11 +147,18 @@ class FlightSink(SinkPlugin):
             return fmt.lk8ex1(pressure_pa=p, altitude_m=v.altitude_m, climb_m_s=v.climb_m_s,
                               temperature_degc=self._temperature, battery_v=s.battery_v,
                               battery_percent=s.battery_percent)
+        if name == "LXWP0":
+            if v is None:
+                return None
+            return fmt.lxwp0(
+                pressure_altitude_m=altitude_m_from_pressure(p) if p is not None else None,
+                climb_m_s=v.climb_m_s)
         if name == "POV":
             if v is None:
                 return None
-            return fmt.pov(pressure_pa=p, climb_m_s=v.climb_m_s,
-                           temperature_degc=self._temperature, battery_v=s.battery_v)
+            # No airspeed source: no total energy (E), so XCSoar derives its vario from P.
+            return fmt.pov(pressure_pa=p, temperature_degc=self._temperature,
+                           battery_v=s.battery_v)
         pos = self._position
         if name == "XCTRC":
             if v is None:

@@ -6,7 +6,8 @@ line with nobody listening would lose it.
 
 ``open_transport(spec)`` reads the CLI's form: ``serial:PORT@BAUD``, ``pty`` or
 ``pty:LINK`` (a symlink to the pty's slave at LINK, so the flight app's setting survives
-restarts), ``tcp:PORT`` (loopback) or ``tcp:HOST:PORT``.
+restarts), ``tcp:PORT`` (loopback), ``tcp:HOST:PORT``, or ``ble`` / ``ble:NAME`` (a Bluetooth
+LE peripheral, imuhal.sinks.flight.ble).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from typing import Protocol
 
 from imuhal.core.errors import ImuhalError
 
-TRANSPORT_FORMS = "serial:PORT@BAUD, pty, pty:LINK, tcp:PORT or tcp:HOST:PORT"
+TRANSPORT_FORMS = "serial:PORT@BAUD, pty, pty:LINK, tcp:PORT, tcp:HOST:PORT, ble or ble:NAME"
 
 
 class Transport(Protocol):
@@ -189,6 +190,10 @@ def open_transport(spec: str) -> Transport:
             raise ImuhalError(f"--nmea {spec}: the port must be a number 0-65535 "
                               f"(forms: {TRANSPORT_FORMS})")
         return TcpTransport(port, host or "127.0.0.1")
+    if kind == "ble":
+        from imuhal.sinks.flight.ble import BlessPeripheral, BleTransport
+
+        return BleTransport(BlessPeripheral(rest or "imuhal vario"))
     if kind == "serial" and rest:
         port_path, at, baud_text = rest.rpartition("@")
         if not at or not port_path or not baud_text.isdigit():

@@ -1,0 +1,137 @@
+"""Every frame accounted for: per device, frames produced, delivered and lost by cause
+(issue 25 item 5).
+
+A driver that knows its chip's output period names the stream it accounts for
+(``Driver.accounted_stream``: a channel and the chip's frame period). The pipeline hands its
+ledger every sample of that channel and every event that can cost a frame; the ledger counts
+the frames the chip produced from its timing: two valid frames delivered ``gap`` apart span
+``round(gap / period)`` frame periods, so ``round(gap / period) - 1`` frames between them were
+produced and not delivered. Those are lost, and charged to the weightiest cause seen since
+the previous valid frame:
+
+``host_stall`` a poll of the device came more than half a frame period after it was due
+               (the host was busy: a stalled process, another device's slow poll);
+``reset``      the driver reprogrammed its chip (a recovery after bus errors, a detected
+               silent reset, a restart of a stuck or frozen chip);
+``bus_error``  a transfer failed (the driver resumed without a reset);
+``stale``      the driver flagged a sample STALE (no new data for too long);
+``flagged``    a produced frame came out flagged (FROZEN, BLANK, out of range...);
+``missed``     none of these: the poll grid missed a frame (a chip clock faster than its
+               nominal period, a poll that came just too late), counted, never hidden.
+
+A reconfiguration restarts the chip's stream with a new phase, so it ends a *segment*: the
+slots of the configured period between the last valid frame before it and the first one after
+are counted lost (``reset``) although the chip, being reset, produced no frames of the stream
+in part of that time. Within a segment the count is the chip's: in emulation the chip's own
+record of its measurement instants over each segment's span equals the segment's count
+(tests/integration/test_frame_accounting.py), so a wrong period, a grid that repeats or skips
+frames unseen, or a cause that goes uncounted fails there. ``delivered + sum(lost) ==
+produced`` holds by construction. ``fifo_overflow``: a FIFO reader (the MPU-9250's ``read:
+fifo``) found its chip's FIFO overflowed or corrupt and reset it (``DeviceHealth.
+fifo_overflows``); it comes first, since a FIFO rides out the other causes.
+
+Limit: time stamps are the host's poll times, up to a period after the measurement. A gap
+is counted right while the two polls at its ends lie at about the same phase to the chip
+(within half a period); random host delays of half a period or more can shift it by one and
+hide a frame the poll skipped (a poll that reads frame k + 2 one period after frame k).
+Frame times from the chip (issue 25 item 4) remove this limit.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass, field
+
+from imuhal.core.samples import Channel, Sample, SampleFlag
+
+CAUSES: tuple[str, ...] = ("fifo_overflow", "host_stall", "reset", "bus_error", "stale",
+                           "flagged", "missed")
+"""Loss causes, weightiest first: a gap is charged to the first one seen in it."""
+
+
+@dataclass
+class FrameLedger:
+    """The frame count of one device's accounted stream."""
+
+    channel: Channel
+    period_ns: int
+    delivered: int = 0
+    lost: Counter[str] = field(default_factory=Counter)
+    first_ns: int | None = None
+    """Time stamp of the first valid frame (the counted span starts there)."""
+    last_ns: int | None = None
+    """Time stamp of the latest valid frame."""
+    segments: list[tuple[int, int, int]] = field(default_factory=list)
+    """Closed segments (first and last valid frame's time stamp, frames produced from the
+    first to the last), one per stretch between reconfigurations."""
+    _seen: set[str] = field(default_factory=set)
+    """Causes seen since the latest valid frame."""
+    _segment_first_ns: int | None = None
+    _segment_produced: int = 0
+
+    def __post_init__(self) -> None:
+        if self.period_ns <= 0:
+            raise ValueError(f"frame period must be positive, got {self.period_ns} ns")
+
+    @property
+    def produced(self) -> int:
+        """Frames the chip produced from the first valid frame to the latest one."""
+        return self.delivered + sum(self.lost.values())
+
+    def note(self, cause: str) -> None:
+        """Something that can cost frames happened (one of CAUSES); ``reset`` also ends the
+        current segment."""
+        if cause not in CAUSES:
+            raise ValueError(f"unknown loss cause {cause!r}; one of {', '.join(CAUSES)}")
+        self._seen.add(cause)
+        if cause == "reset" and self._segment_first_ns is not None:
+            assert self.last_ns is not None
+            self.segments.append((self._segment_first_ns, self.last_ns, self._segment_produced))
+            self._segment_first_ns = None
+
+    def all_segments(self) -> list[tuple[int, int, int]]:
+        """The closed segments and the open one."""
+        if self._segment_first_ns is None or self.last_ns is None:
+            return list(self.segments)
+        return [*self.segments, (self._segment_first_ns, self.last_ns, self._segment_produced)]
+
+    def observe(self, sample: Sample) -> None:
+        """A sample of the device as the pipeline hands it out (flags final)."""
+        if sample.channel is not self.channel:
+            return
+        if not sample.valid:
+            self.note("stale" if sample.flags & SampleFlag.STALE else "flagged")
+            return
+        if self.last_ns is not None:
+            periods = round((sample.t_ns - self.last_ns) / self.period_ns)
+            if periods > 1:
+                cause = next((c for c in CAUSES if c in self._seen), "missed")
+                self.lost[cause] += periods - 1
+                if self._segment_first_ns is not None:
+                    self._segment_produced += periods - 1
+        else:
+            self.first_ns = sample.t_ns
+        if self._segment_first_ns is None:
+            self._segment_first_ns = sample.t_ns
+            self._segment_produced = 0
+        self._segment_produced += 1
+        self.delivered += 1
+        self.last_ns = sample.t_ns
+        self._seen.clear()
+
+    def counts(self) -> dict[str, int]:
+        """produced, delivered and ``lost_<cause>`` for every cause (zeros included)."""
+        return {"produced": self.produced, "delivered": self.delivered,
+                **{f"lost_{c}": self.lost[c] for c in CAUSES}}
+
+
+def describe_frames(counts: dict[str, int]) -> str:
+    """One line of a run summary: ``produced 1000, delivered 990, lost 10 (bus error 6,
+    reset 4)``."""
+    lost = {k.removeprefix("lost_"): v for k, v in counts.items()
+            if k.startswith("lost_") and v}
+    text = f"produced {counts['produced']}, delivered {counts['delivered']}"
+    if lost:
+        text += f", lost {sum(lost.values())} (" + ", ".join(
+            f"{k.replace('_', ' ')} {v}" for k, v in lost.items()) + ")"
+    return text

@@ -1,0 +1,83 @@
+"""FrameLedger: frames counted from the chip's period, losses charged to their cause."""
+
+from __future__ import annotations
+
+import pytest
+
+from imuhal.core.samples import Channel, GyroSample, MagSample, SampleFlag
+from imuhal.pipeline.accounting import FrameLedger, describe_frames
+
+P = 5_000_000  # 200 Hz
+
+
+def gyro(t_ns: int, flags: SampleFlag = SampleFlag.OK) -> GyroSample:
+    return GyroSample(t_ns=t_ns, device="imu", flags=flags, gyro_rad_s=(0.0, 0.0, 0.0))
+
+
+def test_frames_a_period_apart_lose_nothing() -> None:
+    ledger = FrameLedger(Channel.GYRO, P)
+    for k in range(10):
+        ledger.observe(gyro(1_000_000 + k * P + (k % 3) * 100_000))  # poll jitter < P/2
+    assert (ledger.produced, ledger.delivered, sum(ledger.lost.values())) == (10, 10, 0)
+
+
+def test_a_gap_of_four_periods_is_three_lost_frames_charged_to_the_cause_seen() -> None:
+    ledger = FrameLedger(Channel.GYRO, P)
+    ledger.observe(gyro(0))
+    ledger.note("bus_error")
+    ledger.observe(gyro(4 * P))
+    assert dict(ledger.lost) == {"bus_error": 3}
+    assert ledger.produced == 5
+
+
+def test_the_weightiest_cause_takes_the_gap_and_causes_clear_after_a_frame() -> None:
+    ledger = FrameLedger(Channel.GYRO, P)
+    ledger.observe(gyro(0))
+    ledger.note("bus_error")
+    ledger.note("host_stall")
+    ledger.observe(gyro(3 * P))
+    ledger.observe(gyro(6 * P))  # nothing seen in between: the grid missed them
+    assert dict(ledger.lost) == {"host_stall": 2, "missed": 2}
+
+
+def test_flagged_frames_of_the_stream_name_their_cause() -> None:
+    ledger = FrameLedger(Channel.GYRO, P)
+    ledger.observe(gyro(0))
+    ledger.observe(gyro(P, SampleFlag.FROZEN))
+    ledger.observe(gyro(2 * P))
+    ledger.observe(gyro(3 * P, SampleFlag.STALE))
+    ledger.observe(gyro(4 * P))
+    assert dict(ledger.lost) == {"flagged": 1, "stale": 1}
+    assert ledger.delivered == 3
+
+
+def test_other_channels_do_not_count() -> None:
+    ledger = FrameLedger(Channel.GYRO, P)
+    ledger.observe(MagSample(t_ns=0, device="imu", mag_ut=(1.0, 0.0, 0.0)))
+    assert ledger.produced == 0 and ledger.first_ns is None
+
+
+def test_a_reset_closes_a_segment_and_its_gap_is_lost_to_the_reset() -> None:
+    ledger = FrameLedger(Channel.GYRO, P)
+    ledger.observe(gyro(0))
+    ledger.observe(gyro(P))
+    ledger.note("reset")
+    ledger.observe(gyro(30 * P + 1_000_000))
+    ledger.observe(gyro(31 * P + 1_000_000))
+    assert ledger.all_segments() == [(0, P, 2), (30 * P + 1_000_000, 31 * P + 1_000_000, 2)]
+    assert dict(ledger.lost) == {"reset": 28}  # 29.2 periods from P to 30 P + 1 ms
+    assert ledger.produced == 32
+
+
+def test_an_unknown_cause_is_refused() -> None:
+    with pytest.raises(ValueError, match="unknown loss cause 'gremlins'"):
+        FrameLedger(Channel.GYRO, P).note("gremlins")
+
+
+def test_the_summary_line_names_each_cause() -> None:
+    ledger = FrameLedger(Channel.GYRO, P)
+    ledger.observe(gyro(0))
+    ledger.note("host_stall")
+    ledger.observe(gyro(3 * P))
+    assert describe_frames(ledger.counts()) == \
+        "produced 4, delivered 2, lost 2 (host stall 2)"
