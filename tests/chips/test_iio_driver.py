@@ -275,3 +275,43 @@ def test_a_late_poll_does_not_shift_the_kernels_sample_times(tmp_path: Path) -> 
     device.push(*(scan | {"in_timestamp": 7_000_000_000 + k * 5_000_000} for k in (1, 2)))
     times = sorted({s.t_ns for s in driver.poll(first + 30_000_000).samples})
     assert times == [first + 5_000_000, first + 10_000_000]
+
+
+def _accel_scans(numbers: list[int], t0_ns: int = 5_000_000_000,
+                 period_ns: int = 5_000_000) -> list[dict[str, float]]:
+    return [{"in_accel_x": n, "in_accel_y": 0, "in_accel_z": 0, "in_temp": 0,
+             "in_anglvel_x": 0, "in_anglvel_y": 0, "in_anglvel_z": 0,
+             "in_timestamp": t0_ns + n * period_ns} for n in numbers]
+
+
+def _buffered_mpu(tmp_path: Path, buffer_length: int) -> tuple[FakeIIODevice, IIODriver, int]:
+    """The fake MPU with its buffer length set through the driver; the first poll time."""
+    device = _mpu(tmp_path / "sys", tmp_path / "dev")
+    clock = SimulatedClock(1_000_000_000)
+    driver = _driver(LinuxIIOBus(tmp_path / "sys", tmp_path / "dev"), clock, name="mpu9250",
+                     buffer_length=buffer_length)
+    return device, driver, driver.start(clock.now_ns())
+
+
+def test_scans_a_full_kernel_buffer_dropped_are_counted_from_the_time_stamps(
+        tmp_path: Path) -> None:
+    device, driver, now = _buffered_mpu(tmp_path, 4)
+    assert device.read("buffer/length") == "4"
+    device.push(*_accel_scans([0, 1, 2, 3]))  # full: scans 4..9 are dropped by the kernel
+    assert len(driver.poll(now).samples) == 4 * 3
+    device.push(*_accel_scans([10, 11]))
+    driver.poll(now + 20_000_000)
+    assert (driver.health.buffer_overflows, driver.health.scans_lost) == (1, 6)
+    assert driver.health.counts()["scans_lost"] == 6
+
+
+def test_late_scans_in_a_buffer_that_never_fills_are_not_counted_as_lost(
+        tmp_path: Path) -> None:
+    device, driver, now = _buffered_mpu(tmp_path, 8)
+    scans = _accel_scans([0, 1, 2])
+    scans[2]["in_timestamp"] += 9_000_000  # a scan 2.8 periods after the previous one
+    device.push(*scans)
+    driver.poll(now)
+    device.push(*_accel_scans([4, 5]))
+    driver.poll(now + 20_000_000)
+    assert (driver.health.buffer_overflows, driver.health.scans_lost) == (0, 0)

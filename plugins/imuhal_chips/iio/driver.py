@@ -13,13 +13,22 @@ and converts them to SI units in the chip's frame. The kernel's units (sysfs-bus
 
 With ``buffered`` (default) and a device that has scan elements, samples come from the
 character device with the kernel's timestamps; otherwise each poll reads the sysfs values.
+
+Lost scans: the kernel's buffer holds ``buffer/length`` scans and drops new ones while it is
+full, without telling anyone. A drain that finds it full is counted
+(``health.buffer_overflows``) and, with time stamps, the scans dropped are counted from the
+gap to the next scan that arrives, in periods of the mean scan interval over the gap-free
+stretches seen (``health.scans_lost``); both show in the run summary. A buffer that never
+fills claims no loss, so scheduling jitter is never counted as one.
 """
 
 from __future__ import annotations
 
 import re
+import statistics
 from collections import defaultdict
 from dataclasses import dataclass
+from itertools import pairwise
 from typing import ClassVar
 
 from pydantic import Field
@@ -39,7 +48,7 @@ from imuhal.core.samples import (
     TemperatureSample,
 )
 from imuhal.core.streams import StreamSpec, TimeSource
-from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
+from imuhal.drivers.base import DeviceHealth, DeviceIdentity, Driver, DriverSettings, PollResult
 from imuhal_chips.iio.scan import ScanElement, layout, parse_scan_type
 
 MAX_DEVICES = 64
@@ -70,6 +79,23 @@ class IIODriverSettings(DriverSettings):
     trigger: str | None = None
     """Written to ``trigger/current_trigger`` before the buffer is enabled, for kernel
     drivers with no trigger of their own (e.g. an hrtimer trigger for the ms5611)."""
+    buffer_length: int | None = Field(None, ge=2)
+    """Written to ``buffer/length`` before the buffer is enabled: how many scans the kernel
+    keeps between drains (its default otherwise; keep it above rate / poll_hz)."""
+
+
+@dataclass
+class IIOHealth(DeviceHealth):
+    """The driver's own counts plus what the kernel's buffer lost."""
+
+    buffer_overflows: int = 0
+    """Drains that found the kernel's buffer full (new scans were being dropped)."""
+    scans_lost: int = 0
+    """Scans dropped by a full buffer, counted from the time stamps around the gap."""
+
+    def counts(self) -> dict[str, int]:
+        return {**super().counts(), "buffer_overflows": self.buffer_overflows,
+                "scans_lost": self.scans_lost}
 
 
 @dataclass(frozen=True)
@@ -118,6 +144,14 @@ class IIODriver(Driver):
         self._ts_offset_ns: int | None = None
         self._last_t_ns = -1
         self._rate_hz = 0.0
+        self.health: IIOHealth = IIOHealth()
+        self._buffer_scans = 0
+        self._overflowed = False
+        """The previous drain found the buffer full: the next scan may follow a gap."""
+        self._last_stamp: int | None = None
+        self._interval_ns = 0.0
+        self._interval_sum_ns = 0
+        self._interval_count = 0
 
     # -- sysfs access through the bus --------------------------------------------------------
 
@@ -271,6 +305,11 @@ class IIODriver(Driver):
             self._write("current_timestamp_clock", "monotonic")
         if s.trigger is not None:
             self._write("trigger/current_trigger", s.trigger)
+        if s.buffer_length is not None:
+            self._write("buffer/length", str(s.buffer_length))
+        self._buffer_scans = int(self._number("buffer/length", 0))
+        self._overflowed, self._last_stamp = False, None
+        self._interval_sum_ns = self._interval_count = 0
         self._write("buffer/enable", "1")
 
     # -- polling ---------------------------------------------------------------------------
@@ -310,6 +349,7 @@ class IIODriver(Driver):
             raw = data[i * self._scan_size:(i + 1) * self._scan_size]
             scans.append({e.name: e.type.decode(raw[e.offset:e.offset + e.type.storage_bytes])
                           for e in self._scan})
+        self._count_losses(scans, full=0 < self._buffer_scans <= count)
         times = self._scan_times(now_ns, scans)
         out: list[Sample] = []
         for t_ns, scan in zip(times, scans, strict=True):
@@ -318,6 +358,43 @@ class IIODriver(Driver):
                       if all(c.element in scan for c in chans)}
             out += self._samples(t_ns, values)
         return out
+
+    def _count_losses(self, scans: list[dict[str, float]], *, full: bool) -> None:
+        """Count a full buffer and, with time stamps, the scans it dropped (see the module
+        docstring). The scan interval is the mean over every gap-free stretch seen (sums of
+        successive differences: the jitter of single stamps cancels), or, before there is
+        one, the median interval of the full drain's held scans."""
+        stamps = [int(s["in_timestamp"]) for s in scans] if "in_timestamp" in scans[0] else []
+        if not stamps:
+            self.health.buffer_overflows += full
+            self._overflowed = full
+            return
+        held = stamps[:self._buffer_scans] if full else stamps
+        if self._overflowed and self._last_stamp is not None:
+            interval = self._mean_interval() or self._interval_ns
+            if interval > 0:
+                self.health.scans_lost += max(0, round((stamps[0] - self._last_stamp)
+                                                       / interval) - 1)
+        elif self._last_stamp is not None:
+            held = [self._last_stamp, *held]
+        if len(held) > 1:
+            self._interval_sum_ns += held[-1] - held[0]
+            self._interval_count += len(held) - 1
+        if full:
+            self.health.buffer_overflows += 1
+            if len(held) > 2:
+                self._interval_ns = statistics.median(b - a for a, b in pairwise(held))
+            # scans read after the drain made room may follow a gap
+            tail = stamps[len(stamps[:self._buffer_scans]) - 1:]
+            interval = self._mean_interval() or self._interval_ns
+            if interval > 0:
+                self.health.scans_lost += sum(max(0, round((b - a) / interval) - 1)
+                                              for a, b in pairwise(tail))
+        self._overflowed = full
+        self._last_stamp = stamps[-1]
+
+    def _mean_interval(self) -> float:
+        return self._interval_sum_ns / self._interval_count if self._interval_count else 0.0
 
     def _scan_times(self, now_ns: int, scans: list[dict[str, float]]) -> list[int]:
         """Pipeline times of the scans: the kernel's timestamps moved onto the pipeline clock

@@ -67,6 +67,11 @@ class Bus(ABC):
         """A handle bound to one target, which is what a driver keeps."""
         return Link(self, target)
 
+    def describe(self) -> str:
+        """The bus as a summary names it: its name, plus how it reaches its devices where
+        that was chosen at run time (e.g. an I2C adapter's transfer mode)."""
+        return self.name
+
     def close(self) -> None:  # noqa: B027 - optional for backends without resources
         """Release OS resources. Idempotent."""
 

@@ -101,7 +101,9 @@ class LinuxIIOBus(Bus):
 
     def _read_text(self, path: Path, target: int) -> str | None:
         try:
-            return path.read_text(encoding="utf-8").strip()
+            # some attributes end in a NUL after the newline (Linux 6.1's
+            # current_timestamp_clock): neither is part of the value
+            return path.read_text(encoding="utf-8").replace("\0", "").strip()
         except FileNotFoundError:
             return None
         except OSError as exc:

@@ -133,6 +133,9 @@ class RunSummary:
     estimates: dict[str, int]
     warnings: list[str]
     driver: dict[str, dict[str, int]] = field(default_factory=dict)
+    buses: dict[str, str] = field(default_factory=dict)
+    """Buses that chose how to reach their devices when opened, by profile name: how (e.g.
+    an SMBus-only I2C adapter read through SMBus transfers)."""
     frames: dict[str, dict[str, int]] = field(default_factory=dict)
     """Per accounted device (imuhal.pipeline.accounting): frames produced, delivered and
     ``lost_<cause>``."""
@@ -144,6 +147,7 @@ class RunSummary:
 
     def describe(self) -> str:
         lines = [f"ran {self.simulated_s:.1f} s in {self.wall_s:.2f} s wall time"]
+        lines += [f"  bus {name}: {how}" for name, how in self.buses.items()]
         for dev, n in self.samples.items():
             bad = sum(self.flagged.get(dev, {}).values())
             extra = f", {bad} flagged {dict(self.flagged[dev])}" if bad else ""
@@ -217,6 +221,8 @@ class Pipeline:
         self.clock = clock
         # Whatever a bus plugin raises reaches the drivers as a BusError (contained per device).
         self.buses: dict[str, Bus] = {name: ContainedBus(bus) for name, bus in spied.items()}
+        self._bus_modes = {name: bus.describe() for name, bus in board.buses.items()
+                           if bus.describe() != bus.name}
         self.warnings: list[str] = []
         self._heap: list[tuple[int, int, str]] | None = None
         self._startup: dict[str, GyroOffsetProcedure] | None = None
@@ -713,6 +719,7 @@ class Pipeline:
             estimates={e.name: e.outputs for e in self.estimators},
             warnings=list(self.warnings),
             driver={n: d.driver.health.counts() for n, d in self.devices.items()},
+            buses=dict(self._bus_modes),
             frames={n: d.ledger.counts() for n, d in self.devices.items()
                     if d.ledger is not None},
             learned={n: d.mag_learner.status() for n, d in self.devices.items()
