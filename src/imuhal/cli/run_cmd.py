@@ -249,8 +249,6 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
                 print(f"{sink.name}: {describe()}", file=sys.stderr)
         if calibrated_note:  # once every output is open: a mistake stays a one-line error
             print(calibrated_note, file=sys.stderr)
-        span = _Span()
-        sinks.append(span)
         wall0 = time.perf_counter()
         try:
             summary = pipeline.run(duration, sinks)
@@ -261,7 +259,7 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
         except KeyboardInterrupt as stop:
             # what ran until the stop, not the zeros of a summary taken out of a run
             summary = pipeline.summary(wall_s=time.perf_counter() - wall0,
-                                       simulated_s=span.seconds)
+                                       simulated_s=pipeline.span_s)
             summary.sinks = {s.name: s.run_counts() for s in plugin_sinks
                              if hasattr(s, "run_counts")}  # pipeline.run closed them
             ended[0] = "interrupted"
@@ -474,29 +472,6 @@ def _replay_params(args: argparse.Namespace, emulate: str | None) -> dict[str, A
 
 MAX_REPLAY_S = 1e6
 """Longest record --replay-truth accepts (11.6 days): beyond it, a time column is wrong."""
-
-
-class _Span:
-    """A sink that notes the time span of the events a run gave (for a stopped run's
-    summary)."""
-
-    def __init__(self) -> None:
-        self.first_ns: int | None = None
-        self.last_ns = 0
-
-    def handle(self, event: object) -> None:
-        t_ns = getattr(event, "t_ns", None)
-        if isinstance(t_ns, int):
-            if self.first_ns is None:
-                self.first_ns = t_ns
-            self.last_ns = t_ns
-
-    def close(self) -> None:
-        return None
-
-    @property
-    def seconds(self) -> float:
-        return 0.0 if self.first_ns is None else (self.last_ns - self.first_ns) / 1e9
 
 
 def _check_replay_file(path: str) -> None:
