@@ -36,7 +36,7 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import IO, Any
 
-from imuhal.core.errors import OutputError
+from imuhal.core.errors import ImuhalError, OutputError
 
 PARTIAL_SUFFIX = ".partial"
 """Suffix of the visible temporary file of a ``partial=True`` write (``log.csv.partial``)."""
@@ -169,6 +169,20 @@ def check_outputs(outputs: Mapping[str, PathLike | None],
                                   "path")
     for label, out in outs:
         check_writable(out, label)
+
+
+def open_seekable_partial(path: PathLike, option: str, why: str) -> AtomicFile:
+    """A binary ``partial`` :class:`AtomicFile` for an output written in place (seeks back,
+    rewrites a trailer): a pipe or device cannot be, so it is refused in one line naming
+    ``option`` (the command-line option) and ``why``."""
+    try:
+        out = AtomicFile(path, binary=True, partial=True)
+    except OutputError as exc:
+        raise ImuhalError(f"{option} {exc}") from None
+    if out.direct:
+        out.abort()
+        raise ImuhalError(f"{option} {path}: is a pipe or device; {why} - give a file path")
+    return out
 
 
 class AtomicFile:

@@ -46,7 +46,7 @@ from typing import Any, ClassVar
 from pydantic import BaseModel, ConfigDict, Field
 
 from imuhal.core.atmosphere import altitude_m_from_pressure
-from imuhal.core.atomic import AtomicFile, check_writable
+from imuhal.core.atomic import AtomicFile, check_writable, open_seekable_partial
 from imuhal.core.errors import ImuhalError, OutputError
 from imuhal.core.samples import FixType, PositionSample, PressureSample
 from imuhal.sinks.base import Event, SinkPlugin
@@ -205,15 +205,8 @@ class IgcSink(SinkPlugin):
         target = Path(s.path)
         if target.is_dir():
             target = _free_fai_path(target, date, s.log.logger_id)
-        try:
-            self._file = AtomicFile(target, binary=True, partial=True)
-        except OutputError as exc:
-            raise ImuhalError(f"--igc {exc}") from None
-        if self._file.direct:
-            self._file.abort()
-            self._file = None
-            raise ImuhalError(f"--igc {target}: is a pipe or device; the IGC log rewrites "
-                              "its G record in place - give a file path")
+        self._file = open_seekable_partial(target, "--igc",
+                                           "the IGC log rewrites its G record in place")
         self.path = target
         assert self._file.file is not None
         self._fd = self._file.file.fileno()

@@ -26,8 +26,8 @@ from typing import Any, ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from imuhal.core.atomic import AtomicFile
-from imuhal.core.errors import ImuhalError, OutputError
+from imuhal.core.atomic import AtomicFile, open_seekable_partial
+from imuhal.core.errors import ImuhalError
 from imuhal.sinks.base import Event, SinkPlugin
 from imuhal.sinks.ros.messages import MSGDEFS, RosMessages, RosRecord
 from imuhal.sinks.ros.settings import RosSettings
@@ -93,15 +93,8 @@ class McapSink(SinkPlugin):
         self.messages = 0
         self.committed = False
         self.partial_path: Path | None = None
-        try:
-            self._out: AtomicFile | None = AtomicFile(self.path, binary=True, partial=True)
-        except OutputError as exc:
-            raise ImuhalError(f"--mcap {exc}") from None
-        if self._out.direct:
-            self._out.abort()
-            self._out = None
-            raise ImuhalError(f"--mcap {self.path}: is a pipe or device; an MCAP file is "
-                              "indexed at the end and needs a regular file - give a file path")
+        self._out: AtomicFile | None = open_seekable_partial(
+            self.path, "--mcap", "an MCAP file is indexed at the end and needs a regular file")
         assert self._out.file is not None
         self._file = self._out.file
         # Chunks are closed here, each followed by a footer; the library's size limit (which
