@@ -18,6 +18,7 @@ from pydantic import BaseModel, ConfigDict, model_validator
 from imuhal.bus.base import Bus, BusKind, Link
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ImuhalDeprecationWarning
+from imuhal.core.blocks import Block, blocks_of
 from imuhal.core.samples import Channel, Sample
 from imuhal.core.streams import StreamSpec
 from imuhal.drivers.settings import literal_choices
@@ -75,6 +76,15 @@ class PollResult:
     """Samples produced by one poll and when the driver wants to be polled next (ns)."""
 
     samples: list[Sample]
+    next_poll_ns: int
+
+
+@dataclass
+class BlockPoll:
+    """The blocks one poll produced (imuhal.core.blocks: one per stream, frames in time
+    order) and when the driver wants to be polled next (ns)."""
+
+    blocks: list[Block]
     next_poll_ns: int
 
 
@@ -158,6 +168,20 @@ class Driver(ABC):
         Raise BusError when a transfer fails; the pipeline counts it, flags the interval and
         calls ``recover`` before the next poll.
         """
+
+    def poll_blocks(self, now_ns: int) -> BlockPoll:
+        """``poll`` with its samples as blocks, what the pipeline calls. The default groups
+        the samples of one poll by stream (one device, sample class and frame): a driver
+        that reads one reading per poll delivers blocks of one frame, one that reads a FIFO
+        gets blocks of every frame it read. Each block carries the stream's spec. A driver
+        that decodes a FIFO into arrays overrides this and never builds the samples."""
+        result = self.poll(now_ns)
+        if not result.samples:
+            return BlockPoll([], result.next_poll_ns)
+        blocks = blocks_of(result.samples)
+        for block in blocks:
+            block.spec = self.stream(block.quantity)
+        return BlockPoll(blocks, result.next_poll_ns)
 
     def start(self, now_ns: int) -> int:
         """Called once after configure(); returns the time of the first poll."""

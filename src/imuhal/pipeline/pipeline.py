@@ -29,17 +29,18 @@ from imuhal.calibration.model import CalibrationBinding, DeviceCalibration, now
 from imuhal.core.conventions import get_convention
 from imuhal.core.errors import BusError, ImuhalError, PluginError, ProfileError
 from imuhal.core.frames import FloatArray
+from imuhal.core.blocks import Block, interleaved
 from imuhal.core.samples import Channel, GyroSample, MagSample, Sample, SampleFlag
 from imuhal.core.streams import StreamSpec
 from imuhal.drivers.base import DeviceIdentity, Driver
 from imuhal.estimation.base import Estimator
 from imuhal.estimation.framed import FramedEvent, express
-from imuhal.estimation.ordering import fusion_order
 from imuhal.estimation.streams import StreamContradiction
 from imuhal.pipeline.accounting import FrameLedger, describe_frames
 from imuhal.pipeline.board import Board, open_hardware_board
 from imuhal.pipeline.bringup import bring_up
-from imuhal.pipeline.processing import calibrate_to_body, validity_flags
+from imuhal.pipeline.processing import calibrate_block, validity_block
+from imuhal.pipeline.router import Route, Router
 from imuhal.pipeline.startup import startup_gyro_phase, startup_procedures
 from imuhal.plugins.manager import Registry
 from imuhal.profile.model import BoardProfile
@@ -109,13 +110,8 @@ class DeviceRuntime:
         self.chip_to_body_rows = np.asarray(self.chip_to_body, dtype=float).tolist()
 
 
-@dataclass
-class EstimatorRuntime:
-    name: str
-    estimator: Estimator
-    inputs: frozenset[str] | None
-    consumes: tuple[type, ...]
-    outputs: int = 0
+EstimatorRuntime = Route
+"""One estimator as the pipeline runs it (the router's :class:`Route`)."""
 
 
 @dataclass
@@ -226,8 +222,8 @@ class Pipeline:
         self.warnings: list[str] = []
         self._heap: list[tuple[int, int, str]] | None = None
         self._startup: dict[str, GyroOffsetProcedure] | None = None
-        self._fusion: list[Sample] = []
-        self._route_cache: dict[tuple[str, type], tuple[EstimatorRuntime, ...]] = {}
+        self._fusion: list[Block] = []
+        """Valid body-frame blocks some estimator takes, waiting for their fusion step."""
         self._span_ns = [0, 0]  # first and last poll time of the latest poll loop (ns)
         self.devices: dict[str, DeviceRuntime] = {}
         self.estimators: list[EstimatorRuntime] = []
@@ -259,6 +255,8 @@ class Pipeline:
                 inputs=frozenset(ecfg.inputs) if ecfg.inputs is not None else None,
                 consumes=tuple(est_cls.consumes),
             ))
+        self.router = Router(self.estimators, self._device_rank)
+        """The routing rule (imuhal.pipeline.router), shared with the offline chain."""
         for runtime in self.estimators:
             self._bind(runtime)
 
@@ -451,27 +449,39 @@ class Pipeline:
                 # the host came late (this device's stall, or another's slow poll)
                 dev.ledger.note("host_stall")
             self._span_ns[1] = max(t_ns, self._span_ns[1])
-            samples, next_ns = self._service(dev, t_ns)
+            blocks, next_ns = self._service(dev, t_ns)
             if dev.ledger is not None:
                 self._account(dev)
             dev.next_poll_ns = max(next_ns, t_ns + 1)
             heapq.heappush(heap, (dev.next_poll_ns, rank, name))
-            for raw in samples:
-                yield self._process(dev, raw)
+            if blocks:
+                yield from self._emit(dev, blocks)
         if end is not None:
             self.clock.sleep_until(end)
         if self._fusion:
             yield from self._fuse(before_ns=None)
 
-    def _service(self, dev: DeviceRuntime, t_ns: int) -> tuple[list[Sample], int]:
+    def _emit(self, dev: DeviceRuntime, blocks: list[Block]) -> Iterator[Sample]:
+        """The frames of one poll's blocks after the pipeline's steps, as samples. Blocks of
+        one frame (a register poll) are processed as they are handed out, one after the
+        other, as single readings always were (the start-up phase may switch calibration
+        on between two of them); longer blocks (a FIFO read) all at once, their frames
+        then handed out in time order (imuhal.core.blocks.interleaved)."""
+        if all(len(b) == 1 for b in blocks):
+            for block in blocks:
+                yield self._process(dev, block).samples()[0]
+            return
+        yield from interleaved([self._process(dev, b) for b in blocks])
+
+    def _service(self, dev: DeviceRuntime, t_ns: int) -> tuple[list[Block], int]:
         """Whatever ``dev`` needs at ``t_ns``: a poll, a recovery, or a look for an optional
-        device not yet found. Returns its samples and when it is next due."""
+        device not yet found. Returns its blocks and when it is next due."""
         if not dev.present:
             return [], self._look_for(dev, t_ns)
         if dev.needs_recovery:
             return [], self._recover(dev, t_ns)
         try:
-            result = dev.driver.poll(t_ns)
+            result = dev.driver.poll_blocks(t_ns)
         except BusError:
             dev.bus_errors += 1
             if dev.ledger is not None:
@@ -485,7 +495,7 @@ class Pipeline:
             dev.resumed = False
             return [], self._recover(dev, t_ns)
         dev.resumed = False
-        return result.samples, result.next_poll_ns
+        return result.blocks, result.next_poll_ns
 
     def _after_bus_error(self, dev: DeviceRuntime, t_ns: int) -> int:
         """Recovery in proportion: a transfer that fails after a good poll is most likely a
@@ -567,108 +577,100 @@ class Pipeline:
             dev.warned.add(key)
             self.warnings.append(message)
 
-    def _process(self, dev: DeviceRuntime, raw: Sample) -> Sample:
-        """One sample of ``dev`` through validity, calibration and rotation; a valid one is
-        queued for the estimators (fused in order by ``_fuse``)."""
-        channel = raw.channel
-        flags = validity_flags(raw, dev.full_scale.get(channel), dev.last_valid_ns.get(channel))
-        sample = raw if flags == raw.flags else raw.flagged(flags)
-        dev.samples += 1
-        if not sample.valid:
-            self._count_flags(dev, sample)
-        else:
-            dev.last_valid_ns[channel] = sample.t_ns
+    def _process(self, dev: DeviceRuntime, raw: Block) -> Block:
+        """One block of ``dev`` through validity, calibration and rotation, once for all its
+        frames (imuhal.pipeline.processing); its fusable frames are queued for the
+        estimators (fused in order by ``_fuse``)."""
+        channel = raw.quantity
+        block, last = validity_block(raw, dev.full_scale.get(channel),
+                                     dev.last_valid_ns.get(channel))
+        if last is not None:
+            dev.last_valid_ns[channel] = last
+        n = len(block)
+        dev.samples += n
+        flags = block.flags if n > 1 else None
+        if flags is None and block.samples()[0].flags or flags is not None and flags.any():
+            self._count_block_flags(dev, block)
         if dev.ledger is not None:
-            dev.ledger.observe(sample)
+            for sample in block.samples():
+                dev.ledger.observe(sample)
         if not self.calibrated:
-            return sample
+            return block
+        if dev.mag_learner is not None and issubclass(block.kind, MagSample):
+            self._learn(dev, block)
+        # Flagged frames are only rotated, not calibrated.
+        block = calibrate_block(block, dev.calibration, dev.chip_to_body_rows)
+        if self.estimators and self.router.takes(block.device, block.kind):
+            fused = self._fusable(block)
+            if fused is not None:
+                self._fusion.append(fused)
+        return block
+
+    @staticmethod
+    def _fusable(block: Block) -> Block | None:
+        """The frames of ``block`` an estimator may take: valid ones and, for a gyro, ones
+        clipped at the chip's full scale, still flagged: an AHRS integrates them clipped
+        rather than leave a gap (angular-rate recovery); nothing else flagged is fused."""
+        if len(block) == 1 and block.has_rows:
+            flags = block.samples()[0].flags
+            ok = not flags or (flags & SampleFlag.SATURATED and not flags & ~CLIPPED
+                               and issubclass(block.kind, GyroSample))
+            return block if ok else None
+        f = block.flags
+        keep = f == 0
+        if issubclass(block.kind, GyroSample):
+            keep |= ((f & SampleFlag.SATURATED) != 0) & ((f & ~int(CLIPPED)) == 0)
+        return block.select(keep)
+
+    def _learn(self, dev: DeviceRuntime, block: Block) -> None:
+        """Valid magnetometer frames to the hard-iron learner (sensor frame, raw); a new fit
+        becomes the device's magnetometer calibration at once."""
         learner = dev.mag_learner
-        if learner is not None and sample.valid and isinstance(sample, MagSample) \
-                and learner.feed(sample.mag_ut):
-            cal = dev.calibration or DeviceCalibration()
-            dev.calibration = cal.model_copy(update={"mag": learner.record(
-                binding=self.calibration_binding(dev.name), date=now())})
-        # Flagged samples are only rotated, not calibrated.
-        sample = calibrate_to_body(sample, dev.calibration if sample.valid else None,
-                                   dev.chip_to_body_rows)
-        # Only samples some estimator takes are queued: the others would be sorted into
-        # fusion order and handed to nobody.
-        # a gyro reading clipped at the chip's full scale goes to the estimators too, still
-        # flagged: an AHRS integrates it clipped rather than leave a gap (angular-rate
-        # recovery); nothing else flagged is ever fused
-        if self.estimators and (sample.valid or (
-                sample.flags & SampleFlag.SATURATED and not sample.flags & ~CLIPPED
-                and isinstance(sample, GyroSample))):
-            routes = self._route_cache.get((sample.device, type(sample)))
-            if routes is None:
-                routes = self._routes(sample.device, type(sample))
-            if routes:
-                self._fusion.append(sample)
-        return sample
+        assert learner is not None
+        for sample in block.samples():
+            if sample.valid and isinstance(sample, MagSample) and learner.feed(sample.mag_ut):
+                cal = dev.calibration or DeviceCalibration()
+                dev.calibration = cal.model_copy(update={"mag": learner.record(
+                    binding=self.calibration_binding(dev.name), date=now())})
 
     def _fuse(self, before_ns: int | None) -> list[Event]:
-        """Hand the estimators the queued samples older than ``before_ns`` (all: None), in
-        fusion order (imuhal.estimation.ordering); returns their estimates, in the order
-        they were made. (A list, not a generator: this runs at every poll, and the queue
-        is taken whole, so a consumer that stops iterating loses no input.)"""
+        """Hand the estimators the queued frames older than ``before_ns`` (all: None), in
+        fusion order (the router's rule); returns their estimates, in the order they were
+        made. (A list, not a generator: this runs at every poll, and the queue is taken
+        whole, so a consumer that stops iterating loses no input.)"""
         fusion = self._fusion
         if before_ns is None:
             due, self._fusion = fusion, []
         else:
-            due = [s for s in fusion if s.t_ns < before_ns]
+            due, later = [], []
+            for block in fusion:
+                if block.t0_ns >= before_ns:
+                    later.append(block)
+                elif len(block) == 1 or int(block.t_ns[-1]) < before_ns:
+                    due.append(block)
+                else:  # a block whose newest frames belong to a later step
+                    t = block.t_ns
+                    head, tail = block.select(t < before_ns), block.select(t >= before_ns)
+                    assert head is not None and tail is not None
+                    due.append(head)
+                    later.append(tail)
             if not due:
                 return []
-            # usually every queued sample is due (they come from earlier polls)
-            self._fusion = [] if len(due) == len(fusion) else \
-                [s for s in fusion if s.t_ns >= before_ns]
+            self._fusion = later
         out: list[Event] = []
-        estimate = self._estimate
-        for sample in (due if len(due) == 1 else fusion_order(due, self._device_rank)):
-            estimate(sample, out)
+        if all(len(b) == 1 for b in due):
+            self.router.fuse([b.samples()[0] for b in due], out)  # type: ignore[arg-type]
+        else:
+            self.router.fuse_blocks(due, out)  # type: ignore[arg-type]
         return out
 
     @staticmethod
-    def _count_flags(dev: DeviceRuntime, sample: Sample) -> None:
-        for flag in SampleFlag:
-            if flag and flag in sample.flags:
-                dev.flagged[flag.name or str(flag)] += 1
-
-    def _routes(self, source: str, kind: type) -> tuple[EstimatorRuntime, ...]:
-        """The estimators an event of type ``kind`` from ``source`` goes to, in profile
-        order: those whose inputs name the source (or take every source), that consume the
-        type, and that are not the source itself. Worked out once per (source, type)."""
-        key = (source, kind)
-        routes = self._route_cache.get(key)
-        if routes is None:
-            routes = tuple(est for est in self.estimators
-                           if (est.inputs is None or source in est.inputs)
-                           and source != est.name and issubclass(kind, est.consumes))
-            self._route_cache[key] = routes
-        return routes
-
-    def _estimate(self, item: Event, out: list[Event]) -> None:
-        """``item`` through every estimator it is routed to, and their estimates through
-        theirs, breadth first; every estimate is appended to ``out``."""
-        routes_of = self._route_cache
-        first = len(out)
-        current = item
-        while True:
-            source = current.device if isinstance(current, Sample) else current.source
-            routes = routes_of.get((source, type(current)))
-            if routes is None:
-                routes = self._routes(source, type(current))
-            for est in routes:
-                made = est.estimator.process(current)
-                if made:
-                    if type(made) is not list:  # any iterable a plugin returns
-                        made = list(made)
-                    est.outputs += len(made)
-                    out.extend(made)
-            # the estimates not yet handed on, in the order they were made (breadth first)
-            if first == len(out):
-                return
-            current = out[first]
-            first += 1
+    def _count_block_flags(dev: DeviceRuntime, block: Block) -> None:
+        for sample in block.samples():
+            if sample.flags:
+                for flag in SampleFlag:
+                    if flag and flag in sample.flags:
+                        dev.flagged[flag.name or str(flag)] += 1
 
     def run(self, duration_s: float | None, sinks: Sequence[Sink] = ()) -> RunSummary:
         """Run for ``duration_s`` simulated (or real) seconds, feeding every sink.
