@@ -29,10 +29,11 @@ import yaml
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
+from tests.benchmarks.bench_hardware_path import measure
+
 from imuhal.emulation import open_emulated
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.loader import parse_profile
-from tests.benchmarks.bench_hardware_path import measure
 
 GY91 = Path(__file__).resolve().parents[2] / "profiles" / "gy91.yaml"
 

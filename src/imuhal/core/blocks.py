@@ -52,8 +52,17 @@ class Block:
     not modified once built: a stage makes a new one (:meth:`with_values`,
     :meth:`with_flags`)."""
 
-    __slots__ = ("kind", "device", "frame", "spec", "_rows", "_t0", "_offsets",
-                 "_values", "_flags")
+    __slots__ = (
+        "_flags",
+        "_offsets",
+        "_rows",
+        "_t0",
+        "_values",
+        "device",
+        "frame",
+        "kind",
+        "spec",
+    )
 
     def __init__(self, kind: type[Sample], device: str, *, frame: Frame | None,
                  spec: StreamSpec | None, rows: list[Sample] | None = None,
@@ -93,6 +102,20 @@ class Block:
             raise ValueError(f"{first.device} {kind.__name__}: frames in one block are in "
                              f"one frame of axes")
         return cls(kind, first.device, frame=frame, spec=spec, rows=list(samples))
+
+    @classmethod
+    def of_sample(cls, sample: Sample, spec: StreamSpec | None = None) -> Block:
+        """A block of one frame: ``sample`` (the common case, built for every reading of a
+        register poll, so without the checks of :meth:`from_samples`)."""
+        b = _new(cls)
+        b.kind = type(sample)
+        b.device = sample.device
+        b.frame = getattr(sample, "frame", None)
+        b.spec = spec
+        b._rows = [sample]
+        b._t0 = sample.t_ns
+        b._offsets = b._values = b._flags = None
+        return b
 
     @classmethod
     def from_arrays(cls, kind: type[Sample], device: str, t0_ns: int, offsets_ns: IntArray,
@@ -243,6 +266,15 @@ class Block:
                 f"t={self._t0} ns, frame={self.frame})")
 
 
+_new = object.__new__
+
+
+def _distinct_streams(samples: Sequence[Sample]) -> bool:
+    """No two of ``samples`` (at most four) belong to one stream."""
+    kinds = [(type(s), s.device) for s in samples]
+    return all(kinds[i] not in kinds[i + 1:] for i in range(len(kinds) - 1))
+
+
 def _row_values(sample: Sample) -> tuple[float, ...]:
     if isinstance(sample, VectorSample):
         return sample.vector
@@ -251,10 +283,13 @@ def _row_values(sample: Sample) -> tuple[float, ...]:
     return (float("nan"),)
 
 
-def blocks_of(samples: Iterable[Sample]) -> list[Block]:
+def blocks_of(samples: Sequence[Sample]) -> list[Block]:
     """``samples`` of one poll as blocks: one per (device, sample class, frame), in the
     order each first appears, frames in the order given. A register poll's three samples
     make three one-frame blocks; a FIFO read of n frames makes blocks of n frames."""
+    n = len(samples)
+    if n < 2 or n <= 4 and _distinct_streams(samples):
+        return [Block.of_sample(s) for s in samples]  # a register poll: one of each
     groups: dict[tuple[str, type, object], list[Sample]] = {}
     for s in samples:
         key = (s.device, type(s), getattr(s, "frame", None))

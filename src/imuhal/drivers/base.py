@@ -16,9 +16,9 @@ from typing import Any, ClassVar
 from pydantic import BaseModel, ConfigDict, model_validator
 
 from imuhal.bus.base import Bus, BusKind, Link
+from imuhal.core.blocks import Block, blocks_of
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ImuhalDeprecationWarning
-from imuhal.core.blocks import Block, blocks_of
 from imuhal.core.samples import Channel, Sample
 from imuhal.core.streams import StreamSpec
 from imuhal.drivers.settings import literal_choices
@@ -77,6 +77,9 @@ class PollResult:
 
     samples: list[Sample]
     next_poll_ns: int
+
+
+_UNKNOWN: Any = object()
 
 
 @dataclass
@@ -179,8 +182,18 @@ class Driver(ABC):
         if not result.samples:
             return BlockPoll([], result.next_poll_ns)
         blocks = blocks_of(result.samples)
+        streams = self.streams()
+        cached = self.__dict__.get("_specs_by_kind")
+        if cached is None or cached[0] is not streams:
+            cached = self.__dict__["_specs_by_kind"] = (streams, {})
+        specs: dict[type, StreamSpec | None] = cached[1]
         for block in blocks:
-            block.spec = self.stream(block.quantity)
+            # keyed by the sample class (a quantity's hash is Python code)
+            kind = block.kind
+            spec = specs.get(kind, _UNKNOWN)
+            if spec is _UNKNOWN:
+                spec = specs[kind] = self.stream(kind.channel)
+            block.spec = spec  # type: ignore[assignment]
         return BlockPoll(blocks, result.next_poll_ns)
 
     def start(self, now_ns: int) -> int:

@@ -26,20 +26,24 @@ from imuhal.bus.spy import SpyBus, Transfer
 from imuhal.calibration.gyro import GyroOffsetProcedure
 from imuhal.calibration.hard_iron import HardIronLearner
 from imuhal.calibration.model import CalibrationBinding, DeviceCalibration, now
+from imuhal.core.blocks import Block, interleaved
 from imuhal.core.conventions import get_convention
 from imuhal.core.errors import BusError, ImuhalError, PluginError, ProfileError
 from imuhal.core.frames import FloatArray
-from imuhal.core.blocks import Block, interleaved
 from imuhal.core.samples import Channel, GyroSample, MagSample, Sample, SampleFlag
 from imuhal.core.streams import StreamSpec
 from imuhal.drivers.base import DeviceIdentity, Driver
-from imuhal.estimation.base import Estimator
 from imuhal.estimation.framed import FramedEvent, express
 from imuhal.estimation.streams import StreamContradiction
 from imuhal.pipeline.accounting import FrameLedger, describe_frames
 from imuhal.pipeline.board import Board, open_hardware_board
 from imuhal.pipeline.bringup import bring_up
-from imuhal.pipeline.processing import calibrate_block, validity_block
+from imuhal.pipeline.processing import (
+    calibrate_block,
+    calibrate_to_body,
+    validity_block,
+    validity_flags,
+)
 from imuhal.pipeline.router import Route, Router
 from imuhal.pipeline.startup import startup_gyro_phase, startup_procedures
 from imuhal.plugins.manager import Registry
@@ -179,6 +183,15 @@ def _learned_words(status: dict[str, Any]) -> str:
     return f"hard iron {state}: ({fit}) uT from {status['readings']} readings"
 
 
+def _recovered_clip(sample: Sample) -> bool:
+    """A flagged reading an estimator still takes: a gyro reading clipped at the chip's full
+    scale, an AHRS integrates it clipped rather than leave a gap (angular-rate recovery);
+    nothing else flagged is ever fused."""
+    flags = sample.flags
+    return bool(flags & SampleFlag.SATURATED) and not flags & ~CLIPPED \
+        and isinstance(sample, GyroSample)
+
+
 class Pipeline:
     def __init__(
         self,
@@ -222,8 +235,11 @@ class Pipeline:
         self.warnings: list[str] = []
         self._heap: list[tuple[int, int, str]] | None = None
         self._startup: dict[str, GyroOffsetProcedure] | None = None
-        self._fusion: list[Block] = []
-        """Valid body-frame blocks some estimator takes, waiting for their fusion step."""
+        self._fusion: list[Sample | Block] = []
+        """Valid body-frame readings (one-frame blocks as their sample) and blocks some
+        estimator takes, waiting for their fusion step."""
+        self._blocks_queued = False
+        """Some block of several frames is queued (else the queue holds samples only)."""
         self._span_ns = [0, 0]  # first and last poll time of the latest poll loop (ns)
         self.devices: dict[str, DeviceRuntime] = {}
         self.estimators: list[EstimatorRuntime] = []
@@ -455,23 +471,18 @@ class Pipeline:
             dev.next_poll_ns = max(next_ns, t_ns + 1)
             heapq.heappush(heap, (dev.next_poll_ns, rank, name))
             if blocks:
-                yield from self._emit(dev, blocks)
+                if len(blocks) == 1 == len(blocks[0]) or all(len(b) == 1 for b in blocks):
+                    # one frame per block (a register poll): each through the steps as it
+                    # is handed out (the start-up phase may switch calibration on between
+                    # two of them)
+                    for block in blocks:
+                        yield self._process_one(dev, block.samples()[0])
+                else:
+                    yield from interleaved([self._process(dev, b) for b in blocks])
         if end is not None:
             self.clock.sleep_until(end)
         if self._fusion:
             yield from self._fuse(before_ns=None)
-
-    def _emit(self, dev: DeviceRuntime, blocks: list[Block]) -> Iterator[Sample]:
-        """The frames of one poll's blocks after the pipeline's steps, as samples. Blocks of
-        one frame (a register poll) are processed as they are handed out, one after the
-        other, as single readings always were (the start-up phase may switch calibration
-        on between two of them); longer blocks (a FIFO read) all at once, their frames
-        then handed out in time order (imuhal.core.blocks.interleaved)."""
-        if all(len(b) == 1 for b in blocks):
-            for block in blocks:
-                yield self._process(dev, block).samples()[0]
-            return
-        yield from interleaved([self._process(dev, b) for b in blocks])
 
     def _service(self, dev: DeviceRuntime, t_ns: int) -> tuple[list[Block], int]:
         """Whatever ``dev`` needs at ``t_ns``: a poll, a recovery, or a look for an optional
@@ -577,6 +588,32 @@ class Pipeline:
             dev.warned.add(key)
             self.warnings.append(message)
 
+    def _process_one(self, dev: DeviceRuntime, raw: Sample) -> Sample:
+        """:meth:`_process` for a block of one frame, on its sample: the same steps and
+        floats (imuhal.pipeline.processing takes a one-frame block on its sample too),
+        without building a block around each reading of a register poll."""
+        channel = raw.channel
+        flags = validity_flags(raw, dev.full_scale.get(channel), dev.last_valid_ns.get(channel))
+        sample = raw if flags == raw.flags else raw.flagged(flags)
+        dev.samples += 1
+        if sample.flags:
+            self._count_flags(dev, sample)
+        else:
+            dev.last_valid_ns[channel] = sample.t_ns
+        if dev.ledger is not None:
+            dev.ledger.observe(sample)
+        if not self.calibrated:
+            return sample
+        if dev.mag_learner is not None and isinstance(sample, MagSample):
+            self._learn(dev, [sample])
+        # Flagged samples are only rotated, not calibrated.
+        sample = calibrate_to_body(sample, dev.calibration if sample.valid else None,
+                                   dev.chip_to_body_rows)
+        if self.estimators and (not sample.flags or _recovered_clip(sample)) \
+                and self.router.takes(sample.device, type(sample)):
+            self._fusion.append(sample)
+        return sample
+
     def _process(self, dev: DeviceRuntime, raw: Block) -> Block:
         """One block of ``dev`` through validity, calibration and rotation, once for all its
         frames (imuhal.pipeline.processing); its fusable frames are queued for the
@@ -586,48 +623,43 @@ class Pipeline:
                                      dev.last_valid_ns.get(channel))
         if last is not None:
             dev.last_valid_ns[channel] = last
-        n = len(block)
-        dev.samples += n
-        flags = block.flags if n > 1 else None
-        if flags is None and block.samples()[0].flags or flags is not None and flags.any():
-            self._count_block_flags(dev, block)
+        dev.samples += len(block)
+        if block.flags.any():
+            for sample in block.samples():
+                if sample.flags:
+                    self._count_flags(dev, sample)
         if dev.ledger is not None:
             for sample in block.samples():
                 dev.ledger.observe(sample)
         if not self.calibrated:
             return block
         if dev.mag_learner is not None and issubclass(block.kind, MagSample):
-            self._learn(dev, block)
+            self._learn(dev, block.samples())
         # Flagged frames are only rotated, not calibrated.
         block = calibrate_block(block, dev.calibration, dev.chip_to_body_rows)
         if self.estimators and self.router.takes(block.device, block.kind):
             fused = self._fusable(block)
             if fused is not None:
                 self._fusion.append(fused)
+                self._blocks_queued = True
         return block
 
     @staticmethod
     def _fusable(block: Block) -> Block | None:
         """The frames of ``block`` an estimator may take: valid ones and, for a gyro, ones
-        clipped at the chip's full scale, still flagged: an AHRS integrates them clipped
-        rather than leave a gap (angular-rate recovery); nothing else flagged is fused."""
-        if len(block) == 1 and block.has_rows:
-            flags = block.samples()[0].flags
-            ok = not flags or (flags & SampleFlag.SATURATED and not flags & ~CLIPPED
-                               and issubclass(block.kind, GyroSample))
-            return block if ok else None
+        clipped at the chip's full scale (:func:`_recovered_clip`)."""
         f = block.flags
         keep = f == 0
         if issubclass(block.kind, GyroSample):
             keep |= ((f & SampleFlag.SATURATED) != 0) & ((f & ~int(CLIPPED)) == 0)
         return block.select(keep)
 
-    def _learn(self, dev: DeviceRuntime, block: Block) -> None:
+    def _learn(self, dev: DeviceRuntime, samples: list[Sample]) -> None:
         """Valid magnetometer frames to the hard-iron learner (sensor frame, raw); a new fit
         becomes the device's magnetometer calibration at once."""
         learner = dev.mag_learner
         assert learner is not None
-        for sample in block.samples():
+        for sample in samples:
             if sample.valid and isinstance(sample, MagSample) and learner.feed(sample.mag_ut):
                 cal = dev.calibration or DeviceCalibration()
                 dev.calibration = cal.model_copy(update={"mag": learner.record(
@@ -641,36 +673,51 @@ class Pipeline:
         fusion = self._fusion
         if before_ns is None:
             due, self._fusion = fusion, []
+        elif self._blocks_queued:
+            due = self._due_blocks(before_ns)
         else:
-            due, later = [], []
-            for block in fusion:
-                if block.t0_ns >= before_ns:
-                    later.append(block)
-                elif len(block) == 1 or int(block.t_ns[-1]) < before_ns:
-                    due.append(block)
-                else:  # a block whose newest frames belong to a later step
-                    t = block.t_ns
-                    head, tail = block.select(t < before_ns), block.select(t >= before_ns)
-                    assert head is not None and tail is not None
-                    due.append(head)
-                    later.append(tail)
-            if not due:
-                return []
-            self._fusion = later
+            due = [s for s in fusion if s.t_ns < before_ns]  # type: ignore[union-attr]
+            if due:
+                # usually every queued sample is due (they come from earlier polls)
+                self._fusion = [] if len(due) == len(fusion) else \
+                    [s for s in fusion if s.t_ns >= before_ns]  # type: ignore[union-attr]
+        if not due:
+            return []
         out: list[Event] = []
-        if all(len(b) == 1 for b in due):
-            self.router.fuse([b.samples()[0] for b in due], out)  # type: ignore[arg-type]
-        else:
-            self.router.fuse_blocks(due, out)  # type: ignore[arg-type]
+        if not self._blocks_queued:
+            self.router.fuse(due, out)  # type: ignore[arg-type]
+            return out
+        self._blocks_queued = bool(self._fusion)
+        self.router.fuse_blocks([b if isinstance(b, Block) else Block.of_sample(b)
+                                 for b in due], out)  # type: ignore[arg-type]
         return out
 
+    def _due_blocks(self, before_ns: int) -> list[Sample | Block]:
+        """The queued frames older than ``before_ns`` (a block whose newest frames are not
+        is split); the rest stay queued."""
+        due: list[Sample | Block] = []
+        later: list[Sample | Block] = []
+        for item in self._fusion:
+            if isinstance(item, Sample):
+                (due if item.t_ns < before_ns else later).append(item)
+            elif item.t0_ns >= before_ns:
+                later.append(item)
+            elif int(item.t_ns[-1]) < before_ns:
+                due.append(item)
+            else:  # a block whose newest frames belong to a later step
+                t = item.t_ns
+                head, tail = item.select(t < before_ns), item.select(t >= before_ns)
+                assert head is not None and tail is not None
+                due.append(head)
+                later.append(tail)
+        self._fusion = later
+        return due
+
     @staticmethod
-    def _count_block_flags(dev: DeviceRuntime, block: Block) -> None:
-        for sample in block.samples():
-            if sample.flags:
-                for flag in SampleFlag:
-                    if flag and flag in sample.flags:
-                        dev.flagged[flag.name or str(flag)] += 1
+    def _count_flags(dev: DeviceRuntime, sample: Sample) -> None:
+        for flag in SampleFlag:
+            if flag and flag in sample.flags:
+                dev.flagged[flag.name or str(flag)] += 1
 
     def run(self, duration_s: float | None, sinks: Sequence[Sink] = ()) -> RunSummary:
         """Run for ``duration_s`` simulated (or real) seconds, feeding every sink.
