@@ -288,7 +288,7 @@ def blocks_of(samples: Sequence[Sample]) -> list[Block]:
     order each first appears, frames in the order given. A register poll's three samples
     make three one-frame blocks; a FIFO read of n frames makes blocks of n frames."""
     n = len(samples)
-    if n < 2 or n <= 4 and _distinct_streams(samples):
+    if n < 2 or (n <= 4 and _distinct_streams(samples)):
         return [Block.of_sample(s) for s in samples]  # a register poll: one of each
     groups: dict[tuple[str, type, object], list[Sample]] = {}
     for s in samples:
