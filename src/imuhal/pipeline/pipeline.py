@@ -26,7 +26,7 @@ from imuhal.bus.spy import SpyBus, Transfer
 from imuhal.calibration.gyro import GyroOffsetProcedure
 from imuhal.calibration.hard_iron import HardIronLearner
 from imuhal.calibration.model import CalibrationBinding, DeviceCalibration, now
-from imuhal.core.blocks import Block, interleaved
+from imuhal.core.blocks import Block, blocks_of, interleaved
 from imuhal.core.conventions import get_convention
 from imuhal.core.errors import BusError, ImuhalError, PluginError, ProfileError
 from imuhal.core.frames import FloatArray
@@ -478,11 +478,25 @@ class Pipeline:
                     for block in blocks:
                         yield self._process_one(dev, block.samples()[0])
                 else:
-                    yield from interleaved([self._process(dev, b) for b in blocks])
+                    yield from self._frames_of(dev, blocks)
         if end is not None:
             self.clock.sleep_until(end)
         if self._fusion:
             yield from self._fuse(before_ns=None)
+
+    def _frames_of(self, dev: DeviceRuntime, blocks: list[Block]) -> Iterator[Sample]:
+        """Blocks of several frames (a FIFO read) through the steps at once, their frames
+        handed out in time order (imuhal.core.blocks.interleaved). When the start-up phase
+        switches calibration on while they are handed out, the frames not handed out yet
+        are calibrated and queued then, as single readings would have been."""
+        calibrated = self.calibrated
+        frames = interleaved([self._process(dev, b) for b in blocks])
+        for i, frame in enumerate(frames):
+            yield frame
+            if self.calibrated and not calibrated:
+                rest = [self._to_body(dev, b) for b in blocks_of(frames[i + 1:])]
+                yield from interleaved(rest)
+                return
 
     def _service(self, dev: DeviceRuntime, t_ns: int) -> tuple[list[Block], int]:
         """Whatever ``dev`` needs at ``t_ns``: a poll, a recovery, or a look for an optional
@@ -631,8 +645,11 @@ class Pipeline:
         if dev.ledger is not None:
             for sample in block.samples():
                 dev.ledger.observe(sample)
-        if not self.calibrated:
-            return block
+        return self._to_body(dev, block) if self.calibrated else block
+
+    def _to_body(self, dev: DeviceRuntime, block: Block) -> Block:
+        """A checked block calibrated and rotated into the body frame; its fusable frames
+        are queued for the estimators."""
         if dev.mag_learner is not None and issubclass(block.kind, MagSample):
             self._learn(dev, block.samples())
         # Flagged frames are only rotated, not calibrated.
