@@ -20,7 +20,7 @@ from imuhal.calibration.model import (
     MagCalibration,
     VectorCalibration,
 )
-from imuhal.core.blocks import Block
+from imuhal.core.blocks import Block, IntArray
 from imuhal.core.frames import FloatArray
 from imuhal.core.samples import (
     AccelSample,
@@ -122,22 +122,27 @@ def validity_block(block: Block, full_scale: float | None, last_t_ns: int | None
     t_ns = block.t_ns
     if bool(np.any(np.diff(t_ns) < 0)):
         return _validity_rows(block, full_scale, last_t_ns)
-    values = block.values
-    flags = block.flags.copy()
-    finite = np.isfinite(values).all(axis=1)
-    flags[~finite] |= SampleFlag.NAN
-    if full_scale is not None and values.shape[1]:
-        beyond = finite & (np.abs(np.where(finite[:, None], values, 0.0)).max(axis=1)
-                           > full_scale)
-        flags[beyond] |= SampleFlag.OUT_OF_RANGE
+    bits = _validity_bits(block, full_scale)
     if last_t_ns is not None:
         # frames in time order: only the last valid frame before the block can be newer
-        flags[t_ns < last_t_ns] |= SampleFlag.OUT_OF_ORDER
-    valid = flags == 0
+        bits[t_ns < last_t_ns] |= SampleFlag.OUT_OF_ORDER
+    valid = bits == 0
     last = int(t_ns[valid][-1]) if bool(valid.any()) else last_t_ns
-    if np.array_equal(flags, block.flags):
+    if np.array_equal(bits, block.flags):
         return block, last
-    return block.with_flags(flags), last
+    return block.with_flags(bits), last
+
+
+def _validity_bits(block: Block, full_scale: float | None) -> IntArray:
+    """The block's flags with NAN and OUT_OF_RANGE added (a new array)."""
+    values = block.values
+    bits = block.flags.copy()
+    finite = np.asarray(np.isfinite(values).all(axis=1), dtype=bool)
+    bits[~finite] |= SampleFlag.NAN
+    if full_scale is not None and values.shape[1]:
+        magnitude = np.abs(np.where(finite[:, None], values, 0.0)).max(axis=1)
+        bits[finite & (magnitude > full_scale)] |= SampleFlag.OUT_OF_RANGE
+    return bits
 
 
 def _validity_rows(block: Block, full_scale: float | None, last_t_ns: int | None
