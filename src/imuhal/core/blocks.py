@@ -24,8 +24,7 @@ import numpy as np
 import numpy.typing as npt
 
 from imuhal.core.quantities import Quantity
-from imuhal.core.samples import Frame, SampleFlag, ScalarSample, VectorSample
-from imuhal.core.samples import Sample as Sample
+from imuhal.core.samples import Frame, Sample, SampleFlag, ScalarSample, VectorSample
 from imuhal.core.streams import StreamSpec
 
 FloatArray = npt.NDArray[np.float64]
