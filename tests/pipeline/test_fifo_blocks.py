@@ -13,9 +13,9 @@ from imuhal.estimation.outputs import AttitudeEstimate, Estimate, VerticalEstima
 from imuhal.offline.chain import run_chain
 from imuhal.pipeline.pipeline import Pipeline
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile
-from imuhal.profiles_dir import bundled_profiles
 
 FIFO_FRAMES = 8
 PERIOD_NS = 5_000_000  # the gy91's 200 Hz
