@@ -13,6 +13,7 @@ from imuhal.calibration.model import (
     MagCalibration,
 )
 from imuhal.core.blocks import Block
+from imuhal.core.quantities import Quantity
 from imuhal.core.samples import (
     AccelSample,
     Frame,
@@ -22,6 +23,7 @@ from imuhal.core.samples import (
     SampleFlag,
     VectorSample,
 )
+from imuhal.core.streams import StreamSpec
 from imuhal.pipeline.processing import (
     calibrate_block,
     calibrate_to_body,
@@ -75,6 +77,15 @@ def test_calibrating_a_block_gives_the_floats_of_each_sample_calibrated(
     block = calibrate_block(_as_arrays(Block.from_samples(rows)), CALIBRATION, CHIP_TO_BODY)
     assert block.frame is Frame.BODY_NED
     assert _bits(block.samples()) == _bits(one_by_one)  # bit for bit, signed zeros too
+
+
+def test_the_stages_keep_the_stream_spec_a_block_was_taken_with() -> None:
+    spec = StreamSpec(device="imu", quantity=Quantity.GYRO, frame=Frame.SENSOR,
+                      rate_hz=1000.0, full_scale=12.0)
+    block = _as_arrays(Block.from_samples(_frames(GyroSample, 8, seed=4)))
+    block.spec = spec
+    checked, _ = validity_block(block, spec.full_scale, None)
+    assert calibrate_block(checked, CALIBRATION, CHIP_TO_BODY).spec is spec
 
 
 def test_a_block_without_calibration_is_only_rotated() -> None:

@@ -255,9 +255,9 @@ class Block:
         if issubclass(self.kind, VectorSample):
             build = kind.build
             frame = self.frame
-            return [build(ti, self.device, SampleFlag(fi), frame, (v[0], v[1], v[2]))
+            return [build(ti, self.device, _flag(fi), frame, (v[0], v[1], v[2]))
                     for ti, fi, v in zip(t, flags, values, strict=True)]
-        return [kind(t_ns=ti, device=self.device, flags=SampleFlag(fi), **{field_name: v[0]})
+        return [kind(t_ns=ti, device=self.device, flags=_flag(fi), **{field_name: v[0]})
                 for ti, fi, v in zip(t, flags, values, strict=True)]
 
     def __repr__(self) -> str:
@@ -266,6 +266,15 @@ class Block:
 
 
 _new = object.__new__
+_FLAGS: dict[int, SampleFlag] = {0: SampleFlag.OK}
+
+
+def _flag(bits: int) -> SampleFlag:
+    """``SampleFlag(bits)``, each value made once (an enum call costs a microsecond)."""
+    flag = _FLAGS.get(bits)
+    if flag is None:
+        flag = _FLAGS[bits] = SampleFlag(bits)
+    return flag
 
 
 def _distinct_streams(samples: Sequence[Sample]) -> bool:

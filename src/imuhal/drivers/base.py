@@ -79,9 +79,6 @@ class PollResult:
     next_poll_ns: int
 
 
-_UNKNOWN: Any = object()
-
-
 @dataclass
 class BlockPoll:
     """The blocks one poll produced (imuhal.core.blocks: one per stream, frames in time
@@ -176,25 +173,14 @@ class Driver(ABC):
         """``poll`` with its samples as blocks, what the pipeline calls. The default groups
         the samples of one poll by stream (one device, sample class and frame): a driver
         that reads one reading per poll delivers blocks of one frame, one that reads a FIFO
-        gets blocks of every frame it read. Each block carries the stream's spec. A driver
-        that decodes a FIFO into arrays overrides this and never builds the samples."""
+        gets blocks of every frame it read. A block without a spec gets the stream's from the
+        pipeline (the specs it collected at the device's last configuration: ``streams()``
+        is not asked per poll, some drivers build their specs on each call). A driver that
+        decodes a FIFO into arrays overrides this and never builds the samples."""
         result = self.poll(now_ns)
         if not result.samples:
             return BlockPoll([], result.next_poll_ns)
-        blocks = blocks_of(result.samples)
-        streams = self.streams()
-        cached = self.__dict__.get("_specs_by_kind")
-        if cached is None or cached[0] is not streams:
-            cached = self.__dict__["_specs_by_kind"] = (streams, {})
-        specs: dict[type, StreamSpec | None] = cached[1]
-        for block in blocks:
-            # keyed by the sample class (a quantity's hash is Python code)
-            kind = block.kind
-            spec = specs.get(kind, _UNKNOWN)
-            if spec is _UNKNOWN:
-                spec = specs[kind] = self.stream(kind.channel)
-            block.spec = spec  # type: ignore[assignment]
-        return BlockPoll(blocks, result.next_poll_ns)
+        return BlockPoll(blocks_of(result.samples), result.next_poll_ns)
 
     def start(self, now_ns: int) -> int:
         """Called once after configure(); returns the time of the first poll."""

@@ -97,6 +97,8 @@ class DeviceRuntime:
     full_scale: dict[Quantity, float | None] = field(default_factory=dict)
     streams: tuple[StreamSpec, ...] = ()
     """The driver's stream specs as read back at the last (re)configuration."""
+    spec_of: dict[Quantity, StreamSpec] = field(default_factory=dict)
+    """``streams`` by quantity (the spec a block without one was taken with)."""
     last_valid_ns: dict[Quantity, int] = field(default_factory=dict)
     """Per quantity, the time of the last valid sample (samples must not go back)."""
     chip_to_body_rows: list[list[float]] = field(default_factory=list)
@@ -386,6 +388,7 @@ class Pipeline:
         if streams == dev.streams:
             return
         dev.streams = streams
+        dev.spec_of = {spec.quantity: spec for spec in reversed(streams)}
         for runtime in self.estimators:
             if runtime.inputs is None or dev.name in runtime.inputs:
                 self._bind(runtime)
@@ -633,6 +636,8 @@ class Pipeline:
         frames (imuhal.pipeline.processing); its fusable frames are queued for the
         estimators (fused in order by ``_fuse``)."""
         channel = raw.quantity
+        if raw.spec is None:
+            raw.spec = dev.spec_of.get(channel)
         block, last = validity_block(raw, dev.full_scale.get(channel),
                                      dev.last_valid_ns.get(channel))
         if last is not None:
