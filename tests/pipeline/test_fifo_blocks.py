@@ -6,11 +6,11 @@ from __future__ import annotations
 from itertools import pairwise
 
 import pytest
+from tests.support.chain import offline_estimates
 
 from imuhal.core.samples import AccelSample, Frame, GyroSample, Sample
 from imuhal.emulation import open_emulated
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate, VerticalEstimate
-from imuhal.offline.chain import run_chain
 from imuhal.pipeline.pipeline import Pipeline
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.bundled import bundled_profiles
@@ -64,15 +64,7 @@ def test_the_offline_chain_over_a_fifo_runs_samples_gives_its_live_estimates(
     profile, pipeline, events = run
     samples = [e for e in events if isinstance(e, Sample) and e.valid]
     live = [e for e in events if isinstance(e, Estimate)]
-    streams = pipeline.streams
-    fresh = [registry.estimators.get(c.estimator)(c.settings, instance=name)
-             for name, c in profile.estimators.items()]
-    for est, c in zip(fresh, profile.estimators.values(), strict=True):
-        est.bind([spec for device in (c.inputs or streams) if device in streams
-                  for spec in streams[device]])
-    inputs = {name: c.inputs for name, c in profile.estimators.items() if c.inputs is not None}
-
-    offline = run_chain(fresh, samples, inputs=inputs)
+    offline = offline_estimates(registry, profile, pipeline.streams, samples)
 
     assert sum(isinstance(e, AttitudeEstimate) for e in live) > 900
     assert sum(isinstance(e, VerticalEstimate) for e in live) > 100
