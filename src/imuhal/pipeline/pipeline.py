@@ -111,9 +111,12 @@ class DeviceRuntime:
     """The driver's FIFO overflow count the ledger last saw."""
     mag_learner: HardIronLearner | None = None
     """Learning the hard iron in flight (``mag_in_flight``, no stored magnetometer record)."""
+    own_blocks: bool = False
+    """The driver builds its own blocks (overrides ``Driver.poll_blocks``)."""
 
     def __post_init__(self) -> None:
         self.chip_to_body_rows = np.asarray(self.chip_to_body, dtype=float).tolist()
+        self.own_blocks = type(self.driver).poll_blocks is not Driver.poll_blocks
 
 
 EstimatorRuntime = Route
@@ -183,6 +186,12 @@ def _learned_words(status: dict[str, Any]) -> str:
     state = "learned in flight, applied" if status["converged"] else \
         "learning in flight, not applied yet"
     return f"hard iron {state}: ({fit}) uT from {status['readings']} readings"
+
+
+class _Readings(list[Sample]):
+    """A poll's blocks when each holds one frame: their readings (one per stream)."""
+
+    __slots__ = ()
 
 
 def _recovered_clip(sample: Sample) -> bool:
@@ -468,20 +477,20 @@ class Pipeline:
                 # the host came late (this device's stall, or another's slow poll)
                 dev.ledger.note("host_stall")
             self._span_ns[1] = max(t_ns, self._span_ns[1])
-            blocks, next_ns = self._service(dev, t_ns)
+            frames, next_ns = self._service(dev, t_ns)
             if dev.ledger is not None:
                 self._account(dev)
             dev.next_poll_ns = max(next_ns, t_ns + 1)
             heapq.heappush(heap, (dev.next_poll_ns, rank, name))
-            if blocks:
-                if len(blocks) == 1 == len(blocks[0]) or all(len(b) == 1 for b in blocks):
-                    # one frame per block (a register poll): each through the steps as it
-                    # is handed out (the start-up phase may switch calibration on between
-                    # two of them)
-                    for block in blocks:
-                        yield self._process_one(dev, block.samples()[0])
+            if frames:
+                if type(frames) is _Readings:
+                    # one frame per block (a register poll): each reading through the steps
+                    # as it is handed out (the start-up phase may switch calibration on
+                    # between two of them)
+                    for sample in frames:
+                        yield self._process_one(dev, sample)  # type: ignore[arg-type]
                 else:
-                    yield from self._frames_of(dev, blocks)
+                    yield from self._frames_of(dev, frames)  # type: ignore[arg-type]
         if end is not None:
             self.clock.sleep_until(end)
         if self._fusion:
@@ -501,15 +510,16 @@ class Pipeline:
                 yield from interleaved(rest)
                 return
 
-    def _service(self, dev: DeviceRuntime, t_ns: int) -> tuple[list[Block], int]:
+    def _service(self, dev: DeviceRuntime, t_ns: int) -> tuple[_Readings | list[Block], int]:
         """Whatever ``dev`` needs at ``t_ns``: a poll, a recovery, or a look for an optional
-        device not yet found. Returns its blocks and when it is next due."""
+        device not yet found. Returns its blocks (blocks of one frame each as their
+        readings, :class:`_Readings`) and when it is next due."""
         if not dev.present:
             return [], self._look_for(dev, t_ns)
         if dev.needs_recovery:
             return [], self._recover(dev, t_ns)
         try:
-            result = dev.driver.poll_blocks(t_ns)
+            frames, next_ns = self._poll(dev, t_ns)
         except BusError:
             dev.bus_errors += 1
             if dev.ledger is not None:
@@ -523,7 +533,27 @@ class Pipeline:
             dev.resumed = False
             return [], self._recover(dev, t_ns)
         dev.resumed = False
-        return result.blocks, result.next_poll_ns
+        return frames, next_ns
+
+    @staticmethod
+    def _poll(dev: DeviceRuntime, t_ns: int) -> tuple[_Readings | list[Block], int]:
+        """``dev``'s poll as blocks (``Driver.poll_blocks``). For a driver that leaves
+        ``poll_blocks`` to the base class this is its adapter inlined: a poll whose readings
+        are of different streams (a register poll) is a block of one frame per reading,
+        kept as the readings; one with several readings of a stream (a FIFO read) is
+        grouped into blocks (imuhal.core.blocks.blocks_of)."""
+        driver = dev.driver
+        if dev.own_blocks:
+            polled = driver.poll_blocks(t_ns)
+            blocks = polled.blocks
+            if all(len(b) == 1 for b in blocks):
+                return _Readings(b.samples()[0] for b in blocks), polled.next_poll_ns
+            return blocks, polled.next_poll_ns
+        result = driver.poll(t_ns)
+        samples = result.samples
+        if len(samples) < 2 or len({type(s) for s in samples}) == len(samples):
+            return _Readings(samples), result.next_poll_ns
+        return blocks_of(samples), result.next_poll_ns
 
     def _after_bus_error(self, dev: DeviceRuntime, t_ns: int) -> int:
         """Recovery in proportion: a transfer that fails after a good poll is most likely a
