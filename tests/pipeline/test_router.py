@@ -96,6 +96,22 @@ def test_an_estimator_whose_estimates_feed_another_never_takes_a_block_whole() -
     assert first.blocks_taken == 0 and len(out) == 4
 
 
+def test_an_estimator_fed_by_another_estimator_never_takes_a_block_whole() -> None:
+    class _Listener(_Summing):
+        name: ClassVar[str] = "listener"
+        consumes: ClassVar[tuple[type, ...]] = (GyroSample, VerticalEstimate)
+
+        def process(self, item: Sample | Estimate) -> list[Estimate]:
+            return super().process(item) if isinstance(item, GyroSample) else []
+
+    upstream, listener = _Summing(instance="upstream"), _Listener(instance="listener")
+    router = Router.of([upstream, listener], {"upstream": ["acc"], "listener": ["imu",
+                                                                              "upstream"]})
+    out: list[Estimate] = []
+    router.fuse_blocks([_block(GyroSample, "imu", 4, 0.0)], out)
+    assert listener.blocks_taken == 0 and len(out) == 4
+
+
 def test_the_offline_chain_routes_by_the_pipelines_rule() -> None:
     """``inputs`` name the sources an estimator takes; one not named takes every source."""
     only_imu, every = _Summing(instance="only_imu"), _Summing(instance="every")

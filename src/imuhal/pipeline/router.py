@@ -16,9 +16,9 @@ estimates:
   sample;
 - a block of several frames (a FIFO read) goes whole to ``Estimator.update_block`` of each
   estimator it is routed to when nothing can come between its frames there: no other item
-  of the same fusion step is routed to that estimator, and nobody consumes that
-  estimator's estimates. Otherwise its frames are routed one by one, in fusion order with
-  the rest. Either way every estimator sees the same inputs in the same order; only the
+  of the same fusion step is routed to that estimator, it takes no other estimator's
+  estimates, and nobody consumes its estimates. Otherwise its frames are routed one by
+  one, in fusion order with the rest. Either way every estimator sees the same inputs in the same order; only the
   interleaving of different estimators' estimates in the output may differ (each
   estimator's own stay in order).
 """
@@ -72,9 +72,14 @@ class Router:
                 consumed_sources.update(x.name for x in self.routes if x is not r)
             else:
                 consumed_sources.update(r.inputs)
-        self._leaves = frozenset(r.name for r in self.routes
-                                 if r.name not in consumed_sources)
-        """Estimators whose estimates nobody takes (blocks may go to them whole)."""
+        names = {r.name for r in self.routes}
+        self._whole = frozenset(
+            r.name for r in self.routes
+            if r.name not in consumed_sources
+            and not (any(issubclass(t, Estimate) for t in r.consumes)
+                     and (r.inputs is None or names & r.inputs)))
+        """Estimators whose estimates nobody takes and that take no other estimator's:
+        nothing made during a fusion step can reach them, so a block may go whole."""
 
     @classmethod
     def of(cls, estimators: Sequence[Estimator],
@@ -155,7 +160,7 @@ class Router:
                ) -> bool:
         """Nothing else of this step reaches ``block``'s estimators, and their estimates go
         nowhere: its frames may be handed over at once."""
-        if any(r.name not in self._leaves for r in routes):
+        if any(r.name not in self._whole for r in routes):
             return False
         names = {r.name for r in routes}
         return not any(other is not block and names.intersection(
