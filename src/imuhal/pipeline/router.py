@@ -18,9 +18,9 @@ estimates:
   estimator it is routed to when nothing can come between its frames there: no other item
   of the same fusion step is routed to that estimator, it takes no other estimator's
   estimates, and nobody consumes its estimates. Otherwise its frames are routed one by
-  one, in fusion order with the rest. Either way every estimator sees the same inputs in the same order; only the
-  interleaving of different estimators' estimates in the output may differ (each
-  estimator's own stay in order).
+  one, in fusion order with the rest. Either way every estimator sees the same inputs in
+  the same order; only the interleaving of different estimators' estimates in the output
+  may differ (each estimator's own stay in order).
 """
 
 from __future__ import annotations
