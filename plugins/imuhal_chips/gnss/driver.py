@@ -37,7 +37,13 @@ from imuhal.core.samples import (
     VelocitySample,
 )
 from imuhal.core.streams import StreamSpec, TimeSource
-from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
+from imuhal.drivers.base import (
+    DeviceIdentity,
+    Driver,
+    DriverSettings,
+    PollResult,
+    SettingsInput,
+)
 from imuhal_chips.gnss.decode import DecodeError, Fragment, decode_nmea, decode_ubx
 from imuhal_chips.gnss.framing import StreamSplitter
 from imuhal_chips.gnss.ubx import CFG_MSG, CFG_RATE, NMEA_IDS, UBX_NAV_PVT, cfg_msg, cfg_rate
@@ -109,7 +115,7 @@ class GnssDriver(Driver):
     channels: ClassVar[tuple[Channel, ...]] = (Channel.POSITION, Channel.VELOCITY)
     bus_kinds: ClassVar[frozenset[BusKind]] = frozenset({BusKind.SERIAL})
 
-    def __init__(self, link: Link, settings: DriverSettings, *, device: str,
+    def __init__(self, link: Link, settings: SettingsInput, *, device: str,
                  clock: Clock) -> None:
         super().__init__(link, settings, device=device, clock=clock)
         self.settings: GnssSettings

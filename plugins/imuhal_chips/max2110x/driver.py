@@ -32,7 +32,12 @@ from imuhal.core.samples import (
     TemperatureSample,
 )
 from imuhal.core.streams import StreamSpec
-from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
+from imuhal.drivers.base import (
+    DeviceIdentity,
+    Driver,
+    PollResult,
+    SettingsInput,
+)
 from imuhal.drivers.polling import DataReady, PollGrid, ResetWatch
 from imuhal.drivers.validity import (
     NAN3,
@@ -112,10 +117,10 @@ class Max2110xDriver(Driver):
     settings: Max2110xSettings
 
     def __init__(
-        self, link: Link, settings: DriverSettings | dict[str, object], *, device: str,
+        self, link: Link, settings: SettingsInput, *, device: str,
         clock: Clock,
     ) -> None:
-        super().__init__(link, settings, device=device, clock=clock)  # type: ignore[arg-type]
+        super().__init__(link, settings, device=device, clock=clock)
         self.regs = RegisterView(link, convention_for(link.kind))
         self.scales: Scales | None = None
         self._expected: dict[int, int] = {}
@@ -471,7 +476,7 @@ class Max21100Driver(Max2110xDriver):
         "aux": frozenset({AUTO_READ})}
 
     def __init__(
-        self, link: Link, settings: DriverSettings | dict[str, object], *, device: str,
+        self, link: Link, settings: SettingsInput, *, device: str,
         clock: Clock,
     ) -> None:
         super().__init__(link, settings, device=device, clock=clock)

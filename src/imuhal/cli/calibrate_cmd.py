@@ -326,7 +326,7 @@ def _registered_procedure(opts: CalibrateOptions, registry: Registry, quantity: 
                           device: str, reporter: _Reporter) -> Any:
     """A procedure a plugin registered, with its ``--set`` settings."""
     cls = _registered(opts, registry)
-    settings = build_settings(cls.Settings, parse_set_arguments(opts.set),
+    settings = build_settings(cls.Settings, parse_set_arguments(list(opts.set)),
                               f"procedure {opts.procedure!r}")
     return cls(settings, quantity=quantity, device=device, progress=reporter)
 

@@ -182,7 +182,7 @@ def _plan(opts: RunOptions, path: Path, registry: Registry) -> _RunPlan:
     if duration is None and emulate is not None and scenario_params is None:
         duration = registry.scenarios.get(emulate).default_duration_s
     # checked before the board is opened
-    plugin_sinks = _plugin_sinks(opts.sink_names(), opts.sink_set, registry, profile=profile,
+    plugin_sinks = _plugin_sinks(opts.sink_names(), list(opts.sink_set), registry, profile=profile,
                                  frame=frame, given=opts.sink_given())
     mavlink = mavlink_sink(registry, opts, profile)  # a socket only: nothing sent yet
     where = f"emulated, scenario '{emulate}'" if emulate else "real hardware"
@@ -256,7 +256,7 @@ class _RunSession:
 
         if self.plan.emulate != "replay" or not isinstance(pipeline.board, EmulatedBoard):
             return
-        left = pipeline.board.scenario.duration_s - pipeline.clock.now_ns() / 1e9
+        left = pipeline.board.scenario.duration_s - pipeline.clock.now_ns() / 1e9  # type: ignore[attr-defined]  # the replay scenario (plan.emulate == "replay", tested above) has a duration
         asked = self.opts.duration
         if asked is not None and asked > left:
             print(f"warning: --replay-truth {self.opts.replay_truth} ends after {left:.3f} s; "
@@ -416,7 +416,7 @@ def _flight_sinks(opts: RunOptions, profile: Any, registry: Registry,
         else:
             sink = nmea({"output": spec, **extra})
         stack.callback(sink.close)
-        transport = sink.transport
+        transport = sink.transport  # type: ignore[attr-defined]  # the sink registered as 'nmea' is a FlightSink, which has a transport
         where = transport.description
         if isinstance(transport, PtyTransport):
             where += f" (open {transport.path} in the flight app)"

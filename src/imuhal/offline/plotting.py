@@ -223,7 +223,7 @@ class LogFigure:
         fmt = target.suffix.lower().lstrip(".")
         out = AtomicFile(target, binary=True)
         try:
-            self.figure.savefig(out.file, format=fmt, dpi=100)
+            self.figure.savefig(out.file, format=fmt, dpi=100)  # type: ignore[arg-type]  # AtomicFile.file is open until commit or abort, both below
         except BaseException:
             out.abort()
             raise

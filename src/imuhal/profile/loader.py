@@ -142,7 +142,7 @@ def validate_strict(model: type[BaseModel], data: Any,
     coerced = [{"type": "float_type", "loc": path, "input": value}
                for path, value in _coerced_numbers(data, result, ())]
     if coerced:
-        raise ValidationError.from_exception_data(model.__name__, coerced)  # type: ignore[arg-type]
+        raise ValidationError.from_exception_data(model.__name__, coerced)  # type: ignore[arg-type]  # pydantic's error-details TypedDict: a float_type error needs only these keys
     return result
 
 

@@ -156,7 +156,7 @@ class MqttSink(SinkPlugin):
     def __init__(self, settings: MqttSettings | Mapping[str, Any] | None = None, *,
                  env: Mapping[str, str] | None = None) -> None:
         super().__init__(settings)
-        s: MqttSettings = self.settings  # type: ignore[assignment]
+        s: MqttSettings = self.settings  # type: ignore[assignment]  # the plugin's own Settings model: the base class types settings as the base model
         if s.url is None:
             raise ImuhalError("the mqtt sink has no broker URL: add --mqtt mqtt://HOST[:PORT] "
                               "(or url in the profile's outputs.mqtt)")
@@ -229,7 +229,7 @@ class MqttSink(SinkPlugin):
         now = time.time()
         payload = encode(event_row(event, self.frame), run=self.run_id, seq=seq, unix_s=now)
         handoff = self._handoff
-        if len(handoff) >= self.settings.handoff_max:  # type: ignore[attr-defined]
+        if len(handoff) >= self.settings.handoff_max:  # type: ignore[attr-defined]  # the sink's Settings model (MqttSettings) has handoff_max; the base types settings as the base
             with contextlib.suppress(IndexError):  # the publisher may have emptied it
                 handoff.popleft()
                 self.counts["dropped_handoff"] += 1
@@ -308,7 +308,7 @@ class MqttSink(SinkPlugin):
                   "not published", file=sys.stderr)
 
     def _publish_loop(self) -> None:
-        s: MqttSettings = self.settings  # type: ignore[assignment]
+        s: MqttSettings = self.settings  # type: ignore[assignment]  # the plugin's own Settings model: the base class types settings as the base model
         queue = self.queue
         handed = 0  # highest queue id handed to paho
         pending: dict[int, int] = {}  # paho message id -> queue id, until acknowledged
