@@ -73,8 +73,12 @@ class MadgwickEstimator(AhrsEstimator):
     """Madgwick gradient-descent AHRS (6-DOF, or 9-DOF when magnetometer samples arrive)."""
 
     name: ClassVar[str] = "madgwick"
+    # from the settings' defaults, so that `imuhal plugins` cannot quote stale ones
     description: ClassVar[str] = (
-        "Madgwick gradient-descent AHRS (x-io release), with the seed's 0.6-1.4 g accel gate"
+        "Madgwick gradient-descent AHRS (x-io release, corrected): beta "
+        f"{MadgwickSettings().beta:g}, {MadgwickSettings().accel_soft_gate_g:g} g soft "
+        "accel gate, turn compensated; presets reference, seed "
+        f"({SEED_GATE_G[0]:g}-{SEED_GATE_G[1]:g} g gate), handheld"
     )
     Settings: ClassVar[type[MadgwickSettings]] = MadgwickSettings
     settings: MadgwickSettings

@@ -53,8 +53,12 @@ class MahonyEstimator(AhrsEstimator):
     """Mahony complementary AHRS with proportional-integral feedback and an accel gate."""
 
     name: ClassVar[str] = "mahony"
+    # from the settings' defaults, so that `imuhal plugins` cannot quote stale ones
     description: ClassVar[str] = (
-        "Mahony AHRS as in the seed author's ESP32 vario firmware (Kp 5, 0.75-1.25 g gate)"
+        f"Mahony complementary AHRS: Kp {MahonySettings().kp:g}, Ki {MahonySettings().ki:g}, "
+        f"{MahonySettings().accel_soft_gate_g:g} g soft accel gate, turn compensated; "
+        f"preset seed: the vario firmware's Kp {_FIRMWARE['kp']:g}, "
+        f"{_FIRMWARE['accel_gate_g'][0]:g}-{_FIRMWARE['accel_gate_g'][1]:g} g gate"
     )
     Settings: ClassVar[type[MahonySettings]] = MahonySettings
     settings: MahonySettings
