@@ -97,7 +97,7 @@ class Block:
                 raise ValueError(f"a block holds one stream: {first.device} "
                                  f"{kind.__name__}, got {s.device} {type(s).__name__}")
         frame = first.frame if isinstance(first, VectorSample) else None
-        if frame is not None and any(s.frame is not frame for s in samples):  # type: ignore[attr-defined]
+        if frame is not None and any(getattr(s, "frame", None) is not frame for s in samples):
             raise ValueError(f"{first.device} {kind.__name__}: frames in one block are in "
                              f"one frame of axes")
         return cls(kind, first.device, frame=frame, spec=spec, rows=list(samples))

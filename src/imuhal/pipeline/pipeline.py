@@ -15,7 +15,7 @@ import time
 from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -34,6 +34,7 @@ from imuhal.core.samples import GyroSample, MagSample, Quantity, Sample, SampleF
 from imuhal.core.streams import StreamSpec
 from imuhal.drivers.base import DeviceIdentity, Driver
 from imuhal.estimation.framed import FramedEvent, express
+from imuhal.estimation.outputs import Estimate
 from imuhal.estimation.streams import StreamContradiction
 from imuhal.pipeline.accounting import FrameLedger, describe_frames
 from imuhal.pipeline.board import Board, open_hardware_board
@@ -483,14 +484,14 @@ class Pipeline:
             dev.next_poll_ns = max(next_ns, t_ns + 1)
             heapq.heappush(heap, (dev.next_poll_ns, rank, name))
             if frames:
-                if type(frames) is _Readings:
+                if isinstance(frames, _Readings):
                     # one frame per block (a register poll): each reading through the steps
                     # as it is handed out (the start-up phase may switch calibration on
                     # between two of them)
                     for sample in frames:
-                        yield self._process_one(dev, sample)  # type: ignore[arg-type]
+                        yield self._process_one(dev, sample)
                 else:
-                    yield from self._frames_of(dev, frames)  # type: ignore[arg-type]
+                    yield from self._frames_of(dev, frames)
         if end is not None:
             self.clock.sleep_until(end)
         if self._fusion:
@@ -722,26 +723,29 @@ class Pipeline:
         fusion order (the router's rule); returns their estimates, in the order they were
         made. (A list, not a generator: this runs at every poll, and the queue is taken
         whole, so a consumer that stops iterating loses no input.)"""
-        fusion = self._fusion
-        if before_ns is None:
-            due, self._fusion = fusion, []
-        elif self._blocks_queued:
-            due = self._due_blocks(before_ns)
-        else:
-            due = [s for s in fusion if s.t_ns < before_ns]  # type: ignore[union-attr]
-            if due:
-                # usually every queued sample is due (they come from earlier polls)
-                self._fusion = [] if len(due) == len(fusion) else \
-                    [s for s in fusion if s.t_ns >= before_ns]  # type: ignore[union-attr]
-        if not due:
-            return []
         out: list[Event] = []
         if not self._blocks_queued:
-            self.router.fuse(due, out)  # type: ignore[arg-type]
+            # readings only (one-frame blocks kept as their samples): today's queue
+            samples = cast("list[Sample]", self._fusion)
+            if before_ns is None:
+                due, self._fusion = samples, []
+            else:
+                due = [s for s in samples if s.t_ns < before_ns]
+                if not due:
+                    return []
+                # usually every queued sample is due (they come from earlier polls)
+                self._fusion = [] if len(due) == len(samples) else \
+                    [s for s in samples if s.t_ns >= before_ns]
+            self.router.fuse(due, cast("list[Estimate]", out))
             return out
+        if before_ns is None:
+            items, self._fusion = self._fusion, []
+        else:
+            items = self._due_blocks(before_ns)
         self._blocks_queued = bool(self._fusion)
-        self.router.fuse_blocks([b if isinstance(b, Block) else Block.of_sample(b)
-                                 for b in due], out)  # type: ignore[arg-type]
+        if items:
+            self.router.fuse_blocks([b if isinstance(b, Block) else Block.of_sample(b)
+                                     for b in items], cast("list[Estimate]", out))
         return out
 
     def _due_blocks(self, before_ns: int) -> list[Sample | Block]:
