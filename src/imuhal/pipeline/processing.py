@@ -136,7 +136,7 @@ def validity_block(block: Block, full_scale: float | None, last_t_ns: int | None
 def _validity_bits(block: Block, full_scale: float | None) -> IntArray:
     """The block's flags with NAN and OUT_OF_RANGE added (a new array)."""
     values = block.values
-    bits = block.flags.copy()
+    bits: IntArray = np.array(block.flags, dtype=np.int64)
     finite = np.asarray(np.isfinite(values).all(axis=1), dtype=bool)
     bits[~finite] |= SampleFlag.NAN
     if full_scale is not None and values.shape[1]:
