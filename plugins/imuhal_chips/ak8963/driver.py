@@ -107,8 +107,6 @@ class AK8963Driver(Driver):
                               example="the MPU-9250's imu/aux with aux: master",
                               fix="use read: one-shot or set the MPU's aux: master")
         self._feed: AutoReadFeed | None = None
-        self._taken: bytes | None = None
-        """read: auto: the copy with DRDY behind the last sample (or before configure)."""
         self._cntl1_written_ns = 0
         self._streams: tuple[StreamSpec, ...] = ()
 
@@ -158,7 +156,7 @@ class AK8963Driver(Driver):
             feed.keep_ready_only(0, r.ST1_DRDY)
             # A copy from before this configuration is no measurement of it: writing CNTL1
             # cleared DRDY, so the next copy with DRDY differs from this one or is new.
-            self._taken = feed.data
+            feed.take()
         # the rate read back sets the poll grid and the stale policy
         spec = self._spec(back)
         self._streams = (spec,)
@@ -232,34 +230,55 @@ class AK8963Driver(Driver):
         if self._watch.check_due(now_ns, overdue=overdue) and self._config_lost():
             return PollResult([], self.restart(reset_detected=True))
         if self._feed is not None:
-            data = self._feed.data
-            if data is None or data == self._taken or not data[0] & r.ST1_DRDY:
-                return self._no_measurement(now_ns, overdue, SampleFlag.OK)
-            self._taken = data
-        else:
-            data = self.regs.read(r.DATA_BURST_START, r.DATA_BURST_LENGTH)
+            return self._poll_feed(now_ns, overdue)
+        data = self.regs.read(r.DATA_BURST_START, r.DATA_BURST_LENGTH)
+        sample, bad, ready = self._measurement(data, now_ns, now_ns)
+        if sample is None:
+            return self._no_measurement(now_ns, overdue or ready, bad, stale=not ready)
+        self._grid.anchor(now_ns)  # phase-lock: next poll one period after new data
+        return PollResult([sample], self._grid.next_after(now_ns))
+
+    def _poll_feed(self, now_ns: int, overdue: bool) -> PollResult:
+        """read: auto: every new copy the master delivered since the last poll (several
+        when it read them from its FIFO), each stamped with its copy's time."""
+        assert self._feed is not None
+        samples: list[MagSample] = []
+        bad = SampleFlag.OK
+        for t_ns, data in self._feed.take():
+            if not data[0] & r.ST1_DRDY:
+                continue
+            sample, flag, _ = self._measurement(data, t_ns, now_ns)
+            if sample is not None:
+                samples.append(sample)
+            bad |= flag
+        if not samples:
+            return self._no_measurement(now_ns, overdue or bool(bad), bad, stale=not bad)
+        self._grid.anchor(now_ns)
+        return PollResult(list(samples), self._grid.next_after(now_ns))
+
+    def _measurement(self, data: bytes, t_ns: int,
+                     poll_ns: int) -> tuple[MagSample | None, SampleFlag, bool]:
+        """An ST1..ST2 burst stamped ``t_ns``, found at the poll at ``poll_ns``: (the
+        sample, or None; the flag of a bad frame; DRDY)."""
         m = decode_burst(data, self.asa)
         bad = blank_flag(data)
         if m.data_ready and not bad:
             bad = self._frozen_flag(data[1:7])
-        if m.data_ready and not bad:
-            self._ready.fresh(Channel.MAG, now_ns)
-            self._watch.fresh_poll()
-            flags = SampleFlag.OK
-            if m.overflow:
-                flags |= SampleFlag.OVERFLOW
-            if m.saturated:
-                flags |= SampleFlag.SATURATED
-            if any(abs(c) > r.RESOLUTIONS[m.bits].max_count for c in m.counts):
-                flags |= SampleFlag.OUT_OF_RANGE
-            sample = MagSample(t_ns=now_ns, device=self.device, flags=flags,
-                               mag_ut=m.field_ut)
-            if flags == SampleFlag.OK:
-                self.last = m
-            self._grid.anchor(now_ns)  # phase-lock: next poll one period after new data
-            return PollResult([sample], self._grid.next_after(now_ns))
-        return self._no_measurement(now_ns, overdue or m.data_ready, bad,
-                                    stale=not m.data_ready)
+        if not m.data_ready or bad:
+            return None, bad, m.data_ready
+        self._ready.fresh(Channel.MAG, poll_ns)
+        self._watch.fresh_poll()
+        flags = SampleFlag.OK
+        if m.overflow:
+            flags |= SampleFlag.OVERFLOW
+        if m.saturated:
+            flags |= SampleFlag.SATURATED
+        if any(abs(c) > r.RESOLUTIONS[m.bits].max_count for c in m.counts):
+            flags |= SampleFlag.OUT_OF_RANGE
+        if flags == SampleFlag.OK:
+            self.last = m
+        return MagSample(t_ns=t_ns, device=self.device, flags=flags, mag_ut=m.field_ut), \
+            flags, True
 
     def _no_measurement(self, now_ns: int, overdue: bool, bad: SampleFlag, *,
                         stale: bool = True) -> PollResult:
