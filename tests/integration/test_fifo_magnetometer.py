@@ -1,9 +1,9 @@
 """The AK8963 through the MPU-9250's FIFO (issue 25): on the seed-gps-vario with the MPU
 reading its FIFO and the AK8963 auto-read by slave 0, each FIFO frame carries the slave's
 ST1..ST2 copy of its own sample instant; host stalls of 80 % of the FIFO's depth lose no IMU
-frame and about 1 % of the magnetometer's measurements (a known limit), each stamped at the
-MPU sample that copied it (sensor errors on: an ideal chip in steady flight repeats its
-frames, which the drivers rightly flag FROZEN)."""
+frame and no magnetometer measurement, each stamped at the MPU sample that copied it
+(sensor errors on: an ideal chip in steady flight repeats its frames, which the drivers
+rightly flag FROZEN)."""
 
 from __future__ import annotations
 
@@ -71,9 +71,7 @@ def test_each_magnetometer_measurement_arrives_once_stamped_at_its_copy(
     lag = np.asarray([m.t_ns for m in mags]) - np.asarray(taken)
     assert np.all((lag > -50_000) & (lag < 5_000_000))
     first, last = instants.index(taken[0]), instants.index(taken[-1])
-    # known limit: about 1 % of the AK8963's measurements do not come out valid yet (not
-    # found before the time limit of this change; see docs/acquisition.md)
-    assert len(mags) > 0.98 * (last - first + 1) > 400
+    assert last - first + 1 == len(mags) > 400  # none lost between the first and the last
 
 
 def test_fifo_streams_say_their_stamps_come_from_the_chip_clock(

@@ -21,15 +21,19 @@ into EXT_SENS_DATA and the driver takes them from the MPU's burst, with no trans
 own; identity, the fuse-ROM ASA read at configure and the periodic CNTL1 read-back still use
 the master's one-shot path (slave 4). Because ST1 is in the bytes, a measurement is new when
 DRDY is set (the master's read of ST2 released it and cleared DRDY, so a copy with DRDY comes
-from one measurement) and the bytes differ from the last copy with DRDY: the copy a failed
-(NACKed) master read leaves in EXT_SENS_DATA is not new. The feed keeps the last copy with
-DRDY (``AutoReadFeed.keep_ready_only``), so polling at the AK8963's rate while the MPU reads
-faster loses nothing. Two consecutive measurements with identical ST1..ST2 bytes are taken as
-one (a missed sample, never a wrong one). No new measurement for STALE_AFTER_PERIODS -> a
-STALE sample (a chip repeating its bytes gives no new copy, so STALE too); HOFL -> OVERFLOW;
+from one measurement) and the bytes differ from the copy delivered before it: the copy a
+failed (NACKed) master read leaves in EXT_SENS_DATA repeats the one before and is not new,
+while two equal measurements in a row have a copy without DRDY between them and both count.
+The feed queues every new copy (``AutoReadFeed.keep_ready_only``, ``take``), so polling at
+the AK8963's rate while the MPU reads faster, or reads its FIFO in bursts, loses nothing.
+No new measurement for STALE_AFTER_PERIODS -> a STALE sample (a chip repeating its bytes
+gives no new copy, so STALE too); HOFL -> OVERFLOW;
 never valid.
-Latency: at most one MPU sample period plus the MPU's poll guard after the measurement
-(``AutoReadFeed.latency_ns``); samples are stamped with the poll's time.
+Each new copy is a sample stamped with the time the master copied it (the MPU's poll, or
+its FIFO frame's chip-clock stamp): at most one MPU sample period after the measurement;
+several copies read from the FIFO in one burst are several samples. Staleness is judged on
+the master's deliveries, so a master delivering late (a FIFO after a host stall) is not a
+stale magnetometer.
 Output: uT in the AK8963's own axes
 (mag X = MPU accel Y, mag Y = MPU accel X, mag Z = -MPU accel Z); the profile's mount
 rotation takes it to the body frame.
@@ -226,7 +230,10 @@ class AK8963Driver(Driver):
         return self._frozen.observe(Channel.MAG, frame)
 
     def poll(self, now_ns: int) -> PollResult:
-        overdue = self._ready.overdue(Channel.MAG, now_ns)
+        # read: auto judges staleness on the master's time line (its latest delivery): a
+        # master that delivers late (a FIFO read after a host stall) makes no stale field
+        seen_ns = now_ns if self._feed is None else self._feed.t_ns
+        overdue = self._ready.overdue(Channel.MAG, seen_ns)
         if self._watch.check_due(now_ns, overdue=overdue) and self._config_lost():
             return PollResult([], self.restart(reset_detected=True))
         if self._feed is not None:
@@ -247,7 +254,7 @@ class AK8963Driver(Driver):
         for t_ns, data in self._feed.take():
             if not data[0] & r.ST1_DRDY:
                 continue
-            sample, flag, _ = self._measurement(data, t_ns, now_ns)
+            sample, flag, _ = self._measurement(data, t_ns, t_ns)
             if sample is not None:
                 samples.append(sample)
             bad |= flag

@@ -43,7 +43,7 @@ class AutoReadFeed:
     copy its burst comes).
     """
 
-    __slots__ = ("changed_ns", "data", "deliveries", "fresh", "latency_ns", "length",
+    __slots__ = ("_raw", "changed_ns", "data", "deliveries", "fresh", "latency_ns", "length",
                  "ready_bit", "register", "t_ns", "target")
 
     def __init__(self, target: int, register: int, length: int, *, latency_ns: int) -> None:
@@ -56,6 +56,8 @@ class AutoReadFeed:
         """Time of the latest delivery (ns, the driver clock)."""
         self.changed_ns = 0
         self.deliveries = 0
+        self._raw: bytes | None = None
+        """The bytes of the previous delivery, as read."""
         self.fresh: deque[tuple[int, bytes]] = deque(maxlen=FRESH_KEPT)
         """(delivery time, data) of each change of ``data`` not yet taken (:meth:`take`):
         every measurement of a slave whose master's copies came in a burst (a FIFO),
@@ -77,8 +79,15 @@ class AutoReadFeed:
         """The master's driver read ``data`` (``length`` bytes, slave register order) at
         ``t_ns``."""
         ready = self.ready_bit
-        if ready is not None and not data[ready[0]] & ready[1]:
-            data = self.data if self.data is not None else data
+        raw, self._raw = self._raw, data
+        if ready is not None:
+            if not data[ready[0]] & ready[1]:
+                data = self.data if self.data is not None else data
+            elif data != raw:
+                # a copy with data-ready that differs from the copy before it is a new
+                # measurement even when its bytes equal the last one's (a copy without
+                # data-ready came between); a failed master read repeats the copy before
+                self.data = None
         if data != self.data:
             self.data = data
             self.changed_ns = t_ns
