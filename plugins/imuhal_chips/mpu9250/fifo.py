@@ -53,6 +53,9 @@ read with two frames of room cannot have wrapped, and the burst reads no further
 count)."""
 TEMPERATURE_JUMP_DEGC = 2.0
 """A larger step of the die temperature between consecutive frames is no measurement."""
+DROP_PLACED_FRACTION = 0.01
+"""Held frames go out at a FIFO reset when the estimate places them this well (of a
+period: 50 us at 200 Hz)."""
 HOLD_MAX_FRAMES = 400
 """Frames held back at most while the chip's clock is learned (2 s at 200 Hz); then they
 go out stamped with the estimate as it stands."""
@@ -125,8 +128,7 @@ class FifoReader:
         hi_ns = self.clock.now_ns()
         count = (high & 0x1F) << 8 | low
         if overflowed or count > self.overflow_at:
-            self.reset(user_ctrl, restart=False)
-            return FifoRead([], [], reset=True)
+            return self._drop(user_ctrl)
         n = count // self.frame_bytes
         frames: list[bytes] = []
         if n:
@@ -134,15 +136,27 @@ class FifoReader:
             data = self.regs.read(r.FIFO_R_W, n * size)
             frames = [data[i * size:(i + 1) * size] for i in range(n)]
             if not frames_consistent(frames):
-                self.reset(user_ctrl, restart=False)
-                return FifoRead([], [], reset=True)
+                return self._drop(user_ctrl)
         newest = self.chip_clock.observe(n, lo_ns, hi_ns)
         self._held += [(newest - n + 1 + i, f) for i, f in enumerate(frames)]
         if not self._held or (not self.chip_clock.settled()
                               and len(self._held) < HOLD_MAX_FRAMES):
             return FifoRead([], [], held=len(self._held))
+        return self._release()
+
+    def _release(self, *, reset: bool = False) -> FifoRead:
+        """The held frames, stamped with the estimate as it stands."""
         held, self._held = self._held, []
-        # frames lost to a FIFO reset between held ones leave a gap in the indices, and
-        # in the stamps
         stamps = self.chip_clock.stamps([k for k, _ in held])
-        return FifoRead([f for _, f in held], stamps)
+        return FifoRead([f for _, f in held], stamps, reset=reset)
+
+    def _drop(self, user_ctrl: int) -> FifoRead:
+        """An overflow or a corrupt burst: the FIFO is reset unread. Frames held from
+        earlier reads go out now when the estimate places them to ``DROP_PLACED_FRACTION``
+        of a period (their count ends here); otherwise they are lost with the FIFO's, never
+        handed out with a wrong stamp."""
+        placed = self.chip_clock.uncertainty_ns() <= DROP_PLACED_FRACTION * self.period_ns
+        out = self._release(reset=True) if placed else FifoRead([], [], reset=True)
+        self._held = []
+        self.reset(user_ctrl, restart=False)
+        return out

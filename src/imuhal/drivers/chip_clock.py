@@ -50,6 +50,13 @@ class ClockRead:
     hi_ns: int
 
 
+PERIOD_MEMORY = 0.001
+"""How far the chip's period may have moved while a FIFO reset kept the host from
+watching it (a fraction: far more than temperature drift does in a second)."""
+PROBE_OFFSET_NS = 2_000
+"""How far from the estimated instant of a frame a probe reads (either side, in turn): the
+resolution the estimate keeps tracking a moving chip clock at."""
+
 Vertex = tuple[float, float]
 """(A relative to the segment's first read, ns; P, ns)."""
 
@@ -81,7 +88,7 @@ class ChipClock:
     """
 
     def __init__(self, nominal_period_ns: int, *, tolerance: float = 0.05,
-                 window_s: float = 2.0, max_step: float = 0.05,
+                 window_s: float = 0.25, max_step: float = 0.05,
                  ready_fraction: float = 0.02) -> None:
         if not 0 < max_step < 0.5:
             raise ValueError(f"max_step {max_step} must lie between 0 and 0.5 of a period")
@@ -101,6 +108,9 @@ class ChipClock:
         self._last: tuple[int, int] | None = None
         """(index, stamp) of the last frame stamped."""
         self._floor_ns: int | None = None
+        self._probes = 0
+        self._period_bounds: tuple[float, float] | None = None
+        """What the period was learned to be before a FIFO reset (ns), widened."""
         """The last stamp before a restart: the next may not lie at or before it."""
 
     # -- segments ---------------------------------------------------------------------------
@@ -111,28 +121,32 @@ class ChipClock:
         self._reads.clear()
         self._polygon = []
         self._k = None
+        self._period_bounds = None
+        self._restart_stamps()
+
+    def _restart_stamps(self) -> None:
+        """The next stamp is the estimate's, only after the last one handed out."""
         if self._last is not None:
             self._floor_ns = self._last[1]
         self._last = None
 
     def frames_dropped(self) -> None:
         """The FIFO was reset: an unknown number of frames are gone, the chip's clock ran
-        on. The next read's frame index is worked out from the estimate when it is good
-        to a quarter period, else the estimate starts again."""
-        if self._polygon and self.uncertainty_ns() < self.nominal_period_ns / 4:
-            self._k = None
-            return
+        on. Frames are counted afresh (a guess of how many were lost would mix two
+        countings in one estimate); the period learned so far, widened by
+        ``PERIOD_MEMORY``, bounds the new estimate."""
+        periods = [v[1] for v in self._polygon]
         self.restart()
+        if periods:
+            self._period_bounds = (min(periods) * (1 - PERIOD_MEMORY),
+                                   max(periods) * (1 + PERIOD_MEMORY))
 
     # -- observations -----------------------------------------------------------------------
 
     def observe(self, n: int, lo_ns: int, hi_ns: int) -> int:
         """A read found ``n`` new frames (count taken between ``lo_ns`` and ``hi_ns``);
         returns the index of the newest."""
-        if self._k is None:
-            k = n - 1 if not self._polygon else self._index_at(hi_ns, n)
-        else:
-            k = self._k + n
+        k = n - 1 if self._k is None else self._k + n
         self._k = k
         read = ClockRead(k, lo_ns, hi_ns)
         self._reads.append(read)
@@ -149,14 +163,6 @@ class ChipClock:
             self._polygon = clipped
         return k
 
-    def _index_at(self, hi_ns: int, n: int) -> int:
-        """After a FIFO reset: the newest frame at ``hi_ns`` by the estimate, after every
-        frame already stamped."""
-        a, p = self._centre()
-        k = math.floor((hi_ns - self._origin_ns - a) / p)
-        floor = self._last[0] + n if self._last is not None else n - 1
-        return max(k, floor)
-
     def _constrain(self, polygon: list[Vertex], read: ClockRead) -> list[Vertex]:
         lo = read.lo_ns - self._origin_ns
         hi = read.hi_ns - self._origin_ns
@@ -166,6 +172,9 @@ class ChipClock:
     def _box(self, t_ns: int, k: int) -> list[Vertex]:
         p_lo = self.nominal_period_ns * (1.0 - self.tolerance)
         p_hi = self.nominal_period_ns * (1.0 + self.tolerance)
+        if self._period_bounds is not None:
+            p_lo = max(p_lo, self._period_bounds[0])
+            p_hi = min(p_hi, self._period_bounds[1])
         t = float(t_ns - self._origin_ns)
         span = (abs(k) + 2) * p_hi
         return [(t - span, p_lo), (t + span, p_lo), (t + span, p_hi), (t - span, p_hi)]
@@ -249,4 +258,9 @@ class ChipClock:
         a, p = self._centre()
         k = round((around_ns - self._origin_ns - a) / p)
         at = [v[0] + k * v[1] for v in self._polygon]
-        return self._origin_ns + round((max(at) + min(at)) / 2)
+        # a little before or after the middle, in turn: a read exactly at an instant the
+        # estimate is sure of agrees with it whichever way the chip's clock moved; one a
+        # probe offset away on either side shows the move
+        self._probes += 1
+        offset = PROBE_OFFSET_NS if self._probes % 2 else -PROBE_OFFSET_NS
+        return self._origin_ns + round((max(at) + min(at)) / 2) + offset
