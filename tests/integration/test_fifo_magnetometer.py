@@ -19,7 +19,7 @@ from imuhal.emulation.faults import HostStall
 from imuhal.pipeline import Pipeline
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import bundled_profiles
+from imuhal.profile.bundled import bundled_profiles
 
 STALL_S = 0.092
 """80 % of the FIFO's depth in time: 23 frames of 22 bytes (accel, temperature, gyro and

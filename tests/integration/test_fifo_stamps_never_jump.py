@@ -15,7 +15,7 @@ from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import ChipReset, HostStall
 from imuhal.plugins.manager import load_registry
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import bundled_profiles
+from imuhal.profile.bundled import bundled_profiles
 
 PERIOD_NS = 5_000_000
 
