@@ -18,8 +18,8 @@ from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import HostStall
 from imuhal.pipeline import Pipeline
 from imuhal.plugins.manager import Registry, load_registry
-from imuhal.profile.loader import load_profile
 from imuhal.profile.bundled import bundled_profiles
+from imuhal.profile.loader import load_profile
 
 STALL_S = 0.092
 """80 % of the FIFO's depth in time: 23 frames of 22 bytes (accel, temperature, gyro and

@@ -14,8 +14,8 @@ from imuhal.core.samples import GyroSample, MagSample, Sample
 from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import ChipReset, HostStall
 from imuhal.plugins.manager import load_registry
-from imuhal.profile.loader import load_profile
 from imuhal.profile.bundled import bundled_profiles
+from imuhal.profile.loader import load_profile
 
 PERIOD_NS = 5_000_000
 
