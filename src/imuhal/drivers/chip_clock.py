@@ -58,7 +58,7 @@ PROBE_OFFSET_NS = 2_000
 resolution the estimate keeps tracking a moving chip clock at."""
 
 Vertex = tuple[float, float]
-"""(A relative to the segment's first read, ns; P, ns)."""
+"""(A, the instant of frame 0 relative to ``ChipClock._origin_ns``, ns; P, the period, ns)."""
 
 
 def _clip(polygon: list[Vertex], a: float, b: float, c: float) -> list[Vertex]:
@@ -84,7 +84,8 @@ class ChipClock:
     ``nominal_period_ns``: the datasheet's period; ``tolerance``: how far the chip's
     oscillator may be off it (fraction); ``window_s``: how far back reads are kept to rebuild
     the estimate after the chip's clock moved; ``max_step``: the largest correction of one
-    stamp, as a fraction of the period.
+    stamp, as a fraction of the period; ``ready_fraction``: how well (of a period) the
+    newest frame must be placed for :meth:`settled`.
     """
 
     def __init__(self, nominal_period_ns: int, *, tolerance: float = 0.05,
@@ -108,10 +109,10 @@ class ChipClock:
         self._last: tuple[int, int] | None = None
         """(index, stamp) of the last frame stamped."""
         self._floor_ns: int | None = None
+        """The last stamp before a restart: the next may not lie at or before it."""
         self._probes = 0
         self._period_bounds: tuple[float, float] | None = None
         """What the period was learned to be before a FIFO reset (ns), widened."""
-        """The last stamp before a restart: the next may not lie at or before it."""
 
     # -- segments ---------------------------------------------------------------------------
 
