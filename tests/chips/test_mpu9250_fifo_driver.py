@@ -11,7 +11,6 @@ from bisect import bisect_right
 import numpy as np
 import pytest
 
-from imuhal.core.errors import ConfigurationError
 from imuhal.core.samples import GyroSample
 from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import HostStall
@@ -64,37 +63,48 @@ def test_a_stall_of_80_percent_of_the_fifo_loses_nothing_in_fifo_mode(
 
 def test_a_stall_longer_than_the_fifo_is_a_counted_overflow_and_no_frame_is_wrong(
         registry: Registry) -> None:
-    p, gyros = _run(registry, "fifo", 0.3)
+    p, gyros = _run(registry, "fifo", 0.3, "thermal", ideal=False)
     frames = p.summary().frames["imu"]
     assert frames["lost_fifo_overflow"] > 0
-    assert p.devices["imu"].driver.health.fifo_overflows >= 2  # the stalls at 3 and 4 s
+    assert p.devices["imu"].driver.health.fifo_overflows >= 3  # the stalls at 2, 3 and 4 s
     ledger = p.devices["imu"].ledger
     assert ledger is not None
     chip = p.board.emulators["imu"]
-    assert [n for *_, n in ledger.all_segments()] == \
-        [chip.frames_between(a, b) for a, b, _ in ledger.all_segments()]
-    _assert_each_sample_is_its_instants_truth(p, [g for g in gyros if g.t_ns > MOVING_NS])
+    instants = np.asarray(chip.measured_ns)
+    # frames the chip measured from the first to the last delivered one of each segment
+    # (stamps lie within microseconds of their instants, before or after them)
+    assert [n for *_, n in ledger.all_segments()] == [
+        int(np.sum((instants > a - PERIOD_NS // 2) & (instants < b + PERIOD_NS // 2)))
+        for a, b, _ in ledger.all_segments()]
+    assert frames["delivered"] == len(gyros)
 
 
-def test_frames_are_back_dated_a_period_apart_to_their_measurement_instants(
+def test_frames_are_stamped_at_their_measurement_instants_a_period_apart(
         registry: Registry) -> None:
     p, gyros = _run(registry, "fifo", 0.1)
     moving = [g for g in gyros if g.t_ns > MOVING_NS]
     assert len(moving) > 400
-    assert set(np.diff([g.t_ns for g in moving])) == {PERIOD_NS}
-    _assert_each_sample_is_its_instants_truth(p, moving)
+    steps = np.diff([g.t_ns for g in moving])
+    assert np.all(np.abs(steps - PERIOD_NS) <= PERIOD_NS // 20)
+    errors_ns = _assert_each_sample_is_its_instants_truth(p, moving)
+    assert np.max(np.abs(errors_ns)) < 50_000
 
 
-def _assert_each_sample_is_its_instants_truth(p: Pipeline, gyros: list[GyroSample]) -> None:
-    """Each sample equals the truth at the chip instant its stamp maps to (the latest at or
-    before it) within one LSB: a frame out of place or shifted would not."""
+def _assert_each_sample_is_its_instants_truth(p: Pipeline,
+                                              gyros: list[GyroSample]) -> list[int]:
+    """Each sample equals the truth at the chip instant nearest its stamp within one LSB: a
+    frame out of place or shifted would not. Returns each stamp minus that instant."""
     chip = p.board.emulators["imu"]
     lsb = chip.resolution(GyroSample.channel)
     rotation = np.asarray(p.devices["imu"].chip_to_body, dtype=float)
+    errors = []
     for g in gyros:
-        instant = chip.measured_ns[bisect_right(chip.measured_ns, g.t_ns) - 1]
+        i = bisect_right(chip.measured_ns, g.t_ns)
+        instant = min(chip.measured_ns[max(i - 1, 0):i + 1], key=lambda t: abs(t - g.t_ns))
         truth = np.asarray(p.board.truth_at(instant).angular_rate_body_rad_s)
         assert np.max(np.abs(rotation @ np.asarray(g.gyro_rad_s) - truth)) <= lsb, g.t_ns
+        errors.append(g.t_ns - instant)
+    return errors
 
 
 def test_a_temperature_jump_between_frames_is_a_corrupt_fifo() -> None:
@@ -104,10 +114,3 @@ def test_a_temperature_jump_between_frames_is_a_corrupt_fifo() -> None:
     assert not frames_consistent([frame, shifted])
 
 
-def test_fifo_mode_refuses_a_slave_auto_read(registry: Registry) -> None:
-    profile = load_profile(bundled_profiles()["seed-gps-vario.yaml"], registry)
-    device = profile.devices["imu"]
-    profile = profile.model_copy(update={"devices": {**profile.devices, "imu": device.model_copy(
-        update={"settings": {**device.settings, "read": "fifo"}})}})
-    with pytest.raises(ConfigurationError, match="read: fifo"):
-        open_emulated(profile, registry, calibrated=False)

@@ -21,15 +21,19 @@ into EXT_SENS_DATA and the driver takes them from the MPU's burst, with no trans
 own; identity, the fuse-ROM ASA read at configure and the periodic CNTL1 read-back still use
 the master's one-shot path (slave 4). Because ST1 is in the bytes, a measurement is new when
 DRDY is set (the master's read of ST2 released it and cleared DRDY, so a copy with DRDY comes
-from one measurement) and the bytes differ from the last copy with DRDY: the copy a failed
-(NACKed) master read leaves in EXT_SENS_DATA is not new. The feed keeps the last copy with
-DRDY (``AutoReadFeed.keep_ready_only``), so polling at the AK8963's rate while the MPU reads
-faster loses nothing. Two consecutive measurements with identical ST1..ST2 bytes are taken as
-one (a missed sample, never a wrong one). No new measurement for STALE_AFTER_PERIODS -> a
-STALE sample (a chip repeating its bytes gives no new copy, so STALE too); HOFL -> OVERFLOW;
+from one measurement) and the bytes differ from the copy delivered before it: the copy a
+failed (NACKed) master read leaves in EXT_SENS_DATA repeats the one before and is not new,
+while two equal measurements in a row have a copy without DRDY between them and both count.
+The feed queues every new copy (``AutoReadFeed.keep_ready_only``, ``take``), so polling at
+the AK8963's rate while the MPU reads faster, or reads its FIFO in bursts, loses nothing.
+No new measurement for STALE_AFTER_PERIODS -> a STALE sample (a chip repeating its bytes
+gives no new copy, so STALE too); HOFL -> OVERFLOW;
 never valid.
-Latency: at most one MPU sample period plus the MPU's poll guard after the measurement
-(``AutoReadFeed.latency_ns``); samples are stamped with the poll's time.
+Each new copy is a sample stamped with the time the master copied it (the MPU's poll, or
+its FIFO frame's chip-clock stamp): at most one MPU sample period after the measurement;
+several copies read from the FIFO in one burst are several samples. Staleness is judged on
+the master's deliveries, so a master delivering late (a FIFO after a host stall) is not a
+stale magnetometer.
 Output: uT in the AK8963's own axes
 (mag X = MPU accel Y, mag Y = MPU accel X, mag Z = -MPU accel Z); the profile's mount
 rotation takes it to the body frame.
@@ -113,8 +117,6 @@ class AK8963Driver(Driver):
                               example="the MPU-9250's imu/aux with aux: master",
                               fix="use read: one-shot or set the MPU's aux: master")
         self._feed: AutoReadFeed | None = None
-        self._taken: bytes | None = None
-        """read: auto: the copy with DRDY behind the last sample (or before configure)."""
         self._cntl1_written_ns = 0
         self._streams: tuple[StreamSpec, ...] = ()
 
@@ -164,7 +166,7 @@ class AK8963Driver(Driver):
             feed.keep_ready_only(0, r.ST1_DRDY)
             # A copy from before this configuration is no measurement of it: writing CNTL1
             # cleared DRDY, so the next copy with DRDY differs from this one or is new.
-            self._taken = feed.data
+            feed.take()
         # the rate read back sets the poll grid and the stale policy
         spec = self._spec(back)
         self._streams = (spec,)
@@ -234,38 +236,62 @@ class AK8963Driver(Driver):
         return self._frozen.observe(Quantity.MAG, frame)
 
     def poll(self, now_ns: int) -> PollResult:
-        overdue = self._ready.overdue(Quantity.MAG, now_ns)
+        # read: auto judges staleness on the master's time line (its latest delivery): a
+        # master that delivers late (a FIFO read after a host stall) makes no stale field
+        seen_ns = now_ns if self._feed is None else self._feed.t_ns
+        overdue = self._ready.overdue(Quantity.MAG, seen_ns)
         if self._watch.check_due(now_ns, overdue=overdue) and self._config_lost():
             return PollResult([], self.restart(reset_detected=True))
         if self._feed is not None:
-            data = self._feed.data
-            if data is None or data == self._taken or not data[0] & r.ST1_DRDY:
-                return self._no_measurement(now_ns, overdue, SampleFlag.OK)
-            self._taken = data
-        else:
-            data = self.regs.read(r.DATA_BURST_START, r.DATA_BURST_LENGTH)
+            return self._poll_feed(now_ns, overdue)
+        data = self.regs.read(r.DATA_BURST_START, r.DATA_BURST_LENGTH)
+        sample, bad, ready = self._measurement(data, now_ns, now_ns)
+        if sample is None:
+            return self._no_measurement(now_ns, overdue or ready, bad, stale=not ready)
+        self._grid.anchor(now_ns)  # phase-lock: next poll one period after new data
+        return PollResult([sample], self._grid.next_after(now_ns))
+
+    def _poll_feed(self, now_ns: int, overdue: bool) -> PollResult:
+        """read: auto: every new copy the master delivered since the last poll (several
+        when it read them from its FIFO), each stamped with its copy's time."""
+        assert self._feed is not None
+        samples: list[MagSample] = []
+        bad = SampleFlag.OK
+        for t_ns, data in self._feed.take():
+            if not data[0] & r.ST1_DRDY:
+                continue
+            sample, flag, _ = self._measurement(data, t_ns, t_ns)
+            if sample is not None:
+                samples.append(sample)
+            bad |= flag
+        if not samples:
+            return self._no_measurement(now_ns, overdue or bool(bad), bad, stale=not bad)
+        self._grid.anchor(now_ns)
+        return PollResult(list(samples), self._grid.next_after(now_ns))
+
+    def _measurement(self, data: bytes, t_ns: int,
+                     poll_ns: int) -> tuple[MagSample | None, SampleFlag, bool]:
+        """An ST1..ST2 burst stamped ``t_ns``, found at the poll at ``poll_ns``: (the
+        sample, or None; the flag of a bad frame; DRDY)."""
         m = decode_burst(data, self.asa)
         bad = blank_flag(data)
         if m.data_ready and not bad:
             bad = self._frozen_flag(data[1:7])
-        if m.data_ready and not bad:
-            self._ready.fresh(Quantity.MAG, now_ns)
-            self._watch.fresh_poll()
-            flags = SampleFlag.OK
-            if m.overflow:
-                flags |= SampleFlag.OVERFLOW
-            if m.saturated:
-                flags |= SampleFlag.SATURATED
-            if any(abs(c) > r.RESOLUTIONS[m.bits].max_count for c in m.counts):
-                flags |= SampleFlag.OUT_OF_RANGE
-            sample = MagSample(t_ns=now_ns, device=self.device, flags=flags,
-                               mag_ut=m.field_ut)
-            if flags == SampleFlag.OK:
-                self.last = m
-            self._grid.anchor(now_ns)  # phase-lock: next poll one period after new data
-            return PollResult([sample], self._grid.next_after(now_ns))
-        return self._no_measurement(now_ns, overdue or m.data_ready, bad,
-                                    stale=not m.data_ready)
+        if not m.data_ready or bad:
+            return None, bad, m.data_ready
+        self._ready.fresh(Quantity.MAG, poll_ns)
+        self._watch.fresh_poll()
+        flags = SampleFlag.OK
+        if m.overflow:
+            flags |= SampleFlag.OVERFLOW
+        if m.saturated:
+            flags |= SampleFlag.SATURATED
+        if any(abs(c) > r.RESOLUTIONS[m.bits].max_count for c in m.counts):
+            flags |= SampleFlag.OUT_OF_RANGE
+        if flags == SampleFlag.OK:
+            self.last = m
+        return MagSample(t_ns=t_ns, device=self.device, flags=flags, mag_ut=m.field_ut), \
+            flags, True
 
     def _no_measurement(self, now_ns: int, overdue: bool, bad: SampleFlag, *,
                         stale: bool = True) -> PollResult:

@@ -10,6 +10,12 @@ successive registers; reads auto-increment, wrapping 0x0C -> 0x00 and 0x12 -> 0x
   measurement finishing meanwhile is held and appears (with DRDY) when ST2 ends the read. A
   measurement finishing while DRDY is still set overwrites the data and sets DOR.
 - HOFL is set when |X| + |Y| + |Z| >= 4912 uT; each axis also clips at the data range.
+- Its own clock: continuous measurements complete every 1/8 s or 1/100 s divided by
+  1 + ``oscillator_error`` (default 0; the register map states no tolerance for the
+  AK8963's internal oscillator, so tests and scripts set up to +-2 %, issue 25), counted
+  from the CNTL1 write; each takes the truth of its own completion instant
+  (``pull_physics``), whether the host reads it then or a master (the MPU-9250's slave 0,
+  ``EmulatedBus.transfer_at``) copies it later.
 
 Physics face: ``physics.magnetic_field_ut`` in the AK8963's own axes (uT), divided by the
 sensitivity (0.15 or 0.6 uT/LSB) times the part's ASA adjustment, so the driver's Hadj
@@ -59,6 +65,7 @@ class AK8963Emulator(ChipEmulator):
     error_spec = AK8963_ERROR_SPEC
     models_stuck_data_ready = True
     conformance_sweep = True
+    pulls_physics = True
     min_output_period_s = _MEASUREMENT_S  # back-to-back single measurements
 
     def __init__(self, clock: Clock | None = None, *,
@@ -74,6 +81,7 @@ class AK8963Emulator(ChipEmulator):
         self.resets = 0
         self.mode_violations = 0
         """Mode changes that skipped power-down (the datasheet forbids them)."""
+        self._oscillator_error = 0.0
         self._pointer = 0
         self._reset()
 
@@ -122,6 +130,21 @@ class AK8963Emulator(ChipEmulator):
         axis = max_count * ut_per_lsb * min(_adjustment(a) for a in self.asa)
         return min(axis, _RANGE_UT)
 
+    @property
+    def oscillator_error(self) -> float:
+        """The internal oscillator's frequency error as a fraction (0.02: 2 % fast, each
+        continuous-mode period 1/1.02 of the nominal); takes effect from the next period."""
+        return self._oscillator_error
+
+    @oscillator_error.setter
+    def oscillator_error(self, fraction: float) -> None:
+        if not -0.1 <= fraction <= 0.1:
+            raise ValueError(f"oscillator_error {fraction} is not a clock error within +-10 %")
+        self._oscillator_error = fraction
+
+    def _period_ns(self, mode: int) -> int:
+        return round(_PERIOD_S_BY_MODE[mode] * 1e9 / (1.0 + self._oscillator_error))
+
     # -- state ------------------------------------------------------------------------------
 
     def _reset(self) -> None:
@@ -151,6 +174,7 @@ class AK8963Emulator(ChipEmulator):
     def _advance(self) -> None:
         now = self.now_ns()
         while self._next_ns is not None and self._next_ns <= now and not self.stuck_data_ready:
+            self.pull_physics(self._next_ns)
             self._complete(self._measure())
             mode = self._mode()
             if mode == r.MODE_SINGLE:
@@ -158,7 +182,7 @@ class AK8963Emulator(ChipEmulator):
                 self._cntl1 &= ~r.MODE_MASK
                 self._next_ns = None
             else:
-                period = round(_PERIOD_S_BY_MODE[mode] * 1e9)
+                period = self._period_ns(mode)
                 # Long gaps: skip ahead, keeping the last two measurements (enough for DOR).
                 missed = (now - self._next_ns) // period
                 skipped = max(missed - 1, 0)

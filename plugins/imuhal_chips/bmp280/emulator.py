@@ -13,6 +13,10 @@ Bus face:
   oversampling; forced mode (mode 01 or 10) measures once and returns to sleep (mode bits
   read 00 afterwards); normal mode cycles measurement + standby t_sb. The IIR filter runs on
   the ADC values of successive measurements, seeded with the first.
+- Its own clock: every time above divided by 1 + ``oscillator_error`` (default 0; the
+  datasheet gives typical and maximum measurement times, not the oscillator's tolerance, so
+  tests and scripts set up to +-2 %, issue 25); each measurement takes the truth of the
+  instant it completes (``pull_physics``), whenever the host reads it.
 
 Physics face: ``physics.pressure_pa`` and ``physics.temperature_degc`` (defaults 101325 Pa,
 25 degC) are turned into ADC counts by ``emulator_encoding``, the closed-form inverse of the
@@ -86,6 +90,7 @@ class BMP280Emulator(ChipEmulator):
     error_spec = BMP280_ERROR_SPEC
     measures_motion = False  # pressure and temperature only: a light truth is enough
     models_stuck_data_ready = True
+    pulls_physics = True
     conformance_sweep = True
     # Normal mode at x1/x1 oversampling and the shortest standby: measurement + 0.5 ms.
     min_output_period_s = (_measurement_ms(1, 1) + _STANDBY_MS_BY_CODE[0]) / 1e3
@@ -102,6 +107,7 @@ class BMP280Emulator(ChipEmulator):
         self.stuck_data_ready = False
         self._pointer = 0
         self.resets = 0
+        self._oscillator_error = 0.0
         self._reset()
         self.resets = 0
         """Resets seen (soft reset command or silent reset), for tests."""
@@ -192,13 +198,35 @@ class BMP280Emulator(ChipEmulator):
     def _mode(self) -> int:
         return self._ctrl & r.MODE_MASK
 
+    @property
+    def oscillator_error(self) -> float:
+        """The internal oscillator's frequency error as a fraction (0.02: 2 % fast, every
+        measurement and standby time 1/1.02 of the datasheet's); measurements already made
+        stay where they were."""
+        return self._oscillator_error
+
+    @oscillator_error.setter
+    def oscillator_error(self, fraction: float) -> None:
+        if not -0.1 <= fraction <= 0.1:
+            raise ValueError(f"oscillator_error {fraction} is not a clock error within +-10 %")
+        self._advance()
+        if self._mode() == r.MODE_NORMAL:
+            # count the cycles on from the last one completed, at the new rate
+            self._cycle_start += self._cycles_done * self._period_ns()
+            self._cycles_done = 0
+        self._oscillator_error = fraction
+
+    def _on_clock(self, ms: float) -> int:
+        """A datasheet time (ms) on the chip's own oscillator, in ns."""
+        return round(ms * 1e6 / (1.0 + self._oscillator_error))
+
     def _meas_ns(self) -> int:
         osrs_t, osrs_p = self._oversampling()
-        return round(_measurement_ms(osrs_t, osrs_p) * 1e6)
+        return self._on_clock(_measurement_ms(osrs_t, osrs_p))
 
     def _period_ns(self) -> int:
         standby = _STANDBY_MS_BY_CODE[self._config >> 5 & 0b111]
-        return self._meas_ns() + round(standby * 1e6)
+        return self._meas_ns() + self._on_clock(standby)
 
     def _advance(self) -> None:
         """Complete the measurements that have finished by now."""
@@ -211,14 +239,17 @@ class BMP280Emulator(ChipEmulator):
             if elapsed >= 0:
                 period = self._period_ns()
                 done = elapsed // period + 1
-                for _ in range(min(done - self._cycles_done, 64)):
+                first_ns = self._cycle_start + self._meas_ns()  # cycle 1 completes
+                # the last 64 cycles at most: the IIR filter forgets anything older
+                for cycle in range(max(self._cycles_done + 1, done - 63), done + 1):
+                    self.pull_physics(first_ns + (cycle - 1) * period)
                     self._measure()
-                self.record_measurements(
-                    self._cycle_start + self._meas_ns() + self._cycles_done * period, period,
-                    done - self._cycles_done)
+                self.record_measurements(first_ns + self._cycles_done * period, period,
+                                         done - self._cycles_done)
                 self._cycles_done = done
         elif self._forced_done is not None and now >= self._forced_done:
             self.record_measurements(self._forced_done, 0, 1)
+            self.pull_physics(self._forced_done)
             self._measure()
             self._forced_done = None
             self._ctrl &= ~r.MODE_MASK  # back to sleep

@@ -41,7 +41,7 @@ from imuhal.core.samples import (
     SampleFlag,
     TemperatureSample,
 )
-from imuhal.core.streams import StreamSpec
+from imuhal.core.streams import StreamSpec, TimeSource
 from imuhal.drivers.base import (
     DeviceIdentity,
     Driver,
@@ -67,7 +67,7 @@ from imuhal_chips.mpu9250.decode import (
     saturated,
     temperature_degc,
 )
-from imuhal_chips.mpu9250.fifo import FIFO_EN_VALUE, FifoReader
+from imuhal_chips.mpu9250.fifo import FIFO_EN_VALUE, FRAME_BYTES, FifoReader
 
 KNOWN_IDS: dict[int, str] = {
     0x70: "WHO_AM_I 0x70 is an MPU-6500 (accel+gyro only, no magnetometer): the board is "
@@ -101,14 +101,15 @@ class MPU9250Settings(DriverSettings):
     aux: Literal["auto", "bypass", "master", "off"] = "auto"
     read: Literal["registers", "fifo"] = "registers"
     """``registers``: one data burst per sample, polled on a grid; ``fifo``: the chip keeps
-    accel, temperature and gyro frames in its 512-byte FIFO (36 frames) and the driver reads
-    them in bursts every ``fifo_frames`` periods (imuhal_chips.mpu9250.fifo), so a host
-    stall shorter than the FIFO loses nothing. Not with a slave auto-read (read: auto on
-    the AK8963)."""
-    fifo_frames: int = Field(default=2, ge=1, le=24)
+    accel, temperature and gyro frames in its 512-byte FIFO (36 frames; 23 with a slave
+    auto-read's 8 bytes in each, the AK8963 on ``read: auto``) and the driver reads them in
+    bursts every ``fifo_frames`` periods, stamped on the chip's own clock
+    (imuhal_chips.mpu9250.fifo), so a host stall shorter than the FIFO loses nothing."""
+    fifo_frames: int = Field(default=2, ge=1, le=16)
     """read: fifo: read the FIFO every this many sample periods. The FIFO holds 36 frames
-    and is reset with fewer than 3 free, so a host stall of up to 33 - fifo_frames periods
-    (155 ms at 200 Hz with the default 2) loses nothing."""
+    (23 with the AK8963's bytes) and is reset with fewer than 2 free, so a host stall of up
+    to 34 (21) - fifo_frames periods, less one for the read's phase, loses nothing: 155 ms
+    (90 ms) at 200 Hz with the default 2."""
     reset_check_s: float = reset_check_field()
     """How often (s) INT_PIN_CFG/INT_ENABLE are read back to catch a silent chip reset."""
 
@@ -201,7 +202,8 @@ class MPU9250Driver(Driver):
         self._accel = r.ACCEL_RANGES[s.accel_range_g]
         self._period_ns = round(1e9 / r.sample_rate_hz(r.GYRO_DLPF[s.gyro_lpf_hz],
                                                         s.smplrt_div()))
-        self._fifo = FifoReader(self.regs, self._period_ns) if s.read == "fifo" else None
+        self._fifo = (FifoReader(self.regs, self._period_ns, clock) if s.read == "fifo"
+                      else None)
         self._expected = self._register_plan()
         self._burst_length = r.DATA_BURST_LENGTH
         self._grid = PollGrid(self._period_ns)
@@ -258,7 +260,8 @@ class MPU9250Driver(Driver):
             r.I2C_MST_CTRL: r.I2C_MST_CLK_400KHZ if self.aux_mode == "master" else 0x00,
             r.INT_PIN_CFG: r.INT_PIN_BYPASS_EN if self.aux_mode == "bypass" else 0x00,
             **(self._auto_read_plan(self._feed) if self._feed is not None else {}),
-            **({r.FIFO_EN: FIFO_EN_VALUE} if fifo else {}),
+            **({r.FIFO_EN: FIFO_EN_VALUE | (r.FIFO_SLV0 if self._feed else 0)}
+               if fifo else {}),
             r.INT_ENABLE: r.INT_RAW_RDY | (r.INT_FIFO_OFLOW if fifo else 0),
         }
 
@@ -284,20 +287,23 @@ class MPU9250Driver(Driver):
         where = f"{self.describe()}: slave auto-read of 0x{target:02X}"
         if self.aux_mode != "master":
             raise ConfigurationError(f"{where}: needs the MPU's I2C master; set aux: master")
-        if self._fifo is not None:
-            raise ConfigurationError(f"{where}: not with the MPU's read: fifo (the slave's "
-                                     "bytes are not read from the FIFO yet); set the slave's "
-                                     "read: one-shot or the MPU's read: registers")
         if not 1 <= length <= r.SLV_LENG:
             raise ConfigurationError(f"{where}: {length} bytes asked; slave 0 reads 1 to "
                                      f"{r.SLV_LENG} (I2C_SLV0_CTRL.LENG)")
         feed = same_feed(self._feed, target, register, length, where=where)
         if feed is not None:
             return feed
-        # Copied at each sample, read by the next burst one poll-grid guard after it.
-        feed = AutoReadFeed(target, register, length,
-                            latency_ns=self._period_ns + self._grid.guard_ns)
+        # Copied at each sample, read by the next burst one poll-grid guard after it; from
+        # the FIFO, each copy comes with its own frame's stamp
+        latency_ns = self._period_ns + self._grid.guard_ns
+        if self._fifo is not None:
+            latency_ns = self._fifo_interval_ns() + self._period_ns
+        feed = AutoReadFeed(target, register, length, latency_ns=latency_ns)
         plan = self._auto_read_plan(feed)
+        if self._fifo is not None:
+            # the slave's bytes end every FIFO frame from now on: a new frame size, so the
+            # FIFO starts empty
+            plan[r.FIFO_EN] = FIFO_EN_VALUE | r.FIFO_SLV0
         for register_, value in plan.items():
             self.regs.write(register_, value)
         wrong = [f"0x{reg:02X} reads 0x{back:02X}, wrote 0x{value:02X}"
@@ -308,6 +314,9 @@ class MPU9250Driver(Driver):
         self._feed = feed
         self._expected = self._register_plan()
         self._burst_length = r.DATA_BURST_LENGTH + length
+        if self._fifo is not None:
+            self._fifo = FifoReader(self.regs, self._period_ns, self.clock, slave_bytes=length)
+            self._fifo.reset(self._expected[r.USER_CTRL])
         return feed
 
     def configure(self) -> None:
@@ -348,17 +357,21 @@ class MPU9250Driver(Driver):
         gyro = _range_of(r.GYRO_RANGES, regs[r.GYRO_CONFIG])
         accel = _range_of(r.ACCEL_RANGES, regs[r.ACCEL_CONFIG])
         latency_s = 1.0 / (8 * rate_hz)  # the poll grid's guard after each sample
+        source = TimeSource.HOST_POLL
+        if self._fifo is not None:
+            latency_s, source = 0.0, TimeSource.CHIP_CLOCK  # stamped at the chip's instant
         return (
             StreamSpec(self.device, Quantity.GYRO, Frame.SENSOR, rate_hz,
                        scale=gyro_rad_s((1, 0, 0), gyro.lsb_per_unit)[0],
                        full_scale=abs(gyro_rad_s((-32768, 0, 0), gyro.lsb_per_unit)[0]),
-                       latency_s=latency_s),
+                       latency_s=latency_s, time_source=source),
             StreamSpec(self.device, Quantity.ACCEL, Frame.SENSOR, rate_hz,
                        scale=accel_m_s2((1, 0, 0), accel.lsb_per_unit)[0],
                        full_scale=abs(accel_m_s2((-32768, 0, 0), accel.lsb_per_unit)[0]),
-                       latency_s=latency_s),
+                       latency_s=latency_s, time_source=source),
             StreamSpec(self.device, Quantity.TEMPERATURE, Frame.SENSOR, rate_hz,
-                       scale=1.0 / r.TEMP_LSB_PER_DEGC, latency_s=latency_s),
+                       scale=1.0 / r.TEMP_LSB_PER_DEGC, latency_s=latency_s,
+                       time_source=source),
         )
 
     def streams(self) -> tuple[StreamSpec, ...]:
@@ -379,7 +392,7 @@ class MPU9250Driver(Driver):
         self._grid.anchor(now_ns)
         if self._fifo is not None:
             self._fifo.reset(self._expected[r.USER_CTRL])
-            return now_ns + self._fifo_interval_ns()
+            return self._fifo.next_read_ns(now_ns, self._fifo_interval_ns())
         return self._grid.next_after(now_ns)
 
     def _fifo_interval_ns(self) -> int:
@@ -468,32 +481,38 @@ class MPU9250Driver(Driver):
         return PollResult(samples, next_ns)
 
     def _poll_fifo(self, now_ns: int, overdue: bool) -> PollResult:
-        """read: fifo: every whole frame the FIFO holds, back-dated by the period."""
+        """read: fifo: every whole frame the FIFO holds, stamped on the chip's clock; a
+        slave's bytes in each frame go to its feed with the frame's stamp."""
         assert self._fifo is not None
         status = self.regs.read_u8(r.INT_STATUS)  # read-to-clear: FIFO_OFLOW_INT
-        # the frames are back-dated from when the count is read: the clock's now, which a
-        # busy host may have carried past the time this poll was due
-        now_ns = max(now_ns, self.clock.now_ns())
-        got = self._fifo.read(now_ns, self._expected[r.USER_CTRL],
+        got = self._fifo.read(self._expected[r.USER_CTRL],
                               overflowed=bool(status & r.INT_FIFO_OFLOW))
         if got.reset:
             self.health.fifo_overflows += 1
-        next_ns = now_ns + self._fifo_interval_ns()
+        now_ns = max(now_ns, self.clock.now_ns())
+        next_ns = self._fifo.next_read_ns(now_ns, self._fifo_interval_ns())
         samples: list[Sample] = []
         for frame, t_ns in zip(got.frames, got.stamps_ns, strict=True):
-            data = bytes(1) + frame  # as a 0x3A.. burst: INT_STATUS, then the frame
-            bad = blank_flag(frame) or self._frozen_flag(frame)
-            if bad:
-                samples += self._no_sample(t_ns, bad, next_ns).samples
-                continue
-            samples += self._samples(data, t_ns)
-        if samples:
+            samples += self._fifo_frame(frame, t_ns, next_ns)
+        if samples or got.frames or got.held:
             self._ready.fresh(Quantity.GYRO, now_ns)
             self._watch.fresh_poll()
             return PollResult(samples, next_ns)
         if not overdue:
             return PollResult([], next_ns)
         return self._no_sample(now_ns, SampleFlag.STALE, next_ns)
+
+    def _fifo_frame(self, frame: bytes, t_ns: int, next_ns: int) -> list[Sample]:
+        """One FIFO frame: its slave bytes to the feed, its accel/temperature/gyro checked
+        and converted."""
+        imu = frame[:FRAME_BYTES]
+        if self._feed is not None:
+            self._feed.deliver(t_ns, frame[FRAME_BYTES:])
+        data = bytes(1) + imu  # as a 0x3A.. burst: INT_STATUS, then the frame
+        bad = blank_flag(imu) or self._frozen_flag(imu)
+        if bad:
+            return self._no_sample(t_ns, bad, next_ns).samples
+        return self._samples(data, t_ns)
 
     def _samples(self, data: bytes, now_ns: int) -> list[Sample]:
         raw = decode_counts(data[1:])

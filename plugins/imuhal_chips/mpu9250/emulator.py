@@ -31,7 +31,10 @@ registers; SPI: bit 7 of the first byte set = read; both auto-increment):
     sample (I2C_SLV4_CTRL[4:0]; register map rev 1.4, I2C_MST_DELAY_CTRL: the facts name the
     register, not its bits); clear (the power-on default), at every sample. A slave-0
     transaction that fails sets I2C_MST_STATUS.I2C_SLV0_NACK and leaves EXT_SENS_DATA as it
-    was. The copy is made within the sample, before RAW_DATA_RDY is set: what
+    was. Slave 0's transactions take place at the sample's own instant
+    (``EmulatedBus.transfer_at``): a slave with a clock of its own answers with what it had
+    measured by then, also for samples a FIFO catches up on after a host stall. The copy is
+    made within the sample, before RAW_DATA_RDY is set: what
     I2C_MST_CTRL.WAIT_FOR_ES guarantees (without it a real chip may raise data-ready before
     the copy; not modelled).
 
@@ -310,10 +313,12 @@ class MPU9250Emulator(ChipEmulator):
                 return
         register = self._regs[r.I2C_SLV0_REG]
         prefix = b"" if ctrl & r.SLV_REG_DIS else bytes([register])
+        # the slave answers as at this sample's own instant (a FIFO catch-up runs late)
+        instant = self._t0 + self._taken * self.period_ns()
         if not address & r.SLV_READ:
             try:
-                self.aux_bus.transfer(address & 0x7F, prefix + bytes([self._regs[r.I2C_SLV0_DO]]),
-                                      0)
+                self.aux_bus.transfer_at(instant, address & 0x7F,
+                                         prefix + bytes([self._regs[r.I2C_SLV0_DO]]), 0)
             except BusError:
                 self._regs[r.I2C_MST_STATUS] |= r.MST_SLV0_NACK
             return
@@ -321,7 +326,7 @@ class MPU9250Emulator(ChipEmulator):
         if not length:
             return
         try:
-            data = bytearray(self.aux_bus.transfer(address & 0x7F, prefix, length))
+            data = bytearray(self.aux_bus.transfer_at(instant, address & 0x7F, prefix, length))
         except BusError:
             self._regs[r.I2C_MST_STATUS] |= r.MST_SLV0_NACK
             return

@@ -22,10 +22,13 @@ Nothing here knows a chip.
 
 from __future__ import annotations
 
+from collections import deque
 from typing import Protocol, runtime_checkable
 
 from imuhal.core.errors import ConfigurationError
 
+FRESH_KEPT = 64
+"""Changes a feed keeps for its slave's driver (more than a FIFO of copies holds)."""
 AUTO_READ = "auto_read"
 """The feature name a driver lists in ``child_bus_features`` for a bus whose master can
 auto-read a slave (see :class:`AutoReadBus`)."""
@@ -40,8 +43,8 @@ class AutoReadFeed:
     copy its burst comes).
     """
 
-    __slots__ = ("changed_ns", "data", "deliveries", "latency_ns", "length", "ready_bit",
-                 "register", "t_ns", "target")
+    __slots__ = ("_raw", "changed_ns", "data", "deliveries", "fresh", "latency_ns", "length",
+                 "ready_bit", "register", "t_ns", "target")
 
     def __init__(self, target: int, register: int, length: int, *, latency_ns: int) -> None:
         self.target = target
@@ -53,6 +56,12 @@ class AutoReadFeed:
         """Time of the latest delivery (ns, the driver clock)."""
         self.changed_ns = 0
         self.deliveries = 0
+        self._raw: bytes | None = None
+        """The bytes of the previous delivery, as read."""
+        self.fresh: deque[tuple[int, bytes]] = deque(maxlen=FRESH_KEPT)
+        """(delivery time, data) of each change of ``data`` not yet taken (:meth:`take`):
+        every measurement of a slave whose master's copies came in a burst (a FIFO),
+        each at its own copy's time."""
         self.ready_bit: tuple[int, int] | None = None
         """(byte offset, mask) of the slave's own data-ready bit among the bytes, when its
         driver set one with :meth:`keep_ready_only`."""
@@ -70,13 +79,28 @@ class AutoReadFeed:
         """The master's driver read ``data`` (``length`` bytes, slave register order) at
         ``t_ns``."""
         ready = self.ready_bit
-        if ready is not None and not data[ready[0]] & ready[1]:
-            data = self.data if self.data is not None else data
+        raw, self._raw = self._raw, data
+        if ready is not None:
+            if not data[ready[0]] & ready[1]:
+                data = self.data if self.data is not None else data
+            elif data != raw:
+                # a copy with data-ready that differs from the copy before it is a new
+                # measurement even when its bytes equal the last one's (a copy without
+                # data-ready came between); a failed master read repeats the copy before
+                self.data = None
         if data != self.data:
             self.data = data
             self.changed_ns = t_ns
+            self.fresh.append((t_ns, data))
         self.t_ns = t_ns
         self.deliveries += 1
+
+    def take(self) -> list[tuple[int, bytes]]:
+        """The changes of ``data`` since the last take, oldest first, with their delivery
+        times."""
+        out = list(self.fresh)
+        self.fresh.clear()
+        return out
 
 
 def same_feed(feed: AutoReadFeed | None, target: int, register: int, length: int, *,

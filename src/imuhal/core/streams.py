@@ -29,6 +29,10 @@ class TimeSource(Enum):
     """The host's clock when the poll that found the reading ran (today's drivers)."""
     CHIP_FIFO = "chip_fifo"
     """Frames read from the chip's FIFO, back-dated from the read by the chip's period."""
+    CHIP_CLOCK = "chip_clock"
+    """Each frame's measurement instant on the chip's own clock, its period and phase
+    learned from the host's reads of the chip's frame count (imuhal.drivers.chip_clock):
+    host delays do not reach the stamps."""
     DATA_READY = "data_ready"
     """The kernel's time stamp of the chip's data-ready line edge."""
     RECEIVER_EPOCH = "receiver_epoch"

@@ -101,6 +101,11 @@ class ChipEmulator(ABC):
         self.physics_source: Callable[[int], None] | None = None
         """Set by an emulated board for a ``pulls_physics`` emulator: hands the chip its
         inputs at a given instant (ns) through ``set_physics``."""
+        self.master_instant_ns: int | None = None
+        """Set while a bus master on the chip's own board (the MPU-9250's I2C master)
+        performs a transaction it timed itself (``EmulatedBus.transfer_at``): the chip
+        answers as at that instant, which may lie before the host's clock (a master
+        catching up on the samples its FIFO kept through a host stall)."""
         self.measured_ns = array("q")
         """The instants (ns, ascending) at which the chip completed a measurement of the
         stream its driver accounts for, recorded by emulators that model it (issue 25
@@ -141,7 +146,10 @@ class ChipEmulator(ABC):
             self.physics = inputs
 
     def now_ns(self) -> int:
-        return self.clock.now_ns()
+        """The chip's present: the host's clock, or the instant of a master's timed
+        transaction (``master_instant_ns``)."""
+        instant = self.master_instant_ns
+        return self.clock.now_ns() if instant is None else instant
 
     # -- conventions every emulator follows where its chip has the feature ----------------
 

@@ -21,6 +21,17 @@ class BusTarget(Protocol):
 _T = TypeVar("_T", bound=BusTarget)
 
 
+class _TimedChip(Protocol):
+    master_instant_ns: int | None
+
+
+def _chip_behind(target: object) -> _TimedChip | None:
+    """The chip emulator answering at a bus target: the target itself, or the emulator
+    behind a line in front of it (``.emulator``); None when it keeps no time of its own."""
+    chip = getattr(target, "emulator", target)
+    return chip if hasattr(chip, "master_instant_ns") else None
+
+
 class EmulatedBus(Bus):
     """A bus whose far end is register-level chip emulators.
 
@@ -81,6 +92,21 @@ class EmulatedBus(Bus):
             raise NackError(f"no device answered at {what} 0x{target:02X}", bus=self.name,
                             target=target)
         return emulator.bus_transfer(self.kind, write, read_len)
+
+    def transfer_at(self, t_ns: int, target: int, write: bytes = b"",
+                    read_len: int = 0) -> bytes:
+        """:meth:`transfer` as a bus master on the board times it: the chip at ``target``
+        (behind its fault line, if any) answers as at ``t_ns`` (``ChipEmulator.now_ns``),
+        which may lie before the host's clock. For an emulated master (the MPU-9250's
+        slave 0) catching up on samples measured while the host did not look."""
+        chip = _chip_behind(self.targets.get(target))
+        if chip is None:
+            return self.transfer(target, write, read_len)
+        chip.master_instant_ns = t_ns
+        try:
+            return self.transfer(target, write, read_len)
+        finally:
+            chip.master_instant_ns = None
 
     def _receive(self, target: int, max_len: int) -> bytes:
         emulator = self.targets.get(target)

@@ -1,0 +1,118 @@
+"""imuhal.drivers.chip_clock: frame instants learned from count reads, whatever the host's
+delays; stamps never go back and never jump by more than the stated step."""
+
+from __future__ import annotations
+
+import math
+import random
+
+import numpy as np
+
+from imuhal.drivers.chip_clock import ChipClock
+
+NOMINAL_NS = 5_000_000
+
+
+class _Chip:
+    """A chip measuring frame k at ``t0 + k * period`` (the period may change mid-run)."""
+
+    def __init__(self, period_ns: float, t0_ns: float = 1_234_567.0) -> None:
+        self.period_ns = period_ns
+        self.t0_ns = t0_ns
+        self.k0 = 0
+
+    def newest(self, t_ns: float) -> int:
+        return self.k0 + math.floor((t_ns - self.t0_ns) / self.period_ns)
+
+    def instant(self, k: int) -> float:
+        return self.t0_ns + (k - self.k0) * self.period_ns
+
+    def retune(self, at_ns: float, period_ns: float) -> None:
+        """The oscillator steps at ``at_ns``: later frames come ``period_ns`` apart."""
+        k = self.newest(at_ns)
+        self.t0_ns, self.k0, self.period_ns = self.instant(k), k, period_ns
+
+
+def _fly(clock: ChipClock, chip: _Chip, reads: int, *, jitter_ns: int = 0, seed: int = 1,
+         start_ns: int = 10_000_000, retune: tuple[int, float] | None = None,
+         ) -> tuple[list[int], list[float]]:
+    """Read every two nominal periods at the clock's probe time, the host late before each
+    read, between its first stamp and the count, and between the count and its second
+    stamp: each delay about 30 us (exponential), one in twenty up to ``jitter_ns`` more
+    (a preempted host); returns (stamps, true instants) of every frame."""
+    rng = random.Random(seed)
+
+    def late() -> float:
+        if not jitter_ns:
+            return 0.0
+        spike = rng.uniform(0, jitter_ns) if rng.random() < 0.05 else 0.0
+        return rng.expovariate(1 / 30_000) + spike
+
+    t = start_ns
+    last = chip.newest(t) - 1 if chip.newest(t) > 0 else -1
+    stamps: list[int] = []
+    truth: list[float] = []
+    for i in range(reads):
+        if retune is not None and i == retune[0]:
+            chip.retune(t, retune[1])
+        lo = t + late()
+        at_chip = lo + late()  # the count reaches the chip later still
+        hi = at_chip + late()
+        k = chip.newest(at_chip)
+        n = k - last
+        last = k
+        newest = clock.observe(n, round(lo), round(hi))
+        if n:
+            stamps += clock.stamps(range(newest - n + 1, newest + 1))
+            truth += [chip.instant(j) for j in range(k - n + 1, k + 1)]
+        t = max(clock.probe_ns(round(hi) + 2 * NOMINAL_NS), round(hi) + 1)
+    return stamps, truth
+
+
+def test_the_period_and_phase_are_learned_to_microseconds_from_exact_reads() -> None:
+    clock = ChipClock(NOMINAL_NS)
+    chip = _Chip(NOMINAL_NS / 1.02)  # 2 % fast
+    stamps, truth = _fly(clock, chip, 300)
+    errors = np.subtract(stamps, truth)[200:]
+    assert np.max(np.abs(errors)) < 5_000
+    assert abs(clock.period_ns - NOMINAL_NS / 1.02) < 10
+
+
+def test_host_delays_widen_the_bounds_but_never_pull_the_stamps() -> None:
+    """Reads late by tens of microseconds and now and then by up to 2 ms, as much between
+    their two stamps: the stamps stay within tens of microseconds of the chip's instants."""
+    clock = ChipClock(NOMINAL_NS)
+    chip = _Chip(NOMINAL_NS * 1.013)
+    stamps, truth = _fly(clock, chip, 1000, jitter_ns=2_000_000)
+    errors = np.subtract(stamps, truth)[1000:]
+    assert np.sqrt(np.mean(errors ** 2)) < 50_000
+    assert np.max(np.abs(errors)) < 200_000
+
+
+def test_stamps_never_go_back_nor_step_more_than_the_bound_when_the_oscillator_jumps() -> None:
+    clock = ChipClock(NOMINAL_NS)
+    chip = _Chip(NOMINAL_NS)
+    stamps, truth = _fly(clock, chip, 600, retune=(300, NOMINAL_NS * 1.03))
+    steps = np.diff(stamps)
+    assert np.all(steps > 0)
+    # the stated bound: one period estimate (within the 5 % tolerance of the nominal)
+    # corrected by at most 5 % of it
+    assert np.all(steps >= NOMINAL_NS * 0.95 * 0.95 - 1)
+    assert np.all(steps <= NOMINAL_NS * 1.05 * 1.05 + 1)
+    # once learned, within 5 % of the true period, before and after the step
+    assert np.all(np.abs(steps[200:290] - NOMINAL_NS) <= 0.05 * NOMINAL_NS)
+    assert np.all(np.abs(steps[-100:] - NOMINAL_NS * 1.03) <= 0.05 * NOMINAL_NS * 1.03)
+    assert clock.rebuilds >= 1
+    assert np.max(np.abs(np.subtract(stamps, truth)[-100:])) < 5_000  # learned again
+
+
+def test_after_a_fifo_reset_the_stamps_go_on_after_the_gap_and_are_learned_again() -> None:
+    clock = ChipClock(NOMINAL_NS)
+    chip = _Chip(NOMINAL_NS * 0.99)
+    before, _ = _fly(clock, chip, 200)
+    clock.frames_dropped()
+    # the host comes back 300 ms later to an emptied FIFO
+    after, truth = _fly(clock, chip, 100, start_ns=before[-1] + 300_000_000)
+    assert after[0] > before[-1]
+    assert np.all(np.diff(after) > 0)
+    assert np.max(np.abs(np.subtract(after, truth)[-100:])) < 5_000
