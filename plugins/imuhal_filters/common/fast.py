@@ -24,6 +24,7 @@ as its signature says, so a caller passing anything else is a bug to report, not
 
 from __future__ import annotations
 
+import hashlib
 import importlib.util
 import os
 import re
@@ -133,14 +134,14 @@ class Kernel:
 
     def modules(self) -> list[str]:
         """The modules whose source this kernel's compiled code comes from: its own and
-        those of the helper kernels it calls, transitively (what its fingerprint covers).
+        those of the helper kernels it calls (module globals or closure variables, as
+        ``common.fast_ahrs.ahrs_rows`` makes them), transitively (what its fingerprint and
+        its JIT cache key cover).
         Worked out once, before a compilation points the helpers' names elsewhere."""
         if self._modules is None:
             found = [self.module]
-            for name in self.fn.__code__.co_names:
-                helper = self.fn.__globals__.get(name)
-                if isinstance(helper, Kernel):
-                    found += [m for m in helper.modules() if m not in found]
+            for helper in _helpers(self.fn):
+                found += [m for m in helper.modules() if m not in found]
             self._modules = found
         return self._modules
 
@@ -275,27 +276,73 @@ def _choose(kernel: Kernel, chosen: str, dir_key: str) -> Choice:
     return Choice("python", f"{why_not_aot}; numba not installed")
 
 
+def _helpers(fn: Callable[..., Any]) -> list[Kernel]:
+    """The helper kernels ``fn`` calls: module globals it names, and closure variables."""
+    named = [fn.__globals__.get(name) for name in fn.__code__.co_names]
+    enclosed = [cell.cell_contents for cell in fn.__closure__ or ()]
+    return [h for h in named + enclosed if isinstance(h, Kernel)]
+
+
 def swap_helpers(fn: Callable[..., Any], compile_helper: Callable[[Kernel], Any]) -> None:
-    """Point ``fn``'s module names for helper kernels at their compiled form: numba needs
-    them compiled before it types the caller (``compile_helper`` compiles one, recursively
-    through its own helpers)."""
+    """Point ``fn``'s names for helper kernels (module globals and closure variables) at
+    their compiled form: numba needs them compiled before it types the caller
+    (``compile_helper`` compiles one, recursively through its own helpers)."""
     for name in fn.__code__.co_names:
         helper = fn.__globals__.get(name)
         if isinstance(helper, Kernel):
             swap_helpers(helper.fn, compile_helper)
             fn.__globals__[name] = compile_helper(helper)
+    for cell in fn.__closure__ or ():
+        helper = cell.cell_contents
+        if isinstance(helper, Kernel):
+            swap_helpers(helper.fn, compile_helper)
+            cell.cell_contents = compile_helper(helper)
 
 
 @cache
 def _jitted(kernel: Kernel) -> Callable[..., Any]:
-    """``kernel`` compiled by numba (no Python objects, cached on disk), with its declared
-    signature when it has one."""
+    """``kernel`` compiled by numba (no Python objects), with its declared signature when it
+    has one. A kernel called from Python is cached on disk, under a key that covers the
+    sources of every module its compiled code comes from (:meth:`Kernel.modules`): numba's
+    own cache notices a change to the kernel's own file only, not to a helper of another
+    module (common/fast_ahrs.py). Helper kernels are not cached themselves: they are
+    compiled into their callers (and then into their callers' cache entries)."""
     import numba
 
-    # numba's on-disk cache notices a change to the kernel's own file only: a kernel that
-    # calls a helper of another module (common/fast_frames.py) is compiled afresh per process
-    cache = len(kernel.modules()) == 1  # while the helpers' names still name them
+    sources = _sources_key(kernel.modules())  # while the helpers' names still name them
     swap_helpers(kernel.fn, _jitted)
-    if kernel.exported:
-        return numba.njit(kernel.signature(), cache=cache, nogil=True)(kernel.fn)
-    return numba.njit(cache=cache, nogil=True)(kernel.fn)
+    if not kernel.exported:
+        return numba.njit(nogil=True)(kernel.fn)
+    dispatcher = numba.njit(nogil=True)(kernel.fn)
+    _cache_by_sources(dispatcher, sources)
+    dispatcher.compile(kernel.signature())
+    dispatcher.disable_compile()  # as numba.njit(signature) does: no other signature
+    return dispatcher
+
+
+def _sources_key(modules: list[str]) -> str:
+    from imuhal_filters.common import aot
+
+    return hashlib.sha256(" ".join(aot.source_hash(m) for m in modules).encode()).hexdigest()
+
+
+def _cache_by_sources(dispatcher: Any, sources: str) -> None:
+    """Give ``dispatcher`` numba's on-disk cache with ``sources`` added to each entry's key
+    (its index key: signature, target, bytecode). This reaches into numba's cache class
+    (``numba.core.caching.FunctionCache``, the one ``cache=True`` installs); a numba without
+    it leaves the kernel uncached, compiled afresh per process, never stale."""
+    try:
+        from numba.core.caching import FunctionCache
+    except ImportError:
+        return
+    if not hasattr(dispatcher, "_cache") or not hasattr(FunctionCache, "_index_key"):
+        return
+
+    class SourcesCache(FunctionCache):  # type: ignore[misc,valid-type] # numba is untyped
+        def _index_key(self, sig: Any, codegen: Any) -> tuple[Any, ...]:
+            return (*super()._index_key(sig, codegen), sources)
+
+    try:
+        dispatcher._cache = SourcesCache(dispatcher.py_func)
+    except RuntimeError:  # numba finds no writable cache directory: run uncached
+        return

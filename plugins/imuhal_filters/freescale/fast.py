@@ -22,6 +22,7 @@ import math
 import numpy as np
 
 from imuhal_filters.common.fast import jit
+from imuhal_filters.common.fast_ahrs import soft_gate_distrust_kernel
 
 KERNEL_SETTINGS = frozenset({
     "preset", "gyro_full_scale_rad_s", "accel_full_scale_m_s2", "turn_compensation",
@@ -264,10 +265,8 @@ def _freescale_rows(q, b, a_sensor, m_global, qw, incl, accel, gyro, mag, use_ma
             err[4] = mag[step, 1] - mg1
             err[5] = mag[step, 2] - mg2
         # gain
-        factor = 1.0
-        if soft_width > 0.0:
-            d = (math.sqrt(ax * ax + ay * ay + az * az) - 1.0) / soft_width
-            factor = (1.0 + d * d) ** 2
+        factor = soft_gate_distrust_kernel(math.sqrt(ax * ax + ay * ay + az * az),
+                                           soft_width) ** 2
         for i in range(n):
             for j in range(nm):
                 ct[i, j] = c[j, i]
