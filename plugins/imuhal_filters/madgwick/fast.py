@@ -23,9 +23,10 @@ from imuhal_filters.common.fast_frames import linear_accel_ned
 
 def _madgwick_rows(q_in, gyro, accel, mag, dts, beta, gate_lo, gate_hi, soft_width, paper,
                    use_mag, turn_on, turn_sum, out, diag):
-    """One step per row: the shared row loop (``common/fast_ahrs.py``) with the Madgwick step (``out`` and
-    ``diag`` as it fills them, ``diag`` of 3 columns). Returns the final quaternion, the
-    turn-rate sum (turn bookkeeping) and the number of steps with the gate closed."""
+    """One step per row: the shared row loop (``common/fast_ahrs.py``) with the Madgwick
+    step (``out`` and ``diag`` as it fills them, ``diag`` of 3 columns). Returns the final
+    quaternion, the turn-rate sum (turn bookkeeping) and the number of steps with the gate
+    closed."""
     state, turn_sum, closed = madgwick_step_rows(
         (q_in[0], q_in[1], q_in[2], q_in[3]),
         (beta, gate_lo, gate_hi, soft_width, paper), gyro, accel, mag, dts, use_mag, turn_on,

@@ -19,9 +19,10 @@ from imuhal_filters.common.fast_frames import linear_accel_ned
 
 def _mahony_rows(q_in, integral_in, gyro, accel, mag, dts, kp, ki, gate_lo, gate_hi,
                  soft_width, use_mag, turn_on, turn_sum, out, diag):
-    """One step per row: the shared row loop (``common/fast_ahrs.py``) with the Mahony step (``out`` and
-    ``diag`` as it fills them, ``diag`` of 6 columns: the gyro bias last). Returns the final
-    quaternion, integral feedback, turn-rate sum and steps with the gate closed."""
+    """One step per row: the shared row loop (``common/fast_ahrs.py``) with the Mahony step
+    (``out`` and ``diag`` as it fills them, ``diag`` of 6 columns: the gyro bias last).
+    Returns the final quaternion, integral feedback, turn-rate sum and steps with the gate
+    closed."""
     state, turn_sum, closed = mahony_step_rows(
         (q_in[0], q_in[1], q_in[2], q_in[3], integral_in[0], integral_in[1], integral_in[2]),
         (kp, ki, gate_lo, gate_hi, soft_width), gyro, accel, mag, dts, use_mag, turn_on,
