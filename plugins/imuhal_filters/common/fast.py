@@ -28,6 +28,7 @@ import hashlib
 import importlib.util
 import os
 import re
+import types
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache
@@ -136,8 +137,7 @@ class Kernel:
         """The modules whose source this kernel's compiled code comes from: its own and
         those of the helper kernels it calls (module globals or closure variables, as
         ``common.fast_ahrs.ahrs_rows`` makes them), transitively (what its fingerprint and
-        its JIT cache key cover).
-        Worked out once, before a compilation points the helpers' names elsewhere."""
+        its JIT cache key cover)."""
         if self._modules is None:
             found = [self.module]
             for helper in _helpers(self.fn):
@@ -197,6 +197,10 @@ class Kernel:
                                 f"got {problem}")
 
     def __call__(self, *args: Any) -> Any:
+        if not self.exported:
+            # a helper called from Python (the Python path shares common/fast_ahrs.py's
+            # gate): its compiled form exists only inside the kernels that call it
+            return self.fn(*args)
         choice = self.choice()
         if choice.backend == "python":
             raise RuntimeError(f"kernel {self.name} called without a compiled backend: the "
@@ -220,6 +224,9 @@ class Choice:
 KERNELS: list[Kernel] = []
 """Every kernel defined so far (its module imported), in definition order."""
 
+_BY_FUNCTION: dict[Callable[..., Any], Kernel] = {}
+"""Each kernel by its plain function."""
+
 
 def jit(fn: Callable[..., Any], returns: str | None = None, **args: str) -> Kernel:
     """The kernel of ``fn``. A kernel called from Python declares its return type and every
@@ -227,6 +234,7 @@ def jit(fn: Callable[..., Any], returns: str | None = None, **args: str) -> Kern
     only by other kernels declares none."""
     kernel = Kernel(fn, returns, args or None)
     KERNELS.append(kernel)
+    _BY_FUNCTION[fn] = kernel
     return kernel
 
 
@@ -276,27 +284,44 @@ def _choose(kernel: Kernel, chosen: str, dir_key: str) -> Choice:
     return Choice("python", f"{why_not_aot}; numba not installed")
 
 
+def _as_kernel(value: Any) -> Kernel | None:
+    """``value`` as a helper kernel: a Kernel, or the plain function of one (a helper that
+    the Python path calls too names its helpers by their plain functions)."""
+    if isinstance(value, Kernel):
+        return value
+    try:
+        return _BY_FUNCTION.get(value)
+    except TypeError:  # unhashable
+        return None
+
+
 def _helpers(fn: Callable[..., Any]) -> list[Kernel]:
     """The helper kernels ``fn`` calls: module globals it names, and closure variables."""
     named = [fn.__globals__.get(name) for name in fn.__code__.co_names]
     enclosed = [cell.cell_contents for cell in fn.__closure__ or ()]
-    return [h for h in named + enclosed if isinstance(h, Kernel)]
+    return [k for k in map(_as_kernel, named + enclosed) if k is not None]
 
 
-def swap_helpers(fn: Callable[..., Any], compile_helper: Callable[[Kernel], Any]) -> None:
-    """Point ``fn``'s names for helper kernels (module globals and closure variables) at
-    their compiled form: numba needs them compiled before it types the caller
-    (``compile_helper`` compiles one, recursively through its own helpers)."""
-    for name in fn.__code__.co_names:
-        helper = fn.__globals__.get(name)
-        if isinstance(helper, Kernel):
-            swap_helpers(helper.fn, compile_helper)
-            fn.__globals__[name] = compile_helper(helper)
-    for cell in fn.__closure__ or ():
-        helper = cell.cell_contents
-        if isinstance(helper, Kernel):
-            swap_helpers(helper.fn, compile_helper)
-            cell.cell_contents = compile_helper(helper)
+def compiled_copy(fn: Callable[..., Any], compile_helper: Callable[[Kernel], Any]
+                  ) -> Callable[..., Any]:
+    """A copy of ``fn`` for numba to compile: its names for helper kernels (module globals
+    and closure variables, naming a Kernel or its plain function) bound to their compiled
+    form (``compile_helper`` compiles one, recursively through its own helpers; numba needs
+    them compiled before it types the caller). ``fn`` and its module are left as they are,
+    so Python keeps calling the plain helpers (:meth:`Kernel.__call__`)."""
+    named = {name: _as_kernel(fn.__globals__.get(name)) for name in fn.__code__.co_names}
+    bound = {name: compile_helper(k) for name, k in named.items() if k is not None}
+    cells = fn.__closure__ or ()
+    enclosed = [_as_kernel(c.cell_contents) for c in cells]
+    if not bound and not any(enclosed):
+        return fn
+    scope = {**fn.__globals__, **bound}
+    closure = tuple(c if k is None else types.CellType(compile_helper(k))
+                    for c, k in zip(cells, enclosed, strict=True))
+    copy = types.FunctionType(fn.__code__, scope, fn.__name__, fn.__defaults__,
+                              closure or None)
+    copy.__qualname__, copy.__module__, copy.__doc__ = fn.__qualname__, fn.__module__, fn.__doc__
+    return copy
 
 
 @cache
@@ -309,12 +334,11 @@ def _jitted(kernel: Kernel) -> Callable[..., Any]:
     compiled into their callers (and then into their callers' cache entries)."""
     import numba
 
-    sources = _sources_key(kernel.modules())  # while the helpers' names still name them
-    swap_helpers(kernel.fn, _jitted)
+    fn = compiled_copy(kernel.fn, _jitted)
+    dispatcher = numba.njit(nogil=True)(fn)
     if not kernel.exported:
-        return numba.njit(nogil=True)(kernel.fn)
-    dispatcher = numba.njit(nogil=True)(kernel.fn)
-    _cache_by_sources(dispatcher, sources)
+        return dispatcher
+    _cache_by_sources(dispatcher, _sources_key(kernel.modules()))
     dispatcher.compile(kernel.signature())
     dispatcher.disable_compile()  # as numba.njit(signature) does: no other signature
     return dispatcher

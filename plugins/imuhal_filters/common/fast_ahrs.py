@@ -3,7 +3,9 @@ the row loop.
 
 The gate is written once, here: the compiled steps (madgwick, mahony, freescale) call it as
 helper kernels and the Python path (``common/gate.py``, ``freescale/kalman.py``) calls the
-same functions as plain Python, so the two cannot drift apart.
+same functions as plain Python, so the two cannot drift apart. (:func:`accel_gate` names
+:func:`soft_gate_distrust` by its plain function: Python calls it directly, and the compiled
+copy is bound to its kernel, ``common.fast.compiled_copy``.)
 
 The row loop is made once per filter from the filter's step (:func:`ahrs_rows`, a helper
 kernel calling the step's helper kernel). A step has this form::
@@ -64,7 +66,7 @@ def accel_gate(have_a: bool, ax: float, ay: float, az: float, lower_g: float,
     if not have_a:
         return False, 1.0
     n = math.sqrt(ax ** 2 + ay ** 2 + az ** 2)
-    return lower_g < n < upper_g, 1.0 / soft_gate_distrust_kernel(n, width_g)
+    return lower_g < n < upper_g, 1.0 / soft_gate_distrust(n, width_g)
 
 
 accel_gate_kernel = jit(accel_gate)

@@ -71,6 +71,15 @@ class AccelGate:
         (the compiled kernels' :func:`~imuhal_filters.common.fast_ahrs.accel_gate`)."""
         return accel_gate(True, *accel_g, self.lower_g, self.upper_g, 0.0)[0]
 
+    def gates(self, accel_g: Vec | None, width_g: float | None) -> tuple[bool, float]:
+        """This hard gate and the soft gate of ``width_g`` (g; None: none) for one reading
+        (any sign convention, in g; None: none this step), from one magnitude: whether the
+        gate is open (closed without a reading) and :func:`soft_gate_weight`."""
+        if accel_g is None:
+            return False, 1.0
+        return accel_gate(True, *accel_g, self.lower_g, self.upper_g,
+                          0.0 if width_g is None else width_g)
+
 
 def soft_gate_weight(accel_g: Vec, width_g: float | None) -> float:
     """How much of its correction an AHRS applies for an accelerometer reading (any sign
