@@ -207,7 +207,7 @@ class Kernel:
                                "caller must check available() first")
         if self.args is not None:
             self.check(args)
-        fn = choice.function if choice.backend == "aot" else _jitted(self)
+        fn = choice.function if choice.function is not None else _jitted(self)
         return fn(*args)
 
 
@@ -362,9 +362,12 @@ def _cache_by_sources(dispatcher: Any, sources: str) -> None:
     if not hasattr(dispatcher, "_cache") or not hasattr(FunctionCache, "_index_key"):
         return
 
-    class SourcesCache(FunctionCache):  # type: ignore[misc,valid-type] # numba is untyped
+    base: Any = FunctionCache  # numba has no type information
+
+    class SourcesCache(base):  # type: ignore[misc] # a subclass of numba's (untyped) class
         def _index_key(self, sig: Any, codegen: Any) -> tuple[Any, ...]:
-            return (*super()._index_key(sig, codegen), sources)
+            key: tuple[Any, ...] = super()._index_key(sig, codegen)
+            return (*key, sources)
 
     try:
         dispatcher._cache = SourcesCache(dispatcher.py_func)
