@@ -25,7 +25,10 @@ Sections:
   scenario truth at 250 Hz;
 * the hardware path: the same board's drivers, decoding, calibration, mount rotation and
   estimators replayed from a recording of its bus traffic (no simulation, no emulators), in
-  us of CPU per IMU sample (tests/benchmarks/bench_hardware_path.py).
+  us of CPU per IMU sample (tests/benchmarks/bench_hardware_path.py);
+* blocks (issue 24): the GY-91 emulated and through the hardware path with one frame per
+  block and with its MPU-9250's FIFO read in blocks of 10 frames, side by side
+  (tests/benchmarks/bench_blocks.py).
 
 OPENBLAS_CORETYPE may be set on this machine (an old OpenBLAS needs it); it only matters to
 BLAS calls, which none of the measured paths make, and it is left as it is.
@@ -602,6 +605,32 @@ def hardware_path_rows(duration_s: float) -> list[Row]:
                 r.decode_us_per_imu_sample, "us/IMU sample")]
 
 
+def block_rows(duration_s: float) -> list[Row]:
+    """Blocks (issue 24): the GY-91 with one frame per block and with its MPU-9250 read from
+    the FIFO in blocks of 10 frames, emulated and through the recorded hardware path, in
+    the same run (tests/benchmarks/bench_blocks.py). The seed board's MAX21100 has no FIFO
+    reader yet: the FIFO rows are the GY-91's."""
+    from tests.benchmarks.bench_blocks import measure_both
+
+    one, fifo = measure_both(duration_s, 10)
+    return [
+        Row("blocks", f"gy91 emulated + estimators, {one.label}", one.x_real_time,
+            "x real time (cpu)", "", None, ">= 40 x real"),
+        Row("blocks", f"gy91 emulated + estimators, {fifo.label}", fifo.x_real_time,
+            "x real time (cpu)", "one frame per block", fifo.x_real_time / one.x_real_time,
+            ">= 150 x real"),
+        Row("blocks", f"gy91 hardware path, {one.label}", one.us_per_imu_sample,
+            "us/IMU sample", "", None, "<= 50"),
+        Row("blocks", "  the same without the estimators", one.bare_us_per_imu_sample,
+            "us/IMU sample"),
+        Row("blocks", f"gy91 hardware path, {fifo.label}", fifo.us_per_imu_sample,
+            "us/IMU sample", "one frame per block",
+            fifo.us_per_imu_sample / one.us_per_imu_sample, "<= 10"),
+        Row("blocks", "  the same without the estimators", fifo.bare_us_per_imu_sample,
+            "us/IMU sample"),
+    ]
+
+
 def render(rows: list[Row], markdown: bool) -> str:
     if markdown:
         out = ["| section | case | value | unit | ratio | against | target |",
@@ -626,7 +655,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="rows of the `imuhal estimate` case (the issue's target is 2000000)")
     p.add_argument("--board-s", type=float, default=60.0, help="simulated s of the board case")
     p.add_argument("--skip", action="append", default=[],
-                   choices=["peers", "estimators", "estimate", "board"])
+                   choices=["peers", "estimators", "estimate", "board", "blocks"])
     p.add_argument("--markdown", action="store_true", help="print a Markdown table")
     args = p.parse_args(argv)
     gyro, accel, mag = motion(args.samples)
@@ -661,6 +690,8 @@ def main(argv: list[str] | None = None) -> int:
     if "board" not in args.skip:
         rows += board_rows(args.board_s)
         rows += hardware_path_rows(args.board_s)
+    if "blocks" not in args.skip:
+        rows += block_rows(args.board_s)
     print(render(rows, args.markdown))
     print(f"\nCPU time; {sys.version.split()[0]}, numpy {np.__version__}, "
           f"maxrss of this process {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024}"

@@ -50,7 +50,7 @@ from imuhal.offline.replay import (
     replay_pipeline,
 )
 from imuhal.plugins.manager import Registry, load_registry
-from imuhal.profile.loader import load_profile, parse_profile
+from imuhal.profile.loader import parse_profile
 
 PROFILE = Path(__file__).resolve().parents[2] / "profiles" / "seed-paraglider-vario.yaml"
 IMU = "imu"
@@ -81,10 +81,13 @@ class HardwarePath:
         return self.decode_cpu_s / self.imu_samples * 1e6
 
 
-def record(registry: Registry, path: Path, duration_s: float) -> int:
-    """Record ``duration_s`` of the emulated seed board to ``path``; returns its events."""
-    profile = load_profile(PROFILE, registry)
-    recorder = BusRecorder(path, run_header(PROFILE.read_text(), str(PROFILE),
+def record(registry: Registry, path: Path, duration_s: float,
+           profile_yaml: str | None = None) -> int:
+    """Record ``duration_s`` of the emulated seed board (or the board ``profile_yaml``
+    describes) to ``path``; returns its events."""
+    text = PROFILE.read_text() if profile_yaml is None else profile_yaml
+    profile = parse_profile(text, str(PROFILE), registry)
+    recorder = BusRecorder(path, run_header(text, str(PROFILE),
                                             emulate=profile.emulation.scenario, seed=None))
     n = 0
     try:
@@ -155,12 +158,13 @@ def decode_only(path: Path) -> float:
 
 
 def measure(duration_s: float = 60.0, *, repeat: int = 3, registry: Registry | None = None,
-            profile_to: Path | None = None) -> HardwarePath:
-    """Record once, then replay ``repeat`` times and keep the fastest (least disturbed)."""
+            profile_to: Path | None = None, profile_yaml: str | None = None) -> HardwarePath:
+    """Record once, then replay ``repeat`` times and keep the fastest (least disturbed).
+    ``profile_yaml``: another board than the seed (its IMU device named ``imu``)."""
     registry = registry or load_registry()
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "seed.imurec"
-        record(registry, path, duration_s)
+        record(registry, path, duration_s, profile_yaml)
         best: tuple[int, int, float] | None = None
         for _ in range(max(1, repeat)):
             run = replay(registry, path)

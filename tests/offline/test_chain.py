@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from tests.support.chain import offline_estimates
+
 from imuhal.core import samples as smp
 from imuhal.emulation import open_emulated
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate, VerticalEstimate
-from imuhal.offline.chain import instants_in_fusion_order, run_chain
+from imuhal.offline.chain import instants_in_fusion_order
 from imuhal.plugins.manager import load_registry
 from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile
@@ -19,18 +21,9 @@ def test_the_seed_boards_chain_over_its_recorded_samples_gives_the_live_estimate
     profile = load_profile(default_profile_path(), registry)
     with open_emulated(profile, registry, seed=3, sensor_errors=True) as pipeline:
         events = list(pipeline.events(6.0))
-        streams = pipeline.streams
     samples = [e for e in events if isinstance(e, smp.Sample) and e.valid]
     live = [e for e in events if isinstance(e, Estimate)]
-    fresh = [registry.estimators.get(c.estimator)(c.settings, instance=name)
-             for name, c in profile.estimators.items()]
-    for est, c in zip(fresh, profile.estimators.values(), strict=True):
-        # what the pipeline bound into each: its input devices' stream specs
-        est.bind([spec for device in (c.inputs or streams) if device in streams
-                  for spec in streams[device]])
-    inputs = {name: c.inputs for name, c in profile.estimators.items() if c.inputs is not None}
-
-    offline = run_chain(fresh, samples, inputs=inputs)
+    offline = offline_estimates(registry, profile, pipeline.streams, samples)
 
     assert sum(isinstance(e, AttitudeEstimate) for e in live) > 1000
     assert sum(isinstance(e, VerticalEstimate) and e.source == "vario" for e in live) > 200

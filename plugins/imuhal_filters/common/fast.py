@@ -364,7 +364,7 @@ def _cache_by_sources(dispatcher: Any, sources: str) -> None:
 
     base: Any = FunctionCache  # numba has no type information
 
-    class SourcesCache(base):  # type: ignore[misc] # a subclass of numba's (untyped) class
+    class SourcesCache(base):  # a subclass of numba's (untyped) class
         def _index_key(self, sig: Any, codegen: Any) -> tuple[Any, ...]:
             key: tuple[Any, ...] = super()._index_key(sig, codegen)
             return (*key, sources)

@@ -16,6 +16,7 @@ from typing import Any, ClassVar
 from pydantic import BaseModel, ConfigDict, model_validator
 
 from imuhal.bus.base import Bus, BusKind, Link
+from imuhal.core.blocks import Block, blocks_of
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ImuhalDeprecationWarning
 from imuhal.core.samples import Quantity, Sample
@@ -79,6 +80,15 @@ class PollResult:
 
 
 @dataclass
+class BlockPoll:
+    """The blocks one poll produced (imuhal.core.blocks: one per stream, frames in time
+    order) and when the driver wants to be polled next (ns)."""
+
+    blocks: list[Block]
+    next_poll_ns: int
+
+
+@dataclass
 class DeviceHealth:
     """What only the driver can see, reported in the run summary beside the pipeline's own
     counts (samples, flags and bus errors are counted by the pipeline, once)."""
@@ -95,6 +105,11 @@ class DeviceHealth:
         return {"resets_detected": self.resets_detected,
                 "reconfigurations": self.reconfigurations,
                 **({"fifo_overflows": self.fifo_overflows} if self.fifo_overflows else {})}
+
+
+SettingsInput = DriverSettings | Mapping[str, Any]
+"""What a driver is constructed with: its Settings model, or the profile's mapping of them
+(validated by the constructor)."""
 
 
 class Driver(ABC):
@@ -132,7 +147,7 @@ class Driver(ABC):
     driver, when none is published) specifies it: what ``imuhal run`` quotes when a device
     has no calibration for that channel (imuhal.calibrate.missing). Empty: not known."""
 
-    def __init__(self, link: Link, settings: DriverSettings, *, device: str, clock: Clock) -> None:
+    def __init__(self, link: Link, settings: SettingsInput, *, device: str, clock: Clock) -> None:
         if not isinstance(settings, self.Settings):
             settings = self.Settings.model_validate(settings)
         self.link = link
@@ -158,6 +173,19 @@ class Driver(ABC):
         Raise BusError when a transfer fails; the pipeline counts it, flags the interval and
         calls ``recover`` before the next poll.
         """
+
+    def poll_blocks(self, now_ns: int) -> BlockPoll:
+        """``poll`` with its samples as blocks, what the pipeline calls. The default groups
+        the samples of one poll by stream (one device, sample class and frame): a driver
+        that reads one reading per poll delivers blocks of one frame, one that reads a FIFO
+        gets blocks of every frame it read. A block without a spec gets the stream's from the
+        pipeline (the specs it collected at the device's last configuration: ``streams()``
+        is not asked per poll, some drivers build their specs on each call). A driver that
+        decodes a FIFO into arrays overrides this and never builds the samples."""
+        result = self.poll(now_ns)
+        if not result.samples:
+            return BlockPoll([], result.next_poll_ns)
+        return BlockPoll(blocks_of(result.samples), result.next_poll_ns)
 
     def start(self, now_ns: int) -> int:
         """Called once after configure(); returns the time of the first poll."""

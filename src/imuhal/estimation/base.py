@@ -13,6 +13,7 @@ from typing import Any, ClassVar
 
 from pydantic import BaseModel, ConfigDict
 
+from imuhal.core.blocks import Block
 from imuhal.core.samples import Sample
 from imuhal.core.streams import StreamSpec
 from imuhal.estimation.outputs import Estimate
@@ -52,6 +53,22 @@ class Estimator(ABC):
     @abstractmethod
     def process(self, item: Sample | Estimate) -> list[Estimate]:
         """Consume one body-frame sample or upstream estimate; return new estimates."""
+
+    def update_block(self, block: Block) -> list[Estimate]:
+        """Consume every frame of ``block`` (imuhal.core.blocks: n valid, body-frame frames
+        of one stream, oldest first) with nothing else between them; return the estimates,
+        in the order made. The result is what ``process()`` makes of the frames one by one
+        (the default does exactly that, so an estimator that only implements ``process``
+        takes blocks too); an estimator with a faster way over arrays overrides it and
+        must give the same estimates. The pipeline's router (imuhal.pipeline.router) hands
+        a block over whole only when nothing else of its instants is routed here."""
+        out: list[Estimate] = []
+        process = self.process
+        for sample in block.samples():
+            made = process(sample)
+            if made:
+                out.extend(made)
+        return out
 
     @abstractmethod
     def get_state(self) -> dict[str, Any]:

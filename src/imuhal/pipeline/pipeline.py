@@ -15,7 +15,7 @@ import time
 from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -26,20 +26,26 @@ from imuhal.bus.spy import SpyBus, Transfer
 from imuhal.calibration.gyro import GyroOffsetProcedure
 from imuhal.calibration.hard_iron import HardIronLearner
 from imuhal.calibration.model import CalibrationBinding, DeviceCalibration, now
+from imuhal.core.blocks import Block, blocks_of, interleaved
 from imuhal.core.conventions import get_convention
 from imuhal.core.errors import BusError, ImuhalError, PluginError, ProfileError
 from imuhal.core.frames import FloatArray
 from imuhal.core.samples import GyroSample, MagSample, Quantity, Sample, SampleFlag
 from imuhal.core.streams import StreamSpec
 from imuhal.drivers.base import DeviceIdentity, Driver
-from imuhal.estimation.base import Estimator
 from imuhal.estimation.framed import FramedEvent, express
-from imuhal.estimation.ordering import fusion_order
+from imuhal.estimation.outputs import Estimate
 from imuhal.estimation.streams import StreamContradiction
 from imuhal.pipeline.accounting import FrameLedger, describe_frames
 from imuhal.pipeline.board import Board, open_hardware_board
 from imuhal.pipeline.bringup import bring_up
-from imuhal.pipeline.processing import calibrate_to_body, validity_flags
+from imuhal.pipeline.processing import (
+    calibrate_block,
+    calibrate_to_body,
+    validity_block,
+    validity_flags,
+)
+from imuhal.pipeline.router import Route, Router
 from imuhal.pipeline.startup import startup_gyro_phase, startup_procedures
 from imuhal.plugins.manager import Registry
 from imuhal.profile.model import BoardProfile
@@ -92,6 +98,8 @@ class DeviceRuntime:
     full_scale: dict[Quantity, float | None] = field(default_factory=dict)
     streams: tuple[StreamSpec, ...] = ()
     """The driver's stream specs as read back at the last (re)configuration."""
+    spec_of: dict[Quantity, StreamSpec] = field(default_factory=dict)
+    """``streams`` by quantity (the spec a block without one was taken with)."""
     last_valid_ns: dict[Quantity, int] = field(default_factory=dict)
     """Per quantity, the time of the last valid sample (samples must not go back)."""
     chip_to_body_rows: list[list[float]] = field(default_factory=list)
@@ -104,18 +112,16 @@ class DeviceRuntime:
     """The driver's FIFO overflow count the ledger last saw."""
     mag_learner: HardIronLearner | None = None
     """Learning the hard iron in flight (``mag_in_flight``, no stored magnetometer record)."""
+    own_blocks: bool = False
+    """The driver builds its own blocks (overrides ``Driver.poll_blocks``)."""
 
     def __post_init__(self) -> None:
         self.chip_to_body_rows = np.asarray(self.chip_to_body, dtype=float).tolist()
+        self.own_blocks = type(self.driver).poll_blocks is not Driver.poll_blocks
 
 
-@dataclass
-class EstimatorRuntime:
-    name: str
-    estimator: Estimator
-    inputs: frozenset[str] | None
-    consumes: tuple[type, ...]
-    outputs: int = 0
+EstimatorRuntime = Route
+"""One estimator as the pipeline runs it (the router's :class:`Route`)."""
 
 
 @dataclass
@@ -183,6 +189,21 @@ def _learned_words(status: dict[str, Any]) -> str:
     return f"hard iron {state}: ({fit}) uT from {status['readings']} readings"
 
 
+class _Readings(list[Sample]):
+    """A poll's blocks when each holds one frame: their readings (one per stream)."""
+
+    __slots__ = ()
+
+
+def _recovered_clip(sample: Sample) -> bool:
+    """A flagged reading an estimator still takes: a gyro reading clipped at the chip's full
+    scale, an AHRS integrates it clipped rather than leave a gap (angular-rate recovery);
+    nothing else flagged is ever fused."""
+    flags = sample.flags
+    return bool(flags & SampleFlag.SATURATED) and not flags & ~CLIPPED \
+        and isinstance(sample, GyroSample)
+
+
 class Pipeline:
     def __init__(
         self,
@@ -213,7 +234,7 @@ class Pipeline:
         # of the run, so a replay does not have to make them.
         spied = dict(board.buses) if not taps else {
             name: SpyBus(bus, _fan_out(taps), clock) for name, bus in board.buses.items()}
-        self._before_poll = board.before_poll
+        self._before_poll: Callable[[int, str], int] = board.before_poll
         if recorder is not None:
             recorder.attach(board.buses)
             clock = recorder.wrap_clock(clock)
@@ -226,8 +247,11 @@ class Pipeline:
         self.warnings: list[str] = []
         self._heap: list[tuple[int, int, str]] | None = None
         self._startup: dict[str, GyroOffsetProcedure] | None = None
-        self._fusion: list[Sample] = []
-        self._route_cache: dict[tuple[str, type], tuple[EstimatorRuntime, ...]] = {}
+        self._fusion: list[Sample | Block] = []
+        """Valid body-frame readings (one-frame blocks as their sample) and blocks some
+        estimator takes, waiting for their fusion step."""
+        self._blocks_queued = False
+        """Some block of several frames is queued (else the queue holds samples only)."""
         self._span_ns = [0, 0]  # first and last poll time of the latest poll loop (ns)
         self.devices: dict[str, DeviceRuntime] = {}
         self.estimators: list[EstimatorRuntime] = []
@@ -259,6 +283,8 @@ class Pipeline:
                 inputs=frozenset(ecfg.inputs) if ecfg.inputs is not None else None,
                 consumes=tuple(est_cls.consumes),
             ))
+        self.router = Router(self.estimators, self._device_rank)
+        """The routing rule (imuhal.pipeline.router), shared with the offline chain."""
         for runtime in self.estimators:
             self._bind(runtime)
 
@@ -372,6 +398,7 @@ class Pipeline:
         if streams == dev.streams:
             return
         dev.streams = streams
+        dev.spec_of = {spec.quantity: spec for spec in reversed(streams)}
         for runtime in self.estimators:
             if runtime.inputs is None or dev.name in runtime.inputs:
                 self._bind(runtime)
@@ -451,27 +478,49 @@ class Pipeline:
                 # the host came late (this device's stall, or another's slow poll)
                 dev.ledger.note("host_stall")
             self._span_ns[1] = max(t_ns, self._span_ns[1])
-            samples, next_ns = self._service(dev, t_ns)
+            frames, next_ns = self._service(dev, t_ns)
             if dev.ledger is not None:
                 self._account(dev)
             dev.next_poll_ns = max(next_ns, t_ns + 1)
             heapq.heappush(heap, (dev.next_poll_ns, rank, name))
-            for raw in samples:
-                yield self._process(dev, raw)
+            if frames:
+                if isinstance(frames, _Readings):
+                    # one frame per block (a register poll): each reading through the steps
+                    # as it is handed out (the start-up phase may switch calibration on
+                    # between two of them)
+                    for sample in frames:
+                        yield self._process_one(dev, sample)
+                else:
+                    yield from self._frames_of(dev, frames)
         if end is not None:
             self.clock.sleep_until(end)
         if self._fusion:
             yield from self._fuse(before_ns=None)
 
-    def _service(self, dev: DeviceRuntime, t_ns: int) -> tuple[list[Sample], int]:
+    def _frames_of(self, dev: DeviceRuntime, blocks: list[Block]) -> Iterator[Sample]:
+        """Blocks of several frames (a FIFO read) through the steps at once, their frames
+        handed out in time order (imuhal.core.blocks.interleaved). When the start-up phase
+        switches calibration on while they are handed out, the frames not handed out yet
+        are calibrated and queued then, as single readings would have been."""
+        calibrated = self.calibrated
+        frames = interleaved([self._process(dev, b) for b in blocks])
+        for i, frame in enumerate(frames):
+            yield frame
+            if self.calibrated and not calibrated:
+                rest = [self._to_body(dev, b) for b in blocks_of(frames[i + 1:])]
+                yield from interleaved(rest)
+                return
+
+    def _service(self, dev: DeviceRuntime, t_ns: int) -> tuple[_Readings | list[Block], int]:
         """Whatever ``dev`` needs at ``t_ns``: a poll, a recovery, or a look for an optional
-        device not yet found. Returns its samples and when it is next due."""
+        device not yet found. Returns its blocks (blocks of one frame each as their
+        readings, :class:`_Readings`) and when it is next due."""
         if not dev.present:
             return [], self._look_for(dev, t_ns)
         if dev.needs_recovery:
             return [], self._recover(dev, t_ns)
         try:
-            result = dev.driver.poll(t_ns)
+            frames, next_ns = self._poll(dev, t_ns)
         except BusError:
             dev.bus_errors += 1
             if dev.ledger is not None:
@@ -485,7 +534,27 @@ class Pipeline:
             dev.resumed = False
             return [], self._recover(dev, t_ns)
         dev.resumed = False
-        return result.samples, result.next_poll_ns
+        return frames, next_ns
+
+    @staticmethod
+    def _poll(dev: DeviceRuntime, t_ns: int) -> tuple[_Readings | list[Block], int]:
+        """``dev``'s poll as blocks (``Driver.poll_blocks``). For a driver that leaves
+        ``poll_blocks`` to the base class this is its adapter inlined: a poll whose readings
+        are of different streams (a register poll) is a block of one frame per reading,
+        kept as the readings; one with several readings of a stream (a FIFO read) is
+        grouped into blocks (imuhal.core.blocks.blocks_of)."""
+        driver = dev.driver
+        if dev.own_blocks:
+            polled = driver.poll_blocks(t_ns)
+            blocks = polled.blocks
+            if all(len(b) == 1 for b in blocks):
+                return _Readings(b.samples()[0] for b in blocks), polled.next_poll_ns
+            return blocks, polled.next_poll_ns
+        result = driver.poll(t_ns)
+        samples = result.samples
+        if len(samples) < 2 or len({type(s) for s in samples}) == len(samples):
+            return _Readings(samples), result.next_poll_ns
+        return blocks_of(samples), result.next_poll_ns
 
     def _after_bus_error(self, dev: DeviceRuntime, t_ns: int) -> int:
         """Recovery in proportion: a transfer that fails after a good poll is most likely a
@@ -567,14 +636,15 @@ class Pipeline:
             dev.warned.add(key)
             self.warnings.append(message)
 
-    def _process(self, dev: DeviceRuntime, raw: Sample) -> Sample:
-        """One sample of ``dev`` through validity, calibration and rotation; a valid one is
-        queued for the estimators (fused in order by ``_fuse``)."""
+    def _process_one(self, dev: DeviceRuntime, raw: Sample) -> Sample:
+        """:meth:`_process` for a block of one frame, on its sample: the same steps and
+        floats (imuhal.pipeline.processing takes a one-frame block on its sample too),
+        without building a block around each reading of a register poll."""
         channel = raw.channel
         flags = validity_flags(raw, dev.full_scale.get(channel), dev.last_valid_ns.get(channel))
         sample = raw if flags == raw.flags else raw.flagged(flags)
         dev.samples += 1
-        if not sample.valid:
+        if sample.flags:
             self._count_flags(dev, sample)
         else:
             dev.last_valid_ns[channel] = sample.t_ns
@@ -582,93 +652,128 @@ class Pipeline:
             dev.ledger.observe(sample)
         if not self.calibrated:
             return sample
-        learner = dev.mag_learner
-        if learner is not None and sample.valid and isinstance(sample, MagSample) \
-                and learner.feed(sample.mag_ut):
-            cal = dev.calibration or DeviceCalibration()
-            dev.calibration = cal.model_copy(update={"mag": learner.record(
-                binding=self.calibration_binding(dev.name), date=now())})
+        if dev.mag_learner is not None and isinstance(sample, MagSample):
+            self._learn(dev, [sample])
         # Flagged samples are only rotated, not calibrated.
         sample = calibrate_to_body(sample, dev.calibration if sample.valid else None,
                                    dev.chip_to_body_rows)
-        # Only samples some estimator takes are queued: the others would be sorted into
-        # fusion order and handed to nobody.
-        # a gyro reading clipped at the chip's full scale goes to the estimators too, still
-        # flagged: an AHRS integrates it clipped rather than leave a gap (angular-rate
-        # recovery); nothing else flagged is ever fused
-        if self.estimators and (sample.valid or (
-                sample.flags & SampleFlag.SATURATED and not sample.flags & ~CLIPPED
-                and isinstance(sample, GyroSample))):
-            routes = self._route_cache.get((sample.device, type(sample)))
-            if routes is None:
-                routes = self._routes(sample.device, type(sample))
-            if routes:
-                self._fusion.append(sample)
+        if self.estimators and (not sample.flags or _recovered_clip(sample)) \
+                and self.router.takes(sample.device, type(sample)):
+            self._fusion.append(sample)
         return sample
 
+    def _process(self, dev: DeviceRuntime, raw: Block) -> Block:
+        """One block of ``dev`` through validity, calibration and rotation, once for all its
+        frames (imuhal.pipeline.processing); its fusable frames are queued for the
+        estimators (fused in order by ``_fuse``)."""
+        channel = raw.quantity
+        if raw.spec is None:
+            raw.spec = dev.spec_of.get(channel)
+        block, last = validity_block(raw, dev.full_scale.get(channel),
+                                     dev.last_valid_ns.get(channel))
+        if last is not None:
+            dev.last_valid_ns[channel] = last
+        dev.samples += len(block)
+        if block.flags.any():
+            for sample in block.samples():
+                if sample.flags:
+                    self._count_flags(dev, sample)
+        if dev.ledger is not None:
+            for sample in block.samples():
+                dev.ledger.observe(sample)
+        return self._to_body(dev, block) if self.calibrated else block
+
+    def _to_body(self, dev: DeviceRuntime, block: Block) -> Block:
+        """A checked block calibrated and rotated into the body frame; its fusable frames
+        are queued for the estimators."""
+        if dev.mag_learner is not None and issubclass(block.kind, MagSample):
+            self._learn(dev, block.samples())
+        # Flagged frames are only rotated, not calibrated.
+        block = calibrate_block(block, dev.calibration, dev.chip_to_body_rows)
+        if self.estimators and self.router.takes(block.device, block.kind):
+            fused = self._fusable(block)
+            if fused is not None:
+                self._fusion.append(fused)
+                self._blocks_queued = True
+        return block
+
+    @staticmethod
+    def _fusable(block: Block) -> Block | None:
+        """The frames of ``block`` an estimator may take: valid ones and, for a gyro, ones
+        clipped at the chip's full scale (:func:`_recovered_clip`)."""
+        f = block.flags
+        keep = f == 0
+        if issubclass(block.kind, GyroSample):
+            keep |= ((f & SampleFlag.SATURATED) != 0) & ((f & ~int(CLIPPED)) == 0)
+        return block.select(keep)
+
+    def _learn(self, dev: DeviceRuntime, samples: list[Sample]) -> None:
+        """Valid magnetometer frames to the hard-iron learner (sensor frame, raw); a new fit
+        becomes the device's magnetometer calibration at once."""
+        learner = dev.mag_learner
+        assert learner is not None
+        for sample in samples:
+            if sample.valid and isinstance(sample, MagSample) and learner.feed(sample.mag_ut):
+                cal = dev.calibration or DeviceCalibration()
+                dev.calibration = cal.model_copy(update={"mag": learner.record(
+                    binding=self.calibration_binding(dev.name), date=now())})
+
     def _fuse(self, before_ns: int | None) -> list[Event]:
-        """Hand the estimators the queued samples older than ``before_ns`` (all: None), in
-        fusion order (imuhal.estimation.ordering); returns their estimates, in the order
-        they were made. (A list, not a generator: this runs at every poll, and the queue
-        is taken whole, so a consumer that stops iterating loses no input.)"""
-        fusion = self._fusion
-        if before_ns is None:
-            due, self._fusion = fusion, []
-        else:
-            due = [s for s in fusion if s.t_ns < before_ns]
-            if not due:
-                return []
-            # usually every queued sample is due (they come from earlier polls)
-            self._fusion = [] if len(due) == len(fusion) else \
-                [s for s in fusion if s.t_ns >= before_ns]
+        """Hand the estimators the queued frames older than ``before_ns`` (all: None), in
+        fusion order (the router's rule); returns their estimates, in the order they were
+        made. (A list, not a generator: this runs at every poll, and the queue is taken
+        whole, so a consumer that stops iterating loses no input.)"""
         out: list[Event] = []
-        estimate = self._estimate
-        for sample in (due if len(due) == 1 else fusion_order(due, self._device_rank)):
-            estimate(sample, out)
+        if not self._blocks_queued:
+            # readings only (one-frame blocks kept as their samples): today's queue
+            samples = cast("list[Sample]", self._fusion)
+            if before_ns is None:
+                due, self._fusion = samples, []
+            else:
+                due = [s for s in samples if s.t_ns < before_ns]
+                if not due:
+                    return []
+                # usually every queued sample is due (they come from earlier polls)
+                self._fusion = [] if len(due) == len(samples) else \
+                    [s for s in samples if s.t_ns >= before_ns]
+            self.router.fuse(due, cast("list[Estimate]", out))
+            return out
+        if before_ns is None:
+            items, self._fusion = self._fusion, []
+        else:
+            items = self._due_blocks(before_ns)
+        self._blocks_queued = bool(self._fusion)
+        if items:
+            self.router.fuse_blocks([b if isinstance(b, Block) else Block.of_sample(b)
+                                     for b in items], cast("list[Estimate]", out))
         return out
+
+    def _due_blocks(self, before_ns: int) -> list[Sample | Block]:
+        """The queued frames older than ``before_ns`` (a block whose newest frames are not
+        is split); the rest stay queued."""
+        due: list[Sample | Block] = []
+        later: list[Sample | Block] = []
+        for item in self._fusion:
+            if isinstance(item, Sample):
+                (due if item.t_ns < before_ns else later).append(item)
+            elif item.t0_ns >= before_ns:
+                later.append(item)
+            elif int(item.t_ns[-1]) < before_ns:
+                due.append(item)
+            else:  # a block whose newest frames belong to a later step
+                t = item.t_ns
+                head, tail = item.select(t < before_ns), item.select(t >= before_ns)
+                assert head is not None and tail is not None
+                due.append(head)
+                later.append(tail)
+        self._fusion = later
+        return due
 
     @staticmethod
     def _count_flags(dev: DeviceRuntime, sample: Sample) -> None:
         for flag in SampleFlag:
             if flag and flag in sample.flags:
                 dev.flagged[flag.name or str(flag)] += 1
-
-    def _routes(self, source: str, kind: type) -> tuple[EstimatorRuntime, ...]:
-        """The estimators an event of type ``kind`` from ``source`` goes to, in profile
-        order: those whose inputs name the source (or take every source), that consume the
-        type, and that are not the source itself. Worked out once per (source, type)."""
-        key = (source, kind)
-        routes = self._route_cache.get(key)
-        if routes is None:
-            routes = tuple(est for est in self.estimators
-                           if (est.inputs is None or source in est.inputs)
-                           and source != est.name and issubclass(kind, est.consumes))
-            self._route_cache[key] = routes
-        return routes
-
-    def _estimate(self, item: Event, out: list[Event]) -> None:
-        """``item`` through every estimator it is routed to, and their estimates through
-        theirs, breadth first; every estimate is appended to ``out``."""
-        routes_of = self._route_cache
-        first = len(out)
-        current = item
-        while True:
-            source = current.device if isinstance(current, Sample) else current.source
-            routes = routes_of.get((source, type(current)))
-            if routes is None:
-                routes = self._routes(source, type(current))
-            for est in routes:
-                made = est.estimator.process(current)
-                if made:
-                    if type(made) is not list:  # any iterable a plugin returns
-                        made = list(made)
-                    est.outputs += len(made)
-                    out.extend(made)
-            # the estimates not yet handed on, in the order they were made (breadth first)
-            if first == len(out):
-                return
-            current = out[first]
-            first += 1
 
     def run(self, duration_s: float | None, sinks: Sequence[Sink] = ()) -> RunSummary:
         """Run for ``duration_s`` simulated (or real) seconds, feeding every sink.

@@ -8,11 +8,19 @@ sinks can still log it; it is never handed to an estimator.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Protocol
 
 import numpy as np
 
-from imuhal.calibration.model import DeviceCalibration
+from imuhal.calibration.model import (
+    AccelCalibration,
+    DeviceCalibration,
+    GyroCalibration,
+    MagCalibration,
+    VectorCalibration,
+)
+from imuhal.core.blocks import Block, IntArray
 from imuhal.core.frames import FloatArray
 from imuhal.core.samples import (
     AccelSample,
@@ -63,13 +71,7 @@ def _record(sample: VectorSample, calibration: DeviceCalibration | None) -> _Cor
     """The calibration record of the sample's quantity, if any."""
     if calibration is None:
         return None
-    if isinstance(sample, AccelSample):
-        return calibration.accel
-    if isinstance(sample, GyroSample):
-        return calibration.gyro
-    if isinstance(sample, MagSample):
-        return calibration.mag
-    return calibration.record_for(sample.channel.name)  # a plugin's vector quantity
+    return _record_of(type(sample), sample.channel.name, calibration)
 
 
 def _rotate(m: FloatArray | list[list[float]], v: Vec3) -> Vec3:
@@ -97,3 +99,140 @@ def calibrate_to_body(sample: Sample, calibration: DeviceCalibration | None,
     if sample.frame is Frame.BODY_NED:
         return sample if record is None else sample.with_vector(vector, sample.frame)
     return sample.with_vector(_rotate(chip_to_body, vector), Frame.BODY_NED)
+
+
+# -- the same steps once per block ---------------------------------------------------------
+
+def validity_block(block: Block, full_scale: float | None, last_t_ns: int | None
+                   ) -> tuple[Block, int | None]:
+    """:func:`validity_flags` for every frame of ``block`` at once; returns the block (the
+    same object when no flag was added) and the time of its last valid frame (else
+    ``last_t_ns``), which the next block of the stream is checked against.
+
+    One frame built from a sample is checked on the sample (Python floats cost less than
+    numpy calls on one row); longer blocks on their arrays, with the same outcome: a frame
+    is OUT_OF_ORDER when it is older than the last valid frame before it."""
+    if len(block) == 1 and block.has_rows:
+        row = block.samples()[0]
+        flags = validity_flags(row, full_scale, last_t_ns)
+        if flags != row.flags:
+            row = row.flagged(flags)
+            block = Block.from_samples([row], block.spec)
+        return block, (row.t_ns if row.valid else last_t_ns)
+    t_ns = block.t_ns
+    if bool(np.any(np.diff(t_ns) < 0)):
+        return _validity_rows(block, full_scale, last_t_ns)
+    bits = _validity_bits(block, full_scale)
+    if last_t_ns is not None:
+        # frames in time order: only the last valid frame before the block can be newer
+        bits[t_ns < last_t_ns] |= SampleFlag.OUT_OF_ORDER
+    valid = bits == 0
+    last = int(t_ns[valid][-1]) if bool(valid.any()) else last_t_ns
+    if np.array_equal(bits, block.flags):
+        return block, last
+    return block.with_flags(bits), last
+
+
+def _validity_bits(block: Block, full_scale: float | None) -> IntArray:
+    """The block's flags with NAN and OUT_OF_RANGE added (a new array)."""
+    values = block.values
+    bits = block.flags.copy()
+    finite = np.asarray(np.isfinite(values).all(axis=1), dtype=bool)
+    bits[~finite] |= SampleFlag.NAN
+    if full_scale is not None and values.shape[1]:
+        magnitude = np.abs(np.where(finite[:, None], values, 0.0)).max(axis=1)
+        bits[finite & (magnitude > full_scale)] |= SampleFlag.OUT_OF_RANGE
+    return bits
+
+
+def _validity_rows(block: Block, full_scale: float | None, last_t_ns: int | None
+                   ) -> tuple[Block, int | None]:
+    """Frames out of time order inside one block (a driver built it from its samples):
+    checked one by one, as they came."""
+    rows = []
+    for row in block.samples():
+        flags = validity_flags(row, full_scale, last_t_ns)
+        row = row if flags == row.flags else row.flagged(flags)
+        if row.valid:
+            last_t_ns = row.t_ns
+        rows.append(row)
+    return Block.from_samples(rows, block.spec), last_t_ns
+
+
+def _corrected_columns(record: object, x: FloatArray, y: FloatArray, z: FloatArray
+                       ) -> tuple[FloatArray, FloatArray, FloatArray] | None:
+    """What ``record.apply`` computes, on columns, in the same order of operations (the
+    same floats); None for a record kind not known here (applied frame by frame)."""
+    if isinstance(record, AccelCalibration | GyroCalibration):
+        o = record.offset_m_s2 if isinstance(record, AccelCalibration) \
+            else record.offset_rad_s
+        s, m = record.scale, record.misalignment
+        return _mat_vec_columns(m, (x - o[0]) * s[0], (y - o[1]) * s[1], (z - o[2]) * s[2])
+    if isinstance(record, MagCalibration):
+        h = record.hard_iron_ut
+        return _mat_vec_columns(record.soft_iron, x - h[0], y - h[1], z - h[2])
+    if isinstance(record, VectorCalibration):
+        o = record.offset
+        return _mat_vec_columns(record.matrix, x - o[0], y - o[1], z - o[2])
+    return None
+
+
+def _mat_vec_columns(m: Sequence[Sequence[float]], x: FloatArray, y: FloatArray,
+                     z: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``m @ v`` for every row, each component summed left to right as the calibration's
+    plain-float ``_mat_vec`` sums it."""
+    return (m[0][0] * x + m[0][1] * y + m[0][2] * z,
+            m[1][0] * x + m[1][1] * y + m[1][2] * z,
+            m[2][0] * x + m[2][1] * y + m[2][2] * z)
+
+
+def _calibrated(block: Block, record: _Correction | None) -> FloatArray:
+    """The block's values with ``record`` applied to its valid frames (flagged frames stay
+    raw, as :func:`calibrate_to_body` leaves them)."""
+    values = block.values
+    if record is None:
+        return values
+    valid = block.flags == 0
+    if not bool(valid.any()):
+        return values
+    columns = _corrected_columns(record, values[:, 0], values[:, 1], values[:, 2])
+    if columns is None:
+        corrected = np.array([record.apply((v[0], v[1], v[2])) for v in values.tolist()])
+    else:
+        corrected = np.stack(columns, axis=1)
+    return np.where(valid[:, None], corrected, values)
+
+
+def calibrate_block(block: Block, calibration: DeviceCalibration | None,
+                    chip_to_body: list[list[float]]) -> Block:
+    """:func:`calibrate_to_body` for every frame of ``block`` at once (valid frames
+    calibrated, every frame rotated), the same floats: each rotated component is summed
+    from +0.0 left to right as :func:`_rotate` sums it. One frame built from a sample goes
+    through :func:`calibrate_to_body` itself."""
+    if not issubclass(block.kind, VectorSample):
+        return block
+    if len(block) == 1 and block.has_rows:
+        row = block.samples()[0]
+        out = calibrate_to_body(row, calibration if row.valid else None, chip_to_body)
+        return block if out is row else Block.from_samples([out], block.spec)
+    record = None if calibration is None else \
+        _record_of(block.kind, block.quantity.name, calibration)
+    values = _calibrated(block, record)
+    if block.frame is Frame.BODY_NED:
+        return block if values is block.values else block.with_values(values, block.frame)
+    (a, b, c), (d, e, f), (g, h, i) = chip_to_body
+    x, y, z = values[:, 0], values[:, 1], values[:, 2]
+    body = np.stack((0.0 + a * x + b * y + c * z, 0.0 + d * x + e * y + f * z,
+                     0.0 + g * x + h * y + i * z), axis=1)
+    return block.with_values(body, Frame.BODY_NED)
+
+
+def _record_of(kind: type[Sample], quantity: str, calibration: DeviceCalibration
+               ) -> _Correction | None:
+    if issubclass(kind, AccelSample):
+        return calibration.accel
+    if issubclass(kind, GyroSample):
+        return calibration.gyro
+    if issubclass(kind, MagSample):
+        return calibration.mag
+    return calibration.record_for(quantity)
