@@ -24,6 +24,7 @@ from imuhal.offline.csv_input import ACCEL, GYRO, MAG, TIME
 from imuhal_filters.common import fast
 from imuhal_filters.common.aot_build import exported_kernels
 from imuhal_filters.imufilter.fast import to_global as imufilter_to_global
+from imuhal_filters.madgwick.fast import madgwick_rows
 
 PLUGINS = Path(imuhal_filters.__file__).resolve().parent
 
@@ -93,6 +94,27 @@ print(imuhal_filters.__file__, madgwick_rows.backend(), "numba" in sys.modules,
     assert (backend, numba_loaded, finite) == ("jit", "True", "True")
 
 
+def test_a_shared_helper_edited_after_the_build_makes_every_kernel_calling_it_stale(
+        aot_kernel_dir: Path, tmp_path: Path) -> None:
+    """A copy of the filters with one comment added to common/fast_ahrs.py (the gate and
+    row loop every AHRS kernel calls): each of those kernels falls back, the rest keep the
+    extension."""
+    copy = tmp_path / "src" / "imuhal_filters"
+    shutil.copytree(PLUGINS, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    with (copy / "common" / "fast_ahrs.py").open("a") as f:
+        f.write("# edited after the build\n")
+    status = _status(cli_env(IMUHAL_KERNEL_DIR=str(aot_kernel_dir),
+                             PYTHONPATH=str(tmp_path / "src")))
+    callers = {"madgwick_rows", "madgwick_sample", "mahony_rows", "mahony_sample",
+               "freescale_rows"}
+    for name in callers:
+        backend, reason = status[name]
+        assert backend != "aot", name
+        assert "stale: built for other sources (imuhal_filters/common/fast_ahrs.py" in reason
+    assert {name for name, (backend, _) in status.items() if backend == "aot"} == \
+        set(status) - callers
+
+
 def test_imuhal_estimate_with_the_extension_imports_no_numba(
         aot_kernel_dir: Path, tmp_path: Path) -> None:
     log = _imu_csv(tmp_path / "imu.csv")
@@ -139,6 +161,23 @@ def test_a_kernel_fingerprint_covers_the_modules_of_the_helpers_it_calls() -> No
     """A helper edited in another file makes the caller's extension stale too."""
     kernel = fast.Kernel(_uses_a_helper_of_another_module)
     assert kernel.modules() == [__name__, "imuhal_filters.imufilter.fast"]
+
+
+def _enclosing_a_helper_of_another_module() -> fast.Kernel:
+    helper = imufilter_to_global
+
+    def _uses(x):  # type: ignore[no-untyped-def]
+        return helper(1.0, 0.0, 0.0, 0.0, x, 0.0, 0.0)
+
+    return fast.Kernel(_uses)
+
+
+def test_a_kernel_fingerprint_covers_helpers_it_holds_as_closure_variables() -> None:
+    """The shared row loop is made per filter around its step (common/fast_ahrs.py)."""
+    assert _enclosing_a_helper_of_another_module().modules() == [
+        __name__, "imuhal_filters.imufilter.fast"]
+    assert set(madgwick_rows.modules()) == {"imuhal_filters.madgwick.fast",
+                                            "imuhal_filters.common.fast_ahrs"}
 
 
 def test_a_damaged_extension_falls_back_and_says_why(

@@ -292,19 +292,7 @@ class AhrsEstimator(Estimator):
             self._accel_m_s2, self._accel_t_ns = (float(x), float(y), float(z)), item.t_ns
             return []
         if kind is MagSample:
-            if item.flags != _OK:  # type: ignore[union-attr]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
-                self._counters["invalid"][_MAG] += 1
-                return []
-            x, y, z = item.mag_ut  # type: ignore[union-attr]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
-            # the magnetometer's scale is unbounded: only finite (NaN fails every test)
-            if not (abs(x) < _INF and abs(y) < _INF and abs(z) < _INF):
-                self._reject(_MAG)
-                return []
-            if item.frame is not _BODY_NED:  # type: ignore[union-attr]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
-                return self._wrong_frame(item)  # type: ignore[arg-type]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
-            if self.uses_mag:
-                self._mag_ut, self._mag_t_ns = (float(x), float(y), float(z)), item.t_ns
-            return []
+            return self._on_mag(item)  # type: ignore[arg-type]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
         if kind is GyroSample:
             if item.flags != _OK:  # type: ignore[union-attr]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
                 return self._flagged_gyro(item)  # type: ignore[arg-type]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
@@ -319,6 +307,23 @@ class AhrsEstimator(Estimator):
                 return self._recovering(item, (float(x), float(y), float(z)))  # type: ignore[arg-type]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
             return self._on_gyro(item, (float(x), float(y), float(z)))  # type: ignore[arg-type]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
         return self._process_general(item)
+
+    def _on_mag(self, item: MagSample) -> list[Estimate]:
+        """A magnetometer sample (exact type, ``process``'s direct path): kept for the next
+        gyro step when valid, finite and in the body NED frame and the filter uses it."""
+        if item.flags != _OK:
+            self._counters["invalid"][_MAG] += 1
+            return []
+        x, y, z = item.mag_ut
+        # the magnetometer's scale is unbounded: only finite (NaN fails every test)
+        if not (abs(x) < _INF and abs(y) < _INF and abs(z) < _INF):
+            self._reject(_MAG)
+            return []
+        if item.frame is not _BODY_NED:
+            return self._wrong_frame(item)
+        if self.uses_mag:
+            self._mag_ut, self._mag_t_ns = (float(x), float(y), float(z)), item.t_ns
+        return []
 
     # ------------------------------------------------------------------ angular-rate recovery
     def _flagged_gyro(self, item: GyroSample) -> list[Estimate]:
@@ -712,6 +717,13 @@ class AhrsEstimator(Estimator):
             diag = self._compiled_step(rate, accel, mag, dt, accel)
             return [AttitudeEstimate.build(t_ns, self.instance, self._q,
                                            None if accel is None else self._linear_ned, diag)]  # type: ignore[arg-type]  # aligned (checked above): a kernel step then always returns diagnostics
+        return self._stepped(t_ns, rate, accel, mag, dt)
+
+    def _stepped(self, t_ns: int, rate: Vec, accel: Vec | None, mag: Vec | None,
+                 dt: float) -> list[Estimate]:
+        """The estimate of one step through ``_run_step`` (compensation, alignment, the
+        compiled or the Python step): ``_on_gyro`` for every case but the common compiled
+        one it writes out; none before the attitude is aligned."""
         diag = self._run_step(t_ns, rate, accel, mag, dt)
         if diag is None:
             return []

@@ -9,11 +9,11 @@ suffix (Python version and ABI, platform), numpy's version and numba's. Both fil
 with the fingerprint, a hash of that record.
 
 A kernel runs from an extension only when the record matches now: its module's source and
-that of every module whose helper kernels it calls (today each calls only helpers of its
-own module), the shared sources, this Python, this numpy, and the installed numba (an
-extension needs no numba at run time: when numba is absent, the numba it was built with is
-accepted). A kernel edited after the build runs on the JIT or in Python until the next
-build, never stale compiled code; the other kernels keep their extension.
+that of every module whose helper kernels it calls (``common/fast_ahrs.py``'s gate and row
+loop, ``common/fast_frames.py``), the shared sources, this Python, this numpy, and the
+installed numba (an extension needs no numba at run time: when numba is absent, the numba it
+was built with is accepted). A kernel edited after the build runs on the JIT or in Python
+until the next build, never stale compiled code; the other kernels keep their extension.
 Nothing here imports numba.
 """
 

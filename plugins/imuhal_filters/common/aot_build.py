@@ -59,8 +59,6 @@ def exported_kernels() -> list[fast.Kernel]:
     for module in aot.KERNEL_MODULES:
         importlib.import_module(module)
     kernels = [k for k in fast.KERNELS if k.exported and k.module in aot.KERNEL_MODULES]
-    for k in kernels:
-        k.modules()  # while the helpers' names still name them (the build repoints them)
     missing = [k.name for k in fast.KERNELS if k.exported and k.module not in aot.KERNEL_MODULES]
     if missing:  # a kernel module added without listing it: a bug, caught by the tests
         raise RuntimeError(f"kernels {missing} are in no module of aot.KERNEL_MODULES")
@@ -151,9 +149,16 @@ def build(directory: Path | None = None) -> Built:
         record["numba_pycc"] = True
         cc = cc_class(name, source_module=__name__)
         cc.output_dir = str(tmp)
+        helpers: dict[int, Any] = {}
+
+        def compile_helper(helper: fast.Kernel) -> Any:
+            if id(helper) not in helpers:
+                helpers[id(helper)] = numba.njit(nogil=True)(
+                    fast.compiled_copy(helper.fn, compile_helper))
+            return helpers[id(helper)]
+
         for k in kernels:
-            fast.swap_helpers(k.fn, lambda helper: numba.njit(nogil=True)(helper.fn))
-            cc.export(k.name, k.signature())(k.fn)
+            cc.export(k.name, k.signature())(fast.compiled_copy(k.fn, compile_helper))
         saved_tempdir = tempfile.tempdir
         tempfile.tempdir = str(tmp)  # pycc's own build directory too, removed below
         try:

@@ -24,9 +24,11 @@ as its signature says, so a caller passing anything else is a bug to report, not
 
 from __future__ import annotations
 
+import hashlib
 import importlib.util
 import os
 import re
+import types
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache
@@ -133,14 +135,13 @@ class Kernel:
 
     def modules(self) -> list[str]:
         """The modules whose source this kernel's compiled code comes from: its own and
-        those of the helper kernels it calls, transitively (what its fingerprint covers).
-        Worked out once, before a compilation points the helpers' names elsewhere."""
+        those of the helper kernels it calls (module globals or closure variables, as
+        ``common.fast_ahrs.ahrs_rows`` makes them), transitively (what its fingerprint and
+        its JIT cache key cover)."""
         if self._modules is None:
             found = [self.module]
-            for name in self.fn.__code__.co_names:
-                helper = self.fn.__globals__.get(name)
-                if isinstance(helper, Kernel):
-                    found += [m for m in helper.modules() if m not in found]
+            for helper in _helpers(self.fn):
+                found += [m for m in helper.modules() if m not in found]
             self._modules = found
         return self._modules
 
@@ -196,14 +197,18 @@ class Kernel:
                                 f"got {problem}")
 
     def __call__(self, *args: Any) -> Any:
+        if not self.exported:
+            # a helper called from Python (the Python path shares common/fast_ahrs.py's
+            # gate): its compiled form exists only inside the kernels that call it
+            return self.fn(*args)
         choice = self.choice()
         if choice.backend == "python":
             raise RuntimeError(f"kernel {self.name} called without a compiled backend: the "
                                "caller must check available() first")
         if self.args is not None:
             self.check(args)
-        fn = choice.function if choice.backend == "aot" else _jitted(self)
-        return fn(*args)  # type: ignore[misc]  # an 'aot' choice always carries its loaded function
+        fn = choice.function if choice.function is not None else _jitted(self)
+        return fn(*args)
 
 
 @dataclass(frozen=True)
@@ -219,6 +224,9 @@ class Choice:
 KERNELS: list[Kernel] = []
 """Every kernel defined so far (its module imported), in definition order."""
 
+_BY_FUNCTION: dict[Callable[..., Any], Kernel] = {}
+"""Each kernel by its plain function."""
+
 
 def jit(fn: Callable[..., Any], returns: str | None = None, **args: str) -> Kernel:
     """The kernel of ``fn``. A kernel called from Python declares its return type and every
@@ -226,6 +234,7 @@ def jit(fn: Callable[..., Any], returns: str | None = None, **args: str) -> Kern
     only by other kernels declares none."""
     kernel = Kernel(fn, returns, args or None)
     KERNELS.append(kernel)
+    _BY_FUNCTION[fn] = kernel
     return kernel
 
 
@@ -275,27 +284,92 @@ def _choose(kernel: Kernel, chosen: str, dir_key: str) -> Choice:
     return Choice("python", f"{why_not_aot}; numba not installed")
 
 
-def swap_helpers(fn: Callable[..., Any], compile_helper: Callable[[Kernel], Any]) -> None:
-    """Point ``fn``'s module names for helper kernels at their compiled form: numba needs
-    them compiled before it types the caller (``compile_helper`` compiles one, recursively
-    through its own helpers)."""
-    for name in fn.__code__.co_names:
-        helper = fn.__globals__.get(name)
-        if isinstance(helper, Kernel):
-            swap_helpers(helper.fn, compile_helper)
-            fn.__globals__[name] = compile_helper(helper)
+def _as_kernel(value: Any) -> Kernel | None:
+    """``value`` as a helper kernel: a Kernel, or the plain function of one (a helper that
+    the Python path calls too names its helpers by their plain functions)."""
+    if isinstance(value, Kernel):
+        return value
+    try:
+        return _BY_FUNCTION.get(value)
+    except TypeError:  # unhashable
+        return None
+
+
+def _helpers(fn: Callable[..., Any]) -> list[Kernel]:
+    """The helper kernels ``fn`` calls: module globals it names, and closure variables."""
+    named = [fn.__globals__.get(name) for name in fn.__code__.co_names]
+    enclosed = [cell.cell_contents for cell in fn.__closure__ or ()]
+    return [k for k in map(_as_kernel, named + enclosed) if k is not None]
+
+
+def compiled_copy(fn: Callable[..., Any], compile_helper: Callable[[Kernel], Any]
+                  ) -> Callable[..., Any]:
+    """A copy of ``fn`` for numba to compile: its names for helper kernels (module globals
+    and closure variables, naming a Kernel or its plain function) bound to their compiled
+    form (``compile_helper`` compiles one, recursively through its own helpers; numba needs
+    them compiled before it types the caller). ``fn`` and its module are left as they are,
+    so Python keeps calling the plain helpers (:meth:`Kernel.__call__`)."""
+    named = {name: _as_kernel(fn.__globals__.get(name)) for name in fn.__code__.co_names}
+    bound = {name: compile_helper(k) for name, k in named.items() if k is not None}
+    cells = fn.__closure__ or ()
+    enclosed = [_as_kernel(c.cell_contents) for c in cells]
+    if not bound and not any(enclosed):
+        return fn
+    scope = {**fn.__globals__, **bound}
+    closure = tuple(c if k is None else types.CellType(compile_helper(k))
+                    for c, k in zip(cells, enclosed, strict=True))
+    copy = types.FunctionType(fn.__code__, scope, fn.__name__, fn.__defaults__,
+                              closure or None)
+    copy.__qualname__, copy.__module__, copy.__doc__ = fn.__qualname__, fn.__module__, fn.__doc__
+    return copy
 
 
 @cache
 def _jitted(kernel: Kernel) -> Callable[..., Any]:
-    """``kernel`` compiled by numba (no Python objects, cached on disk), with its declared
-    signature when it has one."""
+    """``kernel`` compiled by numba (no Python objects), with its declared signature when it
+    has one. A kernel called from Python is cached on disk, under a key that covers the
+    sources of every module its compiled code comes from (:meth:`Kernel.modules`): numba's
+    own cache notices a change to the kernel's own file only, not to a helper of another
+    module (common/fast_ahrs.py). Helper kernels are not cached themselves: they are
+    compiled into their callers (and then into their callers' cache entries)."""
     import numba
 
-    # numba's on-disk cache notices a change to the kernel's own file only: a kernel that
-    # calls a helper of another module (common/fast_frames.py) is compiled afresh per process
-    cache = len(kernel.modules()) == 1  # while the helpers' names still name them
-    swap_helpers(kernel.fn, _jitted)
-    if kernel.exported:
-        return numba.njit(kernel.signature(), cache=cache, nogil=True)(kernel.fn)
-    return numba.njit(cache=cache, nogil=True)(kernel.fn)
+    fn = compiled_copy(kernel.fn, _jitted)
+    dispatcher = numba.njit(nogil=True)(fn)
+    if not kernel.exported:
+        return dispatcher
+    _cache_by_sources(dispatcher, _sources_key(kernel.modules()))
+    dispatcher.compile(kernel.signature())
+    dispatcher.disable_compile()  # as numba.njit(signature) does: no other signature
+    return dispatcher
+
+
+def _sources_key(modules: list[str]) -> str:
+    from imuhal_filters.common import aot
+
+    return hashlib.sha256(" ".join(aot.source_hash(m) for m in modules).encode()).hexdigest()
+
+
+def _cache_by_sources(dispatcher: Any, sources: str) -> None:
+    """Give ``dispatcher`` numba's on-disk cache with ``sources`` added to each entry's key
+    (its index key: signature, target, bytecode). This reaches into numba's cache class
+    (``numba.core.caching.FunctionCache``, the one ``cache=True`` installs); a numba without
+    it leaves the kernel uncached, compiled afresh per process, never stale."""
+    try:
+        from numba.core.caching import FunctionCache
+    except ImportError:
+        return
+    if not hasattr(dispatcher, "_cache") or not hasattr(FunctionCache, "_index_key"):
+        return
+
+    base: Any = FunctionCache  # numba has no type information
+
+    class SourcesCache(base):  # a subclass of numba's (untyped) class
+        def _index_key(self, sig: Any, codegen: Any) -> tuple[Any, ...]:
+            key: tuple[Any, ...] = super()._index_key(sig, codegen)
+            return (*key, sources)
+
+    try:
+        dispatcher._cache = SourcesCache(dispatcher.py_func)
+    except RuntimeError:  # numba finds no writable cache directory: run uncached
+        return

@@ -2,10 +2,7 @@
 acceleration in NED, as ``common.ahrs._linear_accel_ned`` computes it in Python.
 
 It has no signature of its own: numba compiles it into the per-sample kernels that call it.
-The AOT build covers this module in their fingerprints; numba's on-disk JIT cache would not
-notice a change here, so the JIT compiles kernels that call a helper of another module
-afresh in each process (``fast._jitted``; they run on the JIT only when
-``IMUHAL_KERNELS=jit`` forces it).
+Their AOT fingerprint and their JIT cache key cover this module (``Kernel.modules``).
 """
 
 from __future__ import annotations

@@ -17,6 +17,7 @@ from pydantic import AfterValidator, Field
 
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.estimation.base import EstimatorSettings
+from imuhal_filters.common.fast_ahrs import accel_gate
 from imuhal_filters.common.quat import Vec
 
 
@@ -66,9 +67,18 @@ class AccelGate:
         return cls(0.0, math.inf) if bounds is None else cls(float(bounds[0]), float(bounds[1]))
 
     def is_open(self, accel_g: Vec) -> bool:
-        """True when the magnitude of ``accel_g`` (any sign convention, in g) is in the window."""
-        n = math.sqrt(accel_g[0] ** 2 + accel_g[1] ** 2 + accel_g[2] ** 2)
-        return self.lower_g < n < self.upper_g
+        """True when the magnitude of ``accel_g`` (any sign convention, in g) is in the window
+        (the compiled kernels' :func:`~imuhal_filters.common.fast_ahrs.accel_gate`)."""
+        return accel_gate(True, *accel_g, self.lower_g, self.upper_g, 0.0)[0]
+
+    def gates(self, accel_g: Vec | None, width_g: float | None) -> tuple[bool, float]:
+        """This hard gate and the soft gate of ``width_g`` (g; None: none) for one reading
+        (any sign convention, in g; None: none this step), from one magnitude: whether the
+        gate is open (closed without a reading) and :func:`soft_gate_weight`."""
+        if accel_g is None:
+            return False, 1.0
+        return accel_gate(True, *accel_g, self.lower_g, self.upper_g,
+                          0.0 if width_g is None else width_g)
 
 
 def soft_gate_weight(accel_g: Vec, width_g: float | None) -> float:
@@ -83,9 +93,7 @@ def soft_gate_weight(accel_g: Vec, width_g: float | None) -> float:
     """
     if width_g is None:
         return 1.0
-    n = math.sqrt(accel_g[0] ** 2 + accel_g[1] ** 2 + accel_g[2] ** 2)
-    d = (n - 1.0) / width_g
-    return 1.0 / (1.0 + d * d)
+    return accel_gate(True, *accel_g, 0.0, math.inf, width_g)[1]
 
 
 class SoftGateSettings(EstimatorSettings):

@@ -17,7 +17,7 @@ from imuhal.core.conventions import NED, convert_quat
 from imuhal.core.frames import FloatArray
 from imuhal_filters.freescale.coords import CONVENTION, CoordinateSystem
 from imuhal_filters.freescale.fast import KERNEL_SETTINGS, freescale_rows
-from imuhal_filters.freescale.kalman import FreescaleKalman
+from imuhal_filters.freescale.kalman import FreescaleKalman, KalmanStep
 from imuhal_filters.freescale.settings import (
     Freescale6DofSettings,
     Freescale9DofSettings,
@@ -69,25 +69,9 @@ def _run(settings: FreescaleCommonSettings, accel_g: FloatArray, gyro_dps: Float
     average = settings.accel_mag_input == "average"
     ends = list(range(ratio - 1, len(accel), ratio))
     compiled = freescale_rows.available() and set(type(settings).model_fields) <= KERNEL_SETTINGS
-    rows, steps = [], []
-    for end in ends:
-        if compiled and kf.initialised and kf.locked:
-            break  # the rest in the compiled kernel
-        window = slice(end - ratio + 1, end + 1)
-        a = accel[window].mean(axis=0) if average else accel[end]
-        m = None
-        if mag is not None:
-            m = mag[window].mean(axis=0) if average else mag[end]
-        steps.append(kf.step(a, gyro[window], m))
-        rows.append(end)
+    rows, steps = _python_steps(kf, accel, gyro, mag, ends, average, compiled)
     cs = settings.coordinate_system
-    q = np.array([st.q_sensor_to_global for st in steps]).reshape(-1, 4)
-    euler = np.array([[st.euler_deg[k] for k in ("phi", "theta", "psi")]
-                      for st in steps]).reshape(-1, 3)
-    offset = np.array([st.gyro_offset_dps for st in steps]).reshape(-1, 3)
-    incl = np.array([st.inclination_deg for st in steps])
-    jam = np.array([st.mag_jamming for st in steps], dtype=bool)
-    valid = np.array([st.valid for st in steps], dtype=bool)
+    q, euler, offset, incl, jam, valid = _columns(steps)
     if len(rows) < len(ends):
         k_q, k_off, k_incl, k_jam, k_euler = _compiled_steps(kf, accel, gyro, mag, len(rows),
                                                              ratio, average)
@@ -101,6 +85,41 @@ def _run(settings: FreescaleCommonSettings, accel_g: FloatArray, gyro_dps: Float
         q_body_to_ned=quats_body_to_ned(cs, q),
         euler_deg=euler, gyro_offset_dps=offset, inclination_deg=incl, mag_jamming=jam,
     )
+
+
+def _python_steps(kf: FreescaleKalman, accel: FloatArray, gyro: FloatArray,
+                  mag: FloatArray | None, ends: list[int], average: bool, compiled: bool
+                  ) -> tuple[list[int], list[KalmanStep]]:
+    """The Kalman steps in Python, one per window ending at each of ``ends``, until the
+    filter is initialised and locked when the rest can run ``compiled``; the windows' last
+    rows and the steps."""
+    ratio = kf.s.oversample_ratio
+    rows, steps = [], []
+    for end in ends:
+        if compiled and kf.initialised and kf.locked:
+            break  # the rest in the compiled kernel
+        window = slice(end - ratio + 1, end + 1)
+        a = accel[window].mean(axis=0) if average else accel[end]
+        m = None
+        if mag is not None:
+            m = mag[window].mean(axis=0) if average else mag[end]
+        steps.append(kf.step(a, gyro[window], m))
+        rows.append(end)
+    return rows, steps
+
+
+def _columns(steps: list[KalmanStep]) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray,
+                                               np.ndarray, np.ndarray]:
+    """The steps' quaternions, Euler angles, gyro offsets, inclinations, jamming and
+    validity flags as columns (one row per step)."""
+    q = np.array([st.q_sensor_to_global for st in steps]).reshape(-1, 4)
+    euler = np.array([[st.euler_deg[k] for k in ("phi", "theta", "psi")]
+                      for st in steps]).reshape(-1, 3)
+    offset = np.array([st.gyro_offset_dps for st in steps]).reshape(-1, 3)
+    incl = np.array([st.inclination_deg for st in steps])
+    jam = np.array([st.mag_jamming for st in steps], dtype=bool)
+    valid = np.array([st.valid for st in steps], dtype=bool)
+    return q, euler, offset, incl, jam, valid
 
 
 def _compiled_steps(kf: FreescaleKalman, accel: FloatArray, gyro: FloatArray,

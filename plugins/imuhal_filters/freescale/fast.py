@@ -22,6 +22,7 @@ import math
 import numpy as np
 
 from imuhal_filters.common.fast import jit
+from imuhal_filters.common.fast_ahrs import soft_gate_distrust_kernel
 
 KERNEL_SETTINGS = frozenset({
     "preset", "gyro_full_scale_rad_s", "accel_full_scale_m_s2", "turn_compensation",
@@ -200,6 +201,238 @@ def _euler_deg(style, r):
 euler_deg = jit(_euler_deg)
 
 
+def _predict(q, b, gyro_window, fast_dt, qm, r_mi):
+    """The a priori orientation ``qm`` from the window's fast gyro samples (deg/s, minus
+    the bias ``b``) turning ``q``, and its matrix ``r_mi`` (global -> sensor)."""
+    qm[0], qm[1], qm[2], qm[3] = q[0], q[1], q[2], q[3]
+    for s in range(gyro_window.shape[0]):
+        qm[0], qm[1], qm[2], qm[3] = quat_rotvec(
+            qm[0], qm[1], qm[2], qm[3], (gyro_window[s, 0] - b[0]) * fast_dt,
+            (gyro_window[s, 1] - b[1]) * fast_dt, (gyro_window[s, 2] - b[2]) * fast_dt)
+    matrix(qm, r_mi)
+
+
+predict = jit(_predict)
+
+
+def _measurement_matrix(c, g0, g1, g2, m0, m1, m2, use_mag, kalman_dt):
+    """The measurement matrix ``c`` for the a priori gravity ``g`` and (``use_mag``)
+    geomagnetic ``m`` vectors in the sensor frame."""
+    for i in range(c.shape[0]):
+        for j in range(c.shape[1]):
+            c[i, j] = 0.0
+    for blk in range(2 if use_mag else 1):
+        v0, v1, v2 = (g0, g1, g2) if blk == 0 else (m0, m1, m2)
+        o = 3 * blk
+        sk = ((0.0, -v2, v1), (v2, 0.0, -v0), (-v1, v0, 0.0))
+        for i in range(3):
+            for j in range(3):
+                c[o + i, j] = -_DEG * sk[i][j]
+                c[o + i, 3 + j] = kalman_dt * _DEG * sk[i][j]
+            c[o + i, (6 if blk == 0 else 9) + i] = 1.0 if blk == 0 else -1.0
+
+
+measurement_matrix = jit(_measurement_matrix)
+
+
+def _measure(r_mi, accel_row, mag_row, a_sensor, m_global, use_mag, ned, gravity_positive,
+             accel_decay, kalman_dt, c, err):
+    """The innovations ``err`` (gravity, then geomagnetic with ``use_mag``) and the
+    measurement matrix ``c`` at the a priori orientation ``r_mi``. Returns the a priori
+    linear acceleration (g, the decayed ``a_sensor``)."""
+    sg = 1.0 if ned else -1.0
+    ax, ay, az = accel_row[0], accel_row[1], accel_row[2]
+    sa = 1.0 if gravity_positive else -1.0
+    gg0, gg1, gg2 = sg * r_mi[0, 2], sg * r_mi[1, 2], sg * r_mi[2, 2]
+    am0, am1, am2 = accel_decay * a_sensor[0], accel_decay * a_sensor[1], \
+        accel_decay * a_sensor[2]
+    err[0] = sa * ax + am0 - gg0
+    err[1] = sa * ay + am1 - gg1
+    err[2] = sa * az + am2 - gg2
+    mg0 = r_mi[0, 0] * m_global[0] + r_mi[0, 1] * m_global[1] + r_mi[0, 2] * m_global[2]
+    mg1 = r_mi[1, 0] * m_global[0] + r_mi[1, 1] * m_global[1] + r_mi[1, 2] * m_global[2]
+    mg2 = r_mi[2, 0] * m_global[0] + r_mi[2, 1] * m_global[1] + r_mi[2, 2] * m_global[2]
+    measurement_matrix(c, gg0, gg1, gg2, mg0, mg1, mg2, use_mag, kalman_dt)
+    if use_mag:
+        err[3] = mag_row[0] - mg0
+        err[4] = mag_row[1] - mg1
+        err[5] = mag_row[2] - mg2
+    return am0, am1, am2
+
+
+measure = jit(_measure)
+
+
+def _accel_gate_factor(innov, noise, err, factor, gate_sigma, gate_reacquire_s,
+                       gate_closed, kalman_dt):
+    """The soft gate's noise ``factor`` times the innovation gate's: the gravity
+    innovation's Mahalanobis distance against S (kalman.py's _innovation_noise_factor),
+    none if S is singular or without a gate (``gate_sigma`` 0). Updates how long the gate
+    has been closed (``gate_closed[0]``, s)."""
+    if gate_sigma > 0.0:
+        m2 = mahalanobis3(innov, noise, factor, err, 0)
+        if not math.isnan(m2):
+            ratio2 = m2 / (gate_sigma * gate_sigma)
+            if ratio2 <= 1.0:
+                gate_closed[0] = 0.0
+            else:
+                gate_closed[0] += kalman_dt
+                if gate_closed[0] <= gate_reacquire_s:
+                    factor *= ratio2 * ratio2
+    return factor
+
+
+accel_gate_factor = jit(_accel_gate_factor)
+
+
+def _mag_steers(innov, noise, err, factor, use_mag, mag_max_distrust, mag_gate_sigma):
+    """Whether the magnetometer corrects the orientation this step: not while the
+    accelerometer is distrusted by more than ``mag_max_distrust`` (0: no limit), nor when
+    the geomagnetic innovation's Mahalanobis distance against S's magnetometer block
+    exceeds ``mag_gate_sigma`` (0: no gate; kalman.py's _mag_plausible; no gate if
+    singular)."""
+    mag_steers = mag_max_distrust <= 0.0 or factor <= mag_max_distrust
+    if use_mag and mag_steers and mag_gate_sigma > 0.0:
+        m2 = mahalanobis3(innov, noise, 1.0, err, 3)
+        if not math.isnan(m2):
+            mag_steers = m2 <= mag_gate_sigma * mag_gate_sigma
+    return mag_steers
+
+
+mag_steers_kernel = jit(_mag_steers)
+
+
+def _invert_innovation(innov, noise, factor, use_mag, full_inverse, inv):
+    """S = C Qw C^T + the measurement noise (the accelerometer's times ``factor``), filled
+    from its top half as the reference does, and its inverse into ``inv``: build 422's
+    partial inverse (only the gravity block inverted) unless ``full_inverse``."""
+    nm = innov.shape[0]
+    for i in range(nm):
+        innov[i, i] += noise[i] * factor if i < 3 else noise[i]
+    for i in range(nm):
+        for j in range(i):
+            innov[i, j] = innov[j, i]
+    if use_mag and not full_inverse:
+        for i in range(nm):
+            for j in range(nm):
+                inv[i, j] = innov[i, j]
+        g3 = np.empty((3, 3))
+        inverse_or_identity(innov[:3, :3].copy(), g3)
+        for i in range(3):
+            for j in range(3):
+                inv[i, j] = g3[i, j]
+    else:
+        inverse_or_identity(innov, inv)
+
+
+invert_innovation = jit(_invert_innovation)
+
+
+def _error_vector(k, err, xe, use_mag, mag_steers, field):
+    """The a posteriori error vector ``xe`` = K err: the geomagnetic innovation's share
+    only when the magnetometer steers and is not jammed (the disturbance estimate above
+    twice the ``field``). Returns whether it is jammed."""
+    for i in range(xe.shape[0]):
+        xe[i] = k[i, 0] * err[0] + k[i, 1] * err[1] + k[i, 2] * err[2]
+    if not use_mag:
+        return False
+    for i in range(9, 12):
+        xe[i] += k[i, 3] * err[3] + k[i, 4] * err[4] + k[i, 5] * err[5]
+    jamming = xe[9] * xe[9] + xe[10] * xe[10] + xe[11] * xe[11] > 4.0 * field * field
+    if not jamming and mag_steers:
+        for i in range(9):
+            xe[i] += k[i, 3] * err[3] + k[i, 4] * err[4] + k[i, 5] * err[5]
+    return jamming
+
+
+error_vector = jit(_error_vector)
+
+
+def _correct(qm, xe, q, b, a_sensor, am0, am1, am2):
+    """The corrections: the a posteriori orientation (``q``, unit, scalar part >= 0;
+    identity if the correction degenerates), gyro bias ``b`` and linear acceleration
+    ``a_sensor`` from the a priori ones and the error vector ``xe``."""
+    p0, p1, p2, p3 = quat_rotvec(qm[0], qm[1], qm[2], qm[3], -xe[0], -xe[1], -xe[2])
+    nq = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2 + p3 * p3)
+    if not nq > 1e-3:
+        p0, p1, p2, p3 = 1.0, 0.0, 0.0, 0.0
+    else:
+        p0, p1, p2, p3 = p0 / nq, p1 / nq, p2 / nq, p3 / nq
+        if p0 < 0.0:
+            p0, p1, p2, p3 = -p0, -p1, -p2, -p3
+    q[0], q[1], q[2], q[3] = p0, p1, p2, p3
+    for i in range(3):
+        b[i] = b[i] - xe[3 + i]
+    a_sensor[0], a_sensor[1], a_sensor[2] = am0 - xe[6], am1 - xe[7], am2 - xe[8]
+
+
+correct = jit(_correct)
+
+
+def _track_inclination(q, xe, r_mi, m_global, incl, ned, field, max_incl_deg):
+    """The geomagnetic vector ``m_global`` and inclination ``incl[0]`` (deg, within
+    +-``max_incl_deg``) corrected by the disturbance estimate ``xe[9:12]`` (sensor frame)
+    at the a posteriori orientation ``q``; ``r_mi`` is scratch."""
+    matrix(q, r_mi)
+    # d in the global frame: r_pl.T @ xe[D]
+    d0 = r_mi[0, 0] * xe[9] + r_mi[1, 0] * xe[10] + r_mi[2, 0] * xe[11]
+    d1 = r_mi[0, 1] * xe[9] + r_mi[1, 1] * xe[10] + r_mi[2, 1] * xe[11]
+    d2 = r_mi[0, 2] * xe[9] + r_mi[1, 2] * xe[10] + r_mi[2, 2] * xe[11]
+    north = 0 if ned else 1
+    sign_down = 1.0 if ned else -1.0
+    down = sign_down * (m_global[2] - d2)
+    horiz = max(m_global[north] - (d0 if north == 0 else d1), 0.0)
+    hyp = math.hypot(down, horiz)
+    if hyp == 0.0:
+        return
+    sin_d, cos_d = down / hyp, horiz / hyp
+    lim = math.radians(max_incl_deg)
+    if abs(sin_d) > math.sin(lim):
+        sin_d, cos_d = math.copysign(math.sin(lim), sin_d), math.cos(lim)
+    incl[0] = math.degrees(math.asin(max(-1.0, min(1.0, sin_d))))
+    m_global[north] = field * cos_d
+    m_global[2] = sign_down * field * sin_d
+
+
+track_inclination = jit(_track_inclination)
+
+
+def _next_covariance(c, qw, k, cq, kcq, use_mag, kalman_dt, accel_decay, qw_gyro_offset,
+                     qv_gyro, qw_accel, dist_decay, qw_dist):
+    """The a posteriori covariance's diagonal P+ = Qw - K C Qw, then the next process
+    covariance ``qw`` from it (diagonal, with the orientation-offset coupling terms);
+    ``cq`` and ``kcq`` are scratch."""
+    matmul(c, qw, cq)
+    matmul(k, cq, kcq)
+    for i in range(3):
+        poo = qw[3 + i, 3 + i] - kcq[3 + i, 3 + i]
+        ptt = qw[i, i] - kcq[i, i]
+        paa = qw[6 + i, 6 + i] - kcq[6 + i, 6 + i]
+        pdd = 0.0
+        if use_mag:
+            pdd = qw[9 + i, 9 + i] - kcq[9 + i, 9 + i]
+        qw_oo = poo + qw_gyro_offset
+        qw_tt = ptt + kalman_dt * kalman_dt * (poo + qw_gyro_offset + qv_gyro)
+        qw_aa = accel_decay ** 2 * paa + qw_accel
+        qw_dd = dist_decay ** 2 * pdd + qw_dist
+        # stored below, after every diagonal term was read
+        kcq[3 + i, 3 + i], kcq[i, i], kcq[6 + i, 6 + i] = qw_oo, qw_tt, qw_aa
+        if use_mag:
+            kcq[9 + i, 9 + i] = qw_dd
+    n = qw.shape[0]
+    for i in range(n):
+        for j in range(n):
+            if i != j:
+                qw[i, j] = 0.0
+    for i in range(n):
+        qw[i, i] = kcq[i, i]
+    for i in range(3):
+        qw[i, 3 + i] = qw[3 + i, i] = -kalman_dt * qw[3 + i, 3 + i]
+
+
+next_covariance = jit(_next_covariance)
+
+
 def _freescale_rows(q, b, a_sensor, m_global, qw, incl, accel, gyro, mag, use_mag, ned,
                     gravity_positive, fast_dt, kalman_dt, accel_decay, soft_width, noise,
                     full_inverse, field, qw_gyro_offset, qv_gyro, qw_accel, dist_decay,
@@ -228,157 +461,31 @@ def _freescale_rows(q, b, a_sensor, m_global, qw, incl, accel, gyro, mag, use_ma
     err = np.empty(nm)
     qm = np.empty(4)
     for step in range(accel.shape[0]):
-        qm[0], qm[1], qm[2], qm[3] = q[0], q[1], q[2], q[3]
-        for s in range(gyro.shape[1]):
-            qm[0], qm[1], qm[2], qm[3] = quat_rotvec(
-                qm[0], qm[1], qm[2], qm[3], (gyro[step, s, 0] - b[0]) * fast_dt,
-                (gyro[step, s, 1] - b[1]) * fast_dt, (gyro[step, s, 2] - b[2]) * fast_dt)
-        matrix(qm, r_mi)
-        sg = 1.0 if ned else -1.0
-        ax, ay, az = accel[step, 0], accel[step, 1], accel[step, 2]
-        sa = 1.0 if gravity_positive else -1.0
-        gg0, gg1, gg2 = sg * r_mi[0, 2], sg * r_mi[1, 2], sg * r_mi[2, 2]
-        am0, am1, am2 = accel_decay * a_sensor[0], accel_decay * a_sensor[1], \
-            accel_decay * a_sensor[2]
-        err[0] = sa * ax + am0 - gg0
-        err[1] = sa * ay + am1 - gg1
-        err[2] = sa * az + am2 - gg2
-        mg0 = r_mi[0, 0] * m_global[0] + r_mi[0, 1] * m_global[1] + r_mi[0, 2] * m_global[2]
-        mg1 = r_mi[1, 0] * m_global[0] + r_mi[1, 1] * m_global[1] + r_mi[1, 2] * m_global[2]
-        mg2 = r_mi[2, 0] * m_global[0] + r_mi[2, 1] * m_global[1] + r_mi[2, 2] * m_global[2]
-        # measurement matrix
-        for i in range(nm):
-            for j in range(n):
-                c[i, j] = 0.0
-        for blk in range(2 if use_mag else 1):
-            v0, v1, v2 = (gg0, gg1, gg2) if blk == 0 else (mg0, mg1, mg2)
-            o = 3 * blk
-            sk = ((0.0, -v2, v1), (v2, 0.0, -v0), (-v1, v0, 0.0))
-            for i in range(3):
-                for j in range(3):
-                    c[o + i, j] = -_DEG * sk[i][j]
-                    c[o + i, 3 + j] = kalman_dt * _DEG * sk[i][j]
-                c[o + i, (6 if blk == 0 else 9) + i] = 1.0 if blk == 0 else -1.0
-        if use_mag:
-            err[3] = mag[step, 0] - mg0
-            err[4] = mag[step, 1] - mg1
-            err[5] = mag[step, 2] - mg2
+        predict(q, b, gyro[step], fast_dt, qm, r_mi)
+        am0, am1, am2 = measure(r_mi, accel[step], mag[step], a_sensor, m_global, use_mag,
+                                ned, gravity_positive, accel_decay, kalman_dt, c, err)
         # gain
-        factor = 1.0
-        if soft_width > 0.0:
-            d = (math.sqrt(ax * ax + ay * ay + az * az) - 1.0) / soft_width
-            factor = (1.0 + d * d) ** 2
+        ax, ay, az = accel[step, 0], accel[step, 1], accel[step, 2]
+        factor = soft_gate_distrust_kernel(math.sqrt(ax * ax + ay * ay + az * az),
+                                           soft_width) ** 2
         for i in range(n):
             for j in range(nm):
                 ct[i, j] = c[j, i]
         matmul(qw, ct, qw_ct)
         matmul(c, qw_ct, innov)
-        if gate_sigma > 0.0:
-            # the gravity innovation's Mahalanobis distance against S (kalman.py's
-            # _innovation_noise_factor), none if singular
-            m2 = mahalanobis3(innov, noise, factor, err, 0)
-            if not math.isnan(m2):
-                ratio2 = m2 / (gate_sigma * gate_sigma)
-                if ratio2 <= 1.0:
-                    gate_closed[0] = 0.0
-                else:
-                    gate_closed[0] += kalman_dt
-                    if gate_closed[0] <= gate_reacquire_s:
-                        factor *= ratio2 * ratio2
-        mag_steers = mag_max_distrust <= 0.0 or factor <= mag_max_distrust
-        if use_mag and mag_steers and mag_gate_sigma > 0.0:
-            # the geomagnetic innovation's Mahalanobis distance against S's magnetometer
-            # block (kalman.py's _mag_plausible); no gate if singular
-            m2 = mahalanobis3(innov, noise, 1.0, err, 3)
-            if not math.isnan(m2):
-                mag_steers = m2 <= mag_gate_sigma * mag_gate_sigma
-        for i in range(nm):
-            innov[i, i] += noise[i] * factor if i < 3 else noise[i]
-        for i in range(nm):
-            for j in range(i):
-                innov[i, j] = innov[j, i]  # the reference fills S from its top half
-        if use_mag and not full_inverse:
-            for i in range(nm):
-                for j in range(nm):
-                    inv[i, j] = innov[i, j]
-            g3 = np.empty((3, 3))
-            inverse_or_identity(innov[:3, :3].copy(), g3)
-            for i in range(3):
-                for j in range(3):
-                    inv[i, j] = g3[i, j]
-        else:
-            inverse_or_identity(innov, inv)
+        factor = accel_gate_factor(innov, noise, err, factor, gate_sigma, gate_reacquire_s,
+                                   gate_closed, kalman_dt)
+        mag_steers = mag_steers_kernel(innov, noise, err, factor, use_mag, mag_max_distrust,
+                                       mag_gate_sigma)
+        invert_innovation(innov, noise, factor, use_mag, full_inverse, inv)
         matmul(qw_ct, inv, k)
-        # a posteriori error vector
-        for i in range(n):
-            xe[i] = k[i, 0] * err[0] + k[i, 1] * err[1] + k[i, 2] * err[2]
-        jamming = False
-        if use_mag:
-            for i in range(9, 12):
-                xe[i] += k[i, 3] * err[3] + k[i, 4] * err[4] + k[i, 5] * err[5]
-            jamming = xe[9] * xe[9] + xe[10] * xe[10] + xe[11] * xe[11] > 4.0 * field * field
-            if not jamming and mag_steers:
-                for i in range(9):
-                    xe[i] += k[i, 3] * err[3] + k[i, 4] * err[4] + k[i, 5] * err[5]
-        # corrections
-        p0, p1, p2, p3 = quat_rotvec(qm[0], qm[1], qm[2], qm[3], -xe[0], -xe[1], -xe[2])
-        nq = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2 + p3 * p3)
-        if not nq > 1e-3:
-            p0, p1, p2, p3 = 1.0, 0.0, 0.0, 0.0
-        else:
-            p0, p1, p2, p3 = p0 / nq, p1 / nq, p2 / nq, p3 / nq
-            if p0 < 0.0:
-                p0, p1, p2, p3 = -p0, -p1, -p2, -p3
-        q[0], q[1], q[2], q[3] = p0, p1, p2, p3
-        for i in range(3):
-            b[i] = b[i] - xe[3 + i]
-        a_sensor[0], a_sensor[1], a_sensor[2] = am0 - xe[6], am1 - xe[7], am2 - xe[8]
+        jamming = error_vector(k, err, xe, use_mag, mag_steers, field)
+        correct(qm, xe, q, b, a_sensor, am0, am1, am2)
         if use_mag and not jamming:
-            matrix(q, r_mi)
-            # d in the global frame: r_pl.T @ xe[D]
-            d0 = r_mi[0, 0] * xe[9] + r_mi[1, 0] * xe[10] + r_mi[2, 0] * xe[11]
-            d1 = r_mi[0, 1] * xe[9] + r_mi[1, 1] * xe[10] + r_mi[2, 1] * xe[11]
-            d2 = r_mi[0, 2] * xe[9] + r_mi[1, 2] * xe[10] + r_mi[2, 2] * xe[11]
-            north = 0 if ned else 1
-            sign_down = 1.0 if ned else -1.0
-            down = sign_down * (m_global[2] - d2)
-            horiz = max(m_global[north] - (d0 if north == 0 else d1), 0.0)
-            hyp = math.hypot(down, horiz)
-            if hyp != 0.0:
-                sin_d, cos_d = down / hyp, horiz / hyp
-                lim = math.radians(max_incl_deg)
-                if abs(sin_d) > math.sin(lim):
-                    sin_d, cos_d = math.copysign(math.sin(lim), sin_d), math.cos(lim)
-                incl[0] = math.degrees(math.asin(max(-1.0, min(1.0, sin_d))))
-                m_global[north] = field * cos_d
-                m_global[2] = sign_down * field * sin_d
-        # covariance: P+ = Qw - K C Qw (upper triangle mirrored), then the next Qw
-        matmul(c, qw, cq)
-        matmul(k, cq, kcq)
-        for i in range(3):
-            poo = qw[3 + i, 3 + i] - kcq[3 + i, 3 + i]
-            ptt = qw[i, i] - kcq[i, i]
-            paa = qw[6 + i, 6 + i] - kcq[6 + i, 6 + i]
-            pdd = 0.0
-            if use_mag:
-                pdd = qw[9 + i, 9 + i] - kcq[9 + i, 9 + i]
-            qw_oo = poo + qw_gyro_offset
-            qw_tt = ptt + kalman_dt * kalman_dt * (poo + qw_gyro_offset + qv_gyro)
-            qw_aa = accel_decay ** 2 * paa + qw_accel
-            qw_dd = dist_decay ** 2 * pdd + qw_dist
-            # stored below, after every diagonal term was read
-            kcq[3 + i, 3 + i], kcq[i, i], kcq[6 + i, 6 + i] = qw_oo, qw_tt, qw_aa
-            if use_mag:
-                kcq[9 + i, 9 + i] = qw_dd
-        for i in range(n):
-            for j in range(n):
-                if i != j:
-                    qw[i, j] = 0.0
-        for i in range(n):
-            qw[i, i] = kcq[i, i]
-        for i in range(3):
-            qw[i, 3 + i] = qw[3 + i, i] = -kalman_dt * qw[3 + i, 3 + i]
-        out_q[step, 0], out_q[step, 1], out_q[step, 2], out_q[step, 3] = p0, p1, p2, p3
+            track_inclination(q, xe, r_mi, m_global, incl, ned, field, max_incl_deg)
+        next_covariance(c, qw, k, cq, kcq, use_mag, kalman_dt, accel_decay, qw_gyro_offset,
+                        qv_gyro, qw_accel, dist_decay, qw_dist)
+        out_q[step, 0], out_q[step, 1], out_q[step, 2], out_q[step, 3] = q[0], q[1], q[2], q[3]
         out_b[step, 0], out_b[step, 1], out_b[step, 2] = b[0], b[1], b[2]
         out_incl[step] = incl[0]
         out_jam[step] = jamming

@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from imuhal.core.frames import FloatArray
+from imuhal_filters.common.fast_ahrs import soft_gate_distrust
 from imuhal_filters.freescale.coords import (
     DEG,
     CoordinateSystem,
@@ -265,8 +266,7 @@ class FreescaleKalman:
         width = self.s.accel_soft_gate_g
         if width is None:
             return 1.0
-        d = (float(np.linalg.norm(accel_g)) - 1.0) / width
-        return (1.0 + d * d) ** 2
+        return soft_gate_distrust(float(np.linalg.norm(accel_g)), width) ** 2
 
     def _innovation_noise_factor(self, c: FloatArray, accel_noise_factor: float,
                                  g_err: FloatArray) -> float:

@@ -26,7 +26,7 @@ from pydantic import Field
 from imuhal.core.frames import FloatArray
 from imuhal_filters.common.ahrs import NO_VECTOR, TO_G, AhrsEstimator, AhrsSettings, ImuStep
 from imuhal_filters.common.fast import Kernel
-from imuhal_filters.common.gate import AccelGate, GateBounds, SoftGateSettings, soft_gate_weight
+from imuhal_filters.common.gate import AccelGate, GateBounds, SoftGateSettings
 from imuhal_filters.common.quat import Vec
 from imuhal_filters.madgwick.core import MagReference, madgwick_step
 from imuhal_filters.madgwick.fast import madgwick_rows, madgwick_sample
@@ -125,11 +125,10 @@ class MadgwickEstimator(AhrsEstimator):
 
     def _step(self, step: ImuStep) -> dict[str, Any]:
         accel = step.accel_g
-        gate_open = accel is not None and self._gate.is_open(accel)
+        gate_open, weight = self._gate.gates(accel, self._soft_gate_g)
         if accel is not None and not gate_open:
             self._counters["gate_closed_steps"] += 1
         mag = step.mag_ut if self._use_mag else None
-        weight = 1.0 if accel is None else soft_gate_weight(accel, self._soft_gate_g)
         self._q = madgwick_step(
             self._q,
             step.gyro_rad_s,

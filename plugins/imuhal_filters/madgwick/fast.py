@@ -2,9 +2,10 @@
 
 It repeats, row by row and in the same order of operations, what
 ``MadgwickEstimator._step`` and ``madgwick_step`` (exact 1/sqrt) do once the attitude is
-aligned: the nominal-free turn bookkeeping, the hard and soft accelerometer gates and the
-gradient step. Which rows step and with which accel and mag (full scales, held and stale
-samples, step lengths) is decided before, for every AHRS alike, by ``common/rows.py``.
+aligned: the gradient step here, the row loop (with the nominal-free turn bookkeeping) and
+the hard and soft accelerometer gates shared with every AHRS (``common/fast_ahrs.py``).
+Which rows step and with which accel and mag (full scales, held and stale samples, step
+lengths) is decided before, for every AHRS alike, by ``common/rows.py``.
 Anything it does not cover (fast32 square root, turn compensation with a speed source, rows
 before alignment) stays on the pure-Python path.
 """
@@ -16,43 +17,21 @@ import math
 import numpy as np
 
 from imuhal_filters.common.fast import jit, per_sample_kernel
+from imuhal_filters.common.fast_ahrs import NO_BIAS, accel_gate_kernel, ahrs_rows
 from imuhal_filters.common.fast_frames import linear_accel_ned
-
-_G = 9.80665  # STANDARD_GRAVITY_M_S2, as gravity_positive_g uses it
 
 
 def _madgwick_rows(q_in, gyro, accel, mag, dts, beta, gate_lo, gate_hi, soft_width, paper,
                    use_mag, turn_on, turn_sum, out, diag):
-    """One step per row (rows resolved by ``common/rows.py``: a NaN accel or mag row means
-    none this step). ``out`` gets the quaternion after each row, ``diag`` its gate_open,
-    mag_used and accel_weight. Returns the final quaternion, the turn-rate sum (turn
-    bookkeeping) and the number of steps with the gate closed."""
-    q0, q1, q2, q3 = q_in[0], q_in[1], q_in[2], q_in[3]
-    k = -1.0 / _G
-    closed = 0
-    keep = diag.shape[0] == gyro.shape[0]  # else one scratch row (no diagnostics asked)
-    for i in range(gyro.shape[0]):
-        di = i if keep else 0
-        gx, gy, gz = gyro[i, 0], gyro[i, 1], gyro[i, 2]
-        have_a = not math.isnan(accel[i, 0])
-        have_m = not math.isnan(mag[i, 0])
-        if turn_on:
-            turn_sum += math.sqrt(gx ** 2 + gy ** 2 + gz ** 2)
-        dt = dts[i]
-        ax = ay = az = 0.0
-        if have_a:
-            ax, ay, az = accel[i, 0] * k, accel[i, 1] * k, accel[i, 2] * k
-        use_m = have_m and use_mag
-        q0, q1, q2, q3, gate_open, weight = madgwick_step_kernel(
-            q0, q1, q2, q3, gx, gy, gz, have_a, ax, ay, az, use_m, mag[i, 0], mag[i, 1],
-            mag[i, 2], beta, gate_lo, gate_hi, soft_width, paper, dt)
-        if have_a and not gate_open:
-            closed += 1
-        diag[di, 0] = 1.0 if gate_open else 0.0
-        diag[di, 1] = 1.0 if gate_open and use_m else 0.0
-        diag[di, 2] = weight
-        out[i, 0], out[i, 1], out[i, 2], out[i, 3] = q0, q1, q2, q3
-    return np.array([q0, q1, q2, q3]), turn_sum, closed
+    """One step per row: the shared row loop (``common/fast_ahrs.py``) with the Madgwick
+    step (``out`` and ``diag`` as it fills them, ``diag`` of 3 columns). Returns the final
+    quaternion, the turn-rate sum (turn bookkeeping) and the number of steps with the gate
+    closed."""
+    state, turn_sum, closed = madgwick_step_rows(
+        (q_in[0], q_in[1], q_in[2], q_in[3]),
+        (beta, gate_lo, gate_hi, soft_width, paper), gyro, accel, mag, dts, use_mag, turn_on,
+        turn_sum, out, diag)
+    return np.array([state[0], state[1], state[2], state[3]]), turn_sum, closed
 
 
 madgwick_rows = jit(
@@ -63,20 +42,16 @@ madgwick_rows = jit(
 """The compiled kernel (see common/fast.py: the extension, or numba on the first call)."""
 
 
-def _madgwick_step(q0, q1, q2, q3, gx, gy, gz, have_a, ax, ay, az, have_m, mx0, my0, mz0,
-                   beta, gate_lo, gate_hi, soft_width, paper, dt):
+def _madgwick_step(state, params, gx, gy, gz, have_a, ax, ay, az, have_m, mx0, my0, mz0, dt):
     """One step: ``MadgwickEstimator._step`` with ``madgwick_step`` (exact 1/sqrt) on
-    scalars, in the same order of operations. ``a`` is the gravity-positive reading in g
-    (``have_a`` False: none), ``m`` the magnetometer (``have_m`` False: none or not used).
-    Returns the new quaternion, whether the gate was open and the soft-gate weight."""
-    gate_open = False
-    weight = 1.0
-    if have_a:
-        n = math.sqrt(ax ** 2 + ay ** 2 + az ** 2)
-        gate_open = gate_lo < n < gate_hi
-        if soft_width > 0.0:
-            d = (n - 1.0) / soft_width
-            weight = 1.0 / (1.0 + d * d)
+    scalars, in the same order of operations; a step of the shared row loop
+    (``state`` the quaternion, ``params`` (beta, gate_lo, gate_hi, soft_width, paper)).
+    ``a`` is the gravity-positive reading in g (``have_a`` False: none), ``m`` the
+    magnetometer (``have_m`` False: none or not used). Returns the new quaternion, whether
+    the gate was open, the soft-gate weight and no gyro bias."""
+    q0, q1, q2, q3 = state
+    beta, gate_lo, gate_hi, soft_width, paper = params
+    gate_open, weight = accel_gate_kernel(have_a, ax, ay, az, gate_lo, gate_hi, soft_width)
     b = beta * weight
     d0 = 0.5 * (-q1 * gx - q2 * gy - q3 * gz)
     d1 = 0.5 * (q0 * gx + q2 * gz - q3 * gy)
@@ -126,11 +101,14 @@ def _madgwick_step(q0, q1, q2, q3, gx, gy, gz, have_a, ax, ay, az, have_m, mx0, 
                 d0, d1, d2, d3 = d0 - kk * s0, d1 - kk * s1, d2 - kk * s2, d3 - kk * s3
     w, x, y, z = q0 + d0 * dt, q1 + d1 * dt, q2 + d2 * dt, q3 + d3 * dt
     r = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
-    return w * r, x * r, y * r, z * r, gate_open, weight
+    return (w * r, x * r, y * r, z * r), gate_open, weight, NO_BIAS
 
 
 madgwick_step_kernel = jit(_madgwick_step)
 """The step as a helper kernel: compiled into ``madgwick_rows`` and ``madgwick_sample``."""
+
+madgwick_step_rows = ahrs_rows(madgwick_step_kernel)
+"""The shared row loop with this step (a helper kernel of ``madgwick_rows``)."""
 
 
 def _madgwick_sample(q0, q1, q2, q3, gx, gy, gz, have_a, ax, ay, az, have_m, mx0, my0, mz0,
@@ -140,9 +118,9 @@ def _madgwick_sample(q0, q1, q2, q3, gx, gy, gz, have_a, ax, ay, az, have_m, mx0
     (numba's dispatcher about 0.7-1.7 us). Also returns the gravity-compensated
     acceleration in NED for the measured specific force ``f`` (m/s^2) at the new attitude
     (what the estimate carries; meaningless without an accelerometer)."""
-    w, x, y, z, gate_open, weight = madgwick_step_kernel(
-        q0, q1, q2, q3, gx, gy, gz, have_a, ax, ay, az, have_m, mx0, my0, mz0, beta, gate_lo,
-        gate_hi, soft_width, paper, dt)
+    (w, x, y, z), gate_open, weight, _ = madgwick_step_kernel(
+        (q0, q1, q2, q3), (beta, gate_lo, gate_hi, soft_width, paper), gx, gy, gz, have_a, ax,
+        ay, az, have_m, mx0, my0, mz0, dt)
     lx, ly, lz = linear_accel_ned(w, x, y, z, fx, fy, fz)
     return w, x, y, z, gate_open, weight, lx, ly, lz
 

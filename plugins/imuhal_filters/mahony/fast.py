@@ -1,8 +1,9 @@
 """The Mahony batch step loop as one compiled kernel (``fast`` extra; see common/fast.py).
 
 Row by row and in the same order of operations as ``MahonyEstimator._step`` and
-``mahony_step``, once the attitude is aligned: the nominal-free turn bookkeeping, the hard and
-soft accelerometer gates, the PI feedback. The rows are resolved before by ``common/rows.py``.
+``mahony_step``, once the attitude is aligned: the PI feedback here, the row loop (with the
+nominal-free turn bookkeeping) and the hard and soft accelerometer gates shared with every
+AHRS (``common/fast_ahrs.py``). The rows are resolved before by ``common/rows.py``.
 """
 
 from __future__ import annotations
@@ -12,44 +13,22 @@ import math
 import numpy as np
 
 from imuhal_filters.common.fast import jit, per_sample_kernel
+from imuhal_filters.common.fast_ahrs import accel_gate_kernel, ahrs_rows
 from imuhal_filters.common.fast_frames import linear_accel_ned
-
-_G = 9.80665  # STANDARD_GRAVITY_M_S2, as gravity_positive_g uses it
 
 
 def _mahony_rows(q_in, integral_in, gyro, accel, mag, dts, kp, ki, gate_lo, gate_hi,
                  soft_width, use_mag, turn_on, turn_sum, out, diag):
-    """One step per row; see ``madgwick_rows`` for the rows, ``out`` and ``diag`` (here
-    gate_open, mag_used, accel_weight and the three gyro bias components). Returns the final
-    quaternion, integral feedback, turn-rate sum and steps with the gate closed."""
-    q0, q1, q2, q3 = q_in[0], q_in[1], q_in[2], q_in[3]
-    ix, iy, iz = integral_in[0], integral_in[1], integral_in[2]
-    k = -1.0 / _G
-    closed = 0
-    keep = diag.shape[0] == gyro.shape[0]  # else one scratch row (no diagnostics asked)
-    for i in range(gyro.shape[0]):
-        di = i if keep else 0
-        gx, gy, gz = gyro[i, 0], gyro[i, 1], gyro[i, 2]
-        have_a = not math.isnan(accel[i, 0])
-        have_m = not math.isnan(mag[i, 0])
-        if turn_on:
-            turn_sum += math.sqrt(gx ** 2 + gy ** 2 + gz ** 2)
-        dt = dts[i]
-        ax = ay = az = 0.0
-        if have_a:
-            ax, ay, az = accel[i, 0] * k, accel[i, 1] * k, accel[i, 2] * k
-        use_m = have_m and use_mag
-        q0, q1, q2, q3, ix, iy, iz, gate_open, weight = mahony_step_kernel(
-            q0, q1, q2, q3, ix, iy, iz, gx, gy, gz, have_a, ax, ay, az, use_m, mag[i, 0],
-            mag[i, 1], mag[i, 2], kp, ki, gate_lo, gate_hi, soft_width, dt)
-        if have_a and not gate_open:
-            closed += 1
-        diag[di, 0] = 1.0 if gate_open else 0.0
-        diag[di, 1] = 1.0 if gate_open and use_m else 0.0
-        diag[di, 2] = weight
-        out[i, 0], out[i, 1], out[i, 2], out[i, 3] = q0, q1, q2, q3
-        diag[di, 3], diag[di, 4], diag[di, 5] = -ix, -iy, -iz
-    return np.array([q0, q1, q2, q3]), np.array([ix, iy, iz]), turn_sum, closed
+    """One step per row: the shared row loop (``common/fast_ahrs.py``) with the Mahony step
+    (``out`` and ``diag`` as it fills them, ``diag`` of 6 columns: the gyro bias last).
+    Returns the final quaternion, integral feedback, turn-rate sum and steps with the gate
+    closed."""
+    state, turn_sum, closed = mahony_step_rows(
+        (q_in[0], q_in[1], q_in[2], q_in[3], integral_in[0], integral_in[1], integral_in[2]),
+        (kp, ki, gate_lo, gate_hi, soft_width), gyro, accel, mag, dts, use_mag, turn_on,
+        turn_sum, out, diag)
+    return (np.array([state[0], state[1], state[2], state[3]]),
+            np.array([state[4], state[5], state[6]]), turn_sum, closed)
 
 
 mahony_rows = jit(
@@ -60,21 +39,16 @@ mahony_rows = jit(
 """The compiled kernel (see common/fast.py: the extension, or numba on the first call)."""
 
 
-def _mahony_step(q0, q1, q2, q3, ix, iy, iz, gx, gy, gz, have_a, ax, ay, az, have_m, mx0, my0,
-                 mz0, kp, ki, gate_lo, gate_hi, soft_width, dt):
+def _mahony_step(state, params, gx, gy, gz, have_a, ax, ay, az, have_m, mx0, my0, mz0, dt):
     """One step: ``MahonyEstimator._step`` with ``mahony_step`` on scalars, in the same order
-    of operations. ``a`` is the gravity-positive reading in g (``have_a`` False: none), ``m``
-    the magnetometer (``have_m`` False: none or not used), ``i`` the integral feedback.
-    Returns the new quaternion and integral, whether the gate was open and the soft-gate
-    weight."""
-    gate_open = False
-    weight = 1.0
-    if have_a:
-        n = math.sqrt(ax ** 2 + ay ** 2 + az ** 2)
-        gate_open = gate_lo < n < gate_hi
-        if soft_width > 0.0:
-            d = (n - 1.0) / soft_width
-            weight = 1.0 / (1.0 + d * d)
+    of operations; a step of the shared row loop (``state`` the quaternion and
+    the integral feedback, ``params`` (kp, ki, gate_lo, gate_hi, soft_width)). ``a`` is the
+    gravity-positive reading in g (``have_a`` False: none), ``m`` the magnetometer
+    (``have_m`` False: none or not used). Returns the new quaternion and integral, whether
+    the gate was open, the soft-gate weight and the gyro bias (minus the integral)."""
+    q0, q1, q2, q3, ix, iy, iz = state
+    kp, ki, gate_lo, gate_hi, soft_width = params
+    gate_open, weight = accel_gate_kernel(have_a, ax, ay, az, gate_lo, gate_hi, soft_width)
     kpw, kiw = kp * weight, ki * weight
     if gate_open:
         n = math.sqrt(ax * ax + ay * ay + az * az)
@@ -118,21 +92,23 @@ def _mahony_step(q0, q1, q2, q3, ix, iy, iz, gx, gy, gz, have_a, ax, ay, az, hav
     y = q2 + (q0 * gy - q1 * gz + q3 * gx)
     z = q3 + (q0 * gz + q1 * gy - q2 * gx)
     r = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
-    q0, q1, q2, q3 = w * r, x * r, y * r, z * r
-    return q0, q1, q2, q3, ix, iy, iz, gate_open, weight
+    return (w * r, x * r, y * r, z * r, ix, iy, iz), gate_open, weight, (-ix, -iy, -iz)
 
 
 mahony_step_kernel = jit(_mahony_step)
 """The step as a helper kernel: compiled into ``mahony_rows`` and ``mahony_sample``."""
+
+mahony_step_rows = ahrs_rows(mahony_step_kernel)
+"""The shared row loop with this step (a helper kernel of ``mahony_rows``)."""
 
 
 def _mahony_sample(q0, q1, q2, q3, ix, iy, iz, gx, gy, gz, have_a, ax, ay, az, have_m, mx0,
                    my0, mz0, kp, ki, gate_lo, gate_hi, soft_width, dt, fx, fy, fz):
     """The step called from Python once per sample (``process()``; see ``madgwick_sample``),
     with the gravity-compensated acceleration in NED last."""
-    w, x, y, z, ix, iy, iz, gate_open, weight = mahony_step_kernel(
-        q0, q1, q2, q3, ix, iy, iz, gx, gy, gz, have_a, ax, ay, az, have_m, mx0, my0, mz0, kp,
-        ki, gate_lo, gate_hi, soft_width, dt)
+    (w, x, y, z, ix, iy, iz), gate_open, weight, _ = mahony_step_kernel(
+        (q0, q1, q2, q3, ix, iy, iz), (kp, ki, gate_lo, gate_hi, soft_width), gx, gy, gz,
+        have_a, ax, ay, az, have_m, mx0, my0, mz0, dt)
     lx, ly, lz = linear_accel_ned(w, x, y, z, fx, fy, fz)
     return w, x, y, z, ix, iy, iz, gate_open, weight, lx, ly, lz
 

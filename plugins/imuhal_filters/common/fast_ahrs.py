@@ -1,0 +1,119 @@
+"""Helper kernels every AHRS kernel shares (see common/fast.py): the accelerometer gate and
+the row loop.
+
+The gate is written once, here: the compiled steps (madgwick, mahony, freescale) call it as
+helper kernels and the Python path (``common/gate.py``, ``freescale/kalman.py``) calls the
+same functions as plain Python, so the two cannot drift apart. (:func:`accel_gate` names
+:func:`soft_gate_distrust` by its plain function: Python calls it directly, and the compiled
+copy is bound to its kernel, ``common.fast.compiled_copy``.)
+
+The row loop is made once per filter from the filter's step (:func:`ahrs_rows`, a helper
+kernel calling the step's helper kernel). A step has this form::
+
+    step(state, params, gx, gy, gz, have_a, ax, ay, az, use_m, mx, my, mz, dt)
+        -> (state, gate_open, weight, bias)
+
+``state`` is a tuple of floats whose first four are the quaternion (body -> NED, scalar
+first), ``params`` a tuple of the filter's settings, ``g`` the gyro (rad/s, body), ``a`` the
+gravity-positive accelerometer reading (g; ``have_a`` False: none), ``m`` the magnetometer
+(``use_m`` False: none or not used), ``dt`` the step (s); ``weight`` is the soft gate's and
+``bias`` the filter's gyro bias estimate (rad/s; zeros for a filter without one).
+
+Every kernel that calls these lists this module in its AOT fingerprint
+(``Kernel.modules``), so an edit here makes the built extension's copies stale.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from imuhal.core.frames import FloatArray
+from imuhal_filters.common.fast import Kernel, jit
+
+State = tuple[float, ...]
+
+TO_G = -1.0 / 9.80665
+"""Specific force (m/s^2) -> gravity-positive reading (g): ``gravity_positive_g``'s factor
+(-1 / STANDARD_GRAVITY_M_S2)."""
+
+NO_BIAS = (0.0, 0.0, 0.0)
+"""The ``bias`` of a step whose filter estimates no gyro bias."""
+
+
+def soft_gate_distrust(norm_g: float, width_g: float) -> float:
+    """How much less an AHRS trusts an accelerometer reading of magnitude ``norm_g`` (g):
+    1 + ((norm - 1) / width)^2 for a soft gate of ``width_g`` (g), 1 for ``width_g`` <= 0
+    (no soft gate). The complementary filters weight their correction by its inverse, the
+    Freescale Kalman filter multiplies its accelerometer noise by its square."""
+    if width_g > 0.0:
+        d = (norm_g - 1.0) / width_g
+        return 1.0 + d * d
+    return 1.0
+
+
+soft_gate_distrust_kernel = jit(soft_gate_distrust)
+""":func:`soft_gate_distrust` as a helper kernel."""
+
+
+def accel_gate(have_a: bool, ax: float, ay: float, az: float, lower_g: float,
+               upper_g: float, width_g: float) -> tuple[bool, float]:
+    """The hard and soft accelerometer gates of a complementary filter, for the
+    gravity-positive reading ``a`` (g; ``have_a`` False: none this step): whether the hard
+    gate is open (``lower_g < |a| < upper_g``, strictly, as in the seeds; closed without a
+    reading) and the weight of the correction (1 / :func:`soft_gate_distrust`; 1 without a
+    reading or without a soft gate, ``width_g`` <= 0)."""
+    if not have_a:
+        return False, 1.0
+    n = math.sqrt(ax ** 2 + ay ** 2 + az ** 2)
+    return lower_g < n < upper_g, 1.0 / soft_gate_distrust(n, width_g)
+
+
+accel_gate_kernel = jit(accel_gate)
+""":func:`accel_gate` as a helper kernel."""
+
+
+def ahrs_rows(step: Kernel) -> Kernel:
+    """The row loop with ``step`` (a helper kernel of the form above), as a helper kernel:
+    one per filter, compiled into its ``*_rows`` kernel. ``step`` is a closure variable,
+    not an argument: numba then calls it directly, and a kernel that passed a compiled
+    function as an argument could not be cached (its address is a dynamic global)."""
+
+    def _ahrs_rows(state: State, params: tuple[Any, ...], gyro: FloatArray,
+                   accel: FloatArray, mag: FloatArray, dts: FloatArray, use_mag: bool,
+                   turn_on: bool, turn_sum: float, out: FloatArray, diag: FloatArray
+                   ) -> tuple[State, float, int]:
+        """One ``step`` per row (rows resolved by ``common/rows.py``: a NaN accel or mag
+        row means none this step; accel in m/s^2 specific force, body NED). ``out`` gets
+        the quaternion after each row, ``diag`` its gate_open, mag_used and accel_weight,
+        and in columns 3-5 (when it has them) the gyro bias (rad/s); a ``diag`` of one row
+        is scratch (no diagnostics asked). With ``turn_on``, the gyro rate's magnitude is
+        added to ``turn_sum`` (the nominal-free turn bookkeeping). Returns the final state,
+        the turn-rate sum and the number of steps with the gate closed."""
+        closed = 0
+        keep = diag.shape[0] == gyro.shape[0]
+        with_bias = diag.shape[1] > 3
+        for i in range(gyro.shape[0]):
+            di = i if keep else 0
+            gx, gy, gz = gyro[i, 0], gyro[i, 1], gyro[i, 2]
+            have_a = not math.isnan(accel[i, 0])
+            use_m = not math.isnan(mag[i, 0]) and use_mag
+            if turn_on:
+                turn_sum += math.sqrt(gx ** 2 + gy ** 2 + gz ** 2)
+            ax = ay = az = 0.0
+            if have_a:
+                ax, ay, az = accel[i, 0] * TO_G, accel[i, 1] * TO_G, accel[i, 2] * TO_G
+            state, gate_open, weight, bias = step(
+                state, params, gx, gy, gz, have_a, ax, ay, az, use_m, mag[i, 0], mag[i, 1],
+                mag[i, 2], dts[i])
+            if have_a and not gate_open:
+                closed += 1
+            diag[di, 0] = 1.0 if gate_open else 0.0
+            diag[di, 1] = 1.0 if gate_open and use_m else 0.0
+            diag[di, 2] = weight
+            out[i, 0], out[i, 1], out[i, 2], out[i, 3] = state[0], state[1], state[2], state[3]
+            if with_bias:
+                diag[di, 3], diag[di, 4], diag[di, 5] = bias[0], bias[1], bias[2]
+        return state, turn_sum, closed
+
+    return jit(_ahrs_rows)
