@@ -42,6 +42,7 @@ from imuhal.drivers.validity import (
     range_flag,
 )
 from imuhal_chips.max2110x import decode
+from imuhal_chips.max2110x.aux_bus import Max21100AuxBus
 from imuhal_chips.max2110x.decode import Counts3, be_int16
 from imuhal_chips.max2110x.registers import (
     ACCEL_RANGE_G,
@@ -479,9 +480,10 @@ class Max21100Driver(Max2110xDriver):
 
     def child_buses(self) -> dict[str, Bus]:
         if self._aux is None:
-            from imuhal_chips.max2110x.aux_bus import Max21100AuxBus
-
-            self._aux = Max21100AuxBus(self)
+            self._aux = Max21100AuxBus(
+                f"{self.link.bus.name}/{self.device}/aux", self.regs, self.clock,
+                dr_cfg=lambda: self._expected.get(Reg.DR_CFG, DR_CFG_TEMP_EN),
+                enable_auto_read=self.enable_auto_read)
         return {"aux": self._aux}
 
     def register_plan(self) -> dict[int, int]:
