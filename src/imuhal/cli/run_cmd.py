@@ -219,8 +219,9 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
                       "the run stops there", file=sys.stderr)
             duration = left if args.duration is None else min(args.duration, left)
         if web is not None:
-            live = stack.enter_context(LiveView.for_pipeline(pipeline, host=web.host,
-                                                             port=web.port))
+            truth = pipeline.board if isinstance(pipeline.board, EmulatedBoard) else None
+            live = stack.enter_context(LiveView(pipeline, truth=truth, host=web.host,
+                                                port=web.port))
             sinks.append(live.sink)
             print(f"live view: {live.url}" + ("" if web.loopback else
                   " (reachable from the network at this machine's address: read-only, "
