@@ -208,12 +208,11 @@ class RegisterPlan:
         return wrong[0] if wrong else None
 
     def lost(self, regs: RegisterView) -> RegisterMismatch | None:
-        """Read every check step now; the first register that differs, or None."""
-        for step in self.steps:
-            wrong = self.mismatches(self.read(regs, step, burst=True))
-            if wrong:
-                return wrong[0]
-        return None
+        """Read every register the check steps cover now (in bursts over runs, as
+        :meth:`read`); the first that differs, or None."""
+        watched = dict.fromkeys(reg for step in self.steps for reg in step)
+        wrong = self.mismatches(self.read(regs, watched, burst=True))
+        return wrong[0] if wrong else None
 
     def restart_checks(self) -> None:
         """Start the continuous check over from the first step (after a reconfiguration)."""
