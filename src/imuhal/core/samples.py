@@ -13,7 +13,7 @@ from dataclasses import dataclass, field, replace
 from enum import Enum, IntEnum, IntFlag
 from typing import ClassVar, Self, TypeAlias
 
-from imuhal.core.quantities import Quantity
+from imuhal.core.quantities import Quantity as Quantity  # re-exported: a sample's quantity
 
 Vec3: TypeAlias = tuple[float, float, float]
 

@@ -399,11 +399,11 @@ class Pipeline:
         call when a call ends before it does.
         """
         source = self._poll_events(duration_s)
-        if self.calibrated and self._startup is None:
-            self._startup = self._startup_stage()
-        if self.calibrated and not self._startup.done:
-            # The phase carries over to the next call when this one ends before it does.
-            self._run_startup(self._startup, source)
+        if self.calibrated:
+            stage = self._startup = self._startup or self._startup_stage()
+            if not stage.done:
+                # The phase carries over to the next call when this one ends before it does.
+                self._run_startup(stage, source)
         yield from source
 
     def _startup_stage(self) -> GyroStartupStage:

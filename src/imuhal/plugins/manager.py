@@ -18,6 +18,7 @@ from __future__ import annotations
 import inspect
 import os
 from collections.abc import Iterable, Mapping
+from functools import partial
 from importlib.metadata import entry_points
 from types import CodeType, ModuleType
 
@@ -91,7 +92,7 @@ def load_registry(
     for hook_name, registrar in registry.hooks().items():
         caller = getattr(pm.hook, hook_name)
         owners = _owners(caller.get_hookimpls())
-        with registry.attributed(lambda owners=owners: _running_plugin(owners)):
+        with registry.attributed(partial(_running_plugin, owners)):
             caller(register=registrar)
     _check_emulators(registry)
     _check_quantities(registry)
