@@ -283,7 +283,7 @@ class Hmc5883lDriver(Driver):
     def poll(self, now_ns: int) -> PollResult:
         if self.gain_lsb_per_gauss is None:
             raise ConfigurationError(f"{self.describe()}: poll() before configure()")
-        if self._watch.check_due(now_ns) and self._config_lost():
+        if self._watch.check_due(now_ns) and self._off_plan():
             return PollResult([], self.restart(reset_detected=True))
         if self._feed is not None:
             return self._poll_auto(now_ns)
@@ -342,7 +342,7 @@ class Hmc5883lDriver(Driver):
         """No usable measurement (``sample`` says why): check the configuration at once, and
         restart the chip when it keeps producing nothing (rewriting the mode restarts
         continuous measuring)."""
-        if self._watch.check_due(now_ns, overdue=True) and self._config_lost():
+        if self._watch.check_due(now_ns, overdue=True) and self._off_plan():
             return PollResult([sample], self.restart(reset_detected=True))
         if self._watch.stale_poll():
             return PollResult([sample], self.restart(reset_detected=False))
@@ -387,11 +387,11 @@ class Hmc5883lDriver(Driver):
         written (the read-back also releases the data lock a partial data read may have
         set), the chip kept measuring, so poll again at once instead of the full recovery
         (which rewrites the configuration and drops the first measurement after it)."""
-        if self.gain_lsb_per_gauss is None or self._config_lost():
+        if self.gain_lsb_per_gauss is None or self._off_plan():
             return None
         return max(now_ns, self.clock.now_ns())
 
-    def _config_lost(self) -> bool:
+    def _off_plan(self) -> bool:
         """The plan's check (Config A/B and Mode: a mismatch is a silent reset, defaults
         0x10, 0x20, single mode, or nothing answering), then the data lock that reading Mode
         set released (with read: auto, the master's next read of the six bytes does)."""
