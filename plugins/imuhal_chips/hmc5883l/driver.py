@@ -45,7 +45,13 @@ from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError, ConfigurationError, DeviceNotFoundError, NackError
 from imuhal.core.samples import Frame, MagSample, Quantity, Sample, SampleFlag
 from imuhal.core.streams import StreamSpec
-from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
+from imuhal.drivers.base import (
+    DeviceIdentity,
+    Driver,
+    DriverSettings,
+    PollResult,
+    SettingsInput,
+)
 from imuhal.drivers.polling import (
     STALE_AFTER_PERIODS,
     DataReady,
@@ -101,11 +107,11 @@ def unchanged_periods(gain_lsb_per_gauss: float) -> int:
 class Hmc5883lSettings(DriverSettings):
     """HMC5883L settings; defaults are the seed's: +/-1.3 Ga, 75 Hz, 8-sample average."""
 
-    range_gauss: table_setting(RANGE_GAUSS, "Ga") = 1.3  # type: ignore[valid-type]
+    range_gauss: table_setting(RANGE_GAUSS, "Ga") = 1.3  # type: ignore[valid-type]  # an Annotated type a function builds (allowed values): pydantic reads it, mypy cannot
     """Field range +/- gauss: 0.88, 1.3, 1.9, 2.5, 4.0, 4.7, 5.6, 8.1 (sets the gain)."""
-    odr_hz: table_setting(ODR_HZ, "Hz") = 75  # type: ignore[valid-type]
+    odr_hz: table_setting(ODR_HZ, "Hz") = 75  # type: ignore[valid-type]  # an Annotated type a function builds (allowed values): pydantic reads it, mypy cannot
     """Continuous-mode output rate, Hz: 0.75, 1.5, 3, 7.5, 15, 30, 75."""
-    averaging: table_setting(AVERAGING, "samples", kind=int) = 8  # type: ignore[valid-type]
+    averaging: table_setting(AVERAGING, "samples", kind=int) = 8  # type: ignore[valid-type]  # an Annotated type a function builds (allowed values): pydantic reads it, mypy cannot
     """Samples averaged per output: 1, 2, 4, 8."""
     reset_check_s: float = reset_check_field()
     """How often (s) the configuration is read back to catch a silent chip reset."""
@@ -127,10 +133,10 @@ class Hmc5883lDriver(Driver):
     settings: Hmc5883lSettings
 
     def __init__(
-        self, link: Link, settings: DriverSettings | dict[str, object], *, device: str,
+        self, link: Link, settings: SettingsInput, *, device: str,
         clock: Clock,
     ) -> None:
-        super().__init__(link, settings, device=device, clock=clock)  # type: ignore[arg-type]
+        super().__init__(link, settings, device=device, clock=clock)
         self.gain_lsb_per_gauss: float | None = None
         self.regs = RegisterView(link)
         self.plan: RegisterPlan | None = None
@@ -219,7 +225,8 @@ class Hmc5883lDriver(Driver):
         self._read(Reg.X_MSB, 6)  # reading MODE locked the outputs; six data reads unlock
         plan.confirm(got)
         self.plan = plan
-        spec = self._spec(bytes((got[Reg.CONFIG_A], got[Reg.CONFIG_B])))
+        config = bytes((got[Reg.CONFIG_A], got[Reg.CONFIG_B]))
+        spec = self._spec(config)
         self.gain_lsb_per_gauss = gain_from_config_b(got[Reg.CONFIG_B])
         self._grid = PollGrid(spec.period_ns)
         self._ready = DataReady({Quantity.MAG: self._grid.period_ns})
@@ -232,7 +239,7 @@ class Hmc5883lDriver(Driver):
             self._settle_ns = self._mode_written_ns + period + feed.latency_ns
             self._unchanged_limit_ns = round(
                 (unchanged_periods(self.gain_lsb_per_gauss) + STALE_AFTER_PERIODS) * period)
-        self._streams = (self._spec(got),)  # with the auto-read's latency, when there is one
+        self._streams = (self._spec(config),)  # with the auto-read's latency, when there is one
 
     def start(self, now_ns: int) -> int:
         # configure() may have waited on the clock since the caller read it (the base
