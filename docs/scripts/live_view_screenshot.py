@@ -24,7 +24,7 @@ sys.path.insert(0, str(ROOT))
 
 from tests.support.headless import Chromium  # noqa: E402
 
-from imuhal.emulation import open_emulated  # noqa: E402
+from imuhal.emulation import EmulatedBoard, open_emulated  # noqa: E402
 from imuhal.live import LiveView  # noqa: E402
 from imuhal.plugins.manager import load_registry  # noqa: E402
 from imuhal.profile.bundled import default_profile_path  # noqa: E402
@@ -43,7 +43,7 @@ def main() -> int:
     profile = load_profile(default_profile_path(), registry)
     go = threading.Event()
     with open_emulated(profile, registry) as pipeline, \
-            LiveView.for_pipeline(pipeline) as live, \
+            LiveView(pipeline, truth=EmulatedBoard.of(pipeline)) as live, \
             Chromium(width=WIDTH, height=HEIGHT) as browser:
         def run() -> None:
             go.wait(30)

@@ -32,7 +32,7 @@ from urllib.parse import urlsplit
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from imuhal.core.samples import Sample
-from imuhal.emulation import open_emulated
+from imuhal.emulation import EmulatedBoard, open_emulated
 from imuhal.live import LiveView
 from imuhal.plugins.manager import load_registry
 from imuhal.profile.bundled import default_profile_path
@@ -79,7 +79,8 @@ def run_once(seconds: float, *, realtime: bool, live: bool) -> float:
         if not live:
             pipeline.run(seconds, [rate])
             return rate.per_s()
-        with LiveView.for_pipeline(pipeline, rate_hz=30.0, client_timeout_s=60.0) as view:
+        with LiveView(pipeline, truth=EmulatedBoard.of(pipeline), rate_hz=30.0,
+                      client_timeout_s=60.0) as view:
             parts = urlsplit(view.url)
             stalled = socket.create_connection((parts.hostname, parts.port))
             stalled.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)

@@ -25,7 +25,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from imuhal.emulation import open_emulated
+from imuhal.emulation import EmulatedBoard, open_emulated
 from imuhal.live import LiveView
 from imuhal.plugins.manager import load_registry
 from imuhal.profile.bundled import bundled_profiles
@@ -73,7 +73,7 @@ def one_run(duration_s: float, connections: int) -> dict[str, float]:
             time.sleep(0.05)
 
     with open_emulated(profile, registry, seed=1, realtime=True) as pipeline, \
-            LiveView.for_pipeline(pipeline) as live:
+            LiveView(pipeline, truth=EmulatedBoard.of(pipeline)) as live:
         port = live._server.server_address[1]  # type: ignore[union-attr]
         threads = [threading.Thread(target=watch, daemon=True)]
         if connections:

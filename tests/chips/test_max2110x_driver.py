@@ -144,7 +144,8 @@ def test_configure_read_back_mismatch_raises_configuration_error() -> None:
 
     rig = make_rig(Max21100Driver, StuckBit, start=False, gyro_lpf_hz=100)
     rig.driver.probe()
-    with pytest.raises(ConfigurationError, match=r"0x01 wrote 0x2A read 0x0A"):
+    with pytest.raises(ConfigurationError,
+                       match=r"max21100.*GYRO_CFG1 \(0x01\) reads 0x0A, expected 0x2A"):
         rig.driver.configure()
 
 

@@ -17,7 +17,7 @@ import pytest
 from tests.support.headless import CHROMIUM, Chromium
 
 from imuhal.core.samples import GyroSample, PressureSample
-from imuhal.emulation import open_emulated
+from imuhal.emulation import EmulatedBoard, open_emulated
 from imuhal.live import LiveView
 
 EXECUTABLE = CHROMIUM if os.path.exists(CHROMIUM) else shutil.which("chromium")
@@ -67,7 +67,8 @@ def test_the_page_follows_an_emulated_board_and_issues_no_write(plugins, seed_bo
               "speed_m_s": LIFT_SPEED_M_S, "floors": 10}
     go = threading.Event()
     with open_emulated(seed_board, plugins, scenario="elevator", scenario_params=params,
-                       seed=4) as pipeline, LiveView.for_pipeline(pipeline) as live:
+                       seed=4) as pipeline, \
+            LiveView(pipeline, truth=EmulatedBoard.of(pipeline)) as live:
         runner = threading.Thread(target=_run, args=(pipeline, live.sink, go), daemon=True)
         runner.start()
         browser.events.clear()
@@ -129,7 +130,7 @@ def test_the_bring_up_check_on_the_page_finds_a_wrong_mount(plugins, seed_board,
     go = threading.Event()
     with open_emulated(seed_board, plugins, scenario="bringup", seed=4,
                        physical_mounts={"imu": "-X+Y-Z"}) as pipeline, \
-            LiveView.for_pipeline(pipeline) as live:
+            LiveView(pipeline, truth=EmulatedBoard.of(pipeline)) as live:
         runner = threading.Thread(target=_run, args=(pipeline, live.sink, go), daemon=True,
                                   kwargs={"paced_from_s": 1.6, "end_s": 5.5})
         runner.start()

@@ -8,7 +8,7 @@ import threading
 from tests.support.sse import sse_messages
 
 from imuhal.core.samples import Sample
-from imuhal.emulation import open_emulated
+from imuhal.emulation import EmulatedBoard, open_emulated
 from imuhal.estimation.outputs import AttitudeEstimate, VerticalEstimate
 from imuhal.live import LiveView
 
@@ -18,7 +18,8 @@ def test_every_message_matches_the_pipeline_events_at_its_time(plugins, seed_boa
     are exactly those of the pipeline's events at the message's timestamps."""
     events: list = []
     with open_emulated(seed_board, plugins, scenario="thermal", realtime=True,
-                       seed=3) as pipeline, LiveView.for_pipeline(pipeline) as live:
+                       seed=3) as pipeline, \
+            LiveView(pipeline, truth=EmulatedBoard.of(pipeline)) as live:
         def run() -> None:
             for event in pipeline.events(1.6):
                 events.append(event)
@@ -77,13 +78,13 @@ def test_every_message_matches_the_pipeline_events_at_its_time(plugins, seed_boa
     assert list(last["vertical"]) == ["vario", "baro-only"]  # the profile's order
 
 
-def test_an_emulated_run_sends_its_truth_at_the_time_of_the_latest_poll(plugins, seed_board):
+def test_an_emulated_run_sends_its_truth_at_the_time_of_the_latest_event(plugins, seed_board):
     with open_emulated(seed_board, plugins, scenario="thermal", seed=3) as pipeline:
-        live = LiveView.for_pipeline(pipeline)
+        live = LiveView(pipeline, truth=EmulatedBoard.of(pipeline))
         pipeline.run(0.5, [live.sink])
         state = live.snapshotter.snapshot()
     truth = pipeline.board.scenario.truth(state["truth"]["t_s"])
-    assert math.isclose(state["truth"]["t_s"], state["t_s"], abs_tol=0.05)
+    assert state["truth"]["t_s"] == state["t_s"]  # the truth of the latest event's instant
     assert state["truth"]["climb_m_s"] == truth.climb_m_s
     assert state["board"] == {"profile": "seed-paraglider-vario", "scenario": "thermal",
                               "emulated": True}
@@ -91,7 +92,7 @@ def test_an_emulated_run_sends_its_truth_at_the_time_of_the_latest_poll(plugins,
 
 def test_health_reports_configured_and_achieved_rates_per_channel(plugins, seed_board):
     with open_emulated(seed_board, plugins, scenario="static", seed=3) as pipeline:
-        live = LiveView.for_pipeline(pipeline)
+        live = LiveView(pipeline, truth=EmulatedBoard.of(pipeline))
         # two snapshots 1.5 s apart give the rate over that span (2 s apart, the span sat on
         # the 2 s window's edge: the last event of a run then decided whether it counted)
         for _ in range(2):

@@ -7,7 +7,7 @@ import threading
 
 from tests.support.sse import sse_messages
 
-from imuhal.emulation import open_emulated
+from imuhal.emulation import EmulatedBoard, open_emulated
 from imuhal.live import LiveView
 
 
@@ -16,7 +16,7 @@ def test_a_connected_page_receives_the_end_and_the_summary_before_the_server_sto
     got: list[dict] = []
     with open_emulated(seed_board, plugins, scenario="thermal", realtime=True,
                        seed=3) as pipeline:
-        live = LiveView.for_pipeline(pipeline).start()
+        live = LiveView(pipeline, truth=EmulatedBoard.of(pipeline)).start()
         reader = threading.Thread(
             target=lambda: got.extend(sse_messages(live.url + "events", timeout_s=15)))
         reader.start()
@@ -34,7 +34,7 @@ def test_a_connected_page_receives_the_end_and_the_summary_before_the_server_sto
 
 def test_while_the_run_goes_there_is_no_summary(plugins, seed_board):
     with open_emulated(seed_board, plugins, scenario="thermal", seed=3) as pipeline, \
-            LiveView.for_pipeline(pipeline) as live:
+            LiveView(pipeline, truth=EmulatedBoard.of(pipeline)) as live:
         for event in pipeline.events(0.5):
             live.sink.handle(event)
         state = live.snapshotter.snapshot()

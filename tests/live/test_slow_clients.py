@@ -9,7 +9,7 @@ from urllib.parse import urlsplit
 
 from tests.support.sse import sse_messages
 
-from imuhal.emulation import open_emulated
+from imuhal.emulation import EmulatedBoard, open_emulated
 from imuhal.live import LiveView
 
 
@@ -34,8 +34,8 @@ def _stalled_run_wall_s(plugins, board) -> tuple[float, int]:
     """Wall seconds and samples of 2 simulated seconds run as fast as the board goes, with a
     live view whose one client has stopped reading (its send buffer full)."""
     with open_emulated(board, plugins, scenario="thermal", seed=5) as pipeline, \
-            LiveView.for_pipeline(pipeline, rate_hz=60.0,
-                                  client_timeout_s=CLIENT_TIMEOUT_S) as live, \
+            LiveView(pipeline, truth=EmulatedBoard.of(pipeline), rate_hz=60.0,
+                     client_timeout_s=CLIENT_TIMEOUT_S) as live, \
             stalled_client(live.url):
         pipeline.run(0.5, [live.sink])  # full-size messages from here on
         # 40 messages of about 5 kB fill the client's and the server's buffers: from then
@@ -63,7 +63,8 @@ def test_a_stalled_client_does_not_slow_the_pipeline(plugins, seed_board):
 def test_a_client_that_stops_reading_is_dropped_and_the_others_keep_their_stream(
         plugins, seed_board):
     with open_emulated(seed_board, plugins, scenario="static", seed=5) as pipeline, \
-            LiveView.for_pipeline(pipeline, rate_hz=30.0, client_timeout_s=0.3) as live, \
+            LiveView(pipeline, truth=EmulatedBoard.of(pipeline), rate_hz=30.0,
+                     client_timeout_s=0.3) as live, \
             stalled_client(live.url):
         deadline = time.monotonic() + 15.0
         while live.dropped_clients == 0 and time.monotonic() < deadline:

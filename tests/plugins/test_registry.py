@@ -163,3 +163,39 @@ def test_an_emulator_error_spec_is_typed_and_a_typo_fails_when_the_class_is_defi
     with pytest.raises(TypeError, match=r"Typo.error_spec is not a valid SensorErrorSpec"):
         class Typo(testchip.TC3Emulator):
             error_spec = {"accel": {"noise_stdev": 0.01}}  # type: ignore[assignment]  # noqa: RUF012
+
+
+def test_each_registration_is_attributed_to_the_plugin_whose_hook_made_it() -> None:
+    """pluggy calls both implementations in one hook call; each registration still names the
+    plugin that made it, also when it is made through a helper of that plugin."""
+    @dataclass(frozen=True, slots=True, kw_only=True)
+    class HumiditySample(ScalarSample):
+        channel: ClassVar[Quantity] = Quantity("humidity", "%RH", ())
+
+    def register_through_a_helper(register):  # type: ignore[no-untyped-def]
+        register(HumiditySample)
+
+    @hookimpl
+    def imuhal_register_quantities(register):  # type: ignore[no-untyped-def]
+        register_through_a_helper(register)
+
+    class Plugin:  # a plugin object whose hook implementation is a method
+        @hookimpl
+        def imuhal_register_drivers(self, register):  # type: ignore[no-untyped-def]
+            register(testchip.TC3Driver)
+
+    humid = _module("humid", imuhal_register_quantities=imuhal_register_quantities)
+    registry = load_registry(entry_point_plugins=False,
+                             extra=[("humid", humid), ("chips", Plugin())])
+    assert registry.quantities.entries["humidity"].plugin == "humid"
+    assert registry.drivers.entries["tc3"].plugin == "chips"
+    assert registry.quantities.entries["accel"].plugin == "imuhal"
+
+
+def test_the_entry_point_plugins_name_their_distribution_and_its_version() -> None:
+    from importlib.metadata import version
+
+    registry = load_registry()
+    assert registry.drivers.entries["ms5611"].plugin == "ms5611"
+    assert registry.drivers.entries["ms5611"].package == "imuhal"
+    assert registry.versions["ms5611"] == version("imuhal")

@@ -45,6 +45,7 @@ from typing import ClassVar, Literal
 
 from imuhal.bus.auto_read import AutoReadBus, AutoReadFeed, require_auto_read
 from imuhal.bus.base import BusKind, Link
+from imuhal.bus.register_plan import RegisterPlan, RegisterSetting
 from imuhal.bus.registers import RegisterView
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
@@ -106,6 +107,10 @@ class AK8963Driver(Driver):
         self.regs = RegisterView(link)
         self.asa: tuple[int, int, int] = (128, 128, 128)
         self._cntl1 = r.cntl1_value(self.settings.odr_hz, self.settings.resolution_bits)
+        # The one register that holds the configuration: continuous mode and resolution,
+        # entered through power-down (the datasheet's mode-change rule, in configure()).
+        self.plan = RegisterPlan(self.describe(), [
+            RegisterSetting(r.REG_CNTL1, self._cntl1, name="CNTL1", wait_s=r.MODE_CHANGE_S)])
         self._period_ns = round(1e9 / self.settings.odr_hz)
         self._grid = PollGrid(self._period_ns)
         self._ready = DataReady({Quantity.MAG: self._period_ns})
@@ -150,15 +155,12 @@ class AK8963Driver(Driver):
         asa = self.regs.read(r.REG_ASAX, 3)
         self.asa = (asa[0], asa[1], asa[2])
         self._set_mode(r.MODE_POWER_DOWN)
-        self._set_mode(self._cntl1)
+        self.plan.apply(self.regs, self.clock)
         if self.settings.read == "auto":
             # measurements start here (read only when needed: a clock read is part of a
             # recording, and one-shot recordings must replay as they were made)
             self._cntl1_written_ns = self.clock.now_ns()
-        back = self.regs.read_u8(r.REG_CNTL1)
-        if back != self._cntl1:
-            raise ConfigurationError(
-                f"{self.describe()}: CNTL1 reads back 0x{back:02X}, wrote 0x{self._cntl1:02X}")
+        back = self.plan.verify(self.regs)[r.REG_CNTL1]
         if self.settings.read == "auto":
             assert isinstance(self.link.bus, AutoReadBus)
             feed = self._feed = self.link.bus.auto_read(
@@ -186,9 +188,6 @@ class AK8963Driver(Driver):
             return self._grid.next_after(now_ns)
         self._grid.anchor(now_ns)
         return now_ns + round(r.MEASUREMENT_S * 1e9)
-
-    def _config_lost(self) -> bool:
-        return self.regs.read_u8(r.REG_CNTL1) != self._cntl1
 
     def _spec(self, cntl1: int) -> StreamSpec:
         """The field's spec from CNTL1 as read from the chip: MODE[3:0] (continuous mode 1
@@ -220,7 +219,7 @@ class AK8963Driver(Driver):
         on the clock every device shares). A retry after a read that reached the chip finds
         DRDY clear (ST2 ended that read) and waits for the next measurement: one lost,
         none repeated."""
-        if self.asa is None or self._config_lost():
+        if self.asa is None or self.plan.lost(self.regs):
             return None
         return max(now_ns, self.clock.now_ns())
 
@@ -240,7 +239,7 @@ class AK8963Driver(Driver):
         # master that delivers late (a FIFO read after a host stall) makes no stale field
         seen_ns = now_ns if self._feed is None else self._feed.t_ns
         overdue = self._ready.overdue(Quantity.MAG, seen_ns)
-        if self._watch.check_due(now_ns, overdue=overdue) and self._config_lost():
+        if self._watch.check_due(now_ns, overdue=overdue) and self.plan.check_next(self.regs):
             return PollResult([], self.restart(reset_detected=True))
         if self._feed is not None:
             return self._poll_feed(now_ns, overdue)

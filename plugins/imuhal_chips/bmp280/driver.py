@@ -24,6 +24,7 @@ from typing import ClassVar, Literal
 from pydantic import Field, field_validator, model_validator
 
 from imuhal.bus.base import Bus, BusKind, Link
+from imuhal.bus.register_plan import RegisterPlan, RegisterSetting
 from imuhal.bus.registers import RegisterConvention, RegisterView
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
@@ -162,6 +163,7 @@ class BMP280Driver(Driver):
         self._config = 0
         self._period_ns = 0
         self._readback = b""
+        self.plan = RegisterPlan(self.describe(), [])
         """ctrl_meas and config as read back from the chip (the stream specs' source)."""
         self._triggered_ns: int | None = None
         self._next_ns = 0
@@ -234,15 +236,10 @@ class BMP280Driver(Driver):
         self._config = r.config_value(standby, s.iir_coefficient)
         mode = r.MODE_NORMAL if s.mode == "normal" else r.MODE_SLEEP
         self._ctrl = r.ctrl_meas_value(s.temperature_oversampling, s.pressure_oversampling, mode)
-        # config first: the chip may ignore config writes once in normal mode.
-        self.regs.write(r.REG_CONFIG, self._config)
-        self.regs.write(r.REG_CTRL_MEAS, self._ctrl)
-        back = self.regs.read(r.REG_CTRL_MEAS, 2)
-        if back[0] != self._ctrl or back[1] != self._config:
-            raise ConfigurationError(
-                f"{self.describe()}: ctrl_meas/config read back 0x{back[0]:02X}/0x{back[1]:02X}"
-                f", wrote 0x{self._ctrl:02X}/0x{self._config:02X}")
-        self._readback = bytes(back)
+        self.plan = self._register_plan()
+        self.plan.apply(self.regs)
+        back = self.plan.verify(self.regs)
+        self._readback = bytes((back[r.REG_CTRL_MEAS], back[r.REG_CONFIG]))
         self._period_ns = self._streams_from(self._readback)[0].period_ns
         # Writing config has reset the IIR filter (datasheet 3.4.3: the next measurement
         # passes unchanged and seeds it), so nothing measured before reaches a later output.
@@ -303,16 +300,26 @@ class BMP280Driver(Driver):
         adc_p, adc_t = decode_adc(data[4:10])
         return data[0], data[1], data[2], adc_p, adc_t
 
-    def _config_lost(self, ctrl: int, config: int) -> bool:
-        if self.settings.mode == "normal":
-            return ctrl != self._ctrl or config != self._config
-        return (ctrl & ~r.MODE_MASK) != (self._ctrl & ~r.MODE_MASK) or config != self._config
+    def _register_plan(self) -> RegisterPlan:
+        """config first: the chip may ignore config writes once in normal mode. In forced
+        mode the chip returns ctrl_meas's mode bits to sleep after each measurement, so
+        they are not checked."""
+        forced = self.settings.mode == "forced"
+        return RegisterPlan(self.describe(), [
+            RegisterSetting(r.REG_CONFIG, self._config, name="config"),
+            RegisterSetting(r.REG_CTRL_MEAS, self._ctrl, name="ctrl_meas",
+                            mask=0xFF & ~r.MODE_MASK if forced else 0xFF)])
+
+    def _burst_off_plan(self, ctrl: int, config: int) -> bool:
+        """Whether ctrl_meas and config, as a poll burst read them, differ from the plan
+        (the burst carries both: every poll checks them for free)."""
+        return bool(self.plan.mismatches({r.REG_CTRL_MEAS: ctrl, r.REG_CONFIG: config}))
 
     def poll(self, now_ns: int) -> PollResult:
         if self.settings.mode == "forced":
             return self._poll_forced(now_ns)
         _status, ctrl, config, adc_p, adc_t = self._read_burst()
-        if self._config_lost(ctrl, config):
+        if self._burst_off_plan(ctrl, config):
             return PollResult([], self.restart(reset_detected=True))
         stale = adc_p == r.ADC_SKIPPED and adc_t == r.ADC_SKIPPED
         return self._finish(now_ns, adc_p, adc_t, stale, self._grid.next_after(now_ns))
@@ -326,7 +333,7 @@ class BMP280Driver(Driver):
             self._triggered_ns = now_ns
             return PollResult([], now_ns + round(s.measurement_time_s(maximum=True) * 1e9))
         status, ctrl, config, adc_p, adc_t = self._read_burst()
-        if self._config_lost(ctrl, config):
+        if self._burst_off_plan(ctrl, config):
             return PollResult([], self.restart(reset_detected=True))
         done = not status & r.STATUS_MEASURING and ctrl & r.MODE_MASK == r.MODE_SLEEP
         t_max_ns = round(s.measurement_time_s(maximum=True) * 1e9)

@@ -39,6 +39,8 @@ import math
 
 from imuhal.bus.auto_read import AutoReadBus, AutoReadFeed, require_auto_read
 from imuhal.bus.base import BusKind, Link
+from imuhal.bus.register_plan import RegisterPlan
+from imuhal.bus.registers import RegisterView
 from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError, ConfigurationError, DeviceNotFoundError, NackError
 from imuhal.core.samples import Frame, MagSample, Quantity, Sample, SampleFlag
@@ -136,7 +138,9 @@ class Hmc5883lDriver(Driver):
     ) -> None:
         super().__init__(link, settings, device=device, clock=clock)
         self.gain_lsb_per_gauss: float | None = None
-        self._expected = b""
+        self.regs = RegisterView(link)
+        self.plan: RegisterPlan | None = None
+        """What Config A/B and Mode must hold (set by configure())."""
         self._streams: tuple[StreamSpec, ...] = ()
         self._mode_written_ns = 0
         self._skip_next = False
@@ -169,9 +173,6 @@ class Hmc5883lDriver(Driver):
     def _read(self, register: int, length: int) -> bytes:
         return self.link.transfer(bytes([register]), length)
 
-    def _write(self, register: int, data: bytes) -> None:
-        self.link.transfer(bytes([register]) + data, 0)
-
     # --- identity -------------------------------------------------------------------------
 
     def probe(self) -> DeviceIdentity:
@@ -202,27 +203,31 @@ class Hmc5883lDriver(Driver):
 
     # --- configuration --------------------------------------------------------------------
 
-    def register_plan(self) -> bytes:
-        """Config A, Config B, Mode (registers 0x00..0x02) for the settings."""
+    def register_plan(self) -> RegisterPlan:
+        """Config A, Config B, Mode (registers 0x00..0x02) for the settings, continuous mode
+        last. Checked as one step (one 3-byte read): reading Mode locks the data outputs
+        until the six data bytes are read, so every check pays that read anyway."""
         s = self.settings
-        return bytes([config_a(s.averaging, s.odr_hz), config_b(s.range_gauss),
-                      MODE_CONTINUOUS])
+        return RegisterPlan.of(self.describe(), {
+            Reg.CONFIG_A: config_a(s.averaging, s.odr_hz),
+            Reg.CONFIG_B: config_b(s.range_gauss),
+            Reg.MODE: MODE_CONTINUOUS,
+        }, names={Reg.CONFIG_A: "Config A", Reg.CONFIG_B: "Config B", Reg.MODE: "Mode"},
+            checks=[(Reg.CONFIG_A, Reg.CONFIG_B, Reg.MODE)], burst_write=True,
+            hint="check the bus")
 
     def configure(self) -> None:
         """Write Config A/B and continuous mode, read them back, release the data lock."""
         plan = self.register_plan()
-        self._write(Reg.CONFIG_A, plan)
+        plan.apply(self.regs)
         self._mode_written_ns = self.clock.now_ns()  # continuous measurements start here
-        got = self._read(Reg.CONFIG_A, 3)
+        got = plan.read(self.regs)
         self._read(Reg.X_MSB, 6)  # reading MODE locked the outputs; six data reads unlock
-        if got != plan:
-            raise ConfigurationError(
-                f"{self.describe()}: configuration did not read back: wrote "
-                f"{plan.hex(' ')} to 0x00..0x02, read {got.hex(' ')}; check the bus"
-            )
-        self._expected = plan
-        spec = self._spec(got)
-        self.gain_lsb_per_gauss = gain_from_config_b(got[1])
+        plan.confirm(got)
+        self.plan = plan
+        config = bytes((got[Reg.CONFIG_A], got[Reg.CONFIG_B]))
+        spec = self._spec(config)
+        self.gain_lsb_per_gauss = gain_from_config_b(got[Reg.CONFIG_B])
         self._grid = PollGrid(spec.period_ns)
         self._ready = DataReady({Quantity.MAG: self._grid.period_ns})
         self._skip_next = True  # its first measurement still uses the previous gain
@@ -234,7 +239,7 @@ class Hmc5883lDriver(Driver):
             self._settle_ns = self._mode_written_ns + period + feed.latency_ns
             self._unchanged_limit_ns = round(
                 (unchanged_periods(self.gain_lsb_per_gauss) + STALE_AFTER_PERIODS) * period)
-        self._streams = (self._spec(got),)  # with the auto-read's latency, when there is one
+        self._streams = (self._spec(config),)  # with the auto-read's latency, when there is one
 
     def start(self, now_ns: int) -> int:
         # configure() may have waited on the clock since the caller read it (the base
@@ -276,7 +281,7 @@ class Hmc5883lDriver(Driver):
         return self._streams
 
     def refresh_streams(self) -> tuple[StreamSpec, ...]:
-        if not self._expected:
+        if self.plan is None:
             raise ConfigurationError(f"{self.describe()}: streams read before configure()")
         # Config A and B only: reading MODE would lock the data outputs
         self._streams = (self._spec(self._read(Reg.CONFIG_A, 2)),)
@@ -285,7 +290,7 @@ class Hmc5883lDriver(Driver):
     def poll(self, now_ns: int) -> PollResult:
         if self.gain_lsb_per_gauss is None:
             raise ConfigurationError(f"{self.describe()}: poll() before configure()")
-        if self._watch.check_due(now_ns) and self._config_lost():
+        if self._watch.check_due(now_ns) and self._off_plan():
             return PollResult([], self.restart(reset_detected=True))
         if self._feed is not None:
             return self._poll_auto(now_ns)
@@ -344,7 +349,7 @@ class Hmc5883lDriver(Driver):
         """No usable measurement (``sample`` says why): check the configuration at once, and
         restart the chip when it keeps producing nothing (rewriting the mode restarts
         continuous measuring)."""
-        if self._watch.check_due(now_ns, overdue=True) and self._config_lost():
+        if self._watch.check_due(now_ns, overdue=True) and self._off_plan():
             return PollResult([sample], self.restart(reset_detected=True))
         if self._watch.stale_poll():
             return PollResult([sample], self.restart(reset_detected=False))
@@ -389,19 +394,19 @@ class Hmc5883lDriver(Driver):
         written (the read-back also releases the data lock a partial data read may have
         set), the chip kept measuring, so poll again at once instead of the full recovery
         (which rewrites the configuration and drops the first measurement after it)."""
-        if self.gain_lsb_per_gauss is None or self._config_lost():
+        if self.gain_lsb_per_gauss is None or self._off_plan():
             return None
         return max(now_ns, self.clock.now_ns())
 
-    def _config_lost(self) -> bool:
-        """Read Config A/B and Mode back: a mismatch is a silent reset (defaults 0x10, 0x20,
-        single mode) or nothing answering."""
-        got = self._read(Reg.CONFIG_A, 3)
+    def _off_plan(self) -> bool:
+        """The plan's check (Config A/B and Mode: a mismatch is a silent reset, defaults
+        0x10, 0x20, single mode, or nothing answering), then the data lock that reading Mode
+        set released (with read: auto, the master's next read of the six bytes does)."""
+        assert self.plan is not None
+        wrong = self.plan.check_next(self.regs)
         if self._feed is None:
-            # release the lock that reading MODE set (with read: auto, the master's next
-            # read of the six bytes does)
             self._read(Reg.X_MSB, 6)
-        return got != self._expected
+        return wrong is not None
 
 
 def _partly_unanswered(found: bytes) -> bool:

@@ -42,22 +42,20 @@ back when it ends.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING, TypeVar
+from typing import TypeVar
 
 from imuhal.bus.auto_read import AutoReadFeed
 from imuhal.bus.base import Bus, BusKind
+from imuhal.bus.registers import RegisterView
 from imuhal.bus.retry import retried
+from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError, ConfigurationError, NackError
 from imuhal_chips.max2110x.registers import (
     DR_CFG_ONESHOT_MASK,
     DR_CFG_ONESHOT_READ,
     DR_CFG_ONESHOT_WRITE,
-    DR_CFG_TEMP_EN,
     Reg,
 )
-
-if TYPE_CHECKING:
-    from imuhal_chips.max2110x.driver import Max21100Driver
 
 ONESHOT_WAIT_S = 200e-6
 """Time allowed for one one-shot byte transaction to finish (about 4 bytes at 400 kHz plus
@@ -76,26 +74,35 @@ _DR_CFG = int(Reg.DR_CFG)
 
 
 class Max21100AuxBus(Bus):
-    """An I2C bus whose transfers are carried out by a MAX21100's one-shot master."""
+    """An I2C bus whose transfers are carried out by a MAX21100's one-shot master.
+
+    It is handed a narrow port to its host, like the MPU-9250's aux bus: the MAX21100's
+    registers (``regs``) and clock, the DR_CFG value the host configured (``dr_cfg``, read at
+    each transfer: a reconfiguration may change it) and the host's ``enable_auto_read``."""
 
     kind = BusKind.I2C
 
-    def __init__(self, host: Max21100Driver) -> None:
-        super().__init__(f"{host.link.bus.name}/{host.device}/aux")
-        self.host = host
+    def __init__(self, name: str, regs: RegisterView, clock: Clock, *,
+                 dr_cfg: Callable[[], int],
+                 enable_auto_read: Callable[[int, int, int], AutoReadFeed]) -> None:
+        super().__init__(name)
+        self.regs = regs
+        self.clock = clock
+        self._dr_cfg = dr_cfg
+        self._enable_auto_read = enable_auto_read
+        self._feed: AutoReadFeed | None = None
         self._pointer: dict[int, int] = {}
         self._frames: dict[int, tuple[int, bytes, bytes, bytes]] = {}
         # Share the parent's lock: a one-shot sequence is several parent transfers.
-        self.lock = host.link.bus.lock
+        self.lock = regs.link.bus.lock
 
     def _base(self) -> int:
-        base = self.host._expected.get(Reg.DR_CFG, DR_CFG_TEMP_EN)
-        return base & ~DR_CFG_ONESHOT_MASK
+        return self._dr_cfg() & ~DR_CFG_ONESHOT_MASK
 
     def _transfer(self, target: int, write: bytes, read_len: int) -> bytes:
         if not 0 <= target <= 0x7F:
             raise ConfigurationError(f"{self.name}: 0x{target:X} is not a 7-bit I2C address")
-        with self.host.link.bus.lock:
+        with self.lock:
             self._retried(self._select, target)
             if write:
                 self._pointer[target] = write[0]
@@ -124,7 +131,7 @@ class Max21100AuxBus(Bus):
                             raise
             if read_len:
                 self._pointer[target] = (pointer + read_len) & 0xFF
-            feed = self.host._feed
+            feed = self._feed
             if feed is not None and feed.target != target:
                 self._retried(self._select, feed.target)
         return bytes(data)
@@ -134,8 +141,9 @@ class Max21100AuxBus(Bus):
         every accelerometer measurement (see the module docstring)."""
         if not 0 <= target <= 0x7F:
             raise ConfigurationError(f"{self.name}: 0x{target:X} is not a 7-bit I2C address")
-        with self.host.link.bus.lock:
-            return self.host.enable_auto_read(target, register, length)
+        with self.lock:
+            self._feed = self._enable_auto_read(target, register, length)
+            return self._feed
 
     def _retried(self, step: Callable[..., _R], *args: int) -> _R:
         """One one-shot byte (four host transfers), repeated after a failed host transfer;
@@ -143,14 +151,14 @@ class Max21100AuxBus(Bus):
         return retried(step, *args, attempts=ONESHOT_ATTEMPTS)
 
     def _select(self, target: int) -> None:
-        self.host.regs.write(_MAG_SLV_ADD, target)
+        self.regs.write(_MAG_SLV_ADD, target)
 
     def _oneshot_write(self, register: int, value: int, base: int) -> None:
-        regs = self.host.regs
+        regs = self.regs
         regs.write(_I2C_MST_ADD, bytes([register, value]))  # 0x0B, 0x0C auto-increment
         regs.write(_DR_CFG, base | DR_CFG_ONESHOT_WRITE)
         regs.write(_DR_CFG, base)
-        self.host.clock.sleep(ONESHOT_WAIT_S)
+        self.clock.sleep(ONESHOT_WAIT_S)
 
     def _read_frames(self, base: int) -> tuple[int, bytes, bytes, bytes]:
         """What a one-shot read sends besides the slave register: the I2C_MST_ADD address
@@ -158,7 +166,7 @@ class Max21100AuxBus(Bus):
         host's register convention once per ``base``, not at every slave byte)."""
         frames = self._frames.get(base)
         if frames is None:
-            regs = self.host.regs
+            regs = self.regs
             cfg = regs.write_address(_DR_CFG)
             frames = (regs.write_address(_I2C_MST_ADD),
                       bytes((cfg, base | DR_CFG_ONESHOT_READ)), bytes((cfg, base)),
@@ -169,10 +177,10 @@ class Max21100AuxBus(Bus):
     def _oneshot_read(self, register: int, frames: tuple[int, bytes, bytes, bytes]) -> int:
         """I2C_MST_ADD <- register, DR_CFG <- base | read trigger, DR_CFG <- base, wait,
         then read I2C_MST_DATA: the same transfers as through ``regs.write``/``regs.read``."""
-        send = self.host.regs.send
+        send = self.regs.send
         address, trigger, restore, read_data = frames
         send(bytes((address, register)))
         send(trigger)
         send(restore)
-        self.host.clock.sleep(ONESHOT_WAIT_S)
+        self.clock.sleep(ONESHOT_WAIT_S)
         return send(read_data, 1)[0]

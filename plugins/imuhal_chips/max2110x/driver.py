@@ -18,6 +18,7 @@ from typing import ClassVar
 
 from imuhal.bus.auto_read import AUTO_READ, AutoReadFeed, same_feed
 from imuhal.bus.base import Bus, BusKind, Link
+from imuhal.bus.register_plan import RegisterPlan
 from imuhal.bus.registers import RegisterView
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
@@ -47,6 +48,7 @@ from imuhal.drivers.validity import (
     range_flag,
 )
 from imuhal_chips.max2110x import decode
+from imuhal_chips.max2110x.aux_bus import Max21100AuxBus
 from imuhal_chips.max2110x.decode import Counts3, be_int16
 from imuhal_chips.max2110x.registers import (
     ACCEL_RANGE_G,
@@ -122,7 +124,9 @@ class Max2110xDriver(Driver):
         super().__init__(link, settings, device=device, clock=clock)
         self.regs = RegisterView(link, convention_for(link.kind))
         self.scales: Scales | None = None
-        self._expected: dict[int, int] = {}
+        self.plan: RegisterPlan | None = None
+        """The configuration the chip must hold (set by configure(), with the auto-read's
+        registers once one is enabled)."""
         self._power_on_ns = 0
         self._fast: Quantity = Quantity.GYRO
         self._searching = False
@@ -207,12 +211,12 @@ class Max2110xDriver(Driver):
         self.clock.sleep(SOFT_RESET_WAIT_S)
         self.regs.write(Reg.BANK_SELECT, 0x00)
         self.regs.write(Reg.POWER_CFG, 0x00)
-        plan = self.register_plan()
-        for reg, value in plan.items():
-            self.regs.write(reg, value)
+        plan = self._checked(self.register_plan())
+        plan.apply(self.regs)
         self._power_on_ns = self.clock.now_ns()  # measurements are timed from here
-        readback = self._verify(plan)
-        self._expected = plan
+        readback = plan.verify(self.regs)
+        self.plan = plan
+        self._watch.spread_over(len(plan.steps))
         p = self.part
         self._burst_frame = bytes((self.regs.read_address(p.burst_start, p.burst_length),))
         self._burst_length = p.burst_length
@@ -267,42 +271,19 @@ class Max2110xDriver(Driver):
         return self._streams
 
     def refresh_streams(self) -> tuple[StreamSpec, ...]:
-        if not self._expected:
+        if self.plan is None:
             raise ConfigurationError(f"{self.describe()}: streams read before configure()")
-        self._streams = self._specs(self._read_config(self._expected))
+        self._streams = self._specs(self.plan.read(self.regs))
         return self._streams
 
-    def _verify(self, plan: dict[int, int]) -> dict[int, int]:
-        """Read back every register of ``plan``; raise when one differs; return the values."""
-        got = self._read_config(plan)
-        wrong = [(r, plan[r], got[r]) for r in sorted(plan) if got[r] != plan[r]]
-        if wrong:
-            detail = ", ".join(
-                f"0x{reg:02X} wrote 0x{want:02X} read 0x{got:02X}" for reg, want, got in wrong
-            )
-            raise ConfigurationError(
-                f"{self.describe()}: configuration did not read back ({detail}); "
-                "check the bus (SPI mode 3, signal integrity) and that this is a "
-                f"{self.part.part}"
-            )
-        return got
-
-    def _read_config(self, plan: dict[int, int]) -> dict[int, int]:
-        """The chip's current values of the registers of ``plan``."""
-        regs = sorted(plan)
-        # one burst from POWER_CFG over the configuration registers up to the auto-read's
-        # (ACC_CFG1, or MAG_MAP_REG), single reads for the rest
-        last = max([Reg.ACC_CFG1, *(r for r in regs if r <= Reg.MAG_MAP_REG)])
-        block = self.regs.read(Reg.POWER_CFG, last + 1)
-        got = {r: block[r] for r in regs if r <= last}
-        for r in regs:
-            if r not in got:
-                got[r] = self.regs.read_u8(r)
-        return got
-
-    def _mismatches(self, plan: dict[int, int]) -> list[tuple[int, int, int]]:
-        got = self._read_config(plan)
-        return [(r, plan[r], got[r]) for r in sorted(plan) if got[r] != plan[r]]
+    def _checked(self, values: Mapping[int, int]) -> RegisterPlan:
+        """``values`` (register -> value, in write order) as a checked plan. Read back in
+        bursts over the configuration block (POWER_CFG up to ACC_CFG1 or the auto-read's
+        MAG_MAP_REG, skipping GYRO_CFG3) and one read for each register beyond it."""
+        return RegisterPlan.of(
+            self.describe(), values, names={reg: Reg(reg).name for reg in values}, gap=1,
+            hint=f"check the bus (SPI mode 3, signal integrity) and that this is a "
+                 f"{self.part.part}")
 
     # --- sampling -------------------------------------------------------------------------
 
@@ -332,7 +313,7 @@ class Max2110xDriver(Driver):
         """
         if self.scales is None:
             raise ConfigurationError(f"{self.describe()}: poll() before configure()")
-        if self._watch.check_due(now_ns) and self._config_lost():
+        if self._watch.check_due(now_ns) and self._off_plan(overdue=False):
             return PollResult([], self.restart(reset_detected=True))
         raw = self.regs.send(self._burst_frame, self._burst_length)
         if self._feed is not None:
@@ -381,7 +362,7 @@ class Max2110xDriver(Driver):
     def _after_stale(self, now_ns: int) -> int:
         """A poll that reported stale or bad data: the configuration is checked when due,
         and the chip restarted after too many such polls; else the next point of the grid."""
-        if self._watch.check_due(now_ns, overdue=True) and self._config_lost():
+        if self._watch.check_due(now_ns, overdue=True) and self._off_plan(overdue=True):
             return self.restart(reset_detected=True)
         if self._watch.stale_poll():
             return self.restart(reset_detected=False)
@@ -413,7 +394,7 @@ class Max2110xDriver(Driver):
         about 10 ms of data); anything else gets the full recovery. A sample the failed
         burst did not fetch is overwritten by then (the chip flags the overrun and the grid
         re-anchors): one period lost, nothing wrong."""
-        if self.scales is None or not self._expected or self._config_lost():
+        if self.scales is None or self._off_plan(overdue=True):
             return None
         return self._grid.next_after(max(now_ns, self.clock.now_ns()))
 
@@ -464,10 +445,13 @@ class Max2110xDriver(Driver):
             flags |= self._memory.flag(Quantity.ACCEL, now_ns, flags)
         return AccelSample.build(now_ns, self.device, flags, Frame.SENSOR, value)
 
-    def _config_lost(self) -> bool:
-        """True when the configuration reads back different from what was written (a
-        silent reset, a brown-out, or nothing answering)."""
-        return bool(self._mismatches(self._expected))
+    def _off_plan(self, *, overdue: bool) -> bool:
+        """Whether the chip no longer holds its plan (a silent reset, a brown-out, or
+        nothing answering): the next check step, or every register when data are overdue."""
+        if self.plan is None:
+            return True
+        check = self.plan.lost if overdue else self.plan.check_next
+        return check(self.regs) is not None
 
 
 class Max21105Driver(Max2110xDriver):
@@ -500,9 +484,11 @@ class Max21100Driver(Max2110xDriver):
 
     def child_buses(self) -> dict[str, Bus]:
         if self._aux is None:
-            from imuhal_chips.max2110x.aux_bus import Max21100AuxBus
-
-            self._aux = Max21100AuxBus(self)
+            self._aux = Max21100AuxBus(
+                f"{self.link.bus.name}/{self.device}/aux", self.regs, self.clock,
+                dr_cfg=lambda: self.plan.get(Reg.DR_CFG, DR_CFG_TEMP_EN) if self.plan
+                else DR_CFG_TEMP_EN,
+                enable_auto_read=self.enable_auto_read)
         return {"aux": self._aux}
 
     def register_plan(self) -> dict[int, int]:
@@ -550,10 +536,10 @@ class Max21100Driver(Max2110xDriver):
         # host with the next burst, a poll-grid guard after it.
         latency_ns = round(1e9 / self.settings.accel_odr_hz) + self._grid.guard_ns
         feed = AutoReadFeed(target, register, length, latency_ns=latency_ns)
-        registers = self._auto_read_plan(feed)
-        for reg, value in registers.items():
-            self.regs.write(reg, value)
-        self._verify(registers)
+        auto_read = self._checked(self._auto_read_plan(feed))
+        auto_read.apply(self.regs)
+        auto_read.verify(self.regs)
         self._feed = feed
-        self._expected = self.register_plan()
+        self.plan = self._checked(self.register_plan())
+        self._watch.spread_over(len(self.plan.steps))
         return feed

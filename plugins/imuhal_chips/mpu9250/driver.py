@@ -29,6 +29,7 @@ from pydantic import Field, model_validator
 
 from imuhal.bus.auto_read import AUTO_READ, AutoReadFeed, same_feed
 from imuhal.bus.base import Bus, BusKind, Link
+from imuhal.bus.register_plan import RegisterPlan
 from imuhal.bus.registers import RegisterView
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
@@ -76,6 +77,13 @@ KNOWN_IDS: dict[int, str] = {
     0x00: "the register reads 0x00: check power, AD0/CS wiring and pull-ups",
     0xFF: "the register reads 0xFF: MISO/SDA floats high (check CS, wiring and SPI mode)",
 }
+
+_REGISTER_NAMES: dict[int, str] = {
+    getattr(r, name): name for name in (
+        "USER_CTRL", "PWR_MGMT_2", "SMPLRT_DIV", "CONFIG", "GYRO_CONFIG", "ACCEL_CONFIG",
+        "ACCEL_CONFIG2", "I2C_MST_CTRL", "INT_PIN_CFG", "I2C_MST_DELAY_CTRL", "I2C_SLV0_ADDR",
+        "I2C_SLV0_REG", "I2C_SLV0_CTRL", "FIFO_EN", "INT_ENABLE")}
+"""The datasheet's names of the registers the driver configures (for located errors)."""
 
 
 class MPU9250Settings(DriverSettings):
@@ -204,7 +212,7 @@ class MPU9250Driver(Driver):
                                                         s.smplrt_div()))
         self._fifo = (FifoReader(self.regs, self._period_ns, clock) if s.read == "fifo"
                       else None)
-        self._expected = self._register_plan()
+        self.plan = self._checked(self._register_plan())
         self._burst_length = r.DATA_BURST_LENGTH
         self._grid = PollGrid(self._period_ns)
         self._ready = DataReady({Quantity.GYRO: self._period_ns})
@@ -265,6 +273,15 @@ class MPU9250Driver(Driver):
             r.INT_ENABLE: r.INT_RAW_RDY | (r.INT_FIFO_OFLOW if fifo else 0),
         }
 
+    def _checked(self, values: Mapping[int, int], chip: str | None = None) -> RegisterPlan:
+        """``values`` (register -> value, in write order) as a checked plan: read back one
+        register at a time in write order (as written); checked continuously through
+        INT_PIN_CFG and INT_ENABLE in one read (an H_RESET clears both, and they are the
+        pair the driver always checked)."""
+        checks = [(r.INT_PIN_CFG, r.INT_ENABLE)] if r.INT_ENABLE in values else None
+        return RegisterPlan.of(chip or self.describe(), values, names=_REGISTER_NAMES,
+                               checks=checks, burst=False)
+
     @staticmethod
     def _auto_read_plan(feed: AutoReadFeed) -> dict[int, int]:
         """Slave 0 reads the slave at every sample (I2C_MST_DELAY_CTRL 0) into EXT_SENS_DATA,
@@ -304,19 +321,15 @@ class MPU9250Driver(Driver):
             # the slave's bytes end every FIFO frame from now on: a new frame size, so the
             # FIFO starts empty
             plan[r.FIFO_EN] = FIFO_EN_VALUE | r.FIFO_SLV0
-        for register_, value in plan.items():
-            self.regs.write(register_, value)
-        wrong = [f"0x{reg:02X} reads 0x{back:02X}, wrote 0x{value:02X}"
-                 for reg, value in plan.items()
-                 if (back := self.regs.read_u8(reg)) != value]
-        if wrong:
-            raise ConfigurationError(f"{where}: register read-back failed: " + "; ".join(wrong))
+        auto_read = self._checked(plan, chip=where)
+        auto_read.apply(self.regs)
+        auto_read.verify(self.regs)
         self._feed = feed
-        self._expected = self._register_plan()
+        self.plan = self._checked(self._register_plan())
         self._burst_length = r.DATA_BURST_LENGTH + length
         if self._fifo is not None:
             self._fifo = FifoReader(self.regs, self._period_ns, self.clock, slave_bytes=length)
-            self._fifo.reset(self._expected[r.USER_CTRL])
+            self._fifo.reset(self.plan[r.USER_CTRL])
         return feed
 
     def configure(self) -> None:
@@ -324,17 +337,8 @@ class MPU9250Driver(Driver):
         self.clock.sleep(r.RESET_S)
         self.regs.write(r.PWR_MGMT_1, r.PWR1_CLKSEL_AUTO)
         self.clock.sleep(r.WAKE_S)
-        for register, value in self._expected.items():
-            self.regs.write(register, value)
-        wrong = []
-        got: dict[int, int] = {}
-        for register, value in self._expected.items():
-            back = got[register] = self.regs.read_u8(register)
-            if back != value:
-                wrong.append(f"0x{register:02X} reads 0x{back:02X}, wrote 0x{value:02X}")
-        if wrong:
-            raise ConfigurationError(f"{self.describe()}: register read-back failed: "
-                                     + "; ".join(wrong))
+        self.plan.apply(self.regs)
+        got = self.plan.verify(self.regs)
         # ranges, rate, poll grid and stale policy from what the chip reads back
         self._streams = self._specs(got)
         self._gyro = _range_of(r.GYRO_RANGES, got[r.GYRO_CONFIG])
@@ -391,7 +395,7 @@ class MPU9250Driver(Driver):
         self._watch.start(now_ns)
         self._grid.anchor(now_ns)
         if self._fifo is not None:
-            self._fifo.reset(self._expected[r.USER_CTRL])
+            self._fifo.reset(self.plan[r.USER_CTRL])
             return self._fifo.next_read_ns(now_ns, self._fifo_interval_ns())
         return self._grid.next_after(now_ns)
 
@@ -407,11 +411,6 @@ class MPU9250Driver(Driver):
         return {"aux": self._aux_bus} if self._aux_bus is not None else {}
 
     # -- polling ----------------------------------------------------------------------------
-
-    def _config_lost(self) -> bool:
-        pin_cfg, int_enable = self.regs.read(r.INT_PIN_CFG, 2)
-        return (pin_cfg != self._expected[r.INT_PIN_CFG]
-                or int_enable != self._expected[r.INT_ENABLE])
 
     def filter_memory_outputs(self) -> dict[Quantity, int]:
         """Outputs after a saturated one that each channel's digital low-pass (DLPF_CFG,
@@ -434,13 +433,13 @@ class MPU9250Driver(Driver):
         failed burst missed, or (when the failed read reached the chip and cleared
         RAW_DATA_RDY) finds nothing new and waits for the next one: a sample lost, never a
         wrong or a repeated one."""
-        if self._config_lost():
+        if self.plan.lost(self.regs):
             return None
         return max(now_ns, self.clock.now_ns())
 
     def poll(self, now_ns: int) -> PollResult:
         overdue = self._ready.overdue(Quantity.GYRO, now_ns)
-        if self._watch.check_due(now_ns, overdue=overdue) and self._config_lost():
+        if self._watch.check_due(now_ns, overdue=overdue) and self.plan.check_next(self.regs):
             return PollResult([], self.restart(reset_detected=True))
         if self._fifo is not None:
             return self._poll_fifo(now_ns, overdue)
@@ -485,7 +484,7 @@ class MPU9250Driver(Driver):
         slave's bytes in each frame go to its feed with the frame's stamp."""
         assert self._fifo is not None
         status = self.regs.read_u8(r.INT_STATUS)  # read-to-clear: FIFO_OFLOW_INT
-        got = self._fifo.read(self._expected[r.USER_CTRL],
+        got = self._fifo.read(self.plan[r.USER_CTRL],
                               overflowed=bool(status & r.INT_FIFO_OFLOW))
         if got.reset:
             self.health.fifo_overflows += 1

@@ -1,4 +1,5 @@
-"""``imuhal plugins``: what is installed, and which package provides it."""
+"""``imuhal plugins``: what is installed, and which plugin of which distribution (and its
+version) provides it."""
 
 from __future__ import annotations
 
@@ -39,6 +40,8 @@ def cmd_plugins(args: argparse.Namespace, registry: Registry) -> int:
             if quantity is not None:
                 shape = "vector" if quantity.is_vector else "scalar"
                 desc = f"{shape}, {quantity.unit}: {quantity.description}"
-            origin = f"{reg.package or '(local)'}:{reg.plugin}"
-            print(f"  {name:<18} {origin:<24} {desc}")
+            version = registry.versions.get(reg.plugin, "")
+            origin = f"{reg.package or '(local)'}:{reg.plugin}" + (f" {version}" if version
+                                                                 else "")
+            print(f"  {name:<18} {origin:<30} {desc}")
     return 0

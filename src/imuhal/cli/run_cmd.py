@@ -296,9 +296,12 @@ class _RunSession:
             print(plan.calibrated_note, file=sys.stderr)
 
     def _add_live_view(self, stack: contextlib.ExitStack, pipeline: Any) -> None:
+        from imuhal.emulation import EmulatedBoard
+
         web = self.plan.web
-        live = stack.enter_context(LiveView.for_pipeline(pipeline, host=web.host,
-                                                         port=web.port))
+        truth = pipeline.board if isinstance(pipeline.board, EmulatedBoard) else None
+        live = stack.enter_context(LiveView(pipeline, truth=truth, host=web.host,
+                                            port=web.port))
         self.sinks.append(live.sink)
         print(f"live view: {live.url}" + ("" if web.loopback else
               " (reachable from the network at this machine's address: read-only, "

@@ -168,9 +168,17 @@ class ResetWatch:
         """``check_s``: read-back interval; None for a chip whose every poll already reads
         its configuration (the watch then only counts stale polls)."""
         self.check_ns = round(check_s * 1e9) if check_s is not None else None
+        self._check_ns = self.check_ns
         self._next_check_ns = 0
         self._stale_polls = 0
         self._restart_after = STALE_POLLS_BEFORE_RESTART
+
+    def spread_over(self, steps: int) -> None:
+        """Check one of ``steps`` parts of the configuration at a time (a register plan's
+        check steps, imuhal.bus.register_plan), each ``check_s / steps`` after the last,
+        so the whole configuration is still read back every ``check_s``."""
+        if self._check_ns is not None:
+            self.check_ns = max(1, self._check_ns // max(1, steps))
 
     def start(self, now_ns: int) -> None:
         self._next_check_ns = now_ns + (self.check_ns or 0)

@@ -5,7 +5,7 @@
     from imuhal.live import LiveView
 
     with open_emulated(profile, registry, realtime=True) as pipeline, \\
-            LiveView.for_pipeline(pipeline, port=8080) as live:
+            LiveView(pipeline, truth=EmulatedBoard.of(pipeline), port=8080) as live:
         print("open", live.url)
         pipeline.run(60, [live.sink])
 

@@ -31,7 +31,6 @@ import socket
 import sys
 import threading
 import time
-from collections.abc import Callable
 from dataclasses import dataclass
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
@@ -41,7 +40,7 @@ from urllib.parse import urlsplit
 
 from imuhal.core.errors import ImuhalError
 from imuhal.live.sink import LiveSink
-from imuhal.live.snapshot import Snapshotter, Truth
+from imuhal.live.snapshot import Snapshotter, TruthSource
 from imuhal.pipeline import Pipeline
 
 DEFAULT_HOST = "127.0.0.1"
@@ -156,13 +155,14 @@ class LiveView:
 
     Feed ``live.sink`` every event (``pipeline.run(duration, [live.sink])``, or call
     ``live.sink.handle(event)`` in your own loop). Use as a context manager, or call
-    :meth:`start` and :meth:`close`.
+    :meth:`start` and :meth:`close`. For an emulated run, pass its board as ``truth``
+    (``truth=EmulatedBoard.of(pipeline)``): the page then shows the truth beside the
+    estimates, at the time of the latest event.
     """
 
     def __init__(self, pipeline: Pipeline | None = None, *, host: str = DEFAULT_HOST,
                  port: int = 0, rate_hz: float = DEFAULT_RATE_HZ,
-                 truth: Callable[[], Truth | None] | None = None,
-                 scenario: str | None = None, client_timeout_s: float = 2.0,
+                 truth: TruthSource | None = None, client_timeout_s: float = 2.0,
                  sink: LiveSink | None = None, idle_timeout_s: float = IDLE_TIMEOUT_S,
                  max_connections: int = MAX_CONNECTIONS,
                  allowed_hosts: tuple[str, ...] = ()) -> None:
@@ -170,7 +170,7 @@ class LiveView:
             raise ImuhalError(f"live view rate {rate_hz:g} Hz: use 1 to 60 Hz (10-30 is a "
                               f"display rate)")
         self.sink = sink if sink is not None else LiveSink()
-        self.snapshotter = Snapshotter(self.sink, pipeline, truth=truth, scenario=scenario)
+        self.snapshotter = Snapshotter(self.sink, pipeline, truth=truth)
         self.bind = BindAddress(host, port)
         self.period_s = 1.0 / rate_hz
         self.client_timeout_s = client_timeout_s
@@ -191,18 +191,6 @@ class LiveView:
         self._server: ThreadingHTTPServer | None = None
         self._threads: list[threading.Thread] = []
         self._delivered: dict[int, int] = {}  # client -> last sequence number written to it
-
-    @classmethod
-    def for_pipeline(cls, pipeline: Pipeline, **kwargs: Any) -> LiveView:
-        """A live view of ``pipeline``; an emulated board's truth is shown beside the
-        estimates."""
-        from imuhal.emulation import EmulatedBoard
-
-        board = pipeline.board
-        if isinstance(board, EmulatedBoard):
-            kwargs.setdefault("truth", lambda: board.truth)
-            kwargs.setdefault("scenario", board.scenario.name)
-        return cls(pipeline, **kwargs)
 
     # -- lifecycle ------------------------------------------------------------------------
 

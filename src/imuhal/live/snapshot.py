@@ -17,7 +17,6 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -46,9 +45,11 @@ chip that flags the odd late sample is not)."""
 
 
 class Truth(Protocol):
-    """The simulated truth of an emulated run (imuhal.sim.scenario.TruthState has these)."""
+    """The simulated truth of an emulated run at one instant (imuhal.sim.scenario.TruthState
+    has these)."""
 
-    t_s: float
+    @property
+    def t_s(self) -> float: ...
 
     @property
     def euler_deg(self) -> tuple[float, float, float]: ...
@@ -58,6 +59,22 @@ class Truth(Protocol):
 
     @property
     def climb_m_s(self) -> float: ...
+
+
+class _Named(Protocol):
+    @property
+    def name(self) -> str: ...
+
+
+class TruthSource(Protocol):
+    """Where the truth of an emulated run comes from: its scenario (named on the page) and
+    the truth at any time of the run. An ``imuhal.emulation.EmulatedBoard`` is one; the
+    live view is handed it by whoever opened the board and never asks a board what it is."""
+
+    @property
+    def scenario(self) -> _Named: ...
+
+    def truth_at(self, t_ns: int) -> Truth: ...
 
 
 def configured_rates_hz(pipeline: Pipeline, device: str) -> dict[str, float]:
@@ -84,12 +101,13 @@ class Snapshotter:
     """Builds successive snapshots of one run (keep one per live view)."""
 
     def __init__(self, sink: LiveSink, pipeline: Pipeline | None = None, *,
-                 truth: Callable[[], Truth | None] | None = None,
-                 scenario: str | None = None) -> None:
+                 truth: TruthSource | None = None) -> None:
+        """``truth``: an emulated run's truth, shown at the time of the latest event the
+        ``sink`` received (None: real hardware, no truth)."""
         self.sink = sink
         self.pipeline = pipeline
         self.truth = truth
-        self.scenario = scenario
+        self.scenario = truth.scenario.name if truth is not None else None
         self.seq = 0
         self._past: deque[_Past] = deque()
         self._drivers: dict[str, str] = {}
@@ -145,7 +163,8 @@ class Snapshotter:
             "warnings": list(self.pipeline.warnings) if self.pipeline is not None else [],
             "summary": self._summary(copy),
         }
-        truth = self.truth() if self.truth is not None else None
+        truth = self.truth.truth_at(copy.t_ns) \
+            if self.truth is not None and copy.t_ns is not None else None
         if truth is not None:
             roll, pitch, yaw = truth.euler_deg
             out["truth"] = {"t_s": float(truth.t_s), "roll_deg": roll, "pitch_deg": pitch,

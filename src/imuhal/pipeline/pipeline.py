@@ -23,7 +23,6 @@ from imuhal.bus.base import Bus, Link
 from imuhal.bus.contained import ContainedBus
 from imuhal.bus.recording.recorder import BusRecorder
 from imuhal.bus.spy import SpyBus, Transfer
-from imuhal.calibration.gyro import GyroOffsetProcedure
 from imuhal.calibration.hard_iron import HardIronLearner
 from imuhal.calibration.model import CalibrationBinding, DeviceCalibration, now
 from imuhal.core.blocks import Block, blocks_of, interleaved
@@ -46,7 +45,7 @@ from imuhal.pipeline.processing import (
     validity_flags,
 )
 from imuhal.pipeline.router import Route, Router
-from imuhal.pipeline.startup import startup_gyro_phase, startup_procedures
+from imuhal.pipeline.startup import GyroStartupStage, StartupMeasurement, startup_settings
 from imuhal.plugins.manager import Registry
 from imuhal.profile.model import BoardProfile
 from imuhal.profile.topology import chip_to_body_rotations, device_order, split_bus_ref
@@ -246,7 +245,7 @@ class Pipeline:
                            if bus.describe() != bus.name}
         self.warnings: list[str] = []
         self._heap: list[tuple[int, int, str]] | None = None
-        self._startup: dict[str, GyroOffsetProcedure] | None = None
+        self._startup: GyroStartupStage | None = None
         self._fusion: list[Sample | Block] = []
         """Valid body-frame readings (one-frame blocks as their sample) and blocks some
         estimator takes, waiting for their fusion step."""
@@ -427,12 +426,40 @@ class Pipeline:
         call when a call ends before it does.
         """
         source = self._poll_events(duration_s)
-        if self.calibrated and self._startup is None:
-            self._startup = startup_procedures(self)
-        if self.calibrated and self._startup:
-            # The phase carries over to the next call when this one ends before it does.
-            source = startup_gyro_phase(self, source, pending=self._startup)
+        if self.calibrated:
+            stage = self._startup = self._startup or self._startup_stage()
+            if not stage.done:
+                # The phase carries over to the next call when this one ends before it does.
+                self._run_startup(stage, source)
         yield from source
+
+    def _startup_stage(self) -> GyroStartupStage:
+        settings = startup_settings(
+            {name: cfg.calibration for name, cfg in self.profile.devices.items()},
+            {name: type(dev.driver).channels for name, dev in self.devices.items()})
+        return GyroStartupStage(settings)
+
+    def _run_startup(self, stage: GyroStartupStage, source: Iterator[Event]) -> None:
+        """Feed ``stage`` raw samples from ``source`` (yielding nothing) until it is done or
+        ``source`` ends, installing what it returns."""
+        calibrated, self.calibrated = self.calibrated, False  # the procedures measure raw data
+        try:
+            for event in source:
+                found = stage.feed(event) if isinstance(event, Sample) else None
+                if found is not None:
+                    self._install_startup(found)
+                if stage.done:
+                    return
+        finally:
+            self.calibrated = calibrated
+
+    def _install_startup(self, found: StartupMeasurement) -> None:
+        if found.warning is not None:
+            self.warnings.append(found.warning)
+            return
+        dev = self.devices[found.device]
+        dev.calibration = found.calibration(dev.calibration,
+                                            self.calibration_binding(found.device))
 
     def framed_events(self, duration_s: float | None = None, *,
                       frame: str | None = None) -> Iterator[FramedEvent]:

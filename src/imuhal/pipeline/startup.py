@@ -7,93 +7,100 @@ keeps its scale and misalignment and only its offsets are replaced, in memory (t
 file is not touched). If the board never stays still within ``max_attempts``, the stored
 offsets are used and a warning says so.
 
-:func:`startup_gyro_phase` is applied by ``Pipeline.events`` on its first call: during the
-start-up phase it puts the pipeline in raw mode, feeds the gyro procedure and yields nothing;
-then it installs the offsets and passes the pipeline's events on as usual.
+:class:`GyroStartupStage` is a stage with a narrow port: it is told which devices measure,
+is fed raw samples and returns what it found (:class:`StartupMeasurement`: offsets to
+install, or a warning). It knows nothing of the pipeline; ``Pipeline.events`` feeds it raw
+samples during the phase (yielding nothing meanwhile) and installs what it returns.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from typing import TYPE_CHECKING
+from collections.abc import Mapping
+from dataclasses import dataclass
 
 from imuhal.calibration.errors import CalibrationError
-from imuhal.calibration.gyro import GyroOffsetProcedure
+from imuhal.calibration.gyro import GyroOffsetProcedure, GyroOffsetResult
 from imuhal.calibration.model import (
+    CalibrationBinding,
     DeviceCalibration,
     GyroCalibration,
     GyroStartupSettings,
     now,
 )
 from imuhal.calibration.progress import ProgressCallback
-from imuhal.core.samples import Quantity, Sample
-from imuhal.sinks.base import Event
+from imuhal.core.quantities import Quantity
+from imuhal.core.samples import Sample
 
-if TYPE_CHECKING:  # the pipeline applies this phase to itself
-    from imuhal.pipeline.pipeline import Pipeline
+PROCEDURE = "gyro-at-startup"
+"""The ``procedure`` a record measured at start-up carries."""
 
 
-def startup_settings(pipeline: Pipeline) -> dict[str, GyroStartupSettings]:
-    """Devices of the pipeline that ask for start-up gyro offsets, with their settings."""
+def startup_settings(calibrations: Mapping[str, DeviceCalibration | None],
+                     channels: Mapping[str, tuple[Quantity, ...]]
+                     ) -> dict[str, GyroStartupSettings]:
+    """Devices that ask for start-up gyro offsets, with their settings: those whose profile
+    ``calibrations`` enable ``gyro_at_startup`` and whose driver's ``channels`` hold a gyro."""
     out = {}
-    for name, dev in pipeline.devices.items():
-        cal = pipeline.profile.devices[name].calibration
+    for name, quantities in channels.items():
+        cal = calibrations.get(name)
         opt = cal.gyro_at_startup if cal is not None else None
-        if opt is not None and opt.enabled and Quantity.GYRO in type(dev.driver).channels:
+        if opt is not None and opt.enabled and Quantity.GYRO in quantities:
             out[name] = opt
     return out
 
 
-def startup_procedures(pipeline: Pipeline, progress: ProgressCallback | None = None
-                       ) -> dict[str, GyroOffsetProcedure]:
-    """One gyro offset procedure per device that asks for start-up offsets."""
-    return {name: GyroOffsetProcedure(opt, device=name, progress=progress)
-            for name, opt in startup_settings(pipeline).items()}
+@dataclass(frozen=True)
+class StartupMeasurement:
+    """What the start-up phase found for one device: offsets measured, or a warning why not
+    (then the stored offsets stay)."""
+
+    device: str
+    result: GyroOffsetResult | None
+    """The measured offsets (sensor frame, rad/s); None when the board never stayed still."""
+    warning: str | None = None
+
+    def calibration(self, stored: DeviceCalibration | None,
+                    binding: CalibrationBinding) -> DeviceCalibration | None:
+        """``stored`` with its gyro offsets replaced by the measured ones (scale and
+        misalignment kept), bound to the probed chip ``binding``; ``stored`` unchanged when
+        nothing was measured."""
+        if self.result is None:
+            return stored
+        cal = stored or DeviceCalibration()
+        record = self.result.record(cal.gyro or GyroCalibration(), date=now())
+        record = record.model_copy(update={"binding": binding, "procedure": PROCEDURE})
+        return cal.model_copy(update={"gyro": record})
 
 
-def startup_gyro_phase(pipeline: Pipeline, source: Iterator[Event],
-                       progress: ProgressCallback | None = None, *,
-                       pending: dict[str, GyroOffsetProcedure] | None = None
-                       ) -> Iterator[Event]:
-    """``source`` (the pipeline's event stream), preceded by the start-up gyro measurement
-    of every device that asks for it (see the module docstring). ``pending`` (default: new
-    procedures) carries an unfinished phase from one ``events()`` call to the next; finished
-    devices are removed from it."""
-    if pending is None:
-        pending = startup_procedures(pipeline, progress)
-    if not pending:
-        yield from source
-        return
-    calibrated = pipeline.calibrated
-    pipeline.calibrated = False
-    try:
-        for event in source:
-            if not isinstance(event, Sample) or event.device not in pending:
-                continue
-            proc = pending[event.device]
-            try:
-                finished = proc.feed(event)
-            except CalibrationError as exc:
-                pipeline.warnings.append(f"{event.device}: start-up gyro offsets not measured "
-                                         f"({exc}); using the stored offsets")
-                del pending[event.device]
-                finished = False
-            if finished:
-                _install(pipeline, event.device, proc)
-                del pending[event.device]
-            if not pending:
-                break
-    finally:
-        pipeline.calibrated = calibrated
-    # Hand the rest of the stream straight through: no per-event work once the phase is over.
-    yield from source
+class GyroStartupStage:
+    """One gyro offset procedure per device that asks for start-up offsets, fed raw samples
+    (sensor frame, uncalibrated) until every one has finished or given up."""
 
+    def __init__(self, settings: Mapping[str, GyroStartupSettings],
+                 progress: ProgressCallback | None = None) -> None:
+        """``settings``: the devices that measure (:func:`startup_settings`)."""
+        self._pending = {name: GyroOffsetProcedure(opt, device=name, progress=progress)
+                         for name, opt in settings.items()}
 
-def _install(pipeline: Pipeline, device: str, proc: GyroOffsetProcedure) -> None:
-    dev = pipeline.devices[device]
-    cal = dev.calibration or DeviceCalibration()
-    result = proc.finish()
-    record = result.record(cal.gyro or GyroCalibration(), date=now())
-    record = record.model_copy(update={"binding": pipeline.calibration_binding(device),
-                                       "procedure": "gyro-at-startup"})
-    dev.calibration = cal.model_copy(update={"gyro": record})
+    @property
+    def done(self) -> bool:
+        """Every device has its offsets or has given up."""
+        return not self._pending
+
+    def feed(self, sample: Sample) -> StartupMeasurement | None:
+        """Hand one raw sample to its device's procedure; what it found when it finishes."""
+        proc = self._pending.get(sample.device)
+        if proc is None:
+            return None
+        try:
+            finished = proc.feed(sample)
+        except CalibrationError as exc:
+            del self._pending[sample.device]
+            return StartupMeasurement(
+                sample.device, None,
+                warning=f"{sample.device}: start-up gyro offsets not measured ({exc}); "
+                        "using the stored offsets")
+        if not finished:
+            return None
+        del self._pending[sample.device]
+        return StartupMeasurement(sample.device, proc.finish())

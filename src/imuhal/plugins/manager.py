@@ -4,27 +4,29 @@ Allow/block lists: ``IMUHAL_PLUGINS`` (comma-separated entry-point names: load o
 ``IMUHAL_DISABLE_PLUGINS`` (never load these). Hook implementations with names that match no
 hook specification are rejected, so a typo in a plugin fails loudly instead of doing nothing.
 
-Every hook is called through pluggy's hook caller (``pm.hook.NAME(register=registrar)``), so
-hook wrappers and tracing work. So that each registration still records the plugin that made
-it, each plugin is registered with pluggy as a stand-in whose hook implementations first tell
-the registrar which plugin is calling (``Registrar.registering``), then call the plugin's own.
+Every hook is called once, through pluggy's hook caller (``pm.hook.NAME(register=...)``), so
+hook wrappers and tracing see every call. Each registration still records the plugin that
+made it, and pluggy says which: before a hook is called, its implementations
+(``HookCaller.get_hookimpls()``) give the code of each plugin's function and the name pluggy
+knows the plugin by; a registration is attributed to the plugin whose implementation is
+running it (the innermost one on the call stack), a wrapper's own registrations included.
+The plugin objects are registered as they are, with no stand-in around them.
 """
 
 from __future__ import annotations
 
 import inspect
 import os
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable, Mapping
+from functools import partial
 from importlib.metadata import entry_points
-from types import ModuleType, SimpleNamespace
-from typing import Any
+from types import CodeType, ModuleType
 
 import pluggy
 
 from imuhal.core.errors import PluginError
 from imuhal.core.samples import ScalarSample
 from imuhal.plugins import hookspecs
-from imuhal.plugins.registrars import Registrar
 from imuhal.plugins.registry import Registry
 
 __all__ = ["ENV_ALLOW", "ENV_BLOCK", "Registry", "load_registry"]
@@ -70,6 +72,7 @@ def load_registry(
                     f"{type(exc).__name__}: {exc}; set {ENV_BLOCK}={ep.name} to skip it"
                 ) from exc
             registry.plugins[ep.name] = ep.dist.name if ep.dist is not None else ""
+            registry.versions[ep.name] = ep.dist.version if ep.dist is not None else ""
             loaded.append((ep.name, module))
     for name, module in extra:
         if name in block:
@@ -79,7 +82,7 @@ def load_registry(
     # pluggy calls the last registered implementation first: registering in reverse makes
     # plugins register in load order (sorted entry points, then ``extra``).
     for name, module in reversed(loaded):
-        pm.register(_attributed(pm, module, name, registry), name=name)
+        pm.register(module, name=name)
 
     try:
         pm.check_pending()
@@ -87,43 +90,36 @@ def load_registry(
         raise PluginError(f"a plugin implements a hook that does not exist: {exc}") from exc
 
     for hook_name, registrar in registry.hooks().items():
-        getattr(pm.hook, hook_name)(register=registrar)
+        caller = getattr(pm.hook, hook_name)
+        owners = _owners(caller.get_hookimpls())
+        with registry.attributed(partial(_running_plugin, owners)):
+            caller(register=registrar)
     _check_emulators(registry)
     _check_quantities(registry)
     return registry
 
 
-def _attributed(pm: pluggy.PluginManager, plugin: object, name: str,
-                registry: Registry) -> object:
-    """A stand-in for ``plugin`` with the same hook implementations (same options), each of
-    which records ``name`` as the registering plugin before calling the original. Hook
-    wrappers are passed through unchanged (they run around the whole call)."""
-    stand_in = SimpleNamespace(__name__=getattr(plugin, "__name__", name))
-    for attr in dir(plugin):
-        fn = getattr(plugin, attr, None)
-        opts = pm.parse_hookimpl_opts(plugin, attr)
-        if opts is None or not callable(fn):
-            continue
-        if not (opts.get("wrapper") or opts.get("hookwrapper")):
-            fn = _recording(fn, name, registry)
-        setattr(stand_in, attr, hookspecs.hookimpl(**opts)(fn))
-    return stand_in
+def _owners(impls: Iterable[pluggy.HookImpl]) -> dict[CodeType, str]:
+    """The code each hook implementation runs -> the name pluggy registered its plugin
+    under (a method's or a decorated function's code is that of what actually runs)."""
+    owners: dict[CodeType, str] = {}
+    for impl in impls:
+        code = getattr(impl.function, "__code__", None)
+        if isinstance(code, CodeType):
+            owners[code] = impl.plugin_name
+    return owners
 
 
-def _recording(fn: Callable[..., Any], plugin: str, registry: Registry) -> Callable[..., Any]:
-    # The stand-in takes exactly the arguments the original asks for (pluggy passes a hook
-    # implementation only the arguments it names).
-    if "register" in inspect.signature(fn).parameters:
-        def call(register: Registrar[Any]) -> Any:
-            with registry.registering(plugin):
-                return fn(register=register)
-    else:
-        def call() -> Any:  # type: ignore[misc]  # the two branches define call with the two hook signatures pluggy accepts
-            with registry.registering(plugin):
-                return fn()
-    call.__name__ = getattr(fn, "__name__", "hook")
-    call.__qualname__ = call.__name__
-    return call
+def _running_plugin(owners: Mapping[CodeType, str]) -> str:
+    """The plugin whose hook implementation is running now: the innermost frame on the
+    stack that runs the code of one ('' when none does: a registration made by hand)."""
+    frame = inspect.currentframe()
+    while frame is not None:
+        plugin = owners.get(frame.f_code)
+        if plugin is not None:
+            return plugin
+        frame = frame.f_back
+    return ""
 
 
 def _check_emulators(registry: Registry) -> None:

@@ -37,6 +37,7 @@ class Registrar(Generic[T]):
         self.entries: dict[str, Registration[T]] = {}
         self._plugin = ""
         self._package = ""
+        self._who: Callable[[], tuple[str, str]] | None = None
 
     @contextmanager
     def registering(self, plugin: str, package: str) -> Iterator[Registrar[T]]:
@@ -49,25 +50,39 @@ class Registrar(Generic[T]):
         finally:
             self._plugin, self._package = before
 
+    @contextmanager
+    def registering_as(self, who: Callable[[], tuple[str, str]]) -> Iterator[Registrar[T]]:
+        """Registrations made inside are recorded as coming from the (plugin, distribution)
+        ``who()`` names at the moment each is made (the plugin whose hook implementation
+        is registering, imuhal.plugins.manager)."""
+        before = self._who
+        self._who = who
+        try:
+            yield self
+        finally:
+            self._who = before
+
     def __call__(self, cls: type[T]) -> type[T]:
+        plugin, package = self._who() if self._who is not None else (self._plugin,
+                                                                      self._package)
         if not (isinstance(cls, type) and issubclass(cls, self.base)):
             raise PluginError(
-                f"plugin {self._plugin!r} registered {cls!r} as a {self.kind}, "
+                f"plugin {plugin!r} registered {cls!r} as a {self.kind}, "
                 f"but it is not a subclass of {self.base.__name__}"
             )
         name = self._name_of(cls)
         if not isinstance(name, str) or not name:
             raise PluginError(
-                f"plugin {self._plugin!r}: {self.kind} {cls.__name__} has no "
+                f"plugin {plugin!r}: {self.kind} {cls.__name__} has no "
                 f"'{self.name_attr}' to register it under"
             )
         if name in self.entries:
             prior = self.entries[name]
             raise PluginError(
                 f"{self.kind} {name!r} registered twice: by plugin {prior.plugin!r} "
-                f"({prior.obj.__module__}) and by {self._plugin!r} ({cls.__module__})"
+                f"({prior.obj.__module__}) and by {plugin!r} ({cls.__module__})"
             )
-        self.entries[name] = Registration(name, cls, self._plugin, self._package)
+        self.entries[name] = Registration(name, cls, plugin, package)
         return cls
 
     def get(self, name: str) -> type[T]:

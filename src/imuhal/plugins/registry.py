@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import argparse
 from abc import ABC, abstractmethod
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
@@ -73,7 +73,9 @@ class Registry:
         default_factory=lambda: Registrar("calibration procedure", CalibrationProcedure)
     )
     plugins: dict[str, str] = field(default_factory=dict)
-    """Loaded plugin name -> distribution name."""
+    """Loaded plugin name -> distribution name ('' for a plugin handed over by hand)."""
+    versions: dict[str, str] = field(default_factory=dict)
+    """Loaded plugin name -> its distribution's version ('' when not known)."""
 
     def hooks(self) -> dict[str, Registrar[Any]]:
         """Each hook's name and the registrar its implementations are called with, in the
@@ -92,6 +94,19 @@ class Registry:
 
     def registrar_for(self, hook: str) -> Registrar[Any]:
         return self.hooks()[hook]
+
+    @contextmanager
+    def attributed(self, plugin_now: Callable[[], str]) -> Iterator[None]:
+        """Registrations made inside are recorded as made by the plugin ``plugin_now()``
+        names when each is made."""
+        def who() -> tuple[str, str]:
+            plugin = plugin_now()
+            return plugin, self.plugins.get(plugin, "")
+
+        with ExitStack() as stack:
+            for registrar in self.hooks().values():
+                stack.enter_context(registrar.registering_as(who))
+            yield
 
     @contextmanager
     def registering(self, plugin: str) -> Iterator[None]:
