@@ -137,7 +137,7 @@ devices:
     bus: i2c1
     address: 0x68
     interrupt: {{chip: {chip}, line: DRDY, edge: rising, watchdog_periods: {watchdog}}}
-    settings: {{odr_hz: 200, aux: off}}
+    settings: {{odr_hz: 200, aux: "off"}}
 """
 
 
