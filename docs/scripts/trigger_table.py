@@ -77,23 +77,26 @@ def _row(board: str, mode: str, stall_ms: float, osc: float, r: dict[str, float]
             f"{r['unread']:.0f} | {r['rms_us']:.0f} us | {r['max_us']:.0f} us |")
 
 
+COLUMNS = ("board", "trigger", "stall", "chip clock", "produced", "delivered",
+           "lost: host stall", "lost: other", "edges not read", "stamp error RMS",
+           "stamp error max")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seconds", type=float, default=60.0)
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args()
     registry = load_registry()
-    print(f"`thermal` {args.seconds:g} s, seed {args.seed}, one host stall a second "
-          "from 1 s on\n")
-    print("| board | trigger | stall | chip clock | produced | delivered | lost: host stall | "
-          "lost: other | edges not read | stamp error RMS | stamp error max |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
-    for board in BOARDS:
-        for mode in ("poll", "data-ready"):
-            cases = [(s, 0.0) for s in STALLS_MS] + [(0.0, o) for o in OSCILLATOR_ERRORS if o]
-            for stall_ms, osc in cases:
-                r = run(registry, board, mode, stall_ms, osc, args.seconds, args.seed)
-                print(_row(board, mode, stall_ms, osc, r), flush=True)
+    cases = [(s, 0.0) for s in STALLS_MS] + [(0.0, o) for o in OSCILLATOR_ERRORS if o]
+    lines = [f"`thermal` {args.seconds:g} s, seed {args.seed}, one host stall a second from "
+             "1 s on", "", "| " + " | ".join(COLUMNS) + " |", "|---" * len(COLUMNS) + "|"]
+    print("\n".join(lines), flush=True)
+    for board, mode in ((b, m) for b in BOARDS for m in ("poll", "data-ready")):
+        for stall_ms, osc in cases:
+            print(_row(board, mode, stall_ms, osc,
+                       run(registry, board, mode, stall_ms, osc, args.seconds, args.seed)),
+                  flush=True)
 
 
 if __name__ == "__main__":

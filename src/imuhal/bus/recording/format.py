@@ -66,6 +66,10 @@ REC_EDGE = 10
 """An edge of a device's data-ready line, as the pipeline took it: dt (the edge's time stamp
 on the run's clock), the line's sequence number, device."""
 
+_NEWEST_TYPE = {1: REC_END, 2: REC_STREAM_FAILED}
+"""The last record type each older version has (a newer one in its file is damage; an
+unknown type in a current file ends it as written by a newer imuhal)."""
+
 _STREAM_OPS = {REC_RECEIVE: OP_RECEIVE, REC_BAUD: OP_BAUD}
 _BUS_KINDS = frozenset(kind.value for kind in BusKind)
 
@@ -401,8 +405,7 @@ class Recording:
                 raise IndexError("a record runs past the end of its chunk")
             kind = payload[p]
             p += 1
-            if (kind > REC_END and self.version < 2) or (kind == REC_EDGE
-                                                         and self.version < 3):
+            if kind > _NEWEST_TYPE.get(self.version, 255):
                 yield (f"{self.path}: record type {kind} in a version-{self.version} "
                        "recording: damaged")
                 return
@@ -461,17 +464,10 @@ class Recording:
                     etype.decode(), error.decode(), op=op,
                     baudrate=value if op == OP_BAUD else 0)
                 index += 1
-            elif kind == REC_EDGE:
-                dt, p = _get_svarint(payload, p)
-                t_ns += dt
-                seqno, p = _get_uvarint(payload, p)
-                device, p = _get_bytes(payload, p)
-                yield RecordedEdge(t_ns, device.decode("utf-8"), seqno)
-            elif kind == REC_LATE_POLL:
-                dt, p = _get_svarint(payload, p)
-                t_ns += dt
-                device, p = _get_bytes(payload, p)
-                yield LatePoll(t_ns, device.decode("utf-8"))
+            elif kind in (REC_LATE_POLL, REC_EDGE):
+                timed = _device_record(kind, payload, p, t_ns)
+                t_ns = timed.t_ns
+                yield timed
             elif kind == REC_BUS:
                 bus_index, p = _get_uvarint(payload, p)
                 texts = []
@@ -490,6 +486,18 @@ class Recording:
             else:
                 yield f"{self.path}: unknown record type {kind} (written by a newer imuhal?)"
                 return
+
+
+def _device_record(kind: int, payload: bytes, p: int, t_ns: int) -> LatePoll | RecordedEdge:
+    """A late poll or an edge (both: dt, then their numbers, then the device)."""
+    dt, p = _get_svarint(payload, p)
+    t_ns += dt
+    if kind == REC_EDGE:
+        seqno, p = _get_uvarint(payload, p)
+        device, p = _get_bytes(payload, p)
+        return RecordedEdge(t_ns, device.decode("utf-8"), seqno)
+    device, p = _get_bytes(payload, p)
+    return LatePoll(t_ns, device.decode("utf-8"))
 
 
 def _read_chunk(f: IO[bytes], path: Path) -> bytes | None:
