@@ -18,10 +18,10 @@ from imuhal.emulation import open_emulated
 from imuhal.emulation.board import EmulatedBoard
 from imuhal.pipeline.triggers import SelectorWaiter, TriggerEdge
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.faults import ChipReset, HostStall
 from imuhal.profile.loader import check_profile, load_profile
 from imuhal.profile.model import BoardProfile
-from imuhal.profiles_dir import bundled_profiles
 from imuhal.sinks import CallbackSink, Event
 
 GY91 = bundled_profiles()["gy91.yaml"]
