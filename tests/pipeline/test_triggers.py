@@ -227,3 +227,18 @@ def test_a_sample_is_never_stamped_before_the_previous_one_on_a_line(
     events, _, _ = _run(gy91_line, registry, 2.0, faults=[stall])
     stamps = [e.t_ns for e in events if isinstance(e, Sample) and e.device == "imu"]
     assert all(b >= a for a, b in itertools.pairwise(stamps))
+
+
+def test_a_fifo_read_on_every_second_edge_keeps_every_frame_through_stalls(
+        tmp_path: Path, registry: Registry) -> None:
+    path = tmp_path / "gy91-fifo.yaml"
+    text = gy91_text("    interrupt: {chip: gpiochip0, line: 17, edges_per_read: 2}\n")
+    path.write_text(text.replace("      aux: bypass\n", "      aux: bypass\n      read: fifo\n"))
+    stall = HostStall(device="imu", start_s=1.0, stall_s=0.05, every_s=0.5)
+    _, _, summary = _run(load_profile(path, registry), registry, 3.0, faults=[stall],
+                         calibrated=False)
+    counts = summary.triggers["imu"]  # type: ignore[attr-defined]
+    frames = summary.frames["imu"]  # type: ignore[attr-defined]
+    assert frames["delivered"] == frames["produced"]  # the FIFO kept what the stalls held
+    assert counts["reads"] < counts["edges"] // 2 + 1
+    assert counts["edges"] == frames["produced"] and counts["fallbacks"] == 0

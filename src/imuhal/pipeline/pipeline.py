@@ -53,7 +53,7 @@ from imuhal.pipeline.triggers import (
     describe_trigger,
 )
 from imuhal.plugins.manager import Registry
-from imuhal.profile.model import BoardProfile
+from imuhal.profile.model import BoardProfile, InterruptConfig
 from imuhal.profile.topology import chip_to_body_rotations, device_order, split_bus_ref
 from imuhal.sinks.base import Event, Sink
 
@@ -380,9 +380,9 @@ class Pipeline:
         dev.reconfigurations_seen = driver.health.reconfigurations
         self._take_streams(dev)
         if cfg.interrupt is not None and isinstance(dev.trigger, TimerTrigger):
-            dev.trigger = self._line_trigger(dev, cfg.interrupt.watchdog_periods)
+            dev.trigger = self._line_trigger(dev, cfg.interrupt)
 
-    def _line_trigger(self, dev: DeviceRuntime, watchdog_periods: float) -> LineTrigger:
+    def _line_trigger(self, dev: DeviceRuntime, interrupt: InterruptConfig) -> LineTrigger:
         """The data-ready trigger of ``dev``, whose profile names its INT line; its
         watchdog counts the periods of the stream the driver accounts for (else its fastest
         stream)."""
@@ -398,7 +398,8 @@ class Pipeline:
             raise ProfileError(self.profile.name, [
                 f"devices.{dev.name}.interrupt: driver {dev.driver.name!r} states no output "
                 "rate to time the line's watchdog by; remove interrupt: to poll it"])
-        return LineTrigger(line.name, period_ns, watchdog_periods)
+        return LineTrigger(line.name, period_ns, interrupt.watchdog_periods,
+                           interrupt.edges_per_read)
 
     @property
     def streams(self) -> dict[str, tuple[StreamSpec, ...]]:
@@ -508,9 +509,7 @@ class Pipeline:
             samples, next_ns = self._service(dev, t_ns)
             if dev.ledger is not None:
                 self._account(dev)
-            if lines:
-                next_ns = self._next_due(dev, t_ns, next_ns)
-            dev.next_poll_ns = max(next_ns, t_ns + 1)
+            dev.next_poll_ns = max(self._next_due(dev, t_ns, next_ns), t_ns + 1)
             heapq.heappush(heap, (dev.next_poll_ns, rank, name))
             for raw in samples:
                 yield self._process(dev, raw)
@@ -556,6 +555,11 @@ class Pipeline:
             t_ns = self._before_poll(due_ns, name)
             edges += self._waiter.take(name)  # those that came while the host was late
             edge = trigger.took(edges)
+            if edge is None:  # fewer edges than make a read: wait for more
+                dev.next_poll_ns = trigger.watchdog_at_ns
+                heapq.heappush(self._schedule(), (dev.next_poll_ns, self._device_rank[name],
+                                                  name))
+                continue
             if dev.ledger is not None and \
                     max(t_ns, self._span_ns[1]) - due_ns > dev.ledger.period_ns // 2:
                 dev.ledger.note("host_stall")

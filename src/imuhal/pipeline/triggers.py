@@ -194,8 +194,12 @@ class LineTrigger:
 
     mode = "data-ready"
 
-    def __init__(self, line: str, period_ns: int, watchdog_periods: float) -> None:
+    def __init__(self, line: str, period_ns: int, watchdog_periods: float,
+                 edges_per_read: int = 1) -> None:
         self.line = line
+        self.edges_per_read = edges_per_read
+        """Edges counted to one read (a watermark: a chip reading its FIFO in bursts)."""
+        self._pending = 0
         """The line's name (``gpio:///dev/gpiochip0/17``, ``emul://imu/INT``)."""
         self.period_ns = period_ns
         self.watchdog_periods = watchdog_periods
@@ -209,7 +213,8 @@ class LineTrigger:
         self.reads = 0
         """Reads the line triggered (one per wake, with the newest edge's time)."""
         self.overwritten = 0
-        """Edges not read before a newer one came (their samples were overwritten)."""
+        """Edges beyond ``edges_per_read`` at a read (the host came late): a chip that
+        keeps one sample overwrote theirs; a FIFO keeps them."""
         self.lost_edges = 0
         """Edges the kernel numbered but did not queue (its event queue was full)."""
         self.fallbacks = 0
@@ -221,28 +226,35 @@ class LineTrigger:
 
     @property
     def watchdog_ns(self) -> int:
-        """How long the line may stay silent (ns): ``watchdog_periods`` chip periods."""
-        return max(1, round(self.watchdog_periods * self.period_ns))
+        """How long the line may stay silent (ns): ``watchdog_periods`` chip periods, and
+        at least the span of the edges counted to one read."""
+        periods = max(self.watchdog_periods, self.edges_per_read + 1.5)
+        return max(1, round(periods * self.period_ns))
 
     def started(self, t_ns: int) -> int:
         """The device starts at ``t_ns``: the first edge is awaited until the watchdog."""
         self.watchdog_at_ns = t_ns + self.watchdog_ns
         return self.watchdog_at_ns
 
-    def took(self, edges: list[TriggerEdge]) -> TriggerEdge:
-        """Count ``edges`` (oldest first, at least one) for one read; returns the newest,
-        whose time the read's samples carry. Edges bring a fallen-back line back."""
+    def took(self, edges: list[TriggerEdge]) -> TriggerEdge | None:
+        """Count ``edges`` (oldest first, at least one); returns the newest when they make
+        a read (``edges_per_read`` reached: the read's samples carry its time), else None.
+        Edges bring a fallen-back line back and restart the watchdog."""
         for edge in edges:
             self.lost_edges += max(0, edge.seqno - self._last_seqno - 1)
             self._last_seqno = edge.seqno
         self.edges += len(edges)
-        self.overwritten += len(edges) - 1
-        self.reads += 1
         if not self.on_line:
             self.on_line = True
             self.returns += 1
         newest = edges[-1]
         self.watchdog_at_ns = newest.t_ns + self.watchdog_ns
+        self._pending += len(edges)
+        if self._pending < self.edges_per_read:
+            return None
+        self.overwritten += self._pending - self.edges_per_read
+        self._pending = 0
+        self.reads += 1
         return newest
 
     def expired(self, t_ns: int) -> bool:
@@ -270,8 +282,8 @@ class LineTrigger:
     def describe_silence(self) -> str:
         """The watchdog's warning, once per device."""
         return (f"no data-ready edge on {self.line} for {self.watchdog_ns / 1e6:g} ms "
-                f"({self.watchdog_periods:g} periods): polling the chip instead until the "
-                "line's edges come back")
+                f"({self.watchdog_ns / self.period_ns:g} periods): polling the chip instead "
+                "until the line's edges come back")
 
 
 def describe_trigger(counts: Mapping[str, int]) -> str:

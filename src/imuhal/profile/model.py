@@ -66,6 +66,9 @@ class InterruptConfig(_Strict):
     watchdog_periods: float = Field(4.0, ge=1.5, le=100_000)
     """How many of the chip's output periods the line may stay silent before the pipeline
     polls the chip instead (and says so once); 4 at 200 Hz is 20 ms (PX4: 10 ms)."""
+    edges_per_read: int = Field(1, ge=1, le=1000)
+    """Edges counted to one read: a watermark for a chip read in bursts from its FIFO
+    (``read: fifo``, as PX4 counts data-ready edges); 1 reads at every edge."""
 
     @field_validator("chip")
     @classmethod
