@@ -19,7 +19,7 @@ from imuhal.emulation.board import EmulatedBoard
 from imuhal.pipeline.triggers import SelectorWaiter, TriggerEdge
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.bundled import bundled_profiles
-from imuhal.profile.faults import ChipReset, HostStall
+from imuhal.profile.faults import ChipAbsent, ChipReset, HostStall
 from imuhal.profile.loader import check_profile, load_profile
 from imuhal.profile.model import BoardProfile
 from imuhal.sinks import CallbackSink, Event
@@ -242,3 +242,16 @@ def test_a_fifo_read_on_every_second_edge_keeps_every_frame_through_stalls(
     assert frames["delivered"] == frames["produced"]  # the FIFO kept what the stalls held
     assert counts["reads"] < counts["edges"] // 2 + 1
     assert counts["edges"] == frames["produced"] and counts["fallbacks"] == 0
+
+
+def test_an_optional_device_that_joins_late_awaits_its_first_edge_from_then(
+        tmp_path: Path, registry: Registry) -> None:
+    path = tmp_path / "late.yaml"
+    text = gy91_text(INTERRUPT + "    required: false\n")
+    path.write_text(text.replace("    address: 0x0C\n", "    address: 0x0C\n    required: false\n"))
+    unplugged = ChipAbsent(device="imu", start_s=0.0, end_s=1.2)
+    _, _, summary = _run(load_profile(path, registry), registry, 3.0, faults=[unplugged],
+                         calibrated=False)
+    counts = summary.triggers["imu"]  # type: ignore[attr-defined]
+    assert "imu: found at t=2.004 s; it joins the run" in summary.warnings  # type: ignore[attr-defined]
+    assert counts["fallbacks"] == 0 and counts["edges"] == counts["reads"] > 150

@@ -640,7 +640,10 @@ class Pipeline:
             return t_ns + JOIN_RETRY_NS
         self._joined(dev)
         self.warnings.append(f"{dev.name}: found at t={t_ns / 1e9:.3f} s; it joins the run")
-        return dev.driver.start(max(t_ns, self.clock.now_ns()))
+        next_ns = dev.driver.start(max(t_ns, self.clock.now_ns()))
+        if isinstance(dev.trigger, LineTrigger):  # its first edge is awaited from now
+            return dev.trigger.started(max(t_ns, self.clock.now_ns()))
+        return next_ns
 
     def _recover(self, dev: DeviceRuntime, t_ns: int) -> int:
         """Bring a device back after a failed poll. A failed attempt is retried after a
