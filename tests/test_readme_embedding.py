@@ -1,4 +1,5 @@
-"""The README's embedding example runs as written and prints what the README says it does."""
+"""The README's embedding example runs as written and prints what the README says it does,
+figures included."""
 
 from __future__ import annotations
 
@@ -22,12 +23,7 @@ def test_the_embedding_example_labels_each_stream_as_the_readme_shows() -> None:
     with contextlib.redirect_stdout(out):
         exec(compile(code, str(README), "exec"), {})
     printed = out.getvalue().splitlines()
-    # The numbers move whenever a chip model or filter improves; the labels and layout the
-    # README promises must not.
-    assert [_masked(line) for line in printed[-2:]] == \
-        [_masked(line) for line in shown.strip().splitlines()]
     assert {line.split(":")[0].split()[-1] for line in printed} == {"vario", "baro-only"}
-
-
-def _masked(line: str) -> str:
-    return re.sub(r"[+-]?\d+\.\d+", "#", line)
+    # The run is seeded: the README shows its last lines as they are. A chip model or filter
+    # that moves them must update the README (paste the example's last two lines).
+    assert printed[-2:] == shown.strip().splitlines()

@@ -46,7 +46,13 @@ from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
 from imuhal.core.samples import Frame, MagSample, Quantity, SampleFlag
 from imuhal.core.streams import StreamSpec
-from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
+from imuhal.drivers.base import (
+    DeviceIdentity,
+    Driver,
+    DriverSettings,
+    PollResult,
+    SettingsInput,
+)
 from imuhal.drivers.polling import DataReady, PollGrid, ResetWatch, reset_check_field
 from imuhal.drivers.settings import SlaveRead
 from imuhal.drivers.validity import NAN3, FrozenWatch, blank_flag
@@ -89,7 +95,7 @@ class AK8963Driver(Driver):
     setting (14 bits, 0.6 uT/LSB, about 0.3 uT noise: 0.5 LSB per axis) repeats a three-axis
     frame with probability about 0.2; 30 in a row (0.3 s at 100 Hz), about 1e-21 per sample."""
 
-    def __init__(self, link: Link, settings: DriverSettings, *, device: str,
+    def __init__(self, link: Link, settings: SettingsInput, *, device: str,
                  clock: Clock) -> None:
         super().__init__(link, settings, device=device, clock=clock)
         self.settings: AK8963Settings

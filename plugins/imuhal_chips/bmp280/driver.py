@@ -36,7 +36,13 @@ from imuhal.core.samples import (
     TemperatureSample,
 )
 from imuhal.core.streams import StreamSpec
-from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
+from imuhal.drivers.base import (
+    DeviceIdentity,
+    Driver,
+    DriverSettings,
+    PollResult,
+    SettingsInput,
+)
 from imuhal.drivers.polling import PollGrid, ResetWatch
 from imuhal.drivers.validity import FilterMemory, FrozenWatch, iir_memory_outputs
 from imuhal_chips.bmp280 import registers as r
@@ -140,7 +146,7 @@ class BMP280Driver(Driver):
     ``FROZEN_IIR_FACTOR`` times the coefficient (41 samples, 1.6 s at 25 Hz by default)."""
     FROZEN_IIR_FACTOR = 4
 
-    def __init__(self, link: Link, settings: DriverSettings, *, device: str,
+    def __init__(self, link: Link, settings: SettingsInput, *, device: str,
                  clock: Clock) -> None:
         super().__init__(link, settings, device=device, clock=clock)
         self.settings: BMP280Settings
@@ -242,7 +248,7 @@ class BMP280Driver(Driver):
         # passes unchanged and seeds it), so nothing measured before reaches a later output.
         self._memory = FilterMemory({"adc": self.filter_memory_outputs()},
                                     {"adc": self._period_ns})
-        self._last_output: tuple[int, int, int] | None = None
+        self._last_output = None
         self._grid = PollGrid(self._period_ns)
         self._triggered_ns = None
 

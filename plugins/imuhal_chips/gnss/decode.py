@@ -48,9 +48,9 @@ class Fragment:
     """ACK-ACK / ACK-NAK: the (class, id) of the acknowledged message."""
 
 
-def _f(text: object) -> float | None:
+def _f(text: Any) -> float | None:
     try:
-        value = float(text)  # type: ignore[arg-type]
+        value = float(text)
     except (TypeError, ValueError):
         return None
     return value if math.isfinite(value) else None
@@ -95,39 +95,40 @@ def decode_nmea(line: bytes) -> Fragment:
     return frag
 
 
-def _fill(frag: Fragment, msg: object) -> None:
+def _fill(frag: Fragment, msg: Any) -> None:
+    # msg: a pynmea2 sentence, whose fields pynmea2 creates at run time (no types)
     kind = frag.kind
     if kind == "GGA":
         qual = int(getattr(msg, "gps_qual", 0) or 0)
-        frag.time_of_day_s = _tod(msg.timestamp)  # type: ignore[attr-defined]
+        frag.time_of_day_s = _tod(msg.timestamp)
         frag.fix_type = _GGA_FIX.get(qual, FixType.NO_FIX)
-        frag.satellites = int(msg.num_sats or 0)  # type: ignore[attr-defined]
-        frag.hdop = _f(msg.horizontal_dil)  # type: ignore[attr-defined]
+        frag.satellites = int(msg.num_sats or 0)
+        frag.hdop = _f(msg.horizontal_dil)
         if qual:
-            frag.latitude_deg = float(msg.latitude)  # type: ignore[attr-defined]
-            frag.longitude_deg = float(msg.longitude)  # type: ignore[attr-defined]
-            frag.height_msl_m = _f(msg.altitude)  # type: ignore[attr-defined]
-            sep = _f(msg.geo_sep)  # type: ignore[attr-defined]
+            frag.latitude_deg = float(msg.latitude)
+            frag.longitude_deg = float(msg.longitude)
+            frag.height_msl_m = _f(msg.altitude)
+            sep = _f(msg.geo_sep)
             if frag.height_msl_m is not None and sep is not None:
                 frag.height_ellipsoid_m = frag.height_msl_m + sep
     elif kind == "RMC":
-        frag.time_of_day_s = _tod(msg.timestamp)  # type: ignore[attr-defined]
-        frag.day = msg.datestamp  # type: ignore[attr-defined]
-        if msg.status == "A":  # type: ignore[attr-defined]
-            frag.latitude_deg = float(msg.latitude)  # type: ignore[attr-defined]
-            frag.longitude_deg = float(msg.longitude)  # type: ignore[attr-defined]
-            knots = _f(msg.spd_over_grnd)  # type: ignore[attr-defined]
+        frag.time_of_day_s = _tod(msg.timestamp)
+        frag.day = msg.datestamp
+        if msg.status == "A":
+            frag.latitude_deg = float(msg.latitude)
+            frag.longitude_deg = float(msg.longitude)
+            knots = _f(msg.spd_over_grnd)
             frag.ground_speed_m_s = None if knots is None else knots * KNOT_M_S
-            frag.course_deg = _f(msg.true_course)  # type: ignore[attr-defined]
+            frag.course_deg = _f(msg.true_course)
     elif kind == "VTG":
-        knots = _f(msg.spd_over_grnd_kts)  # type: ignore[attr-defined]
+        knots = _f(msg.spd_over_grnd_kts)
         frag.ground_speed_m_s = None if knots is None else knots * KNOT_M_S
-        frag.course_deg = _f(msg.true_track)  # type: ignore[attr-defined]
+        frag.course_deg = _f(msg.true_track)
     elif kind == "GSA":
-        mode = int(msg.mode_fix_type or 1)  # type: ignore[attr-defined]
+        mode = int(msg.mode_fix_type or 1)
         frag.fix_type = {1: FixType.NO_FIX, 2: FixType.FIX_2D, 3: FixType.FIX_3D}.get(
             mode, FixType.NO_FIX)
-        frag.hdop = _f(msg.hdop)  # type: ignore[attr-defined]
+        frag.hdop = _f(msg.hdop)
 
 
 def decode_ubx(frame: bytes) -> Fragment:

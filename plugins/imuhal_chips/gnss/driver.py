@@ -37,7 +37,13 @@ from imuhal.core.samples import (
     VelocitySample,
 )
 from imuhal.core.streams import StreamSpec, TimeSource
-from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
+from imuhal.drivers.base import (
+    DeviceIdentity,
+    Driver,
+    DriverSettings,
+    PollResult,
+    SettingsInput,
+)
 from imuhal_chips.gnss.decode import DecodeError, Fragment, decode_nmea, decode_ubx
 from imuhal_chips.gnss.framing import StreamSplitter
 from imuhal_chips.gnss.ubx import CFG_MSG, CFG_RATE, NMEA_IDS, UBX_NAV_PVT, cfg_msg, cfg_rate
@@ -109,7 +115,7 @@ class GnssDriver(Driver):
     channels: ClassVar[tuple[Quantity, ...]] = (Quantity.POSITION, Quantity.VELOCITY)
     bus_kinds: ClassVar[frozenset[BusKind]] = frozenset({BusKind.SERIAL})
 
-    def __init__(self, link: Link, settings: DriverSettings, *, device: str,
+    def __init__(self, link: Link, settings: SettingsInput, *, device: str,
                  clock: Clock) -> None:
         super().__init__(link, settings, device=device, clock=clock)
         self.settings: GnssSettings
@@ -406,19 +412,7 @@ class GnssDriver(Driver):
         epoch, self._epoch = self._epoch, None
         if epoch is None:
             return []
-        merged = Fragment(kind="epoch")
-        for part in epoch.parts:
-            for name in ("day", "latitude_deg", "longitude_deg", "height_msl_m", "satellites",
-                         "hdop", "ground_speed_m_s", "course_deg", "velocity_ned_m_s",
-                         "horizontal_accuracy_m", "vertical_accuracy_m",
-                         "speed_accuracy_m_s"):
-                value = getattr(part, name)
-                if value is not None:
-                    setattr(merged, name, value)
-            # GGA says fix or not, GSA says 2D or 3D: the more specific one wins.
-            if part.fix_type is not None and (merged.fix_type is None
-                                              or part.kind in ("GSA", "NAV-PVT")):
-                merged.fix_type = part.fix_type
+        merged = _merge(epoch.parts)
         self.stats.epochs += 1
         t_ns = self._epoch_time_ns(epoch)
         fix = merged.fix_type if merged.fix_type is not None else FixType.NO_FIX
@@ -433,16 +427,8 @@ class GnssDriver(Driver):
             return out
         height = merged.height_msl_m
         velocity = merged.velocity_ned_m_s
-        if velocity is None and merged.ground_speed_m_s is not None and \
-                merged.course_deg is not None and height is not None:
-            # NMEA has no vertical velocity: it is the change of the GGA height between
-            # consecutive epochs (what NMEA-only flight apps do).
-            prev, self._prev_height = self._prev_height, (t_ns, height)
-            if prev is not None and t_ns > prev[0]:
-                down = -(height - prev[1]) / ((t_ns - prev[0]) / 1e9)
-                c = math.radians(merged.course_deg)
-                g = merged.ground_speed_m_s
-                velocity = (g * math.cos(c), g * math.sin(c), down)
+        if velocity is None:
+            velocity = self._nmea_velocity(merged, t_ns)
         if velocity is not None and has_fix:
             # Before the position: a consumer of the fix then has the same epoch's velocity.
             out.append(VelocitySample(t_ns=t_ns, device=self.device,
@@ -459,8 +445,45 @@ class GnssDriver(Driver):
             utc_s=_utc_s(merged.day, epoch.time_of_day_s)))
         return out
 
+    def _nmea_velocity(self, merged: Fragment,
+                       t_ns: int) -> tuple[float, float, float] | None:
+        """NED velocity (m/s) from NMEA's ground speed and course; NMEA has no vertical
+        velocity: it is the change of the GGA height between consecutive epochs (what
+        NMEA-only flight apps do). None without the parts or before the second epoch."""
+        height = merged.height_msl_m
+        if merged.ground_speed_m_s is None or merged.course_deg is None or height is None:
+            return None
+        prev, self._prev_height = self._prev_height, (t_ns, height)
+        if prev is None or t_ns <= prev[0]:
+            return None
+        down = -(height - prev[1]) / ((t_ns - prev[0]) / 1e9)
+        c = math.radians(merged.course_deg)
+        g = merged.ground_speed_m_s
+        return (g * math.cos(c), g * math.sin(c), down)
+
     def start(self, now_ns: int) -> int:
         return now_ns
+
+
+MERGED_FIELDS = ("day", "latitude_deg", "longitude_deg", "height_msl_m", "satellites", "hdop",
+                 "ground_speed_m_s", "course_deg", "velocity_ned_m_s", "horizontal_accuracy_m",
+                 "vertical_accuracy_m", "speed_accuracy_m_s")
+"""The fragment fields an epoch takes from its sentences or messages (a later one wins)."""
+
+
+def _merge(parts: list[Fragment]) -> Fragment:
+    """One fragment holding what an epoch's parts said."""
+    merged = Fragment(kind="epoch")
+    for part in parts:
+        for name in MERGED_FIELDS:
+            value = getattr(part, name)
+            if value is not None:
+                setattr(merged, name, value)
+        # GGA says fix or not, GSA says 2D or 3D: the more specific one wins.
+        if part.fix_type is not None and (merged.fix_type is None
+                                          or part.kind in ("GSA", "NAV-PVT")):
+            merged.fix_type = part.fix_type
+    return merged
 
 
 def _utc_s(day: date | None, time_of_day_s: float) -> float | None:

@@ -43,7 +43,13 @@ from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError, ConfigurationError, DeviceNotFoundError, NackError
 from imuhal.core.samples import Frame, MagSample, Quantity, Sample, SampleFlag
 from imuhal.core.streams import StreamSpec
-from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
+from imuhal.drivers.base import (
+    DeviceIdentity,
+    Driver,
+    DriverSettings,
+    PollResult,
+    SettingsInput,
+)
 from imuhal.drivers.polling import (
     STALE_AFTER_PERIODS,
     DataReady,
@@ -99,11 +105,11 @@ def unchanged_periods(gain_lsb_per_gauss: float) -> int:
 class Hmc5883lSettings(DriverSettings):
     """HMC5883L settings; defaults are the seed's: +/-1.3 Ga, 75 Hz, 8-sample average."""
 
-    range_gauss: table_setting(RANGE_GAUSS, "Ga") = 1.3  # type: ignore[valid-type]
+    range_gauss: table_setting(RANGE_GAUSS, "Ga") = 1.3  # type: ignore[valid-type]  # an Annotated type a function builds (allowed values): pydantic reads it, mypy cannot
     """Field range +/- gauss: 0.88, 1.3, 1.9, 2.5, 4.0, 4.7, 5.6, 8.1 (sets the gain)."""
-    odr_hz: table_setting(ODR_HZ, "Hz") = 75  # type: ignore[valid-type]
+    odr_hz: table_setting(ODR_HZ, "Hz") = 75  # type: ignore[valid-type]  # an Annotated type a function builds (allowed values): pydantic reads it, mypy cannot
     """Continuous-mode output rate, Hz: 0.75, 1.5, 3, 7.5, 15, 30, 75."""
-    averaging: table_setting(AVERAGING, "samples", kind=int) = 8  # type: ignore[valid-type]
+    averaging: table_setting(AVERAGING, "samples", kind=int) = 8  # type: ignore[valid-type]  # an Annotated type a function builds (allowed values): pydantic reads it, mypy cannot
     """Samples averaged per output: 1, 2, 4, 8."""
     reset_check_s: float = reset_check_field()
     """How often (s) the configuration is read back to catch a silent chip reset."""
@@ -125,10 +131,10 @@ class Hmc5883lDriver(Driver):
     settings: Hmc5883lSettings
 
     def __init__(
-        self, link: Link, settings: DriverSettings | dict[str, object], *, device: str,
+        self, link: Link, settings: SettingsInput, *, device: str,
         clock: Clock,
     ) -> None:
-        super().__init__(link, settings, device=device, clock=clock)  # type: ignore[arg-type]
+        super().__init__(link, settings, device=device, clock=clock)
         self.gain_lsb_per_gauss: float | None = None
         self._expected = b""
         self._streams: tuple[StreamSpec, ...] = ()

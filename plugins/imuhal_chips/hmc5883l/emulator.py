@@ -83,7 +83,8 @@ def _register_bytes(x: int, y: int, z: int) -> bytes:
     return b"".join(v.to_bytes(2, "big", signed=True) for v in (x, z, y))
 
 
-_WRITE_MASKS = {Reg.CONFIG_A: CRA_WRITABLE, Reg.CONFIG_B: CRB_WRITABLE, Reg.MODE: MODE_WRITABLE}
+_WRITE_MASKS: dict[int, int] = {Reg.CONFIG_A: CRA_WRITABLE, Reg.CONFIG_B: CRB_WRITABLE,
+                                Reg.MODE: MODE_WRITABLE}
 _DATA = range(DATA_FIRST, DATA_LAST + 1)
 
 

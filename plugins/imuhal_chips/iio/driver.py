@@ -27,6 +27,7 @@ from __future__ import annotations
 import re
 import statistics
 from collections import defaultdict
+from collections.abc import Sequence
 from dataclasses import dataclass
 from itertools import pairwise
 from typing import ClassVar
@@ -46,9 +47,17 @@ from imuhal.core.samples import (
     Quantity,
     Sample,
     TemperatureSample,
+    Vec3,
 )
 from imuhal.core.streams import StreamSpec, TimeSource
-from imuhal.drivers.base import DeviceHealth, DeviceIdentity, Driver, DriverSettings, PollResult
+from imuhal.drivers.base import (
+    DeviceHealth,
+    DeviceIdentity,
+    Driver,
+    DriverSettings,
+    PollResult,
+    SettingsInput,
+)
 from imuhal_chips.iio.scan import ScanElement, layout, parse_scan_type
 
 MAX_DEVICES = 64
@@ -134,7 +143,7 @@ class IIODriver(Driver):
 
     settings: IIODriverSettings
 
-    def __init__(self, link: Link, settings: DriverSettings, *, device: str,
+    def __init__(self, link: Link, settings: SettingsInput, *, device: str,
                  clock: Clock) -> None:
         super().__init__(link, settings, device=device, clock=clock)
         self._dev: Link | None = None
@@ -421,14 +430,19 @@ class IIODriver(Driver):
         out: list[Sample] = []
         d = self.device
         if "accel" in values:
-            out.append(AccelSample(t_ns=t_ns, device=d, accel_m_s2=tuple(values["accel"])))
+            out.append(AccelSample(t_ns=t_ns, device=d, accel_m_s2=_vec3(values["accel"])))
         if "anglvel" in values:
-            out.append(GyroSample(t_ns=t_ns, device=d, gyro_rad_s=tuple(values["anglvel"])))
+            out.append(GyroSample(t_ns=t_ns, device=d, gyro_rad_s=_vec3(values["anglvel"])))
         if "magn" in values:
-            out.append(MagSample(t_ns=t_ns, device=d, mag_ut=tuple(values["magn"])))
+            out.append(MagSample(t_ns=t_ns, device=d, mag_ut=_vec3(values["magn"])))
         if "pressure" in values:
             out.append(PressureSample(t_ns=t_ns, device=d, pressure_pa=values["pressure"][0]))
         if "temp" in values:
             out.append(TemperatureSample(t_ns=t_ns, device=d,
                                          temperature_degc=values["temp"][0]))
         return out
+
+
+def _vec3(v: Sequence[float]) -> Vec3:
+    """A scan's three components as a sample's vector."""
+    return (v[0], v[1], v[2])

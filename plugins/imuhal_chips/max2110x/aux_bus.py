@@ -115,7 +115,7 @@ class Max21100AuxBus(Bus):
                 # retried() written out for the one step run once per slave byte read
                 for attempt in range(ONESHOT_ATTEMPTS, 0, -1):
                     try:
-                        data.append(read(register, frames))
+                        data.append(read(register, frames))  # type: ignore[arg-type]  # frames is read whenever read_len > 0, which this loop needs
                         break
                     except NackError:
                         raise

@@ -31,7 +31,12 @@ from imuhal.core.samples import (
     TemperatureSample,
 )
 from imuhal.core.streams import StreamSpec
-from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
+from imuhal.drivers.base import (
+    DeviceIdentity,
+    Driver,
+    PollResult,
+    SettingsInput,
+)
 from imuhal.drivers.polling import DataReady, PollGrid, ResetWatch
 from imuhal.drivers.validity import (
     NAN3,
@@ -111,10 +116,10 @@ class Max2110xDriver(Driver):
     settings: Max2110xSettings
 
     def __init__(
-        self, link: Link, settings: DriverSettings | dict[str, object], *, device: str,
+        self, link: Link, settings: SettingsInput, *, device: str,
         clock: Clock,
     ) -> None:
-        super().__init__(link, settings, device=device, clock=clock)  # type: ignore[arg-type]
+        super().__init__(link, settings, device=device, clock=clock)
         self.regs = RegisterView(link, convention_for(link.kind))
         self.scales: Scales | None = None
         self._expected: dict[int, int] = {}
@@ -340,44 +345,60 @@ class Max2110xDriver(Driver):
             bad = self._frozen_flag(raw)
         gx, gy, gz, ax, ay, az = _SIX_WORDS.unpack_from(raw, 1)
         samples: list[Sample] = []
-        stale = False
-        ready_of = self._ready
-        if gyro_ready and not bad:
-            ready_of.fresh(Quantity.GYRO, now_ns)
-            samples.append(self._gyro_sample((gx, gy, gz), now_ns, SampleFlag.OK))
-        elif ready_of.overdue(Quantity.GYRO, now_ns) or (gyro_ready and bad):
-            stale = True
-            flag = bad if gyro_ready else SampleFlag.STALE | bad
-            samples.append(self._gyro_sample((gx, gy, gz), now_ns, flag))
-        if accel_ready and not bad:
-            ready_of.fresh(Quantity.ACCEL, now_ns)
-            samples.append(self._accel_sample((ax, ay, az), now_ns, SampleFlag.OK))
-        elif ready_of.overdue(Quantity.ACCEL, now_ns) or (accel_ready and bad):
-            stale = True
-            flag = bad if accel_ready else SampleFlag.STALE | bad
-            samples.append(self._accel_sample((ax, ay, az), now_ns, flag))
+        gyro_flag = self._flag_of(Quantity.GYRO, gyro_ready, bad, now_ns)
+        if gyro_flag is not None:
+            samples.append(self._gyro_sample((gx, gy, gz), now_ns, gyro_flag))
+        accel_flag = self._flag_of(Quantity.ACCEL, accel_ready, bad, now_ns)
+        if accel_flag is not None:
+            samples.append(self._accel_sample((ax, ay, az), now_ns, accel_flag))
+        stale = bool(gyro_flag) or bool(accel_flag)
         if gyro_ready and (
             self._last_temp_ns is None or now_ns - self._last_temp_ns >= TEMPERATURE_PERIOD_NS
         ):
             self._last_temp_ns = now_ns
             samples.append(self._temperature_sample(be_int16(raw, len(raw) - 2), now_ns, bad))
         if stale:
-            if self._watch.check_due(now_ns, overdue=True) and self._config_lost():
-                return PollResult(samples, self.restart(reset_detected=True))
-            if self._watch.stale_poll():
-                return PollResult(samples, self.restart(reset_detected=False))
-            return PollResult(samples, self._grid.next_after(now_ns))
+            return PollResult(samples, self._after_stale(now_ns))
         self._watch.fresh_poll()
         fast_ready = gyro_ready if self._fast is Quantity.GYRO else accel_ready
-        if fast_ready and status & _OVERRUN:
+        return PollResult(samples, self._next_poll_ns(now_ns, bool(fast_ready),
+                                                      bool(status & _OVERRUN)))
+
+    def _flag_of(self, channel: Quantity, ready: int, bad: SampleFlag,
+                 now_ns: int) -> SampleFlag | None:
+        """The flags of ``channel``'s sample in this burst (OK: new data), or None when it
+        has none to report: not ready, and not yet overdue. A ready sample in a bad burst
+        keeps the burst's flags; an overdue one is STALE as well."""
+        if ready and not bad:
+            self._ready.fresh(channel, now_ns)
+            return SampleFlag.OK
+        if ready:
+            return bad
+        if self._ready.overdue(channel, now_ns):
+            return SampleFlag.STALE | bad
+        return None
+
+    def _after_stale(self, now_ns: int) -> int:
+        """A poll that reported stale or bad data: the configuration is checked when due,
+        and the chip restarted after too many such polls; else the next point of the grid."""
+        if self._watch.check_due(now_ns, overdue=True) and self._config_lost():
+            return self.restart(reset_detected=True)
+        if self._watch.stale_poll():
+            return self.restart(reset_detected=False)
+        return self._grid.next_after(now_ns)
+
+    def _next_poll_ns(self, now_ns: int, fast_ready: bool, overrun: bool) -> int:
+        """Keeps the polls phase-locked just after the fastest channel's measurements: an
+        overrun moves the grid half a period earlier, data found after a search re-anchors
+        it, no data retries a guard later."""
+        if fast_ready and overrun:
             self._grid.anchor(now_ns - self._grid.period_ns // 2)
         elif fast_ready and self._searching:
             self._grid.locate(now_ns)
-        self._searching = False
+        self._searching = not fast_ready
         if not fast_ready:
-            self._searching = True
-            return PollResult(samples, now_ns + self._grid.guard_ns)
-        return PollResult(samples, self._grid.next_after(now_ns))
+            return now_ns + self._grid.guard_ns
+        return self._grid.next_after(now_ns)
 
     def accounted_stream(self) -> tuple[Quantity, int] | None:
         """The faster of gyro and accelerometer, one frame per its output period."""
@@ -471,7 +492,7 @@ class Max21100Driver(Max2110xDriver):
         "aux": frozenset({AUTO_READ})}
 
     def __init__(
-        self, link: Link, settings: DriverSettings | dict[str, object], *, device: str,
+        self, link: Link, settings: SettingsInput, *, device: str,
         clock: Clock,
     ) -> None:
         super().__init__(link, settings, device=device, clock=clock)

@@ -384,8 +384,16 @@ class Max2110xEmulator(ChipEmulator):
             if not spi:
                 self._i2c_pointer = reg | (first & NO_INCREMENT_BIT)
             return bytes(read_len) if spi else b""
-        # Reads have no side effects, so a burst is served as a slice of the register
-        # image; one register (status polls, the aux master's data) is read directly.
+        out = self._read_burst(reg, read_len, step)
+        if not spi:
+            self._i2c_pointer = ((reg + read_len * step) & ADDRESS_MASK) | (
+                first & NO_INCREMENT_BIT)
+        return out
+
+    def _read_burst(self, reg: int, read_len: int, step: int) -> bytes:
+        """``read_len`` bytes from ``reg`` on, the pointer moving by ``step`` (0 or 1) after
+        each. Reads have no side effects, so a burst is served as a slice of the register
+        image; one register (status polls, the aux master's data) is read directly."""
         touched: Sequence[int]
         if read_len <= 1 or not step:
             touched = (reg,) if read_len else ()
@@ -398,9 +406,6 @@ class Max2110xEmulator(ChipEmulator):
             image = self._image()
             out = bytes([image[r] for r in touched])
         self._after_read(touched)
-        if not spi:
-            self._i2c_pointer = ((reg + read_len * step) & ADDRESS_MASK) | (
-                first & NO_INCREMENT_BIT)
         return out
 
     def _image(self) -> bytes:

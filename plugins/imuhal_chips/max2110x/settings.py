@@ -31,16 +31,16 @@ class Max2110xSettings(DriverSettings):
     renamed: ClassVar[dict[str, str]] = {
         "gyro_bandwidth_hz": "gyro_lpf_hz", "accel_lpf": "accel_lpf_divisor"}
 
-    gyro_range_dps: table_setting(GYRO_RANGE_DPS, "dps", kind=int) = 500  # type: ignore[valid-type]
+    gyro_range_dps: table_setting(GYRO_RANGE_DPS, "dps", kind=int) = 500  # type: ignore[valid-type]  # an Annotated type a function builds (allowed values): pydantic reads it, mypy cannot
     """Gyro full scale, +/- deg/s: 250, 500, 1000, 2000."""
-    gyro_lpf_hz: table_setting(GYRO_BANDWIDTH_HZ, "Hz") = 14  # type: ignore[valid-type]
+    gyro_lpf_hz: table_setting(GYRO_BANDWIDTH_HZ, "Hz") = 14  # type: ignore[valid-type]  # an Annotated type a function builds (allowed values): pydantic reads it, mypy cannot
     """Gyro low-pass bandwidth, Hz: 2, 4, 6, 8, 10, 14, 22, 32, 50, 75, 100, 150, 200, 250,
     300, 400."""
     gyro_odr_hz: float = 250
     """Gyro output data rate, Hz (part-specific table, set by each part's subclass)."""
-    accel_range_g: table_setting(ACCEL_RANGE_G, "g", kind=int) = 4  # type: ignore[valid-type]
+    accel_range_g: table_setting(ACCEL_RANGE_G, "g", kind=int) = 4  # type: ignore[valid-type]  # an Annotated type a function builds (allowed values): pydantic reads it, mypy cannot
     """Accelerometer full scale, +/- g: 2, 4, 8, 16."""
-    accel_lpf_divisor: table_setting(ACCEL_LPF_DIVISOR, "",  # type: ignore[valid-type]
+    accel_lpf_divisor: table_setting(ACCEL_LPF_DIVISOR, "",  # type: ignore[valid-type]  # an Annotated type a function builds (allowed values): pydantic reads it, mypy cannot
                                      kind=int, label="accel_lpf_divisor (ODR divisor)") = 48
     """Accelerometer low-pass cutoff as the ODR divisor (ODR/48, /22, /9, /3)."""
     accel_odr_hz: float = 250
@@ -59,8 +59,8 @@ class Max21100Settings(Max2110xSettings):
 
     part: ClassVar[PartSpec] = MAX21100
 
-    gyro_odr_hz: _odr(MAX21100, "gyro") = 250  # type: ignore[valid-type]
-    accel_odr_hz: _odr(MAX21100, "accel") = 250  # type: ignore[valid-type]
+    gyro_odr_hz: _odr(MAX21100, "gyro") = 250  # type: ignore[valid-type]  # an Annotated type a function builds (allowed values): pydantic reads it, mypy cannot
+    accel_odr_hz: _odr(MAX21100, "accel") = 250  # type: ignore[valid-type]  # an Annotated type a function builds (allowed values): pydantic reads it, mypy cannot
 
 
 class Max21105Settings(Max2110xSettings):
@@ -68,8 +68,8 @@ class Max21105Settings(Max2110xSettings):
 
     part: ClassVar[PartSpec] = MAX21105
 
-    gyro_range_dps: table_setting(GYRO_RANGE_DPS, "dps", kind=int) = 1000  # type: ignore[valid-type]
-    gyro_lpf_hz: table_setting(GYRO_BANDWIDTH_HZ, "Hz") = 10  # type: ignore[valid-type]
-    gyro_odr_hz: _odr(MAX21105, "gyro") = 200  # type: ignore[valid-type]
-    accel_range_g: table_setting(ACCEL_RANGE_G, "g", kind=int) = 8  # type: ignore[valid-type]
-    accel_odr_hz: _odr(MAX21105, "accel") = 200  # type: ignore[valid-type]
+    gyro_range_dps: table_setting(GYRO_RANGE_DPS, "dps", kind=int) = 1000  # type: ignore[valid-type]  # an Annotated type a function builds (allowed values): pydantic reads it, mypy cannot
+    gyro_lpf_hz: table_setting(GYRO_BANDWIDTH_HZ, "Hz") = 10  # type: ignore[valid-type]  # an Annotated type a function builds (allowed values): pydantic reads it, mypy cannot
+    gyro_odr_hz: _odr(MAX21105, "gyro") = 200  # type: ignore[valid-type]  # an Annotated type a function builds (allowed values): pydantic reads it, mypy cannot
+    accel_range_g: table_setting(ACCEL_RANGE_G, "g", kind=int) = 8  # type: ignore[valid-type]  # an Annotated type a function builds (allowed values): pydantic reads it, mypy cannot
+    accel_odr_hz: _odr(MAX21105, "accel") = 200  # type: ignore[valid-type]  # an Annotated type a function builds (allowed values): pydantic reads it, mypy cannot

@@ -42,7 +42,13 @@ from imuhal.core.samples import (
     TemperatureSample,
 )
 from imuhal.core.streams import StreamSpec
-from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
+from imuhal.drivers.base import (
+    DeviceIdentity,
+    Driver,
+    DriverSettings,
+    PollResult,
+    SettingsInput,
+)
 from imuhal.drivers.polling import DataReady, PollGrid, ResetWatch, reset_check_field
 from imuhal.drivers.validity import (
     NAN3,
@@ -170,7 +176,7 @@ class MPU9250Driver(Driver):
     TEMPERATURE_RANGE_DEGC = (-40.0, 85.0)
     """Operating range of the die; a temperature word outside it is not a real reading."""
 
-    def __init__(self, link: Link, settings: DriverSettings, *, device: str,
+    def __init__(self, link: Link, settings: SettingsInput, *, device: str,
                  clock: Clock) -> None:
         super().__init__(link, settings, device=device, clock=clock)
         self.settings: MPU9250Settings

@@ -279,45 +279,45 @@ class AhrsEstimator(Estimator):
         if kind is AccelSample:
             # the most frequent non-gyro sample, on its own path: its field read directly
             # (the ``vector`` property is a call), one bound check per component
-            if item.flags != _OK:
+            if item.flags != _OK:  # type: ignore[union-attr]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
                 self._counters["invalid"][_ACCEL] += 1
                 return []
-            x, y, z = item.accel_m_s2  # type: ignore[union-attr]
+            x, y, z = item.accel_m_s2  # type: ignore[union-attr]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
             fs = self._accel_fs
             if not (-fs <= x <= fs and -fs <= y <= fs and -fs <= z <= fs):
                 self._reject(_ACCEL)  # NaN and +-inf fail the comparisons too
                 return []
-            if item.frame is not _BODY_NED:  # type: ignore[union-attr]
-                return self._wrong_frame(item)  # type: ignore[arg-type]
+            if item.frame is not _BODY_NED:  # type: ignore[union-attr]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
+                return self._wrong_frame(item)  # type: ignore[arg-type]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
             self._accel_m_s2, self._accel_t_ns = (float(x), float(y), float(z)), item.t_ns
             return []
         if kind is MagSample:
-            if item.flags != _OK:
+            if item.flags != _OK:  # type: ignore[union-attr]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
                 self._counters["invalid"][_MAG] += 1
                 return []
-            x, y, z = item.mag_ut  # type: ignore[union-attr]
+            x, y, z = item.mag_ut  # type: ignore[union-attr]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
             # the magnetometer's scale is unbounded: only finite (NaN fails every test)
             if not (abs(x) < _INF and abs(y) < _INF and abs(z) < _INF):
                 self._reject(_MAG)
                 return []
-            if item.frame is not _BODY_NED:  # type: ignore[union-attr]
-                return self._wrong_frame(item)  # type: ignore[arg-type]
+            if item.frame is not _BODY_NED:  # type: ignore[union-attr]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
+                return self._wrong_frame(item)  # type: ignore[arg-type]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
             if self.uses_mag:
                 self._mag_ut, self._mag_t_ns = (float(x), float(y), float(z)), item.t_ns
             return []
         if kind is GyroSample:
-            if item.flags != _OK:
-                return self._flagged_gyro(item)  # type: ignore[arg-type]
-            x, y, z = item.gyro_rad_s  # type: ignore[union-attr]
+            if item.flags != _OK:  # type: ignore[union-attr]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
+                return self._flagged_gyro(item)  # type: ignore[arg-type]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
+            x, y, z = item.gyro_rad_s  # type: ignore[union-attr]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
             fs = self._gyro_fs
             if not (-fs <= x <= fs and -fs <= y <= fs and -fs <= z <= fs):
                 self._reject(_GYRO)
                 return []
-            if item.frame is not _BODY_NED:  # type: ignore[union-attr]
-                return self._wrong_frame(item)  # type: ignore[arg-type]
+            if item.frame is not _BODY_NED:  # type: ignore[union-attr]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
+                return self._wrong_frame(item)  # type: ignore[arg-type]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
             if self._recovery_left_s > 0.0:
-                return self._recovering(item, (float(x), float(y), float(z)))  # type: ignore[arg-type]
-            return self._on_gyro(item, (float(x), float(y), float(z)))  # type: ignore[arg-type]
+                return self._recovering(item, (float(x), float(y), float(z)))  # type: ignore[arg-type]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
+            return self._on_gyro(item, (float(x), float(y), float(z)))  # type: ignore[arg-type]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
         return self._process_general(item)
 
     # ------------------------------------------------------------------ angular-rate recovery
@@ -711,7 +711,7 @@ class AhrsEstimator(Estimator):
             self._counters["steps"] += 1
             diag = self._compiled_step(rate, accel, mag, dt, accel)
             return [AttitudeEstimate.build(t_ns, self.instance, self._q,
-                                           None if accel is None else self._linear_ned, diag)]
+                                           None if accel is None else self._linear_ned, diag)]  # type: ignore[arg-type]  # aligned (checked above): a kernel step then always returns diagnostics
         diag = self._run_step(t_ns, rate, accel, mag, dt)
         if diag is None:
             return []

@@ -58,7 +58,7 @@ def run_batch(
     update = estimator.update
     for i, (g, a, m, dt) in enumerate(zip(gyro.tolist(), accel_rows, mag_rows, dts.tolist(),
                                           strict=True)):
-        q = update(g, a, m, dt)
+        q = update(g, a, m, dt)  # type: ignore[assignment]  # update returns None only for a row it skips, tested before the store
         if q is not None:
             out[i] = q
     return out
@@ -67,7 +67,7 @@ def run_batch(
 def _rows(values: FloatArray) -> list[tuple[float, ...] | None]:
     """Each row as a tuple, None where any component is NaN ("no sample this step")."""
     missing = np.isnan(values).any(axis=1).tolist()
-    return [None if gap else tuple(row) for row, gap in zip(values.tolist(), missing,
+    return [None if gap else tuple(row) for row, gap in zip(values.tolist(), missing,  # type: ignore[arg-type]  # numpy's stubs type .tolist() of a bool array as bool
                                                              strict=True)]
 
 

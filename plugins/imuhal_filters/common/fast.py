@@ -203,7 +203,7 @@ class Kernel:
         if self.args is not None:
             self.check(args)
         fn = choice.function if choice.backend == "aot" else _jitted(self)
-        return fn(*args)
+        return fn(*args)  # type: ignore[misc]  # an 'aot' choice always carries its loaded function
 
 
 @dataclass(frozen=True)

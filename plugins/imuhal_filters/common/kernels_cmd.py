@@ -69,5 +69,5 @@ def status() -> int:
 
 
 @hookimpl
-def imuhal_register_commands(register: Registrar) -> None:  # type: ignore[type-arg]
+def imuhal_register_commands(register: Registrar) -> None:
     register(KernelsCommand)

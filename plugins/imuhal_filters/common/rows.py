@@ -55,7 +55,7 @@ def _within(values: FloatArray, full_scale: float) -> np.ndarray:
     inside = np.abs(values) <= full_scale  # NaN fails; so does inf below an infinite scale
     if math.isinf(full_scale):
         inside &= np.isfinite(values)
-    return inside.all(axis=1)
+    return inside.all(axis=1)  # type: ignore[return-value]  # numpy's stubs widen a reduction over an axis to a scalar
 
 
 def _count(est: AhrsEstimator, channel: str, n: int) -> None:
@@ -86,7 +86,7 @@ def update_rows(est: AhrsEstimator, gyro: FloatArray, accel: FloatArray | None,
             a = np.where(ok[:, None], a, np.nan)
     if mag is not None and est.uses_mag:
         m = mag[idx]
-        ok = np.isfinite(m).all(axis=1)
+        ok = np.isfinite(m).all(axis=1)  # type: ignore[assignment]  # numpy's stubs widen a reduction over an axis to a scalar
         if not ok.all():
             m = np.where(ok[:, None], m, np.nan)
     return StepRows(np.arange(n)[idx], None, _c(g), _c(a, m_rows), _c(m, m_rows), _c(step_dts))
@@ -115,8 +115,8 @@ def process_rows(est: AhrsEstimator, rows: ImuRows) -> StepRows:
     # the runner feeds magnetometer samples only to an estimator that consumes them
     fed_mag = rows.mag_ut is not None and issubclass(MagSample, tuple(est.consumes))
     if fed_mag:
-        present = ~np.isnan(rows.mag_ut[:, 0])
-        m_ok = present & np.isfinite(rows.mag_ut).all(axis=1)
+        present = ~np.isnan(rows.mag_ut[:, 0])  # type: ignore[index]  # fed_mag (tested above) implies rows.mag_ut is not None
+        m_ok = present & np.isfinite(rows.mag_ut).all(axis=1)  # type: ignore[arg-type]  # fed_mag (tested above) implies rows.mag_ut is not None
         _count(est, Quantity.MAG.value, int(np.count_nonzero(present & ~m_ok)))
     _count(est, Quantity.GYRO.value, int(n - np.count_nonzero(g_ok)))
     idx = np.flatnonzero(g_ok)
@@ -125,7 +125,7 @@ def process_rows(est: AhrsEstimator, rows: ImuRows) -> StepRows:
     mag = np.full((len(idx), 3), np.nan)
     if est.uses_mag:  # process() holds no magnetometer for a filter that uses none
         values = rows.mag_ut if fed_mag else np.zeros((n, 3))
-        mag = _held(est, values, m_ok, rownum, t, idx, t_step, "mag", "stale_mag")
+        mag = _held(est, values, m_ok, rownum, t, idx, t_step, "mag", "stale_mag")  # type: ignore[arg-type]  # fed_mag (tested above) implies rows.mag_ut is not None
     dts = _step_lengths(est, t_step)
     if len(idx):
         est._last_gyro_t_ns = int(t_step[-1])
@@ -179,7 +179,7 @@ def _step_lengths(est: AhrsEstimator, t_step: np.ndarray) -> FloatArray:
     prev = np.empty(m, dtype=np.int64)
     prev[1:] = t_step[:-1]
     first_known = est._last_gyro_t_ns is not None
-    prev[0] = est._last_gyro_t_ns if first_known else t_step[0]
+    prev[0] = est._last_gyro_t_ns if first_known else t_step[0]  # type: ignore[assignment]  # first_known (tested on the same line) excludes None
     dt = (t_step - prev) * _NS
     bad = ~((dt > 0.0) & (dt <= s.max_dt_s))
     if not first_known:
@@ -187,4 +187,4 @@ def _step_lengths(est: AhrsEstimator, t_step: np.ndarray) -> FloatArray:
         dt[0] = nominal
     est._counters["dt_fallbacks"] += int(np.count_nonzero(bad))
     dt[bad] = nominal
-    return dt
+    return dt  # type: ignore[return-value]  # numpy's stubs widen float64 arithmetic to floating[Any]

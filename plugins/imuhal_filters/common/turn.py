@@ -320,7 +320,7 @@ def _solve3(a: tuple[tuple[float, float, float], ...], b: tuple[float, float, fl
     out = []
     for col in range(3):
         m = tuple(tuple(b[r] if c == col else a[r][c] for c in range(3)) for r in range(3))
-        out.append(det(m) / d)
+        out.append(det(m) / d)  # type: ignore[arg-type]  # three rows of three, built by the comprehension from 3x3 inputs
     return out[0], out[1], out[2]
 
 

@@ -150,7 +150,7 @@ class DecoupledEstimator(AhrsEstimator):
         "VQF-style AHRS: inertial-frame accel filtering, rest gyro bias, separate heading "
         "with magnetic disturbance rejection; offline forward-backward mode"
     )
-    Settings: ClassVar[type[DecoupledSettings]] = DecoupledSettings  # type: ignore[assignment]
+    Settings: ClassVar[type[DecoupledSettings]] = DecoupledSettings
     settings: DecoupledSettings
 
     def _reset_filter(self) -> None:
@@ -216,8 +216,8 @@ class DecoupledEstimator(AhrsEstimator):
         gyro negated: time reversal) from the attitude aligned on the first row; what it
         learnt, in its row order, the bias in forward time's sign."""
         k = DecoupledKernel(self.settings.params())
-        q0 = aligned_quaternion(tuple(acc_g[0]),  # type: ignore[arg-type]
-                                None if mag is None else tuple(mag[0]))  # type: ignore[arg-type]
+        q0 = aligned_quaternion(tuple(acc_g[0]),
+                                None if mag is None else tuple(mag[0]))
         k.start(IDENTITY if q0 is None else q0)
         n = gyro.shape[0]
         bias, info = np.zeros((n, 3)), np.zeros((n, 3, 3))
@@ -248,8 +248,8 @@ class DecoupledEstimator(AhrsEstimator):
         bwd = self._pass(gyro_rad_s[rev], acc_g[rev], None if mag is None else mag[rev], -1.0)
         bwd = PassRecord(bwd.bias_rad_s[rev], bwd.information[rev], bwd.mag_disturbed[rev])
         bias = fused_bias(fwd, bwd)
-        first = aligned_quaternion(tuple(acc_g[0]),  # type: ignore[arg-type]
-                                   None if mag is None else tuple(mag[0]))  # type: ignore[arg-type]
+        first = aligned_quaternion(tuple(acc_g[0]),
+                                   None if mag is None else tuple(mag[0]))
         dt = self.settings.sample_period_s
         q_gyro = strapdown(IDENTITY if first is None else first, gyro_rad_s, bias, dt)
         acc_i = zero_phase(rotate_rows(q_gyro, acc_g), self.settings.tau_acc_s, dt)

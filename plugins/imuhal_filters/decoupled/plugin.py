@@ -8,5 +8,5 @@ from imuhal_filters.decoupled.estimator import DecoupledEstimator
 
 
 @hookimpl
-def imuhal_register_estimators(register: Registrar) -> None:  # type: ignore[type-arg]
+def imuhal_register_estimators(register: Registrar) -> None:
     register(DecoupledEstimator)

@@ -56,8 +56,8 @@ def fused_bias(fwd: PassRecord, bwd: PassRecord) -> FloatArray:
     """(N, 3) information-weighted bias of the two passes."""
     out = np.empty_like(fwd.bias_rad_s)
     for i in range(out.shape[0]):
-        b, _ = fuse(tuple(fwd.bias_rad_s[i]), fwd.information[i].tolist(),  # type: ignore[arg-type]
-                    tuple(bwd.bias_rad_s[i]), bwd.information[i].tolist())  # type: ignore[arg-type]
+        b, _ = fuse(tuple(fwd.bias_rad_s[i]), fwd.information[i].tolist(),
+                    tuple(bwd.bias_rad_s[i]), bwd.information[i].tolist())
         out[i] = b
     return out
 
@@ -103,7 +103,7 @@ def inclination(q_gyro: FloatArray, acc_i: FloatArray) -> FloatArray:
     for i in range(q_gyro.shape[0]):
         e = to_global(q_inc, (float(acc_i[i, 0]), float(acc_i[i, 1]), float(acc_i[i, 2])))
         q_inc = inclination_correction(q_inc, e)[0]
-        out[i] = multiply(q_inc, tuple(q_gyro[i]))  # type: ignore[arg-type]
+        out[i] = multiply(q_inc, tuple(q_gyro[i]))
     return out
 
 

@@ -433,6 +433,7 @@ class FreescaleKalman:
 def _inverse_or_identity(m: FloatArray) -> FloatArray:
     """Inverse of ``m``; identity if singular (what the reference's Gauss-Jordan returns)."""
     try:
-        return np.linalg.inv(m)
+        inverse: FloatArray = np.linalg.inv(m)  # type: ignore[assignment]  # numpy's stubs type inv() as floating[Any]; float64 in, float64 out
+        return inverse
     except np.linalg.LinAlgError:
         return np.eye(m.shape[0])

@@ -70,7 +70,7 @@ class ImuFilterEstimator(AhrsEstimator):
     description: ClassVar[str] = (
         "RCmags imuFilter: 6-DOF quaternion filter with a Kalman-like accel band, and velocity"
     )
-    Settings: ClassVar[type[ImuFilterSettings]] = ImuFilterSettings  # type: ignore[assignment]
+    Settings: ClassVar[type[ImuFilterSettings]] = ImuFilterSettings
     consumes: ClassVar[tuple[type, ...]] = (GyroSample, AccelSample, VelocitySample,
                                             AirspeedSample)
     uses_mag: ClassVar[bool] = False

@@ -149,7 +149,7 @@ imufilter_rows = jit(
 """The compiled kernel (see common/fast.py: the extension, or numba on the first call)."""
 
 
-def pack_state(q, var, gain, vel, target) -> np.ndarray:  # type: ignore[no-untyped-def]
+def pack_state(q, var, gain, vel, target) -> np.ndarray:
     """The kernel's ``state`` array from the estimator's fields."""
     return np.array([*q, var, gain, *vel.velocity, *vel.accel_mean, *vel.accel_last,
                      vel.var_vel, vel.var_acc, *target], dtype=float)

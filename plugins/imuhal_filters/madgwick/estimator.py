@@ -73,10 +73,14 @@ class MadgwickEstimator(AhrsEstimator):
     """Madgwick gradient-descent AHRS (6-DOF, or 9-DOF when magnetometer samples arrive)."""
 
     name: ClassVar[str] = "madgwick"
+    # from the settings' defaults, so that `imuhal plugins` cannot quote stale ones
     description: ClassVar[str] = (
-        "Madgwick gradient-descent AHRS (x-io release), with the seed's 0.6-1.4 g accel gate"
+        "Madgwick gradient-descent AHRS (x-io release, corrected): beta "
+        f"{MadgwickSettings().beta:g}, {MadgwickSettings().accel_soft_gate_g:g} g soft "
+        "accel gate, turn compensated; presets reference, seed "
+        f"({SEED_GATE_G[0]:g}-{SEED_GATE_G[1]:g} g gate), handheld"
     )
-    Settings: ClassVar[type[MadgwickSettings]] = MadgwickSettings  # type: ignore[assignment]
+    Settings: ClassVar[type[MadgwickSettings]] = MadgwickSettings
     settings: MadgwickSettings
 
     def _reset_filter(self) -> None:
@@ -107,7 +111,7 @@ class MadgwickEstimator(AhrsEstimator):
             have_a = True
             ax, ay, az = (accel_m_s2[0] * TO_G, accel_m_s2[1] * TO_G, accel_m_s2[2] * TO_G)
         use_m = mag is not None and self._use_mag
-        mx, my, mz = mag if use_m else NO_VECTOR  # type: ignore[misc]
+        mx, my, mz = mag if use_m else NO_VECTOR  # type: ignore[misc]  # use_m implies mag is not None
         q0, q1, q2, q3, gate_open, weight, lx, ly, lz = self._sample_kernel(
             *self._q, gx, gy, gz, have_a, ax, ay, az, use_m, mx, my, mz, self._beta,
             self._gate_lower_g, self._gate_upper_g, self._soft_width, self._paper, dt, *f)

@@ -8,5 +8,5 @@ from imuhal_filters.madgwick.estimator import MadgwickEstimator
 
 
 @hookimpl
-def imuhal_register_estimators(register: Registrar) -> None:  # type: ignore[type-arg]
+def imuhal_register_estimators(register: Registrar) -> None:
     register(MadgwickEstimator)

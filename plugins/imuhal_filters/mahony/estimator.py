@@ -53,10 +53,14 @@ class MahonyEstimator(AhrsEstimator):
     """Mahony complementary AHRS with proportional-integral feedback and an accel gate."""
 
     name: ClassVar[str] = "mahony"
+    # from the settings' defaults, so that `imuhal plugins` cannot quote stale ones
     description: ClassVar[str] = (
-        "Mahony AHRS as in the seed author's ESP32 vario firmware (Kp 5, 0.75-1.25 g gate)"
+        f"Mahony complementary AHRS: Kp {MahonySettings().kp:g}, Ki {MahonySettings().ki:g}, "
+        f"{MahonySettings().accel_soft_gate_g:g} g soft accel gate, turn compensated; "
+        f"preset seed: the vario firmware's Kp {_FIRMWARE['kp']:g}, "
+        f"{_FIRMWARE['accel_gate_g'][0]:g}-{_FIRMWARE['accel_gate_g'][1]:g} g gate"
     )
-    Settings: ClassVar[type[MahonySettings]] = MahonySettings  # type: ignore[assignment]
+    Settings: ClassVar[type[MahonySettings]] = MahonySettings
     settings: MahonySettings
 
     def _reset_filter(self) -> None:
@@ -82,7 +86,7 @@ class MahonyEstimator(AhrsEstimator):
             have_a = True
             ax, ay, az = (accel_m_s2[0] * TO_G, accel_m_s2[1] * TO_G, accel_m_s2[2] * TO_G)
         use_m = mag is not None and self._use_mag
-        mx, my, mz = mag if use_m else NO_VECTOR  # type: ignore[misc]
+        mx, my, mz = mag if use_m else NO_VECTOR  # type: ignore[misc]  # use_m implies mag is not None
         q0, q1, q2, q3, ix, iy, iz, gate_open, weight, lx, ly, lz = self._sample_kernel(
             *self._q, *self._integral, gx, gy, gz, have_a, ax, ay, az, use_m, mx, my, mz,
             self._kp, self._ki, self._gate_lower_g, self._gate_upper_g, self._soft_width, dt, *f)

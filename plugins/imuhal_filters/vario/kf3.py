@@ -209,5 +209,5 @@ class Kalman3:
         self.reference = REFERENCES[self.mode]
         self.x = np.array(d["x"], dtype=float)
         self.P = np.array(d["P"], dtype=float)
-        zv, av, bv = (float(c) for c in d["variances"])  # type: ignore[attr-defined]
+        zv, av, bv = (float(c) for c in d["variances"])  # type: ignore[attr-defined]  # a saved state's variances: three numbers
         self.z_meas_variance, self.accel_variance, self.bias_variance = zv, av, bv

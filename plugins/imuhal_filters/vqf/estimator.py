@@ -69,7 +69,7 @@ class VqfEstimator(AhrsEstimator):
         "VQF (Laidig and Seel 2023): rest and motion gyro bias estimation, magnetic "
         "disturbance rejection (optional `vqf` package)"
     )
-    Settings: ClassVar[type[VqfSettings]] = VqfSettings  # type: ignore[assignment]
+    Settings: ClassVar[type[VqfSettings]] = VqfSettings
     settings: VqfSettings
 
     def _reset_filter(self) -> None:
@@ -122,6 +122,6 @@ class VqfEstimator(AhrsEstimator):
         use_mag = mag_ut is not None and self.settings.use_mag
         out = offlineVQF(to_vqf(gyro_rad_s, VectorKind.ANGULAR_RATE),
                          to_vqf(accel_m_s2, VectorKind.SPECIFIC_FORCE),
-                         to_vqf(mag_ut, VectorKind.MAGNETIC_FIELD) if use_mag else None,
+                         to_vqf(mag_ut, VectorKind.MAGNETIC_FIELD) if use_mag else None,  # type: ignore[arg-type]  # use_mag is False when mag_ut is None: the argument is not evaluated then
                          self.settings.sample_period_s, self.settings.vqf_params())
         return from_vqf(out["quat9D"] if use_mag else out["quat6D"])

@@ -8,7 +8,7 @@ from imuhal.plugins.registrars import Registrar
 
 
 @hookimpl
-def imuhal_register_estimators(register: Registrar) -> None:  # type: ignore[type-arg]
+def imuhal_register_estimators(register: Registrar) -> None:
     try:
         import vqf  # noqa: F401
     except ImportError:

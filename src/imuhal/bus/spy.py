@@ -73,7 +73,7 @@ class SpyBus(Bus):
     def _set_baudrate(self, baudrate: int) -> None:
         with self.lock:
             try:
-                self.inner.set_baudrate(baudrate)  # type: ignore[attr-defined]
+                self.inner.set_baudrate(baudrate)  # type: ignore[attr-defined]  # only serial buses have set_baudrate, and only they call this
             except Exception as exc:
                 self.record(Transfer(self.clock.now_ns(), self.name, 0, b"", b"", _error(exc),
                                      0, OP_BAUD, baudrate))

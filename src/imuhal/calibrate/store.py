@@ -162,28 +162,35 @@ def replace_device_calibration(text: str, source: str, device: str,
     values = calibration_data(calibration)
     dev_key = doc.key_positions[("devices", device)]
     dev_value = doc.positions[("devices", device)]
-    cal_path = ("devices", device, "calibration")
     flow_device = dev_value[0] == dev_key[0] and \
         lines[dev_value[0] - 1][dev_value[1] - 1:].lstrip().startswith("{")
     if flow_device:
         return _full_dump(data, device, values), [
             f"devices.{device} is written in flow style ({{...}}); the profile was re-emitted "
             "in block style and its comments were lost (the old file is in the backup)"]
+    new = _with_calibration_block(lines, doc, device, values)
+    out = newline.join(new)
+    return (out + newline if text.endswith(("\n", "\r")) or not text else out), []
+
+
+def _with_calibration_block(lines: list[str], doc: Any, device: str,
+                            values: dict[str, Any]) -> list[str]:
+    """``lines`` (a block-style device) with its calibration block replaced, or added at
+    the end of the device at its keys' indent; removed when ``values`` is empty."""
+    cal_path = ("devices", device, "calibration")
     if cal_path in doc.key_positions:
         line, col = doc.key_positions[cal_path]
         start = line - 1
         end = _block_end(lines, start, col - 1)
         block = emit_block("calibration", values, col - 1) if values else []
-        new = lines[:start] + block + lines[end:]
-    else:
-        children = [pos for path, pos in doc.key_positions.items()
-                    if len(path) == 3 and path[:2] == ("devices", device)]
-        col = min(c for _, c in children) - 1 if children else dev_key[1] - 1 + INDENT
-        end = _block_end(lines, dev_key[0] - 1, dev_key[1] - 1)
-        new = lines[:end] + (emit_block("calibration", values, col) if values else []) + \
-            lines[end:]
-    out = newline.join(new)
-    return (out + newline if text.endswith(("\n", "\r")) or not text else out), []
+        return lines[:start] + block + lines[end:]
+    dev_key = doc.key_positions[("devices", device)]
+    children = [pos for path, pos in doc.key_positions.items()
+                if len(path) == 3 and path[:2] == ("devices", device)]
+    col = min(c for _, c in children) - 1 if children else dev_key[1] - 1 + INDENT
+    end = _block_end(lines, dev_key[0] - 1, dev_key[1] - 1)
+    return lines[:end] + (emit_block("calibration", values, col) if values else []) + \
+        lines[end:]
 
 
 def _full_dump(data: dict[str, Any], device: str, values: dict[str, Any]) -> str:

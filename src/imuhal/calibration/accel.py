@@ -33,7 +33,7 @@ from imuhal.calibration.procedure import Procedure
 from imuhal.calibration.progress import ProgressCallback, ProgressKind
 from imuhal.calibration.stillness import DEG, Spread, StillnessLimits
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
-from imuhal.core.frames import FloatArray
+from imuhal.core.frames import FloatArray, Vector
 from imuhal.core.samples import AccelSample, GyroSample, Sample
 
 MG = STANDARD_GRAVITY_M_S2 * 1e-3
@@ -65,7 +65,7 @@ def expected_specific_force(p: Position, g: float = STANDARD_GRAVITY_M_S2) -> Fl
 
 
 # --------------------------------------------------------------------------- the maths
-def six_position_fit(means: Mapping[Position, Sequence[float]],
+def six_position_fit(means: Mapping[Position, Vector],
                      g: float = STANDARD_GRAVITY_M_S2) -> tuple[FloatArray, FloatArray]:
     """(offset m/s^2, scale) per axis from the six averaged readings, by the seed's formulas."""
     offset, scale = np.zeros(3), np.ones(3)
@@ -82,7 +82,7 @@ def six_position_fit(means: Mapping[Position, Sequence[float]],
     return offset, scale
 
 
-def least_squares_fit(raw: Sequence[Sequence[float]], truth: Sequence[Sequence[float]]
+def least_squares_fit(raw: Sequence[Vector], truth: Sequence[Vector]
                       ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """(offset b, scale s, misalignment M) with ``truth ~ M diag(s) (raw - b)``; M has a unit
     diagonal. Needs at least four positions not in one plane (the six give 18 equations for
@@ -100,10 +100,10 @@ def least_squares_fit(raw: Sequence[Sequence[float]], truth: Sequence[Sequence[f
     return b, s, a / s[None, :]
 
 
-def gravity_errors_mg(cal: AccelCalibration, raw: Sequence[Sequence[float]],
+def gravity_errors_mg(cal: AccelCalibration, raw: Sequence[Vector],
                       g: float = STANDARD_GRAVITY_M_S2) -> FloatArray:
     """``|corrected| - g`` (mg) for still readings ``raw``."""
-    return np.array([(np.linalg.norm(cal.apply(tuple(v))) - g) / MG for v in raw])
+    return np.array([(np.linalg.norm(cal.apply(_t3(v))) - g) / MG for v in raw])
 
 
 # --------------------------------------------------------------------------- the procedure
@@ -169,7 +169,7 @@ class AccelSixResult:
             procedure=self.procedure, date=date, quality=self.quality)
 
 
-def accel_result(means: Mapping[Position, Sequence[float]], *,
+def accel_result(means: Mapping[Position, Vector], *,
                  g: float = STANDARD_GRAVITY_M_S2, misalignment: bool = False) -> AccelSixResult:
     """Fit averaged still readings (the six positions, at least) as the procedure does."""
     m = {p: np.asarray(v, dtype=float) for p, v in means.items()}
@@ -234,7 +234,7 @@ class AccelSixPosition(Procedure[AccelSixResult]):
             return False
         v = sample.accel_m_s2
         self._window.append(v)
-        if len(self._window) < self._window.maxlen:  # type: ignore[operator]
+        if len(self._window) < self._window.maxlen:  # type: ignore[operator]  # the window is created with a maxlen
             return False
         accel = Spread.of(self._window)
         gyro = Spread.of(self._gyro) if len(self._gyro) > 1 else None
@@ -304,5 +304,5 @@ class AccelSixPosition(Procedure[AccelSixResult]):
                             misalignment=self.settings.misalignment)
 
 
-def _t3(v: Sequence[float]) -> tuple[float, float, float]:
+def _t3(v: Vector) -> tuple[float, float, float]:
     return (float(v[0]), float(v[1]), float(v[2]))

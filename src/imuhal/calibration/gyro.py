@@ -126,7 +126,8 @@ class GyroOffsetProcedure(Procedure[GyroOffsetResult]):
             return
         for flag in SampleFlag:
             if flag and flag in flags:
-                self._not_measured[flag.name] = self._not_measured.get(flag.name, 0) + 1
+                name = str(flag.name)  # a member of the enumeration: always named
+                self._not_measured[name] = self._not_measured.get(name, 0) + 1
         if self._only_flagged_since_ns is None:
             self._only_flagged_since_ns = sample.t_ns
         elif sample.t_ns - self._only_flagged_since_ns >= NO_MEASUREMENT_GIVE_UP_NS:

@@ -79,7 +79,7 @@ class MagResult:
         h, s = self.fit.hard_iron_ut, self.fit.soft_iron
         return MagCalibration(
             hard_iron_ut=(float(h[0]), float(h[1]), float(h[2])),
-            soft_iron=tuple(tuple(float(x) for x in row) for row in s),  # type: ignore[arg-type]
+            soft_iron=tuple(tuple(float(x) for x in row) for row in s),
             procedure=f"mag-{self.fit.method}", date=date, quality=self.quality)
 
 

@@ -17,7 +17,7 @@ Besides the three records a device's calibration may hold:
 
 from __future__ import annotations
 
-from datetime import UTC, datetime
+from datetime import datetime, timezone
 from typing import Annotated, Literal
 
 import numpy as np
@@ -37,7 +37,7 @@ CHANNELS: tuple[ChannelName, ...] = ("accel", "gyro", "mag")
 
 def now() -> datetime:
     """The date stored with a record measured now: UTC, whole seconds."""
-    return datetime.now(UTC).replace(microsecond=0)
+    return datetime.now(timezone.utc).replace(microsecond=0)
 
 
 class _Strict(BaseModel):
@@ -154,7 +154,7 @@ class _Records(BaseModel):
     :class:`VectorCalibration` under its quantity name (extra keys)."""
 
     model_config = ConfigDict(extra="allow", frozen=True)
-    __pydantic_extra__: dict[str, VectorCalibration] = Field(init=False)  # type: ignore[assignment]
+    __pydantic_extra__: dict[str, VectorCalibration] = Field(init=False)
 
     accel: AccelCalibration | None = None
     gyro: GyroCalibration | None = None
@@ -169,7 +169,7 @@ class _Records(BaseModel):
     def record_for(self, quantity: str) -> Record | None:
         """The record of ``quantity`` (a quantity name), or None."""
         if quantity in CHANNELS:
-            return getattr(self, quantity)  # type: ignore[no-any-return]
+            return getattr(self, quantity)
         extra = self.model_extra
         return extra.get(quantity) if extra else None
 

@@ -41,7 +41,7 @@ class VectorZeroProcedure(CalibrationProcedure):
     Settings = VectorZeroSettings
 
     def __init__(self, settings: BaseModel, **kwargs: object) -> None:
-        super().__init__(settings, **kwargs)  # type: ignore[arg-type]
+        super().__init__(settings, **kwargs)  # type: ignore[arg-type]  # the registered procedure validates its own Settings model
         self._window: list[tuple[float, float, float]] = []
         self.attempts = 1
         self._result: VectorCalibration | None = None
@@ -52,7 +52,7 @@ class VectorZeroProcedure(CalibrationProcedure):
         if not isinstance(sample, VectorSample) or \
                 sample.channel.name != self.calibrated_quantity:
             return False
-        s: VectorZeroSettings = self.settings  # type: ignore[assignment]
+        s: VectorZeroSettings = self.settings  # type: ignore[assignment]  # the plugin's own Settings model: the base class types settings as the base model
         self._window.append(sample.vector)
         self.say(ProgressKind.PROGRESS, "averaging", len(self._window) / s.samples)
         if len(self._window) < s.samples:

@@ -6,8 +6,10 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any, ClassVar, TextIO
 
 import numpy as np
 from pydantic import ValidationError
@@ -31,6 +33,7 @@ from imuhal.calibration.mag import MagCalibrationProcedure, MagSettings
 from imuhal.calibration.model import DeviceCalibration, GyroStartupSettings, now
 from imuhal.calibration.progress import Progress, ProgressKind
 from imuhal.cli import args as types
+from imuhal.cli.options import CommandOptions, Needs
 from imuhal.core.atomic import check_outputs, check_writable, resolve_target
 from imuhal.core.errors import ImuhalError
 from imuhal.core.frames import parse_mount
@@ -107,100 +110,172 @@ def cmd_calibrate(args: argparse.Namespace, registry: Registry) -> int:
         return show(Path(args.show), registry, sys.stdout)
     if args.procedure is None or args.profile is None:
         args._parser.error("give a procedure and a PROFILE (or --show PROFILE)")
-    _refuse_unused_options(args)
-    path = Path(args.profile)
-    registered = args.procedure not in CHANNELS
-    if registered and args.procedure not in registry.calibrations.entries:
+    opts = CalibrateOptions.from_args(args)
+    if opts.registered and opts.procedure not in registry.calibrations.entries:
         raise ImuhalError(
-            f"no calibration procedure named {args.procedure!r}; choose gyro, accel, mag or "
+            f"no calibration procedure named {opts.procedure!r}; choose gyro, accel, mag or "
             f"one a plugin registered: {', '.join(registry.calibrations.names()) or 'none'}")
-    target = None if args.dry_run else _writable_target(path, args.output)
-    profile = load_profile(path, registry)
-    key = _registered_quantity(args, registry) if registered else args.procedure
-    channel = registry.quantities.get(key).channel if registered else CHANNELS[key]
-    device = pick_device(profile, registry, channel, args.device)
-    cfg = profile.devices[device]
-    chip_to_body = parse_mount(profile.board_to_body) @ parse_mount(cfg.mount)
-    err = sys.stderr
-    reporter = _Reporter(err)
-    timeout = args.timeout
-    if timeout is None:
-        timeout = (registry.scenarios.get(args.emulate).default_duration_s if args.emulate
-                   else _registered(args, registry).default_timeout_s if registered
-                   else TIMEOUTS_S[args.procedure])
-    proc = (_registered_procedure(args, registry, key, device, reporter) if registered
-            else _procedure(args, device, chip_to_body, reporter, None))  # settings checked early
-    where = f"emulated, scenario '{args.emulate}'" if args.emulate else "real hardware"
-    what = f"{key} ({args.procedure})" if registered else args.procedure
-    print(f"calibrating {what} of {device} ({cfg.driver}) in {profile.name} ({where})",
-          file=err)
-    with open_raw_pipeline(profile, registry, emulate=args.emulate, seed=args.seed,
-                           realtime=False, error_specs=_ideal_specs(profile, registry)
-                           if args.ideal else None) as pipeline:
-        for w in pipeline.warnings:
-            print(f"warning: {w}", file=err)
-        order = _scenario_order(pipeline, chip_to_body)
-        if args.procedure == "accel" and order is not None:
-            proc = _procedure(args, device, chip_to_body, reporter, order)
-        binding = pipeline.calibration_binding(device)
-        try:
-            result = run_procedure(proc, pipeline, timeout)
-        finally:
-            reporter.end_line()
-    stored = cfg.calibration or DeviceCalibration()
-    date = now()
-    if registered:
-        record = result.model_copy(update={"date": date})
-    elif args.procedure == "gyro":
-        record = result.record(stored.gyro, date=date)
-    else:
-        record = result.record(date=date)
-    record = record.model_copy(update={"binding": binding})
-    new = stored.replaced(key, record)
-    if args.at_startup:
+    path = Path(opts.profile)
+    target = None if opts.dry_run else _writable_target(path, opts.output)
+    job = _job(opts, path, registry)
+    result, binding = _measure(opts, job, registry)
+    stored = job.config.calibration or DeviceCalibration()
+    record = _record(opts, result, stored).model_copy(update={"binding": binding})
+    new = stored.replaced(job.key, record)
+    if opts.at_startup:
         new = new.model_copy(update={"gyro_at_startup": GyroStartupSettings()})
-    print(f"{device} {key} calibration ({record.procedure}):")
-    print(_describe_record(key, record.model_dump(), indent="  "))
-    if args.dry_run:
-        print("dry run: profile not written", file=err)
+    print(f"{job.device} {job.key} calibration ({record.procedure}):")
+    print(_describe_record(job.key, record.model_dump(), indent="  "))
+    if target is None:
+        print("dry run: profile not written", file=sys.stderr)
         return 0
-    assert target is not None
-    bak, warnings = write_device_calibration(path, device, new, registry, output=target)
+    bak, warnings = write_device_calibration(path, job.device, new, registry, output=target)
     for w in warnings:
-        print(f"warning: {w}", file=err)
-    print(f"wrote devices.{device}.calibration.{key} to {target}"
-          + (f" (previous file kept as {bak})" if bak else ""), file=err)
+        print(f"warning: {w}", file=sys.stderr)
+    print(f"wrote devices.{job.device}.calibration.{job.key} to {target}"
+          + (f" (previous file kept as {bak})" if bak else ""), file=sys.stderr)
     return 0
 
 
-OPTION_FOR = {
-    "--misalignment": ("misalignment", ("accel",)),
-    "--method": ("method", ("mag",)),
-    "--field": ("field", ("mag",)),
-    "--at-startup": ("at_startup", ("gyro",)),
-    "--samples": ("samples", ("gyro", "accel")),
-}
-"""Options that only some built-in procedures read: option -> (attribute, procedures)."""
+def _builtin_only(option: str, attr: str, procedures: tuple[str, ...]) -> Needs:
+    """``option`` is read only by the built-in ``procedures``: any other would ignore it."""
+    return Needs(lambda o: getattr(o, attr) not in (None, False),
+                 lambda o: o.procedure in procedures,
+                 lambda o: f"{option} applies to `imuhal calibrate {' or '.join(procedures)}`"
+                 f", not to {o.procedure}; drop {option}")
 
 
-def _refuse_unused_options(args: argparse.Namespace) -> None:
-    """An option the chosen procedure would silently ignore is a mistake worth a line."""
-    builtin = args.procedure in CHANNELS
-    for option, (attr, procedures) in OPTION_FOR.items():
-        if getattr(args, attr) not in (None, False) and (not builtin or
-                                                         args.procedure not in procedures):
-            raise ImuhalError(f"{option} applies to `imuhal calibrate {' or '.join(procedures)}`"
-                              f", not to {args.procedure}; drop {option}")
-    if builtin and (args.quantity is not None or args.set):
-        option = "--quantity" if args.quantity is not None else "--set"
-        raise ImuhalError(f"{option} sets a procedure a plugin registered; `imuhal calibrate "
-                          f"{args.procedure}` has none - drop {option}")
-    for option, given in (("--ideal", args.ideal), ("--seed", args.seed is not None)):
-        if given and not args.emulate:
-            raise ImuhalError(f"{option} applies to an emulated board; add --emulate "
-                              "calibration (or drop it)")
-    if args.dry_run and args.output:
-        raise ImuhalError("--dry-run writes nothing; drop --output (or --dry-run)")
+def _registered_only(option: str, given: Callable[[Any], bool]) -> Needs:
+    """``option`` sets a procedure a plugin registered: a built-in one has none."""
+    return Needs(given, lambda o: o.registered,
+                 lambda o: f"{option} sets a procedure a plugin registered; `imuhal calibrate "
+                 f"{o.procedure}` has none - drop {option}")
+
+
+def _emulated_only(option: str, given: Callable[[Any], bool]) -> Needs:
+    return Needs(given, lambda o: bool(o.emulate),
+                 f"{option} applies to an emulated board; add --emulate calibration (or drop "
+                 "it)")
+
+
+CALIBRATE_RULES = (
+    _builtin_only("--misalignment", "misalignment", ("accel",)),
+    _builtin_only("--method", "method", ("mag",)),
+    _builtin_only("--field", "field", ("mag",)),
+    _builtin_only("--at-startup", "at_startup", ("gyro",)),
+    _builtin_only("--samples", "samples", ("gyro", "accel")),
+    _registered_only("--quantity", lambda o: o.quantity is not None),
+    _registered_only("--set", lambda o: bool(o.set)),
+    _emulated_only("--ideal", lambda o: o.ideal),
+    _emulated_only("--seed", lambda o: o.seed is not None),
+    Needs(lambda o: o.dry_run, lambda o: not o.output,
+          "--dry-run writes nothing; drop --output (or --dry-run)"),
+)
+"""An option the chosen procedure would silently ignore is a mistake worth a line."""
+
+
+class CalibrateOptions(CommandOptions):
+    """What ``imuhal calibrate PROCEDURE PROFILE`` was asked (argparse destinations, values
+    already typed; ``--show`` is handled before these)."""
+
+    RULES: ClassVar[tuple[Needs, ...]] = CALIBRATE_RULES
+
+    procedure: str
+    profile: str
+    device: str | None = None
+    emulate: str | None = None
+    ideal: bool = False
+    seed: int | None = None
+    timeout: float | None = None
+    """Seconds."""
+    samples: int | None = None
+    misalignment: bool = False
+    method: str | None = None
+    field: float | None = None
+    """The local field strength in uT."""
+    at_startup: bool = False
+    output: str | None = None
+    quantity: str | None = None
+    set: tuple[str, ...] = ()
+    dry_run: bool = False
+
+    @property
+    def registered(self) -> bool:
+        """A procedure a plugin registered (not gyro, accel or mag)."""
+        return self.procedure not in CHANNELS
+
+
+@dataclass(frozen=True)
+class _Job:
+    """The device to calibrate and what to run on it (settings checked, nothing opened)."""
+
+    profile: Any
+    device: str
+    config: Any
+    key: str
+    """The calibrated quantity: gyro, accel, mag or a registered vector quantity."""
+    chip_to_body: np.ndarray
+    reporter: _Reporter
+    procedure: Any
+    timeout_s: float
+
+
+def _job(opts: CalibrateOptions, path: Path, registry: Registry) -> _Job:
+    profile = load_profile(path, registry)
+    key = _registered_quantity(opts, registry) if opts.registered else opts.procedure
+    channel = registry.quantities.get(key).channel if opts.registered else CHANNELS[key]
+    device = pick_device(profile, registry, channel, opts.device)
+    cfg = profile.devices[device]
+    chip_to_body = parse_mount(profile.board_to_body) @ parse_mount(cfg.mount)
+    reporter = _Reporter(sys.stderr)
+    proc = (_registered_procedure(opts, registry, key, device, reporter) if opts.registered
+            else _procedure(opts, device, chip_to_body, reporter, None))  # settings checked
+    return _Job(profile=profile, device=device, config=cfg, key=key, chip_to_body=chip_to_body,
+                reporter=reporter, procedure=proc, timeout_s=_timeout_s(opts, registry))
+
+
+def _timeout_s(opts: CalibrateOptions, registry: Registry) -> float:
+    """``--timeout``, else the emulated scenario's length, the registered procedure's own
+    timeout or the built-in one's (TIMEOUTS_S)."""
+    if opts.timeout is not None:
+        return opts.timeout
+    if opts.emulate:
+        return float(registry.scenarios.get(opts.emulate).default_duration_s)
+    if opts.registered:
+        return float(_registered(opts, registry).default_timeout_s)
+    return TIMEOUTS_S[opts.procedure]
+
+
+def _measure(opts: CalibrateOptions, job: _Job, registry: Registry) -> tuple[Any, Any]:
+    """Runs the procedure on the board: its result and the chip binding it was measured on."""
+    where = f"emulated, scenario '{opts.emulate}'" if opts.emulate else "real hardware"
+    what = f"{job.key} ({opts.procedure})" if opts.registered else opts.procedure
+    print(f"calibrating {what} of {job.device} ({job.config.driver}) in {job.profile.name} "
+          f"({where})", file=sys.stderr)
+    proc = job.procedure
+    with open_raw_pipeline(job.profile, registry, emulate=opts.emulate, seed=opts.seed,
+                           realtime=False, error_specs=_ideal_specs(job.profile, registry)
+                           if opts.ideal else None) as pipeline:
+        for w in pipeline.warnings:
+            print(f"warning: {w}", file=sys.stderr)
+        order = _scenario_order(pipeline, job.chip_to_body)
+        if opts.procedure == "accel" and order is not None:
+            proc = _procedure(opts, job.device, job.chip_to_body, job.reporter, order)
+        binding = pipeline.calibration_binding(job.device)
+        try:
+            return run_procedure(proc, pipeline, job.timeout_s), binding
+        finally:
+            job.reporter.end_line()
+
+
+def _record(opts: CalibrateOptions, result: Any, stored: DeviceCalibration) -> Any:
+    """The record to store, dated now (a gyro record keeps the stored one's scale)."""
+    date = now()
+    if opts.registered:
+        return result.model_copy(update={"date": date})
+    if opts.procedure == "gyro":
+        return result.record(stored.gyro, date=date)
+    return result.record(date=date)
 
 
 def _writable_target(profile: Path, output: str | None) -> Path:
@@ -220,21 +295,21 @@ def _writable_target(profile: Path, output: str | None) -> Path:
     return profile
 
 
-def _procedure(args: argparse.Namespace, device: str, chip_to_body: np.ndarray,
+def _procedure(opts: CalibrateOptions, device: str, chip_to_body: np.ndarray,
                reporter: _Reporter, scenario_order: tuple[str, ...] | None) -> Any:
     """The procedure the arguments ask for; settings mistakes are one-line errors."""
     try:
-        if args.procedure == "gyro":
-            gs = GyroOffsetSettings(**({"samples": args.samples} if args.samples else {}))
+        if opts.procedure == "gyro":
+            gs = GyroOffsetSettings(**({"samples": opts.samples} if opts.samples else {}))
             return GyroOffsetProcedure(gs, device=device, progress=reporter)
-        if args.procedure == "accel":
+        if opts.procedure == "accel":
             acc = AccelSixSettings(positions=scenario_order or guided_order(chip_to_body),
-                                   misalignment=args.misalignment,
-                                   **({"samples": args.samples} if args.samples else {}))
+                                   misalignment=opts.misalignment,
+                                   **({"samples": opts.samples} if opts.samples else {}))
             return AccelSixPosition(acc, device=device, progress=reporter,
                                     describe=lambda p: describe_position(p, chip_to_body))
-        return MagCalibrationProcedure(MagSettings(method=args.method or "ellipsoid",
-                                                   field_ut=args.field),
+        return MagCalibrationProcedure(MagSettings(method=opts.method or "ellipsoid",
+                                                   field_ut=opts.field),
                                        device=device, progress=reporter)
     except ValidationError as exc:
         first = exc.errors(include_url=False)[0]
@@ -243,29 +318,29 @@ def _procedure(args: argparse.Namespace, device: str, chip_to_body: np.ndarray,
         raise ImuhalError(f"{option}: {first['msg']} (found {first.get('input')!r})") from None
 
 
-def _registered(args: argparse.Namespace, registry: Registry) -> Any:
-    return registry.calibrations.get(args.procedure)
+def _registered(opts: CalibrateOptions, registry: Registry) -> Any:
+    return registry.calibrations.get(opts.procedure)
 
 
-def _registered_procedure(args: argparse.Namespace, registry: Registry, quantity: str,
+def _registered_procedure(opts: CalibrateOptions, registry: Registry, quantity: str,
                           device: str, reporter: _Reporter) -> Any:
     """A procedure a plugin registered, with its ``--set`` settings."""
-    cls = _registered(args, registry)
-    settings = build_settings(cls.Settings, parse_set_arguments(args.set),
-                              f"procedure {args.procedure!r}")
+    cls = _registered(opts, registry)
+    settings = build_settings(cls.Settings, parse_set_arguments(list(opts.set)),
+                              f"procedure {opts.procedure!r}")
     return cls(settings, quantity=quantity, device=device, progress=reporter)
 
 
-def _registered_quantity(args: argparse.Namespace, registry: Registry) -> str:
+def _registered_quantity(opts: CalibrateOptions, registry: Registry) -> str:
     """The quantity a registered procedure calibrates: its own, or ``--quantity``."""
-    cls = _registered(args, registry)
-    name = cls.quantity or args.quantity
+    cls = _registered(opts, registry)
+    name = cls.quantity or opts.quantity
     if name is None:
-        raise ImuhalError(f"procedure {args.procedure!r} works on any vector quantity: name "
+        raise ImuhalError(f"procedure {opts.procedure!r} works on any vector quantity: name "
                           "one with --quantity NAME (see `imuhal plugins`)")
-    if args.quantity is not None and cls.quantity is not None and args.quantity != name:
-        raise ImuhalError(f"procedure {args.procedure!r} calibrates {name!r} only; drop "
-                          f"--quantity {args.quantity}")
+    if opts.quantity is not None and cls.quantity is not None and opts.quantity != name:
+        raise ImuhalError(f"procedure {opts.procedure!r} calibrates {name!r} only; drop "
+                          f"--quantity {opts.quantity}")
     if name in CHANNELS:
         raise ImuhalError(f"{name} has its own procedure: run `imuhal calibrate {name}`")
     if not issubclass(registry.quantities.get(name), VectorSample):

@@ -107,7 +107,7 @@ def _emulated(profile: Any, registry: Registry, scenario: str, seed: int | None,
 
     with open_emulated(profile, registry, scenario=scenario, seed=seed,
                        physical_mounts=mounts) as pipeline:
-        phases = {p.name: p for p in pipeline.board.scenario.phases()}  # type: ignore[attr-defined]
+        phases = {p.name: p for p in pipeline.board.scenario.phases()}  # type: ignore[attr-defined]  # check-mounts opens an emulated board, whose scenario has phases
         missing = [m.key for m in MOTIONS if m.key not in phases]
         if missing:
             raise ImuhalError(f"scenario {scenario!r} has no phase {', '.join(missing)}: it "

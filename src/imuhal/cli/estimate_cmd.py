@@ -100,20 +100,8 @@ def _column_list(text: str | None) -> list[str] | None:
 def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
     check_outputs({"--output": args.output, "--mcap": args.mcap}, {"INPUT.csv": args.input})
     run_log = is_run_log(args.input)
-    if args.mcap and not run_log:
-        raise ImuhalError(f"--mcap {args.mcap}: needs a run log as INPUT (imuhal run --output "
-                          "LOG.csv --samples), whose samples name their devices; "
-                          f"{args.input} is a wide CSV")
-    if args.rate is not None and run_log:
-        raise ImuhalError(f"{args.input}: a run log has its own times (t_s); --rate is for a "
-                          "wide CSV without them - drop --rate")
     est_cls = registry.estimators.get(args.name)
-    if PressureSample not in est_cls.consumes and (args.ahrs_settings or
-                                                   args.ahrs != AHRS_DEFAULT):
-        option = "--ahrs-set" if args.ahrs_settings else "--ahrs"
-        raise ImuhalError(f"{option} configures the attitude estimator behind a vario filter; "
-                          f"{args.name} is not one - drop {option} (settings of {args.name} "
-                          "go in --set)")
+    _check_combinations(args, run_log, est_cls)
     settings = build_settings(est_cls.Settings, parse_set_arguments(args.settings), args.name)
     estimator = est_cls(settings)
     ahrs_cls = registry.estimators.get(args.ahrs)
@@ -167,6 +155,23 @@ def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
         if est is not None:
             _report_rejected(est)
     return 0
+
+
+def _check_combinations(args: argparse.Namespace, run_log: bool, est_cls: Any) -> None:
+    """Options that the input's kind or the estimator would silently ignore."""
+    if args.mcap and not run_log:
+        raise ImuhalError(f"--mcap {args.mcap}: needs a run log as INPUT (imuhal run --output "
+                          "LOG.csv --samples), whose samples name their devices; "
+                          f"{args.input} is a wide CSV")
+    if args.rate is not None and run_log:
+        raise ImuhalError(f"{args.input}: a run log has its own times (t_s); --rate is for a "
+                          "wide CSV without them - drop --rate")
+    if PressureSample not in est_cls.consumes and (args.ahrs_settings or
+                                                   args.ahrs != AHRS_DEFAULT):
+        option = "--ahrs-set" if args.ahrs_settings else "--ahrs"
+        raise ImuhalError(f"{option} configures the attitude estimator behind a vario filter; "
+                          f"{args.name} is not one - drop {option} (settings of {args.name} "
+                          "go in --set)")
 
 
 def _bind(estimator: Any, ahrs: Any, streams: Any) -> None:

@@ -5,9 +5,12 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
+
+from pydantic import Field
 
 from imuhal.cli.frame_option import frame_argument
+from imuhal.cli.options import CommandOptions, Needs
 from imuhal.core.atomic import check_outputs
 from imuhal.core.errors import ImuhalError
 from imuhal.core.samples import GyroSample, PressureSample
@@ -50,6 +53,62 @@ recording's movement mask; group figures are means over their trials.
 
 class EvaluateUsageError(ImuhalError):
     pass
+
+
+EVALUATE_RULES = (
+    Needs(lambda o: o.workers is not None, lambda o: o.dask or o.scheduler is not None,
+          "--workers sizes the local Dask cluster; add --dask (or drop --workers)"),
+    Needs(lambda o: o.workers is not None, lambda o: o.workers >= 1,
+          lambda o: f"--workers {o.workers}: give 1 or more workers"),
+    Needs(lambda o: bool(o.cache), lambda o: o.broad or o.download_broad,
+          "--cache is where --broad and --download-broad keep BROAD; add one of them (or "
+          "drop --cache)"),
+)
+
+
+class EvaluateOptions(CommandOptions):
+    """What ``imuhal evaluate`` was asked (argparse destinations, values already typed)."""
+
+    RULES: ClassVar[tuple[Needs, ...]] = EVALUATE_RULES
+    ERROR: ClassVar[type[ImuhalError]] = EvaluateUsageError
+
+    recordings: tuple[str, ...] = ()
+    truth: tuple[str, ...] = ()
+    input_frame: Any = None
+    """The ``--input-frame`` convention (imuhal.core.conventions.Convention) or None."""
+    broad: bool = False
+    download_broad: bool = False
+    cache: str | None = None
+    broad_url: str = BROAD_URL
+    estimator: tuple[str, ...] = ()
+    grid: tuple[str, ...] = ()
+    dof: tuple[int, ...] = ()
+    group: tuple[str, ...] = ()
+    output: str | None = None
+    json_path: str | None = Field(None, alias="json")
+    markdown: str | None = None
+    plot: str | None = None
+    dask: bool = False
+    scheduler: str | None = None
+    workers: int | None = None
+    quiet: bool = False
+
+    @property
+    def on_dask(self) -> bool:
+        """The jobs run on Dask: ``--dask``, or a ``--scheduler`` to send them to."""
+        return self.dask or self.scheduler is not None
+
+    def outputs(self) -> dict[str, str | None]:
+        """Every file the evaluation may write, by option."""
+        return {"--output": self.output, "--json": self.json_path,
+                "--markdown": self.markdown, "--plot": self.plot}
+
+    def inputs(self) -> dict[str, str]:
+        """Every file it reads, by option (the second and later numbered)."""
+        return {**{"RECORDING" + (f" #{i + 1}" if i else ""): r
+                   for i, r in enumerate(self.recordings)},
+                **{"--truth" + (f" #{i + 1}" if i else ""): t
+                   for i, t in enumerate(self.truth)}}
 
 
 def add_parser(sub: Any) -> None:
@@ -117,7 +176,9 @@ def attitude_estimators(registry: Registry) -> list[str]:
             and PressureSample not in registry.estimators.get(n).consumes]
 
 
-def recording_sources(args: argparse.Namespace) -> list[RecordingSource]:
+def recording_sources(args: argparse.Namespace | EvaluateOptions) -> list[RecordingSource]:
+    """The recordings to evaluate: the named ones and the BROAD cache (``--broad``), each
+    sample CSV paired with its ``--truth``."""
     paths = [Path(p) for p in args.recordings]
     cache = None
     if args.broad or args.download_broad:
@@ -126,25 +187,10 @@ def recording_sources(args: argparse.Namespace) -> list[RecordingSource]:
     sources: list[RecordingSource] = []
     csvs: list[Path] = []
     for p in paths:
-        if p.is_dir():
-            trials: dict[str, Path] = {}
-            for f in sorted(p.iterdir()):
-                if f.suffix.lower() in BROAD_SUFFIXES and (
-                        f.stem not in trials or f.suffix.lower() != ".mat"):
-                    trials[f.stem] = f
-            if not trials:
-                raise EvaluateUsageError(f"{p}: no BROAD trials (.hdf5/.mat) in this folder"
-                                         + ("; fetch them with --download-broad"
-                                            if args.broad else ""))
-            sources += [RecordingSource(str(trials[k])) for k in sorted(trials)]
-        elif p.suffix.lower() == ".csv":
+        if p.suffix.lower() == ".csv" and not p.is_dir():
             csvs.append(p)
-        elif p.is_file():
-            sources.append(RecordingSource(str(p)))
         else:
-            raise EvaluateUsageError(f"{p}: no such file or folder" + (
-                "; fetch BROAD into it first with `imuhal evaluate --download-broad`"
-                " (or name a BROAD folder with --cache)" if p == cache else ""))
+            sources += _broad_sources(p, broad=args.broad, cache=cache)
     if len(csvs) != len(args.truth):
         raise EvaluateUsageError(f"{len(csvs)} sample CSV(s) but {len(args.truth)} --truth "
                                  "file(s); give one --truth TRUTH.csv per sample CSV")
@@ -154,6 +200,25 @@ def recording_sources(args: argparse.Namespace) -> list[RecordingSource]:
         raise EvaluateUsageError("no recordings; give BROAD trials, a folder of them, "
                                  "--broad, or a sample CSV with --truth")
     return sources
+
+
+def _broad_sources(p: Path, *, broad: bool, cache: Path | None) -> list[RecordingSource]:
+    """A BROAD trial file, or every trial in a folder (HDF5 preferred over MAT)."""
+    if p.is_file():
+        return [RecordingSource(str(p))]
+    if not p.is_dir():
+        raise EvaluateUsageError(f"{p}: no such file or folder" + (
+            "; fetch BROAD into it first with `imuhal evaluate --download-broad`"
+            " (or name a BROAD folder with --cache)" if p == cache else ""))
+    trials: dict[str, Path] = {}
+    for f in sorted(p.iterdir()):
+        if f.suffix.lower() in BROAD_SUFFIXES and (
+                f.stem not in trials or f.suffix.lower() != ".mat"):
+            trials[f.stem] = f
+    if not trials:
+        raise EvaluateUsageError(f"{p}: no BROAD trials (.hdf5/.mat) in this folder"
+                                 + ("; fetch them with --download-broad" if broad else ""))
+    return [RecordingSource(str(trials[k])) for k in sorted(trials)]
 
 
 def _progress(quiet: bool) -> Any:
@@ -166,69 +231,74 @@ def _progress(quiet: bool) -> Any:
 
 
 def cmd_evaluate(args: argparse.Namespace, registry: Registry) -> int:
+    opts = EvaluateOptions.from_args(args)
     # No output may replace an input (links and hard links included) or another output.
-    check_outputs({"--output": args.output, "--json": args.json, "--markdown": args.markdown,
-                   "--plot": args.plot},
-                  {**{"RECORDING" + (f" #{i + 1}" if i else ""): r
-                      for i, r in enumerate(args.recordings)},
-                   **{"--truth" + (f" #{i + 1}" if i else ""): t
-                      for i, t in enumerate(args.truth)}})
-    if args.workers is not None and not (args.dask or args.scheduler):
-        raise EvaluateUsageError("--workers sizes the local Dask cluster; add --dask (or drop "
-                                 "--workers)")
-    if args.workers is not None and args.workers < 1:
-        raise EvaluateUsageError(f"--workers {args.workers}: give 1 or more workers")
-    if args.cache and not (args.broad or args.download_broad):
-        raise EvaluateUsageError("--cache is where --broad and --download-broad keep BROAD; "
-                                 "add one of them (or drop --cache)")
-    if args.plot:
+    check_outputs(opts.outputs(), opts.inputs())
+    if opts.plot:
         from imuhal.offline.plotting import check_figure_path
 
-        check_figure_path(args.plot)  # before the evaluation, not after it
-    specs_in = [parse_spec(s, registry) for s in args.estimator] or [
+        check_figure_path(opts.plot)  # before the evaluation, not after it
+    specs = _specs(opts, registry)
+    if opts.download_broad:
+        download_broad(opts.cache, base_url=opts.broad_url,
+                       progress=None if opts.quiet else lambda m: print(m, file=sys.stderr))
+    sources = recording_sources(opts)
+    progress = _progress(opts.quiet)
+    if opts.on_dask:
+        from imuhal.evaluate.dask_runner import evaluate_dask
+
+        results = evaluate_dask(sources, specs, scheduler=opts.scheduler,
+                                workers=opts.workers, progress=progress)
+    else:
+        results = evaluate_serial(sources, specs, registry, progress)
+    groups = aggregate(results)
+    _print_tables(groups, opts.group)
+    _write_results(opts, results, groups)
+    return 0
+
+
+def _specs(opts: EvaluateOptions, registry: Registry) -> list[EstimatorSpec]:
+    """Every estimator x settings x DOF job, each settings mistake found before the first
+    job runs, not after some ran."""
+    specs_in = [parse_spec(s, registry) for s in opts.estimator] or [
         (n, {}) for n in attitude_estimators(registry)]
-    dofs = args.dof or [9, 6]
-    grid = parse_grid(args.grid, registry)
+    grid = parse_grid(list(opts.grid), registry)
     unused = sorted(set(grid) - {n for n, _ in specs_in})
     if unused:
         raise EvaluateUsageError(f"--grid {unused[0]}.*: {unused[0]} is not evaluated; add -e "
                                  f"{unused[0]} (or drop the --grid)")
+    dofs = opts.dof or (9, 6)
     specs = expand_grid([EstimatorSpec(n, s, d) for d in dofs for n, s in specs_in], grid)
-    for spec in specs:  # every settings mistake before the first job, not after some ran
+    for spec in specs:
         cls = registry.estimators.get(spec.name)
         build_settings(cls.Settings,
                        with_rate_settings(cls.Settings.model_fields, spec.settings, 100.0),
                        spec.name, f"-e {spec.name}: / --grid {spec.name}.")
-    if args.download_broad:
-        download_broad(args.cache, base_url=args.broad_url,
-                       progress=None if args.quiet else lambda m: print(m, file=sys.stderr))
-    sources = recording_sources(args)
-    progress = _progress(args.quiet)
-    if args.dask or args.scheduler:
-        from imuhal.evaluate.dask_runner import evaluate_dask
+    return specs
 
-        results = evaluate_dask(sources, specs, scheduler=args.scheduler,
-                                workers=args.workers, progress=progress)
-    else:
-        results = evaluate_serial(sources, specs, registry, progress)
-    groups = aggregate(results)
+
+def _print_tables(groups: list[Any], wanted: tuple[str, ...]) -> None:
+    """The table of all trials, then one per ``--group``."""
     known = list(dict.fromkeys(g.group for g in groups))
-    for g in args.group:
+    for g in wanted:
         if g not in known:
             raise EvaluateUsageError(f"--group {g}: no trial is in that group; groups: "
                                      f"{', '.join(known)}")
     print(summary_table(groups))
-    for g in args.group:
+    for g in wanted:
         print(f"\ngroup {g}:\n{summary_table(groups, g)}")
-    if args.output:
-        write_csv(args.output, results)
-    if args.json:
-        write_json(args.json, results, groups)
-    if args.markdown:
-        write_markdown(args.markdown, groups)
-    if args.plot:
+
+
+def _write_results(opts: EvaluateOptions, results: list[TrialResult],
+                   groups: list[Any]) -> None:
+    if opts.output:
+        write_csv(opts.output, results)
+    if opts.json_path:
+        write_json(opts.json_path, results, groups)
+    if opts.markdown:
+        write_markdown(opts.markdown, groups)
+    if opts.plot:
         from imuhal.offline.plotting import plot_trial_errors
 
-        plot_trial_errors(results, title="imuhal evaluate: RMSE per trial").save(args.plot)
-        print(f"wrote {args.plot}", file=sys.stderr)
-    return 0
+        plot_trial_errors(results, title="imuhal evaluate: RMSE per trial").save(opts.plot)
+        print(f"wrote {opts.plot}", file=sys.stderr)

@@ -123,7 +123,7 @@ def old_names_shown() -> Iterator[None]:
 
     with warnings.catch_warnings():
         warnings.simplefilter("always", ImuhalDeprecationWarning)
-        previous, warnings.showwarning = warnings.showwarning, show  # type: ignore[assignment]
+        previous, warnings.showwarning = warnings.showwarning, show  # type: ignore[assignment]  # warnings.showwarning's replacement has its signature; typeshed types the module attribute as a def
         try:
             yield
         finally:

@@ -50,9 +50,11 @@ def add_mavlink_arguments(parser: argparse.ArgumentParser) -> None:
                         "mavlink.highres_imu_hz, 50)")
 
 
-def mavlink_sink(registry: Registry, args: argparse.Namespace, profile: Any) -> Any:
+def mavlink_sink(registry: Registry, args: Any, profile: Any) -> Any:
     """The ``mavlink`` sink sending to ``args.mavlink`` with the profile's ``mavlink:``
-    section (its HIGHRES_IMU rate replaced by ``--mavlink-imu-hz``)."""
+    section (its HIGHRES_IMU rate replaced by ``--mavlink-imu-hz``); ``args`` has the
+    ``mavlink`` and ``mavlink_imu_hz`` options (an argparse namespace or a command's options
+    model)."""
     from imuhal.core.errors import ImuhalError
 
     settings = profile.mavlink

@@ -8,6 +8,7 @@ import math
 import sys
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +26,7 @@ from imuhal.cli.robot_outputs import (
     report_mavlink,
     report_mcap,
 )
+from imuhal.cli.run_options import RunOptions
 from imuhal.core.atomic import AtomicFile, check_outputs
 from imuhal.core.errors import ImuhalError
 from imuhal.live import LiveView, parse_bind
@@ -124,178 +126,240 @@ def add_parser(sub: Any) -> None:
 
 
 def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
-    from imuhal.emulation import EmulatedBoard, TruthSink, open_emulated
-    from imuhal.pipeline import ConsoleSink, CsvSink, Pipeline
-
-    path = Path(args.profile) if args.profile else default_profile_path()
+    opts = RunOptions.from_args(args)
+    path = Path(opts.profile) if opts.profile else default_profile_path()
     # Before anything is opened: no output may overwrite an input, and each must be writable.
-    check_outputs({"--output": args.output, "--truth": args.truth, "--trace": args.trace,
-                   "--audio-wav": args.audio_wav, "--record": args.record,
-                   "--igc": args.igc if args.igc and not Path(args.igc).is_dir() else None,
-                   "--mcap": args.mcap, "--save-learned": args.save_learned},
-                  {"PROFILE": path, "--replay-truth": args.replay_truth})
-    if args.samples and not args.output:
-        raise ImuhalError("--samples writes the samples into the --output log; add "
-                          "--output FILE.csv")
-    if (args.igc_pilot is not None or args.igc_glider is not None) and not args.igc:
-        raise ImuhalError("--igc-pilot and --igc-glider name who flies in the IGC log; add "
-                          "--igc FILE.IGC (or a folder)")
-    if args.igc:
+    check_outputs(opts.outputs(), {"PROFILE": path, "--replay-truth": opts.replay_truth})
+    if opts.igc:
         from imuhal.sinks.flight.igc import check_igc_output
 
-        check_igc_output(args.igc)
-    if (args.audio_damping is not None or args.audio_sink_alarm is not None) and \
-            not (args.audio or args.audio_wav):
-        raise ImuhalError("--audio-damping and --audio-sink-alarm shape the vario tones; add "
-                          "--audio or --audio-wav FILE.wav")
-    if args.nmea_sentences is not None and not args.nmea:
-        raise ImuhalError("--nmea-sentences chooses the sentences of an --nmea output; add "
-                          "--nmea OUTPUT (e.g. --nmea pty)")
-    profile = load_profile(path, registry)
-    frame = args.output_frame or profile.output_frame
-    emulate = args.emulate
-    if args.profile is None and emulate is None:
-        emulate = profile.emulation.scenario
-    web = parse_bind(args.web) if args.web is not None else None
-    # Real buses always run in real time; a dashboard of an emulated run is watched live.
-    realtime = args.realtime or emulate is None or web is not None
-    if args.seed is not None and emulate is None:
-        raise ImuhalError("--seed seeds the simulated world of an emulated run; add --emulate "
-                          "SCENARIO (or drop --seed): real hardware has no seed")
-    if args.skip_calibration and emulate is None:
-        raise ImuhalError("--skip-calibration is for emulated runs (real hardware is never "
-                          "calibrated by `imuhal run`); drop it, or add --emulate SCENARIO")
-    if args.truth and emulate is None:
-        raise ImuhalError("--truth needs an emulated run (--emulate SCENARIO): real "
-                          "hardware has no ground truth")
-    if emulate is not None:
-        registry.scenarios.get(emulate)  # an unknown name fails here, before any output
-    scenario_params = _replay_params(args, emulate)
-    duration = args.duration
-    if duration is None and emulate is not None and scenario_params is None:
-        duration = registry.scenarios.get(emulate).default_duration_s
-    names = [*args.sink, *(["mqtt"] if args.mqtt is not None and "mqtt" not in args.sink
-                           else [])]
-    given = {"mqtt": {"url": args.mqtt}} if args.mqtt is not None else {}
-    # checked before the board is opened
-    plugin_sinks = _plugin_sinks(names, args.sink_set, registry, profile=profile, frame=frame,
-                                 given=given)
-    mavlink = mavlink_sink(registry, args, profile)  # a socket only: nothing sent yet
-    where = f"emulated, scenario '{emulate}'" if emulate else "real hardware"
-    print(f"imuhal {__version__}: {profile.name} ({where}) from {path}", file=sys.stderr)
-    profile, profile_text, calibrated_note = _user_calibration(args, path, profile, emulate,
-                                                               registry)
-    sinks: list[Any] = []
-    if not args.quiet:
-        sinks.append(ConsoleSink(sys.stdout, frame=frame))
-    csv_sink = None
-    trace_file = AtomicFile(args.trace, partial=True) if args.trace else None
-    trace = _trace_writer(trace_file) if trace_file else None
-    recorder = None
-    ended = ["failed"]  # how the run ended, for the recording's end mark
+        check_igc_output(opts.igc)
+    plan = _plan(opts, path, registry)
+    session = _RunSession(opts, plan)
     with contextlib.ExitStack() as stack:
-        if trace_file is not None:
-            # Committed even when opening the board fails: the trace of a failed probe is
-            # exactly what a bug report needs.
-            stack.callback(trace_file.commit)
-        if args.record:
-            recorder = BusRecorder(args.record, run_header(
-                profile_text, str(path), emulate=emulate, seed=args.seed))
-            stack.callback(lambda: recorder.close(ended[0]))
-        if emulate is None:
-            pipeline = stack.enter_context(Pipeline.open(profile, registry, trace=trace,
-                                                         recorder=recorder))
-        else:
-            pipeline = stack.enter_context(open_emulated(
-                profile, registry, scenario=emulate, realtime=realtime, seed=args.seed,
-                trace=trace, recorder=recorder, scenario_params=scenario_params))
-        for w in pipeline.warnings:
-            print(f"warning: {w}", file=sys.stderr)
-        if emulate == "replay" and isinstance(pipeline.board, EmulatedBoard):
-            # the rest of the record (opening the board took some simulated time)
-            left = pipeline.board.scenario.duration_s - pipeline.clock.now_ns() / 1e9
-            if args.duration is not None and args.duration > left:
-                print(f"warning: --replay-truth {args.replay_truth} ends after {left:.3f} s; "
-                      "the run stops there", file=sys.stderr)
-            duration = left if args.duration is None else min(args.duration, left)
-        if web is not None:
-            live = stack.enter_context(LiveView.for_pipeline(pipeline, host=web.host,
-                                                             port=web.port))
-            sinks.append(live.sink)
-            print(f"live view: {live.url}" + ("" if web.loopback else
-                  " (reachable from the network at this machine's address: read-only, "
-                  "no password; docs/live-view.md)"), file=sys.stderr)
-            if live.exposure:
-                print(f"warning: {live.exposure}", file=sys.stderr)
-        if args.output:
-            csv_sink = CsvSink(args.output, include_samples=args.samples, frame=frame)
-            sinks.append(csv_sink)
-        sinks.extend(_flight_sinks(args, profile, registry, stack))
-        mcap = mcap_sink(registry, args.mcap, profile) if args.mcap else None
-        if mcap is not None:
-            sinks.append(mcap)
-        if mavlink is not None:
-            stack.callback(mavlink.close)  # also when the run fails before it starts
-            sinks.append(mavlink)
-        truth_sink = None
-        if args.truth:
-            truth_sink = TruthSink(args.truth, EmulatedBoard.of(pipeline).scenario,
-                                   include_samples=args.samples)
-            sinks.append(truth_sink)
-        sinks.extend(plugin_sinks)
-        for sink in plugin_sinks:
-            describe = getattr(sink, "describe", None)
-            if describe is not None:
-                print(f"{sink.name}: {describe()}", file=sys.stderr)
-        if calibrated_note:  # once every output is open: a mistake stays a one-line error
-            print(calibrated_note, file=sys.stderr)
-        wall0 = time.perf_counter()
-        try:
-            summary = pipeline.run(duration, sinks)
-            ended[0] = "complete"
-        except RecordingWriteFailed as exc:
-            raise ImuhalError(f"{exc}; the run stopped (the recording keeps what was "
-                              f"flushed){_kept_note(args.output, csv_sink)}") from None
-        except KeyboardInterrupt as stop:
-            # what ran until the stop, not the zeros of a summary taken out of a run
-            summary = pipeline.summary(wall_s=time.perf_counter() - wall0,
-                                       simulated_s=pipeline.span_s)
-            summary.sinks = {s.name: s.run_counts() for s in plugin_sinks
-                             if hasattr(s, "run_counts")}  # pipeline.run closed them
-            ended[0] = "interrupted"
-            why = f"stopped by {stop}" if str(stop) else "interrupted"
-            print(f"\n{why}; the files are complete up to here", file=sys.stderr)
-        except ImuhalError as exc:
-            raise ImuhalError(f"{exc}{_kept_note(args.output, csv_sink)}") from exc
-        except Exception:
-            if args.output:
-                print(f"imuhal: note{_kept_note(args.output, csv_sink)}", file=sys.stderr)
-            raise
-        learned = {n: d.calibration for n, d in pipeline.devices.items()
-                   if d.mag_learner is not None and d.mag_learner.converged
-                   and d.calibration is not None}
+        pipeline = session.open(stack, registry)
+        session.add_outputs(stack, pipeline, registry)
+        summary = session.run(pipeline)
+        learned = _learned(pipeline)
     print(summary.describe(), file=sys.stderr)
-    if args.save_learned:
-        _save_learned(args.save_learned, profile_text, path, learned, registry)
-    if csv_sink is not None:
-        print(f"wrote {csv_sink.rows} rows to {args.output}", file=sys.stderr)
-    if mcap is not None:
-        print(report_mcap(mcap, args.mcap), file=sys.stderr)
-    if mavlink is not None:
-        print(report_mavlink(mavlink, args.mavlink), file=sys.stderr)
-    if truth_sink is not None:
-        print(f"wrote {truth_sink.rows} truth rows to {args.truth}", file=sys.stderr)
-    for sink in sinks:
-        if getattr(sink, "name", None) == "igc":
-            print(f"wrote {sink.b_records} B records to {sink.path}" if sink.path else
-                  "IGC log: no GNSS fix in the run, nothing written", file=sys.stderr)
-    if recorder is not None:
-        print(f"recorded {recorder.transfers} bus transactions to {args.record}",
-              file=sys.stderr)
+    if opts.save_learned:
+        _save_learned(opts.save_learned, plan.profile_text, path, learned, registry)
+    session.report()
     return 0
 
 
-def _user_calibration(args: argparse.Namespace, path: Path, profile: Any,
+@dataclass
+class _RunPlan:
+    """What the options and the profile decide before any bus or output is opened."""
+
+    path: Path
+    profile: Any
+    profile_text: str
+    calibrated_note: str
+    """The line saying the emulated board was calibrated first (empty: it was not)."""
+    frame: Any
+    emulate: str | None
+    web: Any
+    realtime: bool
+    scenario_params: dict[str, Any] | None
+    duration_s: float | None
+    plugin_sinks: list[Any]
+    mavlink: Any
+
+
+def _plan(opts: RunOptions, path: Path, registry: Registry) -> _RunPlan:
+    """Loads the profile and checks every name, setting and input file against it; prints
+    the run's first line and calibrates an emulated board first when its profile asks."""
+    profile = load_profile(path, registry)
+    frame = opts.output_frame or profile.output_frame
+    emulate = profile.emulation.scenario if opts.emulate is None and opts.emulated \
+        else opts.emulate
+    web = parse_bind(opts.web) if opts.web is not None else None
+    if emulate is not None:
+        registry.scenarios.get(emulate)  # an unknown name fails here, before any output
+    scenario_params = _replay_params(opts, emulate)
+    duration = opts.duration
+    if duration is None and emulate is not None and scenario_params is None:
+        duration = registry.scenarios.get(emulate).default_duration_s
+    # checked before the board is opened
+    plugin_sinks = _plugin_sinks(opts.sink_names(), list(opts.sink_set), registry, profile=profile,
+                                 frame=frame, given=opts.sink_given())
+    mavlink = mavlink_sink(registry, opts, profile)  # a socket only: nothing sent yet
+    where = f"emulated, scenario '{emulate}'" if emulate else "real hardware"
+    print(f"imuhal {__version__}: {profile.name} ({where}) from {path}", file=sys.stderr)
+    profile, text, note = _user_calibration(opts, path, profile, emulate, registry)
+    # Real buses always run in real time; a dashboard of an emulated run is watched live.
+    return _RunPlan(path=path, profile=profile, profile_text=text, calibrated_note=note,
+                    frame=frame, emulate=emulate, web=web,
+                    realtime=opts.realtime or emulate is None or web is not None,
+                    scenario_params=scenario_params, duration_s=duration,
+                    plugin_sinks=plugin_sinks, mavlink=mavlink)
+
+
+def _learned(pipeline: Any) -> dict[str, Any]:
+    """The calibrations learned in flight that converged, by device."""
+    return {n: d.calibration for n, d in pipeline.devices.items()
+            if d.mag_learner is not None and d.mag_learner.converged
+            and d.calibration is not None}
+
+
+class _RunSession:
+    """One run's outputs and its recording: opened in order around the pipeline, closed by
+    the caller's exit stack, reported at the end."""
+
+    def __init__(self, opts: RunOptions, plan: _RunPlan) -> None:
+        from imuhal.pipeline import ConsoleSink
+
+        self.opts = opts
+        self.plan = plan
+        self.sinks: list[Any] = [] if opts.quiet else [ConsoleSink(sys.stdout,
+                                                                   frame=plan.frame)]
+        self.csv_sink: Any = None
+        self.truth_sink: Any = None
+        self.mcap: Any = None
+        self.recorder: BusRecorder | None = None
+        self.ended = "failed"  # how the run ended, for the recording's end mark
+
+    def open(self, stack: contextlib.ExitStack, registry: Registry) -> Any:
+        """The trace, the recording and the pipeline (hardware or emulated)."""
+        from imuhal.emulation import open_emulated
+        from imuhal.pipeline import Pipeline
+
+        opts, plan = self.opts, self.plan
+        trace = None
+        if opts.trace:
+            trace_file = AtomicFile(opts.trace, partial=True)
+            # Committed even when opening the board fails: the trace of a failed probe is
+            # exactly what a bug report needs.
+            stack.callback(trace_file.commit)
+            trace = _trace_writer(trace_file)
+        if opts.record:
+            recorder = self.recorder = BusRecorder(opts.record, run_header(
+                plan.profile_text, str(plan.path), emulate=plan.emulate, seed=opts.seed))
+            stack.callback(lambda: recorder.close(self.ended))
+        if plan.emulate is None:
+            pipeline = stack.enter_context(Pipeline.open(plan.profile, registry, trace=trace,
+                                                         recorder=self.recorder))
+        else:
+            pipeline = stack.enter_context(open_emulated(
+                plan.profile, registry, scenario=plan.emulate, realtime=plan.realtime,
+                seed=opts.seed, trace=trace, recorder=self.recorder,
+                scenario_params=plan.scenario_params))
+        for w in pipeline.warnings:
+            print(f"warning: {w}", file=sys.stderr)
+        self._replay_duration(pipeline)
+        return pipeline
+
+    def _replay_duration(self, pipeline: Any) -> None:
+        """A replay runs the rest of its record (opening the board took simulated time)."""
+        from imuhal.emulation import EmulatedBoard
+
+        if self.plan.emulate != "replay" or not isinstance(pipeline.board, EmulatedBoard):
+            return
+        left = pipeline.board.scenario.duration_s - pipeline.clock.now_ns() / 1e9  # type: ignore[attr-defined]  # the replay scenario (plan.emulate == "replay", tested above) has a duration
+        asked = self.opts.duration
+        if asked is not None and asked > left:
+            print(f"warning: --replay-truth {self.opts.replay_truth} ends after {left:.3f} s; "
+                  "the run stops there", file=sys.stderr)
+        self.plan.duration_s = left if asked is None else min(asked, left)
+
+    def add_outputs(self, stack: contextlib.ExitStack, pipeline: Any,
+                    registry: Registry) -> None:
+        """Every output sink, in the order they see each event."""
+        from imuhal.emulation import EmulatedBoard, TruthSink
+        from imuhal.pipeline import CsvSink
+
+        opts, plan = self.opts, self.plan
+        if plan.web is not None:
+            self._add_live_view(stack, pipeline)
+        if opts.output:
+            self.csv_sink = CsvSink(opts.output, include_samples=opts.samples,
+                                    frame=plan.frame)
+            self.sinks.append(self.csv_sink)
+        self.sinks.extend(_flight_sinks(opts, plan.profile, registry, stack))
+        if opts.mcap:
+            self.mcap = mcap_sink(registry, opts.mcap, plan.profile)
+            self.sinks.append(self.mcap)
+        if plan.mavlink is not None:
+            stack.callback(plan.mavlink.close)  # also when the run fails before it starts
+            self.sinks.append(plan.mavlink)
+        if opts.truth:
+            self.truth_sink = TruthSink(opts.truth, EmulatedBoard.of(pipeline).scenario,
+                                        include_samples=opts.samples)
+            self.sinks.append(self.truth_sink)
+        self.sinks.extend(plan.plugin_sinks)
+        for sink in plan.plugin_sinks:
+            describe = getattr(sink, "describe", None)
+            if describe is not None:
+                print(f"{sink.name}: {describe()}", file=sys.stderr)
+        if plan.calibrated_note:  # once every output is open: a mistake stays a one-line error
+            print(plan.calibrated_note, file=sys.stderr)
+
+    def _add_live_view(self, stack: contextlib.ExitStack, pipeline: Any) -> None:
+        web = self.plan.web
+        live = stack.enter_context(LiveView.for_pipeline(pipeline, host=web.host,
+                                                         port=web.port))
+        self.sinks.append(live.sink)
+        print(f"live view: {live.url}" + ("" if web.loopback else
+              " (reachable from the network at this machine's address: read-only, "
+              "no password; docs/live-view.md)"), file=sys.stderr)
+        if live.exposure:
+            print(f"warning: {live.exposure}", file=sys.stderr)
+
+    def run(self, pipeline: Any) -> Any:
+        """Runs the pipeline into the sinks; the run's summary (a stopped run's too)."""
+        output = self.opts.output
+        wall0 = time.perf_counter()
+        try:
+            summary = pipeline.run(self.plan.duration_s, self.sinks)
+            self.ended = "complete"
+        except RecordingWriteFailed as exc:
+            raise ImuhalError(f"{exc}; the run stopped (the recording keeps what was "
+                              f"flushed){_kept_note(output, self.csv_sink)}") from None
+        except KeyboardInterrupt as stop:
+            summary = self._stopped(pipeline, wall0, stop)
+        except ImuhalError as exc:
+            raise ImuhalError(f"{exc}{_kept_note(output, self.csv_sink)}") from exc
+        except Exception:
+            if output:
+                print(f"imuhal: note{_kept_note(output, self.csv_sink)}", file=sys.stderr)
+            raise
+        return summary
+
+    def _stopped(self, pipeline: Any, wall0: float, stop: KeyboardInterrupt) -> Any:
+        """What ran until the stop, not the zeros of a summary taken out of a run."""
+        summary = pipeline.summary(wall_s=time.perf_counter() - wall0,
+                                   simulated_s=pipeline.span_s)
+        summary.sinks = {s.name: s.run_counts() for s in self.plan.plugin_sinks
+                         if hasattr(s, "run_counts")}  # pipeline.run closed them
+        self.ended = "interrupted"
+        why = f"stopped by {stop}" if str(stop) else "interrupted"
+        print(f"\n{why}; the files are complete up to here", file=sys.stderr)
+        return summary
+
+    def report(self) -> None:
+        """The closing lines: what each output wrote."""
+        opts = self.opts
+        lines: list[str] = []
+        if self.csv_sink is not None:
+            lines.append(f"wrote {self.csv_sink.rows} rows to {opts.output}")
+        if self.mcap is not None:
+            lines.append(report_mcap(self.mcap, str(opts.mcap)))
+        if self.plan.mavlink is not None:
+            lines.append(report_mavlink(self.plan.mavlink, str(opts.mavlink)))
+        if self.truth_sink is not None:
+            lines.append(f"wrote {self.truth_sink.rows} truth rows to {opts.truth}")
+        lines += [f"wrote {sink.b_records} B records to {sink.path}" if sink.path else
+                  "IGC log: no GNSS fix in the run, nothing written"
+                  for sink in self.sinks if getattr(sink, "name", None) == "igc"]
+        if self.recorder is not None:
+            lines.append(f"recorded {self.recorder.transfers} bus transactions to "
+                         f"{opts.record}")
+        for line in lines:
+            print(line, file=sys.stderr)
+
+
+def _user_calibration(opts: RunOptions, path: Path, profile: Any,
                       emulate: str | None, registry: Registry) -> tuple[Any, str, str]:
     """The profile to run, its text and the line saying it was calibrated first (empty:
     it was not): an emulated board with sensor errors is calibrated first where its profile
@@ -306,9 +370,9 @@ def _user_calibration(args: argparse.Namespace, path: Path, profile: Any,
     text = path.read_text(encoding="utf-8")
     if emulate is not None and not profile.emulation.sensor_errors:
         return profile, text, ""  # ideal chips: nothing to calibrate, nothing it costs
-    if emulate is not None and not args.skip_calibration:
-        run = calibrate_emulated(profile, text, str(path), registry, seed=args.seed)
-        seed = profile.emulation.seed if args.seed is None else args.seed
+    if emulate is not None and not opts.skip_calibration:
+        run = calibrate_emulated(profile, text, str(path), registry, seed=opts.seed)
+        seed = profile.emulation.seed if opts.seed is None else opts.seed
         return run.profile, run.text, run.describe(seed) if run.measured else ""
     for note in missing_calibration_notes(profile, registry):
         print(f"note: {note}", file=sys.stderr)
@@ -329,7 +393,7 @@ def _save_learned(output: str, text: str, path: Path, learned: dict[str, Any],
           f"to {output}", file=sys.stderr)
 
 
-def _flight_sinks(args: argparse.Namespace, profile: Any, registry: Registry,
+def _flight_sinks(opts: RunOptions, profile: Any, registry: Registry,
                   stack: contextlib.ExitStack) -> list[Any]:
     """The --nmea outputs and the --audio / --audio-wav sink (the plugins registered as
     ``nmea`` and ``vario-audio``), closed with the run."""
@@ -337,14 +401,14 @@ def _flight_sinks(args: argparse.Namespace, profile: Any, registry: Registry,
 
     out: list[Any] = []
     extra: dict[str, Any] = {}
-    if args.nmea_sentences is not None:
-        extra["sentences"] = tuple(x.strip().upper() for x in args.nmea_sentences.split(",")
+    if opts.nmea_sentences is not None:
+        extra["sentences"] = tuple(x.strip().upper() for x in opts.nmea_sentences.split(",")
                                    if x.strip())
         if not extra["sentences"]:
-            raise ImuhalError(f"--nmea-sentences {args.nmea_sentences!r}: name at least one "
+            raise ImuhalError(f"--nmea-sentences {opts.nmea_sentences!r}: name at least one "
                               "sentence, e.g. --nmea-sentences LK8EX1,GGA")
     nmea = registry.sinks.get("nmea")
-    for spec in args.nmea:
+    for spec in opts.nmea:
         if spec.partition(":")[0] == "ble" and "sentences" not in extra:
             from imuhal.sinks.flight.ble import BLE_SENTENCES
 
@@ -352,7 +416,7 @@ def _flight_sinks(args: argparse.Namespace, profile: Any, registry: Registry,
         else:
             sink = nmea({"output": spec, **extra})
         stack.callback(sink.close)
-        transport = sink.transport
+        transport = sink.transport  # type: ignore[attr-defined]  # the sink registered as 'nmea' is a FlightSink, which has a transport
         where = transport.description
         if isinstance(transport, PtyTransport):
             where += f" (open {transport.path} in the flight app)"
@@ -361,29 +425,29 @@ def _flight_sinks(args: argparse.Namespace, profile: Any, registry: Registry,
         if exposure:
             print(f"warning: {exposure}", file=sys.stderr)
         out.append(sink)
-    if args.audio or args.audio_wav:
+    if opts.audio or opts.audio_wav:
         out.append(registry.sinks.get("vario-audio")(
-            {"curve": _audio_curve(args, profile), "wav": args.audio_wav,
-             "live": args.audio}))
-    if args.igc:
+            {"curve": _audio_curve(opts, profile), "wav": opts.audio_wav,
+             "live": opts.audio}))
+    if opts.igc:
         log = profile.igc.model_copy(update={
-            k: v for k, v in (("pilot", args.igc_pilot), ("glider_type", args.igc_glider))
+            k: v for k, v in (("pilot", opts.igc_pilot), ("glider_type", opts.igc_glider))
             if v is not None})
         out.append(registry.sinks.get("igc")({
-            "path": args.igc, "log": log, "logger_type": f"imuhal,{profile.name}",
+            "path": opts.igc, "log": log, "logger_type": f"imuhal,{profile.name}",
             "firmware": __version__,
             "device_drivers": {name: dev.driver for name, dev in profile.devices.items()}}))
     return out
 
 
-def _audio_curve(args: argparse.Namespace, profile: Any) -> Any:
+def _audio_curve(opts: RunOptions, profile: Any) -> Any:
     """The profile's audio curve with --audio-damping / --audio-sink-alarm applied."""
     from pydantic import ValidationError
 
     from imuhal.sinks.flight.audio import VarioAudioSettings
 
-    update = {k: v for k, v in (("damping_s", args.audio_damping),
-                                ("sink_alarm_m_s", args.audio_sink_alarm)) if v is not None}
+    update = {k: v for k, v in (("damping_s", opts.audio_damping),
+                                ("sink_alarm_m_s", opts.audio_sink_alarm)) if v is not None}
     if not update:
         return profile.audio
     try:
@@ -391,9 +455,9 @@ def _audio_curve(args: argparse.Namespace, profile: Any) -> Any:
     except ValidationError as exc:
         err = exc.errors()[0]
         if err["loc"] and err["loc"][0] == "damping_s":
-            raise ImuhalError(f"--audio-damping {args.audio_damping}: a time constant of "
+            raise ImuhalError(f"--audio-damping {opts.audio_damping}: a time constant of "
                               "0 to 10 s, e.g. --audio-damping 1.5") from None
-        raise ImuhalError(f"--audio-sink-alarm {args.audio_sink_alarm}: "
+        raise ImuhalError(f"--audio-sink-alarm {opts.audio_sink_alarm}: "
                           f"{err['msg'].removeprefix('Value error, ')}") from None
 
 
@@ -457,15 +521,15 @@ def _kept_note(output: str | None, sink: Any) -> str:
     return f"; nothing was written to {output}"
 
 
-def _replay_params(args: argparse.Namespace, emulate: str | None) -> dict[str, Any] | None:
+def _replay_params(opts: RunOptions, emulate: str | None) -> dict[str, Any] | None:
     """Scenario parameters from --replay-truth; the replay scenario cannot run without one."""
     if emulate == "replay":
-        if not args.replay_truth:
+        if not opts.replay_truth:
             raise ImuhalError("--emulate replay needs the truth CSV to fly: add --replay-truth "
                               "FILE.csv (e.g. one written by `imuhal run --truth`)")
-        _check_replay_file(args.replay_truth)
-        return {"path": args.replay_truth}
-    if args.replay_truth:
+        _check_replay_file(opts.replay_truth)
+        return {"path": opts.replay_truth}
+    if opts.replay_truth:
         raise ImuhalError("--replay-truth is read by the replay scenario; add --emulate replay")
     return None
 

@@ -24,7 +24,7 @@ def pressure_pa_at_altitude(
     ratio = 1.0 - LAPSE_RATE_K_PER_M * altitude_m / SEA_LEVEL_TEMPERATURE_K
     if ratio <= 0:
         raise ValueError(f"altitude {altitude_m} m is outside the troposphere model")
-    return sea_level_pa * ratio**_EXPONENT
+    return float(sea_level_pa * ratio**_EXPONENT)
 
 
 def altitude_m_from_pressure(
@@ -33,9 +33,9 @@ def altitude_m_from_pressure(
     """Altitude (m) at which the ISA troposphere has ``pressure_pa``."""
     if pressure_pa <= 0 or not math.isfinite(pressure_pa):
         raise ValueError(f"pressure must be a positive finite number of Pa, got {pressure_pa}")
-    return SEA_LEVEL_TEMPERATURE_K / LAPSE_RATE_K_PER_M * (
+    return float(SEA_LEVEL_TEMPERATURE_K / LAPSE_RATE_K_PER_M * (
         1.0 - (pressure_pa / sea_level_pa) ** (1.0 / _EXPONENT)
-    )
+    ))
 
 
 def temperature_degc_at_altitude(altitude_m: float) -> float:

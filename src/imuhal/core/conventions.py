@@ -238,7 +238,7 @@ def vector_from_ned(v: ArrayLike, dst: str | Convention, kind: VectorKind) -> Fl
     """An FRD body-frame reading (specific force for the accelerometer) in ``dst``'s body
     axes and accelerometer sign."""
     c = get_convention(dst)
-    a = _vectors(v) @ c.body_from_frd.T
+    a: FloatArray = _vectors(v) @ c.body_from_frd.T
     return a * c.accel_sign.factor if kind is VectorKind.SPECIFIC_FORCE else a
 
 
@@ -253,7 +253,8 @@ def convert_earth_vector(v: ArrayLike, src: str | Convention,
     """An earth-frame vector (position, velocity, linear acceleration, a field reference)
     from ``src``'s earth axes to ``dst``'s."""
     s, d = get_convention(src), get_convention(dst)
-    return _vectors(v) @ (d.earth_from_ned @ s.earth_from_ned.T).T
+    out: FloatArray = _vectors(v) @ (d.earth_from_ned @ s.earth_from_ned.T).T
+    return out
 
 
 # ---------------------------------------------------------------------------------------------

@@ -11,11 +11,16 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]
+Vector = Sequence[float] | NDArray[np.floating[Any]]
+"""A vector or quaternion as numbers or a numpy array (the functions here take either)."""
+Matrix = Sequence[Sequence[float]] | NDArray[np.floating[Any]]
+"""A matrix as rows of numbers or a numpy array."""
 
 IDENTITY_QUATERNION: FloatArray = np.array([1.0, 0.0, 0.0, 0.0])
 
@@ -34,7 +39,7 @@ def quat_multiply(p: Sequence[float], q: Sequence[float]) -> FloatArray:
     )
 
 
-def quat_normalize(q: Sequence[float]) -> FloatArray:
+def quat_normalize(q: Vector) -> FloatArray:
     a = np.asarray(q, dtype=float)
     n = float(np.linalg.norm(a))
     if n == 0.0 or not math.isfinite(n):
@@ -42,7 +47,7 @@ def quat_normalize(q: Sequence[float]) -> FloatArray:
     return a / n
 
 
-def quat_to_matrix(q: Sequence[float]) -> FloatArray:
+def quat_to_matrix(q: Vector) -> FloatArray:
     """Rotation matrix R with v_ned = R @ v_body for a unit quaternion body -> NED."""
     w, x, y, z = q
     return np.array(
@@ -56,7 +61,8 @@ def quat_to_matrix(q: Sequence[float]) -> FloatArray:
 
 def quat_rotate(q: Sequence[float], v_body: Sequence[float]) -> FloatArray:
     """Rotate a body-frame vector into NED with the body -> NED quaternion ``q``."""
-    return quat_to_matrix(q) @ np.asarray(v_body, dtype=float)
+    rotated: FloatArray = quat_to_matrix(q) @ np.asarray(v_body, dtype=float)
+    return rotated
 
 
 def quat_from_euler_deg(roll_deg: float, pitch_deg: float, yaw_deg: float) -> FloatArray:
@@ -74,7 +80,7 @@ def quat_from_euler_deg(roll_deg: float, pitch_deg: float, yaw_deg: float) -> Fl
     )
 
 
-def euler_deg_from_quat(q: Sequence[float]) -> tuple[float, float, float]:
+def euler_deg_from_quat(q: Vector) -> tuple[float, float, float]:
     """(roll, pitch, yaw) in degrees from a body -> NED quaternion; yaw in [-180, 180]."""
     w, x, y, z = quat_normalize(q)
     roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
@@ -84,7 +90,7 @@ def euler_deg_from_quat(q: Sequence[float]) -> tuple[float, float, float]:
     return math.degrees(roll), math.degrees(pitch), math.degrees(yaw)
 
 
-def quat_from_matrix(m: Sequence[Sequence[float]]) -> FloatArray:
+def quat_from_matrix(m: Matrix) -> FloatArray:
     """Unit quaternion (w >= 0) of a proper rotation matrix (Shepperd's method)."""
     a = np.asarray(m, dtype=float)
     tr = float(np.trace(a))
@@ -133,7 +139,7 @@ def parse_signed_axes(spec: str) -> FloatArray:
     return m
 
 
-def validate_rotation(m: Sequence[Sequence[float]], *, tol: float = 1e-6) -> FloatArray:
+def validate_rotation(m: Matrix, *, tol: float = 1e-6) -> FloatArray:
     """Return ``m`` as an array if it is a proper rotation; raise MountError naming why not."""
     a = np.asarray(m, dtype=float)
     if a.shape != (3, 3):

@@ -11,9 +11,11 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from enum import Enum, IntEnum, IntFlag
-from typing import ClassVar, Self, TypeAlias
+from typing import Any, ClassVar, TypeAlias
 
-from imuhal.core.quantities import Quantity
+from typing_extensions import Self  # typing.Self is Python 3.11+
+
+from imuhal.core.quantities import Quantity as Quantity  # re-exported: a sample names its quantity
 
 Vec3: TypeAlias = tuple[float, float, float]
 
@@ -264,15 +266,22 @@ class PositionSample(Sample):
     channel: ClassVar[Quantity] = Quantity.POSITION
 
 
+def slot_setter(cls: type, name: str) -> Callable[[Any, Any], None]:
+    """The setter of the slot ``name`` that ``cls`` declares: it writes past a frozen
+    dataclass's ``__setattr__`` (the ``build`` fast paths set every field through these)."""
+    setter: Callable[[Any, Any], None] = vars(cls)[name].__set__
+    return setter
+
+
 # Slot setters for the ``build`` fast paths (a frozen class forbids plain assignment).
 _new = object.__new__
-_set_t_ns = Sample.t_ns.__set__  # type: ignore[attr-defined]
-_set_device = Sample.device.__set__  # type: ignore[attr-defined]
-_set_flags = Sample.flags.__set__  # type: ignore[attr-defined]
-_set_frame = VectorSample.frame.__set__  # type: ignore[attr-defined]
-AccelSample._set_vector = AccelSample.accel_m_s2.__set__  # type: ignore[attr-defined]
-GyroSample._set_vector = GyroSample.gyro_rad_s.__set__  # type: ignore[attr-defined]
-MagSample._set_vector = MagSample.mag_ut.__set__  # type: ignore[attr-defined]
+_set_t_ns = slot_setter(Sample, "t_ns")
+_set_device = slot_setter(Sample, "device")
+_set_flags = slot_setter(Sample, "flags")
+_set_frame = slot_setter(VectorSample, "frame")
+AccelSample._set_vector = slot_setter(AccelSample, "accel_m_s2")
+GyroSample._set_vector = slot_setter(GyroSample, "gyro_rad_s")
+MagSample._set_vector = slot_setter(MagSample, "mag_ut")
 
 
 SAMPLE_TYPES: dict[Quantity, type[Sample]] = {

@@ -97,6 +97,11 @@ class DeviceHealth:
                 **({"fifo_overflows": self.fifo_overflows} if self.fifo_overflows else {})}
 
 
+SettingsInput = DriverSettings | Mapping[str, Any]
+"""What a driver is constructed with: its Settings model, or the profile's mapping of them
+(validated by the constructor)."""
+
+
 class Driver(ABC):
     """Base of every chip driver.
 
@@ -132,7 +137,7 @@ class Driver(ABC):
     driver, when none is published) specifies it: what ``imuhal run`` quotes when a device
     has no calibration for that channel (imuhal.calibrate.missing). Empty: not known."""
 
-    def __init__(self, link: Link, settings: DriverSettings, *, device: str, clock: Clock) -> None:
+    def __init__(self, link: Link, settings: SettingsInput, *, device: str, clock: Clock) -> None:
         if not isinstance(settings, self.Settings):
             settings = self.Settings.model_validate(settings)
         self.link = link

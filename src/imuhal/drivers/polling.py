@@ -142,7 +142,7 @@ class DataReady:
     """When each channel last had new data, and whether it is now stale (one policy:
     ``STALE_AFTER_PERIODS``)."""
 
-    def __init__(self, periods_ns: Mapping[Hashable, int]) -> None:
+    def __init__(self, periods_ns: Mapping[Any, int]) -> None:
         self.periods_ns = dict(periods_ns)
         self._last_ns: dict[Hashable, int] = dict.fromkeys(self.periods_ns, 0)
 
@@ -157,7 +157,7 @@ class DataReady:
 
     def overdue(self, key: Hashable, now_ns: int) -> bool:
         """True when ``key`` has had no new data for more than STALE_AFTER_PERIODS periods."""
-        return now_ns - self._last_ns[key] > STALE_AFTER_PERIODS * self.periods_ns[key]
+        return bool(now_ns - self._last_ns[key] > STALE_AFTER_PERIODS * self.periods_ns[key])
 
 
 class ResetWatch:

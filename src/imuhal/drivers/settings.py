@@ -21,7 +21,7 @@ def pick(table: Mapping[float, object], value: float, name: str, unit: str) -> f
     listing the allowed values, which pydantic turns into a located profile error."""
     for key in table:
         if math.isclose(float(key), float(value), rel_tol=1e-9, abs_tol=1e-12):
-            return key  # type: ignore[return-value]
+            return key
     allowed = ", ".join(f"{k:g}" for k in sorted(table))
     raise ValueError(f"{name} = {value:g} {unit} is not supported; allowed: {allowed} {unit}")
 
@@ -49,7 +49,7 @@ def table_setting(table: Mapping[Any, object], unit: str, *, kind: type = float,
             allowed = ", ".join(f"{k:g}" if isinstance(k, int | float) else str(k)
                                 for k in sorted(table))
             raise ValueError(f"{name} must be a number in {unit}; allowed: {allowed} {unit}")
-        return kind(pick(table, value, name, unit))
+        return kind(pick(table, float(value), name, unit))
 
     return Annotated[kind, BeforeValidator(check), Allowed(tuple(table))]
 

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Hashable, Iterable, Mapping
+from typing import Any
 
 from imuhal.core.samples import SampleFlag
 
@@ -112,7 +113,7 @@ class FilterMemory:
     again. ``forget()`` is for a driver that reset the chip's filter (a write that
     re-initialises it, as the BMP280's config register does)."""
 
-    def __init__(self, outputs: Mapping[Hashable, int], period_ns: Mapping[Hashable, int]) -> None:
+    def __init__(self, outputs: Mapping[Any, int], period_ns: Mapping[Any, int]) -> None:
         self.outputs = dict(outputs)
         self.period_ns = dict(period_ns)
         self._until_ns: dict[Hashable, int] = {}

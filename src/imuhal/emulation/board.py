@@ -192,9 +192,9 @@ class EmulatedBoard:
         """The chip truth at ``t_ns`` (light when ``motion`` is False), once per instant."""
         # A full truth of the instant serves a light request as well (same floats).
         if t_ns == self._full_ns:
-            return self._full  # type: ignore[return-value]
+            return self._full  # type: ignore[return-value]  # set with _full_ns, which matched: not None
         if not motion and t_ns == self._light_ns:
-            return self._light  # type: ignore[return-value]
+            return self._light  # type: ignore[return-value]  # set with _light_ns, which matched: not None
         with self._scenario_lock:
             truth = self.scenario.chip_truth(t_ns / 1e9, motion=motion)
         if motion:
@@ -295,7 +295,7 @@ class EmulatedBoard:
             period = (t_ns - last) / 1e9 if last is not None and t_ns > last \
                 else DEFAULT_PERIOD_S
             periods = self._noise_periods(dev, period) if model.period_channels else None
-            force, rate, field, pressure, temperature = model.apply_values(
+            force, rate, field, pressure, temperature = model.apply_values(  # type: ignore[assignment]  # apply_values returns None only where it was given None, as here it was not
                 t_ns / 1e9, force, rate, field, pressure, temperature, period, periods)
         # One inputs object per chip and poll, built through its slots (building one
         # costs more than the error model's arithmetic).

@@ -284,10 +284,10 @@ def _replace_value(inputs: PhysicalInputs, spec: WildValue | WrongPressure) -> P
     name = _PHYSICS_FIELD[spec.channel]
     current = getattr(inputs, name)
     if spec.channel in ("pressure", "temperature"):
-        return replace(inputs, **{name: spec.value})
+        return replace(inputs, **{name: spec.value})  # type: ignore[arg-type]  # name is the PhysicalInputs field of the channel (_PHYSICS_FIELD)
     vector = list(current) if current is not None else [0.0, 0.0, 0.0]
     vector[spec.axis] = spec.value
-    return replace(inputs, **{name: (vector[0], vector[1], vector[2])})
+    return replace(inputs, **{name: (vector[0], vector[1], vector[2])})  # type: ignore[arg-type]  # name is the PhysicalInputs field of the channel (_PHYSICS_FIELD)
 
 
 class FaultLine:

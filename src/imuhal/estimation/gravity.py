@@ -13,16 +13,17 @@ from collections.abc import Sequence
 import numpy as np
 
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
-from imuhal.core.frames import FloatArray, quat_to_matrix
+from imuhal.core.frames import FloatArray, Vector, quat_to_matrix
 
 
 def linear_accel_ned_m_s2(
-    q_body_to_ned: Sequence[float],
-    specific_force_body_m_s2: Sequence[float],
+    q_body_to_ned: Vector,
+    specific_force_body_m_s2: Vector,
     gravity_m_s2: float = STANDARD_GRAVITY_M_S2,
 ) -> FloatArray:
     """Gravity-compensated acceleration in NED (m/s^2) from specific force in body axes."""
-    a = quat_to_matrix(q_body_to_ned) @ np.asarray(specific_force_body_m_s2, dtype=float)
+    a: FloatArray = quat_to_matrix(q_body_to_ned) @ np.asarray(specific_force_body_m_s2,
+                                                               dtype=float)
     a[2] += gravity_m_s2
     return a
 

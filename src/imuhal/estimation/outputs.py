@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from imuhal.core.frames import euler_deg_from_quat
-from imuhal.core.samples import Vec3
+from imuhal.core.samples import Vec3, slot_setter
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -57,8 +57,8 @@ class VerticalEstimate(Estimate):
 
 # Slot setters for the ``build`` fast path (a frozen class forbids plain assignment).
 _new = object.__new__
-_set_t_ns = Estimate.t_ns.__set__  # type: ignore[attr-defined]
-_set_source = Estimate.source.__set__  # type: ignore[attr-defined]
-_set_diagnostics = Estimate.diagnostics.__set__  # type: ignore[attr-defined]
-_set_q = AttitudeEstimate.q_body_to_ned.__set__  # type: ignore[attr-defined]
-_set_linear_accel = AttitudeEstimate.linear_accel_ned_m_s2.__set__  # type: ignore[attr-defined]
+_set_t_ns = slot_setter(Estimate, "t_ns")
+_set_source = slot_setter(Estimate, "source")
+_set_diagnostics = slot_setter(Estimate, "diagnostics")
+_set_q = slot_setter(AttitudeEstimate, "q_body_to_ned")
+_set_linear_accel = slot_setter(AttitudeEstimate, "linear_accel_ned_m_s2")

@@ -18,7 +18,7 @@ import numpy as np
 
 from imuhal.core.frames import FloatArray
 
-DiagnosticColumn = np.ndarray | list
+DiagnosticColumn = np.ndarray | list[Any]
 """One diagnostics column: an int array (flags, counts), a float array, or Python values
 (None where a row has no value)."""
 

@@ -81,12 +81,12 @@ def evaluate_dask(sources: Sequence[RecordingSource], specs: Sequence[EstimatorS
         futures = [client.submit(evaluation_task, src, spec, pure=False)
                    for src, spec in job_list]
         index = {f.key: i for i, f in enumerate(futures)}
-        results: list[TrialResult | None] = [None] * len(futures)
+        slots: list[TrialResult | None] = [None] * len(futures)  # in the serial order
         for done, fut in enumerate(as_completed(futures), 1):
-            results[index[fut.key]] = fut.result()
+            slots[index[fut.key]] = fut.result()
             if progress is not None:
                 progress(done, len(futures), fut.result())
-        return [r for r in results if r is not None]
+        return [r for r in slots if r is not None]
     finally:
         client.close()
         if cluster is not None:

@@ -22,11 +22,12 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from imuhal.core.frames import Matrix
 from imuhal.core.samples import Quantity, Vec3, VectorSample
 from imuhal.sinks.base import Event
 
@@ -147,7 +148,7 @@ def judge(motion: Motion, evidence: Evidence) -> Verdict:
 
     def verdict(ok: bool | None, message: str) -> Verdict:
         return Verdict(evidence.device, evidence.channel, motion.key, ok, seen, message, size,
-                       tuple(rot))  # type: ignore[arg-type]
+                       tuple(rot))  # type: ignore[arg-type]  # rot is a three-element rotation vector
 
     if visible < MIN_OBSERVABLE:
         # No verdict either way: what such a sensor shows about this motion is mostly the
@@ -265,9 +266,8 @@ def _unit(v: Sequence[float]) -> Vec3 | None:
     return (v[0] / n, v[1] / n, v[2] / n)
 
 
-def suggest_mount(chip_to_body: Sequence[Sequence[float]],
-                  board_to_body: Sequence[Sequence[float]],
-                  seen_deg: dict[str, Sequence[float]]) -> str | None:
+def suggest_mount(chip_to_body: Matrix, board_to_body: Matrix,
+                  seen_deg: Mapping[str, Sequence[float]]) -> str | None:
     """The mount (chip -> board, signed axes) that explains what a gyro saw, or None.
 
     ``seen_deg`` holds the body rotation (deg) the gyro showed for each motion of

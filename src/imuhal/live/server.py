@@ -360,7 +360,7 @@ def _finite_only(value: Any) -> Any:
 
 
 def _static(name: str) -> bytes:
-    return resources.files("imuhal.live").joinpath("static", name).read_bytes()
+    return resources.files("imuhal.live").joinpath("static").joinpath(name).read_bytes()
 
 
 def _handler_for(view: LiveView) -> type[BaseHTTPRequestHandler]:
@@ -378,7 +378,7 @@ class _LiveHandler(BaseHTTPRequestHandler):
     def setup(self) -> None:
         # StreamRequestHandler applies ``timeout`` to the connection: an idle client (no
         # request, or no next one on a kept-alive connection) is closed after it.
-        self.timeout = self.live.idle_timeout_s
+        self.timeout = self.live.idle_timeout_s  # type: ignore[misc]  # socketserver reads the handler's timeout per instance (StreamRequestHandler.setup)
         super().setup()
 
     def log_message(self, format: str, *args: Any) -> None:

@@ -99,11 +99,11 @@ class LiveSink:
                     dev.flagged[flag.name or str(int(flag))] += 1
             return
         dev.latest_valid[channel] = sample
-        if channel is _GYRO and sample.frame is _BODY_NED:  # type: ignore[attr-defined]
+        if channel is _GYRO and sample.frame is _BODY_NED:  # type: ignore[attr-defined]  # channel is _GYRO (tested first): a GyroSample, a vector sample
             last = dev.last_gyro_ns
             if last is not None and sample.t_ns > last:
                 dt = (sample.t_ns - last) * 1e-9
-                w = sample.gyro_rad_s  # type: ignore[attr-defined]
+                w = sample.gyro_rad_s  # type: ignore[attr-defined]  # channel is _GYRO (tested first): a GyroSample, a vector sample
                 r = dev.rotation_rad
                 r[0] += w[0] * dt
                 r[1] += w[1] * dt

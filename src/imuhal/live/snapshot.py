@@ -218,90 +218,64 @@ class Snapshotter:
     def _health(self, copy: Copy, past: _Past | None) -> dict[str, Any]:
         names = list(self._drivers) + [n for n in copy.devices if n not in self._drivers]
         span_s = (copy.t_ns - past.t_ns) / 1e9 if past is not None and copy.t_ns else 0.0
-        health: dict[str, Any] = {}
-        for name in names:
-            d = copy.devices.get(name)
-            # read at every snapshot: a device that joins late or comes back reconfigured
-            # has its streams then
-            configured = ({} if self.pipeline is None
-                          else configured_rates_hz(self.pipeline, name))
-            achieved: dict[str, float] = {}
-            if d is not None and past is not None and span_s >= 0.5:
-                before = past.counts.get(name, {})
-                for channel, n in d.counts.items():
-                    achieved[channel.value] = (n - before.get(channel, 0)) / span_s
-            fastest = max(configured.values(), default=None)
-            stale_after = max(STALE_PERIODS / fastest if fastest else 0.0, STALE_MIN_S)
-            last_t = None if d is None or d.last_t_ns is None else d.last_t_ns / 1e9
-            now_t = None if copy.t_ns is None else copy.t_ns / 1e9
-            stale = now_t is not None and (last_t is None or now_t - last_t > stale_after)
-            faults = self._faults(name)
-            recent_faults = faults - (past.faults.get(name, 0) if past is not None else 0)
-            problems = []
-            if stale:
-                problems.append("stale: no sample for "
-                                + (f"{now_t - last_t:.1f} s" if last_t is not None and
-                                   now_t is not None else "the whole run"))
-            if recent_faults > 0:
-                problems.append(f"{recent_faults} bus/device errors in the last "
-                                f"{WINDOW_S:g} s")
-            for channel, want in configured.items():
-                got = achieved.get(channel)
-                if got is not None and got < RATE_LOW * want:
-                    problems.append(f"{channel} at {got:.0f} of {want:g} Hz")
-            recent_flags = 0
-            if d is not None:
-                recent_flags = sum(d.flagged.values()) - (
-                    past.flagged.get(name, 0) if past is not None else 0)
-            recent_samples = 0
-            if d is not None:
-                recent_samples = sum(d.counts.values()) - (
-                    sum(past.counts.get(name, {}).values()) if past is not None else 0)
-            if recent_flags > FLAGGED_FAULTY * max(recent_samples, 1):
-                problems.append(f"{recent_flags} of {recent_samples} samples flagged in the "
-                                f"last {WINDOW_S:g} s")
-            health[name] = {
-                "driver": self._drivers.get(name),
-                "configured_hz": configured,
-                "achieved_hz": achieved,
-                "samples": sum(d.counts.values()) if d is not None else 0,
-                "flagged": dict(d.flagged) if d is not None else {},
-                "flagged_recent": recent_flags,
-                "bus_errors": (self.pipeline.devices[name].bus_errors
-                               if self.pipeline is not None and name in self.pipeline.devices
-                               else 0),
-                "device_errors": (self.pipeline.devices[name].device_errors
-                                  if self.pipeline is not None and name in self.pipeline.devices
-                                  else 0),
-                "learned": self._learned(name),
-                "last_t_s": last_t,
-                "stale": stale,
-                "faulty": bool(problems) and not (stale and len(problems) == 1),
-                "problems": problems,
-            }
-        return health
+        return {name: self._device_health(name, copy, past, span_s) for name in names}
+
+    def _device_health(self, name: str, copy: Copy, past: _Past | None,
+                       span_s: float) -> dict[str, Any]:
+        """One device's rates, errors, staleness and the problems that make it faulty."""
+        d = copy.devices.get(name)
+        # read at every snapshot: a device that joins late or comes back reconfigured
+        # has its streams then
+        configured = {} if self.pipeline is None else configured_rates_hz(self.pipeline, name)
+        achieved = _achieved_hz(d, past.counts.get(name, {}) if past is not None else None,
+                                span_s)
+        fastest = max(configured.values(), default=None)
+        stale_after = max(STALE_PERIODS / fastest if fastest else 0.0, STALE_MIN_S)
+        last_t = None if d is None or d.last_t_ns is None else d.last_t_ns / 1e9
+        now_t = None if copy.t_ns is None else copy.t_ns / 1e9
+        stale = now_t is not None and (last_t is None or now_t - last_t > stale_after)
+        recent = _Recent.of(d, name, past, self._faults(name))
+        problems = []
+        if stale:
+            problems.append("stale: no sample for "
+                            + (f"{now_t - last_t:.1f} s" if last_t is not None and
+                               now_t is not None else "the whole run"))
+        problems += recent.problems()
+        problems += [f"{channel} at {achieved[channel]:.0f} of {want:g} Hz"
+                     for channel, want in configured.items()
+                     if channel in achieved and achieved[channel] < RATE_LOW * want]
+        if recent.flags > FLAGGED_FAULTY * max(recent.samples, 1):
+            problems.append(f"{recent.flags} of {recent.samples} samples flagged in the "
+                            f"last {WINDOW_S:g} s")
+        errors = self._errors(name)
+        return {
+            "driver": self._drivers.get(name),
+            "configured_hz": configured,
+            "achieved_hz": achieved,
+            "samples": sum(d.counts.values()) if d is not None else 0,
+            "flagged": dict(d.flagged) if d is not None else {},
+            "flagged_recent": recent.flags,
+            "bus_errors": errors[0],
+            "device_errors": errors[1],
+            "learned": self._learned(name),
+            "last_t_s": last_t,
+            "stale": stale,
+            "faulty": bool(problems) and not (stale and len(problems) == 1),
+            "problems": problems,
+        }
+
+    def _errors(self, name: str) -> tuple[int, int]:
+        """The device's bus and device error counts (0, 0 before it is opened)."""
+        dev = self.pipeline.devices.get(name) if self.pipeline is not None else None
+        return (0, 0) if dev is None else (dev.bus_errors, dev.device_errors)
 
     def _bringup(self, copy: Copy, past: _Past | None) -> dict[str, Any]:
         """The rotation each sensor saw in the last window and, for each bring-up motion,
         its verdict (the page latches the first clear verdict after the user starts one)."""
         evidence: list[Evidence] = []
         if past is not None:
-            for name, d in copy.devices.items():
-                before = past.rotation.get(name)
-                if before is not None and d.last_gyro_ns is not None:
-                    evidence.append(Evidence(name, Quantity.GYRO, tuple(  # type: ignore[arg-type]
-                        math.degrees(d.rotation_rad[i] - before[i]) for i in range(3))))
-            ends_ns = ENDS_S * 1e9
-            first = [p for p in self._past if p.t_ns - past.t_ns <= ends_ns]
-            last = [p for p in self._past if copy.t_ns is not None
-                    and copy.t_ns - p.t_ns <= ends_ns]
-            keys = {k for p in first for k in p.vectors} & {k for p in last for k in p.vectors}
-            for key in sorted(keys, key=lambda k: (k[0], k[1].value)):
-                v0 = mean_vector([p.vectors[key] for p in first if key in p.vectors])
-                v1 = mean_vector([p.vectors[key] for p in last if key in p.vectors])
-                n0 = math.sqrt(sum(c * c for c in v0)) or 1.0
-                evidence.append(Evidence(key[0], key[1], rotation_between(v0, v1),
-                                         (v0[0] / n0, v0[1] / n0, v0[2] / n0)))
+            evidence += _gyro_evidence(copy, past)
+            evidence += self._vector_evidence(copy, past)
         return {
             "window_s": WINDOW_S,
             "window_start_t_s": None if past is None else past.t_ns / 1e9,
@@ -311,6 +285,69 @@ class Snapshotter:
             "motions": [{"key": m.key, "label": m.label, "prompt": m.prompt}
                         for m in MOTIONS],
         }
+
+    def _vector_evidence(self, copy: Copy, past: _Past) -> list[Evidence]:
+        """The rotation between each accelerometer's and magnetometer's mean vector at the
+        start and at the end of the window (ENDS_S long each)."""
+        ends_ns = ENDS_S * 1e9
+        first = [p for p in self._past if p.t_ns - past.t_ns <= ends_ns]
+        last = [p for p in self._past if copy.t_ns is not None
+                and copy.t_ns - p.t_ns <= ends_ns]
+        keys = {k for p in first for k in p.vectors} & {k for p in last for k in p.vectors}
+        evidence = []
+        for key in sorted(keys, key=lambda k: (k[0], k[1].value)):
+            v0 = mean_vector([p.vectors[key] for p in first if key in p.vectors])
+            v1 = mean_vector([p.vectors[key] for p in last if key in p.vectors])
+            n0 = math.sqrt(sum(c * c for c in v0)) or 1.0
+            evidence.append(Evidence(key[0], key[1], rotation_between(v0, v1),
+                                     (v0[0] / n0, v0[1] / n0, v0[2] / n0)))
+        return evidence
+
+
+def _gyro_evidence(copy: Copy, past: _Past) -> list[Evidence]:
+    """The rotation each gyro integrated over the window, in degrees about body x, y, z."""
+    evidence = []
+    for name, d in copy.devices.items():
+        before = past.rotation.get(name)
+        if before is not None and d.last_gyro_ns is not None:
+            evidence.append(Evidence(name, Quantity.GYRO, (
+                math.degrees(d.rotation_rad[0] - before[0]),
+                math.degrees(d.rotation_rad[1] - before[1]),
+                math.degrees(d.rotation_rad[2] - before[2]))))
+    return evidence
+
+
+def _achieved_hz(d: Any, before: dict[Quantity, int] | None, span_s: float) -> dict[str, float]:
+    """Samples per second of pipeline time of each channel since ``before`` (the counts at
+    the start of the window); empty until the window spans half a second."""
+    if d is None or before is None or span_s < 0.5:
+        return {}
+    return {channel.value: (n - before.get(channel, 0)) / span_s
+            for channel, n in d.counts.items()}
+
+
+@dataclass(frozen=True)
+class _Recent:
+    """A device's faults, flagged samples and samples within the window."""
+
+    faults: int
+    flags: int
+    samples: int
+
+    @classmethod
+    def of(cls, d: Any, name: str, past: _Past | None, faults: int) -> _Recent:
+        if past is None:
+            return cls(faults, sum(d.flagged.values()) if d is not None else 0,
+                       sum(d.counts.values()) if d is not None else 0)
+        recent_faults = faults - past.faults.get(name, 0)
+        if d is None:
+            return cls(recent_faults, 0, 0)
+        return cls(recent_faults, sum(d.flagged.values()) - past.flagged.get(name, 0),
+                   sum(d.counts.values()) - sum(past.counts.get(name, {}).values()))
+
+    def problems(self) -> list[str]:
+        return ([f"{self.faults} bus/device errors in the last {WINDOW_S:g} s"]
+                if self.faults > 0 else [])
 
 
 def _attitude(a: Any) -> dict[str, Any]:

@@ -73,6 +73,32 @@ def read_sample_csv(path: str | Path, *, rate_hz: float | None = None) -> Sample
     return SampleTable(first.path, columns, np.concatenate([c.lines for c in chunks]))
 
 
+def _read_header(p: Path, reader: Any, rate_hz: float | None) -> list[str]:
+    """The checked header line: comma-separated, each name once, and a time column unless
+    ``rate_hz`` gives the times (never both)."""
+    try:
+        header = [h.strip() for h in next(reader)]
+    except StopIteration:
+        raise InputError(f"{p}: the file is empty; expected a header line") from None
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise InputError(f"{p}: not a CSV text file ({exc})") from None
+    if len(header) == 1:
+        for sep, name in ((";", "semicolons"), ("\t", "tabs"), ("|", "bars")):
+            if sep in header[0]:
+                raise InputError(f"{p}: line 1: the columns are separated by {name}; imuhal "
+                                 "reads comma-separated values: save the file with ',' as "
+                                 "the delimiter")
+    dupes = {h for h in header if header.count(h) > 1}
+    if dupes:
+        raise InputError(f"{p}: line 1: duplicate column(s) {', '.join(sorted(dupes))}")
+    if TIME not in header and rate_hz is None:
+        raise InputError(f"{p}: missing column '{TIME}' (seconds); add it or give --rate HZ")
+    if TIME in header and rate_hz is not None:
+        raise InputError(f"{p}: has a '{TIME}' column, which gives the times; --rate is "
+                         "for input without one - drop --rate")
+    return header
+
+
 def iter_sample_chunks(path: str | Path, *, rate_hz: float | None = None,
                        chunk_rows: int | None = None) -> Iterator[SampleTable]:
     """Read and check a sample CSV in tables of at most ``chunk_rows`` rows, in file order.
@@ -91,26 +117,7 @@ def iter_sample_chunks(path: str | Path, *, rate_hz: float | None = None,
         raise InputError(f"{p}: cannot read: {exc.strerror or exc}") from None
     with handle:
         reader = csv.reader(handle)
-        try:
-            header = [h.strip() for h in next(reader)]
-        except StopIteration:
-            raise InputError(f"{p}: the file is empty; expected a header line") from None
-        except (UnicodeDecodeError, csv.Error) as exc:
-            raise InputError(f"{p}: not a CSV text file ({exc})") from None
-        if len(header) == 1:
-            for sep, name in ((";", "semicolons"), ("\t", "tabs"), ("|", "bars")):
-                if sep in header[0]:
-                    raise InputError(f"{p}: line 1: the columns are separated by {name}; imuhal "
-                                     "reads comma-separated values: save the file with ',' as "
-                                     "the delimiter")
-        dupes = {h for h in header if header.count(h) > 1}
-        if dupes:
-            raise InputError(f"{p}: line 1: duplicate column(s) {', '.join(sorted(dupes))}")
-        if TIME not in header and rate_hz is None:
-            raise InputError(f"{p}: missing column '{TIME}' (seconds); add it or give --rate HZ")
-        if TIME in header and rate_hz is not None:
-            raise InputError(f"{p}: has a '{TIME}' column, which gives the times; --rate is "
-                             "for input without one - drop --rate")
+        header = _read_header(p, reader, rate_hz)
         width = len(header)
         done = 0
         last_t: float | None = None

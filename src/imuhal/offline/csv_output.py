@@ -162,7 +162,7 @@ class EstimateCsvWriter:
         csv.writer(out).writerow(self._header)
         self._spill.seek(0)
         if not self._growth:
-            shutil.copyfileobj(self._spill, out)  # type: ignore[misc]
+            shutil.copyfileobj(self._spill, out)
         else:
             # rows before growth mark (k, w) and after the previous mark have w cells
             final = len(self._header)
@@ -203,7 +203,8 @@ def _leading_columns(chunk: list[Estimate], frame: str | Convention) -> dict[str
     """The estimate fields of a chunk, formatted, column by column. NED attitudes (every row
     of a plain ``imuhal estimate``) in whole arrays; anything else row by row."""
     if get_convention(frame) is NED and all(type(e) is AttitudeEstimate for e in chunk):
-        q = np.array([e.q_body_to_ned for e in chunk], dtype=float)
+        q = np.array([e.q_body_to_ned for e in chunk],  # type: ignore[attr-defined]  # every e is an AttitudeEstimate (the test above)
+                     dtype=np.float64)
         t_s = np.array([e.t_ns for e in chunk], dtype=float) / 1e9
         values = [t_s, *q.T, *euler_deg_from_quats(q).T]
         return {name: _fmt_floats(v) for name, v in zip(ATTITUDE_COLUMNS, values, strict=True)}

@@ -117,6 +117,20 @@ def _log_from_rows(p: Path, rows: list[dict[str, str]]) -> LogData:
     if sfx:  # a log written in another frame: plot its columns under the plain names
         rows = [{(k[: -len(sfx)] if k.endswith(sfx) else k): v for k, v in r.items()}
                 for r in rows]
+    data = LogData(p, frame=frame.name)
+    for key, group in _grouped(p, rows).items():
+        names = sorted({n for r in group for n in r} - {"t_s", "source", "kind", "flags"})
+        cols = {n: np.array([_num(r.get(n)) for r in group]) for n in names}
+        cols = {n: v for n, v in cols.items() if not np.all(np.isnan(v))}
+        flags = np.array([_num(r.get("flags")) if r.get("flags") else 0.0 for r in group])
+        data.series[key] = Series(np.array([float(r["t_s"]) for r in group]), cols, flags)
+    return data
+
+
+def _grouped(p: Path, rows: list[dict[str, str]]) -> dict[tuple[str, str],
+                                                           list[dict[str, str]]]:
+    """The rows by (source, kind): a run log's own columns, or the one estimator of an
+    ``imuhal estimate`` output (named after the file)."""
     header = set(rows[0])
     if "t_s" not in header:
         raise PlotError(f"{p}: no t_s column; this is not an imuhal log")
@@ -124,20 +138,13 @@ def _log_from_rows(p: Path, rows: list[dict[str, str]]) -> LogData:
     if {"source", "kind"} <= header:
         for row in rows:
             grouped[(row["source"], row["kind"])].append(row)
-    else:  # imuhal estimate output: one estimator, named after the file
-        kind = "attitude" if "qw" in header else "vertical" if "altitude_m" in header else ""
-        if not kind:
-            raise PlotError(f"{p}: neither a run log (source, kind columns) nor estimate "
-                            "output (qw or altitude_m columns)")
-        grouped[(p.stem, kind)] = rows
-    data = LogData(p, frame=frame.name)
-    for key, group in grouped.items():
-        names = sorted({n for r in group for n in r} - {"t_s", "source", "kind", "flags"})
-        cols = {n: np.array([_num(r.get(n)) for r in group]) for n in names}
-        cols = {n: v for n, v in cols.items() if not np.all(np.isnan(v))}
-        flags = np.array([_num(r.get("flags")) if r.get("flags") else 0.0 for r in group])
-        data.series[key] = Series(np.array([float(r["t_s"]) for r in group]), cols, flags)
-    return data
+        return grouped
+    kind = "attitude" if "qw" in header else "vertical" if "altitude_m" in header else ""
+    if not kind:
+        raise PlotError(f"{p}: neither a run log (source, kind columns) nor estimate "
+                        "output (qw or altitude_m columns)")
+    grouped[(p.stem, kind)] = rows
+    return grouped
 
 
 def _num(text: str | None) -> float:
@@ -223,7 +230,7 @@ class LogFigure:
         fmt = target.suffix.lower().lstrip(".")
         out = AtomicFile(target, binary=True)
         try:
-            self.figure.savefig(out.file, format=fmt, dpi=100)
+            self.figure.savefig(out.file, format=fmt, dpi=100)  # type: ignore[arg-type]  # AtomicFile.file is open until commit or abort, both below
         except BaseException:
             out.abort()
             raise
@@ -255,20 +262,9 @@ def plot_log(log: LogData, truth: Truth | None = None, *, title: str = "") -> Lo
     if truth is not None and log.frame != "ned":
         raise PlotError(f"{log.path}: the log is in frame '{log.frame}' but truth files are "
                         "ned; compare with truth a log written in ned (the default)")
-    panels: list[str] = []
     attitude, vertical = log.of_kind("attitude"), log.of_kind("vertical")
-    if attitude:
-        panels.append("attitude")
-        if truth is not None:
-            panels.append("attitude error")
-    if vertical:
-        panels += ["altitude", "climb"]
-        if truth is not None:
-            panels.append("vertical error")
-    panels += [kind for kind in SENSORS if log.of_kind(kind)]
     samples = {key: s for key, s in log.series.items() if key[1] not in ("attitude", "vertical")}
-    if samples:
-        panels += ["flags", "sample rate"]
+    panels = _panels(log, truth, samples)
     if not panels:
         raise PlotError(f"{log.path}: nothing to plot")
     figure = _figure_class()(figsize=(11, 2.3 * len(panels)), layout="constrained")
@@ -280,14 +276,7 @@ def plot_log(log: LogData, truth: Truth | None = None, *, title: str = "") -> Lo
         _attitude(axes, attitude, truth)
     if vertical:
         _vertical(axes, vertical, truth)
-    for kind, (columns, label) in SENSORS.items():
-        if kind in axes:
-            ax = axes[kind]
-            for src, s in log.of_kind(kind).items():
-                for c in columns:
-                    if c in s.columns:
-                        ax.plot(s.t_s, s.columns[c], lw=0.6, label=f"{src} {c}")
-            ax.set_ylabel(label)
+    _sensors(axes, log)
     if samples:
         _health(axes["flags"], axes["sample rate"], samples)
     for ax in axes.values():
@@ -296,6 +285,34 @@ def plot_log(log: LogData, truth: Truth | None = None, *, title: str = "") -> Lo
         ax.grid(True, alpha=0.3)
     grid[-1].set_xlabel("time, s")
     return LogFigure(figure, axes)
+
+
+def _panels(log: LogData, truth: Truth | None,
+            samples: dict[tuple[str, str], Series]) -> list[str]:
+    """The panels, top to bottom: estimates (and their errors against ``truth``), each
+    sensor kind the log has, then the samples' flags and rates."""
+    panels: list[str] = []
+    if log.of_kind("attitude"):
+        panels += ["attitude", "attitude error"] if truth is not None else ["attitude"]
+    if log.of_kind("vertical"):
+        panels += ["altitude", "climb"] + (["vertical error"] if truth is not None else [])
+    panels += [kind for kind in SENSORS if log.of_kind(kind)]
+    if samples:
+        panels += ["flags", "sample rate"]
+    return panels
+
+
+def _sensors(axes: dict[str, Axes], log: LogData) -> None:
+    """Each sensor kind's columns, every source of that kind on one panel."""
+    for kind, (columns, label) in SENSORS.items():
+        if kind not in axes:
+            continue
+        ax = axes[kind]
+        for src, s in log.of_kind(kind).items():
+            for c in columns:
+                if c in s.columns:
+                    ax.plot(s.t_s, s.columns[c], lw=0.6, label=f"{src} {c}")
+        ax.set_ylabel(label)
 
 
 def _attitude(axes: dict[str, Axes], attitude: dict[str, Series], truth: Truth | None) -> None:

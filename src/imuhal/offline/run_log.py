@@ -23,6 +23,7 @@ from imuhal.core.samples import (
     PressureSample,
     Sample,
     TemperatureSample,
+    VectorSample,
 )
 from imuhal.estimation.framed import frame_suffix
 from imuhal.offline.csv_input import InputError
@@ -30,7 +31,7 @@ from imuhal.offline.csv_input import InputError
 LONG_FORMAT_COLUMNS = frozenset({"t_s", "source", "kind", "flags"})
 """A header with all of these is a run log (long format), not a wide sample table."""
 
-_VECTORS = {
+_VECTORS: dict[str, tuple[tuple[str, str, str], type[VectorSample], str, VectorKind]] = {
     "accel": (("ax_m_s2", "ay_m_s2", "az_m_s2"), AccelSample, "accel_m_s2",
               VectorKind.SPECIFIC_FORCE),
     "gyro": (("gx_rad_s", "gy_rad_s", "gz_rad_s"), GyroSample, "gyro_rad_s",
@@ -116,7 +117,7 @@ def read_run_log(path: str | Path, frame: Convention | None = None) -> RunLog:
                 if conv is not NED:
                     vector = tuple(float(x) for x in vector_to_ned(vector, conv, vector_kind))
                 samples.append(cls(t_ns=t_ns, device=device, frame=Frame.BODY_NED,
-                                   **{field: vector}))
+                                   **{field: vector}))  # type: ignore[arg-type]  # field is the vector field of cls (_VECTORS pairs them)
             elif kind == "pressure":
                 samples.append(PressureSample(t_ns=t_ns, device=device, pressure_pa=_number(
                     p, line_no, row, "pressure_pa")))

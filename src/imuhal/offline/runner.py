@@ -80,7 +80,7 @@ def vario_events(table: SampleTable, sea_level_pa: float) -> Iterator[Sample | E
         t_ns = round(float(c[TIME][i]) * 1e9)
         if has_accel and not math.isnan(c[ACCEL_UP][i]):
             yield AttitudeEstimate(t_ns=t_ns, source=DEVICE,
-                                   q_body_to_ned=tuple(IDENTITY_QUATERNION),  # type: ignore[arg-type]
+                                   q_body_to_ned=tuple(IDENTITY_QUATERNION),
                                    linear_accel_ned_m_s2=(0.0, 0.0, -float(c[ACCEL_UP][i])))
         if math.isnan(c[ALTITUDE][i]):
             continue
@@ -119,7 +119,7 @@ def run_offline(
 ) -> list[Estimate]:
     """Run ``estimator`` over ``table``; ``ahrs`` supplies attitude to a vario filter fed
     full IMU columns plus ``pressure_pa`` (imuhal then does the gravity compensation)."""
-    return _run_table(estimator, table, ahrs)  # type: ignore[return-value]
+    return _run_table(estimator, table, ahrs)  # type: ignore[return-value]  # the table path returns attitude or vertical estimates, a list of Estimate subclasses
 
 
 def iter_offline(
@@ -194,7 +194,7 @@ def feed(estimator: Estimator, items: Iterable[Sample | Estimate], *,
         return [e for e in made if e.source == source]
     consumes = tuple(estimator.consumes)
     outputs: list[Estimate] = []
-    process, extend = estimator.process, outputs.extend
+    process, extend = estimator.process, outputs.extend  # type: ignore[assignment]  # a second loop variable of another estimator kind: the same name, a narrower call
     # the common case, kept lean: it runs once per input row
     for item in items:
         if isinstance(item, consumes):

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, TypeVar
 
 import yaml
 from pydantic import BaseModel, ValidationError
 
 from imuhal.core.errors import ImuhalError
 from imuhal.profile.loader import validate_strict
+
+ModelT = TypeVar("ModelT", bound=BaseModel)
 
 
 class SettingsArgumentError(ImuhalError):
@@ -40,8 +42,8 @@ def _scalar(text: str) -> Any:
         return text.strip()
 
 
-def build_settings(model: type[BaseModel], values: dict[str, Any], owner: str,
-                   flag: str = "--set") -> BaseModel:
+def build_settings(model: type[ModelT], values: dict[str, Any], owner: str,
+                   flag: str = "--set") -> ModelT:
     """Validate ``values`` with ``model``; every problem names its ``flag`` key and the
     allowed."""
     try:

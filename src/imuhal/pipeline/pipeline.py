@@ -233,7 +233,7 @@ class Pipeline:
         # of the run, so a replay does not have to make them.
         spied = dict(board.buses) if not taps else {
             name: SpyBus(bus, _fan_out(taps), clock) for name, bus in board.buses.items()}
-        self._before_poll = board.before_poll
+        self._before_poll: Callable[[int, str], int] = board.before_poll
         if recorder is not None:
             recorder.attach(board.buses)
             clock = recorder.wrap_clock(clock)

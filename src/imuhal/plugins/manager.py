@@ -118,7 +118,7 @@ def _recording(fn: Callable[..., Any], plugin: str, registry: Registry) -> Calla
             with registry.registering(plugin):
                 return fn(register=register)
     else:
-        def call() -> Any:  # type: ignore[misc]
+        def call() -> Any:  # type: ignore[misc]  # the two branches define call with the two hook signatures pluggy accepts
             with registry.registering(plugin):
                 return fn()
     call.__name__ = getattr(fn, "__name__", "hook")

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Generic, TypeVar
+from typing import Any, Generic, TypeVar
 
 from imuhal.core.errors import PluginError
 
@@ -26,8 +26,10 @@ class Registrar(Generic[T]):
     """Registers classes of one kind under their ``name`` attribute (or the name
     ``name_of(cls)`` gives, for kinds named by something else)."""
 
-    def __init__(self, kind: str, base: type[T], name_attr: str = "name",
+    def __init__(self, kind: str, base: type[Any], name_attr: str = "name",
                  name_of: Callable[[type[T]], object] | None = None) -> None:
+        # base: type[Any], not type[T]: the bases are abstract classes, which a type[T]
+        # parameter would refuse (mypy's type-abstract)
         self.kind = kind
         self.base = base
         self.name_attr = name_attr

@@ -44,7 +44,7 @@ def _with_choices(model: type[BaseModel]) -> type[BaseModel]:
                                                   json_schema_extra=extra))
     if not overrides:
         return model
-    return create_model(model.__name__, __base__=model, **overrides)  # type: ignore[call-overload]
+    return create_model(model.__name__, __base__=model, **overrides)
 
 
 def _union(members: list[Any], discriminator: str) -> Any:
@@ -60,7 +60,7 @@ def _bus_models(registry: Registry) -> list[type[BaseModel]]:
         models.append(create_model(
             f"{_ident(scheme)}Bus", __base__=_with_choices(factory.Settings),
             __doc__=f"A bus of kind {scheme!r}: {factory.description}",
-            kind=(Literal[scheme], ...),  # type: ignore[valid-type]
+            kind=(Literal[scheme], ...),  # type: ignore[arg-type]  # a model built at run time from the installed plugins: a dynamic Literal or union
         ))
     return models
 
@@ -75,10 +75,10 @@ def _device_models(registry: Registry) -> list[type[BaseModel]]:
             __doc__=f"A device driven by {name!r}" + (f": {driver.description}"
                                                       if getattr(driver, "description", "")
                                                       else ""),
-            driver=(Literal[name], ...),  # type: ignore[valid-type]
+            driver=(Literal[name], ...),  # type: ignore[arg-type]  # a model built at run time from the installed plugins: a dynamic Literal or union
             settings=(settings, Field(default_factory=settings)),
         ))
-    return models
+    return models  # type: ignore[return-value]  # a model built at run time from the installed plugins: a dynamic Literal or union
 
 
 def _estimator_models(registry: Registry) -> list[type[BaseModel]]:
@@ -88,10 +88,10 @@ def _estimator_models(registry: Registry) -> list[type[BaseModel]]:
         models.append(create_model(
             f"{_ident(name)}Estimator", __base__=EstimatorConfig,
             __doc__=f"An estimator of type {name!r}",
-            estimator=(Literal[name], ...),  # type: ignore[valid-type]
+            estimator=(Literal[name], ...),  # type: ignore[arg-type]  # a model built at run time from the installed plugins: a dynamic Literal or union
             settings=(settings, Field(default_factory=settings)),
         ))
-    return models
+    return models  # type: ignore[return-value]  # a model built at run time from the installed plugins: a dynamic Literal or union
 
 
 def attribute_docstrings(model: type[BaseModel]) -> dict[str, str]:
@@ -139,9 +139,9 @@ def profile_schema(registry: Registry) -> dict[str, Any]:
     estimators = _estimator_models(registry)
     model = create_model(
         "BoardProfile", __base__=BoardProfile, __doc__=BoardProfile.__doc__,
-        buses=(dict[str, _union(buses, "kind")], ...),  # type: ignore[misc]
-        devices=(dict[str, _union(devices, "driver")], ...),  # type: ignore[misc]
-        estimators=(dict[str, _union(estimators, "estimator")],  # type: ignore[misc]
+        buses=(dict[str, _union(buses, "kind")], ...),  # type: ignore[arg-type, maybe-unrecognized-str-typeform, misc]  # a model built at run time from the installed plugins: a dynamic Literal or union
+        devices=(dict[str, _union(devices, "driver")], ...),  # type: ignore[arg-type, maybe-unrecognized-str-typeform, misc]  # a model built at run time from the installed plugins: a dynamic Literal or union
+        estimators=(dict[str, _union(estimators, "estimator")],  # type: ignore[arg-type, maybe-unrecognized-str-typeform, misc]  # a model built at run time from the installed plugins: a dynamic Literal or union
                     Field(default_factory=dict)),
     )
     schema = model.model_json_schema(mode="validation")

@@ -142,7 +142,7 @@ def validate_strict(model: type[BaseModel], data: Any,
     coerced = [{"type": "float_type", "loc": path, "input": value}
                for path, value in _coerced_numbers(data, result, ())]
     if coerced:
-        raise ValidationError.from_exception_data(model.__name__, coerced)  # type: ignore[arg-type]
+        raise ValidationError.from_exception_data(model.__name__, coerced)  # type: ignore[arg-type]  # pydantic's error-details TypedDict: a float_type error needs only these keys
     return result
 
 
@@ -261,56 +261,85 @@ def _check_references(data: dict[str, Any], doc: LocatedDocument) -> list[str]:
     """Buses, parent devices and estimator inputs that do not exist, and two enabled devices
     at one (bus, address), checked on the raw document so that they are reported even when
     other parts of the profile are malformed."""
-    out = []
     buses = _mapping(data.get("buses"))
     devices = {n: d for n, d in _mapping(data.get("devices")).items() if isinstance(d, dict)}
-    device_names = set(devices)
+    out = []
     taken: dict[tuple[str, int], str] = {}
     for name, dev in devices.items():
-        path: Path = ("devices", name, "bus")
         bus = _text(dev.get("bus"))
-        if bus is None:
-            continue
-        if "/" in bus:
-            parent = bus.split("/", 1)[0]
-            if parent not in device_names:
-                names = ", ".join(sorted(map(str, device_names)))
-                out.append(f"{doc.where(path)}: {dotted(path)}: {bus!r} names device "
-                           f"{parent!r}, which is not in devices ({names})")
-            elif parent == name:
-                out.append(f"{doc.where(path)}: {dotted(path)}: a device cannot sit on its own bus")
-        elif bus not in buses:
-            out.append(f"{doc.where(path)}: {dotted(path)}: no bus named {bus!r}; "
-                       f"defined buses: {', '.join(sorted(map(str, buses))) or 'none'}")
-        address = dev.get("address")
-        # Addresses name a chip on I2C and SPI (and behind a chip's I2C master); other bus
-        # kinds (serial, iio) find their device otherwise and may leave the address at 0.
-        kind = "i2c" if "/" in bus else _text(_mapping(buses.get(bus)).get("kind"))
-        if type(address) is int and kind in ("i2c", "spi") and \
-                dev.get("enabled", True) is not False:
-            other = taken.setdefault((bus, address), str(name))
-            if other != name:
-                apath: Path = ("devices", name, "address")
-                out.append(f"{doc.where(apath)}: {dotted(apath)}: 0x{address:02X} on bus {bus!r} "
-                           f"is already taken by devices.{other} "
-                           f"({doc.where(('devices', other, 'address'))}); two chips cannot "
-                           "answer at one address - fix the address or disable one device")
+        if bus is not None:
+            out += _check_device_bus(name, bus, buses, set(devices), doc)
+            out += _check_address(name, dev, bus, buses, taken, doc)
+    out += _check_estimator_inputs(data, set(devices), doc)
+    out += _check_fault_devices(data, devices, doc)
+    return out
+
+
+def _check_device_bus(name: Any, bus: str, buses: dict[Any, Any], device_names: set[Any],
+                      doc: LocatedDocument) -> list[str]:
+    """A device's bus: a profile bus, or ``DEVICE/CHILD`` of another device."""
+    path: Path = ("devices", name, "bus")
+    if "/" not in bus:
+        return [] if bus in buses else [
+            f"{doc.where(path)}: {dotted(path)}: no bus named {bus!r}; "
+            f"defined buses: {', '.join(sorted(map(str, buses))) or 'none'}"]
+    parent = bus.split("/", 1)[0]
+    if parent not in device_names:
+        names = ", ".join(sorted(map(str, device_names)))
+        return [f"{doc.where(path)}: {dotted(path)}: {bus!r} names device "
+                f"{parent!r}, which is not in devices ({names})"]
+    if parent == name:
+        return [f"{doc.where(path)}: {dotted(path)}: a device cannot sit on its own bus"]
+    return []
+
+
+def _check_address(name: Any, dev: dict[Any, Any], bus: str, buses: dict[Any, Any],
+                   taken: dict[tuple[str, int], str], doc: LocatedDocument) -> list[str]:
+    """Two enabled chips at one address of one bus (``taken``: the first at each)."""
+    address = dev.get("address")
+    # Addresses name a chip on I2C and SPI (and behind a chip's I2C master); other bus
+    # kinds (serial, iio) find their device otherwise and may leave the address at 0.
+    kind = "i2c" if "/" in bus else _text(_mapping(buses.get(bus)).get("kind"))
+    if type(address) is not int or kind not in ("i2c", "spi") or \
+            dev.get("enabled", True) is False:
+        return []
+    other = taken.setdefault((bus, address), str(name))
+    if other == name:
+        return []
+    apath: Path = ("devices", name, "address")
+    return [f"{doc.where(apath)}: {dotted(apath)}: 0x{address:02X} on bus {bus!r} "
+            f"is already taken by devices.{other} "
+            f"({doc.where(('devices', other, 'address'))}); two chips cannot "
+            "answer at one address - fix the address or disable one device"]
+
+
+def _check_estimator_inputs(data: dict[str, Any], device_names: set[Any],
+                            doc: LocatedDocument) -> list[str]:
+    """Each estimator input names a device or another estimator."""
     estimators = {n: e for n, e in _mapping(data.get("estimators")).items()
                   if isinstance(e, dict)}
     known = device_names | set(estimators)
+    out = []
     for name, est in estimators.items():
         inputs = est.get("inputs")
         for i, ref in enumerate(inputs if isinstance(inputs, list) else []):
             if isinstance(ref, str) and ref not in known:
-                path = ("estimators", name, "inputs", i)
+                path: Path = ("estimators", name, "inputs", i)
                 out.append(f"{doc.where(path)}: {dotted(path)}: {ref!r} is neither a device nor "
                            f"an estimator of this profile")
+    return out
+
+
+def _check_fault_devices(data: dict[str, Any], devices: dict[Any, Any],
+                         doc: LocatedDocument) -> list[str]:
+    """Each emulated fault names an enabled device."""
     enabled = sorted(str(n) for n, d in devices.items() if d.get("enabled", True) is not False)
     faults = _mapping(data.get("emulation")).get("faults")
+    out = []
     for i, fault in enumerate(faults if isinstance(faults, list) else []):
         device = _text(fault.get("device")) if isinstance(fault, dict) else None
         if device is not None and device not in enabled:
-            path = ("emulation", "faults", i, "device")
+            path: Path = ("emulation", "faults", i, "device")
             out.append(f"{doc.where(path)}: {dotted(path)}: {device!r} is not an enabled "
                        f"device of this profile; devices: {', '.join(enabled) or 'none'}")
     return out
@@ -369,88 +398,121 @@ def _check_plugins(data: dict[str, Any], doc: LocatedDocument, registry: Registr
     out: list[str] = []
     bus_kinds: dict[str, BusKind | None] = {}
     for name, bus in _mapping(data.get("buses")).items():
-        path: Path = ("buses", name)
-        kind_name = _text(_mapping(bus).get("kind"))
-        if kind_name is None:
-            continue
-        factory = registry.buses.entries.get(kind_name)
-        if factory is None:
-            out.append(f"{doc.where((*path, 'kind'))}: {dotted((*path, 'kind'))}: unknown bus kind "
-                       f"{kind_name!r}; installed: {', '.join(registry.buses.names())}")
-            bus_kinds[name] = None
-            continue
-        bus_kinds[name] = factory.obj.kind
-        settings = {k: v for k, v in bus.items() if k != "kind"}
-        out += _validate(factory.obj.Settings, settings, doc, path)
-    for name, dev in _mapping(data.get("devices")).items():
-        path = ("devices", name)
-        dev = _mapping(dev)
-        driver_name = _text(dev.get("driver"))
-        if driver_name is None:
-            continue
-        reg = registry.drivers.entries.get(driver_name)
-        if reg is None:
-            out.append(f"{doc.where((*path, 'driver'))}: {dotted((*path, 'driver'))}: no driver "
-                       f"named {driver_name!r} is installed; installed: "
-                       f"{', '.join(registry.drivers.names()) or 'none'} (see `imuhal plugins`)")
-            continue
-        driver = reg.obj
-        bus_ref = _text(dev.get("bus")) or ""
-        kind, problem = _bus_kind(_mapping(data.get("devices")), bus_ref, bus_kinds, registry)
-        if problem:
-            out.append(f"{doc.where((*path, 'bus'))}: {dotted((*path, 'bus'))}: {problem}")
-        if kind is not None and kind not in driver.bus_kinds:
-            allowed = ", ".join(sorted(k.value for k in driver.bus_kinds))
-            out.append(f"{doc.where((*path, 'bus'))}: {dotted((*path, 'bus'))}: {driver_name} "
-                       f"cannot sit on a {kind.value} bus; it supports: {allowed}")
-        settings = dev.get("settings", {})
-        if isinstance(settings, dict):
-            context = {BUS_CONTEXT: bus_ref, BUS_FEATURES_CONTEXT: _bus_features(
-                _mapping(data.get("devices")), bus_ref, registry)}
-            out += _validate(driver.Settings, settings, doc, (*path, "settings"), context)
-        vectors = [q.name for q in driver.channels if _calibratable(q.name, registry)]
-        for key in _calibration_keys(dev.get("calibration")):
-            if key not in vectors:
-                where = (*path, "calibration", key)
-                out.append(f"{doc.where(where)}: {dotted(where)}: {driver_name} measures no "
-                           f"vector quantity {key!r}; it can hold calibration for: "
-                           f"{', '.join(vectors) or 'nothing'}")
+        out += _check_bus_plugin(name, _mapping(bus), bus_kinds, doc, registry)
+    devices = _mapping(data.get("devices"))
+    for name, dev in devices.items():
+        out += _check_device_plugin(name, _mapping(dev), devices, bus_kinds, doc, registry)
     for name, est in _mapping(data.get("estimators")).items():
-        path = ("estimators", name)
-        est = _mapping(est)
-        est_name = _text(est.get("estimator"))
-        if est_name is None:
-            continue
-        reg_e = registry.estimators.entries.get(est_name)
-        if reg_e is None:
-            out.append(f"{doc.where((*path, 'estimator'))}: {dotted((*path, 'estimator'))}: no "
-                       f"estimator named {est_name!r} is installed; installed: "
-                       f"{', '.join(registry.estimators.names()) or 'none'}")
-            continue
-        settings = est.get("settings", {})
-        if isinstance(settings, dict):
-            out += _validate(reg_e.obj.Settings, settings, doc, (*path, "settings"))
+        out += _check_estimator_plugin(name, _mapping(est), doc, registry)
     for name, settings in _mapping(data.get("outputs")).items():
-        reg_s = registry.sinks.entries.get(name)
-        if reg_s is None:
-            p_out: Path = ("outputs", name)
-            out.append(f"{doc.where(p_out)}: {dotted(p_out)}: no sink named {name!r} is "
-                       f"installed; installed: {', '.join(registry.sinks.names()) or 'none'}")
-        elif isinstance(settings, dict):
-            out += _validate(reg_s.obj.Settings, settings, doc, ("outputs", name))
-    scenario = _text(_mapping(data.get("emulation")).get("scenario", "thermal"))
-    if registry.scenarios.entries and scenario is not None and \
-            scenario not in registry.scenarios.entries:
-        p: Path = ("emulation", "scenario")
-        out.append(f"{doc.where(p)}: {dotted(p)}: unknown scenario {scenario!r}; installed: "
-                   f"{', '.join(registry.scenarios.names())}")
-    elif scenario is not None and scenario in registry.scenarios.entries:
-        # what `run --emulate` builds the scenario from: checked here as run would
-        params = _mapping(data.get("emulation")).get("scenario_params", {})
-        if isinstance(params, dict):
-            out += _validate(registry.scenarios.entries[scenario].obj.Params, params, doc,
-                             ("emulation", "scenario_params"))
+        out += _check_sink_plugin(name, settings, doc, registry)
+    out += _check_scenario(_mapping(data.get("emulation")), doc, registry)
     return out
+
+
+def _check_bus_plugin(name: Any, bus: dict[Any, Any], bus_kinds: dict[str, BusKind | None],
+                      doc: LocatedDocument, registry: Registry) -> list[str]:
+    """A bus's kind is installed and its settings fit; records its kind in ``bus_kinds``."""
+    path: Path = ("buses", name)
+    kind_name = _text(bus.get("kind"))
+    if kind_name is None:
+        return []
+    factory = registry.buses.entries.get(kind_name)
+    if factory is None:
+        bus_kinds[name] = None
+        return [f"{doc.where((*path, 'kind'))}: {dotted((*path, 'kind'))}: unknown bus kind "
+                f"{kind_name!r}; installed: {', '.join(registry.buses.names())}"]
+    bus_kinds[name] = factory.obj.kind
+    settings = {k: v for k, v in bus.items() if k != "kind"}
+    return _validate(factory.obj.Settings, settings, doc, path)
+
+
+def _check_device_plugin(name: Any, dev: dict[Any, Any], devices: dict[Any, Any],
+                         bus_kinds: dict[str, BusKind | None], doc: LocatedDocument,
+                         registry: Registry) -> list[str]:
+    """A device's driver is installed, fits its bus, and its settings and calibration
+    records fit the driver."""
+    path: Path = ("devices", name)
+    driver_name = _text(dev.get("driver"))
+    if driver_name is None:
+        return []
+    reg = registry.drivers.entries.get(driver_name)
+    if reg is None:
+        return [f"{doc.where((*path, 'driver'))}: {dotted((*path, 'driver'))}: no driver "
+                f"named {driver_name!r} is installed; installed: "
+                f"{', '.join(registry.drivers.names()) or 'none'} (see `imuhal plugins`)"]
+    driver = reg.obj
+    out = []
+    bus_ref = _text(dev.get("bus")) or ""
+    kind, problem = _bus_kind(devices, bus_ref, bus_kinds, registry)
+    if problem:
+        out.append(f"{doc.where((*path, 'bus'))}: {dotted((*path, 'bus'))}: {problem}")
+    if kind is not None and kind not in driver.bus_kinds:
+        allowed = ", ".join(sorted(k.value for k in driver.bus_kinds))
+        out.append(f"{doc.where((*path, 'bus'))}: {dotted((*path, 'bus'))}: {driver_name} "
+                   f"cannot sit on a {kind.value} bus; it supports: {allowed}")
+    settings = dev.get("settings", {})
+    if isinstance(settings, dict):
+        context = {BUS_CONTEXT: bus_ref,
+                   BUS_FEATURES_CONTEXT: _bus_features(devices, bus_ref, registry)}
+        out += _validate(driver.Settings, settings, doc, (*path, "settings"), context)
+    vectors = [q.name for q in driver.channels if _calibratable(q.name, registry)]
+    for key in _calibration_keys(dev.get("calibration")):
+        if key not in vectors:
+            where = (*path, "calibration", key)
+            out.append(f"{doc.where(where)}: {dotted(where)}: {driver_name} measures no "
+                       f"vector quantity {key!r}; it can hold calibration for: "
+                       f"{', '.join(vectors) or 'nothing'}")
+    return out
+
+
+def _check_estimator_plugin(name: Any, est: dict[Any, Any], doc: LocatedDocument,
+                            registry: Registry) -> list[str]:
+    path: Path = ("estimators", name)
+    est_name = _text(est.get("estimator"))
+    if est_name is None:
+        return []
+    reg_e = registry.estimators.entries.get(est_name)
+    if reg_e is None:
+        return [f"{doc.where((*path, 'estimator'))}: {dotted((*path, 'estimator'))}: no "
+                f"estimator named {est_name!r} is installed; installed: "
+                f"{', '.join(registry.estimators.names()) or 'none'}"]
+    settings = est.get("settings", {})
+    if not isinstance(settings, dict):
+        return []
+    return _validate(reg_e.obj.Settings, settings, doc, (*path, "settings"))
+
+
+def _check_sink_plugin(name: Any, settings: Any, doc: LocatedDocument,
+                       registry: Registry) -> list[str]:
+    reg_s = registry.sinks.entries.get(name)
+    if reg_s is None:
+        p_out: Path = ("outputs", name)
+        return [f"{doc.where(p_out)}: {dotted(p_out)}: no sink named {name!r} is "
+                f"installed; installed: {', '.join(registry.sinks.names()) or 'none'}"]
+    if not isinstance(settings, dict):
+        return []
+    return _validate(reg_s.obj.Settings, settings, doc, ("outputs", name))
+
+
+def _check_scenario(emulation: dict[Any, Any], doc: LocatedDocument,
+                    registry: Registry) -> list[str]:
+    """The emulated scenario is installed and its parameters fit it."""
+    scenario = _text(emulation.get("scenario", "thermal"))
+    if scenario is None:
+        return []
+    if registry.scenarios.entries and scenario not in registry.scenarios.entries:
+        p: Path = ("emulation", "scenario")
+        return [f"{doc.where(p)}: {dotted(p)}: unknown scenario {scenario!r}; installed: "
+                f"{', '.join(registry.scenarios.names())}"]
+    if scenario not in registry.scenarios.entries:
+        return []
+    # what `run --emulate` builds the scenario from: checked here as run would
+    params = emulation.get("scenario_params", {})
+    if not isinstance(params, dict):
+        return []
+    return _validate(registry.scenarios.entries[scenario].obj.Params, params, doc,
+                     ("emulation", "scenario_params"))
 
 
 def _check_fault_support(profile: BoardProfile, doc: LocatedDocument,

@@ -50,9 +50,9 @@ class LocatedDocument:
             pos = self.key_positions[tuple(path)]
             return f"{self.source}:{pos[0]}:{pos[1]}"
         for n in range(len(path), -1, -1):
-            pos = self.positions.get(tuple(path[:n]))
-            if pos is not None:
-                return f"{self.source}:{pos[0]}:{pos[1]}"
+            found = self.positions.get(tuple(path[:n]))
+            if found is not None:
+                return f"{self.source}:{found[0]}:{found[1]}"
         return self.source
 
 
@@ -75,7 +75,7 @@ def _check_depth(text: str) -> None:
             if depth > MAX_DEPTH:
                 raise ExpansionError(
                     f"nested more than {MAX_DEPTH} levels deep; a board profile nests a few "
-                    "levels - is this the right file?", event.start_mark)
+                    "levels - is this the right file?", event.start_mark)  # type: ignore[arg-type]  # PyYAML's C loader has its own Mark class, the same fields as yaml.error.Mark
         elif isinstance(event, yaml.CollectionEndEvent):
             depth -= 1
 

@@ -44,7 +44,7 @@ class BringupScenario(MotionScenario):
     default_duration_s: ClassVar[float] = 16.0
 
     def build_motion(self) -> Motion:
-        p: BringupParams = self.params  # type: ignore[assignment]
+        p: BringupParams = self.params  # type: ignore[assignment]  # the scenario's own Params model: Scenario types params as the base class
         lead = min(0.5, max(0.0, (p.window_s - p.move_s) / 2))
         pitch, roll = Signal(), Signal()
         yaw = Signal(math.radians(p.heading_deg))

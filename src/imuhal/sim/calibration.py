@@ -55,7 +55,7 @@ class CalibrationScenario(MotionScenario):
     default_duration_s: ClassVar[float] = 80.0
 
     def build_motion(self) -> Motion:
-        p: CalibrationParams = self.params  # type: ignore[assignment]
+        p: CalibrationParams = self.params  # type: ignore[assignment]  # the scenario's own Params model: Scenario types params as the base class
         first = p.positions[0] if p.positions else ("+z down", 0.0, 0.0)
         roll = Signal(math.radians(first[1]))
         pitch = Signal(math.radians(first[2]))

@@ -50,7 +50,7 @@ class ChipEmulator(ABC):
     #: before this emulator encodes it; None: an ideal chip. A subclass may give a
     #: :class:`~imuhal.sim.errors.SensorErrorSpec` or a mapping of its fields; the mapping is
     #: validated when the class is defined, so a typo in a plugin fails at import, naming it.
-    error_spec: ClassVar[SensorErrorSpec | None] = None
+    error_spec: ClassVar[SensorErrorSpec | Mapping[str, Any] | None] = None
     #: Set True by an emulator whose measurement engine honours ``stuck_data_ready``.
     models_stuck_data_ready: ClassVar[bool] = False
     #: False for a chip that measures no motion quantity (a barometer: pressure and

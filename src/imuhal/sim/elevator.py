@@ -36,7 +36,7 @@ class ElevatorScenario(MotionScenario):
     default_duration_s: ClassVar[float] = 40.0
 
     def build_motion(self) -> Motion:
-        p: ElevatorParams = self.params  # type: ignore[assignment]
+        p: ElevatorParams = self.params  # type: ignore[assignment]  # the scenario's own Params model: Scenario types params as the base class
         height = p.floors * p.floor_height_m
         ride = height / p.speed_m_s + p.ramp_s
         down = Signal()

@@ -86,10 +86,10 @@ class EmulatedBus(Bus):
         emulator = self.targets.get(target)
         if emulator is None or emulator.absent:
             return b""  # a silent UART: nothing arrives
-        return emulator.bus_receive(self.kind, max_len)
+        return emulator.bus_receive(self.kind, max_len)  # type: ignore[attr-defined]  # a serial bus's targets are chip emulators (ChipEmulator.bus_receive); BusTarget is the register-bus protocol
 
     def set_baudrate(self, baudrate: int) -> None:
         """The host UART's line speed: an emulated serial chip garbles what it sends when it
         differs from its own (as a real UART at the wrong speed reads noise)."""
         for emulator in self.targets.values():
-            emulator.host_baudrate = baudrate
+            emulator.host_baudrate = baudrate  # type: ignore[attr-defined]  # a serial bus's targets are chip emulators (ChipEmulator.host_baudrate); BusTarget is the register-bus protocol

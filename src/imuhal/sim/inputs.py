@@ -7,6 +7,8 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
 
+from imuhal.core.samples import slot_setter
+
 NO_OTHER: Mapping[str, Any] = MappingProxyType({})
 """The shared empty mapping of quantities imuhal does not model."""
 
@@ -54,11 +56,11 @@ class PhysicalInputs:
 
 
 _new = object.__new__
-_set_force = PhysicalInputs.specific_force_m_s2.__set__  # type: ignore[attr-defined]
-_set_rate = PhysicalInputs.angular_rate_rad_s.__set__  # type: ignore[attr-defined]
-_set_field = PhysicalInputs.magnetic_field_ut.__set__  # type: ignore[attr-defined]
-_set_pressure = PhysicalInputs.pressure_pa.__set__  # type: ignore[attr-defined]
-_set_temperature = PhysicalInputs.temperature_degc.__set__  # type: ignore[attr-defined]
-_set_position = PhysicalInputs.position_ned_m.__set__  # type: ignore[attr-defined]
-_set_velocity = PhysicalInputs.velocity_ned_m_s.__set__  # type: ignore[attr-defined]
-_set_other = PhysicalInputs.other.__set__  # type: ignore[attr-defined]
+_set_force = slot_setter(PhysicalInputs, "specific_force_m_s2")
+_set_rate = slot_setter(PhysicalInputs, "angular_rate_rad_s")
+_set_field = slot_setter(PhysicalInputs, "magnetic_field_ut")
+_set_pressure = slot_setter(PhysicalInputs, "pressure_pa")
+_set_temperature = slot_setter(PhysicalInputs, "temperature_degc")
+_set_position = slot_setter(PhysicalInputs, "position_ned_m")
+_set_velocity = slot_setter(PhysicalInputs, "velocity_ned_m_s")
+_set_other = slot_setter(PhysicalInputs, "other")

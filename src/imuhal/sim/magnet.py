@@ -42,7 +42,7 @@ class MagnetScenario(MotionScenario):
     default_duration_s: ClassVar[float] = 45.0
 
     def build_motion(self) -> Motion:
-        p: MagnetParams = self.params  # type: ignore[assignment]
+        p: MagnetParams = self.params  # type: ignore[assignment]  # the scenario's own Params model: Scenario types params as the base class
         for i, mp in enumerate(p.magnetic.passes, start=1):
             # |B| ~ 1/r^3: below 1 % of the peak once r > 4.6 d, i.e. |dt| > 4.5 d / v.
             half = 4.5 * mp.closest_distance_m / mp.speed_m_s

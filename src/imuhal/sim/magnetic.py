@@ -73,7 +73,7 @@ class MagneticDisturbance:
         rng = np.random.default_rng([int(seed), 0x3A6])
         self._slow: tuple[Signal, Signal, Signal] | None = None
         if spec.slow_rms_ut > 0:
-            self._slow = tuple(  # type: ignore[assignment]
+            self._slow = tuple(  # type: ignore[assignment]  # a generator over range(3): three signals
                 Signal().turbulence(rng, spec.slow_rms_ut, f_min_hz=1.0 / spec.slow_max_period_s,
                                     f_max_hz=1.0 / spec.slow_min_period_s, tones=6,
                                     ramp_s=spec.slow_ramp_s)

@@ -303,8 +303,8 @@ class FlightMotion(Motion):
                        for i in range(3))
             tv.append(v1)
             ta.append(a1)
-            tp.append(p1)  # type: ignore[arg-type]
-            v0, a0, p0 = v1, a1, p1  # type: ignore[assignment]
+            tp.append(p1)  # type: ignore[arg-type]  # a generator over range(3): three components
+            v0, a0, p0 = v1, a1, p1  # type: ignore[assignment]  # a generator over range(3): three components
         if len(self._starts) == index + 1:
             self._starts.append((v0, a0, p0))
         self._segments[index] = (tv, ta, tp)

@@ -44,7 +44,7 @@ class RcFlightScenario(MotionScenario):
     default_duration_s: ClassVar[float] = 60.0
 
     def build_motion(self) -> Motion:
-        p: RcFlightParams = self.params  # type: ignore[assignment]
+        p: RcFlightParams = self.params  # type: ignore[assignment]  # the scenario's own Params model: Scenario types params as the base class
         two_pi = 2 * math.pi
         speed, pitch, roll = Signal(), Signal(), Signal()
         yaw = Signal(math.radians(p.heading_deg))

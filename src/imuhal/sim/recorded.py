@@ -56,7 +56,7 @@ class RecordedMotion(Motion):
         self._w: list[tuple[float, float, float]] = []
         for i in range(len(t) - 1):
             a = self._q[i]
-            dq = quat_mul((a[0], -a[1], -a[2], -a[3]), self._q[i + 1])
+            dq = quat_mul((a[0], -a[1], -a[2], -a[3]), self._q[i + 1])  # type: ignore[arg-type]  # four columns of the truth CSV: a quaternion of four
             vec = math.sqrt(dq[1] ** 2 + dq[2] ** 2 + dq[3] ** 2)
             angle = 2.0 * math.atan2(vec, dq[0])
             k = 0.0 if vec < 1e-15 else angle / vec / (t[i + 1] - t[i])
@@ -80,8 +80,8 @@ class RecordedMotion(Motion):
         wn = math.sqrt(w[0] ** 2 + w[1] ** 2 + w[2] ** 2)
         q = self._q[i]
         if wn > 0:
-            q = quat_mul(q, quat_axis_angle((w[0] / wn, w[1] / wn, w[2] / wn), wn * tau))
-        rot = quat_matrix(q)
+            q = quat_mul(q, quat_axis_angle((w[0] / wn, w[1] / wn, w[2] / wn), wn * tau))  # type: ignore[arg-type]  # four columns of the truth CSV: a quaternion of four
+        rot = quat_matrix(q)  # type: ignore[arg-type]  # four columns of the truth CSV: a quaternion of four
         s = tau / h
         s2, s3 = s * s, s * s * s
         c = (2 * s3 - 3 * s2 + 1, (s3 - 2 * s2 + s) * h, -2 * s3 + 3 * s2, (s3 - s2) * h)
@@ -92,7 +92,7 @@ class RecordedMotion(Motion):
         vel = tuple(d[0] * p0[k] + d[1] * v0[k] + d[2] * p1[k] + d[3] * v1[k] for k in range(3))
         acc = tuple(e[0] * p0[k] + e[1] * v0[k] + e[2] * p1[k] + e[3] * v1[k] for k in range(3))
         f = mat_t_vec(rot, (acc[0], acc[1], acc[2] - self.gravity_m_s2))
-        return Kinematics(t, q, rot, w, f, acc, pos, vel)  # type: ignore[arg-type]
+        return Kinematics(t, q, rot, w, f, acc, pos, vel)  # type: ignore[arg-type]  # three- and four-element columns of the truth CSV, sized when read
 
     def _extrapolated(self, t: float, i: int, interval: int) -> Kinematics:
         """Outside the record: the end sample's attitude turning at its interval's body rate,
@@ -103,12 +103,12 @@ class RecordedMotion(Motion):
         wn = math.sqrt(w[0] ** 2 + w[1] ** 2 + w[2] ** 2)
         q = self._q[i]
         if wn > 0:
-            q = quat_mul(q, quat_axis_angle((w[0] / wn, w[1] / wn, w[2] / wn), wn * tau))
-        rot = quat_matrix(q)
+            q = quat_mul(q, quat_axis_angle((w[0] / wn, w[1] / wn, w[2] / wn), wn * tau))  # type: ignore[arg-type]  # four columns of the truth CSV: a quaternion of four
+        rot = quat_matrix(q)  # type: ignore[arg-type]  # four columns of the truth CSV: a quaternion of four
         p, v = self._p[i], self._v[i]
         pos = (p[0] + v[0] * tau, p[1] + v[1] * tau, p[2] + v[2] * tau)
         f = mat_t_vec(rot, (0.0, 0.0, -self.gravity_m_s2))
-        return Kinematics(t, q, rot, w, f, (0.0, 0.0, 0.0), pos, v)  # type: ignore[arg-type]
+        return Kinematics(t, q, rot, w, f, (0.0, 0.0, 0.0), pos, v)  # type: ignore[arg-type]  # three- and four-element columns of the truth CSV, sized when read
 
     @classmethod
     def from_truth_csv(cls, path: str, *, gravity_m_s2: float = STANDARD_GRAVITY_M_S2,
@@ -150,7 +150,7 @@ class ReplayScenario(MotionScenario):
         super().__init__(params, seed=seed)
 
     def build_motion(self) -> Motion:
-        p: ReplayParams = self.params  # type: ignore[assignment]
+        p: ReplayParams = self.params  # type: ignore[assignment]  # the scenario's own Params model: Scenario types params as the base class
         return RecordedMotion.from_truth_csv(p.path, gravity_m_s2=p.environment.gravity_m_s2,
                                              use_velocity=p.use_velocity)
 

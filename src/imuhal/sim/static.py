@@ -24,7 +24,7 @@ class StaticScenario(MotionScenario):
     default_duration_s: ClassVar[float] = 30.0
 
     def build_motion(self) -> Motion:
-        p: StaticParams = self.params  # type: ignore[assignment]
+        p: StaticParams = self.params  # type: ignore[assignment]  # the scenario's own Params model: Scenario types params as the base class
         self.add_phase("still", 0.0, math.inf)
         return FlightMotion(roll=Signal(math.radians(p.roll_deg)),
                             pitch=Signal(math.radians(p.pitch_deg)),

@@ -75,7 +75,7 @@ class ThermalScenario(MotionScenario):
     default_duration_s: ClassVar[float] = 60.0
 
     def build_motion(self) -> Motion:
-        p: ThermalParams = self.params  # type: ignore[assignment]
+        p: ThermalParams = self.params  # type: ignore[assignment]  # the scenario's own Params model: Scenario types params as the base class
         tau = p.transition_s
         sched = p.schedule
         down = Signal(0.0, rate=-sched[0][1])

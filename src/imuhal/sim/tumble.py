@@ -35,7 +35,7 @@ class TumbleScenario(MotionScenario):
     default_duration_s: ClassVar[float] = 50.0
 
     def build_motion(self) -> Motion:
-        p: TumbleParams = self.params  # type: ignore[assignment]
+        p: TumbleParams = self.params  # type: ignore[assignment]  # the scenario's own Params model: Scenario types params as the base class
         t = p.hold_s
         self.add_phase("still", 0.0, t)
         rotations = []

@@ -37,7 +37,7 @@ class MotionScenario(Scenario):
     def __init__(self, params: ScenarioParams | dict[str, Any] | None = None, *,
                  seed: int = 0) -> None:
         super().__init__(params, seed=seed)
-        p: WorldParams = self.params  # type: ignore[assignment]
+        p: WorldParams = self.params  # type: ignore[assignment]  # the scenario's own Params model: Scenario types params as the base class
         self.environment: Environment = p.environment
         self._field_ned = p.environment.magnetic_field_ned_tuple()
         self.disturbance = MagneticDisturbance(p.magnetic, seed)

@@ -331,7 +331,7 @@ class AudioSink(SinkPlugin):
             self._file = None
 
 
-def _open_live(sample_rate_hz: int):  # type: ignore[no-untyped-def]
+def _open_live(sample_rate_hz: int):
     try:
         import sounddevice
     except (ImportError, OSError) as exc:

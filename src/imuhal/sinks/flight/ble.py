@@ -112,7 +112,7 @@ class BlessPeripheral:
 
     def __init__(self, name: str = "imuhal vario", *, start_timeout_s: float = 15.0) -> None:
         try:
-            from bless import (  # type: ignore[import-untyped]
+            from bless import (
                 BlessServer,
                 GATTAttributePermissions,
                 GATTCharacteristicProperties,

@@ -11,7 +11,7 @@ run's time (simulated or real), so an app sees the rates its format expects.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from datetime import datetime, timezone
 from typing import Any, ClassVar
 
@@ -136,52 +136,72 @@ class FlightSink(SinkPlugin):
         self.transport.write(text.encode("ascii"))
 
     def _encode(self, name: str) -> str | None:
-        s = self.settings
-        p = self._pressure.pressure_pa if self._pressure is not None else None
-        v = self._vertical
-        if name == "PRS":
-            return None if p is None else fmt.prs(p)
-        if name == "LK8EX1":
-            if v is None:
-                return None
-            return fmt.lk8ex1(pressure_pa=p, altitude_m=v.altitude_m, climb_m_s=v.climb_m_s,
-                              temperature_degc=self._temperature, battery_v=s.battery_v,
-                              battery_percent=s.battery_percent)
-        if name == "LXWP0":
-            if v is None:
-                return None
-            return fmt.lxwp0(
-                pressure_altitude_m=altitude_m_from_pressure(p) if p is not None else None,
-                climb_m_s=v.climb_m_s)
-        if name == "POV":
-            if v is None:
-                return None
-            # No airspeed source: no total energy (E), so XCSoar derives its vario from P.
-            return fmt.pov(pressure_pa=p, temperature_degc=self._temperature,
-                           battery_v=s.battery_v)
+        """Sentence ``name`` from the latest values, or None while one it needs is missing."""
+        return _ENCODERS[name](self)
+
+    def _pressure_pa(self) -> float | None:
+        return self._pressure.pressure_pa if self._pressure is not None else None
+
+    def _prs(self) -> str | None:
+        p = self._pressure_pa()
+        return None if p is None else fmt.prs(p)
+
+    def _lk8ex1(self) -> str | None:
+        v, s = self._vertical, self.settings
+        if v is None:
+            return None
+        return fmt.lk8ex1(pressure_pa=self._pressure_pa(), altitude_m=v.altitude_m,
+                          climb_m_s=v.climb_m_s, temperature_degc=self._temperature,
+                          battery_v=s.battery_v, battery_percent=s.battery_percent)
+
+    def _lxwp0(self) -> str | None:
+        v, p = self._vertical, self._pressure_pa()
+        if v is None:
+            return None
+        return fmt.lxwp0(
+            pressure_altitude_m=altitude_m_from_pressure(p) if p is not None else None,
+            climb_m_s=v.climb_m_s)
+
+    def _pov(self) -> str | None:
+        if self._vertical is None:
+            return None
+        # No airspeed source: no total energy (E), so XCSoar derives its vario from P.
+        return fmt.pov(pressure_pa=self._pressure_pa(), temperature_degc=self._temperature,
+                       battery_v=self.settings.battery_v)
+
+    def _fix(self) -> tuple[PositionSample, datetime] | None:
+        """The latest position and its UTC time, or None without one."""
         pos = self._position
-        if name == "XCTRC":
-            if v is None:
-                return None
-            course, speed = self._course_speed()
-            utc = self._utc(pos) if pos is not None else None
-            return fmt.xctrc(
-                utc=utc or datetime(1970, 1, 1, tzinfo=timezone.utc),
-                latitude_deg=pos.latitude_deg if pos else None,
-                longitude_deg=pos.longitude_deg if pos else None,
-                gps_altitude_m=pos.height_m if pos else None, ground_speed_m_s=speed,
-                course_deg=course, climb_m_s=v.climb_m_s, pressure_pa=p,
-                battery_percent=s.battery_percent) if utc is not None else None
-        if pos is None:
+        utc = self._utc(pos) if pos is not None else None
+        return None if pos is None or utc is None else (pos, utc)
+
+    def _xctrc(self) -> str | None:
+        v, fix = self._vertical, self._fix()
+        if v is None or fix is None:
             return None
-        utc = self._utc(pos)
-        if utc is None:
+        pos, utc = fix
+        course, speed = self._course_speed()
+        return fmt.xctrc(
+            utc=utc, latitude_deg=pos.latitude_deg, longitude_deg=pos.longitude_deg,
+            gps_altitude_m=pos.height_m, ground_speed_m_s=speed, course_deg=course,
+            climb_m_s=v.climb_m_s, pressure_pa=self._pressure_pa(),
+            battery_percent=self.settings.battery_percent)
+
+    def _gga(self) -> str | None:
+        fix = self._fix()
+        if fix is None:
             return None
-        if name == "GGA":
-            return fmt.gga(utc=utc, latitude_deg=pos.latitude_deg,
-                           longitude_deg=pos.longitude_deg, quality=1,
-                           satellites=pos.satellites, hdop=None,
-                           altitude_msl_m=pos.height_m, geoid_separation_m=None)
+        pos, utc = fix
+        return fmt.gga(utc=utc, latitude_deg=pos.latitude_deg,
+                       longitude_deg=pos.longitude_deg, quality=1,
+                       satellites=pos.satellites, hdop=None,
+                       altitude_msl_m=pos.height_m, geoid_separation_m=None)
+
+    def _rmc(self) -> str | None:
+        fix = self._fix()
+        if fix is None:
+            return None
+        pos, utc = fix
         course, speed = self._course_speed()
         return fmt.rmc(utc=utc, valid=True, latitude_deg=pos.latitude_deg,
                        longitude_deg=pos.longitude_deg, ground_speed_m_s=speed or 0.0,
@@ -200,3 +220,11 @@ class FlightSink(SinkPlugin):
 
     def close(self) -> None:
         self.transport.close()
+
+
+_ENCODERS: dict[str, Callable[[FlightSink], str | None]] = {
+    "PRS": FlightSink._prs, "LK8EX1": FlightSink._lk8ex1, "LXWP0": FlightSink._lxwp0,
+    "POV": FlightSink._pov, "XCTRC": FlightSink._xctrc, "GGA": FlightSink._gga,
+    "RMC": FlightSink._rmc,
+}
+"""Each sentence's encoder, by its name in SENTENCES."""

@@ -20,8 +20,9 @@ import socket
 import termios
 import time
 import tty
+from collections.abc import Callable
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
 from imuhal.core.errors import ImuhalError
 
@@ -40,7 +41,7 @@ class Transport(Protocol):
 class SerialTransport:
     """A UART (or Bluetooth SPP device) through pyserial."""
 
-    def __init__(self, port: str, baudrate: int, *, serial_factory: object | None = None
+    def __init__(self, port: str, baudrate: int, *, serial_factory: Callable[..., Any] | None = None
                  ) -> None:
         import serial
 

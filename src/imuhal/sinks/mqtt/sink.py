@@ -156,7 +156,7 @@ class MqttSink(SinkPlugin):
     def __init__(self, settings: MqttSettings | Mapping[str, Any] | None = None, *,
                  env: Mapping[str, str] | None = None) -> None:
         super().__init__(settings)
-        s: MqttSettings = self.settings  # type: ignore[assignment]
+        s: MqttSettings = self.settings  # type: ignore[assignment]  # the plugin's own Settings model: the base class types settings as the base model
         if s.url is None:
             raise ImuhalError("the mqtt sink has no broker URL: add --mqtt mqtt://HOST[:PORT] "
                               "(or url in the profile's outputs.mqtt)")
@@ -229,7 +229,7 @@ class MqttSink(SinkPlugin):
         now = time.time()
         payload = encode(event_row(event, self.frame), run=self.run_id, seq=seq, unix_s=now)
         handoff = self._handoff
-        if len(handoff) >= self.settings.handoff_max:  # type: ignore[attr-defined]
+        if len(handoff) >= self.settings.handoff_max:  # type: ignore[attr-defined]  # the sink's Settings model (MqttSettings) has handoff_max; the base types settings as the base
             with contextlib.suppress(IndexError):  # the publisher may have emptied it
                 handoff.popleft()
                 self.counts["dropped_handoff"] += 1
@@ -308,7 +308,7 @@ class MqttSink(SinkPlugin):
                   "not published", file=sys.stderr)
 
     def _publish_loop(self) -> None:
-        s: MqttSettings = self.settings  # type: ignore[assignment]
+        s: MqttSettings = self.settings  # type: ignore[assignment]  # the plugin's own Settings model: the base class types settings as the base model
         queue = self.queue
         handed = 0  # highest queue id handed to paho
         pending: dict[int, int] = {}  # paho message id -> queue id, until acknowledged
@@ -321,20 +321,8 @@ class MqttSink(SinkPlugin):
             # enough to pace the drain and to see the queue's age limit.
             self._wake.wait(0.05 if len(queue) or pending else 1.0)
             self._wake.clear()
-            batch = []
-            while self._handoff:
-                batch.append(self._handoff.popleft())
-            if batch:
-                queue.append(batch)
-                if not self._connected.is_set():
-                    self.counts["queued"] += len(batch)
-            queue.enforce_limits(time.time(), keep_through_id=handed)
-            self.counts["dropped"] = queue.dropped
-            self.counts["queue_peak"] = max(self.counts["queue_peak"], len(queue))
-            with self._acked_lock:
-                mids, self._acked = self._acked, []
-            done = [pending.pop(m) for m in mids if m in pending]
-            self.counts["sent"] += queue.remove(done)
+            self._take_handoff(handed)
+            self._count_acknowledged(pending)
             now = time.monotonic()
             tokens, last = min(burst, tokens + (now - last) * s.drain_rate_msg_s), now
             room = min(self._inflight - len(pending), int(tokens), len(queue) - len(pending))
@@ -344,14 +332,8 @@ class MqttSink(SinkPlugin):
                 else:
                     self._resending.clear()
             if self._connected.is_set() and room > 0:
-                for qid, topic, payload in queue.after(handed, room):
-                    info = self._client.publish(topic, payload, qos=1)
-                    # NO_CONN: paho keeps the message and sends it after reconnecting
-                    if info.rc not in self._handed_codes:
-                        break
-                    pending[info.mid] = qid
-                    handed = qid
-                    tokens -= 1
+                sent, handed = self._hand_over(pending, handed, room)
+                tokens -= sent
                 if len(queue) > len(pending):
                     self._wake.set()  # more to send: come back as soon as tokens allow
                     time.sleep(min(0.05, 1.0 / s.drain_rate_msg_s))
@@ -360,6 +342,42 @@ class MqttSink(SinkPlugin):
                     deadline = time.monotonic() + s.close_timeout_s
                 if not self._handoff and (len(queue) == 0 or time.monotonic() >= deadline):
                     return
+
+    def _take_handoff(self, handed: int) -> None:
+        """Moves the events the pipeline handed over into the queue and applies its limits
+        (never dropping what paho holds: ids up to ``handed``)."""
+        queue = self.queue
+        batch = []
+        while self._handoff:
+            batch.append(self._handoff.popleft())
+        if batch:
+            queue.append(batch)
+            if not self._connected.is_set():
+                self.counts["queued"] += len(batch)
+        queue.enforce_limits(time.time(), keep_through_id=handed)
+        self.counts["dropped"] = queue.dropped
+        self.counts["queue_peak"] = max(self.counts["queue_peak"], len(queue))
+
+    def _count_acknowledged(self, pending: dict[int, int]) -> None:
+        """Removes the messages the broker acknowledged from the queue, counting them sent."""
+        with self._acked_lock:
+            mids, self._acked = self._acked, []
+        done = [pending.pop(m) for m in mids if m in pending]
+        self.counts["sent"] += self.queue.remove(done)
+
+    def _hand_over(self, pending: dict[int, int], handed: int, room: int) -> tuple[int, int]:
+        """Hands up to ``room`` queued messages after ``handed`` to paho: how many it took
+        and the highest queue id handed."""
+        sent = 0
+        for qid, topic, payload in self.queue.after(handed, room):
+            info = self._client.publish(topic, payload, qos=1)
+            # NO_CONN: paho keeps the message and sends it after reconnecting
+            if info.rc not in self._handed_codes:
+                break
+            pending[info.mid] = qid
+            handed = qid
+            sent += 1
+        return sent, handed
 
 
 def _paho() -> Any:

@@ -235,7 +235,7 @@ class RosMessages:
             yield self._record(
                 self._topic("mag", event.device, "imu/mag"), MAGNETIC_FIELD, event.t_ns,
                 {"header": header(event.t_ns, self.frame_id),
-                 "magnetic_field": _xyz(tuple(x * UT_TO_T for x in _flu(event))),
+                 "magnetic_field": _xyz(tuple(x * UT_TO_T for x in _flu(event))),  # type: ignore[arg-type]  # _flu returns three components; the comprehension keeps three
                  "magnetic_field_covariance": covariance3(
                      None if self.settings.magnetic_field_stddev_ut is None
                      else self.settings.magnetic_field_stddev_ut * UT_TO_T)})
