@@ -57,7 +57,7 @@ def run(registry: Registry, board: str, mode: str, stall_ms: float, oscillator_e
     with open_emulated(profile, registry, scenario="thermal", seed=seed, faults=faults,
                        calibrated=False) as p:
         emulator = EmulatedBoard.of(p).emulators["imu"]
-        emulator.oscillator_error = oscillator_error  # type: ignore[attr-defined]
+        emulator.oscillator_error = oscillator_error  # type: ignore[attr-defined]  # MPU-9250 only
         stamps = [e.t_ns for e in p.events(seconds)
                   if isinstance(e, GyroSample) and e.device == "imu" and e.valid]
         summary = p.summary()

@@ -8,6 +8,7 @@ import os
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -16,6 +17,7 @@ from imuhal.core.errors import PluginError
 from imuhal.core.samples import GyroSample, Sample
 from imuhal.emulation import open_emulated
 from imuhal.emulation.board import EmulatedBoard
+from imuhal.pipeline.pipeline import RunSummary
 from imuhal.pipeline.triggers import SelectorWaiter, TriggerEdge
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.bundled import bundled_profiles
@@ -47,8 +49,8 @@ def gy91_line(tmp_path: Path, registry: Registry) -> BoardProfile:
     return load_profile(path, registry)
 
 
-def _run(profile: BoardProfile, registry: Registry, seconds: float, **kw: object
-         ) -> tuple[list[Event], EmulatedBoard, object]:
+def _run(profile: BoardProfile, registry: Registry, seconds: float, **kw: Any
+         ) -> tuple[list[Event], EmulatedBoard, RunSummary]:
     events: list[Event] = []
     with open_emulated(profile, registry, scenario="thermal", seed=3, **kw) as pipeline:
         summary = pipeline.run(seconds, [CallbackSink(events.append)])
@@ -66,17 +68,17 @@ def test_a_data_ready_line_reads_the_chip_once_per_edge_stamped_at_the_chips_ins
     events, board, summary = _run(gy91_line, registry, 3.0, calibrated=False)
     stamps = _imu_stamps(events)
     measured = set(board.emulators["imu"].measured_ns)
-    counts = summary.triggers["imu"]  # type: ignore[attr-defined]
+    counts = summary.triggers["imu"]
     assert len(stamps) == counts["reads"] == counts["edges"] == 600
     assert set(stamps) <= measured  # every stamp is an instant the chip measured
     assert counts["fallbacks"] == counts["overwritten"] == counts["lost_edges"] == 0
-    assert summary.warnings == []  # type: ignore[attr-defined]
+    assert summary.warnings == []
 
 
 def test_devices_without_interrupt_keep_the_timer_trigger(
         gy91_line: BoardProfile, registry: Registry) -> None:
     _, _, summary = _run(gy91_line, registry, 0.5)
-    assert set(summary.triggers) == {"imu"}  # type: ignore[attr-defined]
+    assert set(summary.triggers) == {"imu"}
 
 
 def test_a_silent_line_falls_back_to_polling_says_so_once_and_returns_to_the_line(
@@ -85,10 +87,10 @@ def test_a_silent_line_falls_back_to_polling_says_so_once_and_returns_to_the_lin
     # driver's reset check (on the watchdog's polls) programs it again and the edges return
     resets = [ChipReset(device="imu", start_s=t) for t in (1.0, 2.0)]
     events, _, summary = _run(gy91_line, registry, 3.0, faults=resets)
-    counts = summary.triggers["imu"]  # type: ignore[attr-defined]
+    counts = summary.triggers["imu"]
     assert counts["fallbacks"] == counts["returns"] == 2
     assert counts["fallback_polls"] > 0
-    silent = [w for w in summary.warnings if "no data-ready edge" in w]  # type: ignore[attr-defined]
+    silent = [w for w in summary.warnings if "no data-ready edge" in w]
     assert silent == ["imu: no data-ready edge on emul://imu/INT for 20 ms (4 periods): "
                       "polling the chip instead until the line's edges come back"]
     stamps = _imu_stamps(events)
@@ -99,8 +101,8 @@ def test_a_stalled_host_reads_the_newest_sample_with_the_newest_edges_stamp(
         gy91_line: BoardProfile, registry: Registry) -> None:
     stall = HostStall(device="imu", start_s=1.0, stall_s=0.05, every_s=0.5)
     events, board, summary = _run(gy91_line, registry, 3.0, faults=[stall])
-    counts = summary.triggers["imu"]  # type: ignore[attr-defined]
-    frames = summary.frames["imu"]  # type: ignore[attr-defined]
+    counts = summary.triggers["imu"]
+    frames = summary.frames["imu"]
     assert set(_imu_stamps(events)) <= set(board.emulators["imu"].measured_ns)
     # each 50 ms stall at 200 Hz: of the 11 edges from the stalled read's to the wake,
     # the newest is read and 10 frames are overwritten
@@ -237,8 +239,8 @@ def test_a_fifo_read_on_every_second_edge_keeps_every_frame_through_stalls(
     stall = HostStall(device="imu", start_s=1.0, stall_s=0.05, every_s=0.5)
     _, _, summary = _run(load_profile(path, registry), registry, 3.0, faults=[stall],
                          calibrated=False)
-    counts = summary.triggers["imu"]  # type: ignore[attr-defined]
-    frames = summary.frames["imu"]  # type: ignore[attr-defined]
+    counts = summary.triggers["imu"]
+    frames = summary.frames["imu"]
     assert frames["delivered"] == frames["produced"]  # the FIFO kept what the stalls held
     assert counts["reads"] < counts["edges"] // 2 + 1
     assert counts["edges"] == frames["produced"] and counts["fallbacks"] == 0
@@ -252,6 +254,6 @@ def test_an_optional_device_that_joins_late_awaits_its_first_edge_from_then(
     unplugged = ChipAbsent(device="imu", start_s=0.0, end_s=1.2)
     _, _, summary = _run(load_profile(path, registry), registry, 3.0, faults=[unplugged],
                          calibrated=False)
-    counts = summary.triggers["imu"]  # type: ignore[attr-defined]
-    assert "imu: found at t=2.004 s; it joins the run" in summary.warnings  # type: ignore[attr-defined]
+    counts = summary.triggers["imu"]
+    assert "imu: found at t=2.004 s; it joins the run" in summary.warnings
     assert counts["fallbacks"] == 0 and counts["edges"] == counts["reads"] > 150

@@ -859,7 +859,9 @@ def _waiter_of(board: Board, clock: Clock, lines: dict[str, TriggerLine],
     waiter, whose edges a recording keeps."""
     if not lines:
         return ClockWaiter(clock)
-    waiter: Waiter = board.waiter()  # type: ignore[attr-defined]
+    # a board with lines provides their waiter (Board's optional part: HardwareBoard,
+    # EmulatedBoard, ReplayBoard)
+    waiter: Waiter = getattr(board, "waiter")()  # noqa: B009
     if recorder is not None:
         record = recorder.on_edge
         waiter = RecordedWaiter(waiter, lambda device, edge: record(device, edge.t_ns,
