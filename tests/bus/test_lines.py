@@ -4,6 +4,7 @@ edges are in tests/kernel/test_gpio.py)."""
 from __future__ import annotations
 
 import enum
+import time
 from dataclasses import dataclass, field
 from types import SimpleNamespace
 from typing import Any
@@ -84,3 +85,21 @@ def test_a_line_that_cannot_be_requested_is_a_bus_error_naming_it() -> None:
     gpiod = _gpiod(_Request(), fail=OSError(16, "Device or resource busy"))
     with pytest.raises(BusError, match=r"line 'DRDY' of /dev/gpiochip0.*busy"):
         DataReadyLine("/dev/gpiochip0", "DRDY", gpiod_module=gpiod)
+
+
+def test_a_trigger_line_hands_the_pipeline_kernel_stamps_on_its_own_clock() -> None:
+    from imuhal.core.clock import MonotonicClock
+    from imuhal.pipeline.board import GpioTriggerLine
+    from imuhal.pipeline.triggers import TriggerEdge
+
+    clock = MonotonicClock()
+    now = time.monotonic_ns()
+    request = _Request([_Event(_Type.RISING_EDGE, now, 1), _Event(_Type.RISING_EDGE, now + 5, 2)])
+    line = GpioTriggerLine(DataReadyLine("/dev/gpiochip0", 17, gpiod_module=_gpiod(request)),
+                           clock)
+    stamp = clock.from_monotonic_ns(now)
+    assert 0 <= stamp <= clock.now_ns()
+    assert line.take_edges() == [TriggerEdge(stamp, 1), TriggerEdge(stamp + 5, 2)]
+    assert (line.name, line.fileno()) == ("gpio:///dev/gpiochip0/17", 7)
+    line.close()
+    assert request.released

@@ -1,26 +1,42 @@
-"""Data-ready lines on the kernel's gpio-sim chip, read through imuhal.bus.lines (gpiod v2).
+"""Data-ready lines on the kernel's gpio-sim chip, read through imuhal.bus.lines (gpiod v2),
+and driving the pipeline's acquisition trigger (imuhal.pipeline.triggers).
 
 gpio-sim raises an edge when its line's pull is switched (sysfs ``pull``), from the
 simulated interrupt's work: edges faster than the guest handles them merge into one. So each
 edge is handshaken (pull up, wait for the event, pull down) and nothing here bounds latency
 (under emulation it says nothing about hardware): the tests check counts, sequence numbers,
-and that the time stamps are the kernel's CLOCK_MONOTONIC.
+and that the time stamps are the kernel's CLOCK_MONOTONIC. The trigger tests read an
+emulated MPU-9250 (register level, on the real monotonic clock) whenever the gpio-sim line
+says so, through the same board a real run opens (HardwareBoard, a selectors wait).
 """
 
 from __future__ import annotations
 
+import bisect
 import itertools
 import select
+import threading
 import time
 import uuid
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 from tests.kernel.guest import mounted_configfs, wait_for
 
+from imuhal.bus.base import BusKind
 from imuhal.bus.lines import DataReadyLine
+from imuhal.core.clock import MonotonicClock
+from imuhal.core.samples import GyroSample
+from imuhal.emulation import EmulatedBus
+from imuhal.pipeline import Pipeline
+from imuhal.pipeline.board import HardwareBoard, open_trigger_line
+from imuhal.pipeline.triggers import LineTrigger
+from imuhal.plugins.manager import load_registry
+from imuhal.profile.loader import parse_profile
+from imuhal.sinks import Event
+from imuhal_chips.mpu9250.emulator import MPU9250Emulator
 
 EDGES = 1000
 
@@ -108,3 +124,106 @@ def test_edges_a_full_kernel_queue_dropped_are_counted_as_lost(sim_line: SimLine
     assert len(queued) == 16
     # every edge the kernel numbered is either read or counted lost
     assert drdy.lost_edges == last.line_seqno - len(queued) - 1 > 0
+
+
+PROFILE = """
+schema_version: 1
+name: drdy-guest
+buses:
+  i2c1: {{kind: i2c, device: /dev/i2c-1}}
+devices:
+  imu:
+    driver: mpu9250
+    bus: i2c1
+    address: 0x68
+    interrupt: {{chip: {chip}, line: DRDY, edge: rising, watchdog_periods: {watchdog}}}
+    settings: {{odr_hz: 200, aux: "off"}}
+"""
+
+
+def _pipeline(line: SimLine, watchdog_periods: float) -> tuple[Pipeline, LineTrigger]:
+    """An emulated MPU-9250 at 200 Hz on the monotonic clock, its INT wired to the gpio-sim
+    line: the board a real run opens, with an emulated bus in place of /dev/i2c-1."""
+    registry = load_registry()
+    profile = parse_profile(PROFILE.format(chip=line.chip, watchdog=watchdog_periods),
+                            "guest profile", registry)
+    clock = MonotonicClock()
+    bus = EmulatedBus("emul://i2c1", BusKind.I2C)
+    bus.attach(0x68, MPU9250Emulator(clock))
+    interrupt = profile.devices["imu"].interrupt
+    assert interrupt is not None
+    board = HardwareBoard({"i2c1": bus}, clock, {"imu": open_trigger_line(interrupt, clock)})
+    pipeline = Pipeline(profile, registry, board, calibrated=False)
+    trigger = pipeline.devices["imu"].trigger
+    assert isinstance(trigger, LineTrigger)
+    return pipeline, trigger
+
+
+def _await(check: Callable[[], bool], timeout_s: float = 10.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not check():
+        if time.monotonic() > deadline:
+            raise AssertionError("the pipeline did not read the line within 10 s")
+        time.sleep(0.0002)
+
+
+def test_every_handshaken_edge_makes_one_read_stamped_with_the_kernels_time(
+        sim_line: SimLine) -> None:
+    sim_line.set(False)
+    # a watchdog of 100,000 periods (500 s) never fires here: every read is the line's
+    pipeline, trigger = _pipeline(sim_line, watchdog_periods=100_000)
+    events: list[Event] = []
+    stop = threading.Event()
+
+    def consume() -> None:
+        for event in pipeline.events(None):
+            events.append(event)
+            if stop.is_set():
+                return
+
+    consumer = threading.Thread(target=consume, daemon=True)
+    with pipeline:
+        consumer.start()
+        windows = []
+        for i in range(EDGES):
+            before_ns = time.monotonic_ns()
+            sim_line.set(True)
+            _await(lambda n=i + 1: trigger.reads >= n)
+            windows.append((before_ns, time.monotonic_ns()))
+            sim_line.set(False)
+            assert trigger.reads == i + 1  # one read per edge, none extra
+        stop.set()
+        time.sleep(0.02)  # the chip has a new sample for the last read, which ends the run
+        sim_line.set(True)
+        consumer.join(timeout=10.0)
+        assert not consumer.is_alive()
+    assert trigger.edges == trigger.reads == EDGES + 1
+    assert trigger.lost_edges == trigger.overwritten == trigger.fallbacks == 0
+    assert pipeline.warnings == []
+    # each sample carries its edge's kernel time stamp: within that edge's handshake
+    origin = time.monotonic_ns() - pipeline.clock.now_ns()
+    starts = [w[0] for w in windows]
+    stamps = [e.t_ns for e in events if isinstance(e, GyroSample)]
+    assert len(stamps) > EDGES // 10  # the chip had new data for many of the reads
+    assert all(b > a for a, b in itertools.pairwise(stamps))
+    for stamp in stamps[:-1]:
+        t = stamp + origin
+        i = bisect.bisect_right(starts, t) - 1
+        assert i >= 0 and windows[i][0] <= t <= windows[i][1]
+
+
+def test_a_silent_line_falls_back_to_polling_says_so_once_and_returns_on_an_edge(
+        sim_line: SimLine) -> None:
+    sim_line.set(False)
+    pipeline, trigger = _pipeline(sim_line, watchdog_periods=4)  # 20 ms at 200 Hz
+    with pipeline:
+        polled = [e for e in pipeline.events(0.5) if isinstance(e, GyroSample)]
+        assert trigger.reads == 0 and trigger.fallbacks == 1
+        assert trigger.fallback_polls > 0 and any(s.valid for s in polled)
+        sim_line.set(True)  # the line comes back: read on it, then silent again
+        list(pipeline.events(0.3))
+    assert trigger.reads == trigger.edges == trigger.returns == 1
+    assert trigger.fallbacks == 2
+    silent = [w for w in pipeline.warnings if "no data-ready edge" in w]
+    assert len(silent) == 1 and silent[0].startswith(
+        f"imu: no data-ready edge on gpio://{sim_line.chip}/DRDY for 20 ms (4 periods)")

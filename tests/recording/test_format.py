@@ -15,6 +15,7 @@ from imuhal.bus.recording.format import (
     ClockReading,
     EndMark,
     LatePoll,
+    RecordedEdge,
     RecordedTransfer,
     RecordingError,
     RecordingWriter,
@@ -91,7 +92,7 @@ def test_a_damaged_chunk_ends_the_readable_part_and_says_where(tmp_path: Path) -
 def test_the_file_starts_with_the_magic_and_the_version(tmp_path: Path) -> None:
     path = tmp_path / "r.imurec"
     _writer(path).close()
-    assert path.read_bytes()[:10] == MAGIC + b"\x02\x00"
+    assert path.read_bytes()[:10] == MAGIC + b"\x03\x00"
 
 
 @settings(deadline=None)
@@ -123,6 +124,30 @@ def test_byte_stream_receives_and_baud_changes_read_back_exactly(
     assert got == want
 
 
+def test_data_ready_edges_read_back_exactly(tmp_path: Path) -> None:
+    path = tmp_path / "r.imurec"
+    w = _writer(path)
+    w.clock(5_000_000)
+    w.edge(4_990_000, "imu", 1)  # an edge stamped before the previous record's time
+    w.edge(9_990_000, "imu", 3)
+    w.close()
+    got = list(open_recording(path).records())
+    assert got[1:] == [RecordedEdge(4_990_000, "imu", 1), RecordedEdge(9_990_000, "imu", 3)]
+
+
+def test_an_edge_record_in_a_version_2_file_is_damage(tmp_path: Path) -> None:
+    path = tmp_path / "r.imurec"
+    w = _writer(path)
+    w.edge(1, "imu", 1)
+    w.close()
+    data = bytearray(path.read_bytes())
+    data[len(MAGIC)] = 2
+    path.write_bytes(bytes(data))
+    rec = open_recording(path)
+    assert list(rec.records()) == []
+    assert rec.damage.endswith("record type 10 in a version-2 recording: damaged")
+
+
 def test_a_version_1_recording_still_reads(tmp_path: Path) -> None:
     # Written by imuhal before byte streams were recorded (gy91, static, 1.5 s).
     rec = open_recording(Path("tests/data/recording/gy91-static-1.5s-v1.imurec"))
@@ -136,10 +161,10 @@ def test_a_recording_of_a_newer_format_is_refused_in_one_line(tmp_path: Path) ->
     path = tmp_path / "r.imurec"
     _writer(path).close()
     data = bytearray(path.read_bytes())
-    data[len(MAGIC)] = 3
+    data[len(MAGIC)] = 4
     path.write_bytes(bytes(data))
-    with pytest.raises(RecordingError, match=r"format version 3; this imuhal reads versions "
-                                             r"1-2 \(upgrade imuhal to replay it\)$"):
+    with pytest.raises(RecordingError, match=r"format version 4; this imuhal reads versions "
+                                             r"1-3 \(upgrade imuhal to replay it\)$"):
         open_recording(path)
 
 

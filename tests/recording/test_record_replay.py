@@ -291,3 +291,14 @@ def test_a_version_1_recording_replays_to_its_end(full_registry: Registry) -> No
     events = _replay(full_registry, Path("tests/data/recording/gy91-static-1.5s-v1.imurec"))
     assert sum(isinstance(e, AttitudeEstimate) for e in events) == 199
     assert sum(isinstance(e, VerticalEstimate) for e in events) == 50
+
+
+def test_a_version_2_recording_replays_to_its_end(full_registry: Registry) -> None:
+    # Recorded (gy91, static, 1.5 s) before the format held data-ready edges; that run
+    # emitted 1,047 events, 199 attitude and 50 vertical estimates.
+    path = Path("tests/data/recording/gy91-static-1.5s-v2.imurec")
+    assert open_recording(path).version == 2
+    events = _replay(full_registry, path)
+    assert len(events) == 1047
+    assert sum(isinstance(e, AttitudeEstimate) for e in events) == 199
+    assert sum(isinstance(e, VerticalEstimate) for e in events) == 50

@@ -41,6 +41,12 @@ registers; SPI: bit 7 of the first byte set = read; both auto-increment):
 Physics face (sensor frame, SI): ``specific_force_m_s2`` (default (0, 0, 9.80665): lying
 flat, face up), ``angular_rate_rad_s`` (default 0), ``temperature_degc`` (default 25).
 
+INT pin (:meth:`MPU9250Emulator.interrupt_after`, register map rev 1.4, INT_PIN_CFG and
+INT_ENABLE): asserted at every sample with INT_ENABLE.RAW_RDY_EN (not while
+``stuck_data_ready``) and at every sample that overflows a streaming FIFO with
+FIFO_OFLOW_EN; active high unless INT_PIN_CFG.ACTL; a 50 us pulse unless
+INT_PIN_CFG.LATCH_INT_EN, which holds it until INT_STATUS is cleared (no new edge before).
+
 FIFO: :mod:`imuhal_chips.mpu9250.emulator_fifo` (FIFO_EN incl. slave 0's EXT_SENS_DATA
 bytes, FIFO_COUNT, FIFO_R_W, CONFIG.FIFO_MODE, FIFO_OFLOW status, USER_CTRL.FIFO_RST); with
 it streaming, every sample is latched with its own instant's inputs and appended.
@@ -63,6 +69,7 @@ from imuhal.core.samples import Quantity
 from imuhal.emulation import ChipEmulator, EmulatedBus
 from imuhal_chips.mpu9250 import registers as r
 from imuhal_chips.mpu9250.emulator_fifo import FifoModel, frame_of
+from imuhal_chips.mpu9250.emulator_int import INT_ACTL, INT_LATCH_INT_EN, INT_PULSE_NS
 from imuhal_chips.mpu9250.error_spec import MPU9250_ERROR_SPEC
 
 _FIFO_CATCH_UP_SAMPLES = r.FIFO_SIZE_BYTES
@@ -100,6 +107,7 @@ class MPU9250Emulator(ChipEmulator):
     chip = "mpu9250"
     error_spec = MPU9250_ERROR_SPEC
     models_stuck_data_ready = True
+    models_interrupt = True
     pulls_physics = True
     conformance_sweep = True
     min_output_period_s = 1.0 / 32_000.0  # Fchoice_b != 00: 32 kHz
@@ -140,6 +148,33 @@ class MPU9250Emulator(ChipEmulator):
     def bypass_active(self) -> bool:
         return bool(self._regs[r.INT_PIN_CFG] & r.INT_PIN_BYPASS_EN) and not (
             self._regs[r.USER_CTRL] & r.USER_I2C_MST_EN)
+
+    # -- INT pin ------------------------------------------------------------------------
+
+    def interrupt_pin(self) -> tuple[bool, int]:
+        """Active high unless INT_PIN_CFG.ACTL; a 50 us pulse unless LATCH_INT_EN."""
+        cfg = self._regs[r.INT_PIN_CFG]
+        return not cfg & INT_ACTL, 0 if cfg & INT_LATCH_INT_EN else INT_PULSE_NS
+
+    def interrupt_after(self, after_ns: int) -> int | None:
+        """The first sample instant after ``after_ns`` at which an enabled interrupt
+        asserts the pin: data ready (every sample), FIFO overflow (the samples that find
+        the FIFO full); a latched pin still held by an uncleared status asserts nothing."""
+        self._advance()
+        regs = self._regs
+        enable = regs[r.INT_ENABLE] & (r.INT_RAW_RDY | r.INT_FIFO_OFLOW)
+        if self.absent or regs[r.PWR_MGMT_1] & r.PWR1_SLEEP or not enable:
+            return None
+        if regs[r.INT_PIN_CFG] & INT_LATCH_INT_EN and regs[r.INT_STATUS] & enable:
+            return None
+        period = self.period_ns()
+        k = max(0, (after_ns - self._t0) // period) + 1
+        if enable & r.INT_RAW_RDY and not self.stuck_data_ready:
+            return self._t0 + k * period
+        if enable & r.INT_FIFO_OFLOW and self._fifo_streaming():
+            room = (self.fifo.size - len(self.fifo)) // len(frame_of(regs))
+            return self._t0 + max(k, self._taken + room + 1) * period
+        return None
 
     # -- conformance face -------------------------------------------------------------------
 

@@ -32,6 +32,11 @@ class MonotonicClock:
     def now_ns(self) -> int:
         return time.monotonic_ns() - self._origin
 
+    def from_monotonic_ns(self, t_ns: int) -> int:
+        """A CLOCK_MONOTONIC time (``time.monotonic_ns()``, a kernel edge time stamp) on
+        this clock."""
+        return t_ns - self._origin
+
     def sleep_until(self, t_ns: int) -> None:
         delay = t_ns - self.now_ns()
         if delay > 0:

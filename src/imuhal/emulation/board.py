@@ -22,7 +22,9 @@ from imuhal.core.errors import ImuhalError, PluginError
 from imuhal.core.frames import FloatArray
 from imuhal.core.quantities import Quantity
 from imuhal.emulation.faults import BoardFaults, FaultLine
+from imuhal.emulation.lines import EmulatedLine
 from imuhal.pipeline.pipeline import Pipeline
+from imuhal.pipeline.triggers import SimulatedWaiter, Waiter
 from imuhal.plugins.manager import Registry
 from imuhal.profile.faults import FaultSpec
 from imuhal.profile.model import BoardProfile
@@ -92,6 +94,9 @@ class EmulatedBoard:
             hosts[name] = host
         for name, emulator in self.emulators.items():
             emulator.connect_host(hosts[name])
+        self.lines = self._lines(profile)
+        """The data-ready lines the profile's ``interrupt:`` names, by device, driven by
+        the chips' INT pin models."""
         for spec in faults:
             self.faults.add(spec)
         self._chip_to_body = chip_to_body
@@ -118,6 +123,25 @@ class EmulatedBoard:
         # ``truth`` may be read from another thread (the live view) while the run polls:
         # scenarios fill caches as they go, so one thread at a time evaluates the scenario.
         self._scenario_lock = threading.Lock()
+
+    def _lines(self, profile: BoardProfile) -> dict[str, EmulatedLine]:
+        lines = {}
+        for name, emulator in self.emulators.items():
+            interrupt = profile.devices[name].interrupt
+            if interrupt is None:
+                continue
+            if not type(emulator).models_interrupt:
+                raise PluginError(
+                    f"devices.{name}.interrupt: the {emulator.chip or type(emulator).__name__} "
+                    "emulator models no INT pin, so this line cannot be emulated; remove "
+                    "interrupt: to run it emulated (polled)")
+            lines[name] = EmulatedLine(f"emul://{name}/INT", emulator, self.clock,
+                                       interrupt.edge)
+        return lines
+
+    def waiter(self) -> Waiter:
+        """The pipeline waits on the simulated clock for the lines' next edges."""
+        return SimulatedWaiter(self.clock, self.lines)
 
     def _physics_source(self, device: str) -> Callable[[int], None]:
         """What a chip with its own clock calls at each of its measurement instants."""

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from imuhal.bus.base import Bus, BusKind
@@ -23,6 +23,7 @@ from imuhal.bus.recording.format import (
     EndMark,
     LatePoll,
     Record,
+    RecordedEdge,
     RecordedTransfer,
     Recording,
     RecordingError,
@@ -32,6 +33,7 @@ from imuhal.bus.spy import OP_BAUD, OP_RECEIVE, OP_TRANSFER
 from imuhal.core import errors as error_types
 from imuhal.core.errors import BusError, ImuhalError, RunEnded
 from imuhal.pipeline.pipeline import Pipeline
+from imuhal.pipeline.triggers import TriggerEdge
 from imuhal.plugins.manager import Registry
 from imuhal.profile.loader import parse_profile
 from imuhal.profile.model import BoardProfile
@@ -96,12 +98,23 @@ class ReplaySource:
             rec = self._take()
         if rec is None or isinstance(rec, EndMark):
             raise EndOfRecording()
-        if isinstance(rec, LatePoll):
+        if isinstance(rec, LatePoll | RecordedEdge):
+            what = f"polls {rec.device} late" if isinstance(rec, LatePoll) else \
+                f"has an edge of {rec.device}'s data-ready line"
             raise ReplayDivergence(
                 f"replay diverged after transaction {self.transfers - 1} (t="
-                f"{rec.t_ns / 1e9:.6f} s): the recording polls {rec.device} late here, "
-                f"{asked()}")
+                f"{rec.t_ns / 1e9:.6f} s): the recording {what} here, {asked()}")
         return rec
+
+    def edges(self, device: str | None = None) -> list[RecordedEdge]:
+        """The data-ready edges recorded next (of ``device`` only, when given): what the
+        recorded run took from its lines at this point."""
+        taken = []
+        while isinstance(rec := self._peek(), RecordedEdge) and \
+                (device is None or rec.device == device):
+            self._take()
+            taken.append(rec)
+        return taken
 
     def clock(self) -> int:
         rec = self._next(lambda: "the run read the clock")
@@ -265,12 +278,47 @@ def open_replay(path: str | os.PathLike[str], registry: Registry,
     return Replay(recording, profile, source, buses, ReplayClock(source))
 
 
+class ReplayLine:
+    """A recorded data-ready line: its edges come from the recording (:class:`ReplayWaiter`)."""
+
+    def __init__(self, device: str) -> None:
+        self.name = f"replay://{device}/INT"
+
+    def take_edges(self) -> list[TriggerEdge]:
+        return []
+
+    def close(self) -> None:
+        return None
+
+
+class ReplayWaiter:
+    """Hands the pipeline the edges the recorded run took, where it took them; no edge
+    recorded next: the recorded run's deadline came first."""
+
+    def __init__(self, source: ReplaySource) -> None:
+        self.source = source
+
+    def wait(self, deadline_ns: int) -> dict[str, list[TriggerEdge]]:
+        woke: dict[str, list[TriggerEdge]] = {}
+        for rec in self.source.edges():
+            woke.setdefault(rec.device, []).append(TriggerEdge(rec.t_ns, rec.seqno))
+        return woke
+
+    def take(self, device: str) -> list[TriggerEdge]:
+        return [TriggerEdge(rec.t_ns, rec.seqno) for rec in self.source.edges(device)]
+
+
 @dataclass
 class ReplayBoard:
     """The recorded board as the pipeline sees it (imuhal.pipeline.board.Board)."""
 
     buses: dict[str, Bus]
     clock: ReplayClock
+    lines: dict[str, ReplayLine] = field(default_factory=dict)
+    """The data-ready lines of the profile's devices (``interrupt:``), replayed."""
+
+    def waiter(self) -> ReplayWaiter:
+        return ReplayWaiter(self.clock.source)
 
     def before_poll(self, t_ns: int, device: str) -> int:
         """The chips' answers are in the recording; the poll is at ``t_ns``, or at the
@@ -280,7 +328,9 @@ class ReplayBoard:
 
 def replay_pipeline(replay: Replay, registry: Registry) -> Pipeline:
     """The pipeline of the recorded run, opened (probe, configure) from the recording."""
-    board = ReplayBoard(replay.buses, replay.clock)
+    lines = {name: ReplayLine(name) for name, dev in replay.profile.devices.items()
+             if dev.enabled and dev.interrupt is not None}
+    board = ReplayBoard(replay.buses, replay.clock, lines)
     try:
         return Pipeline(replay.profile, registry, board)
     except EndOfRecording:

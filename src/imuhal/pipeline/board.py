@@ -15,9 +15,11 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 from imuhal.bus.base import Bus
+from imuhal.bus.lines import DataReadyLine
 from imuhal.core.clock import Clock, MonotonicClock
+from imuhal.pipeline.triggers import SelectorWaiter, TriggerEdge, Waiter
 from imuhal.plugins.manager import Registry
-from imuhal.profile.model import BoardProfile
+from imuhal.profile.model import BoardProfile, InterruptConfig
 
 
 class Board(Protocol):
@@ -40,29 +42,70 @@ class Board(Protocol):
         ...
 
 
+class GpioTriggerLine:
+    """A data-ready line on the GPIO character device (imuhal.bus.lines), its kernel edge
+    time stamps (CLOCK_MONOTONIC) expressed on the pipeline's :class:`MonotonicClock`."""
+
+    def __init__(self, line: DataReadyLine, clock: MonotonicClock) -> None:
+        self.line = line
+        self.name = line.name
+        self._clock = clock
+
+    def fileno(self) -> int:
+        return self.line.fileno()
+
+    def take_edges(self) -> list[TriggerEdge]:
+        to_clock = self._clock.from_monotonic_ns
+        return [TriggerEdge(to_clock(e.timestamp_ns), e.line_seqno)
+                for e in self.line.read_edges(0.0)]
+
+    def close(self) -> None:
+        self.line.close()
+
+
+def open_trigger_line(config: InterruptConfig, clock: MonotonicClock, *,
+                      consumer: str = "imuhal") -> GpioTriggerLine:
+    """Request the line ``config`` names for edge events (needs the ``gpio`` extra)."""
+    return GpioTriggerLine(DataReadyLine(config.chip_path, config.line, edge=config.edge,
+                                         consumer=consumer), clock)
+
+
 @dataclass
 class HardwareBoard:
-    """A real board: the profile's buses, opened, on the monotonic clock."""
+    """A real board: the profile's buses, opened, on the monotonic clock, and the data-ready
+    lines its devices' ``interrupt:`` name (by device)."""
 
     buses: dict[str, Bus]
     clock: Clock = field(default_factory=MonotonicClock)
+    lines: dict[str, GpioTriggerLine] = field(default_factory=dict)
 
     def before_poll(self, t_ns: int, device: str) -> int:
         """Nothing to do: real chips measure the real world on their own."""
         return t_ns
 
+    def waiter(self) -> Waiter:
+        """One ``selectors`` wait over the lines and the next deadline."""
+        return SelectorWaiter(self.clock, self.lines)
+
 
 def open_hardware_board(profile: BoardProfile, registry: Registry) -> HardwareBoard:
-    """Open every bus the profile names through its bus plugin; on failure the buses
-    already opened are closed again."""
-    buses: dict[str, Bus] = {}
+    """Open every bus the profile names through its bus plugin, and every data-ready line
+    its devices name; on failure those already opened are closed again."""
+    clock = MonotonicClock()
+    board = HardwareBoard({}, clock)
     try:
         for name, cfg in profile.buses.items():
             factory = registry.buses.get(cfg.kind)
             settings = factory.Settings.model_validate(cfg.plugin_settings())
-            buses[name] = factory.open(name, settings)
+            board.buses[name] = factory.open(name, settings)
+        for name, dev in profile.devices.items():
+            if dev.enabled and dev.interrupt is not None:
+                board.lines[name] = open_trigger_line(dev.interrupt, clock,
+                                                      consumer=f"imuhal:{name}")
     except BaseException:
-        for bus in buses.values():
+        for bus in board.buses.values():
             bus.close()
+        for line in board.lines.values():
+            line.close()
         raise
-    return HardwareBoard(buses)
+    return board

@@ -26,6 +26,7 @@ from imuhal.bus.spy import SpyBus, Transfer
 from imuhal.calibration.hard_iron import HardIronLearner
 from imuhal.calibration.model import CalibrationBinding, DeviceCalibration, now
 from imuhal.core.blocks import Block, blocks_of, interleaved
+from imuhal.core.clock import Clock
 from imuhal.core.conventions import get_convention
 from imuhal.core.errors import BusError, ImuhalError, PluginError, ProfileError
 from imuhal.core.frames import FloatArray
@@ -46,8 +47,18 @@ from imuhal.pipeline.processing import (
 )
 from imuhal.pipeline.router import Route, Router
 from imuhal.pipeline.startup import GyroStartupStage, StartupMeasurement, startup_settings
+from imuhal.pipeline.triggers import (
+    ClockWaiter,
+    LineTrigger,
+    RecordedWaiter,
+    TimerTrigger,
+    TriggerEdge,
+    TriggerLine,
+    Waiter,
+    describe_trigger,
+)
 from imuhal.plugins.manager import Registry
-from imuhal.profile.model import BoardProfile
+from imuhal.profile.model import BoardProfile, InterruptConfig
 from imuhal.profile.topology import chip_to_body_rotations, device_order, split_bus_ref
 from imuhal.sinks.base import Event, Sink
 
@@ -113,6 +124,9 @@ class DeviceRuntime:
     """Learning the hard iron in flight (``mag_in_flight``, no stored magnetometer record)."""
     own_blocks: bool = False
     """The driver builds its own blocks (overrides ``Driver.poll_blocks``)."""
+    trigger: TimerTrigger | LineTrigger = field(default_factory=TimerTrigger)
+    """What says when the device is read (imuhal.pipeline.triggers): its poll grid, or
+    the data-ready line its profile names."""
 
     def __post_init__(self) -> None:
         self.chip_to_body_rows = np.asarray(self.chip_to_body, dtype=float).tolist()
@@ -149,6 +163,10 @@ class RunSummary:
     queued and dropped messages), by sink name."""
     learned: dict[str, dict[str, Any]] = field(default_factory=dict)
     """Per device learning in flight: :meth:`HardIronLearner.status`."""
+    triggers: dict[str, dict[str, int]] = field(default_factory=dict)
+    """Per device read on a data-ready line (imuhal.pipeline.triggers.LineTrigger): edges,
+    reads, overwritten and lost edges, watchdog fallbacks, polls while fallen back and
+    returns to the line."""
 
     def describe(self) -> str:
         lines = [f"ran {self.simulated_s:.1f} s in {self.wall_s:.2f} s wall time"]
@@ -165,6 +183,8 @@ class RunSummary:
                          + (f", driver: {own}" if own else ""))
             if dev in self.frames:
                 lines.append(f"    frames: {describe_frames(self.frames[dev])}")
+            if dev in self.triggers:
+                lines.append(f"    data-ready line: {describe_trigger(self.triggers[dev])}")
         for est, n in self.estimates.items():
             lines.append(f"  {est}: {n} estimates")
         for name, counts in self.sinks.items():
@@ -239,6 +259,8 @@ class Pipeline:
             clock = recorder.wrap_clock(clock)
             self._before_poll = recorder.wrap_before_poll(board.before_poll)
         self.clock = clock
+        self._lines: dict[str, TriggerLine] = dict(getattr(board, "lines", None) or {})
+        self._waiter = _waiter_of(board, clock, self._lines, recorder)
         # Whatever a bus plugin raises reaches the drivers as a BusError (contained per device).
         self.buses: dict[str, Bus] = {name: ContainedBus(bus) for name, bus in spied.items()}
         self._bus_modes = {name: bus.describe() for name, bus in board.buses.items()
@@ -309,6 +331,8 @@ class Pipeline:
         except BaseException:
             for bus in board.buses.values():
                 bus.close()
+            for line in board.lines.values():
+                line.close()
             raise
 
     def _link(self, bus_ref: str, address: int) -> Link:
@@ -380,6 +404,27 @@ class Pipeline:
             dev.ledger = FrameLedger(*stream)
         dev.reconfigurations_seen = driver.health.reconfigurations
         self._take_streams(dev)
+        if cfg.interrupt is not None and isinstance(dev.trigger, TimerTrigger):
+            dev.trigger = self._line_trigger(dev, cfg.interrupt)
+
+    def _line_trigger(self, dev: DeviceRuntime, interrupt: InterruptConfig) -> LineTrigger:
+        """The data-ready trigger of ``dev``, whose profile names its INT line; its
+        watchdog counts the periods of the stream the driver accounts for (else its fastest
+        stream)."""
+        line = self._lines.get(dev.name)
+        if line is None:
+            raise ProfileError(self.profile.name, [
+                f"devices.{dev.name}.interrupt: this board provides no line for it (a board "
+                "that is neither real hardware nor emulated); remove interrupt: to poll it"])
+        accounted = dev.driver.accounted_stream()
+        periods = [spec.period_ns for spec in dev.streams]
+        period_ns = accounted[1] if accounted is not None else min(periods, default=0)
+        if period_ns <= 0:
+            raise ProfileError(self.profile.name, [
+                f"devices.{dev.name}.interrupt: driver {dev.driver.name!r} states no output "
+                "rate to time the line's watchdog by; remove interrupt: to poll it"])
+        return LineTrigger(line.name, period_ns, interrupt.watchdog_periods,
+                           interrupt.edges_per_read)
 
     @property
     def streams(self) -> dict[str, tuple[StreamSpec, ...]]:
@@ -477,6 +522,8 @@ class Pipeline:
             self._heap = []
             for name, dev in self.devices.items():
                 dev.next_poll_ns = dev.driver.start(now) if dev.present else now + JOIN_RETRY_NS
+                if dev.present and isinstance(dev.trigger, LineTrigger):
+                    dev.next_poll_ns = dev.trigger.started(now)
                 heapq.heappush(self._heap, (dev.next_poll_ns, self._device_rank[name], name))
         return self._heap
 
@@ -485,12 +532,20 @@ class Pipeline:
         start = self.clock.now_ns()
         end = None if duration_s is None else start + round(duration_s * 1e9)
         self._span_ns = [start, start]
+        lines = bool(self._lines)
         while heap:
             t_ns, rank, name = heap[0]
+            if lines:
+                woke = self._waiter.wait(t_ns if end is None else min(t_ns, end))
+                if woke:
+                    yield from self._on_edges(woke)
+                    continue
             if end is not None and t_ns >= end:
                 self._span_ns[1] = end
                 break
             heapq.heappop(heap)
+            if lines and self._superseded(name, t_ns):
+                continue
             self.clock.sleep_until(t_ns)
             # Estimator inputs wait until every sample of their instant is in (fusion order).
             if self._fusion:
@@ -508,17 +563,9 @@ class Pipeline:
             frames, next_ns = self._service(dev, t_ns)
             if dev.ledger is not None:
                 self._account(dev)
-            dev.next_poll_ns = max(next_ns, t_ns + 1)
+            dev.next_poll_ns = max(self._next_due(dev, t_ns, next_ns), t_ns + 1)
             heapq.heappush(heap, (dev.next_poll_ns, rank, name))
-            if frames:
-                if isinstance(frames, _Readings):
-                    # one frame per block (a register poll): each reading through the steps
-                    # as it is handed out (the start-up phase may switch calibration on
-                    # between two of them)
-                    for sample in frames:
-                        yield self._process_one(dev, sample)
-                else:
-                    yield from self._frames_of(dev, frames)
+            yield from self._hand_out(dev, frames)
         if end is not None:
             self.clock.sleep_until(end)
         if self._fusion:
@@ -537,6 +584,70 @@ class Pipeline:
                 rest = [self._to_body(dev, b) for b in blocks_of(frames[i + 1:])]
                 yield from interleaved(rest)
                 return
+
+    def _hand_out(self, dev: DeviceRuntime,
+                  frames: _Readings | list[Block]) -> Iterator[Sample]:
+        """A poll's readings or blocks through the steps, in the order they are handed out."""
+        if isinstance(frames, _Readings):
+            # one frame per block (a register poll): each reading through the steps as it
+            # is handed out (the start-up phase may switch calibration on between two)
+            for sample in frames:
+                yield self._process_one(dev, sample)
+        elif frames:
+            yield from self._frames_of(dev, frames)
+
+    def _superseded(self, name: str, t_ns: int) -> bool:
+        """A popped deadline that a read on an edge replaced (the heap keeps the old entry);
+        a deadline that is the watchdog firing makes the line's device polled, said once."""
+        dev = self.devices[name]
+        if t_ns != dev.next_poll_ns:
+            return True
+        trigger = dev.trigger
+        if isinstance(trigger, LineTrigger) and dev.present and not dev.needs_recovery \
+                and trigger.expired(t_ns):
+            self._warn_once(dev, "line silent", f"{name}: {trigger.describe_silence()}")
+        return False
+
+    def _next_due(self, dev: DeviceRuntime, t_ns: int, driver_next_ns: int) -> int:
+        """When ``dev`` is read next after a read at ``t_ns``: as its trigger says, unless
+        it is recovering (then as the recovery says)."""
+        if not dev.present or dev.needs_recovery or dev.resumed:
+            return driver_next_ns
+        return dev.trigger.due(t_ns, driver_next_ns)
+
+    def _on_edges(self, woke: dict[str, list[TriggerEdge]]) -> Iterator[Event]:
+        """Read each device whose line raised edges, once, stamped with its newest edge
+        (a host that came late finds the chip's newest sample: the edges before it are
+        counted overwritten)."""
+        for name in sorted(woke, key=self._device_rank.__getitem__):
+            dev = self.devices[name]
+            edges = woke[name]
+            trigger = dev.trigger
+            if not isinstance(trigger, LineTrigger) or not dev.present or dev.needs_recovery:
+                continue  # a recovering device is retried on its own schedule
+            due_ns = edges[0].t_ns
+            if self._fusion:
+                fused = self._fuse(before_ns=due_ns)
+                if fused:
+                    yield from fused
+            t_ns = self._before_poll(due_ns, name)
+            edges += self._waiter.take(name)  # those that came while the host was late
+            edge = trigger.took(edges)
+            if edge is None:  # fewer edges than make a read: wait for more
+                dev.next_poll_ns = trigger.watchdog_at_ns
+                heapq.heappush(self._schedule(), (dev.next_poll_ns, self._device_rank[name],
+                                                  name))
+                continue
+            if dev.ledger is not None and \
+                    max(t_ns, self._span_ns[1]) - due_ns > dev.ledger.period_ns // 2:
+                dev.ledger.note("host_stall")
+            self._span_ns[1] = max(t_ns, self._span_ns[1])
+            samples, next_ns = self._service(dev, edge.t_ns)
+            if dev.ledger is not None:
+                self._account(dev)
+            dev.next_poll_ns = max(self._next_due(dev, edge.t_ns, next_ns), t_ns + 1)
+            heapq.heappush(self._schedule(), (dev.next_poll_ns, self._device_rank[name], name))
+            yield from self._hand_out(dev, samples)
 
     def _service(self, dev: DeviceRuntime, t_ns: int) -> tuple[_Readings | list[Block], int]:
         """Whatever ``dev`` needs at ``t_ns``: a poll, a recovery, or a look for an optional
@@ -627,7 +738,10 @@ class Pipeline:
             return t_ns + JOIN_RETRY_NS
         self._joined(dev)
         self.warnings.append(f"{dev.name}: found at t={t_ns / 1e9:.3f} s; it joins the run")
-        return dev.driver.start(max(t_ns, self.clock.now_ns()))
+        next_ns = dev.driver.start(max(t_ns, self.clock.now_ns()))
+        if isinstance(dev.trigger, LineTrigger):  # its first edge is awaited from now
+            return dev.trigger.started(max(t_ns, self.clock.now_ns()))
+        return next_ns
 
     def _recover(self, dev: DeviceRuntime, t_ns: int) -> int:
         """Bring a device back after a failed poll. A failed attempt is retried after a
@@ -856,17 +970,37 @@ class Pipeline:
                     if d.ledger is not None},
             learned={n: d.mag_learner.status() for n, d in self.devices.items()
                      if d.mag_learner is not None},
+            triggers={n: d.trigger.counts() for n, d in self.devices.items()
+                      if isinstance(d.trigger, LineTrigger)},
         )
 
     def close(self) -> None:
         for bus in self.buses.values():
             bus.close()
+        for line in self._lines.values():
+            line.close()
 
     def __enter__(self) -> Pipeline:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _waiter_of(board: Board, clock: Clock, lines: dict[str, TriggerLine],
+               recorder: BusRecorder | None) -> Waiter:
+    """Where the pipeline waits: on the clock alone, or (a board with lines) on the board's
+    waiter, whose edges a recording keeps."""
+    if not lines:
+        return ClockWaiter(clock)
+    # a board with lines provides their waiter (Board's optional part: HardwareBoard,
+    # EmulatedBoard, ReplayBoard)
+    waiter: Waiter = getattr(board, "waiter")()  # noqa: B009
+    if recorder is not None:
+        record = recorder.on_edge
+        waiter = RecordedWaiter(waiter, lambda device, edge: record(device, edge.t_ns,
+                                                                    edge.seqno))
+    return waiter
 
 
 def _fan_out(taps: list[Callable[[Transfer], None]]) -> Callable[[Transfer], None]:

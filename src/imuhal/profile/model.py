@@ -8,6 +8,7 @@ driver, bus and estimator settings are checked by their plugins' own models afte
 
 from __future__ import annotations
 
+import re
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
@@ -47,6 +48,53 @@ class BusConfig(BaseModel):
         return dict(self.model_extra or {})
 
 
+_GPIO_CHIP = re.compile(r"(/dev/)?gpiochip[0-9]+")
+
+
+class InterruptConfig(_Strict):
+    """The GPIO line a chip's INT pin is wired to (docs/acquisition.md, "Triggers"): the
+    pipeline then reads the chip when the line says so (data-ready), with the kernel's edge
+    time stamps, and falls back to polling while the line stays silent."""
+
+    chip: str
+    """The GPIO character device: ``gpiochip0`` or ``/dev/gpiochip0`` (``gpiodetect``)."""
+    line: int | str
+    """The line's offset on that chip (``gpioinfo``), or its name."""
+    edge: Literal["rising", "falling", "both"] = "rising"
+    """Which edges are data-ready events: ``rising`` for an active-high pulse (the
+    MPU-9250 as imuhal configures it)."""
+    watchdog_periods: float = Field(4.0, ge=1.5, le=100_000)
+    """How many of the chip's output periods the line may stay silent before the pipeline
+    polls the chip instead (and says so once); 4 at 200 Hz is 20 ms (PX4: 10 ms)."""
+    edges_per_read: int = Field(1, ge=1, le=1000)
+    """Edges counted to one read: a watermark for a chip read in bursts from its FIFO
+    (``read: fifo``, as PX4 counts data-ready edges); 1 reads at every edge."""
+
+    @field_validator("chip")
+    @classmethod
+    def _chip_device(cls, value: str) -> str:
+        if not _GPIO_CHIP.fullmatch(value):
+            raise ValueError("not a GPIO character device: give gpiochipN or "
+                             "/dev/gpiochipN (list them with gpiodetect)")
+        return value
+
+    @field_validator("line")
+    @classmethod
+    def _line_offset(cls, value: int | str) -> int | str:
+        if isinstance(value, int) and value < 0:
+            raise ValueError("a line offset is 0 or more: give the offset gpioinfo lists "
+                             "(on a Raspberry Pi the BCM GPIO number)")
+        if isinstance(value, str) and not value.strip():
+            raise ValueError("a line name cannot be empty: give the offset or the name "
+                             "gpioinfo lists")
+        return value
+
+    @property
+    def chip_path(self) -> str:
+        """The character device's path."""
+        return self.chip if self.chip.startswith("/") else f"/dev/{self.chip}"
+
+
 class DeviceConfig(_Strict):
     driver: str
     """Driver name as listed by ``imuhal plugins``."""
@@ -63,6 +111,9 @@ class DeviceConfig(_Strict):
     required: bool = True
     """False: the run starts without this device if it does not answer, and the device
     joins when it appears (it is probed again every second)."""
+    interrupt: InterruptConfig | None = None
+    """The GPIO line the chip's INT pin drives (data-ready trigger); None: the device is
+    polled on its own grid (timer trigger)."""
 
     _mount = field_validator("mount")(_valid_mount)
 

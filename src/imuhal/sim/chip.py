@@ -68,6 +68,9 @@ class ChipEmulator(ABC):
     #: host's poll interval when :meth:`noise_period_s` does not know the chip's own period.
     #: A subclass states its chip's; 1/8 kHz is the fastest common MEMS output rate.
     min_output_period_s: ClassVar[float] = 1.0 / 8000.0
+    #: True for an emulator that models its chip's INT pin (:meth:`interrupt_after`,
+    #: :meth:`interrupt_pin`): a profile's ``interrupt:`` line is then driven by it.
+    models_interrupt: ClassVar[bool] = False
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
@@ -129,6 +132,18 @@ class ChipEmulator(ABC):
         first = bisect_right(self.measured_ns, first_stamp_ns)
         last = bisect_right(self.measured_ns, last_stamp_ns)
         return last - first + 1 if first else last
+
+    def interrupt_after(self, after_ns: int) -> int | None:
+        """The first instant after ``after_ns`` (ns, the emulator's clock) at which the chip
+        asserts its INT pin, as its registers stand now (an interrupt source enabled, the
+        chip awake); None: it will not. Only for ``models_interrupt`` emulators."""
+        raise NotImplementedError(f"{type(self).__name__} does not model an INT pin")
+
+    def interrupt_pin(self) -> tuple[bool, int]:
+        """(active high, pulse width in ns) of the INT pin as configured: a pulse width of 0
+        is a latched pin, held until the host clears the status (its release is not an
+        edge the emulator reports)."""
+        raise NotImplementedError(f"{type(self).__name__} does not model an INT pin")
 
     @abstractmethod
     def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes:

@@ -1,4 +1,4 @@
-"""The bus recording file format (version 2), documented in docs/recording.md.
+"""The bus recording file format (version 3), documented in docs/recording.md.
 
 A file is the 8-byte magic, a little-endian u16 format version, then chunks. A chunk is a u32
 payload length, the u32 CRC-32 of the payload and the payload. The first chunk holds the
@@ -13,7 +13,8 @@ Times are int nanoseconds on the run's clock, stored as the signed difference fr
 the previous record (zig-zag varint): a few bytes each.
 
 Version 2 added byte streams (a UART's received bytes and baud-rate changes) and late polls;
-a version-1 file has none of those records and reads as before.
+version 3 the edges of data-ready lines (kernel time stamp and line sequence number). An
+older file has none of the newer records and reads as before.
 """
 
 from __future__ import annotations
@@ -34,9 +35,10 @@ from imuhal.core.errors import ImuhalError
 
 MAGIC = b"\x89IMUREC\n"
 """High bit first (catches 7-bit transfers), a name, a newline (catches newline mangling)."""
-FORMAT_VERSION = 2
-READABLE_VERSIONS = (1, 2)
-"""Version 1 is version 2 without record types 6-9: the same reader reads both."""
+FORMAT_VERSION = 3
+READABLE_VERSIONS = (1, 2, 3)
+"""Version 1 is version 2 without record types 6-9, version 2 is version 3 without type 10:
+the same reader reads all three."""
 _CHUNK_HEAD = struct.Struct("<II")  # payload length, CRC-32 of the payload
 _MAX_CHUNK = 1 << 26  # a length beyond this is damage, not data
 
@@ -59,6 +61,14 @@ REC_LATE_POLL = 8
 REC_STREAM_FAILED = 9
 """A receive or baud change that raised: dt, bus index, operation (6 receive, 7 baud),
 target, max length or baud rate, error type, error text."""
+
+REC_EDGE = 10
+"""An edge of a device's data-ready line, as the pipeline took it: dt (the edge's time stamp
+on the run's clock), the line's sequence number, device."""
+
+_NEWEST_TYPE = {1: REC_END, 2: REC_STREAM_FAILED}
+"""The last record type each older version has (a newer one in its file is damage; an
+unknown type in a current file ends it as written by a newer imuhal)."""
 
 _STREAM_OPS = {REC_RECEIVE: OP_RECEIVE, REC_BAUD: OP_BAUD}
 _BUS_KINDS = frozenset(kind.value for kind in BusKind)
@@ -127,7 +137,17 @@ class LatePoll:
     device: str
 
 
-Record = BusInfo | RecordedTransfer | ClockReading | EndMark | LatePoll
+@dataclass(frozen=True, slots=True)
+class RecordedEdge:
+    """An edge of ``device``'s data-ready line the recorded run took: its time stamp and
+    the line's sequence number (imuhal.pipeline.triggers)."""
+
+    t_ns: int
+    device: str
+    seqno: int
+
+
+Record = BusInfo | RecordedTransfer | ClockReading | EndMark | LatePoll | RecordedEdge
 
 
 # -- varints -------------------------------------------------------------------------------
@@ -285,6 +305,11 @@ class RecordingWriter:
     def clock(self, t_ns: int) -> None:
         self._append(self._timed(REC_CLOCK, t_ns))
 
+    def edge(self, t_ns: int, device: str, seqno: int) -> None:
+        body = self._timed(REC_EDGE, t_ns, seqno)
+        _put_bytes(body, device.encode("utf-8"))
+        self._append(body)
+
     def end(self, how: str) -> None:
         body = bytearray((REC_END,))
         _put_bytes(body, how.encode("utf-8"))
@@ -358,7 +383,7 @@ class Recording:
                             return
                         if isinstance(record, RecordedTransfer):
                             t_ns, index = record.t_ns, record.index + 1
-                        elif isinstance(record, ClockReading | LatePoll):
+                        elif isinstance(record, ClockReading | LatePoll | RecordedEdge):
                             t_ns = record.t_ns
                         yield record
                 except (IndexError, UnicodeDecodeError, ValueError) as exc:
@@ -380,8 +405,9 @@ class Recording:
                 raise IndexError("a record runs past the end of its chunk")
             kind = payload[p]
             p += 1
-            if kind > REC_END and self.version < 2:
-                yield f"{self.path}: record type {kind} in a version-1 recording: damaged"
+            if kind > _NEWEST_TYPE.get(self.version, 255):
+                yield (f"{self.path}: record type {kind} in a version-{self.version} "
+                       "recording: damaged")
                 return
             if kind in (REC_TRANSFER, REC_FAILED):
                 dt, p = _get_svarint(payload, p)
@@ -438,11 +464,10 @@ class Recording:
                     etype.decode(), error.decode(), op=op,
                     baudrate=value if op == OP_BAUD else 0)
                 index += 1
-            elif kind == REC_LATE_POLL:
-                dt, p = _get_svarint(payload, p)
-                t_ns += dt
-                device, p = _get_bytes(payload, p)
-                yield LatePoll(t_ns, device.decode("utf-8"))
+            elif kind in (REC_LATE_POLL, REC_EDGE):
+                timed = _device_record(kind, payload, p, t_ns)
+                t_ns = timed.t_ns
+                yield timed
             elif kind == REC_BUS:
                 bus_index, p = _get_uvarint(payload, p)
                 texts = []
@@ -461,6 +486,18 @@ class Recording:
             else:
                 yield f"{self.path}: unknown record type {kind} (written by a newer imuhal?)"
                 return
+
+
+def _device_record(kind: int, payload: bytes, p: int, t_ns: int) -> LatePoll | RecordedEdge:
+    """A late poll or an edge (both: dt, then their numbers, then the device)."""
+    dt, p = _get_svarint(payload, p)
+    t_ns += dt
+    if kind == REC_EDGE:
+        seqno, p = _get_uvarint(payload, p)
+        device, p = _get_bytes(payload, p)
+        return RecordedEdge(t_ns, device.decode("utf-8"), seqno)
+    device, p = _get_bytes(payload, p)
+    return LatePoll(t_ns, device.decode("utf-8"))
 
 
 def _read_chunk(f: IO[bytes], path: Path) -> bytes | None:

@@ -2,7 +2,8 @@
 
 Replaying a hardware run exactly needs more than the bytes: drivers read the clock (data-ready
 deadlines, sample times), so every ``now_ns()`` the drivers and the pipeline make is recorded
-too, in order with the transactions, and so is every poll the board made late. A byte-stream
+too, in order with the transactions, and so is every poll the board made late and every
+edge of a data-ready line the pipeline took. A byte-stream
 bus (a UART) is recorded as what the driver saw of it: each receive's bytes and each
 baud-rate change.
 """
@@ -81,6 +82,11 @@ class BusRecorder:
                 self.writer.late_poll(at_ns, device)
             return at_ns
         return recorded
+
+    def on_edge(self, device: str, t_ns: int, seqno: int) -> None:
+        """An edge of ``device``'s data-ready line that the pipeline took (time stamp on the
+        run's clock, the line's sequence number): a replay hands it over at this point."""
+        self.writer.edge(t_ns, device, seqno)
 
     def on_transfer(self, t: Transfer) -> None:
         bus = self._bus_index[t.bus]
