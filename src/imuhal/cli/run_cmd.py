@@ -275,6 +275,10 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
                    if d.mag_learner is not None and d.mag_learner.converged
                    and d.calibration is not None}
     print(summary.describe(), file=sys.stderr)
+    if csv_sink is not None and not csv_sink.committed:
+        # the log itself failed (disk full, ...) and was aborted; the other outputs went on
+        raise ImuhalError(f"the log failed during the run (its warning is above)"
+                          f"{_kept_note(args.output, csv_sink)}")
     if args.save_learned:
         _save_learned(args.save_learned, profile_text, path, learned, registry)
     if csv_sink is not None:

@@ -39,9 +39,19 @@ from imuhal.estimation.streams import StreamContradiction
 from imuhal.pipeline.accounting import FrameLedger, describe_frames
 from imuhal.pipeline.board import Board, open_hardware_board
 from imuhal.pipeline.bringup import bring_up
+from imuhal.pipeline.containment import (
+    ContainedSinks,
+    Containment,
+    DriverDeadline,
+    EstimatorGuard,
+    PluginFaults,
+    Watchdog,
+    describe_exception,
+    driver_deadline_s,
+)
 from imuhal.pipeline.processing import calibrate_to_body, validity_flags
 from imuhal.pipeline.startup import startup_gyro_phase, startup_procedures
-from imuhal.plugins.manager import Registry
+from imuhal.plugins.manager import Registry, plugin_origin
 from imuhal.profile.model import BoardProfile
 from imuhal.profile.topology import chip_to_body_rotations, device_order, split_bus_ref
 from imuhal.sinks.base import Event, Sink
@@ -55,6 +65,8 @@ REPORT_AFTER_FAILURES = 4
 """Consecutive failed recoveries (about 30 ms of trying) before the run reports the device."""
 JOIN_RETRY_NS = 1_000_000_000
 """An optional device that is not there is looked for again every second."""
+NEVER_NS = 1 << 62
+"""The next poll of an isolated device: never in any run."""
 
 
 CLIPPED = SampleFlag.SATURATED | SampleFlag.OUT_OF_RANGE
@@ -104,6 +116,8 @@ class DeviceRuntime:
     """The driver's FIFO overflow count the ledger last saw."""
     mag_learner: HardIronLearner | None = None
     """Learning the hard iron in flight (``mag_in_flight``, no stored magnetometer record)."""
+    isolated: bool = False
+    """Its driver overran a call's deadline or kept failing: never polled again."""
 
     def __post_init__(self) -> None:
         self.chip_to_body_rows = np.asarray(self.chip_to_body, dtype=float).tolist()
@@ -115,6 +129,8 @@ class EstimatorRuntime:
     estimator: Estimator
     inputs: frozenset[str] | None
     consumes: tuple[type, ...]
+    guard: EstimatorGuard
+    """Runs ``estimator`` contained (imuhal.pipeline.containment)."""
     outputs: int = 0
 
 
@@ -144,6 +160,10 @@ class RunSummary:
     queued and dropped messages), by sink name."""
     learned: dict[str, dict[str, Any]] = field(default_factory=dict)
     """Per device learning in flight: :meth:`HardIronLearner.status`."""
+    contained: dict[str, dict[str, int]] = field(default_factory=dict)
+    """Per plugin instance that failed (``estimator 'ahrs'``, ``driver of 'imu'``, ``sink
+    'csv'``): exceptions, rejected estimates, missed deadlines, ``disabled``
+    (imuhal.pipeline.containment)."""
 
     def describe(self) -> str:
         lines = [f"ran {self.simulated_s:.1f} s in {self.wall_s:.2f} s wall time"]
@@ -167,6 +187,9 @@ class RunSummary:
                                                   for k, v in counts.items()))
         for dev, st in self.learned.items():
             lines.append(f"  {dev}: {_learned_words(st)}")
+        for label, counts in self.contained.items():
+            lines.append(f"  {label}: " + ", ".join(f"{k.replace('_', ' ')} {v}"
+                                                   for k, v in counts.items()))
         lines += [f"  warning: {w}" for w in self.warnings]
         return "\n".join(lines)
 
@@ -224,6 +247,8 @@ class Pipeline:
         self._bus_modes = {name: bus.describe() for name, bus in board.buses.items()
                            if bus.describe() != bus.name}
         self.warnings: list[str] = []
+        self.containment = Containment(self.warnings.append)
+        self._watchdog = Watchdog()
         self._heap: list[tuple[int, int, str]] | None = None
         self._startup: dict[str, GyroOffsetProcedure] | None = None
         self._fusion: list[Sample] = []
@@ -253,11 +278,15 @@ class Pipeline:
         self._device_rank = {name: i for i, name in enumerate(self.devices)}
         for name, ecfg in profile.estimators.items():
             est_cls = registry.estimators.get(ecfg.estimator)
+            estimator = est_cls(ecfg.settings, instance=name)
+            faults = self.containment.record(
+                f"estimator {name!r}", plugin_origin(registry.estimators.entries[ecfg.estimator]))
             self.estimators.append(EstimatorRuntime(
                 name=name,
-                estimator=est_cls(ecfg.settings, instance=name),
+                estimator=estimator,
                 inputs=frozenset(ecfg.inputs) if ecfg.inputs is not None else None,
                 consumes=tuple(est_cls.consumes),
+                guard=EstimatorGuard(estimator, faults, self.warnings.append),
             ))
         for runtime in self.estimators:
             self._bind(runtime)
@@ -451,7 +480,7 @@ class Pipeline:
                 # the host came late (this device's stall, or another's slow poll)
                 dev.ledger.note("host_stall")
             self._span_ns[1] = max(t_ns, self._span_ns[1])
-            samples, next_ns = self._service(dev, t_ns)
+            samples, next_ns = self._contained_service(dev, t_ns)
             if dev.ledger is not None:
                 self._account(dev)
             dev.next_poll_ns = max(next_ns, t_ns + 1)
@@ -462,6 +491,55 @@ class Pipeline:
             self.clock.sleep_until(end)
         if self._fusion:
             yield from self._fuse(before_ns=None)
+
+    def _contained_service(self, dev: DeviceRuntime, t_ns: int) -> tuple[list[Sample], int]:
+        """``_service`` within the driver's deadline, with whatever the driver plugin raises
+        beyond the ImuhalErrors ``_service`` handles contained to its device
+        (imuhal.pipeline.containment)."""
+        if dev.isolated:
+            return [], NEVER_NS
+        watchdog = self._watchdog
+        armed = watchdog.arm(driver_deadline_s(dev.streams))
+        try:
+            return self._service(dev, t_ns)
+        except DriverDeadline:
+            self._isolate(dev, t_ns, "did not return from a call within its deadline of "
+                          f"{driver_deadline_s(dev.streams):g} s (from its chip's rate)")
+            return [], NEVER_NS
+        except Exception as exc:  # a driver plugin's bug is its device's alone
+            return [], self._driver_failed(dev, t_ns, exc)
+        finally:
+            if armed:
+                watchdog.disarm()
+
+    def _driver_failures(self, dev: DeviceRuntime) -> PluginFaults:
+        """The containment record of ``dev``'s driver."""
+        registration = self.registry.drivers.entries.get(dev.driver.name)
+        origin = plugin_origin(registration) if registration is not None else dev.driver.name
+        return self.containment.record(f"driver of {dev.name!r}", origin)
+
+    def _isolate(self, dev: DeviceRuntime, t_ns: int, why: str) -> None:
+        faults = self._driver_failures(dev)
+        faults.counts["deadlines_missed"] += 1
+        dev.isolated = True
+        dev.device_errors += 1
+        faults.disable(f"at t={t_ns / 1e9:.3f} s: it {why}; device {dev.name!r} is isolated",
+                       self.containment.warn)
+
+    def _driver_failed(self, dev: DeviceRuntime, t_ns: int, exc: Exception) -> int:
+        """A driver raised something else than an ImuhalError: a device error (counted,
+        recovered with the usual backoff); a driver that keeps failing isolates its device."""
+        dev.device_errors += 1
+        dev.resumed = False
+        disabled = self._driver_failures(dev).failed(
+            t_ns, "exceptions", f"raised {describe_exception(exc)} at t={t_ns / 1e9:.3f} s; "
+            f"device {dev.name!r} is recovered", self.containment.warn)
+        if disabled:
+            dev.isolated = True
+            return NEVER_NS
+        dev.needs_recovery = True
+        dev.failures += 1
+        return t_ns + min(RECOVERY_BACKOFF_NS, RETRY_FIRST_NS << min(dev.failures - 1, 16))
 
     def _service(self, dev: DeviceRuntime, t_ns: int) -> tuple[list[Sample], int]:
         """Whatever ``dev`` needs at ``t_ns``: a poll, a recovery, or a look for an optional
@@ -658,10 +736,8 @@ class Pipeline:
             if routes is None:
                 routes = self._routes(source, type(current))
             for est in routes:
-                made = est.estimator.process(current)
+                made = est.guard.process(current)  # checked: imuhal.pipeline.containment
                 if made:
-                    if type(made) is not list:  # any iterable a plugin returns
-                        made = list(made)
                     est.outputs += len(made)
                     out.extend(made)
             # the estimates not yet handed on, in the order they were made (breadth first)
@@ -675,23 +751,26 @@ class Pipeline:
 
         Sinks are closed when the run ends or is stopped (KeyboardInterrupt, which the CLI
         also raises for SIGTERM and SIGHUP); when it fails, sinks that have an ``abort()``
-        are aborted instead, so a failed run never replaces a good file.
+        are aborted instead, so a failed run never replaces a good file. A sink that raises
+        is aborted (or closed) at once, named in the warnings and left out; the run goes on
+        for the others (imuhal.pipeline.containment).
         """
         wall0 = time.perf_counter()
         failed = True
         sink_counts: dict[str, dict[str, int]] = {}
+        contained = ContainedSinks(sinks, self.containment, self.registry)
         try:
             for event in self.events(duration_s):
-                for sink in sinks:
-                    sink.handle(event)
+                contained.handle(event)
             failed = False
         except KeyboardInterrupt:
             failed = False
             raise
         finally:
             for sink in sinks:
-                abort = getattr(sink, "abort", None) if failed else None
-                (abort or sink.close)()
+                if not any(sink is gone for gone in contained.failed):  # those are aborted
+                    abort = getattr(sink, "abort", None) if failed else None
+                    (abort or sink.close)()
                 counts = getattr(sink, "run_counts", None)
                 if counts is not None:  # read after closing: a sink may finish sending there
                     sink_counts[getattr(sink, "name", "") or type(sink).__name__] = counts()
@@ -724,9 +803,11 @@ class Pipeline:
                     if d.ledger is not None},
             learned={n: d.mag_learner.status() for n, d in self.devices.items()
                      if d.mag_learner is not None},
+            contained=self.containment.counts(),
         )
 
     def close(self) -> None:
+        self._watchdog.release()
         for bus in self.buses.values():
             bus.close()
 
