@@ -245,50 +245,52 @@ class Watchdog:
     handoff. The signal interrupts Python code and blocking system calls (the call then sees
     the exception); it cannot interrupt a call stuck inside the kernel uninterruptibly. It
     works only in the main thread and when nobody else handles SIGALRM: otherwise (a pipeline
-    run in a thread) ``arm`` returns False and calls are not timed.
+    run in a thread) ``arm`` returns False and calls are not timed. Every pipeline shares
+    the one handler (only one driver call runs at a time in the main thread).
     """
 
+    _active = False
+    """A driver call is being timed (class-wide: the handler is process-wide)."""
+
     def __init__(self) -> None:
-        self._active = False
         self._previous: Any = None
         self._installed = False
 
     def arm(self, seconds: float) -> bool:
         """Start timing a driver call; False when this thread cannot be interrupted."""
-        if not self._installed and not self._install():
+        handler = signal.getsignal(signal.SIGALRM)
+        if handler is not _deadline_expired and not self._install(handler):
             return False
-        if signal.getsignal(signal.SIGALRM) is not self._expired:
-            return False  # someone else took SIGALRM over since: leave it to them
-        self._active = True
+        Watchdog._active = True
         signal.setitimer(signal.ITIMER_REAL, seconds)
         return True
 
     def disarm(self) -> None:
-        self._active = False
+        Watchdog._active = False
         signal.setitimer(signal.ITIMER_REAL, 0)
 
     def release(self) -> None:
-        """Give SIGALRM back to its previous handler."""
-        if self._installed and signal.getsignal(signal.SIGALRM) is self._expired:
+        """Give SIGALRM back to the handler this watchdog found."""
+        if self._installed and signal.getsignal(signal.SIGALRM) is _deadline_expired:
             signal.setitimer(signal.ITIMER_REAL, 0)
             signal.signal(signal.SIGALRM, self._previous)
         self._installed = False
 
-    def _install(self) -> bool:
-        if threading.current_thread() is not threading.main_thread():
+    def _install(self, current: Any) -> bool:
+        """Take SIGALRM when nobody handles it (and this is the main thread)."""
+        if current not in (signal.SIG_DFL, None) or \
+                threading.current_thread() is not threading.main_thread():
             return False
-        current = signal.getsignal(signal.SIGALRM)
-        if current not in (signal.SIG_DFL, None):
-            return False
-        self._previous = current if current is not None else signal.SIG_DFL
-        signal.signal(signal.SIGALRM, self._expired)
+        self._previous = signal.SIG_DFL
+        signal.signal(signal.SIGALRM, _deadline_expired)
         self._installed = True
         return True
 
-    def _expired(self, signum: int, frame: FrameType | None) -> None:
-        if self._active:
-            self._active = False
-            raise DriverDeadline
+
+def _deadline_expired(signum: int, frame: FrameType | None) -> None:
+    if Watchdog._active:
+        Watchdog._active = False
+        raise DriverDeadline
 
 
 class ContainedSinks:
