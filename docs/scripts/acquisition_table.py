@@ -28,9 +28,9 @@ from imuhal.core.samples import GyroSample
 from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import HostStall
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile
-from imuhal.profiles_dir import bundled_profiles
 
 BOARDS = ("gy91", "seed-gps-vario")
 STALLS_MS = (0.0, 20.0, 144.0, 300.0)

@@ -38,9 +38,9 @@ from imuhal.calibrate.as_user import calibrate_emulated
 from imuhal.emulation import open_emulated
 from imuhal.estimation.outputs import AttitudeEstimate, VerticalEstimate
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile, EstimatorConfig
-from imuhal.profiles_dir import default_profile_path
 from imuhal_filters.common.quat import tilt_error_deg
 
 SEED = 1

@@ -19,24 +19,24 @@ from __future__ import annotations
 import argparse
 from collections import Counter
 
-from imuhal.core.samples import Channel, Sample
+from imuhal.core.samples import Quantity, Sample
 from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import BusErrors
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import bundled_profiles
 
 SETTLE_S = 1.0
 
 
 def run(registry: Registry, board: str, seconds: float, rate: float, seed: int
-        ) -> tuple[Counter[tuple[str, Channel]], dict[str, int], dict[str, int]]:
+        ) -> tuple[Counter[tuple[str, Quantity]], dict[str, int], dict[str, int]]:
     """Valid samples per (device, quantity) after SETTLE_S, bus errors and reconfigurations
     per device."""
     profile = load_profile(bundled_profiles()[board], registry)
     devices = [n for n, d in profile.devices.items() if d.enabled]
     faults = [BusErrors(device=d, rate=rate) for d in devices] if rate else []
-    counts: Counter[tuple[str, Channel]] = Counter()
+    counts: Counter[tuple[str, Quantity]] = Counter()
     with open_emulated(profile, registry, seed=seed, faults=faults, calibrated=False) as p:
         start_ns = p.clock.now_ns() + round(SETTLE_S * 1e9)
         for e in p.events(seconds + SETTLE_S):

@@ -50,9 +50,9 @@ from imuhal.emulation import EmulatedBoard, open_emulated
 from imuhal.estimation.outputs import AttitudeEstimate, VerticalEstimate
 from imuhal.pipeline.pipeline import Event, Pipeline
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile, EstimatorConfig
-from imuhal.profiles_dir import default_profile_path
 from imuhal_filters.vario.tuning import estimate_altitude_variance
 
 SEED = 1

@@ -27,8 +27,8 @@ from tests.support.headless import Chromium  # noqa: E402
 from imuhal.emulation import open_emulated  # noqa: E402
 from imuhal.live import LiveView  # noqa: E402
 from imuhal.plugins.manager import load_registry  # noqa: E402
+from imuhal.profile.bundled import default_profile_path  # noqa: E402
 from imuhal.profile.loader import load_profile  # noqa: E402
-from imuhal.profiles_dir import default_profile_path  # noqa: E402
 
 SPEED = 6.0
 T_SHOT_S = 34.0

@@ -57,8 +57,8 @@ def flight_edges(ramp_s: float, seconds: float = 60.0) -> tuple[int, int, float]
 
     from imuhal.emulation import open_emulated
     from imuhal.plugins.manager import load_registry
+    from imuhal.profile.bundled import bundled_profiles
     from imuhal.profile.loader import load_profile
-    from imuhal.profiles_dir import bundled_profiles
     from imuhal.sinks.flight.audio import AudioSink
 
     registry = load_registry()

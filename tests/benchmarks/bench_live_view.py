@@ -35,8 +35,8 @@ from imuhal.core.samples import Sample
 from imuhal.emulation import open_emulated
 from imuhal.live import LiveView
 from imuhal.plugins.manager import load_registry
+from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import default_profile_path
 
 
 class Rate:

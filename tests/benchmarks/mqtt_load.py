@@ -31,7 +31,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from tests.support.mosquitto import Mosquitto, Subscriber, deduplicated
 
-from imuhal.profiles_dir import bundled_profiles
+from imuhal.profile.bundled import bundled_profiles
 
 
 def _published(stderr: str) -> int:

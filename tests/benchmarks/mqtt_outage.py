@@ -42,8 +42,8 @@ from tests.support.mosquitto import Mosquitto, Subscriber, deduplicated
 
 from imuhal.emulation import open_emulated
 from imuhal.plugins.manager import load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import bundled_profiles
 from imuhal.sinks.mqtt import MqttSink
 
 BOARD = "seed-gps-vario"

@@ -28,8 +28,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from imuhal.emulation import open_emulated
 from imuhal.live import LiveView
 from imuhal.plugins.manager import load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import bundled_profiles
 from imuhal.sinks.flight.sink import FlightSink
 from imuhal.sinks.flight.transports import TcpTransport
 

@@ -55,7 +55,7 @@ from typing import Any
 
 import numpy as np
 
-from imuhal.core.samples import Channel, Sample, SampleFlag, ScalarSample, VectorSample
+from imuhal.core.samples import Quantity, Sample, SampleFlag, ScalarSample, VectorSample
 from imuhal.emulation import error_models_for, open_emulated
 from imuhal.emulation.faults import (
     AllOnes,
@@ -76,8 +76,8 @@ from imuhal.emulation.faults import (
 from imuhal.estimation.outputs import AttitudeEstimate, VerticalEstimate
 from imuhal.pipeline import Pipeline
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import bundled_profiles, default_profile_path
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import bundled_profiles, default_profile_path
 from imuhal.sim.errors import (
     ScalarErrorSpec,
     SensorErrorModel,
@@ -88,16 +88,16 @@ from imuhal.sim.scenario import TruthState
 
 SIGMAS = 6.0
 """Gaussian error terms are allowed this many standard deviations."""
-LATENCY_S = {Channel.ACCEL: 0.008, Channel.GYRO: 0.008, Channel.MAG: 0.027,
-             Channel.PRESSURE: 0.045, Channel.TEMPERATURE: 0.045}
+LATENCY_S = {Quantity.ACCEL: 0.008, Quantity.GYRO: 0.008, Quantity.MAG: 0.027,
+             Quantity.PRESSURE: 0.045, Quantity.TEMPERATURE: 0.045}
 """How far before its time stamp a sample's measurement may lie (two sample periods at the
 seed board's rates: 250 Hz IMU, 75 Hz magnetometer, 50 Hz barometer with 9 ms
 conversions)."""
 NOMINAL_RATE_SETTINGS = {
-    Channel.PRESSURE: {"ms5611": "odr_hz", "bmp280": "odr_hz"},
-    Channel.GYRO: {"max21100": "gyro_odr_hz"},
-    Channel.ACCEL: {"max21100": "accel_odr_hz"},
-    Channel.MAG: {"hmc5883l": "odr_hz"},
+    Quantity.PRESSURE: {"ms5611": "odr_hz", "bmp280": "odr_hz"},
+    Quantity.GYRO: {"max21100": "gyro_odr_hz"},
+    Quantity.ACCEL: {"max21100": "accel_odr_hz"},
+    Quantity.MAG: {"hmc5883l": "odr_hz"},
 }
 """Per quantity and driver: the setting that says how many samples a second it promises
 (the delivered fraction is valid samples over that rate times the run)."""
@@ -191,8 +191,9 @@ def _scalar_tolerance(spec: ScalarErrorSpec | None, resolution: float, duration_
         + s * spec.noise_std + 2 * resolution
 
 
-_TRUE_VECTOR = {Channel.ACCEL: "specific_force_body_m_s2", Channel.GYRO: "angular_rate_body_rad_s",
-                Channel.MAG: "magnetic_field_body_ut"}
+_TRUE_VECTOR = {Quantity.ACCEL: "specific_force_body_m_s2",
+                Quantity.GYRO: "angular_rate_body_rad_s",
+                Quantity.MAG: "magnetic_field_body_ut"}
 
 
 @dataclass
@@ -245,9 +246,9 @@ class Checker:
                             for s in plan if isinstance(s, WrongPressure)]
         self._recent_climb: deque[tuple[int, float]] = deque(maxlen=512)
         """(t_ns, |climb - true climb|) of the last vario estimates."""
-        self.last: dict[tuple[str, Channel], int] = {}
+        self.last: dict[tuple[str, Quantity], int] = {}
         self._truth: OrderedDict[int, TruthState] = OrderedDict()
-        self._resolution: dict[tuple[str, Channel], float] = {}
+        self._resolution: dict[tuple[str, Quantity], float] = {}
 
     def truth(self, t_ns: int) -> TruthState:
         state = self._truth.get(t_ns)
@@ -258,7 +259,7 @@ class Checker:
                 self._truth.popitem(last=False)
         return state
 
-    def resolution(self, device: str, channel: Channel) -> float:
+    def resolution(self, device: str, channel: Quantity) -> float:
         key = (device, channel)
         if key not in self._resolution:
             try:
@@ -326,7 +327,7 @@ class Checker:
     def _wrong_by_design(self, s: Sample, values: tuple[float, ...]) -> bool:
         """A pressure that matches what a ``wrong_pressure`` fault made the world measure
         (truth + offset, within the same tolerance): valid by design, recorded apart."""
-        if s.channel is not Channel.PRESSURE:
+        if s.channel is not Quantity.PRESSURE:
             return False
         t_s = s.t_ns / 1e9
         for device, offset, start, end in self.wrong_world:
@@ -368,7 +369,7 @@ class Checker:
             return best, tol * self.margin
         # Scalars get no calibration, so the error model's own bias (the same seeded draw
         # the run used; constant for these chips) is known: only noise is left to allow.
-        attr = "pressure_pa" if channel is Channel.PRESSURE else "temperature_degc"
+        attr = "pressure_pa" if channel is Quantity.PRESSURE else "temperature_degc"
         sub = getattr(spec, channel.value) if spec is not None else None
         model = self.models.get(s.device)
         exact = sub is not None and model is not None and not sub.random_walk

@@ -7,7 +7,7 @@ from tests.support.testchip import TC3Emulator
 
 from imuhal.bus.base import BusKind
 from imuhal.core.errors import BusError, NackError
-from imuhal.emulation.bus import EmulatedBus
+from imuhal.emulation import EmulatedBus
 
 
 def test_transfers_reach_the_emulator_at_that_address() -> None:

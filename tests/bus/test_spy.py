@@ -9,7 +9,7 @@ from imuhal.bus.base import Bus, BusKind
 from imuhal.bus.spy import SpyBus, Transfer, format_transfer
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import NackError
-from imuhal.emulation.bus import EmulatedBus
+from imuhal.emulation import EmulatedBus
 
 
 def _spied() -> tuple[SpyBus, list[Transfer]]:

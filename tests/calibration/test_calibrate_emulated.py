@@ -9,9 +9,9 @@ from imuhal.calibrate.emulated import calibrated_board, with_calibration
 from imuhal.core.samples import AccelSample, MagSample
 from imuhal.emulation import open_emulated
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile
-from imuhal.profiles_dir import default_profile_path
 
 
 @pytest.fixture(scope="module")

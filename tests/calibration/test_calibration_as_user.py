@@ -14,13 +14,13 @@ from imuhal.bus.recording.format import open_recording
 from imuhal.calibrate.as_user import calibrate_emulated, missing_calibration_notes
 from imuhal.calibrate.emulated import measure_board_calibration
 from imuhal.cli.main import main
-from imuhal.core.samples import Channel
+from imuhal.core.samples import Quantity
 from imuhal.emulation import calibrated_as_user, open_emulated
 from imuhal.estimation.outputs import AttitudeEstimate
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile, parse_profile
 from imuhal.profile.model import BoardProfile
-from imuhal.profiles_dir import default_profile_path
 from imuhal_filters.common.quat import tilt_error_deg
 
 GPS_VARIO = default_profile_path().parent / "seed-gps-vario.yaml"
@@ -56,7 +56,7 @@ def test_a_missing_magnetometer_record_is_named_with_the_heading_it_turns(
 def test_the_board_calibrated_as_its_user_keeps_the_stored_gyro_setting_and_adds_the_rest(
         gps_vario: BoardProfile, registry: Registry) -> None:
     calibrated, measured = calibrated_as_user(gps_vario, registry, seed=1)
-    assert measured == {"imu": (Channel.ACCEL,), "mag": (Channel.MAG,)}
+    assert measured == {"imu": (Quantity.ACCEL,), "mag": (Quantity.MAG,)}
     imu = calibrated.devices["imu"].calibration
     assert imu is not None and imu.accel is not None
     assert imu.gyro_at_startup == gps_vario.devices["imu"].calibration.gyro_at_startup  # type: ignore[union-attr]

@@ -20,7 +20,7 @@ from imuhal.calibration.mag import (
 )
 from imuhal.calibration.sphere import coverage
 from imuhal.core.samples import MagSample, Sample
-from imuhal.emulation.base import PhysicalInputs
+from imuhal.emulation import PhysicalInputs
 from imuhal.sim.calibration import CalibrationScenario
 from imuhal.sim.errors import SensorErrorSpec
 

@@ -18,9 +18,9 @@ from imuhal.emulation import open_emulated
 from imuhal.live.sink import LiveSink
 from imuhal.live.snapshot import Snapshotter
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile, parse_profile
 from imuhal.profile.model import BoardProfile
-from imuhal.profiles_dir import default_profile_path
 
 HARD_IRON_UT = np.array([12.0, -7.0, 20.0])
 FIELD_NED_UT = np.array([20.0, 0.0, 40.0])  # 44.7 uT dipping 63 deg

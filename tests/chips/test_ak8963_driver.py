@@ -12,9 +12,8 @@ from tests.support.driving import poll_count
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import BusError, DeviceNotFoundError
-from imuhal.core.samples import Channel, SampleFlag
-from imuhal.emulation.base import PhysicalInputs
-from imuhal.emulation.bus import EmulatedBus
+from imuhal.core.samples import Quantity, SampleFlag
+from imuhal.emulation import EmulatedBus, PhysicalInputs
 from imuhal_chips.ak8963 import registers as r
 from imuhal_chips.ak8963.driver import AK8963Driver, AK8963Settings
 from imuhal_chips.ak8963.emulator import AK8963Emulator
@@ -56,12 +55,12 @@ def test_configure_reads_asa_in_fuse_rom_mode_and_never_skips_power_down() -> No
 @pytest.mark.parametrize("bits", [14, 16])
 def test_every_setting_reads_the_true_field_within_one_lsb(odr_hz: int, bits: int) -> None:
     k = rig(odr_hz=odr_hz, resolution_bits=bits).ready()
-    fs = k.emu.full_scale(Channel.MAG)
+    fs = k.emu.full_scale(Quantity.MAG)
     truth = (0.31 * fs, -0.27 * fs, 0.19 * fs)
     k.emu.set_physics(PhysicalInputs(magnetic_field_ut=truth))
     samples = k.run(3)
     assert len(samples) == 3 and all(s.valid for s in samples)
-    lsb = k.emu.resolution(Channel.MAG)
+    lsb = k.emu.resolution(Quantity.MAG)
     for got, want in zip(samples[-1].mag_ut, truth, strict=True):
         assert abs(got - want) <= lsb
     # consecutive samples one ODR period apart (within one retry step of 10 %)

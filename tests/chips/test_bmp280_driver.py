@@ -10,9 +10,8 @@ from tests.support.driving import poll_count
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import BusError, DeviceNotFoundError
-from imuhal.core.samples import Channel, PressureSample, SampleFlag, TemperatureSample
-from imuhal.emulation.base import PhysicalInputs
-from imuhal.emulation.bus import EmulatedBus
+from imuhal.core.samples import PressureSample, Quantity, SampleFlag, TemperatureSample
+from imuhal.emulation import EmulatedBus, PhysicalInputs
 from imuhal_chips.bmp280 import registers as r
 from imuhal_chips.bmp280.driver import BMP280Driver, BMP280Settings
 from imuhal_chips.bmp280.emulator import BMP280Emulator
@@ -68,8 +67,8 @@ def test_reads_the_true_pressure_and_temperature(kind: BusKind, mode: str) -> No
     p = pressures(samples)[-1]
     t = [s for s in samples if isinstance(s, TemperatureSample)][-1]
     assert p.valid and t.valid
-    assert abs(p.pressure_pa - 95_432.1) <= emu.resolution(Channel.PRESSURE) + FORMULAS_AGREE_PA
-    assert abs(t.temperature_degc - 17.3) <= emu.resolution(Channel.TEMPERATURE)
+    assert abs(p.pressure_pa - 95_432.1) <= emu.resolution(Quantity.PRESSURE) + FORMULAS_AGREE_PA
+    assert abs(t.temperature_degc - 17.3) <= emu.resolution(Quantity.TEMPERATURE)
 
 
 SWEEP = (
@@ -85,15 +84,15 @@ SWEEP = (
                                                                   s.items()))
 def test_every_setting_reads_within_one_lsb(setting: dict[str, Any]) -> None:
     clock, _bus, emu, driver = rig(**setting)
-    truth_p, truth_t = 0.63 * emu.full_scale(Channel.PRESSURE) + 12.34, 31.27
+    truth_p, truth_t = 0.63 * emu.full_scale(Quantity.PRESSURE) + 12.34, 31.27
     emu.set_physics(PhysicalInputs(pressure_pa=truth_p, temperature_degc=truth_t))
     driver.probe()
     driver.configure()
     samples = run(clock, driver, 4)
     p = pressures(samples)[-1]
     t = [s for s in samples if isinstance(s, TemperatureSample)][-1]
-    assert abs(p.pressure_pa - truth_p) <= emu.resolution(Channel.PRESSURE) + FORMULAS_AGREE_PA
-    assert abs(t.temperature_degc - truth_t) <= emu.resolution(Channel.TEMPERATURE)
+    assert abs(p.pressure_pa - truth_p) <= emu.resolution(Quantity.PRESSURE) + FORMULAS_AGREE_PA
+    assert abs(t.temperature_degc - truth_t) <= emu.resolution(Quantity.TEMPERATURE)
 
 
 def test_configure_programs_the_table_codes() -> None:
@@ -185,7 +184,7 @@ def test_silent_reset_is_detected_and_repaired() -> None:
     assert driver.health.reconfigurations == 1
     assert samples and all(s.valid for s in samples)
     assert abs(pressures(samples)[-1].pressure_pa - 90_000.0) <= emu.resolution(
-        Channel.PRESSURE)
+        Quantity.PRESSURE)
 
 
 def test_bus_error_propagates_and_recover_restores_sampling() -> None:

@@ -26,11 +26,10 @@ from tests.support.testchip import TC3Driver, TC3Emulator
 
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import SimulatedClock
-from imuhal.core.samples import Channel, SampleFlag, ScalarSample, VectorSample
+from imuhal.core.samples import Quantity, SampleFlag, ScalarSample, VectorSample
 from imuhal.drivers.base import Driver
 from imuhal.drivers.settings import BUS_CONTEXT, BUS_FEATURES_CONTEXT
-from imuhal.emulation.base import ChipEmulator, PhysicalInputs
-from imuhal.emulation.bus import EmulatedBus
+from imuhal.emulation import ChipEmulator, EmulatedBus, PhysicalInputs
 from imuhal.plugins.manager import Registry, load_registry
 
 REGISTRY: Registry = load_registry()
@@ -48,7 +47,7 @@ DIRECTION = (0.41037, -0.28963, 0.19021)
 """Fraction of full scale set on each axis: inside the range, all axes different, between
 counts (so the dither below moves the raw words), and summing below 1 (the AK8963 overflows
 when |x|+|y|+|z| reaches its 4912 uT range)."""
-SCALAR_VALUES = {Channel.PRESSURE: 90_123.3, Channel.TEMPERATURE: 23.4}
+SCALAR_VALUES = {Quantity.PRESSURE: 90_123.3, Quantity.TEMPERATURE: 23.4}
 """Between whole pascals, so the dither in _run moves an emulator that rounds to them."""
 SETTLE_SAMPLES = 20
 """Samples per channel before comparing: on-chip filters (BMP280 IIR) settle on a constant."""
@@ -90,7 +89,7 @@ def _setting(driver: Driver, entry: dict[str, Any], key: str) -> str:
     return next(k for k in table if float(k) == value)
 
 
-def expected_lsb(driver: Driver, channel: Channel) -> float:
+def expected_lsb(driver: Driver, channel: Quantity) -> float:
     """One output step (SI) of ``channel`` at the driver's settings, from the table."""
     entry = TABLE[driver.name][channel.value]
     if "lsb_si" in entry:
@@ -105,7 +104,7 @@ def expected_lsb(driver: Driver, channel: Channel) -> float:
     return step * entry.get("lsb_scale", 1.0) + entry.get("allowance_si", 0.0)
 
 
-def expected_full_scale(driver: Driver, channel: Channel) -> float:
+def expected_full_scale(driver: Driver, channel: Quantity) -> float:
     """The largest magnitude (SI) ``channel`` reports at the driver's settings, from the table."""
     entry = TABLE[driver.name][channel.value]
     if "full_scale_si" in entry:
@@ -117,27 +116,27 @@ def expected_full_scale(driver: Driver, channel: Channel) -> float:
 def _physics(driver: Driver, x_fraction: float) -> PhysicalInputs:
     channels = driver.channels
 
-    def vec(ch: Channel) -> tuple[float, float, float] | None:
+    def vec(ch: Quantity) -> tuple[float, float, float] | None:
         if ch not in channels:
             return None
         fs = expected_full_scale(driver, ch)
         return (x_fraction * fs, DIRECTION[1] * fs, DIRECTION[2] * fs)
 
     return PhysicalInputs(
-        specific_force_m_s2=vec(Channel.ACCEL),
-        angular_rate_rad_s=vec(Channel.GYRO),
-        magnetic_field_ut=vec(Channel.MAG),
-        pressure_pa=SCALAR_VALUES[Channel.PRESSURE],
-        temperature_degc=SCALAR_VALUES[Channel.TEMPERATURE],
+        specific_force_m_s2=vec(Quantity.ACCEL),
+        angular_rate_rad_s=vec(Quantity.GYRO),
+        magnetic_field_ut=vec(Quantity.MAG),
+        pressure_pa=SCALAR_VALUES[Quantity.PRESSURE],
+        temperature_degc=SCALAR_VALUES[Quantity.TEMPERATURE],
     )
 
 
-def _run(driver: Driver, clock: SimulatedClock, emulator: ChipEmulator) -> dict[Channel, Any]:
+def _run(driver: Driver, clock: SimulatedClock, emulator: ChipEmulator) -> dict[Quantity, Any]:
     """Poll as the pipeline would until every channel gave SETTLE_SAMPLES samples, the
     inputs dithered by under half an LSB as a real chip's noise would (a constant input
     read back unchanged for ever is a frozen chip)."""
     dither = Dither(emulator, seed=20)
-    last: dict[Channel, Any] = {}
+    last: dict[Quantity, Any] = {}
     counts = dict.fromkeys(driver.channels, 0)
     t = driver.start(clock.now_ns())
     while min(counts.values()) < SETTLE_SAMPLES and clock.now_ns() < MAX_SIMULATED_NS:
@@ -193,8 +192,8 @@ def test_a_physical_value_reads_back_within_one_lsb(name: str, field: str, value
 @pytest.mark.parametrize("name", SWEPT)
 def test_beyond_full_scale_is_flagged_never_valid(name: str) -> None:
     driver, emulator, clock = _open(name, {})
-    vector_channels = [c for c in driver.channels if c in (Channel.ACCEL, Channel.GYRO,
-                                                           Channel.MAG)]
+    vector_channels = [c for c in driver.channels if c in (Quantity.ACCEL, Quantity.GYRO,
+                                                           Quantity.MAG)]
     if not vector_channels:
         pytest.skip("barometers report pressure outside their range as OUT_OF_RANGE, "
                     "tested with their driver")

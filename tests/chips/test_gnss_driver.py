@@ -280,8 +280,8 @@ def test_a_receiver_that_restarts_in_factory_nmea_is_reconfigured_through_recove
     """Through the pipeline: the driver notices NMEA where it configured UBX, the pipeline
     recovers it (re-probe, reconfigure) and UBX fixes resume."""
     from imuhal.emulation import open_emulated
+    from imuhal.profile.bundled import bundled_profiles
     from imuhal.profile.loader import load_profile
-    from imuhal.profiles_dir import bundled_profiles
 
     registry = load_registry()
     profile = load_profile(bundled_profiles()["seed-gps-vario.yaml"], registry)

@@ -14,7 +14,7 @@ from tests.support.driving import poll_until
 from imuhal.bus.base import BusKind, Link
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import BusError, DeviceNotFoundError
-from imuhal.core.samples import Channel, MagSample, Sample, SampleFlag
+from imuhal.core.samples import MagSample, Quantity, Sample, SampleFlag
 from imuhal.emulation import EmulatedBus, PhysicalInputs
 from imuhal_chips.hmc5883l.driver import Hmc5883lDriver
 from imuhal_chips.hmc5883l.emulator import Hmc5883lEmulator
@@ -117,7 +117,7 @@ def test_field_set_on_the_emulator_reads_back_in_ut_within_one_lsb(path: str) ->
         rig.run(0.03)
         got = mags(rig.run(0.05))
         assert got and all(s.valid for s in got)
-        assert got[-1].mag_ut == pytest.approx(field, abs=rig.emu.resolution(Channel.MAG))
+        assert got[-1].mag_ut == pytest.approx(field, abs=rig.emu.resolution(Quantity.MAG))
 
 
 @pytest.mark.parametrize("range_gauss", sorted(RANGE_GAUSS))
@@ -127,7 +127,7 @@ def test_every_range_reads_a_field_near_its_limit_within_one_lsb(range_gauss: fl
     rig.emu.set_physics(PhysicalInputs(magnetic_field_ut=field))
     got = mags(rig.run(0.05))
     assert got and all(s.valid for s in got)
-    assert got[-1].mag_ut == pytest.approx(field, abs=rig.emu.resolution(Channel.MAG))
+    assert got[-1].mag_ut == pytest.approx(field, abs=rig.emu.resolution(Quantity.MAG))
 
 
 @pytest.mark.parametrize("odr_hz", sorted(ODR_HZ))

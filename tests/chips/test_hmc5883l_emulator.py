@@ -6,7 +6,7 @@ import pytest
 
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import SimulatedClock
-from imuhal.core.samples import Channel
+from imuhal.core.samples import Quantity
 from imuhal.emulation import EmulatedBus, PhysicalInputs
 from imuhal_chips.hmc5883l.decode import data_counts_xyz
 from imuhal_chips.hmc5883l.emulator import Hmc5883lEmulator
@@ -58,7 +58,7 @@ def test_data_registers_hold_x_z_y() -> None:
     emu.set_physics(PhysicalInputs(magnetic_field_ut=(10.0, -20.0, 30.0)))
     continuous(bus, clock)
     x, y, z = data_counts_xyz(bus.transfer(A, b"\x03", 6))
-    k = emu.resolution(Channel.MAG)
+    k = emu.resolution(Quantity.MAG)
     assert (x * k, y * k, z * k) == pytest.approx((10.0, -20.0, 30.0), abs=k)
     assert bus.transfer(A, b"\x05", 2) == z.to_bytes(2, "big", signed=True)
 
@@ -73,10 +73,10 @@ def test_partial_read_locks_outputs_until_all_six_bytes_are_read() -> None:
     clock.sleep(0.014)  # a new measurement completes while locked
     rest = bus.transfer(A, b"\x04", 5)
     x = int.from_bytes(first_x_msb + rest[:1], "big", signed=True)
-    assert x * emu.resolution(Channel.MAG) == pytest.approx(10.0, abs=0.1)
+    assert x * emu.resolution(Quantity.MAG) == pytest.approx(10.0, abs=0.1)
     assert bus.transfer(A, b"\x09", 1)[0] & 0x02 == 0
     x_new = data_counts_xyz(bus.transfer(A, b"\x03", 6))[0]
-    assert x_new * emu.resolution(Channel.MAG) == pytest.approx(50.0, abs=0.1)
+    assert x_new * emu.resolution(Quantity.MAG) == pytest.approx(50.0, abs=0.1)
 
 
 def test_reading_the_mode_register_locks_the_outputs() -> None:

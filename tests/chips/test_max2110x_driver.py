@@ -17,8 +17,8 @@ from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import BusError, ConfigurationError, DeviceNotFoundError
 from imuhal.core.samples import (
     AccelSample,
-    Channel,
     GyroSample,
+    Quantity,
     Sample,
     SampleFlag,
     TemperatureSample,
@@ -156,7 +156,7 @@ def test_values_set_on_the_emulator_read_back_in_si_within_one_lsb(
     rng = random.Random(21100)
     rig = make_rig(driver_cls, emu_cls, kind)
     for _ in range(5):
-        gfs, afs = rig.emu.full_scale(Channel.GYRO), rig.emu.full_scale(Channel.ACCEL)
+        gfs, afs = rig.emu.full_scale(Quantity.GYRO), rig.emu.full_scale(Quantity.ACCEL)
         rate = tuple(rng.uniform(-0.9, 0.9) * gfs for _ in range(3))
         force = tuple(rng.uniform(-0.9, 0.9) * afs for _ in range(3))
         rig.emu.set_physics(PhysicalInputs(angular_rate_rad_s=rate, specific_force_m_s2=force,
@@ -167,9 +167,9 @@ def test_values_set_on_the_emulator_read_back_in_si_within_one_lsb(
         temps = of(samples, TemperatureSample)
         assert gyro and accel and temps
         assert all(s.valid for s in samples)
-        assert gyro[-1].gyro_rad_s == pytest.approx(rate, abs=rig.emu.resolution(Channel.GYRO))
+        assert gyro[-1].gyro_rad_s == pytest.approx(rate, abs=rig.emu.resolution(Quantity.GYRO))
         assert accel[-1].accel_m_s2 == pytest.approx(force,
-                                                     abs=rig.emu.resolution(Channel.ACCEL))
+                                                     abs=rig.emu.resolution(Quantity.ACCEL))
         assert temps[-1].temperature_degc == pytest.approx(rig.emu.physics.temperature_degc,
                                                            abs=1 / 256)
 
@@ -179,18 +179,18 @@ def test_every_supported_setting_reads_physical_values_within_one_lsb(
     driver_cls: type, emu_cls: type, name: str, value: float
 ) -> None:
     rig = make_rig(driver_cls, emu_cls, **{name: value})
-    rate = (0.7 * rig.emu.full_scale(Channel.GYRO), -0.3 * rig.emu.full_scale(Channel.GYRO),
+    rate = (0.7 * rig.emu.full_scale(Quantity.GYRO), -0.3 * rig.emu.full_scale(Quantity.GYRO),
             0.01)
     # between counts (not on one), so the half-LSB dither moves the raw words
-    force = (-0.2013 * rig.emu.full_scale(Channel.ACCEL), 0.0123, 9.79)
+    force = (-0.2013 * rig.emu.full_scale(Quantity.ACCEL), 0.0123, 9.79)
     rig.emu.set_physics(PhysicalInputs(angular_rate_rad_s=rate, specific_force_m_s2=force))
     gyro_period = 1.0 / rig.driver.settings.gyro_odr_hz
     accel_period = 1.0 / rig.driver.settings.accel_odr_hz
     samples = rig.run(3.5 * max(gyro_period, accel_period))
     gyro, accel = of(samples, GyroSample), of(samples, AccelSample)
     assert gyro and accel and all(s.valid for s in samples)
-    assert gyro[-1].gyro_rad_s == pytest.approx(rate, abs=rig.emu.resolution(Channel.GYRO))
-    assert accel[-1].accel_m_s2 == pytest.approx(force, abs=rig.emu.resolution(Channel.ACCEL))
+    assert gyro[-1].gyro_rad_s == pytest.approx(rate, abs=rig.emu.resolution(Quantity.GYRO))
+    assert accel[-1].accel_m_s2 == pytest.approx(force, abs=rig.emu.resolution(Quantity.ACCEL))
 
 
 @pytest.mark.parametrize(("gyro_hz", "accel_hz"), [(250, 250), (1000, 125), (31.25, 500)])
@@ -250,7 +250,7 @@ def test_silent_reset_is_detected_counted_and_reconfigured(driver_cls: type,
     assert rig.emu.banks[0][0x00] == driver_cls.part.power_cfg_on
     gyro = of(rig.run(0.05), GyroSample)
     assert gyro and all(s.valid for s in gyro)
-    assert gyro[-1].gyro_rad_s[0] == pytest.approx(0.5, abs=rig.emu.resolution(Channel.GYRO))
+    assert gyro[-1].gyro_rad_s[0] == pytest.approx(0.5, abs=rig.emu.resolution(Quantity.GYRO))
 
 
 def test_bus_error_surfaces_and_recover_resumes_sampling() -> None:
@@ -309,7 +309,7 @@ def test_polling_stays_locked_to_a_chip_whose_clock_is_a_little_off(
     clock_error: float,
 ) -> None:
     class Drifting(Max21100Emulator):
-        def _odr_hz(self, channel: Channel) -> float | None:
+        def _odr_hz(self, channel: Quantity) -> float | None:
             odr = super()._odr_hz(channel)
             return odr * (1 + clock_error) if odr else None
 
@@ -326,7 +326,7 @@ def test_polling_stays_locked_to_a_chip_whose_clock_is_a_little_off(
 @pytest.mark.parametrize("clock_error", [-0.015, 0.0, 0.015])
 def test_polling_learns_the_chips_period_so_few_polls_find_nothing(clock_error: float) -> None:
     class Drifting(Max21100Emulator):
-        def _odr_hz(self, channel: Channel) -> float | None:
+        def _odr_hz(self, channel: Quantity) -> float | None:
             odr = super()._odr_hz(channel)
             return odr * (1 + clock_error) if odr else None
 

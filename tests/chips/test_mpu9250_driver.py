@@ -12,10 +12,9 @@ import pytest
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import BusError, ConfigurationError, DeviceNotFoundError, NackError
-from imuhal.core.samples import AccelSample, Channel, GyroSample, MagSample, SampleFlag
+from imuhal.core.samples import AccelSample, GyroSample, MagSample, Quantity, SampleFlag
 from imuhal.drivers.base import Driver
-from imuhal.emulation.base import PhysicalInputs
-from imuhal.emulation.bus import EmulatedBus
+from imuhal.emulation import EmulatedBus, PhysicalInputs
 from imuhal_chips.ak8963.driver import AK8963Driver
 from imuhal_chips.ak8963.emulator import AK8963Emulator
 from imuhal_chips.mpu9250 import registers as r
@@ -78,7 +77,7 @@ def test_level_chip_reads_plus_one_g_on_z(kind: BusKind) -> None:
     k = rig(kind).ready()
     accel = of(k.run(6), AccelSample)[-1]
     assert accel.valid
-    assert accel.accel_m_s2 == pytest.approx((0.0, 0.0, G), abs=k.emu.resolution(Channel.ACCEL))
+    assert accel.accel_m_s2 == pytest.approx((0.0, 0.0, G), abs=k.emu.resolution(Quantity.ACCEL))
 
 
 SWEEP = (
@@ -95,18 +94,18 @@ SWEEP = (
                                                                   s.items()))
 def test_every_setting_reads_physics_within_one_lsb(setting: dict[str, Any]) -> None:
     k = rig(**setting).ready()
-    fa, fg = k.emu.full_scale(Channel.ACCEL), k.emu.full_scale(Channel.GYRO)
+    fa, fg = k.emu.full_scale(Quantity.ACCEL), k.emu.full_scale(Quantity.GYRO)
     force, rate = (0.71 * fa, -0.33 * fa, 0.05 * fa), (-0.62 * fg, 0.27 * fg, 0.91 * fg)
     k.emu.set_physics(PhysicalInputs(specific_force_m_s2=force, angular_rate_rad_s=rate,
                                      temperature_degc=36.6))
     samples = k.run(9)
     accel, gyro = of(samples, AccelSample)[-1], of(samples, GyroSample)[-1]
     assert accel.valid and gyro.valid
-    assert accel.accel_m_s2 == pytest.approx(force, abs=k.emu.resolution(Channel.ACCEL))
-    assert gyro.gyro_rad_s == pytest.approx(rate, abs=k.emu.resolution(Channel.GYRO))
-    temp = samples[-1] if samples[-1].channel is Channel.TEMPERATURE else None
+    assert accel.accel_m_s2 == pytest.approx(force, abs=k.emu.resolution(Quantity.ACCEL))
+    assert gyro.gyro_rad_s == pytest.approx(rate, abs=k.emu.resolution(Quantity.GYRO))
+    temp = samples[-1] if samples[-1].channel is Quantity.TEMPERATURE else None
     assert temp is not None
-    assert abs(temp.temperature_degc - 36.6) <= k.emu.resolution(Channel.TEMPERATURE)
+    assert abs(temp.temperature_degc - 36.6) <= k.emu.resolution(Quantity.TEMPERATURE)
     # samples are one output period apart
     ts = [s.t_ns for s in of(samples, AccelSample)]
     assert (ts[-1] - ts[-2]) == k.emu.period_ns()
@@ -214,7 +213,7 @@ def test_ak8963_via_bypass_on_the_host_i2c_bus() -> None:
     samples = k.run(40, drivers=[k.driver, mag])
     mags = of(samples, MagSample)
     assert mags and all(s.valid for s in mags)
-    assert mags[-1].mag_ut == pytest.approx(MAG_TRUTH, abs=k.ak.resolution(Channel.MAG))
+    assert mags[-1].mag_ut == pytest.approx(MAG_TRUTH, abs=k.ak.resolution(Quantity.MAG))
     assert mag.asa == k.ak.asa
 
 
@@ -224,7 +223,7 @@ def test_ak8963_via_the_i2c_master_with_the_mpu_on_spi() -> None:
     samples = k.run(40, drivers=[k.driver, mag])
     mags = of(samples, MagSample)
     assert mags and all(s.valid for s in mags)
-    assert mags[-1].mag_ut == pytest.approx(MAG_TRUTH, abs=k.ak.resolution(Channel.MAG))
+    assert mags[-1].mag_ut == pytest.approx(MAG_TRUTH, abs=k.ak.resolution(Quantity.MAG))
     assert mag.asa == k.ak.asa and k.ak.mode_violations == 0
     assert all(s.valid for s in of(samples, AccelSample))
 

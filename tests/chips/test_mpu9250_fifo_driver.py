@@ -17,9 +17,9 @@ from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import HostStall
 from imuhal.pipeline import Pipeline
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile
-from imuhal.profiles_dir import bundled_profiles
 from imuhal_chips.mpu9250.fifo import frames_consistent
 
 PERIOD_NS = 5_000_000  # the gy91's 200 Hz

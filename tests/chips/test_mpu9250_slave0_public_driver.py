@@ -12,8 +12,7 @@ from __future__ import annotations
 
 from imuhal.bus.base import BusKind, Link
 from imuhal.core.clock import SimulatedClock
-from imuhal.emulation.base import PhysicalInputs
-from imuhal.emulation.bus import EmulatedBus
+from imuhal.emulation import EmulatedBus, PhysicalInputs
 from imuhal_chips.ak8963.emulator import AK8963Emulator
 from imuhal_chips.mpu9250.emulator import MPU9250Emulator
 

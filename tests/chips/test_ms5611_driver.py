@@ -13,8 +13,7 @@ from imuhal.bus.base import BusKind
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import BusError, DeviceNotFoundError
 from imuhal.core.samples import PressureSample, Sample, SampleFlag, TemperatureSample
-from imuhal.emulation.base import PhysicalInputs
-from imuhal.emulation.bus import EmulatedBus
+from imuhal.emulation import EmulatedBus, PhysicalInputs
 from imuhal.plugins.manager import load_registry
 from imuhal_chips.ms5611.commands import Measurement
 from imuhal_chips.ms5611.conversion import crc4

@@ -7,8 +7,7 @@ import pytest
 from imuhal.bus.base import BusKind, Link
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import NackError
-from imuhal.emulation.base import PhysicalInputs
-from imuhal.emulation.bus import EmulatedBus
+from imuhal.emulation import EmulatedBus, PhysicalInputs
 from imuhal_chips.ms5611.commands import (
     ADC_READ,
     OSR_TIMING,

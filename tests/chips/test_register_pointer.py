@@ -16,8 +16,7 @@ import pytest
 
 from imuhal.bus.base import BusKind, Link
 from imuhal.core.clock import SimulatedClock
-from imuhal.emulation.base import ChipEmulator
-from imuhal.emulation.bus import EmulatedBus
+from imuhal.emulation import ChipEmulator, EmulatedBus
 from imuhal_chips.ak8963.emulator import AK8963Emulator
 from imuhal_chips.bmp280.emulator import BMP280Emulator
 from imuhal_chips.hmc5883l.emulator import Hmc5883lEmulator

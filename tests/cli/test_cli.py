@@ -13,7 +13,7 @@ import pytest
 
 from imuhal import __version__
 from imuhal.cli.main import main
-from imuhal.profiles_dir import bundled_profiles, default_profile_path
+from imuhal.profile.bundled import bundled_profiles, default_profile_path
 
 
 def test_version(capsys: pytest.CaptureFixture[str]) -> None:

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from imuhal.cli.main import main
-from imuhal.profiles_dir import bundled_profiles
+from imuhal.profile.bundled import bundled_profiles
 
 pytest.importorskip("pynmea2", reason="the gps extra (pynmea2, pyubx2) is not installed")
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from imuhal.cli.main import main
-from imuhal.profiles_dir import bundled_profiles
+from imuhal.profile.bundled import bundled_profiles
 
 pytest.importorskip("mcap_ros2", reason="the ros extra (mcap, mcap-ros2-support) is missing")
 rosbags_highlevel = pytest.importorskip("rosbags.highlevel", reason="rosbags is not installed")

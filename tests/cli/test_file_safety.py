@@ -23,8 +23,8 @@ from imuhal.cli import main as cli_main
 from imuhal.emulation import open_emulated
 from imuhal.pipeline import CallbackSink, CsvSink
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import default_profile_path
 from imuhal.sinks.builtin import CSV_COLUMNS
 
 DATA = Path(__file__).resolve().parent.parent / "data"

@@ -130,7 +130,7 @@ MISTAKES: dict[str, Mistake] = {
 
 
 def _bundled() -> Path:
-    from imuhal.profiles_dir import default_profile_path
+    from imuhal.profile.bundled import default_profile_path
 
     return default_profile_path()
 

@@ -8,7 +8,6 @@ from imuhal.core.quantities import Quantity
 from imuhal.core.samples import (
     SAMPLE_TYPES,
     AccelSample,
-    Channel,
     Frame,
     GyroSample,
     MagSample,
@@ -20,7 +19,7 @@ from imuhal.core.samples import (
 
 def test_a_new_sample_is_valid_and_in_the_sensor_frame() -> None:
     s = AccelSample(t_ns=5, device="imu", accel_m_s2=(0.0, 0.0, -9.8))
-    assert s.valid and s.frame is Frame.SENSOR and s.channel is Channel.ACCEL
+    assert s.valid and s.frame is Frame.SENSOR and s.channel is Quantity.ACCEL
 
 
 def test_flagging_returns_an_invalid_copy() -> None:
@@ -45,7 +44,7 @@ def test_a_quantity_must_be_a_scalar_or_a_three_axis_vector() -> None:
 def test_a_velocity_sample_is_earth_frame_and_carries_its_accuracy() -> None:
     v = VelocitySample(t_ns=3, device="gps", velocity_ned_m_s=(9.0, 2.0, -1.5),
                        accuracy_m_s=0.1)
-    assert v.channel is Channel.VELOCITY and v.valid
+    assert v.channel is Quantity.VELOCITY and v.valid
     assert not hasattr(v, "frame")  # NED by definition: no mount rotation applies to it
     assert (v.velocity_ned_m_s, v.accuracy_m_s) == ((9.0, 2.0, -1.5), 0.1)
 
@@ -77,6 +76,6 @@ def test_a_position_sample_states_its_height_datum_and_fix() -> None:
     p = PositionSample(t_ns=5, device="gps", latitude_deg=46.5, longitude_deg=7.9,
                        height_m=1200.0, height_datum=HeightDatum.MSL, fix_type=FixType.FIX_3D,
                        satellites=9, horizontal_accuracy_m=2.5, vertical_accuracy_m=4.0)
-    assert p.channel is Channel.POSITION and p.valid
+    assert p.channel is Quantity.POSITION and p.valid
     assert not hasattr(p, "frame")
     assert (p.height_datum, p.fix_type, p.satellites) == (HeightDatum.MSL, FixType.FIX_3D, 9)

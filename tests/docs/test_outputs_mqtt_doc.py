@@ -7,8 +7,8 @@ import re
 from pathlib import Path
 
 from imuhal.plugins.manager import load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import parse_profile
-from imuhal.profiles_dir import bundled_profiles
 from imuhal.sinks.mqtt import COUNTERS, MqttSettings
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "outputs.md"

@@ -39,8 +39,8 @@ from imuhal.emulation.faults import (
 )
 from imuhal.pipeline import Pipeline
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile, parse_profile
-from imuhal.profiles_dir import default_profile_path
 
 SPI_READ_WHO_AM_I = bytes([0x80 | 0x20])  # MAX21100: read bit + WHO_AM_I (0x20)
 

@@ -9,8 +9,8 @@ from pydantic import ValidationError
 from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import HostStall
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import bundled_profiles
 
 
 @pytest.fixture(scope="module")

@@ -24,7 +24,7 @@ from tests.filters.test_freescale_magnetic import magnet_inputs
 
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.core.conventions import VectorKind, convert_quat, convert_vector
-from imuhal.core.samples import Channel
+from imuhal.core.samples import Quantity
 from imuhal.estimation.framed import sample_from_frame
 from imuhal.estimation.outputs import AttitudeEstimate
 from imuhal_filters.freescale.batch import BatchResult, run_6dof, run_9dof
@@ -168,8 +168,8 @@ def test_estimator_fed_the_systems_log_through_the_edge_conversion_matches_the_r
     out: list[AttitudeEstimate] = []
     for i in range(n_rows):
         t = i * 5_000_000
-        for channel, value in ((Channel.ACCEL, acc[i] * STANDARD_GRAVITY_M_S2),
-                               (Channel.MAG, mag[i]), (Channel.GYRO, np.radians(gyr[i]))):
+        for channel, value in ((Quantity.ACCEL, acc[i] * STANDARD_GRAVITY_M_S2),
+                               (Quantity.MAG, mag[i]), (Quantity.GYRO, np.radians(gyr[i]))):
             sample = sample_from_frame(channel, value, system, t_ns=t, device="imu")
             out += [e for e in est.process(sample) if isinstance(e, AttitudeEstimate)]
     _, ref = _run(system, "9dof")

@@ -11,8 +11,8 @@ import pytest
 from imuhal.emulation import open_emulated
 from imuhal.estimation.outputs import VerticalEstimate
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import default_profile_path
 
 RIDE_START_S = 5.0
 CRUISE_S = [(8.0, 12.0), (23.0, 28.0)]

@@ -30,9 +30,9 @@ from imuhal.core.samples import FixType, PositionSample, PressureSample, Sample,
 from imuhal.emulation import open_emulated
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate, VerticalEstimate
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile
-from imuhal.profiles_dir import bundled_profiles
 from imuhal.sim.scenario import Scenario
 
 PROFILES = sorted(bundled_profiles())

@@ -13,8 +13,8 @@ from imuhal.core.samples import GyroSample
 from imuhal.emulation import open_emulated
 from imuhal.pipeline import Pipeline
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import bundled_profiles
 
 MOVING_NS = 2_100_000_000
 

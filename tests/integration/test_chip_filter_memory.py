@@ -14,14 +14,14 @@ from typing import Any
 
 import pytest
 
-from imuhal.core.samples import Channel, PressureSample, Sample, SampleFlag
+from imuhal.core.samples import PressureSample, Quantity, Sample, SampleFlag
 from imuhal.drivers.validity import iir_memory_outputs, lowpass_memory_outputs
 from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import AllOnes, CorruptTrim, FaultSpec, WildValue
 from imuhal.estimation.outputs import VerticalEstimate
 from imuhal.plugins.manager import load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import bundled_profiles
 
 WILD_AT_S = 3.0
 RUN_S = 6.0
@@ -93,7 +93,7 @@ def test_a_saturated_gyro_output_makes_the_mpu9250_low_pass_outputs_after_it_set
     never valid; the one after is valid again."""
     wild = WildValue(device="imu", channel="gyro", value=100.0, start_s=WILD_AT_S)
     gyro = [e for e, _ in _gy91_events([wild])
-            if isinstance(e, Sample) and e.device == "imu" and e.channel is Channel.GYRO]
+            if isinstance(e, Sample) and e.device == "imu" and e.channel is Quantity.GYRO]
     saturated = [i for i, s in enumerate(gyro) if s.flags & SampleFlag.SATURATED]
     assert len(saturated) == 1
     after = gyro[saturated[0] + 1:]

@@ -27,9 +27,9 @@ from imuhal.emulation import open_emulated
 from imuhal.estimation.outputs import AttitudeEstimate
 from imuhal.offline.chain import run_chain
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile
-from imuhal.profiles_dir import default_profile_path
 from imuhal.sim.errors import SensorErrorSpec
 from imuhal.sim.scenario import Scenario
 from imuhal_filters.common.quat import tilt_error_deg

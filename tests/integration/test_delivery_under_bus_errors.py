@@ -21,12 +21,12 @@ from collections import Counter
 import pytest
 
 from imuhal.bus.base import BusKind
-from imuhal.core.samples import Channel, Sample
+from imuhal.core.samples import Quantity, Sample
 from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import BusErrors
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import bundled_profiles
 
 SECONDS = 4.0
 SETTLE_S = 0.5
@@ -39,11 +39,11 @@ def registry() -> Registry:
     return load_registry()
 
 
-def _valid_counts(registry: Registry, board: str, rate: float) -> Counter[tuple[str, Channel]]:
+def _valid_counts(registry: Registry, board: str, rate: float) -> Counter[tuple[str, Quantity]]:
     profile = load_profile(bundled_profiles()[board], registry)
     devices = [n for n, d in profile.devices.items() if d.enabled]
     faults = [BusErrors(device=d, rate=rate) for d in devices] if rate else []
-    counts: Counter[tuple[str, Channel]] = Counter()
+    counts: Counter[tuple[str, Quantity]] = Counter()
     with open_emulated(profile, registry, seed=4, faults=faults, calibrated=False) as p:
         start_ns = p.clock.now_ns() + round(SETTLE_S * 1e9)
         serial = {n for n, d in p.devices.items() if d.driver.link.kind is BusKind.SERIAL}

@@ -29,8 +29,8 @@ from imuhal.emulation.faults import (
 )
 from imuhal.pipeline import Pipeline
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile, parse_profile
-from imuhal.profiles_dir import bundled_profiles
 
 SEED = "seed-paraglider-vario.yaml"
 GY91 = "gy91.yaml"

@@ -32,9 +32,9 @@ from imuhal.estimation.base import Estimator
 from imuhal.estimation.outputs import AttitudeEstimate, VerticalEstimate
 from imuhal.offline.chain import run_chain
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile
-from imuhal.profiles_dir import default_profile_path
 from imuhal.sim.scenario import Scenario
 from imuhal_filters.common.quat import tilt_error_deg
 

@@ -23,8 +23,8 @@ from imuhal.emulation.faults import (
 from imuhal.pipeline import Pipeline
 from imuhal.pipeline.accounting import CAUSES, FrameLedger
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import bundled_profiles
 
 DEVICES = ("imu", "mag", "baro")
 SECONDS = 2.5

@@ -25,13 +25,13 @@ import numpy as np
 import pytest
 from tests.support.noise import noise_only_specs
 
-from imuhal.core.samples import Channel, VectorSample
+from imuhal.core.samples import Quantity, VectorSample
 from imuhal.emulation import open_emulated
 from imuhal.emulation.mounting import chip_rotations
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile
-from imuhal.profiles_dir import bundled_profiles
 
 # --- chip-to-body rotations from the documents (v_body = M @ v_chip) -------------------------
 
@@ -68,19 +68,19 @@ GPS_VARIO_MPU = np.array([[1, 0, 0],
                           [0, 0, -1]], dtype=float)
 GPS_VARIO_MAG = GPS_VARIO_MPU @ AK8963_TO_MPU
 
-EXPECTED: dict[str, dict[tuple[str, Channel], np.ndarray]] = {
+EXPECTED: dict[str, dict[tuple[str, Quantity], np.ndarray]] = {
     "seed-paraglider-vario.yaml": {
-        ("imu", Channel.GYRO): SEED_GYRO_MAG, ("imu", Channel.ACCEL): SEED_ACCEL,
-        ("mag", Channel.MAG): SEED_GYRO_MAG},
+        ("imu", Quantity.GYRO): SEED_GYRO_MAG, ("imu", Quantity.ACCEL): SEED_ACCEL,
+        ("mag", Quantity.MAG): SEED_GYRO_MAG},
     "seed-rc-vario.yaml": {
-        ("imu", Channel.GYRO): SEED_GYRO_MAG, ("imu", Channel.ACCEL): SEED_ACCEL,
-        ("mag", Channel.MAG): SEED_GYRO_MAG},
+        ("imu", Quantity.GYRO): SEED_GYRO_MAG, ("imu", Quantity.ACCEL): SEED_ACCEL,
+        ("mag", Quantity.MAG): SEED_GYRO_MAG},
     "seed-gps-vario.yaml": {
-        ("imu", Channel.GYRO): GPS_VARIO_MPU, ("imu", Channel.ACCEL): GPS_VARIO_MPU,
-        ("mag", Channel.MAG): GPS_VARIO_MAG},
+        ("imu", Quantity.GYRO): GPS_VARIO_MPU, ("imu", Quantity.ACCEL): GPS_VARIO_MPU,
+        ("mag", Quantity.MAG): GPS_VARIO_MAG},
     "gy91.yaml": {
-        ("imu", Channel.GYRO): GY91_MPU, ("imu", Channel.ACCEL): GY91_MPU,
-        ("mag", Channel.MAG): GY91_MAG},
+        ("imu", Quantity.GYRO): GY91_MPU, ("imu", Quantity.ACCEL): GY91_MPU,
+        ("mag", Quantity.MAG): GY91_MAG},
 }
 
 # A board mounted in the airframe turned 90 degrees right (yaw): board x points along body y
@@ -97,9 +97,9 @@ hold is long enough for the profiles' startup gyro-offset measurement (100 sampl
 after a GNSS receiver's probe and configuration (about 0.4 s of the hold)."""
 FLIGHT_S = 1.2 + 3 * (1.5 + 1.2)
 BOUND = 0.10
-TRUTH_CHANNEL = {Channel.ACCEL: "specific_force_body_m_s2",
-                 Channel.GYRO: "angular_rate_body_rad_s",
-                 Channel.MAG: "magnetic_field_body_ut"}
+TRUTH_CHANNEL = {Quantity.ACCEL: "specific_force_body_m_s2",
+                 Quantity.GYRO: "angular_rate_body_rad_s",
+                 Quantity.MAG: "magnetic_field_body_ut"}
 
 
 @pytest.fixture(scope="module")
@@ -108,8 +108,8 @@ def installed() -> Registry:
 
 
 def _fly(profile: BoardProfile, registry: Registry, *, calibrated: bool
-         ) -> dict[tuple[str, Channel], list[VectorSample]]:
-    out: dict[tuple[str, Channel], list[VectorSample]] = defaultdict(list)
+         ) -> dict[tuple[str, Quantity], list[VectorSample]]:
+    out: dict[tuple[str, Quantity], list[VectorSample]] = defaultdict(list)
     # chips with their datasheet white noise only (no bias, scale or iron errors): an ideal
     # chip holding still repeats one raw frame, which its driver flags FROZEN
     with open_emulated(profile, registry, scenario="tumble", scenario_params=TUMBLE, seed=3,
@@ -122,7 +122,7 @@ def _fly(profile: BoardProfile, registry: Registry, *, calibrated: bool
 
 
 def _relative_rms_error(samples: list[VectorSample], registry: Registry,
-                        body_to_frame: np.ndarray, channel: Channel) -> float:
+                        body_to_frame: np.ndarray, channel: Quantity) -> float:
     scenario = registry.scenarios.get("tumble")(TUMBLE, seed=3)
     got = np.array([s.vector for s in samples], dtype=float)
     truth = np.array([getattr(scenario.truth(s.t_ns / 1e9), TRUTH_CHANNEL[channel])

@@ -20,8 +20,8 @@ from imuhal.emulation import open_emulated
 from imuhal.estimation.outputs import AttitudeEstimate
 from imuhal.offline.chain import run_chain
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import default_profile_path
 from imuhal.sim.scenario import Scenario
 from imuhal_filters.common.quat import tilt_error_deg
 

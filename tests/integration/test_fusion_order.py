@@ -13,8 +13,8 @@ from imuhal.estimation.outputs import AttitudeEstimate
 from imuhal.offline.csv_input import read_sample_csv
 from imuhal.offline.runner import imu_events
 from imuhal.plugins.manager import load_registry
+from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import default_profile_path
 
 
 def test_the_seed_board_ahrs_repeats_offline_from_the_samples_it_was_fed() -> None:

@@ -11,8 +11,8 @@ from imuhal.core.samples import VelocitySample
 from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import BusErrors, BusOSError
 from imuhal.plugins.manager import load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import bundled_profiles
 
 VELOCITY_TOLERANCE_M_S = 2.0
 """The receiver's speed accuracy (0.15 m/s per axis) at 6 sigma, plus what an epoch

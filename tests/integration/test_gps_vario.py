@@ -20,8 +20,8 @@ from imuhal.estimation.base import Estimator, EstimatorSettings
 from imuhal.estimation.outputs import Estimate, VerticalEstimate
 from imuhal.plugins.hookspecs import hookimpl
 from imuhal.plugins.manager import load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import parse_profile
-from imuhal.profiles_dir import bundled_profiles
 
 
 class GpsClimb(Estimator):

@@ -16,8 +16,8 @@ from imuhal.core.samples import MagSample, SampleFlag
 from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import AllOnes, BusErrors, ChipAbsent, StuckDataReady
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile, parse_profile
-from imuhal.profiles_dir import bundled_profiles
 
 PROFILE = bundled_profiles()["seed-gps-vario.yaml"]
 SEED = 5

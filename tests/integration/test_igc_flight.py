@@ -28,8 +28,8 @@ from tests.support.noise import noise_only_specs
 from imuhal.core.atmosphere import altitude_m_from_pressure
 from imuhal.emulation import open_emulated
 from imuhal.plugins.manager import load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import bundled_profiles
 from imuhal.sinks.flight.igc import IgcSink, verify_igc
 
 EARTH_A_M = 6_378_137.0

@@ -12,9 +12,9 @@ import pytest
 from tests.support.noise import noise_only_specs
 
 from imuhal.core.samples import (
-    Channel,
     MagSample,
     PressureSample,
+    Quantity,
     Sample,
     SampleFlag,
     TemperatureSample,
@@ -22,8 +22,8 @@ from imuhal.core.samples import (
 from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import BusErrors
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import bundled_profiles, default_profile_path
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import bundled_profiles, default_profile_path
 
 
 @pytest.fixture(scope="module")
@@ -94,7 +94,7 @@ def test_each_imu_and_magnetometer_declares_the_full_scale_its_chip_has(
         declared = {(n, ch): fs for n, d in p.devices.items() for ch, fs in d.full_scale.items()
                     if fs is not None}
         chips = {key: p.board.emulators[key[0]].full_scale(key[1]) for key in declared}
-    assert {ch for _, ch in declared} >= {Channel.GYRO, Channel.ACCEL}
+    assert {ch for _, ch in declared} >= {Quantity.GYRO, Quantity.ACCEL}
     for key, fs in declared.items():
         # the data word's limit: at or a little above the chip's own (datasheet) full scale
         assert chips[key] <= fs <= 1.15 * chips[key], key
@@ -125,8 +125,8 @@ def test_recovery_from_1_percent_bus_errors_is_proportionate(registry: Registry)
         assert baro.bus_errors > 20 and imu.bus_errors > 20
         assert baro.driver.health.reconfigurations <= baro.bus_errors // 10
         assert imu.driver.health.reconfigurations <= imu.bus_errors // 10
-    pressures = [s for s in samples if s.channel is Channel.PRESSURE]
-    gyros = [s for s in samples if s.device == "imu" and s.channel is Channel.GYRO]
+    pressures = [s for s in samples if s.channel is Quantity.PRESSURE]
+    gyros = [s for s in samples if s.device == "imu" and s.channel is Quantity.GYRO]
     assert len(pressures) >= 0.98 * 50 * seconds
     assert len(gyros) >= 0.98 * 250 * seconds
 

@@ -15,8 +15,8 @@ from imuhal.core.samples import MagSample, SampleFlag
 from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import AllOnes, BusErrors, ChipAbsent, StuckDataReady
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import default_profile_path
 
 SEED = 5
 MAG_BOUND_UT = 25.0

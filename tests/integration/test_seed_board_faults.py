@@ -35,8 +35,8 @@ from imuhal.emulation.faults import (
 from imuhal.estimation.outputs import VerticalEstimate
 from imuhal.pipeline import Pipeline
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import default_profile_path
 
 SEED = 3
 BOUND = {AccelSample: 1.5, GyroSample: 0.05, MagSample: 25.0, PressureSample: 200.0}

@@ -15,9 +15,9 @@ import numpy as np
 from imuhal.emulation import open_emulated
 from imuhal.estimation.outputs import AttitudeEstimate
 from imuhal.plugins.manager import load_registry
+from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile
-from imuhal.profiles_dir import default_profile_path
 from imuhal_filters.common.quat import tilt_error_deg
 
 WINDOW_S = (25.0, 33.0)

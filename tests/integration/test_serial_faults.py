@@ -25,8 +25,8 @@ from imuhal.emulation.faults import (
 )
 from imuhal.pipeline.pipeline import RunSummary
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import bundled_profiles
 
 
 @pytest.fixture(scope="module")

@@ -5,9 +5,9 @@ from __future__ import annotations
 import pytest
 
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile
-from imuhal.profiles_dir import default_profile_path
 
 
 @pytest.fixture(scope="session")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from imuhal.core.frames import parse_mount
-from imuhal.core.samples import Channel, GyroSample
+from imuhal.core.samples import GyroSample, Quantity
 from imuhal.emulation import open_emulated
 from imuhal.live.mounts import (
     MOTION_BY_KEY,
@@ -34,20 +34,20 @@ def test_a_body_rotation_is_named_by_its_axis_and_sign_in_ned(rotation, name):
 
 
 def test_a_gyro_passes_a_motion_about_the_right_axis_with_the_right_sign():
-    assert judge(NOSE_UP, Evidence("imu", Channel.GYRO, (1.0, 29.0, -2.0))).ok is True
-    assert judge(ROLL_RIGHT, Evidence("imu", Channel.GYRO, (30.0, 0.0, 0.0))).ok is True
-    assert judge(TURN_RIGHT, Evidence("imu", Channel.GYRO, (0.0, 0.0, 88.0))).ok is True
+    assert judge(NOSE_UP, Evidence("imu", Quantity.GYRO, (1.0, 29.0, -2.0))).ok is True
+    assert judge(ROLL_RIGHT, Evidence("imu", Quantity.GYRO, (30.0, 0.0, 0.0))).ok is True
+    assert judge(TURN_RIGHT, Evidence("imu", Quantity.GYRO, (0.0, 0.0, 88.0))).ok is True
 
 
 def test_a_gyro_with_the_wrong_sign_or_axis_fails_naming_what_it_saw():
-    flipped = judge(NOSE_UP, Evidence("imu", Channel.GYRO, (0.0, -30.0, 0.0)))
+    flipped = judge(NOSE_UP, Evidence("imu", Quantity.GYRO, (0.0, -30.0, 0.0)))
     assert flipped.ok is False and "nose down" in flipped.message and "'imu'" in flipped.message
-    swapped = judge(NOSE_UP, Evidence("imu", Channel.GYRO, (-30.0, 0.0, 0.0)))
+    swapped = judge(NOSE_UP, Evidence("imu", Quantity.GYRO, (-30.0, 0.0, 0.0)))
     assert swapped.ok is False and "roll left" in swapped.seen
 
 
 def test_too_small_a_motion_is_no_verdict():
-    assert judge(NOSE_UP, Evidence("imu", Channel.GYRO, (0.0, 4.0, 0.0))).ok is None
+    assert judge(NOSE_UP, Evidence("imu", Quantity.GYRO, (0.0, 4.0, 0.0))).ok is None
 
 
 def test_gravity_turns_the_opposite_way_to_the_body():
@@ -59,17 +59,17 @@ def test_gravity_turns_the_opposite_way_to_the_body():
 
 def test_an_accelerometer_cannot_see_a_level_turn_so_it_gives_no_verdict_on_one():
     level = (0.0, 0.0, -1.0)
-    unseen = judge(TURN_RIGHT, Evidence("imu", Channel.ACCEL, (0.0, 0.0, 0.0), level))
+    unseen = judge(TURN_RIGHT, Evidence("imu", Quantity.ACCEL, (0.0, 0.0, 0.0), level))
     assert unseen.ok is None and "gravity" in unseen.message
     # What it shows then is its own error (or the user's tilt): reported, not judged.
-    tilted = judge(TURN_RIGHT, Evidence("imu", Channel.ACCEL, (12.0, 0.0, 0.0), level))
+    tilted = judge(TURN_RIGHT, Evidence("imu", Quantity.ACCEL, (12.0, 0.0, 0.0), level))
     assert tilted.ok is None and "roll right 12 deg" in tilted.message
 
 
 def test_an_accelerometer_judges_the_tilts_it_can_see():
     level = (0.0, 0.0, -1.0)
-    assert judge(NOSE_UP, Evidence("imu", Channel.ACCEL, (0.0, 29.0, 0.0), level)).ok is True
-    assert judge(NOSE_UP, Evidence("imu", Channel.ACCEL, (0.0, -29.0, 0.0), level)).ok is False
+    assert judge(NOSE_UP, Evidence("imu", Quantity.ACCEL, (0.0, 29.0, 0.0), level)).ok is True
+    assert judge(NOSE_UP, Evidence("imu", Quantity.ACCEL, (0.0, -29.0, 0.0), level)).ok is False
 
 
 def test_a_recorder_integrates_the_gyro_between_start_and_evidence():

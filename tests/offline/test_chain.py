@@ -7,8 +7,8 @@ from imuhal.emulation import open_emulated
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate, VerticalEstimate
 from imuhal.offline.chain import instants_in_fusion_order, run_chain
 from imuhal.plugins.manager import load_registry
+from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import default_profile_path
 
 
 def test_the_seed_boards_chain_over_its_recorded_samples_gives_the_live_estimates() -> None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from imuhal.core.samples import Channel, GyroSample, MagSample, SampleFlag
+from imuhal.core.samples import GyroSample, MagSample, Quantity, SampleFlag
 from imuhal.pipeline.accounting import FrameLedger, describe_frames
 
 P = 5_000_000  # 200 Hz
@@ -15,14 +15,14 @@ def gyro(t_ns: int, flags: SampleFlag = SampleFlag.OK) -> GyroSample:
 
 
 def test_frames_a_period_apart_lose_nothing() -> None:
-    ledger = FrameLedger(Channel.GYRO, P)
+    ledger = FrameLedger(Quantity.GYRO, P)
     for k in range(10):
         ledger.observe(gyro(1_000_000 + k * P + (k % 3) * 100_000))  # poll jitter < P/2
     assert (ledger.produced, ledger.delivered, sum(ledger.lost.values())) == (10, 10, 0)
 
 
 def test_a_gap_of_four_periods_is_three_lost_frames_charged_to_the_cause_seen() -> None:
-    ledger = FrameLedger(Channel.GYRO, P)
+    ledger = FrameLedger(Quantity.GYRO, P)
     ledger.observe(gyro(0))
     ledger.note("bus_error")
     ledger.observe(gyro(4 * P))
@@ -31,7 +31,7 @@ def test_a_gap_of_four_periods_is_three_lost_frames_charged_to_the_cause_seen() 
 
 
 def test_the_weightiest_cause_takes_the_gap_and_causes_clear_after_a_frame() -> None:
-    ledger = FrameLedger(Channel.GYRO, P)
+    ledger = FrameLedger(Quantity.GYRO, P)
     ledger.observe(gyro(0))
     ledger.note("bus_error")
     ledger.note("host_stall")
@@ -41,7 +41,7 @@ def test_the_weightiest_cause_takes_the_gap_and_causes_clear_after_a_frame() -> 
 
 
 def test_flagged_frames_of_the_stream_name_their_cause() -> None:
-    ledger = FrameLedger(Channel.GYRO, P)
+    ledger = FrameLedger(Quantity.GYRO, P)
     ledger.observe(gyro(0))
     ledger.observe(gyro(P, SampleFlag.FROZEN))
     ledger.observe(gyro(2 * P))
@@ -52,13 +52,13 @@ def test_flagged_frames_of_the_stream_name_their_cause() -> None:
 
 
 def test_other_channels_do_not_count() -> None:
-    ledger = FrameLedger(Channel.GYRO, P)
+    ledger = FrameLedger(Quantity.GYRO, P)
     ledger.observe(MagSample(t_ns=0, device="imu", mag_ut=(1.0, 0.0, 0.0)))
     assert ledger.produced == 0 and ledger.first_ns is None
 
 
 def test_a_reset_closes_a_segment_and_its_gap_is_lost_to_the_reset() -> None:
-    ledger = FrameLedger(Channel.GYRO, P)
+    ledger = FrameLedger(Quantity.GYRO, P)
     ledger.observe(gyro(0))
     ledger.observe(gyro(P))
     ledger.note("reset")
@@ -71,11 +71,11 @@ def test_a_reset_closes_a_segment_and_its_gap_is_lost_to_the_reset() -> None:
 
 def test_an_unknown_cause_is_refused() -> None:
     with pytest.raises(ValueError, match="unknown loss cause 'gremlins'"):
-        FrameLedger(Channel.GYRO, P).note("gremlins")
+        FrameLedger(Quantity.GYRO, P).note("gremlins")
 
 
 def test_the_summary_line_names_each_cause() -> None:
-    ledger = FrameLedger(Channel.GYRO, P)
+    ledger = FrameLedger(Quantity.GYRO, P)
     ledger.observe(gyro(0))
     ledger.note("host_stall")
     ledger.observe(gyro(3 * P))

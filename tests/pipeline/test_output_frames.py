@@ -18,7 +18,7 @@ from tests.pipeline.test_pipeline import PROFILE
 from imuhal.cli.main import main
 from imuhal.core.errors import ProfileError
 from imuhal.core.frames import quat_from_euler_deg, quat_to_matrix
-from imuhal.core.samples import AccelSample, Channel, Frame, GyroSample, MagSample
+from imuhal.core.samples import AccelSample, Frame, GyroSample, MagSample, Quantity
 from imuhal.emulation import open_emulated
 from imuhal.estimation.framed import (
     FramedAttitude,
@@ -101,9 +101,9 @@ def test_console_line_shows_the_frames_own_angles_and_names_it() -> None:
 
 
 @pytest.mark.parametrize("frame", ["enu", "android", "win8", "aerospace"])
-@pytest.mark.parametrize("channel", [Channel.ACCEL, Channel.GYRO, Channel.MAG])
+@pytest.mark.parametrize("channel", [Quantity.ACCEL, Quantity.GYRO, Quantity.MAG])
 def test_a_reading_fed_from_another_frame_comes_back_unchanged(frame: str,
-                                                               channel: Channel) -> None:
+                                                               channel: Quantity) -> None:
     reading = (1.5, -2.0, 9.0)
     sample = sample_from_frame(channel, reading, frame, t_ns=5, device="phone")
     assert sample.frame is Frame.BODY_NED and sample.channel is channel
@@ -112,7 +112,7 @@ def test_a_reading_fed_from_another_frame_comes_back_unchanged(frame: str,
 
 def test_a_level_phone_reading_becomes_ned_specific_force() -> None:
     """Android, flat on a table: (0, 0, +9.81) (acceleration positive, z up)."""
-    sample = sample_from_frame(Channel.ACCEL, (0.0, 0.0, G), "android", t_ns=0, device="phone")
+    sample = sample_from_frame(Quantity.ACCEL, (0.0, 0.0, G), "android", t_ns=0, device="phone")
     assert sample.vector == pytest.approx((0.0, 0.0, -G))
 
 

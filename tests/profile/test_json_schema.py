@@ -11,8 +11,8 @@ import yaml
 
 from imuhal.cli.main import main
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.json_schema import profile_schema
-from imuhal.profiles_dir import bundled_profiles
 
 jsonschema = pytest.importorskip("jsonschema", reason="jsonschema is in the test extra")
 

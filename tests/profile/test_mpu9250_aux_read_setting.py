@@ -9,8 +9,8 @@ import yaml
 
 from imuhal.core.errors import ProfileError
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile, parse_profile
-from imuhal.profiles_dir import bundled_profiles
 
 GPS = bundled_profiles()["seed-gps-vario.yaml"]
 GY91 = bundled_profiles()["gy91.yaml"]

@@ -12,8 +12,8 @@ import pytest
 
 from imuhal.core.errors import ProfileError
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import MAX_PROFILE_BYTES, check_profile, parse_profile
-from imuhal.profiles_dir import default_profile_path
 
 GOOD = """\
 schema_version: 1

@@ -11,8 +11,8 @@ import yaml
 
 from imuhal.core.errors import ProfileError
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile, parse_profile
-from imuhal.profiles_dir import bundled_profiles
 
 SEED = bundled_profiles()["seed-paraglider-vario.yaml"]
 RC = bundled_profiles()["seed-rc-vario.yaml"]

@@ -21,9 +21,9 @@ from imuhal.offline.replay import (
     replay_run,
 )
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.faults import FaultSpec, LatePolls, TimingJitter
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import bundled_profiles
 from imuhal.sinks import CallbackSink, Event
 
 

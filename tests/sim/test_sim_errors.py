@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from imuhal.emulation.base import PhysicalInputs
+from imuhal.emulation import PhysicalInputs
 from imuhal.plugins.manager import load_registry
 from imuhal.sim.errors import (
     MagErrorSpec,

@@ -15,8 +15,8 @@ from tests.sinks.nmea_reader import read_lxwp0, read_sentence
 
 from imuhal.emulation import open_emulated
 from imuhal.plugins.manager import load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import bundled_profiles
 from imuhal.sinks.flight import sentences as fmt
 from imuhal.sinks.flight.ble import (
     BLE_SENTENCES,

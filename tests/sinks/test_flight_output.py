@@ -32,8 +32,8 @@ from imuhal.core.samples import (
 from imuhal.emulation import open_emulated
 from imuhal.estimation.outputs import VerticalEstimate
 from imuhal.plugins.manager import load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import bundled_profiles
 from imuhal.sinks.flight.sentences import KNOTS_PER_M_S, course_and_speed
 from imuhal.sinks.flight.sink import FlightSink
 from imuhal.sinks.flight.transports import PtyTransport, TcpTransport

@@ -19,7 +19,7 @@ import pytest
 
 from imuhal.cli.main import main
 from imuhal.core.errors import ImuhalError
-from imuhal.profiles_dir import bundled_profiles
+from imuhal.profile.bundled import bundled_profiles
 
 pytest.importorskip("pymavlink", reason="the mavlink extra (pymavlink) is not installed")
 pytest.importorskip("pynmea2", reason="the gps extra (pynmea2, pyubx2) is not installed")

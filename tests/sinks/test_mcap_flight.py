@@ -24,7 +24,7 @@ import pytest
 
 from imuhal.cli.main import main
 from imuhal.core.conventions import ENU, NED, convert_quat
-from imuhal.profiles_dir import bundled_profiles
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.sim.truth_csv import read_truth_csv
 
 pytest.importorskip("mcap_ros2", reason="the ros extra (mcap, mcap-ros2-support) is missing")

@@ -36,8 +36,8 @@ if mosquitto_binary() is None:
 from imuhal.cli.main import main
 from imuhal.emulation import open_emulated
 from imuhal.plugins.manager import load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import bundled_profiles
 from imuhal.sinks.mqtt import MqttSink
 from imuhal.sinks.mqtt.broker import PASSWORD_ENV, USERNAME_ENV
 

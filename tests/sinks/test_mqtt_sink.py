@@ -14,8 +14,8 @@ from imuhal.core.errors import ImuhalError, ProfileError
 from imuhal.core.samples import AccelSample, Frame, PressureSample
 from imuhal.estimation.outputs import AttitudeEstimate, VerticalEstimate
 from imuhal.plugins.manager import load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import parse_profile
-from imuhal.profiles_dir import bundled_profiles
 from imuhal.sinks.builtin import event_row
 from imuhal.sinks.mqtt.broker import PASSWORD_ENV, USERNAME_ENV, parse_broker_url
 from imuhal.sinks.mqtt.payload import StreamSelector, encode, stream_of, topic_level

@@ -14,8 +14,8 @@ import pytest
 from imuhal.emulation import open_emulated
 from imuhal.estimation.outputs import VerticalEstimate
 from imuhal.plugins.manager import load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import bundled_profiles
 from imuhal.sinks.flight.audio import AudioSink, ToneGenerator, VarioAudioSettings
 
 RATE = 16000

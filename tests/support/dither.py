@@ -16,24 +16,24 @@ from __future__ import annotations
 import random
 from dataclasses import replace
 
-from imuhal.core.samples import Channel
-from imuhal.emulation.base import ChipEmulator, PhysicalInputs
+from imuhal.core.samples import Quantity
+from imuhal.emulation import ChipEmulator, PhysicalInputs
 
 CHANNEL_OF_FIELD = {
-    "specific_force_m_s2": Channel.ACCEL,
-    "angular_rate_rad_s": Channel.GYRO,
-    "magnetic_field_ut": Channel.MAG,
-    "pressure_pa": Channel.PRESSURE,
-    "temperature_degc": Channel.TEMPERATURE,
+    "specific_force_m_s2": Quantity.ACCEL,
+    "angular_rate_rad_s": Quantity.GYRO,
+    "magnetic_field_ut": Quantity.MAG,
+    "pressure_pa": Quantity.PRESSURE,
+    "temperature_degc": Quantity.TEMPERATURE,
 }
 HALF = 0.5 - 1e-9
 """Just under half an LSB, so a rounded reading stays strictly within one LSB."""
-DITHERED = frozenset({Channel.ACCEL, Channel.GYRO, Channel.MAG, Channel.PRESSURE})
+DITHERED = frozenset({Quantity.ACCEL, Quantity.GYRO, Quantity.MAG, Quantity.PRESSURE})
 
 
 class Dither:
     def __init__(self, emulator: ChipEmulator, *, seed: int = 0,
-                 channels: frozenset[Channel] = DITHERED, amplitude: float = HALF,
+                 channels: frozenset[Quantity] = DITHERED, amplitude: float = HALF,
                  spread: float = 0.0) -> None:
         self.emulator = emulator
         self.amplitude = amplitude
@@ -48,7 +48,7 @@ class Dither:
         self._base: PhysicalInputs = emulator.physics
         self._applied: PhysicalInputs | None = None
 
-    def _step(self, channel: Channel) -> float | None:
+    def _step(self, channel: Quantity) -> float | None:
         if channel not in self.channels:
             return None
         try:

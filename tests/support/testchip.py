@@ -16,9 +16,9 @@ from imuhal.bus.base import BusKind
 from imuhal.bus.registers import RegisterView
 from imuhal.core.atmosphere import altitude_m_from_pressure
 from imuhal.core.errors import DeviceNotFoundError, NackError
-from imuhal.core.samples import AccelSample, Channel, PressureSample, SampleFlag
+from imuhal.core.samples import AccelSample, PressureSample, Quantity, SampleFlag
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
-from imuhal.emulation.base import ChipEmulator
+from imuhal.emulation import ChipEmulator
 from imuhal.estimation.base import Estimator, EstimatorSettings
 from imuhal.estimation.outputs import VerticalEstimate
 from imuhal.plugins.hookspecs import hookimpl
@@ -39,7 +39,7 @@ class TC3Driver(Driver):
     name: ClassVar[str] = "tc3"
     description: ClassVar[str] = "fictional test chip (tests only)"
     Settings = TC3Settings
-    channels = (Channel.ACCEL, Channel.PRESSURE)
+    channels = (Quantity.ACCEL, Quantity.PRESSURE)
     bus_kinds = frozenset({BusKind.I2C, BusKind.SPI})
 
     def __init__(self, *args, **kwargs) -> None:  # type: ignore[no-untyped-def]
@@ -80,9 +80,9 @@ class TC3Driver(Driver):
         samples = [pressure, accel] if self.settings.pressure_first else [accel, pressure]
         return PollResult(samples, now_ns + self.period_ns)
 
-    def full_scale(self, channel: Channel) -> float | None:
+    def full_scale(self, channel: Quantity) -> float | None:
         """Accel: 32767 counts of 1 mg; pressure: not declared (float32 register)."""
-        return 32.767 * G if channel is Channel.ACCEL else None
+        return 32.767 * G if channel is Quantity.ACCEL else None
 
 
 class TC3Emulator(ChipEmulator):

@@ -44,7 +44,7 @@ from imuhal.bus.base import BusKind, Link
 from imuhal.bus.registers import RegisterView
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
-from imuhal.core.samples import Channel, Frame, MagSample, SampleFlag
+from imuhal.core.samples import Frame, MagSample, Quantity, SampleFlag
 from imuhal.core.streams import StreamSpec
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
 from imuhal.drivers.polling import DataReady, PollGrid, ResetWatch, reset_check_field
@@ -81,7 +81,7 @@ class AK8963Driver(Driver):
     name = "ak8963"
     description = "AKM AK8963 magnetometer, I2C 0x0C (inside the MPU-9250: use its aux bus)"
     Settings = AK8963Settings
-    channels: ClassVar[tuple[Channel, ...]] = (Channel.MAG,)
+    channels: ClassVar[tuple[Quantity, ...]] = (Quantity.MAG,)
     bus_kinds: ClassVar[frozenset[BusKind]] = frozenset({BusKind.I2C})
 
     FROZEN_AFTER_FRAMES = 30
@@ -98,7 +98,7 @@ class AK8963Driver(Driver):
         self._cntl1 = r.cntl1_value(self.settings.odr_hz, self.settings.resolution_bits)
         self._period_ns = round(1e9 / self.settings.odr_hz)
         self._grid = PollGrid(self._period_ns)
-        self._ready = DataReady({Channel.MAG: self._period_ns})
+        self._ready = DataReady({Quantity.MAG: self._period_ns})
         self._watch = ResetWatch(self.settings.reset_check_s)
         self._frozen = FrozenWatch(self.FROZEN_AFTER_FRAMES)
         self.last: Measurement | None = None
@@ -164,7 +164,7 @@ class AK8963Driver(Driver):
         self._streams = (spec,)
         self._period_ns = spec.period_ns
         self._grid = PollGrid(self._period_ns)
-        self._ready = DataReady({Channel.MAG: self._period_ns})
+        self._ready = DataReady({Quantity.MAG: self._period_ns})
 
     def start(self, now_ns: int) -> int:
         # recover() passes the time from before configure() waited; never start in the past.
@@ -194,7 +194,7 @@ class AK8963Driver(Driver):
         bits = 16 if cntl1 & r.CNTL1_BIT else 14
         latency_s = (self._feed.latency_ns * 1e-9 if self._feed is not None
                      else r.MEASUREMENT_S)
-        return StreamSpec(self.device, Channel.MAG, Frame.SENSOR, 1.0 / period_s,
+        return StreamSpec(self.device, Quantity.MAG, Frame.SENSOR, 1.0 / period_s,
                           scale=r.RESOLUTIONS[bits].ut_per_lsb,
                           full_scale=r.OVERFLOW_SUM_UT, latency_s=latency_s)
 
@@ -216,19 +216,19 @@ class AK8963Driver(Driver):
             return None
         return max(now_ns, self.clock.now_ns())
 
-    def accounted_stream(self) -> tuple[Channel, int] | None:
+    def accounted_stream(self) -> tuple[Quantity, int] | None:
         """One field per continuous-mode period (8 or 100 Hz)."""
-        return Channel.MAG, self._period_ns
+        return Quantity.MAG, self._period_ns
 
-    def full_scale(self, channel: Channel) -> float | None:
+    def full_scale(self, channel: Quantity) -> float | None:
         """The measurement range, +-4912 uT per axis."""
-        return r.OVERFLOW_SUM_UT if channel is Channel.MAG else None
+        return r.OVERFLOW_SUM_UT if channel is Quantity.MAG else None
 
     def _frozen_flag(self, frame: bytes) -> SampleFlag:
-        return self._frozen.observe(Channel.MAG, frame)
+        return self._frozen.observe(Quantity.MAG, frame)
 
     def poll(self, now_ns: int) -> PollResult:
-        overdue = self._ready.overdue(Channel.MAG, now_ns)
+        overdue = self._ready.overdue(Quantity.MAG, now_ns)
         if self._watch.check_due(now_ns, overdue=overdue) and self._config_lost():
             return PollResult([], self.restart(reset_detected=True))
         if self._feed is not None:
@@ -243,7 +243,7 @@ class AK8963Driver(Driver):
         if m.data_ready and not bad:
             bad = self._frozen_flag(data[1:7])
         if m.data_ready and not bad:
-            self._ready.fresh(Channel.MAG, now_ns)
+            self._ready.fresh(Quantity.MAG, now_ns)
             self._watch.fresh_poll()
             flags = SampleFlag.OK
             if m.overflow:

@@ -29,8 +29,8 @@ import struct
 
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock
-from imuhal.core.samples import Channel
-from imuhal.emulation.base import ChipEmulator
+from imuhal.core.samples import Quantity
+from imuhal.emulation import ChipEmulator
 from imuhal_chips.ak8963 import registers as r
 from imuhal_chips.ak8963.error_spec import AK8963_ERROR_SPEC
 
@@ -101,22 +101,22 @@ class AK8963Emulator(ChipEmulator):
         """(uT per LSB before adjustment, largest |count|) at the current CNTL1.BIT."""
         return _SENSITIVITY[bool(self._cntl1 & r.CNTL1_BIT)]
 
-    def noise_period_s(self, channel: Channel) -> float | None:
+    def noise_period_s(self, channel: Quantity) -> float | None:
         """Continuous mode 1 / 2: 1/8 s / 1/100 s; None otherwise (single measurements
         come at the host's pace)."""
-        if channel is not Channel.MAG:
+        if channel is not Quantity.MAG:
             return None
         return _PERIOD_S_BY_MODE.get(self._mode())
 
-    def resolution(self, channel: Channel) -> float:
+    def resolution(self, channel: Quantity) -> float:
         """The largest per-axis LSB (uT) at the current resolution and this part's ASA."""
-        if channel is not Channel.MAG:
+        if channel is not Quantity.MAG:
             raise ValueError(f"the AK8963 has no {channel.value} channel")
         return self._resolution()[0] * max(_adjustment(a) for a in self.asa)
 
-    def full_scale(self, channel: Channel) -> float:
+    def full_scale(self, channel: Quantity) -> float:
         """The smallest per-axis range (uT), at most the 4912 uT overflow limit."""
-        if channel is not Channel.MAG:
+        if channel is not Quantity.MAG:
             raise ValueError(f"the AK8963 has no {channel.value} channel")
         ut_per_lsb, max_count = self._resolution()
         axis = max_count * ut_per_lsb * min(_adjustment(a) for a in self.asa)

@@ -28,9 +28,9 @@ from imuhal.bus.registers import RegisterConvention, RegisterView
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
 from imuhal.core.samples import (
-    Channel,
     Frame,
     PressureSample,
+    Quantity,
     Sample,
     SampleFlag,
     TemperatureSample,
@@ -126,7 +126,7 @@ class BMP280Driver(Driver):
     name = "bmp280"
     description = "Bosch BMP280 barometer (pressure, temperature), I2C 0x76/0x77 or SPI"
     Settings = BMP280Settings
-    channels: ClassVar[tuple[Channel, ...]] = (Channel.PRESSURE, Channel.TEMPERATURE)
+    channels: ClassVar[tuple[Quantity, ...]] = (Quantity.PRESSURE, Quantity.TEMPERATURE)
     bus_kinds: ClassVar[frozenset[BusKind]] = frozenset({BusKind.I2C, BusKind.SPI})
 
     STALE_AFTER_MAX_TIMES = 3
@@ -263,9 +263,9 @@ class BMP280Driver(Driver):
             period_s = 1.0 / self.settings.odr_hz
         rate_hz = 1e9 / round(period_s * 1e9)
         return (
-            StreamSpec(self.device, Channel.PRESSURE, Frame.SENSOR, rate_hz, scale=1 / 256,
+            StreamSpec(self.device, Quantity.PRESSURE, Frame.SENSOR, rate_hz, scale=1 / 256,
                        latency_s=t_meas),
-            StreamSpec(self.device, Channel.TEMPERATURE, Frame.SENSOR, rate_hz, scale=0.01,
+            StreamSpec(self.device, Quantity.TEMPERATURE, Frame.SENSOR, rate_hz, scale=0.01,
                        latency_s=t_meas),
         )
 
@@ -353,12 +353,12 @@ class BMP280Driver(Driver):
             return None
         return max(now_ns, self.clock.now_ns())
 
-    def accounted_stream(self) -> tuple[Channel, int] | None:
+    def accounted_stream(self) -> tuple[Quantity, int] | None:
         """Normal mode: one pressure per measurement plus standby (typical measurement
         time); forced mode measures when the host asks, so it has no period of its own."""
         if self.settings.mode != "normal" or not self._period_ns:
             return None
-        return Channel.PRESSURE, self._period_ns
+        return Quantity.PRESSURE, self._period_ns
 
     def filter_memory_outputs(self) -> int:
         """Outputs after a wrong measurement that the IIR filter can still carry it (0: the

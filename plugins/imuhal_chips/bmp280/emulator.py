@@ -32,8 +32,8 @@ import random
 
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock
-from imuhal.core.samples import Channel
-from imuhal.emulation.base import ChipEmulator
+from imuhal.core.samples import Quantity
+from imuhal.emulation import ChipEmulator
 from imuhal_chips.bmp280 import registers as r
 from imuhal_chips.bmp280.emulator_encoding import (
     DATASHEET_TRIMMING,
@@ -139,27 +139,27 @@ class BMP280Emulator(ChipEmulator):
         iir = _IIR_BY_CODE[(self._config >> 2) & 0b111]
         return 20 if iir else _ADC_BITS[oversampling]
 
-    def noise_period_s(self, channel: Channel) -> float | None:
+    def noise_period_s(self, channel: Quantity) -> float | None:
         """Normal mode: measurement plus standby (:meth:`_period_ns`); None in forced and
         sleep mode, where the host sets the pace."""
-        if channel in (Channel.PRESSURE, Channel.TEMPERATURE) and self._mode() == r.MODE_NORMAL:
+        if channel in (Quantity.PRESSURE, Quantity.TEMPERATURE) and self._mode() == r.MODE_NORMAL:
             return self._period_ns() / 1e9
         return None
 
-    def resolution(self, channel: Channel) -> float:
+    def resolution(self, channel: Quantity) -> float:
         """One output LSB at the current settings and physics, in Pa or degC.
 
         Temperature is reported by the driver in 0.01 degC steps, so that is its floor.
         """
         osrs_t, osrs_p = self._oversampling()
         pressure, temperature = self._true_values()
-        if channel is Channel.TEMPERATURE:
+        if channel is Quantity.TEMPERATURE:
             step = 1 << (20 - self._bits(max(osrs_t, 1)))
             adc = adc_t_for(temperature, self.trim)
             t0 = temperature_degc_of(adc, self.trim)
             t1 = temperature_degc_of(adc + step, self.trim)
             return max(abs(t1 - t0), 0.01)
-        if channel is Channel.PRESSURE:
+        if channel is Quantity.PRESSURE:
             step = 1 << (20 - self._bits(max(osrs_p, 1)))
             t_fine = t_fine_of(adc_t_for(temperature, self.trim), self.trim)
             adc = adc_p_for(pressure, t_fine, self.trim)
@@ -168,11 +168,11 @@ class BMP280Emulator(ChipEmulator):
             return abs(p1 - p0)
         raise ValueError(f"the BMP280 has no {channel.value} channel")
 
-    def full_scale(self, channel: Channel) -> float:
+    def full_scale(self, channel: Quantity) -> float:
         """Upper end of the datasheet operating range: 110000 Pa, 85 degC."""
-        if channel is Channel.PRESSURE:
+        if channel is Quantity.PRESSURE:
             return 110_000.0
-        if channel is Channel.TEMPERATURE:
+        if channel is Quantity.TEMPERATURE:
             return 85.0
         raise ValueError(f"the BMP280 has no {channel.value} channel")
 

@@ -28,10 +28,10 @@ from imuhal.bus.base import BusKind, Link
 from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError, ConfigurationError, DeviceNotFoundError
 from imuhal.core.samples import (
-    Channel,
     FixType,
     HeightDatum,
     PositionSample,
+    Quantity,
     Sample,
     SampleFlag,
     VelocitySample,
@@ -106,7 +106,7 @@ class GnssDriver(Driver):
     name: ClassVar[str] = "gnss"
     description: ClassVar[str] = "GNSS receiver on a UART (NMEA 0183 or u-blox UBX NAV-PVT)"
     Settings = GnssSettings
-    channels: ClassVar[tuple[Channel, ...]] = (Channel.POSITION, Channel.VELOCITY)
+    channels: ClassVar[tuple[Quantity, ...]] = (Quantity.POSITION, Quantity.VELOCITY)
     bus_kinds: ClassVar[frozenset[BusKind]] = frozenset({BusKind.SERIAL})
 
     def __init__(self, link: Link, settings: DriverSettings, *, device: str,
@@ -263,7 +263,7 @@ class GnssDriver(Driver):
         latency_s = self.settings.latency_s
         return tuple(StreamSpec(self.device, quantity, None, rate_hz, latency_s=latency_s,
                                 time_source=TimeSource.RECEIVER_EPOCH)
-                     for quantity in (Channel.POSITION, Channel.VELOCITY))
+                     for quantity in (Quantity.POSITION, Quantity.VELOCITY))
 
     def _send_checked(self, frame: bytes, ident: tuple[int, int], what: str) -> None:
         """Write a CFG message and wait (up to 1 s) for its ACK-ACK in the stream; send it

@@ -41,7 +41,7 @@ from imuhal.bus.auto_read import AutoReadBus, AutoReadFeed, require_auto_read
 from imuhal.bus.base import BusKind, Link
 from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError, ConfigurationError, DeviceNotFoundError, NackError
-from imuhal.core.samples import Channel, Frame, MagSample, Sample, SampleFlag
+from imuhal.core.samples import Frame, MagSample, Quantity, Sample, SampleFlag
 from imuhal.core.streams import StreamSpec
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
 from imuhal.drivers.polling import (
@@ -120,7 +120,7 @@ class Hmc5883lDriver(Driver):
     name = "hmc5883l"
     description = "Honeywell HMC5883L 3-axis magnetometer (I2C 0x1E)"
     Settings = Hmc5883lSettings
-    channels = (Channel.MAG,)
+    channels = (Quantity.MAG,)
     bus_kinds = frozenset({BusKind.I2C})
     settings: Hmc5883lSettings
 
@@ -135,11 +135,11 @@ class Hmc5883lDriver(Driver):
         self._mode_written_ns = 0
         self._skip_next = False
         self._grid = PollGrid(round(1e9 / self.settings.odr_hz))
-        self._ready = DataReady({Channel.MAG: self._grid.period_ns})
+        self._ready = DataReady({Quantity.MAG: self._grid.period_ns})
         self._watch = ResetWatch(self.settings.reset_check_s)
         self._frozen = FrozenWatch(FROZEN_AFTER_FRAMES)
-        self._memory = FilterMemory({Channel.MAG: self.filter_memory_outputs()},
-                                    {Channel.MAG: self._grid.period_ns})
+        self._memory = FilterMemory({Quantity.MAG: self.filter_memory_outputs()},
+                                    {Quantity.MAG: self._grid.period_ns})
         if self.settings.read == "auto":
             require_auto_read(link.bus, who=self.describe(), bus_name=link.bus.name,
                               example="slave auto-read, e.g. the MAX21100's imu/aux",
@@ -218,7 +218,7 @@ class Hmc5883lDriver(Driver):
         spec = self._spec(got)
         self.gain_lsb_per_gauss = gain_from_config_b(got[1])
         self._grid = PollGrid(spec.period_ns)
-        self._ready = DataReady({Channel.MAG: self._grid.period_ns})
+        self._ready = DataReady({Quantity.MAG: self._grid.period_ns})
         self._skip_next = True  # its first measurement still uses the previous gain
         if self.settings.read == "auto":
             assert isinstance(self.link.bus, AutoReadBus)
@@ -260,7 +260,7 @@ class Hmc5883lDriver(Driver):
         gain = gain_from_config_b(config[1])
         latency_s = 0.0 if self._feed is None else self._feed.latency_ns * 1e-9
         return StreamSpec(
-            self.device, Channel.MAG, Frame.SENSOR, float(rate_hz),
+            self.device, Quantity.MAG, Frame.SENSOR, float(rate_hz),
             scale=decode.counts_to_ut((1, 0, 0), gain)[0],
             full_scale=abs(decode.counts_to_ut((DATA_MIN, 0, 0), gain)[0]),
             latency_s=latency_s + 1 / (8 * rate_hz))
@@ -287,7 +287,7 @@ class Hmc5883lDriver(Driver):
         if status & STATUS_RDY:
             sample = self._sample(now_ns)
             if not sample.flags & (SampleFlag.BLANK | SampleFlag.FROZEN):
-                self._ready.fresh(Channel.MAG, now_ns)
+                self._ready.fresh(Quantity.MAG, now_ns)
                 self._watch.fresh_poll()
                 if self._skip_next:
                     # measured at the old gain: its counts say nothing of the field, and
@@ -296,7 +296,7 @@ class Hmc5883lDriver(Driver):
                     self._memory.forget()
                     return PollResult([], self._grid.next_after(now_ns))
                 return PollResult([sample], self._grid.next_after(now_ns))
-        elif not self._ready.overdue(Channel.MAG, now_ns):
+        elif not self._ready.overdue(Quantity.MAG, now_ns):
             return PollResult([], now_ns + NOT_READY_RETRY_NS)
         else:
             sample = MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
@@ -307,7 +307,7 @@ class Hmc5883lDriver(Driver):
         """``read: auto``: the bytes the master delivered (see the module docstring)."""
         assert self._feed is not None
         data = self._feed.data
-        frozen = self._frozen.observe(Channel.MAG, data) if data is not None \
+        frozen = self._frozen.observe(Quantity.MAG, data) if data is not None \
             else SampleFlag.OK
         if data is not None and data != self._seen:
             self._seen = data
@@ -360,7 +360,7 @@ class Hmc5883lDriver(Driver):
                              mag_ut=NAN3, flags=bad)
         counts = decode.data_counts_xyz(raw)
         flags = decode.counts_flags(counts)
-        flags |= self._memory.flag(Channel.MAG, now_ns, flags)
+        flags |= self._memory.flag(Quantity.MAG, now_ns, flags)
         return MagSample.build(now_ns, self.device, flags, Frame.SENSOR,
                                decode.counts_to_ut(counts, self.gain_lsb_per_gauss))
 
@@ -372,11 +372,11 @@ class Hmc5883lDriver(Driver):
         return self.settings.averaging - 1
 
     def _frozen_flag(self, raw: bytes) -> SampleFlag:
-        return self._frozen.observe(Channel.MAG, raw)
+        return self._frozen.observe(Quantity.MAG, raw)
 
-    def accounted_stream(self) -> tuple[Channel, int] | None:
+    def accounted_stream(self) -> tuple[Quantity, int] | None:
         """One field per continuous-mode output period (Config A's data output rate)."""
-        return Channel.MAG, self._grid.period_ns
+        return Quantity.MAG, self._grid.period_ns
 
     def resume(self, now_ns: int) -> int | None:
         """One transfer of a poll failed: when Config A/B and Mode still read back as

@@ -29,8 +29,8 @@ import math
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError
-from imuhal.core.samples import Channel
-from imuhal.emulation.base import ChipEmulator, PhysicalInputs
+from imuhal.core.samples import Quantity
+from imuhal.emulation import ChipEmulator, PhysicalInputs
 from imuhal_chips.hmc5883l.error_spec import HMC5883L_ERROR_SPEC
 from imuhal_chips.hmc5883l.registers import (
     CRA_RATE_SHIFT,
@@ -129,21 +129,21 @@ class Hmc5883lEmulator(ChipEmulator):
         self._advance()
         super().set_physics(inputs)
 
-    def noise_period_s(self, channel: Channel) -> float | None:
+    def noise_period_s(self, channel: Quantity) -> float | None:
         """Continuous mode: 1 / the Config A output rate; None otherwise (single
         measurements come at the host's pace) or for the reserved rate code."""
-        if channel is not Channel.MAG or self.regs[Reg.MODE] & MODE_MD_MASK != MODE_CONTINUOUS:
+        if channel is not Quantity.MAG or self.regs[Reg.MODE] & MODE_MD_MASK != MODE_CONTINUOUS:
             return None
         period = self._period_ns()
         return None if period is None else period / 1e9
 
-    def resolution(self, channel: Channel) -> float:
+    def resolution(self, channel: Quantity) -> float:
         """uT per count at the current gain."""
-        if channel is not Channel.MAG:
+        if channel is not Quantity.MAG:
             raise ValueError(f"{self.chip} has no {channel.value} channel")
         return _MICROTESLA_PER_GAUSS / _gain_of(self.regs[Reg.CONFIG_B])
 
-    def full_scale(self, channel: Channel) -> float:
+    def full_scale(self, channel: Quantity) -> float:
         """Largest field (uT) encoded before the -4096 overflow value: 2047 counts."""
         return _COUNT_LIMIT * self.resolution(channel)
 

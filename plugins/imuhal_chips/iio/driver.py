@@ -39,11 +39,11 @@ from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError, ConfigurationError, DeviceNotFoundError, NackError
 from imuhal.core.samples import (
     AccelSample,
-    Channel,
     Frame,
     GyroSample,
     MagSample,
     PressureSample,
+    Quantity,
     Sample,
     TemperatureSample,
 )
@@ -57,8 +57,8 @@ MAX_DEVICES = 64
 UNIT_TO_SI = {"accel": 1.0, "anglvel": 1.0, "magn": 100.0, "pressure": 1000.0, "temp": 1e-3}
 """Kernel IIO unit -> pipeline unit, per channel type (see the module docstring)."""
 VECTOR_TYPES = ("accel", "anglvel", "magn")
-QUANTITY_OF = {"accel": Channel.ACCEL, "anglvel": Channel.GYRO, "magn": Channel.MAG,
-               "pressure": Channel.PRESSURE, "temp": Channel.TEMPERATURE}
+QUANTITY_OF = {"accel": Quantity.ACCEL, "anglvel": Quantity.GYRO, "magn": Quantity.MAG,
+               "pressure": Quantity.PRESSURE, "temp": Quantity.TEMPERATURE}
 """IIO channel type -> the quantity its samples carry."""
 _CHANNEL = re.compile(r"^in_(accel|anglvel|magn|pressure|temp)(?:_([xyz]))?_(raw|input)$")
 _SCAN_EN = re.compile(r"^(in_(?:accel|anglvel|magn|pressure|temp)(?:_[xyz])?|in_timestamp)_en$")
@@ -128,7 +128,8 @@ class IIODriver(Driver):
     description: ClassVar[str] = ("a chip bound to a Linux kernel IIO driver: accel, anglvel, "
                                   "magn, pressure, temp channels (bus kind iio)")
     Settings = IIODriverSettings
-    channels = (Channel.ACCEL, Channel.GYRO, Channel.MAG, Channel.PRESSURE, Channel.TEMPERATURE)
+    channels = (Quantity.ACCEL, Quantity.GYRO, Quantity.MAG, Quantity.PRESSURE,
+                Quantity.TEMPERATURE)
     bus_kinds = frozenset({BusKind.IIO})
 
     settings: IIODriverSettings

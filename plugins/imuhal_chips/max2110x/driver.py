@@ -24,7 +24,6 @@ from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackErro
 from imuhal.core.quantities import Quantity
 from imuhal.core.samples import (
     AccelSample,
-    Channel,
     Frame,
     GyroSample,
     Sample,
@@ -104,9 +103,9 @@ class Max2110xDriver(Driver):
     """Family base. Subclasses set ``name``, ``Settings`` and ``part``."""
 
     part: ClassVar[PartSpec]
-    channels = (Channel.GYRO, Channel.ACCEL, Channel.TEMPERATURE)
+    channels = (Quantity.GYRO, Quantity.ACCEL, Quantity.TEMPERATURE)
     bus_kinds = frozenset({BusKind.I2C, BusKind.SPI})
-    specified_offset: ClassVar[Mapping[Channel, float]] = {Channel.ACCEL: 0.060 * 9.80665}
+    specified_offset: ClassVar[Mapping[Quantity, float]] = {Quantity.ACCEL: 0.060 * 9.80665}
     """No MAX2110x datasheet was found: +-60 mg is assumed, the consumer-MEMS class of the
     MPU-9250's specified zero-g offset (and three times the emulator's assumed 20 mg spread)."""
     settings: Max2110xSettings
@@ -120,7 +119,7 @@ class Max2110xDriver(Driver):
         self.scales: Scales | None = None
         self._expected: dict[int, int] = {}
         self._power_on_ns = 0
-        self._fast: Channel = Channel.GYRO
+        self._fast: Quantity = Quantity.GYRO
         self._searching = False
         self._last_temp_ns: int | None = None
         self._grid = PollGrid(1, early_fraction=EARLY_FRACTION)
@@ -130,7 +129,8 @@ class Max2110xDriver(Driver):
         s = self.settings
         self._memory = FilterMemory(
             self.filter_memory_outputs(),
-            {Channel.GYRO: round(1e9 / s.gyro_odr_hz), Channel.ACCEL: round(1e9 / s.accel_odr_hz)})
+            {Quantity.GYRO: round(1e9 / s.gyro_odr_hz),
+             Quantity.ACCEL: round(1e9 / s.accel_odr_hz)})
         self._burst_frame = b""
         self._burst_length = 0
         """The status + data burst's address byte and length (set by configure())."""
@@ -221,7 +221,7 @@ class Max2110xDriver(Driver):
             gyro_lsb_per_dps=GYRO_RANGE_DPS[gyro_range_from_code(readback[Reg.GYRO_CFG1])][1],
             accel_lsb_per_g=ACCEL_RANGE_G[accel_range_from_code(readback[Reg.PWR_ACC_CFG])][1],
         )
-        periods = {Channel.GYRO: gyro.period_ns, Channel.ACCEL: accel.period_ns}
+        periods = {Quantity.GYRO: gyro.period_ns, Quantity.ACCEL: accel.period_ns}
         self._ready = DataReady(periods)
         self._fast = min(periods, key=lambda c: periods[c])
         self._grid = PollGrid(periods[self._fast], early_fraction=EARLY_FRACTION, track=True)
@@ -343,16 +343,16 @@ class Max2110xDriver(Driver):
         stale = False
         ready_of = self._ready
         if gyro_ready and not bad:
-            ready_of.fresh(Channel.GYRO, now_ns)
+            ready_of.fresh(Quantity.GYRO, now_ns)
             samples.append(self._gyro_sample((gx, gy, gz), now_ns, SampleFlag.OK))
-        elif ready_of.overdue(Channel.GYRO, now_ns) or (gyro_ready and bad):
+        elif ready_of.overdue(Quantity.GYRO, now_ns) or (gyro_ready and bad):
             stale = True
             flag = bad if gyro_ready else SampleFlag.STALE | bad
             samples.append(self._gyro_sample((gx, gy, gz), now_ns, flag))
         if accel_ready and not bad:
-            ready_of.fresh(Channel.ACCEL, now_ns)
+            ready_of.fresh(Quantity.ACCEL, now_ns)
             samples.append(self._accel_sample((ax, ay, az), now_ns, SampleFlag.OK))
-        elif ready_of.overdue(Channel.ACCEL, now_ns) or (accel_ready and bad):
+        elif ready_of.overdue(Quantity.ACCEL, now_ns) or (accel_ready and bad):
             stale = True
             flag = bad if accel_ready else SampleFlag.STALE | bad
             samples.append(self._accel_sample((ax, ay, az), now_ns, flag))
@@ -368,7 +368,7 @@ class Max2110xDriver(Driver):
                 return PollResult(samples, self.restart(reset_detected=False))
             return PollResult(samples, self._grid.next_after(now_ns))
         self._watch.fresh_poll()
-        fast_ready = gyro_ready if self._fast is Channel.GYRO else accel_ready
+        fast_ready = gyro_ready if self._fast is Quantity.GYRO else accel_ready
         if fast_ready and status & _OVERRUN:
             self._grid.anchor(now_ns - self._grid.period_ns // 2)
         elif fast_ready and self._searching:
@@ -379,7 +379,7 @@ class Max2110xDriver(Driver):
             return PollResult(samples, now_ns + self._grid.guard_ns)
         return PollResult(samples, self._grid.next_after(now_ns))
 
-    def accounted_stream(self) -> tuple[Channel, int] | None:
+    def accounted_stream(self) -> tuple[Quantity, int] | None:
         """The faster of gyro and accelerometer, one frame per its output period."""
         if self.scales is None:
             return None
@@ -396,14 +396,14 @@ class Max2110xDriver(Driver):
             return None
         return self._grid.next_after(max(now_ns, self.clock.now_ns()))
 
-    def filter_memory_outputs(self) -> dict[Channel, int]:
+    def filter_memory_outputs(self) -> dict[Quantity, int]:
         """Outputs after a saturated one that each channel's low-pass can still carry it:
         the gyro's bandwidth (GYRO_CFG1) and the accelerometer's cutoff, its ODR over the
         output-filter divisor (ACC_CFG1), on 16-bit words (``lowpass_memory_outputs``)."""
         s = self.settings
         return {
-            Channel.GYRO: lowpass_memory_outputs(s.gyro_lpf_hz, s.gyro_odr_hz, 16),
-            Channel.ACCEL: lowpass_memory_outputs(s.accel_odr_hz / s.accel_lpf_divisor,
+            Quantity.GYRO: lowpass_memory_outputs(s.gyro_lpf_hz, s.gyro_odr_hz, 16),
+            Quantity.ACCEL: lowpass_memory_outputs(s.accel_odr_hz / s.accel_lpf_divisor,
                                                   s.accel_odr_hz, 16),
         }
 
@@ -429,7 +429,7 @@ class Max2110xDriver(Driver):
             value = decode.gyro_counts_to_rad_s(counts, self.scales.gyro_lsb_per_dps)
             if decode.saturated(counts):
                 flags |= SampleFlag.SATURATED
-            flags |= self._memory.flag(Channel.GYRO, now_ns, flags)
+            flags |= self._memory.flag(Quantity.GYRO, now_ns, flags)
         return GyroSample.build(now_ns, self.device, flags, Frame.SENSOR, value)
 
     def _accel_sample(self, counts: Counts3, now_ns: int, flags: SampleFlag) -> Sample:
@@ -440,7 +440,7 @@ class Max2110xDriver(Driver):
             value = decode.accel_counts_to_m_s2(counts, self.scales.accel_lsb_per_g)
             if decode.saturated(counts):
                 flags |= SampleFlag.SATURATED
-            flags |= self._memory.flag(Channel.ACCEL, now_ns, flags)
+            flags |= self._memory.flag(Quantity.ACCEL, now_ns, flags)
         return AccelSample.build(now_ns, self.device, flags, Frame.SENSOR, value)
 
     def _config_lost(self) -> bool:

@@ -48,9 +48,8 @@ from typing import ClassVar
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError, NackError
-from imuhal.core.samples import Channel
-from imuhal.emulation.base import ChipEmulator, PhysicalInputs
-from imuhal.emulation.bus import EmulatedBus
+from imuhal.core.samples import Quantity
+from imuhal.emulation import ChipEmulator, EmulatedBus, PhysicalInputs
 from imuhal_chips.max2110x.error_spec import MAX21100_ERROR_SPEC, MAX21105_ERROR_SPEC
 from imuhal_chips.max2110x.registers import (
     ACC_CFG2_MAG_RATE_MASK,
@@ -113,7 +112,7 @@ _CONFIG_REGS = frozenset({Reg.POWER_CFG, Reg.GYRO_CFG1, Reg.GYRO_CFG2, Reg.PWR_A
 _GYRO, _ACCEL = 0, 1
 """Indexes of the two measurement channels in the per-channel lists (an Enum-keyed dict
 lookup costs more than the rest of a register access)."""
-_CHANNELS = (Channel.GYRO, Channel.ACCEL)
+_CHANNELS = (Quantity.GYRO, Quantity.ACCEL)
 _DATA_READY = ((_GYRO, _GYRO_WORDS, int(Status.GYRO_DR)),
                (_ACCEL, _ACCEL_WORDS, int(Status.ACC_DR)))
 """Per channel: its data registers and the data-ready bit reading them clears."""
@@ -224,19 +223,19 @@ class Max2110xEmulator(ChipEmulator):
     def _accel_lsb_per_g(self) -> float:
         return _ACCEL_LSB_PER_G_BY_CODE[self.bank0(Reg.PWR_ACC_CFG) >> 6 & 0x03]
 
-    def resolution(self, channel: Channel) -> float:
+    def resolution(self, channel: Quantity) -> float:
         """SI units per count for the current configuration."""
-        if channel is Channel.GYRO:
+        if channel is Quantity.GYRO:
             return math.radians(1.0) / self._gyro_lsb_per_dps()
-        if channel is Channel.ACCEL:
+        if channel is Quantity.ACCEL:
             return _G_M_S2 / self._accel_lsb_per_g()
-        if channel is Channel.TEMPERATURE:
+        if channel is Quantity.TEMPERATURE:
             return 1.0 / _TEMP_LSB_PER_DEGC
         raise ValueError(f"{self.chip} has no {channel.value} channel")
 
-    def full_scale(self, channel: Channel) -> float:
+    def full_scale(self, channel: Quantity) -> float:
         """Largest SI magnitude the chip reports before saturating (current configuration)."""
-        if channel is Channel.TEMPERATURE:
+        if channel is Quantity.TEMPERATURE:
             return 32767 / _TEMP_LSB_PER_DEGC
         return _COUNTS_AT_FULL_SCALE * self.resolution(channel)
 
@@ -268,42 +267,42 @@ class Max2110xEmulator(ChipEmulator):
 
     # --- timing ---------------------------------------------------------------------------
 
-    def _odr_hz(self, channel: Channel) -> float | None:
+    def _odr_hz(self, channel: Quantity) -> float | None:
         """The output data rate the configuration codes select (None: a reserved code)."""
-        if channel is Channel.GYRO:
+        if channel is Quantity.GYRO:
             table, code = self.gyro_odr_by_code, self.bank0(Reg.GYRO_CFG2) & 0x0F
         else:
             table, code = self.accel_odr_by_code, self.bank0(Reg.ACC_CFG1) & 0x0F
         return table[code] if code < len(table) else None
 
-    def noise_period_s(self, channel: Channel) -> float | None:
+    def noise_period_s(self, channel: Quantity) -> float | None:
         """1 / the ODR the configuration codes select (temperature: the gyro's). None: a
         reserved code, or the channel is powered down (it outputs nothing at any rate)."""
-        if channel is Channel.TEMPERATURE:
-            channel = Channel.GYRO
+        if channel is Quantity.TEMPERATURE:
+            channel = Quantity.GYRO
         if channel not in _CHANNELS or not self._active(channel):
             return None
         odr = self._odr_hz(channel)
         return 1.0 / odr if odr else None
 
-    def noise_bandwidth_hz(self, channel: Channel) -> float | None:
+    def noise_bandwidth_hz(self, channel: Quantity) -> float | None:
         """The low-pass filter's cutoff the configuration codes select: the gyro's
         bandwidth code (GYRO_CFG1[5:2]; temperature: the gyro's), the accelerometer's ODR
         over its output-filter divisor (ACC_CFG1[5:4]). None: powered down or a reserved
         rate code."""
-        if channel is Channel.TEMPERATURE:
-            channel = Channel.GYRO
+        if channel is Quantity.TEMPERATURE:
+            channel = Quantity.GYRO
         if channel not in _CHANNELS or not self._active(channel):
             return None
-        if channel is Channel.GYRO:
+        if channel is Quantity.GYRO:
             return _GYRO_BANDWIDTH_HZ_BY_CODE[(self.bank0(Reg.GYRO_CFG1) >> 2) & 0x0F]
         odr = self._odr_hz(channel)
         divisor = _ACCEL_LPF_ODR_DIVISOR_BY_CODE[(self.bank0(Reg.ACC_CFG1) >> 4) & 0b11]
         return odr / divisor if odr else None
 
-    def _active(self, channel: Channel) -> bool:
+    def _active(self, channel: Quantity) -> bool:
         mode = (self.bank0(Reg.POWER_CFG) >> POWER_MODE_SHIFT) & 0x0F
-        return mode in (GYRO_ON_MODES if channel is Channel.GYRO else ACCEL_ON_MODES)
+        return mode in (GYRO_ON_MODES if channel is Quantity.GYRO else ACCEL_ON_MODES)
 
     def _restart_timing(self) -> None:
         now = self.now_ns()

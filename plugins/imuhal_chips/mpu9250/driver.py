@@ -34,9 +34,9 @@ from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
 from imuhal.core.samples import (
     AccelSample,
-    Channel,
     Frame,
     GyroSample,
+    Quantity,
     Sample,
     SampleFlag,
     TemperatureSample,
@@ -140,10 +140,10 @@ class MPU9250Driver(Driver):
     description = ("InvenSense MPU-9250 accel+gyro+temperature, I2C 0x68/0x69 or SPI; "
                    "AK8963 magnetometer on its 'aux' bus")
     Settings = MPU9250Settings
-    channels: ClassVar[tuple[Channel, ...]] = (Channel.ACCEL, Channel.GYRO, Channel.TEMPERATURE)
+    channels: ClassVar[tuple[Quantity, ...]] = (Quantity.ACCEL, Quantity.GYRO, Quantity.TEMPERATURE)
     bus_kinds: ClassVar[frozenset[BusKind]] = frozenset({BusKind.I2C, BusKind.SPI})
-    specified_offset: ClassVar[Mapping[Channel, float]] = {
-        Channel.ACCEL: 0.060 * 9.80665}
+    specified_offset: ClassVar[Mapping[Quantity, float]] = {
+        Quantity.ACCEL: 0.060 * 9.80665}
     """Product specification: zero-g offset +-60 mg on X and Y (the axes that lie level in
     flight and decide the tilt; Z +-80 mg)."""
     child_bus_kinds: ClassVar[Mapping[str, BusKind]] = {"aux": BusKind.I2C}
@@ -199,12 +199,13 @@ class MPU9250Driver(Driver):
         self._expected = self._register_plan()
         self._burst_length = r.DATA_BURST_LENGTH
         self._grid = PollGrid(self._period_ns)
-        self._ready = DataReady({Channel.GYRO: self._period_ns})
+        self._ready = DataReady({Quantity.GYRO: self._period_ns})
         self._watch = ResetWatch(s.reset_check_s)
         self._frozen = FrozenWatch(self.FROZEN_AFTER_FRAMES)
         self._streams: tuple[StreamSpec, ...] = ()
         self._memory = FilterMemory(self.filter_memory_outputs(),
-                                    {Channel.GYRO: self._period_ns, Channel.ACCEL: self._period_ns})
+                                    {Quantity.GYRO: self._period_ns,
+                                     Quantity.ACCEL: self._period_ns})
 
     # -- identity ---------------------------------------------------------------------------
 
@@ -325,7 +326,7 @@ class MPU9250Driver(Driver):
         self._accel = _range_of(r.ACCEL_RANGES, got[r.ACCEL_CONFIG])
         self._period_ns = self._streams[0].period_ns
         self._grid = PollGrid(self._period_ns)
-        self._ready = DataReady({Channel.GYRO: self._period_ns})
+        self._ready = DataReady({Quantity.GYRO: self._period_ns})
 
     _CONFIG_REGISTERS = (r.SMPLRT_DIV, r.CONFIG, r.GYRO_CONFIG, r.ACCEL_CONFIG)
     """The registers the stream specs are read from."""
@@ -342,15 +343,15 @@ class MPU9250Driver(Driver):
         accel = _range_of(r.ACCEL_RANGES, regs[r.ACCEL_CONFIG])
         latency_s = 1.0 / (8 * rate_hz)  # the poll grid's guard after each sample
         return (
-            StreamSpec(self.device, Channel.GYRO, Frame.SENSOR, rate_hz,
+            StreamSpec(self.device, Quantity.GYRO, Frame.SENSOR, rate_hz,
                        scale=gyro_rad_s((1, 0, 0), gyro.lsb_per_unit)[0],
                        full_scale=abs(gyro_rad_s((-32768, 0, 0), gyro.lsb_per_unit)[0]),
                        latency_s=latency_s),
-            StreamSpec(self.device, Channel.ACCEL, Frame.SENSOR, rate_hz,
+            StreamSpec(self.device, Quantity.ACCEL, Frame.SENSOR, rate_hz,
                        scale=accel_m_s2((1, 0, 0), accel.lsb_per_unit)[0],
                        full_scale=abs(accel_m_s2((-32768, 0, 0), accel.lsb_per_unit)[0]),
                        latency_s=latency_s),
-            StreamSpec(self.device, Channel.TEMPERATURE, Frame.SENSOR, rate_hz,
+            StreamSpec(self.device, Quantity.TEMPERATURE, Frame.SENSOR, rate_hz,
                        scale=1.0 / r.TEMP_LSB_PER_DEGC, latency_s=latency_s),
         )
 
@@ -378,10 +379,10 @@ class MPU9250Driver(Driver):
     def _fifo_interval_ns(self) -> int:
         return self.settings.fifo_frames * self._period_ns
 
-    def accounted_stream(self) -> tuple[Channel, int] | None:
+    def accounted_stream(self) -> tuple[Quantity, int] | None:
         """Gyro frames (accel and temperature come in the same frame), one per sample
         period of SMPLRT_DIV and the DLPF."""
-        return Channel.GYRO, self._period_ns
+        return Quantity.GYRO, self._period_ns
 
     def child_buses(self) -> dict[str, Bus]:
         return {"aux": self._aux_bus} if self._aux_bus is not None else {}
@@ -393,14 +394,14 @@ class MPU9250Driver(Driver):
         return (pin_cfg != self._expected[r.INT_PIN_CFG]
                 or int_enable != self._expected[r.INT_ENABLE])
 
-    def filter_memory_outputs(self) -> dict[Channel, int]:
+    def filter_memory_outputs(self) -> dict[Quantity, int]:
         """Outputs after a saturated one that each channel's digital low-pass (DLPF_CFG,
         A_DLPFCFG) can still carry it, at the output rate, on 16-bit words
         (``lowpass_memory_outputs``): 9 at the GY-91's 41 Hz and 200 Hz."""
         s = self.settings
         rate_hz = 1e9 / self._period_ns
-        return {Channel.GYRO: lowpass_memory_outputs(s.gyro_lpf_hz, rate_hz, 16),
-                Channel.ACCEL: lowpass_memory_outputs(s.accel_lpf_hz, rate_hz, 16)}
+        return {Quantity.GYRO: lowpass_memory_outputs(s.gyro_lpf_hz, rate_hz, 16),
+                Quantity.ACCEL: lowpass_memory_outputs(s.accel_lpf_hz, rate_hz, 16)}
 
     def _frozen_flag(self, frame: bytes) -> SampleFlag:
         return self._frozen.observe("frame", frame)
@@ -419,7 +420,7 @@ class MPU9250Driver(Driver):
         return max(now_ns, self.clock.now_ns())
 
     def poll(self, now_ns: int) -> PollResult:
-        overdue = self._ready.overdue(Channel.GYRO, now_ns)
+        overdue = self._ready.overdue(Quantity.GYRO, now_ns)
         if self._watch.check_due(now_ns, overdue=overdue) and self._config_lost():
             return PollResult([], self.restart(reset_detected=True))
         if self._fifo is not None:
@@ -436,7 +437,7 @@ class MPU9250Driver(Driver):
             if self._feed is not None:
                 # one delivery per sample: one slave-0 read (or its kept copy after a NACK)
                 self._feed.deliver(now_ns, ext)
-            self._ready.fresh(Channel.GYRO, now_ns)
+            self._ready.fresh(Quantity.GYRO, now_ns)
             self._watch.fresh_poll()
             # Phase-lock on the chip: the next poll one period after data appeared.
             self._grid.anchor(now_ns)
@@ -481,7 +482,7 @@ class MPU9250Driver(Driver):
                 continue
             samples += self._samples(data, t_ns)
         if samples:
-            self._ready.fresh(Channel.GYRO, now_ns)
+            self._ready.fresh(Quantity.GYRO, now_ns)
             self._watch.fresh_poll()
             return PollResult(samples, next_ns)
         if not overdue:
@@ -495,8 +496,8 @@ class MPU9250Driver(Driver):
         temp = temperature_degc(raw.temperature)
         sat_a = SampleFlag.SATURATED if saturated(raw.accel) else SampleFlag.OK
         sat_g = SampleFlag.SATURATED if saturated(raw.gyro) else SampleFlag.OK
-        sat_a |= self._memory.flag(Channel.ACCEL, now_ns, sat_a)
-        sat_g |= self._memory.flag(Channel.GYRO, now_ns, sat_g)
+        sat_a |= self._memory.flag(Quantity.ACCEL, now_ns, sat_a)
+        sat_g |= self._memory.flag(Quantity.GYRO, now_ns, sat_g)
         return [
             AccelSample(t_ns=now_ns, device=self.device, flags=sat_a, accel_m_s2=accel),
             GyroSample(t_ns=now_ns, device=self.device, flags=sat_g, gyro_rad_s=gyro),

@@ -56,9 +56,8 @@ import struct
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError, NackError
-from imuhal.core.samples import Channel
-from imuhal.emulation.base import ChipEmulator
-from imuhal.emulation.bus import EmulatedBus
+from imuhal.core.samples import Quantity
+from imuhal.emulation import ChipEmulator, EmulatedBus
 from imuhal_chips.mpu9250 import registers as r
 from imuhal_chips.mpu9250.emulator_fifo import FifoModel, frame_of
 from imuhal_chips.mpu9250.error_spec import MPU9250_ERROR_SPEC
@@ -147,44 +146,44 @@ class MPU9250Emulator(ChipEmulator):
     def _accel_lsb_per_g(self) -> float:
         return _ACCEL_LSB_PER_G_BY_FS_SEL[(self._regs[r.ACCEL_CONFIG] >> 3) & 0b11]
 
-    def noise_period_s(self, channel: Channel) -> float | None:
+    def noise_period_s(self, channel: Quantity) -> float | None:
         """Accel, gyro and temperature are sampled together every :meth:`period_ns`;
         None while the chip sleeps (it outputs nothing at any rate)."""
         if self._regs[r.PWR_MGMT_1] & r.PWR1_SLEEP:
             return None
-        if channel in (Channel.ACCEL, Channel.GYRO, Channel.TEMPERATURE):
+        if channel in (Quantity.ACCEL, Quantity.GYRO, Quantity.TEMPERATURE):
             return self.period_ns() / 1e9
         return None
 
-    def noise_bandwidth_hz(self, channel: Channel) -> float | None:
+    def noise_bandwidth_hz(self, channel: Quantity) -> float | None:
         """The 3 dB bandwidth of the low-pass filter the register map gives for the gyro
         (Fchoice_b in GYRO_CONFIG, DLPF_CFG in CONFIG; temperature shares its path) and the
         accelerometer (accel_fchoice_b and A_DLPF_CFG in ACCEL_CONFIG2)."""
-        if channel in (Channel.GYRO, Channel.TEMPERATURE):
+        if channel in (Quantity.GYRO, Quantity.TEMPERATURE):
             fchoice_b = self._regs[r.GYRO_CONFIG] & 0b11
             if fchoice_b:
                 return _GYRO_BYPASS_BANDWIDTH_HZ[fchoice_b]
             return _GYRO_BANDWIDTH_HZ_BY_DLPF_CFG[self._regs[r.CONFIG] & 0b111]
-        if channel is Channel.ACCEL:
+        if channel is Quantity.ACCEL:
             cfg2 = self._regs[r.ACCEL_CONFIG2]
             if cfg2 & 0b1000:
                 return _ACCEL_BYPASS_BANDWIDTH_HZ
             return _ACCEL_BANDWIDTH_HZ_BY_A_DLPF_CFG[cfg2 & 0b111]
         return None
 
-    def resolution(self, channel: Channel) -> float:
+    def resolution(self, channel: Quantity) -> float:
         """One LSB in SI units at the current ranges."""
-        if channel is Channel.ACCEL:
+        if channel is Quantity.ACCEL:
             return _G_M_S2 / self._accel_lsb_per_g()
-        if channel is Channel.GYRO:
+        if channel is Quantity.GYRO:
             return math.radians(1.0) / self._gyro_lsb_per_dps()
-        if channel is Channel.TEMPERATURE:
+        if channel is Quantity.TEMPERATURE:
             return 1.0 / _TEMP_LSB_PER_DEGC
         raise ValueError(f"the MPU-9250 has no {channel.value} channel")
 
-    def full_scale(self, channel: Channel) -> float:
+    def full_scale(self, channel: Quantity) -> float:
         """The largest magnitude representable (32767 counts) in SI units."""
-        if channel is Channel.TEMPERATURE:
+        if channel is Quantity.TEMPERATURE:
             return 32767 / _TEMP_LSB_PER_DEGC + _TEMP_ROOM_DEGC
         return 32767 * self.resolution(channel)
 

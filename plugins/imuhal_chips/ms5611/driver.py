@@ -33,9 +33,9 @@ from imuhal.bus.base import BusKind, Link
 from imuhal.core.clock import Clock
 from imuhal.core.errors import DeviceNotFoundError, NackError
 from imuhal.core.samples import (
-    Channel,
     Frame,
     PressureSample,
+    Quantity,
     Sample,
     SampleFlag,
     TemperatureSample,
@@ -124,7 +124,7 @@ class MS5611Driver(Driver):
     name: ClassVar[str] = "ms5611"
     description: ClassVar[str] = "MEAS/TE MS5611-01BA03 barometric pressure sensor (Pa, degC)"
     Settings: ClassVar[type[DriverSettings]] = MS5611Settings
-    channels: ClassVar[tuple[Channel, ...]] = (Channel.PRESSURE, Channel.TEMPERATURE)
+    channels: ClassVar[tuple[Quantity, ...]] = (Quantity.PRESSURE, Quantity.TEMPERATURE)
     bus_kinds: ClassVar[frozenset[BusKind]] = frozenset({BusKind.I2C, BusKind.SPI})
 
     FROZEN_AFTER_FRAMES = 5
@@ -248,16 +248,16 @@ class MS5611Driver(Driver):
         rate_hz = 1e9 / self._period_ns
         latency_s = self._t_d1_ns * 1e-9
         return (
-            StreamSpec(self.device, Channel.PRESSURE, Frame.SENSOR, rate_hz, scale=1.0,
+            StreamSpec(self.device, Quantity.PRESSURE, Frame.SENSOR, rate_hz, scale=1.0,
                        latency_s=latency_s),
-            StreamSpec(self.device, Channel.TEMPERATURE, Frame.SENSOR,
+            StreamSpec(self.device, Quantity.TEMPERATURE, Frame.SENSOR,
                        rate_hz / self.settings.temperature_every, scale=0.01,
                        latency_s=latency_s),
         )
-    def accounted_stream(self) -> tuple[Channel, int] | None:
+    def accounted_stream(self) -> tuple[Quantity, int] | None:
         """One pressure conversion per cycle of the configured rate (the host starts each
         one: the cadence is the driver's, kept by its conversion schedule)."""
-        return Channel.PRESSURE, self._period_ns
+        return Quantity.PRESSURE, self._period_ns
 
     def resume(self, now_ns: int) -> int | None:
         """One transfer of a poll failed; carry on without a reset (which would lose the

@@ -31,8 +31,8 @@ from dataclasses import dataclass
 
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock
-from imuhal.core.samples import Channel
-from imuhal.emulation.base import ChipEmulator
+from imuhal.core.samples import Quantity
+from imuhal.emulation import ChipEmulator
 from imuhal_chips.ms5611.commands import (
     PROM_WORDS,
     Measurement,
@@ -113,27 +113,27 @@ class MS5611Emulator(ChipEmulator):
 
     # -- fault injection --------------------------------------------------------------------
 
-    def noise_period_s(self, channel: Channel) -> float | None:
+    def noise_period_s(self, channel: Quantity) -> float | None:
         """The conversion time of the OSR the latest D1 (pressure) / D2 (temperature)
         conversion used; None before the first, or for other channels."""
-        measurement = {Channel.PRESSURE: Measurement.D1,
-                       Channel.TEMPERATURE: Measurement.D2}.get(channel)
+        measurement = {Quantity.PRESSURE: Measurement.D1,
+                       Quantity.TEMPERATURE: Measurement.D2}.get(channel)
         osr = None if measurement is None else self._osr.get(measurement)
         return None if osr is None else _CONVERSION_NS[osr] / 1e9
 
-    def resolution(self, channel: Channel) -> float:
+    def resolution(self, channel: Quantity) -> float:
         """The compensated output's step: 1 Pa (0.01 mbar) and 0.01 degC."""
-        if channel is Channel.PRESSURE:
+        if channel is Quantity.PRESSURE:
             return 1.0
-        if channel is Channel.TEMPERATURE:
+        if channel is Quantity.TEMPERATURE:
             return 0.01
         raise ValueError(f"the MS5611 has no {channel.value} channel")
 
-    def full_scale(self, channel: Channel) -> float:
+    def full_scale(self, channel: Quantity) -> float:
         """Upper end of the datasheet range: 120000 Pa (1200 mbar), 85 degC."""
-        if channel is Channel.PRESSURE:
+        if channel is Quantity.PRESSURE:
             return 120_000.0
-        if channel is Channel.TEMPERATURE:
+        if channel is Quantity.TEMPERATURE:
             return 85.0
         raise ValueError(f"the MS5611 has no {channel.value} channel")
 

@@ -42,7 +42,6 @@ from imuhal.core.quantities import Quantity
 from imuhal.core.samples import (
     AccelSample,
     AirspeedSample,
-    Channel,
     Frame,
     GyroSample,
     MagSample,
@@ -143,7 +142,7 @@ RECOVERY_GAIN = 10.0
 the sine of the tilt error; Fusion's start-up gain): the tilt error then falls with a time
 constant of 0.1 s, growing to the filter's own as the gain decays."""
 _BODY_NED = Frame.BODY_NED
-_ACCEL, _MAG, _GYRO = Channel.ACCEL.value, Channel.MAG.value, Channel.GYRO.value
+_ACCEL, _MAG, _GYRO = Quantity.ACCEL.value, Quantity.MAG.value, Quantity.GYRO.value
 _INF = math.inf
 _MAX_FLOAT = sys.float_info.max
 TO_G = -1.0 / STANDARD_GRAVITY_M_S2
@@ -233,11 +232,11 @@ class AhrsEstimator(Estimator):
         self._last_gyro_t_ns: int | None = None
         self._counters: dict[str, Any] = {
             "steps": 0,
-            "invalid": {c.value: 0 for c in (Channel.GYRO, Channel.ACCEL, Channel.MAG)},
+            "invalid": {c.value: 0 for c in (Quantity.GYRO, Quantity.ACCEL, Quantity.MAG)},
             "dt_fallbacks": 0,
             "stale_accel": 0,
             "stale_mag": 0,
-            "beyond_full_scale": {Channel.GYRO.value: 0, Channel.ACCEL.value: 0},
+            "beyond_full_scale": {Quantity.GYRO.value: 0, Quantity.ACCEL.value: 0},
             "angular_rate_recovery": {"clipped_samples": 0, "recoveries": 0},
         }
         self._recovery_left_s = 0.0
@@ -473,11 +472,11 @@ class AhrsEstimator(Estimator):
         s = self.settings
         gyro = _vec(gyro_rad_s)
         if not within_full_scale(gyro, s.gyro_full_scale_rad_s):
-            self._counters["beyond_full_scale"][Channel.GYRO.value] += 1
+            self._counters["beyond_full_scale"][Quantity.GYRO.value] += 1
             return None
         accel = None if accel_m_s2 is None else _vec(accel_m_s2)
         if accel is not None and not within_full_scale(accel, s.accel_full_scale_m_s2):
-            self._counters["beyond_full_scale"][Channel.ACCEL.value] += 1
+            self._counters["beyond_full_scale"][Quantity.ACCEL.value] += 1
             accel = None
         mag = _vec(mag_ut) if (mag_ut is not None and self.uses_mag) else None
         if mag is not None and not within_full_scale(mag, None):

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from imuhal.core.frames import FloatArray
-from imuhal.core.samples import Channel, MagSample
+from imuhal.core.samples import MagSample, Quantity
 from imuhal.estimation.rows import ImuRows
 
 if TYPE_CHECKING:
@@ -71,7 +71,7 @@ def update_rows(est: AhrsEstimator, gyro: FloatArray, accel: FloatArray | None,
     n = gyro.shape[0]
     g_ok = _within(gyro, est._gyro_fs)
     bad = int(n - np.count_nonzero(g_ok))
-    _count(est, Channel.GYRO.value, bad)
+    _count(est, Quantity.GYRO.value, bad)
     # the common case, every gyro row valid, takes the arrays as they are (no copies)
     idx: np.ndarray | slice = slice(0, n) if not bad else np.flatnonzero(g_ok)
     g, step_dts = gyro[idx], dts[idx]
@@ -82,7 +82,7 @@ def update_rows(est: AhrsEstimator, gyro: FloatArray, accel: FloatArray | None,
         ok = _within(a, est._accel_fs)
         if not ok.all():
             present = ~np.isnan(a).any(axis=1)
-            _count(est, Channel.ACCEL.value, int(np.count_nonzero(present & ~ok)))
+            _count(est, Quantity.ACCEL.value, int(np.count_nonzero(present & ~ok)))
             a = np.where(ok[:, None], a, np.nan)
     if mag is not None and est.uses_mag:
         m = mag[idx]
@@ -110,15 +110,15 @@ def process_rows(est: AhrsEstimator, rows: ImuRows) -> StepRows:
     rownum = np.arange(n)
     g_ok = _within(rows.gyro_rad_s, est._gyro_fs)
     a_ok = _within(rows.accel_m_s2, est._accel_fs)
-    _count(est, Channel.ACCEL.value, int(n - np.count_nonzero(a_ok)))
+    _count(est, Quantity.ACCEL.value, int(n - np.count_nonzero(a_ok)))
     m_ok = np.zeros(n, dtype=bool)
     # the runner feeds magnetometer samples only to an estimator that consumes them
     fed_mag = rows.mag_ut is not None and issubclass(MagSample, tuple(est.consumes))
     if fed_mag:
         present = ~np.isnan(rows.mag_ut[:, 0])
         m_ok = present & np.isfinite(rows.mag_ut).all(axis=1)
-        _count(est, Channel.MAG.value, int(np.count_nonzero(present & ~m_ok)))
-    _count(est, Channel.GYRO.value, int(n - np.count_nonzero(g_ok)))
+        _count(est, Quantity.MAG.value, int(np.count_nonzero(present & ~m_ok)))
+    _count(est, Quantity.GYRO.value, int(n - np.count_nonzero(g_ok)))
     idx = np.flatnonzero(g_ok)
     t_step = t[idx]
     accel = _held(est, rows.accel_m_s2, a_ok, rownum, t, idx, t_step, "accel", "stale_accel")

@@ -21,14 +21,14 @@ from imuhal.calibrate.store import replace_device_calibration, rounded
 from imuhal.calibration.model import DeviceCalibration
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.core.atomic import atomic_write_text
-from imuhal.core.samples import Channel
+from imuhal.core.samples import Quantity
 from imuhal.emulation import calibrated_as_user
 from imuhal.emulation.user_calibration import missing_calibrations
 from imuhal.plugins.manager import Registry
 from imuhal.profile.loader import parse_profile
 from imuhal.profile.model import BoardProfile
 
-_WORDS = {Channel.ACCEL.value: "accelerometer", Channel.MAG.value: "magnetometer"}
+_WORDS = {Quantity.ACCEL.value: "accelerometer", Quantity.MAG.value: "magnetometer"}
 
 
 def tilt_from_offset_deg(offset_m_s2: float) -> float:
@@ -50,11 +50,11 @@ def missing_calibration_notes(profile: BoardProfile, registry: Registry,
             offset = declared.get(channel)
             head = f"device {device!r} ({driver}) has no {_WORDS[channel.value]} calibration"
             fix = f"measure it with `{command} {channel.value} PROFILE` (docs/calibration.md)"
-            if channel is Channel.ACCEL and offset is not None:
+            if channel is Quantity.ACCEL and offset is not None:
                 cost = (f"its offset (up to {offset / STANDARD_GRAVITY_M_S2 * 1e3:.0f} mg per "
                         f"axis for this chip) reads as a tilt of up to "
                         f"{tilt_from_offset_deg(offset):.1f} deg about each level axis")
-            elif channel is Channel.ACCEL:
+            elif channel is Quantity.ACCEL:
                 cost = "its offset (not specified by the driver) reads as a tilt"
             else:
                 size = "" if offset is None else \

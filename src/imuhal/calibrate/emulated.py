@@ -15,7 +15,7 @@ from collections.abc import Mapping
 
 from imuhal.calibrate.session import open_raw_pipeline, pick_device
 from imuhal.calibration.model import DeviceCalibration, GyroStartupSettings
-from imuhal.core.samples import Channel
+from imuhal.core.samples import Quantity
 from imuhal.emulation import user_calibration
 from imuhal.plugins.manager import Registry
 from imuhal.profile.model import BoardProfile
@@ -39,10 +39,10 @@ def measure_board_calibration(profile: BoardProfile, registry: Registry, *, seed
     board with ``seed``'s sensor errors, measured by imuhal's procedures on the board flying
     the ``calibration`` scenario (imuhal.emulation.user_calibration). The board must have
     one device of each."""
-    accel_dev = pick_device(profile, registry, Channel.ACCEL)
-    mag_dev = pick_device(profile, registry, Channel.MAG)
-    channels = {accel_dev: (Channel.ACCEL,)}
-    channels[mag_dev] = (*channels.get(mag_dev, ()), Channel.MAG)
+    accel_dev = pick_device(profile, registry, Quantity.ACCEL)
+    mag_dev = pick_device(profile, registry, Quantity.MAG)
+    channels = {accel_dev: (Quantity.ACCEL,)}
+    channels[mag_dev] = (*channels.get(mag_dev, ()), Quantity.MAG)
     raw = with_calibration(profile, {})
     duration_s = registry.scenarios.get(user_calibration.CALIBRATION_SCENARIO).default_duration_s
     with open_raw_pipeline(raw, registry, emulate=user_calibration.CALIBRATION_SCENARIO,
@@ -54,4 +54,4 @@ def calibrated_board(profile: BoardProfile, registry: Registry, *, seed: int) ->
     """``profile`` with the accelerometer and magnetometer records measured on its emulated
     board (``seed``) and the gyro offsets measured at every power-up, as the seed asks."""
     return with_calibration(profile, measure_board_calibration(profile, registry, seed=seed),
-                            gyro_startup=pick_device(profile, registry, Channel.GYRO))
+                            gyro_startup=pick_device(profile, registry, Quantity.GYRO))

@@ -13,7 +13,7 @@ from typing import Any, TypeVar
 from imuhal.calibration.errors import CalibrationError
 from imuhal.calibration.guidance import describe_position, guided_order
 from imuhal.calibration.procedure import Procedure
-from imuhal.core.samples import Channel, Sample
+from imuhal.core.samples import Quantity, Sample
 from imuhal.emulation.open import open_emulated
 from imuhal.pipeline.pipeline import Pipeline
 from imuhal.plugins.manager import Registry
@@ -26,7 +26,7 @@ __all__ = ["describe_position", "devices_with", "guided_order", "open_raw_pipeli
 R = TypeVar("R")
 
 
-def devices_with(profile: BoardProfile, registry: Registry, channel: Channel) -> list[str]:
+def devices_with(profile: BoardProfile, registry: Registry, channel: Quantity) -> list[str]:
     """Enabled devices whose driver provides ``channel``, in profile order."""
     out = []
     for name, cfg in profile.devices.items():
@@ -36,7 +36,7 @@ def devices_with(profile: BoardProfile, registry: Registry, channel: Channel) ->
     return out
 
 
-def pick_device(profile: BoardProfile, registry: Registry, channel: Channel,
+def pick_device(profile: BoardProfile, registry: Registry, channel: Quantity,
                 name: str | None = None) -> str:
     """The device to calibrate: ``name``, or the only one with ``channel``."""
     found = devices_with(profile, registry, channel)

@@ -34,11 +34,11 @@ from imuhal.cli import args as types
 from imuhal.core.atomic import check_outputs, check_writable, resolve_target
 from imuhal.core.errors import ImuhalError
 from imuhal.core.frames import parse_mount
-from imuhal.core.samples import Channel, VectorSample
+from imuhal.core.samples import Quantity, VectorSample
 from imuhal.offline.settings_args import build_settings, parse_set_arguments
 from imuhal.plugins.manager import Registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import bundled_profiles
 from imuhal.sim.errors import SensorErrorSpec, error_spec_of, noise_only
 
 DEG = math.pi / 180.0
@@ -46,7 +46,7 @@ MG = 9.80665e-3
 TIMEOUTS_S = {"gyro": 60.0, "accel": 300.0, "mag": 180.0}
 MAX_FIELD_UT = 1000.0
 """Largest --field accepted: the Earth's field is 25-65 uT; beyond this it is a typo."""
-CHANNELS = {"gyro": Channel.GYRO, "accel": Channel.ACCEL, "mag": Channel.MAG}
+CHANNELS = {"gyro": Quantity.GYRO, "accel": Quantity.ACCEL, "mag": Quantity.MAG}
 
 
 def add_parser(sub: Any) -> None:

@@ -22,12 +22,12 @@ from typing import TYPE_CHECKING, Any
 from imuhal.cli import args as types
 from imuhal.core.errors import ImuhalError
 from imuhal.core.frames import MountError, parse_mount
-from imuhal.core.samples import Channel
+from imuhal.core.samples import Quantity
 from imuhal.live.mounts import MOTIONS, Motion, MotionRecorder, Verdict, check, suggest_mount
 from imuhal.plugins.manager import Registry
+from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile
 from imuhal.profile.topology import chip_to_body_rotations
-from imuhal.profiles_dir import default_profile_path
 
 if TYPE_CHECKING:
     from imuhal.pipeline import Pipeline
@@ -219,7 +219,7 @@ def _report(verdicts: dict[str, list[Verdict]], profile: Any) -> int:
 def _suggest(device: str, verdicts: dict[str, list[Verdict]], profile: Any) -> None:
     """Print the mount that explains what ``device``'s gyro saw, when it has one."""
     seen = {key: v.rotation_deg for key, vs in verdicts.items() for v in vs
-            if v.device == device and v.channel is Channel.GYRO}
+            if v.device == device and v.channel is Quantity.GYRO}
     mount = suggest_mount(chip_to_body_rotations(profile)[device],
                           parse_mount(profile.board_to_body), seen)
     if mount is not None:

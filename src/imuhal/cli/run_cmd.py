@@ -30,8 +30,8 @@ from imuhal.core.errors import ImuhalError
 from imuhal.live import LiveView, parse_bind
 from imuhal.offline.settings_args import build_settings, parse_set_arguments
 from imuhal.plugins.manager import Registry
+from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import default_profile_path
 
 """The scenario that flies a recorded truth file (imuhal.sim.recorded)."""
 

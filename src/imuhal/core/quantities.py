@@ -1,10 +1,9 @@
 """Physical quantities as descriptors: a name, an SI unit and a shape.
 
 A quantity is what a sample measures. imuhal's own are the class attributes of
-:class:`Quantity` (``Quantity.ACCEL`` ...; ``Channel`` is the same class under its older
-name). A plugin adds one without touching core: it creates a ``Quantity``, a sample class
-whose ``channel`` is it, and registers that sample class through the
-``imuhal_register_quantities`` hook (docs/writing-a-driver.md).
+:class:`Quantity` (``Quantity.ACCEL`` ...). A plugin adds one without touching core: it
+creates a ``Quantity``, a sample class whose ``channel`` is it, and registers that sample
+class through the ``imuhal_register_quantities`` hook (docs/writing-a-driver.md).
 """
 
 from __future__ import annotations
@@ -44,7 +43,7 @@ class Quantity:
 
     @property
     def value(self) -> str:
-        """The name (what the value of the former ``Channel`` enum was)."""
+        """The name (``"accel"``, ...)."""
         return self.name
 
     @property
@@ -78,5 +77,3 @@ Quantity.POSITION = Quantity(
     "position", "deg, deg, m", (3,),
     "Geodetic position: latitude and longitude in degrees (WGS-84), height in m; three "
     "values, not a vector in a frame (no mount rotation applies).")
-Channel = Quantity
-"""The former name of :class:`Quantity` (``Channel.ACCEL`` is ``Quantity.ACCEL``)."""

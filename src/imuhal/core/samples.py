@@ -13,7 +13,7 @@ from dataclasses import dataclass, field, replace
 from enum import Enum, IntEnum, IntFlag
 from typing import ClassVar, Self, TypeAlias
 
-from imuhal.core.quantities import Channel, Quantity
+from imuhal.core.quantities import Quantity
 
 Vec3: TypeAlias = tuple[float, float, float]
 
@@ -124,7 +124,7 @@ class AccelSample(VectorSample):
     """Specific force in m/s^2 (not gravity-positive: level at rest is (0, 0, -9.81) NED)."""
 
     accel_m_s2: Vec3 = field(default=(0.0, 0.0, 0.0))
-    channel: ClassVar[Channel] = Channel.ACCEL
+    channel: ClassVar[Quantity] = Quantity.ACCEL
 
     @property
     def vector(self) -> Vec3:
@@ -140,7 +140,7 @@ class GyroSample(VectorSample):
     """Angular rate in rad/s."""
 
     gyro_rad_s: Vec3 = field(default=(0.0, 0.0, 0.0))
-    channel: ClassVar[Channel] = Channel.GYRO
+    channel: ClassVar[Quantity] = Quantity.GYRO
 
     @property
     def vector(self) -> Vec3:
@@ -156,7 +156,7 @@ class MagSample(VectorSample):
     """Magnetic flux density in uT."""
 
     mag_ut: Vec3 = field(default=(0.0, 0.0, 0.0))
-    channel: ClassVar[Channel] = Channel.MAG
+    channel: ClassVar[Quantity] = Quantity.MAG
 
     @property
     def vector(self) -> Vec3:
@@ -172,7 +172,7 @@ class PressureSample(ScalarSample):
     """Static pressure in Pa."""
 
     pressure_pa: float = 0.0
-    channel: ClassVar[Channel] = Channel.PRESSURE
+    channel: ClassVar[Quantity] = Quantity.PRESSURE
 
     @property
     def scalar(self) -> float:
@@ -184,7 +184,7 @@ class TemperatureSample(ScalarSample):
     """Die temperature in degC."""
 
     temperature_degc: float = 0.0
-    channel: ClassVar[Channel] = Channel.TEMPERATURE
+    channel: ClassVar[Quantity] = Quantity.TEMPERATURE
 
     @property
     def scalar(self) -> float:
@@ -203,7 +203,7 @@ class VelocitySample(Sample):
 
     velocity_ned_m_s: Vec3 = field(default=(0.0, 0.0, 0.0))
     accuracy_m_s: float | None = None
-    channel: ClassVar[Channel] = Channel.VELOCITY
+    channel: ClassVar[Quantity] = Quantity.VELOCITY
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -212,7 +212,7 @@ class AirspeedSample(ScalarSample):
 
     airspeed_m_s: float = 0.0
     accuracy_m_s: float | None = None
-    channel: ClassVar[Channel] = Channel.AIRSPEED
+    channel: ClassVar[Quantity] = Quantity.AIRSPEED
 
     @property
     def scalar(self) -> float:
@@ -261,7 +261,7 @@ class PositionSample(Sample):
     satellites: int = 0
     utc_s: float | None = None
     """The epoch in UTC as the receiver stamped it (s since 1970-01-01; None: unknown)."""
-    channel: ClassVar[Channel] = Channel.POSITION
+    channel: ClassVar[Quantity] = Quantity.POSITION
 
 
 # Slot setters for the ``build`` fast paths (a frozen class forbids plain assignment).
@@ -275,15 +275,15 @@ GyroSample._set_vector = GyroSample.gyro_rad_s.__set__  # type: ignore[attr-defi
 MagSample._set_vector = MagSample.mag_ut.__set__  # type: ignore[attr-defined]
 
 
-SAMPLE_TYPES: dict[Channel, type[Sample]] = {
-    Channel.ACCEL: AccelSample,
-    Channel.GYRO: GyroSample,
-    Channel.MAG: MagSample,
-    Channel.PRESSURE: PressureSample,
-    Channel.TEMPERATURE: TemperatureSample,
-    Channel.VELOCITY: VelocitySample,
-    Channel.AIRSPEED: AirspeedSample,
-    Channel.POSITION: PositionSample,
+SAMPLE_TYPES: dict[Quantity, type[Sample]] = {
+    Quantity.ACCEL: AccelSample,
+    Quantity.GYRO: GyroSample,
+    Quantity.MAG: MagSample,
+    Quantity.PRESSURE: PressureSample,
+    Quantity.TEMPERATURE: TemperatureSample,
+    Quantity.VELOCITY: VelocitySample,
+    Quantity.AIRSPEED: AirspeedSample,
+    Quantity.POSITION: PositionSample,
 }
 """imuhal's own quantities and their sample classes (always in ``Registry.quantities``;
 plugins add theirs through ``imuhal_register_quantities``)."""

@@ -18,7 +18,7 @@ from pydantic import BaseModel, ConfigDict, model_validator
 from imuhal.bus.base import Bus, BusKind, Link
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ImuhalDeprecationWarning
-from imuhal.core.samples import Channel, Sample
+from imuhal.core.samples import Quantity, Sample
 from imuhal.core.streams import StreamSpec
 from imuhal.drivers.settings import literal_choices
 
@@ -107,7 +107,7 @@ class Driver(ABC):
     name: ClassVar[str]
     description: ClassVar[str] = ""
     Settings: ClassVar[type[DriverSettings]]
-    channels: ClassVar[tuple[Channel, ...]]
+    channels: ClassVar[tuple[Quantity, ...]]
     bus_kinds: ClassVar[frozenset[BusKind]]
     child_bus_kinds: ClassVar[Mapping[str, BusKind]] = {}
     """The buses ``child_buses()`` provides, by local name, and their kind (any kind: an I2C
@@ -126,7 +126,7 @@ class Driver(ABC):
         return frozenset(cls.child_bus_features.get(child, ()))
     calibration_version: ClassVar[int] = 1
     """Bumped when a change to decoding would invalidate stored user calibration."""
-    specified_offset: ClassVar[Mapping[Channel, float]] = {}
+    specified_offset: ClassVar[Mapping[Quantity, float]] = {}
     """The largest offset per axis an uncalibrated part may read, by channel, in the
     channel's unit (accelerometer m/s^2, magnetometer uT), as the chip's datasheet (or the
     driver, when none is published) specifies it: what ``imuhal run`` quotes when a device
@@ -211,20 +211,20 @@ class Driver(ABC):
         default, for a driver that keeps no register state, returns ``streams()``."""
         return self.streams()
 
-    def stream(self, channel: Channel) -> StreamSpec | None:
+    def stream(self, channel: Quantity) -> StreamSpec | None:
         """The spec of the stream carrying ``channel``, or None."""
         for spec in self.streams():
             if spec.quantity == channel:
                 return spec
         return None
 
-    def accounted_stream(self) -> tuple[Channel, int] | None:
+    def accounted_stream(self) -> tuple[Quantity, int] | None:
         """The channel whose frames the pipeline counts (produced, delivered, lost by cause:
         imuhal.pipeline.accounting) and the chip's frame period on it (ns) in the current
         configuration; None: not accounted (a chip without a fixed output period)."""
         return None
 
-    def full_scale(self, channel: Channel) -> float | None:
+    def full_scale(self, channel: Quantity) -> float | None:
         """The largest magnitude (SI) a correct ``channel`` value can have in the current
         configuration: the stream spec's ``full_scale`` (one source of truth). The pipeline
         flags anything beyond it OUT_OF_RANGE. None: not declared (only NaN/inf are then

@@ -18,7 +18,7 @@ from imuhal.bus.spy import Transfer
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import ImuhalError
 from imuhal.core.frames import MountError, parse_mount
-from imuhal.core.samples import Channel
+from imuhal.core.samples import Quantity
 from imuhal.emulation import user_calibration
 from imuhal.emulation.board import EmulatedBoard
 from imuhal.emulation.mounting import chip_rotations
@@ -98,7 +98,7 @@ def calibrated_as_user(
     profile: BoardProfile, registry: Registry, *, seed: int | None = None,
     sensor_errors: bool | None = None,
     error_specs: Mapping[str, SensorErrorSpec | None] | None = None,
-) -> tuple[BoardProfile, dict[str, tuple[Channel, ...]]]:
+) -> tuple[BoardProfile, dict[str, tuple[Quantity, ...]]]:
     """``profile`` after its user followed docs/calibration.md on the emulated board: the
     accelerometer and magnetometer records it lacks (stored ones are kept) measured by
     imuhal's procedures while the board, with ``seed``'s sensor errors (default: the

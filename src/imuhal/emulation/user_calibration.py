@@ -19,7 +19,7 @@ from imuhal.calibration.guidance import guided_order
 from imuhal.calibration.mag import MagCalibrationProcedure, MagSettings
 from imuhal.calibration.model import DeviceCalibration
 from imuhal.calibration.procedure import Procedure
-from imuhal.core.samples import Channel, Sample
+from imuhal.core.samples import Quantity, Sample
 from imuhal.pipeline.pipeline import Pipeline
 from imuhal.plugins.manager import Registry
 from imuhal.profile.model import BoardProfile
@@ -28,7 +28,7 @@ from imuhal.profile.topology import chip_to_body_rotations, device_order
 CALIBRATION_SCENARIO = "calibration"
 """The scenario the procedures fly: six held positions, then a figure of 8."""
 
-USER_CALIBRATED = (Channel.ACCEL, Channel.MAG)
+USER_CALIBRATED = (Quantity.ACCEL, Quantity.MAG)
 """The channels a user calibrates once with a procedure (the gyro's offsets are measured at
 every power-up by the bundled profiles, ``gyro_at_startup``)."""
 
@@ -43,11 +43,11 @@ def with_calibration(profile: BoardProfile, calibrations: Mapping[str, DeviceCal
 
 
 def missing_calibrations(profile: BoardProfile, registry: Registry
-                         ) -> dict[str, tuple[Channel, ...]]:
+                         ) -> dict[str, tuple[Quantity, ...]]:
     """The accelerometer and magnetometer channels of each enabled device that the profile
     stores no record for, by device (profile order); devices missing none are left out. A
     magnetometer that learns its hard iron in flight (``mag_in_flight``) is not missing."""
-    out: dict[str, tuple[Channel, ...]] = {}
+    out: dict[str, tuple[Quantity, ...]] = {}
     for name in device_order(profile):
         cfg = profile.devices[name]
         reg = registry.drivers.entries.get(cfg.driver)
@@ -57,27 +57,27 @@ def missing_calibrations(profile: BoardProfile, registry: Registry
         learned = cal is not None and cal.mag_in_flight is not None and cal.mag_in_flight.enabled
         missing = tuple(ch for ch in USER_CALIBRATED if ch in reg.obj.channels
                         and (cal is None or getattr(cal, ch.value) is None)
-                        and not (ch is Channel.MAG and learned))
+                        and not (ch is Quantity.MAG and learned))
         if missing:
             out[name] = missing
     return out
 
 
 def measure_calibrations(pipeline: Pipeline, profile: BoardProfile,
-                         channels: Mapping[str, tuple[Channel, ...]], duration_s: float,
+                         channels: Mapping[str, tuple[Quantity, ...]], duration_s: float,
                          ) -> dict[str, DeviceCalibration]:
     """Records for ``channels`` (device -> accel and/or mag), measured by imuhal's procedures
     (accelerometer six positions in the order a person handles the board, magnetometer
     ellipsoid) on the raw samples of ``pipeline`` (opened with ``calibrated=False`` over
     ``profile``'s board flying the calibration scenario) within ``duration_s``."""
     rotations = chip_to_body_rotations(profile)
-    procedures: dict[tuple[str, Channel], Procedure[Any]] = {}
+    procedures: dict[tuple[str, Quantity], Procedure[Any]] = {}
     for device, chans in channels.items():
-        if Channel.ACCEL in chans:
-            procedures[device, Channel.ACCEL] = AccelSixPosition(
+        if Quantity.ACCEL in chans:
+            procedures[device, Quantity.ACCEL] = AccelSixPosition(
                 AccelSixSettings(positions=guided_order(rotations[device])), device=device)
-        if Channel.MAG in chans:
-            procedures[device, Channel.MAG] = MagCalibrationProcedure(MagSettings(),
+        if Quantity.MAG in chans:
+            procedures[device, Quantity.MAG] = MagCalibrationProcedure(MagSettings(),
                                                                       device=device)
     if not procedures:
         return {}

@@ -34,10 +34,10 @@ from imuhal.core.conventions import (
 )
 from imuhal.core.samples import (
     AccelSample,
-    Channel,
     Frame,
     GyroSample,
     MagSample,
+    Quantity,
     Sample,
     SampleFlag,
     Vec3,
@@ -45,13 +45,13 @@ from imuhal.core.samples import (
 )
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate
 
-_KIND = {Channel.ACCEL: VectorKind.SPECIFIC_FORCE, Channel.GYRO: VectorKind.ANGULAR_RATE,
-         Channel.MAG: VectorKind.MAGNETIC_FIELD}
+_KIND = {Quantity.ACCEL: VectorKind.SPECIFIC_FORCE, Quantity.GYRO: VectorKind.ANGULAR_RATE,
+         Quantity.MAG: VectorKind.MAGNETIC_FIELD}
 
 VECTOR_COLUMNS = {
-    Channel.ACCEL: ("ax_m_s2", "ay_m_s2", "az_m_s2"),
-    Channel.GYRO: ("gx_rad_s", "gy_rad_s", "gz_rad_s"),
-    Channel.MAG: ("mx_ut", "my_ut", "mz_ut"),
+    Quantity.ACCEL: ("ax_m_s2", "ay_m_s2", "az_m_s2"),
+    Quantity.GYRO: ("gx_rad_s", "gy_rad_s", "gz_rad_s"),
+    Quantity.MAG: ("mx_ut", "my_ut", "mz_ut"),
 }
 """Body-frame sample columns in ``ned`` (other conventions add their suffix)."""
 
@@ -66,7 +66,7 @@ def frame_suffix(frame: str | Convention) -> str:
     return "" if c is NED else f"_{c.name}"
 
 
-def vector_columns(channel: Channel, frame: str | Convention) -> tuple[str, str, str]:
+def vector_columns(channel: Quantity, frame: str | Convention) -> tuple[str, str, str]:
     """Column names of a body-frame sample vector in ``frame``."""
     sfx = frame_suffix(frame)
     x, y, z = VECTOR_COLUMNS[channel]
@@ -101,7 +101,7 @@ class FramedSample:
         return self.sample.t_ns
 
     @property
-    def channel(self) -> Channel:
+    def channel(self) -> Quantity:
         return self.sample.channel
 
     @property
@@ -192,19 +192,19 @@ def express(event: Sample | Estimate, frame: str | Convention) -> FramedEvent:
     return event
 
 
-def sample_from_frame(channel: Channel, vector: Vec3 | np.ndarray, frame: str | Convention, *,
+def sample_from_frame(channel: Quantity, vector: Vec3 | np.ndarray, frame: str | Convention, *,
                       t_ns: int, device: str,
                       flags: SampleFlag = SampleFlag.OK) -> VectorSample:
     """The body-NED sample (specific force for the accelerometer) of a reading given in the
     body axes and sign of ``frame``: what a program feeding imuhal from ROS, a phone or a
     dataset calls at its input edge."""
     v = _vec3(vector_to_ned(vector, frame, _KIND[channel]))
-    if channel is Channel.ACCEL:
+    if channel is Quantity.ACCEL:
         return AccelSample(t_ns=t_ns, device=device, frame=Frame.BODY_NED, flags=flags,
                            accel_m_s2=v)
-    if channel is Channel.GYRO:
+    if channel is Quantity.GYRO:
         return GyroSample(t_ns=t_ns, device=device, frame=Frame.BODY_NED, flags=flags,
                           gyro_rad_s=v)
-    if channel is Channel.MAG:
+    if channel is Quantity.MAG:
         return MagSample(t_ns=t_ns, device=device, frame=Frame.BODY_NED, flags=flags, mag_ut=v)
     raise ValueError(f"{channel.value} samples have no axes; build them directly")

@@ -13,14 +13,14 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 
-from imuhal.core.samples import Channel, Sample
+from imuhal.core.samples import Quantity, Sample
 
-FUSION_RANK: dict[Channel, int] = {
-    Channel.ACCEL: 0,
-    Channel.MAG: 1,
-    Channel.PRESSURE: 2,
-    Channel.TEMPERATURE: 3,
-    Channel.GYRO: 4,
+FUSION_RANK: dict[Quantity, int] = {
+    Quantity.ACCEL: 0,
+    Quantity.MAG: 1,
+    Quantity.PRESSURE: 2,
+    Quantity.TEMPERATURE: 3,
+    Quantity.GYRO: 4,
 }
 """Position of each quantity among the samples of one instant (gyro last)."""
 

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from imuhal.core.samples import Channel, Vec3, VectorSample
+from imuhal.core.samples import Quantity, Vec3, VectorSample
 from imuhal.sinks.base import Event
 
 MIN_MOTION_DEG = 10.0
@@ -41,7 +41,7 @@ ENDS_S = 0.25
 """An accelerometer or magnetometer vector is averaged over this long at each end of the
 motion (s), against noise."""
 
-CHECKED_CHANNELS = (Channel.GYRO, Channel.ACCEL, Channel.MAG)
+CHECKED_CHANNELS = (Quantity.GYRO, Quantity.ACCEL, Quantity.MAG)
 
 
 @dataclass(frozen=True)
@@ -88,7 +88,7 @@ class Evidence:
     start), None for a gyro (which sees every axis)."""
 
     device: str
-    channel: Channel
+    channel: Quantity
     rotation_deg: Vec3
     reference: Vec3 | None = None
 
@@ -99,7 +99,7 @@ class Verdict:
     (no clear motion, or a motion it cannot see)."""
 
     device: str
-    channel: Channel
+    channel: Quantity
     motion: str
     ok: bool | None
     seen: str
@@ -178,8 +178,8 @@ class MotionRecorder:
         self.recording = False
         self._gyro: dict[str, list[float]] = {}
         self._gyro_t: dict[str, int] = {}
-        self._first: dict[tuple[str, Channel], list[VectorSample]] = {}
-        self._last: dict[tuple[str, Channel], deque[VectorSample]] = {}
+        self._first: dict[tuple[str, Quantity], list[VectorSample]] = {}
+        self._last: dict[tuple[str, Quantity], deque[VectorSample]] = {}
 
     def start(self) -> None:
         self.recording = True
@@ -192,7 +192,7 @@ class MotionRecorder:
         if not self.recording or not isinstance(event, VectorSample) or not event.valid:
             return
         channel = event.channel
-        if channel is Channel.GYRO:
+        if channel is Quantity.GYRO:
             last = self._gyro_t.get(event.device)
             total = self._gyro.setdefault(event.device, [0.0, 0.0, 0.0])
             if last is not None and event.t_ns > last:
@@ -201,7 +201,7 @@ class MotionRecorder:
                 for i in range(3):
                     total[i] += w[i] * dt
             self._gyro_t[event.device] = event.t_ns
-        elif channel in (Channel.ACCEL, Channel.MAG):
+        elif channel in (Quantity.ACCEL, Quantity.MAG):
             key = (event.device, channel)
             first = self._first.setdefault(key, [])
             if not first or event.t_ns - first[0].t_ns <= ENDS_S * 1e9:
@@ -214,7 +214,7 @@ class MotionRecorder:
     def evidence(self) -> list[Evidence]:
         """What each sensor saw since ``start()`` (recording stops)."""
         self.recording = False
-        out = [Evidence(dev, Channel.GYRO, (math.degrees(r[0]), math.degrees(r[1]),
+        out = [Evidence(dev, Quantity.GYRO, (math.degrees(r[0]), math.degrees(r[1]),
                                             math.degrees(r[2])))
                for dev, r in self._gyro.items()]
         for key, first in self._first.items():
@@ -242,8 +242,8 @@ def mean_vector(vectors: Sequence[Sequence[float]]) -> Vec3:
             sum(v[2] for v in vectors) / n)
 
 
-def _vector_name(channel: Channel) -> str:
-    return "gravity" if channel is Channel.ACCEL else "magnetic field"
+def _vector_name(channel: Quantity) -> str:
+    return "gravity" if channel is Quantity.ACCEL else "magnetic field"
 
 
 def _dot(a: Sequence[float], b: Sequence[float]) -> float:

@@ -14,11 +14,11 @@ import time
 from collections import Counter
 from dataclasses import dataclass, field
 
-from imuhal.core.samples import Channel, Frame, Sample, SampleFlag
+from imuhal.core.samples import Frame, Quantity, Sample, SampleFlag
 from imuhal.estimation.outputs import AttitudeEstimate, VerticalEstimate
 from imuhal.sinks.base import Event
 
-_GYRO = Channel.GYRO
+_GYRO = Quantity.GYRO
 _BODY_NED = Frame.BODY_NED  # module constants: an enum member looked up per event costs
 
 
@@ -27,9 +27,9 @@ class DeviceState:
     """What the live view knows about one device: latest sample per channel (valid or not),
     latest valid one, counts, flags by kind, and its integrated body rotation (rad)."""
 
-    latest: dict[Channel, Sample] = field(default_factory=dict)
-    latest_valid: dict[Channel, Sample] = field(default_factory=dict)
-    counts: dict[Channel, int] = field(default_factory=dict)
+    latest: dict[Quantity, Sample] = field(default_factory=dict)
+    latest_valid: dict[Quantity, Sample] = field(default_factory=dict)
+    counts: dict[Quantity, int] = field(default_factory=dict)
     flagged: Counter[str] = field(default_factory=Counter)
     rotation_rad: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
     last_gyro_ns: int | None = None

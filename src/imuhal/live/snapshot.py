@@ -21,7 +21,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from imuhal.core.samples import Channel, Sample, ScalarSample, VectorSample
+from imuhal.core.samples import Quantity, Sample, ScalarSample, VectorSample
 from imuhal.live.mounts import MOTIONS, Evidence, judge, mean_vector, rotation_between
 from imuhal.live.sink import Copy, LiveSink
 from imuhal.pipeline import Pipeline
@@ -73,9 +73,9 @@ def configured_rates_hz(pipeline: Pipeline, device: str) -> dict[str, float]:
 @dataclass
 class _Past:
     t_ns: int
-    counts: dict[str, dict[Channel, int]]
+    counts: dict[str, dict[Quantity, int]]
     rotation: dict[str, tuple[float, float, float]]
-    vectors: dict[tuple[str, Channel], tuple[float, float, float]]
+    vectors: dict[tuple[str, Quantity], tuple[float, float, float]]
     faults: dict[str, int]
     flagged: dict[str, int]
 
@@ -192,7 +192,7 @@ class Snapshotter:
             self._past.clear()  # a new run on the same sink: start over
         vectors = {}
         for name, d in copy.devices.items():
-            for channel in (Channel.ACCEL, Channel.MAG):
+            for channel in (Quantity.ACCEL, Quantity.MAG):
                 s = d.latest_valid.get(channel)
                 if isinstance(s, VectorSample):
                     vectors[(name, channel)] = s.vector
@@ -289,7 +289,7 @@ class Snapshotter:
             for name, d in copy.devices.items():
                 before = past.rotation.get(name)
                 if before is not None and d.last_gyro_ns is not None:
-                    evidence.append(Evidence(name, Channel.GYRO, tuple(  # type: ignore[arg-type]
+                    evidence.append(Evidence(name, Quantity.GYRO, tuple(  # type: ignore[arg-type]
                         math.degrees(d.rotation_rad[i] - before[i]) for i in range(3))))
             ends_ns = ENDS_S * 1e9
             first = [p for p in self._past if p.t_ns - past.t_ns <= ends_ns]
@@ -319,7 +319,7 @@ def _attitude(a: Any) -> dict[str, Any]:
             "heading_deg": yaw % 360.0, "q_body_to_ned": list(a.q_body_to_ned)}
 
 
-def _sensors(valid: dict[Channel, Sample], latest: dict[Channel, Sample]) -> dict[str, Any]:
+def _sensors(valid: dict[Quantity, Sample], latest: dict[Quantity, Sample]) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for channel, sample in latest.items():
         good = valid.get(channel)

@@ -42,7 +42,7 @@ from __future__ import annotations
 from collections import Counter
 from dataclasses import dataclass, field
 
-from imuhal.core.samples import Channel, Sample, SampleFlag
+from imuhal.core.samples import Quantity, Sample, SampleFlag
 
 CAUSES: tuple[str, ...] = ("fifo_overflow", "host_stall", "reset", "bus_error", "stale",
                            "flagged", "missed")
@@ -53,7 +53,7 @@ CAUSES: tuple[str, ...] = ("fifo_overflow", "host_stall", "reset", "bus_error", 
 class FrameLedger:
     """The frame count of one device's accounted stream."""
 
-    channel: Channel
+    channel: Quantity
     period_ns: int
     delivered: int = 0
     lost: Counter[str] = field(default_factory=Counter)

@@ -29,7 +29,7 @@ from imuhal.calibration.model import CalibrationBinding, DeviceCalibration, now
 from imuhal.core.conventions import get_convention
 from imuhal.core.errors import BusError, ImuhalError, PluginError, ProfileError
 from imuhal.core.frames import FloatArray
-from imuhal.core.samples import Channel, GyroSample, MagSample, Sample, SampleFlag
+from imuhal.core.samples import GyroSample, MagSample, Quantity, Sample, SampleFlag
 from imuhal.core.streams import StreamSpec
 from imuhal.drivers.base import DeviceIdentity, Driver
 from imuhal.estimation.base import Estimator
@@ -101,10 +101,10 @@ class DeviceRuntime:
     warned: set[str] = field(default_factory=set)
     samples: int = 0
     flagged: Counter[str] = field(default_factory=Counter)
-    full_scale: dict[Channel, float | None] = field(default_factory=dict)
+    full_scale: dict[Quantity, float | None] = field(default_factory=dict)
     streams: tuple[StreamSpec, ...] = ()
     """The driver's stream specs as read back at the last (re)configuration."""
-    last_valid_ns: dict[Channel, int] = field(default_factory=dict)
+    last_valid_ns: dict[Quantity, int] = field(default_factory=dict)
     """Per quantity, the time of the last valid sample (samples must not go back)."""
     chip_to_body_rows: list[list[float]] = field(default_factory=list)
     """``chip_to_body`` as nested lists of floats (every sample is rotated with it)."""
@@ -374,7 +374,7 @@ class Pipeline:
                                                     driver.identity,
                                                     type(driver).calibration_version)
         learn = cfg.calibration.mag_in_flight if cfg.calibration is not None else None
-        if learn is not None and learn.enabled and Channel.MAG in type(driver).channels \
+        if learn is not None and learn.enabled and Quantity.MAG in type(driver).channels \
                 and (dev.calibration is None or dev.calibration.mag is None) \
                 and dev.mag_learner is None:
             dev.mag_learner = HardIronLearner(learn)

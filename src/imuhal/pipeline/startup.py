@@ -26,7 +26,7 @@ from imuhal.calibration.model import (
     now,
 )
 from imuhal.calibration.progress import ProgressCallback
-from imuhal.core.samples import Channel, Sample
+from imuhal.core.samples import Quantity, Sample
 from imuhal.sinks.base import Event
 
 if TYPE_CHECKING:  # the pipeline applies this phase to itself
@@ -39,7 +39,7 @@ def startup_settings(pipeline: Pipeline) -> dict[str, GyroStartupSettings]:
     for name, dev in pipeline.devices.items():
         cal = pipeline.profile.devices[name].calibration
         opt = cal.gyro_at_startup if cal is not None else None
-        if opt is not None and opt.enabled and Channel.GYRO in type(dev.driver).channels:
+        if opt is not None and opt.enabled and Quantity.GYRO in type(dev.driver).channels:
             out[name] = opt
     return out
 

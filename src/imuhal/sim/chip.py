@@ -19,7 +19,7 @@ from pydantic import ValidationError
 
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock, SimulatedClock
-from imuhal.core.samples import Channel
+from imuhal.core.samples import Quantity
 from imuhal.sim.errors import SensorErrorSpec
 from imuhal.sim.inputs import PhysicalInputs
 
@@ -145,15 +145,15 @@ class ChipEmulator(ABC):
 
     # -- conventions every emulator follows where its chip has the feature ----------------
 
-    def resolution(self, channel: Channel) -> float:
+    def resolution(self, channel: Quantity) -> float:
         """SI units per count of ``channel`` in the current configuration."""
         raise NotImplementedError(f"{type(self).__name__} does not report its resolution")
 
-    def full_scale(self, channel: Channel) -> float:
+    def full_scale(self, channel: Quantity) -> float:
         """The largest magnitude (SI) ``channel`` can report in the current configuration."""
         raise NotImplementedError(f"{type(self).__name__} does not report its full scale")
 
-    def noise_period_s(self, channel: Channel) -> float | None:
+    def noise_period_s(self, channel: Quantity) -> float | None:
         """The period (s) of the samples the chip outputs on ``channel`` in its current
         configuration (output data rate, standby plus measurement, conversion time), as the
         datasheet gives it for the configuration registers. The simulator draws white noise
@@ -167,7 +167,7 @@ class ChipEmulator(ABC):
         (``read_len`` 0), and at every poll of a device with faults scheduled."""
         return None
 
-    def noise_bandwidth_hz(self, channel: Channel) -> float | None:
+    def noise_bandwidth_hz(self, channel: Quantity) -> float | None:
         """The bandwidth (Hz) of the chip's digital low-pass filter on ``channel`` in its
         current configuration (the datasheet's 3 dB bandwidth for the filter setting). The
         simulator draws the noise of ``noise_density`` specs without a ``bandwidth_hz`` in

@@ -20,10 +20,10 @@ from typing import IO
 from imuhal.core.atomic import AtomicFile
 from imuhal.core.conventions import NED, Convention, get_convention
 from imuhal.core.samples import (
-    Channel,
     Frame,
     PositionSample,
     PressureSample,
+    Quantity,
     Sample,
     TemperatureSample,
     VectorSample,
@@ -53,9 +53,9 @@ def csv_columns(frame: str | Convention = NED) -> tuple[str, ...]:
     columns carry its name as a suffix (none for ned), linear acceleration its earth axes."""
     return (
         "t_s", "source", "kind", "flags",
-        *vector_columns(Channel.ACCEL, frame),
-        *vector_columns(Channel.GYRO, frame),
-        *vector_columns(Channel.MAG, frame),
+        *vector_columns(Quantity.ACCEL, frame),
+        *vector_columns(Quantity.GYRO, frame),
+        *vector_columns(Quantity.MAG, frame),
         "pressure_pa", "temperature_degc",
         *attitude_columns(frame),
         *linear_accel_columns(frame),
