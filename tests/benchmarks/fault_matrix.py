@@ -49,7 +49,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from tests.benchmarks.soak import LATENCY_S, Checker, Report
 
-from imuhal.core.samples import Channel, Sample, VelocitySample
+from imuhal.core.samples import Quantity, Sample, VelocitySample
 from imuhal.emulation import error_models_for, open_emulated
 from imuhal.emulation.faults import (
     AllOnes,
@@ -72,9 +72,9 @@ from imuhal.emulation.faults import (
 from imuhal.estimation.outputs import AttitudeEstimate, VerticalEstimate
 from imuhal.pipeline import Pipeline
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile
-from imuhal.profiles_dir import bundled_profiles
 
 RATES = (0.001, 0.01, 0.1)
 MARGIN = 1.5
@@ -230,7 +230,7 @@ class MatrixChecker(Checker):
         BMP280's IIR) blends the wrong measurement into the next outputs."""
         if super()._wrong_by_design(s, values):
             return True
-        if s.channel is not Channel.PRESSURE:
+        if s.channel is not Quantity.PRESSURE:
             return False
         t_s = s.t_ns / 1e9
         for device, offset, start, end in self.wrong_world:
@@ -263,7 +263,7 @@ class MatrixChecker(Checker):
             self.wrong_estimates[f"{e.source} climb off"] += 1
 
 
-def latency_of(pipeline: Pipeline) -> dict[Channel, float]:
+def latency_of(pipeline: Pipeline) -> dict[Quantity, float]:
     """Per quantity: two periods of the slowest stream carrying it plus its declared
     latency, never below the seed board's figures."""
     out = dict(LATENCY_S)

@@ -228,7 +228,7 @@ class Checker:
 
     def __init__(self, pipeline: Pipeline, plan: Sequence[FaultSpec], report: Report,
                  models: dict[str, SensorErrorModel], *,
-                 latency_s: dict[Channel, float] | None = None, margin: float = 1.0) -> None:
+                 latency_s: dict[Quantity, float] | None = None, margin: float = 1.0) -> None:
         """``latency_s``: per quantity, how far before its time stamp a measurement may lie
         (default LATENCY_S, the seed board's); ``margin`` multiplies every tolerance."""
         self.p = pipeline

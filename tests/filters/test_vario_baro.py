@@ -145,8 +145,8 @@ def test_one_wrong_but_valid_pressure_does_not_move_the_seed_profiles_baro_only_
     gate rejects it. Ungated, the climb rate moved 5.6 m/s."""
     from imuhal.emulation import open_emulated
     from imuhal.emulation.faults import WrongPressure
+    from imuhal.profile.bundled import default_profile_path
     from imuhal.profile.loader import load_profile
-    from imuhal.profiles_dir import default_profile_path
 
     registry = load_registry()
     profile = load_profile(default_profile_path(), registry)

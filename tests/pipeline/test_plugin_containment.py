@@ -14,8 +14,6 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 import pytest
-from imuhal_chips.ms5611.driver import MS5611Driver
-from imuhal_chips.ms5611.emulator import MS5611Emulator
 
 from imuhal.cli import main as cli_main
 from imuhal.core.samples import AccelSample, GyroSample, PressureSample
@@ -33,9 +31,11 @@ from imuhal.pipeline import CsvSink
 from imuhal.pipeline.containment import DISABLE_AFTER_FAILURES
 from imuhal.plugins.hookspecs import hookimpl
 from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile
-from imuhal.profiles_dir import default_profile_path
 from imuhal.sinks.builtin import ConsoleSink, event_row
+from imuhal_chips.ms5611.driver import MS5611Driver
+from imuhal_chips.ms5611.emulator import MS5611Emulator
 
 SECOND_NS = 1_000_000_000
 
