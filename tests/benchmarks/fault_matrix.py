@@ -216,7 +216,8 @@ class MatrixChecker(Checker):
     def handle(self, event: object) -> None:
         if isinstance(event, VelocitySample):
             self._velocity(event)
-        elif isinstance(event, Sample) and event.channel not in self.latency_s:
+            return
+        if isinstance(event, Sample) and event.channel not in self.latency_s:
             return  # GNSS position: the checker has no truth in degrees
         elif isinstance(event, AttitudeEstimate | VerticalEstimate):
             self._estimate(event)
