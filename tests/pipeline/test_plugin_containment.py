@@ -217,7 +217,7 @@ def test_a_nan_quaternion_never_reaches_a_sink_as_a_number(
                         for r in rows)
     assert console.getvalue() and "nan" not in console.getvalue()
     assert summary.contained["estimator 'acme'"]["disabled"] == 1
-    assert any("made a attitude estimate that is not finite and not normalisable" in w
+    assert any("made an attitude estimate that is not finite and not normalisable" in w
                for w in summary.warnings)
     # the vario, fed by the seed's own AHRS, never saw them
     assert _after(events, VerticalEstimate, 900_000_000, "vario")
@@ -280,5 +280,5 @@ def test_a_slow_estimator_in_a_realtime_run_is_reported_once_with_its_cost(
     assert len(slow) == 1
     words = slow[0].split()
     cost_ms = float(words[words.index("ms") - 1])
-    assert 30 <= cost_ms < 60
+    assert 30 <= cost_ms < 500  # the sleep is 30 ms; a loaded host oversleeps
     assert slow[0].startswith("  warning: estimator 'acme' (acme-slow; plugin 'acme') is slow: ")

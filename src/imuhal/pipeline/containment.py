@@ -183,7 +183,8 @@ class EstimatorGuard:
         why = " and ".join((f.name or "").lower().replace("_", " ") for f in EstimateFlag
                            if f in flags)
         self.faults.failed(estimate.t_ns, f"rejected_{kind}_estimates",
-                           f"made a {kind} estimate that is {why} at "
+                           f"made {'an' if kind[:1] in 'aeiou' else 'a'} {kind} estimate that is "
+                           f"{why} at "
                            f"t={estimate.t_ns / 1e9:.3f} s; refused (flags {int(flags)}), "
                            "no sink gets its values", self.warn)
         return RejectedEstimate(t_ns=estimate.t_ns, source=estimate.source, kind=kind,
