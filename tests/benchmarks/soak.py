@@ -227,8 +227,13 @@ class Checker:
     """Judges every event of the run against the truth."""
 
     def __init__(self, pipeline: Pipeline, plan: Sequence[FaultSpec], report: Report,
-                 models: dict[str, SensorErrorModel]) -> None:
+                 models: dict[str, SensorErrorModel], *,
+                 latency_s: dict[Quantity, float] | None = None, margin: float = 1.0) -> None:
+        """``latency_s``: per quantity, how far before its time stamp a measurement may lie
+        (default LATENCY_S, the seed board's); ``margin`` multiplies every tolerance."""
         self.p = pipeline
+        self.latency_s = LATENCY_S if latency_s is None else latency_s
+        self.margin = margin
         self.models = models
         self.report = report
         self.scenario = pipeline.board.scenario  # type: ignore[attr-defined]
@@ -345,7 +350,7 @@ class Checker:
         tolerance its chip's error model allows."""
         spec = self.specs.get(s.device)
         channel = s.channel
-        lag_ns = round(LATENCY_S[channel] * 1e9)
+        lag_ns = round(self.latency_s[channel] * 1e9)
         times = (s.t_ns, s.t_ns - lag_ns // 2, s.t_ns - lag_ns)
         best = math.inf
         truth = self.truth(s.t_ns)
@@ -361,7 +366,7 @@ class Checker:
             # per-axis tolerance, over three axes (the rotation to body mixes them)
             tol = math.sqrt(3) * _vector_tolerance(sub, resolution, self.report.duration_s,
                                                    magnitude, delta_t)
-            return best, tol
+            return best, tol * self.margin
         # Scalars get no calibration, so the error model's own bias (the same seeded draw
         # the run used; constant for these chips) is known: only noise is left to allow.
         attr = "pressure_pa" if channel is Quantity.PRESSURE else "temperature_degc"
@@ -378,8 +383,9 @@ class Checker:
             best = min(best, abs(values[0] - expected))
         if exact:
             assert sub is not None
-            return best, SIGMAS * sub.noise_std + 2 * resolution + 1e-9
-        return best, _scalar_tolerance(sub, resolution, self.report.duration_s, delta_t)
+            return best, (SIGMAS * sub.noise_std + 2 * resolution + 1e-9) * self.margin
+        return best, _scalar_tolerance(sub, resolution, self.report.duration_s,
+                                       delta_t) * self.margin
 
 
 def rss_mb() -> float:

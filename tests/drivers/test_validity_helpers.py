@@ -7,7 +7,7 @@ import math
 import pytest
 
 from imuhal.core.samples import SampleFlag
-from imuhal.drivers.validity import FrozenWatch, blank_flag, range_flag
+from imuhal.drivers.validity import FilterMemory, FrozenWatch, blank_flag, range_flag
 
 
 @pytest.mark.parametrize("frame", [b"\xff" * 15, b"\x00" * 6, b"\xff"])
@@ -45,3 +45,16 @@ def test_values_outside_the_limits_are_out_of_range_and_nan_is_left_to_the_nan_c
     assert range_flag([-40.0, 85.0], -40.0, 85.0) is SampleFlag.OK
     assert range_flag([85.1], -40.0, 85.0) is SampleFlag.OUT_OF_RANGE
     assert range_flag([math.nan], -40.0, 85.0) is SampleFlag.OK
+
+
+def test_a_wrong_measurement_inside_an_open_window_is_settling_and_never_shortens_it() -> None:
+    """Found by the fault matrix (gy91, wild values and wrong pressures at 10 %): the BMP280's
+    temperature, filtered with the pressure, came out valid 1.4 degC off when the pressure
+    of that output carried a wrong measurement of its own; and a later wrong measurement
+    must not end the window an earlier one opened."""
+    memory = FilterMemory({"adc": 10}, {"adc": 20})
+    assert memory.flag("adc", 0, SampleFlag.SATURATED) == SampleFlag.OK
+    assert memory.flag("adc", 20, SampleFlag.OUT_OF_RANGE) == SampleFlag.FILTER_SETTLING
+    assert memory.flag("adc", 200, SampleFlag.OK) == SampleFlag.FILTER_SETTLING
+    assert memory.flag("adc", 230, SampleFlag.OK) == SampleFlag.FILTER_SETTLING  # 20's window
+    assert memory.flag("adc", 240, SampleFlag.OK) == SampleFlag.OK

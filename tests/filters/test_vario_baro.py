@@ -137,3 +137,25 @@ def test_settings_reject_non_positive_noise() -> None:
         BaroVarioEstimator({"altitude_noise_m": 0.0})
     with pytest.raises(ValidationError):
         BaroVarioEstimator({"accel_noise_m_s2": -1.0})
+
+
+def test_one_wrong_but_valid_pressure_does_not_move_the_seed_profiles_baro_only_vario() -> None:
+    """Issue 26 item 8: the seed board's ``baro-only`` vario, given one pressure 300 Pa off
+    (about 25 m; valid by design, docs/reliability.md), keeps its climb rate: the innovation
+    gate rejects it. Ungated, the climb rate moved 5.6 m/s."""
+    from imuhal.emulation import open_emulated
+    from imuhal.emulation.faults import WrongPressure
+    from imuhal.profile.bundled import default_profile_path
+    from imuhal.profile.loader import load_profile
+
+    registry = load_registry()
+    profile = load_profile(default_profile_path(), registry)
+    with open_emulated(profile, registry, scenario="static",
+                       faults=[WrongPressure(device="baro", start_s=3.0, offset_pa=300.0)]) as p:
+        climbs = [(e.t_ns / 1e9, e.climb_m_s, e.diagnostics["altitude_gated"])
+                  for e in p.events(5.0)
+                  if isinstance(e, VerticalEstimate) and e.source == "baro-only"]
+    before = max(abs(c) for t, c, _ in climbs if 2.0 < t < 3.0)
+    after = max(abs(c) for t, c, _ in climbs if 3.0 <= t < 5.0)
+    assert sum(gated for _, _, gated in climbs) == 1
+    assert after < max(2 * before, 0.2)

@@ -33,13 +33,16 @@ class GpsClimb(Estimator):
 
     def reset(self) -> None:
         self.positions = 0
+        self.height_m = 0.0
 
     def process(self, item: Sample | Estimate) -> list[Estimate]:
         if isinstance(item, PositionSample):
             self.positions += 1
+            self.height_m = item.height_m
             return []
         assert isinstance(item, VelocitySample) and item.valid
-        return [VerticalEstimate(t_ns=item.t_ns, source=self.instance, altitude_m=float("nan"),
+        # the GNSS height as altitude: an estimate must be finite to reach the sinks
+        return [VerticalEstimate(t_ns=item.t_ns, source=self.instance, altitude_m=self.height_m,
                                  climb_m_s=-item.velocity_ned_m_s[2])]
 
     def get_state(self) -> dict[str, Any]:

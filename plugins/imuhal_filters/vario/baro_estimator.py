@@ -41,6 +41,17 @@ class BaroVarioSettings(EstimatorSettings):
     max_gap_s: float = Field(default=1.0, gt=0.0)
     """A gap between valid samples longer than this restarts the filter from the new sample:
     the constant-velocity prediction over a long outage is not worth trusting."""
+    innovation_gate_sigma: float | None = Field(default=5.0, gt=0.0)
+    """A barometric altitude further than this many standard deviations of the innovation
+    (sqrt(P_zz + sigma_z^2)) from the prediction is not fused (counted as ``gated``): one
+    wild but in-range pressure, valid by design (docs/reliability.md), must not throw the
+    climb rate. None: no gate (the seed's filter)."""
+    innovation_gate_min_m: float = Field(default=1.0, ge=0.0)
+    """The gate never closes for innovations within this (m): a barometer noisier than
+    ``altitude_noise_m`` says must not be gated on its ordinary noise."""
+    gate_reacquire_s: float = Field(default=0.3, gt=0.0)
+    """Altitudes rejected without a break for this long are a real change of level (a QNH
+    change, a climb faster than the model follows): the filter re-acquires the new level."""
 
 
 class BaroVarioEstimator(Estimator):
@@ -65,7 +76,8 @@ class BaroVarioEstimator(Estimator):
         self._kf = BaroKalman2(accel_var=s.accel_noise_m_s2**2, meas_var=s.altitude_noise_m**2)
         self._last_t_ns: int | None = None
         self._counts = {"fused": 0, "skipped_invalid": 0, "skipped_non_monotonic": 0,
-                        "restarts_after_gap": 0}
+                        "restarts_after_gap": 0, "gated": 0, "reacquired": 0}
+        self._rejected_since_ns: int | None = None
 
     # -- the filter steps, kept apart so callers (and tests) can drive them directly --------
 
@@ -104,12 +116,38 @@ class BaroVarioEstimator(Estimator):
                 self.initialise(item.t_ns, altitude)
             else:
                 self.predict(dt)
-                innovation = self.update(altitude)
                 self._last_t_ns = item.t_ns
+                innovation = altitude - self._kf.z
+                if not self._accept(item.t_ns, altitude, innovation):
+                    return [self._estimate(item.t_ns, innovation, gated=True)]
+                innovation = self.update(altitude)
         self._counts["fused"] += 1
         return [self._estimate(item.t_ns, innovation)]
 
-    def _estimate(self, t_ns: int, innovation_m: float) -> VerticalEstimate:
+    def _accept(self, t_ns: int, altitude_m: float, innovation_m: float) -> bool:
+        """The innovation gate: False (counted) to skip this altitude's update. Altitudes
+        rejected for ``gate_reacquire_s`` are a new level: taken, keeping the climb rate."""
+        k = self.settings.innovation_gate_sigma
+        if k is None:
+            return True
+        kf = self._kf
+        sigma_m = math.sqrt(max(kf.pzz, 0.0) + kf.meas_var)
+        if abs(innovation_m) <= max(k * sigma_m, self.settings.innovation_gate_min_m):
+            self._rejected_since_ns = None
+            return True
+        if self._rejected_since_ns is None:
+            self._rejected_since_ns = t_ns
+        if (t_ns - self._rejected_since_ns) / 1e9 < self.settings.gate_reacquire_s:
+            self._counts["gated"] += 1
+            return False
+        self._counts["reacquired"] += 1
+        self._rejected_since_ns = None
+        kf.z = altitude_m
+        kf.pzz, kf.pzv = kf.meas_var, 0.0
+        return True
+
+    def _estimate(self, t_ns: int, innovation_m: float, *, gated: bool = False
+                  ) -> VerticalEstimate:
         kf = self._kf
         return VerticalEstimate(
             t_ns=t_ns,
@@ -119,6 +157,7 @@ class BaroVarioEstimator(Estimator):
             accel_bias_m_s2=None,
             diagnostics={
                 "innovation_m": innovation_m,
+                "altitude_gated": gated,
                 "altitude_sigma_m": math.sqrt(max(kf.pzz, 0.0)),
                 "climb_sigma_m_s": math.sqrt(max(kf.pvv, 0.0)),
                 **self._counts,
@@ -127,13 +166,15 @@ class BaroVarioEstimator(Estimator):
 
     def get_state(self) -> dict[str, Any]:
         return {"kf": self._kf.as_dict(), "last_t_ns": self._last_t_ns,
-                "counts": dict(self._counts)}
+                "counts": dict(self._counts), "rejected_since_ns": self._rejected_since_ns}
 
     def set_state(self, state: dict[str, Any]) -> None:
         self._kf.load_dict(state["kf"])
         last = state["last_t_ns"]
         self._last_t_ns = None if last is None else int(last)
         self._counts = {k: int(v) for k, v in state["counts"].items()}
+        since = state.get("rejected_since_ns")
+        self._rejected_since_ns = None if since is None else int(since)
 
     def diagnostics(self) -> dict[str, Any]:
         return dict(self._counts)

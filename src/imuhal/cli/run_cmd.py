@@ -142,6 +142,7 @@ def cmd_run(args: argparse.Namespace, registry: Registry) -> int:
         summary = session.run(pipeline)
         learned = _learned(pipeline)
     print(summary.describe(), file=sys.stderr)
+    session.check_log()
     if opts.save_learned:
         _save_learned(opts.save_learned, plan.profile_text, path, learned, registry)
     session.report()
@@ -339,6 +340,13 @@ class _RunSession:
         why = f"stopped by {stop}" if str(stop) else "interrupted"
         print(f"\n{why}; the files are complete up to here", file=sys.stderr)
         return summary
+
+    def check_log(self) -> None:
+        """The log itself failed during the run (disk full, ...) and was aborted while the
+        other outputs went on: a one-line error saying which file was kept."""
+        if self.csv_sink is not None and not self.csv_sink.committed:
+            raise ImuhalError(f"the log failed during the run (its warning is above)"
+                              f"{_kept_note(self.opts.output, self.csv_sink)}")
 
     def report(self) -> None:
         """The closing lines: what each output wrote."""

@@ -124,17 +124,20 @@ class FilterMemory:
         if not n:
             return SampleFlag.OK
         period = self.period_ns[key]
+        until = self._until_ns.get(key)
+        # An output the window covers is settling even when it carries a wrong measurement
+        # itself: the channels filtered together (the BMP280's temperature beside a wrong
+        # pressure) are not flagged by that measurement, but still carry the earlier one.
+        settling = SampleFlag.FILTER_SETTLING if until is not None and t_ns <= until \
+            else SampleFlag.OK
         if flags & VALUE_FLAGS:
             # Half a period more: an output polled a little late is still one of the n.
-            self._until_ns[key] = t_ns + n * period + period // 2
-            return SampleFlag.OK
-        until = self._until_ns.get(key)
-        if until is None:
-            return SampleFlag.OK
-        if t_ns <= until:
-            return SampleFlag.FILTER_SETTLING
-        del self._until_ns[key]
-        return SampleFlag.OK
+            # A new wrong measurement never shortens the window an earlier one opened.
+            self._until_ns[key] = max(until or 0, t_ns + n * period + period // 2)
+            return settling
+        if until is not None and not settling:
+            del self._until_ns[key]
+        return settling
 
     def forget(self) -> None:
         """The chip's filters were re-initialised: nothing earlier can reach the next output."""

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import math
+from dataclasses import dataclass, field, fields
+from enum import IntFlag
 from typing import Any
 
 from imuhal.core.frames import euler_deg_from_quat
@@ -53,6 +55,89 @@ class VerticalEstimate(Estimate):
     altitude_m: float
     climb_m_s: float
     accel_bias_m_s2: float | None = None
+
+
+class EstimateFlag(IntFlag):
+    """Why the pipeline refused an estimate (docs/reliability.md, "Estimates carry
+    validity"). An estimate with any of these never reaches a sink as a number: the sinks
+    get a :class:`RejectedEstimate` in its place."""
+
+    NOT_FINITE = 1
+    """A value is NaN or infinite."""
+    NOT_NORMALISABLE = 2
+    """An attitude quaternion whose norm is zero (or too small to divide by): no rotation."""
+
+
+_MIN_QUAT_NORM_SQ = 1e-12
+"""A quaternion whose squared norm is below this has no direction left to normalise."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class RejectedEstimate(Estimate):
+    """What the sinks and the downstream estimators get instead of an estimate that is not
+    finite or not normalisable: when, which estimator instance (``source``) and which plugin
+    estimator (``estimator``) made it, its kind (``"attitude"``, ``"vertical"`` or the class
+    name) and why (``flags``). It carries no value on purpose."""
+
+    kind: str
+    flags: EstimateFlag
+    estimator: str = ""
+
+
+def estimate_kind(estimate: Estimate) -> str:
+    """The CSV ``kind`` of an estimate: ``attitude``, ``vertical`` or its class name."""
+    if isinstance(estimate, RejectedEstimate):
+        return estimate.kind
+    if isinstance(estimate, AttitudeEstimate):
+        return "attitude"
+    if isinstance(estimate, VerticalEstimate):
+        return "vertical"
+    return type(estimate).__name__
+
+
+def estimate_flags(estimate: Estimate) -> EstimateFlag:
+    """What is wrong with ``estimate`` (0: nothing). Attitude: the quaternion and the linear
+    acceleration finite, the quaternion's norm above zero; vertical: altitude, climb rate and
+    bias finite; any other estimate: every float (and tuple of floats) field finite."""
+    if isinstance(estimate, AttitudeEstimate):
+        w, x, y, z = estimate.q_body_to_ned
+        norm_sq = w * w + x * x + y * y + z * z
+        acc = estimate.linear_accel_ned_m_s2
+        # one comparison catches NaN, infinity and a zero norm alike (NaN compares False)
+        if _MIN_QUAT_NORM_SQ < norm_sq < math.inf and (
+                acc is None or math.isfinite(acc[0] + acc[1] + acc[2])):
+            return EstimateFlag(0)
+        return _attitude_flags(estimate)
+    if isinstance(estimate, VerticalEstimate):
+        bias = estimate.accel_bias_m_s2
+        total = estimate.altitude_m + estimate.climb_m_s + (0.0 if bias is None else bias)
+        return EstimateFlag(0) if math.isfinite(total) else EstimateFlag.NOT_FINITE
+    if isinstance(estimate, RejectedEstimate):
+        return estimate.flags
+    return _generic_flags(estimate)
+
+
+def _attitude_flags(estimate: AttitudeEstimate) -> EstimateFlag:
+    flags = EstimateFlag(0)
+    values = list(estimate.q_body_to_ned) + list(estimate.linear_accel_ned_m_s2 or ())
+    if not all(math.isfinite(v) for v in values):
+        flags |= EstimateFlag.NOT_FINITE
+    if not _MIN_QUAT_NORM_SQ < sum(v * v for v in estimate.q_body_to_ned) < math.inf:
+        flags |= EstimateFlag.NOT_NORMALISABLE
+    return flags
+
+
+def _generic_flags(estimate: Estimate) -> EstimateFlag:
+    """A third party's estimate: every float field, and every float in a tuple field."""
+    for f in fields(estimate):
+        if f.name in ("t_ns", "source", "diagnostics"):
+            continue
+        value = getattr(estimate, f.name)
+        values = value if isinstance(value, tuple) else (value,)
+        for v in values:
+            if isinstance(v, float) and not math.isfinite(v):
+                return EstimateFlag.NOT_FINITE
+    return EstimateFlag(0)
 
 
 # Slot setters for the ``build`` fast path (a frozen class forbids plain assignment).

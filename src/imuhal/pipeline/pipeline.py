@@ -28,7 +28,7 @@ from imuhal.calibration.model import CalibrationBinding, DeviceCalibration, now
 from imuhal.core.blocks import Block, blocks_of, interleaved
 from imuhal.core.clock import Clock
 from imuhal.core.conventions import get_convention
-from imuhal.core.errors import BusError, ImuhalError, PluginError, ProfileError
+from imuhal.core.errors import BusError, ImuhalError, PluginError, ProfileError, RunEnded
 from imuhal.core.frames import FloatArray
 from imuhal.core.samples import GyroSample, MagSample, Quantity, Sample, SampleFlag
 from imuhal.core.streams import StreamSpec
@@ -39,6 +39,16 @@ from imuhal.estimation.streams import StreamContradiction
 from imuhal.pipeline.accounting import FrameLedger, describe_frames
 from imuhal.pipeline.board import Board, open_hardware_board
 from imuhal.pipeline.bringup import bring_up
+from imuhal.pipeline.containment import (
+    ContainedSinks,
+    Containment,
+    DriverDeadline,
+    EstimatorGuard,
+    PluginFaults,
+    Watchdog,
+    describe_exception,
+    driver_deadline_s,
+)
 from imuhal.pipeline.processing import (
     calibrate_block,
     calibrate_to_body,
@@ -57,7 +67,7 @@ from imuhal.pipeline.triggers import (
     Waiter,
     describe_trigger,
 )
-from imuhal.plugins.manager import Registry
+from imuhal.plugins.manager import Registry, plugin_origin
 from imuhal.profile.model import BoardProfile, InterruptConfig
 from imuhal.profile.topology import chip_to_body_rotations, device_order, split_bus_ref
 from imuhal.sinks.base import Event, Sink
@@ -71,6 +81,8 @@ REPORT_AFTER_FAILURES = 4
 """Consecutive failed recoveries (about 30 ms of trying) before the run reports the device."""
 JOIN_RETRY_NS = 1_000_000_000
 """An optional device that is not there is looked for again every second."""
+NEVER_NS = 1 << 62
+"""The next poll of an isolated device: never in any run."""
 
 
 CLIPPED = SampleFlag.SATURATED | SampleFlag.OUT_OF_RANGE
@@ -127,6 +139,8 @@ class DeviceRuntime:
     trigger: TimerTrigger | LineTrigger = field(default_factory=TimerTrigger)
     """What says when the device is read (imuhal.pipeline.triggers): its poll grid, or
     the data-ready line its profile names."""
+    isolated: bool = False
+    """Its driver overran a call's deadline or kept failing: never polled again."""
 
     def __post_init__(self) -> None:
         self.chip_to_body_rows = np.asarray(self.chip_to_body, dtype=float).tolist()
@@ -167,6 +181,10 @@ class RunSummary:
     """Per device read on a data-ready line (imuhal.pipeline.triggers.LineTrigger): edges,
     reads, overwritten and lost edges, watchdog fallbacks, polls while fallen back and
     returns to the line."""
+    contained: dict[str, dict[str, int]] = field(default_factory=dict)
+    """Per plugin instance that failed (``estimator 'ahrs'``, ``driver of 'imu'``, ``sink
+    'csv'``): exceptions, rejected estimates, missed deadlines, ``disabled``
+    (imuhal.pipeline.containment)."""
 
     def describe(self) -> str:
         lines = [f"ran {self.simulated_s:.1f} s in {self.wall_s:.2f} s wall time"]
@@ -192,6 +210,9 @@ class RunSummary:
                                                   for k, v in counts.items()))
         for dev, st in self.learned.items():
             lines.append(f"  {dev}: {_learned_words(st)}")
+        for label, counts in self.contained.items():
+            lines.append(f"  {label}: " + ", ".join(f"{k.replace('_', ' ')} {v}"
+                                                   for k, v in counts.items()))
         lines += [f"  warning: {w}" for w in self.warnings]
         return "\n".join(lines)
 
@@ -266,6 +287,8 @@ class Pipeline:
         self._bus_modes = {name: bus.describe() for name, bus in board.buses.items()
                            if bus.describe() != bus.name}
         self.warnings: list[str] = []
+        self.containment = Containment(self.warnings.append)
+        self._watchdog = Watchdog()
         self._heap: list[tuple[int, int, str]] | None = None
         self._startup: GyroStartupStage | None = None
         self._fusion: list[Sample | Block] = []
@@ -298,11 +321,15 @@ class Pipeline:
         self._device_rank = {name: i for i, name in enumerate(self.devices)}
         for name, ecfg in profile.estimators.items():
             est_cls = registry.estimators.get(ecfg.estimator)
+            estimator = est_cls(ecfg.settings, instance=name)
+            faults = self.containment.record(
+                f"estimator {name!r}", plugin_origin(registry.estimators.entries[ecfg.estimator]))
             self.estimators.append(EstimatorRuntime(
                 name=name,
-                estimator=est_cls(ecfg.settings, instance=name),
+                estimator=estimator,
                 inputs=frozenset(ecfg.inputs) if ecfg.inputs is not None else None,
                 consumes=tuple(est_cls.consumes),
+                guard=EstimatorGuard(estimator, faults, self.warnings.append),
             ))
         self.router = Router(self.estimators, self._device_rank)
         """The routing rule (imuhal.pipeline.router), shared with the offline chain."""
@@ -560,7 +587,7 @@ class Pipeline:
                 # the host came late (this device's stall, or another's slow poll)
                 dev.ledger.note("host_stall")
             self._span_ns[1] = max(t_ns, self._span_ns[1])
-            frames, next_ns = self._service(dev, t_ns)
+            frames, next_ns = self._contained_service(dev, t_ns)
             if dev.ledger is not None:
                 self._account(dev)
             dev.next_poll_ns = max(self._next_due(dev, t_ns, next_ns), t_ns + 1)
@@ -642,12 +669,64 @@ class Pipeline:
                     max(t_ns, self._span_ns[1]) - due_ns > dev.ledger.period_ns // 2:
                 dev.ledger.note("host_stall")
             self._span_ns[1] = max(t_ns, self._span_ns[1])
-            samples, next_ns = self._service(dev, edge.t_ns)
+            samples, next_ns = self._contained_service(dev, edge.t_ns)
             if dev.ledger is not None:
                 self._account(dev)
             dev.next_poll_ns = max(self._next_due(dev, edge.t_ns, next_ns), t_ns + 1)
             heapq.heappush(self._schedule(), (dev.next_poll_ns, self._device_rank[name], name))
             yield from self._hand_out(dev, samples)
+
+    def _contained_service(self, dev: DeviceRuntime, t_ns: int
+                           ) -> tuple[_Readings | list[Block], int]:
+        """``_service`` within the driver's deadline, with whatever the driver plugin raises
+        beyond the ImuhalErrors ``_service`` handles contained to its device
+        (imuhal.pipeline.containment)."""
+        if dev.isolated:
+            return [], NEVER_NS
+        watchdog = self._watchdog
+        armed = watchdog.arm(driver_deadline_s(dev.streams))
+        try:
+            return self._service(dev, t_ns)
+        except DriverDeadline:
+            self._isolate(dev, t_ns, "did not return from a call within its deadline of "
+                          f"{driver_deadline_s(dev.streams):g} s (from its chip's rate)")
+            return [], NEVER_NS
+        except RunEnded:
+            raise  # a replayed recording ran out or diverged: the whole run ends
+        except Exception as exc:  # a driver plugin's bug is its device's alone
+            return [], self._driver_failed(dev, t_ns, exc)
+        finally:
+            if armed:
+                watchdog.disarm()
+
+    def _driver_failures(self, dev: DeviceRuntime) -> PluginFaults:
+        """The containment record of ``dev``'s driver."""
+        registration = self.registry.drivers.entries.get(dev.driver.name)
+        origin = plugin_origin(registration) if registration is not None else dev.driver.name
+        return self.containment.record(f"driver of {dev.name!r}", origin)
+
+    def _isolate(self, dev: DeviceRuntime, t_ns: int, why: str) -> None:
+        faults = self._driver_failures(dev)
+        faults.counts["deadlines_missed"] += 1
+        dev.isolated = True
+        dev.device_errors += 1
+        faults.disable(f"at t={t_ns / 1e9:.3f} s: it {why}; device {dev.name!r} is isolated",
+                       self.containment.warn)
+
+    def _driver_failed(self, dev: DeviceRuntime, t_ns: int, exc: Exception) -> int:
+        """A driver raised something else than an ImuhalError: a device error (counted,
+        recovered with the usual backoff); a driver that keeps failing isolates its device."""
+        dev.device_errors += 1
+        dev.resumed = False
+        disabled = self._driver_failures(dev).failed(
+            t_ns, "exceptions", f"raised {describe_exception(exc)} at t={t_ns / 1e9:.3f} s; "
+            f"device {dev.name!r} is recovered", self.containment.warn)
+        if disabled:
+            dev.isolated = True
+            return NEVER_NS
+        dev.needs_recovery = True
+        dev.failures += 1
+        return t_ns + min(RECOVERY_BACKOFF_NS, RETRY_FIRST_NS << min(dev.failures - 1, 16))
 
     def _service(self, dev: DeviceRuntime, t_ns: int) -> tuple[_Readings | list[Block], int]:
         """Whatever ``dev`` needs at ``t_ns``: a poll, a recovery, or a look for an optional
@@ -921,23 +1000,26 @@ class Pipeline:
 
         Sinks are closed when the run ends or is stopped (KeyboardInterrupt, which the CLI
         also raises for SIGTERM and SIGHUP); when it fails, sinks that have an ``abort()``
-        are aborted instead, so a failed run never replaces a good file.
+        are aborted instead, so a failed run never replaces a good file. A sink that raises
+        is aborted (or closed) at once, named in the warnings and left out; the run goes on
+        for the others (imuhal.pipeline.containment).
         """
         wall0 = time.perf_counter()
         failed = True
         sink_counts: dict[str, dict[str, int]] = {}
+        contained = ContainedSinks(sinks, self.containment, self.registry)
         try:
             for event in self.events(duration_s):
-                for sink in sinks:
-                    sink.handle(event)
+                contained.handle(event)
             failed = False
         except KeyboardInterrupt:
             failed = False
             raise
         finally:
             for sink in sinks:
-                abort = getattr(sink, "abort", None) if failed else None
-                (abort or sink.close)()
+                if not any(sink is gone for gone in contained.failed):  # those are aborted
+                    abort = getattr(sink, "abort", None) if failed else None
+                    (abort or sink.close)()
                 counts = getattr(sink, "run_counts", None)
                 if counts is not None:  # read after closing: a sink may finish sending there
                     sink_counts[getattr(sink, "name", "") or type(sink).__name__] = counts()
@@ -972,9 +1054,11 @@ class Pipeline:
                      if d.mag_learner is not None},
             triggers={n: d.trigger.counts() for n, d in self.devices.items()
                       if isinstance(d.trigger, LineTrigger)},
+            contained=self.containment.counts(),
         )
 
     def close(self) -> None:
+        self._watchdog.release()
         for bus in self.buses.values():
             bus.close()
         for line in self._lines.values():

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 from imuhal.core.blocks import Block
 from imuhal.core.samples import Sample
@@ -35,6 +36,15 @@ from imuhal.estimation.ordering import fusion_order
 from imuhal.estimation.outputs import Estimate
 
 Item = Sample | Estimate
+
+
+class Guard(Protocol):
+    """Runs one estimator contained (the live pipeline's imuhal.pipeline.containment): its
+    estimates for an item or a block, checked; [] when it failed or is disabled."""
+
+    def process(self, item: Item) -> list[Estimate]: ...
+
+    def process_block(self, block: Block) -> list[Estimate]: ...
 
 
 @dataclass
@@ -49,6 +59,8 @@ class Route:
     consumes: tuple[type, ...]
     outputs: int = 0
     """Estimates it has made so far."""
+    guard: Guard | None = None
+    """Calls the estimator contained (live runs); None: called directly (offline chain)."""
 
 
 def source_of(item: Item) -> str:
@@ -119,7 +131,9 @@ class Router:
             if routes is None:
                 routes = self.routes_of(source, type(current))
             for r in routes:
-                made = r.estimator.process(current)
+                guard = r.guard
+                made = guard.process(current) if guard is not None else \
+                    r.estimator.process(current)
                 if made:
                     if type(made) is not list:  # any iterable a plugin returns
                         made = list(made)
@@ -150,7 +164,8 @@ class Router:
                 rows += block.samples()
         for block, routes in whole:
             for r in routes:
-                made = list(r.estimator.update_block(block))
+                made = r.guard.process_block(block) if r.guard is not None else \
+                    list(r.estimator.update_block(block))
                 r.outputs += len(made)
                 out.extend(made)
         if rows:

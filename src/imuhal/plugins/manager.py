@@ -19,17 +19,19 @@ import inspect
 import os
 from collections.abc import Iterable, Mapping
 from functools import partial
-from importlib.metadata import entry_points
+from importlib.metadata import PackageNotFoundError, entry_points, version
 from types import CodeType, ModuleType
+from typing import Any
 
 import pluggy
 
 from imuhal.core.errors import PluginError
 from imuhal.core.samples import ScalarSample
 from imuhal.plugins import hookspecs
+from imuhal.plugins.registrars import Registration
 from imuhal.plugins.registry import Registry
 
-__all__ = ["ENV_ALLOW", "ENV_BLOCK", "Registry", "load_registry"]
+__all__ = ["ENV_ALLOW", "ENV_BLOCK", "Registry", "load_registry", "plugin_origin"]
 
 ENV_ALLOW = "IMUHAL_PLUGINS"
 ENV_BLOCK = "IMUHAL_DISABLE_PLUGINS"
@@ -120,6 +122,20 @@ def _running_plugin(owners: Mapping[CodeType, str]) -> str:
             return plugin
         frame = frame.f_back
     return ""
+
+
+def plugin_origin(registration: Registration[Any]) -> str:
+    """Where a registered class comes from, for one-line messages: its name, the plugin
+    (entry point) that registered it, and that plugin's distribution and version when it was
+    installed (``plugin 'acme', distribution imuhal-acme 1.0``)."""
+    where = f"{registration.name}; plugin {registration.plugin!r}"
+    if not registration.package:
+        return where  # registered by hand (``load_registry(extra=...)``): no distribution
+    try:
+        release = version(registration.package)
+    except PackageNotFoundError:
+        release = "version unknown"
+    return f"{where}, distribution {registration.package} {release}"
 
 
 def _check_emulators(registry: Registry) -> None:

@@ -39,7 +39,12 @@ from imuhal.estimation.framed import (
     linear_accel_columns,
     vector_columns,
 )
-from imuhal.estimation.outputs import AttitudeEstimate, Estimate, VerticalEstimate
+from imuhal.estimation.outputs import (
+    AttitudeEstimate,
+    Estimate,
+    RejectedEstimate,
+    VerticalEstimate,
+)
 from imuhal.sinks.base import Event
 
 
@@ -127,7 +132,11 @@ def event_row(event: Event, frame: str | Convention = NED) -> dict[str, str]:
     row["t_s"] = f"{event.t_ns / 1e9:.6f}"
     row["source"] = event.source
     row["flags"] = "0"
-    if isinstance(event, AttitudeEstimate):
+    if isinstance(event, RejectedEstimate):
+        # the pipeline refused it: its kind and why, never a value
+        row["kind"] = event.kind
+        row["flags"] = str(int(event.flags))
+    elif isinstance(event, AttitudeEstimate):
         row["kind"] = "attitude"
         if conv is NED:
             _put(row, QUAT_COLUMNS, event.q_body_to_ned)

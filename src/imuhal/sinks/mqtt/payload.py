@@ -15,7 +15,7 @@ import re
 from collections.abc import Mapping
 
 from imuhal.core.samples import Sample
-from imuhal.estimation.outputs import AttitudeEstimate, VerticalEstimate
+from imuhal.estimation.outputs import estimate_kind
 from imuhal.sinks.base import Event
 
 _NOT_IN_A_LEVEL = re.compile(r"[+#/\x00\s]")
@@ -35,8 +35,7 @@ def stream_of(event: Event) -> str:
         source, kind = event.device, event.channel.value
     else:
         source = event.source
-        kind = ("attitude" if isinstance(event, AttitudeEstimate) else
-                "vertical" if isinstance(event, VerticalEstimate) else type(event).__name__)
+        kind = estimate_kind(event)
     return f"{topic_level(source)}/{topic_level(kind)}"
 
 

@@ -1,0 +1,349 @@
+"""Plugin containment: whatever a driver, estimator or sink plugin does wrong stays with it.
+
+* An exception from an estimator's ``process`` skips that input for that estimator only; an
+  estimate that is not finite or not normalisable is replaced by a
+  :class:`~imuhal.estimation.outputs.RejectedEstimate` (flags, no value), so no sink and no
+  downstream estimator ever sees its numbers. An estimator that takes more than half the
+  real time of its input is reported once, with its cost per sample.
+* An exception from a driver that is not an :class:`~imuhal.core.errors.ImuhalError` (a
+  plugin's bug: ``ValueError``, ``IndexError``, ...) is a device error: counted, named, the
+  device recovered with the usual backoff. A driver call that does not return within its
+  deadline (:func:`driver_deadline_s`, from the chip's rate) is interrupted by
+  :class:`Watchdog` and its device isolated: never polled again in this run.
+* An exception from a sink disables that sink (a file sink is aborted: its rows stay beside
+  the previous file, which is kept); the other sinks go on.
+
+Each failure is counted (:meth:`Containment.counts`, in the run summary) and reported in
+one line naming the plugin, its distribution and version. A plugin instance that fails
+``DISABLE_AFTER_FAILURES`` times within ``FAILURE_WINDOW_NS`` of data time is disabled for
+the rest of the run (docs/reliability.md, "Plugin containment").
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+import time
+from collections import Counter, deque
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from types import FrameType
+from typing import Any
+
+from imuhal.core.blocks import Block
+from imuhal.core.samples import Sample
+from imuhal.core.streams import StreamSpec
+from imuhal.estimation.base import Estimator
+from imuhal.estimation.outputs import (
+    Estimate,
+    EstimateFlag,
+    RejectedEstimate,
+    estimate_flags,
+    estimate_kind,
+)
+from imuhal.plugins.manager import Registry, plugin_origin
+from imuhal.sinks.base import Event, Sink
+
+DISABLE_AFTER_FAILURES = 10
+"""Failures of one plugin instance within FAILURE_WINDOW_NS that disable it."""
+FAILURE_WINDOW_NS = 10_000_000_000
+"""The window (data time, 10 s) in which DISABLE_AFTER_FAILURES failures disable a plugin."""
+SLOW_LOAD = 0.5
+"""An estimator whose computing time exceeds this fraction of the data time it processed
+(in two consecutive SLOW_WINDOW_NS windows after the first) is reported as slow."""
+SLOW_WINDOW_NS = 1_000_000_000
+"""The data-time window over which an estimator's computing load is measured (1 s)."""
+DEADLINE_PERIODS = 10
+"""A driver call must return within this many periods of its slowest stream..."""
+DEADLINE_MIN_S = 1.0
+"""...and at least this long (s): a recovery may wait for a chip's reset on a real board."""
+DEADLINE_NO_STREAM_S = 2.0
+"""The deadline (s) of a device whose streams are not known yet (not configured)."""
+
+Warn = Callable[[str], None]
+
+
+@dataclass
+class PluginFaults:
+    """What one plugin instance (an estimator instance, a device's driver, a sink) did wrong
+    in a run, and whether it is disabled."""
+
+    label: str
+    """How the run names the instance, e.g. ``estimator 'ahrs'``."""
+    origin: str
+    """The plugin it comes from (``plugin_origin``)."""
+    counts: Counter[str] = field(default_factory=Counter)
+    disabled: bool = False
+    recent: deque[int] = field(default_factory=lambda: deque(maxlen=DISABLE_AFTER_FAILURES))
+    """Data times (ns) of the latest failures."""
+    warned: set[str] = field(default_factory=set)
+
+    @property
+    def name(self) -> str:
+        return f"{self.label} ({self.origin})"
+
+    def failed(self, t_ns: int, key: str, message: str, warn: Warn) -> bool:
+        """Count one failure of kind ``key`` at data time ``t_ns``; the first of each kind is
+        reported (``message`` follows the instance's name). Returns True when this failure
+        disables the instance."""
+        self.counts[key] += 1
+        if key not in self.warned:
+            self.warned.add(key)
+            warn(f"{self.name} {message}")
+        recent = self.recent
+        recent.append(t_ns)
+        if self.disabled or len(recent) < DISABLE_AFTER_FAILURES \
+                or recent[-1] - recent[0] > FAILURE_WINDOW_NS:
+            return False
+        self.disable(f"after {DISABLE_AFTER_FAILURES} failures within "
+                     f"{FAILURE_WINDOW_NS / 1e9:g} s", warn)
+        return True
+
+    def disable(self, why: str, warn: Warn) -> None:
+        self.disabled = True
+        self.counts["disabled"] = 1
+        warn(f"{self.name} disabled {why}; the run goes on without it")
+
+
+class Containment:
+    """Every plugin instance's faults in one run, by label; warnings go to ``warn``."""
+
+    def __init__(self, warn: Warn) -> None:
+        self.warn = warn
+        self.records: dict[str, PluginFaults] = {}
+
+    def record(self, label: str, origin: str) -> PluginFaults:
+        faults = self.records.get(label)
+        if faults is None:
+            faults = self.records[label] = PluginFaults(label, origin)
+        return faults
+
+    def counts(self) -> dict[str, dict[str, int]]:
+        """Per plugin instance that failed at least once: its counts (run summary)."""
+        return {label: dict(f.counts) for label, f in self.records.items() if f.counts}
+
+
+def describe_exception(exc: BaseException) -> str:
+    """``Type: message`` on one line."""
+    text = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+class EstimatorGuard:
+    """Runs one estimator instance contained (see the module docstring)."""
+
+    __slots__ = (
+        "_calls",
+        "_slow_windows",
+        "_spent_ns",
+        "_window_start_ns",
+        "_windows",
+        "estimator",
+        "faults",
+        "warn",
+    )
+
+    def __init__(self, estimator: Estimator, faults: PluginFaults, warn: Warn) -> None:
+        self.estimator = estimator
+        self.faults = faults
+        self.warn = warn
+        self._window_start_ns: int | None = None
+        self._spent_ns = 0
+        self._calls = 0
+        self._slow_windows = 0
+        self._windows = 0
+
+    def process(self, item: Sample | Estimate) -> list[Estimate]:
+        """The estimator's estimates for ``item``, each checked; [] when it is disabled or
+        raised."""
+        return self._called(item.t_ns, self.estimator.process, item)
+
+    def process_block(self, block: Block) -> list[Estimate]:
+        """The estimator's estimates for the frames of ``block`` (``update_block``), each
+        checked; [] when it is disabled or raised (the block is skipped for it alone)."""
+        return self._called(int(block.t_ns[-1]), self.estimator.update_block, block)
+
+    def _called(self, t_ns: int, call: Callable[[Any], Iterable[Estimate]],
+                arg: object) -> list[Estimate]:
+        if self.faults.disabled:
+            return []
+        t0 = time.perf_counter_ns()
+        try:
+            got = call(arg)
+            made = got if type(got) is list else list(got or ())  # any iterable
+        except Exception as exc:  # a plugin's failure is its own (module docstring)
+            self.faults.failed(t_ns, "exceptions",
+                               f"raised {describe_exception(exc)} at t={t_ns / 1e9:.3f} s; "
+                               "that input is skipped for it alone", self.warn)
+            return []
+        self._timed(t_ns, time.perf_counter_ns() - t0)
+        if not made:
+            return []
+        for i, estimate in enumerate(made):
+            flags = estimate_flags(estimate) if isinstance(estimate, Estimate) else None
+            if flags:
+                made[i] = self._rejected(estimate, flags)
+            elif flags is None:
+                return self._not_estimates(t_ns, estimate)
+        return made
+
+    def _rejected(self, estimate: Estimate, flags: EstimateFlag) -> RejectedEstimate:
+        kind = estimate_kind(estimate)
+        why = " and ".join((f.name or "").lower().replace("_", " ") for f in EstimateFlag
+                           if f in flags)
+        self.faults.failed(estimate.t_ns, f"rejected_{kind}_estimates",
+                           f"made {'an' if kind[:1] in 'aeiou' else 'a'} {kind} estimate that is "
+                           f"{why} at "
+                           f"t={estimate.t_ns / 1e9:.3f} s; refused (flags {int(flags)}), "
+                           "no sink gets its values", self.warn)
+        return RejectedEstimate(t_ns=estimate.t_ns, source=estimate.source, kind=kind,
+                                flags=flags, estimator=type(self.estimator).name)
+
+    def _not_estimates(self, t_ns: int, thing: object) -> list[Estimate]:
+        self.faults.failed(t_ns, "exceptions",
+                           f"returned {type(thing).__name__}, not an Estimate, at "
+                           f"t={t_ns / 1e9:.3f} s; its output is dropped", self.warn)
+        return []
+
+    def _timed(self, t_ns: int, spent_ns: int) -> None:
+        """Add one call's cost; at the end of each data-time window, judge the load. The
+        first window is not judged (a compiled kernel may compile at its first call)."""
+        start = self._window_start_ns
+        if start is None:
+            self._window_start_ns = t_ns
+            return
+        self._spent_ns += spent_ns
+        self._calls += 1
+        span_ns = t_ns - start
+        if span_ns < SLOW_WINDOW_NS:
+            return
+        load = self._spent_ns / span_ns
+        self._windows += 1
+        self._slow_windows = self._slow_windows + 1 if load > SLOW_LOAD and self._windows > 1 \
+            else 0
+        if self._slow_windows == 2 and "slow" not in self.faults.warned:
+            self.faults.warned.add("slow")
+            self.faults.counts["slow_reports"] += 1
+            per_s = self._calls / (span_ns / 1e9)
+            self.warn(f"{self.faults.name} is slow: {self._spent_ns / self._calls / 1e6:.2f} ms "
+                      f"per input, {per_s:.0f} inputs per second of data: {load:.2f} s of "
+                      "computing per second of data (a --realtime run falls behind beyond "
+                      "1 s; reported once)")
+        self._window_start_ns, self._spent_ns, self._calls = t_ns, 0, 0
+
+
+def driver_deadline_s(streams: Sequence[StreamSpec]) -> float:
+    """How long (s) one call of a device's driver may take: DEADLINE_PERIODS periods of its
+    slowest stream, at least DEADLINE_MIN_S; DEADLINE_NO_STREAM_S before its streams are
+    known."""
+    if not streams:
+        return DEADLINE_NO_STREAM_S
+    return max(DEADLINE_MIN_S, DEADLINE_PERIODS / min(s.rate_hz for s in streams))
+
+
+class DriverDeadline(BaseException):
+    """Raised inside a driver call that overran its deadline (by :class:`Watchdog`). A
+    BaseException, so that a driver's ``except Exception`` does not swallow it."""
+
+
+class Watchdog:
+    """Interrupts a driver call that overran its deadline: a one-shot ``ITIMER_REAL`` armed
+    around the call, whose SIGALRM handler raises :class:`DriverDeadline` in the call.
+
+    Why not a worker thread per call: a thread cannot be stopped, so the overrun call would
+    go on using the bus beside the next device's transfers, and every poll would pay a thread
+    handoff. The signal interrupts Python code and blocking system calls (the call then sees
+    the exception); it cannot interrupt a call stuck inside the kernel uninterruptibly. It
+    works only in the main thread and when nobody else handles SIGALRM: otherwise (a pipeline
+    run in a thread) ``arm`` returns False and calls are not timed. Every pipeline shares
+    the one handler (only one driver call runs at a time in the main thread).
+    """
+
+    _active = False
+    """A driver call is being timed (class-wide: the handler is process-wide)."""
+
+    def __init__(self) -> None:
+        self._previous: Any = None
+        self._installed = False
+
+    def arm(self, seconds: float) -> bool:
+        """Start timing a driver call; False when this thread cannot be interrupted."""
+        handler = signal.getsignal(signal.SIGALRM)
+        if handler is not _deadline_expired and not self._install(handler):
+            return False
+        Watchdog._active = True
+        signal.setitimer(signal.ITIMER_REAL, seconds)
+        return True
+
+    def disarm(self) -> None:
+        Watchdog._active = False
+        signal.setitimer(signal.ITIMER_REAL, 0)
+
+    def release(self) -> None:
+        """Give SIGALRM back to the handler this watchdog found."""
+        if self._installed and signal.getsignal(signal.SIGALRM) is _deadline_expired:
+            signal.setitimer(signal.ITIMER_REAL, 0)
+            signal.signal(signal.SIGALRM, self._previous)
+        self._installed = False
+
+    def _install(self, current: Any) -> bool:
+        """Take SIGALRM when nobody handles it (and this is the main thread)."""
+        if current not in (signal.SIG_DFL, None) or \
+                threading.current_thread() is not threading.main_thread():
+            return False
+        self._previous = signal.SIG_DFL
+        signal.signal(signal.SIGALRM, _deadline_expired)
+        self._installed = True
+        return True
+
+
+def _deadline_expired(signum: int, frame: FrameType | None) -> None:
+    if Watchdog._active:
+        Watchdog._active = False
+        raise DriverDeadline
+
+
+class ContainedSinks:
+    """The run's sinks, each contained: one that raises is aborted (``abort()`` when it has
+    one, else ``close()``), named, counted and left out of the rest of the run."""
+
+    def __init__(self, sinks: Sequence[Sink], containment: Containment,
+                 registry: Registry) -> None:
+        self.containment = containment
+        self.registry = registry
+        self.active: list[Sink] = list(sinks)
+        self.failed: list[Sink] = []
+
+    def handle(self, event: Event) -> None:
+        for sink in self.active:
+            try:
+                sink.handle(event)
+            except Exception as exc:  # a sink's failure is its own (module docstring)
+                self._failed(sink, event, exc)
+
+    def _failed(self, sink: Sink, event: Event, exc: Exception) -> None:
+        self.active = [s for s in self.active if s is not sink]
+        self.failed.append(sink)
+        name = sink_name(sink)
+        faults = self.containment.record(f"sink {name!r}", sink_origin(sink, self.registry))
+        faults.counts["exceptions"] += 1
+        try:
+            (getattr(sink, "abort", None) or sink.close)()
+            ended = "aborted" if hasattr(sink, "abort") else "closed"
+        except Exception as second:
+            ended = f"not closed either ({describe_exception(second)})"
+        faults.disable(f"after it raised {describe_exception(exc)} at "
+                       f"t={event.t_ns / 1e9:.3f} s ({ended})", self.containment.warn)
+
+
+def sink_name(sink: object) -> str:
+    return str(getattr(sink, "name", "") or type(sink).__name__)
+
+
+def sink_origin(sink: object, registry: Registry) -> str:
+    """Where a sink's class comes from: the plugin that registered it, else its module (a
+    sink the caller made itself)."""
+    for registration in registry.sinks.entries.values():
+        if registration.obj is type(sink):
+            return plugin_origin(registration)
+    return f"module {type(sink).__module__}"

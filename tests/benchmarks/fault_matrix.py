@@ -1,0 +1,372 @@
+"""Fault matrix (issue 26): every bundled board x every fault kind of the fault API, alone
+and three at once, at 0.1, 1 and 10 %, every valid sample and every estimate checked against
+the simulation's truth (plain script; not collected by pytest).
+
+Run:  nice -n 10 .venv/bin/python tests/benchmarks/fault_matrix.py [--seconds 10]
+      [--boards gy91,seed-gps-vario] [--rates 0.001,0.01,0.1] [--json out.json] [--markdown]
+
+Each run opens one bundled board emulated (its profile's scenario, seed 1), injects the
+faults through imuhal.emulation.faults, flies ``--seconds`` simulated seconds and judges
+every event with the soak's checker (tests/benchmarks/soak.py) at MARGIN times the
+tolerance the chips' error models allow, with each board's own latency (two periods of the
+device's stream plus the latency its stream spec declares: a chip filter's delay). What a
+kind "at r" means:
+
+* rate kinds (``bus_errors``, ``os_error``): each transfer fails with probability r;
+* window kinds (``all_ones``, ``all_zeros``, ``absent``, ``stuck_data_ready``, ``frozen``,
+  ``late_polls`` 10 ms, ``jitter`` up to 5 ms): windows of at most 0.5 s covering a
+  fraction r of the flight, evenly spread;
+* ``host_stall``: 20 ms stalls at random, r / 20 ms a second (the host stalled a fraction r);
+* one-off kinds (``reset``, ``corrupt_trim``, ``wild_value``, ``wrong_pressure``,
+  ``corrupt_byte``): r times the device's samples, evenly spread (``wild_value``: 1000
+  times the chip's full scale on one axis, each quantity of the device in turn;
+  ``wrong_pressure``: +300 Pa, valid by design and reported apart by the checker).
+
+Every kind hits every device of the board that can have it (chip kinds where the emulator
+models them, ``corrupt_byte`` on serial lines, ``wrong_pressure`` on barometers). "Three at
+once" runs consecutive kinds of the list in threes. Per run it counts: crashes (an
+exception out of ``Pipeline.events``), wrong valid samples (valid and farther from the truth
+than MARGIN x tolerance; a GNSS velocity more than VELOCITY_MARGIN_M_S off), and unflagged
+wrong estimates (a non-finite attitude or vertical estimate that is not a RejectedEstimate;
+a climb rate more than CLIMB_MARGIN_M_S off the truth after SETTLE_S).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+import traceback
+from collections import Counter
+from collections.abc import Iterator, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+from tests.benchmarks.soak import LATENCY_S, Checker, Report
+
+from imuhal.core.samples import Quantity, Sample, VelocitySample
+from imuhal.emulation import error_models_for, open_emulated
+from imuhal.emulation.faults import (
+    AllOnes,
+    AllZeros,
+    BusErrors,
+    BusOSError,
+    ChipAbsent,
+    ChipReset,
+    CorruptByte,
+    CorruptTrim,
+    FaultSpec,
+    FrozenData,
+    HostStall,
+    LatePolls,
+    StuckDataReady,
+    TimingJitter,
+    WildValue,
+    WrongPressure,
+)
+from imuhal.estimation.outputs import AttitudeEstimate, VerticalEstimate
+from imuhal.pipeline import Pipeline
+from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import bundled_profiles
+from imuhal.profile.loader import load_profile
+from imuhal.profile.model import BoardProfile
+
+RATES = (0.001, 0.01, 0.1)
+MARGIN = 1.5
+"""Every tolerance of the error model, times this (the "generous margin")."""
+VELOCITY_MARGIN_M_S = 2.0
+"""A valid GNSS velocity further than this from the truth is wrong (issue 26 item 2)."""
+CLIMB_MARGIN_M_S = 3.0
+"""A vertical estimate's climb rate further than this from the truth is wrong..."""
+SETTLE_S = 3.0
+"""...after this long (the filters start from zero climb)."""
+WINDOW_MAX_S = 0.5
+KINDS = ("bus_errors", "os_error", "all_ones", "all_zeros", "corrupt_byte", "absent", "reset",
+         "stuck_data_ready", "frozen", "corrupt_trim", "late_polls", "jitter", "host_stall",
+         "wild_value", "wrong_pressure")
+"""Every kind of imuhal.emulation.faults (FAULT_KINDS), in its order."""
+WILD_CHANNELS = ("accel", "gyro", "mag", "pressure", "temperature")
+
+
+@dataclass
+class Device:
+    """What the matrix needs to know of one device of a board."""
+
+    name: str
+    serial: bool
+    chip_faults: frozenset[str]
+    channels: tuple[str, ...]
+    rate_hz: float
+    full_scale: dict[str, float] = field(default_factory=dict)
+
+
+def devices_of(profile: BoardProfile, registry: Registry) -> list[Device]:
+    """Every enabled device, from one fault-free open of the board (rates and full scales
+    as the drivers read them back)."""
+    out = []
+    with open_emulated(profile, registry, seed=1) as p:
+        for name, dev in p.devices.items():
+            cfg = profile.devices[name]
+            bus = cfg.bus.split("/")[0]
+            kind = profile.buses[bus].kind if bus in profile.buses else None
+            emulator = registry.emulators.get(cfg.driver)
+            channels = tuple(c.value for c in type(dev.driver).channels)
+            rate = max((s.rate_hz for s in dev.streams), default=1.0)
+            full = {c.value: fs for c, fs in dev.full_scale.items() if fs}
+            out.append(Device(name, kind == "serial", emulator.chip_faults(), channels, rate,
+                              full))
+    return out
+
+
+def _windows(rate: float, seconds: float) -> Iterator[tuple[float, float]]:
+    """Windows of at most WINDOW_MAX_S covering ``rate`` of ``seconds`` (after 1 s)."""
+    total = rate * (seconds - 1.0)
+    n = max(1, math.ceil(total / WINDOW_MAX_S))
+    length = total / n
+    step = (seconds - 1.0) / n
+    for i in range(n):
+        start = 1.0 + i * step + (step - length) / 2
+        yield round(start, 4), round(start + length, 4)
+
+
+def _instants(rate: float, seconds: float, rate_hz: float) -> list[float]:
+    n = max(1, round(rate * rate_hz * (seconds - 1.0)))
+    step = (seconds - 1.0) / n
+    return [round(1.0 + (i + 0.5) * step, 4) for i in range(n)]
+
+
+def faults_for(kind: str, dev: Device, rate: float, seconds: float) -> list[Any]:
+    """The faults of ``kind`` at ``rate`` on ``dev`` ([] where it does not apply)."""
+    d = dev.name
+    if kind in ("reset", "stuck_data_ready", "frozen", "corrupt_trim") \
+            and kind not in dev.chip_faults:
+        return []
+    # from 1 s: a board that cannot start under the fault is a start-up figure (the soak's
+    # 40 start-ups), not a flight's
+    if kind == "bus_errors":
+        return [BusErrors(device=d, rate=rate, start_s=1.0)]
+    if kind == "os_error":
+        return [BusOSError(device=d, rate=rate, start_s=1.0)]
+    window_kinds: dict[str, Any] = {
+        "all_ones": AllOnes, "all_zeros": AllZeros, "absent": ChipAbsent,
+        "stuck_data_ready": StuckDataReady, "frozen": FrozenData}
+    if kind in window_kinds:
+        return [window_kinds[kind](device=d, start_s=a, end_s=b)
+                for a, b in _windows(rate, seconds)]
+    if kind == "late_polls":
+        return [LatePolls(device=d, start_s=a, end_s=b, delay_s=0.01)
+                for a, b in _windows(rate, seconds)]
+    if kind == "jitter":
+        return [TimingJitter(device=d, start_s=a, end_s=b, max_delay_s=0.005)
+                for a, b in _windows(rate, seconds)]
+    if kind == "host_stall":
+        return [HostStall(device=d, start_s=1.0, stall_s=0.02, rate_hz=min(rate / 0.02, 100))]
+    return _one_offs(kind, dev, rate, seconds)
+
+
+def _one_offs(kind: str, dev: Device, rate: float, seconds: float) -> list[Any]:
+    instants = _instants(rate, seconds, dev.rate_hz)
+    d = dev.name
+    if kind == "reset":
+        return [ChipReset(device=d, start_s=t) for t in instants]
+    if kind == "corrupt_trim":
+        return [CorruptTrim(device=d, start_s=t) for t in instants]
+    if kind == "corrupt_byte":
+        return [CorruptByte(device=d, start_s=t, byte=i % 7, mask=1 << (i % 8))
+                for i, t in enumerate(instants)] if dev.serial else []
+    if kind == "wrong_pressure":
+        return [WrongPressure(device=d, start_s=t, offset_pa=300.0)
+                for t in instants] if "pressure" in dev.channels else []
+    wild = [c for c in dev.channels if c in WILD_CHANNELS]
+    if kind != "wild_value" or not wild:
+        return []
+    return [WildValue(device=d, start_s=t, channel=wild[i % len(wild)], axis=i % 3,
+                      value=1000.0 * dev.full_scale.get(wild[i % len(wild)], 1e5))
+            for i, t in enumerate(instants)]
+
+
+@dataclass
+class RunResult:
+    board: str
+    kinds: tuple[str, ...]
+    rate: float
+    faults: int
+    checked: int = 0
+    wrong_valid: dict[str, int] = field(default_factory=dict)
+    wrong_estimates: dict[str, int] = field(default_factory=dict)
+    rejected_estimates: int = 0
+    by_design: int = 0
+    crash: str = ""
+    wall_s: float = 0.0
+
+
+class MatrixChecker(Checker):
+    """The soak's checker, plus GNSS velocities and the estimates."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.wrong_estimates: Counter[str] = Counter()
+        self.rejected = 0
+
+    def handle(self, event: object) -> None:
+        if isinstance(event, VelocitySample):
+            self._velocity(event)
+            return
+        if isinstance(event, Sample) and event.channel not in self.latency_s:
+            return  # GNSS position: the checker has no truth in degrees
+        elif isinstance(event, AttitudeEstimate | VerticalEstimate):
+            self._estimate(event)
+        elif type(event).__name__ == "RejectedEstimate":
+            self.rejected += 1
+        super().handle(event)
+
+    def _wrong_by_design(self, s: Sample, values: tuple[float, ...]) -> bool:
+        """As the soak's, and a pressure between the truth and the truth plus a
+        ``wrong_pressure`` offset in that fault's window: the chip's own filter (the
+        BMP280's IIR) blends the wrong measurement into the next outputs."""
+        if super()._wrong_by_design(s, values):
+            return True
+        if s.channel is not Quantity.PRESSURE:
+            return False
+        t_s = s.t_ns / 1e9
+        for device, offset, start, end in self.wrong_world:
+            if device == s.device and start <= t_s <= end:
+                low, high = min(0.0, offset), max(0.0, offset)
+                shifted = [self._error(s, values, offset=o) for o in (low, high)]
+                if self._error(s, values, offset=(low + high) / 2)[0] <= \
+                        (high - low) / 2 + max(tol for _, tol in shifted):
+                    return True
+        return False
+
+    def _velocity(self, s: VelocitySample) -> None:
+        if not s.valid:
+            return
+        errors = [math.dist(s.velocity_ned_m_s, self.truth(s.t_ns - lag).velocity_ned_m_s)
+                  for lag in (0, 100_000_000, 200_000_000)]
+        self.report.checked[f"{s.device} velocity"] += 1
+        if min(errors) > VELOCITY_MARGIN_M_S:
+            self.report.wrong_valid[f"{s.device} velocity"] += 1
+
+    def _estimate(self, e: AttitudeEstimate | VerticalEstimate) -> None:
+        if isinstance(e, AttitudeEstimate):
+            if not all(map(math.isfinite, e.q_body_to_ned)):
+                self.wrong_estimates[f"{e.source} attitude not finite"] += 1
+            return
+        if not (math.isfinite(e.altitude_m) and math.isfinite(e.climb_m_s)):
+            self.wrong_estimates[f"{e.source} vertical not finite"] += 1
+        elif e.t_ns / 1e9 > SETTLE_S and \
+                abs(e.climb_m_s - self.truth(e.t_ns).climb_m_s) > CLIMB_MARGIN_M_S:
+            self.wrong_estimates[f"{e.source} climb off"] += 1
+
+
+def latency_of(pipeline: Pipeline) -> dict[Quantity, float]:
+    """Per quantity: two periods of the slowest stream carrying it plus its declared
+    latency, never below the seed board's figures."""
+    out = dict(LATENCY_S)
+    for streams in pipeline.streams.values():
+        for spec in streams:
+            channel = spec.quantity
+            if channel in out:
+                out[channel] = max(out[channel], 2.0 / spec.rate_hz + spec.latency_s)
+    return out
+
+
+def run_one(board: str, profile: BoardProfile, registry: Registry, kinds: Sequence[str],
+            rate: float, seconds: float, devices: list[Device]) -> RunResult:
+    plan: list[FaultSpec] = [f for kind in kinds for dev in devices
+                             for f in faults_for(kind, dev, rate, seconds)]
+    result = RunResult(board, tuple(kinds), rate, len(plan))
+    if not plan:
+        return result  # no device of the board can have it (corrupt_byte without a UART)
+    wall0 = time.perf_counter()
+    report = Report(duration_s=seconds, seed=1)
+    try:
+        with open_emulated(profile, registry, seed=1, faults=plan) as pipeline:
+            checker = MatrixChecker(pipeline, plan, report, error_models_for(profile, registry, 1),
+                                    latency_s=latency_of(pipeline), margin=MARGIN)
+            for event in pipeline.events(seconds):
+                checker.handle(event)
+            result.wrong_estimates = dict(checker.wrong_estimates)
+            result.rejected_estimates = checker.rejected
+    except Exception:
+        result.crash = traceback.format_exc(limit=-3)
+    result.checked = sum(report.checked.values())
+    result.wrong_valid = {**dict(report.wrong_valid), **{f"NaN {k}": v
+                                                        for k, v in report.nan.items()}}
+    result.by_design = len(report.by_design)
+    result.wall_s = time.perf_counter() - wall0
+    return result
+
+
+def plans(rates: Sequence[float]) -> Iterator[tuple[tuple[str, ...], float]]:
+    triples = [KINDS[i:i + 3] for i in range(0, len(KINDS), 3)]
+    for rate in rates:
+        for kind in KINDS:
+            yield (kind,), rate
+        for triple in triples:
+            yield triple, rate
+
+
+def markdown(results: list[RunResult], seconds: float) -> str:
+    lines = [f"{seconds:g} s flights, seed 1, margin x{MARGIN:g}", "",
+             "| board | runs | crashes | valid samples checked | wrong valid | unflagged wrong "
+             "estimates | rejected estimates | by design (wrong_pressure) | wall s |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for board in sorted({r.board for r in results}):
+        rs = [r for r in results if r.board == board]
+        lines.append(
+            f"| {board} | {len(rs)} | {sum(bool(r.crash) for r in rs)} | "
+            f"{sum(r.checked for r in rs):,} | {sum(sum(r.wrong_valid.values()) for r in rs)} | "
+            f"{sum(sum(r.wrong_estimates.values()) for r in rs)} | "
+            f"{sum(r.rejected_estimates for r in rs)} | {sum(r.by_design for r in rs)} | "
+            f"{sum(r.wall_s for r in rs):.0f} |")
+    bad = [r for r in results if r.crash or r.wrong_valid or r.wrong_estimates]
+    for r in bad:
+        lines.append(f"\n- {r.board} {'+'.join(r.kinds)} at {r.rate:g}: "
+                     f"{r.wrong_valid or ''} {r.wrong_estimates or ''} "
+                     f"{r.crash.strip().splitlines()[-1] if r.crash else ''}")
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--seconds", type=float, default=10.0)
+    parser.add_argument("--boards", default="", help="comma-separated (default: every one)")
+    parser.add_argument("--rates", default=",".join(map(str, RATES)))
+    parser.add_argument("--json", default="")
+    parser.add_argument("--markdown", action="store_true")
+    args = parser.parse_args(argv)
+    registry = load_registry()
+    boards = {Path(name).stem: path for name, path in bundled_profiles().items()}
+    chosen = [b for b in args.boards.split(",") if b] or sorted(boards)
+    rates = [float(r) for r in args.rates.split(",")]
+    results: list[RunResult] = []
+    for board in chosen:
+        profile = load_profile(boards[board], registry)
+        devices = devices_of(profile, registry)
+        for kinds, rate in plans(rates):
+            r = run_one(board, profile, registry, kinds, rate, args.seconds, devices)
+            if not r.faults:
+                continue
+            results.append(r)
+            print(f"{board} {'+'.join(kinds)} {rate:g}: {r.faults} faults, {r.checked} checked, "
+                  f"wrong {r.wrong_valid or 0}, estimates {r.wrong_estimates or 0}, rejected "
+                  f"{r.rejected_estimates}{' CRASH' if r.crash else ''} ({r.wall_s:.1f} s)",
+                  file=sys.stderr, flush=True)
+            if r.crash:
+                print(r.crash, file=sys.stderr)
+            if args.json:
+                Path(args.json).write_text(json.dumps([asdict(x) for x in results], indent=1))
+    if args.markdown:
+        print(markdown(results, args.seconds))
+    bad = sum(bool(r.crash or r.wrong_valid or r.wrong_estimates) for r in results)
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,284 @@
+"""Issue 26 item 3: third-party plugins are contained. Each plugin here is registered as a
+third party registers one (hook implementations handed to the plugin manager), on the seed
+board: whatever it does wrong stays with it, is named (plugin and distribution) and counted,
+and the rest of the board keeps running."""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import time
+import types
+from pathlib import Path
+from typing import Any, ClassVar
+
+import pytest
+
+from imuhal.cli import main as cli_main
+from imuhal.core.samples import AccelSample, GyroSample, PressureSample
+from imuhal.drivers.base import PollResult
+from imuhal.emulation import open_emulated
+from imuhal.estimation.base import Estimator, EstimatorSettings
+from imuhal.estimation.outputs import (
+    AttitudeEstimate,
+    Estimate,
+    EstimateFlag,
+    RejectedEstimate,
+    VerticalEstimate,
+)
+from imuhal.pipeline import CsvSink
+from imuhal.pipeline.containment import DISABLE_AFTER_FAILURES
+from imuhal.plugins.hookspecs import hookimpl
+from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import default_profile_path
+from imuhal.profile.loader import load_profile
+from imuhal.sinks.builtin import ConsoleSink, event_row
+from imuhal_chips.ms5611.driver import MS5611Driver
+from imuhal_chips.ms5611.emulator import MS5611Emulator
+
+SECOND_NS = 1_000_000_000
+
+
+class _Quiet(Estimator):
+    """Shared boilerplate of the estimators below."""
+
+    Settings = EstimatorSettings
+    consumes: ClassVar[tuple[type, ...]] = (PressureSample,)
+
+    def reset(self) -> None:
+        pass
+
+    def process(self, item: Any) -> list[Estimate]:
+        return []
+
+    def get_state(self) -> dict[str, Any]:
+        return {}
+
+    def set_state(self, state: dict[str, Any]) -> None:
+        pass
+
+
+class RaisesLater(_Quiet):
+    """Raises ValueError for every pressure sample after 1 s."""
+
+    name: ClassVar[str] = "acme-raises"
+
+    def process(self, item: Any) -> list[Estimate]:
+        if item.t_ns > SECOND_NS:
+            raise ValueError("acme: matrix not positive definite")
+        return []
+
+
+class NanAttitude(_Quiet):
+    """An AHRS whose state went NaN: every estimate's quaternion is NaN."""
+
+    name: ClassVar[str] = "acme-nan-ahrs"
+    consumes: ClassVar[tuple[type, ...]] = (GyroSample,)
+
+    def process(self, item: Any) -> list[Estimate]:
+        nan = float("nan")
+        return [AttitudeEstimate(t_ns=item.t_ns, source=self.instance,
+                                 q_body_to_ned=(nan, nan, nan, nan))]
+
+
+class ZeroQuaternion(_Quiet):
+    """An AHRS that returns the zero quaternion: finite, but no rotation."""
+
+    name: ClassVar[str] = "acme-zero-ahrs"
+    consumes: ClassVar[tuple[type, ...]] = (AccelSample,)
+
+    def process(self, item: Any) -> list[Estimate]:
+        return [AttitudeEstimate(t_ns=item.t_ns, source=self.instance,
+                                 q_body_to_ned=(0.0, 0.0, 0.0, 0.0))]
+
+
+class Slow(_Quiet):
+    """Takes 30 ms per pressure sample (50 Hz): 1.5 s of computing per second of data."""
+
+    name: ClassVar[str] = "acme-slow"
+
+    def process(self, item: Any) -> list[Estimate]:
+        time.sleep(0.03)
+        return []
+
+
+class HangingBaro(MS5611Driver):
+    """The MS5611 driver of a plugin whose poll never returns after 1 s."""
+
+    name: ClassVar[str] = "acme-ms5611-hangs"
+
+    def poll(self, now_ns: int) -> PollResult:
+        while now_ns > SECOND_NS:
+            time.sleep(3600)
+        return super().poll(now_ns)
+
+
+class BuggyBaro(MS5611Driver):
+    """The MS5611 driver of a plugin with a bug: a plain ValueError from every poll after
+    1 s (its probe and configuration still work)."""
+
+    name: ClassVar[str] = "acme-ms5611-buggy"
+
+    def poll(self, now_ns: int) -> PollResult:
+        if now_ns > SECOND_NS:
+            raise ValueError("acme: unpack requires a buffer of 3 bytes")
+        return super().poll(now_ns)
+
+
+class HangingEmulator(MS5611Emulator):
+    chip = "acme-ms5611-hangs"
+
+
+class BuggyEmulator(MS5611Emulator):
+    chip = "acme-ms5611-buggy"
+
+
+ACME = types.SimpleNamespace(
+    imuhal_register_estimators=hookimpl(lambda register: [
+        register(cls) for cls in (RaisesLater, NanAttitude, ZeroQuaternion, Slow)]),
+    imuhal_register_drivers=hookimpl(lambda register: [
+        register(cls) for cls in (HangingBaro, BuggyBaro)]),
+    imuhal_register_emulators=hookimpl(lambda register: [
+        register(cls) for cls in (HangingEmulator, BuggyEmulator)]),
+)
+"""The third party's plugin module: hook implementations, as its entry point would load."""
+
+
+@pytest.fixture(scope="module")
+def acme_registry() -> Registry:
+    return load_registry(extra=[("acme", ACME)])
+
+
+def _board(tmp_path: Path, *, estimator: str | None = None, inputs: str = "[baro]",
+           baro_driver: str = "ms5611") -> Path:
+    """The seed board, with one more estimator and/or another barometer driver."""
+    text = default_profile_path().read_text()
+    if estimator is not None:
+        text = text.replace("\nestimators:\n", f"\nestimators:\n  acme: {{estimator: {estimator}"
+                            f", inputs: {inputs}}}\n")
+    text = text.replace("    driver: ms5611\n", f"    driver: {baro_driver}\n")
+    path = tmp_path / "board.yaml"
+    path.write_text(text)
+    return path
+
+
+def _run(registry: Registry, path: Path, seconds: float, sinks: list[Any] | None = None
+         ) -> tuple[Any, list[Any]]:
+    events: list[Any] = []
+
+    class Keep:
+        def handle(self, event: Any) -> None:
+            events.append(event)
+
+        def close(self) -> None:
+            pass
+
+    with open_emulated(load_profile(path, registry), registry, scenario="thermal") as p:
+        summary = p.run(seconds, [Keep(), *(sinks or [])])
+    return summary, events
+
+
+def _after(events: list[Any], kind: type, t_ns: int, source: str | None = None) -> list[Any]:
+    return [e for e in events if isinstance(e, kind) and e.t_ns > t_ns
+            and (source is None or getattr(e, "source", getattr(e, "device", None)) == source)]
+
+
+def test_an_estimator_that_raises_is_named_counted_and_disabled_alone(
+        acme_registry: Registry, tmp_path: Path) -> None:
+    summary, events = _run(acme_registry, _board(tmp_path, estimator="acme-raises"), 4.0)
+    first = [w for w in summary.warnings if w.startswith("estimator 'acme'")]
+    assert first[0].startswith("estimator 'acme' (acme-raises; plugin 'acme') raised "
+                               "ValueError: acme: matrix not positive definite at t=1.0")
+    assert first[0].endswith("; that input is skipped for it alone")
+    assert "disabled after 10 failures within 10 s" in first[1]
+    counts = summary.contained["estimator 'acme'"]
+    assert counts == {"exceptions": DISABLE_AFTER_FAILURES, "disabled": 1}
+    # the board's own estimators go on to the end
+    assert _after(events, VerticalEstimate, 3_900_000_000, "vario")
+    assert _after(events, AttitudeEstimate, 3_900_000_000, "ahrs")
+
+
+def test_a_nan_quaternion_never_reaches_a_sink_as_a_number(
+        acme_registry: Registry, tmp_path: Path) -> None:
+    out = tmp_path / "flight.csv"
+    console = io.StringIO()
+    board = _board(tmp_path, estimator="acme-nan-ahrs", inputs="[imu]")
+    summary, events = _run(acme_registry, board, 1.0,
+                           [CsvSink(out), ConsoleSink(console, every_s=0.01)])
+    rejected = [e for e in events if isinstance(e, RejectedEstimate)]
+    assert rejected and all(e.source == "acme" and e.estimator == "acme-nan-ahrs"
+                            and e.flags == EstimateFlag.NOT_FINITE | EstimateFlag.NOT_NORMALISABLE
+                            and e.kind == "attitude" for e in rejected)
+    assert not [e for e in events if isinstance(e, AttitudeEstimate) and e.source == "acme"]
+    with out.open() as f:
+        rows = [r for r in csv.DictReader(f) if r["source"] == "acme"]
+    assert rows and all(r["flags"] == "3" and r["kind"] == "attitude" and r["qw"] == ""
+                        for r in rows)
+    assert console.getvalue() and "nan" not in console.getvalue()
+    assert summary.contained["estimator 'acme'"]["disabled"] == 1
+    assert any("made an attitude estimate that is not finite and not normalisable" in w
+               for w in summary.warnings)
+    # the vario, fed by the seed's own AHRS, never saw them
+    assert _after(events, VerticalEstimate, 900_000_000, "vario")
+
+
+def test_a_zero_quaternion_is_flagged_not_normalisable() -> None:
+    from imuhal.estimation.outputs import estimate_flags
+    zero = AttitudeEstimate(t_ns=0, source="a", q_body_to_ned=(0.0, 0.0, 0.0, 0.0))
+    unit = AttitudeEstimate(t_ns=0, source="a", q_body_to_ned=(1.0, 0.0, 0.0, 0.0),
+                            linear_accel_ned_m_s2=(0.0, math.inf, 0.0))
+    assert estimate_flags(zero) == EstimateFlag.NOT_NORMALISABLE
+    assert estimate_flags(unit) == EstimateFlag.NOT_FINITE
+    assert estimate_flags(VerticalEstimate(t_ns=0, source="v", altitude_m=math.nan,
+                                           climb_m_s=0.0)) == EstimateFlag.NOT_FINITE
+    row = event_row(RejectedEstimate(t_ns=0, source="a", kind="attitude",
+                                     flags=EstimateFlag.NOT_NORMALISABLE, estimator="x"))
+    assert row == {"t_s": "0.000000", "source": "a", "flags": "2", "kind": "attitude"}
+
+
+def test_a_driver_whose_poll_never_returns_is_isolated_and_the_board_goes_on(
+        acme_registry: Registry, tmp_path: Path) -> None:
+    board = _board(tmp_path, baro_driver="acme-ms5611-hangs")
+    t0 = time.monotonic()
+    summary, events = _run(acme_registry, board, 3.0)
+    assert time.monotonic() - t0 < 60
+    warning = next(w for w in summary.warnings if w.startswith("driver of 'baro'"))
+    assert warning.startswith("driver of 'baro' (acme-ms5611-hangs; plugin 'acme') disabled at "
+                              "t=1.0")
+    assert "did not return from a call within its deadline of 1 s" in warning
+    assert "device 'baro' is isolated" in warning
+    assert summary.contained["driver of 'baro'"] == {"deadlines_missed": 1, "disabled": 1}
+    assert not _after(events, PressureSample, 1_100_000_000)
+    assert _after(events, GyroSample, 2_900_000_000, "imu")
+
+
+def test_a_driver_raising_a_plain_value_error_is_contained_to_its_device(
+        acme_registry: Registry, tmp_path: Path) -> None:
+    summary, events = _run(acme_registry, _board(tmp_path, baro_driver="acme-ms5611-buggy"),
+                           3.0)
+    warnings = [w for w in summary.warnings if w.startswith("driver of 'baro'")]
+    assert warnings[0].startswith("driver of 'baro' (acme-ms5611-buggy; plugin 'acme') raised "
+                                  "ValueError: acme: unpack requires a buffer of 3 bytes at t=1.")
+    assert "device 'baro' is isolated" not in warnings[0]
+    assert "disabled after 10 failures within 10 s" in warnings[1]
+    assert summary.contained["driver of 'baro'"] == {"exceptions": 10, "disabled": 1}
+    assert summary.device_errors["baro"] == 10
+    assert _after(events, GyroSample, 2_900_000_000, "imu")
+
+
+def test_a_slow_estimator_in_a_realtime_run_is_reported_once_with_its_cost(
+        acme_registry: Registry, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.setattr(cli_main, "load_registry", lambda: acme_registry)
+    board = _board(tmp_path, estimator="acme-slow")
+    code = cli_main.main(["run", str(board), "--emulate", "static", "--realtime",
+                          "--skip-calibration", "--duration", "3.5", "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 0
+    slow = [line for line in err.splitlines() if "is slow" in line]
+    assert len(slow) == 1
+    words = slow[0].split()
+    cost_ms = float(words[words.index("ms") - 1])
+    assert 30 <= cost_ms < 500  # the sleep is 30 ms; a loaded host oversleeps
+    assert slow[0].startswith("  warning: estimator 'acme' (acme-slow; plugin 'acme') is slow: ")
