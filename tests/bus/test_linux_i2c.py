@@ -11,7 +11,7 @@ from smbus2 import I2cFunc
 
 from imuhal.bus.linux_i2c import SMBUS_BLOCK_MAX, LinuxI2CBus, choose_mode
 from imuhal.core.clock import SimulatedClock
-from imuhal.core.errors import BusError, NackError
+from imuhal.core.errors import BusError, NackError, ProfileError
 from imuhal.pipeline import HardwareBoard, Pipeline
 from imuhal.plugins.manager import load_registry
 from imuhal.profile.loader import parse_profile
@@ -210,3 +210,30 @@ def test_the_run_summary_names_the_mode_an_smbus_only_adapter_is_read_in() -> No
     with Pipeline(profile, registry, board) as pipeline:
         described = pipeline.summary().describe()
     assert "bus i2c: i2c:///dev/i2c-0: SMBus transfers" in described
+
+
+def test_forced_combined_transfers_on_an_smbus_only_adapter_fail_naming_the_mode() -> None:
+    # what every transfer did before the bus read I2C_FUNCS (the kernel's EOPNOTSUPP)
+    bus = LinuxI2CBus("/dev/i2c-0", smbus=FakeSMBusOnly(), mode="i2c_rdwr")
+    assert "forced (the adapter lacks I2C_FUNC_I2C" in bus.describe()
+    with pytest.raises(BusError, match=r"\(i2c_rdwr\): .*Operation not supported"):
+        bus.transfer(0x68, b"\x75", 1)
+
+
+def test_forced_smbus_transfers_on_a_full_adapter_go_through_smbus_calls() -> None:
+    adapter = FakeSMBusOnly(funcs=int(I2cFunc.I2C) | I2C_STUB_FUNCS)
+    bus = LinuxI2CBus("/dev/i2c-1", smbus=adapter, mode="smbus")
+    assert bus.mode == "smbus"
+    assert bus.transfer(0x68, b"\x10", 2) == bytes([0x10, 0x11])
+    assert adapter.calls == [("read_i2c_block", 0x10, 2)]
+
+
+@pytest.mark.parametrize("mode", ["auto", "i2c_rdwr", "smbus"])
+def test_the_profile_takes_the_transfer_mode_and_refuses_others(mode: str) -> None:
+    registry = load_registry()
+    text = ("schema_version: 1\nname: forced\nbuses:\n  i2c: {kind: i2c, device: /dev/i2c-0, "
+            "transfer_mode: MODE}\ndevices:\n  imu: {driver: mpu9250, bus: i2c, address: 0x68}\n")
+    profile = parse_profile(text.replace("MODE", mode), "forced.yaml", registry)
+    assert profile.buses["i2c"].transfer_mode == mode  # type: ignore[attr-defined]
+    with pytest.raises(ProfileError, match="transfer_mode"):
+        parse_profile(text.replace("MODE", "rdwr"), "forced.yaml", registry)

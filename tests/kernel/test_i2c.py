@@ -10,6 +10,9 @@ Both hold the chips as register files: each test loads the registers a real chip
 expected values come from the datasheets (MPU-9250 register map rev 1.4: 8192 LSB/g at
 +/-4 g, 65.5 LSB/(deg/s) at +/-500 deg/s, T = counts/333.87 + 21 degC; HMC5883L rev E: 1090
 LSB/gauss at +/-1.3 Ga, data order X, Z, Y big-endian).
+
+The bus before it read I2C_FUNCS sent every transfer through I2C_RDWR; ``transfer_mode:
+i2c_rdwr`` still does, which shows on the SMBus-only adapter what that code did there.
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ from tests.kernel.guest import i2c_device_named, loaded_module
 
 from imuhal.bus.linux_i2c import LinuxI2CBus
 from imuhal.core.clock import MonotonicClock
-from imuhal.core.errors import NackError
+from imuhal.core.errors import BusError, NackError
 from imuhal.core.samples import AccelSample, GyroSample, MagSample, TemperatureSample
 from imuhal_chips.hmc5883l.driver import Hmc5883lDriver
 from imuhal_chips.mpu9250.driver import MPU9250Driver
@@ -129,3 +132,19 @@ def test_hmc5883l_probes_configures_and_reads_through_i2c_dev(adapter: Adapter) 
 def test_an_absent_address_is_a_nack_error_naming_it(adapter: Adapter) -> None:
     with LinuxI2CBus(adapter.device) as bus, pytest.raises(NackError, match="0x50"):
         bus.transfer(ABSENT, b"\x75", 1)
+
+
+def test_the_pre_fix_i2c_rdwr_transfers_fail_on_the_smbus_only_adapter_where_auto_reads(
+        ) -> None:
+    with loaded_module("i2c-stub", f"chip_addr={MPU:#x}"):
+        device = i2c_device_named("SMBus stub driver")
+        load(device, MPU, {0x75: b"\x71"})
+        clock = MonotonicClock()
+        with LinuxI2CBus(device, mode="i2c_rdwr") as bus:
+            driver = MPU9250Driver(bus.link(MPU), {}, device="imu", clock=clock)
+            with pytest.raises(BusError, match=r"\(i2c_rdwr\): .*Operation not supported"):
+                driver.probe()
+        with LinuxI2CBus(device) as bus:
+            assert bus.mode == "smbus"
+            driver = MPU9250Driver(bus.link(MPU), {}, device="imu", clock=clock)
+            assert driver.probe().identity == "WHO_AM_I=0x71"

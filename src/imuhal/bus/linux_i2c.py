@@ -17,7 +17,11 @@ when it opens the device). Two modes follow from it:
   Adapters without block transfers but with byte data transfers read byte by byte.
 
 :attr:`LinuxI2CBus.mode` holds the choice and :meth:`LinuxI2CBus.describe` names it; the run
-summary lists it beside the bus.
+summary lists it beside the bus. The profile's ``transfer_mode`` (``auto`` by default) can
+force either: ``smbus`` on an adapter whose combined transfers a chip behind it mishandles,
+``i2c_rdwr`` to see what an adapter does with them (an SMBus-only one refuses every transfer
+with EOPNOTSUPP, a BusError naming the mode: how imuhal failed on such adapters before it
+read I2C_FUNCS).
 """
 
 from __future__ import annotations
@@ -57,7 +61,11 @@ def choose_mode(funcs: int) -> I2CMode | None:
 class LinuxI2CBus(Bus):
     kind = BusKind.I2C
 
-    def __init__(self, device: str, *, smbus: Any | None = None) -> None:
+    def __init__(self, device: str, *, smbus: Any | None = None,
+                 mode: I2CMode | None = None) -> None:
+        """Open ``device`` (``/dev/i2c-N``); ``mode`` None chooses the transfer mode from the
+        adapter's I2C_FUNCS, a mode forces it (the kernel then refuses what the adapter
+        lacks)."""
         super().__init__(f"i2c://{device}")
         self.device = device
         try:
@@ -70,7 +78,8 @@ class LinuxI2CBus(Bus):
             ) from exc
         self.funcs = int(self._smbus.funcs)
         """The adapter's I2C_FUNCS bit mask (linux/i2c.h I2C_FUNC_*)."""
-        mode = choose_mode(self.funcs)
+        if mode is None:
+            mode = choose_mode(self.funcs)
         if mode is None:
             self.close()
             raise BusError(f"{device} offers neither I2C messages nor SMBus register "
@@ -82,7 +91,9 @@ class LinuxI2CBus(Bus):
 
     def describe(self) -> str:
         if self.mode == "i2c_rdwr":
-            return f"{self.name}: I2C_RDWR combined transfers"
+            lacking = "" if self.funcs & I2cFunc.I2C else (
+                f", forced (the adapter lacks I2C_FUNC_I2C, I2C_FUNCS 0x{self.funcs:08X})")
+            return f"{self.name}: I2C_RDWR combined transfers{lacking}"
         return (f"{self.name}: SMBus transfers (the adapter has no I2C_RDWR, I2C_FUNCS "
                 f"0x{self.funcs:08X}); register reads in {SMBUS_BLOCK_MAX}-byte pieces")
 
@@ -154,6 +165,9 @@ class LinuxI2CBus(Bus):
 class I2CSettings(BusSettings):
     device: str = "/dev/i2c-1"
     """The i2c-dev character device."""
+    transfer_mode: Literal["auto", "i2c_rdwr", "smbus"] = "auto"
+    """``auto``: I2C_RDWR where the adapter's I2C_FUNCS has I2C_FUNC_I2C, SMBus transfers
+    where it is SMBus-only; ``i2c_rdwr`` or ``smbus`` forces one (see the module's notes)."""
 
 
 class LinuxI2CFactory(BusFactory):
@@ -166,4 +180,5 @@ class LinuxI2CFactory(BusFactory):
     @classmethod
     def open(cls, name: str, settings: BusSettings) -> Bus:
         assert isinstance(settings, I2CSettings)
-        return LinuxI2CBus(settings.device)
+        mode = None if settings.transfer_mode == "auto" else settings.transfer_mode
+        return LinuxI2CBus(settings.device, mode=mode)
