@@ -9,7 +9,8 @@ Two devices:
   axis and voltages, nothing the ``iio`` driver makes samples from, which it says;
 * the project's ``imuhal_iio_counter`` (tests/kernel/modules): three accelerometer axes whose
   x value is the scan's number, so every lost scan is visible to the test, read by the
-  ``iio`` driver in buffered mode.
+  ``iio`` driver in buffered mode. It is a bound platform driver, so a test can remove the
+  device while it is read (unbind, as a hot-unplugged device goes) and bring it back (bind).
 
 Time stamps are the kernel's CLOCK_MONOTONIC (current_timestamp_clock, set by the driver).
 The hrtimer trigger runs at 200 Hz; no test bounds latency (emulated timing says nothing
@@ -20,6 +21,7 @@ from __future__ import annotations
 
 import itertools
 import statistics
+import threading
 import time
 import uuid
 from collections.abc import Iterator
@@ -33,10 +35,14 @@ from imuhal.bus.linux_iio import LinuxIIOBus
 from imuhal.core.clock import MonotonicClock
 from imuhal.core.errors import DeviceNotFoundError
 from imuhal.core.samples import AccelSample
+from imuhal.pipeline.pipeline import Pipeline
+from imuhal.plugins.manager import load_registry
+from imuhal.profile.loader import parse_profile
 from imuhal_chips.iio.driver import IIODriver
 from imuhal_chips.iio.scan import layout, parse_scan_type
 
 IIO = Path("/sys/bus/iio/devices")
+COUNTER_DRIVER = Path("/sys/bus/platform/drivers/imuhal-counter")
 RATE_HZ = 200
 PERIOD_NS = 1_000_000_000 // RATE_HZ
 # imuhal_iio_counter.c: raw x = scan number, y = -x, z = 16284; offset 100; scale in m/s^2
@@ -210,3 +216,82 @@ def test_scans_an_overflowing_kernel_buffer_dropped_are_counted_as_lost(
     # truly lost: 195/193, 165/183, 194/183; hence the wide bound.
     assert truly_lost * 0.75 - 1 <= driver.health.scans_lost <= truly_lost * 1.5 + 2
 
+
+
+BOARD = """
+schema_version: 1
+name: kernel-counter
+buses:
+  kernel: {{kind: iio}}
+devices:
+  accel:
+    driver: iio
+    bus: kernel
+    address: 0
+    settings: {{name: imuhal-counter, trigger: {trigger}, poll_hz: 20, buffer_length: 512}}
+"""
+
+
+def _quiesce_counters() -> None:
+    """Every imuhal-counter left with its buffer off and no trigger, else the module stays
+    in use (a trigger holds a reference to it)."""
+    for folder in IIO.glob("iio:device*"):
+        if (folder / "name").read_text().strip() == "imuhal-counter":
+            (folder / "buffer" / "enable").write_text("0")
+            (folder / "trigger" / "current_trigger").write_text("\n")
+
+
+@pytest.fixture
+def counter_module(trigger: str) -> Iterator[None]:
+    """The counting device's module, for a test that unbinds and rebinds its device; left
+    bound and quiet."""
+    with loaded_module("imuhal_iio_counter"):
+        try:
+            yield
+        finally:
+            if not (COUNTER_DRIVER / "imuhal-counter").exists():
+                (COUNTER_DRIVER / "bind").write_text("imuhal-counter")
+            _quiesce_counters()
+
+
+def test_a_device_removed_while_read_is_a_counted_one_line_error_and_rejoins_when_bound(
+        counter_module: None, trigger: str) -> None:
+    registry = load_registry()
+    profile = parse_profile(BOARD.format(trigger=trigger), "kernel-counter.yaml", registry)
+    marks: dict[str, int] = {}  # on the pipeline's clock, as the samples' times
+    with Pipeline.open(profile, registry) as pipeline:
+
+        def unbind() -> None:
+            marks["removed"] = pipeline.clock.now_ns()
+            (COUNTER_DRIVER / "unbind").write_text("imuhal-counter")
+
+        def bind() -> None:
+            (COUNTER_DRIVER / "bind").write_text("imuhal-counter")
+            marks["bound"] = pipeline.clock.now_ns()
+
+        # from other threads: the pipeline yields nothing while the device is away
+        timers = [threading.Timer(3.0, unbind), threading.Timer(6.0, bind)]
+        for timer in timers:
+            timer.start()
+        try:
+            samples = [e for e in pipeline.events(10.0) if isinstance(e, AccelSample)]
+        finally:
+            for timer in timers:
+                timer.cancel()
+                timer.join()
+        summary = pipeline.summary()
+    assert set(marks) == {"removed", "bound"}
+    before = [s for s in samples if s.t_ns < marks["removed"]]
+    away = [s for s in samples if marks["removed"] <= s.t_ns <= marks["bound"]]
+    after = [s for s in samples if s.t_ns > marks["bound"]]
+    # 200 Hz, at least 0.25 s of each (an emulated guest's hrtimer skips late ticks)
+    assert len(before) >= 50 and len(after) >= 50, summary.describe()
+    assert away == []  # nothing made up while it was gone
+    # the device that came back is a new one: its scans count again from 1
+    assert _counts(after[0])[0] < _counts(before[-1])[0]
+    assert all(s.valid for s in samples)
+    assert summary.bus_errors["accel"] >= 1  # the read that found it gone, counted
+    reports = [w for w in summary.warnings if w.startswith("accel: ")]
+    assert reports and all("\n" not in w for w in summary.warnings)
+    assert any("recovery failed" in w and "IIO device named 'imuhal-counter'" in w
+               for w in reports)

@@ -116,21 +116,22 @@ static const struct iio_info counter_info = {
 };
 
 static struct platform_device *pdev;
-static struct iio_dev *indio_dev;
 
-static int __init counter_init(void)
+/*
+ * The IIO device belongs to a bound platform driver (devm-managed), so a test can remove it
+ * while it is being read, as a hot-unplugged or unbound device is removed:
+ * echo imuhal-counter > /sys/bus/platform/drivers/imuhal-counter/unbind (and bind to bring
+ * it back, under a new iio:deviceN).
+ */
+static int counter_probe(struct platform_device *platform)
 {
+	struct iio_dev *indio_dev;
 	struct counter_state *st;
 	int ret;
 
-	pdev = platform_device_register_simple("imuhal-counter", -1, NULL, 0);
-	if (IS_ERR(pdev))
-		return PTR_ERR(pdev);
-	indio_dev = iio_device_alloc(&pdev->dev, sizeof(*st));
-	if (!indio_dev) {
-		ret = -ENOMEM;
-		goto err_pdev;
-	}
+	indio_dev = devm_iio_device_alloc(&platform->dev, sizeof(*st));
+	if (!indio_dev)
+		return -ENOMEM;
 	st = iio_priv(indio_dev);
 	mutex_init(&st->lock);
 	indio_dev->name = "imuhal-counter";
@@ -138,30 +139,39 @@ static int __init counter_init(void)
 	indio_dev->channels = counter_channels;
 	indio_dev->num_channels = ARRAY_SIZE(counter_channels);
 	indio_dev->modes = INDIO_DIRECT_MODE;
-	ret = iio_triggered_buffer_setup(indio_dev, iio_pollfunc_store_time,
-					 counter_trigger_handler, NULL);
+	ret = devm_iio_triggered_buffer_setup(&platform->dev, indio_dev, iio_pollfunc_store_time,
+					      counter_trigger_handler, NULL);
 	if (ret)
-		goto err_free;
-	ret = iio_device_register(indio_dev);
-	if (ret)
-		goto err_buffer;
-	return 0;
+		return ret;
+	return devm_iio_device_register(&platform->dev, indio_dev);
+}
 
-err_buffer:
-	iio_triggered_buffer_cleanup(indio_dev);
-err_free:
-	iio_device_free(indio_dev);
-err_pdev:
-	platform_device_unregister(pdev);
-	return ret;
+static struct platform_driver counter_driver = {
+	.probe = counter_probe,
+	.driver = {
+		.name = "imuhal-counter",
+	},
+};
+
+static int __init counter_init(void)
+{
+	int ret;
+
+	ret = platform_driver_register(&counter_driver);
+	if (ret)
+		return ret;
+	pdev = platform_device_register_simple("imuhal-counter", -1, NULL, 0);
+	if (IS_ERR(pdev)) {
+		platform_driver_unregister(&counter_driver);
+		return PTR_ERR(pdev);
+	}
+	return 0;
 }
 
 static void __exit counter_exit(void)
 {
-	iio_device_unregister(indio_dev);
-	iio_triggered_buffer_cleanup(indio_dev);
-	iio_device_free(indio_dev);
 	platform_device_unregister(pdev);
+	platform_driver_unregister(&counter_driver);
 }
 
 module_init(counter_init);
