@@ -20,14 +20,14 @@ from typing import Any
 import pytest
 
 from imuhal.cli.main import main
-from imuhal.profiles_dir import bundled_profiles
+from imuhal.profile.bundled import bundled_profiles
 
 pytest.importorskip("pymavlink", reason="the mavlink extra (pymavlink) is not installed")
 pytest.importorskip("pynmea2", reason="the gps extra (pynmea2, pyubx2) is not installed")
 MAVPROXY = shutil.which("mavproxy.py", path=str(Path(sys.executable).parent))
 if MAVPROXY is None:
     pytest.skip("MAVProxy not installed (pip install -e \".[test]\")", allow_module_level=True)
-from pymavlink import mavutil
+from pymavlink import mavutil  # noqa: E402  (after the skips: an optional extra)
 
 GPS_VARIO = str(bundled_profiles()["seed-gps-vario.yaml"])
 TYPES = ("HEARTBEAT", "HIGHRES_IMU", "SCALED_PRESSURE", "ATTITUDE_QUATERNION",
