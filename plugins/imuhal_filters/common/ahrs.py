@@ -131,7 +131,7 @@ def _vec(v: Sequence[float]) -> Vec:
 
 
 _OK = SampleFlag.OK
-_CLIPPED = SampleFlag.SATURATED | SampleFlag.OUT_OF_RANGE
+_CLIPPED = SampleFlag.SATURATED | SampleFlag.OUT_OF_RANGE | SampleFlag.FILTER_SETTLING
 """The flags a gyro reading the chip cut at its full scale may carry (SATURATED required:
 OUT_OF_RANGE alone, beyond the range but not at the rail, is a corrupt word)."""
 RECOVERY_S = 3.0

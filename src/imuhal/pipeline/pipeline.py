@@ -85,10 +85,12 @@ NEVER_NS = 1 << 62
 """The next poll of an isolated device: never in any run."""
 
 
-CLIPPED = SampleFlag.SATURATED | SampleFlag.OUT_OF_RANGE
+CLIPPED = SampleFlag.SATURATED | SampleFlag.OUT_OF_RANGE | SampleFlag.FILTER_SETTLING
 """The flags a reading the chip cut at its full scale may carry: SATURATED (the driver saw
-the word at its rail), and OUT_OF_RANGE with it (beyond the declared range). OUT_OF_RANGE
-alone is no clip: a word beyond the range but not at the rail is a corrupt reading."""
+the word at its rail), and OUT_OF_RANGE with it (beyond the declared range), and
+FILTER_SETTLING (the clips before it are still in the chip's low-pass memory: a rail word
+is still at least full scale). OUT_OF_RANGE alone is no clip: a word beyond the range but
+not at the rail is a corrupt reading."""
 
 
 @dataclass
