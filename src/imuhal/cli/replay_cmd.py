@@ -92,10 +92,12 @@ class _ReplayOutputs:
 
         self.opts = opts
         self.plugin_sinks = plugin_sinks
+        frame = profile.output_frame  # as the live run without --output-frame
         self.sinks: list[Any] = [WallClockPace()] if opts.realtime else []
         if not opts.quiet:
-            self.sinks.append(ConsoleSink(sys.stdout))
-        self.csv = CsvSink(opts.output, include_samples=opts.samples) if opts.output else None
+            self.sinks.append(ConsoleSink(sys.stdout, frame=frame))
+        self.csv = (CsvSink(opts.output, include_samples=opts.samples, frame=frame)
+                    if opts.output else None)
         self.mcap = mcap_sink(registry, opts.mcap, profile) if opts.mcap else None
         self.sinks += [s for s in (self.csv, self.mcap) if s is not None]
         self.sinks += plugin_sinks
