@@ -10,6 +10,7 @@ is tilted by what a levelling AHRS makes of the offset."""
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Iterator
 from pathlib import Path
@@ -34,6 +35,8 @@ from imuhal.core.quantities import Quantity
 from imuhal.emulation import open_emulated
 from imuhal.emulation.user_calibration import missing_calibrations
 from imuhal.estimation.outputs import AttitudeEstimate
+from imuhal.live.sink import LiveSink
+from imuhal.live.snapshot import Snapshotter
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile, parse_profile
@@ -244,15 +247,19 @@ def test_the_uncalibrated_gps_vario_learns_its_offset_and_levels_in_90_s_of_ther
     registry = load_registry()
     profile = _learning_board(registry)
     tilt = []
+    sink = LiveSink()
     with open_emulated(profile, registry, scenario="thermal", seed=1) as pipeline:
+        snap = Snapshotter(sink, pipeline)
         world = pipeline.board.scenario  # type: ignore[union-attr]  # an emulated board
         for e in pipeline.events(90.0):
+            sink.handle(e)
             if isinstance(e, AttitudeEstimate) and e.source == "ahrs" and e.t_ns >= 60e9:
                 truth = world.truth(e.t_ns / 1e9).q_body_to_ned
                 tilt.append(tilt_error_deg(e.q_body_to_ned, tuple(float(v) for v in truth)))
         applied = pipeline.devices["imu"].calibration
         status = pipeline.summary().learned["imu accel"]
         words = pipeline.summary().describe()
+        live = json.loads(json.dumps(snap.snapshot(), allow_nan=False))["health"]["imu"]
     stored = load_profile(default_profile_path().parent / "seed-gps-vario.yaml", registry)
     reference = measure_board_calibration(stored, registry, seed=1)["imu"].accel
     assert reference is not None and applied is not None and applied.accel is not None
@@ -262,6 +269,7 @@ def test_the_uncalibrated_gps_vario_learns_its_offset_and_levels_in_90_s_of_ther
     assert np.all(error_mg[:2] <= 10.0), error_mg
     assert math.sqrt(float(np.mean(np.square(tilt)))) <= 1.0
     assert "imu accel: accelerometer offset learned in flight, applied" in words
+    assert live["learned_accel"]["converged"] and max(live["learned_accel"]["std_mg"]) <= 3.0
 
 
 def test_imuhal_run_saves_the_learned_offset_into_a_copy_of_the_profile(
