@@ -36,7 +36,8 @@ class AccelTeacher:
         self.device = device
         self.learner = learner
         self.attitude_from = attitude_from
-        self._apply = apply
+        self.apply = apply
+        """Write the learner's applied offset into the device's calibration."""
 
     def feed(self, items: Iterable[Sample | Block], estimates: Sequence[Estimate]) -> None:
         """One fusion step: its frames in time order, then the estimates it produced."""
@@ -68,4 +69,4 @@ class AccelTeacher:
         elif isinstance(s, PressureSample):
             changed = learner.pressure(s.t_ns, s.pressure_pa)
         if changed:
-            self._apply()
+            self.apply()
