@@ -31,6 +31,7 @@ from imuhal.calibration.model import (
     MagInFlightSettings,
 )
 from imuhal.cli.main import main
+from imuhal.core.atmosphere import pressure_pa_at_altitude
 from imuhal.core.quantities import Quantity
 from imuhal.emulation import open_emulated
 from imuhal.emulation.user_calibration import missing_calibrations
@@ -121,10 +122,6 @@ def _levelled(q: np.ndarray, offset_body: np.ndarray) -> tuple[float, float, flo
     return (float(out[0]), float(out[1]), float(out[2]), float(out[3]))
 
 
-def _pressure_pa(altitude_m: float) -> float:
-    return 101325.0 * (1.0 - altitude_m / 44330.77) ** (1.0 / 0.190263)
-
-
 def _fly(learner: AccelOffsetLearner, duration_s: float, *, gnss: bool = True,
          lag_s: float = 0.15, seed: int = 7) -> None:
     """``learner`` through the synthetic flight: the accelerometer carrying
@@ -144,7 +141,7 @@ def _fly(learner: AccelOffsetLearner, duration_s: float, *, gnss: bool = True,
             v = _velocity(t_then, q_then) + rng.normal(0.0, 0.05, 3)
             learner.velocity(t_ns, tuple(v), None)  # type: ignore[arg-type]  # a 3-vector
         if k % BARO_EVERY == 0:
-            learner.pressure(t_ns, _pressure_pa(500.0 + rng.normal(0.0, 0.1)))
+            learner.pressure(t_ns, pressure_pa_at_altitude(500.0 + rng.normal(0.0, 0.1)))
         del history[:-200]
 
 

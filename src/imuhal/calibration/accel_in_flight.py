@@ -58,9 +58,10 @@ from imuhal.calibration.model import (
     CalibrationBinding,
     Vec3,
 )
+from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2, altitude_m_from_pressure
 
 PROCEDURE = "accel-in-flight"
-G_M_S2 = 9.80665
+G_M_S2 = STANDARD_GRAVITY_M_S2
 MG = G_M_S2 / 1000.0
 _NS = 1e-9
 _MAX_GAP_S = 0.1
@@ -72,11 +73,14 @@ _ACCEL_TAU_S = 0.1
 """Time constant (s) of the smoothed NED acceleration the lag state multiplies."""
 
 
+Quat = tuple[float, float, float, float]
+
+
 def _skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
-def _rot(q: tuple[float, float, float, float]) -> tuple[tuple[float, ...], ...]:
+def _rot(q: Quat) -> tuple[tuple[float, ...], ...]:
     """Body to NED rotation matrix of the unit quaternion (w, x, y, z), as rows."""
     w, x, y, z = q
     return ((1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)),
@@ -84,9 +88,23 @@ def _rot(q: tuple[float, float, float, float]) -> tuple[tuple[float, ...], ...]:
             (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)))
 
 
-def pressure_altitude_m(pressure_pa: float) -> float:
-    """ISA pressure altitude (m, up) of ``pressure_pa``."""
-    return 44330.77 * (1.0 - (pressure_pa / 101325.0) ** 0.190263)
+def _rotation(x: float, y: float, z: float) -> Quat:
+    """The unit quaternion of the rotation vector (x, y, z) (rad); not zero."""
+    angle = math.sqrt(x * x + y * y + z * z)
+    s = math.sin(0.5 * angle) / angle
+    return (math.cos(0.5 * angle), x * s, y * s, z * s)
+
+
+def _unit_product(a: Quat, b: Quat) -> Quat:
+    """a (x) b, normalised (the rounding of many products would grow its length)."""
+    w1, x1, y1, z1 = a
+    w2, x2, y2, z2 = b
+    w = w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2
+    x = w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2
+    y = w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2
+    z = w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2
+    k = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
+    return (w * k, x * k, y * k, z * k)
 
 
 class AccelOffsetLearner:
@@ -103,7 +121,7 @@ class AccelOffsetLearner:
         s = self.settings
         self.prior_offset_m_s2 = prior_offset_m_s2 if s.initial_offset_mg is None \
             else s.initial_offset_mg * MG
-        self.q: tuple[float, float, float, float] | None = None
+        self.q: Quat | None = None
         """The learner's own attitude (body to NED), None before it started."""
         self.v_ned = np.zeros(3)
         self.down_m = 0.0
@@ -121,7 +139,7 @@ class AccelOffsetLearner:
         self.updates = 0
         self.learned_axes = [False, False, False]
         """Per body axis: its offset met the criterion (and is applied)."""
-        self._candidate_q: tuple[float, float, float, float] | None = None
+        self._candidate_q: Quat | None = None
         self._t_gyro: int | None = None
         self._t_accel: int | None = None
         self._t_prop: int | None = None
@@ -139,7 +157,7 @@ class AccelOffsetLearner:
         self._tf = [0.0, 0.0, 0.0]          # sum (t - t0) f_n dt
         self._tr = [0.0] * 9                # sum (t - t0) R dt
 
-    def attitude(self, q_body_to_ned: tuple[float, float, float, float]) -> None:
+    def attitude(self, q_body_to_ned: Quat) -> None:
         """The AHRS's attitude: kept as the starting attitude until an aiding measurement
         starts the learner; ignored after."""
         if self.q is None:
@@ -157,16 +175,8 @@ class AccelOffsetLearner:
         n = math.sqrt(wx * wx + wy * wy + wz * wz)
         if n * dt < 1e-12:
             return
-        h = 0.5 * n * dt
-        s = math.sin(h) / n
-        dw, dx, dy, dz = math.cos(h), wx * s, wy * s, wz * s
-        w, x, y, z = self.q
-        qw = w * dw - x * dx - y * dy - z * dz
-        qx = w * dx + x * dw + y * dz - z * dy
-        qy = w * dy - x * dz + y * dw + z * dx
-        qz = w * dz + x * dy - y * dx + z * dw
-        k = 1.0 / math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
-        self.q = (qw * k, qx * k, qy * k, qz * k)
+        # the body turned by omega dt in its own axes: q (x) exp(omega dt)
+        self.q = _unit_product(self.q, _rotation(wx * dt, wy * dt, wz * dt))
         self._turned_rad += n * dt
 
     def accel(self, t_ns: int, accel_m_s2: Vec3) -> None:
@@ -220,7 +230,7 @@ class AccelOffsetLearner:
     def pressure(self, t_ns: int, pressure_pa: float) -> bool:
         """Fuse a barometer reading (Pa) as a down position, at most every
         ``baro_interval_s``; True when the applied offset should change."""
-        down = -pressure_altitude_m(pressure_pa)
+        down = -altitude_m_from_pressure(pressure_pa)
         if self.q is None:
             return self._start(t_ns, None, down)
         if self._t_baro is not None and (t_ns - self._t_baro) * _NS \
@@ -313,19 +323,10 @@ class AccelOffsetLearner:
     def _correct(self, x: np.ndarray) -> None:
         assert self.q is not None
         phi = x[_PHI]
-        angle = float(np.linalg.norm(phi))
-        if angle > 0.0:
-            s = math.sin(0.5 * angle) / angle
-            dq = (math.cos(0.5 * angle), phi[0] * s, phi[1] * s, phi[2] * s)
-            w, a, b, c = dq
-            qw, qx, qy, qz = self.q
-            # the correction acts in NED: q_true = dq (x) q
-            nw = w * qw - a * qx - b * qy - c * qz
-            nx = w * qx + a * qw + b * qz - c * qy
-            ny = w * qy - a * qz + b * qw + c * qx
-            nz = w * qz + a * qy - b * qx + c * qw
-            k = 1.0 / math.sqrt(nw * nw + nx * nx + ny * ny + nz * nz)
-            self.q = (nw * k, nx * k, ny * k, nz * k)
+        if float(np.linalg.norm(phi)) > 0.0:
+            # the correction acts in NED: q_true = exp(phi) (x) q
+            self.q = _unit_product(_rotation(float(phi[0]), float(phi[1]), float(phi[2])),
+                                   self.q)
         self.v_ned += x[_V]
         self.offset_m_s2 += x[_B]
         self.down_m += float(x[_D])
