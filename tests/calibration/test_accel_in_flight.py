@@ -38,6 +38,7 @@ from imuhal.emulation.user_calibration import missing_calibrations
 from imuhal.estimation.outputs import AttitudeEstimate
 from imuhal.live.sink import LiveSink
 from imuhal.live.snapshot import Snapshotter
+from imuhal.pipeline.pipeline import RunSummary
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile, parse_profile
@@ -153,6 +154,14 @@ def circled() -> AccelOffsetLearner:
     return learner
 
 
+@pytest.fixture(scope="module")
+def baro_only() -> AccelOffsetLearner:
+    """A learner after the same flight without GNSS."""
+    learner = AccelOffsetLearner(AccelInFlightSettings())
+    _fly(learner, 70.0, gnss=False)
+    return learner
+
+
 def test_turns_reveal_the_horizontal_offset_an_ahrs_levels_away(
         circled: AccelOffsetLearner) -> None:
     learner = circled
@@ -176,17 +185,35 @@ def test_the_stated_uncertainty_covers_the_error_once_converged(
     assert np.all(error_mg <= 3.0 * np.array(learner.std_mg()))
 
 
-def test_without_gnss_the_barometer_teaches_the_axes_banks_turn_down() -> None:
+def test_without_gnss_the_barometer_teaches_the_axes_banks_turn_down(
+        baro_only: AccelOffsetLearner) -> None:
     # the vertical velocity sees the offset along the body axes that point down: z, and y
     # while banked; never x (the glider does not pitch)
-    learner = AccelOffsetLearner(AccelInFlightSettings())
-    _fly(learner, 70.0, gnss=False)
+    learner = baro_only
     assert learner.learned_axes == [False, True, True]
     assert np.allclose(learner.offset_body_m_s2()[1:], OFFSET_BODY_M_S2[1:], atol=3 * MG)
     learner.mark_applied()
     record = learner.record([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
     assert record.offset_m_s2[0] == 0.0  # an axis not learned is never applied
     assert record.procedure == PROCEDURE
+
+
+def _summary_line(learner: AccelOffsetLearner) -> str:
+    summary = RunSummary(simulated_s=1.0, wall_s=1.0, samples={}, flagged={}, bus_errors={},
+                         device_errors={}, estimates={}, warnings=[],
+                         learned={"imu accel": learner.status()})
+    return summary.describe().splitlines()[-1]
+
+
+def test_the_run_summary_says_which_axes_are_applied(baro_only: AccelOffsetLearner) -> None:
+    assert _summary_line(AccelOffsetLearner()) == (
+        "  imu accel: accelerometer offset: learning in flight (not started: needs an AHRS "
+        "estimate and a GNSS velocity or a pressure)")
+    learner = baro_only
+    line = _summary_line(learner)
+    assert line.startswith("  imu accel: accelerometer offset learning in flight, applied on "
+                           "yz: (")
+    assert line.endswith(f") mg (body frame) from {learner.updates} measurements")
 
 
 def test_the_record_is_in_the_sensor_frame(circled: AccelOffsetLearner) -> None:
