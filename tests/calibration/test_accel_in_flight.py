@@ -32,12 +32,15 @@ from imuhal.calibration.model import (
 )
 from imuhal.cli.main import main
 from imuhal.core.atmosphere import pressure_pa_at_altitude
+from imuhal.core.blocks import Block
 from imuhal.core.quantities import Quantity
+from imuhal.core.samples import VelocitySample
 from imuhal.emulation import open_emulated
 from imuhal.emulation.user_calibration import missing_calibrations
 from imuhal.estimation.outputs import AttitudeEstimate
 from imuhal.live.sink import LiveSink
 from imuhal.live.snapshot import Snapshotter
+from imuhal.pipeline.learning import AccelTeacher
 from imuhal.pipeline.pipeline import RunSummary
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.bundled import default_profile_path
@@ -231,6 +234,21 @@ def test_nothing_is_learned_before_an_attitude_and_an_aiding_measurement() -> No
     learner = AccelOffsetLearner(AccelInFlightSettings())
     assert not learner.velocity(0, (10.0, 0.0, 0.0), None)
     assert learner.q is None and learner.status()["offset_mg"] is None
+
+
+def test_the_pipeline_feeds_frames_in_blocks_as_it_feeds_readings() -> None:
+    applied: list[bool] = []
+    learner = AccelOffsetLearner()
+    teacher = AccelTeacher("imu", learner, frozenset({"ahrs"}), lambda: applied.append(True))
+    level = (1.0, 0.0, 0.0, 0.0)
+    velocity = VelocitySample(t_ns=10, device="gps", velocity_ned_m_s=(0.0, 0.0, 0.0))
+    other = AttitudeEstimate.build(5, "other", level, None, {})  # not fed by the device
+    teacher.feed([Block.of_sample(velocity)], [other])
+    assert learner.q is None  # no attitude of an AHRS fed by the device yet
+    teacher.feed([Block.of_sample(velocity)], [AttitudeEstimate.build(5, "ahrs", level,
+                                                                       None, {})])
+    teacher.feed([Block.of_sample(velocity)], [])
+    assert learner.q == level and not applied
 
 
 def _gps_vario_text() -> str:
