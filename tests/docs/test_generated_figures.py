@@ -101,22 +101,24 @@ def test_every_listed_block_is_in_the_docs() -> None:
             f"{row.script}: a block is re-run (`suite` or `on demand`), nothing else is")
 
 
+def assert_printed_by_its_script(block: Any) -> None:
+    assert docblock.differences(block.body, printed(tuple(block.command))) == [], (
+        f"{block.page.name}: the {block.name} block is not what `{' '.join(block.command)}` "
+        "prints: re-run it with --write (and re-read the prose after it)")
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("block", blocks_checked("suite"),
                          ids=lambda b: f"{b.page.name}:{b.name}")
 def test_a_cheap_block_is_what_its_script_prints(block: Any) -> None:
-    assert docblock.differences(block.body, printed(tuple(block.command))) == [], (
-        f"{block.page.name}: the {block.name} block is not what `{' '.join(block.command)}` "
-        "prints: re-run it with --write (and re-read the prose after it)")
+    assert_printed_by_its_script(block)
 
 
 @pytest.mark.long
 @pytest.mark.parametrize("block", blocks_checked("on demand"),
                          ids=lambda b: f"{b.page.name}:{b.name}")
 def test_an_expensive_block_is_what_its_script_prints(block: Any) -> None:
-    assert docblock.differences(block.body, printed(tuple(block.command))) == [], (
-        f"{block.page.name}: the {block.name} block is not what `{' '.join(block.command)}` "
-        "prints: re-run it with --write (and re-read the prose after it)")
+    assert_printed_by_its_script(block)
 
 
 @pytest.mark.slow
