@@ -5,14 +5,17 @@ pytest).
 Run:  nice .venv/bin/python -m tests.benchmarks.bench_freescale_split [--rev REV]
           [--samples N] [--rounds R]
 
-The one-function kernel is ``plugins/imuhal_filters/freescale/fast.py`` as it was at ``REV``
-(default 1b0b761^, the commit before the split), read with ``git show`` and imported as a
-module of its own; the split kernel is the working tree's. Both run the same
-``run_9dof``/``run_6dof`` calls (default settings; bench_all's gently moving board, N samples
-at 250 Hz): ``batch.freescale_rows`` is swapped for the kernel under test, and only the
-kernel's calls are timed (CPU time; the Python steps before the filter locks are the same
-for both). The rounds alternate old and new so that load drifts hit both alike; the ratio is
-of the medians. The outputs must be bit for bit the same, or the script fails.
+Three kernels: ``plugins/imuhal_filters/freescale/fast.py`` as it was at ``REV`` (default
+1b0b761^, the commit before the split: one function), read with ``git show`` and imported as
+a module of its own; the working tree's with its helper kernels called (its
+``inline_kernel`` marks removed); and the working tree's as it runs (helpers inlined into
+the kernel by numba). All run the same ``run_9dof``/``run_6dof`` calls (default settings;
+bench_all's gently moving board, N samples at 250 Hz): ``batch.freescale_rows`` is swapped
+for the kernel under test, and only the kernel's calls are timed (CPU time; the Python steps
+before the filter locks are the same for all). Each round runs the three in turn, so that
+load drifts hit them alike; the ratios are of the medians (in brackets: the range of the
+rounds' inlined / one-function ratios). The three kernels' outputs must be bit for bit the
+same, or the script fails.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import re
 import statistics
 import subprocess
 import sys
@@ -61,14 +65,25 @@ class TimedKernel:
         self.seconds += time.process_time() - t0
 
 
-def kernel_at(rev: str, directory: Path) -> Any:
-    """The ``freescale_rows`` kernel of ``KERNEL_FILE`` at ``rev``, imported from
-    ``directory`` as the module ``freescale_fast_at_rev``."""
-    source = subprocess.run(["git", "show", f"{rev}:{KERNEL_FILE}"], cwd=ROOT, check=True,
-                            capture_output=True, text=True).stdout
-    (directory / "freescale_fast_at_rev.py").write_text(source, encoding="utf-8")
-    sys.path.insert(0, str(directory))
-    return importlib.import_module("freescale_fast_at_rev").freescale_rows
+def kernel_from(source: str, name: str, directory: Path) -> Any:
+    """The ``freescale_rows`` kernel of ``source``, imported from ``directory`` as the
+    module ``name``."""
+    (directory / f"{name}.py").write_text(source, encoding="utf-8")
+    if str(directory) not in sys.path:
+        sys.path.insert(0, str(directory))
+    return importlib.import_module(name).freescale_rows
+
+
+def kernels(rev: str, directory: Path) -> dict[str, Any]:
+    """The kernels compared: ``KERNEL_FILE`` at ``rev`` (one function), the working tree's
+    with its helpers called (not inlined), and the working tree's as it runs."""
+    old = subprocess.run(["git", "show", f"{rev}:{KERNEL_FILE}"], cwd=ROOT, check=True,
+                         capture_output=True, text=True).stdout
+    now = (ROOT / KERNEL_FILE).read_text(encoding="utf-8")
+    called = re.sub(r"inline_kernel\((jit\(\w+\))\)", r"\1", now)
+    return {"one function": kernel_from(old, "freescale_fast_at_rev", directory),
+            "split, helpers called": kernel_from(called, "freescale_fast_called", directory),
+            "split, helpers inlined": batch.freescale_rows}
 
 
 def run(kernel: Any, case: Callable[[], Any]) -> tuple[float, Any]:
@@ -99,30 +114,30 @@ def main(argv: list[str] | None = None) -> int:
     s9, s6 = Freescale9DofSettings(), Freescale6DofSettings()
     cases = {"run_9dof": (s9, lambda: batch.run_9dof(ag, gd, mag, s9)),
              "run_6dof": (s6, lambda: batch.run_6dof(ag, gd, s6))}
-    new = batch.freescale_rows
     with tempfile.TemporaryDirectory() as tmp:
-        old = kernel_at(args.rev, Path(tmp))
-        print(f"{args.samples} samples at 250 Hz, {args.rounds} rounds, JIT; split kernel "
-              f"(working tree) against {KERNEL_FILE} at {args.rev}")
-        print("| case | one function (us/window) | split (us/window) | split / one function "
-              "| rounds' ratios |")
-        print("|---|---:|---:|---:|---|")
+        compared = kernels(args.rev, Path(tmp))
+        print(f"{args.samples} samples at 250 Hz, {args.rounds} rounds, JIT, CPU us per "
+              f"Kalman window (median); one function: {KERNEL_FILE} at {args.rev}")
+        print("| case | " + " | ".join(compared) + " | called / one function | "
+              "inlined / one function (rounds) |")
+        print("|---|" + "---:|" * (len(compared) + 2))
         for name, (settings, case) in cases.items():
             windows = args.samples // settings.oversample_ratio
-            _, reference = run(old, case)  # compile (or load the cache) outside the timing
-            _, result = run(new, case)
-            if not same(reference, result):
-                print(f"{name}: the split kernel's outputs differ from {args.rev}'s",
-                      file=sys.stderr)
+            outputs = [run(k, case)[1] for k in compared.values()]  # compiles, outside timing
+            if not all(same(outputs[0], o) for o in outputs[1:]):
+                print(f"{name}: the kernels' outputs differ", file=sys.stderr)
                 return 1
-            times: dict[str, list[float]] = {"old": [], "new": []}
+            times: dict[str, list[float]] = {k: [] for k in compared}
             for _ in range(args.rounds):
-                times["old"].append(run(old, case)[0])
-                times["new"].append(run(new, case)[0])
-            ratios = [n / o for o, n in zip(times["old"], times["new"], strict=True)]
-            o, n = statistics.median(times["old"]), statistics.median(times["new"])
-            print(f"| {name} | {1e6 * o / windows:.3f} | {1e6 * n / windows:.3f} | "
-                  f"{n / o:.3f} | {min(ratios):.3f}-{max(ratios):.3f} |")
+                for label, kernel in compared.items():
+                    times[label].append(run(kernel, case)[0])
+            med = {k: statistics.median(v) for k, v in times.items()}
+            one, called, inlined = (med[k] for k in compared)
+            ratios = [n / o for o, n in zip(times["one function"],
+                                            times["split, helpers inlined"], strict=True)]
+            print(f"| {name} | " + " | ".join(f"{1e6 * m / windows:.3f}" for m in med.values())
+                  + f" | {called / one:.3f} | {inlined / one:.3f} "
+                  f"({min(ratios):.3f}-{max(ratios):.3f}) |")
     return 0
 
 
