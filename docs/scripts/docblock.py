@@ -46,9 +46,11 @@ class Block:
         return [m.group(1), *shlex.split(m.group(2))]
 
     @property
-    def script(self) -> str:
-        """The script's file name, e.g. ``angular_rate_recovery.py``."""
-        return Path(self.command[0]).name
+    def script(self) -> str | None:
+        """The script's file name, e.g. ``angular_rate_recovery.py`` (None: the block names
+        no command)."""
+        m = COMMAND.search(self.body)
+        return None if m is None else Path(m.group(1)).name
 
 
 def blocks(page: Path) -> list[Block]:

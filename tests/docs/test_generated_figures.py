@@ -8,33 +8,23 @@ hand, or left behind by a change to the code, is a failing line of the compariso
 
 from __future__ import annotations
 
-import importlib.util
 import re
 import subprocess
 import sys
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
-from types import ModuleType
 from typing import Any
 
 import pytest
+from tests.support.docs_scripts import load_docs_script
 
 ROOT = Path(__file__).resolve().parents[2]
 SCRIPTS = ROOT / "docs" / "scripts"
 README = SCRIPTS / "README.md"
 
 
-def _docblock() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("docblock", SCRIPTS / "docblock.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules.setdefault("docblock", module)  # its dataclass looks its module up
-    spec.loader.exec_module(module)
-    return module
-
-
-docblock = _docblock()
+docblock = load_docs_script("docblock")
 """docs/scripts/docblock.py, the scripts' own reading and writing of blocks."""
 BLOCKS = [b for page in sorted((ROOT / "docs").glob("*.md")) for b in docblock.blocks(page)]
 ROW = re.compile(r"^\| `([\w/]+\.py)` \| (`([\w-]+)` )?.*? \| ([^|]+?) \|$", re.M)
