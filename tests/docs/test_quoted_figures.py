@@ -76,6 +76,13 @@ def test_a_figure_the_table_does_not_give_is_found() -> None:
     assert unquoted_figures(table) == ["3.07", "0.41"]
 
 
+def test_the_prose_after_a_table_ends_at_the_next_table_or_run_in_heading() -> None:
+    text = ("<!-- a:start -->\n| 1.00 |\n<!-- a:end -->\nsays 1.00\n\n<!-- b:start -->\n"
+            "| 2.00 |\n<!-- b:end -->\nsays 2.00\n\n**Next.** 3.00\n")
+    tables = generated_tables("x.md", text)
+    assert [t.prose.strip() for t in tables] == ["says 1.00", "says 2.00"]
+
+
 @pytest.mark.parametrize("table", TABLES, ids=lambda t: f"{t.page}:{t.name}")
 def test_each_generated_table_names_a_script_that_writes_it(table: GeneratedTable) -> None:
     scripts = SCRIPT.findall(table.body)
