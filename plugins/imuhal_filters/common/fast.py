@@ -251,7 +251,7 @@ def inline_kernel(kernel: Kernel) -> Kernel:
     ``inline="always"``: its typed IR is copied into each caller, on the JIT and in the
     extension), so a kernel split into such helpers compiles as the one function it was. A
     helper call kept apart passes its arguments and tuples through a call each time: the
-    Freescale kernel's ten per-window helpers cost 5-30 % that way (docs/performance.md).
+    Freescale kernel's ten per-window helpers cost 9-29 % that way (docs/performance.md).
     numba cannot inline a helper that calls a closure with ``*args``. Returns ``kernel``."""
     if kernel.exported:
         raise TypeError(f"kernel {kernel.name} is called from Python: only a helper inlines")
