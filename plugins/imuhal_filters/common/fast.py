@@ -32,7 +32,7 @@ import types
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -124,7 +124,7 @@ class Kernel:
         self.per_sample_step = False
         """Called once per sample (:meth:`per_sample`): compiled only from the extension in
         ``auto`` mode (set by :func:`per_sample_kernel`)."""
-        self.inline = "never"
+        self.inline: Literal["never", "always"] = "never"
         """numba's ``inline`` for a helper kernel (:func:`inline_kernel` sets ``always``)."""
         self._modules: list[str] | None = None
         self.args: dict[str, ArgType] | None = None
