@@ -78,6 +78,36 @@ class Client:
         return self._subs[sub_id], log_ns, bytes(frame[13:])
 
 
+def _protobuf_fields(data: bytes) -> dict[int, bytes | float | int]:
+    """The fields of one protobuf message by number (varint, 64-bit and length-delimited
+    wire types: what foxglove.FrameTransform uses), without a protobuf library."""
+
+    def varint(i: int) -> tuple[int, int]:
+        value = shift = 0
+        while True:
+            byte = data[i]
+            value |= (byte & 0x7F) << shift
+            shift, i = shift + 7, i + 1
+            if not byte & 0x80:
+                return value, i
+
+    fields: dict[int, bytes | float | int] = {}
+    i = 0
+    while i < len(data):
+        key, i = varint(i)
+        number, wire = key >> 3, key & 7
+        if wire == 0:
+            fields[number], i = varint(i)
+        elif wire == 1:
+            fields[number], i = struct.unpack_from("<d", data, i)[0], i + 8
+        elif wire == 2:
+            size, i = varint(i)
+            fields[number], i = data[i:i + size], i + size
+        else:
+            raise AssertionError(f"wire type {wire}")
+    return fields
+
+
 def test_the_server_listens_on_the_loopback_by_default() -> None:
     sink = FoxgloveSink({"port": 0})
     try:
@@ -102,11 +132,11 @@ def test_the_server_speaks_the_sdk_subprotocol_and_refuses_the_older_name() -> N
         sink.close()
 
 
-async def _serve_and_receive(sink: FoxgloveSink, event: Any, topic: str) -> tuple[
-        Client, dict[str, Any]]:
-    """Hand ``event`` to the sink until the subscribed client receives it (the server drops
-    what is logged before a subscription takes effect, and a subscription is not
-    acknowledged), and decode it."""
+async def _serve_and_receive(sink: FoxgloveSink, event: Any, topic: str, *,
+                             raw: bool = False) -> tuple[Client, Any]:
+    """Hand ``event`` to the sink until the subscribed client receives its message on
+    ``topic`` (the server drops what is logged before a subscription takes effect, and a
+    subscription is not acknowledged); the message JSON-decoded, or its bytes (``raw``)."""
     async with connect(f"ws://127.0.0.1:{sink.port}", subprotocols=[SUBPROTOCOL]) as ws:
         assert ws.subprotocol == SUBPROTOCOL
         client = Client(ws)
@@ -117,7 +147,7 @@ async def _serve_and_receive(sink: FoxgloveSink, event: Any, topic: str) -> tupl
             sink.handle(event)
             got = await client.next_message(topic, 0.05)
             if got is not None:
-                return client, json.loads(got[1])
+                return client, got[1] if raw else json.loads(got[1])
     raise AssertionError(f"no message on {topic}")
 
 
@@ -150,6 +180,24 @@ def test_an_attitude_is_served_in_the_output_frame_and_as_an_enu_frame_transform
     tf = client.channels["/ahrs/tf"]
     assert (tf["schemaName"], tf["encoding"]) == ("foxglove.FrameTransform", "protobuf")
     assert sink.messages >= 4  # the attitude and its transform, at least twice
+
+
+def test_the_frame_transform_rotates_enu_into_the_flu_body() -> None:
+    level_north = AttitudeEstimate(t_ns=0, source="ahrs", q_body_to_ned=(1.0, 0.0, 0.0, 0.0))
+    sink = FoxgloveSink({"port": 0, "board": "glider"})
+    try:
+        _, payload = asyncio.run(_serve_and_receive(sink, level_north, "/ahrs/tf", raw=True))
+    finally:
+        sink.close()
+    tf = _protobuf_fields(payload)
+    # FrameTransform: 2 parent, 3 child, 5 rotation (Quaternion: 1 x, 2 y, 3 z, 4 w; proto3
+    # leaves zeros out)
+    assert (tf[2], tf[3]) == (b"enu", b"glider/ahrs")
+    assert isinstance(tf[5], bytes)
+    q = {1: 0.0, 2: 0.0, 3: 0.0, 4: 0.0, **_protobuf_fields(tf[5])}
+    # a level board facing north: yaw +90 deg about up (REP-103)
+    assert [q[1], q[2]] == [0.0, 0.0]
+    assert math.isclose(q[3], math.sqrt(0.5)) and math.isclose(q[4], math.sqrt(0.5))
 
 
 @pytest.mark.slow
