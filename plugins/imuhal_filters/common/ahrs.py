@@ -37,6 +37,7 @@ import numpy as np
 from pydantic import Field
 
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
+from imuhal.core.blocks import Block
 from imuhal.core.frames import FloatArray
 from imuhal.core.quantities import Quantity
 from imuhal.core.samples import (
@@ -71,7 +72,7 @@ from imuhal_filters.common.limits import (
 )
 from imuhal_filters.common.presets import PresetSettings
 from imuhal_filters.common.quat import IDENTITY, Quat, Vec
-from imuhal_filters.common.rows import StepRows, process_rows
+from imuhal_filters.common.rows import StepRows, block_rows, process_rows
 from imuhal_filters.common.turn import (
     KinematicAcceleration,
     TurnCompensationSettings,
@@ -166,6 +167,21 @@ def _linear_accel_ned(q: Quat, f: Vec) -> Vec:
         2 * (xz - wy) * fx + 2 * (yz + wx) * fy + (ww - xx - yy + zz) * fz
         + STANDARD_GRAVITY_M_S2,
     )
+
+
+def _linear_accel_ned_rows(q: FloatArray, f: FloatArray) -> FloatArray:
+    """:func:`_linear_accel_ned` for (m, 4) quaternions and (m, 3) specific forces: the same
+    products in the same order, so the same floats (NaN rows where ``f`` is NaN)."""
+    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    fx, fy, fz = f[:, 0], f[:, 1], f[:, 2]
+    ww, xx, yy, zz = w * w, x * x, y * y, z * z
+    xy, wz, xz, wy, yz, wx = x * y, w * z, x * z, w * y, y * z, w * x
+    return np.column_stack((
+        (ww + xx - yy - zz) * fx + 2 * (xy - wz) * fy + 2 * (xz + wy) * fz,
+        2 * (xy + wz) * fx + (ww - xx + yy - zz) * fy + 2 * (yz - wx) * fz,
+        2 * (xz - wy) * fx + 2 * (yz + wx) * fy + (ww - xx - yy + zz) * fz
+        + STANDARD_GRAVITY_M_S2,
+    ))
 
 
 def _tilt_pulled(q: Quat, accel_g: Vec, angle_gain: float) -> Quat:
@@ -501,6 +517,71 @@ class AhrsEstimator(Estimator):
         q, emitted, diagnostics = self._step_rows(steps, diagnostics=True)
         t_ns = steps.t_ns if steps.t_ns is not None else np.zeros(0, dtype=np.int64)
         return AttitudeRows(self.instance, t_ns[emitted], q[emitted], diagnostics)
+
+    # ------------------------------------------------------------------ blocks
+    def update_block(self, block: Block) -> list[Estimate]:
+        return self.update_blocks((block,))
+
+    def update_blocks(self, blocks: Sequence[Block]) -> list[Estimate]:
+        """The frames of one fusion step's blocks (see ``Estimator.update_blocks``): a gyro
+        block, with or without an accelerometer and a magnetometer block, goes through the
+        compiled row kernel in one call once the filter is aligned and its kernel covers
+        its settings (``_block_kernel``); the estimates equal those of the frames one by one
+        through ``process()`` to 1e-12 (bit for bit where ``process()`` runs the same
+        compiled step; tests/filters/test_ahrs_blocks.py). Anything else (flagged or
+        clipped frames, an angular-rate recovery under way, rows before alignment, turn
+        compensation by a speed) goes frame by frame."""
+        streams = self._imu_streams(blocks)
+        if streams is None:
+            return Estimator.update_blocks(self, blocks)
+        steps = block_rows(self, *streams)
+        m = len(steps)
+        if m == 0:
+            return []
+        q = np.empty((m, 4))
+        diag = np.empty((m, self._kernel_diag_width))
+        self._run_kernel(steps.gyro, steps.accel, steps.mag, steps.dts, q, diag)
+        rows = self._kernel_row_diagnostics(steps.dts, diag, self._kinematics.source)
+        lin = _linear_accel_ned_rows(q, steps.accel)
+        has_a = ~np.isnan(steps.accel[:, 0])
+        build, instance = AttitudeEstimate.build, self.instance
+        return [build(t, instance, (qi[0], qi[1], qi[2], qi[3]), li if a else None, d)
+                for t, qi, li, a, d in zip(steps.t_ns.tolist(), q.tolist(),  # type: ignore[union-attr]  # block_rows always sets the times
+                                           [tuple(v) for v in lin.tolist()], has_a.tolist(),
+                                           rows, strict=True)]
+
+    def _imu_streams(self, blocks: Sequence[Block]
+                     ) -> tuple[Block, Block | None, Block | None] | None:
+        """The gyro, accelerometer and magnetometer block of a fusion step the compiled row
+        kernel can take at once, or None (then frame by frame; see ``update_blocks``)."""
+        by_kind: dict[type, Block] = {}
+        for b in blocks:
+            if b.kind not in (GyroSample, AccelSample, MagSample) or b.kind in by_kind \
+                    or b.frame is not _BODY_NED or bool(b.flags.any()):
+                return None
+            by_kind[b.kind] = b
+        gyro = by_kind.get(GyroSample)
+        mag = by_kind.get(MagSample)
+        if gyro is None or not self._block_kernel() or self._recovery_left_s > 0.0:
+            return None
+        if not (self._tilt_aligned and self._kernel_ready() and self._kernel_allowed()):
+            return None
+        if not self._heading_aligned and (mag is not None or self._mag_ut is not None):
+            return None  # the heading is still to be set from a magnetometer frame
+        return gyro, by_kind.get(AccelSample), mag
+
+    def _block_kernel(self) -> bool:
+        """This filter's compiled row kernel covers its settings and
+        ``_kernel_row_diagnostics`` gives its per-step diagnostics (False: blocks go frame
+        by frame)."""
+        return False
+
+    def _kernel_row_diagnostics(self, dts: FloatArray, diag: FloatArray, source: str
+                                ) -> list[dict[str, Any]]:
+        """Each kernel step's diagnostics dictionary, as ``process()`` makes it: ``dt_s``,
+        ``turn_compensation`` (``source``), then the filter's (from ``diag``, the row
+        kernel's array). Only filters whose ``_block_kernel`` is True define it."""
+        raise NotImplementedError
 
     def _step_rows(self, steps: StepRows, *, diagnostics: bool, out: FloatArray | None = None
                    ) -> tuple[FloatArray, np.ndarray, dict[str, DiagnosticColumn]]:

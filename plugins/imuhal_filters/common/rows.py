@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from imuhal.core.blocks import Block
 from imuhal.core.frames import FloatArray
 from imuhal.core.samples import MagSample, Quantity
 from imuhal.estimation.rows import ImuRows
@@ -188,3 +189,71 @@ def _step_lengths(est: AhrsEstimator, t_step: np.ndarray) -> FloatArray:
     est._counters["dt_fallbacks"] += int(np.count_nonzero(bad))
     dt[bad] = nominal
     return dt  # type: ignore[return-value]  # numpy's stubs widen float64 arithmetic to floating[Any]
+
+
+def block_rows(est: AhrsEstimator, gyro: Block, accel: Block | None, mag: Block | None
+               ) -> StepRows:
+    """``process()`` of the frames of one fusion step's blocks (valid, body NED; gyro,
+    accelerometer and magnetometer, each of one stream) in fusion order: by time, and at
+    one instant the accelerometer and magnetometer before the gyro. Each gyro frame within
+    its full scale steps with the newest accepted accelerometer (and magnetometer) frame at
+    or before its time, else the one the estimator holds, unless older than
+    ``max_aux_age_s``. Counters, step lengths and held samples are left exactly as the
+    frames one by one would leave them."""
+    t = gyro.t_ns
+    g = gyro.values
+    g_ok = _within(g, est._gyro_fs)
+    _count(est, Quantity.GYRO.value, int(len(t) - np.count_nonzero(g_ok)))
+    idx = np.flatnonzero(g_ok)
+    t_step = t[idx]
+    accel_rows = _held_at(est, accel, t_step, "accel", est._accel_fs)
+    # the magnetometer's scale is unbounded: only finite values are kept
+    mag_rows = _held_at(est, mag, t_step, "mag", _MAX_FLOAT)
+    dts = _step_lengths(est, t_step)
+    if len(idx):
+        est._last_gyro_t_ns = int(t_step[-1])
+    return StepRows(idx, t_step, np.ascontiguousarray(g[idx]), accel_rows, mag_rows, dts)
+
+
+_MAX_FLOAT = float(np.finfo(np.float64).max)
+
+
+def _held_at(est: AhrsEstimator, block: Block | None, t_step: np.ndarray, what: str,
+             full_scale: float) -> FloatArray:
+    """For each gyro step at ``t_step``, the ``what`` (accel or mag) frame it uses: the
+    newest accepted frame of ``block`` at or before it, else the held one; NaN rows for none
+    or too old (counted). Rejected frames are counted; the newest accepted one is held."""
+    attr = "_accel_m_s2" if what == "accel" else "_mag_ut"
+    held_v, held_t = getattr(est, attr), getattr(est, f"_{what}_t_ns")
+    keep = what == "accel" or est.uses_mag  # process() holds no mag for a filter without
+    m = len(t_step)
+    out = np.full((m, 3), np.nan)
+    t_src = np.zeros(m, dtype=np.int64)
+    have = np.zeros(m, dtype=bool)
+    if block is not None:
+        ok = _within(block.values, full_scale)
+        _count(est, Quantity.ACCEL.value if what == "accel" else Quantity.MAG.value,
+               int(len(ok) - np.count_nonzero(ok)))
+        if keep and bool(ok.any()):
+            t_ok, v_ok = block.t_ns[ok], block.values[ok]
+            src = np.searchsorted(t_ok, t_step, side="right") - 1
+            have = src >= 0
+            out[have] = v_ok[src[have]]
+            t_src[have] = t_ok[src[have]]
+            x, y, z = v_ok[-1].tolist()
+            setattr(est, attr, (x, y, z))
+            setattr(est, f"_{what}_t_ns", int(t_ok[-1]))
+    if not keep:
+        return out
+    if held_v is not None and held_t is not None:
+        before = ~have
+        out[before] = held_v
+        t_src[before] = held_t
+        have = np.ones(m, dtype=bool)
+    max_age = est.settings.max_aux_age_s
+    if max_age is not None:
+        stale = have & ((t_step - t_src) * _NS > max_age)
+        est._counters[f"stale_{what}"] += int(np.count_nonzero(stale))
+        have &= ~stale
+    out[~have] = np.nan
+    return out
