@@ -184,6 +184,22 @@ def _linear_accel_ned_rows(q: FloatArray, f: FloatArray) -> FloatArray:
     ))
 
 
+_HEAD_FRAMES = 16
+"""Gyro frames handed over one by one at a time while an AHRS is not aligned yet."""
+
+
+def _head(blocks: Sequence[Block], gyro: Block) -> tuple[list[Block], list[Block]]:
+    """``blocks`` cut before the time of ``gyro``'s frame _HEAD_FRAMES: the frames before it
+    and the rest (all in the head when there is no such cut)."""
+    t = gyro.t_ns
+    if len(t) <= _HEAD_FRAMES or t[_HEAD_FRAMES] == t[0]:
+        return list(blocks), []
+    cut = t[_HEAD_FRAMES]
+    head = [h for b in blocks if (h := b.select(b.t_ns < cut)) is not None]
+    rest = [r for b in blocks if (r := b.select(b.t_ns >= cut)) is not None]
+    return head, rest
+
+
 def _tilt_pulled(q: Quat, accel_g: Vec, angle_gain: float) -> Quat:
     """``q`` (body -> NED) turned so the gravity it predicts in the body frame moves towards
     the measured gravity-positive ``accel_g`` by ``angle_gain`` times the sine of the angle
@@ -526,15 +542,28 @@ class AhrsEstimator(Estimator):
         """The frames of one fusion step's blocks (see ``Estimator.update_blocks``): a gyro
         block, with or without an accelerometer and a magnetometer block, goes through the
         compiled row kernel in one call once the filter is aligned and its kernel covers
-        its settings (``_block_kernel``); the estimates equal those of the frames one by one
-        through ``process()`` to 1e-12 (bit for bit where ``process()`` runs the same
-        compiled step; tests/filters/test_ahrs_blocks.py). Anything else (flagged or
-        clipped frames, an angular-rate recovery under way, rows before alignment, turn
-        compensation by a speed) goes frame by frame."""
-        streams = self._imu_streams(blocks)
-        if streams is None:
-            return Estimator.update_blocks(self, blocks)
-        steps = block_rows(self, *streams)
+        its settings (``_block_kernel``); the frames before that (alignment, a filter's own
+        set-up) go one by one. The estimates equal those of the frames one by one through
+        ``process()`` to 1e-12 (bit for bit where ``process()`` runs the same compiled
+        step; tests/filters/test_ahrs_blocks.py). Anything else (flagged or clipped
+        frames, an angular-rate recovery under way, turn compensation by a speed) goes
+        frame by frame."""
+        out: list[Estimate] = []
+        while blocks:
+            streams = self._imu_streams(blocks)
+            if streams is None:
+                return out + Estimator.update_blocks(self, blocks)
+            if self._ready(streams[2]):
+                return out + self._kernel_blocks(*streams)
+            # not aligned yet: a few frames one by one, then look again
+            head, blocks = _head(blocks, streams[0])
+            out += Estimator.update_blocks(self, head)
+        return out
+
+    def _kernel_blocks(self, gyro: Block, accel: Block | None, mag: Block | None
+                       ) -> list[Estimate]:
+        """The frames of the blocks through the compiled row kernel (``update_blocks``)."""
+        steps = block_rows(self, gyro, accel, mag)
         m = len(steps)
         if m == 0:
             return []
@@ -553,7 +582,8 @@ class AhrsEstimator(Estimator):
     def _imu_streams(self, blocks: Sequence[Block]
                      ) -> tuple[Block, Block | None, Block | None] | None:
         """The gyro, accelerometer and magnetometer block of a fusion step the compiled row
-        kernel can take at once, or None (then frame by frame; see ``update_blocks``)."""
+        kernel can take at once once aligned, or None (then frame by frame; see
+        ``update_blocks``)."""
         by_kind: dict[type, Block] = {}
         for b in blocks:
             if b.kind not in (GyroSample, AccelSample, MagSample) or b.kind in by_kind \
@@ -561,14 +591,17 @@ class AhrsEstimator(Estimator):
                 return None
             by_kind[b.kind] = b
         gyro = by_kind.get(GyroSample)
-        mag = by_kind.get(MagSample)
-        if gyro is None or not self._block_kernel() or self._recovery_left_s > 0.0:
+        if gyro is None or not self._block_kernel() or self._recovery_left_s > 0.0 \
+                or not self._kernel_allowed():
             return None
-        if not (self._tilt_aligned and self._kernel_ready() and self._kernel_allowed()):
-            return None
-        if not self._heading_aligned and (mag is not None or self._mag_ut is not None):
-            return None  # the heading is still to be set from a magnetometer frame
-        return gyro, by_kind.get(AccelSample), mag
+        return gyro, by_kind.get(AccelSample), by_kind.get(MagSample)
+
+    def _ready(self, mag: Block | None) -> bool:
+        """Aligned and set up: nothing but the kernel's steps is left to happen."""
+        if not (self._tilt_aligned and self._kernel_ready()):
+            return False
+        # else the heading is still to be set from a magnetometer frame
+        return self._heading_aligned or (mag is None and self._mag_ut is None)
 
     def _block_kernel(self) -> bool:
         """This filter's compiled row kernel covers its settings and
