@@ -56,7 +56,6 @@ from imuhal.estimation.outputs import AttitudeEstimate, Estimate
 from imuhal.estimation.rows import (
     AttitudeRows,
     DiagnosticColumn,
-    ImuRows,
     flatten_diagnostics,
     merge_columns,
 )
@@ -72,7 +71,7 @@ from imuhal_filters.common.limits import (
 )
 from imuhal_filters.common.presets import PresetSettings
 from imuhal_filters.common.quat import IDENTITY, Quat, Vec
-from imuhal_filters.common.rows import StepRows, block_rows, process_rows
+from imuhal_filters.common.rows import StepRows, block_rows
 from imuhal_filters.common.turn import (
     KinematicAcceleration,
     TurnCompensationSettings,
@@ -524,16 +523,6 @@ class AhrsEstimator(Estimator):
         return np.array(self._q)
 
     # ------------------------------------------------------------------ whole chunks
-    def process_imu_rows(self, rows: ImuRows) -> AttitudeRows:
-        """What ``process()`` makes of each row's accel, mag and gyro sample, as columns
-        (:mod:`imuhal.estimation.rows`); the state carries on as it would row by row. With
-        compiled kernels (common/fast.py) the rows after alignment run in the estimator's
-        kernel, where it has one for its settings (equal to the per-sample path to 1e-12)."""
-        steps = process_rows(self, rows)
-        q, emitted, diagnostics = self._step_rows(steps, diagnostics=True)
-        t_ns = steps.t_ns if steps.t_ns is not None else np.zeros(0, dtype=np.int64)
-        return AttitudeRows(self.instance, t_ns[emitted], q[emitted], diagnostics)
-
     # ------------------------------------------------------------------ blocks
     def update_block(self, block: Block) -> list[Estimate]:
         return self.update_blocks((block,))
@@ -559,6 +548,28 @@ class AhrsEstimator(Estimator):
             head, blocks = _head(blocks, streams[0])
             out += Estimator.update_blocks(self, head)
         return out
+
+    def attitude_rows(self, blocks: Sequence[Block]) -> AttitudeRows:
+        """The estimates ``update_blocks`` makes of one fusion step's gyro, accelerometer
+        and magnetometer blocks (valid, body NED: a log's chunk), as columns
+        (:mod:`imuhal.estimation.rows`; the diagnostics flattened as the CSV writer
+        flattens them): the same bookkeeping (``block_rows``), the rows before alignment
+        in Python, the rest in the compiled kernel where the filter has one (else in
+        Python too). The state carries on as it would frame by frame."""
+        by_kind: dict[type, Block] = {}
+        for b in blocks:
+            if issubclass(b.kind, tuple(self.consumes)):
+                if b.kind in by_kind:
+                    raise ValueError(f"{self.instance}: two {b.kind.__name__} blocks in one "
+                                     "step")
+                by_kind[b.kind] = b
+        gyro = by_kind.get(GyroSample)
+        if gyro is None:
+            raise ValueError(f"{self.instance}: attitude rows need a gyro block")
+        steps = block_rows(self, gyro, by_kind.get(AccelSample), by_kind.get(MagSample))
+        q, emitted, diagnostics = self._step_rows(steps, diagnostics=True)
+        assert steps.t_ns is not None
+        return AttitudeRows(self.instance, steps.t_ns[emitted], q[emitted], diagnostics)
 
     def _kernel_blocks(self, gyro: Block, accel: Block | None, mag: Block | None
                        ) -> list[Estimate]:

@@ -1,14 +1,15 @@
-"""Row bookkeeping shared by every AHRS batch path: which rows step, with which inputs.
+"""Row bookkeeping shared by every AHRS array path: which gyro frames step, with which inputs.
 
 Before a filter step, ``update()`` and ``process()`` decide things that depend only on the
 input and on a few held values, never on the filter: a gyro value beyond the full scale (or
 not finite) means no step; an accelerometer beyond its full scale is dropped and counted; the
 magnetometer must be finite; ``process()`` also holds the latest accepted accelerometer and
 magnetometer sample, drops them when older than ``max_aux_age_s`` and takes the step length
-from the gyro timestamps. This module makes those decisions for a whole array at once, in
-numpy, and hands the kernels (compiled or not) only the rows that step, already resolved:
+from the gyro timestamps. This module makes those decisions for whole arrays at once, in
+numpy (``update_rows`` for ``run_batch``, ``block_rows`` for a fusion step's blocks, live or
+offline), and hands the kernels (compiled or not) only the rows that step, already resolved:
 NaN rows in ``accel``/``mag`` mean "none this step". The counters and held values of the
-estimator are updated exactly as the row-by-row path would have left them.
+estimator are updated exactly as the frames one by one would have left them.
 """
 
 from __future__ import annotations
@@ -21,8 +22,7 @@ import numpy as np
 
 from imuhal.core.blocks import Block
 from imuhal.core.frames import FloatArray
-from imuhal.core.samples import MagSample, Quantity
-from imuhal.estimation.rows import ImuRows
+from imuhal.core.samples import Quantity
 
 if TYPE_CHECKING:
     from imuhal_filters.common.ahrs import AhrsEstimator
@@ -99,74 +99,6 @@ def _c(values: FloatArray | None, n: int = 0) -> FloatArray:
     if values is None:
         return np.full((n, 3), np.nan)
     return np.require(values, dtype=np.float64, requirements=["C", "W"])
-
-
-def process_rows(est: AhrsEstimator, rows: ImuRows) -> StepRows:
-    """``process()`` of each row's accel, mag (when present) and gyro sample, in that order.
-
-    Updates the rejection and staleness counters, the step-length fallbacks and the held
-    accel, mag and last gyro time exactly as the samples one by one would."""
-    t = np.asarray(rows.t_ns, dtype=np.int64)
-    n = len(t)
-    rownum = np.arange(n)
-    g_ok = _within(rows.gyro_rad_s, est._gyro_fs)
-    a_ok = _within(rows.accel_m_s2, est._accel_fs)
-    _count(est, Quantity.ACCEL.value, int(n - np.count_nonzero(a_ok)))
-    m_ok = np.zeros(n, dtype=bool)
-    # the runner feeds magnetometer samples only to an estimator that consumes them
-    fed_mag = rows.mag_ut is not None and issubclass(MagSample, tuple(est.consumes))
-    if fed_mag:
-        present = ~np.isnan(rows.mag_ut[:, 0])  # type: ignore[index]  # fed_mag (tested above) implies rows.mag_ut is not None
-        m_ok = present & np.isfinite(rows.mag_ut).all(axis=1)  # type: ignore[arg-type]  # fed_mag (tested above) implies rows.mag_ut is not None
-        _count(est, Quantity.MAG.value, int(np.count_nonzero(present & ~m_ok)))
-    _count(est, Quantity.GYRO.value, int(n - np.count_nonzero(g_ok)))
-    idx = np.flatnonzero(g_ok)
-    t_step = t[idx]
-    accel = _held(est, rows.accel_m_s2, a_ok, rownum, t, idx, t_step, "accel", "stale_accel")
-    mag = np.full((len(idx), 3), np.nan)
-    if est.uses_mag:  # process() holds no magnetometer for a filter that uses none
-        values = rows.mag_ut if fed_mag else np.zeros((n, 3))
-        mag = _held(est, values, m_ok, rownum, t, idx, t_step, "mag", "stale_mag")  # type: ignore[arg-type]  # fed_mag (tested above) implies rows.mag_ut is not None
-    dts = _step_lengths(est, t_step)
-    if len(idx):
-        est._last_gyro_t_ns = int(t_step[-1])
-    return StepRows(idx, t_step, np.ascontiguousarray(rows.gyro_rad_s[idx]),
-                    accel, mag, dts)
-
-
-def _held(est: AhrsEstimator, values: FloatArray, ok: np.ndarray, rownum: np.ndarray,
-          t: np.ndarray, idx: np.ndarray, t_step: np.ndarray, what: str,
-          stale_counter: str) -> FloatArray:
-    """The latest accepted ``what`` sample at each step (NaN: none, or too old), and the
-    estimator's held sample left as the row-by-row path leaves it."""
-    held_v = getattr(est, f"_{'accel_m_s2' if what == 'accel' else 'mag_ut'}")
-    held_t = getattr(est, f"_{what}_t_ns")
-    last = np.maximum.accumulate(np.where(ok, rownum, -1))
-    src = last[idx]
-    out = np.full((len(idx), 3), np.nan)
-    t_src = np.zeros(len(idx), dtype=np.int64)
-    have = src >= 0
-    out[have] = values[src[have]]
-    t_src[have] = t[src[have]]
-    if held_v is not None and held_t is not None:
-        before = ~have
-        out[before] = held_v
-        t_src[before] = held_t
-        have = np.ones(len(idx), dtype=bool)
-    max_age = est.settings.max_aux_age_s
-    if max_age is not None:
-        stale = have & ((t_step - t_src) * _NS > max_age)
-        est._counters[stale_counter] += int(np.count_nonzero(stale))
-        have &= ~stale
-    out[~have] = np.nan
-    if len(last) and last[-1] >= 0:
-        x, y, z = values[last[-1]].tolist()
-        value = (float(x), float(y), float(z))
-        if what == "accel":
-            est._accel_m_s2, est._accel_t_ns = value, int(t[last[-1]])
-        else:
-            est._mag_ut, est._mag_t_ns = value, int(t[last[-1]])
-    return out
 
 
 def _step_lengths(est: AhrsEstimator, t_step: np.ndarray) -> FloatArray:
