@@ -32,6 +32,8 @@ CASES = [
     ("madgwick", {"dt_from_timestamps": False, "turn_compensation": False}),
     ("mahony", {}),
     ("mahony", {"ki": 0.2, "accel_gate_g": (0.8, 1.2)}),
+    ("imufilter", {}),
+    ("imufilter", {"velocity": True}),
 ]
 
 
