@@ -184,16 +184,17 @@ def _linear_accel_ned_rows(q: FloatArray, f: FloatArray) -> FloatArray:
 
 
 _HEAD_FRAMES = 16
-"""Gyro frames handed over one by one at a time while an AHRS is not aligned yet."""
+"""Gyro frames handed over one by one first while an AHRS is not aligned yet."""
 
 
-def _head(blocks: Sequence[Block], gyro: Block) -> tuple[list[Block], list[Block]]:
-    """``blocks`` cut before the time of ``gyro``'s frame _HEAD_FRAMES: the frames before it
+def _head(blocks: Sequence[Block], gyro: Block, frames: int
+          ) -> tuple[list[Block], list[Block]]:
+    """``blocks`` cut before the time of ``gyro``'s frame ``frames``: the frames before it
     and the rest (all in the head when there is no such cut)."""
     t = gyro.t_ns
-    if len(t) <= _HEAD_FRAMES or t[_HEAD_FRAMES] == t[0]:
+    if len(t) <= frames or t[frames] == t[0]:
         return list(blocks), []
-    cut = t[_HEAD_FRAMES]
+    cut = t[frames]
     head = [h for b in blocks if (h := b.select(b.t_ns < cut)) is not None]
     rest = [r for b in blocks if (r := b.select(b.t_ns >= cut)) is not None]
     return head, rest
@@ -538,15 +539,19 @@ class AhrsEstimator(Estimator):
         frames, an angular-rate recovery under way, turn compensation by a speed) goes
         frame by frame."""
         out: list[Estimate] = []
+        frames = _HEAD_FRAMES
         while blocks:
             streams = self._imu_streams(blocks)
             if streams is None:
                 return out + Estimator.update_blocks(self, blocks)
             if self._ready(streams[2]):
                 return out + self._kernel_blocks(*streams)
-            # not aligned yet: a few frames one by one, then look again
-            head, blocks = _head(blocks, streams[0])
+            # not aligned yet: a few frames one by one, then look again (twice as many
+            # each time: a magnetometer that never gives a usable frame costs no more than
+            # frame by frame)
+            head, blocks = _head(blocks, streams[0], frames)
             out += Estimator.update_blocks(self, head)
+            frames *= 2
         return out
 
     def attitude_rows(self, blocks: Sequence[Block]) -> AttitudeRows:

@@ -35,7 +35,7 @@ from typing import Protocol
 from imuhal.core.blocks import Block
 from imuhal.core.samples import Sample
 from imuhal.estimation.base import Estimator
-from imuhal.estimation.ordering import fusion_order
+from imuhal.estimation.ordering import FUSION_RANK, fusion_order
 from imuhal.estimation.outputs import Estimate
 
 Item = Sample | Estimate
@@ -184,9 +184,9 @@ class Router:
             for r in self.routes_of(b.device, b.kind):
                 fed.setdefault(r.name, []).append(i)
         for which in fed.values():
-            quantities = [blocks[i].quantity for i in which]
-            if len(set(quantities)) != len(quantities):
-                return None  # two devices of one quantity: their order is the device rank
+            ranks = [FUSION_RANK.get(blocks[i].quantity, 2) for i in which]
+            if len(set(ranks)) != len(ranks):
+                return None  # frames of one instant and rank: their order is the device's
         stage = [r for r in self.routes if r.name in fed]
         upstream: dict[str, str] = {}
         reached: list[Route] = []
