@@ -159,6 +159,17 @@ def _held_at(est: AhrsEstimator, block: Block | None, t_step: np.ndarray, what: 
     held_v, held_t = getattr(est, attr), getattr(est, f"_{what}_t_ns")
     keep = what == "accel" or est.uses_mag  # process() holds no mag for a filter without
     m = len(t_step)
+    if keep and block is not None and len(block) == m and np.array_equal(block.t_ns, t_step) \
+            and bool((t_step[1:] > t_step[:-1]).all()):
+        # the common case (a FIFO read, a log's chunk: a frame at every gyro frame's time,
+        # each time once), when every frame is accepted: each step takes its own instant's,
+        # never stale
+        values = block.values
+        if bool(_within(values, full_scale).all()):
+            x, y, z = values[-1].tolist()
+            setattr(est, attr, (x, y, z))
+            setattr(est, f"_{what}_t_ns", int(t_step[-1]))
+            return np.array(values, dtype=np.float64, order="C")
     out = np.full((m, 3), np.nan)
     t_src = np.zeros(m, dtype=np.int64)
     have = np.zeros(m, dtype=bool)
