@@ -517,6 +517,11 @@ class MPU9250Driver(Driver):
             return PollResult([], next_ns)
         return self._no_sample(now_ns, SampleFlag.STALE, next_ns)
 
+    @property
+    def builds_blocks(self) -> bool:
+        """Only read: fifo decodes its polls into blocks (a register poll is one frame)."""
+        return self._fifo is not None
+
     def poll_blocks(self, now_ns: int) -> BlockPoll:
         """``poll`` as blocks. read: fifo decodes a burst's frames at once, into the blocks'
         arrays (numpy over the burst's bytes: the same products as the per-frame
