@@ -32,7 +32,7 @@ from imuhal.bus.auto_read import AUTO_READ, AutoReadFeed, same_feed
 from imuhal.bus.base import Bus, BusKind, Link
 from imuhal.bus.register_plan import RegisterPlan
 from imuhal.bus.registers import RegisterView
-from imuhal.core.blocks import Block, blocks_of
+from imuhal.core.blocks import Block, FloatArray, IntArray, blocks_of
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
 from imuhal.core.samples import (
@@ -77,6 +77,8 @@ from imuhal_chips.mpu9250.decode import (
 )
 from imuhal_chips.mpu9250.fifo import FIFO_EN_VALUE, FRAME_BYTES, FifoRead, FifoReader
 from imuhal_chips.mpu9250.registers import TEMP_LSB_PER_DEGC, TEMP_OFFSET_DEGC
+
+_SATURATED, _OK = SampleFlag.SATURATED, SampleFlag.OK
 
 KNOWN_IDS: dict[int, str] = {
     0x70: "WHO_AM_I 0x70 is an MPU-6500 (accel+gyro only, no magnetometer): the board is "
@@ -558,25 +560,30 @@ class MPU9250Driver(Driver):
         accel = np.asarray(counts[:, 0:3] * accel_scale(self._accel.lsb_per_unit), np.float64)
         gyro = np.asarray(counts[:, 4:7] * gyro_scale(self._gyro.lsb_per_unit), np.float64)
         temp = np.asarray(counts[:, 3] / TEMP_LSB_PER_DEGC + TEMP_OFFSET_DEGC, np.float64)
-        sat_a = np.where(saturated_rows(counts[:, 0:3]), int(SampleFlag.SATURATED), 0)
-        sat_g = np.where(saturated_rows(counts[:, 4:7]), int(SampleFlag.SATURATED), 0)
+        flags_a: list[int] = []
+        flags_g: list[int] = []
         memory = self._memory.flag
-        for i, t_ns in enumerate(stamps_ns):  # the chip's filter memory, frame by frame
-            sat_a[i] |= memory(Quantity.ACCEL, t_ns, SampleFlag(int(sat_a[i])))
-            sat_g[i] |= memory(Quantity.GYRO, t_ns, SampleFlag(int(sat_g[i])))
+        # the chip's filter memory, frame by frame (accelerometer, then gyro, as _samples)
+        for t_ns, sat_a, sat_g in zip(stamps_ns, saturated_rows(counts[:, 0:3]).tolist(),
+                                      saturated_rows(counts[:, 4:7]).tolist(), strict=True):
+            fa = _SATURATED if sat_a else _OK
+            fg = _SATURATED if sat_g else _OK
+            flags_a.append(fa | memory(Quantity.ACCEL, t_ns, fa))
+            flags_g.append(fg | memory(Quantity.GYRO, t_ns, fg))
         low, high = self.TEMPERATURE_RANGE_DEGC
         temp_flags = np.where(np.isfinite(temp) & ~((low <= temp) & (temp <= high)),
                               int(SampleFlag.OUT_OF_RANGE), 0)
         t = np.asarray(stamps_ns, dtype=np.int64)
-        t0, offsets = int(t[0]), t - t[0]
-        return [
-            Block.from_arrays(AccelSample, self.device, t0, offsets, accel, sat_a,
-                              frame=Frame.SENSOR),
-            Block.from_arrays(GyroSample, self.device, t0, offsets, gyro, sat_g,
-                              frame=Frame.SENSOR),
-            Block.from_arrays(TemperatureSample, self.device, t0, offsets, temp[:, None],
-                              temp_flags, frame=None),
-        ]
+        t0, offsets = int(t[0]), t - t[0]  # stamps never go back (FifoReader)
+
+        def block(kind: type[Sample], values: FloatArray, flags: IntArray,
+                  frame: Frame | None) -> Block:
+            return Block(kind, self.device, frame=frame, spec=None, t0_ns=t0,
+                         offsets_ns=offsets, values=values, flags=flags)
+
+        return [block(AccelSample, accel, np.array(flags_a, np.int64), Frame.SENSOR),
+                block(GyroSample, gyro, np.array(flags_g, np.int64), Frame.SENSOR),
+                block(TemperatureSample, temp[:, None], temp_flags, None)]
 
     def _fifo_frame(self, frame: bytes, t_ns: int, next_ns: int) -> list[Sample]:
         """One FIFO frame: its slave bytes to the feed, its accel/temperature/gyro checked

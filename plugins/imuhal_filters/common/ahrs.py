@@ -186,8 +186,9 @@ def _linear_accel_ned_rows(q: FloatArray, f: FloatArray) -> FloatArray:
 MIN_KERNEL_FRAMES = 24
 """Gyro frames from which a fusion step's blocks go through the compiled row kernel: below,
 the kernel's call and the bookkeeping on arrays (about 100 us a step) cost more than the
-frames one by one (Madgwick, numba's JIT, a loaded 2-core machine: 15.4 against 11.0 us per
-frame at 16 frames, 8.3 against 9.1 at 24, 3.9 against 10.1 at 64)."""
+frames one by one (Madgwick, numba's JIT, a loaded 2-core machine: 8.0 against 7.3 us per
+frame at 16 frames, 5.4 against 7.2 at 24, 3.7 against 7.7 at 64;
+tests/benchmarks/bench_block_parts.py kernel)."""
 _HEAD_FRAMES = 16
 """Gyro frames handed over one by one first while an AHRS is not aligned yet."""
 
