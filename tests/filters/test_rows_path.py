@@ -1,12 +1,13 @@
-"""The column path of ``process()`` (``process_imu_rows``) writes what the per-sample path writes.
+"""``imuhal estimate`` over a log's blocks writes what the per-sample path writes.
 
-``imuhal estimate`` and ``evaluate`` hand an AHRS whole chunks of rows; the reference is the
-same rows fed sample by sample through ``process()``. On conformance data set A, with the
-log's awkward cases added (a slower and a missing magnetometer, values beyond the full scale,
-a time jump, a repeated timestamp, an accelerometer that goes stale), every written cell
-equals the reference to 1e-12 and the estimator ends in the same state, so chunks chain.
-Run compiled (numba's JIT, the AOT extension) and with ``IMUHAL_NO_JIT=1`` (the Python
-steps).
+``imuhal estimate`` and ``evaluate`` hand an AHRS each chunk of a log as blocks (one per
+quantity): as columns (``attitude_rows``) or, through the pipeline's router, as estimates
+(``update_blocks``); the reference is the same rows fed sample by sample through
+``process()`` in fusion order. On conformance data set A, with the log's awkward cases added
+(a slower and a missing magnetometer, values beyond the full scale, a time jump, a repeated
+timestamp, an accelerometer that goes stale), every written cell equals the reference to
+1e-12 and the estimator ends in the same state, so chunks chain. Run compiled (numba's JIT,
+the AOT extension) and with ``IMUHAL_NO_JIT=1`` (the Python steps).
 """
 
 from __future__ import annotations
@@ -18,9 +19,10 @@ import numpy as np
 import pytest
 from tests.filters.dataset_a import load_head
 
+from imuhal.offline.chain import instants_in_fusion_order
 from imuhal.offline.csv_input import ACCEL, GYRO, MAG, TIME, SampleTable
 from imuhal.offline.csv_output import EstimateCsvWriter
-from imuhal.offline.runner import iter_offline, run_offline
+from imuhal.offline.runner import feed, imu_events, iter_offline, run_offline
 from imuhal.plugins.manager import load_registry
 
 CASES = [
@@ -90,16 +92,24 @@ def _run(name: str, settings: dict, tmp_path: Path, chunk: int, with_mag: bool =
     cls = registry.estimators.get(name)
     table = _table(with_mag)
     ref_est = cls(cls.Settings(**settings))
-    ref = _written(tmp_path / "ref.csv", [run_offline(ref_est, table)])
-    est = cls(cls.Settings(**settings))
-    chunks = list(iter_offline(est, _chunks(table, chunk), columnar=True))
-    assert all(not isinstance(c, list) for c in chunks)  # the column path was taken
-    _same_cells(_written(tmp_path / "rows.csv", chunks), ref)
-    state, ref_state = est.get_state(), ref_est.get_state()
-    assert state["counters"] == ref_state["counters"]
-    assert state["q"] == pytest.approx(ref_state["q"], abs=1e-12)
-    for key in ("last_gyro_t_ns", "accel_m_s2", "accel_t_ns", "mag_ut", "mag_t_ns", "aligned"):
-        assert state[key] == ref_state[key], key
+    # each chunk is one fusion step: its samples in fusion order (a time stamp repeated
+    # across two chunks keeps the row order)
+    ref = _written(tmp_path / "ref.csv",
+                   [feed(ref_est, instants_in_fusion_order(imu_events(c)))
+                    for c in _chunks(table, chunk)])
+    ref_state = ref_est.get_state()
+    for columnar in (True, False):
+        est = cls(cls.Settings(**settings))
+        chunks = list(iter_offline(est, _chunks(table, chunk), columnar=columnar))
+        # the column path was taken, or the estimates
+        assert all(isinstance(c, list) is not columnar for c in chunks)
+        _same_cells(_written(tmp_path / f"rows-{columnar}.csv", chunks), ref)
+        state = est.get_state()
+        assert state["counters"] == ref_state["counters"]
+        assert state["q"] == pytest.approx(ref_state["q"], abs=1e-12)
+        for key in ("last_gyro_t_ns", "accel_m_s2", "accel_t_ns", "mag_ut", "mag_t_ns",
+                    "aligned"):
+            assert state[key] == ref_state[key], key
 
 
 @pytest.mark.parametrize(("name", "settings"), CASES,

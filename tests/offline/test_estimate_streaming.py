@@ -108,3 +108,40 @@ def test_whole_file_reader_is_the_chunks_joined(tmp_path: Path) -> None:
     _log(src, 30)
     table = read_sample_csv(src)
     assert len(table) == 30 and table.lines[-1] == 31
+
+
+def _cells(path: Path, estimates: list[AttitudeEstimate]) -> list[list[str]]:
+    writer = EstimateCsvWriter(path)
+    writer.write(estimates)
+    writer.commit()
+    with path.open(newline="") as f:
+        return list(csv.reader(f))
+
+
+def _attitude(t_ns: int, diagnostics: dict) -> AttitudeEstimate:
+    return AttitudeEstimate(t_ns=t_ns, source="a", q_body_to_ned=(1.0, 0.0, 0.0, 0.0),
+                            diagnostics=diagnostics)
+
+
+def test_uniform_diagnostics_are_written_column_by_column_as_row_by_row(
+        tmp_path: Path) -> None:
+    """A chunk whose estimates carry diagnostics of one form (the common case, written
+    column by column) gives the cells that rows of mixed forms (written row by row) give:
+    booleans as 0/1, floats by repr (NaN and inf as nan), vectors as ``name_i``, text and
+    None left out."""
+    diags = [{"dt_s": 0.005, "gate_open": True, "steps": 3, "bias": (0.25, -1e-9, 3.0),
+              "source": "none", "nothing": None, "w": float("inf")},
+             {"dt_s": 0.004, "gate_open": False, "steps": 4, "bias": (0.5, 2.0, float("nan")),
+              "source": "none", "nothing": None, "w": 0.1}]
+    uniform = _cells(tmp_path / "u.csv", [_attitude(i, d) for i, d in enumerate(diags)])
+    # a third row of another form makes the whole chunk go row by row
+    mixed = _cells(tmp_path / "m.csv", [_attitude(i, d) for i, d in enumerate(diags)]
+                   + [_attitude(2, {"dt_s": 1})])
+    assert uniform[0][-7:] == ["dt_s", "gate_open", "steps", "bias_0", "bias_1", "bias_2",
+                               "w"]
+    assert uniform[0] == mixed[0]
+    assert uniform[1:] == mixed[1:3]
+    head = uniform[0]
+    row = dict(zip(head, uniform[2], strict=True))
+    assert (row["gate_open"], row["steps"], row["bias_2"], row["w"]) == ("0", "4", "nan", "0.1")
+    assert "source" not in head and "nothing" not in head

@@ -62,8 +62,11 @@ def test_a_fifo_read_hands_out_its_frames_in_time_order_in_the_body_frame(
 def test_the_offline_chain_over_a_fifo_runs_samples_gives_its_live_estimates(
         registry: Registry,
         run: tuple[BoardProfile, Pipeline, list[Sample | Estimate]]) -> None:
-    """The router's rule for blocks (frames in fusion order where they meet other inputs)
-    is the offline chain's rule for single samples: the same estimates, to the bit."""
+    """The router's rule for blocks is the offline chain's rule for single samples: the
+    same estimates, to the bit. Live, each FIFO read's accelerometer and gyro blocks go to
+    Madgwick at once (``update_blocks``; reads of 8 frames, fewer than its compiled row
+    kernel pays for, then go frame by frame there) and its estimates then to vario-kf3;
+    offline, every sample goes on its own."""
     profile, pipeline, events = run
     samples = [e for e in events if isinstance(e, Sample) and e.valid]
     live = [e for e in events if isinstance(e, Estimate)]

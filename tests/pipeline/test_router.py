@@ -1,8 +1,10 @@
-"""The routing rule (imuhal.pipeline.router): blocks go whole to ``update_block`` only where
-nothing can come between their frames, and every estimator sees the same inputs either way."""
+"""The routing rule (imuhal.pipeline.router): a fusion step's blocks go stage by stage
+(``update_blocks``, then the estimates downstream) only where that changes no estimator's
+inputs, and every estimator sees the same inputs in the same order either way."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -25,16 +27,19 @@ class _Summing(Estimator):
     def reset(self) -> None:
         self.total = 0.0
         self.blocks_taken = 0
+        self.inputs: list[tuple[str, int, float]] = []
 
     def process(self, item: Sample | Estimate) -> list[Estimate]:
-        assert isinstance(item, GyroSample | AccelSample)
+        self.inputs.append((type(item).__name__, item.t_ns, getattr(item, "climb_m_s", 0.0)))
+        if not isinstance(item, GyroSample | AccelSample):
+            return []
         self.total = self.total * 0.5 + item.vector[0]
         return [VerticalEstimate(t_ns=item.t_ns, source=self.instance,
                                  altitude_m=0.0, climb_m_s=self.total)]
 
-    def update_block(self, block: Block) -> list[Estimate]:
+    def update_blocks(self, blocks: Sequence[Block]) -> list[Estimate]:
         self.blocks_taken += 1
-        return super().update_block(block)
+        return super().update_blocks(blocks)
 
     def get_state(self) -> dict[str, Any]:
         return {"total": self.total}
@@ -70,46 +75,70 @@ def test_a_block_alone_at_a_leaf_estimator_goes_whole() -> None:
     assert len(out) == 10
 
 
-def test_blocks_that_meet_at_one_estimator_are_fused_frame_by_frame_in_fusion_order() -> None:
+def test_blocks_that_meet_at_one_estimator_reach_it_together_in_fusion_order() -> None:
     est, reference = _Summing(), _Summing()
     gyro, accel = _block(GyroSample, "imu", 5, 100.0), _block(AccelSample, "imu", 5, 1.0)
     out: list[Estimate] = []
     Router.of([est]).fuse_blocks([gyro, accel], out)
-    assert est.blocks_taken == 0
+    assert est.blocks_taken == 1
     expected: list[Estimate] = []
     for a, g in zip(accel.samples(), gyro.samples(), strict=True):  # accel before gyro
         expected += reference.process(a) + reference.process(g)
     assert _climbs(out) == _climbs(expected)
 
 
-def test_an_estimator_whose_estimates_feed_another_never_takes_a_block_whole() -> None:
-    class _Follower(_Summing):
-        name: ClassVar[str] = "follower"
-        consumes: ClassVar[tuple[type, ...]] = (VerticalEstimate,)
+class _Follower(_Summing):
+    """Takes another estimator's estimates (and, when routed, samples)."""
 
-        def process(self, item: Sample | Estimate) -> list[Estimate]:
-            return []
+    name: ClassVar[str] = "follower"
+    consumes: ClassVar[tuple[type, ...]] = (GyroSample, VerticalEstimate)
 
-    first = _Summing(instance="first")
+
+def _frame_by_frame(router: Router, blocks: list[Block]) -> list[Estimate]:
     out: list[Estimate] = []
-    Router.of([first, _Follower()]).fuse_blocks([_block(GyroSample, "imu", 4, 0.0)], out)
-    assert first.blocks_taken == 0 and len(out) == 4
+    router.fuse([s for b in blocks for s in b.samples()], out)
+    return out
 
 
-def test_an_estimator_fed_by_another_estimator_never_takes_a_block_whole() -> None:
-    class _Listener(_Summing):
-        name: ClassVar[str] = "listener"
-        consumes: ClassVar[tuple[type, ...]] = (GyroSample, VerticalEstimate)
-
-        def process(self, item: Sample | Estimate) -> list[Estimate]:
-            return super().process(item) if isinstance(item, GyroSample) else []
-
-    upstream, listener = _Summing(instance="upstream"), _Listener(instance="listener")
-    router = Router.of([upstream, listener], {"upstream": ["acc"], "listener": ["imu",
-                                                                              "upstream"]})
+def test_a_chain_goes_stage_by_stage_and_each_estimator_sees_its_inputs_in_order() -> None:
+    first, follower = _Summing(instance="first"), _Follower(instance="follower")
+    ref_first, ref_follower = _Summing(instance="first"), _Follower(instance="follower")
+    inputs = {"follower": ["first"]}
+    blocks = [_block(GyroSample, "imu", 4, 0.0), _block(AccelSample, "imu", 4, 2.0)]
     out: list[Estimate] = []
-    router.fuse_blocks([_block(GyroSample, "imu", 4, 0.0)], out)
-    assert listener.blocks_taken == 0 and len(out) == 4
+    Router.of([first, follower], inputs).fuse_blocks(blocks, out)
+    ref = _frame_by_frame(Router.of([ref_first, ref_follower], inputs), blocks)
+    assert first.blocks_taken == 1
+    assert follower.inputs == ref_follower.inputs and len(follower.inputs) == 8
+    for source in ("first", "follower"):
+        assert [e for e in out if e.source == source] == \
+            [e for e in ref if e.source == source]
+
+
+def test_an_estimator_fed_by_samples_and_by_another_estimator_takes_frames_one_by_one(
+        ) -> None:
+    upstream, listener = _Summing(instance="upstream"), _Follower(instance="listener")
+    ref_listener = _Follower(instance="listener")
+    inputs = {"listener": ["imu", "upstream"]}
+    blocks = [_block(GyroSample, "imu", 4, 0.0)]
+    out: list[Estimate] = []
+    Router.of([upstream, listener], inputs).fuse_blocks(blocks, out)
+    ref = _frame_by_frame(Router.of([_Summing(instance="upstream"), ref_listener], inputs),
+                          blocks)
+    assert upstream.blocks_taken == 0 and listener.blocks_taken == 0
+    assert listener.inputs == ref_listener.inputs  # sample, estimate, sample, ...
+    assert _climbs(out) == _climbs(ref)
+
+
+def test_an_estimator_fed_by_two_estimators_of_one_step_takes_frames_one_by_one() -> None:
+    a, b = _Summing(instance="a"), _Summing(instance="b")
+    both = _Follower(instance="both")
+    router = Router.of([a, b, both], {"a": ["imu"], "b": ["acc"], "both": ["a", "b"]})
+    out: list[Estimate] = []
+    router.fuse_blocks([_block(GyroSample, "imu", 3, 0.0), _block(AccelSample, "acc", 3, 1.0)],
+                       out)
+    assert a.blocks_taken == 0 and b.blocks_taken == 0
+    assert [i[1] for i in both.inputs] == sorted(i[1] for i in both.inputs)  # by frame
 
 
 def test_the_offline_chain_routes_by_the_pipelines_rule() -> None:

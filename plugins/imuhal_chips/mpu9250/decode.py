@@ -13,6 +13,9 @@ import math
 import struct
 from dataclasses import dataclass
 
+import numpy as np
+import numpy.typing as npt
+
 from imuhal_chips.mpu9250.registers import (
     STANDARD_GRAVITY_M_S2,
     TEMP_LSB_PER_DEGC,
@@ -37,13 +40,23 @@ def decode_counts(data: bytes) -> RawSample:
     return RawSample((ax, ay, az), t, (gx, gy, gz))
 
 
+def accel_scale(lsb_per_g: float) -> float:
+    """m/s^2 per accelerometer count."""
+    return STANDARD_GRAVITY_M_S2 / lsb_per_g
+
+
+def gyro_scale(lsb_per_dps: float) -> float:
+    """rad/s per gyro count."""
+    return math.radians(1.0) / lsb_per_dps
+
+
 def accel_m_s2(counts: tuple[int, int, int], lsb_per_g: float) -> tuple[float, float, float]:
-    k = STANDARD_GRAVITY_M_S2 / lsb_per_g
+    k = accel_scale(lsb_per_g)
     return (counts[0] * k, counts[1] * k, counts[2] * k)
 
 
 def gyro_rad_s(counts: tuple[int, int, int], lsb_per_dps: float) -> tuple[float, float, float]:
-    k = math.radians(1.0) / lsb_per_dps
+    k = gyro_scale(lsb_per_dps)
     return (counts[0] * k, counts[1] * k, counts[2] * k)
 
 
@@ -54,3 +67,17 @@ def temperature_degc(count: int) -> float:
 def saturated(counts: tuple[int, ...]) -> bool:
     """True when any axis sits at the 16-bit limit: the true value may be larger."""
     return any(c in (COUNT_MIN, COUNT_MAX) for c in counts)
+
+
+def frame_counts(frames: bytes, n: int) -> npt.NDArray[np.int16]:
+    """``n`` frames of 14 bytes 0x3B..0x48 (a FIFO burst's, joined) as an (n, 7) array of
+    counts: accel X, Y, Z, temperature, gyro X, Y, Z (what :func:`decode_counts` gives per
+    frame)."""
+    if len(frames) != 14 * n:
+        raise ValueError(f"{n} MPU-9250 frames are {14 * n} bytes, got {len(frames)}")
+    return np.frombuffer(frames, dtype=">i2").reshape(n, 7).astype(np.int16)
+
+
+def saturated_rows(counts: npt.NDArray[np.int16]) -> npt.NDArray[np.bool_]:
+    """Per row, :func:`saturated`: any axis at the 16-bit limit."""
+    return ((counts == COUNT_MIN) | (counts == COUNT_MAX)).any(axis=1)

@@ -25,12 +25,14 @@ import math
 from collections.abc import Mapping
 from typing import Any, ClassVar, Literal
 
+import numpy as np
 from pydantic import Field, model_validator
 
 from imuhal.bus.auto_read import AUTO_READ, AutoReadFeed, same_feed
 from imuhal.bus.base import Bus, BusKind, Link
 from imuhal.bus.register_plan import RegisterPlan
 from imuhal.bus.registers import RegisterView
+from imuhal.core.blocks import Block, FloatArray, IntArray, blocks_of
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
 from imuhal.core.samples import (
@@ -44,6 +46,7 @@ from imuhal.core.samples import (
 )
 from imuhal.core.streams import StreamSpec, TimeSource
 from imuhal.drivers.base import (
+    BlockPoll,
     DeviceIdentity,
     Driver,
     DriverSettings,
@@ -63,12 +66,19 @@ from imuhal_chips.mpu9250 import registers as r
 from imuhal_chips.mpu9250.aux import MasterAuxBus
 from imuhal_chips.mpu9250.decode import (
     accel_m_s2,
+    accel_scale,
     decode_counts,
+    frame_counts,
     gyro_rad_s,
+    gyro_scale,
     saturated,
+    saturated_rows,
     temperature_degc,
 )
-from imuhal_chips.mpu9250.fifo import FIFO_EN_VALUE, FRAME_BYTES, FifoReader
+from imuhal_chips.mpu9250.fifo import FIFO_EN_VALUE, FRAME_BYTES, FifoRead, FifoReader
+from imuhal_chips.mpu9250.registers import TEMP_LSB_PER_DEGC, TEMP_OFFSET_DEGC
+
+_SATURATED, _OK = SampleFlag.SATURATED, SampleFlag.OK
 
 KNOWN_IDS: dict[int, str] = {
     0x70: "WHO_AM_I 0x70 is an MPU-6500 (accel+gyro only, no magnetometer): the board is "
@@ -482,6 +492,14 @@ class MPU9250Driver(Driver):
     def _poll_fifo(self, now_ns: int, overdue: bool) -> PollResult:
         """read: fifo: every whole frame the FIFO holds, stamped on the chip's clock; a
         slave's bytes in each frame go to its feed with the frame's stamp."""
+        got, now_ns, next_ns = self._read_fifo(now_ns)
+        samples: list[Sample] = []
+        for frame, t_ns in zip(got.frames, got.stamps_ns, strict=True):
+            samples += self._fifo_frame(frame, t_ns, next_ns)
+        return self._fifo_result(samples, got, now_ns, next_ns, overdue)
+
+    def _read_fifo(self, now_ns: int) -> tuple[FifoRead, int, int]:
+        """One FIFO read (an overflow counted), the time after it and the next read's."""
         assert self._fifo is not None
         status = self.regs.read_u8(r.INT_STATUS)  # read-to-clear: FIFO_OFLOW_INT
         got = self._fifo.read(self.plan[r.USER_CTRL],
@@ -489,10 +507,10 @@ class MPU9250Driver(Driver):
         if got.reset:
             self.health.fifo_overflows += 1
         now_ns = max(now_ns, self.clock.now_ns())
-        next_ns = self._fifo.next_read_ns(now_ns, self._fifo_interval_ns())
-        samples: list[Sample] = []
-        for frame, t_ns in zip(got.frames, got.stamps_ns, strict=True):
-            samples += self._fifo_frame(frame, t_ns, next_ns)
+        return got, now_ns, self._fifo.next_read_ns(now_ns, self._fifo_interval_ns())
+
+    def _fifo_result(self, samples: list[Sample], got: FifoRead, now_ns: int, next_ns: int,
+                     overdue: bool) -> PollResult:
         if samples or got.frames or got.held:
             self._ready.fresh(Quantity.GYRO, now_ns)
             self._watch.fresh_poll()
@@ -500,6 +518,72 @@ class MPU9250Driver(Driver):
         if not overdue:
             return PollResult([], next_ns)
         return self._no_sample(now_ns, SampleFlag.STALE, next_ns)
+
+    @property
+    def builds_blocks(self) -> bool:
+        """Only read: fifo decodes its polls into blocks (a register poll is one frame)."""
+        return self._fifo is not None
+
+    def poll_blocks(self, now_ns: int) -> BlockPoll:
+        """``poll`` as blocks. read: fifo decodes a burst's frames at once, into the blocks'
+        arrays (numpy over the burst's bytes: the same products as the per-frame
+        conversion, so the same floats, tests/chips/test_mpu9250_fifo_blocks.py); a burst
+        with a blank or frozen frame, and read: registers, go through ``poll``."""
+        if self._fifo is None:
+            return super().poll_blocks(now_ns)
+        overdue = self._ready.overdue(Quantity.GYRO, now_ns)
+        if self._watch.check_due(now_ns, overdue=overdue) and self.plan.check_next(self.regs):
+            return BlockPoll([], self.restart(reset_detected=True))
+        got, now_ns, next_ns = self._read_fifo(now_ns)
+        imu = [f[:FRAME_BYTES] for f in got.frames]
+        if not imu or any(blank_flag(f) for f in imu) or self._frozen.would_flag("frame", imu):
+            samples: list[Sample] = []
+            for frame, t_ns in zip(got.frames, got.stamps_ns, strict=True):
+                samples += self._fifo_frame(frame, t_ns, next_ns)
+            result = self._fifo_result(samples, got, now_ns, next_ns, overdue)
+            return BlockPoll(blocks_of(result.samples) if result.samples else [],
+                             result.next_poll_ns)
+        for frame, t_ns in zip(got.frames, got.stamps_ns, strict=True):
+            if self._feed is not None:
+                self._feed.deliver(t_ns, frame[FRAME_BYTES:])
+            self._frozen.observe("frame", frame[:FRAME_BYTES])
+        self._ready.fresh(Quantity.GYRO, now_ns)
+        self._watch.fresh_poll()
+        return BlockPoll(self._frame_blocks(b"".join(imu), got.stamps_ns), next_ns)
+
+    def _frame_blocks(self, data: bytes, stamps_ns: list[int]) -> list[Block]:
+        """Frames of accel, temperature and gyro counts (joined) as the accelerometer, gyro
+        and temperature blocks ``_samples`` would give frame by frame."""
+        n = len(stamps_ns)
+        counts = frame_counts(data, n)
+        # int16 counts times a float: each count made exact in float64, then the product
+        accel = np.asarray(counts[:, 0:3] * accel_scale(self._accel.lsb_per_unit), np.float64)
+        gyro = np.asarray(counts[:, 4:7] * gyro_scale(self._gyro.lsb_per_unit), np.float64)
+        temp = np.asarray(counts[:, 3] / TEMP_LSB_PER_DEGC + TEMP_OFFSET_DEGC, np.float64)
+        flags_a: list[int] = []
+        flags_g: list[int] = []
+        memory = self._memory.flag
+        # the chip's filter memory, frame by frame (accelerometer, then gyro, as _samples)
+        for t_ns, sat_a, sat_g in zip(stamps_ns, saturated_rows(counts[:, 0:3]).tolist(),
+                                      saturated_rows(counts[:, 4:7]).tolist(), strict=True):
+            fa = _SATURATED if sat_a else _OK
+            fg = _SATURATED if sat_g else _OK
+            flags_a.append(fa | memory(Quantity.ACCEL, t_ns, fa))
+            flags_g.append(fg | memory(Quantity.GYRO, t_ns, fg))
+        low, high = self.TEMPERATURE_RANGE_DEGC
+        temp_flags = np.where(np.isfinite(temp) & ~((low <= temp) & (temp <= high)),
+                              int(SampleFlag.OUT_OF_RANGE), 0)
+        t = np.asarray(stamps_ns, dtype=np.int64)
+        t0, offsets = int(t[0]), t - t[0]  # stamps never go back (FifoReader)
+
+        def block(kind: type[Sample], values: FloatArray, flags: IntArray,
+                  frame: Frame | None) -> Block:
+            return Block(kind, self.device, frame=frame, spec=None, t0_ns=t0,
+                         offsets_ns=offsets, values=values, flags=flags)
+
+        return [block(AccelSample, accel, np.array(flags_a, np.int64), Frame.SENSOR),
+                block(GyroSample, gyro, np.array(flags_g, np.int64), Frame.SENSOR),
+                block(TemperatureSample, temp[:, None], temp_flags, None)]
 
     def _fifo_frame(self, frame: bytes, t_ns: int, next_ns: int) -> list[Sample]:
         """One FIFO frame: its slave bytes to the feed, its accel/temperature/gyro checked

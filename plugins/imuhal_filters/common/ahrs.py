@@ -37,6 +37,7 @@ import numpy as np
 from pydantic import Field
 
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
+from imuhal.core.blocks import Block
 from imuhal.core.frames import FloatArray
 from imuhal.core.quantities import Quantity
 from imuhal.core.samples import (
@@ -55,7 +56,6 @@ from imuhal.estimation.outputs import AttitudeEstimate, Estimate
 from imuhal.estimation.rows import (
     AttitudeRows,
     DiagnosticColumn,
-    ImuRows,
     flatten_diagnostics,
     merge_columns,
 )
@@ -71,7 +71,7 @@ from imuhal_filters.common.limits import (
 )
 from imuhal_filters.common.presets import PresetSettings
 from imuhal_filters.common.quat import IDENTITY, Quat, Vec
-from imuhal_filters.common.rows import StepRows, process_rows
+from imuhal_filters.common.rows import StepRows, block_rows
 from imuhal_filters.common.turn import (
     KinematicAcceleration,
     TurnCompensationSettings,
@@ -183,6 +183,44 @@ def _linear_accel_ned(q: Quat, f: Vec) -> Vec:
         2 * (xz - wy) * fx + 2 * (yz + wx) * fy + (ww - xx - yy + zz) * fz
         + STANDARD_GRAVITY_M_S2,
     )
+
+
+def _linear_accel_ned_rows(q: FloatArray, f: FloatArray) -> FloatArray:
+    """:func:`_linear_accel_ned` for (m, 4) quaternions and (m, 3) specific forces: the same
+    products in the same order, so the same floats (NaN rows where ``f`` is NaN)."""
+    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    fx, fy, fz = f[:, 0], f[:, 1], f[:, 2]
+    ww, xx, yy, zz = w * w, x * x, y * y, z * z
+    xy, wz, xz, wy, yz, wx = x * y, w * z, x * z, w * y, y * z, w * x
+    return np.column_stack((
+        (ww + xx - yy - zz) * fx + 2 * (xy - wz) * fy + 2 * (xz + wy) * fz,
+        2 * (xy + wz) * fx + (ww - xx + yy - zz) * fy + 2 * (yz - wx) * fz,
+        2 * (xz - wy) * fx + 2 * (yz + wx) * fy + (ww - xx - yy + zz) * fz
+        + STANDARD_GRAVITY_M_S2,
+    ))
+
+
+MIN_KERNEL_FRAMES = 24
+"""Gyro frames from which a fusion step's blocks go through the compiled row kernel: below,
+the kernel's call and the bookkeeping on arrays (about 100 us a step) cost more than the
+frames one by one (Madgwick, numba's JIT, a loaded 2-core machine: 8.0 against 7.3 us per
+frame at 16 frames, 5.4 against 7.2 at 24, 3.7 against 7.7 at 64;
+tests/benchmarks/bench_block_parts.py kernel)."""
+_HEAD_FRAMES = 16
+"""Gyro frames handed over one by one first while an AHRS is not aligned yet."""
+
+
+def _head(blocks: Sequence[Block], gyro: Block, frames: int
+          ) -> tuple[list[Block], list[Block]]:
+    """``blocks`` cut before the time of ``gyro``'s frame ``frames``: the frames before it
+    and the rest (all in the head when there is no such cut)."""
+    t = gyro.t_ns
+    if len(t) <= frames or t[frames] == t[0]:
+        return list(blocks), []
+    cut = t[frames]
+    head = [h for b in blocks if (h := b.select(b.t_ns < cut)) is not None]
+    rest = [r for b in blocks if (r := b.select(b.t_ns >= cut)) is not None]
+    return head, rest
 
 
 def _tilt_pulled(q: Quat, accel_g: Vec, angle_gain: float) -> Quat:
@@ -509,15 +547,115 @@ class AhrsEstimator(Estimator):
         return np.array(self._q)
 
     # ------------------------------------------------------------------ whole chunks
-    def process_imu_rows(self, rows: ImuRows) -> AttitudeRows:
-        """What ``process()`` makes of each row's accel, mag and gyro sample, as columns
-        (:mod:`imuhal.estimation.rows`); the state carries on as it would row by row. With
-        compiled kernels (common/fast.py) the rows after alignment run in the estimator's
-        kernel, where it has one for its settings (equal to the per-sample path to 1e-12)."""
-        steps = process_rows(self, rows)
+    # ------------------------------------------------------------------ blocks
+    def update_block(self, block: Block) -> list[Estimate]:
+        return self.update_blocks((block,))
+
+    def update_blocks(self, blocks: Sequence[Block]) -> list[Estimate]:
+        """The frames of one fusion step's blocks (see ``Estimator.update_blocks``): a gyro
+        block, with or without an accelerometer and a magnetometer block, goes through the
+        compiled row kernel in one call once the filter is aligned and its kernel covers
+        its settings (``_block_kernel``); the frames before that (alignment, a filter's own
+        set-up) go one by one. The estimates equal those of the frames one by one through
+        ``process()`` to 1e-12 (bit for bit where ``process()`` runs the same compiled
+        step; tests/filters/test_ahrs_blocks.py). Anything else (flagged or clipped
+        frames, an angular-rate recovery under way, turn compensation by a speed) goes
+        frame by frame."""
+        if not any(b.kind is GyroSample and len(b) >= MIN_KERNEL_FRAMES for b in blocks):
+            return Estimator.update_blocks(self, blocks)
+        out: list[Estimate] = []
+        frames = _HEAD_FRAMES
+        while blocks:
+            streams = self._imu_streams(blocks)
+            if streams is None:
+                return out + Estimator.update_blocks(self, blocks)
+            if self._ready(streams[2]):
+                return out + self._kernel_blocks(*streams)
+            # not aligned yet: a few frames one by one, then look again (twice as many
+            # each time: a magnetometer that never gives a usable frame costs no more than
+            # frame by frame)
+            head, blocks = _head(blocks, streams[0], frames)
+            out += Estimator.update_blocks(self, head)
+            frames *= 2
+        return out
+
+    def attitude_rows(self, blocks: Sequence[Block]) -> AttitudeRows:
+        """The estimates ``update_blocks`` makes of one fusion step's gyro, accelerometer
+        and magnetometer blocks (valid, body NED: a log's chunk), as columns
+        (:mod:`imuhal.estimation.rows`; the diagnostics flattened as the CSV writer
+        flattens them): the same bookkeeping (``block_rows``), the rows before alignment
+        in Python, the rest in the compiled kernel where the filter has one (else in
+        Python too). The state carries on as it would frame by frame."""
+        by_kind: dict[type, Block] = {}
+        for b in blocks:
+            if issubclass(b.kind, tuple(self.consumes)):
+                if b.kind in by_kind:
+                    raise ValueError(f"{self.instance}: two {b.kind.__name__} blocks in one "
+                                     "step")
+                by_kind[b.kind] = b
+        gyro = by_kind.get(GyroSample)
+        if gyro is None:
+            raise ValueError(f"{self.instance}: attitude rows need a gyro block")
+        steps = block_rows(self, gyro, by_kind.get(AccelSample), by_kind.get(MagSample))
         q, emitted, diagnostics = self._step_rows(steps, diagnostics=True)
-        t_ns = steps.t_ns if steps.t_ns is not None else np.zeros(0, dtype=np.int64)
-        return AttitudeRows(self.instance, t_ns[emitted], q[emitted], diagnostics)
+        assert steps.t_ns is not None
+        return AttitudeRows(self.instance, steps.t_ns[emitted], q[emitted], diagnostics)
+
+    def _kernel_blocks(self, gyro: Block, accel: Block | None, mag: Block | None
+                       ) -> list[Estimate]:
+        """The frames of the blocks through the compiled row kernel (``update_blocks``)."""
+        steps = block_rows(self, gyro, accel, mag)
+        m = len(steps)
+        if m == 0:
+            return []
+        q = np.empty((m, 4))
+        diag = np.empty((m, self._kernel_diag_width))
+        self._run_kernel(steps.gyro, steps.accel, steps.mag, steps.dts, q, diag)
+        rows = self._kernel_row_diagnostics(steps.dts, diag, self._kinematics.source)
+        lin = _linear_accel_ned_rows(q, steps.accel)
+        has_a = ~np.isnan(steps.accel[:, 0])
+        build, instance = AttitudeEstimate.build, self.instance
+        return [build(t, instance, (qi[0], qi[1], qi[2], qi[3]), li if a else None, d)
+                for t, qi, li, a, d in zip(steps.t_ns.tolist(), q.tolist(),  # type: ignore[union-attr]  # block_rows always sets the times
+                                           [tuple(v) for v in lin.tolist()], has_a.tolist(),
+                                           rows, strict=True)]
+
+    def _imu_streams(self, blocks: Sequence[Block]
+                     ) -> tuple[Block, Block | None, Block | None] | None:
+        """The gyro, accelerometer and magnetometer block of a fusion step the compiled row
+        kernel can take at once once aligned, or None (then frame by frame; see
+        ``update_blocks``)."""
+        by_kind: dict[type, Block] = {}
+        for b in blocks:
+            if b.kind not in (GyroSample, AccelSample, MagSample) or b.kind in by_kind \
+                    or b.frame is not _BODY_NED or bool(b.flags.any()):
+                return None
+            by_kind[b.kind] = b
+        gyro = by_kind.get(GyroSample)
+        if gyro is None or not self._block_kernel() or self._recovery_left_s > 0.0 \
+                or not self._kernel_allowed():
+            return None
+        return gyro, by_kind.get(AccelSample), by_kind.get(MagSample)
+
+    def _ready(self, mag: Block | None) -> bool:
+        """Aligned and set up: nothing but the kernel's steps is left to happen."""
+        if not (self._tilt_aligned and self._kernel_ready()):
+            return False
+        # else the heading is still to be set from a magnetometer frame
+        return self._heading_aligned or (mag is None and self._mag_ut is None)
+
+    def _block_kernel(self) -> bool:
+        """This filter's compiled row kernel covers its settings and
+        ``_kernel_row_diagnostics`` gives its per-step diagnostics (False: blocks go frame
+        by frame)."""
+        return False
+
+    def _kernel_row_diagnostics(self, dts: FloatArray, diag: FloatArray, source: str
+                                ) -> list[dict[str, Any]]:
+        """Each kernel step's diagnostics dictionary, as ``process()`` makes it: ``dt_s``,
+        ``turn_compensation`` (``source``), then the filter's (from ``diag``, the row
+        kernel's array). Only filters whose ``_block_kernel`` is True define it."""
+        raise NotImplementedError
 
     def _step_rows(self, steps: StepRows, *, diagnostics: bool, out: FloatArray | None = None
                    ) -> tuple[FloatArray, np.ndarray, dict[str, DiagnosticColumn]]:

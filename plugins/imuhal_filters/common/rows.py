@@ -1,14 +1,15 @@
-"""Row bookkeeping shared by every AHRS batch path: which rows step, with which inputs.
+"""Row bookkeeping shared by every AHRS array path: which gyro frames step, with which inputs.
 
 Before a filter step, ``update()`` and ``process()`` decide things that depend only on the
 input and on a few held values, never on the filter: a gyro value beyond the full scale (or
 not finite) means no step; an accelerometer beyond its full scale is dropped and counted; the
 magnetometer must be finite; ``process()`` also holds the latest accepted accelerometer and
 magnetometer sample, drops them when older than ``max_aux_age_s`` and takes the step length
-from the gyro timestamps. This module makes those decisions for a whole array at once, in
-numpy, and hands the kernels (compiled or not) only the rows that step, already resolved:
+from the gyro timestamps. This module makes those decisions for whole arrays at once, in
+numpy (``update_rows`` for ``run_batch``, ``block_rows`` for a fusion step's blocks, live or
+offline), and hands the kernels (compiled or not) only the rows that step, already resolved:
 NaN rows in ``accel``/``mag`` mean "none this step". The counters and held values of the
-estimator are updated exactly as the row-by-row path would have left them.
+estimator are updated exactly as the frames one by one would have left them.
 """
 
 from __future__ import annotations
@@ -19,9 +20,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from imuhal.core.blocks import Block
 from imuhal.core.frames import FloatArray
-from imuhal.core.samples import MagSample, Quantity
-from imuhal.estimation.rows import ImuRows
+from imuhal.core.samples import Quantity
 
 if TYPE_CHECKING:
     from imuhal_filters.common.ahrs import AhrsEstimator
@@ -100,74 +101,6 @@ def _c(values: FloatArray | None, n: int = 0) -> FloatArray:
     return np.require(values, dtype=np.float64, requirements=["C", "W"])
 
 
-def process_rows(est: AhrsEstimator, rows: ImuRows) -> StepRows:
-    """``process()`` of each row's accel, mag (when present) and gyro sample, in that order.
-
-    Updates the rejection and staleness counters, the step-length fallbacks and the held
-    accel, mag and last gyro time exactly as the samples one by one would."""
-    t = np.asarray(rows.t_ns, dtype=np.int64)
-    n = len(t)
-    rownum = np.arange(n)
-    g_ok = _within(rows.gyro_rad_s, est._gyro_fs)
-    a_ok = _within(rows.accel_m_s2, est._accel_fs)
-    _count(est, Quantity.ACCEL.value, int(n - np.count_nonzero(a_ok)))
-    m_ok = np.zeros(n, dtype=bool)
-    # the runner feeds magnetometer samples only to an estimator that consumes them
-    fed_mag = rows.mag_ut is not None and issubclass(MagSample, tuple(est.consumes))
-    if fed_mag:
-        present = ~np.isnan(rows.mag_ut[:, 0])  # type: ignore[index]  # fed_mag (tested above) implies rows.mag_ut is not None
-        m_ok = present & np.isfinite(rows.mag_ut).all(axis=1)  # type: ignore[arg-type]  # fed_mag (tested above) implies rows.mag_ut is not None
-        _count(est, Quantity.MAG.value, int(np.count_nonzero(present & ~m_ok)))
-    _count(est, Quantity.GYRO.value, int(n - np.count_nonzero(g_ok)))
-    idx = np.flatnonzero(g_ok)
-    t_step = t[idx]
-    accel = _held(est, rows.accel_m_s2, a_ok, rownum, t, idx, t_step, "accel", "stale_accel")
-    mag = np.full((len(idx), 3), np.nan)
-    if est.uses_mag:  # process() holds no magnetometer for a filter that uses none
-        values = rows.mag_ut if fed_mag else np.zeros((n, 3))
-        mag = _held(est, values, m_ok, rownum, t, idx, t_step, "mag", "stale_mag")  # type: ignore[arg-type]  # fed_mag (tested above) implies rows.mag_ut is not None
-    dts = _step_lengths(est, t_step)
-    if len(idx):
-        est._last_gyro_t_ns = int(t_step[-1])
-    return StepRows(idx, t_step, np.ascontiguousarray(rows.gyro_rad_s[idx]),
-                    accel, mag, dts)
-
-
-def _held(est: AhrsEstimator, values: FloatArray, ok: np.ndarray, rownum: np.ndarray,
-          t: np.ndarray, idx: np.ndarray, t_step: np.ndarray, what: str,
-          stale_counter: str) -> FloatArray:
-    """The latest accepted ``what`` sample at each step (NaN: none, or too old), and the
-    estimator's held sample left as the row-by-row path leaves it."""
-    held_v = getattr(est, f"_{'accel_m_s2' if what == 'accel' else 'mag_ut'}")
-    held_t = getattr(est, f"_{what}_t_ns")
-    last = np.maximum.accumulate(np.where(ok, rownum, -1))
-    src = last[idx]
-    out = np.full((len(idx), 3), np.nan)
-    t_src = np.zeros(len(idx), dtype=np.int64)
-    have = src >= 0
-    out[have] = values[src[have]]
-    t_src[have] = t[src[have]]
-    if held_v is not None and held_t is not None:
-        before = ~have
-        out[before] = held_v
-        t_src[before] = held_t
-        have = np.ones(len(idx), dtype=bool)
-    max_age = est.settings.max_aux_age_s
-    if max_age is not None:
-        stale = have & ((t_step - t_src) * _NS > max_age)
-        est._counters[stale_counter] += int(np.count_nonzero(stale))
-        have &= ~stale
-    out[~have] = np.nan
-    if len(last) and last[-1] >= 0:
-        x, y, z = values[last[-1]].tolist()
-        value = (float(x), float(y), float(z))
-        if what == "accel":
-            est._accel_m_s2, est._accel_t_ns = value, int(t[last[-1]])
-        else:
-            est._mag_ut, est._mag_t_ns = value, int(t[last[-1]])
-    return out
-
-
 def _step_lengths(est: AhrsEstimator, t_step: np.ndarray) -> FloatArray:
     """Each step's length from the previous stepped gyro time (nominal for the first step,
     when timestamps are off, and for gaps that are not in (0, max_dt_s])."""
@@ -188,3 +121,82 @@ def _step_lengths(est: AhrsEstimator, t_step: np.ndarray) -> FloatArray:
     est._counters["dt_fallbacks"] += int(np.count_nonzero(bad))
     dt[bad] = nominal
     return dt  # type: ignore[return-value]  # numpy's stubs widen float64 arithmetic to floating[Any]
+
+
+def block_rows(est: AhrsEstimator, gyro: Block, accel: Block | None, mag: Block | None
+               ) -> StepRows:
+    """``process()`` of the frames of one fusion step's blocks (valid, body NED; gyro,
+    accelerometer and magnetometer, each of one stream) in fusion order: by time, and at
+    one instant the accelerometer and magnetometer before the gyro. Each gyro frame within
+    its full scale steps with the newest accepted accelerometer (and magnetometer) frame at
+    or before its time, else the one the estimator holds, unless older than
+    ``max_aux_age_s``. Counters, step lengths and held samples are left exactly as the
+    frames one by one would leave them."""
+    t = gyro.t_ns
+    g = gyro.values
+    g_ok = _within(g, est._gyro_fs)
+    _count(est, Quantity.GYRO.value, int(len(t) - np.count_nonzero(g_ok)))
+    idx = np.flatnonzero(g_ok)
+    t_step = t[idx]
+    accel_rows = _held_at(est, accel, t_step, "accel", est._accel_fs)
+    # the magnetometer's scale is unbounded: only finite values are kept
+    mag_rows = _held_at(est, mag, t_step, "mag", _MAX_FLOAT)
+    dts = _step_lengths(est, t_step)
+    if len(idx):
+        est._last_gyro_t_ns = int(t_step[-1])
+    return StepRows(idx, t_step, np.ascontiguousarray(g[idx]), accel_rows, mag_rows, dts)
+
+
+_MAX_FLOAT = float(np.finfo(np.float64).max)
+
+
+def _held_at(est: AhrsEstimator, block: Block | None, t_step: np.ndarray, what: str,
+             full_scale: float) -> FloatArray:
+    """For each gyro step at ``t_step``, the ``what`` (accel or mag) frame it uses: the
+    newest accepted frame of ``block`` at or before it, else the held one; NaN rows for none
+    or too old (counted). Rejected frames are counted; the newest accepted one is held."""
+    attr = "_accel_m_s2" if what == "accel" else "_mag_ut"
+    held_v, held_t = getattr(est, attr), getattr(est, f"_{what}_t_ns")
+    keep = what == "accel" or est.uses_mag  # process() holds no mag for a filter without
+    m = len(t_step)
+    if keep and block is not None and len(block) == m and np.array_equal(block.t_ns, t_step) \
+            and bool((t_step[1:] > t_step[:-1]).all()):
+        # the common case (a FIFO read, a log's chunk: a frame at every gyro frame's time,
+        # each time once), when every frame is accepted: each step takes its own instant's,
+        # never stale
+        values = block.values
+        if bool(_within(values, full_scale).all()):
+            x, y, z = values[-1].tolist()
+            setattr(est, attr, (x, y, z))
+            setattr(est, f"_{what}_t_ns", int(t_step[-1]))
+            return np.array(values, dtype=np.float64, order="C")
+    out = np.full((m, 3), np.nan)
+    t_src = np.zeros(m, dtype=np.int64)
+    have = np.zeros(m, dtype=bool)
+    if block is not None:
+        ok = _within(block.values, full_scale)
+        _count(est, Quantity.ACCEL.value if what == "accel" else Quantity.MAG.value,
+               int(len(ok) - np.count_nonzero(ok)))
+        if keep and bool(ok.any()):
+            t_ok, v_ok = block.t_ns[ok], block.values[ok]
+            src = np.searchsorted(t_ok, t_step, side="right") - 1
+            have = src >= 0
+            out[have] = v_ok[src[have]]
+            t_src[have] = t_ok[src[have]]
+            x, y, z = v_ok[-1].tolist()
+            setattr(est, attr, (x, y, z))
+            setattr(est, f"_{what}_t_ns", int(t_ok[-1]))
+    if not keep:
+        return out
+    if held_v is not None and held_t is not None:
+        before = ~have
+        out[before] = held_v
+        t_src[before] = held_t
+        have = np.ones(m, dtype=bool)
+    max_age = est.settings.max_aux_age_s
+    if max_age is not None:
+        stale = have & ((t_step - t_src) * _NS > max_age)
+        est._counters[f"stale_{what}"] += int(np.count_nonzero(stale))
+        have &= ~stale
+    out[~have] = np.nan
+    return out

@@ -188,6 +188,20 @@ class ImuFilterEstimator(AhrsEstimator):
         self._kernel_finished(state[:4], len(gyro), 0, turn_sum)
         return True
 
+    def _block_kernel(self) -> bool:
+        return True
+
+    def _kernel_row_diagnostics(self, dts: FloatArray, diag: FloatArray, source: str
+                                ) -> list[dict[str, Any]]:
+        rows = diag.tolist()
+        if self.settings.velocity:
+            return [{"dt_s": dt, "turn_compensation": source, "accel_used": a == 1.0,
+                     "accel_gain": g, "accel_variance_g2": v, "velocity_ned_m_s": (x, y, z)}
+                    for dt, (a, g, v, x, y, z) in zip(dts.tolist(), rows, strict=True)]
+        return [{"dt_s": dt, "turn_compensation": source, "accel_used": a == 1.0,
+                 "accel_gain": g, "accel_variance_g2": v}
+                for dt, (a, g, v, *_) in zip(dts.tolist(), rows, strict=True)]
+
     def _kernel_diagnostics(self, diag: FloatArray) -> dict[str, Any]:
         cols: dict[str, Any] = {"accel_used": diag[:, 0].astype(np.int64),
                                 "accel_gain": diag[:, 1], "accel_variance_g2": diag[:, 2]}

@@ -166,6 +166,15 @@ class MadgwickEstimator(AhrsEstimator):
         self._kernel_finished(q, len(gyro), closed, turn_sum)
         return True
 
+    def _block_kernel(self) -> bool:
+        return self.settings.inv_sqrt == "exact"
+
+    def _kernel_row_diagnostics(self, dts: FloatArray, diag: FloatArray, source: str
+                                ) -> list[dict[str, Any]]:
+        return [{"dt_s": dt, "turn_compensation": source, "gate_open": g == 1.0,
+                 "accel_used": g == 1.0, "mag_used": m == 1.0, "accel_weight": w}
+                for dt, (g, m, w) in zip(dts.tolist(), diag.tolist(), strict=True)]
+
     def _kernel_diagnostics(self, diag: FloatArray) -> dict[str, Any]:
         gate_open = diag[:, 0].astype(np.int64)
         return {"gate_open": gate_open, "accel_used": gate_open,

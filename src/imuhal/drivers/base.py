@@ -187,6 +187,13 @@ class Driver(ABC):
             return BlockPoll([], result.next_poll_ns)
         return BlockPoll(blocks_of(result.samples), result.next_poll_ns)
 
+    @property
+    def builds_blocks(self) -> bool:
+        """``poll_blocks`` decodes this driver's polls into blocks itself in its current
+        configuration (the pipeline then calls it; otherwise ``poll``, grouping its samples
+        as the base class's ``poll_blocks`` does). Default: the class overrides it."""
+        return type(self).poll_blocks is not Driver.poll_blocks
+
     def start(self, now_ns: int) -> int:
         """Called once after configure(); returns the time of the first poll."""
         return now_ns

@@ -70,6 +70,20 @@ class FrozenWatch:
             self._repeats[key] = 1
         return SampleFlag.FROZEN if self._repeats[key] >= self.n else SampleFlag.OK
 
+    def would_flag(self, key: Hashable, frames: Iterable[bytes]) -> bool:
+        """True when ``observe`` of ``frames`` in turn would return ``FROZEN`` for one of
+        them; nothing is observed (a driver decoding a burst at once asks first)."""
+        last = self._last.get(key)
+        repeats = self._repeats.get(key, 0)
+        for frame in frames:
+            if frame == last:
+                repeats += 1
+            else:
+                last, repeats = frame, 1
+            if repeats >= self.n:
+                return True
+        return False
+
 
 VALUE_FLAGS = SampleFlag.SATURATED | SampleFlag.OUT_OF_RANGE | SampleFlag.OVERFLOW
 """Flags saying the chip *measured* something wrong (not a failed transfer, a blank frame or

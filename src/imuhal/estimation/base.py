@@ -16,6 +16,7 @@ from pydantic import BaseModel, ConfigDict
 from imuhal.core.blocks import Block
 from imuhal.core.samples import Sample
 from imuhal.core.streams import StreamSpec
+from imuhal.estimation.ordering import fusion_order
 from imuhal.estimation.outputs import Estimate
 
 
@@ -62,13 +63,20 @@ class Estimator(ABC):
         takes blocks too); an estimator with a faster way over arrays overrides it and
         must give the same estimates. The pipeline's router (imuhal.pipeline.router) hands
         a block over whole only when nothing else of its instants is routed here."""
-        out: list[Estimate] = []
-        process = self.process
-        for sample in block.samples():
-            made = process(sample)
-            if made:
-                out.extend(made)
-        return out
+        return _frame_by_frame(self, block.samples())
+
+    def update_blocks(self, blocks: Sequence[Block]) -> list[Estimate]:
+        """Consume the frames of ``blocks`` (one fusion step: valid, body-frame blocks of
+        different quantities, e.g. a FIFO read's accelerometer and gyro frames) in fusion
+        order (imuhal.estimation.ordering: by time, then accelerometer, magnetometer,
+        pressure, temperature, gyro), with nothing else between them; return the
+        estimates, in the order made. The default hands the frames to ``process()`` one
+        by one in that order; an estimator with a faster way over arrays (the AHRS family)
+        overrides it and must give the same estimates. The router hands over the blocks of
+        a fusion step at once only when nothing else of the step reaches this estimator."""
+        if len(blocks) == 1:
+            return _frame_by_frame(self, blocks[0].samples())
+        return _frame_by_frame(self, fusion_order([s for b in blocks for s in b.samples()]))
 
     @abstractmethod
     def get_state(self) -> dict[str, Any]:
@@ -90,3 +98,14 @@ class Estimator(ABC):
 
     def diagnostics(self) -> dict[str, Any]:
         return {}
+
+
+def _frame_by_frame(estimator: Estimator, samples: Sequence[Sample]) -> list[Estimate]:
+    """``samples`` through ``estimator.process`` one by one; every estimate, in order."""
+    out: list[Estimate] = []
+    process = estimator.process
+    for sample in samples:
+        made = process(sample)
+        if made:
+            out.extend(made)
+    return out

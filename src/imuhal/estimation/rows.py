@@ -1,47 +1,29 @@
-"""Whole chunks of IMU rows in and attitude rows out: the column form of ``process()``.
+"""Attitude estimates as columns: what ``imuhal estimate`` and ``evaluate`` take from an
+AHRS over a log's blocks.
 
-``imuhal estimate`` and ``evaluate`` feed a wide log (one row per time) to an attitude
-estimator. Row by row that is three sample objects in and one estimate object out per row,
-which costs more than the filter itself. An estimator that can also take the chunk at once
-implements :class:`RowsEstimator`: it gets :class:`ImuRows` (the samples ``process()`` would
-have got, as arrays) and returns :class:`AttitudeRows` (the estimates it would have made, as
-arrays). The results are those of ``process()`` (which stays the reference); only the
-representation differs.
+Offline, a wide log becomes one block per quantity and chunk (imuhal.offline.runner
+``imu_blocks``), which an AHRS takes at once through the same bookkeeping and compiled row
+kernel as a live run's FIFO blocks (``update_blocks``). Its estimates as objects, one per
+row, cost more than the filter itself (an estimate and its diagnostics dictionary per row,
+then flattened again for the CSV): an estimator that can also hand them over as columns
+implements :class:`RowsEstimator` and returns :class:`AttitudeRows`, the estimates
+``update_blocks`` would have made, as arrays.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from imuhal.core.blocks import Block
 from imuhal.core.frames import FloatArray
 
 DiagnosticColumn = np.ndarray | list[Any]
 """One diagnostics column: an int array (flags, counts), a float array, or Python values
 (None where a row has no value)."""
-
-
-@dataclass(frozen=True)
-class ImuRows:
-    """One chunk of a wide IMU log, in time order; body NED axes, project units.
-
-    Each row is what the offline runner feeds ``process()`` in fusion order: an accelerometer
-    sample, a magnetometer sample when ``mag_ut[i, 0]`` is not NaN, then a gyro sample, all at
-    ``t_ns[i]``."""
-
-    t_ns: np.ndarray
-    """(n,) int64 timestamps (ns)."""
-    gyro_rad_s: FloatArray
-    """(n, 3) rad/s."""
-    accel_m_s2: FloatArray
-    """(n, 3) specific force, m/s^2."""
-    mag_ut: FloatArray | None
-    """(n, 3) uT; a row whose first component is NaN has no magnetometer sample."""
-
-    def __len__(self) -> int:
-        return len(self.t_ns)
 
 
 @dataclass(frozen=True)
@@ -66,10 +48,12 @@ class AttitudeRows:
 
 @runtime_checkable
 class RowsEstimator(Protocol):
-    """An estimator that also takes a chunk of rows at once (see the module docstring)."""
+    """An estimator that also hands a fusion step's estimates over as columns (see the
+    module docstring)."""
 
-    def process_imu_rows(self, rows: ImuRows) -> AttitudeRows:
-        """What ``process()`` makes of ``rows`` (its state carries on to the next chunk)."""
+    def attitude_rows(self, blocks: Sequence[Block]) -> AttitudeRows:
+        """The estimates ``update_blocks(blocks)`` makes, as columns (the state carries on
+        to the next step as it would)."""
         ...
 
 

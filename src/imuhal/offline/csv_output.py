@@ -100,16 +100,26 @@ class EstimateCsvWriter:
         if not chunk:
             return
         leading = _leading_columns(chunk, self.frame)
-        diags = [flatten_diagnostics(e.diagnostics) for e in chunk]
+        columns = _diagnostic_columns(chunk)
+        # numbers only (a NED attitude's fields, uniform diagnostics) need no quoting
+        plain = columns is not None and all(type(e) is AttitudeEstimate for e in chunk) \
+            and get_convention(self.frame) is NED
+        if columns is None:  # diagnostics that differ in form from row to row
+            diags = [flatten_diagnostics(e.diagnostics) for e in chunk]
+            columns = {k: [_fmt(d.get(k, "")) for d in diags]
+                       for k in dict.fromkeys(k for d in diags for k in d)}
         if self._fixed is None:
             known = self._index.keys()
-            if not (leading.keys() <= known and all(d.keys() <= known for d in diags)):
-                self._extend([*leading, *(k for d in diags for k in d)])
+            if not (leading.keys() <= known and columns.keys() <= known):
+                self._extend([*leading, *columns])
         elif self.rows == 0:
-            self._check_columns({**diags[0], **{k: v[0] for k, v in leading.items()}})
-        cells = [leading[h] if h in leading else [_fmt(d.get(h, "")) for d in diags]
-                 for h in self._header]
-        self._csv.writerows(zip(*cells, strict=True))
+            self._check_columns({**columns, **leading})
+        blank = [""] * len(chunk)
+        cells = [leading[h] if h in leading else columns.get(h, blank) for h in self._header]
+        if plain:  # as _write_rows: the lines joined directly
+            self._spill.write("\r\n".join(map(",".join, zip(*cells, strict=True))) + "\r\n")
+        else:
+            self._csv.writerows(zip(*cells, strict=True))
         self.rows += len(chunk)
 
     def _write_rows(self, rows: AttitudeRows) -> None:
@@ -211,6 +221,43 @@ def _leading_columns(chunk: list[Estimate], frame: str | Convention) -> dict[str
     rows = [estimate_fields(e, frame) for e in chunk]
     names = dict.fromkeys(k for r in rows for k in r)
     return {n: [_fmt(r.get(n, "")) for r in rows] for n in names}
+
+
+def _diagnostic_columns(chunk: list[Estimate]) -> dict[str, list[str]] | None:
+    """The diagnostics of a chunk, flattened (:func:`flatten_diagnostics`) and formatted,
+    column by column, when every estimate's have the same names and each name one form
+    (an AHRS's, a vario's: the common case, without a dictionary per row); else None."""
+    names = tuple(chunk[0].diagnostics)
+    diags = [e.diagnostics for e in chunk]
+    if any(tuple(d) != names for d in diags):
+        return None
+    out: dict[str, list[str]] = {}
+    for name in names:
+        values = [d[name] for d in diags]
+        kind = type(values[0])
+        if any(type(v) is not kind for v in values):
+            return None
+        columns = _formatted(name, kind, values)
+        if columns is None:
+            return None
+        out.update(columns)
+    return out
+
+
+def _formatted(name: str, kind: type, values: list[Any]) -> dict[str, list[str]] | None:
+    """One diagnostic's values (all of type ``kind``) as flattened, formatted columns; {}
+    for text and None (left out, as row by row); None for a form only rows can take."""
+    if kind is bool or kind is int:
+        return {name: _reprs([int(v) for v in values])}
+    if kind is float:
+        return {name: _fmt_floats(np.array(values, dtype=np.float64))}
+    if kind is tuple or kind is list:
+        width = len(values[0])
+        if any(len(v) != width or not all(type(x) is float for x in v) for v in values):
+            return None
+        arr = np.array(values, dtype=np.float64).reshape(len(values), width)
+        return {f"{name}_{i}": _fmt_floats(arr[:, i]) for i in range(width)}
+    return {} if kind is str or kind is type(None) else None  # nested: row by row
 
 
 def euler_deg_from_quats(q: np.ndarray) -> np.ndarray:

@@ -1,20 +1,24 @@
 """Feeding a sample table through any registered estimator, as the pipeline would.
 
-The input becomes the same sample and estimate objects the pipeline produces (body frame,
-project units), so an estimator behaves identically live and offline. Rows are fed in time
-order, and the samples of one row in the pipeline's fusion order
-(imuhal.estimation.ordering: accelerometer, magnetometer, pressure, then gyro), so an AHRS
-stepping on the gyro uses that row's accel and mag, as it does live.
+An IMU table becomes blocks (imuhal.core.blocks: one per column group, body frame, project
+units) routed by the pipeline's own router (imuhal.pipeline.router), so an estimator
+behaves identically live and offline: the frames reach it in time order and, within a row,
+in the pipeline's fusion order (imuhal.estimation.ordering: accelerometer, magnetometer,
+pressure, then gyro), so an AHRS stepping on the gyro uses that row's accel and mag, as it
+does live; an AHRS takes a chunk's blocks at once (``update_blocks``: its compiled row
+kernel). Other tables (a vario's altitude and upward acceleration) become the same sample
+and estimate objects the pipeline produces.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 
 import numpy as np
 
 from imuhal.core.atmosphere import SEA_LEVEL_PRESSURE_PA, pressure_pa_at_altitude
+from imuhal.core.blocks import Block
 from imuhal.core.frames import IDENTITY_QUATERNION
 from imuhal.core.samples import (
     AccelSample,
@@ -26,7 +30,7 @@ from imuhal.core.samples import (
 )
 from imuhal.estimation.base import Estimator
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate
-from imuhal.estimation.rows import AttitudeRows, ImuRows, RowsEstimator
+from imuhal.estimation.rows import AttitudeRows, RowsEstimator
 from imuhal.offline.chain import EstimatorChain, instants_in_fusion_order
 from imuhal.offline.csv_input import (
     ACCEL,
@@ -40,6 +44,7 @@ from imuhal.offline.csv_input import (
     SampleTable,
     require,
 )
+from imuhal.pipeline.router import Router
 
 DEVICE = "input"
 
@@ -67,6 +72,46 @@ def imu_events(table: SampleTable) -> Iterator[Sample]:
         if pressure is not None and not math.isnan(pressure[i]):
             yield PressureSample(t_ns=t_ns, device=DEVICE, pressure_pa=pressure[i])
         yield GyroSample(t_ns=t_ns, device=DEVICE, frame=Frame.BODY_NED, gyro_rad_s=g)
+
+
+def imu_blocks(table: SampleTable) -> list[Block]:
+    """The samples :func:`imu_events` makes of ``table``, as one block per quantity (the
+    accelerometer, the magnetometer and pressure on the rows that carry them, the gyro):
+    one fusion step, in time order (the CSV reader has refused times that do not
+    increase)."""
+    require(table, (TIME, *GYRO, *ACCEL), "an attitude estimator")
+    c = table.columns
+    t_ns = np.round(c[TIME] * 1e9).astype(np.int64)
+
+    def block(kind: type[Sample], names: tuple[str, ...], rows: np.ndarray | None = None
+              ) -> Block | None:
+        values = np.stack([c[n] for n in names], axis=1)
+        t = t_ns
+        if rows is not None:
+            if not rows.any():
+                return None
+            values, t = values[rows], t_ns[rows]
+        return Block.from_arrays(kind, DEVICE, int(t[0]), t - t[0], values,
+                                 np.zeros(len(t), np.int64),
+                                 frame=Frame.BODY_NED if len(names) == 3 else None)
+
+    blocks = [block(AccelSample, ACCEL)]
+    if table.has(*MAG):
+        blocks.append(block(MagSample, MAG, ~np.isnan(c[MAG[0]])))
+    if table.has(PRESSURE):
+        blocks.append(block(PressureSample, (PRESSURE,), ~np.isnan(c[PRESSURE])))
+    blocks.append(block(GyroSample, GYRO))
+    return [b for b in blocks if b is not None]
+
+
+def fuse_table(estimators: Sequence[Estimator], table: SampleTable) -> list[Estimate]:
+    """Every estimate the chain of ``estimators`` (profile order, each taking every source)
+    makes of an IMU table's blocks (:func:`imu_blocks`), through the pipeline's router."""
+    out: list[Estimate] = []
+    blocks = imu_blocks(table)
+    if blocks and len(blocks[0]):
+        Router.of(estimators).fuse_blocks(blocks, out)
+    return out
 
 
 def vario_events(table: SampleTable, sea_level_pa: float) -> Iterator[Sample | Estimate]:
@@ -139,22 +184,14 @@ def run_offline_columns(estimator: Estimator, table: SampleTable) -> list[Estima
     return _run_table(estimator, table, None, True)
 
 
-def imu_rows(table: SampleTable) -> ImuRows:
-    """The rows :func:`imu_events` would feed, as arrays (the same integer timestamps)."""
-    require(table, (TIME, *GYRO, *ACCEL), "an attitude estimator")
-    c = table.columns
-    return ImuRows(np.round(c[TIME] * 1e9).astype(np.int64), _stack(table, GYRO),
-                   _stack(table, ACCEL), _stack(table, MAG) if table.has(*MAG) else None)
-
-
 def _run_table(estimator: Estimator, table: SampleTable, ahrs: Estimator | None,
                columnar: bool = False) -> list[Estimate] | AttitudeRows:
     if _wants_imu(estimator):
         if getattr(estimator.settings, "offline", False):
             return smoothed_estimates(estimator, table)
         if columnar and isinstance(estimator, RowsEstimator):
-            return estimator.process_imu_rows(imu_rows(table))
-        return feed(estimator, imu_events(table))
+            return estimator.attitude_rows(imu_blocks(table))
+        return fuse_table([estimator], table)
     _require_pressure_consumer(estimator)
     if table.has(ALTITUDE):
         sea_level = float(getattr(estimator.settings, "sea_level_pa", SEA_LEVEL_PRESSURE_PA))
@@ -163,7 +200,7 @@ def _run_table(estimator: Estimator, table: SampleTable, ahrs: Estimator | None,
             "a vario filter (or give t_s, altitude_m, accel_up_m_s2)")
     if ahrs is None:
         raise InputError("full IMU input needs an attitude estimator for gravity compensation")
-    return feed(estimator, imu_events(table), ahrs=ahrs)
+    return [e for e in fuse_table([ahrs, estimator], table) if e.source == estimator.instance]
 
 
 def run_offline_samples(

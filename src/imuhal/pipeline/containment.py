@@ -163,6 +163,13 @@ class EstimatorGuard:
         checked; [] when it is disabled or raised (the block is skipped for it alone)."""
         return self._called(int(block.t_ns[-1]), self.estimator.update_block, block)
 
+    def process_blocks(self, blocks: Sequence[Block]) -> list[Estimate]:
+        """The estimator's estimates for the frames of one fusion step's ``blocks``
+        (``update_blocks``), each checked; [] when it is disabled or raised (the step is
+        skipped for it alone)."""
+        return self._called(max(int(b.t_ns[-1]) for b in blocks),
+                            self.estimator.update_blocks, blocks)
+
     def _called(self, t_ns: int, call: Callable[[Any], Iterable[Estimate]],
                 arg: object) -> list[Estimate]:
         if self.faults.disabled:

@@ -790,7 +790,7 @@ class Pipeline:
         kept as the readings; one with several readings of a stream (a FIFO read) is
         grouped into blocks (imuhal.core.blocks.blocks_of)."""
         driver = dev.driver
-        if dev.own_blocks:
+        if dev.own_blocks and driver.builds_blocks:
             polled = driver.poll_blocks(t_ns)
             blocks = polled.blocks
             if all(len(b) == 1 for b in blocks):

@@ -14,11 +14,14 @@ estimates:
   that made it;
 - estimates are handed on breadth first, in the order they were made, before the next
   sample;
-- a block of several frames (a FIFO read) goes whole to ``Estimator.update_block`` of each
-  estimator it is routed to when nothing can come between its frames there: no other item
-  of the same fusion step is routed to that estimator, it takes no other estimator's
-  estimates, and nobody consumes its estimates. Otherwise its frames are routed one by
-  one, in fusion order with the rest. Either way every estimator sees the same inputs in
+- the blocks of a fusion step with several frames (a FIFO read) go stage by stage when
+  that changes no estimator's inputs: each estimator fed by the step's blocks gets all of
+  its blocks at once (``Estimator.update_blocks``: its frames in fusion order) and takes
+  no estimates of another estimator reached in this step; each estimator reached by
+  estimates only takes them from one estimator of the step, and gets them in the order
+  they were made, after that estimator's stage. Otherwise (an estimator fed by both the
+  step's samples and another's estimates, or by two estimators) every frame is routed one
+  by one in fusion order with the rest. Either way every estimator sees the same inputs in
   the same order; only the interleaving of different estimators' estimates in the output
   may differ (each estimator's own stay in order).
 """
@@ -32,7 +35,7 @@ from typing import Protocol
 from imuhal.core.blocks import Block
 from imuhal.core.samples import Sample
 from imuhal.estimation.base import Estimator
-from imuhal.estimation.ordering import fusion_order
+from imuhal.estimation.ordering import FUSION_RANK, fusion_order
 from imuhal.estimation.outputs import Estimate
 
 Item = Sample | Estimate
@@ -45,6 +48,8 @@ class Guard(Protocol):
     def process(self, item: Item) -> list[Estimate]: ...
 
     def process_block(self, block: Block) -> list[Estimate]: ...
+
+    def process_blocks(self, blocks: Sequence[Block]) -> list[Estimate]: ...
 
 
 @dataclass
@@ -78,20 +83,7 @@ class Router:
         self.routes = tuple(routes)
         self.device_rank = dict(device_rank or {})
         self._cache: dict[tuple[str, type], tuple[Route, ...]] = {}
-        consumed_sources: set[str] = set()
-        for r in self.routes:
-            if r.inputs is None:
-                consumed_sources.update(x.name for x in self.routes if x is not r)
-            else:
-                consumed_sources.update(r.inputs)
-        names = {r.name for r in self.routes}
-        self._whole = frozenset(
-            r.name for r in self.routes
-            if r.name not in consumed_sources
-            and not (any(issubclass(t, Estimate) for t in r.consumes)
-                     and (r.inputs is None or names & r.inputs)))
-        """Estimators whose estimates nobody takes and that take no other estimator's:
-        nothing made during a fusion step can reach them, so a block may go whole."""
+        self._plans: dict[tuple[tuple[str, type], ...], _Plan | None] = {}
 
     @classmethod
     def of(cls, estimators: Sequence[Estimator],
@@ -152,31 +144,78 @@ class Router:
 
     def fuse_blocks(self, blocks: Sequence[Block], out: list[Estimate]) -> None:
         """The frames of ``blocks`` (valid, due: one fusion step) through the estimators:
-        blocks that may go whole to ``update_block`` do so (see the module docstring), the
-        rest frame by frame in fusion order."""
-        whole: list[tuple[Block, tuple[Route, ...]]] = []
-        rows: list[Sample] = []
-        for block in blocks:
-            routes = self.routes_of(block.device, block.kind)
-            if len(block) > 1 and routes and self._alone(block, routes, blocks):
-                whole.append((block, routes))
+        stage by stage where that changes no estimator's inputs (see the module
+        docstring), else frame by frame in fusion order."""
+        plan = None
+        if any(len(b) > 1 for b in blocks):
+            key = tuple((b.device, b.kind) for b in blocks)
+            if key in self._plans:
+                plan = self._plans[key]
             else:
-                rows += block.samples()
-        for block, routes in whole:
-            for r in routes:
-                made = r.guard.process_block(block) if r.guard is not None else \
-                    list(r.estimator.update_block(block))
-                r.outputs += len(made)
-                out.extend(made)
-        if rows:
-            self.fuse(rows, out)
+                plan = self._plans[key] = self._plan(blocks)
+        if plan is None:
+            self.fuse([s for b in blocks for s in b.samples()], out)
+            return
+        made: dict[str, list[Estimate]] = {}
+        for r, which in plan.fed:
+            fed = [blocks[i] for i in which]
+            got = r.guard.process_blocks(fed) if r.guard is not None else \
+                list(r.estimator.update_blocks(fed))
+            self._made(r, got, made, out)
+        for r, upstream in plan.downstream:
+            got = []
+            for e in made[upstream]:
+                if any(x is r for x in self.routes_of(upstream, type(e))):
+                    got += r.guard.process(e) if r.guard is not None else r.estimator.process(e)
+            self._made(r, got, made, out)
 
-    def _alone(self, block: Block, routes: tuple[Route, ...], blocks: Sequence[Block]
-               ) -> bool:
-        """Nothing else of this step reaches ``block``'s estimators, and their estimates go
-        nowhere: its frames may be handed over at once."""
-        if any(r.name not in self._whole for r in routes):
-            return False
-        names = {r.name for r in routes}
-        return not any(other is not block and names.intersection(
-            r.name for r in self.routes_of(other.device, other.kind)) for other in blocks)
+    @staticmethod
+    def _made(r: Route, got: list[Estimate], made: dict[str, list[Estimate]],
+              out: list[Estimate]) -> None:
+        r.outputs += len(got)
+        out.extend(got)
+        made[r.name] = got
+
+    def _plan(self, blocks: Sequence[Block]) -> _Plan | None:
+        """How the blocks of one fusion step go stage by stage, or None: frame by frame
+        (see the module docstring)."""
+        fed: dict[str, list[int]] = {}
+        for i, b in enumerate(blocks):
+            for r in self.routes_of(b.device, b.kind):
+                fed.setdefault(r.name, []).append(i)
+        for which in fed.values():
+            ranks = [FUSION_RANK.get(blocks[i].quantity, 2) for i in which]
+            if len(set(ranks)) != len(ranks):
+                return None  # frames of one instant and rank: their order is the device's
+        stage = [r for r in self.routes if r.name in fed]
+        upstream: dict[str, str] = {}
+        reached: list[Route] = []
+        queue = list(stage)
+        for u in queue:  # grows while iterating: breadth first
+            for d in self.routes:
+                if d is u or not _takes_estimates_of(d, u):
+                    continue
+                if d.name in fed or upstream.get(d.name, u.name) != u.name:
+                    return None  # its inputs would interleave: frame by frame
+                if d.name not in upstream:
+                    upstream[d.name] = u.name
+                    reached.append(d)
+                    queue.append(d)
+        return _Plan(tuple((r, tuple(fed[r.name])) for r in stage),
+                     tuple((r, upstream[r.name]) for r in reached))
+
+
+def _takes_estimates_of(d: Route, u: Route) -> bool:
+    """``d`` may take estimates made by ``u`` (it consumes some estimate and takes ``u`` as
+    a source)."""
+    return (d.inputs is None or u.name in d.inputs) and any(
+        issubclass(t, Estimate) for t in d.consumes)
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """One fusion step stage by stage: the estimators fed by its blocks (with the positions
+    of their blocks), then those reached by estimates, each with its one upstream."""
+
+    fed: tuple[tuple[Route, tuple[int, ...]], ...]
+    downstream: tuple[tuple[Route, str], ...]

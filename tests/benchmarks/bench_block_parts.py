@@ -1,0 +1,148 @@
+"""The parts of the block path, each against its frame-by-frame peer in one process (plain
+script; not collected by pytest). The figures of docs/performance.md, "Blocks reach the
+estimators".
+
+Run:  .venv/bin/python -m tests.benchmarks.bench_block_parts kernel|decode|estimate
+
+- ``kernel``: Madgwick's ``update_blocks`` on fusion steps of n accelerometer and gyro
+  frames against the same frames one by one through ``process()`` (the base class's
+  ``update_blocks``), CPU us per frame, for n from 1 to 64: where the compiled row kernel
+  starts to pay (``MIN_KERNEL_FRAMES``; below it ``update_blocks`` goes frame by frame).
+- ``decode``: the GY-91's MPU-9250 read from its FIFO every 10 periods, a 20 s recording
+  replayed without estimators (tests/benchmarks/bench_hardware_path.py), the driver's array
+  decoding and the base class's frame-by-frame decoding alternately, CPU us per IMU sample.
+- ``estimate``: ``imuhal estimate madgwick``'s work on a generated 200,000-row log, the
+  estimates as columns (``attitude_rows``) and as objects through the pipeline's router
+  (``fuse_table``), written by the same CSV writer, alternately, CPU s.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import numpy as np
+
+from imuhal.core.blocks import Block
+from imuhal.core.samples import AccelSample, Frame, GyroSample
+from imuhal.estimation.base import Estimator
+from imuhal.plugins.manager import load_registry
+from imuhal_filters.common import ahrs
+
+
+def _block(kind: type, t_ns: np.ndarray, values: np.ndarray) -> Block:
+    return Block.from_arrays(kind, "imu", int(t_ns[0]), t_ns - t_ns[0], values,
+                             np.zeros(len(t_ns), np.int64), frame=Frame.BODY_NED)
+
+
+def kernel(frames: int = 4000) -> None:
+    cls = load_registry().estimators.get("madgwick")
+    rng = np.random.default_rng(1)
+    t = np.arange(frames, dtype=np.int64) * 5_000_000
+    g = rng.normal(0, 0.3, (frames, 3))
+    a = rng.normal(0, 0.3, (frames, 3)) + np.array([0.0, 0.0, -9.8])
+
+    def steps(n: int) -> list[list[Block]]:
+        out = [[_block(AccelSample, t[i:i + n], a[i:i + n]),
+                _block(GyroSample, t[i:i + n], g[i:i + n])] for i in range(0, frames, n)]
+        for step in out:
+            for b in step:
+                b.samples()  # the rows exist in both cases (the pipeline's blocks have them)
+        return out
+
+    warm = cls()
+    for step in steps(64)[:4]:
+        warm.update_blocks(step)  # the kernel compiled (JIT) before anything is timed
+    shipped = ahrs.MIN_KERNEL_FRAMES
+    for n in (1, 4, 8, 16, 24, 32, 64):
+        cases = steps(n)
+        times = {}
+        for mode in ("update_blocks", "kernel forced", "frame by frame"):
+            est = cls()
+            est.update_blocks(cases[0])  # aligned
+            ahrs.MIN_KERNEL_FRAMES = 1 if mode == "kernel forced" else shipped
+            t0 = time.process_time()
+            for step in cases[1:]:
+                if mode == "frame by frame":
+                    Estimator.update_blocks(est, step)
+                else:
+                    est.update_blocks(step)
+            times[mode] = (time.process_time() - t0) / (frames - n) * 1e6
+            ahrs.MIN_KERNEL_FRAMES = shipped
+        print(f"{n:3d} frames a step, us/frame: update_blocks {times['update_blocks']:6.2f}, "
+              f"the row kernel at any size {times['kernel forced']:6.2f}, frame by frame "
+              f"{times['frame by frame']:6.2f}")
+
+
+def decode(pairs: int = 4) -> None:
+    from tests.benchmarks.bench_blocks import gy91_yaml
+    from tests.benchmarks.bench_hardware_path import record, replay
+
+    from imuhal.drivers.base import Driver
+    from imuhal_chips.mpu9250.driver import MPU9250Driver
+
+    registry = load_registry()
+    arrays = MPU9250Driver.poll_blocks
+    got: dict[str, list[float]] = {"arrays": [], "frame by frame": []}
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "gy91.imurec"
+        record(registry, path, 20.0, gy91_yaml(10))
+        try:
+            for _ in range(pairs):
+                for mode in got:
+                    MPU9250Driver.poll_blocks = (  # type: ignore[method-assign]
+                        arrays if mode == "arrays" else Driver.poll_blocks)
+                    imu, _, cpu = replay(registry, path, estimators=False)
+                    got[mode].append(cpu / imu * 1e6)
+        finally:
+            MPU9250Driver.poll_blocks = arrays  # type: ignore[method-assign]
+    for mode, values in got.items():
+        print(f"{mode}: {' / '.join(f'{v:.1f}' for v in values)} us per IMU sample "
+              "(no estimators)")
+
+
+def estimate(rows: int = 200_000, pairs: int = 2) -> None:
+    from tests.benchmarks.bench_all import write_log
+
+    from imuhal.offline.csv_input import iter_sample_chunks
+    from imuhal.offline.csv_output import EstimateCsvWriter
+    from imuhal.offline.runner import iter_offline
+
+    cls = load_registry().estimators.get("madgwick")
+    with tempfile.TemporaryDirectory() as tmp:
+        log = Path(tmp) / "log.csv"
+        write_log(log, rows)
+        tables = list(iter_sample_chunks(log))
+        got: dict[bool, list[float]] = {True: [], False: []}
+        for _ in range(pairs):
+            for columnar in (True, False):
+                est, writer = cls(), EstimateCsvWriter(Path(tmp) / f"out-{columnar}.csv")
+                t0 = time.process_time()
+                for table in tables:
+                    writer.write(next(iter_offline(est, [table], columnar=columnar)))
+                writer.commit()
+                got[columnar].append(time.process_time() - t0)
+        same = ((Path(tmp) / "out-True.csv").read_bytes()
+                == (Path(tmp) / "out-False.csv").read_bytes())
+    print(f"{rows} rows: columns {' / '.join(f'{v:.2f}' for v in got[True])} s, objects "
+          f"through the router {' / '.join(f'{v:.2f}' for v in got[False])} s (CPU); "
+          f"same file: {same}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("part", choices=["kernel", "decode", "estimate"])
+    args = p.parse_args(argv)
+    {"kernel": kernel, "decode": decode, "estimate": estimate}[args.part]()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
