@@ -43,6 +43,7 @@ from imuhal.estimation.gravity import vertical_accel_up_m_s2
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate, VerticalEstimate
 from imuhal_filters.vario.baro_input import dt_s, usable_altitude_m
 from imuhal_filters.vario.downsample import IntervalMean
+from imuhal_filters.vario.gate import InnovationGate
 from imuhal_filters.vario.kf3 import Kalman3
 from imuhal_filters.vario.kf3_settings import CM_PER_M, VarioKf3Settings, configured_core
 
@@ -88,7 +89,9 @@ class VarioKf3Estimator(Estimator):
         self._counts = dict.fromkeys(_COUNTERS, 0)
         self._first: tuple[float, float | None] | None = None
         """The first sample's (altitude m, mean accel m/s^2), waiting for its step length."""
-        self._rejected_since_ns: int | None = None
+        s = self.settings
+        self._gate = InnovationGate(s.innovation_gate_sigma, s.innovation_gate_min_m,
+                                    s.gate_reacquire_s)
         self._held: tuple[int, float] | None = None
         """The last interval's (end ns, mean accel m/s^2): an AHRS slower than the barometer
         (the Freescale filters' Kalman steps at 31 Hz against 50 Hz) leaves intervals empty."""
@@ -98,7 +101,7 @@ class VarioKf3Estimator(Estimator):
     def initialise(self, t_ns: int, altitude_m: float) -> None:
         self._kf = configured_core(self.settings, altitude_m)
         self._last_t_ns = t_ns
-        self._rejected_since_ns = None
+        self._gate.rejected_since_ns = None
         # the references' first step uses the acceleration that came with the first altitude
         self._first = (altitude_m, self._accel.take())
 
@@ -194,29 +197,19 @@ class VarioKf3Estimator(Estimator):
         return [self._estimate(sample.t_ns, innovation)]
 
     def _accept(self, t_ns: int, altitude_m: float, innovation_m: float) -> bool:
-        """The innovation gate: False (counted) to skip this altitude's update."""
-        k = self.settings.innovation_gate_sigma
+        """The innovation gate (``imuhal_filters.vario.gate``): False (counted) to skip this
+        altitude's update. A new level is taken keeping climb and bias."""
         kf = self._kf
         assert kf is not None
-        if k is None:
-            return True
-        sigma_m = math.sqrt(max(kf.P[0, 0], 0.0) + kf.z_meas_variance) / CM_PER_M
-        if abs(innovation_m) <= max(k * sigma_m, self.settings.innovation_gate_min_m):
-            self._rejected_since_ns = None
-            return True
-        if self._rejected_since_ns is None:
-            self._rejected_since_ns = t_ns
-        if (t_ns - self._rejected_since_ns) / 1e9 < self.settings.gate_reacquire_s:
-            self._counts["gated"] += 1
-            return False
-        # a sustained change of level: take it, keeping climb and bias
-        self._counts["reacquired"] += 1
-        self._rejected_since_ns = None
-        kf.x[0] = altitude_m * CM_PER_M
-        kf.P[0, :] = 0.0
-        kf.P[:, 0] = 0.0
-        kf.P[0, 0] = kf.z_meas_variance
-        return True
+
+        def reacquire() -> None:
+            kf.x[0] = altitude_m * CM_PER_M
+            kf.P[0, :] = 0.0
+            kf.P[:, 0] = 0.0
+            kf.P[0, 0] = kf.z_meas_variance
+
+        return self._gate.accept(t_ns, innovation_m, kf.P[0, 0], kf.z_meas_variance, CM_PER_M,
+                                 reacquire, self._counts)
 
     def _estimate(self, t_ns: int, innovation_m: float, *, gated: bool = False
                   ) -> VerticalEstimate:
@@ -249,7 +242,7 @@ class VarioKf3Estimator(Estimator):
             "attitude_has_linear_accel": self._attitude_has_linear_accel,
             "counts": dict(self._counts),
             "first": None if self._first is None else list(self._first),
-            "rejected_since_ns": self._rejected_since_ns,
+            "rejected_since_ns": self._gate.rejected_since_ns,
             "held": None if self._held is None else list(self._held),
         }
 
@@ -269,7 +262,7 @@ class VarioKf3Estimator(Estimator):
                         **{k: int(v) for k, v in state["counts"].items()}}
         first = state.get("first")
         self._first = None if first is None else (float(first[0]), first[1])
-        self._rejected_since_ns = state.get("rejected_since_ns")
+        self._gate.rejected_since_ns = state.get("rejected_since_ns")
         held = state.get("held")
         self._held = None if held is None else (int(held[0]), float(held[1]))
 
