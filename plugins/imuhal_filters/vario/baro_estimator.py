@@ -10,7 +10,12 @@ from pydantic import Field
 from imuhal.core.atmosphere import SEA_LEVEL_PRESSURE_PA
 from imuhal.core.samples import PressureSample
 from imuhal.estimation.base import Estimator, EstimatorSettings
-from imuhal.estimation.outputs import Estimate, VerticalEstimate
+from imuhal.estimation.outputs import (
+    Estimate,
+    EstimateFlag,
+    RejectedEstimate,
+    VerticalEstimate,
+)
 from imuhal_filters.vario.baro_input import dt_s, usable_altitude_m
 from imuhal_filters.vario.baro_kalman import BaroKalman2
 from imuhal_filters.vario.gate import InnovationGate
@@ -80,6 +85,8 @@ class BaroVarioEstimator(Estimator):
                         "restarts_after_gap": 0, "gated": 0, "reacquired": 0}
         self._gate = InnovationGate(s.innovation_gate_sigma, s.innovation_gate_min_m,
                                     s.gate_reacquire_s)
+        self._withheld = 0
+        """Estimates withheld while the gate refused most altitudes (UNSETTLED)."""
 
     # -- the filter steps, kept apart so callers (and tests) can drive them directly --------
 
@@ -139,7 +146,13 @@ class BaroVarioEstimator(Estimator):
                                  self._counts)
 
     def _estimate(self, t_ns: int, innovation_m: float, *, gated: bool = False
-                  ) -> VerticalEstimate:
+                  ) -> Estimate:
+        """The estimate after this altitude, or, while the gate refuses most altitudes
+        (``InnovationGate.unsettled``), a RejectedEstimate withholding it (UNSETTLED)."""
+        if self._gate.unsettled:
+            self._withheld += 1
+            return RejectedEstimate(t_ns=t_ns, source=self.instance, kind="vertical",
+                                    flags=EstimateFlag.UNSETTLED, estimator=self.name)
         kf = self._kf
         return VerticalEstimate(
             t_ns=t_ns,
@@ -159,15 +172,15 @@ class BaroVarioEstimator(Estimator):
     def get_state(self) -> dict[str, Any]:
         return {"kf": self._kf.as_dict(), "last_t_ns": self._last_t_ns,
                 "counts": dict(self._counts),
-                "rejected_since_ns": self._gate.rejected_since_ns}
+                "gate": self._gate.as_dict(), "withheld": self._withheld}
 
     def set_state(self, state: dict[str, Any]) -> None:
         self._kf.load_dict(state["kf"])
         last = state["last_t_ns"]
         self._last_t_ns = None if last is None else int(last)
         self._counts = {k: int(v) for k, v in state["counts"].items()}
-        since = state.get("rejected_since_ns")
-        self._gate.rejected_since_ns = None if since is None else int(since)
+        self._gate.load_dict(state.get("gate") or {})
+        self._withheld = int(state.get("withheld", 0))
 
     def diagnostics(self) -> dict[str, Any]:
-        return dict(self._counts)
+        return {**self._counts, "withheld_unsettled": self._withheld}

@@ -40,7 +40,13 @@ from typing import Any, ClassVar
 from imuhal.core.samples import AccelSample, Frame, PressureSample
 from imuhal.estimation.base import Estimator, EstimatorSettings
 from imuhal.estimation.gravity import vertical_accel_up_m_s2
-from imuhal.estimation.outputs import AttitudeEstimate, Estimate, VerticalEstimate
+from imuhal.estimation.outputs import (
+    AttitudeEstimate,
+    Estimate,
+    EstimateFlag,
+    RejectedEstimate,
+    VerticalEstimate,
+)
 from imuhal_filters.vario.baro_input import dt_s, usable_altitude_m
 from imuhal_filters.vario.downsample import IntervalMean
 from imuhal_filters.vario.gate import InnovationGate
@@ -61,6 +67,13 @@ _COUNTERS = (
     "reacquired",
 )
 
+
+GAP_CLIMB_SIGMA_M_S = 5.0
+"""The climb rate's standard deviation after a restart after a gap (m/s): unknown, within
+what a glider or a small aircraft does."""
+SETTLED_CLIMB_SIGMA_M_S = 0.25
+"""After a restart after a gap, estimates are withheld (UNSETTLED) until the filter's own
+climb-rate standard deviation is below this (m/s): about 0.2 s of altitudes at 50 Hz."""
 
 _HOLD_S = 0.1
 """An interval without acceleration reuses the previous interval's mean when it ended at most
@@ -92,6 +105,10 @@ class VarioKf3Estimator(Estimator):
         s = self.settings
         self._gate = InnovationGate(s.innovation_gate_sigma, s.innovation_gate_min_m,
                                     s.gate_reacquire_s)
+        self._withheld = 0
+        """Estimates withheld while the gate refused most altitudes (UNSETTLED)."""
+        self._settling = False
+        """Restarted after a gap and the climb rate not known to SETTLED_CLIMB_SIGMA_M_S."""
         self._held: tuple[int, float] | None = None
         """The last interval's (end ns, mean accel m/s^2): an AHRS slower than the barometer
         (the Freescale filters' Kalman steps at 31 Hz against 50 Hz) leaves intervals empty."""
@@ -101,9 +118,26 @@ class VarioKf3Estimator(Estimator):
     def initialise(self, t_ns: int, altitude_m: float) -> None:
         self._kf = configured_core(self.settings, altitude_m)
         self._last_t_ns = t_ns
-        self._gate.rejected_since_ns = None
+        self._gate.forget()
         # the references' first step uses the acceleration that came with the first altitude
         self._first = (altitude_m, self._accel.take())
+
+    def _restart_after_gap(self, t_ns: int, altitude_m: float) -> None:
+        """Start again from ``altitude_m`` after a gap: the gap lost the altitude and the
+        climb rate, not the accelerometer's bias. The bias (and its variance) are kept and
+        the climb rate starts at 0 with GAP_CLIMB_SIGMA_M_S, so the altitudes after the gap
+        correct the climb rate, not the bias (with the start-up covariance, which trusts
+        climb 0, a restart in a 1 m/s sink drove the bias to 13 m/s^2 and the climb rate
+        4 m/s off: the fault matrix, seed-gps-vario, chip resets)."""
+        kf = self._kf
+        assert kf is not None
+        bias, bias_variance = float(kf.x[2]), float(kf.P[2, 2])
+        self.initialise(t_ns, altitude_m)
+        kf = self._kf
+        kf.x[2] = bias
+        kf.P[2, 2] = bias_variance
+        kf.P[1, 1] = (GAP_CLIMB_SIGMA_M_S * CM_PER_M) ** 2
+        self._settling = True
 
     def predict(self, accel_up_m_s2: float, dt_seconds: float) -> None:
         """Propagate ``dt_seconds`` with the interval's mean upward acceleration (m/s^2)."""
@@ -167,7 +201,7 @@ class VarioKf3Estimator(Estimator):
                 return []
             if dt > self.settings.max_gap_s:
                 self._counts["restarts_after_gap"] += 1
-                self.initialise(sample.t_ns, altitude)
+                self._restart_after_gap(sample.t_ns, altitude)
             else:
                 accel = self._accel.take()
                 held = self._held
@@ -212,7 +246,16 @@ class VarioKf3Estimator(Estimator):
                                  reacquire, self._counts)
 
     def _estimate(self, t_ns: int, innovation_m: float, *, gated: bool = False
-                  ) -> VerticalEstimate:
+                  ) -> Estimate:
+        """The estimate after this altitude, or, while the gate refuses most altitudes
+        (``InnovationGate.unsettled``) or after a restart after a gap until the climb rate is
+        known (SETTLED_CLIMB_SIGMA_M_S), a RejectedEstimate withholding it (UNSETTLED)."""
+        if self._settling and self._kf is not None:
+            self._settling = self._kf.P[1, 1] > (SETTLED_CLIMB_SIGMA_M_S * CM_PER_M) ** 2
+        if self._gate.unsettled or self._settling:
+            self._withheld += 1
+            return RejectedEstimate(t_ns=t_ns, source=self.instance, kind="vertical",
+                                    flags=EstimateFlag.UNSETTLED, estimator=self.name)
         kf = self._kf
         assert kf is not None
         p = kf.P
@@ -242,7 +285,8 @@ class VarioKf3Estimator(Estimator):
             "attitude_has_linear_accel": self._attitude_has_linear_accel,
             "counts": dict(self._counts),
             "first": None if self._first is None else list(self._first),
-            "rejected_since_ns": self._gate.rejected_since_ns,
+            "gate": self._gate.as_dict(), "withheld": self._withheld,
+            "settling": self._settling,
             "held": None if self._held is None else list(self._held),
         }
 
@@ -262,9 +306,11 @@ class VarioKf3Estimator(Estimator):
                         **{k: int(v) for k, v in state["counts"].items()}}
         first = state.get("first")
         self._first = None if first is None else (float(first[0]), first[1])
-        self._gate.rejected_since_ns = state.get("rejected_since_ns")
+        self._gate.load_dict(state.get("gate") or {})
+        self._withheld = int(state.get("withheld", 0))
+        self._settling = bool(state.get("settling", False))
         held = state.get("held")
         self._held = None if held is None else (int(held[0]), float(held[1]))
 
     def diagnostics(self) -> dict[str, Any]:
-        return dict(self._counts)
+        return {**self._counts, "withheld_unsettled": self._withheld}

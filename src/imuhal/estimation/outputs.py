@@ -66,6 +66,10 @@ class EstimateFlag(IntFlag):
     """A value is NaN or infinite."""
     NOT_NORMALISABLE = 2
     """An attitude quaternion whose norm is zero (or too small to divide by): no rotation."""
+    UNSETTLED = 4
+    """Set by the estimator itself, which withholds its value: it rejected most of its
+    recent inputs (a variometer whose innovation gate refused most altitudes of the last
+    second), so the value may be far off and it has no better one. Not a failure."""
 
 
 _MIN_QUAT_NORM_SQ = 1e-12
@@ -75,9 +79,10 @@ _MIN_QUAT_NORM_SQ = 1e-12
 @dataclass(frozen=True, slots=True, kw_only=True)
 class RejectedEstimate(Estimate):
     """What the sinks and the downstream estimators get instead of an estimate that is not
-    finite or not normalisable: when, which estimator instance (``source``) and which plugin
-    estimator (``estimator``) made it, its kind (``"attitude"``, ``"vertical"`` or the class
-    name) and why (``flags``). It carries no value on purpose."""
+    finite or not normalisable (the pipeline makes it), or that its estimator withholds
+    (``UNSETTLED``: the estimator makes it): when, which estimator instance (``source``) and
+    which plugin estimator (``estimator``) made it, its kind (``"attitude"``, ``"vertical"``
+    or the class name) and why (``flags``). It carries no value on purpose."""
 
     kind: str
     flags: EstimateFlag

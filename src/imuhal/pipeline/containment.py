@@ -3,7 +3,8 @@
 * An exception from an estimator's ``process`` skips that input for that estimator only; an
   estimate that is not finite or not normalisable is replaced by a
   :class:`~imuhal.estimation.outputs.RejectedEstimate` (flags, no value), so no sink and no
-  downstream estimator ever sees its numbers. An estimator that takes more than half the
+  downstream estimator ever sees its numbers (one the estimator withholds itself,
+  ``UNSETTLED``, passes as it is). An estimator that takes more than half the
   real time of its input is reported once, with its cost per sample.
 * An exception from a driver that is not an :class:`~imuhal.core.errors.ImuhalError` (a
   plugin's bug: ``ValueError``, ``IndexError``, ...) is a device error: counted, named, the
@@ -181,6 +182,8 @@ class EstimatorGuard:
             return []
         for i, estimate in enumerate(made):
             flags = estimate_flags(estimate) if isinstance(estimate, Estimate) else None
+            if flags == EstimateFlag.UNSETTLED and type(estimate) is RejectedEstimate:
+                continue  # withheld by its estimator: its own judgement, not a failure
             if flags:
                 made[i] = self._rejected(estimate, flags)
             elif flags is None:
