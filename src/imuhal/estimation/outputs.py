@@ -122,6 +122,30 @@ def estimate_flags(estimate: Estimate) -> EstimateFlag:
     return _generic_flags(estimate)
 
 
+def refused_estimate(estimate: Estimate, flags: EstimateFlag, estimator: str
+                     ) -> RejectedEstimate:
+    """What takes the place of ``estimate``, refused for ``flags``, made by the plugin
+    estimator ``estimator``: its time, source and kind, no value."""
+    return RejectedEstimate(t_ns=estimate.t_ns, source=estimate.source,
+                            kind=estimate_kind(estimate), flags=flags, estimator=estimator)
+
+
+def checked_estimates(made: list[Estimate], estimator: str) -> int:
+    """Replace, in place, every estimate of ``made`` that :func:`estimate_flags` refuses by
+    its :func:`refused_estimate` (one its estimator withheld itself, a RejectedEstimate,
+    stays); returns how many were replaced. The offline chain's check, the live pipeline's
+    (imuhal.pipeline.containment) without the counting and disabling."""
+    replaced = 0
+    for i, estimate in enumerate(made):
+        if type(estimate) is RejectedEstimate:
+            continue
+        flags = estimate_flags(estimate)
+        if flags:
+            made[i] = refused_estimate(estimate, flags, estimator)
+            replaced += 1
+    return replaced
+
+
 def _attitude_flags(estimate: AttitudeEstimate) -> EstimateFlag:
     flags = EstimateFlag(0)
     values = list(estimate.q_body_to_ned) + list(estimate.linear_accel_ned_m_s2 or ())

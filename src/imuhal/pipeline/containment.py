@@ -41,6 +41,7 @@ from imuhal.estimation.outputs import (
     RejectedEstimate,
     estimate_flags,
     estimate_kind,
+    refused_estimate,
 )
 from imuhal.plugins.manager import Registry, plugin_origin
 from imuhal.sinks.base import Event, Sink
@@ -199,8 +200,7 @@ class EstimatorGuard:
                            f"{why} at "
                            f"t={estimate.t_ns / 1e9:.3f} s; refused (flags {int(flags)}), "
                            "no sink gets its values", self.warn)
-        return RejectedEstimate(t_ns=estimate.t_ns, source=estimate.source, kind=kind,
-                                flags=flags, estimator=type(self.estimator).name)
+        return refused_estimate(estimate, flags, type(self.estimator).name)
 
     def _not_estimates(self, t_ns: int, thing: object) -> list[Estimate]:
         self.faults.failed(t_ns, "exceptions",
