@@ -134,6 +134,7 @@ class VarioKf3Estimator(Estimator):
         bias, bias_variance = float(kf.x[2]), float(kf.P[2, 2])
         self.initialise(t_ns, altitude_m)
         kf = self._kf
+        assert kf is not None
         kf.x[2] = bias
         kf.P[2, 2] = bias_variance
         kf.P[1, 1] = (GAP_CLIMB_SIGMA_M_S * CM_PER_M) ** 2
