@@ -116,7 +116,8 @@ def add_parser(sub: Any) -> None:
                      "first on the emulated board, as docs/calibration.md asks of a user")
     run.add_argument("--save-learned", metavar="FILE.yaml",
                      help="write a copy of the profile holding the calibrations learned in "
-                     "flight (mag_in_flight: the magnetometer's hard iron) once converged")
+                     "flight (mag_in_flight: the magnetometer's hard iron; accel_in_flight: the "
+                     "accelerometer's offset) once converged")
     run.add_argument("--quiet", action="store_true", help="no live status line")
     run.add_argument("--web", metavar="[HOST:]PORT",
                      help="serve a live dashboard (read-only) on PORT of this machine only, "
@@ -200,8 +201,9 @@ def _plan(opts: RunOptions, path: Path, registry: Registry) -> _RunPlan:
 def _learned(pipeline: Any) -> dict[str, Any]:
     """The calibrations learned in flight that converged, by device."""
     return {n: d.calibration for n, d in pipeline.devices.items()
-            if d.mag_learner is not None and d.mag_learner.converged
-            and d.calibration is not None}
+            if d.calibration is not None and (
+                (d.mag_learner is not None and d.mag_learner.converged)
+                or (d.accel_teacher is not None and any(d.accel_teacher.learner.learned_axes)))}
 
 
 class _RunSession:
@@ -397,10 +399,11 @@ def _save_learned(output: str, text: str, path: Path, learned: dict[str, Any],
 
     if not learned:
         print(f"nothing learned in flight to save: {output} not written (a device needs "
-              "mag_in_flight and enough turns, docs/calibration.md)", file=sys.stderr)
+              "mag_in_flight or accel_in_flight and enough turns, docs/calibration.md)",
+              file=sys.stderr)
         return
     save_learned(text, str(path), output, learned, registry)
-    print(f"wrote the profile with the hard iron learned in flight ({', '.join(learned)}) "
+    print(f"wrote the profile with the calibration learned in flight ({', '.join(learned)}) "
           f"to {output}", file=sys.stderr)
 
 

@@ -349,7 +349,8 @@ def _calibration_keys(calibration: Any) -> list[str]:
     """The quantity names a device's raw ``calibration`` mapping holds records for (the keys
     that are not settings of the calibration itself)."""
     return [k for k in _mapping(calibration) if isinstance(k, str)
-            and k not in ("gyro_at_startup", "mag_in_flight", "previous")]
+            and k not in ("gyro_at_startup", "mag_in_flight", "accel_in_flight",
+                                         "previous")]
 
 
 def _calibratable(quantity: str, registry: Registry) -> bool:
