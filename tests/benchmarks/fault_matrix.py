@@ -3,7 +3,8 @@ and three at once, at 0.1, 1 and 10 %, every valid sample and every estimate che
 the simulation's truth (plain script; not collected by pytest).
 
 Run:  nice -n 10 .venv/bin/python tests/benchmarks/fault_matrix.py [--seconds 10]
-      [--boards gy91,seed-gps-vario] [--rates 0.001,0.01,0.1] [--json out.json] [--markdown]
+      [--boards gy91,seed-gps-vario] [--rates 0.001,0.01,0.1] [--kinds wild_value,reset]
+      [--json out.json] [--markdown]
 
 Each run opens one bundled board emulated (its profile's scenario, seed 1), injects the
 faults through imuhal.emulation.faults, flies ``--seconds`` simulated seconds and judges
@@ -338,6 +339,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--seconds", type=float, default=10.0)
     parser.add_argument("--boards", default="", help="comma-separated (default: every one)")
     parser.add_argument("--rates", default=",".join(map(str, RATES)))
+    parser.add_argument("--kinds", default="",
+                        help="comma-separated kinds: only the runs holding one of them")
     parser.add_argument("--json", default="")
     parser.add_argument("--markdown", action="store_true")
     args = parser.parse_args(argv)
@@ -345,11 +348,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     boards = {Path(name).stem: path for name, path in bundled_profiles().items()}
     chosen = [b for b in args.boards.split(",") if b] or sorted(boards)
     rates = [float(r) for r in args.rates.split(",")]
+    wanted = {k for k in args.kinds.split(",") if k}
     results: list[RunResult] = []
     for board in chosen:
         profile = load_profile(boards[board], registry)
         devices = devices_of(profile, registry)
         for kinds, rate in plans(rates):
+            if wanted and not wanted.intersection(kinds):
+                continue
             r = run_one(board, profile, registry, kinds, rate, args.seconds, devices)
             if not r.faults:
                 continue

@@ -7,7 +7,13 @@ import math
 import pytest
 
 from imuhal.core.samples import SampleFlag
-from imuhal.drivers.validity import FilterMemory, FrozenWatch, blank_flag, range_flag
+from imuhal.drivers.validity import (
+    FilterMemory,
+    FrozenWatch,
+    StepWatch,
+    blank_flag,
+    range_flag,
+)
 
 
 @pytest.mark.parametrize("frame", [b"\xff" * 15, b"\x00" * 6, b"\xff"])
@@ -58,3 +64,46 @@ def test_a_wrong_measurement_inside_an_open_window_is_settling_and_never_shorten
     assert memory.flag("adc", 200, SampleFlag.OK) == SampleFlag.FILTER_SETTLING
     assert memory.flag("adc", 230, SampleFlag.OK) == SampleFlag.FILTER_SETTLING  # 20's window
     assert memory.flag("adc", 240, SampleFlag.OK) == SampleFlag.OK
+
+
+def test_a_step_beyond_the_rate_and_noise_is_implausible_and_moves_no_reference() -> None:
+    """One disturbed reading is refused and the honest ones after it are judged against the
+    last valid reading, not against it."""
+    watch = StepWatch(max_rate_per_s=100.0, noise=5.0)
+    assert watch.observe(0, 1000.0) is SampleFlag.OK
+    assert watch.observe(100_000_000, 1014.0) is SampleFlag.OK  # 10 + 5 allowed in 0.1 s
+    assert watch.observe(200_000_000, 1500.0) is SampleFlag.IMPLAUSIBLE
+    assert watch.observe(300_000_000, 1030.0) is SampleFlag.OK  # 20 + 5 from 1014
+    assert watch.refused == 1
+
+
+def test_the_bound_grows_with_the_time_since_the_last_valid_reading() -> None:
+    watch = StepWatch(max_rate_per_s=100.0, noise=5.0)
+    watch.observe(0, 1000.0)
+    assert watch.observe(10_000_000, 1010.0) is SampleFlag.IMPLAUSIBLE  # 1 + 5 allowed
+    assert watch.observe(2_000_000_000, 1190.0) is SampleFlag.OK        # 200 + 5 allowed
+
+
+def test_a_new_level_confirmed_by_readings_that_agree_is_taken_after_confirm_readings() -> None:
+    """A wrong reference (the first reading was the disturbed one) costs ``confirm - 1``
+    honest readings, flagged, never passed wrong."""
+    watch = StepWatch(max_rate_per_s=100.0, noise=5.0, confirm=3)
+    watch.observe(0, 60_000.0)
+    flags = [watch.observe(t * 20_000_000, 90_000.0 + t) for t in (1, 2, 3, 4)]
+    assert flags == [SampleFlag.IMPLAUSIBLE, SampleFlag.IMPLAUSIBLE, SampleFlag.OK,
+                     SampleFlag.OK]
+
+
+def test_refused_readings_that_disagree_with_one_another_confirm_nothing() -> None:
+    watch = StepWatch(max_rate_per_s=100.0, noise=5.0, confirm=2)
+    watch.observe(0, 1000.0)
+    assert watch.observe(20_000_000, 5000.0) is SampleFlag.IMPLAUSIBLE
+    assert watch.observe(40_000_000, 9000.0) is SampleFlag.IMPLAUSIBLE
+    assert watch.observe(60_000_000, 9001.0) is SampleFlag.OK
+
+
+def test_a_step_watch_refuses_bounds_that_check_nothing_or_everything() -> None:
+    with pytest.raises(ValueError, match="confirm >= 2"):
+        StepWatch(max_rate_per_s=0.0, noise=1.0)
+    with pytest.raises(ValueError, match="confirm >= 2"):
+        StepWatch(max_rate_per_s=1.0, noise=1.0, confirm=1)

@@ -83,7 +83,9 @@ def test_the_vario_does_not_follow_a_filtered_in_wild_pressure(
         return {e.t_ns: e.altitude_m for e, _ in run if isinstance(e, VerticalEstimate)}
     wild, clean = altitudes(wild_run), altitudes(clean_run)
     common = [t for t in wild if t in clean and t >= WILD_AT_S * 1e9]
-    assert len(common) > 100
+    # the 49 settling outputs (2 s) are a gap the vario restarts after, withholding its
+    # estimates until it knows the climb rate again (UNSETTLED, docs/reliability.md)
+    assert len(common) > 80
     assert max(abs(wild[t] - clean[t]) for t in common) < 1.0
 
 

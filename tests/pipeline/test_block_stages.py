@@ -19,6 +19,7 @@ from imuhal.core.samples import (
     Frame,
     GyroSample,
     MagSample,
+    PositionSample,
     Sample,
     SampleFlag,
     VectorSample,
@@ -127,3 +128,16 @@ def test_one_frame_blocks_are_checked_on_their_sample() -> None:
     (flagged,) = block.samples()
     assert flagged == sample.flagged(SampleFlag.OUT_OF_RANGE)
     assert last is None
+
+
+def test_gnss_fixes_delivered_together_are_checked_as_rows_and_stay_fixes() -> None:
+    """Found by the fault matrix (seed-gps-vario, bus errors + I/O errors + all-0xFF at 1 %):
+    a receiver that delivers two fixes in one poll made a two-frame block of a class with
+    several values; the array check read NaN for them and the block lost its rows (an
+    AssertionError ended the run)."""
+    fixes = [PositionSample(t_ns=t, device="gps", latitude_deg=46.0, longitude_deg=7.0,
+                            height_m=900.0) for t in (1_000, 2_000)]
+    checked, last = validity_block(Block.from_samples(fixes), None, 500)
+    assert checked.samples() == fixes and last == 2_000
+    late, last = validity_block(Block.from_samples(fixes), None, 1_500)
+    assert [s.flags for s in late.samples()] == [SampleFlag.OUT_OF_ORDER, SampleFlag.OK]

@@ -71,6 +71,9 @@ class GnssErrorModel(BaseModel):
 
 
 TX_BUFFER_BYTES = 4096
+_FRESH_PHYSICS_NS = 50_000_000
+"""Physics older than this at an epoch (the device not polled meanwhile) are replaced by the
+world's own for the epoch: held 50 ms, a takeoff's 10 m/s^2 moves the velocity 0.5 m/s."""
 """The receiver's transmit buffer: output that would queue beyond it (more than the line
 carries, or a host that does not read) is dropped whole, as a u-blox receiver drops
 messages when its port's buffer is full, so the backlog stays bounded."""
@@ -144,15 +147,15 @@ class GnssEmulator(ChipEmulator):
         # The receiver computes its fixes whether or not the host reads them: while its
         # device is not polled (recovering, its bus failing) the physics handed over at the
         # polls grow old, so it asks the world for the epoch's own (a stale velocity kept
-        # for seconds came out as a valid fix after the recovery).
-        newest = self._history[-1][0] if self._history else None
-        if self.physics_at is not None and (newest is None
-                                            or newest < t_ns - round(1e9 / self.rate_hz)):
+        # for seconds came out as a valid fix after the recovery). What counts is the age of
+        # the physics the epoch would use, not of the newest: physics handed over after the
+        # epoch (a poll just after a recovery) must not hide a gap before it (3.9 m/s
+        # valid at a takeoff's 7.6 m/s: the fault matrix, seed-gps-vario, I/O errors).
+        chosen = self._latest_physics(t_ns)
+        if self.physics_at is not None and (chosen is None
+                                            or chosen[0] < t_ns - _FRESH_PHYSICS_NS):
             self.physics_at(t_ns)
-        chosen = None
-        for t, inputs in self._history:
-            if t <= t_ns:
-                chosen = (t, inputs)
+            chosen = self._latest_physics(t_ns)
         if chosen is None and self._history:
             chosen = self._history[0]
         if chosen is None or chosen[1].position_ned_m is None:
@@ -161,6 +164,14 @@ class GnssEmulator(ChipEmulator):
         vel = np.array(inputs.velocity_ned_m_s or (0.0, 0.0, 0.0))
         pos = np.array(inputs.position_ned_m) + vel * ((t_ns - t) / 1e9)
         return pos, vel
+
+    def _latest_physics(self, t_ns: int) -> tuple[int, PhysicalInputs] | None:
+        """The newest physics true at or before ``t_ns``."""
+        chosen = None
+        for t, inputs in self._history:
+            if t <= t_ns:
+                chosen = (t, inputs)
+        return chosen
 
     # -- bus face -----------------------------------------------------------------------
 

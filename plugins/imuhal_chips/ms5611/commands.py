@@ -82,6 +82,10 @@ OSR_TIMING: dict[int, OsrTiming] = {
 }
 
 
+PRESSURE_RMS_PA: dict[int, float] = {256: 6.5, 512: 4.2, 1024: 2.7, 2048: 1.8, 4096: 1.2}
+"""Datasheet RMS resolution of the compensated pressure per OSR (0.065 .. 0.012 mbar)."""
+
+
 def convert_command(measurement: Measurement, osr: int) -> int:
     """The command byte that starts a ``measurement`` conversion at ``osr``."""
     return OSR_TIMING[osr].convert_command(measurement)

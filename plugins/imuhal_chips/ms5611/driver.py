@@ -10,7 +10,10 @@ Validity: an ADC read of 0 (conversion aborted by a reset or a glitch) or all on
 drives the bus) is no measurement (STALE / BLANK), and the same D1 word FROZEN_AFTER_FRAMES
 times in a row is a hung converter (FROZEN, and so is the slot that ends the run: its
 temperature may be the hung converter's); such slots carry NaN. A chip that keeps
-producing no measurement is reset (the shared reset watch, imuhal.drivers.polling).
+producing no measurement is reset (the shared reset watch, imuhal.drivers.polling). A
+pressure further from the last valid one than ``max_vertical_speed_m_s`` and the noise
+allow is IMPLAUSIBLE (value as read): a D1 conversion disturbed while its D2, measured
+before it, was not gives an in-range pressure no range check can see.
 
 Transactions: every command is one byte; ADC read (3 bytes) and PROM read (2 bytes) are the
 command and the read in one ``Link.transfer`` (I2C: write + repeated-start read; SPI: one
@@ -43,11 +46,12 @@ from imuhal.core.samples import (
 from imuhal.core.streams import StreamSpec
 from imuhal.drivers.base import DeviceIdentity, Driver, DriverSettings, PollResult
 from imuhal.drivers.polling import ResetWatch
-from imuhal.drivers.validity import FrozenWatch, blank_flag
+from imuhal.drivers.validity import FrozenWatch, StepWatch, blank_flag
 from imuhal_chips.ms5611.commands import (
     ADC_READ,
     ADC_READ_LEN,
     OSR_TIMING,
+    PRESSURE_RMS_PA,
     PROM_READ_LEN,
     PROM_WORDS,
     RESET,
@@ -67,6 +71,13 @@ from imuhal_chips.ms5611.conversion import (
 )
 
 EXPECTED_IDENTITY = "MS5611 PROM with valid CRC4"
+
+STEEPEST_GRADIENT_PA_M = 120_000.0 * 9.80665 / (287.05 * 233.15)
+"""The steepest vertical pressure gradient the chip can be in, Pa per metre: rho g at the top
+of its pressure range (120 kPa) in the coldest air it works in (-40 degC), 17.6 Pa/m."""
+STEP_NOISE_SIGMAS = 10.0
+"""Two readings of an unchanged pressure differ by their noise, sqrt(2) RMS: this many of
+those, plus the 1 Pa output step, is the allowance beyond what the motion explains."""
 
 
 def max_rate_hz(pressure_oversampling: int, temperature_oversampling: int) -> float:
@@ -96,6 +107,10 @@ class MS5611Settings(DriverSettings):
     temperature_oversampling: Osr = 4096
     odr_hz: float = Field(default=50.0, gt=0)
     temperature_every: int = Field(default=1, ge=1)
+    max_vertical_speed_m_s: float = Field(default=1000.0, gt=0)
+    """The fastest the board can climb or sink: a pressure moving faster than this at the
+    steepest gradient (plus the noise) is IMPLAUSIBLE. The default (about Mach 3) holds for
+    any vehicle, rockets included; a paraglider's profile may lower it."""
 
     @model_validator(mode="after")
     def _rate_fits_conversions(self) -> MS5611Settings:
@@ -154,6 +169,10 @@ class MS5611Driver(Driver):
         self._frozen = FrozenWatch(self.FROZEN_AFTER_FRAMES)
         self._frozen_run = False
         """The last D1 word was FROZEN: the next changed one ends the run."""
+        self._steps = StepWatch(
+            max_rate_per_s=s.max_vertical_speed_m_s * STEEPEST_GRADIENT_PA_M,
+            noise=STEP_NOISE_SIGMAS * math.sqrt(2.0) * PRESSURE_RMS_PA[s.pressure_oversampling]
+            + 1.0)
         self._just_reset = False
         self._in_flight: Measurement | str | None = None
         """The poll's transfer under way (a convert command or an ADC read): what
@@ -407,6 +426,8 @@ class MS5611Driver(Driver):
         pressure_flags = temp_flags | (
             SampleFlag.OK if result.pressure_in_range else SampleFlag.OUT_OF_RANGE
         )
+        if pressure_flags == SampleFlag.OK:
+            pressure_flags = self._steps.observe(t_ns, result.pressure_pa)
         samples: list[Sample] = [
             PressureSample(t_ns=t_ns, device=self.device, flags=pressure_flags,
                            pressure_pa=result.pressure_pa)

@@ -7,4 +7,5 @@
 - batch: ``run_batch`` / ``run_baro_batch`` over recorded arrays (SI units).
 - tuning: ``estimate_altitude_variance`` (sigma_zmeas^2 from 1-2 s at rest).
 - downsample: IMU-rate acceleration -> one mean per barometer interval.
+- gate: the altitude innovation gate both filters share (``InnovationGate``).
 """

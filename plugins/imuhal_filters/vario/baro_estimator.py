@@ -10,9 +10,15 @@ from pydantic import Field
 from imuhal.core.atmosphere import SEA_LEVEL_PRESSURE_PA
 from imuhal.core.samples import PressureSample
 from imuhal.estimation.base import Estimator, EstimatorSettings
-from imuhal.estimation.outputs import Estimate, VerticalEstimate
+from imuhal.estimation.outputs import (
+    Estimate,
+    EstimateFlag,
+    RejectedEstimate,
+    VerticalEstimate,
+)
 from imuhal_filters.vario.baro_input import dt_s, usable_altitude_m
 from imuhal_filters.vario.baro_kalman import BaroKalman2
+from imuhal_filters.vario.gate import InnovationGate
 
 
 class BaroVarioSettings(EstimatorSettings):
@@ -77,7 +83,10 @@ class BaroVarioEstimator(Estimator):
         self._last_t_ns: int | None = None
         self._counts = {"fused": 0, "skipped_invalid": 0, "skipped_non_monotonic": 0,
                         "restarts_after_gap": 0, "gated": 0, "reacquired": 0}
-        self._rejected_since_ns: int | None = None
+        self._gate = InnovationGate(s.innovation_gate_sigma, s.innovation_gate_min_m,
+                                    s.gate_reacquire_s)
+        self._withheld = 0
+        """Estimates withheld while the gate refused most altitudes (UNSETTLED)."""
 
     # -- the filter steps, kept apart so callers (and tests) can drive them directly --------
 
@@ -125,29 +134,25 @@ class BaroVarioEstimator(Estimator):
         return [self._estimate(item.t_ns, innovation)]
 
     def _accept(self, t_ns: int, altitude_m: float, innovation_m: float) -> bool:
-        """The innovation gate: False (counted) to skip this altitude's update. Altitudes
-        rejected for ``gate_reacquire_s`` are a new level: taken, keeping the climb rate."""
-        k = self.settings.innovation_gate_sigma
-        if k is None:
-            return True
+        """The innovation gate (``imuhal_filters.vario.gate``): False (counted) to skip this
+        altitude's update. A new level is taken keeping the climb rate."""
         kf = self._kf
-        sigma_m = math.sqrt(max(kf.pzz, 0.0) + kf.meas_var)
-        if abs(innovation_m) <= max(k * sigma_m, self.settings.innovation_gate_min_m):
-            self._rejected_since_ns = None
-            return True
-        if self._rejected_since_ns is None:
-            self._rejected_since_ns = t_ns
-        if (t_ns - self._rejected_since_ns) / 1e9 < self.settings.gate_reacquire_s:
-            self._counts["gated"] += 1
-            return False
-        self._counts["reacquired"] += 1
-        self._rejected_since_ns = None
-        kf.z = altitude_m
-        kf.pzz, kf.pzv = kf.meas_var, 0.0
-        return True
+
+        def reacquire() -> None:
+            kf.z = altitude_m
+            kf.pzz, kf.pzv = kf.meas_var, 0.0
+
+        return self._gate.accept(t_ns, innovation_m, kf.pzz, kf.meas_var, 1.0, reacquire,
+                                 self._counts)
 
     def _estimate(self, t_ns: int, innovation_m: float, *, gated: bool = False
-                  ) -> VerticalEstimate:
+                  ) -> Estimate:
+        """The estimate after this altitude, or, while the gate refuses most altitudes
+        (``InnovationGate.unsettled``), a RejectedEstimate withholding it (UNSETTLED)."""
+        if self._gate.unsettled:
+            self._withheld += 1
+            return RejectedEstimate(t_ns=t_ns, source=self.instance, kind="vertical",
+                                    flags=EstimateFlag.UNSETTLED, estimator=self.name)
         kf = self._kf
         return VerticalEstimate(
             t_ns=t_ns,
@@ -166,15 +171,16 @@ class BaroVarioEstimator(Estimator):
 
     def get_state(self) -> dict[str, Any]:
         return {"kf": self._kf.as_dict(), "last_t_ns": self._last_t_ns,
-                "counts": dict(self._counts), "rejected_since_ns": self._rejected_since_ns}
+                "counts": dict(self._counts),
+                "gate": self._gate.as_dict(), "withheld": self._withheld}
 
     def set_state(self, state: dict[str, Any]) -> None:
         self._kf.load_dict(state["kf"])
         last = state["last_t_ns"]
         self._last_t_ns = None if last is None else int(last)
         self._counts = {k: int(v) for k, v in state["counts"].items()}
-        since = state.get("rejected_since_ns")
-        self._rejected_since_ns = None if since is None else int(since)
+        self._gate.load_dict(state.get("gate") or {})
+        self._withheld = int(state.get("withheld", 0))
 
     def diagnostics(self) -> dict[str, Any]:
-        return dict(self._counts)
+        return {**self._counts, "withheld_unsettled": self._withheld}

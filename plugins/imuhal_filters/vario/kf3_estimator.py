@@ -40,9 +40,16 @@ from typing import Any, ClassVar
 from imuhal.core.samples import AccelSample, Frame, PressureSample
 from imuhal.estimation.base import Estimator, EstimatorSettings
 from imuhal.estimation.gravity import vertical_accel_up_m_s2
-from imuhal.estimation.outputs import AttitudeEstimate, Estimate, VerticalEstimate
+from imuhal.estimation.outputs import (
+    AttitudeEstimate,
+    Estimate,
+    EstimateFlag,
+    RejectedEstimate,
+    VerticalEstimate,
+)
 from imuhal_filters.vario.baro_input import dt_s, usable_altitude_m
 from imuhal_filters.vario.downsample import IntervalMean
+from imuhal_filters.vario.gate import InnovationGate
 from imuhal_filters.vario.kf3 import Kalman3
 from imuhal_filters.vario.kf3_settings import CM_PER_M, VarioKf3Settings, configured_core
 
@@ -60,6 +67,13 @@ _COUNTERS = (
     "reacquired",
 )
 
+
+GAP_CLIMB_SIGMA_M_S = 5.0
+"""The climb rate's standard deviation after a restart after a gap (m/s): unknown, within
+what a glider or a small aircraft does."""
+SETTLED_CLIMB_SIGMA_M_S = 0.25
+"""After a restart after a gap, estimates are withheld (UNSETTLED) until the filter's own
+climb-rate standard deviation is below this (m/s): about 0.2 s of altitudes at 50 Hz."""
 
 _HOLD_S = 0.1
 """An interval without acceleration reuses the previous interval's mean when it ended at most
@@ -88,7 +102,13 @@ class VarioKf3Estimator(Estimator):
         self._counts = dict.fromkeys(_COUNTERS, 0)
         self._first: tuple[float, float | None] | None = None
         """The first sample's (altitude m, mean accel m/s^2), waiting for its step length."""
-        self._rejected_since_ns: int | None = None
+        s = self.settings
+        self._gate = InnovationGate(s.innovation_gate_sigma, s.innovation_gate_min_m,
+                                    s.gate_reacquire_s)
+        self._withheld = 0
+        """Estimates withheld while the gate refused most altitudes (UNSETTLED)."""
+        self._settling = False
+        """Restarted after a gap and the climb rate not known to SETTLED_CLIMB_SIGMA_M_S."""
         self._held: tuple[int, float] | None = None
         """The last interval's (end ns, mean accel m/s^2): an AHRS slower than the barometer
         (the Freescale filters' Kalman steps at 31 Hz against 50 Hz) leaves intervals empty."""
@@ -98,9 +118,27 @@ class VarioKf3Estimator(Estimator):
     def initialise(self, t_ns: int, altitude_m: float) -> None:
         self._kf = configured_core(self.settings, altitude_m)
         self._last_t_ns = t_ns
-        self._rejected_since_ns = None
+        self._gate.forget()
         # the references' first step uses the acceleration that came with the first altitude
         self._first = (altitude_m, self._accel.take())
+
+    def _restart_after_gap(self, t_ns: int, altitude_m: float) -> None:
+        """Start again from ``altitude_m`` after a gap: the gap lost the altitude and the
+        climb rate, not the accelerometer's bias. The bias (and its variance) are kept and
+        the climb rate starts at 0 with GAP_CLIMB_SIGMA_M_S, so the altitudes after the gap
+        correct the climb rate, not the bias (with the start-up covariance, which trusts
+        climb 0, a restart in a 1 m/s sink drove the bias to 13 m/s^2 and the climb rate
+        4 m/s off: the fault matrix, seed-gps-vario, chip resets)."""
+        kf = self._kf
+        assert kf is not None
+        bias, bias_variance = float(kf.x[2]), float(kf.P[2, 2])
+        self.initialise(t_ns, altitude_m)
+        kf = self._kf
+        assert kf is not None
+        kf.x[2] = bias
+        kf.P[2, 2] = bias_variance
+        kf.P[1, 1] = (GAP_CLIMB_SIGMA_M_S * CM_PER_M) ** 2
+        self._settling = True
 
     def predict(self, accel_up_m_s2: float, dt_seconds: float) -> None:
         """Propagate ``dt_seconds`` with the interval's mean upward acceleration (m/s^2)."""
@@ -164,7 +202,7 @@ class VarioKf3Estimator(Estimator):
                 return []
             if dt > self.settings.max_gap_s:
                 self._counts["restarts_after_gap"] += 1
-                self.initialise(sample.t_ns, altitude)
+                self._restart_after_gap(sample.t_ns, altitude)
             else:
                 accel = self._accel.take()
                 held = self._held
@@ -194,32 +232,31 @@ class VarioKf3Estimator(Estimator):
         return [self._estimate(sample.t_ns, innovation)]
 
     def _accept(self, t_ns: int, altitude_m: float, innovation_m: float) -> bool:
-        """The innovation gate: False (counted) to skip this altitude's update."""
-        k = self.settings.innovation_gate_sigma
+        """The innovation gate (``imuhal_filters.vario.gate``): False (counted) to skip this
+        altitude's update. A new level is taken keeping climb and bias."""
         kf = self._kf
         assert kf is not None
-        if k is None:
-            return True
-        sigma_m = math.sqrt(max(kf.P[0, 0], 0.0) + kf.z_meas_variance) / CM_PER_M
-        if abs(innovation_m) <= max(k * sigma_m, self.settings.innovation_gate_min_m):
-            self._rejected_since_ns = None
-            return True
-        if self._rejected_since_ns is None:
-            self._rejected_since_ns = t_ns
-        if (t_ns - self._rejected_since_ns) / 1e9 < self.settings.gate_reacquire_s:
-            self._counts["gated"] += 1
-            return False
-        # a sustained change of level: take it, keeping climb and bias
-        self._counts["reacquired"] += 1
-        self._rejected_since_ns = None
-        kf.x[0] = altitude_m * CM_PER_M
-        kf.P[0, :] = 0.0
-        kf.P[:, 0] = 0.0
-        kf.P[0, 0] = kf.z_meas_variance
-        return True
+
+        def reacquire() -> None:
+            kf.x[0] = altitude_m * CM_PER_M
+            kf.P[0, :] = 0.0
+            kf.P[:, 0] = 0.0
+            kf.P[0, 0] = kf.z_meas_variance
+
+        return self._gate.accept(t_ns, innovation_m, kf.P[0, 0], kf.z_meas_variance, CM_PER_M,
+                                 reacquire, self._counts)
 
     def _estimate(self, t_ns: int, innovation_m: float, *, gated: bool = False
-                  ) -> VerticalEstimate:
+                  ) -> Estimate:
+        """The estimate after this altitude, or, while the gate refuses most altitudes
+        (``InnovationGate.unsettled``) or after a restart after a gap until the climb rate is
+        known (SETTLED_CLIMB_SIGMA_M_S), a RejectedEstimate withholding it (UNSETTLED)."""
+        if self._settling and self._kf is not None:
+            self._settling = self._kf.P[1, 1] > (SETTLED_CLIMB_SIGMA_M_S * CM_PER_M) ** 2
+        if self._gate.unsettled or self._settling:
+            self._withheld += 1
+            return RejectedEstimate(t_ns=t_ns, source=self.instance, kind="vertical",
+                                    flags=EstimateFlag.UNSETTLED, estimator=self.name)
         kf = self._kf
         assert kf is not None
         p = kf.P
@@ -249,7 +286,8 @@ class VarioKf3Estimator(Estimator):
             "attitude_has_linear_accel": self._attitude_has_linear_accel,
             "counts": dict(self._counts),
             "first": None if self._first is None else list(self._first),
-            "rejected_since_ns": self._rejected_since_ns,
+            "gate": self._gate.as_dict(), "withheld": self._withheld,
+            "settling": self._settling,
             "held": None if self._held is None else list(self._held),
         }
 
@@ -269,9 +307,11 @@ class VarioKf3Estimator(Estimator):
                         **{k: int(v) for k, v in state["counts"].items()}}
         first = state.get("first")
         self._first = None if first is None else (float(first[0]), first[1])
-        self._rejected_since_ns = state.get("rejected_since_ns")
+        self._gate.load_dict(state.get("gate") or {})
+        self._withheld = int(state.get("withheld", 0))
+        self._settling = bool(state.get("settling", False))
         held = state.get("held")
         self._held = None if held is None else (int(held[0]), float(held[1]))
 
     def diagnostics(self) -> dict[str, Any]:
-        return dict(self._counts)
+        return {**self._counts, "withheld_unsettled": self._withheld}

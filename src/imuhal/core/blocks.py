@@ -231,6 +231,12 @@ class Block:
         return self._flags
 
     @property
+    def has_arrays(self) -> bool:
+        """Its frames can be held as arrays: the sample class carries one value (a GNSS fix,
+        with several, travels as its rows only, and stages check those row by row)."""
+        return _value_field(self.kind) is not None
+
+    @property
     def has_rows(self) -> bool:
         """The one-row views exist already (a block built from samples, or asked for them):
         a one-frame stage may work on the row instead of building arrays."""

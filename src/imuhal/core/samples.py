@@ -60,6 +60,10 @@ class SampleFlag(IntFlag):
     """The chip's own filter (IIR, digital low-pass, averaging) may still carry an earlier
     measurement that was flagged wrong (saturated, out of range, overflow): the value can be
     in range and still off by far more than the noise."""
+    IMPLAUSIBLE = 1 << 11
+    """The value moved further from the last valid one than the measured quantity can move
+    in the time between them (a pressure step no vertical speed makes): the chip's element
+    or converter was disturbed while it measured."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

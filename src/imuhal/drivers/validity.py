@@ -12,6 +12,10 @@ physically plausible for its chip.
   can come back in range; those outputs -> ``FILTER_SETTLING``. Each driver derives how many
   outputs its chip's settings can carry it (``iir_memory_outputs``,
   ``lowpass_memory_outputs``).
+- ``StepWatch``: a quantity the physics bounds in how fast it can change (pressure: by the
+  fastest vertical speed) that moves further from the last valid value than that bound and
+  the chip's noise allow -> ``IMPLAUSIBLE``; a new level that the next readings confirm is
+  taken as real.
 
 Samples flagged STALE, BLANK or FROZEN carry NaN values (``NAN3``): they are not
 measurements. Samples flagged SATURATED, OVERFLOW or OUT_OF_RANGE keep the value read, so
@@ -156,3 +160,55 @@ class FilterMemory:
     def forget(self) -> None:
         """The chip's filters were re-initialised: nothing earlier can reach the next output."""
         self._until_ns.clear()
+
+
+class StepWatch:
+    """Flags a reading that moved further from the last valid one than the quantity can.
+
+    ``observe(t_ns, value)`` is called with every reading the driver would otherwise emit
+    valid. It allows ``max_rate_per_s`` times the time since the last valid reading plus
+    ``noise`` (what two readings of an unchanged quantity can differ by) and returns
+    ``IMPLAUSIBLE`` beyond that. A reading the bound refuses is no new reference, so one
+    disturbed conversion never moves the bound for the honest readings after it.
+
+    The reference itself may be wrong (the first reading after the driver started, or a real
+    change while readings were lost): ``confirm`` refused readings in a row that agree with
+    one another within the same bound are a new level, and the last of them is valid and
+    the new reference. So a wrong reference costs at most ``confirm - 1`` honest readings
+    (flagged, never passed as wrong ones), and up to ``confirm - 1`` equal disturbed
+    readings in a row are still refused. The history survives a restart of the chip: the
+    bound grows with the time since the reference, so a long outage checks little.
+    """
+
+    def __init__(self, max_rate_per_s: float, noise: float, confirm: int = 3) -> None:
+        if max_rate_per_s <= 0 or noise < 0 or confirm < 2:
+            raise ValueError(
+                f"a step watch needs max_rate_per_s > 0, noise >= 0 and confirm >= 2, got "
+                f"{max_rate_per_s}, {noise}, {confirm}")
+        self.max_rate_per_s = max_rate_per_s
+        self.noise = noise
+        self.confirm = confirm
+        self._reference: tuple[int, float] | None = None
+        self._refused: list[tuple[int, float]] = []
+        self.refused = 0
+        """Readings flagged IMPLAUSIBLE so far."""
+
+    def _agree(self, earlier: tuple[int, float], t_ns: int, value: float) -> bool:
+        dt_s = max(0, t_ns - earlier[0]) * 1e-9
+        return abs(value - earlier[1]) <= self.max_rate_per_s * dt_s + self.noise
+
+    def observe(self, t_ns: int, value: float) -> SampleFlag:
+        """``IMPLAUSIBLE`` when ``value`` at ``t_ns`` cannot follow the last valid reading."""
+        if self._reference is None or self._agree(self._reference, t_ns, value):
+            self._reference = (t_ns, value)
+            self._refused.clear()
+            return SampleFlag.OK
+        if self._refused and not self._agree(self._refused[-1], t_ns, value):
+            self._refused.clear()
+        self._refused.append((t_ns, value))
+        if len(self._refused) >= self.confirm:
+            self._reference = (t_ns, value)
+            self._refused.clear()
+            return SampleFlag.OK
+        self.refused += 1
+        return SampleFlag.IMPLAUSIBLE

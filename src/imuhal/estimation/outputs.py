@@ -66,6 +66,10 @@ class EstimateFlag(IntFlag):
     """A value is NaN or infinite."""
     NOT_NORMALISABLE = 2
     """An attitude quaternion whose norm is zero (or too small to divide by): no rotation."""
+    UNSETTLED = 4
+    """Set by the estimator itself, which withholds its value: it rejected most of its
+    recent inputs (a variometer whose innovation gate refused most altitudes of the last
+    second), so the value may be far off and it has no better one. Not a failure."""
 
 
 _MIN_QUAT_NORM_SQ = 1e-12
@@ -75,9 +79,10 @@ _MIN_QUAT_NORM_SQ = 1e-12
 @dataclass(frozen=True, slots=True, kw_only=True)
 class RejectedEstimate(Estimate):
     """What the sinks and the downstream estimators get instead of an estimate that is not
-    finite or not normalisable: when, which estimator instance (``source``) and which plugin
-    estimator (``estimator``) made it, its kind (``"attitude"``, ``"vertical"`` or the class
-    name) and why (``flags``). It carries no value on purpose."""
+    finite or not normalisable (the pipeline makes it), or that its estimator withholds
+    (``UNSETTLED``: the estimator makes it): when, which estimator instance (``source``) and
+    which plugin estimator (``estimator``) made it, its kind (``"attitude"``, ``"vertical"``
+    or the class name) and why (``flags``). It carries no value on purpose."""
 
     kind: str
     flags: EstimateFlag
@@ -115,6 +120,30 @@ def estimate_flags(estimate: Estimate) -> EstimateFlag:
     if isinstance(estimate, RejectedEstimate):
         return estimate.flags
     return _generic_flags(estimate)
+
+
+def refused_estimate(estimate: Estimate, flags: EstimateFlag, estimator: str
+                     ) -> RejectedEstimate:
+    """What takes the place of ``estimate``, refused for ``flags``, made by the plugin
+    estimator ``estimator``: its time, source and kind, no value."""
+    return RejectedEstimate(t_ns=estimate.t_ns, source=estimate.source,
+                            kind=estimate_kind(estimate), flags=flags, estimator=estimator)
+
+
+def checked_estimates(made: list[Estimate], estimator: str) -> int:
+    """Replace, in place, every estimate of ``made`` that :func:`estimate_flags` refuses by
+    its :func:`refused_estimate` (one its estimator withheld itself, a RejectedEstimate,
+    stays); returns how many were replaced. The offline chain's check, the live pipeline's
+    (imuhal.pipeline.containment) without the counting and disabling."""
+    replaced = 0
+    for i, estimate in enumerate(made):
+        if type(estimate) is RejectedEstimate:
+            continue
+        flags = estimate_flags(estimate)
+        if flags:
+            made[i] = refused_estimate(estimate, flags, estimator)
+            replaced += 1
+    return replaced
 
 
 def _attitude_flags(estimate: AttitudeEstimate) -> EstimateFlag:

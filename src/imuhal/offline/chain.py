@@ -8,17 +8,48 @@ order within an instant, profile order between estimators, estimates handed on b
 first). A recording's valid samples, fed through :func:`run_chain` with freshly built
 estimators and the profile's ``inputs``, give the live run's estimates
 (tests/offline/test_chain.py).
+
+Estimates are checked as live (imuhal.estimation.outputs.estimate_flags): one that is not
+finite or not normalisable is replaced by a RejectedEstimate before any other estimator of
+the chain or the output sees it, and counted per estimator instance (``rejected``). An
+estimator's exception still ends an offline run: there is no run to keep going.
 """
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Collection, Iterable, Iterator, Mapping, Sequence
 
+from imuhal.core.blocks import Block
 from imuhal.core.samples import Sample
 from imuhal.estimation.base import Estimator
 from imuhal.estimation.ordering import FUSION_RANK
-from imuhal.estimation.outputs import Estimate
+from imuhal.estimation.outputs import Estimate, checked_estimates
 from imuhal.pipeline.router import Router
+
+
+class _Checked:
+    """Calls one estimator and checks its estimates (the router's Guard, offline)."""
+
+    __slots__ = ("estimator", "rejected")
+
+    def __init__(self, estimator: Estimator, rejected: Counter[str]) -> None:
+        self.estimator = estimator
+        self.rejected = rejected
+
+    def _checked(self, made: Iterable[Estimate]) -> list[Estimate]:
+        out = made if type(made) is list else list(made or ())
+        if out:
+            replaced = checked_estimates(out, type(self.estimator).name)
+            if replaced:
+                self.rejected[self.estimator.instance] += replaced
+        return out
+
+    def process(self, item: Sample | Estimate) -> list[Estimate]:
+        return self._checked(self.estimator.process(item))
+
+    def process_block(self, block: Block) -> list[Estimate]:
+        return self._checked(self.estimator.update_block(block))
 
 
 class EstimatorChain:
@@ -31,6 +62,10 @@ class EstimatorChain:
                  inputs: Mapping[str, Collection[str]] | None = None) -> None:
         self.estimators = tuple(estimators)
         self.router = Router.of(self.estimators, inputs)
+        self.rejected: Counter[str] = Counter()
+        """Estimates refused (not finite, not normalisable), per estimator instance."""
+        for route in self.router.routes:
+            route.guard = _Checked(route.estimator, self.rejected)
 
     def process(self, item: Sample | Estimate, out: list[Estimate] | None = None
                 ) -> list[Estimate]:

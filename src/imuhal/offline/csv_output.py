@@ -17,7 +17,12 @@ from imuhal.core.atomic import AtomicFile
 from imuhal.core.conventions import NED, Convention, get_convention
 from imuhal.core.errors import ImuhalError, OutputError
 from imuhal.estimation.framed import attitude_columns, express_attitude
-from imuhal.estimation.outputs import AttitudeEstimate, Estimate, VerticalEstimate
+from imuhal.estimation.outputs import (
+    AttitudeEstimate,
+    Estimate,
+    RejectedEstimate,
+    VerticalEstimate,
+)
 from imuhal.estimation.rows import AttitudeRows, flatten_diagnostics
 
 ATTITUDE_COLUMNS = ("t_s", *attitude_columns(NED))
@@ -31,6 +36,9 @@ def estimate_fields(e: Estimate, frame: str | Convention = NED) -> dict[str, Any
         a = express_attitude(e, frame)
         return dict(zip(("t_s", *attitude_columns(frame)),
                         (e.t_ns / 1e9, *a.q_body_to_earth, *a.euler_deg), strict=True))
+    if isinstance(e, RejectedEstimate):
+        # refused (imuhal.estimation.outputs.estimate_flags): why, never a value
+        return {"t_s": e.t_ns / 1e9, "flags": int(e.flags)}
     if isinstance(e, VerticalEstimate):
         bias = e.accel_bias_m_s2
         return {"t_s": e.t_ns / 1e9, "altitude_m": e.altitude_m, "climb_m_s": e.climb_m_s,

@@ -29,7 +29,7 @@ from imuhal.core.samples import (
     Sample,
 )
 from imuhal.estimation.base import Estimator
-from imuhal.estimation.outputs import AttitudeEstimate, Estimate
+from imuhal.estimation.outputs import AttitudeEstimate, Estimate, checked_estimates
 from imuhal.estimation.rows import AttitudeRows, RowsEstimator
 from imuhal.offline.chain import EstimatorChain, instants_in_fusion_order
 from imuhal.offline.csv_input import (
@@ -236,6 +236,8 @@ def feed(estimator: Estimator, items: Iterable[Sample | Estimate], *,
     for item in items:
         if isinstance(item, consumes):
             extend(process(item))
+    # as live: a value that is not finite or not normalisable reaches no output
+    checked_estimates(outputs, type(estimator).name)
     return outputs
 
 

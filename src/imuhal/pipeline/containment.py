@@ -3,7 +3,8 @@
 * An exception from an estimator's ``process`` skips that input for that estimator only; an
   estimate that is not finite or not normalisable is replaced by a
   :class:`~imuhal.estimation.outputs.RejectedEstimate` (flags, no value), so no sink and no
-  downstream estimator ever sees its numbers. An estimator that takes more than half the
+  downstream estimator ever sees its numbers (one the estimator withholds itself,
+  ``UNSETTLED``, passes as it is). An estimator that takes more than half the
   real time of its input is reported once, with its cost per sample.
 * An exception from a driver that is not an :class:`~imuhal.core.errors.ImuhalError` (a
   plugin's bug: ``ValueError``, ``IndexError``, ...) is a device error: counted, named, the
@@ -40,6 +41,7 @@ from imuhal.estimation.outputs import (
     RejectedEstimate,
     estimate_flags,
     estimate_kind,
+    refused_estimate,
 )
 from imuhal.plugins.manager import Registry, plugin_origin
 from imuhal.sinks.base import Event, Sink
@@ -188,6 +190,8 @@ class EstimatorGuard:
             return []
         for i, estimate in enumerate(made):
             flags = estimate_flags(estimate) if isinstance(estimate, Estimate) else None
+            if flags == EstimateFlag.UNSETTLED and type(estimate) is RejectedEstimate:
+                continue  # withheld by its estimator: its own judgement, not a failure
             if flags:
                 made[i] = self._rejected(estimate, flags)
             elif flags is None:
@@ -203,8 +207,7 @@ class EstimatorGuard:
                            f"{why} at "
                            f"t={estimate.t_ns / 1e9:.3f} s; refused (flags {int(flags)}), "
                            "no sink gets its values", self.warn)
-        return RejectedEstimate(t_ns=estimate.t_ns, source=estimate.source, kind=kind,
-                                flags=flags, estimator=type(self.estimator).name)
+        return refused_estimate(estimate, flags, type(self.estimator).name)
 
     def _not_estimates(self, t_ns: int, thing: object) -> list[Estimate]:
         self.faults.failed(t_ns, "exceptions",

@@ -119,6 +119,8 @@ def validity_block(block: Block, full_scale: float | None, last_t_ns: int | None
             row = row.flagged(flags)
             block = Block.from_samples([row], block.spec)
         return block, (row.t_ns if row.valid else last_t_ns)
+    if not block.has_arrays:  # e.g. GNSS fixes a receiver delivered together
+        return _validity_rows(block, full_scale, last_t_ns)
     t_ns = block.t_ns
     if bool(np.any(np.diff(t_ns) < 0)):
         return _validity_rows(block, full_scale, last_t_ns)

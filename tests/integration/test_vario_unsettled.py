@@ -1,0 +1,93 @@
+"""A variometer that has lost its barometer withholds its estimate (issue 26, the fault
+matrix's unflagged wrong climb rates).
+
+vario-kf3 (and baro-vario) return a RejectedEstimate flagged UNSETTLED instead of a value
+while their innovation gate refused most altitudes of the last second, and vario-kf3 after
+a restart after a gap until its own climb-rate uncertainty is small; a restart after a gap
+keeps the accelerometer bias. Faults come through imuhal.emulation.faults on bundled boards.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+from imuhal.emulation import open_emulated
+from imuhal.emulation.faults import ChipReset, FaultSpec, WrongPressure
+from imuhal.estimation.outputs import EstimateFlag, RejectedEstimate, VerticalEstimate
+from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import bundled_profiles
+from imuhal.profile.loader import load_profile
+
+CLIMB_MARGIN_M_S = 3.0
+SETTLE_S = 3.0
+"""As the fault matrix (tests/benchmarks/fault_matrix.py): the filters start from zero climb."""
+
+
+@pytest.fixture(scope="module")
+def registry() -> Registry:
+    return load_registry()
+
+
+def _vario(registry: Registry, board: str, faults: list[FaultSpec], seconds: float
+           ) -> tuple[list[tuple[VerticalEstimate, float]], list[RejectedEstimate], Any]:
+    profile = load_profile(bundled_profiles()[board], registry)
+    estimates, withheld = [], []
+    with open_emulated(profile, registry, seed=1, faults=faults) as pipeline:
+        truth = pipeline.board.scenario.truth  # type: ignore[attr-defined]  # emulated board
+        for event in pipeline.events(seconds):
+            if getattr(event, "source", None) != "vario":
+                continue
+            if isinstance(event, VerticalEstimate):
+                estimates.append((event, truth(event.t_ns / 1e9).climb_m_s))
+            elif isinstance(event, RejectedEstimate):
+                withheld.append(event)
+        summary = pipeline.summary()
+    return estimates, withheld, summary
+
+
+def _wrong(estimates: list[tuple[VerticalEstimate, float]]) -> list[tuple[float, float, float]]:
+    return [(e.t_ns / 1e9, e.climb_m_s, truth) for e, truth in estimates
+            if e.t_ns / 1e9 > SETTLE_S and abs(e.climb_m_s - truth) > CLIMB_MARGIN_M_S]
+
+
+def test_a_vario_whose_gate_refuses_most_altitudes_withholds_its_climb_rate(
+        registry: Registry) -> None:
+    """GY-91, a +300 Pa pressure in one measurement out of ten: the BMP280's IIR smears each
+    over the next outputs, the gate refuses most altitudes and the filter coasted to a climb
+    rate 6 m/s off, unflagged (355 such estimates in the matrix)."""
+    faults: list[FaultSpec] = [WrongPressure(device="baro", start_s=1.0 + 0.2 * i,
+                                             offset_pa=300.0) for i in range(45)]
+    estimates, withheld, summary = _vario(registry, "gy91.yaml", faults, 10.0)
+    assert _wrong(estimates) == []
+    assert withheld and {w.flags for w in withheld} == {EstimateFlag.UNSETTLED}
+    assert {w.estimator for w in withheld} == {"vario-kf3"}
+    # withheld by the estimator itself: no failure of it, never disabled
+    assert not [label for label in summary.contained if "vario" in label]
+    assert not [w for w in withheld if w.t_ns < 1_000_000_000]  # before the faults it speaks
+
+
+def test_a_vario_restarted_after_a_gap_keeps_its_bias_and_withholds_until_it_knows_the_climb(
+        registry: Registry) -> None:
+    """seed-gps-vario, chip resets on every device: the barometer's outage restarted the
+    filter in a 1 m/s sink from climb 0, and the bias ran to 13 m/s^2 and the climb rate 4 m/s
+    off (the matrix's seed-gps-vario reset finding)."""
+    faults: list[FaultSpec] = [ChipReset(device=d, start_s=t) for d, t in (
+        ("imu", 3.25), ("imu", 7.75), ("mag", 5.5), ("baro", 5.5), ("gps", 5.5))]
+    estimates, withheld, _ = _vario(registry, "seed-gps-vario.yaml", faults, 10.0)
+    restarted = [e for e, _ in estimates if e.diagnostics["restarts_after_gap"]]
+    assert restarted, "the barometer's outage restarts the filter"
+    assert _wrong(estimates) == []
+    assert withheld and all(w.flags == EstimateFlag.UNSETTLED for w in withheld)
+    assert all(abs(e.accel_bias_m_s2 or 0.0) < 1.0 for e in restarted)
+
+
+def test_one_wrong_pressure_is_gated_and_the_estimate_still_speaks(registry: Registry) -> None:
+    """The case the gate is for: one wrong altitude among fifty is refused and the estimate
+    at it carries its value and ``altitude_gated`` (the soak's check)."""
+    faults: list[FaultSpec] = [WrongPressure(device="baro", start_s=5.0, offset_pa=300.0)]
+    estimates, withheld, summary = _vario(registry, "seed-paraglider-vario.yaml", faults, 7.0)
+    assert withheld == []
+    assert any(e.diagnostics["altitude_gated"] for e, _ in estimates)
+    assert not [label for label in summary.contained if "vario" in label]
