@@ -51,6 +51,9 @@ class _Checked:
     def process_block(self, block: Block) -> list[Estimate]:
         return self._checked(self.estimator.update_block(block))
 
+    def process_blocks(self, blocks: Sequence[Block]) -> list[Estimate]:
+        return self._checked(self.estimator.update_blocks(blocks))
+
 
 class EstimatorChain:
     """Estimators in profile order; :meth:`process` routes one item through all of them
