@@ -141,6 +141,9 @@ class DeviceRuntime:
     trigger: TimerTrigger | LineTrigger = field(default_factory=TimerTrigger)
     """What says when the device is read (imuhal.pipeline.triggers): its poll grid, or
     the data-ready line its profile names."""
+    edges_ns: list[int] = field(default_factory=list)
+    """Data-ready edges taken since the driver's last poll, handed to it at the next
+    (``Driver.data_ready``, within the driver's containment)."""
     isolated: bool = False
     """Its driver overran a call's deadline or kept failing: never polled again."""
 
@@ -597,8 +600,24 @@ class Pipeline:
             yield from self._hand_out(dev, frames)
         if end is not None:
             self.clock.sleep_until(end)
+            yield from self._drain(end)
         if self._fusion:
             yield from self._fuse(before_ns=None)
+
+    def _drain(self, t_ns: int) -> Iterator[Sample]:
+        """The run ends at ``t_ns``: what each driver read and still holds
+        (``Driver.drain``: FIFO frames waiting for their time stamps) is handed out, so
+        nothing read is lost uncounted."""
+        for dev in self.devices.values():
+            if not dev.present or dev.isolated or dev.needs_recovery:
+                continue
+            try:
+                held = dev.driver.drain(t_ns)
+            except Exception as exc:  # a driver plugin's bug is its device's alone
+                self._driver_failed(dev, t_ns, exc)
+                continue
+            if held:
+                yield from self._hand_out(dev, _frames(held))
 
     def _frames_of(self, dev: DeviceRuntime, blocks: list[Block]) -> Iterator[Sample]:
         """Blocks of several frames (a FIFO read) through the steps at once, their frames
@@ -662,6 +681,7 @@ class Pipeline:
             t_ns = self._before_poll(due_ns, name)
             edges += self._waiter.take(name)  # those that came while the host was late
             edge = trigger.took(edges)
+            dev.edges_ns += trigger.taken_ns  # to the driver with its next poll
             if edge is None:  # fewer edges than make a read: wait for more
                 dev.next_poll_ns = trigger.watchdog_at_ns
                 heapq.heappush(self._schedule(), (dev.next_poll_ns, self._device_rank[name],
@@ -763,6 +783,9 @@ class Pipeline:
         kept as the readings; one with several readings of a stream (a FIFO read) is
         grouped into blocks (imuhal.core.blocks.blocks_of)."""
         driver = dev.driver
+        if dev.edges_ns:
+            driver.data_ready(dev.edges_ns)
+            dev.edges_ns = []
         if dev.own_blocks:
             polled = driver.poll_blocks(t_ns)
             blocks = polled.blocks
@@ -770,10 +793,7 @@ class Pipeline:
                 return _Readings(b.samples()[0] for b in blocks), polled.next_poll_ns
             return blocks, polled.next_poll_ns
         result = driver.poll(t_ns)
-        samples = result.samples
-        if len(samples) < 2 or len({type(s) for s in samples}) == len(samples):
-            return _Readings(samples), result.next_poll_ns
-        return blocks_of(samples), result.next_poll_ns
+        return _frames(result.samples), result.next_poll_ns
 
     def _after_bus_error(self, dev: DeviceRuntime, t_ns: int) -> int:
         """Recovery in proportion: a transfer that fails after a good poll is most likely a
@@ -1071,6 +1091,14 @@ class Pipeline:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _frames(samples: list[Sample]) -> _Readings | list[Block]:
+    """A poll's samples as the pipeline hands them out: readings of different streams (a
+    register poll) as they are, several of one stream (a FIFO read) as blocks."""
+    if len(samples) < 2 or len({type(s) for s in samples}) == len(samples):
+        return _Readings(samples)
+    return blocks_of(samples)
 
 
 def _waiter_of(board: Board, clock: Clock, lines: dict[str, TriggerLine],
