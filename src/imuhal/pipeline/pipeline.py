@@ -30,13 +30,14 @@ from imuhal.core.clock import Clock
 from imuhal.core.conventions import get_convention
 from imuhal.core.errors import BusError, ImuhalError, PluginError, ProfileError, RunEnded
 from imuhal.core.frames import FloatArray
+from imuhal.core.gaps import StreamGap
 from imuhal.core.samples import GyroSample, MagSample, Quantity, Sample, SampleFlag
 from imuhal.core.streams import StreamSpec
 from imuhal.drivers.base import DeviceIdentity, Driver
 from imuhal.estimation.framed import FramedEvent, express
 from imuhal.estimation.outputs import Estimate
 from imuhal.estimation.streams import StreamContradiction
-from imuhal.pipeline.accounting import FrameLedger, describe_frames
+from imuhal.pipeline.accounting import FrameLedger, Loss, describe_frames
 from imuhal.pipeline.board import Board, open_hardware_board
 from imuhal.pipeline.bringup import bring_up
 from imuhal.pipeline.containment import (
@@ -891,7 +892,9 @@ class Pipeline:
         else:
             dev.last_valid_ns[channel] = sample.t_ns
         if dev.ledger is not None:
-            dev.ledger.observe(sample)
+            loss = dev.ledger.observe(sample)
+            if loss is not None:
+                self._gap(dev, sample.t_ns, loss)
         if not self.calibrated:
             return sample
         if dev.mag_learner is not None and isinstance(sample, MagSample):
@@ -922,8 +925,19 @@ class Pipeline:
                     self._count_flags(dev, sample)
         if dev.ledger is not None:
             for sample in block.samples():
-                dev.ledger.observe(sample)
+                loss = dev.ledger.observe(sample)
+                if loss is not None:
+                    self._gap(dev, sample.t_ns, loss)
         return self._to_body(dev, block) if self.calibrated else block
+
+    def _gap(self, dev: DeviceRuntime, t_ns: int, loss: Loss) -> None:
+        """Frames counted lost before ``dev``'s frame at ``t_ns``: a StreamGap queued for the
+        estimators that take it, ahead of that frame (imuhal.core.gaps)."""
+        if self.calibrated and self.estimators and self.router.takes(dev.name, StreamGap):
+            assert dev.ledger is not None
+            self._fusion.append(StreamGap(t_ns=t_ns, device=dev.name,
+                                          stream=dev.ledger.channel, frames=loss.frames,
+                                          last_ns=loss.last_ns, cause=loss.cause))
 
     def _to_body(self, dev: DeviceRuntime, block: Block) -> Block:
         """A checked block calibrated and rotated into the body frame; its fusable frames
