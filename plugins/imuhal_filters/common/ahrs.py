@@ -701,10 +701,8 @@ class AhrsEstimator(Estimator):
             step_s = (t_ns - last) * _NS
             if 0.0 < step_s <= self._max_dt_s:
                 dt = step_s
-            elif t_ns == self._gap_at_ns and 0.0 < step_s <= self._max_gap_s:
-                dt = step_s  # a counted loss: the true interval
             else:
-                self._counters["dt_fallbacks"] += 1
+                dt = self._unusual_step(t_ns, step_s)
         self._last_gyro_t_ns = t_ns
         max_age = self._max_aux_age_s
         accel = self._accel_m_s2
@@ -738,6 +736,16 @@ class AhrsEstimator(Estimator):
             return [AttitudeEstimate.build(t_ns, self.instance, self._q,
                                            None if accel is None else self._linear_ned, diag)]  # type: ignore[arg-type]  # aligned (checked above): a kernel step then always returns diagnostics
         return self._stepped(t_ns, rate, accel, mag, dt)
+
+    def _unusual_step(self, t_ns: int, step_s: float) -> float:
+        """The step length for a gyro step not in (0, ``max_dt_s``]: its true interval when
+        the pipeline counted the frames lost in it (a StreamGap for this frame) and it is
+        at most ``max_gap_s``; else the nominal period (a time stamp that jumped, went back
+        or repeated), counted."""
+        if t_ns == self._gap_at_ns and 0.0 < step_s <= self._max_gap_s:
+            return step_s
+        self._counters["dt_fallbacks"] += 1
+        return self._nominal_dt_s
 
     def _stepped(self, t_ns: int, rate: Vec, accel: Vec | None, mag: Vec | None,
                  dt: float) -> list[Estimate]:
