@@ -699,10 +699,7 @@ class AhrsEstimator(Estimator):
         dt = self._nominal_dt_s
         if self._dt_from_timestamps and last is not None:
             step_s = (t_ns - last) * _NS
-            if 0.0 < step_s <= self._max_dt_s:
-                dt = step_s
-            else:
-                dt = self._unusual_step(t_ns, step_s)
+            dt = step_s if 0.0 < step_s <= self._max_dt_s else self._unusual_step(t_ns, step_s)
         self._last_gyro_t_ns = t_ns
         max_age = self._max_aux_age_s
         accel = self._accel_m_s2
