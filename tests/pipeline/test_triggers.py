@@ -18,7 +18,7 @@ from imuhal.core.samples import GyroSample, Sample
 from imuhal.emulation import open_emulated
 from imuhal.emulation.board import EmulatedBoard
 from imuhal.pipeline.pipeline import RunSummary
-from imuhal.pipeline.triggers import SelectorWaiter, TriggerEdge
+from imuhal.pipeline.triggers import LineTrigger, SelectorWaiter, TriggerEdge
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.faults import ChipAbsent, ChipReset, HostStall
@@ -280,3 +280,12 @@ def test_an_optional_device_that_joins_late_awaits_its_first_edge_from_then(
     counts = summary.triggers["imu"]
     assert "imu: found at t=2.004 s; it joins the run" in summary.warnings
     assert counts["fallbacks"] == 0 and counts["edges"] == counts["reads"] > 150
+
+
+def test_edges_the_kernel_did_not_queue_are_filled_in_evenly_for_the_driver() -> None:
+    trigger = LineTrigger("emul://imu/INT", 5_000_000, 4.0)
+    trigger.took([TriggerEdge(1_000, 1)])
+    assert trigger.taken_ns == [1_000]
+    trigger.took([TriggerEdge(15_001_000, 4)])  # edges 2 and 3 never reached the queue
+    assert trigger.taken_ns == [5_001_000, 10_001_000, 15_001_000]
+    assert trigger.lost_edges == 2

@@ -19,6 +19,9 @@ the previous valid frame:
 ``missed``     none of these: the poll grid missed a frame (a chip clock faster than its
                nominal period, a poll that came just too late), counted, never hidden.
 
+Each loss counted before a delivered frame (:meth:`FrameLedger.observe` returns it) reaches
+the estimators as a gap before that frame (imuhal.core.gaps.StreamGap).
+
 A reconfiguration restarts the chip's stream with a new phase, so it ends a *segment*: the
 slots of the configured period between the last valid frame before it and the first one after
 are counted lost (``reset``) although the chip, being reset, produced no frames of the stream
