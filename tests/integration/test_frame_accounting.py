@@ -153,4 +153,6 @@ def test_fifo_modes_count_the_frames_the_chip_measured_through_stalls_overflows_
     assert [n for _, _, n in segments] == [
         sum(1 for t in chip.measured_ns if a - half < t < b + half) for a, b, _ in segments]
     assert ledger.delivered + sum(ledger.lost.values()) == ledger.produced
-    assert ledger.lost["fifo_overflow"] > 0
+    # a FIFO keeps what a late read would cost: the losses are the overflow's and the reset's
+    assert ledger.lost["fifo_overflow"] > 0 and ledger.lost["reset"] > 0
+    assert ledger.lost["host_stall"] == 0

@@ -32,7 +32,7 @@ from imuhal.core.errors import BusError, ImuhalError, PluginError, ProfileError,
 from imuhal.core.frames import FloatArray
 from imuhal.core.gaps import StreamGap
 from imuhal.core.samples import GyroSample, MagSample, Quantity, Sample, SampleFlag
-from imuhal.core.streams import StreamSpec
+from imuhal.core.streams import StreamSpec, TimeSource
 from imuhal.drivers.base import DeviceIdentity, Driver
 from imuhal.estimation.framed import FramedEvent, express
 from imuhal.estimation.outputs import Estimate
@@ -142,6 +142,9 @@ class DeviceRuntime:
     trigger: TimerTrigger | LineTrigger = field(default_factory=TimerTrigger)
     """What says when the device is read (imuhal.pipeline.triggers): its poll grid, or
     the data-ready line its profile names."""
+    buffered: bool = False
+    """Its chip buffers frames the host reads late (a stream stamped on the chip's clock
+    from a FIFO): a late read is then no loss (``Pipeline._note_late``)."""
     edges_ns: list[int] = field(default_factory=list)
     """Data-ready edges taken since the driver's last poll, handed to it at the next
     (``Driver.data_ready``, within the driver's containment)."""
@@ -476,6 +479,7 @@ class Pipeline:
             return
         dev.streams = streams
         dev.spec_of = {spec.quantity: spec for spec in reversed(streams)}
+        dev.buffered = any(spec.time_source in BUFFERED_SOURCES for spec in streams)
         for runtime in self.estimators:
             if runtime.inputs is None or dev.name in runtime.inputs:
                 self._bind(runtime)
@@ -588,10 +592,7 @@ class Pipeline:
             due_ns = t_ns
             t_ns = self._before_poll(t_ns, name)
             dev = self.devices[name]
-            if dev.ledger is not None and \
-                    max(t_ns, self._span_ns[1]) - due_ns > dev.ledger.period_ns // 2:
-                # the host came late (this device's stall, or another's slow poll)
-                dev.ledger.note("host_stall")
+            self._note_late(dev, due_ns, t_ns)
             self._span_ns[1] = max(t_ns, self._span_ns[1])
             frames, next_ns = self._contained_service(dev, t_ns)
             if dev.ledger is not None:
@@ -645,6 +646,17 @@ class Pipeline:
         elif frames:
             yield from self._frames_of(dev, frames)
 
+    def _note_late(self, dev: DeviceRuntime, due_ns: int, t_ns: int) -> None:
+        """A read at ``t_ns`` that was due at ``due_ns``: more than half a frame period late
+        (this device's stall, or another's slow poll) it may have cost frames, a cause the
+        ledger charges them to; not for a chip that buffers its frames (a FIFO read on its
+        own clock), where a late read loses nothing until the FIFO overflows, a cause of
+        its own."""
+        ledger = dev.ledger
+        if ledger is not None and not dev.buffered and \
+                max(t_ns, self._span_ns[1]) - due_ns > ledger.period_ns // 2:
+            ledger.note("host_stall")
+
     def _superseded(self, name: str, t_ns: int) -> bool:
         """A popped deadline that a read on an edge replaced (the heap keeps the old entry);
         a deadline that is the watchdog firing makes the line's device polled, said once."""
@@ -688,9 +700,7 @@ class Pipeline:
                 heapq.heappush(self._schedule(), (dev.next_poll_ns, self._device_rank[name],
                                                   name))
                 continue
-            if dev.ledger is not None and \
-                    max(t_ns, self._span_ns[1]) - due_ns > dev.ledger.period_ns // 2:
-                dev.ledger.note("host_stall")
+            self._note_late(dev, due_ns, t_ns)
             self._span_ns[1] = max(t_ns, self._span_ns[1])
             samples, next_ns = self._contained_service(dev, edge.t_ns)
             if dev.ledger is not None:
@@ -1105,6 +1115,10 @@ class Pipeline:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+BUFFERED_SOURCES = frozenset({TimeSource.CHIP_CLOCK, TimeSource.CHIP_FIFO})
+"""Time sources of streams read from a chip's FIFO."""
 
 
 def _frames(samples: list[Sample]) -> _Readings | list[Block]:
