@@ -20,10 +20,12 @@ def _blocks(lang: str) -> list[str]:
     return re.findall(rf"```{lang}\n(.*?)```", DOC.read_text(encoding="utf-8"), re.S)
 
 
-def test_the_ros_and_mavlink_sections_shown_are_valid_profile_sections() -> None:
-    sections = {k: v for block in _blocks("yaml") for k, v in yaml.safe_load(block).items()}
-    assert set(sections) == {"ros", "mavlink", "outputs"}  # outputs.mqtt: test_outputs_mqtt_doc
-    RosSettings.model_validate(sections["ros"])
+def test_the_mcap_and_mavlink_sections_shown_are_valid_profile_sections() -> None:
+    blocks = [yaml.safe_load(block) for block in _blocks("yaml")]
+    assert all(set(b) == {"outputs"} for b in blocks)  # every output under outputs:
+    sections = {k: v for b in blocks for k, v in b["outputs"].items()}
+    assert set(sections) == {"mcap", "mavlink", "mqtt"}  # mqtt: test_outputs_mqtt_doc
+    RosSettings.model_validate(sections["mcap"])
     MavlinkSettings.model_validate(sections["mavlink"])
 
 
