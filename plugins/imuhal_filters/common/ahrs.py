@@ -121,8 +121,10 @@ class AhrsSettings(PresetSettings, AhrsLimitSettings, TurnCompensationSettings):
     """A gyro sample the chip clipped (flagged SATURATED, perhaps OUT_OF_RANGE too: at its
     stream's full scale): ``recover`` integrates it clipped to the full scale and then pulls
     the tilt back towards the accelerometer with a high gain that decays over ``RECOVERY_S``
-    (Fusion's angular-rate recovery); ``drop`` skips it (a gap in the integration). Needs the
-    gyro's stream (``bind``); without one every flagged sample is dropped."""
+    (Fusion's angular-rate recovery); ``drop`` skips it (a gap in the integration: the
+    pipeline counts the clipped frames lost, and the step after them spans the gap at the
+    rate after it, ``max_gap_s``). Needs the gyro's stream (``bind``); without one every
+    flagged sample is dropped."""
 
 
 class ImuStep(NamedTuple):
