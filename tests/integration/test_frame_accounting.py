@@ -6,6 +6,8 @@ measurements over the segment's span, and delivered + lost = produced."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from imuhal.core.samples import Sample
@@ -17,6 +19,7 @@ from imuhal.emulation.faults import (
     ChipReset,
     FaultSpec,
     FrozenData,
+    HostStall,
     LatePolls,
     StuckDataReady,
 )
@@ -117,3 +120,39 @@ def test_delivered_frames_are_the_valid_samples_of_the_accounted_channel(
         valid = sum(1 for e in events if isinstance(e, Sample) and e.device == device
                     and e.channel is ledger.channel and e.valid)
         assert ledger.delivered == valid, device
+
+
+FIFO_MODES: dict[str, tuple[str, str]] = {
+    # the imu read from its FIFO on a timer, and on every second data-ready edge
+    "fifo": ("      read: fifo\n", ""),
+    "fifo-on-edges": ("      read: fifo\n",
+                      "    interrupt: {chip: gpiochip0, line: 17, edges_per_read: 2}\n"),
+}
+
+
+@pytest.mark.parametrize("mode", sorted(FIFO_MODES))
+def test_fifo_modes_count_the_frames_the_chip_measured_through_stalls_overflows_and_resets(
+        registry: Registry, tmp_path: Path, mode: str) -> None:
+    settings, interrupt = FIFO_MODES[mode]
+    text = bundled_profiles()["gy91.yaml"].read_text()
+    text = text.replace("      aux: bypass\n", "      aux: bypass\n" + settings)
+    path = tmp_path / "gy91.yaml"
+    path.write_text(text.replace('    mount: "+X-Y-Z"\n', '    mount: "+X-Y-Z"\n' + interrupt, 1))
+    faults = [HostStall(device="imu", start_s=0.8, stall_s=0.06, every_s=0.5),  # kept
+              HostStall(device="imu", start_s=1.55, stall_s=0.3, every_s=10.0),  # overflows
+              BusErrors(device="imu", rate=0.02), ChipReset(device="imu", start_s=2.1)]
+    with open_emulated(load_profile(path, registry), registry, seed=2, faults=faults,
+                       calibrated=False) as p:
+        list(p.events(SECONDS))
+    ledger = _ledger(p, "imu")
+    chip = p.board.emulators["imu"]
+    segments = ledger.all_segments()
+    assert len(segments) >= 2  # the reset
+    # stamped on the chip's clock: within microseconds of the instants, either side
+    half = ledger.period_ns // 2
+    assert [n for _, _, n in segments] == [
+        sum(1 for t in chip.measured_ns if a - half < t < b + half) for a, b, _ in segments]
+    assert ledger.delivered + sum(ledger.lost.values()) == ledger.produced
+    # a FIFO keeps what a late read would cost: the losses are the overflow's and the reset's
+    assert ledger.lost["fifo_overflow"] > 0 and ledger.lost["reset"] > 0
+    assert ledger.lost["host_stall"] == 0

@@ -18,7 +18,7 @@ from imuhal.core.samples import GyroSample, Sample
 from imuhal.emulation import open_emulated
 from imuhal.emulation.board import EmulatedBoard
 from imuhal.pipeline.pipeline import RunSummary
-from imuhal.pipeline.triggers import SelectorWaiter, TriggerEdge
+from imuhal.pipeline.triggers import LineTrigger, SelectorWaiter, TriggerEdge
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.faults import ChipAbsent, ChipReset, HostStall
@@ -231,25 +231,42 @@ def test_a_sample_is_never_stamped_before_the_previous_one_on_a_line(
     assert all(b >= a for a, b in itertools.pairwise(stamps))
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "known gap after merging the chip-clock FIFO stamps (lossless) with line triggers: reads "
-    "at the edges' instants never let the chip-clock estimate settle (the driver cannot "
-    "probe the chip's phase), so frames are held back up to HOLD_MAX_FRAMES and those still "
-    "held when the run ends are neither delivered nor counted (400 of 600 in 3 s); the cure "
-    "is stamping FIFO frames from the edges (issue 25 item 4)"))
+def _gy91_fifo(tmp_path: Path, registry: Registry, interrupt: str) -> BoardProfile:
+    path = tmp_path / "gy91-fifo.yaml"
+    text = gy91_text(interrupt)
+    path.write_text(text.replace("      aux: bypass\n", "      aux: bypass\n      read: fifo\n"))
+    return load_profile(path, registry)
+
+
 def test_a_fifo_read_on_every_second_edge_keeps_every_frame_through_stalls(
         tmp_path: Path, registry: Registry) -> None:
-    path = tmp_path / "gy91-fifo.yaml"
-    text = gy91_text("    interrupt: {chip: gpiochip0, line: 17, edges_per_read: 2}\n")
-    path.write_text(text.replace("      aux: bypass\n", "      aux: bypass\n      read: fifo\n"))
+    profile = _gy91_fifo(tmp_path, registry,
+                         "    interrupt: {chip: gpiochip0, line: 17, edges_per_read: 2}\n")
     stall = HostStall(device="imu", start_s=1.0, stall_s=0.05, every_s=0.5)
-    _, _, summary = _run(load_profile(path, registry), registry, 3.0, faults=[stall],
-                         calibrated=False)
+    events, board, summary = _run(profile, registry, 3.0, faults=[stall], calibrated=False)
     counts = summary.triggers["imu"]
     frames = summary.frames["imu"]
-    assert frames["delivered"] == frames["produced"]  # the FIFO kept what the stalls held
+    measured = board.emulators["imu"].measured_ns
+    assert frames["delivered"] == frames["produced"] == len(measured) == 600
     assert counts["reads"] < counts["edges"] // 2 + 1
     assert counts["edges"] == frames["produced"] and counts["fallbacks"] == 0
+    # each frame stamped with its own edge: the chip's instant, whatever the stalls
+    assert _imu_stamps(events) == list(measured)
+
+
+def test_fifo_frames_held_for_their_stamps_when_the_run_ends_are_delivered(
+        tmp_path: Path, registry: Registry) -> None:
+    # without a line, frames wait until the read-time estimate of the chip's clock places
+    # them (imuhal_chips.mpu9250.fifo), about 0.35 s into the flight: a 0.2 s run ends
+    # with every frame read still held, and its end hands them out stamped as the
+    # estimate stands
+    profile = _gy91_fifo(tmp_path, registry, "")
+    events, board, summary = _run(profile, registry, 0.2, calibrated=False)
+    frames = summary.frames["imu"]
+    stamps = _imu_stamps(events)
+    measured = list(board.emulators["imu"].measured_ns)
+    assert frames["delivered"] == len(stamps) == frames["produced"] == len(measured) > 30
+    assert max(abs(a - b) for a, b in zip(stamps, measured, strict=True)) < 50_000
 
 
 def test_an_optional_device_that_joins_late_awaits_its_first_edge_from_then(
@@ -263,3 +280,12 @@ def test_an_optional_device_that_joins_late_awaits_its_first_edge_from_then(
     counts = summary.triggers["imu"]
     assert "imu: found at t=2.004 s; it joins the run" in summary.warnings
     assert counts["fallbacks"] == 0 and counts["edges"] == counts["reads"] > 150
+
+
+def test_edges_the_kernel_did_not_queue_are_filled_in_evenly_for_the_driver() -> None:
+    trigger = LineTrigger("emul://imu/INT", 5_000_000, 4.0)
+    trigger.took([TriggerEdge(1_000, 1)])
+    assert trigger.taken_ns == [1_000]
+    trigger.took([TriggerEdge(15_001_000, 4)])  # edges 2 and 3 never reached the queue
+    assert trigger.taken_ns == [5_001_000, 10_001_000, 15_001_000]
+    assert trigger.lost_edges == 2

@@ -19,16 +19,26 @@ MAX21100 only: the I2C master, performing real transfers on the ``aux`` Emulated
   transaction the slave NACKs or that fails leaves MAG X/Y/Z as they were (what I2C
   masters' copies of a slave do; no source describes the MAX21100's), counted in
   ``slave_read_failures``: the host sees the same words again, never a made-up value. The
-  slave is read when the measurement latches, i.e. at the first access at or after its
-  instant (this emulator is driven by accesses), so a slave measurement completed in
-  between can appear one accelerometer period early. MAG_SLV_CFG bits 5..3 (MAG_SAFE,
+  slave is read as at the accelerometer measurement's own instant
+  (``EmulatedBus.transfer_at``), though the emulator carries it out at the first access
+  after it: a slave with a clock of its own answers with what it had measured by then.
+  MAG_SLV_CFG bits 5..3 (MAG_SAFE,
   MAG_GRP, I2C speed), the MAG_OFS registers and the mag data-ready bits of SYSTEM_STATUS
   (in conflict between sources) are not modelled.
 
-Physics face: ``physics`` (sensor frame, SI) is sampled when a measurement completes
-(at the first bus access or ``set_physics`` after the measurement instant) and encoded with
+Physics face: each measurement takes the inputs of its own instant (``pull_physics``: an
+emulated board hands over the truth of that instant, whenever the host reads), encoded with
 the configured sensitivity, rounded to counts and clipped at +/-30000 (the nominal full scale;
-what silicon outputs beyond it is undocumented, so the emulator saturates there).
+what silicon outputs beyond it is undocumented, so the emulator saturates there). A bare
+emulator (no board) uses what ``set_physics`` gave it last.
+
+Own clock (issue 25 item 1): the chip measures on its internal oscillator, each channel
+every 1 / ODR x 1 / (1 + ``oscillator_error``), counted from the write that set its power
+mode or rate. The datasheets give no tolerance for the internal oscillator (facts/chips.md
+sections 5, 6 state none), so the default error is 0 and a test or script sets up to the
++-2 % issue 25 asks for; a change takes effect from the next measurement on. The instants of
+the faster channel (the one the driver accounts for; the gyro on a tie) are recorded
+(``measured_ns``), so a test can count what the chip produced.
 
 Fault injection: ``who_am_i`` (set another value: a clone or the sibling part),
 ``stuck_data_ready`` (the measurement engine hangs: no new data, data-ready never set; a soft
@@ -164,6 +174,7 @@ class Max2110xEmulator(ChipEmulator):
 
     part: ClassVar[PartSpec]
     models_stuck_data_ready = True
+    pulls_physics = True
     gyro_odr_by_code: ClassVar[tuple[float, ...]]
     """GYRO_CFG2 ODR code -> Hz, written here from the part's datasheet (not the driver's)."""
     accel_odr_by_code: ClassVar[tuple[float, ...]]
@@ -174,6 +185,7 @@ class Max2110xEmulator(ChipEmulator):
         self.name = name or self.chip
         self.who_am_i = self.part.who_am_i
         self.stuck_data_ready = False
+        self._oscillator_error = 0.0
         self.power_on_resets = 0
         self.power_on_reset()
 
@@ -214,8 +226,35 @@ class Max2110xEmulator(ChipEmulator):
     # --- physics face ---------------------------------------------------------------------
 
     def set_physics(self, inputs: PhysicalInputs) -> None:
-        self._advance()  # measurements due before the change use the old values
+        if self.physics_source is None:
+            self._advance()  # measurements due before the change use the old values
         super().set_physics(inputs)
+
+    @property
+    def oscillator_error(self) -> float:
+        """The internal oscillator's frequency error as a fraction (0.02: 2 % fast, every
+        period 1/1.02 of the datasheet's); takes effect from the next measurement."""
+        return self._oscillator_error
+
+    @oscillator_error.setter
+    def oscillator_error(self, fraction: float) -> None:
+        if not -0.1 <= fraction <= 0.1:
+            raise ValueError(f"oscillator_error {fraction} is not a clock error within +-10 %")
+        self._advance()  # what is due now was measured on the old clock
+        old = self._period_ns
+        self._oscillator_error = fraction
+        for index, channel in enumerate(_CHANNELS):
+            odr = self._odr_hz(channel)
+            due = self._next_ns[index]
+            if due is None or not odr:
+                continue
+            # count on from the latest measurement with the new period
+            self._period_ns[index] = self._period_of(odr)
+            self._next_ns[index] = due - old[index] + self._period_ns[index]
+        self._schedule()
+
+    def _period_of(self, odr_hz: float) -> int:
+        return round(1e9 / (odr_hz * (1.0 + self._oscillator_error)))
 
     def _gyro_lsb_per_dps(self) -> float:
         return _GYRO_LSB_PER_DPS_BY_CODE[self.bank0(Reg.GYRO_CFG1) & 0x03]
@@ -309,7 +348,7 @@ class Max2110xEmulator(ChipEmulator):
         for index, channel in enumerate(_CHANNELS):
             odr = self._odr_hz(channel)
             if self._active(channel) and odr:
-                self._period_ns[index] = round(1e9 / odr)
+                self._period_ns[index] = self._period_of(odr)
                 self._next_ns[index] = now + self._period_ns[index]
             else:
                 self._next_ns[index] = None
@@ -332,20 +371,28 @@ class Max2110xEmulator(ChipEmulator):
         if now < self._wake_ns:
             return
         next_ns = self._next_ns
-        for index in (_GYRO, _ACCEL):
+        periods = self._period_ns
+        # the faster channel's instants are recorded (the gyro's on a tie)
+        counted = _GYRO if next_ns[_ACCEL] is None or (
+            next_ns[_GYRO] is not None and periods[_GYRO] <= periods[_ACCEL]) else _ACCEL
+        due_now = [(due + (now - due) // periods[i] * periods[i], i)
+                   for i, due in enumerate(next_ns) if due is not None and now >= due]
+        for newest, index in sorted(due_now):  # in the order the chip measured them
             due = next_ns[index]
-            if due is None or now < due:
-                continue
-            period = self._period_ns[index]
-            missed = (now - due) // period
-            next_ns[index] = due + (missed + 1) * period
+            assert due is not None
+            period = periods[index]
+            missed = (newest - due) // period
+            next_ns[index] = newest + period
             if self.stuck_data_ready:
                 continue
+            if index == counted:
+                self.record_measurements(due, period, missed + 1)
             if missed:
                 self.status |= Status.GYRO_ERR if index == _GYRO else Status.ACC_ERR
+            self.pull_physics(newest)  # the newest measurement, with its instant's inputs
             self._latch(index)
             if index == _ACCEL:
-                self._accel_latched(missed + 1)
+                self._accel_latched(missed + 1, newest)
         if self._mst_pending is not None and now >= self._mst_pending[0]:
             self._mst_data = self._mst_pending[1]
             self._mst_pending = None
@@ -496,9 +543,9 @@ class Max2110xEmulator(ChipEmulator):
     def _oneshot(self, *, write: bool) -> None:
         """Aux master transaction; only the MAX21100 has the master."""
 
-    def _accel_latched(self, measurements: int) -> None:
-        """``measurements`` accelerometer measurements completed (the latest latched): the
-        MAX21100's slave auto-read follows them."""
+    def _accel_latched(self, measurements: int, instant_ns: int) -> None:
+        """``measurements`` accelerometer measurements completed (the latest latched, at
+        ``instant_ns``): the MAX21100's slave auto-read follows them."""
 
     def _bank0_written(self, reg: int, value: int) -> None:
         if reg in _CONFIG_REGS:
@@ -554,9 +601,10 @@ class Max21100Emulator(Max2110xEmulator):
     def child_buses(self) -> dict[str, EmulatedBus]:
         return {"aux": self._aux}
 
-    def _accel_latched(self, measurements: int) -> None:
+    def _accel_latched(self, measurements: int, instant_ns: int) -> None:
         """Slave auto-read: with MAG_SLV_CFG enabled, every 2^ACC_CFG2[3:1]-th accelerometer
-        measurement reads the slave's data into MAG X/Y/Z (0x30..0x35)."""
+        measurement reads the slave's data into MAG X/Y/Z (0x30..0x35), at the instant of
+        the newest (a slave with a clock of its own answers with what it had by then)."""
         bank0 = self.banks[0]
         cfg = bank0[_MAG_SLV_CFG]
         if not cfg & MAG_SLV_CFG_ENABLE:
@@ -565,9 +613,9 @@ class Max21100Emulator(Max2110xEmulator):
         before = self._accel_count
         self._accel_count = before + measurements
         if self._accel_count // every != before // every:
-            self._read_slave(cfg)
+            self._read_slave(cfg, instant_ns)
 
-    def _read_slave(self, cfg: int) -> None:
+    def _read_slave(self, cfg: int, instant_ns: int) -> None:
         """One auto-read transaction: MAG_SLV_REG written to the slave at MAG_SLV_ADD, then
         the byte count read (repeated start); the bytes are paired (bit 6: each pair LSB
         first), mapped and inverted by MAG_MAP_REG, and stored as MAG X, Y, Z words (read
@@ -579,8 +627,8 @@ class Max21100Emulator(Max2110xEmulator):
             return
         bank0 = self.banks[0]
         try:
-            data = self._aux.transfer(bank0[_MAG_SLV_ADD] & 0x7F,
-                                      bytes((bank0[_MAG_SLV_REG],)), count)
+            data = self._aux.transfer_at(instant_ns, bank0[_MAG_SLV_ADD] & 0x7F,
+                                         bytes((bank0[_MAG_SLV_REG],)), count)
         except (BusError, OSError):
             self.slave_read_failures += 1
             return

@@ -22,7 +22,7 @@ OUT_OF_RANGE. Outputs are in the MPU-9250's own sensor frame, SI units.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar, Literal
 
 import numpy as np
@@ -584,6 +584,22 @@ class MPU9250Driver(Driver):
         return [block(AccelSample, accel, np.array(flags_a, np.int64), Frame.SENSOR),
                 block(GyroSample, gyro, np.array(flags_g, np.int64), Frame.SENSOR),
                 block(TemperatureSample, temp[:, None], temp_flags, None)]
+
+    def data_ready(self, edges_ns: Sequence[int]) -> None:
+        """read: fifo: each frame is stamped with its own edge (imuhal_chips.mpu9250.fifo);
+        a register read is polled at its edge's time."""
+        if self._fifo is not None:
+            self._fifo.data_ready(list(edges_ns))
+
+    def drain(self, now_ns: int) -> list[Sample]:
+        """read: fifo: the frames held for their time stamps."""
+        if self._fifo is None:
+            return []
+        got = self._fifo.drain()
+        samples: list[Sample] = []
+        for frame, t_ns in zip(got.frames, got.stamps_ns, strict=True):
+            samples += self._fifo_frame(frame, t_ns, now_ns)
+        return samples
 
     def _fifo_frame(self, frame: bytes, t_ns: int, next_ns: int) -> list[Sample]:
         """One FIFO frame: its slave bytes to the feed, its accel/temperature/gyro checked

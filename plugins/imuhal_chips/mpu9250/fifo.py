@@ -30,6 +30,13 @@ that sample (EXT_SENS_DATA order): 22-byte frames with the AK8963's ST1..ST2, 23
   the previous stamp). Frames read before the estimate places them to 0.2 % of a period
   are held back (at most ``HOLD_MAX_FRAMES``, kept in the driver, so nothing is lost) and
   handed out stamped once it does.
+- **Time stamps from data-ready edges** (a profile's ``interrupt:`` line on the chip's INT
+  pin, RAW_RDY_EN: one edge per sample; imuhal.drivers.edge_stamps): each frame is stamped
+  with its own edge's kernel time stamp, as Linux's inv_sensors_timestamp.c stamps FIFO
+  frames from interrupt times, however many edges go to one read; the read-time estimate
+  above is not needed then. Frames whose edge has not come yet wait in the reader (at most
+  ``EDGE_WAIT_FRAMES``; more means the line went silent: they go on one learned period
+  after the previous stamp). ``drain()`` hands out what is held when a run ends.
 """
 
 from __future__ import annotations
@@ -40,6 +47,7 @@ from itertools import pairwise
 from imuhal.bus.registers import RegisterView
 from imuhal.core.clock import Clock
 from imuhal.drivers.chip_clock import ChipClock
+from imuhal.drivers.edge_stamps import EdgeStamps
 from imuhal_chips.mpu9250 import registers as r
 from imuhal_chips.mpu9250.decode import decode_counts, temperature_degc
 
@@ -59,6 +67,9 @@ period: 50 us at 200 Hz)."""
 HOLD_MAX_FRAMES = 400
 """Frames held back at most while the chip's clock is learned (2 s at 200 Hz); then they
 go out stamped with the estimate as it stands."""
+EDGE_WAIT_FRAMES = 4
+"""Frames that may wait for their data-ready edges (frames the chip wrote after the host
+took its edges, a period or two) before the line counts as silent."""
 
 
 @dataclass(frozen=True)
@@ -93,6 +104,7 @@ class FifoReader:
         self.frame_bytes = FRAME_BYTES + slave_bytes
         self.overflow_at = r.FIFO_SIZE_BYTES - OVERFLOW_MARGIN_FRAMES * self.frame_bytes
         self.chip_clock = ChipClock(period_ns, ready_fraction=0.002)
+        self.edges = EdgeStamps(period_ns, wait_frames=EDGE_WAIT_FRAMES)
         self._held: list[tuple[int, bytes]] = []
         """Frames (index, bytes) read before the chip's clock was learned."""
         self._base_ns: int | None = None
@@ -105,12 +117,23 @@ class FifoReader:
     def reset(self, user_ctrl: int, *, restart: bool = True) -> None:
         """Empty the FIFO (USER_CTRL.FIFO_RST self-clears; the other bits rewritten).
         ``restart``: the chip's sampling restarted too (configured), not only its FIFO."""
+        requested_ns = self.clock.now_ns()
         self.regs.write(r.USER_CTRL, user_ctrl | r.USER_FIFO_RST)
         if restart:
             self._held = []  # frames of the configuration before: their clock is gone
             self.chip_clock.restart()
+            self.edges.restarted(requested_ns)
         else:
             self.chip_clock.frames_dropped()
+            self.edges.cleared(requested_ns)
+
+    def data_ready(self, times_ns: list[int]) -> None:
+        """Data-ready edges of the chip's INT line (pipeline clock, oldest first)."""
+        self.edges.add(times_ns)
+
+    def _on_edges(self) -> bool:
+        """Frames are stamped from edges: the line is on, or was and stamps go on from it."""
+        return self.edges.on_line or self.edges.anchored
 
     def next_read_ns(self, now_ns: int, interval_ns: int) -> int:
         """When to read next: about ``interval_ns`` on from the previous read's slot, where
@@ -139,6 +162,8 @@ class FifoReader:
                 return self._drop(user_ctrl)
         newest = self.chip_clock.observe(n, lo_ns, hi_ns)
         self._held += [(newest - n + 1 + i, f) for i, f in enumerate(frames)]
+        if self._on_edges():
+            return self._release_on_edges()
         if not self._held or (not self.chip_clock.settled()
                               and len(self._held) < HOLD_MAX_FRAMES):
             return FifoRead([], [], held=len(self._held))
@@ -147,8 +172,35 @@ class FifoReader:
     def _release(self, *, reset: bool = False) -> FifoRead:
         """The held frames, stamped with the estimate as it stands."""
         held, self._held = self._held, []
+        if self.edges.last_ns is not None:
+            self.chip_clock.continue_after(self.edges.last_ns)
         stamps = self.chip_clock.stamps([k for k, _ in held])
         return FifoRead([f for _, f in held], stamps, reset=reset)
+
+    def _release_on_edges(self, *, final: bool = False, reset: bool = False) -> FifoRead:
+        """The held frames that have their edges, each stamped with its own; ``final``
+        (a reset or the run's end: no edge will be waited for) or a silent line: the rest
+        one learned period after the stamp before."""
+        held = self._held
+        stamps = self.edges.match(len(held), every_frame_read=not final)
+        waiting = len(held) - len(stamps)
+        if waiting > self.edges.wait_frames:
+            self.edges.silent()
+        if waiting and (final or not self.edges.on_line) and self.edges.anchored:
+            stamps += self.edges.extrapolate(waiting)
+        out, self._held = held[:len(stamps)], held[len(stamps):]
+        if final and self._held:  # no edge to go on from: the read-time estimate's stamps
+            rest = self._release()
+            return FifoRead([f for _, f in out] + rest.frames, stamps + rest.stamps_ns,
+                            reset=reset)
+        return FifoRead([f for _, f in out], stamps, reset=reset, held=len(self._held))
+
+    def drain(self) -> FifoRead:
+        """Every frame held (the run ends): stamped from its edge when it came, else as the
+        stamps before it go on."""
+        if self._on_edges():
+            return self._release_on_edges(final=True)
+        return self._release() if self._held else FifoRead([], [])
 
     def _drop(self, user_ctrl: int) -> FifoRead:
         """An overflow or a corrupt burst: the FIFO is reset unread. Frames held from
@@ -156,7 +208,10 @@ class FifoReader:
         of a period (their count ends here); otherwise they are lost with the FIFO's, never
         handed out with a wrong stamp."""
         placed = self.chip_clock.uncertainty_ns() <= DROP_PLACED_FRACTION * self.period_ns
-        out = self._release(reset=True) if placed else FifoRead([], [], reset=True)
+        if self._on_edges():
+            out = self._release_on_edges(final=True, reset=True)
+        else:
+            out = self._release(reset=True) if placed else FifoRead([], [], reset=True)
         self._held = []
         self.reset(user_ctrl, restart=False)
         return out

@@ -13,8 +13,19 @@ Bus face (identical on I2C and SPI, since every transaction is "command bytes, t
 A read with no command in the same transaction returns what the last command left in the
 output register (I2C drivers that write the command and read in two transactions).
 
-Physics face: ``physics.pressure_pa`` and ``physics.temperature_degc`` (defaults 101325 Pa,
-20 degC when not simulated) are encoded with the *factory* coefficients by
+Own clock (issue 25 item 1): the MS5611 has no output rate. It converts when the host
+commands it, and each conversion runs on the chip's internal oscillator: its time is the
+datasheet's typical time for the OSR x 1 / (1 + ``oscillator_error``). The datasheet's
+minimum and maximum conversion times lie about 10 % either side of the typical one (OSR
+4096: 7.40 / 8.22 / 9.04 ms), so the error may be set within +-9 % (default 0). The cadence
+of the conversions is the driver's; the instant each D1 (pressure) conversion completes is
+recorded (``measured_ns``), so a test can count what the chip produced.
+
+Physics face: a conversion takes the inputs of the instant it starts, which is the
+host's convert command: an emulated board hands the chip the truth of each command's
+instant as it polls (the datasheet says no more about which instant within the conversion
+a result stands for). ``physics.pressure_pa`` and ``physics.temperature_degc``
+(defaults 101325 Pa, 20 degC when not simulated) are encoded with the *factory* coefficients by
 ``emulator_encoding.counts_for``, written from the datasheet independently of the driver's
 conversion code: corrupting the PROM changes what a driver reads, not what the sensor
 element measures, and a wrong fact in the driver shows as a wrong pressure.
@@ -82,6 +93,9 @@ class MS5611Emulator(ChipEmulator):
     """Stuck: a started conversion never finishes (ADC reads during it return 0)."""
     conformance_sweep = True
     min_output_period_s = min(_CONVERSION_NS.values()) / 1e9  # OSR 256
+    MAX_OSCILLATOR_ERROR = 0.09
+    """The conversion times' spread the datasheet allows (min and max about 10 % off the
+    typical time), kept inside."""
 
     def __init__(
         self,
@@ -110,6 +124,25 @@ class MS5611Emulator(ChipEmulator):
         self.aborted_conversions = 0
         self._osr: dict[Measurement, int] = {}
         """The OSR of the latest conversion started, per measurement (D1, D2)."""
+        self._oscillator_error = 0.0
+
+    @property
+    def oscillator_error(self) -> float:
+        """The internal oscillator's frequency error as a fraction (0.02: 2 % fast, each
+        conversion 1/1.02 of its typical time); from the next conversion on."""
+        return self._oscillator_error
+
+    @oscillator_error.setter
+    def oscillator_error(self, fraction: float) -> None:
+        limit = self.MAX_OSCILLATOR_ERROR
+        if not -limit <= fraction <= limit:
+            raise ValueError(f"oscillator_error {fraction} lies outside the datasheet's "
+                             f"conversion times (+-{limit:g})")
+        self._oscillator_error = fraction
+
+    def conversion_ns(self, osr: int) -> int:
+        """How long a conversion at ``osr`` takes on this chip's oscillator (ns)."""
+        return round(_CONVERSION_NS[osr] / (1.0 + self._oscillator_error))
 
     # -- fault injection --------------------------------------------------------------------
 
@@ -208,6 +241,7 @@ class MS5611Emulator(ChipEmulator):
         self._settle(now)
         self.conversions_started += 1
         self._osr[measurement] = osr
+        span = self.conversion_ns(osr)
         if self._conversion is not None:
             # Overlapping conversions: the running one is lost, the new one is garbage.
             self.aborted_conversions += 1
@@ -215,7 +249,7 @@ class MS5611Emulator(ChipEmulator):
         else:
             result = self._measure(measurement)
         self._result = None
-        self._conversion = _Conversion(measurement, now + _CONVERSION_NS[osr], result)
+        self._conversion = _Conversion(measurement, now + span, result)
 
     def _measure(self, measurement: Measurement) -> int:
         p = self.physics.pressure_pa
@@ -231,9 +265,12 @@ class MS5611Emulator(ChipEmulator):
         """Move a conversion that has finished by ``now`` into the result register."""
         if self.stuck_data_ready:
             return
-        if self._conversion is not None and now >= self._conversion.done_ns:
-            self._result = self._conversion.result
+        conversion = self._conversion
+        if conversion is not None and now >= conversion.done_ns:
+            self._result = conversion.result
             self._conversion = None
+            if conversion.measurement is Measurement.D1:
+                self.record_measurements(conversion.done_ns, 0, 1)
 
     def _adc_read(self) -> int:
         self._settle(self.now_ns())

@@ -7,7 +7,9 @@ What every AHRS plugin shares lives here so the filters themselves are only thei
   older than ``max_aux_age_s`` is not used);
 - invalid samples (``sample.valid`` False) are never fused: they are counted per channel;
 - the step length comes from consecutive gyro timestamps (or the nominal ``sample_period_s``
-  for the first step, for gaps longer than ``max_dt_s`` and for non-increasing timestamps);
+  for the first step, for gaps longer than ``max_dt_s`` and for non-increasing timestamps),
+  except that a step over frames the pipeline counted lost (a ``StreamGap`` before it,
+  imuhal.core.gaps) is integrated over its true interval up to ``max_gap_s``;
 - accelerometer values are handed to the kernel gravity positive in g (the unit of the
   reference code), magnetometer values in uT, gyro in rad/s, all in body NED axes;
 - each step emits an :class:`AttitudeEstimate` with the body -> NED quaternion and, when an
@@ -39,6 +41,7 @@ from pydantic import Field
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.core.blocks import Block
 from imuhal.core.frames import FloatArray
+from imuhal.core.gaps import StreamGap
 from imuhal.core.quantities import Quantity
 from imuhal.core.samples import (
     AccelSample,
@@ -103,15 +106,25 @@ class AhrsSettings(PresetSettings, AhrsLimitSettings, TurnCompensationSettings):
     dt_from_timestamps: bool = True
     """Step length from consecutive gyro timestamps (False: always ``sample_period_s``)."""
     max_dt_s: float = Field(0.1, gt=0.0)
-    """A gyro gap longer than this is not integrated over: the nominal period is used instead."""
+    """A gyro gap longer than this is not integrated over: the nominal period is used instead
+    (a step nobody explained may be a time stamp that jumped), unless the pipeline counted
+    it as lost frames (``max_gap_s``)."""
+    max_gap_s: float = Field(1.0, gt=0.0)
+    """A gyro step over frames the pipeline counted lost (a StreamGap before it: a stall, a
+    bus error, a reset, imuhal.core.gaps) is real time: up to this long it is integrated
+    over its true interval with the rate after it; longer, over the nominal period (the
+    rotation in a long loss is unknown; the accelerometer and magnetometer take the attitude
+    back)."""
     max_aux_age_s: float | None = Field(0.1, gt=0.0)
     """An accel or mag sample older than this (relative to the gyro sample) is not used."""
     gyro_saturation: Literal["recover", "drop"] = "recover"
     """A gyro sample the chip clipped (flagged SATURATED, perhaps OUT_OF_RANGE too: at its
     stream's full scale): ``recover`` integrates it clipped to the full scale and then pulls
     the tilt back towards the accelerometer with a high gain that decays over ``RECOVERY_S``
-    (Fusion's angular-rate recovery); ``drop`` skips it (a gap in the integration). Needs the
-    gyro's stream (``bind``); without one every flagged sample is dropped."""
+    (Fusion's angular-rate recovery); ``drop`` skips it (a gap in the integration: the
+    pipeline counts the clipped frames lost, and the step after them spans the gap at the
+    rate after it, ``max_gap_s``). Needs the gyro's stream (``bind``); without one every
+    flagged sample is dropped."""
 
 
 class ImuStep(NamedTuple):
@@ -249,7 +262,7 @@ class AhrsEstimator(Estimator):
 
     Settings: ClassVar[type[EstimatorSettings]] = AhrsSettings
     consumes: ClassVar[tuple[type, ...]] = (GyroSample, AccelSample, MagSample,
-                                            VelocitySample, AirspeedSample)
+                                            VelocitySample, AirspeedSample, StreamGap)
     uses_mag: ClassVar[bool] = True
     owns_quaternion: ClassVar[bool] = True
     """The kernel steps from ``_q`` (it keeps no attitude of its own): the angular-rate
@@ -311,6 +324,9 @@ class AhrsEstimator(Estimator):
         self._nominal_dt_s = self.settings.sample_period_s
         self._dt_from_timestamps = self.settings.dt_from_timestamps
         self._max_dt_s = self.settings.max_dt_s
+        self._max_gap_s = self.settings.max_gap_s
+        self._gap_at_ns: int | None = None
+        """The time stamp of the gyro frame a counted loss precedes (a StreamGap)."""
         self._max_aux_age_s = self.settings.max_aux_age_s
         self._reset_filter()
 
@@ -424,6 +440,10 @@ class AhrsEstimator(Estimator):
         return self._on_gyro(item, rate)
 
     def _process_general(self, item: Sample | Estimate) -> list[Estimate]:
+        if isinstance(item, StreamGap):
+            if item.stream == Quantity.GYRO:
+                self._gap_at_ns = item.t_ns
+            return []
         if isinstance(item, VelocitySample):
             if item.valid and within_full_scale(item.velocity_ned_m_s, None):
                 self._kinematics.on_velocity(item)
@@ -836,10 +856,7 @@ class AhrsEstimator(Estimator):
         dt = self._nominal_dt_s
         if self._dt_from_timestamps and last is not None:
             step_s = (t_ns - last) * _NS
-            if 0.0 < step_s <= self._max_dt_s:
-                dt = step_s
-            else:
-                self._counters["dt_fallbacks"] += 1
+            dt = step_s if 0.0 < step_s <= self._max_dt_s else self._unusual_step(t_ns, step_s)
         self._last_gyro_t_ns = t_ns
         max_age = self._max_aux_age_s
         accel = self._accel_m_s2
@@ -873,6 +890,16 @@ class AhrsEstimator(Estimator):
             return [AttitudeEstimate.build(t_ns, self.instance, self._q,
                                            None if accel is None else self._linear_ned, diag)]  # type: ignore[arg-type]  # aligned (checked above): a kernel step then always returns diagnostics
         return self._stepped(t_ns, rate, accel, mag, dt)
+
+    def _unusual_step(self, t_ns: int, step_s: float) -> float:
+        """The step length for a gyro step not in (0, ``max_dt_s``]: its true interval when
+        the pipeline counted the frames lost in it (a StreamGap for this frame) and it is
+        at most ``max_gap_s``; else the nominal period (a time stamp that jumped, went back
+        or repeated), counted."""
+        if t_ns == self._gap_at_ns and 0.0 < step_s <= self._max_gap_s:
+            return step_s
+        self._counters["dt_fallbacks"] += 1
+        return self._nominal_dt_s
 
     def _stepped(self, t_ns: int, rate: Vec, accel: Vec | None, mag: Vec | None,
                  dt: float) -> list[Estimate]:

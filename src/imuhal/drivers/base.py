@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import warnings
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -193,6 +193,21 @@ class Driver(ABC):
         configuration (the pipeline then calls it; otherwise ``poll``, grouping its samples
         as the base class's ``poll_blocks`` does). Default: the class overrides it."""
         return type(self).poll_blocks is not Driver.poll_blocks
+
+    def data_ready(self, edges_ns: Sequence[int]) -> None:
+        """The chip's data-ready line (the profile's ``interrupt:``) raised edges at these
+        times (ns, the pipeline clock: the kernel's time stamps of the interrupts), oldest
+        first, one per sample the chip produced (edges the kernel did not queue filled in),
+        whether or not a read follows. A driver that buffers frames (a FIFO) stamps each
+        with its edge; the default ignores them (a register read is polled at its edge's
+        time already)."""
+        return None
+
+    def drain(self, now_ns: int) -> list[Sample]:
+        """The run ends at ``now_ns``: the samples the driver read from its chip and still
+        holds (frames waiting for their time stamp), stamped as well as it can, so none is
+        lost uncounted. No bus transfer. The default: none held."""
+        return []
 
     def start(self, now_ns: int) -> int:
         """Called once after configure(); returns the time of the first poll."""

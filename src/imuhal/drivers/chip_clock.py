@@ -142,6 +142,14 @@ class ChipClock:
             self._period_bounds = (min(periods) * (1 - PERIOD_MEMORY),
                                    max(periods) * (1 + PERIOD_MEMORY))
 
+    def continue_after(self, stamp_ns: int) -> None:
+        """Another source (a data-ready edge) stamped a frame at ``stamp_ns``: the next
+        stamp is the estimate's, only after it."""
+        if self._last is not None and self._last[1] >= stamp_ns:
+            return
+        self._last = None
+        self._floor_ns = stamp_ns if self._floor_ns is None else max(self._floor_ns, stamp_ns)
+
     # -- observations -----------------------------------------------------------------------
 
     def observe(self, n: int, lo_ns: int, hi_ns: int) -> int:

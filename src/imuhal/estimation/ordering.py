@@ -13,16 +13,19 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 
+from imuhal.core.gaps import GAP
 from imuhal.core.samples import Quantity, Sample
 
 FUSION_RANK: dict[Quantity, int] = {
+    GAP: -1,
     Quantity.ACCEL: 0,
     Quantity.MAG: 1,
     Quantity.PRESSURE: 2,
     Quantity.TEMPERATURE: 3,
     Quantity.GYRO: 4,
 }
-"""Position of each quantity among the samples of one instant (gyro last)."""
+"""Position of each quantity among the samples of one instant (a stream's gap first: it
+says what was lost before the frames of its instant; gyro last)."""
 
 
 def fusion_order(samples: Iterable[Sample],

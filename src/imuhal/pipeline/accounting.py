@@ -19,6 +19,9 @@ the previous valid frame:
 ``missed``     none of these: the poll grid missed a frame (a chip clock faster than its
                nominal period, a poll that came just too late), counted, never hidden.
 
+Each loss counted before a delivered frame (:meth:`FrameLedger.observe` returns it) reaches
+the estimators as a gap before that frame (imuhal.core.gaps.StreamGap).
+
 A reconfiguration restarts the chip's stream with a new phase, so it ends a *segment*: the
 slots of the configured period between the last valid frame before it and the first one after
 are counted lost (``reset``) although the chip, being reset, produced no frames of the stream
@@ -41,12 +44,22 @@ from __future__ import annotations
 
 from collections import Counter
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 from imuhal.core.samples import Quantity, Sample, SampleFlag
 
 CAUSES: tuple[str, ...] = ("fifo_overflow", "host_stall", "reset", "bus_error", "stale",
                            "flagged", "missed")
 """Loss causes, weightiest first: a gap is charged to the first one seen in it."""
+
+
+class Loss(NamedTuple):
+    """Frames counted lost just before a delivered frame (what becomes a StreamGap)."""
+
+    frames: int
+    cause: str
+    last_ns: int
+    """The time stamp of the frame delivered before the loss."""
 
 
 @dataclass
@@ -95,18 +108,22 @@ class FrameLedger:
             return list(self.segments)
         return [*self.segments, (self._segment_first_ns, self.last_ns, self._segment_produced)]
 
-    def observe(self, sample: Sample) -> None:
-        """A sample of the device as the pipeline hands it out (flags final)."""
+    def observe(self, sample: Sample) -> Loss | None:
+        """A sample of the device as the pipeline hands it out (flags final); returns the
+        frames counted lost just before it (a valid frame of the accounted channel after a
+        gap), else None."""
         if sample.channel is not self.channel:
-            return
+            return None
         if not sample.valid:
             self.note("stale" if sample.flags & SampleFlag.STALE else "flagged")
-            return
+            return None
+        loss = None
         if self.last_ns is not None:
             periods = round((sample.t_ns - self.last_ns) / self.period_ns)
             if periods > 1:
                 cause = next((c for c in CAUSES if c in self._seen), "missed")
                 self.lost[cause] += periods - 1
+                loss = Loss(periods - 1, cause, self.last_ns)
                 if self._segment_first_ns is not None:
                     self._segment_produced += periods - 1
         else:
@@ -118,6 +135,7 @@ class FrameLedger:
         self.delivered += 1
         self.last_ns = sample.t_ns
         self._seen.clear()
+        return loss
 
     def counts(self) -> dict[str, int]:
         """produced, delivered and ``lost_<cause>`` for every cause (zeros included)."""

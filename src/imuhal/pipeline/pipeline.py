@@ -31,13 +31,14 @@ from imuhal.core.clock import Clock
 from imuhal.core.conventions import get_convention
 from imuhal.core.errors import BusError, ImuhalError, PluginError, ProfileError, RunEnded
 from imuhal.core.frames import FloatArray
+from imuhal.core.gaps import StreamGap
 from imuhal.core.samples import GyroSample, MagSample, Quantity, Sample, SampleFlag
-from imuhal.core.streams import StreamSpec
+from imuhal.core.streams import StreamSpec, TimeSource
 from imuhal.drivers.base import DeviceIdentity, Driver
 from imuhal.estimation.framed import FramedEvent, express
 from imuhal.estimation.outputs import Estimate
 from imuhal.estimation.streams import StreamContradiction
-from imuhal.pipeline.accounting import FrameLedger, describe_frames
+from imuhal.pipeline.accounting import FrameLedger, Loss, describe_frames
 from imuhal.pipeline.board import Board, open_hardware_board
 from imuhal.pipeline.bringup import bring_up
 from imuhal.pipeline.containment import (
@@ -146,6 +147,12 @@ class DeviceRuntime:
     trigger: TimerTrigger | LineTrigger = field(default_factory=TimerTrigger)
     """What says when the device is read (imuhal.pipeline.triggers): its poll grid, or
     the data-ready line its profile names."""
+    buffered: bool = False
+    """Its chip buffers frames the host reads late (a stream stamped on the chip's clock
+    from a FIFO): a late read is then no loss (``Pipeline._note_late``)."""
+    edges_ns: list[int] = field(default_factory=list)
+    """Data-ready edges taken since the driver's last poll, handed to it at the next
+    (``Driver.data_ready``, within the driver's containment)."""
     isolated: bool = False
     """Its driver overran a call's deadline or kept failing: never polled again."""
 
@@ -499,6 +506,7 @@ class Pipeline:
             return
         dev.streams = streams
         dev.spec_of = {spec.quantity: spec for spec in reversed(streams)}
+        dev.buffered = any(spec.time_source in BUFFERED_SOURCES for spec in streams)
         for runtime in self.estimators:
             if runtime.inputs is None or dev.name in runtime.inputs:
                 self._bind(runtime)
@@ -611,10 +619,7 @@ class Pipeline:
             due_ns = t_ns
             t_ns = self._before_poll(t_ns, name)
             dev = self.devices[name]
-            if dev.ledger is not None and \
-                    max(t_ns, self._span_ns[1]) - due_ns > dev.ledger.period_ns // 2:
-                # the host came late (this device's stall, or another's slow poll)
-                dev.ledger.note("host_stall")
+            self._note_late(dev, due_ns, t_ns)
             self._span_ns[1] = max(t_ns, self._span_ns[1])
             frames, next_ns = self._contained_service(dev, t_ns)
             if dev.ledger is not None:
@@ -624,8 +629,24 @@ class Pipeline:
             yield from self._hand_out(dev, frames)
         if end is not None:
             self.clock.sleep_until(end)
+            yield from self._drain(end)
         if self._fusion:
             yield from self._fuse(before_ns=None)
+
+    def _drain(self, t_ns: int) -> Iterator[Sample]:
+        """The run ends at ``t_ns``: what each driver read and still holds
+        (``Driver.drain``: FIFO frames waiting for their time stamps) is handed out, so
+        nothing read is lost uncounted."""
+        for dev in self.devices.values():
+            if not dev.present or dev.isolated or dev.needs_recovery:
+                continue
+            try:
+                held = dev.driver.drain(t_ns)
+            except Exception as exc:  # a driver plugin's bug is its device's alone
+                self._driver_failed(dev, t_ns, exc)
+                continue
+            if held:
+                yield from self._hand_out(dev, _frames(held))
 
     def _frames_of(self, dev: DeviceRuntime, blocks: list[Block]) -> Iterator[Sample]:
         """Blocks of several frames (a FIFO read) through the steps at once, their frames
@@ -651,6 +672,17 @@ class Pipeline:
                 yield self._process_one(dev, sample)
         elif frames:
             yield from self._frames_of(dev, frames)
+
+    def _note_late(self, dev: DeviceRuntime, due_ns: int, t_ns: int) -> None:
+        """A read at ``t_ns`` that was due at ``due_ns``: more than half a frame period late
+        (this device's stall, or another's slow poll) it may have cost frames, a cause the
+        ledger charges them to; not for a chip that buffers its frames (a FIFO read on its
+        own clock), where a late read loses nothing until the FIFO overflows, a cause of
+        its own."""
+        ledger = dev.ledger
+        if ledger is not None and not dev.buffered and \
+                max(t_ns, self._span_ns[1]) - due_ns > ledger.period_ns // 2:
+            ledger.note("host_stall")
 
     def _superseded(self, name: str, t_ns: int) -> bool:
         """A popped deadline that a read on an edge replaced (the heap keeps the old entry);
@@ -689,14 +721,13 @@ class Pipeline:
             t_ns = self._before_poll(due_ns, name)
             edges += self._waiter.take(name)  # those that came while the host was late
             edge = trigger.took(edges)
+            dev.edges_ns += trigger.taken_ns  # to the driver with its next poll
             if edge is None:  # fewer edges than make a read: wait for more
                 dev.next_poll_ns = trigger.watchdog_at_ns
                 heapq.heappush(self._schedule(), (dev.next_poll_ns, self._device_rank[name],
                                                   name))
                 continue
-            if dev.ledger is not None and \
-                    max(t_ns, self._span_ns[1]) - due_ns > dev.ledger.period_ns // 2:
-                dev.ledger.note("host_stall")
+            self._note_late(dev, due_ns, t_ns)
             self._span_ns[1] = max(t_ns, self._span_ns[1])
             samples, next_ns = self._contained_service(dev, edge.t_ns)
             if dev.ledger is not None:
@@ -790,6 +821,9 @@ class Pipeline:
         kept as the readings; one with several readings of a stream (a FIFO read) is
         grouped into blocks (imuhal.core.blocks.blocks_of)."""
         driver = dev.driver
+        if dev.edges_ns:
+            driver.data_ready(dev.edges_ns)
+            dev.edges_ns = []
         if dev.own_blocks and driver.builds_blocks:
             polled = driver.poll_blocks(t_ns)
             blocks = polled.blocks
@@ -797,10 +831,7 @@ class Pipeline:
                 return _Readings(b.samples()[0] for b in blocks), polled.next_poll_ns
             return blocks, polled.next_poll_ns
         result = driver.poll(t_ns)
-        samples = result.samples
-        if len(samples) < 2 or len({type(s) for s in samples}) == len(samples):
-            return _Readings(samples), result.next_poll_ns
-        return blocks_of(samples), result.next_poll_ns
+        return _frames(result.samples), result.next_poll_ns
 
     def _after_bus_error(self, dev: DeviceRuntime, t_ns: int) -> int:
         """Recovery in proportion: a transfer that fails after a good poll is most likely a
@@ -925,7 +956,9 @@ class Pipeline:
         else:
             dev.last_valid_ns[channel] = sample.t_ns
         if dev.ledger is not None:
-            dev.ledger.observe(sample)
+            loss = dev.ledger.observe(sample)
+            if loss is not None:
+                self._gap(dev, sample.t_ns, loss)
         if not self.calibrated:
             return sample
         if dev.mag_learner is not None and isinstance(sample, MagSample):
@@ -956,8 +989,19 @@ class Pipeline:
                     self._count_flags(dev, sample)
         if dev.ledger is not None:
             for sample in block.samples():
-                dev.ledger.observe(sample)
+                loss = dev.ledger.observe(sample)
+                if loss is not None:
+                    self._gap(dev, sample.t_ns, loss)
         return self._to_body(dev, block) if self.calibrated else block
+
+    def _gap(self, dev: DeviceRuntime, t_ns: int, loss: Loss) -> None:
+        """Frames counted lost before ``dev``'s frame at ``t_ns``: a StreamGap queued for the
+        estimators that take it, ahead of that frame (imuhal.core.gaps)."""
+        if self.calibrated and self.estimators and self.router.takes(dev.name, StreamGap):
+            assert dev.ledger is not None
+            self._fusion.append(StreamGap(t_ns=t_ns, device=dev.name,
+                                          stream=dev.ledger.channel, frames=loss.frames,
+                                          last_ns=loss.last_ns, cause=loss.cause))
 
     def _to_body(self, dev: DeviceRuntime, block: Block) -> Block:
         """A checked block calibrated and rotated into the body frame; its fusable frames
@@ -1136,6 +1180,18 @@ class Pipeline:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+BUFFERED_SOURCES = frozenset({TimeSource.CHIP_CLOCK, TimeSource.CHIP_FIFO})
+"""Time sources of streams read from a chip's FIFO."""
+
+
+def _frames(samples: list[Sample]) -> _Readings | list[Block]:
+    """A poll's samples as the pipeline hands them out: readings of different streams (a
+    register poll) as they are, several of one stream (a FIFO read) as blocks."""
+    if len(samples) < 2 or len({type(s) for s in samples}) == len(samples):
+        return _Readings(samples)
+    return blocks_of(samples)
 
 
 def _waiter_of(board: Board, clock: Clock, lines: dict[str, TriggerLine],

@@ -208,6 +208,11 @@ class LineTrigger:
         self.watchdog_at_ns = 0
         """When the watchdog fires unless an edge comes first."""
         self._last_seqno = 0
+        self._last_edge_ns: int | None = None
+        self.taken_ns: list[int] = []
+        """The instants of the edges of the latest take, oldest first, with those the kernel
+        numbered but did not queue filled in evenly between their neighbours: one per
+        sample the chip produced (what a driver stamps buffered frames with)."""
         self.edges = 0
         """Edges taken from the line."""
         self.reads = 0
@@ -240,9 +245,17 @@ class LineTrigger:
         """Count ``edges`` (oldest first, at least one); returns the newest when they make
         a read (``edges_per_read`` reached: the read's samples carry its time), else None.
         Edges bring a fallen-back line back and restart the watchdog."""
+        self.taken_ns = []
         for edge in edges:
-            self.lost_edges += max(0, edge.seqno - self._last_seqno - 1)
+            missing = max(0, edge.seqno - self._last_seqno - 1)
+            self.lost_edges += missing
+            if missing and self._last_edge_ns is not None:
+                step = (edge.t_ns - self._last_edge_ns) / (missing + 1)
+                self.taken_ns += [round(self._last_edge_ns + (i + 1) * step)
+                                  for i in range(missing)]
+            self.taken_ns.append(edge.t_ns)
             self._last_seqno = edge.seqno
+            self._last_edge_ns = edge.t_ns
         self.edges += len(edges)
         if not self.on_line:
             self.on_line = True
