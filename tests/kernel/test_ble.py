@@ -37,7 +37,7 @@ import struct
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -49,8 +49,10 @@ from imuhal.sinks.flight.ble import ESS_PRESSURE, ESS_SERVICE, NUS_SERVICE, NUS_
 HERE = Path(__file__).resolve().parent
 BOARD = HERE / "data" / "ble-vario.yaml"
 PERIPHERAL, CENTRAL = "hci0", "hci1"
-LISTEN_S = 8.0
-"""How long the central listens to the notifications."""
+LISTEN_MAX_S = 90.0
+"""How long the central listens at most, waiting for MIN_EACH of each sentence."""
+MIN_EACH = 20
+"""Sentences of each kind the central needs to hear (2 s of them at 10 Hz)."""
 SENTENCE_HZ = 10.0
 
 BLUETOOTHD_CONFIG = """[General]
@@ -89,23 +91,40 @@ def _program(name: str, package: str) -> str:
     return found
 
 
-def _wait(what: str, ready: object, timeout_s: float, logs: list[Path]) -> None:
+def _wait(what: str, ready: Callable[[], bool], timeout_s: float, logs: list[Path]) -> None:
     deadline = time.monotonic() + timeout_s
-    while not ready():  # type: ignore[operator]
+    while not ready():
         if time.monotonic() > deadline:
             raise AssertionError(f"{what} not ready within {timeout_s:.0f} s\n" + _tails(logs))
         time.sleep(0.1)
 
 
 def _tails(logs: list[Path]) -> str:
-    """The first and last lines of each log (start-up problems come first)."""
+    """The first and last lines of each log (start-up problems come first), then the last
+    of the kernel's messages (with the Bluetooth core's debug lines, see _kernel_debug)."""
     out = []
     for log in logs:
         if log.exists():
             lines = log.read_text(errors="replace").splitlines()
             shown = lines if len(lines) <= 30 else [*lines[:10], "...", *lines[-20:]]
             out.append(f"--- {log.name}:\n" + "\n".join(shown))
+    kernel = subprocess.run(["dmesg"], capture_output=True, text=True, check=False)
+    out.append("--- kernel (dmesg, last 40 lines):\n"
+               + "\n".join(kernel.stdout.splitlines()[-40:]))
     return "\n".join(out)
+
+
+def _kernel_debug(on: bool) -> None:
+    """The kernel Bluetooth core's pr_debug lines (HCI, L2CAP, SMP: what a failed link shows
+    only there) on or off, through dynamic debug (CONFIG_DYNAMIC_DEBUG, debugfs)."""
+    control = Path("/sys/kernel/debug/dynamic_debug/control")
+    if not control.parent.parent.is_dir():
+        return
+    if not control.exists():
+        subprocess.run(["mount", "-t", "debugfs", "none", "/sys/kernel/debug"],
+                       capture_output=True, check=False)
+    if control.exists():
+        control.write_text(f"file net/bluetooth/* {'+' if on else '-'}p\n")
 
 
 @dataclass
@@ -239,6 +258,7 @@ def bluez(tmp_path: Path) -> Iterator[BlueZ]:
     state.mkdir()
     address = f"unix:path={socket}"
     stack = BlueZ(dict(os.environ, DBUS_SYSTEM_BUS_ADDRESS=address), tmp_path)
+    _kernel_debug(True)
     try:
         stack.start("dbus-daemon", [dbus_daemon, f"--config-file={config}", "--nofork",
                                     "--nopidfile"])
@@ -258,6 +278,7 @@ def bluez(tmp_path: Path) -> Iterator[BlueZ]:
         yield stack
     finally:
         stack.stop()
+        _kernel_debug(False)
 
 
 @dataclass
@@ -293,9 +314,15 @@ async def _central(stack: BlueZ, timeout_s: float) -> Heard:
     print(f"central: {device} connected; discovering", file=sys.stderr, flush=True)
     async with BleakClient(device, timeout=timeout_s, bluez={"adapter": CENTRAL}) as client:
         services = {s.uuid: {c.uuid for c in s.characteristics} for s in client.services}
+        _kernel_debug(False)  # the link is up: its debug lines no longer needed
         await client.start_notify(NUS_TX, lambda _, data: tx.append((time.monotonic(),
                                                                      bytes(data))))
-        await asyncio.sleep(LISTEN_S)
+        # until MIN_EACH of each kind: the emulated guest on a busy host keeps real time
+        # only loosely, so the listening is counted in sentences, not seconds
+        started = time.monotonic()
+        while (b"".join(d for _, d in tx).count(b"\r\n") < 2 * MIN_EACH + 2
+               and time.monotonic() - started < LISTEN_MAX_S):
+            await asyncio.sleep(0.5)
         await client.stop_notify(NUS_TX)
         pressure = bytes(await client.read_gatt_char(ESS_PRESSURE))
         # no automatic reconnection, so that bleak's disconnect can end the link
@@ -349,13 +376,18 @@ def test_a_bleak_central_reads_imuhals_sentences_and_pressure_through_bluez(
     heads = [read_sentence(line)[0] for _, line in sentences]  # every checksum valid
     assert set(heads) == {"LK8EX1", "LXWP0"}
     # what was heard, for the docs' figures (shown by pytest -rA)
+    listened_s = heard.tx[-1][0] - heard.tx[0][0]
     print(f"central: {len(heard.tx)} notifications, {len(sentences)} sentences in "
-          f"{LISTEN_S:.0f} s", file=sys.stderr)
+          f"{listened_s:.1f} s", file=sys.stderr)
     for head in ("LK8EX1", "LXWP0"):
         times = [t for (t, _), h in zip(sentences, heads, strict=True) if h == head]
-        print(f"central: {head} x {len(times)} at {_rate_hz(times):.2f} Hz", file=sys.stderr)
-        assert len(times) >= LISTEN_S * SENTENCE_HZ / 2
-        assert 0.7 * SENTENCE_HZ <= _rate_hz(times) <= 1.3 * SENTENCE_HZ
+        print(f"central: {head} x {len(times)} at {_rate_hz(times):.2f} Hz (wall clock)",
+              file=sys.stderr)
+        assert len(times) >= MIN_EACH
+        # never faster than the 10 Hz cadence (no sentence sent twice); slower is the
+        # emulated guest falling behind real time (the cadence in the run's own time is
+        # tests/sinks/test_ble_output.py's)
+        assert _rate_hz(times) <= 1.3 * SENTENCE_HZ
     lxwp0 = [read_lxwp0(line) for _, line in sentences if line.startswith("$LXWP0")]
     assert all(s["vario_m_s"] is not None and s["pressure_altitude_m"] is not None
                for s in lxwp0)
