@@ -1,18 +1,21 @@
-"""MQTT load: many emulated boards publishing into one broker at once (plain script; not
+"""MQTT load: many recorded boards replayed into one broker at once (plain script; not
 collected by pytest).
 
-Run:  .venv/bin/python tests/benchmarks/mqtt_load.py [--boards 20] [--duration 60]
-      [--decimate PATTERN:N ...]
+Run:  nice -n 10 .venv/bin/python tests/benchmarks/mqtt_load.py [--boards 20] [--duration 60]
+      [--recordings DIR] [--decimate PATTERN:N ...]
 
-Starts a mosquitto broker on a loopback port, a paho subscriber to ``imuhal/#`` in this
-process, and ``--boards`` ``imuhal run`` processes: the seed GPS vario emulated in real time,
-each with its own seed, board name (topic), client id and queue file, decimated to a fleet
-telemetry rate (default ``imu/*:50 mag/*:50 ahrs/*:18 baro/*:9 vario/*:9``: about 45 messages
-a second per board, attitude at 10 Hz, pressure, temperature and climb at 5 Hz, every GNSS
-fix). It
+First it records ``--boards`` flights (``imuhal run --record``: the seed GPS vario emulated
+flying ``thermal``, each with its own seed, two at a time, not paced) into ``--recordings``
+(kept, and reused when they are already there), or a temporary folder. Then it starts a
+mosquitto broker on a loopback port, a paho subscriber to ``imuhal/#`` in this process, and
+one ``imuhal replay --realtime --mqtt`` process per recording at once: each replays its
+board's recorded bus transactions through the drivers and estimators at the recorded pace,
+with its own board name (topic), client id and queue file, decimated to a fleet telemetry
+rate (default ``imu/*:50 mag/*:50 ahrs/*:18 baro/*:9 vario/*:9``: about 45 messages a second
+per board, attitude at 10 Hz, pressure, temperature and climb at 5 Hz, every GNSS fix). It
 reports the messages per second the subscriber received while every board was running, the
 end-to-end latency (the event handed to the sink, ``unix_s``, to its receipt by the
-subscriber; one clock), and whether every published message (each run's summary) arrived
+subscriber; one clock), and whether every published message (each replay's summary) arrived
 exactly once and in order per stream. Exit 1 when one did not.
 """
 
@@ -39,38 +42,60 @@ def _published(stderr: str) -> int:
     return int(line.split("published", 1)[1].split(",", 1)[0])
 
 
+def record(folder: Path, boards: int, duration_s: float) -> list[Path]:
+    """One recording per board (seeds 1..boards), made two at a time; existing ones kept."""
+    profile = str(bundled_profiles()["seed-gps-vario.yaml"])
+    imuhal = str(Path(sys.executable).with_name("imuhal"))
+    folder.mkdir(parents=True, exist_ok=True)
+    paths = [folder / f"board-{i:02d}.imurec" for i in range(boards)]
+    todo = [(i, p) for i, p in enumerate(paths) if not p.exists()]
+    for start in range(0, len(todo), 2):
+        procs = [subprocess.Popen([imuhal, "run", profile, "--emulate", "thermal", "--quiet",
+                                   "--skip-calibration", "--seed", str(i + 1), "--duration",
+                                   str(duration_s), "--record", str(p)],
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                 for i, p in todo[start:start + 2]]
+        for proc in procs:
+            err = proc.communicate()[1]
+            if proc.returncode != 0:
+                raise SystemExit(f"recording failed: {err.strip().splitlines()[-1:]}")
+    return paths
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--boards", type=int, default=20)
-    ap.add_argument("--duration", type=float, default=60.0, help="each run's length, s")
+    ap.add_argument("--duration", type=float, default=60.0, help="each recording's length, s")
+    ap.add_argument("--recordings", type=Path, metavar="DIR",
+                    help="where the recordings are made, or found (default: a temporary folder)")
     ap.add_argument("--decimate", action="append", metavar="PATTERN:N",
                     help="the sinks' decimate setting (default imu/*:50 mag/*:50 ahrs/*:18 "
                     "baro/*:9 vario/*:9)")
     args = ap.parse_args()
     decimate = ",".join(args.decimate or ["imu/*:50", "mag/*:50", "ahrs/*:18", "baro/*:9",
                                           "vario/*:9"])
-    profile = str(bundled_profiles()["seed-gps-vario.yaml"])
     imuhal = str(Path(sys.executable).with_name("imuhal"))
-    with tempfile.TemporaryDirectory(prefix="imuhal-mqtt-load-") as tmp, \
-            Mosquitto(Path(tmp) / "broker") as broker:
-        sub = Subscriber(broker.port)
-        sub.start()
-        procs = []
-        for i in range(args.boards):
-            cmd = [imuhal, "run", profile, "--emulate", "thermal", "--realtime", "--quiet",
-                   "--seed", str(i + 1), "--duration", str(args.duration),
-                   "--mqtt", broker.url, "--sink-set", f"mqtt.board=board-{i:02d}",
-                   "--sink-set", f"mqtt.queue_path={tmp}/queue-{i:02d}.sqlite",
-                   "--sink-set", f"mqtt.decimate={decimate}"]
-            procs.append(subprocess.Popen(cmd, stdout=subprocess.DEVNULL,
-                                          stderr=subprocess.PIPE, text=True))
-        started = time.time()
-        errs = [p.communicate()[1] for p in procs]
-        ended = time.time()
-        failed = [i for i, p in enumerate(procs) if p.returncode != 0]
-        published = sum(_published(e) for i, e in enumerate(errs) if i not in failed)
-        got = sub.wait_for(published, timeout_s=120)
-        sub.stop()
+    with tempfile.TemporaryDirectory(prefix="imuhal-mqtt-load-") as tmp:
+        recordings = record(args.recordings or Path(tmp) / "recordings", args.boards,
+                            args.duration)
+        with Mosquitto(Path(tmp) / "broker") as broker:
+            sub = Subscriber(broker.port)
+            sub.start()
+            procs = []
+            for i, recording in enumerate(recordings):
+                cmd = [imuhal, "replay", str(recording), "--realtime", "--quiet",
+                       "--mqtt", broker.url, "--sink-set", f"mqtt.board=board-{i:02d}",
+                       "--sink-set", f"mqtt.queue_path={tmp}/queue-{i:02d}.sqlite",
+                       "--sink-set", f"mqtt.decimate={decimate}"]
+                procs.append(subprocess.Popen(cmd, stdout=subprocess.DEVNULL,
+                                              stderr=subprocess.PIPE, text=True))
+            started = time.time()
+            errs = [p.communicate()[1] for p in procs]
+            ended = time.time()
+            failed = [i for i, p in enumerate(procs) if p.returncode != 0]
+            published = sum(_published(e) for i, e in enumerate(errs) if i not in failed)
+            got = sub.wait_for(published, timeout_s=120)
+            sub.stop()
     load1, _, _ = os.getloadavg()
     per_topic = deduplicated(got)
     kept = sum(len(v) for v in per_topic.values())
@@ -87,9 +112,10 @@ def main() -> int:
     window = [m for m in got if w0 <= m.received_unix_s <= w1]
     rate = len(window) / (w1 - w0) if w1 > w0 else float("nan")
     latency = sorted(m.received_unix_s - m.payload["unix_s"] for m in window)
-    print(f"{args.boards} boards (seed GPS vario emulated in real time, {args.duration:.0f} s "
-          f"each, decimate {decimate}) into mosquitto on loopback; {os.cpu_count()} CPUs, "
-          f"load average {load1:.1f} at the end; processes ran {ended - started:.1f} s")
+    print(f"{args.boards} recorded boards (seed GPS vario, thermal, {args.duration:.0f} s "
+          f"each) replayed at once in real time, decimate {decimate}, into mosquitto on "
+          f"loopback; {os.cpu_count()} CPUs, load average {load1:.1f} at the end; replays "
+          f"ran {ended - started:.1f} s")
     print(f"received {len(got)} messages ({len(got) - kept} duplicates) of {published} "
           f"published; {'all' if kept == published else 'NOT all'} once, "
           f"{'in order' if in_order else 'OUT OF ORDER'} on {len(per_topic)} topics; "

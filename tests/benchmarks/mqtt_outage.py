@@ -28,25 +28,15 @@ Exit 1 when a check fails.
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import sys
 import tempfile
-import threading
-import time
-from itertools import pairwise
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from tests.support.mosquitto import Mosquitto, Subscriber, deduplicated
-
-from imuhal.emulation import open_emulated
-from imuhal.plugins.manager import load_registry
-from imuhal.profile.bundled import bundled_profiles
-from imuhal.profile.loader import load_profile
-from imuhal.sinks.mqtt import MqttSink
-
-BOARD = "seed-gps-vario"
+from tests.support.mqtt_outage import fly_through_outage
 
 
 def main() -> int:
@@ -59,81 +49,35 @@ def main() -> int:
     ap.add_argument("--queue-max", type=int, default=200_000, help="queue_max_messages")
     args = ap.parse_args()
     args.decimate = args.decimate or ["imu/*:10", "mag/*:10", "ahrs/*:4"]
-    registry = load_registry()
-    profile = load_profile(bundled_profiles()["seed-gps-vario.yaml"], registry)
-    with open_emulated(profile, registry, scenario="thermal") as reference:
-        expected = reference.run(args.duration).samples
-    failures: list[str] = []
-    with tempfile.TemporaryDirectory(prefix="imuhal-mqtt-outage-") as tmp, \
-            Mosquitto(Path(tmp) / "broker") as broker:
-        sub = Subscriber(broker.port)
-        sub.start()
-        sink = MqttSink({"url": broker.url, "board": BOARD, "decimate": args.decimate,
-                         "queue_path": str(Path(tmp) / "queue.sqlite"),
-                         "queue_max_messages": args.queue_max, "close_timeout_s": 120})
-        t0_unix = time.time()
-        up_unix: list[float] = []
-
-        def back_up() -> None:
-            broker.start()
-            up_unix.append(time.time())
-
-        timers = [threading.Timer(args.down_at, broker.stop),
-                  threading.Timer(args.down_at + args.outage, back_up)]
-        with open_emulated(profile, registry, scenario="thermal", realtime=True) as pipeline:
-            for t in timers:
-                t.start()
-            summary = pipeline.run(args.duration, [sink])
-        for t in timers:
-            t.join()
-        counts = summary.sinks["mqtt"]
-        got = sub.wait_for(counts["published"], timeout_s=120)
-        time.sleep(2.0)  # duplicates still on their way
-        got = list(sub.messages)
-        sub.stop()
-    per_topic = deduplicated(got)
-    kept = sum(len(v) for v in per_topic.values())
-    in_order = all([m.payload["seq"] for m in v] == list(range(len(v)))
-                   for v in per_topic.values())
-    imu = per_topic.get(f"imuhal/{BOARD}/imu/accel", [])
-    stamps = [m.payload["unix_s"] for m in imu]
-    gap = max((b - a for a, b in pairwise(stamps)), default=float("nan"))
-    down_unix = t0_unix + args.down_at
-    up = up_unix[0] if up_unix else float("nan")
-    # the backlog: events handed to the sink while the broker was down; drained when the last
-    # of them arrived (they arrive in order, interleaved with the live messages)
-    backlog = [m for v in per_topic.values() for m in v if down_unix <= m.payload["unix_s"] < up]
-    drained_s = (max(m.received_unix_s for m in backlog) - up) if backlog else float("nan")
-    live = [m.received_unix_s - m.payload["unix_s"] for v in per_topic.values() for m in v
-            if m.payload["unix_s"] < down_unix - 1]
-    live.sort()
-
+    with tempfile.TemporaryDirectory(prefix="imuhal-mqtt-outage-") as tmp:
+        run = fly_through_outage(Path(tmp), duration_s=args.duration, down_at_s=args.down_at,
+                                 outage_s=args.outage, decimate=args.decimate,
+                                 queue_max=args.queue_max, receive_timeout_s=120)
+    summary, counts, per_topic = run.summary, run.counts, run.per_topic
+    backlog = run.backlog()
+    drained_s = (max(m.received_unix_s for m in backlog) - run.up_unix_s) if backlog \
+        else float("nan")
+    live = sorted(m.received_unix_s - m.payload["unix_s"] for v in per_topic.values()
+                  for m in v if m.payload["unix_s"] < run.down_unix_s - 1)
     print(f"run {args.duration:.0f} s real time, broker down from {args.down_at:.0f} s for "
-          f"{args.outage:.0f} s; mosquitto on loopback; decimate {args.decimate or 'none'}")
+          f"{args.outage:.0f} s; mosquitto on loopback; decimate {args.decimate or 'none'}; "
+          f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f} at the end")
     print(f"pipeline: {summary.simulated_s:.1f} s in {summary.wall_s:.1f} s wall; samples "
-          f"{'equal to' if summary.samples == expected else 'DIFFERENT FROM'} the run "
-          f"without MQTT ({sum(expected.values())}); largest gap between events handed to "
-          f"the sink {gap * 1000:.0f} ms")
+          f"{'equal to' if summary.samples == run.expected_samples else 'DIFFERENT FROM'} "
+          f"the run without MQTT ({sum(run.expected_samples.values())}); largest gap between "
+          f"events handed to the sink {run.largest_gap_s() * 1000:.0f} ms")
     print("sink: " + ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in counts.items()))
-    print(f"receiver: {len(got)} messages, {len(got) - kept} duplicates dropped by "
-          f"(topic, run, seq), {kept} kept of {counts['published']} published, "
-          f"{'in order' if in_order else 'OUT OF ORDER'} on all {len(per_topic)} topics")
+    print(f"receiver: {len(run.received)} messages, {len(run.received) - run.kept} "
+          f"duplicates dropped by (topic, run, seq), {run.kept} kept of "
+          f"{counts['published']} published, {'in order' if run.in_order else 'OUT OF ORDER'}"
+          f" on all {len(per_topic)} topics")
     print(f"backlog: the {len(backlog)} messages of the outage all arrived {drained_s:.1f} s "
           f"after the broker came back (drain_rate_msg_s 2000, live messages meanwhile)")
     if live:
         print(f"latency outside the outage (publish to receipt): median "
               f"{statistics.median(live) * 1000:.1f} ms, p99 "
               f"{live[int(0.99 * (len(live) - 1))] * 1000:.1f} ms over {len(live)} messages")
-    if summary.samples != expected:
-        failures.append("samples differ from the run without MQTT")
-    if kept != counts["published"] or not in_order:
-        failures.append("not every message arrived once and in order")
-    if counts["dropped"] or counts["dropped_handoff"] or counts["left"]:
-        failures.append("messages were dropped or left")
-    if counts["queue_peak"] > args.queue_max:
-        failures.append("the queue exceeded its bound")
-    if not gap < 1.0:
-        failures.append(f"the pipeline paused {gap:.1f} s")
+    failures = run.failures()
     for f in failures:
         print(f"FAILED: {f}")
     return 1 if failures else 0

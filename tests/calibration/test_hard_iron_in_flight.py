@@ -139,6 +139,13 @@ def test_the_uncalibrated_gps_vario_learns_its_hard_iron_in_two_minutes_of_therm
     assert np.allclose(applied.mag.hard_iron_ut, reference.hard_iron_ut, atol=1.0)
 
 
+def _doc_line(start: str) -> str:
+    """The line of docs/calibration.md that starts with ``start`` (indentation aside)."""
+    page = Path(__file__).resolve().parents[2] / "docs" / "calibration.md"
+    lines = [ln.strip() for ln in page.read_text(encoding="utf-8").splitlines()]
+    return next(ln for ln in lines if ln.startswith(start))
+
+
 def _learning_profile(tmp_path: Path) -> Path:
     text = (default_profile_path().parent / "seed-gps-vario.yaml").read_text(encoding="utf-8")
     path = tmp_path / "gps-vario.yaml"
@@ -152,8 +159,10 @@ def test_imuhal_run_saves_the_learned_hard_iron_into_a_copy_of_the_profile(
     profile, saved = _learning_profile(tmp_path), tmp_path / "learned.yaml"
     assert main(["run", str(profile), "--emulate", "thermal", "--duration", "90", "--quiet",
                  "--skip-calibration", "--save-learned", str(saved)]) == 0
-    err = capsys.readouterr().err
-    assert "hard iron learned in flight, applied" in err
+    printed = {line.strip() for line in capsys.readouterr().err.splitlines()}
+    # docs/calibration.md quotes this run's summary line and its note, figures included
+    assert _doc_line("mag: hard iron learned in flight, applied") in printed
+    assert _doc_line("note: device 'imu' (mpu9250) has no accelerometer") in printed
     mag = load_profile(saved, load_registry()).devices["mag"].calibration
     assert mag is not None and mag.mag is not None and mag.mag.procedure == PROCEDURE
     assert "mag_in_flight" in profile.read_text(encoding="utf-8")  # the input is untouched

@@ -9,12 +9,14 @@ tests/benchmarks/fuzz_inputs.py.
 from __future__ import annotations
 
 import math
+import time
 from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from tests.support.fuzzing import (
+    Hang,
     damaged_recordings,
     gnss_streams,
     hostile_csv,
@@ -22,6 +24,7 @@ from tests.support.fuzzing import (
     recording_chunks,
     recording_of,
     run_cli,
+    time_limit,
     ubx_frame,
     write,
 )
@@ -211,3 +214,16 @@ def test_a_ubx_frame_whose_body_does_not_fit_its_message_is_a_decode_error() -> 
     body made pyubx2 index past it (IndexError: exit 70 in a run)."""
     with pytest.raises(DecodeError):
         decode_ubx(b"\xb5b\n1\x02\x00\x00\x01>:")
+
+
+def test_the_hang_guard_stops_a_spinning_case_by_its_cpu_time() -> None:
+    with pytest.raises(Hang, match="CPU"), time_limit(0.2, wall_seconds=30.0):
+        while True:
+            pass
+
+
+def test_the_hang_guard_stops_a_blocked_case_by_the_wall_clock() -> None:
+    started = time.monotonic()
+    with pytest.raises(Hang), time_limit(30.0, wall_seconds=0.3):
+        time.sleep(30.0)
+    assert time.monotonic() - started < 10.0

@@ -105,6 +105,13 @@ MISTAKES: dict[str, Mistake] = {
                                             "nodir"),
     "replay: --samples without --output": m("replay rec.imr --samples --quiet", "--output"),
     "replay: a CSV is no recording": m("replay imu.csv", "imu.csv"),
+    "replay: a sink setting for no sink": m("replay rec.imr --quiet --sink-set mqtt.x=1",
+                                            "--sink-set"),
+    "replay: a sink no plugin registered": m("replay rec.imr --quiet --sink kafka", "kafka"),
+    "estimate: a sink setting for no sink": m(
+        "estimate madgwick log.csv -o o.csv --sink-set mqtt.x=1", "--sink-set"),
+    "estimate: publishing a wide CSV": m("estimate madgwick imu.csv -o o.csv --sink mqtt",
+                                         "--sink mqtt"),
     "replay: binary garbage": m("replay garbage.bin", "garbage.bin"),
     # run
     "run: recording over the log": m("run --duration 0.2 --quiet --output o.csv --record o.csv",

@@ -10,6 +10,7 @@ import pytest
 import yaml
 
 from imuhal.cli.main import main
+from imuhal.sinks.foxglove_live import FoxgloveSettings
 from imuhal.sinks.mavlink.settings import MavlinkSettings
 from imuhal.sinks.ros.settings import RosSettings
 
@@ -20,11 +21,21 @@ def _blocks(lang: str) -> list[str]:
     return re.findall(rf"```{lang}\n(.*?)```", DOC.read_text(encoding="utf-8"), re.S)
 
 
-def test_the_ros_and_mavlink_sections_shown_are_valid_profile_sections() -> None:
-    sections = {k: v for block in _blocks("yaml") for k, v in yaml.safe_load(block).items()}
-    assert set(sections) == {"ros", "mavlink", "outputs"}  # outputs.mqtt: test_outputs_mqtt_doc
-    RosSettings.model_validate(sections["ros"])
+def test_the_mcap_mavlink_and_foxglove_sections_shown_are_valid_profile_sections() -> None:
+    blocks = [yaml.safe_load(block) for block in _blocks("yaml")]
+    assert all(set(b) == {"outputs"} for b in blocks)  # every output under outputs:
+    sections = {k: v for b in blocks for k, v in b["outputs"].items()}
+    assert set(sections) == {"mcap", "mavlink", "mqtt", "foxglove"}  # mqtt: its own test
+    RosSettings.model_validate(sections["mcap"])
     MavlinkSettings.model_validate(sections["mavlink"])
+    FoxgloveSettings.model_validate(sections["foxglove"])
+
+
+def test_the_foxglove_settings_table_lists_every_setting_and_no_other() -> None:
+    text = DOC.read_text(encoding="utf-8")
+    section = text[text.index("\n## Foxglove (live)\n"):text.index("\n## MAVLink\n")]
+    table = re.findall(r"^\| `([a-z_]+)` \|", section, re.M)
+    assert table == list(FoxgloveSettings.model_fields)
 
 
 @pytest.mark.parametrize("command", ["run", "replay", "estimate"])

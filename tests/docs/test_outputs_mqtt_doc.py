@@ -26,7 +26,7 @@ def test_the_profile_section_shown_loads_with_the_bundled_board() -> None:
     assert len(block) == 1 and block[0].startswith("outputs:\n  mqtt:")
     board = bundled_profiles()["seed-gps-vario.yaml"].read_text(encoding="utf-8")
     profile = parse_profile(board + block[0], "seed-gps-vario.yaml + docs", load_registry())
-    MqttSettings.model_validate(profile.outputs["mqtt"])
+    MqttSettings.model_validate(profile.outputs.plugin_sections()["mqtt"])
 
 
 def test_the_settings_table_lists_every_setting_and_no_other() -> None:

@@ -15,6 +15,8 @@ from pathlib import Path
 import pytest
 from tests.support.kernels import cli_env
 
+from imuhal_filters.common.fast import Kernel, inline_kernel
+
 pytest.importorskip("numba", reason="the cache checked here is numba's")
 
 HELPER = '''
@@ -65,3 +67,26 @@ def test_a_cached_jit_kernel_is_reused_until_a_helper_in_another_module_changes(
     assert _run(tmp_path) == (4.0, 1)   # loaded from the cache
     helper.write_text(HELPER.format(factor=3.0))  # the kernel's own file is untouched
     assert _run(tmp_path) == (6.0, 0)   # compiled afresh, not the cached 4.0
+
+
+def test_an_inlined_helper_is_cached_and_reread_like_any_other(tmp_path: Path) -> None:
+    (tmp_path / "jitcase_kernel.py").write_text(KERNEL)
+    helper = tmp_path / "jitcase_helper.py"
+    inlined = HELPER.replace("import jit", "import inline_kernel, jit").replace(
+        "scale = jit(_scale)", "scale = inline_kernel(jit(_scale))")
+    helper.write_text(inlined.format(factor=2.0))
+    assert _run(tmp_path) == (4.0, 0)
+    assert _run(tmp_path) == (4.0, 1)
+    helper.write_text(inlined.format(factor=3.0))
+    assert _run(tmp_path) == (6.0, 0)
+
+
+def test_only_a_helper_kernel_can_be_inlined() -> None:
+    def _double(x: float) -> float:
+        return 2.0 * x
+
+    called_from_python = Kernel(_double, "f8", {"x": "f8"})  # not registered: no jit()
+    with pytest.raises(TypeError, match="called from Python"):
+        inline_kernel(called_from_python)
+    helper = Kernel(_double)
+    assert inline_kernel(helper).inline == "always"

@@ -67,6 +67,18 @@ def test_a_value_the_chip_cannot_do_is_rejected(validator: Any) -> None:
     assert validator.is_valid(doc)
 
 
+def test_each_output_section_is_checked_against_its_output(validator: Any) -> None:
+    doc = _gy91()
+    doc["outputs"] = {"mcap": {"frame_id": "imu_link"}, "mavlink": {"system_id": 7},
+                      "mqtt": {"board": "glider-7", "decimate": {"imu/*": 10}}}
+    assert validator.is_valid(doc)
+    for wrong in ({"mqtt": {"bord": "glider-7"}},  # a typo in a plugin sink's setting
+                  {"mavlink": {"system_id": 0}},  # a value the built-in output refuses
+                  {"kafka": {}},  # no installed sink of that name
+                  {"ros": {"frame_id": "imu_link"}}):  # the built-in output is mcap
+        assert not validator.is_valid({**doc, "outputs": wrong}), wrong
+
+
 def test_each_device_is_checked_against_the_driver_it_names(validator: Any) -> None:
     doc = _gy91()
     doc["devices"]["baro"]["settings"] = {"gyro_range_dps": 500}  # an MPU-9250 setting

@@ -128,3 +128,41 @@ def test_check_profile_returns_no_problems_for_a_good_file(
 def test_the_yaml_loader_refuses_python_object_tags(registry: Registry) -> None:
     problems = _problems(GOOD + "evil: !!python/object/apply:os.system ['true']\n", registry)
     assert "not allowed" in problems[0] and "python/object" in problems[0]
+
+
+@pytest.mark.parametrize(("old", "new"), [("ros", "mcap"), ("mavlink", "mavlink"),
+                                          ("igc", "igc")])
+def test_a_top_level_output_section_of_old_is_one_error_naming_its_place_under_outputs(
+        old: str, new: str) -> None:
+    from imuhal.plugins.manager import load_registry
+
+    text = (f"schema_version: 1\nname: old\nbuses:\n  spi0: {{kind: spi}}\ndevices:\n"
+            f"  baro: {{driver: ms5611, bus: spi0, address: 0}}\n{old}: {{}}\n")
+    with pytest.raises(ProfileError) as caught:
+        parse_profile(text, "old.yaml", load_registry())
+    assert str(caught.value).splitlines() == [
+        f"old.yaml:7:1: {old}: moved under outputs: write `outputs: {{{new}: ...}}` with the "
+        "same keys (docs/profiles.md)"]
+
+
+def test_each_output_reads_its_section_under_outputs() -> None:
+    from imuhal.plugins.manager import load_registry
+
+    text = ("schema_version: 1\nname: new\nbuses:\n  spi0: {kind: spi}\ndevices:\n"
+            "  baro: {driver: ms5611, bus: spi0, address: 0}\noutputs:\n"
+            "  igc: {pilot: Jane Doe}\n  mcap: {frame_id: imu_link}\n"
+            "  mavlink: {system_id: 7}\n  mqtt: {board: glider-7}\n")
+    outputs = parse_profile(text, "new.yaml", load_registry()).outputs
+    assert (outputs.igc.pilot, outputs.mcap.frame_id, outputs.mavlink.system_id) == (
+        "Jane Doe", "imu_link", 7)
+    assert outputs.plugin_sections() == {"mqtt": {"board": "glider-7"}}
+
+
+def test_a_mistake_in_a_built_in_outputs_section_names_its_key() -> None:
+    from imuhal.plugins.manager import load_registry
+
+    text = ("schema_version: 1\nname: new\nbuses:\n  spi0: {kind: spi}\ndevices:\n"
+            "  baro: {driver: ms5611, bus: spi0, address: 0}\noutputs:\n"
+            "  mavlink: {system_id: 0}\n")
+    with pytest.raises(ProfileError, match=r"outputs\.mavlink\.system_id"):
+        parse_profile(text, "new.yaml", load_registry())

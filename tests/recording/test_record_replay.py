@@ -169,6 +169,18 @@ def test_replay_uses_the_profile_stored_in_the_recording(
     assert "replayed" in capsys.readouterr().err
 
 
+def test_replay_logs_in_the_recorded_profiles_output_frame_as_the_live_run_did(
+        tmp_path: Path) -> None:
+    profile = tmp_path / "board.yaml"
+    profile.write_text(Path("profiles/gy91.yaml").read_text() + "output_frame: enu\n")
+    rec, live, replayed = tmp_path / "run.imurec", tmp_path / "live.csv", tmp_path / "rep.csv"
+    assert main(["run", str(profile), "--emulate", "static", "--duration", "1", "--quiet",
+                 "--record", str(rec), "--output", str(live), "--samples"]) == 0
+    assert main(["replay", str(rec), "--quiet", "--output", str(replayed), "--samples"]) == 0
+    assert "qw_enu" in live.read_text().splitlines()[0]
+    assert replayed.read_text() == live.read_text()
+
+
 def test_a_divergent_replay_is_one_line_and_keeps_the_old_output(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     rec = tmp_path / "run.imurec"

@@ -134,7 +134,8 @@ def test_the_profile_outputs_section_is_checked_by_the_sink_s_own_settings() -> 
     registry = load_registry()
     good = parse_profile(text + "outputs:\n  mqtt:\n    board: glider-7\n"
                          "    decimate: {'imu/*': 10}\n", "p.yaml", registry)
-    assert good.outputs == {"mqtt": {"board": "glider-7", "decimate": {"imu/*": 10}}}
+    assert good.outputs.plugin_sections() == {"mqtt": {"board": "glider-7",
+                                                  "decimate": {"imu/*": 10}}}
     lines = len(text.splitlines())
     with pytest.raises(ProfileError) as info:
         parse_profile(text + "outputs:\n  mqtt:\n    queue_max_messages: 0\n  kafka: {}\n",

@@ -150,6 +150,23 @@ TO_G = -1.0 / STANDARD_GRAVITY_M_S2
 for a compiled step's caller."""
 NO_VECTOR: Vec = (0.0, 0.0, 0.0)
 """What a compiled step gets for an accel or mag it has none of (with its flag False)."""
+KernelReadings = tuple[bool, float, float, float, bool, float, float, float]
+"""A compiled step's readings (common/fast_ahrs.py's step form): ``have_a, ax, ay, az,
+use_m, mx, my, mz``."""
+
+
+def kernel_readings(accel_m_s2: Vec | None, mag: Vec | None, use_mag: bool) -> KernelReadings:
+    """The readings a compiled per-sample step takes: the accelerometer's specific force
+    (m/s^2, body) as the gravity-positive reading (g), the magnetometer field as it is (used
+    only with ``use_mag``); an absent one is zeros with its flag False."""
+    if accel_m_s2 is None:
+        have_a, ax, ay, az = False, 0.0, 0.0, 0.0
+    else:
+        have_a = True
+        ax, ay, az = (accel_m_s2[0] * TO_G, accel_m_s2[1] * TO_G, accel_m_s2[2] * TO_G)
+    if mag is None or not use_mag:
+        return (have_a, ax, ay, az, False, *NO_VECTOR)
+    return (have_a, ax, ay, az, True, *mag)
 
 
 def _linear_accel_ned(q: Quat, f: Vec) -> Vec:

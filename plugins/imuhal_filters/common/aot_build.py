@@ -153,7 +153,7 @@ def build(directory: Path | None = None) -> Built:
 
         def compile_helper(helper: fast.Kernel) -> Any:
             if id(helper) not in helpers:
-                helpers[id(helper)] = numba.njit(nogil=True)(
+                helpers[id(helper)] = numba.njit(nogil=True, inline=helper.inline)(
                     fast.compiled_copy(helper.fn, compile_helper))
             return helpers[id(helper)]
 

@@ -32,7 +32,7 @@ import types
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -124,6 +124,8 @@ class Kernel:
         self.per_sample_step = False
         """Called once per sample (:meth:`per_sample`): compiled only from the extension in
         ``auto`` mode (set by :func:`per_sample_kernel`)."""
+        self.inline: Literal["never", "always"] = "never"
+        """numba's ``inline`` for a helper kernel (:func:`inline_kernel` sets ``always``)."""
         self._modules: list[str] | None = None
         self.args: dict[str, ArgType] | None = None
         if args is not None:
@@ -244,6 +246,19 @@ def per_sample_kernel(kernel: Kernel) -> Kernel:
     return kernel
 
 
+def inline_kernel(kernel: Kernel) -> Kernel:
+    """Mark the helper ``kernel`` to be inlined into its callers (numba's
+    ``inline="always"``: its typed IR is copied into each caller, on the JIT and in the
+    extension), so a kernel split into such helpers compiles as the one function it was. A
+    helper call kept apart passes its arguments and tuples through a call each time: the
+    Freescale kernel's ten per-window helpers cost 9-29 % that way (docs/performance.md).
+    numba cannot inline a helper that calls a closure with ``*args``. Returns ``kernel``."""
+    if kernel.exported:
+        raise TypeError(f"kernel {kernel.name} is called from Python: only a helper inlines")
+    kernel.inline = "always"
+    return kernel
+
+
 def c_array(values: Any) -> np.ndarray:
     """``values`` as a writable C-ordered float64 array (a copy only when needed): what a
     kernel's ``f8[...::1]`` argument takes."""
@@ -335,9 +350,9 @@ def _jitted(kernel: Kernel) -> Callable[..., Any]:
     import numba
 
     fn = compiled_copy(kernel.fn, _jitted)
-    dispatcher = numba.njit(nogil=True)(fn)
     if not kernel.exported:
-        return dispatcher
+        return numba.njit(nogil=True, inline=kernel.inline)(fn)
+    dispatcher = numba.njit(nogil=True)(fn)
     _cache_by_sources(dispatcher, _sources_key(kernel.modules()))
     dispatcher.compile(kernel.signature())
     dispatcher.disable_compile()  # as numba.njit(signature) does: no other signature
@@ -345,9 +360,12 @@ def _jitted(kernel: Kernel) -> Callable[..., Any]:
 
 
 def _sources_key(modules: list[str]) -> str:
+    """The hash of ``modules``' sources and of this module's (how they are compiled, e.g.
+    :func:`inline_kernel`)."""
     from imuhal_filters.common import aot
 
-    return hashlib.sha256(" ".join(aot.source_hash(m) for m in modules).encode()).hexdigest()
+    every = [*modules, __name__]
+    return hashlib.sha256(" ".join(aot.source_hash(m) for m in every).encode()).hexdigest()
 
 
 def _cache_by_sources(dispatcher: Any, sources: str) -> None:

@@ -8,7 +8,9 @@ corrections, magnetic jamming, the inclination tracking and the next process cov
 The matrix products are written out as loops (numba's ``@`` needs scipy's BLAS) and the
 inverse is a Gauss-Jordan with partial pivoting (identity for a singular matrix, as the
 reference); they differ from numpy's BLAS/LAPACK results in the last bits only (the tests
-compare with the Python step to 1e-12).
+compare with the Python step to 1e-12). Each of those blocks is a helper kernel of its own,
+inlined into ``freescale_rows`` (``common.fast.inline_kernel``): split for reading, compiled
+as the one function it was (tests/benchmarks/bench_freescale_split.py compares the two).
 
 ``KERNEL_SETTINGS`` lists the settings the kernel knows: ``batch.py`` uses it only for a
 settings class with no other field, so a behaviour added to the filter later (with its own
@@ -21,7 +23,7 @@ import math
 
 import numpy as np
 
-from imuhal_filters.common.fast import jit
+from imuhal_filters.common.fast import inline_kernel, jit
 from imuhal_filters.common.fast_ahrs import soft_gate_distrust_kernel
 
 KERNEL_SETTINGS = frozenset({
@@ -212,7 +214,7 @@ def _predict(q, b, gyro_window, fast_dt, qm, r_mi):
     matrix(qm, r_mi)
 
 
-predict = jit(_predict)
+predict = inline_kernel(jit(_predict))
 
 
 def _measurement_matrix(c, g0, g1, g2, m0, m1, m2, use_mag, kalman_dt):
@@ -232,7 +234,7 @@ def _measurement_matrix(c, g0, g1, g2, m0, m1, m2, use_mag, kalman_dt):
             c[o + i, (6 if blk == 0 else 9) + i] = 1.0 if blk == 0 else -1.0
 
 
-measurement_matrix = jit(_measurement_matrix)
+measurement_matrix = inline_kernel(jit(_measurement_matrix))
 
 
 def _measure(r_mi, accel_row, mag_row, a_sensor, m_global, use_mag, ned, gravity_positive,
@@ -260,7 +262,7 @@ def _measure(r_mi, accel_row, mag_row, a_sensor, m_global, use_mag, ned, gravity
     return am0, am1, am2
 
 
-measure = jit(_measure)
+measure = inline_kernel(jit(_measure))
 
 
 def _accel_gate_factor(innov, noise, err, factor, gate_sigma, gate_reacquire_s,
@@ -282,7 +284,7 @@ def _accel_gate_factor(innov, noise, err, factor, gate_sigma, gate_reacquire_s,
     return factor
 
 
-accel_gate_factor = jit(_accel_gate_factor)
+accel_gate_factor = inline_kernel(jit(_accel_gate_factor))
 
 
 def _mag_steers(innov, noise, err, factor, use_mag, mag_max_distrust, mag_gate_sigma):
@@ -299,7 +301,7 @@ def _mag_steers(innov, noise, err, factor, use_mag, mag_max_distrust, mag_gate_s
     return mag_steers
 
 
-mag_steers_kernel = jit(_mag_steers)
+mag_steers_kernel = inline_kernel(jit(_mag_steers))
 
 
 def _invert_innovation(innov, noise, factor, use_mag, full_inverse, inv):
@@ -325,7 +327,7 @@ def _invert_innovation(innov, noise, factor, use_mag, full_inverse, inv):
         inverse_or_identity(innov, inv)
 
 
-invert_innovation = jit(_invert_innovation)
+invert_innovation = inline_kernel(jit(_invert_innovation))
 
 
 def _error_vector(k, err, xe, use_mag, mag_steers, field):
@@ -345,7 +347,7 @@ def _error_vector(k, err, xe, use_mag, mag_steers, field):
     return jamming
 
 
-error_vector = jit(_error_vector)
+error_vector = inline_kernel(jit(_error_vector))
 
 
 def _correct(qm, xe, q, b, a_sensor, am0, am1, am2):
@@ -366,7 +368,7 @@ def _correct(qm, xe, q, b, a_sensor, am0, am1, am2):
     a_sensor[0], a_sensor[1], a_sensor[2] = am0 - xe[6], am1 - xe[7], am2 - xe[8]
 
 
-correct = jit(_correct)
+correct = inline_kernel(jit(_correct))
 
 
 def _track_inclination(q, xe, r_mi, m_global, incl, ned, field, max_incl_deg):
@@ -394,7 +396,7 @@ def _track_inclination(q, xe, r_mi, m_global, incl, ned, field, max_incl_deg):
     m_global[2] = sign_down * field * sin_d
 
 
-track_inclination = jit(_track_inclination)
+track_inclination = inline_kernel(jit(_track_inclination))
 
 
 def _next_covariance(c, qw, k, cq, kcq, use_mag, kalman_dt, accel_decay, qw_gyro_offset,
@@ -430,7 +432,7 @@ def _next_covariance(c, qw, k, cq, kcq, use_mag, kalman_dt, accel_decay, qw_gyro
         qw[i, 3 + i] = qw[3 + i, i] = -kalman_dt * qw[3 + i, 3 + i]
 
 
-next_covariance = jit(_next_covariance)
+next_covariance = inline_kernel(jit(_next_covariance))
 
 
 def _freescale_rows(q, b, a_sensor, m_global, qw, incl, accel, gyro, mag, use_mag, ned,

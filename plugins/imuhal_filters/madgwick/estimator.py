@@ -24,7 +24,13 @@ import numpy as np
 from pydantic import Field
 
 from imuhal.core.frames import FloatArray
-from imuhal_filters.common.ahrs import NO_VECTOR, TO_G, AhrsEstimator, AhrsSettings, ImuStep
+from imuhal_filters.common.ahrs import (
+    NO_VECTOR,
+    AhrsEstimator,
+    AhrsSettings,
+    ImuStep,
+    kernel_readings,
+)
 from imuhal_filters.common.fast import Kernel
 from imuhal_filters.common.gate import AccelGate, GateBounds, SoftGateSettings
 from imuhal_filters.common.quat import Vec
@@ -105,15 +111,10 @@ class MadgwickEstimator(AhrsEstimator):
         """``_step`` in the compiled per-sample kernel: the same floats (tests compare them)."""
         gx, gy, gz = gyro
         f = NO_VECTOR if measured_m_s2 is None else measured_m_s2
-        if accel_m_s2 is None:
-            have_a, ax, ay, az = False, 0.0, 0.0, 0.0
-        else:
-            have_a = True
-            ax, ay, az = (accel_m_s2[0] * TO_G, accel_m_s2[1] * TO_G, accel_m_s2[2] * TO_G)
-        use_m = mag is not None and self._use_mag
-        mx, my, mz = mag if use_m else NO_VECTOR  # type: ignore[misc]  # use_m implies mag is not None
+        readings = kernel_readings(accel_m_s2, mag, self._use_mag)
+        have_a, use_m = readings[0], readings[4]
         q0, q1, q2, q3, gate_open, weight, lx, ly, lz = self._sample_kernel(
-            *self._q, gx, gy, gz, have_a, ax, ay, az, use_m, mx, my, mz, self._beta,
+            *self._q, gx, gy, gz, *readings, self._beta,
             self._gate_lower_g, self._gate_upper_g, self._soft_width, self._paper, dt, *f)
         self._q = (q0, q1, q2, q3)
         self._linear_ned = (lx, ly, lz)

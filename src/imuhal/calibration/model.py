@@ -12,7 +12,10 @@ Besides the three records a device's calibration may hold:
 * ``gyro_at_startup``: measure the gyro offsets again at every start-up, with the board kept
   still (see :mod:`imuhal.pipeline.startup`), overriding the stored offsets only;
 * ``mag_in_flight``: learn the magnetometer's hard iron from turns while no magnetometer
-  record is stored (see :mod:`imuhal.calibration.hard_iron`).
+  record is stored (see :mod:`imuhal.calibration.hard_iron`);
+* ``accel_in_flight``: learn the accelerometer's offset from GNSS velocity and the
+  barometer while no accelerometer record is stored (see
+  :mod:`imuhal.calibration.accel_in_flight`).
 """
 
 from __future__ import annotations
@@ -198,9 +201,51 @@ class MagInFlightSettings(_Strict):
     steady turn lies exactly on many spheres) do not look certain."""
 
 
+class AccelInFlightSettings(_Strict):
+    """Learn the accelerometer's offset in flight while the device has no stored
+    accelerometer record (imuhal.calibration.accel_in_flight): from the GNSS velocity during
+    manoeuvres (every axis) and the barometer (the axis that points down). A body axis is
+    applied (in memory) once its offset's standard deviation is at most ``max_std_mg`` after
+    at least ``min_updates`` measurements. The noise figures are the filter's model of the
+    sensors; the defaults are those of a consumer MEMS IMU (MPU-9250 class), an MS5611-class
+    barometer and a u-blox receiver."""
+
+    enabled: bool = True
+    min_updates: int = Field(50, ge=10)
+    max_std_mg: float = Field(3.0, gt=0)
+    """3 mg: a tilt of 0.17 deg."""
+    initial_offset_mg: float | None = Field(None, gt=0)
+    """The offset's standard deviation before flight, per axis; None: the chip's specified
+    offset (its driver's ``specified_offset``), else 60 mg."""
+    initial_tilt_deg: float = Field(2.0, gt=0)
+    """How far the AHRS's attitude the learner starts from may be off, besides the tilt the
+    offset causes."""
+    initial_heading_deg: float = Field(20.0, gt=0)
+    gnss_velocity_noise_m_s: float = Field(0.05, gt=0)
+    """The least noise a GNSS velocity is assumed to carry per axis (its receiver's speed
+    accuracy is used when larger)."""
+    baro_noise_m: float = Field(0.3, gt=0)
+    """Noise of the barometer's altitude, turbulence in the air included."""
+    baro_interval_s: float = Field(0.2, gt=0)
+    """The barometer is fused at most this often."""
+    initial_lag_s: float = Field(0.2, gt=0)
+    """How late the GNSS velocity's stamps may be before flight (s): the receiver's output
+    latency and the line's transfer time the driver does not know of."""
+    attitude_random_walk_rad_sqrt_s: float = Field(0.002, gt=0)
+    """The gyro's angle random walk and its residual offset's drift (rad/sqrt(s))."""
+    gyro_scale_error: float = Field(0.03, ge=0)
+    """The gyro's sensitivity error (3 %: the MPU-9250's tolerance): the attitude's
+    uncertainty grows by it times the angle turned."""
+    velocity_random_walk_m_s_sqrt_s: float = Field(0.01, gt=0)
+    """The accelerometer's noise integrated into velocity (m/s/sqrt(s))."""
+    offset_random_walk_mg_sqrt_s: float = Field(0.01, ge=0)
+    """How fast the offset itself may wander (temperature), mg/sqrt(s)."""
+
+
 class DeviceCalibration(_Records):
     gyro_at_startup: GyroStartupSettings | None = None
     mag_in_flight: MagInFlightSettings | None = None
+    accel_in_flight: AccelInFlightSettings | None = None
     previous: PreviousCalibration | None = None
 
     def replaced(self, channel: str, record: Record) -> DeviceCalibration:
@@ -213,6 +258,7 @@ class DeviceCalibration(_Records):
                 {**previous.records(), channel: old})
         data = {**self.records(), channel: record,
                 "gyro_at_startup": self.gyro_at_startup, "mag_in_flight": self.mag_in_flight,
+                "accel_in_flight": self.accel_in_flight,
                 "previous": previous if previous.records() else None}
         return DeviceCalibration.model_validate(data)
 

@@ -5,11 +5,18 @@ from __future__ import annotations
 import argparse
 import itertools
 import sys
+from pathlib import Path
 from typing import Any
 
 from imuhal.cli import args as types
 from imuhal.cli.frame_option import frame_argument
 from imuhal.cli.robot_outputs import add_mcap_argument, report_mcap
+from imuhal.cli.sink_options import (
+    SinkOptions,
+    add_sink_arguments,
+    describe_sinks,
+    report_sinks,
+)
 from imuhal.core.atomic import check_outputs
 from imuhal.core.conventions import CONVENTIONS, NED
 from imuhal.core.errors import ImuhalError
@@ -79,6 +86,7 @@ def add_parser(sub: Any) -> None:
                    help="write only these output columns, in this order (e.g. "
                    "t_s,qw,qx,qy,qz); default: every estimate and diagnostics column")
     add_mcap_argument(p)
+    add_sink_arguments(p)
     p.add_argument("--frame-id", default="base_link", metavar="NAME",
                    help="with --mcap: header.frame_id of the messages (default: base_link)")
     p.set_defaults(func=cmd_estimate)
@@ -111,7 +119,13 @@ def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
     columns = _column_list(args.columns)
     writer = EstimateCsvWriter(args.output, args.output_frame, columns)
     mcap = None
+    plugin_sinks: list[Any] = []
     try:
+        # checked before the input is read; the board (the topics' name) is the input log's
+        # unless --sink-set NAME.board says otherwise
+        plugin_sinks += SinkOptions.from_args(args).plugin_sinks(
+            registry, board=Path(args.input).stem, outputs={}, frame=args.output_frame)
+        describe_sinks(plugin_sinks)
         if run_log:
             # A run log is read whole: its rows are events of many kinds, and the samples are
             # rebuilt in the pipeline's order.
@@ -120,8 +134,13 @@ def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
             _bind(estimator, ahrs, sample_streams(log.samples))
             estimates = run_offline_samples(estimator, log.samples, ahrs=ahrs)
             writer.write(estimates)
+            events: list[Any] = [*log.samples, *estimates]
+            events.sort(key=lambda e: e.t_ns)  # stable: a sample before the estimates it led to
             if args.mcap:
-                mcap = _write_mcap(args, registry, log.samples, estimates)
+                mcap = _write_mcap(args, registry, events)
+            for sink in plugin_sinks:
+                for event in events:
+                    sink.handle(event)
             read = (f"{log.rows} log rows ({len(log.samples)} valid samples, {log.flagged} "
                     "flagged skipped)")
         else:
@@ -148,9 +167,13 @@ def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
         if mcap is not None:
             mcap.abort()
         raise
+    finally:
+        for sink in plugin_sinks:  # a broker keeps what it was handed, also after a failure
+            sink.close()
     print(f"{args.name}: {read} -> {rows} estimates in {args.output}", file=sys.stderr)
     if mcap is not None:
         print(report_mcap(mcap, args.mcap), file=sys.stderr)
+    report_sinks(plugin_sinks)
     for est in (estimator, ahrs):
         if est is not None:
             _report_rejected(est)
@@ -159,8 +182,9 @@ def cmd_estimate(args: argparse.Namespace, registry: Registry) -> int:
 
 def _check_combinations(args: argparse.Namespace, run_log: bool, est_cls: Any) -> None:
     """Options that the input's kind or the estimator would silently ignore."""
-    if args.mcap and not run_log:
-        raise ImuhalError(f"--mcap {args.mcap}: needs a run log as INPUT (imuhal run --output "
+    streamed = f"--mcap {args.mcap}" if args.mcap else SinkOptions.from_args(args).sink_option()
+    if streamed and not run_log:
+        raise ImuhalError(f"{streamed}: needs a run log as INPUT (imuhal run --output "
                           "LOG.csv --samples), whose samples name their devices; "
                           f"{args.input} is a wide CSV")
     if args.rate is not None and run_log:
@@ -182,8 +206,7 @@ def _bind(estimator: Any, ahrs: Any, streams: Any) -> None:
         bind_to_log(ahrs, streams, "--ahrs-set")
 
 
-def _write_mcap(args: argparse.Namespace, registry: Registry, samples: list[Any],
-                estimates: list[Any]) -> Any:
+def _write_mcap(args: argparse.Namespace, registry: Registry, events: list[Any]) -> Any:
     """The run log's samples and the new estimates, in time order (a sample before the
     estimates it led to), handed to the ``mcap`` sink; the caller closes it."""
     from imuhal import __version__
@@ -192,7 +215,6 @@ def _write_mcap(args: argparse.Namespace, registry: Registry, samples: list[Any]
         "path": args.mcap, "ros": {"frame_id": args.frame_id},
         "metadata": {"input": str(args.input), "estimator": args.name,
                      "imuhal_version": __version__}})
-    events = sorted([*samples, *estimates], key=lambda e: e.t_ns)  # stable: samples first
     for event in events:
         sink.handle(event)
     return sink

@@ -19,9 +19,9 @@ def add_mcap_argument(parser: argparse.ArgumentParser) -> None:
 
 
 def mcap_sink(registry: Registry, path: str, profile: Any) -> Any:
-    """The ``mcap`` sink writing ``path``, with the profile's ``ros:`` section and the
-    board's name as frame id unless the section names one."""
-    ros = profile.ros
+    """The ``mcap`` sink writing ``path``, with the profile's ``outputs.mcap`` section and
+    the board's name as frame id unless the section names one."""
+    ros = profile.outputs.mcap
     if ros.frame_id is None:
         ros = ros.model_copy(update={"frame_id": profile.name})
     return registry.sinks.get("mcap")({
@@ -47,17 +47,17 @@ def add_mavlink_arguments(parser: argparse.ArgumentParser) -> None:
                         "(docs/outputs.md)")
     parser.add_argument("--mavlink-imu-hz", type=float, metavar="HZ",
                         help="with --mavlink: HIGHRES_IMU rate (default: the profile's "
-                        "mavlink.highres_imu_hz, 50)")
+                        "outputs.mavlink.highres_imu_hz, 50)")
 
 
 def mavlink_sink(registry: Registry, args: Any, profile: Any) -> Any:
-    """The ``mavlink`` sink sending to ``args.mavlink`` with the profile's ``mavlink:``
-    section (its HIGHRES_IMU rate replaced by ``--mavlink-imu-hz``); ``args`` has the
-    ``mavlink`` and ``mavlink_imu_hz`` options (an argparse namespace or a command's options
-    model)."""
+    """The ``mavlink`` sink sending to ``args.mavlink`` with the profile's
+    ``outputs.mavlink`` section (its HIGHRES_IMU rate replaced by ``--mavlink-imu-hz``);
+    ``args`` has the ``mavlink`` and ``mavlink_imu_hz`` options (an argparse namespace or a
+    command's options model)."""
     from imuhal.core.errors import ImuhalError
 
-    settings = profile.mavlink
+    settings = profile.outputs.mavlink
     if args.mavlink_imu_hz is not None:
         if not args.mavlink:
             raise ImuhalError("--mavlink-imu-hz sets the rate of a --mavlink output; add "

@@ -27,10 +27,10 @@ from imuhal.cli.robot_outputs import (
     report_mcap,
 )
 from imuhal.cli.run_options import RunOptions
+from imuhal.cli.sink_options import add_sink_arguments, describe_sinks, sink_counts
 from imuhal.core.atomic import AtomicFile, check_outputs
 from imuhal.core.errors import ImuhalError
 from imuhal.live import LiveView, parse_bind
-from imuhal.offline.settings_args import build_settings, parse_set_arguments
 from imuhal.plugins.manager import Registry
 from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile
@@ -87,21 +87,13 @@ def add_parser(sub: Any) -> None:
                      "barometer; a folder gets the FAI file name); `imuhal igc verify` "
                      "checks it (docs/flight-instrument.md)")
     run.add_argument("--igc-pilot", metavar="NAME",
-                     help="the IGC log's pilot (default: the profile's igc.pilot)")
+                     help="the IGC log's pilot (default: the profile's outputs.igc.pilot)")
     run.add_argument("--igc-glider", metavar="TYPE",
-                     help="the IGC log's glider type (default: the profile's igc.glider_type)")
+                     help="the IGC log's glider type (default: the profile's "
+                     "outputs.igc.glider_type)")
     add_mcap_argument(run)
     add_mavlink_arguments(run)
-    run.add_argument("--mqtt", metavar="URL",
-                     help="publish every event to an MQTT broker (mqtt://HOST[:PORT], mqtts:// "
-                     "for TLS; credentials in the URL or IMUHAL_MQTT_USERNAME/_PASSWORD), "
-                     "queued on disk while it is unreachable; settings in the profile's "
-                     "outputs.mqtt or --sink-set mqtt.KEY=VALUE (docs/outputs.md)")
-    run.add_argument("--sink", action="append", default=[], metavar="NAME",
-                     help="also send every event to the sink a plugin registered as NAME "
-                     "(see `imuhal plugins`); repeatable")
-    run.add_argument("--sink-set", action="append", default=[], metavar="NAME.KEY=VALUE",
-                     help="a setting of sink NAME (YAML scalar; commas make a list)")
+    add_sink_arguments(run)
     run.add_argument("--seed", type=types.seed,
                      help="seed of the simulated world, 0 or more (default: the profile's)")
     run.add_argument("--replay-truth", metavar="TRUTH.csv",
@@ -116,7 +108,8 @@ def add_parser(sub: Any) -> None:
                      "first on the emulated board, as docs/calibration.md asks of a user")
     run.add_argument("--save-learned", metavar="FILE.yaml",
                      help="write a copy of the profile holding the calibrations learned in "
-                     "flight (mag_in_flight: the magnetometer's hard iron) once converged")
+                     "flight (mag_in_flight: the magnetometer's hard iron; accel_in_flight: the "
+                     "accelerometer's offset) once converged")
     run.add_argument("--quiet", action="store_true", help="no live status line")
     run.add_argument("--web", metavar="[HOST:]PORT",
                      help="serve a live dashboard (read-only) on PORT of this machine only, "
@@ -183,8 +176,8 @@ def _plan(opts: RunOptions, path: Path, registry: Registry) -> _RunPlan:
     if duration is None and emulate is not None and scenario_params is None:
         duration = registry.scenarios.get(emulate).default_duration_s
     # checked before the board is opened
-    plugin_sinks = _plugin_sinks(opts.sink_names(), list(opts.sink_set), registry, profile=profile,
-                                 frame=frame, given=opts.sink_given())
+    plugin_sinks = opts.plugin_sinks(registry, board=profile.name,
+                                     outputs=profile.outputs.plugin_sections(), frame=frame)
     mavlink = mavlink_sink(registry, opts, profile)  # a socket only: nothing sent yet
     where = f"emulated, scenario '{emulate}'" if emulate else "real hardware"
     print(f"imuhal {__version__}: {profile.name} ({where}) from {path}", file=sys.stderr)
@@ -200,8 +193,9 @@ def _plan(opts: RunOptions, path: Path, registry: Registry) -> _RunPlan:
 def _learned(pipeline: Any) -> dict[str, Any]:
     """The calibrations learned in flight that converged, by device."""
     return {n: d.calibration for n, d in pipeline.devices.items()
-            if d.mag_learner is not None and d.mag_learner.converged
-            and d.calibration is not None}
+            if d.calibration is not None and (
+                (d.mag_learner is not None and d.mag_learner.converged)
+                or (d.accel_teacher is not None and any(d.accel_teacher.learner.learned_axes)))}
 
 
 class _RunSession:
@@ -289,10 +283,7 @@ class _RunSession:
                                         include_samples=opts.samples)
             self.sinks.append(self.truth_sink)
         self.sinks.extend(plan.plugin_sinks)
-        for sink in plan.plugin_sinks:
-            describe = getattr(sink, "describe", None)
-            if describe is not None:
-                print(f"{sink.name}: {describe()}", file=sys.stderr)
+        describe_sinks(plan.plugin_sinks)
         if plan.calibrated_note:  # once every output is open: a mistake stays a one-line error
             print(plan.calibrated_note, file=sys.stderr)
 
@@ -334,8 +325,7 @@ class _RunSession:
         """What ran until the stop, not the zeros of a summary taken out of a run."""
         summary = pipeline.summary(wall_s=time.perf_counter() - wall0,
                                    simulated_s=pipeline.span_s)
-        summary.sinks = {s.name: s.run_counts() for s in self.plan.plugin_sinks
-                         if hasattr(s, "run_counts")}  # pipeline.run closed them
+        summary.sinks = sink_counts(self.plan.plugin_sinks)  # pipeline.run closed them
         self.ended = "interrupted"
         why = f"stopped by {stop}" if str(stop) else "interrupted"
         print(f"\n{why}; the files are complete up to here", file=sys.stderr)
@@ -397,10 +387,11 @@ def _save_learned(output: str, text: str, path: Path, learned: dict[str, Any],
 
     if not learned:
         print(f"nothing learned in flight to save: {output} not written (a device needs "
-              "mag_in_flight and enough turns, docs/calibration.md)", file=sys.stderr)
+              "mag_in_flight or accel_in_flight and enough turns, docs/calibration.md)",
+              file=sys.stderr)
         return
     save_learned(text, str(path), output, learned, registry)
-    print(f"wrote the profile with the hard iron learned in flight ({', '.join(learned)}) "
+    print(f"wrote the profile with the calibration learned in flight ({', '.join(learned)}) "
           f"to {output}", file=sys.stderr)
 
 
@@ -441,7 +432,7 @@ def _flight_sinks(opts: RunOptions, profile: Any, registry: Registry,
             {"curve": _audio_curve(opts, profile), "wav": opts.audio_wav,
              "live": opts.audio}))
     if opts.igc:
-        log = profile.igc.model_copy(update={
+        log = profile.outputs.igc.model_copy(update={
             k: v for k, v in (("pilot", opts.igc_pilot), ("glider_type", opts.igc_glider))
             if v is not None})
         out.append(registry.sinks.get("igc")({
@@ -470,37 +461,6 @@ def _audio_curve(opts: RunOptions, profile: Any) -> Any:
                               "0 to 10 s, e.g. --audio-damping 1.5") from None
         raise ImuhalError(f"--audio-sink-alarm {opts.audio_sink_alarm}: "
                           f"{err['msg'].removeprefix('Value error, ')}") from None
-
-
-RUN_DEFAULTS = ("board", "frame")
-"""Settings a plugin sink gets from the run when neither the profile's ``outputs`` nor
-``--sink-set`` give them: the profile's name and the run's output frame."""
-
-
-def _plugin_sinks(names: list[str], settings: list[str], registry: Registry, *,
-                  profile: Any, frame: Any, given: dict[str, dict[str, Any]]) -> list[Any]:
-    """The sinks named by ``--sink`` (and ``--mqtt``), each with its settings: the run's
-    ``given`` ones (``--mqtt URL``) over ``--sink-set NAME.KEY=VALUE`` over the profile's
-    ``outputs.NAME``, over the run's name and frame (``RUN_DEFAULTS``)."""
-    per_sink: dict[str, list[str]] = {name: [] for name in names}
-    for item in settings:
-        name, dot, rest = item.partition(".")
-        if not dot or name not in per_sink:
-            raise ImuhalError(f"--sink-set {item!r}: write NAME.KEY=VALUE for a sink named by "
-                              f"--sink (named: {', '.join(names) or 'none'})")
-        per_sink[name].append(rest)
-    out = []
-    for name, items in per_sink.items():
-        cls = registry.sinks.get(name)
-        values = {**profile.outputs.get(name, {}),
-                  **parse_set_arguments(items, f"--sink-set {name}."), **given.get(name, {})}
-        run_values = {"board": profile.name, "frame": getattr(frame, "name", frame)}
-        for key in RUN_DEFAULTS:
-            if key in cls.Settings.model_fields and key not in values:
-                values[key] = run_values[key]
-        out.append(cls(build_settings(cls.Settings, values, f"sink {name!r}",
-                                      flag=f"--sink-set {name}.")))
-    return out
 
 
 def _trace_writer(out: AtomicFile, every_s: float = 2.0) -> Callable[[Any], None]:

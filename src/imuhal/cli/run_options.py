@@ -6,7 +6,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, ClassVar
 
-from imuhal.cli.options import CommandOptions, Needs
+from imuhal.cli.options import Needs
+from imuhal.cli.sink_options import SinkOptions
 
 
 def _emulated(o: RunOptions) -> bool:
@@ -38,8 +39,9 @@ RUN_RULES = (
 )
 
 
-class RunOptions(CommandOptions):
-    """What ``imuhal run`` was asked (argparse destinations, values already typed)."""
+class RunOptions(SinkOptions):
+    """What ``imuhal run`` was asked (argparse destinations, values already typed; the
+    plugin sinks' ``--mqtt``, ``--sink`` and ``--sink-set`` in ``SinkOptions``)."""
 
     RULES: ClassVar[tuple[Needs, ...]] = RUN_RULES
 
@@ -68,9 +70,6 @@ class RunOptions(CommandOptions):
     mcap: str | None = None
     mavlink: str | None = None
     mavlink_imu_hz: float | None = None
-    mqtt: str | None = None
-    sink: tuple[str, ...] = ()
-    sink_set: tuple[str, ...] = ()
     seed: int | None = None
     replay_truth: str | None = None
     record: str | None = None
@@ -97,12 +96,3 @@ class RunOptions(CommandOptions):
                 "--audio-wav": self.audio_wav, "--record": self.record,
                 "--igc": self.igc_file, "--mcap": self.mcap,
                 "--save-learned": self.save_learned}
-
-    def sink_names(self) -> list[str]:
-        """The plugin sinks to open: ``--sink`` ones, and ``mqtt`` for ``--mqtt``."""
-        mqtt = ["mqtt"] if self.mqtt is not None and "mqtt" not in self.sink else []
-        return [*self.sink, *mqtt]
-
-    def sink_given(self) -> dict[str, dict[str, Any]]:
-        """Sink settings the run's own flags give (``--mqtt URL``)."""
-        return {"mqtt": {"url": self.mqtt}} if self.mqtt is not None else {}

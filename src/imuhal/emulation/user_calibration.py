@@ -42,11 +42,20 @@ def with_calibration(profile: BoardProfile, calibrations: Mapping[str, DeviceCal
     return profile.model_copy(update={"devices": devices})
 
 
+def _learned_in_flight(cal: DeviceCalibration | None) -> set[Quantity]:
+    """The channels ``cal`` asks to learn in flight."""
+    if cal is None:
+        return set()
+    asked = {Quantity.MAG: cal.mag_in_flight, Quantity.ACCEL: cal.accel_in_flight}
+    return {ch for ch, how in asked.items() if how is not None and how.enabled}
+
+
 def missing_calibrations(profile: BoardProfile, registry: Registry
                          ) -> dict[str, tuple[Quantity, ...]]:
     """The accelerometer and magnetometer channels of each enabled device that the profile
     stores no record for, by device (profile order); devices missing none are left out. A
-    magnetometer that learns its hard iron in flight (``mag_in_flight``) is not missing."""
+    magnetometer that learns its hard iron in flight (``mag_in_flight``) and an accelerometer
+    that learns its offset in flight (``accel_in_flight``) are not missing."""
     out: dict[str, tuple[Quantity, ...]] = {}
     for name in device_order(profile):
         cfg = profile.devices[name]
@@ -54,10 +63,10 @@ def missing_calibrations(profile: BoardProfile, registry: Registry
         if not cfg.enabled or reg is None:
             continue
         cal = cfg.calibration
-        learned = cal is not None and cal.mag_in_flight is not None and cal.mag_in_flight.enabled
+        learned = _learned_in_flight(cal)
         missing = tuple(ch for ch in USER_CALIBRATED if ch in reg.obj.channels
                         and (cal is None or getattr(cal, ch.value) is None)
-                        and not (ch is Quantity.MAG and learned))
+                        and ch not in learned)
         if missing:
             out[name] = missing
     return out

@@ -234,6 +234,14 @@ class Snapshotter:
         learner = dev.mag_learner if dev is not None else None
         return None if learner is None else dict(learner.latest)
 
+    def _learned_accel(self, name: str) -> dict[str, Any] | None:
+        """The accelerometer offset ``name`` is learning in flight (body frame, mg, with
+        its uncertainty and the axes applied), as of its last update; None when it learns
+        none."""
+        dev = self.pipeline.devices.get(name) if self.pipeline is not None else None
+        teacher = dev.accel_teacher if dev is not None else None
+        return None if teacher is None else dict(teacher.learner.latest)
+
     def _health(self, copy: Copy, past: _Past | None) -> dict[str, Any]:
         names = list(self._drivers) + [n for n in copy.devices if n not in self._drivers]
         span_s = (copy.t_ns - past.t_ns) / 1e9 if past is not None and copy.t_ns else 0.0
@@ -277,6 +285,7 @@ class Snapshotter:
             "bus_errors": errors[0],
             "device_errors": errors[1],
             "learned": self._learned(name),
+            "learned_accel": self._learned_accel(name),
             "last_t_s": last_t,
             "stale": stale,
             "faulty": bool(problems) and not (stale and len(problems) == 1),

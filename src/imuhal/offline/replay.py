@@ -12,6 +12,7 @@ exactly as it did live.
 from __future__ import annotations
 
 import os
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -357,6 +358,34 @@ class _Unclosed:
     def handle(self, event: Event) -> None:
         for sink in self.sinks:
             sink.handle(event)
+
+    def close(self) -> None:
+        return None
+
+
+class WallClockPace:
+    """A sink that holds each event back until as much wall time has passed since the first
+    event as recorded time did (``t_ns``): the sinks after it see the recorded run's pace, as
+    a broker or a ground station saw the live board, not a burst. It never speeds up: an
+    event decoded late is handed on at once."""
+
+    name = "pace"
+
+    def __init__(self, monotonic_s: Callable[[], float] = time.monotonic,
+                 sleep_s: Callable[[float], None] = time.sleep) -> None:
+        self._monotonic_s = monotonic_s
+        self._sleep_s = sleep_s
+        self._origin: tuple[int, float] | None = None
+        """The first event's recorded time (ns) and the wall clock then (s)."""
+
+    def handle(self, event: Event) -> None:
+        if self._origin is None:
+            self._origin = (event.t_ns, self._monotonic_s())
+            return
+        t0_ns, wall0_s = self._origin
+        wait_s = wall0_s + (event.t_ns - t0_ns) / 1e9 - self._monotonic_s()
+        if wait_s > 0:
+            self._sleep_s(wait_s)
 
     def close(self) -> None:
         return None

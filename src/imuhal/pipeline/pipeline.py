@@ -23,6 +23,7 @@ from imuhal.bus.base import Bus, Link
 from imuhal.bus.contained import ContainedBus
 from imuhal.bus.recording.recorder import BusRecorder
 from imuhal.bus.spy import SpyBus, Transfer
+from imuhal.calibration.accel_in_flight import AccelOffsetLearner
 from imuhal.calibration.hard_iron import HardIronLearner
 from imuhal.calibration.model import CalibrationBinding, DeviceCalibration, now
 from imuhal.core.blocks import Block, blocks_of, interleaved
@@ -49,6 +50,7 @@ from imuhal.pipeline.containment import (
     describe_exception,
     driver_deadline_s,
 )
+from imuhal.pipeline.learning import AccelTeacher
 from imuhal.pipeline.processing import (
     calibrate_block,
     calibrate_to_body,
@@ -136,6 +138,9 @@ class DeviceRuntime:
     """The driver's FIFO overflow count the ledger last saw."""
     mag_learner: HardIronLearner | None = None
     """Learning the hard iron in flight (``mag_in_flight``, no stored magnetometer record)."""
+    accel_teacher: AccelTeacher | None = None
+    """Learning the accelerometer's offset in flight (``accel_in_flight``, no stored
+    accelerometer record)."""
     own_blocks: bool = False
     """The driver builds its own blocks (overrides ``Driver.poll_blocks``)."""
     trigger: TimerTrigger | LineTrigger = field(default_factory=TimerTrigger)
@@ -178,7 +183,8 @@ class RunSummary:
     """Counts of the sinks that keep some (``run_counts()``, e.g. the MQTT sink's sent,
     queued and dropped messages), by sink name."""
     learned: dict[str, dict[str, Any]] = field(default_factory=dict)
-    """Per device learning in flight: :meth:`HardIronLearner.status`."""
+    """Per device learning in flight: :meth:`HardIronLearner.status` under the device's
+    name, :meth:`AccelOffsetLearner.status` under ``<device> accel``."""
     triggers: dict[str, dict[str, int]] = field(default_factory=dict)
     """Per device read on a data-ready line (imuhal.pipeline.triggers.LineTrigger): edges,
     reads, overwritten and lost edges, watchdog fallbacks, polls while fallen back and
@@ -220,7 +226,9 @@ class RunSummary:
 
 
 def _learned_words(status: dict[str, Any]) -> str:
-    """One line for the run summary: the hard iron learned in flight and how sure it is."""
+    """One line for the run summary: what was learned in flight and how sure it is."""
+    if status.get("quantity") == "accel":
+        return _accel_words(status)
     h, std = status.get("hard_iron_ut"), status.get("std_ut")
     if h is None or std is None:
         return f"hard iron: learning in flight ({status['readings']} readings, no fit yet)"
@@ -229,6 +237,22 @@ def _learned_words(status: dict[str, Any]) -> str:
     state = "learned in flight, applied" if status["converged"] else \
         "learning in flight, not applied yet"
     return f"hard iron {state}: ({fit}) uT from {status['readings']} readings"
+
+
+def _accel_words(status: dict[str, Any]) -> str:
+    """The accelerometer offset learned in flight (body frame), for the run summary."""
+    b, std = status.get("offset_mg"), status.get("std_mg")
+    if b is None or std is None:
+        return "accelerometer offset: learning in flight (not started: needs an AHRS " \
+            "estimate and a GNSS velocity or a pressure)"
+    fit = ", ".join(f"{v:.1f} +- {e:.1f}" for v, e in zip(b, std, strict=True))
+    axes = "xyz"
+    learned = "".join(a for a, done in zip(axes, status["learned_axes"], strict=True) if done)
+    state = "learned in flight, applied" if status["converged"] else \
+        f"learning in flight, applied on {learned}" if learned else \
+        "learning in flight, not applied yet"
+    return (f"accelerometer offset {state}: ({fit}) mg (body frame) from "
+            f"{status['updates']} measurements")
 
 
 class _Readings(list[Sample]):
@@ -294,6 +318,8 @@ class Pipeline:
         self._heap: list[tuple[int, int, str]] | None = None
         self._startup: GyroStartupStage | None = None
         self._fusion: list[Sample | Block] = []
+        self._teachers: list[AccelTeacher] = []
+        """The in-flight learners fed from the fusion queue (imuhal.pipeline.learning)."""
         """Valid body-frame readings (one-frame blocks as their sample) and blocks some
         estimator takes, waiting for their fusion step."""
         self._blocks_queued = False
@@ -427,6 +453,7 @@ class Pipeline:
                 and (dev.calibration is None or dev.calibration.mag is None) \
                 and dev.mag_learner is None:
             dev.mag_learner = HardIronLearner(learn)
+        self._start_accel_learning(dev)
         dev.present = True
         stream = driver.accounted_stream()
         if stream is not None and dev.ledger is None:
@@ -852,6 +879,33 @@ class Pipeline:
         self._take_streams(dev)
         return next_ns
 
+    def _start_accel_learning(self, dev: DeviceRuntime) -> None:
+        """An accelerometer learner for ``dev`` when its profile asks (``accel_in_flight``)
+        and it has no stored accelerometer record; started from the attitude of the
+        estimators ``dev`` feeds."""
+        cfg = self.profile.devices[dev.name]
+        learn = cfg.calibration.accel_in_flight if cfg.calibration is not None else None
+        driver = type(dev.driver)
+        if learn is None or not learn.enabled or Quantity.ACCEL not in driver.channels \
+                or (dev.calibration is not None and dev.calibration.accel is not None) \
+                or dev.accel_teacher is not None:
+            return
+        prior = driver.specified_offset.get(Quantity.ACCEL)
+        learner = AccelOffsetLearner(learn) if prior is None else \
+            AccelOffsetLearner(learn, prior_offset_m_s2=prior)
+        feeders = frozenset(n for n, e in self.profile.estimators.items()
+                            if e.inputs is None or dev.name in e.inputs)
+
+        def apply() -> None:
+            learner.mark_applied()
+            cal = dev.calibration or DeviceCalibration()
+            dev.calibration = cal.model_copy(update={"accel": learner.record(
+                dev.chip_to_body_rows, binding=self.calibration_binding(dev.name),
+                date=now())})
+
+        dev.accel_teacher = AccelTeacher(dev.name, learner, feeders, apply)
+        self._teachers.append(dev.accel_teacher)
+
     def _warn_once(self, dev: DeviceRuntime, key: str, message: str) -> None:
         """Record a device's warning of one kind once, not at every retry."""
         if key not in dev.warned:
@@ -959,6 +1013,8 @@ class Pipeline:
                 self._fusion = [] if len(due) == len(samples) else \
                     [s for s in samples if s.t_ns >= before_ns]
             self.router.fuse(due, cast("list[Estimate]", out))
+            for teacher in self._teachers:
+                teacher.feed(due, cast("list[Estimate]", out))
             return out
         if before_ns is None:
             items, self._fusion = self._fusion, []
@@ -968,6 +1024,8 @@ class Pipeline:
         if items:
             self.router.fuse_blocks([b if isinstance(b, Block) else Block.of_sample(b)
                                      for b in items], cast("list[Estimate]", out))
+            for teacher in self._teachers:
+                teacher.feed(items, cast("list[Estimate]", out))
         return out
 
     def _due_blocks(self, before_ns: int) -> list[Sample | Block]:
@@ -990,6 +1048,14 @@ class Pipeline:
                 later.append(tail)
         self._fusion = later
         return due
+
+    def _learned_status(self) -> dict[str, dict[str, Any]]:
+        """Every in-flight learner's status (RunSummary.learned)."""
+        out = {n: d.mag_learner.status() for n, d in self.devices.items()
+               if d.mag_learner is not None}
+        out.update({f"{n} accel": d.accel_teacher.learner.status()
+                    for n, d in self.devices.items() if d.accel_teacher is not None})
+        return out
 
     @staticmethod
     def _count_flags(dev: DeviceRuntime, sample: Sample) -> None:
@@ -1052,8 +1118,7 @@ class Pipeline:
             buses=dict(self._bus_modes),
             frames={n: d.ledger.counts() for n, d in self.devices.items()
                     if d.ledger is not None},
-            learned={n: d.mag_learner.status() for n, d in self.devices.items()
-                     if d.mag_learner is not None},
+            learned=self._learned_status(),
             triggers={n: d.trigger.counts() for n, d in self.devices.items()
                       if isinstance(d.trigger, LineTrigger)},
             contained=self.containment.counts(),

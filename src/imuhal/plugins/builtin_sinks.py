@@ -1,4 +1,4 @@
-"""Registers the built-in sinks (flight apps, ROS 2 MCAP, MAVLink, MQTT) through the same
+"""Registers the built-in sinks (flight apps, ROS 2 MCAP, MAVLink, MQTT, Foxglove) through the same
 hook any plugin uses."""
 
 from __future__ import annotations
@@ -8,6 +8,7 @@ from imuhal.plugins.registrars import Registrar
 from imuhal.sinks.flight.audio import AudioSink
 from imuhal.sinks.flight.igc import IgcSink
 from imuhal.sinks.flight.sink import FlightSink
+from imuhal.sinks.foxglove_live import FoxgloveSink
 from imuhal.sinks.mavlink.sink import MavlinkSink
 from imuhal.sinks.mqtt import MqttSink
 from imuhal.sinks.ros.mcap_sink import McapSink
@@ -21,3 +22,4 @@ def imuhal_register_sinks(register: Registrar) -> None:
     register(McapSink)
     register(MavlinkSink)
     register(MqttSink)  # paho-mqtt (the mqtt extra) is imported only when one is opened
+    register(FoxgloveSink)  # foxglove-sdk (the foxglove extra): likewise

@@ -4,7 +4,8 @@ The profile model (profile/model.py) keeps plugin settings as open mappings beca
 load later; for editors the schema is built from the registry instead: each bus is one of the
 installed bus kinds (chosen by ``kind``), each device one of the installed drivers (chosen by
 ``driver``) with that driver's Settings, each estimator one of the installed estimators (chosen
-by ``estimator``). Unknown keys are rejected everywhere the loader rejects them, so an editor
+by ``estimator``), each ``outputs`` section the installed sink of its name with that sink's
+Settings. Unknown keys are rejected everywhere the loader rejects them, so an editor
 underlines a typo while it is typed (docs/profiles.md, "Editor support").
 """
 
@@ -16,11 +17,11 @@ import itertools
 import textwrap
 from typing import Annotated, Any, Literal, Union
 
-from pydantic import BaseModel, Field, create_model
+from pydantic import BaseModel, ConfigDict, Field, create_model
 
 from imuhal.drivers.settings import Allowed
 from imuhal.plugins.manager import Registry
-from imuhal.profile.model import BoardProfile, DeviceConfig, EstimatorConfig
+from imuhal.profile.model import BoardProfile, DeviceConfig, EstimatorConfig, OutputsConfig
 
 SCHEMA_DIALECT = "https://json-schema.org/draft/2020-12/schema"
 SCHEMA_ID = "https://imuhal.invalid/schemas/profile-v1.json"
@@ -94,6 +95,26 @@ def _estimator_models(registry: Registry) -> list[type[BaseModel]]:
     return models  # type: ignore[return-value]  # a model built at run time from the installed plugins: a dynamic Literal or union
 
 
+class _ClosedOutputs(OutputsConfig):
+    """The built-in outputs' sections, and no other key (the installed plugin sinks' are
+    added to it by ``_outputs_model``)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+def _outputs_model(registry: Registry) -> type[BaseModel]:
+    """``outputs`` with a section for each installed plugin sink (its Settings), and no
+    other key: the loader refuses a section no installed sink takes."""
+    fields: dict[str, Any] = {}
+    for name in registry.sinks.names():
+        if name not in OutputsConfig.model_fields:  # a built-in output, typed already
+            settings = _with_choices(registry.sinks.get(name).Settings)
+            fields[name.replace("-", "_")] = (settings, Field(default_factory=settings,
+                                                              alias=name))
+    return create_model("OutputsConfig", __base__=_ClosedOutputs, __doc__=OutputsConfig.__doc__,
+                        **fields)
+
+
 def attribute_docstrings(model: type[BaseModel]) -> dict[str, str]:
     """The docstrings written under fields (``x: int = 0`` then ``\"\"\"units...\"\"\"``),
     from ``model`` and its bases: the project documents settings this way, and editors show
@@ -130,6 +151,7 @@ def _settings_models(registry: Registry) -> list[type[BaseModel]]:
     models += [registry.buses.get(n).Settings for n in registry.buses.names()]
     models += [registry.drivers.get(n).Settings for n in registry.drivers.names()]
     models += [registry.estimators.get(n).Settings for n in registry.estimators.names()]
+    models += [OutputsConfig, *(registry.sinks.get(n).Settings for n in registry.sinks.names())]
     return models
 
 
@@ -143,6 +165,7 @@ def profile_schema(registry: Registry) -> dict[str, Any]:
         devices=(dict[str, _union(devices, "driver")], ...),  # type: ignore[arg-type, maybe-unrecognized-str-typeform, misc]  # a model built at run time from the installed plugins: a dynamic Literal or union
         estimators=(dict[str, _union(estimators, "estimator")],  # type: ignore[arg-type, maybe-unrecognized-str-typeform, misc]  # a model built at run time from the installed plugins: a dynamic Literal or union
                     Field(default_factory=dict)),
+        outputs=(_outputs_model(registry), Field(default_factory=OutputsConfig)),
     )
     schema = model.model_json_schema(mode="validation")
     _describe(schema, [*_settings_models(registry), *buses, *devices, *estimators])

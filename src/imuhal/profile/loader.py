@@ -27,7 +27,7 @@ from imuhal.core.samples import VectorSample
 from imuhal.drivers.settings import BUS_CONTEXT, BUS_FEATURES_CONTEXT
 from imuhal.plugins.manager import Registry
 from imuhal.profile.faults import CHIP_FAULT_KINDS, FAULT_KINDS
-from imuhal.profile.model import SCHEMA_VERSION, BoardProfile
+from imuhal.profile.model import MOVED_SECTIONS, SCHEMA_VERSION, BoardProfile, OutputsConfig
 from imuhal.profile.yaml_source import (
     ExpansionError,
     LocatedDocument,
@@ -116,6 +116,10 @@ def _check(
         )
         # Checked as if it were right, so that every other problem is reported too.
         data = {**data, "schema_version": SCHEMA_VERSION}
+    moved = _moved_sections(data, doc)
+    problems += moved
+    if moved:  # reported once, as moved, not again as unknown keys
+        data = {k: v for k, v in data.items() if k not in MOVED_SECTIONS}
     profile = None
     try:
         profile = validate_strict(BoardProfile, data)
@@ -127,6 +131,14 @@ def _check(
         if profile is not None:
             problems += _check_fault_support(profile, doc, registry)
     return problems, (profile if not problems else None)
+
+
+def _moved_sections(data: dict[str, Any], doc: LocatedDocument) -> list[str]:
+    """One line for each top-level output section of earlier profiles (``ros:``, ``igc:``,
+    ``mavlink:``), naming its place under ``outputs``."""
+    return [f"{doc.where((key,), key=True)}: {key}: moved under outputs: write "
+            f"`outputs: {{{new}: ...}}` with the same keys (docs/profiles.md)"
+            for key, new in MOVED_SECTIONS.items() if key in data]
 
 
 def validate_strict(model: type[BaseModel], data: Any,
@@ -349,7 +361,8 @@ def _calibration_keys(calibration: Any) -> list[str]:
     """The quantity names a device's raw ``calibration`` mapping holds records for (the keys
     that are not settings of the calibration itself)."""
     return [k for k in _mapping(calibration) if isinstance(k, str)
-            and k not in ("gyro_at_startup", "mag_in_flight", "previous")]
+            and k not in ("gyro_at_startup", "mag_in_flight", "accel_in_flight",
+                                         "previous")]
 
 
 def _calibratable(quantity: str, registry: Registry) -> bool:
@@ -485,6 +498,8 @@ def _check_estimator_plugin(name: Any, est: dict[Any, Any], doc: LocatedDocument
 
 def _check_sink_plugin(name: Any, settings: Any, doc: LocatedDocument,
                        registry: Registry) -> list[str]:
+    if name in OutputsConfig.model_fields:
+        return []  # a built-in output's section: typed in the profile model
     reg_s = registry.sinks.entries.get(name)
     if reg_s is None:
         p_out: Path = ("outputs", name)

@@ -141,6 +141,34 @@ class EmulationConfig(_Strict):
     a kind, and a start and end time in simulated seconds."""
 
 
+MOVED_SECTIONS = {"igc": "igc", "ros": "mcap", "mavlink": "mavlink"}
+"""Top-level sections of earlier profiles -> their place under ``outputs`` (same keys)."""
+
+
+class OutputsConfig(BaseModel):
+    """The settings of every output, by its name. The built-in outputs' sections are typed
+    here; any other key is a plugin sink's section (``mqtt: {board: glider-7, ...}``),
+    checked by that sink's own Settings when the profile loads (loader.py). An output is
+    switched on by its command-line option (``--igc``, ``--mcap``, ``--mavlink``, ``--mqtt``,
+    ``--sink NAME``); its section only configures it."""
+
+    model_config = ConfigDict(extra="allow", frozen=True)
+    __pydantic_extra__: dict[str, dict[str, Any]] = Field(init=False)
+    """A plugin sink's section is a mapping (its keys are checked by the sink)."""
+
+    igc: IgcLogSettings = Field(default_factory=IgcLogSettings)
+    """Pilot, glider and fix interval of the IGC log (``--igc``;
+    docs/flight-instrument.md)."""
+    mcap: RosSettings = Field(default_factory=RosSettings)
+    """Frame id and sensor noise of the ROS 2 messages (``--mcap``; docs/outputs.md)."""
+    mavlink: MavlinkSettings = Field(default_factory=MavlinkSettings)
+    """System and component id and message rates (``--mavlink``; docs/outputs.md)."""
+
+    def plugin_sections(self) -> dict[str, dict[str, Any]]:
+        """The plugin sinks' sections (``--sink NAME``, ``--mqtt``), by sink name."""
+        return {name: dict(section) for name, section in (self.model_extra or {}).items()}
+
+
 class BoardProfile(_Strict):
     schema_version: Literal[1]
     name: str
@@ -153,19 +181,10 @@ class BoardProfile(_Strict):
     emulation: EmulationConfig = Field(default_factory=EmulationConfig)
     audio: VarioAudioSettings = Field(default_factory=VarioAudioSettings)
     """The vario audio curve (``imuhal run --audio``; docs/flight-instrument.md)."""
-    igc: IgcLogSettings = Field(default_factory=IgcLogSettings)
-    """Pilot, glider and fix interval of the IGC log (``imuhal run --igc``)."""
-    ros: RosSettings = Field(default_factory=RosSettings)
-    """Frame id and sensor noise of the ROS 2 messages (``imuhal run --mcap``;
-    docs/outputs.md)."""
-    mavlink: MavlinkSettings = Field(default_factory=MavlinkSettings)
-    """System and component id and message rates of ``imuhal run --mavlink``
-    (docs/outputs.md)."""
-
-    outputs: dict[str, dict[str, Any]] = Field(default_factory=dict)
-    """Settings of the run's sinks by sink name (``mqtt: {board: glider-7, decimate: ...}``),
-    each checked by that sink's own Settings; ``--sink-set NAME.KEY=VALUE`` overrides them.
-    The sink itself is switched on by its command-line option (``--mqtt URL``, ``--sink``)."""
+    outputs: OutputsConfig = Field(default_factory=OutputsConfig)
+    """Settings of the run's outputs by output name (``igc``, ``mcap``, ``mavlink``, a
+    plugin sink's name such as ``mqtt``); ``--sink-set NAME.KEY=VALUE`` overrides a plugin
+    sink's. The output itself is switched on by its command-line option."""
 
     output_frame: str = "ned"
     """Convention of what the run hands out: its CSV and console sinks and

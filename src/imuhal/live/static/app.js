@@ -335,6 +335,16 @@ function learnedText(l) {
     l.readings + " readings";
 }
 
+function learnedAccelText(l) {
+  // the accelerometer offset learned in flight (imuhal.calibration.accel_in_flight):
+  // value +- std per body axis, mg
+  if (!l.offset_mg || !l.std_mg) return "accel offset: learning (not started)";
+  const fit = l.offset_mg.map((v, i) => fmt(v, 1) + "\u00b1" + fmt(l.std_mg[i], 1)).join(", ");
+  const axes = ["x", "y", "z"].filter((a, i) => l.learned_axes[i]).join("");
+  return "accel offset " + (l.converged ? "applied" : axes ? "applied on " + axes : "learning") +
+    ": (" + fit + ") mg, " + l.updates + " measurements";
+}
+
 function drawHealth() {
   const body = $("health-table").tBodies[0];
   body.replaceChildren(...Object.entries(S.health).map(([name, h]) => {
@@ -349,6 +359,7 @@ function drawHealth() {
     const flags = Object.entries(h.flagged).map(([k, n]) => k + " " + n).join(", ") || "none";
     let status = h.stale ? "STALE" : h.faulty ? "FAULT: " + h.problems.join("; ") : "ok";
     if (h.learned) status += "; " + learnedText(h.learned);
+    if (h.learned_accel) status += "; " + learnedAccelText(h.learned_accel);
     for (const text of [name + (h.driver ? " (" + h.driver + ")" : ""), rates || "\u2013",
       flags, String(h.bus_errors + (h.device_errors ? " + " + h.device_errors + " device" : "")),
       status]) {

@@ -60,7 +60,7 @@ MAX_PRESSURE_GAP_NS = 1_000_000_000
 
 
 class IgcLogSettings(BaseModel):
-    """The profile's ``igc:`` section: who flies what, and how often a fix is logged."""
+    """The profile's ``outputs.igc`` section: who flies what, and how often a fix is logged."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 

@@ -1,5 +1,5 @@
-"""The profile's ``mavlink:`` section: who the board is on a MAVLink network and how often it
-speaks. Free of third-party imports: the profile schema includes it without the extra."""
+"""The profile's ``outputs.mavlink`` section: who the board is on a MAVLink network and how
+often it speaks. Free of third-party imports: the profile schema includes it without the extra."""
 
 from __future__ import annotations
 

@@ -79,7 +79,7 @@ class MavlinkOutputSettings(BaseModel):
     output: str = "udpout:127.0.0.1:14550"
     """``udpout:HOST:PORT``: datagrams to a ground station listening there."""
     mavlink: MavlinkSettings = Field(default_factory=MavlinkSettings)
-    """Ids and rates (``imuhal run`` passes the profile's ``mavlink:`` section)."""
+    """Ids and rates (``imuhal run`` passes the profile's ``outputs.mavlink`` section)."""
     attitude_source: str | None = None
     """The attitude estimator sent (default: the first seen)."""
     vertical_source: str | None = None

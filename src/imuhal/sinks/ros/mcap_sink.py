@@ -51,8 +51,8 @@ class McapOutputSettings(BaseModel):
     path: str
     """The MCAP file (written as ``path.partial`` until the run ends)."""
     ros: RosSettings = Field(default_factory=RosSettings)
-    """Frame id and noise (``imuhal run`` passes the profile's ``ros:`` section, with the
-    board's name as the frame id unless it names one)."""
+    """Frame id and noise (``imuhal run`` passes the profile's ``outputs.mcap`` section, with
+    the board's name as the frame id unless it names one)."""
     chunk_s: float = Field(1.0, gt=0, le=60)
     """A chunk is closed (and the file made readable) at least this often, in the run's time
     and in wall time: at most this much is lost when the process is killed."""

@@ -1,4 +1,5 @@
-"""The profile's ``ros:`` section: frame id and the measurement noise ROS messages carry.
+"""The profile's ``outputs.mcap`` section: frame id and the measurement noise ROS messages
+carry.
 
 Kept free of third-party imports: the profile schema includes it whether or not the ``ros``
 extra is installed.
