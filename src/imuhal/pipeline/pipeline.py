@@ -744,9 +744,17 @@ class Pipeline:
         if dev.isolated:
             return [], NEVER_NS
         watchdog = self._watchdog
-        armed = watchdog.arm(driver_deadline_s(dev.streams))
+        armed = False
         try:
-            return self._service(dev, t_ns)
+            # arm and disarm inside the try that catches the deadline: the alarm can fire
+            # between arming and the call or after the call returns, before disarm (seen at
+            # load 35), and must still isolate the device rather than escape the run
+            try:
+                armed = watchdog.arm(driver_deadline_s(dev.streams))
+                return self._service(dev, t_ns)
+            finally:
+                if armed:
+                    watchdog.disarm()
         except DriverDeadline:
             self._isolate(dev, t_ns, "did not return from a call within its deadline of "
                           f"{driver_deadline_s(dev.streams):g} s (from its chip's rate)")
@@ -755,9 +763,6 @@ class Pipeline:
             raise  # a replayed recording ran out or diverged: the whole run ends
         except Exception as exc:  # a driver plugin's bug is its device's alone
             return [], self._driver_failed(dev, t_ns, exc)
-        finally:
-            if armed:
-                watchdog.disarm()
 
     def _driver_failures(self, dev: DeviceRuntime) -> PluginFaults:
         """The containment record of ``dev``'s driver."""
