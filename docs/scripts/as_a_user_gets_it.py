@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from docblock import write_block
 
 from imuhal.calibrate.as_user import calibrate_emulated
 from imuhal.emulation import open_emulated
@@ -174,14 +175,7 @@ def main(argv: list[str] | None = None) -> int:
     text = table(results, args.thermal_s)
     print(text)
     if args.write:
-        doc = DOC.read_text(encoding="utf-8")
-        start, end = "<!-- as-user-table:start -->", "<!-- as-user-table:end -->"
-        if start not in doc:
-            print(f"{DOC}: no {start} marker", file=sys.stderr)
-            return 1
-        head, _, rest = doc.partition(start)
-        _, _, tail = rest.partition(end)
-        DOC.write_text(f"{head}{start}\n{text}\n{end}{tail}", encoding="utf-8")
+        write_block(DOC, "as-user-table", text)
     return 0
 
 

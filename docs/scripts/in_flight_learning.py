@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from docblock import write_block
 
 from imuhal.calibrate.as_user import calibrate_emulated
 from imuhal.calibrate.emulated import measure_board_calibration
@@ -47,7 +48,6 @@ SEED = 1
 LAST_S = 60.0
 PATH = default_profile_path().parent / "seed-gps-vario.yaml"
 DOC = Path(__file__).resolve().parents[1] / "calibration.md"
-START, END = "<!-- learning-table:start -->", "<!-- learning-table:end -->"
 
 
 def _yaw_deg(q: Any) -> float:
@@ -140,13 +140,7 @@ def main(argv: list[str] | None = None) -> int:
     table = "\n".join(lines)
     print(table)
     if args.write:
-        doc = DOC.read_text(encoding="utf-8")
-        if START not in doc or END not in doc:
-            print(f"{DOC}: no {START} ... {END} markers", file=sys.stderr)
-            return 1
-        head, _, rest = doc.partition(START)
-        _, _, tail = rest.partition(END)
-        DOC.write_text(f"{head}{START}\n{table}\n{END}{tail}", encoding="utf-8")
+        write_block(DOC, "learning-table", table)
     return 0
 
 if __name__ == "__main__":

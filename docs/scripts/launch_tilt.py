@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from docblock import write_block
 
 from imuhal.calibrate.as_user import calibrate_emulated
 from imuhal.emulation import open_emulated
@@ -35,7 +36,6 @@ TIMES_S = (5.0, 5.5, 6.0, 6.5, 7.0, 7.5, 8.0, 8.5, 9.0, 10.0)
 LAUNCH_S, RUN_UP_S, SPEED_M_S = 5.0, 3.0, 10.0
 """The ``thermal`` scenario's defaults (imuhal.sim.thermal.ThermalParams)."""
 DOC = Path(__file__).resolve().parents[1] / "estimators.md"
-START, END = "<!-- launch-table:start -->", "<!-- launch-table:end -->"
 
 
 def _euler_deg(q: Any) -> tuple[float, float]:
@@ -102,13 +102,7 @@ def main(argv: list[str] | None = None) -> int:
     text = table(runs, args.duration)
     print(text)
     if args.write:
-        doc = DOC.read_text(encoding="utf-8")
-        if START not in doc or END not in doc:
-            print(f"{DOC}: no {START} ... {END} markers", file=sys.stderr)
-            return 1
-        head, _, rest = doc.partition(START)
-        _, _, tail = rest.partition(END)
-        DOC.write_text(f"{head}{START}\n{text}\n{END}{tail}", encoding="utf-8")
+        write_block(DOC, "launch-table", text)
     return 0
 
 
