@@ -8,10 +8,10 @@ Run:  nice -n 10 .venv/bin/python tests/benchmarks/fault_matrix.py [--seconds 10
 
 Each run opens one bundled board emulated (its profile's scenario, seed 1), injects the
 faults through imuhal.emulation.faults, flies ``--seconds`` simulated seconds and judges
-every event with the soak's checker (tests/benchmarks/soak.py) at MARGIN times the
-tolerance the chips' error models allow, with each board's own latency (two periods of the
-device's stream plus the latency its stream spec declares: a chip filter's delay). What a
-kind "at r" means:
+every event with the checker the soak shares (tests/benchmarks/fault_truth.py) at MARGIN
+times the tolerance the chips' error models allow, with each board's own latency (two
+periods of the device's stream plus the latency its stream spec declares: a chip filter's
+delay). What a kind "at r" means:
 
 * rate kinds (``bus_errors``, ``os_error``): each transfer fails with probability r;
 * window kinds (``all_ones``, ``all_zeros``, ``absent``, ``stuck_data_ready``, ``frozen``,
@@ -40,38 +40,23 @@ import math
 import sys
 import time
 import traceback
-from collections import Counter
 from collections.abc import Iterator, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from tests.benchmarks.soak import LATENCY_S, Checker, Report
-
-from imuhal.core.samples import Quantity, Sample, VelocitySample
-from imuhal.emulation import error_models_for, open_emulated
-from imuhal.emulation.faults import (
-    AllOnes,
-    AllZeros,
-    BusErrors,
-    BusOSError,
-    ChipAbsent,
-    ChipReset,
-    CorruptByte,
-    CorruptTrim,
-    FaultSpec,
-    FrozenData,
-    HostStall,
-    LatePolls,
-    StuckDataReady,
-    TimingJitter,
-    WildValue,
-    WrongPressure,
+from tests.benchmarks.fault_truth import (
+    KINDS,
+    Checker,
+    Device,
+    Report,
+    devices_of,
+    make_fault,
 )
-from imuhal.estimation.outputs import AttitudeEstimate, VerticalEstimate
-from imuhal.pipeline import Pipeline
+
+from imuhal.emulation import error_models_for, open_emulated
+from imuhal.emulation.faults import FaultSpec
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
@@ -80,48 +65,7 @@ from imuhal.profile.model import BoardProfile
 RATES = (0.001, 0.01, 0.1)
 MARGIN = 1.5
 """Every tolerance of the error model, times this (the "generous margin")."""
-VELOCITY_MARGIN_M_S = 2.0
-"""A valid GNSS velocity further than this from the truth is wrong (issue 26 item 2)."""
-CLIMB_MARGIN_M_S = 3.0
-"""A vertical estimate's climb rate further than this from the truth is wrong..."""
-SETTLE_S = 3.0
-"""...after this long (the filters start from zero climb)."""
 WINDOW_MAX_S = 0.5
-KINDS = ("bus_errors", "os_error", "all_ones", "all_zeros", "corrupt_byte", "absent", "reset",
-         "stuck_data_ready", "frozen", "corrupt_trim", "late_polls", "jitter", "host_stall",
-         "wild_value", "wrong_pressure")
-"""Every kind of imuhal.emulation.faults (FAULT_KINDS), in its order."""
-WILD_CHANNELS = ("accel", "gyro", "mag", "pressure", "temperature")
-
-
-@dataclass
-class Device:
-    """What the matrix needs to know of one device of a board."""
-
-    name: str
-    serial: bool
-    chip_faults: frozenset[str]
-    channels: tuple[str, ...]
-    rate_hz: float
-    full_scale: dict[str, float] = field(default_factory=dict)
-
-
-def devices_of(profile: BoardProfile, registry: Registry) -> list[Device]:
-    """Every enabled device, from one fault-free open of the board (rates and full scales
-    as the drivers read them back)."""
-    out = []
-    with open_emulated(profile, registry, seed=1) as p:
-        for name, dev in p.devices.items():
-            cfg = profile.devices[name]
-            bus = cfg.bus.split("/")[0]
-            kind = profile.buses[bus].kind if bus in profile.buses else None
-            emulator = registry.emulators.get(cfg.driver)
-            channels = tuple(c.value for c in type(dev.driver).channels)
-            rate = max((s.rate_hz for s in dev.streams), default=1.0)
-            full = {c.value: fs for c, fs in dev.full_scale.items() if fs}
-            out.append(Device(name, kind == "serial", emulator.chip_faults(), channels, rate,
-                              full))
-    return out
 
 
 def _windows(rate: float, seconds: float) -> Iterator[tuple[float, float]]:
@@ -141,54 +85,19 @@ def _instants(rate: float, seconds: float, rate_hz: float) -> list[float]:
     return [round(1.0 + (i + 0.5) * step, 4) for i in range(n)]
 
 
-def faults_for(kind: str, dev: Device, rate: float, seconds: float) -> list[Any]:
+def faults_for(kind: str, dev: Device, rate: float, seconds: float) -> list[FaultSpec]:
     """The faults of ``kind`` at ``rate`` on ``dev`` ([] where it does not apply)."""
-    d = dev.name
-    if kind in ("reset", "stuck_data_ready", "frozen", "corrupt_trim") \
-            and kind not in dev.chip_faults:
-        return []
     # from 1 s: a board that cannot start under the fault is a start-up figure (the soak's
     # 40 start-ups), not a flight's
-    if kind == "bus_errors":
-        return [BusErrors(device=d, rate=rate, start_s=1.0)]
-    if kind == "os_error":
-        return [BusOSError(device=d, rate=rate, start_s=1.0)]
-    window_kinds: dict[str, Any] = {
-        "all_ones": AllOnes, "all_zeros": AllZeros, "absent": ChipAbsent,
-        "stuck_data_ready": StuckDataReady, "frozen": FrozenData}
-    if kind in window_kinds:
-        return [window_kinds[kind](device=d, start_s=a, end_s=b)
-                for a, b in _windows(rate, seconds)]
-    if kind == "late_polls":
-        return [LatePolls(device=d, start_s=a, end_s=b, delay_s=0.01)
-                for a, b in _windows(rate, seconds)]
-    if kind == "jitter":
-        return [TimingJitter(device=d, start_s=a, end_s=b, max_delay_s=0.005)
-                for a, b in _windows(rate, seconds)]
-    if kind == "host_stall":
-        return [HostStall(device=d, start_s=1.0, stall_s=0.02, rate_hz=min(rate / 0.02, 100))]
-    return _one_offs(kind, dev, rate, seconds)
-
-
-def _one_offs(kind: str, dev: Device, rate: float, seconds: float) -> list[Any]:
-    instants = _instants(rate, seconds, dev.rate_hz)
-    d = dev.name
-    if kind == "reset":
-        return [ChipReset(device=d, start_s=t) for t in instants]
-    if kind == "corrupt_trim":
-        return [CorruptTrim(device=d, start_s=t) for t in instants]
-    if kind == "corrupt_byte":
-        return [CorruptByte(device=d, start_s=t, byte=i % 7, mask=1 << (i % 8))
-                for i, t in enumerate(instants)] if dev.serial else []
-    if kind == "wrong_pressure":
-        return [WrongPressure(device=d, start_s=t, offset_pa=300.0)
-                for t in instants] if "pressure" in dev.channels else []
-    wild = [c for c in dev.channels if c in WILD_CHANNELS]
-    if kind != "wild_value" or not wild:
-        return []
-    return [WildValue(device=d, start_s=t, channel=wild[i % len(wild)], axis=i % 3,
-                      value=1000.0 * dev.full_scale.get(wild[i % len(wild)], 1e5))
-            for i, t in enumerate(instants)]
+    if kind in ("bus_errors", "os_error", "host_stall"):
+        slots: list[tuple[float, float | None]] = [(1.0, None)]
+    elif kind in ("all_ones", "all_zeros", "absent", "stuck_data_ready", "frozen",
+                  "late_polls", "jitter"):
+        slots = list(_windows(rate, seconds))
+    else:
+        slots = [(t, None) for t in _instants(rate, seconds, dev.rate_hz)]
+    faults = [make_fault(kind, dev, a, b, rate=rate, index=i) for i, (a, b) in enumerate(slots)]
+    return [f for f in faults if f is not None]
 
 
 @dataclass
@@ -206,77 +115,6 @@ class RunResult:
     wall_s: float = 0.0
 
 
-class MatrixChecker(Checker):
-    """The soak's checker, plus GNSS velocities and the estimates."""
-
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        self.wrong_estimates: Counter[str] = Counter()
-        self.rejected = 0
-
-    def handle(self, event: object) -> None:
-        if isinstance(event, VelocitySample):
-            self._velocity(event)
-            return
-        if isinstance(event, Sample) and event.channel not in self.latency_s:
-            return  # GNSS position: the checker has no truth in degrees
-        elif isinstance(event, AttitudeEstimate | VerticalEstimate):
-            self._estimate(event)
-        elif type(event).__name__ == "RejectedEstimate":
-            self.rejected += 1
-        super().handle(event)
-
-    def _wrong_by_design(self, s: Sample, values: tuple[float, ...]) -> bool:
-        """As the soak's, and a pressure between the truth and the truth plus a
-        ``wrong_pressure`` offset in that fault's window: the chip's own filter (the
-        BMP280's IIR) blends the wrong measurement into the next outputs."""
-        if super()._wrong_by_design(s, values):
-            return True
-        if s.channel is not Quantity.PRESSURE:
-            return False
-        t_s = s.t_ns / 1e9
-        for device, offset, start, end in self.wrong_world:
-            if device == s.device and start <= t_s <= end:
-                low, high = min(0.0, offset), max(0.0, offset)
-                shifted = [self._error(s, values, offset=o) for o in (low, high)]
-                if self._error(s, values, offset=(low + high) / 2)[0] <= \
-                        (high - low) / 2 + max(tol for _, tol in shifted):
-                    return True
-        return False
-
-    def _velocity(self, s: VelocitySample) -> None:
-        if not s.valid:
-            return
-        errors = [math.dist(s.velocity_ned_m_s, self.truth(s.t_ns - lag).velocity_ned_m_s)
-                  for lag in (0, 100_000_000, 200_000_000)]
-        self.report.checked[f"{s.device} velocity"] += 1
-        if min(errors) > VELOCITY_MARGIN_M_S:
-            self.report.wrong_valid[f"{s.device} velocity"] += 1
-
-    def _estimate(self, e: AttitudeEstimate | VerticalEstimate) -> None:
-        if isinstance(e, AttitudeEstimate):
-            if not all(map(math.isfinite, e.q_body_to_ned)):
-                self.wrong_estimates[f"{e.source} attitude not finite"] += 1
-            return
-        if not (math.isfinite(e.altitude_m) and math.isfinite(e.climb_m_s)):
-            self.wrong_estimates[f"{e.source} vertical not finite"] += 1
-        elif e.t_ns / 1e9 > SETTLE_S and \
-                abs(e.climb_m_s - self.truth(e.t_ns).climb_m_s) > CLIMB_MARGIN_M_S:
-            self.wrong_estimates[f"{e.source} climb off"] += 1
-
-
-def latency_of(pipeline: Pipeline) -> dict[Quantity, float]:
-    """Per quantity: two periods of the slowest stream carrying it plus its declared
-    latency, never below the seed board's figures."""
-    out = dict(LATENCY_S)
-    for streams in pipeline.streams.values():
-        for spec in streams:
-            channel = spec.quantity
-            if channel in out:
-                out[channel] = max(out[channel], 2.0 / spec.rate_hz + spec.latency_s)
-    return out
-
-
 def run_one(board: str, profile: BoardProfile, registry: Registry, kinds: Sequence[str],
             rate: float, seconds: float, devices: list[Device]) -> RunResult:
     plan: list[FaultSpec] = [f for kind in kinds for dev in devices
@@ -288,18 +126,18 @@ def run_one(board: str, profile: BoardProfile, registry: Registry, kinds: Sequen
     report = Report(duration_s=seconds, seed=1)
     try:
         with open_emulated(profile, registry, seed=1, faults=plan) as pipeline:
-            checker = MatrixChecker(pipeline, plan, report, error_models_for(profile, registry, 1),
-                                    latency_s=latency_of(pipeline), margin=MARGIN)
+            checker = Checker(pipeline, plan, report, error_models_for(profile, registry, 1),
+                              margin=MARGIN)
             for event in pipeline.events(seconds):
                 checker.handle(event)
-            result.wrong_estimates = dict(checker.wrong_estimates)
-            result.rejected_estimates = checker.rejected
     except Exception:
         result.crash = traceback.format_exc(limit=-3)
     result.checked = sum(report.checked.values())
     result.wrong_valid = {**dict(report.wrong_valid), **{f"NaN {k}": v
                                                         for k, v in report.nan.items()}}
     result.by_design = len(report.by_design)
+    result.wrong_estimates = dict(report.wrong_estimates)
+    result.rejected_estimates = sum(report.rejected_estimates.values())
     result.wall_s = time.perf_counter() - wall0
     return result
 
