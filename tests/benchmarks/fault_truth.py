@@ -50,25 +50,7 @@ from imuhal.core.samples import (
     VectorSample,
     VelocitySample,
 )
-from imuhal.emulation import open_emulated
-from imuhal.emulation.faults import (
-    AllOnes,
-    AllZeros,
-    BusErrors,
-    BusOSError,
-    ChipAbsent,
-    ChipReset,
-    CorruptByte,
-    CorruptTrim,
-    FaultSpec,
-    FrozenData,
-    HostStall,
-    LatePolls,
-    StuckDataReady,
-    TimingJitter,
-    WildValue,
-    WrongPressure,
-)
+from imuhal.emulation import faults, open_emulated
 from imuhal.estimation.outputs import AttitudeEstimate, RejectedEstimate, VerticalEstimate
 from imuhal.pipeline import Pipeline
 from imuhal.plugins.manager import Registry
@@ -102,8 +84,8 @@ KINDS = ("bus_errors", "os_error", "all_ones", "all_zeros", "corrupt_byte", "abs
 WILD_CHANNELS = ("accel", "gyro", "mag", "pressure", "temperature")
 """The quantities a ``wild_value`` can replace."""
 _WINDOW_KINDS: dict[str, Any] = {
-    "all_ones": AllOnes, "all_zeros": AllZeros, "absent": ChipAbsent,
-    "stuck_data_ready": StuckDataReady, "frozen": FrozenData}
+    "all_ones": faults.AllOnes, "all_zeros": faults.AllZeros, "absent": faults.ChipAbsent,
+    "stuck_data_ready": faults.StuckDataReady, "frozen": faults.FrozenData}
 
 
 # -- the devices of a board and their faults -------------------------------------------------
@@ -157,7 +139,7 @@ def devices_of(profile: BoardProfile, registry: Registry) -> list[Device]:
 
 
 def make_fault(kind: str, dev: Device, start_s: float, end_s: float | None = None, *,
-               rate: float = 0.01, index: int = 0) -> FaultSpec | None:
+               rate: float = 0.01, index: int = 0) -> faults.FaultSpec | None:
     """One fault of ``kind`` on ``dev`` from ``start_s`` (None where the device cannot have
     it). Window kinds last to ``end_s``; ``bus_errors`` and ``os_error`` fail a transfer
     with probability ``rate``; ``host_stall`` stalls the host 20 ms at random, a fraction
@@ -170,37 +152,38 @@ def make_fault(kind: str, dev: Device, start_s: float, end_s: float | None = Non
         return None
     window: dict[str, Any] = {"device": d, "start_s": start_s, "end_s": end_s}
     if kind == "bus_errors":
-        return BusErrors(rate=rate, **window)
+        return faults.BusErrors(rate=rate, **window)
     if kind == "os_error":
-        return BusOSError(rate=rate, **window)
+        return faults.BusOSError(rate=rate, **window)
     if kind in _WINDOW_KINDS:
         return _WINDOW_KINDS[kind](**window)  # type: ignore[no-any-return]
     if kind == "late_polls":
-        return LatePolls(delay_s=0.01, **window)
+        return faults.LatePolls(delay_s=0.01, **window)
     if kind == "jitter":
-        return TimingJitter(max_delay_s=0.005, **window)
+        return faults.TimingJitter(max_delay_s=0.005, **window)
     if kind == "host_stall":
-        return HostStall(stall_s=0.02, rate_hz=min(rate / 0.02, 100), **window)
+        return faults.HostStall(stall_s=0.02, rate_hz=min(rate / 0.02, 100), **window)
     return _one_off(kind, dev, start_s, index)
 
 
-def _one_off(kind: str, dev: Device, start_s: float, index: int) -> FaultSpec | None:
+def _one_off(kind: str, dev: Device, start_s: float, index: int) -> faults.FaultSpec | None:
     d = dev.name
     if kind == "reset":
-        return ChipReset(device=d, start_s=start_s)
+        return faults.ChipReset(device=d, start_s=start_s)
     if kind == "corrupt_trim":
-        return CorruptTrim(device=d, start_s=start_s)
+        return faults.CorruptTrim(device=d, start_s=start_s)
     if kind == "corrupt_byte":
-        return CorruptByte(device=d, start_s=start_s, byte=index % 7, mask=1 << (index % 8))
+        return faults.CorruptByte(device=d, start_s=start_s, byte=index % 7,
+                                  mask=1 << (index % 8))
     if kind == "wrong_pressure":
-        return WrongPressure(device=d, start_s=start_s, offset_pa=300.0)
+        return faults.WrongPressure(device=d, start_s=start_s, offset_pa=300.0)
     wild = dev.wild_channels()
     channel = wild[index % len(wild)]
-    return WildValue(device=d, start_s=start_s, channel=channel, axis=index % 3,  # type: ignore[arg-type]
-                     value=1000.0 * dev.full_scale.get(channel, 1e5))
+    return faults.WildValue(device=d, start_s=start_s, channel=channel,  # type: ignore[arg-type]
+                            axis=index % 3, value=1000.0 * dev.full_scale.get(channel, 1e5))
 
 
-def fault_window(spec: FaultSpec, duration_s: float) -> tuple[float, float]:
+def fault_window(spec: faults.FaultSpec, duration_s: float) -> tuple[float, float]:
     """When a fault can affect samples: its window, plus 1 s of aftermath."""
     hold = getattr(spec, "hold_s", 0.0)
     end = spec.end_s if spec.end_s is not None else (
@@ -273,6 +256,10 @@ class Report:
     checked: Counter[str] = field(default_factory=Counter)
     wrong_valid: Counter[str] = field(default_factory=Counter)
     wrong_by_fault: Counter[str] = field(default_factory=Counter)
+    """Wrong valid samples by quantity and the faults in force (and their aftermath)."""
+    first_wrong_s: dict[str, float] = field(default_factory=dict)
+    """The first time (simulated s) of each entry of ``wrong_by_fault`` and
+    ``wrong_estimates_by_fault``, to find it again."""
     worst: dict[str, float] = field(default_factory=dict)
     out_of_order: Counter[str] = field(default_factory=Counter)
     flagged_out_of_order: int = 0
@@ -303,7 +290,7 @@ class Report:
 class Checker:
     """Judges every event of the run against the truth."""
 
-    def __init__(self, pipeline: Pipeline, plan: Sequence[FaultSpec], report: Report,
+    def __init__(self, pipeline: Pipeline, plan: Sequence[faults.FaultSpec], report: Report,
                  models: dict[str, SensorErrorModel], *,
                  latency_s: dict[Quantity, float] | None = None, margin: float = 1.0) -> None:
         """``latency_s``: per quantity, how far before its time stamp a measurement may lie
@@ -315,12 +302,12 @@ class Checker:
         self.report = report
         self.scenario = pipeline.board.scenario  # type: ignore[attr-defined]
         self.windows = [(f"{s.kind}:{s.device}", *fault_window(s, report.duration_s))
-                        for s in plan if not isinstance(s, BusErrors)]
+                        for s in plan if not isinstance(s, faults.BusErrors)]
         self.specs: dict[str, SensorErrorSpec | None] = {
             name: type(emu).error_spec
             for name, emu in pipeline.board.emulators.items()}  # type: ignore[attr-defined]
         self.wrong_world = [(s.device, s.offset_pa, *fault_window(s, report.duration_s))
-                            for s in plan if isinstance(s, WrongPressure)]
+                            for s in plan if isinstance(s, faults.WrongPressure)]
         self._recent_climb: deque[tuple[int, float]] = deque(maxlen=512)
         """(t_ns, |climb - true climb|) of the last vario estimates."""
         self.last: dict[tuple[str, Quantity], int] = {}
@@ -365,10 +352,15 @@ class Checker:
         elif isinstance(event, RejectedEstimate):
             self.report.rejected_estimates[event.source] += 1
 
+    def _attribute(self, counts: Counter[str], what: str, t_ns: int) -> None:
+        """Count ``what`` under the faults in force at ``t_ns``."""
+        key = f"{what} during {self.faults_at(t_ns)}"
+        counts[key] += 1
+        self.report.first_wrong_s.setdefault(key, t_ns / 1e9)
+
     def _wrong_estimate(self, e: AttitudeEstimate | VerticalEstimate, what: str) -> None:
         self.report.wrong_estimates[f"{e.source} {what}"] += 1
-        self.report.wrong_estimates_by_fault[
-            f"{e.source} {what} during {self.faults_at(e.t_ns)}"] += 1
+        self._attribute(self.report.wrong_estimates_by_fault, f"{e.source} {what}", e.t_ns)
 
     def _vertical(self, e: VerticalEstimate) -> None:
         if not (math.isfinite(e.altitude_m) and math.isfinite(e.climb_m_s)):
@@ -402,7 +394,7 @@ class Checker:
         self.report.checked[key] += 1
         if min(errors) > VELOCITY_MARGIN_M_S:
             self.report.wrong_valid[key] += 1
-            self.report.wrong_by_fault[f"{key} during {self.faults_at(s.t_ns)}"] += 1
+            self._attribute(self.report.wrong_by_fault, key, s.t_ns)
 
     def _sample(self, s: Sample) -> None:
         if SampleFlag.OUT_OF_ORDER in s.flags:
@@ -432,7 +424,7 @@ class Checker:
         self.report.worst[key] = max(self.report.worst.get(key, 0.0), ratio)
         if error > tolerance:
             self.report.wrong_valid[key] += 1
-            self.report.wrong_by_fault[f"{key} during {self.faults_at(s.t_ns)}"] += 1
+            self._attribute(self.report.wrong_by_fault, key, s.t_ns)
 
     def _wrong_by_design(self, s: Sample, values: tuple[float, ...]) -> bool:
         """A pressure that matches what a ``wrong_pressure`` fault made the world measure

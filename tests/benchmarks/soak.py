@@ -52,14 +52,8 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from tests.benchmarks.fault_truth import (
-    KINDS,
-    Checker,
-    Device,
-    Report,
-    devices_of,
-    make_fault,
-)
+from tests.benchmarks import fault_truth
+from tests.benchmarks.fault_truth import Device, Report
 
 from imuhal.core.atomic import atomic_write_text
 from imuhal.emulation import error_models_for, open_emulated
@@ -107,7 +101,7 @@ def _slots(devices: Sequence[Device]) -> list[tuple[str, Device, int]]:
     """(kind, device, index) for every kind but the background ones on every device that
     can have it; a ``wild_value`` once for each quantity of the device."""
     out = []
-    for kind in KINDS:
+    for kind in fault_truth.KINDS:
         if kind in ("bus_errors", "corrupt_trim"):
             continue
         for dev in devices:
@@ -129,17 +123,18 @@ def fault_plan(devices: Sequence[Device], duration_s: float) -> list[FaultSpec]:
     for n, (kind, dev, index) in enumerate(slots, start=1):
         start = round(n * step, 3)
         span = SPANS_S.get(kind)
-        fault = make_fault(kind, dev, start, None if span is None else round(start + span, 3),
-                           rate=RATES.get(kind, ERROR_RATE), index=index)
+        end = None if span is None else round(start + span, 3)
+        fault = fault_truth.make_fault(kind, dev, start, end, rate=RATES.get(kind, ERROR_RATE),
+                                       index=index)
         assert fault is not None, (kind, dev.name)  # _slots asked can_have
         plan.append(fault)
     trims = [d for d in devices if d.can_have("corrupt_trim")]
     late = (1.0 - PLAN_END) * duration_s / (len(trims) + 1)
     for n, dev in enumerate(trims, start=1):
         start = round(PLAN_END * duration_s + n * late, 3)
-        plan.append(make_fault("corrupt_trim", dev, start))  # type: ignore[arg-type]
+        plan.append(fault_truth.make_fault("corrupt_trim", dev, start))  # type: ignore[arg-type]
         if dev.can_have("reset"):
-            plan.append(make_fault("reset", dev, start + 0.5))  # type: ignore[arg-type]
+            plan.append(fault_truth.make_fault("reset", dev, start + 0.5))  # type: ignore[arg-type]
     return plan
 
 
@@ -183,7 +178,7 @@ def soak(board: str, profile: BoardProfile, registry: Registry, report: Report,
          checkpoint: Checkpoint, progress: bool = True) -> None:
     """Fly ``board`` for ``report.duration_s`` under its fault plan, filling ``report``."""
     duration_s = report.duration_s
-    plan = fault_plan(devices_of(profile, registry), duration_s)
+    plan = fault_plan(fault_truth.devices_of(profile, registry), duration_s)
     if progress:
         print(f"{board}: fault plan:", *(f"  {spec!r}" for spec in plan), sep="\n",
               file=sys.stderr)
@@ -197,7 +192,8 @@ def soak(board: str, profile: BoardProfile, registry: Registry, report: Report,
         return
     rates = {f"{name} {spec.quantity.value}": spec.rate_hz
              for name, streams in pipeline.streams.items() for spec in streams}
-    checker = Checker(pipeline, plan, report, error_models_for(profile, registry, report.seed))
+    models = error_models_for(profile, registry, report.seed)
+    checker = fault_truth.Checker(pipeline, plan, report, models)
     step = min(60.0, duration_s)
     try:
         while report.simulated_s < duration_s - 1e-9:
@@ -282,8 +278,9 @@ def markdown(report: Report) -> str:
                           ("Unflagged wrong estimates", report.wrong_estimates_by_fault)):
         if counts:
             lines += ["", f"{title} by quantity and the faults in force:", "",
-                      "| what | count |", "|---|---|"]
-            lines += [f"| {k} | {v} |" for k, v in sorted(counts.items())]
+                      "| what | count | first |", "|---|---|---|"]
+            lines += [f"| {k} | {v} | {report.first_wrong_s.get(k, math.nan):.2f} s |"
+                      for k, v in sorted(counts.items())]
     lines += ["", "Flagged samples, by quantity and flag (first and last time):", "",
               "| samples | flag | count | first | last |", "|---|---|---|---|---|"]
     for key, (first, last, n) in sorted(report.flagged_spans.items()):
