@@ -141,7 +141,6 @@ class FilterMemory:
         n = self.outputs.get(key, 0)
         if not n:
             return SampleFlag.OK
-        period = self.period_ns[key]
         until = self._until_ns.get(key)
         # An output the window covers is settling even when it carries a wrong measurement
         # itself: the channels filtered together (the BMP280's temperature beside a wrong
@@ -149,13 +148,23 @@ class FilterMemory:
         settling = SampleFlag.FILTER_SETTLING if until is not None and t_ns <= until \
             else SampleFlag.OK
         if flags & VALUE_FLAGS:
-            # Half a period more: an output polled a little late is still one of the n.
-            # A new wrong measurement never shortens the window an earlier one opened.
-            self._until_ns[key] = max(until or 0, t_ns + n * period + period // 2)
+            self.arm(key, t_ns)
             return settling
         if until is not None and not settling:
             del self._until_ns[key]
         return settling
+
+    def arm(self, key: Hashable, t_ns: int) -> None:
+        """The chip's filter took in a wrong measurement at ``t_ns`` (one ``flag`` arms on by
+        itself, or one the driver flagged otherwise: a conversion hung on an old value,
+        FROZEN): the next ``outputs[key]`` output periods are FILTER_SETTLING."""
+        n = self.outputs.get(key, 0)
+        if not n:
+            return
+        period = self.period_ns[key]
+        # Half a period more: an output polled a little late is still one of the n.
+        # A new wrong measurement never shortens the window an earlier one opened.
+        self._until_ns[key] = max(self._until_ns.get(key, 0), t_ns + n * period + period // 2)
 
     def forget(self) -> None:
         """The chip's filters were re-initialised: nothing earlier can reach the next output."""

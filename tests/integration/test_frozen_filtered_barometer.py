@@ -1,0 +1,77 @@
+"""A BMP280 whose conversions hang behind its IIR filter (the GY-91's barometer), through
+the fault-injection interface; found by the soak on every bundled board
+(tests/benchmarks/soak.py).
+
+The soak's gy91 run froze the barometer in a glide: the driver waited for 41 identical
+outputs (a window sized for the unfiltered x1 chip, then grown with the filter), so the
+frozen pressure stayed valid for a second while the flight moved on, and after the chip
+thawed its filter blended the frozen word into outputs that left valid, up to 50 Pa off.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+from imuhal.core.samples import PressureSample, SampleFlag
+from imuhal.emulation import error_models_for, open_emulated
+from imuhal.emulation.faults import FrozenData
+from imuhal.plugins.manager import load_registry
+from imuhal.profile.bundled import bundled_profiles
+from imuhal.profile.loader import load_profile
+
+FROZEN_FROM_S = 8.0
+FROZEN_TO_S = 11.0
+CLIMB_M_S = 2.2
+"""The thermal scenario's climb: 26 Pa a second at the gy91's altitude."""
+NOISE_TOLERANCE_PA = 6 * 1.3 + 2 * 0.16
+"""The soak's tolerance for a BMP280 pressure: 6 sigma of datasheet noise, two words."""
+
+
+@pytest.fixture(scope="module")
+def frozen_climb() -> list[tuple[PressureSample, float]]:
+    """Every pressure of a climbing gy91 whose barometer freezes for 3 s, with its error
+    against the truth plus the error model's own bias (the closest of the time stamp and
+    up to three 20 ms steps before it: the conversion's latency)."""
+    registry = load_registry()
+    profile = load_profile(bundled_profiles()["gy91.yaml"], registry)
+    model = error_models_for(profile, registry, 1)["baro"]
+    out: list[tuple[PressureSample, float]] = []
+    with open_emulated(profile, registry, seed=1,
+                       faults=[FrozenData(device="baro", start_s=FROZEN_FROM_S,
+                                          end_s=FROZEN_TO_S)],
+                       scenario_params={"schedule": ((0.0, 0.0), (2.0, CLIMB_M_S))}) as p:
+        scenario: Any = p.board.scenario  # type: ignore[attr-defined]
+        for event in p.events(FROZEN_TO_S + 3.0):
+            if not isinstance(event, PressureSample):
+                continue
+            errors = []
+            for lag_s in (0.0, 0.02, 0.04, 0.06):
+                t_s = event.t_ns / 1e9 - lag_s
+                truth = scenario.truth(t_s)
+                bias = float(model.bias("pressure", truth.temperature_degc, t_s))  # type: ignore[arg-type]
+                errors.append(abs(event.pressure_pa - truth.pressure_pa - bias))
+            out.append((event, min(errors)))
+    return out
+
+
+def test_a_frozen_bmp280_behind_its_filter_is_flagged_within_half_a_second(
+        frozen_climb: list[tuple[PressureSample, float]]) -> None:
+    """At coefficient 4 the filtered word is 20 bits: a working chip repeats it far less
+    often than the unfiltered x1 chip the old window was sized for, so 14 identical outputs
+    (after the filter has settled on the hung word) are enough."""
+    frozen = [s.t_ns / 1e9 for s, _ in frozen_climb if s.flags & SampleFlag.FROZEN]
+    assert frozen and FROZEN_FROM_S < frozen[0] <= FROZEN_FROM_S + 0.5
+    before = [err for s, err in frozen_climb if s.valid and s.t_ns / 1e9 < FROZEN_FROM_S]
+    assert max(before) < NOISE_TOLERANCE_PA  # the comparison itself is sound
+
+
+def test_the_outputs_after_a_frozen_bmp280_thaws_are_filter_settling(
+        frozen_climb: list[tuple[PressureSample, float]]) -> None:
+    """The hung converter fed its IIR filter the old word, so the outputs after it thaws
+    carry it: they are FILTER_SETTLING, and every valid one is within noise of the truth."""
+    after = [(s, err) for s, err in frozen_climb if s.t_ns / 1e9 >= FROZEN_TO_S]
+    assert any(s.flags & SampleFlag.FILTER_SETTLING for s, _ in after)
+    assert [round(err, 1) for s, err in after if s.valid and err > NOISE_TOLERANCE_PA] == []
+    assert sum(s.valid for s, _ in after) > 10
