@@ -242,7 +242,8 @@ def _measures(report: Report) -> dict[str, str]:
     ok, attempts = report.startups
     climbs = [e.get("climb_error_after", math.nan) for e in report.by_design]
     return {
-        "simulated / wall": f"{report.simulated_s:.0f} s / {report.wall_s:.0f} s",
+        "simulated of asked / wall": f"{report.simulated_s:.0f} of {report.duration_s:.0f} s"
+                                     f" / {report.wall_s:.0f} s",
         "crashes": str(len(report.crashes)),
         "NaN in valid samples or estimates": str(sum(report.nan.values())),
         "valid samples wrong against the truth": f"{sum(report.wrong_valid.values())} of "
@@ -256,7 +257,7 @@ def _measures(report: Report) -> dict[str, str]:
         "`wrong_pressure` rejected by the vario's gate": _gated(report),
         "worst climb error in the 2 s after it": f"{max(climbs, default=math.nan):.2f} m/s",
         "`wrong_pressure` blended by the chip's filter (apart)": str(report.by_design_blended),
-        "start-ups with 1 % bus errors": f"{ok}/{attempts}",
+        "start-ups with 1 % bus errors": f"{ok}/{attempts}" if attempts else "not run",
     }
 
 
