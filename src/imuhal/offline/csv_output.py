@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import io
 import math
 import shutil
 import tempfile
-from collections.abc import Iterable, Sequence
+from collections.abc import Collection, Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +25,7 @@ from imuhal.estimation.outputs import (
     VerticalEstimate,
 )
 from imuhal.estimation.rows import AttitudeRows, flatten_diagnostics
+from imuhal.offline.fast_csv import format_block, format_column
 
 ATTITUDE_COLUMNS = ("t_s", *attitude_columns(NED))
 VERTICAL_COLUMNS = ("t_s", "altitude_m", "climb_m_s", "accel_bias_m_s2")
@@ -85,11 +87,11 @@ class EstimateCsvWriter:
         self._growth: list[tuple[int, int]] = []
         """(first row, header width) whenever the header grew after rows were written."""
         self.rows = 0
-        self._out = AtomicFile(self.path, newline="")
+        self._out = AtomicFile(self.path, binary=True)
+        # bytes: the block formatter's text goes to disk without a codec pass
         self._spill = tempfile.TemporaryFile(  # noqa: SIM115 (closed by commit/abort)
-            "w+", newline="", encoding="utf-8", dir=self._out.tmp_path.parent,
-            prefix=f".{self.path.name}.", suffix=".rows")
-        self._csv = csv.writer(self._spill)
+            "w+b", dir=self._out.tmp_path.parent, prefix=f".{self.path.name}.",
+            suffix=".rows")
 
     def write(self, estimates: Iterable[Estimate] | AttitudeRows) -> None:
         """Append ``estimates`` (one chunk: formatted column by column, written at once);
@@ -125,9 +127,12 @@ class EstimateCsvWriter:
         blank = [""] * len(chunk)
         cells = [leading[h] if h in leading else columns.get(h, blank) for h in self._header]
         if plain:  # as _write_rows: the lines joined directly
-            self._spill.write("\r\n".join(map(",".join, zip(*cells, strict=True))) + "\r\n")
+            text = "\r\n".join(map(",".join, zip(*cells, strict=True))) + "\r\n"
         else:
-            self._csv.writerows(zip(*cells, strict=True))
+            buffer = io.StringIO(newline="")
+            csv.writer(buffer).writerows(zip(*cells, strict=True))
+            text = buffer.getvalue()
+        self._spill.write(text.encode("utf-8"))
         self.rows += len(chunk)
 
     def _write_rows(self, rows: AttitudeRows) -> None:
@@ -148,36 +153,46 @@ class EstimateCsvWriter:
                     self._extend([*names, *present])
             else:
                 self._check_columns(dict.fromkeys([*names, *present]))
-        leading = self._leading_rows(rows)
-        blank = [""] * n
-        cells = [leading[h] if h in leading else _fmt_column(rows.diagnostics.get(h), blank)
-                 for h in self._header]
-        # every cell is a number or empty, which the csv module would never quote: the lines
-        # are joined directly (its per-field quoting checks cost more than the formatting)
-        self._spill.write("\r\n".join(map(",".join, zip(*cells, strict=True))) + "\r\n")
+        text = self._numeric_block(rows)
+        if text is None:
+            leading = self._leading_rows(rows)
+            blank = [""] * n
+            cells = [leading[h] if h in leading else _fmt_column(rows.diagnostics.get(h), blank)
+                     for h in self._header]
+            # every cell is a number or empty, which the csv module would never quote: the
+            # lines are joined directly (its per-field quoting costs more than the formatting)
+            text = ("\r\n".join(map(",".join, zip(*cells, strict=True))) + "\r\n"
+                    ).encode("utf-8")
+        self._spill.write(text)
         self.rows += n
+
+    def _numeric_block(self, rows: AttitudeRows) -> bytes | None:
+        """The chunk's lines formatted a block at a time (:mod:`imuhal.offline.fast_csv`)
+        when every written column is a number on every row (an NED attitude and array
+        diagnostics: ``imuhal estimate``'s common case); None otherwise."""
+        if get_convention(self.frame) is not NED:
+            return None
+        wanted = self._index.keys()
+        if any(not isinstance(rows.diagnostics.get(h), np.ndarray)
+               for h in wanted if h not in ATTITUDE_COLUMNS):
+            return None
+        leading = _leading_arrays(rows, wanted)
+        return format_block([leading[h] if h in leading else rows.diagnostics[h]
+                             for h in self._header])
 
     def _leading_rows(self, rows: AttitudeRows) -> dict[str, list[str]]:
         if get_convention(self.frame) is NED:
             # only the columns written: --columns t_s,qw,qx,qy,qz skips the Euler angles
-            wanted = self._index.keys()
-            t_s = rows.t_ns.astype(float) / 1e9
-            q = rows.q_body_to_ned
-            out = {"t_s": _fmt_floats(t_s)} if "t_s" in wanted else {}
-            for name, col in zip(ATTITUDE_COLUMNS[1:5], q.T, strict=True):
-                if name in wanted:
-                    out[name] = _fmt_floats(col)
-            if wanted & set(ATTITUDE_COLUMNS[5:]):
-                euler = euler_deg_from_quats(q).T
-                out.update({name: _fmt_floats(col)
-                            for name, col in zip(ATTITUDE_COLUMNS[5:], euler, strict=True)})
-            return out
+            return {name: _fmt_floats(col)
+                    for name, col in _leading_arrays(rows, self._index.keys()).items()}
         return _leading_columns([_attitude(rows, i) for i in range(len(rows))], self.frame)
 
     def commit(self) -> int:
         """Write the header and the rows to ``path`` (atomically); returns the row count."""
         out = self._out
-        csv.writer(out).writerow(self._header)
+        header = io.StringIO(newline="")
+        csv.writer(header).writerow(self._header)
+        out.write(header.getvalue().encode("utf-8"))
         self._spill.seek(0)
         if not self._growth:
             shutil.copyfileobj(self._spill, out)
@@ -190,7 +205,7 @@ class EstimateCsvWriter:
                 while row >= until:
                     until, width = next(marks, (self.rows + 1, final))
                 pad = final - width
-                out.write(line[:-2] + "," * pad + "\r\n" if pad else line)
+                out.write(line[:-2] + b"," * pad + b"\r\n" if pad else line)
         self._spill.close()
         out.commit()
         return self.rows
@@ -215,6 +230,20 @@ class EstimateCsvWriter:
         if missing:
             raise ColumnError(f"--columns: {', '.join(missing)} not written by this estimator; "
                               f"its columns are: {', '.join(merged)}")
+
+
+def _leading_arrays(rows: AttitudeRows, wanted: Collection[str]) -> dict[str, np.ndarray]:
+    """The NED attitude columns of ``rows`` named in ``wanted``, as arrays (the Euler angles
+    only when one of them is wanted: ``--columns t_s,qw,qx,qy,qz`` skips them)."""
+    q = rows.q_body_to_ned
+    out = {"t_s": rows.t_ns.astype(float) / 1e9} if "t_s" in wanted else {}
+    for name, col in zip(ATTITUDE_COLUMNS[1:5], q.T, strict=True):
+        if name in wanted:
+            out[name] = col
+    if any(name in wanted for name in ATTITUDE_COLUMNS[5:]):
+        euler = euler_deg_from_quats(q).T
+        out.update(zip(ATTITUDE_COLUMNS[5:], euler, strict=True))
+    return out
 
 
 def _leading_columns(chunk: list[Estimate], frame: str | Convention) -> dict[str, list[str]]:
@@ -298,6 +327,9 @@ def _fmt_column(values: np.ndarray | list | None, blank: list[str]) -> list[str]
 
 
 def _fmt_floats(values: np.ndarray) -> list[str]:
+    fast = format_column(values)
+    if fast is not None:
+        return fast
     if np.all(np.isfinite(values)):
         return _reprs(values.tolist())
     return [_fmt(v) for v in values.tolist()]
