@@ -10,7 +10,7 @@ import shutil
 import tempfile
 from collections.abc import Collection, Iterable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
 
@@ -69,9 +69,12 @@ class EstimateCsvWriter:
     """Writes estimates as they come, in flat memory; the file appears only on ``commit()``.
 
     The header is every column seen, in order of first appearance: the leading columns of the
-    estimate type, then the diagnostics. Rows go to a spill file beside the output as they
-    are written; ``commit`` writes the header and copies them behind it (padding the rows
-    written before a later column first appeared), then renames over ``path`` atomically.
+    estimate type, then the diagnostics. The header known at the first rows and the rows go
+    to the output's temporary file as they are written; ``commit`` renames it over ``path``
+    atomically. Only when a later chunk brings a new column does ``commit`` write the file
+    again: the whole header, then the rows, those written before the column first appeared
+    padded. (A FIFO or a device as ``path`` gets nothing before ``commit``: the rows wait in a
+    spill file beside it.)
     ``columns`` fixes the header to those names, in that order (no other work is done for
     the rest: only the quaternion, say); a name the first estimate does not have is a
     :class:`ColumnError` listing the ones it has.
@@ -87,11 +90,15 @@ class EstimateCsvWriter:
         self._growth: list[tuple[int, int]] = []
         """(first row, header width) whenever the header grew after rows were written."""
         self.rows = 0
-        self._out = AtomicFile(self.path, binary=True)
         # bytes: the block formatter's text goes to disk without a codec pass
-        self._spill = tempfile.TemporaryFile(  # noqa: SIM115 (closed by commit/abort)
-            "w+b", dir=self._out.tmp_path.parent, prefix=f".{self.path.name}.",
-            suffix=".rows")
+        self._out = AtomicFile(self.path, binary=True)
+        self._spill: IO[bytes] | None = None
+        if self._out.direct:
+            self._spill = tempfile.TemporaryFile(  # noqa: SIM115 (closed by commit/abort)
+                "w+b", dir=self._out.tmp_path.parent, prefix=f".{self.path.name}.",
+                suffix=".rows")
+        self._written_header: list[str] | None = None
+        """The header at the head of the output's temporary file (None: not yet written)."""
 
     def write(self, estimates: Iterable[Estimate] | AttitudeRows) -> None:
         """Append ``estimates`` (one chunk: formatted column by column, written at once);
@@ -132,7 +139,7 @@ class EstimateCsvWriter:
             buffer = io.StringIO(newline="")
             csv.writer(buffer).writerows(zip(*cells, strict=True))
             text = buffer.getvalue()
-        self._spill.write(text.encode("utf-8"))
+        self._emit(text.encode("utf-8"))
         self.rows += len(chunk)
 
     def _write_rows(self, rows: AttitudeRows) -> None:
@@ -163,7 +170,7 @@ class EstimateCsvWriter:
             # lines are joined directly (its per-field quoting costs more than the formatting)
             text = ("\r\n".join(map(",".join, zip(*cells, strict=True))) + "\r\n"
                     ).encode("utf-8")
-        self._spill.write(text)
+        self._emit(text)
         self.rows += n
 
     def _numeric_block(self, rows: AttitudeRows) -> bytes | None:
@@ -187,33 +194,70 @@ class EstimateCsvWriter:
                     for name, col in _leading_arrays(rows, self._index.keys()).items()}
         return _leading_columns([_attitude(rows, i) for i in range(len(rows))], self.frame)
 
+    def _emit(self, lines: bytes) -> None:
+        """Rows (CSV lines) after the header; the first rows write the header known now."""
+        if self._spill is not None:
+            self._spill.write(lines)
+            return
+        if self._written_header is None:
+            self._written_header = list(self._header)
+            self._out.write(_header_line(self._header))
+        self._out.write(lines)
+
     def commit(self) -> int:
-        """Write the header and the rows to ``path`` (atomically); returns the row count."""
-        out = self._out
-        header = io.StringIO(newline="")
-        csv.writer(header).writerow(self._header)
-        out.write(header.getvalue().encode("utf-8"))
-        self._spill.seek(0)
-        if not self._growth:
-            shutil.copyfileobj(self._spill, out)
-        else:
-            # rows before growth mark (k, w) and after the previous mark have w cells
-            final = len(self._header)
-            marks = iter(self._growth)
-            until, width = next(marks)
-            for row, line in enumerate(self._spill):
-                while row >= until:
-                    until, width = next(marks, (self.rows + 1, final))
-                pad = final - width
-                out.write(line[:-2] + b"," * pad + b"\r\n" if pad else line)
-        self._spill.close()
-        out.commit()
+        """Make the output appear at ``path`` (atomically); returns the row count."""
+        if self._spill is not None:  # a FIFO or device: everything now
+            self._spill.seek(0)
+            self._copy_rows(self._spill, self._out)
+            self._spill.close()
+        elif self._written_header is None:  # no rows: the header alone
+            self._out.write(_header_line(self._header))
+        elif self._written_header != self._header:  # a column came late: written again
+            self._rewrite()
+            return self.rows
+        self._out.commit()
         return self.rows
+
+    def _copy_rows(self, rows: IO[bytes], out: AtomicFile) -> None:
+        """The whole header to ``out``, then ``rows``' lines, padded where they were written
+        before a column first appeared."""
+        out.write(_header_line(self._header))
+        if not self._growth:
+            shutil.copyfileobj(rows, out)  # type: ignore[misc]  # an AtomicFile writes like a file
+            return
+        # rows before growth mark (k, w) and after the previous mark have w cells
+        final = len(self._header)
+        marks = iter(self._growth)
+        until, width = next(marks)
+        for row, line in enumerate(rows):
+            while row >= until:
+                until, width = next(marks, (self.rows + 1, final))
+            pad = final - width
+            out.write(line[:-2] + b"," * pad + b"\r\n" if pad else line)
+
+    def _rewrite(self) -> None:
+        """The output written again under its whole header (see the class docstring); the
+        first temporary file is dropped."""
+        first = self._out
+        assert first.file is not None
+        first.file.flush()
+        again = AtomicFile(self.path, binary=True)
+        try:
+            with first.tmp_path.open("rb") as rows:
+                rows.readline()  # the header the first rows were written under
+                self._copy_rows(rows, again)
+            again.commit()
+        except BaseException:
+            again.abort()
+            raise
+        finally:
+            first.abort()
 
     def abort(self) -> None:
         """Drop everything written: ``path`` keeps what it had."""
-        with contextlib.suppress(OSError):  # after a write error, closing may fail again
-            self._spill.close()
+        if self._spill is not None:
+            with contextlib.suppress(OSError):  # after a write error, closing may fail again
+                self._spill.close()
         self._out.abort()
 
     def _extend(self, keys: list[str]) -> None:
@@ -230,6 +274,13 @@ class EstimateCsvWriter:
         if missing:
             raise ColumnError(f"--columns: {', '.join(missing)} not written by this estimator; "
                               f"its columns are: {', '.join(merged)}")
+
+
+def _header_line(names: Sequence[str]) -> bytes:
+    """The header as the csv module writes a row (quoted where a name needs it)."""
+    line = io.StringIO(newline="")
+    csv.writer(line).writerow(names)
+    return line.getvalue().encode("utf-8")
 
 
 def _leading_arrays(rows: AttitudeRows, wanted: Collection[str]) -> dict[str, np.ndarray]:
