@@ -117,27 +117,41 @@ def format_block(columns: Sequence[np.ndarray]) -> bytes | None:
         if c.dtype.kind == "f":
             a = np.abs(c)
             odd |= ~np.isfinite(c) | ((a < _SMALL) & (a > 0))
-    floats_only = all(c.dtype.kind == "f" for c in cols)
+    runs = _runs(cols)
     pieces: list[bytes] = []
     start = 0
     for i in np.flatnonzero(odd).tolist():  # rows repr must write: rare in real logs
         if i > start:
-            pieces.append(_orjson_rows(orjson, cols, start, i, floats_only))
+            pieces.append(_orjson_rows(orjson, runs, start, i))
         pieces.append(_repr_row(cols, i))
         start = i + 1
     if start < n:
-        pieces.append(_orjson_rows(orjson, cols, start, n, floats_only))
+        pieces.append(_orjson_rows(orjson, runs, start, n))
     return b"".join(pieces)
 
 
-def _orjson_rows(orjson: Any, cols: list[np.ndarray], start: int, stop: int,
-                 floats_only: bool) -> bytes:
-    if floats_only:  # one array: its rows are printed by orjson without Python objects
-        text = orjson.dumps(np.column_stack([c[start:stop] for c in cols]),
-                            option=orjson.OPT_SERIALIZE_NUMPY)
-    else:  # ints among floats: rows of Python numbers, each printed by its own type
-        text = orjson.dumps(list(zip(*(c[start:stop].tolist() for c in cols), strict=True)))
-    return text[2:-2].replace(b"],[", b"\r\n") + b"\r\n"
+def _runs(cols: list[np.ndarray]) -> list[np.ndarray]:
+    """Neighbouring columns of one kind (float64 or int64) as one array each: (n,) for a
+    column alone, else (n, k)."""
+    runs: list[list[np.ndarray]] = []
+    for c in cols:
+        if runs and runs[-1][0].dtype == c.dtype:
+            runs[-1].append(c)
+        else:
+            runs.append([c])
+    return [np.ascontiguousarray(r[0]) if len(r) == 1 else np.column_stack(r) for r in runs]
+
+
+def _orjson_rows(orjson: Any, runs: list[np.ndarray], start: int, stop: int) -> bytes:
+    """Rows ``start:stop`` of the runs' columns as CSV lines, each run printed by orjson
+    (a float as a float, an integer as an integer) and the runs' texts joined row by row."""
+    option = orjson.OPT_SERIALIZE_NUMPY
+    if len(runs) == 1 and runs[0].ndim == 2:  # one array: no Python object per row
+        return orjson.dumps(runs[0][start:stop], option=option)[2:-2].replace(
+            b"],[", b"\r\n") + b"\r\n"
+    parts = [orjson.dumps(r[start:stop], option=option)[2:-2].split(b"],[") if r.ndim == 2
+             else orjson.dumps(r[start:stop], option=option)[1:-1].split(b",") for r in runs]
+    return b"\r\n".join(map(b",".join, zip(*parts, strict=True))) + b"\r\n"
 
 
 def _repr_row(cols: list[np.ndarray], i: int) -> bytes:
