@@ -125,8 +125,7 @@ def iter_sample_chunks(path: str | Path, *, rate_hz: float | None = None,
         done = 0
         next_line = 2
         last_t: float | None = None
-        for lines in _line_blocks(handle, chunk_rows):
-            count = lines.count(b"\n")
+        for lines, count in _line_blocks(handle, chunk_rows):
             values = parse_block(lines, count, len(header), sparse) if whole else None
             if values is not None:
                 line_arr = np.arange(next_line, next_line + count)
@@ -146,10 +145,10 @@ def iter_sample_chunks(path: str | Path, *, rate_hz: float | None = None,
         raise InputError(f"{p}: no data rows after the header")
 
 
-def _line_blocks(handle: BinaryIO, rows: int) -> Iterator[bytes]:
+def _line_blocks(handle: BinaryIO, rows: int) -> Iterator[tuple[bytes, int]]:
     """The rest of ``handle`` as blocks of ``rows`` whole lines (fewer in the last), each
-    ending in a newline (one is added to a last line without). Read in large reads, the
-    lines found with numpy: no Python object per line."""
+    ending in a newline (one is added to a last line without), with their line counts. Read
+    in large reads, the lines found with numpy: no Python object per line."""
     block = max(rows * 128, 1 << 16)
     rest = b""
     while True:
@@ -157,13 +156,14 @@ def _line_blocks(handle: BinaryIO, rows: int) -> Iterator[bytes]:
         data = rest + more
         if not more:
             if data:
-                yield data if data.endswith(b"\n") else data + b"\n"
+                data = data if data.endswith(b"\n") else data + b"\n"
+                yield data, data.count(b"\n")
             return
         ends = np.flatnonzero(np.frombuffer(data, dtype=np.uint8) == _NEWLINE)
         start = 0
         for k in range(rows, len(ends) + 1, rows):
             stop = int(ends[k - 1]) + 1
-            yield data[start:stop]
+            yield data[start:stop], rows
             start = stop
         rest = data[start:]
         # about one block of rows per read from now on
