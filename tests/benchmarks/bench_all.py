@@ -592,9 +592,8 @@ def aot_estimate_rows(head: str, log: Path, out: Path, kernels: Path, n_rows: in
         Row("estimate", "  same, CSV per cell (IMUHAL_FAST_CSV=0)", n_rows / cpu_cells,
             "rows/s (cpu)"),
         Row("estimate", "  block CSV / per cell", cpu_cells / cpu, "x", "same run"),
-        Row("estimate", f"  peak RSS at {n_rows // 10} rows", rss_tenth, "MB"),
-        Row("estimate", f"  peak RSS at {n_rows} / at {n_rows // 10} rows", rss_mb / rss_tenth,
-            "x", "", None, "flat (<= 1.1)"),
+        Row("estimate", f"  peak RSS at {n_rows // 10} rows", rss_tenth, "MB",
+            f"peak RSS at {n_rows} rows / this", rss_mb / rss_tenth, "flat (<= 1.1)"),
         Row("estimate", "  load average (1 min, highest seen)", load, ""),
     ])
     return rows
