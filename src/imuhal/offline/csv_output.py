@@ -179,13 +179,17 @@ class EstimateCsvWriter:
         diagnostics: ``imuhal estimate``'s common case); None otherwise."""
         if get_convention(self.frame) is not NED:
             return None
-        wanted = self._index.keys()
-        if any(not isinstance(rows.diagnostics.get(h), np.ndarray)
-               for h in wanted if h not in ATTITUDE_COLUMNS):
-            return None
-        leading = _leading_arrays(rows, wanted)
-        return format_block([leading[h] if h in leading else rows.diagnostics[h]
-                             for h in self._header])
+        leading = _leading_arrays(rows, self._index.keys())
+        columns: list[np.ndarray] = []
+        for h in self._header:
+            column = leading.get(h)
+            if column is None:
+                diagnostic = rows.diagnostics.get(h)
+                if not isinstance(diagnostic, np.ndarray):  # values per row, or none
+                    return None
+                column = diagnostic
+            columns.append(column)
+        return format_block(columns)
 
     def _leading_rows(self, rows: AttitudeRows) -> dict[str, list[str]]:
         if get_convention(self.frame) is NED:
@@ -223,7 +227,7 @@ class EstimateCsvWriter:
         before a column first appeared."""
         out.write(_header_line(self._header))
         if not self._growth:
-            shutil.copyfileobj(rows, out)  # type: ignore[misc]  # an AtomicFile writes like a file
+            shutil.copyfileobj(rows, out)
             return
         # rows before growth mark (k, w) and after the previous mark have w cells
         final = len(self._header)
