@@ -6,14 +6,13 @@ from __future__ import annotations
 
 import csv
 import os
-import resource
-import signal
 import subprocess
 import sys
 import threading
 from pathlib import Path
 
 import pytest
+from tests.support.disk_full import file_size_limit
 
 from imuhal.cli.main import main
 from imuhal.estimation.outputs import AttitudeEstimate
@@ -167,13 +166,6 @@ def test_estimate_into_a_fifo_streams_the_file_it_would_write(tmp_path: Path) ->
     assert received == [out.read_bytes()]
 
 
-def _file_size_limit(limit_bytes: int) -> None:
-    """In the child: files may not grow beyond ``limit_bytes`` (a write beyond fails with
-    EFBIG, as on a full disk) and SIGXFSZ does not kill it."""
-    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
-    resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, limit_bytes))
-
-
 def test_a_full_disk_mid_estimate_keeps_the_previous_output_and_leaves_nothing(
         tmp_path: Path) -> None:
     src, out = tmp_path / "imu.csv", tmp_path / "out.csv"
@@ -182,7 +174,7 @@ def test_a_full_disk_mid_estimate_keeps_the_previous_output_and_leaves_nothing(
     proc = subprocess.run(
         [sys.executable, "-m", "imuhal.cli.main", "estimate", "madgwick", str(src), "-o",
          str(out)], capture_output=True, text=True, timeout=300, check=False,
-        preexec_fn=lambda: _file_size_limit(2_000_000))
+        preexec_fn=lambda: file_size_limit(2_000_000))
     assert proc.returncode == 2, proc.stderr
     assert "cannot be written" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
     assert out.read_text() == "previous result\n"
