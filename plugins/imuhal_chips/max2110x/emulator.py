@@ -40,12 +40,18 @@ sections 5, 6 state none), so the default error is 0 and a test or script sets u
 the faster channel (the one the driver accounts for; the gyro on a tie) are recorded
 (``measured_ns``), so a test can count what the chip produced.
 
+FIFO (MAX21100 only; emulator_fifo.py states what is known and what is assumed, each once):
+FIFO_TH, FIFO_CFG (normal mode, gyro and accel stores), FIFO_COUNT in words, FIFO_STATUS
+(data_lost, read_empty, ovthold, full, empty), FIFO_DATA popped a byte per byte read; with
+the FIFO on, every measurement is latched in turn (none skipped while the host is away) and
+a frame written for each, so a host stall shows as the chip's buffering would keep it.
+
 Fault injection: ``who_am_i`` (set another value: a clone or the sibling part),
 ``stuck_data_ready`` (the measurement engine hangs: no new data, data-ready never set; a soft
 reset cures it), ``silent_reset()`` (a brown-out: every register back to power-on defaults
 without the host being told), ``absent`` (base class) and bus errors via the EmulatedBus.
-Not modelled: FIFO (reads 0), interrupts, parity address modes, self-test, OIS modes and
-on-chip fusion.
+Not modelled: the MAX21105's FIFO (its registers read 0), the FIFO's interrupt and snapshot
+modes, interrupts (bank 1), parity address modes, self-test, OIS modes and on-chip fusion.
 """
 
 from __future__ import annotations
@@ -60,6 +66,7 @@ from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError, NackError
 from imuhal.core.samples import Quantity
 from imuhal.emulation import ChipEmulator, EmulatedBus, PhysicalInputs
+from imuhal_chips.max2110x.emulator_fifo import Max21100Fifo
 from imuhal_chips.max2110x.error_spec import MAX21100_ERROR_SPEC, MAX21105_ERROR_SPEC
 from imuhal_chips.max2110x.registers import (
     ACC_CFG2_MAG_RATE_MASK,
@@ -158,6 +165,11 @@ _ACC_X_H = int(Reg.ACC_X_H)
 _POWER_CFG = int(Reg.POWER_CFG)
 _PWR_ACC_CFG = int(Reg.PWR_ACC_CFG)
 _NEVER = float("inf")
+_FIFO_TH = int(Reg.FIFO_TH)
+_FIFO_CFG = int(Reg.FIFO_CFG)
+_FIFO_COUNT = int(Reg.FIFO_COUNT)
+_FIFO_STATUS = int(Reg.FIFO_STATUS)
+_FIFO_DATA = int(Reg.FIFO_DATA)
 
 
 def _encode(value: float, per_count: float, limit: int) -> int:
@@ -175,6 +187,8 @@ class Max2110xEmulator(ChipEmulator):
     part: ClassVar[PartSpec]
     models_stuck_data_ready = True
     pulls_physics = True
+    models_fifo: ClassVar[bool] = False
+    """The MAX21100's FIFO is modelled (emulator_fifo.py); the MAX21105's is not."""
     gyro_odr_by_code: ClassVar[tuple[float, ...]]
     """GYRO_CFG2 ODR code -> Hz, written here from the part's datasheet (not the driver's)."""
     accel_odr_by_code: ClassVar[tuple[float, ...]]
@@ -213,6 +227,8 @@ class Max2110xEmulator(ChipEmulator):
         self._mst_data = 0
         self._mst_pending: tuple[int, int] | None = None
         self._wake_ns: float = _NEVER
+        self.fifo: Max21100Fifo | None = Max21100Fifo() if self.models_fifo else None
+        """The FIFO (MAX21100 only; empty after every reset)."""
         self.stuck_data_ready = False
         self.power_on_resets += 1
 
@@ -366,15 +382,31 @@ class Max2110xEmulator(ChipEmulator):
             wake = self._mst_pending[0]
         self._wake_ns = wake
 
+    def _counted(self) -> int:
+        """The channel whose instants are recorded: the faster (the gyro on a tie)."""
+        next_ns, periods = self._next_ns, self._period_ns
+        return _GYRO if next_ns[_ACCEL] is None or (
+            next_ns[_GYRO] is not None and periods[_GYRO] <= periods[_ACCEL]) else _ACCEL
+
     def _advance(self) -> None:
         now = self.clock.now_ns()
         if now < self._wake_ns:
             return
+        if self._fifo_frame_channel() is not None:
+            self._advance_each(now)
+        else:
+            self._advance_newest(now)
+        if self._mst_pending is not None and now >= self._mst_pending[0]:
+            self._mst_data = self._mst_pending[1]
+            self._mst_pending = None
+        self._schedule()
+
+    def _advance_newest(self, now: int) -> None:
+        """The measurements due by ``now``: each channel's newest is latched (the data
+        registers keep one sample), the ones before it only counted (an overrun)."""
         next_ns = self._next_ns
         periods = self._period_ns
-        # the faster channel's instants are recorded (the gyro's on a tie)
-        counted = _GYRO if next_ns[_ACCEL] is None or (
-            next_ns[_GYRO] is not None and periods[_GYRO] <= periods[_ACCEL]) else _ACCEL
+        counted = self._counted()
         due_now = [(due + (now - due) // periods[i] * periods[i], i)
                    for i, due in enumerate(next_ns) if due is not None and now >= due]
         for newest, index in sorted(due_now):  # in the order the chip measured them
@@ -393,10 +425,81 @@ class Max2110xEmulator(ChipEmulator):
             self._latch(index)
             if index == _ACCEL:
                 self._accel_latched(missed + 1, newest)
-        if self._mst_pending is not None and now >= self._mst_pending[0]:
-            self._mst_data = self._mst_pending[1]
-            self._mst_pending = None
-        self._schedule()
+
+    def _advance_each(self, now: int) -> None:
+        """The measurements due by ``now``, every one latched in the order the chip made
+        them (the FIFO stores each): after all channels due at an instant are latched, a
+        frame is written when the FIFO's frame channel measured then."""
+        next_ns = self._next_ns
+        periods = self._period_ns
+        counted = self._counted()
+        events: list[tuple[int, int]] = []
+        for index, due in enumerate(next_ns):
+            if due is None:
+                continue
+            t = due
+            while t <= now:
+                events.append((t, index))
+                t += periods[index]
+            next_ns[index] = t
+        events.sort()
+        frame_channel = self._fifo_frame_channel()
+        for k, (t, index) in enumerate(events):
+            if self.stuck_data_ready:
+                continue
+            if index == counted:
+                self.record_measurements(t, periods[index], 1)
+            self.pull_physics(t)
+            self._latch(index)
+            if index == _ACCEL:
+                self._accel_latched(1, t)
+            last_at_t = k + 1 == len(events) or events[k + 1][0] != t
+            if last_at_t and any(e == (t, frame_channel) for e in events[max(0, k - 1):k + 1]):
+                self._fifo_write()
+
+    # --- FIFO (the MAX21100's; emulator_fifo.py says what is known and what assumed) ----
+
+    def _fifo_frame_channel(self) -> int | None:
+        """The channel at whose measurements the FIFO writes a frame: the faster measuring
+        stored channel (the gyro on a tie); None: the FIFO stores nothing."""
+        fifo = self.fifo
+        if fifo is None:
+            return None
+        gyro, accel = fifo.storing
+        gyro = gyro and self._next_ns[_GYRO] is not None
+        accel = accel and self._next_ns[_ACCEL] is not None
+        if gyro and accel:
+            return _GYRO if self._period_ns[_GYRO] <= self._period_ns[_ACCEL] else _ACCEL
+        if gyro or accel:
+            return _GYRO if gyro else _ACCEL
+        return None
+
+    def _fifo_frame_words(self) -> int:
+        assert self.fifo is not None
+        return 3 * sum(self.fifo.storing)
+
+    def _fifo_write(self) -> None:
+        """Write one frame of the stored channels' latest words (gyro, then accel) to the
+        FIFO, big-endian."""
+        assert self.fifo is not None
+        gyro, accel = self.fifo.storing
+        firsts = ((_GYRO_X_H,) if gyro else ()) + ((_ACC_X_H,) if accel else ())
+        words = self.words
+        values = [words.get(first + 2 * axis, 0) for first in firsts for axis in range(3)]
+        self.fifo.push(struct.pack(f">{len(values)}h", *values))
+
+    def _fifo_register(self, reg: int) -> int:
+        """FIFO_COUNT (words), FIFO_STATUS (read-to-clear bits) or a byte popped from
+        FIFO_DATA; 0x3F (RST_REG) reads 0."""
+        fifo = self.fifo
+        assert fifo is not None
+        if reg == _FIFO_COUNT:
+            return min(fifo.words(), 0xFF)
+        if reg == _FIFO_STATUS:
+            return fifo.status(self._fifo_frame_words())
+        if reg == _FIFO_DATA:
+            return fifo.pop()
+        return 0
 
     # --- bus face -------------------------------------------------------------------------
 
@@ -444,7 +547,14 @@ class Max2110xEmulator(ChipEmulator):
         touched: Sequence[int]
         if read_len <= 1 or not step:
             touched = (reg,) if read_len else ()
-            out = bytes((self._read(reg),)) * read_len
+            if reg == _FIFO_DATA and self.fifo is not None:
+                out = bytes(self._read(reg) for _ in range(read_len))  # each byte pops one
+            else:
+                out = bytes((self._read(reg),)) * read_len
+        elif self.fifo is not None and reg + read_len > _FIFO_COUNT:
+            # the FIFO's registers have side effects: byte by byte, the pointer wrapping
+            touched = [(reg + k) & ADDRESS_MASK for k in range(read_len)]
+            out = bytes(self._read(r) for r in touched)
         elif reg + read_len <= ADDRESS_MASK + 1:
             touched = range(reg, reg + read_len)
             out = self._image()[reg:reg + read_len]
@@ -489,6 +599,8 @@ class Max2110xEmulator(ChipEmulator):
             if reg == _I2C_MST_DATA and self.bank == 0 and self.part.has_aux_master:
                 return self._mst_data
             return self.banks[self.bank][reg]
+        if reg >= _FIFO_COUNT and self.fifo is not None:
+            return self._fifo_register(reg)
         if reg >= _GYRO_X_H:  # data words first: they are most of every burst
             high = reg & ~1
             if high in self.words or reg < self.part.temp_register + 2:
@@ -550,6 +662,11 @@ class Max2110xEmulator(ChipEmulator):
     def _bank0_written(self, reg: int, value: int) -> None:
         if reg in _CONFIG_REGS:
             self._restart_timing()
+        if self.fifo is not None and reg in (_FIFO_TH, _FIFO_CFG):
+            if reg == _FIFO_TH:
+                self.fifo.threshold_words = value
+            else:
+                self.fifo.configure(value)
         if reg == _DR_CFG and self.part.has_aux_master:
             trigger = value & DR_CFG_ONESHOT_MASK
             if trigger == DR_CFG_ONESHOT_WRITE:
@@ -579,6 +696,7 @@ class Max21100Emulator(Max2110xEmulator):
     error_spec = MAX21100_ERROR_SPEC
     conformance_sweep = True
     part = MAX21100
+    models_fifo = True
     gyro_odr_by_code = (8000.0, 4000.0, 2000.0, 1000.0, 500.0, 250.0, 125.0, 62.5, 31.25,
                         15.625, 7.8125, 3.90625)
     accel_odr_by_code = (2000.0, 1000.0, 500.0, 250.0, 125.0, 62.5, 31.25)
