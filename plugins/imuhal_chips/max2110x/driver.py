@@ -56,6 +56,7 @@ from imuhal_chips.max2110x.registers import (
     DR_CFG_TEMP_EN,
     GYRO_RANGE_DPS,
     I2C_CFG_I2C_OFF,
+    INT1_DATA_READY_PLAN,
     MAG_DATA_BYTES,
     MAG_MAP_AS_READ,
     MAG_SLV_CFG_ENABLE,
@@ -229,12 +230,31 @@ class Max2110xDriver(Driver):
         plan.apply(self.regs)
         self._power_on_ns = self.clock.now_ns()  # measurements are timed from here
         readback = plan.verify(self.regs)
+        self._program_interrupt()
         self.plan = plan
         self._watch.spread_over(len(plan.steps))
         p = self.part
         self._burst_frame = bytes((self.regs.read_address(p.burst_start, p.burst_length),))
         self._burst_length = p.burst_length
         self._use_streams(readback)
+
+    def _program_interrupt(self) -> None:
+        """read: fifo: INT1 pulses at each gyro measurement (bank 1,
+        ``INT1_DATA_READY_PLAN``), for a data-ready line that triggers the reads and stamps
+        each frame (``interrupt:`` in the profile; without one the pin is simply unused).
+        Read back; bank 0 selected again after."""
+        if self.settings.read != "fifo":
+            return
+        self.regs.write(Reg.BANK_SELECT, 0x01)
+        for reg, value in INT1_DATA_READY_PLAN.items():
+            self.regs.write(reg, value)
+        got = {reg: self.regs.read_u8(reg) for reg in INT1_DATA_READY_PLAN}
+        self.regs.write(Reg.BANK_SELECT, 0x00)
+        if got != dict(INT1_DATA_READY_PLAN):
+            raise ConfigurationError(
+                f"{self.describe()}: bank 1's interrupt registers read back "
+                + ", ".join(f"0x{reg:02X}=0x{v:02X}" for reg, v in got.items())
+                + f"; check the bus and that this is a {self.part.part}")
 
     def _use_streams(self, readback: Mapping[int, int]) -> None:
         """Take scales, periods and the poll grid from the specs of the registers read back."""

@@ -50,8 +50,13 @@ Fault injection: ``who_am_i`` (set another value: a clone or the sibling part),
 ``stuck_data_ready`` (the measurement engine hangs: no new data, data-ready never set; a soft
 reset cures it), ``silent_reset()`` (a brown-out: every register back to power-on defaults
 without the host being told), ``absent`` (base class) and bus errors via the EmulatedBus.
-Not modelled: the MAX21105's FIFO (its registers read 0), the FIFO's interrupt and snapshot
-modes, interrupts (bank 1), parity address modes, self-test, OIS modes and on-chip fusion.
+INT1 (MAX21100 only; emulator_int.py states what is the MAX21105's and what is assumed): a
+50 us active-high pulse at each measurement whose data-ready source bank 1 selects, driving
+a profile's ``interrupt:`` line on an emulated board.
+
+Not modelled: the MAX21105's FIFO (its registers read 0) and INT pins, the FIFO's interrupt
+and snapshot modes, latched and motion interrupts, parity address modes, self-test, OIS
+modes and on-chip fusion.
 """
 
 from __future__ import annotations
@@ -66,6 +71,7 @@ from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError, NackError
 from imuhal.core.samples import Quantity
 from imuhal.emulation import ChipEmulator, EmulatedBus, PhysicalInputs
+from imuhal_chips.max2110x import emulator_int as intp
 from imuhal_chips.max2110x.emulator_fifo import Max21100Fifo
 from imuhal_chips.max2110x.error_spec import MAX21100_ERROR_SPEC, MAX21105_ERROR_SPEC
 from imuhal_chips.max2110x.registers import (
@@ -222,6 +228,8 @@ class Max2110xEmulator(ChipEmulator):
         # registers, which change only through _restart_timing.
         self._read_since_latch: list[set[int]] = [set(), set()]
         self._next_ns: list[int | None] = [None, None]
+        self._started_ns: list[int] = [0, 0]
+        """When each channel's timing last restarted (its first measurement a period on)."""
         self._period_ns: list[int] = [0, 0]
         self._per_count: list[float] = [0.0, 0.0]
         self._mst_data = 0
@@ -366,6 +374,7 @@ class Max2110xEmulator(ChipEmulator):
             if self._active(channel) and odr:
                 self._period_ns[index] = self._period_of(odr)
                 self._next_ns[index] = now + self._period_ns[index]
+                self._started_ns[index] = now
             else:
                 self._next_ns[index] = None
             self._per_count[index] = self.resolution(channel)
@@ -718,6 +727,36 @@ class Max21100Emulator(Max2110xEmulator):
 
     def child_buses(self) -> dict[str, EmulatedBus]:
         return {"aux": self._aux}
+
+    # --- INT1 pin (emulator_int.py: what is the MAX21105's and what is assumed) ------------
+
+    models_interrupt = True
+
+    def interrupt_pin(self) -> tuple[bool, int]:
+        """Active high, a 50 us pulse [UNVERIFIED]."""
+        return True, intp.INT_PULSE_NS
+
+    def interrupt_after(self, after_ns: int) -> int | None:
+        """The first measurement instant after ``after_ns`` of a channel whose data-ready
+        drives INT1 (bank 1: INT_CFG_2 INT1 enable, INT_MSK bit 7, INT_SRC_SEL gyro_dr or
+        acc_dr, INT_TMO_CFG 0 unlatched); None: the pin stays quiet."""
+        self._advance()
+        bank1 = self.banks[1]
+        if (self.absent or self.stuck_data_ready or not bank1[intp.INT_CFG_2] & intp.INT1_ENABLE
+                or not bank1[intp.INT_MSK] & intp.INT_MSK_ENABLE or bank1[intp.INT_TMO_CFG]):
+            return None
+        found: list[int] = []
+        for index, source in ((_GYRO, intp.SRC_GYRO_DR), (_ACCEL, intp.SRC_ACCEL_DR)):
+            due = self._next_ns[index]
+            if due is None or not bank1[intp.INT_SRC_SEL] & source:
+                continue
+            period = self._period_ns[index]
+            # the channel's instants run ... due - period, due, due + period ... from its
+            # first measurement after the write that started it
+            t = due - max(0, (due - after_ns - 1) // period) * period if after_ns < due \
+                else due + ((after_ns - due) // period + 1) * period
+            found.append(max(t, self._started_ns[index] + period))
+        return min(found, default=None)
 
     def _accel_latched(self, measurements: int, instant_ns: int) -> None:
         """Slave auto-read: with MAG_SLV_CFG enabled, every 2^ACC_CFG2[3:1]-th accelerometer

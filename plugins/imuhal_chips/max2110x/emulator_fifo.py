@@ -22,9 +22,9 @@ facts section 5) or assumed, each [UNVERIFIED]:
   (bit 4) is set. The MAX21105's FIFO_CFG [0] "overrun" choice has no known MAX21100 bit
   (Winer's bit 0 stores the gyro), so the oldest frames are never overwritten.
 - FIFO_STATUS as on the MAX21105: bit 4 data_lost, bit 3 read_empty (FIFO_DATA read while
-  the FIFO is on and empty; the read returns 0x00), bit 2 ovthold (count >= FIFO_TH, FIFO_TH not 0), bit 1
-  full (no room for another frame), bit 0 empty. Reading FIFO_STATUS clears data_lost and
-  read_empty.
+  the FIFO is on and empty; the read returns 0x00), bit 2 ovthold (count >= FIFO_TH,
+  FIFO_TH not 0), bit 1 full (no room for another frame), bit 0 empty. Reading FIFO_STATUS
+  clears data_lost and read_empty.
 - FIFO_DATA pops one byte per byte read; a burst with the no-increment bit (the MAX21105's
   "burst without increment pops FIFO") pops one byte per byte; with increment the pointer
   moves on to 0x3F after the first.

@@ -152,6 +152,17 @@ FIFO_FRAME_WORDS = 6
 """Gyro X, Y, Z then accel X, Y, Z per frame, big-endian [UNVERIFIED: the MAX21105's
 layout]; FIFO_COUNT counts words (Winer: "fifo_count/3" three-axis samples) [SS]."""
 
+INT1_DATA_READY_PLAN: Mapping[int, int] = {
+    0x17: 0x20,  # INT_SRC_SEL: the gyro's data-ready (har-in-air's MAX21105 value)
+    0x0F: 0x80,  # INT_MSK
+    0x0C: 0x00,  # INT_TMO_CFG: unlatched (a pulse)
+    0x0B: 0x20,  # INT_CFG_2: INT1 enabled
+}
+"""Bank 1, read: fifo: INT1 pulses at each gyro measurement, the data-ready line a profile's
+``interrupt:`` takes. The MAX21105 user guide's DATA_READY interrupt example (facts section
+5), taken for the MAX21100, whose bank 1 has its interrupt registers at the same addresses
+(INT_SRC_SEL 0x17 [V]) but whose bits no source describes [UNVERIFIED]."""
+
 # --- setting tables: physical value -> code (and sensitivity) ------------------------------
 
 GYRO_RANGE_DPS: Mapping[int, tuple[int, float]] = {
