@@ -103,3 +103,32 @@ def test_a_soft_reset_empties_the_fifo() -> None:
     clock.sleep(5 * PERIOD_S + 0.001)
     wr(bus, 0x3F, 0x08)
     assert _count(bus) == 0 and emu.fifo is not None and emu.fifo.cfg == 0
+
+
+# --- INT1 (emulator_int.py: the MAX21105's DATA_READY example taken for the MAX21100) ---
+
+
+def _int1(clock: SimulatedClock, bus: EmulatedBus, *, enable: int = 0x20) -> None:
+    wr(bus, 0x22, 0x01)  # bank 1
+    for reg, value in ((0x17, 0x20), (0x0F, 0x80), (0x0C, 0x00), (0x0B, enable)):
+        wr(bus, reg, value)
+    wr(bus, 0x22, 0x00)
+
+
+def test_int1_pulses_at_each_gyro_measurement_when_bank_1_selects_it() -> None:
+    clock, bus, emu = _measuring(0x43)
+    start = clock.now_ns()
+    _int1(clock, bus)
+    period = round(PERIOD_S * 1e9)
+    assert emu.interrupt_pin() == (True, 50_000)
+    assert emu.interrupt_after(start) == start + period
+    assert emu.interrupt_after(start + period) == start + 2 * period
+    clock.sleep(3.5 * PERIOD_S)
+    assert emu.interrupt_after(start + 2 * period + 1) == start + 3 * period
+    assert emu.interrupt_after(clock.now_ns()) == start + 4 * period
+
+
+def test_int1_stays_quiet_without_its_enable_bit() -> None:
+    clock, bus, emu = _measuring(0x43)
+    _int1(clock, bus, enable=0x00)
+    assert emu.interrupt_after(clock.now_ns()) is None

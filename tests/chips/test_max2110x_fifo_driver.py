@@ -21,7 +21,7 @@ from imuhal.pipeline import Pipeline
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
-from imuhal.profile.model import BoardProfile
+from imuhal.profile.model import BoardProfile, InterruptConfig
 from imuhal_chips.max2110x.driver import Max21100Driver, Max21105Driver
 from imuhal_chips.max2110x.emulator import Max21100Emulator, Max21105Emulator
 from imuhal_chips.max2110x.fifo import frames_aligned
@@ -114,18 +114,19 @@ def registry() -> Registry:
     return load_registry()
 
 
-def _seed(registry: Registry, read: str) -> BoardProfile:
+def _seed(registry: Registry, read: str, interrupt: InterruptConfig | None) -> BoardProfile:
     profile = load_profile(bundled_profiles()["seed-paraglider-vario.yaml"], registry)
     device = profile.devices["imu"]
-    settings = {**device.settings, "read": read}
+    update = {"settings": {**device.settings, "read": read}, "interrupt": interrupt}
     return profile.model_copy(update={"devices": {
-        **profile.devices, "imu": device.model_copy(update={"settings": settings})}})
+        **profile.devices, "imu": device.model_copy(update=update)}})
 
 
-def _fly(registry: Registry, read: str, stall_s: float) -> tuple[Pipeline, list[GyroSample]]:
+def _fly(registry: Registry, read: str, stall_s: float, interrupt: InterruptConfig | None = None,
+         ) -> tuple[Pipeline, list[GyroSample]]:
     faults = [HostStall(device="imu", start_s=1.0, every_s=1.0, stall_s=stall_s)]
-    with open_emulated(_seed(registry, read), registry, scenario="thermal", seed=1,
-                       faults=faults, calibrated=False) as p:
+    with open_emulated(_seed(registry, read, interrupt), registry, scenario="thermal",
+                       seed=1, faults=faults, calibrated=False) as p:
         p.board.emulators["imu"].oscillator_error = 0.02
         gyros = [e for e in p.events(4.0)
                  if isinstance(e, GyroSample) and e.device == "imu" and e.valid]
@@ -164,3 +165,16 @@ def test_stalls_beyond_the_fifo_are_counted_overflows_and_every_frame_is_account
         i = bisect_right(chip.measured_ns, g.t_ns)
         instant = min(chip.measured_ns[max(i - 1, 0):i + 1], key=lambda t: abs(t - g.t_ns))
         assert abs(g.t_ns - instant) < 50_000
+
+
+def test_fifo_read_on_data_ready_edges_stamps_each_frame_at_its_instant_through_stalls(
+        registry: Registry) -> None:
+    """INT1 drives the line (every second edge reads the FIFO); each frame is stamped with
+    its own edge, the instant the chip measured it."""
+    line = InterruptConfig(chip="gpiochip0", line=17, edges_per_read=2)
+    p, gyros = _fly(registry, "fifo", 0.8 * DEPTH_NS / 1e9, line)
+    frames = p.summary().frames["imu"]
+    assert frames["delivered"] == frames["produced"] == len(gyros) > 900
+    assert p.summary().triggers["imu"]["fallbacks"] == 0
+    instants = set(p.board.emulators["imu"].measured_ns)
+    assert all(g.t_ns in instants for g in gyros)
