@@ -27,11 +27,14 @@ The seed paraglider board (MAX21100 with its HMC5883L auto-read, MS5611) is read
 (as bundled: its driver polls the MAX21100's data-ready status bits, and the chip keeps one
 sample in its data registers) and ``fifo`` (the MAX21100's ``read: fifo``: gyro and accel
 frames from its 64-word FIFO every period, stamped on the chip's clock; the FIFO's layout
-is partly assumed, imuhal_chips/max2110x/fifo.py). Its FIFO holds 10 frames, 40 ms at
+is partly assumed, imuhal_chips/max2110x/fifo.py) and ``fifo+int`` (the same, its reads
+triggered by every second edge of the chip's emulated INT1 data-ready line, each frame
+stamped with its own edge; the INT1 configuration is the MAX21105's, assumed for the
+MAX21100, imuhal_chips/max2110x/emulator_int.py). Its FIFO holds 10 frames, 40 ms at
 250 Hz, so its 80 % stall is 32 ms (``STALL_80_MS``); it also flies the MPU-9250 boards'
 stalls. A stall of S ms at its 250 Hz can lose at most S / 4 ms - 1 frames to a one-sample
 buffer, which the "lost: host stall" column is to be read against.
-``--boards``: only these boards (default all).
+``--boards``, ``--modes``: only these boards, modes (default all).
 """
 
 from __future__ import annotations
@@ -48,11 +51,11 @@ from imuhal.emulation.faults import HostStall
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
-from imuhal.profile.model import BoardProfile
+from imuhal.profile.model import BoardProfile, InterruptConfig
 
 BOARDS: dict[str, tuple[str, ...]] = {"gy91": ("poll", "fifo"),
                                        "seed-gps-vario": ("poll", "fifo"),
-                                       "seed-paraglider-vario": ("poll", "fifo")}
+                                       "seed-paraglider-vario": ("poll", "fifo", "fifo+int")}
 """The boards and the modes each is read in."""
 STALL_80_MS = {"mpu9250": 92.0, "max21100": 32.0}
 """80 % of each IMU's FIFO in time: the MPU-9250's 512 bytes with 22-byte frames (accel,
@@ -72,11 +75,15 @@ OSCILLATOR_ERROR = {"imu": 0.02, "mag": -0.02}
 def _mode(profile: BoardProfile, mode: str) -> BoardProfile:
     """``profile`` with the AK8963 auto-read through the MPU's I2C master, and in ``fifo``
     the MPU-9250 reading its FIFO every period (an MPU-9250 board); the MAX21100 in
-    ``fifo`` reading its FIFO (``read: fifo``, every period by default); else as bundled."""
+    ``fifo`` reading its FIFO (``read: fifo``, every period by default), in ``fifo+int``
+    on every second edge of its INT1 data-ready line; else as bundled."""
     devices = dict(profile.devices)
     imu = devices["imu"]
-    if imu.driver == "max21100" and mode == "fifo":
-        devices["imu"] = imu.model_copy(update={"settings": {**imu.settings, "read": "fifo"}})
+    if imu.driver == "max21100" and mode != "poll":
+        line = InterruptConfig(chip="gpiochip0", line=17, edges_per_read=2) \
+            if mode == "fifo+int" else None
+        devices["imu"] = imu.model_copy(update={
+            "settings": {**imu.settings, "read": "fifo"}, "interrupt": line})
         return profile.model_copy(update={"devices": devices})
     if imu.driver != "mpu9250":
         return profile
@@ -117,7 +124,7 @@ def run(registry: Registry, board: str, mode: str, stall_ms: float, seconds: flo
         assert ledger is not None
         segments = ledger.all_segments()
     errors_us = _stamp_errors_us(stamps, instants)
-    if mode == "fifo":  # stamped within microseconds of the instants, either side
+    if mode != "poll":  # stamped within microseconds of the instants, either side
         half = ledger.period_ns // 2
         counted = sum(sum(1 for t in instants if a - half < t < b + half)
                       for a, b, _ in segments)
@@ -138,6 +145,8 @@ def main() -> None:
                         help="only the 80 %% stall (the issue's 600 s figure)")
     parser.add_argument("--boards", nargs="+", choices=sorted(BOARDS), default=list(BOARDS),
                         help="only these boards")
+    parser.add_argument("--modes", nargs="+", choices=("poll", "fifo", "fifo+int"),
+                        help="only these modes (of those each board is read in)")
     args = parser.parse_args()
     # figures of emulated time must not depend on the host's load: the pipeline's wall-clock
     # deadline on driver calls (imuhal.pipeline.containment.Watchdog, a live-run guard) does
@@ -152,7 +161,7 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for board in args.boards:
         imu = load_profile(bundled_profiles()[f"{board}.yaml"], registry).devices["imu"].driver
-        for mode in BOARDS[board]:
+        for mode in [m for m in BOARDS[board] if args.modes is None or m in args.modes]:
             for stall_ms in (LONG_STALLS_MS if args.long else STALLS_MS)[imu]:
                 r = run(registry, board, mode, stall_ms, args.seconds, args.seed)
                 other = sum(v for k, v in r.items() if k.startswith("lost_")

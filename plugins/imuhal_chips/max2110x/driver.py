@@ -654,8 +654,11 @@ class Max21100Driver(Max2110xDriver):
         if self.scales is None:
             raise ConfigurationError(f"{where}: asked before the MAX21100 was configured")
         # The slave's bytes are copied at each accelerometer measurement and reach the
-        # host with the next burst, a poll-grid guard after it.
-        latency_ns = round(1e9 / self.settings.accel_odr_hz) + self._grid.guard_ns
+        # host with the next burst: a poll-grid guard after it, or with read: fifo the next
+        # FIFO read (up to its interval later: reads sit at the chip's instants, +-2 us).
+        after_ns = self._grid.guard_ns if self._fifo is None else \
+            self._fifo_interval_ns() + self._grid.guard_ns
+        latency_ns = round(1e9 / self.settings.accel_odr_hz) + after_ns
         feed = AutoReadFeed(target, register, length, latency_ns=latency_ns)
         auto_read = self._checked(self._auto_read_plan(feed))
         auto_read.apply(self.regs)
