@@ -106,7 +106,7 @@ def test_read_fifo_needs_equal_gyro_and_accel_rates() -> None:
         make_rig(Max21100Driver, Max21100Emulator, read="fifo", accel_odr_hz=125)
 
 
-# --- the seed paraglider board, 4 s of `thermal`, one host stall a second ----------------
+# --- the seed paraglider board, 4.5 s of `thermal`, one host stall a second from 1 s ----
 
 
 @pytest.fixture(scope="module")
@@ -128,7 +128,7 @@ def _fly(registry: Registry, read: str, stall_s: float, interrupt: InterruptConf
     with open_emulated(_seed(registry, read, interrupt), registry, scenario="thermal",
                        seed=1, faults=faults, calibrated=False) as p:
         p.board.emulators["imu"].oscillator_error = 0.02
-        gyros = [e for e in p.events(4.0)
+        gyros = [e for e in p.events(4.5)
                  if isinstance(e, GyroSample) and e.device == "imu" and e.valid]
     return p, gyros
 
@@ -152,12 +152,14 @@ def test_stalls_of_80_percent_of_the_fifo_lose_no_imu_sample(registry: Registry)
     assert 4 * 7 <= polled.summary().frames["imu"]["lost_host_stall"] <= 4 * 8
 
 
-def test_stalls_beyond_the_fifo_are_counted_overflows_and_every_frame_is_accounted(
+def test_stalls_beyond_the_fifo_lose_only_what_it_could_not_keep_counted_as_overflows(
         registry: Registry) -> None:
     p, gyros = _fly(registry, "fifo", 0.092)
     frames = p.summary().frames["imu"]
     assert p.devices["imu"].driver.health.fifo_overflows == 4  # a stall a second from 1 s
-    assert frames["lost_fifo_overflow"] >= 4 * 10
+    # each 92 ms stall spans 23 or 24 frames of the chip (2 % fast: 3.92 ms); the FIFO kept
+    # 10 of them, handed out, and the rest are the overflow's
+    assert 4 * 12 <= frames["lost_fifo_overflow"] <= 4 * 15
     assert frames["delivered"] + frames["lost_fifo_overflow"] == frames["produced"]
     assert frames["delivered"] == len(gyros)
     chip = p.board.emulators["imu"]

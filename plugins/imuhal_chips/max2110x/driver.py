@@ -153,6 +153,7 @@ class Max2110xDriver(Driver):
         the slave's bytes (MAG X/Y/Z) of every burst go to it."""
         self._fifo: FifoReader | None = None
         """read: fifo: the FIFO reader (made at configure(), for the period read back)."""
+        self._overflow_pending = False
         self._aux_temp_frame = bytes((self.regs.read_address(Reg.MAG_X_H, _AUX_TEMP_BYTES),))
 
     # --- identity -------------------------------------------------------------------------
@@ -438,10 +439,13 @@ class Max2110xDriver(Driver):
         registers, then every whole frame the FIFO holds, stamped on the chip's clock (or
         with its edges); no frame for longer than the stale policy allows reports STALE."""
         assert self._fifo is not None
+        self._count_overflow()
         samples = self._aux_and_temperature(now_ns)
         got = self._fifo.read()
         if got.reset:
-            self.health.fifo_overflows += 1
+            self._overflow_pending = True
+            if not got.frames:
+                self._count_overflow()
         now_ns = max(now_ns, self.clock.now_ns())
         next_ns = self._fifo.next_read_ns(now_ns, self._fifo_interval_ns())
         samples += self._frame_samples(got)
@@ -455,6 +459,15 @@ class Max2110xDriver(Driver):
             return PollResult(samples, next_ns)
         samples += [s for s in stale if s is not None]
         return PollResult(samples, self._after_stale(now_ns))
+
+    def _count_overflow(self) -> None:
+        """A FIFO reset counts in ``health.fifo_overflows``; one that handed out the frames
+        the full FIFO kept counts with the next read, so the loss the pipeline's ledger
+        finds after those frames (the frames not written, before the next read's) is
+        charged to it (the ledger takes the count before it takes a read's frames)."""
+        if self._overflow_pending:
+            self._overflow_pending = False
+            self.health.fifo_overflows += 1
 
     def _no_frame(self, channel: Quantity, now_ns: int) -> Sample | None:
         """A STALE NaN sample of ``channel`` when it is overdue, else None."""
@@ -500,6 +513,7 @@ class Max2110xDriver(Driver):
         """read: fifo: the frames held for their time stamps."""
         if self._fifo is None:
             return []
+        self._count_overflow()
         return self._frame_samples(self._fifo.drain())
 
     def accounted_stream(self) -> tuple[Quantity, int] | None:

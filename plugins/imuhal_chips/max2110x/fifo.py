@@ -28,9 +28,13 @@ How it reads (as the MPU-9250's reader and PX4/Linux do, adapted to a 10-frame F
   kept free: a full FIFO without data_lost holds every frame since the last read, and with
   10 frames a margin would cost a fifth of the depth. Were the assumption wrong (a FIFO
   that overwrites its oldest words), the shifted-frame check below catches the wrap.
-- **Overflow**: data_lost set means frames were not written: the FIFO is reset without
-  being read and its frames are lost, counted in the driver's ``health.fifo_overflows``
-  (the pipeline's ledger charges the frames to ``fifo_overflow``).
+- **Overflow**: data_lost set means frames were not written after the FIFO filled: the
+  frames it kept (the oldest since the last read, in order) are read and handed out,
+  placed by the data-ready edges or the chip's clock learned so far (lost with the FIFO
+  when neither places them to 1 % of a period), and the FIFO is reset, so the frames
+  counted from then on are the chip's again; the overflow is counted in the driver's
+  ``health.fifo_overflows`` and the frames not written are lost (the pipeline's ledger
+  charges them to ``fifo_overflow``). This keeps every frame the chip's buffering kept.
 - **Shifted FIFO** (no die temperature is in a frame, so ArduPilot's temperature test does
   not apply): the chip writes whole frames, so a count that is not a whole number of frames
   means a burst popped part of a frame (a transfer cut short) and every frame after it is
@@ -101,19 +105,22 @@ class FifoReader(FifoFrames):
         lo_ns = self.clock.now_ns()
         count, status = self.regs.send(self._count_frame, 2)
         hi_ns = self.clock.now_ns()
-        if status & FIFO_STATUS_DATA_LOST or count > FIFO_DEPTH_WORDS:
-            return self._drop()
+        if count > FIFO_DEPTH_WORDS:
+            return self._drop([])
         n = count // FIFO_FRAME_WORDS
         frames: list[bytes] = []
         if n:
             data = self.regs.send(self._data_frame, n * FRAME_BYTES)
             frames = [data[i * FRAME_BYTES:(i + 1) * FRAME_BYTES] for i in range(n)]
         if not frames_aligned(count, frames):
-            return self._drop()
+            return self._drop([])
+        if status & FIFO_STATUS_DATA_LOST:
+            return self._drop(frames)  # what it kept is good; what came after, lost
         return self.took(frames, lo_ns, hi_ns)
 
-    def _drop(self) -> FifoRead:
-        """An overflow or a shifted FIFO: reset unread (FifoFrames.dropped)."""
-        out = self.dropped()
+    def _drop(self, kept: list[bytes]) -> FifoRead:
+        """An overflow (``kept``: the frames the full FIFO kept) or a shifted FIFO (none):
+        the FIFO is reset (FifoFrames.dropped)."""
+        out = self.dropped(kept)
         self.reset(restart=False)
         return out

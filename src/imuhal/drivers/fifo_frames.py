@@ -131,12 +131,17 @@ class FifoFrames:
             return self._release_on_edges(final=True)
         return self._release() if self._held else FifoRead([], [])
 
-    def dropped(self) -> FifoRead:
-        """The chip's FIFO is about to be reset unread (an overflow or a corrupt burst).
-        Frames held from earlier reads go out now when the estimate places them to
-        ``DROP_PLACED_FRACTION`` of a period (their count ends here); otherwise they are
-        lost with the FIFO's, never handed out with a wrong stamp. The caller resets the
-        FIFO and then calls :meth:`cleared` (``restart=False``)."""
+    def dropped(self, kept: list[bytes] | None = None) -> FifoRead:
+        """The chip's FIFO is about to be reset (an overflow or a corrupt burst). Frames
+        held from earlier reads, and ``kept`` (the frames a FIFO that stopped writing when
+        full kept, read whole: the oldest since the last read, in order), go out now when
+        the data-ready edges or the estimate place them to ``DROP_PLACED_FRACTION`` of a
+        period (their count ends here); otherwise they are lost with the FIFO's, never
+        handed out with a wrong stamp. The caller resets the FIFO and then calls
+        :meth:`cleared` (``restart=False``)."""
+        if kept:
+            newest = self.chip_clock.continued(len(kept))
+            self._held += [(newest - len(kept) + 1 + i, f) for i, f in enumerate(kept)]
         placed = self.chip_clock.uncertainty_ns() <= DROP_PLACED_FRACTION * self.period_ns
         if self._on_edges():
             out = self._release_on_edges(final=True, reset=True)
