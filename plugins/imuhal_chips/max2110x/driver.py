@@ -5,7 +5,10 @@ Register facts: imuhal's chip-facts notes (chips.md) sections 5 (MAX21105 user g
 decoding in decode.py; this module only talks to the bus and keeps time.
 
 Per poll the driver reads one burst from SYSTEM_STATUS through TEMP_L, so the data-ready
-bits and every word come from one transaction. Samples are in the chip's sensor frame:
+bits and every word come from one transaction. With ``read: fifo`` (MAX21100 only) it reads
+the chip's FIFO instead (imuhal_chips.max2110x.fifo, which states what of the FIFO's layout
+is known and what is the MAX21105's, assumed) and programs INT1 for a data-ready line
+(registers.INT1_DATA_READY_PLAN, likewise assumed). Samples are in the chip's sensor frame:
 gyro rad/s, accel m/s^2 specific force, temperature degC.
 """
 
