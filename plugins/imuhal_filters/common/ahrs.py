@@ -79,6 +79,7 @@ from imuhal_filters.common.turn import (
     KinematicAcceleration,
     TurnCompensationSettings,
     compensated,
+    nominal_rows,
 )
 
 _NS = 1e-9
@@ -630,7 +631,8 @@ class AhrsEstimator(Estimator):
             return []
         q = np.empty((m, 4))
         diag = np.empty((m, self._kernel_diag_width))
-        self._run_kernel(steps.gyro, steps.accel, steps.mag, steps.dts, q, diag)
+        self._run_kernel(steps.gyro, self._fused_accel(steps.gyro, steps.accel), steps.mag,
+                         steps.dts, q, diag)
         rows = self._kernel_row_diagnostics(steps.dts, diag, self._kinematics.source)
         lin = _linear_accel_ned_rows(q, steps.accel)
         has_a = ~np.isnan(steps.accel[:, 0])
@@ -706,8 +708,9 @@ class AhrsEstimator(Estimator):
             rest = slice(stop, m)
             # without diagnostics the kernel writes every row's into one scratch row
             diag = np.empty((m - stop if diagnostics else 1, self._kernel_diag_width))
-            if self._run_kernel(steps.gyro[rest], steps.accel[rest], steps.mag[rest],
-                                steps.dts[rest], out[rest], diag):
+            gyro = steps.gyro[rest]
+            if self._run_kernel(gyro, self._fused_accel(gyro, steps.accel[rest]),
+                                steps.mag[rest], steps.dts[rest], out[rest], diag):
                 emitted[rest] = True
                 in_kernel = m - stop
                 if diagnostics:
@@ -781,12 +784,24 @@ class AhrsEstimator(Estimator):
         return {}
 
     def _kernel_allowed(self) -> bool:
-        """The compiled kernels cover no turn compensation by a speed (nominal airspeed,
-        velocity, airspeed): only its bookkeeping."""
-        s = self.settings
+        """The compiled kernels cover turn compensation by the nominal airspeed (the
+        accelerometer rows they fuse are compensated beforehand, ``_fused_accel``), not by
+        a velocity or airspeed source (their fits and filters stay frame by frame)."""
         kernel = self._compiled_kernel
-        return kernel is not None and kernel.available() and not (s.turn_compensation and (
-            s.nominal_airspeed_m_s is not None or self._kinematics.has_speed_source))
+        return kernel is not None and kernel.available() and not (
+            self.settings.turn_compensation and self._kinematics.has_speed_source)
+
+    def _fused_accel(self, gyro: FloatArray, accel: FloatArray) -> FloatArray:
+        """The accelerometer rows a row kernel fuses with the ``gyro`` rows (specific force,
+        m/s^2, body; NaN: none): less the nominal airspeed's kinematic acceleration when
+        turns are compensated by it (``turn.nominal_rows``: the floats of ``_run_step``),
+        else as they are. The estimates' gravity-compensated acceleration is still taken
+        from the rows as measured."""
+        s = self.settings
+        speed = s.nominal_airspeed_m_s
+        if speed is None or not s.turn_compensation:
+            return accel
+        return nominal_rows(accel, gyro, float(speed))
 
     def _kernel_finished(self, q: FloatArray, steps: int, closed: int, turn_sum: float) -> None:
         """Take over what a kernel left: the quaternion, counters, turn bookkeeping."""
