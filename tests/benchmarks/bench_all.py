@@ -651,8 +651,30 @@ def board_and_block_rows(duration_s: float, skip: list[str]) -> list[Row]:
                 rows += hardware_path_rows(duration_s)
             if "blocks" not in skip:
                 rows += block_rows(duration_s)
+                rows += seed_fifo_rows(duration_s, rows)
                 rows += kernel_break_even_rows()
         return rows
+
+
+def seed_fifo_rows(duration_s: float, one: list[Row]) -> list[Row]:
+    """The seed paraglider vario with its MAX21100 read from the FIFO in blocks of 10
+    frames, emulated and through the hardware path, against the board section's
+    one-frame rows of the same run (``one``)."""
+    from tests.benchmarks.bench_blocks import SEED, measure_mode
+
+    fifo = measure_mode(load_registry(), 10, duration_s, 3, SEED)
+    x_one = next((r.value for r in one if r.case.startswith("emulated seed board")), None)
+    hw_one = next((r.value for r in one if r.case.startswith("hardware path")), None)
+    return [
+        Row("blocks", f"seed board emulated + estimators, {fifo.label}", fifo.x_real_time,
+            "x real time (cpu)", "one frame per block (board row)",
+            None if x_one is None else fifo.x_real_time / x_one, ">= 150 x real"),
+        Row("blocks", f"seed board hardware path, {fifo.label}", fifo.us_per_imu_sample,
+            "us/IMU sample", "one frame per block (board row)",
+            None if hw_one is None else fifo.us_per_imu_sample / hw_one, "<= 10"),
+        Row("blocks", "  the same without the estimators", fifo.bare_us_per_imu_sample,
+            "us/IMU sample"),
+    ]
 
 
 def kernel_break_even_rows() -> list[Row]:
