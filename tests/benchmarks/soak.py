@@ -255,7 +255,8 @@ def _measures(report: Report) -> dict[str, str]:
         "RSS growth after the first minute": f"{growth:.1f} MB ({rss.get('after 1 min', 0):.0f}"
                                              f" -> {rss.get('end', 0):.0f} MB)",
         "`wrong_pressure` rejected by the vario's gate": _gated(report),
-        "worst climb error in the 2 s after it": f"{max(climbs, default=math.nan):.2f} m/s",
+        "worst climb error in the 2 s after it": f"{max(climbs):.2f} m/s" if climbs
+                                                 else "none to judge",
         "`wrong_pressure` blended by the chip's filter (apart)": str(report.by_design_blended),
         "start-ups with 1 % bus errors": f"{ok}/{attempts}" if attempts else "not run",
     }
