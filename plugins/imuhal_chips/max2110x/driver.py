@@ -94,15 +94,15 @@ own period (``PollGrid(track=True)``), so it creeps earlier than a chip whose cl
 ~1.5 % fast instead of falling behind it; a poll that finds nothing re-finds the data a guard
 later. Once the period is learnt the grid steps 1/512 period short of it: about one poll in
 sixty finds nothing (one in eight with the fixed early step and an exact clock)."""
-FROZEN_AFTER_FRAMES = 20
+FROZEN_AFTER_FRAMES = 10
 """Identical gyro + accel + temperature frames in a row that mean the measurement engine
 hung. At rest the quietest setting (gyro +/-2000 dps, 15 LSB/dps, 0.005 dps/sqrt(Hz) over
 a 2 Hz bandwidth: about 0.1 LSB) can repeat gyro words, but the accelerometer (150 ug/sqrt(Hz),
-at least 5 LSB at +/-16 g) and the temperature word (about 5 LSB) do not: ten repeats of the
-whole frame have a probability far below once per year of samples; 20 (0.1 s at 200 Hz)
-squares that for a chip quieter than its error model. It was 50: the soak on seed-rc-vario
-found a frozen MAX21105 in a turbulent cruise handing out 27 valid frames more than their
-error model off the truth before the 50th."""
+at least 5 LSB at +/-16 g; about 1 LSB behind the seed RC board's divisor-48 filter) and
+the temperature word (about 5 LSB) do not: ten repeats of the whole frame have a
+probability far below once per year of samples (0.05 s at 200 Hz). It was 50: the soak on
+seed-rc-vario found a frozen MAX21105 in a turbulent cruise handing out valid frames more
+than their error model off the truth from the 13th on (27 in 300 s, 68 in an hour)."""
 TEMPERATURE_RANGE_DEGC = (-40.0, 85.0)
 """Operating range of the die; a temperature word outside it is not a real reading."""
 _MAG_OFFSET = Reg.MAG_X_H - Reg.SYSTEM_STATUS
