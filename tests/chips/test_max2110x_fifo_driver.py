@@ -23,8 +23,8 @@ from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.faults import BusErrors
 from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile, InterruptConfig
-from imuhal_chips.max2110x.driver import Max21100Driver, Max21105Driver
-from imuhal_chips.max2110x.emulator import Max21100Emulator, Max21105Emulator
+from imuhal_chips.max2110x.driver import Max21100Driver
+from imuhal_chips.max2110x.emulator import Max21100Emulator
 from imuhal_chips.max2110x.fifo import frames_aligned
 
 PERIOD_NS = 4_000_000  # the seed paraglider board's 250 Hz
@@ -95,11 +95,6 @@ def test_a_count_of_part_of_a_frame_or_a_word_beyond_full_scale_is_misaligned() 
     assert frames_aligned(12, [frame, frame])
     assert not frames_aligned(11, [frame])
     assert not frames_aligned(6, [struct.pack(">6h", 10, -20, 30, 0, 0, 30001)])
-
-
-def test_read_fifo_is_refused_on_the_max21105_in_one_line() -> None:
-    with pytest.raises((ConfigurationError, ValueError), match="MAX21100 only"):
-        make_rig(Max21105Driver, Max21105Emulator, read="fifo")
 
 
 def test_read_fifo_needs_equal_gyro_and_accel_rates() -> None:
