@@ -30,7 +30,10 @@ burst (``AutoReadFeed.latency_ns``: one accelerometer period plus the IMU's poll
 measurement instant and stamps the sample with the poll's time, about 6 ms after the
 measurement at the seed's rates (one-shot: 1.7 ms). A poll that finds the bytes unchanged
 looks once more one latency later (a copy a failed read or burst delayed), then waits for
-the next measurement.
+the next measurement. Every copy that changed since the previous poll is taken
+(``AutoReadFeed.take``), not only the latest: when the master's reads bring two
+measurements between two polls (FIFO reads at the IMU's own instants, or the look a
+latency later), the older is handed out too, stamped with its delivery.
 """
 
 from __future__ import annotations
