@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 from tests.chips.test_max2110x_driver import AT_REST, Rig, make_rig
+from tests.chips.test_max2110x_fifo_driver import pause_past_the_fifo, shift_the_fifo
 
 from imuhal.core.samples import AccelSample, GyroSample, Sample
 from imuhal.core.streams import TimeSource
@@ -56,10 +57,7 @@ def test_fifo_frames_read_the_chips_values_stamped_at_its_instants() -> None:
 
 def test_a_host_pause_longer_than_the_fifo_is_a_counted_overflow_and_a_reset() -> None:
     rig = _fifo_rig()
-    rig.run(0.5)
-    rig.clock.sleep((DEPTH_NS + 3 * PERIOD_NS) / 1e9)  # the host away: data_lost
-    rig.next_ns = rig.clock.now_ns()
-    samples = rig.run(0.5)
+    samples = pause_past_the_fifo(rig, DEPTH_NS, PERIOD_NS)
     assert rig.driver.health.fifo_overflows == 1
     assert rig.emu.fifo.frames_dropped >= 3
     gyros = _valid(samples, GyroSample)
@@ -68,10 +66,7 @@ def test_a_host_pause_longer_than_the_fifo_is_a_counted_overflow_and_a_reset() -
 
 def test_a_shifted_fifo_is_reset_and_no_wrong_frame_comes_out() -> None:
     rig = _fifo_rig()
-    rig.run(0.5)
-    rig.clock.sleep_until(rig.next_ns)  # a frame in the FIFO
-    rig.bus.transfer(0, bytes((0x80 | 0x40 | 0x3E,)), 1)  # a burst cut short: one byte popped
-    samples = rig.run(0.5)
+    samples = shift_the_fifo(rig)
     assert rig.driver.health.fifo_overflows == 1
     gyros = _valid(samples, GyroSample)
     assert len(gyros) > 80 and _at_rest(gyros, rig)

@@ -41,6 +41,24 @@ def _valid(samples: list[Sample], cls: type[Sample]) -> list[Sample]:
     return [s for s in samples if isinstance(s, cls) and s.valid]
 
 
+def pause_past_the_fifo(rig: Rig, depth_ns: int, period_ns: int) -> list[Sample]:
+    """0.5 s read, the host away for the FIFO's depth and three periods (data_lost), then
+    0.5 s more: the samples of the last 0.5 s."""
+    rig.run(0.5)
+    rig.clock.sleep((depth_ns + 3 * period_ns) / 1e9)
+    rig.next_ns = rig.clock.now_ns()
+    return rig.run(0.5)
+
+
+def shift_the_fifo(rig: Rig) -> list[Sample]:
+    """0.5 s read, then one byte popped from FIFO_DATA (a burst cut short) with a frame in
+    the FIFO, then 0.5 s more: the samples of the last 0.5 s."""
+    rig.run(0.5)
+    rig.clock.sleep_until(rig.next_ns)
+    rig.bus.transfer(0, bytes((0x80 | 0x40 | 0x3E,)), 1)
+    return rig.run(0.5)
+
+
 def test_fifo_frames_read_the_chips_values_stamped_at_its_instants() -> None:
     rig = _fifo_rig()
     rig.emu.oscillator_error = 0.02
@@ -67,10 +85,7 @@ def test_the_streams_say_frames_are_stamped_on_the_chips_clock() -> None:
 
 def test_a_host_pause_longer_than_the_fifo_is_a_counted_overflow_and_a_reset() -> None:
     rig = _fifo_rig()
-    rig.run(0.5)
-    rig.clock.sleep((DEPTH_NS + 3 * PERIOD_NS) / 1e9)  # the host away: data_lost
-    rig.next_ns = rig.clock.now_ns()
-    samples = rig.run(0.5)
+    samples = pause_past_the_fifo(rig, DEPTH_NS, PERIOD_NS)
     assert rig.driver.health.fifo_overflows == 1
     assert rig.emu.fifo is not None and rig.emu.fifo.frames_dropped >= 3
     assert len(_valid(samples, GyroSample)) > 100  # frames come again after the reset
@@ -78,10 +93,7 @@ def test_a_host_pause_longer_than_the_fifo_is_a_counted_overflow_and_a_reset() -
 
 def test_a_shifted_fifo_is_reset_and_no_wrong_frame_comes_out() -> None:
     rig = _fifo_rig()
-    rig.run(0.5)
-    rig.clock.sleep_until(rig.next_ns)  # a frame in the FIFO
-    rig.bus.transfer(0, bytes((0x80 | 0x40 | 0x3E,)), 1)  # a burst cut short: one byte popped
-    samples = rig.run(0.5)
+    samples = shift_the_fifo(rig)
     assert rig.driver.health.fifo_overflows == 1
     lsb = rig.emu.resolution(GyroSample.channel)
     gyros = _valid(samples, GyroSample)
