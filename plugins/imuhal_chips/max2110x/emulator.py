@@ -467,12 +467,15 @@ class Max2110xEmulator(ChipEmulator):
         if events and self.physics_ahead is not None and events[-1][0] > self._ahead_until_ns:
             self._announce_instants(events[0][0], now)
         frame_channel = self._fifo_frame_channel()
+        pulled = None
         for k, (t, index) in enumerate(events):
             if self.stuck_data_ready:
                 continue
             if index == counted:
                 self.record_measurements(t, periods[index], 1)
-            self.pull_physics(t)
+            if t != pulled:  # the gyro and the accelerometer of one instant see one world
+                self.pull_physics(t)
+                pulled = t
             self._latch(index)
             if index == _ACCEL:
                 self._accel_latched(1, t)
