@@ -125,7 +125,8 @@ class MotionScenario(Scenario):
         k = motion.kinematics_many(np.asarray(times))
         if self.disturbance.active:
             fields = [self.field_ned_ut(t)[0] for t in times]
-            field: tuple[Any, Any, Any] = tuple(np.asarray(fields).T)  # type: ignore[assignment]  # three arrays
+            north, east, down = np.asarray(fields).T
+            field: tuple[Any, Any, Any] = (north, east, down)
         else:
             field = self._field_ned
         body_field = mat_t_vec(k.rotation, field)  # type: ignore[arg-type]  # arrays
