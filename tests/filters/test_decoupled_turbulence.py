@@ -2,8 +2,9 @@
 
 Seeded synthetic aeroplane flights with known truth (tests/filters/decoupled_flight_motion.py:
 an axial roll measured with a 3 % gyro scale error leaves about 10 deg of tilt error, then
-turbulence that keeps |a| about 0.3 g from 1 g, so the flight defaults' 0.02 g soft gate
-stays closed).
+turbulence that keeps |a| about 0.3 g from 1 g, so ``preset: flight``'s 0.02 g soft gate
+stays closed). The correction belongs to that preset; the defaults have no fixed gate
+(test_decoupled_adaptive.py).
 """
 
 from __future__ import annotations
@@ -23,14 +24,15 @@ from imuhal_filters.decoupled.turbulence import TurbulenceParams
 
 
 def _estimator_tilt_deg(f: Flight, settings: dict) -> np.ndarray:
-    est = DecoupledEstimator({"sample_period_s": f.dt_s, **settings})
+    est = DecoupledEstimator({"sample_period_s": f.dt_s, "preset": "flight", **settings})
     q = [est.update(g, a, None, f.dt_s) for g, a in zip(f.gyro_rad_s, f.accel_m_s2, strict=True)]
     return tilt_error_deg(np.array(q), f.q_true)
 
 
 def _kernel_run(f: Flight, turbulence: TurbulenceParams) -> tuple[np.ndarray, np.ndarray]:
-    """(tilt error deg, straight flight declared) per sample, flight defaults otherwise."""
-    params = dataclasses.replace(DecoupledEstimator().settings.params(), turbulence=turbulence)
+    """(tilt error deg, straight flight declared) per sample, ``preset: flight`` otherwise."""
+    params = dataclasses.replace(DecoupledEstimator({"preset": "flight"}).settings.params(),
+                                 turbulence=turbulence)
     k = DecoupledKernel(params)
     k.start(IDENTITY)  # the flights start level, heading north
     q, steady = [], []
@@ -84,7 +86,8 @@ def test_turning_a_filter_state_moves_value_and_rate_by_at_most_the_cap() -> Non
     assert math.isclose(math.hypot(out[0], out[2]), 1.0, rel_tol=1e-12)
 
 
-def test_flight_defaults_correct_in_turbulence_and_preset_handheld_does_not() -> None:
-    assert DecoupledEstimator().settings.turbulence_rate_deg_s == 3.0
+def test_preset_flight_corrects_in_turbulence_and_the_defaults_and_handheld_do_not() -> None:
+    # the defaults have no fixed gate for turbulence to keep closed (the innovation speed)
+    assert DecoupledEstimator().settings.turbulence_rate_deg_s is None
     assert DecoupledEstimator({"preset": "flight"}).settings.turbulence_rate_deg_s == 3.0
     assert DecoupledEstimator({"preset": "handheld"}).settings.turbulence_rate_deg_s is None
