@@ -29,8 +29,8 @@ from docblock import generated_by, write_block
 
 from imuhal.plugins.manager import load_registry
 
-DEFAULT_RUNS = ('decoupled:{}', 'decoupled:{"preset": "flight"}',
-                'decoupled:{"preset": "handheld"}', 'vqf:{}', 'vqf:{"withhold_speed_m_s": null}',
+DEFAULT_RUNS = ('decoupled:{}', 'decoupled:{"preset": "adaptive"}',
+                'decoupled:{"preset": "handheld"}', 'vqf:{}', 'vqf:{"withhold_speed_m_s": 3}',
                 'madgwick:{}')
 DOC = Path(__file__).resolve().parents[1] / "estimators.md"
 BLOCK = "decoupled-flight"

@@ -3,8 +3,7 @@
 Seeded synthetic aeroplane flights with known truth (tests/filters/decoupled_flight_motion.py:
 an axial roll measured with a 3 % gyro scale error leaves about 10 deg of tilt error, then
 turbulence that keeps |a| about 0.3 g from 1 g, so ``preset: flight``'s 0.02 g soft gate
-stays closed). The correction belongs to that preset; the defaults have no fixed gate
-(test_decoupled_adaptive.py).
+stays closed); ``preset: flight`` is the defaults by name.
 """
 
 from __future__ import annotations
@@ -86,8 +85,7 @@ def test_turning_a_filter_state_moves_value_and_rate_by_at_most_the_cap() -> Non
     assert math.isclose(math.hypot(out[0], out[2]), 1.0, rel_tol=1e-12)
 
 
-def test_preset_flight_corrects_in_turbulence_and_the_defaults_and_handheld_do_not() -> None:
-    # the defaults have no fixed gate for turbulence to keep closed (the innovation speed)
-    assert DecoupledEstimator().settings.turbulence_rate_deg_s is None
+def test_flight_defaults_correct_in_turbulence_and_preset_handheld_does_not() -> None:
+    assert DecoupledEstimator().settings.turbulence_rate_deg_s == 3.0
     assert DecoupledEstimator({"preset": "flight"}).settings.turbulence_rate_deg_s == 3.0
     assert DecoupledEstimator({"preset": "handheld"}).settings.turbulence_rate_deg_s is None

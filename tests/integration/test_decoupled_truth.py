@@ -13,7 +13,7 @@ correction 7.9 deg at worst, with its bias estimate added to the gyro instead of
 11.9 deg.
 
 And the calibrated board (as the flight benchmark calibrates it) through the whole
-`rc-flight` with the defaults and no speed source: issue 10's target, tilt under 10 deg.
+`rc-flight`, against madgwick on the same samples.
 """
 
 from __future__ import annotations
@@ -85,10 +85,10 @@ def _rc_tilt_deg(name: str, samples: list[Sample], scenario: Scenario,
         if isinstance(e, AttitudeEstimate) and e.t_ns >= SETTLE_S * 1e9])
 
 
-def test_decoupled_defaults_fly_rc_flight_within_the_target() -> None:
-    # the calibrated seed board (as the flight benchmark), the whole scenario: the loop, the
-    # roll, the pull-up and the banked turn are gated by the innovation speed, the gusts of
-    # straight flight are not (they average out), so the aerobatics' gyro error is walked back
+def test_decoupled_flight_defaults_fly_rc_flight_as_well_as_madgwick() -> None:
+    # the calibrated seed board (as the flight benchmark), the whole scenario: turbulence
+    # keeps the 0.02 g gate closed in straight flight, and only the turbulence correction
+    # walks back the aerobatics' gyro error (4.1 deg RMS without it)
     registry = load_registry()
     board = calibrated_board(load_profile(default_profile_path(), registry), registry, seed=1)
     with open_emulated(board.model_copy(update={"estimators": {}}), registry,
@@ -97,6 +97,8 @@ def test_decoupled_defaults_fly_rc_flight_within_the_target() -> None:
         assert pipeline.board is not None
         scenario = pipeline.board.scenario  # type: ignore[attr-defined]
     decoupled = _rc_tilt_deg("decoupled", samples, scenario, registry)
+    madgwick = _rc_tilt_deg("madgwick", samples, scenario, registry)
     assert decoupled.size > 10_000
-    assert decoupled.max() < 10.0  # measured 6.3 (docs/estimators.md, decoupled-flight)
-    assert float(np.sqrt(np.mean(decoupled**2))) < 5.0  # measured 3.5
+    rms = float(np.sqrt(np.mean(decoupled**2)))
+    assert rms <= float(np.sqrt(np.mean(madgwick**2)))  # measured 1.16 against 1.81
+    assert decoupled.max() < 10.0  # measured 3.2

@@ -41,48 +41,57 @@ from imuhal_filters.decoupled.smoother import (
 
 class DecoupledSettings(AhrsSettings):
     PRESETS: ClassVar[dict[str, dict[str, Any]]] = {
-        # VQF's published settings: every accelerometer reading in full (the inertial-frame
-        # filter alone averages the motion out); reproduces VQF's figures on BROAD
+        # hand-held motion (BROAD): VQF's published settings, every accelerometer reading in
+        # full; the inertial-frame filter averages the hand's acceleration out, a gate would
+        # weight it unevenly (docs/evaluation.md)
         "handheld": {"accel_soft_gate_g": None, "tau_acc_s": 3.0, "tau_acc_rest_s": None,
                      "turbulence_rate_deg_s": None, "innovation_speed_m_s": None},
-        # the flight settings of issue 11 (a fixed 0.02 g gate, 10 s, the turbulence
-        # correction), the defaults until the innovation speed replaced them; kept to
-        # reproduce those figures (docs/estimators.md)
+        # the defaults by name (a profile can say what it relies on)
         "flight": {"accel_soft_gate_g": 0.02, "tau_acc_s": 10.0, "tau_acc_rest_s": 3.0,
                    "turbulence_rate_deg_s": 3.0, "innovation_speed_m_s": None},
+        # VQF's settings weighted by the innovation speed instead of a fixed gate: one
+        # setting for both worlds, tried as the default and not good enough yet (BROAD's
+        # fast translation and stationary-magnet trials; docs/estimators.md, decoupled)
+        "adaptive": {"accel_soft_gate_g": None, "tau_acc_s": 3.0, "tau_acc_rest_s": None,
+                     "turbulence_rate_deg_s": None, "innovation_speed_m_s": 1.0},
     }
 
-    tau_acc_s: float = Field(3.0, gt=0.0)
+    tau_acc_s: float = Field(10.0, gt=0.0)
     """Mean delay (s) of the accelerometer low-pass in the almost-inertial frame: the
-    inclination correction's speed (VQF's published 3 s). The innovation speed below gates
-    what does not average out within it, so no longer filter is needed for flight."""
-    tau_acc_rest_s: float | None = Field(None, gt=0.0)
+    inclination correction's speed. Default 10 s, for flight: turns last longer than hand
+    motion (flight benchmark `thermal` tilt RMS 0.92 against 2.58 deg at 3 s); VQF's published
+    3 s is ``preset: handheld`` (docs/estimators.md)."""
+    tau_acc_rest_s: float | None = Field(3.0, gt=0.0)
     """At rest (``rest_detected``) the accelerometer filter runs with this time constant (s)
-    instead (``preset: flight``: 3 s against its 10 s). None: ``tau_acc_s`` always."""
-    innovation_speed_m_s: float | None = Field(1.0, gt=0.0)
-    """The adaptive weight (common/innovation.py): the inclination filter's innovation (the
-    reading minus its gravity, almost-inertial frame), its own mean over ``tau_acc_s`` taken
-    out, integrated across gravity into a speed with the leak ``innovation_tau_s``; each step
-    counts 1 / (1 + (speed / this)^2). 1 m/s: the speed at which a hand moves a board about;
-    hand motion, gusts and vibration stay near or under it and average out, while a turn
-    without a speed source, a launch push or a loop changes the velocity by metres per second
-    within a second and is gated; a tilt error is a constant innovation, taken out with the
-    mean, so the filter always converges. Zeroed at rest (a zero-velocity update). None:
-    every reading in full (VQF, ``preset: handheld``). docs/estimators.md, decoupled."""
+    instead: the specific force is gravity alone, what is left is gyro drift (flight default
+    3 s: on the ground before launch the flight filter converges as fast as the hand-held
+    one). None: ``tau_acc_s`` always (VQF, ``preset: handheld``)."""
+    accel_soft_gate_g: float | None = Field(0.02, gt=0.0)
+    """Share of each step the inclination filter advances by, 1 / (1 + (| |a| - 1 g | /
+    width)^2) (common/gate.py): a reading away from 1 g is trusted less. Default 0.02 g:
+    in flight it is needed (`rc-flight` max 5.4 deg, 40.7 without); None (VQF's choice,
+    ``preset: handheld``): every reading in full, which hand-held motion needs (BROAD 9-DOF
+    total 2.33 deg, 5.45 with the flight defaults): docs/estimators.md."""
+    turbulence_rate_deg_s: float | None = Field(3.0, gt=0.0)
+    """In straight flight through turbulence (gusts keep |a| off 1 g, so the soft gate stays
+    closed; detected from the spread and mean of |a| and the turn rate, ``turbulence.py``)
+    the filtered accelerometer is also turned towards each reading at up to this rate
+    (deg/s) times the gate's closed share, as madgwick corrects: the gyro error of
+    aerobatics is walked back instead of kept (flight benchmark `rc-flight` tilt RMS 1.2
+    against 4.2 deg without; `thermal` unchanged). None: off (``preset:
+    handheld``; without a soft gate it never acts)."""
+    innovation_speed_m_s: float | None = Field(None, gt=0.0)
+    """Weight each step of the accelerometer filter by the innovation speed
+    (common/innovation.py): the filter's innovation (the reading minus its gravity,
+    almost-inertial frame), its own mean over ``tau_acc_s`` taken out (a constant innovation
+    is a tilt error), integrated across gravity into a speed with the leak
+    ``innovation_tau_s`` and zeroed at rest; the step counts 1 / (1 + (speed / this)^2).
+    ``preset: adaptive`` sets 1 m/s, a hand's speed. None (default): no such weight.
+    Measured in docs/estimators.md (decoupled): it flies the flight targets, but BROAD's
+    fast translation and stationary-magnet trials, where the hand moves faster, lose much."""
     innovation_tau_s: float = Field(1.0, gt=0.0)
     """Leak of that speed (s): hand motion and gusts turn round within about a second (0.5-2
     Hz); a velocity change kept longer is a manoeuvre's."""
-    accel_soft_gate_g: float | None = Field(None, gt=0.0)
-    """A fixed soft gate on | |a| - 1 g |: the filter advances by 1 / (1 + (| |a| - 1 g | /
-    width)^2) of each step (common/gate.py). None (default): no such gate; it weights
-    hand-held motion unevenly and starves the filter (BROAD 9-DOF total 5.45 deg with
-    ``preset: flight``'s 0.02 g); the innovation speed does the gating."""
-    turbulence_rate_deg_s: float | None = Field(None, gt=0.0)
-    """With a soft gate (``preset: flight``): in straight flight through turbulence (gusts keep
-    |a| off 1 g, so the gate stays closed; detected from the spread and mean of |a| and the
-    turn rate, ``turbulence.py``) the filtered accelerometer is also turned towards each
-    reading at up to this rate (deg/s) times the gate's closed share. None: off (default:
-    without a soft gate it never acts)."""
     tau_mag_s: float = Field(9.0, gt=0.0)
     """Heading correction time constant (s) (VQF's published default, 9 s)."""
     rest_gyro_th_deg_s: float = Field(2.0, gt=0.0)

@@ -53,13 +53,14 @@ class VqfSettings(AhrsSettings):
     """Gyro bias estimation during rest (``restBiasEstEnabled``)."""
     mag_disturbance_rejection: bool = True
     """Magnetic disturbance detection and rejection (``magDistRejectionEnabled``)."""
-    withhold_speed_m_s: float | None = Field(3.0, gt=0.0)
-    """Input preprocessing, VQF itself untouched: an accelerometer reading is not handed to
-    VQF while the innovation against VQF's own inclination, integrated into a speed across
-    gravity (common/innovation.py, 1 s leak), exceeds this (m/s): a loop's pull, a banked turn
-    without a speed source, a launch. 3 m/s: above what a hand reaches, so on hand-held
-    motion every reading is passed (BROAD: the package's own figures); ``rc-flight`` tilt max
-    40.5 deg without, docs/estimators.md. None: every reading (the package's own filter)."""
+    withhold_speed_m_s: float | None = Field(None, gt=0.0)
+    """Input preprocessing for flight without a speed source, VQF itself untouched: a reading
+    is not handed to VQF while its innovation against VQF's own inclination, integrated into
+    a speed across gravity (common/innovation.py: 1 s leak, the innovation's ``tau_acc_s``
+    mean taken out, zeroed at rest), exceeds this (m/s). 3 m/s: `rc-flight` tilt max 6.9 deg
+    instead of 40.5; but BROAD's fast translation trial 15 then loses 2.31 -> 5.26 deg, and
+    at 6 m/s, where BROAD is unchanged, `rc-flight` keeps 22 deg (docs/estimators.md, vqf).
+    None (default): every reading, the package's own filter."""
     withhold_tau_s: float = Field(1.0, gt=0.0)
     """The leak of that speed (s): how long hand motion and gusts take to come back."""
 
