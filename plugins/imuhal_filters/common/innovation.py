@@ -23,10 +23,16 @@ each step: hand-held and gust speeds (well under ``speed_m_s``) keep most of it,
 push gates it within a fraction of a second. At rest the velocity is zero by definition
 (``reset``: the rest detector's zero-velocity update).
 
-A tilt error also shows as an innovation (g sin(error) across gravity), so the leak bounds
-its speed at g sin(error) tau: with 1 s and 1 m/s a 3 deg error keeps half the weight and
-the filter still converges from larger errors, only slower; at rest the reset removes the
-limit altogether.
+A tilt error also shows as an innovation (g sin(error) across gravity), constant in the
+almost-inertial frame, where no vehicle accelerates one way for long; so the innovation's own
+mean over ``mean_tau_s`` (the filter's time constant) is taken out before the integration:
+a tilt error stops counting as motion within a few of those, and the filter always
+converges. The price: an acceleration that turns round slower than that (a slow turn without
+a speed source) is taken for a tilt error too.
+
+Measured (docs/estimators.md, decoupled ``preset: adaptive``, and vqf's
+``withhold_speed_m_s``): right for flight, but BROAD's fast hand-held translation exceeds
+any bound low enough to gate a turn, so neither estimator uses it by default.
 
 This module is shared on purpose (any gravity filter can weight its steps by it).
 """
