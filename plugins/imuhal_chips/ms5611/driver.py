@@ -363,9 +363,9 @@ class MS5611Driver(Driver):
                 if now_ns < start:
                     return PollResult([], start)
                 # Late beyond the slack: slide this cycle rather than shorten a wait.
-                self._target_ns = max(self._target_ns, now_ns + self._cycle_ns(True))
+                self._slide_to(now_ns + self._cycle_ns(True))
                 return PollResult([], self._start_conversion(Measurement.D2, now_ns))
-            self._target_ns = max(self._target_ns, now_ns + self._t_d1_ns)
+            self._slide_to(now_ns + self._t_d1_ns)
             return PollResult([], self._start_pressure_when_due(now_ns))
 
         ready = self._conv_start_ns + (
@@ -382,7 +382,7 @@ class MS5611Driver(Driver):
             self._fresh_temperature = True
             self._need_temperature = False
             self._state = _State.IDLE
-            self._target_ns = max(self._target_ns, now_ns + self._t_d1_ns)
+            self._slide_to(now_ns + self._t_d1_ns)
             return PollResult([], self._start_pressure_when_due(now_ns))
 
         d1, bad = self._read_adc()
@@ -416,7 +416,17 @@ class MS5611Driver(Driver):
         self._target_ns += self._period_ns
         if self._cycle_start_ns() < now_ns:
             # Behind by more than the slack in a period: re-anchor the grid at now.
-            self._target_ns = now_ns + self._cycle_ns(self._need_temperature)
+            self._slide_to(now_ns + self._cycle_ns(self._need_temperature))
+
+    def _slide_to(self, target_ns: int) -> None:
+        """The pressure conversion due at ``_target_ns`` cannot complete before
+        ``target_ns`` (the poll came late, a convert command failed): the cadence slides
+        there. The chip converts nothing in the time slid, which the frame ledger is told
+        (``DeviceHealth.not_converted_ns``) so that it counts those slots as never
+        converted, not as frames lost."""
+        if target_ns > self._target_ns:
+            self.health.not_converted_ns += target_ns - self._target_ns
+            self._target_ns = target_ns
 
     def _emit(self, d1: int, *, t_ns: int) -> list[Sample]:
         assert self.coefficients is not None and self._d2 is not None
@@ -457,6 +467,6 @@ class MS5611Driver(Driver):
         self._since_temperature = 0
         self._fresh_temperature = False
         # the next slot of the sample grid: never report missing slots faster than odr_hz
-        self._target_ns = max(self._target_ns + self._period_ns,
-                              now_ns + self._cycle_ns(True))
+        self._target_ns += self._period_ns
+        self._slide_to(now_ns + self._cycle_ns(True))
         return PollResult(samples, self._cycle_start_ns())

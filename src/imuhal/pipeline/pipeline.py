@@ -137,6 +137,8 @@ class DeviceRuntime:
     """The driver's reconfiguration count the ledger last saw."""
     fifo_overflows_seen: int = 0
     """The driver's FIFO overflow count the ledger last saw."""
+    not_converted_seen_ns: int = 0
+    """The driver's slid schedule time the ledger last saw."""
     mag_learner: HardIronLearner | None = None
     """Learning the hard iron in flight (``mag_in_flight``, no stored magnetometer record)."""
     accel_teacher: AccelTeacher | None = None
@@ -862,6 +864,10 @@ class Pipeline:
         the frame period follows the configuration."""
         assert dev.ledger is not None
         driver = dev.driver
+        slid_ns = driver.health.not_converted_ns - dev.not_converted_seen_ns
+        if slid_ns:
+            dev.not_converted_seen_ns = driver.health.not_converted_ns
+            dev.ledger.slid(slid_ns)
         if driver.health.fifo_overflows != dev.fifo_overflows_seen:
             dev.fifo_overflows_seen = driver.health.fifo_overflows
             dev.ledger.note("fifo_overflow")
