@@ -348,6 +348,9 @@ class MS5611Driver(Driver):
             self._state = _State.CONVERTING_D2
             return start + self._t_d2_ns
         self._state = _State.CONVERTING_D1
+        # a pressure conversion started late (a late poll, a slow transfer) completes late:
+        # the cadence slides with it, so the stamps stay on it
+        self._slide_to(start + self._t_d1_ns)
         return start + self._t_d1_ns
 
     def _start_pressure_when_due(self, now_ns: int) -> int:
@@ -453,7 +456,12 @@ class MS5611Driver(Driver):
         """An ADC read carried no measurement (``flags`` says why: the conversion did not
         happen after a chip reset or glitch, nothing drove the bus, or the converter hung).
         Report the slot with NaN values and restart the cycle with a temperature; reset the
-        chip when this keeps happening."""
+        chip when this keeps happening.
+
+        The slot's pressure was converted only when this was a D1 read that found something
+        other than 0 (0: no conversion completed); otherwise the chip made no frame there,
+        a slot never converted (the frame ledger counts it apart, not as a frame lost)."""
+        converted = self._state is _State.CONVERTING_D1 and not flags & SampleFlag.STALE
         samples: list[Sample] = [
             PressureSample(t_ns=now_ns, device=self.device, flags=flags,
                            pressure_pa=math.nan),
@@ -467,6 +475,9 @@ class MS5611Driver(Driver):
         self._since_temperature = 0
         self._fresh_temperature = False
         # the next slot of the sample grid: never report missing slots faster than odr_hz
-        self._target_ns += self._period_ns
+        if converted:
+            self._target_ns += self._period_ns
+        else:
+            self._slide_to(self._target_ns + self._period_ns)
         self._slide_to(now_ns + self._cycle_ns(True))
         return PollResult(samples, self._cycle_start_ns())

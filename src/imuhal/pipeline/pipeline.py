@@ -629,6 +629,8 @@ class Pipeline:
             dev.next_poll_ns = max(self._next_due(dev, t_ns, next_ns), t_ns + 1)
             heapq.heappush(heap, (dev.next_poll_ns, rank, name))
             yield from self._hand_out(dev, frames)
+            if dev.ledger is not None:
+                self._account_slides(dev)
         if end is not None:
             self.clock.sleep_until(end)
             yield from self._drain(end)
@@ -737,6 +739,8 @@ class Pipeline:
             dev.next_poll_ns = max(self._next_due(dev, edge.t_ns, next_ns), t_ns + 1)
             heapq.heappush(self._schedule(), (dev.next_poll_ns, self._device_rank[name], name))
             yield from self._hand_out(dev, samples)
+            if dev.ledger is not None:
+                self._account_slides(dev)
 
     def _contained_service(self, dev: DeviceRuntime, t_ns: int
                            ) -> tuple[_Readings | list[Block], int]:
@@ -864,10 +868,6 @@ class Pipeline:
         the frame period follows the configuration."""
         assert dev.ledger is not None
         driver = dev.driver
-        slid_ns = driver.health.not_converted_ns - dev.not_converted_seen_ns
-        if slid_ns:
-            dev.not_converted_seen_ns = driver.health.not_converted_ns
-            dev.ledger.slid(slid_ns)
         if driver.health.fifo_overflows != dev.fifo_overflows_seen:
             dev.fifo_overflows_seen = driver.health.fifo_overflows
             dev.ledger.note("fifo_overflow")
@@ -877,6 +877,17 @@ class Pipeline:
             stream = driver.accounted_stream()
             if stream is not None:
                 dev.ledger.channel, dev.ledger.period_ns = stream
+
+    @staticmethod
+    def _account_slides(dev: DeviceRuntime) -> None:
+        """The time a host-paced chip's schedule slid in a read, once its frames are counted:
+        a driver slides its cadence after the frame it hands out (the next conversion is
+        late), so the slide belongs to the gap after that frame."""
+        assert dev.ledger is not None
+        slid_ns = dev.driver.health.not_converted_ns - dev.not_converted_seen_ns
+        if slid_ns:
+            dev.not_converted_seen_ns = dev.driver.health.not_converted_ns
+            dev.ledger.slid(slid_ns)
 
     def _look_for(self, dev: DeviceRuntime, t_ns: int) -> int:
         """An optional device that was not found: probe it once more."""
