@@ -45,11 +45,13 @@ from imuhal.pipeline.containment import (
     ContainedSinks,
     Containment,
     DriverDeadline,
+    DriverTiming,
     EstimatorGuard,
     PluginFaults,
     Watchdog,
     describe_exception,
     driver_deadline_s,
+    driver_timing,
 )
 from imuhal.pipeline.learning import AccelTeacher
 from imuhal.pipeline.processing import (
@@ -323,7 +325,7 @@ class Pipeline:
                            if bus.describe() != bus.name}
         self.warnings: list[str] = []
         self.containment = Containment(self.warnings.append)
-        self._watchdog = Watchdog()
+        self._watchdog = Watchdog(driver_timing(board))
         self._heap: list[tuple[int, int, str]] | None = None
         self._startup: GyroStartupStage | None = None
         self._fusion: list[Sample | Block] = []
@@ -763,7 +765,7 @@ class Pipeline:
                     watchdog.disarm()
         except DriverDeadline:
             self._isolate(dev, t_ns, "did not return from a call within its deadline of "
-                          f"{driver_deadline_s(dev.streams):g} s (from its chip's rate)")
+                          + watchdog.timing.describe(driver_deadline_s(dev.streams)))
             return [], NEVER_NS
         except RunEnded:
             raise  # a replayed recording ran out or diverged: the whole run ends
@@ -1162,6 +1164,19 @@ class Pipeline:
         summary = self.summary(wall_s=time.perf_counter() - wall0, simulated_s=self.span_s)
         summary.sinks = sink_counts
         return summary
+
+    @property
+    def driver_timing(self) -> DriverTiming:
+        """What the deadline of a driver call is measured on: the wall clock on a hardware
+        board, CPU time on an emulated or replayed one (imuhal.pipeline.containment)."""
+        return self._watchdog.timing
+
+    @driver_timing.setter
+    def driver_timing(self, timing: DriverTiming) -> None:
+        """Measure driver deadlines another way from the next call on (an embedding program
+        that wants a shorter bound on a blocked emulated call, or a wall-clock deadline)."""
+        self._watchdog.release()
+        self._watchdog = Watchdog(timing)
 
     @property
     def span_s(self) -> float:
