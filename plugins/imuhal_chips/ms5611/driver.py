@@ -348,9 +348,12 @@ class MS5611Driver(Driver):
             self._state = _State.CONVERTING_D2
             return start + self._t_d2_ns
         self._state = _State.CONVERTING_D1
-        # a pressure conversion started late (a late poll, a slow transfer) completes late:
-        # the cadence slides with it, so the stamps stay on it
-        self._slide_to(start + self._t_d1_ns)
+        # A pressure conversion started more than half a period late (a stalled host)
+        # completes in the next slot: the cadence slides with it, so that its slot counts
+        # as never converted. Less late, it keeps the grid (the next cycle catches up), or a
+        # host's usual microseconds of lateness would slow the cadence below its rate.
+        if start + self._t_d1_ns - self._target_ns > self._period_ns // 2:
+            self._slide_to(start + self._t_d1_ns)
         return start + self._t_d1_ns
 
     def _start_pressure_when_due(self, now_ns: int) -> int:
