@@ -535,7 +535,7 @@ class Max2110xDriver(Driver):
         creeps early of the chip) came just before the next measurement, and kept the
         grid a period behind the chip until it crept past a measurement: a loss counted
         where the chip lost nothing, and one missed where it did (the frame ledger's count
-        against the chip's, tests/integration/test_frame_accounting.py)."""
+        against the chip's, tests/integration/test_poll_stamped_accounting.py)."""
         if self.scales is None or self._off_plan(overdue=True):
             return None
         return max(now_ns, self.clock.now_ns())
