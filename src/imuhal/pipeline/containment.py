@@ -25,6 +25,7 @@ the rest of the run (docs/reliability.md, "Plugin containment").
 
 from __future__ import annotations
 
+import importlib
 import signal
 import threading
 import time
@@ -294,6 +295,15 @@ class DriverDeadline(BaseException):
     BaseException, so that a driver's ``except Exception`` does not swallow it."""
 
 
+try:
+    # the C function signal.getsignal wraps: the handler as installed, without converting
+    # it to a ``signal.Handlers`` member (the conversion fails by an exception for a Python
+    # handler and costs about 6 us; ``arm`` asks twice per IMU sample on the hardware path)
+    _current_handler: Callable[[int], Any] = importlib.import_module("_signal").getsignal
+except ImportError:  # an interpreter without CPython's _signal module
+    _current_handler = signal.getsignal
+
+
 class Watchdog:
     """Interrupts a driver call that overran its deadline: a one-shot ``ITIMER_REAL`` armed
     around the call, whose SIGALRM handler raises :class:`DriverDeadline` in the call; with
@@ -349,7 +359,7 @@ class Watchdog:
     def _handled(self) -> bool:
         """Every signal this watchdog needs goes to the deadline handler (this watchdog's or
         another pipeline's in the process)."""
-        return all(signal.getsignal(signum) is _deadline_expired for signum in self._signals)
+        return all(_current_handler(signum) is _deadline_expired for signum in self._signals)
 
     def _install(self) -> bool:
         """Take the signals when nobody handles them (and this is the main thread)."""
