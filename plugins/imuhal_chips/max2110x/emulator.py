@@ -66,6 +66,8 @@ import struct
 from collections.abc import Sequence
 from typing import ClassVar
 
+import numpy as np
+
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError, NackError
@@ -178,6 +180,12 @@ _FIFO_STATUS = int(Reg.FIFO_STATUS)
 _FIFO_DATA = int(Reg.FIFO_DATA)
 
 
+AHEAD_NS = 1_000_000_000
+"""How far past a FIFO fill the emulator announces its coming instants (1 s, 250 at the
+seed's 250 Hz): numpy's per-call cost makes the truth of a fill of 8 alone dearer vectorised
+than one by one, of a few hundred cheaper (tests/benchmarks/bench_truths.py)."""
+
+
 def _encode(value: float, per_count: float, limit: int) -> int:
     """``value`` (SI) in counts of ``per_count``, rounded and clipped to +/-``limit``."""
     if not math.isfinite(value):
@@ -235,6 +243,8 @@ class Max2110xEmulator(ChipEmulator):
         self._mst_data = 0
         self._mst_pending: tuple[int, int] | None = None
         self._wake_ns: float = _NEVER
+        self._ahead_until_ns = -1
+        """The latest instant already announced to the board (``_announce_instants``)."""
         self.fifo: Max21100Fifo | None = Max21100Fifo() if self.models_fifo else None
         """The FIFO (MAX21100 only; empty after every reset)."""
         self.stuck_data_ready = False
@@ -267,6 +277,7 @@ class Max2110xEmulator(ChipEmulator):
         self._advance()  # what is due now was measured on the old clock
         old = self._period_ns
         self._oscillator_error = fraction
+        self._ahead_until_ns = -1
         for index, channel in enumerate(_CHANNELS):
             odr = self._odr_hz(channel)
             due = self._next_ns[index]
@@ -369,6 +380,7 @@ class Max2110xEmulator(ChipEmulator):
 
     def _restart_timing(self) -> None:
         now = self.now_ns()
+        self._ahead_until_ns = -1  # the instants announced so far are on the old timing
         for index, channel in enumerate(_CHANNELS):
             odr = self._odr_hz(channel)
             if self._active(channel) and odr:
@@ -452,19 +464,44 @@ class Max2110xEmulator(ChipEmulator):
                 t += periods[index]
             next_ns[index] = t
         events.sort()
+        if events and self.physics_ahead is not None and events[-1][0] > self._ahead_until_ns:
+            self._announce_instants(events[0][0], now)
         frame_channel = self._fifo_frame_channel()
+        pulled = None
         for k, (t, index) in enumerate(events):
             if self.stuck_data_ready:
                 continue
             if index == counted:
                 self.record_measurements(t, periods[index], 1)
-            self.pull_physics(t)
+            if t != pulled:  # the gyro and the accelerometer of one instant see one world
+                self.pull_physics(t)
+                pulled = t
             self._latch(index)
             if index == _ACCEL:
                 self._accel_latched(1, t)
             last_at_t = k + 1 == len(events) or events[k + 1][0] != t
             if last_at_t and any(e == (t, frame_channel) for e in events[max(0, k - 1):k + 1]):
                 self._fifo_write()
+
+    def _announce_instants(self, first_ns: int, now: int) -> None:
+        """Tell the board (``physics_ahead``) every instant at which a channel will measure
+        from ``first_ns`` to ``AHEAD_NS`` past ``now``, as the clock stands: the truth of a
+        FIFO fill's instants and of the next ones then comes from one vectorised call.
+        Instants a later change of rate or clock moves are computed again when measured
+        (the board's truths are keyed by exact instant), so nothing depends on this guess."""
+        assert self.physics_ahead is not None
+        until = now + AHEAD_NS
+        instants = []
+        for index, due in enumerate(self._next_ns):
+            if due is None:
+                continue
+            period = self._period_ns[index]
+            # the instants measured in this fill, then the coming ones (next_ns moved on)
+            start = due - (due - first_ns) // period * period
+            instants.append(np.arange(start, until + 1, period, dtype=np.int64))
+        if instants:
+            self.physics_ahead(np.unique(np.concatenate(instants)).tolist())
+        self._ahead_until_ns = until
 
     # --- FIFO (the MAX21100's; emulator_fifo.py says what is known and what assumed) ----
 
