@@ -3,9 +3,10 @@
 The hard gate trusts a reading strictly inside (lower, upper) g; the complementary filters'
 soft gate weights the correction by 1 / (1 + (u / width)^2), u the unmodelled acceleration
 (the reading minus the gravity the attitude predicts); ``soft_gate_weight`` (the decoupled
-filter's) and the Freescale filter's distrust look at ((|a| - 1) / width) alone. The functions are the ones the compiled
-kernels are built from, called here as Python (the compiled side is compared with the Python
-filters by test_compiled_batch.py and test_compiled_sample.py).
+filter's) and the Freescale filter's distrust look at ((|a| - 1) / width) alone. The
+functions are the ones the compiled kernels are built from, called here as Python (the
+compiled side is compared with the Python filters by test_compiled_batch.py and
+test_compiled_sample.py).
 """
 
 from __future__ import annotations

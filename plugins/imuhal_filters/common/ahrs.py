@@ -470,8 +470,8 @@ class AhrsEstimator(Estimator):
         # a clip out of a rate well inside the range: no vehicle turns that fast that
         # quickly, so this is no rotation (a shock, a corrupt word the chip clipped) and the
         # recovery has to find at most what integrating it put in
-        return self._recovering(item, clipped,
-                                math.sqrt(sum(c * c for c, a in zip(clipped, at) if a)))
+        integrated = math.sqrt(sum(c * c for c, a in zip(clipped, at, strict=True) if a))
+        return self._recovering(item, clipped, integrated)
 
     def _recovering(self, item: GyroSample, rate: Vec, at_rail_rad_s: float = 0.0
                     ) -> list[Estimate]:
