@@ -29,6 +29,7 @@ import threading
 from typing import Any, Protocol
 
 from imuhal.core.errors import ImuhalError
+from imuhal.sinks.pacing import RateLimiter
 
 NUS_SERVICE = "6e400001-b5a3-f393-e0a9-e50e24dcca9e"
 NUS_RX = "6e400002-b5a3-f393-e0a9-e50e24dcca9e"
@@ -76,11 +77,11 @@ class BleTransport:
         self.peripheral = peripheral
         self.chunk_bytes = chunk_bytes
         self.max_backlog = max_backlog
-        self.pressure_period_ns = round(1e9 / pressure_hz) if pressure_hz > 0 else 0
+        self.pressure_hz = pressure_hz
         self.description = f"Bluetooth LE, Nordic UART service ({peripheral.description})"
         self.dropped_bytes = 0
         self.notifications = 0
-        self._last_pressure_ns: int | None = None
+        self._pacing = RateLimiter()
 
     def write(self, data: bytes) -> None:
         """One sentence (or more, whole): all of its chunks are handed over, or none."""
@@ -94,10 +95,8 @@ class BleTransport:
 
     def set_pressure_pa(self, pressure_pa: float, t_ns: int) -> None:
         """The static pressure at ``t_ns``: notified at most every 1 / ``pressure_hz``."""
-        last = self._last_pressure_ns
-        if last is not None and t_ns - last < self.pressure_period_ns - 500:
+        if not self._pacing.due("pressure", t_ns, self.pressure_hz):
             return
-        self._last_pressure_ns = t_ns
         self.peripheral.notify(ESS_SERVICE, ESS_PRESSURE, ess_pressure(pressure_pa))
 
     def close(self) -> None:

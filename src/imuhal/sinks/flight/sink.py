@@ -31,6 +31,7 @@ from imuhal.estimation.outputs import VerticalEstimate
 from imuhal.sinks.base import Event, SinkPlugin
 from imuhal.sinks.flight import sentences as fmt
 from imuhal.sinks.flight.transports import Transport, open_transport
+from imuhal.sinks.pacing import RateLimiter
 
 SENTENCES = ("LK8EX1", "LXWP0", "POV", "PRS", "XCTRC", "GGA", "RMC")
 
@@ -79,7 +80,7 @@ class FlightSink(SinkPlugin):
             open_transport(self.settings.output)
         self.counts = dict.fromkeys(SENTENCES, 0)
         self._set_pressure = getattr(self.transport, "set_pressure_pa", None)
-        self._last_ns: dict[str, int] = {}
+        self._pacing = RateLimiter()
         self._pressure: PressureSample | None = None
         self._temperature: float | None = None
         self._vertical: VerticalEstimate | None = None
@@ -124,14 +125,12 @@ class FlightSink(SinkPlugin):
         if name not in self.settings.sentences:
             return
         rate = self._rate(name)
-        last = self._last_ns.get(name)
-        # Half a microsecond of slack: a 10 Hz limit must pass events 100 ms apart.
-        if rate > 0 and last is not None and t_ns - last < 1e9 / rate - 500:
+        if not self._pacing.ready(name, t_ns, rate):
             return
         text = self._encode(name)
         if text is None:
             return
-        self._last_ns[name] = t_ns
+        self._pacing.mark(name, t_ns)
         self.counts[name] += 1
         self.transport.write(text.encode("ascii"))
 

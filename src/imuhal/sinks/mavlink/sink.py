@@ -47,10 +47,11 @@ from imuhal.core.samples import (
 from imuhal.estimation.outputs import AttitudeEstimate, VerticalEstimate
 from imuhal.sinks.base import Event, SinkPlugin
 from imuhal.sinks.mavlink.settings import MavlinkSettings
+from imuhal.sinks.pacing import RateLimiter
 
 UT_PER_GAUSS = 100.0
 PA_PER_HPA = 100.0
-HEARTBEAT_PERIOD_NS = 1_000_000_000
+HEARTBEAT_HZ = 1.0
 UINT16_MAX = 0xFFFF
 MAV_AUTOPILOT_GENERIC = 0
 MAV_STATE_ACTIVE = 4
@@ -147,7 +148,7 @@ class MavlinkSink(SinkPlugin):
         self._mav = dialect.MAVLink(self._out, srcSystem=s.mavlink.system_id,
                                     srcComponent=s.mavlink.component_id)
         self.counts: dict[str, int] = {}
-        self._last_ns: dict[str, int] = {}
+        self._pacing = RateLimiter()
         self._imu: str | None = None
         self._accel: VectorSample | None = None
         self._gyro: VectorSample | None = None
@@ -222,12 +223,7 @@ class MavlinkSink(SinkPlugin):
             self._global_position(sample)
 
     def _due(self, name: str, t_ns: int, rate_hz: float) -> bool:
-        last = self._last_ns.get(name)
-        # Half a microsecond of slack: a 50 Hz limit must pass samples 20 ms apart.
-        if rate_hz > 0 and last is not None and t_ns - last < 1e9 / rate_hz - 500:
-            return False
-        self._last_ns[name] = t_ns
-        return True
+        return self._pacing.due(name, t_ns, rate_hz)
 
     def _send(self, name: str, msg: Any) -> None:
         self._mav.send(msg)
@@ -236,10 +232,8 @@ class MavlinkSink(SinkPlugin):
     # -- messages -------------------------------------------------------------------------------
 
     def _heartbeat(self, t_ns: int) -> None:
-        last = self._last_ns.get("HEARTBEAT")
-        if last is not None and t_ns - last < HEARTBEAT_PERIOD_NS:
+        if not self._pacing.due("HEARTBEAT", t_ns, HEARTBEAT_HZ):
             return
-        self._last_ns["HEARTBEAT"] = t_ns
         self._send("HEARTBEAT", self._mav.heartbeat_encode(
             self.settings.mavlink.mav_type, MAV_AUTOPILOT_GENERIC, 0, 0, MAV_STATE_ACTIVE))
 
