@@ -104,7 +104,8 @@ class SoftGateSettings(EstimatorSettings):
     """The soft accelerometer gate of the complementary filters (madgwick, mahony)."""
 
     accel_soft_gate_g: float | None = Field(0.05, gt=0.0)
-    """Fade the accelerometer correction as the (turn-compensated) reading departs from 1 g:
-    weight 1 / (1 + (| |a| - 1 g | / this)^2); None: full correction at any magnitude (the
-    references). 0.05 g chosen on the emulated ``thermal`` launch and ``rc-flight``
-    (docs/estimators.md)."""
+    """Fade the accelerometer correction as the (turn-compensated) reading departs from the
+    gravity the attitude predicts: weight 1 / (1 + (u / this)^2), u = |a - R(q)^T g| in g,
+    the acceleration nothing models (a horizontal push at first order, where |a| would see
+    it at second); None: full correction always (the references). 0.05 g chosen on the
+    emulated ``thermal`` launch and ``rc-flight`` (docs/estimators.md)."""
