@@ -447,31 +447,37 @@ class AhrsEstimator(Estimator):
             return []
         counts = self._counters["angular_rate_recovery"]
         counts["clipped_samples"] += 1
-        axes = self._recovery_axes
         if self._recovery_left_s <= 0.0:
             counts["recoveries"] += 1
-            axes = (0.0, 0.0, 0.0)
+            self._recovery_axes = (0.0, 0.0, 0.0)
             self._recovery_budget_rad = 0.0
             self._recovery_apart_rad = _INF
         self._recovery_left_s = RECOVERY_S
         clipped = (min(max(float(x), -limit), limit), min(max(float(y), -limit), limit),
                    min(max(float(z), -limit), limit))
+        return self._recovering(item, clipped, self._clip_budget(clipped, limit))
+
+    def _clip_budget(self, clipped: Vec, limit: float) -> float:
+        """The axes a clipped reading (rad/s, cut at +-``limit``) adds to the recovery's,
+        and how fast it may have turned the attitude wrong (rad/s, ``_recovering``'s
+        ``at_rail_rad_s``): infinite for a rotation that ramped into the clip (its last
+        measured rate on a clipped axis at least RECOVERY_RAMP of the range: it may have
+        gone any way beyond it, and what it missed about one axis turns the others'
+        integration, so Fusion's recovery about every axis); else the rate integrated on
+        the clipped axes (a clip out of a rate well inside the range: no vehicle turns that
+        fast that quickly, so it is no rotation, a shock or a corrupt word the chip clipped,
+        and the recovery has to find at most what integrating it put in)."""
         rail = RECOVERY_RAIL * limit
         at = [abs(c) >= rail for c in clipped]
+        axes = self._recovery_axes
         self._recovery_axes = (1.0 if axes[0] or at[0] else 0.0,
                                1.0 if axes[1] or at[1] else 0.0,
                                1.0 if axes[2] or at[2] else 0.0)
-        if any(at[i] and abs(self._last_rate[i]) >= RECOVERY_RAMP * limit for i in range(3)):
-            # a rotation that ramped into the clip: it may have gone any way beyond it, and
-            # what it missed about one axis turns the others' integration (Fusion's
-            # recovery, about every axis)
+        ramped = RECOVERY_RAMP * limit
+        if any(a and abs(r) >= ramped for a, r in zip(at, self._last_rate, strict=True)):
             self._recovery_axes = (1.0, 1.0, 1.0)
-            return self._recovering(item, clipped, _INF)
-        # a clip out of a rate well inside the range: no vehicle turns that fast that
-        # quickly, so this is no rotation (a shock, a corrupt word the chip clipped) and the
-        # recovery has to find at most what integrating it put in
-        integrated = math.sqrt(sum(c * c for c, a in zip(clipped, at, strict=True) if a))
-        return self._recovering(item, clipped, integrated)
+            return _INF
+        return math.sqrt(sum(c * c for c, a in zip(clipped, at, strict=True) if a))
 
     def _recovering(self, item: GyroSample, rate: Vec, at_rail_rad_s: float = 0.0
                     ) -> list[Estimate]:
