@@ -7,7 +7,9 @@ Run:  .venv/bin/python -m tests.benchmarks.bench_block_parts kernel|decode|estim
 - ``kernel``: Madgwick's ``update_blocks`` on fusion steps of n accelerometer and gyro
   frames against the same frames one by one through ``process()`` (the base class's
   ``update_blocks``), CPU us per frame, for n from 1 to 64: where the compiled row kernel
-  starts to pay (``MIN_KERNEL_FRAMES``; below it ``update_blocks`` goes frame by frame).
+  starts to pay (``MIN_KERNEL_FRAMES`` where the frames one by one run the Python step,
+  ``MIN_KERNEL_FRAMES_COMPILED_STEP`` where they run the compiled one: run it with and
+  without the AOT extension; below it ``update_blocks`` goes frame by frame).
 - ``decode``: the GY-91's MPU-9250 read from its FIFO every 10 periods, a 20 s recording
   replayed without estimators (tests/benchmarks/bench_hardware_path.py), the driver's array
   decoding and the base class's frame-by-frame decoding alternately, CPU us per IMU sample.
@@ -42,7 +44,11 @@ def _block(kind: type, t_ns: np.ndarray, values: np.ndarray) -> Block:
                              np.zeros(len(t_ns), np.int64), frame=Frame.BODY_NED)
 
 
-def kernel(frames: int = 4000) -> None:
+def kernel_us_per_frame(sizes: tuple[int, ...] = (1, 4, 8, 16, 24, 32, 64),
+                        frames: int = 4000) -> dict[int, dict[str, float]]:
+    """For each step size n: CPU us per frame of Madgwick's ``update_blocks`` as shipped,
+    of the row kernel forced at any size, and of the same frames one by one through
+    ``process()``, one after the other in this process."""
     cls = load_registry().estimators.get("madgwick")
     rng = np.random.default_rng(1)
     t = np.arange(frames, dtype=np.int64) * 5_000_000
@@ -60,14 +66,16 @@ def kernel(frames: int = 4000) -> None:
     warm = cls()
     for step in steps(64)[:4]:
         warm.update_blocks(step)  # the kernel compiled (JIT) before anything is timed
-    shipped = ahrs.MIN_KERNEL_FRAMES
-    for n in (1, 4, 8, 16, 24, 32, 64):
+    shipped = ahrs.MIN_KERNEL_FRAMES, ahrs.MIN_KERNEL_FRAMES_COMPILED_STEP
+    figures: dict[int, dict[str, float]] = {}
+    for n in sizes:
         cases = steps(n)
-        times = {}
+        times = figures[n] = {}
         for mode in ("update_blocks", "kernel forced", "frame by frame"):
             est = cls()
             est.update_blocks(cases[0])  # aligned
-            ahrs.MIN_KERNEL_FRAMES = 1 if mode == "kernel forced" else shipped
+            ahrs.MIN_KERNEL_FRAMES, ahrs.MIN_KERNEL_FRAMES_COMPILED_STEP = \
+                (1, 1) if mode == "kernel forced" else shipped
             t0 = time.process_time()
             for step in cases[1:]:
                 if mode == "frame by frame":
@@ -75,7 +83,12 @@ def kernel(frames: int = 4000) -> None:
                 else:
                     est.update_blocks(step)
             times[mode] = (time.process_time() - t0) / (frames - n) * 1e6
-            ahrs.MIN_KERNEL_FRAMES = shipped
+            ahrs.MIN_KERNEL_FRAMES, ahrs.MIN_KERNEL_FRAMES_COMPILED_STEP = shipped
+    return figures
+
+
+def kernel() -> None:
+    for n, times in kernel_us_per_frame().items():
         print(f"{n:3d} frames a step, us/frame: update_blocks {times['update_blocks']:6.2f}, "
               f"the row kernel at any size {times['kernel forced']:6.2f}, frame by frame "
               f"{times['frame by frame']:6.2f}")

@@ -36,22 +36,31 @@ from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.loader import parse_profile
 
 GY91 = Path(__file__).resolve().parents[2] / "profiles" / "gy91.yaml"
+SEED = Path(__file__).resolve().parents[2] / "profiles" / "seed-paraglider-vario.yaml"
 
 
-def gy91_yaml(fifo_frames: int | None) -> str:
-    """The GY-91 profile as text, its MPU-9250 read from the FIFO every ``fifo_frames``
-    periods (None: as profiled, one burst per sample)."""
-    text = GY91.read_text()
+def board_yaml(fifo_frames: int | None, board: Path = GY91) -> str:
+    """A bundled board's profile as text, its IMU (device ``imu``: the GY-91's MPU-9250, the
+    seed paraglider vario's MAX21100) read from the FIFO every ``fifo_frames`` periods
+    (None: as profiled, one burst per sample)."""
+    text = board.read_text()
     if fifo_frames is None:
         return text
     doc = yaml.safe_load(text)
-    doc["devices"]["imu"]["settings"].update({"read": "fifo", "fifo_frames": fifo_frames})
+    doc["devices"]["imu"].setdefault("settings", {}).update(
+        {"read": "fifo", "fifo_frames": fifo_frames})
     return yaml.safe_dump(doc, sort_keys=False)
 
 
-def board_x_real_time(registry: Registry, profile_yaml: str, duration_s: float) -> float:
+def gy91_yaml(fifo_frames: int | None) -> str:
+    """:func:`board_yaml` of the GY-91."""
+    return board_yaml(fifo_frames, GY91)
+
+
+def board_x_real_time(registry: Registry, profile_yaml: str, duration_s: float,
+                      board: Path = GY91) -> float:
     """The emulated board with its estimators: simulated s per CPU s."""
-    profile = parse_profile(profile_yaml, str(GY91), registry)
+    profile = parse_profile(profile_yaml, str(board), registry)
     with open_emulated(profile, registry, scenario="thermal") as pipeline:
         t0 = time.process_time()
         for _ in pipeline.events(duration_s):
@@ -70,11 +79,12 @@ class BlockFigures:
 
 
 def measure_mode(registry: Registry, fifo_frames: int | None, duration_s: float,
-                 repeat: int) -> BlockFigures:
-    text = gy91_yaml(fifo_frames)
+                 repeat: int, board: Path = GY91) -> BlockFigures:
+    text = board_yaml(fifo_frames, board)
     label = "one frame per block (read: registers)" if fifo_frames is None else \
         f"blocks of {fifo_frames} frames (read: fifo)"
-    x = max(board_x_real_time(registry, text, duration_s) for _ in range(max(1, repeat)))
+    x = max(board_x_real_time(registry, text, duration_s, board)
+            for _ in range(max(1, repeat)))
     hw = measure(duration_s, repeat=repeat, registry=registry, profile_yaml=text)
     return BlockFigures(label, x, hw.us_per_imu_sample, hw.bare_us_per_imu_sample)
 

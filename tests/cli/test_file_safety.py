@@ -7,7 +7,6 @@ from __future__ import annotations
 import csv
 import os
 import re
-import resource
 import shutil
 import signal
 import stat
@@ -18,6 +17,7 @@ import time
 from pathlib import Path
 
 import pytest
+from tests.support.disk_full import file_size_limit
 
 from imuhal.cli import main as cli_main
 from imuhal.emulation import open_emulated
@@ -98,13 +98,6 @@ def test_run_output_to_a_fifo_streams_into_it(tmp_path: Path) -> None:
     assert tuple(rows[0]) == CSV_COLUMNS and len(rows) > 20
 
 
-def _file_size_limit(limit_bytes: int) -> None:
-    """In the child: files may not grow beyond ``limit_bytes`` (a write beyond fails with
-    EFBIG, as on a full disk) and SIGXFSZ does not kill it."""
-    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
-    resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, limit_bytes))
-
-
 def test_a_failed_run_keeps_the_previous_log_and_leaves_its_rows_beside_it(
         tmp_path: Path) -> None:
     """Issue 9 item 12: the log's disk fills up mid-run (a file size limit)."""
@@ -114,7 +107,7 @@ def test_a_failed_run_keeps_the_previous_log_and_leaves_its_rows_beside_it(
         [sys.executable, "-m", "imuhal.cli.main", "run", "--emulate", "static",
          "--duration", "20", "--quiet", "--samples", "--output", str(out)],
         capture_output=True, text=True, timeout=300, check=False,
-        preexec_fn=lambda: _file_size_limit(300_000))
+        preexec_fn=lambda: file_size_limit(300_000))
     assert proc.returncode == 2, proc.stderr
     assert out.read_text() == "the good flight\n"
     partial = tmp_path / "flight.csv.partial"

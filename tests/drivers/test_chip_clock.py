@@ -116,3 +116,16 @@ def test_after_a_fifo_reset_the_stamps_go_on_after_the_gap_and_are_learned_again
     assert after[0] > before[-1]
     assert np.all(np.diff(after) > 0)
     assert np.max(np.abs(np.subtract(after, truth)[-100:])) < 5_000
+
+
+def test_frames_continued_without_a_count_are_stamped_at_their_instants() -> None:
+    """A FIFO that stopped writing when full: its count says what it kept, not what the
+    chip measured, so the frames it kept are counted on from the last read without a
+    bound, and placed by what was learned."""
+    clock = ChipClock(NOMINAL_NS)
+    chip = _Chip(NOMINAL_NS / 1.02)
+    _, truth = _fly(clock, chip, 300)
+    kept = clock.continued(10)
+    stamps = clock.stamps(range(kept - 9, kept + 1))
+    instants = [truth[-1] + (j + 1) * chip.period_ns for j in range(10)]
+    assert np.max(np.abs(np.subtract(stamps, instants))) < 5_000

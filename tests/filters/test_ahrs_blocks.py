@@ -1,7 +1,8 @@
 """``update_blocks`` of the AHRS family gives what ``process()`` gives frame by frame.
 
 A fusion step's accelerometer, magnetometer and gyro blocks (a FIFO read) go through the
-filter's compiled row kernel in one call once it is aligned; the reference is the same
+filter's compiled row kernel in one call once it is aligned (turn compensation by a nominal
+airspeed included); the reference is the same
 frames, in fusion order, through ``process()`` one by one. On conformance data set A cut
 into steps of 37 frames, with the awkward cases added (a slower and a missing
 magnetometer, values beyond the full scale, a time jump, a repeated time stamp, an
@@ -18,10 +19,11 @@ import pytest
 from tests.filters.dataset_a import load_head
 
 from imuhal.core.blocks import Block
-from imuhal.core.samples import AccelSample, Frame, GyroSample, MagSample
+from imuhal.core.samples import AccelSample, Frame, GyroSample, MagSample, VelocitySample
 from imuhal.estimation.ordering import fusion_order
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate
 from imuhal.plugins.manager import load_registry
+from imuhal_filters.common import ahrs
 from imuhal_filters.common.ahrs import AhrsEstimator
 
 STEP = 37
@@ -34,6 +36,12 @@ CASES = [
     ("mahony", {"ki": 0.2, "accel_gate_g": (0.8, 1.2)}),
     ("imufilter", {}),
     ("imufilter", {"velocity": True}),
+    # turn compensation by the nominal airspeed (the seed varios' Madgwick): the kernel
+    # fuses the compensated specific force
+    ("madgwick", {"nominal_airspeed_m_s": 10.0}),
+    ("madgwick", {"preset": "seed", "nominal_airspeed_m_s": 10.0}),
+    ("mahony", {"nominal_airspeed_m_s": 10.0}),
+    ("imufilter", {"nominal_airspeed_m_s": 10.0}),
 ]
 
 
@@ -148,11 +156,8 @@ def test_a_gyro_block_alone_steps_with_the_held_accelerometer(compiled_backend: 
     assert est.get_state()["counters"]["stale_accel"] > 0  # the held one went stale
 
 
-def test_the_compiled_row_kernel_takes_the_aligned_steps(compiled_backend: str) -> None:
-    """The comparisons above are of the block path: every step's gyro block runs in the
-    kernel (one call per step), the first one's after its first frames went one by one
-    to align the filter."""
-    est, _ = _pair("madgwick", {})
+def _kernel_calls(est: AhrsEstimator, steps: list[list[Block]]) -> int:
+    """``update_blocks`` of every step of ``steps``: how many times the row kernel ran."""
     calls = 0
     run = est._run_kernel
 
@@ -162,10 +167,50 @@ def test_the_compiled_row_kernel_takes_the_aligned_steps(compiled_backend: str) 
         return run(*args)
 
     est._run_kernel = counted  # type: ignore[method-assign]
-    steps = _steps()
     for step in steps:
         est.update_blocks(step)
-    assert calls == len(steps)
+    return calls
+
+
+@pytest.mark.parametrize("settings", [{}, {"nominal_airspeed_m_s": 10.0}],
+                         ids=["defaults", "nominal-airspeed"])
+def test_the_compiled_row_kernel_takes_the_aligned_steps(settings: dict[str, Any],
+                                                         compiled_backend: str) -> None:
+    """The comparisons above are of the block path: every step's gyro block runs in the
+    kernel (one call per step), the first one's after its first frames went one by one
+    to align the filter; only a last step shorter than the kernel's break-even (the
+    compiled per-sample step runs in these tests) goes frame by frame."""
+    est, _ = _pair("madgwick", settings)
+    steps = _steps()
+    long_enough = [s for s in steps
+                   if len(s[-1]) >= ahrs.MIN_KERNEL_FRAMES_COMPILED_STEP]
+    assert len(long_enough) >= len(steps) - 1
+    assert _kernel_calls(est, steps) == len(long_enough)
+    assert est.get_state()["kinematics"]["counts"]["compensated_steps"] == (
+        0 if not settings else est.get_state()["counters"]["steps"])
+
+
+def test_nominal_turn_compensation_moves_the_estimates() -> None:
+    """The nominal-airspeed cases above compare something: the compensation changes the
+    attitude on this data (a comparison that ignored it would fail)."""
+    plain, _ = _pair("madgwick", {})
+    turned, _ = _pair("madgwick", {"nominal_airspeed_m_s": 10.0})
+    steps = _steps()
+    a, b = _frame_by_frame(plain, steps), _frame_by_frame(turned, steps)
+    assert len(a) == len(b)
+    assert max(abs(x - y) for e, f in zip(a, b, strict=True)
+               for x, y in zip(e.q_body_to_ned, f.q_body_to_ned, strict=True)) > 1e-3  # type: ignore[attr-defined]
+
+
+def test_a_velocity_source_sends_the_blocks_frame_by_frame(compiled_backend: str) -> None:
+    """Turn compensation by a ground velocity (its circle fit and slope) is not in the row
+    kernel: once a velocity sample has come, the blocks go through ``process()``."""
+    est, _ = _pair("madgwick", {"nominal_airspeed_m_s": 10.0})
+    steps = _steps()
+    est.update_blocks(steps[0])
+    est.process(VelocitySample(t_ns=int(steps[0][0].t_ns[-1]), device="gnss",
+                               velocity_ned_m_s=(10.0, 0.0, 0.0)))
+    assert _kernel_calls(est, steps[1:]) == 0
 
 
 def test_the_log_exercises_every_case_the_blocks_resolve() -> None:

@@ -28,6 +28,7 @@ CASES = [
     {"preset": "seed"},
     {"use_mag": False},
     {"turn_compensation": False, "accel_soft_gate_g": None, "mag_reference": "xio_release"},
+    {"nominal_airspeed_m_s": 10.0},  # turns compensated by the nominal airspeed
 ]
 
 

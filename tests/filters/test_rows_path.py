@@ -31,6 +31,7 @@ CASES = [
     ("madgwick", {"preset": "reference"}),
     ("madgwick", {"use_mag": False, "max_aux_age_s": 0.02}),
     ("madgwick", {"dt_from_timestamps": False, "turn_compensation": False}),
+    ("madgwick", {"nominal_airspeed_m_s": 10.0}),  # turn compensated in the column path too
     ("mahony", {}),
     ("mahony", {"ki": 0.2, "accel_gate_g": (0.8, 1.2)}),
     ("imufilter", {}),
@@ -120,7 +121,7 @@ def test_column_path_writes_what_the_sample_path_writes(
     _run(name, settings, tmp_path, chunk=211)
 
 
-@pytest.mark.parametrize(("name", "settings"), CASES[:1] + CASES[5:6],
+@pytest.mark.parametrize(("name", "settings"), CASES[:1] + CASES[6:7],
                          ids=["madgwick", "mahony"])
 def test_column_path_without_numba_writes_what_the_sample_path_writes(
         name: str, settings: dict, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -5,9 +5,14 @@ output behind."""
 from __future__ import annotations
 
 import csv
+import os
+import subprocess
+import sys
+import threading
 from pathlib import Path
 
 import pytest
+from tests.support.disk_full import file_size_limit
 
 from imuhal.cli.main import main
 from imuhal.estimation.outputs import AttitudeEstimate
@@ -145,3 +150,32 @@ def test_uniform_diagnostics_are_written_column_by_column_as_row_by_row(
     row = dict(zip(head, uniform[2], strict=True))
     assert (row["gate_open"], row["steps"], row["bias_2"], row["w"]) == ("0", "4", "nan", "0.1")
     assert "source" not in head and "nothing" not in head
+
+
+def test_estimate_into_a_fifo_streams_the_file_it_would_write(tmp_path: Path) -> None:
+    """A FIFO gets the whole output at the end (header first), as a file would hold it."""
+    src, out, fifo = tmp_path / "imu.csv", tmp_path / "out.csv", tmp_path / "pipe"
+    _log(src, 400)
+    assert main(["estimate", "madgwick", str(src), "-o", str(out)]) == 0
+    os.mkfifo(fifo)
+    received: list[bytes] = []
+    reader = threading.Thread(target=lambda: received.append(fifo.read_bytes()))
+    reader.start()
+    assert main(["estimate", "madgwick", str(src), "-o", str(fifo)]) == 0
+    reader.join(timeout=30)
+    assert received == [out.read_bytes()]
+
+
+def test_a_full_disk_mid_estimate_keeps_the_previous_output_and_leaves_nothing(
+        tmp_path: Path) -> None:
+    src, out = tmp_path / "imu.csv", tmp_path / "out.csv"
+    _log(src, 20_000)  # about 3.7 MB of output
+    out.write_text("previous result\n")
+    proc = subprocess.run(
+        [sys.executable, "-m", "imuhal.cli.main", "estimate", "madgwick", str(src), "-o",
+         str(out)], capture_output=True, text=True, timeout=300, check=False,
+        preexec_fn=lambda: file_size_limit(2_000_000))
+    assert proc.returncode == 2, proc.stderr
+    assert "cannot be written" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+    assert out.read_text() == "previous result\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["imu.csv", "out.csv"]

@@ -116,6 +116,45 @@ def test_validity_of_a_block_flags_what_the_per_sample_check_flags() -> None:
     assert SampleFlag.OUT_OF_RANGE in SampleFlag(expected[11])
 
 
+def _clean(n: int, seed: int) -> list[Sample]:
+    """Unflagged gyro frames within +-12 rad/s (what a good FIFO read delivers)."""
+    rng = np.random.default_rng(seed)
+    return [GyroSample.build(1_000_000 * (i + 1), "imu", SampleFlag.OK, Frame.SENSOR,
+                             tuple(rng.uniform(-5.0, 5.0, 3).tolist()))
+            for i in range(n)]
+
+
+def _set(rows: list[Sample], i: int, vector: tuple[float, float, float]) -> list[Sample]:
+    rows[i] = rows[i].with_vector(vector, Frame.SENSOR)  # type: ignore[attr-defined]
+    return rows
+
+
+@pytest.mark.parametrize(("case", "rows", "full_scale", "last"), [
+    ("all fine", _clean(10, 1), 12.0, None),
+    ("a value at the full scale", _set(_clean(10, 2), 4, (0.0, -12.0, 0.0)), 12.0, None),
+    ("a value beyond it", _set(_clean(10, 3), 4, (0.0, 12.000001, 0.0)), 12.0, None),
+    ("a NaN", _set(_clean(10, 4), 9, (0.0, 0.0, float("nan"))), 12.0, None),
+    ("an inf without a full scale", _set(_clean(10, 5), 0, (float("-inf"), 0.0, 0.0)),
+     None, None),
+    ("older than the last valid frame", _clean(10, 6), 12.0, 3_500_000),
+    ("newer than the last valid frame", _clean(10, 7), 12.0, 1_000_000),
+], ids=lambda v: v if isinstance(v, str) else "")
+def test_a_clean_looking_block_is_checked_like_its_samples(
+        case: str, rows: list[Sample], full_scale: float | None, last: int | None) -> None:
+    """The common case's quick test (every frame unflagged, finite, within the full scale,
+    not older than the last valid frame) hands on exactly what the per-sample check does,
+    at each of its edges."""
+    expected, last_valid = [], last
+    for s in rows:
+        flags = validity_flags(s, full_scale, last_valid)
+        if not flags:
+            last_valid = s.t_ns
+        expected.append(int(flags))
+    block, got_last = validity_block(_as_arrays(Block.from_samples(rows)), full_scale, last)
+    assert block.flags.tolist() == expected
+    assert got_last == last_valid
+
+
 def test_a_block_that_is_fine_is_handed_on_as_it_is() -> None:
     rows = [s for s in _frames(AccelSample, 10, seed=9) if s.valid]
     block = _as_arrays(Block.from_samples(rows))

@@ -5,7 +5,10 @@ Register facts: imuhal's chip-facts notes (chips.md) sections 5 (MAX21105 user g
 decoding in decode.py; this module only talks to the bus and keeps time.
 
 Per poll the driver reads one burst from SYSTEM_STATUS through TEMP_L, so the data-ready
-bits and every word come from one transaction. Samples are in the chip's sensor frame:
+bits and every word come from one transaction. With ``read: fifo`` (MAX21100 only) it reads
+the chip's FIFO instead (imuhal_chips.max2110x.fifo, which states what of the FIFO's layout
+is known and what is the MAX21105's, assumed) and programs INT1 for a data-ready line
+(registers.INT1_DATA_READY_PLAN, likewise assumed). Samples are in the chip's sensor frame:
 gyro rad/s, accel m/s^2 specific force, temperature degC.
 """
 
@@ -13,7 +16,7 @@ from __future__ import annotations
 
 import math
 import struct
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import ClassVar
 
 from imuhal.bus.auto_read import AUTO_READ, AutoReadFeed, same_feed
@@ -31,7 +34,7 @@ from imuhal.core.samples import (
     SampleFlag,
     TemperatureSample,
 )
-from imuhal.core.streams import StreamSpec
+from imuhal.core.streams import StreamSpec, TimeSource
 from imuhal.drivers.base import (
     DeviceIdentity,
     Driver,
@@ -50,11 +53,13 @@ from imuhal.drivers.validity import (
 from imuhal_chips.max2110x import decode
 from imuhal_chips.max2110x.aux_bus import Max21100AuxBus
 from imuhal_chips.max2110x.decode import Counts3, be_int16
+from imuhal_chips.max2110x.fifo import FIFO_CFG_VALUE, FIFO_FRAME_WORDS, FifoRead, FifoReader
 from imuhal_chips.max2110x.registers import (
     ACCEL_RANGE_G,
     DR_CFG_TEMP_EN,
     GYRO_RANGE_DPS,
     I2C_CFG_I2C_OFF,
+    INT1_DATA_READY_PLAN,
     MAG_DATA_BYTES,
     MAG_MAP_AS_READ,
     MAG_SLV_CFG_ENABLE,
@@ -101,6 +106,8 @@ TEMPERATURE_RANGE_DEGC = (-40.0, 85.0)
 _MAG_OFFSET = Reg.MAG_X_H - Reg.SYSTEM_STATUS
 _SIX_WORDS = struct.Struct(">6h")
 """Gyro X, Y, Z then accel X, Y, Z after the status byte: signed big-endian words."""
+_AUX_TEMP_BYTES = MAX21100.temp_register + 2 - Reg.MAG_X_H
+"""MAG X/Y/Z and TEMP of the MAX21100 (0x30..0x37): what read: fifo reads beside the FIFO."""
 _GYRO_DR = int(Status.GYRO_DR)
 _ACC_DR = int(Status.ACC_DR)
 _OVERRUN = int(Status.GYRO_ERR | Status.ACC_ERR)
@@ -147,6 +154,10 @@ class Max2110xDriver(Driver):
         self._feed: AutoReadFeed | None = None
         """The slave auto-read, when a driver behind the MAX21100's master asked for one:
         the slave's bytes (MAG X/Y/Z) of every burst go to it."""
+        self._fifo: FifoReader | None = None
+        """read: fifo: the FIFO reader (made at configure(), for the period read back)."""
+        self._overflow_pending = False
+        self._aux_temp_frame = bytes((self.regs.read_address(Reg.MAG_X_H, _AUX_TEMP_BYTES),))
 
     # --- identity -------------------------------------------------------------------------
 
@@ -200,8 +211,16 @@ class Max2110xDriver(Driver):
             Reg.ACC_CFG1: acc_cfg1(p, s.accel_lpf_divisor, s.accel_odr_hz),
             # data-ready cleared once all words of a channel are read; temperature on
             Reg.DR_CFG: DR_CFG_TEMP_EN,
+            **self._fifo_plan(),
             Reg.POWER_CFG: p.power_cfg_on,  # last: start measuring with everything set
         }
+
+    def _fifo_plan(self) -> dict[int, int]:
+        """read: fifo: the threshold (a read's frames, in words) and the FIFO's mode."""
+        if self.settings.read != "fifo":
+            return {}
+        return {Reg.FIFO_TH: FIFO_FRAME_WORDS * self.settings.fifo_frames,
+                Reg.FIFO_CFG: FIFO_CFG_VALUE}
 
     def configure(self) -> None:
         """Soft reset, program bank 0 from the tables (power-down while writing), read back
@@ -215,12 +234,31 @@ class Max2110xDriver(Driver):
         plan.apply(self.regs)
         self._power_on_ns = self.clock.now_ns()  # measurements are timed from here
         readback = plan.verify(self.regs)
+        self._program_interrupt()
         self.plan = plan
         self._watch.spread_over(len(plan.steps))
         p = self.part
         self._burst_frame = bytes((self.regs.read_address(p.burst_start, p.burst_length),))
         self._burst_length = p.burst_length
         self._use_streams(readback)
+
+    def _program_interrupt(self) -> None:
+        """read: fifo: INT1 pulses at each gyro measurement (bank 1,
+        ``INT1_DATA_READY_PLAN``), for a data-ready line that triggers the reads and stamps
+        each frame (``interrupt:`` in the profile; without one the pin is simply unused).
+        Read back; bank 0 selected again after."""
+        if self.settings.read != "fifo":
+            return
+        self.regs.write(Reg.BANK_SELECT, 0x01)
+        for reg, value in INT1_DATA_READY_PLAN.items():
+            self.regs.write(reg, value)
+        got = {reg: self.regs.read_u8(reg) for reg in INT1_DATA_READY_PLAN}
+        self.regs.write(Reg.BANK_SELECT, 0x00)
+        if got != dict(INT1_DATA_READY_PLAN):
+            raise ConfigurationError(
+                f"{self.describe()}: bank 1's interrupt registers read back "
+                + ", ".join(f"0x{reg:02X}=0x{v:02X}" for reg, v in got.items())
+                + f"; check the bus and that this is a {self.part.part}")
 
     def _use_streams(self, readback: Mapping[int, int]) -> None:
         """Take scales, periods and the poll grid from the specs of the registers read back."""
@@ -234,6 +272,8 @@ class Max2110xDriver(Driver):
         self._ready = DataReady(periods)
         self._fast = min(periods, key=lambda c: periods[c])
         self._grid = PollGrid(periods[self._fast], early_fraction=EARLY_FRACTION, track=True)
+        if self.settings.read == "fifo":
+            self._fifo = FifoReader(self.regs, periods[self._fast], self.clock)
 
     def _specs(self, regs: Mapping[int, int]) -> tuple[StreamSpec, StreamSpec, StreamSpec]:
         """Gyro, accelerometer and temperature specs from configuration register values
@@ -249,15 +289,21 @@ class Max2110xDriver(Driver):
                 f"{self.describe()}: the chip reads back a reserved ODR code (GYRO_CFG2 "
                 f"0x{regs[Reg.GYRO_CFG2]:02X}, ACC_CFG1 0x{regs[Reg.ACC_CFG1]:02X}); check "
                 f"that this is a {p.part}")
-        # The poll grid sits an eighth of the fastest period after each measurement.
+        # The poll grid sits an eighth of the fastest period after each measurement; FIFO
+        # frames are stamped at the chip's instant (the temperature is still polled).
         latency_s = min(1 / gyro_hz, 1 / accel_hz) / 8
+        fifo = self.settings.read == "fifo"
+        frame_latency_s = 0.0 if fifo else latency_s
+        source = TimeSource.CHIP_CLOCK if fifo else TimeSource.HOST_POLL
         return (
             StreamSpec(self.device, Quantity.GYRO, Frame.SENSOR, gyro_hz,
                        scale=math.radians(1.0) / GYRO_RANGE_DPS[gyro_dps][1],
-                       full_scale=math.radians(gyro_dps), latency_s=latency_s),
+                       full_scale=math.radians(gyro_dps), latency_s=frame_latency_s,
+                       time_source=source),
             StreamSpec(self.device, Quantity.ACCEL, Frame.SENSOR, accel_hz,
                        scale=STANDARD_GRAVITY_M_S2 / ACCEL_RANGE_G[accel_g][1],
-                       full_scale=accel_g * STANDARD_GRAVITY_M_S2, latency_s=latency_s),
+                       full_scale=accel_g * STANDARD_GRAVITY_M_S2, latency_s=frame_latency_s,
+                       time_source=source),
             StreamSpec(self.device, Quantity.TEMPERATURE, Frame.SENSOR,
                        min(gyro_hz, 1e9 / TEMPERATURE_PERIOD_NS),
                        scale=1.0 / TEMP_LSB_PER_DEGC, latency_s=latency_s),
@@ -298,7 +344,13 @@ class Max2110xDriver(Driver):
         self._ready.start(now_ns)
         self._last_temp_ns = None
         self._watch.start(now_ns)
+        if self._fifo is not None:
+            self._fifo.reset(restart=True)
+            return self._fifo.next_read_ns(now_ns, self._fifo_interval_ns())
         return self._grid.next_after(now_ns)
+
+    def _fifo_interval_ns(self) -> int:
+        return self.settings.fifo_frames * self._grid.period_ns
 
     def poll(self, now_ns: int) -> PollResult:
         """Read one burst; emit a sample per channel with new data.
@@ -315,6 +367,8 @@ class Max2110xDriver(Driver):
             raise ConfigurationError(f"{self.describe()}: poll() before configure()")
         if self._watch.check_due(now_ns) and self._off_plan(overdue=False):
             return PollResult([], self.restart(reset_detected=True))
+        if self._fifo is not None:
+            return self._poll_fifo(now_ns)
         raw = self.regs.send(self._burst_frame, self._burst_length)
         if self._feed is not None:
             self._feed.deliver(now_ns, raw[_MAG_OFFSET:_MAG_OFFSET + self._feed.length])
@@ -380,6 +434,90 @@ class Max2110xDriver(Driver):
         if not fast_ready:
             return now_ns + self._grid.guard_ns
         return self._grid.next_after(now_ns)
+
+    # --- read: fifo -------------------------------------------------------------------------
+
+    def _poll_fifo(self, now_ns: int) -> PollResult:
+        """read: fifo: the slave's bytes and the temperature (when due) from the data
+        registers, then every whole frame the FIFO holds, stamped on the chip's clock (or
+        with its edges); no frame for longer than the stale policy allows reports STALE."""
+        assert self._fifo is not None
+        self._count_overflow()
+        samples = self._aux_and_temperature(now_ns)
+        got = self._fifo.read()
+        if got.reset:
+            self._overflow_pending = True
+            if not got.frames:
+                self._count_overflow()
+        now_ns = max(now_ns, self.clock.now_ns())
+        next_ns = self._fifo.next_read_ns(now_ns, self._fifo_interval_ns())
+        samples += self._frame_samples(got)
+        if got.frames or got.held:
+            self._ready.fresh(Quantity.GYRO, now_ns)
+            self._ready.fresh(Quantity.ACCEL, now_ns)
+            self._watch.fresh_poll()
+            return PollResult(samples, next_ns)
+        stale = [self._no_frame(channel, now_ns) for channel in (Quantity.GYRO, Quantity.ACCEL)]
+        if not any(s is not None for s in stale):
+            return PollResult(samples, next_ns)
+        samples += [s for s in stale if s is not None]
+        return PollResult(samples, self._after_stale(now_ns))
+
+    def _count_overflow(self) -> None:
+        """A FIFO reset counts in ``health.fifo_overflows``; one that handed out the frames
+        the full FIFO kept counts with the next read, so the loss the pipeline's ledger
+        finds after those frames (the frames not written, before the next read's) is
+        charged to it (the ledger takes the count before it takes a read's frames)."""
+        if self._overflow_pending:
+            self._overflow_pending = False
+            self.health.fifo_overflows += 1
+
+    def _no_frame(self, channel: Quantity, now_ns: int) -> Sample | None:
+        """A STALE NaN sample of ``channel`` when it is overdue, else None."""
+        flag = self._flag_of(channel, 0, SampleFlag.OK, now_ns)
+        if flag is None:
+            return None
+        make = self._gyro_sample if channel is Quantity.GYRO else self._accel_sample
+        return make((0, 0, 0), now_ns, flag)
+
+    def _aux_and_temperature(self, now_ns: int) -> list[Sample]:
+        """MAG X/Y/Z (the slave's copy) and TEMP in one burst, when a feed takes the
+        slave's bytes or a temperature sample is due (every TEMPERATURE_PERIOD_NS): neither
+        is in the FIFO, so both are read as polling reads them, stamped with the read."""
+        temp_due = (self._last_temp_ns is None
+                    or now_ns - self._last_temp_ns >= TEMPERATURE_PERIOD_NS)
+        if self._feed is None and not temp_due:
+            return []
+        raw = self.regs.send(self._aux_temp_frame, _AUX_TEMP_BYTES)
+        if self._feed is not None:
+            self._feed.deliver(now_ns, raw[:self._feed.length])
+        if not temp_due:
+            return []
+        self._last_temp_ns = now_ns
+        return [self._temperature_sample(be_int16(raw, _AUX_TEMP_BYTES - 2), now_ns,
+                                         blank_flag(raw))]
+
+    def _frame_samples(self, got: FifoRead) -> list[Sample]:
+        """Gyro and accelerometer samples of FIFO frames (gyro X, Y, Z, accel X, Y, Z)."""
+        samples: list[Sample] = []
+        for frame, t_ns in zip(got.frames, got.stamps_ns, strict=True):
+            gx, gy, gz, ax, ay, az = _SIX_WORDS.unpack(frame)
+            bad = blank_flag(frame) or self._frozen.observe("frame", frame)
+            samples.append(self._gyro_sample((gx, gy, gz), t_ns, bad))
+            samples.append(self._accel_sample((ax, ay, az), t_ns, bad))
+        return samples
+
+    def data_ready(self, edges_ns: Sequence[int]) -> None:
+        """read: fifo: each frame is stamped with its own data-ready edge."""
+        if self._fifo is not None:
+            self._fifo.data_ready(list(edges_ns))
+
+    def drain(self, now_ns: int) -> list[Sample]:
+        """read: fifo: the frames held for their time stamps."""
+        if self._fifo is None:
+            return []
+        self._count_overflow()
+        return self._frame_samples(self._fifo.drain())
 
     def accounted_stream(self) -> tuple[Quantity, int] | None:
         """The faster of gyro and accelerometer, one frame per its output period."""
@@ -533,8 +671,11 @@ class Max21100Driver(Max2110xDriver):
         if self.scales is None:
             raise ConfigurationError(f"{where}: asked before the MAX21100 was configured")
         # The slave's bytes are copied at each accelerometer measurement and reach the
-        # host with the next burst, a poll-grid guard after it.
-        latency_ns = round(1e9 / self.settings.accel_odr_hz) + self._grid.guard_ns
+        # host with the next burst: a poll-grid guard after it, or with read: fifo the next
+        # FIFO read (up to its interval later: reads sit at the chip's instants, +-2 us).
+        after_ns = self._grid.guard_ns if self._fifo is None else \
+            self._fifo_interval_ns() + self._grid.guard_ns
+        latency_ns = round(1e9 / self.settings.accel_odr_hz) + after_ns
         feed = AutoReadFeed(target, register, length, latency_ns=latency_ns)
         auto_read = self._checked(self._auto_read_plan(feed))
         auto_read.apply(self.regs)

@@ -40,12 +40,23 @@ sections 5, 6 state none), so the default error is 0 and a test or script sets u
 the faster channel (the one the driver accounts for; the gyro on a tie) are recorded
 (``measured_ns``), so a test can count what the chip produced.
 
+FIFO (MAX21100 only; emulator_fifo.py states what is known and what is assumed, each once):
+FIFO_TH, FIFO_CFG (normal mode, gyro and accel stores), FIFO_COUNT in words, FIFO_STATUS
+(data_lost, read_empty, ovthold, full, empty), FIFO_DATA popped a byte per byte read; with
+the FIFO on, every measurement is latched in turn (none skipped while the host is away) and
+a frame written for each, so a host stall shows as the chip's buffering would keep it.
+
 Fault injection: ``who_am_i`` (set another value: a clone or the sibling part),
 ``stuck_data_ready`` (the measurement engine hangs: no new data, data-ready never set; a soft
 reset cures it), ``silent_reset()`` (a brown-out: every register back to power-on defaults
 without the host being told), ``absent`` (base class) and bus errors via the EmulatedBus.
-Not modelled: FIFO (reads 0), interrupts, parity address modes, self-test, OIS modes and
-on-chip fusion.
+INT1 (MAX21100 only; emulator_int.py states what is the MAX21105's and what is assumed): a
+50 us active-high pulse at each measurement whose data-ready source bank 1 selects, driving
+a profile's ``interrupt:`` line on an emulated board.
+
+Not modelled: the MAX21105's FIFO (its registers read 0) and INT pins, the FIFO's interrupt
+and snapshot modes, latched and motion interrupts, parity address modes, self-test, OIS
+modes and on-chip fusion.
 """
 
 from __future__ import annotations
@@ -55,11 +66,15 @@ import struct
 from collections.abc import Sequence
 from typing import ClassVar
 
+import numpy as np
+
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError, NackError
 from imuhal.core.samples import Quantity
 from imuhal.emulation import ChipEmulator, EmulatedBus, PhysicalInputs
+from imuhal_chips.max2110x import emulator_int as intp
+from imuhal_chips.max2110x.emulator_fifo import Max21100Fifo
 from imuhal_chips.max2110x.error_spec import MAX21100_ERROR_SPEC, MAX21105_ERROR_SPEC
 from imuhal_chips.max2110x.registers import (
     ACC_CFG2_MAG_RATE_MASK,
@@ -158,6 +173,17 @@ _ACC_X_H = int(Reg.ACC_X_H)
 _POWER_CFG = int(Reg.POWER_CFG)
 _PWR_ACC_CFG = int(Reg.PWR_ACC_CFG)
 _NEVER = float("inf")
+_FIFO_TH = int(Reg.FIFO_TH)
+_FIFO_CFG = int(Reg.FIFO_CFG)
+_FIFO_COUNT = int(Reg.FIFO_COUNT)
+_FIFO_STATUS = int(Reg.FIFO_STATUS)
+_FIFO_DATA = int(Reg.FIFO_DATA)
+
+
+AHEAD_NS = 1_000_000_000
+"""How far past a FIFO fill the emulator announces its coming instants (1 s, 250 at the
+seed's 250 Hz): numpy's per-call cost makes the truth of a fill of 8 alone dearer vectorised
+than one by one, of a few hundred cheaper (tests/benchmarks/bench_truths.py)."""
 
 
 def _encode(value: float, per_count: float, limit: int) -> int:
@@ -175,6 +201,8 @@ class Max2110xEmulator(ChipEmulator):
     part: ClassVar[PartSpec]
     models_stuck_data_ready = True
     pulls_physics = True
+    models_fifo: ClassVar[bool] = False
+    """The MAX21100's FIFO is modelled (emulator_fifo.py); the MAX21105's is not."""
     gyro_odr_by_code: ClassVar[tuple[float, ...]]
     """GYRO_CFG2 ODR code -> Hz, written here from the part's datasheet (not the driver's)."""
     accel_odr_by_code: ClassVar[tuple[float, ...]]
@@ -208,11 +236,17 @@ class Max2110xEmulator(ChipEmulator):
         # registers, which change only through _restart_timing.
         self._read_since_latch: list[set[int]] = [set(), set()]
         self._next_ns: list[int | None] = [None, None]
+        self._started_ns: list[int] = [0, 0]
+        """When each channel's timing last restarted (its first measurement a period on)."""
         self._period_ns: list[int] = [0, 0]
         self._per_count: list[float] = [0.0, 0.0]
         self._mst_data = 0
         self._mst_pending: tuple[int, int] | None = None
         self._wake_ns: float = _NEVER
+        self._ahead_until_ns = -1
+        """The latest instant already announced to the board (``_announce_instants``)."""
+        self.fifo: Max21100Fifo | None = Max21100Fifo() if self.models_fifo else None
+        """The FIFO (MAX21100 only; empty after every reset)."""
         self.stuck_data_ready = False
         self.power_on_resets += 1
 
@@ -243,6 +277,7 @@ class Max2110xEmulator(ChipEmulator):
         self._advance()  # what is due now was measured on the old clock
         old = self._period_ns
         self._oscillator_error = fraction
+        self._ahead_until_ns = -1
         for index, channel in enumerate(_CHANNELS):
             odr = self._odr_hz(channel)
             due = self._next_ns[index]
@@ -345,11 +380,13 @@ class Max2110xEmulator(ChipEmulator):
 
     def _restart_timing(self) -> None:
         now = self.now_ns()
+        self._ahead_until_ns = -1  # the instants announced so far are on the old timing
         for index, channel in enumerate(_CHANNELS):
             odr = self._odr_hz(channel)
             if self._active(channel) and odr:
                 self._period_ns[index] = self._period_of(odr)
                 self._next_ns[index] = now + self._period_ns[index]
+                self._started_ns[index] = now
             else:
                 self._next_ns[index] = None
             self._per_count[index] = self.resolution(channel)
@@ -366,15 +403,31 @@ class Max2110xEmulator(ChipEmulator):
             wake = self._mst_pending[0]
         self._wake_ns = wake
 
+    def _counted(self) -> int:
+        """The channel whose instants are recorded: the faster (the gyro on a tie)."""
+        next_ns, periods = self._next_ns, self._period_ns
+        return _GYRO if next_ns[_ACCEL] is None or (
+            next_ns[_GYRO] is not None and periods[_GYRO] <= periods[_ACCEL]) else _ACCEL
+
     def _advance(self) -> None:
         now = self.clock.now_ns()
         if now < self._wake_ns:
             return
+        if self._fifo_frame_channel() is not None:
+            self._advance_each(now)
+        else:
+            self._advance_newest(now)
+        if self._mst_pending is not None and now >= self._mst_pending[0]:
+            self._mst_data = self._mst_pending[1]
+            self._mst_pending = None
+        self._schedule()
+
+    def _advance_newest(self, now: int) -> None:
+        """The measurements due by ``now``: each channel's newest is latched (the data
+        registers keep one sample), the ones before it only counted (an overrun)."""
         next_ns = self._next_ns
         periods = self._period_ns
-        # the faster channel's instants are recorded (the gyro's on a tie)
-        counted = _GYRO if next_ns[_ACCEL] is None or (
-            next_ns[_GYRO] is not None and periods[_GYRO] <= periods[_ACCEL]) else _ACCEL
+        counted = self._counted()
         due_now = [(due + (now - due) // periods[i] * periods[i], i)
                    for i, due in enumerate(next_ns) if due is not None and now >= due]
         for newest, index in sorted(due_now):  # in the order the chip measured them
@@ -393,10 +446,106 @@ class Max2110xEmulator(ChipEmulator):
             self._latch(index)
             if index == _ACCEL:
                 self._accel_latched(missed + 1, newest)
-        if self._mst_pending is not None and now >= self._mst_pending[0]:
-            self._mst_data = self._mst_pending[1]
-            self._mst_pending = None
-        self._schedule()
+
+    def _advance_each(self, now: int) -> None:
+        """The measurements due by ``now``, every one latched in the order the chip made
+        them (the FIFO stores each): after all channels due at an instant are latched, a
+        frame is written when the FIFO's frame channel measured then."""
+        next_ns = self._next_ns
+        periods = self._period_ns
+        counted = self._counted()
+        events: list[tuple[int, int]] = []
+        for index, due in enumerate(next_ns):
+            if due is None:
+                continue
+            t = due
+            while t <= now:
+                events.append((t, index))
+                t += periods[index]
+            next_ns[index] = t
+        events.sort()
+        if events and self.physics_ahead is not None and events[-1][0] > self._ahead_until_ns:
+            self._announce_instants(events[0][0], now)
+        frame_channel = self._fifo_frame_channel()
+        pulled = None
+        for k, (t, index) in enumerate(events):
+            if self.stuck_data_ready:
+                continue
+            if index == counted:
+                self.record_measurements(t, periods[index], 1)
+            if t != pulled:  # the gyro and the accelerometer of one instant see one world
+                self.pull_physics(t)
+                pulled = t
+            self._latch(index)
+            if index == _ACCEL:
+                self._accel_latched(1, t)
+            last_at_t = k + 1 == len(events) or events[k + 1][0] != t
+            if last_at_t and any(e == (t, frame_channel) for e in events[max(0, k - 1):k + 1]):
+                self._fifo_write()
+
+    def _announce_instants(self, first_ns: int, now: int) -> None:
+        """Tell the board (``physics_ahead``) every instant at which a channel will measure
+        from ``first_ns`` to ``AHEAD_NS`` past ``now``, as the clock stands: the truth of a
+        FIFO fill's instants and of the next ones then comes from one vectorised call.
+        Instants a later change of rate or clock moves are computed again when measured
+        (the board's truths are keyed by exact instant), so nothing depends on this guess."""
+        assert self.physics_ahead is not None
+        until = now + AHEAD_NS
+        instants = []
+        for index, due in enumerate(self._next_ns):
+            if due is None:
+                continue
+            period = self._period_ns[index]
+            # the instants measured in this fill, then the coming ones (next_ns moved on)
+            start = due - (due - first_ns) // period * period
+            instants.append(np.arange(start, until + 1, period, dtype=np.int64))
+        if instants:
+            self.physics_ahead(np.unique(np.concatenate(instants)).tolist())
+        self._ahead_until_ns = until
+
+    # --- FIFO (the MAX21100's; emulator_fifo.py says what is known and what assumed) ----
+
+    def _fifo_frame_channel(self) -> int | None:
+        """The channel at whose measurements the FIFO writes a frame: the faster measuring
+        stored channel (the gyro on a tie); None: the FIFO stores nothing."""
+        fifo = self.fifo
+        if fifo is None:
+            return None
+        gyro, accel = fifo.storing
+        gyro = gyro and self._next_ns[_GYRO] is not None
+        accel = accel and self._next_ns[_ACCEL] is not None
+        if gyro and accel:
+            return _GYRO if self._period_ns[_GYRO] <= self._period_ns[_ACCEL] else _ACCEL
+        if gyro or accel:
+            return _GYRO if gyro else _ACCEL
+        return None
+
+    def _fifo_frame_words(self) -> int:
+        assert self.fifo is not None
+        return 3 * sum(self.fifo.storing)
+
+    def _fifo_write(self) -> None:
+        """Write one frame of the stored channels' latest words (gyro, then accel) to the
+        FIFO, big-endian."""
+        assert self.fifo is not None
+        gyro, accel = self.fifo.storing
+        firsts = ((_GYRO_X_H,) if gyro else ()) + ((_ACC_X_H,) if accel else ())
+        words = self.words
+        values = [words.get(first + 2 * axis, 0) for first in firsts for axis in range(3)]
+        self.fifo.push(struct.pack(f">{len(values)}h", *values))
+
+    def _fifo_register(self, reg: int) -> int:
+        """FIFO_COUNT (words), FIFO_STATUS (read-to-clear bits) or a byte popped from
+        FIFO_DATA; 0x3F (RST_REG) reads 0."""
+        fifo = self.fifo
+        assert fifo is not None
+        if reg == _FIFO_COUNT:
+            return min(fifo.words(), 0xFF)
+        if reg == _FIFO_STATUS:
+            return fifo.status(self._fifo_frame_words())
+        if reg == _FIFO_DATA:
+            return fifo.pop()
+        return 0
 
     # --- bus face -------------------------------------------------------------------------
 
@@ -444,7 +593,14 @@ class Max2110xEmulator(ChipEmulator):
         touched: Sequence[int]
         if read_len <= 1 or not step:
             touched = (reg,) if read_len else ()
-            out = bytes((self._read(reg),)) * read_len
+            if reg == _FIFO_DATA and self.fifo is not None:
+                out = bytes(self._read(reg) for _ in range(read_len))  # each byte pops one
+            else:
+                out = bytes((self._read(reg),)) * read_len
+        elif self.fifo is not None and reg + read_len > _FIFO_COUNT:
+            # the FIFO's registers have side effects: byte by byte, the pointer wrapping
+            touched = [(reg + k) & ADDRESS_MASK for k in range(read_len)]
+            out = bytes(self._read(r) for r in touched)
         elif reg + read_len <= ADDRESS_MASK + 1:
             touched = range(reg, reg + read_len)
             out = self._image()[reg:reg + read_len]
@@ -489,6 +645,8 @@ class Max2110xEmulator(ChipEmulator):
             if reg == _I2C_MST_DATA and self.bank == 0 and self.part.has_aux_master:
                 return self._mst_data
             return self.banks[self.bank][reg]
+        if reg >= _FIFO_COUNT and self.fifo is not None:
+            return self._fifo_register(reg)
         if reg >= _GYRO_X_H:  # data words first: they are most of every burst
             high = reg & ~1
             if high in self.words or reg < self.part.temp_register + 2:
@@ -550,6 +708,11 @@ class Max2110xEmulator(ChipEmulator):
     def _bank0_written(self, reg: int, value: int) -> None:
         if reg in _CONFIG_REGS:
             self._restart_timing()
+        if self.fifo is not None and reg in (_FIFO_TH, _FIFO_CFG):
+            if reg == _FIFO_TH:
+                self.fifo.threshold_words = value
+            else:
+                self.fifo.configure(value)
         if reg == _DR_CFG and self.part.has_aux_master:
             trigger = value & DR_CFG_ONESHOT_MASK
             if trigger == DR_CFG_ONESHOT_WRITE:
@@ -579,6 +742,7 @@ class Max21100Emulator(Max2110xEmulator):
     error_spec = MAX21100_ERROR_SPEC
     conformance_sweep = True
     part = MAX21100
+    models_fifo = True
     gyro_odr_by_code = (8000.0, 4000.0, 2000.0, 1000.0, 500.0, 250.0, 125.0, 62.5, 31.25,
                         15.625, 7.8125, 3.90625)
     accel_odr_by_code = (2000.0, 1000.0, 500.0, 250.0, 125.0, 62.5, 31.25)
@@ -600,6 +764,36 @@ class Max21100Emulator(Max2110xEmulator):
 
     def child_buses(self) -> dict[str, EmulatedBus]:
         return {"aux": self._aux}
+
+    # --- INT1 pin (emulator_int.py: what is the MAX21105's and what is assumed) ------------
+
+    models_interrupt = True
+
+    def interrupt_pin(self) -> tuple[bool, int]:
+        """Active high, a 50 us pulse [UNVERIFIED]."""
+        return True, intp.INT_PULSE_NS
+
+    def interrupt_after(self, after_ns: int) -> int | None:
+        """The first measurement instant after ``after_ns`` of a channel whose data-ready
+        drives INT1 (bank 1: INT_CFG_2 INT1 enable, INT_MSK bit 7, INT_SRC_SEL gyro_dr or
+        acc_dr, INT_TMO_CFG 0 unlatched); None: the pin stays quiet."""
+        self._advance()
+        bank1 = self.banks[1]
+        if (self.absent or self.stuck_data_ready or not bank1[intp.INT_CFG_2] & intp.INT1_ENABLE
+                or not bank1[intp.INT_MSK] & intp.INT_MSK_ENABLE or bank1[intp.INT_TMO_CFG]):
+            return None
+        found: list[int] = []
+        for index, source in ((_GYRO, intp.SRC_GYRO_DR), (_ACCEL, intp.SRC_ACCEL_DR)):
+            due = self._next_ns[index]
+            if due is None or not bank1[intp.INT_SRC_SEL] & source:
+                continue
+            period = self._period_ns[index]
+            # the channel's instants run ... due - period, due, due + period ... from its
+            # first measurement after the write that started it
+            t = due - max(0, (due - after_ns - 1) // period) * period if after_ns < due \
+                else due + ((after_ns - due) // period + 1) * period
+            found.append(max(t, self._started_ns[index] + period))
+        return min(found, default=None)
 
     def _accel_latched(self, measurements: int, instant_ns: int) -> None:
         """Slave auto-read: with MAG_SLV_CFG enabled, every 2^ACC_CFG2[3:1]-th accelerometer

@@ -51,6 +51,8 @@ class Reg(IntEnum):
     I2C_MST_DATA = 0x0C  # MAX21100 only: data of a one-shot master transaction
     DR_CFG = 0x13  # MAX21105: SET_TEMP_DR
     I2C_CFG = 0x16  # MAX21105: MIF_CFG
+    FIFO_TH = 0x17  # MAX21100 (MAX21105: FIFO_STORE)
+    FIFO_CFG = 0x18  # MAX21100 (MAX21105: FIFO_THS; its FIFO_CFG is 0x19)
     # common bank
     WHO_AM_I = 0x20
     REVISION = 0x21
@@ -59,6 +61,9 @@ class Reg(IntEnum):
     GYRO_X_H = 0x24
     ACC_X_H = 0x2A
     MAG_X_H = 0x30  # MAX21100 only (MAX21105 has TEMP here)
+    FIFO_COUNT = 0x3C
+    FIFO_STATUS = 0x3D
+    FIFO_DATA = 0x3E
     RST_REG = 0x3F
 
 
@@ -128,6 +133,35 @@ ACC_CFG2_MAG_RATE_MASK = 0x0E
 """ACC_CFG2 [3:1]: the slave is read every 2^code accelerometer measurements (0: each)."""
 MAG_DATA_BYTES = 6
 """MAG X, Y, Z (0x30..0x35): the most the master keeps of a slave's data."""
+
+# MAX21100 FIFO (facts section 6: addresses [V]; the rest [SS] from Kris Winer's MAX21100
+# sketch, calibrateMAX21100, or [UNVERIFIED] from the MAX21105's user guide, section 5; the
+# reader, imuhal_chips.max2110x.fifo, states each assumption once).
+FIFO_CFG_NORMAL = 0x40
+"""FIFO_CFG [7:6] = 01: normal mode (Winer's 0x41 / 0x42 "FIFO normal mode"); 00 off."""
+FIFO_CFG_STORE_GYRO = 0x01
+"""FIFO_CFG bit 0: gyro words stored (Winer's 0x41 "accumulate gyro data")."""
+FIFO_CFG_STORE_ACCEL = 0x02
+"""FIFO_CFG bit 1: accelerometer words stored (Winer's 0x42)."""
+FIFO_STATUS_DATA_LOST = 0x10
+"""FIFO_STATUS bit 4 data_lost [UNVERIFIED: the MAX21105's bit; Winer uses bit 2, the
+threshold, which is the MAX21105's ovthold too]."""
+FIFO_DEPTH_WORDS = 64
+"""Winer: "128 bytes in the FIFO = 64 words" [SS]."""
+FIFO_FRAME_WORDS = 6
+"""Gyro X, Y, Z then accel X, Y, Z per frame, big-endian [UNVERIFIED: the MAX21105's
+layout]; FIFO_COUNT counts words (Winer: "fifo_count/3" three-axis samples) [SS]."""
+
+INT1_DATA_READY_PLAN: Mapping[int, int] = {
+    0x17: 0x20,  # INT_SRC_SEL: the gyro's data-ready (har-in-air's MAX21105 value)
+    0x0F: 0x80,  # INT_MSK
+    0x0C: 0x00,  # INT_TMO_CFG: unlatched (a pulse)
+    0x0B: 0x20,  # INT_CFG_2: INT1 enabled
+}
+"""Bank 1, read: fifo: INT1 pulses at each gyro measurement, the data-ready line a profile's
+``interrupt:`` takes. The MAX21105 user guide's DATA_READY interrupt example (facts section
+5), taken for the MAX21100, whose bank 1 has its interrupt registers at the same addresses
+(INT_SRC_SEL 0x17 [V]) but whose bits no source describes [UNVERIFIED]."""
 
 # --- setting tables: physical value -> code (and sensitivity) ------------------------------
 

@@ -8,7 +8,9 @@ LPF ODR/48, 250 Hz ODR. MAX21105 RC: gyro +/-1000 dps, 10 Hz, 200 Hz; accel +/-8
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal
+
+from pydantic import Field, model_validator
 
 from imuhal.drivers.base import DriverSettings
 from imuhal.drivers.polling import reset_check_field
@@ -47,6 +49,30 @@ class Max2110xSettings(DriverSettings):
     """Accelerometer output data rate, Hz (part-specific table, set by each part's subclass)."""
     reset_check_s: float = reset_check_field()
     """How often (s) the driver reads back its configuration to catch a silent chip reset."""
+    read: Literal["registers", "fifo"] = "registers"
+    """``registers``: the data registers (one sample) polled on a grid after each
+    measurement; ``fifo`` (MAX21100 only): the chip keeps gyro + accel frames in its FIFO
+    (10 frames, 40 ms at 250 Hz; its layout partly assumed, imuhal_chips.max2110x.fifo) and
+    the driver reads them in bursts every ``fifo_frames`` periods, stamped on the chip's
+    own clock, so a host stall of up to 80 % of the FIFO loses nothing."""
+    fifo_frames: int = Field(default=1, ge=1, le=8)
+    """read: fifo: read the FIFO every this many periods. A host stall of up to 10 -
+    fifo_frames - 1 periods (the read's phase) loses nothing: 32 ms at 250 Hz with 1."""
+
+    @model_validator(mode="after")
+    def _fifo_readable(self) -> Max2110xSettings:
+        if self.read != "fifo":
+            return self
+        if type(self).part is not MAX21100:
+            raise ValueError(
+                f"read: fifo is built for the MAX21100 only (the {type(self).part.part}'s "
+                "FIFO registers sit elsewhere and are not read yet); use read: registers")
+        if float(self.gyro_odr_hz) != float(self.accel_odr_hz):
+            raise ValueError(
+                f"read: fifo needs gyro_odr_hz equal to accel_odr_hz (the FIFO writes both "
+                f"in one frame), got {self.gyro_odr_hz:g} and {self.accel_odr_hz:g}; set "
+                "both to the same rate or use read: registers")
+        return self
 
 
 def _odr(part: PartSpec, which: str) -> Any:

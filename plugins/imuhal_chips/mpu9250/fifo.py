@@ -28,26 +28,27 @@ that sample (EXT_SENS_DATA order): 22-byte frames with the AK8963's ST1..ST2, 23
   narrows to microseconds within a second, and each frame is stamped with its estimated
   measurement instant, smoothed (never back, at most 5 % of a period off one period after
   the previous stamp). Frames read before the estimate places them to 0.2 % of a period
-  are held back (at most ``HOLD_MAX_FRAMES``, kept in the driver, so nothing is lost) and
-  handed out stamped once it does.
+  are held back (at most ``fifo_frames.HOLD_MAX_FRAMES``, kept in the driver, so nothing
+  is lost) and handed out stamped once it does.
 - **Time stamps from data-ready edges** (a profile's ``interrupt:`` line on the chip's INT
   pin, RAW_RDY_EN: one edge per sample; imuhal.drivers.edge_stamps): each frame is stamped
   with its own edge's kernel time stamp, as Linux's inv_sensors_timestamp.c stamps FIFO
   frames from interrupt times, however many edges go to one read; the read-time estimate
   above is not needed then. Frames whose edge has not come yet wait in the reader (at most
-  ``EDGE_WAIT_FRAMES``; more means the line went silent: they go on one learned period
+  ``fifo_frames.EDGE_WAIT_FRAMES``; more means the line went silent: they go on one learned period
   after the previous stamp). ``drain()`` hands out what is held when a run ends.
+
+The stamping and hand-out are shared with every FIFO reader (imuhal.drivers.fifo_frames);
+this module does the MPU-9250's register work.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from itertools import pairwise
 
 from imuhal.bus.registers import RegisterView
 from imuhal.core.clock import Clock
-from imuhal.drivers.chip_clock import ChipClock
-from imuhal.drivers.edge_stamps import EdgeStamps
+from imuhal.drivers.fifo_frames import FifoFrames, FifoRead
 from imuhal_chips.mpu9250 import registers as r
 from imuhal_chips.mpu9250.decode import decode_counts, temperature_degc
 
@@ -61,28 +62,6 @@ read with two frames of room cannot have wrapped, and the burst reads no further
 count)."""
 TEMPERATURE_JUMP_DEGC = 2.0
 """A larger step of the die temperature between consecutive frames is no measurement."""
-DROP_PLACED_FRACTION = 0.01
-"""Held frames go out at a FIFO reset when the estimate places them this well (of a
-period: 50 us at 200 Hz)."""
-HOLD_MAX_FRAMES = 400
-"""Frames held back at most while the chip's clock is learned (2 s at 200 Hz); then they
-go out stamped with the estimate as it stands."""
-EDGE_WAIT_FRAMES = 4
-"""Frames that may wait for their data-ready edges (frames the chip wrote after the host
-took its edges, a period or two) before the line counts as silent."""
-
-
-@dataclass(frozen=True)
-class FifoRead:
-    """One read's outcome: frames (oldest first, ``frame_bytes`` each: 14 bytes of accel,
-    temperature and gyro, then the slave's bytes) with their time stamps, and whether the
-    FIFO was reset (an overflow or a corrupt burst: its frames are lost)."""
-
-    frames: list[bytes]
-    stamps_ns: list[int]
-    reset: bool = False
-    held: int = 0
-    """Frames read and kept back until the chip's clock is learned (the chip works)."""
 
 
 def frames_consistent(frames: list[bytes]) -> bool:
@@ -92,22 +71,17 @@ def frames_consistent(frames: list[bytes]) -> bool:
     return all(abs(b - a) <= TEMPERATURE_JUMP_DEGC for a, b in pairwise(temps))
 
 
-class FifoReader:
-    """Reads whole frames from the FIFO of one MPU-9250 (see the module docstring).
-    ``slave_bytes``: slave 0's LENG when its bytes are in the FIFO (FIFO_EN.SLV0)."""
+class FifoReader(FifoFrames):
+    """Reads whole frames from the FIFO of one MPU-9250 (see the module docstring); the
+    stamping and hand-out are imuhal.drivers.fifo_frames'. ``slave_bytes``: slave 0's LENG
+    when its bytes are in the FIFO (FIFO_EN.SLV0)."""
 
     def __init__(self, regs: RegisterView, period_ns: int, clock: Clock, *,
                  slave_bytes: int = 0) -> None:
+        super().__init__(period_ns, clock)
         self.regs = regs
-        self.clock = clock
-        self.period_ns = period_ns
         self.frame_bytes = FRAME_BYTES + slave_bytes
         self.overflow_at = r.FIFO_SIZE_BYTES - OVERFLOW_MARGIN_FRAMES * self.frame_bytes
-        self.chip_clock = ChipClock(period_ns, ready_fraction=0.002)
-        self.edges = EdgeStamps(period_ns, wait_frames=EDGE_WAIT_FRAMES)
-        self._held: list[tuple[int, bytes]] = []
-        """Frames (index, bytes) read before the chip's clock was learned."""
-        self._base_ns: int | None = None
 
     @property
     def depth_frames(self) -> int:
@@ -119,29 +93,7 @@ class FifoReader:
         ``restart``: the chip's sampling restarted too (configured), not only its FIFO."""
         requested_ns = self.clock.now_ns()
         self.regs.write(r.USER_CTRL, user_ctrl | r.USER_FIFO_RST)
-        if restart:
-            self._held = []  # frames of the configuration before: their clock is gone
-            self.chip_clock.restart()
-            self.edges.restarted(requested_ns)
-        else:
-            self.chip_clock.frames_dropped()
-            self.edges.cleared(requested_ns)
-
-    def data_ready(self, times_ns: list[int]) -> None:
-        """Data-ready edges of the chip's INT line (pipeline clock, oldest first)."""
-        self.edges.add(times_ns)
-
-    def _on_edges(self) -> bool:
-        """Frames are stamped from edges: the line is on, or was and stamps go on from it."""
-        return self.edges.on_line or self.edges.anchored
-
-    def next_read_ns(self, now_ns: int, interval_ns: int) -> int:
-        """When to read next: about ``interval_ns`` on from the previous read's slot, where
-        the read tells most about the chip's clock (``ChipClock.probe_ns``)."""
-        base = now_ns if self._base_ns is None else self._base_ns + interval_ns
-        base = max(base, now_ns - self.period_ns)
-        self._base_ns = base
-        return max(self.chip_clock.probe_ns(base + interval_ns), now_ns + 1)
+        self.cleared(requested_ns, restart=restart)
 
     def read(self, user_ctrl: int, *, overflowed: bool) -> FifoRead:
         """Count, check for overflow, read whole frames. ``overflowed``: INT_STATUS said
@@ -160,58 +112,10 @@ class FifoReader:
             frames = [data[i * size:(i + 1) * size] for i in range(n)]
             if not frames_consistent(frames):
                 return self._drop(user_ctrl)
-        newest = self.chip_clock.observe(n, lo_ns, hi_ns)
-        self._held += [(newest - n + 1 + i, f) for i, f in enumerate(frames)]
-        if self._on_edges():
-            return self._release_on_edges()
-        if not self._held or (not self.chip_clock.settled()
-                              and len(self._held) < HOLD_MAX_FRAMES):
-            return FifoRead([], [], held=len(self._held))
-        return self._release()
-
-    def _release(self, *, reset: bool = False) -> FifoRead:
-        """The held frames, stamped with the estimate as it stands."""
-        held, self._held = self._held, []
-        if self.edges.last_ns is not None:
-            self.chip_clock.continue_after(self.edges.last_ns)
-        stamps = self.chip_clock.stamps([k for k, _ in held])
-        return FifoRead([f for _, f in held], stamps, reset=reset)
-
-    def _release_on_edges(self, *, final: bool = False, reset: bool = False) -> FifoRead:
-        """The held frames that have their edges, each stamped with its own; ``final``
-        (a reset or the run's end: no edge will be waited for) or a silent line: the rest
-        one learned period after the stamp before."""
-        held = self._held
-        stamps = self.edges.match(len(held), every_frame_read=not final)
-        waiting = len(held) - len(stamps)
-        if waiting > self.edges.wait_frames:
-            self.edges.silent()
-        if waiting and (final or not self.edges.on_line) and self.edges.anchored:
-            stamps += self.edges.extrapolate(waiting)
-        out, self._held = held[:len(stamps)], held[len(stamps):]
-        if final and self._held:  # no edge to go on from: the read-time estimate's stamps
-            rest = self._release()
-            return FifoRead([f for _, f in out] + rest.frames, stamps + rest.stamps_ns,
-                            reset=reset)
-        return FifoRead([f for _, f in out], stamps, reset=reset, held=len(self._held))
-
-    def drain(self) -> FifoRead:
-        """Every frame held (the run ends): stamped from its edge when it came, else as the
-        stamps before it go on."""
-        if self._on_edges():
-            return self._release_on_edges(final=True)
-        return self._release() if self._held else FifoRead([], [])
+        return self.took(frames, lo_ns, hi_ns)
 
     def _drop(self, user_ctrl: int) -> FifoRead:
-        """An overflow or a corrupt burst: the FIFO is reset unread. Frames held from
-        earlier reads go out now when the estimate places them to ``DROP_PLACED_FRACTION``
-        of a period (their count ends here); otherwise they are lost with the FIFO's, never
-        handed out with a wrong stamp."""
-        placed = self.chip_clock.uncertainty_ns() <= DROP_PLACED_FRACTION * self.period_ns
-        if self._on_edges():
-            out = self._release_on_edges(final=True, reset=True)
-        else:
-            out = self._release(reset=True) if placed else FifoRead([], [], reset=True)
-        self._held = []
+        """An overflow or a corrupt burst: the FIFO is reset unread (FifoFrames.dropped)."""
+        out = self.dropped()
         self.reset(user_ctrl, restart=False)
         return out

@@ -84,6 +84,7 @@ from imuhal_filters.common.turn import (
     KinematicAcceleration,
     TurnCompensationSettings,
     compensated,
+    nominal_rows,
 )
 
 _NS = 1e-9
@@ -231,12 +232,20 @@ def _linear_accel_ned_rows(q: FloatArray, f: FloatArray) -> FloatArray:
     ))
 
 
-MIN_KERNEL_FRAMES = 24
-"""Gyro frames from which a fusion step's blocks go through the compiled row kernel: below,
-the kernel's call and the bookkeeping on arrays (about 100 us a step) cost more than the
-frames one by one (Madgwick, numba's JIT, a loaded 2-core machine: 8.0 against 7.3 us per
-frame at 16 frames, 5.4 against 7.2 at 24, 3.7 against 7.7 at 64;
-tests/benchmarks/bench_block_parts.py kernel)."""
+MIN_KERNEL_FRAMES = 8
+"""Gyro frames from which a fusion step's blocks go through the compiled row kernel when the
+frames one by one would run the Python step: below, the kernel's call and the bookkeeping on
+arrays (about 45 us a step) cost more than the frames one by one (Madgwick, numba's JIT row
+kernel, 7.3 us a frame one by one: 7.9 against 7.3 us a frame at 8 frames, 5.0 against 7.4 at
+16; ``python -m tests.benchmarks.bench_block_parts kernel``)."""
+MIN_KERNEL_FRAMES_COMPILED_STEP = 32
+"""The same where the frames one by one run the compiled per-sample step (the AOT extension,
+or ``IMUHAL_KERNELS=jit``), about 3.7 us a frame: 4.1 against 3.8 at 24 frames, 3.4 against
+3.7 at 32, 2.3 against 3.7 at 64."""
+_ROWS_LINEAR_FROM = 24
+"""Kernel rows from which the estimates' gravity-compensated acceleration is computed on
+arrays (``_linear_accel_ned_rows``, about 38 us a call for any size) rather than row by
+row on floats (``_linear_accel_ned``, about 1.4 us a row): the same floats either way."""
 _HEAD_FRAMES = 16
 """Gyro frames handed over one by one first while an AHRS is not aligned yet."""
 
@@ -351,6 +360,9 @@ class AhrsEstimator(Estimator):
         # no speed source (nominal, velocity, airspeed) yet: no turn to compensate, and the
         # compiled step's caller can skip KinematicAcceleration.step (_on_gyro)
         self._no_speed = self.settings.nominal_airspeed_m_s is None
+        # turns compensated by the nominal airspeed alone (no velocity or airspeed sample
+        # yet): the other case _on_gyro writes out for the compiled step
+        self._nominal_only = self._turn_on and not self._no_speed
         # an infinite full scale still rejects +-inf: the largest float is "unbounded, finite"
         self._gyro_fs = min(float(self.settings.gyro_full_scale_rad_s), _MAX_FLOAT)
         self._accel_fs = min(float(self.settings.accel_full_scale_m_s2), _MAX_FLOAT)
@@ -362,6 +374,7 @@ class AhrsEstimator(Estimator):
         self._gap_at_ns: int | None = None
         """The time stamp of the gyro frame a counted loss precedes (a StreamGap)."""
         self._max_aux_age_s = self.settings.max_aux_age_s
+        self._rows_chosen = False  # the row kernel's backend: chosen again at its next use
         self._reset_filter()
 
     def bind(self, streams: Sequence[StreamSpec]) -> None:
@@ -536,11 +549,13 @@ class AhrsEstimator(Estimator):
             if item.valid and within_full_scale(item.velocity_ned_m_s, None):
                 self._kinematics.on_velocity(item)
                 self._no_speed = False
+                self._nominal_only = False
             return []
         if isinstance(item, AirspeedSample):
             if item.valid and within_full_scale((item.airspeed_m_s,), None):
                 self._kinematics.on_airspeed(item)
                 self._no_speed = False
+                self._nominal_only = False
             return []
         if not isinstance(item, (GyroSample, AccelSample, MagSample)):
             return []
@@ -617,6 +632,8 @@ class AhrsEstimator(Estimator):
         self._kinematics.load_dict(state["kinematics"])
         self._no_speed = (self.settings.nominal_airspeed_m_s is None
                           and not self._kinematics.has_speed_source)
+        self._nominal_only = (self._turn_on and self.settings.nominal_airspeed_m_s is not None
+                              and not self._kinematics.has_speed_source)
         self._set_filter_state(state["filter"])
 
     def diagnostics(self) -> dict[str, Any]:
@@ -680,7 +697,9 @@ class AhrsEstimator(Estimator):
         step; tests/filters/test_ahrs_blocks.py). Anything else (flagged or clipped
         frames, an angular-rate recovery under way, turn compensation by a speed) goes
         frame by frame."""
-        if not any(b.kind is GyroSample and len(b) >= MIN_KERNEL_FRAMES for b in blocks):
+        least = MIN_KERNEL_FRAMES if self._sample_kernel is None else \
+            MIN_KERNEL_FRAMES_COMPILED_STEP
+        if not any(b.kind is GyroSample and len(b) >= least for b in blocks):
             return Estimator.update_blocks(self, blocks)
         out: list[Estimate] = []
         frames = _HEAD_FRAMES
@@ -729,15 +748,23 @@ class AhrsEstimator(Estimator):
             return []
         q = np.empty((m, 4))
         diag = np.empty((m, self._kernel_diag_width))
-        self._run_kernel(steps.gyro, steps.accel, steps.mag, steps.dts, q, diag)
+        self._run_kernel(steps.gyro, self._fused_accel(steps.gyro, steps.accel), steps.mag,
+                         steps.dts, q, diag)
         rows = self._kernel_row_diagnostics(steps.dts, diag, self._kinematics.source)
-        lin = _linear_accel_ned_rows(q, steps.accel)
-        has_a = ~np.isnan(steps.accel[:, 0])
         build, instance = AttitudeEstimate.build, self.instance
-        return [build(t, instance, (qi[0], qi[1], qi[2], qi[3]), li if a else None, d)
-                for t, qi, li, a, d in zip(steps.t_ns.tolist(), q.tolist(),  # type: ignore[union-attr]  # block_rows always sets the times
-                                           [tuple(v) for v in lin.tolist()], has_a.tolist(),
-                                           rows, strict=True)]
+        quats = [(w, x, y, z) for w, x, y, z in q.tolist()]
+        assert steps.t_ns is not None  # block_rows always sets the times
+        if m < _ROWS_LINEAR_FROM:
+            # a few rows: the products on floats cost less than on arrays (the same floats)
+            lin: list[Vec | None] = [
+                None if a[0] != a[0] else _linear_accel_ned(qi, (a[0], a[1], a[2]))
+                for qi, a in zip(quats, steps.accel.tolist(), strict=True)]
+        else:
+            has_a = (~np.isnan(steps.accel[:, 0])).tolist()
+            lin = [(v[0], v[1], v[2]) if a else None for v, a in
+                   zip(_linear_accel_ned_rows(q, steps.accel).tolist(), has_a, strict=True)]
+        return [build(t, instance, qi, li, d)
+                for t, qi, li, d in zip(steps.t_ns.tolist(), quats, lin, rows, strict=True)]
 
     def _imu_streams(self, blocks: Sequence[Block]
                      ) -> tuple[Block, Block | None, Block | None] | None:
@@ -805,8 +832,9 @@ class AhrsEstimator(Estimator):
             rest = slice(stop, m)
             # without diagnostics the kernel writes every row's into one scratch row
             diag = np.empty((m - stop if diagnostics else 1, self._kernel_diag_width))
-            if self._run_kernel(steps.gyro[rest], steps.accel[rest], steps.mag[rest],
-                                steps.dts[rest], out[rest], diag):
+            gyro = steps.gyro[rest]
+            if self._run_kernel(gyro, self._fused_accel(gyro, steps.accel[rest]),
+                                steps.mag[rest], steps.dts[rest], out[rest], diag):
                 emitted[rest] = True
                 in_kernel = m - stop
                 if diagnostics:
@@ -880,16 +908,44 @@ class AhrsEstimator(Estimator):
         return {}
 
     def _kernel_allowed(self) -> bool:
-        """The compiled kernels cover no turn compensation by a speed (nominal airspeed,
-        velocity, airspeed): only its bookkeeping."""
+        """The compiled kernels cover turn compensation by the nominal airspeed (the
+        accelerometer rows they fuse are compensated beforehand, ``_fused_accel``), not by
+        a velocity or airspeed source (their fits and filters stay frame by frame)."""
+        return self._rows_kernel() is not None and not (
+            self.settings.turn_compensation and self._kinematics.has_speed_source)
+
+    _rows_call: Any = None
+    _rows_chosen: bool = False
+
+    def _rows_kernel(self) -> Any:
+        """This filter's compiled row kernel (``_compiled_kernel.unchecked()``: the row
+        arrays are built by ``common/rows.py``, the scalars from the settings), or None
+        where it has none or it runs in Python. Chosen at the first use after ``reset``
+        (as the per-sample step is at ``reset``), so that a run that never takes the row
+        path loads no compiled kernel, and a fusion step's call pays no backend look-up."""
+        if not self._rows_chosen:
+            kernel = self._compiled_kernel
+            self._rows_call = kernel.unchecked() if kernel is not None and \
+                kernel.available() else None
+            self._rows_chosen = True
+        return self._rows_call
+
+    def _fused_accel(self, gyro: FloatArray, accel: FloatArray) -> FloatArray:
+        """The accelerometer rows a row kernel fuses with the ``gyro`` rows (specific force,
+        m/s^2, body; NaN: none): less the nominal airspeed's kinematic acceleration when
+        turns are compensated by it (``turn.nominal_rows``: the floats of ``_run_step``),
+        else as they are. The estimates' gravity-compensated acceleration is still taken
+        from the rows as measured."""
         s = self.settings
-        kernel = self._compiled_kernel
-        return kernel is not None and kernel.available() and not (s.turn_compensation and (
-            s.nominal_airspeed_m_s is not None or self._kinematics.has_speed_source))
+        speed = s.nominal_airspeed_m_s
+        if speed is None or not s.turn_compensation:
+            return accel
+        return nominal_rows(accel, gyro, float(speed))
 
     def _kernel_finished(self, q: FloatArray, steps: int, closed: int, turn_sum: float) -> None:
         """Take over what a kernel left: the quaternion, counters, turn bookkeeping."""
-        self._q = (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
+        w, x, y, z = q.tolist()
+        self._q = (w, x, y, z)
         self._kinematics.add_turn_steps(float(turn_sum), steps)
         self._counters["steps"] += steps
         if "gate_closed_steps" in self._counters:
@@ -974,21 +1030,39 @@ class AhrsEstimator(Estimator):
             elif max_age is not None and (t_ns - m_t) * _NS > max_age:
                 self._counters["stale_mag"] += 1
                 mag = None
-        kin = self._kinematics
-        if self._no_speed and self._sample_kernel is not None and self._tilt_aligned and (
-                self._heading_aligned or mag is None):
-            # the common compiled case written out (no speed source: nothing to compensate,
-            # only the turn bookkeeping of KinematicAcceleration.step; aligned: nothing to
-            # align): what _run_step does, without its calls
-            if self._turn_on:
-                kin.count_turn(rate)
-            else:
-                kin.source = "off"
+        if (self._no_speed or self._nominal_only) and self._sample_kernel is not None and \
+                self._tilt_aligned and (self._heading_aligned or mag is None):
+            # the common compiled cases written out (aligned: nothing to align; no speed
+            # source, or the nominal airspeed alone): what _run_step does, without its calls
+            fused = self._simple_kinematics(rate, accel)
             self._counters["steps"] += 1
-            diag = self._compiled_step(rate, accel, mag, dt, accel)
+            diag = self._compiled_step(rate, fused, mag, dt, accel)
             return [AttitudeEstimate.build(t_ns, self.instance, self._q,
                                            None if accel is None else self._linear_ned, diag)]  # type: ignore[arg-type]  # aligned (checked above): a kernel step then always returns diagnostics
         return self._stepped(t_ns, rate, accel, mag, dt)
+
+    def _simple_kinematics(self, rate: Vec, accel: Vec | None) -> Vec | None:
+        """``KinematicAcceleration.step`` and ``_run_step``'s compensation for the two cases
+        ``_on_gyro`` writes out, on floats: with no speed source only the turn bookkeeping
+        (the specific force as it is); by the nominal airspeed V, the force less
+        ``(0, r V, -q V)`` (``turn._along_x``) unless that is zero, as ``_run_step`` leaves
+        it. Returns the specific force to fuse (m/s^2, body)."""
+        kin = self._kinematics
+        if not self._turn_on:
+            kin.source = "off"
+            return accel
+        kin.count_turn(rate)
+        if self._no_speed:
+            return accel
+        kin.source = "nominal"
+        kin.counts["compensated_steps"] += 1
+        if accel is None:
+            return None
+        speed = self.settings.nominal_airspeed_m_s
+        ky, kz = rate[2] * speed, -rate[1] * speed  # type: ignore[operator]  # _nominal_only: set
+        if ky == 0.0 and kz == 0.0:
+            return accel
+        return (accel[0] - 0.0, accel[1] - ky, accel[2] - kz)
 
     def _unusual_step(self, t_ns: int, step_s: float) -> float:
         """The step length for a gyro step not in (0, ``max_dt_s``]: its true interval when

@@ -187,6 +187,20 @@ class Kernel:
             return _jitted(self)
         return None
 
+    def unchecked(self) -> Callable[..., Any]:
+        """The compiled function for the current environment, for a caller that calls it
+        many times with arguments it builds itself (an AHRS's row kernel, once per fusion
+        step): ``__call__`` looks up the backend (four environment reads) and checks every
+        argument at each call, about 15 us together, more than a small step's whole kernel
+        run. Raises RuntimeError where it runs in Python (``available()`` is False) and
+        KernelUnavailable as ``choice`` does; a JIT kernel is compiled (or loaded from
+        numba's cache) now."""
+        choice = self.choice()
+        if choice.backend == "python":
+            raise RuntimeError(f"kernel {self.name} has no compiled backend here: the "
+                               "caller must check available() first")
+        return choice.function if choice.function is not None else _jitted(self)
+
     def check(self, args: tuple[Any, ...]) -> None:
         """Raise TypeError naming the argument when ``args`` do not match the signature."""
         assert self.args is not None

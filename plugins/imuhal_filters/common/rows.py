@@ -51,6 +51,13 @@ class StepRows:
         return len(self.index)
 
 
+def _all_within(values: FloatArray, full_scale: float) -> bool:
+    """Every component of every row finite and within +-``full_scale`` (a finite scale:
+    the estimators keep theirs at most the largest float), in two numpy calls: the common
+    case's test before :func:`_within`'s per-row one (NaN and inf fail it)."""
+    return len(values) == 0 or bool(np.abs(values).max() <= full_scale)
+
+
 def _within(values: FloatArray, full_scale: float) -> np.ndarray:
     """Per row: every component finite and within +-full_scale (NaN fails)."""
     inside = np.abs(values) <= full_scale  # NaN fails; so does inf below an infinite scale
@@ -134,19 +141,25 @@ def block_rows(est: AhrsEstimator, gyro: Block, accel: Block | None, mag: Block 
     frames one by one would leave them."""
     t = gyro.t_ns
     g = gyro.values
-    g_ok = _within(g, est._gyro_fs)
-    _count(est, Quantity.GYRO.value, int(len(t) - np.count_nonzero(g_ok)))
-    idx = np.flatnonzero(g_ok)
-    t_step = t[idx]
+    if _all_within(g, est._gyro_fs):  # the common case: every frame steps, no copies
+        idx = np.arange(len(t))
+        t_step = t
+        g_step = _c(g)
+    else:
+        g_ok = _within(g, est._gyro_fs)
+        _count(est, Quantity.GYRO.value, int(len(t) - np.count_nonzero(g_ok)))
+        idx = np.flatnonzero(g_ok)
+        t_step = t[idx]
+        g_step = np.ascontiguousarray(g[idx])
     accel_rows = _held_at(est, accel, t_step, "accel", est._accel_fs)
     # the magnetometer's scale is unbounded: only finite values are kept
     mag_rows = _held_at(est, mag, t_step, "mag", _MAX_FLOAT)
     dts = _step_lengths(est, t_step)
     if len(idx):
         est._last_gyro_t_ns = int(t_step[-1])
-        last = g[idx[-1]]
+        last = g_step[-1]
         est._last_rate = (float(last[0]), float(last[1]), float(last[2]))
-    return StepRows(idx, t_step, np.ascontiguousarray(g[idx]), accel_rows, mag_rows, dts)
+    return StepRows(idx, t_step, g_step, accel_rows, mag_rows, dts)
 
 
 _MAX_FLOAT = float(np.finfo(np.float64).max)
@@ -167,7 +180,7 @@ def _held_at(est: AhrsEstimator, block: Block | None, t_step: np.ndarray, what: 
         # each time once), when every frame is accepted: each step takes its own instant's,
         # never stale
         values = block.values
-        if bool(_within(values, full_scale).all()):
+        if _all_within(values, full_scale):
             x, y, z = values[-1].tolist()
             setattr(est, attr, (x, y, z))
             setattr(est, f"_{what}_t_ns", int(t_step[-1]))

@@ -39,6 +39,7 @@ from typing import Any
 
 from pydantic import Field
 
+from imuhal.core.frames import FloatArray
 from imuhal.core.samples import AirspeedSample, VelocitySample
 from imuhal.estimation.base import EstimatorSettings
 from imuhal_filters.common.quat import Vec
@@ -166,15 +167,21 @@ class KinematicAcceleration:
         return self._turn_sum
 
     def add_turn_steps(self, turn_sum: float, steps: int) -> None:
-        """What ``steps`` calls of ``step`` without a speed source would have left: a compiled
-        batch kernel accumulated ``turn_sum`` from :attr:`turn_sum` in the same order."""
+        """What ``steps`` calls of ``step`` without a velocity or airspeed source would have
+        left: a compiled batch kernel accumulated ``turn_sum`` from :attr:`turn_sum` in the
+        same order, and fused the specific force less :func:`nominal_rows` when a nominal
+        airspeed is set."""
         if not self.s.turn_compensation:
             self.source = "off"
             return
         self._turn_sum = turn_sum
         self._turn_n += steps
         if steps:
-            self.source = "none"
+            if self.s.nominal_airspeed_m_s is None:
+                self.source = "none"
+            else:
+                self.source = "nominal"
+                self.counts["compensated_steps"] += steps
 
     # -- state ------------------------------------------------------------------------------
 
@@ -328,6 +335,23 @@ def _along_x(gyro_rad_s: Vec, speed_m_s: float, speed_rate_m_s2: float) -> Vec:
     """omega x (V, 0, 0) + (V', 0, 0): a body moving along its own x axis."""
     _, q, r = gyro_rad_s
     return (speed_rate_m_s2, r * speed_m_s, -q * speed_m_s)
+
+
+def nominal_rows(specific_force_m_s2: FloatArray, gyro_rad_s: FloatArray, speed_m_s: float
+                 ) -> FloatArray:
+    """:func:`compensated` by the nominal airspeed's kinematic acceleration
+    (:func:`_along_x` with no rate of change), row by row on (m, 3) arrays: the same products
+    and differences, so the same floats as ``KinematicAcceleration.step`` and the AHRS's
+    ``_run_step`` one step at a time; a row whose kinematic acceleration is zero (no turn)
+    is left as it is there too. NaN rows (no accelerometer) stay NaN."""
+    f, g = specific_force_m_s2, gyro_rad_s
+    ky = g[:, 2] * speed_m_s
+    kz = -g[:, 1] * speed_m_s
+    on = (ky != 0.0) | (kz != 0.0)
+    out = f.copy()  # x less the step's 0.0 is x itself (-0.0 included)
+    out[on, 1] = f[on, 1] - ky[on]
+    out[on, 2] = f[on, 2] - kz[on]
+    return out
 
 
 def compensated(specific_force_m_s2: Vec, kinematic_m_s2: Vec) -> Vec:

@@ -177,7 +177,7 @@ class ImuFilterEstimator(AhrsEstimator):
         """The rows in the compiled kernel (``fast`` extra); see ``AhrsEstimator._run_kernel``."""
         s = self.settings
         state = pack_state(self._q, self._var, self._gain, self._vel, self._vel_target)
-        turn_sum = imufilter_rows(
+        turn_sum = self._rows_kernel()(
             state, gyro, accel, dts, float(s.gain), float(s.sd_acc_g), s.velocity,
             s.sd_acc_g * STANDARD_GRAVITY_M_S2, s.sd_vel_g_s * STANDARD_GRAVITY_M_S2,
             s.turn_compensation, self._kinematics.turn_sum, out, diag)

@@ -158,7 +158,7 @@ class MadgwickEstimator(AhrsEstimator):
         if s.inv_sqrt != "exact":
             return False
         gate = self._gate
-        q, turn_sum, closed = madgwick_rows(
+        q, turn_sum, closed = self._rows_kernel()(
             np.array(self._q), gyro, accel, mag, dts, float(s.beta), gate.lower_g,
             gate.upper_g, 0.0 if s.accel_soft_gate_g is None else float(s.accel_soft_gate_g),
             s.mag_reference is MagReference.PAPER, s.use_mag, s.turn_compensation,

@@ -127,7 +127,7 @@ class MahonyEstimator(AhrsEstimator):
         """The rows in the compiled kernel (``fast`` extra); see ``AhrsEstimator._run_kernel``."""
         s = self.settings
         gate = self._gate
-        q, integral, turn_sum, closed = mahony_rows(
+        q, integral, turn_sum, closed = self._rows_kernel()(
             np.array(self._q), np.array(self._integral), gyro, accel, mag, dts, float(s.kp),
             float(s.ki), gate.lower_g, gate.upper_g,
             0.0 if s.accel_soft_gate_g is None else float(s.accel_soft_gate_g), s.use_mag,

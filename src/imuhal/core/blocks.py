@@ -325,5 +325,5 @@ def interleaved(blocks: Sequence[Block]) -> list[Sample]:
         return [b.samples()[0] for b in blocks]
     keyed = [(s.t_ns, i, j, s) for i, b in enumerate(blocks)
              for j, s in enumerate(b.samples())]
-    keyed.sort(key=lambda k: (k[0], k[1], k[2]))
+    keyed.sort()  # (time, block, frame) is unique: the samples themselves are never compared
     return [k[3] for k in keyed]

@@ -172,6 +172,15 @@ class ChipClock:
             self._polygon = clipped
         return k
 
+    def continued(self, n: int) -> int:
+        """``n`` frames followed the newest counted, read without a count that bounds
+        their instants (a FIFO that stopped writing when full: the count says what it
+        kept, not what the chip measured); returns the index of the newest. The bounds are
+        left as they are."""
+        k = n - 1 if self._k is None else self._k + n
+        self._k = k
+        return k
+
     def _constrain(self, polygon: list[Vertex], read: ClockRead) -> list[Vertex]:
         lo = read.lo_ns - self._origin_ns
         hi = read.hi_ns - self._origin_ns

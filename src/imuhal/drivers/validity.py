@@ -92,6 +92,9 @@ class FrozenWatch:
 VALUE_FLAGS = SampleFlag.SATURATED | SampleFlag.OUT_OF_RANGE | SampleFlag.OVERFLOW
 """Flags saying the chip *measured* something wrong (not a failed transfer, a blank frame or
 a missing measurement): what the chip's own filter then carries into its next outputs."""
+_VALUE_BITS = int(VALUE_FLAGS)
+"""``VALUE_FLAGS`` as a plain int: ``int(flags) & _VALUE_BITS`` is one C operation, where
+``flags & VALUE_FLAGS`` builds a SampleFlag through the enum machinery (every output)."""
 
 
 def iir_memory_outputs(coefficient: int, bits: int) -> int:
@@ -148,7 +151,7 @@ class FilterMemory:
         # pressure) are not flagged by that measurement, but still carry the earlier one.
         settling = SampleFlag.FILTER_SETTLING if until is not None and t_ns <= until \
             else SampleFlag.OK
-        if flags & VALUE_FLAGS:
+        if int(flags) & _VALUE_BITS:
             # Half a period more: an output polled a little late is still one of the n.
             # A new wrong measurement never shortens the window an earlier one opened.
             self._until_ns[key] = max(until or 0, t_ns + n * period + period // 2)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import functools
 import inspect
 import threading
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
 
@@ -109,6 +109,7 @@ class EmulatedBoard:
         for name, emulator in self.emulators.items():
             if type(emulator).pulls_physics:
                 emulator.physics_source = self._physics_source(name)
+                emulator.physics_ahead = self._truths_ahead
             emulator.physics_at = functools.partial(self._give, name=name)
         self._truth_cache: tuple[int, TruthState] | None = None
         """(time, truth) of the latest ``truth_at``: one attribute, replaced whole, so a
@@ -120,6 +121,9 @@ class EmulatedBoard:
         self._full: ChipTruth | None = None
         self._light_ns: int | None = None
         self._light: ChipTruth | None = None
+        self._ahead: dict[int, ChipTruth] = {}
+        """Full chip truths computed ahead for a chip's coming instants (``_truths_ahead``),
+        by time (ns); the same floats as ``scenario.chip_truth`` there."""
         # ``truth`` may be read from another thread (the live view) while the run polls:
         # scenarios fill caches as they go, so one thread at a time evaluates the scenario.
         self._scenario_lock = threading.Lock()
@@ -195,6 +199,10 @@ class EmulatedBoard:
             return self._full  # type: ignore[return-value]  # set with _full_ns, which matched: not None
         if not motion and t_ns == self._light_ns:
             return self._light  # type: ignore[return-value]  # set with _light_ns, which matched: not None
+        ahead = self._ahead.get(t_ns)
+        if ahead is not None:
+            self._full_ns, self._full = t_ns, ahead
+            return ahead
         with self._scenario_lock:
             truth = self.scenario.chip_truth(t_ns / 1e9, motion=motion)
         if motion:
@@ -202,6 +210,22 @@ class EmulatedBoard:
         else:
             self._light_ns, self._light = t_ns, truth
         return truth
+
+    def _truths_ahead(self, times_ns: Sequence[int]) -> None:
+        """A chip with its own clock will measure at ``times_ns`` (ascending): compute the
+        full truth of all of them in one call (``Scenario.chip_truths``, the same floats as
+        one by one), kept until the chip measures there. Truths before the first of these
+        are dropped (the chip's instants only move on)."""
+        if not times_ns:
+            return
+        first = times_ns[0]
+        kept = {t: c for t, c in self._ahead.items() if t >= first}
+        todo = [t for t in times_ns if t not in kept]
+        if todo:
+            with self._scenario_lock:
+                truths = self.scenario.chip_truths([t / 1e9 for t in todo])
+            kept.update(zip(todo, truths, strict=True))
+        self._ahead = kept
 
     def before_poll(self, t_ns: int, device: str) -> int:
         """The pipeline is about to poll ``device``, due at ``t_ns``: apply the faults due

@@ -17,11 +17,12 @@ import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import BinaryIO
 
 import numpy as np
 
 from imuhal.core.errors import ImuhalError
+from imuhal.offline.fast_csv import parse_block
 
 TIME = "t_s"
 GYRO = ("gx_rad_s", "gy_rad_s", "gz_rad_s")
@@ -73,14 +74,15 @@ def read_sample_csv(path: str | Path, *, rate_hz: float | None = None) -> Sample
     return SampleTable(first.path, columns, np.concatenate([c.lines for c in chunks]))
 
 
-def _read_header(p: Path, reader: Any, rate_hz: float | None) -> list[str]:
+def _read_header(p: Path, line: bytes, rate_hz: float | None) -> list[str]:
     """The checked header line: comma-separated, each name once, and a time column unless
     ``rate_hz`` gives the times (never both)."""
+    if not line:
+        raise InputError(f"{p}: the file is empty; expected a header line")
     try:
-        header = [h.strip() for h in next(reader)]
-    except StopIteration:
-        raise InputError(f"{p}: the file is empty; expected a header line") from None
-    except (UnicodeDecodeError, csv.Error) as exc:
+        # utf-8-sig: a byte-order mark (spreadsheets write one) is not part of the first name
+        header = [h.strip() for h in next(csv.reader([line.decode("utf-8-sig")]))]
+    except (UnicodeDecodeError, csv.Error, StopIteration) as exc:
         raise InputError(f"{p}: not a CSV text file ({exc})") from None
     if len(header) == 1:
         for sep, name in ((";", "semicolons"), ("\t", "tabs"), ("|", "bars")):
@@ -106,60 +108,101 @@ def iter_sample_chunks(path: str | Path, *, rate_hz: float | None = None,
     The checks are those of the whole file (every bad cell an :class:`InputError` naming its
     line and column; times increasing across chunks too), but only one chunk is in memory.
     At least one chunk is yielded (a file without data rows is an error). ``chunk_rows``
-    defaults to :data:`CHUNK_ROWS`.
+    defaults to :data:`CHUNK_ROWS`. A chunk of plain numbers is parsed whole
+    (:func:`imuhal.offline.fast_csv.parse_block`); any other is read cell by cell.
     """
     chunk_rows = chunk_rows or CHUNK_ROWS
     p = Path(path)
     try:
-        # utf-8-sig: a byte-order mark (spreadsheets write one) is not part of the first name
-        handle = p.open(newline="", encoding="utf-8-sig")
+        handle = p.open("rb")
     except OSError as exc:
         raise InputError(f"{p}: cannot read: {exc.strerror or exc}") from None
     with handle:
-        reader = csv.reader(handle)
-        header = _read_header(p, reader, rate_hz)
-        width = len(header)
+        header = _read_header(p, handle.readline(), rate_hz)
+        sparse = [_sparse(n) for n in header]
+        # a blank row would pass as empty cells where every column may be empty: cell by cell
+        whole = not all(sparse)
         done = 0
+        next_line = 2
         last_t: float | None = None
-        rows: list[list[str]] = []
-        lines: list[int] = []
-        numbered = _numbered_rows(p, reader)
-        for line_no, cells in numbered:
-            if len(cells) != width:
-                if not cells or all(not c.strip() for c in cells):
-                    continue
-                raise InputError(f"{p}: line {line_no}: {len(cells)} cells, but the header has "
-                                 f"{width} columns")
-            rows.append(cells)
-            lines.append(line_no)
-            if len(rows) == chunk_rows:
-                table = _chunk(p, header, rows, lines, done, rate_hz, last_t)
-                if len(table):
-                    yield table
-                    done += len(table)
-                    last_t = float(table.columns[TIME][-1])
-                rows, lines = [], []
-        if rows:
-            table = _chunk(p, header, rows, lines, done, rate_hz, last_t)
-            if len(table):
-                done += len(table)
-                yield table
+        for lines, count in _line_blocks(handle, chunk_rows):
+            values = parse_block(lines, count, len(header), sparse) if whole else None
+            if values is not None:
+                line_arr = np.arange(next_line, next_line + count)
+                columns = {name: values[:, i] for i, name in enumerate(header)}
+            else:
+                rows, line_list = _strict_rows(p, lines.splitlines(keepends=True), next_line,
+                                               len(header))
+                columns, line_arr = _strict_columns(p, header, rows, line_list)
+            next_line += count
+            if not len(line_arr):
+                continue
+            table = _table(p, columns, line_arr, done, rate_hz, last_t)
+            yield table
+            done += len(table)
+            last_t = float(table.columns[TIME][-1])
     if not done:
         raise InputError(f"{p}: no data rows after the header")
 
 
-def _numbered_rows(p: Path, reader: Any) -> Iterator[tuple[int, list[str]]]:
-    """(line number, cells) of each data row; a file that is not CSV text is an InputError."""
-    line_no = 1
+def _line_blocks(handle: BinaryIO, rows: int) -> Iterator[tuple[bytes, int]]:
+    """The rest of ``handle`` as blocks of ``rows`` whole lines (fewer in the last), each
+    ending in a newline (one is added to a last line without), with their line counts. Read
+    in large reads, the lines found with numpy: no Python object per line."""
+    block = max(rows * 128, 1 << 16)
+    rest = b""
+    while True:
+        more = handle.read(block)
+        data = rest + more
+        if not more:
+            if data:
+                data = data if data.endswith(b"\n") else data + b"\n"
+                yield data, data.count(b"\n")
+            return
+        ends = np.flatnonzero(np.frombuffer(data, dtype=np.uint8) == _NEWLINE)
+        start = 0
+        for k in range(rows, len(ends) + 1, rows):
+            stop = int(ends[k - 1]) + 1
+            yield data[start:stop], rows
+            start = stop
+        rest = data[start:]
+        # about one block of rows per read from now on
+        if len(ends):
+            block = max(int(ends[-1] + 1) * rows // len(ends), 1 << 12)
+
+
+_NEWLINE = ord("\n")
+
+
+def _strict_rows(p: Path, lines: list[bytes], first_line: int, width: int
+                 ) -> tuple[list[list[str]], list[int]]:
+    """(cells, line number) of each row of ``lines`` (file lines from ``first_line`` on)
+    read by the csv module; blank rows are skipped, a row of another width is an error."""
+    text: list[str] = []
+    for i, line in enumerate(lines):
+        try:
+            text.append(line.decode("utf-8"))
+        except UnicodeDecodeError as exc:
+            raise InputError(f"{p}: line {first_line + i}: not CSV text ({exc})") from None
+    reader = csv.reader(text)
+    rows: list[list[str]] = []
+    numbers: list[int] = []
     while True:
         try:
             cells = next(reader)
         except StopIteration:
-            return
-        except (UnicodeDecodeError, csv.Error) as exc:
-            raise InputError(f"{p}: line {line_no + 1}: not CSV text ({exc})") from None
-        line_no += 1
-        yield line_no, cells
+            return rows, numbers
+        except csv.Error as exc:
+            raise InputError(f"{p}: line {first_line + reader.line_num - 1}: not CSV text "
+                             f"({exc})") from None
+        line_no = first_line + reader.line_num - 1
+        if len(cells) != width:
+            if not cells or all(not c.strip() for c in cells):
+                continue
+            raise InputError(f"{p}: line {line_no}: {len(cells)} cells, but the header has "
+                             f"{width} columns")
+        rows.append(cells)
+        numbers.append(line_no)
 
 
 def _sparse(column: str) -> bool:
@@ -167,10 +210,11 @@ def _sparse(column: str) -> bool:
     return column in SPARSE_COLUMNS or column.rsplit("_", 1)[0] in SPARSE_COLUMNS
 
 
-def _chunk(path: Path, header: list[str], rows: list[list[str]], lines: list[int], start: int,
-           rate_hz: float | None, last_t: float | None) -> SampleTable:
-    """One chunk as a table: whole columns at C speed where every cell is a plain number,
-    else the strict cell-by-cell reading (blank rows skipped, a one-line error per bad cell)."""
+def _strict_columns(path: Path, header: list[str], rows: list[list[str]], lines: list[int]
+                    ) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """Rows of cells as columns: whole columns at C speed where every cell is a plain
+    number, else the strict cell-by-cell reading (blank rows skipped, a one-line error per
+    bad cell)."""
     if all(_sparse(n) for n in header):  # no required column would catch a blank row
         rows, lines = _drop_blank(rows, lines)
     columns: dict[str, np.ndarray] = {}
@@ -187,18 +231,22 @@ def _chunk(path: Path, header: list[str], rows: list[list[str]], lines: list[int
                   for r, n in zip(rows, lines, strict=True)]
         data = np.array(strict, dtype=float).reshape(len(rows), len(header))
         columns = {name: data[:, i] for i, name in enumerate(header)}
-    if not rows:
-        return SampleTable(path, {}, np.array([], dtype=int))
-    line_arr = np.array(lines)
+    return columns, np.array(lines, dtype=np.int64)
+
+
+def _table(path: Path, columns: dict[str, np.ndarray], lines: np.ndarray, start: int,
+           rate_hz: float | None, last_t: float | None) -> SampleTable:
+    """The chunk's table: times from ``rate_hz`` when the file has none, checked to increase
+    (also from ``last_t``, the previous chunk's last time)."""
     if TIME not in columns:
         assert rate_hz is not None
-        columns[TIME] = (start + np.arange(len(rows))) / rate_hz
+        columns[TIME] = (start + np.arange(len(lines))) / rate_hz
     t = columns[TIME]
     if last_t is not None:
-        _check_time(path, np.concatenate([[last_t], t]), np.concatenate([[lines[0]], line_arr]))
+        _check_time(path, np.concatenate([[last_t], t]), np.concatenate([lines[:1], lines]))
     else:
-        _check_time(path, t, line_arr)
-    return SampleTable(path, columns, line_arr)
+        _check_time(path, t, lines)
+    return SampleTable(path, columns, lines)
 
 
 def _fast_column(name: str, cells: tuple[str, ...]) -> np.ndarray | None:

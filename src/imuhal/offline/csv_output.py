@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import io
 import math
 import shutil
 import tempfile
-from collections.abc import Iterable, Sequence
+from collections.abc import Collection, Iterable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
 
@@ -24,6 +25,7 @@ from imuhal.estimation.outputs import (
     VerticalEstimate,
 )
 from imuhal.estimation.rows import AttitudeRows, flatten_diagnostics
+from imuhal.offline.fast_csv import format_block, format_column
 
 ATTITUDE_COLUMNS = ("t_s", *attitude_columns(NED))
 VERTICAL_COLUMNS = ("t_s", "altitude_m", "climb_m_s", "accel_bias_m_s2")
@@ -67,9 +69,12 @@ class EstimateCsvWriter:
     """Writes estimates as they come, in flat memory; the file appears only on ``commit()``.
 
     The header is every column seen, in order of first appearance: the leading columns of the
-    estimate type, then the diagnostics. Rows go to a spill file beside the output as they
-    are written; ``commit`` writes the header and copies them behind it (padding the rows
-    written before a later column first appeared), then renames over ``path`` atomically.
+    estimate type, then the diagnostics. The header known at the first rows and the rows go
+    to the output's temporary file as they are written; ``commit`` renames it over ``path``
+    atomically. Only when a later chunk brings a new column does ``commit`` write the file
+    again: the whole header, then the rows, those written before the column first appeared
+    padded. (A FIFO or a device as ``path`` gets nothing before ``commit``: the rows wait in a
+    spill file beside it.)
     ``columns`` fixes the header to those names, in that order (no other work is done for
     the rest: only the quaternion, say); a name the first estimate does not have is a
     :class:`ColumnError` listing the ones it has.
@@ -85,11 +90,15 @@ class EstimateCsvWriter:
         self._growth: list[tuple[int, int]] = []
         """(first row, header width) whenever the header grew after rows were written."""
         self.rows = 0
-        self._out = AtomicFile(self.path, newline="")
-        self._spill = tempfile.TemporaryFile(  # noqa: SIM115 (closed by commit/abort)
-            "w+", newline="", encoding="utf-8", dir=self._out.tmp_path.parent,
-            prefix=f".{self.path.name}.", suffix=".rows")
-        self._csv = csv.writer(self._spill)
+        # bytes: the block formatter's text goes to disk without a codec pass
+        self._out = AtomicFile(self.path, binary=True)
+        self._spill: IO[bytes] | None = None
+        if self._out.direct:
+            self._spill = tempfile.TemporaryFile(  # noqa: SIM115 (closed by commit/abort)
+                "w+b", dir=self._out.tmp_path.parent, prefix=f".{self.path.name}.",
+                suffix=".rows")
+        self._written_header: list[str] | None = None
+        """The header at the head of the output's temporary file (None: not yet written)."""
 
     def write(self, estimates: Iterable[Estimate] | AttitudeRows) -> None:
         """Append ``estimates`` (one chunk: formatted column by column, written at once);
@@ -125,9 +134,12 @@ class EstimateCsvWriter:
         blank = [""] * len(chunk)
         cells = [leading[h] if h in leading else columns.get(h, blank) for h in self._header]
         if plain:  # as _write_rows: the lines joined directly
-            self._spill.write("\r\n".join(map(",".join, zip(*cells, strict=True))) + "\r\n")
+            text = "\r\n".join(map(",".join, zip(*cells, strict=True))) + "\r\n"
         else:
-            self._csv.writerows(zip(*cells, strict=True))
+            buffer = io.StringIO(newline="")
+            csv.writer(buffer).writerows(zip(*cells, strict=True))
+            text = buffer.getvalue()
+        self._emit(text.encode("utf-8"))
         self.rows += len(chunk)
 
     def _write_rows(self, rows: AttitudeRows) -> None:
@@ -148,57 +160,108 @@ class EstimateCsvWriter:
                     self._extend([*names, *present])
             else:
                 self._check_columns(dict.fromkeys([*names, *present]))
-        leading = self._leading_rows(rows)
-        blank = [""] * n
-        cells = [leading[h] if h in leading else _fmt_column(rows.diagnostics.get(h), blank)
-                 for h in self._header]
-        # every cell is a number or empty, which the csv module would never quote: the lines
-        # are joined directly (its per-field quoting checks cost more than the formatting)
-        self._spill.write("\r\n".join(map(",".join, zip(*cells, strict=True))) + "\r\n")
+        text = self._numeric_block(rows)
+        if text is None:
+            leading = self._leading_rows(rows)
+            blank = [""] * n
+            cells = [leading[h] if h in leading else _fmt_column(rows.diagnostics.get(h), blank)
+                     for h in self._header]
+            # every cell is a number or empty, which the csv module would never quote: the
+            # lines are joined directly (its per-field quoting costs more than the formatting)
+            text = ("\r\n".join(map(",".join, zip(*cells, strict=True))) + "\r\n"
+                    ).encode("utf-8")
+        self._emit(text)
         self.rows += n
+
+    def _numeric_block(self, rows: AttitudeRows) -> bytes | None:
+        """The chunk's lines formatted a block at a time (:mod:`imuhal.offline.fast_csv`)
+        when every written column is a number on every row (an NED attitude and array
+        diagnostics: ``imuhal estimate``'s common case); None otherwise."""
+        if get_convention(self.frame) is not NED:
+            return None
+        leading = _leading_arrays(rows, self._index.keys())
+        columns: list[np.ndarray] = []
+        for h in self._header:
+            column = leading.get(h)
+            if column is None:
+                diagnostic = rows.diagnostics.get(h)
+                if not isinstance(diagnostic, np.ndarray):  # values per row, or none
+                    return None
+                column = diagnostic
+            columns.append(column)
+        return format_block(columns)
 
     def _leading_rows(self, rows: AttitudeRows) -> dict[str, list[str]]:
         if get_convention(self.frame) is NED:
             # only the columns written: --columns t_s,qw,qx,qy,qz skips the Euler angles
-            wanted = self._index.keys()
-            t_s = rows.t_ns.astype(float) / 1e9
-            q = rows.q_body_to_ned
-            out = {"t_s": _fmt_floats(t_s)} if "t_s" in wanted else {}
-            for name, col in zip(ATTITUDE_COLUMNS[1:5], q.T, strict=True):
-                if name in wanted:
-                    out[name] = _fmt_floats(col)
-            if wanted & set(ATTITUDE_COLUMNS[5:]):
-                euler = euler_deg_from_quats(q).T
-                out.update({name: _fmt_floats(col)
-                            for name, col in zip(ATTITUDE_COLUMNS[5:], euler, strict=True)})
-            return out
+            return {name: _fmt_floats(col)
+                    for name, col in _leading_arrays(rows, self._index.keys()).items()}
         return _leading_columns([_attitude(rows, i) for i in range(len(rows))], self.frame)
 
+    def _emit(self, lines: bytes) -> None:
+        """Rows (CSV lines) after the header; the first rows write the header known now."""
+        if self._spill is not None:
+            self._spill.write(lines)
+            return
+        if self._written_header is None:
+            self._written_header = list(self._header)
+            self._out.write(_header_line(self._header))
+        self._out.write(lines)
+
     def commit(self) -> int:
-        """Write the header and the rows to ``path`` (atomically); returns the row count."""
-        out = self._out
-        csv.writer(out).writerow(self._header)
-        self._spill.seek(0)
-        if not self._growth:
-            shutil.copyfileobj(self._spill, out)
-        else:
-            # rows before growth mark (k, w) and after the previous mark have w cells
-            final = len(self._header)
-            marks = iter(self._growth)
-            until, width = next(marks)
-            for row, line in enumerate(self._spill):
-                while row >= until:
-                    until, width = next(marks, (self.rows + 1, final))
-                pad = final - width
-                out.write(line[:-2] + "," * pad + "\r\n" if pad else line)
-        self._spill.close()
-        out.commit()
+        """Make the output appear at ``path`` (atomically); returns the row count."""
+        if self._spill is not None:  # a FIFO or device: everything now
+            self._spill.seek(0)
+            self._copy_rows(self._spill, self._out)
+            self._spill.close()
+        elif self._written_header is None:  # no rows: the header alone
+            self._out.write(_header_line(self._header))
+        elif self._written_header != self._header:  # a column came late: written again
+            self._rewrite()
+            return self.rows
+        self._out.commit()
         return self.rows
+
+    def _copy_rows(self, rows: IO[bytes], out: AtomicFile) -> None:
+        """The whole header to ``out``, then ``rows``' lines, padded where they were written
+        before a column first appeared."""
+        out.write(_header_line(self._header))
+        if not self._growth:
+            shutil.copyfileobj(rows, out)
+            return
+        # rows before growth mark (k, w) and after the previous mark have w cells
+        final = len(self._header)
+        marks = iter(self._growth)
+        until, width = next(marks)
+        for row, line in enumerate(rows):
+            while row >= until:
+                until, width = next(marks, (self.rows + 1, final))
+            pad = final - width
+            out.write(line[:-2] + b"," * pad + b"\r\n" if pad else line)
+
+    def _rewrite(self) -> None:
+        """The output written again under its whole header (see the class docstring); the
+        first temporary file is dropped."""
+        first = self._out
+        assert first.file is not None
+        first.file.flush()
+        again = AtomicFile(self.path, binary=True)
+        try:
+            with first.tmp_path.open("rb") as rows:
+                rows.readline()  # the header the first rows were written under
+                self._copy_rows(rows, again)
+            again.commit()
+        except BaseException:
+            again.abort()
+            raise
+        finally:
+            first.abort()
 
     def abort(self) -> None:
         """Drop everything written: ``path`` keeps what it had."""
-        with contextlib.suppress(OSError):  # after a write error, closing may fail again
-            self._spill.close()
+        if self._spill is not None:
+            with contextlib.suppress(OSError):  # after a write error, closing may fail again
+                self._spill.close()
         self._out.abort()
 
     def _extend(self, keys: list[str]) -> None:
@@ -215,6 +278,27 @@ class EstimateCsvWriter:
         if missing:
             raise ColumnError(f"--columns: {', '.join(missing)} not written by this estimator; "
                               f"its columns are: {', '.join(merged)}")
+
+
+def _header_line(names: Sequence[str]) -> bytes:
+    """The header as the csv module writes a row (quoted where a name needs it)."""
+    line = io.StringIO(newline="")
+    csv.writer(line).writerow(names)
+    return line.getvalue().encode("utf-8")
+
+
+def _leading_arrays(rows: AttitudeRows, wanted: Collection[str]) -> dict[str, np.ndarray]:
+    """The NED attitude columns of ``rows`` named in ``wanted``, as arrays (the Euler angles
+    only when one of them is wanted: ``--columns t_s,qw,qx,qy,qz`` skips them)."""
+    q = rows.q_body_to_ned
+    out = {"t_s": rows.t_ns.astype(float) / 1e9} if "t_s" in wanted else {}
+    for name, col in zip(ATTITUDE_COLUMNS[1:5], q.T, strict=True):
+        if name in wanted:
+            out[name] = col
+    if any(name in wanted for name in ATTITUDE_COLUMNS[5:]):
+        euler = euler_deg_from_quats(q).T
+        out.update(zip(ATTITUDE_COLUMNS[5:], euler, strict=True))
+    return out
 
 
 def _leading_columns(chunk: list[Estimate], frame: str | Convention) -> dict[str, list[str]]:
@@ -298,6 +382,9 @@ def _fmt_column(values: np.ndarray | list | None, blank: list[str]) -> list[str]
 
 
 def _fmt_floats(values: np.ndarray) -> list[str]:
+    fast = format_column(values)
+    if fast is not None:
+        return fast
     if np.all(np.isfinite(values)):
         return _reprs(values.tolist())
     return [_fmt(v) for v in values.tolist()]

@@ -22,6 +22,7 @@ the rest of the run (docs/reliability.md, "Plugin containment").
 
 from __future__ import annotations
 
+import importlib
 import signal
 import threading
 import time
@@ -256,6 +257,15 @@ class DriverDeadline(BaseException):
     BaseException, so that a driver's ``except Exception`` does not swallow it."""
 
 
+try:
+    # the C function signal.getsignal wraps: the handler as installed, without converting
+    # it to a ``signal.Handlers`` member (the conversion fails by an exception for a Python
+    # handler and costs about 6 us; ``arm`` asks twice per IMU sample on the hardware path)
+    _current_handler: Callable[[int], Any] = importlib.import_module("_signal").getsignal
+except ImportError:  # an interpreter without CPython's _signal module
+    _current_handler = signal.getsignal
+
+
 class Watchdog:
     """Interrupts a driver call that overran its deadline: a one-shot ``ITIMER_REAL`` armed
     around the call, whose SIGALRM handler raises :class:`DriverDeadline` in the call.
@@ -278,8 +288,8 @@ class Watchdog:
 
     def arm(self, seconds: float) -> bool:
         """Start timing a driver call; False when this thread cannot be interrupted."""
-        handler = signal.getsignal(signal.SIGALRM)
-        if handler is not _deadline_expired and not self._install(handler):
+        if _current_handler(signal.SIGALRM) is not _deadline_expired and \
+                not self._install(signal.getsignal(signal.SIGALRM)):
             return False
         Watchdog._active = True
         signal.setitimer(signal.ITIMER_REAL, seconds)

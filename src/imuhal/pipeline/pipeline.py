@@ -125,6 +125,9 @@ class DeviceRuntime:
     full_scale: dict[Quantity, float | None] = field(default_factory=dict)
     streams: tuple[StreamSpec, ...] = ()
     """The driver's stream specs as read back at the last (re)configuration."""
+    deadline_s: float = field(default_factory=lambda: driver_deadline_s(()))
+    """How long one call of its driver may take (``driver_deadline_s`` of ``streams``,
+    kept with them: it is armed around every poll)."""
     spec_of: dict[Quantity, StreamSpec] = field(default_factory=dict)
     """``streams`` by quantity (the spec a block without one was taken with)."""
     last_valid_ns: dict[Quantity, int] = field(default_factory=dict)
@@ -505,6 +508,7 @@ class Pipeline:
         if streams == dev.streams:
             return
         dev.streams = streams
+        dev.deadline_s = driver_deadline_s(streams)
         dev.spec_of = {spec.quantity: spec for spec in reversed(streams)}
         dev.buffered = any(spec.time_source in BUFFERED_SOURCES for spec in streams)
         for runtime in self.estimators:
@@ -750,14 +754,14 @@ class Pipeline:
             # between arming and the call or after the call returns, before disarm (seen at
             # load 35), and must still isolate the device rather than escape the run
             try:
-                armed = watchdog.arm(driver_deadline_s(dev.streams))
+                armed = watchdog.arm(dev.deadline_s)
                 return self._service(dev, t_ns)
             finally:
                 if armed:
                     watchdog.disarm()
         except DriverDeadline:
             self._isolate(dev, t_ns, "did not return from a call within its deadline of "
-                          f"{driver_deadline_s(dev.streams):g} s (from its chip's rate)")
+                          f"{dev.deadline_s:g} s (from its chip's rate)")
             return [], NEVER_NS
         except RunEnded:
             raise  # a replayed recording ran out or diverged: the whole run ends

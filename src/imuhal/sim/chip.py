@@ -12,7 +12,7 @@ import random
 from abc import ABC, abstractmethod
 from array import array
 from bisect import bisect_right
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, ClassVar
 
 from pydantic import ValidationError
@@ -104,6 +104,10 @@ class ChipEmulator(ABC):
         self.physics_source: Callable[[int], None] | None = None
         """Set by an emulated board for a ``pulls_physics`` emulator: hands the chip its
         inputs at a given instant (ns) through ``set_physics``."""
+        self.physics_ahead: Callable[[Sequence[int]], None] | None = None
+        """Set by an emulated board beside ``physics_source``: told the instants (ns,
+        ascending) at which the chip will pull its inputs, the board computes their truth in
+        one call (a chip with a FIFO knows its coming instants from its own clock)."""
         self.master_instant_ns: int | None = None
         """Set while a bus master on the chip's own board (the MPU-9250's I2C master)
         performs a transaction it timed itself (``EmulatedBus.transfer_at``): the chip

@@ -24,6 +24,8 @@ from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numpy as np
+
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.sim.signals import Signal
 
@@ -125,6 +127,38 @@ def _unit(v: Sequence[float]) -> Vec3:
     return (v[0] / n, v[1] / n, v[2] / n)
 
 
+@dataclass(frozen=True, slots=True)
+class KinematicsMany:
+    """:class:`Kinematics` at many times: each component an array over the times
+    (``rotation`` row-major, nine arrays); no acceleration (the chips do not measure it)."""
+
+    q_body_to_ned: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+    rotation: tuple[np.ndarray, ...]
+    angular_rate_body_rad_s: tuple[np.ndarray, np.ndarray, np.ndarray]
+    specific_force_body_m_s2: tuple[np.ndarray, np.ndarray, np.ndarray]
+    position_ned_m: tuple[np.ndarray, np.ndarray, np.ndarray]
+    velocity_ned_m_s: tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+def _quat_euler_many(roll: np.ndarray, pitch: np.ndarray, yaw: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`quat_euler` on arrays (the same operations)."""
+    cr, sr = np.cos(0.5 * roll), np.sin(0.5 * roll)
+    cp, sp = np.cos(0.5 * pitch), np.sin(0.5 * pitch)
+    cy, sy = np.cos(0.5 * yaw), np.sin(0.5 * yaw)
+    return (cy * cp * cr + sy * sp * sr, cy * cp * sr - sy * sp * cr,
+            cy * sp * cr + sy * cp * sr, sy * cp * cr - cy * sp * sr)
+
+
+def _euler_body_rate_many(roll: np.ndarray, pitch: np.ndarray, droll: np.ndarray,
+                          dpitch: np.ndarray, dyaw: np.ndarray
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`euler_body_rate` on arrays (the same operations)."""
+    sr, cr = np.sin(roll), np.cos(roll)
+    sp, cp = np.sin(pitch), np.cos(pitch)
+    return (droll - dyaw * sp, dpitch * cr + dyaw * sr * cp, -dpitch * sr + dyaw * cr * cp)
+
+
 # --------------------------------------------------------------------------- motions
 class Motion(ABC):
     """A trajectory: ``kinematics(t_s)`` for any ``t_s >= 0``; pure function of time."""
@@ -206,6 +240,9 @@ class FlightMotion(Motion):
         self._starts: list[tuple[Vec3, Vec3, Vec3]] = []
         self._segments: OrderedDict[int, tuple[list[Vec3], list[Vec3], list[Vec3]]] = \
             OrderedDict()
+        self._segment_arrays_kept: dict[int, tuple[object, tuple[np.ndarray, np.ndarray,
+                                                                 np.ndarray]]] = {}
+        """The segments kept, as arrays for :meth:`kinematics_many` (made on demand)."""
 
     # ------------------------------------------------------------------ attitude + velocity
     def _speeds(self, t: float) -> tuple[Triple | None, Triple | None]:
@@ -327,6 +364,94 @@ class FlightMotion(Motion):
         return (p0[0] + h * (v0[0] * i00 + h * a0[0] * i10 + v1[0] * i01 + h * a1[0] * i11),
                 p0[1] + h * (v0[1] * i00 + h * a0[1] * i10 + v1[1] * i01 + h * a1[1] * i11),
                 p0[2] + h * (v0[2] * i00 + h * a0[2] * i10 + v1[2] * i01 + h * a1[2] * i11))
+
+    # ------------------------------------------------------------------ many times at once
+    def vectorised(self) -> bool:
+        """True when :meth:`kinematics_many` covers this trajectory: no body rotations and
+        no speed along the nose (those keep the per-time path)."""
+        return not self.body_rotations and self.speed_along_nose is None
+
+    def kinematics_many(self, t: np.ndarray) -> KinematicsMany:
+        """:meth:`kinematics_fields` at every time of ``t`` (s, float64, >= 0) as arrays,
+        by the same operations in the same order on numpy arrays (only for
+        :meth:`vectorised` trajectories): what a chip's FIFO fill of n instants needs in one
+        call instead of n."""
+        if not self.vectorised():
+            raise ValueError("kinematics_many covers no body rotations nor speed along the nose")
+        t = np.asarray(t, dtype=float)
+        if t.size and float(t.min()) < 0:
+            raise ValueError(f"trajectories start at t = 0 s, got {float(t.min())}")
+        psi, dpsi, ddpsi = self.yaw.many(t)
+        th, dth, _ = self.pitch.many(t)
+        ph, dph, _ = self.roll.many(t)
+        heading = None if self.speed_along_heading is None else self.speed_along_heading.many(t)
+        if self.coordinated_bank:
+            assert heading is not None
+            v, dv, _ = heading
+            x = v * dpsi / self.gravity_m_s2
+            # math.atan, not np.arctan: numpy's differs from it by an ulp at about one
+            # argument in 600, and the bank is the only such call (sin and cos agree)
+            ph = ph + np.fromiter(map(math.atan, x.tolist()), float, x.size)
+            dph = dph + (dv * dpsi + v * ddpsi) / self.gravity_m_s2 / (1.0 + x * x)
+        q = _quat_euler_many(ph, th, psi)
+        w = _euler_body_rate_many(ph, th, dph, dth, dpsi)
+        rot = quat_matrix(q)  # type: ignore[arg-type]  # the same expressions on arrays
+        wn, we, wd = self.wind
+        pos = [wn * t, we * t, wd * t]
+        vel = [np.full_like(t, wn), np.full_like(t, we), np.full_like(t, wd)]
+        acc = [np.zeros_like(t), np.zeros_like(t), np.zeros_like(t)]
+        for axis, sig in enumerate((self.north, self.east, self.down)):
+            if sig is not None:
+                sp, sv, sa = sig.many(t)
+                pos[axis], vel[axis], acc[axis] = pos[axis] + sp, vel[axis] + sv, acc[axis] + sa
+        if heading is not None:
+            v, dv, _ = heading
+            c, sn = np.cos(psi), np.sin(psi)
+            tv = (v * c, v * sn, np.zeros_like(t))
+            ta = (dv * c - v * dpsi * sn, dv * sn + v * dpsi * c, np.zeros_like(t))
+            tp = self._tab_position_many(t)
+            # as the scalar path: tabulated parts added to the others, component by component
+            for axis in range(3):
+                pos[axis] = pos[axis] + tp[axis]
+                vel[axis] = vel[axis] + (0.0 + tv[axis])
+                acc[axis] = acc[axis] + (0.0 + ta[axis])
+        f = mat_t_vec(rot, (acc[0], acc[1], acc[2] - self.gravity_m_s2))  # type: ignore[arg-type]  # arrays
+        return KinematicsMany(q, rot, w, f, tuple(pos), tuple(vel))  # type: ignore[arg-type]  # arrays
+
+    def _segment_arrays(self, index: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`_segment`'s nodes as (3, nodes) arrays, kept beside the lists while the
+        lists are (the same floats)."""
+        lists = self._segment(index)
+        cached = self._segment_arrays_kept.get(index)
+        if cached is None or cached[0] is not lists:
+            arrays = (np.array(lists[0]).T, np.array(lists[1]).T, np.array(lists[2]).T)
+            cached = (lists, arrays)
+            self._segment_arrays_kept[index] = cached
+            for old in [i for i in self._segment_arrays_kept if i not in self._segments]:
+                del self._segment_arrays_kept[old]
+        return cached[1]
+
+    def _tab_position_many(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`_tab_position` at every time of ``t`` (the segments it needs filled as the
+        scalar path fills them, so the same nodes)."""
+        h = self.grid_step_s
+        k = (t / h).astype(np.int64)  # int() of a non-negative float: truncation
+        out = np.empty((3, t.size))
+        segment = k // _SEGMENT
+        for index in np.unique(segment).tolist():
+            sel = segment == index
+            tv, ta, tp = self._segment_arrays(index)
+            ks = k[sel]
+            j = ks % _SEGMENT
+            v0, a0, p0, v1, a1 = tv[:, j], ta[:, j], tp[:, j], tv[:, j + 1], ta[:, j + 1]
+            s = t[sel] / h - ks
+            s2, s3, s4 = s * s, s * s * s, s * s * s * s
+            i00 = s - s3 + 0.5 * s4
+            i10 = 0.5 * s2 - 2.0 / 3.0 * s3 + 0.25 * s4
+            i01 = s3 - 0.5 * s4
+            i11 = -s3 / 3.0 + 0.25 * s4
+            out[:, sel] = p0 + h * (v0 * i00 + h * a0 * i10 + v1 * i01 + h * a1 * i11)
+        return out[0], out[1], out[2]
 
     # ------------------------------------------------------------------ public
     def position_ned(self, t_s: float) -> Vec3:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, NamedTuple
 
@@ -121,6 +121,12 @@ class Scenario(ABC):
     @abstractmethod
     def truth(self, t_s: float) -> TruthState:
         """The true state at ``t_s``; must be a pure function of ``t_s`` and the seed."""
+
+    def chip_truths(self, t_s: Sequence[float]) -> list[ChipTruth]:
+        """:meth:`chip_truth` (with motion) at each time of ``t_s``: what an emulated chip's
+        FIFO fill of n instants asks for in one call. The base asks :meth:`chip_truth` at
+        each; a scenario that can evaluate many times at once overrides this."""
+        return [self.chip_truth(t) for t in t_s]
 
     def chip_truth(self, t_s: float, *, motion: bool = True) -> ChipTruth:
         """What chips measure at ``t_s``, in plain floats: the same values as

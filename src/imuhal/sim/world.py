@@ -17,7 +17,7 @@ import numpy as np
 from imuhal.sim.environment import Environment
 from imuhal.sim.inputs import NO_OTHER, PhysicalInputs
 from imuhal.sim.magnetic import MagneticDisturbance, MagneticDisturbanceSpec
-from imuhal.sim.motion import Kinematics, Motion, Vec3, mat_t_vec
+from imuhal.sim.motion import FlightMotion, Kinematics, Motion, Vec3, mat_t_vec
 from imuhal.sim.scenario import ChipTruth, Phase, Scenario, ScenarioParams, TruthState
 
 
@@ -111,6 +111,39 @@ class MotionScenario(Scenario):
         return ChipTruth(float(t_s), force, rate, mat_t_vec(rotation, field),
                          env.pressure_pa(alt, t_s), env.temperature_degc(alt, t_s), position,
                          velocity)
+
+    def chip_truths(self, t_s: Sequence[float]) -> list[ChipTruth]:
+        """:meth:`chip_truth` (with motion) at each time of ``t_s``, the kinematics of all of
+        them in one numpy pass (:meth:`FlightMotion.kinematics_many`, the same operations as
+        the per-time path); the air and a magnetic disturbance per time, as there. A
+        trajectory or scenario the numpy pass does not cover goes time by time."""
+        motion = self.motion
+        if (type(self).truth is not MotionScenario.truth or not isinstance(motion, FlightMotion)
+                or not motion.vectorised() or len(t_s) < 2):
+            return super().chip_truths(t_s)
+        times = [float(t) for t in t_s]
+        k = motion.kinematics_many(np.asarray(times))
+        if self.disturbance.active:
+            fields = [self.field_ned_ut(t)[0] for t in times]
+            north, east, down = np.asarray(fields).T
+            field: tuple[Any, Any, Any] = (north, east, down)
+        else:
+            field = self._field_ned
+        body_field = mat_t_vec(k.rotation, field)  # type: ignore[arg-type]  # arrays
+        env = self.environment
+        force = np.array(k.specific_force_body_m_s2).T.tolist()
+        rate = np.array(k.angular_rate_body_rad_s).T.tolist()
+        mag = np.array(body_field).T.tolist()
+        position = np.array(k.position_ned_m).T.tolist()
+        velocity = np.array(k.velocity_ned_m_s).T.tolist()
+        out = []
+        for i, t in enumerate(times):
+            p = tuple(position[i])
+            alt = -p[2]
+            out.append(ChipTruth(t, tuple(force[i]), tuple(rate[i]), tuple(mag[i]),
+                                 env.pressure_pa(alt, t), env.temperature_degc(alt, t), p,
+                                 tuple(velocity[i])))
+        return out
 
 
 def chip_vectors(truth: ChipTruth, sensor_to_body: list[list[float]] | None
