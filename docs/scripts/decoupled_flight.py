@@ -29,8 +29,9 @@ from docblock import generated_by, write_block
 
 from imuhal.plugins.manager import load_registry
 
-DEFAULT_RUNS = ('decoupled:{}', 'decoupled:{"turbulence_rate_deg_s": null}',
-                'decoupled:{"preset": "handheld"}', 'madgwick:{}')
+DEFAULT_RUNS = ('decoupled:{}', 'decoupled:{"preset": "adaptive"}',
+                'decoupled:{"preset": "handheld"}', 'vqf:{}', 'vqf:{"withhold_speed_m_s": 3}',
+                'madgwick:{}')
 DOC = Path(__file__).resolve().parents[1] / "estimators.md"
 BLOCK = "decoupled-flight"
 THERMAL: dict[str, tuple[dict[str, Any], bool]] = {

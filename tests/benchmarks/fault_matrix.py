@@ -30,6 +30,13 @@ exception out of ``Pipeline.events``), wrong valid samples (valid and farther fr
 than MARGIN x tolerance; a GNSS velocity more than VELOCITY_MARGIN_M_S off), and unflagged
 wrong estimates (a non-finite attitude or vertical estimate that is not a RejectedEstimate;
 a climb rate more than CLIMB_MARGIN_M_S off the truth after SETTLE_S).
+
+It also checks every device's frame ledger (imuhal.pipeline.accounting) against the chip's
+own count (issue 25): for each device that accounts for a stream and whose emulator records
+its measurement instants, delivered + lost = produced, and within each segment (a stretch
+between reconfigurations) the ledger's produced frames equal the measurements the emulator
+made over the segment's span (``ChipEmulator.frames_between``). A run where either fails is
+listed with the device, the ledger's count and the chip's ("accounting").
 """
 
 from __future__ import annotations
@@ -204,6 +211,35 @@ class RunResult:
     by_design: int = 0
     crash: str = ""
     wall_s: float = 0.0
+    ledgers: dict[str, dict[str, int]] = field(default_factory=dict)
+    """Per accounted device: the ledger's counts, ``chip`` (the emulator's count over the
+    ledger's segments) and ``segments_off`` (segments whose count differs from it)."""
+
+    @property
+    def accounting_off(self) -> list[str]:
+        """The devices whose ledger does not balance or differs from the chip's count."""
+        return [d for d, c in self.ledgers.items()
+                if c["segments_off"] or c["delivered"] + sum(
+                    v for k, v in c.items() if k.startswith("lost_")) != c["produced"]]
+
+
+def ledgers_of(pipeline: Pipeline) -> dict[str, dict[str, int]]:
+    """Every accounted device's frame ledger beside its chip's own count of the frames it
+    produced within each of the ledger's segments (devices whose emulator keeps no record
+    of its measurement instants are left out)."""
+    out: dict[str, dict[str, int]] = {}
+    for name, dev in pipeline.devices.items():
+        chip = pipeline.board.emulators.get(name)
+        ledger = dev.ledger
+        if ledger is None or chip is None or not len(chip.measured_ns):
+            continue
+        segments = ledger.all_segments()
+        measured = [chip.frames_between(a, b) for a, b, _ in segments]
+        out[name] = {**ledger.counts(), "chip": sum(measured),
+                     "within_segments": sum(n for _, _, n in segments),
+                     "segments_off": sum(n != m for (_, _, n), m in
+                                         zip(segments, measured, strict=True))}
+    return out
 
 
 class MatrixChecker(Checker):
@@ -294,6 +330,7 @@ def run_one(board: str, profile: BoardProfile, registry: Registry, kinds: Sequen
                 checker.handle(event)
             result.wrong_estimates = dict(checker.wrong_estimates)
             result.rejected_estimates = checker.rejected
+        result.ledgers = ledgers_of(pipeline)
     except Exception:
         result.crash = traceback.format_exc(limit=-3)
     result.checked = sum(report.checked.values())
@@ -331,7 +368,33 @@ def markdown(results: list[RunResult], seconds: float) -> str:
         lines.append(f"\n- {r.board} {'+'.join(r.kinds)} at {r.rate:g}: "
                      f"{r.wrong_valid or ''} {r.wrong_estimates or ''} "
                      f"{r.crash.strip().splitlines()[-1] if r.crash else ''}")
-    return "\n".join(lines)
+    return "\n".join([*lines, "", *accounting_markdown(results)])
+
+
+def accounting_markdown(results: list[RunResult]) -> list[str]:
+    """Per board and device: the runs whose ledger balanced and matched the chip's own
+    count in every segment, the frames summed over the runs, and each run that did not."""
+    lines = ["| board | device | runs | delivered + lost = produced = the chip's count | "
+             "produced | the chip's count | delivered | lost | slots not converted |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    off: list[str] = []
+    for board in sorted({r.board for r in results}):
+        rs = [r for r in results if r.board == board]
+        for device in sorted({d for r in rs for d in r.ledgers}):
+            held = [r for r in rs if device in r.ledgers]
+            counts = [r.ledgers[device] for r in held]
+            ok = sum(device not in r.accounting_off for r in held)
+            lines.append(
+                f"| {board} | {device} | {len(held)} | {ok} of {len(held)} | "
+                f"{sum(c['within_segments'] for c in counts)} | "
+                f"{sum(c['chip'] for c in counts)} | {sum(c['delivered'] for c in counts)} | "
+                f"{sum(v for c in counts for k, v in c.items() if k.startswith('lost_'))} | "
+                f"{sum(c.get('not_converted', 0) for c in counts)} |")
+            off += [f"- {board} {device}: {'+'.join(r.kinds)} at {r.rate:g}: ledger "
+                    f"{r.ledgers[device]['within_segments']} within segments, chip "
+                    f"{r.ledgers[device]['chip']}" for r in held
+                    if device in r.accounting_off]
+    return lines + (["", *off] if off else [])
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -362,7 +425,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             results.append(r)
             print(f"{board} {'+'.join(kinds)} {rate:g}: {r.faults} faults, {r.checked} checked, "
                   f"wrong {r.wrong_valid or 0}, estimates {r.wrong_estimates or 0}, rejected "
-                  f"{r.rejected_estimates}{' CRASH' if r.crash else ''} ({r.wall_s:.1f} s)",
+                  f"{r.rejected_estimates}{' CRASH' if r.crash else ''}"
+                  f"{' ACCOUNTING ' + ','.join(r.accounting_off) if r.accounting_off else ''}"
+                  f" ({r.wall_s:.1f} s)",
                   file=sys.stderr, flush=True)
             if r.crash:
                 print(r.crash, file=sys.stderr)
@@ -370,7 +435,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 Path(args.json).write_text(json.dumps([asdict(x) for x in results], indent=1))
     if args.markdown:
         print(markdown(results, args.seconds))
-    bad = sum(bool(r.crash or r.wrong_valid or r.wrong_estimates) for r in results)
+    bad = sum(bool(r.crash or r.wrong_valid or r.wrong_estimates or r.accounting_off)
+              for r in results)
     return 1 if bad else 0
 
 

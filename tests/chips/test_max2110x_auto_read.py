@@ -8,6 +8,7 @@ X, Z, Y order) reads another field and fails."""
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import pytest
@@ -209,3 +210,33 @@ def test_read_auto_on_a_bus_without_a_master_is_a_one_line_error() -> None:
 def test_unchanged_periods_grow_as_the_gain_makes_repeats_likelier() -> None:
     assert unchanged_periods(1090) == 5  # the seed's +/-1.3 Ga
     assert unchanged_periods(230) == 19  # +/-8.1 Ga, about 0.5 LSB of noise per axis
+
+
+def test_beside_fifo_reads_every_measurement_the_master_copied_is_handed_out() -> None:
+    """The IMU read through its FIFO (issue 25), its clock 2 % fast and the HMC5883L's 2 %
+    slow, a field that moves a count a measurement (each one's bytes differ): every
+    measurement the master copied reaches the HMC5883L's driver, also when two copies come
+    between two of its polls, each stamped after its copy and in order."""
+    board = Board({"reset_check_s": 60})
+    board.imu = Max21100Driver(board.spi.link(0), {"reset_check_s": 0.1, "read": "fifo"},
+                               device="imu", clock=board.clock)
+    board.imu.configure()
+    board.aux = board.imu.child_buses()["aux"]
+    board.mag = Hmc5883lDriver(board.aux.link(0x1E), {"read": "auto", "reset_check_s": 60},
+                               device="mag", clock=board.clock)
+    board.mag.configure()
+    board.imu_emu.oscillator_error = 0.02
+    board.mag_emu.oscillator_error = -0.02
+    emu = board.mag_emu
+    emu.physics_source = lambda t_ns: emu.set_physics(PhysicalInputs(magnetic_field_ut=(
+        FIELD_UT[0] + t_ns / PERIOD_NS * LSB_UT, FIELD_UT[1], FIELD_UT[2])))
+    board.dithers = board.dithers[1:]
+    board.run(0.5)
+    first = emu.measured_ns[-1]
+    samples = valid_mag(board.run(4.0))
+    measured = [t for t in emu.measured_ns if t > first]
+    latest_copy = board.clock.now_ns() - board.mag._feed.latency_ns
+    expected = [t for t in measured if t < latest_copy]
+    assert len(measured) >= len(samples) >= len(expected) > 280
+    assert all(b.t_ns > a.t_ns for a, b in itertools.pairwise(samples))
+    assert len({s.mag_ut[0] for s in samples}) == len(samples)

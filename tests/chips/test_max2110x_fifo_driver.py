@@ -23,8 +23,8 @@ from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.faults import BusErrors
 from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile, InterruptConfig
-from imuhal_chips.max2110x.driver import Max21100Driver, Max21105Driver
-from imuhal_chips.max2110x.emulator import Max21100Emulator, Max21105Emulator
+from imuhal_chips.max2110x.driver import Max21100Driver
+from imuhal_chips.max2110x.emulator import Max21100Emulator
 from imuhal_chips.max2110x.fifo import frames_aligned
 
 PERIOD_NS = 4_000_000  # the seed paraglider board's 250 Hz
@@ -39,6 +39,24 @@ def _fifo_rig() -> Rig:
 
 def _valid(samples: list[Sample], cls: type[Sample]) -> list[Sample]:
     return [s for s in samples if isinstance(s, cls) and s.valid]
+
+
+def pause_past_the_fifo(rig: Rig, depth_ns: int, period_ns: int) -> list[Sample]:
+    """0.5 s read, the host away for the FIFO's depth and three periods (data_lost), then
+    0.5 s more: the samples of the last 0.5 s."""
+    rig.run(0.5)
+    rig.clock.sleep((depth_ns + 3 * period_ns) / 1e9)
+    rig.next_ns = rig.clock.now_ns()
+    return rig.run(0.5)
+
+
+def shift_the_fifo(rig: Rig) -> list[Sample]:
+    """0.5 s read, then one byte popped from FIFO_DATA (a burst cut short) with a frame in
+    the FIFO, then 0.5 s more: the samples of the last 0.5 s."""
+    rig.run(0.5)
+    rig.clock.sleep_until(rig.next_ns)
+    rig.bus.transfer(0, bytes((0x80 | 0x40 | 0x3E,)), 1)
+    return rig.run(0.5)
 
 
 def test_fifo_frames_read_the_chips_values_stamped_at_its_instants() -> None:
@@ -67,10 +85,7 @@ def test_the_streams_say_frames_are_stamped_on_the_chips_clock() -> None:
 
 def test_a_host_pause_longer_than_the_fifo_is_a_counted_overflow_and_a_reset() -> None:
     rig = _fifo_rig()
-    rig.run(0.5)
-    rig.clock.sleep((DEPTH_NS + 3 * PERIOD_NS) / 1e9)  # the host away: data_lost
-    rig.next_ns = rig.clock.now_ns()
-    samples = rig.run(0.5)
+    samples = pause_past_the_fifo(rig, DEPTH_NS, PERIOD_NS)
     assert rig.driver.health.fifo_overflows == 1
     assert rig.emu.fifo is not None and rig.emu.fifo.frames_dropped >= 3
     assert len(_valid(samples, GyroSample)) > 100  # frames come again after the reset
@@ -78,10 +93,7 @@ def test_a_host_pause_longer_than_the_fifo_is_a_counted_overflow_and_a_reset() -
 
 def test_a_shifted_fifo_is_reset_and_no_wrong_frame_comes_out() -> None:
     rig = _fifo_rig()
-    rig.run(0.5)
-    rig.clock.sleep_until(rig.next_ns)  # a frame in the FIFO
-    rig.bus.transfer(0, bytes((0x80 | 0x40 | 0x3E,)), 1)  # a burst cut short: one byte popped
-    samples = rig.run(0.5)
+    samples = shift_the_fifo(rig)
     assert rig.driver.health.fifo_overflows == 1
     lsb = rig.emu.resolution(GyroSample.channel)
     gyros = _valid(samples, GyroSample)
@@ -95,11 +107,6 @@ def test_a_count_of_part_of_a_frame_or_a_word_beyond_full_scale_is_misaligned() 
     assert frames_aligned(12, [frame, frame])
     assert not frames_aligned(11, [frame])
     assert not frames_aligned(6, [struct.pack(">6h", 10, -20, 30, 0, 0, 30001)])
-
-
-def test_read_fifo_is_refused_on_the_max21105_in_one_line() -> None:
-    with pytest.raises((ConfigurationError, ValueError), match="MAX21100 only"):
-        make_rig(Max21105Driver, Max21105Emulator, read="fifo")
 
 
 def test_read_fifo_needs_equal_gyro_and_accel_rates() -> None:

@@ -20,9 +20,11 @@ def _ned(key: str, kind: VectorKind) -> np.ndarray:
     return vector_to_ned(TRIAL[key], ENU, kind)
 
 
+@pytest.mark.parametrize("withhold", [{}, {"withhold_speed_m_s": 3.0}])
 @pytest.mark.parametrize("use_mag", [True, False])
-def test_outputs_equal_the_packages_own(use_mag):
-    est = VqfEstimator({"sample_period_s": TS, "use_mag": use_mag})
+def test_outputs_equal_the_packages_own(use_mag, withhold):
+    # slow hand-held motion: the input preprocessing, when asked for, withholds nothing
+    est = VqfEstimator({"sample_period_s": TS, "use_mag": use_mag, **withhold})
     q = run_batch(est, _ned("imu_gyr", VectorKind.ANGULAR_RATE),
                   _ned("imu_acc", VectorKind.SPECIFIC_FORCE),
                   _ned("imu_mag", VectorKind.MAGNETIC_FIELD))
@@ -81,3 +83,22 @@ def test_estimate_runs_the_offline_mode_over_a_whole_csv(tmp_path):
     ref = vqf.offlineVQF(TRIAL["imu_gyr"][:n], TRIAL["imu_acc"][:n], TRIAL["imu_mag"][:n], TS,
                          None)
     np.testing.assert_allclose(got, convert_quat(ref["quat9D"], ENU, NED), atol=1e-9)
+
+
+def _turn_tilt_deg(settings: dict) -> tuple[np.ndarray, VqfEstimator]:
+    from tests.filters.decoupled_flight_motion import flight
+    from tests.filters.decoupled_motion import tilt_error_deg
+
+    f = flight(40.0, turn_deg_s=30.0)  # 47 deg of bank at 20 m/s, no speed source
+    est = VqfEstimator({"sample_period_s": f.dt_s, "use_mag": False, **settings})
+    q = run_batch(est, f.gyro_rad_s, f.accel_m_s2, None)
+    return tilt_error_deg(q, f.q_true)[f.t_s >= 20.0], est
+
+
+def test_a_sustained_turn_is_withheld_from_vqf_when_asked_and_the_default_is_the_package():
+    tilt, est = _turn_tilt_deg({"withhold_speed_m_s": 3.0})
+    faithful, plain = _turn_tilt_deg({})
+    assert plain.diagnostics()["accel_withheld"] == 0
+    assert faithful.mean() > 20.0  # the package's filter follows the apparent vertical
+    assert tilt.mean() < 0.5 * faithful.mean()  # measured 4.0 against 33.7
+    assert est.diagnostics()["accel_withheld"] > 0

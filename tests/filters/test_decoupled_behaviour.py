@@ -112,9 +112,13 @@ def test_state_round_trips_and_continues_identically() -> None:
 
 def test_defaults_gate_sustained_acceleration_and_preset_handheld_trusts_every_reading() -> None:
     assert DecoupledEstimator().settings.accel_soft_gate_g == 0.02
+    assert DecoupledEstimator().settings.innovation_speed_m_s is None
     handheld = DecoupledEstimator({"preset": "handheld"}).settings
     assert handheld.accel_soft_gate_g is None
+    assert handheld.innovation_speed_m_s is None
     assert handheld.tau_acc_s == 3.0
+    adaptive = DecoupledEstimator({"preset": "adaptive"}).settings
+    assert (adaptive.accel_soft_gate_g, adaptive.innovation_speed_m_s) == (None, 1.0)
 
 
 def _online(settings: dict, m: Motion, use_mag: bool) -> tuple[np.ndarray, DecoupledEstimator]:

@@ -2,8 +2,8 @@
 
 Seeded synthetic aeroplane flights with known truth (tests/filters/decoupled_flight_motion.py:
 an axial roll measured with a 3 % gyro scale error leaves about 10 deg of tilt error, then
-turbulence that keeps |a| about 0.3 g from 1 g, so the flight defaults' 0.02 g soft gate
-stays closed).
+turbulence that keeps |a| about 0.3 g from 1 g, so ``preset: flight``'s 0.02 g soft gate
+stays closed); ``preset: flight`` is the defaults by name.
 """
 
 from __future__ import annotations
@@ -23,14 +23,15 @@ from imuhal_filters.decoupled.turbulence import TurbulenceParams
 
 
 def _estimator_tilt_deg(f: Flight, settings: dict) -> np.ndarray:
-    est = DecoupledEstimator({"sample_period_s": f.dt_s, **settings})
+    est = DecoupledEstimator({"sample_period_s": f.dt_s, "preset": "flight", **settings})
     q = [est.update(g, a, None, f.dt_s) for g, a in zip(f.gyro_rad_s, f.accel_m_s2, strict=True)]
     return tilt_error_deg(np.array(q), f.q_true)
 
 
 def _kernel_run(f: Flight, turbulence: TurbulenceParams) -> tuple[np.ndarray, np.ndarray]:
-    """(tilt error deg, straight flight declared) per sample, flight defaults otherwise."""
-    params = dataclasses.replace(DecoupledEstimator().settings.params(), turbulence=turbulence)
+    """(tilt error deg, straight flight declared) per sample, ``preset: flight`` otherwise."""
+    params = dataclasses.replace(DecoupledEstimator({"preset": "flight"}).settings.params(),
+                                 turbulence=turbulence)
     k = DecoupledKernel(params)
     k.start(IDENTITY)  # the flights start level, heading north
     q, steady = [], []

@@ -81,3 +81,41 @@ def test_the_summary_line_names_each_cause() -> None:
     ledger.observe(gyro(3 * P))
     assert describe_frames(ledger.counts()) == \
         "produced 4, delivered 2, lost 2 (host stall 2)"
+
+
+def test_slots_a_host_paced_chip_never_converted_are_neither_produced_nor_lost() -> None:
+    """The MS5611's schedule slid 3.4 periods after a late poll: the gap of 5.4 periods
+    holds one frame the chip made and the host did not deliver, and 3 slots it never
+    converted (the chip's own count: delivered + lost)."""
+    ledger = FrameLedger(Quantity.GYRO, P)
+    ledger.observe(gyro(0))
+    ledger.note("host_stall")
+    ledger.slid(3 * P + 2 * P // 5)
+    ledger.observe(gyro(5 * P + 2 * P // 5))
+    assert dict(ledger.lost) == {"host_stall": 1}
+    assert (ledger.produced, ledger.delivered, ledger.not_converted) == (3, 2, 3)
+    assert ledger.counts()["not_converted"] == 3
+
+
+def test_a_gap_of_slots_never_converted_is_a_gap_of_its_own_cause() -> None:
+    ledger = FrameLedger(Quantity.GYRO, P)
+    ledger.observe(gyro(0))
+    ledger.slid(2 * P)
+    loss = ledger.observe(gyro(3 * P))
+    assert loss is not None and (loss.frames, loss.cause) == (2, "not_converted")
+    assert not ledger.lost and ledger.produced == 2
+
+
+def test_a_slide_within_half_a_period_costs_no_slot() -> None:
+    ledger = FrameLedger(Quantity.GYRO, P)
+    ledger.observe(gyro(0))
+    ledger.slid(P // 3)
+    assert ledger.observe(gyro(P + P // 3)) is None
+    ledger.observe(gyro(2 * P + P // 3))  # the slide was forgotten at the frame after it
+    assert (ledger.produced, ledger.not_converted) == (3, 0)
+
+
+def test_the_summary_line_names_the_slots_not_converted() -> None:
+    counts = {"produced": 10, "delivered": 9, "lost_bus_error": 1, "not_converted": 4}
+    assert describe_frames(counts) == \
+        "produced 10, delivered 9, lost 1 (bus error 1); slots not converted 4"

@@ -16,6 +16,7 @@ from typing import Any, ClassVar
 import pytest
 
 from imuhal.cli import main as cli_main
+from imuhal.core.clock import MonotonicClock, SimulatedClock
 from imuhal.core.samples import AccelSample, GyroSample, PressureSample
 from imuhal.drivers.base import PollResult
 from imuhal.emulation import open_emulated
@@ -28,7 +29,12 @@ from imuhal.estimation.outputs import (
     VerticalEstimate,
 )
 from imuhal.pipeline import CsvSink
-from imuhal.pipeline.containment import DISABLE_AFTER_FAILURES
+from imuhal.pipeline.containment import (
+    BLOCKED_WALL_S,
+    DISABLE_AFTER_FAILURES,
+    DriverTiming,
+    driver_timing,
+)
 from imuhal.plugins.hookspecs import hookimpl
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.bundled import default_profile_path
@@ -114,6 +120,32 @@ class HangingBaro(MS5611Driver):
         return super().poll(now_ns)
 
 
+class SpinningBaro(MS5611Driver):
+    """The MS5611 driver of a plugin whose poll after 1 s loops forever on the CPU."""
+
+    name: ClassVar[str] = "acme-ms5611-spins"
+
+    def poll(self, now_ns: int) -> PollResult:
+        while now_ns > SECOND_NS:
+            math.fsum(range(1000))
+        return super().poll(now_ns)
+
+
+class StarvedBaro(MS5611Driver):
+    """The MS5611 driver as a starved host runs it: one poll after 1 s returns 1.5 s later
+    on the wall clock, having used almost no CPU time (as when the scheduler runs other
+    processes instead)."""
+
+    name: ClassVar[str] = "acme-ms5611-starved"
+    _starved = False
+
+    def poll(self, now_ns: int) -> PollResult:
+        if now_ns > SECOND_NS and not self._starved:
+            self._starved = True
+            time.sleep(1.5)
+        return super().poll(now_ns)
+
+
 class BuggyBaro(MS5611Driver):
     """The MS5611 driver of a plugin with a bug: a plain ValueError from every poll after
     1 s (its probe and configuration still work)."""
@@ -134,13 +166,22 @@ class BuggyEmulator(MS5611Emulator):
     chip = "acme-ms5611-buggy"
 
 
+class SpinningEmulator(MS5611Emulator):
+    chip = "acme-ms5611-spins"
+
+
+class StarvedEmulator(MS5611Emulator):
+    chip = "acme-ms5611-starved"
+
+
 ACME = types.SimpleNamespace(
     imuhal_register_estimators=hookimpl(lambda register: [
         register(cls) for cls in (RaisesLater, NanAttitude, ZeroQuaternion, Slow)]),
     imuhal_register_drivers=hookimpl(lambda register: [
-        register(cls) for cls in (HangingBaro, BuggyBaro)]),
+        register(cls) for cls in (HangingBaro, BuggyBaro, SpinningBaro, StarvedBaro)]),
     imuhal_register_emulators=hookimpl(lambda register: [
-        register(cls) for cls in (HangingEmulator, BuggyEmulator)]),
+        register(cls) for cls in (HangingEmulator, BuggyEmulator, SpinningEmulator,
+                                  StarvedEmulator)]),
 )
 """The third party's plugin module: hook implementations, as its entry point would load."""
 
@@ -163,8 +204,8 @@ def _board(tmp_path: Path, *, estimator: str | None = None, inputs: str = "[baro
     return path
 
 
-def _run(registry: Registry, path: Path, seconds: float, sinks: list[Any] | None = None
-         ) -> tuple[Any, list[Any]]:
+def _run(registry: Registry, path: Path, seconds: float, sinks: list[Any] | None = None,
+         timing: DriverTiming | None = None) -> tuple[Any, list[Any]]:
     events: list[Any] = []
 
     class Keep:
@@ -175,6 +216,8 @@ def _run(registry: Registry, path: Path, seconds: float, sinks: list[Any] | None
             pass
 
     with open_emulated(load_profile(path, registry), registry, scenario="thermal") as p:
+        if timing is not None:
+            p.driver_timing = timing
         summary = p.run(seconds, [Keep(), *(sinks or [])])
     return summary, events
 
@@ -239,18 +282,60 @@ def test_a_zero_quaternion_is_flagged_not_normalisable() -> None:
 
 def test_a_driver_whose_poll_never_returns_is_isolated_and_the_board_goes_on(
         acme_registry: Registry, tmp_path: Path) -> None:
+    """An emulated run times driver calls on CPU time; one that blocks (a sleep of an
+    hour) is cut off by the wall-clock bound (shortened here from BLOCKED_WALL_S)."""
     board = _board(tmp_path, baro_driver="acme-ms5611-hangs")
     t0 = time.monotonic()
-    summary, events = _run(acme_registry, board, 3.0)
+    summary, events = _run(acme_registry, board, 3.0,
+                           timing=DriverTiming(cpu=True, blocked_wall_s=2.0))
     assert time.monotonic() - t0 < 60
     warning = next(w for w in summary.warnings if w.startswith("driver of 'baro'"))
     assert warning.startswith("driver of 'baro' (acme-ms5611-hangs; plugin 'acme') disabled at "
                               "t=1.0")
-    assert "did not return from a call within its deadline of 1 s" in warning
+    assert "did not return from a call within its deadline of 1 s of CPU time" in warning
+    assert "or 2 s on the wall clock" in warning
     assert "device 'baro' is isolated" in warning
     assert summary.contained["driver of 'baro'"] == {"deadlines_missed": 1, "disabled": 1}
     assert not _after(events, PressureSample, 1_100_000_000)
     assert _after(events, GyroSample, 2_900_000_000, "imu")
+
+
+def test_an_emulated_driver_spinning_on_the_cpu_is_cut_off_at_its_cpu_deadline(
+        acme_registry: Registry, tmp_path: Path) -> None:
+    t0 = time.monotonic()
+    summary, events = _run(acme_registry, _board(tmp_path, baro_driver="acme-ms5611-spins"),
+                           3.0)
+    assert time.monotonic() - t0 < BLOCKED_WALL_S  # the CPU timer, not the wall bound
+    assert summary.contained["driver of 'baro'"] == {"deadlines_missed": 1, "disabled": 1}
+    assert not _after(events, PressureSample, 1_100_000_000)
+    assert _after(events, GyroSample, 2_900_000_000, "imu")
+
+
+def test_an_emulated_run_starved_of_the_cpu_keeps_every_device(
+        acme_registry: Registry, tmp_path: Path) -> None:
+    """A call that took 1.5 s on the wall clock but no CPU time (the host ran others) is not
+    a driver overrunning its 1 s deadline: the emulated run's figures stay those of an
+    unloaded host."""
+    summary, events = _run(acme_registry, _board(tmp_path, baro_driver="acme-ms5611-starved"),
+                           3.0)
+    assert "driver of 'baro'" not in summary.contained
+    assert _after(events, PressureSample, 2_900_000_000, "baro")
+
+
+def test_on_the_wall_clock_the_same_slow_call_is_cut_off(
+        acme_registry: Registry, tmp_path: Path) -> None:
+    """A hardware board's timing: a chip that does not answer within the deadline is late,
+    whatever the reason."""
+    summary, _ = _run(acme_registry, _board(tmp_path, baro_driver="acme-ms5611-starved"), 3.0,
+                      timing=DriverTiming(cpu=False))
+    warning = next(w for w in summary.warnings if w.startswith("driver of 'baro'"))
+    assert "within its deadline of 1 s (from its chip's rate)" in warning
+    assert summary.contained["driver of 'baro'"] == {"deadlines_missed": 1, "disabled": 1}
+
+
+def test_hardware_boards_time_driver_calls_on_the_wall_and_others_on_cpu_time() -> None:
+    assert driver_timing(types.SimpleNamespace(clock=MonotonicClock())).cpu is False
+    assert driver_timing(types.SimpleNamespace(clock=SimulatedClock())).cpu is True
 
 
 def test_a_driver_raising_a_plain_value_error_is_contained_to_its_device(

@@ -30,7 +30,10 @@ burst (``AutoReadFeed.latency_ns``: one accelerometer period plus the IMU's poll
 measurement instant and stamps the sample with the poll's time, about 6 ms after the
 measurement at the seed's rates (one-shot: 1.7 ms). A poll that finds the bytes unchanged
 looks once more one latency later (a copy a failed read or burst delayed), then waits for
-the next measurement.
+the next measurement. Every copy that changed since the previous poll is taken
+(``AutoReadFeed.take``), not only the latest: when the master's reads bring two
+measurements between two polls (FIFO reads at the IMU's own instants, or the look a
+latency later), the older is handed out too, stamped with its delivery.
 """
 
 from __future__ import annotations
@@ -156,10 +159,10 @@ class Hmc5883lDriver(Driver):
                               fix="use read: one-shot")
         # read: auto (see the module docstring)
         self._feed: AutoReadFeed | None = None
-        self._seen: bytes | None = None
-        """The slave bytes at the previous poll."""
         self._emitted: bytes | None = None
         """The bytes of the last sample handed out."""
+        self._stamped_ns = 0
+        """The time stamp of the last sample handed out (read: auto)."""
         self._settle_ns = 0
         """Bytes that changed before this are from before configure() or its first
         measurement (still at the old gain)."""
@@ -234,7 +237,7 @@ class Hmc5883lDriver(Driver):
         if self.settings.read == "auto":
             assert isinstance(self.link.bus, AutoReadBus)
             feed = self._feed = self.link.bus.auto_read(self.link.target, Reg.X_MSB, 6)
-            self._seen = feed.data
+            feed.take()  # copies from before this configuration
             period = self._grid.period_ns
             self._settle_ns = self._mode_written_ns + period + feed.latency_ns
             self._unchanged_limit_ns = round(
@@ -320,17 +323,17 @@ class Hmc5883lDriver(Driver):
         data = self._feed.data
         frozen = self._frozen.observe(Quantity.MAG, data) if data is not None \
             else SampleFlag.OK
-        if data is not None and data != self._seen:
-            self._seen = data
-            if self._feed.changed_ns < self._settle_ns or data == self._emitted:
-                return PollResult([], self._grid.next_after(now_ns))
-            sample = self._decoded(data, now_ns, blank_flag(data))
-            if not sample.flags & SampleFlag.BLANK:
-                self._emitted = data
+        changes = self._feed.take()
+        if changes:
+            samples, blank = self._measurements(changes, now_ns)
+            if samples:
                 self._fresh_ns = now_ns
                 self._retrying = False
                 self._watch.fresh_poll()
-                return PollResult([sample], self._grid.next_after(now_ns))
+                return PollResult(samples, self._grid.next_after(now_ns))
+            if blank is None:  # from before configure() settled, or handed out before
+                return PollResult([], self._grid.next_after(now_ns))
+            sample = blank
         elif now_ns - self._fresh_ns <= self._unchanged_limit_ns:
             if not self._retrying:
                 # The master's copy may have come a burst late (a failed slave read or IMU
@@ -344,6 +347,30 @@ class Hmc5883lDriver(Driver):
             sample = MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                                mag_ut=NAN3, flags=frozen or SampleFlag.STALE)
         return self._no_measurement(sample, now_ns)
+
+    def _measurements(self, changes: list[tuple[int, bytes]],
+                      now_ns: int) -> tuple[list[Sample], Sample | None]:
+        """The samples of the master's copies that changed since the previous poll
+        (``changes``: delivery time, bytes, oldest first; more than one when its reads
+        brought two measurements between two polls, as FIFO reads at the IMU's own
+        instants can), and the last blank one when none is a measurement. The newest is
+        stamped with this poll, as one alone is; an older one with its delivery (its
+        measurement at most the feed's latency before it), kept in order."""
+        samples: list[Sample] = []
+        blank: Sample | None = None
+        for k, (t_ns, data) in enumerate(changes):
+            if t_ns < self._settle_ns or data == self._emitted:
+                continue
+            left = len(changes) - 1 - k  # copies after this one: each needs a later stamp
+            stamp = min(max(t_ns, self._stamped_ns + 1), now_ns - left) if left else now_ns
+            sample = self._decoded(data, stamp, blank_flag(data))
+            if sample.flags & SampleFlag.BLANK:
+                blank = sample
+                continue
+            self._emitted = data
+            self._stamped_ns = stamp
+            samples.append(sample)
+        return samples, (None if samples else blank)
 
     def _no_measurement(self, sample: Sample, now_ns: int) -> PollResult:
         """No usable measurement (``sample`` says why): check the configuration at once, and

@@ -5,9 +5,9 @@ Register facts: imuhal's chip-facts notes (chips.md) sections 5 (MAX21105 user g
 decoding in decode.py; this module only talks to the bus and keeps time.
 
 Per poll the driver reads one burst from SYSTEM_STATUS through TEMP_L, so the data-ready
-bits and every word come from one transaction. With ``read: fifo`` (MAX21100 only) it reads
-the chip's FIFO instead (imuhal_chips.max2110x.fifo, which states what of the FIFO's layout
-is known and what is the MAX21105's, assumed) and programs INT1 for a data-ready line
+bits and every word come from one transaction. With ``read: fifo`` it reads the chip's
+FIFO instead (imuhal_chips.max2110x.fifo, which states what of each part's FIFO is known
+and what is assumed) and programs INT1 for a data-ready line
 (registers.INT1_DATA_READY_PLAN, likewise assumed). Samples are in the chip's sensor frame:
 gyro rad/s, accel m/s^2 specific force, temperature degC.
 """
@@ -53,7 +53,7 @@ from imuhal.drivers.validity import (
 from imuhal_chips.max2110x import decode
 from imuhal_chips.max2110x.aux_bus import Max21100AuxBus
 from imuhal_chips.max2110x.decode import Counts3, be_int16
-from imuhal_chips.max2110x.fifo import FIFO_CFG_VALUE, FIFO_FRAME_WORDS, FifoRead, FifoReader
+from imuhal_chips.max2110x.fifo import FifoRead, FifoReader
 from imuhal_chips.max2110x.registers import (
     ACCEL_RANGE_G,
     DR_CFG_TEMP_EN,
@@ -106,8 +106,9 @@ TEMPERATURE_RANGE_DEGC = (-40.0, 85.0)
 _MAG_OFFSET = Reg.MAG_X_H - Reg.SYSTEM_STATUS
 _SIX_WORDS = struct.Struct(">6h")
 """Gyro X, Y, Z then accel X, Y, Z after the status byte: signed big-endian words."""
-_AUX_TEMP_BYTES = MAX21100.temp_register + 2 - Reg.MAG_X_H
-"""MAG X/Y/Z and TEMP of the MAX21100 (0x30..0x37): what read: fifo reads beside the FIFO."""
+_AFTER_ACCEL = Reg.ACC_X_H + 6
+"""0x30: MAG X/Y/Z then TEMP on the MAX21100 (0x30..0x37), TEMP on the MAX21105 (0x30,
+0x31): what read: fifo reads beside the FIFO."""
 _GYRO_DR = int(Status.GYRO_DR)
 _ACC_DR = int(Status.ACC_DR)
 _OVERRUN = int(Status.GYRO_ERR | Status.ACC_ERR)
@@ -157,7 +158,9 @@ class Max2110xDriver(Driver):
         self._fifo: FifoReader | None = None
         """read: fifo: the FIFO reader (made at configure(), for the period read back)."""
         self._overflow_pending = False
-        self._aux_temp_frame = bytes((self.regs.read_address(Reg.MAG_X_H, _AUX_TEMP_BYTES),))
+        self._aux_temp_bytes = self.part.temp_register + 2 - _AFTER_ACCEL
+        self._aux_temp_frame = bytes((self.regs.read_address(_AFTER_ACCEL,
+                                                             self._aux_temp_bytes),))
 
     # --- identity -------------------------------------------------------------------------
 
@@ -216,11 +219,11 @@ class Max2110xDriver(Driver):
         }
 
     def _fifo_plan(self) -> dict[int, int]:
-        """read: fifo: the threshold (a read's frames, in words) and the FIFO's mode."""
+        """read: fifo: the channels stored, the threshold (a read's frames) and the FIFO's
+        mode, at the part's own addresses."""
         if self.settings.read != "fifo":
             return {}
-        return {Reg.FIFO_TH: FIFO_FRAME_WORDS * self.settings.fifo_frames,
-                Reg.FIFO_CFG: FIFO_CFG_VALUE}
+        return self.part.fifo.plan(self.settings.fifo_frames)
 
     def configure(self) -> None:
         """Soft reset, program bank 0 from the tables (power-down while writing), read back
@@ -273,7 +276,7 @@ class Max2110xDriver(Driver):
         self._fast = min(periods, key=lambda c: periods[c])
         self._grid = PollGrid(periods[self._fast], early_fraction=EARLY_FRACTION, track=True)
         if self.settings.read == "fifo":
-            self._fifo = FifoReader(self.regs, periods[self._fast], self.clock)
+            self._fifo = FifoReader(self.regs, periods[self._fast], self.clock, self.part.fifo)
 
     def _specs(self, regs: Mapping[int, int]) -> tuple[StreamSpec, StreamSpec, StreamSpec]:
         """Gyro, accelerometer and temperature specs from configuration register values
@@ -327,7 +330,8 @@ class Max2110xDriver(Driver):
         bursts over the configuration block (POWER_CFG up to ACC_CFG1 or the auto-read's
         MAG_MAP_REG, skipping GYRO_CFG3) and one read for each register beyond it."""
         return RegisterPlan.of(
-            self.describe(), values, names={reg: Reg(reg).name for reg in values}, gap=1,
+            self.describe(), values, names={reg: self.part.register_name(reg) for reg in values},
+            gap=1,
             hint=f"check the bus (SPI mode 3, signal integrity) and that this is a "
                  f"{self.part.part}")
 
@@ -488,13 +492,13 @@ class Max2110xDriver(Driver):
                     or now_ns - self._last_temp_ns >= TEMPERATURE_PERIOD_NS)
         if self._feed is None and not temp_due:
             return []
-        raw = self.regs.send(self._aux_temp_frame, _AUX_TEMP_BYTES)
+        raw = self.regs.send(self._aux_temp_frame, self._aux_temp_bytes)
         if self._feed is not None:
             self._feed.deliver(now_ns, raw[:self._feed.length])
         if not temp_due:
             return []
         self._last_temp_ns = now_ns
-        return [self._temperature_sample(be_int16(raw, _AUX_TEMP_BYTES - 2), now_ns,
+        return [self._temperature_sample(be_int16(raw, self._aux_temp_bytes - 2), now_ns,
                                          blank_flag(raw))]
 
     def _frame_samples(self, got: FifoRead) -> list[Sample]:
@@ -527,14 +531,18 @@ class Max2110xDriver(Driver):
 
     def resume(self, now_ns: int) -> int | None:
         """One transfer of a poll failed: when the configuration still reads back as
-        written, the chip kept its state (a glitch on the wire), so carry on at the next
-        point of the poll grid instead of a soft reset and reconfiguration (which loses
-        about 10 ms of data); anything else gets the full recovery. A sample the failed
-        burst did not fetch is overwritten by then (the chip flags the overrun and the grid
-        re-anchors): one period lost, nothing wrong."""
+        written, the chip kept its state (a glitch on the wire), so poll again at once
+        instead of a soft reset and reconfiguration (which loses about 10 ms of data);
+        anything else gets the full recovery. The retry reads the sample the failed burst
+        missed while it is still the newest, stamped about when it was due. Waiting for the
+        next point of the grid instead read it there a period late when the grid (which
+        creeps early of the chip) came just before the next measurement, and kept the
+        grid a period behind the chip until it crept past a measurement: a loss counted
+        where the chip lost nothing, and one missed where it did (the frame ledger's count
+        against the chip's, tests/integration/test_poll_stamped_accounting.py)."""
         if self.scales is None or self._off_plan(overdue=True):
             return None
-        return self._grid.next_after(max(now_ns, self.clock.now_ns()))
+        return max(now_ns, self.clock.now_ns())
 
     def filter_memory_outputs(self) -> dict[Quantity, int]:
         """Outputs after a saturated one that each channel's low-pass can still carry it:

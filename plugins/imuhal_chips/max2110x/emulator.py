@@ -40,23 +40,23 @@ sections 5, 6 state none), so the default error is 0 and a test or script sets u
 the faster channel (the one the driver accounts for; the gyro on a tie) are recorded
 (``measured_ns``), so a test can count what the chip produced.
 
-FIFO (MAX21100 only; emulator_fifo.py states what is known and what is assumed, each once):
-FIFO_TH, FIFO_CFG (normal mode, gyro and accel stores), FIFO_COUNT in words, FIFO_STATUS
-(data_lost, read_empty, ovthold, full, empty), FIFO_DATA popped a byte per byte read; with
-the FIFO on, every measurement is latched in turn (none skipped while the host is away) and
-a frame written for each, so a host stall shows as the chip's buffering would keep it.
+FIFO (emulator_fifo.py states what is known and what is assumed, each once, and where each
+part keeps its settings: MAX21105 FIFO_STORE 0x17, FIFO_THS 0x18, FIFO_CFG 0x19; MAX21100
+FIFO_TH 0x17, FIFO_CFG 0x18): normal mode, gyro and accel stores, FIFO_COUNT in words,
+FIFO_STATUS (data_lost, read_empty, ovthold, full, empty), FIFO_DATA popped a byte per byte
+read; with the FIFO on, every measurement is latched in turn (none skipped while the host is
+away) and a frame written for each, so a host stall shows as the chip's buffering would keep it.
 
 Fault injection: ``who_am_i`` (set another value: a clone or the sibling part),
 ``stuck_data_ready`` (the measurement engine hangs: no new data, data-ready never set; a soft
 reset cures it), ``silent_reset()`` (a brown-out: every register back to power-on defaults
 without the host being told), ``absent`` (base class) and bus errors via the EmulatedBus.
-INT1 (MAX21100 only; emulator_int.py states what is the MAX21105's and what is assumed): a
+INT1 (emulator_int.py states what is the MAX21105's and what is assumed for both parts): a
 50 us active-high pulse at each measurement whose data-ready source bank 1 selects, driving
 a profile's ``interrupt:`` line on an emulated board.
 
-Not modelled: the MAX21105's FIFO (its registers read 0) and INT pins, the FIFO's interrupt
-and snapshot modes, latched and motion interrupts, parity address modes, self-test, OIS
-modes and on-chip fusion.
+Not modelled: the FIFO's interrupt and snapshot modes, latched and motion interrupts, parity
+address modes, self-test, OIS modes and on-chip fusion.
 """
 
 from __future__ import annotations
@@ -74,7 +74,7 @@ from imuhal.core.errors import BusError, NackError
 from imuhal.core.samples import Quantity
 from imuhal.emulation import ChipEmulator, EmulatedBus, PhysicalInputs
 from imuhal_chips.max2110x import emulator_int as intp
-from imuhal_chips.max2110x.emulator_fifo import Max21100Fifo
+from imuhal_chips.max2110x.emulator_fifo import MAX21100_FIFO, MAX21105_FIFO, FifoMap, Max2110xFifo
 from imuhal_chips.max2110x.error_spec import MAX21100_ERROR_SPEC, MAX21105_ERROR_SPEC
 from imuhal_chips.max2110x.registers import (
     ACC_CFG2_MAG_RATE_MASK,
@@ -173,8 +173,6 @@ _ACC_X_H = int(Reg.ACC_X_H)
 _POWER_CFG = int(Reg.POWER_CFG)
 _PWR_ACC_CFG = int(Reg.PWR_ACC_CFG)
 _NEVER = float("inf")
-_FIFO_TH = int(Reg.FIFO_TH)
-_FIFO_CFG = int(Reg.FIFO_CFG)
 _FIFO_COUNT = int(Reg.FIFO_COUNT)
 _FIFO_STATUS = int(Reg.FIFO_STATUS)
 _FIFO_DATA = int(Reg.FIFO_DATA)
@@ -201,8 +199,8 @@ class Max2110xEmulator(ChipEmulator):
     part: ClassVar[PartSpec]
     models_stuck_data_ready = True
     pulls_physics = True
-    models_fifo: ClassVar[bool] = False
-    """The MAX21100's FIFO is modelled (emulator_fifo.py); the MAX21105's is not."""
+    fifo_map: ClassVar[FifoMap]
+    """The part's FIFO registers (emulator_fifo.py: one model, each part's map)."""
     gyro_odr_by_code: ClassVar[tuple[float, ...]]
     """GYRO_CFG2 ODR code -> Hz, written here from the part's datasheet (not the driver's)."""
     accel_odr_by_code: ClassVar[tuple[float, ...]]
@@ -245,8 +243,8 @@ class Max2110xEmulator(ChipEmulator):
         self._wake_ns: float = _NEVER
         self._ahead_until_ns = -1
         """The latest instant already announced to the board (``_announce_instants``)."""
-        self.fifo: Max21100Fifo | None = Max21100Fifo() if self.models_fifo else None
-        """The FIFO (MAX21100 only; empty after every reset)."""
+        self.fifo = Max2110xFifo(self.fifo_map)
+        """The FIFO (empty after every reset)."""
         self.stuck_data_ready = False
         self.power_on_resets += 1
 
@@ -503,15 +501,12 @@ class Max2110xEmulator(ChipEmulator):
             self.physics_ahead(np.unique(np.concatenate(instants)).tolist())
         self._ahead_until_ns = until
 
-    # --- FIFO (the MAX21100's; emulator_fifo.py says what is known and what assumed) ----
+    # --- FIFO (emulator_fifo.py: one model, each part's registers; what is assumed) -----
 
     def _fifo_frame_channel(self) -> int | None:
         """The channel at whose measurements the FIFO writes a frame: the faster measuring
         stored channel (the gyro on a tie); None: the FIFO stores nothing."""
-        fifo = self.fifo
-        if fifo is None:
-            return None
-        gyro, accel = fifo.storing
+        gyro, accel = self.fifo.storing
         gyro = gyro and self._next_ns[_GYRO] is not None
         accel = accel and self._next_ns[_ACCEL] is not None
         if gyro and accel:
@@ -521,13 +516,11 @@ class Max2110xEmulator(ChipEmulator):
         return None
 
     def _fifo_frame_words(self) -> int:
-        assert self.fifo is not None
         return 3 * sum(self.fifo.storing)
 
     def _fifo_write(self) -> None:
         """Write one frame of the stored channels' latest words (gyro, then accel) to the
         FIFO, big-endian."""
-        assert self.fifo is not None
         gyro, accel = self.fifo.storing
         firsts = ((_GYRO_X_H,) if gyro else ()) + ((_ACC_X_H,) if accel else ())
         words = self.words
@@ -538,7 +531,6 @@ class Max2110xEmulator(ChipEmulator):
         """FIFO_COUNT (words), FIFO_STATUS (read-to-clear bits) or a byte popped from
         FIFO_DATA; 0x3F (RST_REG) reads 0."""
         fifo = self.fifo
-        assert fifo is not None
         if reg == _FIFO_COUNT:
             return min(fifo.words(), 0xFF)
         if reg == _FIFO_STATUS:
@@ -546,6 +538,36 @@ class Max2110xEmulator(ChipEmulator):
         if reg == _FIFO_DATA:
             return fifo.pop()
         return 0
+
+    # --- INT1 pin (emulator_int.py: what is the MAX21105's and what is assumed) ------------
+
+    models_interrupt = True
+
+    def interrupt_pin(self) -> tuple[bool, int]:
+        """Active high, a 50 us pulse [UNVERIFIED]."""
+        return True, intp.INT_PULSE_NS
+
+    def interrupt_after(self, after_ns: int) -> int | None:
+        """The first measurement instant after ``after_ns`` of a channel whose data-ready
+        drives INT1 (bank 1: INT_CFG_2 INT1 enable, INT_MSK bit 7, INT_SRC_SEL gyro_dr or
+        acc_dr, INT_TMO_CFG 0 unlatched); None: the pin stays quiet."""
+        self._advance()
+        bank1 = self.banks[1]
+        if (self.absent or self.stuck_data_ready or not bank1[intp.INT_CFG_2] & intp.INT1_ENABLE
+                or not bank1[intp.INT_MSK] & intp.INT_MSK_ENABLE or bank1[intp.INT_TMO_CFG]):
+            return None
+        found: list[int] = []
+        for index, source in ((_GYRO, intp.SRC_GYRO_DR), (_ACCEL, intp.SRC_ACCEL_DR)):
+            due = self._next_ns[index]
+            if due is None or not bank1[intp.INT_SRC_SEL] & source:
+                continue
+            period = self._period_ns[index]
+            # the channel's instants run ... due - period, due, due + period ... from its
+            # first measurement after the write that started it
+            t = due - max(0, (due - after_ns - 1) // period) * period if after_ns < due \
+                else due + ((after_ns - due) // period + 1) * period
+            found.append(max(t, self._started_ns[index] + period))
+        return min(found, default=None)
 
     # --- bus face -------------------------------------------------------------------------
 
@@ -593,11 +615,11 @@ class Max2110xEmulator(ChipEmulator):
         touched: Sequence[int]
         if read_len <= 1 or not step:
             touched = (reg,) if read_len else ()
-            if reg == _FIFO_DATA and self.fifo is not None:
+            if reg == _FIFO_DATA:
                 out = bytes(self._read(reg) for _ in range(read_len))  # each byte pops one
             else:
                 out = bytes((self._read(reg),)) * read_len
-        elif self.fifo is not None and reg + read_len > _FIFO_COUNT:
+        elif reg + read_len > _FIFO_COUNT:
             # the FIFO's registers have side effects: byte by byte, the pointer wrapping
             touched = [(reg + k) & ADDRESS_MASK for k in range(read_len)]
             out = bytes(self._read(r) for r in touched)
@@ -645,7 +667,7 @@ class Max2110xEmulator(ChipEmulator):
             if reg == _I2C_MST_DATA and self.bank == 0 and self.part.has_aux_master:
                 return self._mst_data
             return self.banks[self.bank][reg]
-        if reg >= _FIFO_COUNT and self.fifo is not None:
+        if reg >= _FIFO_COUNT:
             return self._fifo_register(reg)
         if reg >= _GYRO_X_H:  # data words first: they are most of every burst
             high = reg & ~1
@@ -708,11 +730,8 @@ class Max2110xEmulator(ChipEmulator):
     def _bank0_written(self, reg: int, value: int) -> None:
         if reg in _CONFIG_REGS:
             self._restart_timing()
-        if self.fifo is not None and reg in (_FIFO_TH, _FIFO_CFG):
-            if reg == _FIFO_TH:
-                self.fifo.threshold_words = value
-            else:
-                self.fifo.configure(value)
+        if reg in self.fifo_map.registers:
+            self.fifo.write(reg, value)
         if reg == _DR_CFG and self.part.has_aux_master:
             trigger = value & DR_CFG_ONESHOT_MASK
             if trigger == DR_CFG_ONESHOT_WRITE:
@@ -730,6 +749,7 @@ class Max21105Emulator(Max2110xEmulator):
     error_spec = MAX21105_ERROR_SPEC
     conformance_sweep = True
     part = MAX21105
+    fifo_map = MAX21105_FIFO
     gyro_odr_by_code = (8000.0, 4000.0, 2000.0, 800.0, 400.0, 200.0, 100.0, 50.0, 25.0, 10.0)
     accel_odr_by_code = (2000.0, 800.0, 400.0, 200.0, 100.0, 50.0, 25.0, 10.0,
                          *(5.0,) * 8)  # 1xxx: 5 Hz
@@ -742,7 +762,7 @@ class Max21100Emulator(Max2110xEmulator):
     error_spec = MAX21100_ERROR_SPEC
     conformance_sweep = True
     part = MAX21100
-    models_fifo = True
+    fifo_map = MAX21100_FIFO
     gyro_odr_by_code = (8000.0, 4000.0, 2000.0, 1000.0, 500.0, 250.0, 125.0, 62.5, 31.25,
                         15.625, 7.8125, 3.90625)
     accel_odr_by_code = (2000.0, 1000.0, 500.0, 250.0, 125.0, 62.5, 31.25)
@@ -764,36 +784,6 @@ class Max21100Emulator(Max2110xEmulator):
 
     def child_buses(self) -> dict[str, EmulatedBus]:
         return {"aux": self._aux}
-
-    # --- INT1 pin (emulator_int.py: what is the MAX21105's and what is assumed) ------------
-
-    models_interrupt = True
-
-    def interrupt_pin(self) -> tuple[bool, int]:
-        """Active high, a 50 us pulse [UNVERIFIED]."""
-        return True, intp.INT_PULSE_NS
-
-    def interrupt_after(self, after_ns: int) -> int | None:
-        """The first measurement instant after ``after_ns`` of a channel whose data-ready
-        drives INT1 (bank 1: INT_CFG_2 INT1 enable, INT_MSK bit 7, INT_SRC_SEL gyro_dr or
-        acc_dr, INT_TMO_CFG 0 unlatched); None: the pin stays quiet."""
-        self._advance()
-        bank1 = self.banks[1]
-        if (self.absent or self.stuck_data_ready or not bank1[intp.INT_CFG_2] & intp.INT1_ENABLE
-                or not bank1[intp.INT_MSK] & intp.INT_MSK_ENABLE or bank1[intp.INT_TMO_CFG]):
-            return None
-        found: list[int] = []
-        for index, source in ((_GYRO, intp.SRC_GYRO_DR), (_ACCEL, intp.SRC_ACCEL_DR)):
-            due = self._next_ns[index]
-            if due is None or not bank1[intp.INT_SRC_SEL] & source:
-                continue
-            period = self._period_ns[index]
-            # the channel's instants run ... due - period, due, due + period ... from its
-            # first measurement after the write that started it
-            t = due - max(0, (due - after_ns - 1) // period) * period if after_ns < due \
-                else due + ((after_ns - due) // period + 1) * period
-            found.append(max(t, self._started_ns[index] + period))
-        return min(found, default=None)
 
     def _accel_latched(self, measurements: int, instant_ns: int) -> None:
         """Slave auto-read: with MAG_SLV_CFG enabled, every 2^ACC_CFG2[3:1]-th accelerometer

@@ -1,6 +1,19 @@
-"""The MAX21100's FIFO, from the chip's side, for its emulator.
+"""The MAX21100's and MAX21105's FIFO, from the chip's side, for their emulators: one model
+(:class:`Max2110xFifo`), each part's register map (:class:`FifoMap`).
 
-What is known (imuhal's chip facts, section 6, and the sources behind them):
+MAX21105 (user guide rev 1.4, imuhal's chip facts section 5) [DS]: bank 0 FIFO_STORE 0x17
+([1] accelerometer, [0] gyro stored), FIFO_THS 0x18 (the threshold in samples, full axis
+sets), FIFO_CFG 0x19 ([4:3] mode 00 off, 01 normal, 10 interrupt, 11 snapshot; [2] double
+size; [1] interrupt mode; [0] overrun); common bank FIFO_COUNT 0x3C, FIFO_STATUS 0x3D (bit 4
+data_lost, bit 3 read_empty, bit 2 ovthold, bit 1 full, bit 0 empty), FIFO_DATA 0x3E (a
+burst without increment pops the FIFO); a sample is GX, GY, GZ, AX, AY, AZ big-endian words.
+Not in the facts, [UNVERIFIED]: the depth (the MAX21100's 64 words are taken; double size
+is taken to double it), FIFO_COUNT's unit (words, as on the MAX21100), what ``overrun``
+means (taken: a full FIFO overwrites its oldest frame instead of dropping the new one, and
+sets data_lost), which events set and clear the status bits (taken as below); the
+interrupt and snapshot modes are not modelled (the FIFO stores nothing in them).
+
+MAX21100 (imuhal's chip facts, section 6, and the sources behind them):
 - Addresses [V]: FIFO_TH 0x17 and FIFO_CFG 0x18 in bank 0; FIFO_COUNT 0x3C, FIFO_STATUS
   0x3D, FIFO_DATA 0x3E in the common bank.
 - From Kris Winer's MAX21100 sketch (calibrateMAX21100, one of the facts' four sources)
@@ -9,41 +22,36 @@ What is known (imuhal's chip facts, section 6, and the sources behind them):
   says the threshold was reached; FIFO_COUNT counts words (three per 3-axis sample); "128
   bytes in the FIFO = 64 words"; FIFO_DATA is read 6 bytes at a time.
 
-What is not known for the MAX21100 and is taken from the MAX21105's user guide (rev 1.4,
-facts section 5) or assumed, each [UNVERIFIED]:
+What is not known for the MAX21100 and is taken from the MAX21105's user guide or assumed,
+each [UNVERIFIED]:
 - FIFO_CFG [7:6] the mode, 00 off, 01 normal (Winer's 0x40); 10 interrupt and 11 snapshot
   as on the MAX21105 ([4:3] there) are not modelled: the FIFO stores nothing in them.
   FIFO_CFG [1] accelerometer, [0] gyro stored (Winer; the MAX21105's FIFO_STORE order).
-- A frame is the stored channels' words, gyro X, Y, Z then accel X, Y, Z, big-endian (the
-  MAX21105's layout), written at each measurement of the faster stored channel (the gyro on
-  a tie) with the other's latest words, once both are latched for that instant.
-- Depth 64 words (Winer's comment): 10 whole gyro + accel frames.
-- Full (normal mode): a frame that does not fit whole is not written; FIFO_STATUS data_lost
-  (bit 4) is set. The MAX21105's FIFO_CFG [0] "overrun" choice has no known MAX21100 bit
-  (Winer's bit 0 stores the gyro), so the oldest frames are never overwritten.
-- FIFO_STATUS as on the MAX21105: bit 4 data_lost, bit 3 read_empty (FIFO_DATA read while
-  the FIFO is on and empty; the read returns 0x00), bit 2 ovthold (count >= FIFO_TH,
-  FIFO_TH not 0), bit 1 full (no room for another frame), bit 0 empty. Reading FIFO_STATUS
-  clears data_lost and read_empty.
-- FIFO_DATA pops one byte per byte read; a burst with the no-increment bit (the MAX21105's
-  "burst without increment pops FIFO") pops one byte per byte; with increment the pointer
-  moves on to 0x3F after the first.
-- Writing FIFO_CFG with the mode off empties the FIFO (how the driver resets it: off, then
-  its configuration again); a soft reset empties it too.
+- The MAX21105's frame layout, status bits and popping (above). The MAX21105's FIFO_CFG [0]
+  "overrun" choice has no known MAX21100 bit (Winer's bit 0 stores the gyro), so its
+  oldest frames are never overwritten.
+
+Both parts, as modelled:
+- A frame is the stored channels' words, gyro X, Y, Z then accel X, Y, Z, big-endian,
+  written at each measurement of the faster stored channel (the gyro on a tie) with the
+  other's latest words, once both are latched for that instant.
+- Full (normal mode, no overrun): a frame that does not fit whole is not written;
+  FIFO_STATUS data_lost is set.
+- FIFO_STATUS: read_empty is FIFO_DATA read while the FIFO is on and empty (the read
+  returns 0x00); ovthold is a count at or over the threshold (not 0); full is no room for
+  another frame; empty. Reading FIFO_STATUS clears data_lost and read_empty.
+- FIFO_DATA pops one byte per byte read; a burst with the no-increment bit pops one byte
+  per byte; with increment the pointer moves on to 0x3F after the first.
+- Writing the mode off empties the FIFO (how the driver resets it: off, then its
+  configuration again); a soft reset empties it too.
 """
 
 from __future__ import annotations
 
 from collections import deque
+from dataclasses import dataclass
 from typing import Final
 
-DEPTH_WORDS: Final = 64
-"""128 bytes (Winer's comment) [UNVERIFIED for the MAX21100's datasheet, none found]."""
-MODE_SHIFT: Final = 6
-MODE_MASK: Final = 0xC0
-MODE_NORMAL: Final = 0x40
-STORE_GYRO: Final = 0x01
-STORE_ACCEL: Final = 0x02
 STATUS_DATA_LOST: Final = 0x10
 STATUS_READ_EMPTY: Final = 0x08
 STATUS_OVTHOLD: Final = 0x04
@@ -53,24 +61,79 @@ EMPTY_READ: Final = 0x00
 """What FIFO_DATA reads with nothing in the FIFO [UNVERIFIED]."""
 
 
-class Max21100Fifo:
-    """The FIFO's bytes and status (module docstring)."""
+@dataclass(frozen=True)
+class FifoMap:
+    """Where a part keeps its FIFO's settings (bank 0) and what their bits mean."""
 
-    def __init__(self) -> None:
+    part: str
+    cfg: int
+    """FIFO_CFG's address."""
+    threshold: int
+    """The threshold register's address."""
+    store: int | None
+    """FIFO_STORE's address; None: the store bits are in FIFO_CFG."""
+    mode_mask: int
+    mode_normal: int
+    store_gyro: int
+    store_accel: int
+    overrun: int
+    """FIFO_CFG's bit for "a full FIFO overwrites its oldest frame" (0: the part has none)."""
+    double_size: int
+    """FIFO_CFG's bit that doubles the depth (0: none)."""
+    depth_words: int
+    threshold_unit_words: int
+    """Words per unit of the threshold register."""
+
+    @property
+    def registers(self) -> frozenset[int]:
+        return frozenset(r for r in (self.cfg, self.threshold, self.store) if r is not None)
+
+
+MAX21100_FIFO: Final = FifoMap(
+    part="MAX21100", cfg=0x18, threshold=0x17, store=None, mode_mask=0xC0, mode_normal=0x40,
+    store_gyro=0x01, store_accel=0x02, overrun=0, double_size=0,
+    depth_words=64,  # 128 bytes (Winer's comment) [UNVERIFIED: no datasheet found]
+    threshold_unit_words=1)
+MAX21105_FIFO: Final = FifoMap(
+    part="MAX21105", cfg=0x19, threshold=0x18, store=0x17, mode_mask=0x18, mode_normal=0x08,
+    store_gyro=0x01, store_accel=0x02, overrun=0x01, double_size=0x04,
+    depth_words=64,  # [UNVERIFIED]: the MAX21100's
+    threshold_unit_words=3)  # samples, a full axis set each [DS]
+
+
+class Max2110xFifo:
+    """One part's FIFO: its bytes and status (module docstring), its settings where
+    ``fifo_map`` says."""
+
+    def __init__(self, fifo_map: FifoMap) -> None:
+        self.map = fifo_map
         self._bytes: deque[int] = deque()
         self.threshold_words = 0
         self.cfg = 0
+        self.store = 0
+        """FIFO_STORE (MAX21105; the MAX21100's store bits are in ``cfg``)."""
         self._sticky = 0
         """data_lost and read_empty: set by events, cleared by a FIFO_STATUS read."""
         self.frames_dropped = 0
         """Frames not written because they did not fit (since construction)."""
         self.frames_written = 0
 
-    def configure(self, cfg: int) -> None:
-        """FIFO_CFG written: the mode off empties the FIFO."""
-        self.cfg = cfg
-        if not cfg & MODE_MASK:
-            self.clear()
+    def write(self, reg: int, value: int) -> None:
+        """One of the FIFO's settings written (``map.registers``); FIFO_CFG with the mode
+        off empties the FIFO."""
+        m = self.map
+        if reg == m.threshold:
+            self.threshold_words = value * m.threshold_unit_words
+        elif reg == m.store:
+            self.store = value
+        elif reg == m.cfg:
+            self.cfg = value
+            if not value & m.mode_mask:
+                self.clear()
+
+    @property
+    def depth_words(self) -> int:
+        return self.map.depth_words * (2 if self.cfg & self.map.double_size else 1)
 
     def clear(self) -> None:
         self._bytes.clear()
@@ -79,25 +142,31 @@ class Max21100Fifo:
     @property
     def storing(self) -> tuple[bool, bool]:
         """(gyro, accelerometer) stored: normal mode with the channel's store bit."""
-        if self.cfg & MODE_MASK != MODE_NORMAL:
+        m = self.map
+        if self.cfg & m.mode_mask != m.mode_normal:
             return False, False
-        return bool(self.cfg & STORE_GYRO), bool(self.cfg & STORE_ACCEL)
+        bits = self.cfg if m.store is None else self.store
+        return bool(bits & m.store_gyro), bool(bits & m.store_accel)
 
     def words(self) -> int:
         return len(self._bytes) // 2
 
     def push(self, frame: bytes) -> None:
-        """One frame's bytes (whole words); not written when it does not fit whole."""
-        if len(self._bytes) + len(frame) > 2 * DEPTH_WORDS:
+        """One frame's bytes (whole words). When it does not fit whole: not written, or, with
+        the overrun bit, written over the oldest frame; either sets data_lost."""
+        if len(self._bytes) + len(frame) > 2 * self.depth_words:
             self.frames_dropped += 1
             self._sticky |= STATUS_DATA_LOST
-            return
+            if not self.cfg & self.map.overrun:
+                return
+            for _ in range(min(len(frame), len(self._bytes))):
+                self._bytes.popleft()
         self._bytes.extend(frame)
         self.frames_written += 1
 
     def pop(self) -> int:
         if not self._bytes:
-            if self.cfg & MODE_MASK:  # a FIFO turned off has no read to flag
+            if self.cfg & self.map.mode_mask:  # a FIFO turned off has no read to flag
                 self._sticky |= STATUS_READ_EMPTY
             return EMPTY_READ
         return self._bytes.popleft()
@@ -108,7 +177,7 @@ class Max21100Fifo:
         value = self._sticky
         if self.threshold_words and n >= self.threshold_words:
             value |= STATUS_OVTHOLD
-        if frame_words and n + frame_words > DEPTH_WORDS:
+        if frame_words and n + frame_words > self.depth_words:
             value |= STATUS_FULL
         if not self._bytes:
             value |= STATUS_EMPTY

@@ -1,4 +1,6 @@
-"""The MAX21100's INT1 pin as its emulator models it: a data-ready pulse per measurement.
+"""The MAX21105's and MAX21100's INT1 pin as their emulators model it: a data-ready pulse per
+measurement. For the MAX21105 the registers and the example's values below are its user
+guide's [DS]; the pulse's width and the modes not modelled are as stated for both.
 
 Known (imuhal's chip facts, section 6) [V]: the MAX21100's interrupt registers are in bank 1
 (0x00..0x0F) with INT_SRC_SEL at 0x17. Their bits are documented only for the MAX21105

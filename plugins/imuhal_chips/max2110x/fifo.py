@@ -1,6 +1,14 @@
-"""Reading the MAX21100's FIFO (``read: fifo``): whole frames, overflow as a counted loss and
-a reset, a check for a shifted FIFO, frames stamped on the chip's own clock or with its
-data-ready edges (imuhal.drivers.fifo_frames, shared with the MPU-9250's reader).
+"""Reading the MAX21100's or MAX21105's FIFO (``read: fifo``): whole frames, overflow as a
+counted loss and a reset, a check for a shifted FIFO, frames stamped on the chip's own clock
+or with its data-ready edges (imuhal.drivers.fifo_frames, shared with the MPU-9250's reader).
+
+The MAX21105's FIFO is the documented one (its user guide, rev 1.4, imuhal's chip facts
+section 5) [DS]: FIFO_STORE 0x17, FIFO_THS 0x18 (in samples), FIFO_CFG 0x19 (mode [4:3],
+overrun [0]: left clear, so a full FIFO writes no more), FIFO_COUNT 0x3C, FIFO_STATUS 0x3D
+(bit 4 data_lost), FIFO_DATA 0x3E popped by a burst without increment, frames of gyro X,
+Y, Z then accel X, Y, Z big-endian words. Its depth is not in the facts: the MAX21100's 64
+words are taken (single size) [UNVERIFIED], as is FIFO_COUNT in words. Where each part keeps
+its settings: registers.MAX21100_FIFO, registers.MAX21105_FIFO.
 
 No MAX21100 datasheet is known (imuhal's chip facts, section 6). The FIFO's addresses are
 certain (FIFO_TH 0x17, FIFO_CFG 0x18, FIFO_COUNT 0x3C, FIFO_STATUS 0x3D, FIFO_DATA 0x3E);
@@ -51,19 +59,16 @@ from imuhal.bus.registers import RegisterView
 from imuhal.core.clock import Clock
 from imuhal.drivers.fifo_frames import FifoFrames, FifoRead
 from imuhal_chips.max2110x.registers import (
-    FIFO_CFG_NORMAL,
-    FIFO_CFG_STORE_ACCEL,
-    FIFO_CFG_STORE_GYRO,
     FIFO_DEPTH_WORDS,
     FIFO_FRAME_WORDS,
     FIFO_STATUS_DATA_LOST,
     FULL_SCALE_COUNTS,
     NO_INCREMENT_BIT,
+    FifoRegisters,
     Reg,
 )
 
 FRAME_BYTES = 2 * FIFO_FRAME_WORDS
-FIFO_CFG_VALUE = FIFO_CFG_NORMAL | FIFO_CFG_STORE_GYRO | FIFO_CFG_STORE_ACCEL
 DEPTH_FRAMES = FIFO_DEPTH_WORDS // FIFO_FRAME_WORDS
 """Whole frames the FIFO holds: 10."""
 _WORDS = struct.Struct(f">{FIFO_FRAME_WORDS}h")
@@ -78,11 +83,14 @@ def frames_aligned(count_words: int, frames: list[bytes]) -> bool:
 
 
 class FifoReader(FifoFrames):
-    """Reads whole frames from the FIFO of one MAX21100 (see the module docstring)."""
+    """Reads whole frames from the FIFO of one MAX21100 or MAX21105 (the module docstring);
+    ``fifo``: where the part keeps its FIFO's settings."""
 
-    def __init__(self, regs: RegisterView, period_ns: int, clock: Clock) -> None:
+    def __init__(self, regs: RegisterView, period_ns: int, clock: Clock,
+                 fifo: FifoRegisters) -> None:
         super().__init__(period_ns, clock)
         self.regs = regs
+        self.fifo = fifo
         self.frame_bytes = FRAME_BYTES
         self._count_frame = bytes((regs.read_address(Reg.FIFO_COUNT, 2),))
         # FIFO_DATA in one burst without increment (bit 6 on SPI and I2C alike)
@@ -96,8 +104,8 @@ class FifoReader(FifoFrames):
         """Empty the FIFO: its mode off, then the configuration again. ``restart``: the
         chip's sampling restarted too (configured), not only its FIFO."""
         requested_ns = self.clock.now_ns()
-        self.regs.write(Reg.FIFO_CFG, 0x00)
-        self.regs.write(Reg.FIFO_CFG, FIFO_CFG_VALUE)
+        self.regs.write(self.fifo.cfg, 0x00)
+        self.regs.write(self.fifo.cfg, self.fifo.cfg_on)
         self.cleared(requested_ns, restart=restart)
 
     def read(self) -> FifoRead:

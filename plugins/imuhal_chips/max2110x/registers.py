@@ -147,10 +147,49 @@ FIFO_STATUS_DATA_LOST = 0x10
 """FIFO_STATUS bit 4 data_lost [UNVERIFIED: the MAX21105's bit; Winer uses bit 2, the
 threshold, which is the MAX21105's ovthold too]."""
 FIFO_DEPTH_WORDS = 64
-"""Winer: "128 bytes in the FIFO = 64 words" [SS]."""
+"""Winer: "128 bytes in the FIFO = 64 words" [SS]; the MAX21105's (single size) is not in
+its facts and is taken to be the same [UNVERIFIED]."""
 FIFO_FRAME_WORDS = 6
 """Gyro X, Y, Z then accel X, Y, Z per frame, big-endian [UNVERIFIED: the MAX21105's
 layout]; FIFO_COUNT counts words (Winer: "fifo_count/3" three-axis samples) [SS]."""
+
+
+
+@dataclass(frozen=True)
+class FifoRegisters:
+    """Where a part keeps its FIFO's settings in bank 0, and what read: fifo writes there."""
+
+    cfg: int
+    """FIFO_CFG's address."""
+    cfg_on: int
+    """FIFO_CFG for normal mode, gyro + accel frames, a full FIFO writing no more."""
+    threshold: int
+    threshold_unit_words: int
+    """Words per unit of the threshold register."""
+    store: int | None = None
+    """FIFO_STORE's address (MAX21105); None: the store bits are in FIFO_CFG."""
+    store_value: int = 0
+
+    def plan(self, frames: int) -> dict[int, int]:
+        """The registers (address -> value, in write order) for a threshold of ``frames``
+        gyro + accel frames; FIFO_CFG last, so the FIFO starts with everything set."""
+        out = {} if self.store is None else {self.store: self.store_value}
+        out[self.threshold] = frames * FIFO_FRAME_WORDS // self.threshold_unit_words
+        out[self.cfg] = self.cfg_on
+        return out
+
+
+MAX21100_FIFO = FifoRegisters(
+    cfg=Reg.FIFO_CFG, threshold=Reg.FIFO_TH, threshold_unit_words=1,
+    cfg_on=FIFO_CFG_NORMAL | FIFO_CFG_STORE_GYRO | FIFO_CFG_STORE_ACCEL)
+"""FIFO_TH 0x17 in words, FIFO_CFG 0x18 with the store bits (Winer's 0x41 | 0x42) [SS]."""
+MAX21105_FIFO = FifoRegisters(
+    cfg=0x19, threshold=0x18, threshold_unit_words=3, store=0x17, store_value=0x03,
+    cfg_on=0x08)
+"""The MAX21105 user guide's (facts section 5) [DS]: FIFO_STORE 0x17 ([1] accel, [0] gyro),
+FIFO_THS 0x18 in samples (3-axis sets: 3 words), FIFO_CFG 0x19 [4:3] = 01 normal mode,
+single size, [1] interrupt mode and [0] overrun clear (a full FIFO writes no more: the
+oldest frames stay whole)."""
 
 INT1_DATA_READY_PLAN: Mapping[int, int] = {
     0x17: 0x20,  # INT_SRC_SEL: the gyro's data-ready (har-in-air's MAX21105 value)
@@ -160,8 +199,9 @@ INT1_DATA_READY_PLAN: Mapping[int, int] = {
 }
 """Bank 1, read: fifo: INT1 pulses at each gyro measurement, the data-ready line a profile's
 ``interrupt:`` takes. The MAX21105 user guide's DATA_READY interrupt example (facts section
-5), taken for the MAX21100, whose bank 1 has its interrupt registers at the same addresses
-(INT_SRC_SEL 0x17 [V]) but whose bits no source describes [UNVERIFIED]."""
+5) with har-in-air's gyro-only source [DS+SS], taken for the MAX21100, whose bank 1 has its
+interrupt registers at the same addresses (INT_SRC_SEL 0x17 [V]) but whose bits no source
+describes [UNVERIFIED]."""
 
 # --- setting tables: physical value -> code (and sensitivity) ------------------------------
 
@@ -238,8 +278,18 @@ class PartSpec:
     accel_axes_enable: int
     """Bits OR-ed into PWR_ACC_CFG (MAX21100: X/Y/Z enable in [2:0]; MAX21105: RFU = 0)."""
     has_aux_master: bool
+    fifo: FifoRegisters
     bank0_defaults: Mapping[int, int] = field(default_factory=dict)
     """Power-on values of bank-0 registers that are not 0x00 (emulator)."""
+
+    def register_name(self, reg: int) -> str:
+        """A bank-0 or common register's name on this part (the FIFO's differ)."""
+        if self.fifo.store is not None:
+            fifo = {self.fifo.store: "FIFO_STORE", self.fifo.threshold: "FIFO_THS",
+                    self.fifo.cfg: "FIFO_CFG"}
+            if reg in fifo:
+                return fifo[reg]
+        return Reg(reg).name
 
     @property
     def burst_start(self) -> int:
@@ -262,6 +312,7 @@ MAX21100 = PartSpec(
     power_cfg_on=(POWER_MODE_ACC_GYRO_NORMAL << POWER_MODE_SHIFT) | 0x07,  # 0x7F
     accel_axes_enable=0x07,
     has_aux_master=True,
+    fifo=MAX21100_FIFO,
     # Gyro BW 100 Hz default [V]; FS field default assumed as on the MAX21105 (2000 dps);
     # gyro ODR 500 Hz and accel ODR 125 Hz defaults [V]; accel FS default assumed 2 g.
     bank0_defaults={0x01: 0x28, 0x02: 0x04, 0x04: 0xC0, 0x05: 0x04, 0x13: DR_CFG_TEMP_EN},
@@ -278,6 +329,7 @@ MAX21105 = PartSpec(
     power_cfg_on=POWER_MODE_ACC_GYRO_NORMAL << POWER_MODE_SHIFT,  # 0x78
     accel_axes_enable=0x00,
     has_aux_master=False,
+    fifo=MAX21105_FIFO,
     # SNS_CFG_1 0x28 (100 Hz, 2000 dps), SNS_CFG_2 400 Hz, accel 2 g, accel ODR 400 Hz,
     # ACC_CFG_2 output LPF, temperature enabled [DS].
     bank0_defaults={0x01: 0x28, 0x02: 0x04, 0x04: 0xC0, 0x05: 0x02, 0x06: 0x40, 0x13: 0x01},

@@ -51,8 +51,8 @@ class Max2110xSettings(DriverSettings):
     """How often (s) the driver reads back its configuration to catch a silent chip reset."""
     read: Literal["registers", "fifo"] = "registers"
     """``registers``: the data registers (one sample) polled on a grid after each
-    measurement; ``fifo`` (MAX21100 only): the chip keeps gyro + accel frames in its FIFO
-    (10 frames, 40 ms at 250 Hz; its layout partly assumed, imuhal_chips.max2110x.fifo) and
+    measurement; ``fifo``: the chip keeps gyro + accel frames in its FIFO (10 frames, 40 ms
+    at 250 Hz; what of each part's FIFO is assumed: imuhal_chips.max2110x.fifo) and
     the driver reads them in bursts every ``fifo_frames`` periods, stamped on the chip's
     own clock, so a host stall of up to 80 % of the FIFO loses nothing."""
     fifo_frames: int = Field(default=1, ge=1, le=8)
@@ -63,10 +63,6 @@ class Max2110xSettings(DriverSettings):
     def _fifo_readable(self) -> Max2110xSettings:
         if self.read != "fifo":
             return self
-        if type(self).part is not MAX21100:
-            raise ValueError(
-                f"read: fifo is built for the MAX21100 only (the {type(self).part.part}'s "
-                "FIFO registers sit elsewhere and are not read yet); use read: registers")
         if float(self.gyro_odr_hz) != float(self.accel_odr_hz):
             raise ValueError(
                 f"read: fifo needs gyro_odr_hz equal to accel_odr_hz (the FIFO writes both "

@@ -348,6 +348,12 @@ class MS5611Driver(Driver):
             self._state = _State.CONVERTING_D2
             return start + self._t_d2_ns
         self._state = _State.CONVERTING_D1
+        # A pressure conversion started more than half a period late (a stalled host)
+        # completes in the next slot: the cadence slides with it, so that its slot counts
+        # as never converted. Less late, it keeps the grid (the next cycle catches up), or a
+        # host's usual microseconds of lateness would slow the cadence below its rate.
+        if start + self._t_d1_ns - self._target_ns > self._period_ns // 2:
+            self._slide_to(start + self._t_d1_ns)
         return start + self._t_d1_ns
 
     def _start_pressure_when_due(self, now_ns: int) -> int:
@@ -363,9 +369,9 @@ class MS5611Driver(Driver):
                 if now_ns < start:
                     return PollResult([], start)
                 # Late beyond the slack: slide this cycle rather than shorten a wait.
-                self._target_ns = max(self._target_ns, now_ns + self._cycle_ns(True))
+                self._slide_to(now_ns + self._cycle_ns(True))
                 return PollResult([], self._start_conversion(Measurement.D2, now_ns))
-            self._target_ns = max(self._target_ns, now_ns + self._t_d1_ns)
+            self._slide_to(now_ns + self._t_d1_ns)
             return PollResult([], self._start_pressure_when_due(now_ns))
 
         ready = self._conv_start_ns + (
@@ -382,7 +388,7 @@ class MS5611Driver(Driver):
             self._fresh_temperature = True
             self._need_temperature = False
             self._state = _State.IDLE
-            self._target_ns = max(self._target_ns, now_ns + self._t_d1_ns)
+            self._slide_to(now_ns + self._t_d1_ns)
             return PollResult([], self._start_pressure_when_due(now_ns))
 
         d1, bad = self._read_adc()
@@ -416,7 +422,17 @@ class MS5611Driver(Driver):
         self._target_ns += self._period_ns
         if self._cycle_start_ns() < now_ns:
             # Behind by more than the slack in a period: re-anchor the grid at now.
-            self._target_ns = now_ns + self._cycle_ns(self._need_temperature)
+            self._slide_to(now_ns + self._cycle_ns(self._need_temperature))
+
+    def _slide_to(self, target_ns: int) -> None:
+        """The pressure conversion due at ``_target_ns`` cannot complete before
+        ``target_ns`` (the poll came late, a convert command failed): the cadence slides
+        there. The chip converts nothing in the time slid, which the frame ledger is told
+        (``DeviceHealth.not_converted_ns``) so that it counts those slots as never
+        converted, not as frames lost."""
+        if target_ns > self._target_ns:
+            self.health.not_converted_ns += target_ns - self._target_ns
+            self._target_ns = target_ns
 
     def _emit(self, d1: int, *, t_ns: int) -> list[Sample]:
         assert self.coefficients is not None and self._d2 is not None
@@ -443,7 +459,12 @@ class MS5611Driver(Driver):
         """An ADC read carried no measurement (``flags`` says why: the conversion did not
         happen after a chip reset or glitch, nothing drove the bus, or the converter hung).
         Report the slot with NaN values and restart the cycle with a temperature; reset the
-        chip when this keeps happening."""
+        chip when this keeps happening.
+
+        The slot's pressure was converted only when this was a D1 read that found something
+        other than 0 (0: no conversion completed); otherwise the chip made no frame there,
+        a slot never converted (the frame ledger counts it apart, not as a frame lost)."""
+        converted = self._state is _State.CONVERTING_D1 and not flags & SampleFlag.STALE
         samples: list[Sample] = [
             PressureSample(t_ns=now_ns, device=self.device, flags=flags,
                            pressure_pa=math.nan),
@@ -457,6 +478,9 @@ class MS5611Driver(Driver):
         self._since_temperature = 0
         self._fresh_temperature = False
         # the next slot of the sample grid: never report missing slots faster than odr_hz
-        self._target_ns = max(self._target_ns + self._period_ns,
-                              now_ns + self._cycle_ns(True))
+        if converted:
+            self._target_ns += self._period_ns
+        else:
+            self._slide_to(self._target_ns + self._period_ns)
+        self._slide_to(now_ns + self._cycle_ns(True))
         return PollResult(samples, self._cycle_start_ns())

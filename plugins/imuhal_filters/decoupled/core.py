@@ -37,6 +37,7 @@ import math
 from dataclasses import dataclass, field
 
 from imuhal_filters.common.gate import soft_gate_weight
+from imuhal_filters.common.innovation import InnovationSpeed
 from imuhal_filters.common.quat import IDENTITY, Quat, Vec, multiply, to_global
 from imuhal_filters.decoupled.bias import BiasParams, GyroBiasKalman
 from imuhal_filters.decoupled.turbulence import StraightFlightDetector, TurbulenceParams
@@ -50,6 +51,8 @@ class DecoupledParams:
     tau_acc_rest_s: float | None = None
     tau_mag_s: float = 9.0
     accel_soft_gate_g: float | None = None
+    innovation_speed_m_s: float | None = None
+    innovation_tau_s: float = 1.0
     rest_gyro_th_rad_s: float = math.radians(2.0)
     rest_acc_th_g: float = 0.05
     rest_filter_tau_s: float = 0.5
@@ -186,6 +189,8 @@ class DecoupledKernel:
         self._rb_filter = ButterworthLowPass(self.p.tau_acc_s)
         self.kf = GyroBiasKalman(self.p.bias, bias)
         self.straight = StraightFlightDetector(self.p.turbulence)
+        self.innovation = None if self.p.innovation_speed_m_s is None else InnovationSpeed(
+            self.p.innovation_tau_s, self.p.innovation_speed_m_s, self.p.tau_acc_s)
         self.gyro_lp: Vec | None = None
         self.acc_lp: Vec | None = None
         self.rest_s = 0.0
@@ -276,6 +281,10 @@ class DecoupledKernel:
         # by only the weight's share of the step (it holds still for a zero weight; feeding
         # it its own estimate instead would close a loop around the second-order filter)
         weight = soft_gate_weight(acc_g, self.p.accel_soft_gate_g)
+        if self.innovation is not None:
+            if self.rest:
+                self.innovation.reset()
+            weight *= self.innovation.weight(a, self.acc_i, dt)
         dt_filter = dt * weight
         if self.p.tau_acc_rest_s is not None and self.rest:
             # at rest the specific force is gravity alone: what is left to correct is gyro

@@ -45,10 +45,15 @@ class DecoupledSettings(AhrsSettings):
         # full; the inertial-frame filter averages the hand's acceleration out, a gate would
         # weight it unevenly (docs/evaluation.md)
         "handheld": {"accel_soft_gate_g": None, "tau_acc_s": 3.0, "tau_acc_rest_s": None,
-                     "turbulence_rate_deg_s": None},
+                     "turbulence_rate_deg_s": None, "innovation_speed_m_s": None},
         # the defaults by name (a profile can say what it relies on)
         "flight": {"accel_soft_gate_g": 0.02, "tau_acc_s": 10.0, "tau_acc_rest_s": 3.0,
-                   "turbulence_rate_deg_s": 3.0},
+                   "turbulence_rate_deg_s": 3.0, "innovation_speed_m_s": None},
+        # VQF's settings weighted by the innovation speed instead of a fixed gate: one
+        # setting for both worlds, tried as the default and not good enough yet (BROAD's
+        # fast translation and stationary-magnet trials; docs/estimators.md, decoupled)
+        "adaptive": {"accel_soft_gate_g": None, "tau_acc_s": 3.0, "tau_acc_rest_s": None,
+                     "turbulence_rate_deg_s": None, "innovation_speed_m_s": 1.0},
     }
 
     tau_acc_s: float = Field(10.0, gt=0.0)
@@ -75,6 +80,18 @@ class DecoupledSettings(AhrsSettings):
     aerobatics is walked back instead of kept (flight benchmark `rc-flight` tilt RMS 1.2
     against 4.2 deg without; `thermal` unchanged). None: off (``preset:
     handheld``; without a soft gate it never acts)."""
+    innovation_speed_m_s: float | None = Field(None, gt=0.0)
+    """Weight each step of the accelerometer filter by the innovation speed
+    (common/innovation.py): the filter's innovation (the reading minus its gravity,
+    almost-inertial frame), its own mean over ``tau_acc_s`` taken out (a constant innovation
+    is a tilt error), integrated across gravity into a speed with the leak
+    ``innovation_tau_s`` and zeroed at rest; the step counts 1 / (1 + (speed / this)^2).
+    ``preset: adaptive`` sets 1 m/s, a hand's speed. None (default): no such weight.
+    Measured in docs/estimators.md (decoupled): it flies the flight targets, but BROAD's
+    fast translation and stationary-magnet trials, where the hand moves faster, lose much."""
+    innovation_tau_s: float = Field(1.0, gt=0.0)
+    """Leak of that speed (s): hand motion and gusts turn round within about a second (0.5-2
+    Hz); a velocity change kept longer is a manoeuvre's."""
     tau_mag_s: float = Field(9.0, gt=0.0)
     """Heading correction time constant (s) (VQF's published default, 9 s)."""
     rest_gyro_th_deg_s: float = Field(2.0, gt=0.0)
@@ -122,6 +139,8 @@ class DecoupledSettings(AhrsSettings):
             tau_acc_s=self.tau_acc_s, tau_acc_rest_s=self.tau_acc_rest_s,
             tau_mag_s=self.tau_mag_s,
             accel_soft_gate_g=self.accel_soft_gate_g,
+            innovation_speed_m_s=self.innovation_speed_m_s,
+            innovation_tau_s=self.innovation_tau_s,
             rest_gyro_th_rad_s=math.radians(self.rest_gyro_th_deg_s),
             rest_acc_th_g=self.rest_acc_th_m_s2 / g, rest_min_s=self.rest_min_s,
             bias_clip_rad_s=math.radians(self.bias_clip_deg_s),
@@ -187,6 +206,7 @@ class DecoupledEstimator(AhrsEstimator):
                 "mag_ref": None if k.mag_ref is None else list(k.mag_ref),
                 "mag_cand": None if k.mag_cand is None else list(k.mag_cand),
                 "mag_cand_s": k.mag_cand_s, "mag_disturbed": k.mag_disturbed,
+                "innovation": None if k.innovation is None else k.innovation.as_list(),
                 "straight_flight": k.straight.as_list()}
 
     def _set_filter_state(self, state: dict[str, Any]) -> None:
@@ -206,6 +226,8 @@ class DecoupledEstimator(AhrsEstimator):
             float(state["rest_s"])
         k.mag_ref, k.mag_cand = tup(state["mag_ref"]), tup(state["mag_cand"])
         k.mag_cand_s, k.mag_disturbed = float(state["mag_cand_s"]), bool(state["mag_disturbed"])
+        if k.innovation is not None and state.get("innovation") is not None:
+            k.innovation.load_list(state["innovation"])  # absent before the adaptive weight
         if "straight_flight" in state:  # absent from states saved before the detector
             k.straight.load_list(state["straight_flight"])
 

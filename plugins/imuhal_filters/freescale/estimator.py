@@ -22,6 +22,8 @@ import numpy as np
 
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.core.frames import FloatArray
+from imuhal.core.gaps import StreamGap
+from imuhal.core.quantities import Quantity
 from imuhal.core.samples import (
     AccelSample,
     AirspeedSample,
@@ -35,6 +37,7 @@ from imuhal.core.streams import StreamSpec
 from imuhal.estimation.base import Estimator, EstimatorSettings
 from imuhal.estimation.gravity import linear_accel_ned_m_s2
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate
+from imuhal_filters.common.gaps import CountedGaps
 from imuhal_filters.common.limits import bound_settings, within_full_scale
 from imuhal_filters.common.quat import Vec
 from imuhal_filters.common.turn import KinematicAcceleration
@@ -53,7 +56,8 @@ from imuhal_filters.freescale.settings import (
 
 _COUNTERS = ("gyro_samples", "accel_samples", "mag_samples", "kalman_steps",
              "skipped_invalid", "skipped_not_body_frame", "windows_without_accel_or_mag",
-             "windows_with_stale_accel_or_mag", "beyond_full_scale")
+             "windows_with_stale_accel_or_mag", "beyond_full_scale", "gyro_ticks_over_gaps",
+             "restarts_after_gap")
 
 
 class _Latest:
@@ -118,6 +122,9 @@ class _FreescaleEstimator(Estimator):
         self._pending = False
         self._last_step: KalmanStep | None = None
         self._counts = dict.fromkeys(_COUNTERS, 0)
+        # an IMU's streams come in the same reads: a loss counted on its accelerometer (the
+        # faster channel of some chips) lost the same gyro frames
+        self._gaps = CountedGaps((Quantity.GYRO, Quantity.ACCEL))
         self._kinematics = KinematicAcceleration(self.settings)
         self._kinematic_body_m_s2: Vec = (0.0, 0.0, 0.0)
         cs = self.settings.coordinate_system
@@ -138,6 +145,9 @@ class _FreescaleEstimator(Estimator):
     def process(self, item: Sample | Estimate) -> list[Estimate]:
         if not isinstance(item, self.consumes):
             return []
+        if isinstance(item, StreamGap):
+            self._gaps.note(item)
+            return []
         if isinstance(item, VelocitySample | AirspeedSample):
             self._on_speed(item)
             return []
@@ -155,15 +165,7 @@ class _FreescaleEstimator(Estimator):
             return []
         out: list[Estimate] = []
         if isinstance(item, GyroSample):
-            if self._pending:  # the window's accel/mag never caught up: use what there is
-                out += self._run_step()
-            self._counts["gyro_samples"] += 1
-            self._kinematic_body_m_s2 = self._kinematics.step(item.t_ns, vec)
-            deg = (math.degrees(vec[0]), math.degrees(vec[1]), math.degrees(vec[2]))
-            self._gyro.append(_permute(deg, self._axes))
-            self._gyro_t_ns = item.t_ns
-            if len(self._gyro) == self.settings.oversample_ratio:
-                self._pending = True
+            out += self._on_gyro(item.t_ns, vec)
         elif isinstance(item, AccelSample):
             self._counts["accel_samples"] += 1
             k = self._kinematic_body_m_s2  # turn compensation (zero without a source)
@@ -177,6 +179,43 @@ class _FreescaleEstimator(Estimator):
         if self._pending and self._caught_up():
             out += self._run_step()
         return out
+
+    def _on_gyro(self, t_ns: int, vec: Vec) -> list[Estimate]:
+        """One gyro sample (body NED, rad/s) at ``t_ns``, after the frames counted lost just
+        before it: each a fast tick at this sample's rate (the AHRS family's "integrate over
+        the true interval with the rate after it"), or a restart beyond ``max_gap_s``."""
+        out: list[Estimate] = []
+        deg = _permute((math.degrees(vec[0]), math.degrees(vec[1]), math.degrees(vec[2])),
+                       self._axes)
+        ticks = [t_ns]
+        last = self._gyro_t_ns
+        if last is not None and self._gaps.explained(t_ns):
+            span_ns = t_ns - last
+            if span_ns > self.settings.max_gap_s * 1e9:
+                self._restart()
+            else:
+                lost = max(0, round(span_ns * 1e-9 * self.settings.sensor_rate_hz) - 1)
+                self._counts["gyro_ticks_over_gaps"] += lost
+                ticks = [last + span_ns * (k + 1) // (lost + 1) for k in range(lost + 1)]
+        for tick_ns in ticks:
+            if self._pending:  # the window's accel/mag never caught up: use what there is
+                out += self._run_step()
+            self._gyro.append(deg)
+            self._gyro_t_ns = tick_ns
+            if len(self._gyro) == self.settings.oversample_ratio:
+                self._pending = True
+        self._counts["gyro_samples"] += 1
+        self._kinematic_body_m_s2 = self._kinematics.step(t_ns, vec)
+        return out
+
+    def _restart(self) -> None:
+        """A counted loss longer than ``max_gap_s``: the filter starts again (and locks to the
+        next window), its counters going on."""
+        counts = self._counts
+        kinematics = self._kinematics
+        self.reset()
+        self._counts, self._kinematics = counts, kinematics
+        counts["restarts_after_gap"] += 1
 
     def _on_speed(self, item: VelocitySample | AirspeedSample) -> None:
         if not item.valid:
@@ -311,7 +350,7 @@ class Freescale9DofEstimator(_FreescaleEstimator):
     )
     Settings: ClassVar[type[EstimatorSettings]] = Freescale9DofSettings
     consumes: ClassVar[tuple[type, ...]] = (GyroSample, AccelSample, MagSample,
-                                            VelocitySample, AirspeedSample)
+                                            VelocitySample, AirspeedSample, StreamGap)
     use_mag: ClassVar[bool] = True
 
 
@@ -330,5 +369,5 @@ class Freescale6DofEstimator(_FreescaleEstimator):
     )
     Settings: ClassVar[type[EstimatorSettings]] = Freescale6DofSettings
     consumes: ClassVar[tuple[type, ...]] = (GyroSample, AccelSample, VelocitySample,
-                                            AirspeedSample)
+                                            AirspeedSample, StreamGap)
     use_mag: ClassVar[bool] = False

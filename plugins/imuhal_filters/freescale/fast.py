@@ -37,6 +37,9 @@ KERNEL_SETTINGS = frozenset({
     "max_inclination_deg", "lock_sets_inclination", "field_strength_ut",
     "full_innovation_inverse", "accel_innovation_gate_sigma", "accel_gate_reacquire_s",
     "mag_max_accel_distrust", "mag_innovation_gate_sigma",
+    # the estimator's handling of counted losses (it adds ticks before the kernel's steps;
+    # arrays of ticks have no losses)
+    "max_gap_s",
 })
 
 _DEG = math.pi / 180.0

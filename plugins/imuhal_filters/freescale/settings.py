@@ -39,6 +39,12 @@ class FreescaleCommonSettings(PresetSettings, AhrsLimitSettings, TurnCompensatio
     """SENSORFS: the rate of the gyro samples; each is integrated over 1 / sensor_rate_hz."""
     oversample_ratio: int = Field(default=8, ge=1, le=64)
     """OVERSAMPLE_RATIO: gyro samples per Kalman step (200 Hz / 8 = 25 Hz Kalman)."""
+    max_gap_s: float = Field(default=1.0, gt=0.0)
+    """Gyro frames the pipeline counted lost (a StreamGap before the frame after them,
+    imuhal.core.gaps) are integrated at the rate of that frame, one fast tick each, when the
+    loss spans at most this long; a longer loss restarts the filter (it locks again to the
+    accelerometer, and the magnetometer on 9DOF). A step no counted loss explains is one
+    tick, as every step is in the reference."""
     coordinate_system: CoordinateSystem = CoordinateSystem.NED
     """THISCOORDSYSTEM: which of the reference's three builds runs (``ned``, ``android``,
     ``win8``; the core conventions aerospace, android, win8). Each has its own sensor model,

@@ -22,6 +22,7 @@ from pydantic import Field
 
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.core.frames import FloatArray
+from imuhal.core.gaps import StreamGap
 from imuhal.core.samples import AccelSample, AirspeedSample, GyroSample, VelocitySample
 from imuhal_filters.common.ahrs import (
     NO_VECTOR,
@@ -71,8 +72,10 @@ class ImuFilterEstimator(AhrsEstimator):
         "RCmags imuFilter: 6-DOF quaternion filter with a Kalman-like accel band, and velocity"
     )
     Settings: ClassVar[type[ImuFilterSettings]] = ImuFilterSettings
+    # StreamGap: a gyro step over frames the pipeline counted lost is integrated over its
+    # true interval up to max_gap_s, as in every AHRS (imuhal_filters.common.ahrs)
     consumes: ClassVar[tuple[type, ...]] = (GyroSample, AccelSample, VelocitySample,
-                                            AirspeedSample)
+                                            AirspeedSample, StreamGap)
     uses_mag: ClassVar[bool] = False
     settings: ImuFilterSettings
 

@@ -8,6 +8,8 @@ from typing import Any, ClassVar
 from pydantic import Field
 
 from imuhal.core.atmosphere import SEA_LEVEL_PRESSURE_PA
+from imuhal.core.gaps import StreamGap
+from imuhal.core.quantities import Quantity
 from imuhal.core.samples import PressureSample
 from imuhal.estimation.base import Estimator, EstimatorSettings
 from imuhal.estimation.outputs import (
@@ -16,6 +18,7 @@ from imuhal.estimation.outputs import (
     RejectedEstimate,
     VerticalEstimate,
 )
+from imuhal_filters.common.gaps import CountedGaps, Step
 from imuhal_filters.vario.baro_input import dt_s, usable_altitude_m
 from imuhal_filters.vario.baro_kalman import BaroKalman2
 from imuhal_filters.vario.gate import InnovationGate
@@ -47,6 +50,10 @@ class BaroVarioSettings(EstimatorSettings):
     max_gap_s: float = Field(default=1.0, gt=0.0)
     """A gap between valid samples longer than this restarts the filter from the new sample:
     the constant-velocity prediction over a long outage is not worth trusting."""
+    max_dt_s: float = Field(default=0.25, gt=0.0)
+    """A step between valid samples longer than this is predicted over only when the
+    pipeline counted the pressures lost in it (a StreamGap, imuhal.core.gaps); one that no
+    counted loss explains (a time stamp that jumped) restarts the filter instead."""
     innovation_gate_sigma: float | None = Field(default=5.0, gt=0.0)
     """A barometric altitude further than this many standard deviations of the innovation
     (sqrt(P_zz + sigma_z^2)) from the prediction is not fused (counted as ``gated``): one
@@ -74,7 +81,7 @@ class BaroVarioEstimator(Estimator):
         "Altitude and climb rate from the barometer only (2-state constant-velocity Kalman)"
     )
     Settings: ClassVar[type[EstimatorSettings]] = BaroVarioSettings
-    consumes: ClassVar[tuple[type, ...]] = (PressureSample,)
+    consumes: ClassVar[tuple[type, ...]] = (PressureSample, StreamGap)
     settings: BaroVarioSettings
 
     def reset(self) -> None:
@@ -82,7 +89,9 @@ class BaroVarioEstimator(Estimator):
         self._kf = BaroKalman2(accel_var=s.accel_noise_m_s2**2, meas_var=s.altitude_noise_m**2)
         self._last_t_ns: int | None = None
         self._counts = {"fused": 0, "skipped_invalid": 0, "skipped_non_monotonic": 0,
-                        "restarts_after_gap": 0, "gated": 0, "reacquired": 0}
+                        "restarts_after_gap": 0, "steps_over_counted_gaps": 0,
+                        "gated": 0, "reacquired": 0}
+        self._gaps = CountedGaps((Quantity.PRESSURE,))
         self._gate = InnovationGate(s.innovation_gate_sigma, s.innovation_gate_min_m,
                                     s.gate_reacquire_s)
         self._withheld = 0
@@ -106,6 +115,9 @@ class BaroVarioEstimator(Estimator):
     # -- Estimator interface ----------------------------------------------------------------
 
     def process(self, item: Any) -> list[Estimate]:
+        if isinstance(item, StreamGap):
+            self._gaps.note(item)
+            return []
         if not isinstance(item, PressureSample):
             return []
         altitude = usable_altitude_m(item, self.settings.sea_level_pa)
@@ -120,10 +132,13 @@ class BaroVarioEstimator(Estimator):
             if dt <= 0.0:
                 self._counts["skipped_non_monotonic"] += 1
                 return []
-            if dt > self.settings.max_gap_s:
+            step = self._gaps.step(item.t_ns, dt, self.settings.max_dt_s,
+                                   self.settings.max_gap_s)
+            if step is Step.RESTART:
                 self._counts["restarts_after_gap"] += 1
                 self.initialise(item.t_ns, altitude)
             else:
+                self._counts["steps_over_counted_gaps"] += step is Step.OVER_GAP
                 self.predict(dt)
                 self._last_t_ns = item.t_ns
                 innovation = altitude - self._kf.z

@@ -38,6 +38,8 @@ import math
 from typing import Any, ClassVar
 
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
+from imuhal.core.gaps import StreamGap
+from imuhal.core.quantities import Quantity
 from imuhal.core.samples import AccelSample, Frame, PressureSample
 from imuhal.estimation.base import Estimator, EstimatorSettings
 from imuhal.estimation.gravity import vertical_accel_up_m_s2
@@ -48,6 +50,7 @@ from imuhal.estimation.outputs import (
     RejectedEstimate,
     VerticalEstimate,
 )
+from imuhal_filters.common.gaps import CountedGaps, Step
 from imuhal_filters.vario.baro_input import dt_s, usable_altitude_m
 from imuhal_filters.vario.downsample import IntervalMean
 from imuhal_filters.vario.gate import InnovationGate
@@ -59,6 +62,7 @@ _COUNTERS = (
     "skipped_invalid",
     "skipped_non_monotonic",
     "restarts_after_gap",
+    "steps_over_counted_gaps",
     "accel_samples_skipped_invalid",
     "accel_samples_skipped_frame",
     "accel_samples_without_attitude",
@@ -100,13 +104,15 @@ class VarioKf3Estimator(Estimator):
         "acceleration (3-state Kalman, Nair 2016)"
     )
     Settings: ClassVar[type[EstimatorSettings]] = VarioKf3Settings
-    consumes: ClassVar[tuple[type, ...]] = (PressureSample, AttitudeEstimate, AccelSample)
+    consumes: ClassVar[tuple[type, ...]] = (PressureSample, AttitudeEstimate, AccelSample,
+                                            StreamGap)
     settings: VarioKf3Settings
 
     def reset(self) -> None:
         self._attitude_source = self.settings.attitude_source
         self._kf: Kalman3 | None = None
         self._last_t_ns: int | None = None
+        self._gaps = CountedGaps((Quantity.PRESSURE,))
         self._accel = IntervalMean()
         self._q: tuple[float, float, float, float] | None = None
         self._attitude_has_linear_accel = False
@@ -189,6 +195,8 @@ class VarioKf3Estimator(Estimator):
             self._on_attitude(item)
         elif isinstance(item, AccelSample):
             self._on_accel(item)
+        elif isinstance(item, StreamGap):
+            self._gaps.note(item)
         return []
 
     def _on_attitude(self, att: AttitudeEstimate) -> None:
@@ -227,10 +235,13 @@ class VarioKf3Estimator(Estimator):
             if dt <= 0.0:
                 self._counts["skipped_non_monotonic"] += 1
                 return []
-            if dt > self.settings.max_gap_s:
+            step = self._gaps.step(sample.t_ns, dt, self.settings.max_dt_s,
+                                   self.settings.max_gap_s)
+            if step is Step.RESTART:
                 self._counts["restarts_after_gap"] += 1
                 self._restart_after_gap(sample.t_ns, altitude)
             else:
+                self._counts["steps_over_counted_gaps"] += step is Step.OVER_GAP
                 accel = self._accel.take()
                 held = self._held
                 if accel is not None:

@@ -70,6 +70,10 @@ class VarioKf3Settings(PresetSettings):
     accelerometer did not see, a QNH change): the filter re-acquires the new level."""
     max_gap_s: float = Field(default=1.0, gt=0.0)
     """A gap between valid pressure samples longer than this restarts the filter."""
+    max_dt_s: float = Field(default=0.25, gt=0.0)
+    """A step between valid pressure samples longer than this is predicted over only when
+    the pipeline counted the pressures lost in it (a StreamGap, imuhal.core.gaps); one that
+    no counted loss explains (a time stamp that jumped) restarts the filter instead."""
     attitude_source: str | None = None
     """Use only AttitudeEstimates from this estimator instance (None: any), so two AHRS in
     one pipeline do not feed the same acceleration twice."""

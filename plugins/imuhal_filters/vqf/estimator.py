@@ -27,6 +27,8 @@ from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.core.conventions import VectorKind
 from imuhal.core.frames import FloatArray
 from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
+from imuhal_filters.common.innovation import InnovationSpeed
+from imuhal_filters.common.quat import to_global
 from imuhal_filters.vqf.frames import from_vqf, quat_from_vqf, to_vqf, vector_to_vqf
 
 
@@ -51,6 +53,16 @@ class VqfSettings(AhrsSettings):
     """Gyro bias estimation during rest (``restBiasEstEnabled``)."""
     mag_disturbance_rejection: bool = True
     """Magnetic disturbance detection and rejection (``magDistRejectionEnabled``)."""
+    withhold_speed_m_s: float | None = Field(None, gt=0.0)
+    """Input preprocessing for flight without a speed source, VQF itself untouched: a reading
+    is not handed to VQF while its innovation against VQF's own inclination, integrated into
+    a speed across gravity (common/innovation.py: 1 s leak, the innovation's ``tau_acc_s``
+    mean taken out, zeroed at rest), exceeds this (m/s). 3 m/s: `rc-flight` tilt max 6.9 deg
+    instead of 40.5; but BROAD's fast translation trial 15 then loses 2.31 -> 5.26 deg, and
+    at 6 m/s, where BROAD is unchanged, `rc-flight` keeps 22 deg (docs/estimators.md, vqf).
+    None (default): every reading, the package's own filter."""
+    withhold_tau_s: float = Field(1.0, gt=0.0)
+    """The leak of that speed (s): how long hand motion and gusts take to come back."""
 
     def vqf_params(self) -> dict[str, Any]:
         return {"tauAcc": self.tau_acc_s, "tauMag": self.tau_mag_s,
@@ -78,6 +90,26 @@ class VqfEstimator(AhrsEstimator):
                              "'identity'")
         self._vqf = VQF(self.settings.sample_period_s, **self.settings.vqf_params())
         self._mag_seen = False
+        speed = self.settings.withhold_speed_m_s
+        self._innovation = None if speed is None else InnovationSpeed(
+            self.settings.withhold_tau_s, speed, self.settings.tau_acc_s)
+        self._withheld = 0
+
+    def _passes(self, accel_g: tuple[float, float, float], dt: float) -> bool:
+        """Whether this reading (gravity positive, g, body NED) goes to VQF: its innovation
+        against VQF's inclination, integrated across gravity, within the speed bound."""
+        inn = self._innovation
+        if inn is None:
+            return True
+        v = self._vqf
+        if v.getRestDetected():
+            inn.reset()
+        up = to_global(quat_from_vqf(v.getQuat6D()), accel_g)
+        # weight 1 / (1 + (speed / bound)^2) below one half: the speed beyond the bound
+        if inn.weight(up, (0.0, 0.0, 1.0), dt) >= 0.5:
+            return True
+        self._withheld += 1
+        return False
 
     def _step(self, step: ImuStep) -> dict[str, Any]:
         if self.settings.offline:
@@ -85,7 +117,9 @@ class VqfEstimator(AhrsEstimator):
                              "with `imuhal estimate` or `imuhal evaluate`, not live")
         v = self._vqf
         v.updateGyr(vector_to_vqf(step.gyro_rad_s, VectorKind.ANGULAR_RATE))
-        if step.accel_g is not None:
+        passed = step.accel_g is not None and self._passes(step.accel_g, step.dt_s)
+        if passed:
+            assert step.accel_g is not None
             g = -STANDARD_GRAVITY_M_S2
             f_ned = (step.accel_g[0] * g, step.accel_g[1] * g, step.accel_g[2] * g)
             v.updateAcc(vector_to_vqf(f_ned, VectorKind.SPECIFIC_FORCE))
@@ -103,17 +137,26 @@ class VqfEstimator(AhrsEstimator):
             # None without a magnetometer: VQF then reports its initial "disturbed" state
             "mag_disturbed": bool(v.getMagDistDetected()) if self._mag_seen else None,
             "gyro_bias_rad_s": [float(c) for c in bias_ned],
-            "accel_used": step.accel_g is not None,
+            "accel_used": passed,
             "mag_used": mag is not None,
+            "accel_withheld": self._withheld,
         }
+
+    def diagnostics(self) -> dict[str, Any]:
+        return {**super().diagnostics(), "accel_withheld": self._withheld}
 
     def _filter_state(self) -> dict[str, Any]:
         # the package's state is plain lists, floats and bools
-        return {"vqf": dict(self._vqf.state), "mag_seen": self._mag_seen}
+        return {"vqf": dict(self._vqf.state), "mag_seen": self._mag_seen,
+                "innovation": None if self._innovation is None
+                else self._innovation.as_list(), "withheld": self._withheld}
 
     def _set_filter_state(self, state: dict[str, Any]) -> None:
         self._vqf.state = dict(state["vqf"])
         self._mag_seen = bool(state["mag_seen"])
+        if self._innovation is not None and state.get("innovation") is not None:
+            self._innovation.load_list(state["innovation"])
+        self._withheld = int(state.get("withheld", 0))
 
     def smooth(self, gyro_rad_s: FloatArray, accel_m_s2: FloatArray,
                mag_ut: FloatArray | None) -> FloatArray:

@@ -100,6 +100,10 @@ class DeviceHealth:
     fifo_overflows: int = 0
     """Times the driver found its chip's FIFO overflowed (or corrupt) and reset it: the
     frames it held are lost."""
+    not_converted_ns: int = 0
+    """A chip whose conversions the driver starts (no output rate of its own): the time its
+    schedule of the configured cadence slid (a late poll, a failed convert command), in
+    which the chip made no frame (the frame ledger counts those slots apart, not lost)."""
 
     def counts(self) -> dict[str, int]:
         return {"resets_detected": self.resets_detected,

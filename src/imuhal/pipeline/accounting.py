@@ -33,6 +33,15 @@ produced`` holds by construction. ``fifo_overflow``: a FIFO reader (the MPU-9250
 fifo``) found its chip's FIFO overflowed or corrupt and reset it (``DeviceHealth.
 fifo_overflows``); it comes first, since a FIFO rides out the other causes.
 
+A chip whose conversions the host starts (the MS5611) produces no frame in a slot of its
+configured cadence that the host let pass without a conversion (its schedule slid after a
+late poll: a stalled host, another device's long recovery, a failed convert command): the
+driver reports the time its schedule slid (``DeviceHealth.not_converted_ns``), the ledger
+takes it out of the gap before counting its frames, and counts the slots apart as
+``not_converted``: the chip never made those frames, so they are neither produced nor lost,
+and ``delivered + lost = produced`` still equals the chip's own count. A gap of such slots
+still reaches the estimators (cause ``not_converted``: the time between the frames is real).
+
 Limit: time stamps are the host's poll times, up to a period after the measurement. A gap
 is counted right while the two polls at its ends lie at about the same phase to the chip
 (within half a period); random host delays of half a period or more can shift it by one and
@@ -53,11 +62,18 @@ CAUSES: tuple[str, ...] = ("fifo_overflow", "host_stall", "reset", "bus_error", 
 """Loss causes, weightiest first: a gap is charged to the first one seen in it."""
 
 
+NOT_CONVERTED = "not_converted"
+"""The cause of a gap in which a host-paced chip made no frame: slots of its configured
+cadence it never converted (counted apart, not lost)."""
+
+
 class Loss(NamedTuple):
-    """Frames counted lost just before a delivered frame (what becomes a StreamGap)."""
+    """Slots without a delivered frame just before a delivered frame (what becomes a
+    StreamGap): frames lost, and for a host-paced chip also slots it never converted."""
 
     frames: int
     cause: str
+    """The weightiest cause of the frames lost; NOT_CONVERTED when none was lost."""
     last_ns: int
     """The time stamp of the frame delivered before the loss."""
 
@@ -77,8 +93,14 @@ class FrameLedger:
     segments: list[tuple[int, int, int]] = field(default_factory=list)
     """Closed segments (first and last valid frame's time stamp, frames produced from the
     first to the last), one per stretch between reconfigurations."""
+    not_converted: int = 0
+    """Slots of the configured cadence in which the chip made no frame: its conversions are
+    the host's to start and the host's schedule slid past them (neither produced nor
+    lost)."""
     _seen: set[str] = field(default_factory=set)
     """Causes seen since the latest valid frame."""
+    _slid_ns: int = 0
+    """Time the driver's conversion schedule slid since the latest valid frame."""
     _segment_first_ns: int | None = None
     _segment_produced: int = 0
 
@@ -102,6 +124,13 @@ class FrameLedger:
             self.segments.append((self._segment_first_ns, self.last_ns, self._segment_produced))
             self._segment_first_ns = None
 
+    def slid(self, ns: int) -> None:
+        """The driver's schedule of a host-paced chip slid by ``ns`` without a conversion
+        (``DeviceHealth.not_converted_ns``): that time holds no frame of the chip's."""
+        if ns < 0:
+            raise ValueError(f"a schedule slides forward, got {ns} ns")
+        self._slid_ns += ns
+
     def all_segments(self) -> list[tuple[int, int, int]]:
         """The closed segments and the open one."""
         if self._segment_first_ns is None or self.last_ns is None:
@@ -119,13 +148,7 @@ class FrameLedger:
             return None
         loss = None
         if self.last_ns is not None:
-            periods = round((sample.t_ns - self.last_ns) / self.period_ns)
-            if periods > 1:
-                cause = next((c for c in CAUSES if c in self._seen), "missed")
-                self.lost[cause] += periods - 1
-                loss = Loss(periods - 1, cause, self.last_ns)
-                if self._segment_first_ns is not None:
-                    self._segment_produced += periods - 1
+            loss = self._gap_before(sample.t_ns - self.last_ns)
         else:
             self.first_ns = sample.t_ns
         if self._segment_first_ns is None:
@@ -135,12 +158,31 @@ class FrameLedger:
         self.delivered += 1
         self.last_ns = sample.t_ns
         self._seen.clear()
+        self._slid_ns = 0
         return loss
 
+    def _gap_before(self, step_ns: int) -> Loss | None:
+        """Counts the slots between the latest valid frame and one ``step_ns`` after it:
+        frames lost (charged to the weightiest cause seen) and slots never converted."""
+        assert self.last_ns is not None
+        slots = round(step_ns / self.period_ns) - 1
+        lost = max(0, min(slots, round((step_ns - self._slid_ns) / self.period_ns) - 1))
+        skipped = max(0, slots - lost)
+        self.not_converted += skipped
+        if lost:
+            cause = next((c for c in CAUSES if c in self._seen), "missed")
+            self.lost[cause] += lost
+            if self._segment_first_ns is not None:
+                self._segment_produced += lost
+            return Loss(lost + skipped, cause, self.last_ns)
+        return Loss(skipped, NOT_CONVERTED, self.last_ns) if skipped else None
+
     def counts(self) -> dict[str, int]:
-        """produced, delivered and ``lost_<cause>`` for every cause (zeros included)."""
+        """produced, delivered and ``lost_<cause>`` for every cause (zeros included), and
+        ``not_converted`` for a host-paced chip that skipped slots (absent otherwise)."""
         return {"produced": self.produced, "delivered": self.delivered,
-                **{f"lost_{c}": self.lost[c] for c in CAUSES}}
+                **{f"lost_{c}": self.lost[c] for c in CAUSES},
+                **({NOT_CONVERTED: self.not_converted} if self.not_converted else {})}
 
 
 def describe_frames(counts: dict[str, int]) -> str:
@@ -152,4 +194,6 @@ def describe_frames(counts: dict[str, int]) -> str:
     if lost:
         text += f", lost {sum(lost.values())} (" + ", ".join(
             f"{k.replace('_', ' ')} {v}" for k, v in lost.items()) + ")"
+    if counts.get(NOT_CONVERTED):
+        text += f"; slots not converted {counts[NOT_CONVERTED]}"
     return text

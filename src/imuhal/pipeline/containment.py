@@ -10,7 +10,10 @@
   plugin's bug: ``ValueError``, ``IndexError``, ...) is a device error: counted, named, the
   device recovered with the usual backoff. A driver call that does not return within its
   deadline (:func:`driver_deadline_s`, from the chip's rate) is interrupted by
-  :class:`Watchdog` and its device isolated: never polled again in this run.
+  :class:`Watchdog` and its device isolated: never polled again in this run. On a board
+  whose time is the host's (hardware) the deadline is wall-clock time; on an emulated or
+  replayed board it is the process's CPU time, with a long wall-clock bound for a call
+  that blocks (:class:`DriverTiming`), so a starved host does not change a run's figures.
 * An exception from a sink disables that sink (a file sink is aborted: its rows stay beside
   the previous file, which is kept); the other sinks go on.
 
@@ -33,6 +36,7 @@ from types import FrameType
 from typing import Any
 
 from imuhal.core.blocks import Block
+from imuhal.core.clock import MonotonicClock
 from imuhal.core.samples import Sample
 from imuhal.core.streams import StreamSpec
 from imuhal.estimation.base import Estimator
@@ -62,6 +66,11 @@ DEADLINE_MIN_S = 1.0
 """...and at least this long (s): a recovery may wait for a chip's reset on a real board."""
 DEADLINE_NO_STREAM_S = 2.0
 """The deadline (s) of a device whose streams are not known yet (not configured)."""
+BLOCKED_WALL_S = 60.0
+"""Emulated and replayed boards: a driver call that has not returned after this long on
+the wall clock is cut off even though it used little CPU time (it blocks: a sleep, a lock,
+a read that never completes). Long, so that a host that starves a niced run of the CPU
+for that long is the only way a call of normal cost reaches it."""
 
 Warn = Callable[[str], None]
 
@@ -252,6 +261,35 @@ def driver_deadline_s(streams: Sequence[StreamSpec]) -> float:
     return max(DEADLINE_MIN_S, DEADLINE_PERIODS / min(s.rate_hz for s in streams))
 
 
+@dataclass(frozen=True)
+class DriverTiming:
+    """What a driver call's deadline is measured on.
+
+    ``cpu`` False (a hardware board: its time is the host's): the wall clock, since a chip
+    that does not answer in time on a real board is late whatever the reason. True (an
+    emulated or replayed board, whose time is simulated): the process's CPU time (user and
+    system, ``ITIMER_PROF``), so a run's figures do not depend on how loaded the host is; a
+    call that blocks without using CPU time is cut off after ``blocked_wall_s`` on the wall
+    clock (``ITIMER_REAL``)."""
+
+    cpu: bool = False
+    blocked_wall_s: float = BLOCKED_WALL_S
+
+    def describe(self, deadline_s: float) -> str:
+        """The deadline as a warning states it."""
+        if not self.cpu:
+            return f"{deadline_s:g} s (from its chip's rate)"
+        return (f"{deadline_s:g} s of CPU time (from its chip's rate; an emulated or "
+                f"replayed board), or {self.blocked_wall_s:g} s on the wall clock")
+
+
+def driver_timing(board: object) -> DriverTiming:
+    """CPU time for a board whose clock is not the host's (an emulated board's simulated
+    clock, a replay's recorded one), the wall clock for one on the host's monotonic clock
+    (a hardware board)."""
+    return DriverTiming(cpu=not isinstance(getattr(board, "clock", None), MonotonicClock))
+
+
 class DriverDeadline(BaseException):
     """Raised inside a driver call that overran its deadline (by :class:`Watchdog`). A
     BaseException, so that a driver's ``except Exception`` does not swallow it."""
@@ -268,51 +306,69 @@ except ImportError:  # an interpreter without CPython's _signal module
 
 class Watchdog:
     """Interrupts a driver call that overran its deadline: a one-shot ``ITIMER_REAL`` armed
-    around the call, whose SIGALRM handler raises :class:`DriverDeadline` in the call.
+    around the call, whose SIGALRM handler raises :class:`DriverDeadline` in the call; with
+    ``DriverTiming.cpu`` an ``ITIMER_PROF`` of the deadline in CPU time (SIGPROF, the same
+    handler) beside an ``ITIMER_REAL`` of the blocked-call bound.
 
     Why not a worker thread per call: a thread cannot be stopped, so the overrun call would
     go on using the bus beside the next device's transfers, and every poll would pay a thread
     handoff. The signal interrupts Python code and blocking system calls (the call then sees
     the exception); it cannot interrupt a call stuck inside the kernel uninterruptibly. It
-    works only in the main thread and when nobody else handles SIGALRM: otherwise (a pipeline
-    run in a thread) ``arm`` returns False and calls are not timed. Every pipeline shares
-    the one handler (only one driver call runs at a time in the main thread).
+    works only in the main thread and when nobody else handles the signals it needs (SIGALRM;
+    SIGPROF too on CPU time: a profiler may hold it): otherwise (a pipeline run in a thread)
+    ``arm`` returns False and calls are not timed. Every pipeline shares the one handler
+    (only one driver call runs at a time in the main thread).
     """
 
     _active = False
     """A driver call is being timed (class-wide: the handler is process-wide)."""
 
-    def __init__(self) -> None:
-        self._previous: Any = None
+    def __init__(self, timing: DriverTiming | None = None) -> None:
+        self.timing = timing if timing is not None else DriverTiming()
+        self._signals = (signal.SIGALRM, signal.SIGPROF) if self.timing.cpu \
+            else (signal.SIGALRM,)
         self._installed = False
 
     def arm(self, seconds: float) -> bool:
         """Start timing a driver call; False when this thread cannot be interrupted."""
-        if _current_handler(signal.SIGALRM) is not _deadline_expired and \
-                not self._install(signal.getsignal(signal.SIGALRM)):
+        if not self._handled() and not self._install():
             return False
         Watchdog._active = True
-        signal.setitimer(signal.ITIMER_REAL, seconds)
+        if self.timing.cpu:
+            signal.setitimer(signal.ITIMER_REAL, self.timing.blocked_wall_s)
+            signal.setitimer(signal.ITIMER_PROF, seconds)
+        else:
+            signal.setitimer(signal.ITIMER_REAL, seconds)
         return True
 
     def disarm(self) -> None:
         Watchdog._active = False
         signal.setitimer(signal.ITIMER_REAL, 0)
+        if self.timing.cpu:
+            signal.setitimer(signal.ITIMER_PROF, 0)
 
     def release(self) -> None:
-        """Give SIGALRM back to the handler this watchdog found."""
-        if self._installed and signal.getsignal(signal.SIGALRM) is _deadline_expired:
-            signal.setitimer(signal.ITIMER_REAL, 0)
-            signal.signal(signal.SIGALRM, self._previous)
+        """Give the signals back to the default handler this watchdog found."""
+        if self._installed:
+            self.disarm()
+            for signum in self._signals:
+                if signal.getsignal(signum) is _deadline_expired:
+                    signal.signal(signum, signal.SIG_DFL)
         self._installed = False
 
-    def _install(self, current: Any) -> bool:
-        """Take SIGALRM when nobody handles it (and this is the main thread)."""
-        if current not in (signal.SIG_DFL, None) or \
-                threading.current_thread() is not threading.main_thread():
+    def _handled(self) -> bool:
+        """Every signal this watchdog needs goes to the deadline handler (this watchdog's or
+        another pipeline's in the process)."""
+        return all(_current_handler(signum) is _deadline_expired for signum in self._signals)
+
+    def _install(self) -> bool:
+        """Take the signals when nobody handles them (and this is the main thread)."""
+        if threading.current_thread() is not threading.main_thread() or any(
+                signal.getsignal(signum) not in (signal.SIG_DFL, None, _deadline_expired)
+                for signum in self._signals):
             return False
-        self._previous = signal.SIG_DFL
-        signal.signal(signal.SIGALRM, _deadline_expired)
+        for signum in self._signals:
+            signal.signal(signum, _deadline_expired)
         self._installed = True
         return True
 

@@ -45,11 +45,13 @@ from imuhal.pipeline.containment import (
     ContainedSinks,
     Containment,
     DriverDeadline,
+    DriverTiming,
     EstimatorGuard,
     PluginFaults,
     Watchdog,
     describe_exception,
     driver_deadline_s,
+    driver_timing,
 )
 from imuhal.pipeline.learning import AccelTeacher
 from imuhal.pipeline.processing import (
@@ -140,6 +142,8 @@ class DeviceRuntime:
     """The driver's reconfiguration count the ledger last saw."""
     fifo_overflows_seen: int = 0
     """The driver's FIFO overflow count the ledger last saw."""
+    not_converted_seen_ns: int = 0
+    """The driver's slid schedule time the ledger last saw."""
     mag_learner: HardIronLearner | None = None
     """Learning the hard iron in flight (``mag_in_flight``, no stored magnetometer record)."""
     accel_teacher: AccelTeacher | None = None
@@ -324,7 +328,7 @@ class Pipeline:
                            if bus.describe() != bus.name}
         self.warnings: list[str] = []
         self.containment = Containment(self.warnings.append)
-        self._watchdog = Watchdog()
+        self._watchdog = Watchdog(driver_timing(board))
         self._heap: list[tuple[int, int, str]] | None = None
         self._startup: GyroStartupStage | None = None
         self._fusion: list[Sample | Block] = []
@@ -631,6 +635,8 @@ class Pipeline:
             dev.next_poll_ns = max(self._next_due(dev, t_ns, next_ns), t_ns + 1)
             heapq.heappush(heap, (dev.next_poll_ns, rank, name))
             yield from self._hand_out(dev, frames)
+            if dev.ledger is not None:
+                self._account_slides(dev)
         if end is not None:
             self.clock.sleep_until(end)
             yield from self._drain(end)
@@ -739,6 +745,8 @@ class Pipeline:
             dev.next_poll_ns = max(self._next_due(dev, edge.t_ns, next_ns), t_ns + 1)
             heapq.heappush(self._schedule(), (dev.next_poll_ns, self._device_rank[name], name))
             yield from self._hand_out(dev, samples)
+            if dev.ledger is not None:
+                self._account_slides(dev)
 
     def _contained_service(self, dev: DeviceRuntime, t_ns: int
                            ) -> tuple[_Readings | list[Block], int]:
@@ -761,7 +769,7 @@ class Pipeline:
                     watchdog.disarm()
         except DriverDeadline:
             self._isolate(dev, t_ns, "did not return from a call within its deadline of "
-                          f"{dev.deadline_s:g} s (from its chip's rate)")
+                          + watchdog.timing.describe(dev.deadline_s))
             return [], NEVER_NS
         except RunEnded:
             raise  # a replayed recording ran out or diverged: the whole run ends
@@ -875,6 +883,17 @@ class Pipeline:
             stream = driver.accounted_stream()
             if stream is not None:
                 dev.ledger.channel, dev.ledger.period_ns = stream
+
+    @staticmethod
+    def _account_slides(dev: DeviceRuntime) -> None:
+        """The time a host-paced chip's schedule slid in a read, once its frames are counted:
+        a driver slides its cadence after the frame it hands out (the next conversion is
+        late), so the slide belongs to the gap after that frame."""
+        assert dev.ledger is not None
+        slid_ns = dev.driver.health.not_converted_ns - dev.not_converted_seen_ns
+        if slid_ns:
+            dev.not_converted_seen_ns = dev.driver.health.not_converted_ns
+            dev.ledger.slid(slid_ns)
 
     def _look_for(self, dev: DeviceRuntime, t_ns: int) -> int:
         """An optional device that was not found: probe it once more."""
@@ -1149,6 +1168,19 @@ class Pipeline:
         summary = self.summary(wall_s=time.perf_counter() - wall0, simulated_s=self.span_s)
         summary.sinks = sink_counts
         return summary
+
+    @property
+    def driver_timing(self) -> DriverTiming:
+        """What the deadline of a driver call is measured on: the wall clock on a hardware
+        board, CPU time on an emulated or replayed one (imuhal.pipeline.containment)."""
+        return self._watchdog.timing
+
+    @driver_timing.setter
+    def driver_timing(self, timing: DriverTiming) -> None:
+        """Measure driver deadlines another way from the next call on (an embedding program
+        that wants a shorter bound on a blocked emulated call, or a wall-clock deadline)."""
+        self._watchdog.release()
+        self._watchdog = Watchdog(timing)
 
     @property
     def span_s(self) -> float:

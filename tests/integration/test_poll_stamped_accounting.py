@@ -1,0 +1,83 @@
+"""Issue 25: delivered + lost = produced against the chip's own count for streams stamped
+with the host's poll, through the fault-injection interface (imuhal.emulation.faults).
+
+Two causes the frame ledger used to count wrong on poll-stamped streams:
+
+- the MAX21100 after a bus error: the poll after a failed one read the missed sample a
+  period late, a gap the chip never had (now the driver retries at once);
+- the MS5611, whose conversions the host starts: slots in which the host started none (its
+  schedule slid after a late poll, another device's long recovery, a failed temperature
+  read) were counted as frames lost; the chip never made them, so they are counted apart
+  (``not_converted``), neither produced nor lost.
+
+Each test checks, per segment of the ledger, its count against the emulator's record of
+the chip's measurement instants (``ChipEmulator.frames_between``)."""
+
+from __future__ import annotations
+
+import pytest
+
+from imuhal.emulation import open_emulated
+from imuhal.emulation.faults import AllOnes, BusErrors, ChipReset, FaultSpec, HostStall
+from imuhal.pipeline import Pipeline
+from imuhal.pipeline.accounting import FrameLedger
+from imuhal.plugins.manager import Registry, load_registry
+from imuhal.profile.bundled import bundled_profiles
+from imuhal.profile.loader import load_profile
+
+SECONDS = 4.0
+
+
+@pytest.fixture(scope="module")
+def registry() -> Registry:
+    return load_registry()
+
+
+def _fly(registry: Registry, board: str, faults: list[FaultSpec]) -> Pipeline:
+    profile = load_profile(bundled_profiles()[f"{board}.yaml"], registry)
+    with open_emulated(profile, registry, seed=3, faults=faults, calibrated=False) as p:
+        list(p.events(SECONDS))
+    return p
+
+
+def _ledger_matches_the_chip(p: Pipeline, device: str) -> FrameLedger:
+    ledger = p.devices[device].ledger
+    assert ledger is not None and ledger.delivered > 0
+    chip = p.board.emulators[device]
+    segments = ledger.all_segments()
+    assert [n for _, _, n in segments] == \
+        [chip.frames_between(first, last) for first, last, _ in segments], dict(ledger.lost)
+    assert ledger.delivered + sum(ledger.lost.values()) == ledger.produced
+    return ledger
+
+
+def test_max21100_bus_errors_cost_no_frame_the_chip_kept(registry: Registry) -> None:
+    p = _fly(registry, "seed-paraglider-vario", [BusErrors(device="imu", rate=0.03)])
+    assert p.devices["imu"].bus_errors > 20
+    ledger = _ledger_matches_the_chip(p, "imu")
+    assert ledger.lost["bus_error"] == 0  # the retry read every sample a failed poll missed
+
+
+@pytest.mark.parametrize(("faults", "skips"), [
+    pytest.param([HostStall(device="baro", start_s=1.0, stall_s=0.1, every_s=0.5)], True,
+                 id="host stalls"),
+    # the MPU-9250 beside it on the SPI bus: its reset and reconfiguration hold the host
+    pytest.param([ChipReset(device="imu", start_s=1.0 + 0.7 * i) for i in range(4)], True,
+                 id="a neighbour's recoveries"),
+    pytest.param([AllOnes(device="baro", start_s=1.5, end_s=1.6)], True, id="blank reads"),
+    pytest.param([BusErrors(device=d, rate=0.03) for d in ("imu", "baro")], False,
+                 id="bus errors"),
+])
+def test_ms5611_slots_never_converted_are_not_frames_lost(
+        registry: Registry, faults: list[FaultSpec], skips: bool) -> None:
+    p = _fly(registry, "seed-gps-vario", faults)
+    ledger = _ledger_matches_the_chip(p, "baro")
+    assert (ledger.not_converted > 0) is skips
+
+
+def test_the_run_summary_shows_the_slots_not_converted(registry: Registry) -> None:
+    p = _fly(registry, "seed-gps-vario",
+             [HostStall(device="baro", start_s=1.0, stall_s=0.1, every_s=1.0)])
+    baro = p.summary().frames["baro"]
+    assert baro["not_converted"] > 0
+    assert "slots not converted" in p.summary().describe()
