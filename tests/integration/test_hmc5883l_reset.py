@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from bisect import bisect_right
+from itertools import pairwise
 from typing import Any
 
 import pytest
@@ -51,8 +52,7 @@ def test_every_valid_field_after_a_reset_carries_a_measurement_of_its_own(
     mags, p = _run(registry)
     measured = p.board.emulators["mag"].measured_ns
     carried = [bisect_right(measured, s.t_ns) for s in mags if s.valid]
-    repeats = [n for n, (a, b) in enumerate(zip(carried, carried[1:], strict=False))
-               if a == b]
+    repeats = [n for n, (a, b) in enumerate(pairwise(carried)) if a == b]
     assert not repeats, f"{len(repeats)} valid fields repeat a measurement"
 
 
