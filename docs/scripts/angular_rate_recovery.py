@@ -8,7 +8,8 @@ The seed board (profiles/seed-paraglider-vario.yaml, emulated with its chips' er
 seed 3) with its gyro set to +-250 deg/s makes one full roll in 0.8 s after 2 s still (the
 ``tumble`` scenario shortened: up to about 10 rad/s, clipped for about 0.6 s). For each
 estimator (default: madgwick, mahony) and each ``gyro_saturation`` (recover, drop) it prints
-the worst tilt error (deg) 0.5-2 s after the roll and the recovery's counters, as the
+the worst tilt error (deg) 0.5-2 s after the roll and the recovery's counters (the
+estimates it withheld while the attitude was not yet checked among them), as the
 markdown block ``--write`` puts between the recovery-table markers of docs/estimators.md. The same
 flight as tests/filters/test_angular_rate_recovery.py.
 """
@@ -68,13 +69,14 @@ def table(names: list[str]) -> str:
              f"{WINDOW_S[0]:g}-{WINDOW_S[1]:g} s after the roll, and the recovery's counters.",
              "",
              "| estimator | `gyro_saturation` | worst tilt error (deg) | clipped samples | "
-             "recoveries |",
-             "|---|---|---:|---:|---:|"]
+             "recoveries | estimates withheld |",
+             "|---|---|---:|---:|---:|---:|"]
     for name in names or ["madgwick", "mahony"]:
         for saturation in ("recover", "drop"):
             worst, recovery = worst_after_roll(name, saturation)
             lines.append(f"| {name} | {saturation} | {worst:.2f} | "
-                         f"{recovery['clipped_samples']} | {recovery['recoveries']} |")
+                         f"{recovery['clipped_samples']} | {recovery['recoveries']} | "
+                         f"{recovery['withheld']} |")
     return "\n".join(lines)
 
 

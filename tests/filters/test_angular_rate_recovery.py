@@ -87,7 +87,7 @@ def test_without_a_gyro_stream_a_clipped_sample_is_dropped_and_counted(
 def test_the_tilt_pull_turns_the_predicted_gravity_towards_the_measured() -> None:
     rolled = (np.cos(np.radians(10)), np.sin(np.radians(10)), 0.0, 0.0)  # 20 deg of roll
     level = (1.0, 0.0, 0.0, 0.0)
-    pulled = _tilt_pulled(tuple(rolled), (0.0, 0.0, 1.0), 0.1)  # type: ignore[arg-type]
+    pulled, _, _ = _tilt_pulled(tuple(rolled), (0.0, 0.0, 1.0), 0.1)  # type: ignore[arg-type]
     before, after = tilt_error_deg(rolled, level), tilt_error_deg(pulled, level)
     assert after < before
     # a small pull turns by the gain times the sine of the error

@@ -12,7 +12,12 @@ import imuhal_filters.vario.plugin as vario_plugin
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2, pressure_pa_at_altitude
 from imuhal.core.frames import quat_from_euler_deg, quat_to_matrix
 from imuhal.core.samples import AccelSample, Frame, PressureSample, SampleFlag
-from imuhal.estimation.outputs import AttitudeEstimate, VerticalEstimate
+from imuhal.estimation.outputs import (
+    AttitudeEstimate,
+    EstimateFlag,
+    RejectedEstimate,
+    VerticalEstimate,
+)
 from imuhal.plugins.manager import load_registry
 from imuhal_filters.vario.kf3 import Kf3Mode
 from imuhal_filters.vario.kf3_estimator import VarioKf3Estimator
@@ -172,10 +177,19 @@ def test_invalid_pressure_and_accel_samples_are_skipped_and_counted() -> None:
 
 def test_interval_without_accel_predicts_zero_true_acceleration_and_is_counted() -> None:
     est = VarioKf3Estimator({"initial_bias_m_s2": 0.5})
-    out = _run(est, [_pressure(0, 100.0), _pressure(25_000_000, 100.0)])
+    _run(est, [_pressure(0, 100.0), _pressure(25_000_000, 100.0)])
     # a_meas taken as the bias: no climb appears from the bias alone
-    assert out[-1].climb_m_s == pytest.approx(0.0, abs=1e-12)
+    assert est.get_state()["kf"]["x"][1] == pytest.approx(0.0, abs=1e-12)  # climb, cm/s
     assert est.diagnostics()["intervals_without_accel"] == 1
+
+
+def test_an_interval_without_accel_widens_the_climb_rate_and_withholds_it() -> None:
+    """Nothing measured the acceleration: the climb rate's variance grows by a g over the
+    interval, and the estimate is withheld (UNSETTLED) until altitudes pin it down."""
+    est = VarioKf3Estimator()
+    out = _run(est, [_pressure(0, 100.0), _pressure(25_000_000, 100.0)])
+    assert isinstance(out[-1], RejectedEstimate)
+    assert out[-1].flags == EstimateFlag.UNSETTLED
 
 
 def test_saved_state_restored_mid_interval_continues_exactly() -> None:

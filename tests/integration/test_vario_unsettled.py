@@ -14,11 +14,17 @@ from typing import Any
 import pytest
 
 from imuhal.emulation import open_emulated
-from imuhal.emulation.faults import ChipReset, FaultSpec, WrongPressure
-from imuhal.estimation.outputs import EstimateFlag, RejectedEstimate, VerticalEstimate
+from imuhal.emulation.faults import ChipReset, FaultSpec, WildValue, WrongPressure
+from imuhal.estimation.outputs import (
+    AttitudeEstimate,
+    EstimateFlag,
+    RejectedEstimate,
+    VerticalEstimate,
+)
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
+from imuhal_filters.common.quat import tilt_error_deg
 
 CLIMB_MARGIN_M_S = 3.0
 SETTLE_S = 3.0
@@ -91,3 +97,62 @@ def test_one_wrong_pressure_is_gated_and_the_estimate_still_speaks(registry: Reg
     assert withheld == []
     assert any(e.diagnostics["altitude_gated"] for e, _ in estimates)
     assert not [label for label in summary.contained if "vario" in label]
+
+
+RC_GYRO_FULL_SCALE_RAD_S = 17.453292519943297
+"""seed-rc-vario's MAX21100 at +-1000 deg/s."""
+
+
+def _ahrs_tilt_and_vario(registry: Registry, faults: list[FaultSpec], seconds: float
+                         ) -> tuple[float, list[tuple[VerticalEstimate, float]], int]:
+    """seed-rc-vario in its ``rc-flight``: the worst tilt error of the AHRS estimates after
+    3 s (deg), the vario's estimates with the true climb rate, and how many estimates the
+    vario withheld."""
+    profile = load_profile(bundled_profiles()["seed-rc-vario.yaml"], registry)
+    worst, estimates, withheld = 0.0, [], 0
+    with open_emulated(profile, registry, seed=1, faults=faults) as pipeline:
+        truth = pipeline.board.scenario.truth  # type: ignore[attr-defined]  # emulated board
+        for event in pipeline.events(seconds):
+            t_s = getattr(event, "t_ns", 0) / 1e9
+            if isinstance(event, AttitudeEstimate) and event.source == "ahrs" and t_s > 3.0:
+                worst = max(worst, tilt_error_deg(event.q_body_to_ned,
+                                                  tuple(truth(t_s).q_body_to_ned)))
+            elif isinstance(event, RejectedEstimate) and event.source == "vario":
+                withheld += 1
+            elif isinstance(event, VerticalEstimate) and event.source == "vario":
+                estimates.append((event, truth(t_s).climb_m_s))
+    return worst, estimates, withheld
+
+
+def test_a_clipped_gyro_word_on_the_take_off_run_does_not_pull_the_tilt_to_the_run_up(
+        registry: Registry) -> None:
+    """One wild pitch rate (1000 times the full scale, clipped by the chip, flagged
+    SATURATED) as the take-off run starts: the angular-rate recovery used to pull the tilt
+    towards an accelerometer reading the run-up's 1 g push, 46 deg off, and the vario
+    integrated the wrong vertical acceleration (climb 4.5 m/s off, unflagged). A clip out of
+    a rate well inside the range is no rotation: the recovery finds no more than it put in."""
+    clip = [WildValue(device="imu", start_s=3.25, channel="gyro", axis=1,
+                      value=1000.0 * RC_GYRO_FULL_SCALE_RAD_S)]
+    worst, estimates, _ = _ahrs_tilt_and_vario(registry, clip, 8.0)
+    clean, _, _ = _ahrs_tilt_and_vario(registry, [], 8.0)
+    assert _wrong(estimates) == []
+    # the clip's 5 deg at most, on the uncalibrated board's own error through the run-up
+    assert worst < clean + 6.0
+
+
+def test_an_ahrs_and_a_vario_without_a_usable_imu_withhold_rather_than_guess(
+        registry: Registry) -> None:
+    """Wild values on the MAX21100 every 0.15 s (gyro, accelerometer and temperature in
+    turn): the chip's filters keep nearly every IMU sample flagged settling, so the vario
+    predicts through the take-off's climb-out almost without acceleration. It lagged the
+    truth by more than 3 m/s, unflagged; now its climb rate's uncertainty grows by a g of
+    unmeasured acceleration and it withholds until the altitudes have pinned it down."""
+    channels = ("gyro", "accel", "temperature")
+    scale = {"gyro": RC_GYRO_FULL_SCALE_RAD_S, "accel": 8 * 9.80665, "temperature": 1e5}
+    faults: list[FaultSpec] = [
+        WildValue(device="imu", start_s=0.75 + 0.05 * i, channel=channels[i % 3],
+                  axis=(i // 3) % 3, value=1000.0 * scale[channels[i % 3]])
+        for i in range(180)]
+    _, estimates, withheld = _ahrs_tilt_and_vario(registry, faults, 10.0)
+    assert _wrong(estimates) == []
+    assert withheld > 0

@@ -4,10 +4,20 @@ Register facts: HMC5883L datasheet Form 900405 Rev E and Linux hmc5843_core.c, s
 imuhal's chip-facts notes (chips.md, section 3). Tables in registers.py, decoding in decode.py.
 
 The driver runs the chip in continuous mode and polls at the output rate: per poll it reads
-the status register and, when RDY is set, the six data bytes X, Z, Y in one transaction
-(the chip locks its data outputs from the first data byte read until all six are read, so
-the triple is coherent even when a bus splits the read into byte transactions, as the
-MAX21100's aux master does). Samples: MagSample in uT, sensor frame.
+the status register and, when RDY is set, the Mode register and the six data bytes X, Z, Y
+in one transaction (the chip locks its data outputs from the Mode or first data byte read
+until all six are read, so the triple is coherent even when a bus splits the read into byte
+transactions, as the MAX21100's aux master does). Samples: MagSample in uT, sensor frame.
+
+Why Mode rides with every data read: a chip reset (brown-out, ESD) returns Config A/B and
+Mode to their power-on values (0x10, 0x20, single measurement); the chip then measures once,
+at the power-on gain, goes idle and keeps RDY set and those data bytes (RDY is cleared only
+when the chip starts writing new data). Read alone, the data bytes look like a new field at
+every poll until FROZEN or the periodic read-back catches them (up to 28 fields, 0.4 s, at
+75 Hz). With Mode in the same read (one byte more; Config A/B, which a reset changes only
+with Mode, stay in the periodic read-back), the first poll after a reset sees that the chip
+left continuous mode: that poll's sample is flagged STALE (its bytes are no measurement of
+the configured chip), counted, and the chip is reconfigured.
 
 Two chip habits shape configure(): the first measurement after a gain change still uses the
 old gain (so the first sample after configure is dropped), and reading the mode register
@@ -68,6 +78,7 @@ from imuhal_chips.hmc5883l import decode
 from imuhal_chips.hmc5883l.registers import (
     AVERAGING,
     CRA_RATE_SHIFT,
+    DATA_LAST,
     DATA_MIN,
     IDENTITY,
     MODE_CONTINUOUS,
@@ -89,6 +100,9 @@ FROZEN_AFTER_FRAMES = 30
 probability about 0.2; 30 in a row (0.4 s at 75 Hz), about 1e-21 per sample."""
 NOISE_FLOOR_GAUSS = 0.002
 """Datasheet noise floor (2 mG): the standard deviation of one axis's output."""
+MODE_AND_DATA = DATA_LAST - Reg.MODE + 1
+"""One read from the Mode register through the last data byte: every field comes with the
+mode the chip measured it in (see the module docstring)."""
 REPEAT_ODDS = 1e-12
 """How rarely a healthy chip's six data bytes may stay the same for ``unchanged_periods``
 output periods (about once in 400 years of 75 Hz output)."""
@@ -299,7 +313,11 @@ class Hmc5883lDriver(Driver):
             return self._poll_auto(now_ns)
         status = self._read(Reg.STATUS, 1)[0]
         if status & STATUS_RDY:
-            sample = self._sample(now_ns)
+            sample, configured = self._sample(now_ns)
+            if not configured:
+                # a reset chip (single measurement, then idle): its data are no field
+                # measured in continuous mode as configured
+                return PollResult([sample], self.restart(reset_detected=True))
             if not sample.flags & (SampleFlag.BLANK | SampleFlag.FROZEN):
                 self._ready.fresh(Quantity.MAG, now_ns)
                 self._watch.fresh_poll()
@@ -382,12 +400,19 @@ class Hmc5883lDriver(Driver):
             return PollResult([sample], self.restart(reset_detected=False))
         return PollResult([sample], self._grid.next_after(now_ns))
 
-    def _sample(self, now_ns: int) -> Sample:
-        """Read the six data bytes (X, Z, Y) and decode them, flagging a blank or frozen
-        frame (values NaN) and out-of-range or overflowed counts."""
-        assert self.gain_lsb_per_gauss is not None
-        raw = self._read(Reg.X_MSB, 6)
-        return self._decoded(raw, now_ns, blank_flag(raw) or self._frozen_flag(raw))
+    def _sample(self, now_ns: int) -> tuple[Sample, bool]:
+        """Read Mode and the six data bytes (X, Z, Y) in one transaction and decode the
+        data, flagging a blank or frozen frame (values NaN) and out-of-range or overflowed
+        counts; and whether the chip still measures in the planned mode. A chip that does
+        not: its sample is STALE (values NaN)."""
+        assert self.gain_lsb_per_gauss is not None and self.plan is not None
+        raw = self._read(Reg.MODE, MODE_AND_DATA)
+        data = raw[Reg.X_MSB - Reg.MODE:]
+        blank = blank_flag(data)
+        if not blank and self.plan.mismatches({Reg.MODE: raw[0]}):
+            return MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
+                             mag_ut=NAN3, flags=SampleFlag.STALE), False
+        return self._decoded(data, now_ns, blank or self._frozen_flag(data)), True
 
     def _decoded(self, raw: bytes, now_ns: int, bad: SampleFlag) -> Sample:
         """The sample of the six data bytes ``raw`` (registers 0x03..0x08), NaN when ``bad``

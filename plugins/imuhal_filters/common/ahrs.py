@@ -55,7 +55,12 @@ from imuhal.core.samples import (
 )
 from imuhal.core.streams import StreamSpec
 from imuhal.estimation.base import Estimator, EstimatorSettings
-from imuhal.estimation.outputs import AttitudeEstimate, Estimate
+from imuhal.estimation.outputs import (
+    AttitudeEstimate,
+    Estimate,
+    EstimateFlag,
+    RejectedEstimate,
+)
 from imuhal.estimation.rows import (
     AttitudeRows,
     DiagnosticColumn,
@@ -151,6 +156,19 @@ OUT_OF_RANGE alone, beyond the range but not at the rail, is a corrupt word)."""
 RECOVERY_S = 3.0
 """Angular-rate recovery: after the last clipped gyro sample, the extra tilt feedback decays
 linearly to nothing over this long (s) (Fusion's start-up period)."""
+RECOVERY_RAIL = 0.99
+"""A clipped gyro sample's axis counts as clipped when its rate is at least this share of
+the stream's full scale (the chip's rail is one count short of it)."""
+RECOVERY_CHECKED_RAD = 0.05
+"""Angular-rate recovery: while more rotation than this (rad; 2.9 deg, the complementary
+filters' soft-gate width of 0.05 g seen as a tilt) that clipped samples may have got wrong
+is not yet accounted for by the accelerometer, the AHRS withholds its estimates
+(``EstimateFlag.UNSETTLED``)."""
+RECOVERY_RAMP = 0.5
+"""Angular-rate recovery: a clip on an axis whose last measured rate was below this share
+of the full scale came out of nowhere (the rate would have had to grow by half the range
+in one sample: 100,000 deg/s^2 on a 1000 deg/s gyro at 200 Hz), so it is taken for no
+rotation and the recovery's pull is limited to the rotation it integrated."""
 RECOVERY_GAIN = 10.0
 """Angular-rate recovery: the extra tilt feedback's gain at its start (rad/s per unit of
 the sine of the tilt error; Fusion's start-up gain): the tilt error then falls with a time
@@ -245,25 +263,34 @@ def _head(blocks: Sequence[Block], gyro: Block, frames: int
     return head, rest
 
 
-def _tilt_pulled(q: Quat, accel_g: Vec, angle_gain: float) -> Quat:
+def _tilt_pulled(q: Quat, accel_g: Vec, angle_gain: float, axes: Vec = (1.0, 1.0, 1.0),
+                 max_angle: float = _INF) -> tuple[Quat, float, float]:
     """``q`` (body -> NED) turned so the gravity it predicts in the body frame moves towards
     the measured gravity-positive ``accel_g`` by ``angle_gain`` times the sine of the angle
-    between them (the Mahony / Fusion accelerometer feedback, integrated over one step)."""
+    between them (the Mahony / Fusion accelerometer feedback, integrated over one step),
+    turning only about the body axes whose ``axes`` entry is 1 (0: not about that one) and
+    by at most ``max_angle`` (rad); the angle it turned (rad) and the angle between the
+    predicted and the measured gravity left after the turn (rad, to first order)."""
     ax, ay, az = accel_g
     norm = math.sqrt(ax * ax + ay * ay + az * az)
     if not norm > 0.0:
-        return q
+        return q, 0.0, _INF
     ax, ay, az = ax / norm, ay / norm, az / norm
     w, x, y, z = q
     # gravity's direction in the body frame as q predicts it: R(q)^T (0, 0, 1)
     vx, vy, vz = 2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z
     # the body rotation that turns the prediction towards the measurement
     ex, ey, ez = ay * vz - az * vy, az * vx - ax * vz, ax * vy - ay * vx
+    apart = math.atan2(math.sqrt(ex * ex + ey * ey + ez * ez), ax * vx + ay * vy + az * vz)
+    ex, ey, ez = ex * axes[0], ey * axes[1], ez * axes[2]
+    angle = angle_gain * math.sqrt(ex * ex + ey * ey + ez * ez)
+    if angle > max_angle:
+        angle_gain, angle = angle_gain * max_angle / angle, max_angle
     hx, hy, hz = 0.5 * angle_gain * ex, 0.5 * angle_gain * ey, 0.5 * angle_gain * ez
     w, x, y, z = (w - x * hx - y * hy - z * hz, x + w * hx + y * hz - z * hy,
                   y - x * hz + w * hy + z * hx, z + x * hy - y * hx + w * hz)
     n = math.sqrt(w * w + x * x + y * y + z * z)
-    return (w / n, x / n, y / n, z / n)
+    return (w / n, x / n, y / n, z / n), angle, max(0.0, apart - angle)
 
 
 class AhrsEstimator(Estimator):
@@ -314,9 +341,16 @@ class AhrsEstimator(Estimator):
             "stale_accel": 0,
             "stale_mag": 0,
             "beyond_full_scale": {Quantity.GYRO.value: 0, Quantity.ACCEL.value: 0},
-            "angular_rate_recovery": {"clipped_samples": 0, "recoveries": 0},
+            "angular_rate_recovery": {"clipped_samples": 0, "recoveries": 0, "withheld": 0},
         }
         self._recovery_left_s = 0.0
+        self._recovery_axes: Vec = (0.0, 0.0, 0.0)
+        self._recovery_budget_rad = 0.0
+        self._recovery_apart_rad = _INF
+        """The angle between the predicted and the measured gravity at the recovery's last
+        pull (rad; infinite before the first)."""
+        self._last_rate: Vec = NO_VECTOR
+        """The last gyro rate measured (not clipped), rad/s body."""
         self._q = IDENTITY
         identity = self.settings.initial_attitude == "identity"
         self._tilt_aligned = identity
@@ -387,9 +421,10 @@ class AhrsEstimator(Estimator):
                 return []
             if item.frame is not _BODY_NED:  # type: ignore[union-attr]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
                 return self._wrong_frame(item)  # type: ignore[arg-type]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
+            rate = self._last_rate = (float(x), float(y), float(z))
             if self._recovery_left_s > 0.0:
-                return self._recovering(item, (float(x), float(y), float(z)))  # type: ignore[arg-type]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
-            return self._on_gyro(item, (float(x), float(y), float(z)))  # type: ignore[arg-type]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
+                return self._recovering(item, rate)  # type: ignore[arg-type]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
+            return self._on_gyro(item, rate)  # type: ignore[arg-type]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
         return self._process_general(item)
 
     def _on_mag(self, item: MagSample) -> list[Estimate]:
@@ -427,30 +462,83 @@ class AhrsEstimator(Estimator):
         counts["clipped_samples"] += 1
         if self._recovery_left_s <= 0.0:
             counts["recoveries"] += 1
+            self._recovery_axes = (0.0, 0.0, 0.0)
+            self._recovery_budget_rad = 0.0
+            self._recovery_apart_rad = _INF
         self._recovery_left_s = RECOVERY_S
         clipped = (min(max(float(x), -limit), limit), min(max(float(y), -limit), limit),
                    min(max(float(z), -limit), limit))
-        return self._recovering(item, clipped)
+        return self._recovering(item, clipped, self._clip_budget(clipped, limit))
 
-    def _recovering(self, item: GyroSample, rate: Vec) -> list[Estimate]:
+    def _clip_budget(self, clipped: Vec, limit: float) -> float:
+        """The axes a clipped reading (rad/s, cut at +-``limit``) adds to the recovery's,
+        and how fast it may have turned the attitude wrong (rad/s, ``_recovering``'s
+        ``at_rail_rad_s``): infinite for a rotation that ramped into the clip (its last
+        measured rate on a clipped axis at least RECOVERY_RAMP of the range: it may have
+        gone any way beyond it, and what it missed about one axis turns the others'
+        integration, so Fusion's recovery about every axis); else the rate integrated on
+        the clipped axes (a clip out of a rate well inside the range: no vehicle turns that
+        fast that quickly, so it is no rotation, a shock or a corrupt word the chip clipped,
+        and the recovery has to find at most what integrating it put in)."""
+        rail = RECOVERY_RAIL * limit
+        at = [abs(c) >= rail for c in clipped]
+        axes = self._recovery_axes
+        self._recovery_axes = (1.0 if axes[0] or at[0] else 0.0,
+                               1.0 if axes[1] or at[1] else 0.0,
+                               1.0 if axes[2] or at[2] else 0.0)
+        ramped = RECOVERY_RAMP * limit
+        if any(a and abs(r) >= ramped for a, r in zip(at, self._last_rate, strict=True)):
+            self._recovery_axes = (1.0, 1.0, 1.0)
+            return _INF
+        return math.sqrt(sum(c * c for c, a in zip(clipped, at, strict=True) if a))
+
+    def _recovering(self, item: GyroSample, rate: Vec, at_rail_rad_s: float = 0.0
+                    ) -> list[Estimate]:
         """One gyro step during the angular-rate recovery: before the filter's own step, the
         tilt is pulled towards the newest accelerometer reading with the recovery gain
         (decaying linearly from RECOVERY_GAIN to 0 over RECOVERY_S after the last clipped
-        sample); the filter's step then runs as usual."""
+        sample), about the clipped axes only and by no more in all than the clipped samples
+        turned (``at_rail_rad_s``: this sample's rate on its clipped axes, rad/s, infinite
+        for a rotation that ramped into the clip); the filter's step then runs as usual.
+
+        Only about the clipped axes: the rotation a clipped sample got wrong is about the
+        axes at the rail (the others were measured), so that is all the recovery has to
+        find. The accelerometer's other components carry no attitude error to recover, only
+        the acceleration nothing models (a take-off run's push, a pull-out), which a pull
+        about every axis would turn into tilt (seed-rc-vario: 46 deg on its run-up after
+        one clipped sample, issue 26); those components stay with the filter's own gated
+        correction. No more than the clipped samples turned, when they came out of a rate
+        well inside the range (RECOVERY_RAMP): a wild value the chip clipped (a fault, not
+        a rotation) put exactly that much in, and a pull beyond it is acceleration taken
+        for tilt. While the reading disagrees with the attitude by more than
+        RECOVERY_CHECKED_RAD and more than that is left of what the clipped samples may
+        have got wrong, the estimates are withheld (UNSETTLED): the attitude is not known
+        yet."""
         last = self._last_gyro_t_ns
         dt = self._nominal_dt_s
         if last is not None and 0.0 < (item.t_ns - last) * _NS <= self._max_dt_s:
             dt = (item.t_ns - last) * _NS
         gain = RECOVERY_GAIN * self._recovery_left_s / RECOVERY_S
         self._recovery_left_s = max(0.0, self._recovery_left_s - dt)
+        self._recovery_budget_rad += at_rail_rad_s * dt
         accel = self._accel_m_s2
         fresh = accel is not None and self._accel_t_ns is not None and (
             self._max_aux_age_s is None
             or (item.t_ns - self._accel_t_ns) * _NS <= self._max_aux_age_s)
         if fresh and self.owns_quaternion and self._tilt_aligned:
             assert accel is not None
-            self._q = _tilt_pulled(self._q, gravity_positive_g(accel), gain * dt)
-        return self._on_gyro(item, rate)
+            self._q, turned, apart = _tilt_pulled(
+                self._q, gravity_positive_g(accel), gain * dt, self._recovery_axes,
+                self._recovery_budget_rad)
+            self._recovery_budget_rad -= turned
+            self._recovery_apart_rad = apart
+        out = self._on_gyro(item, rate)
+        if out and min(self._recovery_budget_rad, self._recovery_apart_rad) > \
+                RECOVERY_CHECKED_RAD:
+            self._counters["angular_rate_recovery"]["withheld"] += 1
+            return [RejectedEstimate(t_ns=item.t_ns, source=self.instance, kind="attitude",
+                                     flags=EstimateFlag.UNSETTLED, estimator=self.name)]
+        return out
 
     def _process_general(self, item: Sample | Estimate) -> list[Estimate]:
         if isinstance(item, StreamGap):
@@ -487,7 +575,10 @@ class AhrsEstimator(Estimator):
             if self.uses_mag:
                 self._mag_ut, self._mag_t_ns = _vec(item.mag_ut), item.t_ns
             return []
-        return self._on_gyro(item, _vec(item.gyro_rad_s))
+        rate = self._last_rate = _vec(item.gyro_rad_s)
+        if self._recovery_left_s > 0.0:
+            return self._recovering(item, rate)
+        return self._on_gyro(item, rate)
 
     def _wrong_frame(self, item: GyroSample | AccelSample | MagSample) -> list[Estimate]:
         raise ValueError(
@@ -509,6 +600,10 @@ class AhrsEstimator(Estimator):
                          "angular_rate_recovery": dict(
                              self._counters["angular_rate_recovery"])},
             "recovery_left_s": self._recovery_left_s,
+            "recovery_axes": list(self._recovery_axes),
+            "recovery_budget_rad": self._recovery_budget_rad,
+            "recovery_apart_rad": self._recovery_apart_rad,
+            "last_rate_rad_s": list(self._last_rate),
             "aligned": [self._tilt_aligned, self._heading_aligned],
             "kinematics": self._kinematics.as_dict(),
             "filter": self._filter_state(),
@@ -527,8 +622,12 @@ class AhrsEstimator(Estimator):
                           "beyond_full_scale": dict(counters["beyond_full_scale"]),
                           "angular_rate_recovery": dict(counters.get(
                               "angular_rate_recovery",
-                              {"clipped_samples": 0, "recoveries": 0}))}
+                              {"clipped_samples": 0, "recoveries": 0, "withheld": 0}))}
         self._recovery_left_s = float(state.get("recovery_left_s", 0.0))
+        self._recovery_axes = _vec(state.get("recovery_axes", (1.0, 1.0, 1.0)))
+        self._recovery_budget_rad = float(state.get("recovery_budget_rad", _INF))
+        self._recovery_apart_rad = float(state.get("recovery_apart_rad", _INF))
+        self._last_rate = _vec(state.get("last_rate_rad_s", NO_VECTOR))
         self._tilt_aligned, self._heading_aligned = (bool(v) for v in state["aligned"])
         self._kinematics.load_dict(state["kinematics"])
         self._no_speed = (self.settings.nominal_airspeed_m_s is None

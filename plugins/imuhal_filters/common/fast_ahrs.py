@@ -4,7 +4,7 @@ the row loop.
 The gate is written once, here: the compiled steps (madgwick, mahony, freescale) call it as
 helper kernels and the Python path (``common/gate.py``, ``freescale/kalman.py``) calls the
 same functions as plain Python, so the two cannot drift apart. (:func:`accel_gate` names
-:func:`soft_gate_distrust` by its plain function: Python calls it directly, and the compiled
+:func:`unmodelled_accel_g` by its plain function: Python calls it directly, and the compiled
 copy is bound to its kernel, ``common.fast.compiled_copy``.)
 
 The row loop is made once per filter from the filter's step (:func:`ahrs_rows`, a helper
@@ -56,17 +56,41 @@ soft_gate_distrust_kernel = jit(soft_gate_distrust)
 """:func:`soft_gate_distrust` as a helper kernel."""
 
 
-def accel_gate(have_a: bool, ax: float, ay: float, az: float, lower_g: float,
-               upper_g: float, width_g: float) -> tuple[bool, float]:
-    """The hard and soft accelerometer gates of a complementary filter, for the
-    gravity-positive reading ``a`` (g; ``have_a`` False: none this step): whether the hard
-    gate is open (``lower_g < |a| < upper_g``, strictly, as in the seeds; closed without a
-    reading) and the weight of the correction (1 / :func:`soft_gate_distrust`; 1 without a
-    reading or without a soft gate, ``width_g`` <= 0)."""
+def unmodelled_accel_g(ax: float, ay: float, az: float, q0: float, q1: float, q2: float,
+                       q3: float) -> float:
+    """The size (g) of the acceleration nothing models in the gravity-positive reading ``a``
+    (g, body; turn-compensated): ``|a - R(q)^T (0, 0, 1)|``, the reading minus the gravity
+    the attitude ``q`` (body -> NED) predicts, i.e. the accelerometer's innovation. A
+    horizontal acceleration ``h`` (g) turns the reading by ``atan(h)`` but changes its
+    magnitude only by about ``h^2 / 2``: the vector sees it at first order, the magnitude
+    (:func:`soft_gate_distrust`) at second."""
+    ex = ax - 2.0 * (q1 * q3 - q0 * q2)
+    ey = ay - 2.0 * (q2 * q3 + q0 * q1)
+    ez = az - (q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3)
+    return math.sqrt(ex * ex + ey * ey + ez * ez)
+
+
+unmodelled_accel_g_kernel = jit(unmodelled_accel_g)
+""":func:`unmodelled_accel_g` as a helper kernel."""
+
+
+def accel_gate(have_a: bool, ax: float, ay: float, az: float, q0: float, q1: float,
+               q2: float, q3: float, lower_g: float, upper_g: float, width_g: float
+               ) -> tuple[bool, float]:
+    """The hard and soft accelerometer gates of a complementary filter at attitude ``q``
+    (body -> NED), for the gravity-positive reading ``a`` (g; ``have_a`` False: none this
+    step): whether the hard gate is open (``lower_g < |a| < upper_g``, strictly, as in the
+    seeds; closed without a reading) and the weight of the correction,
+    ``1 / (1 + (u / width_g)^2)`` with ``u`` the unmodelled acceleration
+    (:func:`unmodelled_accel_g`; 1 without a reading or without a soft gate, ``width_g``
+    <= 0)."""
     if not have_a:
         return False, 1.0
     n = math.sqrt(ax ** 2 + ay ** 2 + az ** 2)
-    return lower_g < n < upper_g, 1.0 / soft_gate_distrust(n, width_g)
+    if width_g > 0.0:
+        d = unmodelled_accel_g(ax, ay, az, q0, q1, q2, q3) / width_g
+        return lower_g < n < upper_g, 1.0 / (1.0 + d * d)
+    return lower_g < n < upper_g, 1.0
 
 
 accel_gate_kernel = jit(accel_gate)

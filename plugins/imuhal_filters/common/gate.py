@@ -17,8 +17,8 @@ from pydantic import AfterValidator, Field
 
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.estimation.base import EstimatorSettings
-from imuhal_filters.common.fast_ahrs import accel_gate
-from imuhal_filters.common.quat import Vec
+from imuhal_filters.common.fast_ahrs import accel_gate, soft_gate_distrust
+from imuhal_filters.common.quat import IDENTITY, Quat, Vec
 
 
 def gravity_positive_g(specific_force_m_s2: Vec) -> Vec:
@@ -69,15 +69,18 @@ class AccelGate:
     def is_open(self, accel_g: Vec) -> bool:
         """True when the magnitude of ``accel_g`` (any sign convention, in g) is in the window
         (the compiled kernels' :func:`~imuhal_filters.common.fast_ahrs.accel_gate`)."""
-        return accel_gate(True, *accel_g, self.lower_g, self.upper_g, 0.0)[0]
+        return accel_gate(True, *accel_g, *IDENTITY, self.lower_g, self.upper_g, 0.0)[0]
 
-    def gates(self, accel_g: Vec | None, width_g: float | None) -> tuple[bool, float]:
-        """This hard gate and the soft gate of ``width_g`` (g; None: none) for one reading
-        (any sign convention, in g; None: none this step), from one magnitude: whether the
-        gate is open (closed without a reading) and :func:`soft_gate_weight`."""
+    def gates(self, accel_g: Vec | None, width_g: float | None, q: Quat
+              ) -> tuple[bool, float]:
+        """This hard gate and the soft gate of ``width_g`` (g; None: none) for one
+        gravity-positive reading (g; None: none this step) at attitude ``q`` (body -> NED):
+        whether the gate is open (closed without a reading) and the weight of the
+        correction (:func:`~imuhal_filters.common.fast_ahrs.accel_gate`: from the
+        unmodelled acceleration, the reading minus the gravity ``q`` predicts)."""
         if accel_g is None:
             return False, 1.0
-        return accel_gate(True, *accel_g, self.lower_g, self.upper_g,
+        return accel_gate(True, *accel_g, *q, self.lower_g, self.upper_g,
                           0.0 if width_g is None else width_g)
 
 
@@ -93,14 +96,16 @@ def soft_gate_weight(accel_g: Vec, width_g: float | None) -> float:
     """
     if width_g is None:
         return 1.0
-    return accel_gate(True, *accel_g, 0.0, math.inf, width_g)[1]
+    ax, ay, az = accel_g
+    return 1.0 / soft_gate_distrust(math.sqrt(ax ** 2 + ay ** 2 + az ** 2), width_g)
 
 
 class SoftGateSettings(EstimatorSettings):
     """The soft accelerometer gate of the complementary filters (madgwick, mahony)."""
 
     accel_soft_gate_g: float | None = Field(0.05, gt=0.0)
-    """Fade the accelerometer correction as the (turn-compensated) reading departs from 1 g:
-    weight 1 / (1 + (| |a| - 1 g | / this)^2); None: full correction at any magnitude (the
-    references). 0.05 g chosen on the emulated ``thermal`` launch and ``rc-flight``
-    (docs/estimators.md)."""
+    """Fade the accelerometer correction as the (turn-compensated) reading departs from the
+    gravity the attitude predicts: weight 1 / (1 + (u / this)^2), u = |a - R(q)^T g| in g,
+    the acceleration nothing models (a horizontal push at first order, where |a| would see
+    it at second); None: full correction always (the references). 0.05 g chosen on the
+    emulated ``thermal`` launch and ``rc-flight`` (docs/estimators.md)."""

@@ -157,6 +157,8 @@ def block_rows(est: AhrsEstimator, gyro: Block, accel: Block | None, mag: Block 
     dts = _step_lengths(est, t_step)
     if len(idx):
         est._last_gyro_t_ns = int(t_step[-1])
+        last = g_step[-1]
+        est._last_rate = (float(last[0]), float(last[1]), float(last[2]))
     return StepRows(idx, t_step, g_step, accel_rows, mag_rows, dts)
 
 

@@ -126,7 +126,7 @@ class MadgwickEstimator(AhrsEstimator):
 
     def _step(self, step: ImuStep) -> dict[str, Any]:
         accel = step.accel_g
-        gate_open, weight = self._gate.gates(accel, self._soft_gate_g)
+        gate_open, weight = self._gate.gates(accel, self._soft_gate_g, self._q)
         if accel is not None and not gate_open:
             self._counters["gate_closed_steps"] += 1
         mag = step.mag_ut if self._use_mag else None

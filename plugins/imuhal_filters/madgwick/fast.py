@@ -51,7 +51,8 @@ def _madgwick_step(state, params, gx, gy, gz, have_a, ax, ay, az, have_m, mx0, m
     the gate was open, the soft-gate weight and no gyro bias."""
     q0, q1, q2, q3 = state
     beta, gate_lo, gate_hi, soft_width, paper = params
-    gate_open, weight = accel_gate_kernel(have_a, ax, ay, az, gate_lo, gate_hi, soft_width)
+    gate_open, weight = accel_gate_kernel(have_a, ax, ay, az, q0, q1, q2, q3, gate_lo,
+                                         gate_hi, soft_width)
     b = beta * weight
     d0 = 0.5 * (-q1 * gx - q2 * gy - q3 * gz)
     d1 = 0.5 * (q0 * gx + q2 * gz - q3 * gy)

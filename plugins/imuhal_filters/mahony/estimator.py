@@ -103,7 +103,7 @@ class MahonyEstimator(AhrsEstimator):
 
     def _step(self, step: ImuStep) -> dict[str, Any]:
         accel = step.accel_g
-        gate_open, weight = self._gate.gates(accel, self.settings.accel_soft_gate_g)
+        gate_open, weight = self._gate.gates(accel, self.settings.accel_soft_gate_g, self._q)
         if accel is not None and not gate_open:
             self._counters["gate_closed_steps"] += 1
         mag = step.mag_ut if self.settings.use_mag else None

@@ -48,7 +48,8 @@ def _mahony_step(state, params, gx, gy, gz, have_a, ax, ay, az, have_m, mx0, my0
     the gate was open, the soft-gate weight and the gyro bias (minus the integral)."""
     q0, q1, q2, q3, ix, iy, iz = state
     kp, ki, gate_lo, gate_hi, soft_width = params
-    gate_open, weight = accel_gate_kernel(have_a, ax, ay, az, gate_lo, gate_hi, soft_width)
+    gate_open, weight = accel_gate_kernel(have_a, ax, ay, az, q0, q1, q2, q3, gate_lo,
+                                         gate_hi, soft_width)
     kpw, kiw = kp * weight, ki * weight
     if gate_open:
         n = math.sqrt(ax * ax + ay * ay + az * az)
