@@ -102,18 +102,25 @@ def test_validity_of_a_block_flags_what_the_per_sample_check_flags() -> None:
     rows[7] = rows[7].with_vector((0.0, float("inf"), 0.0), Frame.SENSOR)
     rows[11] = rows[11].with_vector((0.0, 0.0, -30.0), Frame.SENSOR)
     full_scale, last = 12.0, rows[2].t_ns  # the previous block ended after frames 0 and 1
-    expected, last_valid = [], last
-    for s in rows:
-        flags = validity_flags(s, full_scale, last_valid)
-        if not flags:
-            last_valid = s.t_ns
-        expected.append(int(flags))
+    expected, last_valid = _per_sample_flags(rows, full_scale, last)
     block, got_last = validity_block(_as_arrays(Block.from_samples(rows)), full_scale, last)
     assert block.flags.tolist() == expected
     assert got_last == last_valid
     assert SampleFlag.OUT_OF_ORDER in SampleFlag(expected[0])
     assert SampleFlag.NAN in SampleFlag(expected[3])
     assert SampleFlag.OUT_OF_RANGE in SampleFlag(expected[11])
+
+
+def _per_sample_flags(rows: list[Sample], full_scale: float | None, last: int | None
+                      ) -> tuple[list[int], int | None]:
+    """The reference: each frame's flags from the per-sample check, and the last valid time."""
+    expected, last_valid = [], last
+    for s in rows:
+        flags = validity_flags(s, full_scale, last_valid)
+        if not flags:
+            last_valid = s.t_ns
+        expected.append(int(flags))
+    return expected, last_valid
 
 
 def _clean(n: int, seed: int) -> list[Sample]:
@@ -144,12 +151,7 @@ def test_a_clean_looking_block_is_checked_like_its_samples(
     """The common case's quick test (every frame unflagged, finite, within the full scale,
     not older than the last valid frame) hands on exactly what the per-sample check does,
     at each of its edges."""
-    expected, last_valid = [], last
-    for s in rows:
-        flags = validity_flags(s, full_scale, last_valid)
-        if not flags:
-            last_valid = s.t_ns
-        expected.append(int(flags))
+    expected, last_valid = _per_sample_flags(rows, full_scale, last)
     block, got_last = validity_block(_as_arrays(Block.from_samples(rows)), full_scale, last)
     assert block.flags.tolist() == expected
     assert got_last == last_valid
