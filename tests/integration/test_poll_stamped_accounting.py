@@ -4,7 +4,8 @@ with the host's poll, through the fault-injection interface (imuhal.emulation.fa
 Two causes the frame ledger used to count wrong on poll-stamped streams:
 
 - the MAX21100 after a bus error: the poll after a failed one read the missed sample a
-  period late, a gap the chip never had (now the driver retries at once);
+  period late, a gap the chip never had (a retry at once mended that, but let the slave
+  auto-read's torn magnetometer copies out, so it was taken back: strict xfail below);
 - the MS5611, whose conversions the host starts: slots in which the host started none (its
   schedule slid after a late poll, another device's long recovery, a failed temperature
   read) were counted as frames lost; the chip never made them, so they are counted apart
@@ -17,6 +18,7 @@ from __future__ import annotations
 
 import pytest
 
+from imuhal.core.samples import Sample
 from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import AllOnes, BusErrors, ChipReset, FaultSpec, HostStall
 from imuhal.pipeline import Pipeline
@@ -51,11 +53,28 @@ def _ledger_matches_the_chip(p: Pipeline, device: str) -> FrameLedger:
     return ledger
 
 
+@pytest.mark.xfail(strict=True, reason="the MAX21100 waits for its poll grid after a bus "
+                   "error again (a retry at once let torn magnetometer copies out); the "
+                   "missed sample can be read a period late")
 def test_max21100_bus_errors_cost_no_frame_the_chip_kept(registry: Registry) -> None:
     p = _fly(registry, "seed-paraglider-vario", [BusErrors(device="imu", rate=0.03)])
     assert p.devices["imu"].bus_errors > 20
     ledger = _ledger_matches_the_chip(p, "imu")
     assert ledger.lost["bus_error"] == 0  # the retry read every sample a failed poll missed
+
+
+def test_bus_errors_never_hand_out_more_magnetometer_fields_than_the_chip_measured(
+        registry: Registry) -> None:
+    """A torn copy of the slave auto-read (part of one measurement, part of the one before)
+    is no field: at bus errors on the MAX21100 and its slave, the HMC5883L behind it hands
+    out at most one valid field per measurement the chip made."""
+    profile = load_profile(bundled_profiles()["seed-paraglider-vario.yaml"], registry)
+    faults: list[FaultSpec] = [BusErrors(device=d, rate=0.01) for d in ("imu", "mag", "baro")]
+    with open_emulated(profile, registry, seed=1, faults=faults, calibrated=False) as p:
+        valid = [e.t_ns for e in p.events(10.0) if isinstance(e, Sample)
+                 and e.device == "mag" and e.valid]
+        measured = p.board.emulators["mag"].frames_between(0, valid[-1])
+    assert 0 < len(valid) <= measured
 
 
 @pytest.mark.parametrize(("faults", "skips"), [
