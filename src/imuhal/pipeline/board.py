@@ -73,10 +73,6 @@ def open_trigger_line(config: InterruptConfig, clock: MonotonicClock, *,
                                          consumer=consumer), clock)
 
 
-HELD_POLL_NS = 1_000_000
-"""A hardware poll later than this after its due time was held (not merely woken late)."""
-
-
 @dataclass
 class HardwareBoard:
     """A real board: the profile's buses, opened, on the monotonic clock, and the data-ready
@@ -87,13 +83,9 @@ class HardwareBoard:
     lines: dict[str, GpioTriggerLine] = field(default_factory=dict)
 
     def before_poll(self, t_ns: int, device: str) -> int:
-        """Real chips measure the real world on their own. A poll the thread was held past
-        its due time (another device's read or recovery, a stall) is stamped when it
-        happens; the host's usual wake-up latency (tens of microseconds, far below
-        ``HELD_POLL_NS``) keeps the due time, so that a recording does not carry a late-poll
-        record for every poll."""
-        now_ns = self.clock.now_ns()
-        return now_ns if now_ns - t_ns > HELD_POLL_NS else t_ns
+        """Real chips measure the real world on their own: the poll is now, at ``t_ns`` or
+        later."""
+        return max(t_ns, self.clock.now_ns())
 
     def waiter(self) -> Waiter:
         """One ``selectors`` wait over the lines and the next deadline."""
