@@ -12,8 +12,7 @@ through the fault-injection interface. Found by the soak on every bundled board
   time (``EmulatedBoard.before_poll``), two seconds old, and its pressure (14-37 Pa off) was
   stamped at the conversion's real end, valid; the vario followed it (-4.5 to -8.5 m/s).
 
-The boards' ``before_poll`` now put the poll at ``max(due, clock.now_ns())`` (a recording
-keeps it as a late poll, so a replay polls then too); the frame ledger counts
+``Pipeline._poll_events`` now polls at ``max(due, clock.now_ns())``; the frame ledger counts
 such a late poll's gap in whole periods and charges a gap across the device's own reset to
 the reset (imuhal.pipeline.accounting; tests/integration/test_frame_accounting.py)."""
 
