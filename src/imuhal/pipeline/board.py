@@ -37,11 +37,8 @@ class Board(Protocol):
 
     def before_poll(self, t_ns: int, device: str) -> int:
         """Called at ``t_ns`` (the clock already there), just before ``device`` is polled.
-        Returns the time the poll happens: ``t_ns``, or later when the host was late (the
-        clock is past ``t_ns``: the one thread was held by another device's poll or
-        recovery, or by a stall; an emulated board's injected late polls and jitter move
-        the clock). A late poll is stamped when it happens, never at its old due time: the
-        chips are read then (a recording keeps the time, so a replay polls at it)."""
+        Returns the time the poll happens: ``t_ns``, or later when the host was late (an
+        emulated board's injected late polls and jitter move the clock)."""
         ...
 
 
@@ -83,9 +80,8 @@ class HardwareBoard:
     lines: dict[str, GpioTriggerLine] = field(default_factory=dict)
 
     def before_poll(self, t_ns: int, device: str) -> int:
-        """Real chips measure the real world on their own: the poll is now, at ``t_ns`` or
-        later."""
-        return max(t_ns, self.clock.now_ns())
+        """Nothing to do: real chips measure the real world on their own."""
+        return t_ns
 
     def waiter(self) -> Waiter:
         """One ``selectors`` wait over the lines and the next deadline."""

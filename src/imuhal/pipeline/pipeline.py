@@ -625,7 +625,8 @@ class Pipeline:
                 if fused:
                     yield from fused
             due_ns = t_ns
-            t_ns = self._before_poll(t_ns, name)
+            # Overdue (the thread was held): the poll happens now and its readings are now's.
+            t_ns = self._before_poll(max(t_ns, self.clock.now_ns()), name)
             dev = self.devices[name]
             self._note_late(dev, due_ns, t_ns)
             self._span_ns[1] = max(t_ns, self._span_ns[1])
