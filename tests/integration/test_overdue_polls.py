@@ -1,7 +1,7 @@
 """A poll that comes due while the pipeline's one thread is held (a host stall, another
-device's recovery) happens when the thread is free, and its readings are stamped then;
-through the fault-injection interface. Found by the soak on every bundled board
-(tests/benchmarks/soak.py), before the fix:
+device's recovery) should happen when the thread is free, and its readings be stamped
+then; through the fault-injection interface. Found by the soak on every bundled board
+(tests/benchmarks/soak.py), NOT FIXED (the test is a strict xfail until it is):
 
 - gy91: the MPU-9250's recovery held the thread 0.22-0.44 s; the BMP280 was then polled
   once per missed output slot at each slot's old time, handing out the one output it held
@@ -12,9 +12,10 @@ through the fault-injection interface. Found by the soak on every bundled board
   time (``EmulatedBoard.before_poll``), two seconds old, and its pressure (14-37 Pa off) was
   stamped at the conversion's real end, valid; the vario followed it (-4.5 to -8.5 m/s).
 
-``Pipeline._poll_events`` now polls at ``max(due, clock.now_ns())``; the frame ledger counts
-such a late poll's gap in whole periods and charges a gap across the device's own reset to
-the reset (imuhal.pipeline.accounting; tests/integration/test_frame_accounting.py)."""
+Passing ``max(due, clock.now_ns())`` to the poll in ``Pipeline._poll_events`` cures both (it
+makes this test pass), but moves the frame ledger's causes (the AK8963's losses behind a
+resetting MPU-9250 then read ``host_stall``, and one segment counts a frame more:
+tests/integration/test_frame_accounting.py), which the accounting work must settle."""
 
 from __future__ import annotations
 
@@ -42,6 +43,7 @@ def stalled_gy91() -> list[Sample]:
         return [e for e in p.events(5.0) if isinstance(e, Sample)]
 
 
+@pytest.mark.xfail(strict=True, reason="overdue polls get their due time (see the module)")
 def test_no_reading_is_stamped_while_the_host_was_stalled(stalled_gy91: list[Sample]) -> None:
     """The stall begins at the first IMU poll due at or after each instant (200 Hz: within
     5 ms of it); nothing can be read until it ends."""

@@ -69,49 +69,6 @@ def test_a_reset_closes_a_segment_and_its_gap_is_lost_to_the_reset() -> None:
     assert ledger.produced == 32
 
 
-def test_a_reset_takes_the_gap_from_a_stall_in_the_same_window() -> None:
-    """The device's own reconfiguration restarts its stream: the thread being held by
-    another device's recovery at the same time does not take its frames."""
-    ledger = FrameLedger(Quantity.GYRO, P)
-    ledger.observe(gyro(0))
-    ledger.polled(late=True)
-    ledger.note("reset")
-    ledger.polled(late=False)
-    ledger.observe(gyro(10 * P))
-    assert dict(ledger.lost) == {"reset": 9}
-
-
-def test_a_late_poll_is_charged_to_the_host_stall() -> None:
-    ledger = FrameLedger(Quantity.GYRO, P)
-    ledger.polled(late=False)
-    ledger.observe(gyro(0))
-    ledger.polled(late=True)
-    ledger.observe(gyro(4 * P))
-    assert dict(ledger.lost) == {"host_stall": 3}
-
-
-def test_a_late_poll_counts_whole_periods_back_to_the_frame_before() -> None:
-    """Stamped 0.9 period after the measurement it carries (an on-time poll: on it), its
-    frame is the 11th after the one before; rounding 11.9 periods would count a 12th the
-    chip makes only after the late poll, and the next on-time poll then carries that one."""
-    ledger = FrameLedger(Quantity.GYRO, P)
-    ledger.polled(late=False)
-    ledger.observe(gyro(0))
-    ledger.polled(late=True)
-    ledger.observe(gyro(11 * P + 9 * P // 10))
-    ledger.polled(late=False)
-    ledger.observe(gyro(12 * P))
-    assert (ledger.produced, ledger.delivered, dict(ledger.lost)) == (13, 3, {"host_stall": 10})
-
-
-def test_an_on_time_poll_rounds_its_jitter() -> None:
-    ledger = FrameLedger(Quantity.GYRO, P)
-    ledger.polled(late=False)
-    ledger.observe(gyro(0))
-    ledger.observe(gyro(2 * P - P // 10))  # polled a tenth early: the second frame after
-    assert dict(ledger.lost) == {"missed": 1}
-
-
 def test_an_unknown_cause_is_refused() -> None:
     with pytest.raises(ValueError, match="unknown loss cause 'gremlins'"):
         FrameLedger(Quantity.GYRO, P).note("gremlins")

@@ -9,11 +9,10 @@ the frames the chip produced from its timing: two valid frames delivered ``gap``
 produced and not delivered. Those are lost, and charged to the weightiest cause seen since
 the previous valid frame:
 
+``host_stall`` a poll of the device came more than half a frame period after it was due
+               (the host was busy: a stalled process, another device's slow poll);
 ``reset``      the driver reprogrammed its chip (a recovery after bus errors, a detected
                silent reset, a restart of a stuck or frozen chip);
-``host_stall`` a poll of the device came more than half a frame period after it was due
-               (the host's one thread was busy: a stalled process, another device's slow
-               poll or long recovery);
 ``bus_error``  a transfer failed (the driver resumed without a reset);
 ``stale``      the driver flagged a sample STALE (no new data for too long);
 ``flagged``    a produced frame came out flagged (FROZEN, BLANK, out of range...);
@@ -32,20 +31,7 @@ record of its measurement instants over each segment's span equals the segment's
 frames unseen, or a cause that goes uncounted fails there. ``delivered + sum(lost) ==
 produced`` holds by construction. ``fifo_overflow``: a FIFO reader (the MPU-9250's ``read:
 fifo``) found its chip's FIFO overflowed or corrupt and reset it (``DeviceHealth.
-fifo_overflows``); it comes first, since a FIFO rides out the other causes. ``reset`` comes
-before ``host_stall``: a gap across the device's own reconfiguration ends its segment and its
-stream restarts, so its frames are the reset's even when the thread was also held (another
-device's recovery in the same window); a device that was only kept waiting by another's
-recovery loses its frames to ``host_stall``.
-
-A late poll (``polled(late=True)``: the pipeline polls an overdue device when its thread is
-free, and stamps the readings then) reads the chip at any phase: its stamp may lie up to a
-whole period after the measurement it carries, while polls on time lie a small, steady lag
-after theirs. The gap that ends in a late poll's frame counts whole periods (``floor``, not
-``round``: rounding would count a frame the chip had not made yet, the one it makes between
-the late poll and the next). A late poll that comes within that small lag after a
-measurement carries the frame one slot later than its whole periods say: one frame lost
-goes uncounted (the limit below).
+fifo_overflows``); it comes first, since a FIFO rides out the other causes.
 
 A chip whose conversions the host starts (the MS5611) produces no frame in a slot of its
 configured cadence that the host let pass without a conversion (its schedule slid after a
@@ -65,14 +51,13 @@ Frame times from the chip (issue 25 item 4) remove this limit.
 
 from __future__ import annotations
 
-import math
 from collections import Counter
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
 from imuhal.core.samples import Quantity, Sample, SampleFlag
 
-CAUSES: tuple[str, ...] = ("fifo_overflow", "reset", "host_stall", "bus_error", "stale",
+CAUSES: tuple[str, ...] = ("fifo_overflow", "host_stall", "reset", "bus_error", "stale",
                            "flagged", "missed")
 """Loss causes, weightiest first: a gap is charged to the first one seen in it."""
 
@@ -118,8 +103,6 @@ class FrameLedger:
     """Time the driver's conversion schedule slid since the latest valid frame."""
     _segment_first_ns: int | None = None
     _segment_produced: int = 0
-    _late: bool = False
-    """The device's current poll came late: its frames' stamps lie off the grid's phase."""
 
     def __post_init__(self) -> None:
         if self.period_ns <= 0:
@@ -140,13 +123,6 @@ class FrameLedger:
             assert self.last_ns is not None
             self.segments.append((self._segment_first_ns, self.last_ns, self._segment_produced))
             self._segment_first_ns = None
-
-    def polled(self, *, late: bool) -> None:
-        """The device is being polled; ``late``: more than half a frame period after it was
-        due (the frames it hands out are stamped off the grid's phase)."""
-        self._late = late
-        if late:
-            self.note("host_stall")
 
     def slid(self, ns: int) -> None:
         """The driver's schedule of a host-paced chip slid by ``ns`` without a conversion
@@ -172,7 +148,7 @@ class FrameLedger:
             return None
         loss = None
         if self.last_ns is not None:
-            loss = self._gap_before(sample.t_ns)
+            loss = self._gap_before(sample.t_ns - self.last_ns)
         else:
             self.first_ns = sample.t_ns
         if self._segment_first_ns is None:
@@ -185,19 +161,11 @@ class FrameLedger:
         self._slid_ns = 0
         return loss
 
-    def _slots_before(self, t_ns: int) -> int:
-        """Slots of the chip's period between the latest valid frame and one stamped
-        ``t_ns``: whole periods for a late poll's frame (see the module)."""
-        assert self.last_ns is not None
-        periods = (t_ns - self.last_ns) / self.period_ns
-        return (math.floor(periods) if self._late else round(periods)) - 1
-
-    def _gap_before(self, t_ns: int) -> Loss | None:
-        """Counts the slots between the latest valid frame and one stamped ``t_ns``:
+    def _gap_before(self, step_ns: int) -> Loss | None:
+        """Counts the slots between the latest valid frame and one ``step_ns`` after it:
         frames lost (charged to the weightiest cause seen) and slots never converted."""
         assert self.last_ns is not None
-        step_ns = t_ns - self.last_ns
-        slots = self._slots_before(t_ns)
+        slots = round(step_ns / self.period_ns) - 1
         lost = max(0, min(slots, round((step_ns - self._slid_ns) / self.period_ns) - 1))
         skipped = max(0, slots - lost)
         self.not_converted += skipped

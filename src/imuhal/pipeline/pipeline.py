@@ -625,8 +625,7 @@ class Pipeline:
                 if fused:
                     yield from fused
             due_ns = t_ns
-            # Overdue (the thread was held): the poll happens now and its readings are now's.
-            t_ns = self._before_poll(max(t_ns, self.clock.now_ns()), name)
+            t_ns = self._before_poll(t_ns, name)
             dev = self.devices[name]
             self._note_late(dev, due_ns, t_ns)
             self._span_ns[1] = max(t_ns, self._span_ns[1])
@@ -691,8 +690,9 @@ class Pipeline:
         own clock), where a late read loses nothing until the FIFO overflows, a cause of
         its own."""
         ledger = dev.ledger
-        if ledger is not None and not dev.buffered:
-            ledger.polled(late=max(t_ns, self._span_ns[1]) - due_ns > ledger.period_ns // 2)
+        if ledger is not None and not dev.buffered and \
+                max(t_ns, self._span_ns[1]) - due_ns > ledger.period_ns // 2:
+            ledger.note("host_stall")
 
     def _superseded(self, name: str, t_ns: int) -> bool:
         """A popped deadline that a read on an edge replaced (the heap keeps the old entry);
