@@ -53,7 +53,6 @@ LISTEN_MAX_S = 90.0
 """How long the central listens at most, waiting for MIN_EACH of each sentence."""
 MIN_EACH = 20
 """Sentences of each kind the central needs to hear (2 s of them at 10 Hz)."""
-SENTENCE_HZ = 10.0
 
 BLUETOOTHD_CONFIG = """[General]
 ControllerMode = le
@@ -384,10 +383,13 @@ def test_a_bleak_central_reads_imuhals_sentences_and_pressure_through_bluez(
         print(f"central: {head} x {len(times)} at {_rate_hz(times):.2f} Hz (wall clock)",
               file=sys.stderr)
         assert len(times) >= MIN_EACH
-        # never faster than the 10 Hz cadence (no sentence sent twice); slower is the
-        # emulated guest falling behind real time (the cadence in the run's own time is
-        # tests/sinks/test_ble_output.py's)
-        assert _rate_hz(times) <= 1.3 * SENTENCE_HZ
+        # no sentence sent twice: consecutive sentences of a kind differ (a thermal's
+        # pressure and climb change every 100 ms). The wall-clock rate is printed, not
+        # bounded: the emulated guest falls behind real time and --realtime then catches up
+        # in a burst, and BLE connection events deliver queued notifications together (the
+        # cadence in the run's own time is tests/sinks/test_ble_output.py's)
+        lines = [line for _, line in sentences if line.startswith("$" + head)]
+        assert all(a != b for a, b in itertools.pairwise(lines)), head
     lxwp0 = [read_lxwp0(line) for _, line in sentences if line.startswith("$LXWP0")]
     assert all(s["vario_m_s"] is not None and s["pressure_altitude_m"] is not None
                for s in lxwp0)
