@@ -115,3 +115,11 @@ def test_an_ms5611_conversion_runs_on_its_own_oscillator(error: float) -> None:
 def test_an_ms5611_oscillator_beyond_the_datasheets_conversion_times_is_refused() -> None:
     with pytest.raises(ValueError, match="outside the datasheet's conversion times"):
         MS5611Emulator().oscillator_error = 0.12
+
+
+def test_an_oscillator_error_beyond_ten_percent_is_refused_naming_it() -> None:
+    from imuhal.emulation import ChipEmulator
+
+    assert ChipEmulator.checked_oscillator_error(-0.02) == -0.02
+    with pytest.raises(ValueError, match=r"oscillator_error 0\.2 is not a clock error"):
+        ChipEmulator.checked_oscillator_error(0.2)

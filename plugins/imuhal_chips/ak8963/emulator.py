@@ -138,8 +138,7 @@ class AK8963Emulator(ChipEmulator):
 
     @oscillator_error.setter
     def oscillator_error(self, fraction: float) -> None:
-        if not -0.1 <= fraction <= 0.1:
-            raise ValueError(f"oscillator_error {fraction} is not a clock error within +-10 %")
+        self.checked_oscillator_error(fraction)
         self._oscillator_error = fraction
 
     def _period_ns(self, mode: int) -> int:

@@ -207,8 +207,7 @@ class BMP280Emulator(ChipEmulator):
 
     @oscillator_error.setter
     def oscillator_error(self, fraction: float) -> None:
-        if not -0.1 <= fraction <= 0.1:
-            raise ValueError(f"oscillator_error {fraction} is not a clock error within +-10 %")
+        self.checked_oscillator_error(fraction)
         self._advance()
         if self._mode() == r.MODE_NORMAL:
             # count the cycles on from the last one completed, at the new rate

@@ -150,8 +150,7 @@ class Hmc5883lEmulator(ChipEmulator):
 
     @oscillator_error.setter
     def oscillator_error(self, fraction: float) -> None:
-        if not -0.1 <= fraction <= 0.1:
-            raise ValueError(f"oscillator_error {fraction} is not a clock error within +-10 %")
+        self.checked_oscillator_error(fraction)
         self._advance()  # what is due now was measured on the old clock
         old = self._period_ns()
         self._oscillator_error = fraction

@@ -249,8 +249,7 @@ class MPU9250Emulator(ChipEmulator):
 
     @oscillator_error.setter
     def oscillator_error(self, fraction: float) -> None:
-        if not -0.1 <= fraction <= 0.1:
-            raise ValueError(f"oscillator_error {fraction} is not a clock error within +-10 %")
+        self.checked_oscillator_error(fraction)
         # keep the samples already due where they were: count on from the latest one
         self._advance()
         self._t0 += self._taken * self.period_ns()

@@ -44,6 +44,17 @@ class ChipEmulator(ABC):
     emulator class models.
     """
 
+    #: The largest clock error an emulated chip's ``oscillator_error`` accepts (a fraction).
+    MAX_OSCILLATOR_ERROR: ClassVar[float] = 0.1
+
+    @classmethod
+    def checked_oscillator_error(cls, fraction: float) -> float:
+        """``fraction`` when it is a plausible oscillator error (within +-10 %), else a
+        ValueError naming it: what every emulator's ``oscillator_error`` setter accepts."""
+        if not -cls.MAX_OSCILLATOR_ERROR <= fraction <= cls.MAX_OSCILLATOR_ERROR:
+            raise ValueError(f"oscillator_error {fraction} is not a clock error within +-10 %")
+        return fraction
+
     #: The driver name this emulator stands in for (the registry pairs them by it).
     chip: str = ""
     #: The chip's datasheet noise and bias figures that the simulator applies to the truth
