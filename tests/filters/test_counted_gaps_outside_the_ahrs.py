@@ -10,6 +10,7 @@ without it."""
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from typing import Any
 
 import pytest
@@ -36,24 +37,35 @@ def _yaw_deg(q: tuple[float, float, float, float]) -> float:
     return math.degrees(math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
 
 
+def _kept_frames(n: int, period_ns: int, lost: range, *, announced: bool, device: str,
+                 stream: Quantity) -> Iterator[tuple[int, StreamGap | None]]:
+    """The time of each of ``n`` frames ``period_ns`` apart but the ``lost`` (indices), with
+    the StreamGap to put before it when ``announced`` and frames were lost just before."""
+    last_kept = None
+    for k in range(n):
+        if k in lost:
+            continue
+        t = k * period_ns
+        gap = None
+        if announced and last_kept is not None and k - last_kept > 1:
+            gap = StreamGap(t_ns=t, device=device, stream=stream, frames=k - last_kept - 1,
+                            last_ns=last_kept * period_ns, cause="host_stall")
+        yield t, gap
+        last_kept = k
+
+
 def _imu_items(seconds: float, lost: range, *, announced: bool) -> list[Sample]:
     """A level board turning at YAW_RATE_RAD_S; the frames ``lost`` (indices) missing, and
     a StreamGap before the frame after them when ``announced``."""
     items: list[Sample] = []
-    last_kept = None
-    for k in range(round(seconds * IMU_HZ)):
-        if k in lost:
-            continue
-        t = k * IMU_NS
-        if announced and last_kept is not None and k - last_kept > 1:
-            items.append(StreamGap(t_ns=t, device="imu", stream=Quantity.GYRO,
-                                   frames=k - last_kept - 1, last_ns=last_kept * IMU_NS,
-                                   cause="host_stall"))
+    for t, gap in _kept_frames(round(seconds * IMU_HZ), IMU_NS, lost, announced=announced,
+                               device="imu", stream=Quantity.GYRO):
+        if gap is not None:
+            items.append(gap)
         items.append(GyroSample(t_ns=t, device="imu", frame=Frame.BODY_NED,
                                 gyro_rad_s=(0.0, 0.0, YAW_RATE_RAD_S)))
         items.append(AccelSample(t_ns=t, device="imu", frame=Frame.BODY_NED,
                                  accel_m_s2=(0.0, 0.0, -G)))
-        last_kept = k
     return items
 
 
@@ -111,20 +123,14 @@ def _baro_items(seconds: float, lost: range, *, announced: bool) -> list[Any]:
     """A steady climb from 500 m, pressures at BARO_HZ, the ones ``lost`` missing; for kf3
     an attitude with no linear acceleration before each pressure."""
     items: list[Any] = []
-    last_kept = None
-    for k in range(round(seconds * BARO_HZ)):
-        if k in lost:
-            continue
-        t = k * BARO_NS
-        if announced and last_kept is not None and k - last_kept > 1:
-            items.append(StreamGap(t_ns=t, device="baro", stream=Quantity.PRESSURE,
-                                   frames=k - last_kept - 1, last_ns=last_kept * BARO_NS,
-                                   cause="host_stall"))
+    for t, gap in _kept_frames(round(seconds * BARO_HZ), BARO_NS, lost, announced=announced,
+                               device="baro", stream=Quantity.PRESSURE):
+        if gap is not None:
+            items.append(gap)
         items.append(AttitudeEstimate(t_ns=t, source="ahrs", q_body_to_ned=(1.0, 0.0, 0.0, 0.0),
                                       linear_accel_ned_m_s2=(0.0, 0.0, 0.0)))
         items.append(PressureSample(t_ns=t, device="baro", pressure_pa=pressure_pa_at_altitude(
             500.0 + CLIMB_M_S * t / 1e9)))
-        last_kept = k
     return items
 
 
