@@ -297,8 +297,9 @@ class GnssDriver(Driver):
         self.stats.garbage_bytes += splitter.garbage_bytes - before[0]
         self.stats.ubx_resyncs += splitter.resyncs - before[1]
         samples: list[Sample] = []
-        for kind, item in items:
-            samples += self._take(kind, item, now_ns)
+        for (kind, item), first_byte_ns in zip(items, self._first_bytes(items, now_ns),
+                                               strict=True):
+            samples += self._take(kind, item, now_ns, first_byte_ns)
         if data:
             self._last_byte_ns = now_ns
         if self._epoch is not None and (self._epoch_complete() or
@@ -307,6 +308,28 @@ class GnssDriver(Driver):
             # configured message has come, or when the line has been quiet for a while.
             samples += self._close_epoch()
         return PollResult(samples, now_ns + round(1e9 / self.settings.poll_hz))
+
+    def _first_bytes(self, items: list[tuple[str, bytes]], now_ns: int) -> list[int]:
+        """The latest each item's first byte can have arrived (pipeline clock, ns): the read
+        happened at the clock's time, not at the poll's due time (a poll made late, when
+        another device held the thread, reads what came meanwhile), and after the item came
+        itself and everything read after it (the items after it, the incomplete tail), at
+        the line rate. A bound from above: the epoch delays taken from it never fall below
+        the true one, so their minimum (the time mapping) stays right. Stamped at the due
+        time, the read of three epochs after a 0.4 s stall lowered that minimum by 0.4 s,
+        and every later epoch was stamped 0.4 s early (issue 26: valid velocities up to
+        2 m/s off the truth at their time stamps in a turn)."""
+        if not items:
+            return []
+        read_ns = max(now_ns, self.clock.now_ns())
+        byte_ns = 10e9 / self.baudrate if self.baudrate else 0.0
+        after = len(self._splitter.buffer)
+        out = []
+        for _, item in reversed(items):
+            after += len(item)
+            out.append(read_ns - round(after * byte_ns))
+        out.reverse()
+        return out
 
     def _expected(self) -> set[str] | None:
         s = self.settings
@@ -319,7 +342,7 @@ class GnssDriver(Driver):
         return self._epoch is not None and expected is not None and \
             expected <= {p.kind for p in self._epoch.parts}
 
-    def _take(self, kind: str, item: bytes, now_ns: int) -> list[Sample]:
+    def _take(self, kind: str, item: bytes, now_ns: int, first_byte_ns: int) -> list[Sample]:
         if kind == "nmea":
             self.stats.sentences += 1
         else:
@@ -354,9 +377,7 @@ class GnssDriver(Driver):
                     abs(self._epoch.time_of_day_s - frag.time_of_day_s) > 1e-3:
                 out += self._close_epoch()
             if self._epoch is None:
-                # The item began arriving its own transmit time before the end of the read.
-                sent_ns = round(len(item) * 10e9 / self.baudrate) if self.baudrate else 0
-                self._epoch = _Epoch(frag.time_of_day_s, now_ns - sent_ns)
+                self._epoch = _Epoch(frag.time_of_day_s, first_byte_ns)
         if self._epoch is not None:
             self._epoch.parts.append(frag)
         return out
