@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import random
 from abc import ABC, abstractmethod
-from array import array
-from bisect import bisect_right
 from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -22,6 +20,7 @@ from imuhal.core.clock import Clock, SimulatedClock
 from imuhal.core.samples import Quantity
 from imuhal.sim.errors import SensorErrorSpec
 from imuhal.sim.inputs import PhysicalInputs
+from imuhal.sim.measured import MeasuredInstants
 
 if TYPE_CHECKING:
     from imuhal.sim.emulated_bus import EmulatedBus
@@ -124,10 +123,11 @@ class ChipEmulator(ABC):
         performs a transaction it timed itself (``EmulatedBus.transfer_at``): the chip
         answers as at that instant, which may lie before the host's clock (a master
         catching up on the samples its FIFO kept through a host stall)."""
-        self.measured_ns = array("q")
+        self.measured_ns = MeasuredInstants()
         """The instants (ns, ascending) at which the chip completed a measurement of the
         stream its driver accounts for, recorded by emulators that model it (issue 25
-        item 5: the exact count behind ``frames_between``)."""
+        item 5: the exact count behind ``frames_between``); kept as runs of the chip's
+        period, so its size grows with the breaks of the cadence, not with the run."""
 
     def pull_physics(self, t_ns: int) -> None:
         """A measurement happens at ``t_ns`` (never before the previous one): take the
@@ -138,14 +138,14 @@ class ChipEmulator(ABC):
 
     def record_measurements(self, first_ns: int, period_ns: int, count: int) -> None:
         """``count`` measurements completed at ``first_ns``, ``first_ns + period_ns``, ..."""
-        self.measured_ns.extend(first_ns + k * period_ns for k in range(count))
+        self.measured_ns.add(first_ns, period_ns, count)
 
     def frames_between(self, first_stamp_ns: int, last_stamp_ns: int) -> int:
         """Measurements from the one a sample stamped ``first_stamp_ns`` carries (the latest
         completed by then) to the one a sample stamped ``last_stamp_ns`` carries, both
         included: what the chip produced over a span of delivered samples."""
-        first = bisect_right(self.measured_ns, first_stamp_ns)
-        last = bisect_right(self.measured_ns, last_stamp_ns)
+        first = self.measured_ns.count_until(first_stamp_ns)
+        last = self.measured_ns.count_until(last_stamp_ns)
         return last - first + 1 if first else last
 
     def interrupt_after(self, after_ns: int) -> int | None:
