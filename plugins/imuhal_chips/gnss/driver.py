@@ -96,6 +96,9 @@ class GnssStats:
     garbage_bytes: int = 0
     ubx_resyncs: int = 0
     """UBX frames with an implausible header or a failed checksum, searched past."""
+    inconsistent_frames: int = 0
+    """NAV-PVT frames whose checksum passed but whose fields disagree (flagged CRC_ERROR
+    like a failed checksum: the 8-bit Fletcher misses some pairs of flipped bits)."""
     epochs: int = 0
     last_error: str = ""
 
@@ -354,7 +357,11 @@ class GnssDriver(Driver):
             self.stats.last_error = str(exc)
             return []
         if not frag.checksum_ok:
-            self.stats.checksum_errors += 1
+            if frag.inconsistent:
+                self.stats.inconsistent_frames += 1
+                self.stats.last_error = frag.inconsistent
+            else:
+                self.stats.checksum_errors += 1
             return [self._flagged(frag, now_ns)]
         if frag.kind not in ("GGA", "RMC", "VTG", "GSA", "NAV-PVT"):
             return []
