@@ -146,3 +146,25 @@ def test_two_bit_flips_the_ubx_checksum_misses_are_caught_by_the_frames_own_redu
     assert len([e for e in events if isinstance(e, PositionSample)
                 and e.flags & SampleFlag.CRC_ERROR and e.t_ns >= 3.65e9]) == 1
     assert (stats.checksum_errors, stats.inconsistent_frames) == (0, 1)
+
+
+def test_a_vertical_velocity_the_checksum_missed_is_flagged_implausible(
+        registry: Registry) -> None:
+    """Bit 7 flipped in velD's second byte and in numSV (same parity: the UBX checksum
+    holds): velD 32.8 m/s off, which nothing else in NAV-PVT repeats. No glider changes its
+    velocity that much in 0.2 s: the epoch is flagged IMPLAUSIBLE, velocity and position."""
+    faults = [CorruptByte(device="gps", start_s=3.65, byte=6 + 23, mask=0x80),  # numSV
+              CorruptByte(device="gps", start_s=3.65, byte=6 + 56 + 1, mask=0x80)]  # velD
+    profile = load_profile(bundled_profiles()["seed-gps-vario.yaml"], registry)
+    with open_emulated(profile, registry, seed=1, faults=faults, calibrated=False) as p:
+        truth = p.board.scenario.truth  # type: ignore[attr-defined]  # emulated board
+        events = list(p.events(6.0))
+        stats = p.devices["gps"].driver.stats
+    velocities = [e for e in events if isinstance(e, VelocitySample) and e.valid]
+    assert len(velocities) > 20
+    assert max(math.dist(v.velocity_ned_m_s, truth(v.t_ns / 1e9).velocity_ned_m_s)
+               for v in velocities) < 2.0
+    flagged = [type(e).__name__ for e in events if isinstance(e, VelocitySample | PositionSample)
+               and e.flags & SampleFlag.IMPLAUSIBLE]
+    assert flagged == ["VelocitySample", "PositionSample"]
+    assert (stats.checksum_errors, stats.inconsistent_frames) == (0, 0)

@@ -62,6 +62,8 @@ LISTEN_STEP_NS = 20_000_000
 """Probe reads the line at least this often while it listens."""
 ACK_POLL_NS = 5_000_000
 """How often configure looks for an ACK: an ACK is 10 bytes, 10 ms at 9600 baud."""
+DEFAULT_SPEED_SIGMA_M_S = 0.5
+"""The speed noise per axis assumed where the receiver states no accuracy (NMEA)."""
 QUIET_NS = 100_000_000
 """A line quiet this long (or 2.5 polls) has finished the epoch's burst."""
 
@@ -85,6 +87,9 @@ class GnssSettings(DriverSettings):
     """How long probe listens at each baud rate (longer than the slowest output period)."""
     latency_s: float = Field(0.0, ge=0)
     """The receiver's output latency (epoch to first byte), subtracted from arrival times."""
+    max_acceleration_m_s2: float = Field(100.0, gt=0)
+    """The largest acceleration the vehicle makes (10 g by default: aerobatics); a velocity
+    that changed faster since the last plausible epoch is flagged IMPLAUSIBLE."""
 
 
 @dataclass
@@ -128,6 +133,8 @@ class GnssDriver(Driver):
         self._epoch: _Epoch | None = None
         self._offset_ns: int | None = None
         self._prev_height: tuple[int, float] | None = None
+        self._last_velocity: tuple[int, tuple[float, float, float]] | None = None
+        """The last plausible epoch's time (ns) and velocity (NED, m/s)."""
         self._foreign = 0
         self._last_byte_ns = 0
         self._quiet_ns = max(QUIET_NS, round(2.5e9 / self.settings.poll_hz))
@@ -427,12 +434,16 @@ class GnssDriver(Driver):
         velocity = merged.velocity_ned_m_s
         if velocity is None:
             velocity = self._nmea_velocity(merged, t_ns)
+        step = SampleFlag.OK
         if velocity is not None and has_fix:
+            step = self._velocity_step(velocity, merged.speed_accuracy_m_s, t_ns)
             # Before the position: a consumer of the fix then has the same epoch's velocity.
-            out.append(VelocitySample(t_ns=t_ns, device=self.device,
+            out.append(VelocitySample(t_ns=t_ns, device=self.device, flags=step,
                                       velocity_ned_m_s=velocity,
                                       accuracy_m_s=merged.speed_accuracy_m_s))
-        flags = SampleFlag.OK if has_fix and height is not None else SampleFlag.STALE
+        # an epoch whose velocity cannot be right came from a frame hit on the line: its
+        # position is not trusted either
+        flags = (SampleFlag.OK if has_fix and height is not None else SampleFlag.STALE) | step
         out.append(PositionSample(
             t_ns=t_ns, device=self.device, flags=flags,
             latitude_deg=merged.latitude_deg, longitude_deg=merged.longitude_deg,
@@ -442,6 +453,24 @@ class GnssDriver(Driver):
             fix_type=fix, satellites=merged.satellites or 0,
             utc_s=_utc_s(merged.day, epoch.time_of_day_s)))
         return out
+
+    def _velocity_step(self, velocity: tuple[float, float, float], accuracy_m_s: float | None,
+                       t_ns: int) -> SampleFlag:
+        """IMPLAUSIBLE when ``velocity`` lies further from the last plausible one than
+        ``max_acceleration_m_s2`` moves it in the time between them, plus 6 sigma of both
+        epochs' noise (the receiver's speed accuracy per axis; 0.5 m/s where it states
+        none). A NAV-PVT can pass its 8-bit Fletcher checksum with velD 32.8 m/s off (two
+        flips of bit 7, issue 26), which nothing else in the frame repeats."""
+        last, self._last_velocity = self._last_velocity, (t_ns, velocity)
+        if last is None or t_ns <= last[0]:
+            return SampleFlag.OK
+        sigma = accuracy_m_s if accuracy_m_s is not None else DEFAULT_SPEED_SIGMA_M_S
+        bound = (self.settings.max_acceleration_m_s2 * (t_ns - last[0]) / 1e9
+                 + 6.0 * math.sqrt(2 * 3) * sigma)
+        if math.dist(velocity, last[1]) <= bound:
+            return SampleFlag.OK
+        self._last_velocity = last  # judge the next epochs against the last plausible one
+        return SampleFlag.IMPLAUSIBLE
 
     def _nmea_velocity(self, merged: Fragment,
                        t_ns: int) -> tuple[float, float, float] | None:
