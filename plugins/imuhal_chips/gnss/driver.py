@@ -46,6 +46,7 @@ from imuhal.drivers.base import (
     PollResult,
     SettingsInput,
 )
+from imuhal.drivers.validity import StepWatch
 from imuhal_chips.gnss.bringup import READ_CHUNK, CfgMessage, Configuration, Search
 from imuhal_chips.gnss.decode import DecodeError, Fragment, decode_nmea, decode_ubx
 from imuhal_chips.gnss.framing import StreamSplitter
@@ -62,8 +63,8 @@ LISTEN_STEP_NS = 20_000_000
 """Probe reads the line at least this often while it listens."""
 ACK_POLL_NS = 5_000_000
 """How often configure looks for an ACK: an ACK is 10 bytes, 10 ms at 9600 baud."""
-DEFAULT_SPEED_SIGMA_M_S = 0.5
-"""The speed noise per axis assumed where the receiver states no accuracy (NMEA)."""
+SPEED_SIGMA_M_S = 0.5
+"""The speed noise per axis the step check allows for (a u-blox states 0.1-0.5 m/s)."""
 QUIET_NS = 100_000_000
 """A line quiet this long (or 2.5 polls) has finished the epoch's burst."""
 
@@ -133,8 +134,10 @@ class GnssDriver(Driver):
         self._epoch: _Epoch | None = None
         self._offset_ns: int | None = None
         self._prev_height: tuple[int, float] | None = None
-        self._last_velocity: tuple[int, tuple[float, float, float]] | None = None
-        """The last plausible epoch's time (ns) and velocity (NED, m/s)."""
+        noise = 6.0 * math.sqrt(2.0) * SPEED_SIGMA_M_S
+        self._velocity_watch = tuple(StepWatch(self.settings.max_acceleration_m_s2, noise)
+                                     for _ in range(3))
+        """Per NED axis: how far the velocity may move between epochs."""
         self._foreign = 0
         self._last_byte_ns = 0
         self._quiet_ns = max(QUIET_NS, round(2.5e9 / self.settings.poll_hz))
@@ -436,7 +439,7 @@ class GnssDriver(Driver):
             velocity = self._nmea_velocity(merged, t_ns)
         step = SampleFlag.OK
         if velocity is not None and has_fix:
-            step = self._velocity_step(velocity, merged.speed_accuracy_m_s, t_ns)
+            step = self._velocity_step(velocity, t_ns)
             # Before the position: a consumer of the fix then has the same epoch's velocity.
             out.append(VelocitySample(t_ns=t_ns, device=self.device, flags=step,
                                       velocity_ned_m_s=velocity,
@@ -454,23 +457,17 @@ class GnssDriver(Driver):
             utc_s=_utc_s(merged.day, epoch.time_of_day_s)))
         return out
 
-    def _velocity_step(self, velocity: tuple[float, float, float], accuracy_m_s: float | None,
-                       t_ns: int) -> SampleFlag:
-        """IMPLAUSIBLE when ``velocity`` lies further from the last plausible one than
-        ``max_acceleration_m_s2`` moves it in the time between them, plus 6 sigma of both
-        epochs' noise (the receiver's speed accuracy per axis; 0.5 m/s where it states
-        none). A NAV-PVT can pass its 8-bit Fletcher checksum with velD 32.8 m/s off (two
-        flips of bit 7, issue 26), which nothing else in the frame repeats."""
-        last, self._last_velocity = self._last_velocity, (t_ns, velocity)
-        if last is None or t_ns <= last[0]:
-            return SampleFlag.OK
-        sigma = accuracy_m_s if accuracy_m_s is not None else DEFAULT_SPEED_SIGMA_M_S
-        bound = (self.settings.max_acceleration_m_s2 * (t_ns - last[0]) / 1e9
-                 + 6.0 * math.sqrt(2 * 3) * sigma)
-        if math.dist(velocity, last[1]) <= bound:
-            return SampleFlag.OK
-        self._last_velocity = last  # judge the next epochs against the last plausible one
-        return SampleFlag.IMPLAUSIBLE
+    def _velocity_step(self, velocity: tuple[float, float, float], t_ns: int) -> SampleFlag:
+        """IMPLAUSIBLE when an axis of ``velocity`` (NED) lies further from the last
+        plausible one than ``max_acceleration_m_s2`` moves it in the time between them, plus
+        6 sigma of two epochs' noise at 0.5 m/s per axis (imuhal.drivers.validity.StepWatch:
+        three refused epochs that agree are a new level). A NAV-PVT can pass its 8-bit
+        Fletcher checksum with velD 32.8 m/s off (two flips of bit 7, issue 26), which
+        nothing else in the frame repeats."""
+        flags = SampleFlag.OK
+        for watch, value in zip(self._velocity_watch, velocity, strict=True):
+            flags |= watch.observe(t_ns, value)
+        return flags
 
     def _nmea_velocity(self, merged: Fragment,
                        t_ns: int) -> tuple[float, float, float] | None:
