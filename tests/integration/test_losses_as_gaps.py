@@ -20,8 +20,8 @@ from typing import Any, ClassVar
 
 import pytest
 
-from imuhal.core.gaps import StreamGap
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
+from imuhal.core.gaps import StreamGap
 from imuhal.core.samples import AccelSample, Frame, GyroSample
 from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import BusErrors, ChipReset, FaultSpec, HostStall
