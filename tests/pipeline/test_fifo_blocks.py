@@ -8,6 +8,7 @@ from itertools import pairwise
 import pytest
 from tests.support.chain import offline_estimates
 
+from imuhal.core.blocks import Block
 from imuhal.core.samples import AccelSample, Frame, GyroSample, Sample
 from imuhal.emulation import open_emulated
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate, VerticalEstimate
@@ -75,3 +76,33 @@ def test_the_offline_chain_over_a_fifo_runs_samples_gives_its_live_estimates(
     assert sum(isinstance(e, AttitudeEstimate) for e in live) > 900
     assert sum(isinstance(e, VerticalEstimate) for e in live) > 100
     assert offline == live
+
+
+def test_blocks_hands_out_each_read_as_blocks_with_the_frames_and_estimates_of_events(
+        registry: Registry,
+        run: tuple[BoardProfile, Pipeline, list[Sample | Estimate]]) -> None:
+    """``Pipeline.blocks()``: each FIFO read as one block per stream, whose one-row views are
+    the frames ``events()`` hands out, and every other event as ``events()`` gives it, in
+    the same order; the start-up phase (the GY-91 measures its gyro offsets) runs as
+    under ``events()``."""
+    profile, _, events = run
+    with open_emulated(profile, registry, scenario="thermal", seed=2,
+                       sensor_errors=True) as pipeline:
+        items = list(pipeline.blocks(6.0))
+    blocks = [b for b in items if isinstance(b, Block)]
+    assert sum(len(b) for b in blocks) > 1000
+    assert all(len(b) > 1 for b in blocks[1:])  # the first may be a read's rest
+    expanded = [s for item in items
+                for s in (item.samples() if isinstance(item, Block) else [item])]
+
+    def by_stream(seq: list[object]) -> dict[tuple[str, str], list[str]]:
+        out: dict[tuple[str, str], list[str]] = {}
+        for e in seq:
+            out.setdefault((getattr(e, "device", ""), type(e).__name__), []).append(repr(e))
+        return out
+
+    # a read's blocks come stream by stream, events() interleaves their frames: the same
+    # events per stream and in order, and the same sequence once reads are interleaved
+    assert by_stream(expanded) == by_stream(list(events))
+    assert [repr(e) for e in expanded if not isinstance(e, AccelSample | GyroSample)] == \
+        [repr(e) for e in events if not isinstance(e, AccelSample | GyroSample)]

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import fields
-from functools import cache
 from typing import Any
 
 import numpy as np
@@ -34,16 +33,24 @@ IntArray = npt.NDArray[np.int64]
 _BASE_FIELDS = frozenset(("t_ns", "device", "flags", "frame"))
 
 
-@cache
 def _value_field(kind: type[Sample]) -> str | None:
     """The one value field of a vector or scalar sample class (``gyro_rad_s``), or None
     for a class that carries more than one value (a GNSS fix, an airspeed with its
     accuracy): such samples travel in blocks as their rows only. (Worked out once per
     class: every block of several frames asks.)"""
-    if not issubclass(kind, VectorSample | ScalarSample):
-        return None
-    names = [f.name for f in fields(kind) if f.name not in _BASE_FIELDS]
-    return names[0] if len(names) == 1 else None
+    try:
+        return _VALUE_FIELDS[kind]
+    except KeyError:
+        pass
+    name = None
+    if issubclass(kind, VectorSample | ScalarSample):
+        names = [f.name for f in fields(kind) if f.name not in _BASE_FIELDS]
+        name = names[0] if len(names) == 1 else None
+    _VALUE_FIELDS[kind] = name
+    return name
+
+
+_VALUE_FIELDS: dict[type, str | None] = {}
 
 
 class Block:
