@@ -20,12 +20,13 @@ from collections.abc import Mapping, Sequence
 from typing import ClassVar
 
 import numpy as np
+import numpy.typing as npt
 
 from imuhal.bus.auto_read import AUTO_READ, AutoReadFeed, same_feed
 from imuhal.bus.base import Bus, BusKind, Link
 from imuhal.bus.register_plan import RegisterPlan
 from imuhal.bus.registers import RegisterView
-from imuhal.core.blocks import Block, blocks_of
+from imuhal.core.blocks import Block, IntArray, blocks_of
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
 from imuhal.core.quantities import Quantity
@@ -565,29 +566,42 @@ class Max2110xDriver(Driver):
             self._frozen.observe("frame", frame)
         assert self.scales is not None
         n = len(frames)
-        counts = np.frombuffer(b"".join(frames), dtype=">i2").reshape(n, 6).astype(np.int32)
+        counts: npt.NDArray[np.int32] = \
+            np.frombuffer(b"".join(frames), dtype=">i2").reshape(n, 6).astype(np.int32)
         # int16 counts times a float: each count exact in float64, then the product, as
         # decode's per-frame conversion computes it
-        gyro = counts[:, 0:3] * (math.radians(1.0) / self.scales.gyro_lsb_per_dps)
-        accel = counts[:, 3:6] * (STANDARD_GRAVITY_M_S2 / self.scales.accel_lsb_per_g)
-        clipped = np.abs(counts) >= FULL_SCALE_COUNTS
-        flags_g: list[int] = []
-        flags_a: list[int] = []
-        memory = self._memory.flag
-        # the chip's filter memory, frame by frame (gyro, then accelerometer, as
-        # _frame_samples)
-        for t_ns, sat_g, sat_a in zip(got.stamps_ns, clipped[:, 0:3].any(axis=1).tolist(),
-                                      clipped[:, 3:6].any(axis=1).tolist(), strict=True):
-            fg = SampleFlag.SATURATED if sat_g else SampleFlag.OK
-            fa = SampleFlag.SATURATED if sat_a else SampleFlag.OK
-            flags_g.append(fg | memory(Quantity.GYRO, t_ns, fg))
-            flags_a.append(fa | memory(Quantity.ACCEL, t_ns, fa))
+        gyro = np.asarray(counts[:, 0:3] * (math.radians(1.0) / self.scales.gyro_lsb_per_dps),
+                          np.float64)
+        accel = np.asarray(counts[:, 3:6] * (STANDARD_GRAVITY_M_S2 / self.scales.accel_lsb_per_g),
+                           np.float64)
+        flags_g, flags_a = self._frame_flags(counts, got.stamps_ns)
         t = np.asarray(got.stamps_ns, dtype=np.int64)
         t0, offsets = int(t[0]), t - t[0]  # stamps never go back (FifoFrames)
         return [Block(GyroSample, self.device, frame=Frame.SENSOR, spec=None, t0_ns=t0,
-                      offsets_ns=offsets, values=gyro, flags=np.array(flags_g, np.int64)),
+                      offsets_ns=offsets, values=gyro, flags=flags_g),
                 Block(AccelSample, self.device, frame=Frame.SENSOR, spec=None, t0_ns=t0,
-                      offsets_ns=offsets, values=accel, flags=np.array(flags_a, np.int64))]
+                      offsets_ns=offsets, values=accel, flags=flags_a)]
+
+    def _frame_flags(self, counts: npt.NDArray[np.int32], stamps_ns: list[int]
+                     ) -> tuple[IntArray, IntArray]:
+        """The gyro and accelerometer flags of a read's frames (SATURATED, and the chip's
+        filter memory after a clip, frame by frame as ``_frame_samples`` gives them)."""
+        clipped = np.abs(counts) >= FULL_SCALE_COUNTS
+        sat_g = np.asarray(clipped[:, 0:3].any(axis=1), dtype=bool)
+        sat_a = np.asarray(clipped[:, 3:6].any(axis=1), dtype=bool)
+        memory = self._memory
+        if not (sat_g.any() or sat_a.any()) and memory.quiet(Quantity.GYRO) \
+                and memory.quiet(Quantity.ACCEL):
+            zeros = np.zeros(len(stamps_ns), np.int64)  # no clip, no window open: all OK
+            return zeros, zeros.copy()
+        flags_g: list[int] = []
+        flags_a: list[int] = []
+        for t_ns, g, a in zip(stamps_ns, sat_g.tolist(), sat_a.tolist(), strict=True):
+            fg = SampleFlag.SATURATED if g else SampleFlag.OK
+            fa = SampleFlag.SATURATED if a else SampleFlag.OK
+            flags_g.append(fg | memory.flag(Quantity.GYRO, t_ns, fg))
+            flags_a.append(fa | memory.flag(Quantity.ACCEL, t_ns, fa))
+        return np.array(flags_g, np.int64), np.array(flags_a, np.int64)
 
     def data_ready(self, edges_ns: Sequence[int]) -> None:
         """read: fifo: each frame is stamped with its own data-ready edge."""
