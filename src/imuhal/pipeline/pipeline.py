@@ -542,7 +542,7 @@ class Pipeline:
         that phase is part of ``duration_s``, yields nothing, and carries on into the next
         call when a call ends before it does.
         """
-        source = self._samples_of(self._poll_events(duration_s))
+        source = cast("Iterator[Event]", self._poll_events(duration_s, reads=False))
         stage = self._pending_startup()
         if stage is not None:
             # The phase carries over to the next call when this one ends before it does.
@@ -558,7 +558,7 @@ class Pipeline:
         gives a block's frames as the samples ``events`` would. For a consumer that takes
         frames on arrays (or only counts them): no per-frame object is built for it. The
         estimators get the same inputs as under ``events``, so the same estimates."""
-        items = self._poll_events(duration_s)
+        items = self._poll_events(duration_s, reads=True)
         stage = self._pending_startup()
         if stage is not None:
             source = _Expanded(self, items)
@@ -578,13 +578,6 @@ class Pipeline:
         stage = self._startup = self._startup or self._startup_stage()
         return None if stage.done else stage
 
-    def _samples_of(self, items: Iterator[Event | _Read]) -> Iterator[Event]:
-        """``items`` with each read's frames handed out one by one (``_read_frames``)."""
-        for item in items:
-            if type(item) is _Read:
-                yield from self._read_frames(item)
-            else:
-                yield cast("Event", item)
 
     def _startup_stage(self) -> GyroStartupStage:
         settings = startup_settings(
@@ -635,7 +628,10 @@ class Pipeline:
                 heapq.heappush(self._heap, (dev.next_poll_ns, self._device_rank[name], name))
         return self._heap
 
-    def _poll_events(self, duration_s: float | None) -> Iterator[Event | _Read]:
+    def _poll_events(self, duration_s: float | None, *, reads: bool
+                     ) -> Iterator[Event | _Read]:
+        """The poll loop: every event in time order; ``reads``: each read of several frames
+        as one :class:`_Read` (``blocks``), else its frames one by one (``events``)."""
         heap = self._schedule()
         start = self.clock.now_ns()
         end = None if duration_s is None else start + round(duration_s * 1e9)
@@ -646,7 +642,7 @@ class Pipeline:
             if lines:
                 woke = self._waiter.wait(t_ns if end is None else min(t_ns, end))
                 if woke:
-                    yield from self._on_edges(woke)
+                    yield from self._on_edges(woke, reads)
                     continue
             if end is not None and t_ns >= end:
                 self._span_ns[1] = end
@@ -670,16 +666,16 @@ class Pipeline:
                 self._account(dev)
             dev.next_poll_ns = max(self._next_due(dev, t_ns, next_ns), t_ns + 1)
             heapq.heappush(heap, (dev.next_poll_ns, rank, name))
-            yield from self._hand_out(dev, frames)
+            yield from self._hand_out(dev, frames, reads)
             if dev.ledger is not None:
                 self._account_slides(dev)
         if end is not None:
             self.clock.sleep_until(end)
-            yield from self._drain(end)
+            yield from self._drain(end, reads)
         if self._fusion:
             yield from self._fuse(before_ns=None)
 
-    def _drain(self, t_ns: int) -> Iterator[Sample | _Read]:
+    def _drain(self, t_ns: int, reads: bool) -> Iterator[Sample | _Read]:
         """The run ends at ``t_ns``: what each driver read and still holds
         (``Driver.drain``: FIFO frames waiting for their time stamps) is handed out, so
         nothing read is lost uncounted."""
@@ -692,7 +688,7 @@ class Pipeline:
                 self._driver_failed(dev, t_ns, exc)
                 continue
             if held:
-                yield from self._hand_out(dev, _frames(held))
+                yield from self._hand_out(dev, _frames(held), reads)
 
     def _read_frames(self, read: _Read) -> Iterator[Sample]:
         """A read's frames handed out one by one in time order
@@ -707,11 +703,12 @@ class Pipeline:
                 yield from interleaved(rest)
                 return
 
-    def _hand_out(self, dev: DeviceRuntime,
-                  frames: _Readings | list[Block]) -> Iterator[Sample | _Read]:
+    def _hand_out(self, dev: DeviceRuntime, frames: _Readings | list[Block],
+                  reads: bool) -> Iterator[Sample | _Read]:
         """A poll's readings or blocks through the steps, in the order they are handed out:
         readings one by one, the blocks of several frames (a FIFO read) at once, as one
-        :class:`_Read` (its frames become samples only where a consumer asks)."""
+        :class:`_Read` (``reads``: its frames become samples only where a consumer asks)
+        or as its frames one by one."""
         if isinstance(frames, _Readings):
             # one frame per block (a register poll): each reading through the steps as it
             # is handed out (the start-up phase may switch calibration on between two)
@@ -719,7 +716,11 @@ class Pipeline:
                 yield self._process_one(dev, sample)
         elif frames:
             calibrated = self.calibrated
-            yield _Read(dev, [self._process(dev, b) for b in frames], calibrated)
+            read = _Read(dev, [self._process(dev, b) for b in frames], calibrated)
+            if reads:
+                yield read
+            else:
+                yield from self._read_frames(read)
 
     def _note_late(self, dev: DeviceRuntime, due_ns: int, t_ns: int) -> None:
         """A read at ``t_ns`` that was due at ``due_ns``: more than half a frame period late
@@ -751,7 +752,8 @@ class Pipeline:
             return driver_next_ns
         return dev.trigger.due(t_ns, driver_next_ns)
 
-    def _on_edges(self, woke: dict[str, list[TriggerEdge]]) -> Iterator[Event | _Read]:
+    def _on_edges(self, woke: dict[str, list[TriggerEdge]], reads: bool
+                  ) -> Iterator[Event | _Read]:
         """Read each device whose line raised edges, once, stamped with its newest edge
         (a host that came late finds the chip's newest sample: the edges before it are
         counted overwritten)."""
@@ -782,7 +784,7 @@ class Pipeline:
                 self._account(dev)
             dev.next_poll_ns = max(self._next_due(dev, edge.t_ns, next_ns), t_ns + 1)
             heapq.heappush(self._schedule(), (dev.next_poll_ns, self._device_rank[name], name))
-            yield from self._hand_out(dev, samples)
+            yield from self._hand_out(dev, samples, reads)
             if dev.ledger is not None:
                 self._account_slides(dev)
 
