@@ -566,37 +566,38 @@ class Max2110xDriver(Driver):
             self._frozen.observe("frame", frame)
         assert self.scales is not None
         n = len(frames)
-        counts: npt.NDArray[np.int32] = \
-            np.frombuffer(b"".join(frames), dtype=">i2").reshape(n, 6).astype(np.int32)
+        counts = np.frombuffer(b"".join(frames), dtype=">i2").reshape(n, 6)
         # int16 counts times a float: each count exact in float64, then the product, as
         # decode's per-frame conversion computes it
         gyro = np.asarray(counts[:, 0:3] * (math.radians(1.0) / self.scales.gyro_lsb_per_dps),
                           np.float64)
         accel = np.asarray(counts[:, 3:6] * (STANDARD_GRAVITY_M_S2 / self.scales.accel_lsb_per_g),
                            np.float64)
-        flags_g, flags_a = self._frame_flags(counts, got.stamps_ns)
-        t = np.asarray(got.stamps_ns, dtype=np.int64)
-        t0, offsets = int(t[0]), t - t[0]  # stamps never go back (FifoFrames)
+        stamps = got.stamps_ns
+        flags_g, flags_a = self._frame_flags(counts, stamps)
+        t0 = stamps[0]  # stamps never go back (FifoFrames)
+        offsets = np.array([t - t0 for t in stamps], np.int64)
         return [Block(GyroSample, self.device, frame=Frame.SENSOR, spec=None, t0_ns=t0,
                       offsets_ns=offsets, values=gyro, flags=flags_g),
                 Block(AccelSample, self.device, frame=Frame.SENSOR, spec=None, t0_ns=t0,
                       offsets_ns=offsets, values=accel, flags=flags_a)]
 
-    def _frame_flags(self, counts: npt.NDArray[np.int32], stamps_ns: list[int]
+    def _frame_flags(self, counts: npt.NDArray[np.int16], stamps_ns: list[int]
                      ) -> tuple[IntArray, IntArray]:
         """The gyro and accelerometer flags of a read's frames (SATURATED, and the chip's
         filter memory after a clip, frame by frame as ``_frame_samples`` gives them)."""
-        clipped = np.abs(counts) >= FULL_SCALE_COUNTS
-        sat_g = np.asarray(clipped[:, 0:3].any(axis=1), dtype=bool)
-        sat_a = np.asarray(clipped[:, 3:6].any(axis=1), dtype=bool)
         memory = self._memory
-        if not (sat_g.any() or sat_a.any()) and memory.quiet(Quantity.GYRO) \
-                and memory.quiet(Quantity.ACCEL):
-            zeros = np.zeros(len(stamps_ns), np.int64)  # no clip, no window open: all OK
-            return zeros, zeros.copy()
+        # no word at the rail (-32768 included: no abs() on int16) and no window open:
+        # every frame OK, without a look frame by frame
+        if int(counts.min()) > -FULL_SCALE_COUNTS and int(counts.max()) < FULL_SCALE_COUNTS \
+                and memory.quiet(Quantity.GYRO) and memory.quiet(Quantity.ACCEL):
+            return np.zeros(len(stamps_ns), np.int64), np.zeros(len(stamps_ns), np.int64)
+        clipped = np.abs(counts.astype(np.int32)) >= FULL_SCALE_COUNTS
+        sat_g: list[bool] = np.asarray(clipped[:, 0:3].any(axis=1), dtype=bool).tolist()
+        sat_a: list[bool] = np.asarray(clipped[:, 3:6].any(axis=1), dtype=bool).tolist()
         flags_g: list[int] = []
         flags_a: list[int] = []
-        for t_ns, g, a in zip(stamps_ns, sat_g.tolist(), sat_a.tolist(), strict=True):
+        for t_ns, g, a in zip(stamps_ns, sat_g, sat_a, strict=True):
             fg = SampleFlag.SATURATED if g else SampleFlag.OK
             fa = SampleFlag.SATURATED if a else SampleFlag.OK
             flags_g.append(fg | memory.flag(Quantity.GYRO, t_ns, fg))
