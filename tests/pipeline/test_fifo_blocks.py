@@ -3,6 +3,7 @@ FIFO (``read: fifo``), whose every read makes blocks of the frames it held."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from itertools import pairwise
 
 import pytest
@@ -10,13 +11,16 @@ from tests.support.chain import offline_estimates
 
 from imuhal.core.blocks import Block
 from imuhal.core.samples import AccelSample, Frame, GyroSample, Sample
+from imuhal.drivers.base import BlockPoll
 from imuhal.emulation import open_emulated
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate, VerticalEstimate
 from imuhal.pipeline.pipeline import Pipeline
+from imuhal.pipeline.router import Router
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile
+from imuhal_chips.mpu9250.driver import MPU9250Driver
 
 FIFO_FRAMES = 8
 PERIOD_NS = 5_000_000  # the gy91's 200 Hz
@@ -106,3 +110,35 @@ def test_blocks_hands_out_each_read_as_blocks_with_the_frames_and_estimates_of_e
     assert by_stream(expanded) == by_stream(list(events))
     assert [repr(e) for e in expanded if not isinstance(e, AccelSample | GyroSample)] == \
         [repr(e) for e in events if not isinstance(e, AccelSample | GyroSample)]
+
+
+def test_each_fifo_read_reaches_the_estimators_whole_in_one_fusion_step(
+        registry: Registry, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A read's frames are fused in one step (the magnetometer's and barometer's polls
+    between two reads do not split it at their due times): every gyro block the router
+    gets is a whole read's gyro block, in 7-9 frame reads. (Spies on the driver's and the router's calls; no
+    behaviour changed.)"""
+    read: list[int] = []
+    fused: list[int] = []
+    poll_blocks = MPU9250Driver.poll_blocks
+    fuse_blocks = Router.fuse_blocks
+
+    def polled(self: MPU9250Driver, now_ns: int) -> BlockPoll:
+        got = poll_blocks(self, now_ns)
+        read.extend(len(b) for b in got.blocks if b.kind is GyroSample and len(b) > 1)
+        return got
+
+    def routed(self: Router, blocks: Sequence[Block], out: list[Estimate]) -> None:
+        fused.extend(len(b) for b in blocks if b.kind is GyroSample and len(b) > 1)
+        fuse_blocks(self, blocks, out)
+
+    monkeypatch.setattr(MPU9250Driver, "poll_blocks", polled)
+    monkeypatch.setattr(Router, "fuse_blocks", routed)
+    with open_emulated(_gy91_fifo(registry), registry, scenario="thermal", seed=2) as pipeline:
+        for _ in pipeline.blocks(4.0):
+            pass
+    assert len(read) > 60
+    # the start-up phase (gyro offsets) ends inside the first read: its frames after that
+    # are fused together; every later read whole
+    assert 0 < fused[0] < read[0]
+    assert fused[1:] == read[1:]
