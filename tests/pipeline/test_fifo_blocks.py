@@ -116,7 +116,7 @@ def test_each_fifo_read_reaches_the_estimators_whole_in_one_fusion_step(
         registry: Registry, monkeypatch: pytest.MonkeyPatch) -> None:
     """A read's frames are fused in one step (the magnetometer's and barometer's polls
     between two reads do not split it at their due times): every gyro block the router
-    gets is a whole read's gyro block, in 7-9 frame reads. (Spies on the driver's and the router's calls; no
+    gets is a whole read's gyro block. (Spies on the driver's and the router's calls; no
     behaviour changed.)"""
     read: list[int] = []
     fused: list[int] = []
