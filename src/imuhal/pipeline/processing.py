@@ -182,18 +182,41 @@ def _corrected(record: object, values: FloatArray) -> FloatArray | None:
     """What ``record.apply`` computes, on every row of ``values`` (n, 3), in the same order
     of operations (the same floats); None for a record kind not known here (applied frame
     by frame)."""
+    arrays = _record_arrays(record)
+    if arrays is None:
+        return None
+    offset, scale, matrix = arrays
+    shifted = values - offset
+    return _mat_vec_rows(matrix, shifted if scale is None else shifted * scale)
+
+
+_ARRAYS: dict[int, tuple[object, tuple[FloatArray, FloatArray | None, FloatArray] | None]] = {}
+"""``_record_arrays`` by the record's id, with the record (kept alive, so its id is not
+reused while it is here; records are frozen, so the arrays never go stale)."""
+
+
+def _record_arrays(record: object) -> tuple[FloatArray, FloatArray | None, FloatArray] | None:
+    """A calibration record's offset, scale (None: none) and matrix as arrays, made once per
+    record (every block of its stream needs them)."""
+    hit = _ARRAYS.get(id(record))
+    if hit is not None and hit[0] is record:
+        return hit[1]
+    arrays: tuple[FloatArray, FloatArray | None, FloatArray] | None = None
     if isinstance(record, AccelCalibration | GyroCalibration):
         o = record.offset_m_s2 if isinstance(record, AccelCalibration) \
             else record.offset_rad_s
-        return _mat_vec_rows(record.misalignment, (values - _vec(o)) * _vec(record.scale))
-    if isinstance(record, MagCalibration):
-        return _mat_vec_rows(record.soft_iron, values - _vec(record.hard_iron_ut))
-    if isinstance(record, VectorCalibration):
-        return _mat_vec_rows(record.matrix, values - _vec(record.offset))
-    return None
+        arrays = (_vec(o), _vec(record.scale), _vec(record.misalignment))
+    elif isinstance(record, MagCalibration):
+        arrays = (_vec(record.hard_iron_ut), None, _vec(record.soft_iron))
+    elif isinstance(record, VectorCalibration):
+        arrays = (_vec(record.offset), None, _vec(record.matrix))
+    if len(_ARRAYS) >= 64:  # records replaced in flight (learners): forget the old ones
+        _ARRAYS.clear()
+    _ARRAYS[id(record)] = (record, arrays)
+    return arrays
 
 
-def _vec(v: Sequence[float]) -> FloatArray:
+def _vec(v: Sequence[float] | Sequence[Sequence[float]]) -> FloatArray:
     return np.asarray(v, dtype=np.float64)
 
 
