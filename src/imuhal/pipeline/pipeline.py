@@ -3,8 +3,9 @@ same steps, estimators fed only valid body-frame samples, sinks fed everything.
 
 Embedding: ``Pipeline.open(profile, registry)`` (the profile's real buses) or
 ``imuhal.emulation.open_emulated(profile, registry, scenario="thermal")`` (an emulated board),
-then iterate ``pipeline.events(duration_s)`` (samples and estimates in time order) or call
-``pipeline.run(duration_s, sinks)``. The pipeline sees a board only through
+then iterate ``pipeline.events(duration_s)`` (samples and estimates in time order),
+``pipeline.blocks(duration_s)`` (the same with each FIFO read as its blocks, no sample built
+per frame) or call ``pipeline.run(duration_s, sinks)``. The pipeline sees a board only through
 :class:`~imuhal.pipeline.board.Board`; it knows nothing of simulation.
 """
 
