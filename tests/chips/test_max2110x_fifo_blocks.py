@@ -1,13 +1,8 @@
 """The MAX21100 driver decodes a FIFO read at once into its blocks' arrays (``poll_blocks``,
-read: fifo): the same floats and flags as decoding it frame by frame.
-
-The reference is the same emulated seed paraglider flight (same seed) with the base class's
-``poll_blocks`` (the driver's ``poll``: one frame at a time into samples, then grouped):
-every event the pipeline emits (each sample, each estimate, diagnostics included) is equal
-bit for bit (``repr`` writes every float so that it round-trips). The flights include
-saturated frames (a roll faster than the gyro's range), the chip's filter memory after
-them, frozen frames of an ideal chip at rest (that read goes frame by frame) and FIFO
-overflows from host stalls.
+read: fifo): the same floats and flags as decoding it frame by frame, shown as for the
+MPU-9250 (tests/chips/test_mpu9250_fifo_blocks.py) on the seed paraglider board: every event
+of the same flight with the base class's ``poll_blocks`` equal bit for bit, through
+saturation, filter memory, frozen frames (those reads go frame by frame) and overflows.
 """
 
 from __future__ import annotations
@@ -15,20 +10,15 @@ from __future__ import annotations
 from collections import Counter
 
 import pytest
+from tests.support.fifo_boards import QUICK_ROLL, imu_read_from_fifo
 
 from imuhal.core.samples import AccelSample, GyroSample, SampleFlag
 from imuhal.drivers.base import Driver
 from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import HostStall
 from imuhal.plugins.manager import Registry, load_registry
-from imuhal.profile.bundled import bundled_profiles
-from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile
 from imuhal_chips.max2110x.driver import Max2110xDriver
-
-QUICK_ROLL = {"axes": [[1.0, 0.0, 0.0]], "rotation_s": 0.8, "ramp_s": 0.2, "hold_s": 2.0,
-              "free_tumble_s": 0.0}
-"""One full roll in 0.8 s after 2 s still: up to about 10 rad/s, beyond +-250 deg/s."""
 
 
 @pytest.fixture(scope="module")
@@ -37,11 +27,7 @@ def registry() -> Registry:
 
 
 def _seed_fifo(registry: Registry) -> BoardProfile:
-    profile = load_profile(bundled_profiles()["seed-paraglider-vario.yaml"], registry)
-    device = profile.devices["imu"]
-    settings = {**device.settings, "read": "fifo", "fifo_frames": 8, "gyro_range_dps": 250}
-    return profile.model_copy(update={"devices": {
-        **profile.devices, "imu": device.model_copy(update={"settings": settings})}})
+    return imu_read_from_fifo(registry, "seed-paraglider-vario.yaml", 8, gyro_range_dps=250)
 
 
 def _flight(registry: Registry, *, ideal: bool) -> list[object]:

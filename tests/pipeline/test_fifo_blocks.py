@@ -8,6 +8,7 @@ from itertools import pairwise
 
 import pytest
 from tests.support.chain import offline_estimates
+from tests.support.fifo_boards import imu_read_from_fifo
 
 from imuhal.core.blocks import Block
 from imuhal.core.samples import AccelSample, Frame, GyroSample, Sample
@@ -17,8 +18,6 @@ from imuhal.estimation.outputs import AttitudeEstimate, Estimate, VerticalEstima
 from imuhal.pipeline.pipeline import Pipeline
 from imuhal.pipeline.router import Router
 from imuhal.plugins.manager import Registry, load_registry
-from imuhal.profile.bundled import bundled_profiles
-from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile
 from imuhal_chips.mpu9250.driver import MPU9250Driver
 
@@ -32,11 +31,7 @@ def registry() -> Registry:
 
 
 def _gy91_fifo(registry: Registry) -> BoardProfile:
-    profile = load_profile(bundled_profiles()["gy91.yaml"], registry)
-    device = profile.devices["imu"]
-    settings = {**device.settings, "read": "fifo", "fifo_frames": FIFO_FRAMES}
-    return profile.model_copy(update={"devices": {
-        **profile.devices, "imu": device.model_copy(update={"settings": settings})}})
+    return imu_read_from_fifo(registry, "gy91.yaml", FIFO_FRAMES)
 
 
 @pytest.fixture(scope="module")
