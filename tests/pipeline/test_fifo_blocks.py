@@ -137,3 +137,33 @@ def test_each_fifo_read_reaches_the_estimators_whole_in_one_fusion_step(
     # are fused together; every later read whole
     assert 0 < fused[0] < read[0]
     assert fused[1:] == read[1:]
+
+
+class _Kept:
+    """A sink that keeps every event."""
+
+    def __init__(self) -> None:
+        self.events: list[object] = []
+
+    def handle(self, event: object) -> None:
+        self.events.append(event)
+
+    def close(self) -> None:
+        pass
+
+
+def test_a_run_without_sinks_counts_what_a_run_with_one_counts(registry: Registry) -> None:
+    """``run`` with no sink iterates ``blocks()`` (no sample built per FIFO frame): the same
+    samples, flags, frames and estimates in its summary as a run whose sink takes every
+    event."""
+    profile = _gy91_fifo(registry)
+    kept = _Kept()
+    summaries = []
+    for sinks in ([], [kept]):
+        with open_emulated(profile, registry, scenario="thermal", seed=2) as pipeline:
+            summaries.append(pipeline.run(3.0, sinks))
+    bare, with_sink = summaries
+    assert len(kept.events) > 1000
+    assert bare.samples == with_sink.samples and bare.samples["imu"] > 1000
+    assert (bare.flagged, bare.frames, bare.estimates) == \
+        (with_sink.flagged, with_sink.frames, with_sink.estimates)

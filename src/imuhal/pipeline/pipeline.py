@@ -1188,8 +1188,12 @@ class Pipeline:
         sink_counts: dict[str, dict[str, int]] = {}
         contained = ContainedSinks(sinks, self.containment, self.registry)
         try:
-            for event in self.events(duration_s):
-                contained.handle(event)
+            if sinks:
+                for event in self.events(duration_s):
+                    contained.handle(event)
+            else:  # nobody takes the frames one by one: a FIFO read stays its blocks
+                for _ in self.blocks(duration_s):
+                    pass
             failed = False
         except KeyboardInterrupt:
             failed = False
