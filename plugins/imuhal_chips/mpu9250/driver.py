@@ -26,6 +26,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar, Literal
 
 import numpy as np
+import numpy.typing as npt
 from pydantic import Field, model_validator
 
 from imuhal.bus.auto_read import AUTO_READ, AutoReadFeed, same_feed
@@ -560,16 +561,7 @@ class MPU9250Driver(Driver):
         accel = np.asarray(counts[:, 0:3] * accel_scale(self._accel.lsb_per_unit), np.float64)
         gyro = np.asarray(counts[:, 4:7] * gyro_scale(self._gyro.lsb_per_unit), np.float64)
         temp = np.asarray(counts[:, 3] / TEMP_LSB_PER_DEGC + TEMP_OFFSET_DEGC, np.float64)
-        flags_a: list[int] = []
-        flags_g: list[int] = []
-        memory = self._memory.flag
-        # the chip's filter memory, frame by frame (accelerometer, then gyro, as _samples)
-        for t_ns, sat_a, sat_g in zip(stamps_ns, saturated_rows(counts[:, 0:3]).tolist(),
-                                      saturated_rows(counts[:, 4:7]).tolist(), strict=True):
-            fa = _SATURATED if sat_a else _OK
-            fg = _SATURATED if sat_g else _OK
-            flags_a.append(fa | memory(Quantity.ACCEL, t_ns, fa))
-            flags_g.append(fg | memory(Quantity.GYRO, t_ns, fg))
+        flags_a, flags_g = self._frame_flags(counts, stamps_ns)
         low, high = self.TEMPERATURE_RANGE_DEGC
         temp_flags = np.where(np.isfinite(temp) & ~((low <= temp) & (temp <= high)),
                               int(SampleFlag.OUT_OF_RANGE), 0)
@@ -581,9 +573,29 @@ class MPU9250Driver(Driver):
             return Block(kind, self.device, frame=frame, spec=None, t0_ns=t0,
                          offsets_ns=offsets, values=values, flags=flags)
 
-        return [block(AccelSample, accel, np.array(flags_a, np.int64), Frame.SENSOR),
-                block(GyroSample, gyro, np.array(flags_g, np.int64), Frame.SENSOR),
+        return [block(AccelSample, accel, flags_a, Frame.SENSOR),
+                block(GyroSample, gyro, flags_g, Frame.SENSOR),
                 block(TemperatureSample, temp[:, None], temp_flags, None)]
+
+    def _frame_flags(self, counts: npt.NDArray[np.int16], stamps_ns: list[int]
+                     ) -> tuple[IntArray, IntArray]:
+        """The accelerometer and gyro flags of a burst's frames (SATURATED, and the chip's
+        filter memory after a clip, frame by frame as ``_samples`` gives them)."""
+        sat_a, sat_g = saturated_rows(counts[:, 0:3]), saturated_rows(counts[:, 4:7])
+        memory = self._memory
+        if not (sat_a.any() or sat_g.any()) and memory.quiet(Quantity.ACCEL) \
+                and memory.quiet(Quantity.GYRO):
+            zeros = np.zeros(len(stamps_ns), np.int64)  # no clip, no window open: all OK
+            return zeros, zeros.copy()
+        flags_a: list[int] = []
+        flags_g: list[int] = []
+        # the chip's filter memory, frame by frame (accelerometer, then gyro, as _samples)
+        for t_ns, a, g in zip(stamps_ns, sat_a.tolist(), sat_g.tolist(), strict=True):
+            fa = _SATURATED if a else _OK
+            fg = _SATURATED if g else _OK
+            flags_a.append(fa | memory.flag(Quantity.ACCEL, t_ns, fa))
+            flags_g.append(fg | memory.flag(Quantity.GYRO, t_ns, fg))
+        return np.array(flags_a, np.int64), np.array(flags_g, np.int64)
 
     def data_ready(self, edges_ns: Sequence[int]) -> None:
         """read: fifo: each frame is stamped with its own edge (imuhal_chips.mpu9250.fifo);

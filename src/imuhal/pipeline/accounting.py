@@ -55,6 +55,9 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
+import numpy as np
+
+from imuhal.core.blocks import Block
 from imuhal.core.samples import Quantity, Sample, SampleFlag
 
 CAUSES: tuple[str, ...] = ("fifo_overflow", "host_stall", "reset", "bus_error", "stale",
@@ -146,20 +149,50 @@ class FrameLedger:
         if not sample.valid:
             self.note("stale" if sample.flags & SampleFlag.STALE else "flagged")
             return None
+        return self._valid_at(sample.t_ns)
+
+    def _valid_at(self, t_ns: int) -> Loss | None:
+        """A valid frame of the accounted channel at ``t_ns`` (``observe``)."""
         loss = None
         if self.last_ns is not None:
-            loss = self._gap_before(sample.t_ns - self.last_ns)
+            loss = self._gap_before(t_ns - self.last_ns)
         else:
-            self.first_ns = sample.t_ns
+            self.first_ns = t_ns
         if self._segment_first_ns is None:
-            self._segment_first_ns = sample.t_ns
+            self._segment_first_ns = t_ns
             self._segment_produced = 0
         self._segment_produced += 1
         self.delivered += 1
-        self.last_ns = sample.t_ns
+        self.last_ns = t_ns
         self._seen.clear()
         self._slid_ns = 0
         return loss
+
+    def observe_block(self, block: Block) -> list[tuple[int, Loss]]:
+        """``observe`` for every frame of ``block`` (one stream, flags final), oldest first;
+        returns each loss with the time of the frame it comes before. A block of valid
+        frames none of which follows the one before by half a period more than the period
+        (so no slot lies between them) is counted on its arrays: only its first frame can
+        come after a gap; any other block goes frame by frame."""
+        if block.quantity is not self.channel:
+            return []
+        t = block.t_ns
+        if len(t) > 1 and not block.flags.any():
+            steps = np.diff(t)
+            if int(steps.min()) >= 0 and 2 * int(steps.max()) < 3 * self.period_ns:
+                first = int(t[0])
+                loss = self._valid_at(first)
+                more = len(t) - 1
+                self.delivered += more
+                self._segment_produced += more
+                self.last_ns = int(t[-1])
+                return [] if loss is None else [(first, loss)]
+        out = []
+        for sample in block.samples():
+            loss = self.observe(sample)
+            if loss is not None:
+                out.append((sample.t_ns, loss))
+        return out
 
     def _gap_before(self, step_ns: int) -> Loss | None:
         """Counts the slots between the latest valid frame and one ``step_ns`` after it:

@@ -3,8 +3,9 @@ same steps, estimators fed only valid body-frame samples, sinks fed everything.
 
 Embedding: ``Pipeline.open(profile, registry)`` (the profile's real buses) or
 ``imuhal.emulation.open_emulated(profile, registry, scenario="thermal")`` (an emulated board),
-then iterate ``pipeline.events(duration_s)`` (samples and estimates in time order) or call
-``pipeline.run(duration_s, sinks)``. The pipeline sees a board only through
+then iterate ``pipeline.events(duration_s)`` (samples and estimates in time order),
+``pipeline.blocks(duration_s)`` (the same with each FIFO read as its blocks, no sample built
+per frame) or call ``pipeline.run(duration_s, sinks)``. The pipeline sees a board only through
 :class:`~imuhal.pipeline.board.Board`; it knows nothing of simulation.
 """
 
@@ -542,13 +543,42 @@ class Pipeline:
         that phase is part of ``duration_s``, yields nothing, and carries on into the next
         call when a call ends before it does.
         """
-        source = self._poll_events(duration_s)
-        if self.calibrated:
-            stage = self._startup = self._startup or self._startup_stage()
-            if not stage.done:
-                # The phase carries over to the next call when this one ends before it does.
-                self._run_startup(stage, source)
+        source = cast("Iterator[Event]", self._poll_events(duration_s, reads=False))
+        stage = self._pending_startup()
+        if stage is not None:
+            # The phase carries over to the next call when this one ends before it does.
+            self._run_startup(stage, source)
         yield from source
+
+    def blocks(self, duration_s: float | None = None) -> Iterator[Event | Block]:
+        """``events`` with each read of several frames of a stream (a FIFO read) handed
+        out as blocks (imuhal.core.blocks; body frame, flags final: the frames ``events``
+        gives one by one), one per stream of the read, instead of a ``Sample`` per frame;
+        a register poll's readings, estimates and everything else come as from ``events``.
+        The blocks of one read come together, each in time order; ``Block.samples()``
+        gives a block's frames as the samples ``events`` would. For a consumer that takes
+        frames on arrays (or only counts them): no per-frame object is built for it. The
+        estimators get the same inputs as under ``events``, so the same estimates."""
+        items = self._poll_events(duration_s, reads=True)
+        stage = self._pending_startup()
+        if stage is not None:
+            source = _Expanded(self, items)
+            self._run_startup(stage, source)
+            # a read part-way handed out when the phase ended: the rest as its frames
+            yield from source.rest_of_read()
+        for item in items:
+            if type(item) is _Read:
+                yield from item.blocks
+            else:
+                yield cast("Event", item)
+
+    def _pending_startup(self) -> GyroStartupStage | None:
+        """The start-up phase (imuhal.pipeline.startup) when it is still to run."""
+        if not self.calibrated:
+            return None
+        stage = self._startup = self._startup or self._startup_stage()
+        return None if stage.done else stage
+
 
     def _startup_stage(self) -> GyroStartupStage:
         settings = startup_settings(
@@ -599,7 +629,10 @@ class Pipeline:
                 heapq.heappush(self._heap, (dev.next_poll_ns, self._device_rank[name], name))
         return self._heap
 
-    def _poll_events(self, duration_s: float | None) -> Iterator[Event]:
+    def _poll_events(self, duration_s: float | None, *, reads: bool
+                     ) -> Iterator[Event | _Read]:
+        """The poll loop: every event in time order; ``reads``: each read of several frames
+        as one :class:`_Read` (``blocks``), else its frames one by one (``events``)."""
         heap = self._schedule()
         start = self.clock.now_ns()
         end = None if duration_s is None else start + round(duration_s * 1e9)
@@ -610,7 +643,7 @@ class Pipeline:
             if lines:
                 woke = self._waiter.wait(t_ns if end is None else min(t_ns, end))
                 if woke:
-                    yield from self._on_edges(woke)
+                    yield from self._on_edges(woke, reads)
                     continue
             if end is not None and t_ns >= end:
                 self._span_ns[1] = end
@@ -634,16 +667,16 @@ class Pipeline:
                 self._account(dev)
             dev.next_poll_ns = max(self._next_due(dev, t_ns, next_ns), t_ns + 1)
             heapq.heappush(heap, (dev.next_poll_ns, rank, name))
-            yield from self._hand_out(dev, frames)
+            yield from self._hand_out(dev, frames, reads)
             if dev.ledger is not None:
                 self._account_slides(dev)
         if end is not None:
             self.clock.sleep_until(end)
-            yield from self._drain(end)
+            yield from self._drain(end, reads)
         if self._fusion:
             yield from self._fuse(before_ns=None)
 
-    def _drain(self, t_ns: int) -> Iterator[Sample]:
+    def _drain(self, t_ns: int, reads: bool) -> Iterator[Sample | _Read]:
         """The run ends at ``t_ns``: what each driver read and still holds
         (``Driver.drain``: FIFO frames waiting for their time stamps) is handed out, so
         nothing read is lost uncounted."""
@@ -656,32 +689,39 @@ class Pipeline:
                 self._driver_failed(dev, t_ns, exc)
                 continue
             if held:
-                yield from self._hand_out(dev, _frames(held))
+                yield from self._hand_out(dev, _frames(held), reads)
 
-    def _frames_of(self, dev: DeviceRuntime, blocks: list[Block]) -> Iterator[Sample]:
-        """Blocks of several frames (a FIFO read) through the steps at once, their frames
-        handed out in time order (imuhal.core.blocks.interleaved). When the start-up phase
-        switches calibration on while they are handed out, the frames not handed out yet
-        are calibrated and queued then, as single readings would have been."""
-        calibrated = self.calibrated
-        frames = interleaved([self._process(dev, b) for b in blocks])
+    def _read_frames(self, read: _Read) -> Iterator[Sample]:
+        """A read's frames handed out one by one in time order
+        (imuhal.core.blocks.interleaved). When the start-up phase switches calibration on
+        while they are handed out, the frames not handed out yet are calibrated and queued
+        then, as single readings would have been."""
+        frames = interleaved(read.blocks)
         for i, frame in enumerate(frames):
             yield frame
-            if self.calibrated and not calibrated:
-                rest = [self._to_body(dev, b) for b in blocks_of(frames[i + 1:])]
+            if self.calibrated and not read.calibrated:
+                rest = [self._to_body(read.dev, b) for b in blocks_of(frames[i + 1:])]
                 yield from interleaved(rest)
                 return
 
-    def _hand_out(self, dev: DeviceRuntime,
-                  frames: _Readings | list[Block]) -> Iterator[Sample]:
-        """A poll's readings or blocks through the steps, in the order they are handed out."""
+    def _hand_out(self, dev: DeviceRuntime, frames: _Readings | list[Block],
+                  reads: bool) -> Iterator[Sample | _Read]:
+        """A poll's readings or blocks through the steps, in the order they are handed out:
+        readings one by one, the blocks of several frames (a FIFO read) at once, as one
+        :class:`_Read` (``reads``: its frames become samples only where a consumer asks)
+        or as its frames one by one."""
         if isinstance(frames, _Readings):
             # one frame per block (a register poll): each reading through the steps as it
             # is handed out (the start-up phase may switch calibration on between two)
             for sample in frames:
                 yield self._process_one(dev, sample)
         elif frames:
-            yield from self._frames_of(dev, frames)
+            calibrated = self.calibrated
+            read = _Read(dev, [self._process(dev, b) for b in frames], calibrated)
+            if reads:
+                yield read
+            else:
+                yield from self._read_frames(read)
 
     def _note_late(self, dev: DeviceRuntime, due_ns: int, t_ns: int) -> None:
         """A read at ``t_ns`` that was due at ``due_ns``: more than half a frame period late
@@ -713,7 +753,8 @@ class Pipeline:
             return driver_next_ns
         return dev.trigger.due(t_ns, driver_next_ns)
 
-    def _on_edges(self, woke: dict[str, list[TriggerEdge]]) -> Iterator[Event]:
+    def _on_edges(self, woke: dict[str, list[TriggerEdge]], reads: bool
+                  ) -> Iterator[Event | _Read]:
         """Read each device whose line raised edges, once, stamped with its newest edge
         (a host that came late finds the chip's newest sample: the edges before it are
         counted overwritten)."""
@@ -744,7 +785,7 @@ class Pipeline:
                 self._account(dev)
             dev.next_poll_ns = max(self._next_due(dev, edge.t_ns, next_ns), t_ns + 1)
             heapq.heappush(self._schedule(), (dev.next_poll_ns, self._device_rank[name], name))
-            yield from self._hand_out(dev, samples)
+            yield from self._hand_out(dev, samples, reads)
             if dev.ledger is not None:
                 self._account_slides(dev)
 
@@ -1016,10 +1057,8 @@ class Pipeline:
                 if sample.flags:
                     self._count_flags(dev, sample)
         if dev.ledger is not None:
-            for sample in block.samples():
-                loss = dev.ledger.observe(sample)
-                if loss is not None:
-                    self._gap(dev, sample.t_ns, loss)
+            for t_ns, loss in dev.ledger.observe_block(block):
+                self._gap(dev, t_ns, loss)
         return self._to_body(dev, block) if self.calibrated else block
 
     def _gap(self, dev: DeviceRuntime, t_ns: int, loss: Loss) -> None:
@@ -1149,8 +1188,12 @@ class Pipeline:
         sink_counts: dict[str, dict[str, int]] = {}
         contained = ContainedSinks(sinks, self.containment, self.registry)
         try:
-            for event in self.events(duration_s):
-                contained.handle(event)
+            if sinks:
+                for event in self.events(duration_s):
+                    contained.handle(event)
+            else:  # nobody takes the frames one by one: a FIFO read stays its blocks
+                for _ in self.blocks(duration_s):
+                    pass
             failed = False
         except KeyboardInterrupt:
             failed = False
@@ -1221,6 +1264,50 @@ class Pipeline:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+class _Read:
+    """The blocks of one read of several frames (a FIFO read) after validity, calibration
+    and rotation, handed out together; ``calibrated``: whether the pipeline calibrated
+    when they went through the steps (the start-up phase may switch it on while their
+    frames are handed out one by one)."""
+
+    __slots__ = ("blocks", "calibrated", "dev")
+
+    def __init__(self, dev: DeviceRuntime, blocks: list[Block], calibrated: bool) -> None:
+        self.dev = dev
+        self.blocks = blocks
+        self.calibrated = calibrated
+
+
+class _Expanded:
+    """Items of the poll loop with each read's frames one by one (``_read_frames``), as an
+    iterator that can say where it stopped: ``rest_of_read`` gives the frames of a read
+    part-way handed out (``Pipeline.blocks`` after the start-up phase)."""
+
+    def __init__(self, pipeline: Pipeline, items: Iterator[Event | _Read]) -> None:
+        self._pipeline = pipeline
+        self._items = items
+        self._frames: Iterator[Sample] | None = None
+
+    def __iter__(self) -> _Expanded:
+        return self
+
+    def __next__(self) -> Event:
+        if self._frames is not None:
+            frame = next(self._frames, None)
+            if frame is not None:
+                return frame
+            self._frames = None
+        item = next(self._items)
+        if type(item) is _Read:
+            self._frames = self._pipeline._read_frames(item)
+            return next(self._frames)  # a read holds at least one frame
+        return cast("Event", item)
+
+    def rest_of_read(self) -> Iterator[Sample]:
+        frames, self._frames = self._frames, None
+        return frames if frames is not None else iter(())
 
 
 BUFFERED_SOURCES = frozenset({TimeSource.CHIP_CLOCK, TimeSource.CHIP_FIFO})
