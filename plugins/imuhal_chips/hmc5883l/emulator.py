@@ -129,6 +129,8 @@ class Hmc5883lEmulator(ChipEmulator):
         self._gain = _gain_of(self.regs[Reg.CONFIG_B])
         self._gain_next = self._gain
         self._next_ns: int | None = None
+        self._ahead_until_ns = -1
+        """The last pull announced to the board (``announce_pulls``)."""
         self._start_mode()
 
     def silent_reset(self) -> None:
@@ -155,6 +157,7 @@ class Hmc5883lEmulator(ChipEmulator):
         old = self._period_ns()
         self._oscillator_error = fraction
         new = self._period_ns()
+        self._ahead_until_ns = -1
         continuous = self.regs[Reg.MODE] & MODE_MD_MASK == MODE_CONTINUOUS
         if continuous and self._next_ns is not None and old and new:
             self._next_ns += new - old  # counted on from the latest measurement
@@ -199,6 +202,7 @@ class Hmc5883lEmulator(ChipEmulator):
     def _start_mode(self) -> None:
         md = self.regs[Reg.MODE] & MODE_MD_MASK
         now = self.now_ns()
+        self._ahead_until_ns = -1  # the pulls announced so far are on the old timing
         if md == MODE_CONTINUOUS:
             period = self._period_ns()
             self._next_ns = now + period if period else None
@@ -225,7 +229,10 @@ class Hmc5883lEmulator(ChipEmulator):
         self._next_ns = due + count * period
         self.record_measurements(due, period, count)
         # only the latest of several missed measurements is visible, with its own field
-        self.pull_physics(due + (count - 1) * period)
+        newest = due + (count - 1) * period
+        if newest > self._ahead_until_ns:
+            self._ahead_until_ns = self.announce_pulls(newest, period, now)
+        self.pull_physics(newest)
         self._measure()
 
     # --- bus face -------------------------------------------------------------------------

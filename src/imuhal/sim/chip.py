@@ -44,6 +44,11 @@ class ChipEmulator(ABC):
     emulator class models.
     """
 
+    #: How far past its present a chip with its own clock announces its coming pulls
+    #: (:meth:`announce_pulls`; 1 s: numpy's per-call cost makes a few instants dearer
+    #: vectorised than one by one, a few hundred cheaper: tests/benchmarks/bench_truths.py).
+    PULL_AHEAD_NS: ClassVar[int] = 1_000_000_000
+
     #: The largest clock error an emulated chip's ``oscillator_error`` accepts (a fraction).
     MAX_OSCILLATOR_ERROR: ClassVar[float] = 0.1
 
@@ -117,8 +122,10 @@ class ChipEmulator(ABC):
         inputs at a given instant (ns) through ``set_physics``."""
         self.physics_ahead: Callable[[Sequence[int]], None] | None = None
         """Set by an emulated board beside ``physics_source``: told the instants (ns,
-        ascending) at which the chip will pull its inputs, the board computes their truth in
-        one call (a chip with a FIFO knows its coming instants from its own clock)."""
+        ascending) at which the chip will pull its inputs, in the order of its pulls (an
+        instant it pulls twice given twice), the board computes what it will hand over at
+        each in one pass (a chip with its own clock knows its coming instants); it hands
+        that out while the pulls come as announced."""
         self.master_instant_ns: int | None = None
         """Set while a bus master on the chip's own board (the MPU-9250's I2C master)
         performs a transaction it timed itself (``EmulatedBus.transfer_at``): the chip
@@ -135,6 +142,19 @@ class ChipEmulator(ABC):
         ``set_physics`` gave it)."""
         if self.physics_source is not None:
             self.physics_source(t_ns)
+
+    def announce_pulls(self, first_ns: int, period_ns: int, now_ns: int) -> int:
+        """Tell the board (``physics_ahead``) that the chip will pull its inputs at
+        ``first_ns``, ``first_ns + period_ns``, ... up to ``PULL_AHEAD_NS`` past ``now_ns``
+        (its clock as it stands), so their inputs come from one vectorised pass. Returns the
+        last instant announced (-1: no board listens); a pull that comes elsewhere (a rate
+        or clock change, a skipped measurement) is computed when it happens."""
+        if self.physics_ahead is None or period_ns <= 0:
+            return -1
+        until = now_ns + self.PULL_AHEAD_NS
+        count = max(0, (until - first_ns) // period_ns) + 1
+        self.physics_ahead([first_ns + k * period_ns for k in range(count)])
+        return first_ns + (count - 1) * period_ns
 
     def record_measurements(self, first_ns: int, period_ns: int, count: int) -> None:
         """``count`` measurements completed at ``first_ns``, ``first_ns + period_ns``, ..."""
