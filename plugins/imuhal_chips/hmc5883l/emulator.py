@@ -95,6 +95,7 @@ def _register_bytes(x: int, y: int, z: int) -> bytes:
 _WRITE_MASKS: dict[int, int] = {Reg.CONFIG_A: CRA_WRITABLE, Reg.CONFIG_B: CRB_WRITABLE,
                                 Reg.MODE: MODE_WRITABLE}
 _DATA = range(DATA_FIRST, DATA_LAST + 1)
+_DATA_BYTES = len(_DATA)
 
 
 class Hmc5883lEmulator(ChipEmulator):
@@ -246,6 +247,14 @@ class Hmc5883lEmulator(ChipEmulator):
             for value in write[1:]:
                 self._write(self.pointer, value)
                 self.pointer = (self.pointer + 1) & 0xFF
+        if read_len == _DATA_BYTES and self.pointer == DATA_FIRST and not self._read_mask:
+            # The whole data block from its start with no partial read before (every poll,
+            # and every auto-read of the MAX21100 master): byte by byte below, the six
+            # bytes are the data as they stand, the last read unlocks, the pointer wraps.
+            out = self.data
+            self._unlock()
+            self.pointer = POINTER_WRAP_TO
+            return bytes(out)
         out = bytearray()
         for _ in range(read_len):
             out.append(self._read(self.pointer))

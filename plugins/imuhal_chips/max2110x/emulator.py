@@ -178,10 +178,10 @@ _FIFO_STATUS = int(Reg.FIFO_STATUS)
 _FIFO_DATA = int(Reg.FIFO_DATA)
 
 
-AHEAD_NS = 1_000_000_000
-"""How far past a FIFO fill the emulator announces its coming instants (1 s, 250 at the
-seed's 250 Hz): numpy's per-call cost makes the truth of a fill of 8 alone dearer vectorised
-than one by one, of a few hundred cheaper (tests/benchmarks/bench_truths.py)."""
+AHEAD_NS = ChipEmulator.PULL_AHEAD_NS
+"""How far past a FIFO fill or a latch the emulator announces its coming pulls (the base's
+``PULL_AHEAD_NS``): numpy's per-call cost makes the truth of a fill of 8 alone dearer
+vectorised than one by one, of a few hundred cheaper (tests/benchmarks/bench_truths.py)."""
 
 
 def _encode(value: float, per_count: float, limit: int) -> int:
@@ -488,7 +488,7 @@ class Max2110xEmulator(ChipEmulator):
     def _announce_instants(self, first_ns: int, now: int, *, each_channel: bool = False
                            ) -> None:
         """Tell the board (``physics_ahead``) the instants at which the chip will pull its
-        inputs from ``first_ns`` to ``AHEAD_NS`` past ``now``, as the clock stands: every
+        inputs from ``first_ns`` to ``PULL_AHEAD_NS`` past ``now``, as the clock stands: every
         instant at which a channel measures, once (the FIFO's path pulls once per instant),
         or once per channel measuring then (``each_channel``: the path that latches each
         channel's newest). The inputs of a FIFO fill's instants and of the next ones then
@@ -497,7 +497,7 @@ class Max2110xEmulator(ChipEmulator):
         out what it computed only while the pulls come as announced), so nothing depends
         on this guess."""
         assert self.physics_ahead is not None
-        until = now + AHEAD_NS
+        until = now + self.PULL_AHEAD_NS
         instants = []
         for index, due in enumerate(self._next_ns):
             if due is None:
