@@ -99,3 +99,27 @@ def test_calls_before_the_last_one_made_are_not_planned():
     _one_by_one(model, calls, range(5))
     earlier = (calls[0][:3] - 1.0, *(c[:3] for c in calls[1:]))
     assert model.plan_values(*earlier, 0.01, PERIODS) is None
+
+
+BARO_SPEC = SensorErrorSpec.model_validate({
+    "pressure": {"noise_std": 1.2, "bias_std": 50.0, "drift_per_hour": 3.0,
+                 "random_walk": 0.4, "temp_coeff": 0.5},
+    "temperature": {"noise_std": 0.002, "bias_std": 0.3},
+})
+
+
+def test_a_barometer_model_applied_later_gives_the_floats_of_the_call_made_then():
+    calls = _calls(300)
+    t_s, _, _, _, pressure, temp = calls
+    reference = SensorErrorModel(BARO_SPEC, seed=4)
+    expected = [reference.apply_values(float(t_s[i]), None, None, None, float(pressure[i]),
+                                       float(temp[i]), 0.01)[3:] for i in range(300)]
+    model = SensorErrorModel(BARO_SPEC, seed=4)
+    halves = [model.apply_later(float(t)) for t in t_s]
+    # finished in another order, after every later call was made
+    got = [halves[i](float(pressure[i]), float(temp[i])) for i in reversed(range(300))]
+    assert got[::-1] == expected
+
+
+def test_a_model_with_a_vector_channel_is_not_applied_later():
+    assert SensorErrorModel(SPEC, seed=1).apply_later(1.0) is None

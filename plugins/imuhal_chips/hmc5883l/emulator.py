@@ -251,10 +251,10 @@ class Hmc5883lEmulator(ChipEmulator):
             # The whole data block from its start with no partial read before (every poll,
             # and every auto-read of the MAX21100 master): byte by byte below, the six
             # bytes are the data as they stand, the last read unlocks, the pointer wraps.
-            out = self.data
+            block = bytes(self.data)
             self._unlock()
             self.pointer = POINTER_WRAP_TO
-            return bytes(out)
+            return block
         out = bytearray()
         for _ in range(read_len):
             out.append(self._read(self.pointer))

@@ -377,6 +377,14 @@ class EmulatedBoard:
                 dev.emulator.physics_t_ns = t_ns
                 dev.emulator.set_physics(inputs)
                 return
+        if dev.later and not self.faults.has_faults(name):
+            model = dev.model
+            finish = None if model is None else model.apply_later(t_ns / 1e9)
+            dev.last_t_ns = t_ns
+            dev.emulator.physics_t_ns = t_ns
+            dev.emulator.set_physics_later(
+                functools.partial(self._inputs_later, dev, t_ns, finish))
+            return
         truth = self._chip_truth(t_ns, dev.motion)
         mount = dev.mount
         force, rate, field = chip_vectors(truth, mount)
@@ -401,6 +409,21 @@ class EmulatedBoard:
         dev.emulator.physics_t_ns = t_ns
         dev.emulator.set_physics(inputs)
 
+
+    def _inputs_later(self, dev: _Device, t_ns: int,
+                      finish: Callable[[float, float], tuple[float, float]] | None
+                      ) -> PhysicalInputs:
+        """What :meth:`_give` hands the chip at ``t_ns``, computed when the chip reads it
+        (``ChipEmulator.set_physics_later``); ``finish``: the error model's half of the
+        call (``SensorErrorModel.apply_later``), whose draws were taken at ``t_ns``."""
+        truth = self._chip_truth(t_ns, dev.motion)
+        force, rate, field = chip_vectors(truth, dev.mount)
+        other = chip_other(truth, dev.mount) if truth.other else NO_OTHER
+        pressure, temperature = truth.pressure_pa, truth.temperature_degc
+        if finish is not None:
+            pressure, temperature = finish(pressure, temperature)
+        return PhysicalInputs.build(force, rate, field, pressure, temperature,
+                                    truth.position_ned_m, truth.velocity_ned_m_s, other)
 
     def _planned(self, dev: _Device, plan: _InputsPlan, t_ns: int) -> PhysicalInputs | None:
         """The planned inputs of the device's next pull when it comes at ``t_ns`` as
@@ -464,6 +487,7 @@ class _Device:
     __slots__ = (
         "emulator",
         "last_t_ns",
+        "later",
         "line",
         "model",
         "motion",
@@ -494,3 +518,10 @@ class _Device:
         """The noise periods, while they do not depend on the poll interval."""
         self.plan: _InputsPlan | None = None
         """The chip's inputs computed ahead for its coming pulls, if any."""
+        kind = type(emulator)
+        self.later = (not kind.pulls_physics and kind.set_physics is ChipEmulator.set_physics
+                      and (model is None or model.scalar_only))
+        """Whether the chip's inputs may be computed when it reads them: a chip handed
+        them at the host's polls that does not act on them when handed
+        (``ChipEmulator.set_physics_later``), with an error model that can take its
+        draws first (``SensorErrorModel.apply_later``)."""

@@ -109,7 +109,9 @@ class ChipEmulator(ABC):
         self.stuck_data_ready = False
         self.host_baudrate = 0
         """Serial chips: the line speed the host's UART is set to (0: not a UART)."""
-        self.physics = PhysicalInputs()
+        self._physics = PhysicalInputs()
+        self._physics_later: Callable[[], PhysicalInputs] | None = None
+        """Inputs handed over but not yet computed (:meth:`set_physics_later`)."""
         self.physics_t_ns: int | None = None
         """The time ``physics`` is true at, as the emulated board hands it over (a poll that
         comes late gives the world at its due time); None: now."""
@@ -193,11 +195,34 @@ class ChipEmulator(ABC):
         now. Register-mapped chips never send unprompted."""
         return b""
 
+    @property
+    def physics(self) -> PhysicalInputs:
+        """The true values the chip measures now (sensor frame, SI)."""
+        later = self._physics_later
+        if later is not None:
+            self._physics_later = None
+            self._physics = later()
+        return self._physics
+
+    @physics.setter
+    def physics(self, inputs: PhysicalInputs) -> None:
+        self._physics = inputs
+        self._physics_later = None
+
     def set_physics(self, inputs: PhysicalInputs) -> None:
         """Hand the emulator the true values it should measure from now on (ignored while
         ``frozen``: the chip keeps converting what it had)."""
         if not self.frozen:
             self.physics = inputs
+
+    def set_physics_later(self, compute: Callable[[], PhysicalInputs]) -> None:
+        """:meth:`set_physics` with the inputs ``compute()`` returns, computed only if the
+        chip reads them (``physics``) before it is handed others: a chip that measures at a
+        few of its host's polls (a barometer starting a conversion) needs the world at
+        those only. An emulated board uses it only for an emulator that keeps the base
+        class's :meth:`set_physics` (one that acts on new inputs overrides it)."""
+        if not self.frozen:
+            self._physics_later = compute
 
     def now_ns(self) -> int:
         """The chip's present: the host's clock, or the instant of a master's timed

@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import math
 import zlib
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -339,9 +340,21 @@ class _ScalarChannel:
             self.walk += self._random_walk * math.sqrt(elapsed_s) * self.normal()
 
     def apply(self, t_s: float, v: float, temperature: float | None) -> float:
-        out = v + self.bias_at(t_s, temperature)
+        return self.finish(t_s, v, temperature, *self.draw())
+
+    def draw(self) -> tuple[float, float]:
+        """What :meth:`apply` takes from the channel's state at a call: (the random walk,
+        the noise draw or 0.0 where the channel has no noise)."""
+        return self.walk, self.normal() if self._noise_std else 0.0
+
+    def finish(self, t_s: float, v: float, temperature: float | None, walk: float,
+               noise: float) -> float:
+        """:meth:`apply` on what :meth:`draw` took (the same operations)."""
+        dt = 0.0 if temperature is None else temperature - self._t_ref
+        out = v + (self.turn_on_bias + self._drift_per_hour * t_s / 3600.0 + walk
+                   + self._temp_coeff * dt)
         if self._noise_std:
-            out += self._noise_std * self.normal()
+            out += self._noise_std * noise
         return out
 
     def plan(self, t_s: np.ndarray, elapsed: np.ndarray, v: np.ndarray,
@@ -407,6 +420,8 @@ class SensorErrorModel:
             and ch_spec.bandwidth_hz is None)
         """The vector channels whose noise depends on the sample period (a density without
         a fixed ``bandwidth_hz``): the ones ``apply_values``' ``periods_s`` matters for."""
+        self.scalar_only = self._accel is None and self._gyro is None and self._mag is None
+        """True for a model of pressure and temperature alone (:meth:`apply_later`)."""
         self._plan: ErrorPlan | None = None
         """The calls planned ahead (:meth:`plan_values`), of which ``used`` are taken."""
 
@@ -516,6 +531,33 @@ class SensorErrorModel:
             out[4] = plans[-1].out
         self._plan = ErrorPlan(t_s, out, plans)
         return self._plan
+
+    def apply_later(self, t_s: float) -> Callable[[float, float], tuple[float, float]] | None:
+        """:meth:`apply_values` for a chip measuring pressure and temperature only, in two
+        halves: this call moves the model on as the call would (time, random walks, noise
+        draws), the function returned gives the measured (pressure, temperature) for the
+        true ones, the same floats as the call, whenever it is called. None for a model
+        with a vector channel (whose draws depend on which vectors a truth carries)."""
+        if not self.scalar_only:
+            return None
+        self._sync()
+        if self._last_t is not None and t_s < self._last_t:
+            raise ValueError(f"time went backwards: {t_s} s after {self._last_t} s")
+        elapsed = 0.0 if self._last_t is None else t_s - self._last_t
+        self._last_t = t_s
+        for ch in self._walking:
+            ch.step(elapsed)
+        pressure_ch, temperature_ch = self._pressure, self._temperature
+        p_draw = None if pressure_ch is None else pressure_ch.draw()
+        t_draw = None if temperature_ch is None else temperature_ch.draw()
+
+        def finish(pressure: float, temp: float) -> tuple[float, float]:
+            measured_p = pressure if pressure_ch is None or p_draw is None else \
+                pressure_ch.finish(t_s, pressure, temp, *p_draw)
+            measured_t = temp if temperature_ch is None or t_draw is None else \
+                temperature_ch.finish(t_s, temp, None, *t_draw)
+            return measured_p, measured_t
+        return finish
 
     def _sync(self) -> None:
         """Settle the calls taken from the plan (if any) and drop the rest of it."""
