@@ -58,8 +58,9 @@ def _fly(registry: Registry, *, ahead: bool, fifo: bool, oscillator_error: float
             return vectorised(t_s)
 
         scenario.chip_truth_columns = spy  # type: ignore[method-assign]  # a counting spy
-        if not ahead:
-            imu.physics_ahead = None  # a board that computes no truth ahead
+        if not ahead:  # a board that computes no inputs ahead (the MAX21100, the HMC5883L)
+            for emulator in board.emulators.values():
+                emulator.physics_ahead = None
         # set after start: the instants announced on the datasheet's clock move
         imu.oscillator_error = oscillator_error
         events = [repr(e) for e in p.events(2.0)]
