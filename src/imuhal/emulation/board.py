@@ -6,6 +6,12 @@ instead handed its inputs at each of its measurement instants, which it asks for
 
 The simulation knows the truth in the body frame; each chip sees it in its own sensor frame
 (the inverse of its chip -> body rotation), optionally through that chip's error model.
+
+What a chip is handed is computed in numpy for many instants at once where the chip says
+when it will pull (``ChipEmulator.physics_ahead``: the truth, rotation and error model of
+the coming seconds in one pass, handed out while the pulls come as announced), and only
+when it is read for a chip handed it at the host's polls that reads it at a few of them
+(``ChipEmulator.set_physics_later``); both give the floats computing it pull by pull gives.
 """
 
 from __future__ import annotations
@@ -409,7 +415,6 @@ class EmulatedBoard:
         dev.emulator.physics_t_ns = t_ns
         dev.emulator.set_physics(inputs)
 
-
     def _inputs_later(self, dev: _Device, t_ns: int,
                       finish: Callable[[float, float], tuple[float, float]] | None
                       ) -> PhysicalInputs:
@@ -417,7 +422,9 @@ class EmulatedBoard:
         (``ChipEmulator.set_physics_later``); ``finish``: the error model's half of the
         call (``SensorErrorModel.apply_later``), whose draws were taken at ``t_ns``."""
         truth = self._chip_truth(t_ns, dev.motion)
-        force, rate, field = chip_vectors(truth, dev.mount)
+        # A chip measuring no motion gets none (read later, the instant's truth may be a
+        # full one another chip's pull computed since)
+        force, rate, field = chip_vectors(truth, dev.mount) if dev.motion else (None, None, None)
         other = chip_other(truth, dev.mount) if truth.other else NO_OTHER
         pressure, temperature = truth.pressure_pa, truth.temperature_degc
         if finish is not None:
