@@ -452,12 +452,7 @@ class SensorErrorModel:
         if self._plan is not None:
             self._sync()
         accel_p, gyro_p, mag_p = self._periods(sample_period_s, periods_s)
-        if self._last_t is not None and t_s < self._last_t:
-            raise ValueError(f"time went backwards: {t_s} s after {self._last_t} s")
-        elapsed = 0.0 if self._last_t is None else t_s - self._last_t
-        self._last_t = t_s
-        for ch in self._walking:
-            ch.step(elapsed)
+        self._move_to(t_s)
         measured_temp = temp  # ``temp`` stays the true one: thermal bias terms depend on it
         if self._accel is not None and accel is not None:
             accel = self._accel.apply(accel, temp, accel_p)
@@ -470,6 +465,15 @@ class SensorErrorModel:
         if self._temperature is not None and temp is not None:
             measured_temp = self._temperature.apply(t_s, temp, None)
         return accel, gyro, mag, pressure, measured_temp
+
+    def _move_to(self, t_s: float) -> None:
+        """A call at ``t_s``: time moves on (never back), the random walks with it."""
+        if self._last_t is not None and t_s < self._last_t:
+            raise ValueError(f"time went backwards: {t_s} s after {self._last_t} s")
+        elapsed = 0.0 if self._last_t is None else t_s - self._last_t
+        self._last_t = t_s
+        for ch in self._walking:
+            ch.step(elapsed)
 
     @staticmethod
     def _periods(sample_period_s: float, periods_s: dict[str, float] | None
@@ -541,12 +545,7 @@ class SensorErrorModel:
         if not self.scalar_only:
             return None
         self._sync()
-        if self._last_t is not None and t_s < self._last_t:
-            raise ValueError(f"time went backwards: {t_s} s after {self._last_t} s")
-        elapsed = 0.0 if self._last_t is None else t_s - self._last_t
-        self._last_t = t_s
-        for ch in self._walking:
-            ch.step(elapsed)
+        self._move_to(t_s)
         pressure_ch, temperature_ch = self._pressure, self._temperature
         p_draw = None if pressure_ch is None else pressure_ch.draw()
         t_draw = None if temperature_ch is None else temperature_ch.draw()
