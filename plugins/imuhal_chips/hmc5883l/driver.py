@@ -239,7 +239,14 @@ class Hmc5883lDriver(Driver):
         plan.apply(self.regs)
         self._mode_written_ns = self.clock.now_ns()  # continuous measurements start here
         got = plan.read(self.regs)
-        self._read(Reg.X_MSB, 6)  # reading MODE locked the outputs; six data reads unlock
+        if self.settings.read != "auto":
+            self._read(Reg.X_MSB, 6)  # reading MODE locked the outputs; six data reads unlock
+        # read: auto: the master's next copy reads the six bytes in one transaction and
+        # releases the lock. Six one-shot reads here would straddle one of its copies (one
+        # a millisecond, a copy every accelerometer period), which would release the lock
+        # midway; the one-shot reads after it would lock it again with part of the six read,
+        # and from then on every copy would end a byte or more into the next measurement
+        # (a torn field: X and Z of one measurement, Y of the next) until Mode is written.
         plan.confirm(got)
         self.plan = plan
         config = bytes((got[Reg.CONFIG_A], got[Reg.CONFIG_B]))
