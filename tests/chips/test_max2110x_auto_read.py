@@ -8,6 +8,7 @@ X, Z, Y order) reads another field and fails."""
 
 from __future__ import annotations
 
+import bisect
 import itertools
 import math
 
@@ -273,3 +274,20 @@ def test_a_reconfiguration_while_the_master_auto_reads_leaves_no_field_torn() ->
             if not any(all(abs(s.mag_ut[i] - f[i]) <= 0.6 * LSB_UT for i in range(3))
                        for f in measured)]
     assert not torn
+
+
+def test_a_copy_a_failed_slave_read_delayed_is_stamped_with_the_burst_that_brought_it() -> None:
+    """The poll that looks again a delivery latency after the planned one stamps what it
+    finds with the IMU burst that delivered it, not with itself: at most two accelerometer
+    periods (the failed copy and the next) and the IMU's poll guard after the measurement,
+    where the poll's own time lies up to 4.5 ms later still, past what the frame ledger's
+    rounding of the field's period (13.3 ms) can absorb beside another delay."""
+    board = Board({"reset_check_s": 60})
+    board.run(0.3)
+    board.imu_emu.child_buses()["aux"].fail_transfers(set(range(1, 3000, 3)))
+    samples = valid_mag(board.run(2.0))
+    measured = board.mag_emu.measured_ns
+    accel_ns = round(1e9 / 250)
+    ages = [s.t_ns - measured[bisect.bisect_right(measured, s.t_ns) - 1] for s in samples]
+    assert board.imu_emu.slave_read_failures > 150 and len(samples) > 120
+    assert max(ages) <= 2 * accel_ns + accel_ns // 8 + 200_000

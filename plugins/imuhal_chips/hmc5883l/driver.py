@@ -350,7 +350,7 @@ class Hmc5883lDriver(Driver):
             else SampleFlag.OK
         changes = self._feed.take()
         if changes:
-            samples, blank = self._measurements(changes, now_ns)
+            samples, blank = self._measurements(changes, now_ns, late=self._retrying)
             if samples:
                 self._fresh_ns = now_ns
                 self._retrying = False
@@ -373,21 +373,26 @@ class Hmc5883lDriver(Driver):
                                mag_ut=NAN3, flags=frozen or SampleFlag.STALE)
         return self._no_measurement(sample, now_ns)
 
-    def _measurements(self, changes: list[tuple[int, bytes]],
-                      now_ns: int) -> tuple[list[Sample], Sample | None]:
+    def _measurements(self, changes: list[tuple[int, bytes]], now_ns: int, *,
+                      late: bool) -> tuple[list[Sample], Sample | None]:
         """The samples of the master's copies that changed since the previous poll
         (``changes``: delivery time, bytes, oldest first; more than one when its reads
         brought two measurements between two polls, as FIFO reads at the IMU's own
         instants can), and the last blank one when none is a measurement. The newest is
         stamped with this poll, as one alone is; an older one with its delivery (its
-        measurement at most the feed's latency before it), kept in order."""
+        measurement at most the feed's latency before it), kept in order. So is the newest
+        when this poll looks again for a copy that was not there on time (``late``): a
+        failed slave read or IMU burst delayed it, and the poll a delivery latency after the
+        planned one would stamp it up to 7 ms late at the seed's rates, past half the
+        field's period, where the frame ledger counts a field the chip never skipped."""
         samples: list[Sample] = []
         blank: Sample | None = None
         for k, (t_ns, data) in enumerate(changes):
             if t_ns < self._settle_ns or data == self._emitted:
                 continue
             left = len(changes) - 1 - k  # copies after this one: each needs a later stamp
-            stamp = min(max(t_ns, self._stamped_ns + 1), now_ns - left) if left else now_ns
+            stamp = min(max(t_ns, self._stamped_ns + 1), now_ns - left) \
+                if left or late else now_ns
             sample = self._decoded(data, stamp, blank_flag(data))
             if sample.flags & SampleFlag.BLANK:
                 blank = sample
