@@ -43,7 +43,7 @@ from __future__ import annotations
 
 from typing import ClassVar, Literal
 
-from imuhal.bus.auto_read import AutoReadBus, AutoReadFeed, require_auto_read
+from imuhal.bus.auto_read import AutoReadBus, AutoReadFeed, Copy, require_auto_read
 from imuhal.bus.base import BusKind, Link
 from imuhal.bus.register_plan import RegisterPlan, RegisterSetting
 from imuhal.bus.registers import RegisterView
@@ -122,6 +122,8 @@ class AK8963Driver(Driver):
                               example="the MPU-9250's imu/aux with aux: master",
                               fix="use read: one-shot or set the MPU's aux: master")
         self._feed: AutoReadFeed | None = None
+        self._stamped_ns: int | None = None
+        """read: auto: the stamp of the latest field from a copy (None after configure)."""
         self._cntl1_written_ns = 0
         self._streams: tuple[StreamSpec, ...] = ()
 
@@ -166,6 +168,7 @@ class AK8963Driver(Driver):
             feed = self._feed = self.link.bus.auto_read(
                 self.link.target, r.DATA_BURST_START, r.DATA_BURST_LENGTH)
             feed.keep_ready_only(0, r.ST1_DRDY)
+            self._stamped_ns = None  # the stream restarts with a new phase
             # A copy from before this configuration is no measurement of it: writing CNTL1
             # cleared DRDY, so the next copy with DRDY differs from this one or is new.
             feed.take()
@@ -256,17 +259,40 @@ class AK8963Driver(Driver):
         assert self._feed is not None
         samples: list[MagSample] = []
         bad = SampleFlag.OK
-        for t_ns, data in self._feed.take():
-            if not data[0] & r.ST1_DRDY:
+        for copy in self._feed.take():
+            if not copy.data[0] & r.ST1_DRDY:
                 continue
-            sample, flag, _ = self._measurement(data, t_ns, t_ns)
+            t_ns = self._copy_stamp(copy)
+            sample, flag, _ = self._measurement(copy.data, t_ns, t_ns)
             if sample is not None:
                 samples.append(sample)
+                self._stamped_ns = t_ns
             bad |= flag
         if not samples:
             return self._no_measurement(now_ns, overdue or bool(bad), bad, stale=not bad)
         self._grid.anchor(now_ns)
         return PollResult(list(samples), self._grid.next_after(now_ns))
+
+    def _copy_stamp(self, copy: Copy) -> int:
+        """The time the master copied this measurement: its delivery, or, when the
+        master's reads just before it failed (``Copy.failed_ns``: SLV0_NACK), the one of
+        those reads that lies on the chip's own cadence: whole periods after the previous
+        field's stamp, nearest. A failed read otherwise moves the copy one MPU sample later
+        (5 ms at the boards' 200 Hz: half the 100 Hz field period), where the frame ledger
+        rounds the gap before it up to a field the chip never skipped, and the one after
+        down to none. Stamps never go back: every failed read came after the previous
+        field's delivery. Limit: a chip whose measurements fall within the clocks' drift of
+        a master sample can have made this one just after the failed read; it is then
+        stamped one MPU sample early."""
+        if not copy.failed_ns or self._stamped_ns is None:
+            return copy.t_ns
+        last, period = self._stamped_ns, self._period_ns
+
+        def off_cadence(t_ns: int) -> int:
+            periods = max(1, round((t_ns - last) / period))
+            return abs(t_ns - last - periods * period)
+
+        return min((*copy.failed_ns, copy.t_ns), key=off_cadence)
 
     def _measurement(self, data: bytes, t_ns: int,
                      poll_ns: int) -> tuple[MagSample | None, SampleFlag, bool]:

@@ -50,7 +50,7 @@ from __future__ import annotations
 
 import math
 
-from imuhal.bus.auto_read import AutoReadBus, AutoReadFeed, require_auto_read
+from imuhal.bus.auto_read import AutoReadBus, AutoReadFeed, Copy, require_auto_read
 from imuhal.bus.base import BusKind, Link
 from imuhal.bus.register_plan import RegisterPlan
 from imuhal.bus.registers import RegisterView
@@ -373,7 +373,7 @@ class Hmc5883lDriver(Driver):
                                mag_ut=NAN3, flags=frozen or SampleFlag.STALE)
         return self._no_measurement(sample, now_ns)
 
-    def _measurements(self, changes: list[tuple[int, bytes]], now_ns: int, *,
+    def _measurements(self, changes: list[Copy], now_ns: int, *,
                       late: bool) -> tuple[list[Sample], Sample | None]:
         """The samples of the master's copies that changed since the previous poll
         (``changes``: delivery time, bytes, oldest first; more than one when its reads
@@ -387,7 +387,7 @@ class Hmc5883lDriver(Driver):
         field's period, where the frame ledger counts a field the chip never skipped."""
         samples: list[Sample] = []
         blank: Sample | None = None
-        for k, (t_ns, data) in enumerate(changes):
+        for k, (t_ns, data, _) in enumerate(changes):
             if t_ns < self._settle_ns or data == self._emitted:
                 continue
             left = len(changes) - 1 - k  # copies after this one: each needs a later stamp
