@@ -43,7 +43,13 @@ from __future__ import annotations
 
 from typing import ClassVar, Literal
 
-from imuhal.bus.auto_read import AutoReadBus, AutoReadFeed, Copy, require_auto_read
+from imuhal.bus.auto_read import (
+    AutoReadBus,
+    AutoReadFeed,
+    Copy,
+    require_auto_read,
+    stamp_on_cadence,
+)
 from imuhal.bus.base import BusKind, Link
 from imuhal.bus.register_plan import RegisterPlan, RegisterSetting
 from imuhal.bus.registers import RegisterView
@@ -274,25 +280,18 @@ class AK8963Driver(Driver):
         return PollResult(list(samples), self._grid.next_after(now_ns))
 
     def _copy_stamp(self, copy: Copy) -> int:
-        """The time the master copied this measurement: its delivery, or, when the
-        master's reads just before it failed (``Copy.failed_ns``: SLV0_NACK), the one of
-        those reads that lies on the chip's own cadence: whole periods after the previous
-        field's stamp, nearest. A failed read otherwise moves the copy one MPU sample later
-        (5 ms at the boards' 200 Hz: half the 100 Hz field period), where the frame ledger
-        rounds the gap before it up to a field the chip never skipped, and the one after
-        down to none. Stamps never go back: every failed read came after the previous
-        field's delivery. Limit: a chip whose measurements fall within the clocks' drift of
-        a master sample can have made this one just after the failed read; it is then
-        stamped one MPU sample early."""
-        if not copy.failed_ns or self._stamped_ns is None:
-            return copy.t_ns
-        last, period = self._stamped_ns, self._period_ns
-
-        def off_cadence(t_ns: int) -> int:
-            periods = max(1, round((t_ns - last) / period))
-            return abs(t_ns - last - periods * period)
-
-        return min((*copy.failed_ns, copy.t_ns), key=off_cadence)
+        """The time the master copied this measurement: its delivery, or on the chip's own
+        cadence after failed master reads (SLV0_NACK) or a pause in the master's deliveries
+        (``stamp_on_cadence``). A failed read moves the copy one MPU sample (5 ms at the
+        boards' 200 Hz: half the 100 Hz field period) later, and a paused master (its
+        recovery, blank reads) delivers a copy up to a field period old; stamped at the
+        delivery, the frame ledger rounds the gap before it up to a field the chip never
+        skipped and the one after down to none. The pause: a third more than the feed's
+        latency (one MPU period and its poll guard) between two deliveries, one and a half
+        MPU periods: more than the poll grid's search for a sample ever adds."""
+        assert self._feed is not None
+        return stamp_on_cadence(copy, self._stamped_ns, self._period_ns,
+                                pause_ns=self._feed.latency_ns * 4 // 3)
 
     def _measurement(self, data: bytes, t_ns: int,
                      poll_ns: int) -> tuple[MagSample | None, SampleFlag, bool]:

@@ -50,7 +50,13 @@ from __future__ import annotations
 
 import math
 
-from imuhal.bus.auto_read import AutoReadBus, AutoReadFeed, Copy, require_auto_read
+from imuhal.bus.auto_read import (
+    AutoReadBus,
+    AutoReadFeed,
+    Copy,
+    require_auto_read,
+    stamp_on_cadence,
+)
 from imuhal.bus.base import BusKind, Link
 from imuhal.bus.register_plan import RegisterPlan
 from imuhal.bus.registers import RegisterView
@@ -177,6 +183,9 @@ class Hmc5883lDriver(Driver):
         """The bytes of the last sample handed out."""
         self._stamped_ns = 0
         """The time stamp of the last sample handed out (read: auto)."""
+        self._cadence_ns: int | None = None
+        """The stamp of the latest field since configure() (the chip's cadence runs from
+        it; a reconfiguration restarts the chip's measurements with a new phase)."""
         self._settle_ns = 0
         """Bytes that changed before this are from before configure() or its first
         measurement (still at the old gain)."""
@@ -259,6 +268,7 @@ class Hmc5883lDriver(Driver):
             assert isinstance(self.link.bus, AutoReadBus)
             feed = self._feed = self.link.bus.auto_read(self.link.target, Reg.X_MSB, 6)
             feed.take()  # copies from before this configuration
+            self._cadence_ns = None
             period = self._grid.period_ns
             self._settle_ns = self._mode_written_ns + period + feed.latency_ns
             self._unchanged_limit_ns = round(
@@ -380,17 +390,24 @@ class Hmc5883lDriver(Driver):
         brought two measurements between two polls, as FIFO reads at the IMU's own
         instants can), and the last blank one when none is a measurement. The newest is
         stamped with this poll, as one alone is; an older one with its delivery (its
-        measurement at most the feed's latency before it), kept in order. So is the newest
+        measurement at most the feed's latency before it, or on the chip's cadence when the
+        master paused before it: ``stamp_on_cadence``), kept in order. So is the newest
         when this poll looks again for a copy that was not there on time (``late``): a
         failed slave read or IMU burst delayed it, and the poll a delivery latency after the
         planned one would stamp it up to 7 ms late at the seed's rates, past half the
         field's period, where the frame ledger counts a field the chip never skipped."""
         samples: list[Sample] = []
         blank: Sample | None = None
-        for k, (t_ns, data, _) in enumerate(changes):
+        assert self._feed is not None
+        pause_ns = self._feed.latency_ns * 4 // 3
+        for k, copy in enumerate(changes):
+            t_ns, data = copy.t_ns, copy.data
             if t_ns < self._settle_ns or data == self._emitted:
                 continue
             left = len(changes) - 1 - k  # copies after this one: each needs a later stamp
+            if left or late:
+                t_ns = stamp_on_cadence(copy, self._cadence_ns, self._grid.period_ns,
+                                        pause_ns=pause_ns)
             stamp = min(max(t_ns, self._stamped_ns + 1), now_ns - left) \
                 if left or late else now_ns
             sample = self._decoded(data, stamp, blank_flag(data))
@@ -398,7 +415,7 @@ class Hmc5883lDriver(Driver):
                 blank = sample
                 continue
             self._emitted = data
-            self._stamped_ns = stamp
+            self._stamped_ns = self._cadence_ns = stamp
             samples.append(sample)
         return samples, (None if samples else blank)
 

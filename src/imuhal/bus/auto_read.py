@@ -44,6 +44,43 @@ class Copy(NamedTuple):
     """The deliveries just before it whose master read of the slave failed, as the master
     reported (the MPU-9250's SLV0_NACK), oldest first: the slave's measurement may have
     been there to copy at any of them. Empty for a master that reports no failures."""
+    after_ns: int | None = None
+    """The delivery before it (None: the first). Longer than the master's period before
+    it, the master's driver was not reading (its chip recovering, blank reads, a stalled
+    host), and the copy may hold a measurement up to one slave period older than usual."""
+
+
+def stamp_on_cadence(copy: Copy, last_ns: int | None, period_ns: int, *,
+                     pause_ns: int) -> int:
+    """When a slave's measurement in ``copy`` was copied, for a slave driver that stamps
+    each copy with its master's delivery, its previous field stamped ``last_ns`` and its
+    measurements ``period_ns`` apart. Usually the delivery (``copy.t_ns``); two cases put
+    it earlier, on the slave's own cadence (whole periods after ``last_ns``), as a
+    driver that knows its chip's period stamps a FIFO frame (Linux
+    inv_sensors_timestamp):
+
+    - the master's reads just before it failed (``failed_ns``): a failed read moved the
+      copy a master period later; the read nearest the cadence is where it was due;
+    - the master did not deliver for longer than ``pause_ns`` (its period) before it
+      (``after_ns``): the copy may have waited a slave period in the chip; the latest
+      cadence point not after the delivery.
+
+    Either way the stamp stays after ``last_ns`` and the delivery before it, and never
+    after the delivery. A slave clock that drifted more than a tenth of a period since
+    ``last_ns`` is stamped a period off: the cadence is only good over short gaps."""
+    t_ns = copy.t_ns
+    if last_ns is None:
+        return t_ns
+    if copy.failed_ns:
+        def off_cadence(t: int) -> int:
+            periods = max(1, round((t - last_ns) / period_ns))
+            return abs(t - last_ns - periods * period_ns)
+        return min((*copy.failed_ns, t_ns), key=off_cadence)
+    after = copy.after_ns
+    if after is None or t_ns - after <= pause_ns:
+        return t_ns
+    periods = int((t_ns - last_ns) / period_ns + 0.1)
+    return min(t_ns, max(last_ns + periods * period_ns, after + 1, last_ns + 1))
 
 
 class AutoReadFeed:
@@ -96,6 +133,7 @@ class AutoReadFeed:
         ``t_ns``. ``failed``: the master reported that its read of the slave for this copy
         failed (its registers keep the copy before): no change, and the next change may
         carry the measurement that read missed (``Copy.failed_ns``)."""
+        after_ns = self.t_ns if self.deliveries else None
         if failed:
             self.failures += 1
             self._failed.append(t_ns)
@@ -116,7 +154,7 @@ class AutoReadFeed:
         if data != self.data:
             self.data = data
             self.changed_ns = t_ns
-            self.fresh.append(Copy(t_ns, data, failed_ns))
+            self.fresh.append(Copy(t_ns, data, failed_ns, after_ns))
         self.t_ns = t_ns
         self.deliveries += 1
 
