@@ -31,7 +31,11 @@ gives no new copy, so STALE too); HOFL -> OVERFLOW;
 never valid.
 Each new copy is a sample stamped with the time the master copied it (the MPU's poll, or
 its FIFO frame's chip-clock stamp): at most one MPU sample period after the measurement;
-several copies read from the FIFO in one burst are several samples. Staleness is judged on
+several copies read from the FIFO in one burst are several samples. A copy that follows
+slave-0 reads the MPU-9250 reported failed (I2C_MST_STATUS.SLV0_NACK, read with every
+burst) or a pause in the master's deliveries (its recovery, blank reads) is stamped on the
+chip's own cadence instead (``imuhal.bus.auto_read.stamp_on_cadence``), so the frame ledger
+counts what the chip measured (issue 25). Staleness is judged on
 the master's deliveries, so a master delivering late (a FIFO after a host stall) is not a
 stale magnetometer.
 Output: uT in the AK8963's own axes

@@ -39,11 +39,17 @@ burst (``AutoReadFeed.latency_ns``: one accelerometer period plus the IMU's poll
 4.5 ms at 250 Hz); the driver polls that long plus its own guard (1/8 period) after each
 measurement instant and stamps the sample with the poll's time, about 6 ms after the
 measurement at the seed's rates (one-shot: 1.7 ms). A poll that finds the bytes unchanged
-looks once more one latency later (a copy a failed read or burst delayed), then waits for
-the next measurement. Every copy that changed since the previous poll is taken
-(``AutoReadFeed.take``), not only the latest: when the master's reads bring two
-measurements between two polls (FIFO reads at the IMU's own instants, or the look a
-latency later), the older is handed out too, stamped with its delivery.
+looks once more one latency later (a copy a failed read or burst delayed; what it finds
+is stamped with the IMU burst that delivered it), then waits for the next measurement.
+Every copy that changed since the previous poll is taken (``AutoReadFeed.take``), not only
+the latest: when the master's reads bring two measurements between two polls (FIFO reads
+at the IMU's own instants, or the look a latency later), the older is handed out too,
+stamped with its delivery, or on the chip's own cadence when the master delivered nothing
+for a while before it (its recovery: the copy may have waited a field period in the chip;
+``imuhal.bus.auto_read.stamp_on_cadence``).
+A reconfiguration under ``read: auto`` reads no data byte itself: the master's next copy
+(all six bytes in one transaction) releases the lock reading Mode set; six one-shot reads
+straddling a copy would leave it half released and tear every later copy.
 """
 
 from __future__ import annotations
