@@ -291,3 +291,4 @@ def test_a_copy_a_failed_slave_read_delayed_is_stamped_with_the_burst_that_broug
     ages = [s.t_ns - measured[bisect.bisect_right(measured, s.t_ns) - 1] for s in samples]
     assert board.imu_emu.slave_read_failures > 150 and len(samples) > 120
     assert max(ages) <= 2 * accel_ns + accel_ns // 8 + 200_000
+

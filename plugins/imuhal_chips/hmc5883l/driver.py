@@ -192,6 +192,9 @@ class Hmc5883lDriver(Driver):
         self._cadence_ns: int | None = None
         """The stamp of the latest field since configure() (the chip's cadence runs from
         it; a reconfiguration restarts the chip's measurements with a new phase)."""
+        self._locked_ns = 0
+        """read: auto: when the driver last read Mode, which locks the data outputs until
+        the master's next copy reads them: that copy holds a measurement from before."""
         self._settle_ns = 0
         """Bytes that changed before this are from before configure() or its first
         measurement (still at the old gain)."""
@@ -254,6 +257,7 @@ class Hmc5883lDriver(Driver):
         plan.apply(self.regs)
         self._mode_written_ns = self.clock.now_ns()  # continuous measurements start here
         got = plan.read(self.regs)
+        self._locked_ns = self.clock.now_ns()
         if self.settings.read != "auto":
             self._read(Reg.X_MSB, 6)  # reading MODE locked the outputs; six data reads unlock
         # read: auto: the master's next copy reads the six bytes in one transaction and
@@ -406,16 +410,20 @@ class Hmc5883lDriver(Driver):
         blank: Sample | None = None
         assert self._feed is not None
         pause_ns = self._feed.latency_ns * 4 // 3
-        for k, copy in enumerate(changes):
+        for k, delivered in enumerate(changes):
+            copy = self._unlocking(delivered)
+            if copy is None:
+                continue
             t_ns, data = copy.t_ns, copy.data
             if t_ns < self._settle_ns or data == self._emitted:
                 continue
             left = len(changes) - 1 - k  # copies after this one: each needs a later stamp
-            if left or late:
+            by_delivery = left or late or copy is not delivered
+            if by_delivery:
                 t_ns = stamp_on_cadence(copy, self._cadence_ns, self._grid.period_ns,
                                         pause_ns=pause_ns)
             stamp = min(max(t_ns, self._stamped_ns + 1), now_ns - left) \
-                if left or late else now_ns
+                if by_delivery else now_ns
             sample = self._decoded(data, stamp, blank_flag(data))
             if sample.flags & SampleFlag.BLANK:
                 blank = sample
@@ -424,6 +432,21 @@ class Hmc5883lDriver(Driver):
             self._stamped_ns = self._cadence_ns = stamp
             samples.append(sample)
         return samples, (None if samples else blank)
+
+    def _unlocking(self, copy: Copy) -> Copy | None:
+        """``copy`` as the time its measurement was made allows. The master's first copy
+        after the driver read Mode is the locked outputs: a measurement made before that
+        read (its delivery taken as the read's time), or None when the read was
+        configure()'s, whose locked bytes are from before the configuration. While the
+        master copies, that copy repeats the one before and is no change; after the
+        master's auto-read was off (its chip reset and reprogrammed) it differs, and it
+        is as old as the read or older."""
+        after = copy.after_ns
+        if after is None or not after < self._locked_ns <= copy.t_ns:
+            return copy
+        if self._locked_ns < self._settle_ns:
+            return None
+        return copy._replace(t_ns=self._locked_ns)
 
     def _no_measurement(self, sample: Sample, now_ns: int) -> PollResult:
         """No usable measurement (``sample`` says why): check the configuration at once, and
@@ -493,6 +516,8 @@ class Hmc5883lDriver(Driver):
         wrong = self.plan.check_next(self.regs)
         if self._feed is None:
             self._read(Reg.X_MSB, 6)
+        else:
+            self._locked_ns = self.clock.now_ns()
         return wrong is not None
 
 
