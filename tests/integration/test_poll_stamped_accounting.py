@@ -126,6 +126,19 @@ def test_a_magnetometer_reconfigured_while_its_master_is_away_counts_exactly(
     _ledger_matches_the_chip(p, "mag")
 
 
+def test_a_magnetometer_whose_master_resets_counts_exactly(registry: Registry) -> None:
+    """The MAX21100 resets (a brown-out) every 0.41 s: its copies read blank and its
+    auto-read stops until its driver notices; a configuration check of the HMC5883L
+    meanwhile reads Mode and locks its outputs, so the master's first copy afterwards is a
+    field from before the check: stamped no later than it, not as new (it put two fields
+    between the same two measurements)."""
+    resets: list[FaultSpec] = [ChipReset(device="imu", start_s=1.2045 + 0.4091 * k)
+                               for k in range(10)]
+    p = _fly(registry, "seed-paraglider-vario", resets, seed=1, seconds=5.5)
+    assert p.devices["imu"].driver.health.resets_detected >= 10
+    _ledger_matches_the_chip(p, "mag")
+
+
 def test_io_errors_on_the_aux_wire_are_slave_reads_the_master_reports(
         registry: Registry) -> None:
     """An I/O error on the magnetometer's line behind the MPU-9250's master is a failed

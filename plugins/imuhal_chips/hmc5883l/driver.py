@@ -195,6 +195,8 @@ class Hmc5883lDriver(Driver):
         self._locked_ns = 0
         """read: auto: when the driver last read Mode, which locks the data outputs until
         the master's next copy reads them: that copy holds a measurement from before."""
+        self._blank_since_ns: int | None = None
+        """read: auto: the master's copies have been blank since (its registers reset)."""
         self._settle_ns = 0
         """Bytes that changed before this are from before configure() or its first
         measurement (still at the old gain)."""
@@ -439,14 +441,22 @@ class Hmc5883lDriver(Driver):
         read (its delivery taken as the read's time), or None when the read was
         configure()'s, whose locked bytes are from before the configuration. While the
         master copies, that copy repeats the one before and is no change; after the
-        master's auto-read was off (its chip reset and reprogrammed) it differs, and it
-        is as old as the read or older."""
+        master's auto-read was off (its chip reset and reprogrammed, its copies blank
+        meanwhile) it differs, and it is as old as the read or older."""
+        locked, blank_since = self._locked_ns, self._blank_since_ns
+        blank = bool(blank_flag(copy.data))
+        self._blank_since_ns = (copy.t_ns if blank_since is None else blank_since) \
+            if blank else None
         after = copy.after_ns
-        if after is None or not after < self._locked_ns <= copy.t_ns:
+        # the delivery before it came before the read, or only blank copies did (the
+        # master's registers reset: it read no slave)
+        first = (after is not None and after < locked) or \
+            (blank_since is not None and blank_since <= locked)
+        if blank or not first or copy.t_ns < locked:
             return copy
-        if self._locked_ns < self._settle_ns:
+        if locked < self._settle_ns:
             return None
-        return copy._replace(t_ns=self._locked_ns)
+        return copy._replace(t_ns=locked)
 
     def _no_measurement(self, sample: Sample, now_ns: int) -> PollResult:
         """No usable measurement (``sample`` says why): check the configuration at once, and
