@@ -624,21 +624,24 @@ class Max2110xDriver(Driver):
 
     def resume(self, now_ns: int) -> int | None:
         """One transfer of a poll failed: when the configuration still reads back as
-        written, the chip kept its state (a glitch on the wire), so carry on at the next
-        point of the poll grid instead of a soft reset and reconfiguration (which loses
-        about 10 ms of data); anything else gets the full recovery. A sample the failed
-        burst did not fetch is overwritten by then (the chip flags the overrun and the grid
-        re-anchors): one period lost, nothing wrong.
+        written, the chip kept its state (a glitch on the wire), so poll again at once
+        instead of a soft reset and reconfiguration (which loses about 10 ms of data);
+        anything else gets the full recovery. The retry reads the sample the failed burst
+        missed while it is still the newest, stamped about when it was due. Waiting for the
+        next point of the grid instead read it there a period late when the grid (which
+        creeps early of the chip) came just before the next measurement, and kept the
+        grid a period behind the chip until it crept past a measurement: a loss counted
+        where the chip lost nothing, and one missed where it did (the frame ledger's count
+        against the chip's, tests/integration/test_poll_stamped_accounting.py).
 
-        Not a retry at once: tried (issue 25, to read the missed sample when due), it let
-        the slave auto-read's copies of the magnetometer out torn (X and Z of one
-        measurement, Y of the one before) on the seed paraglider board at 1 % bus errors,
-        about 24 extra "fields" a second, each valid. The cost of waiting: the frame ledger
-        can count a loss a period late (tests/integration/test_poll_stamped_accounting.py,
-        strict xfail)."""
+        The retry was once taken back: with it the seed paraglider board's HMC5883L handed
+        out torn fields (X and Z of one measurement, Y of the next) at 1 % bus errors. The
+        retry only moved the timing; the cause was the HMC5883L driver's one-shot read of
+        its six data bytes while the auto-read ran, which left the chip's data lock half
+        released (imuhal_chips.hmc5883l.driver, configure())."""
         if self.scales is None or self._off_plan(overdue=True):
             return None
-        return self._grid.next_after(max(now_ns, self.clock.now_ns()))
+        return max(now_ns, self.clock.now_ns())
 
     def filter_memory_outputs(self) -> dict[Quantity, int]:
         """Outputs after a saturated one that each channel's low-pass can still carry it:

@@ -858,7 +858,7 @@ class Max21100Emulator(Max2110xEmulator):
                 self._aux.transfer(slave, bytes([register, bank0[_I2C_MST_DATA]]), 0)
                 return
             value = self._aux.transfer(slave, bytes([register]), 1)[0]
-        except BusError:
+        except (BusError, OSError):
             if write:
                 return
             value = ABSENT_SLAVE_BYTE

@@ -9,8 +9,10 @@ configure(): H_RESET, wake with the auto-selected PLL clock, then the registers 
 declarative tables (ranges, DLPFs, SMPLRT_DIV, INT_ENABLE.RAW_RDY_EN, aux mode); each is read
 back and verified; scales are cached.
 poll(): one burst INT_STATUS..GYRO_ZOUT_L (0x3A..0x48): the data-ready bit and one coherent
-sample; with a slave auto-read (master mode, imuhal.bus.auto_read) the burst runs on into
-EXT_SENS_DATA (0x49..) and each burst with new data hands the slave's bytes to its feed.
+sample; with a slave auto-read (master mode, imuhal.bus.auto_read) the burst starts at
+I2C_MST_STATUS (0x36) and runs on into EXT_SENS_DATA (0x49..), and each burst with new data
+hands the slave's bytes to its feed, marked failed when SLV0_NACK says slave 0's read of
+that sample failed.
 The shared polling toolkit (imuhal.drivers.polling) decides staleness (no data-ready
 for STALE_AFTER_PERIODS -> STALE), re-reads INT_PIN_CFG/INT_ENABLE every ``reset_check_s``
 (and whenever data are overdue) to catch a silent reset, and restarts a chip that keeps its
@@ -211,6 +213,8 @@ class MPU9250Driver(Driver):
         self.aux_mode: str = aux
         self._aux_bus: Bus | None = None
         self._feed: AutoReadFeed | None = None
+        self._slv0_nack = False
+        """I2C_MST_STATUS.SLV0_NACK read and not yet told to the feed."""
         if aux == "bypass":
             self._aux_bus = link.bus
         elif aux == "master":
@@ -454,9 +458,10 @@ class MPU9250Driver(Driver):
             return PollResult([], self.restart(reset_detected=True))
         if self._fifo is not None:
             return self._poll_fifo(now_ns, overdue)
-        data = self.regs.read(r.DATA_BURST_START, self._burst_length)
-        if self._feed is not None:
-            data, ext = data[:r.DATA_BURST_LENGTH], data[r.DATA_BURST_LENGTH:]
+        if self._feed is None:
+            data, ext = self.regs.read(r.DATA_BURST_START, self._burst_length), b""
+        else:
+            data, ext = self._burst_with_master_status()
         ready = bool(data[0] & r.INT_RAW_RDY)
         bad = blank_flag(data)
         if ready and not bad:
@@ -464,8 +469,9 @@ class MPU9250Driver(Driver):
         if ready and not bad:
             assert self._fifo is None
             if self._feed is not None:
-                # one delivery per sample: one slave-0 read (or its kept copy after a NACK)
-                self._feed.deliver(now_ns, ext)
+                # one delivery per sample: one slave-0 read, or its kept copy after a NACK
+                self._feed.deliver(now_ns, ext, failed=self._slv0_nack)
+                self._slv0_nack = False
             self._ready.fresh(Quantity.GYRO, now_ns)
             self._watch.fresh_poll()
             # Phase-lock on the chip: the next poll one period after data appeared.
@@ -475,6 +481,24 @@ class MPU9250Driver(Driver):
             return PollResult([], now_ns + max(self._period_ns // 10, 50_000))
         return self._no_sample(now_ns, bad if ready else SampleFlag.STALE | bad,
                                self._grid.next_after(now_ns))
+
+    def _burst_with_master_status(self) -> tuple[bytes, bytes]:
+        """One burst from I2C_MST_STATUS through the slave's bytes: the data burst
+        (INT_STATUS, accel, temperature, gyro) and the slave's copy. I2C_MST_STATUS clears
+        when read, so its SLV0_NACK (slave 0's read of this sample failed, and
+        EXT_SENS_DATA kept the copy before; the register map, I2C_MST_STATUS) is kept until
+        a sample is delivered, with any the aux bus's slave-4 transactions read meanwhile
+        (``MasterAuxBus.slv0_nack``): the feed then knows that this copy is no new read of
+        the slave, and that the next new one may carry what the failed read missed."""
+        raw = self.regs.read(r.I2C_MST_STATUS, r.MASTER_STATUS_BYTES + self._burst_length)
+        aux = self._aux_bus
+        if isinstance(aux, MasterAuxBus) and aux.slv0_nack:
+            aux.slv0_nack = False
+            self._slv0_nack = True
+        if raw[0] & r.MST_SLV0_NACK:
+            self._slv0_nack = True
+        data = raw[r.MASTER_STATUS_BYTES:]
+        return data[:r.DATA_BURST_LENGTH], data[r.DATA_BURST_LENGTH:]
 
     def _no_sample(self, now_ns: int, flags: SampleFlag, next_ns: int) -> PollResult:
         """A flagged NaN sample (stale, blank or frozen); a chip that keeps producing none
