@@ -1,7 +1,7 @@
 """A poll that comes due while the pipeline's one thread is held (a host stall, another
-device's recovery) should happen when the thread is free, and its readings be stamped
-then; through the fault-injection interface. Found by the soak on every bundled board
-(tests/benchmarks/soak.py), NOT FIXED (the test is a strict xfail until it is):
+device's recovery) happens when the thread is free, never at its old due time; through the
+fault-injection interface. Found by the soak on every bundled board
+(tests/benchmarks/soak.py), before the fix:
 
 - gy91: the MPU-9250's recovery held the thread 0.22-0.44 s; the BMP280 was then polled
   once per missed output slot at each slot's old time, handing out the one output it held
@@ -12,10 +12,10 @@ then; through the fault-injection interface. Found by the soak on every bundled 
   time (``EmulatedBoard.before_poll``), two seconds old, and its pressure (14-37 Pa off) was
   stamped at the conversion's real end, valid; the vario followed it (-4.5 to -8.5 m/s).
 
-Passing ``max(due, clock.now_ns())`` to the poll in ``Pipeline._poll_events`` cures both (it
-makes this test pass), but moves the frame ledger's causes (the AK8963's losses behind a
-resetting MPU-9250 then read ``host_stall``, and one segment counts a frame more:
-tests/integration/test_frame_accounting.py), which the accounting work must settle."""
+The boards' ``before_poll`` now put a late poll at the clock (a recording keeps it, so a
+replay polls then too), and the pipeline puts a poll of a chip with its own output rate off
+to the next point of its poll grid (``Pipeline._on_phase``): its reading keeps the phase,
+and the frame ledger's count, of the polls before it."""
 
 from __future__ import annotations
 
@@ -43,7 +43,6 @@ def stalled_gy91() -> list[Sample]:
         return [e for e in p.events(5.0) if isinstance(e, Sample)]
 
 
-@pytest.mark.xfail(strict=True, reason="overdue polls get their due time (see the module)")
 def test_no_reading_is_stamped_while_the_host_was_stalled(stalled_gy91: list[Sample]) -> None:
     """The stall begins at the first IMU poll due at or after each instant (200 Hz: within
     5 ms of it); nothing can be read until it ends."""

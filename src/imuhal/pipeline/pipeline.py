@@ -627,8 +627,10 @@ class Pipeline:
             due_ns = t_ns
             t_ns = self._before_poll(t_ns, name)
             dev = self.devices[name]
-            self._note_late(dev, due_ns, t_ns)
             self._span_ns[1] = max(t_ns, self._span_ns[1])
+            if self._on_phase(dev, due_ns, t_ns):
+                continue
+            self._note_late(dev, due_ns, t_ns)
             frames, next_ns = self._contained_service(dev, t_ns)
             if dev.ledger is not None:
                 self._account(dev)
@@ -682,6 +684,37 @@ class Pipeline:
                 yield self._process_one(dev, sample)
         elif frames:
             yield from self._frames_of(dev, frames)
+
+    def _on_phase(self, dev: DeviceRuntime, due_ns: int, t_ns: int) -> bool:
+        """A poll due at ``due_ns`` that can only happen at ``t_ns``, more than half a frame
+        period later (the pipeline's one thread was held: a host stall, another device's
+        slow poll or recovery): True when it is put off to the next point of the device's
+        own grid, ``due_ns`` plus whole frame periods (the loss is charged to
+        ``host_stall``). Its chip keeps measuring on its own clock at the phase the due
+        time had, so a reading taken on that phase carries the measurement an on-time poll
+        there would, stamped with the same lag after it: a stamp neither back at the old
+        due time nor up to a period after its data, and the frame ledger's gap, counted
+        from stamp to stamp, is exact. At most one more frame goes than a poll at once
+        would have read, counted.
+
+        Not put off (False; the poll happens at ``t_ns``): a chip the driver paces (its
+        conversion then measures the world of ``t_ns``), one whose frames the chip buffers
+        or a data-ready line times, a device without an accounted period, one recovering,
+        and a poll late by less than half a period (its lag stays within the rounding of
+        the ledger's count)."""
+        ledger = dev.ledger
+        if ledger is None or t_ns - due_ns <= ledger.period_ns // 2 or dev.buffered \
+                or dev.needs_recovery or dev.resumed or not dev.present \
+                or not isinstance(dev.trigger, TimerTrigger) or dev.driver.host_paced:
+            return False
+        period_ns = ledger.period_ns
+        at_ns = due_ns + -(-(t_ns - due_ns) // period_ns) * period_ns
+        if at_ns == t_ns:  # late by whole periods: on the grid already
+            return False
+        ledger.note("host_stall")
+        dev.next_poll_ns = at_ns
+        heapq.heappush(self._schedule(), (at_ns, self._device_rank[dev.name], dev.name))
+        return True
 
     def _note_late(self, dev: DeviceRuntime, due_ns: int, t_ns: int) -> None:
         """A read at ``t_ns`` that was due at ``due_ns``: more than half a frame period late
