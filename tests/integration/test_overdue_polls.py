@@ -19,33 +19,101 @@ and the frame ledger's count, of the polls before it."""
 
 from __future__ import annotations
 
-import pytest
+from dataclasses import dataclass
 
-from imuhal.core.samples import Sample
+import numpy as np
+import pytest
+import yaml
+
+from imuhal.core.samples import MagSample, Quantity, Sample
 from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import HostStall
-from imuhal.plugins.manager import load_registry
+from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.bundled import bundled_profiles
-from imuhal.profile.loader import load_profile
+from imuhal.profile.loader import load_profile, parse_profile
+from imuhal.profile.model import BoardProfile
 
 STALL_S = 0.3
 STALLS_AT_S = (2.0, 3.0, 4.0)
+COPY_LATENCY_NS = 16_000_000
+"""An auto-read copy comes at most one AK8963 period (10 ms) plus one MPU-9250 period and its
+burst (5.6 ms) after the measurement it carries (tests/integration/test_gps_vario_auto_read)."""
+MATCH_UT = 0.3
+"""An ideal AK8963's field lies within its quantisation (0.15 uT x ASA per axis, under 0.3
+uT as a vector) of the truth at the instant it measured."""
+
+
+@dataclass
+class Run:
+    samples: list[Sample]
+    accounted: dict[str, tuple[Quantity, int]]
+    """Per device with a frame ledger: its channel and frame period (ns)."""
 
 
 @pytest.fixture(scope="module")
-def stalled_gy91() -> list[Sample]:
+def stalled_gy91() -> Run:
     """A gy91 whose host stalls 0.3 s before an IMU poll at 2, 3 and 4 s."""
     registry = load_registry()
     profile = load_profile(bundled_profiles()["gy91.yaml"], registry)
     stall = HostStall(device="imu", start_s=STALLS_AT_S[0], end_s=STALLS_AT_S[-1] + 0.5,
                       every_s=1.0, stall_s=STALL_S)
     with open_emulated(profile, registry, seed=1, faults=[stall]) as p:
-        return [e for e in p.events(5.0) if isinstance(e, Sample)]
+        samples = [e for e in p.events(5.0) if isinstance(e, Sample)]
+        return Run(samples, {n: (d.ledger.channel, d.ledger.period_ns)
+                             for n, d in p.devices.items() if d.ledger is not None})
 
 
-def test_no_reading_is_stamped_while_the_host_was_stalled(stalled_gy91: list[Sample]) -> None:
+def test_no_reading_is_stamped_while_the_host_was_stalled(stalled_gy91: Run) -> None:
     """The stall begins at the first IMU poll due at or after each instant (200 Hz: within
     5 ms of it); nothing can be read until it ends."""
-    inside = [(round(s.t_ns / 1e9, 4), s.device, s.channel.value) for s in stalled_gy91
+    inside = [(round(s.t_ns / 1e9, 4), s.device, s.channel.value) for s in stalled_gy91.samples
               if any(at + 0.006 < s.t_ns / 1e9 < at + STALL_S for at in STALLS_AT_S)]
     assert inside == []
+
+
+def test_a_late_poll_keeps_the_phase_of_the_polls_before_it(stalled_gy91: Run) -> None:
+    """Every valid frame of each accounted stream, before and after the stalls, is stamped
+    on one phase of its chip's period: a poll that fell due in a stall waits for the next
+    point of its grid, so its reading has the same lag after its measurement as any other
+    (and the frame ledger's count from stamp to stamp is exact)."""
+    assert set(stalled_gy91.accounted) == {"imu", "mag", "baro"}
+    for device, (channel, period_ns) in stalled_gy91.accounted.items():
+        stamps = [s.t_ns for s in stalled_gy91.samples
+                  if s.device == device and s.channel is channel and s.valid]
+        after = [t for t in stamps if t > STALLS_AT_S[0] * 1e9]
+        assert len(after) > 0.5 * (5.0 - STALLS_AT_S[0]) * 1e9 / period_ns, device
+        assert {(t - stamps[0]) % period_ns for t in stamps} == {0}, device
+
+
+def _gps_vario_without_startup(registry: Registry) -> BoardProfile:
+    """seed-gps-vario without the still-board gyro start-up (the board tumbles from t=0)."""
+    doc = yaml.safe_load(bundled_profiles()["seed-gps-vario.yaml"].read_text())
+    del doc["devices"]["imu"]["calibration"]
+    return parse_profile(yaml.safe_dump(doc, sort_keys=False), "seed-gps-vario.yaml", registry)
+
+
+def test_an_auto_read_copy_is_never_stamped_before_its_measurement() -> None:
+    """seed-gps-vario reads its AK8963 through the MPU-9250's slave 0 (read: auto). Its host
+    stalls 43.7 ms before a barometer poll every 0.25 s, so the MPU-9250 falls due inside
+    the stall; the MPU copies the AK8963's registers at its own samples, and the copy the
+    late burst reads is the one of its latest sample, made after the stall began. Ideal
+    chips and a fast turn (0.5 s a revolution, about 4.7 uT between two AK8963 measurements)
+    tell which measurement each valid field carries: the one whose truth it equals within
+    the quantisation. Each is stamped after that measurement and within the copy latency
+    of it (before the fix, stamped at the MPU's old due time: up to 39 ms before it)."""
+    registry = load_registry()
+    stall = HostStall(device="baro", start_s=0.5, end_s=2.5, every_s=0.25, stall_s=0.0437)
+    with open_emulated(_gps_vario_without_startup(registry), registry, scenario="tumble",
+                       scenario_params={"rotation_s": 0.5, "ramp_s": 0.1, "hold_s": 0.0},
+                       seed=3, sensor_errors=False, faults=[stall]) as p:
+        fields = [e for e in p.events(2.5) if isinstance(e, MagSample) and e.valid]
+        instants = np.asarray(p.board.emulators["mag"].measured_ns)
+        truth = np.array([p.board.truth_at(int(t)).magnetic_field_body_ut for t in instants])
+    lags_ns = []
+    for m in fields:
+        near = np.nonzero(np.abs(instants - m.t_ns) < 100_000_000)[0]
+        match = near[np.linalg.norm(truth[near] - np.asarray(m.vector), axis=1) <= MATCH_UT]
+        if len(match) == 1:  # a field the turn tells apart from its neighbours'
+            lags_ns.append(m.t_ns - int(instants[match[0]]))
+    assert min(lags_ns) >= 0 and max(lags_ns) <= COPY_LATENCY_NS
+    assert len(lags_ns) >= 0.5 * len(fields) and len(fields) >= 150
