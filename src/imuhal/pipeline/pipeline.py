@@ -686,8 +686,8 @@ class Pipeline:
             yield from self._frames_of(dev, frames)
 
     def _on_phase(self, dev: DeviceRuntime, due_ns: int, t_ns: int) -> bool:
-        """A poll due at ``due_ns`` that can only happen at ``t_ns``, more than half a frame
-        period later (the pipeline's one thread was held: a host stall, another device's
+        """A poll due at ``due_ns`` that can only happen at ``t_ns``, half a frame period or
+        more later (the pipeline's one thread was held: a host stall, another device's
         slow poll or recovery): True when it is put off to the next point of the device's
         own grid, ``due_ns`` plus whole frame periods (the loss is charged to
         ``host_stall``). Its chip keeps measuring on its own clock at the phase the due
@@ -701,9 +701,10 @@ class Pipeline:
         conversion then measures the world of ``t_ns``), one whose frames the chip buffers
         or a data-ready line times, a device without an accounted period, one recovering,
         and a poll late by less than half a period (its lag stays within the rounding of
-        the ledger's count)."""
+        the ledger's count, while the polls on time lie less than half a period after the
+        measurement they read: the drivers' grids aim a guard after it)."""
         ledger = dev.ledger
-        if ledger is None or t_ns - due_ns <= ledger.period_ns // 2 or dev.buffered \
+        if ledger is None or 2 * (t_ns - due_ns) < ledger.period_ns or dev.buffered \
                 or dev.needs_recovery or dev.resumed or not dev.present \
                 or not isinstance(dev.trigger, TimerTrigger) or dev.driver.host_paced:
             return False
