@@ -25,9 +25,9 @@ import numpy as np
 import pytest
 import yaml
 
-from imuhal.core.samples import MagSample, PressureSample, Quantity, Sample
+from imuhal.core.samples import GyroSample, MagSample, PressureSample, Quantity, Sample
 from imuhal.emulation import open_emulated
-from imuhal.emulation.faults import HostStall
+from imuhal.emulation.faults import HostStall, LatePolls
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile, parse_profile
@@ -145,3 +145,15 @@ def test_a_late_conversion_measures_the_world_of_then() -> None:
         off_pa = [abs(e.pressure_pa - p.board.truth_at(e.t_ns).pressure_pa) for e in pressures]
     assert max(off_pa) <= PRESSURE_BOUND_PA
     assert len(pressures) >= 200
+
+
+def test_a_host_late_at_every_poll_still_reads_the_device() -> None:
+    """A poll is put off to its grid once: a host whose every wake-up comes 4 ms late (a
+    coarse timer) against the gy91 IMU's 5 ms period would otherwise put it off for ever.
+    The second attempt reads it, late (about one in three of its frames over the second)."""
+    registry = load_registry()
+    profile = load_profile(bundled_profiles()["gy91.yaml"], registry)
+    late = LatePolls(device="imu", start_s=1.0, end_s=2.0, delay_s=0.004)
+    with open_emulated(profile, registry, seed=1, faults=[late]) as p:
+        gyro = [e.t_ns for e in p.events(2.5) if isinstance(e, GyroSample) and e.valid]
+    assert len([t for t in gyro if 1.1e9 < t < 1.9e9]) >= 0.25 * 0.8 * 200

@@ -162,6 +162,9 @@ class DeviceRuntime:
     (``Driver.data_ready``, within the driver's containment)."""
     isolated: bool = False
     """Its driver overran a call's deadline or kept failing: never polled again."""
+    put_off: bool = False
+    """Its pending poll was put off once to the next point of its grid (``Pipeline.
+    _on_phase``): it happens when it comes, late or not."""
 
     def __post_init__(self) -> None:
         self.chip_to_body_rows = np.asarray(self.chip_to_body, dtype=float).tolist()
@@ -700,19 +703,22 @@ class Pipeline:
         Not put off (False; the poll happens at ``t_ns``): a chip the driver paces (its
         conversion then measures the world of ``t_ns``), one whose frames the chip buffers
         or a data-ready line times, a device without an accounted period, one recovering,
-        and a poll late by less than half a period (its lag stays within the rounding of
-        the ledger's count, while the polls on time lie less than half a period after the
-        measurement they read: the drivers' grids aim a guard after it)."""
+        a poll put off once already (a host whose every wake-up comes late, a coarse
+        timer, would otherwise never poll it), and a poll late by less than half a period
+        (its lag stays within the rounding of the ledger's count, while the polls on time
+        lie less than half a period after the measurement they read)."""
         ledger = dev.ledger
-        if ledger is None or 2 * (t_ns - due_ns) < ledger.period_ns or dev.buffered \
-                or dev.needs_recovery or dev.resumed or not dev.present \
+        if ledger is None or 2 * (t_ns - due_ns) < ledger.period_ns or dev.put_off \
+                or dev.buffered or dev.needs_recovery or dev.resumed or not dev.present \
                 or not isinstance(dev.trigger, TimerTrigger) or dev.driver.host_paced:
+            dev.put_off = False
             return False
         period_ns = ledger.period_ns
         at_ns = due_ns + -(-(t_ns - due_ns) // period_ns) * period_ns
         if at_ns == t_ns:  # late by whole periods: on the grid already
             return False
         ledger.note("host_stall")
+        dev.put_off = True
         dev.next_poll_ns = at_ns
         heapq.heappush(self._schedule(), (at_ns, self._device_rank[dev.name], dev.name))
         return True
