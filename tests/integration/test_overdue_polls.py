@@ -21,29 +21,23 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
 import pytest
-import yaml
+from tests.support.late_polls import MS5611_NOISE_PA, auto_read_copy_lags, lift_pressure_errors_pa
 
-from imuhal.core.samples import GyroSample, MagSample, PressureSample, Quantity, Sample
+from imuhal.core.samples import GyroSample, Quantity, Sample
 from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import HostStall, LatePolls
-from imuhal.plugins.manager import Registry, load_registry
+from imuhal.plugins.manager import load_registry
 from imuhal.profile.bundled import bundled_profiles
-from imuhal.profile.loader import load_profile, parse_profile
-from imuhal.profile.model import BoardProfile
-from imuhal.sim.errors import ScalarErrorSpec, SensorErrorSpec
+from imuhal.profile.loader import load_profile
 
 STALL_S = 0.3
 STALLS_AT_S = (2.0, 3.0, 4.0)
 COPY_LATENCY_NS = 16_000_000
 """An auto-read copy comes at most one AK8963 period (10 ms) plus one MPU-9250 period and its
 burst (5.6 ms) after the measurement it carries (tests/integration/test_gps_vario_auto_read)."""
-PRESSURE_BOUND_PA = 5.0
-"""Four times the MS5611's noise at OSR 4096 (1.2 Pa RMS) plus its 9 ms conversion at 4 m/s."""
-MATCH_UT = 0.3
-"""An ideal AK8963's field lies within its quantisation (0.15 uT x ASA per axis, under 0.3
-uT as a vector) of the truth at the instant it measured."""
+PRESSURE_BOUND_PA = 4 * MS5611_NOISE_PA + 0.4
+"""Four times the MS5611's noise at OSR 4096 plus its 9 ms conversion at 4 m/s (0.4 Pa)."""
 
 
 @dataclass
@@ -88,13 +82,6 @@ def test_a_late_poll_keeps_the_phase_of_the_polls_before_it(stalled_gy91: Run) -
         assert {(t - stamps[0]) % period_ns for t in stamps} == {0}, device
 
 
-def _gps_vario_without_startup(registry: Registry) -> BoardProfile:
-    """seed-gps-vario without the still-board gyro start-up (the board tumbles from t=0)."""
-    doc = yaml.safe_load(bundled_profiles()["seed-gps-vario.yaml"].read_text())
-    del doc["devices"]["imu"]["calibration"]
-    return parse_profile(yaml.safe_dump(doc, sort_keys=False), "seed-gps-vario.yaml", registry)
-
-
 def test_an_auto_read_copy_is_never_stamped_before_its_measurement() -> None:
     """seed-gps-vario reads its AK8963 through the MPU-9250's slave 0 (read: auto). Its host
     stalls 43.7 ms before a barometer poll every 0.25 s, so the MPU-9250 falls due inside
@@ -104,22 +91,9 @@ def test_an_auto_read_copy_is_never_stamped_before_its_measurement() -> None:
     tell which measurement each valid field carries: the one whose truth it equals within
     the quantisation. Each is stamped after that measurement and within the copy latency
     of it (before the fix, stamped at the MPU's old due time: up to 39 ms before it)."""
-    registry = load_registry()
-    stall = HostStall(device="baro", start_s=0.5, end_s=2.5, every_s=0.25, stall_s=0.0437)
-    with open_emulated(_gps_vario_without_startup(registry), registry, scenario="tumble",
-                       scenario_params={"rotation_s": 0.5, "ramp_s": 0.1, "hold_s": 0.0},
-                       seed=3, sensor_errors=False, faults=[stall]) as p:
-        fields = [e for e in p.events(2.5) if isinstance(e, MagSample) and e.valid]
-        instants = np.asarray(p.board.emulators["mag"].measured_ns)
-        truth = np.array([p.board.truth_at(int(t)).magnetic_field_body_ut for t in instants])
-    lags_ns = []
-    for m in fields:
-        near = np.nonzero(np.abs(instants - m.t_ns) < 100_000_000)[0]
-        match = near[np.linalg.norm(truth[near] - np.asarray(m.vector), axis=1) <= MATCH_UT]
-        if len(match) == 1:  # a field the turn tells apart from its neighbours'
-            lags_ns.append(m.t_ns - int(instants[match[0]]))
-    assert min(lags_ns) >= 0 and max(lags_ns) <= COPY_LATENCY_NS
-    assert len(lags_ns) >= 0.5 * len(fields) and len(fields) >= 150
+    got = auto_read_copy_lags(load_registry())
+    assert min(got.lags_ns) >= 0 and max(got.lags_ns) <= COPY_LATENCY_NS
+    assert len(got.lags_ns) >= 0.5 * got.fields and got.fields >= 150
 
 
 def test_a_late_conversion_measures_the_world_of_then() -> None:
@@ -130,30 +104,19 @@ def test_a_late_conversion_measures_the_world_of_then() -> None:
     run's error model: noise only) and the conversion's 9 ms of climb (0.4 Pa) of the truth
     at its stamp. Before the fix the emulated board handed it the world of its old due time,
     up to 0.3 s (14 Pa) old."""
-    registry = load_registry()
-    profile = load_profile(bundled_profiles()["seed-gps-vario.yaml"], registry)
-    specs: dict[str, SensorErrorSpec | None] = {
-        name: registry.emulators.get(dev.driver).error_spec
-        for name, dev in profile.devices.items() if name in ("imu", "mag")}
-    specs["baro"] = SensorErrorSpec(pressure=ScalarErrorSpec(noise_std=1.2),
-                                    temperature=ScalarErrorSpec(noise_std=0.002))
-    stall = HostStall(device="mag", start_s=2.5, end_s=7.4, every_s=0.5, stall_s=STALL_S)
-    lift = {"start_hold_s": 1.2, "speed_m_s": 4.0, "floors": 12, "ramp_s": 0.5}
-    with open_emulated(profile, registry, scenario="elevator", scenario_params=lift, seed=1,
-                       error_specs=specs, faults=[stall]) as p:
-        pressures = [e for e in p.events(7.6) if isinstance(e, PressureSample) and e.valid]
-        off_pa = [abs(e.pressure_pa - p.board.truth_at(e.t_ns).pressure_pa) for e in pressures]
+    off_pa = lift_pressure_errors_pa(load_registry(), stall_s=STALL_S)
     assert max(off_pa) <= PRESSURE_BOUND_PA
-    assert len(pressures) >= 200
+    assert len(off_pa) >= 200
 
 
 def test_a_host_late_at_every_poll_still_reads_the_device() -> None:
-    """A poll is put off to its grid once: a host whose every wake-up comes 4 ms late (a
-    coarse timer) against the gy91 IMU's 5 ms period would otherwise put it off for ever.
-    The second attempt reads it, late (about one in three of its frames over the second)."""
+    """A poll is put off to its grid PUT_OFF_AT_MOST times in a row at most: a host whose
+    every wake-up comes 4 ms late (a coarse timer) against the gy91 IMU's 5 ms period
+    would otherwise put it off for ever. The attempt after those reads it, late (about one
+    frame in five over the second)."""
     registry = load_registry()
     profile = load_profile(bundled_profiles()["gy91.yaml"], registry)
     late = LatePolls(device="imu", start_s=1.0, end_s=2.0, delay_s=0.004)
     with open_emulated(profile, registry, seed=1, faults=[late]) as p:
         gyro = [e.t_ns for e in p.events(2.5) if isinstance(e, GyroSample) and e.valid]
-    assert len([t for t in gyro if 1.1e9 < t < 1.9e9]) >= 0.25 * 0.8 * 200
+    assert len([t for t in gyro if 1.1e9 < t < 1.9e9]) >= 0.15 * 0.8 * 200
