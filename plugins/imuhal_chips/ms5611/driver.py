@@ -273,6 +273,7 @@ class MS5611Driver(Driver):
                        rate_hz / self.settings.temperature_every, scale=0.01,
                        latency_s=latency_s),
         )
+
     @property
     def host_paced(self) -> bool:
         """The MS5611 converts when commanded: a late poll starts its conversion when the

@@ -708,9 +708,9 @@ class Pipeline:
         or a data-ready line times, a device without an accounted period, one recovering,
         a poll put off PUT_OFF_AT_MOST times in a row already (a host whose every wake-up
         comes late, a coarse timer, would otherwise never poll it; fewer times, a stall
-        that follows another), and a poll late by less than half a period
-        (its lag stays within the rounding of the ledger's count, while the polls on time
-        lie less than half a period after the measurement they read)."""
+        that follows another), and a poll late by less than half a period (its lag stays
+        within the rounding of the ledger's count while the polls on time lie less than
+        half a period after the measurement they read)."""
         ledger = dev.ledger
         if ledger is None or 2 * (t_ns - due_ns) < ledger.period_ns \
                 or dev.put_off >= PUT_OFF_AT_MOST or dev.buffered or dev.needs_recovery \
