@@ -38,9 +38,10 @@ and its stream restarts, so its frames are the reset's even when the thread was 
 in that window (another device's recovery); a device that was only kept waiting loses its
 frames to ``host_stall``.
 
-A poll that comes more than half a period late is put off to the next point of the device's
-own poll grid (imuhal.pipeline.pipeline, ``Pipeline._on_phase``): its reading keeps the
-phase of the polls before it, so the gap that ends in it is counted like any other, exactly.
+A poll that comes half a period late or more is put off to the next point of the device's
+own poll grid (imuhal.pipeline.pipeline, ``Pipeline._on_phase``; up to PUT_OFF_AT_MOST times
+in a row): its reading keeps the phase of the polls before it, so the gap that ends in it is
+counted like any other, exactly.
 
 A chip whose conversions the host starts (the MS5611) produces no frame in a slot of its
 configured cadence that the host let pass without a conversion (its schedule slid after a
