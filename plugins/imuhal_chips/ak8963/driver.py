@@ -58,7 +58,7 @@ from imuhal.bus.base import BusKind, Link
 from imuhal.bus.register_plan import RegisterPlan, RegisterSetting
 from imuhal.bus.registers import RegisterView
 from imuhal.core.clock import Clock
-from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
+from imuhal.core.errors import BusError, ConfigurationError, DeviceNotFoundError, NackError
 from imuhal.core.samples import Frame, MagSample, Quantity, SampleFlag
 from imuhal.core.streams import StreamSpec
 from imuhal.drivers.base import (
@@ -78,6 +78,12 @@ BEHIND_MPU_HINT = (
     "inside an MPU-9250 the AK8963 answers only when the MPU's bypass is enabled or through "
     "its I2C master: put this device on the mpu9250's 'aux' bus"
 )
+
+
+def _plausible_asa(asa: bytes) -> bool:
+    """No fuse-ROM byte at an end of the adjustment's range (0x00, 0xFF): what a line held
+    low or left floating reads."""
+    return 0x00 not in asa and 0xFF not in asa
 
 
 class AK8963Settings(DriverSettings):
@@ -134,6 +140,8 @@ class AK8963Driver(Driver):
         self._feed: AutoReadFeed | None = None
         self._stamped_ns: int | None = None
         """read: auto: the stamp of the latest field from a copy (None after configure)."""
+        self._asa_read: bytes | None = None
+        """The fuse-ROM bytes as last taken (``_read_asa``)."""
         self._cntl1_written_ns = 0
         self._streams: tuple[StreamSpec, ...] = ()
 
@@ -159,13 +167,35 @@ class AK8963Driver(Driver):
         self.regs.write(r.REG_CNTL1, value)
         self.clock.sleep(r.MODE_CHANGE_S)
 
+    def _read_asa(self) -> tuple[int, int, int]:
+        """ASAX..ASAZ (fuse-ROM mode), checked: the adjustment scales every field the driver
+        reports (ASA 0xFF: x1.5) and the bytes carry no check of their own, so a transfer a
+        glitch garbled (through the MPU-9250's slave 4 a failed read hands back whatever DI
+        holds; a floating line reads 0xFF, one held low 0x00) would give valid fields off
+        by up to half their size until the next reconfiguration. A read is taken when no
+        byte is 0x00 or 0xFF (the ends of the formula's range, x0.5 and x1.5; factory
+        values lie near its middle) and it equals the part's earlier reads (a fuse does
+        not change); otherwise it is read again, and taken only when both reads agree and
+        are plausible, else a BusError (the recovery tries again). One read when all is
+        well, so recordings replay with the transactions they hold."""
+        asa = self.regs.read(r.REG_ASAX, 3)
+        if _plausible_asa(asa) and asa == (self._asa_read or asa):
+            self._asa_read = asa
+            return asa[0], asa[1], asa[2]
+        again = self.regs.read(r.REG_ASAX, 3)
+        if again != asa or not _plausible_asa(asa):
+            raise BusError(f"{self.describe()}: the fuse-ROM sensitivity adjustment read "
+                           f"{asa.hex(' ')} then {again.hex(' ')}: a garbled transfer, "
+                           "not taken")
+        self._asa_read = asa
+        return asa[0], asa[1], asa[2]
+
     def configure(self) -> None:
         self.regs.write(r.REG_CNTL2, r.CNTL2_SRST)
         self.clock.sleep(r.RESET_S)
         # ASA is readable only in fuse-ROM mode; modes change only through power-down.
         self._set_mode(r.MODE_FUSE_ROM)
-        asa = self.regs.read(r.REG_ASAX, 3)
-        self.asa = (asa[0], asa[1], asa[2])
+        self.asa = self._read_asa()
         self._set_mode(r.MODE_POWER_DOWN)
         self.plan.apply(self.regs, self.clock)
         if self.settings.read == "auto":

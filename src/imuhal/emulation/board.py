@@ -297,8 +297,9 @@ class EmulatedBoard:
     def before_poll(self, t_ns: int, device: str) -> int:
         """The pipeline is about to poll ``device``, due at ``t_ns``: apply the faults due
         (a late poll moves the clock) and give its chip its inputs. Returns the time the
-        poll actually happens."""
-        t_ns = self.faults.before_poll(device, t_ns)
+        poll actually happens: not before the clock (a poll that fell due while the
+        pipeline's thread was held happens, and its chip measures, when it is free)."""
+        t_ns = self.faults.before_poll(device, max(t_ns, self.clock.now_ns()))
         if self.emulators[device].physics_source is None:
             # a chip with its own clock pulls its inputs when it measures
             self.update(t_ns, device)

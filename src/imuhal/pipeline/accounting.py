@@ -9,10 +9,11 @@ the frames the chip produced from its timing: two valid frames delivered ``gap``
 produced and not delivered. Those are lost, and charged to the weightiest cause seen since
 the previous valid frame:
 
-``host_stall`` a poll of the device came more than half a frame period after it was due
-               (the host was busy: a stalled process, another device's slow poll);
 ``reset``      the driver reprogrammed its chip (a recovery after bus errors, a detected
                silent reset, a restart of a stuck or frozen chip);
+``host_stall`` a poll of the device came more than half a frame period after it was due
+               (the host's one thread was busy: a stalled process, another device's slow
+               poll or long recovery);
 ``bus_error``  a transfer failed (the driver resumed without a reset);
 ``stale``      the driver flagged a sample STALE (no new data for too long);
 ``flagged``    a produced frame came out flagged (FROZEN, BLANK, out of range...);
@@ -31,7 +32,16 @@ record of its measurement instants over each segment's span equals the segment's
 frames unseen, or a cause that goes uncounted fails there. ``delivered + sum(lost) ==
 produced`` holds by construction. ``fifo_overflow``: a FIFO reader (the MPU-9250's ``read:
 fifo``) found its chip's FIFO overflowed or corrupt and reset it (``DeviceHealth.
-fifo_overflows``); it comes first, since a FIFO rides out the other causes.
+fifo_overflows``); it comes first, since a FIFO rides out the other causes. ``reset``
+comes before ``host_stall``: a gap across the device's own reconfiguration ends its segment
+and its stream restarts, so its frames are the reset's even when the thread was also held
+in that window (another device's recovery); a device that was only kept waiting loses its
+frames to ``host_stall``.
+
+A poll that comes half a period late or more is put off to the next point of the device's
+own poll grid (imuhal.pipeline.pipeline, ``Pipeline._on_phase``; up to PUT_OFF_AT_MOST times
+in a row): its reading keeps the phase of the polls before it, so the gap that ends in it is
+counted like any other, exactly.
 
 A chip whose conversions the host starts (the MS5611) produces no frame in a slot of its
 configured cadence that the host let pass without a conversion (its schedule slid after a
@@ -44,9 +54,9 @@ still reaches the estimators (cause ``not_converted``: the time between the fram
 
 Limit: time stamps are the host's poll times, up to a period after the measurement. A gap
 is counted right while the two polls at its ends lie at about the same phase to the chip
-(within half a period); random host delays of half a period or more can shift it by one and
-hide a frame the poll skipped (a poll that reads frame k + 2 one period after frame k).
-Frame times from the chip (issue 25 item 4) remove this limit.
+(within half a period). Polls later than that keep the phase (above); a chip clock off its
+nominal period by more than half a period over a long gap (2 % over 25 periods) can still
+shift the count by one. Frame times from the chip (issue 25 item 4) remove this limit.
 """
 
 from __future__ import annotations
@@ -60,7 +70,7 @@ import numpy as np
 from imuhal.core.blocks import Block
 from imuhal.core.samples import Quantity, Sample, SampleFlag
 
-CAUSES: tuple[str, ...] = ("fifo_overflow", "host_stall", "reset", "bus_error", "stale",
+CAUSES: tuple[str, ...] = ("fifo_overflow", "reset", "host_stall", "bus_error", "stale",
                            "flagged", "missed")
 """Loss causes, weightiest first: a gap is charged to the first one seen in it."""
 

@@ -87,6 +87,9 @@ REPORT_AFTER_FAILURES = 4
 """Consecutive failed recoveries (about 30 ms of trying) before the run reports the device."""
 JOIN_RETRY_NS = 1_000_000_000
 """An optional device that is not there is looked for again every second."""
+PUT_OFF_AT_MOST = 3
+"""Times in a row a late poll is put off to the next point of its device's grid
+(``Pipeline._on_phase``) before it is made when it comes, off the chip's phase."""
 NEVER_NS = 1 << 62
 """The next poll of an isolated device: never in any run."""
 
@@ -163,6 +166,9 @@ class DeviceRuntime:
     (``Driver.data_ready``, within the driver's containment)."""
     isolated: bool = False
     """Its driver overran a call's deadline or kept failing: never polled again."""
+    put_off: int = 0
+    """How many times in a row its pending poll was put off to the next point of its grid
+    (``Pipeline._on_phase``); at PUT_OFF_AT_MOST it happens when it comes, late or not."""
 
     def __post_init__(self) -> None:
         self.chip_to_body_rows = np.asarray(self.chip_to_body, dtype=float).tolist()
@@ -660,8 +666,10 @@ class Pipeline:
             due_ns = t_ns
             t_ns = self._before_poll(t_ns, name)
             dev = self.devices[name]
-            self._note_late(dev, due_ns, t_ns)
             self._span_ns[1] = max(t_ns, self._span_ns[1])
+            if self._on_phase(dev, due_ns, t_ns):
+                continue
+            self._note_late(dev, due_ns, t_ns)
             frames, next_ns = self._contained_service(dev, t_ns)
             if dev.ledger is not None:
                 self._account(dev)
@@ -722,6 +730,44 @@ class Pipeline:
                 yield read
             else:
                 yield from self._read_frames(read)
+
+    def _on_phase(self, dev: DeviceRuntime, due_ns: int, t_ns: int) -> bool:
+        """A poll due at ``due_ns`` that can only happen at ``t_ns``, half a frame period or
+        more later (the pipeline's one thread was held: a host stall, another device's
+        slow poll or recovery): True when it is put off to the next point of the device's
+        own grid, ``due_ns`` plus whole frame periods (the loss is charged to
+        ``host_stall``). Its chip keeps measuring on its own clock at the phase the due
+        time had, so a reading taken on that phase carries the measurement an on-time poll
+        there would, stamped with the same lag after it: a stamp neither back at the old
+        due time nor up to a period after its data, and the frame ledger's gap, counted
+        from stamp to stamp, is exact. At most one more frame goes than a poll at once
+        would have read, counted.
+
+        Not put off (False; the poll happens at ``t_ns``): a chip the driver paces (its
+        conversion then measures the world of ``t_ns``), one whose frames the chip buffers
+        or a data-ready line times, a device without an accounted period, one recovering,
+        a poll put off PUT_OFF_AT_MOST times in a row already (a host whose every wake-up
+        comes late, a coarse timer, would otherwise never poll it; fewer times, a stall
+        that follows another), and a poll late by less than half a period (its lag stays
+        within the rounding of the ledger's count while the polls on time lie less than
+        half a period after the measurement they read)."""
+        ledger = dev.ledger
+        if ledger is None or 2 * (t_ns - due_ns) < ledger.period_ns \
+                or dev.put_off >= PUT_OFF_AT_MOST or dev.buffered or dev.needs_recovery \
+                or dev.resumed or not dev.present or not isinstance(dev.trigger, TimerTrigger) \
+                or dev.driver.host_paced:
+            dev.put_off = 0
+            return False
+        period_ns = ledger.period_ns
+        at_ns = due_ns + -(-(t_ns - due_ns) // period_ns) * period_ns
+        if at_ns == t_ns:  # late by whole periods: on the grid already
+            dev.put_off = 0
+            return False
+        ledger.note("host_stall")
+        dev.put_off += 1
+        dev.next_poll_ns = at_ns
+        heapq.heappush(self._schedule(), (at_ns, self._device_rank[dev.name], dev.name))
+        return True
 
     def _note_late(self, dev: DeviceRuntime, due_ns: int, t_ns: int) -> None:
         """A read at ``t_ns`` that was due at ``due_ns``: more than half a frame period late
