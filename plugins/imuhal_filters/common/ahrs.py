@@ -1097,8 +1097,8 @@ class AhrsEstimator(Estimator):
             # source, or the nominal airspeed alone): what _run_step does, without its calls
             fused = self._simple_kinematics(rate, accel)
             self._counters["steps"] += 1
-            gyro = self._rest_gyro(rate, fused, dt) if self._rest_on else rate
-            diag = self._compiled_step(gyro, fused, mag, dt, accel)
+            corrected = self._rest_gyro(rate, fused, dt) if self._rest_on else rate
+            diag = self._compiled_step(corrected, fused, mag, dt, accel)
             return [AttitudeEstimate.build(t_ns, self.instance, self._q,
                                            None if accel is None else self._linear_ned, diag)]  # type: ignore[arg-type]  # aligned (checked above): a kernel step then always returns diagnostics
         return self._stepped(t_ns, rate, accel, mag, dt)
