@@ -14,6 +14,9 @@ moves the point the magnetometer pulls towards off the true attitude (on data se
 0.1: 0.50 deg total RMS error for the release form, 0.29 deg for the paper form), and the fast
 square root leaves the quaternion 0.17 % short of unit length.
 With a 6-DOF setup (no magnetometer) the two magnetometer modes are identical.
+By default (not in the presets) the board's rests are detected (``common/rest.py``): there
+the soft gate is off and the gyro bias is learned (``rest_gyro_bias_rad_s``), subtracted
+from every gyro sample the filter integrates.
 """
 
 from __future__ import annotations

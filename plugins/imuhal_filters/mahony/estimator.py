@@ -6,7 +6,10 @@ gain 5 and no integral term, and feeds the accelerometer back only while
 that window the step integrates the gyro alone, magnetometer included. Those are the defaults
 here; ``kp``, ``ki`` and ``accel_gate_g`` are settings. A non-zero ``ki`` makes the integral
 term estimate the gyro bias (rad/s, in ``diagnostics`` as ``gyro_bias_rad_s``: the negated
-integral feedback).
+integral feedback). By default (not in the presets) the board's rests are detected
+(``common/rest.py``): there the soft gate is off and the gyro bias is learned
+(``rest_gyro_bias_rad_s``), subtracted before the filter, integral term included, sees the
+rate.
 """
 
 from __future__ import annotations
