@@ -6,8 +6,9 @@ airspeed included); the reference is the same
 frames, in fusion order, through ``process()`` one by one. On conformance data set A cut
 into steps of 37 frames, with the awkward cases added (a slower and a missing
 magnetometer, values beyond the full scale, a time jump, a repeated time stamp, an
-accelerometer that goes stale), every estimate equals the reference's to 1e-12 (the same
-time, diagnostics of the same keys and types) and the estimator ends in the same state.
+accelerometer that goes stale, the board still for a while: rest detection), every estimate
+equals the reference's to 1e-12 (the same time, diagnostics of the same keys and types) and
+the estimator ends in the same state (the rest detector's bit for bit).
 """
 
 from __future__ import annotations
@@ -110,7 +111,7 @@ def _same_state(est: AhrsEstimator, ref: AhrsEstimator) -> None:
     assert state["counters"] == ref_state["counters"]
     assert state["q"] == pytest.approx(ref_state["q"], rel=0, abs=1e-12)
     for key in ("last_gyro_t_ns", "accel_m_s2", "accel_t_ns", "mag_ut", "mag_t_ns", "aligned",
-                "kinematics"):
+                "kinematics", "rest", "at_rest"):
         assert state[key] == ref_state[key], key
 
 
@@ -222,6 +223,7 @@ def test_the_log_exercises_every_case_the_blocks_resolve() -> None:
     assert counters["stale_mag"] > 0
     assert counters["dt_fallbacks"] == 2
     assert counters["beyond_full_scale"] == {"gyro": 1, "accel": 61, "mag": 1}
+    assert est.get_state()["rest"][8] > 1.0  # the board lay still over a second: at rest
     seed, _ = _pair("madgwick", {"preset": "seed"})  # the one with a hard gate
     _frame_by_frame(seed, _steps())
     assert seed.get_state()["counters"]["gate_closed_steps"] > 0

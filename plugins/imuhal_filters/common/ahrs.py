@@ -21,6 +21,9 @@ What every AHRS plugin shares lives here so the filters themselves are only thei
   and nothing is emitted before it; ``identity`` is the references' start;
 - the kinematic acceleration from a velocity, airspeed or nominal airspeed source is removed
   from the specific force before the kernel sees it (``turn``);
+- for a filter whose settings have rest detection (``rest``: madgwick, mahony), the rest
+  detector runs before each step (on the turn-compensated accelerometer): the step gets the
+  gyro less the bias learned at rest and the verdict (``_at_rest``: no soft gate);
 - the state (quaternion, held samples, counters, filter internals) can be saved and restored.
 
 Subclasses implement ``_reset_filter``, ``_step``, ``_filter_state`` and ``_set_filter_state``
@@ -70,6 +73,7 @@ from imuhal.estimation.rows import (
 from imuhal.estimation.streams import stream_of
 from imuhal_filters.common import fast
 from imuhal_filters.common.alignment import aligned_quaternion
+from imuhal_filters.common.fast_ahrs import rest_update
 from imuhal_filters.common.gate import gravity_positive_g
 from imuhal_filters.common.limits import (
     DEFAULT_ACCEL_FULL_SCALE_M_S2,
@@ -79,6 +83,7 @@ from imuhal_filters.common.limits import (
 )
 from imuhal_filters.common.presets import PresetSettings
 from imuhal_filters.common.quat import IDENTITY, Quat, Vec
+from imuhal_filters.common.rest import REST_OFF, REST_START, RestSettings, rest_params
 from imuhal_filters.common.rows import StepRows, block_rows
 from imuhal_filters.common.turn import (
     KinematicAcceleration,
@@ -208,6 +213,14 @@ def kernel_readings(accel_m_s2: Vec | None, mag: Vec | None, use_mag: bool) -> K
     if mag is None or not use_mag:
         return (have_a, ax, ay, az, False, *NO_VECTOR)
     return (have_a, ax, ay, az, True, *mag)
+
+
+def rest_columns(diag: FloatArray) -> dict[str, DiagnosticColumn]:
+    """The rest detector's columns of a shared row loop's ``diag`` array (columns 3-6,
+    common/fast_ahrs.py) as the diagnostics ``at_rest`` and ``rest_gyro_bias_rad_s``
+    flatten to."""
+    return {"at_rest": diag[:, 3].astype(np.int64), "rest_gyro_bias_rad_s_0": diag[:, 4],
+            "rest_gyro_bias_rad_s_1": diag[:, 5], "rest_gyro_bias_rad_s_2": diag[:, 6]}
 
 
 def _linear_accel_ned(q: Quat, f: Vec) -> Vec:
@@ -391,6 +404,13 @@ class AhrsEstimator(Estimator):
         """The time stamp of the gyro frame a counted loss precedes (a StreamGap)."""
         self._max_aux_age_s = self.settings.max_aux_age_s
         self._rows_chosen = False  # the row kernel's backend: chosen again at its next use
+        self._rest: tuple[float, ...] = REST_START
+        """The rest detector's state (``common/fast_ahrs.rest_update``)."""
+        self._rest_params = (rest_params(self.settings)
+                             if isinstance(self.settings, RestSettings) else REST_OFF)
+        self._rest_on = self._rest_params[0] == 1.0
+        self._at_rest = False
+        """The rest detector's verdict at the last step (the step's soft gate is off)."""
         self._reset_filter()
 
     def bind(self, streams: Sequence[StreamSpec]) -> None:
@@ -694,6 +714,8 @@ class AhrsEstimator(Estimator):
             "unchecked": self._unchecked,
             "aligned": [self._tilt_aligned, self._heading_aligned],
             "kinematics": self._kinematics.as_dict(),
+            "rest": list(self._rest),
+            "at_rest": self._at_rest,
             "filter": self._filter_state(),
         }
 
@@ -724,6 +746,8 @@ class AhrsEstimator(Estimator):
                           and not self._kinematics.has_speed_source)
         self._nominal_only = (self._turn_on and self.settings.nominal_airspeed_m_s is not None
                               and not self._kinematics.has_speed_source)
+        self._rest = tuple(float(v) for v in state.get("rest", REST_START))
+        self._at_rest = bool(state.get("at_rest", False))
         self._set_filter_state(state["filter"])
 
     def diagnostics(self) -> dict[str, Any]:
@@ -732,7 +756,36 @@ class AhrsEstimator(Estimator):
                 "angular_rate_recovery": {**self._counters["angular_rate_recovery"],
                                           "active": self._recovery_left_s > 0.0},
                 "turn_compensation": {**self._kinematics.counts,
-                                      "source": self._kinematics.source}}
+                                      "source": self._kinematics.source},
+                "rest": {"detection": self._rest_on, "at_rest": self._at_rest,
+                         "rest_s": self._rest[8], "gyro_bias_rad_s": self.rest_gyro_bias_rad_s}}
+
+    @property
+    def rest_gyro_bias_rad_s(self) -> Vec:
+        """The gyro bias learned at rest (rad/s, body; subtracted before each step; zeros
+        before the first rest or without rest detection)."""
+        r = self._rest
+        return (r[9], r[10], r[11])
+
+    def _rest_gyro(self, rate: Vec, accel_m_s2: Vec | None, dt: float) -> Vec:
+        """One rest detector step for the gyro ``rate`` (rad/s, as measured) and the fused
+        (turn-compensated) specific force (m/s^2; None: none), over ``dt`` (s): sets
+        ``_at_rest`` and returns the rate less the bias learned at rest (the floats of the
+        row loop, common/fast_ahrs.py)."""
+        if accel_m_s2 is None:
+            have_a, ax, ay, az = False, 0.0, 0.0, 0.0
+        else:
+            have_a = True
+            ax, ay, az = accel_m_s2[0] * TO_G, accel_m_s2[1] * TO_G, accel_m_s2[2] * TO_G
+        r, self._at_rest = rest_update(self._rest, self._rest_params, rate[0], rate[1],
+                                       rate[2], have_a, ax, ay, az, dt)
+        self._rest = r
+        return (rate[0] - r[9], rate[1] - r[10], rate[2] - r[11])
+
+    def _rest_arrays(self) -> tuple[FloatArray, FloatArray]:
+        """The rest detector's state and parameters as a row kernel takes them (the state
+        array is updated in place: :meth:`_kernel_finished` takes it back)."""
+        return np.array(self._rest), np.array(self._rest_params)
 
     # ------------------------------------------------------------------ Python API
     @property
@@ -1032,8 +1085,14 @@ class AhrsEstimator(Estimator):
             return accel
         return nominal_rows(accel, gyro, float(speed))
 
-    def _kernel_finished(self, q: FloatArray, steps: int, closed: int, turn_sum: float) -> None:
-        """Take over what a kernel left: the quaternion, counters, turn bookkeeping."""
+    def _kernel_finished(self, q: FloatArray, steps: int, closed: int, turn_sum: float,
+                         rest: FloatArray | None = None) -> None:
+        """Take over what a kernel left: the quaternion, counters, turn bookkeeping and
+        (``rest``, from :meth:`_rest_arrays`) the rest detector's state."""
+        if rest is not None:
+            self._rest = tuple(rest.tolist())
+            # at rest after a step exactly when the still time reached the rest time
+            self._at_rest = self._rest_on and self._rest[7] >= self._rest_params[4]
         w, x, y, z = q.tolist()
         self._q = (w, x, y, z)
         self._kinematics.add_turn_steps(float(turn_sum), steps)
@@ -1089,6 +1148,8 @@ class AhrsEstimator(Estimator):
                 not self._align(accel, mag):
             return None
         self._counters["steps"] += 1
+        if self._rest_on:
+            gyro = self._rest_gyro(gyro, accel, dt)
         if self._sample_kernel is not None:
             return self._compiled_step(gyro, accel, mag, dt, measured)
         accel_g = None if accel is None else gravity_positive_g(accel)
@@ -1126,7 +1187,8 @@ class AhrsEstimator(Estimator):
             # source, or the nominal airspeed alone): what _run_step does, without its calls
             fused = self._simple_kinematics(rate, accel)
             self._counters["steps"] += 1
-            diag = self._compiled_step(rate, fused, mag, dt, accel)
+            corrected = self._rest_gyro(rate, fused, dt) if self._rest_on else rate
+            diag = self._compiled_step(corrected, fused, mag, dt, accel)
             return [AttitudeEstimate.build(t_ns, self.instance, self._q,
                                            None if accel is None else self._linear_ned, diag)]  # type: ignore[arg-type]  # aligned (checked above): a kernel step then always returns diagnostics
         return self._stepped(t_ns, rate, accel, mag, dt)

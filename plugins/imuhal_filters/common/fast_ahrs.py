@@ -10,14 +10,17 @@ copy is bound to its kernel, ``common.fast.compiled_copy``.)
 The row loop is made once per filter from the filter's step (:func:`ahrs_rows`, a helper
 kernel calling the step's helper kernel). A step has this form::
 
-    step(state, params, gx, gy, gz, have_a, ax, ay, az, use_m, mx, my, mz, dt)
+    step(state, params, gx, gy, gz, have_a, ax, ay, az, use_m, mx, my, mz, dt, at_rest)
         -> (state, gate_open, weight, bias)
 
 ``state`` is a tuple of floats whose first four are the quaternion (body -> NED, scalar
 first), ``params`` a tuple of the filter's settings, ``g`` the gyro (rad/s, body), ``a`` the
 gravity-positive accelerometer reading (g; ``have_a`` False: none), ``m`` the magnetometer
 (``use_m`` False: none or not used), ``dt`` the step (s); ``weight`` is the soft gate's and
-``bias`` the filter's gyro bias estimate (rad/s; zeros for a filter without one).
+``bias`` the filter's gyro bias estimate (rad/s; zeros for a filter without one). The row
+loop runs the rest detector (:func:`rest_update`, ``common/rest.py``) before each step: the
+step gets the gyro less the bias learned at rest, and ``at_rest`` (the board still: the
+accelerometer reads gravity, so the soft gate's weight is 1).
 
 Every kernel that calls these lists this module in its AOT fingerprint
 (``Kernel.modules``), so an edit here makes the built extension's copies stale.
@@ -97,6 +100,47 @@ accel_gate_kernel = jit(accel_gate)
 """:func:`accel_gate` as a helper kernel."""
 
 
+def rest_update(r: State, p: State, gx: float, gy: float, gz: float, have_a: bool,
+                ax: float, ay: float, az: float, dt: float) -> tuple[State, bool]:
+    """One step of the rest detector (``common/rest.py``) for the gyro ``g`` (rad/s, body, as
+    measured) and the gravity-positive reading ``a`` (g; ``have_a`` False: none), over
+    ``dt`` (s). ``r`` is the state (started, low-passed gyro, low-passed accelerometer,
+    still time, time at rest, learned bias), ``p`` the parameters (``rest.rest_params``).
+    Returns the new state and whether the board is at rest this step. The bias is set from
+    the low-passed rate at the first rest and averaged with time constant ``p[7]`` at
+    every later rest step."""
+    started, glx, gly, glz, alx, aly, alz, still_s, rest_s, bx, by, bz = r
+    on, tau, dev_g2, dev_a2, min_s, first_max, max_rate, tau_b = p
+    if on == 0.0:
+        return r, False
+    if not have_a:
+        return (started, glx, gly, glz, alx, aly, alz, 0.0, rest_s, bx, by, bz), False
+    if started == 0.0:
+        started, glx, gly, glz, alx, aly, alz = 1.0, gx, gy, gz, ax, ay, az
+    else:
+        k = dt / (tau + dt)
+        glx, gly, glz = glx + (gx - glx) * k, gly + (gy - gly) * k, glz + (gz - glz) * k
+        alx, aly, alz = alx + (ax - alx) * k, aly + (ay - aly) * k, alz + (az - alz) * k
+    dx, dy, dz = gx - glx, gy - gly, gz - glz
+    ex, ey, ez = ax - alx, ay - aly, az - alz
+    limit = first_max if rest_s == 0.0 else max_rate
+    still = (dx * dx + dy * dy + dz * dz <= dev_g2 and ex * ex + ey * ey + ez * ez <= dev_a2
+             and abs(glx - bx) <= limit and abs(gly - by) <= limit and abs(glz - bz) <= limit)
+    still_s = still_s + dt if still else 0.0
+    if still_s < min_s:
+        return (started, glx, gly, glz, alx, aly, alz, still_s, rest_s, bx, by, bz), False
+    if rest_s == 0.0:
+        bx, by, bz = glx, gly, glz
+    else:
+        kb = dt / (tau_b + dt)
+        bx, by, bz = bx + (gx - bx) * kb, by + (gy - by) * kb, bz + (gz - bz) * kb
+    return (started, glx, gly, glz, alx, aly, alz, still_s, rest_s + dt, bx, by, bz), True
+
+
+rest_update_kernel = jit(rest_update)
+""":func:`rest_update` as a helper kernel."""
+
+
 def ahrs_rows(step: Kernel) -> Kernel:
     """The row loop with ``step`` (a helper kernel of the form above), as a helper kernel:
     one per filter, compiled into its ``*_rows`` kernel. ``step`` is a closure variable,
@@ -105,18 +149,25 @@ def ahrs_rows(step: Kernel) -> Kernel:
 
     def _ahrs_rows(state: State, params: tuple[Any, ...], gyro: FloatArray,
                    accel: FloatArray, mag: FloatArray, dts: FloatArray, use_mag: bool,
-                   turn_on: bool, turn_sum: float, out: FloatArray, diag: FloatArray
-                   ) -> tuple[State, float, int]:
+                   turn_on: bool, turn_sum: float, out: FloatArray, diag: FloatArray,
+                   rest: FloatArray, rest_params: FloatArray) -> tuple[State, float, int]:
         """One ``step`` per row (rows resolved by ``common/rows.py``: a NaN accel or mag
         row means none this step; accel in m/s^2 specific force, body NED). ``out`` gets
-        the quaternion after each row, ``diag`` its gate_open, mag_used and accel_weight,
-        and in columns 3-5 (when it has them) the gyro bias (rad/s); a ``diag`` of one row
-        is scratch (no diagnostics asked). With ``turn_on``, the gyro rate's magnitude is
-        added to ``turn_sum`` (the nominal-free turn bookkeeping). Returns the final state,
-        the turn-rate sum and the number of steps with the gate closed."""
+        the quaternion after each row, ``diag`` its gate_open, mag_used, accel_weight,
+        at_rest and the gyro bias learned at rest (rad/s, columns 4-6), and in columns 7-9
+        (when it has them) the filter's own gyro bias (rad/s); a ``diag`` of one row is
+        scratch (no diagnostics asked). ``rest`` is the rest detector's state (updated in
+        place), ``rest_params`` its parameters (``common/rest.py``). With ``turn_on``, the
+        gyro rate's magnitude (as measured) is added to ``turn_sum`` (the nominal-free
+        turn bookkeeping). Returns the final state, the turn-rate sum and the number of
+        steps with the gate closed."""
         closed = 0
         keep = diag.shape[0] == gyro.shape[0]
-        with_bias = diag.shape[1] > 3
+        with_bias = diag.shape[1] > 7
+        r = (rest[0], rest[1], rest[2], rest[3], rest[4], rest[5], rest[6], rest[7], rest[8],
+             rest[9], rest[10], rest[11])
+        p = (rest_params[0], rest_params[1], rest_params[2], rest_params[3], rest_params[4],
+             rest_params[5], rest_params[6], rest_params[7])
         for i in range(gyro.shape[0]):
             di = i if keep else 0
             gx, gy, gz = gyro[i, 0], gyro[i, 1], gyro[i, 2]
@@ -127,17 +178,22 @@ def ahrs_rows(step: Kernel) -> Kernel:
             ax = ay = az = 0.0
             if have_a:
                 ax, ay, az = accel[i, 0] * TO_G, accel[i, 1] * TO_G, accel[i, 2] * TO_G
+            r, at_rest = rest_update_kernel(r, p, gx, gy, gz, have_a, ax, ay, az, dts[i])
             state, gate_open, weight, bias = step(
-                state, params, gx, gy, gz, have_a, ax, ay, az, use_m, mag[i, 0], mag[i, 1],
-                mag[i, 2], dts[i])
+                state, params, gx - r[9], gy - r[10], gz - r[11], have_a, ax, ay, az, use_m,
+                mag[i, 0], mag[i, 1], mag[i, 2], dts[i], at_rest)
             if have_a and not gate_open:
                 closed += 1
             diag[di, 0] = 1.0 if gate_open else 0.0
             diag[di, 1] = 1.0 if gate_open and use_m else 0.0
             diag[di, 2] = weight
             out[i, 0], out[i, 1], out[i, 2], out[i, 3] = state[0], state[1], state[2], state[3]
+            diag[di, 3] = 1.0 if at_rest else 0.0
+            diag[di, 4], diag[di, 5], diag[di, 6] = r[9], r[10], r[11]
             if with_bias:
-                diag[di, 3], diag[di, 4], diag[di, 5] = bias[0], bias[1], bias[2]
+                diag[di, 7], diag[di, 8], diag[di, 9] = bias[0], bias[1], bias[2]
+        for k in range(12):
+            rest[k] = r[k]
         return state, turn_sum, closed
 
     return jit(_ahrs_rows)

@@ -14,6 +14,9 @@ moves the point the magnetometer pulls towards off the true attitude (on data se
 0.1: 0.50 deg total RMS error for the release form, 0.29 deg for the paper form), and the fast
 square root leaves the quaternion 0.17 % short of unit length.
 With a 6-DOF setup (no magnetometer) the two magnetometer modes are identical.
+By default (not in the presets) the board's rests are detected (``common/rest.py``): there
+the soft gate is off and the gyro bias is learned (``rest_gyro_bias_rad_s``), subtracted
+from every gyro sample the filter integrates.
 """
 
 from __future__ import annotations
@@ -30,10 +33,12 @@ from imuhal_filters.common.ahrs import (
     AhrsSettings,
     ImuStep,
     kernel_readings,
+    rest_columns,
 )
 from imuhal_filters.common.fast import Kernel
 from imuhal_filters.common.gate import AccelGate, GateBounds, SoftGateSettings
 from imuhal_filters.common.quat import Vec
+from imuhal_filters.common.rest import RestSettings
 from imuhal_filters.madgwick.core import MagReference, madgwick_step
 from imuhal_filters.madgwick.fast import madgwick_rows, madgwick_sample
 from imuhal_filters.madgwick.inv_sqrt import INV_SQRT
@@ -41,17 +46,18 @@ from imuhal_filters.madgwick.inv_sqrt import INV_SQRT
 SEED_GATE_G = (0.6, 1.4)
 
 
-class MadgwickSettings(AhrsSettings, SoftGateSettings):
+class MadgwickSettings(AhrsSettings, SoftGateSettings, RestSettings):
     PRESETS: ClassVar[dict[str, dict[str, Any]]] = {
         # the x-io release as published: identity start, halved field reference, fast 1/sqrt
         "reference": {"initial_attitude": "identity", "turn_compensation": False,
                       "accel_soft_gate_g": None,
                       "accel_gate_g": None, "mag_reference": "xio_release",
-                      "inv_sqrt": "fast32", "beta": 0.1},
+                      "inv_sqrt": "fast32", "beta": 0.1, "rest_detection": False},
         # the seed's copy (Nair 2016 / the author's firmware): x-io with the 0.6-1.4 g gate
         "seed": {"initial_attitude": "identity", "turn_compensation": False,
                  "accel_soft_gate_g": None,
-                 "accel_gate_g": SEED_GATE_G, "mag_reference": "xio_release", "beta": 0.6},
+                 "accel_gate_g": SEED_GATE_G, "mag_reference": "xio_release", "beta": 0.6,
+                 "rest_detection": False},
         # hand-held motion (BROAD): the soft gate and the low gain that keep a glider's tilt
         # in turns cost accuracy when the board is waved about (docs/estimators.md)
         "handheld": {"beta": 0.1, "accel_soft_gate_g": None},
@@ -115,18 +121,22 @@ class MadgwickEstimator(AhrsEstimator):
         have_a, use_m = readings[0], readings[4]
         q0, q1, q2, q3, gate_open, weight, lx, ly, lz = self._sample_kernel(
             *self._q, gx, gy, gz, *readings, self._beta,
-            self._gate_lower_g, self._gate_upper_g, self._soft_width, self._paper, dt, *f)
+            self._gate_lower_g, self._gate_upper_g, self._soft_width, self._paper, dt,
+            self._at_rest, *f)
         self._q = (q0, q1, q2, q3)
         self._linear_ned = (lx, ly, lz)
         if have_a and not gate_open:
             self._counters["gate_closed_steps"] += 1
         return {"dt_s": dt, "turn_compensation": self._kinematics.source,
                 "gate_open": gate_open, "accel_used": gate_open,
-                "mag_used": gate_open and use_m, "accel_weight": weight}
+                "mag_used": gate_open and use_m, "accel_weight": weight,
+                "at_rest": self._at_rest, "rest_gyro_bias_rad_s": self.rest_gyro_bias_rad_s}
 
     def _step(self, step: ImuStep) -> dict[str, Any]:
         accel = step.accel_g
-        gate_open, weight = self._gate.gates(accel, self._soft_gate_g, self._q)
+        # at rest the reading is gravity: no soft gate
+        gate_open, weight = self._gate.gates(
+            accel, None if self._at_rest else self._soft_gate_g, self._q)
         if accel is not None and not gate_open:
             self._counters["gate_closed_steps"] += 1
         mag = step.mag_ut if self._use_mag else None
@@ -145,10 +155,12 @@ class MadgwickEstimator(AhrsEstimator):
             "accel_used": gate_open,
             "mag_used": gate_open and mag is not None,
             "accel_weight": weight,
+            "at_rest": self._at_rest,
+            "rest_gyro_bias_rad_s": self.rest_gyro_bias_rad_s,
         }
 
     _compiled_kernel: ClassVar[Kernel | None] = madgwick_rows
-    _kernel_diag_width: ClassVar[int] = 3
+    _kernel_diag_width: ClassVar[int] = 7
 
     def _run_kernel(self, gyro: FloatArray, accel: FloatArray, mag: FloatArray,
                     dts: FloatArray, out: FloatArray, diag: FloatArray) -> bool:
@@ -158,12 +170,13 @@ class MadgwickEstimator(AhrsEstimator):
         if s.inv_sqrt != "exact":
             return False
         gate = self._gate
+        rest, params = self._rest_arrays()
         q, turn_sum, closed = self._rows_kernel()(
             np.array(self._q), gyro, accel, mag, dts, float(s.beta), gate.lower_g,
             gate.upper_g, 0.0 if s.accel_soft_gate_g is None else float(s.accel_soft_gate_g),
             s.mag_reference is MagReference.PAPER, s.use_mag, s.turn_compensation,
-            self._kinematics.turn_sum, out, diag)
-        self._kernel_finished(q, len(gyro), closed, turn_sum)
+            self._kinematics.turn_sum, out, diag, rest, params)
+        self._kernel_finished(q, len(gyro), closed, turn_sum, rest)
         return True
 
     def _block_kernel(self) -> bool:
@@ -172,13 +185,16 @@ class MadgwickEstimator(AhrsEstimator):
     def _kernel_row_diagnostics(self, dts: FloatArray, diag: FloatArray, source: str
                                 ) -> list[dict[str, Any]]:
         return [{"dt_s": dt, "turn_compensation": source, "gate_open": g == 1.0,
-                 "accel_used": g == 1.0, "mag_used": m == 1.0, "accel_weight": w}
-                for dt, (g, m, w) in zip(dts.tolist(), diag.tolist(), strict=True)]
+                 "accel_used": g == 1.0, "mag_used": m == 1.0, "accel_weight": w,
+                 "at_rest": r == 1.0, "rest_gyro_bias_rad_s": (bx, by, bz)}
+                for dt, (g, m, w, r, bx, by, bz) in zip(dts.tolist(), diag.tolist(),
+                                                        strict=True)]
 
     def _kernel_diagnostics(self, diag: FloatArray) -> dict[str, Any]:
         gate_open = diag[:, 0].astype(np.int64)
         return {"gate_open": gate_open, "accel_used": gate_open,
-                "mag_used": diag[:, 1].astype(np.int64), "accel_weight": diag[:, 2]}
+                "mag_used": diag[:, 1].astype(np.int64), "accel_weight": diag[:, 2],
+                **rest_columns(diag)}
 
     def _filter_state(self) -> dict[str, Any]:
         return {}

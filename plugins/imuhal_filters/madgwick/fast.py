@@ -22,15 +22,15 @@ from imuhal_filters.common.fast_frames import linear_accel_ned
 
 
 def _madgwick_rows(q_in, gyro, accel, mag, dts, beta, gate_lo, gate_hi, soft_width, paper,
-                   use_mag, turn_on, turn_sum, out, diag):
+                   use_mag, turn_on, turn_sum, out, diag, rest, rest_params):
     """One step per row: the shared row loop (``common/fast_ahrs.py``) with the Madgwick
-    step (``out`` and ``diag`` as it fills them, ``diag`` of 3 columns). Returns the final
-    quaternion, the turn-rate sum (turn bookkeeping) and the number of steps with the gate
-    closed."""
+    step (``out``, ``diag`` and the rest detector's state ``rest`` as it fills them,
+    ``diag`` of 7 columns). Returns the final quaternion, the turn-rate sum (turn
+    bookkeeping) and the number of steps with the gate closed."""
     state, turn_sum, closed = madgwick_step_rows(
         (q_in[0], q_in[1], q_in[2], q_in[3]),
         (beta, gate_lo, gate_hi, soft_width, paper), gyro, accel, mag, dts, use_mag, turn_on,
-        turn_sum, out, diag)
+        turn_sum, out, diag, rest, rest_params)
     return np.array([state[0], state[1], state[2], state[3]]), turn_sum, closed
 
 
@@ -38,11 +38,12 @@ madgwick_rows = jit(
     _madgwick_rows, returns="Tuple((f8[::1], f8, i8))", q_in="f8[::1]", gyro="f8[:, ::1]",
     accel="f8[:, ::1]", mag="f8[:, ::1]", dts="f8[::1]", beta="f8", gate_lo="f8",
     gate_hi="f8", soft_width="f8", paper="b1", use_mag="b1", turn_on="b1", turn_sum="f8",
-    out="f8[:, ::1]", diag="f8[:, ::1]")
+    out="f8[:, ::1]", diag="f8[:, ::1]", rest="f8[::1]", rest_params="f8[::1]")
 """The compiled kernel (see common/fast.py: the extension, or numba on the first call)."""
 
 
-def _madgwick_step(state, params, gx, gy, gz, have_a, ax, ay, az, have_m, mx0, my0, mz0, dt):
+def _madgwick_step(state, params, gx, gy, gz, have_a, ax, ay, az, have_m, mx0, my0, mz0, dt,
+                   at_rest):
     """One step: ``MadgwickEstimator._step`` with ``madgwick_step`` (exact 1/sqrt) on
     scalars, in the same order of operations; a step of the shared row loop
     (``state`` the quaternion, ``params`` (beta, gate_lo, gate_hi, soft_width, paper)).
@@ -51,8 +52,9 @@ def _madgwick_step(state, params, gx, gy, gz, have_a, ax, ay, az, have_m, mx0, m
     the gate was open, the soft-gate weight and no gyro bias."""
     q0, q1, q2, q3 = state
     beta, gate_lo, gate_hi, soft_width, paper = params
+    # at rest the reading is gravity: no soft gate (weight 1)
     gate_open, weight = accel_gate_kernel(have_a, ax, ay, az, q0, q1, q2, q3, gate_lo,
-                                         gate_hi, soft_width)
+                                         gate_hi, 0.0 if at_rest else soft_width)
     b = beta * weight
     d0 = 0.5 * (-q1 * gx - q2 * gy - q3 * gz)
     d1 = 0.5 * (q0 * gx + q2 * gz - q3 * gy)
@@ -113,15 +115,17 @@ madgwick_step_rows = ahrs_rows(madgwick_step_kernel)
 
 
 def _madgwick_sample(q0, q1, q2, q3, gx, gy, gz, have_a, ax, ay, az, have_m, mx0, my0, mz0,
-                     beta, gate_lo, gate_hi, soft_width, paper, dt, fx, fy, fz):
+                     beta, gate_lo, gate_hi, soft_width, paper, dt, at_rest, fx, fy, fz):
     """The step called from Python once per sample (``process()``): scalars in, a tuple
     out, nothing allocated, so a call to the AOT extension's function costs about 0.3 us
     (numba's dispatcher about 0.7-1.7 us). Also returns the gravity-compensated
     acceleration in NED for the measured specific force ``f`` (m/s^2) at the new attitude
-    (what the estimate carries; meaningless without an accelerometer)."""
+    (what the estimate carries; meaningless without an accelerometer). The rest detector
+    runs in the caller: ``g`` is the gyro less the bias learned at rest, ``at_rest`` its
+    verdict."""
     (w, x, y, z), gate_open, weight, _ = madgwick_step_kernel(
         (q0, q1, q2, q3), (beta, gate_lo, gate_hi, soft_width, paper), gx, gy, gz, have_a, ax,
-        ay, az, have_m, mx0, my0, mz0, dt)
+        ay, az, have_m, mx0, my0, mz0, dt, at_rest)
     lx, ly, lz = linear_accel_ned(w, x, y, z, fx, fy, fz)
     return w, x, y, z, gate_open, weight, lx, ly, lz
 
@@ -131,6 +135,6 @@ madgwick_sample = per_sample_kernel(jit(
     q1="f8", q2="f8", q3="f8", gx="f8", gy="f8", gz="f8", have_a="b1", ax="f8", ay="f8",
     az="f8", have_m="b1",
     mx0="f8", my0="f8", mz0="f8", beta="f8", gate_lo="f8", gate_hi="f8", soft_width="f8",
-    paper="b1", dt="f8", fx="f8", fy="f8", fz="f8"))
+    paper="b1", dt="f8", at_rest="b1", fx="f8", fy="f8", fz="f8"))
 """The per-sample kernel (see common/fast.py: used per sample only on the AOT extension,
 :meth:`~imuhal_filters.common.fast.Kernel.per_sample`)."""

@@ -6,7 +6,10 @@ gain 5 and no integral term, and feeds the accelerometer back only while
 that window the step integrates the gyro alone, magnetometer included. Those are the defaults
 here; ``kp``, ``ki`` and ``accel_gate_g`` are settings. A non-zero ``ki`` makes the integral
 term estimate the gyro bias (rad/s, in ``diagnostics`` as ``gyro_bias_rad_s``: the negated
-integral feedback).
+integral feedback). By default (not in the presets) the board's rests are detected
+(``common/rest.py``): there the soft gate is off and the gyro bias is learned
+(``rest_gyro_bias_rad_s``), subtracted before the filter, integral term included, sees the
+rate.
 """
 
 from __future__ import annotations
@@ -23,19 +26,21 @@ from imuhal_filters.common.ahrs import (
     AhrsSettings,
     ImuStep,
     kernel_readings,
+    rest_columns,
 )
 from imuhal_filters.common.fast import Kernel
 from imuhal_filters.common.gate import AccelGate, GateBounds, SoftGateSettings
 from imuhal_filters.common.quat import Vec
+from imuhal_filters.common.rest import RestSettings
 from imuhal_filters.mahony.core import mahony_step
 from imuhal_filters.mahony.fast import mahony_rows, mahony_sample
 
 _FIRMWARE: dict[str, Any] = {"initial_attitude": "identity", "turn_compensation": False,
-                             "accel_soft_gate_g": None,
+                             "accel_soft_gate_g": None, "rest_detection": False,
                              "kp": 5.0, "ki": 0.0, "accel_gate_g": (0.75, 1.25)}
 
 
-class MahonySettings(AhrsSettings, SoftGateSettings):
+class MahonySettings(AhrsSettings, SoftGateSettings, RestSettings):
     PRESETS: ClassVar[dict[str, dict[str, Any]]] = {
         # the seed author's ESP32 firmware is both the reference and the seed here
         "reference": _FIRMWARE,
@@ -90,7 +95,8 @@ class MahonyEstimator(AhrsEstimator):
         have_a, use_m = readings[0], readings[4]
         q0, q1, q2, q3, ix, iy, iz, gate_open, weight, lx, ly, lz = self._sample_kernel(
             *self._q, *self._integral, gx, gy, gz, *readings,
-            self._kp, self._ki, self._gate_lower_g, self._gate_upper_g, self._soft_width, dt, *f)
+            self._kp, self._ki, self._gate_lower_g, self._gate_upper_g, self._soft_width, dt,
+            self._at_rest, *f)
         self._q = (q0, q1, q2, q3)
         self._linear_ned = (lx, ly, lz)
         self._integral = (ix, iy, iz)
@@ -99,11 +105,14 @@ class MahonyEstimator(AhrsEstimator):
         return {"dt_s": dt, "turn_compensation": self._kinematics.source,
                 "gate_open": gate_open, "accel_used": gate_open,
                 "mag_used": gate_open and use_m, "gyro_bias_rad_s": (-ix, -iy, -iz),
-                "accel_weight": weight}
+                "accel_weight": weight, "at_rest": self._at_rest,
+                "rest_gyro_bias_rad_s": self.rest_gyro_bias_rad_s}
 
     def _step(self, step: ImuStep) -> dict[str, Any]:
         accel = step.accel_g
-        gate_open, weight = self._gate.gates(accel, self.settings.accel_soft_gate_g, self._q)
+        # at rest the reading is gravity: no soft gate
+        gate_open, weight = self._gate.gates(
+            accel, None if self._at_rest else self.settings.accel_soft_gate_g, self._q)
         if accel is not None and not gate_open:
             self._counters["gate_closed_steps"] += 1
         mag = step.mag_ut if self.settings.use_mag else None
@@ -117,23 +126,26 @@ class MahonyEstimator(AhrsEstimator):
             "mag_used": gate_open and mag is not None,
             "gyro_bias_rad_s": self.gyro_bias_rad_s,
             "accel_weight": weight,
+            "at_rest": self._at_rest,
+            "rest_gyro_bias_rad_s": self.rest_gyro_bias_rad_s,
         }
 
     _compiled_kernel: ClassVar[Kernel | None] = mahony_rows
-    _kernel_diag_width: ClassVar[int] = 6
+    _kernel_diag_width: ClassVar[int] = 10
 
     def _run_kernel(self, gyro: FloatArray, accel: FloatArray, mag: FloatArray,
                     dts: FloatArray, out: FloatArray, diag: FloatArray) -> bool:
         """The rows in the compiled kernel (``fast`` extra); see ``AhrsEstimator._run_kernel``."""
         s = self.settings
         gate = self._gate
+        rest, params = self._rest_arrays()
         q, integral, turn_sum, closed = self._rows_kernel()(
             np.array(self._q), np.array(self._integral), gyro, accel, mag, dts, float(s.kp),
             float(s.ki), gate.lower_g, gate.upper_g,
             0.0 if s.accel_soft_gate_g is None else float(s.accel_soft_gate_g), s.use_mag,
-            s.turn_compensation, self._kinematics.turn_sum, out, diag)
+            s.turn_compensation, self._kinematics.turn_sum, out, diag, rest, params)
         self._integral = (float(integral[0]), float(integral[1]), float(integral[2]))
-        self._kernel_finished(q, len(gyro), closed, turn_sum)
+        self._kernel_finished(q, len(gyro), closed, turn_sum, rest)
         return True
 
     def _block_kernel(self) -> bool:
@@ -143,15 +155,16 @@ class MahonyEstimator(AhrsEstimator):
                                 ) -> list[dict[str, Any]]:
         return [{"dt_s": dt, "turn_compensation": source, "gate_open": g == 1.0,
                  "accel_used": g == 1.0, "mag_used": m == 1.0, "gyro_bias_rad_s": (bx, by, bz),
-                 "accel_weight": w}
-                for dt, (g, m, w, bx, by, bz) in zip(dts.tolist(), diag.tolist(), strict=True)]
+                 "accel_weight": w, "at_rest": r == 1.0, "rest_gyro_bias_rad_s": (rx, ry, rz)}
+                for dt, (g, m, w, r, rx, ry, rz, bx, by, bz) in zip(dts.tolist(), diag.tolist(),
+                                                                    strict=True)]
 
     def _kernel_diagnostics(self, diag: FloatArray) -> dict[str, Any]:
         gate_open = diag[:, 0].astype(np.int64)
         return {"gate_open": gate_open, "accel_used": gate_open,
-                "mag_used": diag[:, 1].astype(np.int64), "gyro_bias_rad_s_0": diag[:, 3],
-                "gyro_bias_rad_s_1": diag[:, 4], "gyro_bias_rad_s_2": diag[:, 5],
-                "accel_weight": diag[:, 2]}
+                "mag_used": diag[:, 1].astype(np.int64), "gyro_bias_rad_s_0": diag[:, 7],
+                "gyro_bias_rad_s_1": diag[:, 8], "gyro_bias_rad_s_2": diag[:, 9],
+                "accel_weight": diag[:, 2], **rest_columns(diag)}
 
     @property
     def gyro_bias_rad_s(self) -> Vec:

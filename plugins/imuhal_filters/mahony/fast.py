@@ -18,15 +18,16 @@ from imuhal_filters.common.fast_frames import linear_accel_ned
 
 
 def _mahony_rows(q_in, integral_in, gyro, accel, mag, dts, kp, ki, gate_lo, gate_hi,
-                 soft_width, use_mag, turn_on, turn_sum, out, diag):
+                 soft_width, use_mag, turn_on, turn_sum, out, diag, rest, rest_params):
     """One step per row: the shared row loop (``common/fast_ahrs.py``) with the Mahony step
-    (``out`` and ``diag`` as it fills them, ``diag`` of 6 columns: the gyro bias last).
+    (``out``, ``diag`` and the rest detector's state ``rest`` as it fills them, ``diag`` of
+    10 columns: the integral's gyro bias last).
     Returns the final quaternion, integral feedback, turn-rate sum and steps with the gate
     closed."""
     state, turn_sum, closed = mahony_step_rows(
         (q_in[0], q_in[1], q_in[2], q_in[3], integral_in[0], integral_in[1], integral_in[2]),
         (kp, ki, gate_lo, gate_hi, soft_width), gyro, accel, mag, dts, use_mag, turn_on,
-        turn_sum, out, diag)
+        turn_sum, out, diag, rest, rest_params)
     return (np.array([state[0], state[1], state[2], state[3]]),
             np.array([state[4], state[5], state[6]]), turn_sum, closed)
 
@@ -35,11 +36,13 @@ mahony_rows = jit(
     _mahony_rows, returns="Tuple((f8[::1], f8[::1], f8, i8))", q_in="f8[::1]",
     integral_in="f8[::1]", gyro="f8[:, ::1]", accel="f8[:, ::1]", mag="f8[:, ::1]",
     dts="f8[::1]", kp="f8", ki="f8", gate_lo="f8", gate_hi="f8", soft_width="f8",
-    use_mag="b1", turn_on="b1", turn_sum="f8", out="f8[:, ::1]", diag="f8[:, ::1]")
+    use_mag="b1", turn_on="b1", turn_sum="f8", out="f8[:, ::1]", diag="f8[:, ::1]",
+    rest="f8[::1]", rest_params="f8[::1]")
 """The compiled kernel (see common/fast.py: the extension, or numba on the first call)."""
 
 
-def _mahony_step(state, params, gx, gy, gz, have_a, ax, ay, az, have_m, mx0, my0, mz0, dt):
+def _mahony_step(state, params, gx, gy, gz, have_a, ax, ay, az, have_m, mx0, my0, mz0, dt,
+                 at_rest):
     """One step: ``MahonyEstimator._step`` with ``mahony_step`` on scalars, in the same order
     of operations; a step of the shared row loop (``state`` the quaternion and
     the integral feedback, ``params`` (kp, ki, gate_lo, gate_hi, soft_width)). ``a`` is the
@@ -48,8 +51,9 @@ def _mahony_step(state, params, gx, gy, gz, have_a, ax, ay, az, have_m, mx0, my0
     the gate was open, the soft-gate weight and the gyro bias (minus the integral)."""
     q0, q1, q2, q3, ix, iy, iz = state
     kp, ki, gate_lo, gate_hi, soft_width = params
+    # at rest the reading is gravity: no soft gate (weight 1)
     gate_open, weight = accel_gate_kernel(have_a, ax, ay, az, q0, q1, q2, q3, gate_lo,
-                                         gate_hi, soft_width)
+                                         gate_hi, 0.0 if at_rest else soft_width)
     kpw, kiw = kp * weight, ki * weight
     if gate_open:
         n = math.sqrt(ax * ax + ay * ay + az * az)
@@ -104,12 +108,13 @@ mahony_step_rows = ahrs_rows(mahony_step_kernel)
 
 
 def _mahony_sample(q0, q1, q2, q3, ix, iy, iz, gx, gy, gz, have_a, ax, ay, az, have_m, mx0,
-                   my0, mz0, kp, ki, gate_lo, gate_hi, soft_width, dt, fx, fy, fz):
-    """The step called from Python once per sample (``process()``; see ``madgwick_sample``),
+                   my0, mz0, kp, ki, gate_lo, gate_hi, soft_width, dt, at_rest, fx, fy, fz):
+    """The step called from Python once per sample (``process()``; see ``madgwick_sample``:
+    ``g`` less the bias learned at rest, ``at_rest`` the caller's rest detector's verdict),
     with the gravity-compensated acceleration in NED last."""
     (w, x, y, z, ix, iy, iz), gate_open, weight, _ = mahony_step_kernel(
         (q0, q1, q2, q3, ix, iy, iz), (kp, ki, gate_lo, gate_hi, soft_width), gx, gy, gz,
-        have_a, ax, ay, az, have_m, mx0, my0, mz0, dt)
+        have_a, ax, ay, az, have_m, mx0, my0, mz0, dt, at_rest)
     lx, ly, lz = linear_accel_ned(w, x, y, z, fx, fy, fz)
     return w, x, y, z, ix, iy, iz, gate_open, weight, lx, ly, lz
 
@@ -119,5 +124,6 @@ mahony_sample = per_sample_kernel(jit(
     q0="f8", q1="f8", q2="f8", q3="f8", ix="f8", iy="f8", iz="f8", gx="f8", gy="f8", gz="f8",
     have_a="b1",
     ax="f8", ay="f8", az="f8", have_m="b1", mx0="f8", my0="f8", mz0="f8", kp="f8", ki="f8",
-    gate_lo="f8", gate_hi="f8", soft_width="f8", dt="f8", fx="f8", fy="f8", fz="f8"))
+    gate_lo="f8", gate_hi="f8", soft_width="f8", dt="f8", at_rest="b1", fx="f8", fy="f8",
+    fz="f8"))
 """The per-sample kernel (used per sample only on the AOT extension: ``Kernel.per_sample``)."""
