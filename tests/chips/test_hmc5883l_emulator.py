@@ -8,6 +8,7 @@ from imuhal.bus.base import BusKind
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.samples import Quantity
 from imuhal.emulation import EmulatedBus, PhysicalInputs
+from imuhal.emulation.faults import BoardFaults, StuckDataReady
 from imuhal_chips.hmc5883l.decode import data_counts_xyz
 from imuhal_chips.hmc5883l.emulator import Hmc5883lEmulator
 
@@ -145,6 +146,31 @@ def test_silent_reset_restores_defaults_and_stuck_fault_clears_on_mode_write() -
     assert bus.transfer(A, b"\x09", 1)[0] & 0x01
     emu.silent_reset()
     assert bus.transfer(A, b"\x00", 3) == bytes([0x10, 0x20, 0x01])
+
+
+def test_after_stuck_data_ready_ends_the_chip_measures_on_its_cadence_nothing_inside() -> None:
+    """No measurement completes while StuckDataReady lasts; when it ends without a Mode
+    write, the next comes on the chip's own cadence (1 / 75 Hz from the Mode write). A chip
+    that completed the one it owed at the first read after the fault would hand out a
+    field dated inside the fault, up to a period later than a measurement can be read."""
+    clock, bus, emu = rig()
+    faults = BoardFaults(clock, {"mag": emu}, faults=[
+        StuckDataReady(device="mag", start_s=0.1, end_s=0.3)])
+    continuous(bus, clock)
+    period_ns = round(1e9 / 75)
+    clock.sleep_until(100_000_000)
+    faults.sync()
+    bus.transfer(A, b"\x03", 6)
+    before = list(emu.measured_ns)  # all that fell due before the fault
+    assert len(before) == 100_000_000 // period_ns
+    clock.sleep_until(300_000_000)
+    faults.sync()
+    bus.transfer(A, b"\x03", 6)  # the first read after the fault: nothing new
+    assert list(emu.measured_ns) == before
+    clock.sleep(period_ns / 1e9)
+    bus.transfer(A, b"\x03", 6)
+    (first_after,) = list(emu.measured_ns)[len(before):]
+    assert first_after >= 300_000_000 and (first_after - before[0]) % period_ns == 0
 
 
 def test_a_reset_chip_measures_once_at_its_power_on_gain_then_idles_with_rdy_set() -> None:

@@ -63,7 +63,12 @@ def test_faults_behind_the_master_never_make_a_kept_copy_valid(registry: Registr
               StuckDataReady(device="mag", start_s=3.0, end_s=3.5),
               AllOnes(device="mag", start_s=4.0, end_s=4.3)]
     with open_emulated(profile, registry, scenario="thermal", seed=SEED, faults=faults) as p:
-        events = list(p.events(6.0))
+        events, before = [], None
+        for event in p.events(6.0):
+            if before is None and event.t_ns >= 3_900_000_000:
+                before = p.summary()  # the counts before the line reads 0xFF
+            events.append(event)
+        assert before is not None
         truth = p.board.truth_at
         summary = p.summary()
         instants = list(p.board.emulators["mag"].measured_ns)
@@ -78,13 +83,43 @@ def test_faults_behind_the_master_never_make_a_kept_copy_valid(registry: Registr
     for start_s, end_s in ((2.0, 2.5), (3.0, 3.5), (4.0, 4.3)):
         assert not [m for m in valid if start_s + LATENCY_S < m.t_ns / 1e9 < end_s]
     assert summary.flagged["mag"].get("STALE", 0) > 0
-    assert summary.device_errors["mag"] > 0
+    # the line reading 0xFF is an error of the magnetometer: a garbled fuse-ROM read (bus
+    # error) when its reconfiguration meets it first, CNTL1 reading back 0xFF (device
+    # error) when the window begins between the two
+    assert summary.bus_errors["mag"] + summary.device_errors["mag"] > \
+        before.bus_errors["mag"] + before.device_errors["mag"]
     assert all(m.flags & (SampleFlag.STALE | SampleFlag.BLANK | SampleFlag.FROZEN)
                for m in mags if not m.valid)
     for m in valid:
         want = truth(m.t_ns).magnetic_field_body_ut
         assert float(np.linalg.norm(np.asarray(m.vector) - want)) <= MAG_BOUND_UT, m
     assert len([m for m in valid if m.t_ns > 5.0e9]) >= 0.9 * 100
+
+
+def test_a_hung_magnetometer_measures_nothing_inside_the_hang_and_each_after_it_once(
+        registry: Registry) -> None:
+    """StuckDataReady: no AK8963 measurement completes while it lasts, and after it the
+    chip measures on its own cadence again; each measurement after it is one valid field,
+    stamped after it by at most the copy latency. (An emulator that completed the
+    instants it owed at the first read after the hang handed the MPU's copy at 3.500 s a
+    field dated 3.4935 s, stamped 3.5039 s: after the next measurement, 3.5035 s, whose
+    own copy then made it count twice.)"""
+    profile = load_profile(PROFILE, registry)
+    start_ns, end_ns = 3_000_000_000, 3_500_000_000
+    faults = [StuckDataReady(device="mag", start_s=start_ns / 1e9, end_s=end_ns / 1e9)]
+    with open_emulated(profile, registry, scenario="thermal", seed=SEED, faults=faults) as p:
+        events = list(p.events(4.0))
+        instants = list(p.board.emulators["mag"].measured_ns)
+        (spec,) = p.devices["mag"].driver.streams()
+    latency_ns = round(spec.latency_s * 1e9)
+    assert not [t for t in instants if start_ns <= t < end_ns]
+    after = [m.t_ns for m in events
+             if isinstance(m, MagSample) and m.valid and end_ns < m.t_ns <= 3_900_000_000]
+    taken = [bisect_right(instants, t) - 1 for t in after]
+    assert len(set(taken)) == len(taken)
+    assert all(0 < t - instants[k] <= latency_ns for t, k in zip(after, taken, strict=True))
+    measured = {k for k, t in enumerate(instants) if end_ns <= t <= 3_900_000_000 - latency_ns}
+    assert measured and measured <= set(taken)
 
 
 def test_the_gy91_on_i2c_auto_reads_through_its_master_too(registry: Registry) -> None:

@@ -22,7 +22,8 @@ sensitivity (0.15 or 0.6 uT/LSB) times the part's ASA adjustment, so the driver'
 recovers the true field. Sensitivities and the adjustment are this module's own, written
 from the register map (Hadj = H * ((ASA - 128) * 0.5 / 128 + 1)), never the driver's.
 
-Faults: ``wia`` (clone), ``stuck_data_ready`` (no measurement completes), ``silent_reset()``,
+Faults: ``wia`` (clone), ``stuck_data_ready`` (no measurement completes while it lasts; the
+continuous mode then resumes on its own cadence, nothing dated inside the hang), ``silent_reset()``,
 ``absent`` and bus errors through the bus.
 
 Source of facts: MPU-9250 Register Map rev 1.4 section 5; imuhal shared chip facts section 4.
@@ -86,6 +87,20 @@ class AK8963Emulator(ChipEmulator):
         self._reset()
 
     # -- fault injection --------------------------------------------------------------------
+
+    @property
+    def stuck_data_ready(self) -> bool:
+        """The measurement engine hangs (fault injection): no measurement completes."""
+        return self._hung
+
+    @stuck_data_ready.setter
+    def stuck_data_ready(self, hung: bool) -> None:
+        # The chip's state is brought up to date at each transfer: bring it up to now first,
+        # so that what fell due before the hang began is measured and what fell due while
+        # it lasted is not (whatever transfer comes next).
+        if hung != getattr(self, "_hung", hung) and getattr(self, "_next_ns", None) is not None:
+            self._advance()
+        self._hung = hung
 
     def corrupt_trim(self, rng: random.Random, bits: int = 1) -> str:
         """Flip ``bits`` random bits of the fuse-ROM sensitivity adjustment (ASAX..ASAZ)."""
@@ -172,7 +187,10 @@ class AK8963Emulator(ChipEmulator):
 
     def _advance(self) -> None:
         now = self.now_ns()
-        while self._next_ns is not None and self._next_ns <= now and not self.stuck_data_ready:
+        if self.stuck_data_ready:
+            self._pass_hung(now)
+            return
+        while self._next_ns is not None and self._next_ns <= now:
             self.pull_physics(self._next_ns)
             self._complete(self._measure())
             mode = self._mode()
@@ -187,6 +205,21 @@ class AK8963Emulator(ChipEmulator):
                 skipped = max(missed - 1, 0)
                 self.record_measurements(self._next_ns, period, 1 + skipped)
                 self._next_ns += (skipped + 1) * period
+
+    def _pass_hung(self, now: int) -> None:
+        """The engine hangs (``stuck_data_ready``): the continuous-mode instants due by
+        ``now`` pass with no measurement, none recorded, so after the hang the chip measures
+        on its own cadence again. Left due, the first read after the hang would complete
+        one dated inside it, copied up to a period later than any real measurement can be
+        (behind the MPU-9250 a sample then carries the measurement before the one its stamp
+        follows), and record every hung instant as measured when no CNTL1 write came
+        between."""
+        mode = self._mode()
+        due = self._next_ns
+        if due is None or due > now or mode not in _PERIOD_S_BY_MODE:
+            return
+        period = self._period_ns(mode)
+        self._next_ns = due + ((now - due) // period + 1) * period
 
     def _measure(self) -> tuple[bytes, int]:
         field = self.physics.magnetic_field_ut or (0.0, 0.0, 0.0)

@@ -25,7 +25,8 @@ issue 25 asks for (a change takes effect from the next measurement). Every measu
 instant is recorded (``measured_ns``), so a test can count what the chip produced.
 
 Fault injection: ``identity`` (e.g. b"\\x00\\x00\\x00" for a clone), ``stuck_data_ready``
-(measurements stop and RDY reads 0; writing the Mode register restarts them),
+(measurements stop and RDY reads 0; writing the Mode register restarts them; when the
+fault ends the continuous mode goes on on its own cadence, nothing dated inside it),
 ``silent_reset()`` (registers back to defaults unannounced), ``absent`` (base class) and bus
 errors via the EmulatedBus. Not modelled: self-test bias fields, high-speed I2C, averaging
 noise, the 250 us RDY-low window while data are written.
@@ -116,6 +117,20 @@ class Hmc5883lEmulator(ChipEmulator):
         self.measurements = 0
         self._oscillator_error = 0.0
         self.power_on_reset()
+
+    @property
+    def stuck_data_ready(self) -> bool:
+        """Measurements stopped (fault injection): none completes, RDY reads 0."""
+        return self._hung
+
+    @stuck_data_ready.setter
+    def stuck_data_ready(self, hung: bool) -> None:
+        # The chip's state is brought up to date at each transfer: bring it up to now first,
+        # so that what fell due before the fault began is measured and what fell due while
+        # it lasted is not (whatever transfer comes next).
+        if hung != getattr(self, "_hung", hung) and getattr(self, "_next_ns", None) is not None:
+            self._advance()
+        self._hung = hung
 
     # --- state ----------------------------------------------------------------------------
 
@@ -215,7 +230,10 @@ class Hmc5883lEmulator(ChipEmulator):
     def _advance(self) -> None:
         now = self.now_ns()
         due = self._next_ns
-        if due is None or now < due or self.stuck_data_ready:
+        if due is None or now < due:
+            return
+        if self.stuck_data_ready:
+            self._pass_hung(due, now)
             return
         if self.regs[Reg.MODE] & MODE_MD_MASK == MODE_SINGLE:
             self.record_measurements(due, 0, 1)
@@ -235,6 +253,16 @@ class Hmc5883lEmulator(ChipEmulator):
             self._ahead_until_ns = self.announce_pulls(newest, period, now)
         self.pull_physics(newest)
         self._measure()
+
+    def _pass_hung(self, due: int, now: int) -> None:
+        """Measurements stopped (``stuck_data_ready``): the continuous-mode instants due by
+        ``now`` pass unmeasured and unrecorded, so once the fault ends the chip measures on
+        its own cadence again with nothing dated inside it (left due, the first read after
+        it would complete one of them, up to a period later than a real measurement shows).
+        A single measurement stays pending."""
+        period = self._period_ns()
+        if self.regs[Reg.MODE] & MODE_MD_MASK == MODE_CONTINUOUS and period:
+            self._next_ns = due + ((now - due) // period + 1) * period
 
     # --- bus face -------------------------------------------------------------------------
 
