@@ -48,7 +48,8 @@ class DecoupledSettings(AhrsSettings):
         "handheld": {"accel_soft_gate_g": None, "tau_acc_s": 3.0, "tau_acc_rest_s": None,
                      "turbulence_rate_deg_s": None, "innovation_speed_m_s": None,
                      "manoeuvre_speed_m_s": None},
-        # the defaults by name (a profile can say what it relies on)
+        # the flight settings before the manoeuvre detector (issue 27): a fixed gate, 10 s
+        # and the turbulence correction; kept to reproduce the earlier figures
         "flight": {"accel_soft_gate_g": 0.02, "tau_acc_s": 10.0, "tau_acc_rest_s": 3.0,
                    "turbulence_rate_deg_s": 3.0, "innovation_speed_m_s": None,
                    "manoeuvre_speed_m_s": None},
@@ -62,28 +63,28 @@ class DecoupledSettings(AhrsSettings):
 
     tau_acc_s: float = Field(3.0, gt=0.0)
     """Mean delay (s) of the accelerometer low-pass in the almost-inertial frame: the
-    inclination correction's speed. Default 10 s, for flight: turns last longer than hand
-    motion (flight benchmark `thermal` tilt RMS 0.92 against 2.58 deg at 3 s); VQF's published
-    3 s is ``preset: handheld`` (docs/estimators.md)."""
+    inclination correction's speed. Default VQF's published 3 s: what a vehicle's longer
+    turns would add to it, the manoeuvre detector keeps out (``manoeuvre_speed_m_s``);
+    ``preset: flight`` has 10 s and a gate instead (docs/estimators.md)."""
     tau_acc_rest_s: float | None = Field(None, gt=0.0)
     """At rest (``rest_detected``) the accelerometer filter runs with this time constant (s)
-    instead: the specific force is gravity alone, what is left is gyro drift (flight default
-    3 s: on the ground before launch the flight filter converges as fast as the hand-held
-    one). None: ``tau_acc_s`` always (VQF, ``preset: handheld``)."""
+    instead: the specific force is gravity alone, what is left is gyro drift (``preset:
+    flight`` 3 s: on the ground its 10 s filter converges as fast as the hand-held one).
+    None (default): ``tau_acc_s`` always (VQF)."""
     accel_soft_gate_g: float | None = Field(None, gt=0.0)
     """Share of each step the inclination filter advances by, 1 / (1 + (| |a| - 1 g | /
-    width)^2) (common/gate.py): a reading away from 1 g is trusted less. Default 0.02 g:
-    in flight it is needed (`rc-flight` max 5.4 deg, 40.7 without); None (VQF's choice,
-    ``preset: handheld``): every reading in full, which hand-held motion needs (BROAD 9-DOF
-    total 2.33 deg, 5.45 with the flight defaults): docs/estimators.md."""
+    width)^2) (common/gate.py): a reading away from 1 g is trusted less (``preset: flight``
+    0.02 g). None (default, VQF's choice): every reading in full, which hand-held motion
+    needs (BROAD 9-DOF total 2.33 deg with ``preset: handheld``, 5.45 with ``preset:
+    flight``): docs/estimators.md."""
     turbulence_rate_deg_s: float | None = Field(None, gt=0.0)
     """In straight flight through turbulence (gusts keep |a| off 1 g, so the soft gate stays
     closed; detected from the spread and mean of |a| and the turn rate, ``turbulence.py``)
     the filtered accelerometer is also turned towards each reading at up to this rate
     (deg/s) times the gate's closed share, as madgwick corrects: the gyro error of
     aerobatics is walked back instead of kept (flight benchmark `rc-flight` tilt RMS 1.2
-    against 4.2 deg without; `thermal` unchanged). None: off (``preset:
-    handheld``; without a soft gate it never acts)."""
+    against 4.2 deg without; `thermal` unchanged; ``preset: flight`` 3). None (default):
+    off; without a soft gate it never acts."""
     innovation_speed_m_s: float | None = Field(None, gt=0.0)
     """Weight each step of the accelerometer filter by the innovation speed
     (common/innovation.py): the filter's innovation (the reading minus its gravity,
