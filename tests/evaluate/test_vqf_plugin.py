@@ -20,10 +20,12 @@ def _ned(key: str, kind: VectorKind) -> np.ndarray:
     return vector_to_ned(TRIAL[key], ENU, kind)
 
 
-@pytest.mark.parametrize("withhold", [{}, {"withhold_speed_m_s": 3.0}])
+@pytest.mark.parametrize("withhold", [{}, {"withhold_speed_m_s": 3.0},
+                                      {"manoeuvre_speed_m_s": None}])
 @pytest.mark.parametrize("use_mag", [True, False])
 def test_outputs_equal_the_packages_own(use_mag, withhold):
-    # slow hand-held motion: the input preprocessing, when asked for, withholds nothing
+    # slow hand-held motion: the input preprocessing (the manoeuvre detector by default, the
+    # speed bound when asked for) withholds nothing
     est = VqfEstimator({"sample_period_s": TS, "use_mag": use_mag, **withhold})
     q = run_batch(est, _ned("imu_gyr", VectorKind.ANGULAR_RATE),
                   _ned("imu_acc", VectorKind.SPECIFIC_FORCE),
