@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import random
 from typing import Any
 
 import pytest
@@ -15,6 +16,7 @@ from imuhal.emulation import EmulatedBus, PhysicalInputs
 from imuhal_chips.bmp280 import registers as r
 from imuhal_chips.bmp280.driver import BMP280Driver, BMP280Settings
 from imuhal_chips.bmp280.emulator import BMP280Emulator
+from imuhal_chips.bmp280.error_spec import BMP280_ERROR_SPEC
 
 ADDRESS = 0x76
 FORMULAS_AGREE_PA = 0.5
@@ -269,3 +271,72 @@ def test_a_measurement_at_the_adc_rail_hidden_by_the_iir_filter_is_flagged() -> 
     assert 30_000.0 <= wild[0].pressure_pa <= 110_000.0  # the output alone looks fine
     assert [s.flags for s in after[:49]] == [SampleFlag.FILTER_SETTLING] * 49
     assert all(s.valid and abs(s.pressure_pa - 95_000.0) < 1.0 for s in after[49:])
+
+
+def _noisy_outputs(n: int, *, frozen_after: int | None = None, quiet: float = 1.0,
+                   **settings: Any) -> tuple[BMP280Driver, list[tuple[PressureSample, bytes]]]:
+    """``n`` pressure outputs of a chip at rest whose inputs carry ``quiet`` times the
+    datasheet's Gaussian noise (the simulator's error spec; seeded), its conversions hung
+    from output ``frozen_after`` on; each with the six data bytes the chip held then (read
+    on its bus face, as a logic analyser would see them)."""
+    clock, _bus, emu, driver = rig(**settings)
+    rng = random.Random(7)
+    noise_pa = quiet * BMP280_ERROR_SPEC["pressure"]["noise_std"]
+    noise_degc = quiet * BMP280_ERROR_SPEC["temperature"]["noise_std"]
+    driver.probe()
+    driver.configure()
+    got: list[tuple[PressureSample, bytes]] = []
+    t = driver.start(clock.now_ns())
+    while len(got) < n:
+        emu.frozen = frozen_after is not None and len(got) >= frozen_after
+        emu.set_physics(PhysicalInputs(pressure_pa=95_000.3 + rng.gauss(0.0, noise_pa),
+                                       temperature_degc=20.0 + rng.gauss(0.0, noise_degc)))
+        clock.sleep_until(t)
+        result = driver.poll(clock.now_ns())
+        words = emu.bus_transfer(BusKind.I2C, bytes([r.REG_PRESS_MSB]), 6)
+        got += [(p, words) for p in pressures(result.samples)]
+        t = result.next_poll_ns
+    return driver, got
+
+
+def _first_frozen(got: list[tuple[PressureSample, bytes]]) -> int:
+    return next(i for i, (p, _) in enumerate(got) if p.flags & SampleFlag.FROZEN)
+
+
+def _identical_before(got: list[tuple[PressureSample, bytes]], index: int) -> int:
+    """How many outputs before ``index`` held the same data bytes as the one just before."""
+    run = 0
+    while run < index and got[index - 1 - run][1] == got[index - 1][1]:
+        run += 1
+    return run
+
+
+def test_a_chip_with_the_datasheets_noise_learns_a_short_frozen_window() -> None:
+    """Filtered 20-bit words at the datasheet's noise seldom repeat: after learning, the
+    window is well under the fixed 41 at coefficient 4, and a healthy chip is never flagged
+    over 3,000 outputs."""
+    driver, got = _noisy_outputs(3000, iir_coefficient=4)
+    assert driver.frozen_window() <= 14
+    assert not any(p.flags & SampleFlag.FROZEN for p, _ in got)
+
+
+def test_a_chip_quieter_than_one_lsb_keeps_the_fixed_frozen_window() -> None:
+    """A part whose noise moves its filtered word by under one LSB (the conformance sweep's
+    dithered chip) repeats most outputs; the learned window stays at the fixed ceiling."""
+    driver, _ = _noisy_outputs(150, quiet=0.02, iir_coefficient=4)
+    assert driver.frozen_window() == 41
+
+
+def test_a_frozen_chip_is_flagged_at_the_learned_window() -> None:
+    driver, got = _noisy_outputs(300, frozen_after=200, iir_coefficient=4)
+    first = _first_frozen(got)
+    assert first > 200
+    # the window's first output is the one after window - 1 identical ones
+    assert _identical_before(got, first) == driver.frozen_window() - 1
+    assert all(p.flags & SampleFlag.FROZEN for p, _ in got[first:])
+
+
+def test_a_chip_frozen_while_the_driver_learns_keeps_the_fixed_window() -> None:
+    driver, got = _noisy_outputs(150, frozen_after=30, iir_coefficient=4)
+    assert driver.frozen_window() == 41
+    assert _identical_before(got, _first_frozen(got)) == 40

@@ -10,9 +10,11 @@ from imuhal.core.samples import SampleFlag
 from imuhal.drivers.validity import (
     FilterMemory,
     FrozenWatch,
+    LearnedFrozenWatch,
     StepWatch,
     blank_flag,
     range_flag,
+    wilson_upper,
 )
 
 
@@ -107,3 +109,46 @@ def test_a_step_watch_refuses_bounds_that_check_nothing_or_everything() -> None:
         StepWatch(max_rate_per_s=0.0, noise=1.0)
     with pytest.raises(ValueError, match="confirm >= 2"):
         StepWatch(max_rate_per_s=1.0, noise=1.0, confirm=1)
+
+
+def test_a_learned_frozen_window_holds_the_ceiling_until_enough_pairs_were_seen() -> None:
+    watch = LearnedFrozenWatch(30, learn_pairs=20, false_alarm=1e-6)
+    for i in range(20):  # 20 frames, 19 pairs, none repeated
+        assert watch.observe("adc", bytes([i])) is SampleFlag.OK
+    assert watch.window("adc") == 30
+    watch.observe("adc", b"\x40")  # the 20th pair
+    assert watch.window("adc") < 30
+
+
+def test_a_chip_that_never_repeats_is_flagged_at_its_learned_window() -> None:
+    watch = LearnedFrozenWatch(41, learn_pairs=100, false_alarm=0.3 ** 24)
+    for i in range(101):
+        watch.observe("adc", i.to_bytes(2, "big"))
+    n = watch.window("adc")
+    flags = [watch.observe("adc", b"\xff\xff") for _ in range(n)]
+    assert flags == [SampleFlag.OK] * (n - 1) + [SampleFlag.FROZEN]
+
+
+def test_a_chip_that_repeats_often_keeps_a_longer_window_never_beyond_the_ceiling() -> None:
+    often = LearnedFrozenWatch(41, learn_pairs=100, false_alarm=0.3 ** 24)
+    seldom = LearnedFrozenWatch(41, learn_pairs=100, false_alarm=0.3 ** 24)
+    for i in range(101):
+        often.observe("adc", bytes([i // 2]))  # every other pair repeats
+        seldom.observe("adc", bytes([i]))
+    assert seldom.window("adc") < often.window("adc") <= 41
+    assert often.window_for(100, 100) == 41  # a chip frozen while learning
+
+
+def test_learned_windows_are_kept_per_channel() -> None:
+    watch = LearnedFrozenWatch(20, learn_pairs=5, false_alarm=1e-3)
+    for i in range(6):
+        watch.observe("fast", bytes([i]))
+        watch.observe("slow", b"\x01")
+    assert watch.window("fast") < 20
+    assert watch.window("slow") == 20
+
+
+def test_the_wilson_bound_is_above_the_observed_rate_and_below_one() -> None:
+    assert 0.0 < wilson_upper(0, 100, 2.0) < 0.05
+    assert 0.3 < wilson_upper(30, 100, 2.0) < 0.4
+    assert wilson_upper(100, 100, 2.0) == 1.0

@@ -6,15 +6,17 @@ angular-rate recovery; dropping the clipped samples leaves a tilt error for many
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
+from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.core.quantities import Quantity
-from imuhal.core.samples import Frame, GyroSample, SampleFlag
+from imuhal.core.samples import AccelSample, Frame, GyroSample, SampleFlag
 from imuhal.core.streams import StreamSpec
 from imuhal.emulation.open import open_emulated
-from imuhal.estimation.outputs import AttitudeEstimate
+from imuhal.estimation.outputs import AttitudeEstimate, EstimateFlag, RejectedEstimate
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.loader import parse_profile
 from imuhal_filters.common.ahrs import _tilt_pulled
@@ -56,10 +58,15 @@ def _fly(registry: Registry, estimator: str, saturation: str
         return np.array(errors), ahrs.diagnostics()
 
 
-def _worst_after_the_roll(errors: np.ndarray) -> float:
+def _after_the_roll(errors: np.ndarray) -> np.ndarray:
+    """The tilt errors (deg) of the estimates in the window after the roll."""
     t = errors[:, 0]
     window = (t >= ROLL_ENDS_S + AFTER_S[0]) & (t <= ROLL_ENDS_S + AFTER_S[1])
-    return float(errors[window, 1].max())
+    return errors[window, 1]  # type: ignore[no-any-return]
+
+
+def _worst_after_the_roll(errors: np.ndarray) -> float:
+    return float(_after_the_roll(errors).max())
 
 
 @pytest.mark.parametrize("estimator", ["madgwick", "mahony"])
@@ -68,8 +75,10 @@ def test_a_rotation_beyond_the_range_is_recovered_within_a_degree(
     recovered, diag = _fly(registry, estimator, "recover")
     dropped, _ = _fly(registry, estimator, "drop")
     assert _worst_after_the_roll(recovered) < 1.0
-    # what dropping the clipped samples leaves: many degrees, for seconds
-    assert _worst_after_the_roll(dropped) > 5.0
+    # what dropping the clipped samples leaves: the roll unmeasured, so the attitude is
+    # withheld until the accelerometer checks it, or many degrees off
+    after = _after_the_roll(dropped)
+    assert after.size == 0 or after.max() > 5.0
     recovery = diag["angular_rate_recovery"]
     assert recovery["recoveries"] == 1 and recovery["clipped_samples"] > 50  # type: ignore[index]
     assert diag["invalid"]["gyro"] == 0  # type: ignore[index]
@@ -121,3 +130,65 @@ def test_a_saturated_reading_is_integrated_at_the_full_scale(registry: Registry)
 def _gyro_stream() -> list[StreamSpec]:
     return [StreamSpec("imu", Quantity.GYRO, Frame.SENSOR, 250.0,
                        full_scale=float(np.radians(250.0)))]
+
+
+def _feed(ahrs: Any, t0_s: float, t1_s: float, *, accel_m_s2: tuple[float, float, float],
+          gyro_flags: SampleFlag = SampleFlag.OK) -> list[Any]:
+    """Still gyro samples at 100 Hz from t0_s to t1_s (flagged as given), each after an
+    accelerometer sample reading ``accel_m_s2`` (body NED); the estimates they give."""
+    out: list[Any] = []
+    for k in range(round((t1_s - t0_s) * 100)):
+        t_ns = round((t0_s + k / 100) * 1e9)
+        ahrs.process(AccelSample(t_ns=t_ns, device="imu", flags=SampleFlag.OK,
+                                 frame=Frame.BODY_NED, accel_m_s2=accel_m_s2))
+        out += ahrs.process(GyroSample(t_ns=t_ns + 1, device="imu", flags=gyro_flags,
+                                       frame=Frame.BODY_NED, gyro_rad_s=(0.0, 0.0, 0.0)))
+    return out
+
+
+LEVEL = (0.0, 0.0, -STANDARD_GRAVITY_M_S2)
+ROLLED_20 = (0.0, -STANDARD_GRAVITY_M_S2 * np.sin(np.radians(20)),
+             -STANDARD_GRAVITY_M_S2 * np.cos(np.radians(20)))
+"""What a still accelerometer reads level, and rolled 20 deg right (body NED)."""
+
+
+def _madgwick(registry: Registry) -> Any:
+    return registry.estimators.get("madgwick")({"use_mag": False, "beta": 0.5,
+                                                "accel_soft_gate_g": None,
+                                                "sample_period_s": 0.01})
+
+
+def _withheld(estimates: list[Any]) -> int:
+    return sum(isinstance(e, RejectedEstimate) and bool(e.flags & EstimateFlag.UNSETTLED)
+               for e in estimates)
+
+
+def test_an_attitude_that_missed_a_rotation_is_withheld_until_the_accelerometer_agrees(
+        registry: Registry) -> None:
+    """Issue 26 (the soak, seed-rc-vario): 0.5 s of invalid gyro samples hid a 20 deg
+    roll; the filter's first estimates after them would be 20 deg off, so they are
+    withheld (UNSETTLED) until the accelerometer, reading 1 g, agrees within 5 deg."""
+    ahrs = _madgwick(registry)
+    assert _withheld(_feed(ahrs, 0.0, 1.0, accel_m_s2=LEVEL)) == 0
+    _feed(ahrs, 1.0, 1.5, accel_m_s2=ROLLED_20, gyro_flags=SampleFlag.BLANK)
+    after = _feed(ahrs, 1.5, 6.0, accel_m_s2=ROLLED_20)
+    first_out = next(i for i, e in enumerate(after) if isinstance(e, AttitudeEstimate))
+    assert first_out > 0 and _withheld(after[:first_out]) == first_out
+    released = after[first_out]
+    assert abs(tilt_error_deg(released.q_body_to_ned,
+                              (np.cos(np.radians(10)), np.sin(np.radians(10)), 0.0, 0.0))) \
+        <= 5.01
+    assert all(isinstance(e, AttitudeEstimate) for e in after[first_out:])
+
+
+def test_a_short_gap_or_an_unchanged_attitude_is_not_withheld(registry: Registry) -> None:
+    ahrs = _madgwick(registry)
+    _feed(ahrs, 0.0, 1.0, accel_m_s2=LEVEL)
+    # under max_dt_s (0.1 s) of dropped samples: the filter steps on as usual
+    _feed(ahrs, 1.0, 1.05, accel_m_s2=ROLLED_20, gyro_flags=SampleFlag.BLANK)
+    assert _withheld(_feed(ahrs, 1.05, 1.5, accel_m_s2=ROLLED_20)) == 0
+    # a long gap in which nothing turned: the accelerometer confirms the attitude at once
+    ahrs = _madgwick(registry)
+    _feed(ahrs, 0.0, 1.0, accel_m_s2=LEVEL)
+    _feed(ahrs, 1.0, 1.5, accel_m_s2=LEVEL, gyro_flags=SampleFlag.BLANK)
+    assert _withheld(_feed(ahrs, 1.5, 2.0, accel_m_s2=LEVEL)) == 0

@@ -3,7 +3,8 @@ the fault-injection interface; found by the soak on every bundled board
 (tests/benchmarks/soak.py).
 
 The soak's gy91 run froze the barometer in a glide: the driver waited for 41 identical
-outputs (a window sized for the unfiltered x1 chip, then grown with the filter), so the
+outputs (a window sized for the unfiltered x1 chip, then grown with the filter; now the
+ceiling of a window learned from the chip's own repeat odds), so the
 frozen pressure stayed valid for a second while the flight moved on, and after the chip
 thawed its filter blended the frozen word into outputs that left valid, up to 50 Pa off.
 """
@@ -56,14 +57,12 @@ def frozen_climb() -> list[tuple[PressureSample, float]]:
     return out
 
 
-@pytest.mark.xfail(strict=True, reason="the window from the configuration's repeat odds (14 "
-                   "at IIR 4) flagged the conformance sweep's sub-LSB dithered chip FROZEN; "
-                   "the fixed 25 + 4 x coefficient window is back (41 at IIR 4)")
 def test_a_frozen_bmp280_behind_its_filter_is_flagged_within_half_a_second(
         frozen_climb: list[tuple[PressureSample, float]]) -> None:
     """At coefficient 4 the filtered word is 20 bits: a working chip repeats it far less
-    often than the unfiltered x1 chip the old window was sized for, so 14 identical outputs
-    (after the filter has settled on the hung word) are enough."""
+    often than the unfiltered x1 chip the fixed window (41) was sized for. The driver learns
+    how often this chip repeats at start-up (13 outputs here), so the frozen chip is flagged
+    that many outputs after its filter has settled on the hung word."""
     frozen = [s.t_ns / 1e9 for s, _ in frozen_climb if s.flags & SampleFlag.FROZEN]
     assert frozen and FROZEN_FROM_S < frozen[0] <= FROZEN_FROM_S + 0.5
     before = [err for s, err in frozen_climb if s.valid and s.t_ns / 1e9 < FROZEN_FROM_S]

@@ -45,7 +45,7 @@ from imuhal.drivers.base import (
     SettingsInput,
 )
 from imuhal.drivers.polling import PollGrid, ResetWatch
-from imuhal.drivers.validity import FilterMemory, FrozenWatch, iir_memory_outputs
+from imuhal.drivers.validity import FilterMemory, LearnedFrozenWatch, iir_memory_outputs
 from imuhal_chips.bmp280 import registers as r
 from imuhal_chips.bmp280.compensation import (
     Trim,
@@ -141,16 +141,26 @@ class BMP280Driver(Driver):
     FROZEN_AFTER_FRAMES = 25
     """Identical pressure + temperature ADC words in a row that mean the conversions hung
     (normal mode keeps the last result readable forever). Unfiltered, the quietest setting
-    (x1 oversampling, 2.6 Pa/LSB, 1.3 Pa noise) repeats the pair with probability about 0.3;
-    25 in a row (1 s at 25 Hz), about 1e-13 per sample. The IIR filter makes consecutive
-    outputs follow each other over about ``iir_coefficient`` samples, so the window grows by
-    ``FROZEN_IIR_FACTOR`` times the coefficient (41 samples, 1.6 s at 25 Hz by default).
+    (x1 oversampling, 2.6 Pa/LSB, 1.3 Pa noise) repeats the pair with probability about
+    FROZEN_REPEAT_X1; 25 in a row (1 s at 25 Hz), about 1e-13 per sample. The IIR filter
+    makes consecutive outputs follow each other over about ``iir_coefficient`` samples, so
+    this fixed window grows by ``FROZEN_IIR_FACTOR`` times the coefficient (41 at 4).
 
-    A window from the configuration's own repeat odds (14 outputs at coefficient 4) was
-    tried after the soak found a frozen gy91 BMP280 handing out valid pressures up to 32 Pa
-    off; it assumed the datasheet's noise, and flagged the conformance sweep's quiet (sub-LSB
-    dithered) chip FROZEN at every setting, so it was taken back. The frozen output still
-    arms the filter memory (below)."""
+    That fixed window is the ceiling. A frozen gy91 BMP280 (IIR 4) handed out valid
+    pressures up to 32 Pa off in a climb before it was flagged (the soak): its filtered
+    20-bit words repeat far less often than the x1 chip's 16-bit ones. How much less
+    depends on the part's noise against its LSB, which the datasheet gives only as a typical
+    figure (a window from it flagged a quieter chip, the conformance sweep's sub-LSB
+    dithered one, FROZEN at every setting). So the driver learns the odds from the chip:
+    over its first FROZEN_LEARN_PAIRS outputs it counts the repeats, and the window becomes
+    the one whose false-alarm chance matches the fixed window's design
+    (``FROZEN_REPEAT_X1 ** (FROZEN_AFTER_FRAMES - 1)``) at an upper bound of the learned
+    odds (``LearnedFrozenWatch``): about 10 outputs for the emulated gy91 (0.2 s at its
+    50 Hz), the ceiling for a chip quieter than one LSB."""
+    FROZEN_REPEAT_X1 = 0.3
+    FROZEN_LEARN_PAIRS = 100
+    """Consecutive output pairs counted before the window is shortened (2 s at 50 Hz; the
+    ceiling holds meanwhile)."""
     FROZEN_IIR_FACTOR = 4
 
     def __init__(self, link: Link, settings: SettingsInput, *, device: str,
@@ -179,8 +189,10 @@ class BMP280Driver(Driver):
         # The BMP280 keeps its configuration in every poll burst, so the watch only counts
         # polls without a measurement; it never schedules a separate read-back.
         self._watch = ResetWatch(check_s=None)
-        self._frozen = FrozenWatch(self.FROZEN_AFTER_FRAMES
-                                   + self.FROZEN_IIR_FACTOR * self.settings.iir_coefficient)
+        self._frozen = LearnedFrozenWatch(
+            self.FROZEN_AFTER_FRAMES + self.FROZEN_IIR_FACTOR * self.settings.iir_coefficient,
+            learn_pairs=self.FROZEN_LEARN_PAIRS,
+            false_alarm=self.FROZEN_REPEAT_X1 ** (self.FROZEN_AFTER_FRAMES - 1))
         self._memory = FilterMemory({}, {})
 
     # -- identity ---------------------------------------------------------------------------
@@ -416,6 +428,11 @@ class BMP280Driver(Driver):
                 and PRESSURE_RANGE_PA[0] <= pressure <= PRESSURE_RANGE_PA[1]):
             return SampleFlag.OUT_OF_RANGE
         return SampleFlag.OK
+
+    def frozen_window(self) -> int:
+        """Identical outputs in a row that are FROZEN now: the learned window, or the fixed
+        ceiling while the driver is still learning the chip's repeat odds."""
+        return self._frozen.window("adc")
 
     def _frozen_flag(self, adc_p: int, adc_t: int) -> SampleFlag:
         return self._frozen.observe("adc", adc_p.to_bytes(3, "big") + adc_t.to_bytes(3, "big"))

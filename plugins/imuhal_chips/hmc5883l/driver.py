@@ -33,7 +33,10 @@ ones (and from the last sample handed out: a measurement that comes back after a
 master reset is not new). Bytes that stay the same for longer than a healthy chip's noise
 allows (``unchanged_periods``) are a chip that stopped or a master whose reads fail (it
 keeps the last data): flagged STALE at each poll after that, FROZEN once they have not
-changed for FROZEN_AFTER_FRAMES periods, never valid. Latency: the master copies a
+changed for FROZEN_AFTER_FRAMES periods, never valid. A reset the master's copies show as
+zeros (the data registers' power-on value) followed by the reset chip's one measurement in
+single mode: the configuration is read back before that measurement is handed out
+(``_reset_behind_blank``). Latency: the master copies a
 measurement at its next accelerometer measurement and the host reads it with the next
 burst (``AutoReadFeed.latency_ns``: one accelerometer period plus the IMU's poll guard,
 4.5 ms at 250 Hz); the driver polls that long plus its own guard (1/8 period) after each
@@ -343,6 +346,9 @@ class Hmc5883lDriver(Driver):
             else SampleFlag.OK
         changes = self._feed.take()
         if changes:
+            after_reset = self._reset_behind_blank(changes, now_ns)
+            if after_reset is not None:
+                return after_reset
             samples, blank = self._measurements(changes, now_ns)
             if samples:
                 self._fresh_ns = now_ns
@@ -365,6 +371,25 @@ class Hmc5883lDriver(Driver):
             sample = MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                                mag_ut=NAN3, flags=frozen or SampleFlag.STALE)
         return self._no_measurement(sample, now_ns)
+
+    def _reset_behind_blank(self, changes: list[tuple[int, bytes]],
+                            now_ns: int) -> PollResult | None:
+        """A copy of all-zero bytes followed by a measurement in one poll's copies: the
+        HMC5883L's data registers read 0 after power-on (datasheet tables 13-15) and a reset
+        chip then measures once at its power-on gain and averaging, in single mode, which
+        the six bytes the master copies cannot show (Mode is not among them). So before that
+        measurement is handed out the configuration is read back: off the plan, the copies
+        before the zeros are handed out, the measurement after them is STALE (counted, no
+        value) and the chip reconfigured. A blank alone in a poll is checked by
+        ``_no_measurement``; zeros from a master reset (the MAX21100 clears its copy) find
+        the HMC5883L as configured, and the copies go on as usual. None: nothing to do."""
+        last = max((k for k, (_, data) in enumerate(changes) if not any(data)), default=None)
+        if last is None or last == len(changes) - 1 or not self._off_plan():
+            return None
+        samples, _ = self._measurements(changes[:last], now_ns)
+        samples.append(MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
+                                 mag_ut=NAN3, flags=SampleFlag.STALE))
+        return PollResult(samples, self.restart(reset_detected=True))
 
     def _measurements(self, changes: list[tuple[int, bytes]],
                       now_ns: int) -> tuple[list[Sample], Sample | None]:

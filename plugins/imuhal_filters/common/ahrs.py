@@ -169,6 +169,15 @@ RECOVERY_RAMP = 0.5
 of the full scale came out of nowhere (the rate would have had to grow by half the range
 in one sample: 100,000 deg/s^2 on a 1000 deg/s gyro at 200 Hz), so it is taken for no
 rotation and the recovery's pull is limited to the rotation it integrated."""
+UNMEASURED_SPAN_CHECK_G = 0.05
+"""After a span of unmeasured rotation (``_after_dropped``), the accelerometer checks the
+attitude only while it reads within this much of 1 g (g; the soft gate's width): then it
+reads gravity, give or take the vibration, and not a manoeuvre's load."""
+UNMEASURED_SPAN_CHECKED_RAD = math.radians(5.0)
+"""After a span of unmeasured rotation, the attitude counts as checked once the
+accelerometer (within UNMEASURED_SPAN_CHECK_G of 1 g) agrees with it within this (rad): the
+seed filters' own tilt error in a turbulent cruise (3-4 deg on seed-rc-vario) stays
+inside it, the 13 deg an outage left in a pull-up does not."""
 RECOVERY_GAIN = 10.0
 """Angular-rate recovery: the extra tilt feedback's gain at its start (rad/s per unit of
 the sine of the tilt error; Fusion's start-up gain): the tilt error then falls with a time
@@ -351,6 +360,13 @@ class AhrsEstimator(Estimator):
         pull (rad; infinite before the first)."""
         self._last_rate: Vec = NO_VECTOR
         """The last gyro rate measured (not clipped), rad/s body."""
+        self._dropped_after_ns: int | None = None
+        """Set when gyro frames went unfused (dropped invalid, or counted lost): the time
+        stamp of the last step before them, then (``_unchecked``) kept until the
+        accelerometer has checked the attitude; None: every rotation was measured."""
+        self._unchecked = False
+        """The attitude missed more than ``max_dt_s`` of rotation and the accelerometer has
+        not confirmed it since: estimates are withheld (``_after_dropped``)."""
         self._q = IDENTITY
         identity = self.settings.initial_attitude == "identity"
         self._tilt_aligned = identity
@@ -422,6 +438,8 @@ class AhrsEstimator(Estimator):
             if item.frame is not _BODY_NED:  # type: ignore[union-attr]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
                 return self._wrong_frame(item)  # type: ignore[arg-type]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
             rate = self._last_rate = (float(x), float(y), float(z))
+            if self._dropped_after_ns is not None:
+                return self._after_dropped(item, rate)  # type: ignore[arg-type]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
             if self._recovery_left_s > 0.0:
                 return self._recovering(item, rate)  # type: ignore[arg-type]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
             return self._on_gyro(item, rate)  # type: ignore[arg-type]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
@@ -452,12 +470,10 @@ class AhrsEstimator(Estimator):
         limit = self._gyro_range_rad_s
         if (limit is None or not item.flags & SampleFlag.SATURATED or item.flags & ~_CLIPPED
                 or item.frame is not _BODY_NED or self.settings.gyro_saturation != "recover"):
-            self._counters["invalid"][_GYRO] += 1
-            return []
+            return self._dropped_gyro()
         x, y, z = item.gyro_rad_s
         if not (abs(x) < _INF and abs(y) < _INF and abs(z) < _INF):
-            self._counters["invalid"][_GYRO] += 1
-            return []
+            return self._dropped_gyro()
         counts = self._counters["angular_rate_recovery"]
         counts["clipped_samples"] += 1
         if self._recovery_left_s <= 0.0:
@@ -469,6 +485,72 @@ class AhrsEstimator(Estimator):
         clipped = (min(max(float(x), -limit), limit), min(max(float(y), -limit), limit),
                    min(max(float(z), -limit), limit))
         return self._recovering(item, clipped, self._clip_budget(clipped, limit))
+
+    def _dropped_gyro(self) -> list[Estimate]:
+        """An invalid gyro sample that is no clipped rate: dropped and counted, and the
+        span it leaves unmeasured remembered for the next valid one (``_after_dropped``)."""
+        self._counters["invalid"][_GYRO] += 1
+        if self._dropped_after_ns is None:
+            self._dropped_after_ns = self._last_gyro_t_ns
+        return []
+
+    def _after_dropped(self, item: GyroSample, rate: Vec) -> list[Estimate]:
+        """A valid gyro sample after gyro frames that went unfused (dropped invalid, or
+        counted lost: a StreamGap). Up to ``max_dt_s`` since the last step the filter goes
+        on as usual. Longer, the rotation in between went unmeasured (the step after a
+        counted loss integrates its true interval at the rate after it, which misses how
+        the rate went meanwhile): the attitude is unchecked, and its estimates are withheld
+        (UNSETTLED, counted ``unmeasured_withheld``) until the accelerometer, while it reads
+        within UNMEASURED_SPAN_CHECK_G of 1 g, agrees with it within
+        UNMEASURED_SPAN_CHECKED_RAD.
+
+        Found by the soak (seed-rc-vario, issue 26): a MAX21105 answering all ones for
+        0.5 s during a pull-up lost 13 deg of pitch (33 deg turned, 25 integrated at the
+        rate after the gap); in the turbulent aerobatics that followed, the accelerometer
+        rarely read 1 g, the Madgwick filter took about a minute to find its tilt again,
+        and the vario, fed the wrong vertical acceleration, gave 116 climb rates more than
+        3 m/s off in 300 s with nothing flagged. Withheld, the vario predicts those
+        intervals without acceleration and withholds its own estimates until the altitudes
+        have settled its climb rate (vario-kf3). Pulling the tilt towards the accelerometer
+        about every axis, as after a clip (Fusion's recovery), was tried: in the pull-up's
+        2.4 g it turned the attitude 60 deg off."""
+        last = self._dropped_after_ns
+        if not self._unchecked:
+            self._dropped_after_ns = None
+            if last is None or (item.t_ns - last) * _NS <= self._max_dt_s \
+                    or not self._tilt_aligned:
+                if self._recovery_left_s > 0.0:
+                    return self._recovering(item, rate)
+                return self._on_gyro(item, rate)
+            self._unchecked = True
+            self._dropped_after_ns = last
+        out = self._recovering(item, rate) if self._recovery_left_s > 0.0 \
+            else self._on_gyro(item, rate)
+        if out and self._accel_confirms():
+            self._unchecked = False
+            self._dropped_after_ns = None
+            return out
+        if not out:
+            return out
+        counts = self._counters["angular_rate_recovery"]
+        counts["unmeasured_withheld"] = counts.get("unmeasured_withheld", 0) + 1
+        return [RejectedEstimate(t_ns=item.t_ns, source=self.instance, kind="attitude",
+                                 flags=EstimateFlag.UNSETTLED, estimator=self.name)]
+
+    def _accel_confirms(self) -> bool:
+        """The newest accelerometer reading (fresh: within ``max_aux_age_s``) is within
+        UNMEASURED_SPAN_CHECK_G of 1 g and within UNMEASURED_SPAN_CHECKED_RAD of the gravity
+        the attitude predicts."""
+        accel, t_ns = self._accel_m_s2, self._accel_t_ns
+        if accel is None or t_ns is None or self._last_gyro_t_ns is None or (
+                self._max_aux_age_s is not None
+                and (self._last_gyro_t_ns - t_ns) * _NS > self._max_aux_age_s):
+            return False
+        g = gravity_positive_g(accel)
+        if abs(math.sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]) - 1.0) > \
+                UNMEASURED_SPAN_CHECK_G:
+            return False
+        return _tilt_pulled(self._q, g, 0.0)[2] <= UNMEASURED_SPAN_CHECKED_RAD
 
     def _clip_budget(self, clipped: Vec, limit: float) -> float:
         """The axes a clipped reading (rad/s, cut at +-``limit``) adds to the recovery's,
@@ -544,6 +626,8 @@ class AhrsEstimator(Estimator):
         if isinstance(item, StreamGap):
             if item.stream == Quantity.GYRO:
                 self._gap_at_ns = item.t_ns
+                if self._dropped_after_ns is None:  # frames lost: unmeasured, as dropped ones
+                    self._dropped_after_ns = self._last_gyro_t_ns
             return []
         if isinstance(item, VelocitySample):
             if item.valid and within_full_scale(item.velocity_ned_m_s, None):
@@ -576,6 +660,8 @@ class AhrsEstimator(Estimator):
                 self._mag_ut, self._mag_t_ns = _vec(item.mag_ut), item.t_ns
             return []
         rate = self._last_rate = _vec(item.gyro_rad_s)
+        if self._dropped_after_ns is not None:
+            return self._after_dropped(item, rate)
         if self._recovery_left_s > 0.0:
             return self._recovering(item, rate)
         return self._on_gyro(item, rate)
@@ -604,6 +690,8 @@ class AhrsEstimator(Estimator):
             "recovery_budget_rad": self._recovery_budget_rad,
             "recovery_apart_rad": self._recovery_apart_rad,
             "last_rate_rad_s": list(self._last_rate),
+            "dropped_after_ns": self._dropped_after_ns,
+            "unchecked": self._unchecked,
             "aligned": [self._tilt_aligned, self._heading_aligned],
             "kinematics": self._kinematics.as_dict(),
             "filter": self._filter_state(),
@@ -628,6 +716,8 @@ class AhrsEstimator(Estimator):
         self._recovery_budget_rad = float(state.get("recovery_budget_rad", _INF))
         self._recovery_apart_rad = float(state.get("recovery_apart_rad", _INF))
         self._last_rate = _vec(state.get("last_rate_rad_s", NO_VECTOR))
+        self._dropped_after_ns = state.get("dropped_after_ns")
+        self._unchecked = bool(state.get("unchecked", False))
         self._tilt_aligned, self._heading_aligned = (bool(v) for v in state["aligned"])
         self._kinematics.load_dict(state["kinematics"])
         self._no_speed = (self.settings.nominal_airspeed_m_s is None
@@ -779,7 +869,7 @@ class AhrsEstimator(Estimator):
             by_kind[b.kind] = b
         gyro = by_kind.get(GyroSample)
         if gyro is None or not self._block_kernel() or self._recovery_left_s > 0.0 \
-                or not self._kernel_allowed():
+                or self._dropped_after_ns is not None or not self._kernel_allowed():
             return None
         return gyro, by_kind.get(AccelSample), by_kind.get(MagSample)
 

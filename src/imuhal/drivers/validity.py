@@ -5,7 +5,8 @@ physically plausible for its chip.
   unpowered or missing chip, MISO or SDA stuck), never a measurement -> ``BLANK``.
 - ``FrozenWatch``: a converting chip's noise never repeats the same raw frame for long;
   ``n`` identical frames in a row -> ``FROZEN`` (a hung conversion still reporting its old
-  result). Each driver derives ``n`` from its chip's noise at its quietest setting.
+  result). Each driver derives ``n`` from its chip's noise at its quietest setting;
+  ``LearnedFrozenWatch`` shortens it to the repeat odds the chip shows at start-up.
 - ``range_flag``: a decoded value outside the limits the chip can report -> ``OUT_OF_RANGE``.
 - ``FilterMemory``: a chip that filters its outputs itself (an IIR filter, a digital
   low-pass, a moving average) carries a wrong measurement into the outputs after it, which
@@ -87,6 +88,75 @@ class FrozenWatch:
             if repeats >= self.n:
                 return True
         return False
+
+
+class LearnedFrozenWatch(FrozenWatch):
+    """A ``FrozenWatch`` whose window follows the repeat odds the chip itself shows.
+
+    How often a working chip repeats its frame depends on its noise against its LSB, which
+    the datasheet gives only as a typical figure per setting: a quieter part (or an on-chip
+    filter smoothing more than the table says) repeats more often, and a window sized from
+    the datasheet would flag it ``FROZEN``. So the watch starts with the fixed ``ceiling``
+    and counts, over the first ``learn_pairs`` consecutive frames of each key, how many are
+    repeats (``k`` of ``m``). The window then becomes the shortest ``n`` whose run of
+    ``n - 1`` repeats is no likelier than ``false_alarm``, at the Wilson score upper bound
+    of the repeat probability (``z`` = 2, about 98 % one-sided), never longer than
+    ``ceiling``. A chip that hangs while the watch learns shows a repeat probability near 1
+    and keeps the ceiling, as does a chip quieter than one LSB; the window never grows past
+    the fixed one it replaces. Runs of repeats in an AR(1)-filtered output are anti-
+    correlated (a repeat leaves the filter where the new measurement was, so the next
+    output moves by a full difference), so odds learned pair by pair are not optimistic."""
+
+    WILSON_Z = 2.0
+
+    def __init__(self, ceiling: int, *, learn_pairs: int, false_alarm: float) -> None:
+        super().__init__(ceiling)
+        if learn_pairs < 1 or not 0.0 < false_alarm < 1.0:
+            raise ValueError("learning needs at least one pair and a false-alarm chance "
+                             f"in (0, 1), got {learn_pairs} and {false_alarm}")
+        self.ceiling = ceiling
+        self.learn_pairs = learn_pairs
+        self.false_alarm = false_alarm
+        self._seen: dict[Hashable, tuple[int, int]] = {}
+        """Per key: (pairs compared, repeats among them) while learning."""
+        self.windows: dict[Hashable, int] = {}
+        """Per key: the learned window, once ``learn_pairs`` pairs were seen."""
+
+    def window(self, key: Hashable) -> int:
+        """The window in force for ``key``: learned, or the ceiling while learning."""
+        return self.windows.get(key, self.ceiling)
+
+    def observe(self, key: Hashable, frame: bytes) -> SampleFlag:
+        if key not in self.windows and key in self._last:
+            pairs, repeats = self._seen.get(key, (0, 0))
+            pairs, repeats = pairs + 1, repeats + (self._last[key] == frame)
+            self._seen[key] = (pairs, repeats)
+            if pairs >= self.learn_pairs:
+                self.windows[key] = self.window_for(repeats, pairs)
+        self.n = self.window(key)
+        return super().observe(key, frame)
+
+    def would_flag(self, key: Hashable, frames: Iterable[bytes]) -> bool:
+        self.n = self.window(key)
+        return super().would_flag(key, frames)
+
+    def window_for(self, repeats: int, pairs: int) -> int:
+        """The window for ``repeats`` of ``pairs`` consecutive frames being repeats."""
+        p_up = wilson_upper(repeats, pairs, self.WILSON_Z)
+        if p_up >= 1.0:
+            return self.ceiling
+        n = 1 + math.ceil(math.log(self.false_alarm) / math.log(p_up))
+        return max(2, min(self.ceiling, n))
+
+
+def wilson_upper(successes: int, trials: int, z: float) -> float:
+    """The Wilson score interval's upper end for a probability seen ``successes`` times in
+    ``trials`` (unlike ``successes / trials``, above 0 when nothing was seen)."""
+    p = successes / trials
+    z2 = z * z
+    centre = p + z2 / (2 * trials)
+    spread = z * math.sqrt(p * (1.0 - p) / trials + z2 / (4 * trials * trials))
+    return min(1.0, (centre + spread) / (1.0 + z2 / trials))
 
 
 VALUE_FLAGS = SampleFlag.SATURATED | SampleFlag.OUT_OF_RANGE | SampleFlag.OVERFLOW
