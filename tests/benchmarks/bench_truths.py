@@ -6,9 +6,9 @@ Run:  .venv/bin/python -m tests.benchmarks.bench_truths [--scenario thermal] [--
 For each batch size n, ``Scenario.chip_truths`` on n consecutive 250 Hz instants against
 ``Scenario.chip_truth`` at each of the same instants (the same floats:
 tests/sim/test_chip_truths.py), in us of CPU per instant, over the same simulated span
-after the position table it needs is filled. Why the MAX21100 emulator announces its
-instants a second ahead (``AHEAD_NS``) rather than per FIFO fill: numpy's cost per call
-outweighs the per-instant work below a few dozen instants.
+after the position table it needs is filled. Why a chip with its own clock announces its
+instants seconds ahead (``ChipEmulator.PULL_AHEAD_NS``) rather than per FIFO fill: numpy's
+cost per call outweighs the per-instant work below a few dozen instants.
 """
 
 from __future__ import annotations

@@ -14,6 +14,9 @@ with it: run it on the commit before the change and after (docs/performance.md).
 (imuhal.emulation.faults: bus errors on every device, a chip reset, stuck data-ready, a
 wild value, late polls), so the recovery and retry paths are compared too.
 
+``--fifo-frames N`` reads the MAX21100 from its FIFO in blocks of N frames (``read: fifo``,
+as tests/benchmarks/bench_blocks.py does), so the block path is fingerprinted too.
+
 ``--every N`` also prints a running digest every N events, to find where two runs diverge.
 """
 
@@ -40,7 +43,7 @@ from imuhal.emulation.faults import (
     WildValue,
 )
 from imuhal.plugins.manager import load_registry
-from imuhal.profile.loader import load_profile
+from imuhal.profile.loader import load_profile, parse_profile
 
 PROFILE = Path(__file__).resolve().parents[2] / "profiles" / "seed-paraglider-vario.yaml"
 
@@ -59,10 +62,15 @@ FAULTS: tuple[FaultSpec, ...] = (
 
 
 def digest(duration_s: float, *, estimators: bool = True, scenario: str = "thermal",
-           every: int = 0, faults: bool = False) -> tuple[str, Counter[str], float]:
+           every: int = 0, faults: bool = False, fifo_frames: int | None = None
+           ) -> tuple[str, Counter[str], float]:
     """(sha256 of every event's repr, events by type, CPU seconds of the run)."""
     registry = load_registry()
-    profile = load_profile(PROFILE, registry)
+    if fifo_frames is None:
+        profile = load_profile(PROFILE, registry)
+    else:
+        from tests.benchmarks.bench_blocks import board_yaml
+        profile = parse_profile(board_yaml(fifo_frames, PROFILE), str(PROFILE), registry)
     if not estimators:
         profile = profile.model_copy(update={"estimators": {}})
     pipeline = open_emulated(profile, registry, scenario=scenario,
@@ -90,11 +98,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--scenario", default="thermal")
     p.add_argument("--faults", action="store_true", help="inject the fixed FAULTS")
     p.add_argument("--every", type=int, default=0, help="print a running digest every N events")
+    p.add_argument("--fifo-frames", type=int, default=None,
+                   help="read the MAX21100's FIFO in blocks of this many frames")
     args = p.parse_args(argv)
     sha, counts, cpu = digest(args.duration, estimators=not args.bare,
-                              scenario=args.scenario, every=args.every, faults=args.faults)
+                              scenario=args.scenario, every=args.every, faults=args.faults,
+                              fifo_frames=args.fifo_frames)
     what = ("without estimators" if args.bare else "with its estimators") + \
-        (", faults injected" if args.faults else "")
+        (", faults injected" if args.faults else "") + \
+        ("" if args.fifo_frames is None else f", FIFO blocks of {args.fifo_frames}")
     by_type = ", ".join(f"{k} {v}" for k, v in sorted(counts.items()))
     print(f"seed board {what}, {args.scenario}, {args.duration:g} s: "
           f"{sum(counts.values())} events ({by_type})")

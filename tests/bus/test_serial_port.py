@@ -50,3 +50,32 @@ def test_a_missing_port_is_one_line_naming_the_port_and_what_to_check() -> None:
         SerialBus("/dev/ttyDOESNOTEXIST")
     message = str(caught.value)
     assert "\n" not in message and "port" in message and "dialout" in message
+
+
+class _SlowLine:
+    """A port at 9600 baud as pyserial drives it: ``write`` queues the bytes in the transmit
+    buffer, ``flush`` (tcdrain) would wait until the line has sent them."""
+
+    def __init__(self) -> None:
+        self.queued = b""
+
+    def write(self, data: bytes) -> int:
+        self.queued += data
+        return len(data)
+
+    def flush(self) -> None:
+        raise AssertionError("the write waited for the line to send its bytes (tcdrain)")
+
+    def close(self) -> None:
+        pass
+
+
+def test_a_write_is_queued_for_the_line_without_waiting_for_it_to_leave() -> None:
+    """A UBX CFG message of 16 bytes takes 17 ms to leave at 9600 baud; the transfer hands
+    it to the transmit buffer and returns, so a driver writing to its receiver does not
+    hold a 200 Hz IMU on the same thread (issue 26)."""
+    port = _SlowLine()
+    bus = SerialBus("/dev/ttyS-fake", baudrate=9600, serial_factory=lambda *a, **k: port)
+    frame = bytes(range(16))
+    assert bus.transfer(0, frame, 0) == b""
+    assert port.queued == frame

@@ -109,6 +109,37 @@ def test_configure_switches_a_u_blox_receiver_to_nav_pvt_and_checks_each_ack() -
     assert driver.stats.sentences == 0 and driver.stats.checksum_errors == 0
 
 
+def test_a_recovery_reconfigures_the_receiver_a_poll_at_a_time_never_waiting_on_the_clock(
+        ) -> None:
+    """After a restart the receiver speaks factory NMEA at 1 Hz and answers each CFG message
+    behind it: seconds at 9600 baud. ``recover`` and every poll of the recovery return at
+    once (the simulated clock does not move inside them), give no samples, and leave the
+    receiver configured as at start-up."""
+    from imuhal.core.errors import ConfigurationError
+
+    clock, emulator, driver = started(protocol="ubx", rate_hz=5)
+    fly(clock, emulator, driver, 3)
+    emulator.silent_reset()
+    with pytest.raises(ConfigurationError, match="restarted"):
+        fly(clock, emulator, driver, 5)
+    start_ns = clock.now_ns()
+    next_ns = driver.recover(start_ns)
+    assert clock.now_ns() == start_ns
+    polls = 0
+    while driver.health.reconfigurations == 0:
+        clock.sleep_until(next_ns)
+        before = clock.now_ns()
+        result = driver.poll(before)
+        assert clock.now_ns() == before and result.samples == []
+        next_ns = result.next_poll_ns
+        polls += 1
+    assert clock.now_ns() - start_ns > 0.3e9 and polls > 10
+    assert emulator.nav_pvt and emulator.nmea_enabled == set() and emulator.rate_hz == 5
+    samples, _ = fly(clock, emulator, driver, 2)
+    assert [s for s in samples if isinstance(s, PositionSample) and s.valid
+            and s.horizontal_accuracy_m == 2.5]
+
+
 def test_no_fix_before_the_time_to_first_fix_is_flagged_never_valid() -> None:
     clock, emulator, driver = started()
     emulator.use_model(GnssErrorModel(time_to_first_fix_s=6.0))

@@ -8,6 +8,7 @@ X, Z, Y order) reads another field and fails."""
 
 from __future__ import annotations
 
+import bisect
 import itertools
 import math
 
@@ -19,7 +20,7 @@ from imuhal.bus.auto_read import AutoReadBus
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import ConfigurationError
-from imuhal.core.samples import SampleFlag
+from imuhal.core.samples import MagSample, SampleFlag
 from imuhal.emulation import EmulatedBus, PhysicalInputs
 from imuhal_chips.hmc5883l.driver import Hmc5883lDriver, unchanged_periods
 from imuhal_chips.hmc5883l.emulator import Hmc5883lEmulator
@@ -240,3 +241,54 @@ def test_beside_fifo_reads_every_measurement_the_master_copied_is_handed_out() -
     assert len(measured) >= len(samples) >= len(expected) > 280
     assert all(b.t_ns > a.t_ns for a, b in itertools.pairwise(samples))
     assert len({s.mag_ut[0] for s in samples}) == len(samples)
+
+
+def test_a_reconfiguration_while_the_master_auto_reads_leaves_no_field_torn() -> None:
+    """Issue 25: the HMC5883L locks its data outputs from a partial data read until all six
+    bytes are read (datasheet). A reconfiguration's one-shot read of the six bytes (a
+    millisecond) straddling one of the master's copies (every accelerometer period) left
+    the lock half released, and every later copy ended in the next measurement: X and Z
+    of one, Y of the next, handed out as fields the chip never measured. Each measurement
+    here moves all three axes by several counts, so a torn copy matches none of them."""
+    board = Board({"reset_check_s": 60})
+    emu = board.mag_emu
+    fields: dict[int, tuple[float, float, float]] = {}
+
+    def field_at(t_ns: int) -> None:
+        k = round(t_ns / PERIOD_NS) % 40
+        fields[t_ns] = (FIELD_UT[0] + 7 * k * LSB_UT, FIELD_UT[1] - 5 * k * LSB_UT,
+                        FIELD_UT[2] + 3 * k * LSB_UT)
+        emu.set_physics(PhysicalInputs(magnetic_field_ut=fields[t_ns]))
+
+    emu.physics_source = field_at
+    board.dithers = board.dithers[1:]
+    board.run(0.2)
+    samples: list[MagSample] = []
+    for k in range(12):  # reconfigurations at phases spread over the copies' period
+        board.clock.sleep(0.000_333 * k)
+        board.schedule[board.mag] = board.mag.restart(reset_detected=False)
+        samples += valid_mag(board.run(0.15))
+    assert board.mag.health.reconfigurations == 12 and len(samples) > 100
+    measured = set(fields.values())
+    torn = [s.mag_ut for s in samples
+            if not any(all(abs(s.mag_ut[i] - f[i]) <= 0.6 * LSB_UT for i in range(3))
+                       for f in measured)]
+    assert not torn
+
+
+def test_a_copy_a_failed_slave_read_delayed_is_stamped_with_the_burst_that_brought_it() -> None:
+    """The poll that looks again a delivery latency after the planned one stamps what it
+    finds with the IMU burst that delivered it, not with itself: at most two accelerometer
+    periods (the failed copy and the next) and the IMU's poll guard after the measurement,
+    where the poll's own time lies up to 4.5 ms later still, past what the frame ledger's
+    rounding of the field's period (13.3 ms) can absorb beside another delay."""
+    board = Board({"reset_check_s": 60})
+    board.run(0.3)
+    board.imu_emu.child_buses()["aux"].fail_transfers(set(range(1, 3000, 3)))
+    samples = valid_mag(board.run(2.0))
+    measured = board.mag_emu.measured_ns
+    accel_ns = round(1e9 / 250)
+    ages = [s.t_ns - measured[bisect.bisect_right(measured, s.t_ns) - 1] for s in samples]
+    assert board.imu_emu.slave_read_failures > 150 and len(samples) > 120
+    assert max(ages) <= 2 * accel_ns + accel_ns // 8 + 200_000
+

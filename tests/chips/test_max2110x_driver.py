@@ -292,9 +292,6 @@ def test_a_bus_error_on_a_chip_that_kept_its_configuration_resumes_without_a_res
     assert all(s.valid for s in samples)
 
 
-@pytest.mark.xfail(strict=True, reason="the retry at once let the slave auto-read's torn "
-                   "magnetometer copies out as valid fields; the driver waits for its grid "
-                   "again (Max2110xDriver.resume)")
 def test_the_retry_after_a_bus_error_reads_the_sample_the_failed_burst_missed() -> None:
     """Issue 25: a glitch loses no sample, and the one the failed burst missed is stamped
     within a guard of its measurement, not a period late (which made the frame ledger count

@@ -10,6 +10,8 @@ from the register map (rev 1.4), not imported from the driver."""
 
 from __future__ import annotations
 
+import bisect
+import itertools
 import math
 
 import pytest
@@ -140,7 +142,7 @@ def test_a_slave_that_stops_answering_sets_slv0_nack_and_its_kept_copy_is_never_
     t_gone = board.clock.now_ns()
     board.clock.sleep(0.006)
     board.imu.poll(board.clock.now_ns())
-    assert board.imu_emu._regs[0x36] & 0x01  # I2C_MST_STATUS.I2C_SLV0_NACK
+    assert board.mag._feed is not None and board.mag._feed.failures  # SLV0_NACK read
     samples = board.run(0.5)
     assert not [s for s in valid_mag(samples) if s.t_ns > t_gone + AK_PERIOD_NS]
     assert board.errors > 0  # the overdue CNTL1 check finds nobody and recovery retries
@@ -162,6 +164,40 @@ def test_a_copy_missed_by_failed_slave_reads_comes_with_the_next_read() -> None:
         counts.append(len(samples))
     # each measurement once at most (no kept copy handed out again), nearly all of them
     assert 0.9 * counts[0] <= counts[1] <= counts[0] <= 200
+
+
+def test_each_failed_slave_read_reaches_the_feed_through_slv0_nack() -> None:
+    """The MPU-9250 driver reads I2C_MST_STATUS (0x36) in its burst: each sample whose
+    slave-0 read failed is delivered as a failed read, never as the slave's data."""
+    board = Board()
+    board.run(0.3)
+    aux = board.imu_emu.child_buses()["aux"]
+    first = aux.transfers
+    aux.fail_transfers(set(range(1, 3000, 3)))
+    board.run(2.0)
+    reads = aux.transfers - first
+    assert reads >= 400  # one slave-0 read a sample, no slave-4 transaction
+    feed = board.mag._feed
+    assert feed is not None and feed.failures == len(range(1, reads + 1, 3))
+
+
+def test_a_copy_a_failed_slave_read_delayed_is_stamped_on_the_chips_cadence() -> None:
+    """Issue 25: a failed read moves the copy one MPU sample (5 ms, half the field's
+    period) later; SLV0_NACK tells the AK8963's driver so, and it stamps the copy where the
+    failed read was, on its measurements' cadence: no field is older than the delivery
+    latency at its stamp, as without failures, and the stamps step by whole periods
+    (the frame ledger's count)."""
+    board = Board()
+    board.run(0.3)
+    board.imu_emu.child_buses()["aux"].fail_transfers(set(range(1, 3000, 3)))
+    samples = valid_mag(board.run(2.0))
+    feed = board.mag._feed
+    assert feed is not None and feed.failures > 100 and len(samples) > 150
+    measured = board.mag_emu.measured_ns
+    ages = [s.t_ns - measured[bisect.bisect_right(measured, s.t_ns) - 1] for s in samples]
+    assert max(ages) <= feed.latency_ns
+    steps = [(b.t_ns - a.t_ns) / AK_PERIOD_NS for a, b in itertools.pairwise(samples)]
+    assert all(abs(step - round(step)) < 0.1 and round(step) >= 1 for step in steps)
 
 
 def test_overflow_is_flagged_nevervalid_mag() -> None:

@@ -15,20 +15,15 @@ from __future__ import annotations
 from collections import Counter
 
 import pytest
+from tests.support.fifo_boards import QUICK_ROLL, imu_read_from_fifo
 
 from imuhal.core.samples import AccelSample, GyroSample, SampleFlag
 from imuhal.drivers.base import Driver
 from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import HostStall
 from imuhal.plugins.manager import Registry, load_registry
-from imuhal.profile.bundled import bundled_profiles
-from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile
 from imuhal_chips.mpu9250.driver import MPU9250Driver
-
-QUICK_ROLL = {"axes": [[1.0, 0.0, 0.0]], "rotation_s": 0.8, "ramp_s": 0.2, "hold_s": 2.0,
-              "free_tumble_s": 0.0}
-"""One full roll in 0.8 s after 2 s still: up to about 10 rad/s, beyond +-250 deg/s."""
 
 
 @pytest.fixture(scope="module")
@@ -37,12 +32,7 @@ def registry() -> Registry:
 
 
 def _gy91_fifo(registry: Registry, gyro_range_dps: int) -> BoardProfile:
-    profile = load_profile(bundled_profiles()["gy91.yaml"], registry)
-    device = profile.devices["imu"]
-    settings = {**device.settings, "read": "fifo", "fifo_frames": 10,
-                "gyro_range_dps": gyro_range_dps}
-    return profile.model_copy(update={"devices": {
-        **profile.devices, "imu": device.model_copy(update={"settings": settings})}})
+    return imu_read_from_fifo(registry, "gy91.yaml", 10, gyro_range_dps=gyro_range_dps)
 
 
 def _events(registry: Registry, *, ideal: bool) -> list[str]:

@@ -39,6 +39,11 @@ MATRIX: dict[str, tuple[list[FaultSpec], dict[str, str]]] = {
     "os_error": ([BusOSError(device=d, rate=0.03) for d in DEVICES], {}),
     "host_stall": ([LatePolls(device="imu", start_s=1.0, end_s=1.01, delay_s=0.2)],
                    {"imu": "host_stall", "mag": "host_stall"}),
+    # stalls at every phase of each device's period (43.7 ms every 0.25 s): the devices
+    # falling due inside one are polled more than half a period late
+    "host_stalls": ([HostStall(device="imu", start_s=0.6, end_s=2.3, every_s=0.25,
+                               stall_s=0.0437)],
+                    {"imu": "host_stall", "mag": "host_stall", "baro": "host_stall"}),
     "reset": ([ChipReset(device=d, start_s=1.0 + 0.3 * i) for i, d in enumerate(DEVICES)],
               {"imu": "reset", "mag": "reset"}),
     "frozen": ([FrozenData(device=d, start_s=1.0, end_s=1.6) for d in DEVICES],

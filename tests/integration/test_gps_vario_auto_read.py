@@ -14,10 +14,12 @@ import yaml
 
 from imuhal.core.samples import MagSample, SampleFlag
 from imuhal.emulation import open_emulated
-from imuhal.emulation.faults import AllOnes, BusErrors, ChipAbsent, StuckDataReady
+from imuhal.emulation.faults import AllOnes, BusErrors, ChipAbsent, ChipReset, StuckDataReady
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile, parse_profile
+from imuhal_chips.ak8963.driver import AK8963Driver
+from imuhal_chips.ak8963.emulator import AK8963Emulator
 
 PROFILE = bundled_profiles()["seed-gps-vario.yaml"]
 SEED = 5
@@ -96,3 +98,25 @@ def test_the_gy91_on_i2c_auto_reads_through_its_master_too(registry: Registry) -
     valid = [e for e in events if isinstance(e, MagSample) and e.valid]
     assert len(valid) >= 0.95 * 100 and len(valid) == len(
         [e for e in events if isinstance(e, MagSample)])
+
+
+def test_a_garbled_fuse_rom_read_is_never_taken(registry: Registry) -> None:
+    """The AK8963's sensitivity adjustment (ASA, fuse ROM) is read through the MPU's slave
+    4 at every configuration; at 50 % bus errors on the magnetometer, with the chip reset
+    while they last so that it is configured again, a failed slave-4 read hands back 0xFF
+    (or 0x00, when the write into fuse-ROM mode failed). The driver never takes such a
+    read: its ASA is the part's whenever the device runs (a taken 0xFF scales every field
+    1.5 x: 35.9 uT off where the error model gives 32)."""
+    profile = load_profile(PROFILE, registry)
+    faults = [BusErrors(device="mag", start_s=1.0, end_s=2.0, rate=0.5),
+              *(ChipReset(device="mag", start_s=1.1 + 0.2 * i) for i in range(4))]
+    with open_emulated(profile, registry, scenario="thermal", seed=SEED, faults=faults) as p:
+        dev, chip = p.devices["mag"], p.board.emulators["mag"]
+        assert isinstance(chip, AK8963Emulator) and isinstance(dev.driver, AK8963Driver)
+        taken = set()
+        for _ in p.events(3.0):
+            if dev.present and not dev.needs_recovery:
+                taken.add(dev.driver.asa)
+        summary = p.summary()
+    assert taken == {chip.asa}
+    assert summary.driver["mag"]["reconfigurations"] >= 1

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 
+from imuhal.core.blocks import Block
 from imuhal.core.samples import GyroSample, MagSample, Quantity, SampleFlag
 from imuhal.pipeline.accounting import FrameLedger, describe_frames
 
@@ -119,3 +120,28 @@ def test_the_summary_line_names_the_slots_not_converted() -> None:
     counts = {"produced": 10, "delivered": 9, "lost_bus_error": 1, "not_converted": 4}
     assert describe_frames(counts) == \
         "produced 10, delivered 9, lost 1 (bus error 1); slots not converted 4"
+
+
+def _counted(ledger: FrameLedger) -> tuple[dict[str, int], int | None, int | None]:
+    return ledger.counts(), ledger.first_ns, ledger.last_ns
+
+
+@pytest.mark.parametrize("times, flags", [
+    ([P, 2 * P, 3 * P + 100_000, 4 * P], [0, 0, 0, 0]),  # regular: counted on arrays
+    ([6 * P, 7 * P, 11 * P, 12 * P], [0, 0, 0, 0]),  # a gap inside the block
+    ([P, 2 * P, 3 * P, 4 * P], [0, int(SampleFlag.FROZEN), 0, int(SampleFlag.STALE)]),
+], ids=["regular", "gap inside", "flagged frames"])
+def test_a_block_is_counted_as_its_frames_one_by_one(times: list[int],
+                                                     flags: list[int]) -> None:
+    block = Block.from_samples([gyro(t, SampleFlag(f)) for t, f in zip(times, flags,
+                                                                        strict=True)])
+    by_block, by_frame = FrameLedger(Quantity.GYRO, P), FrameLedger(Quantity.GYRO, P)
+    for ledger in (by_block, by_frame):
+        ledger.observe(gyro(0))
+        ledger.note("bus_error")
+    losses = by_block.observe_block(block)
+    frame_losses = [(s.t_ns, loss) for s in block.samples()
+                    if (loss := by_frame.observe(s)) is not None]
+    assert losses == frame_losses
+    assert _counted(by_block) == _counted(by_frame)
+    assert by_block.all_segments() == by_frame.all_segments()

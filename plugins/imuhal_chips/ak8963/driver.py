@@ -31,7 +31,11 @@ gives no new copy, so STALE too); HOFL -> OVERFLOW;
 never valid.
 Each new copy is a sample stamped with the time the master copied it (the MPU's poll, or
 its FIFO frame's chip-clock stamp): at most one MPU sample period after the measurement;
-several copies read from the FIFO in one burst are several samples. Staleness is judged on
+several copies read from the FIFO in one burst are several samples. A copy that follows
+slave-0 reads the MPU-9250 reported failed (I2C_MST_STATUS.SLV0_NACK, read with every
+burst) or a pause in the master's deliveries (its recovery, blank reads) is stamped on the
+chip's own cadence instead (``imuhal.bus.auto_read.stamp_on_cadence``), so the frame ledger
+counts what the chip measured (issue 25). Staleness is judged on
 the master's deliveries, so a master delivering late (a FIFO after a host stall) is not a
 stale magnetometer.
 Output: uT in the AK8963's own axes
@@ -43,12 +47,18 @@ from __future__ import annotations
 
 from typing import ClassVar, Literal
 
-from imuhal.bus.auto_read import AutoReadBus, AutoReadFeed, require_auto_read
+from imuhal.bus.auto_read import (
+    AutoReadBus,
+    AutoReadFeed,
+    Copy,
+    require_auto_read,
+    stamp_on_cadence,
+)
 from imuhal.bus.base import BusKind, Link
 from imuhal.bus.register_plan import RegisterPlan, RegisterSetting
 from imuhal.bus.registers import RegisterView
 from imuhal.core.clock import Clock
-from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
+from imuhal.core.errors import BusError, ConfigurationError, DeviceNotFoundError, NackError
 from imuhal.core.samples import Frame, MagSample, Quantity, SampleFlag
 from imuhal.core.streams import StreamSpec
 from imuhal.drivers.base import (
@@ -68,6 +78,12 @@ BEHIND_MPU_HINT = (
     "inside an MPU-9250 the AK8963 answers only when the MPU's bypass is enabled or through "
     "its I2C master: put this device on the mpu9250's 'aux' bus"
 )
+
+
+def _plausible_asa(asa: bytes) -> bool:
+    """No fuse-ROM byte at an end of the adjustment's range (0x00, 0xFF): what a line held
+    low or left floating reads."""
+    return 0x00 not in asa and 0xFF not in asa
 
 
 class AK8963Settings(DriverSettings):
@@ -122,6 +138,10 @@ class AK8963Driver(Driver):
                               example="the MPU-9250's imu/aux with aux: master",
                               fix="use read: one-shot or set the MPU's aux: master")
         self._feed: AutoReadFeed | None = None
+        self._stamped_ns: int | None = None
+        """read: auto: the stamp of the latest field from a copy (None after configure)."""
+        self._asa_read: bytes | None = None
+        """The fuse-ROM bytes as last taken (``_read_asa``)."""
         self._cntl1_written_ns = 0
         self._streams: tuple[StreamSpec, ...] = ()
 
@@ -147,13 +167,35 @@ class AK8963Driver(Driver):
         self.regs.write(r.REG_CNTL1, value)
         self.clock.sleep(r.MODE_CHANGE_S)
 
+    def _read_asa(self) -> tuple[int, int, int]:
+        """ASAX..ASAZ (fuse-ROM mode), checked: the adjustment scales every field the driver
+        reports (ASA 0xFF: x1.5) and the bytes carry no check of their own, so a transfer a
+        glitch garbled (through the MPU-9250's slave 4 a failed read hands back whatever DI
+        holds; a floating line reads 0xFF, one held low 0x00) would give valid fields off
+        by up to half their size until the next reconfiguration. A read is taken when no
+        byte is 0x00 or 0xFF (the ends of the formula's range, x0.5 and x1.5; factory
+        values lie near its middle) and it equals the part's earlier reads (a fuse does
+        not change); otherwise it is read again, and taken only when both reads agree and
+        are plausible, else a BusError (the recovery tries again). One read when all is
+        well, so recordings replay with the transactions they hold."""
+        asa = self.regs.read(r.REG_ASAX, 3)
+        if _plausible_asa(asa) and asa == (self._asa_read or asa):
+            self._asa_read = asa
+            return asa[0], asa[1], asa[2]
+        again = self.regs.read(r.REG_ASAX, 3)
+        if again != asa or not _plausible_asa(asa):
+            raise BusError(f"{self.describe()}: the fuse-ROM sensitivity adjustment read "
+                           f"{asa.hex(' ')} then {again.hex(' ')}: a garbled transfer, "
+                           "not taken")
+        self._asa_read = asa
+        return asa[0], asa[1], asa[2]
+
     def configure(self) -> None:
         self.regs.write(r.REG_CNTL2, r.CNTL2_SRST)
         self.clock.sleep(r.RESET_S)
         # ASA is readable only in fuse-ROM mode; modes change only through power-down.
         self._set_mode(r.MODE_FUSE_ROM)
-        asa = self.regs.read(r.REG_ASAX, 3)
-        self.asa = (asa[0], asa[1], asa[2])
+        self.asa = self._read_asa()
         self._set_mode(r.MODE_POWER_DOWN)
         self.plan.apply(self.regs, self.clock)
         if self.settings.read == "auto":
@@ -166,6 +208,7 @@ class AK8963Driver(Driver):
             feed = self._feed = self.link.bus.auto_read(
                 self.link.target, r.DATA_BURST_START, r.DATA_BURST_LENGTH)
             feed.keep_ready_only(0, r.ST1_DRDY)
+            self._stamped_ns = None  # the stream restarts with a new phase
             # A copy from before this configuration is no measurement of it: writing CNTL1
             # cleared DRDY, so the next copy with DRDY differs from this one or is new.
             feed.take()
@@ -256,17 +299,33 @@ class AK8963Driver(Driver):
         assert self._feed is not None
         samples: list[MagSample] = []
         bad = SampleFlag.OK
-        for t_ns, data in self._feed.take():
-            if not data[0] & r.ST1_DRDY:
+        for copy in self._feed.take():
+            if not copy.data[0] & r.ST1_DRDY:
                 continue
-            sample, flag, _ = self._measurement(data, t_ns, t_ns)
+            t_ns = self._copy_stamp(copy)
+            sample, flag, _ = self._measurement(copy.data, t_ns, t_ns)
             if sample is not None:
                 samples.append(sample)
+                self._stamped_ns = t_ns
             bad |= flag
         if not samples:
             return self._no_measurement(now_ns, overdue or bool(bad), bad, stale=not bad)
         self._grid.anchor(now_ns)
         return PollResult(list(samples), self._grid.next_after(now_ns))
+
+    def _copy_stamp(self, copy: Copy) -> int:
+        """The time the master copied this measurement: its delivery, or on the chip's own
+        cadence after failed master reads (SLV0_NACK) or a pause in the master's deliveries
+        (``stamp_on_cadence``). A failed read moves the copy one MPU sample (5 ms at the
+        boards' 200 Hz: half the 100 Hz field period) later, and a paused master (its
+        recovery, blank reads) delivers a copy up to a field period old; stamped at the
+        delivery, the frame ledger rounds the gap before it up to a field the chip never
+        skipped and the one after down to none. The pause: a third more than the feed's
+        latency (one MPU period and its poll guard) between two deliveries, one and a half
+        MPU periods: more than the poll grid's search for a sample ever adds."""
+        assert self._feed is not None
+        return stamp_on_cadence(copy, self._stamped_ns, self._period_ns,
+                                pause_ns=self._feed.latency_ns * 4 // 3)
 
     def _measurement(self, data: bytes, t_ns: int,
                      poll_ns: int) -> tuple[MagSample | None, SampleFlag, bool]:

@@ -4,7 +4,9 @@ Probe listens at each baud rate in turn until it sees a sentence or frame with a
 checksum, and so learns the protocol and the line speed; configure (u-blox receivers) sets
 the navigation rate and the messages with UBX CFG-RATE / CFG-MSG and checks each ACK; poll
 reads what has arrived, splits it into sentences and frames, decodes them and turns each
-navigation epoch into a :class:`PositionSample` and a :class:`VelocitySample`.
+navigation epoch into a :class:`PositionSample` and a :class:`VelocitySample`. A recovery
+mid-run does probe's and configure's work one step per poll (imuhal_chips.gnss.bringup), so
+it never holds the pipeline's thread while the receiver answers.
 
 Timestamps: ``t_ns`` is the measurement epoch on the pipeline clock. The receiver stamps its
 epochs in UTC; the driver maps UTC to the pipeline clock with the smallest arrival delay seen
@@ -26,7 +28,7 @@ from pydantic import Field
 
 from imuhal.bus.base import BusKind, Link
 from imuhal.core.clock import Clock
-from imuhal.core.errors import BusError, ConfigurationError, DeviceNotFoundError
+from imuhal.core.errors import ConfigurationError, DeviceNotFoundError
 from imuhal.core.samples import (
     FixType,
     HeightDatum,
@@ -44,27 +46,27 @@ from imuhal.drivers.base import (
     PollResult,
     SettingsInput,
 )
+from imuhal.drivers.validity import StepWatch
+from imuhal_chips.gnss.bringup import READ_CHUNK, CfgMessage, Configuration, Search
 from imuhal_chips.gnss.decode import DecodeError, Fragment, decode_nmea, decode_ubx
 from imuhal_chips.gnss.framing import StreamSplitter
 from imuhal_chips.gnss.ubx import CFG_MSG, CFG_RATE, NMEA_IDS, UBX_NAV_PVT, cfg_msg, cfg_rate
 
 NMEA_MESSAGES = ("GGA", "RMC", "VTG", "GSA")
-READ_CHUNK = 4096
 DAY_NS = 86_400 * 10**9
 FOREIGN_LIMIT = 8
+"""Valid sentences of the other protocol in a row that mean the receiver was reset."""
 UBX_NAV_PVT_BYTES = 100
 NMEA_SENTENCE_BYTES = 75
 """A typical GGA/RMC/VTG/GSA length with CR LF (the line budget in configure)."""
-ACK_TIMEOUT_NS = 10**9
-"""How long configure waits for one CFG message's ACK (a full 9600-baud burst ahead of it
-takes up to 1 s)."""
-CFG_SENDS = 3
-"""Sends of one CFG message before configure gives up on its ACK."""
+LISTEN_STEP_NS = 20_000_000
+"""Probe reads the line at least this often while it listens."""
 ACK_POLL_NS = 5_000_000
 """How often configure looks for an ACK: an ACK is 10 bytes, 10 ms at 9600 baud."""
+SPEED_SIGMA_M_S = 0.5
+"""The speed noise per axis the step check allows for (a u-blox states 0.1-0.5 m/s)."""
 QUIET_NS = 100_000_000
 """A line quiet this long (or 2.5 polls) has finished the epoch's burst."""
-"""Valid sentences of the other protocol in a row that mean the receiver was reset."""
 
 
 class GnssSettings(DriverSettings):
@@ -86,6 +88,9 @@ class GnssSettings(DriverSettings):
     """How long probe listens at each baud rate (longer than the slowest output period)."""
     latency_s: float = Field(0.0, ge=0)
     """The receiver's output latency (epoch to first byte), subtracted from arrival times."""
+    max_acceleration_m_s2: float = Field(100.0, gt=0)
+    """The largest acceleration the vehicle makes (10 g by default: aerobatics); a velocity
+    that changed faster since the last plausible epoch is flagged IMPLAUSIBLE."""
 
 
 @dataclass
@@ -97,6 +102,9 @@ class GnssStats:
     garbage_bytes: int = 0
     ubx_resyncs: int = 0
     """UBX frames with an implausible header or a failed checksum, searched past."""
+    inconsistent_frames: int = 0
+    """NAV-PVT frames whose checksum passed but whose fields disagree (flagged CRC_ERROR
+    like a failed checksum: the 8-bit Fletcher misses some pairs of flipped bits)."""
     epochs: int = 0
     last_error: str = ""
 
@@ -126,14 +134,23 @@ class GnssDriver(Driver):
         self._epoch: _Epoch | None = None
         self._offset_ns: int | None = None
         self._prev_height: tuple[int, float] | None = None
+        noise = 6.0 * math.sqrt(2.0) * SPEED_SIGMA_M_S
+        self._velocity_watch = tuple(StepWatch(self.settings.max_acceleration_m_s2, noise)
+                                     for _ in range(3))
+        """Per NED axis: how far the velocity may move between epochs."""
         self._foreign = 0
         self._last_byte_ns = 0
         self._quiet_ns = max(QUIET_NS, round(2.5e9 / self.settings.poll_hz))
         self._nav_rate_hz: float | None = None
         """The navigation rate the receiver acknowledged (CFG-RATE ACK-ACK), or the
         profile's statement of it when the receiver is not configured."""
+        self._step_ns = round(1e9 / self.settings.poll_hz)
+        self._search: Search | None = None
+        """A recovery's search for the receiver, one step per poll (None: not searching)."""
+        self._configuring: Configuration | None = None
+        """A recovery's configuration of the receiver, one step per poll."""
 
-    # -- probe --------------------------------------------------------------------------
+    # -- probe ------------------------------------------------------------------------
 
     def probe(self) -> DeviceIdentity:
         s = self.settings
@@ -143,87 +160,56 @@ class GnssDriver(Driver):
         except ImportError as exc:
             raise ConfigurationError(f"{self.describe()}: the GNSS driver needs pynmea2 and "
                                      f"pyubx2 ({exc}); install imuhal[gps]") from None
-        bus = self.link.bus
-        set_baud = getattr(bus, "set_baudrate", None)
-        seen: list[str] = []
-        for baud in s.baud_rates:
-            if set_baud is not None:
-                set_baud(baud)
-            found, what = self._listen(s.probe_window_s)
-            if not found and what.endswith("with bad checksums)"):
-                # The receiver speaks at this speed but the line garbled what came in the
-                # window (noise): listen once more before calling it missing.
-                found, what = self._listen(s.probe_window_s)
-            if found:
-                # A u-blox receiver heard speaking NMEA is switched to UBX by configure().
-                self.protocol = found if s.protocol == "auto" else s.protocol
-                self.baudrate = baud
-                self.identity = DeviceIdentity(self.name, bus.name, self.link.target,
-                                               f"{found.upper()} at {baud} baud")
-                return self.identity
-            seen.append(f"{baud}: {what}")
-            if set_baud is None:
-                break  # the bus cannot change speed: trying others would repeat this
-        raise DeviceNotFoundError(
-            driver=self.name, bus=bus.name, address=self.link.target,
-            expected=f"NMEA or UBX with valid checksums at one of {list(s.baud_rates)} baud",
-            found="; ".join(seen),
-            hint="check the receiver's TX goes to the host's RX, its power, and that its "
-                 "baud rate is in settings.baud_rates")
+        search = Search(self.link, s.baud_rates, round(s.probe_window_s * 1e9),
+                        self.clock.now_ns())
+        step = min(round(1e9 / s.poll_hz), LISTEN_STEP_NS)
+        while (found := search.step(self.clock.now_ns())) == "":
+            self.clock.sleep_until(min(search.end_ns, self.clock.now_ns() + step))
+        return self._heard(search, found)
 
-    def _listen(self, window_s: float) -> tuple[str, str]:
-        """Read for ``window_s``; the protocol seen with a valid checksum ('' if none) and
-        what was seen, in words."""
-        splitter = StreamSplitter()
-        got = bytearray()
-        valid = {"nmea": 0, "ubx": 0}
-        bad = 0
-        end = self.clock.now_ns() + round(window_s * 1e9)
-        step = min(round(1e9 / self.settings.poll_hz), 20_000_000)
-        while True:
-            data = self.link.receive(READ_CHUNK)
-            got += data
-            for kind, item in splitter.feed(data):
-                try:
-                    frag = decode_nmea(item) if kind == "nmea" else decode_ubx(item)
-                except DecodeError:
-                    bad += 1
-                    continue
-                if frag.checksum_ok:
-                    valid[kind] += 1
-                else:
-                    bad += 1
-            if valid["ubx"]:
-                return "ubx", ""
-            if valid["nmea"]:
-                return "nmea", ""
-            if self.clock.now_ns() >= end:
-                break
-            self.clock.sleep_until(min(end, self.clock.now_ns() + step))
-        if valid["nmea"]:
-            return "nmea", ""
-        if not got:
-            return "", "nothing received"
-        what = f"{len(got)} bytes, no sentence or frame with a valid checksum"
-        if splitter.garbage_bytes > len(got) // 2:
-            what += " (unreadable: wrong baud rate?)"
-        elif bad:
-            what += f" ({bad} with bad checksums)"
-        return "", what
+    def _heard(self, search: Search, found: str | None) -> DeviceIdentity:
+        """What ``search`` ended with: the receiver's identity, or DeviceNotFoundError."""
+        s = self.settings
+        bus = self.link.bus
+        if found is None:
+            raise DeviceNotFoundError(
+                driver=self.name, bus=bus.name, address=self.link.target,
+                expected=f"NMEA or UBX with valid checksums at one of {list(s.baud_rates)} "
+                         "baud",
+                found="; ".join(search.seen),
+                hint="check the receiver's TX goes to the host's RX, its power, and that its "
+                     "baud rate is in settings.baud_rates")
+        # A u-blox receiver heard speaking NMEA is switched to UBX by configure().
+        self.protocol = found if s.protocol == "auto" else s.protocol
+        self.baudrate = search.baud
+        self.identity = DeviceIdentity(self.name, bus.name, self.link.target,
+                                       f"{found.upper()} at {search.baud} baud")
+        return self.identity
 
     # -- configure ----------------------------------------------------------------------
 
     def configure(self) -> None:
-        s = self.settings
         if not self.protocol:
             raise ConfigurationError(f"{self.describe()}: configure() before probe()")
         self._splitter = StreamSplitter()
         self._epoch = None
         self._foreign = 0
-        if not s.configure_receiver:
+        if not self.settings.configure_receiver:
             # nothing to ask the receiver: the profile states its rate
-            self._nav_rate_hz = s.rate_hz
+            self._nav_rate_hz = self.settings.rate_hz
             return
+        configuration = self._configuration()
+        self._nav_rate_hz = None
+        while not configuration.step(self.clock.now_ns()):
+            self.clock.sleep_until(self.clock.now_ns() + ACK_POLL_NS)
+        # every message acknowledged, the rate last (ACK-ACK)
+        self._nav_rate_hz = self.settings.rate_hz
+
+    def _configuration(self) -> Configuration:
+        """The CFG messages that make the receiver send what the settings ask, in order;
+        ConfigurationError for messages the driver does not know or more than the line
+        carries."""
+        s = self.settings
         wanted = set(s.messages or (("NAV-PVT",) if self.protocol == "ubx" else NMEA_MESSAGES))
         unknown = wanted - set(NMEA_IDS) - {"NAV-PVT"}
         if unknown:
@@ -248,21 +234,20 @@ class GnssDriver(Driver):
         # noise). Raising the rate first meant 5 Hz of NAV-PVT plus the factory NMEA: 2000
         # bytes/s on a 960 bytes/s line, a backlog that held every later ACK back.
         messages = {"NAV-PVT": UBX_NAV_PVT, **NMEA_IDS}
-        for enable in (True, False):
-            for name, (cls, mid) in messages.items():
-                if (name in wanted) == enable:
-                    self._send_checked(cfg_msg(cls, mid, int(enable)), CFG_MSG,
-                                       f"CFG-MSG {name}")
-        self._nav_rate_hz = None
-        self._send_checked(cfg_rate(s.rate_hz), CFG_RATE, f"CFG-RATE {s.rate_hz:g} Hz")
-        # _send_checked returned: the receiver acknowledged this rate (ACK-ACK)
-        self._nav_rate_hz = s.rate_hz
+        steps = [CfgMessage(cfg_msg(cls, mid, int(enable)), CFG_MSG, f"CFG-MSG {name}")
+                 for enable in (True, False)
+                 for name, (cls, mid) in messages.items() if (name in wanted) == enable]
+        steps.append(CfgMessage(cfg_rate(s.rate_hz), CFG_RATE, f"CFG-RATE {s.rate_hz:g} Hz"))
+        return Configuration(self.link, self._splitter, steps, self.describe())
 
     def streams(self) -> tuple[StreamSpec, ...]:
         """Position (deg, deg, m) and NED velocity (m/s) at the navigation rate the
         receiver acknowledged (CFG-RATE, answered ACK-ACK; with ``configure_receiver:
         false``, the profile's ``rate_hz``, which nothing can check), stamped with the
-        receiver's epochs. No scale (a solution, not counts) and no full scale."""
+        receiver's epochs. No scale (a solution, not counts) and no full scale. While a
+        recovery reconfigures the receiver they stay those of its start-up: it delivers
+        nothing meanwhile, and the recovery ends acknowledged at the same rate or in an
+        error."""
         rate_hz = self._nav_rate_hz
         if rate_hz is None:
             return ()
@@ -271,55 +256,53 @@ class GnssDriver(Driver):
                                 time_source=TimeSource.RECEIVER_EPOCH)
                      for quantity in (Quantity.POSITION, Quantity.VELOCITY))
 
-    def _send_checked(self, frame: bytes, ident: tuple[int, int], what: str) -> None:
-        """Write a CFG message and wait (up to 1 s) for its ACK-ACK in the stream; send it
-        again, up to ``CFG_SENDS`` times in all, when no ACK comes (a frame garbled or cut
-        on the line is dropped silently by the receiver). Each CFG message sets a value, so
-        sending it twice is harmless."""
-        for send in range(1, CFG_SENDS + 1):
-            if self._await_ack(frame, ident, what, last=send == CFG_SENDS):
-                return
+    # -- recovery -----------------------------------------------------------------------
 
-    def _await_ack(self, frame: bytes, ident: tuple[int, int], what: str, *,
-                   last: bool) -> bool:
-        """One send of ``frame`` and the wait for its ACK: True when it came, False when it
-        did not within 1 s (raises instead when ``last``). A write the port reports failed
-        counts as a send whose ACK did not come: CFG messages are idempotent."""
-        try:
-            self.link.transfer(frame, 0)
-        except BusError:
-            if last:
-                raise
-            return False
-        end = self.clock.now_ns() + ACK_TIMEOUT_NS
-        step = ACK_POLL_NS
-        splitter = self._splitter
-        while True:
-            for kind, item in splitter.feed(self.link.receive(READ_CHUNK)):
-                if kind != "ubx":
-                    continue
-                try:
-                    frag = decode_ubx(item)
-                except DecodeError:
-                    continue
-                if frag.acked == ident and frag.kind == "ACK-ACK":
-                    return True
-                if frag.acked == ident and frag.kind == "ACK-NAK":
-                    raise ConfigurationError(f"{self.describe()}: the receiver refused {what} "
-                                             "(ACK-NAK); is it a u-blox receiver? Set "
-                                             "configure_receiver: false for others")
-            if self.clock.now_ns() >= end:
-                if not last:
-                    return False
-                raise ConfigurationError(
-                    f"{self.describe()}: no ACK for {what} within 1 s after {CFG_SENDS} "
-                    "sends; a receiver that does not speak UBX needs configure_receiver: "
-                    "false")
-            self.clock.sleep_until(min(end, self.clock.now_ns() + step))
+    def recover(self, now_ns: int) -> int:
+        """Find and reconfigure the receiver again without waiting on the clock: each of
+        the device's next polls takes one step (listen at a baud rate, send a CFG message,
+        look for its ACK) and returns at once, so the pipeline polls the other devices
+        between them (imuhal_chips.gnss.bringup). A step that fails raises what probe and
+        configure raise, and the pipeline recovers the device again."""
+        s = self.settings
+        self._epoch = None
+        self._foreign = 0
+        self._configuring = None
+        self._search = Search(self.link, s.baud_rates, round(s.probe_window_s * 1e9), now_ns)
+        return now_ns + self._step_ns
+
+    def resume(self, now_ns: int) -> int | None:
+        """Carry on after the port failed a read or a write: a UART keeps no state in the
+        receiver that a failed call could change. A failed read costs the bytes it carried
+        (the checksums catch a sentence or frame cut by it), a failed CFG write counts as a
+        send whose ACK did not come; a search or configuration under way goes on where it
+        was. A receiver that did restart is found by what it sends (factory NMEA where UBX
+        was configured), and a port that keeps failing gets the full recovery (the
+        pipeline's rule: a second failure before a poll completes)."""
+        return now_ns + (ACK_POLL_NS if self._configuring is not None else self._step_ns)
+
+    def _recovery_step(self, now_ns: int) -> int:
+        """One step of the recovery ``recover`` started; the time of the next poll."""
+        if self._search is not None:
+            found = self._search.step(now_ns)
+            if found == "":
+                return min(self._search.end_ns, now_ns + self._step_ns)
+            search, self._search = self._search, None
+            self._heard(search, found)
+            self._splitter = StreamSplitter()
+            if self.settings.configure_receiver:
+                self._configuring = self._configuration()
+        if self._configuring is not None and not self._configuring.step(now_ns):
+            return now_ns + ACK_POLL_NS
+        self._configuring = None
+        self.health.reconfigurations += 1
+        return now_ns + self._step_ns
 
     # -- poll ---------------------------------------------------------------------------
 
     def poll(self, now_ns: int) -> PollResult:
+        if self._search is not None or self._configuring is not None:
+            return PollResult([], self._recovery_step(now_ns))
         data = self.link.receive(READ_CHUNK)
         splitter = self._splitter
         before = splitter.garbage_bytes, splitter.resyncs
@@ -327,8 +310,9 @@ class GnssDriver(Driver):
         self.stats.garbage_bytes += splitter.garbage_bytes - before[0]
         self.stats.ubx_resyncs += splitter.resyncs - before[1]
         samples: list[Sample] = []
-        for kind, item in items:
-            samples += self._take(kind, item, now_ns)
+        for (kind, item), first_byte_ns in zip(items, self._first_bytes(items, now_ns),
+                                               strict=True):
+            samples += self._take(kind, item, now_ns, first_byte_ns)
         if data:
             self._last_byte_ns = now_ns
         if self._epoch is not None and (self._epoch_complete() or
@@ -337,6 +321,28 @@ class GnssDriver(Driver):
             # configured message has come, or when the line has been quiet for a while.
             samples += self._close_epoch()
         return PollResult(samples, now_ns + round(1e9 / self.settings.poll_hz))
+
+    def _first_bytes(self, items: list[tuple[str, bytes]], now_ns: int) -> list[int]:
+        """The latest each item's first byte can have arrived (pipeline clock, ns): the read
+        happened at the clock's time, not at the poll's due time (a poll made late, when
+        another device held the thread, reads what came meanwhile), and after the item came
+        itself and everything read after it (the items after it, the incomplete tail), at
+        the line rate. A bound from above: the epoch delays taken from it never fall below
+        the true one, so their minimum (the time mapping) stays right. Stamped at the due
+        time, the read of three epochs after a 0.4 s stall lowered that minimum by 0.4 s,
+        and every later epoch was stamped 0.4 s early (issue 26: valid velocities up to
+        2 m/s off the truth at their time stamps in a turn)."""
+        if not items:
+            return []
+        read_ns = max(now_ns, self.clock.now_ns())
+        byte_ns = 10e9 / self.baudrate if self.baudrate else 0.0
+        after = len(self._splitter.buffer)
+        out = []
+        for _, item in reversed(items):
+            after += len(item)
+            out.append(read_ns - round(after * byte_ns))
+        out.reverse()
+        return out
 
     def _expected(self) -> set[str] | None:
         s = self.settings
@@ -349,7 +355,7 @@ class GnssDriver(Driver):
         return self._epoch is not None and expected is not None and \
             expected <= {p.kind for p in self._epoch.parts}
 
-    def _take(self, kind: str, item: bytes, now_ns: int) -> list[Sample]:
+    def _take(self, kind: str, item: bytes, now_ns: int, first_byte_ns: int) -> list[Sample]:
         if kind == "nmea":
             self.stats.sentences += 1
         else:
@@ -361,7 +367,11 @@ class GnssDriver(Driver):
             self.stats.last_error = str(exc)
             return []
         if not frag.checksum_ok:
-            self.stats.checksum_errors += 1
+            if frag.inconsistent:
+                self.stats.inconsistent_frames += 1
+                self.stats.last_error = frag.inconsistent
+            else:
+                self.stats.checksum_errors += 1
             return [self._flagged(frag, now_ns)]
         if frag.kind not in ("GGA", "RMC", "VTG", "GSA", "NAV-PVT"):
             return []
@@ -384,9 +394,7 @@ class GnssDriver(Driver):
                     abs(self._epoch.time_of_day_s - frag.time_of_day_s) > 1e-3:
                 out += self._close_epoch()
             if self._epoch is None:
-                # The item began arriving its own transmit time before the end of the read.
-                sent_ns = round(len(item) * 10e9 / self.baudrate) if self.baudrate else 0
-                self._epoch = _Epoch(frag.time_of_day_s, now_ns - sent_ns)
+                self._epoch = _Epoch(frag.time_of_day_s, first_byte_ns)
         if self._epoch is not None:
             self._epoch.parts.append(frag)
         return out
@@ -429,12 +437,16 @@ class GnssDriver(Driver):
         velocity = merged.velocity_ned_m_s
         if velocity is None:
             velocity = self._nmea_velocity(merged, t_ns)
+        step = SampleFlag.OK
         if velocity is not None and has_fix:
+            step = self._velocity_step(velocity, t_ns)
             # Before the position: a consumer of the fix then has the same epoch's velocity.
-            out.append(VelocitySample(t_ns=t_ns, device=self.device,
+            out.append(VelocitySample(t_ns=t_ns, device=self.device, flags=step,
                                       velocity_ned_m_s=velocity,
                                       accuracy_m_s=merged.speed_accuracy_m_s))
-        flags = SampleFlag.OK if has_fix and height is not None else SampleFlag.STALE
+        # an epoch whose velocity cannot be right came from a frame hit on the line: its
+        # position is not trusted either
+        flags = (SampleFlag.OK if has_fix and height is not None else SampleFlag.STALE) | step
         out.append(PositionSample(
             t_ns=t_ns, device=self.device, flags=flags,
             latitude_deg=merged.latitude_deg, longitude_deg=merged.longitude_deg,
@@ -444,6 +456,18 @@ class GnssDriver(Driver):
             fix_type=fix, satellites=merged.satellites or 0,
             utc_s=_utc_s(merged.day, epoch.time_of_day_s)))
         return out
+
+    def _velocity_step(self, velocity: tuple[float, float, float], t_ns: int) -> SampleFlag:
+        """IMPLAUSIBLE when an axis of ``velocity`` (NED) lies further from the last
+        plausible one than ``max_acceleration_m_s2`` moves it in the time between them, plus
+        6 sigma of two epochs' noise at 0.5 m/s per axis (imuhal.drivers.validity.StepWatch:
+        three refused epochs that agree are a new level). A NAV-PVT can pass its 8-bit
+        Fletcher checksum with velD 32.8 m/s off (two flips of bit 7, issue 26), which
+        nothing else in the frame repeats."""
+        flags = SampleFlag.OK
+        for watch, value in zip(self._velocity_watch, velocity, strict=True):
+            flags |= watch.observe(t_ns, value)
+        return flags
 
     def _nmea_velocity(self, merged: Fragment,
                        t_ns: int) -> tuple[float, float, float] | None:

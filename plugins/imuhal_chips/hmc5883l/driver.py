@@ -42,18 +42,30 @@ burst (``AutoReadFeed.latency_ns``: one accelerometer period plus the IMU's poll
 4.5 ms at 250 Hz); the driver polls that long plus its own guard (1/8 period) after each
 measurement instant and stamps the sample with the poll's time, about 6 ms after the
 measurement at the seed's rates (one-shot: 1.7 ms). A poll that finds the bytes unchanged
-looks once more one latency later (a copy a failed read or burst delayed), then waits for
-the next measurement. Every copy that changed since the previous poll is taken
-(``AutoReadFeed.take``), not only the latest: when the master's reads bring two
-measurements between two polls (FIFO reads at the IMU's own instants, or the look a
-latency later), the older is handed out too, stamped with its delivery.
+looks once more one latency later (a copy a failed read or burst delayed; what it finds
+is stamped with the IMU burst that delivered it), then waits for the next measurement.
+Every copy that changed since the previous poll is taken (``AutoReadFeed.take``), not only
+the latest: when the master's reads bring two measurements between two polls (FIFO reads
+at the IMU's own instants, or the look a latency later), the older is handed out too,
+stamped with its delivery, or on the chip's own cadence when the master delivered nothing
+for a while before it (its recovery: the copy may have waited a field period in the chip;
+``imuhal.bus.auto_read.stamp_on_cadence``).
+A reconfiguration under ``read: auto`` reads no data byte itself: the master's next copy
+(all six bytes in one transaction) releases the lock reading Mode set; six one-shot reads
+straddling a copy would leave it half released and tear every later copy.
 """
 
 from __future__ import annotations
 
 import math
 
-from imuhal.bus.auto_read import AutoReadBus, AutoReadFeed, require_auto_read
+from imuhal.bus.auto_read import (
+    AutoReadBus,
+    AutoReadFeed,
+    Copy,
+    require_auto_read,
+    stamp_on_cadence,
+)
 from imuhal.bus.base import BusKind, Link
 from imuhal.bus.register_plan import RegisterPlan
 from imuhal.bus.registers import RegisterView
@@ -180,6 +192,14 @@ class Hmc5883lDriver(Driver):
         """The bytes of the last sample handed out."""
         self._stamped_ns = 0
         """The time stamp of the last sample handed out (read: auto)."""
+        self._cadence_ns: int | None = None
+        """The stamp of the latest field since configure() (the chip's cadence runs from
+        it; a reconfiguration restarts the chip's measurements with a new phase)."""
+        self._locked_ns = 0
+        """read: auto: when the driver last read Mode, which locks the data outputs until
+        the master's next copy reads them: that copy holds a measurement from before."""
+        self._blank_since_ns: int | None = None
+        """read: auto: the master's copies have been blank since (its registers reset)."""
         self._settle_ns = 0
         """Bytes that changed before this are from before configure() or its first
         measurement (still at the old gain)."""
@@ -242,7 +262,15 @@ class Hmc5883lDriver(Driver):
         plan.apply(self.regs)
         self._mode_written_ns = self.clock.now_ns()  # continuous measurements start here
         got = plan.read(self.regs)
-        self._read(Reg.X_MSB, 6)  # reading MODE locked the outputs; six data reads unlock
+        self._locked_ns = self.clock.now_ns()
+        if self.settings.read != "auto":
+            self._read(Reg.X_MSB, 6)  # reading MODE locked the outputs; six data reads unlock
+        # read: auto: the master's next copy reads the six bytes in one transaction and
+        # releases the lock. Six one-shot reads here would straddle one of its copies (one
+        # a millisecond, a copy every accelerometer period), which would release the lock
+        # midway; the one-shot reads after it would lock it again with part of the six read,
+        # and from then on every copy would end a byte or more into the next measurement
+        # (a torn field: X and Z of one measurement, Y of the next) until Mode is written.
         plan.confirm(got)
         self.plan = plan
         config = bytes((got[Reg.CONFIG_A], got[Reg.CONFIG_B]))
@@ -255,6 +283,7 @@ class Hmc5883lDriver(Driver):
             assert isinstance(self.link.bus, AutoReadBus)
             feed = self._feed = self.link.bus.auto_read(self.link.target, Reg.X_MSB, 6)
             feed.take()  # copies from before this configuration
+            self._cadence_ns = None
             period = self._grid.period_ns
             self._settle_ns = self._mode_written_ns + period + feed.latency_ns
             self._unchanged_limit_ns = round(
@@ -349,7 +378,7 @@ class Hmc5883lDriver(Driver):
             after_reset = self._reset_behind_blank(changes, now_ns)
             if after_reset is not None:
                 return after_reset
-            samples, blank = self._measurements(changes, now_ns)
+            samples, blank = self._measurements(changes, now_ns, late=self._retrying)
             if samples:
                 self._fresh_ns = now_ns
                 self._retrying = False
@@ -372,8 +401,7 @@ class Hmc5883lDriver(Driver):
                                mag_ut=NAN3, flags=frozen or SampleFlag.STALE)
         return self._no_measurement(sample, now_ns)
 
-    def _reset_behind_blank(self, changes: list[tuple[int, bytes]],
-                            now_ns: int) -> PollResult | None:
+    def _reset_behind_blank(self, changes: list[Copy], now_ns: int) -> PollResult | None:
         """A copy of all-zero bytes followed by a measurement in one poll's copies: the
         HMC5883L's data registers read 0 after power-on (datasheet tables 13-15) and a reset
         chip then measures once at its power-on gain and averaging, in single mode, which
@@ -383,37 +411,76 @@ class Hmc5883lDriver(Driver):
         value) and the chip reconfigured. A blank alone in a poll is checked by
         ``_no_measurement``; zeros from a master reset (the MAX21100 clears its copy) find
         the HMC5883L as configured, and the copies go on as usual. None: nothing to do."""
-        last = max((k for k, (_, data) in enumerate(changes) if not any(data)), default=None)
+        last = max((k for k, copy in enumerate(changes) if not any(copy.data)), default=None)
         if last is None or last == len(changes) - 1 or not self._off_plan():
             return None
-        samples, _ = self._measurements(changes[:last], now_ns)
+        samples, _ = self._measurements(changes[:last], now_ns, late=True)
         samples.append(MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                                  mag_ut=NAN3, flags=SampleFlag.STALE))
         return PollResult(samples, self.restart(reset_detected=True))
 
-    def _measurements(self, changes: list[tuple[int, bytes]],
-                      now_ns: int) -> tuple[list[Sample], Sample | None]:
+    def _measurements(self, changes: list[Copy], now_ns: int, *,
+                      late: bool) -> tuple[list[Sample], Sample | None]:
         """The samples of the master's copies that changed since the previous poll
         (``changes``: delivery time, bytes, oldest first; more than one when its reads
         brought two measurements between two polls, as FIFO reads at the IMU's own
         instants can), and the last blank one when none is a measurement. The newest is
         stamped with this poll, as one alone is; an older one with its delivery (its
-        measurement at most the feed's latency before it), kept in order."""
+        measurement at most the feed's latency before it, or on the chip's cadence when the
+        master paused before it: ``stamp_on_cadence``), kept in order. So is the newest
+        when this poll looks again for a copy that was not there on time (``late``): a
+        failed slave read or IMU burst delayed it, and the poll a delivery latency after the
+        planned one would stamp it up to 7 ms late at the seed's rates, past half the
+        field's period, where the frame ledger counts a field the chip never skipped."""
         samples: list[Sample] = []
         blank: Sample | None = None
-        for k, (t_ns, data) in enumerate(changes):
+        assert self._feed is not None
+        pause_ns = self._feed.latency_ns * 4 // 3
+        for k, delivered in enumerate(changes):
+            copy = self._unlocking(delivered)
+            if copy is None:
+                continue
+            t_ns, data = copy.t_ns, copy.data
             if t_ns < self._settle_ns or data == self._emitted:
                 continue
             left = len(changes) - 1 - k  # copies after this one: each needs a later stamp
-            stamp = min(max(t_ns, self._stamped_ns + 1), now_ns - left) if left else now_ns
+            by_delivery = left or late or copy is not delivered
+            if by_delivery:
+                t_ns = stamp_on_cadence(copy, self._cadence_ns, self._grid.period_ns,
+                                        pause_ns=pause_ns)
+            stamp = min(max(t_ns, self._stamped_ns + 1), now_ns - left) \
+                if by_delivery else now_ns
             sample = self._decoded(data, stamp, blank_flag(data))
             if sample.flags & SampleFlag.BLANK:
                 blank = sample
                 continue
             self._emitted = data
-            self._stamped_ns = stamp
+            self._stamped_ns = self._cadence_ns = stamp
             samples.append(sample)
         return samples, (None if samples else blank)
+
+    def _unlocking(self, copy: Copy) -> Copy | None:
+        """``copy`` as the time its measurement was made allows. The master's first copy
+        after the driver read Mode is the locked outputs: a measurement made before that
+        read (its delivery taken as the read's time), or None when the read was
+        configure()'s, whose locked bytes are from before the configuration. While the
+        master copies, that copy repeats the one before and is no change; after the
+        master's auto-read was off (its chip reset and reprogrammed, its copies blank
+        meanwhile) it differs, and it is as old as the read or older."""
+        locked, blank_since = self._locked_ns, self._blank_since_ns
+        blank = bool(blank_flag(copy.data))
+        self._blank_since_ns = (copy.t_ns if blank_since is None else blank_since) \
+            if blank else None
+        after = copy.after_ns
+        # the delivery before it came before the read, or only blank copies did (the
+        # master's registers reset: it read no slave)
+        first = (after is not None and after < locked) or \
+            (blank_since is not None and blank_since <= locked)
+        if blank or not first or copy.t_ns < locked:
+            return copy
+        if locked < self._settle_ns:
+            return None
+        return copy._replace(t_ns=locked)
 
     def _no_measurement(self, sample: Sample, now_ns: int) -> PollResult:
         """No usable measurement (``sample`` says why): check the configuration at once, and
@@ -483,6 +550,8 @@ class Hmc5883lDriver(Driver):
         wrong = self.plan.check_next(self.regs)
         if self._feed is None:
             self._read(Reg.X_MSB, 6)
+        else:
+            self._locked_ns = self.clock.now_ns()
         return wrong is not None
 
 

@@ -95,6 +95,7 @@ def _register_bytes(x: int, y: int, z: int) -> bytes:
 _WRITE_MASKS: dict[int, int] = {Reg.CONFIG_A: CRA_WRITABLE, Reg.CONFIG_B: CRB_WRITABLE,
                                 Reg.MODE: MODE_WRITABLE}
 _DATA = range(DATA_FIRST, DATA_LAST + 1)
+_DATA_BYTES = len(_DATA)
 
 
 class Hmc5883lEmulator(ChipEmulator):
@@ -129,6 +130,8 @@ class Hmc5883lEmulator(ChipEmulator):
         self._gain = _gain_of(self.regs[Reg.CONFIG_B])
         self._gain_next = self._gain
         self._next_ns: int | None = None
+        self._ahead_until_ns = -1
+        """The last pull announced to the board (``announce_pulls``)."""
         self._start_mode()
 
     def silent_reset(self) -> None:
@@ -155,6 +158,7 @@ class Hmc5883lEmulator(ChipEmulator):
         old = self._period_ns()
         self._oscillator_error = fraction
         new = self._period_ns()
+        self._ahead_until_ns = -1
         continuous = self.regs[Reg.MODE] & MODE_MD_MASK == MODE_CONTINUOUS
         if continuous and self._next_ns is not None and old and new:
             self._next_ns += new - old  # counted on from the latest measurement
@@ -199,6 +203,7 @@ class Hmc5883lEmulator(ChipEmulator):
     def _start_mode(self) -> None:
         md = self.regs[Reg.MODE] & MODE_MD_MASK
         now = self.now_ns()
+        self._ahead_until_ns = -1  # the pulls announced so far are on the old timing
         if md == MODE_CONTINUOUS:
             period = self._period_ns()
             self._next_ns = now + period if period else None
@@ -225,7 +230,10 @@ class Hmc5883lEmulator(ChipEmulator):
         self._next_ns = due + count * period
         self.record_measurements(due, period, count)
         # only the latest of several missed measurements is visible, with its own field
-        self.pull_physics(due + (count - 1) * period)
+        newest = due + (count - 1) * period
+        if newest > self._ahead_until_ns:
+            self._ahead_until_ns = self.announce_pulls(newest, period, now)
+        self.pull_physics(newest)
         self._measure()
 
     # --- bus face -------------------------------------------------------------------------
@@ -239,6 +247,14 @@ class Hmc5883lEmulator(ChipEmulator):
             for value in write[1:]:
                 self._write(self.pointer, value)
                 self.pointer = (self.pointer + 1) & 0xFF
+        if read_len == _DATA_BYTES and self.pointer == DATA_FIRST and not self._read_mask:
+            # The whole data block from its start with no partial read before (every poll,
+            # and every auto-read of the MAX21100 master): byte by byte below, the six
+            # bytes are the data as they stand, the last read unlocks, the pointer wraps.
+            block = bytes(self.data)
+            self._unlock()
+            self.pointer = POINTER_WRAP_TO
+            return block
         out = bytearray()
         for _ in range(read_len):
             out.append(self._read(self.pointer))

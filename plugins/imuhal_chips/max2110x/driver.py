@@ -19,10 +19,14 @@ import struct
 from collections.abc import Mapping, Sequence
 from typing import ClassVar
 
+import numpy as np
+import numpy.typing as npt
+
 from imuhal.bus.auto_read import AUTO_READ, AutoReadFeed, same_feed
 from imuhal.bus.base import Bus, BusKind, Link
 from imuhal.bus.register_plan import RegisterPlan
 from imuhal.bus.registers import RegisterView
+from imuhal.core.blocks import Block, IntArray, blocks_of
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
 from imuhal.core.quantities import Quantity
@@ -36,6 +40,7 @@ from imuhal.core.samples import (
 )
 from imuhal.core.streams import StreamSpec, TimeSource
 from imuhal.drivers.base import (
+    BlockPoll,
     DeviceIdentity,
     Driver,
     PollResult,
@@ -57,6 +62,7 @@ from imuhal_chips.max2110x.fifo import FifoRead, FifoReader
 from imuhal_chips.max2110x.registers import (
     ACCEL_RANGE_G,
     DR_CFG_TEMP_EN,
+    FULL_SCALE_COUNTS,
     GYRO_RANGE_DPS,
     I2C_CFG_I2C_OFF,
     INT1_DATA_READY_PLAN,
@@ -443,10 +449,40 @@ class Max2110xDriver(Driver):
 
     # --- read: fifo -------------------------------------------------------------------------
 
+    @property
+    def builds_blocks(self) -> bool:
+        """Only read: fifo decodes its polls into blocks (a register poll is one frame)."""
+        return self._fifo is not None
+
+    def poll_blocks(self, now_ns: int) -> BlockPoll:
+        """``poll`` as blocks. read: fifo decodes a read's frames at once into the gyro and
+        accelerometer blocks' arrays (the same products as the per-frame conversion, so the
+        same floats and flags, tests/chips/test_max2110x_fifo_blocks.py); a read with a
+        blank or frozen frame, and read: registers, go through the frames' samples."""
+        if self._fifo is None or self.scales is None:
+            return super().poll_blocks(now_ns)
+        if self._watch.check_due(now_ns) and self._off_plan(overdue=False):
+            return BlockPoll([], self.restart(reset_detected=True))
+        got, samples, now_ns, next_ns = self._read_fifo(now_ns)
+        blocks = self._frame_blocks(got)
+        if blocks is None:
+            samples += self._frame_samples(got)
+            blocks = []
+        result = self._fifo_result(samples, got, now_ns, next_ns)
+        return BlockPoll((blocks_of(result.samples) if result.samples else []) + blocks,
+                         result.next_poll_ns)
+
     def _poll_fifo(self, now_ns: int) -> PollResult:
         """read: fifo: the slave's bytes and the temperature (when due) from the data
         registers, then every whole frame the FIFO holds, stamped on the chip's clock (or
         with its edges); no frame for longer than the stale policy allows reports STALE."""
+        got, samples, now_ns, next_ns = self._read_fifo(now_ns)
+        samples += self._frame_samples(got)
+        return self._fifo_result(samples, got, now_ns, next_ns)
+
+    def _read_fifo(self, now_ns: int) -> tuple[FifoRead, list[Sample], int, int]:
+        """The reads of a FIFO poll: the data registers' samples (slave bytes, temperature),
+        the FIFO's frames, the time after them and the next read's."""
         assert self._fifo is not None
         self._count_overflow()
         samples = self._aux_and_temperature(now_ns)
@@ -456,8 +492,12 @@ class Max2110xDriver(Driver):
             if not got.frames:
                 self._count_overflow()
         now_ns = max(now_ns, self.clock.now_ns())
-        next_ns = self._fifo.next_read_ns(now_ns, self._fifo_interval_ns())
-        samples += self._frame_samples(got)
+        return got, samples, now_ns, self._fifo.next_read_ns(now_ns, self._fifo_interval_ns())
+
+    def _fifo_result(self, samples: list[Sample], got: FifoRead, now_ns: int,
+                     next_ns: int) -> PollResult:
+        """A FIFO poll's outcome: frames keep the channels fresh; none for longer than the
+        stale policy allows reports STALE samples."""
         if got.frames or got.held:
             self._ready.fresh(Quantity.GYRO, now_ns)
             self._ready.fresh(Quantity.ACCEL, now_ns)
@@ -513,6 +553,57 @@ class Max2110xDriver(Driver):
             samples.append(self._accel_sample((ax, ay, az), t_ns, bad))
         return samples
 
+    def _frame_blocks(self, got: FifoRead) -> list[Block] | None:
+        """The frames of ``got`` as the gyro and accelerometer blocks ``_frame_samples``
+        would give frame by frame, decoded on arrays; None when a frame is blank or would be
+        FROZEN (then frame by frame)."""
+        frames = got.frames
+        if not frames:
+            return []
+        if any(blank_flag(f) for f in frames) or self._frozen.would_flag("frame", frames):
+            return None
+        for frame in frames:
+            self._frozen.observe("frame", frame)
+        assert self.scales is not None
+        n = len(frames)
+        counts = np.frombuffer(b"".join(frames), dtype=">i2").reshape(n, 6)
+        # int16 counts times a float: each count exact in float64, then the product, as
+        # decode's per-frame conversion computes it
+        gyro = np.asarray(counts[:, 0:3] * (math.radians(1.0) / self.scales.gyro_lsb_per_dps),
+                          np.float64)
+        accel = np.asarray(counts[:, 3:6] * (STANDARD_GRAVITY_M_S2 / self.scales.accel_lsb_per_g),
+                           np.float64)
+        stamps = got.stamps_ns
+        flags_g, flags_a = self._frame_flags(counts, stamps)
+        t0 = stamps[0]  # stamps never go back (FifoFrames)
+        offsets = np.array([t - t0 for t in stamps], np.int64)
+        return [Block(GyroSample, self.device, frame=Frame.SENSOR, spec=None, t0_ns=t0,
+                      offsets_ns=offsets, values=gyro, flags=flags_g),
+                Block(AccelSample, self.device, frame=Frame.SENSOR, spec=None, t0_ns=t0,
+                      offsets_ns=offsets, values=accel, flags=flags_a)]
+
+    def _frame_flags(self, counts: npt.NDArray[np.int16], stamps_ns: list[int]
+                     ) -> tuple[IntArray, IntArray]:
+        """The gyro and accelerometer flags of a read's frames (SATURATED, and the chip's
+        filter memory after a clip, frame by frame as ``_frame_samples`` gives them)."""
+        memory = self._memory
+        # no word at the rail (-32768 included: no abs() on int16) and no window open:
+        # every frame OK, without a look frame by frame
+        if int(counts.min()) > -FULL_SCALE_COUNTS and int(counts.max()) < FULL_SCALE_COUNTS \
+                and memory.quiet(Quantity.GYRO) and memory.quiet(Quantity.ACCEL):
+            return np.zeros(len(stamps_ns), np.int64), np.zeros(len(stamps_ns), np.int64)
+        clipped = np.abs(counts.astype(np.int32)) >= FULL_SCALE_COUNTS
+        sat_g: list[bool] = np.asarray(clipped[:, 0:3].any(axis=1), dtype=bool).tolist()
+        sat_a: list[bool] = np.asarray(clipped[:, 3:6].any(axis=1), dtype=bool).tolist()
+        flags_g: list[int] = []
+        flags_a: list[int] = []
+        for t_ns, g, a in zip(stamps_ns, sat_g, sat_a, strict=True):
+            fg = SampleFlag.SATURATED if g else SampleFlag.OK
+            fa = SampleFlag.SATURATED if a else SampleFlag.OK
+            flags_g.append(fg | memory.flag(Quantity.GYRO, t_ns, fg))
+            flags_a.append(fa | memory.flag(Quantity.ACCEL, t_ns, fa))
+        return np.array(flags_g, np.int64), np.array(flags_a, np.int64)
+
     def data_ready(self, edges_ns: Sequence[int]) -> None:
         """read: fifo: each frame is stamped with its own data-ready edge."""
         if self._fifo is not None:
@@ -533,21 +624,24 @@ class Max2110xDriver(Driver):
 
     def resume(self, now_ns: int) -> int | None:
         """One transfer of a poll failed: when the configuration still reads back as
-        written, the chip kept its state (a glitch on the wire), so carry on at the next
-        point of the poll grid instead of a soft reset and reconfiguration (which loses
-        about 10 ms of data); anything else gets the full recovery. A sample the failed
-        burst did not fetch is overwritten by then (the chip flags the overrun and the grid
-        re-anchors): one period lost, nothing wrong.
+        written, the chip kept its state (a glitch on the wire), so poll again at once
+        instead of a soft reset and reconfiguration (which loses about 10 ms of data);
+        anything else gets the full recovery. The retry reads the sample the failed burst
+        missed while it is still the newest, stamped about when it was due. Waiting for the
+        next point of the grid instead read it there a period late when the grid (which
+        creeps early of the chip) came just before the next measurement, and kept the
+        grid a period behind the chip until it crept past a measurement: a loss counted
+        where the chip lost nothing, and one missed where it did (the frame ledger's count
+        against the chip's, tests/integration/test_poll_stamped_accounting.py).
 
-        Not a retry at once: tried (issue 25, to read the missed sample when due), it let
-        the slave auto-read's copies of the magnetometer out torn (X and Z of one
-        measurement, Y of the one before) on the seed paraglider board at 1 % bus errors,
-        about 24 extra "fields" a second, each valid. The cost of waiting: the frame ledger
-        can count a loss a period late (tests/integration/test_poll_stamped_accounting.py,
-        strict xfail)."""
+        The retry was once taken back: with it the seed paraglider board's HMC5883L handed
+        out torn fields (X and Z of one measurement, Y of the next) at 1 % bus errors. The
+        retry only moved the timing; the cause was the HMC5883L driver's one-shot read of
+        its six data bytes while the auto-read ran, which left the chip's data lock half
+        released (imuhal_chips.hmc5883l.driver, configure())."""
         if self.scales is None or self._off_plan(overdue=True):
             return None
-        return self._grid.next_after(max(now_ns, self.clock.now_ns()))
+        return max(now_ns, self.clock.now_ns())
 
     def filter_memory_outputs(self) -> dict[Quantity, int]:
         """Outputs after a saturated one that each channel's low-pass can still carry it:

@@ -178,10 +178,10 @@ _FIFO_STATUS = int(Reg.FIFO_STATUS)
 _FIFO_DATA = int(Reg.FIFO_DATA)
 
 
-AHEAD_NS = 1_000_000_000
-"""How far past a FIFO fill the emulator announces its coming instants (1 s, 250 at the
-seed's 250 Hz): numpy's per-call cost makes the truth of a fill of 8 alone dearer vectorised
-than one by one, of a few hundred cheaper (tests/benchmarks/bench_truths.py)."""
+AHEAD_NS = ChipEmulator.PULL_AHEAD_NS
+"""How far past a FIFO fill or a latch the emulator announces its coming pulls (the base's
+``PULL_AHEAD_NS``): numpy's per-call cost makes the truth of a fill of 8 alone dearer
+vectorised than one by one, of a few hundred cheaper (tests/benchmarks/bench_truths.py)."""
 
 
 def _encode(value: float, per_count: float, limit: int) -> int:
@@ -425,9 +425,14 @@ class Max2110xEmulator(ChipEmulator):
         next_ns = self._next_ns
         periods = self._period_ns
         counted = self._counted()
-        due_now = [(due + (now - due) // periods[i] * periods[i], i)
-                   for i, due in enumerate(next_ns) if due is not None and now >= due]
-        for newest, index in sorted(due_now):  # in the order the chip measured them
+        due_now = sorted((due + (now - due) // periods[i] * periods[i], i)
+                         for i, due in enumerate(next_ns) if due is not None and now >= due)
+        if due_now and self.physics_ahead is not None and due_now[-1][0] > self._ahead_until_ns:
+            # each channel's newest measurement pulls its inputs (one instant twice when
+            # both channels measure then): while the host reads every measurement, the
+            # pulls are every instant of each channel, in order
+            self._announce_instants(due_now[0][0], now, each_channel=True)
+        for newest, index in due_now:  # in the order the chip measured them
             due = next_ns[index]
             assert due is not None
             period = periods[index]
@@ -480,14 +485,19 @@ class Max2110xEmulator(ChipEmulator):
             if last_at_t and any(e == (t, frame_channel) for e in events[max(0, k - 1):k + 1]):
                 self._fifo_write()
 
-    def _announce_instants(self, first_ns: int, now: int) -> None:
-        """Tell the board (``physics_ahead``) every instant at which a channel will measure
-        from ``first_ns`` to ``AHEAD_NS`` past ``now``, as the clock stands: the truth of a
-        FIFO fill's instants and of the next ones then comes from one vectorised call.
-        Instants a later change of rate or clock moves are computed again when measured
-        (the board's truths are keyed by exact instant), so nothing depends on this guess."""
+    def _announce_instants(self, first_ns: int, now: int, *, each_channel: bool = False
+                           ) -> None:
+        """Tell the board (``physics_ahead``) the instants at which the chip will pull its
+        inputs from ``first_ns`` to ``PULL_AHEAD_NS`` past ``now``, as the clock stands: every
+        instant at which a channel measures, once (the FIFO's path pulls once per instant),
+        or once per channel measuring then (``each_channel``: the path that latches each
+        channel's newest). The inputs of a FIFO fill's instants and of the next ones then
+        come from one vectorised call. Pulls a later change of rate or clock, or a host
+        that skips measurements, moves are computed when they happen (the board hands
+        out what it computed only while the pulls come as announced), so nothing depends
+        on this guess."""
         assert self.physics_ahead is not None
-        until = now + AHEAD_NS
+        until = now + self.PULL_AHEAD_NS
         instants = []
         for index, due in enumerate(self._next_ns):
             if due is None:
@@ -497,7 +507,9 @@ class Max2110xEmulator(ChipEmulator):
             start = due - (due - first_ns) // period * period
             instants.append(np.arange(start, until + 1, period, dtype=np.int64))
         if instants:
-            self.physics_ahead(np.unique(np.concatenate(instants)).tolist())
+            merged = np.concatenate(instants)
+            self.physics_ahead((np.sort(merged, kind="stable") if each_channel
+                                else np.unique(merged)).tolist())
         self._ahead_until_ns = until
 
     # --- FIFO (emulator_fifo.py: one model, each part's registers; what is assumed) -----
@@ -846,7 +858,7 @@ class Max21100Emulator(Max2110xEmulator):
                 self._aux.transfer(slave, bytes([register, bank0[_I2C_MST_DATA]]), 0)
                 return
             value = self._aux.transfer(slave, bytes([register]), 1)[0]
-        except BusError:
+        except (BusError, OSError):
             if write:
                 return
             value = ABSENT_SLAVE_BYTE

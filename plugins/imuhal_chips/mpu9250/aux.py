@@ -55,6 +55,9 @@ class MasterAuxBus(Bus):
         self.mpu = mpu
         self.clock = clock
         self._enable_auto_read = enable_auto_read
+        self.slv0_nack = False
+        """I2C_MST_STATUS.SLV0_NACK was set in a status read here (it clears when read):
+        slave 0's auto-read of a sample failed; the MPU-9250 driver takes it over."""
 
     def auto_read(self, target: int, register: int, length: int) -> AutoReadFeed:
         """Have slave 0 read ``length`` bytes from ``register`` of ``target`` at every MPU
@@ -85,6 +88,8 @@ class MasterAuxBus(Bus):
         deadline = self.clock.now_ns() + round(SLV4_TIMEOUT_S * 1e9)
         while True:
             status = self.mpu.read_u8(r.I2C_MST_STATUS)  # clears on read
+            if status & r.MST_SLV0_NACK:
+                self.slv0_nack = True
             if status & r.MST_SLV4_NACK:
                 raise NackError(f"no device answered at address 0x{target:02X} "
                                 "(via the MPU-9250 I2C master)", bus=self.name, target=target)

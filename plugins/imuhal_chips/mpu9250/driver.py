@@ -9,8 +9,10 @@ configure(): H_RESET, wake with the auto-selected PLL clock, then the registers 
 declarative tables (ranges, DLPFs, SMPLRT_DIV, INT_ENABLE.RAW_RDY_EN, aux mode); each is read
 back and verified; scales are cached.
 poll(): one burst INT_STATUS..GYRO_ZOUT_L (0x3A..0x48): the data-ready bit and one coherent
-sample; with a slave auto-read (master mode, imuhal.bus.auto_read) the burst runs on into
-EXT_SENS_DATA (0x49..) and each burst with new data hands the slave's bytes to its feed.
+sample; with a slave auto-read (master mode, imuhal.bus.auto_read) the burst starts at
+I2C_MST_STATUS (0x36) and runs on into EXT_SENS_DATA (0x49..), and each burst with new data
+hands the slave's bytes to its feed, marked failed when SLV0_NACK says slave 0's read of
+that sample failed.
 The shared polling toolkit (imuhal.drivers.polling) decides staleness (no data-ready
 for STALE_AFTER_PERIODS -> STALE), re-reads INT_PIN_CFG/INT_ENABLE every ``reset_check_s``
 (and whenever data are overdue) to catch a silent reset, and restarts a chip that keeps its
@@ -26,6 +28,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar, Literal
 
 import numpy as np
+import numpy.typing as npt
 from pydantic import Field, model_validator
 
 from imuhal.bus.auto_read import AUTO_READ, AutoReadFeed, same_feed
@@ -210,6 +213,8 @@ class MPU9250Driver(Driver):
         self.aux_mode: str = aux
         self._aux_bus: Bus | None = None
         self._feed: AutoReadFeed | None = None
+        self._slv0_nack = False
+        """I2C_MST_STATUS.SLV0_NACK read and not yet told to the feed."""
         if aux == "bypass":
             self._aux_bus = link.bus
         elif aux == "master":
@@ -453,9 +458,10 @@ class MPU9250Driver(Driver):
             return PollResult([], self.restart(reset_detected=True))
         if self._fifo is not None:
             return self._poll_fifo(now_ns, overdue)
-        data = self.regs.read(r.DATA_BURST_START, self._burst_length)
-        if self._feed is not None:
-            data, ext = data[:r.DATA_BURST_LENGTH], data[r.DATA_BURST_LENGTH:]
+        if self._feed is None:
+            data, ext = self.regs.read(r.DATA_BURST_START, self._burst_length), b""
+        else:
+            data, ext = self._burst_with_master_status()
         ready = bool(data[0] & r.INT_RAW_RDY)
         bad = blank_flag(data)
         if ready and not bad:
@@ -463,8 +469,9 @@ class MPU9250Driver(Driver):
         if ready and not bad:
             assert self._fifo is None
             if self._feed is not None:
-                # one delivery per sample: one slave-0 read (or its kept copy after a NACK)
-                self._feed.deliver(now_ns, ext)
+                # one delivery per sample: one slave-0 read, or its kept copy after a NACK
+                self._feed.deliver(now_ns, ext, failed=self._slv0_nack)
+                self._slv0_nack = False
             self._ready.fresh(Quantity.GYRO, now_ns)
             self._watch.fresh_poll()
             # Phase-lock on the chip: the next poll one period after data appeared.
@@ -474,6 +481,24 @@ class MPU9250Driver(Driver):
             return PollResult([], now_ns + max(self._period_ns // 10, 50_000))
         return self._no_sample(now_ns, bad if ready else SampleFlag.STALE | bad,
                                self._grid.next_after(now_ns))
+
+    def _burst_with_master_status(self) -> tuple[bytes, bytes]:
+        """One burst from I2C_MST_STATUS through the slave's bytes: the data burst
+        (INT_STATUS, accel, temperature, gyro) and the slave's copy. I2C_MST_STATUS clears
+        when read, so its SLV0_NACK (slave 0's read of this sample failed, and
+        EXT_SENS_DATA kept the copy before; the register map, I2C_MST_STATUS) is kept until
+        a sample is delivered, with any the aux bus's slave-4 transactions read meanwhile
+        (``MasterAuxBus.slv0_nack``): the feed then knows that this copy is no new read of
+        the slave, and that the next new one may carry what the failed read missed."""
+        raw = self.regs.read(r.I2C_MST_STATUS, r.MASTER_STATUS_BYTES + self._burst_length)
+        aux = self._aux_bus
+        if isinstance(aux, MasterAuxBus) and aux.slv0_nack:
+            aux.slv0_nack = False
+            self._slv0_nack = True
+        if raw[0] & r.MST_SLV0_NACK:
+            self._slv0_nack = True
+        data = raw[r.MASTER_STATUS_BYTES:]
+        return data[:r.DATA_BURST_LENGTH], data[r.DATA_BURST_LENGTH:]
 
     def _no_sample(self, now_ns: int, flags: SampleFlag, next_ns: int) -> PollResult:
         """A flagged NaN sample (stale, blank or frozen); a chip that keeps producing none
@@ -560,16 +585,7 @@ class MPU9250Driver(Driver):
         accel = np.asarray(counts[:, 0:3] * accel_scale(self._accel.lsb_per_unit), np.float64)
         gyro = np.asarray(counts[:, 4:7] * gyro_scale(self._gyro.lsb_per_unit), np.float64)
         temp = np.asarray(counts[:, 3] / TEMP_LSB_PER_DEGC + TEMP_OFFSET_DEGC, np.float64)
-        flags_a: list[int] = []
-        flags_g: list[int] = []
-        memory = self._memory.flag
-        # the chip's filter memory, frame by frame (accelerometer, then gyro, as _samples)
-        for t_ns, sat_a, sat_g in zip(stamps_ns, saturated_rows(counts[:, 0:3]).tolist(),
-                                      saturated_rows(counts[:, 4:7]).tolist(), strict=True):
-            fa = _SATURATED if sat_a else _OK
-            fg = _SATURATED if sat_g else _OK
-            flags_a.append(fa | memory(Quantity.ACCEL, t_ns, fa))
-            flags_g.append(fg | memory(Quantity.GYRO, t_ns, fg))
+        flags_a, flags_g = self._frame_flags(counts, stamps_ns)
         low, high = self.TEMPERATURE_RANGE_DEGC
         temp_flags = np.where(np.isfinite(temp) & ~((low <= temp) & (temp <= high)),
                               int(SampleFlag.OUT_OF_RANGE), 0)
@@ -581,9 +597,29 @@ class MPU9250Driver(Driver):
             return Block(kind, self.device, frame=frame, spec=None, t0_ns=t0,
                          offsets_ns=offsets, values=values, flags=flags)
 
-        return [block(AccelSample, accel, np.array(flags_a, np.int64), Frame.SENSOR),
-                block(GyroSample, gyro, np.array(flags_g, np.int64), Frame.SENSOR),
+        return [block(AccelSample, accel, flags_a, Frame.SENSOR),
+                block(GyroSample, gyro, flags_g, Frame.SENSOR),
                 block(TemperatureSample, temp[:, None], temp_flags, None)]
+
+    def _frame_flags(self, counts: npt.NDArray[np.int16], stamps_ns: list[int]
+                     ) -> tuple[IntArray, IntArray]:
+        """The accelerometer and gyro flags of a burst's frames (SATURATED, and the chip's
+        filter memory after a clip, frame by frame as ``_samples`` gives them)."""
+        sat_a, sat_g = saturated_rows(counts[:, 0:3]), saturated_rows(counts[:, 4:7])
+        memory = self._memory
+        if not (sat_a.any() or sat_g.any()) and memory.quiet(Quantity.ACCEL) \
+                and memory.quiet(Quantity.GYRO):
+            zeros = np.zeros(len(stamps_ns), np.int64)  # no clip, no window open: all OK
+            return zeros, zeros.copy()
+        flags_a: list[int] = []
+        flags_g: list[int] = []
+        # the chip's filter memory, frame by frame (accelerometer, then gyro, as _samples)
+        for t_ns, a, g in zip(stamps_ns, sat_a.tolist(), sat_g.tolist(), strict=True):
+            fa = _SATURATED if a else _OK
+            fg = _SATURATED if g else _OK
+            flags_a.append(fa | memory.flag(Quantity.ACCEL, t_ns, fa))
+            flags_g.append(fg | memory.flag(Quantity.GYRO, t_ns, fg))
+        return np.array(flags_a, np.int64), np.array(flags_g, np.int64)
 
     def data_ready(self, edges_ns: Sequence[int]) -> None:
         """read: fifo: each frame is stamped with its own edge (imuhal_chips.mpu9250.fifo);

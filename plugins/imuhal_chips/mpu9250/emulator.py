@@ -30,8 +30,9 @@ registers; SPI: bit 7 of the first byte set = read; both auto-increment):
     I2C_MST_DELAY_CTRL.I2C_SLV0_DLY_EN slave 0 runs only at every (1 + I2C_MST_DLY)-th
     sample (I2C_SLV4_CTRL[4:0]; register map rev 1.4, I2C_MST_DELAY_CTRL: the facts name the
     register, not its bits); clear (the power-on default), at every sample. A slave-0
-    transaction that fails sets I2C_MST_STATUS.I2C_SLV0_NACK and leaves EXT_SENS_DATA as it
-    was. Slave 0's transactions take place at the sample's own instant
+    transaction that fails (no acknowledge: a NACK, or a bus or I/O error on the aux wire,
+    never an error on the host's bus) sets I2C_MST_STATUS.I2C_SLV0_NACK and leaves
+    EXT_SENS_DATA as it was. Slave 0's transactions take place at the sample's own instant
     (``EmulatedBus.transfer_at``): a slave with a clock of its own answers with what it had
     measured by then, also for samples a FIFO catches up on after a host stall. The copy is
     made within the sample, before RAW_DATA_RDY is set: what
@@ -353,7 +354,7 @@ class MPU9250Emulator(ChipEmulator):
             try:
                 self.aux_bus.transfer_at(instant, address & 0x7F,
                                          prefix + bytes([self._regs[r.I2C_SLV0_DO]]), 0)
-            except BusError:
+            except (BusError, OSError):  # an I/O error on the aux wire: no ACK
                 self._regs[r.I2C_MST_STATUS] |= r.MST_SLV0_NACK
             return
         length = ctrl & r.SLV_LENG
@@ -361,7 +362,7 @@ class MPU9250Emulator(ChipEmulator):
             return
         try:
             data = bytearray(self.aux_bus.transfer_at(instant, address & 0x7F, prefix, length))
-        except BusError:
+        except (BusError, OSError):
             self._regs[r.I2C_MST_STATUS] |= r.MST_SLV0_NACK
             return
         if ctrl & r.SLV_BYTE_SW:
@@ -387,7 +388,7 @@ class MPU9250Emulator(ChipEmulator):
             self._slv4_result = (di, r.MST_SLV4_DONE)
         except NackError:
             self._slv4_result = (self._regs[r.I2C_SLV4_DI], r.MST_SLV4_NACK | r.MST_SLV4_DONE)
-        except BusError:
+        except (BusError, OSError):
             self._slv4_result = (0xFF, r.MST_SLV4_DONE)  # a glitch: garbage data
         self._slv4_done_ns = self.now_ns() + round(SLV4_TRANSACTION_S * 1e9)
 

@@ -79,6 +79,11 @@ EXT_SENS_DATA_BYTES: Final = 24
 DATA_BURST_START: Final = INT_STATUS
 DATA_BURST_LENGTH: Final = 15
 """INT_STATUS, ACCEL_XOUT_H..GYRO_ZOUT_L: status and one coherent sample in one burst."""
+MASTER_STATUS_BYTES: Final = DATA_BURST_START - I2C_MST_STATUS
+"""With a slave auto-read the burst starts at I2C_MST_STATUS (0x36): it, INT_PIN_CFG,
+INT_ENABLE and 0x39 (not in the register map; DMP_INT_STATUS on the InvenSense parts
+that document it; unused here) come before INT_STATUS, so SLV0_NACK arrives with the
+slave's copy it concerns."""
 
 RESET_S: Final = 0.1
 """Wait after H_RESET (Linux waits 100 ms)."""

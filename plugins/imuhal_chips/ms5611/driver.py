@@ -273,6 +273,13 @@ class MS5611Driver(Driver):
                        rate_hz / self.settings.temperature_every, scale=0.01,
                        latency_s=latency_s),
         )
+
+    @property
+    def host_paced(self) -> bool:
+        """The MS5611 converts when commanded: a late poll starts its conversion when the
+        host is free (the cadence slides, ``_slide_to``), measuring the world of then."""
+        return True
+
     def accounted_stream(self) -> tuple[Quantity, int] | None:
         """One pressure conversion per cycle of the configured rate (the host starts each
         one: the cadence is the driver's, kept by its conversion schedule)."""

@@ -23,7 +23,7 @@ Nothing here knows a chip.
 from __future__ import annotations
 
 from collections import deque
-from typing import Protocol, runtime_checkable
+from typing import NamedTuple, Protocol, runtime_checkable
 
 from imuhal.core.errors import ConfigurationError
 
@@ -32,6 +32,55 @@ FRESH_KEPT = 64
 AUTO_READ = "auto_read"
 """The feature name a driver lists in ``child_bus_features`` for a bus whose master can
 auto-read a slave (see :class:`AutoReadBus`)."""
+
+
+class Copy(NamedTuple):
+    """One change of a feed's ``data``: a copy the master's read brought."""
+
+    t_ns: int
+    """When the master's driver delivered it (ns, the driver clock)."""
+    data: bytes
+    failed_ns: tuple[int, ...] = ()
+    """The deliveries just before it whose master read of the slave failed, as the master
+    reported (the MPU-9250's SLV0_NACK), oldest first: the slave's measurement may have
+    been there to copy at any of them. Empty for a master that reports no failures."""
+    after_ns: int | None = None
+    """The delivery before it (None: the first). Longer than the master's period before
+    it, the master's driver was not reading (its chip recovering, blank reads, a stalled
+    host), and the copy may hold a measurement up to one slave period older than usual."""
+
+
+def stamp_on_cadence(copy: Copy, last_ns: int | None, period_ns: int, *,
+                     pause_ns: int) -> int:
+    """When a slave's measurement in ``copy`` was copied, for a slave driver that stamps
+    each copy with its master's delivery, its previous field stamped ``last_ns`` and its
+    measurements ``period_ns`` apart. Usually the delivery (``copy.t_ns``); two cases put
+    it earlier, on the slave's own cadence (whole periods after ``last_ns``), as a
+    driver that knows its chip's period stamps a FIFO frame (Linux
+    inv_sensors_timestamp):
+
+    - the master's reads just before it failed (``failed_ns``): a failed read moved the
+      copy a master period later; the read nearest the cadence is where it was due;
+    - the master did not deliver for longer than ``pause_ns`` (its period) before it
+      (``after_ns``): the copy may have waited a slave period in the chip; the latest
+      cadence point not after the delivery.
+
+    Either way the stamp stays after ``last_ns`` and the delivery before it, and never
+    after the delivery. A slave clock that drifted more than a tenth of a period since
+    ``last_ns`` is stamped a period off: the cadence is only good over short gaps."""
+    t_ns = copy.t_ns
+    if last_ns is None:
+        return t_ns
+    if copy.failed_ns:
+        def off_cadence(t: int) -> int:
+            periods = max(1, round((t - last_ns) / period_ns))
+            return abs(t - last_ns - periods * period_ns)
+        return min((*copy.failed_ns, t_ns), key=off_cadence)
+    after = copy.after_ns
+    if after is None or t_ns - after <= pause_ns:
+        return t_ns
+    periods = int((t_ns - last_ns) / period_ns + 0.1)
+    return min(t_ns, max(last_ns + periods * period_ns, after + 1, last_ns + 1))
 
 
 class AutoReadFeed:
@@ -43,8 +92,8 @@ class AutoReadFeed:
     copy its burst comes).
     """
 
-    __slots__ = ("_raw", "changed_ns", "data", "deliveries", "fresh", "latency_ns", "length",
-                 "ready_bit", "register", "t_ns", "target")
+    __slots__ = ("_failed", "_raw", "changed_ns", "data", "deliveries", "failures", "fresh",
+                 "latency_ns", "length", "ready_bit", "register", "t_ns", "target")
 
     def __init__(self, target: int, register: int, length: int, *, latency_ns: int) -> None:
         self.target = target
@@ -58,10 +107,14 @@ class AutoReadFeed:
         self.deliveries = 0
         self._raw: bytes | None = None
         """The bytes of the previous delivery, as read."""
-        self.fresh: deque[tuple[int, bytes]] = deque(maxlen=FRESH_KEPT)
-        """(delivery time, data) of each change of ``data`` not yet taken (:meth:`take`):
-        every measurement of a slave whose master's copies came in a burst (a FIFO),
-        each at its own copy's time."""
+        self.fresh: deque[Copy] = deque(maxlen=FRESH_KEPT)
+        """Each change of ``data`` not yet taken (:meth:`take`): every measurement of a
+        slave whose master's copies came in a burst (a FIFO), each at its own copy's
+        time."""
+        self.failures = 0
+        """Deliveries whose master read of the slave failed (``deliver(failed=True)``)."""
+        self._failed: list[int] = []
+        """The failed deliveries since the latest good one."""
         self.ready_bit: tuple[int, int] | None = None
         """(byte offset, mask) of the slave's own data-ready bit among the bytes, when its
         driver set one with :meth:`keep_ready_only`."""
@@ -75,9 +128,19 @@ class AutoReadFeed:
             raise ValueError(f"data-ready byte {offset} is outside the {self.length} bytes read")
         self.ready_bit = (offset, mask)
 
-    def deliver(self, t_ns: int, data: bytes) -> None:
+    def deliver(self, t_ns: int, data: bytes, *, failed: bool = False) -> None:
         """The master's driver read ``data`` (``length`` bytes, slave register order) at
-        ``t_ns``."""
+        ``t_ns``. ``failed``: the master reported that its read of the slave for this copy
+        failed (its registers keep the copy before): no change, and the next change may
+        carry the measurement that read missed (``Copy.failed_ns``)."""
+        after_ns = self.t_ns if self.deliveries else None
+        if failed:
+            self.failures += 1
+            self._failed.append(t_ns)
+            self.t_ns = t_ns
+            self.deliveries += 1
+            return
+        failed_ns, self._failed = tuple(self._failed), []
         ready = self.ready_bit
         raw, self._raw = self._raw, data
         if ready is not None:
@@ -91,13 +154,12 @@ class AutoReadFeed:
         if data != self.data:
             self.data = data
             self.changed_ns = t_ns
-            self.fresh.append((t_ns, data))
+            self.fresh.append(Copy(t_ns, data, failed_ns, after_ns))
         self.t_ns = t_ns
         self.deliveries += 1
 
-    def take(self) -> list[tuple[int, bytes]]:
-        """The changes of ``data`` since the last take, oldest first, with their delivery
-        times."""
+    def take(self) -> list[Copy]:
+        """The changes of ``data`` since the last take, oldest first."""
         out = list(self.fresh)
         self.fresh.clear()
         return out

@@ -12,7 +12,13 @@ from imuhal.core.errors import BusError
 
 
 class SerialBus(Bus):
-    """Target is ignored: a UART has one peer. A read shorter than asked is a timeout error."""
+    """Target is ignored: a UART has one peer. A read shorter than asked is a timeout error.
+
+    A write hands its bytes to the port's transmit buffer (the kernel's, kilobytes) and
+    returns; the UART sends them at the line rate meanwhile. It does not wait for them to
+    leave (``tcdrain``): 16 bytes take 17 ms at 9600 baud, more than three periods of a
+    200 Hz IMU polled on the same thread. A read that follows waits for its answer anyway.
+    """
 
     kind = BusKind.SERIAL
 
@@ -36,7 +42,6 @@ class SerialBus(Bus):
         try:
             if write:
                 self._port.write(write)
-                self._port.flush()
             data = self._port.read(read_len) if read_len else b""
         except Exception as exc:
             raise BusError(f"serial transfer failed: {exc}", bus=self.name) from exc

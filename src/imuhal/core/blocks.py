@@ -36,11 +36,21 @@ _BASE_FIELDS = frozenset(("t_ns", "device", "flags", "frame"))
 def _value_field(kind: type[Sample]) -> str | None:
     """The one value field of a vector or scalar sample class (``gyro_rad_s``), or None
     for a class that carries more than one value (a GNSS fix, an airspeed with its
-    accuracy): such samples travel in blocks as their rows only."""
-    if not issubclass(kind, VectorSample | ScalarSample):
-        return None
-    names = [f.name for f in fields(kind) if f.name not in _BASE_FIELDS]
-    return names[0] if len(names) == 1 else None
+    accuracy): such samples travel in blocks as their rows only. (Worked out once per
+    class: every block of several frames asks.)"""
+    try:
+        return _VALUE_FIELDS[kind]
+    except KeyError:
+        pass
+    name = None
+    if issubclass(kind, VectorSample | ScalarSample):
+        names = [f.name for f in fields(kind) if f.name not in _BASE_FIELDS]
+        name = names[0] if len(names) == 1 else None
+    _VALUE_FIELDS[kind] = name
+    return name
+
+
+_VALUE_FIELDS: dict[type, str | None] = {}
 
 
 class Block:
@@ -55,6 +65,7 @@ class Block:
         "_flags",
         "_offsets",
         "_rows",
+        "_t",
         "_t0",
         "_values",
         "device",
@@ -80,6 +91,7 @@ class Block:
         self._offsets = offsets_ns
         self._values = values
         self._flags = flags
+        self._t: IntArray | None = None
 
     # -- construction -----------------------------------------------------------------
 
@@ -113,7 +125,7 @@ class Block:
         b.spec = spec
         b._rows = [sample]
         b._t0 = sample.t_ns
-        b._offsets = b._values = b._flags = None
+        b._offsets = b._values = b._flags = b._t = None
         return b
 
     @classmethod
@@ -210,8 +222,10 @@ class Block:
 
     @property
     def t_ns(self) -> IntArray:
-        """(n,) int64 time stamps (ns)."""
-        return self.offsets_ns + self._t0
+        """(n,) int64 time stamps (ns; worked out once: every stage asks)."""
+        if self._t is None:
+            self._t = self.offsets_ns + self._t0
+        return self._t
 
     @property
     def values(self) -> FloatArray:

@@ -272,6 +272,16 @@ class Driver(ABC):
                 return spec
         return None
 
+    @property
+    def host_paced(self) -> bool:
+        """True while the chip measures when the driver commands it (no output rate of its
+        own: the MS5611's conversions, a BMP280 in forced mode). A poll of such a device
+        that comes late happens as soon as the host is free, and its conversion measures
+        the world of then; a chip with an output rate of its own is polled late at the next
+        point of its poll grid instead, so the reading keeps its stamp's phase
+        (imuhal.pipeline.pipeline, ``Pipeline._on_phase``)."""
+        return False
+
     def accounted_stream(self) -> tuple[Quantity, int] | None:
         """The channel whose frames the pipeline counts (produced, delivered, lost by cause:
         imuhal.pipeline.accounting) and the chip's frame period on it (ns) in the current

@@ -245,12 +245,14 @@ class ChipClock:
         """Smoothed stamps of frames ``indices`` (ascending; see the module docstring):
         never back, each within ``max_step`` of a period of the period estimate times the
         frames since the one stamped before."""
-        p = self.period_ns
+        # the estimate once for all frames (what period_ns and instant_ns give)
+        a, p = self._centre() if self._polygon else (0.0, float(self.nominal_period_ns))
+        base = self._origin_ns + a
         step = self.max_step * p
         out: list[int] = []
         last = self._last
         for k in indices:
-            target = self.instant_ns(k)
+            target = base + k * p  # instant_ns(k)
             if last is None:
                 stamp = round(target)
                 if self._floor_ns is not None:

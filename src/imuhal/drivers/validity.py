@@ -227,6 +227,11 @@ class FilterMemory:
             del self._until_ns[key]
         return settling
 
+    def quiet(self, key: Hashable) -> bool:
+        """No window is open for ``key``: ``flag`` of an output without ``VALUE_FLAGS``
+        returns OK and changes nothing (a driver decoding a burst at once skips it)."""
+        return key not in self._until_ns
+
     def arm(self, key: Hashable, t_ns: int) -> None:
         """The chip's filter took in a wrong measurement at ``t_ns`` (one ``flag`` arms on by
         itself, or one the driver flagged otherwise: a conversion hung on an old value,

@@ -6,6 +6,12 @@ instead handed its inputs at each of its measurement instants, which it asks for
 
 The simulation knows the truth in the body frame; each chip sees it in its own sensor frame
 (the inverse of its chip -> body rotation), optionally through that chip's error model.
+
+What a chip is handed is computed in numpy for many instants at once where the chip says
+when it will pull (``ChipEmulator.physics_ahead``: the truth, rotation and error model of
+the coming seconds in one pass, handed out while the pulls come as announced), and only
+when it is read for a chip handed it at the host's polls that reads it at a few of them
+(``ChipEmulator.set_physics_later``); both give the floats computing it pull by pull gives.
 """
 
 from __future__ import annotations
@@ -31,7 +37,7 @@ from imuhal.profile.model import BoardProfile
 from imuhal.profile.topology import device_order, split_bus_ref
 from imuhal.sim.chip import ChipEmulator
 from imuhal.sim.emulated_bus import EmulatedBus
-from imuhal.sim.errors import SensorErrorModel
+from imuhal.sim.errors import ErrorPlan, SensorErrorModel
 from imuhal.sim.inputs import NO_OTHER, PhysicalInputs
 from imuhal.sim.scenario import ChipTruth, Scenario, TruthState
 from imuhal.sim.world import chip_other, chip_vectors
@@ -109,7 +115,7 @@ class EmulatedBoard:
         for name, emulator in self.emulators.items():
             if type(emulator).pulls_physics:
                 emulator.physics_source = self._physics_source(name)
-                emulator.physics_ahead = self._truths_ahead
+                emulator.physics_ahead = functools.partial(self._inputs_ahead, name=name)
             emulator.physics_at = functools.partial(self._give, name=name)
         self._truth_cache: tuple[int, TruthState] | None = None
         """(time, truth) of the latest ``truth_at``: one attribute, replaced whole, so a
@@ -227,11 +233,73 @@ class EmulatedBoard:
             kept.update(zip(todo, truths, strict=True))
         self._ahead = kept
 
+    def _inputs_ahead(self, times_ns: Sequence[int], name: str) -> None:
+        """The chip of device ``name`` will pull its inputs at ``times_ns`` (ascending; an
+        instant it pulls twice given twice): compute what it will be handed at each, all
+        in one numpy pass (:meth:`_plan_inputs`), and hand them out at its pulls while
+        they come as announced. Where that cannot be planned, the truth of the instants
+        is computed ahead (:meth:`_truths_ahead`) and the rest goes pull by pull."""
+        dev = self._devices[name]
+        dev.plan = None
+        if not times_ns:
+            return
+        if not self._plan_inputs(dev, times_ns):
+            self._truths_ahead(sorted(set(times_ns)))
+
+    def _plan_inputs(self, dev: _Device, times_ns: Sequence[int]) -> bool:
+        """What :meth:`_give` would hand the device's chip at each of ``times_ns``, one
+        call after another: the truth (``Scenario.chip_truth_columns``), rotated into the
+        chip's frame and through its error model (``SensorErrorModel.plan_values``), each
+        by the same operations in the same order on arrays, so the same floats. False
+        (nothing planned) for what this does not cover: a chip measuring no motion, faults
+        on the device, noise periods that follow the host's polls, truth with plugin
+        quantities, times before the device's last inputs."""
+        model = dev.model
+        if (not dev.motion or self.faults.has_faults(dev.name)
+                or (dev.last_t_ns is not None and times_ns[0] < dev.last_t_ns)):
+            return False
+        periods = None
+        if model is not None and model.period_channels:
+            periods = self._noise_periods(dev, DEFAULT_PERIOD_S)
+            if dev.periods is None:  # they depend on the poll interval
+                return False
+        unique = np.unique(np.asarray(times_ns, dtype=np.int64))
+        with self._scenario_lock:
+            columns = self.scenario.chip_truth_columns((unique / 1e9).tolist())
+        if columns is None:
+            return False
+        rows = np.searchsorted(unique, np.asarray(times_ns, dtype=np.int64))
+        mount = dev.mount
+        force, rate, field = (_rotate_rows(c[rows], mount) for c in (
+            columns.specific_force_body_m_s2, columns.angular_rate_body_rad_s,
+            columns.magnetic_field_body_ut))
+        pressure, temperature = columns.pressure_pa[rows], columns.temperature_degc[rows]
+        errors = None
+        if model is not None:
+            t_s = np.asarray(times_ns, dtype=np.int64) / 1e9
+            errors = model.plan_values(t_s, force, rate, field, pressure, temperature,
+                                       DEFAULT_PERIOD_S, periods)
+            if errors is None:
+                return False
+            force, rate, field, pressure, temperature = errors.values  # type: ignore[assignment]  # given arrays, it returns arrays
+        build = PhysicalInputs.build
+        position = list(map(tuple, columns.position_ned_m[rows].tolist()))
+        velocity = list(map(tuple, columns.velocity_ned_m_s[rows].tolist()))
+        dev.plan = _InputsPlan(
+            list(times_ns),
+            [build(f, w, b, p, t, x, v, NO_OTHER) for f, w, b, p, t, x, v in zip(
+                map(tuple, force.tolist()), map(tuple, rate.tolist()),
+                map(tuple, field.tolist()), pressure.tolist(), temperature.tolist(),
+                position, velocity, strict=True)],
+            errors, periods, dev.line.writes)
+        return True
+
     def before_poll(self, t_ns: int, device: str) -> int:
         """The pipeline is about to poll ``device``, due at ``t_ns``: apply the faults due
         (a late poll moves the clock) and give its chip its inputs. Returns the time the
-        poll actually happens."""
-        t_ns = self.faults.before_poll(device, t_ns)
+        poll actually happens: not before the clock (a poll that fell due while the
+        pipeline's thread was held happens, and its chip measures, when it is free)."""
+        t_ns = self.faults.before_poll(device, max(t_ns, self.clock.now_ns()))
         if self.emulators[device].physics_source is None:
             # a chip with its own clock pulls its inputs when it measures
             self.update(t_ns, device)
@@ -308,6 +376,22 @@ class EmulatedBoard:
         """Hand the chip of device ``name`` its inputs at ``t_ns`` (what :meth:`update` does
         per device; also the chips' ``physics_at``, which leaves the board's own time)."""
         dev = self._devices[name]
+        plan = dev.plan
+        if plan is not None:
+            inputs = self._planned(dev, plan, t_ns)
+            if inputs is not None:
+                dev.last_t_ns = t_ns
+                dev.emulator.physics_t_ns = t_ns
+                dev.emulator.set_physics(inputs)
+                return
+        if dev.later and not self.faults.has_faults(name):
+            model = dev.model
+            finish = None if model is None else model.apply_later(t_ns / 1e9)
+            dev.last_t_ns = t_ns
+            dev.emulator.physics_t_ns = t_ns
+            dev.emulator.set_physics_later(
+                functools.partial(self._inputs_later, dev, t_ns, finish))
+            return
         truth = self._chip_truth(t_ns, dev.motion)
         mount = dev.mount
         force, rate, field = chip_vectors(truth, mount)
@@ -332,6 +416,78 @@ class EmulatedBoard:
         dev.emulator.physics_t_ns = t_ns
         dev.emulator.set_physics(inputs)
 
+    def _inputs_later(self, dev: _Device, t_ns: int,
+                      finish: Callable[[float, float], tuple[float, float]] | None
+                      ) -> PhysicalInputs:
+        """What :meth:`_give` hands the chip at ``t_ns``, computed when the chip reads it
+        (``ChipEmulator.set_physics_later``); ``finish``: the error model's half of the
+        call (``SensorErrorModel.apply_later``), whose draws were taken at ``t_ns``."""
+        truth = self._chip_truth(t_ns, dev.motion)
+        # A chip measuring no motion gets none (read later, the instant's truth may be a
+        # full one another chip's pull computed since)
+        force, rate, field = chip_vectors(truth, dev.mount) if dev.motion else (None, None, None)
+        other = chip_other(truth, dev.mount) if truth.other else NO_OTHER
+        pressure, temperature = truth.pressure_pa, truth.temperature_degc
+        if finish is not None:
+            pressure, temperature = finish(pressure, temperature)
+        return PhysicalInputs.build(force, rate, field, pressure, temperature,
+                                    truth.position_ned_m, truth.velocity_ned_m_s, other)
+
+    def _planned(self, dev: _Device, plan: _InputsPlan, t_ns: int) -> PhysicalInputs | None:
+        """The planned inputs of the device's next pull when it comes at ``t_ns`` as
+        announced and nothing the plan assumed has changed (its noise periods, the faults
+        on it); else None, and the plan is dropped (the error model keeps the calls taken
+        from it: ``ErrorPlan.used``)."""
+        i = plan.next
+        if i < len(plan.times_ns) and plan.times_ns[i] == t_ns \
+                and not self.faults.has_faults(dev.name):
+            writes = dev.line.writes
+            if writes != plan.writes:  # a configuration write: are the periods the same?
+                model = dev.model
+                periods = None if model is None or not model.period_channels else \
+                    self._noise_periods(dev, DEFAULT_PERIOD_S)
+                if periods != plan.periods or (periods is not None and dev.periods is None):
+                    dev.plan = None
+                    return None
+                plan.writes = writes
+            plan.next = i + 1
+            if plan.errors is not None:
+                plan.errors.used = i + 1
+            return plan.inputs[i]
+        dev.plan = None
+        return None
+
+
+def _rotate_rows(v: np.ndarray, m: list[list[float]] | None) -> np.ndarray:
+    """:func:`imuhal.sim.world.chip_vectors`' rotation (``M^T v`` from +0.0, the same
+    operations in the same order) on (n, 3) rows."""
+    if m is None:
+        return v
+    (a, b, c), (d, e, f), (g, h, i) = m
+    x, y, z = v[:, 0], v[:, 1], v[:, 2]
+    return np.stack([0.0 + a * x + d * y + g * z, 0.0 + b * x + e * y + h * z,
+                     0.0 + c * x + f * y + i * z], axis=1)
+
+
+class _InputsPlan:
+    """A chip's inputs computed ahead for its announced pulls (``EmulatedBoard._plan_inputs``)."""
+
+    __slots__ = ("errors", "inputs", "next", "periods", "times_ns", "writes")
+
+    def __init__(self, times_ns: list[int], inputs: list[PhysicalInputs],
+                 errors: ErrorPlan | None, periods: dict[str, float] | None,
+                 writes: int) -> None:
+        self.times_ns = times_ns
+        self.inputs = inputs
+        self.errors = errors
+        """The error model's share (its ``used`` follows ``next``)."""
+        self.periods = periods
+        """The noise periods the error model was planned with."""
+        self.writes = writes
+        """The device line's write count when they were last checked."""
+        self.next = 0
+        """The index of the next pull's inputs."""
+
 
 class _Device:
     """What the per-poll path keeps of one emulated device."""
@@ -339,6 +495,7 @@ class _Device:
     __slots__ = (
         "emulator",
         "last_t_ns",
+        "later",
         "line",
         "model",
         "motion",
@@ -347,6 +504,7 @@ class _Device:
         "period_terms",
         "period_writes",
         "periods",
+        "plan",
     )
 
     def __init__(self, emulator: ChipEmulator, line: FaultLine,
@@ -366,3 +524,12 @@ class _Device:
         self.period_writes = -1
         self.periods: dict[str, float] | None = None
         """The noise periods, while they do not depend on the poll interval."""
+        self.plan: _InputsPlan | None = None
+        """The chip's inputs computed ahead for its coming pulls, if any."""
+        kind = type(emulator)
+        self.later = (not kind.pulls_physics and kind.set_physics is ChipEmulator.set_physics
+                      and (model is None or model.scalar_only))
+        """Whether the chip's inputs may be computed when it reads them: a chip handed
+        them at the host's polls that does not act on them when handed
+        (``ChipEmulator.set_physics_later``), with an error model that can take its
+        draws first (``SensorErrorModel.apply_later``)."""

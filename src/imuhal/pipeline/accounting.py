@@ -9,10 +9,11 @@ the frames the chip produced from its timing: two valid frames delivered ``gap``
 produced and not delivered. Those are lost, and charged to the weightiest cause seen since
 the previous valid frame:
 
-``host_stall`` a poll of the device came more than half a frame period after it was due
-               (the host was busy: a stalled process, another device's slow poll);
 ``reset``      the driver reprogrammed its chip (a recovery after bus errors, a detected
                silent reset, a restart of a stuck or frozen chip);
+``host_stall`` a poll of the device came more than half a frame period after it was due
+               (the host's one thread was busy: a stalled process, another device's slow
+               poll or long recovery);
 ``bus_error``  a transfer failed (the driver resumed without a reset);
 ``stale``      the driver flagged a sample STALE (no new data for too long);
 ``flagged``    a produced frame came out flagged (FROZEN, BLANK, out of range...);
@@ -31,7 +32,16 @@ record of its measurement instants over each segment's span equals the segment's
 frames unseen, or a cause that goes uncounted fails there. ``delivered + sum(lost) ==
 produced`` holds by construction. ``fifo_overflow``: a FIFO reader (the MPU-9250's ``read:
 fifo``) found its chip's FIFO overflowed or corrupt and reset it (``DeviceHealth.
-fifo_overflows``); it comes first, since a FIFO rides out the other causes.
+fifo_overflows``); it comes first, since a FIFO rides out the other causes. ``reset``
+comes before ``host_stall``: a gap across the device's own reconfiguration ends its segment
+and its stream restarts, so its frames are the reset's even when the thread was also held
+in that window (another device's recovery); a device that was only kept waiting loses its
+frames to ``host_stall``.
+
+A poll that comes half a period late or more is put off to the next point of the device's
+own poll grid (imuhal.pipeline.pipeline, ``Pipeline._on_phase``; up to PUT_OFF_AT_MOST times
+in a row): its reading keeps the phase of the polls before it, so the gap that ends in it is
+counted like any other, exactly.
 
 A chip whose conversions the host starts (the MS5611) produces no frame in a slot of its
 configured cadence that the host let pass without a conversion (its schedule slid after a
@@ -44,9 +54,9 @@ still reaches the estimators (cause ``not_converted``: the time between the fram
 
 Limit: time stamps are the host's poll times, up to a period after the measurement. A gap
 is counted right while the two polls at its ends lie at about the same phase to the chip
-(within half a period); random host delays of half a period or more can shift it by one and
-hide a frame the poll skipped (a poll that reads frame k + 2 one period after frame k).
-Frame times from the chip (issue 25 item 4) remove this limit.
+(within half a period). Polls later than that keep the phase (above); a chip clock off its
+nominal period by more than half a period over a long gap (2 % over 25 periods) can still
+shift the count by one. Frame times from the chip (issue 25 item 4) remove this limit.
 """
 
 from __future__ import annotations
@@ -55,9 +65,12 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
+import numpy as np
+
+from imuhal.core.blocks import Block
 from imuhal.core.samples import Quantity, Sample, SampleFlag
 
-CAUSES: tuple[str, ...] = ("fifo_overflow", "host_stall", "reset", "bus_error", "stale",
+CAUSES: tuple[str, ...] = ("fifo_overflow", "reset", "host_stall", "bus_error", "stale",
                            "flagged", "missed")
 """Loss causes, weightiest first: a gap is charged to the first one seen in it."""
 
@@ -146,20 +159,50 @@ class FrameLedger:
         if not sample.valid:
             self.note("stale" if sample.flags & SampleFlag.STALE else "flagged")
             return None
+        return self._valid_at(sample.t_ns)
+
+    def _valid_at(self, t_ns: int) -> Loss | None:
+        """A valid frame of the accounted channel at ``t_ns`` (``observe``)."""
         loss = None
         if self.last_ns is not None:
-            loss = self._gap_before(sample.t_ns - self.last_ns)
+            loss = self._gap_before(t_ns - self.last_ns)
         else:
-            self.first_ns = sample.t_ns
+            self.first_ns = t_ns
         if self._segment_first_ns is None:
-            self._segment_first_ns = sample.t_ns
+            self._segment_first_ns = t_ns
             self._segment_produced = 0
         self._segment_produced += 1
         self.delivered += 1
-        self.last_ns = sample.t_ns
+        self.last_ns = t_ns
         self._seen.clear()
         self._slid_ns = 0
         return loss
+
+    def observe_block(self, block: Block) -> list[tuple[int, Loss]]:
+        """``observe`` for every frame of ``block`` (one stream, flags final), oldest first;
+        returns each loss with the time of the frame it comes before. A block of valid
+        frames none of which follows the one before by half a period more than the period
+        (so no slot lies between them) is counted on its arrays: only its first frame can
+        come after a gap; any other block goes frame by frame."""
+        if block.quantity is not self.channel:
+            return []
+        t = block.t_ns
+        if len(t) > 1 and not block.flags.any():
+            steps = np.diff(t)
+            if int(steps.min()) >= 0 and 2 * int(steps.max()) < 3 * self.period_ns:
+                first = int(t[0])
+                loss = self._valid_at(first)
+                more = len(t) - 1
+                self.delivered += more
+                self._segment_produced += more
+                self.last_ns = int(t[-1])
+                return [] if loss is None else [(first, loss)]
+        out = []
+        for sample in block.samples():
+            loss = self.observe(sample)
+            if loss is not None:
+                out.append((sample.t_ns, loss))
+        return out
 
     def _gap_before(self, step_ns: int) -> Loss | None:
         """Counts the slots between the latest valid frame and one ``step_ns`` after it:

@@ -21,6 +21,11 @@ from imuhal.pipeline.triggers import SelectorWaiter, TriggerEdge, Waiter
 from imuhal.plugins.manager import Registry
 from imuhal.profile.model import BoardProfile, InterruptConfig
 
+LATE_AFTER_NS = 500_000
+"""A real board's poll that comes more than 0.5 ms after its due time happens at the clock
+(the host's thread was held); within it, the wake-up latency of a sleeping process, the poll
+keeps its due time (a recording would otherwise hold a late poll for nearly every poll)."""
+
 
 class Board(Protocol):
     """The board a pipeline polls."""
@@ -37,8 +42,11 @@ class Board(Protocol):
 
     def before_poll(self, t_ns: int, device: str) -> int:
         """Called at ``t_ns`` (the clock already there), just before ``device`` is polled.
-        Returns the time the poll happens: ``t_ns``, or later when the host was late (an
-        emulated board's injected late polls and jitter move the clock)."""
+        Returns the time the poll happens: ``t_ns``, or later when the host was late (the
+        clock is past ``t_ns``: the one thread was held by another device's poll or
+        recovery, or by a stall; an emulated board's injected late polls and jitter move
+        the clock). A late poll is stamped when it happens, never at its old due time: the
+        chips are read then (a recording keeps the time, so a replay polls at it)."""
         ...
 
 
@@ -80,8 +88,12 @@ class HardwareBoard:
     lines: dict[str, GpioTriggerLine] = field(default_factory=dict)
 
     def before_poll(self, t_ns: int, device: str) -> int:
-        """Nothing to do: real chips measure the real world on their own."""
-        return t_ns
+        """Real chips measure the real world on their own: the poll is now. Up to
+        LATE_AFTER_NS after ``t_ns`` (the operating system's wake-up latency) it keeps
+        ``t_ns``, as an on-time poll; later, the one thread was held and the poll is at the
+        clock (a recording keeps it as a late poll)."""
+        now_ns = self.clock.now_ns()
+        return now_ns if now_ns - t_ns > LATE_AFTER_NS else t_ns
 
     def waiter(self) -> Waiter:
         """One ``selectors`` wait over the lines and the next deadline."""

@@ -3,8 +3,9 @@ same steps, estimators fed only valid body-frame samples, sinks fed everything.
 
 Embedding: ``Pipeline.open(profile, registry)`` (the profile's real buses) or
 ``imuhal.emulation.open_emulated(profile, registry, scenario="thermal")`` (an emulated board),
-then iterate ``pipeline.events(duration_s)`` (samples and estimates in time order) or call
-``pipeline.run(duration_s, sinks)``. The pipeline sees a board only through
+then iterate ``pipeline.events(duration_s)`` (samples and estimates in time order),
+``pipeline.blocks(duration_s)`` (the same with each FIFO read as its blocks, no sample built
+per frame) or call ``pipeline.run(duration_s, sinks)``. The pipeline sees a board only through
 :class:`~imuhal.pipeline.board.Board`; it knows nothing of simulation.
 """
 
@@ -86,6 +87,9 @@ REPORT_AFTER_FAILURES = 4
 """Consecutive failed recoveries (about 30 ms of trying) before the run reports the device."""
 JOIN_RETRY_NS = 1_000_000_000
 """An optional device that is not there is looked for again every second."""
+PUT_OFF_AT_MOST = 3
+"""Times in a row a late poll is put off to the next point of its device's grid
+(``Pipeline._on_phase``) before it is made when it comes, off the chip's phase."""
 NEVER_NS = 1 << 62
 """The next poll of an isolated device: never in any run."""
 
@@ -162,6 +166,9 @@ class DeviceRuntime:
     (``Driver.data_ready``, within the driver's containment)."""
     isolated: bool = False
     """Its driver overran a call's deadline or kept failing: never polled again."""
+    put_off: int = 0
+    """How many times in a row its pending poll was put off to the next point of its grid
+    (``Pipeline._on_phase``); at PUT_OFF_AT_MOST it happens when it comes, late or not."""
 
     def __post_init__(self) -> None:
         self.chip_to_body_rows = np.asarray(self.chip_to_body, dtype=float).tolist()
@@ -542,13 +549,42 @@ class Pipeline:
         that phase is part of ``duration_s``, yields nothing, and carries on into the next
         call when a call ends before it does.
         """
-        source = self._poll_events(duration_s)
-        if self.calibrated:
-            stage = self._startup = self._startup or self._startup_stage()
-            if not stage.done:
-                # The phase carries over to the next call when this one ends before it does.
-                self._run_startup(stage, source)
+        source = cast("Iterator[Event]", self._poll_events(duration_s, reads=False))
+        stage = self._pending_startup()
+        if stage is not None:
+            # The phase carries over to the next call when this one ends before it does.
+            self._run_startup(stage, source)
         yield from source
+
+    def blocks(self, duration_s: float | None = None) -> Iterator[Event | Block]:
+        """``events`` with each read of several frames of a stream (a FIFO read) handed
+        out as blocks (imuhal.core.blocks; body frame, flags final: the frames ``events``
+        gives one by one), one per stream of the read, instead of a ``Sample`` per frame;
+        a register poll's readings, estimates and everything else come as from ``events``.
+        The blocks of one read come together, each in time order; ``Block.samples()``
+        gives a block's frames as the samples ``events`` would. For a consumer that takes
+        frames on arrays (or only counts them): no per-frame object is built for it. The
+        estimators get the same inputs as under ``events``, so the same estimates."""
+        items = self._poll_events(duration_s, reads=True)
+        stage = self._pending_startup()
+        if stage is not None:
+            source = _Expanded(self, items)
+            self._run_startup(stage, source)
+            # a read part-way handed out when the phase ended: the rest as its frames
+            yield from source.rest_of_read()
+        for item in items:
+            if type(item) is _Read:
+                yield from item.blocks
+            else:
+                yield cast("Event", item)
+
+    def _pending_startup(self) -> GyroStartupStage | None:
+        """The start-up phase (imuhal.pipeline.startup) when it is still to run."""
+        if not self.calibrated:
+            return None
+        stage = self._startup = self._startup or self._startup_stage()
+        return None if stage.done else stage
+
 
     def _startup_stage(self) -> GyroStartupStage:
         settings = startup_settings(
@@ -599,7 +635,10 @@ class Pipeline:
                 heapq.heappush(self._heap, (dev.next_poll_ns, self._device_rank[name], name))
         return self._heap
 
-    def _poll_events(self, duration_s: float | None) -> Iterator[Event]:
+    def _poll_events(self, duration_s: float | None, *, reads: bool
+                     ) -> Iterator[Event | _Read]:
+        """The poll loop: every event in time order; ``reads``: each read of several frames
+        as one :class:`_Read` (``blocks``), else its frames one by one (``events``)."""
         heap = self._schedule()
         start = self.clock.now_ns()
         end = None if duration_s is None else start + round(duration_s * 1e9)
@@ -610,7 +649,7 @@ class Pipeline:
             if lines:
                 woke = self._waiter.wait(t_ns if end is None else min(t_ns, end))
                 if woke:
-                    yield from self._on_edges(woke)
+                    yield from self._on_edges(woke, reads)
                     continue
             if end is not None and t_ns >= end:
                 self._span_ns[1] = end
@@ -627,23 +666,25 @@ class Pipeline:
             due_ns = t_ns
             t_ns = self._before_poll(t_ns, name)
             dev = self.devices[name]
-            self._note_late(dev, due_ns, t_ns)
             self._span_ns[1] = max(t_ns, self._span_ns[1])
+            if self._on_phase(dev, due_ns, t_ns):
+                continue
+            self._note_late(dev, due_ns, t_ns)
             frames, next_ns = self._contained_service(dev, t_ns)
             if dev.ledger is not None:
                 self._account(dev)
             dev.next_poll_ns = max(self._next_due(dev, t_ns, next_ns), t_ns + 1)
             heapq.heappush(heap, (dev.next_poll_ns, rank, name))
-            yield from self._hand_out(dev, frames)
+            yield from self._hand_out(dev, frames, reads)
             if dev.ledger is not None:
                 self._account_slides(dev)
         if end is not None:
             self.clock.sleep_until(end)
-            yield from self._drain(end)
+            yield from self._drain(end, reads)
         if self._fusion:
             yield from self._fuse(before_ns=None)
 
-    def _drain(self, t_ns: int) -> Iterator[Sample]:
+    def _drain(self, t_ns: int, reads: bool) -> Iterator[Sample | _Read]:
         """The run ends at ``t_ns``: what each driver read and still holds
         (``Driver.drain``: FIFO frames waiting for their time stamps) is handed out, so
         nothing read is lost uncounted."""
@@ -656,32 +697,77 @@ class Pipeline:
                 self._driver_failed(dev, t_ns, exc)
                 continue
             if held:
-                yield from self._hand_out(dev, _frames(held))
+                yield from self._hand_out(dev, _frames(held), reads)
 
-    def _frames_of(self, dev: DeviceRuntime, blocks: list[Block]) -> Iterator[Sample]:
-        """Blocks of several frames (a FIFO read) through the steps at once, their frames
-        handed out in time order (imuhal.core.blocks.interleaved). When the start-up phase
-        switches calibration on while they are handed out, the frames not handed out yet
-        are calibrated and queued then, as single readings would have been."""
-        calibrated = self.calibrated
-        frames = interleaved([self._process(dev, b) for b in blocks])
+    def _read_frames(self, read: _Read) -> Iterator[Sample]:
+        """A read's frames handed out one by one in time order
+        (imuhal.core.blocks.interleaved). When the start-up phase switches calibration on
+        while they are handed out, the frames not handed out yet are calibrated and queued
+        then, as single readings would have been."""
+        frames = interleaved(read.blocks)
         for i, frame in enumerate(frames):
             yield frame
-            if self.calibrated and not calibrated:
-                rest = [self._to_body(dev, b) for b in blocks_of(frames[i + 1:])]
+            if self.calibrated and not read.calibrated:
+                rest = [self._to_body(read.dev, b) for b in blocks_of(frames[i + 1:])]
                 yield from interleaved(rest)
                 return
 
-    def _hand_out(self, dev: DeviceRuntime,
-                  frames: _Readings | list[Block]) -> Iterator[Sample]:
-        """A poll's readings or blocks through the steps, in the order they are handed out."""
+    def _hand_out(self, dev: DeviceRuntime, frames: _Readings | list[Block],
+                  reads: bool) -> Iterator[Sample | _Read]:
+        """A poll's readings or blocks through the steps, in the order they are handed out:
+        readings one by one, the blocks of several frames (a FIFO read) at once, as one
+        :class:`_Read` (``reads``: its frames become samples only where a consumer asks)
+        or as its frames one by one."""
         if isinstance(frames, _Readings):
             # one frame per block (a register poll): each reading through the steps as it
             # is handed out (the start-up phase may switch calibration on between two)
             for sample in frames:
                 yield self._process_one(dev, sample)
         elif frames:
-            yield from self._frames_of(dev, frames)
+            calibrated = self.calibrated
+            read = _Read(dev, [self._process(dev, b) for b in frames], calibrated)
+            if reads:
+                yield read
+            else:
+                yield from self._read_frames(read)
+
+    def _on_phase(self, dev: DeviceRuntime, due_ns: int, t_ns: int) -> bool:
+        """A poll due at ``due_ns`` that can only happen at ``t_ns``, half a frame period or
+        more later (the pipeline's one thread was held: a host stall, another device's
+        slow poll or recovery): True when it is put off to the next point of the device's
+        own grid, ``due_ns`` plus whole frame periods (the loss is charged to
+        ``host_stall``). Its chip keeps measuring on its own clock at the phase the due
+        time had, so a reading taken on that phase carries the measurement an on-time poll
+        there would, stamped with the same lag after it: a stamp neither back at the old
+        due time nor up to a period after its data, and the frame ledger's gap, counted
+        from stamp to stamp, is exact. At most one more frame goes than a poll at once
+        would have read, counted.
+
+        Not put off (False; the poll happens at ``t_ns``): a chip the driver paces (its
+        conversion then measures the world of ``t_ns``), one whose frames the chip buffers
+        or a data-ready line times, a device without an accounted period, one recovering,
+        a poll put off PUT_OFF_AT_MOST times in a row already (a host whose every wake-up
+        comes late, a coarse timer, would otherwise never poll it; fewer times, a stall
+        that follows another), and a poll late by less than half a period (its lag stays
+        within the rounding of the ledger's count while the polls on time lie less than
+        half a period after the measurement they read)."""
+        ledger = dev.ledger
+        if ledger is None or 2 * (t_ns - due_ns) < ledger.period_ns \
+                or dev.put_off >= PUT_OFF_AT_MOST or dev.buffered or dev.needs_recovery \
+                or dev.resumed or not dev.present or not isinstance(dev.trigger, TimerTrigger) \
+                or dev.driver.host_paced:
+            dev.put_off = 0
+            return False
+        period_ns = ledger.period_ns
+        at_ns = due_ns + -(-(t_ns - due_ns) // period_ns) * period_ns
+        if at_ns == t_ns:  # late by whole periods: on the grid already
+            dev.put_off = 0
+            return False
+        ledger.note("host_stall")
+        dev.put_off += 1
+        dev.next_poll_ns = at_ns
+        heapq.heappush(self._schedule(), (at_ns, self._device_rank[dev.name], dev.name))
+        return True
 
     def _note_late(self, dev: DeviceRuntime, due_ns: int, t_ns: int) -> None:
         """A read at ``t_ns`` that was due at ``due_ns``: more than half a frame period late
@@ -713,7 +799,8 @@ class Pipeline:
             return driver_next_ns
         return dev.trigger.due(t_ns, driver_next_ns)
 
-    def _on_edges(self, woke: dict[str, list[TriggerEdge]]) -> Iterator[Event]:
+    def _on_edges(self, woke: dict[str, list[TriggerEdge]], reads: bool
+                  ) -> Iterator[Event | _Read]:
         """Read each device whose line raised edges, once, stamped with its newest edge
         (a host that came late finds the chip's newest sample: the edges before it are
         counted overwritten)."""
@@ -744,7 +831,7 @@ class Pipeline:
                 self._account(dev)
             dev.next_poll_ns = max(self._next_due(dev, edge.t_ns, next_ns), t_ns + 1)
             heapq.heappush(self._schedule(), (dev.next_poll_ns, self._device_rank[name], name))
-            yield from self._hand_out(dev, samples)
+            yield from self._hand_out(dev, samples, reads)
             if dev.ledger is not None:
                 self._account_slides(dev)
 
@@ -1016,10 +1103,8 @@ class Pipeline:
                 if sample.flags:
                     self._count_flags(dev, sample)
         if dev.ledger is not None:
-            for sample in block.samples():
-                loss = dev.ledger.observe(sample)
-                if loss is not None:
-                    self._gap(dev, sample.t_ns, loss)
+            for t_ns, loss in dev.ledger.observe_block(block):
+                self._gap(dev, t_ns, loss)
         return self._to_body(dev, block) if self.calibrated else block
 
     def _gap(self, dev: DeviceRuntime, t_ns: int, loss: Loss) -> None:
@@ -1149,8 +1234,12 @@ class Pipeline:
         sink_counts: dict[str, dict[str, int]] = {}
         contained = ContainedSinks(sinks, self.containment, self.registry)
         try:
-            for event in self.events(duration_s):
-                contained.handle(event)
+            if sinks:
+                for event in self.events(duration_s):
+                    contained.handle(event)
+            else:  # nobody takes the frames one by one: a FIFO read stays its blocks
+                for _ in self.blocks(duration_s):
+                    pass
             failed = False
         except KeyboardInterrupt:
             failed = False
@@ -1221,6 +1310,50 @@ class Pipeline:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+class _Read:
+    """The blocks of one read of several frames (a FIFO read) after validity, calibration
+    and rotation, handed out together; ``calibrated``: whether the pipeline calibrated
+    when they went through the steps (the start-up phase may switch it on while their
+    frames are handed out one by one)."""
+
+    __slots__ = ("blocks", "calibrated", "dev")
+
+    def __init__(self, dev: DeviceRuntime, blocks: list[Block], calibrated: bool) -> None:
+        self.dev = dev
+        self.blocks = blocks
+        self.calibrated = calibrated
+
+
+class _Expanded:
+    """Items of the poll loop with each read's frames one by one (``_read_frames``), as an
+    iterator that can say where it stopped: ``rest_of_read`` gives the frames of a read
+    part-way handed out (``Pipeline.blocks`` after the start-up phase)."""
+
+    def __init__(self, pipeline: Pipeline, items: Iterator[Event | _Read]) -> None:
+        self._pipeline = pipeline
+        self._items = items
+        self._frames: Iterator[Sample] | None = None
+
+    def __iter__(self) -> _Expanded:
+        return self
+
+    def __next__(self) -> Event:
+        if self._frames is not None:
+            frame = next(self._frames, None)
+            if frame is not None:
+                return frame
+            self._frames = None
+        item = next(self._items)
+        if type(item) is _Read:
+            self._frames = self._pipeline._read_frames(item)
+            return next(self._frames)  # a read holds at least one frame
+        return cast("Event", item)
+
+    def rest_of_read(self) -> Iterator[Sample]:
+        frames, self._frames = self._frames, None
+        return frames if frames is not None else iter(())
 
 
 BUFFERED_SOURCES = frozenset({TimeSource.CHIP_CLOCK, TimeSource.CHIP_FIFO})

@@ -178,31 +178,57 @@ def _validity_rows(block: Block, full_scale: float | None, last_t_ns: int | None
     return Block.from_samples(rows, block.spec), last_t_ns
 
 
-def _corrected_columns(record: object, x: FloatArray, y: FloatArray, z: FloatArray
-                       ) -> tuple[FloatArray, FloatArray, FloatArray] | None:
-    """What ``record.apply`` computes, on columns, in the same order of operations (the
-    same floats); None for a record kind not known here (applied frame by frame)."""
+def _corrected(record: object, values: FloatArray) -> FloatArray | None:
+    """What ``record.apply`` computes, on every row of ``values`` (n, 3), in the same order
+    of operations (the same floats); None for a record kind not known here (applied frame
+    by frame)."""
+    arrays = _record_arrays(record)
+    if arrays is None:
+        return None
+    offset, scale, matrix = arrays
+    shifted = values - offset
+    return _mat_vec_rows(matrix, shifted if scale is None else shifted * scale)
+
+
+_ARRAYS: dict[int, tuple[object, tuple[FloatArray, FloatArray | None, FloatArray] | None]] = {}
+"""``_record_arrays`` by the record's id, with the record (kept alive, so its id is not
+reused while it is here; records are frozen, so the arrays never go stale)."""
+
+
+def _record_arrays(record: object) -> tuple[FloatArray, FloatArray | None, FloatArray] | None:
+    """A calibration record's offset, scale (None: none) and matrix as arrays, made once per
+    record (every block of its stream needs them)."""
+    hit = _ARRAYS.get(id(record))
+    if hit is not None and hit[0] is record:
+        return hit[1]
+    arrays: tuple[FloatArray, FloatArray | None, FloatArray] | None = None
     if isinstance(record, AccelCalibration | GyroCalibration):
         o = record.offset_m_s2 if isinstance(record, AccelCalibration) \
             else record.offset_rad_s
-        s, m = record.scale, record.misalignment
-        return _mat_vec_columns(m, (x - o[0]) * s[0], (y - o[1]) * s[1], (z - o[2]) * s[2])
-    if isinstance(record, MagCalibration):
-        h = record.hard_iron_ut
-        return _mat_vec_columns(record.soft_iron, x - h[0], y - h[1], z - h[2])
-    if isinstance(record, VectorCalibration):
-        o = record.offset
-        return _mat_vec_columns(record.matrix, x - o[0], y - o[1], z - o[2])
-    return None
+        arrays = (_vec(o), _vec(record.scale), _vec(record.misalignment))
+    elif isinstance(record, MagCalibration):
+        arrays = (_vec(record.hard_iron_ut), None, _vec(record.soft_iron))
+    elif isinstance(record, VectorCalibration):
+        arrays = (_vec(record.offset), None, _vec(record.matrix))
+    if len(_ARRAYS) >= 64:  # records replaced in flight (learners): forget the old ones
+        _ARRAYS.clear()
+    _ARRAYS[id(record)] = (record, arrays)
+    return arrays
 
 
-def _mat_vec_columns(m: Sequence[Sequence[float]], x: FloatArray, y: FloatArray,
-                     z: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """``m @ v`` for every row, each component summed left to right as the calibration's
-    plain-float ``_mat_vec`` sums it."""
-    return (m[0][0] * x + m[0][1] * y + m[0][2] * z,
-            m[1][0] * x + m[1][1] * y + m[1][2] * z,
-            m[2][0] * x + m[2][1] * y + m[2][2] * z)
+def _vec(v: Sequence[float] | Sequence[Sequence[float]]) -> FloatArray:
+    return np.asarray(v, dtype=np.float64)
+
+
+def _mat_vec_rows(m: Sequence[Sequence[float]] | FloatArray, v: FloatArray,
+                  start: float | None = None) -> FloatArray:
+    """``m @ v`` for every row of ``v`` (n, 3), each component summed left to right as the
+    calibration's plain-float ``_mat_vec`` sums it (from ``start`` first, as ``_rotate``
+    sums from +0.0): the nine products of each row in one call, then two or three sums,
+    whatever n (a few numpy calls a block, not one per component)."""
+    products = v[:, None, :] * np.asarray(m, dtype=np.float64)[None, :, :]
+    first = products[:, :, 0] if start is None else start + products[:, :, 0]
+    return np.asarray(first + products[:, :, 1] + products[:, :, 2], dtype=np.float64)
 
 
 def _calibrated(block: Block, record: _Correction | None) -> FloatArray:
@@ -211,15 +237,17 @@ def _calibrated(block: Block, record: _Correction | None) -> FloatArray:
     values = block.values
     if record is None:
         return values
-    valid = block.flags == 0
-    if not bool(valid.any()):
-        return values
-    columns = _corrected_columns(record, values[:, 0], values[:, 1], values[:, 2])
-    if columns is None:
-        corrected = np.array([record.apply((v[0], v[1], v[2])) for v in values.tolist()])
+    flags = block.flags
+    if flags.any():
+        valid = flags == 0
+        if not bool(valid.any()):
+            return values
     else:
-        corrected = np.stack(columns, axis=1)
-    return np.where(valid[:, None], corrected, values)
+        valid = None  # the common case: every frame calibrated
+    corrected = _corrected(record, values)
+    if corrected is None:
+        corrected = np.array([record.apply((v[0], v[1], v[2])) for v in values.tolist()])
+    return corrected if valid is None else np.where(valid[:, None], corrected, values)
 
 
 def calibrate_block(block: Block, calibration: DeviceCalibration | None,
@@ -239,12 +267,8 @@ def calibrate_block(block: Block, calibration: DeviceCalibration | None,
     values = _calibrated(block, record)
     if block.frame is Frame.BODY_NED:
         return block if values is block.values else block.with_values(values, block.frame)
-    # the three components at once: row r of the matrix times the (1, n) columns, each
-    # element the same products summed from +0.0 left to right as _rotate sums them
-    m = np.asarray(chip_to_body, dtype=np.float64)
-    x, y, z = values[:, 0], values[:, 1], values[:, 2]
-    body = 0.0 + m[:, 0:1] * x + m[:, 1:2] * y + m[:, 2:3] * z
-    return block.with_values(np.ascontiguousarray(body.T), Frame.BODY_NED)
+    # each element the same products summed from +0.0 left to right as _rotate sums them
+    return block.with_values(_mat_vec_rows(chip_to_body, values, 0.0), Frame.BODY_NED)
 
 
 def _record_of(kind: type[Sample], quantity: str, calibration: DeviceCalibration

@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import random
 from abc import ABC, abstractmethod
-from array import array
-from bisect import bisect_right
 from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -22,6 +20,7 @@ from imuhal.core.clock import Clock, SimulatedClock
 from imuhal.core.samples import Quantity
 from imuhal.sim.errors import SensorErrorSpec
 from imuhal.sim.inputs import PhysicalInputs
+from imuhal.sim.measured import MeasuredInstants
 
 if TYPE_CHECKING:
     from imuhal.sim.emulated_bus import EmulatedBus
@@ -43,6 +42,12 @@ class ChipEmulator(ABC):
     bits of the factory calibration the driver reads). ``chip_faults()`` lists what an
     emulator class models.
     """
+
+    #: How far past its present a chip with its own clock announces its coming pulls
+    #: (:meth:`announce_pulls`; 4 s, 1000 instants at 250 Hz: the scenario's truth costs
+    #: about 9 us an instant computed a second at a time, 5 us four seconds at a time, 12
+    #: one by one: tests/benchmarks/bench_truths.py).
+    PULL_AHEAD_NS: ClassVar[int] = 4_000_000_000
 
     #: The largest clock error an emulated chip's ``oscillator_error`` accepts (a fraction).
     MAX_OSCILLATOR_ERROR: ClassVar[float] = 0.1
@@ -103,7 +108,9 @@ class ChipEmulator(ABC):
         self.stuck_data_ready = False
         self.host_baudrate = 0
         """Serial chips: the line speed the host's UART is set to (0: not a UART)."""
-        self.physics = PhysicalInputs()
+        self._physics = PhysicalInputs()
+        self._physics_later: Callable[[], PhysicalInputs] | None = None
+        """Inputs handed over but not yet computed (:meth:`set_physics_later`)."""
         self.physics_t_ns: int | None = None
         """The time ``physics`` is true at, as the emulated board hands it over (a poll that
         comes late gives the world at its due time); None: now."""
@@ -117,17 +124,20 @@ class ChipEmulator(ABC):
         inputs at a given instant (ns) through ``set_physics``."""
         self.physics_ahead: Callable[[Sequence[int]], None] | None = None
         """Set by an emulated board beside ``physics_source``: told the instants (ns,
-        ascending) at which the chip will pull its inputs, the board computes their truth in
-        one call (a chip with a FIFO knows its coming instants from its own clock)."""
+        ascending) at which the chip will pull its inputs, in the order of its pulls (an
+        instant it pulls twice given twice), the board computes what it will hand over at
+        each in one pass (a chip with its own clock knows its coming instants); it hands
+        that out while the pulls come as announced."""
         self.master_instant_ns: int | None = None
         """Set while a bus master on the chip's own board (the MPU-9250's I2C master)
         performs a transaction it timed itself (``EmulatedBus.transfer_at``): the chip
         answers as at that instant, which may lie before the host's clock (a master
         catching up on the samples its FIFO kept through a host stall)."""
-        self.measured_ns = array("q")
+        self.measured_ns = MeasuredInstants()
         """The instants (ns, ascending) at which the chip completed a measurement of the
         stream its driver accounts for, recorded by emulators that model it (issue 25
-        item 5: the exact count behind ``frames_between``)."""
+        item 5: the exact count behind ``frames_between``); kept as runs of the chip's
+        period, so its size grows with the breaks of the cadence, not with the run."""
 
     def pull_physics(self, t_ns: int) -> None:
         """A measurement happens at ``t_ns`` (never before the previous one): take the
@@ -136,16 +146,29 @@ class ChipEmulator(ABC):
         if self.physics_source is not None:
             self.physics_source(t_ns)
 
+    def announce_pulls(self, first_ns: int, period_ns: int, now_ns: int) -> int:
+        """Tell the board (``physics_ahead``) that the chip will pull its inputs at
+        ``first_ns``, ``first_ns + period_ns``, ... up to ``PULL_AHEAD_NS`` past ``now_ns``
+        (its clock as it stands), so their inputs come from one vectorised pass. Returns the
+        last instant announced (-1: no board listens); a pull that comes elsewhere (a rate
+        or clock change, a skipped measurement) is computed when it happens."""
+        if self.physics_ahead is None or period_ns <= 0:
+            return -1
+        until = now_ns + self.PULL_AHEAD_NS
+        count = max(0, (until - first_ns) // period_ns) + 1
+        self.physics_ahead([first_ns + k * period_ns for k in range(count)])
+        return first_ns + (count - 1) * period_ns
+
     def record_measurements(self, first_ns: int, period_ns: int, count: int) -> None:
         """``count`` measurements completed at ``first_ns``, ``first_ns + period_ns``, ..."""
-        self.measured_ns.extend(first_ns + k * period_ns for k in range(count))
+        self.measured_ns.add(first_ns, period_ns, count)
 
     def frames_between(self, first_stamp_ns: int, last_stamp_ns: int) -> int:
         """Measurements from the one a sample stamped ``first_stamp_ns`` carries (the latest
         completed by then) to the one a sample stamped ``last_stamp_ns`` carries, both
         included: what the chip produced over a span of delivered samples."""
-        first = bisect_right(self.measured_ns, first_stamp_ns)
-        last = bisect_right(self.measured_ns, last_stamp_ns)
+        first = self.measured_ns.count_until(first_stamp_ns)
+        last = self.measured_ns.count_until(last_stamp_ns)
         return last - first + 1 if first else last
 
     def interrupt_after(self, after_ns: int) -> int | None:
@@ -169,11 +192,34 @@ class ChipEmulator(ABC):
         now. Register-mapped chips never send unprompted."""
         return b""
 
+    @property
+    def physics(self) -> PhysicalInputs:
+        """The true values the chip measures now (sensor frame, SI)."""
+        later = self._physics_later
+        if later is not None:
+            self._physics_later = None
+            self._physics = later()
+        return self._physics
+
+    @physics.setter
+    def physics(self, inputs: PhysicalInputs) -> None:
+        self._physics = inputs
+        self._physics_later = None
+
     def set_physics(self, inputs: PhysicalInputs) -> None:
         """Hand the emulator the true values it should measure from now on (ignored while
         ``frozen``: the chip keeps converting what it had)."""
         if not self.frozen:
             self.physics = inputs
+
+    def set_physics_later(self, compute: Callable[[], PhysicalInputs]) -> None:
+        """:meth:`set_physics` with the inputs ``compute()`` returns, computed only if the
+        chip reads them (``physics``) before it is handed others: a chip that measures at a
+        few of its host's polls (a barometer starting a conversion) needs the world at
+        those only. An emulated board uses it only for an emulator that keeps the base
+        class's :meth:`set_physics` (one that acts on new inputs overrides it)."""
+        if not self.frozen:
+            self._physics_later = compute
 
     def now_ns(self) -> int:
         """The chip's present: the host's clock, or the instant of a master's timed

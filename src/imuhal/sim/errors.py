@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import math
 import zlib
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -152,6 +153,21 @@ class _Normals:
         self._i += 1
         return x
 
+    def peek(self, count: int) -> list[float]:
+        """The next ``count`` draws without consuming them (:meth:`skip` does): the buffer
+        grows by whole blocks from the generator, so the draws and their order stay those
+        of one call after another."""
+        need = self._i + count
+        if need > len(self._buf):
+            fresh = self._rng.standard_normal(1024 * -(-(need - len(self._buf)) // 1024))
+            self._buf = self._buf[self._i:] + fresh.tolist()
+            self._i = 0
+        return self._buf[self._i:self._i + count]
+
+    def skip(self, count: int) -> None:
+        """Consume ``count`` draws :meth:`peek` returned."""
+        self._i += count
+
     def three(self) -> tuple[float, float, float]:
         """The next three draws, as three calls would return them (one call per vector
         sample instead of three)."""
@@ -237,6 +253,70 @@ class _VectorChannel:
         return (mx, my, mz)
 
 
+    def plan(self, elapsed: np.ndarray, xyz: np.ndarray, temperature: np.ndarray | None,
+             period_s: float) -> _ChannelPlan:
+        """:meth:`step` then :meth:`apply` at each of n calls (``elapsed``: the time each
+        call's walk moves by; ``xyz`` the true vectors, (n, 3); ``temperature`` the true
+        temperatures or None), by the same operations in the same order on arrays and on
+        the same draws of this channel's stream, without changing the channel: the
+        measured vectors (n, 3) and what :meth:`_ChannelPlan.commit` sets after m calls."""
+        n = len(elapsed)
+        rw = self._random_walk
+        steps = (elapsed > 0) if rw else np.zeros(n, dtype=bool)
+        sigma = self.noise_sigma(period_s) if period_s != self._sigma_period else self._sigma
+        draws = 3 * steps.astype(np.int64) + (3 if sigma else 0)
+        ends = np.cumsum(draws)
+        d = np.asarray(self.normal.peek(int(ends[-1]) if n else 0), dtype=float)
+        starts = ends - draws
+        increments = np.zeros((n, 3))
+        if rw and steps.any():
+            k = rw * np.sqrt(elapsed[steps])
+            at = starts[steps][:, None] + np.arange(3)
+            increments[steps] = k[:, None] * d[at]
+        walks = np.add.accumulate(np.vstack([np.asarray(self.walk, dtype=float)[None, :],
+                                             increments]), axis=0)[1:]
+        g = self.gain
+        x, y, z = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+        b = self.turn_on_bias
+        dt = 0.0 if temperature is None else temperature - self._t_ref
+        tc = self._temp_coeff
+        ox, oy, oz = self.offset
+        out = np.empty((n, 3))
+        out[:, 0] = g[0] * x + g[1] * y + g[2] * z + ox + (b[0] + tc[0] * dt + walks[:, 0])
+        out[:, 1] = g[3] * x + g[4] * y + g[5] * z + oy + (b[1] + tc[1] * dt + walks[:, 1])
+        out[:, 2] = g[6] * x + g[7] * y + g[8] * z + oz + (b[2] + tc[2] * dt + walks[:, 2])
+        if sigma:
+            noise = d[(ends - 3)[:, None] + np.arange(3)]
+            out = out + sigma * noise
+        return _ChannelPlan(self, out, ends, walks, (period_s, sigma))
+
+    def commit(self, draws: int, walk: list[float], sigma: tuple[float, float]) -> None:
+        self.normal.skip(draws)
+        self.walk = walk
+        self._sigma_period, self._sigma = sigma
+
+
+class _ChannelPlan:
+    """One channel's share of a :class:`ErrorPlan`."""
+
+    __slots__ = ("channel", "ends", "out", "sigma", "walks")
+
+    def __init__(self, channel: _VectorChannel | _ScalarChannel, out: np.ndarray,
+                 ends: np.ndarray, walks: np.ndarray, sigma: tuple[float, float]) -> None:
+        self.channel = channel
+        self.out = out
+        self.ends = ends
+        """The draws of the channel's stream used by the first 1, 2, ... calls."""
+        self.walks = walks
+        """The channel's random walk after each call."""
+        self.sigma = sigma
+
+    def commit(self, m: int) -> None:
+        """Leave the channel as the first ``m`` calls (m >= 1) would have."""
+        # a vector channel's walk comes back as a list, a scalar one's as a float
+        self.channel.commit(int(self.ends[m - 1]), self.walks[m - 1].tolist(), self.sigma)
+
+
 class _ScalarChannel:
     def __init__(self, spec: ScalarErrorSpec, rng: np.random.Generator) -> None:
         self.spec = spec
@@ -260,10 +340,48 @@ class _ScalarChannel:
             self.walk += self._random_walk * math.sqrt(elapsed_s) * self.normal()
 
     def apply(self, t_s: float, v: float, temperature: float | None) -> float:
-        out = v + self.bias_at(t_s, temperature)
+        return self.finish(t_s, v, temperature, *self.draw())
+
+    def draw(self) -> tuple[float, float]:
+        """What :meth:`apply` takes from the channel's state at a call: (the random walk,
+        the noise draw or 0.0 where the channel has no noise)."""
+        return self.walk, self.normal() if self._noise_std else 0.0
+
+    def finish(self, t_s: float, v: float, temperature: float | None, walk: float,
+               noise: float) -> float:
+        """:meth:`apply` on what :meth:`draw` took (the same operations)."""
+        dt = 0.0 if temperature is None else temperature - self._t_ref
+        out = v + (self.turn_on_bias + self._drift_per_hour * t_s / 3600.0 + walk
+                   + self._temp_coeff * dt)
         if self._noise_std:
-            out += self._noise_std * self.normal()
+            out += self._noise_std * noise
         return out
+
+    def plan(self, t_s: np.ndarray, elapsed: np.ndarray, v: np.ndarray,
+             temperature: np.ndarray | None) -> _ChannelPlan:
+        """:meth:`step` then :meth:`apply` at each of n calls, on arrays (see
+        :meth:`_VectorChannel.plan`)."""
+        n = len(t_s)
+        rw = self._random_walk
+        steps = (elapsed > 0) if rw else np.zeros(n, dtype=bool)
+        noisy = 1 if self._noise_std else 0
+        draws = steps.astype(np.int64) + noisy
+        ends = np.cumsum(draws)
+        d = np.asarray(self.normal.peek(int(ends[-1]) if n else 0), dtype=float)
+        increments = np.zeros(n)
+        if rw and steps.any():
+            increments[steps] = rw * np.sqrt(elapsed[steps]) * d[(ends - draws)[steps]]
+        walks = np.add.accumulate(np.concatenate([[self.walk], increments]))[1:]
+        dt = 0.0 if temperature is None else temperature - self._t_ref
+        out = v + (self.turn_on_bias + self._drift_per_hour * t_s / 3600.0 + walks
+                   + self._temp_coeff * dt)
+        if noisy:
+            out = out + self._noise_std * d[ends - 1]
+        return _ChannelPlan(self, out, ends, walks, (0.0, 0.0))
+
+    def commit(self, draws: int, walk: float, sigma: tuple[float, float]) -> None:
+        self.normal.skip(draws)
+        self.walk = walk
 
 
 _CHANNELS = ("accel", "gyro", "mag", "pressure", "temperature")
@@ -302,6 +420,10 @@ class SensorErrorModel:
             and ch_spec.bandwidth_hz is None)
         """The vector channels whose noise depends on the sample period (a density without
         a fixed ``bandwidth_hz``): the ones ``apply_values``' ``periods_s`` matters for."""
+        self.scalar_only = self._accel is None and self._gyro is None and self._mag is None
+        """True for a model of pressure and temperature alone (:meth:`apply_later`)."""
+        self._plan: ErrorPlan | None = None
+        """The calls planned ahead (:meth:`plan_values`), of which ``used`` are taken."""
 
     def apply(self, t_s: float, inputs: PhysicalInputs, sample_period_s: float) -> PhysicalInputs:
         """Measured values for true ``inputs`` sampled at ``t_s`` every ``sample_period_s``."""
@@ -327,25 +449,10 @@ class SensorErrorModel:
         own sample period (s) by name ("accel", "gyro", "mag") where it differs from
         ``sample_period_s``. The emulated board calls this and builds the chip's inputs
         once."""
-        if sample_period_s <= 0:
-            raise ValueError(f"sample_period_s must be positive, got {sample_period_s}")
-        accel_p = gyro_p = mag_p = sample_period_s
-        if periods_s:
-            for name, p in periods_s.items():
-                if name not in ("accel", "gyro", "mag"):
-                    raise ValueError(f"periods_s: unknown vector channel {name!r} "
-                                     "(known: accel, gyro, mag)")
-                if not p > 0:
-                    raise ValueError(f"periods_s[{name!r}] must be positive, got {p}")
-            accel_p = periods_s.get("accel", accel_p)
-            gyro_p = periods_s.get("gyro", gyro_p)
-            mag_p = periods_s.get("mag", mag_p)
-        if self._last_t is not None and t_s < self._last_t:
-            raise ValueError(f"time went backwards: {t_s} s after {self._last_t} s")
-        elapsed = 0.0 if self._last_t is None else t_s - self._last_t
-        self._last_t = t_s
-        for ch in self._walking:
-            ch.step(elapsed)
+        if self._plan is not None:
+            self._sync()
+        accel_p, gyro_p, mag_p = self._periods(sample_period_s, periods_s)
+        self._move_to(t_s)
         measured_temp = temp  # ``temp`` stays the true one: thermal bias terms depend on it
         if self._accel is not None and accel is not None:
             accel = self._accel.apply(accel, temp, accel_p)
@@ -359,11 +466,116 @@ class SensorErrorModel:
             measured_temp = self._temperature.apply(t_s, temp, None)
         return accel, gyro, mag, pressure, measured_temp
 
+    def _move_to(self, t_s: float) -> None:
+        """A call at ``t_s``: time moves on (never back), the random walks with it."""
+        if self._last_t is not None and t_s < self._last_t:
+            raise ValueError(f"time went backwards: {t_s} s after {self._last_t} s")
+        elapsed = 0.0 if self._last_t is None else t_s - self._last_t
+        self._last_t = t_s
+        for ch in self._walking:
+            ch.step(elapsed)
+
+    @staticmethod
+    def _periods(sample_period_s: float, periods_s: dict[str, float] | None
+                 ) -> tuple[float, float, float]:
+        """The (accel, gyro, mag) sample periods of a call, checked."""
+        if sample_period_s <= 0:
+            raise ValueError(f"sample_period_s must be positive, got {sample_period_s}")
+        accel_p = gyro_p = mag_p = sample_period_s
+        if periods_s:
+            for name, p in periods_s.items():
+                if name not in ("accel", "gyro", "mag"):
+                    raise ValueError(f"periods_s: unknown vector channel {name!r} "
+                                     "(known: accel, gyro, mag)")
+                if not p > 0:
+                    raise ValueError(f"periods_s[{name!r}] must be positive, got {p}")
+            accel_p = periods_s.get("accel", accel_p)
+            gyro_p = periods_s.get("gyro", gyro_p)
+            mag_p = periods_s.get("mag", mag_p)
+        return accel_p, gyro_p, mag_p
+
+    def plan_values(self, t_s: np.ndarray, accel: np.ndarray | None, gyro: np.ndarray | None,
+                    mag: np.ndarray | None, pressure: np.ndarray | None,
+                    temp: np.ndarray | None, sample_period_s: float,
+                    periods_s: dict[str, float] | None = None) -> ErrorPlan | None:
+        """:meth:`apply_values` at each of n coming calls, all in one numpy pass: ``t_s``
+        (n,) non-decreasing times, vectors (n, 3) and scalars (n,) as arrays (None: not
+        simulated), every call with the same periods. The same floats as the n calls one
+        after another (the same operations in the same order, the same draws of each
+        channel's stream), and nothing changes until calls are taken: the caller takes
+        the first m of them by setting ``ErrorPlan.used`` to m, and the model then stands
+        as after those m calls. Any other use of the model (``apply_values``, ``bias``, a
+        new plan) first settles what was taken and drops the rest. None where the calls
+        cannot be planned (no times, time going backwards, a channel with nothing to
+        measure)."""
+        self._sync()
+        n = len(t_s)
+        accel_p, gyro_p, mag_p = self._periods(sample_period_s, periods_s)
+        given = {id(self._accel): accel, id(self._gyro): gyro, id(self._mag): mag,
+                 id(self._pressure): pressure, id(self._temperature): temp}
+        if (not n or any(given[id(ch)] is None for ch in self._channels)
+                or (self._last_t is not None and float(t_s[0]) < self._last_t)
+                or bool(np.any(np.diff(t_s) < 0))):
+            return None
+        first = t_s[0] if self._last_t is None else self._last_t
+        elapsed = t_s - np.concatenate([[first], t_s[:-1]])
+        plans: list[_ChannelPlan] = []
+        out: list[np.ndarray | None] = [accel, gyro, mag, pressure, temp]
+        for k, (ch, period) in enumerate(((self._accel, accel_p), (self._gyro, gyro_p),
+                                          (self._mag, mag_p))):
+            if ch is not None:
+                plan = ch.plan(elapsed, out[k], temp, period)  # type: ignore[arg-type]  # checked above: a modelled channel has its input
+                plans.append(plan)
+                out[k] = plan.out
+        if self._pressure is not None:
+            plans.append(self._pressure.plan(t_s, elapsed, pressure, temp))  # type: ignore[arg-type]  # checked above
+            out[3] = plans[-1].out
+        if self._temperature is not None:
+            plans.append(self._temperature.plan(t_s, elapsed, temp, None))  # type: ignore[arg-type]  # checked above
+            out[4] = plans[-1].out
+        self._plan = ErrorPlan(t_s, out, plans)
+        return self._plan
+
+    def apply_later(self, t_s: float) -> Callable[[float, float], tuple[float, float]] | None:
+        """:meth:`apply_values` for a chip measuring pressure and temperature only, in two
+        halves: this call moves the model on as the call would (time, random walks, noise
+        draws), the function returned gives the measured (pressure, temperature) for the
+        true ones, the same floats as the call, whenever it is called. None for a model
+        with a vector channel (whose draws depend on which vectors a truth carries)."""
+        if not self.scalar_only:
+            return None
+        self._sync()
+        self._move_to(t_s)
+        pressure_ch, temperature_ch = self._pressure, self._temperature
+        p_draw = None if pressure_ch is None else pressure_ch.draw()
+        t_draw = None if temperature_ch is None else temperature_ch.draw()
+
+        def finish(pressure: float, temp: float) -> tuple[float, float]:
+            measured_p = pressure if pressure_ch is None or p_draw is None else \
+                pressure_ch.finish(t_s, pressure, temp, *p_draw)
+            measured_t = temp if temperature_ch is None or t_draw is None else \
+                temperature_ch.finish(t_s, temp, None, *t_draw)
+            return measured_p, measured_t
+        return finish
+
+    def _sync(self) -> None:
+        """Settle the calls taken from the plan (if any) and drop the rest of it."""
+        plan = self._plan
+        if plan is None:
+            return
+        self._plan = None
+        m = plan.used
+        if m:
+            for channel in plan.channels:
+                channel.commit(m)
+            self._last_t = float(plan.t_s[m - 1])
+
     # ------------------------------------------------------------------ truth of the errors
     def bias(self, channel: str, temperature_degc: float | None = None,
              t_s: float | None = None) -> Vec3 | float | None:
         """The current total bias of ``channel`` (for checking estimators' bias estimates);
         hard iron is not included (see ``hard_iron``). None: channel not modelled."""
+        self._sync()
         ch = getattr(self, f"_{channel}", None) if channel in _CHANNELS else None
         if ch is None:
             if channel not in _CHANNELS:
@@ -372,6 +584,21 @@ class SensorErrorModel:
         if isinstance(ch, _ScalarChannel):
             return ch.bias_at(t_s if t_s is not None else (self._last_t or 0.0), temperature_degc)
         return ch.bias_at(temperature_degc)
+
+
+class ErrorPlan:
+    """The measured values of n planned calls (:meth:`SensorErrorModel.plan_values`):
+    ``values`` (accel, gyro, mag, pressure, temperature) as arrays, each None where not
+    simulated, row i the i-th call's. ``used``: how many of the calls were taken."""
+
+    __slots__ = ("channels", "t_s", "used", "values")
+
+    def __init__(self, t_s: np.ndarray, values: list[np.ndarray | None],
+                 channels: list[_ChannelPlan]) -> None:
+        self.t_s = t_s
+        self.values = values
+        self.channels = channels
+        self.used = 0
 
 
 def error_spec_of(emulator: type[Any], **overrides: Any) -> SensorErrorSpec | None:

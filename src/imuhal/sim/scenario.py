@@ -82,6 +82,21 @@ class ChipTruth(NamedTuple):
     other: Mapping[str, float | tuple[float, float, float]] = NO_OTHER
 
 
+class TruthColumns(NamedTuple):
+    """:class:`ChipTruth` at n times as columns: (n,) times and scalars, (n, 3) vectors
+    (:meth:`Scenario.chip_truth_columns`), row i the same floats as the ChipTruth of the
+    i-th time."""
+
+    t_s: np.ndarray
+    specific_force_body_m_s2: np.ndarray
+    angular_rate_body_rad_s: np.ndarray
+    magnetic_field_body_ut: np.ndarray
+    pressure_pa: np.ndarray
+    temperature_degc: np.ndarray
+    position_ned_m: np.ndarray
+    velocity_ned_m_s: np.ndarray
+
+
 def _floats3(v: FloatArray) -> tuple[float, float, float]:
     x, y, z = np.asarray(v, dtype=float).tolist()
     return (x, y, z)
@@ -127,6 +142,20 @@ class Scenario(ABC):
         FIFO fill of n instants asks for in one call. The base asks :meth:`chip_truth` at
         each; a scenario that can evaluate many times at once overrides this."""
         return [self.chip_truth(t) for t in t_s]
+
+    def chip_truth_columns(self, t_s: Sequence[float]) -> TruthColumns | None:
+        """:meth:`chip_truths` as columns (the same floats); None when the truth carries
+        ``other`` quantities, which have no columns. The base stacks :meth:`chip_truths`; a
+        scenario that evaluates many times at once in numpy overrides this."""
+        truths = self.chip_truths(t_s)
+        if not truths or any(t.other for t in truths):
+            return None
+        return TruthColumns(
+            np.array([t.t_s for t in truths], dtype=float),
+            *(np.array([getattr(t, name) for t in truths], dtype=float) for name in (
+                "specific_force_body_m_s2", "angular_rate_body_rad_s",
+                "magnetic_field_body_ut", "pressure_pa", "temperature_degc",
+                "position_ned_m", "velocity_ned_m_s")))
 
     def chip_truth(self, t_s: float, *, motion: bool = True) -> ChipTruth:
         """What chips measure at ``t_s``, in plain floats: the same values as

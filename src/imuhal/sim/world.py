@@ -18,7 +18,14 @@ from imuhal.sim.environment import Environment
 from imuhal.sim.inputs import NO_OTHER, PhysicalInputs
 from imuhal.sim.magnetic import MagneticDisturbance, MagneticDisturbanceSpec
 from imuhal.sim.motion import FlightMotion, Kinematics, Motion, Vec3, mat_t_vec
-from imuhal.sim.scenario import ChipTruth, Phase, Scenario, ScenarioParams, TruthState
+from imuhal.sim.scenario import (
+    ChipTruth,
+    Phase,
+    Scenario,
+    ScenarioParams,
+    TruthColumns,
+    TruthState,
+)
 
 
 class WorldParams(ScenarioParams):
@@ -114,13 +121,34 @@ class MotionScenario(Scenario):
 
     def chip_truths(self, t_s: Sequence[float]) -> list[ChipTruth]:
         """:meth:`chip_truth` (with motion) at each time of ``t_s``, the kinematics of all of
-        them in one numpy pass (:meth:`FlightMotion.kinematics_many`, the same operations as
-        the per-time path); the air and a magnetic disturbance per time, as there. A
-        trajectory or scenario the numpy pass does not cover goes time by time."""
+        them in one numpy pass (:meth:`chip_truth_columns`); a trajectory or scenario the
+        numpy pass does not cover goes time by time."""
+        columns = self._columns(t_s)
+        if columns is None:
+            return super().chip_truths(t_s)
+        force, rate, mag, position, velocity = (
+            list(map(tuple, c.tolist())) for c in (
+                columns.specific_force_body_m_s2, columns.angular_rate_body_rad_s,
+                columns.magnetic_field_body_ut, columns.position_ned_m,
+                columns.velocity_ned_m_s))
+        return [ChipTruth(t, *row) for t, *row in zip(
+            columns.t_s.tolist(), force, rate, mag, columns.pressure_pa.tolist(),
+            columns.temperature_degc.tolist(), position, velocity, strict=True)]
+
+    def chip_truth_columns(self, t_s: Sequence[float]) -> TruthColumns | None:
+        """:meth:`chip_truths` as columns, the kinematics of every time in one numpy pass
+        (:meth:`FlightMotion.kinematics_many`, the same operations as the per-time path);
+        the air and a magnetic disturbance per time, as there."""
+        columns = self._columns(t_s)
+        return super().chip_truth_columns(t_s) if columns is None else columns
+
+    def _columns(self, t_s: Sequence[float]) -> TruthColumns | None:
+        """The numpy pass of :meth:`chip_truth_columns`; None where it does not apply (a
+        subclass's own truth, a trajectory the pass does not cover, fewer than 2 times)."""
         motion = self.motion
         if (type(self).truth is not MotionScenario.truth or not isinstance(motion, FlightMotion)
                 or not motion.vectorised() or len(t_s) < 2):
-            return super().chip_truths(t_s)
+            return None
         times = [float(t) for t in t_s]
         k = motion.kinematics_many(np.asarray(times))
         if self.disturbance.active:
@@ -131,19 +159,16 @@ class MotionScenario(Scenario):
             field = self._field_ned
         body_field = mat_t_vec(k.rotation, field)  # type: ignore[arg-type]  # arrays
         env = self.environment
-        force = np.array(k.specific_force_body_m_s2).T.tolist()
-        rate = np.array(k.angular_rate_body_rad_s).T.tolist()
-        mag = np.array(body_field).T.tolist()
-        position = np.array(k.position_ned_m).T.tolist()
-        velocity = np.array(k.velocity_ned_m_s).T.tolist()
-        out = []
-        for i, t in enumerate(times):
-            p = tuple(position[i])
-            alt = -p[2]
-            out.append(ChipTruth(t, tuple(force[i]), tuple(rate[i]), tuple(mag[i]),
-                                 env.pressure_pa(alt, t), env.temperature_degc(alt, t), p,
-                                 tuple(velocity[i])))
-        return out
+        position = np.array(k.position_ned_m).T
+        # the air per time, as the scalar path (math's pow and exp, not numpy's)
+        pressure, temperature = [], []
+        for t, alt in zip(times, (-position[:, 2]).tolist(), strict=True):
+            pressure.append(env.pressure_pa(alt, t))
+            temperature.append(env.temperature_degc(alt, t))
+        return TruthColumns(np.asarray(times), np.array(k.specific_force_body_m_s2).T,
+                            np.array(k.angular_rate_body_rad_s).T, np.array(body_field).T,
+                            np.asarray(pressure), np.asarray(temperature), position,
+                            np.array(k.velocity_ned_m_s).T)
 
 
 def chip_vectors(truth: ChipTruth, sensor_to_body: list[list[float]] | None

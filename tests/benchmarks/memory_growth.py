@@ -1,0 +1,87 @@
+"""Resident memory of a long emulated run, minute by minute (plain script; not collected by
+pytest): does it grow with the run, or level off after its start?
+
+Run:  nice -n 10 .venv/bin/python tests/benchmarks/memory_growth.py [--board seed-gps-vario]
+      [--duration 900] [--every 60] [--bus-errors 0.01] [--seed 1]
+
+The board flies its profile's scenario (``thermal`` kept near launch altitude as the soak
+flies it) for ``--duration`` simulated seconds with ``--bus-errors`` random bus errors on
+every device (the soak's background fault, no other fault: a fault kind first met mid-run
+loads code and fills caches, which is start-up, not growth). Every ``--every`` simulated
+seconds it prints the resident set size (``/proc/self/statm``, after a garbage collection)
+and the emulators' records of their measurement instants (``ChipEmulator.measured_ns``:
+instants held, and runs where the record keeps runs). The growth per 1,000 simulated s is
+taken from the first minute to the end. docs/reliability.md keeps the figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import gc
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+from tests.benchmarks.soak import rss_mb, scenario_params
+
+from imuhal.emulation import open_emulated
+from imuhal.emulation.faults import BusErrors
+from imuhal.plugins.manager import load_registry
+from imuhal.profile.bundled import bundled_profiles
+from imuhal.profile.loader import load_profile
+
+
+def _records(emulators: dict[str, object]) -> str:
+    """Each emulator's record of its instants: held (and runs, where it keeps runs)."""
+    parts = []
+    for name, emulator in emulators.items():
+        record = getattr(emulator, "measured_ns", None)
+        if record is None or not len(record):
+            continue
+        runs = getattr(record, "runs", None)
+        parts.append(f"{name} {len(record)}" + ("" if runs is None else f" in {runs} runs"))
+    return ", ".join(parts)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--board", default="seed-gps-vario")
+    parser.add_argument("--duration", type=float, default=900.0, help="simulated seconds")
+    parser.add_argument("--every", type=float, default=60.0, help="simulated seconds")
+    parser.add_argument("--bus-errors", type=float, default=0.01)
+    parser.add_argument("--seed", type=int, default=1)
+    args = parser.parse_args(argv)
+    registry = load_registry()
+    profile = load_profile(bundled_profiles()[f"{args.board}.yaml"], registry)
+    faults = [BusErrors(device=name, rate=args.bus_errors)
+              for name in profile.devices] if args.bus_errors else []
+    wall0 = time.perf_counter()
+    first: tuple[float, float] | None = None
+    with open_emulated(profile, registry, seed=args.seed, faults=faults,
+                       scenario_params=scenario_params(profile, args.duration)) as pipeline:
+        done = 0.0
+        while done < args.duration - 1e-9:
+            chunk = min(args.every, args.duration - done)
+            for _ in pipeline.events(chunk):
+                pass
+            done += chunk
+            gc.collect()
+            rss = rss_mb()
+            if first is None:
+                first = (done, rss)
+            print(f"{done:7.0f} s simulated, {time.perf_counter() - wall0:6.0f} s wall, RSS "
+                  f"{rss:6.2f} MB; records: {_records(pipeline.board.emulators)}",  # type: ignore[attr-defined]  # emulated board
+                  flush=True)
+    assert first is not None
+    if done > first[0]:
+        per_ks = (rss - first[1]) / (done - first[0]) * 1000
+        print(f"growth from {first[0]:.0f} s to {done:.0f} s: {rss - first[1]:+.2f} MB, "
+              f"{per_ks:+.2f} MB per 1,000 simulated s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

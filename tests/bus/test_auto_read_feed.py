@@ -1,0 +1,74 @@
+"""The slave auto-read feed (imuhal.bus.auto_read): what a master's driver delivers and what
+a slave's driver takes, with the failed reads a master reports (issue 25)."""
+
+from __future__ import annotations
+
+from imuhal.bus.auto_read import AutoReadFeed, Copy, stamp_on_cadence
+
+DRDY = 0x01
+
+
+def feed() -> AutoReadFeed:
+    f = AutoReadFeed(0x0C, 0x02, 3, latency_ns=5_000)
+    f.keep_ready_only(0, DRDY)
+    return f
+
+
+def test_a_change_after_failed_reads_names_them_oldest_first() -> None:
+    f = feed()
+    f.deliver(10, b"\x01\x10\x20")
+    f.deliver(20, b"\x01\x10\x20", failed=True)
+    f.deliver(30, b"\x01\x10\x20", failed=True)
+    f.deliver(40, b"\x01\x11\x21")
+    assert f.take() == [Copy(10, b"\x01\x10\x20"), Copy(40, b"\x01\x11\x21", (20, 30), 30)]
+    assert f.failures == 2
+
+
+def test_a_failed_read_is_no_change_even_with_other_bytes() -> None:
+    """The master's registers after a failed read are not the slave's new data (the
+    MPU-9250's register map leaves EXT_SENS_DATA's content then unsaid)."""
+    f = feed()
+    f.deliver(10, b"\x01\x10\x20")
+    f.deliver(20, b"\x01\x99\x99", failed=True)
+    assert f.take() == [Copy(10, b"\x01\x10\x20")]
+    assert f.data == b"\x01\x10\x20" and f.t_ns == 20
+
+
+def test_a_good_read_without_new_data_ends_the_run_of_failures() -> None:
+    """A good read that finds no new measurement (no data-ready) says the failed read
+    before it missed none: the measurement after it owes nothing to that read."""
+    f = feed()
+    f.deliver(10, b"\x01\x10\x20")
+    f.deliver(20, b"\x01\x10\x20", failed=True)
+    f.deliver(30, b"\x00\x10\x20")
+    f.deliver(40, b"\x01\x12\x22")
+    assert f.take()[-1] == Copy(40, b"\x01\x12\x22", after_ns=30)
+
+
+P = 10_000
+
+
+def test_a_copy_after_failed_reads_is_stamped_at_the_one_on_the_slaves_cadence() -> None:
+    copy = Copy(35_000, b"\x01", failed_ns=(30_000,), after_ns=30_000)
+    assert stamp_on_cadence(copy, 20_000, P, pause_ns=7_500) == 30_000
+
+
+def test_a_copy_after_a_paused_master_is_stamped_at_the_latest_cadence_point() -> None:
+    """The master delivered nothing for 90 us (its chip recovering): the copy may have
+    waited in the slave, so it goes on the slave's cadence, not after its delivery."""
+    copy = Copy(128_000, b"\x01", after_ns=38_000)
+    assert stamp_on_cadence(copy, 0, P, pause_ns=7_500) == 120_000
+
+
+def test_a_copy_delivered_on_time_keeps_its_delivery() -> None:
+    assert stamp_on_cadence(Copy(15_500, b"\x01", after_ns=10_500), 5_000, P,
+                            pause_ns=7_500) == 15_500
+    assert stamp_on_cadence(Copy(15_500, b"\x01", after_ns=0), None, P,
+                            pause_ns=7_500) == 15_500
+
+
+def test_a_cadence_stamp_never_goes_back_before_the_delivery_before_it() -> None:
+    copy = Copy(31_000, b"\x01", after_ns=20_500)
+    assert stamp_on_cadence(copy, 0, P, pause_ns=7_500) == 30_000
+    copy = Copy(28_000, b"\x01", after_ns=20_200)  # 2.8 periods: the cadence point 20_000
+    assert stamp_on_cadence(copy, 0, P, pause_ns=7_500) == 20_201
