@@ -6,7 +6,8 @@ Usage::
 
 Flies the flight benchmark's scenarios once (``flight_benchmark.py``: calibrated seed board,
 seed 1) and prints, for each estimator and settings given (default: decoupled, decoupled
-without its turbulence correction, decoupled ``preset: handheld`` and madgwick), the tilt
+``preset: flight`` and ``preset: handheld``, vqf with and without its input preprocessing,
+and madgwick), the tilt
 RMS / max in degrees over t >= 5 s for ``thermal`` with the benchmark's four speed
 settings, ``rc-flight`` with defaults and the nominal airspeed, and the seconds from an
 upside-down start to within 1 deg, as the markdown block ``--write`` puts between the
@@ -29,7 +30,7 @@ from docblock import generated_by, write_block
 
 from imuhal.plugins.manager import load_registry
 
-DEFAULT_RUNS = ('decoupled:{}', 'decoupled:{"preset": "adaptive"}',
+DEFAULT_RUNS = ('decoupled:{}', 'decoupled:{"preset": "flight"}',
                 'decoupled:{"preset": "handheld"}', 'vqf:{}', 'vqf:{"withhold_speed_m_s": 3}',
                 'madgwick:{}')
 DOC = Path(__file__).resolve().parents[1] / "estimators.md"

@@ -110,13 +110,18 @@ def test_state_round_trips_and_continues_identically() -> None:
     assert FIELD_NED_UT.shape == (3,)
 
 
-def test_defaults_gate_sustained_acceleration_and_preset_handheld_trusts_every_reading() -> None:
-    assert DecoupledEstimator().settings.accel_soft_gate_g == 0.02
-    assert DecoupledEstimator().settings.innovation_speed_m_s is None
+def test_defaults_detect_manoeuvres_and_preset_handheld_trusts_every_reading() -> None:
+    defaults = DecoupledEstimator().settings
+    assert (defaults.accel_soft_gate_g, defaults.tau_acc_s) == (None, 3.0)
+    assert defaults.manoeuvre_speed_m_s == 8.0
+    assert defaults.innovation_speed_m_s is None
     handheld = DecoupledEstimator({"preset": "handheld"}).settings
     assert handheld.accel_soft_gate_g is None
     assert handheld.innovation_speed_m_s is None
+    assert handheld.manoeuvre_speed_m_s is None
     assert handheld.tau_acc_s == 3.0
+    flight = DecoupledEstimator({"preset": "flight"}).settings
+    assert (flight.accel_soft_gate_g, flight.manoeuvre_speed_m_s) == (0.02, None)
     adaptive = DecoupledEstimator({"preset": "adaptive"}).settings
     assert (adaptive.accel_soft_gate_g, adaptive.innovation_speed_m_s) == (None, 1.0)
 

@@ -34,6 +34,9 @@ Measured (docs/estimators.md, decoupled ``preset: adaptive``, and vqf's
 ``withhold_speed_m_s``): right for flight, but BROAD's fast hand-held translation exceeds
 any bound low enough to gate a turn, so neither estimator uses it by default.
 
+``ManoeuvreDetector`` (below) is what decoupled uses by default instead: two statistics of
+the same innovation that a hand cannot produce but a vehicle does.
+
 This module is shared on purpose (any gravity filter can weight its steps by it).
 """
 
@@ -89,3 +92,106 @@ class InnovationSpeed:
         along = v[0] * ux + v[1] * uy + v[2] * uz
         across_sq = max(v[0] * v[0] + v[1] * v[1] + v[2] * v[2] - along * along, 0.0)
         return 1.0 / (1.0 + across_sq / (self.speed_m_s * self.speed_m_s))
+
+
+@dataclass(frozen=True, slots=True)
+class ManoeuvreParams:
+    """The manoeuvre detector's constants (s, m/s, m/s^2; see ``ManoeuvreDetector``)."""
+
+    speed_m_s: float = 8.0
+    ratio: float = 1.0
+    window_s: float = 0.5
+    leak_s: float = 3.0
+    drift_tau_s: float = 30.0
+    floor_m_s2: float = 1.0
+    power: float = 8.0
+
+
+@dataclass(slots=True)
+class ManoeuvreDetector:
+    """Tells a vehicle's sustained acceleration from a hand's, from the gravity filter's
+    innovation d (the reading minus the filter's gravity, almost-inertial frame, m/s^2).
+
+    A board moved by hand stays within arm's reach: its velocity stays within a few m/s
+    (BROAD's fast translations: the innovation integrated with a 3 s leak stays under 5.4
+    m/s) and its acceleration reverses within a second, so over half a second the mean of
+    d is small against its scatter (under 0.6 of it). A vehicle's manoeuvre does what no
+    hand does, and each does one of the two:
+
+    - **speed**: a loop, a pull-up, a turn or a take-off run changes the velocity by tens of
+      m/s (``rc-flight``'s loop 21 m/s, its turn 25 m/s with the same leak): the leaky
+      integral of d (``leak_s``), its whole vector (a loop's velocity change turns through
+      the vertical), against ``speed_m_s``;
+    - **steadiness**: a take-off push, a launch or a banked turn is a steady acceleration
+      with little scatter: the mean of d over ``window_s`` across gravity (an acceleration
+      along gravity does not tilt the estimate) against its scatter over the same window,
+      with a floor ``floor_m_s2`` (sensor noise alone would make any mean look steady),
+      against ``ratio``. A tilt error is a steady innovation too, and must always be
+      corrected: for this statistic d's own mean over ``drift_tau_s`` (longer than any
+      manoeuvre: no vehicle accelerates one way for half a minute) is taken out first.
+
+    Each statistic s gives 1 / (1 + (s / bound)^power), a sharp step (power 8: 0.996 at
+    half the bound, 0.004 at twice it), so hand motion keeps full weight and the weights of
+    its phases stay even (a soft weight that depends on the acceleration spoils the
+    averaging: docs/estimators.md); the product is the filter step's weight. Both
+    statistics need a few tenths of a second to see a manoeuvre, which the filter has
+    already partly absorbed by then: the decoupled kernel re-filters that stretch with the
+    new weight (``lookback_s``, core.py). At rest ``reset`` zeroes the velocity and the
+    window's mean (a zero-velocity update).
+    """
+
+    p: ManoeuvreParams
+    drift_m_s2: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    mean_m_s2: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    mean_sq_m2_s4: float = 0.0
+    v_m_s: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+
+    def reset(self) -> None:
+        """Zero velocity and no steady acceleration (at rest)."""
+        self.v_m_s = [0.0, 0.0, 0.0]
+        self.mean_m_s2 = [0.0, 0.0, 0.0]
+
+    def as_list(self) -> list[float]:
+        """The state, JSON-ready."""
+        return [*self.drift_m_s2, *self.mean_m_s2, self.mean_sq_m2_s4, *self.v_m_s]
+
+    def load_list(self, values: list[float]) -> None:
+        self.drift_m_s2 = [float(c) for c in values[0:3]]
+        self.mean_m_s2 = [float(c) for c in values[3:6]]
+        self.mean_sq_m2_s4 = float(values[6])
+        self.v_m_s = [float(c) for c in values[7:10]]
+
+    def weight(self, reading_g: tuple[float, float, float],
+               gravity_g: tuple[float, float, float] | None, dt_s: float) -> float:
+        """Fold in one reading (g, any sign convention, almost-inertial frame) against the
+        filter's gravity before it (same frame and convention; None: not known yet, weight
+        1) over ``dt_s``; returns the weight of this step, in (0, 1]."""
+        if gravity_g is None:
+            return 1.0
+        gx, gy, gz = gravity_g
+        n = math.sqrt(gx * gx + gy * gy + gz * gz)
+        if n < 1e-9:
+            return 1.0
+        u = (gx / n, gy / n, gz / n)
+        p = self.p
+        k_drift = 1.0 - math.exp(-dt_s / p.drift_tau_s)
+        k_mean = 1.0 - math.exp(-dt_s / p.window_s)
+        leak = math.exp(-dt_s / p.leak_s)
+        drift, mean, v = self.drift_m_s2, self.mean_m_s2, self.v_m_s
+        e_sq = 0.0
+        for i, r in enumerate(reading_g):
+            d = STANDARD_GRAVITY_M_S2 * (r - gravity_g[i])
+            drift[i] += k_drift * (d - drift[i])
+            e = d - drift[i]
+            mean[i] += k_mean * (e - mean[i])
+            v[i] = (v[i] + d * dt_s) * leak
+            e_sq += e * e
+        self.mean_sq_m2_s4 += k_mean * (e_sq - self.mean_sq_m2_s4)
+        along = mean[0] * u[0] + mean[1] * u[1] + mean[2] * u[2]
+        m_sq = mean[0] * mean[0] + mean[1] * mean[1] + mean[2] * mean[2]
+        across = math.sqrt(max(m_sq - along * along, 0.0))
+        scatter = math.sqrt(max(self.mean_sq_m2_s4 - m_sq, 0.0))
+        steadiness = across / max(scatter, p.floor_m_s2)
+        speed = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+        return 1.0 / ((1.0 + (steadiness / p.ratio) ** p.power)
+                      * (1.0 + (speed / p.speed_m_s) ** p.power))

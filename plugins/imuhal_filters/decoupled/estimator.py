@@ -22,6 +22,7 @@ from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.core.frames import FloatArray
 from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
 from imuhal_filters.common.alignment import aligned_quaternion
+from imuhal_filters.common.innovation import ManoeuvreParams
 from imuhal_filters.common.quat import IDENTITY
 from imuhal_filters.decoupled.bias import BiasParams
 from imuhal_filters.decoupled.core import DecoupledKernel, DecoupledParams
@@ -45,41 +46,45 @@ class DecoupledSettings(AhrsSettings):
         # full; the inertial-frame filter averages the hand's acceleration out, a gate would
         # weight it unevenly (docs/evaluation.md)
         "handheld": {"accel_soft_gate_g": None, "tau_acc_s": 3.0, "tau_acc_rest_s": None,
-                     "turbulence_rate_deg_s": None, "innovation_speed_m_s": None},
-        # the defaults by name (a profile can say what it relies on)
+                     "turbulence_rate_deg_s": None, "innovation_speed_m_s": None,
+                     "manoeuvre_speed_m_s": None},
+        # the flight settings before the manoeuvre detector (issue 27): a fixed gate, 10 s
+        # and the turbulence correction; kept to reproduce the earlier figures
         "flight": {"accel_soft_gate_g": 0.02, "tau_acc_s": 10.0, "tau_acc_rest_s": 3.0,
-                   "turbulence_rate_deg_s": 3.0, "innovation_speed_m_s": None},
+                   "turbulence_rate_deg_s": 3.0, "innovation_speed_m_s": None,
+                   "manoeuvre_speed_m_s": None},
         # VQF's settings weighted by the innovation speed instead of a fixed gate: one
         # setting for both worlds, tried as the default and not good enough yet (BROAD's
         # fast translation and stationary-magnet trials; docs/estimators.md, decoupled)
         "adaptive": {"accel_soft_gate_g": None, "tau_acc_s": 3.0, "tau_acc_rest_s": None,
-                     "turbulence_rate_deg_s": None, "innovation_speed_m_s": 1.0},
+                     "turbulence_rate_deg_s": None, "innovation_speed_m_s": 1.0,
+                     "manoeuvre_speed_m_s": None},
     }
 
-    tau_acc_s: float = Field(10.0, gt=0.0)
+    tau_acc_s: float = Field(3.0, gt=0.0)
     """Mean delay (s) of the accelerometer low-pass in the almost-inertial frame: the
-    inclination correction's speed. Default 10 s, for flight: turns last longer than hand
-    motion (flight benchmark `thermal` tilt RMS 0.92 against 2.58 deg at 3 s); VQF's published
-    3 s is ``preset: handheld`` (docs/estimators.md)."""
-    tau_acc_rest_s: float | None = Field(3.0, gt=0.0)
+    inclination correction's speed. Default VQF's published 3 s: what a vehicle's longer
+    turns would add to it, the manoeuvre detector keeps out (``manoeuvre_speed_m_s``);
+    ``preset: flight`` has 10 s and a gate instead (docs/estimators.md)."""
+    tau_acc_rest_s: float | None = Field(None, gt=0.0)
     """At rest (``rest_detected``) the accelerometer filter runs with this time constant (s)
-    instead: the specific force is gravity alone, what is left is gyro drift (flight default
-    3 s: on the ground before launch the flight filter converges as fast as the hand-held
-    one). None: ``tau_acc_s`` always (VQF, ``preset: handheld``)."""
-    accel_soft_gate_g: float | None = Field(0.02, gt=0.0)
+    instead: the specific force is gravity alone, what is left is gyro drift (``preset:
+    flight`` 3 s: on the ground its 10 s filter converges as fast as the hand-held one).
+    None (default): ``tau_acc_s`` always (VQF)."""
+    accel_soft_gate_g: float | None = Field(None, gt=0.0)
     """Share of each step the inclination filter advances by, 1 / (1 + (| |a| - 1 g | /
-    width)^2) (common/gate.py): a reading away from 1 g is trusted less. Default 0.02 g:
-    in flight it is needed (`rc-flight` max 5.4 deg, 40.7 without); None (VQF's choice,
-    ``preset: handheld``): every reading in full, which hand-held motion needs (BROAD 9-DOF
-    total 2.33 deg, 5.45 with the flight defaults): docs/estimators.md."""
-    turbulence_rate_deg_s: float | None = Field(3.0, gt=0.0)
+    width)^2) (common/gate.py): a reading away from 1 g is trusted less (``preset: flight``
+    0.02 g). None (default, VQF's choice): every reading in full, which hand-held motion
+    needs (BROAD 9-DOF total 2.33 deg with ``preset: handheld``, 5.45 with ``preset:
+    flight``): docs/estimators.md."""
+    turbulence_rate_deg_s: float | None = Field(None, gt=0.0)
     """In straight flight through turbulence (gusts keep |a| off 1 g, so the soft gate stays
     closed; detected from the spread and mean of |a| and the turn rate, ``turbulence.py``)
     the filtered accelerometer is also turned towards each reading at up to this rate
     (deg/s) times the gate's closed share, as madgwick corrects: the gyro error of
     aerobatics is walked back instead of kept (flight benchmark `rc-flight` tilt RMS 1.2
-    against 4.2 deg without; `thermal` unchanged). None: off (``preset:
-    handheld``; without a soft gate it never acts)."""
+    against 4.2 deg without; `thermal` unchanged; ``preset: flight`` 3). None (default):
+    off; without a soft gate it never acts."""
     innovation_speed_m_s: float | None = Field(None, gt=0.0)
     """Weight each step of the accelerometer filter by the innovation speed
     (common/innovation.py): the filter's innovation (the reading minus its gravity,
@@ -92,6 +97,21 @@ class DecoupledSettings(AhrsSettings):
     innovation_tau_s: float = Field(1.0, gt=0.0)
     """Leak of that speed (s): hand motion and gusts turn round within about a second (0.5-2
     Hz); a velocity change kept longer is a manoeuvre's."""
+    manoeuvre_speed_m_s: float | None = Field(8.0, gt=0.0)
+    """The manoeuvre detector (common/innovation.py, ``ManoeuvreDetector``): the filter's
+    innovation integrated into a velocity (3 s leak) beyond this speed (m/s) is a vehicle's
+    manoeuvre, not a hand's, and the accelerometer filter stops following it (a sharp step:
+    full weight at half this, none at twice it). 8 m/s: BROAD's fastest hand stays under
+    5.4, `rc-flight`'s loop reaches 21. None: no manoeuvre detection (VQF,
+    ``preset: handheld``)."""
+    manoeuvre_ratio: float = Field(1.0, gt=0.0)
+    """The detector's other statistic: the innovation's 0.5 s mean across gravity, against
+    its scatter over the same window (at least 1 m/s^2), beyond this ratio is a steady
+    acceleration (a take-off push, a launch, a banked turn). Hand motion stays under 0.6."""
+    manoeuvre_lookback_s: float = Field(0.5, ge=0.0)
+    """When the detector closes, the accelerometer filter is run again over this long (s)
+    with the new weight: the stretch the detector needed to decide, which the filter had
+    taken nearly in full (`rc-flight` tilt max 8.0 deg without, 4.0 with)."""
     tau_mag_s: float = Field(9.0, gt=0.0)
     """Heading correction time constant (s) (VQF's published default, 9 s)."""
     rest_gyro_th_deg_s: float = Field(2.0, gt=0.0)
@@ -141,6 +161,9 @@ class DecoupledSettings(AhrsSettings):
             accel_soft_gate_g=self.accel_soft_gate_g,
             innovation_speed_m_s=self.innovation_speed_m_s,
             innovation_tau_s=self.innovation_tau_s,
+            manoeuvre=None if self.manoeuvre_speed_m_s is None else ManoeuvreParams(
+                speed_m_s=self.manoeuvre_speed_m_s, ratio=self.manoeuvre_ratio),
+            lookback_s=self.manoeuvre_lookback_s,
             rest_gyro_th_rad_s=math.radians(self.rest_gyro_th_deg_s),
             rest_acc_th_g=self.rest_acc_th_m_s2 / g, rest_min_s=self.rest_min_s,
             bias_clip_rad_s=math.radians(self.bias_clip_deg_s),
@@ -207,7 +230,11 @@ class DecoupledEstimator(AhrsEstimator):
                 "mag_cand": None if k.mag_cand is None else list(k.mag_cand),
                 "mag_cand_s": k.mag_cand_s, "mag_disturbed": k.mag_disturbed,
                 "innovation": None if k.innovation is None else k.innovation.as_list(),
-                "straight_flight": k.straight.as_list()}
+                "straight_flight": k.straight.as_list(),
+                "manoeuvre": None if k.manoeuvre is None else k.manoeuvre.as_list(),
+                "lookback": [[*a, dt, w] for a, dt, w in k.lookback],
+                "lookback_s": k.lookback_s, "lookback_filter": k.lookback_filter.state,
+                "last_weight": k.last_weight}
 
     def _set_filter_state(self, state: dict[str, Any]) -> None:
         k = self._kernel
@@ -230,6 +257,21 @@ class DecoupledEstimator(AhrsEstimator):
             k.innovation.load_list(state["innovation"])  # absent before the adaptive weight
         if "straight_flight" in state:  # absent from states saved before the detector
             k.straight.load_list(state["straight_flight"])
+        if k.manoeuvre is not None and state.get("manoeuvre") is not None:
+            self._load_manoeuvre(state)
+
+    def _load_manoeuvre(self, state: dict[str, Any]) -> None:
+        """The manoeuvre detector and the look-back (absent before them)."""
+        k = self._kernel
+        assert k.manoeuvre is not None
+        k.manoeuvre.load_list(state["manoeuvre"])
+        k.lookback.clear()
+        k.lookback.extend(((float(r[0]), float(r[1]), float(r[2])), float(r[3]), float(r[4]))
+                          for r in state["lookback"])
+        k.lookback_s = float(state["lookback_s"])
+        lf = state["lookback_filter"]
+        k.lookback_filter.state = None if lf is None else [float(c) for c in lf]
+        k.last_weight = float(state["last_weight"])
 
     # ------------------------------------------------------------------ offline
     def _pass(self, gyro: FloatArray, acc_g: FloatArray, mag: FloatArray | None,

@@ -27,7 +27,7 @@ from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.core.conventions import VectorKind
 from imuhal.core.frames import FloatArray
 from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
-from imuhal_filters.common.innovation import InnovationSpeed
+from imuhal_filters.common.innovation import InnovationSpeed, ManoeuvreDetector, ManoeuvreParams
 from imuhal_filters.common.quat import to_global
 from imuhal_filters.vqf.frames import from_vqf, quat_from_vqf, to_vqf, vector_to_vqf
 
@@ -63,6 +63,15 @@ class VqfSettings(AhrsSettings):
     None (default): every reading, the package's own filter."""
     withhold_tau_s: float = Field(1.0, gt=0.0)
     """The leak of that speed (s): how long hand motion and gusts take to come back."""
+    manoeuvre_speed_m_s: float | None = Field(8.0, gt=0.0)
+    """Input preprocessing, VQF itself untouched: a reading is not handed to VQF while the
+    manoeuvre detector (common/innovation.py, ``ManoeuvreDetector``, decoupled's default),
+    fed the reading's innovation against VQF's own inclination, sees what no hand does: a
+    leaky velocity beyond this (m/s) or a steady acceleration beyond ``manoeuvre_ratio``
+    times its scatter (docs/estimators.md, vqf). None: every reading, the package's filter
+    as published."""
+    manoeuvre_ratio: float = Field(1.0, gt=0.0)
+    """The detector's steadiness bound (mean across gravity over its scatter)."""
 
     def vqf_params(self) -> dict[str, Any]:
         return {"tauAcc": self.tau_acc_s, "tauMag": self.tau_mag_s,
@@ -94,19 +103,27 @@ class VqfEstimator(AhrsEstimator):
         self._innovation = None if speed is None else InnovationSpeed(
             self.settings.withhold_tau_s, speed, self.settings.tau_acc_s)
         self._withheld = 0
+        m = self.settings.manoeuvre_speed_m_s
+        self._manoeuvre = None if m is None else ManoeuvreDetector(
+            ManoeuvreParams(speed_m_s=m, ratio=self.settings.manoeuvre_ratio))
 
     def _passes(self, accel_g: tuple[float, float, float], dt: float) -> bool:
         """Whether this reading (gravity positive, g, body NED) goes to VQF: its innovation
         against VQF's inclination, integrated across gravity, within the speed bound."""
-        inn = self._innovation
-        if inn is None:
+        inn, det = self._innovation, self._manoeuvre
+        if inn is None and det is None:
             return True
         v = self._vqf
-        if v.getRestDetected():
-            inn.reset()
+        rest = v.getRestDetected()
         up = to_global(quat_from_vqf(v.getQuat6D()), accel_g)
-        # weight 1 / (1 + (speed / bound)^2) below one half: the speed beyond the bound
-        if inn.weight(up, (0.0, 0.0, 1.0), dt) >= 0.5:
+        weight = 1.0
+        for stat in (inn, det):
+            if stat is not None:
+                if rest:
+                    stat.reset()
+                # weight 1 / (1 + (speed / bound)^2) below one half: beyond the bound
+                weight *= stat.weight(up, (0.0, 0.0, 1.0), dt)
+        if weight >= 0.5:
             return True
         self._withheld += 1
         return False
@@ -149,13 +166,16 @@ class VqfEstimator(AhrsEstimator):
         # the package's state is plain lists, floats and bools
         return {"vqf": dict(self._vqf.state), "mag_seen": self._mag_seen,
                 "innovation": None if self._innovation is None
-                else self._innovation.as_list(), "withheld": self._withheld}
+                else self._innovation.as_list(), "withheld": self._withheld,
+                "manoeuvre": None if self._manoeuvre is None else self._manoeuvre.as_list()}
 
     def _set_filter_state(self, state: dict[str, Any]) -> None:
         self._vqf.state = dict(state["vqf"])
         self._mag_seen = bool(state["mag_seen"])
         if self._innovation is not None and state.get("innovation") is not None:
             self._innovation.load_list(state["innovation"])
+        if self._manoeuvre is not None and state.get("manoeuvre") is not None:
+            self._manoeuvre.load_list(state["manoeuvre"])  # absent before the detector
         self._withheld = int(state.get("withheld", 0))
 
     def smooth(self, gyro_rad_s: FloatArray, accel_m_s2: FloatArray,
