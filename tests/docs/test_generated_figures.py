@@ -116,7 +116,7 @@ def test_a_figure_edited_by_hand_is_a_difference() -> None:
     block = next(b for b in BLOCKS if b.name == "recovery-table")
     output = printed(tuple(block.command))
     assert docblock.differences(block.body, output) == []
-    row = next(line for line in block.body.splitlines() if line.startswith("| madgwick | drop"))
+    row = next(line for line in block.body.splitlines() if line.startswith("| madgwick | recover"))
     figure = re.search(r"\d+\.\d\d", row)
     assert figure is not None
     edited_value = f"{float(figure.group()) + 0.01:.2f}"
