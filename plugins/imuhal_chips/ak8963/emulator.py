@@ -37,7 +37,7 @@ import struct
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock
 from imuhal.core.samples import Quantity
-from imuhal.emulation import ChipEmulator
+from imuhal.emulation import ChipEmulator, HangsBetweenTransfers
 from imuhal_chips.ak8963 import registers as r
 from imuhal_chips.ak8963.error_spec import AK8963_ERROR_SPEC
 
@@ -59,7 +59,7 @@ def _adjustment(asa: int) -> float:
     return (asa - 128) * 0.5 / 128 + 1
 
 
-class AK8963Emulator(ChipEmulator):
+class AK8963Emulator(HangsBetweenTransfers, ChipEmulator):
     """Register-level stand-in for an AK8963 (standalone or inside an MPU-9250)."""
 
     chip = "ak8963"
@@ -87,20 +87,6 @@ class AK8963Emulator(ChipEmulator):
         self._reset()
 
     # -- fault injection --------------------------------------------------------------------
-
-    @property
-    def stuck_data_ready(self) -> bool:
-        """The measurement engine hangs (fault injection): no measurement completes."""
-        return self._hung
-
-    @stuck_data_ready.setter
-    def stuck_data_ready(self, hung: bool) -> None:
-        # The chip's state is brought up to date at each transfer: bring it up to now first,
-        # so that what fell due before the hang began is measured and what fell due while
-        # it lasted is not (whatever transfer comes next).
-        if hung != getattr(self, "_hung", hung) and getattr(self, "_next_ns", None) is not None:
-            self._advance()
-        self._hung = hung
 
     def corrupt_trim(self, rng: random.Random, bits: int = 1) -> str:
         """Flip ``bits`` random bits of the fuse-ROM sensitivity adjustment (ASAX..ASAZ)."""

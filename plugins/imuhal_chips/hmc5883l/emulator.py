@@ -40,7 +40,7 @@ from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError
 from imuhal.core.samples import Quantity
-from imuhal.emulation import ChipEmulator, PhysicalInputs
+from imuhal.emulation import ChipEmulator, HangsBetweenTransfers, PhysicalInputs
 from imuhal_chips.hmc5883l.error_spec import HMC5883L_ERROR_SPEC
 from imuhal_chips.hmc5883l.registers import (
     CRA_RATE_SHIFT,
@@ -99,7 +99,7 @@ _DATA = range(DATA_FIRST, DATA_LAST + 1)
 _DATA_BYTES = len(_DATA)
 
 
-class Hmc5883lEmulator(ChipEmulator):
+class Hmc5883lEmulator(HangsBetweenTransfers, ChipEmulator):
     """HMC5883L at I2C 0x1E; attach it to an EmulatedBus (or the MAX21100 aux bus)."""
 
     chip = "hmc5883l"
@@ -117,20 +117,6 @@ class Hmc5883lEmulator(ChipEmulator):
         self.measurements = 0
         self._oscillator_error = 0.0
         self.power_on_reset()
-
-    @property
-    def stuck_data_ready(self) -> bool:
-        """Measurements stopped (fault injection): none completes, RDY reads 0."""
-        return self._hung
-
-    @stuck_data_ready.setter
-    def stuck_data_ready(self, hung: bool) -> None:
-        # The chip's state is brought up to date at each transfer: bring it up to now first,
-        # so that what fell due before the fault began is measured and what fell due while
-        # it lasted is not (whatever transfer comes next).
-        if hung != getattr(self, "_hung", hung) and getattr(self, "_next_ns", None) is not None:
-            self._advance()
-        self._hung = hung
 
     # --- state ----------------------------------------------------------------------------
 

@@ -9,9 +9,10 @@ Emulator plugins import the chip-emulator interface from here (``ChipEmulator``,
 from imuhal.emulation.board import EmulatedBoard
 from imuhal.emulation.open import calibrated_as_user, error_models_for, open_emulated
 from imuhal.emulation.truth import TruthSink
-from imuhal.sim.chip import ChipEmulator
+from imuhal.sim.chip import ChipEmulator, HangsBetweenTransfers
 from imuhal.sim.emulated_bus import EmulatedBus
 from imuhal.sim.inputs import PhysicalInputs
 
-__all__ = ["ChipEmulator", "EmulatedBoard", "EmulatedBus", "PhysicalInputs", "TruthSink",
-           "calibrated_as_user", "error_models_for", "open_emulated"]
+__all__ = ["ChipEmulator", "EmulatedBoard", "EmulatedBus", "HangsBetweenTransfers",
+           "PhysicalInputs", "TruthSink", "calibrated_as_user", "error_models_for",
+           "open_emulated"]

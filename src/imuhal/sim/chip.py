@@ -290,3 +290,27 @@ class ChipEmulator(ABC):
         local names its driver's ``child_buses`` uses. Emulators of chips behind it are
         attached to these, and this emulator performs real transfers on them."""
         return {}
+
+
+class HangsBetweenTransfers:
+    """For an emulator that brings its measurements up to date at each transfer
+    (``_advance``; the next measurement due at ``_next_ns``, None while idle): setting
+    ``stuck_data_ready`` brings them up to now first, so what fell due before a hang began is
+    measured and what fell due while it lasted is not, whatever transfer comes next. Put it
+    before :class:`ChipEmulator` among the bases."""
+
+    _hung: bool
+
+    def _advance(self) -> None:
+        raise NotImplementedError
+
+    @property
+    def stuck_data_ready(self) -> bool:
+        """The measurement engine hangs (fault injection): no measurement completes."""
+        return self._hung
+
+    @stuck_data_ready.setter
+    def stuck_data_ready(self, hung: bool) -> None:
+        if hung != getattr(self, "_hung", hung) and getattr(self, "_next_ns", None) is not None:
+            self._advance()
+        self._hung = hung
