@@ -48,6 +48,18 @@ from dataclasses import dataclass, field
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 
 
+def _direction(gravity_g: tuple[float, float, float] | None
+               ) -> tuple[float, float, float] | None:
+    """The unit vector along the filter's gravity (None: not known yet, or no length)."""
+    if gravity_g is None:
+        return None
+    gx, gy, gz = gravity_g
+    n = math.sqrt(gx * gx + gy * gy + gz * gz)
+    if n < 1e-9:
+        return None
+    return (gx / n, gy / n, gz / n)
+
+
 @dataclass(slots=True)
 class InnovationSpeed:
     """The leaky integral (m/s) of the inclination filter's innovation across gravity."""
@@ -75,13 +87,11 @@ class InnovationSpeed:
         """Fold in one reading (g, any sign convention, almost-inertial frame) against the
         filter's gravity before it (same frame and convention; None: not known yet, weight
         1) over ``dt_s``; returns the weight of this step, in (0, 1]."""
-        if gravity_g is None:
+        u = _direction(gravity_g)
+        if u is None or gravity_g is None:
             return 1.0
         gx, gy, gz = gravity_g
-        n = math.sqrt(gx * gx + gy * gy + gz * gz)
-        if n < 1e-9:
-            return 1.0
-        ux, uy, uz = gx / n, gy / n, gz / n
+        ux, uy, uz = u
         k = STANDARD_GRAVITY_M_S2 * dt_s
         leak = math.exp(-dt_s / self.tau_s)
         v, m = self.v_m_s, self.mean_g
@@ -166,13 +176,9 @@ class ManoeuvreDetector:
         """Fold in one reading (g, any sign convention, almost-inertial frame) against the
         filter's gravity before it (same frame and convention; None: not known yet, weight
         1) over ``dt_s``; returns the weight of this step, in (0, 1]."""
-        if gravity_g is None:
+        u = _direction(gravity_g)
+        if u is None or gravity_g is None:
             return 1.0
-        gx, gy, gz = gravity_g
-        n = math.sqrt(gx * gx + gy * gy + gz * gz)
-        if n < 1e-9:
-            return 1.0
-        u = (gx / n, gy / n, gz / n)
         p = self.p
         k_drift = 1.0 - math.exp(-dt_s / p.drift_tau_s)
         k_mean = 1.0 - math.exp(-dt_s / p.window_s)
