@@ -225,7 +225,10 @@ def test_a_live_emulated_run_reaches_the_client_with_the_csv_log_values(
                 client = Client(ws)
                 await client.until_advertised("/imu/gyro")
                 await client.subscribe("/imu/gyro")
-                got = await client.next_message("/imu/gyro", 5.0)
+                # generous: the first gyro sample is advertised just before the AHRS's first
+                # step, which in a fresh checkout compiles its numba kernels (seconds, the
+                # whole process held) before the next message can go out
+                got = await client.next_message("/imu/gyro", 60.0)
                 assert got is not None
                 return dict(json.loads(got[1]))
 
