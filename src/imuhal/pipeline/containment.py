@@ -34,7 +34,7 @@ from collections import Counter, deque
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from types import FrameType
-from typing import Any
+from typing import Any, ClassVar
 
 from imuhal.core.blocks import Block
 from imuhal.core.clock import MonotonicClock
@@ -343,11 +343,11 @@ class Watchdog:
 
     _active = False
     """A driver call is being timed (class-wide: the handler is process-wide)."""
-    _ticking: tuple[float, float] | None = None
+    _ticking: ClassVar[tuple[float, float] | None] = None
     """The periods (s) of the ticking ``ITIMER_REAL`` and ``ITIMER_PROF`` when they tick."""
-    _ticks: dict[int, int] = {}
+    _ticks: ClassVar[dict[int, int]] = {}
     """Ticks of each signal since the timed call began."""
-    _limits: dict[int, int] = {}
+    _limits: ClassVar[dict[int, int]] = {}
     """The tick of each signal at which the timed call is cut off."""
 
     def __init__(self, timing: DriverTiming | None = None) -> None:
