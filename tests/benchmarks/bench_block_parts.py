@@ -2,7 +2,8 @@
 script; not collected by pytest). The figures of docs/performance.md, "Blocks reach the
 estimators".
 
-Run:  .venv/bin/python -m tests.benchmarks.bench_block_parts kernel|decode|estimate|pipeline
+Run:  .venv/bin/python -m tests.benchmarks.bench_block_parts PART  (kernel, decode, estimate,
+      pipeline, watchdog)
 
 - ``kernel``: Madgwick's ``update_blocks`` on fusion steps of n accelerometer and gyro
   frames against the same frames one by one through ``process()`` (the base class's
@@ -21,6 +22,10 @@ Run:  .venv/bin/python -m tests.benchmarks.bench_block_parts kernel|decode|estim
   airspeed) and the GY-91 (blocks of 10) replayed from 20 s recordings with the estimators,
   Madgwick taking each read through the row kernel (``MIN_KERNEL_FRAMES_COMPILED_STEP`` 1)
   and frame by frame as shipped (32) alternately, four pairs, CPU us per IMU sample.
+- ``watchdog``: what timing one driver call costs on CPU time (an emulated or replayed
+  board): ``Watchdog.arm`` and ``disarm`` with the ticking timers, against the one-shot
+  ``ITIMER_REAL`` and ``ITIMER_PROF`` armed and cancelled around the call (four
+  ``setitimer`` calls, the watchdog before), CPU us per call, three rounds.
 """
 
 from __future__ import annotations
@@ -163,7 +168,7 @@ def pipeline(pairs: int = 4) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for name, board, frames in (("seed board, FIFO 8", SEED, 8),
                                     ("GY-91, FIFO 10", GY91, 10)):
-            path = Path(tmp) / "board.imurec"
+            path = Path(tmp) / f"{frames}.imurec"
             record(registry, path, 20.0, board_yaml(frames, board))
             figures: dict[int, list[float]] = {1: [], shipped: []}
             try:
@@ -179,12 +184,46 @@ def pipeline(pairs: int = 4) -> None:
                   f"{' / '.join(f'{x:.1f}' for x in figures[shipped])}")
 
 
+def watchdog(calls: int = 100_000, rounds: int = 3) -> None:
+    import signal
+
+    from imuhal.pipeline.containment import DriverTiming, Watchdog
+
+    dog = Watchdog(DriverTiming(cpu=True))
+    dog.arm(1.0)  # the handlers installed
+    dog.disarm()
+
+    def ticking() -> None:
+        for _ in range(calls):
+            dog.arm(1.0)
+            dog.disarm()
+
+    def one_shot() -> None:
+        for _ in range(calls):
+            signal.setitimer(signal.ITIMER_REAL, 60.0)
+            signal.setitimer(signal.ITIMER_PROF, 1.0)
+            signal.setitimer(signal.ITIMER_REAL, 0)
+            signal.setitimer(signal.ITIMER_PROF, 0)
+
+    try:
+        for _ in range(rounds):
+            figures = []
+            for run in (ticking, one_shot):
+                t0 = time.process_time()
+                run()
+                figures.append((time.process_time() - t0) / calls * 1e6)
+            print(f"us of CPU per driver call: ticking timers {figures[0]:.2f}, one-shot "
+                  f"timers armed and cancelled {figures[1]:.2f}")
+    finally:
+        dog.release()
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("part", choices=["kernel", "decode", "estimate", "pipeline"])
+    p.add_argument("part", choices=["kernel", "decode", "estimate", "pipeline", "watchdog"])
     args = p.parse_args(argv)
     {"kernel": kernel, "decode": decode, "estimate": estimate,
-     "pipeline": pipeline}[args.part]()
+     "pipeline": pipeline, "watchdog": watchdog}[args.part]()
     return 0
 
 
