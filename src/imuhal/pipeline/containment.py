@@ -326,7 +326,7 @@ class Watchdog:
     timer mean at least n - 1 of its periods spent in the call, so the call is cut off at
     the tick that makes its deadline certain: after the deadline and before the deadline
     plus two periods (1 s of CPU time: cut off between 1 and 1.5 s). Arming and disarming
-    then make no system call: 0.75 us of CPU per driver call against 1.8 for the four
+    then make no system call: 0.7 us of CPU per driver call against 1.8 for the four
     ``setitimer`` calls of one-shot timers, at about two driver calls per IMU sample on the
     seed board (``python -m tests.benchmarks.bench_block_parts watchdog``; docs/performance.md,
     "The hardware path's per-poll costs").
@@ -346,10 +346,12 @@ class Watchdog:
     """A driver call is being timed (class-wide: the handler is process-wide)."""
     _ticking: ClassVar[tuple[float, float] | None] = None
     """The periods (s) of the ticking ``ITIMER_REAL`` and ``ITIMER_PROF`` when they tick."""
-    _ticks: ClassVar[dict[int, int]] = {}
-    """Ticks of each signal since the timed call began."""
-    _limits: ClassVar[dict[int, int]] = {}
-    """The tick of each signal at which the timed call is cut off."""
+    _wall_ticks = 0
+    """``ITIMER_REAL`` ticks since the timed call began."""
+    _cpu_ticks = 0
+    """``ITIMER_PROF`` ticks since the timed call began."""
+    _limits: ClassVar[tuple[int, int]] = (1, 1)
+    """The ``ITIMER_REAL`` and ``ITIMER_PROF`` tick at which the timed call is cut off."""
 
     def __init__(self, timing: DriverTiming | None = None) -> None:
         self.timing = timing if timing is not None else DriverTiming()
@@ -358,7 +360,7 @@ class Watchdog:
         self._installed = False
         self._periods = (self.timing.blocked_wall_s / TICKS_PER_DEADLINE,
                          DEADLINE_MIN_S / TICKS_PER_DEADLINE)
-        self._tick_limits: dict[float, dict[int, int]] = {}
+        self._tick_limits: dict[float, tuple[int, int]] = {}
 
     def arm(self, seconds: float) -> bool:
         """Start timing a driver call; False when this thread cannot be interrupted."""
@@ -371,7 +373,7 @@ class Watchdog:
             if limits is None:
                 limits = self._tick_limits[seconds] = self._limits_for(seconds)
             Watchdog._limits = limits
-            Watchdog._ticks = {signal.SIGALRM: 0, signal.SIGPROF: 0}
+            Watchdog._wall_ticks = Watchdog._cpu_ticks = 0
         else:
             if Watchdog._ticking is not None:
                 Watchdog._stop_ticking()
@@ -402,12 +404,13 @@ class Watchdog:
                     signal.signal(signum, signal.SIG_DFL)
         self._installed = False
 
-    def _limits_for(self, seconds: float) -> dict[int, int]:
-        """The tick of each timer that proves a call of deadline ``seconds`` (CPU time;
-        ``blocked_wall_s`` on the wall clock) overran it: ceil(deadline / period) + 1."""
+    def _limits_for(self, seconds: float) -> tuple[int, int]:
+        """The tick of each timer (``ITIMER_REAL``, ``ITIMER_PROF``) that proves a call of
+        deadline ``seconds`` (CPU time; ``blocked_wall_s`` on the wall clock) overran it:
+        ceil(deadline / period) + 1."""
         real_s, prof_s = self._periods
-        return {signal.SIGALRM: math.ceil(self.timing.blocked_wall_s / real_s - 1e-9) + 1,
-                signal.SIGPROF: math.ceil(seconds / prof_s - 1e-9) + 1}
+        return (math.ceil(self.timing.blocked_wall_s / real_s - 1e-9) + 1,
+                math.ceil(seconds / prof_s - 1e-9) + 1)
 
     def _tick(self) -> None:
         real_s, prof_s = self._periods
@@ -445,9 +448,14 @@ def _deadline_expired(signum: int, frame: FrameType | None) -> None:
     if not Watchdog._active:
         return  # a tick between calls
     if Watchdog._ticking is not None:
-        ticks = Watchdog._ticks[signum] = Watchdog._ticks.get(signum, 0) + 1
-        if ticks < Watchdog._limits.get(signum, 1):
-            return
+        if signum == signal.SIGPROF:
+            Watchdog._cpu_ticks += 1
+            if Watchdog._cpu_ticks < Watchdog._limits[1]:
+                return
+        else:
+            Watchdog._wall_ticks += 1
+            if Watchdog._wall_ticks < Watchdog._limits[0]:
+                return
     Watchdog._active = False
     raise DriverDeadline
 
