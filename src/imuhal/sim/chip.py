@@ -19,7 +19,7 @@ from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock, SimulatedClock
 from imuhal.core.samples import Quantity
 from imuhal.sim.errors import SensorErrorSpec
-from imuhal.sim.inputs import PhysicalInputs
+from imuhal.sim.inputs import PhysicalInputs, PlannedInputs
 from imuhal.sim.measured import MeasuredInstants
 
 if TYPE_CHECKING:
@@ -220,6 +220,14 @@ class ChipEmulator(ABC):
         class's :meth:`set_physics` (one that acts on new inputs overrides it)."""
         if not self.frozen:
             self._physics_later = compute
+
+    def set_planned(self, planned: PlannedInputs, index: int) -> None:
+        """:meth:`set_physics` with row ``index`` of inputs an emulated board computed
+        ahead for the chip's announced pulls (``physics_ahead``). An emulator may keep the
+        plan instead and encode its quantities for every row at once (its counts in one
+        numpy pass, by the operations it applies to one value: the same counts), as long
+        as ``physics`` reads the row while it stands; this one hands the row over."""
+        self.set_physics(planned.row(index))
 
     def now_ns(self) -> int:
         """The chip's present: the host's clock, or the instant of a master's timed
