@@ -276,6 +276,20 @@ class Hmc5883lEmulator(HangsBetweenTransfers, ChipEmulator):
                 (self.pointer + 1) & 0xFF)
         return bytes(out)
 
+    def idle_answer(self, kind: BusKind, write: bytes, read_len: int) -> bytes | None:
+        """The whole data block read from X MSB (a bus master's auto-read) changes nothing
+        when the pointer already wraps there, nothing is locked or pending and no
+        measurement falls due by now: :meth:`bus_transfer`'s path for it would leave every
+        register, the pointer and the schedule as they are."""
+        if (kind is not BusKind.I2C or read_len != _DATA_BYTES or len(write) != 1
+                or write[0] != DATA_FIRST or self.pointer != POINTER_WRAP_TO or self.locked
+                or self._read_mask or self._pending is not None):
+            return None
+        due = self._next_ns
+        if due is not None and self.now_ns() >= due:
+            return None
+        return bytes(self.data)
+
     def _read(self, reg: int) -> int:
         if reg in _DATA:
             self._read_mask.add(reg)

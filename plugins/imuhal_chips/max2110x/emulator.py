@@ -910,6 +910,9 @@ class Max21100Emulator(Max2110xEmulator):
         """Accelerometer measurements since power-on: the auto-read follows every 2^code-th."""
         self._slave_block = bytes(MAG_DATA_BYTES)
         """The slave's bytes as last read (slave register order), before swap and map."""
+        self._slave_stored: tuple[bytes, int, int] | None = None
+        """(bytes, MAG_SLV_CFG swap bit, MAG_MAP_REG) that MAG X/Y/Z were last stored from:
+        a copy of the same bytes with the same settings stores the same words."""
 
     def child_buses(self) -> dict[str, EmulatedBus]:
         return {"aux": self._aux}
@@ -950,12 +953,16 @@ class Max21100Emulator(Max2110xEmulator):
         block = data[:kept] + self._slave_block[kept:]
         self._slave_block = block
         swap = cfg & MAG_SLV_CFG_SWAP
+        mapping = bank0[_MAG_MAP_REG]
+        stored = (block, swap, mapping)
+        if stored == self._slave_stored:
+            return  # the same bytes and settings: MAG X/Y/Z hold these words already
+        self._slave_stored = stored
         slave_words = []
         for i in (0, 2, 4):
             high, low = (block[i + 1], block[i]) if swap else (block[i], block[i + 1])
             word = high << 8 | low
             slave_words.append(word - 0x10000 if word & 0x8000 else word)
-        mapping = bank0[_MAG_MAP_REG]
         order = _MAG_CHANNEL_ORDER[(mapping >> MAG_MAP_SHIFT) & 0x07]
         invert = mapping & MAG_MAP_INVERT_MASK
         # two's complement negation in 16 bits (-(-32768) reads -32768 again)

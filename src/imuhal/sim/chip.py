@@ -187,6 +187,16 @@ class ChipEmulator(ABC):
     def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes:
         """Answer one bus transaction (write then read) as the chip would."""
 
+    def idle_answer(self, kind: BusKind, write: bytes, read_len: int) -> bytes | None:
+        """The chip's answer to the read transaction (``write`` then ``read_len`` bytes)
+        at its present (:meth:`now_ns`) when giving it changes nothing in the chip (no
+        register, pointer, lock or measurement schedule moves, no measurement falls due);
+        None when it would, or when the emulator does not tell (this default). A bus
+        master on the board (``EmulatedBus.transfer_at``) then hands the answer over
+        without carrying out the transaction: a slave auto-read repeating itself between
+        the slave's measurements."""
+        return None
+
     def bus_receive(self, kind: BusKind, max_len: int) -> bytes:
         """Byte-stream chips (a UART device): up to ``max_len`` bytes the chip has sent by
         now. Register-mapped chips never send unprompted."""
