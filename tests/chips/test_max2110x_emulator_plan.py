@@ -1,5 +1,6 @@
 """The MAX2110x emulator's fast paths give what its one-value paths give: counts encoded for
-a whole plan of inputs at once, and the register image kept up to date in place."""
+a whole plan of inputs at once, the register image kept up to date in place, and a FIFO read
+popped at once."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from imuhal_chips.max2110x.emulator import (
     _encode,
     _encode_rows,
 )
+from imuhal_chips.max2110x.emulator_fifo import MAX21100_FIFO, Max2110xFifo
 
 PER_COUNT = 1.0 / 7500.0 * 9.80665
 
@@ -93,3 +95,16 @@ def test_a_burst_after_new_latches_reads_what_each_register_alone_reads() -> Non
             single = bytes(emu._read(r) for r in range(0x23, 0x3C))
             assert bus.transfer(0, bytes([0x80 | 0x23]), 0x3C - 0x23) == single
             assert bus.transfer(0, bytes([0x80 | 0x2A]), 6) == single[0x2A - 0x23:0x30 - 0x23]
+
+
+@pytest.mark.parametrize("count", [1, 6, 13, 40])
+def test_popping_many_fifo_bytes_is_popping_each(count) -> None:
+    fifos = [Max2110xFifo(MAX21100_FIFO) for _ in range(2)]
+    for fifo in fifos:
+        fifo.write(MAX21100_FIFO.cfg, 0x43)  # normal mode, gyro and accelerometer stored
+        for k in range(2):
+            fifo.push(bytes(range(12 * k, 12 * k + 12)))
+    many, each = fifos
+    assert many.pop_many(count) == bytes(each.pop() for _ in range(count))
+    assert many.status(6) == each.status(6)  # read_empty set alike past the end
+    assert many.words() == each.words()

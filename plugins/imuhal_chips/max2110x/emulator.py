@@ -231,13 +231,6 @@ class Max2110xEmulator(ChipEmulator):
         self.stuck_data_ready = False
         self._oscillator_error = 0.0
         self.power_on_resets = 0
-        self._plan: PlannedInputs | None = None
-        """The inputs an emulated board planned for the coming pulls (``set_planned``)."""
-        self._plan_index = 0
-        """The plan's row handed over last."""
-        self._plan_row = self._planned_row
-        """The pending inputs (``set_physics_later``) while they are the plan's row: what
-        tells ``_latch`` it may take the row's counts encoded for the whole plan."""
         self._plan_counts: list[tuple[PlannedInputs, float, list | None] | None] = [None, None]
         """Per channel: (plan, SI per count, every row's counts) of the latest plan encoded."""
         self._plan_temperature: tuple[PlannedInputs, list | None] | None = None
@@ -294,24 +287,14 @@ class Max2110xEmulator(ChipEmulator):
         super().set_physics(inputs)
 
     def set_planned(self, planned: PlannedInputs, index: int) -> None:
-        """Row ``index`` of the board's plan: kept as the plan, its row made only if
-        ``physics`` is read; a latch takes the row's counts, encoded for the whole plan at
-        once (``_encode_rows``: the counts ``_encode`` gives the row's values)."""
-        if self.frozen:  # the chip keeps converting what it had (set_physics)
-            return
-        self._plan = planned
-        self._plan_index = index
-        self.set_physics_later(self._plan_row)
+        """Row ``index`` of the board's plan, kept with the plan (``keep_planned``): a latch
+        takes the row's counts, encoded for the whole plan at once (``_encode_rows``: the
+        counts ``_encode`` gives the row's values)."""
+        self.keep_planned(planned, index)
 
-    def _planned_row(self) -> PhysicalInputs:
-        assert self._plan is not None
-        return self._plan.row(self._plan_index)
-
-    def _planned_counts(self, index: int) -> list[int] | None:
-        """The counts channel ``index`` latches from the plan's current row (None: the
+    def _planned_counts(self, plan: PlannedInputs, row: int, index: int) -> list[int] | None:
+        """The counts channel ``index`` latches from row ``row`` of ``plan`` (None: the
         plan's values do not all encode; the row's inputs are encoded one by one)."""
-        plan = self._plan
-        assert plan is not None
         k = self._per_count[index]
         cached = self._plan_counts[index]
         if cached is None or cached[0] is not plan or cached[1] != k:
@@ -319,18 +302,16 @@ class Max2110xEmulator(ChipEmulator):
             cached = self._plan_counts[index] = (
                 plan, k, _encode_rows(values, k, _COUNTS_AT_FULL_SCALE))
         counts = cached[2]
-        return None if counts is None else counts[self._plan_index]  # type: ignore[no-any-return]  # a row of ints
+        return None if counts is None else counts[row]  # type: ignore[no-any-return]  # a row of ints
 
-    def _planned_temperature(self) -> int | None:
-        """The temperature word's counts from the plan's current row, as ``_planned_counts``."""
-        plan = self._plan
-        assert plan is not None
+    def _planned_temperature(self, plan: PlannedInputs, row: int) -> int | None:
+        """The temperature word's counts from row ``row`` of ``plan``, as ``_planned_counts``."""
         cached = self._plan_temperature
         if cached is None or cached[0] is not plan:
             cached = self._plan_temperature = (plan, _encode_rows(
                 plan.temperature_degc, 1.0 / _TEMP_LSB_PER_DEGC, 32767))
         counts = cached[1]
-        return None if counts is None else counts[self._plan_index]  # type: ignore[no-any-return]  # an int
+        return None if counts is None else counts[row]  # type: ignore[no-any-return]  # an int
 
     @property
     def oscillator_error(self) -> float:
@@ -389,8 +370,8 @@ class Max2110xEmulator(ChipEmulator):
         else:
             first, enable_reg = _ACC_X_H, _PWR_ACC_CFG
             dr, err = Status.ACC_DR, Status.ACC_ERR
-        planned = self._physics_later is self._plan_row
-        counts = self._planned_counts(index) if planned else None
+        planned = self.planned
+        counts = None if planned is None else self._planned_counts(*planned, index)
         if counts is None:
             p = self.physics
             values = (p.angular_rate_rad_s if gyro else p.specific_force_m_s2) or (
@@ -404,7 +385,7 @@ class Max2110xEmulator(ChipEmulator):
             x, y, z = (c if enabled & (1 << axis) else 0 for axis, c in enumerate((x, y, z)))
         self._store_axes(first, x, y, z)
         if gyro and bank0[_DR_CFG] & DR_CFG_TEMP_EN:
-            temperature = self._planned_temperature() if planned else None
+            temperature = None if planned is None else self._planned_temperature(*planned)
             if temperature is None:
                 p = self.physics
                 t = p.temperature_degc if p.temperature_degc is not None else 25.0
@@ -633,6 +614,12 @@ class Max2110xEmulator(ChipEmulator):
         """Write one frame of the stored channels' latest words (gyro, then accel) to the
         FIFO, big-endian."""
         gyro, accel = self.fifo.storing
+        image = self._data_image
+        if gyro and accel and image is not None and not (
+                self.banks[0][_I2C_CFG] & I2C_CFG_LITTLE_ENDIAN):
+            # gyro then accel words, big-endian: the image's first twelve bytes as they stand
+            self.fifo.push(bytes(image[:12]))
+            return
         firsts = ((_GYRO_X_H,) if gyro else ()) + ((_ACC_X_H,) if accel else ())
         words = self.words
         values = [words.get(first + 2 * axis, 0) for first in firsts for axis in range(3)]
@@ -727,7 +714,7 @@ class Max2110xEmulator(ChipEmulator):
         if read_len <= 1 or not step:
             touched = (reg,) if read_len else ()
             if reg == _FIFO_DATA:
-                out = bytes(self._read(reg) for _ in range(read_len))  # each byte pops one
+                out = self.fifo.pop_many(read_len)  # each byte pops one
             else:
                 out = bytes((self._read(reg),)) * read_len
         elif reg + read_len > _FIFO_COUNT:

@@ -111,6 +111,9 @@ class ChipEmulator(ABC):
         self._physics = PhysicalInputs()
         self._physics_later: Callable[[], PhysicalInputs] | None = None
         """Inputs handed over but not yet computed (:meth:`set_physics_later`)."""
+        self.planned: tuple[PlannedInputs, int] | None = None
+        """(plan, row) while the inputs standing are a row of an emulated board's plan
+        kept whole (:meth:`keep_planned`); None otherwise."""
         self.physics_t_ns: int | None = None
         """The time ``physics`` is true at, as the emulated board hands it over (a poll that
         comes late gives the world at its due time); None: now."""
@@ -215,6 +218,7 @@ class ChipEmulator(ABC):
     def physics(self, inputs: PhysicalInputs) -> None:
         self._physics = inputs
         self._physics_later = None
+        self.planned = None
 
     def set_physics(self, inputs: PhysicalInputs) -> None:
         """Hand the emulator the true values it should measure from now on (ignored while
@@ -230,6 +234,7 @@ class ChipEmulator(ABC):
         class's :meth:`set_physics` (one that acts on new inputs overrides it)."""
         if not self.frozen:
             self._physics_later = compute
+            self.planned = None
 
     def set_planned(self, planned: PlannedInputs, index: int) -> None:
         """:meth:`set_physics` with row ``index`` of inputs an emulated board computed
@@ -238,6 +243,20 @@ class ChipEmulator(ABC):
         numpy pass, by the operations it applies to one value: the same counts), as long
         as ``physics`` reads the row while it stands; this one hands the row over."""
         self.set_physics(planned.row(index))
+
+    def keep_planned(self, planned: PlannedInputs, index: int) -> None:
+        """:meth:`set_planned` for an emulator that reads the plan's arrays: the plan and
+        the row stand as ``planned`` (until other inputs are handed over) and the row's
+        :class:`PhysicalInputs` is made only if ``physics`` is read (ignored while
+        ``frozen``, as :meth:`set_physics`)."""
+        if not self.frozen:
+            self._physics_later = self._planned_row
+            self.planned = (planned, index)
+
+    def _planned_row(self) -> PhysicalInputs:
+        assert self.planned is not None
+        planned, index = self.planned
+        return planned.row(index)
 
     def now_ns(self) -> int:
         """The chip's present: the host's clock, or the instant of a master's timed
