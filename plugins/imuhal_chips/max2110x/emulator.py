@@ -206,7 +206,7 @@ def _encode_rows(values: np.ndarray, per_count: float, limit: int) -> list | Non
             return None
         counts = np.where(finite, np.clip(np.rint(quotient), -limit, limit),
                           np.where(values > 0, limit, -limit))
-    return counts.astype(np.int64).tolist()  # type: ignore[no-any-return]  # nested lists of int
+    return counts.astype(np.int64).tolist()
 
 
 class Max2110xEmulator(ChipEmulator):
@@ -302,7 +302,7 @@ class Max2110xEmulator(ChipEmulator):
             cached = self._plan_counts[index] = (
                 plan, k, _encode_rows(values, k, _COUNTS_AT_FULL_SCALE))
         counts = cached[2]
-        return None if counts is None else counts[row]  # type: ignore[no-any-return]  # a row of ints
+        return None if counts is None else counts[row]
 
     def _planned_temperature(self, plan: PlannedInputs, row: int) -> int | None:
         """The temperature word's counts from row ``row`` of ``plan``, as ``_planned_counts``."""
@@ -311,7 +311,7 @@ class Max2110xEmulator(ChipEmulator):
             cached = self._plan_temperature = (plan, _encode_rows(
                 plan.temperature_degc, 1.0 / _TEMP_LSB_PER_DEGC, 32767))
         counts = cached[1]
-        return None if counts is None else counts[row]  # type: ignore[no-any-return]  # an int
+        return None if counts is None else counts[row]
 
     @property
     def oscillator_error(self) -> float:
