@@ -67,6 +67,7 @@ from imuhal.sim.errors import (
     VectorErrorSpec,
 )
 from imuhal.sim.scenario import TruthState
+from imuhal_filters.common.quat import tilt_error_deg
 
 SIGMAS = 6.0
 """Gaussian error terms are allowed this many standard deviations."""
@@ -212,17 +213,6 @@ def latency_of(pipeline: Pipeline) -> dict[Quantity, float]:
 
 
 # -- tolerances from the chips' error models ------------------------------------------------
-
-def tilt_error_deg(q: Sequence[float], true_q: Sequence[float]) -> float:
-    """The angle (deg) between the down axes two body -> NED quaternions (w, x, y, z) put in
-    the body frame: the tilt error, heading-free."""
-    def down_in_body(w: float, x: float, y: float, z: float) -> np.ndarray:
-        # R(q)^T (0, 0, 1): the third row of the body -> NED rotation matrix
-        return np.array((2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z))
-    a, b = down_in_body(*map(float, q)), down_in_body(*map(float, true_q))
-    c = float(a @ b) / float(np.linalg.norm(a) * np.linalg.norm(b))
-    return math.degrees(math.acos(max(-1.0, min(1.0, c))))
-
 
 def _vector_tolerance(spec: VectorErrorSpec | None, resolution: float, duration_s: float,
                       magnitude: float, delta_t_degc: float) -> float:
@@ -391,7 +381,7 @@ class Checker:
     def _tilt(self, e: AttitudeEstimate) -> None:
         """Count a finite attitude handed out, its worst tilt error, and whether it is
         more than TILT_MARGIN_DEG off."""
-        error = tilt_error_deg(e.q_body_to_ned, self.truth(e.t_ns).q_body_to_ned)
+        error = tilt_error_deg(e.q_body_to_ned, tuple(self.truth(e.t_ns).q_body_to_ned))
         report = self.report
         report.attitudes[e.source] += 1
         report.worst_tilt_deg[e.source] = max(report.worst_tilt_deg.get(e.source, 0.0), error)
