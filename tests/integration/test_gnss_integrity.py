@@ -149,3 +149,12 @@ def test_a_wrong_first_fix_costs_two_honest_epochs_then_the_next_are_valid(
     assert all(f.valid for f in fixes[3:])
     assert math.dist((fixes[0].latitude_deg, fixes[0].longitude_deg),
                      (fixes[1].latitude_deg, fixes[1].longitude_deg)) > 0.003
+
+
+def test_a_utc_date_the_checksum_missed_is_flagged(
+        registry: Registry, clean: dict[float, Fix]) -> None:
+    """Bit 7 of the year's low byte and of tAcc: the fix says it was made in 1898. The time
+    of day and iTOW agree, the date does not follow the last epoch's."""
+    hit, events, stats = _flight(registry, 4, 12)
+    _only_the_hit_epoch_is_missing(clean, hit)
+    assert stats.implausible_epochs == {"date": 1}

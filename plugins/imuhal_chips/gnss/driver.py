@@ -151,7 +151,7 @@ class GnssDriver(Driver):
         self._velocity_watch = tuple(StepWatch(self.settings.max_acceleration_m_s2, noise)
                                      for _ in range(3))
         """Per NED axis: how far the velocity may move between epochs."""
-        self._epoch_watch = EpochWatch(self.settings.max_acceleration_m_s2)
+        self.epoch_watch = EpochWatch(self.settings.max_acceleration_m_s2)
         """Position, geoid separation and time against the last valid epoch."""
         self._foreign = 0
         self._last_byte_ns = 0
@@ -508,14 +508,15 @@ class GnssDriver(Driver):
         gps_minus_utc = None
         if merged.gps_time_of_week_s is not None:
             gps_minus_utc = (merged.gps_time_of_week_s - epoch.time_of_day_s) % DAY_S
-        verdict = self._epoch_watch.observe(Epoch(
+        verdict = self.epoch_watch.observe(Epoch(
             t_ns=t_ns, latitude_deg=merged.latitude_deg, longitude_deg=merged.longitude_deg,
             height_msl_m=height_m, velocity_ned_m_s=velocity, horizontal_accuracy_m=h_acc,
             vertical_accuracy_m=merged.vertical_accuracy_m,
             speed_accuracy_m_s=(merged.speed_accuracy_m_s
                                 if merged.speed_accuracy_m_s is not None else SPEED_SIGMA_M_S),
             vertical_velocity_measured=ubx, height_ellipsoid_m=merged.height_ellipsoid_m,
-            gps_minus_utc_s=gps_minus_utc))
+            gps_minus_utc_s=gps_minus_utc,
+            utc_day=None if merged.day is None else merged.day.toordinal()))
         if verdict.ok:
             return SampleFlag.OK
         self.stats.implausible_epochs[verdict.reason] = \

@@ -25,7 +25,8 @@ accuracy estimates and from physics:
 - **UTC against GPS time**: NAV-PVT states its epoch as GPS time of week (iTOW) and as UTC
   (hour, minute, second, nano); their difference is the leap-second count, constant but for
   a leap second. A time stamp shifted by a flip would put a valid fix at the wrong time (and
-  a later one moves the driver's time mapping for every epoch after it).
+  a later one moves the driver's time mapping for every epoch after it). The UTC date stays
+  the last epoch's or the day after (a flipped year put a fix 128 years back).
 
 A refused epoch is no new reference. When the reference itself is wrong (the first epoch
 after start-up was hit, or the receiver really jumped while epochs were lost), ``CONFIRM``
@@ -87,6 +88,8 @@ class Epoch:
     height_ellipsoid_m: float | None = None
     gps_minus_utc_s: float | None = None
     """GPS time of week less UTC time of day, modulo a day (NAV-PVT only)."""
+    utc_day: int | None = None
+    """The UTC date as a day number (proleptic Gregorian ordinal)."""
 
     @property
     def geoid_separation_m(self) -> float | None:
@@ -189,6 +192,10 @@ class EpochWatch:
             d = (epoch.gps_minus_utc_s - earlier.gps_minus_utc_s + DAY_S / 2) % DAY_S \
                 - DAY_S / 2
             ratios.append(("time", abs(d) / LEAP_TOLERANCE_S))
+        if earlier.utc_day is not None and epoch.utc_day is not None:
+            # the date moves on by a day at midnight, and never back
+            ratios.append(("date", 0.0 if 0 <= epoch.utc_day - earlier.utc_day <= 1
+                           else math.inf))
         north, east, down = local_offset_m(earlier, epoch)
         n0, n1 = earlier.geoid_separation_m, epoch.geoid_separation_m
         if n0 is not None and n1 is not None:
