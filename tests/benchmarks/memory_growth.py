@@ -12,6 +12,11 @@ seconds it prints the resident set size (``/proc/self/statm``, after a garbage c
 and the emulators' records of their measurement instants (``ChipEmulator.measured_ns``:
 instants held, and runs where the record keeps runs). The growth per 1,000 simulated s is
 taken from the first minute to the end. docs/reliability.md keeps the figures.
+
+``--trace N`` also traces the Python heap (tracemalloc, which slows the run about
+threefold): at every later checkpoint it prints the heap traced and the ``N`` source lines
+whose allocations grew most since the first checkpoint, so RSS growth can be split into
+Python objects (and where they were made) and the rest (allocator pages, native libraries).
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ import argparse
 import gc
 import sys
 import time
+import tracemalloc
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -46,6 +52,21 @@ def _records(emulators: dict[str, object]) -> str:
     return ", ".join(parts)
 
 
+def _traced_growth(base: tracemalloc.Snapshot, now: tracemalloc.Snapshot, top: int) -> None:
+    """The traced Python heap now against ``base``, and the ``top`` lines that grew most
+    (tracemalloc's own records left out)."""
+    skip = [tracemalloc.Filter(False, tracemalloc.__file__)]
+    base, now = base.filter_traces(skip), now.filter_traces(skip)
+    total = sum(s.size for s in now.statistics("filename"))
+    grown = sum(s.size_diff for s in now.compare_to(base, "filename"))
+    print(f"    traced Python heap {total / 1e6:.2f} MB, {grown / 1e6:+.3f} MB since the "
+          "first checkpoint; grew most:")
+    for stat in now.compare_to(base, "lineno")[:top]:
+        frame = stat.traceback[0]
+        print(f"    {stat.size_diff / 1e3:+9.1f} kB {stat.count_diff:+7d} blocks  "
+              f"{frame.filename}:{frame.lineno}")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--board", default="seed-gps-vario")
@@ -53,13 +74,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--every", type=float, default=60.0, help="simulated seconds")
     parser.add_argument("--bus-errors", type=float, default=0.01)
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--trace", type=int, default=0, metavar="N",
+                        help="trace the Python heap and print the N lines that grew most")
     args = parser.parse_args(argv)
+    if args.trace:
+        tracemalloc.start(8)
     registry = load_registry()
     profile = load_profile(bundled_profiles()[f"{args.board}.yaml"], registry)
     faults = [BusErrors(device=name, rate=args.bus_errors)
               for name in profile.devices] if args.bus_errors else []
     wall0 = time.perf_counter()
     first: tuple[float, float] | None = None
+    base: tracemalloc.Snapshot | None = None
     with open_emulated(profile, registry, seed=args.seed, faults=faults,
                        scenario_params=scenario_params(profile, args.duration)) as pipeline:
         done = 0.0
@@ -72,9 +98,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             rss = rss_mb()
             if first is None:
                 first = (done, rss)
+                base = tracemalloc.take_snapshot() if args.trace else None
             print(f"{done:7.0f} s simulated, {time.perf_counter() - wall0:6.0f} s wall, RSS "
                   f"{rss:6.2f} MB; records: {_records(pipeline.board.emulators)}",  # type: ignore[attr-defined]  # emulated board
                   flush=True)
+            if base is not None and done > first[0]:
+                _traced_growth(base, tracemalloc.take_snapshot(), args.trace)
     assert first is not None
     if done > first[0]:
         per_ks = (rss - first[1]) / (done - first[0]) * 1000

@@ -14,7 +14,11 @@ so far, less the receiver's stated output latency (``latency_s``).
 
 Nothing wrong is fused: a sentence or frame with a bad checksum becomes a sample flagged
 CRC_ERROR (counted; values NaN where unreadable); an epoch without a fix is flagged STALE;
-garbled bytes are counted in ``stats``.
+garbled bytes are counted in ``stats``. A frame whose checksum passed with two bits flipped
+(the 8-bit checksums miss some pairs) is caught where the receiver says a thing twice
+(gSpeed and velN, velE: CRC_ERROR) or where the epoch cannot follow the last valid one (its
+velocity step, its position against the two epochs' velocities, its geoid separation, its
+time and date: IMPLAUSIBLE, imuhal_chips.gnss.integrity).
 """
 
 from __future__ import annotations
