@@ -90,8 +90,10 @@ def test_a_geoid_separation_no_place_on_earth_has_is_refused_even_first() -> Non
 
 def test_gps_time_less_utc_must_stay_the_leap_seconds() -> None:
     earlier = epoch(0.0, gps_minus_utc_s=18.0)
-    assert EpochWatch(100.0).follows(earlier, epoch(0.2, 2.0, gps_minus_utc_s=18.005)).ok
-    assert not EpochWatch(100.0).follows(earlier, epoch(0.2, 2.0, gps_minus_utc_s=146.0)).ok
+    assert EpochWatch(100.0).follows(earlier, epoch(0.2, 2.0, gps_minus_utc_s=18.001)).ok
+    for flipped_s in (18.0 + 2**23 * 1e-9, 18.0 + 128.0):  # nano's third byte, the second
+        assert not EpochWatch(100.0).follows(earlier, epoch(0.2, 2.0,
+                                                           gps_minus_utc_s=flipped_s)).ok
 
 
 def test_the_date_moves_on_by_a_day_at_most() -> None:

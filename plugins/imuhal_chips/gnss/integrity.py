@@ -58,9 +58,11 @@ vertical stays below 1 arcmin, 3e-4, but in the steepest mountains; a receiver's
 geoid model is smoother still)."""
 GEOID_RESOLUTION_M = 0.002
 """Two heights of 1 mm resolution each."""
-LEAP_TOLERANCE_S = 0.01
-"""How far GPS time less UTC may stray from its learned value: iTOW is in ms and the UTC
-nanoseconds follow the same epoch to within the receiver's time accuracy (tens of ns)."""
+LEAP_TOLERANCE_S = 0.002
+"""How far GPS time less UTC may stray from the last valid epoch's: iTOW is in whole ms and
+the UTC fields state the same epoch to the ns (a u-blox keeps its epochs on the ms grid;
+their sub-ms residual shows in nano). Wider, a flip in nano's third byte (8.4 ms) passed and
+moved the driver's time mapping, so every later epoch's stamp, by as much."""
 CONFIRM = 3
 """Refused epochs in a row that agree with one another become the new reference."""
 DAY_S = 86_400.0
