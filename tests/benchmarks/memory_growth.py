@@ -13,10 +13,12 @@ and the emulators' records of their measurement instants (``ChipEmulator.measure
 instants held, and runs where the record keeps runs). The growth per 1,000 simulated s is
 taken from the first minute to the end. docs/reliability.md keeps the figures.
 
-``--trace N`` also traces the Python heap (tracemalloc, which slows the run about
-threefold): at every later checkpoint it prints the heap traced and the ``N`` source lines
-whose allocations grew most since the first checkpoint, so RSS growth can be split into
-Python objects (and where they were made) and the rest (allocator pages, native libraries).
+``--trace N`` also traces the Python heap from the first checkpoint on (tracemalloc, one
+frame, which slows the run severalfold): at every later checkpoint it prints the heap
+allocated since the first checkpoint and still alive, and the ``N`` source lines that hold
+most of it, so RSS growth can be split into Python objects (and where they were made) and
+the rest (allocator pages, native libraries). The RSS of a traced run includes tracemalloc's
+own bookkeeping: take RSS figures from an untraced run.
 """
 
 from __future__ import annotations
@@ -53,14 +55,14 @@ def _records(emulators: dict[str, object]) -> str:
 
 
 def _traced_growth(base: tracemalloc.Snapshot, now: tracemalloc.Snapshot, top: int) -> None:
-    """The traced Python heap now against ``base``, and the ``top`` lines that grew most
-    (tracemalloc's own records left out)."""
+    """The Python heap allocated since ``base`` and still alive, and the ``top`` lines that
+    hold most of it (tracemalloc's own records left out; its bookkeeping, which the RSS of
+    a traced run includes, printed apart)."""
     skip = [tracemalloc.Filter(False, tracemalloc.__file__)]
     base, now = base.filter_traces(skip), now.filter_traces(skip)
-    total = sum(s.size for s in now.statistics("filename"))
     grown = sum(s.size_diff for s in now.compare_to(base, "filename"))
-    print(f"    traced Python heap {total / 1e6:.2f} MB, {grown / 1e6:+.3f} MB since the "
-          "first checkpoint; grew most:")
+    print(f"    Python heap {grown / 1e6:+.3f} MB since the first checkpoint (tracemalloc's "
+          f"own bookkeeping {tracemalloc.get_tracemalloc_memory() / 1e6:.2f} MB); held by:")
     for stat in now.compare_to(base, "lineno")[:top]:
         frame = stat.traceback[0]
         print(f"    {stat.size_diff / 1e3:+9.1f} kB {stat.count_diff:+7d} blocks  "
@@ -77,8 +79,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--trace", type=int, default=0, metavar="N",
                         help="trace the Python heap and print the N lines that grew most")
     args = parser.parse_args(argv)
-    if args.trace:
-        tracemalloc.start(8)
+
     registry = load_registry()
     profile = load_profile(bundled_profiles()[f"{args.board}.yaml"], registry)
     faults = [BusErrors(device=name, rate=args.bus_errors)
@@ -98,7 +99,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             rss = rss_mb()
             if first is None:
                 first = (done, rss)
-                base = tracemalloc.take_snapshot() if args.trace else None
+                if args.trace:
+                    # from the first checkpoint on only: what grows after the start-up
+                    # (tracing from the start costs several times the run)
+                    tracemalloc.start(1)
+                    base = tracemalloc.take_snapshot()
             print(f"{done:7.0f} s simulated, {time.perf_counter() - wall0:6.0f} s wall, RSS "
                   f"{rss:6.2f} MB; records: {_records(pipeline.board.emulators)}",  # type: ignore[attr-defined]  # emulated board
                   flush=True)

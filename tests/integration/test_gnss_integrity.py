@@ -165,9 +165,10 @@ def test_a_utc_date_the_checksum_missed_is_flagged(
 
 CLEAN_SECONDS = 60.0
 MARGIN = 0.25
-"""The largest residual an honest epoch may show, as a share of its bound: measured 0.03
-(horizontal) and 0.05 (vertical) over 300 s of either scenario (docs/reliability.md,
-``gnss-integrity``), so a false alarm is four times further off than anything seen."""
+"""The largest residual an honest epoch may show, as a share of its bound: measured 0.041
+(horizontal) and 0.054 (vertical) over 300 s of either scenario (docs/reliability.md,
+``gnss-integrity``); a quarter leaves room for other seeds, and a false alarm is still four
+times further off."""
 
 
 @pytest.mark.parametrize("scenario", ["thermal", "rc-flight"])
