@@ -91,10 +91,10 @@ def test_a_latitude_and_longitude_the_checksum_missed_are_flagged_against_the_ve
 
 def test_a_msl_height_the_checksum_missed_is_flagged_by_the_ellipsoid_height(
         registry: Registry, clean: dict[float, Fix]) -> None:
-    """Bit 7 of hMSL's second byte and of numSV (32.8 m, within the vertical position
-    check's 5 sigma of two 4 m vAcc): height less hMSL, the geoid separation, moved by
-    32.8 m where the geoid's slope allows millimetres."""
-    hit, events, stats = _flight(registry, 36 + 1, 23)
+    """Bit 7 of hMSL's lowest byte and of tAcc's: the height 12.8 cm off, far inside what
+    the vertical position check allows (5 sigma of two 4 m vAcc), but height less hMSL, the
+    geoid separation, moved by 12.8 cm where the geoid's slope allows 4 mm."""
+    hit, events, stats = _flight(registry, 36, 12)
     _only_the_hit_epoch_is_missing(clean, hit)
     assert _flagged(events) == ["VelocitySample", "PositionSample"]
     assert stats.implausible_epochs == {"geoid separation": 1}

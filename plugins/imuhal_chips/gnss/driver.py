@@ -122,7 +122,8 @@ class GnssStats:
     epochs: int = 0
     implausible_epochs: dict[str, int] = field(default_factory=dict)
     """Epochs flagged IMPLAUSIBLE by the integrity checks (imuhal_chips.gnss.integrity),
-    per rule: horizontal or vertical position against velocity, geoid separation, time."""
+    per rule: horizontal or vertical position against velocity, geoid separation, time,
+    date."""
     last_error: str = ""
 
 
