@@ -18,14 +18,22 @@ frame, which slows the run severalfold): at every later checkpoint it prints the
 allocated since the first checkpoint and still alive, and the ``N`` source lines that hold
 most of it, so RSS growth can be split into Python objects (and where they were made) and
 the rest (allocator pages, native libraries). The RSS of a traced run includes tracemalloc's
-own bookkeeping: take RSS figures from an untraced run.
+own bookkeeping: take RSS figures from an untraced run. ``--allocators`` prints, at each
+checkpoint, what CPython's object allocator (its 1 MiB arenas, and the bytes of live
+objects in them) and C malloc (in use, free in its heap, mmapped) hold, the two places RSS
+comes from besides code.
 """
 
 from __future__ import annotations
 
 import argparse
+import ctypes
+import ctypes.util
 import gc
+import os
+import re
 import sys
+import tempfile
 import time
 import tracemalloc
 from collections.abc import Sequence
@@ -54,6 +62,43 @@ def _records(emulators: dict[str, object]) -> str:
     return ", ".join(parts)
 
 
+class _MallInfo2(ctypes.Structure):
+    _fields_ = [(name, ctypes.c_size_t) for name in (
+        "arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks", "fsmblks", "uordblks",
+        "fordblks", "keepcost")]
+
+
+def _allocators() -> str:
+    """What the two allocators under the RSS hold: CPython's object allocator (pymalloc:
+    1 MiB arenas, and the bytes of live objects in them) and C malloc (glibc ``mallinfo2``:
+    bytes in use from the heap and in mmapped blocks, numpy's arrays among them)."""
+    saved = os.dup(2)
+    with tempfile.TemporaryFile(mode="w+") as f:
+        os.dup2(f.fileno(), 2)  # _debugmallocstats writes to the C stderr
+        try:
+            sys._debugmallocstats()
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        f.seek(0)
+        text = f.read()
+
+    def stat(label: str) -> int:
+        m = re.search(rf"# {label}\s*=\s*([\d,]+)", text)
+        return int(m.group(1).replace(",", "")) if m else -1
+
+    out = (f"pymalloc {stat('arenas allocated current')} arenas "
+           f"(high-water {stat('arenas highwater mark')}), "
+           f"{stat('bytes in allocated blocks') / 1e6:.2f} MB in objects")
+    libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+    if hasattr(libc, "mallinfo2"):
+        libc.mallinfo2.restype = _MallInfo2
+        info = libc.mallinfo2()
+        out += (f"; malloc {info.uordblks / 1e6:.2f} MB in use, {info.fordblks / 1e6:.2f} MB "
+                f"free in its heap, {info.hblkhd / 1e6:.2f} MB mmapped")
+    return out
+
+
 def _traced_growth(base: tracemalloc.Snapshot, now: tracemalloc.Snapshot, top: int) -> None:
     """The Python heap allocated since ``base`` and still alive, and the ``top`` lines that
     hold most of it (tracemalloc's own records left out; its bookkeeping, which the RSS of
@@ -76,6 +121,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--every", type=float, default=60.0, help="simulated seconds")
     parser.add_argument("--bus-errors", type=float, default=0.01)
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--allocators", action="store_true",
+                        help="print what pymalloc and C malloc hold at each checkpoint")
     parser.add_argument("--trace", type=int, default=0, metavar="N",
                         help="trace the Python heap and print the N lines that grew most")
     args = parser.parse_args(argv)
@@ -107,6 +154,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"{done:7.0f} s simulated, {time.perf_counter() - wall0:6.0f} s wall, RSS "
                   f"{rss:6.2f} MB; records: {_records(pipeline.board.emulators)}",  # type: ignore[attr-defined]  # emulated board
                   flush=True)
+            if args.allocators:
+                print(f"    {_allocators()}", flush=True)
             if base is not None and done > first[0]:
                 _traced_growth(base, tracemalloc.take_snapshot(), args.trace)
     assert first is not None
