@@ -68,8 +68,37 @@ class _MallInfo2(ctypes.Structure):
         "fordblks", "keepcost")]
 
 
+_MAPPED_BEFORE: dict[str, int] = {}
+"""The resident kB per mapped file at the previous checkpoint (``_grown_mappings``)."""
+
+
+def _grown_mappings(top: int = 3) -> str:
+    """The mapped files (shared libraries, compiled extensions) whose resident pages grew
+    since the previous checkpoint, most first: code faulted in the first time it runs."""
+    now: dict[str, int] = {}
+    name = ""
+    with open("/proc/self/smaps") as f:
+        for line in f:
+            head = line.split()
+            if "-" in head[0] and not head[0].endswith(":"):
+                name = head[5] if len(head) > 5 else "[anon]"
+            elif head[0] == "Rss:":
+                now[name] = now.get(name, 0) + int(head[1])
+    grown = sorted(((kb - _MAPPED_BEFORE.get(n, 0), n) for n, kb in now.items()
+                    if n.startswith("/")), reverse=True)
+    first = not _MAPPED_BEFORE
+    _MAPPED_BEFORE.clear()
+    _MAPPED_BEFORE.update(now)
+    if first:
+        return ""
+    return "; files grown: " + (", ".join(f"{Path(n).name} +{kb} kB"
+                                          for kb, n in grown[:top] if kb > 0) or "none")
+
+
 def _allocators() -> str:
-    """What the two allocators under the RSS hold: CPython's object allocator (pymalloc:
+    """The RSS by kind (anonymous memory, file-backed pages: code and mapped files, shared
+    memory) and what the two allocators under the anonymous part hold: CPython's object
+    allocator (pymalloc:
     1 MiB arenas, and the bytes of live objects in them) and C malloc (glibc ``mallinfo2``:
     bytes in use from the heap and in mmapped blocks, numpy's arrays among them)."""
     saved = os.dup(2)
@@ -87,7 +116,11 @@ def _allocators() -> str:
         m = re.search(rf"# {label}\s*=\s*([\d,]+)", text)
         return int(m.group(1).replace(",", "")) if m else -1
 
-    out = (f"pymalloc {stat('arenas allocated current')} arenas "
+    with open("/proc/self/status") as f:
+        kinds = dict(line.split(":", 1) for line in f if line.startswith("Rss"))
+    rss = ", ".join(f"{k[3:].lower()} {int(v.split()[0]) / 1e3:.2f}" for k, v in kinds.items())
+    out = (f"RSS by kind (MB): {rss}; "
+           f"pymalloc {stat('arenas allocated current')} arenas "
            f"(high-water {stat('arenas highwater mark')}), "
            f"{stat('bytes in allocated blocks') / 1e6:.2f} MB in objects")
     libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
@@ -96,7 +129,7 @@ def _allocators() -> str:
         info = libc.mallinfo2()
         out += (f"; malloc {info.uordblks / 1e6:.2f} MB in use, {info.fordblks / 1e6:.2f} MB "
                 f"free in its heap, {info.hblkhd / 1e6:.2f} MB mmapped")
-    return out
+    return out + _grown_mappings()
 
 
 def _traced_growth(base: tracemalloc.Snapshot, now: tracemalloc.Snapshot, top: int) -> None:
