@@ -12,7 +12,9 @@ with pynmea2 and pyubx2's parser, and the tests decode with hand-written parsers
 
 Settings of the emulator (the fault-injection interface had not landed when this was
 written): ``model`` (the error model, replaceable before or during a run) and
-:meth:`lose_fix` (a fix-lost interval).
+:meth:`lose_fix` (a fix-lost interval). Of the fault API's chip kinds it models ``reset``
+(the factory configuration) and ``frozen`` (a hung navigation engine: each epoch repeats the
+last solution with its own time).
 """
 
 from __future__ import annotations
@@ -104,6 +106,9 @@ class GnssEmulator(ChipEmulator):
         """Epochs' output and answers dropped because the transmit buffer was full."""
         self._corrupt = 0
         self._cut = False
+        self._solution: tuple[float, float, float, np.ndarray] | None = None
+        """The last navigation solution computed (latitude, longitude, MSL height, NED
+        velocity): what a hung navigation engine (``frozen``) keeps sending."""
 
     # -- settings -----------------------------------------------------------------------
 
@@ -295,11 +300,17 @@ class GnssEmulator(ChipEmulator):
         utc = m.utc_start + timedelta(microseconds=round(te_ns / 1000))
         lat = lon = h_msl = 0.0
         vel = np.zeros(3)
-        if truth is not None:
+        if self.frozen and self._solution is not None:
+            # Fault ``frozen``: the navigation engine hangs and the receiver keeps sending
+            # its last solution with each epoch's time, as a register chip whose conversion
+            # hung keeps its last words (the receiver's clock and its output run on).
+            lat, lon, h_msl, vel = self._solution
+        elif truth is not None:
             pos, vel_true = truth
             err = self._position_error(te_ns)
             lat, lon, h_msl = self._geodetic(pos + err)
             vel = vel_true + self._rng.normal(0.0, m.speed_accuracy_m_s, 3)
+            self._solution = (lat, lon, h_msl, vel)
         course, speed = nmea.course_and_speed((float(vel[0]), float(vel[1]), float(vel[2])))
         out = bytearray()
         sats = m.satellites if fix else 0
