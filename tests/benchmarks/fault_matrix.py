@@ -119,6 +119,8 @@ class RunResult:
     wrong_estimates: dict[str, int] = field(default_factory=dict)
     rejected_estimates: int = 0
     by_design: int = 0
+    frozen_held: int = 0
+    """Valid samples of a hung chip within its driver's stated detection time (apart)."""
     crash: str = ""
     wall_s: float = 0.0
     ledgers: dict[str, dict[str, int]] = field(default_factory=dict)
@@ -174,6 +176,7 @@ def run_one(board: str, profile: BoardProfile, registry: Registry, kinds: Sequen
     result.wrong_valid = {**dict(report.wrong_valid), **{f"NaN {k}": v
                                                         for k, v in report.nan.items()}}
     result.by_design = len(report.by_design)
+    result.frozen_held = report.frozen_held
     result.wrong_estimates = dict(report.wrong_estimates)
     result.rejected_estimates = sum(report.rejected_estimates.values())
     result.wall_s = time.perf_counter() - wall0
@@ -192,8 +195,9 @@ def plans(rates: Sequence[float]) -> Iterator[tuple[tuple[str, ...], float]]:
 def markdown(results: list[RunResult], seconds: float) -> str:
     lines = [f"{seconds:g} s flights, seed 1, margin x{MARGIN:g}", "",
              "| board | runs | crashes | valid samples checked | wrong valid | unflagged wrong "
-             "estimates | rejected estimates | by design (wrong_pressure) | wall s |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "estimates | rejected estimates | by design (wrong_pressure) | held by a hung "
+             "chip (stated) | wall s |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for board in sorted({r.board for r in results}):
         rs = [r for r in results if r.board == board]
         lines.append(
@@ -201,7 +205,7 @@ def markdown(results: list[RunResult], seconds: float) -> str:
             f"{sum(r.checked for r in rs):,} | {sum(sum(r.wrong_valid.values()) for r in rs)} | "
             f"{sum(sum(r.wrong_estimates.values()) for r in rs)} | "
             f"{sum(r.rejected_estimates for r in rs)} | {sum(r.by_design for r in rs)} | "
-            f"{sum(r.wall_s for r in rs):.0f} |")
+            f"{sum(r.frozen_held for r in rs)} | {sum(r.wall_s for r in rs):.0f} |")
     bad = [r for r in results if r.crash or r.wrong_valid or r.wrong_estimates]
     for r in bad:
         lines.append(f"\n- {r.board} {'+'.join(r.kinds)} at {r.rate:g}: "
