@@ -78,6 +78,12 @@ NMEA_HDOP_UNKNOWN = 5.0
 DAY_S = 86_400.0
 QUIET_NS = 100_000_000
 """A line quiet this long (or 2.5 polls) has finished the epoch's burst."""
+FROZEN_MOVE_M = (0.05, 0.2)
+"""(horizontal, vertical) distance (m) an epoch's velocity must carry the receiver over the
+time since the last epoch before a repeat of that epoch's position is impossible: twice the
+coarsest resolution a receiver states it in (NMEA's 1e-5 arc minute, 1.85 cm; GGA's
+altitude, 0.1 m). Below it a receiver at rest (a u-blox's static hold pins the position and
+zeroes the velocity) may repeat itself."""
 
 
 class GnssSettings(DriverSettings):
@@ -119,6 +125,9 @@ class GnssStats:
     inconsistent_frames: int = 0
     """NAV-PVT frames whose checksum passed but whose fields disagree (flagged CRC_ERROR
     like a failed checksum: the 8-bit Fletcher misses some pairs of flipped bits)."""
+    frozen_epochs: int = 0
+    """Epochs that repeated the last one's position and velocity although that velocity
+    moved the receiver (a hung navigation engine; flagged FROZEN)."""
     epochs: int = 0
     implausible_epochs: dict[str, int] = field(default_factory=dict)
     """Epochs flagged IMPLAUSIBLE by the integrity checks (imuhal_chips.gnss.integrity),
@@ -152,6 +161,9 @@ class GnssDriver(Driver):
         self._epoch: _Epoch | None = None
         self._offset_ns: int | None = None
         self._prev_height: tuple[int, float] | None = None
+        self._last_solution: tuple[int, float, float, float, tuple[float, float, float]] \
+            | None = None
+        """(t_ns, latitude, longitude, height, NED velocity) of the last epoch with a fix."""
         noise = 6.0 * math.sqrt(2.0) * SPEED_SIGMA_M_S
         self._velocity_watch = tuple(StepWatch(self.settings.max_acceleration_m_s2, noise)
                                      for _ in range(3))
@@ -463,10 +475,12 @@ class GnssDriver(Driver):
             velocity = self._nmea_velocity(merged, t_ns)
         step = SampleFlag.OK
         if velocity is not None and has_fix:
-            step = self._velocity_step(velocity, t_ns)
+            step = self._repeated(merged, velocity, t_ns)
+            if not step:
+                step = self._velocity_step(velocity, t_ns)
         if has_fix and height is not None and not step:
-            # an epoch whose velocity cannot be right came from a frame hit on the line: it
-            # is not held against the position, which is not trusted either
+            # an epoch whose velocity cannot be right came from a frame hit on the line (or a
+            # hung receiver): it is not held against the position, which is not trusted either
             step = self._position_check(merged, epoch, t_ns, height, velocity)
         if velocity is not None and has_fix:
             # Before the position: a consumer of the fix then has the same epoch's velocity.
@@ -485,6 +499,26 @@ class GnssDriver(Driver):
             fix_type=fix, satellites=merged.satellites or 0,
             utc_s=_utc_s(merged.day, epoch.time_of_day_s)))
         return out
+
+    def _repeated(self, merged: Fragment, velocity: tuple[float, float, float],
+                  t_ns: int) -> SampleFlag:
+        """FROZEN when the epoch repeats the last one's position and velocity exactly
+        although that velocity carried the receiver more than FROZEN_MOVE_M since it: the
+        receiver's navigation engine hung and it sends its last solution with each new
+        epoch's time (the emulator's ``frozen`` fault). A working receiver's position moves
+        with its velocity, and its velocity noise never repeats a moving triple to the mm/s.
+        A repeated epoch is no new reference for the velocity step check."""
+        position = (merged.latitude_deg or 0.0, merged.longitude_deg or 0.0,
+                    merged.height_msl_m if merged.height_msl_m is not None else math.nan)
+        last, self._last_solution = self._last_solution, (t_ns, *position, velocity)
+        if last is None or t_ns <= last[0] or last[1:] != (*position, velocity):
+            return SampleFlag.OK
+        dt_s = (t_ns - last[0]) / 1e9
+        horizontal_m = math.hypot(velocity[0], velocity[1]) * dt_s
+        if horizontal_m <= FROZEN_MOVE_M[0] and abs(velocity[2]) * dt_s <= FROZEN_MOVE_M[1]:
+            return SampleFlag.OK
+        self.stats.frozen_epochs += 1
+        return SampleFlag.FROZEN
 
     def _velocity_step(self, velocity: tuple[float, float, float], t_ns: int) -> SampleFlag:
         """IMPLAUSIBLE when an axis of ``velocity`` (NED) lies further from the last
