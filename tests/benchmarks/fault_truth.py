@@ -25,11 +25,21 @@ The checker counts, per run:
   after it. So is a pressure between the truth and the truth plus the offset in that
   fault's window: a chip's own filter (the BMP280's IIR) blends the wrong measurement into
   its next outputs;
+* **held by a hung chip**: a valid sample of a chip under a ``frozen`` fault that is off
+  the truth at its time stamp but within tolerance of the world at most the driver's
+  stated detection time before it (``frozen_detection_outputs()`` output periods, where
+  the driver states one: the BMP280, whose IIR filter settles on the hung word before its
+  window can fill) is the stated cost of a hang, counted apart (``frozen_held``), not
+  wrong; a driver that states none gets no such allowance;
 * **out of order**: valid samples older than a valid sample their device already gave for
   the same quantity (and how many the pipeline flagged OUT_OF_ORDER);
 * **unflagged wrong estimates**: an attitude or vertical estimate that is not finite (and
   not a ``RejectedEstimate``), or a climb rate more than CLIMB_MARGIN_M_S off the truth
-  after SETTLE_S; ``RejectedEstimate`` events (refused or withheld) are counted apart.
+  after SETTLE_S; ``RejectedEstimate`` events (refused or withheld) are counted apart;
+* **tilt handed out**: every finite attitude estimate's tilt error against the truth (deg,
+  heading-free), kept as its worst and the count more than TILT_MARGIN_DEG off after
+  SETTLE_S, per estimator (a figure, not a failure: how good the attitudes are that an
+  estimator hands out while it withholds others).
 """
 
 from __future__ import annotations
@@ -37,7 +47,7 @@ from __future__ import annotations
 import math
 from collections import Counter, OrderedDict, deque
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -63,6 +73,7 @@ from imuhal.sim.errors import (
     VectorErrorSpec,
 )
 from imuhal.sim.scenario import TruthState
+from imuhal_filters.common.quat import tilt_error_deg
 
 SIGMAS = 6.0
 """Gaussian error terms are allowed this many standard deviations."""
@@ -77,6 +88,9 @@ CLIMB_MARGIN_M_S = 3.0
 """A vertical estimate's climb rate further than this from the truth is wrong..."""
 SETTLE_S = 3.0
 """...after this long (the filters start from zero climb)."""
+TILT_MARGIN_DEG = 10.0
+"""An attitude estimate whose tilt is further than this from the truth is counted apart
+(the flight benchmark's rc-flight target: tilt max below 10 deg)."""
 KINDS = ("bus_errors", "os_error", "all_ones", "all_zeros", "corrupt_byte", "absent", "reset",
          "stuck_data_ready", "frozen", "corrupt_trim", "late_polls", "jitter", "host_stall",
          "wild_value", "wrong_pressure")
@@ -268,6 +282,9 @@ class Report:
     by_design: list[dict[str, Any]] = field(default_factory=list)
     """Valid samples that are wrong because the world was (``wrong_pressure``: in range and
     plausible, no driver can tell): where each was, and what the vario made of it."""
+    frozen_held: int = 0
+    """Valid samples of a hung chip within its driver's stated detection time (the world
+    of when it hung), counted apart from the wrong ones."""
     by_design_blended: int = 0
     """Valid pressures between the truth and a ``wrong_pressure``'s (a chip's filter)."""
     wrong_estimates: Counter[str] = field(default_factory=Counter)
@@ -275,6 +292,12 @@ class Report:
     wrong_estimates_by_fault: Counter[str] = field(default_factory=Counter)
     rejected_estimates: Counter[str] = field(default_factory=Counter)
     """RejectedEstimate events (refused or withheld), by estimator."""
+    attitudes: Counter[str] = field(default_factory=Counter)
+    """Finite attitude estimates handed out after SETTLE_S, by estimator."""
+    tilt_over: Counter[str] = field(default_factory=Counter)
+    """Of those, the ones more than TILT_MARGIN_DEG off the true tilt, by estimator."""
+    worst_tilt_deg: dict[str, float] = field(default_factory=dict)
+    """The worst tilt error (deg) of those, by estimator."""
     delivered: dict[str, tuple[int, float]] = field(default_factory=dict)
     """Per device and quantity: (valid samples, samples the stream's rate promises)."""
     startups: dict[str, tuple[int, int]] = field(default_factory=dict)
@@ -308,6 +331,9 @@ class Checker:
             for name, emu in pipeline.board.emulators.items()}  # type: ignore[attr-defined]
         self.wrong_world = [(s.device, s.offset_pa, *fault_window(s, report.duration_s))
                             for s in plan if isinstance(s, faults.WrongPressure)]
+        self.frozen = [(s.device, s.start_s, s.end_s if s.end_s is not None
+                        else report.duration_s) for s in plan
+                       if isinstance(s, faults.FrozenData)]
         self._recent_climb: deque[tuple[int, float]] = deque(maxlen=512)
         """(t_ns, |climb - true climb|) of the last vario estimates."""
         self.last: dict[tuple[str, Quantity], int] = {}
@@ -347,6 +373,8 @@ class Checker:
             if not all(map(math.isfinite, event.q_body_to_ned)):
                 self.report.nan[f"{event.source} attitude"] += 1
                 self._wrong_estimate(event, "attitude not finite")
+            elif event.t_ns / 1e9 > SETTLE_S:
+                self._tilt(event)
         elif isinstance(event, VerticalEstimate):
             self._vertical(event)
         elif isinstance(event, RejectedEstimate):
@@ -361,6 +389,16 @@ class Checker:
     def _wrong_estimate(self, e: AttitudeEstimate | VerticalEstimate, what: str) -> None:
         self.report.wrong_estimates[f"{e.source} {what}"] += 1
         self._attribute(self.report.wrong_estimates_by_fault, f"{e.source} {what}", e.t_ns)
+
+    def _tilt(self, e: AttitudeEstimate) -> None:
+        """Count a finite attitude handed out, its worst tilt error, and whether it is
+        more than TILT_MARGIN_DEG off."""
+        error = tilt_error_deg(e.q_body_to_ned, tuple(self.truth(e.t_ns).q_body_to_ned))
+        report = self.report
+        report.attitudes[e.source] += 1
+        report.worst_tilt_deg[e.source] = max(report.worst_tilt_deg.get(e.source, 0.0), error)
+        if error > TILT_MARGIN_DEG:
+            report.tilt_over[e.source] += 1
 
     def _vertical(self, e: VerticalEstimate) -> None:
         if not (math.isfinite(e.altitude_m) and math.isfinite(e.climb_m_s)):
@@ -417,7 +455,8 @@ class Checker:
             self.report.out_of_order[key] += 1
         self.last[(s.device, s.channel)] = s.t_ns
         error, tolerance = self._error(s, values)
-        if error > tolerance and self._wrong_by_design(s, values):
+        if error > tolerance and (self._wrong_by_design(s, values)
+                                  or self._held_by_hung_chip(s, values, tolerance)):
             return
         self.report.checked[key] += 1
         ratio = error / tolerance if tolerance > 0 else math.inf
@@ -425,6 +464,30 @@ class Checker:
         if error > tolerance:
             self.report.wrong_valid[key] += 1
             self._attribute(self.report.wrong_by_fault, key, s.t_ns)
+
+    def _held_by_hung_chip(self, s: Sample, values: tuple[float, ...],
+                           tolerance: float) -> bool:
+        """A valid sample of a chip in a ``frozen`` window that matches the world of at most
+        its driver's stated detection time before it (counted apart)."""
+        t_s = s.t_ns / 1e9
+        driver = self.p.devices[s.device].driver
+        stated = getattr(driver, "frozen_detection_outputs", None)
+        if stated is None or not any(d == s.device and a <= t_s <= b + self.latency_s[s.channel]
+                                     for d, a, b in self.frozen):
+            return False
+        period_ns = max((spec.period_ns for spec in self.p.streams.get(s.device, ())
+                         if spec.quantity is s.channel), default=0)
+        if not period_ns:
+            return False
+        lag_ns = round(self.latency_s[s.channel] * 1e9)
+        for k in range(1, stated() + 1):
+            back = replace(s, t_ns=s.t_ns - k * period_ns)
+            if self._error(back, values)[0] <= tolerance:
+                self.report.frozen_held += 1
+                return True
+            if s.t_ns - k * period_ns < -lag_ns:
+                break
+        return False
 
     def _wrong_by_design(self, s: Sample, values: tuple[float, ...]) -> bool:
         """A pressure that matches what a ``wrong_pressure`` fault made the world measure
