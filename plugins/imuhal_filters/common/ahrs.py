@@ -940,10 +940,11 @@ class AhrsEstimator(Estimator):
         block, with or without an accelerometer and a magnetometer block, goes through the
         compiled row kernel in one call once the filter is aligned and its kernel covers
         its settings (``_block_kernel``), or through its compiled block step where it has
-        one and the blocks are its case (``_block_step``); the frames before that (alignment, a filter's own
-        set-up) go one by one. The estimates equal those of the frames one by one through
-        ``process()`` to 1e-12 (bit for bit where ``process()`` runs the same compiled
-        step; tests/filters/test_ahrs_blocks.py). Anything else (flagged or clipped
+        one and the blocks are its case (``_block_step``); the frames before that
+        (alignment, a filter's own set-up) go one by one. The estimates equal those of
+        the frames one by one through ``process()`` to 1e-12 (bit for bit where
+        ``process()`` runs the same compiled step, and through the block step;
+        tests/filters/test_ahrs_blocks.py). Anything else (flagged or clipped
         frames, an angular-rate recovery under way, turn compensation by a speed) goes
         frame by frame."""
         least = MIN_BLOCK_STEP_FRAMES if self._has_block_step() else \

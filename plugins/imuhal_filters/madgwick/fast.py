@@ -160,6 +160,87 @@ same_instants = jit(_same_instants)
 """A helper of ``madgwick_block``."""
 
 
+def _block_case(t_g, gyro, t_a, accel, t_m, mag, mag_block, keep_mag, gyro_fs, accel_fs):
+    """The blocks are ``block_rows``'s common case (see ``_madgwick_block``)."""
+    if t_g.shape[0] == 0 or not same_instants(t_g, t_g, gyro, gyro_fs) \
+            or not same_instants(t_g, t_a, accel, accel_fs):
+        return False
+    if not mag_block:
+        return True
+    if keep_mag:
+        return same_instants(t_g, t_m, mag, 1.7976931348623157e308)
+    for i in range(mag.shape[0]):  # a non-finite one is counted by block_rows
+        for k in range(3):
+            if not abs(mag[i, k]) <= 1.7976931348623157e308:
+                return False
+    return True
+
+
+block_case = jit(_block_case)
+"""A helper of ``madgwick_block``."""
+
+
+def _step_lengths(t_g, last_t, has_last, nominal_dt, dt_from_ts, max_dt, dts):
+    """``rows._step_lengths`` into ``dts``; returns the fallbacks to nominal it counts."""
+    fallbacks = 0
+    for i in range(t_g.shape[0]):
+        if not dt_from_ts or (i == 0 and not has_last):
+            dts[i] = nominal_dt
+            continue
+        dt = (t_g[i] - (last_t if i == 0 else t_g[i - 1])) * 1e-9
+        if dt > 0.0 and dt <= max_dt:
+            dts[i] = dt
+        else:
+            dts[i] = nominal_dt
+            fallbacks += 1
+    return fallbacks
+
+
+step_lengths = jit(_step_lengths)
+"""A helper of ``madgwick_block``."""
+
+
+def _nominal_fused(gyro, accel, speed):
+    """``turn.nominal_rows`` (``speed`` NaN: the rows as they are), a new array."""
+    fused = np.empty(accel.shape)
+    for i in range(accel.shape[0]):
+        fused[i, 0], fused[i, 1], fused[i, 2] = accel[i, 0], accel[i, 1], accel[i, 2]
+        if not math.isnan(speed):
+            ky = gyro[i, 2] * speed
+            kz = -gyro[i, 1] * speed
+            if ky != 0.0 or kz != 0.0:
+                fused[i, 1] = accel[i, 1] - ky
+                fused[i, 2] = accel[i, 2] - kz
+    return fused
+
+
+nominal_fused = jit(_nominal_fused)
+"""A helper of ``madgwick_block``."""
+
+
+def _mag_rows(t_g, mag, mag_block, keep_mag, held_mag, held_mag_t, has_held_mag, max_age):
+    """The magnetometer row of each step (NaN: none) as ``rows._held_at`` resolves it in
+    the common case, and the steps whose held frame was stale."""
+    m = t_g.shape[0]
+    rows = np.empty((m, 3))
+    stale = 0
+    for i in range(m):
+        if mag_block and keep_mag:
+            rows[i, 0], rows[i, 1], rows[i, 2] = mag[i, 0], mag[i, 1], mag[i, 2]
+        elif not mag_block and keep_mag and has_held_mag and not (
+                (t_g[i] - held_mag_t) * 1e-9 > max_age):  # NaN max_age: never stale
+            rows[i, 0], rows[i, 1], rows[i, 2] = held_mag[0], held_mag[1], held_mag[2]
+        else:
+            if not mag_block and keep_mag and has_held_mag:
+                stale += 1
+            rows[i, 0] = rows[i, 1] = rows[i, 2] = np.nan
+    return rows, stale
+
+
+mag_rows_kernel = jit(_mag_rows)
+"""A helper of ``madgwick_block``."""
+
+
 def _madgwick_block(q_in, t_g, gyro, t_a, accel, t_m, mag, mag_block, keep_mag, held_mag,
                     held_mag_t, has_held_mag, max_age, last_t, has_last, gyro_fs, accel_fs,
                     nominal_dt, dt_from_ts, max_dt, speed,
@@ -180,58 +261,18 @@ def _madgwick_block(q_in, t_g, gyro, t_a, accel, t_m, mag, mag_block, keep_mag, 
     the steps with the gate closed, the step lengths that fell back to nominal, the stale
     magnetometer steps, and True; or False with nothing written or changed (not the common
     case: ``block_rows`` decides)."""
-    m = t_g.shape[0]
     q = np.empty(4)
-    if m == 0 or not same_instants(t_g, t_g, gyro, gyro_fs) \
-            or not same_instants(t_g, t_a, accel, accel_fs):
+    if not block_case(t_g, gyro, t_a, accel, t_m, mag, mag_block, keep_mag, gyro_fs,
+                      accel_fs):
         return q, turn_sum, 0, 0, 0, False
-    if mag_block:
-        if keep_mag:
-            if not same_instants(t_g, t_m, mag, 1.7976931348623157e308):
-                return q, turn_sum, 0, 0, 0, False
-        else:
-            for i in range(mag.shape[0]):  # counted as beyond full scale by block_rows
-                for k in range(3):
-                    if not abs(mag[i, k]) <= 1.7976931348623157e308:
-                        return q, turn_sum, 0, 0, 0, False
-    fallbacks = 0
-    for i in range(m):
-        if not dt_from_ts or (i == 0 and not has_last):
-            dts[i] = nominal_dt
-            continue
-        dt = (t_g[i] - (last_t if i == 0 else t_g[i - 1])) * 1e-9
-        if dt > 0.0 and dt <= max_dt:
-            dts[i] = dt
-        else:
-            dts[i] = nominal_dt
-            fallbacks += 1
-    fused = np.empty((m, 3))
-    for i in range(m):
-        fused[i, 0], fused[i, 1], fused[i, 2] = accel[i, 0], accel[i, 1], accel[i, 2]
-        if not math.isnan(speed):
-            ky = gyro[i, 2] * speed
-            kz = -gyro[i, 1] * speed
-            if ky != 0.0 or kz != 0.0:
-                fused[i, 1] = accel[i, 1] - ky
-                fused[i, 2] = accel[i, 2] - kz
-    mag_rows = np.empty((m, 3))
-    stale = 0
-    for i in range(m):
-        if mag_block and keep_mag:
-            mag_rows[i, 0], mag_rows[i, 1], mag_rows[i, 2] = mag[i, 0], mag[i, 1], mag[i, 2]
-        elif not mag_block and keep_mag and has_held_mag and not (
-                (t_g[i] - held_mag_t) * 1e-9 > max_age):  # NaN max_age: never stale
-            mag_rows[i, 0], mag_rows[i, 1], mag_rows[i, 2] = (held_mag[0], held_mag[1],
-                                                              held_mag[2])
-        else:
-            if not mag_block and keep_mag and has_held_mag:
-                stale += 1
-            mag_rows[i, 0] = mag_rows[i, 1] = mag_rows[i, 2] = np.nan
+    fallbacks = step_lengths(t_g, last_t, has_last, nominal_dt, dt_from_ts, max_dt, dts)
+    mag_rows, stale = mag_rows_kernel(t_g, mag, mag_block, keep_mag, held_mag, held_mag_t,
+                                      has_held_mag, max_age)
     state, turn_sum, closed = madgwick_step_rows(
         (q_in[0], q_in[1], q_in[2], q_in[3]),
-        (beta, gate_lo, gate_hi, soft_width, paper), gyro, fused, mag_rows, dts, use_mag,
-        turn_on, turn_sum, out, diag, rest, rest_params)
-    for i in range(m):
+        (beta, gate_lo, gate_hi, soft_width, paper), gyro, nominal_fused(gyro, accel, speed),
+        mag_rows, dts, use_mag, turn_on, turn_sum, out, diag, rest, rest_params)
+    for i in range(t_g.shape[0]):
         lin[i, 0], lin[i, 1], lin[i, 2] = linear_accel_ned(
             out[i, 0], out[i, 1], out[i, 2], out[i, 3], accel[i, 0], accel[i, 1], accel[i, 2])
     q[0], q[1], q[2], q[3] = state[0], state[1], state[2], state[3]
