@@ -41,6 +41,26 @@ def test_the_weightiest_cause_takes_the_gap_and_causes_clear_after_a_frame() -> 
     assert dict(ledger.lost) == {"host_stall": 2, "missed": 2}
 
 
+def test_a_cause_noted_with_its_start_waits_for_the_gap_that_spans_it() -> None:
+    """A late poll notes the stall from its due time; a frame stamped before that (an
+    auto-read copy the master brought before the stall) closes a gap without it."""
+    ledger = FrameLedger(Quantity.GYRO, P)
+    ledger.observe(gyro(0))
+    ledger.note("host_stall", at_ns=3 * P // 2)
+    ledger.observe(gyro(P))  # from before the stall: no loss, the stall still to come
+    ledger.observe(gyro(4 * P))
+    assert dict(ledger.lost) == {"host_stall": 2}
+
+
+def test_a_timed_cause_spanned_by_a_gapless_block_is_spent() -> None:
+    ledger = FrameLedger(Quantity.GYRO, P)
+    ledger.observe(gyro(0))
+    ledger.note("host_stall", at_ns=P // 2)
+    ledger.observe_block(Block.from_samples([gyro(k * P) for k in (1, 2, 3)]))
+    ledger.observe(gyro(6 * P))
+    assert dict(ledger.lost) == {"missed": 2}
+
+
 def test_flagged_frames_of_the_stream_name_their_cause() -> None:
     ledger = FrameLedger(Quantity.GYRO, P)
     ledger.observe(gyro(0))

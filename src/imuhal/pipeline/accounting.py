@@ -112,6 +112,9 @@ class FrameLedger:
     lost)."""
     _seen: set[str] = field(default_factory=set)
     """Causes seen since the latest valid frame."""
+    _pending: list[tuple[int, str]] = field(default_factory=list)
+    """Causes noted with the time they began (``note(at_ns=)``) later than the latest valid
+    frame: each waits for the first valid frame stamped after it, whose gap it spans."""
     _slid_ns: int = 0
     """Time the driver's conversion schedule slid since the latest valid frame."""
     _segment_first_ns: int | None = None
@@ -126,11 +129,18 @@ class FrameLedger:
         """Frames the chip produced from the first valid frame to the latest one."""
         return self.delivered + sum(self.lost.values())
 
-    def note(self, cause: str) -> None:
+    def note(self, cause: str, *, at_ns: int | None = None) -> None:
         """Something that can cost frames happened (one of CAUSES); ``reset`` also ends the
-        current segment."""
+        current segment. ``at_ns``: when it began (a late poll's due time), for a cause
+        that a poll notes before it hands out frames stamped earlier than that (an
+        auto-read slave's copies from before a stall, delivered by its master, come out
+        after the stall with their own stamps): the cause belongs to the gap that spans
+        ``at_ns``, not to a gap a frame from before it closes."""
         if cause not in CAUSES:
             raise ValueError(f"unknown loss cause {cause!r}; one of {', '.join(CAUSES)}")
+        if at_ns is not None and self.last_ns is not None and at_ns > self.last_ns:
+            self._pending.append((at_ns, cause))
+            return
         self._seen.add(cause)
         if cause == "reset" and self._segment_first_ns is not None:
             assert self.last_ns is not None
@@ -163,6 +173,8 @@ class FrameLedger:
 
     def _valid_at(self, t_ns: int) -> Loss | None:
         """A valid frame of the accounted channel at ``t_ns`` (``observe``)."""
+        if self._pending:
+            self._take_pending(t_ns)
         loss = None
         if self.last_ns is not None:
             loss = self._gap_before(t_ns - self.last_ns)
@@ -196,6 +208,9 @@ class FrameLedger:
                 self.delivered += more
                 self._segment_produced += more
                 self.last_ns = int(t[-1])
+                if self._pending:  # spanned by the block's steps, none of which lost a frame
+                    self._take_pending(self.last_ns)
+                    self._seen.clear()
                 return [] if loss is None else [(first, loss)]
         out = []
         for sample in block.samples():
@@ -203,6 +218,13 @@ class FrameLedger:
             if loss is not None:
                 out.append((sample.t_ns, loss))
         return out
+
+    def _take_pending(self, t_ns: int) -> None:
+        """The timed causes that began by ``t_ns`` join the causes of the gap ending there."""
+        due = [cause for at_ns, cause in self._pending if at_ns <= t_ns]
+        if due:
+            self._seen.update(due)
+            self._pending = [(at, c) for at, c in self._pending if at > t_ns]
 
     def _gap_before(self, step_ns: int) -> Loss | None:
         """Counts the slots between the latest valid frame and one ``step_ns`` after it:

@@ -763,7 +763,7 @@ class Pipeline:
         if at_ns == t_ns:  # late by whole periods: on the grid already
             dev.put_off = 0
             return False
-        ledger.note("host_stall")
+        ledger.note("host_stall", at_ns=due_ns)
         dev.put_off += 1
         dev.next_poll_ns = at_ns
         heapq.heappush(self._schedule(), (at_ns, self._device_rank[dev.name], dev.name))
@@ -778,7 +778,7 @@ class Pipeline:
         ledger = dev.ledger
         if ledger is not None and not dev.buffered and \
                 max(t_ns, self._span_ns[1]) - due_ns > ledger.period_ns // 2:
-            ledger.note("host_stall")
+            ledger.note("host_stall", at_ns=due_ns)
 
     def _superseded(self, name: str, t_ns: int) -> bool:
         """A popped deadline that a read on an edge replaced (the heap keeps the old entry);
