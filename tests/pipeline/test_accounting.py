@@ -61,6 +61,17 @@ def test_a_timed_cause_spanned_by_a_gapless_block_is_spent() -> None:
     assert dict(ledger.lost) == {"missed": 2}
 
 
+def test_a_frame_read_off_the_grid_is_counted_from_its_grid_point() -> None:
+    """Polls a guard after the chip's instants; one made 3.6 ms (of 5) after its grid point
+    reads that point's frame: from its stamp the gaps would round to 2 frames and then 0."""
+    ledger = FrameLedger(Quantity.GYRO, P)
+    ledger.observe(gyro(600_000))
+    ledger.count_at(P + 4_200_000, P + 600_000)
+    ledger.observe(gyro(P + 4_200_000))
+    ledger.observe(gyro(2 * P + 600_000))
+    assert ledger.produced == 3 and not ledger.lost
+
+
 def test_flagged_frames_of_the_stream_name_their_cause() -> None:
     ledger = FrameLedger(Quantity.GYRO, P)
     ledger.observe(gyro(0))

@@ -616,6 +616,11 @@ class Max2110xDriver(Driver):
         self._count_overflow()
         return self._frame_samples(self._fifo.drain())
 
+    @property
+    def polls_after_instants(self) -> bool:
+        """Polled, its grid searches the chip's instants (EARLY_FRACTION)."""
+        return self._fifo is None
+
     def accounted_stream(self) -> tuple[Quantity, int] | None:
         """The faster of gyro and accelerometer, one frame per its output period."""
         if self.scales is None:

@@ -119,6 +119,11 @@ class FrameLedger:
     """Time the driver's conversion schedule slid since the latest valid frame."""
     _segment_first_ns: int | None = None
     _segment_produced: int = 0
+    _last_counted_ns: int = 0
+    """Where the latest valid frame is counted from: its stamp, or the due time of the late
+    poll that read it (``count_at``)."""
+    _off_phase: tuple[int, int] | None = None
+    """(stamp, due time) of a late poll (``count_at``)."""
 
     def __post_init__(self) -> None:
         if self.period_ns <= 0:
@@ -154,6 +159,17 @@ class FrameLedger:
             raise ValueError(f"a schedule slides forward, got {ns} ns")
         self._slid_ns += ns
 
+    def count_at(self, stamp_ns: int, at_ns: int) -> None:
+        """A poll made at ``stamp_ns`` was due at ``at_ns`` (a point of its device's grid): a
+        frame it delivers stamped ``stamp_ns`` carries the measurement a poll at ``at_ns``
+        would have read (the chip's next instant still ahead then, for a grid less than half
+        a period after its chip's instants), so its gaps are counted from ``at_ns``: from
+        its stamp a lateness of half a period or more between the two ends of a gap would
+        round to one frame more or less. A poll late by less than half a period, and one
+        made off its grid after PUT_OFF_AT_MOST put-offs (counted from the grid point
+        before it) (``Pipeline._on_phase``)."""
+        self._off_phase = (stamp_ns, at_ns)
+
     def all_segments(self) -> list[tuple[int, int, int]]:
         """The closed segments and the open one."""
         if self._segment_first_ns is None or self.last_ns is None:
@@ -176,8 +192,12 @@ class FrameLedger:
         if self._pending:
             self._take_pending(t_ns)
         loss = None
+        counted_ns = t_ns
+        if self._off_phase is not None and self._off_phase[0] == t_ns:
+            counted_ns = self._off_phase[1]
+            self._off_phase = None
         if self.last_ns is not None:
-            loss = self._gap_before(t_ns - self.last_ns)
+            loss = self._gap_before(counted_ns - self._last_counted_ns)
         else:
             self.first_ns = t_ns
         if self._segment_first_ns is None:
@@ -186,6 +206,7 @@ class FrameLedger:
         self._segment_produced += 1
         self.delivered += 1
         self.last_ns = t_ns
+        self._last_counted_ns = counted_ns
         self._seen.clear()
         self._slid_ns = 0
         return loss
@@ -207,7 +228,7 @@ class FrameLedger:
                 more = len(t) - 1
                 self.delivered += more
                 self._segment_produced += more
-                self.last_ns = int(t[-1])
+                self.last_ns = self._last_counted_ns = int(t[-1])
                 if self._pending:  # spanned by the block's steps, none of which lost a frame
                     self._take_pending(self.last_ns)
                     self._seen.clear()
