@@ -41,7 +41,11 @@ frames to ``host_stall``.
 A poll that comes half a period late or more is put off to the next point of the device's
 own poll grid (imuhal.pipeline.pipeline, ``Pipeline._on_phase``; up to PUT_OFF_AT_MOST times
 in a row): its reading keeps the phase of the polls before it, so the gap that ends in it is
-counted like any other, exactly.
+counted like any other, exactly. A poll late by less than half a period reads the frame it
+was due for and is counted at its due time, one made off its grid after the put-offs at the
+grid point before it (:meth:`FrameLedger.count_at`). The late poll's ``host_stall`` is noted
+with its due time (``note(at_ns=)``) and charged to the gap that spans it: an auto-read
+slave's first poll after a stall hands out its master's copy from before the stall first.
 
 A chip whose conversions the host starts (the MS5611) produces no frame in a slot of its
 configured cadence that the host let pass without a conversion (its schedule slid after a
@@ -54,9 +58,11 @@ still reaches the estimators (cause ``not_converted``: the time between the fram
 
 Limit: time stamps are the host's poll times, up to a period after the measurement. A gap
 is counted right while the two polls at its ends lie at about the same phase to the chip
-(within half a period). Polls later than that keep the phase (above); a chip clock off its
+(within half a period): the drivers that search their chip's instants (the MPU-9250, the
+AK8963 read directly, the MAX2110x) poll within a guard after them; a chip clock off its
 nominal period by more than half a period over a long gap (2 % over 25 periods) can still
-shift the count by one. Frame times from the chip (issue 25 item 4) remove this limit.
+shift the count by one. Frame times from the chip (FIFO reads, data-ready lines) remove
+this limit.
 """
 
 from __future__ import annotations
