@@ -3,7 +3,8 @@ manoeuvre detector closed on is filtered again in full when its velocity change 
 (a hand's stroke), and stays withheld when it does not (a vehicle's push).
 
 The look-back is fed directly (readings and innovations along x, one filter step at a time,
-200 Hz), and the estimator a level board moved by hand in slow smooth strokes (seeded).
+200 Hz); the estimator, a level board moved by hand (strokes from rest, back-and-forth
+strokes; seeded).
 """
 
 from __future__ import annotations
