@@ -2,7 +2,8 @@
 script; not collected by pytest). The figures of docs/performance.md, "Blocks reach the
 estimators".
 
-Run:  .venv/bin/python -m tests.benchmarks.bench_block_parts kernel|decode|estimate
+Run:  .venv/bin/python -m tests.benchmarks.bench_block_parts PART  (kernel, decode, estimate,
+      pipeline, watchdog)
 
 - ``kernel``: Madgwick's ``update_blocks`` on fusion steps of n accelerometer and gyro
   frames against the same frames one by one through ``process()`` (the base class's
@@ -16,6 +17,15 @@ Run:  .venv/bin/python -m tests.benchmarks.bench_block_parts kernel|decode|estim
 - ``estimate``: ``imuhal estimate madgwick``'s work on a generated 200,000-row log, the
   estimates as columns (``attitude_rows``) and as objects through the pipeline's router
   (``fuse_table``), written by the same CSV writer, alternately, CPU s.
+- ``pipeline``: the AHRS's row kernel where it runs, in the pipeline: the seed board (its
+  MAX21100's FIFO read in blocks of 8 frames, Madgwick with turn compensation by the nominal
+  airspeed) and the GY-91 (blocks of 10) replayed from 20 s recordings with the estimators,
+  Madgwick taking each read through the row kernel (``MIN_KERNEL_FRAMES_COMPILED_STEP`` 1)
+  and frame by frame as shipped (32) alternately, four pairs, CPU us per IMU sample.
+- ``watchdog``: what timing one driver call costs on CPU time (an emulated or replayed
+  board): ``Watchdog.arm`` and ``disarm`` with the ticking timers, against the one-shot
+  ``ITIMER_REAL`` and ``ITIMER_PROF`` armed and cancelled around the call (four
+  ``setitimer`` calls, the watchdog before), CPU us per call, three rounds.
 """
 
 from __future__ import annotations
@@ -149,11 +159,71 @@ def estimate(rows: int = 200_000, pairs: int = 2) -> None:
           f"same file: {same}")
 
 
+def pipeline(pairs: int = 4) -> None:
+    from tests.benchmarks.bench_blocks import GY91, SEED, board_yaml
+    from tests.benchmarks.bench_hardware_path import record, replay
+
+    registry = load_registry()
+    shipped = ahrs.MIN_KERNEL_FRAMES_COMPILED_STEP
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, board, frames in (("seed board, FIFO 8", SEED, 8),
+                                    ("GY-91, FIFO 10", GY91, 10)):
+            path = Path(tmp) / f"{frames}.imurec"
+            record(registry, path, 20.0, board_yaml(frames, board))
+            figures: dict[int, list[float]] = {1: [], shipped: []}
+            try:
+                for _ in range(pairs):
+                    for least in figures:
+                        ahrs.MIN_KERNEL_FRAMES_COMPILED_STEP = least
+                        imu, _, cpu = replay(registry, path)
+                        figures[least].append(cpu / imu * 1e6)
+            finally:
+                ahrs.MIN_KERNEL_FRAMES_COMPILED_STEP = shipped
+            print(f"{name}: us of CPU per IMU sample, every read through the row kernel "
+                  f"{' / '.join(f'{x:.1f}' for x in figures[1])}, frame by frame "
+                  f"{' / '.join(f'{x:.1f}' for x in figures[shipped])}")
+
+
+def watchdog(calls: int = 100_000, rounds: int = 3) -> None:
+    import signal
+
+    from imuhal.pipeline.containment import DriverTiming, Watchdog
+
+    dog = Watchdog(DriverTiming(cpu=True))
+    dog.arm(1.0)  # the handlers installed
+    dog.disarm()
+
+    def ticking() -> None:
+        for _ in range(calls):
+            dog.arm(1.0)
+            dog.disarm()
+
+    def one_shot() -> None:
+        for _ in range(calls):
+            signal.setitimer(signal.ITIMER_REAL, 60.0)
+            signal.setitimer(signal.ITIMER_PROF, 1.0)
+            signal.setitimer(signal.ITIMER_REAL, 0)
+            signal.setitimer(signal.ITIMER_PROF, 0)
+
+    try:
+        for _ in range(rounds):
+            figures = []
+            for run in (ticking, one_shot):
+                t0 = time.process_time()
+                run()
+                figures.append((time.process_time() - t0) / calls * 1e6)
+            print(f"us of CPU per driver call: ticking timers {figures[0]:.2f}, one-shot "
+                  f"timers armed and cancelled {figures[1]:.2f}")
+    finally:
+        dog.release()
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("part", choices=["kernel", "decode", "estimate"])
+    p.add_argument("part", choices=["kernel", "decode", "estimate", "pipeline", "watchdog"])
     args = p.parse_args(argv)
-    {"kernel": kernel, "decode": decode, "estimate": estimate}[args.part]()
+    {"kernel": kernel, "decode": decode, "estimate": estimate,
+     "pipeline": pipeline, "watchdog": watchdog}[args.part]()
     return 0
 
 

@@ -19,6 +19,14 @@ the recording machinery is matching each transaction against the next record, wh
 in for the kernel's SPI transfer on a real board.
 
 ``--profile`` prints the replay's cProfile, sorted by own time.
+
+``--recordings DIR`` replays fixed recordings instead, so that two source trees are compared
+on the same bytes (run this script with each tree's ``src`` and ``plugins`` first on
+``PYTHONPATH``, alternately): the seed board with one frame per block, the seed board with
+its MAX21100's FIFO read in blocks of 8 frames and the GY-91 with its MPU-9250's in blocks of
+10 (tests/benchmarks/bench_blocks.py's profiles), each ``--duration`` s, recorded into DIR the
+first time; each case prints its CPU us per IMU sample, the fastest of ``--repeat`` replays
+with the estimators and (in brackets) of as many without.
 """
 
 from __future__ import annotations
@@ -191,12 +199,45 @@ def measure(duration_s: float = 60.0, *, repeat: int = 3, registry: Registry | N
     return HardwarePath(duration_s, imu, events, cpu, decode, bare)
 
 
+RECORDED_CASES = {"seed": None, "seed-fifo8": 8, "gy91-fifo10": 10}
+"""``--recordings``: each case's IMU FIFO block size (None: one frame per block)."""
+
+
+def recorded_cases(directory: Path, duration_s: float, repeat: int
+                   ) -> dict[str, tuple[float, float]]:
+    """CPU us per IMU sample of each of RECORDED_CASES replayed from ``directory`` (recorded
+    there first when absent), with and without the estimators (the fastest of ``repeat``)."""
+    from tests.benchmarks.bench_blocks import GY91, SEED, board_yaml
+
+    registry = load_registry()
+    directory.mkdir(parents=True, exist_ok=True)
+    out: dict[str, tuple[float, float]] = {}
+    for case, frames in RECORDED_CASES.items():
+        path = directory / f"{case}-{duration_s:g}s.imurec"
+        if not path.exists():
+            record(registry, path, duration_s,
+                   board_yaml(frames, GY91 if case.startswith("gy91") else SEED))
+        runs = [replay(registry, path) for _ in range(max(1, repeat))]
+        bare = min(replay(registry, path, estimators=False)[2] for _ in range(max(1, repeat)))
+        imu = runs[0][0]
+        out[case] = (min(r[2] for r in runs) / imu * 1e6, bare / imu * 1e6)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--recordings", type=Path, default=None,
+                   help="replay fixed recordings kept in this directory (see above)")
     p.add_argument("--duration", type=float, default=60.0, help="recorded simulated s")
     p.add_argument("--repeat", type=int, default=3, help="replays; the fastest counts")
     p.add_argument("--profile", action="store_true", help="print the replay's cProfile")
     args = p.parse_args(argv)
+    if args.recordings is not None:
+        for case, (us, bare) in recorded_cases(args.recordings, args.duration,
+                                               args.repeat).items():
+            print(f"{case}: {us:.1f} us of CPU per IMU sample ({bare:.1f} without the "
+                  "estimators)")
+        return 0
     with tempfile.TemporaryDirectory() as tmp:
         prof = Path(tmp) / "replay.prof" if args.profile else None
         r = measure(args.duration, repeat=args.repeat, profile_to=prof)

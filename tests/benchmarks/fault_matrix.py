@@ -29,7 +29,10 @@ once" runs consecutive kinds of the list in threes. Per run it counts: crashes (
 exception out of ``Pipeline.events``), wrong valid samples (valid and farther from the truth
 than MARGIN x tolerance; a GNSS velocity more than VELOCITY_MARGIN_M_S off), and unflagged
 wrong estimates (a non-finite attitude or vertical estimate that is not a RejectedEstimate;
-a climb rate more than CLIMB_MARGIN_M_S off the truth after SETTLE_S).
+a climb rate more than CLIMB_MARGIN_M_S off the truth after SETTLE_S), the estimates
+refused or withheld (by estimator), and the tilt of the attitudes handed out after SETTLE_S
+(how many, how many more than TILT_MARGIN_DEG off the truth, the worst): a figure beside
+the withheld count, not a failure.
 
 It also checks every device's frame ledger (imuhal.pipeline.accounting) against the chip's
 own count (issue 25): for each device that accounts for a stream and whose emulator records
@@ -55,6 +58,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from tests.benchmarks.fault_truth import (
     KINDS,
+    TILT_MARGIN_DEG,
     Checker,
     Device,
     Report,
@@ -118,6 +122,13 @@ class RunResult:
     wrong_valid: dict[str, int] = field(default_factory=dict)
     wrong_estimates: dict[str, int] = field(default_factory=dict)
     rejected_estimates: int = 0
+    rejected_by_source: dict[str, int] = field(default_factory=dict)
+    """RejectedEstimate events by estimator instance."""
+    attitudes: int = 0
+    """Finite attitude estimates handed out after the checker's SETTLE_S."""
+    tilt_over: int = 0
+    """Of those, the ones more than the checker's TILT_MARGIN_DEG off the true tilt."""
+    worst_tilt_deg: float = 0.0
     by_design: int = 0
     crash: str = ""
     wall_s: float = 0.0
@@ -176,6 +187,10 @@ def run_one(board: str, profile: BoardProfile, registry: Registry, kinds: Sequen
     result.by_design = len(report.by_design)
     result.wrong_estimates = dict(report.wrong_estimates)
     result.rejected_estimates = sum(report.rejected_estimates.values())
+    result.rejected_by_source = dict(report.rejected_estimates)
+    result.attitudes = sum(report.attitudes.values())
+    result.tilt_over = sum(report.tilt_over.values())
+    result.worst_tilt_deg = max(report.worst_tilt_deg.values(), default=0.0)
     result.wall_s = time.perf_counter() - wall0
     return result
 
@@ -192,15 +207,19 @@ def plans(rates: Sequence[float]) -> Iterator[tuple[tuple[str, ...], float]]:
 def markdown(results: list[RunResult], seconds: float) -> str:
     lines = [f"{seconds:g} s flights, seed 1, margin x{MARGIN:g}", "",
              "| board | runs | crashes | valid samples checked | wrong valid | unflagged wrong "
-             "estimates | rejected estimates | by design (wrong_pressure) | wall s |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "estimates | rejected estimates | attitudes handed out | of them more than "
+             f"{TILT_MARGIN_DEG:g} deg off | worst tilt (deg) | by design (wrong_pressure) | "
+             "wall s |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for board in sorted({r.board for r in results}):
         rs = [r for r in results if r.board == board]
         lines.append(
             f"| {board} | {len(rs)} | {sum(bool(r.crash) for r in rs)} | "
             f"{sum(r.checked for r in rs):,} | {sum(sum(r.wrong_valid.values()) for r in rs)} | "
             f"{sum(sum(r.wrong_estimates.values()) for r in rs)} | "
-            f"{sum(r.rejected_estimates for r in rs)} | {sum(r.by_design for r in rs)} | "
+            f"{sum(r.rejected_estimates for r in rs)} | {sum(r.attitudes for r in rs):,} | "
+            f"{sum(r.tilt_over for r in rs)} | {max(r.worst_tilt_deg for r in rs):.1f} | "
+            f"{sum(r.by_design for r in rs)} | "
             f"{sum(r.wall_s for r in rs):.0f} |")
     bad = [r for r in results if r.crash or r.wrong_valid or r.wrong_estimates]
     for r in bad:
@@ -264,7 +283,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             results.append(r)
             print(f"{board} {'+'.join(kinds)} {rate:g}: {r.faults} faults, {r.checked} checked, "
                   f"wrong {r.wrong_valid or 0}, estimates {r.wrong_estimates or 0}, rejected "
-                  f"{r.rejected_estimates}{' CRASH' if r.crash else ''}"
+                  f"{r.rejected_estimates} {r.rejected_by_source or ''}, "
+                  f"tilt > {TILT_MARGIN_DEG:g} deg {r.tilt_over} of "
+                  f"{r.attitudes} (worst {r.worst_tilt_deg:.1f}){' CRASH' if r.crash else ''}"
                   f"{' ACCOUNTING ' + ','.join(r.accounting_off) if r.accounting_off else ''}"
                   f" ({r.wall_s:.1f} s)",
                   file=sys.stderr, flush=True)

@@ -29,7 +29,11 @@ The checker counts, per run:
   the same quantity (and how many the pipeline flagged OUT_OF_ORDER);
 * **unflagged wrong estimates**: an attitude or vertical estimate that is not finite (and
   not a ``RejectedEstimate``), or a climb rate more than CLIMB_MARGIN_M_S off the truth
-  after SETTLE_S; ``RejectedEstimate`` events (refused or withheld) are counted apart.
+  after SETTLE_S; ``RejectedEstimate`` events (refused or withheld) are counted apart;
+* **tilt handed out**: every finite attitude estimate's tilt error against the truth (deg,
+  heading-free), kept as its worst and the count more than TILT_MARGIN_DEG off after
+  SETTLE_S, per estimator (a figure, not a failure: how good the attitudes are that an
+  estimator hands out while it withholds others).
 """
 
 from __future__ import annotations
@@ -63,6 +67,7 @@ from imuhal.sim.errors import (
     VectorErrorSpec,
 )
 from imuhal.sim.scenario import TruthState
+from imuhal_filters.common.quat import tilt_error_deg
 
 SIGMAS = 6.0
 """Gaussian error terms are allowed this many standard deviations."""
@@ -77,6 +82,9 @@ CLIMB_MARGIN_M_S = 3.0
 """A vertical estimate's climb rate further than this from the truth is wrong..."""
 SETTLE_S = 3.0
 """...after this long (the filters start from zero climb)."""
+TILT_MARGIN_DEG = 10.0
+"""An attitude estimate whose tilt is further than this from the truth is counted apart
+(the flight benchmark's rc-flight target: tilt max below 10 deg)."""
 KINDS = ("bus_errors", "os_error", "all_ones", "all_zeros", "corrupt_byte", "absent", "reset",
          "stuck_data_ready", "frozen", "corrupt_trim", "late_polls", "jitter", "host_stall",
          "wild_value", "wrong_pressure")
@@ -275,6 +283,12 @@ class Report:
     wrong_estimates_by_fault: Counter[str] = field(default_factory=Counter)
     rejected_estimates: Counter[str] = field(default_factory=Counter)
     """RejectedEstimate events (refused or withheld), by estimator."""
+    attitudes: Counter[str] = field(default_factory=Counter)
+    """Finite attitude estimates handed out after SETTLE_S, by estimator."""
+    tilt_over: Counter[str] = field(default_factory=Counter)
+    """Of those, the ones more than TILT_MARGIN_DEG off the true tilt, by estimator."""
+    worst_tilt_deg: dict[str, float] = field(default_factory=dict)
+    """The worst tilt error (deg) of those, by estimator."""
     delivered: dict[str, tuple[int, float]] = field(default_factory=dict)
     """Per device and quantity: (valid samples, samples the stream's rate promises)."""
     startups: dict[str, tuple[int, int]] = field(default_factory=dict)
@@ -347,6 +361,8 @@ class Checker:
             if not all(map(math.isfinite, event.q_body_to_ned)):
                 self.report.nan[f"{event.source} attitude"] += 1
                 self._wrong_estimate(event, "attitude not finite")
+            elif event.t_ns / 1e9 > SETTLE_S:
+                self._tilt(event)
         elif isinstance(event, VerticalEstimate):
             self._vertical(event)
         elif isinstance(event, RejectedEstimate):
@@ -361,6 +377,16 @@ class Checker:
     def _wrong_estimate(self, e: AttitudeEstimate | VerticalEstimate, what: str) -> None:
         self.report.wrong_estimates[f"{e.source} {what}"] += 1
         self._attribute(self.report.wrong_estimates_by_fault, f"{e.source} {what}", e.t_ns)
+
+    def _tilt(self, e: AttitudeEstimate) -> None:
+        """Count a finite attitude handed out, its worst tilt error, and whether it is
+        more than TILT_MARGIN_DEG off."""
+        error = tilt_error_deg(e.q_body_to_ned, tuple(self.truth(e.t_ns).q_body_to_ned))
+        report = self.report
+        report.attitudes[e.source] += 1
+        report.worst_tilt_deg[e.source] = max(report.worst_tilt_deg.get(e.source, 0.0), error)
+        if error > TILT_MARGIN_DEG:
+            report.tilt_over[e.source] += 1
 
     def _vertical(self, e: VerticalEstimate) -> None:
         if not (math.isfinite(e.altitude_m) and math.isfinite(e.climb_m_s)):

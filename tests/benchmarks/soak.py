@@ -300,7 +300,8 @@ def markdown(report: Report) -> str:
 def load_reports(paths: Sequence[str]) -> list[Report]:
     """Reports from ``--json`` files, in order."""
     counters = {"nan", "checked", "wrong_valid", "wrong_by_fault", "out_of_order",
-                "wrong_estimates", "wrong_estimates_by_fault", "rejected_estimates"}
+                "wrong_estimates", "wrong_estimates_by_fault", "rejected_estimates",
+                "attitudes", "tilt_over"}
     out = []
     for path in paths:
         for data in json.loads(Path(path).read_text(encoding="utf-8")):

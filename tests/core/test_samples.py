@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import copy
+import pickle
+
 import pytest
 
 from imuhal.core.quantities import Quantity
@@ -39,6 +42,21 @@ def test_builtin_quantities_document_their_units_and_shapes() -> None:
 def test_a_quantity_must_be_a_scalar_or_a_three_axis_vector() -> None:
     with pytest.raises(ValueError, match="shape"):
         Quantity("strain", "1", (2, 2))
+
+
+def test_a_quantity_made_again_copied_or_unpickled_is_the_same_object() -> None:
+    wind = Quantity("wind", "m/s", (3,), "Air velocity.")
+    assert Quantity("wind", "m/s", (3,), "Air velocity.") is wind
+    assert copy.deepcopy(wind) is wind and pickle.loads(pickle.dumps(wind)) is wind
+    assert pickle.loads(pickle.dumps(Quantity.GYRO)) is Quantity.GYRO
+    assert {wind: 1}[Quantity("wind", "m/s", (3,), "Air velocity.")] == 1
+
+
+def test_quantities_that_differ_in_any_field_are_not_equal() -> None:
+    wind = Quantity("wind", "m/s", (3,))
+    assert wind != Quantity("wind", "km/h", (3,))
+    assert wind != Quantity("wind", "m/s", (3,), "Air velocity relative to the board.")
+    assert wind == Quantity("wind", "m/s", (3,))
 
 
 def test_a_velocity_sample_is_earth_frame_and_carries_its_accuracy() -> None:

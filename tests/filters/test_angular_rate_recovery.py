@@ -133,16 +133,18 @@ def _gyro_stream() -> list[StreamSpec]:
 
 
 def _feed(ahrs: Any, t0_s: float, t1_s: float, *, accel_m_s2: tuple[float, float, float],
-          gyro_flags: SampleFlag = SampleFlag.OK) -> list[Any]:
-    """Still gyro samples at 100 Hz from t0_s to t1_s (flagged as given), each after an
-    accelerometer sample reading ``accel_m_s2`` (body NED); the estimates they give."""
+          gyro_flags: SampleFlag = SampleFlag.OK,
+          gyro_rad_s: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> list[Any]:
+    """Gyro samples reading ``gyro_rad_s`` (still by default) at 100 Hz from t0_s to t1_s
+    (flagged as given), each after an accelerometer sample reading ``accel_m_s2`` (body
+    NED); the estimates they give."""
     out: list[Any] = []
     for k in range(round((t1_s - t0_s) * 100)):
         t_ns = round((t0_s + k / 100) * 1e9)
         ahrs.process(AccelSample(t_ns=t_ns, device="imu", flags=SampleFlag.OK,
                                  frame=Frame.BODY_NED, accel_m_s2=accel_m_s2))
         out += ahrs.process(GyroSample(t_ns=t_ns + 1, device="imu", flags=gyro_flags,
-                                       frame=Frame.BODY_NED, gyro_rad_s=(0.0, 0.0, 0.0)))
+                                       frame=Frame.BODY_NED, gyro_rad_s=gyro_rad_s))
     return out
 
 
@@ -192,3 +194,91 @@ def test_a_short_gap_or_an_unchanged_attitude_is_not_withheld(registry: Registry
     _feed(ahrs, 0.0, 1.0, accel_m_s2=LEVEL)
     _feed(ahrs, 1.0, 1.5, accel_m_s2=LEVEL, gyro_flags=SampleFlag.BLANK)
     assert _withheld(_feed(ahrs, 1.5, 2.0, accel_m_s2=LEVEL)) == 0
+
+
+G = STANDARD_GRAVITY_M_S2
+PUSH = (0.5 * G, 0.0, -G)
+"""A level take-off run's accelerometer: half a g of push forward (1.12 g in all, so no
+reading is gravity alone)."""
+
+
+def test_a_span_across_which_the_push_and_the_rate_went_on_is_handed_out_at_once(
+        registry: Registry) -> None:
+    """Issue 26 (seed-rc-vario's fault matrix): an IMU outage in the take-off run left the
+    attitude withheld for the rest of the flight, as the accelerometer never read 1 g. The
+    push and the rate before the span and after it are the same, through an attitude
+    that missed nothing: handed out at once."""
+    ahrs = _madgwick(registry)
+    _feed(ahrs, 0.0, 1.0, accel_m_s2=PUSH)
+    _feed(ahrs, 1.0, 1.3, accel_m_s2=PUSH, gyro_flags=SampleFlag.BLANK)
+    after = _feed(ahrs, 1.3, 2.0, accel_m_s2=PUSH)
+    assert after and _withheld(after) == 0
+    counts = ahrs.diagnostics()["angular_rate_recovery"]
+    assert counts["unmeasured_spans"] == counts["unmeasured_continued"] == 1
+
+
+def test_a_span_that_hid_a_roll_in_a_steady_push_is_withheld(registry: Registry) -> None:
+    """The same push, but the aircraft rolled 20 deg while the gyro was out, and the rate
+    is 0 again after it: the push comes out of the attitude turned, so the attitude is
+    not handed out (and the accelerometer, reading 1.12 g, never confirms it)."""
+    rolled = (0.5 * G, -G * float(np.sin(np.radians(20))), -G * float(np.cos(np.radians(20))))
+    ahrs = _madgwick(registry)
+    _feed(ahrs, 0.0, 1.0, accel_m_s2=PUSH)
+    _feed(ahrs, 1.0, 1.3, accel_m_s2=rolled, gyro_flags=SampleFlag.BLANK)
+    after = _feed(ahrs, 1.3, 2.0, accel_m_s2=rolled)
+    assert after and _withheld(after) == len(after)
+    assert "unmeasured_continued" not in ahrs.diagnostics()["angular_rate_recovery"]
+
+
+def test_a_roll_into_a_coordinated_turn_inside_a_span_is_withheld(registry: Registry) -> None:
+    """A roll into a coordinated 22 deg turn at 15 m/s while the gyro was out: the force
+    stays along the body's z axis, so through the unrolled attitude it points where it
+    did (1.08 g: within the magnitude the span check allows); the turn rate it leaves
+    (g tan(bank) / speed, 8.3 deg/s) gives it away."""
+    bank = np.radians(22.0)
+    turn_rad_s = G * float(np.tan(bank)) / 15.0
+    ahrs = _madgwick(registry)
+    _feed(ahrs, 0.0, 1.0, accel_m_s2=LEVEL)
+    turning = {"accel_m_s2": (0.0, 0.0, -G / float(np.cos(bank))),
+               "gyro_rad_s": (0.0, turn_rad_s * float(np.sin(bank)),
+                              turn_rad_s * float(np.cos(bank)))}
+    _feed(ahrs, 1.0, 1.3, gyro_flags=SampleFlag.BLANK, **turning)  # type: ignore[arg-type]
+    after = _feed(ahrs, 1.3, 1.8, **turning)  # type: ignore[arg-type]
+    assert after and _withheld(after) == len(after)
+
+
+def test_a_span_longer_than_max_gap_s_is_not_checked_by_the_push(registry: Registry) -> None:
+    """Beyond ``max_gap_s`` (1 s) the step after the span does not integrate it, so the
+    push going on says nothing of the attitude: withheld, as the accelerometer never reads
+    1 g."""
+    ahrs = _madgwick(registry)
+    _feed(ahrs, 0.0, 1.0, accel_m_s2=PUSH)
+    _feed(ahrs, 1.0, 2.5, accel_m_s2=PUSH, gyro_flags=SampleFlag.BLANK)
+    after = _feed(ahrs, 2.5, 3.0, accel_m_s2=PUSH)
+    assert after and _withheld(after) == len(after)
+
+
+def test_a_recovery_whose_accelerometer_went_quiet_withholds(registry: Registry) -> None:
+    """Issue 26 (seed-rc-vario's fault matrix, wild values on the IMU at 10 %): clipped
+    gyro readings kept coming, each integrated at the full scale, while every
+    accelerometer reading was flagged (the chip's filter settling after the wild ones).
+    The recovery's last agreement with the accelerometer, from before its readings
+    stopped, kept the estimates handed out: 177 deg off. An agreement holds only while
+    the reading is fresh (``max_aux_age_s``, 0.1 s)."""
+    ahrs = registry.estimators.get("madgwick")({"use_mag": False})
+    ahrs.bind(_gyro_stream())  # +-250 deg/s
+
+    def clipped(t_s: float) -> list[Any]:
+        return ahrs.process(GyroSample(t_ns=round(t_s * 1e9) + 1, device="imu",
+                                       flags=SampleFlag.SATURATED, frame=Frame.BODY_NED,
+                                       gyro_rad_s=(4.5, 0.0, 0.0)))
+
+    _feed(ahrs, 0.0, 1.0, accel_m_s2=LEVEL)
+    clipped(1.0)
+    # the recovery pulls the clip's 2.5 deg back while the accelerometer reads level
+    assert _withheld(_feed(ahrs, 1.01, 1.5, accel_m_s2=LEVEL)[-10:]) == 0
+    # then the accelerometer falls silent (its last reading at 1.49 s) and, from 0.1 s
+    # after that reading, the clipped readings come back
+    quiet = [e for k in range(50) for e in clipped(1.6 + k / 100)]
+    # the first one turned 1 deg (a 4 ms step: within RECOVERY_CHECKED_RAD), the rest more
+    assert len(quiet) == 50 and _withheld(quiet[1:]) == 49

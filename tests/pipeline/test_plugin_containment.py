@@ -8,6 +8,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import signal
 import time
 import types
 from pathlib import Path
@@ -331,6 +332,23 @@ def test_on_the_wall_clock_the_same_slow_call_is_cut_off(
     warning = next(w for w in summary.warnings if w.startswith("driver of 'baro'"))
     assert "within its deadline of 1 s (from its chip's rate)" in warning
     assert summary.contained["driver of 'baro'"] == {"deadlines_missed": 1, "disabled": 1}
+
+
+def test_no_watchdog_timer_is_left_running_when_an_emulated_run_loop_ends(
+        acme_registry: Registry, tmp_path: Path) -> None:
+    """On CPU time the watchdog's timers tick through a run (no system call per driver
+    call); a program between runs, or one whose pipeline is still open, gets no signal."""
+    board = _board(tmp_path)
+    with open_emulated(load_profile(board, acme_registry), acme_registry,
+                       scenario="thermal") as pipeline:
+        for _ in pipeline.events(0.2):
+            assert signal.getitimer(signal.ITIMER_PROF)[1] > 0  # ticking in the run
+        assert signal.getitimer(signal.ITIMER_PROF) == (0.0, 0.0)
+        assert signal.getitimer(signal.ITIMER_REAL) == (0.0, 0.0)
+        stopped_early = pipeline.events(1.0)
+        next(stopped_early)
+        stopped_early.close()
+        assert signal.getitimer(signal.ITIMER_PROF) == (0.0, 0.0)
 
 
 def test_hardware_boards_time_driver_calls_on_the_wall_and_others_on_cpu_time() -> None:

@@ -10,8 +10,9 @@ from typing import Any, ClassVar
 import numpy as np
 
 from imuhal.core.blocks import Block
-from imuhal.core.samples import AccelSample, Frame, GyroSample, Sample
+from imuhal.core.samples import AccelSample, Frame, GyroSample, MagSample, Sample
 from imuhal.estimation.base import Estimator, EstimatorSettings
+from imuhal.estimation.ordering import blocks_in_fusion_order, fusion_order
 from imuhal.estimation.outputs import Estimate, VerticalEstimate
 from imuhal.offline.chain import EstimatorChain
 from imuhal.pipeline.router import Router
@@ -149,3 +150,19 @@ def test_the_offline_chain_routes_by_the_pipelines_rule() -> None:
     other = _block(GyroSample, "other", 1, 3.0).samples()[0]
     made = chain.process(other)
     assert [e.source for e in made] == ["every"]
+
+
+def test_the_frames_of_blocks_come_in_fusion_order_ties_in_block_order() -> None:
+    """``blocks_in_fusion_order`` (the default ``update_blocks``'s order) is ``fusion_order``
+    of the blocks' frames, on awkward times: shared instants, a stamp repeated in one block,
+    blocks given gyro first, a block with no frame at another's instant."""
+    rng = np.random.default_rng(7)
+    for _ in range(50):
+        blocks = []
+        for kind in (GyroSample, AccelSample, MagSample):
+            t = np.sort(rng.choice([1_000, 2_000, 3_000, 4_000], size=int(rng.integers(1, 6))))
+            values = rng.normal(size=(len(t), 3))
+            blocks.append(Block.from_arrays(kind, "imu", int(t[0]), t - t[0], values,
+                                            np.zeros(len(t), np.int64), frame=Frame.BODY_NED))
+        frames = [s for b in blocks for s in b.samples()]
+        assert blocks_in_fusion_order(blocks) == fusion_order(frames)

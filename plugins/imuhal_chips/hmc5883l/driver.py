@@ -515,7 +515,9 @@ class Hmc5883lDriver(Driver):
                              mag_ut=NAN3, flags=bad)
         counts = decode.data_counts_xyz(raw)
         flags = decode.counts_flags(counts)
-        flags |= self._memory.flag(Quantity.MAG, now_ns, flags)
+        settling = self._memory.flag(Quantity.MAG, now_ns, flags)
+        if settling:  # (an enum operation costs a Python call)
+            flags |= settling
         return MagSample.build(now_ns, self.device, flags, Frame.SENSOR,
                                decode.counts_to_ut(counts, self.gain_lsb_per_gauss))
 

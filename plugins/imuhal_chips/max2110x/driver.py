@@ -676,7 +676,9 @@ class Max2110xDriver(Driver):
             value = decode.gyro_counts_to_rad_s(counts, self.scales.gyro_lsb_per_dps)
             if decode.saturated(counts):
                 flags |= SampleFlag.SATURATED
-            flags |= self._memory.flag(Quantity.GYRO, now_ns, flags)
+            settling = self._memory.flag(Quantity.GYRO, now_ns, flags)
+            if settling:  # (an enum operation costs a Python call)
+                flags |= settling
         return GyroSample.build(now_ns, self.device, flags, Frame.SENSOR, value)
 
     def _accel_sample(self, counts: Counts3, now_ns: int, flags: SampleFlag) -> Sample:
@@ -687,7 +689,9 @@ class Max2110xDriver(Driver):
             value = decode.accel_counts_to_m_s2(counts, self.scales.accel_lsb_per_g)
             if decode.saturated(counts):
                 flags |= SampleFlag.SATURATED
-            flags |= self._memory.flag(Quantity.ACCEL, now_ns, flags)
+            settling = self._memory.flag(Quantity.ACCEL, now_ns, flags)
+            if settling:
+                flags |= settling
         return AccelSample.build(now_ns, self.device, flags, Frame.SENSOR, value)
 
     def _off_plan(self, *, overdue: bool) -> bool:

@@ -183,6 +183,19 @@ UNMEASURED_SPAN_CHECKED_RAD = math.radians(5.0)
 accelerometer (within UNMEASURED_SPAN_CHECK_G of 1 g) agrees with it within this (rad): the
 seed filters' own tilt error in a turbulent cruise (3-4 deg on seed-rc-vario) stays
 inside it, the 13 deg an outage left in a pull-up does not."""
+UNMEASURED_SPAN_FORCE_G = 0.1
+"""Across unfused gyro frames (at most ``max_gap_s``), the specific force in NED the
+attitude gives the first accelerometer reading after them may differ from the one it gave
+the last reading before them by at most this much in magnitude (g), and in direction by at
+most UNMEASURED_SPAN_CHECKED_RAD, for the attitude to count as checked at once
+(``_force_continues``): a take-off run's push fades by 0.06 g in 0.15 s on seed-rc-vario."""
+UNMEASURED_SPAN_RATE_RAD_S = math.radians(2.0)
+"""...and the first gyro rate after them may differ from the last one before them by at
+most this (rad/s, each axis): the motion went on as it was. A roll into a coordinated turn
+inside the span, which keeps the force's direction in the stale attitude's NED (the
+accelerometer cannot see it), leaves a turn rate of g tan(bank) / speed, 0.91 of it about
+the body's z axis at the 24.6 deg of bank UNMEASURED_SPAN_FORCE_G lets through: more than
+2 deg/s below about 117 m/s."""
 RECOVERY_GAIN = 10.0
 """Angular-rate recovery: the extra tilt feedback's gain at its start (rad/s per unit of
 the sine of the tilt error; Fusion's start-up gain): the tilt error then falls with a time
@@ -380,6 +393,14 @@ class AhrsEstimator(Estimator):
         self._unchecked = False
         """The attitude missed more than ``max_dt_s`` of rotation and the accelerometer has
         not confirmed it since: estimates are withheld (``_after_dropped``)."""
+        self._step_accel: Vec | None = None
+        """The accelerometer reading (m/s^2, body) the last gyro step had, None when it had
+        none fresh (``_span_starts``)."""
+        self._span_before: tuple[Vec, Vec, int] | None = None
+        """Before unfused gyro frames, while the attitude was checked: the specific force
+        in NED (m/s^2) it gave the last accelerometer reading, the last gyro rate measured
+        (rad/s, body) and the last step's time stamp (ns): what the first readings after
+        them are compared with (``_force_continues``); None: no such readings."""
         self._q = IDENTITY
         identity = self.settings.initial_attitude == "identity"
         self._tilt_aligned = identity
@@ -504,17 +525,34 @@ class AhrsEstimator(Estimator):
         self._recovery_left_s = RECOVERY_S
         clipped = (min(max(float(x), -limit), limit), min(max(float(y), -limit), limit),
                    min(max(float(z), -limit), limit))
-        return self._recovering(item, clipped, self._clip_budget(clipped, limit))
+        budget = self._clip_budget(clipped, limit)
+        if self._dropped_after_ns is not None:  # unchecked or unmeasured: as any step
+            return self._after_dropped(item, clipped, budget)
+        return self._recovering(item, clipped, budget)
 
     def _dropped_gyro(self) -> list[Estimate]:
         """An invalid gyro sample that is no clipped rate: dropped and counted, and the
         span it leaves unmeasured remembered for the next valid one (``_after_dropped``)."""
         self._counters["invalid"][_GYRO] += 1
         if self._dropped_after_ns is None:
-            self._dropped_after_ns = self._last_gyro_t_ns
+            self._span_starts()
         return []
 
-    def _after_dropped(self, item: GyroSample, rate: Vec) -> list[Estimate]:
+    def _span_starts(self) -> None:
+        """Gyro frames go unfused after the last step: remember when, and the specific
+        force in NED the (checked) attitude gave the accelerometer reading of that step
+        (``_force_continues``). A counted loss is known only at its end, when the readings
+        after it may have come in, so it is that step's reading, not the newest."""
+        self._dropped_after_ns = last = self._last_gyro_t_ns
+        accel = self._step_accel
+        self._span_before = None
+        if accel is None or last is None or self._unchecked or not self._tilt_aligned:
+            return
+        x, y, z = _linear_accel_ned(self._q, accel)
+        self._span_before = ((x, y, z - STANDARD_GRAVITY_M_S2), self._last_rate, last)
+
+    def _after_dropped(self, item: GyroSample, rate: Vec, at_rail_rad_s: float = 0.0
+                       ) -> list[Estimate]:
         """A valid gyro sample after gyro frames that went unfused (dropped invalid, or
         counted lost: a StreamGap). Up to ``max_dt_s`` since the last step the filter goes
         on as usual. Longer, the rotation in between went unmeasured (the step after a
@@ -522,7 +560,9 @@ class AhrsEstimator(Estimator):
         the rate went meanwhile): the attitude is unchecked, and its estimates are withheld
         (UNSETTLED, counted ``unmeasured_withheld``) until the accelerometer, while it reads
         within UNMEASURED_SPAN_CHECK_G of 1 g, agrees with it within
-        UNMEASURED_SPAN_CHECKED_RAD.
+        UNMEASURED_SPAN_CHECKED_RAD, or at once when the first accelerometer reading after a
+        counted loss of at most ``max_gap_s`` shows the same specific force in NED as the last
+        one before it (``_force_continues``).
 
         Found by the soak (seed-rc-vario, issue 26): a MAX21105 answering all ones for
         0.5 s during a pull-up lost 13 deg of pitch (33 deg turned, 25 integrated at the
@@ -535,27 +575,75 @@ class AhrsEstimator(Estimator):
         about every axis, as after a clip (Fusion's recovery), was tried: in the pull-up's
         2.4 g it turned the attitude 60 deg off."""
         last = self._dropped_after_ns
+        counts = self._counters["angular_rate_recovery"]
         if not self._unchecked:
             self._dropped_after_ns = None
             if last is None or (item.t_ns - last) * _NS <= self._max_dt_s \
                     or not self._tilt_aligned:
+                self._span_before = None
                 if self._recovery_left_s > 0.0:
-                    return self._recovering(item, rate)
+                    return self._recovering(item, rate, at_rail_rad_s)
                 return self._on_gyro(item, rate)
             self._unchecked = True
             self._dropped_after_ns = last
-        out = self._recovering(item, rate) if self._recovery_left_s > 0.0 \
+            counts["unmeasured_spans"] = counts.get("unmeasured_spans", 0) + 1
+            if (item.t_ns - last) * _NS > self._max_gap_s:
+                self._span_before = None  # stepped over at the nominal period: no span
+        out = self._recovering(item, rate, at_rail_rad_s) if self._recovery_left_s > 0.0 \
             else self._on_gyro(item, rate)
-        if out and self._accel_confirms():
-            self._unchecked = False
-            self._dropped_after_ns = None
-            return out
         if not out:
             return out
-        counts = self._counters["angular_rate_recovery"]
+        continues = self._force_continues(rate)
+        if continues or self._accel_confirms():
+            if continues:
+                counts["unmeasured_continued"] = counts.get("unmeasured_continued", 0) + 1
+            self._unchecked = False
+            self._dropped_after_ns = None
+            self._span_before = None
+            return out
         counts["unmeasured_withheld"] = counts.get("unmeasured_withheld", 0) + 1
         return [RejectedEstimate(t_ns=item.t_ns, source=self.instance, kind="attitude",
                                  flags=EstimateFlag.UNSETTLED, estimator=self.name)]
+
+    def _force_continues(self, rate: Vec) -> bool:
+        """Whether the motion went on across the unfused span as it was: the gyro ``rate``
+        after it is the one before it within UNMEASURED_SPAN_RATE_RAD_S, and the first
+        accelerometer reading after the one it was compared with (``_span_before``), taken
+        within a nominal period of this step, gives through the attitude the same specific
+        force in NED as that one did, within UNMEASURED_SPAN_FORCE_G in magnitude and
+        UNMEASURED_SPAN_CHECKED_RAD in direction. Asked once per span: the comparison is
+        used up by the first such reading, whatever it says.
+
+        Why it checks the attitude: a tilt error E left by the span turns every specific
+        force the attitude puts in NED by E, so a force that went on across the span (a
+        take-off run's push, a glide's 1 g) comes out turned by E after it; an attitude
+        that missed a rotation about any axis but the force's own shows as a turn. What
+        the force cannot see: a force that turned by exactly the rotation the attitude
+        missed and kept its magnitude within UNMEASURED_SPAN_FORCE_G (a roll into a
+        coordinated turn of up to 24.6 deg of bank inside the span: 1/cos(bank) g; the
+        confirmation by a 1 g reading has the same blind spot up to 17.7 deg), which the
+        turn rate it leaves gives away (UNMEASURED_SPAN_RATE_RAD_S); and a rotation about
+        the force (its heading, when the force is gravity alone: no tilt)."""
+        span, accel, t_ns = self._span_before, self._accel_m_s2, self._accel_t_ns
+        if span is None or accel is None or t_ns is None or t_ns <= span[2] \
+                or self._last_gyro_t_ns is None \
+                or (self._last_gyro_t_ns - t_ns) * _NS > self._nominal_dt_s:
+            return False
+        self._span_before = None
+        (bx, by, bz), rate_before, _ = span
+        limit = UNMEASURED_SPAN_RATE_RAD_S
+        if not all(abs(a - b) <= limit for a, b in zip(rate, rate_before, strict=True)):
+            return False
+        x, y, z = _linear_accel_ned(self._q, accel)
+        z -= STANDARD_GRAVITY_M_S2
+        n_after = math.sqrt(x * x + y * y + z * z)
+        n_before = math.sqrt(bx * bx + by * by + bz * bz)
+        if abs(n_after - n_before) > UNMEASURED_SPAN_FORCE_G * STANDARD_GRAVITY_M_S2 \
+                or not n_after > 0.0 or not n_before > 0.0:
+            return False
+        cx, cy, cz = y * bz - z * by, z * bx - x * bz, x * by - y * bx
+        apart = math.atan2(math.sqrt(cx * cx + cy * cy + cz * cz), x * bx + y * by + z * bz)
+        return apart <= UNMEASURED_SPAN_CHECKED_RAD
 
     def _accel_confirms(self) -> bool:
         """The newest accelerometer reading (fresh: within ``max_aux_age_s``) is within
@@ -634,6 +722,8 @@ class AhrsEstimator(Estimator):
                 self._recovery_budget_rad)
             self._recovery_budget_rad -= turned
             self._recovery_apart_rad = apart
+        else:  # no reading checks the attitude now: an earlier agreement no longer holds
+            self._recovery_apart_rad = _INF
         out = self._on_gyro(item, rate)
         if out and min(self._recovery_budget_rad, self._recovery_apart_rad) > \
                 RECOVERY_CHECKED_RAD:
@@ -647,7 +737,7 @@ class AhrsEstimator(Estimator):
             if item.stream == Quantity.GYRO:
                 self._gap_at_ns = item.t_ns
                 if self._dropped_after_ns is None:  # frames lost: unmeasured, as dropped ones
-                    self._dropped_after_ns = self._last_gyro_t_ns
+                    self._span_starts()
             return []
         if isinstance(item, VelocitySample):
             if item.valid and within_full_scale(item.velocity_ned_m_s, None):
@@ -712,6 +802,10 @@ class AhrsEstimator(Estimator):
             "last_rate_rad_s": list(self._last_rate),
             "dropped_after_ns": self._dropped_after_ns,
             "unchecked": self._unchecked,
+            "step_accel_m_s2": None if self._step_accel is None else list(self._step_accel),
+            "span_before": None if self._span_before is None
+            else [list(self._span_before[0]), list(self._span_before[1]),
+                  self._span_before[2]],
             "aligned": [self._tilt_aligned, self._heading_aligned],
             "kinematics": self._kinematics.as_dict(),
             "rest": list(self._rest),
@@ -740,6 +834,11 @@ class AhrsEstimator(Estimator):
         self._last_rate = _vec(state.get("last_rate_rad_s", NO_VECTOR))
         self._dropped_after_ns = state.get("dropped_after_ns")
         self._unchecked = bool(state.get("unchecked", False))
+        step_accel = state.get("step_accel_m_s2")
+        self._step_accel = None if step_accel is None else _vec(step_accel)
+        span = state.get("span_before")
+        self._span_before = None if span is None else (_vec(span[0]), _vec(span[1]),
+                                                       int(span[2]))
         self._tilt_aligned, self._heading_aligned = (bool(v) for v in state["aligned"])
         self._kinematics.load_dict(state["kinematics"])
         self._no_speed = (self.settings.nominal_airspeed_m_s is None
@@ -1173,6 +1272,7 @@ class AhrsEstimator(Estimator):
             elif max_age is not None and (t_ns - a_t) * _NS > max_age:
                 self._counters["stale_accel"] += 1
                 accel = None
+        self._step_accel = accel
         mag = self._mag_ut
         if mag is not None:
             m_t = self._mag_t_ns

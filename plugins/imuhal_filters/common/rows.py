@@ -159,6 +159,9 @@ def block_rows(est: AhrsEstimator, gyro: Block, accel: Block | None, mag: Block 
         est._last_gyro_t_ns = int(t_step[-1])
         last = g_step[-1]
         est._last_rate = (float(last[0]), float(last[1]), float(last[2]))
+        held = accel_rows[-1]  # NaN: no fresh reading at the last step
+        est._step_accel = None if held[0] != held[0] else (
+            float(held[0]), float(held[1]), float(held[2]))
     return StepRows(idx, t_step, g_step, accel_rows, mag_rows, dts)
 
 

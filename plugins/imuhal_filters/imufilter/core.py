@@ -71,15 +71,19 @@ def accel_kalman_gain(q: Quat, var: float, accel_g: Vec, sd_acc_g: float) -> tup
 
 def imufilter_step(
     q: Quat, var: float, gyro_rad_s: Vec, accel_g: Vec, dt_s: float, alpha: float,
-    sd_acc_g: float,
+    sd_acc_g: float, *, at_rest: bool = False,
 ) -> tuple[Quat, float, float]:
     """``update(gx, gy, gz, ax, ay, az, ALPHA, SD_ACC)``; returns (q, variance, gain).
 
     The correction turns the body's estimate of "down" towards the accelerometer at the rate
     ``gain * alpha`` (rad/s per unit sine of the error): ``alpha`` is the library's gain/delay
-    parameter, a first-order low pass on the accelerometer.
+    parameter, a first-order low pass on the accelerometer. ``at_rest`` (the board known to
+    be still, common/rest.py; not in the library): the reading is gravity, so the correction
+    runs at gain 1 (the returned gain); the band's variance is kept as the library keeps it.
     """
     gain, var = accel_kalman_gain(q, var, accel_g, sd_acc_g)
+    if at_rest:
+        gain = 1.0
     n = math.sqrt(dot(accel_g, accel_g))
     a_unit = (accel_g[0] / n, accel_g[1] / n, accel_g[2] / n)
     ve = cross(a_unit, to_local(q, DOWN))  # error about the vertical, body axes

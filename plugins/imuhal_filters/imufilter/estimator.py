@@ -10,6 +10,12 @@ turns it about the vertical, e.g. to align it with an external heading.
 
 When ``velocity`` is on, each step also runs the library's velocity filter (see
 ``velocity.py``); the estimate is in the diagnostics as ``velocity_ned_m_s``.
+
+By default (not in the presets) the board's rests are detected (``common/rest.py``), as in
+madgwick and mahony: there the correction runs at gain 1 and the gyro bias is learned
+(``rest_gyro_bias_rad_s``), subtracted from every gyro sample the filter integrates. The
+library has no bias estimate: its correction holds a still board tilted by the bias over
+``gain`` (1 deg/s: 2 deg, for good), and a board without stored gyro offsets drifts in flight.
 """
 
 from __future__ import annotations
@@ -35,6 +41,7 @@ from imuhal_filters.common.ahrs import (
 from imuhal_filters.common.fast import Kernel
 from imuhal_filters.common.gate import gravity_positive_g, specific_force_m_s2
 from imuhal_filters.common.quat import Vec, to_global, to_local
+from imuhal_filters.common.rest import RestSettings
 from imuhal_filters.imufilter.core import (
     axis_unit_vectors,
     gyro_step,
@@ -46,10 +53,10 @@ from imuhal_filters.imufilter.fast import imufilter_rows, imufilter_sample, pack
 from imuhal_filters.imufilter.velocity import ZERO, VelocityState, velocity_step
 
 
-class ImuFilterSettings(AhrsSettings):
+class ImuFilterSettings(AhrsSettings, RestSettings):
     PRESETS: ClassVar[dict[str, dict[str, Any]]] = {
-        "reference": {"turn_compensation": False},
-        "seed": {"turn_compensation": False},
+        "reference": {"turn_compensation": False, "rest_detection": False},
+        "seed": {"turn_compensation": False, "rest_detection": False},
     }
 
     initial_attitude: Literal["first_sample"] = "first_sample"
@@ -119,14 +126,16 @@ class ImuFilterEstimator(AhrsEstimator):
             *self._q, self._var, self._gain, gx, gy, gz, have_a, ax, ay, az, dt, self._alpha,
             self._sd_acc_g, self._velocity_on, self._var_a, self._var_comb, *vel.velocity,
             *vel.accel_mean, *vel.accel_last, vel.var_vel, vel.var_acc, *self._vel_target,
-            *(NO_VECTOR if measured_m_s2 is None else measured_m_s2))
+            self._at_rest, *(NO_VECTOR if measured_m_s2 is None else measured_m_s2))
         self._q, self._var, self._gain = (w, x, y, z), var, gain
         self._linear_ned = (lx, ly, lz)
         if self._velocity_on and have_a:
             self._vel = VelocityState((v0, v1, v2), (m0, m1, m2), (l0, l1, l2), var_vel,
                                       var_acc)
         d: dict[str, Any] = {"dt_s": dt, "turn_compensation": self._kinematics.source,
-                             "accel_used": have_a, "accel_gain": gain, "accel_variance_g2": var}
+                             "accel_used": have_a, "accel_gain": gain, "accel_variance_g2": var,
+                             "at_rest": self._at_rest,
+                             "rest_gyro_bias_rad_s": self.rest_gyro_bias_rad_s}
         if self._velocity_on:
             d["velocity_ned_m_s"] = self._vel.velocity
         return d
@@ -145,7 +154,7 @@ class ImuFilterEstimator(AhrsEstimator):
             return self._diag(accel_used=False)
         self._q, self._var, self._gain = imufilter_step(
             self._q, self._var, step.gyro_rad_s, accel, step.dt_s, self.settings.gain,
-            self.settings.sd_acc_g,
+            self.settings.sd_acc_g, at_rest=self._at_rest,
         )
         if self.settings.velocity:
             self._vel = velocity_step(
@@ -161,6 +170,8 @@ class ImuFilterEstimator(AhrsEstimator):
             "accel_used": accel_used,
             "accel_gain": self._gain,
             "accel_variance_g2": self._var,
+            "at_rest": self._at_rest,
+            "rest_gyro_bias_rad_s": self.rest_gyro_bias_rad_s,
         }
         if setup:
             d["setup"] = True
@@ -170,7 +181,7 @@ class ImuFilterEstimator(AhrsEstimator):
 
     # ------------------------------------------------------------------ compiled kernel
     _compiled_kernel: ClassVar[Kernel | None] = imufilter_rows
-    _kernel_diag_width: ClassVar[int] = 6
+    _kernel_diag_width: ClassVar[int] = 10
 
     def _kernel_ready(self) -> bool:
         return self._initialized
@@ -180,15 +191,16 @@ class ImuFilterEstimator(AhrsEstimator):
         """The rows in the compiled kernel (``fast`` extra); see ``AhrsEstimator._run_kernel``."""
         s = self.settings
         state = pack_state(self._q, self._var, self._gain, self._vel, self._vel_target)
+        rest, params = self._rest_arrays()
         turn_sum = self._rows_kernel()(
             state, gyro, accel, dts, float(s.gain), float(s.sd_acc_g), s.velocity,
             s.sd_acc_g * STANDARD_GRAVITY_M_S2, s.sd_vel_g_s * STANDARD_GRAVITY_M_S2,
-            s.turn_compensation, self._kinematics.turn_sum, out, diag)
+            s.turn_compensation, self._kinematics.turn_sum, out, diag, rest, params)
         v = state.tolist()
         self._var, self._gain = v[4], v[5]
         self._vel = VelocityState((v[6], v[7], v[8]), (v[9], v[10], v[11]),
                                   (v[12], v[13], v[14]), v[15], v[16])
-        self._kernel_finished(state[:4], len(gyro), 0, turn_sum)
+        self._kernel_finished(state[:4], len(gyro), 0, turn_sum, rest)
         return True
 
     def _block_kernel(self) -> bool:
@@ -199,15 +211,22 @@ class ImuFilterEstimator(AhrsEstimator):
         rows = diag.tolist()
         if self.settings.velocity:
             return [{"dt_s": dt, "turn_compensation": source, "accel_used": a == 1.0,
-                     "accel_gain": g, "accel_variance_g2": v, "velocity_ned_m_s": (x, y, z)}
-                    for dt, (a, g, v, x, y, z) in zip(dts.tolist(), rows, strict=True)]
+                     "accel_gain": g, "accel_variance_g2": v, "at_rest": r == 1.0,
+                     "rest_gyro_bias_rad_s": (bx, by, bz), "velocity_ned_m_s": (x, y, z)}
+                    for dt, (a, g, v, x, y, z, r, bx, by, bz) in zip(dts.tolist(), rows,
+                                                                     strict=True)]
         return [{"dt_s": dt, "turn_compensation": source, "accel_used": a == 1.0,
-                 "accel_gain": g, "accel_variance_g2": v}
-                for dt, (a, g, v, *_) in zip(dts.tolist(), rows, strict=True)]
+                 "accel_gain": g, "accel_variance_g2": v, "at_rest": r == 1.0,
+                 "rest_gyro_bias_rad_s": (bx, by, bz)}
+                for dt, (a, g, v, _, _, _, r, bx, by, bz) in zip(dts.tolist(), rows,
+                                                                 strict=True)]
 
     def _kernel_diagnostics(self, diag: FloatArray) -> dict[str, Any]:
         cols: dict[str, Any] = {"accel_used": diag[:, 0].astype(np.int64),
-                                "accel_gain": diag[:, 1], "accel_variance_g2": diag[:, 2]}
+                                "accel_gain": diag[:, 1], "accel_variance_g2": diag[:, 2],
+                                "at_rest": diag[:, 6].astype(np.int64),
+                                **{f"rest_gyro_bias_rad_s_{i}": diag[:, 7 + i]
+                                   for i in range(3)}}
         if self.settings.velocity:
             cols.update({f"velocity_ned_m_s_{i}": diag[:, 3 + i] for i in range(3)})
         return cols

@@ -16,6 +16,7 @@ import math
 import numpy as np
 
 from imuhal_filters.common.fast import jit, per_sample_kernel
+from imuhal_filters.common.fast_ahrs import rest_update_kernel
 from imuhal_filters.common.fast_frames import linear_accel_ned
 
 _G = 9.80665  # STANDARD_GRAVITY_M_S2
@@ -50,12 +51,12 @@ small_step = jit(_small_step)
 
 def _imufilter_step(w, x, y, z, var, gain, gx, gy, gz, have_a, ax, ay, az, dt, alpha,
                     sd_acc_g, velocity_on, var_a, var_comb, v0, v1, v2, m0, m1, m2, l0, l1, l2,
-                    var_vel, var_acc, tg0, tg1, tg2):
-    """One step: ``gyro_step`` without an accelerometer, else ``imufilter_step`` and, when on,
-    ``velocity_step``, on scalars in the same order of operations; ``a`` gravity-positive in
-    g, ``var_a`` and ``var_comb`` the velocity filter's constant variances. Returns the new
-    quaternion, variance, gain, velocity (3), accel mean (3), last accel (3), var_vel and
-    var_acc."""
+                    var_vel, var_acc, tg0, tg1, tg2, at_rest):
+    """One step: ``gyro_step`` without an accelerometer, else ``imufilter_step`` (gain 1
+    ``at_rest``) and, when on, ``velocity_step``, on scalars in the same order of operations;
+    ``a`` gravity-positive in g, ``var_a`` and ``var_comb`` the velocity filter's constant
+    variances. Returns the new quaternion, variance, gain, velocity (3), accel mean (3), last
+    accel (3), var_vel and var_acc."""
     if not have_a:
         w, x, y, z = small_step(w, x, y, z, gx * dt, gy * dt, gz * dt)
         return (w, x, y, z, var, gain, v0, v1, v2, m0, m1, m2, l0, l1, l2, var_vel, var_acc)
@@ -65,6 +66,8 @@ def _imufilter_step(w, x, y, z, var, gain, gx, gy, gz, have_a, ax, ay, az, dt, a
     error = ex * ex + ey * ey + ez * ez
     gain = 1.0 / (1.0 + var / (sd_acc_g * sd_acc_g))
     var = error + var * gain
+    if at_rest:
+        gain = 1.0
     n = math.sqrt(ax * ax + ay * ay + az * az)
     ux, uy, uz = ax / n, ay / n, az / n
     dx, dy, dz = to_global(w, -x, -y, -z, 0.0, 0.0, 1.0)  # to_local(q, DOWN)
@@ -98,11 +101,13 @@ imufilter_step_kernel = jit(_imufilter_step)
 
 
 def _imufilter_rows(state, gyro, accel, dts, alpha, sd_acc_g, velocity_on, sd_acc_m_s2,
-                    sd_vel_m_s, turn_on, turn_sum, out, diag):
-    """One step per row (a NaN accel row: none this step). ``state`` in and out: q (4),
-    variance, gain, velocity (3), accel mean (3), last accel (3), var_vel, var_acc, velocity
-    target (3). ``diag`` per row: accel_used, gain, variance, velocity (3). Returns the
-    turn-rate sum."""
+                    sd_vel_m_s, turn_on, turn_sum, out, diag, rest, rest_params):
+    """One step per row (a NaN accel row: none this step), after the rest detector's step
+    (``common/fast_ahrs.rest_update``; its state ``rest`` updated in place): the step gets
+    the gyro less the bias learned at rest. ``state`` in and out: q (4), variance, gain,
+    velocity (3), accel mean (3), last accel (3), var_vel, var_acc, velocity target (3).
+    ``diag`` per row: accel_used, gain, variance, velocity (3), at_rest, the gyro bias
+    learned at rest (3, rad/s). Returns the turn-rate sum (of the rate as measured)."""
     w, x, y, z = state[0], state[1], state[2], state[3]
     var, gain = state[4], state[5]
     v0, v1, v2 = state[6], state[7], state[8]
@@ -114,6 +119,10 @@ def _imufilter_rows(state, gyro, accel, dts, alpha, sd_acc_g, velocity_on, sd_ac
     var_a = sd_acc_m_s2 * sd_acc_m_s2
     var_comb = var_a * sd_vel_m_s * sd_vel_m_s
     keep = diag.shape[0] == gyro.shape[0]  # else one scratch row (no diagnostics asked)
+    r = (rest[0], rest[1], rest[2], rest[3], rest[4], rest[5], rest[6], rest[7], rest[8],
+         rest[9], rest[10], rest[11])
+    p = (rest_params[0], rest_params[1], rest_params[2], rest_params[3], rest_params[4],
+         rest_params[5], rest_params[6], rest_params[7])
     for i in range(gyro.shape[0]):
         di = i if keep else 0
         gx, gy, gz = gyro[i, 0], gyro[i, 1], gyro[i, 2]
@@ -124,15 +133,20 @@ def _imufilter_rows(state, gyro, accel, dts, alpha, sd_acc_g, velocity_on, sd_ac
         ax = ay = az = 0.0
         if used:
             ax, ay, az = accel[i, 0] * k, accel[i, 1] * k, accel[i, 2] * k
+        r, at_rest = rest_update_kernel(r, p, gx, gy, gz, used, ax, ay, az, dt)
         (w, x, y, z, var, gain, v0, v1, v2, m0, m1, m2, l0, l1, l2, var_vel,
          var_acc) = imufilter_step_kernel(
-            w, x, y, z, var, gain, gx, gy, gz, used, ax, ay, az, dt, alpha, sd_acc_g,
-            velocity_on, var_a, var_comb, v0, v1, v2, m0, m1, m2, l0, l1, l2, var_vel, var_acc,
-            tg0, tg1, tg2)
+            w, x, y, z, var, gain, gx - r[9], gy - r[10], gz - r[11], used, ax, ay, az, dt,
+            alpha, sd_acc_g, velocity_on, var_a, var_comb, v0, v1, v2, m0, m1, m2, l0, l1, l2,
+            var_vel, var_acc, tg0, tg1, tg2, at_rest)
         out[i, 0], out[i, 1], out[i, 2], out[i, 3] = w, x, y, z
         diag[di, 0] = 1.0 if used else 0.0
         diag[di, 1], diag[di, 2] = gain, var
         diag[di, 3], diag[di, 4], diag[di, 5] = v0, v1, v2
+        diag[di, 6] = 1.0 if at_rest else 0.0
+        diag[di, 7], diag[di, 8], diag[di, 9] = r[9], r[10], r[11]
+    for j in range(12):
+        rest[j] = r[j]
     state[0], state[1], state[2], state[3] = w, x, y, z
     state[4], state[5] = var, gain
     state[6], state[7], state[8] = v0, v1, v2
@@ -145,7 +159,8 @@ def _imufilter_rows(state, gyro, accel, dts, alpha, sd_acc_g, velocity_on, sd_ac
 imufilter_rows = jit(
     _imufilter_rows, returns="f8", state="f8[::1]", gyro="f8[:, ::1]", accel="f8[:, ::1]",
     dts="f8[::1]", alpha="f8", sd_acc_g="f8", velocity_on="b1", sd_acc_m_s2="f8",
-    sd_vel_m_s="f8", turn_on="b1", turn_sum="f8", out="f8[:, ::1]", diag="f8[:, ::1]")
+    sd_vel_m_s="f8", turn_on="b1", turn_sum="f8", out="f8[:, ::1]", diag="f8[:, ::1]",
+    rest="f8[::1]", rest_params="f8[::1]")
 """The compiled kernel (see common/fast.py: the extension, or numba on the first call)."""
 
 
@@ -157,13 +172,15 @@ def pack_state(q, var, gain, vel, target) -> np.ndarray:
 
 def _imufilter_sample(w, x, y, z, var, gain, gx, gy, gz, have_a, ax, ay, az, dt, alpha,
                       sd_acc_g, velocity_on, var_a, var_comb, v0, v1, v2, m0, m1, m2, l0, l1,
-                      l2, var_vel, var_acc, tg0, tg1, tg2, fx, fy, fz):
-    """The step called from Python once per sample (``process()``; see ``madgwick_sample``),
+                      l2, var_vel, var_acc, tg0, tg1, tg2, at_rest, fx, fy, fz):
+    """The step called from Python once per sample (``process()``; see ``madgwick_sample``:
+    ``g`` less the bias learned at rest, ``at_rest`` the caller's rest detector's verdict),
     with the gravity-compensated acceleration in NED last."""
     (w, x, y, z, var, gain, v0, v1, v2, m0, m1, m2, l0, l1, l2, var_vel,
      var_acc) = imufilter_step_kernel(w, x, y, z, var, gain, gx, gy, gz, have_a, ax, ay, az, dt,
                                       alpha, sd_acc_g, velocity_on, var_a, var_comb, v0, v1, v2,
-                                      m0, m1, m2, l0, l1, l2, var_vel, var_acc, tg0, tg1, tg2)
+                                      m0, m1, m2, l0, l1, l2, var_vel, var_acc, tg0, tg1, tg2,
+                                      at_rest)
     lx, ly, lz = linear_accel_ned(w, x, y, z, fx, fy, fz)
     return (w, x, y, z, var, gain, v0, v1, v2, m0, m1, m2, l0, l1, l2, var_vel, var_acc, lx, ly,
             lz)
@@ -174,5 +191,5 @@ imufilter_sample = per_sample_kernel(jit(
     gain="f8", gx="f8", gy="f8", gz="f8", have_a="b1", ax="f8", ay="f8", az="f8", dt="f8",
     alpha="f8", sd_acc_g="f8", velocity_on="b1", var_a="f8", var_comb="f8", v0="f8", v1="f8",
     v2="f8", m0="f8", m1="f8", m2="f8", l0="f8", l1="f8", l2="f8", var_vel="f8",
-    var_acc="f8", tg0="f8", tg1="f8", tg2="f8", fx="f8", fy="f8", fz="f8"))
+    var_acc="f8", tg0="f8", tg1="f8", tg2="f8", at_rest="b1", fx="f8", fy="f8", fz="f8"))
 """The per-sample kernel (used per sample only on the AOT extension: ``Kernel.per_sample``)."""

@@ -16,7 +16,7 @@ from pydantic import BaseModel, ConfigDict
 from imuhal.core.blocks import Block
 from imuhal.core.samples import Sample
 from imuhal.core.streams import StreamSpec
-from imuhal.estimation.ordering import fusion_order
+from imuhal.estimation.ordering import blocks_in_fusion_order
 from imuhal.estimation.outputs import Estimate
 
 
@@ -76,7 +76,7 @@ class Estimator(ABC):
         a fusion step at once only when nothing else of the step reaches this estimator."""
         if len(blocks) == 1:
             return _frame_by_frame(self, blocks[0].samples())
-        return _frame_by_frame(self, fusion_order([s for b in blocks for s in b.samples()]))
+        return _frame_by_frame(self, blocks_in_fusion_order(blocks))
 
     @abstractmethod
     def get_state(self) -> dict[str, Any]:

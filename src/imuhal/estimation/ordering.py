@@ -11,8 +11,9 @@ are broken by device rank (profile order live; one device offline).
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 
+from imuhal.core.blocks import Block
 from imuhal.core.gaps import GAP
 from imuhal.core.samples import Quantity, Sample
 
@@ -43,3 +44,16 @@ def fusion_order(samples: Iterable[Sample],
         a, b = samples
         return [b, a] if key(a) > key(b) else [a, b]
     return sorted(samples, key=key)
+
+
+def blocks_in_fusion_order(blocks: Sequence[Block]) -> list[Sample]:
+    """The frames of ``blocks`` in :func:`fusion_order` without device ranks (by time, then
+    FUSION_RANK; frames equal in both keep their order in ``blocks``, block by block): one
+    sort of (time, rank, block, frame) tuples, which never compares two samples, rather
+    than a key function called per frame."""
+    keyed = [(s.t_ns, rank, i, j, s)
+             for i, b in enumerate(blocks)
+             for rank in (FUSION_RANK.get(b.quantity, 2),)
+             for j, s in enumerate(b.samples())]
+    keyed.sort()
+    return [k[4] for k in keyed]

@@ -100,6 +100,10 @@ def estimate_kind(estimate: Estimate) -> str:
     return type(estimate).__name__
 
 
+_NO_FLAGS = EstimateFlag(0)
+"""(the same object as ``EstimateFlag(0)``, without the enum's Python call per estimate)"""
+
+
 def estimate_flags(estimate: Estimate) -> EstimateFlag:
     """What is wrong with ``estimate`` (0: nothing). Attitude: the quaternion and the linear
     acceleration finite, the quaternion's norm above zero; vertical: altitude, climb rate and
@@ -111,12 +115,12 @@ def estimate_flags(estimate: Estimate) -> EstimateFlag:
         # one comparison catches NaN, infinity and a zero norm alike (NaN compares False)
         if _MIN_QUAT_NORM_SQ < norm_sq < math.inf and (
                 acc is None or math.isfinite(acc[0] + acc[1] + acc[2])):
-            return EstimateFlag(0)
+            return _NO_FLAGS
         return _attitude_flags(estimate)
     if isinstance(estimate, VerticalEstimate):
         bias = estimate.accel_bias_m_s2
         total = estimate.altitude_m + estimate.climb_m_s + (0.0 if bias is None else bias)
-        return EstimateFlag(0) if math.isfinite(total) else EstimateFlag.NOT_FINITE
+        return _NO_FLAGS if math.isfinite(total) else EstimateFlag.NOT_FINITE
     if isinstance(estimate, RejectedEstimate):
         return estimate.flags
     return _generic_flags(estimate)

@@ -26,6 +26,7 @@ the rest of the run (docs/reliability.md, "Plugin containment").
 from __future__ import annotations
 
 import importlib
+import math
 import signal
 import threading
 import time
@@ -33,7 +34,7 @@ from collections import Counter, deque
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from types import FrameType
-from typing import Any
+from typing import Any, ClassVar
 
 from imuhal.core.blocks import Block
 from imuhal.core.clock import MonotonicClock
@@ -71,6 +72,10 @@ BLOCKED_WALL_S = 60.0
 the wall clock is cut off even though it used little CPU time (it blocks: a sleep, a lock,
 a read that never completes). Long, so that a host that starves a niced run of the CPU
 for that long is the only way a call of normal cost reaches it."""
+TICKS_PER_DEADLINE = 4
+"""Emulated and replayed boards: the watchdog's timers tick this many times per
+DEADLINE_MIN_S of CPU time and per ``blocked_wall_s`` on the wall clock (:class:`Watchdog`);
+a call is cut off at most two ticks after its deadline."""
 
 Warn = Callable[[str], None]
 
@@ -305,10 +310,26 @@ except ImportError:  # an interpreter without CPython's _signal module
 
 
 class Watchdog:
-    """Interrupts a driver call that overran its deadline: a one-shot ``ITIMER_REAL`` armed
-    around the call, whose SIGALRM handler raises :class:`DriverDeadline` in the call; with
-    ``DriverTiming.cpu`` an ``ITIMER_PROF`` of the deadline in CPU time (SIGPROF, the same
-    handler) beside an ``ITIMER_REAL`` of the blocked-call bound.
+    """Interrupts a driver call that overran its deadline: a signal whose handler raises
+    :class:`DriverDeadline` in the call.
+
+    On the wall clock (a hardware board) a one-shot ``ITIMER_REAL`` of the deadline is armed
+    around each call and cancelled after it (SIGALRM), so the signal never arrives but in an
+    overrunning call: a signal interrupts the blocking system call in progress, and on real
+    buses a stray one would turn a transfer into a bus error.
+
+    On CPU time (``DriverTiming.cpu``: an emulated or replayed board, whose buses answer in
+    the process) the timers tick instead: a periodic ``ITIMER_PROF`` every
+    ``DEADLINE_MIN_S / TICKS_PER_DEADLINE`` s of CPU time and a periodic ``ITIMER_REAL``
+    every ``blocked_wall_s / TICKS_PER_DEADLINE`` s, started at the first call and stopped
+    by :meth:`release`. A call counts the ticks that arrive while it runs; n ticks of one
+    timer mean at least n - 1 of its periods spent in the call, so the call is cut off at
+    the tick that makes its deadline certain: after the deadline and before the deadline
+    plus two periods (1 s of CPU time: cut off between 1 and 1.5 s). Arming and disarming
+    then make no system call: 0.7 us of CPU per driver call against 1.8 for the four
+    ``setitimer`` calls of one-shot timers, at about two driver calls per IMU sample on the
+    seed board (``python -m tests.benchmarks.bench_block_parts watchdog``; docs/performance.md,
+    "The hardware path's per-poll costs").
 
     Why not a worker thread per call: a thread cannot be stopped, so the overrun call would
     go on using the bus beside the next device's transfers, and every poll would pay a thread
@@ -317,49 +338,99 @@ class Watchdog:
     works only in the main thread and when nobody else handles the signals it needs (SIGALRM;
     SIGPROF too on CPU time: a profiler may hold it): otherwise (a pipeline run in a thread)
     ``arm`` returns False and calls are not timed. Every pipeline shares the one handler
-    (only one driver call runs at a time in the main thread).
+    (only one driver call runs at a time in the main thread); the timers and the tick counts
+    are process-wide, hence kept on the class.
     """
 
     _active = False
     """A driver call is being timed (class-wide: the handler is process-wide)."""
+    _ticking: ClassVar[tuple[float, float] | None] = None
+    """The periods (s) of the ticking ``ITIMER_REAL`` and ``ITIMER_PROF`` when they tick."""
+    _wall_ticks = 0
+    """``ITIMER_REAL`` ticks since the timed call began."""
+    _cpu_ticks = 0
+    """``ITIMER_PROF`` ticks since the timed call began."""
+    _limits: ClassVar[tuple[int, int]] = (1, 1)
+    """The ``ITIMER_REAL`` and ``ITIMER_PROF`` tick at which the timed call is cut off."""
 
     def __init__(self, timing: DriverTiming | None = None) -> None:
         self.timing = timing if timing is not None else DriverTiming()
         self._signals = (signal.SIGALRM, signal.SIGPROF) if self.timing.cpu \
             else (signal.SIGALRM,)
         self._installed = False
+        self._periods = (self.timing.blocked_wall_s / TICKS_PER_DEADLINE,
+                         DEADLINE_MIN_S / TICKS_PER_DEADLINE)
+        self._tick_limits: dict[float, tuple[int, int]] = {}
 
     def arm(self, seconds: float) -> bool:
         """Start timing a driver call; False when this thread cannot be interrupted."""
         if not self._handled() and not self._install():
             return False
-        Watchdog._active = True
         if self.timing.cpu:
-            signal.setitimer(signal.ITIMER_REAL, self.timing.blocked_wall_s)
-            signal.setitimer(signal.ITIMER_PROF, seconds)
+            if Watchdog._ticking != self._periods:
+                self._tick()
+            limits = self._tick_limits.get(seconds)
+            if limits is None:
+                limits = self._tick_limits[seconds] = self._limits_for(seconds)
+            Watchdog._limits = limits
+            Watchdog._wall_ticks = Watchdog._cpu_ticks = 0
         else:
+            if Watchdog._ticking is not None:
+                Watchdog._stop_ticking()
             signal.setitimer(signal.ITIMER_REAL, seconds)
+        Watchdog._active = True
         return True
 
     def disarm(self) -> None:
         Watchdog._active = False
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        if self.timing.cpu:
-            signal.setitimer(signal.ITIMER_PROF, 0)
+        if not self.timing.cpu:
+            signal.setitimer(signal.ITIMER_REAL, 0)
+
+    def pause(self) -> None:
+        """Stop the ticking timers until the next call (a run loop ended: no tick then
+        interrupts what the program does between runs)."""
+        Watchdog._active = False
+        Watchdog._stop_ticking()
 
     def release(self) -> None:
-        """Give the signals back to the default handler this watchdog found."""
+        """Stop the timers and give the signals back to the default handler this watchdog
+        found."""
         if self._installed:
-            self.disarm()
+            Watchdog._active = False
+            signal.setitimer(signal.ITIMER_REAL, 0)
+            Watchdog._stop_ticking()
             for signum in self._signals:
                 if signal.getsignal(signum) is _deadline_expired:
                     signal.signal(signum, signal.SIG_DFL)
         self._installed = False
 
+    def _limits_for(self, seconds: float) -> tuple[int, int]:
+        """The tick of each timer (``ITIMER_REAL``, ``ITIMER_PROF``) that proves a call of
+        deadline ``seconds`` (CPU time; ``blocked_wall_s`` on the wall clock) overran it:
+        ceil(deadline / period) + 1."""
+        real_s, prof_s = self._periods
+        return (math.ceil(self.timing.blocked_wall_s / real_s - 1e-9) + 1,
+                math.ceil(seconds / prof_s - 1e-9) + 1)
+
+    def _tick(self) -> None:
+        real_s, prof_s = self._periods
+        signal.setitimer(signal.ITIMER_REAL, real_s, real_s)
+        signal.setitimer(signal.ITIMER_PROF, prof_s, prof_s)
+        Watchdog._ticking = self._periods
+
+    @staticmethod
+    def _stop_ticking() -> None:
+        if Watchdog._ticking is not None:
+            signal.setitimer(signal.ITIMER_REAL, 0)
+            signal.setitimer(signal.ITIMER_PROF, 0)
+            Watchdog._ticking = None
+
     def _handled(self) -> bool:
         """Every signal this watchdog needs goes to the deadline handler (this watchdog's or
         another pipeline's in the process)."""
-        return all(_current_handler(signum) is _deadline_expired for signum in self._signals)
+        # written out: asked at every driver call
+        return _current_handler(signal.SIGALRM) is _deadline_expired and (
+            not self.timing.cpu or _current_handler(signal.SIGPROF) is _deadline_expired)
 
     def _install(self) -> bool:
         """Take the signals when nobody handles them (and this is the main thread)."""
@@ -374,9 +445,19 @@ class Watchdog:
 
 
 def _deadline_expired(signum: int, frame: FrameType | None) -> None:
-    if Watchdog._active:
-        Watchdog._active = False
-        raise DriverDeadline
+    if not Watchdog._active:
+        return  # a tick between calls
+    if Watchdog._ticking is not None:
+        if signum == signal.SIGPROF:
+            Watchdog._cpu_ticks += 1
+            if Watchdog._cpu_ticks < Watchdog._limits[1]:
+                return
+        else:
+            Watchdog._wall_ticks += 1
+            if Watchdog._wall_ticks < Watchdog._limits[0]:
+                return
+    Watchdog._active = False
+    raise DriverDeadline
 
 
 class ContainedSinks:

@@ -550,11 +550,15 @@ class Pipeline:
         call when a call ends before it does.
         """
         source = cast("Iterator[Event]", self._poll_events(duration_s, reads=False))
-        stage = self._pending_startup()
-        if stage is not None:
-            # The phase carries over to the next call when this one ends before it does.
-            self._run_startup(stage, source)
-        yield from source
+        try:
+            stage = self._pending_startup()
+            if stage is not None:
+                # The phase carries over to the next call when this one ends before it does.
+                self._run_startup(stage, source)
+            yield from source
+        finally:
+            # the watchdog's CPU-time timers tick through a run only (containment.Watchdog)
+            self._watchdog.pause()
 
     def blocks(self, duration_s: float | None = None) -> Iterator[Event | Block]:
         """``events`` with each read of several frames of a stream (a FIFO read) handed
@@ -566,17 +570,20 @@ class Pipeline:
         frames on arrays (or only counts them): no per-frame object is built for it. The
         estimators get the same inputs as under ``events``, so the same estimates."""
         items = self._poll_events(duration_s, reads=True)
-        stage = self._pending_startup()
-        if stage is not None:
-            source = _Expanded(self, items)
-            self._run_startup(stage, source)
-            # a read part-way handed out when the phase ended: the rest as its frames
-            yield from source.rest_of_read()
-        for item in items:
-            if type(item) is _Read:
-                yield from item.blocks
-            else:
-                yield cast("Event", item)
+        try:
+            stage = self._pending_startup()
+            if stage is not None:
+                source = _Expanded(self, items)
+                self._run_startup(stage, source)
+                # a read part-way handed out when the phase ended: the rest as its frames
+                yield from source.rest_of_read()
+            for item in items:
+                if type(item) is _Read:
+                    yield from item.blocks
+                else:
+                    yield cast("Event", item)
+        finally:
+            self._watchdog.pause()  # as in events
 
     def _pending_startup(self) -> GyroStartupStage | None:
         """The start-up phase (imuhal.pipeline.startup) when it is still to run."""
