@@ -1011,8 +1011,13 @@ class Pipeline:
         try:
             next_ns = dev.driver.recover(t_ns)
         except ImuhalError as exc:
+            # every failed attempt is counted: a chip that answers with the wrong identity
+            # or will not take its configuration (DeviceNotFoundError, ConfigurationError)
+            # is a device error, as the same exception from a poll is
             if isinstance(exc, BusError):
                 dev.bus_errors += 1
+            else:
+                dev.device_errors += 1
             if not dev.failures:
                 dev.failing_since_ns = t_ns
             dev.failures += 1
