@@ -473,15 +473,7 @@ class GnssDriver(Driver):
         velocity = merged.velocity_ned_m_s
         if velocity is None:
             velocity = self._nmea_velocity(merged, t_ns)
-        step = SampleFlag.OK
-        if velocity is not None and has_fix:
-            step = self._repeated(merged, velocity, t_ns)
-            if not step:
-                step = self._velocity_step(velocity, t_ns)
-        if has_fix and height is not None and not step:
-            # an epoch whose velocity cannot be right came from a frame hit on the line (or a
-            # hung receiver): it is not held against the position, which is not trusted either
-            step = self._position_check(merged, epoch, t_ns, height, velocity)
+        step = self._epoch_checks(merged, epoch, t_ns, has_fix, height, velocity)
         if velocity is not None and has_fix:
             # Before the position: a consumer of the fix then has the same epoch's velocity.
             out.append(VelocitySample(t_ns=t_ns, device=self.device, flags=step,
@@ -499,6 +491,23 @@ class GnssDriver(Driver):
             fix_type=fix, satellites=merged.satellites or 0,
             utc_s=_utc_s(merged.day, epoch.time_of_day_s)))
         return out
+
+    def _epoch_checks(self, merged: Fragment, epoch: _Epoch, t_ns: int, has_fix: bool,
+                      height_m: float | None,
+                      velocity: tuple[float, float, float] | None) -> SampleFlag:
+        """The flags an epoch with a fix earns before it is handed out: FROZEN when it
+        repeats the last solution although it moved, IMPLAUSIBLE when its velocity steps or
+        its position strays from where the last valid epoch's velocity carried it."""
+        step = SampleFlag.OK
+        if velocity is not None and has_fix:
+            step = self._repeated(merged, velocity, t_ns)
+            if not step:
+                step = self._velocity_step(velocity, t_ns)
+        if has_fix and height_m is not None and not step:
+            # an epoch whose velocity cannot be right came from a frame hit on the line (or a
+            # hung receiver): it is not held against the position, which is not trusted either
+            step = self._position_check(merged, epoch, t_ns, height_m, velocity)
+        return step
 
     def _repeated(self, merged: Fragment, velocity: tuple[float, float, float],
                   t_ns: int) -> SampleFlag:
