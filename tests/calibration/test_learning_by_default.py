@@ -60,7 +60,14 @@ def test_without_a_gnss_velocity_only_the_hard_iron_is_learned_by_default(
         assert _learning(pipeline) == {"mag": {"mag"}}
 
 
-def test_stored_records_are_not_learned_again(registry: Registry) -> None:
+def test_a_stored_record_is_not_learned_again_while_the_missing_one_is(
+        registry: Registry) -> None:
+    profile = _gps_vario(registry, imu="      accel: {offset_m_s2: [0.1, -0.2, 0.05]}\n")
+    with open_emulated(profile, registry) as pipeline:
+        assert _learning(pipeline) == {"mag": {"mag"}}
+
+
+def test_stored_records_of_both_mean_no_learning(registry: Registry) -> None:
     profile = _gps_vario(
         registry, imu="      accel: {offset_m_s2: [0.1, -0.2, 0.05]}\n",
         mag="    calibration:\n      mag: {hard_iron_ut: [10.0, 9.0, 30.0]}\n")

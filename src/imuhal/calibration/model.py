@@ -258,7 +258,7 @@ def _in_flight_switch(value: object, info: ValidationInfo) -> object:
     raise ValueError(
         f"must be on, off or a mapping of the learner's settings, e.g. `{info.field_name}: "
         f"off` to never learn in flight or `{info.field_name}: {{max_std_mg: 3}}` "
-        "(docs/calibration.md, \"Learning in flight\")")
+        "(docs/calibration.md, \"Learning in flight by default\")")
 
 
 class DeviceCalibration(_Records):
