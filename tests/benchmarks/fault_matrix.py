@@ -5,6 +5,7 @@ the simulation's truth (plain script; not collected by pytest).
 Run:  nice -n 10 .venv/bin/python tests/benchmarks/fault_matrix.py [--seconds 10]
       [--boards gy91,seed-gps-vario] [--rates 0.001,0.01,0.1] [--kinds wild_value,reset]
       [--json out.json] [--markdown]
+      .venv/bin/python tests/benchmarks/fault_matrix.py --combine a.json b.json [--seconds 10]
 
 Each run opens one bundled board emulated (its profile's scenario, seed 1), injects the
 faults through imuhal.emulation.faults, flies ``--seconds`` simulated seconds and judges
@@ -50,7 +51,7 @@ import math
 import sys
 import time
 import traceback
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -130,6 +131,11 @@ class RunResult:
     """Of those, the ones more than the checker's TILT_MARGIN_DEG off the true tilt."""
     worst_tilt_deg: float = 0.0
     by_design: int = 0
+    frozen_held: int = 0
+    """Valid samples of a hung chip within its driver's stated detection time (apart)."""
+    out_of_order: int | None = None
+    """Valid samples older than a valid sample their device already gave for the same
+    quantity (None: a ``--json`` of a run before the matrix counted them)."""
     crash: str = ""
     wall_s: float = 0.0
     ledgers: dict[str, dict[str, int]] = field(default_factory=dict)
@@ -185,6 +191,8 @@ def run_one(board: str, profile: BoardProfile, registry: Registry, kinds: Sequen
     result.wrong_valid = {**dict(report.wrong_valid), **{f"NaN {k}": v
                                                         for k, v in report.nan.items()}}
     result.by_design = len(report.by_design)
+    result.frozen_held = report.frozen_held
+    result.out_of_order = sum(report.out_of_order.values())
     result.wrong_estimates = dict(report.wrong_estimates)
     result.rejected_estimates = sum(report.rejected_estimates.values())
     result.rejected_by_source = dict(report.rejected_estimates)
@@ -204,24 +212,32 @@ def plans(rates: Sequence[float]) -> Iterator[tuple[tuple[str, ...], float]]:
             yield triple, rate
 
 
+def _total(counts: Iterable[int | None]) -> str:
+    """The sum, or "not counted" when a run did not count it."""
+    values = list(counts)
+    return "not counted" if None in values else str(sum(v for v in values if v is not None))
+
+
 def markdown(results: list[RunResult], seconds: float) -> str:
     lines = [f"{seconds:g} s flights, seed 1, margin x{MARGIN:g}", "",
-             "| board | runs | crashes | valid samples checked | wrong valid | unflagged wrong "
-             "estimates | rejected estimates | attitudes handed out | of them more than "
-             f"{TILT_MARGIN_DEG:g} deg off | worst tilt (deg) | by design (wrong_pressure) | "
-             "wall s |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| board | runs | crashes | valid samples checked | wrong valid | out of order | "
+             "unflagged wrong estimates | rejected estimates | attitudes handed out | of them "
+             f"more than {TILT_MARGIN_DEG:g} deg off | worst tilt (deg) | by design "
+             "(wrong_pressure) | held by a hung chip (stated) | wall s |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for board in sorted({r.board for r in results}):
         rs = [r for r in results if r.board == board]
         lines.append(
             f"| {board} | {len(rs)} | {sum(bool(r.crash) for r in rs)} | "
             f"{sum(r.checked for r in rs):,} | {sum(sum(r.wrong_valid.values()) for r in rs)} | "
+            f"{_total(r.out_of_order for r in rs)} | "
             f"{sum(sum(r.wrong_estimates.values()) for r in rs)} | "
             f"{sum(r.rejected_estimates for r in rs)} | {sum(r.attitudes for r in rs):,} | "
             f"{sum(r.tilt_over for r in rs)} | {max(r.worst_tilt_deg for r in rs):.1f} | "
-            f"{sum(r.by_design for r in rs)} | "
+            f"{sum(r.by_design for r in rs)} | {sum(r.frozen_held for r in rs)} | "
             f"{sum(r.wall_s for r in rs):.0f} |")
-    bad = [r for r in results if r.crash or r.wrong_valid or r.wrong_estimates]
+    bad = [r for r in results if r.crash or r.wrong_valid or r.out_of_order
+           or r.wrong_estimates]
     for r in bad:
         lines.append(f"\n- {r.board} {'+'.join(r.kinds)} at {r.rate:g}: "
                      f"{r.wrong_valid or ''} {r.wrong_estimates or ''} "
@@ -264,7 +280,15 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="comma-separated kinds: only the runs holding one of them")
     parser.add_argument("--json", default="")
     parser.add_argument("--markdown", action="store_true")
+    parser.add_argument("--combine", nargs="+", metavar="JSON", default=[],
+                        help="print the tables of earlier runs' --json files, run nothing")
     args = parser.parse_args(argv)
+    if args.combine:
+        combined = [RunResult(**{**data, "kinds": tuple(data["kinds"])})
+                    for path in args.combine
+                    for data in json.loads(Path(path).read_text(encoding="utf-8"))]
+        print(markdown(combined, args.seconds))
+        return 0
     registry = load_registry()
     boards = {Path(name).stem: path for name, path in bundled_profiles().items()}
     chosen = [b for b in args.boards.split(",") if b] or sorted(boards)
@@ -282,7 +306,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 continue
             results.append(r)
             print(f"{board} {'+'.join(kinds)} {rate:g}: {r.faults} faults, {r.checked} checked, "
-                  f"wrong {r.wrong_valid or 0}, estimates {r.wrong_estimates or 0}, rejected "
+                  f"wrong {r.wrong_valid or 0}, out of order {r.out_of_order}, "
+                  f"estimates {r.wrong_estimates or 0}, rejected "
                   f"{r.rejected_estimates} {r.rejected_by_source or ''}, "
                   f"tilt > {TILT_MARGIN_DEG:g} deg {r.tilt_over} of "
                   f"{r.attitudes} (worst {r.worst_tilt_deg:.1f}){' CRASH' if r.crash else ''}"
@@ -295,7 +320,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 Path(args.json).write_text(json.dumps([asdict(x) for x in results], indent=1))
     if args.markdown:
         print(markdown(results, args.seconds))
-    bad = sum(bool(r.crash or r.wrong_valid or r.wrong_estimates or r.accounting_off)
+    bad = sum(bool(r.crash or r.wrong_valid or r.out_of_order or r.wrong_estimates
+                   or r.accounting_off)
               for r in results)
     return 1 if bad else 0
 

@@ -25,6 +25,12 @@ The checker counts, per run:
   after it. So is a pressure between the truth and the truth plus the offset in that
   fault's window: a chip's own filter (the BMP280's IIR) blends the wrong measurement into
   its next outputs;
+* **held by a hung chip**: a valid sample of a chip under a ``frozen`` fault that is off
+  the truth at its time stamp but within tolerance of the world at most the driver's
+  stated detection time before it (``frozen_detection_outputs()`` output periods, where
+  the driver states one: the BMP280, whose IIR filter settles on the hung word before its
+  window can fill) is the stated cost of a hang, counted apart (``frozen_held``), not
+  wrong; a driver that states none gets no such allowance;
 * **out of order**: valid samples older than a valid sample their device already gave for
   the same quantity (and how many the pipeline flagged OUT_OF_ORDER);
 * **unflagged wrong estimates**: an attitude or vertical estimate that is not finite (and
@@ -41,7 +47,7 @@ from __future__ import annotations
 import math
 from collections import Counter, OrderedDict, deque
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -276,6 +282,9 @@ class Report:
     by_design: list[dict[str, Any]] = field(default_factory=list)
     """Valid samples that are wrong because the world was (``wrong_pressure``: in range and
     plausible, no driver can tell): where each was, and what the vario made of it."""
+    frozen_held: int = 0
+    """Valid samples of a hung chip within its driver's stated detection time (the world
+    of when it hung), counted apart from the wrong ones."""
     by_design_blended: int = 0
     """Valid pressures between the truth and a ``wrong_pressure``'s (a chip's filter)."""
     wrong_estimates: Counter[str] = field(default_factory=Counter)
@@ -322,6 +331,9 @@ class Checker:
             for name, emu in pipeline.board.emulators.items()}  # type: ignore[attr-defined]
         self.wrong_world = [(s.device, s.offset_pa, *fault_window(s, report.duration_s))
                             for s in plan if isinstance(s, faults.WrongPressure)]
+        self.frozen = [(s.device, s.start_s, s.end_s if s.end_s is not None
+                        else report.duration_s) for s in plan
+                       if isinstance(s, faults.FrozenData)]
         self._recent_climb: deque[tuple[int, float]] = deque(maxlen=512)
         """(t_ns, |climb - true climb|) of the last vario estimates."""
         self.last: dict[tuple[str, Quantity], int] = {}
@@ -443,7 +455,8 @@ class Checker:
             self.report.out_of_order[key] += 1
         self.last[(s.device, s.channel)] = s.t_ns
         error, tolerance = self._error(s, values)
-        if error > tolerance and self._wrong_by_design(s, values):
+        if error > tolerance and (self._wrong_by_design(s, values)
+                                  or self._held_by_hung_chip(s, values, tolerance)):
             return
         self.report.checked[key] += 1
         ratio = error / tolerance if tolerance > 0 else math.inf
@@ -451,6 +464,30 @@ class Checker:
         if error > tolerance:
             self.report.wrong_valid[key] += 1
             self._attribute(self.report.wrong_by_fault, key, s.t_ns)
+
+    def _held_by_hung_chip(self, s: Sample, values: tuple[float, ...],
+                           tolerance: float) -> bool:
+        """A valid sample of a chip in a ``frozen`` window that matches the world of at most
+        its driver's stated detection time before it (counted apart)."""
+        t_s = s.t_ns / 1e9
+        driver = self.p.devices[s.device].driver
+        stated = getattr(driver, "frozen_detection_outputs", None)
+        if stated is None or not any(d == s.device and a <= t_s <= b + self.latency_s[s.channel]
+                                     for d, a, b in self.frozen):
+            return False
+        period_ns = max((spec.period_ns for spec in self.p.streams.get(s.device, ())
+                         if spec.quantity is s.channel), default=0)
+        if not period_ns:
+            return False
+        lag_ns = round(self.latency_s[s.channel] * 1e9)
+        for k in range(1, stated() + 1):
+            back = replace(s, t_ns=s.t_ns - k * period_ns)
+            if self._error(back, values)[0] <= tolerance:
+                self.report.frozen_held += 1
+                return True
+            if s.t_ns - k * period_ns < -lag_ns:
+                break
+        return False
 
     def _wrong_by_design(self, s: Sample, values: tuple[float, ...]) -> bool:
         """A pressure that matches what a ``wrong_pressure`` fault made the world measure

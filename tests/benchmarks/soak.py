@@ -258,6 +258,8 @@ def _measures(report: Report) -> dict[str, str]:
         "worst climb error in the 2 s after it": f"{max(climbs):.2f} m/s" if climbs
                                                  else "none to judge",
         "`wrong_pressure` blended by the chip's filter (apart)": str(report.by_design_blended),
+        "held by a hung chip within its stated detection time (apart)":
+            str(report.frozen_held),
         "start-ups with 1 % bus errors": f"{ok}/{attempts}" if attempts else "not run",
     }
 

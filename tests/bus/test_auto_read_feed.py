@@ -24,6 +24,19 @@ def test_a_change_after_failed_reads_names_them_oldest_first() -> None:
     assert f.failures == 2
 
 
+def test_a_repeated_copy_among_reads_with_a_nack_is_a_failed_read() -> None:
+    """A FIFO read whose SLV0_NACK says one of its frames' slave reads failed, not which:
+    a frame that repeats the copy before may be it; one that differs is not."""
+    f = feed()
+    f.deliver(10, b"\x01\x10\x20", nack_seen=True)
+    f.deliver(20, b"\x01\x10\x20", nack_seen=True)
+    f.deliver(30, b"\x01\x11\x21", nack_seen=True)
+    f.deliver(40, b"\x00\x11\x21", nack_seen=True)
+    f.deliver(50, b"\x00\x11\x21")
+    assert f.take() == [Copy(10, b"\x01\x10\x20"), Copy(30, b"\x01\x11\x21", (20,), 20)]
+    assert f.failures == 1
+
+
 def test_a_failed_read_is_no_change_even_with_other_bytes() -> None:
     """The master's registers after a failed read are not the slave's new data (the
     MPU-9250's register map leaves EXT_SENS_DATA's content then unsaid)."""

@@ -78,6 +78,18 @@ def test_map_0x08_turns_the_hmc5883l_x_z_y_words_into_x_y_z() -> None:
     assert mag_registers(spi) == x + y + z
 
 
+def test_a_map_written_between_copies_of_the_same_slave_bytes_applies_at_the_next() -> None:
+    # the words are stored again when the map changes, though the slave's bytes repeat
+    clock, spi, _, slave = board()
+    clock.sleep(ACCEL_PERIOD_S)
+    assert mag_registers(spi) == SLAVE_BYTES
+    spi.transfer(0, bytes([0x0A, 0x08]))
+    clock.sleep(ACCEL_PERIOD_S)
+    x, z, y = SLAVE_BYTES[0:2], SLAVE_BYTES[2:4], SLAVE_BYTES[4:6]
+    assert mag_registers(spi) == x + y + z
+    assert len(slave.log) == 2
+
+
 def test_the_swap_bit_takes_each_slave_word_lsb_first() -> None:
     clock, spi, _, _ = board(mag_slv_cfg=0xC6)  # Kris Winer's LIS3MDL value
     clock.sleep(ACCEL_PERIOD_S)

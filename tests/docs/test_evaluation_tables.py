@@ -31,3 +31,9 @@ def test_only_the_defaults_label_counts_and_a_missing_one_is_a_dash() -> None:
     rows = [_row("vqf offline=true", 9, i, 1.0, 0.4) for i in range(tables.BROAD_TRIALS)]
     assert tables._broad_mean(rows, "vqf", 9, "total_deg") == "-"
     assert tables._broad_mean(rows, "vqf offline=true", 9, "total_deg") == "1.00"
+
+
+def test_digits_can_be_asked_for_where_the_target_needs_them() -> None:
+    # the 6-DOF inclination target is VQF's 0.723 deg: two digits would make 0.725 a tie
+    rows = [_row("vqf", 6, i, 90.0, 0.7251) for i in range(tables.BROAD_TRIALS)]
+    assert tables._broad_mean(rows, "vqf", 6, "inclination_deg", 3) == "0.725"

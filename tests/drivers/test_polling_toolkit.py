@@ -86,6 +86,19 @@ def test_a_tracking_grid_steps_a_margin_short_of_the_learnt_period_and_anchor_fo
     assert grid.step_ns == PERIOD - PERIOD // 64
 
 
+def test_a_tracking_grid_polled_late_goes_on_from_the_chips_phase_not_its_short_steps(
+) -> None:
+    """60 late polls (each 3 ms after its point) learn nothing of the phase: the point
+    after them is one early step short of the chip's phase as located, not 61 (a period
+    less 61 / 64 of one, 3.8 ms before it)."""
+    grid = PollGrid(PERIOD, early_fraction=64, track=True)
+    grid.anchor(0)
+    t = grid.next_after(0)
+    for _ in range(60):
+        t = grid.next_after(t + 3_000_000)
+    assert t % PERIOD == PERIOD - PERIOD // 64
+
+
 def test_a_channel_is_stale_only_after_the_policy_number_of_periods() -> None:
     ready = DataReady({"gyro": PERIOD})
     ready.start(0)

@@ -13,6 +13,7 @@ import pytest
 from imuhal.core.samples import Sample
 from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import (
+    AllZeros,
     BusErrors,
     BusOSError,
     ChipAbsent,
@@ -22,6 +23,7 @@ from imuhal.emulation.faults import (
     HostStall,
     LatePolls,
     StuckDataReady,
+    TimingJitter,
 )
 from imuhal.pipeline import Pipeline
 from imuhal.pipeline.accounting import CAUSES, FrameLedger
@@ -52,6 +54,16 @@ MATRIX: dict[str, tuple[list[FaultSpec], dict[str, str]]] = {
               {"imu": "reset", "mag": "reset"}),
     "absent": ([ChipAbsent(device=d, start_s=1.0, end_s=1.2) for d in DEVICES],
                {"imu": "reset", "mag": "reset", "baro": "reset"}),
+    # polls late by up to 5 ms: by less than half a period they are made late and must
+    # still read the sample due (the MPU-9250's and AK8963's polls sit within a guard after
+    # their chip's instants); by more they are put off, and after PUT_OFF_AT_MOST made off
+    # the grid, counted from the grid point before them
+    "jitter": ([TimingJitter(device=d, start_s=1.0, end_s=1.6, max_delay_s=0.005)
+                for d in DEVICES], {"imu": "host_stall"}),
+    # every poll of the IMU 3 ms late (more than half its 5 ms period): put off three times,
+    # then made 3 ms after a grid point
+    "late_polls": ([LatePolls(device="imu", start_s=1.0, end_s=1.3, delay_s=0.003)],
+                   {"imu": "host_stall"}),
 }
 
 
@@ -101,6 +113,24 @@ def test_a_host_stall_is_charged_to_the_stall_and_not_missed(registry: Registry)
     p = _run(registry, MATRIX["host_stall"][0])
     lost = _ledger(p, "imu").lost
     assert dict(lost) == {"host_stall": 40}
+
+
+def test_the_first_field_after_blank_reads_is_read_on_the_poll_grid(
+        registry: Registry) -> None:
+    """Every chip reads 0x00 for 90 ms (the MPU-9250 recovers, holding the thread). The
+    AK8963's driver retried a blank read a tenth of a period later, so the first field after
+    the window was read wherever those retries had got to, up to a period after its
+    measurement, and the gap before it counted one field more than the chip made; it now
+    polls a blank chip on its grid."""
+    profile = load_profile(bundled_profiles()["gy91.yaml"], registry)
+    blank: list[FaultSpec] = [AllZeros(device=d, start_s=5.455, end_s=5.545) for d in DEVICES]
+    with open_emulated(profile, registry, seed=1, faults=blank) as p:
+        list(p.events(6.0))
+    ledger = _ledger(p, "mag")
+    chip = p.board.emulators["mag"]
+    segments = ledger.all_segments()
+    assert [n for _, _, n in segments] == [chip.frames_between(a, b) for a, b, _ in segments]
+    assert ledger.lost["host_stall"] > 0
 
 
 def test_the_run_summary_shows_each_devices_frames(registry: Registry) -> None:

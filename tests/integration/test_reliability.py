@@ -20,7 +20,7 @@ from imuhal.core.samples import (
     TemperatureSample,
 )
 from imuhal.emulation import open_emulated
-from imuhal.emulation.faults import BusErrors
+from imuhal.emulation.faults import AllZeros, BusErrors
 from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.bundled import bundled_profiles, default_profile_path
 from imuhal.profile.loader import load_profile
@@ -149,3 +149,21 @@ def test_every_sample_with_a_nan_value_carries_the_nan_flag(registry: Registry) 
     not_finite = [s for s in samples if not all(map(math.isfinite, values_of(s)))]
     assert {s.device for s in not_finite} == {"imu", "mag", "baro"}
     assert all(s.flags & SampleFlag.NAN and not s.valid for s in not_finite)
+
+
+def test_every_recovery_that_finds_the_wrong_chip_is_counted_as_a_device_error(
+        registry: Registry) -> None:
+    """gy91's BMP280 behind an all-0x00 bus for 2 s: each recovery reads the chip id as
+    0x00 and fails with DeviceNotFoundError. Each failure is a device error (they used to
+    leave only the warning, so the summary said 1 error): after the first failed recovery
+    the retries come 2, 4, 8 ... ms apart up to 100 ms, about 25 in the window."""
+    profile = load_profile(bundled_profiles()["gy91.yaml"], registry)
+    with open_emulated(profile, registry, seed=1,
+                       faults=[AllZeros(device="baro", start_s=2.0, end_s=4.0)]) as p:
+        list(p.events(5.0))
+    summary = p.summary()
+    failed = [w for w in summary.warnings if w.startswith("baro: recovery failed")]
+    assert len(failed) == 1 and "found 0x00" in failed[0]
+    assert summary.bus_errors["baro"] == 0
+    assert summary.device_errors["baro"] >= 20
+    assert summary.device_errors["imu"] == summary.device_errors["mag"] == 0

@@ -41,6 +41,37 @@ def test_the_weightiest_cause_takes_the_gap_and_causes_clear_after_a_frame() -> 
     assert dict(ledger.lost) == {"host_stall": 2, "missed": 2}
 
 
+def test_a_cause_noted_with_its_start_waits_for_the_gap_that_spans_it() -> None:
+    """A late poll notes the stall from its due time; a frame stamped before that (an
+    auto-read copy the master brought before the stall) closes a gap without it."""
+    ledger = FrameLedger(Quantity.GYRO, P)
+    ledger.observe(gyro(0))
+    ledger.note("host_stall", at_ns=3 * P // 2)
+    ledger.observe(gyro(P))  # from before the stall: no loss, the stall still to come
+    ledger.observe(gyro(4 * P))
+    assert dict(ledger.lost) == {"host_stall": 2}
+
+
+def test_a_timed_cause_spanned_by_a_gapless_block_is_spent() -> None:
+    ledger = FrameLedger(Quantity.GYRO, P)
+    ledger.observe(gyro(0))
+    ledger.note("host_stall", at_ns=P // 2)
+    ledger.observe_block(Block.from_samples([gyro(k * P) for k in (1, 2, 3)]))
+    ledger.observe(gyro(6 * P))
+    assert dict(ledger.lost) == {"missed": 2}
+
+
+def test_a_frame_read_off_the_grid_is_counted_from_its_grid_point() -> None:
+    """Polls a guard after the chip's instants; one made 3.6 ms (of 5) after its grid point
+    reads that point's frame: from its stamp the gaps would round to 2 frames and then 0."""
+    ledger = FrameLedger(Quantity.GYRO, P)
+    ledger.observe(gyro(600_000))
+    ledger.count_at(P + 4_200_000, P + 600_000)
+    ledger.observe(gyro(P + 4_200_000))
+    ledger.observe(gyro(2 * P + 600_000))
+    assert ledger.produced == 3 and not ledger.lost
+
+
 def test_flagged_frames_of_the_stream_name_their_cause() -> None:
     ledger = FrameLedger(Quantity.GYRO, P)
     ledger.observe(gyro(0))

@@ -74,6 +74,16 @@ from imuhal.drivers.validity import NAN3, FrozenWatch, blank_flag
 from imuhal_chips.ak8963 import registers as r
 from imuhal_chips.ak8963.decode import Measurement, decode_burst
 
+EARLY_FRACTION = 64
+"""Read directly (bypass), the poll grid steps 1/64 period short of the period until it has
+learnt the chip's own (``PollGrid(track=True)``) and a poll that finds no DRDY retries a
+guard later, so the polls sit within a guard after the chip's measurements. Anchored at
+whichever poll last found data, a poll after a blank read (``all_zeros``) or a late one
+(``jitter``) moved the grid up to a period after the chip's instants, and a poll late by
+less than half a period then read the next field: the frame ledger counted one off
+(issue 25). Behind a master the copies come at the master's samples, whose grid this is
+not (a grid one delivery latency after the measurement instants, re-anchored at each)."""
+
 BEHIND_MPU_HINT = (
     "inside an MPU-9250 the AK8963 answers only when the MPU's bypass is enabled or through "
     "its I2C master: put this device on the mpu9250's 'aux' bus"
@@ -128,7 +138,10 @@ class AK8963Driver(Driver):
         self.plan = RegisterPlan(self.describe(), [
             RegisterSetting(r.REG_CNTL1, self._cntl1, name="CNTL1", wait_s=r.MODE_CHANGE_S)])
         self._period_ns = round(1e9 / self.settings.odr_hz)
-        self._grid = PollGrid(self._period_ns)
+        self._grid = self._poll_grid()
+        self._search_ns: int | None = None
+        """Read directly, the retry asked for after a poll that found no new field: a new
+        field at it (not a late poll) locates the chip's instant."""
         self._ready = DataReady({Quantity.MAG: self._period_ns})
         self._watch = ResetWatch(self.settings.reset_check_s)
         self._frozen = FrozenWatch(self.FROZEN_AFTER_FRAMES)
@@ -216,8 +229,14 @@ class AK8963Driver(Driver):
         spec = self._spec(back)
         self._streams = (spec,)
         self._period_ns = spec.period_ns
-        self._grid = PollGrid(self._period_ns)
+        self._grid = self._poll_grid()
+        self._search_ns = None
         self._ready = DataReady({Quantity.MAG: self._period_ns})
+
+    def _poll_grid(self) -> PollGrid:
+        if self.settings.read == "auto":
+            return PollGrid(self._period_ns)
+        return PollGrid(self._period_ns, early_fraction=EARLY_FRACTION, track=True)
 
     def start(self, now_ns: int) -> int:
         # recover() passes the time from before configure() waited; never start in the past.
@@ -266,6 +285,11 @@ class AK8963Driver(Driver):
             return None
         return max(now_ns, self.clock.now_ns())
 
+    @property
+    def polls_after_instants(self) -> bool:
+        """Polled, its grid searches the chip's instants (EARLY_FRACTION)."""
+        return self.settings.read != "auto"
+
     def accounted_stream(self) -> tuple[Quantity, int] | None:
         """One field per continuous-mode period (8 or 100 Hz)."""
         return Quantity.MAG, self._period_ns
@@ -290,7 +314,10 @@ class AK8963Driver(Driver):
         sample, bad, ready = self._measurement(data, now_ns, now_ns)
         if sample is None:
             return self._no_measurement(now_ns, overdue or ready, bad, stale=not ready)
-        self._grid.anchor(now_ns)  # phase-lock: next poll one period after new data
+        if self._search_ns is not None and now_ns - self._search_ns < self._grid.guard_ns:
+            # new data appeared within a guard before now (EARLY_FRACTION): the chip's instant
+            self._grid.locate(now_ns)
+        self._search_ns = None
         return PollResult([sample], self._grid.next_after(now_ns))
 
     def _poll_feed(self, now_ns: int, overdue: bool) -> PollResult:
@@ -360,7 +387,11 @@ class AK8963Driver(Driver):
             if self._feed is not None:
                 # the copy may come one MPU burst late; look again when it can have come
                 return PollResult([], now_ns + self._feed.latency_ns // 2)
-            return PollResult([], now_ns + self._period_ns // 10)
+            if bad:  # a blank read: the grid keeps the chip's phase for when data come back
+                self._search_ns = None
+                return PollResult([], self._grid.next_after(now_ns))
+            self._search_ns = now_ns + self._grid.guard_ns
+            return PollResult([], self._search_ns)
         flags = SampleFlag.STALE | bad if stale else bad
         sample = MagSample(t_ns=now_ns, device=self.device, flags=flags, mag_ut=NAN3)
         if self._watch.stale_poll():

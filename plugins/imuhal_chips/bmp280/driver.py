@@ -162,6 +162,12 @@ class BMP280Driver(Driver):
     """Consecutive output pairs counted before the window is shortened (2 s at 50 Hz; the
     ceiling holds meanwhile)."""
     FROZEN_IIR_FACTOR = 4
+    NOISE_PA = 1.3
+    """The datasheet's RMS pressure noise of one conversion (its typical figure at the
+    oversampling the emulated gy91 uses): what a hung word can differ from the filter's
+    state by, at 6 sigma."""
+    FILTERED_PA_PER_LSB = 0.16
+    """One LSB of the filtered 20-bit pressure word (datasheet: 0.16 Pa resolution)."""
 
     def __init__(self, link: Link, settings: SettingsInput, *, device: str,
                  clock: Clock) -> None:
@@ -428,6 +434,21 @@ class BMP280Driver(Driver):
                 and PRESSURE_RANGE_PA[0] <= pressure <= PRESSURE_RANGE_PA[1]):
             return SampleFlag.OUT_OF_RANGE
         return SampleFlag.OK
+
+    def frozen_detection_outputs(self) -> int:
+        """The outputs after its conversions hang that the chip can still hand out valid:
+        the tolerance a hang costs, stated. The filter moves ``1 / c`` of the way from its
+        state to the hung word at each output (datasheet 3.4.3), so a hung word within 6
+        sigma of noise of the state settles to one repeated 20-bit output within
+        ``ln(6 sigma / LSB) / ln(c / (c - 1))`` outputs (14 at coefficient 4); then
+        ``frozen_window`` identical outputs must come before FROZEN: until the window is full
+        a hung chip looks like a quiet one, and a shorter window would flag quiet chips. So
+        a valid output of a hung chip carries the world of at most this many outputs ago
+        (27 outputs, 0.54 s, for the emulated gy91: 14 Pa in a 2.2 m/s climb)."""
+        c = self.settings.iir_coefficient
+        settle = 0 if c <= 1 else math.ceil(
+            math.log(6 * self.NOISE_PA / self.FILTERED_PA_PER_LSB) / math.log(c / (c - 1)))
+        return settle + self.frozen_window()
 
     def frozen_window(self) -> int:
         """Identical outputs in a row that are FROZEN now: the learned window, or the fixed

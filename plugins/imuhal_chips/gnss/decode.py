@@ -30,6 +30,9 @@ class Fragment:
     """Message name: GGA, RMC, VTG, GSA, NAV-PVT, ACK-ACK, ACK-NAK, or another."""
     checksum_ok: bool = True
     time_of_day_s: float | None = None
+    """UTC time of day, s."""
+    gps_time_of_week_s: float | None = None
+    """GPS time of week of the navigation epoch (NAV-PVT iTOW), s."""
     day: date | None = None
     latitude_deg: float | None = None
     longitude_deg: float | None = None
@@ -193,6 +196,7 @@ def _nav_pvt(msg: Any, ident: str) -> Fragment:
     fix_ok = bool(int(msg.gnssFixOk))
     frag = Fragment(
         kind=ident,
+        gps_time_of_week_s=int(msg.iTOW) / 1000.0,
         time_of_day_s=(int(msg.hour) * 3600 + int(msg.min) * 60 + int(msg.second)
                        + int(msg.nano) * 1e-9),
         day=date(int(msg.year), int(msg.month), int(msg.day)) if int(msg.month) else None,

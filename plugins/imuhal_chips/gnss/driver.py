@@ -14,7 +14,11 @@ so far, less the receiver's stated output latency (``latency_s``).
 
 Nothing wrong is fused: a sentence or frame with a bad checksum becomes a sample flagged
 CRC_ERROR (counted; values NaN where unreadable); an epoch without a fix is flagged STALE;
-garbled bytes are counted in ``stats``.
+garbled bytes are counted in ``stats``. A frame whose checksum passed with two bits flipped
+(the 8-bit checksums miss some pairs) is caught where the receiver says a thing twice
+(gSpeed and velN, velE: CRC_ERROR) or where the epoch cannot follow the last valid one (its
+velocity step, its position against the two epochs' velocities, its geoid separation, its
+time and date: IMPLAUSIBLE, imuhal_chips.gnss.integrity).
 """
 
 from __future__ import annotations
@@ -50,6 +54,7 @@ from imuhal.drivers.validity import StepWatch
 from imuhal_chips.gnss.bringup import READ_CHUNK, CfgMessage, Configuration, Search
 from imuhal_chips.gnss.decode import DecodeError, Fragment, decode_nmea, decode_ubx
 from imuhal_chips.gnss.framing import StreamSplitter
+from imuhal_chips.gnss.integrity import Epoch, EpochWatch
 from imuhal_chips.gnss.ubx import CFG_MSG, CFG_RATE, NMEA_IDS, UBX_NAV_PVT, cfg_msg, cfg_rate
 
 NMEA_MESSAGES = ("GGA", "RMC", "VTG", "GSA")
@@ -65,8 +70,20 @@ ACK_POLL_NS = 5_000_000
 """How often configure looks for an ACK: an ACK is 10 bytes, 10 ms at 9600 baud."""
 SPEED_SIGMA_M_S = 0.5
 """The speed noise per axis the step check allows for (a u-blox states 0.1-0.5 m/s)."""
+UERE_M = 5.0
+"""An NMEA receiver's position error per unit of HDOP (the user equivalent range error of a
+single-frequency receiver, 4-6 m rms): its horizontal accuracy is HDOP times this."""
+NMEA_HDOP_UNKNOWN = 5.0
+"""The HDOP taken when an NMEA epoch states none (GSA and GGA lost): a poor fix's."""
+DAY_S = 86_400.0
 QUIET_NS = 100_000_000
 """A line quiet this long (or 2.5 polls) has finished the epoch's burst."""
+FROZEN_MOVE_M = (0.05, 0.2)
+"""(horizontal, vertical) distance (m) an epoch's velocity must carry the receiver over the
+time since the last epoch before a repeat of that epoch's position is impossible: twice the
+coarsest resolution a receiver states it in (NMEA's 1e-5 arc minute, 1.85 cm; GGA's
+altitude, 0.1 m). Below it a receiver at rest (a u-blox's static hold pins the position and
+zeroes the velocity) may repeat itself."""
 
 
 class GnssSettings(DriverSettings):
@@ -90,7 +107,10 @@ class GnssSettings(DriverSettings):
     """The receiver's output latency (epoch to first byte), subtracted from arrival times."""
     max_acceleration_m_s2: float = Field(100.0, gt=0)
     """The largest acceleration the vehicle makes (10 g by default: aerobatics); a velocity
-    that changed faster since the last plausible epoch is flagged IMPLAUSIBLE."""
+    that changed faster since the last plausible epoch is flagged IMPLAUSIBLE, and so is a
+    position further from the last valid one advanced by the two epochs' velocities than
+    5 sigma of the receiver's stated accuracies and what this acceleration moves the vehicle
+    off that path (imuhal_chips.gnss.integrity)."""
 
 
 @dataclass
@@ -105,7 +125,14 @@ class GnssStats:
     inconsistent_frames: int = 0
     """NAV-PVT frames whose checksum passed but whose fields disagree (flagged CRC_ERROR
     like a failed checksum: the 8-bit Fletcher misses some pairs of flipped bits)."""
+    frozen_epochs: int = 0
+    """Epochs that repeated the last one's position and velocity although that velocity
+    moved the receiver (a hung navigation engine; flagged FROZEN)."""
     epochs: int = 0
+    implausible_epochs: dict[str, int] = field(default_factory=dict)
+    """Epochs flagged IMPLAUSIBLE by the integrity checks (imuhal_chips.gnss.integrity),
+    per rule: horizontal or vertical position against velocity, geoid separation, time,
+    date."""
     last_error: str = ""
 
 
@@ -134,10 +161,15 @@ class GnssDriver(Driver):
         self._epoch: _Epoch | None = None
         self._offset_ns: int | None = None
         self._prev_height: tuple[int, float] | None = None
+        self._last_solution: tuple[int, float, float, float, tuple[float, float, float]] \
+            | None = None
+        """(t_ns, latitude, longitude, height, NED velocity) of the last epoch with a fix."""
         noise = 6.0 * math.sqrt(2.0) * SPEED_SIGMA_M_S
         self._velocity_watch = tuple(StepWatch(self.settings.max_acceleration_m_s2, noise)
                                      for _ in range(3))
         """Per NED axis: how far the velocity may move between epochs."""
+        self.epoch_watch = EpochWatch(self.settings.max_acceleration_m_s2)
+        """Position, geoid separation and time against the last valid epoch."""
         self._foreign = 0
         self._last_byte_ns = 0
         self._quiet_ns = max(QUIET_NS, round(2.5e9 / self.settings.poll_hz))
@@ -407,14 +439,17 @@ class GnssDriver(Driver):
             longitude_deg=nan if frag.longitude_deg is None else frag.longitude_deg,
             height_m=nan if frag.height_msl_m is None else frag.height_msl_m)
 
-    def _epoch_time_ns(self, epoch: _Epoch) -> int:
+    def _epoch_time_ns(self, epoch: _Epoch) -> tuple[int, int]:
         """The epoch on the pipeline clock: UTC time of day plus the smallest delay (arrival
-        minus UTC, modulo a day) seen so far, less the stated output latency."""
+        minus UTC, modulo a day) seen so far, this epoch's included, less the stated output
+        latency; and that smallest delay, which the caller keeps (``_offset_ns``) only when
+        the epoch's time can be trusted: a UTC time a flip moved 128 s ahead would have
+        stamped every later epoch 128 s early."""
         tod_ns = round(epoch.time_of_day_s * 1e9)
         delay = (epoch.arrival_ns - tod_ns) % DAY_NS
-        if self._offset_ns is None or delay < self._offset_ns:
-            self._offset_ns = delay
-        return epoch.arrival_ns - delay + self._offset_ns - round(self.settings.latency_s * 1e9)
+        offset = delay if self._offset_ns is None else min(self._offset_ns, delay)
+        t_ns = epoch.arrival_ns - delay + offset - round(self.settings.latency_s * 1e9)
+        return t_ns, offset
 
     def _close_epoch(self) -> list[Sample]:
         epoch, self._epoch = self._epoch, None
@@ -422,11 +457,12 @@ class GnssDriver(Driver):
             return []
         merged = _merge(epoch.parts)
         self.stats.epochs += 1
-        t_ns = self._epoch_time_ns(epoch)
+        t_ns, offset_ns = self._epoch_time_ns(epoch)
         fix = merged.fix_type if merged.fix_type is not None else FixType.NO_FIX
         has_fix = fix in (FixType.FIX_2D, FixType.FIX_3D, FixType.GNSS_DEAD_RECKONING)
         out: list[Sample] = []
         if merged.latitude_deg is None or merged.longitude_deg is None:
+            self._offset_ns = offset_ns  # nothing to check the time against
             if not has_fix:
                 out.append(PositionSample(t_ns=t_ns, device=self.device,
                                           flags=SampleFlag.STALE, latitude_deg=math.nan,
@@ -437,15 +473,14 @@ class GnssDriver(Driver):
         velocity = merged.velocity_ned_m_s
         if velocity is None:
             velocity = self._nmea_velocity(merged, t_ns)
-        step = SampleFlag.OK
+        step = self._epoch_checks(merged, epoch, t_ns, has_fix, height, velocity)
         if velocity is not None and has_fix:
-            step = self._velocity_step(velocity, t_ns)
             # Before the position: a consumer of the fix then has the same epoch's velocity.
             out.append(VelocitySample(t_ns=t_ns, device=self.device, flags=step,
                                       velocity_ned_m_s=velocity,
                                       accuracy_m_s=merged.speed_accuracy_m_s))
-        # an epoch whose velocity cannot be right came from a frame hit on the line: its
-        # position is not trusted either
+        if not step:
+            self._offset_ns = offset_ns
         flags = (SampleFlag.OK if has_fix and height is not None else SampleFlag.STALE) | step
         out.append(PositionSample(
             t_ns=t_ns, device=self.device, flags=flags,
@@ -456,6 +491,43 @@ class GnssDriver(Driver):
             fix_type=fix, satellites=merged.satellites or 0,
             utc_s=_utc_s(merged.day, epoch.time_of_day_s)))
         return out
+
+    def _epoch_checks(self, merged: Fragment, epoch: _Epoch, t_ns: int, has_fix: bool,
+                      height_m: float | None,
+                      velocity: tuple[float, float, float] | None) -> SampleFlag:
+        """The flags an epoch with a fix earns before it is handed out: FROZEN when it
+        repeats the last solution although it moved, IMPLAUSIBLE when its velocity steps or
+        its position strays from where the last valid epoch's velocity carried it."""
+        step = SampleFlag.OK
+        if velocity is not None and has_fix:
+            step = self._repeated(merged, velocity, t_ns)
+            if not step:
+                step = self._velocity_step(velocity, t_ns)
+        if has_fix and height_m is not None and not step:
+            # an epoch whose velocity cannot be right came from a frame hit on the line (or a
+            # hung receiver): it is not held against the position, which is not trusted either
+            step = self._position_check(merged, epoch, t_ns, height_m, velocity)
+        return step
+
+    def _repeated(self, merged: Fragment, velocity: tuple[float, float, float],
+                  t_ns: int) -> SampleFlag:
+        """FROZEN when the epoch repeats the last one's position and velocity exactly
+        although that velocity carried the receiver more than FROZEN_MOVE_M since it: the
+        receiver's navigation engine hung and it sends its last solution with each new
+        epoch's time (the emulator's ``frozen`` fault). A working receiver's position moves
+        with its velocity, and its velocity noise never repeats a moving triple to the mm/s.
+        A repeated epoch is no new reference for the velocity step check."""
+        position = (merged.latitude_deg or 0.0, merged.longitude_deg or 0.0,
+                    merged.height_msl_m if merged.height_msl_m is not None else math.nan)
+        last, self._last_solution = self._last_solution, (t_ns, *position, velocity)
+        if last is None or t_ns <= last[0] or last[1:] != (*position, velocity):
+            return SampleFlag.OK
+        dt_s = (t_ns - last[0]) / 1e9
+        horizontal_m = math.hypot(velocity[0], velocity[1]) * dt_s
+        if horizontal_m <= FROZEN_MOVE_M[0] and abs(velocity[2]) * dt_s <= FROZEN_MOVE_M[1]:
+            return SampleFlag.OK
+        self.stats.frozen_epochs += 1
+        return SampleFlag.FROZEN
 
     def _velocity_step(self, velocity: tuple[float, float, float], t_ns: int) -> SampleFlag:
         """IMPLAUSIBLE when an axis of ``velocity`` (NED) lies further from the last
@@ -468,6 +540,38 @@ class GnssDriver(Driver):
         for watch, value in zip(self._velocity_watch, velocity, strict=True):
             flags |= watch.observe(t_ns, value)
         return flags
+
+    def _position_check(self, merged: Fragment, epoch: _Epoch, t_ns: int, height_m: float,
+                        velocity: tuple[float, float, float] | None) -> SampleFlag:
+        """IMPLAUSIBLE when the epoch's position, geoid separation or time cannot follow the
+        last valid epoch's (imuhal_chips.gnss.integrity: a pair of flipped bits the 8-bit
+        checksum misses, issue 26); counted per rule in ``stats.implausible_epochs``. NMEA
+        states no accuracies: its horizontal one is HDOP times ``UERE_M``, and its vertical
+        velocity (made from the heights) checks nothing."""
+        assert merged.latitude_deg is not None and merged.longitude_deg is not None
+        ubx = merged.velocity_ned_m_s is not None
+        h_acc = merged.horizontal_accuracy_m
+        if h_acc is None:
+            h_acc = (merged.hdop if merged.hdop is not None else NMEA_HDOP_UNKNOWN) * UERE_M
+        gps_minus_utc = None
+        if merged.gps_time_of_week_s is not None:
+            gps_minus_utc = (merged.gps_time_of_week_s - epoch.time_of_day_s) % DAY_S
+        verdict = self.epoch_watch.observe(Epoch(
+            t_ns=t_ns, latitude_deg=merged.latitude_deg, longitude_deg=merged.longitude_deg,
+            height_msl_m=height_m, velocity_ned_m_s=velocity, horizontal_accuracy_m=h_acc,
+            vertical_accuracy_m=merged.vertical_accuracy_m,
+            speed_accuracy_m_s=(merged.speed_accuracy_m_s
+                                if merged.speed_accuracy_m_s is not None else SPEED_SIGMA_M_S),
+            vertical_velocity_measured=ubx, height_ellipsoid_m=merged.height_ellipsoid_m,
+            gps_minus_utc_s=gps_minus_utc,
+            utc_day=None if merged.day is None else merged.day.toordinal()))
+        if verdict.ok:
+            return SampleFlag.OK
+        self.stats.implausible_epochs[verdict.reason] = \
+            self.stats.implausible_epochs.get(verdict.reason, 0) + 1
+        self.stats.last_error = f"{verdict.reason} beyond its bound " \
+            f"({max(r for _, r in verdict.ratios):.3g} x)"
+        return SampleFlag.IMPLAUSIBLE
 
     def _nmea_velocity(self, merged: Fragment,
                        t_ns: int) -> tuple[float, float, float] | None:
@@ -489,7 +593,8 @@ class GnssDriver(Driver):
         return now_ns
 
 
-MERGED_FIELDS = ("day", "latitude_deg", "longitude_deg", "height_msl_m", "satellites", "hdop",
+MERGED_FIELDS = ("day", "latitude_deg", "longitude_deg", "height_msl_m", "height_ellipsoid_m",
+                 "gps_time_of_week_s", "satellites", "hdop",
                  "ground_speed_m_s", "course_deg", "velocity_ned_m_s", "horizontal_accuracy_m",
                  "vertical_accuracy_m", "speed_accuracy_m_s")
 """The fragment fields an epoch takes from its sentences or messages (a later one wins)."""

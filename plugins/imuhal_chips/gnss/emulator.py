@@ -12,7 +12,9 @@ with pynmea2 and pyubx2's parser, and the tests decode with hand-written parsers
 
 Settings of the emulator (the fault-injection interface had not landed when this was
 written): ``model`` (the error model, replaceable before or during a run) and
-:meth:`lose_fix` (a fix-lost interval).
+:meth:`lose_fix` (a fix-lost interval). Of the fault API's chip kinds it models ``reset``
+(the factory configuration) and ``frozen`` (a hung navigation engine: each epoch repeats the
+last solution with its own time).
 """
 
 from __future__ import annotations
@@ -104,6 +106,9 @@ class GnssEmulator(ChipEmulator):
         """Epochs' output and answers dropped because the transmit buffer was full."""
         self._corrupt = 0
         self._cut = False
+        self._solution: tuple[float, float, float, np.ndarray] | None = None
+        """The last navigation solution computed (latitude, longitude, MSL height, NED
+        velocity): what a hung navigation engine (``frozen``) keeps sending."""
 
     # -- settings -----------------------------------------------------------------------
 
@@ -293,13 +298,7 @@ class GnssEmulator(ChipEmulator):
         truth = self._truth_at(te_ns)
         fix = truth is not None and self._has_fix(t_s)
         utc = m.utc_start + timedelta(microseconds=round(te_ns / 1000))
-        lat = lon = h_msl = 0.0
-        vel = np.zeros(3)
-        if truth is not None:
-            pos, vel_true = truth
-            err = self._position_error(te_ns)
-            lat, lon, h_msl = self._geodetic(pos + err)
-            vel = vel_true + self._rng.normal(0.0, m.speed_accuracy_m_s, 3)
+        lat, lon, h_msl, vel = self._navigate(te_ns, truth)
         course, speed = nmea.course_and_speed((float(vel[0]), float(vel[1]), float(vel[2])))
         out = bytearray()
         sats = m.satellites if fix else 0
@@ -333,6 +332,24 @@ class GnssEmulator(ChipEmulator):
                 frame = frame[:len(frame) // 2]
             out += frame
         return bytes(out)
+
+    def _navigate(self, te_ns: int, truth: tuple[np.ndarray, np.ndarray] | None
+                  ) -> tuple[float, float, float, np.ndarray]:
+        """The epoch's solution (latitude, longitude, MSL height, NED velocity) from the
+        truth through the error model; zeros without a truth."""
+        if self.frozen and self._solution is not None:
+            # Fault ``frozen``: the navigation engine hangs and the receiver keeps sending
+            # its last solution with each epoch's time, as a register chip whose conversion
+            # hung keeps its last words (the receiver's clock and its output run on).
+            return self._solution
+        if truth is None:
+            return 0.0, 0.0, 0.0, np.zeros(3)
+        pos, vel_true = truth
+        err = self._position_error(te_ns)
+        lat, lon, h_msl = self._geodetic(pos + err)
+        vel = vel_true + self._rng.normal(0.0, self.model.speed_accuracy_m_s, 3)
+        self._solution = (lat, lon, h_msl, vel)
+        return self._solution
 
     def _faulty(self, data: bytes) -> bytes:
         if not self._corrupt:

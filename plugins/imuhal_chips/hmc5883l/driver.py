@@ -118,6 +118,14 @@ NOISE_FLOOR_GAUSS = 0.002
 MODE_AND_DATA = DATA_LAST - Reg.MODE + 1
 """One read from the Mode register through the last data byte: every field comes with the
 mode the chip measured it in (see the module docstring)."""
+MAGNITUDE_STEP = 0.1
+"""read: auto: a copy whose field magnitude differs from the field before it by more than
+this fraction has the configuration read back before it is handed out. A reset chip's one
+measurement at the power-on gain (1090 LSB/Ga) reads the field scaled by 1090 over the
+configured gain: at least 20 % off for every other range (1370: 0.80; 820: 1.33). A
+rotation keeps the magnitude, and a hard iron |h| changes it by at most |h| times the angle
+turned in one field period, so an honest 10 % step needs a violent turn near strong iron,
+and costs only the read-back."""
 REPEAT_ODDS = 1e-12
 """How rarely a healthy chip's six data bytes may stay the same for ``unchanged_periods``
 output periods (about once in 400 years of 75 Hz output)."""
@@ -375,7 +383,8 @@ class Hmc5883lDriver(Driver):
             else SampleFlag.OK
         changes = self._feed.take()
         if changes:
-            after_reset = self._reset_behind_blank(changes, now_ns)
+            after_reset = self._reset_behind_blank(changes, now_ns) or \
+                self._reset_behind_jump(changes, now_ns)
             if after_reset is not None:
                 return after_reset
             samples, blank = self._measurements(changes, now_ns, late=self._retrying)
@@ -401,6 +410,33 @@ class Hmc5883lDriver(Driver):
                                mag_ut=NAN3, flags=frozen or SampleFlag.STALE)
         return self._no_measurement(sample, now_ns)
 
+    def _reset_behind_jump(self, changes: list[Copy], now_ns: int) -> PollResult | None:
+        """A copy whose field magnitude jumped (MAGNITUDE_STEP) from the one before it: a
+        reset chip's measurement at its power-on gain when the master's reads missed the
+        zeros before it (they failed for the whole measurement time, about 6 ms). Checked
+        like ``_reset_behind_blank``: off the plan, the copies before it are handed out,
+        it is STALE and the chip reconfigured; on the plan it is a field like any other.
+        None: nothing to do."""
+        previous = self._emitted
+        for k, copy in enumerate(changes):
+            if previous is not None and not blank_flag(previous) and \
+                    not blank_flag(copy.data) and \
+                    abs(_norm(copy.data) - _norm(previous)) > MAGNITUDE_STEP * _norm(previous):
+                return self._reset_at(changes, k, now_ns)
+            previous = copy.data
+        return None
+
+    def _reset_at(self, changes: list[Copy], k: int, now_ns: int) -> PollResult | None:
+        """When the configuration reads back off the plan: the copies before ``changes[k]``
+        handed out, a STALE sample for the reset chip's measurement, and the chip
+        reconfigured; None when it reads back as written."""
+        if not self._off_plan():
+            return None
+        samples, _ = self._measurements(changes[:k], now_ns, late=True)
+        samples.append(MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
+                                 mag_ut=NAN3, flags=SampleFlag.STALE))
+        return PollResult(samples, self.restart(reset_detected=True))
+
     def _reset_behind_blank(self, changes: list[Copy], now_ns: int) -> PollResult | None:
         """A copy of all-zero bytes followed by a measurement in one poll's copies: the
         HMC5883L's data registers read 0 after power-on (datasheet tables 13-15) and a reset
@@ -412,12 +448,9 @@ class Hmc5883lDriver(Driver):
         ``_no_measurement``; zeros from a master reset (the MAX21100 clears its copy) find
         the HMC5883L as configured, and the copies go on as usual. None: nothing to do."""
         last = max((k for k, copy in enumerate(changes) if not any(copy.data)), default=None)
-        if last is None or last == len(changes) - 1 or not self._off_plan():
+        if last is None or last == len(changes) - 1:
             return None
-        samples, _ = self._measurements(changes[:last], now_ns, late=True)
-        samples.append(MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
-                                 mag_ut=NAN3, flags=SampleFlag.STALE))
-        return PollResult(samples, self.restart(reset_detected=True))
+        return self._reset_at(changes, last, now_ns)
 
     def _measurements(self, changes: list[Copy], now_ns: int, *,
                       late: bool) -> tuple[list[Sample], Sample | None]:
@@ -555,6 +588,11 @@ class Hmc5883lDriver(Driver):
         else:
             self._locked_ns = self.clock.now_ns()
         return wrong is not None
+
+
+def _norm(data: bytes) -> float:
+    """The magnitude of six data bytes' field, in counts."""
+    return math.hypot(*decode.data_counts_xyz(data))
 
 
 def _partly_unanswered(found: bytes) -> bool:

@@ -40,7 +40,7 @@ from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError
 from imuhal.core.samples import Quantity
-from imuhal.emulation import ChipEmulator, HangsBetweenTransfers, PhysicalInputs
+from imuhal.emulation import ChipEmulator, HangsBetweenTransfers, PhysicalInputs, PlannedInputs
 from imuhal_chips.hmc5883l.error_spec import HMC5883L_ERROR_SPEC
 from imuhal_chips.hmc5883l.registers import (
     CRA_RATE_SHIFT,
@@ -146,6 +146,11 @@ class Hmc5883lEmulator(HangsBetweenTransfers, ChipEmulator):
             self._advance()  # measurements due before the change use the old field
         super().set_physics(inputs)
 
+    def set_planned(self, planned: PlannedInputs, index: int) -> None:
+        """Row ``index`` of the board's plan, kept with the plan (``keep_planned``): a
+        measurement reads the row's field alone."""
+        self.keep_planned(planned, index)
+
     @property
     def oscillator_error(self) -> float:
         """The internal oscillator's frequency error as a fraction (0.02: 2 % fast, each
@@ -183,7 +188,12 @@ class Hmc5883lEmulator(HangsBetweenTransfers, ChipEmulator):
         return _COUNT_LIMIT * self.resolution(channel)
 
     def _measure(self) -> None:
-        field = self.physics.magnetic_field_ut or (0.0, 0.0, 0.0)
+        planned = self.planned
+        if planned is not None:  # the row's field, as its PhysicalInputs would hold it
+            plan, row = planned
+            field = plan.magnetic_field_ut[row].tolist()
+        else:
+            field = self.physics.magnetic_field_ut or (0.0, 0.0, 0.0)
         gain = self._gain
         x, y, z = (_axis_counts(b, gain) for b in field)
         self._gain = self._gain_next  # a gain change takes effect one measurement late
@@ -275,6 +285,20 @@ class Hmc5883lEmulator(HangsBetweenTransfers, ChipEmulator):
             self.pointer = POINTER_WRAP_TO if self.pointer == DATA_LAST else (
                 (self.pointer + 1) & 0xFF)
         return bytes(out)
+
+    def idle_answer(self, kind: BusKind, write: bytes, read_len: int) -> bytes | None:
+        """The whole data block read from X MSB (a bus master's auto-read) changes nothing
+        when the pointer already wraps there, nothing is locked or pending and no
+        measurement falls due by now: :meth:`bus_transfer`'s path for it would leave every
+        register, the pointer and the schedule as they are."""
+        if (kind is not BusKind.I2C or read_len != _DATA_BYTES or len(write) != 1
+                or write[0] != DATA_FIRST or self.pointer != POINTER_WRAP_TO or self.locked
+                or self._read_mask or self._pending is not None):
+            return None
+        due = self._next_ns
+        if due is not None and self.now_ns() >= due:
+            return None
+        return bytes(self.data)
 
     def _read(self, reg: int) -> int:
         if reg in _DATA:

@@ -146,6 +146,8 @@ class Max2110xDriver(Driver):
         self._power_on_ns = 0
         self._fast: Quantity = Quantity.GYRO
         self._searching = False
+        self._asked_ns: int | None = None
+        """The poll time the grid last asked for (a later poll's overrun is its own)."""
         self._last_temp_ns: int | None = None
         self._grid = PollGrid(1, early_fraction=EARLY_FRACTION)
         self._ready = DataReady({})
@@ -353,6 +355,7 @@ class Max2110xDriver(Driver):
         # the poll grid sits a guard after those instants.
         self._grid.anchor(self._power_on_ns + self._grid.guard_ns)
         self._searching = False
+        self._asked_ns = None
         self._ready.start(now_ns)
         self._last_temp_ns = None
         self._watch.start(now_ns)
@@ -437,15 +440,23 @@ class Max2110xDriver(Driver):
     def _next_poll_ns(self, now_ns: int, fast_ready: bool, overrun: bool) -> int:
         """Keeps the polls phase-locked just after the fastest channel's measurements: an
         overrun moves the grid half a period earlier, data found after a search re-anchors
-        it, no data retries a guard later."""
-        if fast_ready and overrun:
+        it, no data retries a guard later. An overrun found by a poll that came more than a
+        guard after the time it asked for (a host stall, a poll put off) is that poll's
+        lateness, not a grid behind the chip: re-anchored half a period earlier, the grid
+        sat mid-period, and a put-off poll kept it there, so the frame ledger's count
+        across it rounded to a frame too many (the fault matrix's ``jitter``)."""
+        asked_ns, self._asked_ns = self._asked_ns, None
+        late = asked_ns is not None and now_ns - asked_ns > self._grid.guard_ns
+        if fast_ready and overrun and not late:
             self._grid.anchor(now_ns - self._grid.period_ns // 2)
         elif fast_ready and self._searching:
             self._grid.locate(now_ns)
         self._searching = not fast_ready
         if not fast_ready:
-            return now_ns + self._grid.guard_ns
-        return self._grid.next_after(now_ns)
+            self._asked_ns = now_ns + self._grid.guard_ns
+            return self._asked_ns
+        self._asked_ns = self._grid.next_after(now_ns)
+        return self._asked_ns
 
     # --- read: fifo -------------------------------------------------------------------------
 
@@ -615,6 +626,11 @@ class Max2110xDriver(Driver):
             return []
         self._count_overflow()
         return self._frame_samples(self._fifo.drain())
+
+    @property
+    def polls_after_instants(self) -> bool:
+        """Polled, its grid searches the chip's instants (EARLY_FRACTION)."""
+        return self._fifo is None
 
     def accounted_stream(self) -> tuple[Quantity, int] | None:
         """The faster of gyro and accelerometer, one frame per its output period."""

@@ -72,7 +72,7 @@ from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError, NackError
 from imuhal.core.samples import Quantity
-from imuhal.emulation import ChipEmulator, EmulatedBus, PhysicalInputs
+from imuhal.emulation import ChipEmulator, EmulatedBus, PhysicalInputs, PlannedInputs
 from imuhal_chips.max2110x import emulator_int as intp
 from imuhal_chips.max2110x.emulator_fifo import MAX21100_FIFO, MAX21105_FIFO, FifoMap, Max2110xFifo
 from imuhal_chips.max2110x.error_spec import MAX21100_ERROR_SPEC, MAX21105_ERROR_SPEC
@@ -145,6 +145,9 @@ _DATA_FIRST = int(Reg.GYRO_X_H)
 """The data words run from here to the end of the common area (0x3F)."""
 _WORDS_BE = struct.Struct(f">{(0x40 - _DATA_FIRST) // 2}H")
 _WORDS_LE = struct.Struct(f"<{(0x40 - _DATA_FIRST) // 2}H")
+_AXES_BE, _AXES_LE = struct.Struct(">3H"), struct.Struct("<3H")
+"""One channel's three words, as ``_WORDS_BE`` / ``_WORDS_LE`` lay each out."""
+_WORD_BE, _WORD_LE = struct.Struct(">H"), struct.Struct("<H")
 
 # The bus face runs for every SPI transaction, about 2600 per simulated second on the seed
 # board (each aux byte is five of them); an IntEnum member lookup costs as much as the rest
@@ -191,6 +194,21 @@ def _encode(value: float, per_count: float, limit: int) -> int:
     return max(-limit, min(limit, round(value / per_count)))
 
 
+def _encode_rows(values: np.ndarray, per_count: float, limit: int) -> list | None:
+    """:func:`_encode` of every element of ``values`` (as nested lists of ints), by the same
+    operations: the quotient rounded half to even (``np.rint``, as ``round``) and clipped,
+    a value that is not finite at the limit of its sign (NaN at the negative one). None
+    where a finite value's quotient is not (``round`` would raise): left to ``_encode``."""
+    with np.errstate(all="ignore"):
+        quotient = values / per_count
+        finite = np.isfinite(values)
+        if not np.isfinite(quotient[finite]).all():
+            return None
+        counts = np.where(finite, np.clip(np.rint(quotient), -limit, limit),
+                          np.where(values > 0, limit, -limit))
+    return counts.astype(np.int64).tolist()
+
+
 class Max2110xEmulator(ChipEmulator):
     """Family base; subclasses set ``chip``, ``part`` and their rate tables."""
 
@@ -213,6 +231,10 @@ class Max2110xEmulator(ChipEmulator):
         self.stuck_data_ready = False
         self._oscillator_error = 0.0
         self.power_on_resets = 0
+        self._plan_counts: list[tuple[PlannedInputs, float, list | None] | None] = [None, None]
+        """Per channel: (plan, SI per count, every row's counts) of the latest plan encoded."""
+        self._plan_temperature: tuple[PlannedInputs, list | None] | None = None
+        """(plan, every row's temperature counts) likewise."""
         self.power_on_reset()
 
     # --- state ----------------------------------------------------------------------------
@@ -227,8 +249,10 @@ class Max2110xEmulator(ChipEmulator):
         self._i2c_pointer = 0
         """Register (and no-increment bit) an I2C read without a register byte starts at."""
         self.words: dict[int, int] = {}  # high-byte address -> int16 value
-        self._data_image: bytes | None = None
-        """Registers 0x24..0x3F as the bus reads them (None: to be rebuilt from ``words``)."""
+        self._data_image: bytearray | None = None
+        """Registers 0x24..0x3F as the bus reads them, kept up to date in place as words
+        latch (``_store_axes``); None: to be rebuilt from ``words`` (after a change of the
+        byte order)."""
         # Per channel (_GYRO, _ACCEL): registers read since the latch, next measurement,
         # measurement period and SI units per count; the last two follow the configuration
         # registers, which change only through _restart_timing.
@@ -261,6 +285,33 @@ class Max2110xEmulator(ChipEmulator):
         if self.physics_source is None:
             self._advance()  # measurements due before the change use the old values
         super().set_physics(inputs)
+
+    def set_planned(self, planned: PlannedInputs, index: int) -> None:
+        """Row ``index`` of the board's plan, kept with the plan (``keep_planned``): a latch
+        takes the row's counts, encoded for the whole plan at once (``_encode_rows``: the
+        counts ``_encode`` gives the row's values)."""
+        self.keep_planned(planned, index)
+
+    def _planned_counts(self, plan: PlannedInputs, row: int, index: int) -> list[int] | None:
+        """The counts channel ``index`` latches from row ``row`` of ``plan`` (None: the
+        plan's values do not all encode; the row's inputs are encoded one by one)."""
+        k = self._per_count[index]
+        cached = self._plan_counts[index]
+        if cached is None or cached[0] is not plan or cached[1] != k:
+            values = plan.angular_rate_rad_s if index == _GYRO else plan.specific_force_m_s2
+            cached = self._plan_counts[index] = (
+                plan, k, _encode_rows(values, k, _COUNTS_AT_FULL_SCALE))
+        counts = cached[2]
+        return None if counts is None else counts[row]
+
+    def _planned_temperature(self, plan: PlannedInputs, row: int) -> int | None:
+        """The temperature word's counts from row ``row`` of ``plan``, as ``_planned_counts``."""
+        cached = self._plan_temperature
+        if cached is None or cached[0] is not plan:
+            cached = self._plan_temperature = (plan, _encode_rows(
+                plan.temperature_degc, 1.0 / _TEMP_LSB_PER_DEGC, 32767))
+        counts = cached[1]
+        return None if counts is None else counts[row]
 
     @property
     def oscillator_error(self) -> float:
@@ -311,30 +362,60 @@ class Max2110xEmulator(ChipEmulator):
         return _COUNTS_AT_FULL_SCALE * self.resolution(channel)
 
     def _latch(self, index: int) -> None:
-        p = self.physics
         bank0 = self.banks[0]
         gyro = index == _GYRO
         if gyro:
-            values, first, enable_reg = p.angular_rate_rad_s, _GYRO_X_H, _POWER_CFG
+            first, enable_reg = _GYRO_X_H, _POWER_CFG
             dr, err = Status.GYRO_DR, Status.GYRO_ERR
         else:
-            values, first, enable_reg = p.specific_force_m_s2, _ACC_X_H, _PWR_ACC_CFG
+            first, enable_reg = _ACC_X_H, _PWR_ACC_CFG
             dr, err = Status.ACC_DR, Status.ACC_ERR
-        values = values or (0.0, 0.0, 0.0)
-        k = self._per_count[index]
+        planned = self.planned
+        counts = None if planned is None else self._planned_counts(*planned, index)
+        if counts is None:
+            p = self.physics
+            values = (p.angular_rate_rad_s if gyro else p.specific_force_m_s2) or (
+                0.0, 0.0, 0.0)
+            k = self._per_count[index]
+            x, y, z = (_encode(v, k, _COUNTS_AT_FULL_SCALE) for v in values)
+        else:
+            x, y, z = counts
         enabled = bank0[enable_reg] & 0x07 if self.part.has_aux_master else 0x07
-        words = self.words
-        for axis in range(3):
-            counts = _encode(values[axis], k, _COUNTS_AT_FULL_SCALE)
-            words[first + 2 * axis] = counts if enabled & (1 << axis) else 0
+        if enabled != 0x07:
+            x, y, z = (c if enabled & (1 << axis) else 0 for axis, c in enumerate((x, y, z)))
+        self._store_axes(first, x, y, z)
         if gyro and bank0[_DR_CFG] & DR_CFG_TEMP_EN:
-            t = p.temperature_degc if p.temperature_degc is not None else 25.0
-            words[self.part.temp_register] = _encode(t, 1.0 / _TEMP_LSB_PER_DEGC, 32767)
+            temperature = None if planned is None else self._planned_temperature(*planned)
+            if temperature is None:
+                p = self.physics
+                t = p.temperature_degc if p.temperature_degc is not None else 25.0
+                temperature = _encode(t, 1.0 / _TEMP_LSB_PER_DEGC, 32767)
+            self._store_word(self.part.temp_register, temperature)
         if self.status & dr:
             self.status |= err  # the previous sample was never read: it is lost
         self.status |= dr
         self._read_since_latch[index] = set()
-        self._data_image = None
+
+    def _store_axes(self, first: int, x: int, y: int, z: int) -> None:
+        """Three data words from register ``first`` on (int16 values), in ``words`` and
+        in the register image as the bus reads them (each latch writes its bytes in place:
+        rebuilding the image at the next read cost more than the latch)."""
+        words = self.words
+        words[first] = x
+        words[first + 2] = y
+        words[first + 4] = z
+        image = self._data_image
+        if image is not None:
+            layout = _AXES_LE if self.banks[0][_I2C_CFG] & I2C_CFG_LITTLE_ENDIAN else _AXES_BE
+            layout.pack_into(image, first - _DATA_FIRST, x & 0xFFFF, y & 0xFFFF, z & 0xFFFF)
+
+    def _store_word(self, high: int, value: int) -> None:
+        """One data word (an int16 value), as :meth:`_store_axes`."""
+        self.words[high] = value
+        image = self._data_image
+        if image is not None:
+            layout = _WORD_LE if self.banks[0][_I2C_CFG] & I2C_CFG_LITTLE_ENDIAN else _WORD_BE
+            layout.pack_into(image, high - _DATA_FIRST, value & 0xFFFF)
 
     # --- timing ---------------------------------------------------------------------------
 
@@ -533,6 +614,12 @@ class Max2110xEmulator(ChipEmulator):
         """Write one frame of the stored channels' latest words (gyro, then accel) to the
         FIFO, big-endian."""
         gyro, accel = self.fifo.storing
+        image = self._data_image
+        if gyro and accel and image is not None and not (
+                self.banks[0][_I2C_CFG] & I2C_CFG_LITTLE_ENDIAN):
+            # gyro then accel words, big-endian: the image's first twelve bytes as they stand
+            self.fifo.push(bytes(image[:12]))
+            return
         firsts = ((_GYRO_X_H,) if gyro else ()) + ((_ACC_X_H,) if accel else ())
         words = self.words
         values = [words.get(first + 2 * axis, 0) for first in firsts for axis in range(3)]
@@ -627,13 +714,24 @@ class Max2110xEmulator(ChipEmulator):
         if read_len <= 1 or not step:
             touched = (reg,) if read_len else ()
             if reg == _FIFO_DATA:
-                out = bytes(self._read(reg) for _ in range(read_len))  # each byte pops one
+                out = self.fifo.pop_many(read_len)  # each byte pops one
             else:
                 out = bytes((self._read(reg),)) * read_len
         elif reg + read_len > _FIFO_COUNT:
             # the FIFO's registers have side effects: byte by byte, the pointer wrapping
             touched = [(reg + k) & ADDRESS_MASK for k in range(read_len)]
             out = bytes(self._read(r) for r in touched)
+        elif reg >= _SYSTEM_STATUS:
+            # status and data words only (every poll's burst): from the data image, which
+            # the latches keep up to date, without the banked registers before them
+            touched = range(reg, reg + read_len)
+            data = self._data_image
+            if data is None:
+                data = self._data_image = self._data_bytes()
+            if reg == _SYSTEM_STATUS:
+                out = bytes((self.status,)) + data[:read_len - 1]
+            else:
+                out = bytes(data[reg - _DATA_FIRST:reg - _DATA_FIRST + read_len])
         elif reg + read_len <= ADDRESS_MASK + 1:
             touched = range(reg, reg + read_len)
             out = self._image()[reg:reg + read_len]
@@ -661,7 +759,7 @@ class Max2110xEmulator(ChipEmulator):
             data = self._data_image = self._data_bytes()
         return low + bytes((self.who_am_i, self.part.revision, bank & 0x0F, self.status)) + data
 
-    def _data_bytes(self) -> bytes:
+    def _data_bytes(self) -> bytearray:
         """Registers 0x24..0x3F as ``_read`` gives them: each word in the configured byte
         order, a word never latched reads 0 (up to the temperature word: 0 too), the FIFO
         and unmodelled registers beyond it read 0."""
@@ -669,7 +767,7 @@ class Max2110xEmulator(ChipEmulator):
         values = [(words.get(high, 0) & 0xFFFF) if high in words or high < limit else 0
                   for high in range(_DATA_FIRST, 0x40, 2)]
         little = self.banks[0][_I2C_CFG] & I2C_CFG_LITTLE_ENDIAN
-        return (_WORDS_LE if little else _WORDS_BE).pack(*values)
+        return bytearray((_WORDS_LE if little else _WORDS_BE).pack(*values))
 
     def _read(self, reg: int) -> int:
         if reg < 0x20:
@@ -705,13 +803,20 @@ class Max2110xEmulator(ChipEmulator):
             if mode == 2:
                 self.status &= ~_DR_BITS
             self.status &= ~_ERR_BITS
+        if not self.status & _DR_BITS:
+            return
+        span = touched if type(touched) is range else None
         for index, regs, dr in _DATA_READY:
             if not self.status & dr:
                 # Nothing to clear, and what was read since the latch no longer matters:
                 # the bit comes back only with the next latch, which forgets it.
                 continue
             seen = self._read_since_latch[index]
-            seen.update(regs.intersection(touched))
+            if span is not None:  # a burst: the channel's registers it covers, by bounds
+                first = _GYRO_X_H if index == _GYRO else _ACC_X_H
+                seen.update(range(max(span.start, first), min(span.stop, first + 6)))
+            else:
+                seen.update(regs.intersection(touched))
             if (mode == 0 and len(seen) == 6) or (mode == 1 and seen):
                 self.status &= ~dr
 
@@ -792,6 +897,9 @@ class Max21100Emulator(Max2110xEmulator):
         """Accelerometer measurements since power-on: the auto-read follows every 2^code-th."""
         self._slave_block = bytes(MAG_DATA_BYTES)
         """The slave's bytes as last read (slave register order), before swap and map."""
+        self._slave_stored: tuple[bytes, int, int] | None = None
+        """(bytes, MAG_SLV_CFG swap bit, MAG_MAP_REG) that MAG X/Y/Z were last stored from:
+        a copy of the same bytes with the same settings stores the same words."""
 
     def child_buses(self) -> dict[str, EmulatedBus]:
         return {"aux": self._aux}
@@ -832,20 +940,22 @@ class Max21100Emulator(Max2110xEmulator):
         block = data[:kept] + self._slave_block[kept:]
         self._slave_block = block
         swap = cfg & MAG_SLV_CFG_SWAP
+        mapping = bank0[_MAG_MAP_REG]
+        stored = (block, swap, mapping)
+        if stored == self._slave_stored:
+            return  # the same bytes and settings: MAG X/Y/Z hold these words already
+        self._slave_stored = stored
         slave_words = []
         for i in (0, 2, 4):
             high, low = (block[i + 1], block[i]) if swap else (block[i], block[i + 1])
             word = high << 8 | low
             slave_words.append(word - 0x10000 if word & 0x8000 else word)
-        mapping = bank0[_MAG_MAP_REG]
         order = _MAG_CHANNEL_ORDER[(mapping >> MAG_MAP_SHIFT) & 0x07]
         invert = mapping & MAG_MAP_INVERT_MASK
-        words = self.words
-        for axis in range(3):
-            value = slave_words[order[axis]]
-            # two's complement negation in 16 bits (-(-32768) reads -32768 again)
-            words[_MAG_X_H + 2 * axis] = -value if invert >> axis & 1 else value
-        self._data_image = None
+        # two's complement negation in 16 bits (-(-32768) reads -32768 again)
+        x, y, z = (-value if invert >> axis & 1 else value
+                   for axis, value in enumerate(slave_words[o] for o in order))
+        self._store_axes(_MAG_X_H, x, y, z)
 
     def _oneshot(self, *, write: bool) -> None:
         """Carry out a one-shot byte transaction on the aux bus (result after 100 us)."""

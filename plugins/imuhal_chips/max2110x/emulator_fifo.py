@@ -48,7 +48,6 @@ Both parts, as modelled:
 
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass
 from typing import Final
 
@@ -107,7 +106,8 @@ class Max2110xFifo:
 
     def __init__(self, fifo_map: FifoMap) -> None:
         self.map = fifo_map
-        self._bytes: deque[int] = deque()
+        self._bytes = bytearray()
+        """The stored bytes, oldest first (at most the depth: 128 or 256 bytes)."""
         self.threshold_words = 0
         self.cfg = 0
         self.store = 0
@@ -159,8 +159,7 @@ class Max2110xFifo:
             self._sticky |= STATUS_DATA_LOST
             if not self.cfg & self.map.overrun:
                 return
-            for _ in range(min(len(frame), len(self._bytes))):
-                self._bytes.popleft()
+            del self._bytes[:len(frame)]
         self._bytes.extend(frame)
         self.frames_written += 1
 
@@ -169,7 +168,19 @@ class Max2110xFifo:
             if self.cfg & self.map.mode_mask:  # a FIFO turned off has no read to flag
                 self._sticky |= STATUS_READ_EMPTY
             return EMPTY_READ
-        return self._bytes.popleft()
+        value = self._bytes[0]
+        del self._bytes[0]
+        return value
+
+    def pop_many(self, count: int) -> bytes:
+        """``count`` bytes popped one after another (:meth:`pop` each): what the FIFO
+        holds, then the empty read's byte for each beyond it."""
+        stored = self._bytes
+        taken = bytes(stored[:count])
+        del stored[:count]
+        if len(taken) < count:
+            return taken + bytes((self.pop(),)) * (count - len(taken))
+        return taken
 
     def status(self, frame_words: int) -> int:
         """FIFO_STATUS as read now; the read clears data_lost and read_empty."""

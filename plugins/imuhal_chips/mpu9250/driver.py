@@ -83,6 +83,16 @@ from imuhal_chips.mpu9250.registers import TEMP_LSB_PER_DEGC, TEMP_OFFSET_DEGC
 
 _SATURATED, _OK = SampleFlag.SATURATED, SampleFlag.OK
 
+EARLY_FRACTION = 64
+"""Polled reads: the poll grid steps 1/64 period short of the period until it has learnt the
+chip's own (``PollGrid(track=True)``), so it creeps up on the chip's instants from the early
+side, and a poll that finds no RAW_DATA_RDY retries a guard (an eighth of a period) later:
+the polls sit within a guard after the chip's instants. Anchored at whichever poll last found
+data, they could sit anywhere up to a period after them (3.3 ms after a 5 ms sample on the
+gy91, 4.6 ms after a stuck data-ready), so a poll late by far less than half a period read
+the next sample, stamped as though it were the one due, and the frame ledger's count from
+the stamps was off by one (the fault matrix's ``jitter``, issue 25)."""
+
 KNOWN_IDS: dict[int, str] = {
     0x70: "WHO_AM_I 0x70 is an MPU-6500 (accel+gyro only, no magnetometer): the board is "
           "not a genuine MPU-9250/GY-91, or use an mpu6500 driver",
@@ -229,7 +239,10 @@ class MPU9250Driver(Driver):
                       else None)
         self.plan = self._checked(self._register_plan())
         self._burst_length = r.DATA_BURST_LENGTH
-        self._grid = PollGrid(self._period_ns)
+        self._grid = PollGrid(self._period_ns, early_fraction=EARLY_FRACTION, track=True)
+        self._search_ns: int | None = None
+        """The retry asked for after a poll that found no new sample: new data at it (not a
+        late poll) locates the chip's instant."""
         self._ready = DataReady({Quantity.GYRO: self._period_ns})
         self._watch = ResetWatch(s.reset_check_s)
         self._frozen = FrozenWatch(self.FROZEN_AFTER_FRAMES)
@@ -359,7 +372,8 @@ class MPU9250Driver(Driver):
         self._gyro = _range_of(r.GYRO_RANGES, got[r.GYRO_CONFIG])
         self._accel = _range_of(r.ACCEL_RANGES, got[r.ACCEL_CONFIG])
         self._period_ns = self._streams[0].period_ns
-        self._grid = PollGrid(self._period_ns)
+        self._grid = PollGrid(self._period_ns, early_fraction=EARLY_FRACTION, track=True)
+        self._search_ns = None
         self._ready = DataReady({Quantity.GYRO: self._period_ns})
 
     _CONFIG_REGISTERS = (r.SMPLRT_DIV, r.CONFIG, r.GYRO_CONFIG, r.ACCEL_CONFIG)
@@ -408,7 +422,8 @@ class MPU9250Driver(Driver):
         now_ns = max(now_ns, self.clock.now_ns())
         self._ready.start(now_ns)
         self._watch.start(now_ns)
-        self._grid.anchor(now_ns)
+        # the first poll a whole period on (the early steps begin with the second)
+        self._grid.anchor(now_ns + self._period_ns // EARLY_FRACTION)
         if self._fifo is not None:
             self._fifo.reset(self.plan[r.USER_CTRL])
             return self._fifo.next_read_ns(now_ns, self._fifo_interval_ns())
@@ -416,6 +431,11 @@ class MPU9250Driver(Driver):
 
     def _fifo_interval_ns(self) -> int:
         return self.settings.fifo_frames * self._period_ns
+
+    @property
+    def polls_after_instants(self) -> bool:
+        """Polled, its grid searches the chip's instants (EARLY_FRACTION)."""
+        return self._fifo is None
 
     def accounted_stream(self) -> tuple[Quantity, int] | None:
         """Gyro frames (accel and temperature come in the same frame), one per sample
@@ -474,11 +494,17 @@ class MPU9250Driver(Driver):
                 self._slv0_nack = False
             self._ready.fresh(Quantity.GYRO, now_ns)
             self._watch.fresh_poll()
-            # Phase-lock on the chip: the next poll one period after data appeared.
-            self._grid.anchor(now_ns)
+            if self._search_ns is not None and now_ns - self._search_ns < self._grid.guard_ns:
+                # new data appeared within a guard before now (EARLY_FRACTION): the chip's instant
+                self._grid.locate(now_ns)
+            self._search_ns = None
             return PollResult(self._samples(data, now_ns), self._grid.next_after(now_ns))
         if not ready and not overdue:
-            return PollResult([], now_ns + max(self._period_ns // 10, 50_000))
+            if bad:  # a blank read: the grid keeps the chip's phase for when data come back
+                self._search_ns = None
+                return PollResult([], self._grid.next_after(now_ns))
+            self._search_ns = now_ns + self._grid.guard_ns
+            return PollResult([], self._search_ns)
         return self._no_sample(now_ns, bad if ready else SampleFlag.STALE | bad,
                                self._grid.next_after(now_ns))
 
@@ -521,12 +547,25 @@ class MPU9250Driver(Driver):
         samples: list[Sample] = []
         for frame, t_ns in zip(got.frames, got.stamps_ns, strict=True):
             samples += self._fifo_frame(frame, t_ns, next_ns)
+        if not got.held:
+            self._slv0_nack = False  # every frame the NACK can be about has gone out
         return self._fifo_result(samples, got, now_ns, next_ns, overdue)
 
     def _read_fifo(self, now_ns: int) -> tuple[FifoRead, int, int]:
         """One FIFO read (an overflow counted), the time after it and the next read's."""
         assert self._fifo is not None
-        status = self.regs.read_u8(r.INT_STATUS)  # read-to-clear: FIFO_OFLOW_INT
+        if self._feed is None:
+            status = self.regs.read_u8(r.INT_STATUS)  # read-to-clear: FIFO_OFLOW_INT
+        else:
+            # from I2C_MST_STATUS (read-to-clear: SLV0_NACK since the last read) in the same
+            # transaction: a failed slave read among the frames read next
+            head = self.regs.read(r.I2C_MST_STATUS, r.INT_STATUS - r.I2C_MST_STATUS + 1)
+            status = head[-1]
+            aux = self._aux_bus
+            if head[0] & r.MST_SLV0_NACK or (isinstance(aux, MasterAuxBus) and aux.slv0_nack):
+                if isinstance(aux, MasterAuxBus):
+                    aux.slv0_nack = False
+                self._slv0_nack = True
         got = self._fifo.read(self.plan[r.USER_CTRL],
                               overflowed=bool(status & r.INT_FIFO_OFLOW))
         if got.reset:
@@ -570,8 +609,10 @@ class MPU9250Driver(Driver):
                              result.next_poll_ns)
         for frame, t_ns in zip(got.frames, got.stamps_ns, strict=True):
             if self._feed is not None:
-                self._feed.deliver(t_ns, frame[FRAME_BYTES:])
+                self._feed.deliver(t_ns, frame[FRAME_BYTES:], nack_seen=self._slv0_nack)
             self._frozen.observe("frame", frame[:FRAME_BYTES])
+        if not got.held:
+            self._slv0_nack = False  # every frame the NACK can be about has gone out
         self._ready.fresh(Quantity.GYRO, now_ns)
         self._watch.fresh_poll()
         return BlockPoll(self._frame_blocks(b"".join(imu), got.stamps_ns), next_ns)
@@ -642,7 +683,7 @@ class MPU9250Driver(Driver):
         and converted."""
         imu = frame[:FRAME_BYTES]
         if self._feed is not None:
-            self._feed.deliver(t_ns, frame[FRAME_BYTES:])
+            self._feed.deliver(t_ns, frame[FRAME_BYTES:], nack_seen=self._slv0_nack)
         data = bytes(1) + imu  # as a 0x3A.. burst: INT_STATUS, then the frame
         bad = blank_flag(imu) or self._frozen_flag(imu)
         if bad:

@@ -143,11 +143,14 @@ class ManoeuvreDetector:
     Each statistic s gives 1 / (1 + (s / bound)^power), a sharp step (power 8: 0.996 at
     half the bound, 0.004 at twice it), so hand motion keeps full weight and the weights of
     its phases stay even (a soft weight that depends on the acceleration spoils the
-    averaging: docs/estimators.md); the product is the filter step's weight. Both
-    statistics need a few tenths of a second to see a manoeuvre, which the filter has
+    averaging: docs/estimators.md); the product is the filter step's weight. Its users
+    take it as a decision (a reading counts in full from one half up: the few per cent
+    under 1 near the bounds still weighted the hand's phases unevenly, BROAD trial 18).
+    Both statistics need a few tenths of a second to see a manoeuvre, which the filter has
     already partly absorbed by then: the decoupled kernel re-filters that stretch with the
-    new weight (``lookback_s``, core.py). At rest ``reset`` zeroes the velocity and the
-    window's mean (a zero-velocity update).
+    new weight, and filters it again in full if its velocity change comes back, as a
+    hand's stroke does (decoupled/lookback.py). At rest ``reset`` zeroes the velocity and
+    the window's mean (a zero-velocity update).
     """
 
     p: ManoeuvreParams

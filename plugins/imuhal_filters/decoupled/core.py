@@ -33,6 +33,9 @@ form. The attitude is the product of three parts, body -> NED::
   as it was before it: when the weight drops below one half, that stretch is filtered again
   with the new weight (delaying the filter's input instead, so the detector always looks
   ahead, costs hand-held motion: BROAD trial 15 6-DOF inclination 0.47 -> 0.76 deg at 0.5 s);
+  and when the velocity change of what it withheld comes back (a hand's stroke, which the
+  steadiness statistic can take for a push at first), it is all filtered again in full
+  (``lookback.py``);
 - in straight flight through turbulence (``turbulence.py``), which keeps a soft gate closed,
   the filtered accelerometer is also turned towards each reading at a capped rate
   (``turbulence_rate_rad_s``), so the gyro error of a manoeuvre is walked back as madgwick
@@ -42,13 +45,15 @@ form. The attitude is the product of three parts, body -> NED::
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass, field
 
+from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal_filters.common.gate import soft_gate_weight
 from imuhal_filters.common.innovation import InnovationSpeed, ManoeuvreDetector, ManoeuvreParams
 from imuhal_filters.common.quat import IDENTITY, Quat, Vec, multiply, to_global
 from imuhal_filters.decoupled.bias import BiasParams, GyroBiasKalman
+from imuhal_filters.decoupled.butterworth import ButterworthLowPass
+from imuhal_filters.decoupled.lookback import LookBack
 from imuhal_filters.decoupled.turbulence import StraightFlightDetector, TurbulenceParams
 
 
@@ -90,44 +95,6 @@ def _rotvec_quat(x: float, y: float, z: float) -> Quat:
 def _unit_quat(q: Quat) -> Quat:
     n = 1.0 / math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
     return (q[0] * n, q[1] * n, q[2] * n, q[3] * n)
-
-
-class ButterworthLowPass:
-    """The second-order Butterworth low-pass of cut-off sqrt(2) / (2 pi tau) on an n-vector
-    (VQF's choice: mean delay tau, 40 dB/decade above the cut-off, and about twice the
-    attenuation of two cascaded first-order stages of the same delay at hand motion's
-    0.5 Hz), simulated exactly for any step length with the input held over the step, so a
-    step may be shortened per sample (a step of zero holds the state). Starts at rest at its
-    first input."""
-
-    def __init__(self, tau_s: float) -> None:
-        # poles at sigma (-1 +- i): sigma = omega_c / sqrt(2) = 1 / tau
-        self.sigma = 1.0 / tau_s
-        self.state: list[float] | None = None
-        self._dt = -1.0
-        self._m = (1.0, 0.0, 0.0, 1.0)
-
-    def _matrix(self, dt: float) -> tuple[float, float, float, float]:
-        """(a, b, c, d): [z, z'] -> [a z + b z', c z + d z'] for the error z = y - u."""
-        if dt != self._dt:
-            s = self.sigma
-            e = math.exp(-s * dt)
-            c, si = math.cos(s * dt), math.sin(s * dt)
-            self._m = (e * (c + si), e * si / s, -2.0 * s * e * si, e * (c - si))
-            self._dt = dt
-        return self._m
-
-    def step(self, x: tuple[float, ...], dt: float) -> tuple[float, ...]:
-        st = self.state
-        n = len(x)
-        if st is None:
-            st = self.state = [*x, *([0.0] * n)]
-        a, b, c, d = self._matrix(dt)
-        for i in range(n):
-            z, zd = st[i] - x[i], st[n + i]
-            st[i] = x[i] + a * z + b * zd
-            st[n + i] = c * z + d * zd
-        return tuple(st[:n])
 
 
 def rotation_rows(q: Quat) -> tuple[float, ...]:
@@ -204,12 +171,10 @@ class DecoupledKernel:
             self.p.innovation_tau_s, self.p.innovation_speed_m_s, self.p.tau_acc_s)
         self.manoeuvre = None if self.p.manoeuvre is None else ManoeuvreDetector(
             self.p.manoeuvre)
-        # the last lookback_s of filter input (reading, step, weight it was given) and the
-        # filter as it was before them
-        self.lookback: deque[tuple[Vec, float, float]] = deque()
-        self.lookback_s = 0.0
-        self.lookback_filter = ButterworthLowPass(self.p.tau_acc_s)
-        self.last_weight = 1.0
+        m = self.p.manoeuvre
+        self.lookback = None if m is None else LookBack(
+            self.p.tau_acc_s, self.p.lookback_s, m.leak_s, m.speed_m_s,
+            m.floor_m_s2 * m.window_s)
         self.gyro_lp: Vec | None = None
         self.acc_lp: Vec | None = None
         self.rest_s = 0.0
@@ -290,29 +255,14 @@ class DecoupledKernel:
         e = (-corr[0] / dt + rb_lp[0] - hb[0], -corr[1] / dt + rb_lp[1] - hb[1], -hb[2])
         kf.motion_update(e, [list(h[0:3]), list(h[3:6]), list(h[6:9])], dt)
 
-    def _look_back(self, a: Vec, dt: float, weight: float) -> bool:
-        """Keep the last ``lookback_s`` of filter input; when the manoeuvre weight has just
-        dropped below one half, re-filter that stretch with it (the detector needed it to
-        decide; the filter had taken it nearly in full). Returns whether it did."""
-        buf = self.lookback
-        rewind = (weight < 0.5 <= self.last_weight and bool(buf)
-                  and self.lookback_filter.state is not None)
-        self.last_weight = weight
-        if rewind:
-            assert self.lookback_filter.state is not None
-            self._acc_filter.state = list(self.lookback_filter.state)
-            for i, (old_a, old_dt, _) in enumerate(buf):
-                self._acc_filter.step(old_a, old_dt * weight)
-                buf[i] = (old_a, old_dt, weight)
-            st = self._acc_filter.state
-            self.acc_i = (st[0], st[1], st[2])
-        buf.append((a, dt, weight))
-        self.lookback_s += dt
-        while self.lookback_s > self.p.lookback_s:
-            old_a, old_dt, old_weight = buf.popleft()
-            self.lookback_s -= old_dt
-            self.lookback_filter.step(old_a, old_dt * old_weight)
-        return rewind
+    def _innovation_m_s2(self, a: Vec) -> Vec:
+        """The reading ``a`` (g, almost-inertial frame) minus the filter's gravity (m/s^2;
+        zero before the filter has one)."""
+        f = self.acc_i
+        if f is None:
+            return (0.0, 0.0, 0.0)
+        g = STANDARD_GRAVITY_M_S2
+        return (g * (a[0] - f[0]), g * (a[1] - f[1]), g * (a[2] - f[2]))
 
     def _inclination_step(self, acc_g: Vec, dt: float) -> tuple[Vec, float]:
         """Low-pass the accelerometer in I, turn q_inc so it points up; returns the
@@ -328,12 +278,27 @@ class DecoupledKernel:
             if self.rest:
                 self.innovation.reset()
             weight *= self.innovation.weight(a, self.acc_i, dt)
-        if self.manoeuvre is not None:
+        if self.manoeuvre is not None and self.lookback is not None:
             if self.rest:
                 self.manoeuvre.reset()
-            weight *= self.manoeuvre.weight(a, self.acc_i, dt)
-            if self._look_back(a, dt, weight):
-                assert self.acc_i is not None
+            base = weight
+            innovation = self._innovation_m_s2(a)
+            # a decision, as vqf's preprocessing takes it: a hand's reading counts in full
+            # (the detector's weight just under 1 near its bounds would weight the hand's
+            # phases unevenly: BROAD trial 18 0.66 against 0.61 deg), a manoeuvre's by the
+            # detector's small weight
+            mw = self.manoeuvre.weight(a, self.acc_i, dt)
+            if mw < 0.5:
+                weight *= mw
+            drift = self.manoeuvre.drift_m_s2
+            weight, replaced = self.lookback.step(
+                self._acc_filter, a, dt, weight, base,
+                (innovation[0] - drift[0], innovation[1] - drift[1], innovation[2] - drift[2]),
+                self.rest)
+            if replaced:
+                st = self._acc_filter.state
+                assert st is not None
+                self.acc_i = (st[0], st[1], st[2])
                 self.q_inc, _ = inclination_correction(self.q_inc,
                                                        to_global(self.q_inc, self.acc_i))
         dt_filter = dt * weight

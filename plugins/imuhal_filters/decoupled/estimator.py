@@ -111,7 +111,9 @@ class DecoupledSettings(AhrsSettings):
     manoeuvre_lookback_s: float = Field(0.5, ge=0.0)
     """When the detector closes, the accelerometer filter is run again over this long (s)
     with the new weight: the stretch the detector needed to decide, which the filter had
-    taken nearly in full (`rc-flight` tilt max 8.0 deg without, 4.0 with)."""
+    taken nearly in full (`rc-flight` tilt max 8.0 deg without, 4.0 with). What it withheld
+    is filtered again in full when its velocity change comes back within the detector's
+    leak time (a hand's stroke; decoupled/lookback.py)."""
     tau_mag_s: float = Field(9.0, gt=0.0)
     """Heading correction time constant (s) (VQF's published default, 9 s)."""
     rest_gyro_th_deg_s: float = Field(2.0, gt=0.0)
@@ -232,9 +234,7 @@ class DecoupledEstimator(AhrsEstimator):
                 "innovation": None if k.innovation is None else k.innovation.as_list(),
                 "straight_flight": k.straight.as_list(),
                 "manoeuvre": None if k.manoeuvre is None else k.manoeuvre.as_list(),
-                "lookback": [[*a, dt, w] for a, dt, w in k.lookback],
-                "lookback_s": k.lookback_s, "lookback_filter": k.lookback_filter.state,
-                "last_weight": k.last_weight}
+                "lookback": None if k.lookback is None else k.lookback.as_dict()}
 
     def _set_filter_state(self, state: dict[str, Any]) -> None:
         k = self._kernel
@@ -261,17 +261,13 @@ class DecoupledEstimator(AhrsEstimator):
             self._load_manoeuvre(state)
 
     def _load_manoeuvre(self, state: dict[str, Any]) -> None:
-        """The manoeuvre detector and the look-back (absent before them)."""
+        """The manoeuvre detector and the look-back (absent before them; a look-back saved
+        before its episodes starts empty)."""
         k = self._kernel
-        assert k.manoeuvre is not None
+        assert k.manoeuvre is not None and k.lookback is not None
         k.manoeuvre.load_list(state["manoeuvre"])
-        k.lookback.clear()
-        k.lookback.extend(((float(r[0]), float(r[1]), float(r[2])), float(r[3]), float(r[4]))
-                          for r in state["lookback"])
-        k.lookback_s = float(state["lookback_s"])
-        lf = state["lookback_filter"]
-        k.lookback_filter.state = None if lf is None else [float(c) for c in lf]
-        k.last_weight = float(state["last_weight"])
+        if isinstance(state.get("lookback"), dict):
+            k.lookback.load_dict(state["lookback"])
 
     # ------------------------------------------------------------------ offline
     def _pass(self, gyro: FloatArray, acc_g: FloatArray, mag: FloatArray | None,

@@ -128,12 +128,23 @@ class AutoReadFeed:
             raise ValueError(f"data-ready byte {offset} is outside the {self.length} bytes read")
         self.ready_bit = (offset, mask)
 
-    def deliver(self, t_ns: int, data: bytes, *, failed: bool = False) -> None:
+    def deliver(self, t_ns: int, data: bytes, *, failed: bool = False,
+                nack_seen: bool = False) -> None:
         """The master's driver read ``data`` (``length`` bytes, slave register order) at
         ``t_ns``. ``failed``: the master reported that its read of the slave for this copy
         failed (its registers keep the copy before): no change, and the next change may
-        carry the measurement that read missed (``Copy.failed_ns``)."""
+        carry the measurement that read missed (``Copy.failed_ns``).
+
+        ``nack_seen``: the master reported a failed slave read among several copies without
+        saying which (the MPU-9250's SLV0_NACK over a FIFO read of many frames): a copy
+        that repeats the one before byte for byte may be it (a failed read leaves the copy
+        before) and is taken as ``failed``. One that is not (the slave had nothing new,
+        its data-ready bit read clear twice) costs nothing: a slave driver places the next
+        change at the failed delivery nearest its own cadence or at its own delivery
+        (``stamp_on_cadence``), and a delivery on its cadence is nearest."""
         after_ns = self.t_ns if self.deliveries else None
+        if nack_seen and not failed and data == self._raw:
+            failed = True
         if failed:
             self.failures += 1
             self._failed.append(t_ns)

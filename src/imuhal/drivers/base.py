@@ -282,6 +282,18 @@ class Driver(ABC):
         (imuhal.pipeline.pipeline, ``Pipeline._on_phase``)."""
         return False
 
+    @property
+    def polls_after_instants(self) -> bool:
+        """True while its polls sit within a guard (an eighth of a period) after its chip's
+        measurement instants, found by a phase search (``PollGrid(track=True)``: a grid that
+        creeps earlier until a poll finds nothing new, then retries a guard later), so a
+        grid point can also lie just before an instant. A late poll put off to a later
+        point of its grid (``Pipeline._on_phase``) then aims a guard after that point:
+        just before the instant it would read the frame before, the one the stall left
+        unread, a period old. False: where its polls lie after the instants is not known
+        (they keep the phase the driver's first reading gave them)."""
+        return False
+
     def accounted_stream(self) -> tuple[Quantity, int] | None:
         """The channel whose frames the pipeline counts (produced, delivered, lost by cause:
         imuhal.pipeline.accounting) and the chip's frame period on it (ns) in the current

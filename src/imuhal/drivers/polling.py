@@ -79,6 +79,9 @@ class PollGrid:
         self._periods = 0
         """Chip periods counted from ``_first_ns`` to ``_last_ns``."""
         self._chip_period_ns = float(period_ns)
+        self._folded = 0
+        """Chip periods moved into the anchor since the last located instant (late polls)."""
+        self._folded_ns = 0
 
     def _initial_step(self) -> int:
         fraction = self._early_fraction
@@ -95,6 +98,7 @@ class PollGrid:
         learnt of the chip's period (an overrun or a restart: the phase was lost)."""
         self._anchor_ns = t_ns
         self._k = 0
+        self._folded = self._folded_ns = 0
         if self._track:
             self._first_ns = self._last_ns = None
             self._periods = 0
@@ -112,16 +116,19 @@ class PollGrid:
         after its measurement, so the period over the whole count since the first instant is
         good to ``guard / periods``. A count the elapsed time does not confirm (polls late by
         half a step or more) starts the count afresh."""
-        steps = self._k
+        points, folded, folded_ns = self._k, self._folded, self._folded_ns
         self._anchor_ns = t_ns
         self._k = 0
+        self._folded = self._folded_ns = 0
         if not self._track:
             return
+        steps = points + folded
         first, last = self._first_ns, self._last_ns
         # The located instant is the k-th grid point's retry, a guard after it, unless
-        # polls ran late.
-        if first is None or last is None or steps < 1 \
-                or abs(t_ns - last - steps * self.step_ns - self.guard_ns) > self.step_ns // 2:
+        # polls ran late (the chip periods a late poll folded into the anchor included).
+        if first is None or last is None or steps < 1 or abs(
+                t_ns - last - folded_ns - points * self.step_ns - self.guard_ns) \
+                > self.step_ns // 2:
             self._first_ns = self._last_ns = t_ns
             self._periods = 0
             return
@@ -132,7 +139,23 @@ class PollGrid:
         self.step_ns = max(1, int(self._chip_period_ns - margin))
 
     def next_after(self, now_ns: int) -> int:
-        """The next grid point strictly after ``now_ns`` and after the previous one handed out."""
+        """The next grid point strictly after ``now_ns`` and after the previous one handed out.
+
+        A tracking grid polled more than a guard after its latest point (a late poll: a
+        stalled host, a poll put off) learnt nothing of the chip's phase meanwhile, so it
+        goes on from the chip's phase as estimated (the anchor plus whole periods of the
+        learnt period) rather than from the steps it missed, each short of the period: over
+        a long run of late polls that shortfall would move the grid before the chip's
+        instants unseen (60 late polls at the 1/64 early step: 4.7 ms of a 5 ms period), and
+        the polls after would read a frame up to a period old."""
+        if self._track and self._k and \
+                now_ns - self._anchor_ns - self._k * self.step_ns > self.guard_ns:
+            periods = int((now_ns - self._anchor_ns) // self._chip_period_ns)
+            shift = round(periods * self._chip_period_ns)
+            self._anchor_ns += shift
+            self._folded += periods
+            self._folded_ns += shift
+            self._k = 0
         k = max(self._k + 1, (now_ns - self._anchor_ns) // self.step_ns + 1)
         self._k = k
         return self._anchor_ns + k * self.step_ns

@@ -388,6 +388,14 @@ class FaultLine:
                 out.append(byte ^ (1 << rng.randrange(8)))
         return bytes(out)
 
+    def idle_answer(self, kind: BusKind, write: bytes, read_len: int) -> bytes | None:
+        """The chip's ``idle_answer`` while no fault is scheduled on the line (a fault in
+        force may act on any transaction, and draws its odds per transaction: those are
+        carried out); never for a write (``writes`` counts them)."""
+        if not read_len or self.faults.has_faults(self.device):
+            return None
+        return self.emulator.idle_answer(kind, write, read_len)
+
     def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes:
         if not read_len:
             self.writes += 1

@@ -41,7 +41,11 @@ frames to ``host_stall``.
 A poll that comes half a period late or more is put off to the next point of the device's
 own poll grid (imuhal.pipeline.pipeline, ``Pipeline._on_phase``; up to PUT_OFF_AT_MOST times
 in a row): its reading keeps the phase of the polls before it, so the gap that ends in it is
-counted like any other, exactly.
+counted like any other, exactly. A poll late by less than half a period reads the frame it
+was due for and is counted at its due time, one made off its grid after the put-offs at the
+grid point before it (:meth:`FrameLedger.count_at`). The late poll's ``host_stall`` is noted
+with its due time (``note(at_ns=)``) and charged to the gap that spans it: an auto-read
+slave's first poll after a stall hands out its master's copy from before the stall first.
 
 A chip whose conversions the host starts (the MS5611) produces no frame in a slot of its
 configured cadence that the host let pass without a conversion (its schedule slid after a
@@ -54,9 +58,11 @@ still reaches the estimators (cause ``not_converted``: the time between the fram
 
 Limit: time stamps are the host's poll times, up to a period after the measurement. A gap
 is counted right while the two polls at its ends lie at about the same phase to the chip
-(within half a period). Polls later than that keep the phase (above); a chip clock off its
+(within half a period): the drivers that search their chip's instants (the MPU-9250, the
+AK8963 read directly, the MAX2110x) poll within a guard after them; a chip clock off its
 nominal period by more than half a period over a long gap (2 % over 25 periods) can still
-shift the count by one. Frame times from the chip (issue 25 item 4) remove this limit.
+shift the count by one. Frame times from the chip (FIFO reads, data-ready lines) remove
+this limit.
 """
 
 from __future__ import annotations
@@ -112,10 +118,18 @@ class FrameLedger:
     lost)."""
     _seen: set[str] = field(default_factory=set)
     """Causes seen since the latest valid frame."""
+    _pending: list[tuple[int, str]] = field(default_factory=list)
+    """Causes noted with the time they began (``note(at_ns=)``) later than the latest valid
+    frame: each waits for the first valid frame stamped after it, whose gap it spans."""
     _slid_ns: int = 0
     """Time the driver's conversion schedule slid since the latest valid frame."""
     _segment_first_ns: int | None = None
     _segment_produced: int = 0
+    _last_counted_ns: int = 0
+    """Where the latest valid frame is counted from: its stamp, or the due time of the late
+    poll that read it (``count_at``)."""
+    _off_phase: tuple[int, int] | None = None
+    """(stamp, due time) of a late poll (``count_at``)."""
 
     def __post_init__(self) -> None:
         if self.period_ns <= 0:
@@ -126,11 +140,18 @@ class FrameLedger:
         """Frames the chip produced from the first valid frame to the latest one."""
         return self.delivered + sum(self.lost.values())
 
-    def note(self, cause: str) -> None:
+    def note(self, cause: str, *, at_ns: int | None = None) -> None:
         """Something that can cost frames happened (one of CAUSES); ``reset`` also ends the
-        current segment."""
+        current segment. ``at_ns``: when it began (a late poll's due time), for a cause
+        that a poll notes before it hands out frames stamped earlier than that (an
+        auto-read slave's copies from before a stall, delivered by its master, come out
+        after the stall with their own stamps): the cause belongs to the gap that spans
+        ``at_ns``, not to a gap a frame from before it closes."""
         if cause not in CAUSES:
             raise ValueError(f"unknown loss cause {cause!r}; one of {', '.join(CAUSES)}")
+        if at_ns is not None and self.last_ns is not None and at_ns > self.last_ns:
+            self._pending.append((at_ns, cause))
+            return
         self._seen.add(cause)
         if cause == "reset" and self._segment_first_ns is not None:
             assert self.last_ns is not None
@@ -143,6 +164,17 @@ class FrameLedger:
         if ns < 0:
             raise ValueError(f"a schedule slides forward, got {ns} ns")
         self._slid_ns += ns
+
+    def count_at(self, stamp_ns: int, at_ns: int) -> None:
+        """A poll made at ``stamp_ns`` was due at ``at_ns`` (a point of its device's grid): a
+        frame it delivers stamped ``stamp_ns`` carries the measurement a poll at ``at_ns``
+        would have read (the chip's next instant still ahead then, for a grid less than half
+        a period after its chip's instants), so its gaps are counted from ``at_ns``: from
+        its stamp a lateness of half a period or more between the two ends of a gap would
+        round to one frame more or less. A poll late by less than half a period, and one
+        made off its grid after PUT_OFF_AT_MOST put-offs (counted from the grid point
+        before it) (``Pipeline._on_phase``)."""
+        self._off_phase = (stamp_ns, at_ns)
 
     def all_segments(self) -> list[tuple[int, int, int]]:
         """The closed segments and the open one."""
@@ -163,9 +195,15 @@ class FrameLedger:
 
     def _valid_at(self, t_ns: int) -> Loss | None:
         """A valid frame of the accounted channel at ``t_ns`` (``observe``)."""
+        if self._pending:
+            self._take_pending(t_ns)
         loss = None
+        counted_ns = t_ns
+        if self._off_phase is not None and self._off_phase[0] == t_ns:
+            counted_ns = self._off_phase[1]
+            self._off_phase = None
         if self.last_ns is not None:
-            loss = self._gap_before(t_ns - self.last_ns)
+            loss = self._gap_before(counted_ns - self._last_counted_ns)
         else:
             self.first_ns = t_ns
         if self._segment_first_ns is None:
@@ -174,6 +212,7 @@ class FrameLedger:
         self._segment_produced += 1
         self.delivered += 1
         self.last_ns = t_ns
+        self._last_counted_ns = counted_ns
         self._seen.clear()
         self._slid_ns = 0
         return loss
@@ -195,7 +234,10 @@ class FrameLedger:
                 more = len(t) - 1
                 self.delivered += more
                 self._segment_produced += more
-                self.last_ns = int(t[-1])
+                self.last_ns = self._last_counted_ns = int(t[-1])
+                if self._pending:  # spanned by the block's steps, none of which lost a frame
+                    self._take_pending(self.last_ns)
+                    self._seen.clear()
                 return [] if loss is None else [(first, loss)]
         out = []
         for sample in block.samples():
@@ -203,6 +245,13 @@ class FrameLedger:
             if loss is not None:
                 out.append((sample.t_ns, loss))
         return out
+
+    def _take_pending(self, t_ns: int) -> None:
+        """The timed causes that began by ``t_ns`` join the causes of the gap ending there."""
+        due = [cause for at_ns, cause in self._pending if at_ns <= t_ns]
+        if due:
+            self._seen.update(due)
+            self._pending = [(at, c) for at, c in self._pending if at > t_ns]
 
     def _gap_before(self, step_ns: int) -> Loss | None:
         """Counts the slots between the latest valid frame and one ``step_ns`` after it:

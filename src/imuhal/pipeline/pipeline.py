@@ -766,22 +766,39 @@ class Pipeline:
         or a data-ready line times, a device without an accounted period, one recovering,
         a poll put off PUT_OFF_AT_MOST times in a row already (a host whose every wake-up
         comes late, a coarse timer, would otherwise never poll it; fewer times, a stall
-        that follows another), and a poll late by less than half a period (its lag stays
-        within the rounding of the ledger's count while the polls on time lie less than
-        half a period after the measurement they read)."""
+        that follows another: the frame it reads is counted from the grid point before it,
+        ``FrameLedger.count_at``), and a poll late by less than half a period (it reads the
+        frame it was due for while its grid lies less than half a period after the chip's
+        instants, and the ledger counts that frame at the due time: from the stamp, lags
+        that differ by half a period or more between the two ends of a gap, a poll grid
+        a guard after the instants and one 2.6 ms late of 5, round to a frame too few)."""
         ledger = dev.ledger
-        if ledger is None or 2 * (t_ns - due_ns) < ledger.period_ns \
-                or dev.put_off >= PUT_OFF_AT_MOST or dev.buffered or dev.needs_recovery \
-                or dev.resumed or not dev.present or not isinstance(dev.trigger, TimerTrigger) \
+        if ledger is None or dev.buffered or dev.needs_recovery or dev.resumed \
+                or not dev.present or not isinstance(dev.trigger, TimerTrigger) \
                 or dev.driver.host_paced:
             dev.put_off = 0
             return False
         period_ns = ledger.period_ns
-        at_ns = due_ns + -(-(t_ns - due_ns) // period_ns) * period_ns
+        if 2 * (t_ns - due_ns) < period_ns:
+            dev.put_off = 0
+            if t_ns > due_ns:  # it reads the frame it was due for: counted there
+                ledger.count_at(t_ns, due_ns)
+            return False
+        # a grid point of a phase search can lie just before its chip's instant: aim a
+        # guard after it (Driver.polls_after_instants), once (a poll put off already aims)
+        aim_ns = due_ns + (period_ns // 8 if dev.driver.polls_after_instants
+                           and not dev.put_off else 0)
+        if dev.put_off >= PUT_OFF_AT_MOST:
+            dev.put_off = 0
+            grid_ns = aim_ns + (t_ns - aim_ns) // period_ns * period_ns
+            if 2 * (t_ns - grid_ns) >= period_ns:
+                ledger.count_at(t_ns, grid_ns)
+            return False
+        at_ns = aim_ns + -(-(t_ns - aim_ns) // period_ns) * period_ns
         if at_ns == t_ns:  # late by whole periods: on the grid already
             dev.put_off = 0
             return False
-        ledger.note("host_stall")
+        ledger.note("host_stall", at_ns=due_ns)
         dev.put_off += 1
         dev.next_poll_ns = at_ns
         heapq.heappush(self._schedule(), (at_ns, self._device_rank[dev.name], dev.name))
@@ -796,7 +813,7 @@ class Pipeline:
         ledger = dev.ledger
         if ledger is not None and not dev.buffered and \
                 max(t_ns, self._span_ns[1]) - due_ns > ledger.period_ns // 2:
-            ledger.note("host_stall")
+            ledger.note("host_stall", at_ns=due_ns)
 
     def _superseded(self, name: str, t_ns: int) -> bool:
         """A popped deadline that a read on an edge replaced (the heap keeps the old entry);
@@ -1022,8 +1039,13 @@ class Pipeline:
         try:
             next_ns = dev.driver.recover(t_ns)
         except ImuhalError as exc:
+            # every failed attempt is counted: a chip that answers with the wrong identity
+            # or will not take its configuration (DeviceNotFoundError, ConfigurationError)
+            # is a device error, as the same exception from a poll is
             if isinstance(exc, BusError):
                 dev.bus_errors += 1
+            else:
+                dev.device_errors += 1
             if not dev.failures:
                 dev.failing_since_ns = t_ns
             dev.failures += 1

@@ -19,7 +19,7 @@ from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock, SimulatedClock
 from imuhal.core.samples import Quantity
 from imuhal.sim.errors import SensorErrorSpec
-from imuhal.sim.inputs import PhysicalInputs
+from imuhal.sim.inputs import PhysicalInputs, PlannedInputs
 from imuhal.sim.measured import MeasuredInstants
 
 if TYPE_CHECKING:
@@ -111,6 +111,9 @@ class ChipEmulator(ABC):
         self._physics = PhysicalInputs()
         self._physics_later: Callable[[], PhysicalInputs] | None = None
         """Inputs handed over but not yet computed (:meth:`set_physics_later`)."""
+        self.planned: tuple[PlannedInputs, int] | None = None
+        """(plan, row) while the inputs standing are a row of an emulated board's plan
+        kept whole (:meth:`keep_planned`); None otherwise."""
         self.physics_t_ns: int | None = None
         """The time ``physics`` is true at, as the emulated board hands it over (a poll that
         comes late gives the world at its due time); None: now."""
@@ -187,6 +190,16 @@ class ChipEmulator(ABC):
     def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes:
         """Answer one bus transaction (write then read) as the chip would."""
 
+    def idle_answer(self, kind: BusKind, write: bytes, read_len: int) -> bytes | None:
+        """The chip's answer to the read transaction (``write`` then ``read_len`` bytes)
+        at its present (:meth:`now_ns`) when giving it changes nothing in the chip (no
+        register, pointer, lock or measurement schedule moves, no measurement falls due);
+        None when it would, or when the emulator does not tell (this default). A bus
+        master on the board (``EmulatedBus.transfer_at``) then hands the answer over
+        without carrying out the transaction: a slave auto-read repeating itself between
+        the slave's measurements."""
+        return None
+
     def bus_receive(self, kind: BusKind, max_len: int) -> bytes:
         """Byte-stream chips (a UART device): up to ``max_len`` bytes the chip has sent by
         now. Register-mapped chips never send unprompted."""
@@ -205,6 +218,7 @@ class ChipEmulator(ABC):
     def physics(self, inputs: PhysicalInputs) -> None:
         self._physics = inputs
         self._physics_later = None
+        self.planned = None
 
     def set_physics(self, inputs: PhysicalInputs) -> None:
         """Hand the emulator the true values it should measure from now on (ignored while
@@ -220,6 +234,29 @@ class ChipEmulator(ABC):
         class's :meth:`set_physics` (one that acts on new inputs overrides it)."""
         if not self.frozen:
             self._physics_later = compute
+            self.planned = None
+
+    def set_planned(self, planned: PlannedInputs, index: int) -> None:
+        """:meth:`set_physics` with row ``index`` of inputs an emulated board computed
+        ahead for the chip's announced pulls (``physics_ahead``). An emulator may keep the
+        plan instead and encode its quantities for every row at once (its counts in one
+        numpy pass, by the operations it applies to one value: the same counts), as long
+        as ``physics`` reads the row while it stands; this one hands the row over."""
+        self.set_physics(planned.row(index))
+
+    def keep_planned(self, planned: PlannedInputs, index: int) -> None:
+        """:meth:`set_planned` for an emulator that reads the plan's arrays: the plan and
+        the row stand as ``planned`` (until other inputs are handed over) and the row's
+        :class:`PhysicalInputs` is made only if ``physics`` is read (ignored while
+        ``frozen``, as :meth:`set_physics`)."""
+        if not self.frozen:
+            self._physics_later = self._planned_row
+            self.planned = (planned, index)
+
+    def _planned_row(self) -> PhysicalInputs:
+        assert self.planned is not None
+        planned, index = self.planned
+        return planned.row(index)
 
     def now_ns(self) -> int:
         """The chip's present: the host's clock, or the instant of a master's timed

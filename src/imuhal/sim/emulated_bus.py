@@ -17,6 +17,8 @@ class BusTarget(Protocol):
 
     def bus_transfer(self, kind: BusKind, write: bytes, read_len: int) -> bytes: ...
 
+    def idle_answer(self, kind: BusKind, write: bytes, read_len: int) -> bytes | None: ...
+
 
 _T = TypeVar("_T", bound=BusTarget)
 
@@ -99,11 +101,21 @@ class EmulatedBus(Bus):
         (behind its fault line, if any) answers as at ``t_ns`` (``ChipEmulator.now_ns``),
         which may lie before the host's clock. For an emulated master (the MPU-9250's
         slave 0) catching up on samples measured while the host did not look."""
-        chip = _chip_behind(self.targets.get(target))
+        line = self.targets.get(target)
+        chip = _chip_behind(line)
         if chip is None:
             return self.transfer(target, write, read_len)
         chip.master_instant_ns = t_ns
         try:
+            if read_len and not self._fail_at and not line.absent:  # type: ignore[union-attr]  # a chip answers there (_chip_behind)
+                # A read that changes nothing in the chip (``ChipEmulator.idle_answer``,
+                # through its line's faults): answered without the layers, counted.
+                answer = line.idle_answer(self.kind, write, read_len)  # type: ignore[union-attr]  # as above
+                if answer is not None:
+                    with self.lock:
+                        self.transfers += 1
+                        self._count += 1
+                    return answer
             return self.transfer(target, write, read_len)
         finally:
             chip.master_instant_ns = None

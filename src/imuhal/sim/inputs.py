@@ -64,3 +64,43 @@ _set_temperature = slot_setter(PhysicalInputs, "temperature_degc")
 _set_position = slot_setter(PhysicalInputs, "position_ned_m")
 _set_velocity = slot_setter(PhysicalInputs, "velocity_ned_m_s")
 _set_other = slot_setter(PhysicalInputs, "other")
+
+
+class PlannedInputs:
+    """The inputs of a chip's coming pulls computed ahead (an emulated board's plan: the
+    instants a chip with its own clock announced), as arrays: row i is what the i-th pull
+    is handed, in the chip's sensor frame and SI units. ``specific_force_m_s2``,
+    ``angular_rate_rad_s`` and ``magnetic_field_ut`` are (n, 3), ``pressure_pa`` and
+    ``temperature_degc`` (n,) float64 arrays; ``position_ned_m`` and ``velocity_ned_m_s``
+    (n, 3), earth frame, as in :class:`PhysicalInputs`. No quantity outside imuhal's
+    (``other``) is planned.
+
+    An emulator may encode a quantity for every row at once (its counts for the plan in one
+    numpy pass, by the operations it applies to one value); :meth:`row` is the same
+    :class:`PhysicalInputs` a pull by pull hand-over would give."""
+
+    __slots__ = ("angular_rate_rad_s", "magnetic_field_ut", "position_ned_m", "pressure_pa",
+                 "specific_force_m_s2", "temperature_degc", "velocity_ned_m_s")
+
+    def __init__(self, specific_force_m_s2: Any, angular_rate_rad_s: Any,
+                 magnetic_field_ut: Any, pressure_pa: Any, temperature_degc: Any,
+                 position_ned_m: Any, velocity_ned_m_s: Any) -> None:
+        self.specific_force_m_s2 = specific_force_m_s2
+        self.angular_rate_rad_s = angular_rate_rad_s
+        self.magnetic_field_ut = magnetic_field_ut
+        self.pressure_pa = pressure_pa
+        self.temperature_degc = temperature_degc
+        self.position_ned_m = position_ned_m
+        self.velocity_ned_m_s = velocity_ned_m_s
+
+    def __len__(self) -> int:
+        return len(self.pressure_pa)
+
+    def row(self, i: int) -> PhysicalInputs:
+        """The inputs of the i-th planned pull (Python floats, as ``tolist`` gives them)."""
+        return PhysicalInputs.build(
+            tuple(self.specific_force_m_s2[i].tolist()),
+            tuple(self.angular_rate_rad_s[i].tolist()),
+            tuple(self.magnetic_field_ut[i].tolist()), self.pressure_pa[i].item(),
+            self.temperature_degc[i].item(), tuple(self.position_ned_m[i].tolist()),
+            tuple(self.velocity_ned_m_s[i].tolist()), NO_OTHER)

@@ -41,18 +41,21 @@ class MeasuredInstants:
         before the last one recorded)."""
         if count <= 0:
             return
-        if self._firsts:
-            last_ns = self[-1]
+        firsts = self._firsts
+        if firsts:
+            ends, steps = self._ends, self._steps
+            # the last instant recorded (``self[-1]``, worked out from the last run: an
+            # emulator adds about 500 times per simulated second)
+            in_run = ends[-1] - (ends[-2] if len(ends) > 1 else 0)
+            last_ns = firsts[-1] + (in_run - 1) * steps[-1]
             step = first_ns - last_ns
             if step < 0:
                 raise ValueError(f"measurement at {first_ns} ns before the last one, "
                                  f"{last_ns} ns")
-            run = len(self._firsts) - 1
-            in_run = self._ends[-1] - (self._ends[-2] if run else 0)
-            if step > 0 and (in_run == 1 or step == self._steps[-1]) \
+            if step > 0 and (in_run == 1 or step == steps[-1]) \
                     and (count == 1 or period_ns == step):
-                self._steps[-1] = step
-                self._ends[-1] += count
+                steps[-1] = step
+                ends[-1] += count
                 return
         self._firsts.append(first_ns)
         self._steps.append(period_ns if count > 1 else 0)

@@ -1,0 +1,119 @@
+"""The GNSS epoch checks on their own (imuhal_chips.gnss.integrity): the bounds they apply,
+from the receiver's stated accuracies, the time between epochs and the acceleration limit."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import pytest
+
+from imuhal_chips.gnss.integrity import CONFIRM, GATE_SIGMAS, Epoch, EpochWatch, local_offset_m
+
+LAT0, LON0 = 46.6, 8.0
+M_PER_DEG_LAT = 111_170.0
+"""About, at 46.6 deg: enough to place test epochs (the checks use the ellipsoid's radii)."""
+
+
+def epoch(t_s: float, north_m: float = 0.0, east_m: float = 0.0, up_m: float = 0.0, *,
+          v: tuple[float, float, float] = (10.0, 0.0, 0.0), h_acc: float = 2.5,
+          **kwargs: object) -> Epoch:
+    """An epoch ``north_m``, ``east_m``, ``up_m`` from a fixed origin at ``t_s`` (placed on
+    a sphere: within 0.5 % of the ellipsoid's metres)."""
+    kwargs.setdefault("height_ellipsoid_m", 948.0 + up_m)
+    return Epoch(t_ns=round(t_s * 1e9), latitude_deg=LAT0 + north_m / M_PER_DEG_LAT,
+                 longitude_deg=LON0 + east_m / (M_PER_DEG_LAT * math.cos(math.radians(LAT0))),
+                 height_msl_m=900.0 + up_m, velocity_ned_m_s=v, horizontal_accuracy_m=h_acc,
+                 vertical_accuracy_m=4.0, speed_accuracy_m_s=0.15,
+                 **kwargs)  # type: ignore[arg-type]
+
+
+def test_local_offsets_are_metres_north_east_down() -> None:
+    north, east, down = local_offset_m(epoch(0.0), epoch(0.0, 100.0, -50.0, 20.0))
+    assert north == pytest.approx(100.0, rel=5e-3) and east == pytest.approx(-50.0, rel=5e-3)
+    assert down == pytest.approx(-20.0)
+
+
+def test_an_epoch_where_the_velocity_put_it_passes_and_one_beyond_the_gate_does_not() -> None:
+    """10 m/s north for 0.2 s: 2 m. The horizontal gate of two 2.5 m hAcc is 5 sigma of
+    3.5 m, 17.7 m, plus 100 m/s^2 x 0.04 s^2 / 4 (1 m)."""
+    watch = EpochWatch(100.0)
+    assert watch.observe(epoch(0.0)).ok
+    assert watch.observe(epoch(0.2, 2.0 + 18.0)).ok
+    verdict = watch.observe(epoch(0.4, 22.0 + 20.0))
+    assert not verdict.ok and verdict.reason == "horizontal position"
+    assert watch.refused == {"horizontal position": 1}
+
+
+def test_the_gate_is_the_stated_accuracies_and_the_manoeuvre_term() -> None:
+    watch = EpochWatch(100.0)
+    gate_m = GATE_SIGMAS * math.sqrt(2 * 2.5**2 + 2 * 2 * 0.15**2 * 0.1**2) + 100.0 * 0.04 / 4
+    earlier = epoch(0.0)
+    assert watch.follows(earlier, epoch(0.2, 2.0 + 0.99 * gate_m)).ok
+    assert not watch.follows(earlier, epoch(0.2, 2.0 + 1.01 * gate_m)).ok
+
+
+def test_a_worse_accuracy_in_the_new_epoch_does_not_widen_its_gate() -> None:
+    earlier = epoch(0.0)
+    assert not EpochWatch(100.0).follows(earlier, epoch(0.2, 100.0, h_acc=8400.0)).ok
+    assert EpochWatch(100.0).follows(epoch(0.0, h_acc=50.0), epoch(0.2, 100.0)).ok
+
+
+def test_after_a_gap_the_manoeuvre_term_grows_with_the_square_of_the_time() -> None:
+    """10 s without a fix: 100 m/s^2 may have moved the vehicle 2.5 km off the path the two
+    velocities make."""
+    watch = EpochWatch(100.0)
+    assert watch.follows(epoch(0.0), epoch(10.0, 100.0 + 2000.0)).ok
+    assert not watch.follows(epoch(0.0), epoch(10.0, 100.0 + 2600.0)).ok
+
+
+def test_heights_made_from_heights_are_not_checked_against_them() -> None:
+    """NMEA's vertical velocity is the change of its heights: nothing to hold them to."""
+    nmea = {"vertical_velocity_measured": False, "height_ellipsoid_m": None}
+    watch = EpochWatch(100.0)
+    assert watch.follows(epoch(0.0, **nmea), epoch(0.2, 2.0, up_m=500.0, **nmea)).ok
+    assert not watch.follows(epoch(0.0), replace(epoch(0.2, 2.0, up_m=500.0))).ok
+
+
+def test_a_geoid_separation_that_moved_more_than_the_geoid_can_is_refused() -> None:
+    earlier = epoch(0.0)
+    hit = replace(epoch(0.2, 2.0), height_ellipsoid_m=948.0 + 0.01)
+    verdict = EpochWatch(100.0).follows(earlier, hit)
+    assert not verdict.ok and verdict.reason == "geoid separation"
+
+
+def test_a_geoid_separation_no_place_on_earth_has_is_refused_even_first() -> None:
+    watch = EpochWatch(100.0)
+    assert not watch.observe(replace(epoch(0.0), height_ellipsoid_m=900.0 + 150.0)).ok
+    assert watch.refused == {"geoid separation": 1}
+
+
+def test_gps_time_less_utc_must_stay_the_leap_seconds() -> None:
+    earlier = epoch(0.0, gps_minus_utc_s=18.0)
+    assert EpochWatch(100.0).follows(earlier, epoch(0.2, 2.0, gps_minus_utc_s=18.001)).ok
+    for flipped_s in (18.0 + 2**23 * 1e-9, 18.0 + 128.0):  # nano's third byte, the second
+        assert not EpochWatch(100.0).follows(earlier, epoch(0.2, 2.0,
+                                                           gps_minus_utc_s=flipped_s)).ok
+
+
+def test_the_date_moves_on_by_a_day_at_most() -> None:
+    earlier = epoch(0.0, utc_day=739_000)
+    assert EpochWatch(100.0).follows(earlier, epoch(0.2, 2.0, utc_day=739_001)).ok
+    assert not EpochWatch(100.0).follows(earlier, epoch(0.2, 2.0, utc_day=739_000 - 46_751)).ok
+
+
+def test_a_wrong_reference_gives_way_to_epochs_that_agree_with_one_another() -> None:
+    """The first epoch was 300 m off: the honest ones after it are refused until CONFIRM of
+    them agree, and the last of those is valid and the new reference."""
+    watch = EpochWatch(100.0)
+    assert watch.observe(epoch(0.0, 300.0)).ok
+    verdicts = [watch.observe(epoch(0.2 * k, 2.0 * k)).ok for k in range(1, CONFIRM + 2)]
+    assert verdicts == [False] * (CONFIRM - 1) + [True, True]
+
+
+def test_refused_epochs_that_disagree_with_one_another_never_become_a_reference() -> None:
+    watch = EpochWatch(100.0)
+    assert watch.observe(epoch(0.0)).ok
+    wild = [epoch(0.2 * k, 2.0 * k + (-1) ** k * 400.0) for k in range(1, 6)]
+    assert [watch.observe(e).ok for e in wild] == [False] * 5
+    assert watch.observe(epoch(1.2, 12.0)).ok
