@@ -57,8 +57,9 @@ def _block(kind: type, t_ns: np.ndarray, values: np.ndarray) -> Block:
 def kernel_us_per_frame(sizes: tuple[int, ...] = (1, 4, 8, 16, 24, 32, 64),
                         frames: int = 4000) -> dict[int, dict[str, float]]:
     """For each step size n: CPU us per frame of Madgwick's ``update_blocks`` as shipped,
-    of the row kernel forced at any size, and of the same frames one by one through
-    ``process()``, one after the other in this process."""
+    of its compiled kernels (the block step, else the row kernel) forced at any size, and
+    of the same frames one by one through ``process()``, one after the other in this
+    process."""
     cls = load_registry().estimators.get("madgwick")
     rng = np.random.default_rng(1)
     t = np.arange(frames, dtype=np.int64) * 5_000_000
@@ -76,7 +77,8 @@ def kernel_us_per_frame(sizes: tuple[int, ...] = (1, 4, 8, 16, 24, 32, 64),
     warm = cls()
     for step in steps(64)[:4]:
         warm.update_blocks(step)  # the kernel compiled (JIT) before anything is timed
-    shipped = ahrs.MIN_KERNEL_FRAMES, ahrs.MIN_KERNEL_FRAMES_COMPILED_STEP
+    shipped = (ahrs.MIN_KERNEL_FRAMES, ahrs.MIN_KERNEL_FRAMES_COMPILED_STEP,
+               ahrs.MIN_BLOCK_STEP_FRAMES)
     figures: dict[int, dict[str, float]] = {}
     for n in sizes:
         cases = steps(n)
@@ -84,8 +86,8 @@ def kernel_us_per_frame(sizes: tuple[int, ...] = (1, 4, 8, 16, 24, 32, 64),
         for mode in ("update_blocks", "kernel forced", "frame by frame"):
             est = cls()
             est.update_blocks(cases[0])  # aligned
-            ahrs.MIN_KERNEL_FRAMES, ahrs.MIN_KERNEL_FRAMES_COMPILED_STEP = \
-                (1, 1) if mode == "kernel forced" else shipped
+            (ahrs.MIN_KERNEL_FRAMES, ahrs.MIN_KERNEL_FRAMES_COMPILED_STEP,
+             ahrs.MIN_BLOCK_STEP_FRAMES) = (1, 1, 1) if mode == "kernel forced" else shipped
             t0 = time.process_time()
             for step in cases[1:]:
                 if mode == "frame by frame":
@@ -93,14 +95,15 @@ def kernel_us_per_frame(sizes: tuple[int, ...] = (1, 4, 8, 16, 24, 32, 64),
                 else:
                     est.update_blocks(step)
             times[mode] = (time.process_time() - t0) / (frames - n) * 1e6
-            ahrs.MIN_KERNEL_FRAMES, ahrs.MIN_KERNEL_FRAMES_COMPILED_STEP = shipped
+            (ahrs.MIN_KERNEL_FRAMES, ahrs.MIN_KERNEL_FRAMES_COMPILED_STEP,
+             ahrs.MIN_BLOCK_STEP_FRAMES) = shipped
     return figures
 
 
 def kernel() -> None:
     for n, times in kernel_us_per_frame().items():
         print(f"{n:3d} frames a step, us/frame: update_blocks {times['update_blocks']:6.2f}, "
-              f"the row kernel at any size {times['kernel forced']:6.2f}, frame by frame "
+              f"the kernels at any size {times['kernel forced']:6.2f}, frame by frame "
               f"{times['frame by frame']:6.2f}")
 
 
@@ -160,28 +163,34 @@ def estimate(rows: int = 200_000, pairs: int = 2) -> None:
 
 
 def pipeline(pairs: int = 4) -> None:
+    """The hardware path on FIFO reads with the thresholds as shipped (Madgwick's compiled
+    block step from ``MIN_BLOCK_STEP_FRAMES`` frames) against every read frame by frame."""
     from tests.benchmarks.bench_blocks import GY91, SEED, board_yaml
     from tests.benchmarks.bench_hardware_path import record, replay
 
     registry = load_registry()
-    shipped = ahrs.MIN_KERNEL_FRAMES_COMPILED_STEP
+    names = ("MIN_BLOCK_STEP_FRAMES", "MIN_KERNEL_FRAMES", "MIN_KERNEL_FRAMES_COMPILED_STEP")
+    shipped = {name: getattr(ahrs, name) for name in names}
+    never = dict.fromkeys(names, 1 << 30)
     with tempfile.TemporaryDirectory() as tmp:
         for name, board, frames in (("seed board, FIFO 8", SEED, 8),
                                     ("GY-91, FIFO 10", GY91, 10)):
             path = Path(tmp) / f"{frames}.imurec"
             record(registry, path, 20.0, board_yaml(frames, board))
-            figures: dict[int, list[float]] = {1: [], shipped: []}
+            figures: dict[str, list[float]] = {"shipped": [], "never": []}
             try:
                 for _ in range(pairs):
-                    for least in figures:
-                        ahrs.MIN_KERNEL_FRAMES_COMPILED_STEP = least
+                    for which, limits in (("shipped", shipped), ("never", never)):
+                        for key, value in limits.items():
+                            setattr(ahrs, key, value)
                         imu, _, cpu = replay(registry, path)
-                        figures[least].append(cpu / imu * 1e6)
+                        figures[which].append(cpu / imu * 1e6)
             finally:
-                ahrs.MIN_KERNEL_FRAMES_COMPILED_STEP = shipped
-            print(f"{name}: us of CPU per IMU sample, every read through the row kernel "
-                  f"{' / '.join(f'{x:.1f}' for x in figures[1])}, frame by frame "
-                  f"{' / '.join(f'{x:.1f}' for x in figures[shipped])}")
+                for key, value in shipped.items():
+                    setattr(ahrs, key, value)
+            print(f"{name}: us of CPU per IMU sample, the thresholds as shipped "
+                  f"{' / '.join(f'{x:.1f}' for x in figures['shipped'])}, frame by frame "
+                  f"{' / '.join(f'{x:.1f}' for x in figures['never'])}")
 
 
 def watchdog(calls: int = 100_000, rounds: int = 3) -> None:

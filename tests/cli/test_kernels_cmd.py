@@ -109,10 +109,10 @@ def test_status_explains_a_missing_build(
     assert cli_main.main(["kernels", "status"]) == 0
     out = capsys.readouterr().out
     assert f"kernel directory: {no_kernel_env}" in out
-    # six batch kernels and three per-sample steps
+    # six batch kernels, Madgwick's block step and three per-sample steps
     # said once per kernel, with the fix
-    assert out.count(f"no extension built in {no_kernel_env} (run `imuhal kernels build`)") == 9
-    assert out.count("no extension") == 9
+    assert out.count(f"no extension built in {no_kernel_env} (run `imuhal kernels build`)") == 10
+    assert out.count("no extension") == 10
 
 
 def test_status_shows_per_sample_steps_on_python_without_an_extension(

@@ -8,7 +8,9 @@ into steps of 37 frames, with the awkward cases added (a slower and a missing
 magnetometer, values beyond the full scale, a time jump, a repeated time stamp, an
 accelerometer that goes stale, the board still for a while: rest detection), every estimate
 equals the reference's to 1e-12 (the same time, diagnostics of the same keys and types) and
-the estimator ends in the same state (the rest detector's bit for bit).
+the estimator ends in the same state (the rest detector's bit for bit). Madgwick's compiled
+block step (FIFO reads of 8 frames, every stream at the gyro's instants or a magnetometer
+held from its own steps) gives the very floats of ``process()``.
 """
 
 from __future__ import annotations
@@ -86,22 +88,22 @@ def _frame_by_frame(est: AhrsEstimator, steps: list[list[Block]]) -> list[Estima
     return out
 
 
-def _same(got: list[Estimate], ref: list[Estimate]) -> None:
+def _same(got: list[Estimate], ref: list[Estimate], tol: float = 1e-12) -> None:
     assert len(got) == len(ref)
     for e, r in zip(got, ref, strict=True):
         assert isinstance(e, AttitudeEstimate) and isinstance(r, AttitudeEstimate)
         assert e.t_ns == r.t_ns and e.source == r.source
-        assert e.q_body_to_ned == pytest.approx(r.q_body_to_ned, rel=0, abs=1e-12)
+        assert e.q_body_to_ned == pytest.approx(r.q_body_to_ned, rel=0, abs=tol)
         if r.linear_accel_ned_m_s2 is None:
             assert e.linear_accel_ned_m_s2 is None
         else:
             assert e.linear_accel_ned_m_s2 == pytest.approx(r.linear_accel_ned_m_s2,
-                                                            rel=0, abs=1e-12)
+                                                            rel=0, abs=tol)
         assert list(e.diagnostics) == list(r.diagnostics)
         for key, value in r.diagnostics.items():
             assert type(e.diagnostics[key]) is type(value), key
             if isinstance(value, float | tuple):
-                assert e.diagnostics[key] == pytest.approx(value, rel=0, abs=1e-12), key
+                assert e.diagnostics[key] == pytest.approx(value, rel=0, abs=tol), key
             else:
                 assert e.diagnostics[key] == value, key
 
@@ -158,16 +160,24 @@ def test_a_gyro_block_alone_steps_with_the_held_accelerometer(compiled_backend: 
 
 
 def _kernel_calls(est: AhrsEstimator, steps: list[list[Block]]) -> int:
-    """``update_blocks`` of every step of ``steps``: how many times the row kernel ran."""
+    """``update_blocks`` of every step of ``steps``: how many times a compiled kernel ran
+    (the row kernel, or the block step where it took the step)."""
     calls = 0
-    run = est._run_kernel
+    run, block_step = est._run_kernel, est._block_step
 
     def counted(*args: Any) -> bool:
         nonlocal calls
         calls += 1
         return run(*args)
 
+    def counted_block(*args: Any) -> Any:
+        nonlocal calls
+        done = block_step(*args)
+        calls += done is not None
+        return done
+
     est._run_kernel = counted  # type: ignore[method-assign]
+    est._block_step = counted_block  # type: ignore[method-assign]
     for step in steps:
         est.update_blocks(step)
     return calls
@@ -183,8 +193,9 @@ def test_the_compiled_row_kernel_takes_the_aligned_steps(settings: dict[str, Any
     compiled per-sample step runs in these tests) goes frame by frame."""
     est, _ = _pair("madgwick", settings)
     steps = _steps()
-    long_enough = [s for s in steps
-                   if len(s[-1]) >= ahrs.MIN_KERNEL_FRAMES_COMPILED_STEP]
+    least = ahrs.MIN_BLOCK_STEP_FRAMES if est._has_block_step() else \
+        ahrs.MIN_KERNEL_FRAMES_COMPILED_STEP
+    long_enough = [s for s in steps if len(s[-1]) >= least]
     assert len(long_enough) >= len(steps) - 1
     assert _kernel_calls(est, steps) == len(long_enough)
     assert est.get_state()["kinematics"]["counts"]["compensated_steps"] == (
@@ -226,4 +237,99 @@ def test_the_log_exercises_every_case_the_blocks_resolve() -> None:
     assert est.get_state()["rest"][8] > 1.0  # the board lay still over a second: at rest
     seed, _ = _pair("madgwick", {"preset": "seed"})  # the one with a hard gate
     _frame_by_frame(seed, _steps())
+    assert seed.get_state()["counters"]["gate_closed_steps"] > 0
+
+
+def _fifo_reads(frames: int, with_mag: str) -> list[list[Block]]:
+    """The log cut into FIFO reads of ``frames`` frames of gyro and accelerometer at the
+    same instants; ``with_mag`` "in": the magnetometer's too (read through the IMU's own
+    I2C master), "apart": one magnetometer frame in a step of its own before every third
+    read (a magnetometer on its own bus: held, and stale while it is quiet), "": none. With
+    the awkward frames
+    of ``_steps`` (clipped gyro and accelerometer values, stale held frames, a time jump, a
+    repeated time stamp, a hard gate, the board still: rest detection)."""
+    t, gyro, accel, mag, _ = load_head()
+    n = min(1500, len(t))
+    t_ns = np.round(t[:n] * 1e9).astype(np.int64)
+    gyro, accel, mag = gyro[:n].copy(), accel[:n].copy(), mag[:n].copy()
+    gyro[500, 1] = 1e9
+    accel[600, 2] = 1e6
+    accel[700:760] = (0.0, 0.0, 1e5)
+    accel[800] = (0.0, 0.0, -25.0)
+    mag[5, 1] = np.inf
+    t_ns[900:] += 500_000_000
+    t_ns[1000] = t_ns[999]
+    reads = []
+    for i in range(0, n, frames):
+        rows = slice(i, min(i + frames, n))
+        read = [_block(AccelSample, t_ns[rows], accel[rows]),
+                _block(GyroSample, t_ns[rows], gyro[rows])]
+        if with_mag == "in":
+            read.insert(1, _block(MagSample, t_ns[rows], mag[rows]))
+        k = i // frames
+        if with_mag == "apart" and k % 3 == 0 and not 40 <= k < 60:
+            reads.append([_block(MagSample, t_ns[i:i + 1], mag[i:i + 1])])
+        reads.append(read)
+    return reads
+
+
+FIFO_CASES = [
+    ({}, "in"),
+    ({}, "apart"),
+    ({}, ""),
+    ({"preset": "seed"}, "apart"),
+    ({"nominal_airspeed_m_s": 10.0}, "apart"),
+    ({"nominal_airspeed_m_s": 10.0}, "in"),
+    ({"nominal_airspeed_m_s": 10.0, "use_mag": False}, "in"),
+    ({"dt_from_timestamps": False, "max_aux_age_s": None}, "apart"),
+]
+
+
+@pytest.mark.parametrize(("settings", "with_mag"), FIFO_CASES,
+                         ids=[f"{','.join(map(str, s.values())) or 'defaults'}-mag-"
+                              f"{m or 'none'}" for s, m in FIFO_CASES])
+def test_fifo_reads_through_the_block_step_equal_the_frames_one_by_one_bit_for_bit(
+        settings: dict[str, Any], with_mag: str, compiled_backend: str) -> None:
+    """Madgwick's compiled block step (bookkeeping, turn compensation by the nominal
+    airspeed, steps and gravity-compensated acceleration in one call) on FIFO reads of 8
+    frames: the very floats of ``process()``, the same counters, held frames, turn and rest
+    state; and it took most reads (the awkward ones go through ``block_rows``)."""
+    est, ref = _pair("madgwick", settings)
+    reads = _fifo_reads(8, with_mag)
+    imu_reads = sum(1 for read in reads if len(read) > 1)
+    taken = 0
+    block_step = est._block_step
+
+    def counted(*args: Any) -> Any:
+        nonlocal taken
+        done = block_step(*args)
+        taken += done is not None
+        return done
+
+    est._block_step = counted  # type: ignore[method-assign]
+    got: list[Estimate] = []
+    for read in reads:
+        got += est.update_blocks(read)
+    _same(got, _frame_by_frame(ref, reads), tol=0.0)
+    state, ref_state = est.get_state(), ref.get_state()
+    assert state["q"] == ref_state["q"]
+    _same_state(est, ref)
+    assert taken > imu_reads // 2
+
+
+def test_the_fifo_reads_exercise_what_the_block_step_resolves() -> None:
+    """The bit-for-bit comparisons above cannot pass by missing a case: frame by frame, the
+    reads clip, hold, go stale, fall back to the nominal step, close the gate, rest and
+    compensate turns."""
+    est, _ = _pair("madgwick", {"nominal_airspeed_m_s": 10.0})
+    _frame_by_frame(est, _fifo_reads(8, "apart"))
+    state = est.get_state()
+    counters = state["counters"]
+    assert counters["stale_accel"] > 0 and counters["stale_mag"] > 0
+    assert counters["dt_fallbacks"] == 2
+    assert counters["beyond_full_scale"] == {"gyro": 1, "accel": 61}
+    assert state["kinematics"]["counts"]["compensated_steps"] == counters["steps"]
+    assert state["rest"][8] > 1.0  # the board lay still over a second: at rest
+    seed, _ = _pair("madgwick", {"preset": "seed"})  # the one with a hard gate
+    _frame_by_frame(seed, _fifo_reads(8, "apart"))
     assert seed.get_state()["counters"]["gate_closed_steps"] > 0

@@ -105,8 +105,8 @@ def test_a_shared_helper_edited_after_the_build_makes_every_kernel_calling_it_st
         f.write("# edited after the build\n")
     status = _status(cli_env(IMUHAL_KERNEL_DIR=str(aot_kernel_dir),
                              PYTHONPATH=str(tmp_path / "src")))
-    callers = {"madgwick_rows", "madgwick_sample", "mahony_rows", "mahony_sample",
-               "freescale_rows"}
+    callers = {"madgwick_rows", "madgwick_sample", "madgwick_block", "mahony_rows",
+               "mahony_sample", "freescale_rows", "imufilter_rows"}
     for name in callers:
         backend, reason = status[name]
         assert backend != "aot", name

@@ -277,6 +277,12 @@ MIN_KERNEL_FRAMES_COMPILED_STEP = 32
 """The same where the frames one by one run the compiled per-sample step (the AOT extension,
 or ``IMUHAL_KERNELS=jit``), about 3.7 us a frame: 4.1 against 3.8 at 24 frames, 3.4 against
 3.7 at 32, 2.3 against 3.7 at 64."""
+MIN_BLOCK_STEP_FRAMES = 3
+"""The same where the filter has a compiled block step (``_block_step``: the bookkeeping,
+turn compensation and gravity-compensated acceleration inside the one call; Madgwick,
+numba's JIT, against the Python step frame by frame, us a frame: 10.7 against 9.0 at 2
+frames, 7.9 against 8.9 at 3, 3.7 against 8.6 at 8, 2.6 against 9.0 at 16; ``python -m
+tests.benchmarks.bench_block_parts kernel``, load 10-20)."""
 _ROWS_LINEAR_FROM = 24
 """Kernel rows from which the estimates' gravity-compensated acceleration is computed on
 arrays (``_linear_accel_ned_rows``, about 38 us a call for any size) rather than row by
@@ -933,13 +939,16 @@ class AhrsEstimator(Estimator):
         """The frames of one fusion step's blocks (see ``Estimator.update_blocks``): a gyro
         block, with or without an accelerometer and a magnetometer block, goes through the
         compiled row kernel in one call once the filter is aligned and its kernel covers
-        its settings (``_block_kernel``); the frames before that (alignment, a filter's own
-        set-up) go one by one. The estimates equal those of the frames one by one through
-        ``process()`` to 1e-12 (bit for bit where ``process()`` runs the same compiled
-        step; tests/filters/test_ahrs_blocks.py). Anything else (flagged or clipped
+        its settings (``_block_kernel``), or through its compiled block step where it has
+        one and the blocks are its case (``_block_step``); the frames before that
+        (alignment, a filter's own set-up) go one by one. The estimates equal those of
+        the frames one by one through ``process()`` to 1e-12 (bit for bit where
+        ``process()`` runs the same compiled step, and through the block step;
+        tests/filters/test_ahrs_blocks.py). Anything else (flagged or clipped
         frames, an angular-rate recovery under way, turn compensation by a speed) goes
         frame by frame."""
-        least = MIN_KERNEL_FRAMES if self._sample_kernel is None else \
+        least = MIN_BLOCK_STEP_FRAMES if self._has_block_step() else \
+            MIN_KERNEL_FRAMES if self._sample_kernel is None else \
             MIN_KERNEL_FRAMES_COMPILED_STEP
         if not any(b.kind is GyroSample and len(b) >= least for b in blocks):
             return Estimator.update_blocks(self, blocks)
@@ -983,7 +992,19 @@ class AhrsEstimator(Estimator):
 
     def _kernel_blocks(self, gyro: Block, accel: Block | None, mag: Block | None
                        ) -> list[Estimate]:
-        """The frames of the blocks through the compiled row kernel (``update_blocks``)."""
+        """The frames of the blocks through the compiled row kernel (``update_blocks``):
+        in one compiled block step when the filter has one and the blocks are its common
+        case (``_block_step``), else the bookkeeping on arrays around the row kernel."""
+        done = self._block_step(gyro, accel, mag)
+        if done is not None:
+            q_rows, diag_rows, dt_rows, lin_rows = done
+            build, instance = AttitudeEstimate.build, self.instance
+            rows_diag = self._kernel_row_diagnostics(dt_rows, diag_rows,
+                                                     self._kinematics.source)
+            return [build(t, instance, (w, x, y, z), (lx, ly, lz), d)
+                    for t, (w, x, y, z), (lx, ly, lz), d in zip(
+                        gyro.t_ns.tolist(), q_rows.tolist(), lin_rows.tolist(), rows_diag,
+                        strict=True)]
         steps = block_rows(self, gyro, accel, mag)
         m = len(steps)
         if m == 0:
@@ -1007,6 +1028,39 @@ class AhrsEstimator(Estimator):
                    zip(_linear_accel_ned_rows(q, steps.accel).tolist(), has_a, strict=True)]
         return [build(t, instance, qi, li, d)
                 for t, qi, li, d in zip(steps.t_ns.tolist(), quats, lin, rows, strict=True)]
+
+    def _block_step(self, gyro: Block, accel: Block | None, mag: Block | None
+                    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray] | None:
+        """An aligned filter's compiled block step (``_kernel_blocks``): every frame of the
+        blocks stepped in one call, when they are ``block_rows``'s common case (every gyro
+        frame steps, with an accepted accelerometer frame of its own instant, and a
+        magnetometer frame likewise when one is kept), the estimator's held values,
+        counters, turn and rest state left as the frames one by one leave them. Returns the
+        quaternion after each step, the row kernel's diagnostics, the step lengths (s) and
+        the gravity-compensated acceleration (NED, m/s^2); None, with nothing changed, for
+        anything else or a filter without one (then ``block_rows`` and the row kernel)."""
+        return None
+
+    def _has_block_step(self) -> bool:
+        """This filter has a compiled block step (``_block_step``) on this backend."""
+        return False
+
+    def _block_step_done(self, gyro: Block, accel: Block, mag: Block | None,
+                         fallbacks: int) -> None:
+        """The held values and counters a block step leaves (``block_rows``'s common case:
+        the last gyro, accelerometer and kept magnetometer frame are held)."""
+        t_last = int(gyro.t_ns[-1])
+        gx, gy, gz = gyro.values[-1].tolist()
+        self._last_gyro_t_ns = t_last
+        self._last_rate = (gx, gy, gz)
+        ax, ay, az = accel.values[-1].tolist()
+        self._accel_m_s2 = (ax, ay, az)
+        self._accel_t_ns = t_last
+        if mag is not None and self.uses_mag:
+            mx, my, mz = mag.values[-1].tolist()
+            self._mag_ut = (mx, my, mz)
+            self._mag_t_ns = t_last
+        self._counters["dt_fallbacks"] += fallbacks
 
     def _imu_streams(self, blocks: Sequence[Block]
                      ) -> tuple[Block, Block | None, Block | None] | None:

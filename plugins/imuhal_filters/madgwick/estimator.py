@@ -21,11 +21,13 @@ from every gyro sample the filter integrates.
 
 from __future__ import annotations
 
+import math
 from typing import Any, ClassVar, Literal
 
 import numpy as np
 from pydantic import Field
 
+from imuhal.core.blocks import Block
 from imuhal.core.frames import FloatArray
 from imuhal_filters.common.ahrs import (
     NO_VECTOR,
@@ -35,15 +37,26 @@ from imuhal_filters.common.ahrs import (
     kernel_readings,
     rest_columns,
 )
-from imuhal_filters.common.fast import Kernel
+from imuhal_filters.common.fast import Kernel, c_array
 from imuhal_filters.common.gate import AccelGate, GateBounds, SoftGateSettings
 from imuhal_filters.common.quat import Vec
 from imuhal_filters.common.rest import RestSettings
 from imuhal_filters.madgwick.core import MagReference, madgwick_step
-from imuhal_filters.madgwick.fast import madgwick_rows, madgwick_sample
+from imuhal_filters.madgwick.fast import madgwick_block, madgwick_rows, madgwick_sample
 from imuhal_filters.madgwick.inv_sqrt import INV_SQRT
 
 SEED_GATE_G = (0.6, 1.4)
+
+_NO_TIMES = np.zeros(0, dtype=np.int64)
+_NO_ROWS = np.zeros((0, 3))
+_NO_VECTOR = np.zeros(3)
+"""A block step's magnetometer arguments when there is no magnetometer block."""
+
+
+def _times(block: Block) -> np.ndarray:
+    """A block's time stamps as the block step takes them (C-ordered int64: its unchecked
+    call reads memory as declared; no copy when they already are)."""
+    return np.ascontiguousarray(block.t_ns, dtype=np.int64)
 
 
 class MadgwickSettings(AhrsSettings, SoftGateSettings, RestSettings):
@@ -109,6 +122,7 @@ class MadgwickEstimator(AhrsEstimator):
         self._soft_width = 0.0 if self._soft_gate_g is None else float(self._soft_gate_g)
         # the compiled per-sample step where it pays (the AOT extension; fast.py), for the
         # exact 1/sqrt it implements; else _step in Python
+        self._block_chosen = False  # the block step's backend: chosen again at its next use
         self._sample_kernel = (madgwick_sample.per_sample()
                                if self.settings.inv_sqrt == "exact" else None)
 
@@ -181,6 +195,53 @@ class MadgwickEstimator(AhrsEstimator):
 
     def _block_kernel(self) -> bool:
         return self.settings.inv_sqrt == "exact"
+
+    _block_call: Any = None
+    _block_chosen: bool = False
+
+    def _has_block_step(self) -> bool:
+        if not self._block_chosen:  # as ``_rows_kernel``: the backend looked up once
+            self._block_call = madgwick_block.unchecked() if madgwick_block.available() \
+                and self.settings.inv_sqrt == "exact" else None
+            self._block_chosen = True
+        return self._block_call is not None
+
+    def _block_step(self, gyro: Block, accel: Block | None, mag: Block | None
+                    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray] | None:
+        """``AhrsEstimator._block_step`` in ``madgwick_block`` (the same floats as the frames
+        one by one: tests/filters/test_ahrs_blocks.py)."""
+        if accel is None or not self._has_block_step():
+            return None
+        s = self.settings
+        m = len(gyro)
+        out = np.empty((m, 4))
+        diag = np.empty((m, 7))
+        dts = np.empty(m)
+        lin = np.empty((m, 3))
+        rest, params = self._rest_arrays()
+        speed = s.nominal_airspeed_m_s if s.turn_compensation else None
+        last = self._last_gyro_t_ns
+        mag_t, mag_v = (_NO_TIMES, _NO_ROWS) if mag is None else \
+            (_times(mag), c_array(mag.values))
+        held, held_t = self._mag_ut, self._mag_t_ns
+        max_age = s.max_aux_age_s
+        q, turn_sum, closed, fallbacks, stale, done = self._block_call(
+            np.array(self._q), _times(gyro), c_array(gyro.values), _times(accel),
+            c_array(accel.values), mag_t, mag_v, mag is not None, self.uses_mag,
+            _NO_VECTOR if held is None else np.array(held), 0 if held_t is None else held_t,
+            held is not None and held_t is not None,
+            math.nan if max_age is None else float(max_age), 0 if last is None else last,
+            last is not None, self._gyro_fs, self._accel_fs,
+            float(s.sample_period_s), s.dt_from_timestamps, float(s.max_dt_s),
+            math.nan if speed is None else float(speed), float(s.beta), self._gate.lower_g,
+            self._gate.upper_g, self._soft_width, self._paper, s.use_mag,
+            s.turn_compensation, self._kinematics.turn_sum, out, diag, dts, lin, rest, params)
+        if not done:
+            return None
+        self._block_step_done(gyro, accel, mag, fallbacks)
+        self._counters["stale_mag"] += stale
+        self._kernel_finished(q, m, closed, turn_sum, rest)
+        return out, diag, dts, lin
 
     def _kernel_row_diagnostics(self, dts: FloatArray, diag: FloatArray, source: str
                                 ) -> list[dict[str, Any]]:

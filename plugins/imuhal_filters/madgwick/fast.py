@@ -138,3 +138,154 @@ madgwick_sample = per_sample_kernel(jit(
     paper="b1", dt="f8", at_rest="b1", fx="f8", fy="f8", fz="f8"))
 """The per-sample kernel (see common/fast.py: used per sample only on the AOT extension,
 :meth:`~imuhal_filters.common.fast.Kernel.per_sample`)."""
+
+
+def _same_instants(t_g, t, values, full_scale):
+    """A block whose frames stand at the gyro frames' instants, each instant once, every
+    value within +-``full_scale`` (NaN fails): ``common/rows.py``'s common case, in which
+    each step takes its own instant's frame and nothing is held, dropped or stale."""
+    m = t_g.shape[0]
+    if t.shape[0] != m:
+        return False
+    for i in range(m):
+        if t[i] != t_g[i] or (i > 0 and not t_g[i] > t_g[i - 1]):
+            return False
+        for k in range(3):
+            if not abs(values[i, k]) <= full_scale:
+                return False
+    return True
+
+
+same_instants = jit(_same_instants)
+"""A helper of ``madgwick_block``."""
+
+
+def _block_case(t_g, gyro, t_a, accel, t_m, mag, mag_block, keep_mag, gyro_fs, accel_fs):
+    """The blocks are ``block_rows``'s common case (see ``_madgwick_block``)."""
+    if t_g.shape[0] == 0 or not same_instants(t_g, t_g, gyro, gyro_fs) \
+            or not same_instants(t_g, t_a, accel, accel_fs):
+        return False
+    if not mag_block:
+        return True
+    if keep_mag:
+        return same_instants(t_g, t_m, mag, 1.7976931348623157e308)
+    for i in range(mag.shape[0]):  # a non-finite one is counted by block_rows
+        for k in range(3):
+            if not abs(mag[i, k]) <= 1.7976931348623157e308:
+                return False
+    return True
+
+
+block_case = jit(_block_case)
+"""A helper of ``madgwick_block``."""
+
+
+def _step_lengths(t_g, last_t, has_last, nominal_dt, dt_from_ts, max_dt, dts):
+    """``rows._step_lengths`` into ``dts``; returns the fallbacks to nominal it counts."""
+    fallbacks = 0
+    for i in range(t_g.shape[0]):
+        if not dt_from_ts or (i == 0 and not has_last):
+            dts[i] = nominal_dt
+            continue
+        dt = (t_g[i] - (last_t if i == 0 else t_g[i - 1])) * 1e-9
+        if dt > 0.0 and dt <= max_dt:
+            dts[i] = dt
+        else:
+            dts[i] = nominal_dt
+            fallbacks += 1
+    return fallbacks
+
+
+step_lengths = jit(_step_lengths)
+"""A helper of ``madgwick_block``."""
+
+
+def _nominal_fused(gyro, accel, speed):
+    """``turn.nominal_rows`` (``speed`` NaN: the rows as they are), a new array."""
+    fused = np.empty(accel.shape)
+    for i in range(accel.shape[0]):
+        fused[i, 0], fused[i, 1], fused[i, 2] = accel[i, 0], accel[i, 1], accel[i, 2]
+        if not math.isnan(speed):
+            ky = gyro[i, 2] * speed
+            kz = -gyro[i, 1] * speed
+            if ky != 0.0 or kz != 0.0:
+                fused[i, 1] = accel[i, 1] - ky
+                fused[i, 2] = accel[i, 2] - kz
+    return fused
+
+
+nominal_fused = jit(_nominal_fused)
+"""A helper of ``madgwick_block``."""
+
+
+def _mag_rows(t_g, mag, mag_block, keep_mag, held_mag, held_mag_t, has_held_mag, max_age):
+    """The magnetometer row of each step (NaN: none) as ``rows._held_at`` resolves it in
+    the common case, and the steps whose held frame was stale."""
+    m = t_g.shape[0]
+    rows = np.empty((m, 3))
+    stale = 0
+    for i in range(m):
+        if mag_block and keep_mag:
+            rows[i, 0], rows[i, 1], rows[i, 2] = mag[i, 0], mag[i, 1], mag[i, 2]
+        elif not mag_block and keep_mag and has_held_mag and not (
+                (t_g[i] - held_mag_t) * 1e-9 > max_age):  # NaN max_age: never stale
+            rows[i, 0], rows[i, 1], rows[i, 2] = held_mag[0], held_mag[1], held_mag[2]
+        else:
+            if not mag_block and keep_mag and has_held_mag:
+                stale += 1
+            rows[i, 0] = rows[i, 1] = rows[i, 2] = np.nan
+    return rows, stale
+
+
+mag_rows_kernel = jit(_mag_rows)
+"""A helper of ``madgwick_block``."""
+
+
+def _madgwick_block(q_in, t_g, gyro, t_a, accel, t_m, mag, mag_block, keep_mag, held_mag,
+                    held_mag_t, has_held_mag, max_age, last_t, has_last, gyro_fs, accel_fs,
+                    nominal_dt, dt_from_ts, max_dt, speed,
+                    beta, gate_lo, gate_hi, soft_width, paper, use_mag, turn_on, turn_sum,
+                    out, diag, dts, lin, rest, rest_params):
+    """A FIFO read's frames (``AhrsEstimator.update_blocks`` once aligned) in one call: the
+    bookkeeping of ``common/rows.py``'s ``block_rows`` for its common case (every gyro frame
+    within full scale, an accelerometer frame at each gyro frame's instant and within its
+    full scale, the magnetometer's likewise when kept), the step lengths from the gyro times
+    (``nominal_dt`` for a gap outside (0, ``max_dt``] and for the first step without
+    ``has_last``), the turn compensation by the nominal airspeed ``speed`` (NaN: none) as
+    ``turn.nominal_rows`` computes it, the kept magnetometer frame ``held_mag`` (taken at
+    ``held_mag_t``; ``has_held_mag`` False: none) for every step when there is no
+    magnetometer block, unless older than ``max_age`` s (NaN: no limit; counted stale),
+    the row loop of ``madgwick_rows``, and into ``lin``
+    the gravity-compensated acceleration (NED) of the measured specific force at each new
+    attitude. ``dts`` gets the step lengths. Returns the final quaternion, the turn-rate sum,
+    the steps with the gate closed, the step lengths that fell back to nominal, the stale
+    magnetometer steps, and True; or False with nothing written or changed (not the common
+    case: ``block_rows`` decides)."""
+    q = np.empty(4)
+    if not block_case(t_g, gyro, t_a, accel, t_m, mag, mag_block, keep_mag, gyro_fs,
+                      accel_fs):
+        return q, turn_sum, 0, 0, 0, False
+    fallbacks = step_lengths(t_g, last_t, has_last, nominal_dt, dt_from_ts, max_dt, dts)
+    mag_rows, stale = mag_rows_kernel(t_g, mag, mag_block, keep_mag, held_mag, held_mag_t,
+                                      has_held_mag, max_age)
+    state, turn_sum, closed = madgwick_step_rows(
+        (q_in[0], q_in[1], q_in[2], q_in[3]),
+        (beta, gate_lo, gate_hi, soft_width, paper), gyro, nominal_fused(gyro, accel, speed),
+        mag_rows, dts, use_mag, turn_on, turn_sum, out, diag, rest, rest_params)
+    for i in range(t_g.shape[0]):
+        lin[i, 0], lin[i, 1], lin[i, 2] = linear_accel_ned(
+            out[i, 0], out[i, 1], out[i, 2], out[i, 3], accel[i, 0], accel[i, 1], accel[i, 2])
+    q[0], q[1], q[2], q[3] = state[0], state[1], state[2], state[3]
+    return q, turn_sum, closed, fallbacks, stale, True
+
+
+madgwick_block = jit(
+    _madgwick_block, returns="Tuple((f8[::1], f8, i8, i8, i8, b1))", q_in="f8[::1]",
+    t_g="i8[::1]", gyro="f8[:, ::1]", t_a="i8[::1]", accel="f8[:, ::1]", t_m="i8[::1]",
+    mag="f8[:, ::1]", mag_block="b1", keep_mag="b1", held_mag="f8[::1]", held_mag_t="i8",
+    has_held_mag="b1", max_age="f8", last_t="i8", has_last="b1",
+    gyro_fs="f8", accel_fs="f8", nominal_dt="f8", dt_from_ts="b1", max_dt="f8", speed="f8",
+    beta="f8", gate_lo="f8", gate_hi="f8", soft_width="f8", paper="b1", use_mag="b1",
+    turn_on="b1", turn_sum="f8", out="f8[:, ::1]", diag="f8[:, ::1]", dts="f8[::1]",
+    lin="f8[:, ::1]", rest="f8[::1]", rest_params="f8[::1]")
+"""The block step (see common/fast.py: the extension, or numba on the first call)."""
