@@ -24,6 +24,7 @@ from imuhal.core.atomic import atomic_write_text
 from imuhal.core.samples import Quantity
 from imuhal.emulation import calibrated_as_user
 from imuhal.emulation.user_calibration import missing_calibrations
+from imuhal.pipeline.learning import learned_by_default
 from imuhal.plugins.manager import Registry
 from imuhal.profile.loader import parse_profile
 from imuhal.profile.model import BoardProfile
@@ -62,6 +63,23 @@ def missing_calibration_notes(profile: BoardProfile, registry: Registry,
                 cost = (f"its offset{size} and the board's hard and soft iron turn the "
                         "heading of every 9-DOF estimate")
             notes.append(f"{head}: {cost}; {fix}")
+    return notes
+
+
+_LEARNS = {Quantity.ACCEL: "its accelerometer's offset (from the GNSS velocity)",
+           Quantity.MAG: "its magnetometer's hard iron (from turns)"}
+
+
+def default_learning_notes(profile: BoardProfile, registry: Registry) -> list[str]:
+    """One line per device that learns in flight by default (its profile stores no record
+    and does not say; imuhal.pipeline.learning): what it learns and how to turn it off."""
+    notes = []
+    for device, channels in learned_by_default(profile, registry).items():
+        what = " and ".join(_LEARNS[ch] for ch in channels)
+        off = " and ".join(f"`{ch.value}_in_flight: off`" for ch in channels)
+        notes.append(f"device {device!r} ({profile.devices[device].driver}) learns {what} "
+                     f"in flight by default, as its profile stores no record; {off} under "
+                     f"devices.{device}.calibration turns it off (docs/calibration.md)")
     return notes
 
 

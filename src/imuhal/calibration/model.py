@@ -24,7 +24,7 @@ from datetime import datetime, timezone
 from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
 
 Finite = Annotated[float, Field(allow_inf_nan=False)]
 """A finite float: NaN or inf in a stored calibration would poison every sample it touches."""
@@ -242,11 +242,39 @@ class AccelInFlightSettings(_Strict):
     """How fast the offset itself may wander (temperature), mg/sqrt(s)."""
 
 
+_SWITCHES = {"on": True, "off": False, "true": True, "false": False}
+
+
+def _in_flight_switch(value: object, info: ValidationInfo) -> object:
+    """``true``/``on`` (the learner's default settings), ``false``/``off`` (never learn,
+    not even by default) or the settings themselves; anything else is one error naming the
+    accepted forms."""
+    if isinstance(value, str) and value.strip().lower() in _SWITCHES:
+        value = _SWITCHES[value.strip().lower()]
+    if isinstance(value, bool):
+        return {"enabled": value}
+    if value is None or isinstance(value, dict | BaseModel):
+        return value
+    raise ValueError(
+        f"must be on, off or a mapping of the learner's settings, e.g. `{info.field_name}: "
+        f"off` to never learn in flight or `{info.field_name}: {{max_std_mg: 3}}` "
+        "(docs/calibration.md, \"Learning in flight by default\")")
+
+
 class DeviceCalibration(_Records):
     gyro_at_startup: GyroStartupSettings | None = None
     mag_in_flight: MagInFlightSettings | None = None
+    """None: not set, so the magnetometer learns its hard iron in flight by default when no
+    record is stored and none is measured before the run (imuhal.pipeline.learning
+    ``learned_by_default``); ``off`` (``enabled: false``): never."""
     accel_in_flight: AccelInFlightSettings | None = None
+    """None: not set, so the accelerometer learns its offset in flight by default when no
+    record is stored, none is measured before the run and the board has a GNSS velocity;
+    ``off`` (``enabled: false``): never."""
     previous: PreviousCalibration | None = None
+
+    _switch = field_validator("mag_in_flight", "accel_in_flight", mode="before")(
+        _in_flight_switch)
 
     def replaced(self, channel: str, record: Record) -> DeviceCalibration:
         """A copy with ``channel`` (a quantity name) set to ``record``; the record it replaces

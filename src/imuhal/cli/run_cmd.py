@@ -182,6 +182,10 @@ def _plan(opts: RunOptions, path: Path, registry: Registry) -> _RunPlan:
     where = f"emulated, scenario '{emulate}'" if emulate else "real hardware"
     print(f"imuhal {__version__}: {profile.name} ({where}) from {path}", file=sys.stderr)
     profile, text, note = _user_calibration(opts, path, profile, emulate, registry)
+    from imuhal.calibrate.as_user import default_learning_notes
+
+    for line in default_learning_notes(profile, registry):
+        print(f"note: {line}", file=sys.stderr)
     # Real buses always run in real time; a dashboard of an emulated run is watched live.
     return _RunPlan(path=path, profile=profile, profile_text=text, calibrated_note=note,
                     frame=frame, emulate=emulate, web=web,
@@ -387,7 +391,8 @@ def _save_learned(output: str, text: str, path: Path, learned: dict[str, Any],
 
     if not learned:
         print(f"nothing learned in flight to save: {output} not written (a device needs "
-              "mag_in_flight or accel_in_flight and enough turns, docs/calibration.md)",
+              "no stored record, learning not turned off, and enough turns; "
+              "docs/calibration.md)",
               file=sys.stderr)
         return
     save_learned(text, str(path), output, learned, registry)

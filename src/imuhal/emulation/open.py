@@ -65,7 +65,9 @@ def open_emulated(
     mount, so a wrong profile can be emulated (``imuhal check-mounts`` finds it).
     ``calibrate_missing`` first measures the accelerometer and magnetometer records the
     profile lacks, as its user would (:func:`calibrated_as_user`), and flies the board with
-    them; default off, so a profile's board flies exactly as its file says.
+    them (so nothing learns in flight); default off: the board flies as its file says,
+    and a device without a record learns it in flight where the board makes that
+    observable, unless the profile turns it off (imuhal.pipeline.learning).
     """
     if calibrate_missing:
         profile, _ = calibrated_as_user(profile, registry, seed=seed,

@@ -6,6 +6,16 @@ barometer) and, once, the attitude of an AHRS fed by the IMU. The pipeline's fus
 already holds exactly the valid, calibrated, body-frame frames the estimators take, in
 fusion steps; :class:`AccelTeacher` reads every step after the estimators did, so a board
 learns from what its estimators see (a device no estimator takes teaches nothing).
+
+**What learns by default** (:func:`learned_by_default`): a device whose profile stores no
+accelerometer (magnetometer) record and does not set ``accel_in_flight``
+(``mag_in_flight``) learns it in flight with the learner's default settings wherever it is
+observable: the magnetometer's hard iron always (turns rotate the field), the
+accelerometer's offset when some enabled device of the board gives a GNSS velocity (without
+one only the vertical axis would be, from the barometer). A run that measures the records
+before it flies (an emulated ``imuhal run``, ``open_emulated(calibrate_missing=True)``)
+stores them first, so nothing of it learns; ``accel_in_flight: off`` / ``mag_in_flight:
+off`` in the profile turns the default off.
 """
 
 from __future__ import annotations
@@ -13,15 +23,69 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable, Sequence
 
 from imuhal.calibration.accel_in_flight import AccelOffsetLearner
+from imuhal.calibration.model import AccelInFlightSettings, MagInFlightSettings
 from imuhal.core.blocks import Block
 from imuhal.core.samples import (
     AccelSample,
     GyroSample,
     PressureSample,
+    Quantity,
     Sample,
     VelocitySample,
 )
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate
+from imuhal.plugins.manager import Registry
+from imuhal.profile.model import BoardProfile
+
+LEARNED_IN_FLIGHT = (Quantity.ACCEL, Quantity.MAG)
+"""The channels a learner exists for, in the order they are named."""
+
+InFlightSettings = AccelInFlightSettings | MagInFlightSettings
+
+
+def in_flight_setting(profile: BoardProfile, device: str, channel: Quantity
+                      ) -> InFlightSettings | None:
+    """What ``device``'s profile says about learning ``channel`` in flight (None: nothing,
+    the default decides)."""
+    cal = profile.devices[device].calibration
+    return None if cal is None else getattr(cal, f"{channel.value}_in_flight")
+
+
+def learned_by_default(profile: BoardProfile, registry: Registry
+                       ) -> dict[str, tuple[Quantity, ...]]:
+    """The channels each enabled device learns in flight by default, by device (profile
+    order; devices learning none left out): those its driver measures, with no record
+    stored and no ``<channel>_in_flight`` setting, and observable on this board (see the
+    module's docstring)."""
+    drivers = {name: registry.drivers.entries.get(cfg.driver)
+               for name, cfg in profile.devices.items() if cfg.enabled}
+    has_velocity = any(reg is not None and Quantity.VELOCITY in reg.obj.channels
+                       for reg in drivers.values())
+    out: dict[str, tuple[Quantity, ...]] = {}
+    for name, reg in drivers.items():
+        cal = profile.devices[name].calibration
+        learned = tuple(
+            ch for ch in LEARNED_IN_FLIGHT
+            if reg is not None and ch in reg.obj.channels
+            and (ch is Quantity.MAG or has_velocity)
+            and (cal is None or cal.record_for(ch.value) is None)
+            and in_flight_setting(profile, name, ch) is None)
+        if learned:
+            out[name] = learned
+    return out
+
+
+def learning_settings(profile: BoardProfile, device: str, channel: Quantity,
+                      by_default: dict[str, tuple[Quantity, ...]]) -> InFlightSettings | None:
+    """The settings ``device`` learns ``channel`` in flight with (None: it does not): the
+    profile's when it sets them (``off``: None), else the learner's defaults when
+    ``by_default`` (:func:`learned_by_default`) names it."""
+    asked = in_flight_setting(profile, device, channel)
+    if asked is not None:
+        return asked if asked.enabled else None
+    if channel not in by_default.get(device, ()):
+        return None
+    return AccelInFlightSettings() if channel is Quantity.ACCEL else MagInFlightSettings()
 
 
 class AccelTeacher:

@@ -26,7 +26,13 @@ from imuhal.bus.recording.recorder import BusRecorder
 from imuhal.bus.spy import SpyBus, Transfer
 from imuhal.calibration.accel_in_flight import AccelOffsetLearner
 from imuhal.calibration.hard_iron import HardIronLearner
-from imuhal.calibration.model import CalibrationBinding, DeviceCalibration, now
+from imuhal.calibration.model import (
+    AccelInFlightSettings,
+    CalibrationBinding,
+    DeviceCalibration,
+    MagInFlightSettings,
+    now,
+)
 from imuhal.core.blocks import Block, blocks_of, interleaved
 from imuhal.core.clock import Clock
 from imuhal.core.conventions import get_convention
@@ -54,7 +60,7 @@ from imuhal.pipeline.containment import (
     driver_deadline_s,
     driver_timing,
 )
-from imuhal.pipeline.learning import AccelTeacher
+from imuhal.pipeline.learning import AccelTeacher, learned_by_default, learning_settings
 from imuhal.pipeline.processing import (
     calibrate_block,
     calibrate_to_body,
@@ -341,6 +347,10 @@ class Pipeline:
         self._fusion: list[Sample | Block] = []
         self._teachers: list[AccelTeacher] = []
         """The in-flight learners fed from the fusion queue (imuhal.pipeline.learning)."""
+        self.learned_by_default = learned_by_default(profile, registry) if calibrated else {}
+        """device -> the channels it learns in flight because its profile neither stores a
+        record nor says otherwise (imuhal.pipeline.learning); none for raw samples (what a
+        calibration procedure measures)."""
         """Valid body-frame readings (one-frame blocks as their sample) and blocks some
         estimator takes, waiting for their fusion step."""
         self._blocks_queued = False
@@ -469,8 +479,9 @@ class Pipeline:
         dev.calibration = self._checked_calibration(dev.name, cfg.bus, cfg.calibration,
                                                     driver.identity,
                                                     type(driver).calibration_version)
-        learn = cfg.calibration.mag_in_flight if cfg.calibration is not None else None
-        if learn is not None and learn.enabled and Quantity.MAG in type(driver).channels \
+        learn = learning_settings(self.profile, dev.name, Quantity.MAG,
+                                  self.learned_by_default)
+        if isinstance(learn, MagInFlightSettings) and Quantity.MAG in type(driver).channels \
                 and (dev.calibration is None or dev.calibration.mag is None) \
                 and dev.mag_learner is None:
             dev.mag_learner = HardIronLearner(learn)
@@ -1056,12 +1067,12 @@ class Pipeline:
 
     def _start_accel_learning(self, dev: DeviceRuntime) -> None:
         """An accelerometer learner for ``dev`` when its profile asks (``accel_in_flight``)
-        and it has no stored accelerometer record; started from the attitude of the
-        estimators ``dev`` feeds."""
-        cfg = self.profile.devices[dev.name]
-        learn = cfg.calibration.accel_in_flight if cfg.calibration is not None else None
+        or by default (imuhal.pipeline.learning) and it has no stored accelerometer record;
+        started from the attitude of the estimators ``dev`` feeds."""
+        learn = learning_settings(self.profile, dev.name, Quantity.ACCEL,
+                                  self.learned_by_default)
         driver = type(dev.driver)
-        if learn is None or not learn.enabled or Quantity.ACCEL not in driver.channels \
+        if not isinstance(learn, AccelInFlightSettings) or Quantity.ACCEL not in driver.channels \
                 or (dev.calibration is not None and dev.calibration.accel is not None) \
                 or dev.accel_teacher is not None:
             return
