@@ -119,7 +119,9 @@ def test_mavproxy_takes_the_board_as_its_vehicle_and_logs_every_message_with_its
         rows = [r for r in csv.DictReader(f) if r["flags"] == "0"]
     at_us = {(r["kind"], round(float(r["t_s"]) * 1e6)): r for r in rows}
     for m in logged["HIGHRES_IMU"][::10]:
-        g, a = at_us["gyro", m.time_usec], at_us["accel", m.time_usec]
+        # time_usec truncates the stamp to the microsecond, the log's t_s rounds it
+        t_us = m.time_usec if ("gyro", m.time_usec) in at_us else m.time_usec + 1
+        g, a = at_us["gyro", t_us], at_us["accel", t_us]
         assert (m.xgyro, m.ygyro, m.zgyro) == pytest.approx(
             tuple(float(g[k]) for k in ("gx_rad_s", "gy_rad_s", "gz_rad_s")), rel=1e-6,
             abs=1e-9)

@@ -31,5 +31,20 @@ def test_ready_does_not_use_up_the_slot_until_marked() -> None:
     pacing = RateLimiter()
     assert pacing.ready("POV", 0, 5.0)
     assert pacing.ready("POV", 1, 5.0)  # nothing was marked: still free
-    pacing.mark("POV", 1)
+    pacing.mark("POV", 1, 5.0)
     assert not pacing.ready("POV", 2, 5.0)
+
+
+def test_events_a_hair_under_their_period_apart_keep_the_rate_asked_for() -> None:
+    # a 200 Hz IMU on a chip 0.02 % fast: 4.999 ms apart; 50 Hz must stay 50 Hz, not 40
+    pacing = RateLimiter()
+    sent = sum(pacing.due("HIGHRES_IMU", i * 4_999_000, 50.0) for i in range(2000))
+    assert sent == 500  # 2000 events over 9.998 s: one at or after each 20 ms point (40 Hz: 400)
+
+
+def test_a_gap_in_the_events_restarts_the_grid_instead_of_sending_a_burst() -> None:
+    pacing = RateLimiter()
+    assert pacing.due("ATT", 0, 50.0)
+    assert pacing.due("ATT", 1_000_000_000, 50.0)  # 1 s later: a gap
+    assert not pacing.due("ATT", 1_005_000_000, 50.0)  # not one per missed point
+    assert pacing.due("ATT", 1_020_000_000, 50.0)

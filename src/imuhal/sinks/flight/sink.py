@@ -130,7 +130,7 @@ class FlightSink(SinkPlugin):
         text = self._encode(name)
         if text is None:
             return
-        self._pacing.mark(name, t_ns)
+        self._pacing.mark(name, t_ns, rate)
         self.counts[name] += 1
         self.transport.write(text.encode("ascii"))
 
