@@ -48,10 +48,11 @@ def test_an_attitude_estimator_over_a_run_log_reproduces_the_live_estimates(
         got = np.array([float(r[name]) for r in offline])
         want = np.array([float(r[name]) for r in live])
         # The log stamps samples to the microsecond (t_s, 6 decimals) and the AHRS's step
-        # lengths come from the stamps: polls on the chip's own grid fall between whole
-        # microseconds, and the rounding moves the attitude by a few 1e-9 (2.8e-9 measured;
-        # with nanosecond stamps the difference is 0 after the first estimate).
-        assert np.max(np.abs(got - want)) < 1e-8, name
+        # lengths come from the stamps. Polls on the chip's own grid fall between whole
+        # microseconds, and the rounded step lengths (up to 1 us of 5 ms, 2e-4 of a step's
+        # rotation) move the quaternion by up to 2e-7 over these 6 s (measured; 1e-6 is
+        # 1e-4 deg). With nanosecond stamps the difference is 0 after the first estimate.
+        assert np.max(np.abs(got - want)) < 1e-6, name
 
 
 def test_a_vario_filter_over_a_run_log_follows_the_live_altitude(
