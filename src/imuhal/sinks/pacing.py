@@ -32,8 +32,8 @@ class RateLimiter:
             return
         period_ns = 1e9 / rate_hz
         due = self._due_ns.get(name)
-        on_grid = due is not None and t_ns < due + period_ns
-        self._due_ns[name] = (due if on_grid else t_ns) + period_ns  # type: ignore[operator]
+        start = due if due is not None and t_ns < due + period_ns else float(t_ns)
+        self._due_ns[name] = start + period_ns
 
     def due(self, name: str, t_ns: int, rate_hz: float) -> bool:
         if not self.ready(name, t_ns, rate_hz):
