@@ -38,8 +38,10 @@ def test_a_run_logs_samples_give_the_estimator_its_live_estimates(
                 for r in csv.DictReader(f) if r["kind"] == "attitude"}
     rows = {t: i for i, t in enumerate(np.round(rec.t_s * 1e9).astype(np.int64))}
     assert len(live) > 500 and set(live) <= set(rows)
-    np.testing.assert_array_equal(np.array([q[rows[t]] for t in live]),
-                                  np.array(list(live.values())))
+    # the log stamps to the microsecond and the AHRS's step lengths come from the stamps:
+    # polls on the chip's own grid fall between whole microseconds (2e-7 measured)
+    np.testing.assert_allclose(np.array([q[rows[t]] for t in live]),
+                               np.array(list(live.values())), rtol=0, atol=1e-6)
 
 
 def test_evaluate_reports_a_run_logs_errors_against_its_truth(
