@@ -6,10 +6,10 @@ from __future__ import annotations
 import pytest
 
 from imuhal.bus.base import Bus, BusKind
-from imuhal.bus.register_plan import RegisterPlan, RegisterSetting
+from imuhal.bus.register_plan import IN_PLACE_ATTEMPTS, RegisterPlan, RegisterSetting
 from imuhal.bus.registers import RegisterView
 from imuhal.core.clock import SimulatedClock
-from imuhal.core.errors import ConfigurationError
+from imuhal.core.errors import BusError, ConfigurationError
 from imuhal.drivers.polling import ResetWatch
 
 CHIP = "xyz0 on i2c0 @0x19"
@@ -32,6 +32,46 @@ class RegisterFile(Bus):
         for offset, value in enumerate(data):
             self.regs[register + offset] = value
         return bytes(self.regs[register:register + read_len])
+
+
+class GlitchyRegisterFile(RegisterFile):
+    """A register file whose transfers numbered in ``failing`` (counted from 0, every
+    attempt counted) raise BusError before reaching the chip, and whose ``deaf`` registers
+    ignore the first write they get (a write the chip did not take)."""
+
+    def __init__(self, failing: set[int], deaf: set[int] | None = None) -> None:
+        super().__init__()
+        self.failing = failing
+        self.deaf = set(deaf or ())
+        self.attempts = 0
+        self.failed: list[int] = []
+        """The register of each transfer that failed, in order."""
+
+    def _transfer(self, target: int, write: bytes, read_len: int) -> bytes:
+        n, self.attempts = self.attempts, self.attempts + 1
+        if n in self.failing:
+            self.failed.append(write[0])
+            raise BusError("regfile: injected")
+        if len(write) > 1 and write[0] in self.deaf:
+            self.deaf.discard(write[0])
+            self.log.append((write[0], b"(ignored)", 0))
+            return b""
+        return super()._transfer(target, write, read_len)
+
+
+class StuckByte(bytearray):
+    """Register memory one of whose registers always reads ``value`` (a stuck line)."""
+
+    def __init__(self, register: int, value: int) -> None:
+        super().__init__(256)
+        self.stuck = (register, value)
+
+    def __getitem__(self, index):  # type: ignore[no-untyped-def]
+        out = super().__getitem__(index)
+        if isinstance(index, slice):
+            return bytes(self.stuck[1] if i == self.stuck[0] else b
+                         for i, b in zip(range(*index.indices(len(self))), out, strict=True))
+        return out
 
 
 def _plan(*, checks: list[tuple[int, ...]] | None = None, gap: int = 0, burst: bool = True,
@@ -177,3 +217,49 @@ def test_a_watch_spread_over_the_steps_still_reads_the_whole_plan_every_check_in
     watch.start(0)
     due = [t for t in range(0, 400_000_001, 10_000_000) if watch.check_due(t)]
     assert due == [100_000_000, 200_000_000, 300_000_000, 400_000_000]
+
+
+def test_establish_repeats_a_failed_transfer_in_place_and_goes_on() -> None:
+    chip = GlitchyRegisterFile(failing={1, 2, 6})  # CTRL2's write twice, the first read
+    regs = RegisterView(chip.link(0x19))
+    got = _plan(burst=False).establish(regs)
+    assert got == {0x20: 0x07, 0x21: 0x40, 0x23: 0x88, 0x10: 0x01}
+    assert chip.failed == [0x21, 0x21, 0x20]
+    # each failed transfer was repeated at once; nothing was written twice that succeeded
+    assert chip.log == [(0x20, b"\x07", 0), (0x21, b"\x40", 0), (0x23, b"\x88", 0),
+                        (0x10, b"\x01", 0), (0x20, b"", 1), (0x21, b"", 1), (0x23, b"", 1),
+                        (0x10, b"", 1)]
+
+
+def test_establish_gives_up_on_a_transfer_that_fails_every_attempt() -> None:
+    chip = GlitchyRegisterFile(failing=set(range(1, 1 + IN_PLACE_ATTEMPTS)))
+    with pytest.raises(BusError):
+        _plan().establish(RegisterView(chip.link(0x19)))
+    assert chip.failed == [0x21] * IN_PLACE_ATTEMPTS
+    assert [entry[0] for entry in chip.log] == [0x20]  # nothing after the failing write
+
+
+def test_establish_writes_a_register_that_reads_back_wrong_again_and_reads_it_back() -> None:
+    chip = GlitchyRegisterFile(failing=set(), deaf={0x23})
+    regs = RegisterView(chip.link(0x19))
+    assert _plan(burst=False).establish(regs)[0x23] == 0x88
+    assert chip.log[-2:] == [(0x23, b"\x88", 0), (0x23, b"", 1)]  # written again, re-read
+
+
+def test_establish_raises_the_located_error_when_a_register_keeps_reading_wrong() -> None:
+    chip = RegisterFile()
+    chip.regs = StuckByte(0x21, 0xFF)
+    with pytest.raises(ConfigurationError, match=r"CTRL2 \(0x21\) reads 0xFF, expected 0x40"):
+        _plan(burst=False).establish(RegisterView(chip.link(0x19)))
+    writes = [entry for entry in chip.log if entry[0] == 0x21 and entry[1]]
+    assert len(writes) == IN_PLACE_ATTEMPTS  # the plan's write and three more
+
+
+def test_verify_without_attempts_neither_repeats_nor_rewrites() -> None:
+    chip = GlitchyRegisterFile(failing={4})
+    regs = RegisterView(chip.link(0x19))
+    plan = _plan(burst=False)
+    plan.apply(regs)
+    with pytest.raises(BusError):
+        plan.verify(regs)
+    assert chip.attempts == 5

@@ -45,6 +45,7 @@ rotation takes it to the body frame.
 
 from __future__ import annotations
 
+from functools import partial
 from typing import ClassVar, Literal
 
 from imuhal.bus.auto_read import (
@@ -55,7 +56,7 @@ from imuhal.bus.auto_read import (
     stamp_on_cadence,
 )
 from imuhal.bus.base import BusKind, Link
-from imuhal.bus.register_plan import RegisterPlan, RegisterSetting
+from imuhal.bus.register_plan import IN_PLACE_ATTEMPTS, RegisterPlan, RegisterSetting, retried
 from imuhal.bus.registers import RegisterView
 from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError, ConfigurationError, DeviceNotFoundError, NackError
@@ -120,6 +121,8 @@ class AK8963Driver(Driver):
     Settings = AK8963Settings
     channels: ClassVar[tuple[Quantity, ...]] = (Quantity.MAG,)
     bus_kinds: ClassVar[frozenset[BusKind]] = frozenset({BusKind.I2C})
+    resumes_in_a_row = IN_PLACE_ATTEMPTS
+    """Each ``resume()`` reads CNTL1 back (a soft reset or power-on clears it)."""
 
     FROZEN_AFTER_FRAMES = 30
     """Identical data frames in a row that mean the chip stopped measuring. The quietest
@@ -165,7 +168,7 @@ class AK8963Driver(Driver):
 
     def probe(self) -> DeviceIdentity:
         try:
-            wia = self.regs.read_u8(r.REG_WIA)
+            wia = retried(partial(self.regs.read_u8, r.REG_WIA))
         except NackError as exc:
             raise self._not_found("no answer (NACK)", BEHIND_MPU_HINT) from exc
         if wia != r.WIA:
@@ -177,7 +180,7 @@ class AK8963Driver(Driver):
         return self.identity
 
     def _set_mode(self, value: int) -> None:
-        self.regs.write(r.REG_CNTL1, value)
+        retried(partial(self.regs.write, r.REG_CNTL1, value))
         self.clock.sleep(r.MODE_CHANGE_S)
 
     def _read_asa(self) -> tuple[int, int, int]:
@@ -191,11 +194,11 @@ class AK8963Driver(Driver):
         not change); otherwise it is read again, and taken only when both reads agree and
         are plausible, else a BusError (the recovery tries again). One read when all is
         well, so recordings replay with the transactions they hold."""
-        asa = self.regs.read(r.REG_ASAX, 3)
+        asa = retried(partial(self.regs.read, r.REG_ASAX, 3))
         if _plausible_asa(asa) and asa == (self._asa_read or asa):
             self._asa_read = asa
             return asa[0], asa[1], asa[2]
-        again = self.regs.read(r.REG_ASAX, 3)
+        again = retried(partial(self.regs.read, r.REG_ASAX, 3))
         if again != asa or not _plausible_asa(asa):
             raise BusError(f"{self.describe()}: the fuse-ROM sensitivity adjustment read "
                            f"{asa.hex(' ')} then {again.hex(' ')}: a garbled transfer, "
@@ -204,18 +207,21 @@ class AK8963Driver(Driver):
         return asa[0], asa[1], asa[2]
 
     def configure(self) -> None:
-        self.regs.write(r.REG_CNTL2, r.CNTL2_SRST)
+        # every transfer that fails is repeated in place (RegisterPlan.retried), so a
+        # glitch does not start the soft reset and the fuse-ROM read over (issue 26)
+        retried(partial(self.regs.write, r.REG_CNTL2, r.CNTL2_SRST))
         self.clock.sleep(r.RESET_S)
         # ASA is readable only in fuse-ROM mode; modes change only through power-down.
         self._set_mode(r.MODE_FUSE_ROM)
         self.asa = self._read_asa()
         self._set_mode(r.MODE_POWER_DOWN)
-        self.plan.apply(self.regs, self.clock)
+        self.plan.apply(self.regs, self.clock, attempts=IN_PLACE_ATTEMPTS)
         if self.settings.read == "auto":
             # measurements start here (read only when needed: a clock read is part of a
             # recording, and one-shot recordings must replay as they were made)
             self._cntl1_written_ns = self.clock.now_ns()
-        back = self.plan.verify(self.regs)[r.REG_CNTL1]
+        back = self.plan.verify(self.regs, attempts=IN_PLACE_ATTEMPTS,
+                                clock=self.clock)[r.REG_CNTL1]
         if self.settings.read == "auto":
             assert isinstance(self.link.bus, AutoReadBus)
             feed = self._feed = self.link.bus.auto_read(
@@ -281,7 +287,7 @@ class AK8963Driver(Driver):
         on the clock every device shares). A retry after a read that reached the chip finds
         DRDY clear (ST2 ended that read) and waits for the next measurement: one lost,
         none repeated."""
-        if self.asa is None or self.plan.lost(self.regs):
+        if self.asa is None or retried(partial(self.plan.lost, self.regs)):
             return None
         return max(now_ns, self.clock.now_ns())
 

@@ -19,12 +19,13 @@ reported STALE; in normal mode staleness is only visible as the never-measured v
 from __future__ import annotations
 
 import math
+from functools import partial
 from typing import ClassVar, Literal
 
 from pydantic import Field, field_validator, model_validator
 
 from imuhal.bus.base import Bus, BusKind, Link
-from imuhal.bus.register_plan import RegisterPlan, RegisterSetting
+from imuhal.bus.register_plan import IN_PLACE_ATTEMPTS, RegisterPlan, RegisterSetting, retried
 from imuhal.bus.registers import RegisterConvention, RegisterView
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
@@ -135,6 +136,8 @@ class BMP280Driver(Driver):
     Settings = BMP280Settings
     channels: ClassVar[tuple[Quantity, ...]] = (Quantity.PRESSURE, Quantity.TEMPERATURE)
     bus_kinds: ClassVar[frozenset[BusKind]] = frozenset({BusKind.I2C, BusKind.SPI})
+    resumes_in_a_row = IN_PLACE_ATTEMPTS
+    """The burst a resumed poll reads carries ctrl_meas and config: it checks them again."""
 
     STALE_AFTER_MAX_TIMES = 3
     """Forced mode: a measurement unfinished after this many maximum conversion times is stale."""
@@ -211,7 +214,7 @@ class BMP280Driver(Driver):
 
     def probe(self) -> DeviceIdentity:
         try:
-            chip_id = self.regs.read_u8(r.REG_CHIP_ID)
+            chip_id = retried(partial(self.regs.read_u8, r.REG_CHIP_ID))
         except NackError as exc:
             where = ("SDO to GND gives 0x76, SDO to VDDIO 0x77"
                      if self.link.kind is BusKind.I2C else "check CSB and the SPI wiring")
@@ -230,15 +233,17 @@ class BMP280Driver(Driver):
 
     def configure(self) -> None:
         s = self.settings
-        self.regs.write(r.REG_RESET, r.RESET_COMMAND)
+        # every transfer that fails is repeated in place (RegisterPlan.retried), so a
+        # glitch does not start the reset and the NVM copy over (issue 26)
+        retried(partial(self.regs.write, r.REG_RESET, r.RESET_COMMAND))
         self.clock.sleep(r.STARTUP_S)
         deadline = self.clock.now_ns() + 20_000_000
-        while self.regs.read_u8(r.REG_STATUS) & r.STATUS_IM_UPDATE:
+        while retried(partial(self.regs.read_u8, r.REG_STATUS)) & r.STATUS_IM_UPDATE:
             if self.clock.now_ns() > deadline:
                 raise ConfigurationError(
                     f"{self.describe()}: NVM copy (status.im_update) did not finish in 20 ms")
             self.clock.sleep(0.0005)
-        trim = Trim.from_bytes(self.regs.read(r.REG_CALIB, r.CALIB_LENGTH))
+        trim = Trim.from_bytes(retried(partial(self.regs.read, r.REG_CALIB, r.CALIB_LENGTH)))
         if not trim.plausible():
             raise ConfigurationError(
                 f"{self.describe()}: trimming reads blank ({trim}); check the wiring")
@@ -261,8 +266,7 @@ class BMP280Driver(Driver):
         mode = r.MODE_NORMAL if s.mode == "normal" else r.MODE_SLEEP
         self._ctrl = r.ctrl_meas_value(s.temperature_oversampling, s.pressure_oversampling, mode)
         self.plan = self._register_plan()
-        self.plan.apply(self.regs)
-        back = self.plan.verify(self.regs)
+        back = self.plan.establish(self.regs)
         self._readback = bytes((back[r.REG_CTRL_MEAS], back[r.REG_CONFIG]))
         self._period_ns = self._streams_from(self._readback)[0].period_ns
         # Writing config has reset the IIR filter (datasheet 3.4.3: the next measurement

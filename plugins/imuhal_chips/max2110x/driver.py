@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 import struct
 from collections.abc import Mapping, Sequence
+from functools import partial
 from typing import ClassVar
 
 import numpy as np
@@ -24,7 +25,7 @@ import numpy.typing as npt
 
 from imuhal.bus.auto_read import AUTO_READ, AutoReadFeed, same_feed
 from imuhal.bus.base import Bus, BusKind, Link
-from imuhal.bus.register_plan import RegisterPlan
+from imuhal.bus.register_plan import IN_PLACE_ATTEMPTS, RegisterPlan, retried
 from imuhal.bus.registers import RegisterView
 from imuhal.core.blocks import Block, IntArray, blocks_of
 from imuhal.core.clock import Clock
@@ -128,6 +129,8 @@ class Max2110xDriver(Driver):
     part: ClassVar[PartSpec]
     channels = (Quantity.GYRO, Quantity.ACCEL, Quantity.TEMPERATURE)
     bus_kinds = frozenset({BusKind.I2C, BusKind.SPI})
+    resumes_in_a_row = IN_PLACE_ATTEMPTS
+    """Each ``resume()`` reads the whole plan back (``_off_plan(overdue=True)``)."""
     specified_offset: ClassVar[Mapping[Quantity, float]] = {Quantity.ACCEL: 0.060 * 9.80665}
     """No MAX2110x datasheet was found: +-60 mg is assumed, the consumer-MEMS class of the
     MPU-9250's specified zero-g offset (and three times the emulator's assumed 20 mg spread)."""
@@ -177,7 +180,7 @@ class Max2110xDriver(Driver):
     def probe(self) -> DeviceIdentity:
         expected = f"WHO_AM_I=0x{self.part.who_am_i:02X} ({self.part.part})"
         try:
-            found = self.regs.read_u8(Reg.WHO_AM_I)
+            found = retried(partial(self.regs.read_u8, Reg.WHO_AM_I))
         except NackError as exc:
             raise DeviceNotFoundError(
                 driver=self.name, bus=self.link.bus.name, address=self.link.target,
@@ -237,16 +240,19 @@ class Max2110xDriver(Driver):
 
     def configure(self) -> None:
         """Soft reset, program bank 0 from the tables (power-down while writing), read back
-        every register written and cache the active scales."""
-        self.regs.write(Reg.BANK_SELECT, 0x00)
-        self.regs.write(Reg.RST_REG, RST_SW_RESET)
+        every register written and cache the active scales. Every transfer that fails is
+        repeated in place and a register that reads back wrong written again
+        (``RegisterPlan.retried``, ``verify(attempts=)``), so a glitch does not start the
+        soft reset over (issue 26)."""
+        for reg, value in ((Reg.BANK_SELECT, 0x00), (Reg.RST_REG, RST_SW_RESET)):
+            retried(partial(self.regs.write, reg, value))
         self.clock.sleep(SOFT_RESET_WAIT_S)
-        self.regs.write(Reg.BANK_SELECT, 0x00)
-        self.regs.write(Reg.POWER_CFG, 0x00)
+        for reg, value in ((Reg.BANK_SELECT, 0x00), (Reg.POWER_CFG, 0x00)):
+            retried(partial(self.regs.write, reg, value))
         plan = self._checked(self.register_plan())
-        plan.apply(self.regs)
+        plan.apply(self.regs, attempts=IN_PLACE_ATTEMPTS)
         self._power_on_ns = self.clock.now_ns()  # measurements are timed from here
-        readback = plan.verify(self.regs)
+        readback = plan.verify(self.regs, attempts=IN_PLACE_ATTEMPTS, clock=self.clock)
         self._program_interrupt()
         self.plan = plan
         self._watch.spread_over(len(plan.steps))
@@ -715,8 +721,9 @@ class Max2110xDriver(Driver):
         nothing answering): the next check step, or every register when data are overdue."""
         if self.plan is None:
             return True
-        check = self.plan.lost if overdue else self.plan.check_next
-        return check(self.regs) is not None
+        if overdue:  # the whole plan, now: a read without side effects, repeated in place
+            return retried(partial(self.plan.lost, self.regs)) is not None
+        return self.plan.check_next(self.regs) is not None
 
 
 class Max21105Driver(Max2110xDriver):

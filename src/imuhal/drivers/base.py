@@ -150,6 +150,13 @@ class Driver(ABC):
     channel's unit (accelerometer m/s^2, magnetometer uT), as the chip's datasheet (or the
     driver, when none is published) specifies it: what ``imuhal run`` quotes when a device
     has no calibration for that channel (imuhal.calibrate.missing). Empty: not known."""
+    resumes_in_a_row: ClassVar[int] = 1
+    """How many bus errors in a row, before a poll completes, the pipeline answers with
+    ``resume()`` before the full ``recover()``. Above 1 only for a driver whose every
+    ``resume()`` checks by itself that the chip kept its state (its configuration read
+    back): the evidence is then as good the fourth time as the first, and at 10 % of
+    transfers failing a second failure in a row comes every hundred polls, each a full
+    recovery (the MPU-9250's H_RESET: 110 ms on the clock every device shares)."""
 
     def __init__(self, link: Link, settings: SettingsInput, *, device: str, clock: Clock) -> None:
         if not isinstance(settings, self.Settings):
@@ -233,10 +240,11 @@ class Driver(ABC):
 
         The pipeline calls it after a bus error that followed a good poll (a glitch, most
         likely), and calls ``recover()`` instead when the resumed driver fails again before
-        a poll completes. A driver resumes only when it can tell its chip kept its state (a
-        configuration that still reads back, a conversion whose result can be read again)
-        and never so that a wrong value could come out valid; a transfer that fails here
-        raises BusError (the pipeline then recovers). The default: None (always recover).
+        a poll completes (after ``resumes_in_a_row`` resumes). A driver resumes only when it
+        can tell its chip kept its state (a configuration that still reads back, a
+        conversion whose result can be read again) and never so that a wrong value could
+        come out valid; a transfer that fails here raises BusError (the pipeline then
+        recovers). The default: None (always recover).
         """
         return None
 

@@ -122,9 +122,10 @@ class DeviceRuntime:
     present: bool = False
     """Probed and configured: polled. False: an optional device not (yet) found."""
     needs_recovery: bool = False
-    resumed: bool = False
-    """The driver resumed after a bus error and has not completed a poll since: another
-    bus error now gets the full recovery."""
+    resumed: int = 0
+    """Resumes after bus errors since the driver last completed a poll (0: it did): one
+    more bus error gets the full recovery once the driver's ``resumes_in_a_row`` are
+    spent."""
     next_poll_ns: int = 0
     device_errors: int = 0
     bus_errors: int = 0
@@ -916,7 +917,7 @@ class Pipeline:
         """A driver raised something else than an ImuhalError: a device error (counted,
         recovered with the usual backoff); a driver that keeps failing isolates its device."""
         dev.device_errors += 1
-        dev.resumed = False
+        dev.resumed = 0
         disabled = self._driver_failures(dev).failed(
             t_ns, "exceptions", f"raised {describe_exception(exc)} at t={t_ns / 1e9:.3f} s; "
             f"device {dev.name!r} is recovered", self.containment.warn)
@@ -947,9 +948,9 @@ class Pipeline:
             # recovered like after a bus error; the run goes on for the others.
             dev.device_errors += 1
             self._warn_once(dev, type(exc).__name__, f"{dev.name}: {exc}")
-            dev.resumed = False
+            dev.resumed = 0
             return [], self._recover(dev, t_ns)
-        dev.resumed = False
+        dev.resumed = 0
         return frames, next_ns
 
     @staticmethod
@@ -976,9 +977,10 @@ class Pipeline:
         """Recovery in proportion: a transfer that fails after a good poll is most likely a
         glitch, so the driver first resumes (``Driver.resume``: retry the transfer, or check
         the chip kept its state) without resetting the chip and losing its measurement in
-        flight; a second failure before a poll completes, a chip that lost its state, or a
-        driver that cannot tell gets the full recovery (re-probe and reconfigure)."""
-        if not dev.resumed:
+        flight; a failure after the driver's ``resumes_in_a_row`` resumes before a poll
+        completes (one for most), a chip that lost its state, or a driver that cannot tell
+        gets the full recovery (re-probe and reconfigure)."""
+        if dev.resumed < dev.driver.resumes_in_a_row:
             try:
                 next_ns = dev.driver.resume(t_ns)
             except ImuhalError as exc:
@@ -986,9 +988,9 @@ class Pipeline:
                     dev.bus_errors += 1
                 next_ns = None
             if next_ns is not None:
-                dev.resumed = True
+                dev.resumed += 1
                 return next_ns
-        dev.resumed = False
+        dev.resumed = 0
         return self._recover(dev, t_ns)
 
     def _account(self, dev: DeviceRuntime) -> None:
