@@ -9,6 +9,7 @@ keeps the accelerometer bias. Faults come through imuhal.emulation.faults on bun
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import pytest
@@ -159,3 +160,22 @@ def test_an_ahrs_and_a_vario_without_a_usable_imu_withhold_rather_than_guess(
     _, estimates, withheld = _ahrs_tilt_and_vario(registry, faults, 10.0)
     assert _wrong(estimates) == []
     assert withheld > 0
+
+
+def test_a_clipped_gyro_word_never_turns_the_in_flight_accelerometer_learner(
+        registry: Registry) -> None:
+    """seed-gps-vario learns its accelerometer in flight by default (it has a GNSS velocity).
+    The fault matrix's 10 % `wild_value` on its IMU (every 0.05 s an accelerometer, gyro or
+    temperature measurement 1000 times the full scale) gave 46 climb rates up to 3.1 m/s off
+    the truth, unflagged, since learning became the default: the learner's own attitude
+    integrated the gyro words clipped at the rail that reach the AHRS flagged SATURATED (its
+    angular-rate recovery), each a turn of the full scale for a sample, and fitted an
+    accelerometer offset to the tilt that left."""
+    wild = [("accel", 0, 1000 * 4 * 9.80665), ("gyro", 1, 1000 * math.radians(1000)),
+            ("temperature", 2, 1e8)]
+    faults: list[FaultSpec] = [
+        WildValue(device="imu", channel=wild[i % 3][0], axis=wild[i % 3][1],
+                  value=wild[i % 3][2], start_s=round(1.025 + 0.05 * i, 4))
+        for i in range(180)]
+    estimates, _, _ = _vario(registry, "seed-gps-vario.yaml", faults, 10.0)
+    assert estimates and _wrong(estimates) == []

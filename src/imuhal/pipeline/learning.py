@@ -120,6 +120,11 @@ class AccelTeacher:
                     self.learner.attitude(e.q_body_to_ned)
 
     def _sample(self, s: Sample) -> None:
+        if s.flags:
+            # a gyro word clipped at its rail reaches the AHRS flagged (angular-rate
+            # recovery); its true rate is unknown, so the learner's own attitude never
+            # integrates it: a rate that short a gap is carried by the next valid sample
+            return
         learner = self.learner
         changed = False
         if isinstance(s, GyroSample):
