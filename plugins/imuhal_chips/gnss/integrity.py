@@ -40,6 +40,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from imuhal.drivers.validity import NewLevel
+
 EARTH_A_M = 6378137.0
 """WGS-84 semi-major axis."""
 EARTH_E2 = 6.69437999014e-3
@@ -139,7 +141,7 @@ class EpochWatch:
             raise ValueError(f"max_acceleration_m_s2 must be > 0, got {max_acceleration_m_s2}")
         self.max_acceleration_m_s2 = max_acceleration_m_s2
         self._reference: Epoch | None = None
-        self._refused: list[Epoch] = []
+        self._new_level: NewLevel[Epoch] = NewLevel(CONFIRM, self._agree)
         self.refused: dict[str, int] = {}
         self.worst_ratio: dict[str, float] = {}
         """Per rule: the largest residual over its bound among epochs it passed (how close
@@ -160,23 +162,21 @@ class EpochWatch:
 
     def _accept(self, epoch: Epoch, verdicts: tuple[Verdict, ...]) -> None:
         self._reference = epoch
-        self._refused.clear()
+        self._new_level.clear()
         for v in verdicts:
             for rule, ratio in v.ratios:
                 self.worst_ratio[rule] = max(self.worst_ratio.get(rule, 0.0), ratio)
 
     def _refuse(self, epoch: Epoch, verdict: Verdict, *, chain: bool) -> Verdict:
-        if chain:
-            if self._refused and not self.follows(self._refused[-1], epoch).ok:
-                self._refused.clear()
-            self._refused.append(epoch)
-            if len(self._refused) >= CONFIRM:
-                # the reference was the odd one out: a new level the epochs agree on
-                self._reference = epoch
-                self._refused.clear()
-                return Verdict(True, f"new reference after {CONFIRM} agreeing epochs")
+        if chain and self._new_level.refused(epoch):
+            # the reference was the odd one out: a new level the epochs agree on
+            self._reference = epoch
+            return Verdict(True, f"new reference after {CONFIRM} agreeing epochs")
         self.refused[verdict.reason] = self.refused.get(verdict.reason, 0) + 1
         return verdict
+
+    def _agree(self, earlier: Epoch, later: Epoch) -> bool:
+        return self.follows(earlier, later).ok
 
     @staticmethod
     def _alone(epoch: Epoch) -> Verdict:
