@@ -31,8 +31,12 @@ accuracy estimates and from physics:
 A refused epoch is no new reference. When the reference itself is wrong (the first epoch
 after start-up was hit, or the receiver really jumped while epochs were lost), ``CONFIRM``
 refused epochs in a row that agree with one another under the same rules become the new
-reference: a wrong reference costs at most ``CONFIRM - 1`` honest epochs, flagged, never a
-wrong one passed. The first epoch has nothing to be held against but the geoid's range.
+reference (imuhal.drivers.validity.NewLevel): a wrong reference costs at most
+``CONFIRM - 1`` honest epochs, flagged, never a wrong one passed. The first epoch has
+nothing to be held against but the geoid's range, so it is no reference until ``CONFIRM``
+epochs in a row follow one another: the first ``CONFIRM - 1`` fixes of a run are refused
+(``UNCONFIRMED``), and a hit in one of them never becomes valid (one that was the reference
+had refused the honest epochs after it).
 """
 
 from __future__ import annotations
@@ -66,7 +70,10 @@ the UTC fields state the same epoch to the ns (a u-blox keeps its epochs on the 
 their sub-ms residual shows in nano). Wider, a flip in nano's third byte (8.4 ms) passed and
 moved the driver's time mapping, so every later epoch's stamp, by as much."""
 CONFIRM = 3
-"""Refused epochs in a row that agree with one another become the new reference."""
+"""Refused epochs in a row that agree with one another become the new reference; the first
+fix, too, is valid only once this many epochs in a row agree (0.4 s at 5 Hz, 2 s at 1 Hz)."""
+UNCONFIRMED = "first fix unconfirmed"
+"""The rule that refuses the epochs before the first reference is confirmed."""
 DAY_S = 86_400.0
 
 
@@ -152,8 +159,14 @@ class EpochWatch:
         if not alone.ok:
             return self._refuse(epoch, alone, chain=False)
         if self._reference is None:
-            self._accept(epoch, ())
-            return Verdict(True)
+            # Nothing to hold the first fix against: a hit in it would be passed and would
+            # then refuse the honest epochs after it. It is valid once CONFIRM epochs in a
+            # row follow one another under every rule, as a new level after a wrong
+            # reference is.
+            if self._new_level.refused(epoch):
+                self._accept(epoch, ())
+                return Verdict(True, f"first fix confirmed by {CONFIRM} agreeing epochs")
+            return self._count(Verdict(False, UNCONFIRMED))
         verdict = self.follows(self._reference, epoch)
         if verdict.ok:
             self._accept(epoch, (verdict,))
@@ -172,6 +185,9 @@ class EpochWatch:
             # the reference was the odd one out: a new level the epochs agree on
             self._reference = epoch
             return Verdict(True, f"new reference after {CONFIRM} agreeing epochs")
+        return self._count(verdict)
+
+    def _count(self, verdict: Verdict) -> Verdict:
         self.refused[verdict.reason] = self.refused.get(verdict.reason, 0) + 1
         return verdict
 
