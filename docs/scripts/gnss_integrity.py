@@ -172,9 +172,13 @@ def _same(sent: PositionSample | None, got: PositionSample) -> bool:
         (got.latitude_deg, got.longitude_deg, got.height_m)
 
 
-def flips_row(scenario: str, clean: Flight, hit: Flight, plan: dict[float, Pair]) -> str:
-    detected = valid_same = 0
-    wrong: list[tuple[float, float]] = []
+def _hit_epochs(clean: Flight, hit: Flight, plan: dict[float, Pair]
+                ) -> tuple[int, list[tuple[float, float, float, float]], int]:
+    """The hit epochs that were detected (not valid), the errors of those left valid
+    (horizontal and vertical position, m; velocity, m/s; time stamp, us), and how many
+    valid fixes of the other epochs differ from the clean flight's."""
+    detected = 0
+    errors: list[tuple[float, float, float, float]] = []
     for utc in plan:
         got = hit.fixes.get(utc)
         if got is None:
@@ -182,16 +186,25 @@ def flips_row(scenario: str, clean: Flight, hit: Flight, plan: dict[float, Pair]
             continue
         sent = clean.fixes[utc]
         north, east, down = local_offset_m(_as_epoch(sent), _as_epoch(got))
-        if (north, east, down) == (0.0, 0.0, 0.0):
-            valid_same += 1
-        else:
-            wrong.append((math.hypot(north, east), abs(down)))
+        v_sent = clean.velocities.get(sent.t_ns)
+        v_got = hit.velocities.get(got.t_ns)
+        dv = 0.0 if v_sent is None or v_got is None else \
+            math.dist(v_sent.velocity_ned_m_s, v_got.velocity_ned_m_s)
+        errors.append((math.hypot(north, east), abs(down), dv,
+                       abs(got.t_ns - sent.t_ns) / 1e3))
     others = sum(1 for utc, fix in hit.fixes.items() if utc not in plan
                  and not _same(clean.fixes.get(utc), fix))
-    worst_h = max((h for h, _ in wrong), default=0.0)
-    worst_v = max((v for _, v in wrong), default=0.0)
-    return (f"| {scenario} | {len(plan)} | {detected} | {valid_same} | {len(wrong)} | "
-            f"{worst_h:.2f} | {worst_v:.3f} | {others} |")
+    return detected, errors, others
+
+
+def flips_row(scenario: str, clean: Flight, hit: Flight, plan: dict[float, Pair]) -> str:
+    """Detected, and of the hit epochs left valid those whose position the flips moved."""
+    detected, errors, others = _hit_epochs(clean, hit, plan)
+    moved = [(h, v) for h, v, _, _ in errors if (h, v) != (0.0, 0.0)]
+    worst_h = max((h for h, _ in moved), default=0.0)
+    worst_v = max((v for _, v in moved), default=0.0)
+    return (f"| {scenario} | {len(plan)} | {detected} | {len(errors) - len(moved)} | "
+            f"{len(moved)} | {worst_h:.2f} | {worst_v:.3f} | {others} |")
 
 
 HOLES = {
@@ -204,27 +217,12 @@ HOLES = {
 def holes_row(name: str, clean: Flight, hit: Flight, plan: dict[float, Pair]) -> str:
     """How many hit epochs were detected, and the largest error of those left valid: the
     position (horizontal, vertical), the velocity and the time stamp."""
-    detected = same = 0
-    worst = [0.0, 0.0, 0.0, 0.0]  # m, m, m/s, us
-    for utc in plan:
-        got = hit.fixes.get(utc)
-        if got is None:
-            detected += 1
-            continue
-        sent = clean.fixes[utc]
-        north, east, down = local_offset_m(_as_epoch(sent), _as_epoch(got))
-        v_sent = clean.velocities.get(sent.t_ns)
-        v_got = hit.velocities.get(got.t_ns)
-        dv = 0.0 if v_sent is None or v_got is None else \
-            math.dist(v_sent.velocity_ned_m_s, v_got.velocity_ned_m_s)
-        errors = (math.hypot(north, east), abs(down), dv, abs(got.t_ns - sent.t_ns) / 1e3)
-        if not any(errors):
-            same += 1
-        worst = [max(w, e) for w, e in zip(worst, errors, strict=True)]
-    others = sum(1 for utc, fix in hit.fixes.items() if utc not in plan
-                 and not _same(clean.fixes.get(utc), fix))
-    return (f"| {name} | {len(plan)} | {detected} | {same} | {len(plan) - detected - same} "
-            f"| {worst[0]:.2f} | {worst[1]:.3f} | {worst[2]:.3f} | {worst[3]:.1f} | {others} |")
+    detected, errors, others = _hit_epochs(clean, hit, plan)
+    changed = [e for e in errors if any(e)]
+    worst = [max((e[k] for e in changed), default=0.0) for k in range(4)]
+    return (f"| {name} | {len(plan)} | {detected} | {len(errors) - len(changed)} | "
+            f"{len(changed)} | {worst[0]:.2f} | {worst[1]:.3f} | {worst[2]:.3f} | "
+            f"{worst[3]:.1f} | {others} |")
 
 
 def main(argv: list[str] | None = None) -> int:
