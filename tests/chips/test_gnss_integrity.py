@@ -70,6 +70,20 @@ def test_a_wrong_first_fix_never_becomes_valid_nor_a_reference() -> None:
     assert watch.refused == {UNCONFIRMED: CONFIRM}
 
 
+def test_after_a_restart_the_next_epochs_are_held_like_a_first_fix() -> None:
+    """Two seconds after the reference the manoeuvre term alone allows 100 m: an epoch
+    80 m off would pass. After the receiver's restart it is no reference until the epochs
+    after it follow it, and they do not."""
+    watch = started()
+    assert watch.follows(epoch(0.0), epoch(2.0, 20.0 + 80.0)).ok
+    watch.restart()
+    assert not watch.observe(epoch(2.0, 20.0 + 80.0)).ok
+    verdicts = [watch.observe(epoch(2.0 + 0.2 * k, 20.0 + 2.0 * k)).ok
+                for k in range(1, CONFIRM + 1)]
+    assert verdicts == [False] * (CONFIRM - 1) + [True]
+    assert watch.refused == {UNCONFIRMED: 2 * CONFIRM - 1}
+
+
 def test_an_epoch_where_the_velocity_put_it_passes_and_one_beyond_the_gate_does_not() -> None:
     """10 m/s north for 0.2 s: 2 m. The horizontal gate of two 2.5 m hAcc is 5 sigma of
     3.5 m, 17.7 m, plus 100 m/s^2 x 0.04 s^2 / 4 (1 m)."""

@@ -305,11 +305,13 @@ class GnssDriver(Driver):
         the device's next polls takes one step (listen at a baud rate, send a CFG message,
         look for its ACK) and returns at once, so the pipeline polls the other devices
         between them (imuhal_chips.gnss.bringup). A step that fails raises what probe and
-        configure raise, and the pipeline recovers the device again."""
+        configure raise, and the pipeline recovers the device again. The epochs after it
+        are held like a first fix (``EpochWatch.restart``)."""
         s = self.settings
         self._epoch = None
         self._foreign = 0
         self._configuring = None
+        self.epoch_watch.restart()
         self._search = Search(self.link, s.baud_rates, round(s.probe_window_s * 1e9), now_ns)
         return now_ns + self._step_ns
 

@@ -173,6 +173,14 @@ class EpochWatch:
             return verdict
         return self._refuse(epoch, verdict, chain=True)
 
+    def restart(self) -> None:
+        """The receiver was found and configured again (a recovery): its next epochs are
+        held like a first fix. The last reference may be seconds old, and the bound that
+        grows with the square of that time checks little (after 2 s at 10 g: 100 m); a
+        restarted receiver's first epochs are also the likeliest to be wrong."""
+        self._reference = None
+        self._new_level.clear()
+
     def _accept(self, epoch: Epoch, verdicts: tuple[Verdict, ...]) -> None:
         self._reference = epoch
         self._new_level.clear()
