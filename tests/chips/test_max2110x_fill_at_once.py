@@ -1,11 +1,12 @@
-"""A MAX2110x FIFO fill latched at once (``Max2110xEmulator.latch_fills_at_once``: the
-inputs of a fill's instants taken from the board's plan in one step, the counts encoded for
-the plan, the frames packed by one numpy call) leaves every register, status bit, FIFO byte,
-pull and recorded instant as latching the fill measurement by measurement does. Two chips
-are driven alike by a planning board of their own (what ``EmulatedBoard`` does for a chip
-with its own clock: the inputs of the announced instants computed ahead, handed out while
-the pulls come as announced), one latching fills at once, one measurement by measurement,
-and read alike over the bus."""
+"""The MAX2110x emulator's fast paths (``Max2110xEmulator.fast_paths``) leave every
+register, status bit, FIFO byte, slave transaction, pull and recorded instant as its general
+paths do: a FIFO fill latched at once (the inputs of a fill's instants taken from the
+board's plan in one step, the counts encoded for the plan, the frames packed by one numpy
+call), and both channels on one clock caught up as a pair when the host reads the data
+registers. Two chips are driven alike by a planning board of their own (what
+``EmulatedBoard`` does for a chip with its own clock: the inputs of the announced instants
+computed ahead, handed out while the pulls come as announced), one on the fast paths, one
+on the general ones, and read alike over the bus."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 import pytest
 from tests.chips.test_max2110x_emulator import rd, spi, wr
+from tests.chips.test_max2110x_emulator_auto_read import SLAVE, RegisterFile
 
 from imuhal.core.clock import SimulatedClock
 from imuhal.emulation import EmulatedBus, PhysicalInputs, PlannedInputs
@@ -25,7 +27,7 @@ PERIOD_S = 0.004  # 250 Hz both channels: GYRO_CFG2 code 5, ACC_CFG1 code 3
 class PlanningBoard:
     """The three hooks an emulated board gives a chip with its own clock, on a plan of
     random inputs per announced instant (``huge_at``: one value whose counts do not encode
-    with the plan's others)."""
+    with the plan's others); a pull elsewhere drops the plan."""
 
     def __init__(self, chip: Max21100Emulator, seed: int, huge_at: int | None = None) -> None:
         self.chip = chip
@@ -55,9 +57,19 @@ class PlanningBoard:
 
     def pull(self, t_ns: int) -> None:
         self.pulls.append(t_ns)
-        assert self.plan is not None and self.times[self.next] == t_ns
-        self.chip.set_planned(self.plan, self.next)
-        self.next += 1
+        if self.plan is not None and self.next < len(self.times) \
+                and self.times[self.next] == t_ns:
+            self.chip.set_planned(self.plan, self.next)
+            self.next += 1
+            return
+        # a pull not as announced (a measurement skipped): the plan is dropped and the
+        # instant's inputs computed alone, as the board does
+        self.plan = None
+        rng = np.random.default_rng(t_ns)
+        self.chip.set_physics(PhysicalInputs(
+            specific_force_m_s2=tuple(rng.normal(0.0, 25.0, 3).tolist()),
+            angular_rate_rad_s=tuple(rng.normal(0.0, 4.0, 3).tolist()),
+            temperature_degc=float(rng.normal(30.0, 10.0))))
 
     def rows(self, times: Sequence[int]) -> tuple[PlannedInputs, int] | None:
         if self.plan is None or self.times[self.next:self.next + len(times)] != list(times):
@@ -73,7 +85,7 @@ def _measuring(cls: type[Max21100Emulator], at_once: bool, seed: int, *, tempera
                little_endian: bool, huge_at: int | None = None
                ) -> tuple[SimulatedClock, EmulatedBus, Max21100Emulator, PlanningBoard]:
     clock, bus, emu = spi(cls)
-    emu.latch_fills_at_once = at_once
+    emu.fast_paths = at_once
     board = PlanningBoard(emu, seed, huge_at)
     wr(bus, 0x01, 0x02)  # +-500 dps
     wr(bus, 0x02, 0x05)  # gyro 250 Hz
@@ -166,3 +178,37 @@ def test_instants_the_board_did_not_plan_are_pulled_one_by_one() -> None:
     clock.sleep(8 * PERIOD_S)
     assert len(_read_out(bus)[3]) == 8 * 12
     assert emu.fills_latched_at_once == latched
+
+
+def _polled(fast: bool, gaps: Sequence[float]) -> tuple[list[bytes], list, list[int], int]:
+    """A MAX21100 read by register bursts (no FIFO) after each of ``gaps`` (periods), its
+    slave auto-read on at every accelerometer measurement, a one-shot read of the slave
+    triggered after each burst (the chip wakes for its end, before the next measurement):
+    (the bursts, the slave's transactions, the pulls, the instants recorded)."""
+    clock, bus, emu = spi(Max21100Emulator)
+    emu.fast_paths = fast
+    board = PlanningBoard(emu, 3)
+    slave = emu.child_buses()["aux"].attach(SLAVE, RegisterFile())
+    for reg, value in ((0x01, 0x02), (0x02, 0x05), (0x04, 0x87), (0x05, 0x03), (0x08, SLAVE),
+                       (0x09, 0x03), (0x07, 0x86), (0x13, 0x01), (0x00, 0x7F)):
+        wr(bus, reg, value)
+    bursts = []
+    for gap in gaps:
+        clock.sleep(gap * PERIOD_S)
+        bursts.append(rd(bus, 0x23, 0x3C - 0x23))
+        wr(bus, 0x0B, 0x05)  # I2C_MST_ADD: the slave's register 5
+        wr(bus, 0x13, 0x31)  # DR_CFG: a one-shot read (the temperature word kept on)
+        clock.sleep(0.2 * PERIOD_S)
+        bursts.append(rd(bus, 0x0C))  # I2C_MST_DATA, once the one-shot is done
+    return bursts, slave.log, board.pulls, emu.measured_ns.count_until(clock.now_ns())
+
+
+GAPS = (1.0, 1.0, 0.25, 0.5, 2.5, 3.0, 1.0, 0.3, 7.0, 1.0, 1.0)
+"""Polls each period, several a period and a few periods apart (overruns)."""
+
+
+def test_both_channels_caught_up_as_a_pair_read_as_on_the_general_path() -> None:
+    fast = _polled(True, GAPS)
+    general = _polled(False, GAPS)
+    assert fast == general
+    assert len(fast[1]) > len(GAPS)  # the auto-reads and the one-shots reached the slave

@@ -1,5 +1,5 @@
 """The seed board read from its MAX21100's FIFO emits the same events, bit for bit, whether
-the chip latches a fill's planned measurements at once (``latch_fills_at_once``, the
+the chip latches a fill's planned measurements at once (``fast_paths``, the
 default) or one by one, with the faults of the documented interface (imuhal.emulation.faults)
 in force, starting inside fills:
 
@@ -54,7 +54,7 @@ def _fly(registry: Registry, faults: Sequence[FaultSpec], *, at_once: bool
                        calibrated=False, faults=faults) as p:
         board = EmulatedBoard.of(p)
         imu = board.emulators["imu"]
-        imu.latch_fills_at_once = at_once
+        imu.fast_paths = at_once
         events = [repr(e) for e in p.events(SECONDS)]
         return (events, imu.fills_latched_at_once, imu.fifo.frames_dropped,
                 list(board.faults.log.events))

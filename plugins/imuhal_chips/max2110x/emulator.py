@@ -155,10 +155,12 @@ _WORD_BE, _WORD_LE = struct.Struct(">H"), struct.Struct("<H")
 _I2C_MST_DATA = int(Reg.I2C_MST_DATA)
 _I2C_MST_ADD = int(Reg.I2C_MST_ADD)
 _MAG_SLV_ADD = int(Reg.MAG_SLV_ADD)
-_DR_BITS = Status.GYRO_DR | Status.ACC_DR
+# SYSTEM_STATUS's bits as plain ints: the status byte stays an int (an IntFlag operation
+# builds a flag object through the enum machinery, several times a register access's cost)
 _GYRO_DR, _GYRO_ERR = int(Status.GYRO_DR), int(Status.GYRO_ERR)
 _ACC_DR, _ACC_ERR = int(Status.ACC_DR), int(Status.ACC_ERR)
-_ERR_BITS = Status.GYRO_ERR | Status.ACC_ERR
+_DR_BITS = _GYRO_DR | _ACC_DR
+_ERR_BITS = _GYRO_ERR | _ACC_ERR
 _DR_CFG = int(Reg.DR_CFG)
 _MAG_SLV_CFG = int(Reg.MAG_SLV_CFG)
 _MAG_SLV_REG = int(Reg.MAG_SLV_REG)
@@ -239,11 +241,12 @@ class Max2110xEmulator(ChipEmulator):
         the latest plan encoded."""
         self._plan_temperature: tuple[PlannedInputs, list | None] | None = None
         """(plan, every row's temperature counts) likewise."""
-        self.latch_fills_at_once = True
-        """Latch the measurements of a FIFO fill taken from the board's plan at once, on
-        the plan's arrays (:meth:`_latch_fill`); False: one by one, as every other fill
-        (the reference the tests compare the two with). The same registers, FIFO bytes
-        and pulls either way."""
+        self.fast_paths = True
+        """The paths written for the common case: a FIFO fill's planned measurements
+        latched at once, on the plan's arrays (:meth:`_latch_fill`), and both channels on
+        one clock caught up as a pair (:meth:`_advance_pair`); False: the general paths
+        (the reference the tests compare them with). The same registers, FIFO bytes and
+        pulls either way."""
         self.fills_latched_at_once = 0
         """FIFO fills whose measurements (but the last instant's) were latched at once
         (since construction)."""
@@ -386,10 +389,10 @@ class Max2110xEmulator(ChipEmulator):
         gyro = index == _GYRO
         if gyro:
             first, enable_reg = _GYRO_X_H, _POWER_CFG
-            dr, err = Status.GYRO_DR, Status.GYRO_ERR
+            dr, err = _GYRO_DR, _GYRO_ERR
         else:
             first, enable_reg = _ACC_X_H, _PWR_ACC_CFG
-            dr, err = Status.ACC_DR, Status.ACC_ERR
+            dr, err = _ACC_DR, _ACC_ERR
         planned = self.planned
         counts = None if planned is None else self._planned_counts(*planned, index)
         if counts is None:
@@ -525,6 +528,11 @@ class Max2110xEmulator(ChipEmulator):
         registers keep one sample), the ones before it only counted (an overrun)."""
         next_ns = self._next_ns
         periods = self._period_ns
+        due = next_ns[_GYRO]
+        if due is not None and due == next_ns[_ACCEL] and periods[_GYRO] == periods[_ACCEL] \
+                and self.fast_paths:
+            self._advance_pair(now, due, periods[_GYRO])
+            return
         counted = self._counted()
         due_now = sorted((due + (now - due) // periods[i] * periods[i], i)
                          for i, due in enumerate(next_ns) if due is not None and now >= due)
@@ -544,11 +552,37 @@ class Max2110xEmulator(ChipEmulator):
             if index == counted:
                 self.record_measurements(due, period, missed + 1)
             if missed:
-                self.status |= Status.GYRO_ERR if index == _GYRO else Status.ACC_ERR
+                self.status |= _GYRO_ERR if index == _GYRO else _ACC_ERR
             self.pull_physics(newest)  # the newest measurement, with its instant's inputs
             self._latch(index)
             if index == _ACCEL:
                 self._accel_latched(missed + 1, newest)
+
+    def _advance_pair(self, now: int, due: int, period: int) -> None:
+        """:meth:`_advance_newest` for both channels on one clock (the same period and
+        phase: every bundled board's), due at ``due``: the same
+        steps in the same order, written out for the pair (the gyro first, then the
+        accelerometer, each pulling its inputs of the newest instant). Nothing before
+        ``due`` (a wake for a one-shot transaction's end)."""
+        if now < due:
+            return
+        missed = (now - due) // period
+        newest = due + missed * period
+        if self.physics_ahead is not None and newest > self._ahead_until_ns:
+            self._announce_instants(newest, now, each_channel=True)
+        self._next_ns[_GYRO] = self._next_ns[_ACCEL] = newest + period
+        if self.stuck_data_ready:
+            return
+        self.record_measurements(due, period, missed + 1)  # the gyro, counted on a tie
+        if missed:
+            self.status |= _GYRO_ERR
+        self.pull_physics(newest)
+        self._latch(_GYRO)
+        if missed:
+            self.status |= _ACC_ERR
+        self.pull_physics(newest)
+        self._latch(_ACCEL)
+        self._accel_latched(missed + 1, newest)
 
     def _advance_each(self, now: int) -> None:
         """The measurements due by ``now``, every one latched in the order the chip made
@@ -575,7 +609,7 @@ class Max2110xEmulator(ChipEmulator):
         frame_channel = self._fifo_frame_channel()
         pulled = None
         start, taken, taken_until = 0, None, 0
-        if paired and len(events) > 2 and self.latch_fills_at_once:
+        if paired and len(events) > 2 and self.fast_paths:
             start, taken = self._latch_fill(events)
             if taken is not None:  # rows taken from the plan, to latch one by one
                 taken_until = len(events) - 2
