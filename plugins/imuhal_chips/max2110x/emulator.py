@@ -330,9 +330,9 @@ class Max2110xEmulator(ChipEmulator):
         """The temperature word's counts from row ``row`` of ``plan``, as ``_planned_counts``."""
         cached = self._plan_temperature
         if cached is None or cached[0] is not plan:
-            counts = _encode_rows(plan.temperature_degc, 1.0 / _TEMP_LSB_PER_DEGC, 32767)
+            encoded = _encode_rows(plan.temperature_degc, 1.0 / _TEMP_LSB_PER_DEGC, 32767)
             cached = self._plan_temperature = (
-                plan, None if counts is None else counts.tolist())
+                plan, None if encoded is None else encoded.tolist())
         counts = cached[1]
         return None if counts is None else counts[row]
 
@@ -590,7 +590,6 @@ class Max2110xEmulator(ChipEmulator):
         frame is written when the FIFO's frame channel measured then."""
         next_ns = self._next_ns
         periods = self._period_ns
-        counted = self._counted()
         # both channels on one clock (the same period and phase): each instant latches both
         paired = next_ns[_GYRO] is not None and next_ns[_GYRO] == next_ns[_ACCEL] \
             and periods[_GYRO] == periods[_ACCEL]
@@ -606,13 +605,21 @@ class Max2110xEmulator(ChipEmulator):
         events.sort()
         if events and self.physics_ahead is not None and events[-1][0] > self._ahead_until_ns:
             self._announce_instants(events[0][0], now)
-        frame_channel = self._fifo_frame_channel()
-        pulled = None
-        start, taken, taken_until = 0, None, 0
+        start, taken = 0, None
         if paired and len(events) > 2 and self.fast_paths:
             start, taken = self._latch_fill(events)
-            if taken is not None:  # rows taken from the plan, to latch one by one
-                taken_until = len(events) - 2
+        self._latch_each(events, start, taken)
+
+    def _latch_each(self, events: list[tuple[int, int]], start: int,
+                    taken: tuple[PlannedInputs, int] | None) -> None:
+        """``events`` from index ``start`` on latched one by one, in order, each instant
+        pulling its inputs once; ``taken``: the plan and first row of the inputs of every
+        instant but the last, already taken from the board (``_latch_fill``)."""
+        periods = self._period_ns
+        counted = self._counted()
+        frame_channel = self._fifo_frame_channel()
+        taken_until = 0 if taken is None else len(events) - 2
+        pulled = None
         for k in range(start, len(events)):
             t, index = events[k]
             if self.stuck_data_ready:
@@ -620,8 +627,7 @@ class Max2110xEmulator(ChipEmulator):
             if index == counted:
                 self.record_measurements(t, periods[index], 1)
             if t != pulled:  # the gyro and the accelerometer of one instant see one world
-                if k < taken_until:
-                    assert taken is not None
+                if taken is not None and k < taken_until:
                     self.keep_planned(taken[0], taken[1] + k // 2)
                 else:
                     self.pull_physics(t)
