@@ -142,16 +142,20 @@ class AttitudeBlock:
         return rows
 
     def all_usable(self) -> bool:
-        """True when :func:`estimate_flags` would pass every row (finite quaternions of a
-        norm above zero, finite accelerations): the same sums in the same order, column by
-        column."""
-        q = self.q_body_to_ned
-        w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-        norm_sq = w * w + x * x + y * y + z * z
-        if not bool(((norm_sq > _MIN_QUAT_NORM_SQ) & (norm_sq < math.inf)).all()):
+        """True only when :func:`estimate_flags` passes every row (finite quaternions of a
+        norm above zero, finite accelerations): each row's sums as that check makes them,
+        in the same order, column by column. It may say False for a block whose rows all
+        pass (accelerations whose total overflows): then they are checked one by one."""
+        qq = self.q_body_to_ned * self.q_body_to_ned
+        norm_sq = qq[:, 0] + qq[:, 1] + qq[:, 2] + qq[:, 3]
+        # a NaN makes min() NaN, which fails the comparison
+        if not (norm_sq.min() > _MIN_QUAT_NORM_SQ and norm_sq.max() < math.inf):
             return False
         lin = self.linear_accel_ned_m_s2
-        return lin is None or bool(np.isfinite(lin[:, 0] + lin[:, 1] + lin[:, 2]).all())
+        if lin is None:
+            return True
+        # a row's sum that is not finite makes the total not finite (inf - inf is NaN)
+        return math.isfinite((lin[:, 0] + lin[:, 1] + lin[:, 2]).sum())
 
 
 def usable_blocks_kept(made: list[Any]) -> list[Any]:

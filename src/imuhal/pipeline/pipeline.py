@@ -1180,6 +1180,8 @@ class Pipeline:
         """The frames of ``block`` an estimator may take: valid ones and, for a gyro, ones
         clipped at the chip's full scale (:func:`_recovered_clip`)."""
         f = block.flags
+        if not f.any():
+            return block  # the common case: every frame valid, in one numpy call
         keep = f == 0
         if issubclass(block.kind, GyroSample):
             keep |= ((f & SampleFlag.SATURATED) != 0) & ((f & ~int(CLIPPED)) == 0)
