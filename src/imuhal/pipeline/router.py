@@ -169,26 +169,24 @@ class Router:
             return
         made: dict[str, list[Estimate | AttitudeBlock]] = {}
         for r, which in plan.fed:
-            fed = [blocks[i] for i in which]
-            guard = r.guard
-            if estimate_blocks:
-                got: list[Estimate | AttitudeBlock] = guard.estimate_blocks(fed) \
-                    if guard is not None else r.estimator.estimate_blocks(fed)
-            else:
-                got = list(guard.process_blocks(fed) if guard is not None else
-                           r.estimator.update_blocks(fed))
-            self._made(r, got, made, out)
+            self._made(r, _fed(r, [blocks[i] for i in which], estimate_blocks), made, out)
         for r, upstream in plan.downstream:
-            got = []
-            guard = r.guard
-            for e in made[upstream]:
-                if isinstance(e, AttitudeBlock):
-                    if any(x is r for x in self.routes_of(upstream, AttitudeEstimate)):
-                        got += guard.process_estimate_block(e) if guard is not None else \
-                            r.estimator.update_estimate_block(e)
-                elif any(x is r for x in self.routes_of(upstream, type(e))):
-                    got += guard.process(e) if guard is not None else r.estimator.process(e)
-            self._made(r, got, made, out)
+            self._made(r, self._downstream(r, upstream, made[upstream]), made, out)
+
+    def _downstream(self, r: Route, upstream: str, made: list[Estimate | AttitudeBlock]
+                    ) -> list[Estimate | AttitudeBlock]:
+        """What ``r`` makes of the estimates ``upstream`` made in this step (those routed
+        to it), in the order they were made; an AttitudeBlock whole."""
+        got: list[Estimate | AttitudeBlock] = []
+        guard = r.guard
+        for e in made:
+            if isinstance(e, AttitudeBlock):
+                if any(x is r for x in self.routes_of(upstream, AttitudeEstimate)):
+                    got += guard.process_estimate_block(e) if guard is not None else \
+                        r.estimator.update_estimate_block(e)
+            elif any(x is r for x in self.routes_of(upstream, type(e))):
+                got += guard.process(e) if guard is not None else r.estimator.process(e)
+        return got
 
     @staticmethod
     def _made(r: Route, got: list[Estimate | AttitudeBlock],
@@ -224,6 +222,18 @@ class Router:
                     queue.append(d)
         return _Plan(tuple((r, tuple(fed[r.name])) for r in stage),
                      tuple((r, upstream[r.name]) for r in reached))
+
+
+def _fed(r: Route, blocks: list[Block], estimate_blocks: bool
+         ) -> list[Estimate | AttitudeBlock]:
+    """What ``r`` makes of its blocks of one fusion step (``estimate_blocks``: as
+    ``Estimator.estimate_blocks`` makes it, else ``update_blocks``)."""
+    guard = r.guard
+    if estimate_blocks:
+        return guard.estimate_blocks(blocks) if guard is not None else \
+            r.estimator.estimate_blocks(blocks)
+    return list(guard.process_blocks(blocks) if guard is not None else
+                r.estimator.update_blocks(blocks))
 
 
 def _takes_estimates_of(d: Route, u: Route) -> bool:
