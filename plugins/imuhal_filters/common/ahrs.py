@@ -453,6 +453,19 @@ class AhrsEstimator(Estimator):
         if bound is not self.settings:
             self.settings = bound
             self.reset()
+        self._load_kernels()
+
+    def _load_kernels(self) -> None:
+        """Load the compiled row kernel and block step now, when the run starts (the
+        pipeline binds its estimators before the first read), not at the first block of
+        several frames: without an AOT extension that is numba compiling or loading them
+        from its cache, seconds of pause and about 120 MB once per process. In the middle of
+        a flight (the first read after a stall or a burst of bus errors brings several
+        frames) the pause held every device up: the seed board's one-hour soak loaded numba
+        at 61 s. Loading them changes no path: the backend and the kernels chosen are the
+        same, only when (``_rows_kernel``, ``_has_block_step``)."""
+        self._rows_kernel()
+        self._has_block_step()
 
     def process(self, item: Sample | Estimate) -> list[Estimate]:
         # The pipeline calls this for every sample (three per IMU tick): the common samples
