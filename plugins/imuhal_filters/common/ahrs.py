@@ -1100,7 +1100,7 @@ class AhrsEstimator(Estimator):
         by_kind: dict[type, Block] = {}
         for b in blocks:
             if b.kind not in (GyroSample, AccelSample, MagSample) or b.kind in by_kind \
-                    or b.frame is not _BODY_NED or bool(b.flags.any()):
+                    or b.frame is not _BODY_NED or b.flagged:
                 return None
             by_kind[b.kind] = b
         gyro = by_kind.get(GyroSample)

@@ -1143,7 +1143,7 @@ class Pipeline:
         if last is not None:
             dev.last_valid_ns[channel] = last
         dev.samples += len(block)
-        if block.flags.any():
+        if block.flagged:
             for sample in block.samples():
                 if sample.flags:
                     self._count_flags(dev, sample)
@@ -1179,9 +1179,9 @@ class Pipeline:
     def _fusable(block: Block) -> Block | None:
         """The frames of ``block`` an estimator may take: valid ones and, for a gyro, ones
         clipped at the chip's full scale (:func:`_recovered_clip`)."""
+        if not block.flagged:
+            return block  # the common case: every frame valid
         f = block.flags
-        if not f.any():
-            return block  # the common case: every frame valid, in one numpy call
         keep = f == 0
         if issubclass(block.kind, GyroSample):
             keep |= ((f & SampleFlag.SATURATED) != 0) & ((f & ~int(CLIPPED)) == 0)
