@@ -269,14 +269,14 @@ class DecoupledKernel:
         g = STANDARD_GRAVITY_M_S2
         return (g * (a[0] - f[0]), g * (a[1] - f[1]), g * (a[2] - f[2]))
 
-    def _inclination_step(self, acc_g: Vec, dt: float, rate: Vec) -> tuple[Vec, float]:
-        """Low-pass the accelerometer in I, turn q_inc so it points up (``rate``: the
-        bias-corrected gyro, rad/s); returns the correction's rotation vector (rad) in the
+    def _inclination_step(self, acc_g: Vec, dt: float, gyro_rad_s: Vec) -> tuple[Vec, float]:
+        """Low-pass the accelerometer in I, turn q_inc so it points up (``gyro_rad_s``: the
+        bias-corrected gyro); returns the correction's rotation vector (rad) in the
         frame after q_inc and the step the filter advanced by (s)."""
         a = to_global(self.q_gyro, acc_g)
         # the strapdown's error grows with the rotation, the accelerometer's with the
         # acceleration: the filter runs faster when the first dominates (pace.py)
-        pace = 1.0 if self.pace is None else self.pace.step(a, self.acc_i, rate, dt)
+        pace = 1.0 if self.pace is None else self.pace.step(a, self.acc_i, gyro_rad_s, dt)
         # a reading away from 1 g carries kinematic acceleration the turn compensation did
         # not remove (a sustained turn does not average out within tau): the filter advances
         # by only the weight's share of the step (it holds still for a zero weight; feeding
