@@ -191,3 +191,33 @@ def test_fifo_modes_count_the_frames_the_chip_measured_through_stalls_overflows_
     # a FIFO keeps what a late read would cost: the losses are the overflow's and the reset's
     assert ledger.lost["fifo_overflow"] > 0 and ledger.lost["reset"] > 0
     assert ledger.lost["host_stall"] == 0
+
+
+def test_a_hung_magnetometers_unmade_fields_are_counted_apart_from_lost_ones(
+        registry: Registry) -> None:
+    """Every chip of the board hangs for 90 ms (``stuck_data_ready``, the fault matrix's
+    window at 1 %): the AK8963 (read directly) completes no measurement and DRDY stays
+    clear, and the MPU-9250's restart holds the one thread for most of the hang, so the mag
+    is not read until its chip measures again. Its reads that found nothing for 2.6 periods
+    prove the hang; the fields it never made are counted ``not_measured``, neither produced
+    nor lost, and the one its overrun bit (DOR) proves lost, so the ledger's count equals
+    the chip's (it counted all thirteen lost before: 1000 for the chip's 988)."""
+    profile = load_profile(bundled_profiles()["gy91.yaml"], registry)
+    faults: list[FaultSpec] = [StuckDataReady(device=d, start_s=5.455, end_s=5.545)
+                               for d in DEVICES]
+    with open_emulated(profile, registry, seed=1, faults=faults) as p:
+        list(p.events(6.0))
+    ledger = _ledger(p, "mag")
+    chip = p.board.emulators["mag"]
+    segments = ledger.all_segments()
+    assert [n for _, _, n in segments] == [chip.frames_between(a, b) for a, b, _ in segments]
+    assert ledger.not_measured >= 8  # 90 ms of a 100 Hz field, the hang ends at a read
+    assert p.summary().frames["mag"]["not_measured"] == ledger.not_measured
+
+
+def test_a_stalled_host_does_not_make_a_measuring_magnetometer_hung(registry: Registry) -> None:
+    """Host stalls at every phase of the AK8963's period while it measures on: every field
+    the host missed is lost, none is counted as not measured."""
+    p = _run(registry, MATRIX["host_stalls"][0])
+    ledger = _ledger(p, "mag")
+    assert ledger.lost["host_stall"] > 0 and ledger.not_measured == 0

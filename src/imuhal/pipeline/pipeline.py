@@ -154,6 +154,10 @@ class DeviceRuntime:
     """The driver's FIFO overflow count the ledger last saw."""
     not_converted_seen_ns: int = 0
     """The driver's slid schedule time the ledger last saw."""
+    idle_seen: tuple[int, int] | None = None
+    """The driver's idle reads the ledger last saw."""
+    overrun_seen_ns: int = 0
+    """The driver's overrun stamp the ledger last saw."""
     mag_learner: HardIronLearner | None = None
     """Learning the hard iron in flight (``mag_in_flight``, no stored magnetometer record)."""
     accel_teacher: AccelTeacher | None = None
@@ -999,6 +1003,13 @@ class Pipeline:
         if driver.health.fifo_overflows != dev.fifo_overflows_seen:
             dev.fifo_overflows_seen = driver.health.fifo_overflows
             dev.ledger.note("fifo_overflow")
+        health = driver.health
+        if health.idle is not None and health.idle != dev.idle_seen:
+            dev.idle_seen = health.idle
+            dev.ledger.idle(*health.idle)
+        if health.overrun_ns != dev.overrun_seen_ns:
+            dev.overrun_seen_ns = health.overrun_ns
+            dev.ledger.overrun(health.overrun_ns)
         if driver.health.reconfigurations != dev.reconfigurations_seen:
             dev.reconfigurations_seen = driver.health.reconfigurations
             dev.ledger.note("reset")
