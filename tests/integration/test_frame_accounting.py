@@ -18,6 +18,7 @@ from imuhal.emulation.faults import (
     BusOSError,
     ChipAbsent,
     ChipReset,
+    CorruptTrim,
     FaultSpec,
     FrozenData,
     HostStall,
@@ -221,3 +222,29 @@ def test_a_stalled_host_does_not_make_a_measuring_magnetometer_hung(registry: Re
     p = _run(registry, MATRIX["host_stalls"][0])
     ledger = _ledger(p, "mag")
     assert ledger.lost["host_stall"] > 0 and ledger.not_measured == 0
+
+
+def test_a_poll_made_off_its_grid_after_the_put_offs_is_counted_at_the_grid_point(
+        registry: Registry) -> None:
+    """Every poll of the seed rc board 10 ms late and up to 5 ms more for 90 ms, the MS5611's
+    trim flipped four times (the fault matrix's ``corrupt_trim``, ``late_polls`` and
+    ``jitter`` at 1 %, whole: the plan's faults order the jitter's draws): the MAX21105's
+    poll, put off
+    three times to grid points aimed a guard (P/8) later than its frames were stamped, is
+    then made 2.5 ms after the grid point (of a 5 ms period), reading that point's sample.
+    Counted from its stamp, 3.5 ms after the chip's instant where the frame before the
+    stall was stamped 0.4 ms after its own, the gap rounded to one frame more than the chip
+    made; it is counted at the grid point, however little later it comes."""
+    profile = load_profile(bundled_profiles()["seed-rc-vario.yaml"], registry)
+    faults: list[FaultSpec] = [
+        *(CorruptTrim(device="baro", start_s=t, bits=1) for t in (2.125, 4.375, 6.625, 8.875)),
+        *(LatePolls(device=d, start_s=5.455, end_s=5.545, delay_s=0.01) for d in DEVICES),
+        *(TimingJitter(device=d, start_s=5.455, end_s=5.545, max_delay_s=0.005)
+          for d in DEVICES)]
+    with open_emulated(profile, registry, seed=1, faults=faults) as p:
+        list(p.events(6.0))
+    ledger = _ledger(p, "imu")
+    chip = p.board.emulators["imu"]
+    segments = ledger.all_segments()
+    assert [n for _, _, n in segments] == [chip.frames_between(a, b) for a, b, _ in segments]
+    assert ledger.lost["host_stall"] > 0

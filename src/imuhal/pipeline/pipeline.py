@@ -795,7 +795,10 @@ class Pipeline:
         if dev.put_off >= PUT_OFF_AT_MOST:
             dev.put_off = 0
             grid_ns = aim_ns + (t_ns - aim_ns) // period_ns * period_ns
-            if 2 * (t_ns - grid_ns) >= period_ns:
+            if t_ns > grid_ns:
+                # counted there however little later it comes: the grid was aimed a guard
+                # later than the frames before it were stamped, so from its stamp a lag of
+                # less than half a period here can still differ from theirs by more
                 ledger.count_at(t_ns, grid_ns)
             return False
         at_ns = aim_ns + -(-(t_ns - aim_ns) // period_ns) * period_ns
