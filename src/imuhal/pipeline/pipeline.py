@@ -795,10 +795,15 @@ class Pipeline:
         if dev.put_off >= PUT_OFF_AT_MOST:
             dev.put_off = 0
             grid_ns = aim_ns + (t_ns - aim_ns) // period_ns * period_ns
-            if t_ns > grid_ns:
-                # counted there however little later it comes: the grid was aimed a guard
-                # later than the frames before it were stamped, so from its stamp a lag of
-                # less than half a period here can still differ from theirs by more
+            if t_ns > grid_ns and dev.driver.polls_after_instants:
+                # a grid near its chip's instants: counted at the point however little
+                # later it comes (from its stamp, a lag under half a period can still
+                # differ from the frames' before by more: the grid was aimed a guard later
+                # than they were stamped)
+                ledger.count_at(t_ns, grid_ns)
+            elif 2 * (t_ns - grid_ns) >= period_ns:
+                # a grid at an unknown lag after them: from its stamp it could round either
+                # way
                 ledger.count_at(t_ns, grid_ns)
             return False
         at_ns = aim_ns + -(-(t_ns - aim_ns) // period_ns) * period_ns
