@@ -248,3 +248,22 @@ def test_a_poll_made_off_its_grid_after_the_put_offs_is_counted_at_the_grid_poin
     segments = ledger.all_segments()
     assert [n for _, _, n in segments] == [chip.frames_between(a, b) for a, b, _ in segments]
     assert ledger.lost["host_stall"] > 0
+
+
+def test_a_copy_older_than_a_put_off_poll_aimed_at_is_stamped_by_its_delivery(
+        registry: Registry) -> None:
+    """Every poll of the seed paraglider board 10 ms late for 9 ms (the fault matrix's
+    ``late_polls`` at 0.1 %): the HMC5883L's poll, put off a period, found the MAX21100's
+    copy from before the stall (the master was late too, and the copy it aimed at came
+    just after it). Stamped with the poll, a period after its measurement, it counted a
+    field the chip never made; a copy older than a delivery latency and a guard at its poll
+    is stamped by its delivery."""
+    profile = load_profile(bundled_profiles()["seed-paraglider-vario.yaml"], registry)
+    faults: list[FaultSpec] = [LatePolls(device=d, start_s=5.4955, end_s=5.5045, delay_s=0.01)
+                               for d in DEVICES]
+    with open_emulated(profile, registry, seed=1, faults=faults) as p:
+        list(p.events(6.0))
+    ledger = _ledger(p, "mag")
+    chip = p.board.emulators["mag"]
+    segments = ledger.all_segments()
+    assert [n for _, _, n in segments] == [chip.frames_between(a, b) for a, b, _ in segments]
