@@ -746,6 +746,14 @@ class AhrsEstimator(Estimator):
         else:  # no reading checks the attitude now: an earlier agreement no longer holds
             self._recovery_apart_rad = _INF
         out = self._on_gyro(item, rate)
+        if fresh and self.owns_quaternion and self._tilt_aligned:
+            # judged on the attitude the step hands out, not the one before it: the step
+            # integrated the clipped rate, which is what may be wrong (a wild gyro word
+            # clipped at the rail in the first read after a 46 ms host stall put 45 deg of
+            # pitch in one step and was handed out; fault matrix, seed-gps-vario, 10 %)
+            assert accel is not None
+            self._recovery_apart_rad = _tilt_pulled(self._q, gravity_positive_g(accel),
+                                                    0.0)[2]
         if out and min(self._recovery_budget_rad, self._recovery_apart_rad) > \
                 RECOVERY_CHECKED_RAD:
             self._counters["angular_rate_recovery"]["withheld"] += 1
