@@ -15,7 +15,7 @@ pytest.importorskip("pynmea2", reason="the gps extra (pynmea2, pyubx2) is not in
 pytest.importorskip("pyubx2", reason="the gps extra (pynmea2, pyubx2) is not installed")
 
 from imuhal.core.samples import FixType
-from imuhal_chips.gnss.decode import DecodeError, decode_nmea, decode_ubx
+from imuhal_chips.gnss.decode import DecodeError, decode_nmea, decode_ubx, sentences_disagree
 from imuhal_chips.gnss.framing import StreamSplitter
 
 GGA = b"$GPGGA,123519,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,*47\r\n"
@@ -47,6 +47,41 @@ def test_classic_vtg_and_gsa() -> None:
     assert v.ground_speed_m_s == pytest.approx(5.5 * 1852 / 3600) and v.course_deg == 54.7
     g = decode_nmea(GSA)
     assert g.fix_type is FixType.FIX_3D and g.hdop == 1.3
+
+
+def nmea(body: str) -> bytes:
+    """A sentence with its correct checksum (the XOR of the characters between $ and *)."""
+    checksum = 0
+    for c in body.encode("ascii"):
+        checksum ^= c
+    return f"${body}*{checksum:02X}\r\n".encode("ascii")
+
+
+def test_a_vtg_whose_two_speeds_disagree_is_refused_like_a_wrong_checksum() -> None:
+    """5.5 knots is 10.19 km/h; '8.5' knots (bit 3 of the '0' flipped, which the XOR
+    misses with a matching flip elsewhere) is not 10.2 km/h."""
+    f = decode_nmea(nmea("GPVTG,054.7,T,034.4,M,008.5,N,010.2,K"))
+    assert not f.checksum_ok and "VTG says" in f.inconsistent
+    assert decode_nmea(VTG).checksum_ok
+
+
+def test_gga_and_rmc_of_one_epoch_must_print_the_same_position_to_their_rounding() -> None:
+    gga = decode_nmea(GGA)
+    assert sentences_disagree([decode_nmea(RMC), gga]) == ""
+    moved = decode_nmea(nmea("GPRMC,123519,A,4807.040,N,01131.000,E,022.4,084.4,230394,003.1,W"))
+    assert sentences_disagree([moved, gga]).startswith("RMC and GGA disagree on latitude_deg")
+    # 4807.0384 printed to 3 decimals is 4807.038: the same solution, rounded
+    finer = decode_nmea(nmea("GPRMC,123519,A,4807.0384,N,01131.0004,E,022.4,084.4,230394,,W"))
+    assert sentences_disagree([finer, gga]) == ""
+
+
+def test_rmc_and_vtg_of_one_epoch_must_print_the_same_speed_and_course() -> None:
+    rmc = decode_nmea(nmea("GPRMC,123519,A,4807.038,N,01131.000,E,005.5,054.7,230394,,W"))
+    assert sentences_disagree([rmc, decode_nmea(VTG)]) == ""
+    turned = decode_nmea(nmea("GPRMC,123519,A,4807.038,N,01131.000,E,005.5,058.7,230394,,W"))
+    assert "course_deg" in sentences_disagree([turned, decode_nmea(VTG)])
+    north = [decode_nmea(nmea(f"GPVTG,{c},T,,M,005.5,N,010.2,K")) for c in ("359.99", "000.00")]
+    assert sentences_disagree(north) == ""  # across north, the short way
 
 
 def test_a_wrong_checksum_is_reported_not_hidden() -> None:

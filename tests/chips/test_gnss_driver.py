@@ -32,6 +32,7 @@ from imuhal.plugins.manager import load_registry
 from imuhal.sim.world import physical_inputs
 from imuhal_chips.gnss.driver import GnssDriver, GnssSettings
 from imuhal_chips.gnss.emulator import GnssEmulator, GnssErrorModel
+from imuhal_chips.gnss.integrity import CONFIRM
 
 EARTH_R_M = 6_371_000.0
 
@@ -146,10 +147,12 @@ def test_no_fix_before_the_time_to_first_fix_is_flagged_never_valid() -> None:
     samples, _ = fly(clock, emulator, driver, 10)
     pos = [s for s in samples if isinstance(s, PositionSample)]
     early = [s for s in pos if s.t_ns < 5.9e9]
-    late = [s for s in pos if s.t_ns > 6.3e9]
+    first = [s for s in pos if s.t_ns > 5.9e9]
     assert early and all(s.fix_type is FixType.NO_FIX and SampleFlag.STALE in s.flags
                          for s in early)
-    assert late and all(s.valid for s in late)
+    # the first fix is valid once the next epochs follow it (imuhal_chips.gnss.integrity)
+    assert [s.valid for s in first[:CONFIRM]] == [False] * (CONFIRM - 1) + [True]
+    assert all(s.valid for s in first[CONFIRM:])
     assert not [s for s in samples if isinstance(s, VelocitySample) and s.t_ns < 5.9e9]
 
 
@@ -191,7 +194,8 @@ def test_dropouts_lose_epochs_without_inventing_any() -> None:
     samples, _ = fly(clock, emulator, driver, 20)
     n = sum(isinstance(s, PositionSample) for s in samples)
     assert 0.4 * 100 < n < 0.8 * 100
-    assert all(s.valid for s in samples)
+    fixes = [s for s in samples if isinstance(s, PositionSample)]
+    assert all(s.valid for s in samples if s.t_ns >= fixes[CONFIRM - 1].t_ns)
 
 
 def _ned(lat: float, lon: float, h: float, model: GnssErrorModel) -> np.ndarray:
@@ -339,12 +343,13 @@ def test_an_nmea_burst_spread_over_many_reads_at_9600_baud_is_one_epoch() -> Non
     receiver's output latency stated, epochs are time-stamped to within one read."""
     clock, emulator, driver = started(latency_s=emulator_latency())
     samples, scenario = fly(clock, emulator, driver, 12)
-    pos = [s for s in samples if isinstance(s, PositionSample) and s.valid]
+    fixes = [s for s in samples if isinstance(s, PositionSample)]
+    pos = fixes[CONFIRM - 1:]  # the first fix is valid once the next epochs follow it
     vel = [s for s in samples if isinstance(s, VelocitySample)]
-    assert 9 <= len(pos) <= 12 and driver.stats.epochs == len(pos) + sum(
-        isinstance(s, PositionSample) and not s.valid for s in samples)
-    assert all(s.satellites == 9 and s.fix_type is FixType.FIX_3D and s.utc_s for s in pos)
-    assert len(vel) == len(pos) - 1  # the first fix has no earlier height to difference
+    assert 9 <= len(fixes) <= 12 and driver.stats.epochs == len(fixes)
+    assert all(s.valid and s.satellites == 9 and s.fix_type is FixType.FIX_3D and s.utc_s
+               for s in pos)
+    assert len(vel) == len(fixes) - 1  # the first fix has no earlier height to difference
     for v in vel:
         epoch_s = round(v.t_ns / 1e9)  # the emulator measures on whole seconds at 1 Hz
         assert v.t_ns / 1e9 - epoch_s == pytest.approx(0.025, abs=0.026)

@@ -8,7 +8,14 @@ from dataclasses import replace
 
 import pytest
 
-from imuhal_chips.gnss.integrity import CONFIRM, GATE_SIGMAS, Epoch, EpochWatch, local_offset_m
+from imuhal_chips.gnss.integrity import (
+    CONFIRM,
+    GATE_SIGMAS,
+    UNCONFIRMED,
+    Epoch,
+    EpochWatch,
+    local_offset_m,
+)
 
 LAT0, LON0 = 46.6, 8.0
 M_PER_DEG_LAT = 111_170.0
@@ -34,15 +41,57 @@ def test_local_offsets_are_metres_north_east_down() -> None:
     assert down == pytest.approx(-20.0)
 
 
+def started(north_m: float = 0.0) -> EpochWatch:
+    """A watch whose reference is ``epoch(0.0, north_m)``: the CONFIRM epochs before it, 10 m/s
+    north at 5 Hz, confirmed the first fix (the first CONFIRM - 1 of them refused)."""
+    watch = EpochWatch(100.0)
+    for k in range(1 - CONFIRM, 1):
+        verdict = watch.observe(epoch(0.2 * k, north_m + 2.0 * k))
+    assert verdict.ok and watch.refused == {UNCONFIRMED: CONFIRM - 1}
+    return watch
+
+
+def test_the_first_fix_is_valid_only_once_the_next_epochs_follow_it() -> None:
+    """Nothing to hold the first fix against: the first CONFIRM - 1 epochs are refused, and
+    the CONFIRM-th, following them under every rule, is valid and the first reference."""
+    watch = EpochWatch(100.0)
+    verdicts = [watch.observe(epoch(0.2 * k, 2.0 * k)) for k in range(CONFIRM + 1)]
+    assert [v.ok for v in verdicts] == [False] * (CONFIRM - 1) + [True, True]
+    assert {v.reason for v in verdicts[:CONFIRM - 1]} == {UNCONFIRMED}
+
+
+def test_a_wrong_first_fix_never_becomes_valid_nor_a_reference() -> None:
+    """The first fix 300 m north of where the next epochs put the receiver: the epochs after
+    it do not follow it, so they start their own run; the wrong one is never valid."""
+    watch = EpochWatch(100.0)
+    assert not watch.observe(epoch(0.0, 300.0)).ok
+    verdicts = [watch.observe(epoch(0.2 * k, 2.0 * k)).ok for k in range(1, CONFIRM + 2)]
+    assert verdicts == [False] * (CONFIRM - 1) + [True, True]
+    assert watch.refused == {UNCONFIRMED: CONFIRM}
+
+
+def test_after_a_restart_the_next_epochs_are_held_like_a_first_fix() -> None:
+    """Two seconds after the reference the manoeuvre term alone allows 100 m: an epoch
+    80 m off would pass. After the receiver's restart it is no reference until the epochs
+    after it follow it, and they do not."""
+    watch = started()
+    assert watch.follows(epoch(0.0), epoch(2.0, 20.0 + 80.0)).ok
+    watch.restart()
+    assert not watch.observe(epoch(2.0, 20.0 + 80.0)).ok
+    verdicts = [watch.observe(epoch(2.0 + 0.2 * k, 20.0 + 2.0 * k)).ok
+                for k in range(1, CONFIRM + 1)]
+    assert verdicts == [False] * (CONFIRM - 1) + [True]
+    assert watch.refused == {UNCONFIRMED: 2 * CONFIRM - 1}
+
+
 def test_an_epoch_where_the_velocity_put_it_passes_and_one_beyond_the_gate_does_not() -> None:
     """10 m/s north for 0.2 s: 2 m. The horizontal gate of two 2.5 m hAcc is 5 sigma of
     3.5 m, 17.7 m, plus 100 m/s^2 x 0.04 s^2 / 4 (1 m)."""
-    watch = EpochWatch(100.0)
-    assert watch.observe(epoch(0.0)).ok
+    watch = started()
     assert watch.observe(epoch(0.2, 2.0 + 18.0)).ok
     verdict = watch.observe(epoch(0.4, 22.0 + 20.0))
     assert not verdict.ok and verdict.reason == "horizontal position"
-    assert watch.refused == {"horizontal position": 1}
+    assert watch.refused == {UNCONFIRMED: CONFIRM - 1, "horizontal position": 1}
 
 
 def test_the_gate_is_the_stated_accuracies_and_the_manoeuvre_term() -> None:
@@ -103,17 +152,16 @@ def test_the_date_moves_on_by_a_day_at_most() -> None:
 
 
 def test_a_wrong_reference_gives_way_to_epochs_that_agree_with_one_another() -> None:
-    """The first epoch was 300 m off: the honest ones after it are refused until CONFIRM of
-    them agree, and the last of those is valid and the new reference."""
-    watch = EpochWatch(100.0)
-    assert watch.observe(epoch(0.0, 300.0)).ok
+    """The reference is 300 m off (the receiver's solution jumped while epochs were lost):
+    the epochs after it are refused until CONFIRM of them agree, and the last of those is
+    valid and the new reference."""
+    watch = started(300.0)
     verdicts = [watch.observe(epoch(0.2 * k, 2.0 * k)).ok for k in range(1, CONFIRM + 2)]
     assert verdicts == [False] * (CONFIRM - 1) + [True, True]
 
 
 def test_refused_epochs_that_disagree_with_one_another_never_become_a_reference() -> None:
-    watch = EpochWatch(100.0)
-    assert watch.observe(epoch(0.0)).ok
+    watch = started()
     wild = [epoch(0.2 * k, 2.0 * k + (-1) ** k * 400.0) for k in range(1, 6)]
     assert [watch.observe(e).ok for e in wild] == [False] * 5
     assert watch.observe(epoch(1.2, 12.0)).ok

@@ -11,6 +11,7 @@ from imuhal.drivers.validity import (
     FilterMemory,
     FrozenWatch,
     LearnedFrozenWatch,
+    NewLevel,
     StepWatch,
     blank_flag,
     range_flag,
@@ -109,6 +110,27 @@ def test_a_step_watch_refuses_bounds_that_check_nothing_or_everything() -> None:
         StepWatch(max_rate_per_s=0.0, noise=1.0)
     with pytest.raises(ValueError, match="confirm >= 2"):
         StepWatch(max_rate_per_s=1.0, noise=1.0, confirm=1)
+
+
+def test_a_new_level_is_confirm_refused_readings_in_a_row_each_agreeing_with_the_last() -> None:
+    """The agreement test is the caller's: here, within 1 of the reading before."""
+    level = NewLevel(3, lambda earlier, later: abs(later - earlier) <= 1)
+    assert [level.refused(v) for v in (10, 11, 12)] == [False, False, True]
+    assert [level.refused(v) for v in (10, 11, 50, 51, 52)] == [False, False, False, False,
+                                                                True]
+
+
+def test_an_accepted_reading_breaks_the_run_of_refused_ones() -> None:
+    level = NewLevel(2, lambda earlier, later: earlier == later)
+    assert not level.refused("b")
+    level.clear()
+    assert not level.refused("b")
+    assert level.refused("b")
+
+
+def test_a_new_level_needs_two_readings_at_least() -> None:
+    with pytest.raises(ValueError, match="at least 2"):
+        NewLevel(1, lambda earlier, later: True)
 
 
 def test_a_learned_frozen_window_holds_the_ceiling_until_enough_pairs_were_seen() -> None:

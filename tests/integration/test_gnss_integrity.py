@@ -26,6 +26,7 @@ from imuhal.plugins.manager import Registry, load_registry
 from imuhal.profile.bundled import bundled_profiles
 from imuhal.profile.loader import load_profile
 from imuhal_chips.gnss.driver import GnssStats
+from imuhal_chips.gnss.integrity import CONFIRM, UNCONFIRMED
 
 FRAME_S = 3.65
 """Just before the 3.6 s epoch's NAV-PVT reaches the host (5 Hz, 80 ms output latency)."""
@@ -60,13 +61,16 @@ def _flight(registry: Registry, *flips: int, seconds: float = SECONDS
 @pytest.fixture(scope="module")
 def clean(registry: Registry) -> dict[float, Fix]:
     fixes, _, stats = _flight(registry)
-    assert len(fixes) > 20 and stats.implausible_epochs == {}
+    assert len(fixes) > 20 and stats.implausible_epochs == {UNCONFIRMED: CONFIRM - 1}
     return fixes
 
 
 def _flagged(events: list[object]) -> list[str]:
+    """The samples flagged IMPLAUSIBLE after the first fix was confirmed (the CONFIRM - 1
+    epochs before it are refused as unconfirmed, docs/reliability.md)."""
+    first_ns = min(e.t_ns for e in events if isinstance(e, PositionSample) and e.valid)
     return [type(e).__name__ for e in events if isinstance(e, PositionSample | VelocitySample)
-            and e.flags & SampleFlag.IMPLAUSIBLE]
+            and e.flags & SampleFlag.IMPLAUSIBLE and e.t_ns > first_ns]
 
 
 def _only_the_hit_epoch_is_missing(clean: dict[float, Fix], hit: dict[float, Fix]) -> None:
@@ -85,7 +89,7 @@ def test_a_latitude_and_longitude_the_checksum_missed_are_flagged_against_the_ve
     hit, events, stats = _flight(registry, 28 + 1, 24 + 1)
     _only_the_hit_epoch_is_missing(clean, hit)
     assert _flagged(events) == ["VelocitySample", "PositionSample"]
-    assert stats.implausible_epochs == {"horizontal position": 1}
+    assert stats.implausible_epochs == {UNCONFIRMED: CONFIRM - 1, "horizontal position": 1}
     assert (stats.checksum_errors, stats.inconsistent_frames) == (0, 0)
 
 
@@ -97,7 +101,7 @@ def test_a_msl_height_the_checksum_missed_is_flagged_by_the_ellipsoid_height(
     hit, events, stats = _flight(registry, 36, 12)
     _only_the_hit_epoch_is_missing(clean, hit)
     assert _flagged(events) == ["VelocitySample", "PositionSample"]
-    assert stats.implausible_epochs == {"geoid separation": 1}
+    assert stats.implausible_epochs == {UNCONFIRMED: CONFIRM - 1, "geoid separation": 1}
 
 
 def test_the_same_flip_in_both_heights_is_flagged_against_the_vertical_velocity(
@@ -108,7 +112,7 @@ def test_the_same_flip_in_both_heights_is_flagged_against_the_vertical_velocity(
     hit, events, stats = _flight(registry, 32 + 2, 36 + 2)
     _only_the_hit_epoch_is_missing(clean, hit)
     assert _flagged(events) == ["VelocitySample", "PositionSample"]
-    assert stats.implausible_epochs == {"vertical position": 1}
+    assert stats.implausible_epochs == {UNCONFIRMED: CONFIRM - 1, "vertical position": 1}
 
 
 def test_a_position_whose_accuracy_was_hit_with_it_is_still_flagged(
@@ -119,7 +123,7 @@ def test_a_position_whose_accuracy_was_hit_with_it_is_still_flagged(
     hit, events, stats = _flight(registry, 28 + 2, 40 + 2)
     _only_the_hit_epoch_is_missing(clean, hit)
     assert _flagged(events) == ["VelocitySample", "PositionSample"]
-    assert stats.implausible_epochs == {"horizontal position": 1}
+    assert stats.implausible_epochs == {UNCONFIRMED: CONFIRM - 1, "horizontal position": 1}
 
 
 def test_a_utc_time_the_checksum_missed_is_flagged_and_does_not_move_the_time_stamps(
@@ -131,24 +135,24 @@ def test_a_utc_time_the_checksum_missed_is_flagged_and_does_not_move_the_time_st
     hit, events, stats = _flight(registry, 10, 12)
     _only_the_hit_epoch_is_missing(clean, hit)
     assert _flagged(events) == ["VelocitySample", "PositionSample"]
-    assert stats.implausible_epochs == {"time": 1}
+    assert stats.implausible_epochs == {UNCONFIRMED: CONFIRM - 1, "time": 1}
 
 
-def test_a_wrong_first_fix_costs_two_honest_epochs_then_the_next_are_valid(
+def test_a_wrong_first_fix_is_never_valid_and_the_honest_ones_after_it_are(
         registry: Registry) -> None:
-    """The checks hold each epoch against the last valid one; the first fix has none, so a
-    hit in it (lat and lon 364 and 251 m off, at 1.0 s, the first fix of the seed
-    receiver) is delivered. The two honest epochs after it are refused and the third,
-    agreeing with them, is a new reference: valid again, as every epoch after it."""
+    """The first fix has nothing to be held against: a hit in it (lat and lon 364 and 251 m
+    off, the seed receiver's first fix at 1.0 s) was delivered valid and then refused the
+    two honest epochs after it. Now the first fix is valid only once the next epochs follow
+    it: the wrong one never is, the honest ones after it do not follow it and confirm one
+    another, and from the third of them on every fix is valid."""
     profile = load_profile(bundled_profiles()["seed-gps-vario.yaml"], registry)
     faults = [CorruptByte(device="gps", start_s=1.05, byte=PAYLOAD + k, mask=0x80)
               for k in (28 + 1, 24 + 1)]
     with open_emulated(profile, registry, seed=1, faults=faults, calibrated=False) as p:
         fixes = [e for e in p.events(3.0) if isinstance(e, PositionSample)
                  and not e.flags & SampleFlag.STALE]
-    assert [f.flags & SampleFlag.IMPLAUSIBLE for f in fixes[:4]] == [
-        SampleFlag.OK, SampleFlag.IMPLAUSIBLE, SampleFlag.IMPLAUSIBLE, SampleFlag.OK]
-    assert all(f.valid for f in fixes[3:])
+    assert [f.valid for f in fixes[:CONFIRM + 1]] == [False] * CONFIRM + [True]
+    assert all(f.valid for f in fixes[CONFIRM:])
     assert math.dist((fixes[0].latitude_deg, fixes[0].longitude_deg),
                      (fixes[1].latitude_deg, fixes[1].longitude_deg)) > 0.003
 
@@ -160,7 +164,29 @@ def test_a_utc_date_the_checksum_missed_is_flagged(
     hit, events, stats = _flight(registry, 4, 12)
     _only_the_hit_epoch_is_missing(clean, hit)
     assert _flagged(events) == ["VelocitySample", "PositionSample"]
-    assert stats.implausible_epochs == {"date": 1}
+    assert stats.implausible_epochs == {UNCONFIRMED: CONFIRM - 1, "date": 1}
+
+
+TIME_TOLERANCE_NS = 2_000_000
+"""LEAP_TOLERANCE_S: how far GPS time less UTC may stray before the time rule refuses."""
+
+
+def test_a_time_error_under_the_time_rule_moves_no_stamp_further_than_itself(
+        registry: Registry, clean: dict[float, Fix]) -> None:
+    """Bit 7 of nano's second byte and of tAcc's: the epoch says it is 32.768 us later than
+    it is, under the time rule's 2 ms (iTOW is in whole ms and cannot tell). What gets
+    through is bounded by the error itself: the hit fix is valid at a stamp off by that
+    much, and the driver's time mapping (the smallest delay seen) moves the later stamps by
+    no more; no position changes. At 2 ms, the most it could be, a fix at 100 m/s is
+    stamped 0.2 m from where the vehicle was, inside any receiver's hAcc."""
+    hit, _, stats = _flight(registry, 16 + 1, 12 + 1)
+    assert stats.implausible_epochs == {UNCONFIRMED: CONFIRM - 1}
+    by_ms = {round(utc, 3): fix for utc, fix in hit.items()}  # the hit epoch's UTC moved
+    assert len(by_ms) == len(clean)
+    shifted = [by_ms[round(utc, 3)][0] - fix[0] for utc, fix in clean.items()]
+    assert all(by_ms[round(utc, 3)][1:] == fix[1:] for utc, fix in clean.items())
+    assert max(abs(d) for d in shifted) == pytest.approx(32_768, abs=1_000)
+    assert max(abs(d) for d in shifted) < TIME_TOLERANCE_NS
 
 
 CLEAN_SECONDS = 60.0
@@ -175,8 +201,9 @@ times further off."""
 def test_a_clean_flight_raises_no_alarm_and_stays_far_inside_every_bound(
         registry: Registry, scenario: str) -> None:
     """A minute of the seed GPS vario on a clean line, circling in a thermal or flying an RC
-    aeroplane's aerobatics (loops, rolls, 10 g bound): no epoch flagged, every fix valid
-    after the first, and no rule's residual above a quarter of its bound."""
+    aeroplane's aerobatics (loops, rolls, 10 g bound): no epoch flagged but the first
+    CONFIRM - 1 (the first fix is unconfirmed until the next epochs follow it), every fix
+    valid after them, and no rule's residual above a quarter of its bound."""
     profile = load_profile(bundled_profiles()["seed-gps-vario.yaml"], registry)
     with open_emulated(profile, registry, scenario=scenario, seed=1,
                        calibrated=False) as p:
@@ -184,7 +211,8 @@ def test_a_clean_flight_raises_no_alarm_and_stays_far_inside_every_bound(
                  and not e.flags & SampleFlag.STALE]
         watch = p.devices["gps"].driver.epoch_watch  # type: ignore[attr-defined]
     assert len(fixes) >= 5 * (CLEAN_SECONDS - 2)
-    assert all(f.valid for f in fixes) and watch.refused == {}
+    assert [f.valid for f in fixes[:CONFIRM]] == [False] * (CONFIRM - 1) + [True]
+    assert all(f.valid for f in fixes[CONFIRM:]) and watch.refused == {UNCONFIRMED: CONFIRM - 1}
     assert set(watch.worst_ratio) >= {"horizontal position", "vertical position",
                                       "geoid separation", "time"}
     assert max(watch.worst_ratio.values()) < MARGIN

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 import struct
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import date, time
 from typing import Any
 
@@ -52,6 +52,10 @@ class Fragment:
     inconsistent: str = ""
     """Why a frame whose checksum passed still failed its integrity check (then
     ``checksum_ok`` is False and nothing else is read); empty when it did not."""
+    rounding: dict[str, float] = field(default_factory=dict)
+    """Per field name (``latitude_deg``, ``ground_speed_m_s``, ...): how far the value an
+    NMEA sentence printed can lie from the receiver's own by its rounding, half a unit of
+    its last printed digit, in the field's unit."""
 
 
 def _f(text: Any) -> float | None:
@@ -96,9 +100,22 @@ def decode_nmea(line: bytes) -> Fragment:
     frag = Fragment(kind=kind, checksum_ok=checksum_ok)
     try:
         _fill(frag, msg)
-    except (ValueError, TypeError, AttributeError) as exc:
+    except (ValueError, TypeError, AttributeError, KeyError) as exc:
         raise DecodeError(f"{kind}: {exc}") from exc
+    if frag.inconsistent and checksum_ok:
+        return Fragment(kind=kind, checksum_ok=False, inconsistent=frag.inconsistent)
     return frag
+
+
+def _half_unit(text: str) -> float:
+    """Half a unit of the last digit printed in ``text`` (how far its rounding can be off)."""
+    return 0.5 * 10.0 ** -len(text.partition(".")[2])
+
+
+def _raw(msg: Any, name: str) -> str:
+    """The text of a pynmea2 sentence's field ``name``, as the receiver printed it."""
+    index = msg.name_to_idx[name]
+    return str(msg.data[index]) if index < len(msg.data) else ""
 
 
 def _fill(frag: Fragment, msg: Any) -> None:
@@ -113,6 +130,7 @@ def _fill(frag: Fragment, msg: Any) -> None:
         if qual:
             frag.latitude_deg = float(msg.latitude)
             frag.longitude_deg = float(msg.longitude)
+            _position_rounding(frag, msg)
             frag.height_msl_m = _f(msg.altitude)
             sep = _f(msg.geo_sep)
             if frag.height_msl_m is not None and sep is not None:
@@ -123,18 +141,76 @@ def _fill(frag: Fragment, msg: Any) -> None:
         if msg.status == "A":
             frag.latitude_deg = float(msg.latitude)
             frag.longitude_deg = float(msg.longitude)
-            knots = _f(msg.spd_over_grnd)
-            frag.ground_speed_m_s = None if knots is None else knots * KNOT_M_S
-            frag.course_deg = _f(msg.true_course)
+            _position_rounding(frag, msg)
+            _velocity(frag, _raw(msg, "spd_over_grnd"), _raw(msg, "true_course"))
     elif kind == "VTG":
-        knots = _f(msg.spd_over_grnd_kts)
-        frag.ground_speed_m_s = None if knots is None else knots * KNOT_M_S
-        frag.course_deg = _f(msg.true_track)
+        _velocity(frag, _raw(msg, "spd_over_grnd_kts"), _raw(msg, "true_track"))
+        frag.inconsistent = _vtg_inconsistency(frag, _raw(msg, "spd_over_grnd_kmph"))
     elif kind == "GSA":
         mode = int(msg.mode_fix_type or 1)
         frag.fix_type = {1: FixType.NO_FIX, 2: FixType.FIX_2D, 3: FixType.FIX_3D}.get(
             mode, FixType.NO_FIX)
         frag.hdop = _f(msg.hdop)
+
+
+def _position_rounding(frag: Fragment, msg: Any) -> None:
+    """Latitude and longitude are printed in minutes (ddmm.mmmm)."""
+    frag.rounding["latitude_deg"] = _half_unit(_raw(msg, "lat")) / 60.0
+    frag.rounding["longitude_deg"] = _half_unit(_raw(msg, "lon")) / 60.0
+
+
+def _velocity(frag: Fragment, knots: str, course: str) -> None:
+    """Ground speed (printed in knots) and course over ground (deg) of RMC or VTG."""
+    speed = _f(knots)
+    frag.ground_speed_m_s = None if speed is None else speed * KNOT_M_S
+    frag.course_deg = _f(course)
+    if speed is not None:
+        frag.rounding["ground_speed_m_s"] = _half_unit(knots) * KNOT_M_S
+    if frag.course_deg is not None:
+        frag.rounding["course_deg"] = _half_unit(course)
+
+
+def _vtg_inconsistency(frag: Fragment, kmph: str) -> str:
+    """Why a VTG's two speeds (knots and km/h, the same speed printed twice) disagree by
+    more than their rounding, or ''."""
+    speed_kmph = _f(kmph)
+    if frag.ground_speed_m_s is None or speed_kmph is None:
+        return ""
+    allowed = frag.rounding["ground_speed_m_s"] + _half_unit(kmph) / 3.6 + 1e-9
+    if abs(speed_kmph / 3.6 - frag.ground_speed_m_s) > allowed:
+        return (f"VTG says {frag.ground_speed_m_s:.3f} m/s in knots but "
+                f"{speed_kmph / 3.6:.3f} m/s in km/h")
+    return ""
+
+
+NMEA_REPEATED = ("latitude_deg", "longitude_deg", "ground_speed_m_s", "course_deg")
+"""What the sentences of one NMEA epoch say more than once: the position (RMC and GGA), the
+ground speed and course (RMC and VTG)."""
+
+
+def sentences_disagree(parts: list[Fragment]) -> str:
+    """Why the sentences of one epoch cannot all be what the receiver sent, or ''.
+
+    NMEA's 8-bit XOR checksum misses the same bit flipped in two characters of a sentence
+    (or one character and the matching bit of a checksum digit): a digit moved by 1, 2, 4
+    or 8 in its place. The receiver prints one solution in each sentence, so what two of
+    them both say must agree to their rounding (half a unit of each one's last digit)."""
+    said: dict[str, Fragment] = {}
+    for part in parts:
+        for name in NMEA_REPEATED:
+            value = getattr(part, name)
+            if value is None or name not in part.rounding:
+                continue
+            first = said.setdefault(name, part)
+            if first is part:
+                continue
+            difference = value - getattr(first, name)
+            if name == "course_deg":
+                difference = (difference + 180.0) % 360.0 - 180.0
+            if abs(difference) > first.rounding[name] + part.rounding[name] + 1e-9:
+                return (f"{first.kind} and {part.kind} disagree on {name}: "
+                        f"{getattr(first, name):.7g} and {value:.7g}")
+    return ""
 
 
 def decode_ubx(frame: bytes) -> Fragment:

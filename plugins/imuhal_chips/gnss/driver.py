@@ -16,9 +16,11 @@ Nothing wrong is fused: a sentence or frame with a bad checksum becomes a sample
 CRC_ERROR (counted; values NaN where unreadable); an epoch without a fix is flagged STALE;
 garbled bytes are counted in ``stats``. A frame whose checksum passed with two bits flipped
 (the 8-bit checksums miss some pairs) is caught where the receiver says a thing twice
-(gSpeed and velN, velE: CRC_ERROR) or where the epoch cannot follow the last valid one (its
-velocity step, its position against the two epochs' velocities, its geoid separation, its
-time and date: IMPLAUSIBLE, imuhal_chips.gnss.integrity).
+(gSpeed and velN, velE; NMEA: the position in RMC and GGA, the speed and course in RMC and
+VTG, VTG's speed in knots and km/h: CRC_ERROR) or where the epoch cannot follow the last
+valid one (its velocity step, its position against the two epochs' velocities, its geoid
+separation, its time and date: IMPLAUSIBLE, imuhal_chips.gnss.integrity). The first fix is
+valid only once the epochs after it follow it.
 """
 
 from __future__ import annotations
@@ -52,7 +54,13 @@ from imuhal.drivers.base import (
 )
 from imuhal.drivers.validity import StepWatch
 from imuhal_chips.gnss.bringup import READ_CHUNK, CfgMessage, Configuration, Search
-from imuhal_chips.gnss.decode import DecodeError, Fragment, decode_nmea, decode_ubx
+from imuhal_chips.gnss.decode import (
+    DecodeError,
+    Fragment,
+    decode_nmea,
+    decode_ubx,
+    sentences_disagree,
+)
 from imuhal_chips.gnss.framing import StreamSplitter
 from imuhal_chips.gnss.integrity import Epoch, EpochWatch
 from imuhal_chips.gnss.ubx import CFG_MSG, CFG_RATE, NMEA_IDS, UBX_NAV_PVT, cfg_msg, cfg_rate
@@ -123,8 +131,10 @@ class GnssStats:
     ubx_resyncs: int = 0
     """UBX frames with an implausible header or a failed checksum, searched past."""
     inconsistent_frames: int = 0
-    """NAV-PVT frames whose checksum passed but whose fields disagree (flagged CRC_ERROR
-    like a failed checksum: the 8-bit Fletcher misses some pairs of flipped bits)."""
+    """NAV-PVT frames whose checksum passed but whose fields disagree, VTG sentences whose
+    two speeds disagree, and NMEA epochs whose sentences disagree on what they both say
+    (flagged CRC_ERROR like a failed checksum: the 8-bit Fletcher and the 8-bit XOR miss
+    some pairs of flipped bits)."""
     frozen_epochs: int = 0
     """Epochs that repeated the last one's position and velocity although that velocity
     moved the receiver (a hung navigation engine; flagged FROZEN)."""
@@ -295,11 +305,13 @@ class GnssDriver(Driver):
         the device's next polls takes one step (listen at a baud rate, send a CFG message,
         look for its ACK) and returns at once, so the pipeline polls the other devices
         between them (imuhal_chips.gnss.bringup). A step that fails raises what probe and
-        configure raise, and the pipeline recovers the device again."""
+        configure raise, and the pipeline recovers the device again. The epochs after it
+        are held like a first fix (``EpochWatch.restart``)."""
         s = self.settings
         self._epoch = None
         self._foreign = 0
         self._configuring = None
+        self.epoch_watch.restart()
         self._search = Search(self.link, s.baud_rates, round(s.probe_window_s * 1e9), now_ns)
         return now_ns + self._step_ns
 
@@ -458,6 +470,12 @@ class GnssDriver(Driver):
         merged = _merge(epoch.parts)
         self.stats.epochs += 1
         t_ns, offset_ns = self._epoch_time_ns(epoch)
+        disagreement = sentences_disagree(epoch.parts)
+        if disagreement:
+            # which sentence was hit cannot be told: the epoch is no fix and no reference
+            self.stats.inconsistent_frames += 1
+            self.stats.last_error = disagreement
+            return [self._flagged(merged, t_ns)]
         fix = merged.fix_type if merged.fix_type is not None else FixType.NO_FIX
         has_fix = fix in (FixType.FIX_2D, FixType.FIX_3D, FixType.GNSS_DEAD_RECKONING)
         out: list[Sample] = []
@@ -569,8 +587,8 @@ class GnssDriver(Driver):
             return SampleFlag.OK
         self.stats.implausible_epochs[verdict.reason] = \
             self.stats.implausible_epochs.get(verdict.reason, 0) + 1
-        self.stats.last_error = f"{verdict.reason} beyond its bound " \
-            f"({max(r for _, r in verdict.ratios):.3g} x)"
+        self.stats.last_error = verdict.reason if not verdict.ratios else \
+            f"{verdict.reason} beyond its bound ({max(r for _, r in verdict.ratios):.3g} x)"
         return SampleFlag.IMPLAUSIBLE
 
     def _nmea_velocity(self, merged: Fragment,

@@ -31,14 +31,20 @@ accuracy estimates and from physics:
 A refused epoch is no new reference. When the reference itself is wrong (the first epoch
 after start-up was hit, or the receiver really jumped while epochs were lost), ``CONFIRM``
 refused epochs in a row that agree with one another under the same rules become the new
-reference: a wrong reference costs at most ``CONFIRM - 1`` honest epochs, flagged, never a
-wrong one passed. The first epoch has nothing to be held against but the geoid's range.
+reference (imuhal.drivers.validity.NewLevel): a wrong reference costs at most
+``CONFIRM - 1`` honest epochs, flagged, never a wrong one passed. The first epoch has
+nothing to be held against but the geoid's range, so it is no reference until ``CONFIRM``
+epochs in a row follow one another: the first ``CONFIRM - 1`` fixes of a run are refused
+(``UNCONFIRMED``), and a hit in one of them never becomes valid (one that was the reference
+had refused the honest epochs after it).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+
+from imuhal.drivers.validity import NewLevel
 
 EARTH_A_M = 6378137.0
 """WGS-84 semi-major axis."""
@@ -64,7 +70,10 @@ the UTC fields state the same epoch to the ns (a u-blox keeps its epochs on the 
 their sub-ms residual shows in nano). Wider, a flip in nano's third byte (8.4 ms) passed and
 moved the driver's time mapping, so every later epoch's stamp, by as much."""
 CONFIRM = 3
-"""Refused epochs in a row that agree with one another become the new reference."""
+"""Refused epochs in a row that agree with one another become the new reference; the first
+fix, too, is valid only once this many epochs in a row agree (0.4 s at 5 Hz, 2 s at 1 Hz)."""
+UNCONFIRMED = "first fix unconfirmed"
+"""The rule that refuses the epochs before the first reference is confirmed."""
 DAY_S = 86_400.0
 
 
@@ -139,7 +148,7 @@ class EpochWatch:
             raise ValueError(f"max_acceleration_m_s2 must be > 0, got {max_acceleration_m_s2}")
         self.max_acceleration_m_s2 = max_acceleration_m_s2
         self._reference: Epoch | None = None
-        self._refused: list[Epoch] = []
+        self._new_level: NewLevel[Epoch] = NewLevel(CONFIRM, self._agree)
         self.refused: dict[str, int] = {}
         self.worst_ratio: dict[str, float] = {}
         """Per rule: the largest residual over its bound among epochs it passed (how close
@@ -150,33 +159,48 @@ class EpochWatch:
         if not alone.ok:
             return self._refuse(epoch, alone, chain=False)
         if self._reference is None:
-            self._accept(epoch, ())
-            return Verdict(True)
+            # Nothing to hold the first fix against: a hit in it would be passed and would
+            # then refuse the honest epochs after it. It is valid once CONFIRM epochs in a
+            # row follow one another under every rule, as a new level after a wrong
+            # reference is.
+            if self._new_level.refused(epoch):
+                self._accept(epoch, ())
+                return Verdict(True, f"first fix confirmed by {CONFIRM} agreeing epochs")
+            return self._count(Verdict(False, UNCONFIRMED))
         verdict = self.follows(self._reference, epoch)
         if verdict.ok:
             self._accept(epoch, (verdict,))
             return verdict
         return self._refuse(epoch, verdict, chain=True)
 
+    def restart(self) -> None:
+        """The receiver was found and configured again (a recovery): its next epochs are
+        held like a first fix. The last reference may be seconds old, and the bound that
+        grows with the square of that time checks little (after 2 s at 10 g: 100 m); a
+        restarted receiver's first epochs are also the likeliest to be wrong."""
+        self._reference = None
+        self._new_level.clear()
+
     def _accept(self, epoch: Epoch, verdicts: tuple[Verdict, ...]) -> None:
         self._reference = epoch
-        self._refused.clear()
+        self._new_level.clear()
         for v in verdicts:
             for rule, ratio in v.ratios:
                 self.worst_ratio[rule] = max(self.worst_ratio.get(rule, 0.0), ratio)
 
     def _refuse(self, epoch: Epoch, verdict: Verdict, *, chain: bool) -> Verdict:
-        if chain:
-            if self._refused and not self.follows(self._refused[-1], epoch).ok:
-                self._refused.clear()
-            self._refused.append(epoch)
-            if len(self._refused) >= CONFIRM:
-                # the reference was the odd one out: a new level the epochs agree on
-                self._reference = epoch
-                self._refused.clear()
-                return Verdict(True, f"new reference after {CONFIRM} agreeing epochs")
+        if chain and self._new_level.refused(epoch):
+            # the reference was the odd one out: a new level the epochs agree on
+            self._reference = epoch
+            return Verdict(True, f"new reference after {CONFIRM} agreeing epochs")
+        return self._count(verdict)
+
+    def _count(self, verdict: Verdict) -> Verdict:
         self.refused[verdict.reason] = self.refused.get(verdict.reason, 0) + 1
         return verdict
+
+    def _agree(self, earlier: Epoch, later: Epoch) -> bool:
+        return self.follows(earlier, later).ok
 
     @staticmethod
     def _alone(epoch: Epoch) -> Verdict:

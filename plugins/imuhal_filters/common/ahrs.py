@@ -36,7 +36,8 @@ import math
 import sys
 from abc import abstractmethod
 from collections.abc import Sequence
-from typing import Any, ClassVar, Literal, NamedTuple
+from functools import partial
+from typing import Any, ClassVar, Literal, NamedTuple, cast
 
 import numpy as np
 from pydantic import Field
@@ -59,6 +60,7 @@ from imuhal.core.samples import (
 from imuhal.core.streams import StreamSpec
 from imuhal.estimation.base import Estimator, EstimatorSettings
 from imuhal.estimation.outputs import (
+    AttitudeBlock,
     AttitudeEstimate,
     Estimate,
     EstimateFlag,
@@ -451,6 +453,19 @@ class AhrsEstimator(Estimator):
         if bound is not self.settings:
             self.settings = bound
             self.reset()
+        self._load_kernels()
+
+    def _load_kernels(self) -> None:
+        """Load the compiled row kernel and block step now, when the run starts (the
+        pipeline binds its estimators before the first read), not at the first block of
+        several frames: without an AOT extension that is numba compiling or loading them
+        from its cache, seconds of pause and about 120 MB once per process. In the middle of
+        a flight (the first read after a stall or a burst of bus errors brings several
+        frames) the pause held every device up: the seed board's one-hour soak loaded numba
+        at 61 s. Loading them changes no path: the backend and the kernels chosen are the
+        same, only when (``_rows_kernel``, ``_has_block_step``)."""
+        self._rows_kernel()
+        self._has_block_step()
 
     def process(self, item: Sample | Estimate) -> list[Estimate]:
         # The pipeline calls this for every sample (three per IMU tick): the common samples
@@ -947,19 +962,28 @@ class AhrsEstimator(Estimator):
         tests/filters/test_ahrs_blocks.py). Anything else (flagged or clipped
         frames, an angular-rate recovery under way, turn compensation by a speed) goes
         frame by frame."""
+        return cast("list[Estimate]", self._update_blocks(blocks, as_block=False))
+
+    def estimate_blocks(self, blocks: Sequence[Block]) -> list[Estimate | AttitudeBlock]:
+        """``update_blocks``, with the frames the compiled block step takes as one
+        :class:`AttitudeBlock` (its rows: the estimates ``update_blocks`` makes)."""
+        return self._update_blocks(blocks, as_block=True)
+
+    def _update_blocks(self, blocks: Sequence[Block], *, as_block: bool
+                       ) -> list[Estimate | AttitudeBlock]:
         least = MIN_BLOCK_STEP_FRAMES if self._has_block_step() else \
             MIN_KERNEL_FRAMES if self._sample_kernel is None else \
             MIN_KERNEL_FRAMES_COMPILED_STEP
         if not any(b.kind is GyroSample and len(b) >= least for b in blocks):
-            return Estimator.update_blocks(self, blocks)
-        out: list[Estimate] = []
+            return list(Estimator.update_blocks(self, blocks))
+        out: list[Estimate | AttitudeBlock] = []
         frames = _HEAD_FRAMES
         while blocks:
             streams = self._imu_streams(blocks)
             if streams is None:
                 return out + Estimator.update_blocks(self, blocks)
             if self._ready(streams[2]):
-                return out + self._kernel_blocks(*streams)
+                return out + self._kernel_blocks(*streams, as_block=as_block)
             # not aligned yet: a few frames one by one, then look again (twice as many
             # each time: a magnetometer that never gives a usable frame costs no more than
             # frame by frame)
@@ -990,14 +1014,20 @@ class AhrsEstimator(Estimator):
         assert steps.t_ns is not None
         return AttitudeRows(self.instance, steps.t_ns[emitted], q[emitted], diagnostics)
 
-    def _kernel_blocks(self, gyro: Block, accel: Block | None, mag: Block | None
-                       ) -> list[Estimate]:
+    def _kernel_blocks(self, gyro: Block, accel: Block | None, mag: Block | None, *,
+                       as_block: bool = False) -> list[Estimate | AttitudeBlock]:
         """The frames of the blocks through the compiled row kernel (``update_blocks``):
         in one compiled block step when the filter has one and the blocks are its common
-        case (``_block_step``), else the bookkeeping on arrays around the row kernel."""
+        case (``_block_step``; ``as_block``: its estimates as one AttitudeBlock), else the
+        bookkeeping on arrays around the row kernel."""
         done = self._block_step(gyro, accel, mag)
         if done is not None:
             q_rows, diag_rows, dt_rows, lin_rows = done
+            if as_block:
+                # the rows' diagnostics are made from these (fresh) arrays only when asked
+                return [AttitudeBlock(self.instance, gyro.t_ns, q_rows, lin_rows, partial(
+                    self._kernel_row_diagnostics, dt_rows, diag_rows,
+                    self._kinematics.source))]
             build, instance = AttitudeEstimate.build, self.instance
             rows_diag = self._kernel_row_diagnostics(dt_rows, diag_rows,
                                                      self._kinematics.source)
@@ -1070,7 +1100,7 @@ class AhrsEstimator(Estimator):
         by_kind: dict[type, Block] = {}
         for b in blocks:
             if b.kind not in (GyroSample, AccelSample, MagSample) or b.kind in by_kind \
-                    or b.frame is not _BODY_NED or bool(b.flags.any()):
+                    or b.frame is not _BODY_NED or b.flagged:
                 return None
             by_kind[b.kind] = b
         gyro = by_kind.get(GyroSample)

@@ -63,7 +63,9 @@ class SampleFlag(IntFlag):
     IMPLAUSIBLE = 1 << 11
     """The value moved further from the last valid one than the measured quantity can move
     in the time between them (a pressure step no vertical speed makes): the chip's element
-    or converter was disturbed while it measured."""
+    or converter was disturbed while it measured. Also a value with nothing valid yet to be
+    held against that the readings after it have not confirmed (a GNSS receiver's first
+    fixes)."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

@@ -16,7 +16,7 @@ physically plausible for its chip.
 - ``StepWatch``: a quantity the physics bounds in how fast it can change (pressure: by the
   fastest vertical speed) that moves further from the last valid value than that bound and
   the chip's noise allow -> ``IMPLAUSIBLE``; a new level that the next readings confirm is
-  taken as real.
+  taken as real (``NewLevel``, which the GNSS driver's epoch checks share).
 
 Samples flagged STALE, BLANK or FROZEN carry NaN values (``NAN3``): they are not
 measurements. Samples flagged SATURATED, OVERFLOW or OUT_OF_RANGE keep the value read, so
@@ -26,8 +26,8 @@ a log shows what the chip said.
 from __future__ import annotations
 
 import math
-from collections.abc import Hashable, Iterable, Mapping
-from typing import Any
+from collections.abc import Callable, Hashable, Iterable, Mapping
+from typing import Any, Generic, TypeVar
 
 from imuhal.core.samples import SampleFlag
 
@@ -249,6 +249,48 @@ class FilterMemory:
         self._until_ns.clear()
 
 
+R = TypeVar("R")
+
+
+class NewLevel(Generic[R]):
+    """Refused readings in a row that agree with one another, until they are a new level.
+
+    A check that holds each reading against the last valid one (the reference) refuses a
+    disturbed reading, and a refused reading is no new reference, so one disturbance never
+    moves the bound for the honest readings after it. The reference itself may be wrong,
+    though (the first reading, or a real change while readings were lost); then every honest
+    reading after it is refused. ``refused(reading)`` is called with each reading the check
+    refused: ``confirm`` of them in a row, each agreeing with the one before it
+    (``agree(earlier, later)``: the check's own rule), are a new level, and the call that
+    completes the run answers True (the caller takes that reading as its new reference).
+    A reading that does not agree with the one before it starts a new run. So a wrong
+    reference costs at most ``confirm - 1`` honest readings (refused, never passed as wrong
+    ones), and up to ``confirm - 1`` disturbed readings in a row that agree are still
+    refused. ``clear()`` when the check accepted a reading: the run must be unbroken."""
+
+    def __init__(self, confirm: int, agree: Callable[[R, R], bool]) -> None:
+        if confirm < 2:
+            raise ValueError(f"a new level needs at least 2 readings to confirm it, got "
+                             f"{confirm}")
+        self.confirm = confirm
+        self.agree = agree
+        self._run: list[R] = []
+
+    def refused(self, reading: R) -> bool:
+        """Add a refused reading; True when it completes a run of ``confirm`` that agree."""
+        if self._run and not self.agree(self._run[-1], reading):
+            self._run.clear()
+        self._run.append(reading)
+        if len(self._run) < self.confirm:
+            return False
+        self._run.clear()
+        return True
+
+    def clear(self) -> None:
+        """The check accepted a reading: a run of refused ones is broken."""
+        self._run.clear()
+
+
 class StepWatch:
     """Flags a reading that moved further from the last valid one than the quantity can.
 
@@ -260,11 +302,11 @@ class StepWatch:
 
     The reference itself may be wrong (the first reading after the driver started, or a real
     change while readings were lost): ``confirm`` refused readings in a row that agree with
-    one another within the same bound are a new level, and the last of them is valid and
-    the new reference. So a wrong reference costs at most ``confirm - 1`` honest readings
-    (flagged, never passed as wrong ones), and up to ``confirm - 1`` equal disturbed
-    readings in a row are still refused. The history survives a restart of the chip: the
-    bound grows with the time since the reference, so a long outage checks little.
+    one another within the same bound are a new level (``NewLevel``), and the last of them
+    is valid and the new reference. So a wrong reference costs at most ``confirm - 1``
+    honest readings (flagged, never passed as wrong ones), and up to ``confirm - 1`` equal
+    disturbed readings in a row are still refused. The history survives a restart of the
+    chip: the bound grows with the time since the reference, so a long outage checks little.
     """
 
     def __init__(self, max_rate_per_s: float, noise: float, confirm: int = 3) -> None:
@@ -276,26 +318,23 @@ class StepWatch:
         self.noise = noise
         self.confirm = confirm
         self._reference: tuple[int, float] | None = None
-        self._refused: list[tuple[int, float]] = []
+        self._new_level = NewLevel(confirm, self._agree)
         self.refused = 0
         """Readings flagged IMPLAUSIBLE so far."""
 
-    def _agree(self, earlier: tuple[int, float], t_ns: int, value: float) -> bool:
-        dt_s = max(0, t_ns - earlier[0]) * 1e-9
-        return abs(value - earlier[1]) <= self.max_rate_per_s * dt_s + self.noise
+    def _agree(self, earlier: tuple[int, float], later: tuple[int, float]) -> bool:
+        dt_s = max(0, later[0] - earlier[0]) * 1e-9
+        return abs(later[1] - earlier[1]) <= self.max_rate_per_s * dt_s + self.noise
 
     def observe(self, t_ns: int, value: float) -> SampleFlag:
         """``IMPLAUSIBLE`` when ``value`` at ``t_ns`` cannot follow the last valid reading."""
-        if self._reference is None or self._agree(self._reference, t_ns, value):
-            self._reference = (t_ns, value)
-            self._refused.clear()
+        reading = (t_ns, value)
+        if self._reference is None or self._agree(self._reference, reading):
+            self._reference = reading
+            self._new_level.clear()
             return SampleFlag.OK
-        if self._refused and not self._agree(self._refused[-1], t_ns, value):
-            self._refused.clear()
-        self._refused.append((t_ns, value))
-        if len(self._refused) >= self.confirm:
-            self._reference = (t_ns, value)
-            self._refused.clear()
+        if self._new_level.refused(reading):
+            self._reference = reading
             return SampleFlag.OK
         self.refused += 1
         return SampleFlag.IMPLAUSIBLE

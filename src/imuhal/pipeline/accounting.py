@@ -226,7 +226,7 @@ class FrameLedger:
         if block.quantity is not self.channel:
             return []
         t = block.t_ns
-        if len(t) > 1 and not block.flags.any():
+        if len(t) > 1 and not block.flagged:
             steps = np.diff(t)
             if int(steps.min()) >= 0 and 2 * int(steps.max()) < 3 * self.period_ns:
                 first = int(t[0])
