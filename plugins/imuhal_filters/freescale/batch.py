@@ -17,6 +17,7 @@ import numpy as np
 
 from imuhal.core.conventions import NED, convert_quat
 from imuhal.core.frames import FloatArray
+from imuhal_filters.common.rest import RestSettings
 from imuhal_filters.freescale.coords import CONVENTION, CoordinateSystem
 from imuhal_filters.freescale.fast import KERNEL_SETTINGS, freescale_rows
 from imuhal_filters.freescale.kalman import FreescaleKalman, KalmanStep
@@ -72,7 +73,7 @@ def _run(settings: FreescaleCommonSettings, accel_g: FloatArray, gyro_dps: Float
     average = settings.accel_mag_input == "average"
     ends = list(range(ratio - 1, len(accel), ratio))
     compiled = (freescale_rows.available() and not settings.rest_detection
-                and set(type(settings).model_fields) <= KERNEL_SETTINGS)
+                and set(type(settings).model_fields) <= KERNEL_SETTINGS | _REST_SETTINGS)
     rows, steps = _python_steps(kf, accel, gyro, mag, ends, average, compiled)
     cs = settings.coordinate_system
     q, euler, offset, incl, jam, valid = _columns(steps)
@@ -179,6 +180,11 @@ def _compiled_steps(kf: FreescaleKalman, accel: FloatArray, gyro: FloatArray,
     kf.inclination_deg = float(incl[0])
     kf.gate_closed_s = float(gate_closed[0])
     return out_q, out_b, out_incl, out_jam, out_euler
+
+
+_REST_SETTINGS = frozenset(RestSettings.model_fields)
+"""Rest detection's settings: the kernel has no rest detection, so it runs only with
+``rest_detection`` off, when the others mean nothing."""
 
 
 _STYLE = {CoordinateSystem.NED: 0, CoordinateSystem.ANDROID: 1, CoordinateSystem.WIN8: 2}
