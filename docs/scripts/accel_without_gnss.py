@@ -23,8 +23,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from accel_in_flight_gap import GYRO_LINE, measure
-from as_a_user_gets_it import SEED, SETTLE_S, TARGETS, _fmt, bundled
+from accel_in_flight_gap import GYRO_LINE, table_rows
+from as_a_user_gets_it import SEED, SETTLE_S, bundled
 from docblock import write_block
 
 from imuhal.plugins.manager import Registry, load_registry
@@ -60,14 +60,7 @@ def main(argv: list[str] | None = None) -> int:
              f"{args.thermal_s:g} s, the profile's ahrs and vario; tilt and climb over t >= "
              f"{SETTLE_S:g} s, rest pitch: mean pitch error over the first {SETTLE_S:g} s). "
              "Degrees unless stated; a figure over its target (issue 27) is in bold.", "",
-             "| accelerometer | tilt RMS | tilt max | climb RMS (m/s) | rest pitch |",
-             "| --- | ---: | ---: | ---: | ---: |"]
-    keys = (("tilt_rms", 2), ("tilt_max", 2), ("climb_rms", 3), ("rest_pitch", 2))
-    for name, profile in runs.items():
-        values = measure(profile, registry, args.thermal_s)
-        cells = [_fmt(v, TARGETS[k], d) for v, (k, d) in zip(values, keys, strict=True)]
-        lines.append(f"| {name} | " + " | ".join(cells) + " |")
-        print(lines[-1], file=sys.stderr, flush=True)
+             *table_rows(runs, registry, args.thermal_s)]
     text = "\n".join(lines)
     print(text)
     if args.write:
