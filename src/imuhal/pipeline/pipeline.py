@@ -154,6 +154,10 @@ class DeviceRuntime:
     """The driver's FIFO overflow count the ledger last saw."""
     not_converted_seen_ns: int = 0
     """The driver's slid schedule time the ledger last saw."""
+    idle_seen: tuple[int, int] | None = None
+    """The driver's idle reads the ledger last saw."""
+    overrun_seen_ns: int = 0
+    """The driver's overrun stamp the ledger last saw."""
     mag_learner: HardIronLearner | None = None
     """Learning the hard iron in flight (``mag_in_flight``, no stored magnetometer record)."""
     accel_teacher: AccelTeacher | None = None
@@ -796,7 +800,15 @@ class Pipeline:
         if dev.put_off >= PUT_OFF_AT_MOST:
             dev.put_off = 0
             grid_ns = aim_ns + (t_ns - aim_ns) // period_ns * period_ns
-            if 2 * (t_ns - grid_ns) >= period_ns:
+            if t_ns > grid_ns and dev.driver.polls_after_instants:
+                # a grid near its chip's instants: counted at the point however little
+                # later it comes (from its stamp, a lag under half a period can still
+                # differ from the frames' before by more: the grid was aimed a guard later
+                # than they were stamped)
+                ledger.count_at(t_ns, grid_ns)
+            elif 2 * (t_ns - grid_ns) >= period_ns:
+                # a grid at an unknown lag after them: from its stamp it could round either
+                # way
                 ledger.count_at(t_ns, grid_ns)
             return False
         at_ns = aim_ns + -(-(t_ns - aim_ns) // period_ns) * period_ns
@@ -1004,6 +1016,13 @@ class Pipeline:
         if driver.health.fifo_overflows != dev.fifo_overflows_seen:
             dev.fifo_overflows_seen = driver.health.fifo_overflows
             dev.ledger.note("fifo_overflow")
+        health = driver.health
+        if health.idle is not None and health.idle != dev.idle_seen:
+            dev.idle_seen = health.idle
+            dev.ledger.idle(*health.idle)
+        if health.overrun_ns != dev.overrun_seen_ns:
+            dev.overrun_seen_ns = health.overrun_ns
+            dev.ledger.overrun(health.overrun_ns)
         if driver.health.reconfigurations != dev.reconfigurations_seen:
             dev.reconfigurations_seen = driver.health.reconfigurations
             dev.ledger.note("reset")
