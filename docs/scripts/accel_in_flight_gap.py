@@ -64,6 +64,21 @@ def measure(profile: BoardProfile, registry: Registry, thermal_s: float) -> tupl
     climb = [e for t, e in run.climb["vario"] if t >= SETTLE_S]
     return _rms(tilt), max(tilt), _rms(climb), float(np.mean(rest))
 
+def table_rows(runs: dict[str, BoardProfile], registry: Registry, thermal_s: float
+               ) -> list[str]:
+    """The table's header and one row per run (name -> the profile flown), each flown
+    ``thermal_s`` seconds of ``thermal``; each row is also printed to standard error."""
+    lines = ["| accelerometer | tilt RMS | tilt max | climb RMS (m/s) | rest pitch |",
+             "| --- | ---: | ---: | ---: | ---: |"]
+    keys = (("tilt_rms", 2), ("tilt_max", 2), ("climb_rms", 3), ("rest_pitch", 2))
+    for name, profile in runs.items():
+        values = measure(profile, registry, thermal_s)
+        cells = [_fmt(v, TARGETS[k], d) for v, (k, d) in zip(values, keys, strict=True)]
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+        print(lines[-1], file=sys.stderr, flush=True)
+    return lines
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--thermal-s", type=float, default=300.0)
@@ -79,14 +94,7 @@ def main(argv: list[str] | None = None) -> int:
              f"profile's ahrs and vario; tilt and climb over t >= {SETTLE_S:g} s, rest "
              f"pitch: mean pitch error over the first {SETTLE_S:g} s). Degrees unless stated; "
              "a figure over its target (issue 27) is in bold.", "",
-             "| accelerometer | tilt RMS | tilt max | climb RMS (m/s) | rest pitch |",
-             "| --- | ---: | ---: | ---: | ---: |"]
-    keys = (("tilt_rms", 2), ("tilt_max", 2), ("climb_rms", 3), ("rest_pitch", 2))
-    for name, profile in runs.items():
-        values = measure(profile, registry, args.thermal_s)
-        cells = [_fmt(v, TARGETS[k], d) for v, (k, d) in zip(values, keys, strict=True)]
-        lines.append(f"| {name} | " + " | ".join(cells) + " |")
-        print(lines[-1], file=sys.stderr, flush=True)
+             *table_rows(runs, registry, args.thermal_s)]
     text = "\n".join(lines)
     print(text)
     if args.write:

@@ -8,6 +8,7 @@ table of every attitude estimator with its defaults, on BROAD and in the flight 
     python docs/scripts/evaluation_tables.py run1.json run2.json > tables.md
     python docs/scripts/evaluation_tables.py run1.json run2.json --plot errors.png > tables.md
     python docs/scripts/evaluation_tables.py --defaults run1.json run2.json > defaults.md
+    python docs/scripts/evaluation_tables.py --defaults --only decoupled d6.json d9.json
 
 ``--defaults`` reads, for each installed AHRS, the rows its defaults gave (label = its name;
 ``NAME offline=true`` for the offline column) and flies the flight benchmark's scenarios
@@ -49,8 +50,10 @@ def _broad_mean(results: Sequence[TrialResult], label: str, dof: int, key: str,
     return text if len(rows) == BROAD_TRIALS else f"{text} ({len(rows)} trials)"
 
 
-def defaults_table(results: Sequence[TrialResult], duration_s: float) -> str:
-    """Every installed AHRS with its defaults: BROAD means and the flight figures."""
+def defaults_table(results: Sequence[TrialResult], duration_s: float,
+                   only: Sequence[str] = ()) -> str:
+    """Every installed AHRS with its defaults (or only those named): BROAD means and the
+    flight figures."""
     import flight_benchmark as fb
 
     from imuhal.plugins.manager import load_registry
@@ -77,6 +80,8 @@ def defaults_table(results: Sequence[TrialResult], duration_s: float) -> str:
         "| `rc-flight` tilt max |",
         "| --- | ---: | ---: | ---: | ---: | ---: | ---: |"]
     for name in fb.installed_ahrs(reg):
+        if only and name not in only:
+            continue
         nominal = fb.tilt_figures(thermal, fb.run_ahrs(fb.make(reg, name, fb._NOMINAL),
                                                        thermal.samples))
         velocity = fb.tilt_figures(thermal, fb.run_ahrs(fb.make(reg, name, {}), gnss))
@@ -103,12 +108,15 @@ def main() -> None:
                         "and the flight scenarios) instead")
     parser.add_argument("--duration", type=float, default=120.0, metavar="S",
                         help="`thermal` length for --defaults (s; `rc-flight` at most 60)")
+    parser.add_argument("--only", action="append", default=[], metavar="NAME",
+                        help="with --defaults: only this estimator's row (repeatable; to "
+                        "re-make the rows of an estimator whose code changed)")
     args = parser.parse_args()
     if args.plot:
         check_figure_path(args.plot)
     results = [r for p in args.results for r in load(p)]
     if args.defaults:
-        print(defaults_table(results, args.duration))
+        print(defaults_table(results, args.duration, args.only))
         return
     groups = aggregate(results)
     print("```\n" + summary_table(groups) + "\n```\n")

@@ -3,7 +3,7 @@ script; not collected by pytest). The figures of docs/performance.md, "Blocks re
 estimators".
 
 Run:  .venv/bin/python -m tests.benchmarks.bench_block_parts PART  (kernel, decode, estimate,
-      pipeline, watchdog)
+      pipeline, estimates, watchdog)
 
 - ``kernel``: Madgwick's ``update_blocks`` on fusion steps of n accelerometer and gyro
   frames against the same frames one by one through ``process()`` (the base class's
@@ -22,6 +22,12 @@ Run:  .venv/bin/python -m tests.benchmarks.bench_block_parts PART  (kernel, deco
   airspeed) and the GY-91 (blocks of 10) replayed from 20 s recordings with the estimators,
   Madgwick taking each read through the row kernel (``MIN_KERNEL_FRAMES_COMPILED_STEP`` 1)
   and frame by frame as shipped (32) alternately, four pairs, CPU us per IMU sample.
+- ``estimates``: the hardware path's estimates of a FIFO read, on the seed board (blocks of
+  8) and the GY-91 (blocks of 10) replayed from 20 s recordings with the estimators:
+  Madgwick's block step handing its estimates on as one AttitudeBlock (vario-kf3 takes it
+  whole, no estimate object built: as shipped) against one ``AttitudeEstimate`` per frame
+  checked and routed to vario-kf3 one by one (the router's ``estimate_blocks`` off, the
+  path before), alternately, four pairs, CPU us per IMU sample.
 - ``watchdog``: what timing one driver call costs on CPU time (an emulated or replayed
   board): ``Watchdog.arm`` and ``disarm`` with the ticking timers, against the one-shot
   ``ITIMER_REAL`` and ``ITIMER_PROF`` armed and cancelled around the call (four
@@ -36,6 +42,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -193,6 +200,41 @@ def pipeline(pairs: int = 4) -> None:
                   f"{' / '.join(f'{x:.1f}' for x in figures['never'])}")
 
 
+def estimates(pairs: int = 4) -> None:
+    """The hardware path on FIFO reads with Madgwick's estimates of a read as one
+    AttitudeBlock (as shipped) against one estimate object per frame (before)."""
+    from tests.benchmarks.bench_blocks import GY91, SEED, board_yaml
+    from tests.benchmarks.bench_hardware_path import record, replay
+
+    from imuhal.pipeline.router import Router
+
+    registry = load_registry()
+    shipped = Router.fuse_blocks
+
+    def one_by_one(self: Router, blocks: Any, out: Any, **_: bool) -> None:
+        shipped(self, blocks, out, estimate_blocks=False)
+
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, board, frames in (("seed board, FIFO 8", SEED, 8),
+                                    ("GY-91, FIFO 10", GY91, 10)):
+            path = Path(tmp) / f"{frames}.imurec"
+            record(registry, path, 20.0, board_yaml(frames, board))
+            figures: dict[str, list[float]] = {"blocks": [], "one by one": []}
+            try:
+                for _ in range(pairs):
+                    for which in figures:
+                        Router.fuse_blocks = (  # type: ignore[method-assign]
+                            shipped if which == "blocks" else one_by_one)
+                        imu, _, cpu = replay(registry, path)
+                        figures[which].append(cpu / imu * 1e6)
+            finally:
+                Router.fuse_blocks = shipped  # type: ignore[method-assign]
+            print(f"{name}: us of CPU per IMU sample, estimates as AttitudeBlocks "
+                  f"{' / '.join(f'{x:.1f}' for x in figures['blocks'])}, one estimate per "
+                  f"frame {' / '.join(f'{x:.1f}' for x in figures['one by one'])}; fastest / "
+                  f"fastest {min(figures['blocks']) / min(figures['one by one']):.2f}")
+
+
 def watchdog(calls: int = 100_000, rounds: int = 3) -> None:
     import signal
 
@@ -229,10 +271,11 @@ def watchdog(calls: int = 100_000, rounds: int = 3) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("part", choices=["kernel", "decode", "estimate", "pipeline", "watchdog"])
+    p.add_argument("part", choices=["kernel", "decode", "estimate", "pipeline", "estimates",
+                                    "watchdog"])
     args = p.parse_args(argv)
-    {"kernel": kernel, "decode": decode, "estimate": estimate,
-     "pipeline": pipeline, "watchdog": watchdog}[args.part]()
+    {"kernel": kernel, "decode": decode, "estimate": estimate, "pipeline": pipeline,
+     "estimates": estimates, "watchdog": watchdog}[args.part]()
     return 0
 
 

@@ -9,7 +9,8 @@ A ``--duration`` s emulated run of the seed paraglider vario (profiles/seed-para
 ``imuhal replay``'s pipeline runs it again with no simulation and no emulator: every bus
 transaction and clock reading is answered from the recording, so what is timed is the host's
 side of a run, iterated as ``Pipeline.blocks`` (a FIFO read's frames stay in their
-blocks; nothing in the loop asks for them one by one). The figure is CPU time per IMU
+blocks, and an AHRS's estimates of them in an AttitudeBlock; nothing in the loop asks for
+them one by one). The figure is CPU time per IMU
 sample (one gyro + accel burst of the MAX21100, 250 per second; the magnetometer,
 barometer and estimators they feed are included).
 
@@ -52,6 +53,7 @@ from imuhal.bus.recording.recorder import BusRecorder, run_header
 from imuhal.core.blocks import Block
 from imuhal.core.samples import GyroSample
 from imuhal.emulation import open_emulated
+from imuhal.estimation.outputs import AttitudeBlock
 from imuhal.offline.replay import (
     EndOfRecording,
     Replay,
@@ -149,12 +151,15 @@ def replay(registry: Registry, path: Path, *, profiler: cProfile.Profile | None 
         profiler.enable()
     try:
         # Pipeline.blocks: what a consumer that needs no frame one by one iterates (a FIFO
-        # read's frames stay in their blocks' arrays); events counts every frame
+        # read's frames and an AHRS's estimates of them stay arrays); events counts every
+        # frame and every estimate
         for item in pipeline.blocks(None):
             if type(item) is Block:
                 events += len(item)
                 if item.kind is GyroSample and item.device == IMU:
                     imu += len(item)
+            elif type(item) is AttitudeBlock:  # an AHRS's estimates of a read, as columns
+                events += len(item)
             else:
                 events += 1
                 if type(item) is GyroSample and item.device == IMU:

@@ -17,7 +17,13 @@ wild value, late polls), so the recovery and retry paths are compared too.
 ``--fifo-frames N`` reads the MAX21100 from its FIFO in blocks of N frames (``read: fifo``,
 as tests/benchmarks/bench_blocks.py does), so the block path is fingerprinted too.
 
+``--profile NAME`` flies another bundled board (profiles/NAME.yaml: gy91, seed-gps-vario,
+seed-rc-vario; their devices carry the same names, so ``--faults`` applies to them too).
+
 ``--every N`` also prints a running digest every N events, to find where two runs diverge.
+
+The first of ``FAULTS`` starts at 20 s: a run of 20 s or less has none in force, and prints
+the digest of the run without ``--faults`` (a warning says so).
 """
 
 from __future__ import annotations
@@ -45,7 +51,8 @@ from imuhal.emulation.faults import (
 from imuhal.plugins.manager import load_registry
 from imuhal.profile.loader import load_profile, parse_profile
 
-PROFILE = Path(__file__).resolve().parents[2] / "profiles" / "seed-paraglider-vario.yaml"
+PROFILES = Path(__file__).resolve().parents[2] / "profiles"
+PROFILE = PROFILES / "seed-paraglider-vario.yaml"
 
 
 FAULTS: tuple[FaultSpec, ...] = (
@@ -62,15 +69,15 @@ FAULTS: tuple[FaultSpec, ...] = (
 
 
 def digest(duration_s: float, *, estimators: bool = True, scenario: str = "thermal",
-           every: int = 0, faults: bool = False, fifo_frames: int | None = None
-           ) -> tuple[str, Counter[str], float]:
+           every: int = 0, faults: bool = False, fifo_frames: int | None = None,
+           board: Path = PROFILE) -> tuple[str, Counter[str], float]:
     """(sha256 of every event's repr, events by type, CPU seconds of the run)."""
     registry = load_registry()
     if fifo_frames is None:
-        profile = load_profile(PROFILE, registry)
+        profile = load_profile(board, registry)
     else:
         from tests.benchmarks.bench_blocks import board_yaml
-        profile = parse_profile(board_yaml(fifo_frames, PROFILE), str(PROFILE), registry)
+        profile = parse_profile(board_yaml(fifo_frames, board), str(board), registry)
     if not estimators:
         profile = profile.model_copy(update={"estimators": {}})
     pipeline = open_emulated(profile, registry, scenario=scenario,
@@ -99,16 +106,26 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--faults", action="store_true", help="inject the fixed FAULTS")
     p.add_argument("--every", type=int, default=0, help="print a running digest every N events")
     p.add_argument("--fifo-frames", type=int, default=None,
-                   help="read the MAX21100's FIFO in blocks of this many frames")
+                   help="read the IMU's FIFO in blocks of this many frames")
+    p.add_argument("--profile", default=PROFILE.stem,
+                   help=f"a bundled board (profiles/NAME.yaml; default {PROFILE.stem})")
     args = p.parse_args(argv)
+    board = PROFILES / f"{args.profile}.yaml"
+    if not board.is_file():
+        p.error(f"--profile {args.profile}: no profiles/{args.profile}.yaml; bundled: "
+                + ", ".join(sorted(f.stem for f in PROFILES.glob("*.yaml"))))
+    first_fault_s = min(spec.start_s for spec in FAULTS)
+    if args.faults and args.duration <= first_fault_s:
+        print(f"warning: the first fault starts at {first_fault_s:g} s; a run of "
+              f"{args.duration:g} s has none in force", file=sys.stderr)
     sha, counts, cpu = digest(args.duration, estimators=not args.bare,
                               scenario=args.scenario, every=args.every, faults=args.faults,
-                              fifo_frames=args.fifo_frames)
+                              fifo_frames=args.fifo_frames, board=board)
     what = ("without estimators" if args.bare else "with its estimators") + \
         (", faults injected" if args.faults else "") + \
         ("" if args.fifo_frames is None else f", FIFO blocks of {args.fifo_frames}")
     by_type = ", ".join(f"{k} {v}" for k, v in sorted(counts.items()))
-    print(f"seed board {what}, {args.scenario}, {args.duration:g} s: "
+    print(f"{args.profile} {what}, {args.scenario}, {args.duration:g} s: "
           f"{sum(counts.values())} events ({by_type})")
     print(f"sha256 {sha}")
     print(f"cpu {cpu:.2f} s = {args.duration / cpu:.1f} x real time", file=sys.stderr)

@@ -40,7 +40,10 @@ own count (issue 25): for each device that accounts for a stream and whose emula
 its measurement instants, delivered + lost = produced, and within each segment (a stretch
 between reconfigurations) the ledger's produced frames equal the measurements the emulator
 made over the segment's span (``ChipEmulator.frames_between``). A run where either fails is
-listed with the device, the ledger's count and the chip's ("accounting").
+listed with the device, the ledger's count and the chip's ("accounting"). Slots a hung chip
+did not measure (``not_measured``, as its driver's reads proved) and slots a host-paced chip
+never converted (``not_converted``) are neither produced nor lost, so they are outside both
+sides of the comparison and shown in columns of their own.
 """
 
 from __future__ import annotations
@@ -249,8 +252,9 @@ def accounting_markdown(results: list[RunResult]) -> list[str]:
     """Per board and device: the runs whose ledger balanced and matched the chip's own
     count in every segment, the frames summed over the runs, and each run that did not."""
     lines = ["| board | device | runs | delivered + lost = produced = the chip's count | "
-             "produced | the chip's count | delivered | lost | slots not converted |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "produced | the chip's count | delivered | lost | slots not converted | "
+             "slots not measured (chip hung) |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     off: list[str] = []
     for board in sorted({r.board for r in results}):
         rs = [r for r in results if r.board == board]
@@ -263,7 +267,8 @@ def accounting_markdown(results: list[RunResult]) -> list[str]:
                 f"{sum(c['within_segments'] for c in counts)} | "
                 f"{sum(c['chip'] for c in counts)} | {sum(c['delivered'] for c in counts)} | "
                 f"{sum(v for c in counts for k, v in c.items() if k.startswith('lost_'))} | "
-                f"{sum(c.get('not_converted', 0) for c in counts)} |")
+                f"{sum(c.get('not_converted', 0) for c in counts)} | "
+                f"{sum(c.get('not_measured', 0) for c in counts)} |")
             off += [f"- {board} {device}: {'+'.join(r.kinds)} at {r.rate:g}: ledger "
                     f"{r.ledgers[device]['within_segments']} within segments, chip "
                     f"{r.ledgers[device]['chip']}" for r in held

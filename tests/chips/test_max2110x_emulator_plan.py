@@ -28,8 +28,10 @@ def test_rows_encode_each_value_as_one_value_encodes() -> None:
     values = np.concatenate([halves, odd, rng.normal(0.0, 40.0, 3 * 200)])
     values = values[: len(values) // 3 * 3].reshape(-1, 3)
     encoded = _encode_rows(values, PER_COUNT, 30000)
-    assert encoded == [[_encode(float(v), PER_COUNT, 30000) for v in row] for row in values]
-    assert all(type(c) is int for row in encoded for c in row)
+    assert encoded is not None
+    assert encoded.tolist() == [[_encode(float(v), PER_COUNT, 30000) for v in row]
+                                for row in values]
+    assert all(type(c) is int for row in encoded.tolist() for c in row)
 
 
 def test_rows_are_left_to_the_one_value_path_where_a_quotient_overflows() -> None:

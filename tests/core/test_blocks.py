@@ -96,3 +96,19 @@ def test_a_block_holds_one_stream_and_frames_that_do_not_go_back() -> None:
     with pytest.raises(ValueError, match="do not make"):
         Block.from_arrays(GyroSample, "imu", 0, np.array([0, 5]), np.zeros((3, 3)),
                           np.zeros(2, np.int64), frame=Frame.SENSOR)
+
+
+def test_flagged_says_whether_some_frame_has_a_flag_in_every_form_of_a_block() -> None:
+    """``Block.flagged`` is ``flags.any()`` of the block it is asked of, whether the block
+    was built from arrays, from samples or from one sample, or derived with new values or
+    new flags."""
+    t = np.arange(3, dtype=np.int64) * 4_000_000
+    clean = Block.from_arrays(GyroSample, "imu", 0, t, np.zeros((3, 3)),
+                              np.zeros(3, np.int64), frame=Frame.SENSOR)
+    assert not clean.flagged
+    assert not clean.with_values(np.ones((3, 3)), Frame.BODY_NED).flagged
+    one = clean.with_flags(np.array([0, int(SampleFlag.NAN), 0], np.int64))
+    assert one.flagged and one.with_values(np.ones((3, 3)), Frame.BODY_NED).flagged
+    assert Block.of_sample(_gyro(0, 1.0, SampleFlag.STALE)).flagged
+    assert not Block.of_sample(_gyro(0, 1.0)).flagged
+    assert Block.from_samples([_gyro(0, 1.0), _gyro(4_000_000, 1.0, SampleFlag.NAN)]).flagged

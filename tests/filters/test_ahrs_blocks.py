@@ -24,7 +24,13 @@ from tests.filters.dataset_a import load_head
 from imuhal.core.blocks import Block
 from imuhal.core.samples import AccelSample, Frame, GyroSample, MagSample, VelocitySample
 from imuhal.estimation.ordering import fusion_order
-from imuhal.estimation.outputs import AttitudeEstimate, Estimate
+from imuhal.estimation.outputs import (
+    AttitudeBlock,
+    AttitudeEstimate,
+    Estimate,
+    estimate_flags,
+    rows_of,
+)
 from imuhal.plugins.manager import load_registry
 from imuhal_filters.common import ahrs
 from imuhal_filters.common.ahrs import AhrsEstimator
@@ -333,3 +339,47 @@ def test_the_fifo_reads_exercise_what_the_block_step_resolves() -> None:
     seed, _ = _pair("madgwick", {"preset": "seed"})  # the one with a hard gate
     _frame_by_frame(seed, _fifo_reads(8, "apart"))
     assert seed.get_state()["counters"]["gate_closed_steps"] > 0
+
+
+@pytest.mark.parametrize(("settings", "with_mag"), FIFO_CASES[:2] + FIFO_CASES[4:6],
+                         ids=[f"{','.join(map(str, s.values())) or 'defaults'}-mag-{m}"
+                              for s, m in FIFO_CASES[:2] + FIFO_CASES[4:6]])
+def test_estimate_blocks_rows_are_the_estimates_of_update_blocks_bit_for_bit(
+        settings: dict[str, Any], with_mag: str, compiled_backend: str) -> None:
+    """``estimate_blocks`` (the live pipeline's call) gives each read the block step takes
+    as one AttitudeBlock whose rows are the very estimates ``update_blocks`` makes of it
+    (quaternions, accelerations, diagnostics: the same floats), and the estimator ends in
+    the same state."""
+    est, ref = _pair("madgwick", settings)
+    got: list[Any] = []
+    want: list[Estimate] = []
+    for read in _fifo_reads(8, with_mag):
+        got += est.estimate_blocks(read)
+        want += ref.update_blocks(read)
+    blocks = [e for e in got if isinstance(e, AttitudeBlock)]
+    assert sum(len(b) for b in blocks) > len(want) // 2
+    assert all(len(b) == 8 for b in blocks)
+    rows = rows_of(got)
+    _same(rows, want, tol=0.0)
+    assert [repr(e) for e in rows] == [repr(e) for e in want]
+    assert est.get_state()["q"] == ref.get_state()["q"]
+    _same_state(est, ref)
+
+
+def test_an_attitude_block_is_usable_only_when_every_row_passes_the_estimate_check() -> None:
+    """``AttitudeBlock.all_usable`` is ``estimate_flags`` of every row at once: one row with
+    a NaN acceleration, an infinite or a zero quaternion makes the block unusable."""
+    t = np.arange(4, dtype=np.int64) * 5_000_000
+    q = np.tile([1.0, 0.0, 0.0, 0.0], (4, 1))
+    lin = np.zeros((4, 3))
+
+    def block(q: np.ndarray, lin: np.ndarray | None) -> AttitudeBlock:
+        return AttitudeBlock("ahrs", t, q, lin, lambda: [{} for _ in range(4)])
+
+    assert block(q, lin).all_usable() and block(q, None).all_usable()
+    for bad_q, bad_lin in ((q, np.where(np.arange(4)[:, None] == 2, np.nan, lin)),
+                           (np.where(np.arange(4)[:, None] == 1, np.inf, q), lin),
+                           (np.where(np.arange(4)[:, None] == 3, 0.0, q), lin)):
+        b = block(bad_q, bad_lin)
+        assert not b.all_usable()
+        assert [bool(estimate_flags(e)) for e in b.rows()].count(True) == 1

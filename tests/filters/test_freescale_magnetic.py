@@ -107,9 +107,12 @@ def test_heading_recovers_once_the_magnet_is_removed(magnet: Magnet) -> None:
     err = np.array([_angle_deg(a, b) for a, b in zip(result.q_body_to_ned, q_true, strict=True)])
     after = t >= 14.0
     first_good = t[after][np.argmax(err[after] < 1.0)]
-    assert err[after].min() < 1.0 and first_good < 14.0 + 7.0  # s
-    # the correction partly went into the gyro offset; it unwinds as a slow damped swing
-    assert np.sqrt(np.mean(err[t >= 30.0] ** 2)) < 2.5
+    # the board is still after the magnet: its gyro offset is measured there (rest
+    # detection), so the correction goes into the orientation alone and the error decays
+    # without swinging (without rest detection part of it went into the offset and came
+    # back as a slow damped swing: within 1 deg at 16 s, 0.69 deg RMS from 30 s)
+    assert err[after].min() < 1.0 and first_good < 14.0 + 17.0  # s
+    assert np.sqrt(np.mean(err[t >= 30.0] ** 2)) < 1.0
 
 
 def test_reference_learns_the_inclination_from_zero_and_tilt_settles() -> None:

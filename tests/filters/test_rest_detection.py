@@ -1,4 +1,5 @@
 """Rest detection in the complementary AHRS (madgwick, mahony, imufilter; common/rest.py).
+The Freescale Kalman filters' use of the same detector: tests/filters/test_freescale_rest.py.
 
 A board lying still is detected after ``rest_min_s`` (1.5 s); there its accelerometer is
 trusted fully (soft-gate weight 1) and its gyro bias is learned and subtracted from then on.
@@ -20,7 +21,6 @@ from imuhal.core.samples import AccelSample, Frame, GyroSample
 from imuhal.estimation.outputs import AttitudeEstimate
 from imuhal_filters.common.ahrs import AhrsEstimator
 from imuhal_filters.common.quat import tilt_error_deg
-from imuhal_filters.freescale.estimator import Freescale6DofEstimator
 from imuhal_filters.imufilter.estimator import ImuFilterEstimator
 from imuhal_filters.madgwick.estimator import MadgwickEstimator
 from imuhal_filters.mahony.estimator import MahonyEstimator
@@ -139,16 +139,6 @@ def test_imufilter_learns_a_gyro_offset_near_the_mpu9250_tolerance() -> None:
     assert max(tilt_error_deg(e.q_body_to_ned, LEVEL) for e in with_rest
                if e.t_ns >= 10e9) < 0.2
     assert tilt_error_deg(without[-1].q_body_to_ned, LEVEL) > 10.0
-
-
-def test_the_freescale_kalman_learns_start_up_offsets_without_rest_detection() -> None:
-    """Why the Freescale filters have no rest detection: their Kalman filter carries the
-    gyro offset in its state, so an upside-down still board with uncorrected start-up
-    offsets settles by itself (1.1 deg at worst over 1-3 s, 0.13 deg from 10 s)."""
-    est = Freescale6DofEstimator(Freescale6DofEstimator.Settings())
-    out = _feed(est, 30.0, roll_deg=180.0)
-    upside = quat_from_euler_deg(180.0, 0.0, 0.0)
-    assert max(tilt_error_deg(e.q_body_to_ned, upside) for e in out if e.t_ns >= 10e9) < 0.3
 
 
 @pytest.mark.parametrize("cls", WITH_REST)

@@ -13,6 +13,7 @@ from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2, pressure_pa_at_altitud
 from imuhal.core.frames import quat_from_euler_deg, quat_to_matrix
 from imuhal.core.samples import AccelSample, Frame, PressureSample, SampleFlag
 from imuhal.estimation.outputs import (
+    AttitudeBlock,
     AttitudeEstimate,
     EstimateFlag,
     RejectedEstimate,
@@ -225,3 +226,50 @@ def test_si_settings_reach_the_core_in_cm_units() -> None:
     assert custom.bias_variance == pytest.approx(0.01)
     assert custom.bias == pytest.approx(10.0)
     np.testing.assert_allclose(np.diag(custom.P), [1500.0, 1500.0, 1500.0])
+
+
+def _attitude_block(rows: list[AttitudeEstimate], with_accel: bool = True) -> AttitudeBlock:
+    return AttitudeBlock(
+        rows[0].source, np.array([e.t_ns for e in rows], np.int64),
+        np.array([e.q_body_to_ned for e in rows]),
+        np.array([e.linear_accel_ned_m_s2 for e in rows]) if with_accel else None,
+        lambda: [{} for _ in rows])
+
+
+@pytest.mark.parametrize("with_accel", [True, False], ids=["linear-accel", "attitude-only"])
+def test_an_attitude_block_gives_what_its_rows_give_one_by_one(with_accel: bool) -> None:
+    """``update_estimate_block`` (an AHRS's FIFO read as one block) leaves the filter as
+    its rows through ``process()`` one by one leave it: the same vertical estimates at
+    the next pressure samples, bit for bit, and the same state; another source's block is
+    ignored as its rows would be."""
+    accel_up, z = _flight(seed=3, n_baro=60)
+    rng = np.random.default_rng(3)
+    by_block, one_by_one = VarioKf3Estimator(), VarioKf3Estimator()
+    got: list[Any] = []
+    want: list[Any] = []
+    for k in range(len(z)):
+        t0 = k * BARO_EVERY * IMU_DT_NS
+        tilt = rng.normal(0.0, 10.0, (BARO_EVERY, 2))
+        rows = [_attitude(t0 + (i + 1) * IMU_DT_NS,
+                          float(accel_up[k * BARO_EVERY + i]) if with_accel else None,
+                          quat_from_euler_deg(tilt[i, 0], tilt[i, 1], 0.0))
+                for i in range(BARO_EVERY)]
+        other = _attitude_block([_attitude(e.t_ns, 9.0, source="other") for e in rows])
+        got += by_block.update_estimate_block(_attitude_block(rows, with_accel))
+        got += by_block.update_estimate_block(other)
+        for e in rows + other.rows():
+            want += one_by_one.process(e)
+        if with_accel:
+            pressure = _pressure(rows[-1].t_ns, float(z[k]))
+        else:  # without a linear acceleration the filter takes the accelerometer's
+            accel = AccelSample(t_ns=rows[-1].t_ns, device="imu", frame=Frame.BODY_NED,
+                                accel_m_s2=(0.0, 0.0, -STANDARD_GRAVITY_M_S2))
+            got += by_block.process(accel)
+            want += one_by_one.process(accel)
+            pressure = _pressure(rows[-1].t_ns + 1, float(z[k]))
+        got += by_block.process(pressure)
+        want += one_by_one.process(pressure)
+    assert not any(isinstance(e, AttitudeEstimate) for e in got)
+    assert len(got) == len(z)
+    assert [repr(e) for e in got] == [repr(e) for e in want]
+    assert json.dumps(by_block.get_state()) == json.dumps(one_by_one.get_state())

@@ -18,6 +18,7 @@ from imuhal.emulation.faults import (
     BusOSError,
     ChipAbsent,
     ChipReset,
+    CorruptTrim,
     FaultSpec,
     FrozenData,
     HostStall,
@@ -85,6 +86,23 @@ def _ledger(p: Pipeline, device: str) -> FrameLedger:
     return ledger
 
 
+def _fly(registry: Registry, board: str, faults: list[FaultSpec], seconds: float) -> Pipeline:
+    """A bundled board emulated (calibrated, seed 1, as the fault matrix flies it)."""
+    profile = load_profile(bundled_profiles()[f"{board}.yaml"], registry)
+    with open_emulated(profile, registry, seed=1, faults=faults) as p:
+        list(p.events(seconds))
+    return p
+
+
+def _counts_as_the_chip(p: Pipeline, device: str) -> FrameLedger:
+    """The device's ledger, each of its segments checked against the chip's own count."""
+    ledger = _ledger(p, device)
+    chip = p.board.emulators[device]
+    segments = ledger.all_segments()
+    assert [n for _, _, n in segments] == [chip.frames_between(a, b) for a, b, _ in segments]
+    return ledger
+
+
 @pytest.mark.parametrize("kind", sorted(MATRIX))
 def test_each_segment_counts_the_frames_the_chip_measured(registry: Registry,
                                                           kind: str) -> None:
@@ -122,14 +140,8 @@ def test_the_first_field_after_blank_reads_is_read_on_the_poll_grid(
     the window was read wherever those retries had got to, up to a period after its
     measurement, and the gap before it counted one field more than the chip made; it now
     polls a blank chip on its grid."""
-    profile = load_profile(bundled_profiles()["gy91.yaml"], registry)
     blank: list[FaultSpec] = [AllZeros(device=d, start_s=5.455, end_s=5.545) for d in DEVICES]
-    with open_emulated(profile, registry, seed=1, faults=blank) as p:
-        list(p.events(6.0))
-    ledger = _ledger(p, "mag")
-    chip = p.board.emulators["mag"]
-    segments = ledger.all_segments()
-    assert [n for _, _, n in segments] == [chip.frames_between(a, b) for a, b, _ in segments]
+    ledger = _counts_as_the_chip(_fly(registry, "gy91", blank, 6.0), "mag")
     assert ledger.lost["host_stall"] > 0
 
 
@@ -191,3 +203,62 @@ def test_fifo_modes_count_the_frames_the_chip_measured_through_stalls_overflows_
     # a FIFO keeps what a late read would cost: the losses are the overflow's and the reset's
     assert ledger.lost["fifo_overflow"] > 0 and ledger.lost["reset"] > 0
     assert ledger.lost["host_stall"] == 0
+
+
+def test_a_hung_magnetometers_unmade_fields_are_counted_apart_from_lost_ones(
+        registry: Registry) -> None:
+    """Every chip of the board hangs for 90 ms (``stuck_data_ready``, the fault matrix's
+    window at 1 %): the AK8963 (read directly) completes no measurement and DRDY stays
+    clear, and the MPU-9250's restart holds the one thread for most of the hang, so the mag
+    is not read until its chip measures again. Its reads that found nothing for 2.6 periods
+    prove the hang; the fields it never made are counted ``not_measured``, neither produced
+    nor lost, and the one its overrun bit (DOR) proves lost, so the ledger's count equals
+    the chip's (it counted all thirteen lost before: 1000 for the chip's 988)."""
+    faults: list[FaultSpec] = [StuckDataReady(device=d, start_s=5.455, end_s=5.545)
+                               for d in DEVICES]
+    p = _fly(registry, "gy91", faults, 6.0)
+    ledger = _counts_as_the_chip(p, "mag")
+    assert ledger.not_measured >= 8  # 90 ms of a 100 Hz field, the hang ends at a read
+    assert p.summary().frames["mag"]["not_measured"] == ledger.not_measured
+
+
+def test_a_stalled_host_does_not_make_a_measuring_magnetometer_hung(registry: Registry) -> None:
+    """Host stalls at every phase of the AK8963's period while it measures on: every field
+    the host missed is lost, none is counted as not measured."""
+    p = _run(registry, MATRIX["host_stalls"][0])
+    ledger = _ledger(p, "mag")
+    assert ledger.lost["host_stall"] > 0 and ledger.not_measured == 0
+
+
+def test_a_poll_made_off_its_grid_after_the_put_offs_is_counted_at_the_grid_point(
+        registry: Registry) -> None:
+    """Every poll of the seed rc board 10 ms late and up to 5 ms more for 90 ms, the MS5611's
+    trim flipped four times (the fault matrix's ``corrupt_trim``, ``late_polls`` and
+    ``jitter`` at 1 %, whole: the plan's faults order the jitter's draws): the MAX21105's
+    poll, put off
+    three times to grid points aimed a guard (P/8) later than its frames were stamped, is
+    then made 2.5 ms after the grid point (of a 5 ms period), reading that point's sample.
+    Counted from its stamp, 3.5 ms after the chip's instant where the frame before the
+    stall was stamped 0.4 ms after its own, the gap rounded to one frame more than the chip
+    made; it is counted at the grid point, however little later it comes."""
+    faults: list[FaultSpec] = [
+        *(CorruptTrim(device="baro", start_s=t, bits=1) for t in (2.125, 4.375, 6.625, 8.875)),
+        *(LatePolls(device=d, start_s=5.455, end_s=5.545, delay_s=0.01) for d in DEVICES),
+        *(TimingJitter(device=d, start_s=5.455, end_s=5.545, max_delay_s=0.005)
+          for d in DEVICES)]
+    ledger = _counts_as_the_chip(_fly(registry, "seed-rc-vario", faults, 6.0), "imu")
+    assert ledger.lost["host_stall"] > 0
+
+
+def test_a_copy_older_than_a_put_off_poll_aimed_at_is_stamped_by_its_delivery(
+        registry: Registry) -> None:
+    """Every poll of the seed paraglider board 10 ms late for 9 ms (the fault matrix's
+    ``late_polls`` at 0.1 %): the HMC5883L's poll, put off a period, found the MAX21100's
+    copy from before the stall (the master was late too, and the copy it aimed at came
+    just after it). Stamped with the poll, a period after its measurement, it counted a
+    field the chip never made; a copy older than a delivery latency and a guard at its poll
+    is stamped by its delivery."""
+    faults: list[FaultSpec] = [LatePolls(device=d, start_s=5.4955, end_s=5.5045, delay_s=0.01)
+                               for d in DEVICES]
+    ledger = _counts_as_the_chip(_fly(registry, "seed-paraglider-vario", faults, 6.0), "mag")
+    assert ledger.delivered > 0.9 * 6.0 * 75

@@ -153,6 +153,68 @@ def test_the_summary_line_names_the_slots_not_converted() -> None:
         "produced 10, delivered 9, lost 1 (bus error 1); slots not converted 4"
 
 
+def test_slots_a_hung_chip_let_pass_are_not_measured_but_one_overrun_is_lost() -> None:
+    """Reads found nothing new for two periods after the frame at 0 (the chip hung); the
+    read at 14 periods brings a frame with the overrun bit set: of the 13 slots between, the
+    chip made the one overwritten (lost) and none of the other 12."""
+    ledger = FrameLedger(Quantity.GYRO, P)
+    ledger.observe(gyro(0))
+    ledger.idle(0, 2 * P + P // 2)
+    ledger.note("host_stall")
+    ledger.overrun(14 * P)
+    loss = ledger.observe(gyro(14 * P))
+    assert dict(+ledger.lost) == {"host_stall": 1}
+    assert (ledger.produced, ledger.delivered, ledger.not_measured) == (3, 2, 12)
+    assert loss is not None and (loss.frames, loss.cause) == (13, "host_stall")
+    assert ledger.counts()["not_measured"] == 12
+
+
+def test_a_hung_chip_without_an_overrun_made_only_the_frame_read() -> None:
+    ledger = FrameLedger(Quantity.GYRO, P)
+    ledger.observe(gyro(0))
+    ledger.idle(0, 3 * P)
+    loss = ledger.observe(gyro(6 * P))
+    assert loss is not None and (loss.frames, loss.cause) == (5, "not_measured")
+    assert (ledger.produced, ledger.not_measured, sum(ledger.lost.values())) == (2, 5, 0)
+
+
+@pytest.mark.parametrize("since, until", [
+    (0, P + P // 3),  # nothing for less than 1.5 periods: a slow chip clock, not a hang
+    (-P, 4 * P),  # reads that began before the latest frame prove nothing about after it
+])
+def test_reads_that_prove_no_hang_leave_the_slots_lost(since: int, until: int) -> None:
+    ledger = FrameLedger(Quantity.GYRO, P)
+    ledger.observe(gyro(0))
+    ledger.idle(since, until)
+    ledger.observe(gyro(5 * P))
+    assert (dict(+ledger.lost), ledger.not_measured) == ({"missed": 4}, 0)
+
+
+def test_a_reset_in_the_gap_keeps_its_slots_counted_to_the_reset() -> None:
+    ledger = FrameLedger(Quantity.GYRO, P)
+    ledger.observe(gyro(0))
+    ledger.idle(0, 3 * P)
+    ledger.note("reset")
+    ledger.observe(gyro(6 * P))
+    assert (dict(+ledger.lost), ledger.not_measured) == ({"reset": 5}, 0)
+
+
+def test_the_proof_of_a_hang_ends_at_the_next_frame() -> None:
+    ledger = FrameLedger(Quantity.GYRO, P)
+    ledger.observe(gyro(0))
+    ledger.idle(0, 3 * P)
+    ledger.observe(gyro(4 * P))
+    ledger.note("bus_error")
+    ledger.observe(gyro(8 * P))
+    assert (dict(+ledger.lost), ledger.not_measured) == ({"bus_error": 3}, 3)
+
+
+def test_the_summary_line_names_the_slots_a_hung_chip_did_not_measure() -> None:
+    counts = {"produced": 10, "delivered": 9, "lost_host_stall": 1, "not_measured": 12}
+    assert describe_frames(counts) == ("produced 10, delivered 9, lost 1 (host stall 1); "
+                                       "slots not measured (chip hung) 12")
+
+
 def _counted(ledger: FrameLedger) -> tuple[dict[str, int], int | None, int | None]:
     return ledger.counts(), ledger.first_ns, ledger.last_ns
 

@@ -14,7 +14,12 @@ from imuhal.core.blocks import Block
 from imuhal.core.samples import AccelSample, Frame, GyroSample, Sample
 from imuhal.drivers.base import BlockPoll
 from imuhal.emulation import open_emulated
-from imuhal.estimation.outputs import AttitudeEstimate, Estimate, VerticalEstimate
+from imuhal.estimation.outputs import (
+    AttitudeBlock,
+    AttitudeEstimate,
+    Estimate,
+    VerticalEstimate,
+)
 from imuhal.pipeline.pipeline import Pipeline
 from imuhal.pipeline.router import Router
 from imuhal.plugins.manager import Registry, load_registry
@@ -81,9 +86,10 @@ def test_blocks_hands_out_each_read_as_blocks_with_the_frames_and_estimates_of_e
         registry: Registry,
         run: tuple[BoardProfile, Pipeline, list[Sample | Estimate]]) -> None:
     """``Pipeline.blocks()``: each FIFO read as one block per stream, whose one-row views are
-    the frames ``events()`` hands out, and every other event as ``events()`` gives it, in
-    the same order; the start-up phase (the GY-91 measures its gyro offsets) runs as
-    under ``events()``."""
+    the frames ``events()`` hands out, Madgwick's estimates of a read as one AttitudeBlock
+    whose rows are the estimates ``events()`` hands out, and every other event as
+    ``events()`` gives it, in the same order; the start-up phase (the GY-91 measures its
+    gyro offsets) runs as under ``events()``."""
     profile, _, events = run
     with open_emulated(profile, registry, scenario="thermal", seed=2,
                        sensor_errors=True) as pipeline:
@@ -91,8 +97,11 @@ def test_blocks_hands_out_each_read_as_blocks_with_the_frames_and_estimates_of_e
     blocks = [b for b in items if isinstance(b, Block)]
     assert sum(len(b) for b in blocks) > 1000
     assert all(len(b) > 1 for b in blocks[1:])  # the first may be a read's rest
+    attitude_blocks = [b for b in items if isinstance(b, AttitudeBlock)]
+    assert sum(len(b) for b in attitude_blocks) > 900
     expanded = [s for item in items
-                for s in (item.samples() if isinstance(item, Block) else [item])]
+                for s in (item.samples() if isinstance(item, Block) else
+                          item.rows() if isinstance(item, AttitudeBlock) else [item])]
 
     def by_stream(seq: list[object]) -> dict[tuple[str, str], list[str]]:
         out: dict[tuple[str, str], list[str]] = {}
@@ -123,9 +132,10 @@ def test_each_fifo_read_reaches_the_estimators_whole_in_one_fusion_step(
         read.extend(len(b) for b in got.blocks if b.kind is GyroSample and len(b) > 1)
         return got
 
-    def routed(self: Router, blocks: Sequence[Block], out: list[Estimate]) -> None:
+    def routed(self: Router, blocks: Sequence[Block], out: list[Estimate],
+               **options: bool) -> None:
         fused.extend(len(b) for b in blocks if b.kind is GyroSample and len(b) > 1)
-        fuse_blocks(self, blocks, out)
+        fuse_blocks(self, blocks, out, **options)
 
     monkeypatch.setattr(MPU9250Driver, "poll_blocks", polled)
     monkeypatch.setattr(Router, "fuse_blocks", routed)

@@ -11,18 +11,22 @@ import math
 import signal
 import time
 import types
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, ClassVar
 
+import numpy as np
 import pytest
 
 from imuhal.cli import main as cli_main
+from imuhal.core.blocks import Block
 from imuhal.core.clock import MonotonicClock, SimulatedClock
-from imuhal.core.samples import AccelSample, GyroSample, PressureSample
+from imuhal.core.samples import AccelSample, Frame, GyroSample, PressureSample
 from imuhal.drivers.base import PollResult
 from imuhal.emulation import open_emulated
 from imuhal.estimation.base import Estimator, EstimatorSettings
 from imuhal.estimation.outputs import (
+    AttitudeBlock,
     AttitudeEstimate,
     Estimate,
     EstimateFlag,
@@ -34,6 +38,8 @@ from imuhal.pipeline.containment import (
     BLOCKED_WALL_S,
     DISABLE_AFTER_FAILURES,
     DriverTiming,
+    EstimatorGuard,
+    PluginFaults,
     driver_timing,
 )
 from imuhal.plugins.hookspecs import hookimpl
@@ -385,3 +391,39 @@ def test_a_slow_estimator_in_a_realtime_run_is_reported_once_with_its_cost(
     cost_ms = float(words[words.index("ms") - 1])
     assert 30 <= cost_ms < 500  # the sleep is 30 ms; a loaded host oversleeps
     assert slow[0].startswith("  warning: estimator 'acme' (acme-slow; plugin 'acme') is slow: ")
+
+
+class BlockAhrs(_Quiet):
+    """An AHRS that makes its estimates of a block as AttitudeBlocks (as Madgwick's block
+    step does): a good one, then one whose third row's acceleration is NaN."""
+
+    name: ClassVar[str] = "acme-block-ahrs"
+    consumes: ClassVar[tuple[type, ...]] = (GyroSample,)
+
+    def estimate_blocks(self, blocks: Sequence[Block]) -> list[Estimate | AttitudeBlock]:
+        t = blocks[0].t_ns
+        q = np.tile([1.0, 0.0, 0.0, 0.0], (len(t), 1))
+        bad = np.zeros((len(t), 3))
+        bad[2, 1] = math.nan
+        return [AttitudeBlock(self.instance, t, q, np.zeros((len(t), 3)),
+                              lambda: [{} for _ in t]),
+                AttitudeBlock(self.instance, t, q, bad, lambda: [{} for _ in t])]
+
+
+def test_an_attitude_block_with_one_bad_row_is_checked_row_by_row() -> None:
+    """The guard passes an AttitudeBlock whose every row passes the estimate check whole (no
+    row built); a block with one bad row goes out as its rows, that row refused as a
+    single estimate would be (counted, named)."""
+    warnings: list[str] = []
+    faults = PluginFaults("estimator 'acme'", "acme")
+    guard = EstimatorGuard(BlockAhrs(instance="acme"), faults, warnings.append)
+    t = np.arange(5, dtype=np.int64) * 4_000_000
+    gyro = Block.from_arrays(GyroSample, "imu", 0, t, np.zeros((5, 3)),
+                             np.zeros(5, np.int64), frame=Frame.BODY_NED)
+    good, *rest = guard.estimate_blocks([gyro])
+    assert isinstance(good, AttitudeBlock) and good._rows is None
+    assert [type(e) for e in rest] == [AttitudeEstimate] * 2 + [RejectedEstimate] + \
+        [AttitudeEstimate] * 2
+    assert rest[2].flags == EstimateFlag.NOT_FINITE and rest[2].t_ns == 8_000_000
+    assert faults.counts["rejected_attitude_estimates"] == 1
+    assert len(warnings) == 1 and "not finite" in warnings[0]

@@ -145,6 +145,10 @@ class AK8963Driver(Driver):
         self._search_ns: int | None = None
         """Read directly, the retry asked for after a poll that found no new field: a new
         field at it (not a late poll) locates the chip's instant."""
+        self._idle_since: int | None = None
+        """Read directly: the stamp of the latest valid field while every read since found
+        DRDY clear (None: a read since failed, was blank or frozen, or the chip was
+        reconfigured): the chip made nothing since (``health.idle``)."""
         self._ready = DataReady({Quantity.MAG: self._period_ns})
         self._watch = ResetWatch(self.settings.reset_check_s)
         self._frozen = FrozenWatch(self.FROZEN_AFTER_FRAMES)
@@ -207,6 +211,7 @@ class AK8963Driver(Driver):
         return asa[0], asa[1], asa[2]
 
     def configure(self) -> None:
+        self._idle_since = None
         # every transfer that fails is repeated in place (RegisterPlan.retried), so a
         # glitch does not start the soft reset and the fuse-ROM read over (issue 26)
         retried(partial(self.regs.write, r.REG_CNTL2, r.CNTL2_SRST))
@@ -287,6 +292,7 @@ class AK8963Driver(Driver):
         on the clock every device shares). A retry after a read that reached the chip finds
         DRDY clear (ST2 ended that read) and waits for the next measurement: one lost,
         none repeated."""
+        self._idle_since = None  # a failed read may have cleared DRDY: no proof across it
         if self.asa is None or retried(partial(self.plan.lost, self.regs)):
             return None
         return max(now_ns, self.clock.now_ns())
@@ -319,12 +325,24 @@ class AK8963Driver(Driver):
         data = self.regs.read(r.DATA_BURST_START, r.DATA_BURST_LENGTH)
         sample, bad, ready = self._measurement(data, now_ns, now_ns)
         if sample is None:
+            self._saw_no_field(now_ns, ready or bool(bad))
             return self._no_measurement(now_ns, overdue or ready, bad, stale=not ready)
+        self._idle_since = now_ns if sample.valid else None
         if self._search_ns is not None and now_ns - self._search_ns < self._grid.guard_ns:
             # new data appeared within a guard before now (EARLY_FRACTION): the chip's instant
             self._grid.locate(now_ns)
         self._search_ns = None
         return PollResult([sample], self._grid.next_after(now_ns))
+
+    def _saw_no_field(self, now_ns: int, broken: bool) -> None:
+        """Read directly, a good read brought no valid field: with DRDY clear (not
+        ``broken``: not blank, frozen or flagged) and every read since the latest valid
+        field alike, the chip has measured nothing since that field (``health.idle``, for
+        the frame ledger's count of a hung chip's slots)."""
+        if broken:
+            self._idle_since = None
+        elif self._idle_since is not None:
+            self.health.idle = (self._idle_since, now_ns)
 
     def _poll_feed(self, now_ns: int, overdue: bool) -> PollResult:
         """read: auto: every new copy the master delivered since the last poll (several
@@ -372,6 +390,8 @@ class AK8963Driver(Driver):
             return None, bad, m.data_ready
         self._ready.fresh(Quantity.MAG, poll_ns)
         self._watch.fresh_poll()
+        if m.data_overrun:  # a measurement overwritten unread: the ledger's proof of one
+            self.health.overrun_ns = t_ns
         flags = SampleFlag.OK
         if m.overflow:
             flags |= SampleFlag.OVERFLOW

@@ -50,6 +50,8 @@ _PERIOD_S_BY_MODE = {0b0010: 1 / 8, 0b0110: 1 / 100}
 """CNTL1.MODE continuous measurement mode 1 (8 Hz) and mode 2 (100 Hz)."""
 _MEASUREMENT_S = 7.2e-3
 """Single measurement time (max, register map section 5)."""
+_NEW_DATA = r.ST1_DRDY | r.ST1_DOR
+"""ST1's bits a data read clears."""
 _RANGE_UT = 4912.0
 """Measurement range: HOFL when |X| + |Y| + |Z| reaches it."""
 
@@ -244,6 +246,24 @@ class AK8963Emulator(HangsBetweenTransfers, ChipEmulator):
             out.append(self._read(self._pointer))
             self._pointer = self._increment(self._pointer)
         return bytes(out)
+
+    def idle_answer(self, kind: BusKind, write: bytes, read_len: int) -> bytes | None:
+        """The data read a bus master repeats (the MPU-9250's slave 0: ST1 or HXL on to
+        ST2, the register pointer written first) changes nothing while no new measurement
+        is there (DRDY and DOR clear, nothing protected or held), none falls due by now,
+        and the pointer already stands past ST2, where the read leaves it: :meth:`bus_transfer`
+        would leave every register, the pointer and the schedule as they are."""
+        if len(write) != 1 or write[0] not in (r.REG_ST1, r.REG_HXL) \
+                or write[0] + read_len - 1 != r.REG_ST2:
+            return None
+        if (self._pointer != self._increment(r.REG_ST2) or self._st1 & _NEW_DATA
+                or self._protected or self._held is not None):
+            return None
+        due = self._next_ns
+        if due is not None and due <= self.now_ns():
+            return None
+        block = bytes(self._data) + bytes((self._st2,))
+        return block if write[0] == r.REG_HXL else bytes((self._st1,)) + block
 
     @staticmethod
     def _increment(address: int) -> int:

@@ -464,11 +464,19 @@ class Hmc5883lDriver(Driver):
         when this poll looks again for a copy that was not there on time (``late``): a
         failed slave read or IMU burst delayed it, and the poll a delivery latency after the
         planned one would stamp it up to 7 ms late at the seed's rates, past half the
-        field's period, where the frame ledger counts a field the chip never skipped."""
+        field's period, where the frame ledger counts a field the chip never skipped; and
+        when it came more than a latency and a guard before this poll (a poll put off a
+        period after the master's late deliveries, which reads the copy before the one it
+        aimed at)."""
         samples: list[Sample] = []
         blank: Sample | None = None
         assert self._feed is not None
         pause_ns = self._feed.latency_ns * 4 // 3
+        # an on-time poll comes at most a latency and a guard after the copy of the
+        # measurement it reads; a copy older than that at this poll (one put off a period:
+        # the master was late too, and the copy the put-off poll aimed at had not come)
+        # would be stamped a period after its measurement
+        stale_ns = now_ns - self._feed.latency_ns - self._grid.guard_ns
         for k, delivered in enumerate(changes):
             copy = self._unlocking(delivered)
             if copy is None:
@@ -477,7 +485,7 @@ class Hmc5883lDriver(Driver):
             if t_ns < self._settle_ns or data == self._emitted:
                 continue
             left = len(changes) - 1 - k  # copies after this one: each needs a later stamp
-            by_delivery = left or late or copy is not delivered
+            by_delivery = left or late or copy is not delivered or t_ns < stale_ns
             if by_delivery:
                 t_ns = stamp_on_cadence(copy, self._cadence_ns, self._grid.period_ns,
                                         pause_ns=pause_ns)

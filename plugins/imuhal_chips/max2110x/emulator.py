@@ -155,8 +155,12 @@ _WORD_BE, _WORD_LE = struct.Struct(">H"), struct.Struct("<H")
 _I2C_MST_DATA = int(Reg.I2C_MST_DATA)
 _I2C_MST_ADD = int(Reg.I2C_MST_ADD)
 _MAG_SLV_ADD = int(Reg.MAG_SLV_ADD)
-_DR_BITS = Status.GYRO_DR | Status.ACC_DR
-_ERR_BITS = Status.GYRO_ERR | Status.ACC_ERR
+# SYSTEM_STATUS's bits as plain ints: the status byte stays an int (an IntFlag operation
+# builds a flag object through the enum machinery, several times a register access's cost)
+_GYRO_DR, _GYRO_ERR = int(Status.GYRO_DR), int(Status.GYRO_ERR)
+_ACC_DR, _ACC_ERR = int(Status.ACC_DR), int(Status.ACC_ERR)
+_DR_BITS = _GYRO_DR | _ACC_DR
+_ERR_BITS = _GYRO_ERR | _ACC_ERR
 _DR_CFG = int(Reg.DR_CFG)
 _MAG_SLV_CFG = int(Reg.MAG_SLV_CFG)
 _MAG_SLV_REG = int(Reg.MAG_SLV_REG)
@@ -194,8 +198,8 @@ def _encode(value: float, per_count: float, limit: int) -> int:
     return max(-limit, min(limit, round(value / per_count)))
 
 
-def _encode_rows(values: np.ndarray, per_count: float, limit: int) -> list | None:
-    """:func:`_encode` of every element of ``values`` (as nested lists of ints), by the same
+def _encode_rows(values: np.ndarray, per_count: float, limit: int) -> np.ndarray | None:
+    """:func:`_encode` of every element of ``values`` (int64, the shape of ``values``), by the same
     operations: the quotient rounded half to even (``np.rint``, as ``round``) and clipped,
     a value that is not finite at the limit of its sign (NaN at the negative one). None
     where a finite value's quotient is not (``round`` would raise): left to ``_encode``."""
@@ -206,7 +210,7 @@ def _encode_rows(values: np.ndarray, per_count: float, limit: int) -> list | Non
             return None
         counts = np.where(finite, np.clip(np.rint(quotient), -limit, limit),
                           np.where(values > 0, limit, -limit))
-    return counts.astype(np.int64).tolist()
+    return counts.astype(np.int64)
 
 
 class Max2110xEmulator(ChipEmulator):
@@ -231,10 +235,21 @@ class Max2110xEmulator(ChipEmulator):
         self.stuck_data_ready = False
         self._oscillator_error = 0.0
         self.power_on_resets = 0
-        self._plan_counts: list[tuple[PlannedInputs, float, list | None] | None] = [None, None]
-        """Per channel: (plan, SI per count, every row's counts) of the latest plan encoded."""
+        self._plan_counts: list[tuple[PlannedInputs, float, np.ndarray | None, list | None]
+                                | None] = [None, None]
+        """Per channel: (plan, SI per count, every row's counts as an array and as lists) of
+        the latest plan encoded."""
         self._plan_temperature: tuple[PlannedInputs, list | None] | None = None
         """(plan, every row's temperature counts) likewise."""
+        self.fast_paths = True
+        """The paths written for the common case: a FIFO fill's planned measurements
+        latched at once, on the plan's arrays (:meth:`_latch_fill`), and both channels on
+        one clock caught up as a pair (:meth:`_advance_pair`); False: the general paths
+        (the reference the tests compare them with). The same registers, FIFO bytes and
+        pulls either way."""
+        self.fills_latched_at_once = 0
+        """FIFO fills whose measurements (but the last instant's) were latched at once
+        (since construction)."""
         self.power_on_reset()
 
     # --- state ----------------------------------------------------------------------------
@@ -295,21 +310,29 @@ class Max2110xEmulator(ChipEmulator):
     def _planned_counts(self, plan: PlannedInputs, row: int, index: int) -> list[int] | None:
         """The counts channel ``index`` latches from row ``row`` of ``plan`` (None: the
         plan's values do not all encode; the row's inputs are encoded one by one)."""
+        counts = self._plan_encoded(plan, index)[3]
+        return None if counts is None else counts[row]
+
+    def _plan_encoded(self, plan: PlannedInputs, index: int
+                      ) -> tuple[PlannedInputs, float, np.ndarray | None, list | None]:
+        """(plan, SI per count, counts, counts as lists) of channel ``index`` for every row
+        of ``plan`` at the present sensitivity, encoded once per plan and sensitivity."""
         k = self._per_count[index]
         cached = self._plan_counts[index]
         if cached is None or cached[0] is not plan or cached[1] != k:
             values = plan.angular_rate_rad_s if index == _GYRO else plan.specific_force_m_s2
+            counts = _encode_rows(values, k, _COUNTS_AT_FULL_SCALE)
             cached = self._plan_counts[index] = (
-                plan, k, _encode_rows(values, k, _COUNTS_AT_FULL_SCALE))
-        counts = cached[2]
-        return None if counts is None else counts[row]
+                plan, k, counts, None if counts is None else counts.tolist())
+        return cached
 
     def _planned_temperature(self, plan: PlannedInputs, row: int) -> int | None:
         """The temperature word's counts from row ``row`` of ``plan``, as ``_planned_counts``."""
         cached = self._plan_temperature
         if cached is None or cached[0] is not plan:
-            cached = self._plan_temperature = (plan, _encode_rows(
-                plan.temperature_degc, 1.0 / _TEMP_LSB_PER_DEGC, 32767))
+            encoded = _encode_rows(plan.temperature_degc, 1.0 / _TEMP_LSB_PER_DEGC, 32767)
+            cached = self._plan_temperature = (
+                plan, None if encoded is None else encoded.tolist())
         counts = cached[1]
         return None if counts is None else counts[row]
 
@@ -366,10 +389,10 @@ class Max2110xEmulator(ChipEmulator):
         gyro = index == _GYRO
         if gyro:
             first, enable_reg = _GYRO_X_H, _POWER_CFG
-            dr, err = Status.GYRO_DR, Status.GYRO_ERR
+            dr, err = _GYRO_DR, _GYRO_ERR
         else:
             first, enable_reg = _ACC_X_H, _PWR_ACC_CFG
-            dr, err = Status.ACC_DR, Status.ACC_ERR
+            dr, err = _ACC_DR, _ACC_ERR
         planned = self.planned
         counts = None if planned is None else self._planned_counts(*planned, index)
         if counts is None:
@@ -505,6 +528,11 @@ class Max2110xEmulator(ChipEmulator):
         registers keep one sample), the ones before it only counted (an overrun)."""
         next_ns = self._next_ns
         periods = self._period_ns
+        due = next_ns[_GYRO]
+        if due is not None and due == next_ns[_ACCEL] and periods[_GYRO] == periods[_ACCEL] \
+                and self.fast_paths:
+            self._advance_pair(now, due, periods[_GYRO])
+            return
         counted = self._counted()
         due_now = sorted((due + (now - due) // periods[i] * periods[i], i)
                          for i, due in enumerate(next_ns) if due is not None and now >= due)
@@ -524,11 +552,37 @@ class Max2110xEmulator(ChipEmulator):
             if index == counted:
                 self.record_measurements(due, period, missed + 1)
             if missed:
-                self.status |= Status.GYRO_ERR if index == _GYRO else Status.ACC_ERR
+                self.status |= _GYRO_ERR if index == _GYRO else _ACC_ERR
             self.pull_physics(newest)  # the newest measurement, with its instant's inputs
             self._latch(index)
             if index == _ACCEL:
                 self._accel_latched(missed + 1, newest)
+
+    def _advance_pair(self, now: int, due: int, period: int) -> None:
+        """:meth:`_advance_newest` for both channels on one clock (the same period and
+        phase: every bundled board's), due at ``due``: the same
+        steps in the same order, written out for the pair (the gyro first, then the
+        accelerometer, each pulling its inputs of the newest instant). Nothing before
+        ``due`` (a wake for a one-shot transaction's end)."""
+        if now < due:
+            return
+        missed = (now - due) // period
+        newest = due + missed * period
+        if self.physics_ahead is not None and newest > self._ahead_until_ns:
+            self._announce_instants(newest, now, each_channel=True)
+        self._next_ns[_GYRO] = self._next_ns[_ACCEL] = newest + period
+        if self.stuck_data_ready:
+            return
+        self.record_measurements(due, period, missed + 1)  # the gyro, counted on a tie
+        if missed:
+            self.status |= _GYRO_ERR
+        self.pull_physics(newest)
+        self._latch(_GYRO)
+        if missed:
+            self.status |= _ACC_ERR
+        self.pull_physics(newest)
+        self._latch(_ACCEL)
+        self._accel_latched(missed + 1, newest)
 
     def _advance_each(self, now: int) -> None:
         """The measurements due by ``now``, every one latched in the order the chip made
@@ -536,7 +590,9 @@ class Max2110xEmulator(ChipEmulator):
         frame is written when the FIFO's frame channel measured then."""
         next_ns = self._next_ns
         periods = self._period_ns
-        counted = self._counted()
+        # both channels on one clock (the same period and phase): each instant latches both
+        paired = next_ns[_GYRO] is not None and next_ns[_GYRO] == next_ns[_ACCEL] \
+            and periods[_GYRO] == periods[_ACCEL]
         events: list[tuple[int, int]] = []
         for index, due in enumerate(next_ns):
             if due is None:
@@ -549,15 +605,32 @@ class Max2110xEmulator(ChipEmulator):
         events.sort()
         if events and self.physics_ahead is not None and events[-1][0] > self._ahead_until_ns:
             self._announce_instants(events[0][0], now)
+        start, taken = 0, None
+        if paired and len(events) > 2 and self.fast_paths:
+            start, taken = self._latch_fill(events)
+        self._latch_each(events, start, taken)
+
+    def _latch_each(self, events: list[tuple[int, int]], start: int,
+                    taken: tuple[PlannedInputs, int] | None) -> None:
+        """``events`` from index ``start`` on latched one by one, in order, each instant
+        pulling its inputs once; ``taken``: the plan and first row of the inputs of every
+        instant but the last, already taken from the board (``_latch_fill``)."""
+        periods = self._period_ns
+        counted = self._counted()
         frame_channel = self._fifo_frame_channel()
+        taken_until = 0 if taken is None else len(events) - 2
         pulled = None
-        for k, (t, index) in enumerate(events):
+        for k in range(start, len(events)):
+            t, index = events[k]
             if self.stuck_data_ready:
                 continue
             if index == counted:
                 self.record_measurements(t, periods[index], 1)
             if t != pulled:  # the gyro and the accelerometer of one instant see one world
-                self.pull_physics(t)
+                if taken is not None and k < taken_until:
+                    self.keep_planned(taken[0], taken[1] + k // 2)
+                else:
+                    self.pull_physics(t)
                 pulled = t
             self._latch(index)
             if index == _ACCEL:
@@ -565,6 +638,56 @@ class Max2110xEmulator(ChipEmulator):
             last_at_t = k + 1 == len(events) or events[k + 1][0] != t
             if last_at_t and any(e == (t, frame_channel) for e in events[max(0, k - 1):k + 1]):
                 self._fifo_write()
+
+    def _latch_fill(self, events: list[tuple[int, int]]
+                    ) -> tuple[int, tuple[PlannedInputs, int] | None]:
+        """The measurements of ``events`` (both channels at each instant, gyro first, in
+        time order) but the last instant's, latched at once: their inputs taken from the
+        board's plan in one step (``physics_rows``), their counts the plan's rows encoded
+        for the whole plan, their FIFO frames packed by one numpy call and written together,
+        the slave auto-read following each accelerometer measurement in turn. The same
+        registers, status bits, FIFO bytes, pulls and recorded instants as latching them
+        one by one; the last instant is latched one by one by the caller, so what it leaves
+        standing (the data words, the inputs, the board's latest update) is as before.
+
+        Returns (events latched, None), or (0, None) where it does not apply (the chip hung
+        or frozen, an axis disabled, the FIFO not storing both channels or overwriting its
+        oldest frames, instants the board did not plan), or (0, (plan, first row)) when the
+        rows were taken but the plan's values do not all encode at once: the caller then
+        latches them one by one from those rows."""
+        take = self.physics_rows
+        if take is None or self.stuck_data_ready or self.frozen:
+            return 0, None
+        bank0 = self.banks[0]
+        fifo = self.fifo
+        if self.part.has_aux_master and (bank0[_POWER_CFG] & 0x07 != 0x07
+                                         or bank0[_PWR_ACC_CFG] & 0x07 != 0x07):
+            return 0, None
+        if fifo.storing != (True, True) or fifo.cfg & fifo.map.overrun:
+            return 0, None
+        instants = [t for t, _ in events[0:-2:2]]
+        taken = take(instants)
+        if taken is None:
+            return 0, None
+        plan, first = taken
+        gyro, accel = (self._plan_encoded(plan, index)[2] for index in (_GYRO, _ACCEL))
+        if gyro is None or accel is None:
+            return 0, taken
+        n = len(instants)
+        self.record_measurements(instants[0], self._period_ns[_GYRO], n)
+        # The data words, the temperature word and what was read since the latch are the
+        # last instant's, which the caller latches; of these measurements only the status
+        # stays: each channel's data-ready, and its overrun, for the last instant's latch
+        # overwrites a sample never read.
+        self.status |= _GYRO_DR | _GYRO_ERR | _ACC_DR | _ACC_ERR
+        for t in instants:
+            self._accel_latched(1, t)
+        # a frame is the gyro's words then the accelerometer's, big-endian (_fifo_write)
+        rows = slice(first, first + n)
+        fifo.push_frames(np.concatenate((gyro[rows], accel[rows]), axis=1).astype(">i2")
+                         .tobytes(), 12)
+        self.fills_latched_at_once += 1
+        return 2 * n, None
 
     def _announce_instants(self, first_ns: int, now: int, *, each_channel: bool = False
                            ) -> None:

@@ -163,6 +163,23 @@ class Max2110xFifo:
         self._bytes.extend(frame)
         self.frames_written += 1
 
+    def push_frames(self, frames: bytes, frame_len: int) -> None:
+        """:meth:`push` of each ``frame_len`` bytes of ``frames`` in turn, at once: the
+        frames that fit written, the rest dropped (each counted, data_lost set); a FIFO
+        that overwrites its oldest frames takes them one by one."""
+        if self.cfg & self.map.overrun:
+            for k in range(0, len(frames), frame_len):
+                self.push(frames[k:k + frame_len])
+            return
+        count = len(frames) // frame_len
+        room = max(0, (2 * self.depth_words - len(self._bytes)) // frame_len)
+        fitting = min(count, room)
+        self._bytes += frames[:fitting * frame_len]
+        self.frames_written += fitting
+        if fitting < count:
+            self.frames_dropped += count - fitting
+            self._sticky |= STATUS_DATA_LOST
+
     def pop(self) -> int:
         if not self._bytes:
             if self.cfg & self.map.mode_mask:  # a FIFO turned off has no read to flag

@@ -36,7 +36,8 @@ import math
 import sys
 from abc import abstractmethod
 from collections.abc import Sequence
-from typing import Any, ClassVar, Literal, NamedTuple
+from functools import partial
+from typing import Any, ClassVar, Literal, NamedTuple, cast
 
 import numpy as np
 from pydantic import Field
@@ -59,6 +60,7 @@ from imuhal.core.samples import (
 from imuhal.core.streams import StreamSpec
 from imuhal.estimation.base import Estimator, EstimatorSettings
 from imuhal.estimation.outputs import (
+    AttitudeBlock,
     AttitudeEstimate,
     Estimate,
     EstimateFlag,
@@ -744,6 +746,14 @@ class AhrsEstimator(Estimator):
         else:  # no reading checks the attitude now: an earlier agreement no longer holds
             self._recovery_apart_rad = _INF
         out = self._on_gyro(item, rate)
+        if fresh and self.owns_quaternion and self._tilt_aligned:
+            # judged on the attitude the step hands out, not the one before it: the step
+            # integrated the clipped rate, which is what may be wrong (a wild gyro word
+            # clipped at the rail in the first read after a 46 ms host stall put 45 deg of
+            # pitch in one step and was handed out; fault matrix, seed-gps-vario, 10 %)
+            assert accel is not None
+            self._recovery_apart_rad = _tilt_pulled(self._q, gravity_positive_g(accel),
+                                                    0.0)[2]
         if out and min(self._recovery_budget_rad, self._recovery_apart_rad) > \
                 RECOVERY_CHECKED_RAD:
             self._counters["angular_rate_recovery"]["withheld"] += 1
@@ -960,19 +970,28 @@ class AhrsEstimator(Estimator):
         tests/filters/test_ahrs_blocks.py). Anything else (flagged or clipped
         frames, an angular-rate recovery under way, turn compensation by a speed) goes
         frame by frame."""
+        return cast("list[Estimate]", self._update_blocks(blocks, as_block=False))
+
+    def estimate_blocks(self, blocks: Sequence[Block]) -> list[Estimate | AttitudeBlock]:
+        """``update_blocks``, with the frames the compiled block step takes as one
+        :class:`AttitudeBlock` (its rows: the estimates ``update_blocks`` makes)."""
+        return self._update_blocks(blocks, as_block=True)
+
+    def _update_blocks(self, blocks: Sequence[Block], *, as_block: bool
+                       ) -> list[Estimate | AttitudeBlock]:
         least = MIN_BLOCK_STEP_FRAMES if self._has_block_step() else \
             MIN_KERNEL_FRAMES if self._sample_kernel is None else \
             MIN_KERNEL_FRAMES_COMPILED_STEP
         if not any(b.kind is GyroSample and len(b) >= least for b in blocks):
-            return Estimator.update_blocks(self, blocks)
-        out: list[Estimate] = []
+            return list(Estimator.update_blocks(self, blocks))
+        out: list[Estimate | AttitudeBlock] = []
         frames = _HEAD_FRAMES
         while blocks:
             streams = self._imu_streams(blocks)
             if streams is None:
                 return out + Estimator.update_blocks(self, blocks)
             if self._ready(streams[2]):
-                return out + self._kernel_blocks(*streams)
+                return out + self._kernel_blocks(*streams, as_block=as_block)
             # not aligned yet: a few frames one by one, then look again (twice as many
             # each time: a magnetometer that never gives a usable frame costs no more than
             # frame by frame)
@@ -1003,14 +1022,20 @@ class AhrsEstimator(Estimator):
         assert steps.t_ns is not None
         return AttitudeRows(self.instance, steps.t_ns[emitted], q[emitted], diagnostics)
 
-    def _kernel_blocks(self, gyro: Block, accel: Block | None, mag: Block | None
-                       ) -> list[Estimate]:
+    def _kernel_blocks(self, gyro: Block, accel: Block | None, mag: Block | None, *,
+                       as_block: bool = False) -> list[Estimate | AttitudeBlock]:
         """The frames of the blocks through the compiled row kernel (``update_blocks``):
         in one compiled block step when the filter has one and the blocks are its common
-        case (``_block_step``), else the bookkeeping on arrays around the row kernel."""
+        case (``_block_step``; ``as_block``: its estimates as one AttitudeBlock), else the
+        bookkeeping on arrays around the row kernel."""
         done = self._block_step(gyro, accel, mag)
         if done is not None:
             q_rows, diag_rows, dt_rows, lin_rows = done
+            if as_block:
+                # the rows' diagnostics are made from these (fresh) arrays only when asked
+                return [AttitudeBlock(self.instance, gyro.t_ns, q_rows, lin_rows, partial(
+                    self._kernel_row_diagnostics, dt_rows, diag_rows,
+                    self._kinematics.source))]
             build, instance = AttitudeEstimate.build, self.instance
             rows_diag = self._kernel_row_diagnostics(dt_rows, diag_rows,
                                                      self._kinematics.source)
@@ -1083,7 +1108,7 @@ class AhrsEstimator(Estimator):
         by_kind: dict[type, Block] = {}
         for b in blocks:
             if b.kind not in (GyroSample, AccelSample, MagSample) or b.kind in by_kind \
-                    or b.frame is not _BODY_NED or bool(b.flags.any()):
+                    or b.frame is not _BODY_NED or b.flagged:
                 return None
             by_kind[b.kind] = b
         gyro = by_kind.get(GyroSample)

@@ -54,6 +54,7 @@ from imuhal_filters.common.quat import IDENTITY, Quat, Vec, multiply, to_global
 from imuhal_filters.decoupled.bias import BiasParams, GyroBiasKalman
 from imuhal_filters.decoupled.butterworth import ButterworthLowPass
 from imuhal_filters.decoupled.lookback import LookBack
+from imuhal_filters.decoupled.pace import RotationPace
 from imuhal_filters.decoupled.turbulence import StraightFlightDetector, TurbulenceParams
 
 
@@ -69,6 +70,7 @@ class DecoupledParams:
     innovation_tau_s: float = 1.0
     manoeuvre: ManoeuvreParams | None = None
     lookback_s: float = 0.5
+    gyro_relative_error: float | None = None
     rest_gyro_th_rad_s: float = math.radians(2.0)
     rest_acc_th_g: float = 0.05
     rest_filter_tau_s: float = 0.5
@@ -175,6 +177,9 @@ class DecoupledKernel:
         self.lookback = None if m is None else LookBack(
             self.p.tau_acc_s, self.p.lookback_s, m.leak_s, m.speed_m_s,
             m.floor_m_s2 * m.window_s)
+        eps = self.p.gyro_relative_error
+        self.pace = None if eps is None else RotationPace(
+            self.p.tau_acc_s, eps, ManoeuvreParams().floor_m_s2 if m is None else m.floor_m_s2)
         self.gyro_lp: Vec | None = None
         self.acc_lp: Vec | None = None
         self.rest_s = 0.0
@@ -209,7 +214,7 @@ class DecoupledKernel:
             if self.p.turbulence_rate_rad_s is not None:
                 up_rate = to_global(multiply(self.q_inc, self.q_gyro), (wx, wy, wz))[2]
                 self.straight.step(acc_g, up_rate, dt)
-            corr, dt_filter = self._inclination_step(acc_g, dt)
+            corr, dt_filter = self._inclination_step(acc_g, dt, (wx, wy, wz))
             self._bias_step(corr, dt, dt_filter)
         if mag is not None:
             self._heading_step(mag, dt)
@@ -264,11 +269,14 @@ class DecoupledKernel:
         g = STANDARD_GRAVITY_M_S2
         return (g * (a[0] - f[0]), g * (a[1] - f[1]), g * (a[2] - f[2]))
 
-    def _inclination_step(self, acc_g: Vec, dt: float) -> tuple[Vec, float]:
-        """Low-pass the accelerometer in I, turn q_inc so it points up; returns the
-        correction's rotation vector (rad) in the frame after q_inc and the step the filter
-        advanced by (s)."""
+    def _inclination_step(self, acc_g: Vec, dt: float, gyro_rad_s: Vec) -> tuple[Vec, float]:
+        """Low-pass the accelerometer in I, turn q_inc so it points up (``gyro_rad_s``: the
+        bias-corrected gyro); returns the correction's rotation vector (rad) in the
+        frame after q_inc and the step the filter advanced by (s)."""
         a = to_global(self.q_gyro, acc_g)
+        # the strapdown's error grows with the rotation, the accelerometer's with the
+        # acceleration: the filter runs faster when the first dominates (pace.py)
+        pace = 1.0 if self.pace is None else self.pace.step(a, self.acc_i, gyro_rad_s, dt)
         # a reading away from 1 g carries kinematic acceleration the turn compensation did
         # not remove (a sustained turn does not average out within tau): the filter advances
         # by only the weight's share of the step (it holds still for a zero weight; feeding
@@ -294,14 +302,14 @@ class DecoupledKernel:
             weight, replaced = self.lookback.step(
                 self._acc_filter, a, dt, weight, base,
                 (innovation[0] - drift[0], innovation[1] - drift[1], innovation[2] - drift[2]),
-                self.rest)
+                self.rest, pace)
             if replaced:
                 st = self._acc_filter.state
                 assert st is not None
                 self.acc_i = (st[0], st[1], st[2])
                 self.q_inc, _ = inclination_correction(self.q_inc,
                                                        to_global(self.q_inc, self.acc_i))
-        dt_filter = dt * weight
+        dt_filter = dt * weight * pace
         if self.p.tau_acc_rest_s is not None and self.rest:
             # at rest the specific force is gravity alone: what is left to correct is gyro
             # drift, so the filter may run faster (time scaled: the same filter, shorter tau)

@@ -47,18 +47,18 @@ class DecoupledSettings(AhrsSettings):
         # weight it unevenly (docs/evaluation.md)
         "handheld": {"accel_soft_gate_g": None, "tau_acc_s": 3.0, "tau_acc_rest_s": None,
                      "turbulence_rate_deg_s": None, "innovation_speed_m_s": None,
-                     "manoeuvre_speed_m_s": None},
+                     "manoeuvre_speed_m_s": None, "gyro_relative_error": None},
         # the flight settings before the manoeuvre detector (issue 27): a fixed gate, 10 s
         # and the turbulence correction; kept to reproduce the earlier figures
         "flight": {"accel_soft_gate_g": 0.02, "tau_acc_s": 10.0, "tau_acc_rest_s": 3.0,
                    "turbulence_rate_deg_s": 3.0, "innovation_speed_m_s": None,
-                   "manoeuvre_speed_m_s": None},
+                   "manoeuvre_speed_m_s": None, "gyro_relative_error": None},
         # VQF's settings weighted by the innovation speed instead of a fixed gate: one
         # setting for both worlds, tried as the default and not good enough yet (BROAD's
         # fast translation and stationary-magnet trials; docs/estimators.md, decoupled)
         "adaptive": {"accel_soft_gate_g": None, "tau_acc_s": 3.0, "tau_acc_rest_s": None,
                      "turbulence_rate_deg_s": None, "innovation_speed_m_s": 1.0,
-                     "manoeuvre_speed_m_s": None},
+                     "manoeuvre_speed_m_s": None, "gyro_relative_error": None},
     }
 
     tau_acc_s: float = Field(3.0, gt=0.0)
@@ -114,6 +114,13 @@ class DecoupledSettings(AhrsSettings):
     taken nearly in full (`rc-flight` tilt max 8.0 deg without, 4.0 with). What it withheld
     is filtered again in full when its velocity change comes back within the detector's
     leak time (a hand's stroke; decoupled/lookback.py)."""
+    gyro_relative_error: float | None = Field(0.03, gt=0.0)
+    """The gyro's relative error (scale factor and cross-axis sensitivity; 0.03: the
+    MPU-9250's datasheet scale-factor tolerance, +-3 %): the strapdown turns away at this
+    share of the rotation rate, so while the board rotates fast with little acceleration the
+    accelerometer filter runs faster than ``tau_acc_s``, to the time constant sigma_a / (g
+    this |omega|) (decoupled/pace.py). None: ``tau_acc_s`` always (VQF, ``preset:
+    handheld``)."""
     tau_mag_s: float = Field(9.0, gt=0.0)
     """Heading correction time constant (s) (VQF's published default, 9 s)."""
     rest_gyro_th_deg_s: float = Field(2.0, gt=0.0)
@@ -166,6 +173,7 @@ class DecoupledSettings(AhrsSettings):
             manoeuvre=None if self.manoeuvre_speed_m_s is None else ManoeuvreParams(
                 speed_m_s=self.manoeuvre_speed_m_s, ratio=self.manoeuvre_ratio),
             lookback_s=self.manoeuvre_lookback_s,
+            gyro_relative_error=self.gyro_relative_error,
             rest_gyro_th_rad_s=math.radians(self.rest_gyro_th_deg_s),
             rest_acc_th_g=self.rest_acc_th_m_s2 / g, rest_min_s=self.rest_min_s,
             bias_clip_rad_s=math.radians(self.bias_clip_deg_s),
@@ -234,7 +242,8 @@ class DecoupledEstimator(AhrsEstimator):
                 "innovation": None if k.innovation is None else k.innovation.as_list(),
                 "straight_flight": k.straight.as_list(),
                 "manoeuvre": None if k.manoeuvre is None else k.manoeuvre.as_list(),
-                "lookback": None if k.lookback is None else k.lookback.as_dict()}
+                "lookback": None if k.lookback is None else k.lookback.as_dict(),
+                "pace": None if k.pace is None else k.pace.as_list()}
 
     def _set_filter_state(self, state: dict[str, Any]) -> None:
         k = self._kernel
@@ -259,6 +268,8 @@ class DecoupledEstimator(AhrsEstimator):
             k.straight.load_list(state["straight_flight"])
         if k.manoeuvre is not None and state.get("manoeuvre") is not None:
             self._load_manoeuvre(state)
+        if k.pace is not None and state.get("pace") is not None:  # absent before the pace
+            k.pace.load_list(state["pace"])
 
     def _load_manoeuvre(self, state: dict[str, Any]) -> None:
         """The manoeuvre detector and the look-back (absent before them; a look-back saved

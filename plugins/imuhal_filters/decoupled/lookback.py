@@ -32,12 +32,18 @@ from imuhal_filters.decoupled.butterworth import ButterworthLowPass
 Entry = list[float]
 """One kept filter input: the reading in the almost-inertial frame (g, 3 values), the step
 (s), the weight it was filtered with, its weight without the manoeuvre detector, and the
-innovation against the filter's gravity before it, its slow drift taken out (m/s^2, 3)."""
-_DT, _WEIGHT, _BASE, _INNOVATION = 3, 4, 5, 6
+innovation against the filter's gravity before it, its slow drift taken out (m/s^2, 3), and
+the pace the filter ran at (pace.py: its step lengthened by this factor)."""
+_DT, _WEIGHT, _BASE, _INNOVATION, _PACE = 3, 4, 5, 6, 9
 
 
 def _dot(a: list[float], b: list[float]) -> float:
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _filter_dt(e: Entry) -> float:
+    """The step the filter takes for a kept input (s; entries saved before the pace: 1)."""
+    return e[_DT] * e[_WEIGHT] * (e[_PACE] if len(e) > _PACE else 1.0)
 
 
 class LookBack:
@@ -81,12 +87,12 @@ class LookBack:
 
     # ------------------------------------------------------------------ step
     def step(self, filt: ButterworthLowPass, a: Vec, dt: float, weight: float, base: float,
-             innovation_m_s2: Vec, rest: bool) -> tuple[float, bool]:
+             innovation_m_s2: Vec, rest: bool, pace: float = 1.0) -> tuple[float, bool]:
         """Keep one input of the accelerometer filter ``filt`` before it takes it: ``a`` (g,
         almost-inertial frame) over ``dt`` s, the step's ``weight``, its weight ``base``
-        without the manoeuvre detector, the innovation (``Entry``) and whether the board is
-        at rest. Returns the weight to filter it with and whether ``filt``'s state was
-        replaced (the kept input filtered again)."""
+        without the manoeuvre detector, the innovation (``Entry``), whether the board is at
+        rest and the ``pace`` the filter runs at. Returns the weight to filter it with and
+        whether ``filt``'s state was replaced (the kept input filtered again)."""
         replaced = False
         closing = weight < 0.5 <= self.last_weight
         self.last_weight = weight
@@ -103,7 +109,7 @@ class LookBack:
             replaced = True
         if replaced:
             self._replay(filt)
-        self.entries.append([a[0], a[1], a[2], dt, weight, base, *innovation_m_s2])
+        self.entries.append([a[0], a[1], a[2], dt, weight, base, *innovation_m_s2, pace])
         self.kept_s += dt
         if self.episode_s is None:
             self._trim()
@@ -151,11 +157,11 @@ class LookBack:
         while self.kept_s > self.lookback_s and self.entries:
             e = self.entries.popleft()
             self.kept_s -= e[_DT]
-            self.before.step((e[0], e[1], e[2]), e[_DT] * e[_WEIGHT])
+            self.before.step((e[0], e[1], e[2]), _filter_dt(e))
 
     def _replay(self, filt: ButterworthLowPass) -> None:
         """Filter the kept input again, from the state before it, into ``filt``."""
         assert self.before.state is not None
         filt.state = list(self.before.state)
         for e in self.entries:
-            filt.step((e[0], e[1], e[2]), e[_DT] * e[_WEIGHT])
+            filt.step((e[0], e[1], e[2]), _filter_dt(e))

@@ -4,7 +4,9 @@ Inputs are in the reference's units and in the sensor axes and accelerometer sig
 chosen coordinate system (for NED: body forward-right-down, accelerometer gravity positive,
 g; gyro deg/s; magnetometer calibrated uT). Row ``i`` is fast sample ``i``; a Kalman step
 runs after every ``oversample_ratio`` rows, on the gyro rows of that window and on the last
-accelerometer/magnetometer row of it (or the window mean, per ``accel_mag_input``).
+accelerometer/magnetometer row of it (or the window mean, per ``accel_mag_input``). With rest
+detection on (the default; ``rest.WindowRest``) every row is a tick of the detector and the
+steps run in Python: the compiled kernel has no rest detection.
 """
 
 from __future__ import annotations
@@ -15,9 +17,11 @@ import numpy as np
 
 from imuhal.core.conventions import NED, convert_quat
 from imuhal.core.frames import FloatArray
+from imuhal_filters.common.rest import RestSettings
 from imuhal_filters.freescale.coords import CONVENTION, CoordinateSystem
 from imuhal_filters.freescale.fast import KERNEL_SETTINGS, freescale_rows
 from imuhal_filters.freescale.kalman import FreescaleKalman, KalmanStep
+from imuhal_filters.freescale.rest import WindowRest
 from imuhal_filters.freescale.settings import (
     Freescale6DofSettings,
     Freescale9DofSettings,
@@ -68,7 +72,8 @@ def _run(settings: FreescaleCommonSettings, accel_g: FloatArray, gyro_dps: Float
     ratio = settings.oversample_ratio
     average = settings.accel_mag_input == "average"
     ends = list(range(ratio - 1, len(accel), ratio))
-    compiled = freescale_rows.available() and set(type(settings).model_fields) <= KERNEL_SETTINGS
+    compiled = (freescale_rows.available() and not settings.rest_detection
+                and set(type(settings).model_fields) <= KERNEL_SETTINGS | _REST_SETTINGS)
     rows, steps = _python_steps(kf, accel, gyro, mag, ends, average, compiled)
     cs = settings.coordinate_system
     q, euler, offset, incl, jam, valid = _columns(steps)
@@ -94,18 +99,27 @@ def _python_steps(kf: FreescaleKalman, accel: FloatArray, gyro: FloatArray,
     filter is initialised and locked when the rest can run ``compiled``; the windows' last
     rows and the steps."""
     ratio = kf.s.oversample_ratio
+    rest = WindowRest(kf.s)
+    gyro_rad_s = np.radians(gyro)
     rows, steps = [], []
     for end in ends:
         if compiled and kf.initialised and kf.locked:
             break  # the rest in the compiled kernel
         window = slice(end - ratio + 1, end + 1)
+        if rest.on:
+            for i in range(window.start, window.stop):
+                rest.tick(_vec(gyro_rad_s[i]), _vec(accel[i]), kf.s.fast_dt_s)
         a = accel[window].mean(axis=0) if average else accel[end]
         m = None
         if mag is not None:
             m = mag[window].mean(axis=0) if average else mag[end]
-        steps.append(kf.step(a, gyro[window], m))
+        steps.append(kf.step(a, gyro[window], m, at_rest=rest.take_window()))
         rows.append(end)
     return rows, steps
+
+
+def _vec(row: FloatArray) -> tuple[float, float, float]:
+    return (float(row[0]), float(row[1]), float(row[2]))
 
 
 def _columns(steps: list[KalmanStep]) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray,
@@ -166,6 +180,11 @@ def _compiled_steps(kf: FreescaleKalman, accel: FloatArray, gyro: FloatArray,
     kf.inclination_deg = float(incl[0])
     kf.gate_closed_s = float(gate_closed[0])
     return out_q, out_b, out_incl, out_jam, out_euler
+
+
+_REST_SETTINGS = frozenset(RestSettings.model_fields)
+"""Rest detection's settings: the kernel has no rest detection, so it runs only with
+``rest_detection`` off, when the others mean nothing."""
 
 
 _STYLE = {CoordinateSystem.NED: 0, CoordinateSystem.ANDROID: 1, CoordinateSystem.WIN8: 2}

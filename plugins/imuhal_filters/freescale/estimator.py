@@ -10,6 +10,11 @@ needed, for one stamped at or after the window's last gyro sample, but no longer
 the next gyro sample arrives; then it reuses the last reading (as the reference does; counted
 as stale) or, with none yet, drops the window (counted). Each valid step emits an
 AttitudeEstimate (body -> NED) stamped with the window's last gyro sample.
+
+Every gyro sample is also a tick of the rest detector (``rest.WindowRest``, with the newest
+accelerometer reading); a window it found still at every tick is fused as a rest
+(``kalman.FreescaleKalman.step``'s ``at_rest``; diagnostics ``at_rest``, counter
+``windows_at_rest``).
 """
 
 from __future__ import annotations
@@ -37,6 +42,7 @@ from imuhal.core.streams import StreamSpec
 from imuhal.estimation.base import Estimator, EstimatorSettings
 from imuhal.estimation.gravity import linear_accel_ned_m_s2
 from imuhal.estimation.outputs import AttitudeEstimate, Estimate
+from imuhal_filters.common.fast_ahrs import TO_G
 from imuhal_filters.common.gaps import CountedGaps
 from imuhal_filters.common.limits import bound_settings, within_full_scale
 from imuhal_filters.common.quat import Vec
@@ -48,6 +54,7 @@ from imuhal_filters.freescale.coords import (
     to_sensor_vector,
 )
 from imuhal_filters.freescale.kalman import FreescaleKalman, KalmanStep
+from imuhal_filters.freescale.rest import WindowRest
 from imuhal_filters.freescale.settings import (
     Freescale6DofSettings,
     Freescale9DofSettings,
@@ -57,7 +64,10 @@ from imuhal_filters.freescale.settings import (
 _COUNTERS = ("gyro_samples", "accel_samples", "mag_samples", "kalman_steps",
              "skipped_invalid", "skipped_not_body_frame", "windows_without_accel_or_mag",
              "windows_with_stale_accel_or_mag", "beyond_full_scale", "gyro_ticks_over_gaps",
-             "restarts_after_gap")
+             "restarts_after_gap", "windows_at_rest")
+REST_ACCEL_MAX_AGE_S = 0.1
+"""The rest detector takes the newest accelerometer reading while it is at most this old (s;
+the AHRS family's ``max_aux_age_s``): older, there is none, and the stillness breaks."""
 
 
 class _Latest:
@@ -120,6 +130,9 @@ class _FreescaleEstimator(Estimator):
         self._force = _Latest()  # the raw specific force, for the published linear accel
         self._mag = _Latest()
         self._pending = False
+        self._rest = WindowRest(self.settings)
+        self._pending_at_rest = False
+        """The rest verdict of the window waiting for its Kalman step."""
         self._last_step: KalmanStep | None = None
         self._counts = dict.fromkeys(_COUNTERS, 0)
         # an IMU's streams come in the same reads: a loss counted on its accelerometer (the
@@ -200,13 +213,26 @@ class _FreescaleEstimator(Estimator):
         for tick_ns in ticks:
             if self._pending:  # the window's accel/mag never caught up: use what there is
                 out += self._run_step()
+            if tick_ns == t_ns:
+                self._rest.tick(vec, self._rest_accel_g(t_ns), self.settings.fast_dt_s)
+            else:
+                self._rest.unmeasured_tick()
             self._gyro.append(deg)
             self._gyro_t_ns = tick_ns
             if len(self._gyro) == self.settings.oversample_ratio:
                 self._pending = True
+                self._pending_at_rest = self._rest.take_window()
         self._counts["gyro_samples"] += 1
         self._kinematic_body_m_s2 = self._kinematics.step(t_ns, vec)
         return out
+
+    def _rest_accel_g(self, t_ns: int) -> Vec | None:
+        """The newest specific force as the rest detector takes it (gravity-positive g, body
+        NED), or None when there is none within REST_ACCEL_MAX_AGE_S of ``t_ns``."""
+        f, f_t_ns = self._force.value, self._force.t_ns
+        if f is None or f_t_ns is None or (t_ns - f_t_ns) * 1e-9 > REST_ACCEL_MAX_AGE_S:
+            return None
+        return (f[0] * TO_G, f[1] * TO_G, f[2] * TO_G)
 
     def _restart(self) -> None:
         """A counted loss longer than ``max_gap_s``: the filter starts again (and locks to the
@@ -259,8 +285,10 @@ class _FreescaleEstimator(Estimator):
             return []
         if stale:  # the reference, too, fuses the last reading it has; say so
             self._counts["windows_with_stale_accel_or_mag"] += 1
-        step = self._kf.step(accel, gyro, mag)
+        at_rest, self._pending_at_rest = self._pending_at_rest, False
+        step = self._kf.step(accel, gyro, mag, at_rest=at_rest)
         self._counts["kalman_steps"] += 1
+        self._counts["windows_at_rest"] += at_rest
         self._last_step = step
         if not step.valid:
             return []
@@ -292,6 +320,7 @@ class _FreescaleEstimator(Estimator):
             "gyro_offset_dps": tuple(float(v) for v in offset_body_dps),
             "euler_deg": dict(step.euler_deg),
             "coordinate_system": cs.value,
+            "at_rest": self._rest.at_rest,
             **self._counts,
         }
         if self.use_mag:
@@ -308,6 +337,8 @@ class _FreescaleEstimator(Estimator):
             "force": self._force.as_dict(),
             "mag": self._mag.as_dict(),
             "pending": self._pending,
+            "pending_at_rest": self._pending_at_rest,
+            "rest": self._rest.as_dict(),
             "counts": dict(self._counts),
             "kinematics": self._kinematics.as_dict(),
             "kinematic_body_m_s2": list(self._kinematic_body_m_s2),
@@ -323,6 +354,9 @@ class _FreescaleEstimator(Estimator):
             self._force.load_dict(state["force"])
         self._mag.load_dict(state["mag"])
         self._pending = bool(state["pending"])
+        self._pending_at_rest = bool(state.get("pending_at_rest", False))
+        if "rest" in state:
+            self._rest.load_dict(state["rest"])
         self._counts = {k: int(state["counts"].get(k, 0)) for k in _COUNTERS}
         if "kinematics" in state:
             self._kinematics.load_dict(state["kinematics"])
@@ -330,6 +364,8 @@ class _FreescaleEstimator(Estimator):
 
     def diagnostics(self) -> dict[str, Any]:
         out: dict[str, Any] = dict(self._counts)
+        out["rest"] = {"detection": self._rest.on, "at_rest": self._rest.at_rest,
+                       "gyro_bias_rad_s": self._rest.bias_rad_s}
         if self._last_step is not None and self._last_step.valid:
             out.update(self._step_diagnostics(self._last_step))
         return out

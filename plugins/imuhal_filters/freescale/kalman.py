@@ -17,7 +17,10 @@ frame from it, (3) compares them with the accelerometer (plus the decayed linear
 acceleration estimate) and the magnetometer, (4) maps that 3- or 6-element measurement error
 through the gain K = Qw C^T (C Qw C^T + Qv)^-1 onto the error vector, (5) corrects the
 orientation, offset and acceleration, (6) tracks the geomagnetic inclination from d, and
-(7) rebuilds the process covariance Qw from the a posteriori covariance. A magnetic error
+(7) rebuilds the process covariance Qw from the a posteriori covariance. In a window the
+rest detector found the board still through (``at_rest``; not in build 422) the gates are
+off and, between (4) and (5), the window's mean gyro reading is fused as a measurement of
+the offset (a second, sequential update). A magnetic error
 power |d|^2 above (2B)^2 flags magnetic jamming: then only the gravity columns of K correct
 orientation, offset and acceleration, and the inclination is left alone.
 """
@@ -151,11 +154,15 @@ class FreescaleKalman:
     # -- one Kalman step ----------------------------------------------------------------------
 
     def step(self, accel_g: FloatArray, gyro_fast_dps: FloatArray,
-             mag_ut: FloatArray | None = None) -> KalmanStep:
+             mag_ut: FloatArray | None = None, *, at_rest: bool = False) -> KalmanStep:
         """One Kalman pass.
 
         ``gyro_fast_dps`` holds the oversample_ratio buffered gyro samples (rows, deg/s) of
         the window just ended; ``accel_g`` and ``mag_ut`` are the measurements the step fuses.
+        ``at_rest``: the rest detector found the board still through the whole window
+        (``rest.WindowRest``): the accelerometer is fused without the gates, and the
+        window's mean gyro reading is fused as a measurement of the offset
+        (:meth:`_fuse_rest_offset`).
         """
         s = self.s
         cs = s.coordinate_system
@@ -197,8 +204,12 @@ class FreescaleKalman:
         m_err = mag - m_gyro
 
         c = self._measurement_matrix(g_gyro, m_gyro)
-        noise_factor = self._accel_noise_factor(accel)
-        noise_factor *= self._innovation_noise_factor(c, noise_factor, g_err)
+        if at_rest:  # the reading is gravity: nothing to gate
+            noise_factor = 1.0
+            self.gate_closed_s = 0.0
+        else:
+            noise_factor = self._accel_noise_factor(accel)
+            noise_factor *= self._innovation_noise_factor(c, noise_factor, g_err)
         k = self._gain(c, noise_factor)
         mag_steers = self._mag_may_steer(noise_factor) and self._mag_plausible(c, m_err)
 
@@ -212,6 +223,10 @@ class FreescaleKalman:
             if not jamming and mag_steers:
                 xe[:9] += k[:9, 3:] @ m_err
 
+        p = self._posterior(k, c)
+        if at_rest:
+            self._fuse_rest_offset(xe, p, gyro.mean(axis=0))
+
         # apply the corrections
         q_pl = quat_mul(q_mi, quat_from_rotvec_deg(-xe[TH]))
         self.q = normalise_positive(q_pl)
@@ -222,7 +237,7 @@ class FreescaleKalman:
         if self.use_mag and not jamming:
             self._track_inclination(r_pl.T @ xe[D])
 
-        self._update_covariance(k, c)
+        self._next_covariance(p)
         return self._result(True, omega, jamming, accel=accel, r_pl=r_pl)
 
     def _measurement_matrix(self, g_gyro: FloatArray, m_gyro: FloatArray) -> FloatArray:
@@ -387,12 +402,36 @@ class FreescaleKalman:
         self.m_global[north] = s9.field_strength_ut * cos_d
         self.m_global[2] = sign_down * s9.field_strength_ut * sin_d
 
-    def _update_covariance(self, k: FloatArray, c: FloatArray) -> None:
-        """P+ = Qw - K C Qw (upper triangle, mirrored as the reference does), then the next
-        Qw from P+'s diagonal: the offset random walk feeds the orientation error over dt."""
-        s = self.s
+    def _posterior(self, k: FloatArray, c: FloatArray) -> FloatArray:
+        """P+ = Qw - K C Qw (upper triangle, mirrored as the reference does)."""
         full = self.qw - k @ (c @ self.qw)
-        p = np.triu(full) + np.triu(full, 1).T
+        return np.triu(full) + np.triu(full, 1).T
+
+    def _fuse_rest_offset(self, xe: FloatArray, p: FloatArray, gyro_mean_dps: FloatArray
+                          ) -> None:
+        """At rest the gyro measures its offset alone: the window's mean reading z (deg/s,
+        sensor axes) is a measurement of the offset state, fused after the accelerometer
+        (and magnetometer) update as a second, sequential Kalman update. ``xe`` (the error
+        vector so far) and ``p`` (its covariance P+) are updated in place.
+
+        The offset estimate after the first update is b - xe_b; it exceeds z by
+        e = b - xe_b - z, which measures the remaining offset error with the noise of a
+        window's mean rate, ``qv_gyro_dps2`` (the variance the filter's own prediction gives
+        that mean). The gain K = P+ H^T (H P+ H^T + R)^-1 with H picking the offset block
+        spreads the correction over every state through P+'s correlations: the orientation
+        error the offset has built up is taken back with it (an offset error of known size
+        since the last lock turned the attitude by a known amount)."""
+        e = self.b - xe[B] - gyro_mean_dps
+        s_bb = p[B, B] + self.s.qv_gyro_dps2 * np.eye(3)
+        gain = p[:, B] @ _inverse_or_identity(s_bb)
+        xe += gain @ e
+        full = p - gain @ p[B, :]
+        p[:] = np.triu(full) + np.triu(full, 1).T
+
+    def _next_covariance(self, p: FloatArray) -> None:
+        """The next Qw from the a posteriori P+'s diagonal: the offset random walk feeds the
+        orientation error over dt."""
+        s = self.s
         dt = s.kalman_dt_s
         qw = np.zeros_like(self.qw)
         for i in range(3):

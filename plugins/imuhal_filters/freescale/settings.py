@@ -13,12 +13,14 @@ from pydantic import Field
 
 from imuhal_filters.common.ahrs import AhrsLimitSettings
 from imuhal_filters.common.presets import PresetSettings
+from imuhal_filters.common.rest import RestSettings
 from imuhal_filters.common.turn import TurnCompensationSettings
 from imuhal_filters.freescale.coords import CoordinateSystem
 
 _REFERENCE: dict[str, Any] = {"initialise_on_first_step": True, "turn_compensation": False,
                               "accel_soft_gate_g": None, "accel_innovation_gate_sigma": None,
-                              "accel_mag_input": "latest"}
+                              "accel_mag_input": "latest", "rest_detection": False,
+                              "qw_init_offset_dps2": 250e-3}
 """Build 422 as published (the values the conformance tests run)."""
 _REFERENCE_9DOF: dict[str, Any] = {**_REFERENCE, "max_inclination_deg": 65.0,
                                    "lock_sets_inclination": False,
@@ -26,8 +28,20 @@ _REFERENCE_9DOF: dict[str, Any] = {**_REFERENCE, "max_inclination_deg": 65.0,
                                    "mag_innovation_gate_sigma": None}
 
 
-class FreescaleCommonSettings(PresetSettings, AhrsLimitSettings, TurnCompensationSettings):
+TURN_ON_OFFSET_SIGMA_DPS = 5.0 / 3.0
+"""One standard deviation (deg/s) of a bundled gyro's turn-on zero-rate offset: the MPU-9250's
+specified +-5 deg/s (the largest of the bundled gyros, the bound ``rest_first_max_rate_deg_s``
+also takes) read as three standard deviations."""
+
+
+class FreescaleCommonSettings(PresetSettings, AhrsLimitSettings, TurnCompensationSettings,
+                              RestSettings):
     """What the 6DOF and 9DOF filters share.
+
+    Rest detection (``common/rest.py``, the detector madgwick, mahony and imufilter use) is
+    on by default: at rest the accelerometer is fused without the soft and innovation gates,
+    and the window's mean gyro reading, which is then the gyro offset alone, is fused as a
+    measurement of the offset state (``kalman.FreescaleKalman.step``).
 
     Defaults differ from build 422 where a measurement showed the reference's value costs
     accuracy (docs/estimators.md); ``preset: reference`` (or ``seed``) restores build 422.
@@ -86,8 +100,12 @@ class FreescaleCommonSettings(PresetSettings, AhrsLimitSettings, TurnCompensatio
     """FQWA: linear acceleration drift variance (g^2)."""
     qw_init_theta_deg2: float = Field(default=2000e-5, ge=0.0)
     """FQWINITTHTH: initial orientation error variance (deg^2)."""
-    qw_init_offset_dps2: float = Field(default=250e-3, ge=0.0)
-    """FQWINITBB: initial gyro offset error variance ((deg/s)^2)."""
+    qw_init_offset_dps2: float = Field(default=TURN_ON_OFFSET_SIGMA_DPS**2, ge=0.0)
+    """FQWINITBB: initial gyro offset error variance ((deg/s)^2). Default (5/3)^2 = 2.78: a
+    gyro whose turn-on offset nobody measured (``TURN_ON_OFFSET_SIGMA_DPS``). Build 422's
+    0.25 (0.5 deg/s) trusts the start so much that a still board with 4, -3, 2 deg/s of
+    uncorrected offset is 7.5 deg off after 1-10 s (1.2 deg with 2.78, before rest
+    detection; tests/filters/test_freescale_rest.py)."""
     qw_init_theta_offset: float = 0.0
     """FQWINITTHB: initial orientation / gyro offset covariance (deg^2/s)."""
     qw_init_accel_g2: float = Field(default=10e-5, ge=0.0)

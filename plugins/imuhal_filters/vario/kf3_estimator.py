@@ -44,6 +44,7 @@ from imuhal.core.samples import AccelSample, Frame, PressureSample
 from imuhal.estimation.base import Estimator, EstimatorSettings
 from imuhal.estimation.gravity import vertical_accel_up_m_s2
 from imuhal.estimation.outputs import (
+    AttitudeBlock,
     AttitudeEstimate,
     Estimate,
     EstimateFlag,
@@ -197,6 +198,23 @@ class VarioKf3Estimator(Estimator):
             self._on_accel(item)
         elif isinstance(item, StreamGap):
             self._gaps.note(item)
+        return []
+
+    def update_estimate_block(self, block: AttitudeBlock) -> list[Estimate]:
+        """An AHRS's attitude block (``Estimator.update_estimate_block``) on its columns:
+        the accelerations added in the order of its rows, as ``process()`` adds them; an
+        attitude estimate makes no estimate here."""
+        wanted = self._attitude_source
+        if wanted is not None and block.source != wanted:
+            return []
+        lin = block.linear_accel_ned_m_s2
+        if lin is None:
+            self._q = block.rows()[-1].q_body_to_ned  # each row replaces the one before
+            return []
+        self._attitude_has_linear_accel = True
+        add = self._accel.add
+        for down in lin[:, 2].tolist():  # NED z is down
+            add(-down)
         return []
 
     def _on_attitude(self, att: AttitudeEstimate) -> None:

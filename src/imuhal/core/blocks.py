@@ -62,6 +62,7 @@ class Block:
     :meth:`with_flags`)."""
 
     __slots__ = (
+        "_flagged",
         "_flags",
         "_offsets",
         "_rows",
@@ -91,6 +92,7 @@ class Block:
         self._offsets = offsets_ns
         self._values = values
         self._flags = flags
+        self._flagged: bool | None = None
         self._t: IntArray | None = None
 
     # -- construction -----------------------------------------------------------------
@@ -126,6 +128,7 @@ class Block:
         b._rows = [sample]
         b._t0 = sample.t_ns
         b._offsets = b._values = b._flags = b._t = None
+        b._flagged = bool(sample.flags)
         return b
 
     @classmethod
@@ -165,8 +168,10 @@ class Block:
 
     def with_values(self, values: FloatArray, frame: Frame | None) -> Block:
         """The same frames (times, flags) with new values in ``frame``."""
-        return Block(self.kind, self.device, frame=frame, spec=self.spec, t0_ns=self._t0,
-                     offsets_ns=self.offsets_ns, values=values, flags=self.flags)
+        b = Block(self.kind, self.device, frame=frame, spec=self.spec, t0_ns=self._t0,
+                  offsets_ns=self.offsets_ns, values=values, flags=self.flags)
+        b._flagged = self._flagged
+        return b
 
     def with_flags(self, flags: IntArray) -> Block:
         """The same frames with ``flags`` (n,) instead of theirs."""
@@ -234,6 +239,15 @@ class Block:
             assert self._rows is not None
             self._values = np.array([_row_values(s) for s in self._rows], dtype=np.float64)
         return self._values
+
+    @property
+    def flagged(self) -> bool:
+        """True when some frame has a flag (``flags.any()``, worked out once: a block is
+        not modified once built, and several stages ask)."""
+        flagged = self._flagged
+        if flagged is None:
+            flagged = self._flagged = bool(self.flags.any())
+        return flagged
 
     @property
     def flags(self) -> IntArray:

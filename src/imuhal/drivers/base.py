@@ -104,6 +104,15 @@ class DeviceHealth:
     """A chip whose conversions the driver starts (no output rate of its own): the time its
     schedule of the configured cadence slid (a late poll, a failed convert command), in
     which the chip made no frame (the frame ledger counts those slots apart, not lost)."""
+    idle: tuple[int, int] | None = None
+    """(the stamp of the latest frame the driver handed out valid, the latest read since):
+    an unbroken run of good reads from that frame's read to this one found no new
+    measurement (the chip's data-ready bit clear each time), so the chip made none between
+    (None: no such read since the latest frame). The frame ledger counts a hung chip's
+    slots apart from lost ones from it (imuhal.pipeline.accounting, ``not_measured``)."""
+    overrun_ns: int = 0
+    """The stamp of the latest frame whose read found that the chip had overwritten a
+    measurement unread since the read before (a data-overrun bit, the AK8963's ST1.DOR)."""
 
     def counts(self) -> dict[str, int]:
         return {"resets_detected": self.resets_detected,

@@ -116,6 +116,7 @@ class EmulatedBoard:
             if type(emulator).pulls_physics:
                 emulator.physics_source = self._physics_source(name)
                 emulator.physics_ahead = functools.partial(self._inputs_ahead, name=name)
+                emulator.physics_rows = functools.partial(self._planned_rows, name=name)
             emulator.physics_at = functools.partial(self._give, name=name)
         self._truth_cache: tuple[int, TruthState] | None = None
         """(time, truth) of the latest ``truth_at``: one attribute, replaced whole, so a
@@ -434,6 +435,34 @@ class EmulatedBoard:
             pressure, temperature = finish(pressure, temperature)
         return PhysicalInputs.build(force, rate, field, pressure, temperature,
                                     truth.position_ned_m, truth.velocity_ned_m_s, other)
+
+    def _planned_rows(self, times_ns: Sequence[int], name: str
+                      ) -> tuple[PlannedInputs, int] | None:
+        """The chip of device ``name`` pulls its inputs at each of ``times_ns`` (ascending)
+        at once (``ChipEmulator.physics_rows``): what ``len(times_ns)`` calls of its
+        ``physics_source`` would do when each comes from the plan (:meth:`_planned`), taken
+        in one step, the last row left standing; (plan, first row). None, taking nothing,
+        when any would not: no plan, instants other than the plan's next, faults on the
+        device, or a configuration write since the plan's periods were checked (the pulls
+        one by one check them)."""
+        dev = self._devices[name]
+        plan = dev.plan
+        if plan is None or dev.line.writes != plan.writes or self.faults.has_faults(name):
+            return None
+        first = plan.next
+        end = first + len(times_ns)
+        if not times_ns or plan.times_ns[first:end] != list(times_ns):
+            return None
+        plan.next = end
+        if plan.errors is not None:
+            plan.errors.used = end
+        last = times_ns[-1]
+        self._updated_ns = last
+        dev.last_t_ns = last
+        emulator = dev.emulator
+        emulator.physics_t_ns = last
+        emulator.set_planned(plan.inputs, end - 1)
+        return plan.inputs, first
 
     def _planned(self, dev: _Device, plan: _InputsPlan, t_ns: int) -> int | None:
         """The plan's row of the device's next pull when it comes at ``t_ns`` as

@@ -17,7 +17,7 @@ from imuhal.core.blocks import Block
 from imuhal.core.samples import Sample
 from imuhal.core.streams import StreamSpec
 from imuhal.estimation.ordering import blocks_in_fusion_order
-from imuhal.estimation.outputs import Estimate
+from imuhal.estimation.outputs import AttitudeBlock, Estimate
 
 
 class EstimatorSettings(BaseModel):
@@ -77,6 +77,27 @@ class Estimator(ABC):
         if len(blocks) == 1:
             return _frame_by_frame(self, blocks[0].samples())
         return _frame_by_frame(self, blocks_in_fusion_order(blocks))
+
+    def estimate_blocks(self, blocks: Sequence[Block]) -> list[Estimate | AttitudeBlock]:
+        """``update_blocks`` for a caller that takes estimates as blocks too (the live
+        pipeline's router): the same estimates, where the estimator can, as
+        :class:`~imuhal.estimation.outputs.AttitudeBlock` s whose rows are those estimates
+        (no object built per frame until one is asked for). The default returns
+        ``update_blocks``'s."""
+        return list(self.update_blocks(blocks))
+
+    def update_estimate_block(self, block: AttitudeBlock) -> list[Estimate]:
+        """Consume the attitude estimates of ``block`` (one upstream estimator's, in the
+        order made) with nothing else between them; the result is what ``process()``
+        makes of its rows one by one (the default does exactly that); an estimator with a
+        faster way over the columns overrides it and must give the same estimates."""
+        out: list[Estimate] = []
+        process = self.process
+        for estimate in block.rows():
+            made = process(estimate)
+            if made:
+                out.extend(made)
+        return out
 
     @abstractmethod
     def get_state(self) -> dict[str, Any]:

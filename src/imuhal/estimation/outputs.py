@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, fields
 from enum import IntFlag
 from typing import Any
 
-from imuhal.core.frames import euler_deg_from_quat
+import numpy as np
+
+from imuhal.core.frames import FloatArray, euler_deg_from_quat
 from imuhal.core.samples import Vec3, slot_setter
 
 
@@ -89,6 +92,101 @@ class RejectedEstimate(Estimate):
     estimator: str = ""
 
 
+class AttitudeBlock:
+    """The attitude estimates one estimator made of one fusion step's frames (an AHRS's
+    compiled block step over a FIFO read), as columns: the estimates stay arrays until
+    something asks for them one by one (:meth:`rows`: the ``AttitudeEstimate`` objects,
+    diagnostics included, that the frames one by one would have made, the same floats).
+    The live pipeline hands such a block to the estimators downstream whole
+    (``Estimator.update_estimate_block``) and to a consumer of ``Pipeline.blocks()``;
+    ``Pipeline.events()``, sinks and every other consumer get its rows. Not an
+    :class:`Estimate` itself: nothing takes it for one estimate by mistake."""
+
+    __slots__ = ("_diagnostics", "_rows", "linear_accel_ned_m_s2", "q_body_to_ned",
+                 "source", "t_ns")
+
+    def __init__(self, source: str, t_ns: np.ndarray, q_body_to_ned: FloatArray,
+                 linear_accel_ned_m_s2: FloatArray | None,
+                 diagnostics: Callable[[], list[dict[str, Any]]]) -> None:
+        self.source = source
+        """The estimator instance that made the estimates (``Estimate.source``)."""
+        self.t_ns = t_ns
+        """Each estimate's time stamp (int64 ns), oldest first."""
+        self.q_body_to_ned = q_body_to_ned
+        """(n, 4): each estimate's unit quaternion (w, x, y, z) rotating body -> NED."""
+        self.linear_accel_ned_m_s2 = linear_accel_ned_m_s2
+        """(n, 3): each estimate's gravity-compensated acceleration in NED (m/s^2), or
+        None when no estimate has one."""
+        self._diagnostics = diagnostics
+        self._rows: list[AttitudeEstimate] | None = None
+
+    def __len__(self) -> int:
+        return len(self.t_ns)
+
+    def __repr__(self) -> str:
+        return f"AttitudeBlock(source={self.source!r}, rows={len(self)})"
+
+    def rows(self) -> list[AttitudeEstimate]:
+        """The estimates one by one (built once, on the first call)."""
+        rows = self._rows
+        if rows is None:
+            build, source = AttitudeEstimate.build, self.source
+            lin = self.linear_accel_ned_m_s2
+            lins: list[Any] = [None] * len(self) if lin is None else \
+                [(x, y, z) for x, y, z in lin.tolist()]
+            rows = self._rows = [
+                build(t, source, (w, x, y, z), a, d)
+                for t, (w, x, y, z), a, d in zip(
+                    self.t_ns.tolist(), self.q_body_to_ned.tolist(), lins,
+                    self._diagnostics(), strict=True)]
+        return rows
+
+    def all_usable(self) -> bool:
+        """True when :func:`estimate_flags` passes every row (finite quaternions of a norm
+        above zero, finite accelerations), on each row's floats with the same sums in the
+        same order. (On plain floats: for the few rows of a FIFO read, a loop costs less
+        than the numpy calls over columns.)"""
+        for w, x, y, z in self.q_body_to_ned.tolist():
+            # one comparison catches NaN, infinity and a zero norm alike (NaN compares False)
+            if not _MIN_QUAT_NORM_SQ < w * w + x * x + y * y + z * z < math.inf:
+                return False
+        lin = self.linear_accel_ned_m_s2
+        if lin is not None:
+            for a, b, c in lin.tolist():
+                if not math.isfinite(a + b + c):
+                    return False
+        return True
+
+
+def usable_blocks_kept(made: list[Any]) -> list[Any]:
+    """``made`` with each AttitudeBlock that has a row the estimate check refuses
+    (``AttitudeBlock.all_usable``) replaced by its rows, each then checked as one estimate;
+    the others stay whole (``made`` itself when none is replaced)."""
+    if all(type(e) is not AttitudeBlock or e.all_usable() for e in made):
+        return made
+    out: list[Any] = []
+    for e in made:
+        if type(e) is AttitudeBlock and not e.all_usable():
+            out += e.rows()
+        else:
+            out.append(e)
+    return out
+
+
+def rows_of(made: list[Any]) -> list[Any]:
+    """``made`` (estimates and :class:`AttitudeBlock` s) with every block replaced by its
+    rows, in place order: what a consumer of estimates one by one gets."""
+    if not any(type(e) is AttitudeBlock for e in made):
+        return made
+    out: list[Any] = []
+    for e in made:
+        if type(e) is AttitudeBlock:
+            out += e.rows()
+        else:
+            out.append(e)
+    return out
+
+
 def estimate_kind(estimate: Estimate) -> str:
     """The CSV ``kind`` of an estimate: ``attitude``, ``vertical`` or its class name."""
     if isinstance(estimate, RejectedEstimate):
@@ -134,15 +232,16 @@ def refused_estimate(estimate: Estimate, flags: EstimateFlag, estimator: str
                             kind=estimate_kind(estimate), flags=flags, estimator=estimator)
 
 
-def checked_estimates(made: list[Estimate], estimator: str) -> int:
+def checked_estimates(made: list[Estimate] | list[Any], estimator: str) -> int:
     """Replace, in place, every estimate of ``made`` that :func:`estimate_flags` refuses by
     its :func:`refused_estimate` (one its estimator withheld itself, a RejectedEstimate,
-    stays); returns how many were replaced. The offline chain's check, the live pipeline's
+    stays, and so does an AttitudeBlock: :func:`usable_blocks_kept` first); returns how
+    many were replaced. The offline chain's check, the live pipeline's
     (imuhal.pipeline.containment) without the counting and disabling."""
     replaced = 0
     for i, estimate in enumerate(made):
-        if type(estimate) is RejectedEstimate:
-            continue
+        if type(estimate) is RejectedEstimate or type(estimate) is AttitudeBlock:
+            continue  # withheld by its estimator; a block every row of which passed
         flags = estimate_flags(estimate)
         if flags:
             made[i] = refused_estimate(estimate, flags, estimator)

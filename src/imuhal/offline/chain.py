@@ -19,12 +19,18 @@ from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Collection, Iterable, Iterator, Mapping, Sequence
+from typing import Any
 
 from imuhal.core.blocks import Block
 from imuhal.core.samples import Sample
 from imuhal.estimation.base import Estimator
 from imuhal.estimation.ordering import FUSION_RANK
-from imuhal.estimation.outputs import Estimate, checked_estimates
+from imuhal.estimation.outputs import (
+    AttitudeBlock,
+    Estimate,
+    checked_estimates,
+    usable_blocks_kept,
+)
 from imuhal.pipeline.router import Router
 
 
@@ -37,7 +43,9 @@ class _Checked:
         self.estimator = estimator
         self.rejected = rejected
 
-    def _checked(self, made: Iterable[Estimate]) -> list[Estimate]:
+    def _checked(self, made: Iterable[Any]) -> list[Any]:
+        """``made`` with every estimate the check refuses replaced (AttitudeBlocks whose
+        every row passes stay whole)."""
         out = made if type(made) is list else list(made or ())
         if out:
             replaced = checked_estimates(out, type(self.estimator).name)
@@ -53,6 +61,12 @@ class _Checked:
 
     def process_blocks(self, blocks: Sequence[Block]) -> list[Estimate]:
         return self._checked(self.estimator.update_blocks(blocks))
+
+    def estimate_blocks(self, blocks: Sequence[Block]) -> list[Estimate | AttitudeBlock]:
+        return self._checked(usable_blocks_kept(self.estimator.estimate_blocks(blocks)))
+
+    def process_estimate_block(self, block: AttitudeBlock) -> list[Estimate]:
+        return self._checked(self.estimator.update_estimate_block(block))
 
 
 class EstimatorChain:

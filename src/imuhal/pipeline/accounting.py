@@ -56,6 +56,24 @@ takes it out of the gap before counting its frames, and counts the slots apart a
 and ``delivered + lost = produced`` still equals the chip's own count. A gap of such slots
 still reaches the estimators (cause ``not_converted``: the time between the frames is real).
 
+A chip that hung (its engine stopped: the fault API's ``stuck_data_ready``) made no frame
+in the slots it let pass, so they are neither produced nor lost either: the ledger counts
+them apart as ``not_measured``. Only what the driver read from the chip says so
+(``DeviceHealth.idle``, ``DeviceHealth.overrun_ns``; the AK8963 read directly reports
+both, from its ST1 bits): an unbroken run of good reads from the latest valid frame's read,
+each finding no new measurement (DRDY clear), that reached HUNG_AFTER_PERIODS periods past
+that frame proves the chip let an instant pass (half a period after it was due: no
+oscillator error does that), so the chip hung (:meth:`FrameLedger.idle`). It is taken as
+hung until a read finds it measuring again; of the slots between, it made only the one its
+overrun bit proves (ST1.DOR: a measurement overwritten unread, lost; the bit cannot count
+more than one), and the others are ``not_measured``. A chip that resumed while the host was
+not looking (another device's recovery holding the thread) and then overwrote more than one
+measurement is so counted as losing one of them: the limit of a one-bit overrun flag, stated
+in docs/acquisition.md. Reads that found nothing for less than HUNG_AFTER_PERIODS prove
+nothing the ledger uses (a chip clock 2 % slow, a poll a guard early). A reset in the gap
+ends the segment: its slots stay ``reset``. Without such reads (a master's copies without the
+slave's status, no read during the hang) the slots count as lost, as before.
+
 Limit: time stamps are the host's poll times, up to a period after the measurement. A gap
 is counted right while the two polls at its ends lie at about the same phase to the chip
 (within half a period): the drivers that search their chip's instants (the MPU-9250, the
@@ -80,6 +98,14 @@ CAUSES: tuple[str, ...] = ("fifo_overflow", "reset", "host_stall", "bus_error", 
                            "flagged", "missed")
 """Loss causes, weightiest first: a gap is charged to the first one seen in it."""
 
+
+NOT_MEASURED = "not_measured"
+"""The cause of a gap in which a hung chip made no frame: slots its driver's reads proved
+unmeasured (counted apart, not lost)."""
+
+HUNG_AFTER_PERIODS = 1.5
+"""Reads finding nothing new this many frame periods after the latest valid frame: the chip
+let an instant pass by half a period, which no oscillator error (+-2 %) explains."""
 
 NOT_CONVERTED = "not_converted"
 """The cause of a gap in which a host-paced chip made no frame: slots of its configured
@@ -116,6 +142,14 @@ class FrameLedger:
     """Slots of the configured cadence in which the chip made no frame: its conversions are
     the host's to start and the host's schedule slid past them (neither produced nor
     lost)."""
+    not_measured: int = 0
+    """Slots of the configured period in which a hung chip made no frame, as its driver's
+    reads proved (``idle``; neither produced nor lost)."""
+    _idle_ns: int | None = None
+    """The latest read, since the latest valid frame's, that found the chip had made nothing
+    since that frame (``idle``)."""
+    _overrun_ns: int | None = None
+    """The stamp of a frame whose read found a measurement overwritten unread (``overrun``)."""
     _seen: set[str] = field(default_factory=set)
     """Causes seen since the latest valid frame."""
     _pending: list[tuple[int, str]] = field(default_factory=list)
@@ -165,6 +199,18 @@ class FrameLedger:
             raise ValueError(f"a schedule slides forward, got {ns} ns")
         self._slid_ns += ns
 
+    def idle(self, since_ns: int, until_ns: int) -> None:
+        """Good reads from the one that read the frame stamped ``since_ns`` to the one at
+        ``until_ns`` found no new measurement (a data-ready bit clear each time): the chip
+        made no frame between. Counts only when ``since_ns`` is the latest valid frame."""
+        if since_ns == self.last_ns and until_ns > since_ns:
+            self._idle_ns = until_ns if self._idle_ns is None else max(self._idle_ns, until_ns)
+
+    def overrun(self, stamp_ns: int) -> None:
+        """The read that brought the frame stamped ``stamp_ns`` found that the chip had
+        overwritten a measurement unread since the read before (the AK8963's ST1.DOR)."""
+        self._overrun_ns = stamp_ns
+
     def count_at(self, stamp_ns: int, at_ns: int) -> None:
         """A poll made at ``stamp_ns`` was due at ``at_ns`` (a point of its device's grid): a
         frame it delivers stamped ``stamp_ns`` carries the measurement a poll at ``at_ns``
@@ -203,7 +249,8 @@ class FrameLedger:
             counted_ns = self._off_phase[1]
             self._off_phase = None
         if self.last_ns is not None:
-            loss = self._gap_before(counted_ns - self._last_counted_ns)
+            loss = self._gap_before(counted_ns - self._last_counted_ns,
+                                    overrun=self._overrun_ns == t_ns)
         else:
             self.first_ns = t_ns
         if self._segment_first_ns is None:
@@ -215,6 +262,9 @@ class FrameLedger:
         self._last_counted_ns = counted_ns
         self._seen.clear()
         self._slid_ns = 0
+        self._idle_ns = None
+        if self._overrun_ns is not None and self._overrun_ns <= t_ns:
+            self._overrun_ns = None
         return loss
 
     def observe_block(self, block: Block) -> list[tuple[int, Loss]]:
@@ -226,7 +276,7 @@ class FrameLedger:
         if block.quantity is not self.channel:
             return []
         t = block.t_ns
-        if len(t) > 1 and not block.flags.any():
+        if len(t) > 1 and not block.flagged:
             steps = np.diff(t)
             if int(steps.min()) >= 0 and 2 * int(steps.max()) < 3 * self.period_ns:
                 first = int(t[0])
@@ -253,28 +303,48 @@ class FrameLedger:
             self._seen.update(due)
             self._pending = [(at, c) for at, c in self._pending if at > t_ns]
 
-    def _gap_before(self, step_ns: int) -> Loss | None:
+    def _gap_before(self, step_ns: int, *, overrun: bool = False) -> Loss | None:
         """Counts the slots between the latest valid frame and one ``step_ns`` after it:
-        frames lost (charged to the weightiest cause seen) and slots never converted."""
+        frames lost (charged to the weightiest cause seen), slots never converted and slots
+        a hung chip did not measure. ``overrun``: the frame's read found a measurement
+        overwritten unread."""
         assert self.last_ns is not None
         slots = round(step_ns / self.period_ns) - 1
         lost = max(0, min(slots, round((step_ns - self._slid_ns) / self.period_ns) - 1))
         skipped = max(0, slots - lost)
         self.not_converted += skipped
+        unmeasured = min(lost, self._unmeasured(lost, overrun))
+        self.not_measured += unmeasured
+        lost -= unmeasured
         if lost:
             cause = next((c for c in CAUSES if c in self._seen), "missed")
             self.lost[cause] += lost
             if self._segment_first_ns is not None:
                 self._segment_produced += lost
-            return Loss(lost + skipped, cause, self.last_ns)
+            return Loss(lost + skipped + unmeasured, cause, self.last_ns)
+        if unmeasured:
+            return Loss(unmeasured + skipped, NOT_MEASURED, self.last_ns)
         return Loss(skipped, NOT_CONVERTED, self.last_ns) if skipped else None
 
+    def _unmeasured(self, slots: int, overrun: bool) -> int:
+        """Of ``slots`` slots before a valid frame, those a hung chip did not measure: all
+        but the one its overrun bit proves, once the reads since the latest valid frame
+        proved it hung (``idle``; the module's docstring), and none in a gap its driver
+        reconfigured it in."""
+        if self._idle_ns is None or "reset" in self._seen:
+            return 0
+        if (self._idle_ns - self._last_counted_ns) < HUNG_AFTER_PERIODS * self.period_ns:
+            return 0
+        return max(0, slots - int(overrun))
+
     def counts(self) -> dict[str, int]:
-        """produced, delivered and ``lost_<cause>`` for every cause (zeros included), and
-        ``not_converted`` for a host-paced chip that skipped slots (absent otherwise)."""
+        """produced, delivered and ``lost_<cause>`` for every cause (zeros included),
+        ``not_converted`` for a host-paced chip that skipped slots and ``not_measured`` for a
+        hung chip's slots (each absent when 0)."""
         return {"produced": self.produced, "delivered": self.delivered,
                 **{f"lost_{c}": self.lost[c] for c in CAUSES},
-                **({NOT_CONVERTED: self.not_converted} if self.not_converted else {})}
+                **({NOT_CONVERTED: self.not_converted} if self.not_converted else {}),
+                **({NOT_MEASURED: self.not_measured} if self.not_measured else {})}
 
 
 def describe_frames(counts: dict[str, int]) -> str:
@@ -288,4 +358,6 @@ def describe_frames(counts: dict[str, int]) -> str:
             f"{k.replace('_', ' ')} {v}" for k, v in lost.items()) + ")"
     if counts.get(NOT_CONVERTED):
         text += f"; slots not converted {counts[NOT_CONVERTED]}"
+    if counts.get(NOT_MEASURED):
+        text += f"; slots not measured (chip hung) {counts[NOT_MEASURED]}"
     return text

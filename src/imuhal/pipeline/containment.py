@@ -42,12 +42,14 @@ from imuhal.core.samples import Sample
 from imuhal.core.streams import StreamSpec
 from imuhal.estimation.base import Estimator
 from imuhal.estimation.outputs import (
+    AttitudeBlock,
     Estimate,
     EstimateFlag,
     RejectedEstimate,
     estimate_flags,
     estimate_kind,
     refused_estimate,
+    usable_blocks_kept,
 )
 from imuhal.plugins.manager import Registry, plugin_origin
 from imuhal.sinks.base import Event, Sink
@@ -187,8 +189,21 @@ class EstimatorGuard:
         return self._called(max(int(b.t_ns[-1]) for b in blocks),
                             self.estimator.update_blocks, blocks)
 
-    def _called(self, t_ns: int, call: Callable[[Any], Iterable[Estimate]],
-                arg: object) -> list[Estimate]:
+    def estimate_blocks(self, blocks: Sequence[Block]) -> list[Estimate | AttitudeBlock]:
+        """``process_blocks`` with the estimator's AttitudeBlocks kept whole
+        (``Estimator.estimate_blocks``) when every row passes the check; a block with a row
+        that does not is checked row by row as ``process_blocks`` checks it."""
+        return self._called(max(int(b.t_ns[-1]) for b in blocks),
+                            self.estimator.estimate_blocks, blocks)
+
+    def process_estimate_block(self, block: AttitudeBlock) -> list[Estimate]:
+        """The estimator's estimates for an upstream AttitudeBlock's rows
+        (``Estimator.update_estimate_block``), each checked; [] when it is disabled or
+        raised (the block is skipped for it alone)."""
+        return self._called(int(block.t_ns[-1]), self.estimator.update_estimate_block, block)
+
+    def _called(self, t_ns: int, call: Callable[[Any], Iterable[Any]],
+                arg: object) -> list[Any]:
         if self.faults.disabled:
             return []
         t0 = time.perf_counter_ns()
@@ -203,7 +218,11 @@ class EstimatorGuard:
         self._timed(t_ns, time.perf_counter_ns() - t0)
         if not made:
             return []
+        if any(type(e) is AttitudeBlock for e in made):
+            made = usable_blocks_kept(made)
         for i, estimate in enumerate(made):
+            if type(estimate) is AttitudeBlock:
+                continue  # every row passed (above)
             flags = estimate_flags(estimate) if isinstance(estimate, Estimate) else None
             if flags == EstimateFlag.UNSETTLED and type(estimate) is RejectedEstimate:
                 continue  # withheld by its estimator: its own judgement, not a failure

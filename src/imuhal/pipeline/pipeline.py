@@ -43,7 +43,7 @@ from imuhal.core.samples import GyroSample, MagSample, Quantity, Sample, SampleF
 from imuhal.core.streams import StreamSpec, TimeSource
 from imuhal.drivers.base import DeviceIdentity, Driver
 from imuhal.estimation.framed import FramedEvent, express
-from imuhal.estimation.outputs import Estimate
+from imuhal.estimation.outputs import AttitudeBlock, Estimate, rows_of
 from imuhal.estimation.streams import StreamContradiction
 from imuhal.pipeline.accounting import FrameLedger, Loss, describe_frames
 from imuhal.pipeline.board import Board, open_hardware_board
@@ -155,6 +155,10 @@ class DeviceRuntime:
     """The driver's FIFO overflow count the ledger last saw."""
     not_converted_seen_ns: int = 0
     """The driver's slid schedule time the ledger last saw."""
+    idle_seen: tuple[int, int] | None = None
+    """The driver's idle reads the ledger last saw."""
+    overrun_seen_ns: int = 0
+    """The driver's overrun stamp the ledger last saw."""
     mag_learner: HardIronLearner | None = None
     """Learning the hard iron in flight (``mag_in_flight``, no stored magnetometer record)."""
     accel_teacher: AccelTeacher | None = None
@@ -572,15 +576,20 @@ class Pipeline:
             # the watchdog's CPU-time timers tick through a run only (containment.Watchdog)
             self._watchdog.pause()
 
-    def blocks(self, duration_s: float | None = None) -> Iterator[Event | Block]:
+    def blocks(self, duration_s: float | None = None
+               ) -> Iterator[Event | Block | AttitudeBlock]:
         """``events`` with each read of several frames of a stream (a FIFO read) handed
         out as blocks (imuhal.core.blocks; body frame, flags final: the frames ``events``
-        gives one by one), one per stream of the read, instead of a ``Sample`` per frame;
-        a register poll's readings, estimates and everything else come as from ``events``.
-        The blocks of one read come together, each in time order; ``Block.samples()``
-        gives a block's frames as the samples ``events`` would. For a consumer that takes
-        frames on arrays (or only counts them): no per-frame object is built for it. The
-        estimators get the same inputs as under ``events``, so the same estimates."""
+        gives one by one), one per stream of the read, instead of a ``Sample`` per frame,
+        and the attitude estimates an AHRS's block step made of such a read as one
+        :class:`~imuhal.estimation.outputs.AttitudeBlock` instead of an estimate per
+        frame; a register poll's readings, other estimates and everything else come as
+        from ``events``. The blocks of one read come together, each in time order;
+        ``Block.samples()`` gives a block's frames as the samples ``events`` would,
+        ``AttitudeBlock.rows()`` its estimates as ``events`` would. For a consumer that
+        takes frames on arrays (or only counts them): no per-frame object is built for
+        it. The estimators get the same inputs as under ``events``, so the same
+        estimates."""
         items = self._poll_events(duration_s, reads=True)
         try:
             stage = self._pending_startup()
@@ -655,7 +664,7 @@ class Pipeline:
         return self._heap
 
     def _poll_events(self, duration_s: float | None, *, reads: bool
-                     ) -> Iterator[Event | _Read]:
+                     ) -> Iterator[Event | AttitudeBlock | _Read]:
         """The poll loop: every event in time order; ``reads``: each read of several frames
         as one :class:`_Read` (``blocks``), else its frames one by one (``events``)."""
         heap = self._schedule()
@@ -679,7 +688,7 @@ class Pipeline:
             self.clock.sleep_until(t_ns)
             # Estimator inputs wait until every sample of their instant is in (fusion order).
             if self._fusion:
-                fused = self._fuse(before_ns=t_ns)
+                fused = self._fuse(t_ns, reads)
                 if fused:
                     yield from fused
             due_ns = t_ns
@@ -701,7 +710,7 @@ class Pipeline:
             self.clock.sleep_until(end)
             yield from self._drain(end, reads)
         if self._fusion:
-            yield from self._fuse(before_ns=None)
+            yield from self._fuse(None, reads)
 
     def _drain(self, t_ns: int, reads: bool) -> Iterator[Sample | _Read]:
         """The run ends at ``t_ns``: what each driver read and still holds
@@ -792,7 +801,15 @@ class Pipeline:
         if dev.put_off >= PUT_OFF_AT_MOST:
             dev.put_off = 0
             grid_ns = aim_ns + (t_ns - aim_ns) // period_ns * period_ns
-            if 2 * (t_ns - grid_ns) >= period_ns:
+            if t_ns > grid_ns and dev.driver.polls_after_instants:
+                # a grid near its chip's instants: counted at the point however little
+                # later it comes (from its stamp, a lag under half a period can still
+                # differ from the frames' before by more: the grid was aimed a guard later
+                # than they were stamped)
+                ledger.count_at(t_ns, grid_ns)
+            elif 2 * (t_ns - grid_ns) >= period_ns:
+                # a grid at an unknown lag after them: from its stamp it could round either
+                # way
                 ledger.count_at(t_ns, grid_ns)
             return False
         at_ns = aim_ns + -(-(t_ns - aim_ns) // period_ns) * period_ns
@@ -836,7 +853,7 @@ class Pipeline:
         return dev.trigger.due(t_ns, driver_next_ns)
 
     def _on_edges(self, woke: dict[str, list[TriggerEdge]], reads: bool
-                  ) -> Iterator[Event | _Read]:
+                  ) -> Iterator[Event | AttitudeBlock | _Read]:
         """Read each device whose line raised edges, once, stamped with its newest edge
         (a host that came late finds the chip's newest sample: the edges before it are
         counted overwritten)."""
@@ -848,7 +865,7 @@ class Pipeline:
                 continue  # a recovering device is retried on its own schedule
             due_ns = edges[0].t_ns
             if self._fusion:
-                fused = self._fuse(before_ns=due_ns)
+                fused = self._fuse(due_ns, reads)
                 if fused:
                     yield from fused
             t_ns = self._before_poll(due_ns, name)
@@ -1001,6 +1018,13 @@ class Pipeline:
         if driver.health.fifo_overflows != dev.fifo_overflows_seen:
             dev.fifo_overflows_seen = driver.health.fifo_overflows
             dev.ledger.note("fifo_overflow")
+        health = driver.health
+        if health.idle is not None and health.idle != dev.idle_seen:
+            dev.idle_seen = health.idle
+            dev.ledger.idle(*health.idle)
+        if health.overrun_ns != dev.overrun_seen_ns:
+            dev.overrun_seen_ns = health.overrun_ns
+            dev.ledger.overrun(health.overrun_ns)
         if driver.health.reconfigurations != dev.reconfigurations_seen:
             dev.reconfigurations_seen = driver.health.reconfigurations
             dev.ledger.note("reset")
@@ -1140,7 +1164,7 @@ class Pipeline:
         if last is not None:
             dev.last_valid_ns[channel] = last
         dev.samples += len(block)
-        if block.flags.any():
+        if block.flagged:
             for sample in block.samples():
                 if sample.flags:
                     self._count_flags(dev, sample)
@@ -1176,6 +1200,8 @@ class Pipeline:
     def _fusable(block: Block) -> Block | None:
         """The frames of ``block`` an estimator may take: valid ones and, for a gyro, ones
         clipped at the chip's full scale (:func:`_recovered_clip`)."""
+        if not block.flagged:
+            return block  # the common case: every frame valid
         f = block.flags
         keep = f == 0
         if issubclass(block.kind, GyroSample):
@@ -1193,12 +1219,14 @@ class Pipeline:
                 dev.calibration = cal.model_copy(update={"mag": learner.record(
                     binding=self.calibration_binding(dev.name), date=now())})
 
-    def _fuse(self, before_ns: int | None) -> list[Event]:
+    def _fuse(self, before_ns: int | None, reads: bool = False) -> list[Event | AttitudeBlock]:
         """Hand the estimators the queued frames older than ``before_ns`` (all: None), in
         fusion order (the router's rule); returns their estimates, in the order they were
-        made. (A list, not a generator: this runs at every poll, and the queue is taken
-        whole, so a consumer that stops iterating loses no input.)"""
-        out: list[Event] = []
+        made (``reads``: the estimates a block step made of a FIFO read's frames as one
+        AttitudeBlock, for ``blocks``; else one by one). (A list, not a generator: this
+        runs at every poll, and the queue is taken whole, so a consumer that stops
+        iterating loses no input.)"""
+        out: list[Event | AttitudeBlock] = []
         if not self._blocks_queued:
             # readings only (one-frame blocks kept as their samples): today's queue
             samples = cast("list[Sample]", self._fusion)
@@ -1222,7 +1250,10 @@ class Pipeline:
         self._blocks_queued = bool(self._fusion)
         if items:
             self.router.fuse_blocks([b if isinstance(b, Block) else Block.of_sample(b)
-                                     for b in items], cast("list[Estimate]", out))
+                                     for b in items], cast("list[Estimate]", out),
+                                    estimate_blocks=True)
+            if self._teachers or not reads:  # they take estimates one by one
+                out = rows_of(out)
             for teacher in self._teachers:
                 teacher.feed(items, cast("list[Estimate]", out))
         return out
@@ -1373,7 +1404,8 @@ class _Expanded:
     iterator that can say where it stopped: ``rest_of_read`` gives the frames of a read
     part-way handed out (``Pipeline.blocks`` after the start-up phase)."""
 
-    def __init__(self, pipeline: Pipeline, items: Iterator[Event | _Read]) -> None:
+    def __init__(self, pipeline: Pipeline,
+                 items: Iterator[Event | AttitudeBlock | _Read]) -> None:
         self._pipeline = pipeline
         self._items = items
         self._frames: Iterator[Sample] | None = None

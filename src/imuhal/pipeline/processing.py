@@ -143,7 +143,7 @@ def _all_valid(block: Block, t_ns: IntArray, full_scale: float | None,
     and not older than ``last_t_ns``: what :func:`validity_block` would leave unflagged,
     tested in a few numpy calls (a NaN or inf fails the comparison)."""
     values = block.values
-    if len(t_ns) == 0 or bool(block.flags.any()) or \
+    if len(t_ns) == 0 or block.flagged or \
             (last_t_ns is not None and int(t_ns[0]) < last_t_ns):
         return False
     if not values.shape[1]:
@@ -238,7 +238,7 @@ def _calibrated(block: Block, record: _Correction | None) -> FloatArray:
     if record is None:
         return values
     flags = block.flags
-    if flags.any():
+    if block.flagged:
         valid = flags == 0
         if not bool(valid.any()):
             return values

@@ -23,20 +23,23 @@ estimates:
   step's samples and another's estimates, or by two estimators) every frame is routed one
   by one in fusion order with the rest. Either way every estimator sees the same inputs in
   the same order; only the interleaving of different estimators' estimates in the output
-  may differ (each estimator's own stay in order).
+  may differ (each estimator's own stay in order). A stage's estimates may stay columns
+  (``fuse_blocks(..., estimate_blocks=True)``, the live pipeline: an AHRS's
+  :class:`~imuhal.estimation.outputs.AttitudeBlock`), handed whole to the estimators they
+  reach; its rows are the estimates the frames one by one would have made.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 from imuhal.core.blocks import Block
 from imuhal.core.samples import Sample
 from imuhal.estimation.base import Estimator
 from imuhal.estimation.ordering import FUSION_RANK, fusion_order
-from imuhal.estimation.outputs import Estimate
+from imuhal.estimation.outputs import AttitudeBlock, AttitudeEstimate, Estimate
 
 Item = Sample | Estimate
 
@@ -50,6 +53,10 @@ class Guard(Protocol):
     def process_block(self, block: Block) -> list[Estimate]: ...
 
     def process_blocks(self, blocks: Sequence[Block]) -> list[Estimate]: ...
+
+    def estimate_blocks(self, blocks: Sequence[Block]) -> list[Estimate | AttitudeBlock]: ...
+
+    def process_estimate_block(self, block: AttitudeBlock) -> list[Estimate]: ...
 
 
 @dataclass
@@ -142,10 +149,14 @@ class Router:
         for s in (samples if len(samples) == 1 else fusion_order(samples, self.device_rank)):
             route(s, out)
 
-    def fuse_blocks(self, blocks: Sequence[Block], out: list[Estimate]) -> None:
+    def fuse_blocks(self, blocks: Sequence[Block], out: list[Estimate], *,
+                    estimate_blocks: bool = False) -> None:
         """The frames of ``blocks`` (valid, due: one fusion step) through the estimators:
         stage by stage where that changes no estimator's inputs (see the module
-        docstring), else frame by frame in fusion order."""
+        docstring), else frame by frame in fusion order. ``estimate_blocks``: a stage's
+        estimates may stay blocks (``Estimator.estimate_blocks``: AttitudeBlocks, whose
+        rows are its estimates), handed whole to the estimators they reach
+        (``Estimator.update_estimate_block``) and appended to ``out`` as blocks."""
         plan = None
         if any(len(b) > 1 for b in blocks):
             key = tuple((b.device, b.kind) for b in blocks)
@@ -156,23 +167,31 @@ class Router:
         if plan is None:
             self.fuse([s for b in blocks for s in b.samples()], out)
             return
-        made: dict[str, list[Estimate]] = {}
+        made: dict[str, list[Estimate | AttitudeBlock]] = {}
         for r, which in plan.fed:
-            fed = [blocks[i] for i in which]
-            got = r.guard.process_blocks(fed) if r.guard is not None else \
-                list(r.estimator.update_blocks(fed))
-            self._made(r, got, made, out)
+            self._made(r, _fed(r, [blocks[i] for i in which], estimate_blocks), made, out)
         for r, upstream in plan.downstream:
-            got = []
-            for e in made[upstream]:
-                if any(x is r for x in self.routes_of(upstream, type(e))):
-                    got += r.guard.process(e) if r.guard is not None else r.estimator.process(e)
-            self._made(r, got, made, out)
+            self._made(r, self._downstream(r, upstream, made[upstream]), made, out)
+
+    def _downstream(self, r: Route, upstream: str, made: list[Estimate | AttitudeBlock]
+                    ) -> list[Estimate | AttitudeBlock]:
+        """What ``r`` makes of the estimates ``upstream`` made in this step (those routed
+        to it), in the order they were made; an AttitudeBlock whole."""
+        got: list[Estimate | AttitudeBlock] = []
+        guard = r.guard
+        for e in made:
+            if isinstance(e, AttitudeBlock):
+                if any(x is r for x in self.routes_of(upstream, AttitudeEstimate)):
+                    got += guard.process_estimate_block(e) if guard is not None else \
+                        r.estimator.update_estimate_block(e)
+            elif any(x is r for x in self.routes_of(upstream, type(e))):
+                got += guard.process(e) if guard is not None else r.estimator.process(e)
+        return got
 
     @staticmethod
-    def _made(r: Route, got: list[Estimate], made: dict[str, list[Estimate]],
-              out: list[Estimate]) -> None:
-        r.outputs += len(got)
+    def _made(r: Route, got: list[Estimate | AttitudeBlock],
+              made: dict[str, list[Estimate | AttitudeBlock]], out: list[Any]) -> None:
+        r.outputs += sum(len(e) if type(e) is AttitudeBlock else 1 for e in got)
         out.extend(got)
         made[r.name] = got
 
@@ -203,6 +222,18 @@ class Router:
                     queue.append(d)
         return _Plan(tuple((r, tuple(fed[r.name])) for r in stage),
                      tuple((r, upstream[r.name]) for r in reached))
+
+
+def _fed(r: Route, blocks: list[Block], estimate_blocks: bool
+         ) -> list[Estimate | AttitudeBlock]:
+    """What ``r`` makes of its blocks of one fusion step (``estimate_blocks``: as
+    ``Estimator.estimate_blocks`` makes it, else ``update_blocks``)."""
+    guard = r.guard
+    if estimate_blocks:
+        return guard.estimate_blocks(blocks) if guard is not None else \
+            r.estimator.estimate_blocks(blocks)
+    return list(guard.process_blocks(blocks) if guard is not None else
+                r.estimator.update_blocks(blocks))
 
 
 def _takes_estimates_of(d: Route, u: Route) -> bool:
