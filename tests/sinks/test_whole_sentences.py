@@ -142,10 +142,10 @@ def test_a_pty_reader_that_lags_gets_whole_sentences_in_order(tmp_path: Path) ->
 
 def test_a_run_says_how_many_bytes_its_nmea_reader_did_not_take() -> None:
     # nobody reads the pty: once its buffer (64 KiB in Linux) is full every sentence is
-    # dropped; 60 s of the default sentences are about 130 kB
+    # dropped; 40 s of the default sentences are about 90 kB
     run = subprocess.run(
         [sys.executable, "-m", "imuhal.cli.main", "run", "--emulate", "thermal",
-         "--skip-calibration", "--duration", "60", "--nmea", "pty"],
+         "--skip-calibration", "--duration", "40", "--nmea", "pty"],
         capture_output=True, text=True, timeout=300, check=False)
     assert run.returncode == 0, run.stderr
     said = [line for line in run.stderr.splitlines() if "bytes dropped" in line]
