@@ -21,12 +21,15 @@ from imuhal.estimation.outputs import (
 )
 from imuhal.plugins.manager import load_registry
 from imuhal_filters.vario.kf3 import Kf3Mode
-from imuhal_filters.vario.kf3_estimator import VarioKf3Estimator
+from imuhal_filters.vario.kf3_estimator import SETTLED_CLIMB_SIGMA_M_S, VarioKf3Estimator
 from imuhal_filters.vario.kf3_settings import VarioKf3Settings, configured_core
 
 IMU_DT_NS = 5_000_000  # 200 Hz
 BARO_EVERY = 5  # 40 Hz barometer
 Q_LEVEL = (1.0, 0.0, 0.0, 0.0)
+AT_REST: dict[str, Any] = {"initial_climb_sigma_m_s": 0.01}
+"""A board known to start at rest (the esp32 reference's 1 cm/s): every estimate speaks, so
+these tests see the filter's mechanics; the start-up's withholding has its own tests."""
 
 
 def _flight(seed: int, n_baro: int = 200) -> tuple[np.ndarray, np.ndarray]:
@@ -80,7 +83,7 @@ def test_registered_as_vario_kf3_through_the_plugin_hook() -> None:
 
 def test_runs_once_per_baro_sample_on_the_mean_of_the_imu_accels_since_the_last_one() -> None:
     accel_up, z = _flight(seed=1)
-    out = _run(VarioKf3Estimator(), _stream(accel_up, z))
+    out = _run(VarioKf3Estimator(AT_REST), _stream(accel_up, z))
     assert len(out) == len(z)
 
     # The same filter driven by hand in cm: boxcar means of each 5 IMU samples, dt 25 ms,
@@ -98,7 +101,7 @@ def test_runs_once_per_baro_sample_on_the_mean_of_the_imu_accels_since_the_last_
 
 
 def test_first_baro_sample_initialises_without_a_step() -> None:
-    est = VarioKf3Estimator({"initial_bias_m_s2": 0.1})
+    est = VarioKf3Estimator({**AT_REST, "initial_bias_m_s2": 0.1})
     (e,) = _run(est, [_attitude(1, 5.0), _pressure(2, 812.0)])
     assert (e.altitude_m, e.climb_m_s, e.accel_bias_m_s2) == (pytest.approx(812.0), 0.0, 0.1)
     assert e.source == "vario-kf3"
@@ -120,14 +123,14 @@ def test_accel_sample_with_attitude_quaternion_equals_ahrs_linear_accel() -> Non
                                    accel_m_s2=tuple(f_body)))
         else:
             raw.append(item)
-    out_linear = _run(VarioKf3Estimator(), linear)
-    est_raw = VarioKf3Estimator()
+    out_linear = _run(VarioKf3Estimator(AT_REST), linear)
+    est_raw = VarioKf3Estimator(AT_REST)
     out_raw = _run(est_raw, raw)
     assert est_raw.diagnostics()["accel_samples_without_attitude"] == 0
     np.testing.assert_allclose([e.climb_m_s for e in out_raw],
                                [e.climb_m_s for e in out_linear], rtol=0, atol=1e-9)
     # an accel sample before any quaternion is counted, not used
-    early = VarioKf3Estimator()
+    early = VarioKf3Estimator(AT_REST)
     early.process(raw[1])
     assert early.diagnostics()["accel_samples_without_attitude"] == 1
 
@@ -141,8 +144,8 @@ def test_accel_samples_are_ignored_when_the_ahrs_supplies_linear_accel() -> None
             with_raw.append(AccelSample(t_ns=item.t_ns, device="imu", frame=Frame.BODY_NED,
                                         accel_m_s2=(0.0, 0.0, -2 * STANDARD_GRAVITY_M_S2)))
         with_raw.append(item)
-    assert _values(_run(VarioKf3Estimator(), with_raw)) == _values(
-        _run(VarioKf3Estimator(), items))
+    assert _values(_run(VarioKf3Estimator(AT_REST), with_raw)) == _values(
+        _run(VarioKf3Estimator(AT_REST), items))
 
 
 def test_attitude_source_selects_one_ahrs() -> None:
@@ -151,8 +154,8 @@ def test_attitude_source_selects_one_ahrs() -> None:
     noisy = [i for item in items for i in (
         [item, _attitude(item.t_ns, 50.0, source="other-ahrs")]
         if isinstance(item, AttitudeEstimate) else [item])]
-    selective = VarioKf3Estimator({"attitude_source": "ahrs"})
-    assert _run(selective, noisy) == _run(VarioKf3Estimator(), items)
+    selective = VarioKf3Estimator({**AT_REST, "attitude_source": "ahrs"})
+    assert _run(selective, noisy) == _run(VarioKf3Estimator(AT_REST), items)
 
 
 def test_invalid_pressure_and_accel_samples_are_skipped_and_counted() -> None:
@@ -163,12 +166,12 @@ def test_invalid_pressure_and_accel_samples_are_skipped_and_counted() -> None:
         polluted.append(item)
         if isinstance(item, PressureSample) and item.t_ns % (10 * BARO_EVERY * IMU_DT_NS) == 0:
             polluted.append(_pressure(item.t_ns + 1, 0.0, flags=SampleFlag.BUS_ERROR))
-    est = VarioKf3Estimator()
-    assert _values(_run(est, polluted)) == _values(_run(VarioKf3Estimator(), items))
+    est = VarioKf3Estimator(AT_REST)
+    assert _values(_run(est, polluted)) == _values(_run(VarioKf3Estimator(AT_REST), items))
     assert est.diagnostics()["skipped_invalid"] == 6
     assert est.diagnostics()["fused"] == 60
 
-    raw = VarioKf3Estimator()
+    raw = VarioKf3Estimator(AT_REST)
     _run(raw, [_attitude(1, None),
                AccelSample(t_ns=2, device="imu", frame=Frame.BODY_NED, flags=SampleFlag.SATURATED),
                AccelSample(t_ns=3, device="imu", frame=Frame.SENSOR)])
@@ -177,7 +180,7 @@ def test_invalid_pressure_and_accel_samples_are_skipped_and_counted() -> None:
 
 
 def test_interval_without_accel_predicts_zero_true_acceleration_and_is_counted() -> None:
-    est = VarioKf3Estimator({"initial_bias_m_s2": 0.5})
+    est = VarioKf3Estimator({**AT_REST, "initial_bias_m_s2": 0.5})
     _run(est, [_pressure(0, 100.0), _pressure(25_000_000, 100.0)])
     # a_meas taken as the bias: no climb appears from the bias alone
     assert est.get_state()["kf"]["x"][1] == pytest.approx(0.0, abs=1e-12)  # climb, cm/s
@@ -187,7 +190,7 @@ def test_interval_without_accel_predicts_zero_true_acceleration_and_is_counted()
 def test_an_interval_without_accel_widens_the_climb_rate_and_withholds_it() -> None:
     """Nothing measured the acceleration: the climb rate's variance grows by a g over the
     interval, and the estimate is withheld (UNSETTLED) until altitudes pin it down."""
-    est = VarioKf3Estimator()
+    est = VarioKf3Estimator(AT_REST)
     out = _run(est, [_pressure(0, 100.0), _pressure(25_000_000, 100.0)])
     assert isinstance(out[-1], RejectedEstimate)
     assert out[-1].flags == EstimateFlag.UNSETTLED
@@ -197,17 +200,17 @@ def test_saved_state_restored_mid_interval_continues_exactly() -> None:
     accel_up, z = _flight(seed=6)
     items = _stream(accel_up, z)
     cut = 83 * (BARO_EVERY + 1) + 3  # mid-interval: the accel accumulator holds 3 samples
-    a = VarioKf3Estimator({"mode": "avario"})
+    a = VarioKf3Estimator({**AT_REST, "mode": "avario"})
     _run(a, items[:cut])
     snapshot = json.loads(json.dumps(a.get_state()))
-    b = VarioKf3Estimator({"mode": "avario"})
+    b = VarioKf3Estimator({**AT_REST, "mode": "avario"})
     b.set_state(snapshot)
     assert _run(b, items[cut:]) == _run(a, items[cut:])
 
 
 def test_reset_forgets_everything() -> None:
     accel_up, z = _flight(seed=7, n_baro=20)
-    est = VarioKf3Estimator()
+    est = VarioKf3Estimator(AT_REST)
     first = _run(est, _stream(accel_up, z))
     est.reset()
     assert _run(est, _stream(accel_up, z)) == first
@@ -244,7 +247,7 @@ def test_an_attitude_block_gives_what_its_rows_give_one_by_one(with_accel: bool)
     ignored as its rows would be."""
     accel_up, z = _flight(seed=3, n_baro=60)
     rng = np.random.default_rng(3)
-    by_block, one_by_one = VarioKf3Estimator(), VarioKf3Estimator()
+    by_block, one_by_one = VarioKf3Estimator(AT_REST), VarioKf3Estimator(AT_REST)
     got: list[Any] = []
     want: list[Any] = []
     for k in range(len(z)):
@@ -273,3 +276,44 @@ def test_an_attitude_block_gives_what_its_rows_give_one_by_one(with_accel: bool)
     assert len(got) == len(z)
     assert [repr(e) for e in got] == [repr(e) for e in want]
     assert json.dumps(by_block.get_state()) == json.dumps(one_by_one.get_state())
+
+
+def _climbing(climb_m_s: float, seconds: float) -> list[Any]:
+    """Switched on in a steady, noise-free climb: level flight's zero vertical acceleration
+    at 200 Hz, the altitude rising ``climb_m_s`` from 350 m at 40 Hz."""
+    n = round(seconds * 200)
+    return _stream(np.zeros(n), 350.0 + climb_m_s * np.arange(1, n // BARO_EVERY + 1) * 0.025)
+
+
+def test_by_default_the_start_is_withheld_until_the_climb_sigma_is_under_its_bound() -> None:
+    """Climb 0 at switch-on is a guess (sigma UNKNOWN_CLIMB_SIGMA_M_S, the board may fly):
+    the estimates are withheld (UNSETTLED) until the filter's own climb sigma is under
+    SETTLED_CLIMB_SIGMA_M_S, then every one speaks."""
+    est = VarioKf3Estimator()
+    out = _run(est, _climbing(0.0, 5.0))
+    spoken = [i for i, e in enumerate(out) if isinstance(e, VerticalEstimate)]
+    assert spoken and spoken == list(range(spoken[0], len(out)))
+    assert all(isinstance(e, RejectedEstimate) and e.flags == EstimateFlag.UNSETTLED
+               for e in out[:spoken[0]])
+    assert out[spoken[0]].diagnostics["climb_sigma_m_s"] < SETTLED_CLIMB_SIGMA_M_S
+    assert 0.5 < spoken[0] * 0.025 < 1.5  # about 0.9 s of altitudes at 40 Hz
+    assert est.diagnostics()["withheld_unsettled"] == spoken[0]
+
+
+@pytest.mark.parametrize("climb_m_s", [-3.0, 1.07, 5.0])
+def test_a_start_in_flight_is_never_handed_out_off_the_climb(climb_m_s: float) -> None:
+    """Switched on in a steady climb or sink: once the estimates speak, each is within
+    2 settled sigmas (0.5 m/s) of the truth (the references' start trusted climb 0 to 1 cm/s,
+    put the altitudes' slope into the bias and overshot), and after 5 s within 5 cm/s."""
+    out = _run(VarioKf3Estimator(), _climbing(climb_m_s, 5.0))
+    spoken = [e for e in out if isinstance(e, VerticalEstimate)]
+    assert max(abs(e.climb_m_s - climb_m_s) for e in spoken) < 2 * SETTLED_CLIMB_SIGMA_M_S
+    assert spoken[-1].climb_m_s == pytest.approx(climb_m_s, abs=0.05)
+
+
+def test_the_reference_preset_starts_as_the_references_do() -> None:
+    """``preset: reference`` reproduces the references' start (climb 0 to 1 cm/s, a board at
+    rest): the first estimate speaks."""
+    first = _run(VarioKf3Estimator({"preset": "reference"}), _climbing(0.0, 0.025))
+    assert [type(e) for e in first] == [VerticalEstimate]
+    assert first[0].diagnostics["climb_sigma_m_s"] == pytest.approx(0.01)

@@ -45,8 +45,15 @@ class BaroVarioSettings(EstimatorSettings):
     """Sigma of the barometric altitude measurement (m)."""
     sea_level_pa: float = Field(default=SEA_LEVEL_PRESSURE_PA, gt=0.0)
     """Pressure reference (QNH, Pa) for pressure -> altitude; 101325 gives pressure altitude."""
-    initial_climb_sigma_m_s: float = Field(default=1.0, gt=0.0)
-    """Sigma of the climb rate at start-up (m/s); the filter starts at 0 m/s."""
+    initial_climb_sigma_m_s: float = Field(default=5.0, gt=0.0)
+    """Sigma of the climb rate at start-up and after a restart (m/s); the filter starts at
+    0 m/s. Nobody measured it and the board may be flying (a brown-out reboot in the air):
+    5 m/s covers a paraglider's or a glider's strong thermals and ordinary sink, as vario-kf3's
+    UNKNOWN_CLIMB_SIGMA_M_S. (1 m/s, a board at rest, handed out climb 0 in a 1 m/s climb.)"""
+    settled_climb_sigma_m_s: float = Field(default=0.4, gt=0.0)
+    """Estimates are withheld (UNSETTLED) after a start or a restart until the filter's own
+    climb-rate sigma is below this (m/s). It must lie above the filter's steady state
+    (0.19 m/s at 50 Hz, 0.26 m/s at 25 Hz with the default noises): about 0.3 s at 50 Hz."""
     max_gap_s: float = Field(default=1.0, gt=0.0)
     """A gap between valid samples longer than this restarts the filter from the new sample:
     the constant-velocity prediction over a long outage is not worth trusting."""
@@ -71,9 +78,11 @@ class BaroVarioEstimator(Estimator):
     """Barometer-only variometer: one predict + update per valid PressureSample.
 
     Emits a VerticalEstimate (altitude m up +, climb m/s up +, ``accel_bias_m_s2`` None) for
-    every fused sample, including the first (which only initialises: altitude = measurement,
-    climb = 0). Flagged samples, samples with non-positive or non-finite pressure, and samples
-    whose timestamp does not advance are skipped and counted in ``diagnostics()``.
+    every fused sample once the climb rate is known (``settled_climb_sigma_m_s``); before, from
+    the first sample (which only initialises: altitude = measurement, climb = 0 with
+    ``initial_climb_sigma_m_s``), a RejectedEstimate flagged UNSETTLED. Flagged samples,
+    samples with non-positive or non-finite pressure, and samples whose timestamp does not
+    advance are skipped and counted in ``diagnostics()``.
     """
 
     name: ClassVar[str] = "baro-vario"
@@ -95,13 +104,17 @@ class BaroVarioEstimator(Estimator):
         self._gate = InnovationGate(s.innovation_gate_sigma, s.innovation_gate_min_m,
                                     s.gate_reacquire_s)
         self._withheld = 0
-        """Estimates withheld while the gate refused most altitudes (UNSETTLED)."""
+        """Estimates withheld while the gate refused most altitudes or the climb rate was not
+        yet known (UNSETTLED)."""
+        self._settling = False
+        """Started or restarted and the climb sigma not yet under settled_climb_sigma_m_s."""
 
     # -- the filter steps, kept apart so callers (and tests) can drive them directly --------
 
     def initialise(self, t_ns: int, altitude_m: float) -> None:
         s = self.settings
         self._kf.initialise(altitude_m, 0.0, s.altitude_noise_m**2, s.initial_climb_sigma_m_s**2)
+        self._settling = True
         self._last_t_ns = t_ns
 
     def predict(self, dt_seconds: float) -> None:
@@ -163,8 +176,11 @@ class BaroVarioEstimator(Estimator):
     def _estimate(self, t_ns: int, innovation_m: float, *, gated: bool = False
                   ) -> Estimate:
         """The estimate after this altitude, or, while the gate refuses most altitudes
-        (``InnovationGate.unsettled``), a RejectedEstimate withholding it (UNSETTLED)."""
-        if self._gate.unsettled:
+        (``InnovationGate.unsettled``) or after a start or restart until the climb rate is
+        known (``settled_climb_sigma_m_s``), a RejectedEstimate withholding it (UNSETTLED)."""
+        if self._settling:
+            self._settling = self._kf.pvv > self.settings.settled_climb_sigma_m_s**2
+        if self._gate.unsettled or self._settling:
             self._withheld += 1
             return RejectedEstimate(t_ns=t_ns, source=self.instance, kind="vertical",
                                     flags=EstimateFlag.UNSETTLED, estimator=self.name)
@@ -187,7 +203,8 @@ class BaroVarioEstimator(Estimator):
     def get_state(self) -> dict[str, Any]:
         return {"kf": self._kf.as_dict(), "last_t_ns": self._last_t_ns,
                 "counts": dict(self._counts),
-                "gate": self._gate.as_dict(), "withheld": self._withheld}
+                "gate": self._gate.as_dict(), "withheld": self._withheld,
+                "settling": self._settling}
 
     def set_state(self, state: dict[str, Any]) -> None:
         self._kf.load_dict(state["kf"])
@@ -196,6 +213,7 @@ class BaroVarioEstimator(Estimator):
         self._counts = {k: int(v) for k, v in state["counts"].items()}
         self._gate.load_dict(state.get("gate") or {})
         self._withheld = int(state.get("withheld", 0))
+        self._settling = bool(state.get("settling", False))
 
     def diagnostics(self) -> dict[str, Any]:
         return {**self._counts, "withheld_unsettled": self._withheld}

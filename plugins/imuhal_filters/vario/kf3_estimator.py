@@ -19,9 +19,18 @@ integrates across: docs/estimators.md, "Timing").
 
 The first valid pressure sample initialises (altitude = measurement, climb 0, bias =
 initial_bias) and, as in the references, also gets its own predict/update step with the
-acceleration that came with it. The references know their fixed period; here the step length
-is only known at the second sample, so the first sample's step runs then, just before the
-second one's (the estimate emitted at the first sample is the initial state).
+acceleration that came with it. Unlike the references, the climb rate starts with the
+variance of a climb rate nobody measured (``initial_climb_sigma_m_s``, by default
+kf3_settings.UNKNOWN_CLIMB_SIGMA_M_S, not the references' 1 cm/s of a board known to be at
+rest), and the estimates are withheld (UNSETTLED) until the altitudes have brought its
+standard deviation under SETTLED_CLIMB_SIGMA_M_S: a board switched on in flight (a brown-out
+reboot, a battery swap in the air) handed out climb 0.0 in a 1.07 m/s climb as valid, and a
+second later 2.2 m/s against 1.17 (the altitudes' slope went into the bias while the climb
+rate was trusted at 0).
+
+The references know their fixed period; here the step length is only known at the second
+sample, so the first sample's step runs then, just before the second one's (the estimate
+emitted at the first sample is the initial state).
 
 Innovation gate: an altitude further than ``innovation_gate_sigma`` standard deviations of
 the innovation from the prediction is not fused (counted ``gated``); if altitudes keep being
@@ -56,7 +65,13 @@ from imuhal_filters.vario.baro_input import dt_s, usable_altitude_m
 from imuhal_filters.vario.downsample import IntervalMean
 from imuhal_filters.vario.gate import InnovationGate
 from imuhal_filters.vario.kf3 import Kalman3
-from imuhal_filters.vario.kf3_settings import CM_PER_M, VarioKf3Settings, configured_core
+from imuhal_filters.vario.kf3_settings import (
+    CM_PER_M,
+    UNKNOWN_CLIMB_SIGMA_M_S,
+    VarioKf3Settings,
+    configured_core,
+    initial_climb_variance_cm2_s2,
+)
 
 _COUNTERS = (
     "fused",
@@ -74,13 +89,11 @@ _COUNTERS = (
 )
 
 
-GAP_CLIMB_SIGMA_M_S = 5.0
-"""The climb rate's standard deviation after a restart after a gap (m/s): unknown, within
-what a glider or a small aircraft does."""
 SETTLED_CLIMB_SIGMA_M_S = 0.25
-"""After a restart after a gap (and after an interval without acceleration,
+"""At start-up, after a restart after a gap (and after an interval without acceleration,
 UNMEASURED_ACCEL_SIGMA_M_S2), estimates are withheld (UNSETTLED) until the filter's own
-climb-rate standard deviation is below this (m/s): about 0.2 s of altitudes at 50 Hz."""
+climb-rate standard deviation is below this (m/s): about 0.8 s of altitudes at 50 Hz from
+UNKNOWN_CLIMB_SIGMA_M_S with the default tuning, 0.2 s after an unmeasured interval."""
 
 UNMEASURED_ACCEL_SIGMA_M_S2 = STANDARD_GRAVITY_M_S2
 """An interval without any acceleration (the AHRS withheld or lost its estimates) predicts
@@ -126,7 +139,7 @@ class VarioKf3Estimator(Estimator):
         self._withheld = 0
         """Estimates withheld while the gate refused most altitudes (UNSETTLED)."""
         self._settling = False
-        """Restarted after a gap and the climb rate not known to SETTLED_CLIMB_SIGMA_M_S."""
+        """Started or restarted and the climb rate not yet known to SETTLED_CLIMB_SIGMA_M_S."""
         self._unmeasured = 0.0
         """The length (s) of the interval just predicted without any acceleration."""
         self._held: tuple[int, float] | None = None
@@ -136,7 +149,12 @@ class VarioKf3Estimator(Estimator):
     # -- the filter steps, in project units -------------------------------------------------
 
     def initialise(self, t_ns: int, altitude_m: float) -> None:
+        """Start from ``altitude_m`` with climb 0 +- ``initial_climb_sigma_m_s`` (by default
+        UNKNOWN_CLIMB_SIGMA_M_S: the board may be flying) and withhold the estimates until
+        the climb rate is known."""
         self._kf = configured_core(self.settings, altitude_m)
+        self._kf.P[1, 1] = initial_climb_variance_cm2_s2(self.settings)
+        self._settling = True
         self._last_t_ns = t_ns
         self._gate.forget()
         # the references' first step uses the acceleration that came with the first altitude
@@ -145,7 +163,7 @@ class VarioKf3Estimator(Estimator):
     def _restart_after_gap(self, t_ns: int, altitude_m: float) -> None:
         """Start again from ``altitude_m`` after a gap: the gap lost the altitude and the
         climb rate, not the accelerometer's bias. The bias (and its variance) are kept and
-        the climb rate starts at 0 with GAP_CLIMB_SIGMA_M_S, so the altitudes after the gap
+        the climb rate starts at 0 with UNKNOWN_CLIMB_SIGMA_M_S, so the altitudes after the gap
         correct the climb rate, not the bias (with the start-up covariance, which trusts
         climb 0, a restart in a 1 m/s sink drove the bias to 13 m/s^2 and the climb rate
         4 m/s off: the fault matrix, seed-gps-vario, chip resets)."""
@@ -157,8 +175,7 @@ class VarioKf3Estimator(Estimator):
         assert kf is not None
         kf.x[2] = bias
         kf.P[2, 2] = bias_variance
-        kf.P[1, 1] = (GAP_CLIMB_SIGMA_M_S * CM_PER_M) ** 2
-        self._settling = True
+        kf.P[1, 1] = (UNKNOWN_CLIMB_SIGMA_M_S * CM_PER_M) ** 2
 
     def _widen_for_unmeasured_accel(self, dt: float) -> None:
         """The covariance of ``dt`` s of an acceleration nobody measured
@@ -309,10 +326,11 @@ class VarioKf3Estimator(Estimator):
     def _estimate(self, t_ns: int, innovation_m: float, *, gated: bool = False
                   ) -> Estimate:
         """The estimate after this altitude, or, while the gate refuses most altitudes
-        (``InnovationGate.unsettled``) or after a restart after a gap until the climb rate is
-        known (SETTLED_CLIMB_SIGMA_M_S), a RejectedEstimate withholding it (UNSETTLED)."""
+        (``InnovationGate.unsettled``) or after a start or a restart after a gap until the
+        climb rate is known (SETTLED_CLIMB_SIGMA_M_S), a RejectedEstimate withholding it
+        (UNSETTLED)."""
         if self._settling and self._kf is not None:
-            self._settling = self._kf.P[1, 1] > (SETTLED_CLIMB_SIGMA_M_S * CM_PER_M) ** 2
+            self._settling = bool(self._kf.P[1, 1] > (SETTLED_CLIMB_SIGMA_M_S * CM_PER_M) ** 2)
         if self._gate.unsettled or self._settling:
             self._withheld += 1
             return RejectedEstimate(t_ns=t_ns, source=self.instance, kind="vertical",

@@ -25,8 +25,15 @@ still within 0.2 s of a 2 m/s climb step; see the lag/quietness table in docs/es
 DEFAULT_BIAS_VARIANCE_M2_S4 = 1e-6
 """Per barometer step (1e-2 cm^2/s^4; esp32: 1 cm^2/s^4): at 50 Hz the reference value lets
 the bias wander enough to double the climb noise at rest (docs/estimators.md)."""
+UNKNOWN_CLIMB_SIGMA_M_S = 5.0
+"""The climb rate's standard deviation at start-up and after a restart after a gap (m/s):
+nobody measured it, and the board may be flying (a brown-out reboot, a battery swap in the
+air). 5 m/s covers a paraglider's or a glider's strong thermals and ordinary sink (3-5 m/s; a
+spiral dive's 15-20 m/s is beyond one sigma, not beyond the filter) and the climb-outs of the
+bundled rc-flight scenario."""
 _REFERENCE: dict[str, Any] = {"altitude_variance_m2": None, "accel_variance_m2_s4": None,
-                              "bias_variance_m2_s4": None, "innovation_gate_sigma": None}
+                              "bias_variance_m2_s4": None, "innovation_gate_sigma": None,
+                              "initial_climb_sigma_m_s": None}
 
 
 class VarioKf3Settings(PresetSettings):
@@ -53,6 +60,11 @@ class VarioKf3Settings(PresetSettings):
     replaces it every step."""
     bias_variance_m2_s4: float | None = Field(default=DEFAULT_BIAS_VARIANCE_M2_S4, ge=0.0)
     """sigma_accbias^2 ((m/s^2)^2), added once per filter step (not scaled by dt)."""
+    initial_climb_sigma_m_s: float | None = Field(default=UNKNOWN_CLIMB_SIGMA_M_S, gt=0.0)
+    """Sigma of the climb rate at start-up (m/s; the filter starts at climb 0). The estimates
+    are withheld (UNSETTLED) until the filter's own climb sigma is under its settled bound
+    (0.25 m/s), so a board switched on in flight never hands out climb 0 as valid. None: the
+    reference value of ``mode`` (esp32 and avario 1 cm/s, y2021 0.39 m/s: a board at rest)."""
     initial_bias_m_s2: float = 0.0
     """Accelerometer bias at start-up (m/s^2; true accel = measured - bias)."""
     sea_level_pa: float = Field(default=SEA_LEVEL_PRESSURE_PA, gt=0.0)
@@ -96,3 +108,12 @@ def configured_core(settings: VarioKf3Settings, z0_m: float) -> Kalman3:
         bias0=settings.initial_bias_m_s2 * CM_PER_M,
     )
     return kf
+
+
+def initial_climb_variance_cm2_s2(settings: VarioKf3Settings) -> float:
+    """The climb rate's variance at start-up ((cm/s)^2): ``initial_climb_sigma_m_s``, or the
+    mode's reference P0 when it is None."""
+    sigma = settings.initial_climb_sigma_m_s
+    if sigma is None:
+        return REFERENCES[settings.mode].p0_diag[1]
+    return (sigma * CM_PER_M) ** 2
