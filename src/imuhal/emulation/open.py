@@ -10,6 +10,7 @@ board, typed (its ``emulators`` by device name, its ``scenario`` and ``truth_at(
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
@@ -46,6 +47,7 @@ def open_emulated(
     physical_mounts: Mapping[str, MountSpec] | None = None,
     recorder: BusRecorder | None = None,
     calibrate_missing: bool = False,
+    start_s: float = 0.0,
 ) -> Pipeline:
     """A pipeline over ``profile``'s board, emulated, flying ``scenario``.
 
@@ -68,12 +70,21 @@ def open_emulated(
     them (so nothing learns in flight); default off: the board flies as its file says,
     and a device without a record learns it in flight where the board makes that
     observable, unless the profile turns it off (imuhal.pipeline.learning).
+    ``start_s`` switches the board on at that time of the scenario (s, >= 0): the world is
+    already there (in flight, for a flight scenario), as after a brown-out reboot or a
+    battery swap in the air; the pipeline's start-up and every filter begin then. Times
+    stay the scenario's: estimates, the truth and ``faults``' ``start_s`` count from the
+    scenario's 0, not from the switch-on.
     """
+    if not (math.isfinite(start_s) and start_s >= 0.0):
+        raise ImuhalError(f"start_s={start_s!r}: the switch-on time must be a finite "
+                          "number of seconds >= 0 into the scenario")
     if calibrate_missing:
         profile, _ = calibrated_as_user(profile, registry, seed=seed,
                                         sensor_errors=sensor_errors, error_specs=error_specs)
     name = profile.emulation.scenario if scenario is None else scenario
-    clock = SimulatedClock(realtime=realtime)
+    start_ns = round(start_s * 1e9)
+    clock = SimulatedClock(start_ns, realtime=realtime)
     scenario_cls = registry.scenarios.get(name)
     params = dict(profile.emulation.scenario_params) if name == profile.emulation.scenario \
         else {}
@@ -91,7 +102,7 @@ def open_emulated(
     rotations = chip_rotations(_physically_mounted(profile, physical_mounts or {}))
     board = EmulatedBoard(profile, registry, clock, world, rotations, errors,
                           faults=[*profile.emulation.faults, *faults], seed=run_seed)
-    board.update(0)
+    board.update(start_ns)
     return Pipeline(profile, registry, board, calibrated=calibrated, trace=trace,
                     recorder=recorder)
 
