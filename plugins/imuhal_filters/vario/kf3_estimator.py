@@ -93,7 +93,9 @@ SETTLED_CLIMB_SIGMA_M_S = 0.25
 """At start-up, after a restart after a gap (and after an interval without acceleration,
 UNMEASURED_ACCEL_SIGMA_M_S2), estimates are withheld (UNSETTLED) until the filter's own
 climb-rate standard deviation is below this (m/s): about 0.8 s of altitudes at 50 Hz from
-UNKNOWN_CLIMB_SIGMA_M_S with the default tuning, 0.2 s after an unmeasured interval."""
+UNKNOWN_CLIMB_SIGMA_M_S with the default tuning, 0.2 s after an unmeasured interval. The
+default of the ``settled_climb_sigma_m_s`` setting, which a tuning whose steady climb sigma
+lies above it must raise (the default tuning's: 0.036 m/s at 50 Hz)."""
 
 UNMEASURED_ACCEL_SIGMA_M_S2 = STANDARD_GRAVITY_M_S2
 """An interval without any acceleration (the AHRS withheld or lost its estimates) predicts
@@ -154,7 +156,8 @@ class VarioKf3Estimator(Estimator):
         the climb rate is known."""
         self._kf = configured_core(self.settings, altitude_m)
         self._kf.P[1, 1] = initial_climb_variance_cm2_s2(self.settings)
-        self._settling = True
+        # the references' start (initial_climb_sigma_m_s None) assumes a board at rest
+        self._settling = self.settings.initial_climb_sigma_m_s is not None
         self._last_t_ns = t_ns
         self._gate.forget()
         # the references' first step uses the acceleration that came with the first altitude
@@ -176,6 +179,7 @@ class VarioKf3Estimator(Estimator):
         kf.x[2] = bias
         kf.P[2, 2] = bias_variance
         kf.P[1, 1] = (UNKNOWN_CLIMB_SIGMA_M_S * CM_PER_M) ** 2
+        self._settling = True
 
     def _widen_for_unmeasured_accel(self, dt: float) -> None:
         """The covariance of ``dt`` s of an acceleration nobody measured
@@ -330,7 +334,8 @@ class VarioKf3Estimator(Estimator):
         climb rate is known (SETTLED_CLIMB_SIGMA_M_S), a RejectedEstimate withholding it
         (UNSETTLED)."""
         if self._settling and self._kf is not None:
-            self._settling = bool(self._kf.P[1, 1] > (SETTLED_CLIMB_SIGMA_M_S * CM_PER_M) ** 2)
+            bound_cm_s = self.settings.settled_climb_sigma_m_s * CM_PER_M
+            self._settling = bool(self._kf.P[1, 1] > bound_cm_s**2)
         if self._gate.unsettled or self._settling:
             self._withheld += 1
             return RejectedEstimate(t_ns=t_ns, source=self.instance, kind="vertical",
@@ -388,6 +393,7 @@ class VarioKf3Estimator(Estimator):
         self._gate.load_dict(state.get("gate") or {})
         self._withheld = int(state.get("withheld", 0))
         self._settling = bool(state.get("settling", False))
+
         held = state.get("held")
         self._held = None if held is None else (int(held[0]), float(held[1]))
 

@@ -65,6 +65,10 @@ class VarioKf3Settings(PresetSettings):
     are withheld (UNSETTLED) until the filter's own climb sigma is under its settled bound
     (0.25 m/s), so a board switched on in flight never hands out climb 0 as valid. None: the
     reference value of ``mode`` (esp32 and avario 1 cm/s, y2021 0.39 m/s: a board at rest)."""
+    settled_climb_sigma_m_s: float = Field(default=0.25, gt=0.0)
+    """After a start or a restart, estimates are withheld (UNSETTLED) until the filter's own
+    climb sigma is under this (m/s). It must lie above the tuning's steady state (the
+    defaults: 0.036 m/s at 50 Hz, 0.048 m/s at 25 Hz), or the filter withholds for good."""
     initial_bias_m_s2: float = 0.0
     """Accelerometer bias at start-up (m/s^2; true accel = measured - bias)."""
     sea_level_pa: float = Field(default=SEA_LEVEL_PRESSURE_PA, gt=0.0)
