@@ -11,6 +11,7 @@ steps run in Python: the compiled kernel has no rest detection.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -20,7 +21,7 @@ from imuhal.core.frames import FloatArray
 from imuhal_filters.common.rest import RestSettings
 from imuhal_filters.freescale.coords import CONVENTION, CoordinateSystem
 from imuhal_filters.freescale.fast import KERNEL_SETTINGS, freescale_rows
-from imuhal_filters.freescale.kalman import FreescaleKalman, KalmanStep
+from imuhal_filters.freescale.kalman import FIELD_LENGTH_RATE_UT_S, FreescaleKalman, KalmanStep
 from imuhal_filters.freescale.rest import WindowRest
 from imuhal_filters.freescale.settings import (
     Freescale6DofSettings,
@@ -163,6 +164,8 @@ def _compiled_steps(kf: FreescaleKalman, accel: FloatArray, gyro: FloatArray,
     gate = s.accel_innovation_gate_sigma
     mag_limit = s9.mag_max_accel_distrust if s9 else None
     mag_gate = s9.mag_innovation_gate_sigma if s9 else None
+    reacquire = s9.mag_gate_reacquire_s if s9 else None
+    kf.mag_gate = np.ascontiguousarray(kf.mag_gate, dtype=float)
     kf.qw = np.ascontiguousarray(kf.qw)
     freescale_rows(
         kf.q, kf.b, kf.a_sensor, kf.m_global, kf.qw, incl, a, g, m, nine,
@@ -175,7 +178,9 @@ def _compiled_steps(kf: FreescaleKalman, accel: FloatArray, gyro: FloatArray,
         s9.max_inclination_deg if s9 else 90.0, _STYLE[s.coordinate_system],
         0.0 if gate is None else float(gate), s.accel_gate_reacquire_s, gate_closed,
         0.0 if mag_limit is None else float(mag_limit),
-        0.0 if mag_gate is None else float(mag_gate), out_q, out_b, out_incl, out_jam,
+        0.0 if mag_gate is None else float(mag_gate), kf.mag_gate,
+        math.inf if reacquire is None else float(reacquire),
+        FIELD_LENGTH_RATE_UT_S * s.kalman_dt_s, out_q, out_b, out_incl, out_jam,
         out_euler)
     kf.inclination_deg = float(incl[0])
     kf.gate_closed_s = float(gate_closed[0])

@@ -36,7 +36,7 @@ KERNEL_SETTINGS = frozenset({
     "qv_mag_ut2", "qw_mag_disturbance_ut2", "qw_init_disturbance_ut2", "disturbance_decay",
     "max_inclination_deg", "lock_sets_inclination", "field_strength_ut",
     "full_innovation_inverse", "accel_innovation_gate_sigma", "accel_gate_reacquire_s",
-    "mag_max_accel_distrust", "mag_innovation_gate_sigma",
+    "mag_max_accel_distrust", "mag_innovation_gate_sigma", "mag_gate_reacquire_s",
     # the estimator's handling of counted losses (it adds ticks before the kernel's steps;
     # arrays of ticks have no losses)
     "max_gap_s",
@@ -290,21 +290,83 @@ def _accel_gate_factor(innov, noise, err, factor, gate_sigma, gate_reacquire_s,
 accel_gate_factor = inline_kernel(jit(_accel_gate_factor))
 
 
-def _mag_steers(innov, noise, err, factor, use_mag, mag_max_distrust, mag_gate_sigma):
-    """Whether the magnetometer corrects the orientation this step: not while the
-    accelerometer is distrusted by more than ``mag_max_distrust`` (0: no limit), nor when
-    the geomagnetic innovation's Mahalanobis distance against S's magnetometer block
-    exceeds ``mag_gate_sigma`` (0: no gate; kalman.py's _mag_plausible; no gate if
-    singular)."""
-    mag_steers = mag_max_distrust <= 0.0 or factor <= mag_max_distrust
-    if use_mag and mag_steers and mag_gate_sigma > 0.0:
-        m2 = mahalanobis3(innov, noise, 1.0, err, 3)
-        if not math.isnan(m2):
-            mag_steers = m2 <= mag_gate_sigma * mag_gate_sigma
-    return mag_steers
+def _at_length(mag_row, p0, p1, p2, length, out):
+    """``mag_row`` minus the predicted field ``p`` scaled to ``length`` into ``out[3:6]``
+    (kalman.py's _innovation_at_length)."""
+    n = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
+    f = 1.0 if n == 0.0 else length / n
+    out[3], out[4], out[5] = mag_row[0] - f * p0, mag_row[1] - f * p1, mag_row[2] - f * p2
 
 
-mag_steers_kernel = inline_kernel(jit(_mag_steers))
+at_length = inline_kernel(jit(_at_length))
+
+
+def _mag_gate_verdict(innov, noise, mag_row, r_mi, m_global, state, gate_sigma, reacquire_s,
+                      length_step, kalman_dt, scratch):
+    """The magnetometer innovation gate and its reacquire rule (kalman.py's
+    _mag_gate_verdict, state ``state`` as its ``mag_gate``; ``reacquire_s`` inf: never):
+    the heading correction (deg) to apply before the magnetometer steers, 0 to steer as it
+    is, NaN to leave the orientation to the gyro."""
+    mg0 = r_mi[0, 0] * m_global[0] + r_mi[0, 1] * m_global[1] + r_mi[0, 2] * m_global[2]
+    mg1 = r_mi[1, 0] * m_global[0] + r_mi[1, 1] * m_global[1] + r_mi[1, 2] * m_global[2]
+    mg2 = r_mi[2, 0] * m_global[0] + r_mi[2, 1] * m_global[1] + r_mi[2, 2] * m_global[2]
+    length = state[3]
+    x, y, z = mag_row[0], mag_row[1], mag_row[2]
+    diff = math.sqrt(x * x + y * y + z * z) - length
+    if diff > 0.0:
+        state[3] += length_step
+    elif diff < 0.0:
+        state[3] += -length_step
+    gate2 = gate_sigma * gate_sigma
+    at_length(mag_row, mg0, mg1, mg2, length, scratch)
+    m2 = mahalanobis3(innov, noise, 1.0, scratch, 3)
+    if math.isnan(m2) or m2 <= gate2:
+        state[0], state[1], state[2] = 0.0, 0.0, 0.0
+        return 0.0
+    if math.isinf(reacquire_s):
+        return math.nan
+    # the measured field in the global frame (r_mi.T @ mag) against the reference
+    g0 = r_mi[0, 0] * x + r_mi[1, 0] * y + r_mi[2, 0] * z
+    g1 = r_mi[0, 1] * x + r_mi[1, 1] * y + r_mi[2, 1] * z
+    psi = math.atan2(m_global[0] * g1 - m_global[1] * g0,
+                     m_global[0] * g0 + m_global[1] * g1)
+    state[1] += math.cos(psi)
+    state[2] += math.sin(psi)
+    mean = math.atan2(state[2], state[1])
+    co, si = math.cos(mean), math.sin(mean)
+    t0 = co * m_global[0] + -si * m_global[1] + 0.0 * m_global[2]
+    t1 = si * m_global[0] + co * m_global[1] + 0.0 * m_global[2]
+    t2 = 0.0 * m_global[0] + 0.0 * m_global[1] + 1.0 * m_global[2]
+    at_length(mag_row, r_mi[0, 0] * t0 + r_mi[0, 1] * t1 + r_mi[0, 2] * t2,
+              r_mi[1, 0] * t0 + r_mi[1, 1] * t1 + r_mi[1, 2] * t2,
+              r_mi[2, 0] * t0 + r_mi[2, 1] * t1 + r_mi[2, 2] * t2, length, scratch)
+    m2_turned = mahalanobis3(innov, noise, 1.0, scratch, 3)
+    if math.isnan(m2_turned) or m2_turned > gate2:
+        state[0], state[1], state[2] = 0.0, 0.0, 0.0
+        return math.nan
+    state[0] += kalman_dt
+    if state[0] < reacquire_s:
+        return math.nan
+    state[0], state[1], state[2] = 0.0, 0.0, 0.0
+    return math.degrees(mean)
+
+
+mag_gate_verdict = inline_kernel(jit(_mag_gate_verdict))
+
+
+def _turn_about_vertical(qm, angle_deg):
+    """``qm`` turned on its global side by ``angle_deg`` about the global z axis (kalman.py's
+    quat_mul(quat_about_vertical_deg(angle_deg), q))."""
+    half = math.radians(angle_deg) / 2.0
+    pw, px, py, pz = math.cos(half), 0.0, 0.0, math.sin(half)
+    qw, qx, qy, qz = qm[0], qm[1], qm[2], qm[3]
+    qm[0] = pw * qw - px * qx - py * qy - pz * qz
+    qm[1] = pw * qx + px * qw + py * qz - pz * qy
+    qm[2] = pw * qy - px * qz + py * qw + pz * qx
+    qm[3] = pw * qz + px * qy - py * qx + pz * qw
+
+
+turn_about_vertical = inline_kernel(jit(_turn_about_vertical))
 
 
 def _invert_innovation(innov, noise, factor, use_mag, full_inverse, inv):
@@ -442,15 +504,17 @@ def _freescale_rows(q, b, a_sensor, m_global, qw, incl, accel, gyro, mag, use_ma
                     gravity_positive, fast_dt, kalman_dt, accel_decay, soft_width, noise,
                     full_inverse, field, qw_gyro_offset, qv_gyro, qw_accel, dist_decay,
                     qw_dist, max_incl_deg, style, gate_sigma, gate_reacquire_s,
-                    gate_closed, mag_max_distrust, mag_gate_sigma, out_q, out_b, out_incl,
-                    out_jam, out_euler):
+                    gate_closed, mag_max_distrust, mag_gate_sigma, mag_gate, mag_reacquire_s,
+                    length_step, out_q, out_b, out_incl, out_jam, out_euler):
     """One Kalman step per window ``k``: ``accel[k]``, ``mag[k]`` the measurements, ``gyro[k]``
     (ratio x 3) the fast samples. The state arrays (q, b, a_sensor, m_global, qw, incl[0])
     are updated in place; per step the a posteriori q, b, inclination, jamming flag and the
     system's Euler angles (``style``: 0 ned, 1 android, 2 win8). ``gate_sigma`` (0: none),
     ``gate_reacquire_s`` and the state ``gate_closed[0]`` (s) are the innovation gate's,
-    ``mag_max_distrust`` (0: none) the magnetometer rule's and ``mag_gate_sigma`` (0: none)
-    the magnetometer innovation gate's (kalman.py)."""
+    ``mag_max_distrust`` (0: none) the magnetometer rule's; ``mag_gate_sigma`` (0: none),
+    ``mag_reacquire_s`` (inf: never), the state ``mag_gate`` (4) and ``length_step`` (how far
+    the field length moves per step, uT) the magnetometer innovation gate's
+    (kalman.py)."""
     n = qw.shape[0]
     nm = 6 if use_mag else 3
     r_mi = np.empty((3, 3))
@@ -465,6 +529,7 @@ def _freescale_rows(q, b, a_sensor, m_global, qw, incl, accel, gyro, mag, use_ma
     xe = np.empty(n)
     err = np.empty(nm)
     qm = np.empty(4)
+    scratch = np.empty(6)
     for step in range(accel.shape[0]):
         predict(q, b, gyro[step], fast_dt, qm, r_mi)
         am0, am1, am2 = measure(r_mi, accel[step], mag[step], a_sensor, m_global, use_mag,
@@ -480,13 +545,30 @@ def _freescale_rows(q, b, a_sensor, m_global, qw, incl, accel, gyro, mag, use_ma
         matmul(c, qw_ct, innov)
         factor = accel_gate_factor(innov, noise, err, factor, gate_sigma, gate_reacquire_s,
                                    gate_closed, kalman_dt)
-        mag_steers = mag_steers_kernel(innov, noise, err, factor, use_mag, mag_max_distrust,
-                                       mag_gate_sigma)
+        mag_steers = mag_max_distrust <= 0.0 or factor <= mag_max_distrust
+        gated_out = False
+        if use_mag and mag_steers and mag_gate_sigma > 0.0:
+            yaw_deg = mag_gate_verdict(innov, noise, mag[step], r_mi, m_global, mag_gate,
+                                       mag_gate_sigma, mag_reacquire_s, length_step,
+                                       kalman_dt, scratch)
+            mag_steers = not math.isnan(yaw_deg)
+            gated_out = not mag_steers
+            if mag_steers and yaw_deg != 0.0:  # reacquired: the heading turned first
+                turn_about_vertical(qm, -yaw_deg)
+                matrix(qm, r_mi)
+                am0, am1, am2 = measure(r_mi, accel[step], mag[step], a_sensor, m_global,
+                                        use_mag, ned, gravity_positive, accel_decay,
+                                        kalman_dt, c, err)
+                for i in range(n):
+                    for j in range(nm):
+                        ct[i, j] = c[j, i]
+                matmul(qw, ct, qw_ct)
+                matmul(c, qw_ct, innov)
         invert_innovation(innov, noise, factor, use_mag, full_inverse, inv)
         matmul(qw_ct, inv, k)
         jamming = error_vector(k, err, xe, use_mag, mag_steers, field)
         correct(qm, xe, q, b, a_sensor, am0, am1, am2)
-        if use_mag and not jamming:
+        if use_mag and not jamming and not gated_out:
             track_inclination(q, xe, r_mi, m_global, incl, ned, field, max_incl_deg)
         next_covariance(c, qw, k, cq, kcq, use_mag, kalman_dt, accel_decay, qw_gyro_offset,
                         qv_gyro, qw_accel, dist_decay, qw_dist)
@@ -506,6 +588,6 @@ freescale_rows = jit(
     full_inverse="b1", field="f8", qw_gyro_offset="f8", qv_gyro="f8", qw_accel="f8",
     dist_decay="f8", qw_dist="f8", max_incl_deg="f8", style="i8", gate_sigma="f8",
     gate_reacquire_s="f8", gate_closed="f8[::1]", mag_max_distrust="f8", mag_gate_sigma="f8",
-    out_q="f8[:, ::1]",
+    mag_gate="f8[::1]", mag_reacquire_s="f8", length_step="f8", out_q="f8[:, ::1]",
     out_b="f8[:, ::1]", out_incl="f8[::1]", out_jam="b1[::1]", out_euler="f8[:, ::1]")
 """The compiled kernel (see common/fast.py: the extension, or numba on the first call)."""

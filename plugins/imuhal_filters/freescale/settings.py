@@ -174,6 +174,14 @@ class Freescale9DofSettings(FreescaleCommonSettings):
     exceeds it about once in 70,000 steps. An uncalibrated magnetometer's hard iron, turning
     with the board, fails it in turns (uncalibrated seed board, `thermal` with the nominal
     airspeed: tilt max 55 -> 6.0 deg). None: always (build 422)."""
+    mag_gate_reacquire_s: float | None = Field(default=3.0, gt=0.0)
+    """The magnetometer gate rejecting this long (s) without a break innovations that one
+    and the same heading offset explains (the field seen through the attitude is the
+    reference field turned about the vertical, its length and dip as expected) means the
+    heading, not the field, is wrong: the heading is turned by that offset and the
+    magnetometer steers again (``kalman.FreescaleKalman._mag_gate_verdict``). Longer than
+    a passing disturbance (2 s of a field turned 60 deg stays rejected). None: the gate
+    never reacquires."""
     full_innovation_inverse: bool = False
     """Build 422 inverts only the top-left 3x3 block of the 6x6 innovation covariance
     (``fmatrixAeqInvA(..., 3)``) and uses the other blocks uninverted; False reproduces that.
