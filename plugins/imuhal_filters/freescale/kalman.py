@@ -193,16 +193,7 @@ class FreescaleKalman:
             return self._result(False, np.zeros(3), False)
 
         if not self.locked:
-            if self.use_mag:
-                r0, self.inclination_deg = ecompass(cs, accel, mag)
-                self.mag_gate[:] = 0.0
-                self.mag_gate[GATE_LENGTH] = float(np.linalg.norm(mag))
-                if self._s9().lock_sets_inclination:
-                    self._set_inclination(self.inclination_deg)
-            else:
-                r0 = tilt_matrix(cs, accel)
-            self.q = quat_from_matrix_fsl(r0)
-            self.locked = True
+            self._lock(accel, mag)
 
         omega = gyro.mean(axis=0) - self.b
 
@@ -221,12 +212,7 @@ class FreescaleKalman:
         m_err = mag - m_gyro
 
         c = self._measurement_matrix(g_gyro, m_gyro)
-        if at_rest:  # the reading is gravity: nothing to gate
-            noise_factor = 1.0
-            self.gate_closed_s = 0.0
-        else:
-            noise_factor = self._accel_noise_factor(accel)
-            noise_factor *= self._innovation_noise_factor(c, noise_factor, g_err)
+        noise_factor = self._accel_distrust(accel, c, g_err, at_rest)
         mag_steers = self._mag_may_steer(noise_factor)
         gated_out = False  # the gate found the field implausible: not the Earth's
         if mag_steers and self._s9().mag_innovation_gate_sigma is not None:
@@ -234,10 +220,8 @@ class FreescaleKalman:
             gated_out = not mag_steers
             if yaw_deg is not None:  # reacquired: the heading turned to the magnetometer's
                 q_mi = quat_mul(quat_about_vertical_deg(-yaw_deg), q_mi)
-                r_mi = matrix_from_quat(q_mi)
-                m_gyro = r_mi @ self.m_global
+                r_mi, m_gyro, c = self._magnetic_prediction(q_mi, g_gyro)
                 m_err = mag - m_gyro
-                c = self._measurement_matrix(g_gyro, m_gyro)
         k = self._gain(c, noise_factor)
 
         # a posteriori error vector; d always sees both measurements
@@ -266,6 +250,40 @@ class FreescaleKalman:
 
         self._next_covariance(p)
         return self._result(True, omega, jamming, accel=accel, r_pl=r_pl)
+
+    def _lock(self, accel: FloatArray, mag: FloatArray) -> None:
+        """The orientation from the accelerometer's tilt (6DOF) or the eCompass (9DOF, which
+        also measures the inclination and the field length the magnetometer gate expects)."""
+        cs = self.s.coordinate_system
+        if self.use_mag:
+            r0, self.inclination_deg = ecompass(cs, accel, mag)
+            self.mag_gate[:] = 0.0
+            self.mag_gate[GATE_LENGTH] = float(np.linalg.norm(mag))
+            if self._s9().lock_sets_inclination:
+                self._set_inclination(self.inclination_deg)
+        else:
+            r0 = tilt_matrix(cs, accel)
+        self.q = quat_from_matrix_fsl(r0)
+        self.locked = True
+
+    def _accel_distrust(self, accel: FloatArray, c: FloatArray, g_err: FloatArray,
+                        at_rest: bool) -> float:
+        """The accelerometer noise factor of the soft and innovation gates; 1 at rest (the
+        reading is gravity: nothing to gate, and the innovation gate opens)."""
+        if at_rest:
+            self.gate_closed_s = 0.0
+            return 1.0
+        noise_factor = self._accel_noise_factor(accel)
+        return noise_factor * self._innovation_noise_factor(c, noise_factor, g_err)
+
+    def _magnetic_prediction(self, q_mi: FloatArray, g_gyro: FloatArray
+                             ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """For the a priori orientation ``q_mi`` (turned in heading only, so the predicted
+        gravity ``g_gyro`` stands): its matrix, the predicted geomagnetic vector (sensor
+        frame) and the measurement matrix."""
+        r_mi = matrix_from_quat(q_mi)
+        m_gyro = r_mi @ self.m_global
+        return r_mi, m_gyro, self._measurement_matrix(g_gyro, m_gyro)
 
     def _measurement_matrix(self, g_gyro: FloatArray, m_gyro: FloatArray) -> FloatArray:
         """C: how the error vector shows in the measurement error (gravity; geomagnetism).
