@@ -1,10 +1,12 @@
 """The Freescale Kalman steps of ``run_6dof``/``run_9dof`` as one compiled kernel (``fast``).
 
 Window by window and in the same order of operations as ``FreescaleKalman.step`` once the
-filter is initialised and locked: the a priori orientation from the window's gyro samples,
-the measurement matrix, the gain (build 422's partial or the full innovation inverse, the
-soft gate's and the innovation gate's noise factors), the magnetometer rule, the
-corrections, magnetic jamming, the inclination tracking and the next process covariance.
+filter is initialised and locked: the rest detector's ticks, the a priori orientation from
+the window's gyro samples, the measurement matrix, the gain (build 422's partial or the full
+innovation inverse, the soft gate's and the innovation gate's noise factors, none at rest),
+the magnetometer rule and gate (with its reacquire turn), the corrections (with the rest
+window's offset update), magnetic jamming, the inclination tracking and the next process
+covariance.
 The matrix products are written out as loops (numba's ``@`` needs scipy's BLAS) and the
 inverse is a Gauss-Jordan with partial pivoting (identity for a singular matrix, as the
 reference); they differ from numpy's BLAS/LAPACK results in the last bits only (the tests

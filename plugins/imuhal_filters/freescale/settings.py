@@ -169,8 +169,10 @@ class Freescale9DofSettings(FreescaleCommonSettings):
     mag_innovation_gate_sigma: float | None = Field(default=5.0, gt=0.0)
     """The magnetometer corrects the orientation and the gyro offset only while its
     innovation's Mahalanobis distance (against the magnetometer block of the innovation
-    covariance) is within this many standard deviations; beyond it, as with a gated
-    accelerometer, the gyro carries the attitude. 5 sigma: a 3-axis Gaussian innovation
+    covariance; the innovation against the predicted field at the field length the lock
+    measured, not at ``field_strength_ut``) is within this many standard deviations; beyond
+    it, as with a gated accelerometer, the gyro carries the attitude and the tracked
+    inclination stays. 5 sigma: a 3-axis Gaussian innovation
     exceeds it about once in 70,000 steps. An uncalibrated magnetometer's hard iron, turning
     with the board, fails it in turns (uncalibrated seed board, `thermal` with the nominal
     airspeed: tilt max 55 -> 6.0 deg). None: always (build 422)."""
