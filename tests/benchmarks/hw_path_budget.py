@@ -25,7 +25,9 @@ put in one share of the path by what it is running (first matching rule):
 
 The shares are multiplied by the case's CPU us per IMU sample from the fastest replay of the
 same child (measured with the profiler attached: py-spy reads the process from outside, at
-a small cost), so the rows add up to it.
+a small cost), so the rows add up to it. A second table splits the driver calls (drivers,
+their replayed bus and the call's timing) by driver, with the calls per IMU sample counted
+in one more replay in this process (not profiled).
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ import subprocess
 import sys
 import tempfile
 from pathlib import Path
+from typing import Any
 
 from tests.benchmarks.bench_hardware_path import RECORDED_CASES
 
@@ -85,18 +88,59 @@ def share_of(frames: list[str]) -> str:
     return SHARES[8]
 
 
-def budget(raw: Path) -> dict[str, float]:
+def driver_of(frames: list[str]) -> str | None:
+    """The driver class a stack sample inside a driver call runs (None: not in one)."""
+    names = [f.split(" (", 1)[0] for f in frames]
+    if "Pipeline._contained_service" not in names:
+        return None
+    at = names.index("Pipeline._contained_service")
+    return next((n.split(".", 1)[0] for n in names[at:] if "Driver." in n),
+                "(outside the driver: watchdog, _service)")
+
+
+def budget(raw: Path) -> tuple[dict[str, float], dict[str, float]]:
     """The shares (fractions of the samples inside ``Pipeline.blocks``) of py-spy's raw
-    (collapsed) output ``raw``."""
+    (collapsed) output ``raw``, and the shares of the driver calls by driver class (their
+    bus transfers and timing included)."""
     counts: collections.Counter[str] = collections.Counter()
+    drivers: collections.Counter[str] = collections.Counter()
     for line in raw.read_text().splitlines():
         stack, _, n = line.rpartition(" ")
         frames = stack.split(";")
         starts = [i for i, f in enumerate(frames) if f.startswith("Pipeline.blocks ")]
         if starts:
             counts[share_of(frames[starts[0]:])] += int(n)
+            driver = driver_of(frames[starts[0]:])
+            if driver is not None:
+                drivers[driver] += int(n)
     total = sum(counts.values()) or 1
-    return {s: counts[s] / total for s in SHARES}
+    return ({s: counts[s] / total for s in SHARES},
+            {d: c / total for d, c in drivers.most_common()})
+
+
+def polls(path: Path) -> tuple[int, collections.Counter[str]]:
+    """One replay of ``path`` (not profiled): its IMU samples and the driver calls of each
+    device."""
+    from tests.benchmarks.bench_hardware_path import replay
+
+    from imuhal.pipeline.pipeline import Pipeline
+    from imuhal.plugins.manager import load_registry
+
+    calls: collections.Counter[str] = collections.Counter()
+    service = Pipeline._contained_service
+
+    def counted(self: Pipeline, dev: Any, t_ns: int) -> Any:
+        # under each class of the driver's: py-spy names a method by the class defining it
+        for cls in type(dev.driver).__mro__:
+            calls[cls.__name__] += 1
+        return service(self, dev, t_ns)
+
+    Pipeline._contained_service = counted  # type: ignore[method-assign]
+    try:
+        imu = replay(load_registry(), path)[0]
+    finally:
+        Pipeline._contained_service = service  # type: ignore[method-assign]
+    return imu, calls
 
 
 def child(path: Path, repeat: int, estimators: bool) -> None:
@@ -137,7 +181,9 @@ def main(argv: list[str] | None = None) -> int:
                if not (args.recordings / f"{c}-{args.duration:g}s.imurec").exists()]
     if missing:  # records every case (and times them once, unprofiled)
         recorded_cases(args.recordings, args.duration, 1)
-    rows: dict[str, tuple[float, dict[str, float]]] = {}
+    rows: dict[str, tuple[float, tuple[dict[str, float], dict[str, float]]]] = {}
+    counted = {case: polls(args.recordings / f"{case}-{args.duration:g}s.imurec")
+               for case in cases}
     with tempfile.TemporaryDirectory() as tmp:
         for case in cases:
             raw = Path(tmp) / f"{case}.txt"
@@ -154,9 +200,18 @@ def main(argv: list[str] | None = None) -> int:
     print("| --- |" + " ---: |" * len(cases))
     for share in SHARES:
         print(f"| {share} | " + " | ".join(f"{us * parts[share]:.1f}"
-                                          for us, parts in rows.values()) + " |")
+                                          for us, (parts, _) in rows.values()) + " |")
     print("| all, CPU us per IMU sample | " + " | ".join(f"{us:.1f}" for us, _ in rows.values())
           + " |")
+    print()
+    print("| case | driver | calls per IMU sample | us per IMU sample | us per call |")
+    print("| --- | --- | ---: | ---: | ---: |")
+    for case, (us, (_, by_driver)) in rows.items():
+        imu, calls = counted[case]
+        for driver, part in by_driver.items():
+            n = calls.get(driver, 0) / imu
+            per_call = f"{us * part / n:.1f}" if n else ""
+            print(f"| {case} | {driver} | {n:.2f} | {us * part:.1f} | {per_call} |")
     return 0
 
 
