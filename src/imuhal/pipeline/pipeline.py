@@ -698,20 +698,10 @@ class Pipeline:
             due_ns = t_ns
             t_ns = self._before_poll(t_ns, name)
             dev = self.devices[name]
-            span = self._span_ns
-            if t_ns > span[1]:
-                span[1] = t_ns
-            if span[1] == due_ns:
-                # on time, and no poll before it came later (the usual poll): nothing to
-                # put off (_on_phase) and nothing late (_note_late)
-                dev.put_off = 0
-            elif self._on_phase(dev, due_ns, t_ns):
+            if self._put_off(dev, due_ns, t_ns):
                 continue
-            else:
-                self._note_late(dev, due_ns, t_ns)
             frames, next_ns = self._contained_service(dev, t_ns)
-            ledger = dev.ledger
-            if ledger is not None:
+            if dev.ledger is not None:
                 self._account(dev)
             dev.next_poll_ns = max(self._next_due(dev, t_ns, next_ns), t_ns + 1)
             heapq.heappush(heap, (dev.next_poll_ns, rank, name))
@@ -775,6 +765,23 @@ class Pipeline:
                 yield read
             else:
                 yield from self._read_frames(read)
+
+    def _put_off(self, dev: DeviceRuntime, due_ns: int, t_ns: int) -> bool:
+        """A poll due at ``due_ns`` comes at ``t_ns``: the run's span moves on, and a late
+        poll is put off to its device's grid (True: ``_on_phase``) or charged to the
+        ledger (``_note_late``)."""
+        span = self._span_ns
+        if t_ns > span[1]:
+            span[1] = t_ns
+        if span[1] == due_ns:
+            # on time, and no poll before it came later (the usual poll): nothing to put
+            # off and nothing late (what _on_phase and _note_late find, without them)
+            dev.put_off = 0
+            return False
+        if self._on_phase(dev, due_ns, t_ns):
+            return True
+        self._note_late(dev, due_ns, t_ns)
+        return False
 
     def _on_phase(self, dev: DeviceRuntime, due_ns: int, t_ns: int) -> bool:
         """A poll due at ``due_ns`` that can only happen at ``t_ns``, half a frame period or
