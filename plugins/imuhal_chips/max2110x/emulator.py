@@ -146,6 +146,7 @@ _DATA_FIRST = int(Reg.GYRO_X_H)
 _WORDS_BE = struct.Struct(f">{(0x40 - _DATA_FIRST) // 2}H")
 _WORDS_LE = struct.Struct(f"<{(0x40 - _DATA_FIRST) // 2}H")
 _AXES_BE, _AXES_LE = struct.Struct(">3H"), struct.Struct("<3H")
+_PAIR_BE, _PAIR_LE = struct.Struct(">6H"), struct.Struct("<6H")
 """One channel's three words, as ``_WORDS_BE`` / ``_WORDS_LE`` lay each out."""
 _WORD_BE, _WORD_LE = struct.Struct(">H"), struct.Struct("<H")
 
@@ -250,6 +251,9 @@ class Max2110xEmulator(ChipEmulator):
         self.fills_latched_at_once = 0
         """FIFO fills whose measurements (but the last instant's) were latched at once
         (since construction)."""
+        self.pairs_latched_at_once = 0
+        """Instants whose gyro and accelerometer measurements were latched together from
+        the board's plan (``_latch_pair_planned``; since construction)."""
         self.power_on_reset()
 
     # --- state ----------------------------------------------------------------------------
@@ -575,14 +579,69 @@ class Max2110xEmulator(ChipEmulator):
             return
         self.record_measurements(due, period, missed + 1)  # the gyro, counted on a tie
         if missed:
-            self.status |= _GYRO_ERR
-        self.pull_physics(newest)
-        self._latch(_GYRO)
-        if missed:
-            self.status |= _ACC_ERR
-        self.pull_physics(newest)
-        self._latch(_ACCEL)
+            self.status |= _GYRO_ERR | _ACC_ERR
+        # Both pulls taken from the board's plan in one step (the instant is announced
+        # twice, once per channel: rows ``first`` and ``first + 1``), when it can give them
+        take = self.physics_rows
+        taken = None if take is None or self.frozen else take((newest, newest))
+        if taken is None or not self._latch_pair_planned(*taken):
+            if taken is not None:  # taken, but not latched at once: row by row, as pulled
+                self.keep_planned(taken[0], taken[1])
+            else:
+                self.pull_physics(newest)
+            self._latch(_GYRO)
+            if taken is not None:
+                self.keep_planned(taken[0], taken[1] + 1)
+            else:
+                self.pull_physics(newest)
+            self._latch(_ACCEL)
         self._accel_latched(missed + 1, newest)
+
+    def _latch_pair_planned(self, plan: PlannedInputs, row: int) -> bool:
+        """:meth:`_latch` of the gyro from row ``row`` of ``plan`` then of the accelerometer
+        from row ``row + 1`` (both pulls of one instant, taken at once by
+        :meth:`_advance_pair`), written out for the common case: every axis on and the
+        plan's counts encoded (``_plan_encoded``). The same words, register image,
+        temperature word, status bits and reads-since-latch. False, latching nothing, where
+        that case does not hold."""
+        bank0 = self.banks[0]
+        if self.part.has_aux_master and (bank0[_POWER_CFG] & 0x07 != 0x07
+                                         or bank0[_PWR_ACC_CFG] & 0x07 != 0x07):
+            return False
+        gyro = self._plan_encoded(plan, _GYRO)[3]
+        accel = self._plan_encoded(plan, _ACCEL)[3]
+        if gyro is None or accel is None:
+            return False
+        gx, gy, gz = gyro[row]
+        ax, ay, az = accel[row + 1]
+        words = self.words
+        words[_GYRO_X_H] = gx
+        words[_GYRO_X_H + 2] = gy
+        words[_GYRO_X_H + 4] = gz
+        words[_ACC_X_H] = ax
+        words[_ACC_X_H + 2] = ay
+        words[_ACC_X_H + 4] = az
+        image = self._data_image
+        if image is not None:  # the gyro's words then the accelerometer's, from 0x24
+            (_PAIR_LE if bank0[_I2C_CFG] & I2C_CFG_LITTLE_ENDIAN else _PAIR_BE).pack_into(
+                image, 0, gx & 0xFFFF, gy & 0xFFFF, gz & 0xFFFF, ax & 0xFFFF, ay & 0xFFFF,
+                az & 0xFFFF)
+        if bank0[_DR_CFG] & DR_CFG_TEMP_EN:  # the gyro's latch writes it, from its row
+            temperature = self._planned_temperature(plan, row)
+            if temperature is None:
+                p = plan.row(row)
+                t = p.temperature_degc if p.temperature_degc is not None else 25.0
+                temperature = _encode(t, 1.0 / _TEMP_LSB_PER_DEGC, 32767)
+            self._store_word(self.part.temp_register, temperature)
+        status = self.status
+        if status & _GYRO_DR:
+            status |= _GYRO_ERR  # the previous sample was never read: it is lost
+        if status & _ACC_DR:
+            status |= _ACC_ERR
+        self.status = status | _GYRO_DR | _ACC_DR
+        self._read_since_latch = [set(), set()]
+        self.pairs_latched_at_once += 1
+        return True
 
     def _advance_each(self, now: int) -> None:
         """The measurements due by ``now``, every one latched in the order the chip made
