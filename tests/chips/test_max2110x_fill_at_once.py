@@ -112,15 +112,19 @@ def _read_out(bus: EmulatedBus) -> tuple[bytes, ...]:
 
 
 def _fly(cls: type[Max21100Emulator], at_once: bool, fills: Sequence[int], seed: int,
-         **options: object) -> tuple[list[tuple[bytes, ...]], list[int], int, int, int]:
+         writes: dict[int, tuple[int, int]] | None = None, **options: object
+         ) -> tuple[list[tuple[bytes, ...]], list[int], int, int, int]:
     """(what the host read after each fill, the pulls, the instants recorded, the frames
-    written and dropped); the last fly's chip in ``FLOWN``."""
+    written and dropped); the last fly's chip in ``FLOWN``. ``writes``: a register written
+    (register, value) after the read of the fill of that index."""
     clock, bus, emu, board = _measuring(cls, at_once, seed, **options)  # type: ignore[arg-type]
     FLOWN[:] = [emu]
     seen = []
-    for frames in fills:
+    for k, frames in enumerate(fills):
         clock.sleep(frames * PERIOD_S)
         seen.append(_read_out(bus))
+        if writes and k in writes:
+            wr(bus, *writes[k])
     return (seen, board.pulls, emu.measured_ns.count_until(clock.now_ns()),
             emu.fifo.frames_written, emu.fifo.frames_dropped)
 
@@ -141,6 +145,18 @@ def test_a_fill_latched_at_once_reads_as_one_latched_measurement_by_measurement(
                       little_endian=little_endian)
     assert at_once == one_by_one
     assert at_once[4] > 0  # some fills overflowed
+
+
+def test_a_fill_after_a_change_of_range_packs_its_frames_at_the_new_sensitivity() -> None:
+    # the frames packed once per plan are the counts at the sensitivity they are latched at:
+    # +-500 dps and +-4 g, then +-250 dps (GYRO_CFG1) from the fourth fill and +-8 g
+    # (PWR_ACC_CFG) from the seventh (each write restarts the timing: a new plan)
+    writes = {3: (0x01, 0x03), 6: (0x04, 0x47)}
+    options = {"temperature": True, "little_endian": False}
+    at_once = _fly(Max21100Emulator, True, FILLS, 5, writes, **options)
+    latched = FLOWN[0].fills_latched_at_once
+    assert at_once == _fly(Max21100Emulator, False, FILLS, 5, writes, **options)
+    assert latched >= sum(1 for n in FILLS[7:] if n > 1)  # fills after both changes too
 
 
 def test_fills_are_latched_at_once_when_the_board_planned_their_instants() -> None:

@@ -242,6 +242,9 @@ class Max2110xEmulator(ChipEmulator):
         the latest plan encoded."""
         self._plan_temperature: tuple[PlannedInputs, list | None] | None = None
         """(plan, every row's temperature counts) likewise."""
+        self._plan_frames: tuple[PlannedInputs, float, float, bytes] | None = None
+        """(plan, gyro and accelerometer SI per count, every row's FIFO frame packed) of the
+        latest plan a fill was latched from (``_latch_fill``)."""
         self.fast_paths = True
         """The paths written for the common case: a FIFO fill's planned measurements
         latched at once, on the plan's arrays (:meth:`_latch_fill`), and both channels on
@@ -729,8 +732,8 @@ class Max2110xEmulator(ChipEmulator):
         if taken is None:
             return 0, None
         plan, first = taken
-        gyro, accel = (self._plan_encoded(plan, index)[2] for index in (_GYRO, _ACCEL))
-        if gyro is None or accel is None:
+        frames = self._planned_frames(plan)
+        if frames is None:
             return 0, taken
         n = len(instants)
         self.record_measurements(instants[0], self._period_ns[_GYRO], n)
@@ -741,12 +744,26 @@ class Max2110xEmulator(ChipEmulator):
         self.status |= _GYRO_DR | _GYRO_ERR | _ACC_DR | _ACC_ERR
         for t in instants:
             self._accel_latched(1, t)
-        # a frame is the gyro's words then the accelerometer's, big-endian (_fifo_write)
-        rows = slice(first, first + n)
-        fifo.push_frames(np.concatenate((gyro[rows], accel[rows]), axis=1).astype(">i2")
-                         .tobytes(), 12)
+        fifo.push_frames(frames[12 * first:12 * (first + n)], 12)
         self.fills_latched_at_once += 1
         return 2 * n, None
+
+    def _planned_frames(self, plan: PlannedInputs) -> bytes | None:
+        """Every row of ``plan`` as the FIFO frame it latches (the gyro's words then the
+        accelerometer's, big-endian: ``_fifo_write``), packed by one numpy call once per plan
+        and sensitivity; None where the plan's values do not all encode at once."""
+        k_gyro, k_accel = self._per_count
+        cached = self._plan_frames
+        if cached is None or cached[0] is not plan or cached[1] != k_gyro \
+                or cached[2] != k_accel:
+            gyro = self._plan_encoded(plan, _GYRO)[2]
+            accel = self._plan_encoded(plan, _ACCEL)[2]
+            if gyro is None or accel is None:
+                return None
+            cached = self._plan_frames = (
+                plan, k_gyro, k_accel,
+                np.concatenate((gyro, accel), axis=1).astype(">i2").tobytes())
+        return cached[3]
 
     def _announce_instants(self, first_ns: int, now: int, *, each_channel: bool = False
                            ) -> None:
