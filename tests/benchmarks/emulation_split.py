@@ -1,7 +1,7 @@
 """Where an emulated board's CPU goes, by layer (plain script; not collected by pytest).
 
 Run:  .venv/bin/python -m tests.benchmarks.emulation_split [--duration 30] [--repeat 2]
-          [--fifo-frames 8] [--other TREE]
+          [--fifo-frames 8] [--other TREE] [--calls]
 
 The seed paraglider vario (profiles/seed-paraglider-vario.yaml, ``thermal``, its
 estimators) emulated with one frame per block, and with its MAX21100 read from the FIFO in
@@ -24,6 +24,11 @@ and the standard library count for their caller), so a chip emulator's call into
 simulation counts as simulation. Sampling, not tracing: cProfile's cost per call would
 inflate the many small functions of these layers. The figures are shares of the run and
 us of CPU per IMU sample (250 Hz), the best (least CPU) of ``--repeat`` runs.
+
+``--calls`` counts the Python function calls each layer's code makes per IMU sample instead
+(``sys.setprofile``): deterministic, so it compares two trees exactly where CPU figures on
+a loaded machine cannot resolve a few per cent (a call is not a fixed cost, so it is the
+shape of the work, not its time).
 
 ``--other TREE`` measures another tree (its ``src`` and ``plugins``, e.g. an exported
 main) in a child process in the same minutes, alternating with this one, and prints the
@@ -49,6 +54,7 @@ LAYERS = ("simulation", "chip emulators", "bus glue", "fault layer", "hardware p
 RATE_HZ = 250.0
 SAMPLE_S = 0.0005
 
+_PROJECT = "/imuhal"  # imuhal, imuhal_chips, imuhal_filters (and their tests' packages)
 _CHIP_FACES = ("/imuhal/sim/chip.py", "/imuhal/sim/measured.py", "/imuhal/sim/inputs.py")
 _GLUE = ("/imuhal/sim/emulated_bus.py", "/imuhal/emulation/board.py",
          "/imuhal/emulation/lines.py", "/imuhal/emulation/mounting.py")
@@ -107,6 +113,51 @@ def measure(duration_s: float, fifo_frames: int | None) -> tuple[float, Counter[
     return cpu, samples
 
 
+def calls(duration_s: float, fifo_frames: int | None) -> dict[str, float]:
+    """{layer: Python function calls per IMU sample made in that layer's code, 'total'}:
+    deterministic (traced with ``sys.setprofile``), so two trees compare exactly where CPU
+    figures on a loaded machine cannot resolve a few per cent."""
+    from tests.benchmarks.bench_blocks import SEED, board_yaml
+
+    from imuhal.emulation import open_emulated
+    from imuhal.plugins.manager import load_registry
+    from imuhal.profile.loader import parse_profile
+
+    registry = load_registry()
+    profile = parse_profile(board_yaml(fifo_frames, SEED), str(SEED), registry)
+    counted: Counter[str] = Counter()
+    layers: dict[str, str] = {}
+
+    def tracer(frame: FrameType, event: str, arg: object) -> None:
+        if event != "call":
+            return
+        # a call into numpy or the standard library counts for the project code calling it
+        f: FrameType | None = frame
+        while f is not None:
+            path = f.f_code.co_filename
+            layer = layers.get(path)
+            if layer is None:
+                layer = layers[path] = layer_of(path) or (
+                    "hardware path" if _PROJECT in path.replace(os.sep, "/") else "")
+            if layer:
+                counted[layer] += 1
+                return
+            f = f.f_back
+
+    with open_emulated(profile, registry, scenario="thermal") as pipeline:
+        events = pipeline.events(duration_s)
+        sys.setprofile(tracer)
+        try:
+            for _ in events:
+                pass
+        finally:
+            sys.setprofile(None)
+    n = duration_s * RATE_HZ
+    out = {layer: counted[layer] / n for layer in LAYERS}
+    out["total"] = sum(counted.values()) / n
+    return out
+
+
 def figures(duration_s: float, fifo_frames: int | None, repeat: int) -> dict[str, float]:
     """{layer: us of CPU per IMU sample, 'total': the run's} of the least-CPU run."""
     cpu, samples = min((measure(duration_s, fifo_frames) for _ in range(max(1, repeat))),
@@ -125,6 +176,8 @@ def _child(tree: Path, args: argparse.Namespace, fifo_frames: int | None) -> dic
     # this file, run on the other tree's sources (an older tree may not have it)
     cmd = [sys.executable, str(Path(__file__).resolve()), "--json",
            "--duration", str(args.duration), "--repeat", str(args.repeat)]
+    if args.calls:
+        cmd.append("--calls")
     if fifo_frames is not None:
         cmd += ["--only-fifo", str(fifo_frames)]
     else:
@@ -140,20 +193,27 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--fifo-frames", type=int, default=8, help="the FIFO mode's block size")
     p.add_argument("--other", type=Path, default=None,
                    help="another tree to measure alternately (ratios: this one / it)")
+    p.add_argument("--calls", action="store_true",
+                   help="count Python calls per IMU sample by layer instead of sampling CPU")
     p.add_argument("--json", action="store_true", help=argparse.SUPPRESS)
     p.add_argument("--only-fifo", type=int, default=None, help=argparse.SUPPRESS)
     p.add_argument("--only-one-frame", action="store_true", help=argparse.SUPPRESS)
     args = p.parse_args(argv)
+    def measured(fifo: int | None) -> dict[str, float]:
+        return calls(args.duration, fifo) if args.calls else \
+            figures(args.duration, fifo, args.repeat)
+
     if args.json:  # a child of --other: one mode, its figures as one JSON line
-        fifo = None if args.only_one_frame else args.only_fifo
-        print(json.dumps(figures(args.duration, fifo, args.repeat)))
+        print(json.dumps(measured(None if args.only_one_frame else args.only_fifo)))
         return 0
     modes = {"one frame per block": None, f"FIFO blocks of {args.fifo_frames}": args.fifo_frames}
     for mode, fifo in modes.items():
-        mine = figures(args.duration, fifo, args.repeat)
+        mine = measured(fifo)
         other = None if args.other is None else _child(args.other.resolve(), args, fifo)
-        print(f"seed board, {mode}, {args.duration:g} s (us of CPU per IMU sample, best of "
-              f"{args.repeat}; load {os.getloadavg()[0]:.1f}):")
+        what = "Python calls per IMU sample" if args.calls else \
+            f"us of CPU per IMU sample, best of {args.repeat}"
+        print(f"seed board, {mode}, {args.duration:g} s ({what}; load "
+              f"{os.getloadavg()[0]:.1f}):")
         head = f"  {'layer':<16} {'this tree':>10} {'share':>7}"
         if other is not None:
             head += f" {'other':>10} {'share':>7} {'this/other':>10}"
