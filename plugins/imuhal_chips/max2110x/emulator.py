@@ -146,8 +146,9 @@ _DATA_FIRST = int(Reg.GYRO_X_H)
 _WORDS_BE = struct.Struct(f">{(0x40 - _DATA_FIRST) // 2}H")
 _WORDS_LE = struct.Struct(f"<{(0x40 - _DATA_FIRST) // 2}H")
 _AXES_BE, _AXES_LE = struct.Struct(">3H"), struct.Struct("<3H")
-_PAIR_BE, _PAIR_LE = struct.Struct(">6H"), struct.Struct("<6H")
 """One channel's three words, as ``_WORDS_BE`` / ``_WORDS_LE`` lay each out."""
+_PAIR_BE, _PAIR_LE = struct.Struct(">6H"), struct.Struct("<6H")
+"""The gyro's three words then the accelerometer's (0x24..0x2F, in that order), likewise."""
 _WORD_BE, _WORD_LE = struct.Struct(">H"), struct.Struct("<H")
 
 # The bus face runs for every SPI transaction, about 2600 per simulated second on the seed
