@@ -41,7 +41,8 @@ def _window(t: np.ndarray, spans: list[tuple[float, float]]) -> np.ndarray:
 
 def test_estimates_come_at_the_barometer_rate(ride) -> None:  # type: ignore[no-untyped-def]
     est, *_ = ride
-    assert len(est) == pytest.approx(40 * 50, abs=2)
+    # the filter's start-up withholds its first 0.3-0.4 s (baro-vario settled_climb_sigma_m_s)
+    assert 40 * 50 - 25 <= len(est) <= 40 * 50 + 2
 
 
 def test_altitude_change_tracks_truth_within_30_cm(ride) -> None:  # type: ignore[no-untyped-def]
