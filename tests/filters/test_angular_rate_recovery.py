@@ -363,3 +363,60 @@ def test_a_recovery_whose_accelerometer_went_quiet_withholds(registry: Registry)
     quiet = rolled_into_the_rail(1.6, 49)
     assert len(quiet) == 50 and _withheld(quiet) == 50
     assert ahrs.diagnostics()["angular_rate_recovery"]["clipped_samples"] == 50
+
+
+BANK_RAD = float(np.radians(22.0))
+TURN_SPEED_M_S = 15.0
+
+
+def _turning(bank_rad: float = BANK_RAD) -> dict[str, Any]:
+    """A coordinated turn at ``bank_rad`` and TURN_SPEED_M_S: the accelerometer reads the
+    load factor along the body's z axis (1/cos(bank) g), the gyro the turn rate
+    g tan(bank) / speed about the vertical, seen in the banked body."""
+    turn_rad_s = G * float(np.tan(bank_rad)) / TURN_SPEED_M_S
+    return {"accel_m_s2": (0.0, 0.0, -G / float(np.cos(bank_rad))),
+            "gyro_rad_s": (0.0, turn_rad_s * float(np.sin(bank_rad)),
+                           turn_rad_s * float(np.cos(bank_rad)))}
+
+
+def _compensating_madgwick(registry: Registry) -> Any:
+    """``_madgwick`` compensating turns by the nominal airspeed TURN_SPEED_M_S."""
+    return registry.estimators.get("madgwick")({"use_mag": False, "beta": 0.5,
+                                                "accel_soft_gate_g": None,
+                                                "sample_period_s": 0.01,
+                                                "nominal_airspeed_m_s": TURN_SPEED_M_S})
+
+
+def test_an_attitude_that_kept_its_bank_through_a_long_span_is_handed_out_in_the_turn(
+        registry: Registry) -> None:
+    """Issue 26 (gy91's soak: an attitude withheld for 33 s of thermal circling after a
+    2 s IMU outage): the accelerometer of a turning glider reads 1.08 g at 22 deg of bank,
+    never within 0.05 g of 1 g, so the check of the raw reading never passed. Less the
+    turn's kinematic acceleration (what the filter fuses) it reads gravity, which confirms
+    an attitude whose bank the span did not change at its first step."""
+    ahrs = _compensating_madgwick(registry)
+    _feed(ahrs, 0.0, 1.0, **_turning())
+    # longer than max_gap_s (1 s): the span is stepped over, only the accelerometer checks
+    _feed(ahrs, 1.0, 2.5, gyro_flags=SampleFlag.BLANK, **_turning())
+    after = _feed(ahrs, 2.5, 3.0, **_turning())
+    assert after and _withheld(after) == 0
+    banked = (float(np.cos(BANK_RAD / 2)), float(np.sin(BANK_RAD / 2)), 0.0, 0.0)
+    assert max(tilt_error_deg(e.q_body_to_ned, banked) for e in after) < 1.0
+    assert ahrs.diagnostics()["angular_rate_recovery"]["unmeasured_spans"] == 1
+
+
+def test_a_roll_into_a_compensated_turn_inside_a_span_is_withheld_until_it_agrees(
+        registry: Registry) -> None:
+    """The same turn entered while the gyro was out: less its kinematic acceleration the
+    reading is gravity in the banked body, 22 deg from the level attitude's, so it does
+    not confirm the attitude (and the turn rate it leaves stops the span check) until the
+    filter's own correction has brought the bank within 5 deg."""
+    ahrs = _compensating_madgwick(registry)
+    _feed(ahrs, 0.0, 1.0, accel_m_s2=LEVEL)
+    _feed(ahrs, 1.0, 1.3, gyro_flags=SampleFlag.BLANK, **_turning())
+    after = _feed(ahrs, 1.3, 2.5, **_turning())
+    first_out = next(i for i, e in enumerate(after) if isinstance(e, AttitudeEstimate))
+    assert first_out > 10 and _withheld(after[:first_out]) == first_out
+    banked = (float(np.cos(BANK_RAD / 2)), float(np.sin(BANK_RAD / 2)), 0.0, 0.0)
+    assert tilt_error_deg(after[first_out].q_body_to_ned, banked) <= 5.01
+    assert all(isinstance(e, AttitudeEstimate) for e in after[first_out:])

@@ -621,7 +621,7 @@ class AhrsEstimator(Estimator):
         if not out:
             return out
         continues = self._force_continues(rate)
-        if continues or self._accel_confirms():
+        if continues or self._accel_confirms(item.t_ns, rate):
             if continues:
                 counts["unmeasured_continued"] = counts.get("unmeasured_continued", 0) + 1
             self._unchecked = False
@@ -672,20 +672,37 @@ class AhrsEstimator(Estimator):
         apart = math.atan2(math.sqrt(cx * cx + cy * cy + cz * cz), x * bx + y * by + z * bz)
         return apart <= UNMEASURED_SPAN_CHECKED_RAD
 
-    def _accel_confirms(self) -> bool:
-        """The newest accelerometer reading (fresh: within ``max_aux_age_s``) is within
-        UNMEASURED_SPAN_CHECK_G of 1 g and within UNMEASURED_SPAN_CHECKED_RAD of the gravity
-        the attitude predicts."""
-        accel, t_ns = self._accel_m_s2, self._accel_t_ns
-        if accel is None or t_ns is None or self._last_gyro_t_ns is None or (
-                self._max_aux_age_s is not None
-                and (self._last_gyro_t_ns - t_ns) * _NS > self._max_aux_age_s):
-            return False
-        g = gravity_positive_g(accel)
-        if abs(math.sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]) - 1.0) > \
+    def _accel_confirms(self, t_ns: int, rate: Vec) -> bool:
+        """The newest accelerometer reading, fresh and less the kinematic acceleration of
+        the step (``_checking_g``), is within UNMEASURED_SPAN_CHECK_G of 1 g and within
+        UNMEASURED_SPAN_CHECKED_RAD of the gravity the attitude predicts."""
+        g = self._checking_g(t_ns, rate)
+        if g is None or abs(math.sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]) - 1.0) > \
                 UNMEASURED_SPAN_CHECK_G:
             return False
         return _tilt_pulled(self._q, g, 0.0)[1] <= UNMEASURED_SPAN_CHECKED_RAD
+
+    def _checking_g(self, t_ns: int, rate: Vec) -> Vec | None:
+        """What checks the attitude at the gyro step at ``t_ns`` with the ``rate`` (rad/s,
+        body): the newest accelerometer reading if fresh (``max_aux_age_s``), less the
+        kinematic acceleration the filter's own step removes from it (turn compensation:
+        ``rate`` x the airspeed along the body's x axis, which does not depend on the
+        attitude), as a gravity-positive reading in g; None: no fresh reading.
+
+        Compensated, as the filter fuses it: in a turn the raw reading is the load factor
+        along the body's z axis (1.1 g at 25 deg of bank), which is neither 1 g nor
+        gravity's direction, so a check of the raw reading never passed while circling
+        (gy91's 300 s soak: an attitude withheld for 33 s of a thermal after a 2 s IMU
+        outage), and a recovery's pull towards it turned the tilt towards the bank."""
+        accel, a_t = self._accel_m_s2, self._accel_t_ns
+        if accel is None or a_t is None or (
+                self._max_aux_age_s is not None and (t_ns - a_t) * _NS > self._max_aux_age_s):
+            return None
+        if self._turn_on:
+            kinematic = self._kinematics.acceleration(t_ns, rate)[1]
+            if kinematic != NO_VECTOR:
+                accel = compensated(accel, kinematic)
+        return gravity_positive_g(accel)
 
     def _ramped_into(self, clipped: Vec, limit: float) -> bool:
         """Whether a reading clipped at +-``limit`` (rad/s) can be a rotation that reached
@@ -726,12 +743,8 @@ class AhrsEstimator(Estimator):
             dt = (item.t_ns - last) * _NS
         gain = RECOVERY_GAIN * self._recovery_left_s / RECOVERY_S
         self._recovery_left_s = max(0.0, self._recovery_left_s - dt)
-        accel = self._accel_m_s2
-        checked = accel is not None and self._accel_t_ns is not None and (
-            self._max_aux_age_s is None
-            or (item.t_ns - self._accel_t_ns) * _NS <= self._max_aux_age_s) \
-            and self.owns_quaternion and self._tilt_aligned
-        g = gravity_positive_g(accel) if checked and accel is not None else None
+        g = self._checking_g(item.t_ns, rate) if self.owns_quaternion and self._tilt_aligned \
+            else None
         if g is not None:
             self._q = _tilt_pulled(self._q, g, gain * dt)[0]
         out = self._on_gyro(item, rate)
