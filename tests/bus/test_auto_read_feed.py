@@ -58,6 +58,49 @@ def test_a_good_read_without_new_data_ends_the_run_of_failures() -> None:
     assert f.take()[-1] == Copy(40, b"\x01\x12\x22", after_ns=30)
 
 
+def test_a_copy_names_the_last_of_the_good_reads_since_the_one_before_that_found_nothing(
+) -> None:
+    """Every master read between two measurements found the slave's data-ready bit clear:
+    the slave made nothing new up to the last of them (a hung chip's proof, issue 25)."""
+    f = feed()
+    f.deliver(10, b"\x01\x10\x20")
+    f.deliver(20, b"\x00\x10\x20")
+    f.deliver(30, b"\x00\x10\x20")
+    f.deliver(40, b"\x03\x11\x21")
+    assert [c.quiet_ns for c in f.take()] == [None, 30]
+
+
+def test_a_failed_read_breaks_the_run_of_reads_that_found_nothing() -> None:
+    f = feed()
+    f.deliver(10, b"\x01\x10\x20")
+    f.deliver(20, b"\x00\x10\x20")
+    f.deliver(30, b"\x00\x10\x20", failed=True)
+    f.deliver(40, b"\x00\x10\x20")
+    f.deliver(50, b"\x01\x11\x21")
+    assert f.take()[-1].quiet_ns is None
+
+
+def test_a_repeated_copy_with_data_ready_breaks_the_run() -> None:
+    """A copy with data-ready equal to the one before is no read of the slave's state now
+    (a master read that failed unreported leaves the copy as it was)."""
+    f = feed()
+    f.deliver(10, b"\x01\x10\x20")
+    f.deliver(20, b"\x01\x10\x20")
+    f.deliver(30, b"\x00\x10\x20")
+    f.deliver(40, b"\x01\x11\x21")
+    assert f.take()[-1].quiet_ns is None
+
+
+def test_a_feed_without_a_data_ready_bit_proves_no_quiet_reads() -> None:
+    """The MAX21100's copies hold the slave's data bytes only: equal bytes may be a read
+    that found nothing or a read that failed."""
+    f = AutoReadFeed(0x1E, 0x03, 2, latency_ns=5_000)
+    for t in (10, 20, 30):
+        f.deliver(t, b"\x10\x20")
+    f.deliver(40, b"\x11\x21")
+    assert [c.quiet_ns for c in f.take()] == [None, None]
+
+
 P = 10_000
 
 

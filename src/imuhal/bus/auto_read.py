@@ -48,6 +48,11 @@ class Copy(NamedTuple):
     """The delivery before it (None: the first). Longer than the master's period before
     it, the master's driver was not reading (its chip recovering, blank reads, a stalled
     host), and the copy may hold a measurement up to one slave period older than usual."""
+    quiet_ns: int | None = None
+    """The latest delivery before it of an unbroken run of good ones since the change
+    before it, each with the slave's data-ready bit clear (``keep_ready_only``): the slave
+    had measured nothing new at any of those master reads (None: no such run, a failed
+    read broke it, or the feed knows no data-ready bit)."""
 
 
 def stamp_on_cadence(copy: Copy, last_ns: int | None, period_ns: int, *,
@@ -92,8 +97,9 @@ class AutoReadFeed:
     copy its burst comes).
     """
 
-    __slots__ = ("_failed", "_raw", "changed_ns", "data", "deliveries", "failures", "fresh",
-                 "latency_ns", "length", "ready_bit", "register", "t_ns", "target")
+    __slots__ = ("_failed", "_quiet", "_quiet_ns", "_raw", "changed_ns", "data", "deliveries",
+                 "failures", "fresh", "latency_ns", "length", "ready_bit", "register", "t_ns",
+                 "target")
 
     def __init__(self, target: int, register: int, length: int, *, latency_ns: int) -> None:
         self.target = target
@@ -118,6 +124,12 @@ class AutoReadFeed:
         self.ready_bit: tuple[int, int] | None = None
         """(byte offset, mask) of the slave's own data-ready bit among the bytes, when its
         driver set one with :meth:`keep_ready_only`."""
+        self._quiet = True
+        """Every delivery since the latest change was good and had the data-ready bit
+        clear (a failed read, or a copy with data-ready repeating the one before, ends
+        it)."""
+        self._quiet_ns: int | None = None
+        """The latest of those deliveries (``Copy.quiet_ns``)."""
 
     def keep_ready_only(self, offset: int, mask: int) -> None:
         """The slave has a data-ready bit among the bytes (byte ``offset``, bit ``mask``),
@@ -131,9 +143,11 @@ class AutoReadFeed:
     def deliver(self, t_ns: int, data: bytes, *, failed: bool = False,
                 nack_seen: bool = False) -> None:
         """The master's driver read ``data`` (``length`` bytes, slave register order) at
-        ``t_ns``. ``failed``: the master reported that its read of the slave for this copy
-        failed (its registers keep the copy before): no change, and the next change may
-        carry the measurement that read missed (``Copy.failed_ns``).
+        ``t_ns``: one delivery per read the master made of the slave (a master that may not
+        have read it again since the last delivery is not delivered from). ``failed``: the
+        master reported that its read of the slave for this copy failed (its registers keep
+        the copy before): no change, and the next change may carry the measurement that
+        read missed (``Copy.failed_ns``).
 
         ``nack_seen``: the master reported a failed slave read among several copies without
         saying which (the MPU-9250's SLV0_NACK over a FIFO read of many frames): a copy
@@ -148,14 +162,17 @@ class AutoReadFeed:
         if failed:
             self.failures += 1
             self._failed.append(t_ns)
+            self._quiet, self._quiet_ns = False, None
             self.t_ns = t_ns
             self.deliveries += 1
             return
         failed_ns, self._failed = tuple(self._failed), []
         ready = self.ready_bit
         raw, self._raw = self._raw, data
+        quiet = False
         if ready is not None:
             if not data[ready[0]] & ready[1]:
+                quiet = self._quiet  # a good read that found nothing new
                 data = self.data if self.data is not None else data
             elif data != raw:
                 # a copy with data-ready that differs from the copy before it is a new
@@ -165,7 +182,12 @@ class AutoReadFeed:
         if data != self.data:
             self.data = data
             self.changed_ns = t_ns
-            self.fresh.append(Copy(t_ns, data, failed_ns, after_ns))
+            self.fresh.append(Copy(t_ns, data, failed_ns, after_ns, self._quiet_ns))
+            self._quiet, self._quiet_ns = True, None
+        elif quiet:
+            self._quiet_ns = t_ns
+        else:
+            self._quiet, self._quiet_ns = False, None
         self.t_ns = t_ns
         self.deliveries += 1
 
