@@ -190,6 +190,33 @@ def test_a_magnetometer_keeps_its_fields_while_its_masters_data_ready_is_stuck(
     assert len(fields) == 2, fields
 
 
+def test_a_hung_magnetometer_behind_the_max21100_is_proved_hung_by_its_status(
+        registry: Registry) -> None:
+    """Every chip of the seed paraglider board hangs for 90 ms (the fault matrix's
+    ``stuck_data_ready`` at 1 %): the MAX21100's copies of the HMC5883L's six data bytes
+    stay the same for 7.7 field periods, more than a measuring chip repeats them; its
+    status register, read then, has RDY clear twice: the seven fields it never made are
+    counted ``not_measured`` (they were counted lost: 748 for the chip's 741 in the
+    matrix)."""
+    p = _fly(registry, "seed-paraglider-vario",
+             [StuckDataReady(device=d, start_s=5.455, end_s=5.545) for d in ("imu", "mag")],
+             seed=1, seconds=6.0)
+    ledger = _ledger_matches_the_chip(p, "mag")
+    assert ledger.not_measured >= 5
+
+
+def test_an_unplugged_magnetometer_behind_the_max21100_is_not_taken_for_a_hung_one(
+        registry: Registry) -> None:
+    """The HMC5883L unplugged for 80 ms while it measures on: the MAX21100's reads of it
+    fail and keep the copy before, the same for as long as a hung chip's; its status
+    register reads 0xFF (RDY set, the line released) or not at all, so its fields are
+    lost, none is counted as not measured."""
+    p = _fly(registry, "seed-paraglider-vario",
+             [ChipAbsent(device="mag", start_s=5.45, end_s=5.53)], seed=1, seconds=6.0)
+    ledger = _ledger_matches_the_chip(p, "mag")
+    assert ledger.not_measured == 0 and sum(ledger.lost.values()) >= 5
+
+
 def test_io_errors_on_the_aux_wire_are_slave_reads_the_master_reports(
         registry: Registry) -> None:
     """An I/O error on the magnetometer's line behind the MPU-9250's master is a failed
