@@ -174,6 +174,12 @@ class FrameLedger:
         """Frames the chip produced from the first valid frame to the latest one."""
         return self.delivered + sum(self.lost.values())
 
+    @property
+    def counted_ns(self) -> int | None:
+        """Where the latest valid frame is counted from (its stamp, or the grid point of the
+        late poll that read it: ``count_at``); None before the first."""
+        return None if self.last_ns is None else self._last_counted_ns
+
     def note(self, cause: str, *, at_ns: int | None = None) -> None:
         """Something that can cost frames happened (one of CAUSES); ``reset`` also ends the
         current segment. ``at_ns``: when it began (a late poll's due time), for a cause
