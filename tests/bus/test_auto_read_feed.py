@@ -128,3 +128,13 @@ def test_a_cadence_stamp_never_goes_back_before_the_delivery_before_it() -> None
     assert stamp_on_cadence(copy, 0, P, pause_ns=7_500) == 30_000
     copy = Copy(28_000, b"\x01", after_ns=20_200)  # 2.8 periods: the cadence point 20_000
     assert stamp_on_cadence(copy, 0, P, pause_ns=7_500) == 20_201
+
+
+def test_a_copy_after_failed_reads_and_a_pause_is_stamped_at_the_latest_cadence_point() -> None:
+    """A failed read, then no delivery for 1.06 master periods of pause (the master's poll
+    put off): the copy may have waited in the slave since its cadence point, which is
+    nearer its measurement than the failed read or the delivery (seed-gps-vario, 10 % bus
+    errors, I/O errors and 0xFF reads: stamped at the delivery, 1.5 periods after the field
+    before, the gap counted a field the chip never skipped)."""
+    copy = Copy(15_016, b"\x01", failed_ns=(4_391,), after_ns=4_391)
+    assert stamp_on_cadence(copy, 0, P, pause_ns=7_500) == 10_000

@@ -64,11 +64,11 @@ def stamp_on_cadence(copy: Copy, last_ns: int | None, period_ns: int, *,
     driver that knows its chip's period stamps a FIFO frame (Linux
     inv_sensors_timestamp):
 
-    - the master's reads just before it failed (``failed_ns``): a failed read moved the
-      copy a master period later; the read nearest the cadence is where it was due;
     - the master did not deliver for longer than ``pause_ns`` (its period) before it
-      (``after_ns``): the copy may have waited a slave period in the chip; the latest
-      cadence point not after the delivery.
+      (``after_ns``, a failed delivery included): the copy may have waited a slave period
+      in the chip; the latest cadence point not after the delivery;
+    - else, the master's reads just before it failed (``failed_ns``): a failed read moved
+      the copy a master period later; the read nearest the cadence is where it was due.
 
     Either way the stamp stays after ``last_ns`` and the delivery before it, and never
     after the delivery. A slave clock that drifted more than a tenth of a period since
@@ -76,16 +76,17 @@ def stamp_on_cadence(copy: Copy, last_ns: int | None, period_ns: int, *,
     t_ns = copy.t_ns
     if last_ns is None:
         return t_ns
+    after = copy.after_ns
+    if after is not None and t_ns - after > pause_ns:
+        # a pause after the failed reads too: the copy may have waited in the chip since
+        periods = int((t_ns - last_ns) / period_ns + 0.1)
+        return min(t_ns, max(last_ns + periods * period_ns, after + 1, last_ns + 1))
     if copy.failed_ns:
         def off_cadence(t: int) -> int:
             periods = max(1, round((t - last_ns) / period_ns))
             return abs(t - last_ns - periods * period_ns)
         return min((*copy.failed_ns, t_ns), key=off_cadence)
-    after = copy.after_ns
-    if after is None or t_ns - after <= pause_ns:
-        return t_ns
-    periods = int((t_ns - last_ns) / period_ns + 0.1)
-    return min(t_ns, max(last_ns + periods * period_ns, after + 1, last_ns + 1))
+    return t_ns
 
 
 class AutoReadFeed:
