@@ -91,6 +91,19 @@ def test_a_repeated_copy_with_data_ready_breaks_the_run() -> None:
     assert f.take()[-1].quiet_ns is None
 
 
+def test_a_pause_in_the_deliveries_breaks_the_run_of_reads_that_found_nothing() -> None:
+    """Deliveries further apart than the feed's latency (a host stall): the master read
+    the slave between them unseen, and one of those reads may have found new data (a read
+    clears the slave's data-ready bit, so the copy after shows it clear)."""
+    f = feed()
+    f.deliver(10_000, b"\x01\x10\x20")
+    f.deliver(15_000, b"\x00\x10\x20")
+    f.deliver(26_000, b"\x00\x10\x20")
+    f.deliver(31_000, b"\x00\x10\x20")
+    f.deliver(36_000, b"\x01\x11\x21")
+    assert f.take()[-1].quiet_ns is None
+
+
 def test_a_feed_without_a_data_ready_bit_proves_no_quiet_reads() -> None:
     """The MAX21100's copies hold the slave's data bytes only: equal bytes may be a read
     that found nothing or a read that failed."""

@@ -50,9 +50,11 @@ class Copy(NamedTuple):
     host), and the copy may hold a measurement up to one slave period older than usual."""
     quiet_ns: int | None = None
     """The latest delivery before it of an unbroken run of good ones since the change
-    before it, each with the slave's data-ready bit clear (``keep_ready_only``): the slave
-    had measured nothing new at any of those master reads (None: no such run, a failed
-    read broke it, or the feed knows no data-ready bit)."""
+    before it, each with the slave's data-ready bit clear (``keep_ready_only``) and each
+    within the feed's latency of the delivery before it (so no master read came between
+    unseen): the slave had measured nothing new at any of the master's reads (None: no
+    such run, a failed read or a longer pause broke it, or the feed knows no data-ready
+    bit)."""
 
 
 def stamp_on_cadence(copy: Copy, last_ns: int | None, period_ns: int, *,
@@ -168,6 +170,10 @@ class AutoReadFeed:
             self.deliveries += 1
             return
         failed_ns, self._failed = tuple(self._failed), []
+        # the master may have read the slave since the last delivery unseen (a host stall,
+        # a poll put off), and such a read may have found new data: no read found nothing
+        # across this pause (a change after it still carries the run before it)
+        paused = bool(self.deliveries) and t_ns - self.t_ns > self.latency_ns
         ready = self.ready_bit
         raw, self._raw = self._raw, data
         quiet = False
@@ -185,7 +191,7 @@ class AutoReadFeed:
             self.changed_ns = t_ns
             self.fresh.append(Copy(t_ns, data, failed_ns, after_ns, self._quiet_ns))
             self._quiet, self._quiet_ns = True, None
-        elif quiet:
+        elif quiet and not paused:
             self._quiet_ns = t_ns
         else:
             self._quiet, self._quiet_ns = False, None
