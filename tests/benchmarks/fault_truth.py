@@ -92,14 +92,15 @@ TILT_MARGIN_DEG = 10.0
 """An attitude estimate whose tilt is further than this from the truth is counted apart
 (the flight benchmark's rc-flight target: tilt max below 10 deg)."""
 KINDS = ("bus_errors", "os_error", "all_ones", "all_zeros", "corrupt_byte", "absent", "reset",
-         "stuck_data_ready", "frozen", "corrupt_trim", "late_polls", "jitter", "host_stall",
-         "wild_value", "wrong_pressure")
+         "stuck_data_ready", "frozen", "stale_navigation", "corrupt_trim", "late_polls",
+         "jitter", "host_stall", "wild_value", "wrong_pressure")
 """Every kind of imuhal.emulation.faults (FAULT_KINDS), in its order."""
 WILD_CHANNELS = ("accel", "gyro", "mag", "pressure", "temperature")
 """The quantities a ``wild_value`` can replace."""
 _WINDOW_KINDS: dict[str, Any] = {
     "all_ones": faults.AllOnes, "all_zeros": faults.AllZeros, "absent": faults.ChipAbsent,
-    "stuck_data_ready": faults.StuckDataReady, "frozen": faults.FrozenData}
+    "stuck_data_ready": faults.StuckDataReady, "frozen": faults.FrozenData,
+    "stale_navigation": faults.StaleNavigation}
 
 
 # -- the devices of a board and their faults -------------------------------------------------
