@@ -311,18 +311,7 @@ class GnssEmulator(ChipEmulator):
 
     def _epoch_bytes(self, te_ns: int) -> bytes:
         m = self.model
-        t_s = te_ns / 1e9
-        truth = self._truth_at(te_ns)
-        fix = truth is not None and self._has_fix(t_s)
-        utc = m.utc_start + timedelta(microseconds=round(te_ns / 1000))
-        time_valid = True
-        if self._stale is not None:
-            mode, stale_utc, (lat, lon, h_msl, vel) = self._stale
-            fix, time_valid = True, mode != "unresolved"
-            utc = stale_utc if mode == "repeated" else utc
-        else:
-            lat, lon, h_msl, vel = self._navigate(te_ns, truth)
-            self._last_utc = utc if fix else self._last_utc
+        utc, fix, time_valid, (lat, lon, h_msl, vel) = self._epoch_solution(te_ns)
         course, speed = nmea.course_and_speed((float(vel[0]), float(vel[1]), float(vel[2])))
         out = bytearray()
         sats = m.satellites if fix else 0
@@ -356,6 +345,24 @@ class GnssEmulator(ChipEmulator):
                 frame = frame[:len(frame) // 2]
             out += frame
         return bytes(out)
+
+    def _epoch_solution(self, te_ns: int) -> tuple[datetime, bool, bool,
+                                                   tuple[float, float, float, np.ndarray]]:
+        """The epoch's UTC, whether it has a fix, whether its time is valid, and its solution
+        (latitude, longitude, MSL height, NED velocity). Under ``stale_navigation`` the old
+        solution claiming a fix, with the old UTC (``repeated``) or the running one marked
+        not valid (``unresolved``)."""
+        utc = self.model.utc_start + timedelta(microseconds=round(te_ns / 1000))
+        if self._stale is not None:
+            mode, stale_utc, solution = self._stale
+            return (stale_utc if mode == "repeated" else utc), True, mode != "unresolved", \
+                solution
+        truth = self._truth_at(te_ns)
+        fix = truth is not None and self._has_fix(te_ns / 1e9)
+        solution = self._navigate(te_ns, truth)
+        if fix:
+            self._last_utc = utc
+        return utc, fix, True, solution
 
     def _navigate(self, te_ns: int, truth: tuple[np.ndarray, np.ndarray] | None
                   ) -> tuple[float, float, float, np.ndarray]:
