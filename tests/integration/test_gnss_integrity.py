@@ -168,6 +168,19 @@ def test_a_utc_time_the_checksum_missed_is_flagged_and_does_not_move_the_time_st
     assert stats.implausible_epochs == {UNCONFIRMED: CONFIRM - 1, "time": 1}
 
 
+def test_a_gps_time_of_week_the_checksum_missed_is_flagged_and_stales_no_later_epoch(
+        registry: Registry, clean: dict[float, Fix]) -> None:
+    """Bit 7 of iTOW's third byte and of tAcc's first: the epoch's GPS time of week 2.3 h
+    (2^23 ms) off, its UTC right. The time rule refuses it; and since only a valid epoch's
+    time is the one the next must advance past, the honest epochs after it are not taken
+    for a receiver repeating old times (STALE): only the hit epoch is missing."""
+    hit, events, stats = _flight(registry, 2, 12)
+    _only_the_hit_epoch_is_missing(clean, hit)
+    assert _flagged(events) == ["VelocitySample", "PositionSample"]
+    assert stats.implausible_epochs == {UNCONFIRMED: CONFIRM - 1, "time": 1}
+    assert stats.stale_epochs == {}
+
+
 def test_a_wrong_first_fix_is_never_valid_and_the_honest_ones_after_it_are(
         registry: Registry) -> None:
     """The first fix has nothing to be held against: a hit in it (lat and lon 364 and 251 m

@@ -189,7 +189,7 @@ class GnssDriver(Driver):
         self.epoch_watch = EpochWatch(self.settings.max_acceleration_m_s2)
         """Position, geoid separation and time against the last valid epoch."""
         self._last_time: tuple[str, float] | None = None
-        """The last epoch's time that advanced: ("week", iTOW s) or ("day", UTC time of
+        """The last valid epoch's navigation time: ("week", iTOW s) or ("day", UTC time of
         day s). Kept across a recovery: a restarted receiver's old solution carries the
         old time."""
         self._foreign = 0
@@ -503,8 +503,8 @@ class GnssDriver(Driver):
         velocity = merged.velocity_ned_m_s
         if velocity is None:
             velocity = self._nmea_velocity(merged, t_ns)
-        stale = self._stale_time(merged, epoch) if has_fix else ""
-        if stale:
+        stale, navigation_time = self._stale_time(merged, epoch)
+        if stale and has_fix:
             # no new solution, or none the driver can place in time: not fused, no reference
             # for the checks, and its time does not move the UTC-to-clock mapping
             self.stats.stale_epochs[stale] = self.stats.stale_epochs.get(stale, 0) + 1
@@ -512,6 +512,10 @@ class GnssDriver(Driver):
             step = SampleFlag.STALE
         else:
             step = self._epoch_checks(merged, epoch, t_ns, has_fix, height, velocity)
+            if has_fix and not step:
+                # Only a valid epoch's time: a flip the time rule refuses (iTOW 2.3 h ahead)
+                # would have made every honest epoch after it "not advancing".
+                self._last_time = navigation_time
         if velocity is not None and has_fix:
             # Before the position: a consumer of the fix then has the same epoch's velocity.
             out.append(VelocitySample(t_ns=t_ns, device=self.device, flags=step,
@@ -530,27 +534,27 @@ class GnssDriver(Driver):
             utc_s=_utc_s(merged.day, epoch.time_of_day_s)))
         return out
 
-    def _stale_time(self, merged: Fragment, epoch: _Epoch) -> str:
-        """Why an epoch with a fix is no new solution by its own time, or '': the receiver
-        says its UTC is not valid and fully resolved (NAV-PVT's validDate, validTime,
-        fullyResolved: its time, and so the epoch's time stamp, may be seconds off), or the
-        epoch's time did not advance past the last one's (iTOW for UBX, which a flip in the
-        UTC fields leaves alone; NMEA's UTC time of day): a receiver restarted with its
-        last solution in battery-backed memory and sending it again, or a stale replay.
-        Navigation time never runs back (a week's or a day's wrap aside)."""
-        if merged.time_valid is False:
-            return STALE_TIME_INVALID
+    def _stale_time(self, merged: Fragment, epoch: _Epoch) -> tuple[str, tuple[str, float]]:
+        """Why an epoch is no new solution by its own time, or '', and its navigation time
+        (("week", iTOW s) for UBX, which a flip in the UTC fields leaves alone; ("day", UTC
+        time of day s) for NMEA). Stale: the receiver says its UTC is not valid and fully
+        resolved (NAV-PVT's validDate, validTime, fullyResolved: its time, and so the
+        epoch's time stamp, may be seconds off), or the time did not advance past the last
+        valid epoch's (a receiver restarted with its last solution in battery-backed memory
+        and sending it again, or a stale replay). Navigation time never runs back (a week's
+        or a day's wrap aside)."""
         if merged.gps_time_of_week_s is not None:
             now = ("week", merged.gps_time_of_week_s)
         else:
             now = ("day", epoch.time_of_day_s)
+        if merged.time_valid is False:
+            return STALE_TIME_INVALID, now
         last = self._last_time
         if last is not None and last[0] == now[0]:
             period = WEEK_S if now[0] == "week" else DAY_S
             if not 0.0 < (now[1] - last[1]) % period < period / 2.0:
-                return STALE_TIME_REPEATED
-        self._last_time = now
-        return ""
+                return STALE_TIME_REPEATED, now
+        return "", now
 
     def _epoch_checks(self, merged: Fragment, epoch: _Epoch, t_ns: int, has_fix: bool,
                       height_m: float | None,
