@@ -225,3 +225,16 @@ def test_a_steep_velocity_change_leaves_the_height_little_room_off_its_ramp() ->
     assert vertical_manoeuvre_m(100.0, 0.2, 10.0) == pytest.approx(0.75)
     assert _vertical(EpochWatch(100.0), 0.2, 3.9, v_down=(-5.0, 15.0))
     assert not _vertical(EpochWatch(100.0), 0.2, 4.1, v_down=(-5.0, 15.0))
+
+
+def test_an_epoch_stamped_like_its_reference_is_judged_not_divided_by_zero() -> None:
+    """No time between them and nothing stated of accuracy: no term of either gate is left
+    but the fields' resolution. A hit epoch stamped like its reference raised
+    ZeroDivisionError in the vertical rule (the driver was then recovered)."""
+    still = {"v": (0.0, 0.0, 0.0), "h_acc": 0.0}
+    earlier = replace(epoch(0.0, **still), vertical_accuracy_m=0.0, speed_accuracy_m_s=0.0)
+    assert EpochWatch(100.0).follows(earlier, earlier).ok
+    for moved in (replace(earlier, height_msl_m=earlier.height_msl_m + 1.0,
+                          height_ellipsoid_m=earlier.height_ellipsoid_m + 1.0),
+                  replace(earlier, latitude_deg=earlier.latitude_deg + 1e-4)):
+        assert not EpochWatch(100.0).follows(earlier, moved).ok

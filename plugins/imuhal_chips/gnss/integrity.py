@@ -78,6 +78,8 @@ navigation filter smooths what is left. Shorter than any of those, the bound is 
 side: 10 s makes the change between epochs 0.2 s apart 0.2 vAcc (0.8 m at 4 m), where a
 30 s error changes by 0.12 vAcc. A receiver whose height jumps (the satellite set changed)
 loses two epochs to the new level's confirmation (CONFIRM)."""
+POSITION_RESOLUTION_M = 0.03
+"""Two positions of NAV-PVT's 1e-7 deg each in latitude and longitude (1.1 cm a step)."""
 LEAP_TOLERANCE_S = 0.002
 """How far GPS time less UTC may stray from the last valid epoch's: iTOW is in whole ms and
 the UTC fields state the same epoch to the ns (a u-blox keeps its epochs on the ms grid;
@@ -270,8 +272,11 @@ class EpochWatch:
         # the mean of two velocities, each with sAcc per axis, over dt
         speed_var = (s0 * s0 + s1 * s1) * (dt_s / 2.0) ** 2
         horizontal_sigma = math.sqrt(h0 * h0 + h1 * h1 + 2.0 * speed_var)
+        # Each bound is at least what the fields' resolution can make of nothing (two
+        # epochs with one time stamp and zero accuracies leave no other term: a hit epoch
+        # stamped like its reference divided by zero, and the driver was recovered).
         out = [("horizontal position", math.hypot(residual[0], residual[1])
-                / (GATE_SIGMAS * horizontal_sigma + manoeuvre_m))]
+                / max(GATE_SIGMAS * horizontal_sigma + manoeuvre_m, POSITION_RESOLUTION_M))]
         v0 = earlier.vertical_accuracy_m
         if (v0 is not None and epoch.vertical_accuracy_m is not None
                 and earlier.vertical_velocity_measured and epoch.vertical_velocity_measured):
@@ -280,11 +285,11 @@ class EpochWatch:
             # far a height error of the reference's vAcc moves between them (the new
             # epoch's vAcc comes from the frame under test, as hAcc does).
             vertical_sigma = math.sqrt(height_error_change_m(v0, dt_s) ** 2 + speed_var)
+            bound_m = GATE_SIGMAS * vertical_sigma + vertical_manoeuvre_m(
+                self.max_acceleration_m_s2, dt_s,
+                epoch.velocity_ned_m_s[2] - earlier.velocity_ned_m_s[2])
             out.append(("vertical position", abs(residual[2])
-                        / (GATE_SIGMAS * vertical_sigma
-                           + vertical_manoeuvre_m(self.max_acceleration_m_s2, dt_s,
-                                                  epoch.velocity_ned_m_s[2]
-                                                  - earlier.velocity_ned_m_s[2]))))
+                        / max(bound_m, GEOID_RESOLUTION_M)))
         return out
 
 
