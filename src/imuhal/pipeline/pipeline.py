@@ -93,6 +93,10 @@ REPORT_AFTER_FAILURES = 4
 """Consecutive failed recoveries (about 30 ms of trying) before the run reports the device."""
 JOIN_RETRY_NS = 1_000_000_000
 """An optional device that is not there is looked for again every second."""
+AIM_FROM_FRAME_PERIODS = 6
+"""A put-off poll of a driver searching its chip's instants aims from its latest frame's
+phase within this many frame periods of it (``Pipeline._on_phase``): a chip clock 2 % off
+moves its instants by 0.12 period over them, less than the guard (1/8) the aim adds."""
 PUT_OFF_AT_MOST = 3
 """Times in a row a late poll is put off to the next point of its device's grid
 (``Pipeline._on_phase``) before it is made when it comes, off the chip's phase."""
@@ -147,6 +151,9 @@ class DeviceRuntime:
     """Per quantity, the time of the last valid sample (samples must not go back)."""
     chip_to_body_rows: list[list[float]] = field(default_factory=list)
     """``chip_to_body`` as nested lists of floats (every sample is rotated with it)."""
+    chip_to_body_array: FloatArray = field(default_factory=lambda: np.eye(3))
+    """``chip_to_body`` as a float64 array (every block of several frames is rotated with
+    it)."""
     ledger: FrameLedger | None = None
     """Frames produced, delivered and lost by cause (None: the driver accounts for none)."""
     reconfigurations_seen: int = 0
@@ -180,9 +187,13 @@ class DeviceRuntime:
     put_off: int = 0
     """How many times in a row its pending poll was put off to the next point of its grid
     (``Pipeline._on_phase``); at PUT_OFF_AT_MOST it happens when it comes, late or not."""
+    aim_offset_ns: int = 0
+    """What the latest put-off added to the phase it aimed at (``Pipeline._aim``): its
+    polls are counted that much before they are made."""
 
     def __post_init__(self) -> None:
-        self.chip_to_body_rows = np.asarray(self.chip_to_body, dtype=float).tolist()
+        self.chip_to_body_array = np.array(self.chip_to_body, dtype=np.float64)
+        self.chip_to_body_rows = self.chip_to_body_array.tolist()
         self.own_blocks = type(self.driver).poll_blocks is not Driver.poll_blocks
 
 
@@ -372,15 +383,12 @@ class Pipeline:
             dev = DeviceRuntime(name=name, driver=driver, chip_to_body=chip_to_body[name],
                                 calibration=None, required=cfg.required)
             self.devices[name] = dev
-            try:
-                bring_up(driver, clock)
-            except ImuhalError as exc:
-                if dev.required:
-                    raise
-                self._warn_once(dev, "absent", f"{name}: not found at start-up, running "
-                                f"without it and looking for it every "
-                                f"{JOIN_RETRY_NS / 1e9:g} s ({exc})")
+            if not dev.required:
+                # looked for as in the run (Driver.look_for): a probe that listens for
+                # seconds (a GNSS receiver) goes on in the poll loop, not before the start
+                dev.next_poll_ns = self._look_for(dev, clock.now_ns())
                 continue
+            bring_up(driver, clock)
             self._joined(dev)
         self._device_rank = {name: i for i, name in enumerate(self.devices)}
         for name, ecfg in profile.estimators.items():
@@ -657,7 +665,10 @@ class Pipeline:
             now = self.clock.now_ns()
             self._heap = []
             for name, dev in self.devices.items():
-                dev.next_poll_ns = dev.driver.start(now) if dev.present else now + JOIN_RETRY_NS
+                if dev.present and not dev.next_poll_ns:
+                    dev.next_poll_ns = dev.driver.start(now)
+                else:  # an optional device still looked for: its next step
+                    dev.next_poll_ns = max(now, dev.next_poll_ns)
                 if dev.present and isinstance(dev.trigger, LineTrigger):
                     dev.next_poll_ns = dev.trigger.started(now)
                 heapq.heappush(self._heap, (dev.next_poll_ns, self._device_rank[name], name))
@@ -694,16 +705,19 @@ class Pipeline:
             due_ns = t_ns
             t_ns = self._before_poll(t_ns, name)
             dev = self.devices[name]
-            self._span_ns[1] = max(t_ns, self._span_ns[1])
-            if self._on_phase(dev, due_ns, t_ns):
+            if self._put_off(dev, due_ns, t_ns):
                 continue
-            self._note_late(dev, due_ns, t_ns)
             frames, next_ns = self._contained_service(dev, t_ns)
             if dev.ledger is not None:
                 self._account(dev)
             dev.next_poll_ns = max(self._next_due(dev, t_ns, next_ns), t_ns + 1)
             heapq.heappush(heap, (dev.next_poll_ns, rank, name))
-            yield from self._hand_out(dev, frames, reads)
+            if frames:  # _hand_out's register-poll case written out: one call a reading
+                if type(frames) is _Readings:
+                    for sample in frames:
+                        yield self._process_one(dev, sample)
+                else:
+                    yield from self._hand_out(dev, frames, reads)
             if dev.ledger is not None:
                 self._account_slides(dev)
         if end is not None:
@@ -759,6 +773,46 @@ class Pipeline:
             else:
                 yield from self._read_frames(read)
 
+    @staticmethod
+    def _aim(ledger: FrameLedger, due_ns: int, t_ns: int) -> tuple[int, int]:
+        """Where a put-off poll of a driver searching its chip's instants
+        (``Driver.polls_after_instants``) aims, and how much after the phase it is counted
+        on. Such a driver polls a guard apart until new data appear, so a poll due can lie
+        anywhere from just before its chip's instant to a period after it: aimed from
+        there, the put-off poll's stamp can lie up to a period after the instant where the
+        frame before it lay within a guard, and the gap rounds to a frame too many. It
+        aims a guard after the phase the latest frame was counted on, whole periods on,
+        and is counted on that phase (so put-offs in a row do not move it), while a chip
+        clock 2 % off cannot have moved its instants by a guard since
+        (AIM_FROM_FRAME_PERIODS); else a guard after the due time, counted at its
+        stamp."""
+        guard_ns = ledger.period_ns // 8
+        counted_ns = ledger.counted_ns
+        if counted_ns is not None and \
+                t_ns - counted_ns <= AIM_FROM_FRAME_PERIODS * ledger.period_ns:
+            return counted_ns + guard_ns, guard_ns
+        return due_ns + guard_ns, 0
+
+    def _put_off(self, dev: DeviceRuntime, due_ns: int, t_ns: int) -> bool:
+        """A poll due at ``due_ns`` comes at ``t_ns``: the run's span moves on, and a late
+        poll is put off to its device's grid (True: ``_on_phase``) or charged to the
+        ledger (``_note_late``)."""
+        span = self._span_ns
+        if t_ns > span[1]:
+            span[1] = t_ns
+        if span[1] == due_ns:
+            # on time, and no poll before it came later (the usual poll): nothing to put
+            # off and nothing late (what _on_phase and _note_late find, without them); a
+            # put-off poll on time is counted on the phase it aimed a guard after (_aim)
+            if dev.put_off and dev.aim_offset_ns and dev.ledger is not None:
+                dev.ledger.count_at(t_ns, due_ns - dev.aim_offset_ns)
+            dev.put_off = 0
+            return False
+        if self._on_phase(dev, due_ns, t_ns):
+            return True
+        self._note_late(dev, due_ns, t_ns)
+        return False
+
     def _on_phase(self, dev: DeviceRuntime, due_ns: int, t_ns: int) -> bool:
         """A poll due at ``due_ns`` that can only happen at ``t_ns``, half a frame period or
         more later (the pipeline's one thread was held: a host stall, another device's
@@ -789,15 +843,19 @@ class Pipeline:
             dev.put_off = 0
             return False
         period_ns = ledger.period_ns
+        # a put-off poll aimed a guard after the phase of a frame is counted on that phase
+        offset = dev.aim_offset_ns if dev.put_off else 0
         if 2 * (t_ns - due_ns) < period_ns:
             dev.put_off = 0
-            if t_ns > due_ns:  # it reads the frame it was due for: counted there
-                ledger.count_at(t_ns, due_ns)
+            if t_ns > due_ns - offset:  # it reads the frame it was due for: counted there
+                ledger.count_at(t_ns, due_ns - offset)
             return False
-        # a grid point of a phase search can lie just before its chip's instant: aim a
-        # guard after it (Driver.polls_after_instants), once (a poll put off already aims)
-        aim_ns = due_ns + (period_ns // 8 if dev.driver.polls_after_instants
-                           and not dev.put_off else 0)
+        aim_ns = due_ns
+        if not dev.put_off:
+            dev.aim_offset_ns = offset = 0
+            if dev.driver.polls_after_instants:
+                aim_ns, offset = self._aim(ledger, due_ns, t_ns)
+                dev.aim_offset_ns = offset
         if dev.put_off >= PUT_OFF_AT_MOST:
             dev.put_off = 0
             grid_ns = aim_ns + (t_ns - aim_ns) // period_ns * period_ns
@@ -806,15 +864,17 @@ class Pipeline:
                 # later it comes (from its stamp, a lag under half a period can still
                 # differ from the frames' before by more: the grid was aimed a guard later
                 # than they were stamped)
-                ledger.count_at(t_ns, grid_ns)
+                ledger.count_at(t_ns, grid_ns - offset)
             elif 2 * (t_ns - grid_ns) >= period_ns:
                 # a grid at an unknown lag after them: from its stamp it could round either
                 # way
-                ledger.count_at(t_ns, grid_ns)
+                ledger.count_at(t_ns, grid_ns - offset)
             return False
         at_ns = aim_ns + -(-(t_ns - aim_ns) // period_ns) * period_ns
         if at_ns == t_ns:  # late by whole periods: on the grid already
             dev.put_off = 0
+            if offset:
+                ledger.count_at(t_ns, t_ns - offset)
             return False
         ledger.note("host_stall", at_ns=due_ns)
         dev.put_off += 1
@@ -954,7 +1014,25 @@ class Pipeline:
         if dev.needs_recovery:
             return [], self._recover(dev, t_ns)
         try:
-            frames, next_ns = self._poll(dev, t_ns)
+            # dev's poll as blocks (Driver.poll_blocks). For a driver that leaves
+            # poll_blocks to the base class its adapter is written out here: a poll whose
+            # readings are of different streams (a register poll) is a block of one frame
+            # per reading, kept as the readings; one with several readings of a stream (a
+            # FIFO read) is grouped into blocks (imuhal.core.blocks.blocks_of)
+            driver = dev.driver
+            if dev.edges_ns:
+                driver.data_ready(dev.edges_ns)
+                dev.edges_ns = []
+            if dev.own_blocks and driver.builds_blocks:
+                polled = driver.poll_blocks(t_ns)
+                blocks = polled.blocks
+                next_ns = polled.next_poll_ns
+                frames: _Readings | list[Block] = \
+                    _Readings(b.samples()[0] for b in blocks) \
+                    if all(len(b) == 1 for b in blocks) else blocks
+            else:
+                result = driver.poll(t_ns)
+                frames, next_ns = _frames(result.samples), result.next_poll_ns
         except BusError:
             dev.bus_errors += 1
             if dev.ledger is not None:
@@ -969,26 +1047,6 @@ class Pipeline:
             return [], self._recover(dev, t_ns)
         dev.resumed = 0
         return frames, next_ns
-
-    @staticmethod
-    def _poll(dev: DeviceRuntime, t_ns: int) -> tuple[_Readings | list[Block], int]:
-        """``dev``'s poll as blocks (``Driver.poll_blocks``). For a driver that leaves
-        ``poll_blocks`` to the base class this is its adapter inlined: a poll whose readings
-        are of different streams (a register poll) is a block of one frame per reading,
-        kept as the readings; one with several readings of a stream (a FIFO read) is
-        grouped into blocks (imuhal.core.blocks.blocks_of)."""
-        driver = dev.driver
-        if dev.edges_ns:
-            driver.data_ready(dev.edges_ns)
-            dev.edges_ns = []
-        if dev.own_blocks and driver.builds_blocks:
-            polled = driver.poll_blocks(t_ns)
-            blocks = polled.blocks
-            if all(len(b) == 1 for b in blocks):
-                return _Readings(b.samples()[0] for b in blocks), polled.next_poll_ns
-            return blocks, polled.next_poll_ns
-        result = driver.poll(t_ns)
-        return _frames(result.samples), result.next_poll_ns
 
     def _after_bus_error(self, dev: DeviceRuntime, t_ns: int) -> int:
         """Recovery in proportion: a transfer that fails after a good poll is most likely a
@@ -1044,15 +1102,27 @@ class Pipeline:
             dev.ledger.slid(slid_ns)
 
     def _look_for(self, dev: DeviceRuntime, t_ns: int) -> int:
-        """An optional device that was not found: probe it once more."""
+        """A step of looking for an optional device not found yet (``Driver.look_for``: a
+        probe that listens for seconds goes in steps between the other devices' polls, so
+        they lose nothing to it); the time of its next step, its next look, or its first
+        poll once found. The first look is made at the pipeline's start."""
         try:
-            bring_up(dev.driver, self.clock, attempts=1)
+            next_ns = dev.driver.look_for(t_ns)
         except ImuhalError as exc:
             if isinstance(exc, BusError):
                 dev.bus_errors += 1
+            self._warn_once(dev, "absent", f"{dev.name}: not found at start-up, running "
+                            f"without it and looking for it every {JOIN_RETRY_NS / 1e9:g} s "
+                            f"({exc})")
             return t_ns + JOIN_RETRY_NS
+        if next_ns is not None:
+            return next_ns
         self._joined(dev)
-        self.warnings.append(f"{dev.name}: found at t={t_ns / 1e9:.3f} s; it joins the run")
+        if "absent" in dev.warned:
+            self.warnings.append(f"{dev.name}: found at t={t_ns / 1e9:.3f} s; it joins the "
+                                 "run")
+        if self._heap is None:  # found by the first look: started with the others
+            return 0
         next_ns = dev.driver.start(max(t_ns, self.clock.now_ns()))
         if isinstance(dev.trigger, LineTrigger):  # its first edge is awaited from now
             return dev.trigger.started(max(t_ns, self.clock.now_ns()))
@@ -1188,7 +1258,8 @@ class Pipeline:
         if dev.mag_learner is not None and issubclass(block.kind, MagSample):
             self._learn(dev, block.samples())
         # Flagged frames are only rotated, not calibrated.
-        block = calibrate_block(block, dev.calibration, dev.chip_to_body_rows)
+        block = calibrate_block(block, dev.calibration, dev.chip_to_body_rows,
+                                matrix=dev.chip_to_body_array)
         if self.estimators and self.router.takes(block.device, block.kind):
             fused = self._fusable(block)
             if fused is not None:
