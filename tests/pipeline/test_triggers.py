@@ -278,7 +278,7 @@ def test_an_optional_device_that_joins_late_awaits_its_first_edge_from_then(
     _, _, summary = _run(load_profile(path, registry), registry, 3.0, faults=[unplugged],
                          calibrated=False)
     counts = summary.triggers["imu"]
-    assert "imu: found at t=2.004 s; it joins the run" in summary.warnings
+    assert "imu: found at t=2.000 s; it joins the run" in summary.warnings
     assert counts["fallbacks"] == 0 and counts["edges"] == counts["reads"] > 150
 
 

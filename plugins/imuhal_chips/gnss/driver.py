@@ -325,8 +325,37 @@ class GnssDriver(Driver):
         pipeline's rule: a second failure before a poll completes)."""
         return now_ns + (ACK_POLL_NS if self._configuring is not None else self._step_ns)
 
+    def look_for(self, now_ns: int) -> int | None:
+        """A receiver not found at start-up is looked for in the steps a recovery takes
+        (listen at each baud rate, send each CFG message, look for its ACK), one per call,
+        so the other devices are polled between them: the probe's blocking search would
+        hold the whole board for up to a window per baud rate, twice."""
+        if self._search is None and self._configuring is None:
+            self._epoch = None
+            self._foreign = 0
+            self._search = Search(self.link, self.settings.baud_rates,
+                                  round(self.settings.probe_window_s * 1e9), now_ns)
+        try:
+            next_ns = self._bring_up_step(now_ns)
+        except Exception:
+            self._search = self._configuring = None  # the next look starts afresh
+            raise
+        if next_ns is None:
+            self._nav_rate_hz = self.settings.rate_hz  # acknowledged, or stated by the profile
+        return next_ns
+
     def _recovery_step(self, now_ns: int) -> int:
         """One step of the recovery ``recover`` started; the time of the next poll."""
+        next_ns = self._bring_up_step(now_ns)
+        if next_ns is not None:
+            return next_ns
+        self.health.reconfigurations += 1
+        return now_ns + self._step_ns
+
+    def _bring_up_step(self, now_ns: int) -> int | None:
+        """One step of a search and configuration under way: the time of the next, or None
+        once the receiver is found and configured. DeviceNotFoundError when the search
+        heard nothing valid at any baud rate."""
         if self._search is not None:
             found = self._search.step(now_ns)
             if found == "":
@@ -339,8 +368,7 @@ class GnssDriver(Driver):
         if self._configuring is not None and not self._configuring.step(now_ns):
             return now_ns + ACK_POLL_NS
         self._configuring = None
-        self.health.reconfigurations += 1
-        return now_ns + self._step_ns
+        return None
 
     # -- poll ---------------------------------------------------------------------------
 

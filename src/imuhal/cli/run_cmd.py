@@ -422,9 +422,10 @@ def _flight_sinks(opts: RunOptions, profile: Any, registry: Registry,
             sink = nmea({"output": spec, "sentences": BLE_SENTENCES})
         else:
             sink = nmea({"output": spec, **extra})
-        stack.callback(sink.close)
         transport = sink.transport  # type: ignore[attr-defined]  # the sink registered as 'nmea' is a FlightSink, which has a transport
         where = transport.description
+        stack.callback(_say_dropped, where, transport)  # after the close: it counts tails
+        stack.callback(sink.close)
         if isinstance(transport, PtyTransport):
             where += f" (open {transport.path} in the flight app)"
         print(f"nmea: {where}", file=sys.stderr)
@@ -445,6 +446,13 @@ def _flight_sinks(opts: RunOptions, profile: Any, registry: Registry,
             "firmware": __version__,
             "device_drivers": {name: dev.driver for name, dev in profile.devices.items()}}))
     return out
+
+
+def _say_dropped(where: str, transport: Any) -> None:
+    """Say at the end of the run how much an --nmea reader did not take, if anything."""
+    if transport.dropped_bytes:
+        print(f"nmea: {where}: {transport.dropped_bytes} bytes dropped, whole sentences the "
+              "reader did not take in time", file=sys.stderr)
 
 
 def _audio_curve(opts: RunOptions, profile: Any) -> Any:

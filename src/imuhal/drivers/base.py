@@ -233,6 +233,19 @@ class Driver(ABC):
         """Called once after configure(); returns the time of the first poll."""
         return now_ns
 
+    def look_for(self, now_ns: int) -> int | None:
+        """One look for a chip that was not found at start-up (an optional device), made in
+        the pipeline's poll loop, so it must not hold the other devices up for long: None
+        once the chip is found and configured (``identity`` set; the pipeline then starts
+        it), else the time of the next step of this look. Raises what ``probe`` and
+        ``configure`` raise when the look found nothing (the pipeline looks again a second
+        later). The default probes and configures at once: a few transfers for a chip on
+        I2C or SPI. A driver whose probe listens (a receiver on a UART, heard at each baud
+        rate for a second or more) looks in steps instead."""
+        self.identity = self.probe()
+        self.configure()
+        return None
+
     def restart(self, *, reset_detected: bool) -> int:
         """Reconfigure the chip mid-run and return the next poll time: after a silent reset
         (``reset_detected``: the configuration read back wrong) or a stuck sensor (it kept

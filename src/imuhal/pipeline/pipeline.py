@@ -372,15 +372,12 @@ class Pipeline:
             dev = DeviceRuntime(name=name, driver=driver, chip_to_body=chip_to_body[name],
                                 calibration=None, required=cfg.required)
             self.devices[name] = dev
-            try:
-                bring_up(driver, clock)
-            except ImuhalError as exc:
-                if dev.required:
-                    raise
-                self._warn_once(dev, "absent", f"{name}: not found at start-up, running "
-                                f"without it and looking for it every "
-                                f"{JOIN_RETRY_NS / 1e9:g} s ({exc})")
+            if not dev.required:
+                # looked for as in the run (Driver.look_for): a probe that listens for
+                # seconds (a GNSS receiver) goes on in the poll loop, not before the start
+                dev.next_poll_ns = self._look_for(dev, clock.now_ns())
                 continue
+            bring_up(driver, clock)
             self._joined(dev)
         self._device_rank = {name: i for i, name in enumerate(self.devices)}
         for name, ecfg in profile.estimators.items():
@@ -657,7 +654,10 @@ class Pipeline:
             now = self.clock.now_ns()
             self._heap = []
             for name, dev in self.devices.items():
-                dev.next_poll_ns = dev.driver.start(now) if dev.present else now + JOIN_RETRY_NS
+                if dev.present and not dev.next_poll_ns:
+                    dev.next_poll_ns = dev.driver.start(now)
+                else:  # an optional device still looked for: its next step
+                    dev.next_poll_ns = max(now, dev.next_poll_ns)
                 if dev.present and isinstance(dev.trigger, LineTrigger):
                     dev.next_poll_ns = dev.trigger.started(now)
                 heapq.heappush(self._heap, (dev.next_poll_ns, self._device_rank[name], name))
@@ -1044,15 +1044,27 @@ class Pipeline:
             dev.ledger.slid(slid_ns)
 
     def _look_for(self, dev: DeviceRuntime, t_ns: int) -> int:
-        """An optional device that was not found: probe it once more."""
+        """A step of looking for an optional device not found yet (``Driver.look_for``: a
+        probe that listens for seconds goes in steps between the other devices' polls, so
+        they lose nothing to it); the time of its next step, its next look, or its first
+        poll once found. The first look is made at the pipeline's start."""
         try:
-            bring_up(dev.driver, self.clock, attempts=1)
+            next_ns = dev.driver.look_for(t_ns)
         except ImuhalError as exc:
             if isinstance(exc, BusError):
                 dev.bus_errors += 1
+            self._warn_once(dev, "absent", f"{dev.name}: not found at start-up, running "
+                            f"without it and looking for it every {JOIN_RETRY_NS / 1e9:g} s "
+                            f"({exc})")
             return t_ns + JOIN_RETRY_NS
+        if next_ns is not None:
+            return next_ns
         self._joined(dev)
-        self.warnings.append(f"{dev.name}: found at t={t_ns / 1e9:.3f} s; it joins the run")
+        if "absent" in dev.warned:
+            self.warnings.append(f"{dev.name}: found at t={t_ns / 1e9:.3f} s; it joins the "
+                                 "run")
+        if self._heap is None:  # found by the first look: started with the others
+            return 0
         next_ns = dev.driver.start(max(t_ns, self.clock.now_ns()))
         if isinstance(dev.trigger, LineTrigger):  # its first edge is awaited from now
             return dev.trigger.started(max(t_ns, self.clock.now_ns()))

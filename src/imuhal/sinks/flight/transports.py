@@ -2,7 +2,10 @@
 
 Every transport only writes and never blocks the pipeline: what cannot be written now (no
 reader on the pty, a TCP client that stopped reading) is dropped and counted, as a serial
-line with nobody listening would lose it.
+line with nobody listening would lose it. A reader gets whole sentences or none: a write
+the kernel takes only in part has its tail sent before anything newer
+(:class:`WholeWrites`), so a slow app loses sentences, never the end of one glued to the
+start of the next (which would cost it both: the joined line fails its checksum).
 
 ``open_transport(spec)`` reads the CLI's form: ``serial:PORT@BAUD``, ``pty`` or
 ``pty:LINK`` (a symlink to the pty's slave at LINK, so the flight app's setting survives
@@ -31,11 +34,52 @@ TRANSPORT_FORMS = "serial:PORT@BAUD, pty, pty:LINK, tcp:PORT, tcp:HOST:PORT, ble
 
 class Transport(Protocol):
     description: str
-    dropped_bytes: int
+
+    @property
+    def dropped_bytes(self) -> int:
+        """Bytes the reader did not get (whole sentences), counted since the start."""
 
     def write(self, data: bytes) -> None: ...
 
     def close(self) -> None: ...
+
+
+class WholeWrites:
+    """One reader's non-blocking writes, whole: the unsent tail of a write the kernel took
+    in part goes out before anything newer, and a newer write that cannot go out behind it
+    is dropped whole. ``send`` is the non-blocking write (bytes taken; 0 or BlockingIOError
+    when none)."""
+
+    def __init__(self, send: Callable[[bytes], int]) -> None:
+        self._send = send
+        self._tail = b""
+        self.dropped_bytes = 0
+
+    def _try(self, data: bytes) -> int:
+        try:
+            return self._send(data)
+        except BlockingIOError:
+            return 0
+
+    def write(self, data: bytes) -> int:
+        """Hand ``data`` over, after the tail of an earlier write; bytes taken by the
+        reader in this call. OSError other than a full buffer is the caller's."""
+        taken = 0
+        if self._tail:
+            sent = self._try(self._tail)
+            taken += sent
+            self._tail = self._tail[sent:]
+            if self._tail:
+                self.dropped_bytes += len(data)
+                return taken
+        sent = self._try(data)
+        self._tail = data[sent:]
+        return taken + sent
+
+    def close(self) -> None:
+        """The reader is gone: a tail not sent is dropped."""
+        self.dropped_bytes += len(self._tail)
+        self._tail = b""
 
 
 class SerialTransport:
@@ -96,23 +140,31 @@ class PtyTransport:
                                   "write to, e.g. pty:/tmp/vario") from None
         where = f"{self._link} -> {self.slave_path}" if self._link else self.slave_path
         self.description = f"pseudo-terminal {where}"
-        self.dropped_bytes = 0
+        self._out = WholeWrites(self._send)
 
     @property
     def path(self) -> str:
         """What the flight app opens: the link if there is one, else the slave device."""
         return str(self._link) if self._link is not None else self.slave_path
 
-    def write(self, data: bytes) -> None:
+    @property
+    def dropped_bytes(self) -> int:
+        return self._out.dropped_bytes
+
+    def _send(self, data: bytes) -> int:
         try:
-            sent = os.write(self._master, data)
+            return os.write(self._master, data)
         except OSError as exc:
+            # EIO: no app has the slave open (the pty's buffer is then not filling)
             if exc.errno not in (errno.EAGAIN, errno.EIO):
                 raise
-            sent = 0
-        self.dropped_bytes += len(data) - sent
+            return 0
+
+    def write(self, data: bytes) -> None:
+        self._out.write(data)
 
     def close(self) -> None:
+        self._out.close()
         if self._link is not None and self._link.is_symlink() and \
                 os.readlink(self._link) == self.slave_path:
             self._link.unlink()
@@ -165,9 +217,10 @@ class TcpTransport:
         self.description = f"TCP server {host}:{self.port}"
         self.max_clients = max_clients
         self.stall_s = stall_s
-        self._clients: dict[socket.socket, float] = {}
-        """Client -> monotonic time it last took a byte (or connected)."""
-        self.dropped_bytes = 0
+        self._clients: dict[socket.socket, tuple[WholeWrites, float]] = {}
+        """Client -> its writes and the monotonic time it last took a byte (or connected)."""
+        self._dropped_gone = 0
+        """Bytes dropped by clients no longer connected."""
         self.refused_clients = 0
         self.stalled_clients = 0
 
@@ -199,39 +252,42 @@ class TcpTransport:
                 continue
             client.setblocking(False)
             client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            self._clients[client] = time.monotonic()
+            self._clients[client] = (WholeWrites(client.send), time.monotonic())
 
     @property
     def clients(self) -> int:
         self._accept()
         return len(self._clients)
 
+    @property
+    def dropped_bytes(self) -> int:
+        """Bytes some client did not get, over every client, gone ones included."""
+        return self._dropped_gone + sum(out.dropped_bytes for out, _ in self._clients.values())
+
     def write(self, data: bytes) -> None:
         self._accept()
         now = time.monotonic()
-        for client, last in list(self._clients.items()):
+        for client, (out, last) in list(self._clients.items()):
             try:
-                sent = client.send(data)
-            except BlockingIOError:
-                sent = 0
+                sent = out.write(data)
             except OSError:  # the app went away
                 self._drop(client)
                 continue
-            self.dropped_bytes += len(data) - sent
             if sent:
-                self._clients[client] = now
+                self._clients[client] = (out, now)
             elif now - last >= self.stall_s:
                 self.stalled_clients += 1
                 self._drop(client)
 
     def _drop(self, client: socket.socket) -> None:
-        del self._clients[client]
+        out, _ = self._clients.pop(client)
+        out.close()
+        self._dropped_gone += out.dropped_bytes
         client.close()
 
     def close(self) -> None:
-        for client in self._clients:
-            client.close()
-        self._clients.clear()
+        for client in list(self._clients):
+            self._drop(client)
         self._server.close()
 
 
