@@ -57,7 +57,10 @@ def test_evaluate_reports_a_run_logs_errors_against_its_truth(
                  "--dof", "9", "-q", "--json", str(out)]) == 0
     (trial,) = json.loads(out.read_text())["trials"]
     assert trial["missing"] == 0 and trial["evaluated"] > 500
-    assert 0.0 < trial["inclination_deg"] < 5.0  # the live AHRS on this board: a few deg
+    # the first 4 s of `thermal` are the launch at rest, flown calibrated first (imuhal run's
+    # default): within issue 27's 0.5 deg rest-pitch bound (decoupled 0.18 measured, the
+    # Madgwick the profile ran before 0.25)
+    assert 0.0 < trial["inclination_deg"] < 0.5
 
 
 def test_a_run_log_without_samples_is_one_line_naming_the_fix(
