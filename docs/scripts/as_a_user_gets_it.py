@@ -21,7 +21,7 @@ Checks (seed 1; errors over t >= 5 s unless stated):
 - ``rc-flight`` (60 s): the same AHRS added with no settings, worst tilt error from t = 5 s.
 
 ``--write`` replaces the block between the ``as-user-table`` markers in docs/estimators.md.
-A full run takes about 4 minutes.
+A full run took about 5 minutes before the GY-91's rows; with them, 45 under a load of 20.
 """
 
 from __future__ import annotations
