@@ -28,7 +28,9 @@ Sections:
   on a short log writes it), whatever ``PYTHONDONTWRITEBYTECODE`` says here;
 * the emulated seed board with its estimators: x real time by CPU time (the least CPU of
   three runs), next to the bare scenario truth at 250 Hz, and per IMU sample; what of that
-  the emulation costs (less the hardware path's CPU per IMU sample, measured next);
+  the emulation costs (less the hardware path's CPU per IMU sample, measured next), and
+  its layers (simulation, chip emulators, bus glue, fault layer) sampled on CPU time
+  (tests/benchmarks/emulation_split.py);
 * the hardware path: the same board's drivers, decoding, calibration, mount rotation and
   estimators replayed from a recording of its bus traffic (no simulation, no emulators), in
   us of CPU per IMU sample (tests/benchmarks/bench_hardware_path.py);
@@ -667,6 +669,23 @@ def emulation_share_rows(rows: list[Row]) -> list[Row]:
                 1e6 / RATE_HZ / hardware, "x real time (cpu)")]
 
 
+def emulation_layer_rows(duration_s: float, rows: list[Row]) -> list[Row]:
+    """The emulated board's CPU by layer (tests/benchmarks/emulation_split.py: one run of
+    its own sampled on CPU time, each layer's share of it times the board row's CPU per
+    IMU sample of this run): the simulation, the chip emulators, the bus glue, the fault
+    layer; the rest is the hardware path."""
+    from tests.benchmarks.emulation_split import LAYERS, measure
+
+    per_sample = next((r.value for r in rows if r.case == "  the same per IMU sample"), None)
+    if per_sample is None:
+        return []
+    _, samples = measure(duration_s, None)
+    n = sum(samples.values()) or 1
+    return [Row("board", f"  of it the {layer} (sampled)", per_sample * samples[layer] / n,
+                "us/IMU sample", "the emulated board", samples[layer] / n)
+            for layer in LAYERS if layer != "hardware path"]
+
+
 def hardware_path_rows(duration_s: float) -> list[Row]:
     """The seed board's host side alone (drivers, decoding, calibration, mount rotation,
     estimators) from a recorded bus replay (tests/benchmarks/bench_hardware_path.py)."""
@@ -723,6 +742,7 @@ def board_and_block_rows(duration_s: float, skip: list[str]) -> list[Row]:
                 rows += board_rows(duration_s)
                 rows += hardware_path_rows(duration_s)
                 rows += emulation_share_rows(rows)
+                rows += emulation_layer_rows(duration_s, rows)
             if "blocks" not in skip:
                 rows += block_rows(duration_s)
                 rows += seed_fifo_rows(duration_s, rows)

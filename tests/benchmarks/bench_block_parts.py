@@ -3,7 +3,7 @@ script; not collected by pytest). The figures of docs/performance.md, "Blocks re
 estimators".
 
 Run:  .venv/bin/python -m tests.benchmarks.bench_block_parts PART  (kernel, decode, estimate,
-      pipeline, estimates, watchdog)
+      pipeline, estimates, watchdog, covariance)
 
 - ``kernel``: Madgwick's ``update_blocks`` on fusion steps of n accelerometer and gyro
   frames against the same frames one by one through ``process()`` (the base class's
@@ -32,6 +32,10 @@ Run:  .venv/bin/python -m tests.benchmarks.bench_block_parts PART  (kernel, deco
   board): ``Watchdog.arm`` and ``disarm`` with the ticking timers, against the one-shot
   ``ITIMER_REAL`` and ``ITIMER_PROF`` armed and cancelled around the call (four
   ``setitimer`` calls, the watchdog before), CPU us per call, three rounds.
+- ``covariance``: vario-kf3's covariance prediction ``F @ P @ F.T + Q`` (numpy's matrix
+  product, a BLAS call) timed where the seed board's hardware path makes it (FIFO blocks of
+  8, a 20 s recording), against the same product repeated at once, thread CPU us per call,
+  three replays: what a BLAS call costs between the rest of the path.
 """
 
 from __future__ import annotations
@@ -269,13 +273,54 @@ def watchdog(calls: int = 100_000, rounds: int = 3) -> None:
         dog.release()
 
 
+def covariance(rounds: int = 3) -> None:
+    """vario-kf3's covariance prediction (``F @ P @ F.T + Q``, numpy's matrix product: a
+    BLAS call) as the hardware path pays it, once per pressure sample between the rest of
+    the path, against the same product repeated at once (warm), thread CPU us per call."""
+    from tests.benchmarks.bench_blocks import SEED, board_yaml
+    from tests.benchmarks.bench_hardware_path import record, replay
+
+    from imuhal_filters.vario import kf3
+
+    registry = load_registry()
+    shipped = kf3.Kalman3.predict
+    spent = {"in the run": 0, "again at once": 0, "calls": 0}
+
+    def timed(self: Any, a_meas: float, dt: float) -> None:
+        f, p, q = self._F, self.P, self._Q
+        t0 = time.thread_time_ns()
+        f @ p @ f.T + q
+        t1 = time.thread_time_ns()
+        f @ p @ f.T + q
+        t2 = time.thread_time_ns()
+        spent["in the run"] += t1 - t0
+        spent["again at once"] += t2 - t1
+        spent["calls"] += 1
+        shipped(self, a_meas, dt)
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "seed-fifo8.imurec"
+        record(registry, path, 20.0, board_yaml(8, SEED))
+        kf3.Kalman3.predict = timed  # type: ignore[method-assign]
+        try:
+            for _ in range(rounds):
+                spent.update({"in the run": 0, "again at once": 0, "calls": 0})
+                imu = replay(registry, path)[0]
+                n = spent["calls"]
+                print(f"seed board, FIFO 8: {n} predictions ({n / imu:.2f} per IMU sample), "
+                      f"thread CPU us per F @ P @ F.T + Q: {spent['in the run'] / n / 1e3:.1f} "
+                      f"in the run, {spent['again at once'] / n / 1e3:.1f} again at once")
+        finally:
+            kf3.Kalman3.predict = shipped  # type: ignore[method-assign]
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("part", choices=["kernel", "decode", "estimate", "pipeline", "estimates",
-                                    "watchdog"])
+                                    "watchdog", "covariance"])
     args = p.parse_args(argv)
     {"kernel": kernel, "decode": decode, "estimate": estimate, "pipeline": pipeline,
-     "estimates": estimates, "watchdog": watchdog}[args.part]()
+     "estimates": estimates, "watchdog": watchdog, "covariance": covariance}[args.part]()
     return 0
 
 

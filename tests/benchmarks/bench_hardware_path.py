@@ -27,7 +27,9 @@ on the same bytes (run this script with each tree's ``src`` and ``plugins`` firs
 its MAX21100's FIFO read in blocks of 8 frames and the GY-91 with its MPU-9250's in blocks of
 10 (tests/benchmarks/bench_blocks.py's profiles), each ``--duration`` s, recorded into DIR the
 first time; each case prints its CPU us per IMU sample, the fastest of ``--repeat`` replays
-with the estimators and (in brackets) of as many without.
+with the estimators and (in brackets) of as many without, and their medians (``--every``:
+every replay's figure). On a loaded machine, run the two trees at the same time rather than
+one after the other: side by side they share the load alike.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ import argparse
 import cProfile
 import os
 import pstats
+import statistics
 import sys
 import tempfile
 import time
@@ -212,20 +215,27 @@ def recorded_cases(directory: Path, duration_s: float, repeat: int
                    ) -> dict[str, tuple[float, float]]:
     """CPU us per IMU sample of each of RECORDED_CASES replayed from ``directory`` (recorded
     there first when absent), with and without the estimators (the fastest of ``repeat``)."""
+    return {case: (min(with_), min(bare)) for case, (with_, bare)
+            in recorded_runs(directory, duration_s, repeat).items()}
+
+
+def recorded_runs(directory: Path, duration_s: float, repeat: int
+                  ) -> dict[str, tuple[list[float], list[float]]]:
+    """:func:`recorded_cases` with every replay's figure: ``repeat`` replays of each case
+    with the estimators, then ``repeat`` without."""
     from tests.benchmarks.bench_blocks import GY91, SEED, board_yaml
 
     registry = load_registry()
     directory.mkdir(parents=True, exist_ok=True)
-    out: dict[str, tuple[float, float]] = {}
+    out: dict[str, tuple[list[float], list[float]]] = {}
     for case, frames in RECORDED_CASES.items():
         path = directory / f"{case}-{duration_s:g}s.imurec"
         if not path.exists():
             record(registry, path, duration_s,
                    board_yaml(frames, GY91 if case.startswith("gy91") else SEED))
         runs = [replay(registry, path) for _ in range(max(1, repeat))]
-        bare = min(replay(registry, path, estimators=False)[2] for _ in range(max(1, repeat)))
-        imu = runs[0][0]
-        out[case] = (min(r[2] for r in runs) / imu * 1e6, bare / imu * 1e6)
+        bare = [replay(registry, path, estimators=False) for _ in range(max(1, repeat))]
+        out[case] = ([r[2] / r[0] * 1e6 for r in runs], [r[2] / r[0] * 1e6 for r in bare])
     return out
 
 
@@ -236,12 +246,18 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--duration", type=float, default=60.0, help="recorded simulated s")
     p.add_argument("--repeat", type=int, default=3, help="replays; the fastest counts")
     p.add_argument("--profile", action="store_true", help="print the replay's cProfile")
+    p.add_argument("--every", action="store_true",
+                   help="--recordings: print every replay's figure too")
     args = p.parse_args(argv)
     if args.recordings is not None:
-        for case, (us, bare) in recorded_cases(args.recordings, args.duration,
-                                               args.repeat).items():
-            print(f"{case}: {us:.1f} us of CPU per IMU sample ({bare:.1f} without the "
-                  "estimators)")
+        for case, (runs, bare) in recorded_runs(args.recordings, args.duration,
+                                                args.repeat).items():
+            print(f"{case}: {min(runs):.1f} us of CPU per IMU sample ({min(bare):.1f} "
+                  f"without the estimators); median {statistics.median(runs):.1f} "
+                  f"({statistics.median(bare):.1f})")
+            if args.every:
+                print(f"  every replay: {' '.join(f'{x:.1f}' for x in runs)} (without the "
+                      f"estimators: {' '.join(f'{x:.1f}' for x in bare)})")
         return 0
     with tempfile.TemporaryDirectory() as tmp:
         prof = Path(tmp) / "replay.prof" if args.profile else None

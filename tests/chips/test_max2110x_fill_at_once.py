@@ -112,15 +112,19 @@ def _read_out(bus: EmulatedBus) -> tuple[bytes, ...]:
 
 
 def _fly(cls: type[Max21100Emulator], at_once: bool, fills: Sequence[int], seed: int,
-         **options: object) -> tuple[list[tuple[bytes, ...]], list[int], int, int, int]:
+         writes: dict[int, tuple[int, int]] | None = None, **options: object
+         ) -> tuple[list[tuple[bytes, ...]], list[int], int, int, int]:
     """(what the host read after each fill, the pulls, the instants recorded, the frames
-    written and dropped); the last fly's chip in ``FLOWN``."""
+    written and dropped); the last fly's chip in ``FLOWN``. ``writes``: a register written
+    (register, value) after the read of the fill of that index."""
     clock, bus, emu, board = _measuring(cls, at_once, seed, **options)  # type: ignore[arg-type]
     FLOWN[:] = [emu]
     seen = []
-    for frames in fills:
+    for k, frames in enumerate(fills):
         clock.sleep(frames * PERIOD_S)
         seen.append(_read_out(bus))
+        if writes and k in writes:
+            wr(bus, *writes[k])
     return (seen, board.pulls, emu.measured_ns.count_until(clock.now_ns()),
             emu.fifo.frames_written, emu.fifo.frames_dropped)
 
@@ -141,6 +145,18 @@ def test_a_fill_latched_at_once_reads_as_one_latched_measurement_by_measurement(
                       little_endian=little_endian)
     assert at_once == one_by_one
     assert at_once[4] > 0  # some fills overflowed
+
+
+def test_a_fill_after_a_change_of_range_packs_its_frames_at_the_new_sensitivity() -> None:
+    # the frames packed once per plan are the counts at the sensitivity they are latched at:
+    # +-500 dps and +-4 g, then +-250 dps (GYRO_CFG1) from the fourth fill and +-8 g
+    # (PWR_ACC_CFG) from the seventh (each write restarts the timing: a new plan)
+    writes = {3: (0x01, 0x03), 6: (0x04, 0x47)}
+    options = {"temperature": True, "little_endian": False}
+    at_once = _fly(Max21100Emulator, True, FILLS, 5, writes, **options)
+    latched = FLOWN[0].fills_latched_at_once
+    assert at_once == _fly(Max21100Emulator, False, FILLS, 5, writes, **options)
+    assert latched >= sum(1 for n in FILLS[7:] if n > 1)  # fills after both changes too
 
 
 def test_fills_are_latched_at_once_when_the_board_planned_their_instants() -> None:
@@ -180,24 +196,32 @@ def test_instants_the_board_did_not_plan_are_pulled_one_by_one() -> None:
     assert emu.fills_latched_at_once == latched
 
 
-def _polled(fast: bool, gaps: Sequence[float]) -> tuple[list[bytes], list, list[int], int]:
+def _polled(fast: bool, gaps: Sequence[float], *, temperature: bool = True,
+            little_endian: bool = False, power_cfg: int = 0x7F, huge_at: int | None = None,
+            frozen_after: int | None = None) -> tuple[list[bytes], list, list[int], int]:
     """A MAX21100 read by register bursts (no FIFO) after each of ``gaps`` (periods), its
     slave auto-read on at every accelerometer measurement, a one-shot read of the slave
     triggered after each burst (the chip wakes for its end, before the next measurement):
-    (the bursts, the slave's transactions, the pulls, the instants recorded)."""
+    (the bursts, the slave's transactions, the pulls, the instants recorded); the chip in
+    ``FLOWN``. ``power_cfg``: POWER_CFG as written (0x7F: every gyro axis on);
+    ``frozen_after``: the chip freezes after that many bursts."""
     clock, bus, emu = spi(Max21100Emulator)
+    FLOWN[:] = [emu]
     emu.fast_paths = fast
-    board = PlanningBoard(emu, 3)
+    board = PlanningBoard(emu, 3, huge_at)
     slave = emu.child_buses()["aux"].attach(SLAVE, RegisterFile())
+    dr_cfg = 0x01 if temperature else 0x00
     for reg, value in ((0x01, 0x02), (0x02, 0x05), (0x04, 0x87), (0x05, 0x03), (0x08, SLAVE),
-                       (0x09, 0x03), (0x07, 0x86), (0x13, 0x01), (0x00, 0x7F)):
+                       (0x09, 0x03), (0x07, 0x86), (0x13, dr_cfg),
+                       (0x16, 0x02 if little_endian else 0x00), (0x00, power_cfg)):
         wr(bus, reg, value)
     bursts = []
-    for gap in gaps:
+    for k, gap in enumerate(gaps):
+        emu.frozen = frozen_after is not None and k >= frozen_after
         clock.sleep(gap * PERIOD_S)
         bursts.append(rd(bus, 0x23, 0x3C - 0x23))
         wr(bus, 0x0B, 0x05)  # I2C_MST_ADD: the slave's register 5
-        wr(bus, 0x13, 0x31)  # DR_CFG: a one-shot read (the temperature word kept on)
+        wr(bus, 0x13, 0x30 | dr_cfg)  # DR_CFG: a one-shot read (the temperature bit kept)
         clock.sleep(0.2 * PERIOD_S)
         bursts.append(rd(bus, 0x0C))  # I2C_MST_DATA, once the one-shot is done
     return bursts, slave.log, board.pulls, emu.measured_ns.count_until(clock.now_ns())
@@ -212,3 +236,34 @@ def test_both_channels_caught_up_as_a_pair_read_as_on_the_general_path() -> None
     general = _polled(False, GAPS)
     assert fast == general
     assert len(fast[1]) > len(GAPS)  # the auto-reads and the one-shots reached the slave
+
+
+def test_both_channels_of_an_instant_are_latched_together_from_the_plan() -> None:
+    # a burst and a one-shot each period: every measurement is latched as it comes, each
+    # instant's two pulls taken from the plan at once (an overrun, a pull the board did not
+    # plan, drops the plan: then they go one by one)
+    *_, measured = _polled(True, (0.8,) * 12)
+    assert measured >= 11
+    assert FLOWN[0].pairs_latched_at_once == measured
+    _polled(False, (0.8,) * 12)
+    assert FLOWN[0].pairs_latched_at_once == 0
+
+
+@pytest.mark.parametrize(("temperature", "little_endian"), [(False, False), (True, True)])
+def test_a_pair_latched_together_reads_as_on_the_general_path_in_either_byte_order(
+        temperature: bool, little_endian: bool) -> None:
+    options = {"temperature": temperature, "little_endian": little_endian}
+    fast = _polled(True, GAPS, **options)  # type: ignore[arg-type]
+    assert FLOWN[0].pairs_latched_at_once > 0
+    assert fast == _polled(False, GAPS, **options)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("options", [
+    {"power_cfg": 0x7D},  # the gyro's Y axis off: its word reads 0
+    {"huge_at": 6},  # a plan value whose counts do not encode: latched from the row's inputs
+    {"frozen_after": 4},  # a frozen chip keeps the inputs it had: no rows taken
+], ids=["axis-off", "plan-not-encoded", "frozen"])
+def test_a_pair_the_plan_cannot_latch_together_is_latched_channel_by_channel(
+        options: dict[str, int]) -> None:
+    fast = _polled(True, GAPS, **options)  # type: ignore[arg-type]
+    assert fast == _polled(False, GAPS, **options)  # type: ignore[arg-type]

@@ -17,7 +17,13 @@ from imuhal_chips.ms5611.conversion import (
     prom_is_valid,
     with_crc4,
 )
-from imuhal_chips.ms5611.emulator_encoding import PromCoefficients, counts_for, prom_crc4
+from imuhal_chips.ms5611.emulator_encoding import (
+    PromCoefficients,
+    counts_for,
+    d1_for,
+    d2_for,
+    prom_crc4,
+)
 
 VECTORS = json.loads(
     (Path(__file__).parent.parent / "data" / "chips" / "ms5611_vectors.json").read_text()
@@ -145,3 +151,16 @@ def test_emulator_d1_resolves_a_fraction_of_a_pascal_like_the_chips_adc() -> Non
     d1_up, d2_up = encode_raw(DATASHEET, 95000.3, 15.0)
     assert d2_up == d2
     assert 2 <= d1_up - d1 <= 10
+
+
+@pytest.mark.parametrize("temperature_degc", [-40.0, -16.3, 3.7, 19.995, 20.0, 41.2, 85.0,
+                                              float("nan"), float("inf"), float("-inf")])
+def test_each_count_alone_is_the_count_of_the_pair(temperature_degc: float) -> None:
+    # a conversion works out only the count it converts (d1_for, d2_for): the very counts
+    # counts_for gives, at every temperature branch, pressures out of range and values
+    # that are not finite
+    for pressure_pa in (1000.0, 54321.6, 101325.49, 119999.5, 5e7, float("nan"),
+                        float("inf"), float("-inf")):
+        d1, d2 = counts_for(ELEMENT, pressure_pa, temperature_degc)
+        assert d2_for(ELEMENT, temperature_degc) == d2
+        assert d1_for(ELEMENT, pressure_pa, temperature_degc) == d1, pressure_pa

@@ -1,11 +1,12 @@
 """The compiled Freescale Kalman steps (``fast`` extra) give what the Python steps give.
 
 On conformance data set A in the three coordinate systems, 9 and 6 DOF, in the reference
-(build 422) and the default configuration (its rest detection off: the kernel has none, so
-the defaults run in Python), with a magnetic disturbance that jams the
-magnetometer and a hard manoeuvre for the soft gate, every output of ``run_9dof`` and
-``run_6dof`` equals the pure-Python run (the reference) to 1e-12, on numba's JIT and on the
-AOT extension. A settings class with a field the kernel does not know runs in Python.
+(build 422) and the default configuration (rest detection included), with a magnetic
+disturbance that jams the magnetometer and a hard manoeuvre for the soft gate, every output
+of ``run_9dof`` and ``run_6dof`` equals the pure-Python run (the reference) to 1e-12, on
+numba's JIT and on the AOT extension; so do a board with still phases (rest detection's
+offset measurement) and the magnetometer gate's reacquire. A settings class with a field the
+kernel does not know runs in Python.
 """
 
 from __future__ import annotations
@@ -37,8 +38,7 @@ def _inputs(system: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def _run(system: str, dof: str, preset: str | None, monkeypatch: pytest.MonkeyPatch,
          no_jit: bool) -> BatchResult:
     acc, gyr, mag = _inputs(system)
-    # the kernel has no rest detection: defaults with it run in Python (test below)
-    extra: dict[str, object] = {"rest_detection": False} if preset is None else {"preset": preset}
+    extra: dict[str, object] = {} if preset is None else {"preset": preset}
     if no_jit:
         monkeypatch.setenv("IMUHAL_NO_JIT", "1")
     try:
@@ -61,7 +61,7 @@ def _same(a: BatchResult, b: BatchResult) -> None:
 
 @pytest.mark.parametrize("system", ["ned", "android", "win8"])
 @pytest.mark.parametrize("dof", ["9dof", "6dof"])
-@pytest.mark.parametrize("preset", ["reference", None], ids=["reference", "defaults-no-rest"])
+@pytest.mark.parametrize("preset", ["reference", None], ids=["reference", "defaults"])
 def test_compiled_freescale_batch_equals_pure_python_on_data_set_a(
         system: str, dof: str, preset: str | None, monkeypatch: pytest.MonkeyPatch) -> None:
     compiled = _run(system, dof, preset, monkeypatch, no_jit=False)
@@ -94,9 +94,71 @@ def test_settings_the_kernel_does_not_know_stay_in_python(
         new_behaviour: bool = True
 
     acc, gyr, _ = _inputs("ned")
-    run_6dof(acc[:400], gyr[:400], Extended(rest_detection=False))
+    run_6dof(acc[:400], gyr[:400], Extended())
     assert not calls
     run_6dof(acc[:400], gyr[:400], Freescale6DofSettings())
-    assert not calls  # rest detection (the default) is not in the kernel either
-    run_6dof(acc[:400], gyr[:400], Freescale6DofSettings(rest_detection=False))
-    assert calls  # the settings it knows do run compiled
+    assert calls  # the settings it knows (rest detection, the default, included) run compiled
+
+
+def _still_then_turning_inputs() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A level board heading north at 200 Hz (seeded noise) with a gyro offset of 1.5, -1,
+    0.5 deg/s: still for 6 s, turning about the vertical at 40 deg/s for 3 s, still again
+    for 6 s. The still phases are where rest detection measures the offset."""
+    n = 15 * 200
+    rng = np.random.default_rng(5)
+    acc = np.array([0.0, 0.0, 1.0]) + rng.normal(0.0, 0.002, (n, 3))
+    gyr = np.array([1.5, -1.0, 0.5]) + rng.normal(0.0, 0.1, (n, 3))
+    gyr[1200:1800, 2] += 40.0
+    yaw = np.radians(np.cumsum(np.where(np.arange(n) >= 1200, 1.0, 0.0)
+                               * np.where(np.arange(n) < 1800, 40.0, 0.0)) / 200.0)
+    field = np.array([20.0, 0.0, 44.0])
+    mag = np.stack([field[0] * np.cos(yaw), -field[0] * np.sin(yaw),
+                    np.full(n, field[2])], axis=1) + rng.normal(0.0, 0.3, (n, 3))
+    return acc, gyr, mag
+
+
+@pytest.mark.parametrize("dof", ["9dof", "6dof"])
+def test_rest_detection_runs_compiled_like_python(
+        dof: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    acc, gyr, mag = _still_then_turning_inputs()
+
+    def run(**extra: object) -> BatchResult:
+        if dof == "9dof":
+            return run_9dof(acc, gyr, mag, Freescale9DofSettings(field_strength_ut=48.4,
+                                                                 **extra))
+        return run_6dof(acc, gyr, Freescale6DofSettings(**extra))
+
+    compiled = run()
+    without_rest = run(rest_detection=False)
+    monkeypatch.setenv("IMUHAL_NO_JIT", "1")
+    _same(compiled, run())
+    # the still phases were fused as rests: the offset estimate is the gyro's own offset
+    assert np.allclose(compiled.gyro_offset_dps[-1], [1.5, -1.0, 0.5], atol=0.05)
+    assert not np.allclose(compiled.gyro_offset_dps, without_rest.gyro_offset_dps, atol=0.05)
+
+
+def _heading_glitch_inputs() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A level board heading north at 200 Hz (seeded noise) whose gyro reads 60 deg/s about
+    the vertical for 1 s at 3 s that did not happen: the heading ends 60 deg off, beyond the
+    magnetometer gate, until its reacquire rule turns it back."""
+    n = 16 * 200
+    rng = np.random.default_rng(3)
+    acc = np.array([0.0, 0.0, 1.0]) + rng.normal(0.0, 0.002, (n, 3))
+    gyr = rng.normal(0.0, 0.1, (n, 3))
+    gyr[600:800, 2] += 60.0
+    mag = np.array([20.0, 0.0, 44.0]) + rng.normal(0.0, 0.3, (n, 3))
+    return acc, gyr, mag
+
+
+def test_the_magnetometer_gates_reacquire_runs_compiled_like_python(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    acc, gyr, mag = _heading_glitch_inputs()
+    s = Freescale9DofSettings(rest_detection=False, field_strength_ut=48.4)
+    compiled = run_9dof(acc, gyr, mag, s)
+    monkeypatch.setenv("IMUHAL_NO_JIT", "1")
+    python = run_9dof(acc, gyr, mag, s)
+    _same(compiled, python)
+    yaw = np.minimum(compiled.euler_deg[:, 2], 360.0 - compiled.euler_deg[:, 2])
+    t_s = compiled.row / 200.0
+    assert yaw[(t_s > 4.0) & (t_s < 6.0)].min() > 45.0  # the glitch's heading error held
+    assert yaw[t_s > 10.0].max() < 2.0  # and reacquired

@@ -136,10 +136,12 @@ def test_the_published_vertical_acceleration_ignores_the_turn_compensation() -> 
     assert max(vertical) < 0.1
 
 
-def _tilt_max_turning_under_load_with_hard_iron(settings: dict[str, object]) -> float:
+def _tilt_max_turning_under_load_with_hard_iron(settings: dict[str, object],
+                                                *, iron_from_the_turn: bool = False) -> float:
     """9DOF: a level board turning at 20 deg/s for 10 s under a sustained 1.2 g vertical load
     (the gates distrust the accelerometer), its magnetometer off by an uncorrected hard iron
-    of 11 uT on a 48 uT field; the largest tilt error from the start of the turn (deg)."""
+    of 11 uT on a 48 uT field (from the start, or ``iron_from_the_turn``: a magnet brought to
+    the board as the turn starts); the largest tilt error from the start of the turn (deg)."""
     field_ned = np.array([20.0, 0.0, 44.0])
     iron = np.array([8.0, -6.0, 5.0])
     rate = math.radians(20.0)
@@ -154,7 +156,9 @@ def _tilt_max_turning_under_load_with_hard_iron(settings: dict[str, object]) -> 
         yaw = rate * (min(t, EVENT_START_S + 10.0) - EVENT_START_S) if t > EVENT_START_S else 0.0
         c, s = math.cos(yaw), math.sin(yaw)
         ned_to_body = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
-        mag = ned_to_body @ field_ned + iron + rng.normal(0.0, 0.1, 3)
+        mag = ned_to_body @ field_ned + rng.normal(0.0, 0.1, 3)
+        if t >= EVENT_START_S or not iron_from_the_turn:
+            mag += iron
         f = rng.normal(0.0, 0.004, 3)
         w = rng.normal(0.0, 0.002, 3)
         load = 1.2 if turning else 1.0
@@ -175,8 +179,12 @@ def test_a_gated_accelerometer_leaves_the_tilt_to_the_gyro_not_the_magnetometer(
     assert _tilt_max_turning_under_load_with_hard_iron({}) < 3.0
 
 
-def test_the_magnetometer_innovation_gate_alone_also_keeps_the_hard_iron_off_the_tilt() -> None:
-    assert _tilt_max_turning_under_load_with_hard_iron({"mag_max_accel_distrust": None}) < 3.0
+def test_the_magnetometer_innovation_gate_alone_keeps_a_magnet_brought_in_off_the_tilt() -> None:
+    """A magnet that appears with the turn jumps the innovation beyond the gate. (An iron
+    present from the lock is in the locked heading and field length and turns in step by
+    step, within the gate: the rule above is what keeps that one off the tilt.)"""
+    assert _tilt_max_turning_under_load_with_hard_iron({"mag_max_accel_distrust": None},
+                                                       iron_from_the_turn=True) < 3.0
 
 
 def test_without_either_rule_the_magnetometers_hard_iron_steers_the_tilt() -> None:

@@ -161,6 +161,23 @@ def test_values_beyond_the_configured_full_scale_are_flagged() -> None:
     assert validity_flags(nan, 16 * 9.80665, None) == SampleFlag.NAN
 
 
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+@pytest.mark.parametrize("axis", [0, 1, 2])
+def test_a_vector_with_a_non_finite_component_is_flagged_nan_not_out_of_range(
+        bad: float, axis: int) -> None:
+    vector = [1e308, -0.0, 5e-324]  # finite extremes beside it stay finite
+    vector[axis] = bad
+    sample = AccelSample(t_ns=0, device="a", accel_m_s2=(vector[0], vector[1], vector[2]))
+    assert validity_flags(sample, 16 * 9.80665, None) == SampleFlag.NAN
+    assert validity_flags(sample, None, None) == SampleFlag.NAN
+
+
+def test_a_vector_of_finite_extremes_is_only_out_of_range() -> None:
+    sample = AccelSample(t_ns=0, device="a", accel_m_s2=(1e308, -1e308, 5e-324))
+    assert validity_flags(sample, 16 * 9.80665, None) == SampleFlag.OUT_OF_RANGE
+    assert validity_flags(sample, None, None) == SampleFlag.OK
+
+
 # -- fusion order -----------------------------------------------------------------------------
 
 @pytest.mark.parametrize("pressure_first", [False, True])

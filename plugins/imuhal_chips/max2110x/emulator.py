@@ -147,6 +147,8 @@ _WORDS_BE = struct.Struct(f">{(0x40 - _DATA_FIRST) // 2}H")
 _WORDS_LE = struct.Struct(f"<{(0x40 - _DATA_FIRST) // 2}H")
 _AXES_BE, _AXES_LE = struct.Struct(">3H"), struct.Struct("<3H")
 """One channel's three words, as ``_WORDS_BE`` / ``_WORDS_LE`` lay each out."""
+_PAIR_BE, _PAIR_LE = struct.Struct(">6H"), struct.Struct("<6H")
+"""The gyro's three words then the accelerometer's (0x24..0x2F, in that order), likewise."""
 _WORD_BE, _WORD_LE = struct.Struct(">H"), struct.Struct("<H")
 
 # The bus face runs for every SPI transaction, about 2600 per simulated second on the seed
@@ -241,6 +243,9 @@ class Max2110xEmulator(ChipEmulator):
         the latest plan encoded."""
         self._plan_temperature: tuple[PlannedInputs, list | None] | None = None
         """(plan, every row's temperature counts) likewise."""
+        self._plan_frames: tuple[PlannedInputs, float, float, bytes] | None = None
+        """(plan, gyro and accelerometer SI per count, every row's FIFO frame packed) of the
+        latest plan a fill was latched from (``_latch_fill``)."""
         self.fast_paths = True
         """The paths written for the common case: a FIFO fill's planned measurements
         latched at once, on the plan's arrays (:meth:`_latch_fill`), and both channels on
@@ -250,6 +255,9 @@ class Max2110xEmulator(ChipEmulator):
         self.fills_latched_at_once = 0
         """FIFO fills whose measurements (but the last instant's) were latched at once
         (since construction)."""
+        self.pairs_latched_at_once = 0
+        """Instants whose gyro and accelerometer measurements were latched together from
+        the board's plan (``_latch_pair_planned``; since construction)."""
         self.power_on_reset()
 
     # --- state ----------------------------------------------------------------------------
@@ -575,14 +583,69 @@ class Max2110xEmulator(ChipEmulator):
             return
         self.record_measurements(due, period, missed + 1)  # the gyro, counted on a tie
         if missed:
-            self.status |= _GYRO_ERR
-        self.pull_physics(newest)
-        self._latch(_GYRO)
-        if missed:
-            self.status |= _ACC_ERR
-        self.pull_physics(newest)
-        self._latch(_ACCEL)
+            self.status |= _GYRO_ERR | _ACC_ERR
+        # Both pulls taken from the board's plan in one step (the instant is announced
+        # twice, once per channel: rows ``first`` and ``first + 1``), when it can give them
+        take = self.physics_rows
+        taken = None if take is None or self.frozen else take((newest, newest))
+        if taken is None or not self._latch_pair_planned(*taken):
+            if taken is not None:  # taken, but not latched at once: row by row, as pulled
+                self.keep_planned(taken[0], taken[1])
+            else:
+                self.pull_physics(newest)
+            self._latch(_GYRO)
+            if taken is not None:
+                self.keep_planned(taken[0], taken[1] + 1)
+            else:
+                self.pull_physics(newest)
+            self._latch(_ACCEL)
         self._accel_latched(missed + 1, newest)
+
+    def _latch_pair_planned(self, plan: PlannedInputs, row: int) -> bool:
+        """:meth:`_latch` of the gyro from row ``row`` of ``plan`` then of the accelerometer
+        from row ``row + 1`` (both pulls of one instant, taken at once by
+        :meth:`_advance_pair`), written out for the common case: every axis on and the
+        plan's counts encoded (``_plan_encoded``). The same words, register image,
+        temperature word, status bits and reads-since-latch. False, latching nothing, where
+        that case does not hold."""
+        bank0 = self.banks[0]
+        if self.part.has_aux_master and (bank0[_POWER_CFG] & 0x07 != 0x07
+                                         or bank0[_PWR_ACC_CFG] & 0x07 != 0x07):
+            return False
+        gyro = self._plan_encoded(plan, _GYRO)[3]
+        accel = self._plan_encoded(plan, _ACCEL)[3]
+        if gyro is None or accel is None:
+            return False
+        gx, gy, gz = gyro[row]
+        ax, ay, az = accel[row + 1]
+        words = self.words
+        words[_GYRO_X_H] = gx
+        words[_GYRO_X_H + 2] = gy
+        words[_GYRO_X_H + 4] = gz
+        words[_ACC_X_H] = ax
+        words[_ACC_X_H + 2] = ay
+        words[_ACC_X_H + 4] = az
+        image = self._data_image
+        if image is not None:  # the gyro's words then the accelerometer's, from 0x24
+            (_PAIR_LE if bank0[_I2C_CFG] & I2C_CFG_LITTLE_ENDIAN else _PAIR_BE).pack_into(
+                image, 0, gx & 0xFFFF, gy & 0xFFFF, gz & 0xFFFF, ax & 0xFFFF, ay & 0xFFFF,
+                az & 0xFFFF)
+        if bank0[_DR_CFG] & DR_CFG_TEMP_EN:  # the gyro's latch writes it, from its row
+            temperature = self._planned_temperature(plan, row)
+            if temperature is None:
+                p = plan.row(row)
+                t = p.temperature_degc if p.temperature_degc is not None else 25.0
+                temperature = _encode(t, 1.0 / _TEMP_LSB_PER_DEGC, 32767)
+            self._store_word(self.part.temp_register, temperature)
+        status = self.status
+        if status & _GYRO_DR:
+            status |= _GYRO_ERR  # the previous sample was never read: it is lost
+        if status & _ACC_DR:
+            status |= _ACC_ERR
+        self.status = status | _GYRO_DR | _ACC_DR
+        self._read_since_latch = [set(), set()]
+        self.pairs_latched_at_once += 1
+        return True
 
     def _advance_each(self, now: int) -> None:
         """The measurements due by ``now``, every one latched in the order the chip made
@@ -670,8 +733,8 @@ class Max2110xEmulator(ChipEmulator):
         if taken is None:
             return 0, None
         plan, first = taken
-        gyro, accel = (self._plan_encoded(plan, index)[2] for index in (_GYRO, _ACCEL))
-        if gyro is None or accel is None:
+        frames = self._planned_frames(plan)
+        if frames is None:
             return 0, taken
         n = len(instants)
         self.record_measurements(instants[0], self._period_ns[_GYRO], n)
@@ -682,12 +745,26 @@ class Max2110xEmulator(ChipEmulator):
         self.status |= _GYRO_DR | _GYRO_ERR | _ACC_DR | _ACC_ERR
         for t in instants:
             self._accel_latched(1, t)
-        # a frame is the gyro's words then the accelerometer's, big-endian (_fifo_write)
-        rows = slice(first, first + n)
-        fifo.push_frames(np.concatenate((gyro[rows], accel[rows]), axis=1).astype(">i2")
-                         .tobytes(), 12)
+        fifo.push_frames(frames[12 * first:12 * (first + n)], 12)
         self.fills_latched_at_once += 1
         return 2 * n, None
+
+    def _planned_frames(self, plan: PlannedInputs) -> bytes | None:
+        """Every row of ``plan`` as the FIFO frame it latches (the gyro's words then the
+        accelerometer's, big-endian: ``_fifo_write``), packed by one numpy call once per plan
+        and sensitivity; None where the plan's values do not all encode at once."""
+        k_gyro, k_accel = self._per_count
+        cached = self._plan_frames
+        if cached is None or cached[0] is not plan or cached[1] != k_gyro \
+                or cached[2] != k_accel:
+            gyro = self._plan_encoded(plan, _GYRO)[2]
+            accel = self._plan_encoded(plan, _ACCEL)[2]
+            if gyro is None or accel is None:
+                return None
+            cached = self._plan_frames = (
+                plan, k_gyro, k_accel,
+                np.concatenate((gyro, accel), axis=1).astype(">i2").tobytes())
+        return cached[3]
 
     def _announce_instants(self, first_ns: int, now: int, *, each_channel: bool = False
                            ) -> None:

@@ -26,9 +26,10 @@ host's convert command: an emulated board hands the chip the truth of each comma
 instant as it polls (the datasheet says no more about which instant within the conversion
 a result stands for). ``physics.pressure_pa`` and ``physics.temperature_degc``
 (defaults 101325 Pa, 20 degC when not simulated) are encoded with the *factory* coefficients by
-``emulator_encoding.counts_for``, written from the datasheet independently of the driver's
-conversion code: corrupting the PROM changes what a driver reads, not what the sensor
-element measures, and a wrong fact in the driver shows as a wrong pressure.
+``emulator_encoding.counts_for`` (a conversion's count alone: ``d1_for``, ``d2_for``),
+written from the datasheet independently of the driver's conversion code: corrupting the
+PROM changes what a driver reads, not what the sensor element measures, and a wrong fact in
+the driver shows as a wrong pressure.
 
 Source of facts: MS5611-01BA03 datasheet (DA5611-01BA03_011) commands, timing and the
 "ADC read returns 0" rules; chips.md section 1.
@@ -49,7 +50,12 @@ from imuhal_chips.ms5611.commands import (
     Measurement,
     decode_command,
 )
-from imuhal_chips.ms5611.emulator_encoding import PromCoefficients, counts_for, prom_with_crc4
+from imuhal_chips.ms5611.emulator_encoding import (
+    PromCoefficients,
+    d1_for,
+    d2_for,
+    prom_with_crc4,
+)
 from imuhal_chips.ms5611.error_spec import MS5611_ERROR_SPEC
 
 DATASHEET_COEFFICIENTS = (40127, 36924, 23317, 23282, 33464, 28312)
@@ -252,14 +258,15 @@ class MS5611Emulator(ChipEmulator):
         self._conversion = _Conversion(measurement, now + span, result)
 
     def _measure(self, measurement: Measurement) -> int:
-        p = self.physics.pressure_pa
-        t = self.physics.temperature_degc
-        d1, d2 = counts_for(
-            self.coefficients,
-            DEFAULT_PRESSURE_PA if p is None else p,
-            DEFAULT_TEMPERATURE_DEGC if t is None else t,
-        )
-        return d1 if measurement is Measurement.D1 else d2
+        """The count of ``measurement`` for the inputs standing (only that one worked out:
+        a temperature conversion has no use for D1)."""
+        physics = self.physics
+        t = physics.temperature_degc
+        t = DEFAULT_TEMPERATURE_DEGC if t is None else t
+        if measurement is not Measurement.D1:
+            return d2_for(self.coefficients, t)
+        p = physics.pressure_pa
+        return d1_for(self.coefficients, DEFAULT_PRESSURE_PA if p is None else p, t)
 
     def _settle(self, now: int) -> None:
         """Move a conversion that has finished by ``now`` into the result register."""

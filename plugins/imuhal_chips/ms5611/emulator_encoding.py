@@ -10,12 +10,12 @@ wrong fact in either one makes a driver-against-emulator test fail instead of ca
 - ``true_temperature_centi`` / ``true_pressure_pa``: the datasheet's forward formulas
   (Fig. 2 first order, Fig. 3 second order), written with Python's floor division ``//`` by
   the powers of two the datasheet prints ("/2^n" on a 32/64-bit integer).
-- ``counts_for``: D1 and D2 for a true pressure and temperature, solved in closed form from
-  the real-valued formulas (a quadratic for TEMP below 20 degC). D2 is then settled onto the
-  integer formulas by stepping a few counts, so the chip reports the true temperature to its
-  output resolution (0.01 degC); D1 is the real-valued count rounded, so it keeps the
-  pressure's sub-pascal part (and its noise) as the element's 24-bit ADC does, and the
-  compensated output is the nearest pascal.
+- ``counts_for`` (``d1_for``, ``d2_for``: each alone): D1 and D2 for a true pressure and
+  temperature, solved in closed form from the real-valued formulas (a quadratic for TEMP
+  below 20 degC). D2 is then settled onto the integer formulas by stepping a few counts, so
+  the chip reports the true temperature to its output resolution (0.01 degC); D1 is the
+  real-valued count rounded, so it keeps the pressure's sub-pascal part (and its noise) as
+  the element's 24-bit ADC does, and the compensated output is the nearest pascal.
 
 Source: MS5611-01BA03 datasheet DA5611-01BA03_011 p.7-8; application note AN520 (CRC-4).
 """
@@ -150,11 +150,25 @@ def _settle(value_of: Callable[[int], int], target: int, start: int) -> int:
 def counts_for(c: PromCoefficients, pressure_pa: float, temperature_degc: float
                ) -> tuple[int, int]:
     """(D1, D2) the element reports for the true values, clamped to 1..2^24-1."""
+    d2 = d2_for(c, temperature_degc)
+    return _d1_for(c, pressure_pa, d2), d2
+
+
+def d2_for(c: PromCoefficients, temperature_degc: float) -> int:
+    """D2 alone, as :func:`counts_for` gives it (a temperature conversion needs no D1)."""
     want_t = round(temperature_degc * 100.0) if math.isfinite(temperature_degc) else (
         10**9 if temperature_degc > 0 else -10**9)
+    return _d2_for(c, want_t)
+
+
+def d1_for(c: PromCoefficients, pressure_pa: float, temperature_degc: float) -> int:
+    """D1 alone, as :func:`counts_for` gives it (it depends on the temperature's D2)."""
+    return _d1_for(c, pressure_pa, d2_for(c, temperature_degc))
+
+
+def _d1_for(c: PromCoefficients, pressure_pa: float, d2: int) -> int:
     want_p = round(pressure_pa) if math.isfinite(pressure_pa) else (
         10**9 if pressure_pa > 0 else -10**9)
-    d2 = _d2_for(c, want_t)
     off, sens = _off_sens(c, d2)
     if sens > 0 and math.isfinite(pressure_pa) and abs(pressure_pa) < 10**7:
         # P = (D1*SENS/2^21 - OFF)/2^15  =>  D1 = (P*2^15 + OFF) * 2^21 / SENS, in reals:
@@ -163,14 +177,13 @@ def counts_for(c: PromCoefficients, pressure_pa: float, temperature_degc: float
         # rarely as on the chip. Encoding P + 0.5 makes the floors of the integer formula
         # output the nearest pascal.
         d1_real = ((pressure_pa + 0.5) * 32_768 + off) * 2_097_152 / sens
-        return min(max(round(d1_real), 1), ADC_FULL), d2
+        return min(max(round(d1_real), 1), ADC_FULL)
     # P = (D1*SENS/2^21 - OFF)/2^15  =>  D1 = (P*2^15 + OFF) * 2^21 / SENS
     guess_d1 = (math.ceil((want_p * 32_768 + off) * 2_097_152 / sens)
                 if sens > 0 and abs(want_p) < 10**7 else ADC_FULL // 2)
     # true_pressure_pa(c, n, d2) with OFF and SENS of this D2 worked out once, not at every
     # step of the search (the same integer arithmetic).
-    d1 = _settle(lambda n: (n * sens // 2_097_152 - off) // 32_768, want_p, guess_d1)
-    return d1, d2
+    return _settle(lambda n: (n * sens // 2_097_152 - off) // 32_768, want_p, guess_d1)
 
 
 @functools.lru_cache(maxsize=4096)

@@ -5,22 +5,23 @@ chosen coordinate system (for NED: body forward-right-down, accelerometer gravit
 g; gyro deg/s; magnetometer calibrated uT). Row ``i`` is fast sample ``i``; a Kalman step
 runs after every ``oversample_ratio`` rows, on the gyro rows of that window and on the last
 accelerometer/magnetometer row of it (or the window mean, per ``accel_mag_input``). With rest
-detection on (the default; ``rest.WindowRest``) every row is a tick of the detector and the
-steps run in Python: the compiled kernel has no rest detection.
+detection on (the default; ``rest.WindowRest``) every row is a tick of the detector, in the
+Python steps and in the compiled kernel alike.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from imuhal.core.conventions import NED, convert_quat
 from imuhal.core.frames import FloatArray
-from imuhal_filters.common.rest import RestSettings
+from imuhal_filters.common.rest import RestSettings, rest_params
 from imuhal_filters.freescale.coords import CONVENTION, CoordinateSystem
 from imuhal_filters.freescale.fast import KERNEL_SETTINGS, freescale_rows
-from imuhal_filters.freescale.kalman import FreescaleKalman, KalmanStep
+from imuhal_filters.freescale.kalman import FIELD_LENGTH_RATE_UT_S, FreescaleKalman, KalmanStep
 from imuhal_filters.freescale.rest import WindowRest
 from imuhal_filters.freescale.settings import (
     Freescale6DofSettings,
@@ -72,14 +73,15 @@ def _run(settings: FreescaleCommonSettings, accel_g: FloatArray, gyro_dps: Float
     ratio = settings.oversample_ratio
     average = settings.accel_mag_input == "average"
     ends = list(range(ratio - 1, len(accel), ratio))
-    compiled = (freescale_rows.available() and not settings.rest_detection
+    compiled = (freescale_rows.available()
                 and set(type(settings).model_fields) <= KERNEL_SETTINGS | _REST_SETTINGS)
-    rows, steps = _python_steps(kf, accel, gyro, mag, ends, average, compiled)
+    rest = WindowRest(settings)
+    rows, steps = _python_steps(kf, rest, accel, gyro, mag, ends, average, compiled)
     cs = settings.coordinate_system
     q, euler, offset, incl, jam, valid = _columns(steps)
     if len(rows) < len(ends):
-        k_q, k_off, k_incl, k_jam, k_euler = _compiled_steps(kf, accel, gyro, mag, len(rows),
-                                                             ratio, average)
+        k_q, k_off, k_incl, k_jam, k_euler = _compiled_steps(kf, rest, accel, gyro, mag,
+                                                             len(rows), ratio, average)
         rows += ends[len(rows):]
         q, euler = np.concatenate([q, k_q]), np.concatenate([euler, k_euler])
         offset, incl = np.concatenate([offset, k_off]), np.concatenate([incl, k_incl])
@@ -92,14 +94,13 @@ def _run(settings: FreescaleCommonSettings, accel_g: FloatArray, gyro_dps: Float
     )
 
 
-def _python_steps(kf: FreescaleKalman, accel: FloatArray, gyro: FloatArray,
-                  mag: FloatArray | None, ends: list[int], average: bool, compiled: bool
-                  ) -> tuple[list[int], list[KalmanStep]]:
-    """The Kalman steps in Python, one per window ending at each of ``ends``, until the
-    filter is initialised and locked when the rest can run ``compiled``; the windows' last
-    rows and the steps."""
+def _python_steps(kf: FreescaleKalman, rest: WindowRest, accel: FloatArray,
+                  gyro: FloatArray, mag: FloatArray | None, ends: list[int], average: bool,
+                  compiled: bool) -> tuple[list[int], list[KalmanStep]]:
+    """The Kalman steps in Python (the rest detector ``rest`` ticked on every row), one per
+    window ending at each of ``ends``, until the filter is initialised and locked when the
+    rest can run ``compiled``; the windows' last rows and the steps."""
     ratio = kf.s.oversample_ratio
-    rest = WindowRest(kf.s)
     gyro_rad_s = np.radians(gyro)
     rows, steps = [], []
     for end in ends:
@@ -136,15 +137,21 @@ def _columns(steps: list[KalmanStep]) -> tuple[FloatArray, FloatArray, FloatArra
     return q, euler, offset, incl, jam, valid
 
 
-def _compiled_steps(kf: FreescaleKalman, accel: FloatArray, gyro: FloatArray,
-                    mag: FloatArray | None, done: int, ratio: int, average: bool
+def _compiled_steps(kf: FreescaleKalman, rest: WindowRest, accel: FloatArray,
+                    gyro: FloatArray, mag: FloatArray | None, done: int, ratio: int,
+                    average: bool
                     ) -> tuple[FloatArray, FloatArray, FloatArray, np.ndarray, FloatArray]:
     """The Kalman steps of windows ``done``... in the compiled kernel (the filter is
-    initialised and locked); ``kf`` is left as the Python steps would leave it."""
+    initialised and locked), the rest detector ``rest`` ticked there too; ``kf`` and
+    ``rest`` are left as the Python steps would leave them."""
     s = kf.s
     n_win = len(accel) // ratio - done
     span = slice(done * ratio, (done + n_win) * ratio)
     g = np.ascontiguousarray(gyro[span].reshape(n_win, ratio, 3))
+    g_rad = np.ascontiguousarray(np.radians(gyro[span]).reshape(n_win, ratio, 3))
+    a_fast = np.ascontiguousarray(accel[span].reshape(n_win, ratio, 3))
+    rest_state = np.array(rest.state, dtype=float)
+    out_rest = np.zeros(n_win, dtype=bool)
 
     def measured(values: FloatArray) -> FloatArray:
         w = values[span].reshape(n_win, ratio, 3)
@@ -163,6 +170,8 @@ def _compiled_steps(kf: FreescaleKalman, accel: FloatArray, gyro: FloatArray,
     gate = s.accel_innovation_gate_sigma
     mag_limit = s9.mag_max_accel_distrust if s9 else None
     mag_gate = s9.mag_innovation_gate_sigma if s9 else None
+    reacquire = s9.mag_gate_reacquire_s if s9 else None
+    kf.mag_gate = np.ascontiguousarray(kf.mag_gate, dtype=float)
     kf.qw = np.ascontiguousarray(kf.qw)
     freescale_rows(
         kf.q, kf.b, kf.a_sensor, kf.m_global, kf.qw, incl, a, g, m, nine,
@@ -175,16 +184,19 @@ def _compiled_steps(kf: FreescaleKalman, accel: FloatArray, gyro: FloatArray,
         s9.max_inclination_deg if s9 else 90.0, _STYLE[s.coordinate_system],
         0.0 if gate is None else float(gate), s.accel_gate_reacquire_s, gate_closed,
         0.0 if mag_limit is None else float(mag_limit),
-        0.0 if mag_gate is None else float(mag_gate), out_q, out_b, out_incl, out_jam,
-        out_euler)
+        0.0 if mag_gate is None else float(mag_gate), kf.mag_gate,
+        math.inf if reacquire is None else float(reacquire),
+        FIELD_LENGTH_RATE_UT_S * s.kalman_dt_s, rest_state,
+        np.array(rest_params(s), dtype=float), g_rad, a_fast, out_q, out_b, out_incl, out_jam,
+        out_euler, out_rest)
+    rest.state = tuple(float(v) for v in rest_state)
     kf.inclination_deg = float(incl[0])
     kf.gate_closed_s = float(gate_closed[0])
     return out_q, out_b, out_incl, out_jam, out_euler
 
 
 _REST_SETTINGS = frozenset(RestSettings.model_fields)
-"""Rest detection's settings: the kernel has no rest detection, so it runs only with
-``rest_detection`` off, when the others mean nothing."""
+"""Rest detection's settings: the kernel ticks the same detector (``rest_params``)."""
 
 
 _STYLE = {CoordinateSystem.NED: 0, CoordinateSystem.ANDROID: 1, CoordinateSystem.WIN8: 2}

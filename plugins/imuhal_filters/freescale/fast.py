@@ -1,10 +1,12 @@
 """The Freescale Kalman steps of ``run_6dof``/``run_9dof`` as one compiled kernel (``fast``).
 
 Window by window and in the same order of operations as ``FreescaleKalman.step`` once the
-filter is initialised and locked: the a priori orientation from the window's gyro samples,
-the measurement matrix, the gain (build 422's partial or the full innovation inverse, the
-soft gate's and the innovation gate's noise factors), the magnetometer rule, the
-corrections, magnetic jamming, the inclination tracking and the next process covariance.
+filter is initialised and locked: the rest detector's ticks, the a priori orientation from
+the window's gyro samples, the measurement matrix, the gain (build 422's partial or the full
+innovation inverse, the soft gate's and the innovation gate's noise factors, none at rest),
+the magnetometer rule and gate (with its reacquire turn), the corrections (with the rest
+window's offset update), magnetic jamming, the inclination tracking and the next process
+covariance.
 The matrix products are written out as loops (numba's ``@`` needs scipy's BLAS) and the
 inverse is a Gauss-Jordan with partial pivoting (identity for a singular matrix, as the
 reference); they differ from numpy's BLAS/LAPACK results in the last bits only (the tests
@@ -24,7 +26,7 @@ import math
 import numpy as np
 
 from imuhal_filters.common.fast import inline_kernel, jit
-from imuhal_filters.common.fast_ahrs import soft_gate_distrust_kernel
+from imuhal_filters.common.fast_ahrs import rest_update_kernel, soft_gate_distrust_kernel
 
 KERNEL_SETTINGS = frozenset({
     "preset", "gyro_full_scale_rad_s", "accel_full_scale_m_s2", "turn_compensation",
@@ -36,7 +38,7 @@ KERNEL_SETTINGS = frozenset({
     "qv_mag_ut2", "qw_mag_disturbance_ut2", "qw_init_disturbance_ut2", "disturbance_decay",
     "max_inclination_deg", "lock_sets_inclination", "field_strength_ut",
     "full_innovation_inverse", "accel_innovation_gate_sigma", "accel_gate_reacquire_s",
-    "mag_max_accel_distrust", "mag_innovation_gate_sigma",
+    "mag_max_accel_distrust", "mag_innovation_gate_sigma", "mag_gate_reacquire_s",
     # the estimator's handling of counted losses (it adds ticks before the kernel's steps;
     # arrays of ticks have no losses)
     "max_gap_s",
@@ -290,21 +292,83 @@ def _accel_gate_factor(innov, noise, err, factor, gate_sigma, gate_reacquire_s,
 accel_gate_factor = inline_kernel(jit(_accel_gate_factor))
 
 
-def _mag_steers(innov, noise, err, factor, use_mag, mag_max_distrust, mag_gate_sigma):
-    """Whether the magnetometer corrects the orientation this step: not while the
-    accelerometer is distrusted by more than ``mag_max_distrust`` (0: no limit), nor when
-    the geomagnetic innovation's Mahalanobis distance against S's magnetometer block
-    exceeds ``mag_gate_sigma`` (0: no gate; kalman.py's _mag_plausible; no gate if
-    singular)."""
-    mag_steers = mag_max_distrust <= 0.0 or factor <= mag_max_distrust
-    if use_mag and mag_steers and mag_gate_sigma > 0.0:
-        m2 = mahalanobis3(innov, noise, 1.0, err, 3)
-        if not math.isnan(m2):
-            mag_steers = m2 <= mag_gate_sigma * mag_gate_sigma
-    return mag_steers
+def _at_length(mag_row, p0, p1, p2, length, out):
+    """``mag_row`` minus the predicted field ``p`` scaled to ``length`` into ``out[3:6]``
+    (kalman.py's _innovation_at_length)."""
+    n = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
+    f = 1.0 if n == 0.0 else length / n
+    out[3], out[4], out[5] = mag_row[0] - f * p0, mag_row[1] - f * p1, mag_row[2] - f * p2
 
 
-mag_steers_kernel = inline_kernel(jit(_mag_steers))
+at_length = inline_kernel(jit(_at_length))
+
+
+def _mag_gate_verdict(innov, noise, mag_row, r_mi, m_global, state, gate_sigma, reacquire_s,
+                      length_step, kalman_dt, scratch):
+    """The magnetometer innovation gate and its reacquire rule (kalman.py's
+    _mag_gate_verdict, state ``state`` as its ``mag_gate``; ``reacquire_s`` inf: never):
+    the heading correction (deg) to apply before the magnetometer steers, 0 to steer as it
+    is, NaN to leave the orientation to the gyro."""
+    mg0 = r_mi[0, 0] * m_global[0] + r_mi[0, 1] * m_global[1] + r_mi[0, 2] * m_global[2]
+    mg1 = r_mi[1, 0] * m_global[0] + r_mi[1, 1] * m_global[1] + r_mi[1, 2] * m_global[2]
+    mg2 = r_mi[2, 0] * m_global[0] + r_mi[2, 1] * m_global[1] + r_mi[2, 2] * m_global[2]
+    length = state[3]
+    x, y, z = mag_row[0], mag_row[1], mag_row[2]
+    diff = math.sqrt(x * x + y * y + z * z) - length
+    if diff > 0.0:
+        state[3] += length_step
+    elif diff < 0.0:
+        state[3] += -length_step
+    gate2 = gate_sigma * gate_sigma
+    at_length(mag_row, mg0, mg1, mg2, length, scratch)
+    m2 = mahalanobis3(innov, noise, 1.0, scratch, 3)
+    if math.isnan(m2) or m2 <= gate2:
+        state[0], state[1], state[2] = 0.0, 0.0, 0.0
+        return 0.0
+    if math.isinf(reacquire_s):
+        return math.nan
+    # the measured field in the global frame (r_mi.T @ mag) against the reference
+    g0 = r_mi[0, 0] * x + r_mi[1, 0] * y + r_mi[2, 0] * z
+    g1 = r_mi[0, 1] * x + r_mi[1, 1] * y + r_mi[2, 1] * z
+    psi = math.atan2(m_global[0] * g1 - m_global[1] * g0,
+                     m_global[0] * g0 + m_global[1] * g1)
+    state[1] += math.cos(psi)
+    state[2] += math.sin(psi)
+    mean = math.atan2(state[2], state[1])
+    co, si = math.cos(mean), math.sin(mean)
+    t0 = co * m_global[0] + -si * m_global[1] + 0.0 * m_global[2]
+    t1 = si * m_global[0] + co * m_global[1] + 0.0 * m_global[2]
+    t2 = 0.0 * m_global[0] + 0.0 * m_global[1] + 1.0 * m_global[2]
+    at_length(mag_row, r_mi[0, 0] * t0 + r_mi[0, 1] * t1 + r_mi[0, 2] * t2,
+              r_mi[1, 0] * t0 + r_mi[1, 1] * t1 + r_mi[1, 2] * t2,
+              r_mi[2, 0] * t0 + r_mi[2, 1] * t1 + r_mi[2, 2] * t2, length, scratch)
+    m2_turned = mahalanobis3(innov, noise, 1.0, scratch, 3)
+    if math.isnan(m2_turned) or m2_turned > gate2:
+        state[0], state[1], state[2] = 0.0, 0.0, 0.0
+        return math.nan
+    state[0] += kalman_dt
+    if state[0] < reacquire_s:
+        return math.nan
+    state[0], state[1], state[2] = 0.0, 0.0, 0.0
+    return math.degrees(mean)
+
+
+mag_gate_verdict = inline_kernel(jit(_mag_gate_verdict))
+
+
+def _turn_about_vertical(qm, angle_deg):
+    """``qm`` turned on its global side by ``angle_deg`` about the global z axis (kalman.py's
+    quat_mul(quat_about_vertical_deg(angle_deg), q))."""
+    half = math.radians(angle_deg) / 2.0
+    pw, px, py, pz = math.cos(half), 0.0, 0.0, math.sin(half)
+    qw, qx, qy, qz = qm[0], qm[1], qm[2], qm[3]
+    qm[0] = pw * qw - px * qx - py * qy - pz * qz
+    qm[1] = pw * qx + px * qw + py * qz - pz * qy
+    qm[2] = pw * qy - px * qz + py * qw + pz * qx
+    qm[3] = pw * qz + px * qy - py * qx + pz * qw
+
+
+turn_about_vertical = inline_kernel(jit(_turn_about_vertical))
 
 
 def _invert_innovation(innov, noise, factor, use_mag, full_inverse, inv):
@@ -402,35 +466,78 @@ def _track_inclination(q, xe, r_mi, m_global, incl, ned, field, max_incl_deg):
 track_inclination = inline_kernel(jit(_track_inclination))
 
 
-def _next_covariance(c, qw, k, cq, kcq, use_mag, kalman_dt, accel_decay, qw_gyro_offset,
-                     qv_gyro, qw_accel, dist_decay, qw_dist):
-    """The a posteriori covariance's diagonal P+ = Qw - K C Qw, then the next process
-    covariance ``qw`` from it (diagonal, with the orientation-offset coupling terms);
-    ``cq`` and ``kcq`` are scratch."""
+def _posterior(c, qw, k, cq, p):
+    """P+ = Qw - K C Qw into ``p``, its upper triangle mirrored as the reference does
+    (kalman.py's _posterior); ``cq`` is scratch."""
     matmul(c, qw, cq)
-    matmul(k, cq, kcq)
+    matmul(k, cq, p)
+    n = qw.shape[0]
+    for i in range(n):
+        for j in range(i, n):
+            p[i, j] = qw[i, j] - p[i, j]
+    for i in range(n):
+        for j in range(i):
+            p[i, j] = p[j, i]
+
+
+posterior = inline_kernel(jit(_posterior))
+
+
+def _fuse_rest_offset(xe, p, b, gyro_window, qv_gyro, s_bb, s_inv, gain, pb):
+    """At rest the window's mean gyro reading measures the offset alone: a second,
+    sequential Kalman update of the error vector ``xe`` and its covariance ``p`` (P+, in
+    place) with the offset block as the measurement (kalman.py's _fuse_rest_offset);
+    ``s_bb`` and ``s_inv`` (3 x 3), ``gain`` (n x 3) and ``pb`` (3 x n) are scratch."""
+    n = p.shape[0]
+    ratio = gyro_window.shape[0]
+    t0 = t1 = t2 = 0.0
+    for r in range(ratio):
+        t0, t1, t2 = t0 + gyro_window[r, 0], t1 + gyro_window[r, 1], t2 + gyro_window[r, 2]
+    e0 = b[0] - xe[3] - t0 / ratio
+    e1 = b[1] - xe[4] - t1 / ratio
+    e2 = b[2] - xe[5] - t2 / ratio
     for i in range(3):
-        poo = qw[3 + i, 3 + i] - kcq[3 + i, 3 + i]
-        ptt = qw[i, i] - kcq[i, i]
-        paa = qw[6 + i, 6 + i] - kcq[6 + i, 6 + i]
-        pdd = 0.0
-        if use_mag:
-            pdd = qw[9 + i, 9 + i] - kcq[9 + i, 9 + i]
-        qw_oo = poo + qw_gyro_offset
-        qw_tt = ptt + kalman_dt * kalman_dt * (poo + qw_gyro_offset + qv_gyro)
-        qw_aa = accel_decay ** 2 * paa + qw_accel
-        qw_dd = dist_decay ** 2 * pdd + qw_dist
-        # stored below, after every diagonal term was read
-        kcq[3 + i, 3 + i], kcq[i, i], kcq[6 + i, 6 + i] = qw_oo, qw_tt, qw_aa
-        if use_mag:
-            kcq[9 + i, 9 + i] = qw_dd
+        for j in range(3):
+            s_bb[i, j] = p[3 + i, 3 + j] + (qv_gyro if i == j else 0.0)
+    inverse_or_identity(s_bb, s_inv)
+    for i in range(n):
+        for j in range(3):
+            acc = 0.0
+            for m in range(3):
+                acc += p[i, 3 + m] * s_inv[m, j]
+            gain[i, j] = acc
+    for i in range(n):
+        xe[i] += gain[i, 0] * e0 + gain[i, 1] * e1 + gain[i, 2] * e2
+    for i in range(3):
+        for j in range(n):
+            pb[i, j] = p[3 + i, j]
+    for i in range(n):
+        for j in range(i, n):
+            p[i, j] -= gain[i, 0] * pb[0, j] + gain[i, 1] * pb[1, j] + gain[i, 2] * pb[2, j]
+    for i in range(n):
+        for j in range(i):
+            p[i, j] = p[j, i]
+
+
+fuse_rest_offset = inline_kernel(jit(_fuse_rest_offset))
+
+
+def _next_covariance(p, qw, use_mag, kalman_dt, accel_decay, qw_gyro_offset, qv_gyro,
+                     qw_accel, dist_decay, qw_dist):
+    """The next process covariance ``qw`` from the a posteriori covariance ``p``'s diagonal
+    (diagonal, with the orientation-offset coupling terms; kalman.py's
+    _next_covariance)."""
     n = qw.shape[0]
     for i in range(n):
         for j in range(n):
-            if i != j:
-                qw[i, j] = 0.0
-    for i in range(n):
-        qw[i, i] = kcq[i, i]
+            qw[i, j] = 0.0
+    for i in range(3):
+        poo, ptt, paa = p[3 + i, 3 + i], p[i, i], p[6 + i, 6 + i]
+        qw[3 + i, 3 + i] = poo + qw_gyro_offset
+        qw[i, i] = ptt + kalman_dt * kalman_dt * (poo + qw_gyro_offset + qv_gyro)
+        qw[6 + i, 6 + i] = accel_decay ** 2 * paa + qw_accel
+        if use_mag:
+            qw[9 + i, 9 + i] = dist_decay ** 2 * p[9 + i, 9 + i] + qw_dist
     for i in range(3):
         qw[i, 3 + i] = qw[3 + i, i] = -kalman_dt * qw[3 + i, 3 + i]
 
@@ -438,19 +545,50 @@ def _next_covariance(c, qw, k, cq, kcq, use_mag, kalman_dt, accel_decay, qw_gyro
 next_covariance = inline_kernel(jit(_next_covariance))
 
 
+def _window_at_rest(rest, rest_params, gyro_rad, accel_fast, fast_dt):
+    """The rest detector (``common/fast_ahrs.rest_update``; its state ``rest`` updated in
+    place) stepped once per fast tick of the window with the tick's gyro (rad/s) and
+    accelerometer rows (rest.py's WindowRest): whether it found the board at rest at every
+    tick."""
+    if rest_params[0] != 1.0:
+        return False
+    r = (rest[0], rest[1], rest[2], rest[3], rest[4], rest[5], rest[6], rest[7], rest[8],
+         rest[9], rest[10], rest[11])
+    p = (rest_params[0], rest_params[1], rest_params[2], rest_params[3], rest_params[4],
+         rest_params[5], rest_params[6], rest_params[7])
+    window = True
+    for t in range(gyro_rad.shape[0]):
+        r, at_rest = rest_update_kernel(r, p, gyro_rad[t, 0], gyro_rad[t, 1], gyro_rad[t, 2],
+                                        True, accel_fast[t, 0], accel_fast[t, 1],
+                                        accel_fast[t, 2], fast_dt)
+        window = window and at_rest
+    for j in range(12):
+        rest[j] = r[j]
+    return window
+
+
+window_at_rest = inline_kernel(jit(_window_at_rest))
+
+
 def _freescale_rows(q, b, a_sensor, m_global, qw, incl, accel, gyro, mag, use_mag, ned,
                     gravity_positive, fast_dt, kalman_dt, accel_decay, soft_width, noise,
                     full_inverse, field, qw_gyro_offset, qv_gyro, qw_accel, dist_decay,
                     qw_dist, max_incl_deg, style, gate_sigma, gate_reacquire_s,
-                    gate_closed, mag_max_distrust, mag_gate_sigma, out_q, out_b, out_incl,
-                    out_jam, out_euler):
+                    gate_closed, mag_max_distrust, mag_gate_sigma, mag_gate, mag_reacquire_s,
+                    length_step, rest, rest_params, gyro_rad, accel_fast, out_q, out_b,
+                    out_incl, out_jam, out_euler, out_rest):
     """One Kalman step per window ``k``: ``accel[k]``, ``mag[k]`` the measurements, ``gyro[k]``
     (ratio x 3) the fast samples. The state arrays (q, b, a_sensor, m_global, qw, incl[0])
     are updated in place; per step the a posteriori q, b, inclination, jamming flag and the
     system's Euler angles (``style``: 0 ned, 1 android, 2 win8). ``gate_sigma`` (0: none),
     ``gate_reacquire_s`` and the state ``gate_closed[0]`` (s) are the innovation gate's,
-    ``mag_max_distrust`` (0: none) the magnetometer rule's and ``mag_gate_sigma`` (0: none)
-    the magnetometer innovation gate's (kalman.py)."""
+    ``mag_max_distrust`` (0: none) the magnetometer rule's; ``mag_gate_sigma`` (0: none),
+    ``mag_reacquire_s`` (inf: never), the state ``mag_gate`` (4) and ``length_step`` (how far
+    the field length moves per step, uT) the magnetometer innovation gate's
+    (kalman.py). ``rest`` (12, in place) and ``rest_params`` (8) are the rest detector's
+    state and parameters, ticked with each window's fast gyro (``gyro_rad``, rad/s) and
+    accelerometer (``accel_fast``) rows; a window at rest at every tick is fused as a rest
+    (``out_rest``)."""
     n = qw.shape[0]
     nm = 6 if use_mag else 3
     r_mi = np.empty((3, 3))
@@ -465,7 +603,11 @@ def _freescale_rows(q, b, a_sensor, m_global, qw, incl, accel, gyro, mag, use_ma
     xe = np.empty(n)
     err = np.empty(nm)
     qm = np.empty(4)
+    scratch = np.empty(6)
+    s_bb, s_inv = np.empty((3, 3)), np.empty((3, 3))
+    gain, pb = np.empty((n, 3)), np.empty((3, n))
     for step in range(accel.shape[0]):
+        at_rest = window_at_rest(rest, rest_params, gyro_rad[step], accel_fast[step], fast_dt)
         predict(q, b, gyro[step], fast_dt, qm, r_mi)
         am0, am1, am2 = measure(r_mi, accel[step], mag[step], a_sensor, m_global, use_mag,
                                 ned, gravity_positive, accel_decay, kalman_dt, c, err)
@@ -478,18 +620,43 @@ def _freescale_rows(q, b, a_sensor, m_global, qw, incl, accel, gyro, mag, use_ma
                 ct[i, j] = c[j, i]
         matmul(qw, ct, qw_ct)
         matmul(c, qw_ct, innov)
-        factor = accel_gate_factor(innov, noise, err, factor, gate_sigma, gate_reacquire_s,
-                                   gate_closed, kalman_dt)
-        mag_steers = mag_steers_kernel(innov, noise, err, factor, use_mag, mag_max_distrust,
-                                       mag_gate_sigma)
+        if at_rest:  # the reading is gravity: nothing to gate
+            factor = 1.0
+            gate_closed[0] = 0.0
+        else:
+            factor = accel_gate_factor(innov, noise, err, factor, gate_sigma,
+                                       gate_reacquire_s, gate_closed, kalman_dt)
+        mag_steers = mag_max_distrust <= 0.0 or factor <= mag_max_distrust
+        gated_out = False
+        if use_mag and mag_steers and mag_gate_sigma > 0.0:
+            yaw_deg = mag_gate_verdict(innov, noise, mag[step], r_mi, m_global, mag_gate,
+                                       mag_gate_sigma, mag_reacquire_s, length_step,
+                                       kalman_dt, scratch)
+            mag_steers = not math.isnan(yaw_deg)
+            gated_out = not mag_steers
+            if mag_steers and yaw_deg != 0.0:  # reacquired: the heading turned first
+                turn_about_vertical(qm, -yaw_deg)
+                matrix(qm, r_mi)
+                am0, am1, am2 = measure(r_mi, accel[step], mag[step], a_sensor, m_global,
+                                        use_mag, ned, gravity_positive, accel_decay,
+                                        kalman_dt, c, err)
+                for i in range(n):
+                    for j in range(nm):
+                        ct[i, j] = c[j, i]
+                matmul(qw, ct, qw_ct)
+                matmul(c, qw_ct, innov)
         invert_innovation(innov, noise, factor, use_mag, full_inverse, inv)
         matmul(qw_ct, inv, k)
         jamming = error_vector(k, err, xe, use_mag, mag_steers, field)
+        posterior(c, qw, k, cq, kcq)
+        if at_rest:
+            fuse_rest_offset(xe, kcq, b, gyro[step], qv_gyro, s_bb, s_inv, gain, pb)
         correct(qm, xe, q, b, a_sensor, am0, am1, am2)
-        if use_mag and not jamming:
+        if use_mag and not jamming and not gated_out:
             track_inclination(q, xe, r_mi, m_global, incl, ned, field, max_incl_deg)
-        next_covariance(c, qw, k, cq, kcq, use_mag, kalman_dt, accel_decay, qw_gyro_offset,
-                        qv_gyro, qw_accel, dist_decay, qw_dist)
+        next_covariance(kcq, qw, use_mag, kalman_dt, accel_decay, qw_gyro_offset, qv_gyro,
+                        qw_accel, dist_decay, qw_dist)
+        out_rest[step] = at_rest
         out_q[step, 0], out_q[step, 1], out_q[step, 2], out_q[step, 3] = q[0], q[1], q[2], q[3]
         out_b[step, 0], out_b[step, 1], out_b[step, 2] = b[0], b[1], b[2]
         out_incl[step] = incl[0]
@@ -506,6 +673,8 @@ freescale_rows = jit(
     full_inverse="b1", field="f8", qw_gyro_offset="f8", qv_gyro="f8", qw_accel="f8",
     dist_decay="f8", qw_dist="f8", max_incl_deg="f8", style="i8", gate_sigma="f8",
     gate_reacquire_s="f8", gate_closed="f8[::1]", mag_max_distrust="f8", mag_gate_sigma="f8",
-    out_q="f8[:, ::1]",
-    out_b="f8[:, ::1]", out_incl="f8[::1]", out_jam="b1[::1]", out_euler="f8[:, ::1]")
+    mag_gate="f8[::1]", mag_reacquire_s="f8", length_step="f8", rest="f8[::1]",
+    rest_params="f8[::1]", gyro_rad="f8[:, :, ::1]", accel_fast="f8[:, :, ::1]",
+    out_q="f8[:, ::1]", out_b="f8[:, ::1]", out_incl="f8[::1]", out_jam="b1[::1]",
+    out_euler="f8[:, ::1]", out_rest="b1[::1]")
 """The compiled kernel (see common/fast.py: the extension, or numba on the first call)."""

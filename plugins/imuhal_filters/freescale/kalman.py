@@ -52,6 +52,14 @@ from imuhal_filters.freescale.settings import Freescale9DofSettings, FreescaleCo
 
 TH, B, A, D = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12)
 """Blocks of the error vector: orientation, gyro offset, linear acceleration, disturbance."""
+GATE_CLOSED, GATE_COS, GATE_SIN, GATE_LENGTH = 0, 1, 2, 3
+"""Entries of ``FreescaleKalman.mag_gate``."""
+FIELD_LENGTH_RATE_UT_S = 0.2
+"""How fast (uT/s) the magnetometer gate's field length moves towards each step's measured
+length, by this much whatever the difference: it follows the median of the measured length,
+which a magnet held to the board for seconds (hundreds of uT) moves by tenths of a uT. The
+Earth's field at a site does not change; the lock measures it, and this corrects a lock
+taken in a disturbance (10 uT in 50 s)."""
 
 
 @dataclass(frozen=True)
@@ -101,6 +109,11 @@ class FreescaleKalman:
         s = self.s
         self.locked = False
         self.gate_closed_s = 0.0
+        self.mag_gate = np.zeros(4)
+        """The magnetometer gate's state (``_mag_gate_verdict``): how long (s) it has
+        rejected innovations one heading offset explains, the sums of that stretch's
+        offsets' cosines and sines (their circular mean), and the field length it expects
+        (uT; 0 until the lock measures it)."""
         self.q = np.array([1.0, 0.0, 0.0, 0.0])
         self.b = np.zeros(3)
         self.a_sensor = np.zeros(3)
@@ -135,6 +148,7 @@ class FreescaleKalman:
             "q": self.q.tolist(), "b": self.b.tolist(), "a_sensor": self.a_sensor.tolist(),
             "inclination_deg": self.inclination_deg, "m_global": self.m_global.tolist(),
             "qw": self.qw.tolist(), "gate_closed_s": self.gate_closed_s,
+            "mag_gate": self.mag_gate.tolist(),
         }
 
     def load_dict(self, d: dict[str, Any]) -> None:
@@ -145,6 +159,7 @@ class FreescaleKalman:
         self.a_sensor = np.array(d["a_sensor"], dtype=float)
         self.inclination_deg = float(d["inclination_deg"])
         self.gate_closed_s = float(d.get("gate_closed_s", 0.0))
+        self.mag_gate = np.array(d.get("mag_gate", [0.0] * 4), dtype=float)
         self.m_global = np.array(d["m_global"], dtype=float)
         qw = np.array(d["qw"], dtype=float)
         if qw.shape != (self.n, self.n):
@@ -178,14 +193,7 @@ class FreescaleKalman:
             return self._result(False, np.zeros(3), False)
 
         if not self.locked:
-            if self.use_mag:
-                r0, self.inclination_deg = ecompass(cs, accel, mag)
-                if self._s9().lock_sets_inclination:
-                    self._set_inclination(self.inclination_deg)
-            else:
-                r0 = tilt_matrix(cs, accel)
-            self.q = quat_from_matrix_fsl(r0)
-            self.locked = True
+            self._lock(accel, mag)
 
         omega = gyro.mean(axis=0) - self.b
 
@@ -204,14 +212,17 @@ class FreescaleKalman:
         m_err = mag - m_gyro
 
         c = self._measurement_matrix(g_gyro, m_gyro)
-        if at_rest:  # the reading is gravity: nothing to gate
-            noise_factor = 1.0
-            self.gate_closed_s = 0.0
-        else:
-            noise_factor = self._accel_noise_factor(accel)
-            noise_factor *= self._innovation_noise_factor(c, noise_factor, g_err)
+        noise_factor = self._accel_distrust(accel, c, g_err, at_rest)
+        mag_steers = self._mag_may_steer(noise_factor)
+        gated_out = False  # the gate found the field implausible: not the Earth's
+        if mag_steers and self._s9().mag_innovation_gate_sigma is not None:
+            mag_steers, yaw_deg = self._mag_gate_verdict(c, m_gyro, r_mi, mag)
+            gated_out = not mag_steers
+            if yaw_deg is not None:  # reacquired: the heading turned to the magnetometer's
+                q_mi = quat_mul(quat_about_vertical_deg(-yaw_deg), q_mi)
+                r_mi, m_gyro, c = self._magnetic_prediction(q_mi, g_gyro)
+                m_err = mag - m_gyro
         k = self._gain(c, noise_factor)
-        mag_steers = self._mag_may_steer(noise_factor) and self._mag_plausible(c, m_err)
 
         # a posteriori error vector; d always sees both measurements
         xe = k[:, :3] @ g_err
@@ -234,11 +245,45 @@ class FreescaleKalman:
         self.a_sensor = a_mi - xe[A]
         r_pl = matrix_from_quat(self.q)
 
-        if self.use_mag and not jamming:
+        if self.use_mag and not jamming and not gated_out:
             self._track_inclination(r_pl.T @ xe[D])
 
         self._next_covariance(p)
         return self._result(True, omega, jamming, accel=accel, r_pl=r_pl)
+
+    def _lock(self, accel: FloatArray, mag: FloatArray) -> None:
+        """The orientation from the accelerometer's tilt (6DOF) or the eCompass (9DOF, which
+        also measures the inclination and the field length the magnetometer gate expects)."""
+        cs = self.s.coordinate_system
+        if self.use_mag:
+            r0, self.inclination_deg = ecompass(cs, accel, mag)
+            self.mag_gate[:] = 0.0
+            self.mag_gate[GATE_LENGTH] = float(np.linalg.norm(mag))
+            if self._s9().lock_sets_inclination:
+                self._set_inclination(self.inclination_deg)
+        else:
+            r0 = tilt_matrix(cs, accel)
+        self.q = quat_from_matrix_fsl(r0)
+        self.locked = True
+
+    def _accel_distrust(self, accel: FloatArray, c: FloatArray, g_err: FloatArray,
+                        at_rest: bool) -> float:
+        """The accelerometer noise factor of the soft and innovation gates; 1 at rest (the
+        reading is gravity: nothing to gate, and the innovation gate opens)."""
+        if at_rest:
+            self.gate_closed_s = 0.0
+            return 1.0
+        noise_factor = self._accel_noise_factor(accel)
+        return noise_factor * self._innovation_noise_factor(c, noise_factor, g_err)
+
+    def _magnetic_prediction(self, q_mi: FloatArray, g_gyro: FloatArray
+                             ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """For the a priori orientation ``q_mi`` (turned in heading only, so the predicted
+        gravity ``g_gyro`` stands): its matrix, the predicted geomagnetic vector (sensor
+        frame) and the measurement matrix."""
+        r_mi = matrix_from_quat(q_mi)
+        m_gyro = r_mi @ self.m_global
+        return r_mi, m_gyro, self._measurement_matrix(g_gyro, m_gyro)
 
     def _measurement_matrix(self, g_gyro: FloatArray, m_gyro: FloatArray) -> FloatArray:
         """C: how the error vector shows in the measurement error (gravity; geomagnetism).
@@ -333,28 +378,75 @@ class FreescaleKalman:
         limit = self._s9().mag_max_accel_distrust
         return limit is None or accel_noise_factor <= limit
 
-    def _mag_plausible(self, c: FloatArray, m_err: FloatArray) -> bool:
-        """Whether the geomagnetic innovation is plausible: its Mahalanobis distance against
-        the magnetometer block of S = C Qw C^T + Qv within ``mag_innovation_gate_sigma``
-        (9DOF; always without the gate, as in build 422).
+    def _mag_gate_verdict(self, c: FloatArray, m_gyro: FloatArray, r_mi: FloatArray,
+                          mag: FloatArray) -> tuple[bool, float | None]:
+        """The magnetometer innovation gate (9DOF with ``mag_innovation_gate_sigma``; build
+        422 has none) and its reacquire rule: whether the magnetometer may steer this step,
+        and the heading correction (deg, about the global vertical) to apply first when the
+        gate reacquires (None: none).
 
-        The filter's magnetic model is the Earth's field plus a small, decaying disturbance.
-        An uncalibrated magnetometer's hard iron is a body-fixed offset of about a quarter of
+        The gate: the geomagnetic innovation's Mahalanobis distance against the magnetometer
+        block of S = C Qw C^T + Qv within ``mag_innovation_gate_sigma``. The filter's
+        magnetic model is the Earth's field plus a small, decaying disturbance. An
+        uncalibrated magnetometer's hard iron is a body-fixed offset of about a quarter of
         the field, which turns with the board: in turns it reads as a heading and tilt error
-        the gyro does not confirm, and fused at full weight it drove the gyro offset estimate
-        to 5 deg/s and the tracked inclination to its clamp (uncalibrated seed board,
-        `thermal` with the nominal airspeed: 55 deg tilt at 84 s; 6.0 deg with the gate).
-        A calibrated magnetometer's innovation stays within a few sigma, so the gate does
-        not close there (the calibrated board's figures are unchanged)."""
-        gate = self._s9().mag_innovation_gate_sigma
-        if gate is None:
-            return True
+        the gyro does not confirm, and fused at full weight it drove the gyro offset
+        estimate to 5 deg/s and the tracked inclination to its clamp (uncalibrated seed
+        board, `thermal` with the nominal airspeed: 55 deg tilt at 84 s; 6.0 deg with the
+        gate). The innovation the gate tests is taken against the predicted field scaled
+        to the length the site's field was measured to have (``GATE_LENGTH``: at the lock,
+        then following its median, ``FIELD_LENGTH_RATE_UT_S``), not to
+        ``field_strength_ut``: the length does not depend on the attitude, and against the
+        50 uT default a 42 uT site (BROAD) is 8 uT of innovation at every step, which kept
+        the gate shut from the start.
+
+        The reacquire rule: a gate that only closes holds on to a wrong heading for good.
+        A disturbance and a wrong heading differ in what they do to the field seen in the
+        global frame through the a priori attitude: a wrong heading only turns it about
+        the vertical, by the same angle whatever the board does, while a magnet, a hard iron
+        or a steel structure changes its length or dip, or turns it differently as the
+        board turns. So each rejected step's heading offset psi (the horizontal angle from
+        the reference field to the measured one) is added to the stretch's circular mean,
+        and the step counts towards reacquiring only if the mean offset explains it: the
+        innovation left after turning the reference field by the mean lies within the same
+        gate. A stretch of such steps lasting ``mag_gate_reacquire_s`` is the heading being
+        wrong: it is turned by the mean offset and the magnetometer steers again. A step the
+        mean does not explain ends the stretch. (A field that looks like the Earth's turned
+        in heading for longer than the reacquire time cannot be told from a heading
+        error.)"""
+        s9 = self._s9()
+        gate = s9.mag_innovation_gate_sigma
+        assert gate is not None
+        state = self.mag_gate
+        length = state[GATE_LENGTH]
+        state[GATE_LENGTH] += _towards(float(np.linalg.norm(mag)) - length,
+                                       FIELD_LENGTH_RATE_UT_S * self.s.kalman_dt_s)
         s_mm = c[3:] @ self.qw @ c[3:].T + np.diag(self._measurement_noise()[3:])
-        try:
-            m2 = float(m_err @ np.linalg.solve(s_mm, m_err))
-        except np.linalg.LinAlgError:
-            return True
-        return m2 <= gate * gate
+        m2 = _mahalanobis2(s_mm, _innovation_at_length(mag, m_gyro, length))
+        if m2 is None or m2 <= gate * gate:
+            state[:GATE_LENGTH] = 0.0
+            return True, None
+        reacquire_s = s9.mag_gate_reacquire_s
+        if reacquire_s is None:
+            return False, None
+        # this step's heading offset: the measured field in the global frame against the
+        # reference's horizontal direction
+        m_g = r_mi.T @ mag
+        ref = self.m_global
+        psi = math.atan2(ref[0] * m_g[1] - ref[1] * m_g[0], ref[0] * m_g[0] + ref[1] * m_g[1])
+        state[GATE_COS] += math.cos(psi)
+        state[GATE_SIN] += math.sin(psi)
+        mean = math.atan2(state[GATE_SIN], state[GATE_COS])
+        turned = r_mi @ (_about_vertical(mean) @ ref)
+        m2_turned = _mahalanobis2(s_mm, _innovation_at_length(mag, turned, length))
+        if m2_turned is None or m2_turned > gate * gate:
+            state[:GATE_LENGTH] = 0.0  # not a heading error alone: the stretch ends
+            return False, None
+        state[GATE_CLOSED] += self.s.kalman_dt_s
+        if state[GATE_CLOSED] < reacquire_s:
+            return False, None
+        state[:GATE_LENGTH] = 0.0
+        return True, math.degrees(mean)
 
     def _gain(self, c: FloatArray, accel_noise_factor: float = 1.0) -> FloatArray:
         """K = Qw C^T S^-1 with S = C Qw C^T + Qv (Qw stands in for the a priori P)."""
@@ -467,6 +559,42 @@ class FreescaleKalman:
             linear_accel_sensor_g=self.a_sensor.copy(), linear_accel_global_g=lin,
             inclination_deg=self.inclination_deg, mag_jamming=jamming,
         )
+
+
+def _mahalanobis2(s: FloatArray, e: FloatArray) -> float | None:
+    """e^T S^-1 e; None when S is singular (no gate then)."""
+    try:
+        return float(e @ np.linalg.solve(s, e))
+    except np.linalg.LinAlgError:
+        return None
+
+
+def _towards(difference: float, step: float) -> float:
+    """``step`` in the direction of ``difference`` (0 when it is 0)."""
+    if difference > 0.0:
+        return step
+    return -step if difference < 0.0 else 0.0
+
+
+def _innovation_at_length(mag: FloatArray, predicted: FloatArray, length: float
+                          ) -> FloatArray:
+    """``mag`` minus ``predicted`` scaled to ``length`` (unscaled if it is zero)."""
+    n = float(np.linalg.norm(predicted))
+    return mag - predicted if n == 0.0 else mag - (length / n) * predicted
+
+
+def _about_vertical(angle_rad: float) -> FloatArray:
+    """The rotation matrix by ``angle_rad`` about the global z axis (right-handed; the
+    vertical of every coordinate system)."""
+    co, si = math.cos(angle_rad), math.sin(angle_rad)
+    return np.array([[co, -si, 0.0], [si, co, 0.0], [0.0, 0.0, 1.0]])
+
+
+def quat_about_vertical_deg(angle_deg: float) -> FloatArray:
+    """The quaternion of a turn by ``angle_deg`` about the global z axis (right-handed);
+    multiplied on the left of a sensor -> global quaternion it turns the global side."""
+    half = math.radians(angle_deg) / 2.0
+    return np.array([math.cos(half), 0.0, 0.0, math.sin(half)])
 
 
 def _inverse_or_identity(m: FloatArray) -> FloatArray:

@@ -169,11 +169,21 @@ class Freescale9DofSettings(FreescaleCommonSettings):
     mag_innovation_gate_sigma: float | None = Field(default=5.0, gt=0.0)
     """The magnetometer corrects the orientation and the gyro offset only while its
     innovation's Mahalanobis distance (against the magnetometer block of the innovation
-    covariance) is within this many standard deviations; beyond it, as with a gated
-    accelerometer, the gyro carries the attitude. 5 sigma: a 3-axis Gaussian innovation
+    covariance; the innovation against the predicted field at the field length the lock
+    measured, not at ``field_strength_ut``) is within this many standard deviations; beyond
+    it, as with a gated accelerometer, the gyro carries the attitude and the tracked
+    inclination stays. 5 sigma: a 3-axis Gaussian innovation
     exceeds it about once in 70,000 steps. An uncalibrated magnetometer's hard iron, turning
     with the board, fails it in turns (uncalibrated seed board, `thermal` with the nominal
     airspeed: tilt max 55 -> 6.0 deg). None: always (build 422)."""
+    mag_gate_reacquire_s: float | None = Field(default=3.0, gt=0.0)
+    """The magnetometer gate rejecting this long (s) without a break innovations that one
+    and the same heading offset explains (the field seen through the attitude is the
+    reference field turned about the vertical, its length and dip as expected) means the
+    heading, not the field, is wrong: the heading is turned by that offset and the
+    magnetometer steers again (``kalman.FreescaleKalman._mag_gate_verdict``). Longer than
+    a passing disturbance (2 s of a field turned 60 deg stays rejected). None: the gate
+    never reacquires."""
     full_innovation_inverse: bool = False
     """Build 422 inverts only the top-left 3x3 block of the 6x6 innovation covariance
     (``fmatrixAeqInvA(..., 3)``) and uses the other blocks uninverted; False reproduces that.

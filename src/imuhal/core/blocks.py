@@ -171,13 +171,16 @@ class Block:
         b = Block(self.kind, self.device, frame=frame, spec=self.spec, t0_ns=self._t0,
                   offsets_ns=self.offsets_ns, values=values, flags=self.flags)
         b._flagged = self._flagged
+        b._t = self._t  # the same stamps
         return b
 
     def with_flags(self, flags: IntArray) -> Block:
         """The same frames with ``flags`` (n,) instead of theirs."""
-        return Block(self.kind, self.device, frame=self.frame, spec=self.spec,
-                     t0_ns=self._t0, offsets_ns=self.offsets_ns, values=self.values,
-                     flags=flags)
+        b = Block(self.kind, self.device, frame=self.frame, spec=self.spec,
+                  t0_ns=self._t0, offsets_ns=self.offsets_ns, values=self.values,
+                  flags=flags)
+        b._t = self._t  # the same stamps
+        return b
 
     def select(self, keep: npt.NDArray[np.bool_]) -> Block | None:
         """The frames where ``keep`` (n,) is true, as a block (this one when all are; None

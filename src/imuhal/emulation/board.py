@@ -304,8 +304,10 @@ class EmulatedBoard:
         pipeline's thread was held happens, and its chip measures, when it is free)."""
         t_ns = self.faults.before_poll(device, max(t_ns, self.clock.now_ns()))
         if self.emulators[device].physics_source is None:
-            # a chip with its own clock pulls its inputs when it measures
-            self.update(t_ns, device)
+            # a chip with its own clock pulls its inputs when it measures (what update()
+            # does for one device)
+            self._updated_ns = t_ns
+            self._give(t_ns, device)
         return t_ns
 
     def _noise_periods(self, dev: _Device, poll_period_s: float) -> dict[str, float]:

@@ -392,7 +392,7 @@ class FaultLine:
         """The chip's ``idle_answer`` while no fault is scheduled on the line (a fault in
         force may act on any transaction, and draws its odds per transaction: those are
         carried out); never for a write (``writes`` counts them)."""
-        if not read_len or self.faults.has_faults(self.device):
+        if not read_len or self.faults._by_device.get(self.device):  # has_faults, inline
             return None
         return self.emulator.idle_answer(kind, write, read_len)
 

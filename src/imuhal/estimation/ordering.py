@@ -34,15 +34,18 @@ def fusion_order(samples: Iterable[Sample],
     """``samples`` sorted by time, then FUSION_RANK, then device rank: the order estimators
     receive them in. Independent of the order they were given in."""
     ranks = device_rank or {}
+    if type(samples) is list and len(samples) == 2:
+        # the common case live (a gyro and an accelerometer sample of one burst): what the
+        # stable sort gives, without setting one up (the keys written out)
+        a, b = samples
+        if (a.t_ns, FUSION_RANK.get(a.channel, 2), ranks.get(a.device, 0)) > \
+                (b.t_ns, FUSION_RANK.get(b.channel, 2), ranks.get(b.device, 0)):
+            return [b, a]
+        return [a, b]
 
     def key(s: Sample) -> tuple[int, int, int]:
         return s.t_ns, FUSION_RANK.get(s.channel, 2), ranks.get(s.device, 0)
 
-    if type(samples) is list and len(samples) == 2:
-        # the common case live (a gyro and an accelerometer sample of one burst): what the
-        # stable sort gives, without setting one up
-        a, b = samples
-        return [b, a] if key(a) > key(b) else [a, b]
     return sorted(samples, key=key)
 
 

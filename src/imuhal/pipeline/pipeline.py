@@ -147,6 +147,9 @@ class DeviceRuntime:
     """Per quantity, the time of the last valid sample (samples must not go back)."""
     chip_to_body_rows: list[list[float]] = field(default_factory=list)
     """``chip_to_body`` as nested lists of floats (every sample is rotated with it)."""
+    chip_to_body_array: FloatArray = field(default_factory=lambda: np.eye(3))
+    """``chip_to_body`` as a float64 array (every block of several frames is rotated with
+    it)."""
     ledger: FrameLedger | None = None
     """Frames produced, delivered and lost by cause (None: the driver accounts for none)."""
     reconfigurations_seen: int = 0
@@ -182,7 +185,8 @@ class DeviceRuntime:
     (``Pipeline._on_phase``); at PUT_OFF_AT_MOST it happens when it comes, late or not."""
 
     def __post_init__(self) -> None:
-        self.chip_to_body_rows = np.asarray(self.chip_to_body, dtype=float).tolist()
+        self.chip_to_body_array = np.array(self.chip_to_body, dtype=np.float64)
+        self.chip_to_body_rows = self.chip_to_body_array.tolist()
         self.own_blocks = type(self.driver).poll_blocks is not Driver.poll_blocks
 
 
@@ -694,16 +698,19 @@ class Pipeline:
             due_ns = t_ns
             t_ns = self._before_poll(t_ns, name)
             dev = self.devices[name]
-            self._span_ns[1] = max(t_ns, self._span_ns[1])
-            if self._on_phase(dev, due_ns, t_ns):
+            if self._put_off(dev, due_ns, t_ns):
                 continue
-            self._note_late(dev, due_ns, t_ns)
             frames, next_ns = self._contained_service(dev, t_ns)
             if dev.ledger is not None:
                 self._account(dev)
             dev.next_poll_ns = max(self._next_due(dev, t_ns, next_ns), t_ns + 1)
             heapq.heappush(heap, (dev.next_poll_ns, rank, name))
-            yield from self._hand_out(dev, frames, reads)
+            if frames:  # _hand_out's register-poll case written out: one call a reading
+                if type(frames) is _Readings:
+                    for sample in frames:
+                        yield self._process_one(dev, sample)
+                else:
+                    yield from self._hand_out(dev, frames, reads)
             if dev.ledger is not None:
                 self._account_slides(dev)
         if end is not None:
@@ -758,6 +765,23 @@ class Pipeline:
                 yield read
             else:
                 yield from self._read_frames(read)
+
+    def _put_off(self, dev: DeviceRuntime, due_ns: int, t_ns: int) -> bool:
+        """A poll due at ``due_ns`` comes at ``t_ns``: the run's span moves on, and a late
+        poll is put off to its device's grid (True: ``_on_phase``) or charged to the
+        ledger (``_note_late``)."""
+        span = self._span_ns
+        if t_ns > span[1]:
+            span[1] = t_ns
+        if span[1] == due_ns:
+            # on time, and no poll before it came later (the usual poll): nothing to put
+            # off and nothing late (what _on_phase and _note_late find, without them)
+            dev.put_off = 0
+            return False
+        if self._on_phase(dev, due_ns, t_ns):
+            return True
+        self._note_late(dev, due_ns, t_ns)
+        return False
 
     def _on_phase(self, dev: DeviceRuntime, due_ns: int, t_ns: int) -> bool:
         """A poll due at ``due_ns`` that can only happen at ``t_ns``, half a frame period or
@@ -954,7 +978,25 @@ class Pipeline:
         if dev.needs_recovery:
             return [], self._recover(dev, t_ns)
         try:
-            frames, next_ns = self._poll(dev, t_ns)
+            # dev's poll as blocks (Driver.poll_blocks). For a driver that leaves
+            # poll_blocks to the base class its adapter is written out here: a poll whose
+            # readings are of different streams (a register poll) is a block of one frame
+            # per reading, kept as the readings; one with several readings of a stream (a
+            # FIFO read) is grouped into blocks (imuhal.core.blocks.blocks_of)
+            driver = dev.driver
+            if dev.edges_ns:
+                driver.data_ready(dev.edges_ns)
+                dev.edges_ns = []
+            if dev.own_blocks and driver.builds_blocks:
+                polled = driver.poll_blocks(t_ns)
+                blocks = polled.blocks
+                next_ns = polled.next_poll_ns
+                frames: _Readings | list[Block] = \
+                    _Readings(b.samples()[0] for b in blocks) \
+                    if all(len(b) == 1 for b in blocks) else blocks
+            else:
+                result = driver.poll(t_ns)
+                frames, next_ns = _frames(result.samples), result.next_poll_ns
         except BusError:
             dev.bus_errors += 1
             if dev.ledger is not None:
@@ -969,26 +1011,6 @@ class Pipeline:
             return [], self._recover(dev, t_ns)
         dev.resumed = 0
         return frames, next_ns
-
-    @staticmethod
-    def _poll(dev: DeviceRuntime, t_ns: int) -> tuple[_Readings | list[Block], int]:
-        """``dev``'s poll as blocks (``Driver.poll_blocks``). For a driver that leaves
-        ``poll_blocks`` to the base class this is its adapter inlined: a poll whose readings
-        are of different streams (a register poll) is a block of one frame per reading,
-        kept as the readings; one with several readings of a stream (a FIFO read) is
-        grouped into blocks (imuhal.core.blocks.blocks_of)."""
-        driver = dev.driver
-        if dev.edges_ns:
-            driver.data_ready(dev.edges_ns)
-            dev.edges_ns = []
-        if dev.own_blocks and driver.builds_blocks:
-            polled = driver.poll_blocks(t_ns)
-            blocks = polled.blocks
-            if all(len(b) == 1 for b in blocks):
-                return _Readings(b.samples()[0] for b in blocks), polled.next_poll_ns
-            return blocks, polled.next_poll_ns
-        result = driver.poll(t_ns)
-        return _frames(result.samples), result.next_poll_ns
 
     def _after_bus_error(self, dev: DeviceRuntime, t_ns: int) -> int:
         """Recovery in proportion: a transfer that fails after a good poll is most likely a
@@ -1200,7 +1222,8 @@ class Pipeline:
         if dev.mag_learner is not None and issubclass(block.kind, MagSample):
             self._learn(dev, block.samples())
         # Flagged frames are only rotated, not calibrated.
-        block = calibrate_block(block, dev.calibration, dev.chip_to_body_rows)
+        block = calibrate_block(block, dev.calibration, dev.chip_to_body_rows,
+                                matrix=dev.chip_to_body_array)
         if self.estimators and self.router.takes(block.device, block.kind):
             fused = self._fusable(block)
             if fused is not None:

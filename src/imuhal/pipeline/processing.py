@@ -58,7 +58,14 @@ def validity_flags(sample: Sample, full_scale: float | None, last_t_ns: int | No
     sample of the same device and quantity (else OUT_OF_ORDER). This is the only NaN check."""
     flags = sample.flags
     values = values_of(sample)
-    if not all(map(math.isfinite, values)):
+    if len(values) == 3:  # a vector (every IMU reading): the same tests written out
+        x, y, z = values
+        # x - x is 0.0 for a finite x and NaN for an infinite or NaN one
+        if (x - x) + (y - y) + (z - z) != 0.0:
+            flags |= SampleFlag.NAN
+        elif full_scale is not None and max(abs(x), abs(y), abs(z)) > full_scale:
+            flags |= SampleFlag.OUT_OF_RANGE
+    elif not all(map(math.isfinite, values)):
         flags |= SampleFlag.NAN
     elif full_scale is not None and values and max(map(abs, values)) > full_scale:
         flags |= SampleFlag.OUT_OF_RANGE
@@ -122,7 +129,7 @@ def validity_block(block: Block, full_scale: float | None, last_t_ns: int | None
     if not block.has_arrays:  # e.g. GNSS fixes a receiver delivered together
         return _validity_rows(block, full_scale, last_t_ns)
     t_ns = block.t_ns
-    if bool(np.any(np.diff(t_ns) < 0)):
+    if len(t_ns) > 1 and _MAX(t_ns[:-1] - t_ns[1:]) > 0:  # a frame older than the one before
         return _validity_rows(block, full_scale, last_t_ns)
     if _all_valid(block, t_ns, full_scale, last_t_ns):
         return block, int(t_ns[-1])  # the common case, in a few numpy calls
@@ -148,8 +155,13 @@ def _all_valid(block: Block, t_ns: IntArray, full_scale: float | None,
         return False
     if not values.shape[1]:
         return True
-    peak = np.abs(values).max()
+    peak = _MAX(np.abs(values), axis=None)  # NaN when some value is
     return bool(peak <= full_scale) if full_scale is not None else bool(np.isfinite(peak))
+
+
+_MAX = np.maximum.reduce
+"""The ufunc's reduction called directly: ``ndarray.max``, ``np.any`` and ``np.diff`` go
+through Python wrappers that cost more than the arithmetic on a FIFO read's 8-10 frames."""
 
 
 def _validity_bits(block: Block, full_scale: float | None) -> IntArray:
@@ -226,9 +238,11 @@ def _mat_vec_rows(m: Sequence[Sequence[float]] | FloatArray, v: FloatArray,
     calibration's plain-float ``_mat_vec`` sums it (from ``start`` first, as ``_rotate``
     sums from +0.0): the nine products of each row in one call, then two or three sums,
     whatever n (a few numpy calls a block, not one per component)."""
-    products = v[:, None, :] * np.asarray(m, dtype=np.float64)[None, :, :]
+    matrix = m if type(m) is np.ndarray else np.asarray(m, dtype=np.float64)
+    products: FloatArray = v[:, None, :] * matrix  # (n, 3, 3): row i of m times each frame
     first = products[:, :, 0] if start is None else start + products[:, :, 0]
-    return np.asarray(first + products[:, :, 1] + products[:, :, 2], dtype=np.float64)
+    out: FloatArray = first + products[:, :, 1] + products[:, :, 2]
+    return out
 
 
 def _calibrated(block: Block, record: _Correction | None) -> FloatArray:
@@ -251,11 +265,13 @@ def _calibrated(block: Block, record: _Correction | None) -> FloatArray:
 
 
 def calibrate_block(block: Block, calibration: DeviceCalibration | None,
-                    chip_to_body: list[list[float]]) -> Block:
+                    chip_to_body: list[list[float]], *,
+                    matrix: FloatArray | None = None) -> Block:
     """:func:`calibrate_to_body` for every frame of ``block`` at once (valid frames
     calibrated, every frame rotated), the same floats: each rotated component is summed
     from +0.0 left to right as :func:`_rotate` sums it. One frame built from a sample goes
-    through :func:`calibrate_to_body` itself."""
+    through :func:`calibrate_to_body` itself. ``matrix``: ``chip_to_body`` as a float64
+    array already (made once per device rather than once per block)."""
     if not issubclass(block.kind, VectorSample):
         return block
     if len(block) == 1 and block.has_rows:
@@ -268,7 +284,8 @@ def calibrate_block(block: Block, calibration: DeviceCalibration | None,
     if block.frame is Frame.BODY_NED:
         return block if values is block.values else block.with_values(values, block.frame)
     # each element the same products summed from +0.0 left to right as _rotate sums them
-    return block.with_values(_mat_vec_rows(chip_to_body, values, 0.0), Frame.BODY_NED)
+    return block.with_values(_mat_vec_rows(chip_to_body if matrix is None else matrix,
+                                           values, 0.0), Frame.BODY_NED)
 
 
 def _record_of(kind: type[Sample], quantity: str, calibration: DeviceCalibration

@@ -116,7 +116,8 @@ class Router:
 
     def takes(self, source: str, kind: type) -> bool:
         """True when some estimator takes items of ``kind`` from ``source``."""
-        return bool(self.routes_of(source, kind))
+        routes = self._cache.get((source, kind))  # asked for every reading: no call then
+        return bool(routes if routes is not None else self.routes_of(source, kind))
 
     def route(self, item: Item, out: list[Estimate]) -> None:
         """``item`` through every estimator it is routed to, and their estimates through

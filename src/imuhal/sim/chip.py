@@ -134,12 +134,13 @@ class ChipEmulator(ABC):
         self.physics_rows: Callable[[Sequence[int]], tuple[PlannedInputs, int] | None] | None \
             = None
         """Set by an emulated board beside ``physics_ahead``: the pulls at the given instants
-        (ns, ascending, each once) taken at once, as that many ``physics_source`` calls
+        (ns, ascending; an instant twice where the chip announced it twice, one pull per
+        channel) taken at once, as that many ``physics_source`` calls
         would take them, when every one of them comes from the board's plan as announced:
         returns (plan, row of the first instant), the rows following on, and the last row
         stands as the chip's inputs (``planned``). None when any of them does not (nothing
         is taken then: the chip pulls them one by one). For a chip that latches a FIFO
-        fill's measurements at once on the plan's arrays."""
+        fill's measurements, or both channels of an instant, at once on the plan's arrays."""
         self.master_instant_ns: int | None = None
         """Set while a bus master on the chip's own board (the MPU-9250's I2C master)
         performs a transaction it timed itself (``EmulatedBus.transfer_at``): the chip

@@ -46,6 +46,8 @@ class EmulatedBus(Bus):
         super().__init__(name)
         self.kind = kind
         self.targets: dict[int, BusTarget] = {}
+        self._chips: dict[int, _TimedChip | None] = {}
+        """``_chip_behind`` of each target, worked out when it is attached."""
         self._fail_at: set[int] = set()
         self._count = 0
 
@@ -53,6 +55,7 @@ class EmulatedBus(Bus):
         if target in self.targets:
             raise ValueError(f"{self.name}: target 0x{target:02X} already has an emulator")
         self.targets[target] = emulator
+        self._chips[target] = _chip_behind(emulator)
         return emulator
 
     def fail_transfers(self, which: set[int]) -> None:
@@ -102,7 +105,7 @@ class EmulatedBus(Bus):
         which may lie before the host's clock. For an emulated master (the MPU-9250's
         slave 0) catching up on samples measured while the host did not look."""
         line = self.targets.get(target)
-        chip = _chip_behind(line)
+        chip = self._chips.get(target)
         if chip is None:
             return self.transfer(target, write, read_len)
         chip.master_instant_ns = t_ns
