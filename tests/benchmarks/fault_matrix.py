@@ -4,7 +4,7 @@ the simulation's truth (plain script; not collected by pytest).
 
 Run:  nice -n 10 .venv/bin/python tests/benchmarks/fault_matrix.py [--seconds 10]
       [--boards gy91,seed-gps-vario] [--rates 0.001,0.01,0.1] [--kinds wild_value,reset]
-      [--json out.json] [--markdown]
+      [--json out.json] [--markdown] [--in-process]
       .venv/bin/python tests/benchmarks/fault_matrix.py --combine a.json b.json [--seconds 10]
 
 Each run opens one bundled board emulated (its profile's scenario, seed 1), injects the
@@ -35,6 +35,11 @@ refused or withheld (by estimator), and the tilt of the attitudes handed out aft
 (how many, how many more than TILT_MARGIN_DEG off the truth, the worst): a figure beside
 the withheld count, not a failure.
 
+Each run flies in a child process forked from the script's process, which loads the
+registry and the profiles and flies nothing itself, so no run can carry state into another
+(the runs of one process once differed by a frame from the same run alone, never traced);
+``--in-process`` flies them one after another in the script's own process.
+
 It also checks every device's frame ledger (imuhal.pipeline.accounting) against the chip's
 own count (issue 25): for each device that accounts for a stream and whose emulator records
 its measurement instants, delivered + lost = produced, and within each segment (a stretch
@@ -51,6 +56,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import multiprocessing
 import sys
 import time
 import traceback
@@ -206,6 +212,30 @@ def run_one(board: str, profile: BoardProfile, registry: Registry, kinds: Sequen
     return result
 
 
+def run_forked(board: str, profile: BoardProfile, registry: Registry, kinds: Sequence[str],
+               rate: float, seconds: float, devices: list[Device]) -> RunResult:
+    """``run_one`` in a child forked from this process (see the module docstring); its
+    result comes back through a pipe (a child that dies without one is a crash)."""
+    context = multiprocessing.get_context("fork")
+    receive, send = context.Pipe(duplex=False)
+
+    def child() -> None:
+        send.send(run_one(board, profile, registry, kinds, rate, seconds, devices))
+
+    process = context.Process(target=child)
+    process.start()
+    send.close()
+    try:
+        result: RunResult = receive.recv()
+    except EOFError:
+        planned = sum(len(faults_for(kind, dev, rate, seconds)) for kind in kinds
+                      for dev in devices)
+        result = RunResult(board, tuple(kinds), rate, planned,
+                           crash="the run's process died without a result")
+    process.join()
+    return result
+
+
 def plans(rates: Sequence[float]) -> Iterator[tuple[tuple[str, ...], float]]:
     triples = [KINDS[i:i + 3] for i in range(0, len(KINDS), 3)]
     for rate in rates:
@@ -285,6 +315,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="comma-separated kinds: only the runs holding one of them")
     parser.add_argument("--json", default="")
     parser.add_argument("--markdown", action="store_true")
+    parser.add_argument("--in-process", action="store_true",
+                        help="fly every run in this process, not each in a forked child")
     parser.add_argument("--combine", nargs="+", metavar="JSON", default=[],
                         help="print the tables of earlier runs' --json files, run nothing")
     args = parser.parse_args(argv)
@@ -306,7 +338,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         for kinds, rate in plans(rates):
             if wanted and not wanted.intersection(kinds):
                 continue
-            r = run_one(board, profile, registry, kinds, rate, args.seconds, devices)
+            run = run_one if args.in_process else run_forked
+            r = run(board, profile, registry, kinds, rate, args.seconds, devices)
             if not r.faults:
                 continue
             results.append(r)

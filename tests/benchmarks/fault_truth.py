@@ -93,13 +93,17 @@ TILT_MARGIN_DEG = 10.0
 (the flight benchmark's rc-flight target: tilt max below 10 deg)."""
 KINDS = ("bus_errors", "os_error", "all_ones", "all_zeros", "corrupt_byte", "absent", "reset",
          "stuck_data_ready", "frozen", "corrupt_trim", "late_polls", "jitter", "host_stall",
-         "wild_value", "wrong_pressure")
-"""Every kind of imuhal.emulation.faults (FAULT_KINDS), in its order."""
+         "wild_value", "wrong_pressure", "stale_navigation")
+"""Every kind of imuhal.emulation.faults (FAULT_KINDS), in its order, but kinds added after
+the matrix was first run go last (``stale_navigation``): the matrix groups consecutive kinds
+in threes, and the published triples (``host_stall+wild_value+wrong_pressure``) stay the
+same."""
 WILD_CHANNELS = ("accel", "gyro", "mag", "pressure", "temperature")
 """The quantities a ``wild_value`` can replace."""
 _WINDOW_KINDS: dict[str, Any] = {
     "all_ones": faults.AllOnes, "all_zeros": faults.AllZeros, "absent": faults.ChipAbsent,
-    "stuck_data_ready": faults.StuckDataReady, "frozen": faults.FrozenData}
+    "stuck_data_ready": faults.StuckDataReady, "frozen": faults.FrozenData,
+    "stale_navigation": faults.StaleNavigation}
 
 
 # -- the devices of a board and their faults -------------------------------------------------

@@ -58,6 +58,62 @@ def test_a_good_read_without_new_data_ends_the_run_of_failures() -> None:
     assert f.take()[-1] == Copy(40, b"\x01\x12\x22", after_ns=30)
 
 
+def test_a_copy_names_the_last_of_the_good_reads_since_the_one_before_that_found_nothing(
+) -> None:
+    """Every master read between two measurements found the slave's data-ready bit clear:
+    the slave made nothing new up to the last of them (a hung chip's proof, issue 25)."""
+    f = feed()
+    f.deliver(10, b"\x01\x10\x20")
+    f.deliver(20, b"\x00\x10\x20")
+    f.deliver(30, b"\x00\x10\x20")
+    f.deliver(40, b"\x03\x11\x21")
+    assert [c.quiet_ns for c in f.take()] == [None, 30]
+
+
+def test_a_failed_read_breaks_the_run_of_reads_that_found_nothing() -> None:
+    f = feed()
+    f.deliver(10, b"\x01\x10\x20")
+    f.deliver(20, b"\x00\x10\x20")
+    f.deliver(30, b"\x00\x10\x20", failed=True)
+    f.deliver(40, b"\x00\x10\x20")
+    f.deliver(50, b"\x01\x11\x21")
+    assert f.take()[-1].quiet_ns is None
+
+
+def test_a_repeated_copy_with_data_ready_breaks_the_run() -> None:
+    """A copy with data-ready equal to the one before is no read of the slave's state now
+    (a master read that failed unreported leaves the copy as it was)."""
+    f = feed()
+    f.deliver(10, b"\x01\x10\x20")
+    f.deliver(20, b"\x01\x10\x20")
+    f.deliver(30, b"\x00\x10\x20")
+    f.deliver(40, b"\x01\x11\x21")
+    assert f.take()[-1].quiet_ns is None
+
+
+def test_a_pause_in_the_deliveries_breaks_the_run_of_reads_that_found_nothing() -> None:
+    """Deliveries further apart than the feed's latency (a host stall): the master read
+    the slave between them unseen, and one of those reads may have found new data (a read
+    clears the slave's data-ready bit, so the copy after shows it clear)."""
+    f = feed()
+    f.deliver(10_000, b"\x01\x10\x20")
+    f.deliver(15_000, b"\x00\x10\x20")
+    f.deliver(26_000, b"\x00\x10\x20")
+    f.deliver(31_000, b"\x00\x10\x20")
+    f.deliver(36_000, b"\x01\x11\x21")
+    assert f.take()[-1].quiet_ns is None
+
+
+def test_a_feed_without_a_data_ready_bit_proves_no_quiet_reads() -> None:
+    """The MAX21100's copies hold the slave's data bytes only: equal bytes may be a read
+    that found nothing or a read that failed."""
+    f = AutoReadFeed(0x1E, 0x03, 2, latency_ns=5_000)
+    for t in (10, 20, 30):
+        f.deliver(t, b"\x10\x20")
+    f.deliver(40, b"\x11\x21")
+    assert [c.quiet_ns for c in f.take()] == [None, None]
+
+
 P = 10_000
 
 
@@ -85,3 +141,13 @@ def test_a_cadence_stamp_never_goes_back_before_the_delivery_before_it() -> None
     assert stamp_on_cadence(copy, 0, P, pause_ns=7_500) == 30_000
     copy = Copy(28_000, b"\x01", after_ns=20_200)  # 2.8 periods: the cadence point 20_000
     assert stamp_on_cadence(copy, 0, P, pause_ns=7_500) == 20_201
+
+
+def test_a_copy_after_failed_reads_and_a_pause_is_stamped_at_the_latest_cadence_point() -> None:
+    """A failed read, then no delivery for 1.06 master periods of pause (the master's poll
+    put off): the copy may have waited in the slave since its cadence point, which is
+    nearer its measurement than the failed read or the delivery (seed-gps-vario, 10 % bus
+    errors, I/O errors and 0xFF reads: stamped at the delivery, 1.5 periods after the field
+    before, the gap counted a field the chip never skipped)."""
+    copy = Copy(15_016, b"\x01", failed_ns=(4_391,), after_ns=4_391)
+    assert stamp_on_cadence(copy, 0, P, pause_ns=7_500) == 10_000

@@ -97,11 +97,12 @@ def test_garbled_sentences_raise_a_decode_error(garbled: bytes) -> None:
 
 
 def nav_pvt_frame(*, lat_deg: float, lon_deg: float, h_msl_m: float, vel_ned_m_s: tuple,
-                  fix: int, num_sv: int, h_acc_m: float, v_acc_m: float, s_acc_m_s: float
-                  ) -> bytes:
-    """UBX-NAV-PVT packed from the protocol description (payload 92 bytes, little endian)."""
+                  fix: int, num_sv: int, h_acc_m: float, v_acc_m: float, s_acc_m_s: float,
+                  valid: int = 0x07) -> bytes:
+    """UBX-NAV-PVT packed from the protocol description (payload 92 bytes, little endian);
+    ``valid``: the validity flags (bit 0 validDate, 1 validTime, 2 fullyResolved)."""
     payload = bytearray(92)
-    struct.pack_into("<IHBBBBBB", payload, 0, 123_000, 2026, 6, 21, 11, 30, 5, 0x07)
+    struct.pack_into("<IHBBBBBB", payload, 0, 123_000, 2026, 6, 21, 11, 30, 5, valid)
     struct.pack_into("<I i B B B B", payload, 12, 20, 0, fix, 0x01 if fix >= 2 else 0, 0,
                      num_sv)
     struct.pack_into("<iiii", payload, 24, round(lon_deg * 1e7), round(lat_deg * 1e7),
@@ -137,6 +138,17 @@ def test_nav_pvt_from_the_protocol_table_decodes_to_si() -> None:
     assert (f.horizontal_accuracy_m, f.vertical_accuracy_m, f.speed_accuracy_m_s) == \
         pytest.approx((2.1, 3.4, 0.12))
     assert f.time_of_day_s == pytest.approx(11 * 3600 + 30 * 60 + 5)
+    assert f.time_valid is True
+
+
+@pytest.mark.parametrize("valid", [0x00, 0x01, 0x02, 0x03, 0x06, 0x05])
+def test_nav_pvt_whose_utc_is_not_valid_and_fully_resolved_says_so(valid: int) -> None:
+    """validDate, validTime and fullyResolved: the time is the receiver's to vouch for, and
+    any one of them cleared leaves the epoch's UTC unconfirmed."""
+    frame = nav_pvt_frame(lat_deg=46.5, lon_deg=8.0, h_msl_m=900.0, vel_ned_m_s=(0, 0, 0),
+                          fix=3, num_sv=9, h_acc_m=2.5, v_acc_m=4.0, s_acc_m_s=0.15,
+                          valid=valid)
+    assert decode_ubx(frame).time_valid is False
 
 
 def test_nav_pvt_without_gnss_fix_ok_is_no_fix() -> None:

@@ -268,18 +268,31 @@ def test_the_emulators_nav_pvt_decoded_by_hand_matches_the_truth() -> None:
 
 def test_the_driver_reads_published_sentences_from_a_real_pseudo_terminal() -> None:
     """pyserial on a pty slave, fed the classic GGA/RMC examples (known checksums) from the
-    master side: the driver decodes them without any emulator."""
+    master side, the GGA then once a (simulated) second, each with its time moved on (a
+    receiver whose time does not advance sends nothing new): the driver decodes them
+    without any emulator."""
     master, slave = os.openpty()
     path = os.ttyname(slave)
     stop = threading.Event()
-    epochs = [(b"$GPRMC,123519,A,4807.038,N,01131.000,E,022.4,084.4,230394,003.1,W*6A\r\n"
-               b"$GPGGA,123519,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,*47\r\n"),
-              b"$GPGGA,123520,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,*4D\r\n"]
+    first = (b"$GPRMC,123519,A,4807.038,N,01131.000,E,022.4,084.4,230394,003.1,W*6A\r\n"
+             b"$GPGGA,123519,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,*47\r\n")
+
+    def gga(seconds: int) -> bytes:
+        """The classic GGA ``seconds`` after 12:35:00."""
+        minutes, second = divmod(seconds, 60)
+        body = (f"GPGGA,{12 + (35 + minutes) // 60:02d}{(35 + minutes) % 60:02d}{second:02d},"
+                "4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,")
+        checksum = 0
+        for char in body.encode():
+            checksum ^= char
+        return f"${body}*{checksum:02X}\r\n".encode()
+
+    assert gga(19) == first.split(b"\n")[1] + b"\n"  # the XOR above is NMEA's
 
     def talk() -> None:
         k = 0
         while not stop.is_set():
-            os.write(master, epochs[k % 2])
+            os.write(master, first if k == 0 else gga(19 + k))
             k += 1
             time.sleep(0.1)
 

@@ -11,10 +11,13 @@ import pytest
 from imuhal_chips.gnss.integrity import (
     CONFIRM,
     GATE_SIGMAS,
+    HEIGHT_ERROR_TAU_S,
     UNCONFIRMED,
     Epoch,
     EpochWatch,
+    height_error_change_m,
     local_offset_m,
+    vertical_manoeuvre_m,
 )
 
 LAT0, LON0 = 46.6, 8.0
@@ -165,3 +168,73 @@ def test_refused_epochs_that_disagree_with_one_another_never_become_a_reference(
     wild = [epoch(0.2 * k, 2.0 * k + (-1) ** k * 400.0) for k in range(1, 6)]
     assert [watch.observe(e).ok for e in wild] == [False] * 5
     assert watch.observe(epoch(1.2, 12.0)).ok
+
+
+def _vertical(watch: EpochWatch, dt_s: float, up_m: float, *, v_acc: float = 4.0,
+              v_down: tuple[float, float] = (0.0, 0.0)) -> bool:
+    """Whether an epoch ``up_m`` above where its velD (``v_down``, the earlier's and its
+    own) put it after ``dt_s`` follows one at rest, both stating ``v_acc``."""
+    earlier = replace(epoch(0.0, v=(0.0, 0.0, v_down[0])), vertical_accuracy_m=v_acc)
+    climbed_m = -(v_down[0] + v_down[1]) / 2.0 * dt_s
+    later = replace(epoch(dt_s, up_m=climbed_m + up_m, v=(0.0, 0.0, v_down[1])),
+                    vertical_accuracy_m=v_acc)
+    return watch.follows(earlier, later).ok
+
+
+def test_the_vertical_gate_is_the_height_errors_change_and_the_manoeuvre_term() -> None:
+    """Between epochs 0.2 s apart a height error of 4 m rms wandering over 10 s or more
+    (HEIGHT_ERROR_TAU_S) changes by 4 sqrt(2 (1 - exp(-0.02))) = 0.80 m; the gate is 5 of
+    those (with two epochs' 0.15 m/s sAcc over the interval) plus 100 m/s^2 x 0.04 s^2 / 4."""
+    change_m = 4.0 * math.sqrt(2.0 * (1.0 - math.exp(-0.2 / HEIGHT_ERROR_TAU_S)))
+    assert height_error_change_m(4.0, 0.2) == pytest.approx(change_m)
+    gate_m = GATE_SIGMAS * math.sqrt(change_m**2 + 2 * 0.15**2 * 0.1**2) + 100.0 * 0.04 / 4
+    assert gate_m == pytest.approx(5.0, abs=0.05)
+    assert _vertical(EpochWatch(100.0), 0.2, 0.99 * gate_m)
+    assert not _vertical(EpochWatch(100.0), 0.2, 1.01 * gate_m)
+
+
+def test_the_same_32_8_m_flip_of_both_heights_is_refused_whatever_vacc_at_5_hz() -> None:
+    """Bit 7 of the second byte of height and of hMSL moves both by 32.768 m and keeps the
+    geoid separation. Two epochs' vAcc taken as independent errors let it through from
+    vAcc 4.5 m on (5 sqrt(2) vAcc + 1 m); the change of a 30 m vAcc's error over 0.2 s is
+    6 m, so 5 of them and the manoeuvre term still stay under 32.8 m."""
+    for v_acc in (4.0, 8.0, 30.0):
+        assert not _vertical(EpochWatch(100.0), 0.2, 32.768, v_acc=v_acc)
+        assert _vertical(EpochWatch(100.0), 0.2, 0.5, v_acc=v_acc)
+
+
+def test_at_1_hz_the_acceleration_limit_is_the_vertical_gates_larger_part() -> None:
+    """At 1 Hz 10 g moves a vehicle 25 m off the trapezoid of two equal velDs, and 5 changes
+    of a 4 m vAcc's error over 1 s add 8.7 m: a 32.8 m flip of both heights is within what
+    a 10 g vehicle can do between two epochs a second apart (docs/reliability.md). It is
+    refused while vAcc stays below 3.5 m, and at any vAcc up to 10 m for a vehicle stating
+    4 g (max_acceleration_m_s2, as u-blox's 'airborne < 4 g' platform model does)."""
+    assert _vertical(EpochWatch(100.0), 1.0, 32.768, v_acc=4.0)
+    assert not _vertical(EpochWatch(100.0), 1.0, 32.768, v_acc=3.4)
+    for v_acc in (4.0, 10.0):
+        assert not _vertical(EpochWatch(4 * 9.81), 1.0, 32.768, v_acc=v_acc)
+
+
+def test_a_steep_velocity_change_leaves_the_height_little_room_off_its_ramp() -> None:
+    """velD from -5 (a thermal) to +15 m/s (a spiral dive) in 0.2 s is 100 m/s^2, the whole
+    acceleration limit: the only path between them is the straight ramp, so no manoeuvre
+    term is added (vertical_manoeuvre_m), only the height error's change; with equal velDs
+    the vehicle could have left the trapezoid by A dt^2 / 4."""
+    assert vertical_manoeuvre_m(100.0, 0.2, 20.0) == 0.0
+    assert vertical_manoeuvre_m(100.0, 0.2, 0.0) == pytest.approx(1.0)
+    assert vertical_manoeuvre_m(100.0, 0.2, 10.0) == pytest.approx(0.75)
+    assert _vertical(EpochWatch(100.0), 0.2, 3.9, v_down=(-5.0, 15.0))
+    assert not _vertical(EpochWatch(100.0), 0.2, 4.1, v_down=(-5.0, 15.0))
+
+
+def test_an_epoch_stamped_like_its_reference_is_judged_not_divided_by_zero() -> None:
+    """No time between them and nothing stated of accuracy: no term of either gate is left
+    but the fields' resolution. A hit epoch stamped like its reference raised
+    ZeroDivisionError in the vertical rule (the driver was then recovered)."""
+    still = {"v": (0.0, 0.0, 0.0), "h_acc": 0.0}
+    earlier = replace(epoch(0.0, **still), vertical_accuracy_m=0.0, speed_accuracy_m_s=0.0)
+    assert EpochWatch(100.0).follows(earlier, earlier).ok
+    for moved in (replace(earlier, height_msl_m=earlier.height_msl_m + 1.0,
+                          height_ellipsoid_m=earlier.height_ellipsoid_m + 1.0),
+                  replace(earlier, latitude_deg=earlier.latitude_deg + 1e-4)):
+        assert not EpochWatch(100.0).follows(earlier, moved).ok

@@ -1,7 +1,9 @@
 """Saturation is recovered, not a gap: a rotation faster than the gyro's configured range
 (the ``tumble`` scenario, one quick roll, on the seed board with its gyro set to +-250 deg/s)
 is integrated clipped at the stream's full scale and the tilt is pulled back with Fusion's
-angular-rate recovery; dropping the clipped samples leaves a tilt error for many seconds."""
+angular-rate recovery; dropping the clipped samples leaves a tilt error for many seconds.
+A clip the rate did not ramp into (out of a rate well inside the range: a corrupt word or a
+shock, no rotation) is dropped."""
 
 from __future__ import annotations
 
@@ -81,6 +83,8 @@ def test_a_rotation_beyond_the_range_is_recovered_within_a_degree(
     assert after.size == 0 or after.max() > 5.0
     recovery = diag["angular_rate_recovery"]
     assert recovery["recoveries"] == 1 and recovery["clipped_samples"] > 50  # type: ignore[index]
+    # the roll ramped into the rail: no clip of it is taken for a corrupt word
+    assert "unramped_clips" not in recovery  # type: ignore[operator]
     assert diag["invalid"]["gyro"] == 0  # type: ignore[index]
 
 
@@ -96,7 +100,7 @@ def test_without_a_gyro_stream_a_clipped_sample_is_dropped_and_counted(
 def test_the_tilt_pull_turns_the_predicted_gravity_towards_the_measured() -> None:
     rolled = (np.cos(np.radians(10)), np.sin(np.radians(10)), 0.0, 0.0)  # 20 deg of roll
     level = (1.0, 0.0, 0.0, 0.0)
-    pulled, _, _ = _tilt_pulled(tuple(rolled), (0.0, 0.0, 1.0), 0.1)  # type: ignore[arg-type]
+    pulled, _ = _tilt_pulled(tuple(rolled), (0.0, 0.0, 1.0), 0.1)  # type: ignore[arg-type]
     before, after = tilt_error_deg(rolled, level), tilt_error_deg(pulled, level)
     assert after < before
     # a small pull turns by the gain times the sine of the error
@@ -114,21 +118,93 @@ def test_a_reading_only_out_of_range_is_no_clip_and_is_dropped(registry: Registr
     assert diag["angular_rate_recovery"]["clipped_samples"] == 0
 
 
-def test_a_saturated_reading_is_integrated_at_the_full_scale(registry: Registry) -> None:
+def _identity_madgwick(registry: Registry, rate_hz: float = 250.0) -> Any:
+    """A Madgwick AHRS that only integrates (beta 0, identity start, nominal steps), bound
+    to a +-250 deg/s (4.363 rad/s) gyro stream at ``rate_hz``."""
     ahrs = registry.estimators.get("madgwick")({"initial_attitude": "identity", "beta": 0.0,
                                                 "dt_from_timestamps": False})
-    ahrs.bind(_gyro_stream())  # +-4.363 rad/s (250 deg/s) at 250 Hz
-    clipped = GyroSample(t_ns=4_000_000, device="imu",
-                         flags=SampleFlag.SATURATED | SampleFlag.OUT_OF_RANGE,
-                         frame=Frame.BODY_NED, gyro_rad_s=(4.5, 0.0, 0.0))
-    (estimate,) = ahrs.process(clipped)
-    roll_deg = estimate.roll_pitch_yaw_deg[0]  # type: ignore[attr-defined]
-    assert roll_deg == pytest.approx(250.0 * 0.004, rel=1e-4)  # clipped, one 4 ms step
-    assert ahrs.diagnostics()["angular_rate_recovery"]["active"] is True
+    ahrs.bind(_gyro_stream(rate_hz))
+    return ahrs
 
 
-def _gyro_stream() -> list[StreamSpec]:
-    return [StreamSpec("imu", Quantity.GYRO, Frame.SENSOR, 250.0,
+def _gyro(t_ns: int, rate_rad_s: tuple[float, float, float],
+          flags: SampleFlag = SampleFlag.OK) -> GyroSample:
+    return GyroSample(t_ns=t_ns, device="imu", flags=flags, frame=Frame.BODY_NED,
+                      gyro_rad_s=rate_rad_s)
+
+
+CLIP = SampleFlag.SATURATED | SampleFlag.OUT_OF_RANGE
+
+
+def _roll_deg(ahrs: Any) -> float:
+    """The roll (deg) of an attitude that has only rolled."""
+    w, x, _, _ = ahrs.quaternion
+    return float(np.degrees(2.0 * np.arctan2(x, w)))
+
+
+def test_a_saturated_reading_the_rate_ramped_into_is_integrated_at_the_full_scale(
+        registry: Registry) -> None:
+    """A fast roll at 3 rad/s (over half the +-4.363 rad/s range) that goes on beyond the
+    range: its clipped reading is a rotation, integrated at the full scale."""
+    ahrs = _identity_madgwick(registry)
+    ahrs.process(_gyro(4_000_000, (3.0, 0.0, 0.0)))
+    # no accelerometer checks the attitude: the estimate is withheld, the rotation kept
+    (estimate,) = ahrs.process(_gyro(8_000_000, (4.5, 0.0, 0.0), CLIP))
+    assert isinstance(estimate, RejectedEstimate)
+    # measured, then clipped: one 4 ms step each
+    assert _roll_deg(ahrs) == pytest.approx(np.degrees(3.0 * 0.004) + 250.0 * 0.004,
+                                            rel=1e-4)
+    diag = ahrs.diagnostics()
+    assert diag["angular_rate_recovery"]["active"] is True
+    assert diag["angular_rate_recovery"]["clipped_samples"] == 1
+    assert diag["invalid"]["gyro"] == 0
+
+
+def test_a_saturated_reading_out_of_rest_is_dropped_not_integrated(
+        registry: Registry) -> None:
+    """Issue 26 (the fault matrix at 10 % ``wild_value``: gy91 handed out 220 of 923
+    attitudes more than 10 deg off in the ``thermal`` launch run): a word at the rail
+    straight after a still gyro would be a rate grown by the whole range in 4 ms
+    (62,500 deg/s^2), no rotation. It is dropped and counted, no recovery starts, and the
+    attitude does not move."""
+    ahrs = _identity_madgwick(registry)
+    ahrs.process(_gyro(4_000_000, (0.0, 0.0, 0.0)))
+    assert ahrs.process(_gyro(8_000_000, (4.5, 0.0, 0.0), CLIP)) == []
+    diag = ahrs.diagnostics()
+    assert diag["angular_rate_recovery"]["unramped_clips"] == 1
+    assert diag["angular_rate_recovery"]["clipped_samples"] == 0
+    assert diag["angular_rate_recovery"]["active"] is False
+    assert diag["invalid"]["gyro"] == 1
+    (estimate,) = ahrs.process(_gyro(12_000_000, (0.0, 0.0, 0.0)))
+    assert isinstance(estimate, AttitudeEstimate)
+    assert estimate.q_body_to_ned == pytest.approx((1.0, 0.0, 0.0, 0.0), abs=1e-12)
+
+
+def test_a_clip_against_the_direction_of_the_last_rate_is_dropped(
+        registry: Registry) -> None:
+    """A fast roll at +3 rad/s, then a word at the negative rail: the rate would have
+    swung by 1.7 times the range in one sample, so it ramped into nothing."""
+    ahrs = _identity_madgwick(registry)
+    ahrs.process(_gyro(4_000_000, (3.0, 0.0, 0.0)))
+    assert ahrs.process(_gyro(8_000_000, (-4.5, 0.0, 0.0), CLIP)) == []
+    assert ahrs.diagnostics()["angular_rate_recovery"]["unramped_clips"] == 1
+
+
+def test_a_slow_gyro_integrates_a_clip_out_of_rest(registry: Registry) -> None:
+    """At 25 Hz one sample period at MAX_ANGULAR_ACCEL_RAD_S2 spans more than the whole
+    +-250 deg/s range: a vehicle can reach the rail from rest between two samples, so the
+    clip is a rotation and is integrated."""
+    ahrs = _identity_madgwick(registry, rate_hz=25.0)
+    ahrs.process(_gyro(40_000_000, (0.0, 0.0, 0.0)))
+    ahrs.process(_gyro(80_000_000, (4.5, 0.0, 0.0), CLIP))
+    # 10 deg in one step, integrated to first order (the quaternion's tangent step)
+    assert _roll_deg(ahrs) == pytest.approx(np.degrees(2 * np.arctan(np.radians(250.0) * 0.02)),
+                                            rel=1e-6)
+    assert ahrs.diagnostics()["angular_rate_recovery"]["clipped_samples"] == 1
+
+
+def _gyro_stream(rate_hz: float = 250.0) -> list[StreamSpec]:
+    return [StreamSpec("imu", Quantity.GYRO, Frame.SENSOR, rate_hz,
                        full_scale=float(np.radians(250.0)))]
 
 
@@ -264,21 +340,83 @@ def test_a_recovery_whose_accelerometer_went_quiet_withholds(registry: Registry)
     accelerometer reading was flagged (the chip's filter settling after the wild ones).
     The recovery's last agreement with the accelerometer, from before its readings
     stopped, kept the estimates handed out: 177 deg off. An agreement holds only while
-    the reading is fresh (``max_aux_age_s``, 0.1 s)."""
+    the reading is fresh (``max_aux_age_s``, 0.1 s). Here a fast roll ramps into the rail
+    (3 rad/s of +-4.363) each time, so its clips are integrated."""
     ahrs = registry.estimators.get("madgwick")({"use_mag": False})
     ahrs.bind(_gyro_stream())  # +-250 deg/s
 
-    def clipped(t_s: float) -> list[Any]:
-        return ahrs.process(GyroSample(t_ns=round(t_s * 1e9) + 1, device="imu",
-                                       flags=SampleFlag.SATURATED, frame=Frame.BODY_NED,
-                                       gyro_rad_s=(4.5, 0.0, 0.0)))
+    def rolled_into_the_rail(t_s: float, clips: int) -> list[Any]:
+        """One measured sample at 3 rad/s, then ``clips`` clipped ones, 10 ms apart."""
+        out = ahrs.process(_gyro(round(t_s * 1e9) + 1, (3.0, 0.0, 0.0)))
+        for k in range(1, clips + 1):
+            out += ahrs.process(_gyro(round((t_s + k / 100) * 1e9) + 1, (4.5, 0.0, 0.0),
+                                      SampleFlag.SATURATED))
+        return out
 
     _feed(ahrs, 0.0, 1.0, accel_m_s2=LEVEL)
-    clipped(1.0)
-    # the recovery pulls the clip's 2.5 deg back while the accelerometer reads level
-    assert _withheld(_feed(ahrs, 1.01, 1.5, accel_m_s2=LEVEL)[-10:]) == 0
-    # then the accelerometer falls silent (its last reading at 1.49 s) and, from 0.1 s
-    # after that reading, the clipped readings come back
-    quiet = [e for k in range(50) for e in clipped(1.6 + k / 100)]
-    # the first one turned 1 deg (a 4 ms step: within RECOVERY_CHECKED_RAD), the rest more
-    assert len(quiet) == 50 and _withheld(quiet[1:]) == 49
+    rolled_into_the_rail(1.0, 1)
+    assert ahrs.diagnostics()["angular_rate_recovery"]["recoveries"] == 1
+    # the recovery pulls the roll's 4 deg back while the accelerometer reads level
+    assert _withheld(_feed(ahrs, 1.02, 1.5, accel_m_s2=LEVEL)[-10:]) == 0
+    # then the accelerometer falls silent (its last reading at 1.49 s) and, from 0.11 s
+    # after that reading, the roll comes back into the rail: nothing checks the attitude
+    quiet = rolled_into_the_rail(1.6, 49)
+    assert len(quiet) == 50 and _withheld(quiet) == 50
+    assert ahrs.diagnostics()["angular_rate_recovery"]["clipped_samples"] == 50
+
+
+BANK_RAD = float(np.radians(22.0))
+TURN_SPEED_M_S = 15.0
+
+
+def _turning(bank_rad: float = BANK_RAD) -> dict[str, Any]:
+    """A coordinated turn at ``bank_rad`` and TURN_SPEED_M_S: the accelerometer reads the
+    load factor along the body's z axis (1/cos(bank) g), the gyro the turn rate
+    g tan(bank) / speed about the vertical, seen in the banked body."""
+    turn_rad_s = G * float(np.tan(bank_rad)) / TURN_SPEED_M_S
+    return {"accel_m_s2": (0.0, 0.0, -G / float(np.cos(bank_rad))),
+            "gyro_rad_s": (0.0, turn_rad_s * float(np.sin(bank_rad)),
+                           turn_rad_s * float(np.cos(bank_rad)))}
+
+
+def _compensating_madgwick(registry: Registry) -> Any:
+    """``_madgwick`` compensating turns by the nominal airspeed TURN_SPEED_M_S."""
+    return registry.estimators.get("madgwick")({"use_mag": False, "beta": 0.5,
+                                                "accel_soft_gate_g": None,
+                                                "sample_period_s": 0.01,
+                                                "nominal_airspeed_m_s": TURN_SPEED_M_S})
+
+
+def test_an_attitude_that_kept_its_bank_through_a_long_span_is_handed_out_in_the_turn(
+        registry: Registry) -> None:
+    """Issue 26 (gy91's soak: an attitude withheld for 33 s of thermal circling after a
+    2 s IMU outage): the accelerometer of a turning glider reads 1.08 g at 22 deg of bank,
+    never within 0.05 g of 1 g, so the check of the raw reading never passed. Less the
+    turn's kinematic acceleration (what the filter fuses) it reads gravity, which confirms
+    an attitude whose bank the span did not change at its first step."""
+    ahrs = _compensating_madgwick(registry)
+    _feed(ahrs, 0.0, 1.0, **_turning())
+    # longer than max_gap_s (1 s): the span is stepped over, only the accelerometer checks
+    _feed(ahrs, 1.0, 2.5, gyro_flags=SampleFlag.BLANK, **_turning())
+    after = _feed(ahrs, 2.5, 3.0, **_turning())
+    assert after and _withheld(after) == 0
+    banked = (float(np.cos(BANK_RAD / 2)), float(np.sin(BANK_RAD / 2)), 0.0, 0.0)
+    assert max(tilt_error_deg(e.q_body_to_ned, banked) for e in after) < 1.0
+    assert ahrs.diagnostics()["angular_rate_recovery"]["unmeasured_spans"] == 1
+
+
+def test_a_roll_into_a_compensated_turn_inside_a_span_is_withheld_until_it_agrees(
+        registry: Registry) -> None:
+    """The same turn entered while the gyro was out: less its kinematic acceleration the
+    reading is gravity in the banked body, 22 deg from the level attitude's, so it does
+    not confirm the attitude (and the turn rate it leaves stops the span check) until the
+    filter's own correction has brought the bank within 5 deg."""
+    ahrs = _compensating_madgwick(registry)
+    _feed(ahrs, 0.0, 1.0, accel_m_s2=LEVEL)
+    _feed(ahrs, 1.0, 1.3, gyro_flags=SampleFlag.BLANK, **_turning())
+    after = _feed(ahrs, 1.3, 2.5, **_turning())
+    first_out = next(i for i, e in enumerate(after) if isinstance(e, AttitudeEstimate))
+    assert first_out > 10 and _withheld(after[:first_out]) == first_out
+    banked = (float(np.cos(BANK_RAD / 2)), float(np.sin(BANK_RAD / 2)), 0.0, 0.0)
+    assert tilt_error_deg(after[first_out].q_body_to_ned, banked) <= 5.01
+    assert all(isinstance(e, AttitudeEstimate) for e in after[first_out:])

@@ -262,3 +262,19 @@ def test_a_copy_older_than_a_put_off_poll_aimed_at_is_stamped_by_its_delivery(
                                for d in DEVICES]
     ledger = _counts_as_the_chip(_fly(registry, "seed-paraglider-vario", faults, 6.0), "mag")
     assert ledger.delivered > 0.9 * 6.0 * 75
+
+
+def test_a_poll_put_off_from_a_phase_search_aims_at_the_phase_of_the_frame_before(
+        registry: Registry) -> None:
+    """Host stalls of 20 ms, five a second (the fault matrix's ``host_stall`` at 10 %): the
+    AK8963's poll after a field read on a put-off found nothing yet and searched a guard
+    apart; the search point due at 7.8 ms after the chip's instant came 19 ms late and was
+    put off to a guard after it, whole periods on, 9 ms after the chip's instant where the
+    field before lay 1.5 ms after its own: the gap of 2.75 periods rounded to two fields
+    lost for the chip's one. Put off a guard after the phase of the field before, and
+    counted on it, the poll reads the next field 1.3 ms after its instant and counts it
+    right (the MPU-9250's polls under ``jitter`` likewise)."""
+    stalls: list[FaultSpec] = [HostStall(device=d, start_s=1.0, stall_s=0.02, rate_hz=5.0)
+                               for d in DEVICES]
+    p = _fly(registry, "gy91", stalls, 3.5)
+    assert _counts_as_the_chip(p, "mag").lost["host_stall"] > 0

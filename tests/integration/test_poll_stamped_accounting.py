@@ -32,6 +32,7 @@ from imuhal.emulation.faults import (
     ChipReset,
     FaultSpec,
     HostStall,
+    StuckDataReady,
 )
 from imuhal.pipeline import Pipeline
 from imuhal.pipeline.accounting import FrameLedger
@@ -154,6 +155,80 @@ def test_a_magnetometer_whose_master_resets_counts_exactly(registry: Registry) -
     p = _fly(registry, "seed-paraglider-vario", resets, seed=1, seconds=5.5)
     assert p.devices["imu"].driver.health.resets_detected >= 10
     _ledger_matches_the_chip(p, "mag")
+
+
+def test_a_hung_magnetometer_behind_a_master_is_proved_hung_by_the_masters_copies(
+        registry: Registry) -> None:
+    """Every chip of seed-gps-vario hangs for 90 ms (the fault matrix's ``stuck_data_ready``
+    at 1 %): the MPU-9250's data-ready bit stays clear while it samples on, and each of
+    its bursts whose sensor bytes moved carries slave 0's read of the AK8963 at that
+    sample, ST1.DRDY clear 2.5 field periods on; the MPU's restart then holds the thread
+    past the hang, and the first copy after it has DRDY and DOR. The AK8963's twelve
+    unmade fields are counted ``not_measured`` and the one DOR proves lost: the chip's
+    count (all thirteen were counted lost: 1000 for the chip's 988 in the matrix)."""
+    p = _fly(registry, "seed-gps-vario",
+             [StuckDataReady(device=d, start_s=5.455, end_s=5.545) for d in ("imu", "mag")],
+             seed=1, seconds=6.0)
+    ledger = _ledger_matches_the_chip(p, "mag")
+    assert ledger.not_measured >= 8  # 90 ms of a 100 Hz field; the hang ends at a read
+
+
+def test_a_stalled_host_does_not_make_a_magnetometer_behind_a_master_hung(
+        registry: Registry) -> None:
+    """Host stalls of 20 ms, five a second (the fault matrix's ``host_stall`` at 10 %): the
+    first copy after a stall can show ST1.DRDY clear although the AK8963 measured during
+    it (slave 0's unseen reads in the stall took the measurement and cleared DRDY), so
+    reads with DRDY clear prove nothing across a pause in the deliveries: no field is
+    counted as not measured (two were, 997 for the chip's 999)."""
+    p = _fly(registry, "seed-gps-vario",
+             [HostStall(device=d, start_s=1.0, stall_s=0.02, rate_hz=5.0)
+              for d in ("imu", "mag", "baro")], seed=1, seconds=10.0)
+    ledger = _ledger_matches_the_chip(p, "mag")
+    assert ledger.not_measured == 0 and ledger.lost["host_stall"] > 0
+
+
+def test_a_magnetometer_keeps_its_fields_while_its_masters_data_ready_is_stuck(
+        registry: Registry) -> None:
+    """Only the MPU-9250's data-ready bit sticks (90 ms): the chip samples on and slave 0
+    reads the AK8963 at every sample, so the two fields it copies before the MPU's driver
+    restarts it (20 ms of stale samples) are handed out (they were lost), and none is
+    counted as not measured."""
+    profile = load_profile(bundled_profiles()["seed-gps-vario.yaml"], registry)
+    stuck = StuckDataReady(device="imu", start_s=5.455, end_s=5.545)
+    with open_emulated(profile, registry, seed=1, faults=[stuck], calibrated=False) as p:
+        fields = [e.t_ns for e in p.events(6.0) if isinstance(e, Sample)
+                  and e.device == "mag" and e.valid and 5.455e9 < e.t_ns < 5.545e9]
+    ledger = _ledger_matches_the_chip(p, "mag")
+    assert ledger.not_measured == 0
+    assert p.devices["imu"].driver.health.reconfigurations >= 1  # the MPU's restart
+    assert len(fields) == 2, fields
+
+
+def test_a_hung_magnetometer_behind_the_max21100_is_proved_hung_by_its_status(
+        registry: Registry) -> None:
+    """Every chip of the seed paraglider board hangs for 90 ms (the fault matrix's
+    ``stuck_data_ready`` at 1 %): the MAX21100's copies of the HMC5883L's six data bytes
+    stay the same for 7.7 field periods, more than a measuring chip repeats them; its
+    status register, read then, has RDY clear twice: the seven fields it never made are
+    counted ``not_measured`` (they were counted lost: 748 for the chip's 741 in the
+    matrix)."""
+    p = _fly(registry, "seed-paraglider-vario",
+             [StuckDataReady(device=d, start_s=5.455, end_s=5.545) for d in ("imu", "mag")],
+             seed=1, seconds=6.0)
+    ledger = _ledger_matches_the_chip(p, "mag")
+    assert ledger.not_measured >= 5
+
+
+def test_an_unplugged_magnetometer_behind_the_max21100_is_not_taken_for_a_hung_one(
+        registry: Registry) -> None:
+    """The HMC5883L unplugged for 80 ms while it measures on: the MAX21100's reads of it
+    fail and keep the copy before, the same for as long as a hung chip's; its status
+    register reads 0xFF (RDY set, the line released) or not at all, so its fields are
+    lost, none is counted as not measured."""
+    p = _fly(registry, "seed-paraglider-vario",
+             [ChipAbsent(device="mag", start_s=5.45, end_s=5.53)], seed=1, seconds=6.0)
+    ledger = _ledger_matches_the_chip(p, "mag")
+    assert ledger.not_measured == 0 and sum(ledger.lost.values()) >= 5
 
 
 def test_io_errors_on_the_aux_wire_are_slave_reads_the_master_reports(

@@ -17,11 +17,11 @@ def _rows(path: Path) -> list[dict[str, str]]:
         return list(csv.DictReader(f))
 
 
-def _ahrs_settings() -> list[str]:
-    """--set arguments giving madgwick the gy91 profile's own ahrs settings."""
+def _ahrs() -> list[str]:
+    """The gy91 profile's own ahrs as ``imuhal estimate`` arguments: its estimator's name and
+    a --set for each of its settings."""
     ahrs = yaml.safe_load(Path("profiles/gy91.yaml").read_text())["estimators"]["ahrs"]
-    assert ahrs["estimator"] == "madgwick"
-    args = []
+    args = [ahrs["estimator"]]
     for key, value in ahrs.get("settings", {}).items():
         text = ",".join(map(str, value)) if isinstance(value, list) else \
             "null" if value is None else str(value)
@@ -40,7 +40,7 @@ def run_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_an_attitude_estimator_over_a_run_log_reproduces_the_live_estimates(
         run_log: Path, tmp_path: Path) -> None:
     out = tmp_path / "attitude.csv"
-    assert main(["estimate", "madgwick", str(run_log), "-o", str(out), *_ahrs_settings()]) == 0
+    assert main(["estimate", *_ahrs(), str(run_log), "-o", str(out)]) == 0
     live = [r for r in _rows(run_log) if r["source"] == "ahrs"]
     offline = _rows(out)
     assert len(offline) == len(live) > 500
@@ -111,8 +111,7 @@ def test_a_run_log_written_in_another_frame_is_read_back_into_ned(
     assert "ax_m_s2_enu" in enu_log.read_text().splitlines()[0]
     from_ned, from_enu = tmp_path / "a.csv", tmp_path / "b.csv"
     for log, out in ((run_log, from_ned), (enu_log, from_enu)):
-        assert main(["estimate", "madgwick", str(log), "-o", str(out),
-                     *_ahrs_settings()]) == 0
+        assert main(["estimate", *_ahrs(), str(log), "-o", str(out)]) == 0
     a, b = _rows(from_ned), _rows(from_enu)
     assert len(a) == len(b) > 500
     for name in ("qw", "qx", "qy", "qz"):

@@ -36,7 +36,13 @@ def registry() -> Registry:
 
 
 def _gy91_fifo(registry: Registry) -> BoardProfile:
-    return imu_read_from_fifo(registry, "gy91.yaml", FIFO_FRAMES)
+    """The GY-91 read from its FIFO, with the Madgwick it ran before issue 27 (beta 0.1):
+    these tests are about an AHRS with a compiled row kernel, whose estimates of a read come
+    out as one AttitudeBlock. The profile's own `decoupled` steps frame by frame."""
+    profile = imu_read_from_fifo(registry, "gy91.yaml", FIFO_FRAMES)
+    ahrs = profile.estimators["ahrs"].model_copy(
+        update={"estimator": "madgwick", "settings": {"beta": 0.1}})
+    return profile.model_copy(update={"estimators": {**profile.estimators, "ahrs": ahrs}})
 
 
 @pytest.fixture(scope="module")

@@ -48,7 +48,7 @@ def test_a_typo_in_a_driver_setting_is_rejected(validator: Any) -> None:
 
 def test_a_typo_in_an_estimator_setting_is_rejected(validator: Any) -> None:
     doc = _gy91()
-    doc["estimators"]["ahrs"]["settings"]["betta"] = 0.1
+    doc["estimators"]["ahrs"].setdefault("settings", {})["tau_acc_ss"] = 3.0  # tau_acc_s
     assert not validator.is_valid(doc)
 
 

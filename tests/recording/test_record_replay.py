@@ -218,7 +218,8 @@ def test_replay_with_other_estimator_settings_decodes_the_same_samples(
         full_registry: Registry, tmp_path: Path) -> None:
     board = Path("profiles/gy91.yaml")
     live = _record(full_registry, board, tmp_path / "run.imurec", 3.0)
-    retuned = _edited(board, tmp_path / "retuned.yaml", "estimators", "ahrs", "beta", 0.777)
+    # the GY-91's decoupled with a faster accelerometer filter than its 3 s default
+    retuned = _edited(board, tmp_path / "retuned.yaml", "estimators", "ahrs", "tau_acc_s", 0.777)
     replayed = _replay(full_registry, tmp_path / "run.imurec", retuned)
     samples = [e for e in live if isinstance(e, Sample)]
     assert _exact([e for e in replayed if isinstance(e, Sample)]) == _exact(samples)

@@ -35,7 +35,9 @@ several copies read from the FIFO in one burst are several samples. A copy that 
 slave-0 reads the MPU-9250 reported failed (I2C_MST_STATUS.SLV0_NACK, read with every
 burst) or a pause in the master's deliveries (its recovery, blank reads) is stamped on the
 chip's own cadence instead (``imuhal.bus.auto_read.stamp_on_cadence``), so the frame ledger
-counts what the chip measured (issue 25). Staleness is judged on
+counts what the chip measured (issue 25); a copy after master reads that all found DRDY
+clear for 1.5 field periods proves the chip hung, as direct reads do (``health.idle``).
+Staleness is judged on
 the master's deliveries, so a master delivering late (a FIFO after a host stall) is not a
 stale magnetometer.
 Output: uT in the AK8963's own axes
@@ -146,9 +148,10 @@ class AK8963Driver(Driver):
         """Read directly, the retry asked for after a poll that found no new field: a new
         field at it (not a late poll) locates the chip's instant."""
         self._idle_since: int | None = None
-        """Read directly: the stamp of the latest valid field while every read since found
-        DRDY clear (None: a read since failed, was blank or frozen, or the chip was
-        reconfigured): the chip made nothing since (``health.idle``)."""
+        """The stamp of the latest valid field while every read since found DRDY clear
+        (None: a read since failed, was blank or frozen, or the chip was reconfigured): the
+        chip made nothing since (``health.idle``). read: auto: the latest field's, its
+        master's reads since counted by the feed (``Copy.quiet_ns``)."""
         self._ready = DataReady({Quantity.MAG: self._period_ns})
         self._watch = ResetWatch(self.settings.reset_check_s)
         self._frozen = FrozenWatch(self.FROZEN_AFTER_FRAMES)
@@ -352,17 +355,34 @@ class AK8963Driver(Driver):
         bad = SampleFlag.OK
         for copy in self._feed.take():
             if not copy.data[0] & r.ST1_DRDY:
+                self._idle_since = None
                 continue
+            if not samples:
+                self._copies_found_nothing(copy)
             t_ns = self._copy_stamp(copy)
             sample, flag, _ = self._measurement(copy.data, t_ns, t_ns)
             if sample is not None:
                 samples.append(sample)
                 self._stamped_ns = t_ns
+            self._idle_since = t_ns if sample is not None and sample.valid else None
             bad |= flag
         if not samples:
             return self._no_measurement(now_ns, overdue or bool(bad), bad, stale=not bad)
         self._grid.anchor(now_ns)
         return PollResult(list(samples), self._grid.next_after(now_ns))
+
+    def _copies_found_nothing(self, copy: Copy) -> None:
+        """read: auto: slave 0's reads between the latest valid field's copy and ``copy``
+        were good and found ST1.DRDY clear up to ``copy.quiet_ns`` (``Copy.quiet_ns``):
+        the chip made nothing since that field, up to the earliest such a read can have
+        been made (a delivery comes at most the feed's latency after the master's read),
+        for the frame ledger's count of a hung chip's slots (``health.idle``). Only the
+        first copy of a poll can report it: the ledger takes it before the poll's fields."""
+        if self._idle_since is not None and copy.quiet_ns is not None:
+            assert self._feed is not None
+            until_ns = copy.quiet_ns - self._feed.latency_ns
+            if until_ns > self._idle_since:
+                self.health.idle = (self._idle_since, until_ns)
 
     def _copy_stamp(self, copy: Copy) -> int:
         """The time the master copied this measurement: its delivery, or on the chip's own

@@ -47,6 +47,9 @@ class Fragment:
     horizontal_accuracy_m: float | None = None
     vertical_accuracy_m: float | None = None
     speed_accuracy_m_s: float | None = None
+    time_valid: bool | None = None
+    """NAV-PVT's validity flags: the receiver says its UTC date and time of day are valid
+    and fully resolved (validDate, validTime, fullyResolved); None: not stated (NMEA)."""
     acked: tuple[int, int] | None = None
     """ACK-ACK / ACK-NAK: the (class, id) of the acknowledged message."""
     inconsistent: str = ""
@@ -281,6 +284,8 @@ def _nav_pvt(msg: Any, ident: str) -> Fragment:
         horizontal_accuracy_m=int(msg.hAcc) / 1000.0,
         vertical_accuracy_m=int(msg.vAcc) / 1000.0,
         speed_accuracy_m_s=int(msg.sAcc) / 1000.0,
+        time_valid=bool(int(msg.validDate) and int(msg.validTime)
+                        and int(msg.fullyResolved)),
     )
     # pyubx2 applies the 1e-7 deg scale to lat/lon; heights and velocities are mm, mm/s.
     frag.latitude_deg = float(msg.lat)

@@ -20,7 +20,9 @@ garbled bytes are counted in ``stats``. A frame whose checksum passed with two b
 VTG, VTG's speed in knots and km/h: CRC_ERROR) or where the epoch cannot follow the last
 valid one (its velocity step, its position against the two epochs' velocities, its geoid
 separation, its time and date: IMPLAUSIBLE, imuhal_chips.gnss.integrity). The first fix is
-valid only once the epochs after it follow it.
+valid only once the epochs after it follow it. An epoch with a fix whose time did not
+advance past the last one's (a restarted receiver sending its old solution again) or whose
+UTC the receiver says is not valid and fully resolved (NAV-PVT's valid flags) is STALE.
 """
 
 from __future__ import annotations
@@ -84,6 +86,9 @@ single-frequency receiver, 4-6 m rms): its horizontal accuracy is HDOP times thi
 NMEA_HDOP_UNKNOWN = 5.0
 """The HDOP taken when an NMEA epoch states none (GSA and GGA lost): a poor fix's."""
 DAY_S = 86_400.0
+WEEK_S = 7 * DAY_S
+STALE_TIME_INVALID = "time not valid"
+STALE_TIME_REPEATED = "time not advancing"
 QUIET_NS = 100_000_000
 """A line quiet this long (or 2.5 polls) has finished the epoch's burst."""
 FROZEN_MOVE_M = (0.05, 0.2)
@@ -139,6 +144,9 @@ class GnssStats:
     """Epochs that repeated the last one's position and velocity although that velocity
     moved the receiver (a hung navigation engine; flagged FROZEN)."""
     epochs: int = 0
+    stale_epochs: dict[str, int] = field(default_factory=dict)
+    """Epochs with a fix flagged STALE by their time, per reason: the receiver said its time
+    was not valid (STALE_TIME_INVALID), or the time did not advance (STALE_TIME_REPEATED)."""
     implausible_epochs: dict[str, int] = field(default_factory=dict)
     """Epochs flagged IMPLAUSIBLE by the integrity checks (imuhal_chips.gnss.integrity),
     per rule: horizontal or vertical position against velocity, geoid separation, time,
@@ -180,6 +188,10 @@ class GnssDriver(Driver):
         """Per NED axis: how far the velocity may move between epochs."""
         self.epoch_watch = EpochWatch(self.settings.max_acceleration_m_s2)
         """Position, geoid separation and time against the last valid epoch."""
+        self._last_time: tuple[str, float] | None = None
+        """The last valid epoch's navigation time: ("week", iTOW s) or ("day", UTC time of
+        day s). Kept across a recovery: a restarted receiver's old solution carries the
+        old time."""
         self._foreign = 0
         self._last_byte_ns = 0
         self._quiet_ns = max(QUIET_NS, round(2.5e9 / self.settings.poll_hz))
@@ -519,7 +531,19 @@ class GnssDriver(Driver):
         velocity = merged.velocity_ned_m_s
         if velocity is None:
             velocity = self._nmea_velocity(merged, t_ns)
-        step = self._epoch_checks(merged, epoch, t_ns, has_fix, height, velocity)
+        stale, navigation_time = self._stale_time(merged, epoch)
+        if stale and has_fix:
+            # no new solution, or none the driver can place in time: not fused, no reference
+            # for the checks, and its time does not move the UTC-to-clock mapping
+            self.stats.stale_epochs[stale] = self.stats.stale_epochs.get(stale, 0) + 1
+            self.stats.last_error = stale
+            step = SampleFlag.STALE
+        else:
+            step = self._epoch_checks(merged, epoch, t_ns, has_fix, height, velocity)
+            if has_fix and not step:
+                # Only a valid epoch's time: a flip the time rule refuses (iTOW 2.3 h ahead)
+                # would have made every honest epoch after it "not advancing".
+                self._last_time = navigation_time
         if velocity is not None and has_fix:
             # Before the position: a consumer of the fix then has the same epoch's velocity.
             out.append(VelocitySample(t_ns=t_ns, device=self.device, flags=step,
@@ -537,6 +561,28 @@ class GnssDriver(Driver):
             fix_type=fix, satellites=merged.satellites or 0,
             utc_s=_utc_s(merged.day, epoch.time_of_day_s)))
         return out
+
+    def _stale_time(self, merged: Fragment, epoch: _Epoch) -> tuple[str, tuple[str, float]]:
+        """Why an epoch is no new solution by its own time, or '', and its navigation time
+        (("week", iTOW s) for UBX, which a flip in the UTC fields leaves alone; ("day", UTC
+        time of day s) for NMEA). Stale: the receiver says its UTC is not valid and fully
+        resolved (NAV-PVT's validDate, validTime, fullyResolved: its time, and so the
+        epoch's time stamp, may be seconds off), or the time did not advance past the last
+        valid epoch's (a receiver restarted with its last solution in battery-backed memory
+        and sending it again, or a stale replay). Navigation time never runs back (a week's
+        or a day's wrap aside)."""
+        if merged.gps_time_of_week_s is not None:
+            now = ("week", merged.gps_time_of_week_s)
+        else:
+            now = ("day", epoch.time_of_day_s)
+        if merged.time_valid is False:
+            return STALE_TIME_INVALID, now
+        last = self._last_time
+        if last is not None and last[0] == now[0]:
+            period = WEEK_S if now[0] == "week" else DAY_S
+            if not 0.0 < (now[1] - last[1]) % period < period / 2.0:
+                return STALE_TIME_REPEATED, now
+        return "", now
 
     def _epoch_checks(self, merged: Fragment, epoch: _Epoch, t_ns: int, has_fix: bool,
                       height_m: float | None,
@@ -642,7 +688,7 @@ class GnssDriver(Driver):
 MERGED_FIELDS = ("day", "latitude_deg", "longitude_deg", "height_msl_m", "height_ellipsoid_m",
                  "gps_time_of_week_s", "satellites", "hdop",
                  "ground_speed_m_s", "course_deg", "velocity_ned_m_s", "horizontal_accuracy_m",
-                 "vertical_accuracy_m", "speed_accuracy_m_s")
+                 "vertical_accuracy_m", "speed_accuracy_m_s", "time_valid")
 """The fragment fields an epoch takes from its sentences or messages (a later one wins)."""
 
 

@@ -13,8 +13,9 @@ with pynmea2 and pyubx2's parser, and the tests decode with hand-written parsers
 Settings of the emulator (the fault-injection interface had not landed when this was
 written): ``model`` (the error model, replaceable before or during a run) and
 :meth:`lose_fix` (a fix-lost interval). Of the fault API's chip kinds it models ``reset``
-(the factory configuration) and ``frozen`` (a hung navigation engine: each epoch repeats the
-last solution with its own time).
+(the factory configuration), ``frozen`` (a hung navigation engine: each epoch repeats the
+last solution with its own time) and ``stale_navigation`` (a restart with the last solution
+sent again, claiming a fix: with its old time, or with the running time marked not valid).
 """
 
 from __future__ import annotations
@@ -109,6 +110,11 @@ class GnssEmulator(ChipEmulator):
         self._solution: tuple[float, float, float, np.ndarray] | None = None
         """The last navigation solution computed (latitude, longitude, MSL height, NED
         velocity): what a hung navigation engine (``frozen``) keeps sending."""
+        self._last_utc: datetime | None = None
+        """The UTC of the last epoch sent."""
+        self._stale: tuple[str, datetime, tuple[float, float, float, np.ndarray]] | None = None
+        """Fault ``stale_navigation``: its time mode, and the UTC and solution of the last
+        epoch before it, sent again each epoch."""
 
     # -- settings -----------------------------------------------------------------------
 
@@ -131,6 +137,17 @@ class GnssEmulator(ChipEmulator):
         self.rate_hz = 1.0
         self.nmea_enabled = set(NMEA_DEFAULT)
         self.nav_pvt = False
+
+    def stale_solution(self, time: str | None) -> None:
+        """Fault ``stale_navigation``: from the next epoch on, the last epoch's solution is
+        sent again each epoch, claiming a 3D fix, with that epoch's UTC (``"repeated"``) or
+        the running UTC with NAV-PVT's validDate, validTime and fullyResolved cleared
+        (``"unresolved"``); None ends it. Before any epoch with a fix there is nothing
+        stale to send: the receiver navigates as before."""
+        if time is None or self._solution is None or self._last_utc is None:
+            self._stale = None
+            return
+        self._stale = (time, self._last_utc, self._solution)
 
     def use_model(self, model: GnssErrorModel) -> None:
         self.model = model
@@ -294,11 +311,7 @@ class GnssEmulator(ChipEmulator):
 
     def _epoch_bytes(self, te_ns: int) -> bytes:
         m = self.model
-        t_s = te_ns / 1e9
-        truth = self._truth_at(te_ns)
-        fix = truth is not None and self._has_fix(t_s)
-        utc = m.utc_start + timedelta(microseconds=round(te_ns / 1000))
-        lat, lon, h_msl, vel = self._navigate(te_ns, truth)
+        utc, fix, time_valid, (lat, lon, h_msl, vel) = self._epoch_solution(te_ns)
         course, speed = nmea.course_and_speed((float(vel[0]), float(vel[1]), float(vel[2])))
         out = bytearray()
         sats = m.satellites if fix else 0
@@ -326,12 +339,30 @@ class GnssEmulator(ChipEmulator):
             out += self._faulty(text.encode("ascii"))
         if self.nav_pvt:
             frame = self._faulty(self._nav_pvt(utc, fix, lat, lon, h_msl, vel, speed,
-                                               course, sats))
+                                               course, sats, time_valid))
             if self._cut:
                 self._cut = False
                 frame = frame[:len(frame) // 2]
             out += frame
         return bytes(out)
+
+    def _epoch_solution(self, te_ns: int) -> tuple[datetime, bool, bool,
+                                                   tuple[float, float, float, np.ndarray]]:
+        """The epoch's UTC, whether it has a fix, whether its time is valid, and its solution
+        (latitude, longitude, MSL height, NED velocity). Under ``stale_navigation`` the old
+        solution claiming a fix, with the old UTC (``repeated``) or the running one marked
+        not valid (``unresolved``)."""
+        utc = self.model.utc_start + timedelta(microseconds=round(te_ns / 1000))
+        if self._stale is not None:
+            mode, stale_utc, solution = self._stale
+            return (stale_utc if mode == "repeated" else utc), True, mode != "unresolved", \
+                solution
+        truth = self._truth_at(te_ns)
+        fix = truth is not None and self._has_fix(te_ns / 1e9)
+        solution = self._navigate(te_ns, truth)
+        if fix:
+            self._last_utc = utc
+        return utc, fix, True, solution
 
     def _navigate(self, te_ns: int, truth: tuple[np.ndarray, np.ndarray] | None
                   ) -> tuple[float, float, float, np.ndarray]:
@@ -390,7 +421,8 @@ class GnssEmulator(ChipEmulator):
         return lat, lon, h
 
     def _nav_pvt(self, utc: datetime, fix: bool, lat: float, lon: float, h_msl: float,
-                 vel: np.ndarray, speed: float, course: float, sats: int) -> bytes:
+                 vel: np.ndarray, speed: float, course: float, sats: int,
+                 time_valid: bool = True) -> bytes:
         import pyubx2
 
         m = self.model
@@ -402,7 +434,8 @@ class GnssEmulator(ChipEmulator):
         msg = pyubx2.UBXMessage(
             "NAV", "NAV-PVT", pyubx2.GET,
             iTOW=itow, year=utc.year, month=utc.month, day=utc.day, hour=utc.hour,
-            min=utc.minute, second=utc.second, validDate=1, validTime=1, fullyResolved=1,
+            min=utc.minute, second=utc.second, validDate=int(time_valid),
+            validTime=int(time_valid), fullyResolved=int(time_valid),
             nano=utc.microsecond * 1000, tAcc=30, fixType=3 if fix else 0,
             gnssFixOk=1 if fix else 0, numSV=sats, lon=lon if fix else 0.0,
             lat=lat if fix else 0.0,

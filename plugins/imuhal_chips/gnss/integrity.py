@@ -16,7 +16,12 @@ accuracy estimates and from physics:
   the trapezoid between the two velocities (a dt^2 / 4). This is ArduPilot's early glitch
   rule (position projected from the last one with its velocity, a radius and an
   acceleration term) with the radius taken from the receiver's own accuracies, as PX4's and
-  ArduPilot's filters gate a GNSS position on its innovation against hAcc.
+  ArduPilot's filters gate a GNSS position on its innovation against hAcc. Vertically the
+  radius is what the height *error* can change by between the two epochs
+  (:func:`height_error_change_m`: a receiver's error wanders slowly, HEIGHT_ERROR_TAU_S)
+  and the manoeuvre term uses both velD (:func:`vertical_manoeuvre_m`): the height must
+  follow the integrated velD, and a flip of both heights (which keeps the geoid
+  separation) cannot hide in two epochs' vAcc.
 - **height against MSL height**: NAV-PVT states the height above the ellipsoid and above
   mean sea level; their difference is the geoid separation, which lies between -107 and
   +86 m on Earth and changes with the position by no more than the geoid's slope
@@ -64,6 +69,17 @@ vertical stays below 1 arcmin, 3e-4, but in the steepest mountains; a receiver's
 geoid model is smoother still)."""
 GEOID_RESOLUTION_M = 0.002
 """Two heights of 1 mm resolution each."""
+HEIGHT_ERROR_TAU_S = 10.0
+"""The shortest correlation time taken for a receiver's height error. The error comes from
+the satellites' geometry, the ionosphere, the troposphere and multipath, which change over
+tens of seconds to minutes (the emulated receiver's error is a Gauss-Markov process of 30 s;
+GNSS error models in the navigation literature take 30 s to several minutes), and the
+navigation filter smooths what is left. Shorter than any of those, the bound is the loose
+side: 10 s makes the change between epochs 0.2 s apart 0.2 vAcc (0.8 m at 4 m), where a
+30 s error changes by 0.12 vAcc. A receiver whose height jumps (the satellite set changed)
+loses two epochs to the new level's confirmation (CONFIRM)."""
+POSITION_RESOLUTION_M = 0.03
+"""Two positions of NAV-PVT's 1e-7 deg each in latitude and longitude (1.1 cm a step)."""
 LEAP_TOLERANCE_S = 0.002
 """How far GPS time less UTC may stray from the last valid epoch's: iTOW is in whole ms and
 the UTC fields state the same epoch to the ns (a u-blox keeps its epochs on the ms grid;
@@ -256,14 +272,43 @@ class EpochWatch:
         # the mean of two velocities, each with sAcc per axis, over dt
         speed_var = (s0 * s0 + s1 * s1) * (dt_s / 2.0) ** 2
         horizontal_sigma = math.sqrt(h0 * h0 + h1 * h1 + 2.0 * speed_var)
+        # Each bound is at least what the fields' resolution can make of nothing (two
+        # epochs with one time stamp and zero accuracies leave no other term: a hit epoch
+        # stamped like its reference divided by zero, and the driver was recovered).
         out = [("horizontal position", math.hypot(residual[0], residual[1])
-                / (GATE_SIGMAS * horizontal_sigma + manoeuvre_m))]
+                / max(GATE_SIGMAS * horizontal_sigma + manoeuvre_m, POSITION_RESOLUTION_M))]
         v0 = earlier.vertical_accuracy_m
         if (v0 is not None and epoch.vertical_accuracy_m is not None
                 and earlier.vertical_velocity_measured and epoch.vertical_velocity_measured):
-            v1 = min(epoch.vertical_accuracy_m, v0)
-            vertical_sigma = math.sqrt(v0 * v0 + v1 * v1 + speed_var)
+            # Not the two epochs' height errors as if independent (sqrt(2) vAcc: 5.7 m at
+            # 4 m, which let a 32.8 m flip of both heights through above vAcc 4.5 m) but how
+            # far a height error of the reference's vAcc moves between them (the new
+            # epoch's vAcc comes from the frame under test, as hAcc does).
+            vertical_sigma = math.sqrt(height_error_change_m(v0, dt_s) ** 2 + speed_var)
+            bound_m = GATE_SIGMAS * vertical_sigma + vertical_manoeuvre_m(
+                self.max_acceleration_m_s2, dt_s,
+                epoch.velocity_ned_m_s[2] - earlier.velocity_ned_m_s[2])
             out.append(("vertical position", abs(residual[2])
-                        / (GATE_SIGMAS * vertical_sigma + manoeuvre_m)))
+                        / max(bound_m, GEOID_RESOLUTION_M)))
         return out
+
+
+def height_error_change_m(vertical_accuracy_m: float, dt_s: float) -> float:
+    """The standard deviation of the change of a receiver's height error over ``dt_s``, for
+    a height error of ``vertical_accuracy_m`` rms that wanders with a correlation time of at
+    least HEIGHT_ERROR_TAU_S (a first-order Gauss-Markov process: the change's variance is
+    ``2 vAcc^2 (1 - exp(-dt / tau))``). Over a long gap it tends to two independent errors,
+    ``sqrt(2) vAcc``; between two epochs 0.2 s apart it is 0.2 vAcc."""
+    a = math.exp(-max(dt_s, 0.0) / HEIGHT_ERROR_TAU_S)
+    return vertical_accuracy_m * math.sqrt(2.0 * (1.0 - a))
+
+
+def vertical_manoeuvre_m(max_acceleration_m_s2: float, dt_s: float, dv_m_s: float) -> float:
+    """How far a vehicle accelerating at no more than ``max_acceleration_m_s2`` can leave the
+    trapezoid between two vertical velocities ``dv_m_s`` apart over ``dt_s``: it climbs at the
+    limit and turns back at the limit to meet the second velocity, ``(A^2 dt^2 - dv^2) / 4A``
+    (A dt^2 / 4 when the velocities are equal, nothing when they differ by A dt: then the
+    only path is the straight ramp)."""
+    a = max_acceleration_m_s2
+    return max(0.0, (a * a * dt_s * dt_s - dv_m_s * dv_m_s) / (4.0 * a))
 

@@ -33,7 +33,10 @@ ones (and from the last sample handed out: a measurement that comes back after a
 master reset is not new). Bytes that stay the same for longer than a healthy chip's noise
 allows (``unchanged_periods``) are a chip that stopped or a master whose reads fail (it
 keeps the last data): flagged STALE at each poll after that, FROZEN once they have not
-changed for FROZEN_AFTER_FRAMES periods, never valid. A reset the master's copies show as
+changed for FROZEN_AFTER_FRAMES periods, never valid. Such a run reads the status register
+(which locks no output): RDY clear twice, 0.5 ms apart, is a chip whose data-ready is stuck
+(its engine hung) and the frame ledger counts its slots as not measured (issue 25;
+``_hung_by_status``). A reset the master's copies show as
 zeros (the data registers' power-on value) followed by the reset chip's one measurement in
 single mode: the configuration is read back before that measurement is handed out
 (``_reset_behind_blank``). Latency: the master copies a
@@ -215,6 +218,16 @@ class Hmc5883lDriver(Driver):
         self._unchanged_limit_ns = 0
         self._retrying = False
         """The previous poll found the bytes unchanged and this one looks again."""
+        self._idle_from: int | None = None
+        """read: auto: the stamp of the latest sample handed out while it was valid and its
+        copy is the master's latest change (None otherwise): the field a hang proof counts
+        from (``_hung_by_status``)."""
+        self._hang_read: int | None = None
+        """read: auto: 0 while no status read was made in this run of unchanged copies, else
+        when one found RDY clear; None once one found RDY set or none is to be made."""
+        self._hung_after_ns = 0
+        """read: auto: unchanged copies this long are more than a measuring chip repeats
+        (``unchanged_periods``)."""
 
     # --- bus helpers (plain I2C register protocol: write pointer, then read) --------------
 
@@ -296,6 +309,8 @@ class Hmc5883lDriver(Driver):
             self._settle_ns = self._mode_written_ns + period + feed.latency_ns
             self._unchanged_limit_ns = round(
                 (unchanged_periods(self.gain_lsb_per_gauss) + STALE_AFTER_PERIODS) * period)
+            self._hung_after_ns = unchanged_periods(self.gain_lsb_per_gauss) * period
+            self._idle_from, self._hang_read = None, None
         self._streams = (self._spec(config),)  # with the auto-read's latency, when there is one
 
     def start(self, now_ns: int) -> int:
@@ -382,12 +397,17 @@ class Hmc5883lDriver(Driver):
         frozen = self._frozen.observe(Quantity.MAG, data) if data is not None \
             else SampleFlag.OK
         changes = self._feed.take()
+        if not changes:
+            self._hung_by_status(now_ns)
         if changes:
             after_reset = self._reset_behind_blank(changes, now_ns) or \
                 self._reset_behind_jump(changes, now_ns)
             if after_reset is not None:
                 return after_reset
             samples, blank = self._measurements(changes, now_ns, late=self._retrying)
+            last = samples[-1] if samples else blank
+            self._idle_from = last.t_ns if last is not None and last.valid else None
+            self._hang_read = 0 if self._idle_from is not None else None
             if samples:
                 self._fresh_ns = now_ns
                 self._retrying = False
@@ -409,6 +429,32 @@ class Hmc5883lDriver(Driver):
             sample = MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                                mag_ut=NAN3, flags=frozen or SampleFlag.STALE)
         return self._no_measurement(sample, now_ns)
+
+    def _hung_by_status(self, now_ns: int) -> None:
+        """read: auto: the master's copies have not changed since the latest valid field's
+        for ``unchanged_periods`` (more than a measuring chip repeats its bytes: the chip
+        stopped, or the master's reads of it fail, which its copies, without the status
+        register, cannot tell apart). The status register then tells: RDY clear at two
+        polls, longer apart than the 250 us a data write holds it clear, is a chip whose
+        data-ready is stuck, whose engine hung; it answered, so the master's reads reach it
+        (a chip unplugged reads 0xFF, RDY set; one that froze keeps RDY set). The reads
+        found nothing new since that field (``health.idle``, for the frame ledger's count
+        of a hung chip's slots, issue 25). Reading the status register locks no data
+        output. Made only in such a run, which a healthy chip's odds (REPEAT_ODDS) rule
+        out."""
+        assert self._feed is not None
+        feed, first = self._feed, self._hang_read
+        if first is None or self._idle_from is None \
+                or feed.t_ns - feed.changed_ns < self._hung_after_ns \
+                or (first and now_ns - first < NOT_READY_RETRY_NS):
+            return
+        if self._read(Reg.STATUS, 1)[0] & STATUS_RDY:
+            self._hang_read = None
+        elif not first:
+            self._hang_read = now_ns
+        else:
+            self.health.idle = (self._idle_from, now_ns)
+            self._hang_read = None
 
     def _reset_behind_jump(self, changes: list[Copy], now_ns: int) -> PollResult | None:
         """A copy whose field magnitude jumped (MAGNITUDE_STEP) from the one before it: a

@@ -228,6 +228,8 @@ class MPU9250Driver(Driver):
         self._feed: AutoReadFeed | None = None
         self._slv0_nack = False
         """I2C_MST_STATUS.SLV0_NACK read and not yet told to the feed."""
+        self._sensor_bytes: bytes | None = None
+        """With a slave auto-read: accel through gyro as the latest good burst read them."""
         if aux == "bypass":
             self._aux_bus = link.bus
         elif aux == "master":
@@ -379,6 +381,7 @@ class MPU9250Driver(Driver):
         self._period_ns = self._streams[0].period_ns
         self._grid = PollGrid(self._period_ns, early_fraction=EARLY_FRACTION, track=True)
         self._search_ns = None
+        self._sensor_bytes = None
         self._ready = DataReady({Quantity.GYRO: self._period_ns})
 
     _CONFIG_REGISTERS = (r.SMPLRT_DIV, r.CONFIG, r.GYRO_CONFIG, r.ACCEL_CONFIG)
@@ -489,6 +492,8 @@ class MPU9250Driver(Driver):
             data, ext = self._burst_with_master_status()
         ready = bool(data[0] & r.INT_RAW_RDY)
         bad = blank_flag(data)
+        if self._feed is not None and not bad:
+            self._slave_read_without_ready(data, ext, now_ns, ready=ready)
         if ready and not bad:
             bad = self._frozen_flag(data[1:])
         if ready and not bad:
@@ -512,6 +517,23 @@ class MPU9250Driver(Driver):
             return PollResult([], self._search_ns)
         return self._no_sample(now_ns, bad if ready else SampleFlag.STALE | bad,
                                self._grid.next_after(now_ns))
+
+    def _slave_read_without_ready(self, data: bytes, ext: bytes, now_ns: int, *,
+                                  ready: bool) -> None:
+        """A burst without RAW_DATA_RDY whose sensor registers moved since the burst before
+        it: the chip sampled in between and only its data-ready bit says otherwise (stuck,
+        or cleared by a read that failed on the host's bus), and slave 0 reads at every
+        sample (the register map: the I2C master runs at the sample rate), so
+        EXT_SENS_DATA holds a read of the slave like a ready burst's, delivered alike. A
+        hung slave's copies then show it measured nothing (the AK8963's ST1.DRDY clear),
+        which the frame ledger counts (issue 25); bytes that did not move prove no new
+        read and are not delivered."""
+        assert self._feed is not None
+        before, self._sensor_bytes = self._sensor_bytes, data[1:]
+        if ready or before is None or before == data[1:]:
+            return
+        self._feed.deliver(now_ns, ext, failed=self._slv0_nack)
+        self._slv0_nack = False
 
     def _burst_with_master_status(self) -> tuple[bytes, bytes]:
         """One burst from I2C_MST_STATUS through the slave's bytes: the data burst

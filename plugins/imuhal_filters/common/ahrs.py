@@ -134,7 +134,9 @@ class AhrsSettings(PresetSettings, AhrsLimitSettings, TurnCompensationSettings):
     """A gyro sample the chip clipped (flagged SATURATED, perhaps OUT_OF_RANGE too: at its
     stream's full scale): ``recover`` integrates it clipped to the full scale and then pulls
     the tilt back towards the accelerometer with a high gain that decays over ``RECOVERY_S``
-    (Fusion's angular-rate recovery); ``drop`` skips it (a gap in the integration: the
+    (Fusion's angular-rate recovery), when the rotation ramped into the clip (a clip out
+    of a rate well inside the range is dropped either way: RECOVERY_RAMP); ``drop`` skips
+    it (a gap in the integration: the
     pipeline counts the clipped frames lost, and the step after them spans the gap at the
     rate after it, ``max_gap_s``). Needs the gyro's stream (``bind``); without one every
     flagged sample is dropped."""
@@ -167,15 +169,23 @@ RECOVERY_RAIL = 0.99
 """A clipped gyro sample's axis counts as clipped when its rate is at least this share of
 the stream's full scale (the chip's rail is one count short of it)."""
 RECOVERY_CHECKED_RAD = 0.05
-"""Angular-rate recovery: while more rotation than this (rad; 2.9 deg, the complementary
-filters' soft-gate width of 0.05 g seen as a tilt) that clipped samples may have got wrong
-is not yet accounted for by the accelerometer, the AHRS withholds its estimates
-(``EstimateFlag.UNSETTLED``)."""
+"""Angular-rate recovery: while the accelerometer disagrees with the attitude by more than
+this (rad; 2.9 deg, the complementary filters' soft-gate width of 0.05 g seen as a tilt),
+the AHRS withholds its estimates (``EstimateFlag.UNSETTLED``)."""
 RECOVERY_RAMP = 0.5
-"""Angular-rate recovery: a clip on an axis whose last measured rate was below this share
-of the full scale came out of nowhere (the rate would have had to grow by half the range
-in one sample: 100,000 deg/s^2 on a 1000 deg/s gyro at 200 Hz), so it is taken for no
-rotation and the recovery's pull is limited to the rotation it integrated."""
+"""Angular-rate recovery: a clipped gyro reading is integrated only when the last rate
+measured on a clipped axis, in the clip's direction, was at least this share of the full
+scale (or closer to the rail than MAX_ANGULAR_ACCEL_RAD_S2 can cover in one sample period,
+where that is the stricter bound): a rotation that reaches the rail ramps into it. Out of a
+rate well inside the range the rate would have grown by half the range in one sample
+(100,000 deg/s^2 on a 1000 deg/s gyro at 200 Hz, 31,000 on a 250 deg/s gyro at 250 Hz), which
+no vehicle does: the reading is a corrupt word or a shock the chip clipped, and it is
+dropped (``_ramped_into``)."""
+MAX_ANGULAR_ACCEL_RAD_S2 = 500.0
+"""The largest angular acceleration taken for a rotation (rad/s^2; 28,600 deg/s^2, a generous
+bound for the paragliders and RC aircraft the bundled boards fly): at a slow sample rate or a
+small range one sample period at it may span more than the other half of the range, and a
+clip out of a rate that far from the rail may then be a real rotation (``_ramped_into``)."""
 UNMEASURED_SPAN_CHECK_G = 0.05
 """After a span of unmeasured rotation (``_after_dropped``), the accelerometer checks the
 attitude only while it reads within this much of 1 g (g; the soft gate's width): then it
@@ -306,18 +316,16 @@ def _head(blocks: Sequence[Block], gyro: Block, frames: int
     return head, rest
 
 
-def _tilt_pulled(q: Quat, accel_g: Vec, angle_gain: float, axes: Vec = (1.0, 1.0, 1.0),
-                 max_angle: float = _INF) -> tuple[Quat, float, float]:
+def _tilt_pulled(q: Quat, accel_g: Vec, angle_gain: float) -> tuple[Quat, float]:
     """``q`` (body -> NED) turned so the gravity it predicts in the body frame moves towards
     the measured gravity-positive ``accel_g`` by ``angle_gain`` times the sine of the angle
-    between them (the Mahony / Fusion accelerometer feedback, integrated over one step),
-    turning only about the body axes whose ``axes`` entry is 1 (0: not about that one) and
-    by at most ``max_angle`` (rad); the angle it turned (rad) and the angle between the
-    predicted and the measured gravity left after the turn (rad, to first order)."""
+    between them (the Mahony / Fusion accelerometer feedback, integrated over one step), and
+    the angle between the predicted and the measured gravity left after the turn (rad, to
+    first order; infinite for a zero reading)."""
     ax, ay, az = accel_g
     norm = math.sqrt(ax * ax + ay * ay + az * az)
     if not norm > 0.0:
-        return q, 0.0, _INF
+        return q, _INF
     ax, ay, az = ax / norm, ay / norm, az / norm
     w, x, y, z = q
     # gravity's direction in the body frame as q predicts it: R(q)^T (0, 0, 1)
@@ -325,15 +333,12 @@ def _tilt_pulled(q: Quat, accel_g: Vec, angle_gain: float, axes: Vec = (1.0, 1.0
     # the body rotation that turns the prediction towards the measurement
     ex, ey, ez = ay * vz - az * vy, az * vx - ax * vz, ax * vy - ay * vx
     apart = math.atan2(math.sqrt(ex * ex + ey * ey + ez * ez), ax * vx + ay * vy + az * vz)
-    ex, ey, ez = ex * axes[0], ey * axes[1], ez * axes[2]
     angle = angle_gain * math.sqrt(ex * ex + ey * ey + ez * ez)
-    if angle > max_angle:
-        angle_gain, angle = angle_gain * max_angle / angle, max_angle
     hx, hy, hz = 0.5 * angle_gain * ex, 0.5 * angle_gain * ey, 0.5 * angle_gain * ez
     w, x, y, z = (w - x * hx - y * hy - z * hz, x + w * hx + y * hz - z * hy,
                   y - x * hz + w * hy + z * hx, z + x * hy - y * hx + w * hz)
     n = math.sqrt(w * w + x * x + y * y + z * z)
-    return (w / n, x / n, y / n, z / n), angle, max(0.0, apart - angle)
+    return (w / n, x / n, y / n, z / n), max(0.0, apart - angle)
 
 
 class AhrsEstimator(Estimator):
@@ -387,13 +392,12 @@ class AhrsEstimator(Estimator):
             "angular_rate_recovery": {"clipped_samples": 0, "recoveries": 0, "withheld": 0},
         }
         self._recovery_left_s = 0.0
-        self._recovery_axes: Vec = (0.0, 0.0, 0.0)
-        self._recovery_budget_rad = 0.0
         self._recovery_apart_rad = _INF
         """The angle between the predicted and the measured gravity at the recovery's last
         pull (rad; infinite before the first)."""
         self._last_rate: Vec = NO_VECTOR
-        """The last gyro rate measured (not clipped), rad/s body."""
+        """The last gyro rate measured (not clipped), rad/s body: what a clip must have
+        ramped out of (``_ramped_into``)."""
         self._dropped_after_ns: int | None = None
         """Set when gyro frames went unfused (dropped invalid, or counted lost): the time
         stamp of the last step before them, then (``_unchecked``) kept until the
@@ -527,8 +531,11 @@ class AhrsEstimator(Estimator):
     # ------------------------------------------------------------------ angular-rate recovery
     def _flagged_gyro(self, item: GyroSample) -> list[Estimate]:
         """A gyro sample flagged invalid: dropped and counted, unless it is a reading the
-        chip clipped at its full scale and ``gyro_saturation`` is ``recover`` (the rotation
-        goes on beyond the range: integrating the clipped rate loses less than a gap)."""
+        chip clipped at its full scale, ``gyro_saturation`` is ``recover`` and the rotation
+        ramped into the clip (``_ramped_into``): then the rotation goes on beyond the range,
+        and integrating the clipped rate loses less than a gap. A clip out of a rate well
+        inside the range is no rotation (a corrupt word or a shock the chip clipped): it is
+        dropped as any invalid sample, and counted ``unramped_clips`` besides."""
         limit = self._gyro_range_rad_s
         if (limit is None or not item.flags & SampleFlag.SATURATED or item.flags & ~_CLIPPED
                 or item.frame is not _BODY_NED or self.settings.gyro_saturation != "recover"):
@@ -536,20 +543,20 @@ class AhrsEstimator(Estimator):
         x, y, z = item.gyro_rad_s
         if not (abs(x) < _INF and abs(y) < _INF and abs(z) < _INF):
             return self._dropped_gyro()
+        clipped = (min(max(float(x), -limit), limit), min(max(float(y), -limit), limit),
+                   min(max(float(z), -limit), limit))
         counts = self._counters["angular_rate_recovery"]
+        if not self._ramped_into(clipped, limit):
+            counts["unramped_clips"] = counts.get("unramped_clips", 0) + 1
+            return self._dropped_gyro()
         counts["clipped_samples"] += 1
         if self._recovery_left_s <= 0.0:
             counts["recoveries"] += 1
-            self._recovery_axes = (0.0, 0.0, 0.0)
-            self._recovery_budget_rad = 0.0
             self._recovery_apart_rad = _INF
         self._recovery_left_s = RECOVERY_S
-        clipped = (min(max(float(x), -limit), limit), min(max(float(y), -limit), limit),
-                   min(max(float(z), -limit), limit))
-        budget = self._clip_budget(clipped, limit)
         if self._dropped_after_ns is not None:  # unchecked or unmeasured: as any step
-            return self._after_dropped(item, clipped, budget)
-        return self._recovering(item, clipped, budget)
+            return self._after_dropped(item, clipped)
+        return self._recovering(item, clipped)
 
     def _dropped_gyro(self) -> list[Estimate]:
         """An invalid gyro sample that is no clipped rate: dropped and counted, and the
@@ -572,8 +579,7 @@ class AhrsEstimator(Estimator):
         x, y, z = _linear_accel_ned(self._q, accel)
         self._span_before = ((x, y, z - STANDARD_GRAVITY_M_S2), self._last_rate, last)
 
-    def _after_dropped(self, item: GyroSample, rate: Vec, at_rail_rad_s: float = 0.0
-                       ) -> list[Estimate]:
+    def _after_dropped(self, item: GyroSample, rate: Vec) -> list[Estimate]:
         """A valid gyro sample after gyro frames that went unfused (dropped invalid, or
         counted lost: a StreamGap). Up to ``max_dt_s`` since the last step the filter goes
         on as usual. Longer, the rotation in between went unmeasured (the step after a
@@ -603,19 +609,19 @@ class AhrsEstimator(Estimator):
                     or not self._tilt_aligned:
                 self._span_before = None
                 if self._recovery_left_s > 0.0:
-                    return self._recovering(item, rate, at_rail_rad_s)
+                    return self._recovering(item, rate)
                 return self._on_gyro(item, rate)
             self._unchecked = True
             self._dropped_after_ns = last
             counts["unmeasured_spans"] = counts.get("unmeasured_spans", 0) + 1
             if (item.t_ns - last) * _NS > self._max_gap_s:
                 self._span_before = None  # stepped over at the nominal period: no span
-        out = self._recovering(item, rate, at_rail_rad_s) if self._recovery_left_s > 0.0 \
+        out = self._recovering(item, rate) if self._recovery_left_s > 0.0 \
             else self._on_gyro(item, rate)
         if not out:
             return out
         continues = self._force_continues(rate)
-        if continues or self._accel_confirms():
+        if continues or self._accel_confirms(item.t_ns, rate):
             if continues:
                 counts["unmeasured_continued"] = counts.get("unmeasured_continued", 0) + 1
             self._unchecked = False
@@ -666,96 +672,89 @@ class AhrsEstimator(Estimator):
         apart = math.atan2(math.sqrt(cx * cx + cy * cy + cz * cz), x * bx + y * by + z * bz)
         return apart <= UNMEASURED_SPAN_CHECKED_RAD
 
-    def _accel_confirms(self) -> bool:
-        """The newest accelerometer reading (fresh: within ``max_aux_age_s``) is within
-        UNMEASURED_SPAN_CHECK_G of 1 g and within UNMEASURED_SPAN_CHECKED_RAD of the gravity
-        the attitude predicts."""
-        accel, t_ns = self._accel_m_s2, self._accel_t_ns
-        if accel is None or t_ns is None or self._last_gyro_t_ns is None or (
-                self._max_aux_age_s is not None
-                and (self._last_gyro_t_ns - t_ns) * _NS > self._max_aux_age_s):
-            return False
-        g = gravity_positive_g(accel)
-        if abs(math.sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]) - 1.0) > \
+    def _accel_confirms(self, t_ns: int, rate: Vec) -> bool:
+        """The newest accelerometer reading, fresh and less the kinematic acceleration of
+        the step (``_checking_g``), is within UNMEASURED_SPAN_CHECK_G of 1 g and within
+        UNMEASURED_SPAN_CHECKED_RAD of the gravity the attitude predicts."""
+        g = self._checking_g(t_ns, rate)
+        if g is None or abs(math.sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]) - 1.0) > \
                 UNMEASURED_SPAN_CHECK_G:
             return False
-        return _tilt_pulled(self._q, g, 0.0)[2] <= UNMEASURED_SPAN_CHECKED_RAD
+        return _tilt_pulled(self._q, g, 0.0)[1] <= UNMEASURED_SPAN_CHECKED_RAD
 
-    def _clip_budget(self, clipped: Vec, limit: float) -> float:
-        """The axes a clipped reading (rad/s, cut at +-``limit``) adds to the recovery's,
-        and how fast it may have turned the attitude wrong (rad/s, ``_recovering``'s
-        ``at_rail_rad_s``): infinite for a rotation that ramped into the clip (its last
-        measured rate on a clipped axis at least RECOVERY_RAMP of the range: it may have
-        gone any way beyond it, and what it missed about one axis turns the others'
-        integration, so Fusion's recovery about every axis); else the rate integrated on
-        the clipped axes (a clip out of a rate well inside the range: no vehicle turns that
-        fast that quickly, so it is no rotation, a shock or a corrupt word the chip clipped,
-        and the recovery has to find at most what integrating it put in)."""
+    def _checking_g(self, t_ns: int, rate: Vec) -> Vec | None:
+        """What checks the attitude at the gyro step at ``t_ns`` with the ``rate`` (rad/s,
+        body): the newest accelerometer reading if fresh (``max_aux_age_s``), less the
+        kinematic acceleration the filter's own step removes from it (turn compensation:
+        ``rate`` x the airspeed along the body's x axis, which does not depend on the
+        attitude), as a gravity-positive reading in g; None: no fresh reading.
+
+        Compensated, as the filter fuses it: in a turn the raw reading is the load factor
+        along the body's z axis (1.1 g at 25 deg of bank), which is neither 1 g nor
+        gravity's direction, so a check of the raw reading never passed while circling
+        (gy91's 300 s soak: an attitude withheld for 33 s of a thermal after a 2 s IMU
+        outage), and a recovery's pull towards it turned the tilt towards the bank."""
+        accel, a_t = self._accel_m_s2, self._accel_t_ns
+        if accel is None or a_t is None or (
+                self._max_aux_age_s is not None and (t_ns - a_t) * _NS > self._max_aux_age_s):
+            return None
+        if self._turn_on:
+            kinematic = self._kinematics.acceleration(t_ns, rate)[1]
+            if kinematic != NO_VECTOR:
+                accel = compensated(accel, kinematic)
+        return gravity_positive_g(accel)
+
+    def _ramped_into(self, clipped: Vec, limit: float) -> bool:
+        """Whether a reading clipped at +-``limit`` (rad/s) can be a rotation that reached
+        the rail: on some axis at the rail (RECOVERY_RAIL) the last rate measured, in the
+        clip's direction, was at least RECOVERY_RAMP of the range, or within what
+        MAX_ANGULAR_ACCEL_RAD_S2 covers in one sample period of the rail where that is the
+        looser bound (a slow gyro or a small range).
+
+        Why: a vehicle's rate is continuous and its angular acceleration bounded, so a
+        rotation beyond the range passes through the upper part of it first, and the
+        chip's rate filter smooths it on the way. A word at the rail straight out of a rate
+        well inside the range is a corrupt word or a shock, not a turn: integrated at the
+        full scale it put up to the range times the step into the attitude, and the
+        recovery's pull then had to find it again against an accelerometer reading
+        whatever the vehicle's acceleration was (in the ``thermal`` launch run its push:
+        the fault matrix at 10 % ``wild_value`` handed out 220 of 923 attitudes on gy91 and
+        123 of 295 on seed-gps-vario more than 10 deg off, worst 29.5 deg). Dropped, the
+        clip is a gap the next measured rate spans (``_after_dropped``)."""
         rail = RECOVERY_RAIL * limit
-        at = [abs(c) >= rail for c in clipped]
-        axes = self._recovery_axes
-        self._recovery_axes = (1.0 if axes[0] or at[0] else 0.0,
-                               1.0 if axes[1] or at[1] else 0.0,
-                               1.0 if axes[2] or at[2] else 0.0)
-        ramped = RECOVERY_RAMP * limit
-        if any(a and abs(r) >= ramped for a, r in zip(at, self._last_rate, strict=True)):
-            self._recovery_axes = (1.0, 1.0, 1.0)
-            return _INF
-        return math.sqrt(sum(c * c for c, a in zip(clipped, at, strict=True) if a))
+        ramp = min(RECOVERY_RAMP * limit, rail - MAX_ANGULAR_ACCEL_RAD_S2 * self._nominal_dt_s)
+        return any(abs(c) >= rail and (r if c > 0.0 else -r) >= ramp
+                   for c, r in zip(clipped, self._last_rate, strict=True))
 
-    def _recovering(self, item: GyroSample, rate: Vec, at_rail_rad_s: float = 0.0
-                    ) -> list[Estimate]:
-        """One gyro step during the angular-rate recovery: before the filter's own step, the
-        tilt is pulled towards the newest accelerometer reading with the recovery gain
-        (decaying linearly from RECOVERY_GAIN to 0 over RECOVERY_S after the last clipped
-        sample), about the clipped axes only and by no more in all than the clipped samples
-        turned (``at_rail_rad_s``: this sample's rate on its clipped axes, rad/s, infinite
-        for a rotation that ramped into the clip); the filter's step then runs as usual.
-
-        Only about the clipped axes: the rotation a clipped sample got wrong is about the
-        axes at the rail (the others were measured), so that is all the recovery has to
-        find. The accelerometer's other components carry no attitude error to recover, only
-        the acceleration nothing models (a take-off run's push, a pull-out), which a pull
-        about every axis would turn into tilt (seed-rc-vario: 46 deg on its run-up after
-        one clipped sample, issue 26); those components stay with the filter's own gated
-        correction. No more than the clipped samples turned, when they came out of a rate
-        well inside the range (RECOVERY_RAMP): a wild value the chip clipped (a fault, not
-        a rotation) put exactly that much in, and a pull beyond it is acceleration taken
-        for tilt. While the reading disagrees with the attitude by more than
-        RECOVERY_CHECKED_RAD and more than that is left of what the clipped samples may
-        have got wrong, the estimates are withheld (UNSETTLED): the attitude is not known
-        yet."""
+    def _recovering(self, item: GyroSample, rate: Vec) -> list[Estimate]:
+        """One gyro step during the angular-rate recovery (Fusion's): before the filter's own
+        step, the tilt is pulled towards the newest accelerometer reading about every axis
+        with the recovery gain (decaying linearly from RECOVERY_GAIN to 0 over RECOVERY_S
+        after the last clipped sample); the filter's step then runs as usual. Every clip
+        it follows ramped into the rail (``_ramped_into``): the rotation went on beyond the
+        range by an amount nobody measured, about any axis (what it missed about one axis
+        turns the others' integration), so the pull is neither limited to the clipped axes
+        nor to an amount. While the accelerometer disagrees with the attitude the step
+        hands out by more than RECOVERY_CHECKED_RAD, or no fresh reading (``max_aux_age_s``)
+        checks it, the estimates are withheld (UNSETTLED): the attitude is not known yet."""
         last = self._last_gyro_t_ns
         dt = self._nominal_dt_s
         if last is not None and 0.0 < (item.t_ns - last) * _NS <= self._max_dt_s:
             dt = (item.t_ns - last) * _NS
         gain = RECOVERY_GAIN * self._recovery_left_s / RECOVERY_S
         self._recovery_left_s = max(0.0, self._recovery_left_s - dt)
-        self._recovery_budget_rad += at_rail_rad_s * dt
-        accel = self._accel_m_s2
-        fresh = accel is not None and self._accel_t_ns is not None and (
-            self._max_aux_age_s is None
-            or (item.t_ns - self._accel_t_ns) * _NS <= self._max_aux_age_s)
-        if fresh and self.owns_quaternion and self._tilt_aligned:
-            assert accel is not None
-            self._q, turned, apart = _tilt_pulled(
-                self._q, gravity_positive_g(accel), gain * dt, self._recovery_axes,
-                self._recovery_budget_rad)
-            self._recovery_budget_rad -= turned
-            self._recovery_apart_rad = apart
-        else:  # no reading checks the attitude now: an earlier agreement no longer holds
-            self._recovery_apart_rad = _INF
+        g = self._checking_g(item.t_ns, rate) if self.owns_quaternion and self._tilt_aligned \
+            else None
+        if g is not None:
+            self._q = _tilt_pulled(self._q, g, gain * dt)[0]
         out = self._on_gyro(item, rate)
-        if fresh and self.owns_quaternion and self._tilt_aligned:
-            # judged on the attitude the step hands out, not the one before it: the step
-            # integrated the clipped rate, which is what may be wrong (a wild gyro word
-            # clipped at the rail in the first read after a 46 ms host stall put 45 deg of
-            # pitch in one step and was handed out; fault matrix, seed-gps-vario, 10 %)
-            assert accel is not None
-            self._recovery_apart_rad = _tilt_pulled(self._q, gravity_positive_g(accel),
-                                                    0.0)[2]
-        if out and min(self._recovery_budget_rad, self._recovery_apart_rad) > \
-                RECOVERY_CHECKED_RAD:
+        # judged on the attitude the step hands out, not the one before it: the step
+        # integrated the clipped rate, which is what may be wrong (a wild gyro word clipped
+        # at the rail in the first read after a 46 ms host stall put 45 deg of pitch in one
+        # step and was handed out; fault matrix, seed-gps-vario, 10 %); no fresh reading:
+        # an earlier agreement no longer holds
+        self._recovery_apart_rad = _INF if g is None else _tilt_pulled(self._q, g, 0.0)[1]
+        if out and self._recovery_apart_rad > RECOVERY_CHECKED_RAD:
             self._counters["angular_rate_recovery"]["withheld"] += 1
             return [RejectedEstimate(t_ns=item.t_ns, source=self.instance, kind="attitude",
                                      flags=EstimateFlag.UNSETTLED, estimator=self.name)]
@@ -825,8 +824,6 @@ class AhrsEstimator(Estimator):
                          "angular_rate_recovery": dict(
                              self._counters["angular_rate_recovery"])},
             "recovery_left_s": self._recovery_left_s,
-            "recovery_axes": list(self._recovery_axes),
-            "recovery_budget_rad": self._recovery_budget_rad,
             "recovery_apart_rad": self._recovery_apart_rad,
             "last_rate_rad_s": list(self._last_rate),
             "dropped_after_ns": self._dropped_after_ns,
@@ -857,8 +854,6 @@ class AhrsEstimator(Estimator):
                               "angular_rate_recovery",
                               {"clipped_samples": 0, "recoveries": 0, "withheld": 0}))}
         self._recovery_left_s = float(state.get("recovery_left_s", 0.0))
-        self._recovery_axes = _vec(state.get("recovery_axes", (1.0, 1.0, 1.0)))
-        self._recovery_budget_rad = float(state.get("recovery_budget_rad", _INF))
         self._recovery_apart_rad = float(state.get("recovery_apart_rad", _INF))
         self._last_rate = _vec(state.get("last_rate_rad_s", NO_VECTOR))
         self._dropped_after_ns = state.get("dropped_after_ns")

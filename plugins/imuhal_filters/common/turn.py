@@ -120,31 +120,36 @@ class KinematicAcceleration:
             self.source = "off"
             return _ZERO
         self.count_turn(gyro_rad_s)
+        source, acceleration = self.acceleration(t_ns, gyro_rad_s)
+        if source != "none":
+            self.source = source
+            self.counts["compensated_steps"] += 1
+        return acceleration
+
+    def acceleration(self, t_ns: int | None, gyro_rad_s: Vec) -> tuple[str, Vec]:
+        """The speed source ``step`` would compensate with at ``t_ns`` (``velocity``,
+        ``airspeed``, ``nominal`` or ``none``) and its kinematic acceleration for the gyro
+        rate (body axes, m/s^2), changing nothing (no count, no turn bookkeeping): what a
+        check of the compensated specific force asks (the AHRS's recovery). It does not
+        depend on the attitude: the body moves along its own x axis."""
         nominal = self.s.nominal_airspeed_m_s
         # (a source that never sent a sample is not fresh: skip the calls, once per step)
         if self._speed.t_ns is not None and self._speed.fresh(t_ns, self.s.speed_max_age_s):
-            self.source = "velocity"
-            self.counts["compensated_steps"] += 1
             # until a circle has shown the wind, a configured trim speed is the better guess
             # of the airspeed, and while turning the ground speed swings with the heading
             # (wind), so its rate of change is not the airspeed's
             wind_known = self.counts["wind_fits"] > 0
             if self._speed.value < _MIN_AIRSPEED_M_S:
-                return _ZERO  # standing: the velocity is noise, and so would its rate be
+                return "velocity", _ZERO  # standing: the velocity is noise, and its rate
             speed = self._speed.value if wind_known or nominal is None else nominal
             rate = self._speed.rate if wind_known or not self._turning else 0.0
-            return _along_x(gyro_rad_s, speed, rate)
+            return "velocity", _along_x(gyro_rad_s, speed, rate)
         if self._airspeed.t_ns is not None and self._airspeed.fresh(t_ns,
                                                                     self.s.speed_max_age_s):
-            self.source = "airspeed"
-            self.counts["compensated_steps"] += 1
-            return _along_x(gyro_rad_s, self._airspeed.value, self._airspeed.rate)
+            return "airspeed", _along_x(gyro_rad_s, self._airspeed.value, self._airspeed.rate)
         if nominal is not None:
-            self.source = "nominal"
-            self.counts["compensated_steps"] += 1
-            return _along_x(gyro_rad_s, nominal, 0.0)
-        self.source = "none"
-        return _ZERO
+            return "nominal", _along_x(gyro_rad_s, nominal, 0.0)
+        return "none", _ZERO
 
     def count_turn(self, gyro_rad_s: Vec) -> None:
         """The turn detector's bookkeeping of one gyro step with compensation on, and

@@ -48,6 +48,13 @@ class Copy(NamedTuple):
     """The delivery before it (None: the first). Longer than the master's period before
     it, the master's driver was not reading (its chip recovering, blank reads, a stalled
     host), and the copy may hold a measurement up to one slave period older than usual."""
+    quiet_ns: int | None = None
+    """The latest delivery before it of an unbroken run of good ones since the change
+    before it, each with the slave's data-ready bit clear (``keep_ready_only``) and each
+    within the feed's latency of the delivery before it (so no master read came between
+    unseen): the slave had measured nothing new at any of the master's reads (None: no
+    such run, a failed read or a longer pause broke it, or the feed knows no data-ready
+    bit)."""
 
 
 def stamp_on_cadence(copy: Copy, last_ns: int | None, period_ns: int, *,
@@ -59,11 +66,11 @@ def stamp_on_cadence(copy: Copy, last_ns: int | None, period_ns: int, *,
     driver that knows its chip's period stamps a FIFO frame (Linux
     inv_sensors_timestamp):
 
-    - the master's reads just before it failed (``failed_ns``): a failed read moved the
-      copy a master period later; the read nearest the cadence is where it was due;
     - the master did not deliver for longer than ``pause_ns`` (its period) before it
-      (``after_ns``): the copy may have waited a slave period in the chip; the latest
-      cadence point not after the delivery.
+      (``after_ns``, a failed delivery included): the copy may have waited a slave period
+      in the chip; the latest cadence point not after the delivery;
+    - else, the master's reads just before it failed (``failed_ns``): a failed read moved
+      the copy a master period later; the read nearest the cadence is where it was due.
 
     Either way the stamp stays after ``last_ns`` and the delivery before it, and never
     after the delivery. A slave clock that drifted more than a tenth of a period since
@@ -71,16 +78,17 @@ def stamp_on_cadence(copy: Copy, last_ns: int | None, period_ns: int, *,
     t_ns = copy.t_ns
     if last_ns is None:
         return t_ns
+    after = copy.after_ns
+    if after is not None and t_ns - after > pause_ns:
+        # a pause after the failed reads too: the copy may have waited in the chip since
+        periods = int((t_ns - last_ns) / period_ns + 0.1)
+        return min(t_ns, max(last_ns + periods * period_ns, after + 1, last_ns + 1))
     if copy.failed_ns:
         def off_cadence(t: int) -> int:
             periods = max(1, round((t - last_ns) / period_ns))
             return abs(t - last_ns - periods * period_ns)
         return min((*copy.failed_ns, t_ns), key=off_cadence)
-    after = copy.after_ns
-    if after is None or t_ns - after <= pause_ns:
-        return t_ns
-    periods = int((t_ns - last_ns) / period_ns + 0.1)
-    return min(t_ns, max(last_ns + periods * period_ns, after + 1, last_ns + 1))
+    return t_ns
 
 
 class AutoReadFeed:
@@ -92,8 +100,9 @@ class AutoReadFeed:
     copy its burst comes).
     """
 
-    __slots__ = ("_failed", "_raw", "changed_ns", "data", "deliveries", "failures", "fresh",
-                 "latency_ns", "length", "ready_bit", "register", "t_ns", "target")
+    __slots__ = ("_failed", "_quiet", "_quiet_ns", "_raw", "changed_ns", "data", "deliveries",
+                 "failures", "fresh", "latency_ns", "length", "ready_bit", "register", "t_ns",
+                 "target")
 
     def __init__(self, target: int, register: int, length: int, *, latency_ns: int) -> None:
         self.target = target
@@ -118,6 +127,12 @@ class AutoReadFeed:
         self.ready_bit: tuple[int, int] | None = None
         """(byte offset, mask) of the slave's own data-ready bit among the bytes, when its
         driver set one with :meth:`keep_ready_only`."""
+        self._quiet = True
+        """Every delivery since the latest change was good and had the data-ready bit
+        clear (a failed read, or a copy with data-ready repeating the one before, ends
+        it)."""
+        self._quiet_ns: int | None = None
+        """The latest of those deliveries (``Copy.quiet_ns``)."""
 
     def keep_ready_only(self, offset: int, mask: int) -> None:
         """The slave has a data-ready bit among the bytes (byte ``offset``, bit ``mask``),
@@ -131,9 +146,11 @@ class AutoReadFeed:
     def deliver(self, t_ns: int, data: bytes, *, failed: bool = False,
                 nack_seen: bool = False) -> None:
         """The master's driver read ``data`` (``length`` bytes, slave register order) at
-        ``t_ns``. ``failed``: the master reported that its read of the slave for this copy
-        failed (its registers keep the copy before): no change, and the next change may
-        carry the measurement that read missed (``Copy.failed_ns``).
+        ``t_ns``: one delivery per read the master made of the slave (a master that may not
+        have read it again since the last delivery is not delivered from). ``failed``: the
+        master reported that its read of the slave for this copy failed (its registers keep
+        the copy before): no change, and the next change may carry the measurement that
+        read missed (``Copy.failed_ns``).
 
         ``nack_seen``: the master reported a failed slave read among several copies without
         saying which (the MPU-9250's SLV0_NACK over a FIFO read of many frames): a copy
@@ -148,14 +165,21 @@ class AutoReadFeed:
         if failed:
             self.failures += 1
             self._failed.append(t_ns)
+            self._quiet, self._quiet_ns = False, None
             self.t_ns = t_ns
             self.deliveries += 1
             return
         failed_ns, self._failed = tuple(self._failed), []
+        # the master may have read the slave since the last delivery unseen (a host stall,
+        # a poll put off), and such a read may have found new data: no read found nothing
+        # across this pause (a change after it still carries the run before it)
+        paused = bool(self.deliveries) and t_ns - self.t_ns > self.latency_ns
         ready = self.ready_bit
         raw, self._raw = self._raw, data
+        quiet = False
         if ready is not None:
             if not data[ready[0]] & ready[1]:
+                quiet = self._quiet  # a good read that found nothing new
                 data = self.data if self.data is not None else data
             elif data != raw:
                 # a copy with data-ready that differs from the copy before it is a new
@@ -165,7 +189,12 @@ class AutoReadFeed:
         if data != self.data:
             self.data = data
             self.changed_ns = t_ns
-            self.fresh.append(Copy(t_ns, data, failed_ns, after_ns))
+            self.fresh.append(Copy(t_ns, data, failed_ns, after_ns, self._quiet_ns))
+            self._quiet, self._quiet_ns = True, None
+        elif quiet and not paused:
+            self._quiet_ns = t_ns
+        else:
+            self._quiet, self._quiet_ns = False, None
         self.t_ns = t_ns
         self.deliveries += 1
 

@@ -10,7 +10,7 @@ Three places act on them, each at the level where the fault happens on real hard
 - the **bus line** of the device (``FaultLine``, standing between the bus and the chip
   emulator): transient bus errors, OSError, all-0xFF / all-0x00 reads, an unplugged chip;
 - the **chip** (the ChipEmulator fault hook): reset, stuck data-ready, frozen data,
-  corrupted PROM/trimming;
+  corrupted PROM/trimming, a navigation receiver's stale solution;
 - the **world** the chip measures and the **host's timing** (``BoardFaults.physics`` and
   ``BoardFaults.before_poll``, called by the emulated board before each poll): a wild value,
   a wrong but in-range pressure, late polls and jitter.
@@ -44,6 +44,7 @@ from imuhal.profile.faults import (
     FrozenData,
     HostStall,
     LatePolls,
+    StaleNavigation,
     StuckDataReady,
     TimingJitter,
     WildValue,
@@ -58,7 +59,7 @@ if TYPE_CHECKING:
 __all__ = [
     "AllOnes", "AllZeros", "BoardFaults", "BusErrors", "BusOSError", "ChipAbsent", "ChipReset",
     "CorruptByte", "CorruptTrim", "FaultLine", "FaultSpec", "FrozenData", "HostStall",
-    "LatePolls",
+    "LatePolls", "StaleNavigation",
     "StuckDataReady", "TimingJitter", "WildValue", "WrongPressure",
 ]
 
@@ -188,6 +189,9 @@ class BoardFaults:
             self._note(spec, "conversions frozen")
         elif isinstance(spec, CorruptTrim):
             self._note(spec, f"corrupted {emu.corrupt_trim(a.rng, spec.bits)}")
+        elif isinstance(spec, StaleNavigation):
+            emu.stale_solution(spec.time)
+            self._note(spec, f"stale navigation ({spec.time} time)")
         elif isinstance(spec, ChipAbsent):
             self._note(spec, "unplugged")
 
@@ -197,6 +201,8 @@ class BoardFaults:
             emu.stuck_data_ready = False
         elif isinstance(spec, FrozenData):
             emu.frozen = False
+        elif isinstance(spec, StaleNavigation):
+            emu.stale_solution(None)
         elif isinstance(spec, ChipAbsent):
             # Plugged back in: the chip powers up in its reset state.
             if "reset" in emu.chip_faults():

@@ -71,8 +71,11 @@ not looking (another device's recovery holding the thread) and then overwrote mo
 measurement is so counted as losing one of them: the limit of a one-bit overrun flag, stated
 in docs/acquisition.md. Reads that found nothing for less than HUNG_AFTER_PERIODS prove
 nothing the ledger uses (a chip clock 2 % slow, a poll a guard early). A reset in the gap
-ends the segment: its slots stay ``reset``. Without such reads (a master's copies without the
-slave's status, no read during the hang) the slots count as lost, as before.
+ends the segment: its slots stay ``reset``. Behind an auto-read master the master's copies
+are those reads: the AK8963's ST1 rides in every copy the MPU-9250's slave 0 makes; the
+HMC5883L behind the MAX21100, whose copies lack its status, reads its status register when
+its bytes have stayed the same longer than a measuring chip allows. Without such reads (no
+read during the hang) the slots count as lost, as before.
 
 Limit: time stamps are the host's poll times, up to a period after the measurement. A gap
 is counted right while the two polls at its ends lie at about the same phase to the chip
@@ -173,6 +176,12 @@ class FrameLedger:
     def produced(self) -> int:
         """Frames the chip produced from the first valid frame to the latest one."""
         return self.delivered + sum(self.lost.values())
+
+    @property
+    def counted_ns(self) -> int | None:
+        """Where the latest valid frame is counted from (its stamp, or the grid point of the
+        late poll that read it: ``count_at``); None before the first."""
+        return None if self.last_ns is None else self._last_counted_ns
 
     def note(self, cause: str, *, at_ns: int | None = None) -> None:
         """Something that can cost frames happened (one of CAUSES); ``reset`` also ends the

@@ -93,6 +93,10 @@ REPORT_AFTER_FAILURES = 4
 """Consecutive failed recoveries (about 30 ms of trying) before the run reports the device."""
 JOIN_RETRY_NS = 1_000_000_000
 """An optional device that is not there is looked for again every second."""
+AIM_FROM_FRAME_PERIODS = 6
+"""A put-off poll of a driver searching its chip's instants aims from its latest frame's
+phase within this many frame periods of it (``Pipeline._on_phase``): a chip clock 2 % off
+moves its instants by 0.12 period over them, less than the guard (1/8) the aim adds."""
 PUT_OFF_AT_MOST = 3
 """Times in a row a late poll is put off to the next point of its device's grid
 (``Pipeline._on_phase``) before it is made when it comes, off the chip's phase."""
@@ -183,6 +187,9 @@ class DeviceRuntime:
     put_off: int = 0
     """How many times in a row its pending poll was put off to the next point of its grid
     (``Pipeline._on_phase``); at PUT_OFF_AT_MOST it happens when it comes, late or not."""
+    aim_offset_ns: int = 0
+    """What the latest put-off added to the phase it aimed at (``Pipeline._aim``): its
+    polls are counted that much before they are made."""
 
     def __post_init__(self) -> None:
         self.chip_to_body_array = np.array(self.chip_to_body, dtype=np.float64)
@@ -766,6 +773,26 @@ class Pipeline:
             else:
                 yield from self._read_frames(read)
 
+    @staticmethod
+    def _aim(ledger: FrameLedger, due_ns: int, t_ns: int) -> tuple[int, int]:
+        """Where a put-off poll of a driver searching its chip's instants
+        (``Driver.polls_after_instants``) aims, and how much after the phase it is counted
+        on. Such a driver polls a guard apart until new data appear, so a poll due can lie
+        anywhere from just before its chip's instant to a period after it: aimed from
+        there, the put-off poll's stamp can lie up to a period after the instant where the
+        frame before it lay within a guard, and the gap rounds to a frame too many. It
+        aims a guard after the phase the latest frame was counted on, whole periods on,
+        and is counted on that phase (so put-offs in a row do not move it), while a chip
+        clock 2 % off cannot have moved its instants by a guard since
+        (AIM_FROM_FRAME_PERIODS); else a guard after the due time, counted at its
+        stamp."""
+        guard_ns = ledger.period_ns // 8
+        counted_ns = ledger.counted_ns
+        if counted_ns is not None and \
+                t_ns - counted_ns <= AIM_FROM_FRAME_PERIODS * ledger.period_ns:
+            return counted_ns + guard_ns, guard_ns
+        return due_ns + guard_ns, 0
+
     def _put_off(self, dev: DeviceRuntime, due_ns: int, t_ns: int) -> bool:
         """A poll due at ``due_ns`` comes at ``t_ns``: the run's span moves on, and a late
         poll is put off to its device's grid (True: ``_on_phase``) or charged to the
@@ -775,7 +802,10 @@ class Pipeline:
             span[1] = t_ns
         if span[1] == due_ns:
             # on time, and no poll before it came later (the usual poll): nothing to put
-            # off and nothing late (what _on_phase and _note_late find, without them)
+            # off and nothing late (what _on_phase and _note_late find, without them); a
+            # put-off poll on time is counted on the phase it aimed a guard after (_aim)
+            if dev.put_off and dev.aim_offset_ns and dev.ledger is not None:
+                dev.ledger.count_at(t_ns, due_ns - dev.aim_offset_ns)
             dev.put_off = 0
             return False
         if self._on_phase(dev, due_ns, t_ns):
@@ -813,15 +843,19 @@ class Pipeline:
             dev.put_off = 0
             return False
         period_ns = ledger.period_ns
+        # a put-off poll aimed a guard after the phase of a frame is counted on that phase
+        offset = dev.aim_offset_ns if dev.put_off else 0
         if 2 * (t_ns - due_ns) < period_ns:
             dev.put_off = 0
-            if t_ns > due_ns:  # it reads the frame it was due for: counted there
-                ledger.count_at(t_ns, due_ns)
+            if t_ns > due_ns - offset:  # it reads the frame it was due for: counted there
+                ledger.count_at(t_ns, due_ns - offset)
             return False
-        # a grid point of a phase search can lie just before its chip's instant: aim a
-        # guard after it (Driver.polls_after_instants), once (a poll put off already aims)
-        aim_ns = due_ns + (period_ns // 8 if dev.driver.polls_after_instants
-                           and not dev.put_off else 0)
+        aim_ns = due_ns
+        if not dev.put_off:
+            dev.aim_offset_ns = offset = 0
+            if dev.driver.polls_after_instants:
+                aim_ns, offset = self._aim(ledger, due_ns, t_ns)
+                dev.aim_offset_ns = offset
         if dev.put_off >= PUT_OFF_AT_MOST:
             dev.put_off = 0
             grid_ns = aim_ns + (t_ns - aim_ns) // period_ns * period_ns
@@ -830,15 +864,17 @@ class Pipeline:
                 # later it comes (from its stamp, a lag under half a period can still
                 # differ from the frames' before by more: the grid was aimed a guard later
                 # than they were stamped)
-                ledger.count_at(t_ns, grid_ns)
+                ledger.count_at(t_ns, grid_ns - offset)
             elif 2 * (t_ns - grid_ns) >= period_ns:
                 # a grid at an unknown lag after them: from its stamp it could round either
                 # way
-                ledger.count_at(t_ns, grid_ns)
+                ledger.count_at(t_ns, grid_ns - offset)
             return False
         at_ns = aim_ns + -(-(t_ns - aim_ns) // period_ns) * period_ns
         if at_ns == t_ns:  # late by whole periods: on the grid already
             dev.put_off = 0
+            if offset:
+                ledger.count_at(t_ns, t_ns - offset)
             return False
         ledger.note("host_stall", at_ns=due_ns)
         dev.put_off += 1

@@ -122,6 +122,19 @@ class FrozenData(_Fault):
     kind: Literal["frozen"] = "frozen"
 
 
+class StaleNavigation(_Fault):
+    """A GNSS receiver restarts with stale navigation data: from ``start_s`` (to ``end_s``)
+    it sends, each epoch, the last solution it had before ``start_s``, claiming a fix (a
+    receiver that restored its last solution from battery-backed memory after a brown-out
+    and does not mark it, or a clone that never clears its fix flags). ``time``: ``repeated``
+    sends that solution's own time again (NAV-PVT's iTOW and UTC, NMEA's UTC: the time does
+    not advance); ``unresolved`` sends its running clock's time with NAV-PVT's validDate,
+    validTime and fullyResolved cleared (a clock not yet confirmed by the satellites)."""
+
+    kind: Literal["stale_navigation"] = "stale_navigation"
+    time: Literal["repeated", "unresolved"] = "repeated"
+
+
 class CorruptTrim(_Fault):
     """At ``start_s``, ``bits`` random bits of the chip's factory calibration (MS5611 PROM,
     BMP280 trimming, AK8963 ASA) flip in what the driver reads; the sensor element itself is
@@ -203,16 +216,17 @@ class WrongPressure(_Fault):
 
 FaultSpec = Annotated[
     BusErrors | BusOSError | AllOnes | AllZeros | CorruptByte | ChipAbsent | ChipReset
-    | StuckDataReady | FrozenData | CorruptTrim | LatePolls | TimingJitter | HostStall
-    | WildValue | WrongPressure,
+    | StuckDataReady | FrozenData | StaleNavigation | CorruptTrim | LatePolls | TimingJitter
+    | HostStall | WildValue | WrongPressure,
     Field(discriminator="kind"),
 ]
 """One fault of any kind, chosen by its ``kind`` key."""
 
 FAULT_KINDS: tuple[type[_Fault], ...] = (
     BusErrors, BusOSError, AllOnes, AllZeros, CorruptByte, ChipAbsent, ChipReset,
-    StuckDataReady, FrozenData, CorruptTrim, LatePolls, TimingJitter, HostStall, WildValue,
-    WrongPressure)
+    StuckDataReady, FrozenData, StaleNavigation, CorruptTrim, LatePolls, TimingJitter,
+    HostStall, WildValue, WrongPressure)
 
-CHIP_FAULT_KINDS = frozenset({"reset", "stuck_data_ready", "frozen", "corrupt_trim"})
+CHIP_FAULT_KINDS = frozenset({"reset", "stuck_data_ready", "frozen", "corrupt_trim",
+                              "stale_navigation"})
 """Kinds the chip emulator itself must model (ChipEmulator.chip_faults says which it does)."""

@@ -39,8 +39,9 @@ class ChipEmulator(ABC):
     ``silent_reset()`` (power-on register state, unannounced), ``stuck_data_ready`` (set
     True: no measurement completes, data-ready never comes; the chip's own soft reset may
     clear it; the class sets ``models_stuck_data_ready``), ``corrupt_trim(rng, bits)`` (flip
-    bits of the factory calibration the driver reads). ``chip_faults()`` lists what an
-    emulator class models.
+    bits of the factory calibration the driver reads), ``stale_solution(time)`` (a
+    navigation receiver sends its last solution again, ``time`` "repeated" or "unresolved";
+    None ends it). ``chip_faults()`` lists what an emulator class models.
     """
 
     #: How far past its present a chip with its own clock announces its coming pulls
@@ -316,6 +317,12 @@ class ChipEmulator(ABC):
         measures is unchanged. Returns what was changed, for the run's log."""
         raise NotImplementedError(f"{type(self).__name__} has no factory calibration to corrupt")
 
+    def stale_solution(self, time: str | None) -> None:
+        """Fault injection (``stale_navigation``): a navigation receiver keeps sending the
+        last solution it had, claiming a fix, with that solution's time (``"repeated"``) or
+        its running clock's marked not valid (``"unresolved"``); None: it navigates again."""
+        raise NotImplementedError(f"{type(self).__name__} is no navigation receiver")
+
     @classmethod
     def chip_faults(cls) -> frozenset[str]:
         """The chip-level fault kinds this emulator models (imuhal.profile.faults)."""
@@ -326,6 +333,8 @@ class ChipEmulator(ABC):
             kinds.add("corrupt_trim")
         if cls.models_stuck_data_ready:
             kinds.add("stuck_data_ready")
+        if cls.stale_solution is not ChipEmulator.stale_solution:
+            kinds.add("stale_navigation")
         return frozenset(kinds)
 
     def connect_host(self, host_bus: EmulatedBus) -> None:  # noqa: B027 - optional hook
