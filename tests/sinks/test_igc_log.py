@@ -159,6 +159,14 @@ def test_verify_fails_after_any_single_byte_is_changed_or_the_file_is_cut(
             check_igc_bytes(good[:cut])
 
 
+def test_an_empty_file_is_reported_as_a_run_stopped_before_it_logged_anything(
+        tmp_path: Path) -> None:
+    path = tmp_path / "f.igc.partial"
+    path.write_bytes(b"")
+    with pytest.raises(IgcCheckError, match="is empty: its run was stopped before it logged"):
+        verify_igc(path)
+
+
 def test_an_aborted_run_keeps_a_verifying_partial_file_and_the_old_file(
         tmp_path: Path) -> None:
     path = tmp_path / "f.igc"

@@ -205,11 +205,6 @@ class IgcSink(SinkPlugin):
         target = Path(s.path)
         if target.is_dir():
             target = _free_fai_path(target, date, s.log.logger_id)
-        self._file = open_seekable_partial(target, "--igc",
-                                           "the IGC log rewrites its G record in place")
-        self.path = target
-        assert self._file.file is not None
-        self._fd = self._file.file.fileno()
         buf = io.BytesIO()
         self._writer = self._writer_cls(buf)
         w = self._writer
@@ -242,6 +237,15 @@ class IgcSink(SinkPlugin):
         self._fix_extensions = ext
         w.write_fix_extensions(ext)
         w.write_comment(MANUFACTURER, "G: SHA-256 of all bytes before it (imuhal igc verify)")
+        # The header is made before the file exists, so that it follows the file's creation
+        # at once: a run killed in between leaves an empty FILE.partial (verify_igc: "is
+        # empty"), and the wider that window, the likelier (a killed test run hit it on a
+        # loaded machine while aerofiles formatted the headers)
+        self._file = open_seekable_partial(target, "--igc",
+                                           "the IGC log rewrites its G record in place")
+        self.path = target
+        assert self._file.file is not None
+        self._fd = self._file.file.fileno()
         self._append(buf.getvalue())
 
     def _describe(self, device: str | None) -> str:
@@ -364,6 +368,8 @@ def verify_igc(path: str | os.PathLike[str]) -> IgcCheck:
 
 def check_igc_bytes(data: bytes, p: str = "IGC file") -> IgcCheck:
     """:func:`verify_igc` of a file's contents; ``p`` names it in the messages."""
+    if not data:
+        raise IgcCheckError(f"{p}: is empty: its run was stopped before it logged anything")
     if not data.startswith(b"A"):
         raise IgcCheckError(f"{p}: not an IGC file (it must start with an A record)")
     end = data.rfind(b"\r\nG")
