@@ -665,7 +665,7 @@ class Pipeline:
             now = self.clock.now_ns()
             self._heap = []
             for name, dev in self.devices.items():
-                if dev.present and not dev.next_poll_ns:
+                if dev.present:
                     dev.next_poll_ns = dev.driver.start(now)
                 else:  # an optional device still looked for: its next step
                     dev.next_poll_ns = max(now, dev.next_poll_ns)
@@ -1121,7 +1121,7 @@ class Pipeline:
         if "absent" in dev.warned:
             self.warnings.append(f"{dev.name}: found at t={t_ns / 1e9:.3f} s; it joins the "
                                  "run")
-        if self._heap is None:  # found by the first look: started with the others
+        if self._heap is None:  # found by the first look: _schedule starts it with the others
             return 0
         next_ns = dev.driver.start(max(t_ns, self.clock.now_ns()))
         if isinstance(dev.trigger, LineTrigger):  # its first edge is awaited from now
