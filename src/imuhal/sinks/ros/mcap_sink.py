@@ -8,10 +8,12 @@ Safety, as for the CSV log (imuhal.core.atomic): the file is written as ``PATH.p
 beside ``PATH`` and renamed over it when the run ends; a failed run leaves ``PATH`` as it
 was. A run killed outright (SIGKILL, a power cut) leaves ``PATH.partial`` readable up to its
 last chunk: a chunk is closed at least every ``chunk_s`` seconds of the run's time and of
-wall time, and after each one the file gets an MCAP footer
-without a summary section, fsync'ed, which the next chunk overwrites. A reader finding that
-footer scans the chunks (rosbags, ``ros2 bag``, Foxglove), so at most ``chunk_s`` of data
-(plus whatever a write cut in the middle of a chunk damages) is lost.
+wall time, and lands in the file together with an MCAP footer without a summary section, in
+one positioned write, fsync'ed; the next chunk lands over that footer the same way. A reader
+finding that footer scans the chunks (rosbags, ``ros2 bag``, Foxglove), so at most
+``chunk_s`` of data is lost. The library's output is held in memory between landings
+(:class:`StagedFile`): written through, a chunk overwrote the footer several writes before
+its own footer followed, and a kill in between left a file no reader opens.
 """
 
 from __future__ import annotations
@@ -37,6 +39,48 @@ _FOOTER_OPCODE = 0x02
 # Footer: opcode, record length (20), summary_start = 0 and summary_offset_start = 0 (no
 # summary: readers scan the data section), summary_crc = 0, then the closing magic.
 FOOTER_NO_SUMMARY = struct.pack("<BQQQI", _FOOTER_OPCODE, 20, 0, 0, 0) + MCAP_MAGIC
+
+
+class StagedFile:
+    """The MCAP writer's output stream: bytes are held in memory until :meth:`land` writes
+    them, and a trailer after them, at the file's end in one ``pwrite`` and fsyncs. A kill
+    finds the file as it was before that write or after it (short of a cut inside the
+    one system call), never in the middle of a chunk's records."""
+
+    def __init__(self, file: Any) -> None:
+        file.flush()
+        self._file = file  # kept open as long as this stream is
+        self._fd: int = file.fileno()
+        self._pos: int = file.tell()
+        self._held = bytearray()
+
+    def write(self, data: bytes | bytearray | memoryview) -> int:
+        self._held += data
+        return len(data)
+
+    def tell(self) -> int:
+        """Where the next byte goes, as the writer's indexes must record it."""
+        return self._pos + len(self._held)
+
+    def flush(self) -> None:
+        """Nothing: the writer's flushes land only with :meth:`land`."""
+
+    def land(self, trailer: bytes = b"") -> None:
+        """Write what is held and then ``trailer`` at the end; the trailer is overwritten by
+        the next landing (what is held is written over it first)."""
+        data = memoryview(bytes(self._held) + trailer)
+        at = self._pos
+        while data:
+            n = os.pwrite(self._fd, data, at)
+            data, at = data[n:], at + n
+        os.fsync(self._fd)
+        self._pos += len(self._held)
+        self._held.clear()
+
+    def end(self) -> None:
+        """Land what is held and cut the file there (no earlier trailer may remain)."""
+        self.land()
+        os.ftruncate(self._fd, self._pos)
 
 
 CHUNK_MEMORY_BYTES = 64 << 20
@@ -96,7 +140,7 @@ class McapSink(SinkPlugin):
         self._out: AtomicFile | None = open_seekable_partial(
             self.path, "--mcap", "an MCAP file is indexed at the end and needs a regular file")
         assert self._out.file is not None
-        self._file = self._out.file
+        self._file = StagedFile(self._out.file)
         # Chunks are closed here, each followed by a footer; the library's size limit (which
         # would close one without) only bounds memory, far above a second of any board's data.
         self._writer = writer_cls(
@@ -154,22 +198,19 @@ class McapSink(SinkPlugin):
             self._seal()
 
     def _seal(self) -> None:
-        """Close the chunk, append a footer, make it durable, and step back before the
-        footer so that the next chunk overwrites it."""
+        """Close the chunk and land it with a footer after it (durable, readable), which the
+        next chunk overwrites."""
         with self._write_errors():
             # mcap-ros2's Writer keeps its mcap Writer, whose flush() closes the chunk, private
             self._writer._writer.flush()
-            self._file.write(FOOTER_NO_SUMMARY)
-            self._file.flush()
-            os.fsync(self._file.fileno())
-            self._file.seek(-len(FOOTER_NO_SUMMARY), os.SEEK_CUR)
+            self._file.land(FOOTER_NO_SUMMARY)
         self._chunk_first_ns = None
         self._last_seal = time.monotonic()
 
     def _finish(self) -> None:
         self._write_pending()
         self._writer.finish()  # summary, indexes and the real footer
-        self._file.truncate()  # nothing of an earlier footer may remain past the end
+        self._file.end()
 
     def _write_pending(self) -> None:
         for record in self.records.finish():
