@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import math
 
 import pytest
@@ -42,6 +43,21 @@ def test_channels_are_watched_apart() -> None:
     watch.observe("accel", b"\x05")
     assert watch.observe("gyro", b"\x05") is SampleFlag.OK
     assert watch.observe("accel", b"\x05") is SampleFlag.FROZEN
+
+
+@pytest.mark.parametrize("watch", [FrozenWatch(3), LearnedFrozenWatch(3, learn_pairs=2,
+                                                                  false_alarm=0.5)])
+def test_a_burst_observed_at_once_leaves_the_watch_as_frame_by_frame(
+        watch: FrozenWatch) -> None:
+    twin = copy.deepcopy(watch)
+    bursts = [[b"a", b"b", b"b"], [b"b", b"c"], [b"c", b"c", b"d"], [b"d", b"d"], [b"e"]]
+    for burst in bursts:
+        frozen = twin.would_flag("k", burst)
+        assert watch.observe_all("k", burst) is not frozen
+        if not frozen:  # taken: the same state as observing each frame
+            for frame in burst:
+                twin.observe("k", frame)
+        assert vars(watch) == vars(twin)
 
 
 def test_a_frozen_window_needs_at_least_two_frames() -> None:

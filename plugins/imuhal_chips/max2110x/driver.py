@@ -114,6 +114,12 @@ TEMPERATURE_RANGE_DEGC = (-40.0, 85.0)
 """Operating range of the die; a temperature word outside it is not a real reading."""
 _MAG_OFFSET = Reg.MAG_X_H - Reg.SYSTEM_STATUS
 _SIX_WORDS = struct.Struct(">6h")
+_BLANK_FF = b"\xff" * _SIX_WORDS.size
+_BLANK_00 = b"\x00" * _SIX_WORDS.size
+_MIN = np.minimum.reduce
+_MAX = np.maximum.reduce
+"""The ufuncs' reductions called directly (``ndarray.min`` goes through a Python wrapper
+that costs more than the arithmetic on a read's few frames)."""
 """Gyro X, Y, Z then accel X, Y, Z after the status byte: signed big-endian words."""
 _AFTER_ACCEL = Reg.ACC_X_H + 6
 """0x30: MAG X/Y/Z then TEMP on the MAX21100 (0x30..0x37), TEMP on the MAX21105 (0x30,
@@ -577,13 +583,16 @@ class Max2110xDriver(Driver):
         frames = got.frames
         if not frames:
             return []
-        if any(blank_flag(f) for f in frames) or self._frozen.would_flag("frame", frames):
+        data = b"".join(frames)
+        # a blank frame is 12 equal bytes 0x00 or 0xFF: none in the burst, none to look for
+        # frame by frame (two searches in C)
+        if (_BLANK_FF in data or _BLANK_00 in data) and any(blank_flag(f) for f in frames):
             return None
-        for frame in frames:
-            self._frozen.observe("frame", frame)
+        if not self._frozen.observe_all("frame", frames):
+            return None
         assert self.scales is not None
         n = len(frames)
-        counts = np.frombuffer(b"".join(frames), dtype=">i2").reshape(n, 6)
+        counts = np.frombuffer(data, dtype=">i2").reshape(n, 6)
         # int16 counts times a float: each count exact in float64, then the product, as
         # decode's per-frame conversion computes it
         gyro = np.asarray(counts[:, 0:3] * (math.radians(1.0) / self.scales.gyro_lsb_per_dps),
@@ -606,7 +615,8 @@ class Max2110xDriver(Driver):
         memory = self._memory
         # no word at the rail (-32768 included: no abs() on int16) and no window open:
         # every frame OK, without a look frame by frame
-        if int(counts.min()) > -FULL_SCALE_COUNTS and int(counts.max()) < FULL_SCALE_COUNTS \
+        if int(_MIN(counts, axis=None)) > -FULL_SCALE_COUNTS \
+                and int(_MAX(counts, axis=None)) < FULL_SCALE_COUNTS \
                 and memory.quiet(Quantity.GYRO) and memory.quiet(Quantity.ACCEL):
             return np.zeros(len(stamps_ns), np.int64), np.zeros(len(stamps_ns), np.int64)
         clipped = np.abs(counts.astype(np.int32)) >= FULL_SCALE_COUNTS

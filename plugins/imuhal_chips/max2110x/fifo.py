@@ -53,7 +53,7 @@ How it reads (as the MPU-9250's reader and PX4/Linux do, adapted to a 10-frame F
 
 from __future__ import annotations
 
-import struct
+import numpy as np
 
 from imuhal.bus.registers import RegisterView
 from imuhal.core.clock import Clock
@@ -71,7 +71,6 @@ from imuhal_chips.max2110x.registers import (
 FRAME_BYTES = 2 * FIFO_FRAME_WORDS
 DEPTH_FRAMES = FIFO_DEPTH_WORDS // FIFO_FRAME_WORDS
 """Whole frames the FIFO holds: 10."""
-_WORDS = struct.Struct(f">{FIFO_FRAME_WORDS}h")
 
 
 def frames_aligned(count_words: int, frames: list[bytes]) -> bool:
@@ -79,7 +78,21 @@ def frames_aligned(count_words: int, frames: list[bytes]) -> bool:
     the chip's +-30000 counts."""
     if count_words % FIFO_FRAME_WORDS:
         return False
-    return all(abs(w) <= FULL_SCALE_COUNTS for f in frames for w in _WORDS.unpack(f))
+    return _words_in_range(b"".join(frames))
+
+
+def _words_in_range(data: bytes) -> bool:
+    """Every big-endian word of ``data`` within the chip's +-30000 counts: one look at
+    the whole burst (a word at a time in Python cost more than the rest of the read)."""
+    if not data:
+        return True
+    words = np.frombuffer(data, dtype=">i2")
+    return bool(_MIN(words) >= -FULL_SCALE_COUNTS) and bool(_MAX(words) <= FULL_SCALE_COUNTS)
+
+
+_MIN = np.minimum.reduce
+_MAX = np.maximum.reduce
+"""The ufuncs' reductions called directly (``ndarray.min`` goes through a Python wrapper)."""
 
 
 class FifoReader(FifoFrames):
@@ -119,8 +132,11 @@ class FifoReader(FifoFrames):
         frames: list[bytes] = []
         if n:
             data = self.regs.send(self._data_frame, n * FRAME_BYTES)
+            # frames_aligned on the burst as read: a word beyond the chip's counts
+            if not _words_in_range(data):
+                return self._drop([])
             frames = [data[i * FRAME_BYTES:(i + 1) * FRAME_BYTES] for i in range(n)]
-        if not frames_aligned(count, frames):
+        if count % FIFO_FRAME_WORDS:  # not whole frames (frames_aligned): shifted
             return self._drop([])
         if status & FIFO_STATUS_DATA_LOST:
             return self._drop(frames)  # what it kept is good; what came after, lost

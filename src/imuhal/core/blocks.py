@@ -249,7 +249,8 @@ class Block:
         not modified once built, and several stages ask)."""
         flagged = self._flagged
         if flagged is None:
-            flagged = self._flagged = bool(self.flags.any())
+            # count_nonzero is C all the way (ndarray.any goes through a Python wrapper)
+            flagged = self._flagged = bool(np.count_nonzero(self.flags))
         return flagged
 
     @property

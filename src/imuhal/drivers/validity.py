@@ -26,7 +26,7 @@ a log shows what the chip said.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Hashable, Iterable, Mapping
+from collections.abc import Callable, Hashable, Iterable, Mapping, Sequence
 from typing import Any, Generic, TypeVar
 
 from imuhal.core.samples import SampleFlag
@@ -90,6 +90,25 @@ class FrozenWatch:
         return False
 
 
+    def observe_all(self, key: Hashable, frames: Sequence[bytes]) -> bool:
+        """``observe`` of each of ``frames`` in turn when none of them would be ``FROZEN``
+        (True), else nothing observed (False, as ``would_flag`` says): one pass over a
+        burst a driver decodes at once."""
+        last = self._last.get(key)
+        repeats = self._repeats.get(key, 0)
+        for frame in frames:
+            if frame == last:
+                repeats += 1
+            else:
+                last, repeats = frame, 1
+            if repeats >= self.n:
+                return False
+        if last is not None:
+            self._last[key] = bytes(last)
+            self._repeats[key] = repeats
+        return True
+
+
 class LearnedFrozenWatch(FrozenWatch):
     """A ``FrozenWatch`` whose window follows the repeat odds the chip itself shows.
 
@@ -139,6 +158,14 @@ class LearnedFrozenWatch(FrozenWatch):
     def would_flag(self, key: Hashable, frames: Iterable[bytes]) -> bool:
         self.n = self.window(key)
         return super().would_flag(key, frames)
+
+    def observe_all(self, key: Hashable, frames: Sequence[bytes]) -> bool:
+        # frame by frame: each observation may end the learning and change the window
+        if self.would_flag(key, frames):
+            return False
+        for frame in frames:
+            self.observe(key, frame)
+        return True
 
     def window_for(self, repeats: int, pairs: int) -> int:
         """The window for ``repeats`` of ``pairs`` consecutive frames being repeats."""
