@@ -64,6 +64,12 @@ def _as_arrays(block: Block) -> Block:
                              block.values.copy(), block.flags.copy(), frame=block.frame)
 
 
+def _unflagged(rows: list[Sample]) -> list[Sample]:
+    return [GyroSample.build(s.t_ns, s.device, SampleFlag.OK, Frame.SENSOR,
+                             s.vector)  # type: ignore[attr-defined]
+            for s in rows]
+
+
 def _bits(samples: list[Sample]) -> list[tuple[int, int, bytes]]:
     return [(s.t_ns, int(s.flags), np.array(s.vector).tobytes())  # type: ignore[attr-defined]
             for s in samples]
@@ -78,6 +84,38 @@ def test_calibrating_a_block_gives_the_floats_of_each_sample_calibrated(
     block = calibrate_block(_as_arrays(Block.from_samples(rows)), CALIBRATION, CHIP_TO_BODY)
     assert block.frame is Frame.BODY_NED
     assert _bits(block.samples()) == _bits(one_by_one)  # bit for bit, signed zeros too
+
+
+SEED_MOUNT = [[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]]
+"""The seed board's IMU mount: a signed permutation of the axes (calibrate_block's quick
+path)."""
+STARTUP_GYRO = DeviceCalibration(gyro=GyroCalibration(offset_rad_s=(0.5, -0.25, 0.0)))
+"""What the start-up measurement stores: an offset, unit scale, identity misalignment."""
+
+
+@pytest.mark.parametrize("calibration", [None, STARTUP_GYRO, DeviceCalibration(
+    gyro=GyroCalibration(offset_rad_s=(0.5, -0.25, 0.0), scale=(1.01, 0.99, 1.0)))])
+def test_a_block_under_a_permuting_mount_gives_the_floats_of_each_sample(
+        calibration: DeviceCalibration | None) -> None:
+    rows = _unflagged(_frames(GyroSample, 16, seed=6))
+    # zeros of either sign before and after the offset, which the quick path must sign as
+    # the general sums do
+    for i, v in enumerate([(0.0, -0.0, 0.0), (0.5, -0.25, 0.0), (-0.0, 0.0, -0.0),
+                           (0.5, 0.0, -0.0)]):
+        rows[i] = rows[i].with_vector(v, Frame.SENSOR)
+    block = calibrate_block(_as_arrays(Block.from_samples(rows)), calibration, SEED_MOUNT)
+    assert _bits(block.samples()) == _bits(
+        [calibrate_to_body(s, calibration, SEED_MOUNT) for s in rows])
+
+
+@pytest.mark.filterwarnings("ignore:invalid value encountered")
+def test_an_infinite_value_under_a_permuting_mount_mixes_as_sample_by_sample() -> None:
+    rows = _unflagged(_frames(GyroSample, 8, seed=7))
+    rows[2] = rows[2].with_vector((float("inf"), 1.0, 2.0), Frame.SENSOR)
+    block = calibrate_block(_as_arrays(Block.from_samples(rows)), STARTUP_GYRO, SEED_MOUNT)
+    assert _bits(block.samples()) == _bits(
+        [calibrate_to_body(s, STARTUP_GYRO, SEED_MOUNT) for s in rows])
+    assert not np.isfinite(block.values[2]).any()  # 0.0 * inf mixed into every axis
 
 
 def test_the_stages_keep_the_stream_spec_a_block_was_taken_with() -> None:

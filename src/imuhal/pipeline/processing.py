@@ -280,12 +280,105 @@ def calibrate_block(block: Block, calibration: DeviceCalibration | None,
         return block if out is row else Block.from_samples([out], block.spec)
     record = None if calibration is None else \
         _record_of(block.kind, block.quantity.name, calibration)
+    if block.frame is not Frame.BODY_NED and not block.flagged:
+        quick = _permuted(block.values, record, chip_to_body if matrix is None else matrix)
+        if quick is not None:
+            return block.with_values(quick, Frame.BODY_NED)
     values = _calibrated(block, record)
     if block.frame is Frame.BODY_NED:
         return block if values is block.values else block.with_values(values, block.frame)
     # each element the same products summed from +0.0 left to right as _rotate sums them
     return block.with_values(_mat_vec_rows(chip_to_body if matrix is None else matrix,
                                            values, 0.0), Frame.BODY_NED)
+
+
+def _permuted(values: FloatArray, record: _Correction | None,
+              chip_to_body: Sequence[Sequence[float]] | FloatArray) -> FloatArray | None:
+    """What :func:`_calibrated` and the rotation give for a block of unflagged frames when
+    the mount is a signed permutation of the axes and the record's matrix (if any) is the
+    identity, in three or four numpy calls instead of a dozen; None when that does not
+    hold or a value is not finite (the general path then).
+
+    The same floats: with finite values, the record's identity product leaves each
+    component as it is but for the sign of a zero (``x + y * 0.0 + z * 0.0``); the
+    rotation's sum from +0.0 of one product by +-1 and two by zero is that product, a
+    zero made +0.0 (``+0.0 + -0.0`` is +0.0), whatever the zero's sign was. So the result
+    is ``sign * calibrated[axis] + 0.0``, exactly."""
+    mount = _signed_permutation(chip_to_body)
+    if mount is None:
+        return None
+    axes, signs = mount
+    if record is not None:
+        plain = _plain_record(record)
+        if plain is None:
+            return None
+        offset, scale = plain
+        values = values - offset
+        if scale is not None:
+            values = values * scale
+    out: FloatArray = values[:, axes]  # a new array: fancy indexing copies
+    np.multiply(out, signs, out=out)
+    np.add(out, 0.0, out=out)
+    # a NaN or an infinity anywhere makes the sum one too (the general path then; the
+    # general product also mixes the zero terms' NaNs, 0.0 * inf, into the other axes)
+    if not math.isfinite(_SUM(out, axis=None)):
+        return None
+    return out
+
+
+_SUM = np.add.reduce
+
+
+def _signed_permutation(m: Sequence[Sequence[float]] | FloatArray
+                        ) -> tuple[IntArray, FloatArray] | None:
+    """``m``'s rows as (the axis each takes, its sign +-1.0) when each row holds one +-1
+    and two zeros and no two rows take one axis; None otherwise. Kept per matrix object
+    (a device's mount is made once)."""
+    hit = _PERMUTATIONS.get(id(m))
+    if hit is not None and hit[0] is m:
+        return hit[1]
+    rows = np.asarray(m, dtype=np.float64)
+    found: tuple[IntArray, FloatArray] | None = None
+    if rows.shape == (3, 3):
+        axes = np.argmax(np.abs(rows), axis=1)
+        picked = rows[np.arange(3), axes]
+        rest = rows.copy()
+        rest[np.arange(3), axes] = 0.0
+        if sorted(axes.tolist()) == [0, 1, 2] and bool(np.all(np.abs(picked) == 1.0)) \
+                and not bool(np.any(rest)):
+            found = (axes.astype(np.int64), picked.copy())
+    if len(_PERMUTATIONS) >= 64:
+        _PERMUTATIONS.clear()
+    _PERMUTATIONS[id(m)] = (m, found)
+    return found
+
+
+_PERMUTATIONS: dict[int, tuple[object, tuple[IntArray, FloatArray] | None]] = {}
+"""``_signed_permutation`` by the matrix's id, with the matrix (kept alive, so its id is
+not reused while it is here)."""
+
+
+def _plain_record(record: object) -> tuple[FloatArray, FloatArray | None] | None:
+    """A record whose matrix is the identity, as its offset and its scale (None: none, or
+    every factor 1.0, which changes no float); None for any other record. Kept per record,
+    as :func:`_record_arrays`."""
+    hit = _PLAIN.get(id(record))
+    if hit is not None and hit[0] is record:
+        return hit[1]
+    arrays = _record_arrays(record)
+    plain: tuple[FloatArray, FloatArray | None] | None = None
+    if arrays is not None and arrays[2].shape == (3, 3) \
+            and bool(np.array_equal(arrays[2], np.eye(3))):
+        offset, scale, _ = arrays
+        unit = scale is None or bool(np.all(scale == 1.0))
+        plain = (offset, None if unit else scale)
+    if len(_PLAIN) >= 64:  # records replaced in flight (learners): forget the old ones
+        _PLAIN.clear()
+    _PLAIN[id(record)] = (record, plain)
+    return plain
+
+
+_PLAIN: dict[int, tuple[object, tuple[FloatArray, FloatArray | None] | None]] = {}
 
 
 def _record_of(kind: type[Sample], quantity: str, calibration: DeviceCalibration
