@@ -129,3 +129,37 @@ def test_frames_continued_without_a_count_are_stamped_at_their_instants() -> Non
     stamps = clock.stamps(range(kept - 9, kept + 1))
     instants = [truth[-1] + (j + 1) * chip.period_ns for j in range(10)]
     assert np.max(np.abs(np.subtract(stamps, instants))) < 5_000
+
+
+def _smoothed(base: float, p: float, step: float, last: tuple[int, int] | None,
+              floor_ns: int | None, indices: list[int]) -> list[int]:
+    """The module docstring's smoothing, as stated: one period estimate after the stamp
+    before, corrected toward the estimate by at most ``step``, never back."""
+    out = []
+    for k in indices:
+        target = base + k * p
+        if last is None:
+            stamp = round(target) if floor_ns is None else max(round(target), floor_ns + 1)
+        else:
+            k0, s0 = last
+            carried = s0 + max(k - k0, 1) * p
+            stamp = max(round(carried + max(-step, min(step, target - carried))), s0 + 1)
+        out.append(stamp)
+        last = (k, stamp)
+    return out
+
+
+def test_stamps_follow_the_stated_smoothing_read_after_read() -> None:
+    rng = random.Random(3)
+    clock = ChipClock(NOMINAL_NS)
+    chip = _Chip(NOMINAL_NS * 1.013)
+    t, k = 10_000_000, -1
+    for _ in range(300):
+        t += rng.randrange(1, 4) * NOMINAL_NS + rng.randrange(-300_000, 300_000)
+        newest = clock.observe(chip.newest(t) - k, t - 20_000, t + 20_000)
+        indices = list(range(k + 1, newest + 1))
+        k = newest
+        a, p = clock._centre()
+        expected = _smoothed(clock._origin_ns + a, p, clock.max_step * p, clock._last,
+                             clock._floor_ns, indices)
+        assert clock.stamps(indices) == expected

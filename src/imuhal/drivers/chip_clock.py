@@ -250,22 +250,35 @@ class ChipClock:
         base = self._origin_ns + a
         step = self.max_step * p
         out: list[int] = []
+        if not indices:
+            return out
         last = self._last
-        for k in indices:
-            target = base + k * p  # instant_ns(k)
-            if last is None:
-                stamp = round(target)
-                if self._floor_ns is not None:
-                    stamp = max(stamp, self._floor_ns + 1)
-            else:
-                k0, s0 = last
-                gap = max(k - k0, 1)
-                carried = s0 + gap * p
-                stamp = round(carried + max(-step, min(step, target - carried)))
-                stamp = max(stamp, s0 + 1)
-            out.append(stamp)
-            last = (k, stamp)
-        self._last = last
+        if last is None:
+            k0 = indices[0]
+            s0 = round(base + k0 * p)  # instant_ns(k)
+            if self._floor_ns is not None:
+                s0 = max(s0, self._floor_ns + 1)
+            out.append(s0)
+            rest = indices[1:]
+        else:
+            k0, s0 = last
+            rest = indices
+        # the smoothing written out (every FIFO frame is stamped here): the same floats as
+        # round(carried + max(-step, min(step, target - carried))), never before s0 + 1
+        low = -step
+        for k in rest:
+            gap = k - k0
+            carried = s0 + (gap if gap > 1 else 1) * p
+            d = base + k * p - carried  # target - carried
+            if not d <= step:  # (a NaN too, as min(step, d) gives step)
+                d = step
+            elif d < low:
+                d = low
+            stamp = round(carried + d)
+            s0 = stamp if stamp > s0 else s0 + 1
+            k0 = k
+            out.append(s0)
+        self._last = (k0, s0)
         return out
 
     def probe_ns(self, around_ns: int) -> int:

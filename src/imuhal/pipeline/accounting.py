@@ -320,6 +320,8 @@ class FrameLedger:
         overwritten unread."""
         assert self.last_ns is not None
         slots = round(step_ns / self.period_ns) - 1
+        if slots <= 0:  # the next slot (nearly every frame): nothing below can count
+            return None
         lost = max(0, min(slots, round((step_ns - self._slid_ns) / self.period_ns) - 1))
         skipped = max(0, slots - lost)
         self.not_converted += skipped
