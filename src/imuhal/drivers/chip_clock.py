@@ -65,10 +65,12 @@ def _clip(polygon: list[Vertex], a: float, b: float, c: float) -> list[Vertex]:
     """The part of a convex polygon where ``a * A + b * P <= c`` (Sutherland-Hodgman)."""
     out: list[Vertex] = []
     n = len(polygon)
+    # each vertex's side once (each edge's end is the next edge's start)
+    side = [a * x + b * y - c for x, y in polygon]
     for i in range(n):
-        p, q = polygon[i], polygon[(i + 1) % n]
-        fp = a * p[0] + b * p[1] - c
-        fq = a * q[0] + b * q[1] - c
+        j = i + 1 if i + 1 < n else 0
+        p, q = polygon[i], polygon[j]
+        fp, fq = side[i], side[j]
         if fp <= 0:
             out.append(p)
         if (fp < 0 < fq) or (fq < 0 < fp):
@@ -102,6 +104,9 @@ class ChipClock:
         """Times the bounds contradicted each other (the chip's clock moved)."""
         self._reads: deque[ClockRead] = deque()
         self._polygon: list[Vertex] = []
+        self._centre_of: list[Vertex] | None = None
+        """The polygon whose centre ``_centre_at`` is (asked at every read and stamp)."""
+        self._centre_at: Vertex = (0.0, 0.0)
         self._origin_ns = 0
         self._k: int | None = None
         """The newest frame's index at the last read (None: unknown, after a restart or a
@@ -216,8 +221,14 @@ class ChipClock:
     # -- estimate ---------------------------------------------------------------------------
 
     def _centre(self) -> Vertex:
-        n = len(self._polygon)
-        return (sum(v[0] for v in self._polygon) / n, sum(v[1] for v in self._polygon) / n)
+        polygon = self._polygon
+        if polygon is self._centre_of:  # the polygon is replaced, never changed in place
+            return self._centre_at
+        n = len(polygon)
+        xs, ps = zip(*polygon, strict=True)
+        self._centre_at = (sum(xs) / n, sum(ps) / n)
+        self._centre_of = polygon
+        return self._centre_at
 
     @property
     def period_ns(self) -> float:
