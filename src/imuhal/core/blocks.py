@@ -168,8 +168,18 @@ class Block:
 
     def with_values(self, values: FloatArray, frame: Frame | None) -> Block:
         """The same frames (times, flags) with new values in ``frame``."""
-        b = Block(self.kind, self.device, frame=frame, spec=self.spec, t0_ns=self._t0,
-                  offsets_ns=self.offsets_ns, values=values, flags=self.flags)
+        # slots set directly (every calibrated block is made here): __init__'s keywords
+        # cost more than the rest
+        b = _new(Block)
+        b.kind = self.kind
+        b.device = self.device
+        b.frame = frame
+        b.spec = self.spec
+        b._rows = None
+        b._t0 = self._t0
+        b._offsets = self.offsets_ns
+        b._values = values
+        b._flags = self.flags
         b._flagged = self._flagged
         b._t = self._t  # the same stamps
         return b
