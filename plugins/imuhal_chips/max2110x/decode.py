@@ -69,7 +69,9 @@ def saturated(counts: Counts3) -> bool:
     The chip's words can hold up to +/-32767; what it outputs beyond the nominal range is
     not documented, so any value at or past +/-30000 is treated as possibly clipped.
     """
-    return max(map(abs, counts)) >= FULL_SCALE_COUNTS
+    x, y, z = counts  # written out: asked for every gyro and accelerometer reading
+    full = FULL_SCALE_COUNTS
+    return not (-full < x < full and -full < y < full and -full < z < full)
 
 
 class Burst(NamedTuple):
