@@ -83,6 +83,8 @@ from imuhal_chips.mpu9250.fifo import FIFO_EN_VALUE, FRAME_BYTES, FifoRead, Fifo
 from imuhal_chips.mpu9250.registers import TEMP_LSB_PER_DEGC, TEMP_OFFSET_DEGC
 
 _SATURATED, _OK = SampleFlag.SATURATED, SampleFlag.OK
+_BLANK_FF = b"\xff" * FRAME_BYTES
+_BLANK_00 = b"\x00" * FRAME_BYTES
 
 EARLY_FRACTION = 64
 """Polled reads: the poll grid steps 1/64 period short of the period until it has learnt the
@@ -627,22 +629,26 @@ class MPU9250Driver(Driver):
             return BlockPoll([], self.restart(reset_detected=True))
         got, now_ns, next_ns = self._read_fifo(now_ns)
         imu = [f[:FRAME_BYTES] for f in got.frames]
-        if not imu or any(blank_flag(f) for f in imu) or self._frozen.would_flag("frame", imu):
+        data = b"".join(imu)
+        # a blank frame is 14 equal bytes 0x00 or 0xFF: none in the burst, none to look for
+        # frame by frame; the frozen watch takes the burst in one pass when none is frozen
+        if not imu or ((_BLANK_FF in data or _BLANK_00 in data)
+                       and any(blank_flag(f) for f in imu)) \
+                or not self._frozen.observe_all("frame", imu):
             samples: list[Sample] = []
             for frame, t_ns in zip(got.frames, got.stamps_ns, strict=True):
                 samples += self._fifo_frame(frame, t_ns, next_ns)
             result = self._fifo_result(samples, got, now_ns, next_ns, overdue)
             return BlockPoll(blocks_of(result.samples) if result.samples else [],
                              result.next_poll_ns)
-        for frame, t_ns in zip(got.frames, got.stamps_ns, strict=True):
-            if self._feed is not None:
+        if self._feed is not None:
+            for frame, t_ns in zip(got.frames, got.stamps_ns, strict=True):
                 self._feed.deliver(t_ns, frame[FRAME_BYTES:], nack_seen=self._slv0_nack)
-            self._frozen.observe("frame", frame[:FRAME_BYTES])
         if not got.held:
             self._slv0_nack = False  # every frame the NACK can be about has gone out
         self._ready.fresh(Quantity.GYRO, now_ns)
         self._watch.fresh_poll()
-        return BlockPoll(self._frame_blocks(b"".join(imu), got.stamps_ns), next_ns)
+        return BlockPoll(self._frame_blocks(data, got.stamps_ns), next_ns)
 
     def _frame_blocks(self, data: bytes, stamps_ns: list[int]) -> list[Block]:
         """Frames of accel, temperature and gyro counts (joined) as the accelerometer, gyro

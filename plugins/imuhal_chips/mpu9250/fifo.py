@@ -44,15 +44,17 @@ this module does the MPU-9250's register work.
 
 from __future__ import annotations
 
+import struct
 from itertools import pairwise
 
 from imuhal.bus.registers import RegisterView
 from imuhal.core.clock import Clock
 from imuhal.drivers.fifo_frames import FifoFrames, FifoRead
 from imuhal_chips.mpu9250 import registers as r
-from imuhal_chips.mpu9250.decode import decode_counts, temperature_degc
+from imuhal_chips.mpu9250.decode import temperature_degc
 
 FRAME_BYTES = 14
+_TEMPERATURE_WORD = struct.Struct(">h").unpack_from
 """ACCEL_XOUT_H..GYRO_ZOUT_L: accel (6), temperature (2), gyro (6); a slave's bytes follow."""
 FIFO_EN_VALUE = r.FIFO_TEMP | r.FIFO_GYRO_X | r.FIFO_GYRO_Y | r.FIFO_GYRO_Z | r.FIFO_ACCEL
 OVERFLOW_MARGIN_FRAMES = 2
@@ -67,7 +69,8 @@ TEMPERATURE_JUMP_DEGC = 2.0
 def frames_consistent(frames: list[bytes]) -> bool:
     """False when the temperature jumps by more than TEMPERATURE_JUMP_DEGC between two
     consecutive frames (a shifted burst)."""
-    temps = [temperature_degc(decode_counts(f[:FRAME_BYTES]).temperature) for f in frames]
+    # the temperature word alone (bytes 6-7 of a frame), decoded as decode_counts does
+    temps = [temperature_degc(_TEMPERATURE_WORD(f, 6)[0]) for f in frames]
     return all(abs(b - a) <= TEMPERATURE_JUMP_DEGC for a, b in pairwise(temps))
 
 
