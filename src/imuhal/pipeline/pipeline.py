@@ -638,10 +638,10 @@ class Pipeline:
                 found = stage.feed(event) if isinstance(event, Sample) else None
                 if found is not None:
                     self._install_startup(found)
-                    moved = moved or found.result is None
+                    moved = moved or found.moved
                 if stage.done:
                     if moved:
-                        # a measurement gave up: the board moved at switch-on, so the
+                        # a measurement gave up as the board moved at switch-on, so the
                         # estimators' first readings may be a flying board's (an AHRS
                         # checks the attitude it aligns on them)
                         for runtime in self.estimators:
