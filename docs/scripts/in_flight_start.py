@@ -14,10 +14,10 @@ in the transient, and of the profile's ``ahrs``: how many attitudes it withheld 
 check, ``start_check_s``, and any other reason), how many valid ones are more than
 ``TILT_BOUND_DEG`` off the true tilt, and the worst tilt error of a valid attitude.
 ``--write`` replaces the block between the ``in-flight-start`` markers in docs/reliability.md.
-About 5 minutes under load (``--boards``, ``--starts``: a subset, not written). ``--gyro-attempts N`` gives every device's start-up gyro
-measurement (``gyro_at_startup``) N attempts instead of the profile's (5): how the boards fare
-when the start-up gives up sooner (not written to the docs' block).
-"""
+About 5 minutes under load (``--boards``, ``--starts``: a subset, not written).
+``--gyro-attempts N`` gives every device's start-up gyro measurement (``gyro_at_startup``) N
+attempts instead of the profile's (1 by default): how the boards fare when the start-up
+waits for a still board (not written to the docs' block)."""
 
 from __future__ import annotations
 
