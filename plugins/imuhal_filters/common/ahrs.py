@@ -230,8 +230,9 @@ START_CHECK_RATE_RAD_S = math.radians(3.0)
 magnitude): in a coordinated turn the specific force stays along the body's z axis, tilted
 from gravity by the bank at a load within START_CHECK_G of 1 g up to 17.7 deg of bank (at
 3 deg/s and a paraglider's 10 m/s that bank is 3 deg), and the turn compensation is only as
-good as its speed: seed-gps-vario switched on circling, before its wind fit, confirmed an
-attitude its compensated readings agreed with within 6 deg that was 15.7 deg off."""
+good as its speed: seed-gps-vario switched on circling, before its wind fit, with turning
+readings allowed, handed out attitudes up to 15.7 deg off that its compensated readings
+never withdrew."""
 _START_RATE_SQ = START_CHECK_RATE_RAD_S * START_CHECK_RATE_RAD_S
 START_LOST_RAD = math.radians(6.0)
 """After a start in motion, the attitude stays under watch for the whole run (its gyro
