@@ -130,6 +130,15 @@ class AhrsSettings(PresetSettings, AhrsLimitSettings, TurnCompensationSettings):
     back)."""
     max_aux_age_s: float | None = Field(0.1, gt=0.0)
     """An accel or mag sample older than this (relative to the gyro sample) is not used."""
+    start_check_s: float | None = Field(1.0, gt=0.0)
+    """After a start in motion (the pipeline's gyro start-up measurement gave up, the board
+    moved: ``Estimator.moving_at_start``), the attitude aligned from the sensors
+    (``initial_attitude: first_sample``) is the accelerometer's direction, which on a moving
+    board (a turn's load, a push) is not gravity's: its estimates are withheld
+    (``EstimateFlag.UNSETTLED``, counted ``start_check.withheld``) until the
+    turn-compensated accelerometer has agreed with it for this long (s), and again whenever
+    it disagrees later (the gyro offsets were not measured: ``_start_checked``). None: no
+    check."""
     gyro_saturation: Literal["recover", "drop"] = "recover"
     """A gyro sample the chip clipped (flagged SATURATED, perhaps OUT_OF_RANGE too: at its
     stream's full scale): ``recover`` integrates it clipped to the full scale and then pulls
@@ -208,6 +217,43 @@ inside the span, which keeps the force's direction in the stale attitude's NED (
 accelerometer cannot see it), leaves a turn rate of g tan(bank) / speed, 0.91 of it about
 the body's z axis at the 24.6 deg of bank UNMEASURED_SPAN_FORCE_G lets through: more than
 2 deg/s below about 117 m/s."""
+START_CHECK_G = 0.05
+"""At a start in motion, an accelerometer reading (turn-compensated) is evidence about the
+attitude only while it reads within this much of 1 g (g): a turn's load (1.06 g at 20 deg of
+bank) or a push reads as a tilt, and says nothing about it."""
+START_CHECKED_RAD = math.radians(4.0)
+"""At a start in motion, a reading counted as evidence (START_CHECK_G) agrees with the
+attitude when it is within this of the gravity the attitude predicts (rad); one that does
+not starts the evidence again."""
+START_CHECK_RATE_RAD_S = math.radians(3.0)
+"""A reading is evidence only while the board turns slower than this (rad/s, the rate's
+magnitude): in a coordinated turn the specific force stays along the body's z axis, tilted
+from gravity by the bank at a load within START_CHECK_G of 1 g up to 17.7 deg of bank (at
+3 deg/s and a paraglider's 10 m/s that bank is 3 deg), and the turn compensation is only as
+good as its speed: seed-gps-vario switched on circling, before its wind fit, with turning
+readings allowed, handed out attitudes up to 15.7 deg off that its compensated readings
+never withdrew."""
+_START_RATE_SQ = START_CHECK_RATE_RAD_S * START_CHECK_RATE_RAD_S
+START_LOST_RAD = math.radians(6.0)
+"""After a start in motion, the attitude stays under watch for the whole run (its gyro
+offsets were not measured: seed-gps-vario's MPU-9250 drifted its Madgwick 13 deg off in
+7 s of circling after a check it had passed): a reading that can tell and disagrees with it
+by more than this (rad) withholds its estimates again until the evidence holds anew."""
+START_HOLD_S = 2.0
+"""...and a confirmation lasts this long (s) after the last reading that could tell and
+agreed: the gyro offsets were not measured, and nothing sees the drift they put into the
+attitude while no reading can tell (circling: the watched Madgwick of seed-gps-vario went
+from agreeing to 20 deg off in a thermal's turns); at the 1.5 deg/s seed-gps-vario's
+unmeasured MPU-9250 drifted, 3 deg."""
+START_PULL_GAIN = 2.0
+"""While an attitude started in motion is not confirmed, each reading that can tell pulls
+its tilt towards the reading's gravity with this gain (rad/s per unit of the sine of the
+angle between them; a time constant of 1 s), for a filter that keeps its attitude in
+``_q`` (``owns_quaternion``): the filter's own gain, made for a board whose gyro offsets
+were measured, may never find the tilt against an unmeasured gyro offset."""
+START_CHECK_SHARE = 0.5
+"""At a start in motion, the evidence must hold at least this share of the gyro steps of
+``start_check_s`` (the readings in between, not evidence either way, are skipped)."""
 RECOVERY_GAIN = 10.0
 """Angular-rate recovery: the extra tilt feedback's gain at its start (rad/s per unit of
 the sine of the tilt error; Fusion's start-up gain): the tilt error then falls with a time
@@ -390,6 +436,7 @@ class AhrsEstimator(Estimator):
             "stale_mag": 0,
             "beyond_full_scale": {Quantity.GYRO.value: 0, Quantity.ACCEL.value: 0},
             "angular_rate_recovery": {"clipped_samples": 0, "recoveries": 0, "withheld": 0},
+            "start_check": {"withheld": 0, "confirmed_after_s": None},
         }
         self._recovery_left_s = 0.0
         self._recovery_apart_rad = _INF
@@ -413,6 +460,21 @@ class AhrsEstimator(Estimator):
         in NED (m/s^2) it gave the last accelerometer reading, the last gyro rate measured
         (rad/s, body) and the last step's time stamp (ns): what the first readings after
         them are compared with (``_force_continues``); None: no such readings."""
+        self._start_watched = False
+        """Aligned from the sensors at a start not known still: every step is checked
+        (``_start_checked``), for the whole run."""
+        self._start_unchecked = False
+        """Watched and not confirmed (or no longer): estimates are withheld."""
+        self._moving_at_start = False
+        """The pipeline says the board moved at switch-on (``moving_at_start``): the start
+        is checked."""
+        self._start_since_ns: int | None = None
+        """The time stamp of the first reading of the evidence gathered so far (None:
+        none)."""
+        self._start_readings = 0
+        """Readings of the evidence gathered so far."""
+        self._start_agreed_ns = 0
+        """The time stamp of the last reading that could tell and agreed (ns)."""
         self._q = IDENTITY
         identity = self.settings.initial_attitude == "identity"
         self._tilt_aligned = identity
@@ -504,6 +566,8 @@ class AhrsEstimator(Estimator):
             if item.frame is not _BODY_NED:  # type: ignore[union-attr]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
                 return self._wrong_frame(item)  # type: ignore[arg-type]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
             rate = self._last_rate = (float(x), float(y), float(z))
+            if self._start_watched or not self._tilt_aligned:
+                return self._start_checked(item, rate)  # type: ignore[arg-type]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
             if self._dropped_after_ns is not None:
                 return self._after_dropped(item, rate)  # type: ignore[arg-type]  # narrowed by `type(item) is` through a local (the hot path): mypy does not follow it
             if self._recovery_left_s > 0.0:
@@ -798,11 +862,122 @@ class AhrsEstimator(Estimator):
                 self._mag_ut, self._mag_t_ns = _vec(item.mag_ut), item.t_ns
             return []
         rate = self._last_rate = _vec(item.gyro_rad_s)
+        if self._start_watched or not self._tilt_aligned:
+            return self._start_checked(item, rate)
+        return self._measured_gyro(item, rate)
+
+    def _measured_gyro(self, item: GyroSample, rate: Vec) -> list[Estimate]:
+        """A valid gyro sample within the limits, body NED, with its ``rate`` (rad/s)."""
         if self._dropped_after_ns is not None:
             return self._after_dropped(item, rate)
         if self._recovery_left_s > 0.0:
             return self._recovering(item, rate)
         return self._on_gyro(item, rate)
+
+    def moving_at_start(self, t_ns: int) -> None:
+        """The pipeline's gyro start-up measurement gave up at ``t_ns``: the board moved at
+        switch-on (a start in flight), so the attitude aligned on the next readings is
+        checked (``start_check_s``). Forgotten at a reset."""
+        del t_ns  # the very next readings align the filter (the pipeline calls it then)
+        if not self._tilt_aligned:
+            self._moving_at_start = True
+
+    def _start_checked(self, item: GyroSample, rate: Vec) -> list[Estimate]:
+        """A gyro step before the start is confirmed (``start_check_s``): the step runs as
+        usual (aligning the filter at the first one with an accelerometer reading), and its
+        estimate is withheld (UNSETTLED, counted ``start_check.withheld``) until the
+        evidence holds: readings that can tell (fresh, turn-compensated, within
+        START_CHECK_G of 1 g, turning slower than START_CHECK_RATE_RAD_S) agree with the
+        attitude within START_CHECKED_RAD for ``start_check_s``, at least
+        START_CHECK_SHARE of its steps, with no disagreeing one between them (each pulls
+        the tilt towards it meanwhile: START_PULL_GAIN). Confirmed, the attitude stays
+        watched: a reading that can tell and disagrees by more than START_LOST_RAD
+        withholds again.
+
+        Why (issue 26): switched on in flight, the filters aligned on a turn's specific
+        force and handed out tilts 13-22 deg off as valid (seed-gps-vario, gy91; 82 deg on
+        seed-rc-vario), and the vario behind them integrated the wrong tilt's gravity. One
+        agreeing reading proves nothing (the alignment agrees with its own reading); a
+        wrong attitude keeps agreeing with the readings only while the acceleration that
+        fooled it stays constant in NED, which a turn's does not."""
+        was_aligned = self._tilt_aligned
+        out = self._measured_gyro(item, rate)
+        if not self._start_watched or not out \
+                or not self._start_withholds(was_aligned, item.t_ns, rate, self._step_accel):
+            return out
+        if not isinstance(out[0], AttitudeEstimate):
+            return out  # already withheld, for its own reason
+        return [RejectedEstimate(t_ns=item.t_ns, source=self.instance, kind="attitude",
+                                 flags=EstimateFlag.UNSETTLED, estimator=self.name)]
+
+    def _start_withholds(self, was_aligned: bool, t_ns: int, rate: Vec,
+                         accel_m_s2: Vec | None) -> bool:
+        """Whether the estimate of the step at ``t_ns`` (gyro ``rate``, rad/s, and its fresh
+        accelerometer reading as measured, m/s^2 body, or None) is withheld by the start
+        check, counted; the step that completes the evidence ends the check."""
+        check = self._counters["start_check"]
+        if not self._start_unchecked:
+            # confirmed: watched, as its gyro offsets were not measured (START_LOST_RAD,
+            # START_HOLD_S)
+            g = self._telling_g(t_ns, rate, accel_m_s2)
+            if g is None:
+                if (t_ns - self._start_agreed_ns) * _NS <= START_HOLD_S:
+                    return False
+                check["expired"] = check.get("expired", 0) + 1
+            elif _tilt_pulled(self._q, g, 0.0)[1] <= START_LOST_RAD:
+                self._start_agreed_ns = t_ns
+                return False
+            else:
+                check["lost"] = check.get("lost", 0) + 1
+            self._start_unchecked = True
+            self._start_since_ns = None
+            self._start_readings = 0
+        elif was_aligned and self._start_evidence(t_ns, rate, accel_m_s2):
+            self._start_unchecked = False
+            if check.get("confirmed_after_s") is None:
+                check["confirmed_after_s"] = (t_ns - check.get("aligned_at_ns", t_ns)) * _NS
+            return False
+        check["withheld"] = check.get("withheld", 0) + 1
+        return True
+
+    def _telling_g(self, t_ns: int, rate: Vec, accel_m_s2: Vec | None) -> Vec | None:
+        """The step's fresh accelerometer reading (m/s^2 body, as measured) less the turn's
+        kinematic acceleration, as a gravity-positive reading (g), when it can tell the
+        attitude at a start in motion: within START_CHECK_G of 1 g, at a rate under
+        START_CHECK_RATE_RAD_S; else None."""
+        if accel_m_s2 is None:
+            return None
+        if self._turn_on:
+            kinematic = self._kinematics.acceleration(t_ns, rate)[1]
+            if kinematic != NO_VECTOR:
+                accel_m_s2 = compensated(accel_m_s2, kinematic)
+        g = gravity_positive_g(accel_m_s2)
+        if abs(math.sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]) - 1.0) > START_CHECK_G:
+            return None
+        if rate[0] * rate[0] + rate[1] * rate[1] + rate[2] * rate[2] > _START_RATE_SQ:
+            return None
+        return g
+
+    def _start_evidence(self, t_ns: int, rate: Vec, accel_m_s2: Vec | None) -> bool:
+        """One step's evidence for the start check (``_start_checked``): True once it holds."""
+        g = self._telling_g(t_ns, rate, accel_m_s2)
+        if g is None:
+            return False
+        if self.owns_quaternion:
+            dt = self._nominal_dt_s  # the estimate is withheld: the pull shapes the next
+            self._q = _tilt_pulled(self._q, g, START_PULL_GAIN * dt)[0]
+        if _tilt_pulled(self._q, g, 0.0)[1] > START_CHECKED_RAD:
+            self._start_since_ns = None
+            self._start_readings = 0
+            return False
+        if self._start_since_ns is None:
+            self._start_since_ns = t_ns
+        self._start_readings += 1
+        self._start_agreed_ns = t_ns
+        window = self.settings.start_check_s
+        assert window is not None  # checked only when set (_align)
+        return (t_ns - self._start_since_ns) * _NS >= window and \
+            self._start_readings >= START_CHECK_SHARE * window / self._nominal_dt_s
 
     def _wrong_frame(self, item: GyroSample | AccelSample | MagSample) -> list[Estimate]:
         raise ValueError(
@@ -822,7 +997,8 @@ class AhrsEstimator(Estimator):
             "counters": {**self._counters, "invalid": dict(self._counters["invalid"]),
                          "beyond_full_scale": dict(self._counters["beyond_full_scale"]),
                          "angular_rate_recovery": dict(
-                             self._counters["angular_rate_recovery"])},
+                             self._counters["angular_rate_recovery"]),
+                         "start_check": dict(self._counters["start_check"])},
             "recovery_left_s": self._recovery_left_s,
             "recovery_apart_rad": self._recovery_apart_rad,
             "last_rate_rad_s": list(self._last_rate),
@@ -833,6 +1009,9 @@ class AhrsEstimator(Estimator):
             else [list(self._span_before[0]), list(self._span_before[1]),
                   self._span_before[2]],
             "aligned": [self._tilt_aligned, self._heading_aligned],
+            "start_check": [self._start_watched, self._start_unchecked, self._moving_at_start,
+                            self._start_since_ns, self._start_readings,
+                            self._start_agreed_ns],
             "kinematics": self._kinematics.as_dict(),
             "rest": list(self._rest),
             "at_rest": self._at_rest,
@@ -864,6 +1043,15 @@ class AhrsEstimator(Estimator):
         self._span_before = None if span is None else (_vec(span[0]), _vec(span[1]),
                                                        int(span[2]))
         self._tilt_aligned, self._heading_aligned = (bool(v) for v in state["aligned"])
+        watched, unchecked, moving, since, readings, agreed = state.get(
+            "start_check", (False, False, False, None, 0, 0))
+        self._start_agreed_ns = int(agreed)
+        self._start_watched, self._start_unchecked = bool(watched), bool(unchecked)
+        self._moving_at_start = bool(moving)
+        self._start_since_ns = None if since is None else int(since)
+        self._start_readings = int(readings)
+        self._counters["start_check"] = dict(counters.get(
+            "start_check", {"withheld": 0, "confirmed_after_s": None}))
         self._kinematics.load_dict(state["kinematics"])
         self._no_speed = (self.settings.nominal_airspeed_m_s is None
                           and not self._kinematics.has_speed_source)
@@ -878,6 +1066,9 @@ class AhrsEstimator(Estimator):
                 "beyond_full_scale": dict(self._counters["beyond_full_scale"]),
                 "angular_rate_recovery": {**self._counters["angular_rate_recovery"],
                                           "active": self._recovery_left_s > 0.0},
+                "start_check": {**self._counters["start_check"],
+                                "watched": self._start_watched,
+                                "unconfirmed": self._start_unchecked},
                 "turn_compensation": {**self._kinematics.counts,
                                       "source": self._kinematics.source},
                 "rest": {"detection": self._rest_on, "at_rest": self._at_rest,
@@ -1108,7 +1299,8 @@ class AhrsEstimator(Estimator):
             by_kind[b.kind] = b
         gyro = by_kind.get(GyroSample)
         if gyro is None or not self._block_kernel() or self._recovery_left_s > 0.0 \
-                or self._dropped_after_ns is not None or not self._kernel_allowed():
+                or self._dropped_after_ns is not None or self._start_watched \
+                or not self._kernel_allowed():
             return None
         return gyro, by_kind.get(AccelSample), by_kind.get(MagSample)
 
@@ -1149,6 +1341,7 @@ class AhrsEstimator(Estimator):
         stop = 0
         if self._kernel_allowed():
             while stop < m and not (self._tilt_aligned and self._kernel_ready()
+                                    and not self._start_watched
                                     and (self._heading_aligned or not mag_left[stop])):
                 py_diags += self._python_rows(steps, stop + 1, out, emitted, diagnostics, stop)
                 stop += 1
@@ -1185,10 +1378,15 @@ class AhrsEstimator(Estimator):
         run, kin = self._run_step, self._kinematics
         for i, g, a, mg, dt, t in zip(range(start, stop), gyro, accel, mag, dts, t_ns,
                                       strict=True):
-            diag = run(t, (g[0], g[1], g[2]), None if a[0] != a[0] else (a[0], a[1], a[2]),
+            was_aligned = self._tilt_aligned
+            accel_i = None if a[0] != a[0] else (a[0], a[1], a[2])
+            diag = run(t, (g[0], g[1], g[2]), accel_i,
                        None if mg[0] != mg[0] else (mg[0], mg[1], mg[2]), dt)
             if diag is None:
                 continue
+            if self._start_watched and t is not None and self._start_withholds(
+                    was_aligned, t, (g[0], g[1], g[2]), accel_i):
+                continue  # a row the start check withholds: no estimate (counted)
             out[i] = self._q
             emitted[i] = True
             if diagnostics:
@@ -1330,9 +1528,18 @@ class AhrsEstimator(Estimator):
         if accel is not None and kin != NO_VECTOR:
             accel = compensated(accel, kin)
         # once aligned (the heading too, or no mag this step) _align has nothing to do
-        if not (self._tilt_aligned and (self._heading_aligned or mag is None)) and \
-                not self._align(accel, mag):
-            return None
+        if not (self._tilt_aligned and (self._heading_aligned or mag is None)):
+            was_aligned = self._tilt_aligned
+            if not self._align(accel, mag):
+                return None
+            if not was_aligned and t_ns is not None and self._moving_at_start \
+                    and self.settings.start_check_s is not None:
+                # the first alignment, from the sensors, on time-stamped samples (``update``
+                # has none): checked from here on (_start_checked)
+                self._start_watched = self._start_unchecked = True
+                self._start_since_ns = None
+                self._start_readings = 0
+                self._counters["start_check"]["aligned_at_ns"] = t_ns
         self._counters["steps"] += 1
         if self._rest_on:
             gyro = self._rest_gyro(gyro, accel, dt)

@@ -88,6 +88,10 @@ class GyroOffsetProcedure(Procedure[GyroOffsetResult]):
         self._result: GyroOffsetResult | None = None
         self._started = False
         self._only_large = False
+        self.moved = False
+        """The last attempt failed because the board moved (the gyro or accelerometer
+        spread beyond the stillness limits, every sample a measurement): not a hung chip's
+        repeats nor an offset beyond ``max_offset_dps``."""
         self._not_measured: dict[str, int] = {}
         """Flagged samples (no measurement) in the current window, by flag."""
         self._only_flagged_since_ns: int | None = None
@@ -147,6 +151,7 @@ class GyroOffsetProcedure(Procedure[GyroOffsetResult]):
         gyro = Spread.of(self._gyro)
         accel = Spread.of(self._accel) if len(self._accel) > 1 else None
         problems = self.limits.problems(accel, gyro)
+        self.moved = bool(problems) and not self._not_measured
         large = [f"gyro {'xyz'[i]} reads {gyro.mean[i] / DEG:+.2f} deg/s (more than the "
                  f"expected {s.max_offset_dps:g} deg/s)"
                  for i in range(3) if abs(gyro.mean[i]) > s.max_offset_dps * DEG]

@@ -126,7 +126,13 @@ class GyroStartupSettings(_Strict):
     """Re-measure gyro offsets at every start-up (the seed: "ideally ... each time on power
     up"). The board must be kept still for ``samples`` gyro samples; when it moves or an axis
     reads more than ``max_offset_dps`` the measurement waits ``retry_wait_s`` and repeats, at
-    most ``max_attempts`` times, after which the stored offsets are kept."""
+    most ``max_attempts`` times, after which the stored offsets are kept.
+
+    ``max_attempts`` is 1 by default: a board that moves at switch-on may be flying (a
+    brown-out reboot in the air), and every retry withheld every estimate (five attempts
+    2 s apart: 10.5 s); the AHRS checks a start it was not told was still
+    (``start_check_s``, docs/estimators.md). Give more attempts to wait for a board set down
+    on the ground."""
 
     enabled: bool = True
     samples: int = Field(100, ge=10, le=100_000)
@@ -134,7 +140,7 @@ class GyroStartupSettings(_Strict):
     max_gyro_std_dps: float = Field(0.5, gt=0)
     max_accel_std_m_s2: float = Field(0.1, gt=0)
     retry_wait_s: float = Field(2.0, ge=0)
-    max_attempts: int = Field(5, ge=1)
+    max_attempts: int = Field(1, ge=1)
 
 
 class VectorCalibration(_Record):

@@ -99,6 +99,14 @@ class Estimator(ABC):
                 out.extend(made)
         return out
 
+    def moving_at_start(self, t_ns: int) -> None:
+        """The pipeline's gyro start-up measurement (imuhal.pipeline.startup) gave up at
+        ``t_ns`` (ns), just before this estimator's first samples, because the board moved at
+        switch-on (a start in flight, a board in a hand). An estimator that assumes a still
+        start may check its own (an AHRS's ``start_check_s``). The default: nothing to
+        check."""
+        del t_ns  # an estimator that makes no assumption about its start takes nothing
+
     @abstractmethod
     def get_state(self) -> dict[str, Any]:
         """A JSON-serialisable snapshot of the state (not the settings)."""

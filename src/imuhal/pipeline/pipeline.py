@@ -632,12 +632,20 @@ class Pipeline:
         """Feed ``stage`` raw samples from ``source`` (yielding nothing) until it is done or
         ``source`` ends, installing what it returns."""
         calibrated, self.calibrated = self.calibrated, False  # the procedures measure raw data
+        moved = False
         try:
             for event in source:
                 found = stage.feed(event) if isinstance(event, Sample) else None
                 if found is not None:
                     self._install_startup(found)
+                    moved = moved or found.moved
                 if stage.done:
+                    if moved:
+                        # a measurement gave up as the board moved at switch-on, so the
+                        # estimators' first readings may be a flying board's (an AHRS
+                        # checks the attitude it aligns on them)
+                        for runtime in self.estimators:
+                            runtime.estimator.moving_at_start(event.t_ns)
                     return
         finally:
             self.calibrated = calibrated

@@ -58,6 +58,9 @@ class StartupMeasurement:
     result: GyroOffsetResult | None
     """The measured offsets (sensor frame, rad/s); None when the board never stayed still."""
     warning: str | None = None
+    moved: bool = False
+    """Not measured because the board moved (a start in flight, a board in a hand), not
+    because of the chip (imuhal.calibration.gyro, ``GyroOffsetProcedure.moved``)."""
 
     def calibration(self, stored: DeviceCalibration | None,
                     binding: CalibrationBinding) -> DeviceCalibration | None:
@@ -99,7 +102,7 @@ class GyroStartupStage:
             return StartupMeasurement(
                 sample.device, None,
                 warning=f"{sample.device}: start-up gyro offsets not measured ({exc}); "
-                        "using the stored offsets")
+                        "using the stored offsets", moved=proc.moved)
         if not finished:
             return None
         del self._pending[sample.device]
