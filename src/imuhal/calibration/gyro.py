@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from datetime import datetime
 
 import numpy as np
+from pydantic import Field
 
 from imuhal.calibration.errors import CalibrationError
 from imuhal.calibration.model import GyroCalibration, GyroStartupSettings
@@ -24,8 +25,14 @@ from imuhal.core.frames import FloatArray
 from imuhal.core.samples import AccelSample, GyroSample, Sample, SampleFlag
 
 PROCEDURE = "gyro-at-rest"
-GyroOffsetSettings = GyroStartupSettings
-"""The same knobs serve the one-off procedure and the start-up measurement."""
+
+
+class GyroOffsetSettings(GyroStartupSettings):
+    """The start-up measurement's knobs for the one-off procedure (``imuhal calibrate
+    gyro``), which waits for a board being set down: five attempts by default, where the
+    start-up measurement gives up after one (a board moving at switch-on may be flying)."""
+
+    max_attempts: int = Field(5, ge=1)
 
 
 @dataclass(frozen=True)
@@ -73,7 +80,8 @@ class GyroOffsetProcedure(Procedure[GyroOffsetResult]):
 
     name = PROCEDURE
 
-    def __init__(self, settings: GyroOffsetSettings | None = None, *, device: str | None = None,
+    def __init__(self, settings: GyroStartupSettings | None = None, *,
+                 device: str | None = None,
                  progress: ProgressCallback | None = None) -> None:
         super().__init__(device=device, progress=progress)
         self.settings = settings or GyroOffsetSettings()
