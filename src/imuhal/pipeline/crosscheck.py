@@ -26,9 +26,9 @@ vehicle's acceleration limit, which is why the defaults catch what the receiver'
 cannot. A contradicted value is flagged ``CONTRADICTED``, counted, never fused, and is no
 reference; the last of ``CONFIRM`` contradicted heights in a row that agree with one another
 is valid and the new reference (a receiver whose height really moved against the barometer,
-its satellite set changed: two epochs lost, no wrong one passed). Without barometer evidence around the
-epoch (no barometer, or its samples flagged or lost) nothing is flagged: the driver's own
-rules stand alone, as before.
+its satellite set changed: two epochs lost, no wrong one passed). Without barometer evidence
+around the epoch (no barometer, or its samples flagged or lost) nothing is flagged: the
+driver's own rules stand alone, as before.
 
 What it does not do: hold the horizontal position or velocity (no sensor on the board
 measures them), or integrate the IMU's vertical acceleration between epochs (that needs the
@@ -37,6 +37,7 @@ attitude, an estimator's output, which the validity stage must not depend on).
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections import deque
 from dataclasses import dataclass, field
@@ -268,7 +269,7 @@ class VerticalCrossCheck:
         pending = self._pending
         if len(pending) == CONFIRM and all(
                 abs(b.offset_m - a.offset_m) <= self.height_bound_m(a, b, fit.climb_m_s)
-                for a, b in zip(pending, pending[1:], strict=False)):
+                for a, b in itertools.pairwise(pending)):
             # the receiver's height really moved against the barometer (its satellite set
             # changed): the epochs before this one are lost, this one is the new reference
             self._reference = new
