@@ -203,6 +203,10 @@ offset, the turn compensation's error at the nominal airspeed, the filter's lag 
 gyro bias) is the filter's own, handed out before the span, not what the span left. Only
 when that disagreement was at most this much (rad): beyond it the reading before the span
 was no reference."""
+SPAN_RESIDUAL_GROWTH_RAD = math.radians(2.0)
+"""...and when the disagreement after the span is no larger than before it by more than
+this (rad; a turbulent glide's compensated reading scatters by a degree): an error the span
+left along the old disagreement adds to it whole, and is held to this."""
 UNMEASURED_SPAN_FORCE_G = 0.1
 """Across unfused gyro frames (at most ``max_gap_s``), the specific force in NED the
 attitude gives the first accelerometer reading after them may differ from the one it gave
@@ -721,7 +725,10 @@ class AhrsEstimator(Estimator):
         if before is None:
             return False
         now = _disagreement(self._q, g)
-        return math.dist(now, before) <= math.sin(UNMEASURED_SPAN_CHECKED_RAD)
+        # as before within 5 deg, and no larger than before but for the reading's noise: an
+        # error the span added along the old disagreement shows whole in its size
+        return math.dist(now, before) <= math.sin(UNMEASURED_SPAN_CHECKED_RAD) and \
+            math.hypot(*now) <= math.hypot(*before) + math.sin(SPAN_RESIDUAL_GROWTH_RAD)
 
     def _residual_of(self, g: Vec | None) -> Vec | None:
         """``_span_residual`` of the compensated reading ``g`` (gravity-positive g)."""
