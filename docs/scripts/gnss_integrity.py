@@ -14,8 +14,8 @@ Two parts, on the seed GPS vario (u-blox NAV-PVT at 5 Hz) flying each scenario:
   even number of bytes apart (``corrupt_byte`` twice; UBX's Fletcher checksum holds), one of
   them a byte of lon, lat, height or hMSL, the other any byte of the same parity (seeded).
   Each hit frame's epoch is compared with the same epoch of the clean flight: its position
-  or its velocity flagged or dropped (detected), or valid. A valid one that differs from the receiver's is counted with
-  its displacement.
+  or its velocity flagged or dropped (detected), or valid. A valid one that differs from the
+  receiver's is counted with its displacement.
 * **what the checks cannot see** (``thermal`` only), the same way, one class of pair per
   flight: the same bit 7 flip in one byte of height and the same byte of hMSL (the geoid
   separation holds); velD's two lower bytes hit by bit 7 (a partner of the same parity) or

@@ -40,8 +40,8 @@ from imuhal.profile.model import BoardProfile
 from imuhal_filters.common.quat import tilt_error_deg
 
 sys.path.insert(0, str(ROOT))
-from tests.benchmarks import fault_truth  # noqa: E402  # the soak's plan
-from tests.benchmarks.soak import fault_plan, scenario_params  # noqa: E402
+from tests.benchmarks import fault_truth  # the soak's plan
+from tests.benchmarks.soak import fault_plan, scenario_params
 
 PAGE = ROOT / "docs" / "reliability.md"
 BLOCK = "outage-withheld"

@@ -82,6 +82,22 @@ def test_a_vertical_velocity_spike_under_the_step_limit_is_contradicted() -> Non
     assert _contradicted(gps, PositionSample) == []
 
 
+def test_a_vertical_velocity_whose_stated_accuracy_was_hit_with_it_is_still_contradicted(
+        ) -> None:
+    """The flip that moved velD by 16.4 m/s moved sAcc by as much (bit 6 of both second
+    bytes, 12 bytes apart: the UBX checksum misses it): the epoch's own sAcc would widen
+    its bound to 83 m/s, so it counts no worse than the last velocity's that passed."""
+    def hit(s: Sample) -> Sample:
+        if isinstance(s, VelocitySample) and s.t_ns == 6 * NS:
+            return VelocitySample(t_ns=s.t_ns, device=s.device,
+                                  velocity_ned_m_s=s.velocity_ned_m_s,
+                                  accuracy_m_s=16.384 + S_ACC_M_S)
+        return s
+    stream = (hit(s) for s in _stream(10.0, vel_d_error=lambda t: 16.384 if t == 6.0 else 0.0))
+    _, gps = _checked(stream)
+    assert _contradicted(gps, VelocitySample) == [6.0]
+
+
 def test_a_small_vertical_velocity_error_is_contradicted_within_the_fault_matrix_margin(
         ) -> None:
     """The fault matrix counts a valid GNSS velocity more than 2 m/s off as wrong: a 3 m/s

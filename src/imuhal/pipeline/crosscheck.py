@@ -149,6 +149,8 @@ class VerticalCrossCheck:
         self._fits: dict[int, BaroFit | None] = {}
         self._reference: _Reference | None = None
         self._pending: list[_Reference] = []
+        self._speed_accuracy_m_s: float | None = None
+        """The stated sAcc of the last velocity that passed (m/s)."""
         self.stats = CrossCheckStats()
 
     def observe(self, sample: Sample) -> Sample:
@@ -220,8 +222,13 @@ class VerticalCrossCheck:
         if fit is None:
             self.stats.no_evidence += 1
             return sample
-        s_acc = sample.accuracy_m_s if sample.accuracy_m_s is not None \
+        stated = sample.accuracy_m_s if sample.accuracy_m_s is not None \
             else UNKNOWN_SPEED_ACCURACY_M_S
+        # sAcc comes from the same frame as velD: a flip that hit both (sAcc 16 m/s, velD
+        # 16 m/s off) must not widen its own bound, so it counts no worse than the last
+        # velocity that passed (the driver's rule for hAcc and vAcc)
+        last = self._speed_accuracy_m_s
+        s_acc = stated if last is None else min(stated, last)
         low, high = fit.climb_range_m_s(STAMP_LAG_S)
         climb = -sample.velocity_ned_m_s[2]
         residual = max(low - climb, climb - high, 0.0)
@@ -230,6 +237,7 @@ class VerticalCrossCheck:
         if residual > bound:
             self.stats.contradicted["climb"] += 1
             return sample.flagged(SampleFlag.CONTRADICTED)
+        self._speed_accuracy_m_s = stated
         self._worst("climb", residual / bound)
         return sample
 
@@ -237,7 +245,8 @@ class VerticalCrossCheck:
         """How far the GNSS height less the barometric altitude may move from ``ref`` to
         ``new`` (m)."""
         dt = abs(new.t_ns - ref.t_ns) * NS
-        v_acc = max(ref.vertical_accuracy_m, new.vertical_accuracy_m)
+        # the new epoch's vAcc counts no worse than the reference's: the same frame says it
+        v_acc = min(ref.vertical_accuracy_m, new.vertical_accuracy_m)
         drift = v_acc * math.sqrt(2.0 * (1.0 - math.exp(-dt / HEIGHT_ERROR_TAU_S)))
         return (GATE_SIGMAS * math.sqrt(drift ** 2 + ref.offset_var_m2 + new.offset_var_m2)
                 + SCALE_ERROR * abs(new.altitude_m - ref.altitude_m) + WEATHER_M_S * dt
