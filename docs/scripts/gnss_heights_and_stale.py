@@ -11,8 +11,11 @@ Two tables, on the seed GPS vario flying its ``thermal`` (seed 1):
   vAcc of 4 m and at 8 m (a poor sky), 1 Hz at 4 m, with the profile's default 10 g and
   with 4 g (``max_acceleration_m_s2``). Each hit epoch is compared with the same epoch of
   the clean flight (docs/scripts/gnss_integrity.py): flagged or dropped (detected), or
-  valid and moved. The gate column is the vertical rule's bound for equal velDs at the
-  rate (imuhal_chips.gnss.integrity): what a flip must exceed to be caught.
+  valid and moved. The gate column is the driver's vertical rule's bound for equal velDs at
+  the rate (imuhal_chips.gnss.integrity): what a flip must exceed to be caught by the
+  receiver's own data; the pipeline's cross-check against the barometer
+  (imuhal.pipeline.crosscheck) catches what passes it (flagged CONTRADICTED alone), and the
+  last column counts its false alarms in the clean flight.
 * **stale navigation**: ``stale_navigation`` (each ``time`` mode), 2 s every 20 s from
   20 s on, NAV-PVT at 5 Hz and NMEA at 1 Hz: the epochs the receiver sent stale (a fix
   repeating the solution before the window), how many were flagged STALE, how many of them
@@ -166,8 +169,11 @@ def heights_row(registry: Registry, receiver: Receiver, seconds: float) -> str:
     hit = fly(profile, registry, seconds, faults, model)
     detected, errors, others = _hit_epochs(clean, hit, plan)
     worst_v = max((v for _, v, _, _ in errors), default=0.0)
+    by_baro = sum(1 for e in hit.all_fixes if e.utc_s is not None and round(e.utc_s, 3) in plan
+                  and e.flags == SampleFlag.CONTRADICTED)
+    false_alarms = sum(1 for e in clean.all_fixes if e.flags & SampleFlag.CONTRADICTED)
     return (f"| {receiver.name} | {receiver.gate_m():.1f} | {len(plan)} | {detected} | "
-            f"{len(errors)} | {worst_v:.3f} | {others} |")
+            f"{by_baro} | {len(errors)} | {worst_v:.3f} | {others} | {false_alarms} |")
 
 
 def stale_windows(seconds: float, time: str) -> list[FaultSpec]:
@@ -222,10 +228,11 @@ def main(argv: list[str] | None = None) -> int:
         "",
         f"| receiver, one frame every {HIT_EVERY_S:g} s from {FIRST_HIT_S:g} s hit in bit 7 "
         "of the second "
-        "byte of height and of hMSL (both 32.768 m, geoid separation kept) | vertical gate "
-        "(m) | frames hit | detected (flagged or dropped) | valid | largest vertical error "
-        "left valid (m) | other fixes changed |",
-        "|---|---|---|---|---|---|---|",
+        "byte of height and of hMSL (both 32.768 m, geoid separation kept) | the driver's "
+        "vertical gate (m) | frames hit | detected (flagged or dropped) | of them only by the "
+        "barometer (CONTRADICTED) | valid | largest vertical error left valid (m) | other "
+        "fixes changed | clean flight: fixes flagged CONTRADICTED |",
+        "|---|---|---|---|---|---|---|---|---|",
         *height_rows,
         "",
         f"| `stale_navigation`, {STALE_FOR_S:g} s every {STALE_EVERY_S:g} s from "

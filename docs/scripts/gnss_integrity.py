@@ -7,13 +7,15 @@ Two parts, on the seed GPS vario (u-blox NAV-PVT at 5 Hz) flying each scenario:
 * **clean**: the epochs, the first ones refused until the first fix was confirmed (by
   design: CONFIRM - 1), the epochs flagged IMPLAUSIBLE after them (a false alarm each), and
   per rule the largest residual over its bound among the epochs that passed (below 1
-  passes; the margin to a false alarm);
+  passes; the margin to a false alarm); the same for the pipeline's cross-check of the
+  heights and velD against the barometer (imuhal.pipeline.crosscheck: values flagged
+  CONTRADICTED, and its two residuals);
 * **flips**: from 5 s on, one NAV-PVT a second gets bit 7 flipped in two payload bytes an
   even number of bytes apart (``corrupt_byte`` twice; UBX's Fletcher checksum holds), one of
   them a byte of lon, lat, height or hMSL, the other any byte of the same parity (seeded).
-  Each hit frame's epoch is compared with the same epoch of the clean flight: flagged or
-  dropped (detected), or valid. A valid one that differs from the receiver's is counted with
-  its displacement.
+  Each hit frame's epoch is compared with the same epoch of the clean flight: its position
+  or its velocity flagged or dropped (detected), or valid. A valid one that differs from the
+  receiver's is counted with its displacement.
 * **what the checks cannot see** (``thermal`` only), the same way, one class of pair per
   flight: the same bit 7 flip in one byte of height and the same byte of hMSL (the geoid
   separation holds); velD's two lower bytes hit by bit 7 (a partner of the same parity) or
@@ -77,6 +79,9 @@ class Flight:
     velocities: dict[int, VelocitySample] = field(default_factory=dict)
     epochs: int = 0
     implausible: int = 0
+    contradicted: int = 0
+    """Fixes and velocities flagged CONTRADICTED after the first fix was confirmed."""
+    cross_ratio: dict[str, float] = field(default_factory=dict)
     refused: dict[str, int] = field(default_factory=dict)
     worst_ratio: dict[str, float] = field(default_factory=dict)
 
@@ -98,9 +103,14 @@ def fly(registry: Registry, scenario: str, seconds: float,
             if isinstance(e, PositionSample) and e.flags & SampleFlag.IMPLAUSIBLE and \
                     out.fixes:
                 out.implausible += 1  # after the first fix was confirmed: a false alarm
+            if isinstance(e, PositionSample | VelocitySample) and out.fixes and \
+                    e.flags & SampleFlag.CONTRADICTED:
+                out.contradicted += 1
         watch = p.devices["gps"].driver.epoch_watch  # type: ignore[attr-defined]
         out.refused = dict(watch.refused)
         out.worst_ratio = dict(watch.worst_ratio)
+        assert p.vertical_check is not None
+        out.cross_ratio = dict(p.vertical_check.stats.worst_ratio)
     return out
 
 
@@ -174,7 +184,8 @@ def _same(sent: PositionSample | None, got: PositionSample) -> bool:
 
 def _hit_epochs(clean: Flight, hit: Flight, plan: dict[float, Pair]
                 ) -> tuple[int, list[tuple[float, float, float, float]], int]:
-    """The hit epochs that were detected (not valid), the errors of those left valid
+    """The hit epochs that were detected (position or velocity not valid), the errors of
+    those left valid
     (horizontal and vertical position, m; velocity, m/s; time stamp, us), and how many
     valid fixes of the other epochs differ from the clean flight's."""
     detected = 0
@@ -185,9 +196,12 @@ def _hit_epochs(clean: Flight, hit: Flight, plan: dict[float, Pair]
             detected += 1
             continue
         sent = clean.fixes[utc]
-        north, east, down = local_offset_m(_as_epoch(sent), _as_epoch(got))
         v_sent = clean.velocities.get(sent.t_ns)
         v_got = hit.velocities.get(got.t_ns)
+        if v_sent is not None and v_got is None:
+            detected += 1  # the epoch's velocity was flagged
+            continue
+        north, east, down = local_offset_m(_as_epoch(sent), _as_epoch(got))
         dv = 0.0 if v_sent is None or v_got is None else \
             math.dist(v_sent.velocity_ned_m_s, v_got.velocity_ned_m_s)
         errors.append((math.hypot(north, east), abs(down), dv,
@@ -238,9 +252,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{scenario}: clean...", file=sys.stderr, flush=True)
         clean = fly(registry, scenario, args.seconds)
         ratios = " | ".join(f"{clean.worst_ratio.get(r, 0.0):.3f}" for r in RULES)
+        cross = " | ".join(f"{clean.cross_ratio.get(r, 0.0):.3f}" for r in ("height", "climb"))
         clean_rows.append(f"| {scenario} | {clean.epochs} | "
                           f"{clean.refused.get(UNCONFIRMED, 0)} | {clean.implausible} | "
-                          f"{ratios} |")
+                          f"{ratios} | {clean.contradicted} | {cross} |")
         faults, plan = hits(clean, args.seconds, random.Random(f"{scenario}/1"))
         print(f"{scenario}: {len(plan)} frames hit...", file=sys.stderr, flush=True)
         flip_rows.append(flips_row(scenario, clean, fly(registry, scenario, args.seconds,
@@ -259,18 +274,21 @@ def main(argv: list[str] | None = None) -> int:
         "",
         "| clean line | fixes | first fixes refused until confirmed | flagged IMPLAUSIBLE "
         "after them | largest residual / bound: horizontal position | vertical position | "
-        "geoid separation | time |",
-        "|---|---|---|---|---|---|---|---|",
+        "geoid separation | time | flagged CONTRADICTED by the barometer | largest residual "
+        "/ bound against the barometer: height | climb |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
         *clean_rows,
         "",
         f"| one frame a second from {FIRST_HIT_S:g} s hit by two bit-7 flips the checksum "
-        "misses | frames hit | detected (flagged or dropped) | valid, unchanged | valid, "
+        "misses | frames hit | detected (position or velocity flagged, or dropped) | valid, "
+        "unchanged | valid, "
         "moved | largest move, horizontal (m) | vertical (m) | other fixes changed |",
         "|---|---|---|---|---|---|---|---|",
         *flip_rows,
         "",
         f"| {SCENARIOS[0]}, one frame a second from {FIRST_HIT_S:g} s hit by | frames hit | "
-        "detected (flagged or dropped) | valid, unchanged | valid, changed | largest error "
+        "detected (position or velocity flagged, or dropped) | valid, unchanged | valid, "
+        "changed | largest error "
         "left valid: horizontal (m) | vertical (m) | velocity (m/s) | time stamp (us) | "
         "other fixes changed |",
         "|---|---|---|---|---|---|---|---|---|---|",

@@ -232,6 +232,30 @@ def test_a_time_error_under_the_time_rule_moves_no_stamp_further_than_itself(
     assert max(abs(d) for d in shifted) < TIME_TOLERANCE_NS
 
 
+def test_a_vertical_velocity_under_the_step_limit_is_contradicted_by_the_barometer(
+        registry: Registry) -> None:
+    """Bit 6 of velD's second byte (0 to 1) and of nano's (1 to 0): the checksum misses
+    the pair (CK_A unchanged, CK_B moved by 64 x 4 x 4 x 256), velD is 16.4 m/s more (under
+    the step limit of 10 g x 0.2 s + 4.2 m/s, 24 m/s) and the time stamp 16.4 us later
+    (under the time rule's 2 ms): the receiver's own data let it through. The barometer
+    says the vehicle is not sinking at 16 m/s: the velocity is flagged CONTRADICTED
+    (imuhal.pipeline.crosscheck), the position of the same epoch stays valid."""
+    profile = load_profile(bundled_profiles()["seed-gps-vario.yaml"], registry)
+    faults = [CorruptByte(device="gps", start_s=FRAME_S, byte=PAYLOAD + k, mask=0x40)
+              for k in (56 + 1, 16 + 1)]
+    with open_emulated(profile, registry, seed=1, faults=faults, calibrated=False) as p:
+        events = [e for e in p.events(4.2) if isinstance(e, PositionSample | VelocitySample)
+                  and 3.6e9 < e.t_ns < 3.8e9]
+        stats = p.devices["gps"].driver.stats  # type: ignore[attr-defined]  # the GNSS driver
+        check = p.vertical_check
+    velocity, position = events
+    assert isinstance(velocity, VelocitySample) and isinstance(position, PositionSample)
+    assert velocity.flags == SampleFlag.CONTRADICTED and position.valid
+    assert velocity.velocity_ned_m_s[2] > 16.0
+    assert stats.implausible_epochs == {UNCONFIRMED: CONFIRM - 1} and stats.checksum_errors == 0
+    assert check is not None and check.stats.contradicted == {"height": 0, "climb": 1}
+
+
 CLEAN_SECONDS = 60.0
 MARGIN = 0.25
 """The largest residual an honest epoch may show, as a share of its bound, horizontally and
@@ -265,7 +289,11 @@ def test_a_clean_flight_raises_no_alarm_and_stays_far_inside_every_bound(
         fixes = [e for e in p.events(CLEAN_SECONDS) if isinstance(e, PositionSample)
                  and not e.flags & SampleFlag.STALE]
         watch = p.devices["gps"].driver.epoch_watch  # type: ignore[attr-defined]
+        check = p.vertical_check
     assert len(fixes) >= 5 * (CLEAN_SECONDS - 2)
+    assert check is not None and check.stats.contradicted == {"height": 0, "climb": 0}
+    assert check.stats.checked["climb"] >= 5 * (CLEAN_SECONDS - 2)
+    assert max(check.stats.worst_ratio.values()) < VERTICAL_MARGIN
     assert [f.valid for f in fixes[:CONFIRM]] == [False] * (CONFIRM - 1) + [True]
     assert all(f.valid for f in fixes[CONFIRM:]) and watch.refused == {UNCONFIRMED: CONFIRM - 1}
     ratios = dict(watch.worst_ratio)

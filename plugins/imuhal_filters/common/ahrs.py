@@ -204,6 +204,18 @@ UNMEASURED_SPAN_CHECKED_RAD = math.radians(5.0)
 accelerometer (within UNMEASURED_SPAN_CHECK_G of 1 g) agrees with it within this (rad): the
 seed filters' own tilt error in a turbulent cruise (3-4 deg on seed-rc-vario) stays
 inside it, the 13 deg an outage left in a pull-up does not."""
+SPAN_RESIDUAL_MAX_RAD = math.radians(15.0)
+"""After a span of unmeasured rotation, the attitude also counts as checked once the
+accelerometer disagrees with it as it did at the last step before the span, within
+UNMEASURED_SPAN_CHECKED_RAD (``_span_residual``): a steady disagreement (an accelerometer
+offset, the turn compensation's error at the nominal airspeed, the filter's lag behind a
+gyro bias) is the filter's own, handed out before the span, not what the span left. Only
+when that disagreement was at most this much (rad): beyond it the reading before the span
+was no reference."""
+SPAN_RESIDUAL_GROWTH_RAD = math.radians(2.0)
+"""...and when the disagreement after the span is no larger than before it by more than
+this (rad; a turbulent glide's compensated reading scatters by a degree): an error the span
+left along the old disagreement adds to it whole, and is held to this."""
 UNMEASURED_SPAN_FORCE_G = 0.1
 """Across unfused gyro frames (at most ``max_gap_s``), the specific force in NED the
 attitude gives the first accelerometer reading after them may differ from the one it gave
@@ -387,6 +399,21 @@ def _tilt_pulled(q: Quat, accel_g: Vec, angle_gain: float) -> tuple[Quat, float]
     return (w / n, x / n, y / n, z / n), max(0.0, apart - angle)
 
 
+def _disagreement(q: Quat, accel_g: Vec) -> Vec:
+    """How the gravity-positive reading ``accel_g`` disagrees with the gravity ``q``
+    predicts, in the body frame: the cross product of the two unit vectors (the axis that
+    turns the prediction towards the reading, times the sine of the angle between them), as
+    ``_tilt_pulled`` turns it; zero for a zero reading."""
+    ax, ay, az = accel_g
+    norm = math.sqrt(ax * ax + ay * ay + az * az)
+    if not norm > 0.0:
+        return NO_VECTOR
+    ax, ay, az = ax / norm, ay / norm, az / norm
+    w, x, y, z = q
+    vx, vy, vz = 2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z
+    return (ay * vz - az * vy, az * vx - ax * vz, ax * vy - ay * vx)
+
+
 class AhrsEstimator(Estimator):
     """An attitude estimator stepped once per gyro sample. See the module docstring."""
 
@@ -455,6 +482,13 @@ class AhrsEstimator(Estimator):
         self._step_accel: Vec | None = None
         """The accelerometer reading (m/s^2, body) the last gyro step had, None when it had
         none fresh (``_span_starts``)."""
+        self._span_residual: Vec | None = None
+        """While the attitude is unchecked after a span (``_after_dropped``): how the
+        accelerometer reading at the last step before the span, compensated as the filter
+        fuses it, disagreed with the gravity the checked attitude predicted (body frame,
+        the cross product of the two unit vectors: the axis times the sine of the angle
+        between them); None: that reading was no reference (not within
+        UNMEASURED_SPAN_CHECK_G of 1 g, or apart by more than SPAN_RESIDUAL_MAX_RAD)."""
         self._span_before: tuple[Vec, Vec, int] | None = None
         """Before unfused gyro frames, while the attitude was checked: the specific force
         in NED (m/s^2) it gave the last accelerometer reading, the last gyro rate measured
@@ -638,8 +672,12 @@ class AhrsEstimator(Estimator):
         self._dropped_after_ns = last = self._last_gyro_t_ns
         accel = self._step_accel
         self._span_before = None
+        if not self._unchecked:
+            self._span_residual = None  # a new span: the attitude is checked, compare anew
         if accel is None or last is None or self._unchecked or not self._tilt_aligned:
             return
+        self._span_residual = self._residual_of(self._compensated_g(accel, last,
+                                                                    self._last_rate))
         x, y, z = _linear_accel_ned(self._q, accel)
         self._span_before = ((x, y, z - STANDARD_GRAVITY_M_S2), self._last_rate, last)
 
@@ -691,6 +729,7 @@ class AhrsEstimator(Estimator):
             self._unchecked = False
             self._dropped_after_ns = None
             self._span_before = None
+            self._span_residual = None
             return out
         counts["unmeasured_withheld"] = counts.get("unmeasured_withheld", 0) + 1
         return [RejectedEstimate(t_ns=item.t_ns, source=self.instance, kind="attitude",
@@ -744,7 +783,27 @@ class AhrsEstimator(Estimator):
         if g is None or abs(math.sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]) - 1.0) > \
                 UNMEASURED_SPAN_CHECK_G:
             return False
-        return _tilt_pulled(self._q, g, 0.0)[1] <= UNMEASURED_SPAN_CHECKED_RAD
+        if _tilt_pulled(self._q, g, 0.0)[1] <= UNMEASURED_SPAN_CHECKED_RAD:
+            return True
+        before = self._span_residual
+        if before is None:
+            return False
+        now = _disagreement(self._q, g)
+        # as before within 5 deg, and no larger than before but for the reading's noise: an
+        # error the span added along the old disagreement shows whole in its size
+        return math.dist(now, before) <= math.sin(UNMEASURED_SPAN_CHECKED_RAD) and \
+            math.hypot(*now) <= math.hypot(*before) + math.sin(SPAN_RESIDUAL_GROWTH_RAD)
+
+    def _residual_of(self, g: Vec | None) -> Vec | None:
+        """``_span_residual`` of the compensated reading ``g`` (gravity-positive g)."""
+        if g is None or abs(math.sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]) - 1.0) > \
+                UNMEASURED_SPAN_CHECK_G:
+            return None
+        e = _disagreement(self._q, g)
+        if math.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]) > \
+                math.sin(SPAN_RESIDUAL_MAX_RAD):
+            return None
+        return e
 
     def _checking_g(self, t_ns: int, rate: Vec) -> Vec | None:
         """What checks the attitude at the gyro step at ``t_ns`` with the ``rate`` (rad/s,
@@ -762,6 +821,11 @@ class AhrsEstimator(Estimator):
         if accel is None or a_t is None or (
                 self._max_aux_age_s is not None and (t_ns - a_t) * _NS > self._max_aux_age_s):
             return None
+        return self._compensated_g(accel, t_ns, rate)
+
+    def _compensated_g(self, accel: Vec, t_ns: int, rate: Vec) -> Vec:
+        """``accel`` (m/s^2, body) less the kinematic acceleration of the step at ``t_ns``
+        with ``rate`` (turn compensation), as a gravity-positive reading in g."""
         if self._turn_on:
             kinematic = self._kinematics.acceleration(t_ns, rate)[1]
             if kinematic != NO_VECTOR:
@@ -1008,6 +1072,8 @@ class AhrsEstimator(Estimator):
             "span_before": None if self._span_before is None
             else [list(self._span_before[0]), list(self._span_before[1]),
                   self._span_before[2]],
+            "span_residual": None if self._span_residual is None
+            else list(self._span_residual),
             "aligned": [self._tilt_aligned, self._heading_aligned],
             "start_check": [self._start_watched, self._start_unchecked, self._moving_at_start,
                             self._start_since_ns, self._start_readings,
@@ -1042,6 +1108,8 @@ class AhrsEstimator(Estimator):
         span = state.get("span_before")
         self._span_before = None if span is None else (_vec(span[0]), _vec(span[1]),
                                                        int(span[2]))
+        residual = state.get("span_residual")
+        self._span_residual = None if residual is None else _vec(residual)
         self._tilt_aligned, self._heading_aligned = (bool(v) for v in state["aligned"])
         watched, unchecked, moving, since, readings, agreed = state.get(
             "start_check", (False, False, False, None, 0, 0))

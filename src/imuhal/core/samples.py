@@ -66,6 +66,10 @@ class SampleFlag(IntFlag):
     or converter was disturbed while it measured. Also a value with nothing valid yet to be
     held against that the readings after it have not confirmed (a GNSS receiver's first
     fixes)."""
+    CONTRADICTED = 1 << 12
+    """Another sensor on the board measured the same quantity and contradicts the value
+    beyond what both sensors' errors allow (a GNSS height or vertical velocity against the
+    barometer: imuhal.pipeline.crosscheck)."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

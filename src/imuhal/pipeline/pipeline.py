@@ -60,6 +60,7 @@ from imuhal.pipeline.containment import (
     driver_deadline_s,
     driver_timing,
 )
+from imuhal.pipeline.crosscheck import VerticalCrossCheck
 from imuhal.pipeline.learning import AccelTeacher, learned_by_default, learning_settings
 from imuhal.pipeline.processing import (
     calibrate_block,
@@ -391,6 +392,11 @@ class Pipeline:
             bring_up(driver, clock)
             self._joined(dev)
         self._device_rank = {name: i for i, name in enumerate(self.devices)}
+        self.vertical_check = _vertical_check(self.devices)
+        """GNSS heights and velD held against the board's barometer (None: the board lacks
+        one of the two; imuhal.pipeline.crosscheck)."""
+        self._checked_channels: frozenset[Quantity] = frozenset() \
+            if self.vertical_check is None else _CROSS_CHECKED
         for name, ecfg in profile.estimators.items():
             est_cls = registry.estimators.get(ecfg.estimator)
             estimator = est_cls(ecfg.settings, instance=name)
@@ -1209,6 +1215,9 @@ class Pipeline:
         channel = raw.channel
         flags = validity_flags(raw, dev.full_scale.get(channel), dev.last_valid_ns.get(channel))
         sample = raw if flags == raw.flags else raw.flagged(flags)
+        if channel in self._checked_channels:
+            assert self.vertical_check is not None
+            sample = self.vertical_check.observe(sample)
         dev.samples += 1
         if sample.flags:
             self._count_flags(dev, sample)
@@ -1241,6 +1250,10 @@ class Pipeline:
                                      dev.last_valid_ns.get(channel))
         if last is not None:
             dev.last_valid_ns[channel] = last
+        if channel in self._checked_channels:
+            assert self.vertical_check is not None
+            check = self.vertical_check.observe
+            block = Block.from_samples([check(s) for s in block.samples()], block.spec)
         dev.samples += len(block)
         if block.flagged:
             for sample in block.samples():
@@ -1511,6 +1524,20 @@ class _Expanded:
 
 BUFFERED_SOURCES = frozenset({TimeSource.CHIP_CLOCK, TimeSource.CHIP_FIFO})
 """Time sources of streams read from a chip's FIFO."""
+
+
+_CROSS_CHECKED = frozenset((Quantity.PRESSURE, Quantity.POSITION, Quantity.VELOCITY))
+"""The quantities the vertical cross-check sees (imuhal.pipeline.crosscheck)."""
+
+
+def _vertical_check(devices: dict[str, DeviceRuntime]) -> VerticalCrossCheck | None:
+    """The cross-check of a board with a GNSS receiver (a device stating position or
+    velocity) and a barometer (the first device stating pressure); None without both."""
+    channels = {name: type(dev.driver).channels for name, dev in devices.items()}
+    baro = next((name for name, chs in channels.items() if Quantity.PRESSURE in chs), None)
+    gnss = any(Quantity.POSITION in chs or Quantity.VELOCITY in chs
+               for chs in channels.values())
+    return VerticalCrossCheck(baro) if baro is not None and gnss else None
 
 
 def _frames(samples: list[Sample]) -> _Readings | list[Block]:
