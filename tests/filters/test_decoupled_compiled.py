@@ -14,15 +14,18 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass
 from functools import cache
+from typing import Any
 
 import numpy as np
 import pytest
 from tests.filters.ahrs_cases import FIELD_NED_UT
 from tests.filters.decoupled_flight_motion import flight
+from tests.filters.test_ahrs_blocks import _fifo_reads, _frame_by_frame, _pair
 
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.core.frames import quat_to_matrix
 from imuhal.core.samples import AccelSample, Frame, GyroSample, MagSample
+from imuhal.estimation.outputs import AttitudeBlock, rows_of
 from imuhal_filters.decoupled.core import DecoupledKernel
 from imuhal_filters.decoupled.estimator import DecoupledEstimator, DecoupledSettings
 from imuhal_filters.decoupled.fast import decoupled_sample
@@ -152,3 +155,38 @@ def test_the_offline_passes_give_the_python_floats(
     compiled = est.smooth(case.gyro, acc, case.mag)
     monkeypatch.setenv("IMUHAL_KERNELS", "python")
     assert np.array_equal(compiled, est.smooth(case.gyro, acc, case.mag))
+
+
+DECOUPLED_FIFO_CASES: list[tuple[dict[str, Any], str]] = [
+    ({}, "in"),
+    ({}, "apart"),
+    ({"nominal_airspeed_m_s": 10.0}, "apart"),
+    ({"use_mag": False, "dt_from_timestamps": False}, "in"),
+]
+
+
+@pytest.mark.parametrize(("settings", "with_mag"), DECOUPLED_FIFO_CASES,
+                         ids=[f"{','.join(map(str, s.values())) or 'defaults'}-mag-{m}"
+                              for s, m in DECOUPLED_FIFO_CASES])
+def test_fifo_reads_through_the_block_step_give_the_frames_one_by_one(
+        settings: dict, with_mag: str, compiled_backend: str) -> None:
+    """The block step (``decoupled_block``) on FIFO reads of 8 frames with the awkward
+    frames of tests/filters/test_ahrs_blocks.py (clipped values, stale held frames, a time
+    jump, a repeated time stamp: those reads go frame by frame): the estimates of
+    ``process()`` by ``repr``, as AttitudeBlocks from ``estimate_blocks`` too, the same
+    saved state; and it took most reads."""
+    est, ref = _pair("decoupled", settings)
+    by_block, _ = _pair("decoupled", settings)
+    assert est._has_block_step()
+    reads = _fifo_reads(8, with_mag)
+    got: list[Any] = []
+    blocks: list[Any] = []
+    for read in reads:
+        got += est.update_blocks(read)
+        blocks += by_block.estimate_blocks(read)
+    want = [repr(e) for e in _frame_by_frame(ref, reads)]
+    assert [repr(e) for e in got] == want
+    assert [repr(e) for e in rows_of(blocks)] == want
+    assert repr(est.get_state()) == repr(ref.get_state()) == repr(by_block.get_state())
+    imu_reads = sum(1 for read in reads if len(read) > 1)
+    assert sum(len(b) for b in blocks if isinstance(b, AttitudeBlock)) > 8 * imu_reads // 2

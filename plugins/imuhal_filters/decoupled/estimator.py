@@ -19,7 +19,10 @@ import numpy as np
 from pydantic import Field
 
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
+from imuhal.core.blocks import Block
 from imuhal.core.frames import FloatArray
+from imuhal.estimation.base import Estimator
+from imuhal.estimation.outputs import AttitudeBlock, Estimate
 from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
 from imuhal_filters.common.alignment import aligned_quaternion
 from imuhal_filters.common.fast import c_array
@@ -28,7 +31,7 @@ from imuhal_filters.common.innovation import ManoeuvreParams
 from imuhal_filters.common.quat import IDENTITY, Vec
 from imuhal_filters.decoupled.bias import BiasParams
 from imuhal_filters.decoupled.core import DecoupledKernel, DecoupledParams
-from imuhal_filters.decoupled.fast import decoupled_rows, decoupled_sample
+from imuhal_filters.decoupled.fast import decoupled_block, decoupled_rows, decoupled_sample
 from imuhal_filters.decoupled.packed import covers, grown, pack, params_array, unpack
 from imuhal_filters.decoupled.smoother import (
     PassRecord,
@@ -53,6 +56,15 @@ def _information(cov: FloatArray) -> FloatArray:
     return np.stack([A * r, (c * h - b * i) * r, (b * f - c * e) * r,
                      B * r, (a * i - c * g) * r, (c * d - a * f) * r,
                      C * r, (b * g - a * h) * r, (a * e - b * d) * r], axis=1).reshape(-1, 3, 3)
+
+
+_NO_TIMES = np.zeros(0, dtype=np.int64)
+_NO_ROWS = np.zeros((0, 3))
+_NO_VECTOR = np.zeros(3)
+
+
+def _times(block: Block) -> np.ndarray:
+    return np.ascontiguousarray(block.t_ns, dtype=np.int64)
 
 
 class DecoupledSettings(AhrsSettings):
@@ -247,6 +259,76 @@ class DecoupledEstimator(AhrsEstimator):
         k.start(self._q, k.bias)
         if self._sample_kernel is not None:
             self._pack()
+
+    # ------------------------------------------------------------------ block step
+    _block_call: Any = None
+
+    def _has_block_step(self) -> bool:
+        # the block step runs beside the per-sample one, on the same state arrays
+        if self._sample_kernel is None:
+            return False
+        if self._block_call is None:
+            self._block_call = decoupled_block.unchecked() if decoupled_block.available() \
+                else False
+        return self._block_call is not False
+
+    def _block_kernel(self) -> bool:
+        return self._has_block_step()
+
+    def _kernel_allowed(self) -> bool:
+        """The block step covers turn compensation by the nominal airspeed, not by a
+        velocity or airspeed source (then frame by frame)."""
+        return self._has_block_step() and not (
+            self.settings.turn_compensation and self._kinematics.has_speed_source)
+
+    def _row_kernel_blocks(self, gyro: Block, accel: Block | None, mag: Block | None
+                           ) -> list[Estimate | AttitudeBlock]:
+        """Blocks the block step does not take: the frames one by one (there is no row
+        kernel)."""
+        return list(Estimator.update_blocks(
+            self, [b for b in (accel, mag, gyro) if b is not None]))
+
+    def _block_step(self, gyro: Block, accel: Block | None, mag: Block | None
+                    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray] | None:
+        """``AhrsEstimator._block_step`` in ``decoupled_block`` (the same floats as the
+        frames one by one: tests/filters/test_decoupled_compiled.py)."""
+        if accel is None or not self._has_block_step():
+            return None
+        s = self.settings
+        m = len(gyro)
+        out, diag, dts, lin = np.empty((m, 4)), np.empty((m, 6)), np.empty(m), np.empty((m, 3))
+        speed = s.nominal_airspeed_m_s if s.turn_compensation else None
+        last = self._last_gyro_t_ns
+        mag_t, mag_v = (_NO_TIMES, _NO_ROWS) if mag is None else \
+            (_times(mag), c_array(mag.values))
+        held, held_t = self._mag_ut, self._mag_t_ns
+        max_age = s.max_aux_age_s
+        turn_sum, fallbacks, stale, ok = self._block_call(
+            self._state, self._params, self._look, _times(gyro), c_array(gyro.values),
+            _times(accel), c_array(accel.values), mag_t, mag_v, mag is not None,
+            self.uses_mag, s.use_mag, _NO_VECTOR if held is None else np.array(held),
+            0 if held_t is None else held_t, held is not None and held_t is not None,
+            math.nan if max_age is None else float(max_age), 0 if last is None else last,
+            last is not None, self._gyro_fs, self._accel_fs, float(s.sample_period_s),
+            s.dt_from_timestamps, float(s.max_dt_s), math.nan if speed is None else
+            float(speed), s.turn_compensation, self._kinematics.turn_sum, out, diag, dts, lin)
+        if not ok:
+            return None
+        self._block_step_done(gyro, accel, mag, fallbacks)
+        # the accelerometer frame the last step had (process() keeps it for a span of
+        # unfused frames after it, _span_starts)
+        self._step_accel = self._accel_m_s2
+        self._counters["stale_mag"] += stale
+        self._kernel_finished(out[-1], m, 0, turn_sum)
+        return out, diag, dts, lin
+
+    def _kernel_row_diagnostics(self, dts: FloatArray, diag: FloatArray, source: str
+                                ) -> list[dict[str, Any]]:
+        return [{"dt_s": dt, "turn_compensation": source, "rest_detected": r == 1.0,
+                 "mag_disturbed": None if d != d else d == 1.0,
+                 "gyro_bias_rad_s": [bx, by, bz], "accel_used": True, "mag_used": u == 1.0}
+                for dt, (r, d, bx, by, bz, u) in zip(dts.tolist(), diag.tolist(),
+                                                     strict=True)]
 
     def _compiled_step(self, gyro: Vec, accel_m_s2: Vec | None, mag: Vec | None, dt: float,
                        measured_m_s2: Vec | None) -> dict[str, Any]:

@@ -25,7 +25,9 @@ import math
 import numpy as np
 
 from imuhal_filters.common.fast import jit, per_sample_kernel
+from imuhal_filters.common.fast_ahrs import TO_G as _TO_G
 from imuhal_filters.common.fast_frames import linear_accel_ned
+from imuhal_filters.madgwick.fast import block_case, mag_rows_kernel, nominal_fused, step_lengths
 
 _G = 9.80665  # STANDARD_GRAVITY_M_S2
 _TWO_PI = 2.0 * math.pi
@@ -410,81 +412,119 @@ def _entry_dt(L, j):
 entry_dt = jit(_entry_dt)
 
 
+def _lb_close(S, P, L, head, count, weight):
+    """``LookBack._reweight_recent`` and (no episode yet) ``_start_episode``."""
+    cap = L.shape[0]
+    lookback_s = P[P_LB_S]
+    span = 0.0
+    for jj in range(count - 1, -1, -1):
+        if span >= lookback_s:
+            break
+        j = (head + jj) % cap
+        L[j, 4] = weight
+        span += L[j, 3]
+    if S[_LB + 2] == 0.0:
+        S[_LB + 2], S[_LB + 3] = 1.0, S[_LB]
+        d0, d1, d2 = 0.0, 0.0, 0.0
+        for jj in range(count):
+            j = (head + jj) % cap
+            d0 += L[j, 6] * L[j, 3]
+            d1 += L[j, 7] * L[j, 3]
+            d2 += L[j, 8] * L[j, 3]
+        S[_DV], S[_DV + 1], S[_DV + 2] = d0, d1, d2
+        S[_PEAK], S[_PEAK + 1], S[_PEAK + 2] = d0, d1, d2
+
+
+lb_close = jit(_lb_close)
+
+
+def _lb_came_back(S, P, i0, i1, i2, dt, rest):
+    """``LookBack._came_back``: fold one step into the episode; True when its velocity
+    change came back (the episode then ends, as it does beyond the speed bound or after
+    the detector's leak time)."""
+    S[_LB + 3] += dt
+    S[_DV] += i0 * dt
+    S[_DV + 1] += i1 * dt
+    S[_DV + 2] += i2 * dt
+    d0, d1, d2 = S[_DV], S[_DV + 1], S[_DV + 2]
+    p0, p1, p2 = S[_PEAK], S[_PEAK + 1], S[_PEAK + 2]
+    if d0 * d0 + d1 * d1 + d2 * d2 > p0 * p0 + p1 * p1 + p2 * p2:
+        S[_PEAK], S[_PEAK + 1], S[_PEAK + 2] = d0, d1, d2
+        p0, p1, p2 = d0, d1, d2
+    peak_sq = p0 * p0 + p1 * p1 + p2 * p2
+    tol = P[P_LB_TOL]
+    back = rest or (peak_sq > tol * tol
+                    and d0 * p0 + d1 * p1 + d2 * p2 <= tol * math.sqrt(peak_sq))
+    speed = P[P_M_SPEED]
+    if back or peak_sq > speed * speed or S[_LB + 3] > P[P_M_LEAK]:
+        S[_LB + 2], S[_LB + 3] = 0.0, 0.0
+    return back
+
+
+lb_came_back = jit(_lb_came_back)
+
+
+def _lb_replay(S, L, head, count, sigma):
+    """``LookBack._replay``: the kept input filtered again from the state before it."""
+    cap = L.shape[0]
+    x = np.empty(3)
+    S[_ACCF] = 1.0
+    for i in range(6):
+        S[_ACCF + 1 + i] = S[_BEFORE + 1 + i]
+    for jj in range(count):
+        j = (head + jj) % cap
+        x[0], x[1], x[2] = L[j, 0], L[j, 1], L[j, 2]
+        bw_step(S, _ACCF, x, 3, entry_dt(L, j), sigma)
+
+
+lb_replay = jit(_lb_replay)
+
+
+def _lb_trim(S, P, L, head, count, sigma):
+    """``LookBack._trim``: only the last ``lookback_s`` kept; what leaves goes into the
+    filter before it. Returns the new head and count."""
+    cap = L.shape[0]
+    x = np.empty(3)
+    while S[_LB] > P[P_LB_S] and count > 0:
+        S[_LB] -= L[head, 3]
+        x[0], x[1], x[2] = L[head, 0], L[head, 1], L[head, 2]
+        bw_step(S, _BEFORE, x, 3, entry_dt(L, head), sigma)
+        head = (head + 1) % cap
+        count -= 1
+    return head, count
+
+
+lb_trim = jit(_lb_trim)
+
+
 def _lookback_step(S, P, L, a0, a1, a2, dt, weight, base, i0, i1, i2, rest, pace):
     """``LookBack.step`` on the accelerometer filter's slot: returns the weight and
     whether the filter's state was replaced."""
     cap = L.shape[0]
     head, count = int(S[_HEAD]), int(S[_HEAD + 1])
-    lookback_s = P[P_LB_S]
     sigma = 1.0 / P[P_TAU_ACC]
     replaced = False
     closing = weight < 0.5 and S[_LB + 1] >= 0.5
     S[_LB + 1] = weight
     if closing and count > 0 and S[_BEFORE] != 0.0:
-        span = 0.0
-        for jj in range(count - 1, -1, -1):
-            if span >= lookback_s:
-                break
-            j = (head + jj) % cap
-            L[j, 4] = weight
-            span += L[j, 3]
-        if S[_LB + 2] == 0.0:
-            S[_LB + 2], S[_LB + 3] = 1.0, S[_LB]
-            d0, d1, d2 = 0.0, 0.0, 0.0
-            for jj in range(count):
-                j = (head + jj) % cap
-                d0 += L[j, 6] * L[j, 3]
-                d1 += L[j, 7] * L[j, 3]
-                d2 += L[j, 8] * L[j, 3]
-            S[_DV], S[_DV + 1], S[_DV + 2] = d0, d1, d2
-            S[_PEAK], S[_PEAK + 1], S[_PEAK + 2] = d0, d1, d2
+        lb_close(S, P, L, head, count, weight)
         replaced = True
-    if S[_LB + 2] != 0.0:
-        # _came_back
-        S[_LB + 3] += dt
-        S[_DV] += i0 * dt
-        S[_DV + 1] += i1 * dt
-        S[_DV + 2] += i2 * dt
-        d0, d1, d2 = S[_DV], S[_DV + 1], S[_DV + 2]
-        p0, p1, p2 = S[_PEAK], S[_PEAK + 1], S[_PEAK + 2]
-        if d0 * d0 + d1 * d1 + d2 * d2 > p0 * p0 + p1 * p1 + p2 * p2:
-            S[_PEAK], S[_PEAK + 1], S[_PEAK + 2] = d0, d1, d2
-            p0, p1, p2 = d0, d1, d2
-        peak_sq = p0 * p0 + p1 * p1 + p2 * p2
-        tol = P[P_LB_TOL]
-        back = rest or (peak_sq > tol * tol
-                        and d0 * p0 + d1 * p1 + d2 * p2 <= tol * math.sqrt(peak_sq))
-        speed = P[P_M_SPEED]
-        if back or peak_sq > speed * speed or S[_LB + 3] > P[P_M_LEAK]:
-            S[_LB + 2], S[_LB + 3] = 0.0, 0.0
-        if back:
-            for jj in range(count):
-                j = (head + jj) % cap
-                L[j, 4] = L[j, 5]
-            weight = base
-            S[_READM] += 1.0
-            replaced = True
-    x = np.empty(3)
-    if replaced:
-        S[_ACCF] = 1.0
-        for i in range(6):
-            S[_ACCF + 1 + i] = S[_BEFORE + 1 + i]
+    if S[_LB + 2] != 0.0 and lb_came_back(S, P, i0, i1, i2, dt, rest):
         for jj in range(count):
             j = (head + jj) % cap
-            x[0], x[1], x[2] = L[j, 0], L[j, 1], L[j, 2]
-            bw_step(S, _ACCF, x, 3, entry_dt(L, j), sigma)
+            L[j, 4] = L[j, 5]
+        weight = base
+        S[_READM] += 1.0
+        replaced = True
+    if replaced:
+        lb_replay(S, L, head, count, sigma)
     j = (head + count) % cap
     L[j, 0], L[j, 1], L[j, 2], L[j, 3], L[j, 4] = a0, a1, a2, dt, weight
     L[j, 5], L[j, 6], L[j, 7], L[j, 8], L[j, 9] = base, i0, i1, i2, pace
     count += 1
     S[_LB] += dt
     if S[_LB + 2] == 0.0:
-        while S[_LB] > lookback_s and count > 0:
-            S[_LB] -= L[head, 3]
-            x[0], x[1], x[2] = L[head, 0], L[head, 1], L[head, 2]
-            bw_step(S, _BEFORE, x, 3, entry_dt(L, head), sigma)
-            head = (head + 1) % cap
-            count -= 1
+        head, count = lb_trim(S, P, L, head, count, sigma)
     S[_HEAD], S[_HEAD + 1] = float(head), float(count)
     return weight, replaced
 
@@ -653,3 +693,56 @@ decoupled_rows = jit(
     gyro="f8[:, ::1]", acc_g="f8[:, ::1]", mag="f8[:, ::1]", have_mag="b1", dt="f8",
     bias="f8[:, ::1]", cov="f8[:, ::1]", disturbed="b1[::1]")
 """The row kernel of the offline passes."""
+
+
+def _decoupled_block(S, P, L, t_g, gyro, t_a, accel, t_m, mag, mag_block, keep_mag, use_mag,
+                     held_mag, held_mag_t, has_held_mag, max_age, last_t, has_last, gyro_fs,
+                     accel_fs, nominal_dt, dt_from_ts, max_dt, speed, turn_on, turn_sum, out,
+                     diag, dts, lin):
+    """A FIFO read's frames in one call, as ``madgwick_block`` takes them (its helpers: the
+    common case of ``common/rows.py``'s ``block_rows``, the step lengths, the held or
+    stale magnetometer, the turn compensation by the nominal airspeed ``speed``, NaN:
+    none), each step ``DecoupledKernel.step``. ``out`` gets the quaternion after each
+    step, ``lin`` the gravity-compensated acceleration (NED) of the measured specific
+    force, ``diag`` its rest_detected, mag_disturbed (NaN: no magnetometer this step), the
+    gyro bias (3) and mag_used. Returns the turn-rate sum, the step lengths that fell back
+    to nominal, the stale magnetometer steps and True; or False with nothing written or
+    changed (not the common case, or the look-back ring could fill: the frames one by
+    one decide)."""
+    m = t_g.shape[0]
+    if S[_HEAD + 1] + m + 1.0 >= L.shape[0] or not block_case(
+            t_g, gyro, t_a, accel, t_m, mag, mag_block, keep_mag, gyro_fs, accel_fs):
+        return turn_sum, 0, 0, False
+    fallbacks = step_lengths(t_g, last_t, has_last, nominal_dt, dt_from_ts, max_dt, dts)
+    mag_rows, stale = mag_rows_kernel(t_g, mag, mag_block, keep_mag, held_mag, held_mag_t,
+                                      has_held_mag, max_age)
+    fused = nominal_fused(gyro, accel, speed)
+    for i in range(m):
+        gx, gy, gz = gyro[i, 0], gyro[i, 1], gyro[i, 2]
+        if turn_on:
+            turn_sum += math.sqrt(gx ** 2 + gy ** 2 + gz ** 2)
+        have_m = use_mag and not math.isnan(mag_rows[i, 0])
+        w, x, y, z = decoupled_step_kernel(
+            S, P, L, gx, gy, gz, True, fused[i, 0] * _TO_G, fused[i, 1] * _TO_G,
+            fused[i, 2] * _TO_G, have_m, mag_rows[i, 0], mag_rows[i, 1], mag_rows[i, 2],
+            dts[i])
+        out[i, 0], out[i, 1], out[i, 2], out[i, 3] = w, x, y, z
+        lin[i, 0], lin[i, 1], lin[i, 2] = linear_accel_ned(w, x, y, z, accel[i, 0],
+                                                           accel[i, 1], accel[i, 2])
+        disturbed = S[_MDIST] != 0.0
+        diag[i, 0] = 1.0 if S[_REST_S] >= P[P_REST_MIN] else 0.0
+        diag[i, 1] = (1.0 if disturbed else 0.0) if have_m else np.nan
+        diag[i, 2], diag[i, 3], diag[i, 4] = S[_B], S[_B + 1], S[_B + 2]
+        diag[i, 5] = 1.0 if have_m and not disturbed else 0.0
+    return turn_sum, fallbacks, stale, True
+
+
+decoupled_block = jit(
+    _decoupled_block, returns="Tuple((f8, i8, i8, b1))", S="f8[::1]", P="f8[::1]",
+    L="f8[:, ::1]", t_g="i8[::1]", gyro="f8[:, ::1]", t_a="i8[::1]", accel="f8[:, ::1]",
+    t_m="i8[::1]", mag="f8[:, ::1]", mag_block="b1", keep_mag="b1", use_mag="b1",
+    held_mag="f8[::1]", held_mag_t="i8", has_held_mag="b1", max_age="f8", last_t="i8",
+    has_last="b1", gyro_fs="f8", accel_fs="f8", nominal_dt="f8", dt_from_ts="b1",
+    max_dt="f8", speed="f8", turn_on="b1", turn_sum="f8", out="f8[:, ::1]",
+    diag="f8[:, ::1]", dts="f8[::1]", lin="f8[:, ::1]")
+"""The block step (the extension, or numba on the first call)."""
