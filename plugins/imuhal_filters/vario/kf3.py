@@ -96,10 +96,6 @@ class Kalman3:
         self.mode = Kf3Mode(mode)
         self.reference = REFERENCES[self.mode]
         ref = self.reference
-        self._F = np.eye(3)
-        """The transition matrix; ``predict`` writes its dt entries."""
-        self._Q = np.zeros((3, 3))
-        """The process noise; ``predict`` writes its entries."""
         self.configure(ref.z_meas_variance, ref.accel_variance, ref.bias_variance, 0.0, 0.0, 0.0)
 
     def configure(
