@@ -1,5 +1,6 @@
 """The decoupled filter's compiled step (imuhal_filters/decoupled/fast.py) gives the Python
-step's floats (core.py, the reference), bit for bit, on numba's JIT and on the AOT extension.
+step's floats (core.py, the reference), bit for bit, on the AOT extension (and on numba's
+JIT with ``-m long``).
 
 One seeded 13 s case, shared: 3 s still (the rest detector and its bias updates) with a
 stroke by hand (pushed, then braked back: an episode filtered again in full), then a
@@ -30,6 +31,12 @@ from imuhal_filters.decoupled.core import DecoupledKernel
 from imuhal_filters.decoupled.estimator import DecoupledEstimator, DecoupledSettings
 from imuhal_filters.decoupled.fast import decoupled_sample
 from imuhal_filters.decoupled.packed import covers, grown, pack, params_array, unpack
+
+BACKENDS = pytest.mark.parametrize(
+    "compiled_backend", ["aot", pytest.param("jit", marks=pytest.mark.long)], indirect=True)
+"""The AOT extension (built once per session for every compiled test) by default; numba's
+JIT on demand (``-m long``): compiling the decoupled kernels on it costs about 20 s of CPU
+per process (docs/performance.md), which the default suite does not pay."""
 
 STILL_S = 3.0
 MAG_PULLED = (7.0, 9.0)
@@ -91,6 +98,7 @@ def test_the_case_meets_rest_episodes_readmission_and_a_disturbed_field() -> Non
     assert covers(_params().params())
 
 
+@BACKENDS
 def test_compiled_step_gives_the_python_floats(compiled_backend: str) -> None:
     case = _case()
     p = _params().params()
@@ -139,6 +147,7 @@ def _estimates(case: Case, compiled: bool) -> list[str]:
     return out
 
 
+@BACKENDS
 def test_the_estimator_on_the_compiled_step_gives_the_python_estimates(
         compiled_backend: str, monkeypatch: pytest.MonkeyPatch) -> None:
     case = _case()
@@ -147,6 +156,7 @@ def test_the_estimator_on_the_compiled_step_gives_the_python_estimates(
     assert compiled == _estimates(case, False)
 
 
+@BACKENDS
 def test_the_offline_passes_give_the_python_floats(
         compiled_backend: str, monkeypatch: pytest.MonkeyPatch) -> None:
     case = _case()
@@ -165,6 +175,7 @@ DECOUPLED_FIFO_CASES: list[tuple[dict[str, Any], str]] = [
 ]
 
 
+@BACKENDS
 @pytest.mark.parametrize(("settings", "with_mag"), DECOUPLED_FIFO_CASES,
                          ids=[f"{','.join(map(str, s.values())) or 'defaults'}-mag-{m}"
                               for s, m in DECOUPLED_FIFO_CASES])
