@@ -438,8 +438,12 @@ class DecoupledEstimator(AhrsEstimator):
         bias, info = np.zeros((n, 3)), np.zeros((n, 3, 3))
         disturbed = np.zeros(n, dtype=bool)
         dt = self.settings.sample_period_s
-        if covers(k.p) and decoupled_rows.available():
-            info = _information(self._compiled_pass(k, sign * gyro, acc_g, mag, bias,
+        # the row kernel where the AOT extension has it (or IMUHAL_KERNELS=jit forces the
+        # JIT), as the per-sample step: compiling the whole step on numba's JIT costs about
+        # 20 s of CPU at the first use in a process with a cold cache (docs/performance.md)
+        rows = decoupled_rows.per_sample() if covers(k.p) else None
+        if rows is not None:
+            info = _information(self._compiled_pass(rows, k, sign * gyro, acc_g, mag, bias,
                                                     disturbed))
             return PassRecord(sign * bias, info, disturbed)
         gyros, accs = (sign * gyro).tolist(), acc_g.tolist()
@@ -451,15 +455,15 @@ class DecoupledEstimator(AhrsEstimator):
             disturbed[i] = k.mag_disturbed
         return PassRecord(sign * bias, info, disturbed)
 
-    def _compiled_pass(self, k: DecoupledKernel, gyro: FloatArray, acc_g: FloatArray,
-                       mag: FloatArray | None, bias: FloatArray, disturbed: np.ndarray
-                       ) -> FloatArray:
-        """``_pass``'s rows through the compiled row kernel from ``k``'s state: fills
-        ``bias`` and ``disturbed``; returns the bias covariance after each row (n, 9)."""
+    def _compiled_pass(self, rows: Any, k: DecoupledKernel, gyro: FloatArray,
+                       acc_g: FloatArray, mag: FloatArray | None, bias: FloatArray,
+                       disturbed: np.ndarray) -> FloatArray:
+        """``_pass``'s rows through the compiled row kernel ``rows`` from ``k``'s state:
+        fills ``bias`` and ``disturbed``; returns the bias covariance after each row
+        (n, 9)."""
         n = gyro.shape[0]
         state, look = pack(k)
         cov = np.zeros((n, 9))
-        rows = decoupled_rows.unchecked()
         g, a = c_array(gyro), c_array(acc_g)
         m = np.zeros((n, 3)) if mag is None else c_array(mag)
         done = 0
