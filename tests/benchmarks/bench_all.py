@@ -727,17 +727,19 @@ def block_rows(duration_s: float) -> list[Row]:
     ]
 
 
-def board_and_block_rows(duration_s: float, skip: list[str]) -> list[Row]:
+def board_and_block_rows(duration_s: float, skip: list[str], kernel_dir: Path | None = None
+                         ) -> list[Row]:
     """The board and blocks sections as a board runs by default: ``auto`` kernels with the
-    AOT extension built from the sources as they are (the compiled per-sample steps), or
-    numba's JIT row kernels and the Python step where it cannot be built (said on stderr)."""
+    AOT extension built from the sources as they are (the compiled per-sample steps; or
+    the one ``kernel_dir`` holds, built from them), or numba's JIT row kernels and the
+    Python step where it cannot be built (said on stderr)."""
     with tempfile.TemporaryDirectory() as tmp:
-        failed = build_kernels(Path(tmp))
+        failed = None if kernel_dir is not None else build_kernels(Path(tmp))
         if failed is not None:
             print(f"board and blocks rows without the AOT extension: {failed}",
                   file=sys.stderr)
         rows: list[Row] = []
-        with kernels("auto", None if failed is not None else Path(tmp)):
+        with kernels("auto", None if failed is not None else kernel_dir or Path(tmp)):
             if "board" not in skip:
                 rows += board_rows(duration_s)
                 rows += hardware_path_rows(duration_s)
@@ -808,6 +810,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--rows", type=int, default=200_000,
                    help="rows of the `imuhal estimate` case (the issue's target is 2000000)")
     p.add_argument("--board-s", type=float, default=60.0, help="simulated s of the board case")
+    p.add_argument("--kernel-dir", type=Path, help="board and blocks sections: a kernel "
+                   "directory `imuhal kernels build` made from these sources (default: build "
+                   "one first)")
     p.add_argument("--skip", action="append", default=[],
                    choices=["peers", "estimators", "estimate", "board", "blocks"])
     p.add_argument("--markdown", action="store_true", help="print a Markdown table")
@@ -842,7 +847,7 @@ def main(argv: list[str] | None = None) -> int:
         upd = next((r.value for r in rows if r.case == "madgwick update()"), 1.0)
         rows += estimate_rows(args.rows, upd)
     if "board" not in args.skip or "blocks" not in args.skip:
-        rows += board_and_block_rows(args.board_s, args.skip)
+        rows += board_and_block_rows(args.board_s, args.skip, args.kernel_dir)
     print(render(rows, args.markdown))
     load = " / ".join(f"{v:.1f}" for v in os.getloadavg())
     print(f"\nCPU time; load average {load} (1 / 5 / 15 min) at the end; "

@@ -1297,6 +1297,12 @@ class AhrsEstimator(Estimator):
                     for t, (w, x, y, z), (lx, ly, lz), d in zip(
                         gyro.t_ns.tolist(), q_rows.tolist(), lin_rows.tolist(), rows_diag,
                         strict=True)]
+        return self._row_kernel_blocks(gyro, accel, mag)
+
+    def _row_kernel_blocks(self, gyro: Block, accel: Block | None, mag: Block | None
+                           ) -> list[Estimate | AttitudeBlock]:
+        """``_kernel_blocks`` for blocks the block step does not take: ``block_rows``'s
+        bookkeeping on arrays around the row kernel."""
         steps = block_rows(self, gyro, accel, mag)
         m = len(steps)
         if m == 0:

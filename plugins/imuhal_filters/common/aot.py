@@ -44,6 +44,7 @@ KERNEL_MODULES = (
     "imuhal_filters.imufilter.fast",
     "imuhal_filters.freescale.fast",
     "imuhal_filters.vario.fast",
+    "imuhal_filters.decoupled.fast",
 )
 """Every module with kernels: the build compiles the exported kernels of each."""
 

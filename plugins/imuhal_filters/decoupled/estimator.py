@@ -19,13 +19,20 @@ import numpy as np
 from pydantic import Field
 
 from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
+from imuhal.core.blocks import Block
 from imuhal.core.frames import FloatArray
+from imuhal.estimation.base import Estimator
+from imuhal.estimation.outputs import AttitudeBlock, Estimate
 from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
 from imuhal_filters.common.alignment import aligned_quaternion
+from imuhal_filters.common.fast import c_array
+from imuhal_filters.common.gate import gravity_positive_g
 from imuhal_filters.common.innovation import ManoeuvreParams
-from imuhal_filters.common.quat import IDENTITY
+from imuhal_filters.common.quat import IDENTITY, Vec
 from imuhal_filters.decoupled.bias import BiasParams
 from imuhal_filters.decoupled.core import DecoupledKernel, DecoupledParams
+from imuhal_filters.decoupled.fast import decoupled_block, decoupled_rows, decoupled_sample
+from imuhal_filters.decoupled.packed import covers, grown, pack, params_array, unpack
 from imuhal_filters.decoupled.smoother import (
     PassRecord,
     apply_heading,
@@ -38,6 +45,26 @@ from imuhal_filters.decoupled.smoother import (
     strapdown,
     zero_phase,
 )
+
+
+def _information(cov: FloatArray) -> FloatArray:
+    """(n, 3, 3) inverses of (n, 9) covariances: ``bias.inv3`` row by row, elementwise (the
+    same IEEE operations, so the same floats as ``GyroBiasKalman.information``)."""
+    a, b, c, d, e, f, g, h, i = (cov[:, j] for j in range(9))
+    A, B, C = e * i - f * h, f * g - d * i, d * h - e * g
+    r = 1.0 / (a * A + b * B + c * C)
+    return np.stack([A * r, (c * h - b * i) * r, (b * f - c * e) * r,
+                     B * r, (a * i - c * g) * r, (c * d - a * f) * r,
+                     C * r, (b * g - a * h) * r, (a * e - b * d) * r], axis=1).reshape(-1, 3, 3)
+
+
+_NO_TIMES = np.zeros(0, dtype=np.int64)
+_NO_ROWS = np.zeros((0, 3))
+_NO_VECTOR = np.zeros(3)
+
+
+def _times(block: Block) -> np.ndarray:
+    return np.ascontiguousarray(block.t_ns, dtype=np.int64)
 
 
 class DecoupledSettings(AhrsSettings):
@@ -208,9 +235,124 @@ class DecoupledEstimator(AhrsEstimator):
     def _reset_filter(self) -> None:
         self._kernel = DecoupledKernel(self.settings.params())
         self._kernel.start(self._q)
+        # the compiled step where it pays (the AOT extension; fast.py) and covers the
+        # settings (packed.covers); its state lives in arrays packed from the kernel, which
+        # is brought up to date (_synced) before anything reads it
+        self._sample_kernel = None
+        if not self.settings.offline and covers(self._kernel.p):
+            self._sample_kernel = decoupled_sample.per_sample()
+        if self._sample_kernel is not None:
+            self._params = params_array(self._kernel.p)
+            self._pack()
+
+    def _pack(self) -> None:
+        self._state, self._look = pack(self._kernel)
+
+    def _synced(self) -> DecoupledKernel:
+        """The kernel, with the compiled step's state written back into it."""
+        if self._sample_kernel is not None:
+            unpack(self._state, self._look, self._kernel)
+        return self._kernel
 
     def _on_aligned(self) -> None:
-        self._kernel.start(self._q, self._kernel.bias)
+        k = self._synced()
+        k.start(self._q, k.bias)
+        if self._sample_kernel is not None:
+            self._pack()
+
+    # ------------------------------------------------------------------ block step
+    _block_call: Any = None
+
+    def _has_block_step(self) -> bool:
+        # the block step runs beside the per-sample one, on the same state arrays
+        if self._sample_kernel is None:
+            return False
+        if self._block_call is None:
+            self._block_call = decoupled_block.unchecked() if decoupled_block.available() \
+                else False
+        return self._block_call is not False
+
+    def _block_kernel(self) -> bool:
+        return self._has_block_step()
+
+    def _kernel_allowed(self) -> bool:
+        """The block step covers turn compensation by the nominal airspeed, not by a
+        velocity or airspeed source (then frame by frame)."""
+        return self._has_block_step() and not (
+            self.settings.turn_compensation and self._kinematics.has_speed_source)
+
+    def _row_kernel_blocks(self, gyro: Block, accel: Block | None, mag: Block | None
+                           ) -> list[Estimate | AttitudeBlock]:
+        """Blocks the block step does not take: the frames one by one (there is no row
+        kernel)."""
+        return list(Estimator.update_blocks(
+            self, [b for b in (accel, mag, gyro) if b is not None]))
+
+    def _block_step(self, gyro: Block, accel: Block | None, mag: Block | None
+                    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray] | None:
+        """``AhrsEstimator._block_step`` in ``decoupled_block`` (the same floats as the
+        frames one by one: tests/filters/test_decoupled_compiled.py)."""
+        if accel is None or not self._has_block_step():
+            return None
+        s = self.settings
+        m = len(gyro)
+        out, diag, dts, lin = np.empty((m, 4)), np.empty((m, 6)), np.empty(m), np.empty((m, 3))
+        speed = s.nominal_airspeed_m_s if s.turn_compensation else None
+        last = self._last_gyro_t_ns
+        mag_t, mag_v = (_NO_TIMES, _NO_ROWS) if mag is None else \
+            (_times(mag), c_array(mag.values))
+        held, held_t = self._mag_ut, self._mag_t_ns
+        max_age = s.max_aux_age_s
+        turn_sum, fallbacks, stale, ok = self._block_call(
+            self._state, self._params, self._look, _times(gyro), c_array(gyro.values),
+            _times(accel), c_array(accel.values), mag_t, mag_v, mag is not None,
+            self.uses_mag, s.use_mag, _NO_VECTOR if held is None else np.array(held),
+            0 if held_t is None else held_t, held is not None and held_t is not None,
+            math.nan if max_age is None else float(max_age), 0 if last is None else last,
+            last is not None, self._gyro_fs, self._accel_fs, float(s.sample_period_s),
+            s.dt_from_timestamps, float(s.max_dt_s), math.nan if speed is None else
+            float(speed), s.turn_compensation, self._kinematics.turn_sum, out, diag, dts, lin)
+        if not ok:
+            return None
+        self._block_step_done(gyro, accel, mag, fallbacks)
+        # the accelerometer frame the last step had (process() keeps it for a span of
+        # unfused frames after it, _span_starts)
+        self._step_accel = self._accel_m_s2
+        self._counters["stale_mag"] += stale
+        self._kernel_finished(out[-1], m, 0, turn_sum)
+        return out, diag, dts, lin
+
+    def _kernel_row_diagnostics(self, dts: FloatArray, diag: FloatArray, source: str
+                                ) -> list[dict[str, Any]]:
+        return [{"dt_s": dt, "turn_compensation": source, "rest_detected": r == 1.0,
+                 "mag_disturbed": None if d != d else d == 1.0,
+                 "gyro_bias_rad_s": [bx, by, bz], "accel_used": True, "mag_used": u == 1.0}
+                for dt, (r, d, bx, by, bz, u) in zip(dts.tolist(), diag.tolist(),
+                                                     strict=True)]
+
+    def _compiled_step(self, gyro: Vec, accel_m_s2: Vec | None, mag: Vec | None, dt: float,
+                       measured_m_s2: Vec | None) -> dict[str, Any]:
+        """``_step`` in the compiled per-sample kernel: the same floats (tests compare them)."""
+        s = self._state
+        if s[-1] + 2.0 > self._look.shape[0]:
+            # a step keeps at most one more look-back entry; the ring fills only while an
+            # episode keeps its input: grow it
+            self._look = grown(s, self._look)
+        a = accel_m_s2 is not None
+        ax, ay, az = gravity_positive_g(accel_m_s2) if a else (0.0, 0.0, 0.0)  # type: ignore[arg-type]  # a: accel_m_s2 given
+        use_m = mag is not None and self.settings.use_mag
+        mx, my, mz = mag if use_m else (0.0, 0.0, 0.0)  # type: ignore[misc]  # use_m: mag given
+        fx, fy, fz = (0.0, 0.0, 0.0) if measured_m_s2 is None else measured_m_s2
+        gx, gy, gz = gyro
+        w, x, y, z, lx, ly, lz, rest, disturbed = self._sample_kernel(
+            s, self._params, self._look, gx, gy, gz, a, ax, ay, az, use_m, mx, my, mz, dt,
+            fx, fy, fz)
+        self._q = (w, x, y, z)
+        self._linear_ned = (lx, ly, lz)
+        return {"dt_s": dt, "turn_compensation": self._kinematics.source,
+                "rest_detected": rest, "mag_disturbed": disturbed if use_m else None,
+                "gyro_bias_rad_s": s[44:47].tolist(), "accel_used": a,
+                "mag_used": use_m and not disturbed}
 
     def _step(self, step: ImuStep) -> dict[str, Any]:
         if self.settings.offline:
@@ -228,7 +370,7 @@ class DecoupledEstimator(AhrsEstimator):
         }
 
     def _filter_state(self) -> dict[str, Any]:
-        k = self._kernel
+        k = self._synced()
         return {"q_gyro": list(k.q_gyro), "q_inc": list(k.q_inc), "delta_rad": k.delta_rad,
                 "acc_i": None if k.acc_i is None else list(k.acc_i),
                 "acc_filter": k._acc_filter.state, "r_filter": k._r_filter.state,
@@ -270,6 +412,8 @@ class DecoupledEstimator(AhrsEstimator):
             self._load_manoeuvre(state)
         if k.pace is not None and state.get("pace") is not None:  # absent before the pace
             k.pace.load_list(state["pace"])
+        if self._sample_kernel is not None:
+            self._pack()
 
     def _load_manoeuvre(self, state: dict[str, Any]) -> None:
         """The manoeuvre detector and the look-back (absent before them; a look-back saved
@@ -294,6 +438,14 @@ class DecoupledEstimator(AhrsEstimator):
         bias, info = np.zeros((n, 3)), np.zeros((n, 3, 3))
         disturbed = np.zeros(n, dtype=bool)
         dt = self.settings.sample_period_s
+        # the row kernel where the AOT extension has it (or IMUHAL_KERNELS=jit forces the
+        # JIT), as the per-sample step: compiling the whole step on numba's JIT costs about
+        # 20 s of CPU at the first use in a process with a cold cache (docs/performance.md)
+        rows = decoupled_rows.per_sample() if covers(k.p) else None
+        if rows is not None:
+            info = _information(self._compiled_pass(rows, k, sign * gyro, acc_g, mag, bias,
+                                                    disturbed))
+            return PassRecord(sign * bias, info, disturbed)
         gyros, accs = (sign * gyro).tolist(), acc_g.tolist()
         mags = None if mag is None else mag.tolist()
         for i in range(n):
@@ -302,6 +454,26 @@ class DecoupledEstimator(AhrsEstimator):
             info[i] = k.kf.information()
             disturbed[i] = k.mag_disturbed
         return PassRecord(sign * bias, info, disturbed)
+
+    def _compiled_pass(self, rows: Any, k: DecoupledKernel, gyro: FloatArray,
+                       acc_g: FloatArray, mag: FloatArray | None, bias: FloatArray,
+                       disturbed: np.ndarray) -> FloatArray:
+        """``_pass``'s rows through the compiled row kernel ``rows`` from ``k``'s state:
+        fills ``bias`` and ``disturbed``; returns the bias covariance after each row
+        (n, 9)."""
+        n = gyro.shape[0]
+        state, look = pack(k)
+        cov = np.zeros((n, 9))
+        g, a = c_array(gyro), c_array(acc_g)
+        m = np.zeros((n, 3)) if mag is None else c_array(mag)
+        done = 0
+        while done < n:
+            done += int(rows(state, params_array(k.p), look, g[done:], a[done:], m[done:],
+                             mag is not None, self.settings.sample_period_s, bias[done:],
+                             cov[done:], disturbed[done:]))
+            if done < n:
+                look = grown(state, look)
+        return cov
 
     def smooth(self, gyro_rad_s: FloatArray, accel_m_s2: FloatArray,
                mag_ut: FloatArray | None) -> FloatArray:

@@ -96,10 +96,6 @@ class Kalman3:
         self.mode = Kf3Mode(mode)
         self.reference = REFERENCES[self.mode]
         ref = self.reference
-        self._F = np.eye(3)
-        """The transition matrix; ``predict`` writes its dt entries."""
-        self._Q = np.zeros((3, 3))
-        """The process noise; ``predict`` writes its entries."""
         self.configure(ref.z_meas_variance, ref.accel_variance, ref.bias_variance, 0.0, 0.0, 0.0)
 
     def configure(
@@ -139,9 +135,12 @@ class Kalman3:
     def predict(self, a_meas: float, dt: float) -> None:
         """Propagate by ``dt`` seconds with measured vertical acceleration ``a_meas`` (cm/s^2,
         up +, gravity removed, bias still in it)."""
-        # The state and the update run on plain floats (the same IEEE operations numpy does
-        # element by element, without a numpy scalar per operation); the covariance product
-        # stays numpy's matrix product, whose summation a plain-float loop need not match.
+        # The state, the update and the covariance all run on plain floats. The covariance
+        # product F P F^T is written out in the order of the compiled batch kernel
+        # (vario/fast.py: row times column, terms summed left to right), with F's zeros and
+        # ones left out (0 * p and 1 * p add nothing to a finite sum): numpy's 3 x 3 `@`
+        # entered OpenBLAS cold on every barometer sample, 17-53 us where its arithmetic is a
+        # few dozen flops (docs/performance.md), and summed in its own order.
         ref = self.reference
         z, v, b = self.x.tolist()
         accel = a_meas - b
@@ -157,20 +156,23 @@ class Kalman3:
             lo, hi = AVARIO_ACCEL_VARIANCE_RANGE
             variance = abs(accel) / AVARIO_ACCEL_VARIANCE_DIVISOR
             self.accel_variance = float(min(max(variance, lo), hi))
-        # The covariance follows the exact transition F either way: the references differ
-        # only in how they advance the state. F and Q are filled in place (their other
-        # entries never change).
         dt2 = dt * dt
-        F, Q = self._F, self._Q
-        F[0, 1] = dt
-        F[0, 2] = -0.5 * dt2
-        F[1, 2] = -dt
+        f01, f02, f12 = dt, -0.5 * dt2, -dt
         sa2 = self.accel_variance
-        Q[0, 0] = 0.25 * dt2 * dt2 * sa2
-        Q[0, 1] = Q[1, 0] = 0.5 * dt2 * dt * sa2
-        Q[1, 1] = dt2 * sa2
-        Q[2, 2] = self.bias_variance
-        self.P = F @ self.P @ F.T + Q
+        q00 = 0.25 * dt2 * dt2 * sa2
+        q01 = 0.5 * dt2 * dt * sa2
+        q11 = dt2 * sa2
+        (p00, p01, p02), (p10, p11, p12), (p20, p21, p22) = self.P.tolist()
+        # T = F P (F's rows: (1, dt, -dt^2/2), (0, 1, -dt), (0, 0, 1))
+        t00, t01, t02 = p00 + f01 * p10 + f02 * p20, p01 + f01 * p11 + f02 * p21, \
+            p02 + f01 * p12 + f02 * p22
+        t10, t11, t12 = p10 + f12 * p20, p11 + f12 * p21, p12 + f12 * p22
+        # F P F^T + Q: each row of T times F's rows
+        self.P = np.array([
+            [t00 + t01 * f01 + t02 * f02 + q00, t01 + t02 * f12 + q01, t02],
+            [t10 + t11 * f01 + t12 * f02 + q01, t11 + t12 * f12 + q11, t12],
+            [p20 + p21 * f01 + p22 * f02, p21 + p22 * f12, p22 + self.bias_variance],
+        ])
 
     def update(self, z_meas: float) -> float:
         """Fuse one barometric altitude (cm); return the innovation (cm)."""
