@@ -40,14 +40,15 @@ def why_no_build() -> str | None:
 @pytest.fixture(scope="session")
 def aot_kernel_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A kernel directory with every kernel built by ``imuhal kernels build`` (once per
-    session, about 10 s of CPU); skipped with the reason where the tools are missing."""
+    session: about a minute of CPU for its 12 kernels, several at a loaded machine's pace);
+    skipped with the reason where the tools are missing."""
     why = why_no_build()
     if why is not None:
         pytest.skip(f"no AOT kernel extension can be built here: {why}")
     d = tmp_path_factory.mktemp("kernels")
     done = subprocess.run([sys.executable, "-m", "imuhal.cli.main", "kernels", "build"],
                           env=cli_env(IMUHAL_KERNEL_DIR=str(d)), capture_output=True,
-                          text=True, timeout=300)
+                          text=True, timeout=900)
     assert done.returncode == 0, done.stderr
     return d
 
