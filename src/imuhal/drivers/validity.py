@@ -8,11 +8,13 @@ physically plausible for its chip.
   result). Each driver derives ``n`` from its chip's noise at its quietest setting;
   ``LearnedFrozenWatch`` shortens it to the repeat odds the chip shows at start-up.
 - ``range_flag``: a decoded value outside the limits the chip can report -> ``OUT_OF_RANGE``.
-- ``FilterMemory``: a chip that filters its outputs itself (an IIR filter, a digital
-  low-pass, a moving average) carries a wrong measurement into the outputs after it, which
-  can come back in range; those outputs -> ``FILTER_SETTLING``. Each driver derives how many
-  outputs its chip's settings can carry it (``iir_memory_outputs``,
-  ``lowpass_memory_outputs``).
+- ``FilterMemory``: a chip that filters its outputs itself (an IIR filter, a moving
+  average) carries a wrong measurement into the outputs after it, which can come back in
+  range; those outputs -> ``FILTER_SETTLING``. Each driver derives how many outputs its
+  chip's settings can carry it (``iir_memory_outputs``). ``LowPassWatch`` is the same for
+  an IMU's first-order digital low-pass: it also undoes the filter to see an input at the
+  rail that the output hides, and holds the outputs until what such an input can still add
+  is below a share of the full scale (``lowpass_settling_outputs``).
 - ``StepWatch``: a quantity the physics bounds in how fast it can change (pressure: by the
   fastest vertical speed) that moves further from the last valid value than that bound and
   the chip's noise allow -> ``IMPLAUSIBLE``; a new level that the next readings confirm is
@@ -26,8 +28,11 @@ a log shows what the chip said.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Hashable, Iterable, Mapping
+from collections.abc import Callable, Hashable, Iterable, Mapping, Sequence
 from typing import Any, Generic, TypeVar
+
+import numpy as np
+import numpy.typing as npt
 
 from imuhal.core.samples import SampleFlag
 
@@ -180,19 +185,6 @@ def iir_memory_outputs(coefficient: int, bits: int) -> int:
     return math.floor(bits * math.log(2.0) / math.log(coefficient / (coefficient - 1))) + 1
 
 
-def lowpass_memory_outputs(bandwidth_hz: float, output_rate_hz: float, bits: int) -> int:
-    """Outputs after a wrong input that a chip's digital low-pass of 3 dB ``bandwidth_hz``
-    (output at ``output_rate_hz``) can still carry it by one LSB or more.
-
-    The datasheets give the bandwidth, not the filter: it is taken as the first-order
-    filter of that bandwidth (time constant ``1 / (2 pi bandwidth)``), in which a full-scale
-    error (``2**bits`` LSB) fades below one LSB after ``bits ln 2`` time constants, counted
-    in whole outputs (at least one: a filter wider than the output rate still blends the
-    input that arrived between two outputs into the next)."""
-    tau_s = 1.0 / (2.0 * math.pi * bandwidth_hz)
-    return max(1, math.ceil(bits * math.log(2.0) * tau_s * output_rate_hz))
-
-
 class FilterMemory:
     """The memory of a chip's own filters, per key (a channel, or one key for channels the
     chip filters together).
@@ -247,6 +239,152 @@ class FilterMemory:
     def forget(self) -> None:
         """The chip's filters were re-initialised: nothing earlier can reach the next output."""
         self._until_ns.clear()
+
+
+RAIL_SHARE = 0.9
+"""``LowPassWatch``: an input the filter's inverse puts within 10 % of the rail (or beyond)
+is taken as one the chip's ADC cut at its rail. An honest input that close to the rail is
+nearly clipped anyway; the margin covers noise and motion the inverse amplifies."""
+SETTLED_SHARE = 0.01
+"""``LowPassWatch``: outputs are valid again once what a wrong input can still add to them
+is below 1 % of the full scale: the sensitivity tolerance a valid reading near full scale
+already carries (the MEMS datasheets' +-1 %, the MAX2110x and MPU-9250 error models'
+``scale_factor_std``), e.g. 10 deg/s on a 1000 deg/s gyro, 80 mg on an 8 g accelerometer."""
+
+
+def lowpass_coefficient(bandwidth_hz: float, period_s: float) -> float:
+    """The share of its previous output a first-order low-pass of 3 dB ``bandwidth_hz``
+    keeps one output period ``period_s`` later: exp(-2 pi bandwidth period)."""
+    return math.exp(-2.0 * math.pi * bandwidth_hz * period_s)
+
+
+def lowpass_settling_outputs(bandwidth_hz: float, output_rate_hz: float) -> int:
+    """Outputs after one input at the rail that a first-order low-pass of ``bandwidth_hz``
+    (output at ``output_rate_hz``) can still carry it by SETTLED_SHARE of the full scale or
+    more: the input, at most two full scales from the truth, enters the output with weight
+    1 - a and fades by a per output (``lowpass_coefficient``), so the n-th output after it
+    keeps at most 2 (1 - a) a^n full scales (10 Hz at 200 Hz: 12; the seed's accelerometer
+    at ODR / 48: 24; 41 Hz at 200 Hz: 3)."""
+    return _settling_outputs(lowpass_coefficient(bandwidth_hz, 1.0 / output_rate_hz))
+
+
+def _settling_outputs(a: float) -> int:
+    """``lowpass_settling_outputs`` of a filter keeping ``a`` per output."""
+    entered = 2.0 * (1.0 - a)
+    if a <= 0.0 or entered <= SETTLED_SHARE:
+        return 0
+    return math.floor(math.log(entered / SETTLED_SHARE) / -math.log(a))
+
+
+class LowPassWatch:
+    """A chip's digital low-pass (an IMU's gyro or accelerometer filter) and the outputs a
+    wrong input can still be in, per key (a channel).
+
+    The datasheets give the filter's 3 dB bandwidth only; it is taken as the first-order
+    low-pass of that bandwidth at the output rate: each output keeps ``a`` of the one
+    before and takes ``1 - a`` of the input (``lowpass_coefficient``). The chip's ADC cuts
+    its input at the rail before the filter, so a shock beyond the range for one output
+    period leaves an output in range (``1 - a`` of the way to the rail) and far off. The
+    watch undoes the filter: from the previous output ``g`` periods before, the mean input
+    over them is ``(y - a^g y_prev) / (1 - a^g)``; one within ``RAIL_SHARE`` of the rail
+    is a rail input, its output ``FILTER_SETTLING`` (value as read). After a rail input
+    (hidden, or an output at the rail itself, flagged ``SATURATED`` by the driver) the
+    watch keeps a bound on what the filter still carries, in full scales: it adds
+    ``2 (1 - a^g)`` (the input at most two full scales from the truth) and fades by ``a``
+    per period, and the outputs are ``FILTER_SETTLING`` until it is below
+    ``SETTLED_SHARE``. Outputs lost to bus errors count as periods the chip filtered."""
+
+    def __init__(self, coefficient: Mapping[Any, float], period_ns: Mapping[Any, int],
+                 rail_counts: int) -> None:
+        self.coefficient = dict(coefficient)
+        self.period_ns = dict(period_ns)
+        self.rail_counts = rail_counts
+        self._last: dict[Hashable, tuple[int, tuple[int, ...]]] = {}
+        """Per key: the latest output's time stamp and counts (the filter's previous state)."""
+        self._bound: dict[Hashable, tuple[int, float]] = {}
+        """Per key: (time stamp, what the filter may still carry then, in full scales)."""
+
+    def settling_outputs(self, key: Hashable) -> int:
+        """Outputs after one rail input that are FILTER_SETTLING (``lowpass_settling_outputs``)."""
+        return _settling_outputs(self.coefficient[key])
+
+    def rail_input(self, key: Hashable, t_ns: int, counts: Sequence[int]) -> bool:
+        """Whether the filter's inverse puts the input behind the output ``counts`` at
+        ``t_ns`` at the rail (nothing is recorded)."""
+        last = self._last.get(key)
+        if last is None:
+            return False
+        t_last, previous = last
+        a = self.coefficient[key]
+        g = max(1, round((t_ns - t_last) / self.period_ns[key]))
+        kept = a ** g
+        limit = RAIL_SHARE * self.rail_counts * (1.0 - kept)
+        return any(abs(y - kept * p) >= limit for y, p in zip(counts, previous, strict=True))
+
+    def observe(self, key: Hashable, t_ns: int, counts: Sequence[int],
+                flags: SampleFlag) -> SampleFlag:
+        """The FILTER_SETTLING flag of the output ``counts`` at ``t_ns`` whose driver gave
+        it ``flags`` (``SATURATED``, ``OUT_OF_RANGE`` or ``OVERFLOW``: an output at the
+        rail, a rail input)."""
+        a = self.coefficient.get(key, 0.0)
+        if a <= 0.0:
+            return SampleFlag.OK
+        hidden = self.rail_input(key, t_ns, counts)
+        last = self._last.get(key)
+        self._last[key] = (t_ns, tuple(counts))
+        bound = self._bound.get(key)
+        carried = 0.0
+        period = self.period_ns[key]
+        if bound is not None:
+            carried = bound[1] * a ** ((t_ns - bound[0]) / period)
+        settling = carried >= SETTLED_SHARE
+        if hidden or int(flags) & _VALUE_BITS:
+            g = 1 if last is None else max(1, round((t_ns - last[0]) / period))
+            self._bound[key] = (t_ns, carried + 2.0 * (1.0 - a ** g))
+            return SampleFlag.FILTER_SETTLING if hidden or settling else SampleFlag.OK
+        if bound is not None and not settling:
+            del self._bound[key]
+        return SampleFlag.FILTER_SETTLING if settling else SampleFlag.OK
+
+    def quiet(self, key: Hashable) -> bool:
+        """No bound is open for ``key`` (a rail input may still be hidden in the next output:
+        a driver decoding a burst at once asks ``quiet_block`` instead)."""
+        return key not in self._bound
+
+    def quiet_block(self, key: Hashable, counts: npt.NDArray[np.int16],
+                    stamps_ns: Sequence[int]) -> bool:
+        """Whether ``observe`` of each row of ``counts`` (n x 3, at ``stamps_ns``) in turn
+        would flag none and arm nothing, with no word at the rail: then the block is taken
+        as observed (its last row becomes the filter's previous output) and True returned;
+        else nothing is observed (the driver observes it row by row)."""
+        if key in self._bound or not len(stamps_ns):
+            return not len(stamps_ns)
+        y = counts.astype(np.float64)
+        rail = self.rail_counts
+        if float(np.abs(y).max()) >= rail:
+            return False
+        last = self._last.get(key)
+        if last is None:
+            previous, times = y[:-1], np.asarray(stamps_ns, np.float64)
+            current = y[1:]
+        else:
+            previous = np.vstack([np.asarray(last[1], np.float64)[None, :], y[:-1]])
+            times = np.asarray([last[0], *stamps_ns], np.float64)
+            current = y
+        if len(current):
+            g = np.maximum(1.0, np.rint(np.diff(times) / self.period_ns[key]))
+            kept = self.coefficient[key] ** g
+            limit = RAIL_SHARE * rail * (1.0 - kept)
+            if bool((np.abs(current - kept[:, None] * previous) >= limit[:, None]).any()):
+                return False
+        self._last[key] = (int(stamps_ns[-1]), tuple(int(v) for v in counts[-1]))
+        return True
+
+    def forget(self) -> None:
+        """The chip's filters were re-initialised (a reset): nothing earlier reaches the
+        next output, and there is no previous output to undo the filter from."""
+        self._bound.clear()
+        self._last.clear()
 
 
 R = TypeVar("R")
