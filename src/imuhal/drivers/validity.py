@@ -299,7 +299,11 @@ class LowPassWatch:
         self.coefficient = dict(coefficient)
         self.period_ns = dict(period_ns)
         self.rail_counts = rail_counts
-        self._last: dict[Hashable, tuple[int, tuple[int, ...]]] = {}
+        self._one = {key: (a, RAIL_SHARE * rail_counts * (1.0 - a))
+                     for key, a in self.coefficient.items() if a > 0.0}
+        """Per key with a filter: (a, the rail input's limit) for an output one period after
+        the last."""
+        self._last: dict[Hashable, tuple[int, Sequence[int]]] = {}
         """Per key: the latest output's time stamp and counts (the filter's previous state)."""
         self._bound: dict[Hashable, tuple[int, float]] = {}
         """Per key: (time stamp, what the filter may still carry then, in full scales)."""
@@ -312,39 +316,48 @@ class LowPassWatch:
         """Whether the filter's inverse puts the input behind the output ``counts`` at
         ``t_ns`` at the rail (nothing is recorded)."""
         last = self._last.get(key)
-        if last is None:
-            return False
+        return last is not None and self._hidden(key, t_ns, counts, last)
+
+    def _hidden(self, key: Hashable, t_ns: int, counts: Sequence[int],
+                last: tuple[int, Sequence[int]]) -> bool:
         t_last, previous = last
-        a = self.coefficient[key]
-        g = max(1, round((t_ns - t_last) / self.period_ns[key]))
-        kept = a ** g
-        limit = RAIL_SHARE * self.rail_counts * (1.0 - kept)
-        return any(abs(y - kept * p) >= limit for y, p in zip(counts, previous, strict=True))
+        period = self.period_ns[key]
+        if t_ns - t_last < period + (period >> 1):  # the output after the last (every poll)
+            kept, limit = self._one[key]
+        else:
+            kept = self.coefficient[key] ** round((t_ns - t_last) / period)
+            limit = RAIL_SHARE * self.rail_counts * (1.0 - kept)
+        y0, y1, y2 = counts
+        p0, p1, p2 = previous
+        return abs(y0 - kept * p0) >= limit or abs(y1 - kept * p1) >= limit \
+            or abs(y2 - kept * p2) >= limit
 
     def observe(self, key: Hashable, t_ns: int, counts: Sequence[int],
                 flags: SampleFlag) -> SampleFlag:
-        """The FILTER_SETTLING flag of the output ``counts`` at ``t_ns`` whose driver gave
-        it ``flags`` (``SATURATED``, ``OUT_OF_RANGE`` or ``OVERFLOW``: an output at the
-        rail, a rail input)."""
-        a = self.coefficient.get(key, 0.0)
-        if a <= 0.0:
+        """The FILTER_SETTLING flag of the output ``counts`` (three axes, not changed
+        afterwards: kept as the filter's previous output) at ``t_ns`` whose driver gave it
+        ``flags`` (``SATURATED``, ``OUT_OF_RANGE`` or ``OVERFLOW``: an output at the rail, a
+        rail input). A key without a filter (``a`` 0) is never flagged."""
+        if key not in self._one:
             return SampleFlag.OK
-        hidden = self.rail_input(key, t_ns, counts)
         last = self._last.get(key)
-        self._last[key] = (t_ns, tuple(counts))
+        self._last[key] = (t_ns, counts)
+        hidden = last is not None and self._hidden(key, t_ns, counts, last)
         bound = self._bound.get(key)
-        carried = 0.0
+        if bound is None and not hidden and not int(flags) & _VALUE_BITS:
+            return SampleFlag.OK  # (every output of a quiet filter: the short way)
+        a = self.coefficient[key]
         period = self.period_ns[key]
-        if bound is not None:
-            carried = bound[1] * a ** ((t_ns - bound[0]) / period)
+        carried = 0.0 if bound is None else bound[1] * a ** ((t_ns - bound[0]) / period)
         settling = carried >= SETTLED_SHARE
         if hidden or int(flags) & _VALUE_BITS:
             g = 1 if last is None else max(1, round((t_ns - last[0]) / period))
             self._bound[key] = (t_ns, carried + 2.0 * (1.0 - a ** g))
             return SampleFlag.FILTER_SETTLING if hidden or settling else SampleFlag.OK
-        if bound is not None and not settling:
+        if not settling:
             del self._bound[key]
-        return SampleFlag.FILTER_SETTLING if settling else SampleFlag.OK
+            return SampleFlag.OK
+        return SampleFlag.FILTER_SETTLING
 
     def quiet(self, key: Hashable) -> bool:
         """No bound is open for ``key`` (a rail input may still be hidden in the next output:
@@ -357,8 +370,10 @@ class LowPassWatch:
         would flag none and arm nothing, with no word at the rail: then the block is taken
         as observed (its last row becomes the filter's previous output) and True returned;
         else nothing is observed (the driver observes it row by row)."""
-        if key in self._bound or not len(stamps_ns):
-            return not len(stamps_ns)
+        if key not in self._one or not len(stamps_ns):
+            return True
+        if key in self._bound:
+            return False
         y = counts.astype(np.float64)
         rail = self.rail_counts
         if float(np.abs(y).max()) >= rail:
