@@ -305,6 +305,8 @@ class LowPassWatch:
         the last."""
         self._last: dict[Hashable, tuple[int, Sequence[int]]] = {}
         """Per key: the latest output's time stamp and counts (the filter's previous state)."""
+        self._before: dict[Hashable, tuple[int, Sequence[int]]] = {}
+        """Per key: the output before the latest (the change per output before a gap)."""
         self._bound: dict[Hashable, tuple[int, float]] = {}
         """Per key: (time stamp, what the filter may still carry then, in full scales)."""
 
@@ -322,15 +324,32 @@ class LowPassWatch:
                 last: tuple[int, Sequence[int]]) -> bool:
         t_last, previous = last
         period = self.period_ns[key]
-        if t_ns - t_last < period + (period >> 1):  # the output after the last (every poll)
-            kept, limit = self._one[key]
-        else:
-            kept = self.coefficient[key] ** round((t_ns - t_last) / period)
-            limit = RAIL_SHARE * self.rail_counts * (1.0 - kept)
+        if t_ns - t_last >= period + (period >> 1):
+            return self._hidden_in_gap(key, round((t_ns - t_last) / period), counts, previous)
+        kept, limit = self._one[key]  # the output after the last (every poll)
         y0, y1, y2 = counts
         p0, p1, p2 = previous
         return abs(y0 - kept * p0) >= limit or abs(y1 - kept * p1) >= limit \
             or abs(y2 - kept * p2) >= limit
+
+    def _hidden_in_gap(self, key: Hashable, g: int, counts: Sequence[int],
+                       previous: Sequence[int]) -> bool:
+        """Whether ``g`` periods after the last output (the outputs between unseen: a host
+        stall, a failed read) one of the unseen inputs may have been at the rail. The mean
+        input over the gap cannot tell: one rail input among them moves it by its weight
+        only ((1 - a) a^j for the input j outputs back, 0.72 for the latest at the GY-91's
+        41 Hz). So the output is held against the last one carried on at the change per
+        output seen before it: a rail input that still adds 1 % of the full scale
+        (SETTLED_SHARE) or more shows as a departure of that much beyond what the same
+        change again allows; honest motion that bends that hard after a gap is flagged too
+        (availability, not trust)."""
+        before = self._before.get(key)
+        slope = [0.0, 0.0, 0.0] if before is None else \
+            [(p - b) / max(1, round((self._last[key][0] - before[0]) / self.period_ns[key]))
+             for p, b in zip(previous, before[1], strict=True)]
+        allowed = SETTLED_SHARE * self.rail_counts
+        return any(abs(y - p - g * d) >= allowed + g * abs(d)
+                   for y, p, d in zip(counts, previous, slope, strict=True))
 
     def observe(self, key: Hashable, t_ns: int, counts: Sequence[int],
                 flags: SampleFlag) -> SampleFlag:
@@ -341,8 +360,10 @@ class LowPassWatch:
         if key not in self._one:
             return SampleFlag.OK
         last = self._last.get(key)
-        self._last[key] = (t_ns, counts)
         hidden = last is not None and self._hidden(key, t_ns, counts, last)
+        if last is not None:
+            self._before[key] = last
+        self._last[key] = (t_ns, counts)
         bound = self._bound.get(key)
         if bound is None and not hidden and not int(flags) & _VALUE_BITS:
             return SampleFlag.OK  # (every output of a quiet filter: the short way)
@@ -388,10 +409,16 @@ class LowPassWatch:
             current = y
         if len(current):
             g = np.maximum(1.0, np.rint(np.diff(times) / self.period_ns[key]))
+            if float(g.max()) > 1.0:
+                return False  # a gap: row by row (``_hidden_in_gap``)
             kept = self.coefficient[key] ** g
             limit = RAIL_SHARE * rail * (1.0 - kept)
             if bool((np.abs(current - kept[:, None] * previous) >= limit[:, None]).any()):
                 return False
+        if len(stamps_ns) > 1:
+            self._before[key] = (int(stamps_ns[-2]), tuple(int(v) for v in counts[-2]))
+        elif last is not None:
+            self._before[key] = last
         self._last[key] = (int(stamps_ns[-1]), tuple(int(v) for v in counts[-1]))
         return True
 
@@ -400,6 +427,7 @@ class LowPassWatch:
         next output, and there is no previous output to undo the filter from."""
         self._bound.clear()
         self._last.clear()
+        self._before.clear()
 
 
 R = TypeVar("R")
