@@ -287,7 +287,9 @@ class LowPassWatch:
     period leaves an output in range (``1 - a`` of the way to the rail) and far off. The
     watch undoes the filter: from the previous output ``g`` periods before, the mean input
     over them is ``(y - a^g y_prev) / (1 - a^g)``; one within ``RAIL_SHARE`` of the rail
-    is a rail input, its output ``FILTER_SETTLING`` (value as read). After a rail input
+    that moved the output by 1 - a of the rest of the way at least (an honest input held
+    near the rail moves it little) is a rail input, its output ``FILTER_SETTLING`` (value
+    as read). After a rail input
     (hidden, or an output at the rail itself, flagged ``SATURATED`` by the driver) the
     watch keeps a bound on what the filter still carries, in full scales: it adds
     ``2 (1 - a^g)`` (the input at most two full scales from the truth) and fades by ``a``
@@ -301,10 +303,17 @@ class LowPassWatch:
         self.rail_counts = rail_counts
         self._one = {key: (a, RAIL_SHARE * rail_counts * (1.0 - a))
                      for key, a in self.coefficient.items() if a > 0.0}
+        self._jump = {key: (1.0 - RAIL_SHARE) * rail_counts * (1.0 - a)
+                      for key, a in self.coefficient.items() if a > 0.0}
+        """Per key: how far a rail input moves the output at least, one period on: 1 - a of
+        the way from within RAIL_SHARE of the rail (a rail input from nearer the rail
+        leaves a trace below that, within what a reading there may be off anyway)."""
         """Per key with a filter: (a, the rail input's limit) for an output one period after
         the last."""
         self._last: dict[Hashable, tuple[int, Sequence[int]]] = {}
         """Per key: the latest output's time stamp and counts (the filter's previous state)."""
+        self._railed: set[Hashable] = set()
+        """Keys whose latest output was a rail input (hidden or at the rail)."""
         self._before: dict[Hashable, tuple[int, Sequence[int]]] = {}
         """Per key: the output before the latest (the change per output before a gap)."""
         self._bound: dict[Hashable, tuple[int, float]] = {}
@@ -327,10 +336,14 @@ class LowPassWatch:
         if t_ns - t_last >= period + (period >> 1):
             return self._hidden_in_gap(key, round((t_ns - t_last) / period), counts, previous)
         kept, limit = self._one[key]  # the output after the last (every poll)
-        y0, y1, y2 = counts
-        p0, p1, p2 = previous
-        return abs(y0 - kept * p0) >= limit or abs(y1 - kept * p1) >= limit \
-            or abs(y2 - kept * p2) >= limit
+        # the input at the rail, and far from where the output was or still there after a
+        # rail input: an honest input that comes near the rail (a fast roll) moves the
+        # output little from one output to the next
+        jump = 0.0 if key in self._railed else self._jump[key]
+        for y, p in zip(counts, previous, strict=True):
+            if abs(y - kept * p) >= limit and abs(y - p) >= jump:
+                return True
+        return False
 
     def _hidden_in_gap(self, key: Hashable, g: int, counts: Sequence[int],
                        previous: Sequence[int]) -> bool:
@@ -367,6 +380,10 @@ class LowPassWatch:
         bound = self._bound.get(key)
         if bound is None and not hidden and not int(flags) & _VALUE_BITS:
             return SampleFlag.OK  # (every output of a quiet filter: the short way)
+        if hidden or int(flags) & _VALUE_BITS:
+            self._railed.add(key)
+        else:
+            self._railed.discard(key)
         a = self.coefficient[key]
         period = self.period_ns[key]
         carried = 0.0 if bound is None else bound[1] * a ** ((t_ns - bound[0]) / period)
@@ -393,7 +410,7 @@ class LowPassWatch:
         else nothing is observed (the driver observes it row by row)."""
         if key not in self._one or not len(stamps_ns):
             return True
-        if key in self._bound:
+        if key in self._bound or key in self._railed:
             return False
         y = counts.astype(np.float64)
         rail = self.rail_counts
@@ -413,7 +430,8 @@ class LowPassWatch:
                 return False  # a gap: row by row (``_hidden_in_gap``)
             kept = self.coefficient[key] ** g
             limit = RAIL_SHARE * rail * (1.0 - kept)
-            if bool((np.abs(current - kept[:, None] * previous) >= limit[:, None]).any()):
+            if bool(((np.abs(current - kept[:, None] * previous) >= limit[:, None])
+                     & (np.abs(current - previous) >= self._jump[key])).any()):
                 return False
         if len(stamps_ns) > 1:
             self._before[key] = (int(stamps_ns[-2]), tuple(int(v) for v in counts[-2]))
@@ -428,6 +446,7 @@ class LowPassWatch:
         self._bound.clear()
         self._last.clear()
         self._before.clear()
+        self._railed.clear()
 
 
 R = TypeVar("R")
