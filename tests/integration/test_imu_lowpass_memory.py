@@ -100,7 +100,7 @@ def test_at_ten_percent_wild_values_the_imu_is_valid_between_them_and_never_wron
     for i in range(int((RUN_S - 1.0) * 20)):
         channel = ("accel", "gyro", "temperature")[i % 3]
         full = {"accel": ACCEL_FULL_SCALE_M_S2, "gyro": GYRO_FULL_SCALE_RAD_S}.get(channel, 1e5)
-        faults.append(WildValue(device="imu", channel=channel, axis=i % 3,  # type: ignore[arg-type]
+        faults.append(WildValue(device="imu", channel=channel, axis=i % 3,
                                 value=1000 * full, start_s=round(1.0 + (i + 0.5) / 20, 4)))
     run, _ = _imu_samples(faults)
     # of every 30 outputs, the gyro's 10 Hz filter holds 13 (the wild one and 12 after),

@@ -15,6 +15,6 @@ from imuhal.sim.emulated_bus import EmulatedBus
 from imuhal.sim.inputs import PhysicalInputs, PlannedInputs
 from imuhal.sim.lowpass import DisturbedLowPass
 
-__all__ = ["ChipEmulator", "DisturbedLowPass", "EmulatedBoard", "EmulatedBus", "HangsBetweenTransfers",
-           "PhysicalInputs", "PlannedInputs", "TruthSink", "calibrated_as_user", "error_models_for",
-           "open_emulated"]
+__all__ = ["ChipEmulator", "DisturbedLowPass", "EmulatedBoard", "EmulatedBus",
+           "HangsBetweenTransfers", "PhysicalInputs", "PlannedInputs", "TruthSink",
+           "calibrated_as_user", "error_models_for", "open_emulated"]
