@@ -301,21 +301,22 @@ class LowPassWatch:
         self.coefficient = dict(coefficient)
         self.period_ns = dict(period_ns)
         self.rail_counts = rail_counts
-        self._one = {key: (a, RAIL_SHARE * rail_counts * (1.0 - a))
+        self._one = {key: (a, RAIL_SHARE * rail_counts * (1.0 - a),
+                           (1.0 - RAIL_SHARE) * rail_counts * (1.0 - a),
+                           self.period_ns[key] + self.period_ns[key] // 2)
                      for key, a in self.coefficient.items() if a > 0.0}
-        self._jump = {key: (1.0 - RAIL_SHARE) * rail_counts * (1.0 - a)
-                      for key, a in self.coefficient.items() if a > 0.0}
-        """Per key: how far a rail input moves the output at least, one period on: 1 - a of
-        the way from within RAIL_SHARE of the rail (a rail input from nearer the rail
-        leaves a trace below that, within what a reading there may be off anyway)."""
+        """Per key with a filter, for an output one period after the last: (a, the rail
+        input's limit on ``y - a y_prev``, how far a rail input moves the output at least:
+        1 - a of the way from within RAIL_SHARE of the rail, a rail input from nearer the
+        rail leaving a trace below that, within what a reading there may be off anyway;
+        and the most time between two outputs one period apart)."""
         """Per key with a filter: (a, the rail input's limit) for an output one period after
         the last."""
-        self._last: dict[Hashable, tuple[int, Sequence[int]]] = {}
-        """Per key: the latest output's time stamp and counts (the filter's previous state)."""
+        self._last: dict[Hashable, tuple[int, Sequence[int], int, Sequence[int]]] = {}
+        """Per key: the latest output's time stamp and counts (the filter's previous state),
+        then the one's before it (the change per output before a gap; -1, () at first)."""
         self._railed: set[Hashable] = set()
         """Keys whose latest output was a rail input (hidden or at the rail)."""
-        self._before: dict[Hashable, tuple[int, Sequence[int]]] = {}
-        """Per key: the output before the latest (the change per output before a gap)."""
         self._bound: dict[Hashable, tuple[int, float]] = {}
         """Per key: (time stamp, what the filter may still carry then, in full scales)."""
 
@@ -330,23 +331,24 @@ class LowPassWatch:
         return last is not None and self._hidden(key, t_ns, counts, last)
 
     def _hidden(self, key: Hashable, t_ns: int, counts: Sequence[int],
-                last: tuple[int, Sequence[int]]) -> bool:
-        t_last, previous = last
-        period = self.period_ns[key]
-        if t_ns - t_last >= period + (period >> 1):
-            return self._hidden_in_gap(key, round((t_ns - t_last) / period), counts, previous)
-        kept, limit = self._one[key]  # the output after the last (every poll)
+                last: tuple[int, Sequence[int], int, Sequence[int]]) -> bool:
+        a, limit, jump, most_ns = self._one[key]
+        t_last, previous = last[0], last[1]
+        if t_ns - t_last >= most_ns:
+            return self._hidden_in_gap(key, round((t_ns - t_last) / self.period_ns[key]),
+                                       counts, last)
         # the input at the rail, and far from where the output was or still there after a
         # rail input: an honest input that comes near the rail (a fast roll) moves the
         # output little from one output to the next
-        jump = 0.0 if key in self._railed else self._jump[key]
+        if key in self._railed:
+            jump = 0.0
         for y, p in zip(counts, previous, strict=True):
-            if abs(y - kept * p) >= limit and abs(y - p) >= jump:
+            if abs(y - a * p) >= limit and abs(y - p) >= jump:
                 return True
         return False
 
     def _hidden_in_gap(self, key: Hashable, g: int, counts: Sequence[int],
-                       previous: Sequence[int]) -> bool:
+                       last: tuple[int, Sequence[int], int, Sequence[int]]) -> bool:
         """Whether ``g`` periods after the last output (the outputs between unseen: a host
         stall, a failed read) one of the unseen inputs may have been at the rail. The mean
         input over the gap cannot tell: one rail input among them moves it by its weight
@@ -356,10 +358,10 @@ class LowPassWatch:
         (SETTLED_SHARE) or more shows as a departure of that much beyond what the same
         change again allows; honest motion that bends that hard after a gap is flagged too
         (availability, not trust)."""
-        before = self._before.get(key)
-        slope = [0.0, 0.0, 0.0] if before is None else \
-            [(p - b) / max(1, round((self._last[key][0] - before[0]) / self.period_ns[key]))
-             for p, b in zip(previous, before[1], strict=True)]
+        t_last, previous, t_before, before = last
+        slope = [0.0, 0.0, 0.0] if t_before < 0 else \
+            [(p - b) / max(1, round((t_last - t_before) / self.period_ns[key]))
+             for p, b in zip(previous, before, strict=True)]
         allowed = SETTLED_SHARE * self.rail_counts
         return any(abs(y - p - g * d) >= allowed + g * abs(d)
                    for y, p, d in zip(counts, previous, slope, strict=True))
@@ -370,16 +372,28 @@ class LowPassWatch:
         afterwards: kept as the filter's previous output) at ``t_ns`` whose driver gave it
         ``flags`` (``SATURATED``, ``OUT_OF_RANGE`` or ``OVERFLOW``: an output at the rail, a
         rail input). A key without a filter (``a`` 0) is never flagged."""
-        if key not in self._one:
+        one = self._one.get(key)
+        if one is None:
             return SampleFlag.OK
         last = self._last.get(key)
-        hidden = last is not None and self._hidden(key, t_ns, counts, last)
-        if last is not None:
-            self._before[key] = last
-        self._last[key] = (t_ns, counts)
+        if last is None:
+            hidden = False
+            self._last[key] = (t_ns, counts, -1, ())
+        else:
+            self._last[key] = (t_ns, counts, last[0], last[1])
+            a, limit, jump, most_ns = one
+            if t_ns - last[0] < most_ns and key not in self._railed:
+                # every output of a quiet filter takes this way: written out
+                y0, y1, y2 = counts
+                p0, p1, p2 = last[1]
+                hidden = (abs(y0 - a * p0) >= limit and abs(y0 - p0) >= jump) \
+                    or (abs(y1 - a * p1) >= limit and abs(y1 - p1) >= jump) \
+                    or (abs(y2 - a * p2) >= limit and abs(y2 - p2) >= jump)
+            else:
+                hidden = self._hidden(key, t_ns, counts, last)
         bound = self._bound.get(key)
         if bound is None and not hidden and not int(flags) & _VALUE_BITS:
-            return SampleFlag.OK  # (every output of a quiet filter: the short way)
+            return SampleFlag.OK
         if hidden or int(flags) & _VALUE_BITS:
             self._railed.add(key)
         else:
@@ -431,13 +445,13 @@ class LowPassWatch:
             kept = self.coefficient[key] ** g
             limit = RAIL_SHARE * rail * (1.0 - kept)
             if bool(((np.abs(current - kept[:, None] * previous) >= limit[:, None])
-                     & (np.abs(current - previous) >= self._jump[key])).any()):
+                     & (np.abs(current - previous) >= self._one[key][2])).any()):
                 return False
+        newest = (int(stamps_ns[-1]), tuple(int(v) for v in counts[-1]))
         if len(stamps_ns) > 1:
-            self._before[key] = (int(stamps_ns[-2]), tuple(int(v) for v in counts[-2]))
-        elif last is not None:
-            self._before[key] = last
-        self._last[key] = (int(stamps_ns[-1]), tuple(int(v) for v in counts[-1]))
+            self._last[key] = (*newest, int(stamps_ns[-2]), tuple(int(v) for v in counts[-2]))
+        else:
+            self._last[key] = (*newest, -1, ()) if last is None else (*newest, *last[:2])
         return True
 
     def forget(self) -> None:
@@ -445,7 +459,6 @@ class LowPassWatch:
         next output, and there is no previous output to undo the filter from."""
         self._bound.clear()
         self._last.clear()
-        self._before.clear()
         self._railed.clear()
 
 
