@@ -376,25 +376,38 @@ class LowPassWatch:
         if one is None:
             return SampleFlag.OK
         last = self._last.get(key)
-        if last is None:
-            hidden = False
-            self._last[key] = (t_ns, counts, -1, ())
-        else:
-            self._last[key] = (t_ns, counts, last[0], last[1])
-            a, limit, jump, most_ns = one
-            if t_ns - last[0] < most_ns and key not in self._railed:
-                # every output of a quiet filter takes this way: written out
-                y0, y1, y2 = counts
-                p0, p1, p2 = last[1]
-                hidden = (abs(y0 - a * p0) >= limit and abs(y0 - p0) >= jump) \
-                    or (abs(y1 - a * p1) >= limit and abs(y1 - p1) >= jump) \
-                    or (abs(y2 - a * p2) >= limit and abs(y2 - p2) >= jump)
-            else:
-                hidden = self._hidden(key, t_ns, counts, last)
+        hidden = self._record(key, t_ns, counts, last, one)
         bound = self._bound.get(key)
-        if bound is None and not hidden and not int(flags) & _VALUE_BITS:
+        wrong = hidden or bool(int(flags) & _VALUE_BITS)
+        if bound is None and not wrong:
             return SampleFlag.OK
-        if hidden or int(flags) & _VALUE_BITS:
+        return self._settle(key, t_ns, last, bound, hidden=hidden, wrong=wrong)
+
+    def _record(self, key: Hashable, t_ns: int, counts: Sequence[int],
+                last: tuple[int, Sequence[int], int, Sequence[int]] | None,
+                one: tuple[float, float, float, int]) -> bool:
+        """Keep ``counts`` as the filter's previous output; whether its input was a rail
+        input (``_hidden``)."""
+        if last is None:
+            self._last[key] = (t_ns, counts, -1, ())
+            return False
+        self._last[key] = (t_ns, counts, last[0], last[1])
+        a, limit, jump, most_ns = one
+        if t_ns - last[0] >= most_ns or key in self._railed:
+            return self._hidden(key, t_ns, counts, last)
+        # every output of a quiet filter takes this way: written out
+        y0, y1, y2 = counts
+        p0, p1, p2 = last[1]
+        return (abs(y0 - a * p0) >= limit and abs(y0 - p0) >= jump) \
+            or (abs(y1 - a * p1) >= limit and abs(y1 - p1) >= jump) \
+            or (abs(y2 - a * p2) >= limit and abs(y2 - p2) >= jump)
+
+    def _settle(self, key: Hashable, t_ns: int,
+                last: tuple[int, Sequence[int], int, Sequence[int]] | None,
+                bound: tuple[int, float] | None, *, hidden: bool, wrong: bool) -> SampleFlag:
+        """The bound on what the filter still carries, moved to ``t_ns`` (a ``wrong``
+        input adds to it), and the output's flag."""
+        if wrong:
             self._railed.add(key)
         else:
             self._railed.discard(key)
@@ -402,7 +415,7 @@ class LowPassWatch:
         period = self.period_ns[key]
         carried = 0.0 if bound is None else bound[1] * a ** ((t_ns - bound[0]) / period)
         settling = carried >= SETTLED_SHARE
-        if hidden or int(flags) & _VALUE_BITS:
+        if wrong:
             g = 1 if last is None else max(1, round((t_ns - last[0]) / period))
             self._bound[key] = (t_ns, carried + 2.0 * (1.0 - a ** g))
             return SampleFlag.FILTER_SETTLING if hidden or settling else SampleFlag.OK
