@@ -18,6 +18,7 @@ import pytest
 from tests.support.thermal_learning import ThermalLearningFlight, learning_gps_vario
 
 from imuhal.calibrate.emulated import measure_board_calibration
+from imuhal.calibration.model import DeviceCalibration
 from imuhal.core.samples import AccelSample, GyroSample, MagSample, Sample
 from imuhal.emulation import open_emulated
 from imuhal.estimation.outputs import AttitudeEstimate
@@ -86,7 +87,18 @@ def calibration_run(calibration_scenario: CalibrationScenario) -> list[Sample]:
 
 
 @pytest.fixture(scope="session")
-def thermal_learning_flight() -> ThermalLearningFlight:
+def gps_vario_calibration() -> dict[str, DeviceCalibration]:
+    """The accelerometer and magnetometer records the stored seed-gps-vario's emulated board
+    (seed 1) measures flying the calibration scenario: one calibration run, which several
+    files check things against."""
+    registry = load_registry()
+    stored = load_profile(default_profile_path().parent / "seed-gps-vario.yaml", registry)
+    return measure_board_calibration(stored, registry, seed=1)
+
+
+@pytest.fixture(scope="session")
+def thermal_learning_flight(
+        gps_vario_calibration: dict[str, DeviceCalibration]) -> ThermalLearningFlight:
     """One flight shared by the accelerometer-offset and hard-iron tests: each asserts its own
     things about it, and flying it once per test was the slowest part of the suite."""
     registry = load_registry()
@@ -114,10 +126,9 @@ def thermal_learning_flight() -> ThermalLearningFlight:
             sink.handle(event)
         mag_cal = pipeline.devices["mag"].calibration
         mag_status = pipeline.summary().learned["mag"]
-    stored = load_profile(default_profile_path().parent / "seed-gps-vario.yaml", registry)
     return ThermalLearningFlight(
         mag_health_at_30_s=mag_health, state_at_90_s=state, tilt_60_to_90_s_deg=tilt,
         imu_calibration_at_90_s=imu_cal, accel_status_at_90_s=accel_status,
         summary_at_90_s=words, mag_calibration_at_120_s=mag_cal,
         mag_status_at_120_s=mag_status,
-        reference=measure_board_calibration(stored, registry, seed=1))
+        reference=gps_vario_calibration)
