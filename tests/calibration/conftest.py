@@ -8,18 +8,30 @@ run the real drivers on an emulated board.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 import pytest
+from tests.support.thermal_learning import ThermalLearningFlight, learning_gps_vario
 
+from imuhal.calibrate.emulated import measure_board_calibration
+from imuhal.calibration.model import DeviceCalibration
 from imuhal.core.samples import AccelSample, GyroSample, MagSample, Sample
+from imuhal.emulation import open_emulated
+from imuhal.estimation.outputs import AttitudeEstimate
+from imuhal.live.sink import LiveSink
+from imuhal.live.snapshot import Snapshotter
+from imuhal.plugins.manager import load_registry
+from imuhal.profile.bundled import default_profile_path
+from imuhal.profile.loader import load_profile
 from imuhal.sim.calibration import CalibrationScenario
 from imuhal.sim.errors import SensorErrorModel, SensorErrorSpec
 from imuhal.sim.scenario import Scenario
 from imuhal.sim.world import physical_inputs
+from imuhal_filters.common.quat import tilt_error_deg
 
 DPS = math.pi / 180.0
 MG = 9.80665e-3
@@ -72,3 +84,51 @@ def calibration_scenario() -> CalibrationScenario:
 def calibration_run(calibration_scenario: CalibrationScenario) -> list[Sample]:
     """The whole calibration scenario (six positions, then the figure of 8) on the board."""
     return make_stream(calibration_scenario)
+
+
+@pytest.fixture(scope="session")
+def gps_vario_calibration() -> dict[str, DeviceCalibration]:
+    """The accelerometer and magnetometer records the stored seed-gps-vario's emulated board
+    (seed 1) measures flying the calibration scenario: one calibration run, which several
+    files check things against."""
+    registry = load_registry()
+    stored = load_profile(default_profile_path().parent / "seed-gps-vario.yaml", registry)
+    return measure_board_calibration(stored, registry, seed=1)
+
+
+@pytest.fixture(scope="session")
+def thermal_learning_flight(
+        gps_vario_calibration: dict[str, DeviceCalibration]) -> ThermalLearningFlight:
+    """One flight shared by the accelerometer-offset and hard-iron tests: each asserts its own
+    things about it, and flying it once per test was the slowest part of the suite."""
+    registry = load_registry()
+    sink = LiveSink()
+    tilt: list[float] = []
+    with open_emulated(learning_gps_vario(registry), registry, scenario="thermal",
+                       seed=1) as pipeline:
+        snap = Snapshotter(sink, pipeline)
+        world = pipeline.board.scenario  # type: ignore[union-attr]  # an emulated board
+        for event in pipeline.events(30.0):
+            sink.handle(event)
+        mag_health = json.loads(json.dumps(snap.snapshot()["health"]["mag"]))
+        for event in pipeline.events(60.0):
+            sink.handle(event)
+            if (isinstance(event, AttitudeEstimate) and event.source == "ahrs"
+                    and event.t_ns >= 60e9):
+                truth = world.truth(event.t_ns / 1e9).q_body_to_ned
+                tilt.append(tilt_error_deg(event.q_body_to_ned,
+                                           tuple(float(v) for v in truth)))
+        state = json.loads(json.dumps(snap.snapshot(), allow_nan=False))
+        imu_cal = pipeline.devices["imu"].calibration
+        accel_status = pipeline.summary().learned["imu accel"]
+        words = pipeline.summary().describe()
+        for event in pipeline.events(30.0):
+            sink.handle(event)
+        mag_cal = pipeline.devices["mag"].calibration
+        mag_status = pipeline.summary().learned["mag"]
+    return ThermalLearningFlight(
+        mag_health_at_30_s=mag_health, state_at_90_s=state, tilt_60_to_90_s_deg=tilt,
+        imu_calibration_at_90_s=imu_cal, accel_status_at_90_s=accel_status,
+        summary_at_90_s=words, mag_calibration_at_120_s=mag_cal,
+        mag_status_at_120_s=mag_status,
+        reference=gps_vario_calibration)

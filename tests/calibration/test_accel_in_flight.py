@@ -10,43 +10,33 @@ is tilted by what a levelling AHRS makes of the offset."""
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
+from tests.support.thermal_learning import ThermalLearningFlight
 
-from imuhal.calibrate.emulated import measure_board_calibration
 from imuhal.calibration.accel_in_flight import (
     G_M_S2,
     MG,
     PROCEDURE,
     AccelOffsetLearner,
 )
-from imuhal.calibration.model import (
-    AccelInFlightSettings,
-    DeviceCalibration,
-    MagInFlightSettings,
-)
+from imuhal.calibration.model import AccelInFlightSettings
 from imuhal.cli.main import main
 from imuhal.core.atmosphere import pressure_pa_at_altitude
 from imuhal.core.blocks import Block
 from imuhal.core.quantities import Quantity
 from imuhal.core.samples import VelocitySample
-from imuhal.emulation import open_emulated
 from imuhal.emulation.user_calibration import missing_calibrations
 from imuhal.estimation.outputs import AttitudeEstimate
-from imuhal.live.sink import LiveSink
-from imuhal.live.snapshot import Snapshotter
 from imuhal.pipeline.learning import AccelTeacher
 from imuhal.pipeline.pipeline import RunSummary
-from imuhal.plugins.manager import Registry, load_registry
+from imuhal.plugins.manager import load_registry
 from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile, parse_profile
-from imuhal.profile.model import BoardProfile
-from imuhal_filters.common.quat import tilt_error_deg
 
 OFFSET_BODY_M_S2 = np.array([40.0, -30.0, 20.0]) * MG
 SPEED_M_S = 10.0
@@ -267,50 +257,24 @@ def test_a_profile_asks_for_it_under_the_devices_calibration() -> None:
     assert Quantity.ACCEL not in missing_calibrations(profile, registry).get("imu", ())
 
 
-def _learning_board(registry: Registry) -> BoardProfile:
-    """seed-gps-vario as stored (no accelerometer or magnetometer record), learning both in
-    flight."""
-    profile = load_profile(default_profile_path().parent / "seed-gps-vario.yaml", registry)
-    devices = dict(profile.devices)
-    imu_cal = devices["imu"].calibration
-    assert imu_cal is not None
-    devices["imu"] = devices["imu"].model_copy(update={"calibration": imu_cal.model_copy(
-        update={"accel_in_flight": AccelInFlightSettings()})})
-    devices["mag"] = devices["mag"].model_copy(
-        update={"calibration": DeviceCalibration(mag_in_flight=MagInFlightSettings())})
-    return profile.model_copy(update={"devices": devices})
-
-
-def test_the_uncalibrated_gps_vario_learns_its_offset_and_levels_in_90_s_of_thermal() -> None:
+def test_the_uncalibrated_gps_vario_learns_its_offset_and_levels_in_90_s_of_thermal(
+        thermal_learning_flight: ThermalLearningFlight) -> None:
     """Bounds: the learned offset within 10 mg (0.6 deg) of the six-position calibration of
     the same board on each level axis, and the AHRS's tilt RMS over 60-90 s at most 1 deg
     (the board as stored flies 3.0 deg; the calibrated one 0.64 over the last minute of
     300 s, docs/calibration.md)."""
-    registry = load_registry()
-    profile = _learning_board(registry)
-    tilt = []
-    sink = LiveSink()
-    with open_emulated(profile, registry, scenario="thermal", seed=1) as pipeline:
-        snap = Snapshotter(sink, pipeline)
-        world = pipeline.board.scenario  # type: ignore[union-attr]  # an emulated board
-        for e in pipeline.events(90.0):
-            sink.handle(e)
-            if isinstance(e, AttitudeEstimate) and e.source == "ahrs" and e.t_ns >= 60e9:
-                truth = world.truth(e.t_ns / 1e9).q_body_to_ned
-                tilt.append(tilt_error_deg(e.q_body_to_ned, tuple(float(v) for v in truth)))
-        applied = pipeline.devices["imu"].calibration
-        status = pipeline.summary().learned["imu accel"]
-        words = pipeline.summary().describe()
-        live = json.loads(json.dumps(snap.snapshot(), allow_nan=False))["health"]["imu"]
-    stored = load_profile(default_profile_path().parent / "seed-gps-vario.yaml", registry)
-    reference = measure_board_calibration(stored, registry, seed=1)["imu"].accel
+    flight = thermal_learning_flight
+    applied, status = flight.imu_calibration_at_90_s, flight.accel_status_at_90_s
+    live = flight.state_at_90_s["health"]["imu"]
+    reference = flight.reference["imu"].accel
     assert reference is not None and applied is not None and applied.accel is not None
     assert status["converged"] and applied.accel.procedure == PROCEDURE
     # sensor frame; the level axes are the sensor's x and y ("+X-Y-Z")
     error_mg = np.abs(np.subtract(applied.accel.offset_m_s2, reference.offset_m_s2)) / MG
     assert np.all(error_mg[:2] <= 10.0), error_mg
-    assert math.sqrt(float(np.mean(np.square(tilt)))) <= 1.0
-    assert "imu accel: accelerometer offset learned in flight, applied" in words
+    tilt = flight.tilt_60_to_90_s_deg
+    assert tilt and math.sqrt(float(np.mean(np.square(tilt)))) <= 1.0
+    assert "imu accel: accelerometer offset learned in flight, applied" in flight.summary_at_90_s
     assert live["learned_accel"]["converged"] and max(live["learned_accel"]["std_mg"]) <= 3.0
 
 

@@ -12,7 +12,7 @@ import pytest
 
 from imuhal.bus.recording.format import open_recording
 from imuhal.calibrate.as_user import calibrate_emulated, missing_calibration_notes
-from imuhal.calibrate.emulated import measure_board_calibration
+from imuhal.calibration.model import DeviceCalibration
 from imuhal.cli.main import main
 from imuhal.core.samples import Quantity
 from imuhal.emulation import calibrated_as_user, open_emulated
@@ -54,14 +54,16 @@ def test_a_missing_magnetometer_record_is_named_with_the_heading_it_turns(
 
 
 def test_the_board_calibrated_as_its_user_keeps_the_stored_gyro_setting_and_adds_the_rest(
-        gps_vario: BoardProfile, registry: Registry) -> None:
+        gps_vario: BoardProfile, registry: Registry,
+        gps_vario_calibration: dict[str, DeviceCalibration]) -> None:
     calibrated, measured = calibrated_as_user(gps_vario, registry, seed=1)
     assert measured == {"imu": (Quantity.ACCEL,), "mag": (Quantity.MAG,)}
     imu = calibrated.devices["imu"].calibration
     assert imu is not None and imu.accel is not None
     assert imu.gyro_at_startup == gps_vario.devices["imu"].calibration.gyro_at_startup  # type: ignore[union-attr]
     # the same records as the flight studies' calibrated board (one procedure, one board)
-    studied = measure_board_calibration(gps_vario, registry, seed=1)
+    # measure_board_calibration(gps_vario, registry, seed=1), shared (conftest.py)
+    studied = gps_vario_calibration
     assert imu.accel == studied["imu"].accel
     assert calibrated.devices["mag"].calibration == studied["mag"]
     assert missing_calibration_notes(calibrated, registry) == []

@@ -3,24 +3,19 @@ readings taken while the board turns, with its uncertainty and a convergence cri
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
 import numpy as np
 import pytest
+from tests.support.thermal_learning import ThermalLearningFlight
 
-from imuhal.calibrate.emulated import measure_board_calibration
 from imuhal.calibration.hard_iron import PROCEDURE, HardIronLearner
-from imuhal.calibration.model import DeviceCalibration, MagInFlightSettings
+from imuhal.calibration.model import MagInFlightSettings
 from imuhal.cli.main import main
-from imuhal.emulation import open_emulated
-from imuhal.live.sink import LiveSink
-from imuhal.live.snapshot import Snapshotter
-from imuhal.plugins.manager import Registry, load_registry
+from imuhal.plugins.manager import load_registry
 from imuhal.profile.bundled import default_profile_path
 from imuhal.profile.loader import load_profile, parse_profile
-from imuhal.profile.model import BoardProfile
 
 HARD_IRON_UT = np.array([12.0, -7.0, 20.0])
 FIELD_NED_UT = np.array([20.0, 0.0, 40.0])  # 44.7 uT dipping 63 deg
@@ -113,25 +108,12 @@ def test_a_profile_asks_for_it_under_the_devices_calibration() -> None:
     assert cal is not None and cal.mag_in_flight == MagInFlightSettings()
 
 
-def _learning_board(registry: Registry) -> BoardProfile:
-    """seed-gps-vario without estimators, its magnetometer learning in flight."""
-    profile = load_profile(default_profile_path().parent / "seed-gps-vario.yaml", registry)
-    devices = dict(profile.devices)
-    devices["mag"] = devices["mag"].model_copy(
-        update={"calibration": DeviceCalibration(mag_in_flight=MagInFlightSettings())})
-    return profile.model_copy(update={"devices": devices, "estimators": {}})
-
-
-def test_the_uncalibrated_gps_vario_learns_its_hard_iron_in_two_minutes_of_thermal() -> None:
-    registry = load_registry()
-    profile = _learning_board(registry)
-    with open_emulated(profile, registry, scenario="thermal", seed=1) as pipeline:
-        for _ in pipeline.events(120.0):
-            pass
-        applied = pipeline.devices["mag"].calibration
-        status = pipeline.summary().learned["mag"]
+def test_the_uncalibrated_gps_vario_learns_its_hard_iron_in_two_minutes_of_thermal(
+        thermal_learning_flight: ThermalLearningFlight) -> None:
+    flight = thermal_learning_flight
+    applied, status = flight.mag_calibration_at_120_s, flight.mag_status_at_120_s
     # against the figure-of-8 ellipsoid calibration of the same board (seed 1)
-    reference = measure_board_calibration(profile, registry, seed=1)["mag"].mag
+    reference = flight.reference["mag"].mag
     assert reference is not None
     assert status["converged"]
     assert applied is not None and applied.mag is not None
@@ -178,19 +160,11 @@ def test_imuhal_run_with_nothing_learned_writes_no_copy(
     assert not saved.exists()
 
 
-def test_the_live_views_health_shows_the_hard_iron_and_its_uncertainty() -> None:
-    registry = load_registry()
-    profile = _learning_board(registry)
-    sink = LiveSink()
-    with open_emulated(profile, registry, scenario="thermal", seed=1) as pipeline:
-        snap = Snapshotter(sink, pipeline)
-        for event in pipeline.events(30.0):
-            sink.handle(event)
-        learning = snap.snapshot()["health"]["mag"]["learned"]
-        for event in pipeline.events(60.0):
-            sink.handle(event)
-        state = snap.snapshot()
-    json.dumps(state, allow_nan=False)  # what the server sends
+def test_the_live_views_health_shows_the_hard_iron_and_its_uncertainty(
+        thermal_learning_flight: ThermalLearningFlight) -> None:
+    # the state after 90 s went through json.dumps(allow_nan=False), as the server sends it
+    learning = thermal_learning_flight.mag_health_at_30_s["learned"]
+    state = thermal_learning_flight.state_at_90_s
     learned = state["health"]["mag"]["learned"]
     assert not learning["converged"] and learning["readings"] > 0
     assert learned["converged"] and max(learned["std_ut"]) <= 0.5
