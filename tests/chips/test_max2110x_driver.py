@@ -312,6 +312,21 @@ def test_the_retry_after_a_bus_error_reads_the_sample_the_failed_burst_missed() 
     assert all(0 <= s.t_ns - m <= period_ns // 8 for s, m in zip(after, measured, strict=True))
 
 
+def test_a_sample_overwritten_unread_is_reported_for_the_frame_ledger() -> None:
+    """Issue 25: the overrun bit of the accounted channel is the chip's proof of a frame the
+    host never read, whatever the stamps show (``health.overrun_ns``: the poll that found
+    it); a poll on its grid reports none."""
+    rig = make_rig(Max21100Driver, Max21100Emulator)
+    rig.run(0.02)
+    assert rig.driver.health.overrun_ns == 0
+    period_ns = round(1e9 / rig.driver.settings.gyro_odr_hz)
+    late_ns = rig.next_ns + 3 * period_ns // 2  # a newer measurement overwrote one
+    rig.clock.sleep_until(late_ns)
+    result = rig.driver.poll(late_ns)
+    assert [s.t_ns for s in of(result.samples, GyroSample)] == [late_ns]
+    assert rig.driver.health.overrun_ns == late_ns
+
+
 def test_resume_declines_when_the_configuration_no_longer_reads_back() -> None:
     """A chip that reset meanwhile (or a bus that reads garbage) needs the full recovery."""
     rig = make_rig(Max21100Driver, Max21100Emulator)

@@ -118,6 +118,8 @@ _SIX_WORDS = struct.Struct(">6h")
 _AFTER_ACCEL = Reg.ACC_X_H + 6
 """0x30: MAG X/Y/Z then TEMP on the MAX21100 (0x30..0x37), TEMP on the MAX21105 (0x30,
 0x31): what read: fifo reads beside the FIFO."""
+_FAST_OVERRUN = {Quantity.GYRO: int(Status.GYRO_ERR), Quantity.ACCEL: int(Status.ACC_ERR)}
+"""Each channel's own overrun bit (a sample of it overwritten before it was read)."""
 _GYRO_DR = int(Status.GYRO_DR)
 _ACC_DR = int(Status.ACC_DR)
 _OVERRUN = int(Status.GYRO_ERR | Status.ACC_ERR)
@@ -417,6 +419,10 @@ class Max2110xDriver(Driver):
             return PollResult(samples, self._after_stale(now_ns))
         self._watch.fresh_poll()
         fast_ready = gyro_ready if self._fast is Quantity.GYRO else accel_ready
+        if fast_ready and status & _FAST_OVERRUN[self._fast]:
+            # a sample of the accounted channel overwritten unread: the frame ledger's proof
+            # of a lost frame the stamps can hide (a grid that drifted past an instant)
+            self.health.overrun_ns = now_ns
         return PollResult(samples, self._next_poll_ns(now_ns, bool(fast_ready),
                                                       bool(status & _OVERRUN)))
 

@@ -217,7 +217,9 @@ class FrameLedger:
 
     def overrun(self, stamp_ns: int) -> None:
         """The read that brought the frame stamped ``stamp_ns`` found that the chip had
-        overwritten a measurement unread since the read before (the AK8963's ST1.DOR)."""
+        overwritten a measurement unread since the read before (the AK8963's ST1.DOR, the
+        MAX2110x's overrun bit): at least one frame lies between it and the frame before,
+        lost unless the chip was proved hung (``idle``)."""
         self._overrun_ns = stamp_ns
 
     def count_at(self, stamp_ns: int, at_ns: int) -> None:
@@ -320,6 +322,11 @@ class FrameLedger:
         assert self.last_ns is not None
         slots = round(step_ns / self.period_ns) - 1
         lost = max(0, min(slots, round((step_ns - self._slid_ns) / self.period_ns) - 1))
+        if overrun and slots < 1:
+            # the chip overwrote a measurement unread since the read before: one frame lies
+            # between them whatever the stamps say (a poll grid that drifted past an instant
+            # reads the frame after it one period after the one before)
+            slots = lost = 1
         skipped = max(0, slots - lost)
         self.not_converted += skipped
         unmeasured = min(lost, self._unmeasured(lost, overrun))
