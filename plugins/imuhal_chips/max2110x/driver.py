@@ -462,7 +462,12 @@ class Max2110xDriver(Driver):
         if fast_ready and overrun and not late:
             self._grid.anchor(now_ns - self._grid.period_ns // 2)
         elif fast_ready and self._searching:
-            self._grid.locate(now_ns)
+            # The data appeared after the poll a guard before the retry asked for: a retry
+            # that came late (the host's one thread held by another device's poll) is
+            # located where it was asked for, not where it came, whose lateness the
+            # tracking grid took for chip periods longer than they are (1.6 ms over 20
+            # periods: a grid that crept a period late and skipped an instant unseen)
+            self._grid.locate(now_ns if asked_ns is None else min(now_ns, asked_ns))
         self._searching = not fast_ready
         if not fast_ready:
             self._asked_ns = now_ns + self._grid.guard_ns
