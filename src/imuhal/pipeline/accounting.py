@@ -18,7 +18,8 @@ the previous valid frame:
 ``stale``      the driver flagged a sample STALE (no new data for too long);
 ``flagged``    a produced frame came out flagged (FROZEN, BLANK, out of range...);
 ``missed``     none of these: the poll grid missed a frame (a chip clock faster than its
-               nominal period, a poll that came just too late), counted, never hidden.
+               nominal period, a poll that came just too late, a frame the chip's overrun
+               bit says was overwritten unread), counted, never hidden.
 
 Each loss counted before a delivered frame (:meth:`FrameLedger.observe` returns it) reaches
 the estimators as a gap before that frame (imuhal.core.gaps.StreamGap).
@@ -60,7 +61,7 @@ A chip that hung (its engine stopped: the fault API's ``stuck_data_ready``) made
 in the slots it let pass, so they are neither produced nor lost either: the ledger counts
 them apart as ``not_measured``. Only what the driver read from the chip says so
 (``DeviceHealth.idle``, ``DeviceHealth.overrun_ns``; the AK8963 read directly reports
-both, from its ST1 bits): an unbroken run of good reads from the latest valid frame's read,
+both, from its ST1 bits, the MAX2110x from its status register): an unbroken run of good reads from the latest valid frame's read,
 each finding no new measurement (DRDY clear), that reached HUNG_AFTER_PERIODS periods past
 that frame proves the chip let an instant pass (half a period after it was due: no
 oscillator error does that), so the chip hung (:meth:`FrameLedger.idle`). It is taken as
@@ -82,8 +83,10 @@ is counted right while the two polls at its ends lie at about the same phase to 
 (within half a period): the drivers that search their chip's instants (the MPU-9250, the
 AK8963 read directly, the MAX2110x) poll within a guard after them; a chip clock off its
 nominal period by more than half a period over a long gap (2 % over 25 periods) can still
-shift the count by one. Frame times from the chip (FIFO reads, data-ready lines) remove
-this limit.
+shift the count by one, except where the chip's overrun bit shows the frame the grid
+skipped (the AK8963's ST1.DOR, the MAX2110x's overrun bits: :meth:`FrameLedger.overrun`,
+at least one frame lost before the frame whose read found it). Frame times from the chip
+(FIFO reads, data-ready lines) remove this limit.
 """
 
 from __future__ import annotations
