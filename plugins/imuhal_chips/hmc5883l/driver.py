@@ -534,8 +534,7 @@ class Hmc5883lDriver(Driver):
             by_delivery = left or late or copy is not delivered or t_ns < stale_ns
             if by_delivery:
                 t_ns = stamp_on_cadence(copy, self._cadence_ns, self._grid.period_ns,
-                                        pause_ns=pause_ns,
-                                        next_ns=_next_measurement(changes, k))
+                                        pause_ns=pause_ns)
             stamp = min(max(t_ns, self._stamped_ns + 1), now_ns - left) \
                 if by_delivery else now_ns
             sample = self._decoded(data, stamp, blank_flag(data))
@@ -643,12 +642,6 @@ class Hmc5883lDriver(Driver):
         else:
             self._locked_ns = self.clock.now_ns()
         return wrong is not None
-
-
-def _next_measurement(changes: list[Copy], k: int) -> int | None:
-    """The delivery of the first copy after ``changes[k]`` that holds a measurement (not
-    blank): a new one, made at least a field period after the one ``changes[k]`` holds."""
-    return next((c.t_ns for c in changes[k + 1:] if not blank_flag(c.data)), None)
 
 
 def _norm(data: bytes) -> float:

@@ -58,7 +58,7 @@ class Copy(NamedTuple):
 
 
 def stamp_on_cadence(copy: Copy, last_ns: int | None, period_ns: int, *,
-                     pause_ns: int, next_ns: int | None = None) -> int:
+                     pause_ns: int) -> int:
     """When a slave's measurement in ``copy`` was copied, for a slave driver that stamps
     each copy with its master's delivery, its previous field stamped ``last_ns`` and its
     measurements ``period_ns`` apart. Usually the delivery (``copy.t_ns``); two cases put
@@ -74,12 +74,6 @@ def stamp_on_cadence(copy: Copy, last_ns: int | None, period_ns: int, *,
     - else, the master's reads just before it failed (``failed_ns``): a failed read moved
       the copy a master period later; the read nearest the cadence is where it was due.
 
-    ``next_ns``: the delivery of a later copy with a new measurement, taken in the same
-    poll: this copy's measurement was made at least a period before that one's, so its
-    cadence point is sought up to ``next_ns - period_ns`` (after a host stall the master's
-    registers hold its latest copy, which can be from before the slave's instant that
-    precedes the delivery).
-
     Either way the stamp stays after ``last_ns`` and the delivery before it, and never
     after the delivery. A slave clock that drifted more than a tenth of a period since
     ``last_ns`` is stamped a period off: the cadence is only good over short gaps."""
@@ -87,8 +81,7 @@ def stamp_on_cadence(copy: Copy, last_ns: int | None, period_ns: int, *,
     if last_ns is None:
         return t_ns
     after = copy.after_ns
-    latest = t_ns if next_ns is None else min(t_ns, next_ns - period_ns)
-    periods = int((latest - last_ns) / period_ns + 0.1)
+    periods = int((t_ns - last_ns) / period_ns + 0.1)
     if after is not None and t_ns - after > pause_ns and periods:
         # a pause after the failed reads too: the copy may have waited in the chip since
         return min(t_ns, max(last_ns + periods * period_ns, after + 1, last_ns + 1))
