@@ -61,8 +61,9 @@ A chip that hung (its engine stopped: the fault API's ``stuck_data_ready``) made
 in the slots it let pass, so they are neither produced nor lost either: the ledger counts
 them apart as ``not_measured``. Only what the driver read from the chip says so
 (``DeviceHealth.idle``, ``DeviceHealth.overrun_ns``; the AK8963 read directly reports
-both, from its ST1 bits, the MAX2110x from its status register): an unbroken run of good reads from the latest valid frame's read,
-each finding no new measurement (DRDY clear), that reached HUNG_AFTER_PERIODS periods past
+both, from its ST1 bits, the MAX2110x from its status register): an unbroken run of good
+reads from the latest valid frame's read, each finding no new measurement (DRDY clear),
+that reached HUNG_AFTER_PERIODS periods past
 that frame proves the chip let an instant pass (half a period after it was due: no
 oscillator error does that), so the chip hung (:meth:`FrameLedger.idle`). It is taken as
 hung until a read finds it measuring again; of the slots between, it made only the one its
