@@ -393,14 +393,8 @@ class AK8963Driver(Driver):
         delivery, the frame ledger rounds the gap before it up to a field the chip never
         skipped and the one after down to none. The pause: a third more than the feed's
         latency (one MPU period and its poll guard) between two deliveries, one and a half
-        MPU periods: more than the poll grid's search for a sample ever adds. A copy with
-        ST1.DOR set after failed reads holds the measurement that overwrote the one they
-        missed, not one they were late for: it keeps its delivery (moved back to a failed
-        read, it closed the gap of the lost field as if nothing was lost, and the next gap
-        counted the loss as missed)."""
+        MPU periods: more than the poll grid's search for a sample ever adds."""
         assert self._feed is not None
-        if copy.failed_ns and copy.data[0] & r.ST1_DOR:
-            copy = copy._replace(failed_ns=())
         return stamp_on_cadence(copy, self._stamped_ns, self._period_ns,
                                 pause_ns=self._feed.latency_ns * 4 // 3)
 
