@@ -318,13 +318,13 @@ def test_a_sample_overwritten_unread_is_reported_for_the_frame_ledger() -> None:
     it); a poll on its grid reports none."""
     rig = make_rig(Max21100Driver, Max21100Emulator)
     rig.run(0.02)
-    assert rig.driver.health.overrun_ns == 0
+    assert rig.driver.health.skipped_ns == 0
     period_ns = round(1e9 / rig.driver.settings.gyro_odr_hz)
     late_ns = rig.next_ns + 3 * period_ns // 2  # a newer measurement overwrote one
     rig.clock.sleep_until(late_ns)
     result = rig.driver.poll(late_ns)
     assert [s.t_ns for s in of(result.samples, GyroSample)] == [late_ns]
-    assert rig.driver.health.overrun_ns == late_ns
+    assert rig.driver.health.skipped_ns == late_ns
 
 
 def test_resume_declines_when_the_configuration_no_longer_reads_back() -> None:

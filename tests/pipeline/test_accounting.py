@@ -174,7 +174,7 @@ def test_an_overrun_a_period_after_the_frame_before_is_one_lost_frame() -> None:
     the one before: the stamps show no gap, the chip's overrun bit shows the frame between."""
     ledger = FrameLedger(Quantity.GYRO, P)
     ledger.observe(gyro(0))
-    ledger.overrun(P + P // 50)
+    ledger.skipped(P + P // 50)
     ledger.observe(gyro(P + P // 50))
     assert (ledger.produced, ledger.delivered, dict(ledger.lost)) == (3, 2, {"missed": 1})
 

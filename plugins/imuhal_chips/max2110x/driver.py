@@ -430,7 +430,7 @@ class Max2110xDriver(Driver):
         if fast_ready and status & _FAST_OVERRUN[self._fast]:
             # a sample of the accounted channel overwritten unread: the frame ledger's proof
             # of a lost frame the stamps can hide (a grid that drifted past an instant)
-            self.health.overrun_ns = now_ns
+            self.health.overrun_ns = self.health.skipped_ns = now_ns
         return PollResult(samples, self._next_poll_ns(now_ns, bool(fast_ready),
                                                       bool(status & _OVERRUN)))
 

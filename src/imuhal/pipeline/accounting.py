@@ -85,8 +85,8 @@ is counted right while the two polls at its ends lie at about the same phase to 
 AK8963 read directly, the MAX2110x) poll within a guard after them; a chip clock off its
 nominal period by more than half a period over a long gap (2 % over 25 periods) can still
 shift the count by one, except where the chip's overrun bit shows the frame the grid
-skipped (the AK8963's ST1.DOR, the MAX2110x's overrun bits: :meth:`FrameLedger.overrun`,
-at least one frame lost before the frame whose read found it). Frame times from the chip
+skipped (the MAX2110x's overrun bits: :meth:`FrameLedger.skipped`, at least one frame lost
+before the frame whose read found it). Frame times from the chip
 (FIFO reads, data-ready lines) remove this limit.
 """
 
@@ -169,6 +169,8 @@ class FrameLedger:
     _last_counted_ns: int = 0
     """Where the latest valid frame is counted from: its stamp, or the due time of the late
     poll that read it (``count_at``)."""
+    _skipped_ns: int | None = None
+    """The stamp of a frame whose read found one of the stream overwritten (``skipped``)."""
     _off_phase: tuple[int, int] | None = None
     """(stamp, due time) of a late poll (``count_at``)."""
 
@@ -222,9 +224,16 @@ class FrameLedger:
     def overrun(self, stamp_ns: int) -> None:
         """The read that brought the frame stamped ``stamp_ns`` found that the chip had
         overwritten a measurement unread since the read before (the AK8963's ST1.DOR, the
-        MAX2110x's overrun bit): at least one frame lies between it and the frame before,
-        lost unless the chip was proved hung (``idle``)."""
+        MAX2110x's overrun bit): of a hung chip's slots, the one lost (``idle``)."""
         self._overrun_ns = stamp_ns
+
+    def skipped(self, stamp_ns: int) -> None:
+        """The driver's own read that brought the frame stamped ``stamp_ns`` found a frame
+        of the stream overwritten unread since its read before (the MAX2110x's overrun
+        bit): at least one frame lies between it and the frame before, lost, whatever the
+        stamps say. Not for a copy a bus master made (the AK8963's DOR behind slave 0: the
+        stamps of such copies are placed on the chip's cadence already)."""
+        self._skipped_ns = stamp_ns
 
     def count_at(self, stamp_ns: int, at_ns: int) -> None:
         """A poll made at ``stamp_ns`` was due at ``at_ns`` (a point of its device's grid): a
@@ -265,7 +274,8 @@ class FrameLedger:
             self._off_phase = None
         if self.last_ns is not None:
             loss = self._gap_before(counted_ns - self._last_counted_ns,
-                                    overrun=self._overrun_ns == t_ns)
+                                    overrun=self._overrun_ns == t_ns,
+                                    skipped=self._skipped_ns == t_ns)
         else:
             self.first_ns = t_ns
         if self._segment_first_ns is None:
@@ -280,6 +290,8 @@ class FrameLedger:
         self._idle_ns = None
         if self._overrun_ns is not None and self._overrun_ns <= t_ns:
             self._overrun_ns = None
+        if self._skipped_ns is not None and self._skipped_ns <= t_ns:
+            self._skipped_ns = None
         return loss
 
     def observe_block(self, block: Block) -> list[tuple[int, Loss]]:
@@ -318,7 +330,8 @@ class FrameLedger:
             self._seen.update(due)
             self._pending = [(at, c) for at, c in self._pending if at > t_ns]
 
-    def _gap_before(self, step_ns: int, *, overrun: bool = False) -> Loss | None:
+    def _gap_before(self, step_ns: int, *, overrun: bool = False,
+                    skipped: bool = False) -> Loss | None:
         """Counts the slots between the latest valid frame and one ``step_ns`` after it:
         frames lost (charged to the weightiest cause seen), slots never converted and slots
         a hung chip did not measure. ``overrun``: the frame's read found a measurement
@@ -326,8 +339,8 @@ class FrameLedger:
         assert self.last_ns is not None
         slots = round(step_ns / self.period_ns) - 1
         lost = max(0, min(slots, round((step_ns - self._slid_ns) / self.period_ns) - 1))
-        if overrun and slots < 1:
-            # the chip overwrote a measurement unread since the read before: one frame lies
+        if skipped and slots < 1:
+            # the chip overwrote a frame unread since the read before: one frame lies
             # between them whatever the stamps say (a poll grid that drifted past an instant
             # reads the frame after it one period after the one before)
             slots = lost = 1
