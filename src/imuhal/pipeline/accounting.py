@@ -366,7 +366,10 @@ class FrameLedger:
         reconfigured it in."""
         if self._idle_ns is None or "reset" in self._seen:
             return 0
-        if (self._idle_ns - self._last_counted_ns) < HUNG_AFTER_PERIODS * self.period_ns:
+        # from the latest frame's read (its stamp), not the due time a late poll is counted
+        # at: the chip's next instant came within a period after that read
+        assert self.last_ns is not None
+        if (self._idle_ns - self.last_ns) < HUNG_AFTER_PERIODS * self.period_ns:
             return 0
         return max(0, slots - int(overrun))
 
