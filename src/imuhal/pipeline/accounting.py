@@ -275,7 +275,7 @@ class FrameLedger:
         if self.last_ns is not None:
             loss = self._gap_before(counted_ns - self._last_counted_ns,
                                     overrun=self._overrun_ns == t_ns,
-                                    skipped=self._skipped_ns == t_ns)
+                                    overwritten=self._skipped_ns == t_ns)
         else:
             self.first_ns = t_ns
         if self._segment_first_ns is None:
@@ -331,15 +331,16 @@ class FrameLedger:
             self._pending = [(at, c) for at, c in self._pending if at > t_ns]
 
     def _gap_before(self, step_ns: int, *, overrun: bool = False,
-                    skipped: bool = False) -> Loss | None:
+                    overwritten: bool = False) -> Loss | None:
         """Counts the slots between the latest valid frame and one ``step_ns`` after it:
         frames lost (charged to the weightiest cause seen), slots never converted and slots
         a hung chip did not measure. ``overrun``: the frame's read found a measurement
-        overwritten unread."""
+        overwritten unread (a hung chip's one lost slot); ``overwritten``: the driver's own
+        read found a frame of the stream overwritten (at least one lost, ``skipped``)."""
         assert self.last_ns is not None
         slots = round(step_ns / self.period_ns) - 1
         lost = max(0, min(slots, round((step_ns - self._slid_ns) / self.period_ns) - 1))
-        if skipped and slots < 1:
+        if overwritten and slots < 1:
             # the chip overwrote a frame unread since the read before: one frame lies
             # between them whatever the stamps say (a poll grid that drifted past an instant
             # reads the frame after it one period after the one before)
