@@ -222,6 +222,19 @@ def test_a_hung_magnetometers_unmade_fields_are_counted_apart_from_lost_ones(
     assert p.summary().frames["mag"]["not_measured"] == ledger.not_measured
 
 
+def test_a_short_hang_of_the_max21100_is_proved_by_its_reads_that_found_nothing(
+        registry: Registry) -> None:
+    """The seed paraglider's MAX21100 hangs 9 ms (``stuck_data_ready``, the fault matrix's
+    window at 0.1 %): two instants of its 4 ms period pass unmeasured. Its search polls, a
+    guard apart, read its status with both data-ready bits clear for more than 1.5 periods
+    after the latest frame, which proves the hang (``health.idle``); the slots are counted
+    not measured (but the one its overrun bit proves lost), and the ledger equals the chip's
+    count (it counted them lost before: 2500 for the chip's 2498 in the matrix's 10 s)."""
+    p = _fly(registry, "seed-paraglider-vario",
+             [StuckDataReady(device="imu", start_s=0.5, end_s=0.509)], 0.7)
+    assert _counts_as_the_chip(p, "imu").not_measured >= 1
+
+
 def test_a_stalled_host_does_not_make_a_measuring_magnetometer_hung(registry: Registry) -> None:
     """Host stalls at every phase of the AK8963's period while it measures on: every field
     the host missed is lost, none is counted as not measured."""

@@ -169,6 +169,16 @@ def test_slots_a_hung_chip_let_pass_are_not_measured_but_one_overrun_is_lost() -
     assert ledger.counts()["not_measured"] == 12
 
 
+def test_an_overrun_a_period_after_the_frame_before_is_one_lost_frame() -> None:
+    """A poll grid that drifted past an instant reads the frame after it one period after
+    the one before: the stamps show no gap, the chip's overrun bit shows the frame between."""
+    ledger = FrameLedger(Quantity.GYRO, P)
+    ledger.observe(gyro(0))
+    ledger.skipped(P + P // 50)
+    ledger.observe(gyro(P + P // 50))
+    assert (ledger.produced, ledger.delivered, dict(ledger.lost)) == (3, 2, {"missed": 1})
+
+
 def test_a_hung_chip_without_an_overrun_made_only_the_frame_read() -> None:
     ledger = FrameLedger(Quantity.GYRO, P)
     ledger.observe(gyro(0))

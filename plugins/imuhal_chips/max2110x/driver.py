@@ -120,6 +120,8 @@ _BLANK_00 = b"\x00" * _SIX_WORDS.size
 _AFTER_ACCEL = Reg.ACC_X_H + 6
 """0x30: MAG X/Y/Z then TEMP on the MAX21100 (0x30..0x37), TEMP on the MAX21105 (0x30,
 0x31): what read: fifo reads beside the FIFO."""
+_FAST_OVERRUN = {Quantity.GYRO: int(Status.GYRO_ERR), Quantity.ACCEL: int(Status.ACC_ERR)}
+"""Each channel's own overrun bit (a sample of it overwritten before it was read)."""
 _GYRO_DR = int(Status.GYRO_DR)
 _ACC_DR = int(Status.ACC_DR)
 _OVERRUN = int(Status.GYRO_ERR | Status.ACC_ERR)
@@ -154,6 +156,9 @@ class Max2110xDriver(Driver):
         self._asked_ns: int | None = None
         """The poll time the grid last asked for (a later poll's overrun is its own)."""
         self._last_temp_ns: int | None = None
+        self._idle_since: int | None = None
+        """The stamp of the latest valid frame of the accounted channel while every read
+        since it was good and found no new sample of it (``health.idle``)."""
         self._grid = PollGrid(1, early_fraction=EARLY_FRACTION)
         self._ready = DataReady({})
         self._watch = ResetWatch(self.settings.reset_check_s)
@@ -370,6 +375,7 @@ class Max2110xDriver(Driver):
         self._asked_ns = None
         self._ready.start(now_ns)
         self._last_temp_ns = None
+        self._idle_since = None
         self._watch.start(now_ns)
         if self._fifo is not None:
             self._fifo.reset(restart=True)
@@ -396,6 +402,8 @@ class Max2110xDriver(Driver):
             return PollResult([], self.restart(reset_detected=True))
         if self._fifo is not None:
             return self._poll_fifo(now_ns)
+        # a read that fails may have cleared the data-ready bits: no proof across it
+        since, self._idle_since = self._idle_since, None
         raw = self.regs.send(self._burst_frame, self._burst_length)
         if self._feed is not None:
             self._feed.deliver(now_ns, raw[_MAG_OFFSET:_MAG_OFFSET + self._feed.length])
@@ -413,6 +421,9 @@ class Max2110xDriver(Driver):
         accel_flag = self._flag_of(Quantity.ACCEL, accel_ready, bad, now_ns)
         if accel_flag is not None:
             samples.append(self._accel_sample((ax, ay, az), now_ns, accel_flag))
+        gyro_fast = self._fast is Quantity.GYRO
+        fast_ready = gyro_ready if gyro_fast else accel_ready
+        self._note_idle(since, gyro_flag if gyro_fast else accel_flag, bad, now_ns)
         stale = bool(gyro_flag) or bool(accel_flag)
         if gyro_ready and (
             self._last_temp_ns is None or now_ns - self._last_temp_ns >= TEMPERATURE_PERIOD_NS
@@ -422,9 +433,26 @@ class Max2110xDriver(Driver):
         if stale:
             return PollResult(samples, self._after_stale(now_ns))
         self._watch.fresh_poll()
-        fast_ready = gyro_ready if self._fast is Quantity.GYRO else accel_ready
+        if fast_ready and status & _FAST_OVERRUN[self._fast]:
+            # a sample of the accounted channel overwritten unread: the frame ledger's proof
+            # of a lost frame the stamps can hide (a grid that drifted past an instant)
+            self.health.overrun_ns = self.health.skipped_ns = now_ns
         return PollResult(samples, self._next_poll_ns(now_ns, bool(fast_ready),
                                                       bool(status & _OVERRUN)))
+
+    def _note_idle(self, since: int | None, fast_flag: SampleFlag | None, bad: SampleFlag,
+                   now_ns: int) -> None:
+        """A read at ``now_ns`` whose accounted channel got ``fast_flag`` (None: no new
+        sample, and not overdue): a valid frame starts a run of reads; a good read that
+        found no new sample since the latest valid frame (``since``, every read since alike)
+        proves the chip measured nothing since (``health.idle``: the frame ledger's proof of
+        a hung chip, issue 25). An overdue one (STALE) found nothing new either."""
+        if fast_flag is not None and not fast_flag:
+            self._idle_since = now_ns
+        elif not bad and since is not None and (fast_flag is None
+                                                or fast_flag == SampleFlag.STALE):
+            self._idle_since = since
+            self.health.idle = (since, now_ns)
 
     def _flag_of(self, channel: Quantity, ready: int, bad: SampleFlag,
                  now_ns: int) -> SampleFlag | None:
@@ -462,7 +490,12 @@ class Max2110xDriver(Driver):
         if fast_ready and overrun and not late:
             self._grid.anchor(now_ns - self._grid.period_ns // 2)
         elif fast_ready and self._searching:
-            self._grid.locate(now_ns)
+            # The data appeared after the poll a guard before the retry asked for: a retry
+            # that came late (the host's one thread held by another device's poll) is
+            # located where it was asked for, not where it came, whose lateness the
+            # tracking grid took for chip periods longer than they are (1.6 ms over 20
+            # periods: a grid that crept a period late and skipped an instant unseen)
+            self._grid.locate(now_ns if asked_ns is None else min(now_ns, asked_ns))
         self._searching = not fast_ready
         if not fast_ready:
             self._asked_ns = now_ns + self._grid.guard_ns

@@ -68,7 +68,9 @@ def stamp_on_cadence(copy: Copy, last_ns: int | None, period_ns: int, *,
 
     - the master did not deliver for longer than ``pause_ns`` (its period) before it
       (``after_ns``, a failed delivery included): the copy may have waited a slave period
-      in the chip; the latest cadence point not after the delivery;
+      in the chip; the latest cadence point not after the delivery, when one lies after
+      ``last_ns`` (within 0.9 period of it, ``last_ns`` was a late poll's stamp, a new
+      measurement cannot be on that cadence, and the delivery dates it);
     - else, the master's reads just before it failed (``failed_ns``): a failed read moved
       the copy a master period later; the read nearest the cadence is where it was due.
 
@@ -79,9 +81,9 @@ def stamp_on_cadence(copy: Copy, last_ns: int | None, period_ns: int, *,
     if last_ns is None:
         return t_ns
     after = copy.after_ns
-    if after is not None and t_ns - after > pause_ns:
+    periods = int((t_ns - last_ns) / period_ns + 0.1)
+    if after is not None and t_ns - after > pause_ns and periods:
         # a pause after the failed reads too: the copy may have waited in the chip since
-        periods = int((t_ns - last_ns) / period_ns + 0.1)
         return min(t_ns, max(last_ns + periods * period_ns, after + 1, last_ns + 1))
     if copy.failed_ns:
         def off_cadence(t: int) -> int:

@@ -113,6 +113,11 @@ class DeviceHealth:
     overrun_ns: int = 0
     """The stamp of the latest frame whose read found that the chip had overwritten a
     measurement unread since the read before (a data-overrun bit, the AK8963's ST1.DOR)."""
+    skipped_ns: int = 0
+    """The stamp of the latest frame whose read found a frame of the accounted stream
+    overwritten unread since the read before, for a driver whose reads of its chip are its
+    own (the MAX2110x's overrun bits): the frame ledger counts at least one lost frame
+    before it, whatever the stamps say."""
 
     def counts(self) -> dict[str, int]:
         return {"resets_detected": self.resets_detected,

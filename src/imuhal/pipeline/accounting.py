@@ -18,7 +18,8 @@ the previous valid frame:
 ``stale``      the driver flagged a sample STALE (no new data for too long);
 ``flagged``    a produced frame came out flagged (FROZEN, BLANK, out of range...);
 ``missed``     none of these: the poll grid missed a frame (a chip clock faster than its
-               nominal period, a poll that came just too late), counted, never hidden.
+               nominal period, a poll that came just too late, a frame the chip's overrun
+               bit says was overwritten unread), counted, never hidden.
 
 Each loss counted before a delivered frame (:meth:`FrameLedger.observe` returns it) reaches
 the estimators as a gap before that frame (imuhal.core.gaps.StreamGap).
@@ -60,8 +61,9 @@ A chip that hung (its engine stopped: the fault API's ``stuck_data_ready``) made
 in the slots it let pass, so they are neither produced nor lost either: the ledger counts
 them apart as ``not_measured``. Only what the driver read from the chip says so
 (``DeviceHealth.idle``, ``DeviceHealth.overrun_ns``; the AK8963 read directly reports
-both, from its ST1 bits): an unbroken run of good reads from the latest valid frame's read,
-each finding no new measurement (DRDY clear), that reached HUNG_AFTER_PERIODS periods past
+both, from its ST1 bits, the MAX2110x from its status register): an unbroken run of good
+reads from the latest valid frame's read, each finding no new measurement (DRDY clear),
+that reached HUNG_AFTER_PERIODS periods past
 that frame proves the chip let an instant pass (half a period after it was due: no
 oscillator error does that), so the chip hung (:meth:`FrameLedger.idle`). It is taken as
 hung until a read finds it measuring again; of the slots between, it made only the one its
@@ -82,8 +84,10 @@ is counted right while the two polls at its ends lie at about the same phase to 
 (within half a period): the drivers that search their chip's instants (the MPU-9250, the
 AK8963 read directly, the MAX2110x) poll within a guard after them; a chip clock off its
 nominal period by more than half a period over a long gap (2 % over 25 periods) can still
-shift the count by one. Frame times from the chip (FIFO reads, data-ready lines) remove
-this limit.
+shift the count by one, except where the chip's overrun bit shows the frame the grid
+skipped (the MAX2110x's overrun bits: :meth:`FrameLedger.skipped`, at least one frame lost
+before the frame whose read found it). Frame times from the chip
+(FIFO reads, data-ready lines) remove this limit.
 """
 
 from __future__ import annotations
@@ -165,6 +169,8 @@ class FrameLedger:
     _last_counted_ns: int = 0
     """Where the latest valid frame is counted from: its stamp, or the due time of the late
     poll that read it (``count_at``)."""
+    _skipped_ns: int | None = None
+    """The stamp of a frame whose read found one of the stream overwritten (``skipped``)."""
     _off_phase: tuple[int, int] | None = None
     """(stamp, due time) of a late poll (``count_at``)."""
 
@@ -217,8 +223,17 @@ class FrameLedger:
 
     def overrun(self, stamp_ns: int) -> None:
         """The read that brought the frame stamped ``stamp_ns`` found that the chip had
-        overwritten a measurement unread since the read before (the AK8963's ST1.DOR)."""
+        overwritten a measurement unread since the read before (the AK8963's ST1.DOR, the
+        MAX2110x's overrun bit): of a hung chip's slots, the one lost (``idle``)."""
         self._overrun_ns = stamp_ns
+
+    def skipped(self, stamp_ns: int) -> None:
+        """The driver's own read that brought the frame stamped ``stamp_ns`` found a frame
+        of the stream overwritten unread since its read before (the MAX2110x's overrun
+        bit): at least one frame lies between it and the frame before, lost, whatever the
+        stamps say. Not for a copy a bus master made (the AK8963's DOR behind slave 0: the
+        stamps of such copies are placed on the chip's cadence already)."""
+        self._skipped_ns = stamp_ns
 
     def count_at(self, stamp_ns: int, at_ns: int) -> None:
         """A poll made at ``stamp_ns`` was due at ``at_ns`` (a point of its device's grid): a
@@ -259,7 +274,8 @@ class FrameLedger:
             self._off_phase = None
         if self.last_ns is not None:
             loss = self._gap_before(counted_ns - self._last_counted_ns,
-                                    overrun=self._overrun_ns == t_ns)
+                                    overrun=self._overrun_ns == t_ns,
+                                    overwritten=self._skipped_ns == t_ns)
         else:
             self.first_ns = t_ns
         if self._segment_first_ns is None:
@@ -274,6 +290,8 @@ class FrameLedger:
         self._idle_ns = None
         if self._overrun_ns is not None and self._overrun_ns <= t_ns:
             self._overrun_ns = None
+        if self._skipped_ns is not None and self._skipped_ns <= t_ns:
+            self._skipped_ns = None
         return loss
 
     def observe_block(self, block: Block) -> list[tuple[int, Loss]]:
@@ -313,16 +331,23 @@ class FrameLedger:
             self._seen.update(due)
             self._pending = [(at, c) for at, c in self._pending if at > t_ns]
 
-    def _gap_before(self, step_ns: int, *, overrun: bool = False) -> Loss | None:
+    def _gap_before(self, step_ns: int, *, overrun: bool = False,
+                    overwritten: bool = False) -> Loss | None:
         """Counts the slots between the latest valid frame and one ``step_ns`` after it:
         frames lost (charged to the weightiest cause seen), slots never converted and slots
         a hung chip did not measure. ``overrun``: the frame's read found a measurement
-        overwritten unread."""
+        overwritten unread (a hung chip's one lost slot); ``overwritten``: the driver's own
+        read found a frame of the stream overwritten (at least one lost, ``skipped``)."""
         assert self.last_ns is not None
         slots = round(step_ns / self.period_ns) - 1
         if slots <= 0:  # the next slot (nearly every frame): nothing below can count
             return None
         lost = max(0, min(slots, round((step_ns - self._slid_ns) / self.period_ns) - 1))
+        if overwritten and slots < 1:
+            # the chip overwrote a frame unread since the read before: one frame lies
+            # between them whatever the stamps say (a poll grid that drifted past an instant
+            # reads the frame after it one period after the one before)
+            slots = lost = 1
         skipped = max(0, slots - lost)
         self.not_converted += skipped
         unmeasured = min(lost, self._unmeasured(lost, overrun))
@@ -345,7 +370,10 @@ class FrameLedger:
         reconfigured it in."""
         if self._idle_ns is None or "reset" in self._seen:
             return 0
-        if (self._idle_ns - self._last_counted_ns) < HUNG_AFTER_PERIODS * self.period_ns:
+        # from the latest frame's read (its stamp), not the due time a late poll is counted
+        # at: the chip's next instant came within a period after that read
+        assert self.last_ns is not None
+        if (self._idle_ns - self.last_ns) < HUNG_AFTER_PERIODS * self.period_ns:
             return 0
         return max(0, slots - int(overrun))
 

@@ -166,6 +166,7 @@ class DeviceRuntime:
     idle_seen: tuple[int, int] | None = None
     """The driver's idle reads the ledger last saw."""
     overrun_seen_ns: int = 0
+    skipped_seen_ns: int = 0
     """The driver's overrun stamp the ledger last saw."""
     mag_learner: HardIronLearner | None = None
     """Learning the hard iron in flight (``mag_in_flight``, no stored magnetometer record)."""
@@ -1097,6 +1098,9 @@ class Pipeline:
         if health.overrun_ns != dev.overrun_seen_ns:
             dev.overrun_seen_ns = health.overrun_ns
             dev.ledger.overrun(health.overrun_ns)
+        if health.skipped_ns != dev.skipped_seen_ns:
+            dev.skipped_seen_ns = health.skipped_ns
+            dev.ledger.skipped(health.skipped_ns)
         if driver.health.reconfigurations != dev.reconfigurations_seen:
             dev.reconfigurations_seen = driver.health.reconfigurations
             dev.ledger.note("reset")
