@@ -109,10 +109,10 @@ def test_status_explains_a_missing_build(
     assert cli_main.main(["kernels", "status"]) == 0
     out = capsys.readouterr().out
     assert f"kernel directory: {no_kernel_env}" in out
-    # six batch kernels, Madgwick's block step and three per-sample steps
+    # seven batch kernels, Madgwick's and decoupled's block steps and four per-sample steps
     # said once per kernel, with the fix
-    assert out.count(f"no extension built in {no_kernel_env} (run `imuhal kernels build`)") == 10
-    assert out.count("no extension") == 10
+    assert out.count(f"no extension built in {no_kernel_env} (run `imuhal kernels build`)") == 13
+    assert out.count("no extension") == 13
 
 
 def test_status_shows_per_sample_steps_on_python_without_an_extension(
@@ -122,7 +122,7 @@ def test_status_shows_per_sample_steps_on_python_without_an_extension(
     lines = [line.split() for line in capsys.readouterr().out.splitlines()]
     steps = {words[0]: words[1] for words in lines if words and words[0].endswith("_sample")}
     assert steps == {"madgwick_sample": "python", "mahony_sample": "python",
-                     "imufilter_sample": "python"}
+                     "imufilter_sample": "python", "decoupled_sample": "python"}
 
 
 def test_estimate_forced_to_a_missing_extension_names_the_build(
