@@ -340,8 +340,8 @@ class FrameLedger:
         read found a frame of the stream overwritten (at least one lost, ``skipped``)."""
         assert self.last_ns is not None
         slots = round(step_ns / self.period_ns) - 1
-        if slots <= 0:  # the next slot (nearly every frame): nothing below can count
-            return None
+        if slots <= 0 and not overwritten:  # the next slot (nearly every frame), nothing
+            return None  # overwritten unread: nothing below can count
         lost = max(0, min(slots, round((step_ns - self._slid_ns) / self.period_ns) - 1))
         if overwritten and slots < 1:
             # the chip overwrote a frame unread since the read before: one frame lies
