@@ -78,9 +78,10 @@ class FrozenWatch:
             self._repeats[key] = 1
         return SampleFlag.FROZEN if self._repeats[key] >= self.n else SampleFlag.OK
 
-    def would_flag(self, key: Hashable, frames: Iterable[bytes]) -> bool:
-        """True when ``observe`` of ``frames`` in turn would return ``FROZEN`` for one of
-        them; nothing is observed (a driver decoding a burst at once asks first)."""
+    def _after(self, key: Hashable, frames: Iterable[bytes]
+               ) -> tuple[bool, bytes | None, int]:
+        """Whether ``observe`` of ``frames`` in turn would return ``FROZEN`` for one of them,
+        and the last frame and its repeat count after them (nothing is observed)."""
         last = self._last.get(key)
         repeats = self._repeats.get(key, 0)
         for frame in frames:
@@ -89,23 +90,21 @@ class FrozenWatch:
             else:
                 last, repeats = frame, 1
             if repeats >= self.n:
-                return True
-        return False
+                return True, last, repeats
+        return False, last, repeats
 
+    def would_flag(self, key: Hashable, frames: Iterable[bytes]) -> bool:
+        """True when ``observe`` of ``frames`` in turn would return ``FROZEN`` for one of
+        them; nothing is observed (a driver decoding a burst at once asks first)."""
+        return self._after(key, frames)[0]
 
     def observe_all(self, key: Hashable, frames: Sequence[bytes]) -> bool:
         """``observe`` of each of ``frames`` in turn when none of them would be ``FROZEN``
         (True), else nothing observed (False, as ``would_flag`` says): one pass over a
         burst a driver decodes at once."""
-        last = self._last.get(key)
-        repeats = self._repeats.get(key, 0)
-        for frame in frames:
-            if frame == last:
-                repeats += 1
-            else:
-                last, repeats = frame, 1
-            if repeats >= self.n:
-                return False
+        flagged, last, repeats = self._after(key, frames)
+        if flagged:
+            return False
         if last is not None:
             self._last[key] = bytes(last)
             self._repeats[key] = repeats
