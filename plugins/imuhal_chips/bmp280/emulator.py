@@ -24,7 +24,9 @@ datasheet's floating-point compensation written independently of the driver, wit
 trimming (default: the datasheet worked example), at the configured resolution.
 
 Faults: ``chip_id`` (a clone or another part), ``stuck_data_ready`` (conversions never finish:
-``measuring`` stays set, forced mode never returns to sleep, data freeze), ``silent_reset()``,
+``measuring`` stays set, forced mode never returns to sleep, data freeze; what finished
+before the hang began is measured, and when it ends the cycles it held complete at their own
+instants), ``silent_reset()``,
 absence (``absent``) and bus errors via ``EmulatedBus.fail_transfers``.
 
 Source of facts: BMP280 datasheet BST-BMP280-DS001-19; imuhal shared chip facts section 2.
