@@ -222,6 +222,19 @@ def test_a_hung_magnetometers_unmade_fields_are_counted_apart_from_lost_ones(
     assert p.summary().frames["mag"]["not_measured"] == ledger.not_measured
 
 
+def test_a_hang_begins_at_its_start_not_at_the_chips_next_access(registry: Registry) -> None:
+    """The gy91 BMP280 hangs 9 ms from 0.4955 s and resets at 0.5 s (the fault matrix's
+    ``reset + stuck_data_ready + frozen`` at 0.1 %): its measurement due at 0.4928 s, before
+    the hang, is made, and the poll at 0.4958 s reads it as new. The hang used to begin at
+    that poll, when the faults noticed it: the measurement was never made, the poll handed
+    out the one before again as new, and the reset wiped the cycle before it could complete
+    (498 frames for the chip's 497 in the matrix's 10 s)."""
+    faults: list[FaultSpec] = [StuckDataReady(device="baro", start_s=0.4955, end_s=0.5045),
+                               ChipReset(device="baro", start_s=0.5)]
+    p = _fly(registry, "gy91", faults, 0.6)
+    assert _counts_as_the_chip(p, "baro").lost["reset"] >= 1
+
+
 def test_a_short_hang_of_the_max21100_is_proved_by_its_reads_that_found_nothing(
         registry: Registry) -> None:
     """The seed paraglider's MAX21100 hangs 9 ms (``stuck_data_ready``, the fault matrix's

@@ -188,6 +188,36 @@ def test_a_hung_chip_without_an_overrun_made_only_the_frame_read() -> None:
     assert (ledger.produced, ledger.not_measured, sum(ledger.lost.values())) == (2, 5, 0)
 
 
+def test_a_frame_read_as_the_chips_next_measurement_has_no_slot_lost_before_it() -> None:
+    """The read of the frame at 2 periods proved the chip measured once since the frame at
+    0 (``adjacent``: unbroken reads that found nothing, then DRDY without DOR): the slot
+    the stamps span is one a hang too short for ``idle`` let pass, not measured."""
+    ledger = FrameLedger(Quantity.GYRO, P)
+    ledger.observe(gyro(0))
+    ledger.adjacent(0, 2 * P)
+    loss = ledger.observe(gyro(2 * P))
+    assert loss is not None and (loss.frames, loss.cause) == (1, "not_measured")
+    assert (ledger.produced, ledger.not_measured, sum(ledger.lost.values())) == (2, 1, 0)
+
+
+@pytest.mark.parametrize("since, overrun, note", [
+    (-P, False, ""),  # proved after another frame than the latest valid one
+    (0, True, ""),  # the overrun bit says a measurement was overwritten: lost
+    (0, False, "reset"),  # the chip reconfigured between: its segment ends
+])
+def test_a_proof_of_the_next_measurement_counts_only_for_the_frame_before(
+        since: int, overrun: bool, note: str) -> None:
+    ledger = FrameLedger(Quantity.GYRO, P)
+    ledger.observe(gyro(0))
+    ledger.adjacent(since, 2 * P)
+    if overrun:
+        ledger.overrun(2 * P)
+    if note:
+        ledger.note(note)
+    ledger.observe(gyro(2 * P))
+    assert (sum(ledger.lost.values()), ledger.not_measured) == (1, 0)
+
+
 @pytest.mark.parametrize("since, until", [
     (0, P + P // 3),  # nothing for less than 1.5 periods: a slow chip clock, not a hang
     (-P, 4 * P),  # reads that began before the latest frame prove nothing about after it

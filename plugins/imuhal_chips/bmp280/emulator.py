@@ -24,7 +24,9 @@ datasheet's floating-point compensation written independently of the driver, wit
 trimming (default: the datasheet worked example), at the configured resolution.
 
 Faults: ``chip_id`` (a clone or another part), ``stuck_data_ready`` (conversions never finish:
-``measuring`` stays set, forced mode never returns to sleep, data freeze), ``silent_reset()``,
+``measuring`` stays set, forced mode never returns to sleep, data freeze; what finished
+before the hang began is measured, and when it ends the cycles it held complete at their own
+instants), ``silent_reset()``,
 absence (``absent``) and bus errors via ``EmulatedBus.fail_transfers``.
 
 Source of facts: BMP280 datasheet BST-BMP280-DS001-19; imuhal shared chip facts section 2.
@@ -104,7 +106,7 @@ class BMP280Emulator(ChipEmulator):
         """What the trimming registers read (fault injection may flip bits of it)."""
         self.chip_id = r.CHIP_ID
         """What 0xD0 reads (fault injection: 0x60 is a BME280, anything else a clone)."""
-        self.stuck_data_ready = False
+        self._hung = False
         self._pointer = 0
         self.resets = 0
         self._oscillator_error = 0.0
@@ -113,6 +115,18 @@ class BMP280Emulator(ChipEmulator):
         """Resets seen (soft reset command or silent reset), for tests."""
 
     # -- fault injection --------------------------------------------------------------------
+
+    @property
+    def stuck_data_ready(self) -> bool:
+        """The conversions hang (fault injection): none finishes while it lasts; when it
+        ends, the cycles it held complete at their own instants."""
+        return self._hung
+
+    @stuck_data_ready.setter
+    def stuck_data_ready(self, hung: bool) -> None:
+        if hung and not getattr(self, "_hung", True):
+            self._advance()  # what finished before the hang began is measured
+        self._hung = hung
 
     def corrupt_trim(self, rng: random.Random, bits: int = 1) -> str:
         """Flip ``bits`` random bits of the 24 trimming bytes the driver reads; the sensor

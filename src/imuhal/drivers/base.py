@@ -113,6 +113,15 @@ class DeviceHealth:
     overrun_ns: int = 0
     """The stamp of the latest frame whose read found that the chip had overwritten a
     measurement unread since the read before (a data-overrun bit, the AK8963's ST1.DOR)."""
+    adjacent: tuple[int, int] | None = None
+    """(the stamp of the latest frame the driver handed out valid, the stamp of a frame
+    after it) when the read that brought the later one proved the chip measured once since
+    the earlier one's read: every read between was good and found nothing new, and this one
+    found a new measurement without the overrun bit (the AK8963's ST1: DRDY set, DOR clear,
+    a bit cleared by every read). The chip made no frame between the two, whatever their
+    stamps say: the frame ledger counts any slot between as not measured, not lost
+    (``FrameLedger.adjacent``: a hang too short for ``idle`` to prove). None: no such
+    read."""
     skipped_ns: int = 0
     """The stamp of the latest frame whose read found a frame of the accounted stream
     overwritten unread since the read before, for a driver whose reads of its chip are its

@@ -168,6 +168,8 @@ class DeviceRuntime:
     overrun_seen_ns: int = 0
     skipped_seen_ns: int = 0
     """The driver's overrun stamp the ledger last saw."""
+    adjacent_seen: tuple[int, int] | None = None
+    """The driver's pair of frames proved adjacent the ledger last saw."""
     mag_learner: HardIronLearner | None = None
     """Learning the hard iron in flight (``mag_in_flight``, no stored magnetometer record)."""
     accel_teacher: AccelTeacher | None = None
@@ -1095,6 +1097,9 @@ class Pipeline:
         if health.idle is not None and health.idle != dev.idle_seen:
             dev.idle_seen = health.idle
             dev.ledger.idle(*health.idle)
+        if health.adjacent is not None and health.adjacent != dev.adjacent_seen:
+            dev.adjacent_seen = health.adjacent
+            dev.ledger.adjacent(*health.adjacent)
         if health.overrun_ns != dev.overrun_seen_ns:
             dev.overrun_seen_ns = health.overrun_ns
             dev.ledger.overrun(health.overrun_ns)

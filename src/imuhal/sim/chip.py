@@ -351,9 +351,10 @@ class ChipEmulator(ABC):
 class HangsBetweenTransfers:
     """For an emulator that brings its measurements up to date at each transfer
     (``_advance``; the next measurement due at ``_next_ns``, None while idle): setting
-    ``stuck_data_ready`` brings them up to now first, so what fell due before a hang began is
-    measured and what fell due while it lasted is not, whatever transfer comes next. Put it
-    before :class:`ChipEmulator` among the bases."""
+    ``stuck_data_ready`` brings them up to now first (the fault's ``start_s``: the fault
+    injection sets it as at that instant, ``master_instant_ns``), so what fell due before a
+    hang began is measured and what fell due while it lasted is not, whatever transfer comes
+    next. Put it before :class:`ChipEmulator` among the bases."""
 
     _hung: bool
 
