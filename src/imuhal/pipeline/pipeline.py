@@ -35,11 +35,11 @@ from imuhal.calibration.model import (
 )
 from imuhal.core.blocks import Block, blocks_of, interleaved
 from imuhal.core.clock import Clock
-from imuhal.core.poll_plan import POLL_PLAN
 from imuhal.core.conventions import get_convention
 from imuhal.core.errors import BusError, ImuhalError, PluginError, ProfileError, RunEnded
 from imuhal.core.frames import FloatArray
 from imuhal.core.gaps import StreamGap
+from imuhal.core.poll_plan import POLL_PLAN
 from imuhal.core.samples import GyroSample, MagSample, Quantity, Sample, SampleFlag
 from imuhal.core.streams import StreamSpec, TimeSource
 from imuhal.drivers.base import DeviceIdentity, Driver
