@@ -347,21 +347,17 @@ def test_the_slot_that_ends_a_frozen_run_is_frozen_too() -> None:
 
 def _fail_next_transfer_of(rig: Rig, in_state: Measurement | None) -> None:
     """Step polls until the next poll's transfer is an ADC read (``in_state``: the running
-    conversion) or a convert command (None: no conversion running), then fail it. Under
-    poll plan 2 every convert command follows an ADC read in its poll: the second transfer
-    of a poll that finds no conversion running is failed."""
-    joined = rig.driver.poll_plan >= 2
+    conversion) or a convert command (None: no conversion running), then fail it."""
     for _ in range(1000):
         rig.run_until(rig.next_ns)
         running = rig.emulator.running
-        if in_state is None and (running is None or joined) \
-                and rig.clock.now_ns() > 100_000_000:
+        if in_state is None and running is None and rig.clock.now_ns() > 100_000_000:
             rig.clock.sleep_until(rig.next_ns)
             if rig.emulator.running is None:
                 break
         if in_state is not None and running is in_state:
             break
-    rig.bus.fail_transfers({2} if in_state is None and joined else {1})
+    rig.bus.fail_transfers({1})
     rig.clock.sleep_until(rig.next_ns)
     with pytest.raises(BusError):
         rig.driver.poll(rig.clock.now_ns())
@@ -415,63 +411,3 @@ def test_resume_declines_when_the_failed_transfer_is_not_a_poll_transfer() -> No
     rig.begin()
     rig.run_until(100_000_000)
     assert rig.driver.resume(rig.clock.now_ns()) is None
-
-
-def _stepped(rig: Rig, end_ns: int) -> tuple[list[Sample], int]:
-    """``run_until`` one poll at a time: (samples, polls made)."""
-    samples: list[Sample] = []
-    polls = 0
-    while rig.next_ns <= end_ns:
-        samples += rig.run_until(rig.next_ns)
-        polls += 1
-    return samples, polls
-
-
-def test_a_cycle_is_two_polls_with_the_pressures_of_the_first_plan() -> None:
-    """Poll plan 2 (imuhal.core.poll_plan): the poll that reads a pressure starts the next
-    temperature conversion, so a cycle is two polls, not three, and every pressure
-    completes at the time the first plan's did."""
-    runs = {}
-    for plan in (1, 2):
-        rig = Rig()
-        rig.driver.poll_plan = plan
-        rig.physics(97000.0, 21.0)
-        rig.begin()
-        samples, polls = _stepped(rig, 1_000_000_000)
-        assert rig.emulator.aborted_conversions == 0
-        runs[plan] = ([s.t_ns for s in pressures(samples)], polls,
-                      all(s.valid for s in samples))
-    assert runs[2][0] == runs[1][0] and len(runs[2][0]) >= 49
-    n = len(runs[1][0])  # the polls of the cycle under way at the end: up to two more
-    assert 3 * n <= runs[1][1] <= 3 * n + 2
-    assert 2 * n <= runs[2][1] <= 2 * n + 2  # and the first cycle's own start
-    assert runs[1][2] and runs[2][2]
-
-
-def test_a_failed_joined_temperature_command_keeps_the_pressure_it_followed() -> None:
-    """The joined poll reads a pressure, then sends the temperature's convert command; when
-    that command fails the pressure is not lost: the next poll after ``resume`` hands it
-    out first, at its own time stamp."""
-    rig = Rig()
-    rig.physics(98000.0, 18.0)
-    rig.begin()
-    _stepped(rig, 100_000_000)
-    for _ in range(10):  # up to the poll that reads a pressure
-        if rig.emulator.running is Measurement.D1:
-            break
-        rig.run_until(rig.next_ns)
-    assert rig.emulator.running is Measurement.D1
-    rig.bus.fail_transfers({2})  # the ADC read succeeds, the convert command after it fails
-    rig.clock.sleep_until(rig.next_ns)
-    due_ns = rig.next_ns
-    with pytest.raises(BusError):
-        rig.driver.poll(rig.clock.now_ns())
-    next_ns = rig.driver.resume(rig.clock.now_ns())
-    assert next_ns is not None
-    rig.next_ns = next_ns
-    samples = rig.run_until(rig.clock.now_ns() + 200_000_000)
-    first = pressures(samples)[0]
-    assert first.t_ns == due_ns and first.valid
-    assert abs(first.pressure_pa - 98000.0) <= P_TOL_PA
-    assert rig.emulator.aborted_conversions == 0
-    assert all(s.valid for s in samples)

@@ -337,11 +337,10 @@ def test_an_old_version_recording_replays_until_todays_drivers_ask_otherwise(
 def test_a_recording_made_under_the_first_poll_plan_replays_to_the_events_it_recorded(
         full_registry: Registry) -> None:
     # seed-paraglider-vario, thermal, 1.5 s, recorded by the drivers of 2026-12-07 (main at
-    # effe753), before poll plans had versions: its header names none, and its MS5611
-    # started each temperature conversion in a poll of its own (plan 1). Today's MS5611
-    # starts it in the poll that reads the pressure (plan 2); the replay runs the drivers
-    # on the recording's plan, so it follows every transfer to the end and gives the
-    # events the recording run gave, bit for bit (their sha256, taken from that run).
+    # effe753), before poll plans had versions: its header names none (plan 1). The replay
+    # runs the drivers on the recording's plan, so it follows every transfer to the end
+    # and gives the events the recording run gave, bit for bit (their sha256, taken from
+    # that run).
     path = Path("tests/data/recording/seed-thermal-1.5s-plan1.imurec")
     assert "poll_plan" not in open_recording(path).header
     events = _replay(full_registry, path)

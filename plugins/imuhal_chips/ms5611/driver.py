@@ -4,10 +4,7 @@ One cycle: [convert D2 (temperature) -> wait -> ADC read] -> convert D1 (pressur
 ADC read -> compensate -> emit. The D2 part runs every ``temperature_every`` cycles. Waits are
 the datasheet *maximum* conversion time, so a read never catches a running conversion.
 Cycles are placed so that pressure conversions complete on a grid of ``1/odr_hz``; a late
-poll slides the cycle rather than reading early. Polls (poll plan 2, imuhal.core.poll_plan):
-read D1 and start the next cycle's D2 in one poll, then read D2 and start D1 when the pressure
-conversion is due; two polls a cycle with a temperature (plan 1, a recording made before,
-replays with a poll of its own for each D2 start: three).
+poll slides the cycle rather than reading early.
 
 Validity: an ADC read of 0 (conversion aborted by a reset or a glitch) or all ones (nothing
 drives the bus) is no measurement (STALE / BLANK), and the same D1 word FROZEN_AFTER_FRAMES
@@ -37,7 +34,7 @@ from pydantic import Field, model_validator
 
 from imuhal.bus.base import BusKind, Link
 from imuhal.core.clock import Clock
-from imuhal.core.errors import BusError, DeviceNotFoundError, NackError
+from imuhal.core.errors import DeviceNotFoundError, NackError
 from imuhal.core.samples import (
     Frame,
     PressureSample,
@@ -74,10 +71,6 @@ from imuhal_chips.ms5611.conversion import (
 )
 
 EXPECTED_IDENTITY = "MS5611 PROM with valid CRC4"
-
-JOINED_PLAN = 2
-"""The poll plan (imuhal.core.poll_plan) from which the poll that reads a pressure starts the
-next temperature conversion (``MS5611Driver._start_temperature_at_once``)."""
 
 STEEPEST_GRADIENT_PA_M = 120_000.0 * 9.80665 / (287.05 * 233.15)
 """The steepest vertical pressure gradient the chip can be in, Pa per metre: rho g at the top
@@ -181,9 +174,6 @@ class MS5611Driver(Driver):
             noise=STEP_NOISE_SIGMAS * math.sqrt(2.0) * PRESSURE_RMS_PA[s.pressure_oversampling]
             + 1.0)
         self._just_reset = False
-        self._held: list[Sample] = []
-        """A pressure read whose poll's joined convert command failed
-        (``_start_temperature_at_once``): handed out first by the next poll."""
         self._in_flight: Measurement | str | None = None
         """The poll's transfer under way (a convert command or an ADC read): what
         ``resume`` retries when it failed."""
@@ -380,13 +370,6 @@ class MS5611Driver(Driver):
         return self._start_conversion(Measurement.D1, now_ns)
 
     def poll(self, now_ns: int) -> PollResult:
-        if not self._held:
-            return self._poll(now_ns)
-        result = self._poll(now_ns)  # the held reads stay held when this raises
-        held, self._held = self._held, []
-        return PollResult(held + result.samples, result.next_poll_ns)
-
-    def _poll(self, now_ns: int) -> PollResult:
         if self._state is _State.IDLE:
             if self._need_temperature:
                 start = self._cycle_start_ns()
@@ -423,31 +406,7 @@ class MS5611Driver(Driver):
         self._watch.fresh_poll()
         samples = self._emit(d1, t_ns=ready)
         self._next_cycle(now_ns)
-        if self._need_temperature and self.poll_plan >= JOINED_PLAN:
-            return self._start_temperature_at_once(samples, now_ns)
         return PollResult(samples, self._cycle_start_ns())
-
-    def _start_temperature_at_once(self, samples: list[Sample], now_ns: int) -> PollResult:
-        """The joined plan (poll plan 2): the poll that reads a pressure starts the next
-        cycle's temperature conversion at once, instead of a poll of its own at the cycle's
-        start (the first plan: three polls a cycle, two of them handing out nothing). The
-        ADC keeps a result until it is read, so the temperature is read when the pressure
-        conversion is due to start, in the poll that starts it: two polls a cycle, the
-        pressure still completing on its grid. A convert command that fails here keeps the
-        pressure read (``_held``: handed out with the next poll), so nothing read is lost
-        to the error the pipeline counts."""
-        self._slide_to(now_ns + self._cycle_ns(True))
-        try:
-            ready_ns = self._start_conversion(Measurement.D2, now_ns)
-        except BusError:
-            self._held = samples
-            raise
-        return PollResult(samples, max(ready_ns, self._target_ns - self._t_d1_ns))
-
-    def drain(self, now_ns: int) -> list[Sample]:
-        """A pressure read whose joined temperature command failed, not handed out yet."""
-        held, self._held = self._held, []
-        return held
 
     def _frozen_flag(self, d1: int) -> SampleFlag:
         """FROZEN from the FROZEN_AFTER_FRAMES-th identical D1 word on, and for the slot that

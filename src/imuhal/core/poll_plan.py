@@ -9,10 +9,9 @@ transfer against the recording, runs the drivers on that plan.
 from __future__ import annotations
 
 POLL_PLAN = 2
-"""The plan a run follows and a recording made now holds. 2: the MS5611 reads a pressure
-and starts the next temperature conversion in one poll (imuhal_chips.ms5611.driver); the
-HMC5883L behind a master's FIFO reads looks for its copies no sooner than the master's next
-read (imuhal_chips.hmc5883l.driver, ``_next_look``)."""
+"""The plan a run follows and a recording made now holds. 2: the HMC5883L behind a master's
+FIFO reads looks for its copies no sooner than the master's next read
+(imuhal_chips.hmc5883l.driver, ``_next_look``)."""
 
 FIRST_POLL_PLAN = 1
 """The plan of a recording whose header names none (made before plans had versions)."""
