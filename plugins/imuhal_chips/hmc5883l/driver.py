@@ -110,6 +110,9 @@ from imuhal_chips.hmc5883l.registers import (
     gain_from_config_b,
 )
 
+AFTER_DELIVERY_PLAN = 2
+"""The poll plan (imuhal.core.poll_plan) from which, under ``read: auto``, the driver looks
+no sooner than its master's next delivery (``Hmc5883lDriver._next_look``)."""
 NOT_READY_RETRY_NS = 500_000
 """RDY is low for about 250 us while the chip writes new data: retry this much later."""
 FROZEN_AFTER_FRAMES = 30
@@ -412,9 +415,9 @@ class Hmc5883lDriver(Driver):
                 self._fresh_ns = now_ns
                 self._retrying = False
                 self._watch.fresh_poll()
-                return PollResult(samples, self._grid.next_after(now_ns))
+                return PollResult(samples, self._next_look(now_ns))
             if blank is None:  # from before configure() settled, or handed out before
-                return PollResult([], self._grid.next_after(now_ns))
+                return PollResult([], self._next_look(now_ns))
             sample = blank
         elif now_ns - self._fresh_ns <= self._unchanged_limit_ns:
             if not self._retrying:
@@ -429,6 +432,19 @@ class Hmc5883lDriver(Driver):
             sample = MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                                mag_ut=NAN3, flags=frozen or SampleFlag.STALE)
         return self._no_measurement(sample, now_ns)
+
+    def _next_look(self, now_ns: int) -> int:
+        """read: auto, after a poll that found the master's copies: the next grid point,
+        or (poll plan 2, imuhal.core.poll_plan) the master's next delivery when it says one
+        and that comes later (a FIFO read every n frames: ``AutoReadFeed.next_ns``), as no
+        new copy can be found before it. Polled at the same time as the master, it comes
+        after it (a device behind another's bus ranks after it)."""
+        next_ns = self._grid.next_after(now_ns)
+        assert self._feed is not None
+        delivery_ns = self._feed.next_ns
+        if delivery_ns > next_ns and self.poll_plan >= AFTER_DELIVERY_PLAN:
+            return delivery_ns
+        return next_ns
 
     def _hung_by_status(self, now_ns: int) -> None:
         """read: auto: the master's copies have not changed since the latest valid field's

@@ -548,7 +548,11 @@ class Max2110xDriver(Driver):
             if not got.frames:
                 self._count_overflow()
         now_ns = max(now_ns, self.clock.now_ns())
-        return got, samples, now_ns, self._fifo.next_read_ns(now_ns, self._fifo_interval_ns())
+        next_ns = self._fifo.next_read_ns(now_ns, self._fifo_interval_ns())
+        if self._feed is not None:
+            # the slave's next copy comes with that read (AutoReadFeed.next_ns)
+            self._feed.next_ns = next_ns
+        return got, samples, now_ns, next_ns
 
     def _fifo_result(self, samples: list[Sample], got: FifoRead, now_ns: int,
                      next_ns: int) -> PollResult:

@@ -19,6 +19,7 @@ from imuhal.bus.base import Bus, BusKind, Link
 from imuhal.core.blocks import Block, blocks_of
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ImuhalDeprecationWarning
+from imuhal.core.poll_plan import POLL_PLAN
 from imuhal.core.samples import Quantity, Sample
 from imuhal.core.streams import StreamSpec
 from imuhal.drivers.settings import literal_choices
@@ -173,6 +174,9 @@ class Driver(ABC):
     channel's unit (accelerometer m/s^2, magnetometer uT), as the chip's datasheet (or the
     driver, when none is published) specifies it: what ``imuhal run`` quotes when a device
     has no calibration for that channel (imuhal.calibrate.missing). Empty: not known."""
+    poll_plan: int = POLL_PLAN
+    """The poll plan this driver follows (imuhal.core.poll_plan): the newest, unless the
+    pipeline replays a recording made under an older one (``Board.poll_plan``)."""
     resumes_in_a_row: ClassVar[int] = 1
     """How many bus errors in a row, before a poll completes, the pipeline answers with
     ``resume()`` before the full ``recover()``. Above 1 only for a driver whose every
