@@ -228,6 +228,9 @@ class Hmc5883lDriver(Driver):
         self._hung_after_ns = 0
         """read: auto: unchanged copies this long are more than a measuring chip repeats
         (``unchanged_periods``)."""
+        self._not_ready = False
+        """read: one-shot: the previous poll found RDY clear (the chip let an instant pass
+        unmeasured: reading never clears RDY)."""
 
     # --- bus helpers (plain I2C register protocol: write pointer, then read) --------------
 
@@ -300,6 +303,7 @@ class Hmc5883lDriver(Driver):
         self._grid = PollGrid(spec.period_ns)
         self._ready = DataReady({Quantity.MAG: self._grid.period_ns})
         self._skip_next = True  # its first measurement still uses the previous gain
+        self._idle_from, self._not_ready = None, False
         if self.settings.read == "auto":
             assert isinstance(self.link.bus, AutoReadBus)
             feed = self._feed = self.link.bus.auto_read(self.link.target, Reg.X_MSB, 6)
@@ -369,6 +373,11 @@ class Hmc5883lDriver(Driver):
         status = self._read(Reg.STATUS, 1)[0]
         if status & STATUS_RDY:
             sample, configured = self._sample(now_ns)
+            # RDY found after reads without it: the measurement read now is the one the
+            # grid's next point aims at (its instant within the retry before now)
+            after_now = now_ns + self._grid.guard_ns if self._not_ready else now_ns
+            self._not_ready = False
+            self._idle_from = None
             if not configured:
                 # a reset chip (single measurement, then idle): its data are no field
                 # measured in continuous mode as configured
@@ -381,11 +390,18 @@ class Hmc5883lDriver(Driver):
                     # what the averaging carries over is the same field at another scale
                     self._skip_next = False
                     self._memory.forget()
-                    return PollResult([], self._grid.next_after(now_ns))
-                return PollResult([sample], self._grid.next_after(now_ns))
-        elif not self._ready.overdue(Quantity.MAG, now_ns):
-            return PollResult([], now_ns + NOT_READY_RETRY_NS)
+                    return PollResult([], self._grid.next_after(after_now))
+                if sample.valid:
+                    self._idle_from = now_ns
+                return PollResult([sample], self._grid.next_after(after_now))
         else:
+            self._not_ready = True
+            if self._idle_from is not None:
+                # RDY clear: an instant passed without a measurement (reading never clears
+                # it), and every read since the latest valid field's found it clear
+                self.health.idle = (self._idle_from, now_ns)
+            if not self._ready.overdue(Quantity.MAG, now_ns):
+                return PollResult([], now_ns + NOT_READY_RETRY_NS)
             sample = MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                                mag_ut=NAN3, flags=SampleFlag.STALE)
         return self._no_measurement(sample, now_ns)
@@ -401,7 +417,8 @@ class Hmc5883lDriver(Driver):
             self._hung_by_status(now_ns)
         if changes:
             after_reset = self._reset_behind_blank(changes, now_ns) or \
-                self._reset_behind_jump(changes, now_ns)
+                self._reset_behind_jump(changes, now_ns) or \
+                self._reset_behind_pause(changes, now_ns)
             if after_reset is not None:
                 return after_reset
             samples, blank = self._measurements(changes, now_ns, late=self._retrying)
@@ -470,6 +487,25 @@ class Hmc5883lDriver(Driver):
                     abs(_norm(copy.data) - _norm(previous)) > MAGNITUDE_STEP * _norm(previous):
                 return self._reset_at(changes, k, now_ns)
             previous = copy.data
+        return None
+
+    def _reset_behind_pause(self, changes: list[Copy], now_ns: int) -> PollResult | None:
+        """The first copy after a pause of the master's deliveries (longer than its period:
+        its chip recovering, a stalled host): the chip may have been power-cycled unseen
+        meanwhile (unplugged and plugged back in), and a chip that powered up measures
+        once in single mode at its power-on gain and averaging. At the power-on range
+        (+/-1.3 Ga, the seed's) that field keeps its magnitude (no ``_reset_behind_jump``),
+        and a master that was not reading saw no zeros (no ``_reset_behind_blank``). So the
+        configuration is read back before that copy is handed out, as for those two
+        (``_reset_at``). A healthy master never pauses, so this costs a read only after a
+        fault. None: nothing to do."""
+        assert self._feed is not None
+        pause_ns = self._feed.latency_ns * 4 // 3
+        for k, copy in enumerate(changes):
+            after = copy.after_ns
+            if after is not None and copy.t_ns - after > pause_ns and \
+                    copy.t_ns >= self._settle_ns and not blank_flag(copy.data):
+                return self._reset_at(changes, k, now_ns)
         return None
 
     def _reset_at(self, changes: list[Copy], k: int, now_ns: int) -> PollResult | None:
@@ -627,6 +663,8 @@ class Hmc5883lDriver(Driver):
         written (the read-back also releases the data lock a partial data read may have
         set), the chip kept measuring, so poll again at once instead of the full recovery
         (which rewrites the configuration and drops the first measurement after it)."""
+        if self._feed is None:
+            self._idle_from = None  # a failed read breaks the run of reads a hang's proof needs
         if self.gain_lsb_per_gauss is None or self._off_plan():
             return None
         return max(now_ns, self.clock.now_ns())
