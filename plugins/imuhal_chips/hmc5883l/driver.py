@@ -501,11 +501,19 @@ class Hmc5883lDriver(Driver):
         fault. None: nothing to do."""
         assert self._feed is not None
         pause_ns = self._feed.latency_ns * 4 // 3
+        blank_before = self._blank_since_ns is not None
         for k, copy in enumerate(changes):
             after = copy.after_ns
-            if after is not None and copy.t_ns - after > pause_ns and \
-                    copy.t_ns >= self._settle_ns and not blank_flag(copy.data):
+            blank = bool(blank_flag(copy.data))
+            # after blank copies the chip's state is checked already (``_no_measurement``,
+            # ``_reset_behind_blank``); a pause spanning the driver's own read-back (or
+            # configure()) is the time its transactions held the thread, after a check
+            # that found the chip as written
+            if after is not None and copy.t_ns - after > pause_ns and not blank and \
+                    not blank_before and not after <= self._locked_ns <= copy.t_ns and \
+                    copy.t_ns >= self._settle_ns:
                 return self._reset_at(changes, k, now_ns)
+            blank_before = blank
         return None
 
     def _reset_at(self, changes: list[Copy], k: int, now_ns: int) -> PollResult | None:
@@ -571,6 +579,8 @@ class Hmc5883lDriver(Driver):
             if by_delivery:
                 t_ns = stamp_on_cadence(copy, self._cadence_ns, self._grid.period_ns,
                                         pause_ns=pause_ns)
+                if left and not blank_flag(changes[k + 1].data):
+                    t_ns = self._before_next(t_ns, changes[k + 1].t_ns)
             stamp = min(max(t_ns, self._stamped_ns + 1), now_ns - left) \
                 if by_delivery else now_ns
             sample = self._decoded(data, stamp, blank_flag(data))
@@ -581,6 +591,22 @@ class Hmc5883lDriver(Driver):
             self._stamped_ns = self._cadence_ns = stamp
             samples.append(sample)
         return samples, (None if samples else blank)
+
+    def _before_next(self, t_ns: int, next_ns: int) -> int:
+        """The stamp ``t_ns`` of a copy whose next change, a measurement, was delivered at
+        ``next_ns``: the chip measures once a period, so this copy's measurement came a
+        period before that one, and a poll on time for it came at most a latency and a
+        guard after it. A stamp later than that (a copy after a host stall that
+        ``stamp_on_cadence`` put two periods after the field before, where the chip made
+        one) goes back to the latest point of the cadence before that bound; the frame
+        ledger counts the gap from it."""
+        assert self._feed is not None
+        last, period = self._cadence_ns, self._grid.period_ns
+        bound = next_ns - period + self._feed.latency_ns + self._grid.guard_ns
+        if last is None or t_ns <= bound:
+            return t_ns
+        periods = int((bound - last) / period + 0.1)
+        return min(t_ns, last + periods * period) if periods >= 1 else t_ns
 
     def _unlocking(self, copy: Copy) -> Copy | None:
         """``copy`` as the time its measurement was made allows. The master's first copy
