@@ -322,3 +322,16 @@ def test_a_short_hang_of_the_rc_boards_hmc5883l_is_proved_by_rdy_left_clear(
     p = _fly(registry, "seed-rc-vario",
              [StuckDataReady(device="mag", start_s=0.5, end_s=0.509)], 0.7)
     assert _counts_as_the_chip(p, "mag").not_measured == 1
+
+
+def test_a_copy_after_a_stall_is_stamped_a_period_before_the_next_measurement(
+        registry: Registry) -> None:
+    """Host stalls of 20 ms, five a second, on every device of the seed paraglider (the
+    fault matrix's ``host_stall`` at 10 %): after one, the MAX21100's registers held a copy
+    made just before the HMC5883L's next instant, and the next delivery, 3.5 ms later in the
+    same poll, held that next measurement. The cadence rule put the first copy two field
+    periods after the field before, where the chip had made one (149 counted for its 148
+    by 2 s); a change less than a period after a copy now bounds its stamp."""
+    faults: list[FaultSpec] = [HostStall(device=d, start_s=1.0, stall_s=0.02, rate_hz=5.0)
+                               for d in DEVICES]
+    _counts_as_the_chip(_fly(registry, "seed-paraglider-vario", faults, 2.0), "mag")
