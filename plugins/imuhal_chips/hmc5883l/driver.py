@@ -615,11 +615,7 @@ class Hmc5883lDriver(Driver):
         configure()'s, whose locked bytes are from before the configuration. While the
         master copies, that copy repeats the one before and is no change; after the
         master's auto-read was off (its chip reset and reprogrammed, its copies blank
-        meanwhile) it differs, and it is as old as the read or older. A copying master
-        whose first delivery after the read came more than its latency later (a stalled
-        host) copied unseen in between: the lock was released then, and the copy may hold
-        a later measurement, so it keeps its delivery."""
-        assert self._feed is not None
+        meanwhile) it differs, and it is as old as the read or older."""
         locked, blank_since = self._locked_ns, self._blank_since_ns
         blank = bool(blank_flag(copy.data))
         self._blank_since_ns = (copy.t_ns if blank_since is None else blank_since) \
@@ -627,8 +623,7 @@ class Hmc5883lDriver(Driver):
         after = copy.after_ns
         # the delivery before it came before the read, or only blank copies did (the
         # master's registers reset: it read no slave)
-        first = (after is not None and after < locked
-                 and copy.t_ns - locked <= self._feed.latency_ns) or \
+        first = (after is not None and after < locked) or \
             (blank_since is not None and blank_since <= locked)
         if blank or not first or copy.t_ns < locked:
             return copy
