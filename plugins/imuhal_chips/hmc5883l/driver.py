@@ -417,8 +417,7 @@ class Hmc5883lDriver(Driver):
             self._hung_by_status(now_ns)
         if changes:
             after_reset = self._reset_behind_blank(changes, now_ns) or \
-                self._reset_behind_jump(changes, now_ns) or \
-                self._reset_behind_pause(changes, now_ns)
+                self._reset_behind_jump(changes, now_ns)
             if after_reset is not None:
                 return after_reset
             samples, blank = self._measurements(changes, now_ns, late=self._retrying)
@@ -487,33 +486,6 @@ class Hmc5883lDriver(Driver):
                     abs(_norm(copy.data) - _norm(previous)) > MAGNITUDE_STEP * _norm(previous):
                 return self._reset_at(changes, k, now_ns)
             previous = copy.data
-        return None
-
-    def _reset_behind_pause(self, changes: list[Copy], now_ns: int) -> PollResult | None:
-        """The first copy after a pause of the master's deliveries (longer than its period:
-        its chip recovering, a stalled host): the chip may have been power-cycled unseen
-        meanwhile (unplugged and plugged back in), and a chip that powered up measures
-        once in single mode at its power-on gain and averaging. At the power-on range
-        (+/-1.3 Ga, the seed's) that field keeps its magnitude (no ``_reset_behind_jump``),
-        and a master that was not reading saw no zeros (no ``_reset_behind_blank``). So the
-        configuration is read back before that copy is handed out, as for those two
-        (``_reset_at``). A healthy master never pauses, so this costs a read only after a
-        fault. None: nothing to do."""
-        assert self._feed is not None
-        pause_ns = self._feed.latency_ns * 4 // 3
-        blank_before = self._blank_since_ns is not None
-        for k, copy in enumerate(changes):
-            after = copy.after_ns
-            blank = bool(blank_flag(copy.data))
-            # after blank copies the chip's state is checked already (``_no_measurement``,
-            # ``_reset_behind_blank``); a pause spanning the driver's own read-back (or
-            # configure()) is the time its transactions held the thread, after a check
-            # that found the chip as written
-            if after is not None and copy.t_ns - after > pause_ns and not blank and \
-                    not blank_before and not after <= self._locked_ns <= copy.t_ns and \
-                    copy.t_ns >= self._settle_ns:
-                return self._reset_at(changes, k, now_ns)
-            blank_before = blank
         return None
 
     def _reset_at(self, changes: list[Copy], k: int, now_ns: int) -> PollResult | None:
