@@ -140,6 +140,7 @@ def test_silent_reset_restores_defaults_and_stuck_fault_clears_on_mode_write() -
     clock, bus, emu = rig()
     continuous(bus, clock)
     emu.stuck_data_ready = True
+    clock.sleep(1 / 75)  # the hung chip lets an instant pass: RDY clear
     assert bus.transfer(A, b"\x09", 1)[0] & 0x01 == 0
     bus.transfer(A, b"\x02\x00", 0)
     clock.sleep(1 / 75)
@@ -197,3 +198,35 @@ def test_only_i2c_is_accepted() -> None:
     emu = Hmc5883lEmulator()
     with pytest.raises(BusError, match="only an I2C"):
         emu.bus_transfer(BusKind.SPI, b"\x0a", 3)
+
+
+def test_reading_the_data_never_clears_rdy() -> None:
+    """The datasheet clears RDY only when the chip starts writing new data: a host that
+    reads the data and then the status again before the next measurement finds RDY set."""
+    clock, bus, _ = rig()
+    continuous(bus, clock)
+    bus.transfer(A, b"\x03", 6)
+    assert bus.transfer(A, b"\x09", 1)[0] & 0x01
+
+
+def test_a_hang_that_lets_an_instant_pass_leaves_rdy_clear_until_the_next_measurement(
+) -> None:
+    """stuck_data_ready for 9 ms across one instant (the fault matrix's 0.1 % window): the
+    instant the chip lets pass clears RDY, and RDY stays clear after the fault ends until
+    the chip measures again on its own cadence, so a read between finds no data ready
+    rather than the field it already read."""
+    clock, bus, emu = rig()
+    faults = BoardFaults(clock, {"mag": emu}, faults=[
+        StuckDataReady(device="mag", start_s=0.1, end_s=0.109)])
+    continuous(bus, clock)
+    period_ns = round(1e9 / 75)
+    clock.sleep_until(100_000_000)
+    faults.sync()
+    assert bus.transfer(A, b"\x09", 1)[0] & 0x01  # no instant passed yet
+    clock.sleep_until(110_000_000)
+    faults.sync()  # the fault is over; the instant at 106.7 ms passed unmeasured
+    assert bus.transfer(A, b"\x09", 1)[0] & 0x01 == 0
+    clock.sleep_until(9 * period_ns - 1)
+    assert bus.transfer(A, b"\x09", 1)[0] & 0x01 == 0
+    clock.sleep_until(9 * period_ns)
+    assert bus.transfer(A, b"\x09", 1)[0] & 0x01

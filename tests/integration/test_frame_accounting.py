@@ -304,3 +304,30 @@ def test_a_poll_put_off_from_a_phase_search_aims_at_the_phase_of_the_frame_befor
                                for d in DEVICES]
     p = _fly(registry, "gy91", stalls, 3.5)
     assert _counts_as_the_chip(p, "mag").lost["host_stall"] > 0
+
+
+def test_a_short_hang_of_the_rc_boards_hmc5883l_is_proved_by_rdy_left_clear(
+        registry: Registry) -> None:
+    """The seed rc board's HMC5883L (read directly) hangs 9 ms across one instant of its
+    75 Hz output (``stuck_data_ready``, the fault matrix's window at 0.1 %). RDY is never
+    cleared by a read (datasheet), so the first poll after the hang found RDY still set and
+    handed out the field it had read a period before, stamped a period later (the ledger
+    counted 51 fields for the chip's 50). The instant the chip let pass cleared RDY; the
+    driver's reads find it clear until the next measurement, which proves the hang
+    (``health.idle``): that slot is not measured, and the next field is read once."""
+    p = _fly(registry, "seed-rc-vario",
+             [StuckDataReady(device="mag", start_s=0.5, end_s=0.509)], 0.7)
+    assert _counts_as_the_chip(p, "mag").not_measured == 1
+
+
+def test_a_copy_after_a_stall_is_stamped_a_period_before_the_next_measurement(
+        registry: Registry) -> None:
+    """Host stalls of 20 ms, five a second, on every device of the seed paraglider (the
+    fault matrix's ``host_stall`` at 10 %): after one, the MAX21100's registers held a copy
+    made just before the HMC5883L's next instant, and the next delivery, 3.5 ms later in the
+    same poll, held that next measurement. The cadence rule put the first copy two field
+    periods after the field before, where the chip had made one (149 counted for its 148
+    by 2 s); a change less than a period after a copy now bounds its stamp."""
+    faults: list[FaultSpec] = [HostStall(device=d, start_s=1.0, stall_s=0.02, rate_hz=5.0)
+                               for d in DEVICES]
+    _counts_as_the_chip(_fly(registry, "seed-paraglider-vario", faults, 2.0), "mag")

@@ -179,6 +179,22 @@ def test_an_overrun_a_period_after_the_frame_before_is_one_lost_frame() -> None:
     assert (ledger.produced, ledger.delivered, dict(ledger.lost)) == (3, 2, {"missed": 1})
 
 
+def test_an_overrun_found_by_a_segments_first_read_is_lost_to_the_reset_before_it() -> None:
+    """The first read after a reconfiguration finds the overrun bit set (the chip measured
+    twice before it): the frame it overwrote belongs to the gap that ends the old segment,
+    lost to the reset, and the new segment starts at the frame read, as the chip's own
+    count from that frame does."""
+    ledger = FrameLedger(Quantity.GYRO, P)
+    ledger.observe(gyro(0))
+    ledger.note("reset")
+    first = P + P // 5  # the stamps alone show no slot between
+    ledger.skipped(first)
+    ledger.observe(gyro(first))
+    ledger.observe(gyro(first + P))
+    assert ledger.all_segments() == [(0, 0, 1), (first, first + P, 2)]
+    assert dict(+ledger.lost) == {"reset": 1} and ledger.produced == 4
+
+
 def test_a_hung_chip_without_an_overrun_made_only_the_frame_read() -> None:
     ledger = FrameLedger(Quantity.GYRO, P)
     ledger.observe(gyro(0))
