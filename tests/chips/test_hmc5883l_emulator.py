@@ -29,6 +29,19 @@ def continuous(bus: EmulatedBus, clock: SimulatedClock, cra: int = 0x18, crb: in
     clock.sleep(0.014)
 
 
+def stuck_data_ready_at_100_ms(end_s: float) -> tuple[
+        SimulatedClock, EmulatedBus, Hmc5883lEmulator, BoardFaults]:
+    """A chip in continuous mode at 75 Hz whose StuckDataReady runs from 0.1 s to
+    ``end_s``, the clock at its start and the fault applied."""
+    clock, bus, emu = rig()
+    faults = BoardFaults(clock, {"mag": emu}, faults=[
+        StuckDataReady(device="mag", start_s=0.1, end_s=end_s)])
+    continuous(bus, clock)
+    clock.sleep_until(100_000_000)
+    faults.sync()
+    return clock, bus, emu, faults
+
+
 def test_power_on_defaults_and_identity() -> None:
     _, bus, _ = rig()
     assert bus.transfer(A, b"\x00", 3) == bytes([0x10, 0x20, 0x01])
@@ -154,13 +167,8 @@ def test_after_stuck_data_ready_ends_the_chip_measures_on_its_cadence_nothing_in
     write, the next comes on the chip's own cadence (1 / 75 Hz from the Mode write). A chip
     that completed the one it owed at the first read after the fault would hand out a
     field dated inside the fault, up to a period later than a measurement can be read."""
-    clock, bus, emu = rig()
-    faults = BoardFaults(clock, {"mag": emu}, faults=[
-        StuckDataReady(device="mag", start_s=0.1, end_s=0.3)])
-    continuous(bus, clock)
+    clock, bus, emu, faults = stuck_data_ready_at_100_ms(end_s=0.3)
     period_ns = round(1e9 / 75)
-    clock.sleep_until(100_000_000)
-    faults.sync()
     bus.transfer(A, b"\x03", 6)
     before = list(emu.measured_ns)  # all that fell due before the fault
     assert len(before) == 100_000_000 // period_ns
@@ -215,13 +223,8 @@ def test_a_hang_that_lets_an_instant_pass_leaves_rdy_clear_until_the_next_measur
     instant the chip lets pass clears RDY, and RDY stays clear after the fault ends until
     the chip measures again on its own cadence, so a read between finds no data ready
     rather than the field it already read."""
-    clock, bus, emu = rig()
-    faults = BoardFaults(clock, {"mag": emu}, faults=[
-        StuckDataReady(device="mag", start_s=0.1, end_s=0.109)])
-    continuous(bus, clock)
+    clock, bus, _, faults = stuck_data_ready_at_100_ms(end_s=0.109)
     period_ns = round(1e9 / 75)
-    clock.sleep_until(100_000_000)
-    faults.sync()
     assert bus.transfer(A, b"\x09", 1)[0] & 0x01  # no instant passed yet
     clock.sleep_until(110_000_000)
     faults.sync()  # the fault is over; the instant at 106.7 ms passed unmeasured
