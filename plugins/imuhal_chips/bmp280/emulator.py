@@ -39,7 +39,7 @@ import random
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock
 from imuhal.core.samples import Quantity
-from imuhal.emulation import ChipEmulator
+from imuhal.emulation import ChipEmulator, HangsBetweenTransfers
 from imuhal_chips.bmp280 import registers as r
 from imuhal_chips.bmp280.emulator_encoding import (
     DATASHEET_TRIMMING,
@@ -85,7 +85,7 @@ def _adc_registers(adc: int) -> bytes:
     return bytes([(adc >> 12) & 0xFF, (adc >> 4) & 0xFF, (adc & 0x0F) << 4])
 
 
-class BMP280Emulator(ChipEmulator):
+class BMP280Emulator(HangsBetweenTransfers, ChipEmulator):
     """Register-level stand-in for a BMP280 on I2C or SPI."""
 
     chip = "bmp280"
@@ -116,17 +116,11 @@ class BMP280Emulator(ChipEmulator):
 
     # -- fault injection --------------------------------------------------------------------
 
-    @property
-    def stuck_data_ready(self) -> bool:
-        """The conversions hang (fault injection): none finishes while it lasts; when it
-        ends, the cycles it held complete at their own instants."""
-        return self._hung
-
-    @stuck_data_ready.setter
-    def stuck_data_ready(self, hung: bool) -> None:
-        if hung and not getattr(self, "_hung", True):
-            self._advance()  # what finished before the hang began is measured
-        self._hung = hung
+    def _measurement_due(self) -> bool:
+        """Always (HangsBetweenTransfers): ``_advance`` finds by itself what each mode has
+        finished, so a hang first measures what finished before it began; when it ends, the
+        cycles it held complete at their own instants."""
+        return True
 
     def corrupt_trim(self, rng: random.Random, bits: int = 1) -> str:
         """Flip ``bits`` random bits of the 24 trimming bytes the driver reads; the sensor

@@ -368,6 +368,11 @@ class HangsBetweenTransfers:
 
     @stuck_data_ready.setter
     def stuck_data_ready(self, hung: bool) -> None:
-        if hung != getattr(self, "_hung", hung) and getattr(self, "_next_ns", None) is not None:
+        if hung != getattr(self, "_hung", hung) and self._measurement_due():
             self._advance()
         self._hung = hung
+
+    def _measurement_due(self) -> bool:
+        """A measurement is scheduled (``_next_ns`` set; an idle chip has none to bring up
+        to date)."""
+        return getattr(self, "_next_ns", None) is not None
