@@ -448,10 +448,10 @@ def _hang_from(emu: ChipEmulator, start_s: float) -> None:
     """``stuck_data_ready`` set as at ``start_s``, not at the chip's next access, where
     ``FaultSet.sync`` notices it: an emulator that brings its measurements up to date when
     it hangs (``HangsBetweenTransfers``: the AK8963, HMC5883L, BMP280) completes what fell
-    due before the hang began and nothing after. Noticed at a poll 2.7 ms after its measurement was due and 0.3
-    ms after the hang began, the gy91 BMP280 had skipped that measurement, and the poll
-    handed out the one before again as new (the fault matrix's ``reset + stuck_data_ready +
-    frozen`` at 0.1 %: 498 frames for the chip's 497)."""
+    due before the hang began and nothing after. Noticed at a poll 2.7 ms after its
+    measurement was due and 0.3 ms after the hang began, the gy91 BMP280 had skipped that
+    measurement, and the poll handed out the one before again as new (the fault matrix's
+    ``reset + stuck_data_ready + frozen`` at 0.1 %: 498 frames for the chip's 497)."""
     saved = emu.master_instant_ns
     start_ns = round(start_s * 1e9)
     emu.master_instant_ns = start_ns if saved is None else min(saved, start_ns)
