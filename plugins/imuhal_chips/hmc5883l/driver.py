@@ -572,7 +572,7 @@ class Hmc5883lDriver(Driver):
             stamp = min(max(t_ns, self._stamped_ns + 1), now_ns - left) \
                 if by_delivery else now_ns
             sample = self._decoded(data, stamp, blank_flag(data))
-            if sample.flags & SampleFlag.BLANK:
+            if sample.flags and sample.flags & SampleFlag.BLANK:  # (enum & is a call)
                 blank = sample
                 continue
             self._emitted = data

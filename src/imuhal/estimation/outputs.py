@@ -162,6 +162,9 @@ def usable_blocks_kept(made: list[Any]) -> list[Any]:
     """``made`` with each AttitudeBlock that has a row the estimate check refuses
     (``AttitudeBlock.all_usable``) replaced by its rows, each then checked as one estimate;
     the others stay whole (``made`` itself when none is replaced)."""
+    if len(made) == 1:  # the usual case (an AHRS's block step): no generator set up
+        e = made[0]
+        return made if type(e) is not AttitudeBlock or e.all_usable() else list(e.rows())
     if all(type(e) is not AttitudeBlock or e.all_usable() for e in made):
         return made
     out: list[Any] = []
