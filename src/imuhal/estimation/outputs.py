@@ -59,6 +59,21 @@ class VerticalEstimate(Estimate):
     climb_m_s: float
     accel_bias_m_s2: float | None = None
 
+    @classmethod
+    def build(cls, t_ns: int, source: str, altitude_m: float, climb_m_s: float,
+              accel_bias_m_s2: float | None, diagnostics: dict[str, Any]
+              ) -> VerticalEstimate:
+        """The same estimate as the keyword constructor, built through its slots (a
+        variometer makes one per pressure sample), as ``AttitudeEstimate.build``."""
+        e = _new(cls)
+        _set_t_ns(e, t_ns)
+        _set_source(e, source)
+        _set_diagnostics(e, diagnostics)
+        _set_altitude(e, altitude_m)
+        _set_climb(e, climb_m_s)
+        _set_bias(e, accel_bias_m_s2)
+        return e
+
 
 class EstimateFlag(IntFlag):
     """Why the pipeline refused an estimate (docs/reliability.md, "Estimates carry
@@ -282,3 +297,6 @@ _set_source = slot_setter(Estimate, "source")
 _set_diagnostics = slot_setter(Estimate, "diagnostics")
 _set_q = slot_setter(AttitudeEstimate, "q_body_to_ned")
 _set_linear_accel = slot_setter(AttitudeEstimate, "linear_accel_ned_m_s2")
+_set_altitude = slot_setter(VerticalEstimate, "altitude_m")
+_set_climb = slot_setter(VerticalEstimate, "climb_m_s")
+_set_bias = slot_setter(VerticalEstimate, "accel_bias_m_s2")
