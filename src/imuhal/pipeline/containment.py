@@ -352,10 +352,11 @@ class Watchdog:
     timer mean at least n - 1 of its periods spent in the call, so the call is cut off at
     the tick that makes its deadline certain: after the deadline and before the deadline
     plus two periods (1 s of CPU time: cut off between 1 and 1.5 s). Arming and disarming
-    then make no system call: 0.7 us of CPU per driver call against 1.8 for the four
-    ``setitimer`` calls of one-shot timers, at about two driver calls per IMU sample on the
-    seed board (``python -m tests.benchmarks.bench_block_parts watchdog``; docs/performance.md,
-    "The hardware path's per-poll costs").
+    then make no system call and write no class attribute: 0.5-0.6 us of CPU per driver
+    call against 5 for the four ``setitimer`` calls of one-shot timers (1.8 while the state
+    was kept on the class), at about two driver calls per IMU sample on the seed board
+    (``python -m tests.benchmarks.bench_block_parts watchdog``, load 10; docs/performance.md,
+    "The hardware path's per-poll costs" and "Session 21").
 
     Why not a worker thread per call: a thread cannot be stopped, so the overrun call would
     go on using the bus beside the next device's transfers, and every poll would pay a thread
