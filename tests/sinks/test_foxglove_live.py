@@ -226,8 +226,11 @@ def test_a_live_emulated_run_reaches_the_client_with_the_csv_log_values(
         tmp_path: Path) -> None:
     log = tmp_path / "run.csv"
     proc = subprocess.Popen(
+        # --skip-calibration: the calibration an emulated run makes first (seconds of CPU,
+        # tested in tests/calibration) is not what is checked here
         [sys.executable, "-m", "imuhal.cli.main", "run", GPS_VARIO, "--emulate", "thermal",
-         "--realtime", "--duration", "120", "--output", str(log), "--samples",
+         "--skip-calibration", "--realtime", "--duration", "120", "--output", str(log),
+         "--samples",
          "--sink", "foxglove", "--sink-set", "foxglove.port=0"],
         stderr=subprocess.PIPE, text=True)
     try:
