@@ -72,7 +72,13 @@ from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError, NackError
 from imuhal.core.samples import Quantity
-from imuhal.emulation import ChipEmulator, EmulatedBus, PhysicalInputs, PlannedInputs
+from imuhal.emulation import (
+    ChipEmulator,
+    DisturbedLowPass,
+    EmulatedBus,
+    PhysicalInputs,
+    PlannedInputs,
+)
 from imuhal_chips.max2110x import emulator_int as intp
 from imuhal_chips.max2110x.emulator_fifo import MAX21100_FIFO, MAX21105_FIFO, FifoMap, Max2110xFifo
 from imuhal_chips.max2110x.error_spec import MAX21100_ERROR_SPEC, MAX21105_ERROR_SPEC
@@ -292,6 +298,9 @@ class Max2110xEmulator(ChipEmulator):
         """The latest instant already announced to the board (``_announce_instants``)."""
         self.fifo = Max2110xFifo(self.fifo_map)
         """The FIFO (empty after every reset)."""
+        self._lowpass = (DisturbedLowPass(), DisturbedLowPass())
+        """Per channel: its low-pass on what a value fault changed in the ADC's words
+        (imuhal.sim.lowpass; restarted by every reset)."""
         self.stuck_data_ready = False
         self.power_on_resets += 1
 
@@ -409,6 +418,8 @@ class Max2110xEmulator(ChipEmulator):
                 0.0, 0.0, 0.0)
             k = self._per_count[index]
             x, y, z = (_encode(v, k, _COUNTS_AT_FULL_SCALE) for v in values)
+            if self.undisturbed is not None or self._lowpass[index].active:
+                x, y, z = self._filtered(index, (x, y, z))
         else:
             x, y, z = counts
         enabled = bank0[enable_reg] & 0x07 if self.part.has_aux_master else 0x07
@@ -426,6 +437,29 @@ class Max2110xEmulator(ChipEmulator):
             self.status |= err  # the previous sample was never read: it is lost
         self.status |= dr
         self._read_since_latch[index] = set()
+
+    def _filtered(self, index: int, words: tuple[int, int, int]) -> tuple[int, int, int]:
+        """Channel ``index``'s output words when a value fault changed its ADC words
+        (``words``, cut at the rail) from what the world gave (``undisturbed``), or its
+        low-pass still carries such a change: the undisturbed words plus what the filter
+        carries (imuhal.sim.lowpass), at the bandwidth and ODR the registers select."""
+        channel = _CHANNELS[index]
+        bandwidth = self.noise_bandwidth_hz(channel)
+        period = self.noise_period_s(channel)
+        if bandwidth is None or period is None:
+            return words
+        clean = self.undisturbed
+        disturbed: tuple[int, int, int] | None = None
+        undisturbed = words
+        if clean is not None:
+            values = (clean.angular_rate_rad_s if index == _GYRO
+                      else clean.specific_force_m_s2) or (0.0, 0.0, 0.0)
+            k = self._per_count[index]
+            ux, uy, uz = (_encode(v, k, _COUNTS_AT_FULL_SCALE) for v in values)
+            undisturbed, disturbed = (ux, uy, uz), words
+        t_ns = self.physics_t_ns if self.physics_t_ns is not None else self.now_ns()
+        return self._lowpass[index].output(t_ns, undisturbed, disturbed, bandwidth, period,
+                                           _COUNTS_AT_FULL_SCALE)
 
     def _store_axes(self, first: int, x: int, y: int, z: int) -> None:
         """Three data words from register ``first`` on (int16 values), in ``words`` and

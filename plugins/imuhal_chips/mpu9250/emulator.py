@@ -67,7 +67,7 @@ from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError, NackError
 from imuhal.core.samples import Quantity
-from imuhal.emulation import ChipEmulator, EmulatedBus
+from imuhal.emulation import ChipEmulator, DisturbedLowPass, EmulatedBus
 from imuhal_chips.mpu9250 import registers as r
 from imuhal_chips.mpu9250.emulator_fifo import FifoModel, frame_of
 from imuhal_chips.mpu9250.emulator_int import INT_ACTL, INT_LATCH_INT_EN, INT_PULSE_NS
@@ -230,6 +230,9 @@ class MPU9250Emulator(ChipEmulator):
 
     def _reset(self) -> None:
         self.fifo = FifoModel()
+        self._lowpass = {Quantity.ACCEL: DisturbedLowPass(), Quantity.GYRO: DisturbedLowPass()}
+        """Per channel: its DLPF on what a value fault changed in the ADC's words
+        (imuhal.sim.lowpass; restarted by every reset)."""
         self._regs = bytearray(128)
         self._regs[r.PWR_MGMT_1] = r.PWR1_CLKSEL_AUTO
         self._slv4_done_ns: int | None = None
@@ -327,10 +330,40 @@ class MPU9250Emulator(ChipEmulator):
                   (temp - _TEMP_ROOM_DEGC) * _TEMP_LSB_PER_DEGC,
                   *(v * g_lsb for v in rate)]
         clipped = [max(-32768, min(32767, round(c))) for c in counts]
+        lowpass = self._lowpass
+        if self.undisturbed is not None or lowpass[Quantity.ACCEL].active \
+                or lowpass[Quantity.GYRO].active:
+            clipped[0:3] = self._filtered(Quantity.ACCEL, clipped[0:3], a_lsb)
+            clipped[4:7] = self._filtered(Quantity.GYRO, clipped[4:7], g_lsb)
         self._regs[r.ACCEL_XOUT_H:r.ACCEL_XOUT_H + 14] = struct.pack(">7h", *clipped)
         if self._regs[r.INT_ENABLE] & r.INT_RAW_RDY and not self.stuck_data_ready:
             self._regs[r.INT_STATUS] |= r.INT_RAW_RDY
         self._slave0()
+
+    def _filtered(self, channel: Quantity, words: list[int], per_unit: float
+                  ) -> tuple[int, int, int]:
+        """``channel``'s output words when a value fault changed its ADC words (``words``,
+        cut at the rail) from what the world gave (``undisturbed``), or its DLPF still
+        carries such a change: the undisturbed words plus what the filter carries
+        (imuhal.sim.lowpass), at the bandwidth and sample period the registers select;
+        ``per_unit``: counts per SI unit."""
+        bandwidth = self.noise_bandwidth_hz(channel)
+        x, y, z = words
+        if bandwidth is None:
+            return x, y, z
+        clean = self.undisturbed
+        disturbed: tuple[int, int, int] | None = None
+        undisturbed = (x, y, z)
+        if clean is not None:
+            values = clean.specific_force_m_s2 if channel is Quantity.ACCEL \
+                else clean.angular_rate_rad_s
+            if values is None:
+                values = (0.0, 0.0, _G_M_S2) if channel is Quantity.ACCEL else (0.0, 0.0, 0.0)
+            ux, uy, uz = (max(-32768, min(32767, round(v * per_unit))) for v in values)
+            undisturbed, disturbed = (ux, uy, uz), (x, y, z)
+        t_ns = self.physics_t_ns if self.physics_t_ns is not None else self.now_ns()
+        return self._lowpass[channel].output(t_ns, undisturbed, disturbed, bandwidth,
+                                             self.period_ns() / 1e9, 32767)
 
     def _master_on(self) -> bool:
         return bool(self._regs[r.USER_CTRL] & r.USER_I2C_MST_EN)
