@@ -135,9 +135,12 @@ class Max2110xDriver(Driver):
     bus_kinds = frozenset({BusKind.I2C, BusKind.SPI})
     resumes_in_a_row = IN_PLACE_ATTEMPTS
     """Each ``resume()`` reads the whole plan back (``_off_plan(overdue=True)``)."""
-    specified_offset: ClassVar[Mapping[Quantity, float]] = {Quantity.ACCEL: 0.060 * 9.80665}
+    specified_offset: ClassVar[Mapping[Quantity, float]] = {
+        Quantity.ACCEL: 0.060 * 9.80665, Quantity.GYRO: math.radians(3.0)}
     """No MAX2110x datasheet was found: +-60 mg is assumed, the consumer-MEMS class of the
-    MPU-9250's specified zero-g offset (and three times the emulator's assumed 20 mg spread)."""
+    MPU-9250's specified zero-g offset (and three times the emulator's assumed 20 mg
+    spread); +-3 deg/s zero-rate offset likewise (three times the assumed 1 deg/s spread,
+    inside the MPU-9250's +-5)."""
     settings: Max2110xSettings
 
     def __init__(
@@ -170,7 +173,12 @@ class Max2110xDriver(Driver):
              Quantity.ACCEL: lowpass_coefficient(1.0 / s.accel_lpf_divisor, 1.0)},
             {Quantity.GYRO: round(1e9 / s.gyro_odr_hz),
              Quantity.ACCEL: round(1e9 / s.accel_odr_hz)},
-            FULL_SCALE_COUNTS)
+            FULL_SCALE_COUNTS,
+            # settled once what a rail input can still add is within the part's offset
+            {Quantity.GYRO: math.degrees(self.specified_offset[Quantity.GYRO])
+             * FULL_SCALE_COUNTS / s.gyro_range_dps,
+             Quantity.ACCEL: self.specified_offset[Quantity.ACCEL] / STANDARD_GRAVITY_M_S2
+             * FULL_SCALE_COUNTS / s.accel_range_g})
         self._burst_frame = b""
         self._burst_length = 0
         """The status + data burst's address byte and length (set by configure())."""

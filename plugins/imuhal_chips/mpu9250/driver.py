@@ -36,6 +36,7 @@ from imuhal.bus.auto_read import AUTO_READ, AutoReadFeed, same_feed
 from imuhal.bus.base import Bus, BusKind, Link
 from imuhal.bus.register_plan import IN_PLACE_ATTEMPTS, RegisterPlan, retried
 from imuhal.bus.registers import RegisterView
+from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.core.blocks import Block, FloatArray, IntArray, blocks_of
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
@@ -185,9 +186,9 @@ class MPU9250Driver(Driver):
     channels: ClassVar[tuple[Quantity, ...]] = (Quantity.ACCEL, Quantity.GYRO, Quantity.TEMPERATURE)
     bus_kinds: ClassVar[frozenset[BusKind]] = frozenset({BusKind.I2C, BusKind.SPI})
     specified_offset: ClassVar[Mapping[Quantity, float]] = {
-        Quantity.ACCEL: 0.060 * 9.80665}
+        Quantity.ACCEL: 0.060 * 9.80665, Quantity.GYRO: math.radians(5.0)}
     """Product specification: zero-g offset +-60 mg on X and Y (the axes that lie level in
-    flight and decide the tilt; Z +-80 mg)."""
+    flight and decide the tilt; Z +-80 mg); initial zero-rate offset +-5 deg/s."""
     child_bus_kinds: ClassVar[Mapping[str, BusKind]] = {"aux": BusKind.I2C}
     child_bus_features: ClassVar[Mapping[str, frozenset[str]]] = {
         "aux": frozenset({AUTO_READ})}
@@ -258,7 +259,13 @@ class MPU9250Driver(Driver):
         self._memory = LowPassWatch(
             {Quantity.GYRO: lowpass_coefficient(s.gyro_lpf_hz, self._period_ns / 1e9),
              Quantity.ACCEL: lowpass_coefficient(s.accel_lpf_hz, self._period_ns / 1e9)},
-            {Quantity.GYRO: self._period_ns, Quantity.ACCEL: self._period_ns}, COUNT_MAX)
+            {Quantity.GYRO: self._period_ns, Quantity.ACCEL: self._period_ns}, COUNT_MAX,
+            # settled once what a rail input can still add is within the part's offset
+            # (full scale: 32768 counts)
+            {Quantity.GYRO: math.degrees(self.specified_offset[Quantity.GYRO])
+             * (COUNT_MAX + 1) / s.gyro_range_dps,
+             Quantity.ACCEL: self.specified_offset[Quantity.ACCEL] / STANDARD_GRAVITY_M_S2
+             * (COUNT_MAX + 1) / s.accel_range_g})
 
     # -- identity ---------------------------------------------------------------------------
 

@@ -14,7 +14,8 @@ physically plausible for its chip.
   chip's settings can carry it (``iir_memory_outputs``). ``LowPassWatch`` is the same for
   an IMU's first-order digital low-pass: it also undoes the filter to see an input at the
   rail that the output hides, and holds the outputs until what such an input can still add
-  is below a share of the full scale (``lowpass_settling_outputs``).
+  is below what a valid reading of the chip may be off anyway (its specified offset;
+  ``lowpass_settling_outputs``).
 - ``StepWatch``: a quantity the physics bounds in how fast it can change (pressure: by the
   fastest vertical speed) that moves further from the last valid value than that bound and
   the chip's noise allow -> ``IMPLAUSIBLE``; a new level that the next readings confirm is
@@ -274,11 +275,6 @@ RAIL_SHARE = 0.9
 """``LowPassWatch``: an input the filter's inverse puts within 10 % of the rail (or beyond)
 is taken as one the chip's ADC cut at its rail. An honest input that close to the rail is
 nearly clipped anyway; the margin covers noise and motion the inverse amplifies."""
-SETTLED_SHARE = 0.01
-"""``LowPassWatch``: outputs are valid again once what a wrong input can still add to them
-is below 1 % of the full scale: the sensitivity tolerance a valid reading near full scale
-already carries (the MEMS datasheets' +-1 %, the MAX2110x and MPU-9250 error models'
-``scale_factor_std``), e.g. 10 deg/s on a 1000 deg/s gyro, 80 mg on an 8 g accelerometer."""
 
 
 def lowpass_coefficient(bandwidth_hz: float, period_s: float) -> float:
@@ -287,22 +283,24 @@ def lowpass_coefficient(bandwidth_hz: float, period_s: float) -> float:
     return math.exp(-2.0 * math.pi * bandwidth_hz * period_s)
 
 
-def lowpass_settling_outputs(bandwidth_hz: float, output_rate_hz: float) -> int:
+def lowpass_settling_outputs(bandwidth_hz: float, output_rate_hz: float,
+                             settled_share: float) -> int:
     """Outputs after one input at the rail that a first-order low-pass of ``bandwidth_hz``
-    (output at ``output_rate_hz``) can still carry it by SETTLED_SHARE of the full scale or
-    more: the input, at most two full scales from the truth, enters the output with weight
-    1 - a and fades by a per output (``lowpass_coefficient``), so the n-th output after it
-    keeps at most 2 (1 - a) a^n full scales (10 Hz at 200 Hz: 12; the seed's accelerometer
-    at ODR / 48: 24; 41 Hz at 200 Hz: 3)."""
-    return _settling_outputs(lowpass_coefficient(bandwidth_hz, 1.0 / output_rate_hz))
+    (output at ``output_rate_hz``) can still carry it by ``settled_share`` of the full scale
+    or more: the input, at most two full scales from the truth, enters the output with
+    weight 1 - a and fades by a per output (``lowpass_coefficient``), so the n-th output
+    after it keeps at most 2 (1 - a) a^n full scales (10 Hz at 200 Hz, settled at 0.3 % of
+    the full scale: 20)."""
+    return _settling_outputs(lowpass_coefficient(bandwidth_hz, 1.0 / output_rate_hz),
+                             settled_share)
 
 
-def _settling_outputs(a: float) -> int:
+def _settling_outputs(a: float, settled_share: float) -> int:
     """``lowpass_settling_outputs`` of a filter keeping ``a`` per output."""
     entered = 2.0 * (1.0 - a)
-    if a <= 0.0 or entered <= SETTLED_SHARE:
+    if a <= 0.0 or entered <= settled_share:
         return 0
-    return math.floor(math.log(entered / SETTLED_SHARE) / -math.log(a))
+    return math.floor(math.log(entered / settled_share) / -math.log(a))
 
 
 class LowPassWatch:
@@ -322,14 +320,20 @@ class LowPassWatch:
     (hidden, or an output at the rail itself, flagged ``SATURATED`` by the driver) the
     watch keeps a bound on what the filter still carries, in full scales: it adds
     ``2 (1 - a^g)`` (the input at most two full scales from the truth) and fades by ``a``
-    per period, and the outputs are ``FILTER_SETTLING`` until it is below
-    ``SETTLED_SHARE``. Outputs lost to bus errors count as periods the chip filtered."""
+    per period, and the outputs are ``FILTER_SETTLING`` until it is below the key's
+    ``settled_counts``: what the validity model already tolerates of a valid reading of
+    that chip (its driver's specified offset), so an output handed back is no further off
+    than the chip may read anyway. Outputs lost to bus errors count as periods the chip
+    filtered."""
 
     def __init__(self, coefficient: Mapping[Any, float], period_ns: Mapping[Any, int],
-                 rail_counts: int) -> None:
+                 rail_counts: int, settled_counts: Mapping[Any, float]) -> None:
         self.coefficient = dict(coefficient)
         self.period_ns = dict(period_ns)
         self.rail_counts = rail_counts
+        self.settled_share = {key: settled_counts[key] / rail_counts for key in coefficient}
+        """Per key: what the filter may still carry of a rail input once its outputs are
+        valid again, in full scales."""
         self._one = {key: (a, RAIL_SHARE * rail_counts * (1.0 - a),
                            (1.0 - RAIL_SHARE) * rail_counts * (1.0 - a),
                            self.period_ns[key] + self.period_ns[key] // 2)
@@ -339,8 +343,6 @@ class LowPassWatch:
         1 - a of the way from within RAIL_SHARE of the rail, a rail input from nearer the
         rail leaving a trace below that, within what a reading there may be off anyway;
         and the most time between two outputs one period apart)."""
-        """Per key with a filter: (a, the rail input's limit) for an output one period after
-        the last."""
         self._last: dict[Hashable, tuple[int, Sequence[int], int, Sequence[int]]] = {}
         """Per key: the latest output's time stamp and counts (the filter's previous state),
         then the one's before it (the change per output before a gap; -1, () at first)."""
@@ -351,7 +353,7 @@ class LowPassWatch:
 
     def settling_outputs(self, key: Hashable) -> int:
         """Outputs after one rail input that are FILTER_SETTLING (``lowpass_settling_outputs``)."""
-        return _settling_outputs(self.coefficient[key])
+        return _settling_outputs(self.coefficient[key], self.settled_share[key])
 
     def rail_input(self, key: Hashable, t_ns: int, counts: Sequence[int]) -> bool:
         """Whether the filter's inverse puts the input behind the output ``counts`` at
@@ -383,15 +385,15 @@ class LowPassWatch:
         input over the gap cannot tell: one rail input among them moves it by its weight
         only ((1 - a) a^j for the input j outputs back, 0.72 for the latest at the GY-91's
         41 Hz). So the output is held against the last one carried on at the change per
-        output seen before it: a rail input that still adds 1 % of the full scale
-        (SETTLED_SHARE) or more shows as a departure of that much beyond what the same
-        change again allows; honest motion that bends that hard after a gap is flagged too
+        output seen before it: a rail input that still adds the key's settled counts or more
+        shows as a departure of that much beyond what the same change again allows; honest
+        motion that bends that hard after a gap is flagged too
         (availability, not trust)."""
         t_last, previous, t_before, before = last
         slope = [0.0, 0.0, 0.0] if t_before < 0 else \
             [(p - b) / max(1, round((t_last - t_before) / self.period_ns[key]))
              for p, b in zip(previous, before, strict=True)]
-        allowed = SETTLED_SHARE * self.rail_counts
+        allowed = self.settled_share[key] * self.rail_counts
         return any(abs(y - p - g * d) >= allowed + g * abs(d)
                    for y, p, d in zip(counts, previous, slope, strict=True))
 
@@ -443,7 +445,7 @@ class LowPassWatch:
         a = self.coefficient[key]
         period = self.period_ns[key]
         carried = 0.0 if bound is None else bound[1] * a ** ((t_ns - bound[0]) / period)
-        settling = carried >= SETTLED_SHARE
+        settling = carried >= self.settled_share[key]
         if wrong:
             g = 1 if last is None else max(1, round((t_ns - last[0]) / period))
             self._bound[key] = (t_ns, carried + 2.0 * (1.0 - a ** g))
