@@ -195,14 +195,17 @@ def test_the_wilson_bound_is_above_the_observed_rate_and_below_one() -> None:
     assert wilson_upper(100, 100, 2.0) == 1.0
 
 
-@pytest.mark.parametrize(("bandwidth_hz", "rate_hz", "outputs"),
-                         [(10, 200, 12), (200 / 48, 200, 24), (14, 250, 11), (41, 200, 3)])
-def test_a_low_pass_settles_when_one_rail_input_can_add_under_a_percent_of_full_scale(
-        bandwidth_hz: float, rate_hz: float, outputs: int) -> None:
+@pytest.mark.parametrize(("bandwidth_hz", "rate_hz", "settled_share", "outputs"), [
+    (10, 200, 3 / 1000, 16),         # seed RC vario gyro: 3 deg/s of 1000 deg/s
+    (200 / 48, 200, 0.06 / 8, 26),   # its accelerometer: 60 mg of 8 g
+    (14, 250, 3 / 500, 13),          # seed paraglider gyro: 3 deg/s of 500 deg/s
+    (41, 200, 5 / 500, 3)])          # GY-91 gyro: 5 deg/s of 500 deg/s
+def test_a_low_pass_settles_when_one_rail_input_can_add_under_the_chips_offset(
+        bandwidth_hz: float, rate_hz: float, settled_share: float, outputs: int) -> None:
     a = lowpass_coefficient(bandwidth_hz, 1.0 / rate_hz)
-    n = lowpass_settling_outputs(bandwidth_hz, rate_hz)
+    n = lowpass_settling_outputs(bandwidth_hz, rate_hz, settled_share)
     assert n == outputs
-    assert 2 * (1 - a) * a ** (n + 1) < 0.01 <= 2 * (1 - a) * a ** n
+    assert 2 * (1 - a) * a ** (n + 1) < settled_share <= 2 * (1 - a) * a ** n
 
 
 def _filtered(inputs: list[float], a: float) -> list[int]:
@@ -216,10 +219,12 @@ def _filtered(inputs: list[float], a: float) -> list[int]:
 
 RAIL = 30000
 PERIOD_NS = 5_000_000
+SETTLED = 90.0
+"""3 deg/s on a 1000 deg/s gyro (30000 counts): the MAX2110x's specified offset."""
 
 
 def _watch(a: float) -> LowPassWatch:
-    return LowPassWatch({"gyro": a}, {"gyro": PERIOD_NS}, RAIL)
+    return LowPassWatch({"gyro": a}, {"gyro": PERIOD_NS}, RAIL, {"gyro": SETTLED})
 
 
 def test_a_rail_input_the_low_pass_hides_in_range_is_seen_and_its_trace_settles() -> None:
@@ -230,7 +235,7 @@ def test_a_rail_input_the_low_pass_hides_in_range_is_seen_and_its_trace_settles(
     watch = _watch(a)
     flags = [watch.observe("gyro", k * PERIOD_NS, (y, 0, -y), SampleFlag.OK)
              for k, y in enumerate(outputs)]
-    n = lowpass_settling_outputs(10, 200)
+    n = lowpass_settling_outputs(10, 200, SETTLED / RAIL)
     assert flags == [SampleFlag.OK] * 10 + [SampleFlag.FILTER_SETTLING] * (1 + n) \
         + [SampleFlag.OK] * (20 - n)
 
@@ -249,15 +254,15 @@ def test_outputs_lost_between_count_as_periods_the_chip_filtered() -> None:
     watch = _watch(a)
     flags = {k: watch.observe("gyro", k * PERIOD_NS, (y, 0, 0), SampleFlag.OK)
              for k, y in enumerate(outputs) if k not in (7, 8, 9)}
-    n = lowpass_settling_outputs(10, 200)
+    n = lowpass_settling_outputs(10, 200, SETTLED / RAIL)
     assert [k for k, f in flags.items() if f] == [k for k in range(5, 6 + n)
                                                   if k not in (7, 8, 9)]
 
 
 def test_an_input_held_at_the_rail_is_flagged_while_it_lasts_and_two_full_scales_fade() -> None:
     """A rotation beyond the range for 30 outputs: each output is flagged (its input at the
-    rail), and after it the filter may carry up to two full scales, which fade below 1 %
-    after floor(ln(200) / ln(1 / a)) = 16 outputs at 10 Hz and 200 Hz."""
+    rail), and after it the filter may carry up to two full scales, which fade below the
+    settled 0.3 % after floor(ln(2 / 0.003) / ln(1 / a)) = 20 outputs at 10 Hz and 200 Hz."""
     a = lowpass_coefficient(10, 1 / 200)
     outputs = _filtered([0.0] * 5 + [RAIL] * 30 + [0.0] * 30, a)
     watch = _watch(a)
@@ -265,7 +270,7 @@ def test_an_input_held_at_the_rail_is_flagged_while_it_lasts_and_two_full_scales
                            SampleFlag.SATURATED if abs(y) >= RAIL else SampleFlag.OK)
              for k, y in enumerate(outputs)]
     flagged = [k for k, f in enumerate(flags) if f]
-    assert flagged == list(range(5, 35 + 16))
+    assert flagged == list(range(5, 35 + 20))
 
 
 def test_a_quiet_block_is_observed_as_row_by_row_would() -> None:

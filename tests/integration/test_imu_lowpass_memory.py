@@ -5,7 +5,8 @@ The seed RC vario's MAX21105 filters its gyro at 10 Hz (200 Hz ODR) and its acce
 at ODR / 48. A ``wild_value`` strikes the sensing element: the ADC cuts it at the rail and
 the filter takes 1 - a of it into the output (in range) and fades it by a per output. The
 emulator models that from the datasheet's bandwidth; the driver undoes the filter to see the
-rail input and flags the outputs until what it can still add is below 1 % of the full scale.
+rail input and flags the outputs until what it can still add is below the part's specified
+offset (3 deg/s, 60 mg: what a valid reading of the chip may be off anyway).
 Each faulted run is compared with the same flight without the fault (seed 1).
 """
 
@@ -28,6 +29,8 @@ RUN_S = 2.0
 WILD_AT_S = 1.2
 GYRO_FULL_SCALE_RAD_S = math.radians(1000.0)
 ACCEL_FULL_SCALE_M_S2 = 8 * 9.80665
+GYRO_OFFSET_RAD_S = math.radians(3.0)
+ACCEL_OFFSET_M_S2 = 0.060 * 9.80665
 
 Run = dict[tuple[Quantity, int], VectorSample]
 """The IMU's gyro and accelerometer samples by (quantity, time stamp)."""
@@ -84,11 +87,11 @@ def test_the_outputs_the_trace_can_still_reach_are_settling_then_valid_again(
     gyro = _series(run, Quantity.GYRO)
     first = next(i for i, s in enumerate(gyro) if not s.valid)
     n = memory[Quantity.GYRO]
-    assert n == 12
+    assert n == 16  # ln(2 (1 - a) / 0.003) / ln(1 / a) at 10 Hz and 200 Hz
     assert [s.flags for s in gyro[first:first + n + 1]] == [SampleFlag.FILTER_SETTLING] * (n + 1)
     assert all(s.valid for s in gyro[first + n + 1:])
     worst = max(_off(s, clean) for s in gyro if s.valid)
-    assert worst < 0.01 * GYRO_FULL_SCALE_RAD_S
+    assert worst < GYRO_OFFSET_RAD_S
 
 
 def test_at_ten_percent_wild_values_the_imu_is_valid_between_them_and_never_wrong(
@@ -103,11 +106,12 @@ def test_at_ten_percent_wild_values_the_imu_is_valid_between_them_and_never_wron
         faults.append(WildValue(device="imu", channel=channel, axis=i % 3,
                                 value=1000 * full, start_s=round(1.0 + (i + 0.5) / 20, 4)))
     run, _ = _imu_samples(faults)
-    # of every 30 outputs, the gyro's 10 Hz filter holds 13 (the wild one and 12 after),
-    # the accelerometer's ODR / 48 holds 25
-    for quantity, full_scale, share in ((Quantity.GYRO, GYRO_FULL_SCALE_RAD_S, 0.4),
-                                        (Quantity.ACCEL, ACCEL_FULL_SCALE_M_S2, 0.1)):
+    # of every 30 outputs, the gyro's 10 Hz filter holds 17 (the wild one and 16 after),
+    # the accelerometer's ODR / 48 holds 27 (measured 78 and 18 of 183 valid, worst 1.3
+    # deg/s and 29 mg off)
+    for quantity, offset, share in ((Quantity.GYRO, GYRO_OFFSET_RAD_S, 0.35),
+                                    (Quantity.ACCEL, ACCEL_OFFSET_M_S2, 0.08)):
         late = [s for s in _series(run, quantity) if s.t_ns > 1.1e9]
         valid = [s for s in late if s.valid]
         assert len(valid) > share * len(late), quantity
-        assert max(_off(s, clean) for s in valid) < 0.01 * full_scale, quantity
+        assert max(_off(s, clean) for s in valid) < offset, quantity
