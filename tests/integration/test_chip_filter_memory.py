@@ -93,13 +93,14 @@ def test_a_wild_gyro_value_makes_the_mpu9250_low_pass_outputs_after_it_settle() 
     """A 100 rad/s wild gyro value (beyond the +/-500 dps range): the DLPF (41 Hz at
     200 Hz) takes 1 - a = 0.72 of the rail into an output in range; the driver sees the
     rail input by undoing the filter and flags that output and the 3 its trace can still
-    reach (1 % of the full scale) FILTER_SETTLING; the one after is valid again."""
+    reach by the part's specified offset (5 deg/s, 1 % of the full scale) FILTER_SETTLING;
+    the one after is valid again."""
     wild = WildValue(device="imu", channel="gyro", value=100.0, start_s=WILD_AT_S)
     gyro = [e for e, _ in _gy91_events([wild])
             if isinstance(e, Sample) and e.device == "imu" and e.channel is Quantity.GYRO]
     flagged = [i for i, s in enumerate(gyro) if s.flags]
     first = flagged[0]
-    n = lowpass_settling_outputs(41, 200)
+    n = lowpass_settling_outputs(41, 200, 5 / 500)
     assert n == 3
     assert [s.flags for s in gyro[first:first + n + 1]] == [SampleFlag.FILTER_SETTLING] * (n + 1)
     assert flagged == list(range(first, first + n + 1))
@@ -115,7 +116,7 @@ def test_the_iir_memory_is_where_a_full_scale_error_falls_below_one_lsb(
 
 def test_no_filter_has_no_memory() -> None:
     assert iir_memory_outputs(0, 20) == 0
-    assert lowpass_settling_outputs(1e9, 200) == 0
+    assert lowpass_settling_outputs(1e9, 200, 0.01) == 0
 
 
 def test_a_bmp280_whose_trimming_reads_differently_after_a_reprobe_is_refused() -> None:

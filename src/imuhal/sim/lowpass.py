@@ -57,15 +57,17 @@ class DisturbedLowPass:
         [``low``, ``high``]."""
         tau_ns = 1e9 / (2.0 * math.pi * bandwidth_hz)
         carried = self._carried
-        if carried is None:
+        if carried is None:  # nothing carried: the residual enters for one output period
             carried = [0.0, 0.0, 0.0]
-        else:  # what it carried fades from the previous output to this one
-            fade = math.exp(-max(0, t_ns - self._t_ns) / tau_ns)
-            carried = [c * fade for c in carried]
-        if any(d != u for d, u in zip(adc, world, strict=True)):
-            # the residual, held for an output period, enters by 1 - a
-            enters = 1.0 - math.exp(-period_s * 1e9 / tau_ns)
-            carried = [c + enters * (d - u) for c, d, u in zip(carried, adc, world, strict=True)]
+            elapsed_ns = period_s * 1e9
+        else:
+            elapsed_ns = max(0, t_ns - self._t_ns)
+        # the residual held since the previous output (the filter's input between two
+        # outputs the emulator latched; none again at the same instant): what was carried
+        # keeps exp(-elapsed / tau), the residual takes the rest
+        keep = math.exp(-elapsed_ns / tau_ns)
+        carried = [keep * c + (1.0 - keep) * (d - u)
+                   for c, d, u in zip(carried, adc, world, strict=True)]
         self._t_ns = t_ns
         if max(map(abs, carried)) < _NEGLIGIBLE_COUNTS:
             self._carried = None
