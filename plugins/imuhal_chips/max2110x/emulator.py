@@ -417,24 +417,7 @@ class Max2110xEmulator(ChipEmulator):
             first, enable_reg = _ACC_X_H, _PWR_ACC_CFG
             dr, err = _ACC_DR, _ACC_ERR
         planned = self.planned
-        counts = None if planned is None else self._planned_counts(*planned, index)
-        lowpass = self._lowpass[index]
-        if counts is None:
-            p = self.physics
-            values = (p.angular_rate_rad_s if gyro else p.specific_force_m_s2) or (
-                0.0, 0.0, 0.0)
-            k = self._per_count[index]
-            x, y, z = (_encode(v, k, _COUNTS_AT_FULL_SCALE) for v in values)
-            if self.undisturbed is not None or lowpass.active \
-                    or _COUNTS_AT_FULL_SCALE in (abs(x), abs(y), abs(z)):
-                x, y, z = self._filtered(index, (x, y, z), values)
-        else:
-            x, y, z = counts
-            if lowpass.active or _COUNTS_AT_FULL_SCALE in (abs(x), abs(y), abs(z)):
-                assert planned is not None
-                plan, row = planned
-                rows = plan.angular_rate_rad_s if gyro else plan.specific_force_m_s2
-                x, y, z = self._filtered(index, (x, y, z), rows[row].tolist())
+        x, y, z = self._channel_words(index, planned)
         enabled = bank0[enable_reg] & 0x07 if self.part.has_aux_master else 0x07
         if enabled != 0x07:
             x, y, z = (c if enabled & (1 << axis) else 0 for axis, c in enumerate((x, y, z)))
@@ -450,6 +433,31 @@ class Max2110xEmulator(ChipEmulator):
             self.status |= err  # the previous sample was never read: it is lost
         self.status |= dr
         self._read_since_latch[index] = set()
+
+    def _channel_words(self, index: int, planned: tuple[PlannedInputs, int] | None
+                       ) -> tuple[int, int, int]:
+        """Channel ``index``'s three output words from the inputs standing (the plan's row,
+        encoded with the whole plan, where ``planned``), through its low-pass where a word
+        is at the rail, a value fault replaced the input, or the filter still carries
+        either (``_filtered``; a plan with a word at the rail is encoded row by row)."""
+        gyro = index == _GYRO
+        counts = None if planned is None else self._planned_counts(*planned, index)
+        if counts is not None:
+            x, y, z = counts
+            if not self._lowpass[index].active:
+                return x, y, z
+            assert planned is not None
+            plan, row = planned
+            rows = plan.angular_rate_rad_s if gyro else plan.specific_force_m_s2
+            return self._filtered(index, (x, y, z), rows[row].tolist())
+        p = self.physics
+        values = (p.angular_rate_rad_s if gyro else p.specific_force_m_s2) or (0.0, 0.0, 0.0)
+        k = self._per_count[index]
+        x, y, z = (_encode(v, k, _COUNTS_AT_FULL_SCALE) for v in values)
+        if self.undisturbed is not None or self._lowpass[index].active \
+                or _COUNTS_AT_FULL_SCALE in (abs(x), abs(y), abs(z)):
+            return self._filtered(index, (x, y, z), values)
+        return x, y, z
 
     def _filtered(self, index: int, words: tuple[int, int, int],
                   values: Sequence[float]) -> tuple[int, int, int]:
