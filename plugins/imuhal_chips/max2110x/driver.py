@@ -720,9 +720,10 @@ class Max2110xDriver(Driver):
 
     def filter_memory_outputs(self) -> dict[Quantity, int]:
         """Outputs after one input at the rail that each channel's low-pass can still carry
-        it by 1 % of the full scale (``LowPassWatch``): the gyro's bandwidth (GYRO_CFG1)
-        and the accelerometer's cutoff, its ODR over the output-filter divisor (ACC_CFG1):
-        12 and 24 at the seed RC vario's 10 Hz and ODR / 48."""
+        it by the part's specified offset or more (``LowPassWatch``): the gyro's bandwidth
+        (GYRO_CFG1) and the accelerometer's cutoff, its ODR over the output-filter divisor
+        (ACC_CFG1): 16 and 26 at the seed RC vario's 10 Hz and ODR / 48 (3 deg/s of 1000,
+        60 mg of 8 g)."""
         return {q: self._memory.settling_outputs(q) for q in (Quantity.GYRO, Quantity.ACCEL)}
 
     def _frozen_flag(self, raw: bytes) -> SampleFlag:

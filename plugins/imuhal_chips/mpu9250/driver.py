@@ -469,8 +469,9 @@ class MPU9250Driver(Driver):
 
     def filter_memory_outputs(self) -> dict[Quantity, int]:
         """Outputs after one input at the rail that each channel's digital low-pass
-        (DLPF_CFG, A_DLPFCFG) can still carry it by 1 % of the full scale at the output
-        rate (``LowPassWatch``): 3 at the GY-91's 41 Hz and 200 Hz."""
+        (DLPF_CFG, A_DLPFCFG) can still carry it by the part's specified offset or more at
+        the output rate (``LowPassWatch``): 3 at the GY-91's 41 Hz and 200 Hz (5 deg/s of
+        500, 60 mg of 4 g)."""
         return {q: self._memory.settling_outputs(q) for q in (Quantity.GYRO, Quantity.ACCEL)}
 
     def _frozen_flag(self, frame: bytes) -> SampleFlag:
