@@ -54,9 +54,12 @@ sides of the comparison and shown in columns of their own.
 from __future__ import annotations
 
 import argparse
+import ctypes
 import json
 import math
 import multiprocessing
+import os
+import signal
 import sys
 import time
 import traceback
@@ -212,6 +215,22 @@ def run_one(board: str, profile: BoardProfile, registry: Registry, kinds: Sequen
     return result
 
 
+_PR_SET_PDEATHSIG = 1
+"""prctl(2)'s option: the signal a child gets when its parent dies."""
+
+def _die_with(parent: int) -> None:
+    """Have the kernel end this child when its parent dies (Linux's PR_SET_PDEATHSIG): a
+    matrix killed by SIGTERM or SIGKILL must not leave a run flying on. Elsewhere the child
+    outlives its parent as before."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+    except (OSError, AttributeError):
+        return
+    if os.getppid() != parent:  # the parent died before the prctl
+        os._exit(1)
+
+
 def run_forked(board: str, profile: BoardProfile, registry: Registry, kinds: Sequence[str],
                rate: float, seconds: float, devices: list[Device]) -> RunResult:
     """``run_one`` in a child forked from this process (see the module docstring); its
@@ -219,7 +238,10 @@ def run_forked(board: str, profile: BoardProfile, registry: Registry, kinds: Seq
     context = multiprocessing.get_context("fork")
     receive, send = context.Pipe(duplex=False)
 
+    parent = os.getpid()
+
     def child() -> None:
+        _die_with(parent)
         send.send(run_one(board, profile, registry, kinds, rate, seconds, devices))
 
     process = context.Process(target=child)

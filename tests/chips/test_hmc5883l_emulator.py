@@ -29,6 +29,19 @@ def continuous(bus: EmulatedBus, clock: SimulatedClock, cra: int = 0x18, crb: in
     clock.sleep(0.014)
 
 
+def stuck_data_ready_at_100_ms(end_s: float) -> tuple[
+        SimulatedClock, EmulatedBus, Hmc5883lEmulator, BoardFaults]:
+    """A chip in continuous mode at 75 Hz whose StuckDataReady runs from 0.1 s to
+    ``end_s``, the clock at its start and the fault applied."""
+    clock, bus, emu = rig()
+    faults = BoardFaults(clock, {"mag": emu}, faults=[
+        StuckDataReady(device="mag", start_s=0.1, end_s=end_s)])
+    continuous(bus, clock)
+    clock.sleep_until(100_000_000)
+    faults.sync()
+    return clock, bus, emu, faults
+
+
 def test_power_on_defaults_and_identity() -> None:
     _, bus, _ = rig()
     assert bus.transfer(A, b"\x00", 3) == bytes([0x10, 0x20, 0x01])
@@ -140,6 +153,7 @@ def test_silent_reset_restores_defaults_and_stuck_fault_clears_on_mode_write() -
     clock, bus, emu = rig()
     continuous(bus, clock)
     emu.stuck_data_ready = True
+    clock.sleep(1 / 75)  # the hung chip lets an instant pass: RDY clear
     assert bus.transfer(A, b"\x09", 1)[0] & 0x01 == 0
     bus.transfer(A, b"\x02\x00", 0)
     clock.sleep(1 / 75)
@@ -153,13 +167,8 @@ def test_after_stuck_data_ready_ends_the_chip_measures_on_its_cadence_nothing_in
     write, the next comes on the chip's own cadence (1 / 75 Hz from the Mode write). A chip
     that completed the one it owed at the first read after the fault would hand out a
     field dated inside the fault, up to a period later than a measurement can be read."""
-    clock, bus, emu = rig()
-    faults = BoardFaults(clock, {"mag": emu}, faults=[
-        StuckDataReady(device="mag", start_s=0.1, end_s=0.3)])
-    continuous(bus, clock)
+    clock, bus, emu, faults = stuck_data_ready_at_100_ms(end_s=0.3)
     period_ns = round(1e9 / 75)
-    clock.sleep_until(100_000_000)
-    faults.sync()
     bus.transfer(A, b"\x03", 6)
     before = list(emu.measured_ns)  # all that fell due before the fault
     assert len(before) == 100_000_000 // period_ns
@@ -197,3 +206,30 @@ def test_only_i2c_is_accepted() -> None:
     emu = Hmc5883lEmulator()
     with pytest.raises(BusError, match="only an I2C"):
         emu.bus_transfer(BusKind.SPI, b"\x0a", 3)
+
+
+def test_reading_the_data_never_clears_rdy() -> None:
+    """The datasheet clears RDY only when the chip starts writing new data: a host that
+    reads the data and then the status again before the next measurement finds RDY set."""
+    clock, bus, _ = rig()
+    continuous(bus, clock)
+    bus.transfer(A, b"\x03", 6)
+    assert bus.transfer(A, b"\x09", 1)[0] & 0x01
+
+
+def test_a_hang_that_lets_an_instant_pass_leaves_rdy_clear_until_the_next_measurement(
+) -> None:
+    """stuck_data_ready for 9 ms across one instant (the fault matrix's 0.1 % window): the
+    instant the chip lets pass clears RDY, and RDY stays clear after the fault ends until
+    the chip measures again on its own cadence, so a read between finds no data ready
+    rather than the field it already read."""
+    clock, bus, _, faults = stuck_data_ready_at_100_ms(end_s=0.109)
+    period_ns = round(1e9 / 75)
+    assert bus.transfer(A, b"\x09", 1)[0] & 0x01  # no instant passed yet
+    clock.sleep_until(110_000_000)
+    faults.sync()  # the fault is over; the instant at 106.7 ms passed unmeasured
+    assert bus.transfer(A, b"\x09", 1)[0] & 0x01 == 0
+    clock.sleep_until(9 * period_ns - 1)
+    assert bus.transfer(A, b"\x09", 1)[0] & 0x01 == 0
+    clock.sleep_until(9 * period_ns)
+    assert bus.transfer(A, b"\x09", 1)[0] & 0x01

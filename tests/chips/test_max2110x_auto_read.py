@@ -213,18 +213,20 @@ def test_unchanged_periods_grow_as_the_gain_makes_repeats_likelier() -> None:
     assert unchanged_periods(230) == 19  # +/-8.1 Ga, about 0.5 LSB of noise per axis
 
 
-def test_beside_fifo_reads_every_measurement_the_master_copied_is_handed_out() -> None:
-    """The IMU read through its FIFO (issue 25), its clock 2 % fast and the HMC5883L's 2 %
-    slow, a field that moves a count a measurement (each one's bytes differ): every
-    measurement the master copied reaches the HMC5883L's driver, also when two copies come
-    between two of its polls, each stamped after its copy and in order."""
+def _beside_fifo_reads(poll_plan: int | None = None, fifo_frames: int = 1) -> Board:
+    """The IMU read through its FIFO (issue 25) every ``fifo_frames`` periods, its clock
+    2 % fast and the HMC5883L's 2 % slow, a field that moves a count a measurement (each
+    one's bytes differ); the magnetometer on ``poll_plan`` (None: the newest)."""
     board = Board({"reset_check_s": 60})
-    board.imu = Max21100Driver(board.spi.link(0), {"reset_check_s": 0.1, "read": "fifo"},
+    board.imu = Max21100Driver(board.spi.link(0), {"reset_check_s": 0.1, "read": "fifo",
+                                                   "fifo_frames": fifo_frames},
                                device="imu", clock=board.clock)
     board.imu.configure()
     board.aux = board.imu.child_buses()["aux"]
     board.mag = Hmc5883lDriver(board.aux.link(0x1E), {"read": "auto", "reset_check_s": 60},
                                device="mag", clock=board.clock)
+    if poll_plan is not None:
+        board.mag.poll_plan = poll_plan
     board.mag.configure()
     board.imu_emu.oscillator_error = 0.02
     board.mag_emu.oscillator_error = -0.02
@@ -232,6 +234,15 @@ def test_beside_fifo_reads_every_measurement_the_master_copied_is_handed_out() -
     emu.physics_source = lambda t_ns: emu.set_physics(PhysicalInputs(magnetic_field_ut=(
         FIELD_UT[0] + t_ns / PERIOD_NS * LSB_UT, FIELD_UT[1], FIELD_UT[2])))
     board.dithers = board.dithers[1:]
+    return board
+
+
+def test_beside_fifo_reads_every_measurement_the_master_copied_is_handed_out() -> None:
+    """Beside FIFO reads (``_beside_fifo_reads``), every measurement the master copied
+    reaches the HMC5883L's driver, also when two copies come between two of its polls,
+    each stamped after its copy and in order."""
+    board = _beside_fifo_reads()
+    emu = board.mag_emu
     board.run(0.5)
     first = emu.measured_ns[-1]
     samples = valid_mag(board.run(4.0))
@@ -241,6 +252,28 @@ def test_beside_fifo_reads_every_measurement_the_master_copied_is_handed_out() -
     assert len(measured) >= len(samples) >= len(expected) > 280
     assert all(b.t_ns > a.t_ns for a, b in itertools.pairwise(samples))
     assert len({s.mag_ut[0] for s in samples}) == len(samples)
+
+
+def test_beside_fifo_reads_the_magnetometer_looks_no_sooner_than_the_next_read() -> None:
+    """Poll plan 2 (imuhal.core.poll_plan): a copy can come only with the master's next
+    FIFO read, so the HMC5883L's driver is polled then, not at its own 75 Hz grid in
+    between (plan 1: a poll that found nothing, then a retry). Read every 8 periods (32 ms,
+    the seed board's FIFO benchmark): fewer polls, nearly none empty, the same
+    measurements handed out (a stamp may differ within the copy's latency: a copy's stamp
+    on the cadence is chosen against the poll that found it)."""
+    fields, polls, empty = {}, {}, {}
+    for plan in (1, 2):
+        board = _beside_fifo_reads(plan, fifo_frames=8)
+        samples = valid_mag(board.run(2.0))
+        fields[plan] = [s.mag_ut for s in samples]
+        polls[plan], empty[plan] = board.mag_polls, board.empty_mag_polls
+        measured = board.mag_emu.measured_ns
+        for s in samples:  # stamped after its measurement, within the copy's latency
+            lag = s.t_ns - measured[bisect.bisect_left(measured, s.t_ns) - 1]
+            assert 0 < lag <= board.mag._feed.latency_ns
+    assert fields[2] == fields[1] and len(fields[2]) > 55
+    assert empty[2] <= 2 < empty[1]
+    assert polls[2] < polls[1]
 
 
 def test_a_reconfiguration_while_the_master_auto_reads_leaves_no_field_torn() -> None:

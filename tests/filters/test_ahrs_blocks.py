@@ -119,7 +119,7 @@ def _same_state(est: AhrsEstimator, ref: AhrsEstimator) -> None:
     assert state["counters"] == ref_state["counters"]
     assert state["q"] == pytest.approx(ref_state["q"], rel=0, abs=1e-12)
     for key in ("last_gyro_t_ns", "accel_m_s2", "accel_t_ns", "mag_ut", "mag_t_ns", "aligned",
-                "kinematics", "rest", "at_rest"):
+                "kinematics", "rest", "at_rest", "step_accel_m_s2"):
         assert state[key] == ref_state[key], key
 
 

@@ -222,6 +222,19 @@ def test_a_hung_magnetometers_unmade_fields_are_counted_apart_from_lost_ones(
     assert p.summary().frames["mag"]["not_measured"] == ledger.not_measured
 
 
+def test_a_hang_begins_at_its_start_not_at_the_chips_next_access(registry: Registry) -> None:
+    """The gy91 BMP280 hangs 9 ms from 0.4955 s and resets at 0.5 s (the fault matrix's
+    ``reset + stuck_data_ready + frozen`` at 0.1 %): its measurement due at 0.4928 s, before
+    the hang, is made, and the poll at 0.4958 s reads it as new. The hang used to begin at
+    that poll, when the faults noticed it: the measurement was never made, the poll handed
+    out the one before again as new, and the reset wiped the cycle before it could complete
+    (498 frames for the chip's 497 in the matrix's 10 s)."""
+    faults: list[FaultSpec] = [StuckDataReady(device="baro", start_s=0.4955, end_s=0.5045),
+                               ChipReset(device="baro", start_s=0.5)]
+    p = _fly(registry, "gy91", faults, 0.6)
+    assert _counts_as_the_chip(p, "baro").lost["reset"] >= 1
+
+
 def test_a_short_hang_of_the_max21100_is_proved_by_its_reads_that_found_nothing(
         registry: Registry) -> None:
     """The seed paraglider's MAX21100 hangs 9 ms (``stuck_data_ready``, the fault matrix's
@@ -291,3 +304,30 @@ def test_a_poll_put_off_from_a_phase_search_aims_at_the_phase_of_the_frame_befor
                                for d in DEVICES]
     p = _fly(registry, "gy91", stalls, 3.5)
     assert _counts_as_the_chip(p, "mag").lost["host_stall"] > 0
+
+
+def test_a_short_hang_of_the_rc_boards_hmc5883l_is_proved_by_rdy_left_clear(
+        registry: Registry) -> None:
+    """The seed rc board's HMC5883L (read directly) hangs 9 ms across one instant of its
+    75 Hz output (``stuck_data_ready``, the fault matrix's window at 0.1 %). RDY is never
+    cleared by a read (datasheet), so the first poll after the hang found RDY still set and
+    handed out the field it had read a period before, stamped a period later (the ledger
+    counted 51 fields for the chip's 50). The instant the chip let pass cleared RDY; the
+    driver's reads find it clear until the next measurement, which proves the hang
+    (``health.idle``): that slot is not measured, and the next field is read once."""
+    p = _fly(registry, "seed-rc-vario",
+             [StuckDataReady(device="mag", start_s=0.5, end_s=0.509)], 0.7)
+    assert _counts_as_the_chip(p, "mag").not_measured == 1
+
+
+def test_a_copy_after_a_stall_is_stamped_a_period_before_the_next_measurement(
+        registry: Registry) -> None:
+    """Host stalls of 20 ms, five a second, on every device of the seed paraglider (the
+    fault matrix's ``host_stall`` at 10 %): after one, the MAX21100's registers held a copy
+    made just before the HMC5883L's next instant, and the next delivery, 3.5 ms later in the
+    same poll, held that next measurement. The cadence rule put the first copy two field
+    periods after the field before, where the chip had made one (149 counted for its 148
+    by 2 s); a change less than a period after a copy now bounds its stamp."""
+    faults: list[FaultSpec] = [HostStall(device=d, start_s=1.0, stall_s=0.02, rate_hz=5.0)
+                               for d in DEVICES]
+    _counts_as_the_chip(_fly(registry, "seed-paraglider-vario", faults, 2.0), "mag")

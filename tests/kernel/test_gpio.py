@@ -12,7 +12,6 @@ says so, through the same board a real run opens (HardwareBoard, a selectors wai
 
 from __future__ import annotations
 
-import bisect
 import itertools
 import select
 import threading
@@ -186,12 +185,13 @@ def test_every_handshaken_edge_makes_one_read_stamped_with_the_kernels_time(
     consumer = threading.Thread(target=consume, daemon=True)
     with pipeline:
         consumer.start()
-        windows = []
+        starts = []
+        edges_ns = []  # the kernel's stamp of each handshake's edge, as the trigger took it
         for i in range(EDGES):
-            before_ns = time.monotonic_ns()
+            starts.append(time.monotonic_ns())
             sim_line.set(True)
             _await(lambda n=i + 1: trigger.reads >= n)
-            windows.append((before_ns, time.monotonic_ns()))
+            edges_ns.append(trigger.taken_ns[-1])
             sim_line.set(False)
             assert trigger.reads == i + 1  # one read per edge, none extra
         stop.set()
@@ -202,16 +202,20 @@ def test_every_handshaken_edge_makes_one_read_stamped_with_the_kernels_time(
     assert trigger.edges == trigger.reads == EDGES + 1
     assert trigger.lost_edges == trigger.overwritten == trigger.fallbacks == 0
     assert pipeline.warnings == []
-    # each sample carries its edge's kernel time stamp: within that edge's handshake
+    # each sample carries its edge's kernel time stamp, and each edge's stamp is the
+    # kernel's CLOCK_MONOTONIC: after its handshake's pull-up, before the next one's. (Not
+    # bounded by when the handshake saw its read: gpio-sim raises the interrupt from an
+    # irq_work, where the kernel stamps the edge, and on a loaded TCG guest that work ran
+    # once 0.96 ms after the host had written the pull and seen a read; CI, session 19.)
     origin = time.monotonic_ns() - pipeline.clock.now_ns()
-    starts = [w[0] for w in windows]
     stamps = [e.t_ns for e in events if isinstance(e, GyroSample)]
     assert len(stamps) > EDGES // 10  # the chip had new data for many of the reads
     assert all(b > a for a, b in itertools.pairwise(stamps))
-    for stamp in stamps[:-1]:
-        t = stamp + origin
-        i = bisect.bisect_right(starts, t) - 1
-        assert i >= 0 and windows[i][0] <= t <= windows[i][1]
+    assert set(stamps[:-1]) <= set(edges_ns)
+    assert all(b > a for a, b in itertools.pairwise(edges_ns))
+    for i, edge_ns in enumerate(edges_ns):
+        t = edge_ns + origin
+        assert starts[i] <= t and (i + 1 == EDGES or t < starts[i + 1])
 
 
 def test_a_silent_line_falls_back_to_polling_says_so_once_and_returns_on_an_edge(

@@ -179,6 +179,22 @@ def test_an_overrun_a_period_after_the_frame_before_is_one_lost_frame() -> None:
     assert (ledger.produced, ledger.delivered, dict(ledger.lost)) == (3, 2, {"missed": 1})
 
 
+def test_an_overrun_found_by_a_segments_first_read_is_lost_to_the_reset_before_it() -> None:
+    """The first read after a reconfiguration finds the overrun bit set (the chip measured
+    twice before it): the frame it overwrote belongs to the gap that ends the old segment,
+    lost to the reset, and the new segment starts at the frame read, as the chip's own
+    count from that frame does."""
+    ledger = FrameLedger(Quantity.GYRO, P)
+    ledger.observe(gyro(0))
+    ledger.note("reset")
+    first = P + P // 5  # the stamps alone show no slot between
+    ledger.skipped(first)
+    ledger.observe(gyro(first))
+    ledger.observe(gyro(first + P))
+    assert ledger.all_segments() == [(0, 0, 1), (first, first + P, 2)]
+    assert dict(+ledger.lost) == {"reset": 1} and ledger.produced == 4
+
+
 def test_a_hung_chip_without_an_overrun_made_only_the_frame_read() -> None:
     ledger = FrameLedger(Quantity.GYRO, P)
     ledger.observe(gyro(0))
@@ -186,6 +202,36 @@ def test_a_hung_chip_without_an_overrun_made_only_the_frame_read() -> None:
     loss = ledger.observe(gyro(6 * P))
     assert loss is not None and (loss.frames, loss.cause) == (5, "not_measured")
     assert (ledger.produced, ledger.not_measured, sum(ledger.lost.values())) == (2, 5, 0)
+
+
+def test_a_frame_read_as_the_chips_next_measurement_has_no_slot_lost_before_it() -> None:
+    """The read of the frame at 2 periods proved the chip measured once since the frame at
+    0 (``adjacent``: unbroken reads that found nothing, then DRDY without DOR): the slot
+    the stamps span is one a hang too short for ``idle`` let pass, not measured."""
+    ledger = FrameLedger(Quantity.GYRO, P)
+    ledger.observe(gyro(0))
+    ledger.adjacent(0, 2 * P)
+    loss = ledger.observe(gyro(2 * P))
+    assert loss is not None and (loss.frames, loss.cause) == (1, "not_measured")
+    assert (ledger.produced, ledger.not_measured, sum(ledger.lost.values())) == (2, 1, 0)
+
+
+@pytest.mark.parametrize("since, overrun, note", [
+    (-P, False, ""),  # proved after another frame than the latest valid one
+    (0, True, ""),  # the overrun bit says a measurement was overwritten: lost
+    (0, False, "reset"),  # the chip reconfigured between: its segment ends
+])
+def test_a_proof_of_the_next_measurement_counts_only_for_the_frame_before(
+        since: int, overrun: bool, note: str) -> None:
+    ledger = FrameLedger(Quantity.GYRO, P)
+    ledger.observe(gyro(0))
+    ledger.adjacent(since, 2 * P)
+    if overrun:
+        ledger.overrun(2 * P)
+    if note:
+        ledger.note(note)
+    ledger.observe(gyro(2 * P))
+    assert (sum(ledger.lost.values()), ledger.not_measured) == (1, 0)
 
 
 @pytest.mark.parametrize("since, until", [

@@ -180,3 +180,16 @@ def test_the_loss_bound_holds_in_data_time_when_wall_time_does_not_pass(
                if isinstance(r, RecordedTransfer)]
     assert on_disk and on_disk[-1] >= 2_000_000_000
     w.close()
+
+
+def test_the_end_record_says_when_the_run_ended_and_an_older_one_reads_without_it(
+        tmp_path: Path) -> None:
+    writer = _writer(tmp_path / "run.imurec")
+    writer.clock(1_000)
+    writer.end("complete", 5_000)
+    writer.close()
+    assert list(open_recording(tmp_path / "run.imurec").records())[-1] == \
+        EndMark(1_000, "complete", 5_000)
+    old = list(open_recording(Path("tests/data/recording/seed-thermal-1.5s-plan1.imurec"))
+               .records())[-1]
+    assert isinstance(old, EndMark) and old.how == "complete" and old.end_ns is None

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -11,6 +12,7 @@ import yaml
 from imuhal.bus.recording.format import LatePoll, RecordedTransfer, open_recording
 from imuhal.bus.recording.recorder import BusRecorder, run_header
 from imuhal.cli.main import main
+from imuhal.core.poll_plan import POLL_PLAN
 from imuhal.core.samples import Sample
 from imuhal.emulation import open_emulated
 from imuhal.estimation.outputs import AttitudeEstimate, VerticalEstimate
@@ -330,3 +332,25 @@ def test_an_old_version_recording_replays_until_todays_drivers_ask_otherwise(
     # a replay that reaches the end gives what the recording run gave
     assert sum(isinstance(e, AttitudeEstimate) for e in events) == 199
     assert sum(isinstance(e, VerticalEstimate) for e in events) == 50
+
+
+def test_a_recording_made_under_the_first_poll_plan_replays_to_the_events_it_recorded(
+        full_registry: Registry) -> None:
+    # seed-paraglider-vario, thermal, 1.5 s, recorded by the drivers of 2026-12-07 (main at
+    # effe753), before poll plans had versions: its header names none (plan 1). The replay
+    # runs the drivers on the recording's plan, so it follows every transfer to the end
+    # and gives the events the recording run gave, bit for bit (their sha256, taken from
+    # that run).
+    path = Path("tests/data/recording/seed-thermal-1.5s-plan1.imurec")
+    assert "poll_plan" not in open_recording(path).header
+    events = _replay(full_registry, path)
+    digest = hashlib.sha256("\n".join(_exact(events)).encode()).hexdigest()
+    assert (len(events), digest) == (
+        1140, "42041a3095f6999b7d0f55423833b68d8781a69a27321c43e7d5b0c0698a351b")
+
+
+def test_a_recording_holds_the_poll_plan_it_was_made_under(
+        full_registry: Registry, tmp_path: Path) -> None:
+    board = Path("profiles/seed-paraglider-vario.yaml")
+    _record(full_registry, board, tmp_path / "run.imurec", 0.2)
+    assert open_recording(tmp_path / "run.imurec").header["poll_plan"] == POLL_PLAN

@@ -25,6 +25,9 @@ class MasterSlaveBoard:
         self.schedule: dict[Driver, int] = {}
         self.errors = 0
         """Polls that raised (the pipeline counts them and recovers the device)."""
+        self.mag_polls = 0
+        self.empty_mag_polls = 0
+        """The magnetometer's polls, and those that handed out nothing."""
 
     def run(self, seconds: float) -> list[Sample]:
         """Poll both drivers at the times they ask for (the IMU first at a tie, as the
@@ -54,6 +57,8 @@ class MasterSlaveBoard:
                 continue
             if driver is self.mag:
                 out += result.samples
+                self.mag_polls += 1
+                self.empty_mag_polls += not result.samples
             self.schedule[driver] = max(result.next_poll_ns, self.clock.now_ns() + 1)
 
 

@@ -163,6 +163,9 @@ class AK8963Driver(Driver):
         self._feed: AutoReadFeed | None = None
         self._stamped_ns: int | None = None
         """read: auto: the stamp of the latest field from a copy (None after configure)."""
+        self._on_delivery = False
+        """read: auto: the latest field was stamped with its own copy's delivery (not placed
+        on the chip's cadence, ``stamp_on_cadence``, which dates it as another slot's)."""
         self._asa_read: bytes | None = None
         """The fuse-ROM bytes as last taken (``_read_asa``)."""
         self._cntl1_written_ns = 0
@@ -326,7 +329,9 @@ class AK8963Driver(Driver):
         if self._feed is not None:
             return self._poll_feed(now_ns, overdue)
         data = self.regs.read(r.DATA_BURST_START, r.DATA_BURST_LENGTH)
-        sample, bad, ready = self._measurement(data, now_ns, now_ns)
+        # every read since the latest valid field was good and found DRDY clear, or this
+        # is the read after it (``_idle_since``): a field with DOR clear is the next one
+        sample, bad, ready = self._measurement(data, now_ns, now_ns, unbroken=True)
         if sample is None:
             self._saw_no_field(now_ns, ready or bool(bad))
             return self._no_measurement(now_ns, overdue or ready, bad, stale=not ready)
@@ -360,10 +365,14 @@ class AK8963Driver(Driver):
             if not samples:
                 self._copies_found_nothing(copy)
             t_ns = self._copy_stamp(copy)
-            sample, flag, _ = self._measurement(copy.data, t_ns, t_ns)
+            on_delivery = t_ns == copy.t_ns
+            sample, flag, _ = self._measurement(
+                copy.data, t_ns, t_ns,
+                unbroken=on_delivery and self._on_delivery and self._unbroken(copy))
             if sample is not None:
                 samples.append(sample)
                 self._stamped_ns = t_ns
+                self._on_delivery = on_delivery
             self._idle_since = t_ns if sample is not None and sample.valid else None
             bad |= flag
         if not samples:
@@ -384,6 +393,19 @@ class AK8963Driver(Driver):
             if until_ns > self._idle_since:
                 self.health.idle = (self._idle_since, until_ns)
 
+    def _unbroken(self, copy: Copy) -> bool:
+        """read: auto: every read slave 0 made since the copy before ``copy`` was delivered,
+        good and found ST1.DRDY clear, the latest of them the delivery just before it
+        (``Copy.quiet_ns``: no pause, no failed read), so ``copy``'s ST1 follows the
+        master's read before it as a direct read follows the read before. Only between
+        fields stamped at their own copies (``_on_delivery``): a field placed on the cadence
+        after failed reads stands for the slot before its copy, and the slots between its
+        stamp and the next field's are not between the two reads."""
+        assert self._feed is not None
+        after = copy.after_ns
+        return (copy.quiet_ns is not None and copy.quiet_ns == after and not copy.failed_ns
+                and after is not None and copy.t_ns - after <= self._feed.latency_ns)
+
     def _copy_stamp(self, copy: Copy) -> int:
         """The time the master copied this measurement: its delivery, or on the chip's own
         cadence after failed master reads (SLV0_NACK) or a pause in the master's deliveries
@@ -398,10 +420,14 @@ class AK8963Driver(Driver):
         return stamp_on_cadence(copy, self._stamped_ns, self._period_ns,
                                 pause_ns=self._feed.latency_ns * 4 // 3)
 
-    def _measurement(self, data: bytes, t_ns: int,
-                     poll_ns: int) -> tuple[MagSample | None, SampleFlag, bool]:
+    def _measurement(self, data: bytes, t_ns: int, poll_ns: int, *,
+                     unbroken: bool = False) -> tuple[MagSample | None, SampleFlag, bool]:
         """An ST1..ST2 burst stamped ``t_ns``, found at the poll at ``poll_ns``: (the
-        sample, or None; the flag of a bad frame; DRDY)."""
+        sample, or None; the flag of a bad frame; DRDY). ``unbroken``: the read before this
+        one read the chip too, and was good (with ``_idle_since``: every read since the
+        latest valid field was, each finding DRDY clear), so a valid field with DOR clear is
+        the chip's next measurement after that field (``health.adjacent``): DOR is set by a
+        measurement that overwrites one unread and cleared by every data read."""
         m = decode_burst(data, self.asa)
         bad = blank_flag(data)
         if m.data_ready and not bad:
@@ -421,6 +447,8 @@ class AK8963Driver(Driver):
             flags |= SampleFlag.OUT_OF_RANGE
         if flags == SampleFlag.OK:
             self.last = m
+            if unbroken and self._idle_since is not None and not m.data_overrun:
+                self.health.adjacent = (self._idle_since, t_ns)
         return MagSample(t_ns=t_ns, device=self.device, flags=flags, mag_ut=m.field_ut), \
             flags, True
 

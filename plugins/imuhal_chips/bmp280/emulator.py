@@ -24,7 +24,9 @@ datasheet's floating-point compensation written independently of the driver, wit
 trimming (default: the datasheet worked example), at the configured resolution.
 
 Faults: ``chip_id`` (a clone or another part), ``stuck_data_ready`` (conversions never finish:
-``measuring`` stays set, forced mode never returns to sleep, data freeze), ``silent_reset()``,
+``measuring`` stays set, forced mode never returns to sleep, data freeze; what finished
+before the hang began is measured, and when it ends the cycles it held complete at their own
+instants), ``silent_reset()``,
 absence (``absent``) and bus errors via ``EmulatedBus.fail_transfers``.
 
 Source of facts: BMP280 datasheet BST-BMP280-DS001-19; imuhal shared chip facts section 2.
@@ -37,7 +39,7 @@ import random
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock
 from imuhal.core.samples import Quantity
-from imuhal.emulation import ChipEmulator
+from imuhal.emulation import ChipEmulator, HangsBetweenTransfers
 from imuhal_chips.bmp280 import registers as r
 from imuhal_chips.bmp280.emulator_encoding import (
     DATASHEET_TRIMMING,
@@ -83,7 +85,7 @@ def _adc_registers(adc: int) -> bytes:
     return bytes([(adc >> 12) & 0xFF, (adc >> 4) & 0xFF, (adc & 0x0F) << 4])
 
 
-class BMP280Emulator(ChipEmulator):
+class BMP280Emulator(HangsBetweenTransfers, ChipEmulator):
     """Register-level stand-in for a BMP280 on I2C or SPI."""
 
     chip = "bmp280"
@@ -104,7 +106,7 @@ class BMP280Emulator(ChipEmulator):
         """What the trimming registers read (fault injection may flip bits of it)."""
         self.chip_id = r.CHIP_ID
         """What 0xD0 reads (fault injection: 0x60 is a BME280, anything else a clone)."""
-        self.stuck_data_ready = False
+        self._hung = False
         self._pointer = 0
         self.resets = 0
         self._oscillator_error = 0.0
@@ -113,6 +115,12 @@ class BMP280Emulator(ChipEmulator):
         """Resets seen (soft reset command or silent reset), for tests."""
 
     # -- fault injection --------------------------------------------------------------------
+
+    def _measurement_due(self) -> bool:
+        """Always (HangsBetweenTransfers): ``_advance`` finds by itself what each mode has
+        finished, so a hang first measures what finished before it began; when it ends, the
+        cycles it held complete at their own instants."""
+        return True
 
     def corrupt_trim(self, rng: random.Random, bits: int = 1) -> str:
         """Flip ``bits`` random bits of the 24 trimming bytes the driver reads; the sensor

@@ -110,6 +110,9 @@ from imuhal_chips.hmc5883l.registers import (
     gain_from_config_b,
 )
 
+AFTER_DELIVERY_PLAN = 2
+"""The poll plan (imuhal.core.poll_plan) from which, under ``read: auto``, the driver looks
+no sooner than its master's next delivery (``Hmc5883lDriver._next_look``)."""
 NOT_READY_RETRY_NS = 500_000
 """RDY is low for about 250 us while the chip writes new data: retry this much later."""
 FROZEN_AFTER_FRAMES = 30
@@ -228,6 +231,9 @@ class Hmc5883lDriver(Driver):
         self._hung_after_ns = 0
         """read: auto: unchanged copies this long are more than a measuring chip repeats
         (``unchanged_periods``)."""
+        self._not_ready = False
+        """read: one-shot: the previous poll found RDY clear (the chip let an instant pass
+        unmeasured: reading never clears RDY)."""
 
     # --- bus helpers (plain I2C register protocol: write pointer, then read) --------------
 
@@ -300,6 +306,7 @@ class Hmc5883lDriver(Driver):
         self._grid = PollGrid(spec.period_ns)
         self._ready = DataReady({Quantity.MAG: self._grid.period_ns})
         self._skip_next = True  # its first measurement still uses the previous gain
+        self._idle_from, self._not_ready = None, False
         if self.settings.read == "auto":
             assert isinstance(self.link.bus, AutoReadBus)
             feed = self._feed = self.link.bus.auto_read(self.link.target, Reg.X_MSB, 6)
@@ -369,6 +376,11 @@ class Hmc5883lDriver(Driver):
         status = self._read(Reg.STATUS, 1)[0]
         if status & STATUS_RDY:
             sample, configured = self._sample(now_ns)
+            # RDY found after reads without it: the measurement read now is the one the
+            # grid's next point aims at (its instant within the retry before now)
+            after_now = now_ns + self._grid.guard_ns if self._not_ready else now_ns
+            self._not_ready = False
+            self._idle_from = None
             if not configured:
                 # a reset chip (single measurement, then idle): its data are no field
                 # measured in continuous mode as configured
@@ -381,11 +393,18 @@ class Hmc5883lDriver(Driver):
                     # what the averaging carries over is the same field at another scale
                     self._skip_next = False
                     self._memory.forget()
-                    return PollResult([], self._grid.next_after(now_ns))
-                return PollResult([sample], self._grid.next_after(now_ns))
-        elif not self._ready.overdue(Quantity.MAG, now_ns):
-            return PollResult([], now_ns + NOT_READY_RETRY_NS)
+                    return PollResult([], self._grid.next_after(after_now))
+                if sample.valid:
+                    self._idle_from = now_ns
+                return PollResult([sample], self._grid.next_after(after_now))
         else:
+            self._not_ready = True
+            if self._idle_from is not None:
+                # RDY clear: an instant passed without a measurement (reading never clears
+                # it), and every read since the latest valid field's found it clear
+                self.health.idle = (self._idle_from, now_ns)
+            if not self._ready.overdue(Quantity.MAG, now_ns):
+                return PollResult([], now_ns + NOT_READY_RETRY_NS)
             sample = MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                                mag_ut=NAN3, flags=SampleFlag.STALE)
         return self._no_measurement(sample, now_ns)
@@ -412,9 +431,9 @@ class Hmc5883lDriver(Driver):
                 self._fresh_ns = now_ns
                 self._retrying = False
                 self._watch.fresh_poll()
-                return PollResult(samples, self._grid.next_after(now_ns))
+                return PollResult(samples, self._next_look(now_ns))
             if blank is None:  # from before configure() settled, or handed out before
-                return PollResult([], self._grid.next_after(now_ns))
+                return PollResult([], self._next_look(now_ns))
             sample = blank
         elif now_ns - self._fresh_ns <= self._unchanged_limit_ns:
             if not self._retrying:
@@ -429,6 +448,19 @@ class Hmc5883lDriver(Driver):
             sample = MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                                mag_ut=NAN3, flags=frozen or SampleFlag.STALE)
         return self._no_measurement(sample, now_ns)
+
+    def _next_look(self, now_ns: int) -> int:
+        """read: auto, after a poll that found the master's copies: the next grid point,
+        or (poll plan 2, imuhal.core.poll_plan) the master's next delivery when it says one
+        and that comes later (a FIFO read every n frames: ``AutoReadFeed.next_ns``), as no
+        new copy can be found before it. Polled at the same time as the master, it comes
+        after it (a device behind another's bus ranks after it)."""
+        next_ns = self._grid.next_after(now_ns)
+        assert self._feed is not None
+        delivery_ns = self._feed.next_ns
+        if delivery_ns > next_ns and self.poll_plan >= AFTER_DELIVERY_PLAN:
+            return delivery_ns
+        return next_ns
 
     def _hung_by_status(self, now_ns: int) -> None:
         """read: auto: the master's copies have not changed since the latest valid field's
@@ -535,6 +567,8 @@ class Hmc5883lDriver(Driver):
             if by_delivery:
                 t_ns = stamp_on_cadence(copy, self._cadence_ns, self._grid.period_ns,
                                         pause_ns=pause_ns)
+                if left and not blank_flag(changes[k + 1].data):
+                    t_ns = self._before_next(t_ns, changes[k + 1].t_ns)
             stamp = min(max(t_ns, self._stamped_ns + 1), now_ns - left) \
                 if by_delivery else now_ns
             sample = self._decoded(data, stamp, blank_flag(data))
@@ -545,6 +579,22 @@ class Hmc5883lDriver(Driver):
             self._stamped_ns = self._cadence_ns = stamp
             samples.append(sample)
         return samples, (None if samples else blank)
+
+    def _before_next(self, t_ns: int, next_ns: int) -> int:
+        """The stamp ``t_ns`` of a copy whose next change, a measurement, was delivered at
+        ``next_ns``: the chip measures once a period, so this copy's measurement came a
+        period before that one, and a poll on time for it came at most a latency and a
+        guard after it. A stamp later than that (a copy after a host stall that
+        ``stamp_on_cadence`` put two periods after the field before, where the chip made
+        one) goes back to the latest point of the cadence before that bound; the frame
+        ledger counts the gap from it."""
+        assert self._feed is not None
+        last, period = self._cadence_ns, self._grid.period_ns
+        bound = next_ns - period + self._feed.latency_ns + self._grid.guard_ns
+        if last is None or t_ns <= bound:
+            return t_ns
+        periods = int((bound - last) / period + 0.1)
+        return min(t_ns, last + periods * period) if periods >= 1 else t_ns
 
     def _unlocking(self, copy: Copy) -> Copy | None:
         """``copy`` as the time its measurement was made allows. The master's first copy
@@ -627,6 +677,8 @@ class Hmc5883lDriver(Driver):
         written (the read-back also releases the data lock a partial data read may have
         set), the chip kept measuring, so poll again at once instead of the full recovery
         (which rewrites the configuration and drops the first measurement after it)."""
+        if self._feed is None:
+            self._idle_from = None  # a failed read breaks the run of reads a hang's proof needs
         if self.gain_lsb_per_gauss is None or self._off_plan():
             return None
         return max(now_ns, self.clock.now_ns())

@@ -4,9 +4,11 @@ Bus face (I2C only): registers 0x00..0x0C with power-on defaults (CRA 0x10, CRB 
 single), writable bits only (CRA bit 7 and CRB [4:0] stay 0), read-only data/status/ID,
 a register pointer set by a write that auto-increments on reads and writes and wraps from 8
 back to 3 after a data read, invalid addresses reading 0; RDY set when new data is written
-(never cleared by reading); the data-output lock (LOCK) set by a partial data read or by
-reading the Mode register and released when all six data bytes have been read, Mode or CRA
-are written, or power cycles, with a measurement completed while locked placed on release.
+(never cleared by reading: the datasheet clears it only when the chip starts writing new
+data, and Linux's hmc5843 driver waits for it, never clears it); the data-output lock
+(LOCK) set by a partial data read or by reading the Mode register and released when all six
+data bytes have been read, Mode or CRA are written, or power cycles, with a measurement
+completed while locked placed on release.
 Continuous mode measures every 1/ODR from the Mode write; single mode measures once 6 ms
 after it and shows idle (11) afterwards. The first measurement after a gain (CRB) change
 still uses the previous gain.
@@ -25,8 +27,11 @@ issue 25 asks for (a change takes effect from the next measurement). Every measu
 instant is recorded (``measured_ns``), so a test can count what the chip produced.
 
 Fault injection: ``identity`` (e.g. b"\\x00\\x00\\x00" for a clone), ``stuck_data_ready``
-(measurements stop and RDY reads 0; writing the Mode register restarts them; when the
-fault ends the continuous mode goes on on its own cadence, nothing dated inside it),
+(measurements stop: the first continuous-mode instant the chip lets pass clears RDY, as the
+start of a measurement does, and RDY stays clear until a measurement completes, after the
+fault too, so a read after a hang never finds RDY set with data already read; writing the
+Mode register restarts them; when the fault ends the continuous mode goes on on its own
+cadence, nothing dated inside it),
 ``silent_reset()`` (registers back to defaults unannounced), ``absent`` (base class) and bus
 errors via the EmulatedBus. Not modelled: self-test bias fields, high-speed I2C, averaging
 noise, the 250 us RDY-low window while data are written.
@@ -259,6 +264,10 @@ class Hmc5883lEmulator(HangsBetweenTransfers, ChipEmulator):
         period = self._period_ns()
         if self.regs[Reg.MODE] & MODE_MD_MASK == MODE_CONTINUOUS and period:
             self._next_ns = due + ((now - due) // period + 1) * period
+            # the engine stopped as it began a measurement, which clears RDY (the
+            # datasheet's status register: cleared when the device initiates a write to the
+            # data output registers); only a completed measurement sets it again
+            self.rdy = False
 
     # --- bus face -------------------------------------------------------------------------
 
@@ -314,8 +323,7 @@ class Hmc5883lEmulator(HangsBetweenTransfers, ChipEmulator):
                 self.locked = True
             return self.regs[reg]
         if reg == Reg.STATUS:
-            rdy = self.rdy and not self.stuck_data_ready
-            return (STATUS_LOCK if self.locked else 0) | (STATUS_RDY if rdy else 0)
+            return (STATUS_LOCK if self.locked else 0) | (STATUS_RDY if self.rdy else 0)
         if Reg.ID_A <= reg <= LAST_REGISTER:
             return self.identity[reg - Reg.ID_A]
         return 0

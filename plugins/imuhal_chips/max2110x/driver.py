@@ -113,10 +113,15 @@ than their error model off the truth from the 13th on (27 in 300 s, 68 in an hou
 TEMPERATURE_RANGE_DEGC = (-40.0, 85.0)
 """Operating range of the die; a temperature word outside it is not a real reading."""
 _MAG_OFFSET = Reg.MAG_X_H - Reg.SYSTEM_STATUS
+"""Where MAG X/Y/Z (the auto-read slave's bytes) start in a MAX21100 burst."""
 _SIX_WORDS = struct.Struct(">6h")
+"""Gyro X, Y, Z then accel X, Y, Z after the status byte: signed big-endian words."""
 _BLANK_FF = b"\xff" * _SIX_WORDS.size
 _BLANK_00 = b"\x00" * _SIX_WORDS.size
-"""Gyro X, Y, Z then accel X, Y, Z after the status byte: signed big-endian words."""
+_MIN = np.minimum.reduce
+_MAX = np.maximum.reduce
+"""The ufuncs' reductions called directly (``ndarray.min`` goes through a Python wrapper
+that costs more than the arithmetic on a read's few frames)."""
 _AFTER_ACCEL = Reg.ACC_X_H + 6
 """0x30: MAG X/Y/Z then TEMP on the MAX21100 (0x30..0x37), TEMP on the MAX21105 (0x30,
 0x31): what read: fifo reads beside the FIFO."""
@@ -125,7 +130,8 @@ _FAST_OVERRUN = {Quantity.GYRO: int(Status.GYRO_ERR), Quantity.ACCEL: int(Status
 _GYRO_DR = int(Status.GYRO_DR)
 _ACC_DR = int(Status.ACC_DR)
 _OVERRUN = int(Status.GYRO_ERR | Status.ACC_ERR)
-"""Where MAG X/Y/Z (the auto-read slave's bytes) start in a MAX21100 burst."""
+"""Either channel's overrun bit: a sample overwritten before it was read."""
+
 
 class Max2110xDriver(Driver):
     """Family base. Subclasses set ``name``, ``Settings`` and ``part``."""
@@ -556,7 +562,11 @@ class Max2110xDriver(Driver):
             if not got.frames:
                 self._count_overflow()
         now_ns = max(now_ns, self.clock.now_ns())
-        return got, samples, now_ns, self._fifo.next_read_ns(now_ns, self._fifo_interval_ns())
+        next_ns = self._fifo.next_read_ns(now_ns, self._fifo_interval_ns())
+        if self._feed is not None:
+            # the slave's next copy comes with that read (AutoReadFeed.next_ns)
+            self._feed.next_ns = next_ns
+        return got, samples, now_ns, next_ns
 
     def _fifo_result(self, samples: list[Sample], got: FifoRead, now_ns: int,
                      next_ns: int) -> PollResult:

@@ -1354,6 +1354,9 @@ class AhrsEstimator(Estimator):
         ax, ay, az = accel.values[-1].tolist()
         self._accel_m_s2 = (ax, ay, az)
         self._accel_t_ns = t_last
+        # the accelerometer frame the last step had: process() keeps it for a span of
+        # unfused frames after the block (_span_starts), as the frames one by one would
+        self._step_accel = self._accel_m_s2
         if mag is not None and self.uses_mag:
             mx, my, mz = mag.values[-1].tolist()
             self._mag_ut = (mx, my, mz)

@@ -147,6 +147,15 @@ def turn_state_towards(filt: ButterworthLowPass, target: Vec, max_angle_rad: flo
     return (st[0], st[1], st[2])
 
 
+def follow(held: Vec | None, x: Vec, k: float) -> Vec:
+    """A first-order low-pass one step of weight ``k`` from ``held`` toward ``x``; its first
+    input (``held`` None) starts it (the rest detector's gyro and accelerometer filters)."""
+    if held is None:
+        return x
+    return (held[0] + k * (x[0] - held[0]), held[1] + k * (x[1] - held[1]),
+            held[2] + k * (x[2] - held[2]))
+
+
 def _wrap(a: float) -> float:
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
@@ -223,16 +232,11 @@ class DecoupledKernel:
     def _rest_step(self, gyro: Vec, acc_g: Vec | None, dt: float) -> None:
         p = self.p
         k = 1.0 - math.exp(-dt / p.rest_filter_tau_s)
-        g = self.gyro_lp
-        self.gyro_lp = g = gyro if g is None else (
-            g[0] + k * (gyro[0] - g[0]), g[1] + k * (gyro[1] - g[1]), g[2] + k * (gyro[2] - g[2]))
+        self.gyro_lp = g = follow(self.gyro_lp, gyro, k)
         still = (sum((gyro[i] - g[i]) ** 2 for i in range(3)) < p.rest_gyro_th_rad_s ** 2
                  and max(abs(g[0]), abs(g[1]), abs(g[2])) < p.bias_clip_rad_s)
         if acc_g is not None:
-            a = self.acc_lp
-            self.acc_lp = a = acc_g if a is None else (
-                a[0] + k * (acc_g[0] - a[0]), a[1] + k * (acc_g[1] - a[1]),
-                a[2] + k * (acc_g[2] - a[2]))
+            self.acc_lp = a = follow(self.acc_lp, acc_g, k)
             still = still and sum((acc_g[i] - a[i]) ** 2 for i in range(3)) < p.rest_acc_th_g ** 2
         self.rest_s = self.rest_s + dt if still else 0.0
 

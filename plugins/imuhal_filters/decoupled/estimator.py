@@ -315,9 +315,6 @@ class DecoupledEstimator(AhrsEstimator):
         if not ok:
             return None
         self._block_step_done(gyro, accel, mag, fallbacks)
-        # the accelerometer frame the last step had (process() keeps it for a span of
-        # unfused frames after it, _span_starts)
-        self._step_accel = self._accel_m_s2
         self._counters["stale_mag"] += stale
         self._kernel_finished(out[-1], m, 0, turn_sum)
         return out, diag, dts, lin

@@ -305,27 +305,30 @@ bias_step = jit(_bias_step)
 
 
 # ---------------------------------------------------------------- rest, pace, manoeuvre
+def _follow3(S, at, k, x, y, z):
+    """``core.follow``: the first-order low-pass held at ``S[at + 1:at + 4]`` one step of
+    weight ``k`` toward (x, y, z); its first input (``S[at]`` still 0.0) starts it."""
+    if S[at] == 0.0:
+        S[at], S[at + 1], S[at + 2], S[at + 3] = 1.0, x, y, z
+    else:
+        v0, v1, v2 = S[at + 1], S[at + 2], S[at + 3]
+        S[at + 1], S[at + 2], S[at + 3] = v0 + k * (x - v0), v1 + k * (y - v1), v2 + k * (z - v2)
+
+
+follow3 = jit(_follow3)
+
+
 def _rest_step(S, P, gx, gy, gz, have_a, ax, ay, az, dt):
     """``DecoupledKernel._rest_step``."""
     k = 1.0 - math.exp(-dt / P[P_REST_TAU])
-    if S[_GLP] == 0.0:
-        S[_GLP], S[_GLP + 1], S[_GLP + 2], S[_GLP + 3] = 1.0, gx, gy, gz
-    else:
-        g0, g1, g2 = S[_GLP + 1], S[_GLP + 2], S[_GLP + 3]
-        S[_GLP + 1], S[_GLP + 2], S[_GLP + 3] = \
-            g0 + k * (gx - g0), g1 + k * (gy - g1), g2 + k * (gz - g2)
+    follow3(S, _GLP, k, gx, gy, gz)
     g0, g1, g2 = S[_GLP + 1], S[_GLP + 2], S[_GLP + 3]
     d0, d1, d2 = gx - g0, gy - g1, gz - g2
     still = d0 ** 2 + d1 ** 2 + d2 ** 2 < P[P_REST_GYRO_TH] ** 2
     if still:
         still = pymax(pymax(abs(g0), abs(g1)), abs(g2)) < P[P_BIAS_CLIP_CORE]
     if have_a:
-        if S[_ALP] == 0.0:
-            S[_ALP], S[_ALP + 1], S[_ALP + 2], S[_ALP + 3] = 1.0, ax, ay, az
-        else:
-            a0, a1, a2 = S[_ALP + 1], S[_ALP + 2], S[_ALP + 3]
-            S[_ALP + 1], S[_ALP + 2], S[_ALP + 3] = \
-                a0 + k * (ax - a0), a1 + k * (ay - a1), a2 + k * (az - a2)
+        follow3(S, _ALP, k, ax, ay, az)
         if still:
             d0, d1, d2 = ax - S[_ALP + 1], ay - S[_ALP + 2], az - S[_ALP + 3]
             still = d0 ** 2 + d1 ** 2 + d2 ** 2 < P[P_REST_ACC_TH] ** 2

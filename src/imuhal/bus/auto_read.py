@@ -103,7 +103,8 @@ class AutoReadFeed:
     """
 
     __slots__ = ("_failed", "_quiet", "_quiet_ns", "_raw", "changed_ns", "data", "deliveries",
-                 "failures", "fresh", "latency_ns", "length", "ready_bit", "register", "t_ns",
+                 "failures", "fresh", "latency_ns", "length", "next_ns", "ready_bit",
+                 "register", "t_ns",
                  "target")
 
     def __init__(self, target: int, register: int, length: int, *, latency_ns: int) -> None:
@@ -115,6 +116,11 @@ class AutoReadFeed:
         self.t_ns = 0
         """Time of the latest delivery (ns, the driver clock)."""
         self.changed_ns = 0
+        self.next_ns = 0
+        """When the master's driver means to deliver next (ns, the driver clock; 0: it does
+        not say): a master that reads the slave's copy less often than every slave
+        measurement (a FIFO read every n frames) says so, and a slave driver then looks
+        no sooner (imuhal.core.poll_plan, plan 2)."""
         self.deliveries = 0
         self._raw: bytes | None = None
         """The bytes of the previous delivery, as read."""

@@ -19,6 +19,7 @@ from imuhal.bus.base import Bus, BusKind, Link
 from imuhal.core.blocks import Block, blocks_of
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ImuhalDeprecationWarning
+from imuhal.core.poll_plan import POLL_PLAN
 from imuhal.core.samples import Quantity, Sample
 from imuhal.core.streams import StreamSpec
 from imuhal.drivers.settings import literal_choices
@@ -113,6 +114,15 @@ class DeviceHealth:
     overrun_ns: int = 0
     """The stamp of the latest frame whose read found that the chip had overwritten a
     measurement unread since the read before (a data-overrun bit, the AK8963's ST1.DOR)."""
+    adjacent: tuple[int, int] | None = None
+    """(the stamp of the latest frame the driver handed out valid, the stamp of a frame
+    after it) when the read that brought the later one proved the chip measured once since
+    the earlier one's read: every read between was good and found nothing new, and this one
+    found a new measurement without the overrun bit (the AK8963's ST1: DRDY set, DOR clear,
+    a bit cleared by every read). The chip made no frame between the two, whatever their
+    stamps say: the frame ledger counts any slot between as not measured, not lost
+    (``FrameLedger.adjacent``: a hang too short for ``idle`` to prove). None: no such
+    read."""
     skipped_ns: int = 0
     """The stamp of the latest frame whose read found a frame of the accounted stream
     overwritten unread since the read before, for a driver whose reads of its chip are its
@@ -164,6 +174,9 @@ class Driver(ABC):
     channel's unit (accelerometer m/s^2, magnetometer uT), as the chip's datasheet (or the
     driver, when none is published) specifies it: what ``imuhal run`` quotes when a device
     has no calibration for that channel (imuhal.calibrate.missing). Empty: not known."""
+    poll_plan: int = POLL_PLAN
+    """The poll plan this driver follows (imuhal.core.poll_plan): the newest, unless the
+    pipeline replays a recording made under an older one (``Board.poll_plan``)."""
     resumes_in_a_row: ClassVar[int] = 1
     """How many bus errors in a row, before a poll completes, the pipeline answers with
     ``resume()`` before the full ``recover()``. Above 1 only for a driver whose every

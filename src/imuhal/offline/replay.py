@@ -33,6 +33,7 @@ from imuhal.bus.recording.format import (
 from imuhal.bus.spy import OP_BAUD, OP_RECEIVE, OP_TRANSFER
 from imuhal.core import errors as error_types
 from imuhal.core.errors import BusError, ImuhalError, RunEnded
+from imuhal.core.poll_plan import FIRST_POLL_PLAN, POLL_PLAN
 from imuhal.pipeline.pipeline import Pipeline
 from imuhal.pipeline.triggers import TriggerEdge
 from imuhal.plugins.manager import Registry
@@ -127,6 +128,10 @@ class ReplaySource:
     def poll_time(self, t_ns: int, device: str) -> int:
         """When the recorded run polled ``device``, due at ``t_ns``: later when it was late."""
         rec = self._peek()
+        if type(rec) is EndMark and rec.end_ns is not None and t_ns >= rec.end_ns:
+            # the recorded run ended before this poll (one that makes no transaction, such
+            # as a slave's its master auto-read, would otherwise hand out one more reading)
+            raise EndOfRecording()
         if not isinstance(rec, LatePoll) or rec.device != device:
             # Another device's late poll comes next: this poll was on time and leaves no
             # record of its own before it (a driver that reads what another's burst
@@ -317,6 +322,8 @@ class ReplayBoard:
     clock: ReplayClock
     lines: dict[str, ReplayLine] = field(default_factory=dict)
     """The data-ready lines of the profile's devices (``interrupt:``), replayed."""
+    poll_plan: int = POLL_PLAN
+    """The drivers' poll plan the recording was made with (imuhal.core.poll_plan)."""
 
     def waiter(self) -> ReplayWaiter:
         return ReplayWaiter(self.clock.source)
@@ -327,11 +334,18 @@ class ReplayBoard:
         return self.clock.source.poll_time(t_ns, device)
 
 
+def recorded_poll_plan(recording: Recording) -> int:
+    """The poll plan ``recording`` was made with: its header's, else the first (a recording
+    from before plans had versions)."""
+    plan = recording.header.get("poll_plan", FIRST_POLL_PLAN)
+    return plan if isinstance(plan, int) else FIRST_POLL_PLAN
+
+
 def replay_pipeline(replay: Replay, registry: Registry) -> Pipeline:
     """The pipeline of the recorded run, opened (probe, configure) from the recording."""
     lines = {name: ReplayLine(name) for name, dev in replay.profile.devices.items()
              if dev.enabled and dev.interrupt is not None}
-    board = ReplayBoard(replay.buses, replay.clock, lines)
+    board = ReplayBoard(replay.buses, replay.clock, lines, recorded_poll_plan(replay.recording))
     try:
         return Pipeline(replay.profile, registry, board)
     except EndOfRecording:

@@ -77,7 +77,14 @@ ends the segment: its slots stay ``reset``. Behind an auto-read master the maste
 are those reads: the AK8963's ST1 rides in every copy the MPU-9250's slave 0 makes; the
 HMC5883L behind the MAX21100, whose copies lack its status, reads its status register when
 its bytes have stayed the same longer than a measuring chip allows. Without such reads (no
-read during the hang) the slots count as lost, as before.
+read during the hang) the slots count as lost, as before. A hang shorter than
+HUNG_AFTER_PERIODS is proved by the read of the field after it instead
+(``DeviceHealth.adjacent``, :meth:`FrameLedger.adjacent`): unbroken good reads since the
+latest valid frame that found nothing new, then a new measurement with the overrun bit clear
+(the AK8963's ST1.DOR, set by a measurement that overwrites one unread and cleared by every
+read), so the chip measured once between the two frames and any slot their stamps span is
+``not_measured``: behind slave 0 the quiet copies, dated a feed latency early, never reach
+1.5 periods when the chip lets one measurement pass (the fault matrix's 9 ms window).
 
 Limit: time stamps are the host's poll times, up to a period after the measurement. A gap
 is counted right while the two polls at its ends lie at about the same phase to the chip
@@ -157,6 +164,8 @@ class FrameLedger:
     since that frame (``idle``)."""
     _overrun_ns: int | None = None
     """The stamp of a frame whose read found a measurement overwritten unread (``overrun``)."""
+    _adjacent: tuple[int, int] | None = None
+    """(earlier, later) stamps of two frames the chip made none between (``adjacent``)."""
     _seen: set[str] = field(default_factory=set)
     """Causes seen since the latest valid frame."""
     _pending: list[tuple[int, str]] = field(default_factory=list)
@@ -227,6 +236,15 @@ class FrameLedger:
         MAX2110x's overrun bit): of a hung chip's slots, the one lost (``idle``)."""
         self._overrun_ns = stamp_ns
 
+    def adjacent(self, since_ns: int, stamp_ns: int) -> None:
+        """The read that brought the frame stamped ``stamp_ns`` proved that the chip made
+        no frame since the one stamped ``since_ns`` (``DeviceHealth.adjacent``: unbroken
+        good reads that found nothing new, then this one's new measurement with the overrun
+        bit clear): any slot the stamps span between them is one the chip let pass
+        (``not_measured``), however short its hang. Counts only when ``since_ns`` is the
+        latest valid frame when the frame stamped ``stamp_ns`` comes."""
+        self._adjacent = (since_ns, stamp_ns)
+
     def skipped(self, stamp_ns: int) -> None:
         """The driver's own read that brought the frame stamped ``stamp_ns`` found a frame
         of the stream overwritten unread since its read before (the MAX2110x's overrun
@@ -275,7 +293,8 @@ class FrameLedger:
         if self.last_ns is not None:
             loss = self._gap_before(counted_ns - self._last_counted_ns,
                                     overrun=self._overrun_ns == t_ns,
-                                    overwritten=self._skipped_ns == t_ns)
+                                    overwritten=self._skipped_ns == t_ns,
+                                    adjacent=self._adjacent == (self.last_ns, t_ns))
         else:
             self.first_ns = t_ns
         if self._segment_first_ns is None:
@@ -332,12 +351,14 @@ class FrameLedger:
             self._pending = [(at, c) for at, c in self._pending if at > t_ns]
 
     def _gap_before(self, step_ns: int, *, overrun: bool = False,
-                    overwritten: bool = False) -> Loss | None:
+                    overwritten: bool = False, adjacent: bool = False) -> Loss | None:
         """Counts the slots between the latest valid frame and one ``step_ns`` after it:
         frames lost (charged to the weightiest cause seen), slots never converted and slots
         a hung chip did not measure. ``overrun``: the frame's read found a measurement
         overwritten unread (a hung chip's one lost slot); ``overwritten``: the driver's own
-        read found a frame of the stream overwritten (at least one lost, ``skipped``)."""
+        read found a frame of the stream overwritten (at least one lost, ``skipped``);
+        ``adjacent``: its read proved the chip made none since the frame before
+        (``adjacent``: every slot between is not measured)."""
         assert self.last_ns is not None
         slots = round(step_ns / self.period_ns) - 1
         if slots <= 0 and not overwritten:  # the next slot (nearly every frame), nothing
@@ -350,7 +371,7 @@ class FrameLedger:
             slots = lost = 1
         skipped = max(0, slots - lost)
         self.not_converted += skipped
-        unmeasured = min(lost, self._unmeasured(lost, overrun))
+        unmeasured = min(lost, self._unmeasured(lost, overrun, adjacent))
         self.not_measured += unmeasured
         lost -= unmeasured
         if lost:
@@ -363,12 +384,17 @@ class FrameLedger:
             return Loss(unmeasured + skipped, NOT_MEASURED, self.last_ns)
         return Loss(skipped, NOT_CONVERTED, self.last_ns) if skipped else None
 
-    def _unmeasured(self, slots: int, overrun: bool) -> int:
+    def _unmeasured(self, slots: int, overrun: bool, adjacent: bool = False) -> int:
         """Of ``slots`` slots before a valid frame, those a hung chip did not measure: all
         but the one its overrun bit proves, once the reads since the latest valid frame
-        proved it hung (``idle``; the module's docstring), and none in a gap its driver
+        proved it hung (``idle``; the module's docstring), all of them when the frame's
+        read proved the chip made none since (``adjacent``), and none in a gap its driver
         reconfigured it in."""
-        if self._idle_ns is None or "reset" in self._seen:
+        if "reset" in self._seen:
+            return 0
+        if adjacent and not overrun:
+            return slots
+        if self._idle_ns is None:
             return 0
         # from the latest frame's read (its stamp), not the due time a late poll is counted
         # at: the chip's next instant came within a period after that read

@@ -28,7 +28,9 @@ keeps its due time (a recording would otherwise hold a late poll for nearly ever
 
 
 class Board(Protocol):
-    """The board a pipeline polls."""
+    """The board a pipeline polls. Optional attributes the pipeline reads when present:
+    ``lines`` (data-ready lines by device), ``waiter`` and ``poll_plan`` (the drivers'
+    poll plan, imuhal.core.poll_plan: a replayed recording's; else the newest)."""
 
     @property
     def buses(self) -> Mapping[str, Bus]:

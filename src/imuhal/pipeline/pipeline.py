@@ -39,6 +39,7 @@ from imuhal.core.conventions import get_convention
 from imuhal.core.errors import BusError, ImuhalError, PluginError, ProfileError, RunEnded
 from imuhal.core.frames import FloatArray
 from imuhal.core.gaps import StreamGap
+from imuhal.core.poll_plan import POLL_PLAN
 from imuhal.core.samples import GyroSample, MagSample, Quantity, Sample, SampleFlag
 from imuhal.core.streams import StreamSpec, TimeSource
 from imuhal.drivers.base import DeviceIdentity, Driver
@@ -168,6 +169,8 @@ class DeviceRuntime:
     overrun_seen_ns: int = 0
     skipped_seen_ns: int = 0
     """The driver's overrun stamp the ledger last saw."""
+    adjacent_seen: tuple[int, int] | None = None
+    """The driver's pair of frames proved adjacent the ledger last saw."""
     mag_learner: HardIronLearner | None = None
     """Learning the hard iron in flight (``mag_in_flight``, no stored magnetometer record)."""
     accel_teacher: AccelTeacher | None = None
@@ -352,6 +355,8 @@ class Pipeline:
             self._before_poll = recorder.wrap_before_poll(board.before_poll)
         self.clock = clock
         self._lines: dict[str, TriggerLine] = dict(getattr(board, "lines", None) or {})
+        # a replayed recording's drivers ask for its transfers: the plan it was made with
+        poll_plan: int = getattr(board, "poll_plan", POLL_PLAN)
         self._waiter = _waiter_of(board, clock, self._lines, recorder)
         # Whatever a bus plugin raises reaches the drivers as a BusError (contained per device).
         self.buses: dict[str, Bus] = {name: ContainedBus(bus) for name, bus in spied.items()}
@@ -382,6 +387,7 @@ class Pipeline:
             driver_cls = registry.drivers.get(cfg.driver)
             driver = driver_cls(self._link(cfg.bus, cfg.address), cfg.settings, device=name,
                                 clock=clock)
+            driver.poll_plan = poll_plan
             dev = DeviceRuntime(name=name, driver=driver, chip_to_body=chip_to_body[name],
                                 calibration=None, required=cfg.required)
             self.devices[name] = dev
@@ -1095,6 +1101,9 @@ class Pipeline:
         if health.idle is not None and health.idle != dev.idle_seen:
             dev.idle_seen = health.idle
             dev.ledger.idle(*health.idle)
+        if health.adjacent is not None and health.adjacent != dev.adjacent_seen:
+            dev.adjacent_seen = health.adjacent
+            dev.ledger.adjacent(*health.adjacent)
         if health.overrun_ns != dev.overrun_seen_ns:
             dev.overrun_seen_ns = health.overrun_ns
             dev.ledger.overrun(health.overrun_ns)

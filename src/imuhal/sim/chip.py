@@ -356,9 +356,10 @@ class ChipEmulator(ABC):
 class HangsBetweenTransfers:
     """For an emulator that brings its measurements up to date at each transfer
     (``_advance``; the next measurement due at ``_next_ns``, None while idle): setting
-    ``stuck_data_ready`` brings them up to now first, so what fell due before a hang began is
-    measured and what fell due while it lasted is not, whatever transfer comes next. Put it
-    before :class:`ChipEmulator` among the bases."""
+    ``stuck_data_ready`` brings them up to now first (the fault's ``start_s``: the fault
+    injection sets it as at that instant, ``master_instant_ns``), so what fell due before a
+    hang began is measured and what fell due while it lasted is not, whatever transfer comes
+    next. Put it before :class:`ChipEmulator` among the bases."""
 
     _hung: bool
 
@@ -372,6 +373,11 @@ class HangsBetweenTransfers:
 
     @stuck_data_ready.setter
     def stuck_data_ready(self, hung: bool) -> None:
-        if hung != getattr(self, "_hung", hung) and getattr(self, "_next_ns", None) is not None:
+        if hung != getattr(self, "_hung", hung) and self._measurement_due():
             self._advance()
         self._hung = hung
+
+    def _measurement_due(self) -> bool:
+        """A measurement is scheduled (``_next_ns`` set; an idle chip has none to bring up
+        to date)."""
+        return getattr(self, "_next_ns", None) is not None

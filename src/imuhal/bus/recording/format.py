@@ -126,6 +126,9 @@ class ClockReading:
 class EndMark:
     t_ns: int
     how: str
+    end_ns: int | None = None
+    """When the run ended on its clock (its last poll came before it), when the writer
+    knew it; None in a recording made before the end record carried it."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -310,9 +313,13 @@ class RecordingWriter:
         _put_bytes(body, device.encode("utf-8"))
         self._append(body)
 
-    def end(self, how: str) -> None:
+    def end(self, how: str, end_ns: int | None = None) -> None:
+        """The end record: how the run ended, then (when known) when, as a dt: a field
+        after ``how`` that a reader of before skips with the rest of the record."""
         body = bytearray((REC_END,))
         _put_bytes(body, how.encode("utf-8"))
+        if end_ns is not None:
+            _put_svarint(body, self._dt(end_ns))
         self._append(body)
 
     def flush(self) -> None:
@@ -480,8 +487,12 @@ class Recording:
                 self.buses[bus_index] = info
                 yield info
             elif kind == REC_END:
-                how, _ = _get_bytes(payload, p)
-                self.end = EndMark(t_ns, how.decode("utf-8"))
+                how, p = _get_bytes(payload, p)
+                end_ns = None
+                if p < pos:  # the run's end time, after how (written since poll plan 2)
+                    dt, p = _get_svarint(payload, p)
+                    end_ns = t_ns + dt
+                self.end = EndMark(t_ns, how.decode("utf-8"), end_ns)
                 yield self.end
             else:
                 yield f"{self.path}: unknown record type {kind} (written by a newer imuhal?)"

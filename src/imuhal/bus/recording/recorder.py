@@ -25,6 +25,7 @@ from imuhal.bus.recording.format import (
 )
 from imuhal.bus.spy import OP_BAUD, OP_RECEIVE, Transfer
 from imuhal.core.clock import Clock
+from imuhal.core.poll_plan import POLL_PLAN
 
 
 class RecordingClock:
@@ -57,6 +58,7 @@ class BusRecorder:
                  flush_interval_s: float = 1.0) -> None:
         self.writer = RecordingWriter(path, header, flush_interval_s=flush_interval_s)
         self._bus_index: dict[str, int] = {}
+        self._clock: Clock | None = None
 
     @property
     def transfers(self) -> int:
@@ -70,6 +72,7 @@ class BusRecorder:
             self.writer.bus(BusInfo(index, name, bus.name, bus.kind.value))
 
     def wrap_clock(self, clock: Clock) -> RecordingClock:
+        self._clock = clock  # read unrecorded at the end: when the run ended (close)
         return RecordingClock(clock, self.writer)
 
     def wrap_before_poll(self, before_poll: Callable[[int, str], int]
@@ -114,7 +117,9 @@ class BusRecorder:
         if self.writer.closed:
             return
         try:
-            self.writer.end(how)
+            # when the run ended: a replay polls nothing from then on, not even a device
+            # whose polls make no transaction (a slave its master auto-reads)
+            self.writer.end(how, None if self._clock is None else self._clock.now_ns())
         finally:
             try:
                 self.writer.close()
@@ -128,6 +133,7 @@ def run_header(profile_text: str, profile_source: str, *, emulate: str | None,
     """What a recording says about its run (docs/recording.md, "Header")."""
     return {
         "imuhal_version": __version__,
+        "poll_plan": POLL_PLAN,
         "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "profile_source": profile_source,
         "profile_yaml": profile_text,

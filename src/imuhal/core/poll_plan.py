@@ -1,0 +1,17 @@
+"""Which poll plan the drivers follow: the bus traffic a run makes, by version.
+
+A driver may change when it talks to its chip (two transfers merged into one poll, say) only
+under a new plan version, keeping the old plan beside it: a recording holds the plan it was
+made with (its header's ``poll_plan``, docs/recording.md), and a replay, which checks every
+transfer against the recording, runs the drivers on that plan.
+"""
+
+from __future__ import annotations
+
+POLL_PLAN = 2
+"""The plan a run follows and a recording made now holds. 2: the HMC5883L behind a master's
+FIFO reads looks for its copies no sooner than the master's next read
+(imuhal_chips.hmc5883l.driver, ``_next_look``)."""
+
+FIRST_POLL_PLAN = 1
+"""The plan of a recording whose header names none (made before plans had versions)."""
