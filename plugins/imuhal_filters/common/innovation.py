@@ -164,6 +164,14 @@ class ManoeuvreDetector:
         self.v_m_s = [0.0, 0.0, 0.0]
         self.mean_m_s2 = [0.0, 0.0, 0.0]
 
+    def restart(self) -> None:
+        """Velocity and window as at start-up, after the readings stopped for a while (an
+        accelerometer gap): what moved meanwhile was not measured, so the velocity, the
+        window's mean and its scatter say nothing of the readings that follow. The drift
+        (the filter's tilt error, ``drift_tau_s``) is the filter's, not the motion's: kept."""
+        self.reset()
+        self.mean_sq_m2_s4 = 0.0
+
     def as_list(self) -> list[float]:
         """The state, JSON-ready."""
         return [*self.drift_m_s2, *self.mean_m_s2, self.mean_sq_m2_s4, *self.v_m_s]
