@@ -240,10 +240,12 @@ class DecoupledKernel:
         lost or stale: ``max_aux_age_s``): the detectors that judge the readings by their
         recent past start again, as at start-up, since what the board did meanwhile was not
         measured. Their memory of before the gap is stale: a pull-up the manoeuvre detector
-        was seeing when the accelerometer clipped had, 0.4-1 s later, a velocity change it
-        never integrated and a window of readings long gone, so it weighted the readings
-        after the gap as a hand's (``rc-flight`` on the seed board, its clipped pull-ups:
-        tilt RMS 2.68 deg with that memory, 1.78 started again; docs/estimators.md).
+        was seeing when the accelerometer clipped had, 0.4-1 s later, a window of readings
+        long gone, so it weighted the readings after the gap as a hand's (``rc-flight`` on
+        the seed board, its clipped pull-ups: tilt RMS 2.68 deg with that memory, 1.84
+        started again; docs/estimators.md). The detector's velocity is kept in half
+        (``ManoeuvreDetector.restart``: zeroed, it declared the clipping board at rest and
+        the GY-91's ``rc-flight`` went from 2.09 to 3.25 deg; halved, 1.69).
 
         Rest, too, is declared anew: ``rest_min_s`` with both sensors steady, and the
         accelerometer was not read (a steady push without rotation, counted on across a

@@ -27,6 +27,7 @@ import numpy as np
 from imuhal_filters.common.fast import jit, per_sample_kernel
 from imuhal_filters.common.fast_ahrs import TO_G as _TO_G
 from imuhal_filters.common.fast_frames import linear_accel_ned
+from imuhal_filters.common.innovation import GAP_VELOCITY_KEPT
 from imuhal_filters.madgwick.fast import block_case, mag_rows_kernel, nominal_fused, step_lengths
 
 _G = 9.80665  # STANDARD_GRAVITY_M_S2
@@ -344,8 +345,10 @@ def _after_accel_gap(S):
     S[_MISSED] = 0.0
     S[_ALP], S[_ALP + 1], S[_ALP + 2], S[_ALP + 3] = 0.0, 0.0, 0.0, 0.0
     S[_REST_S] = 0.0
-    for i in range(3, 10):  # ManoeuvreDetector.restart: mean, mean_sq, v
+    for i in range(3, 7):  # ManoeuvreDetector.restart: mean, mean_sq
         S[_MAN + i] = 0.0
+    for i in range(7, 10):  # and its velocity, in part
+        S[_MAN + i] *= GAP_VELOCITY_KEPT
     S[_PACE + 2] = 0.0
     S[_LB + 2], S[_LB + 3] = 0.0, 0.0
 
