@@ -181,8 +181,8 @@ class ManoeuvreDetector:
         seed 1.78/3.94 and GY-91 3.25/5.76; kept whole 2.05/5.43 and 2.11/4.83; half
         1.84/4.89 and 1.69/4.57 (0.4 to 0.6: seed 1.83-1.89, GY-91 1.60-1.74; 0.3: the
         GY-91 3.22 again). Restarting it as manoeuvring instead (raised to
-        ``speed_m_s``) was worse on both (2.7 and 4.6): the gyro alone then carried the
-        attitude past the manoeuvre."""
+        ``speed_m_s``) was worse on both (2.4-5.3 and 2.6-4.6): the gyro alone then carried
+        the attitude past the manoeuvre (docs/reliability.md, session 21)."""
         self.mean_m_s2 = [0.0, 0.0, 0.0]
         self.mean_sq_m2_s4 = 0.0
         self.v_m_s = [GAP_VELOCITY_KEPT * c for c in self.v_m_s]
