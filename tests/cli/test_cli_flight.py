@@ -46,24 +46,23 @@ def test_the_gps_vario_runs_emulated_with_nmea_audio_and_gps_rows_in_the_csv(
 
 
 @pytest.mark.parametrize(("option", "message"), [
-    ("udp:9", "unknown output"),
-    ("serial:/dev/imuhal-missing@9600", "cannot open /dev/imuhal-missing"),
-    ("tcp:99999", "0-65535"),
+    (["--nmea", "udp:9"], "unknown output"),
+    (["--nmea", "serial:/dev/imuhal-missing@9600"], "cannot open /dev/imuhal-missing"),
+    (["--nmea", "tcp:99999"], "0-65535"),
+    (["--nmea", "pty:/imuhal-missing/vario"], "cannot make the link there"),
+    (["--nmea", "tcp:0", "--nmea-sentences", "LK8EX1,FOO"], "FOO"),
+    (["--nmea", "tcp:0", "--nmea-sentences", ","], "name at least one"),
+    (["--audio-wav", "x.wav", "--audio-damping", "99"], "0 to 10 s"),
 ])
-def test_a_wrong_nmea_output_is_one_line_and_exit_2(option: str, message: str,
-                                                    capsys: pytest.CaptureFixture[str]) -> None:
-    # --skip-calibration here and below: the mistake is found after the calibration an
-    # emulated run makes first (seconds of CPU; tests/calibration tests it)
-    assert main(["run", GPS_VARIO, "--emulate", "thermal", "--skip-calibration", "--duration",
-                 "1", "--quiet", "--nmea", option]) == 2
+def test_a_wrong_flight_output_is_one_line_before_the_run_starts(
+        option: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> None:
+    # No --skip-calibration: the mistake must be found before the run's first line, so
+    # before the emulated board's calibration (seconds of CPU) and before anything opens.
+    assert main(["run", GPS_VARIO, "--emulate", "thermal", "--duration", "1", "--quiet",
+                 *option]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err[-1].startswith("imuhal: error: --nmea") and message in err[-1]
-
-
-def test_unknown_sentences_are_named(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["run", GPS_VARIO, "--emulate", "thermal", "--skip-calibration", "--duration",
-                 "1", "--quiet", "--nmea", "tcp:0", "--nmea-sentences", "LK8EX1,FOO"]) == 2
-    assert "FOO" in capsys.readouterr().err
+    assert len(err) == 1, err
+    assert err[0].startswith(f"imuhal: error: {option[-2]}") and message in err[0]
 
 
 def _has_sound_device() -> bool:

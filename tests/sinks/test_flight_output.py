@@ -240,6 +240,21 @@ def test_a_serial_output_that_does_not_exist_is_one_clear_error() -> None:
         open_transport("serial:/dev/imuhal-missing@115200")
 
 
+def test_checking_an_output_opens_nothing(tmp_path: Path) -> None:
+    """A run checks its --nmea outputs before it starts: no link made, no port bound."""
+    from imuhal.sinks.flight.transports import check_transport
+
+    link = tmp_path / "vario"
+    assert check_transport(f"pty:{link}").kind == "pty"
+    assert not link.exists() and not link.is_symlink()
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen(1)
+        taken = s.getsockname()[1]
+        spec = check_transport(f"tcp:{taken}")  # a port in use is found only when opened
+        assert (spec.kind, spec.where, spec.number) == ("tcp", "127.0.0.1", taken)
+
+
 def test_the_serial_transport_writes_sentences_a_device_reads(tmp_path: Path) -> None:
     """pyserial on one end of a pty stands in for a UART; the other end reads."""
     from imuhal.sinks.flight.sentences import lk8ex1

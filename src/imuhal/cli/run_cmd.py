@@ -179,6 +179,7 @@ def _plan(opts: RunOptions, path: Path, registry: Registry) -> _RunPlan:
     plugin_sinks = opts.plugin_sinks(registry, board=profile.name,
                                      outputs=profile.outputs.plugin_sections(), frame=frame)
     mavlink = mavlink_sink(registry, opts, profile)  # a socket only: nothing sent yet
+    _check_flight_outputs(opts, profile)  # opened after the calibration; mistakes found now
     where = f"emulated, scenario '{emulate}'" if emulate else "real hardware"
     print(f"imuhal {__version__}: {profile.name} ({where}) from {path}", file=sys.stderr)
     profile, text, note = _user_calibration(opts, path, profile, emulate, registry)
@@ -407,13 +408,8 @@ def _flight_sinks(opts: RunOptions, profile: Any, registry: Registry,
     from imuhal.sinks.flight.transports import PtyTransport
 
     out: list[Any] = []
-    extra: dict[str, Any] = {}
-    if opts.nmea_sentences is not None:
-        extra["sentences"] = tuple(x.strip().upper() for x in opts.nmea_sentences.split(",")
-                                   if x.strip())
-        if not extra["sentences"]:
-            raise ImuhalError(f"--nmea-sentences {opts.nmea_sentences!r}: name at least one "
-                              "sentence, e.g. --nmea-sentences LK8EX1,GGA")
+    sentences = _nmea_sentences(opts)
+    extra: dict[str, Any] = {} if sentences is None else {"sentences": sentences}
     nmea = registry.sinks.get("nmea")
     for spec in opts.nmea:
         if spec.partition(":")[0] == "ble" and "sentences" not in extra:
@@ -446,6 +442,31 @@ def _flight_sinks(opts: RunOptions, profile: Any, registry: Registry,
             "firmware": __version__,
             "device_drivers": {name: dev.driver for name, dev in profile.devices.items()}}))
     return out
+
+
+def _nmea_sentences(opts: RunOptions) -> tuple[str, ...] | None:
+    """The sentences --nmea-sentences names (None: each output's own)."""
+    if opts.nmea_sentences is None:
+        return None
+    sentences = tuple(x.strip().upper() for x in opts.nmea_sentences.split(",") if x.strip())
+    if not sentences:
+        raise ImuhalError(f"--nmea-sentences {opts.nmea_sentences!r}: name at least one "
+                          "sentence, e.g. --nmea-sentences LK8EX1,GGA")
+    return sentences
+
+
+def _check_flight_outputs(opts: RunOptions, profile: Any) -> None:
+    """The --nmea, --nmea-sentences and --audio-* mistakes, found before the run starts
+    (an emulated board's calibration takes seconds before its outputs are opened)."""
+    from imuhal.sinks.flight import check_sentences, check_transport
+
+    sentences = _nmea_sentences(opts)
+    if sentences is not None:
+        check_sentences(sentences, f"--nmea-sentences {opts.nmea_sentences}")
+    for spec in opts.nmea:
+        check_transport(spec)
+    if opts.audio or opts.audio_wav:
+        _audio_curve(opts, profile)
 
 
 def _say_dropped(where: str, transport: Any) -> None:

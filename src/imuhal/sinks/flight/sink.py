@@ -36,6 +36,15 @@ from imuhal.sinks.pacing import RateLimiter
 SENTENCES = ("LK8EX1", "LXWP0", "POV", "PRS", "XCTRC", "GGA", "RMC")
 
 
+def check_sentences(names: tuple[str, ...], given_as: str = "") -> None:
+    """An ImuhalError naming the sentences imuhal does not write, if any (``given_as``: the
+    input they came from, e.g. the CLI option, to start the message with)."""
+    unknown = set(names) - set(SENTENCES)
+    if unknown:
+        raise ImuhalError(f"{given_as + ': ' if given_as else ''}unknown flight sentences "
+                          f"{sorted(unknown)}; known: {', '.join(SENTENCES)}")
+
+
 class FlightOutputSettings(BaseModel):
     """Where to send, which sentences and how often (Hz; 0 = with every new value)."""
 
@@ -72,10 +81,7 @@ class FlightSink(SinkPlugin):
                  transport: Transport | None = None) -> None:
         super().__init__(settings)
         self.settings: FlightOutputSettings
-        unknown = set(self.settings.sentences) - set(SENTENCES)
-        if unknown:
-            raise ImuhalError(f"unknown flight sentences {sorted(unknown)}; known: "
-                              f"{', '.join(SENTENCES)}")
+        check_sentences(self.settings.sentences)
         self.transport = transport if transport is not None else \
             open_transport(self.settings.output)
         self.counts = dict.fromkeys(SENTENCES, 0)

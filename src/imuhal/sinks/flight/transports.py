@@ -10,7 +10,8 @@ start of the next (which would cost it both: the joined line fails its checksum)
 ``open_transport(spec)`` reads the CLI's form: ``serial:PORT@BAUD``, ``pty`` or
 ``pty:LINK`` (a symlink to the pty's slave at LINK, so the flight app's setting survives
 restarts), ``tcp:PORT`` (loopback), ``tcp:HOST:PORT``, or ``ble`` / ``ble:NAME`` (a Bluetooth
-LE peripheral, imuhal.sinks.flight.ble).
+LE peripheral, imuhal.sinks.flight.ble). ``check_transport(spec)`` reads and checks it
+without opening anything, so a run finds a mistake before it starts.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ import termios
 import time
 import tty
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -115,10 +117,8 @@ class PtyTransport:
 
     def __init__(self, link: str | os.PathLike[str] | None = None) -> None:
         self._link = Path(link) if link is not None else None
-        if self._link is not None and (self._link.exists() or self._link.is_symlink()) \
-                and not self._link.is_symlink():
-            raise ImuhalError(f"--nmea pty:{self._link}: {self._link} exists and is not a "
-                              "symlink; name a new path (imuhal only replaces its own links)")
+        if self._link is not None:
+            _check_pty_link(self._link)
         self._master, self._slave = os.openpty()
         tty.setraw(self._slave, termios.TCSANOW)
         os.set_blocking(self._master, False)
@@ -291,12 +291,43 @@ class TcpTransport:
         self._server.close()
 
 
-def open_transport(spec: str) -> Transport:
-    """A transport from its CLI form (see the module docstring); a mistake is an
-    ImuhalError naming the form expected."""
+@dataclass(frozen=True)
+class TransportSpec:
+    """An ``--nmea`` output as read from its CLI form, checked but not opened: a run checks
+    every output this way before it starts (and before an emulated board's calibration), so
+    a mistake costs the user no wait."""
+
+    kind: str
+    """serial, pty, tcp or ble."""
+    spec: str
+    """The CLI form as given."""
+    where: str = ""
+    """serial: the port; pty: the link ("" for none); tcp: the host; ble: the name."""
+    number: int = 0
+    """serial: the baud rate; tcp: the port."""
+
+    def open(self) -> Transport:
+        """The transport itself (a port opened, a pty made, a socket bound)."""
+        if self.kind == "pty":
+            return PtyTransport(self.where or None)
+        if self.kind == "tcp":
+            return TcpTransport(self.number, self.where)
+        if self.kind == "ble":
+            from imuhal.sinks.flight.ble import BlessPeripheral, BleTransport
+
+            return BleTransport(BlessPeripheral(self.where))
+        return SerialTransport(self.where, self.number)
+
+
+def check_transport(spec: str) -> TransportSpec:
+    """Reads ``spec`` (see the module docstring) and checks what can be checked without
+    opening it: the form, the TCP port's range, a serial device's path, a pty link's folder.
+    A mistake is an ImuhalError naming the form expected or the path to fix."""
     kind, _, rest = spec.partition(":")
     if kind == "pty":
-        return PtyTransport(rest or None)
+        if rest:
+            _check_pty_link(Path(rest))
+        return TransportSpec("pty", spec, rest)
     if kind == "tcp" and rest:
         host, _, port_text = rest.rpartition(":")
         try:
@@ -306,15 +337,36 @@ def open_transport(spec: str) -> Transport:
         if not 0 <= port <= 65535:
             raise ImuhalError(f"--nmea {spec}: the port must be a number 0-65535 "
                               f"(forms: {TRANSPORT_FORMS})")
-        return TcpTransport(port, host or "127.0.0.1")
+        return TransportSpec("tcp", spec, host or "127.0.0.1", port)
     if kind == "ble":
-        from imuhal.sinks.flight.ble import BlessPeripheral, BleTransport
-
-        return BleTransport(BlessPeripheral(rest or "imuhal vario"))
+        return TransportSpec("ble", spec, rest or "imuhal vario")
     if kind == "serial" and rest:
         port_path, at, baud_text = rest.rpartition("@")
         if not at or not port_path or not baud_text.isdigit():
             raise ImuhalError(f"--nmea {spec}: write serial:PORT@BAUD, e.g. "
                               "serial:/dev/ttyUSB0@115200")
-        return SerialTransport(port_path, int(baud_text))
+        # pyserial also takes URLs (socket://, rfc2217://): only a plain path is looked at
+        if "://" not in port_path and not os.path.exists(port_path):
+            raise ImuhalError(f"--nmea {spec}: cannot open {port_path} (no such device); "
+                              "check the device path and its permissions")
+        return TransportSpec("serial", spec, port_path, int(baud_text))
     raise ImuhalError(f"--nmea {spec!r}: unknown output; use one of {TRANSPORT_FORMS}")
+
+
+def _check_pty_link(link: Path) -> None:
+    """The checks :class:`PtyTransport` makes again when it makes the link."""
+    if link.exists() and not link.is_symlink():
+        raise ImuhalError(f"--nmea pty:{link}: {link} exists and is not a symlink; name a new "
+                          "path (imuhal only replaces its own links)")
+    folder = link.parent
+    reason = ("No such file or directory" if not folder.is_dir() else
+              None if os.access(folder, os.W_OK | os.X_OK) else "Permission denied")
+    if reason is not None:
+        raise ImuhalError(f"--nmea pty:{link}: cannot make the link there ({reason}); name a "
+                          "path in a folder you can write to, e.g. pty:/tmp/vario")
+
+
+def open_transport(spec: str) -> Transport:
+    """A transport from its CLI form (see the module docstring); a mistake is an
+    ImuhalError naming the form expected."""
+    return check_transport(spec).open()
