@@ -36,5 +36,35 @@ def test_a_paced_simulated_clock_waits_for_the_wall_clock(
     assert slept == [pytest.approx(0.3)]
 
 
+def test_a_paced_simulated_clock_that_fell_behind_resumes_at_the_walls_pace(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Set-up before a run's loop took wall time with the simulated clock standing: the run
+    must not race through that lag (a stopped run said "ran 4.2 s in 3.39 s wall time")."""
+    wall = [1_000_000_000]
+    slept: list[float] = []
+    monkeypatch.setattr(clock_module.time, "monotonic_ns", lambda: wall[0])
+    monkeypatch.setattr(clock_module.time, "sleep", slept.append)
+    c = SimulatedClock(realtime=True)
+    wall[0] += 1_000_000_000  # 1 s of set-up
+    c.sleep_until(200_000_000)  # 0.8 s behind: no wait, the pace starts again from here
+    c.sleep_until(500_000_000)  # 0.3 s of simulated time later: 0.3 s of wall time
+    assert slept == [pytest.approx(0.3)]
+
+
+def test_a_paced_simulated_clock_catches_up_a_small_lag(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    wall = [1_000_000_000]
+    slept: list[float] = []
+    monkeypatch.setattr(clock_module.time, "monotonic_ns", lambda: wall[0])
+    monkeypatch.setattr(clock_module.time, "sleep", slept.append)
+    c = SimulatedClock(realtime=True)
+    wall[0] += 250_000_000
+    c.sleep_until(200_000_000)  # 50 ms behind: kept, the next waits make it up
+    c.sleep_until(500_000_000)
+    assert slept == [pytest.approx(0.25)]
+
+
 def test_the_monotonic_clock_starts_near_zero() -> None:
     assert 0 <= MonotonicClock().now_ns() < 1_000_000_000

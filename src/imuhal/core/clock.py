@@ -47,8 +47,16 @@ class MonotonicClock:
             time.sleep(seconds)
 
 
+PACE_CATCH_UP_NS = 100_000_000
+"""How far a paced simulated clock may fall behind the wall and still catch up (0.1 s)."""
+
+
 class SimulatedClock:
-    """A clock that moves only when told. ``realtime=True`` paces it against the wall clock."""
+    """A clock that moves only when told. ``realtime=True`` paces it against the wall clock:
+    it never runs ahead of the wall, and when it has fallen more than ``PACE_CATCH_UP_NS``
+    behind (the setup before a run's loop, a slow host) it resumes at the wall's pace from
+    where it is, instead of racing through the lag: simulated time never runs faster than
+    the wall in a paced run, so a run's "ran X s in Y s wall time" has X <= Y."""
 
     def __init__(self, start_ns: int = 0, *, realtime: bool = False) -> None:
         self._t_ns = start_ns
@@ -62,9 +70,12 @@ class SimulatedClock:
         if t_ns > self._t_ns:
             self._t_ns = t_ns
         if self._realtime:
-            delay = self._t_ns - (time.monotonic_ns() - self._wall_origin)
+            wall_ns = time.monotonic_ns()
+            delay = self._t_ns - (wall_ns - self._wall_origin)
             if delay > 0:
                 time.sleep(delay / 1e9)
+            elif delay < -PACE_CATCH_UP_NS:
+                self._wall_origin = wall_ns - self._t_ns
 
     def sleep(self, seconds: float) -> None:
         self.sleep_until(self._t_ns + round(seconds * 1e9))
