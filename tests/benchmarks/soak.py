@@ -232,7 +232,9 @@ def _finish(report: Report, pipeline: Any, rates: dict[str, float]) -> None:
 def _gated(report: Report) -> str:
     """How many by-design wrong pressures the vario's gate rejected, of how many."""
     entries = report.by_design
-    return f"{sum(e['gated'] is True for e in entries)} of {len(entries)}"
+    withheld = sum(e["gated"] is None for e in entries)
+    return (f"{sum(e['gated'] is True for e in entries)} of {len(entries)}"
+            + (f" ({withheld} while the vario was withheld)" if withheld else ""))
 
 
 def _measures(report: Report) -> dict[str, str]:
@@ -316,9 +318,11 @@ def load_reports(paths: Sequence[str]) -> list[Report]:
 
 def failed(report: Report) -> bool:
     """Whether the board's soak broke a promise."""
+    # gated None: no vario estimate answered that pressure (the vario was withheld), so no
+    # output carried it; a climb it pulled off later is a wrong estimate, counted above.
     return bool(report.crashes or report.nan or report.out_of_order or report.wrong_valid
                 or report.wrong_estimates
-                or any(entry["gated"] is not True for entry in report.by_design))
+                or any(entry["gated"] is False for entry in report.by_design))
 
 
 def main(argv: Sequence[str] | None = None) -> int:
