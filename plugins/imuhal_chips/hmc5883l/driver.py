@@ -103,6 +103,7 @@ from imuhal_chips.hmc5883l.registers import (
     ODR_BY_CODE,
     ODR_HZ,
     RANGE_GAUSS,
+    STATUS_LOCK,
     STATUS_RDY,
     Reg,
     config_a,
@@ -132,6 +133,12 @@ configured gain: at least 20 % off for every other range (1370: 0.80; 820: 1.33)
 rotation keeps the magnitude, and a hard iron |h| changes it by at most |h| times the angle
 turned in one field period, so an honest 10 % step needs a violent turn near strong iron,
 and costs only the read-back."""
+STATUS_BITS = STATUS_LOCK | STATUS_RDY
+"""The status register's defined bits; the others read 0 (a line nothing drives reads
+0xFF)."""
+CLOCK_TOLERANCE = 0.02
+"""How far the chip's output period may be off its nominal one (a fraction): the datasheet
+states no tolerance for the output rates; issue 25's +-2 %, as the emulator allows."""
 REPEAT_ODDS = 1e-12
 """How rarely a healthy chip's six data bytes may stay the same for ``unchanged_periods``
 output periods (about once in 400 years of 75 Hz output)."""
@@ -231,6 +238,16 @@ class Hmc5883lDriver(Driver):
         self._hung_after_ns = 0
         """read: auto: unchanged copies this long are more than a measuring chip repeats
         (``unchanged_periods``)."""
+        self._repeat_after_ns = 0
+        """read: auto: a delivery this long after the latest change carries a copy made
+        after the chip's next measurement (``_repeat_by_status``)."""
+        self._hung_ns: int | None = None
+        """read: auto: when a status read proved the chip hung in this run of unchanged
+        copies (its next change may prove the hang's slots, ``health.adjacent``)."""
+        self._repeat: tuple[int, int] | None = None
+        """read: auto: a measurement of the same bytes as the latest field that a status
+        read proved: its stamp and the earliest delivery of the measurement after it
+        (``_repeated``)."""
         self._not_ready = False
         """read: one-shot: the previous poll found RDY clear (the chip let an instant pass
         unmeasured: reading never clears RDY)."""
@@ -317,7 +334,9 @@ class Hmc5883lDriver(Driver):
             self._unchanged_limit_ns = round(
                 (unchanged_periods(self.gain_lsb_per_gauss) + STALE_AFTER_PERIODS) * period)
             self._hung_after_ns = unchanged_periods(self.gain_lsb_per_gauss) * period
-            self._idle_from, self._hang_read = None, None
+            self._repeat_after_ns = round(period * (1 + CLOCK_TOLERANCE)) + feed.latency_ns
+            self._idle_from, self._hang_read, self._repeat = None, None, None
+            self._hung_ns = None
         self._streams = (self._spec(config),)  # with the auto-read's latency, when there is one
 
     def start(self, now_ns: int) -> int:
@@ -417,13 +436,27 @@ class Hmc5883lDriver(Driver):
             else SampleFlag.OK
         changes = self._feed.take()
         if not changes:
+            proved = self._repeat_by_status(now_ns)
+            if proved is not None:
+                return proved
             self._hung_by_status(now_ns)
         if changes:
+            repeat, self._repeat = self._repeat, None
             after_reset = self._reset_behind_blank(changes, now_ns) or \
                 self._reset_behind_jump(changes, now_ns)
             if after_reset is not None:
                 return after_reset
+            repeated = self._repeated(repeat, changes[0])
+            since, hung_ns, self._hung_ns = self._idle_from, self._hung_ns, None
             samples, blank = self._measurements(changes, now_ns, late=self._retrying)
+            samples[:0] = repeated
+            if since is not None and hung_ns is not None and samples and not repeated \
+                    and changes[0].t_ns < hung_ns + round(
+                        self._grid.period_ns * (1 - CLOCK_TOLERANCE)):
+                # the first copy after a read that proved the chip hung, delivered sooner
+                # than a resumed chip's second measurement: its first, so the chip made
+                # nothing between the field before the hang and this one
+                self.health.adjacent = (since, samples[0].t_ns)
             last = samples[-1] if samples else blank
             self._idle_from = last.t_ns if last is not None and last.valid else None
             self._hang_read = 0 if self._idle_from is not None else None
@@ -436,6 +469,9 @@ class Hmc5883lDriver(Driver):
                 return PollResult([], self._next_look(now_ns))
             sample = blank
         elif now_ns - self._fresh_ns <= self._unchanged_limit_ns:
+            look_ns = None if self._retrying else self._repeat_look(now_ns)
+            if look_ns is not None and look_ns < now_ns + self._feed.latency_ns:
+                return PollResult([], look_ns)  # the usual look after it
             if not self._retrying:
                 # The master's copy may have come a burst late (a failed slave read or IMU
                 # burst): look once more one delivery latency later, else the measurement
@@ -462,6 +498,106 @@ class Hmc5883lDriver(Driver):
             return delivery_ns
         return next_ns
 
+    def _repeat_by_status(self, now_ns: int) -> PollResult | None:
+        """read: auto: the master's copies have not changed since the latest valid field's
+        (``feed.changed_ns``), although a copy made after the chip's next measurement has
+        come: the latest delivery lies more than ``_repeat_after_ns`` (a period at the
+        slowest clock, CLOCK_TOLERANCE, and the feed's latency) after that change, and the
+        measurement behind a change was made before its delivery. So the chip measured the
+        same six bytes again (a field still to within a count: about 0.2 % of fields at
+        +/-1.3 Ga), or it hung, or the master's reads of it failed; its copies, without
+        the status register, cannot tell these apart, and value equality is no proof that
+        nothing was measured. The status register tells the first two apart: RDY set is a
+        chip that measures (a hang leaves RDY clear until it measures again), RDY clear
+        twice, NOT_READY_RETRY_NS apart (a data write holds it clear 250 us), a hung chip
+        (``health.idle``: its slots are not measured, issue 25). A repeat is not handed out
+        yet: a master whose reads failed since the change shows the same, and the next
+        change tells (``_repeated``). One read per such run, at most one repeat per change
+        (two in a row are rarer than 1 in 10^5 fields), never past a period more, so FIFO
+        reads 2.4 fields apart and a chip that stopped keep the rules of ``_poll_auto``.
+        None: nothing proved, poll on as before."""
+        assert self._feed is not None
+        feed = self._feed
+        unchanged = feed.t_ns - feed.changed_ns
+        if not self._armed() or not self._repeat_after_ns <= unchanged < \
+                self._repeat_after_ns + self._grid.period_ns:
+            return None
+        status = self._read(Reg.STATUS, 1)[0]
+        if status & ~STATUS_BITS:
+            # no chip drives the line (an unplugged one reads 0xFF): its reads fail, and
+            # so may the master's; nothing proved in this run
+            self._hang_read = None
+            return None
+        if status & STATUS_RDY:
+            self._hang_read = None  # no hang in this run: the chip measures
+            # stamped where an on-time poll would have found it: a period after the field
+            # it repeats (the grid's point), never after this poll
+            stamp = min(self._stamped_ns + self._grid.period_ns, now_ns)
+            self._repeat = (stamp, self._next_instant_ns())
+            self._retrying = False
+            return PollResult([], self._grid.next_after(now_ns))
+        if now_ns < self._next_instant_ns():
+            # no measurement could be writing its data now: the chip let its instant pass
+            assert self._idle_from is not None  # _armed()
+            self.health.idle = (self._idle_from, now_ns)
+            self._hang_read, self._hung_ns = None, now_ns
+            return None
+        self._hang_read = now_ns
+        return PollResult([], now_ns + NOT_READY_RETRY_NS)
+
+    def _armed(self) -> bool:
+        """A status read may yet prove a repeat or a hang in this run of unchanged copies:
+        none made, the latest sample valid and its copy the master's latest change, no
+        repeat proved since that change."""
+        return self._hang_read == 0 and self._idle_from is not None and self._repeat is None
+
+    def _next_instant_ns(self) -> int:
+        """The earliest the chip's second measurement after the latest change can start
+        writing its data (clearing RDY): that change's measurement came at most the feed's
+        latency before its delivery, the next two at most two periods at the fastest clock
+        later, less the 250 us a write holds RDY clear."""
+        assert self._feed is not None
+        feed, period = self._feed, self._grid.period_ns
+        return feed.changed_ns - feed.latency_ns + round(2 * period * (1 - CLOCK_TOLERANCE)) \
+            - NOT_READY_RETRY_NS // 2
+
+    def _repeat_look(self, now_ns: int) -> int | None:
+        """When to look next for the first copy a status read can prove something with
+        (``_repeat_by_status``): right after the master's first delivery at least
+        ``_repeat_after_ns`` after the latest change (its deliveries come ``period_ns``
+        apart), so a hang's RDY is read before the measurement after it can set it again.
+        None: no such look (nothing to prove, the master says no period, or that copy has
+        come)."""
+        assert self._feed is not None
+        feed = self._feed
+        bound = feed.changed_ns + self._repeat_after_ns
+        step = feed.period_ns
+        if not step or feed.t_ns >= bound or not self._armed() \
+                or now_ns >= self._next_instant_ns():
+            return None
+        margin = step // 16  # after the master's poll of the same moment
+        deliveries = -(-(bound - feed.t_ns) // step)
+        return max(feed.t_ns + deliveries * step + margin, now_ns + margin)
+
+    def _repeated(self, repeat: tuple[int, int] | None, first: Copy) -> list[Sample]:
+        """The repeat a status read proved (``_repeat_by_status``: its stamp, and the
+        earliest delivery of the measurement after it), handed out when the next change
+        ``first`` can be that later measurement: delivered after the earliest time the
+        chip's second instant after the change could be copied (two periods at the fastest
+        clock after the change's measurement, which came at most the feed's latency before
+        its delivery). A change delivered sooner is the measurement the repeat stood for,
+        copied late (the master's reads failed until then): no repeat. Nor before a blank
+        copy."""
+        if repeat is None or first.t_ns < repeat[1] or blank_flag(first.data) \
+                or self._emitted is None or first.t_ns < self._stamped_ns:
+            return []
+        stamp = repeat[0]
+        sample = self._decoded(self._emitted, stamp, SampleFlag.OK)
+        if not sample.valid:
+            return []
+        self._stamped_ns = self._cadence_ns = stamp
+        return [sample]
+
     def _hung_by_status(self, now_ns: int) -> None:
         """read: auto: the master's copies have not changed since the latest valid field's
         for ``unchanged_periods`` (more than a measuring chip repeats its bytes: the chip
@@ -477,7 +613,7 @@ class Hmc5883lDriver(Driver):
         assert self._feed is not None
         feed, first = self._feed, self._hang_read
         if first is None or self._idle_from is None \
-                or feed.t_ns - feed.changed_ns < self._hung_after_ns \
+                or (not first and feed.t_ns - feed.changed_ns < self._hung_after_ns) \
                 or (first and now_ns - first < NOT_READY_RETRY_NS):
             return
         if self._read(Reg.STATUS, 1)[0] & STATUS_RDY:
@@ -486,7 +622,7 @@ class Hmc5883lDriver(Driver):
             self._hang_read = now_ns
         else:
             self.health.idle = (self._idle_from, now_ns)
-            self._hang_read = None
+            self._hang_read, self._hung_ns = None, now_ns
 
     def _reset_behind_jump(self, changes: list[Copy], now_ns: int) -> PollResult | None:
         """A copy whose field magnitude jumped (MAGNITUDE_STEP) from the one before it: a
