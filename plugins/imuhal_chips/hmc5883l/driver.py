@@ -136,6 +136,9 @@ and costs only the read-back."""
 STATUS_BITS = STATUS_LOCK | STATUS_RDY
 """The status register's defined bits; the others read 0 (a line nothing drives reads
 0xFF)."""
+DOUBT_NS = 1_000_000_000
+"""read: auto: how long a sign of failing master reads stops repeats being proved (75
+fields at the seed's rate; a wire that failed once likely fails again)."""
 CLOCK_TOLERANCE = 0.02
 """How far the chip's output period may be off its nominal one (a fraction): the datasheet
 states no tolerance for the output rates; issue 25's +-2 %, as the emulator allows."""
@@ -241,6 +244,10 @@ class Hmc5883lDriver(Driver):
         self._repeat_after_ns = 0
         """read: auto: a delivery this long after the latest change carries a copy made
         after the chip's next measurement (``_repeat_by_status``)."""
+        self._change_ns: int | None = None
+        """read: auto: the delivery of the latest change taken (``_doubt_copies``)."""
+        self._doubt_until_ns = 0
+        """read: auto: no repeat is proved before this (``_doubt_copies``)."""
         self._hung_ns: int | None = None
         """read: auto: when a status read proved the chip hung in this run of unchanged
         copies (its next change may prove the hang's slots, ``health.adjacent``)."""
@@ -447,6 +454,7 @@ class Hmc5883lDriver(Driver):
             if after_reset is not None:
                 return after_reset
             repeated = self._repeated(repeat, changes[0])
+            self._doubt_copies(changes[0], bool(repeated), repeat is not None, now_ns)
             since, hung_ns, self._hung_ns = self._idle_from, self._hung_ns, None
             samples, blank = self._measurements(changes, now_ns, late=self._retrying)
             samples[:0] = repeated
@@ -471,7 +479,9 @@ class Hmc5883lDriver(Driver):
         elif now_ns - self._fresh_ns <= self._unchanged_limit_ns:
             look_ns = None if self._retrying else self._repeat_look(now_ns)
             if look_ns is not None and look_ns < now_ns + self._feed.latency_ns:
-                return PollResult([], look_ns)  # the usual look after it
+                # the look once more, sooner: what it finds is stamped by its delivery
+                self._retrying = True
+                return PollResult([], look_ns)
             if not self._retrying:
                 # The master's copy may have come a burst late (a failed slave read or IMU
                 # burst): look once more one delivery latency later, else the measurement
@@ -530,6 +540,8 @@ class Hmc5883lDriver(Driver):
             return None
         if status & STATUS_RDY:
             self._hang_read = None  # no hang in this run: the chip measures
+            if now_ns < self._doubt_until_ns:
+                return None  # the master's reads failed lately: a late copy looks the same
             # stamped where an on-time poll would have found it: a period after the field
             # it repeats (the grid's point), never after this poll
             stamp = min(self._stamped_ns + self._grid.period_ns, now_ns)
@@ -578,6 +590,23 @@ class Hmc5883lDriver(Driver):
         margin = step // 16  # after the master's poll of the same moment
         deliveries = -(-(bound - feed.t_ns) // step)
         return max(feed.t_ns + deliveries * step + margin, now_ns + margin)
+
+    def _doubt_copies(self, first: Copy, repeated: bool, proved: bool, now_ns: int) -> None:
+        """Doubt the master's copies for DOUBT_NS after a sign that its reads of the chip
+        fail (the MAX21100 reports no failed slave read; a failed one keeps the copy
+        before, which looks like a repeat): a repeat a status read proved whose next change
+        came too soon for it, or a change delivered later than a measuring chip's next
+        copy (``first``, after unbroken deliveries) with no repeat proved before it. A
+        hang or an unproved repeat shows the same and costs only the repeats of the next
+        DOUBT_NS, counted lost as before."""
+        assert self._feed is not None
+        previous, self._change_ns = self._change_ns, first.t_ns
+        feed = self._feed
+        late = previous is not None and not proved and first.after_ns is not None \
+            and first.t_ns - first.after_ns <= feed.latency_ns \
+            and first.t_ns - previous > self._repeat_after_ns
+        if late or (proved and not repeated):
+            self._doubt_until_ns = now_ns + DOUBT_NS
 
     def _repeated(self, repeat: tuple[int, int] | None, first: Copy) -> list[Sample]:
         """The repeat a status read proved (``_repeat_by_status``: its stamp, and the
