@@ -20,7 +20,7 @@ from imuhal.bus.auto_read import AutoReadBus
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import ConfigurationError
-from imuhal.core.samples import MagSample, SampleFlag
+from imuhal.core.samples import MagSample, Sample, SampleFlag
 from imuhal.emulation import EmulatedBus, PhysicalInputs
 from imuhal_chips.hmc5883l.driver import Hmc5883lDriver, unchanged_periods
 from imuhal_chips.hmc5883l.emulator import Hmc5883lEmulator
@@ -62,19 +62,20 @@ class Board(MasterSlaveBoard):
 def test_the_field_comes_from_the_imu_burst_in_the_hmc5883l_axis_and_byte_order() -> None:
     board = Board({"reset_check_s": 60})
     board.run(0.2)
-    aux_transfers = board.aux.transfers
+    aux_transfers, measured = board.aux.transfers, board.mag_emu.measurements
     samples = board.run(2.0)
     valid = valid_mag(samples)
-    assert len(valid) >= 0.95 * 2.0 * 75 and len(valid) == len(samples)
+    assert len(valid) >= 0.75 * 2.0 * 75 and len(valid) == len(samples)
     for s in valid:
         for axis in range(3):
             assert abs(s.mag_ut[axis] - FIELD_UT[axis]) <= 1.0001 * LSB_UT, (s, axis)
-    # the mag's own transactions: one status read per measurement whose six bytes equal
-    # the one's before (one in eight with this test's half-LSB dither), which its RDY
-    # proves was made (test_a_measurement_of_the_same_bytes_is_handed_out)
-    repeats = sum(a.mag_ut == b.mag_ut for a, b in itertools.pairwise(valid))
-    assert repeats > 0
-    assert board.aux.transfers - aux_transfers == repeats
+    # the mag's own transactions: status reads, at most one per measurement whose six
+    # bytes equal the one's before (one in eight with this test's half-LSB dither, so
+    # often two in a row, which make the driver doubt the copies for a while:
+    # test_a_measurement_of_the_same_bytes_is_handed_out)
+    changes = 1 + sum(a.mag_ut != b.mag_ut for a, b in itertools.pairwise(valid))
+    reads = board.aux.transfers - aux_transfers
+    assert 0 < reads <= board.mag_emu.measurements - measured - changes
 
 
 def test_a_measurement_of_the_same_bytes_is_handed_out() -> None:
@@ -87,15 +88,18 @@ def test_a_measurement_of_the_same_bytes_is_handed_out() -> None:
     board = Board({"reset_check_s": 60})
     board.dithers = board.dithers[1:]  # the magnetometer's field: this test's sequence
     other = tuple(-b for b in FIELD_UT)
-    board.run(0.2)
-    fields = [FIELD_UT if bit == "a" else other for bit in "baababbaab" * 4]
+
+    def fly(sequence: str) -> tuple[list[tuple[float, ...]], list[Sample]]:
+        fields = [FIELD_UT if bit == "a" else other for bit in sequence]
+        samples = []
+        for field in fields:  # one measurement instant in each period stepped
+            board.mag_emu.set_physics(PhysicalInputs(magnetic_field_ut=field))
+            samples += board.run(PERIOD_NS / 1e9)
+        return fields, samples
+
+    fly("ba" * 8)  # settled, a field different from the one before each time
     aux_transfers = board.aux.transfers
-    measured: list[tuple[float, ...]] = []
-    samples = []
-    for field in fields:  # one measurement instant in each period stepped
-        board.mag_emu.set_physics(PhysicalInputs(magnetic_field_ut=field))
-        measured.append(field)
-        samples += board.run(PERIOD_NS / 1e9)
+    measured, samples = fly("baababbaab" * 4)
     samples += board.run(0.05)
     valid = valid_mag(samples)
     seen = [FIELD_UT if s.mag_ut[0] > 0 else other for s in valid]

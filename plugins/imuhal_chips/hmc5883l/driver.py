@@ -343,7 +343,8 @@ class Hmc5883lDriver(Driver):
             self._hung_after_ns = unchanged_periods(self.gain_lsb_per_gauss) * period
             self._repeat_after_ns = round(period * (1 + CLOCK_TOLERANCE)) + feed.latency_ns
             self._idle_from, self._hang_read, self._repeat = None, None, None
-            self._hung_ns = None
+            self._hung_ns = self._change_ns = None
+            self._doubt_until_ns = 0
         self._streams = (self._spec(config),)  # with the auto-read's latency, when there is one
 
     def start(self, now_ns: int) -> int:
@@ -454,9 +455,10 @@ class Hmc5883lDriver(Driver):
             if after_reset is not None:
                 return after_reset
             repeated = self._repeated(repeat, changes[0])
-            self._doubt_copies(changes[0], bool(repeated), repeat is not None, now_ns)
             since, hung_ns, self._hung_ns = self._idle_from, self._hung_ns, None
             samples, blank = self._measurements(changes, now_ns, late=self._retrying)
+            self._doubt_copies(changes, bool(samples), bool(repeated), repeat is not None,
+                               now_ns)
             samples[:0] = repeated
             if since is not None and hung_ns is not None and samples and not repeated \
                     and changes[0].t_ns < hung_ns + round(
@@ -591,16 +593,21 @@ class Hmc5883lDriver(Driver):
         deliveries = -(-(bound - feed.t_ns) // step)
         return max(feed.t_ns + deliveries * step + margin, now_ns + margin)
 
-    def _doubt_copies(self, first: Copy, repeated: bool, proved: bool, now_ns: int) -> None:
+    def _doubt_copies(self, changes: list[Copy], handed_out: bool, repeated: bool,
+                      proved: bool, now_ns: int) -> None:
         """Doubt the master's copies for DOUBT_NS after a sign that its reads of the chip
         fail (the MAX21100 reports no failed slave read; a failed one keeps the copy
         before, which looks like a repeat): a repeat a status read proved whose next change
         came too soon for it, or a change delivered later than a measuring chip's next
-        copy (``first``, after unbroken deliveries) with no repeat proved before it. A
+        copy (the first of ``changes``, after unbroken deliveries) with no repeat proved
+        before it. A
         hang or an unproved repeat shows the same and costs only the repeats of the next
         DOUBT_NS, counted lost as before."""
         assert self._feed is not None
-        previous, self._change_ns = self._change_ns, first.t_ns
+        first = changes[0]
+        # from a change handed out only (not one from before configure() settled)
+        previous, self._change_ns = self._change_ns, \
+            changes[-1].t_ns if handed_out else None
         feed = self._feed
         late = previous is not None and not proved and first.after_ns is not None \
             and first.t_ns - first.after_ns <= feed.latency_ns \
