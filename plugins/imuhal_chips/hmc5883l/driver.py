@@ -458,7 +458,7 @@ class Hmc5883lDriver(Driver):
             since, hung_ns, self._hung_ns = self._idle_from, self._hung_ns, None
             samples, blank = self._measurements(changes, now_ns, late=self._retrying)
             self._doubt_copies(changes, bool(samples), bool(repeated), repeat is not None,
-                               now_ns)
+                               now_ns, hung=hung_ns is not None)
             samples[:0] = repeated
             if since is not None and hung_ns is not None and samples and not repeated \
                     and changes[0].t_ns < hung_ns + round(
@@ -531,8 +531,15 @@ class Hmc5883lDriver(Driver):
         assert self._feed is not None
         feed = self._feed
         unchanged = feed.t_ns - feed.changed_ns
-        if not self._armed() or not self._repeat_after_ns <= unchanged < \
-                self._repeat_after_ns + self._grid.period_ns:
+        copied = self._repeat_after_ns <= unchanged
+        # the master's deliveries paused (its chip hung too, the host stalled): RDY alone
+        # can still prove a hang, once the chip's next instant and its data write are past
+        paused = not copied and bool(feed.period_ns) \
+            and now_ns - feed.t_ns > feed.period_ns + NOT_READY_RETRY_NS // 4 \
+            and now_ns >= feed.changed_ns + NOT_READY_RETRY_NS // 2 + round(
+                self._grid.period_ns * (1 + CLOCK_TOLERANCE))
+        if not self._armed() or not (paused or copied) \
+                or unchanged >= self._repeat_after_ns + self._grid.period_ns:
             return None
         status = self._read(Reg.STATUS, 1)[0]
         if status & ~STATUS_BITS:
@@ -541,9 +548,12 @@ class Hmc5883lDriver(Driver):
             self._hang_read = None
             return None
         if status & STATUS_RDY:
+            if not copied:
+                return None  # not hung so far; the copies may yet prove a repeat
             self._hang_read = None  # no hang in this run: the chip measures
             if now_ns < self._doubt_until_ns:
-                return None  # the master's reads failed lately: a late copy looks the same
+                # the master's reads failed lately (a late copy looks the same): nothing
+                return None
             # stamped where an on-time poll would have found it: a period after the field
             # it repeats (the grid's point), never after this poll
             stamp = min(self._stamped_ns + self._grid.period_ns, now_ns)
@@ -591,16 +601,17 @@ class Hmc5883lDriver(Driver):
             return None
         margin = step // 16  # after the master's poll of the same moment
         deliveries = -(-(bound - feed.t_ns) // step)
-        return max(feed.t_ns + deliveries * step + margin, now_ns + margin)
+        look = feed.t_ns + deliveries * step + margin
+        return look if look > now_ns else now_ns + step  # deliveries paused: one later
 
     def _doubt_copies(self, changes: list[Copy], handed_out: bool, repeated: bool,
-                      proved: bool, now_ns: int) -> None:
+                      proved: bool, now_ns: int, *, hung: bool = False) -> None:
         """Doubt the master's copies for DOUBT_NS after a sign that its reads of the chip
         fail (the MAX21100 reports no failed slave read; a failed one keeps the copy
         before, which looks like a repeat): a repeat a status read proved whose next change
         came too soon for it, or a change delivered later than a measuring chip's next
         copy (the first of ``changes``, after unbroken deliveries) with no repeat proved
-        before it. A
+        before it and no hang (``hung``). A
         hang or an unproved repeat shows the same and costs only the repeats of the next
         DOUBT_NS, counted lost as before."""
         assert self._feed is not None
@@ -609,7 +620,8 @@ class Hmc5883lDriver(Driver):
         previous, self._change_ns = self._change_ns, \
             changes[-1].t_ns if handed_out else None
         feed = self._feed
-        late = previous is not None and not proved and first.after_ns is not None \
+        late = previous is not None and not proved and not hung \
+            and first.after_ns is not None \
             and first.t_ns - first.after_ns <= feed.latency_ns \
             and first.t_ns - previous > self._repeat_after_ns
         if late or (proved and not repeated):
