@@ -28,15 +28,20 @@ throw-away data read).
 ``imu/aux``): the master reads the six data bytes at each of its own measurements and the
 driver takes them from the master's burst, with no transaction of its own; configuration,
 identity and the periodic read-back still use one-shot transactions. The status register is
-not among the six bytes, so a measurement is new when its bytes differ from the previous
-ones (and from the last sample handed out: a measurement that comes back after a blank or a
-master reset is not new). Bytes that stay the same for longer than a healthy chip's noise
-allows (``unchanged_periods``) are a chip that stopped or a master whose reads fail (it
-keeps the last data): flagged STALE at each poll after that, FROZEN once they have not
-changed for FROZEN_AFTER_FRAMES periods, never valid. Such a run reads the status register
-(which locks no output): RDY clear twice, 0.5 ms apart, is a chip whose data-ready is stuck
-(its engine hung) and the frame ledger counts its slots as not measured (issue 25;
-``_hung_by_status``). A reset the master's copies show as
+not among the six bytes, so a copy whose bytes differ from the previous ones is a new
+measurement (unless it equals the last sample handed out: one that comes back after a blank
+or a master reset is not new); a copy that stays the same is no proof that nothing was
+measured (a still field repeats its six bytes, about one field in 500 at +/-1.3 Ga): once a
+copy made after the chip's next instant has come unchanged, one status read tells (RDY set:
+the chip measured the same bytes, handed out when the next change shows it was no late copy
+the master's failed reads held back; RDY clear before the next measurement could be writing:
+the chip hung, its slot not measured; ``_repeat_by_status``). Bytes that stay the same for
+longer than a healthy chip's noise allows (``unchanged_periods``) are a chip that stopped or
+a master whose reads fail (it keeps the last data): flagged STALE at each poll after that,
+FROZEN once they have not changed for FROZEN_AFTER_FRAMES periods, never valid. Such a run
+reads the status register (which locks no output): RDY clear twice, 0.5 ms apart, is a chip
+whose data-ready is stuck (its engine hung) and the frame ledger counts its slots as not
+measured (issue 25; ``_hung_by_status``). A reset the master's copies show as
 zeros (the data registers' power-on value) followed by the reset chip's one measurement in
 single mode: the configuration is read back before that measurement is handed out
 (``_reset_behind_blank``). Latency: the master copies a
