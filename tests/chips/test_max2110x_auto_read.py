@@ -87,9 +87,9 @@ def test_a_measurement_of_the_same_bytes_is_handed_out() -> None:
     comes out, in its order, and the driver's only transactions are those status reads."""
     board = Board({"reset_check_s": 60})
     board.dithers = board.dithers[1:]  # the magnetometer's field: this test's sequence
-    other = tuple(-b for b in FIELD_UT)
+    other = (-FIELD_UT[0], -FIELD_UT[1], -FIELD_UT[2])
 
-    def fly(sequence: str) -> tuple[list[tuple[float, ...]], list[Sample]]:
+    def fly(sequence: str) -> tuple[list[tuple[float, float, float]], list[Sample]]:
         fields = [FIELD_UT if bit == "a" else other for bit in sequence]
         samples = []
         for field in fields:  # one measurement instant in each period stepped

@@ -459,19 +459,7 @@ class Hmc5883lDriver(Driver):
                 self._reset_behind_jump(changes, now_ns)
             if after_reset is not None:
                 return after_reset
-            repeated = self._repeated(repeat, changes[0])
-            since, hung_ns, self._hung_ns = self._idle_from, self._hung_ns, None
-            samples, blank = self._measurements(changes, now_ns, late=self._retrying)
-            self._doubt_copies(changes, bool(samples), bool(repeated), repeat is not None,
-                               now_ns, hung=hung_ns is not None)
-            samples[:0] = repeated
-            if since is not None and hung_ns is not None and samples and not repeated \
-                    and changes[0].t_ns < hung_ns + round(
-                        self._grid.period_ns * (1 - CLOCK_TOLERANCE)):
-                # the first copy after a read that proved the chip hung, delivered sooner
-                # than a resumed chip's second measurement: its first, so the chip made
-                # nothing between the field before the hang and this one
-                self.health.adjacent = (since, samples[0].t_ns)
+            samples, blank = self._taken(changes, repeat, now_ns)
             last = samples[-1] if samples else blank
             self._idle_from = last.t_ns if last is not None and last.valid else None
             self._hang_read = 0 if self._idle_from is not None else None
@@ -484,23 +472,48 @@ class Hmc5883lDriver(Driver):
                 return PollResult([], self._next_look(now_ns))
             sample = blank
         elif now_ns - self._fresh_ns <= self._unchanged_limit_ns:
-            look_ns = None if self._retrying else self._repeat_look(now_ns)
-            if look_ns is not None and look_ns < now_ns + self._feed.latency_ns:
-                # the look once more, sooner: what it finds is stamped by its delivery
-                self._retrying = True
-                return PollResult([], look_ns)
-            if not self._retrying:
-                # The master's copy may have come a burst late (a failed slave read or IMU
-                # burst): look once more one delivery latency later, else the measurement
-                # is lost when the next one overwrites it.
-                self._retrying = True
-                return PollResult([], now_ns + self._feed.latency_ns)
-            self._retrying = False
-            return PollResult([], self._grid.next_after(now_ns))
+            return self._look_again(now_ns)
         else:
             sample = MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                                mag_ut=NAN3, flags=frozen or SampleFlag.STALE)
         return self._no_measurement(sample, now_ns)
+
+    def _taken(self, changes: list[Copy], repeat: tuple[int, int] | None,
+               now_ns: int) -> tuple[list[Sample], Sample | None]:
+        """read: auto: the samples of a poll's ``changes`` (``_measurements``), after the
+        repeat a status read proved before them when the first can be the measurement after
+        it (``_repeated``); a hang's slots proved by the first copy after it."""
+        repeated = self._repeated(repeat, changes[0])
+        since, hung_ns, self._hung_ns = self._idle_from, self._hung_ns, None
+        samples, blank = self._measurements(changes, now_ns, late=self._retrying)
+        self._doubt_copies(changes, bool(samples), bool(repeated), repeat is not None,
+                           now_ns, hung=hung_ns is not None)
+        samples[:0] = repeated
+        if since is not None and hung_ns is not None and samples and not repeated \
+                and changes[0].t_ns < hung_ns + round(
+                    self._grid.period_ns * (1 - CLOCK_TOLERANCE)):
+            # the first copy after a read that proved the chip hung, delivered sooner
+            # than a resumed chip's second measurement: its first, so the chip made
+            # nothing between the field before the hang and this one
+            self.health.adjacent = (since, samples[0].t_ns)
+        return samples, blank
+
+    def _look_again(self, now_ns: int) -> PollResult:
+        """read: auto, a poll that found no change: when to look next."""
+        assert self._feed is not None
+        look_ns = None if self._retrying else self._repeat_look(now_ns)
+        if look_ns is not None and look_ns < now_ns + self._feed.latency_ns:
+            # the look once more, sooner: what it finds is stamped by its delivery
+            self._retrying = True
+            return PollResult([], look_ns)
+        if not self._retrying:
+            # The master's copy may have come a burst late (a failed slave read or IMU
+            # burst): look once more one delivery latency later, else the measurement
+            # is lost when the next one overwrites it.
+            self._retrying = True
+            return PollResult([], now_ns + self._feed.latency_ns)
+        self._retrying = False
+        return PollResult([], self._grid.next_after(now_ns))
 
     def _next_look(self, now_ns: int) -> int:
         """read: auto, after a poll that found the master's copies: the next grid point,
