@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import NackError
+from imuhal.core.samples import Quantity
 from imuhal.emulation import EmulatedBus, PhysicalInputs
 from imuhal_chips.max2110x.emulator import Max21100Emulator, Max21105Emulator
 
@@ -179,3 +182,37 @@ def test_a_burst_read_returns_what_reading_each_register_alone_returns(start, le
         single = bytes(emu._read((start + k) & 0x3F) for k in range(length))
         assert emu.words, "no measurement was latched"
         assert rd(bus, start, length) == single
+
+
+def test_an_honest_rate_beyond_the_range_is_cut_before_the_low_pass_and_its_trace_fades() -> None:
+    """The digital low-pass runs on the ADC's words (cut at 30000 counts), so a rotation
+    that passes the range and comes back leaves outputs in range that read low by what the
+    filter still carries of the cut, as a first-order filter of the datasheet bandwidth on
+    the cut input does (within the world's own lag through the filter, which the emulator
+    leaves out: tau times the rate's fastest change, 6 % of the full scale at 0.5 Hz). After
+    the cut the outputs in range read up to 2.5 % of the full scale low (an emulator that cut
+    each word alone would read them exactly); a rate in range with no cut before it reads
+    as it is."""
+    clock, bus, emu = spi()
+    wr(bus, 0x01, 0x10)  # GYRO_CFG1: 10 Hz bandwidth, 2000 dps (15 LSB/dps)
+    wr(bus, 0x02, 0x05)
+    wr(bus, 0x00, 0x7F)
+    bandwidth = emu.noise_bandwidth_hz(Quantity.GYRO)
+    period = emu.noise_period_s(Quantity.GYRO)
+    assert bandwidth == 10.0 and period is not None
+    a = math.exp(-2 * math.pi * bandwidth * period)
+    reference = 0.0
+    off_in_range = []
+    for k in range(int(2.0 / period)):
+        t = (k + 1) * period
+        world = 2500.0 * 15 * math.sin(2 * math.pi * 0.5 * t)  # counts, up to 1.25 x range
+        emu.set_physics(PhysicalInputs(angular_rate_rad_s=(0.0, 0.0, math.radians(world / 15))))
+        clock.sleep(period)
+        word = int.from_bytes(rd(bus, 0x24, 6)[4:6], "big", signed=True)
+        reference = a * reference + (1 - a) * max(-30000.0, min(30000.0, world))
+        lag = 2500.0 * 15 * 2 * math.pi * 0.5 / (2 * math.pi * bandwidth)  # tau x max rate
+        assert abs(word - reference) <= lag + 1.0
+        if abs(world) < 30000:
+            off_in_range.append(abs(word - world))
+    assert max(off_in_range) > 0.01 * 30000  # the cut's trace, where the rate is in range
+    assert min(off_in_range) <= 1.0  # before the first cut: the rate as it is

@@ -52,15 +52,17 @@ def test_the_gps_vario_runs_emulated_with_nmea_audio_and_gps_rows_in_the_csv(
 ])
 def test_a_wrong_nmea_output_is_one_line_and_exit_2(option: str, message: str,
                                                     capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["run", GPS_VARIO, "--emulate", "thermal", "--duration", "1", "--quiet",
-                 "--nmea", option]) == 2
+    # --skip-calibration here and below: the mistake is found after the calibration an
+    # emulated run makes first (seconds of CPU; tests/calibration tests it)
+    assert main(["run", GPS_VARIO, "--emulate", "thermal", "--skip-calibration", "--duration",
+                 "1", "--quiet", "--nmea", option]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith("imuhal: error: --nmea") and message in err[-1]
 
 
 def test_unknown_sentences_are_named(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["run", GPS_VARIO, "--emulate", "thermal", "--duration", "1", "--quiet",
-                 "--nmea", "tcp:0", "--nmea-sentences", "LK8EX1,FOO"]) == 2
+    assert main(["run", GPS_VARIO, "--emulate", "thermal", "--skip-calibration", "--duration",
+                 "1", "--quiet", "--nmea", "tcp:0", "--nmea-sentences", "LK8EX1,FOO"]) == 2
     assert "FOO" in capsys.readouterr().err
 
 
@@ -78,7 +80,7 @@ def _has_sound_device() -> bool:
 @pytest.mark.skipif(_has_sound_device(), reason="a sound device exists: --audio would play")
 def test_live_audio_without_a_sound_device_is_one_line_and_exit_2(
         capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["run", GPS_VARIO, "--emulate", "thermal", "--duration", "1", "--quiet",
-                 "--audio"]) == 2
+    assert main(["run", GPS_VARIO, "--emulate", "thermal", "--skip-calibration", "--duration",
+                 "1", "--quiet", "--audio"]) == 2
     last = capsys.readouterr().err.strip().splitlines()[-1]
     assert last.startswith("imuhal: error: --audio") and "--audio-wav" in last

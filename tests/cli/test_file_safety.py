@@ -28,6 +28,11 @@ from imuhal.profile.loader import load_profile
 from imuhal.sinks.builtin import CSV_COLUMNS
 
 DATA = Path(__file__).resolve().parent.parent / "data"
+# Most runs here pass --skip-calibration: what they check is what happens to files, and the
+# calibration an emulated run makes first (seconds of CPU each; tests/calibration/
+# test_calibration_as_user.py checks it) happens before any output is opened. Not the one
+# that compares the simulated time a stopped run reports with its wall time: without the
+# calibrated records, the start-up phase adds simulated time that is not paced.
 SEED_BOARD = DATA / "calibration" / "seed-board.yaml"
 
 
@@ -48,7 +53,7 @@ def test_a_stop_signal_finalizes_the_log_under_its_own_name(signum: int, tmp_pat
     partial = tmp_path / "flight.csv.partial"
     proc = subprocess.Popen(
         [sys.executable, "-m", "imuhal.cli.main", "run", "--emulate", "static", "--realtime",
-         "--duration", "120", "--quiet", "--output", str(out)],
+         "--skip-calibration", "--duration", "120", "--quiet", "--output", str(out)],
         stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 60
@@ -77,8 +82,8 @@ def test_run_output_through_a_symlink_writes_the_target_and_keeps_the_link(
     real.write_text("old\n")
     link = tmp_path / "latest.csv"
     link.symlink_to(real)
-    assert cli_main.main(["run", "--emulate", "static", "--duration", "1", "--quiet",
-                          "--output", str(link)]) == 0
+    assert cli_main.main(["run", "--emulate", "static", "--skip-calibration", "--duration",
+                          "1", "--quiet", "--output", str(link)]) == 0
     assert link.is_symlink() and link.resolve() == real.resolve()
     assert len(_complete_log(real)) > 20
 
@@ -90,8 +95,8 @@ def test_run_output_to_a_fifo_streams_into_it(tmp_path: Path) -> None:
     received: list[str] = []
     reader = threading.Thread(target=lambda: received.append(fifo.read_text()))
     reader.start()
-    assert cli_main.main(["run", "--emulate", "static", "--duration", "1", "--quiet",
-                          "--output", str(fifo)]) == 0
+    assert cli_main.main(["run", "--emulate", "static", "--skip-calibration", "--duration",
+                          "1", "--quiet", "--output", str(fifo)]) == 0
     reader.join(timeout=30)
     assert stat.S_ISFIFO(fifo.stat().st_mode)
     rows = list(csv.reader(received[0].splitlines()))
@@ -105,7 +110,7 @@ def test_a_failed_run_keeps_the_previous_log_and_leaves_its_rows_beside_it(
     out.write_text("the good flight\n")
     proc = subprocess.run(
         [sys.executable, "-m", "imuhal.cli.main", "run", "--emulate", "static",
-         "--duration", "20", "--quiet", "--samples", "--output", str(out)],
+         "--skip-calibration", "--duration", "20", "--quiet", "--samples", "--output", str(out)],
         capture_output=True, text=True, timeout=300, check=False,
         preexec_fn=lambda: file_size_limit(300_000))
     assert proc.returncode == 2, proc.stderr
@@ -210,7 +215,8 @@ def test_a_second_run_writing_the_same_output_is_refused_in_one_line(
     first = AtomicFile(target, partial=True)
     first.write("the first run's rows\n")
     first.sync()
-    code = cli_main.main(["run", "--duration", "0.3", "--quiet", "--output", str(target)])
+    code = cli_main.main(["run", "--skip-calibration", "--duration", "0.3", "--quiet", "--output",
+                          str(target)])
     err = [line for line in capsys.readouterr().err.splitlines() if "error" in line]
     assert code == 2
     assert len(err) == 1 and "another run is writing it" in err[0] and str(target) in err[0]

@@ -230,7 +230,10 @@ def test_a_wrong_option_value_is_one_line_naming_it(
 
 
 FAILING_WRITERS: dict[str, list[str]] = {  # each fails after its output checks passed
-    "run": ["run", "--duration", "0.2", "--quiet", "--output", "OUT", "--nmea", "tcp:99999"],
+    # --skip-calibration (here and in the two WAV tests below): the emulated calibration a
+    # run makes first costs seconds of CPU and is tested in tests/calibration
+    "run": ["run", "--skip-calibration", "--duration", "0.2", "--quiet", "--output", "OUT",
+            "--nmea", "tcp:99999"],
     "estimate": ["estimate", "madgwick", "imu.csv", "-o", "OUT", "--set", "beta=nope"],
     "estimate (a bad row)": ["estimate", "madgwick", "garbage.bin", "-o", "OUT"],
     "replay": ["replay", "rec.imr", "--profile", "board.yaml", "--output", "OUT", "--quiet"],
@@ -287,7 +290,8 @@ def test_a_wav_through_a_link_writes_the_target_and_keeps_the_link(work: Path) -
     real.write_bytes(b"old")
     link = work / "tones.wav"
     link.symlink_to(real)
-    assert cli_main.main(["run", "--duration", "1", "--quiet", "--audio-wav", str(link)]) == 0
+    assert cli_main.main(["run", "--skip-calibration", "--duration", "1", "--quiet",
+                          "--audio-wav", str(link)]) == 0
     assert link.is_symlink()
     assert real.read_bytes()[:4] == b"RIFF"
 
@@ -297,7 +301,8 @@ def test_a_wav_into_a_pipe_is_refused(work: Path, capsys: pytest.CaptureFixture[
     os.mkfifo(fifo)
     reader = os.open(fifo, os.O_RDONLY | os.O_NONBLOCK)  # so the writer's open does not block
     try:
-        code = cli_main.main(["run", "--duration", "0.2", "--quiet", "--audio-wav", str(fifo)])
+        code = cli_main.main(["run", "--skip-calibration", "--duration", "0.2", "--quiet",
+                              "--audio-wav", str(fifo)])
     finally:
         os.close(reader)
     assert code == 2

@@ -1,4 +1,4 @@
-"""The shared validity checks: blank frames, frozen frames, range limits."""
+"""The shared validity checks: blank frames, frozen frames, range limits, chip filters."""
 
 from __future__ import annotations
 
@@ -12,9 +12,12 @@ from imuhal.drivers.validity import (
     FilterMemory,
     FrozenWatch,
     LearnedFrozenWatch,
+    LowPassWatch,
     NewLevel,
     StepWatch,
     blank_flag,
+    lowpass_coefficient,
+    lowpass_settling_outputs,
     range_flag,
     wilson_upper,
 )
@@ -190,3 +193,98 @@ def test_the_wilson_bound_is_above_the_observed_rate_and_below_one() -> None:
     assert 0.0 < wilson_upper(0, 100, 2.0) < 0.05
     assert 0.3 < wilson_upper(30, 100, 2.0) < 0.4
     assert wilson_upper(100, 100, 2.0) == 1.0
+
+
+@pytest.mark.parametrize(("bandwidth_hz", "rate_hz", "settled_share", "outputs"), [
+    (10, 200, 3 / 1000, 16),         # seed RC vario gyro: 3 deg/s of 1000 deg/s
+    (200 / 48, 200, 0.06 / 8, 26),   # its accelerometer: 60 mg of 8 g
+    (14, 250, 3 / 500, 13),          # seed paraglider gyro: 3 deg/s of 500 deg/s
+    (41, 200, 5 / 500, 3)])          # GY-91 gyro: 5 deg/s of 500 deg/s
+def test_a_low_pass_settles_when_one_rail_input_can_add_under_the_chips_offset(
+        bandwidth_hz: float, rate_hz: float, settled_share: float, outputs: int) -> None:
+    a = lowpass_coefficient(bandwidth_hz, 1.0 / rate_hz)
+    n = lowpass_settling_outputs(bandwidth_hz, rate_hz, settled_share)
+    assert n == outputs
+    assert 2 * (1 - a) * a ** (n + 1) < settled_share <= 2 * (1 - a) * a ** n
+
+
+def _filtered(inputs: list[float], a: float) -> list[int]:
+    """A first-order low-pass's outputs (counts) of ``inputs``, settled on the first."""
+    y, out = inputs[0], []
+    for x in inputs:
+        y = a * y + (1 - a) * x
+        out.append(round(y))
+    return out
+
+
+RAIL = 30000
+PERIOD_NS = 5_000_000
+SETTLED = 90.0
+"""3 deg/s on a 1000 deg/s gyro (30000 counts): the MAX2110x's specified offset."""
+
+
+def _watch(a: float) -> LowPassWatch:
+    return LowPassWatch({"gyro": a}, {"gyro": PERIOD_NS}, RAIL, {"gyro": SETTLED})
+
+
+def test_a_rail_input_the_low_pass_hides_in_range_is_seen_and_its_trace_settles() -> None:
+    a = lowpass_coefficient(10, 1 / 200)
+    inputs = [100.0] * 10 + [RAIL] + [100.0] * 20
+    outputs = _filtered(inputs, a)
+    assert abs(outputs[10]) < RAIL / 2  # in range: no SATURATED to see
+    watch = _watch(a)
+    flags = [watch.observe("gyro", k * PERIOD_NS, (y, 0, -y), SampleFlag.OK)
+             for k, y in enumerate(outputs)]
+    n = lowpass_settling_outputs(10, 200, SETTLED / RAIL)
+    assert flags == [SampleFlag.OK] * 10 + [SampleFlag.FILTER_SETTLING] * (1 + n) \
+        + [SampleFlag.OK] * (20 - n)
+
+
+def test_motion_through_the_low_pass_is_no_rail_input() -> None:
+    a = lowpass_coefficient(10, 1 / 200)
+    inputs = [20000 * math.sin(k / 10) for k in range(200)]  # up to 2/3 of the range
+    watch = _watch(a)
+    assert all(watch.observe("gyro", k * PERIOD_NS, (y, y, y), SampleFlag.OK)
+               is SampleFlag.OK for k, y in enumerate(_filtered(inputs, a)))
+
+
+def test_outputs_lost_between_count_as_periods_the_chip_filtered() -> None:
+    a = lowpass_coefficient(10, 1 / 200)
+    outputs = _filtered([0.0] * 5 + [RAIL] + [0.0] * 30, a)
+    watch = _watch(a)
+    flags = {k: watch.observe("gyro", k * PERIOD_NS, (y, 0, 0), SampleFlag.OK)
+             for k, y in enumerate(outputs) if k not in (7, 8, 9)}
+    n = lowpass_settling_outputs(10, 200, SETTLED / RAIL)
+    assert [k for k, f in flags.items() if f] == [k for k in range(5, 6 + n)
+                                                  if k not in (7, 8, 9)]
+
+
+def test_an_input_held_at_the_rail_is_flagged_while_it_lasts_and_two_full_scales_fade() -> None:
+    """A rotation beyond the range for 30 outputs: each output is flagged (its input at the
+    rail), and after it the filter may carry up to two full scales, which fade below the
+    settled 0.3 % after floor(ln(2 / 0.003) / ln(1 / a)) = 20 outputs at 10 Hz and 200 Hz."""
+    a = lowpass_coefficient(10, 1 / 200)
+    outputs = _filtered([0.0] * 5 + [RAIL] * 30 + [0.0] * 30, a)
+    watch = _watch(a)
+    flags = [watch.observe("gyro", k * PERIOD_NS, (y, 0, 0),
+                           SampleFlag.SATURATED if abs(y) >= RAIL else SampleFlag.OK)
+             for k, y in enumerate(outputs)]
+    flagged = [k for k, f in enumerate(flags) if f]
+    assert flagged == list(range(5, 35 + 20))
+
+
+def test_a_quiet_block_is_observed_as_row_by_row_would() -> None:
+    np = pytest.importorskip("numpy")
+    a = lowpass_coefficient(10, 1 / 200)
+    outputs = _filtered([100.0] * 8 + [RAIL] + [100.0] * 8, a)
+    rows = np.array([(y, 0, 0) for y in outputs], dtype=np.int16)
+    stamps = [k * PERIOD_NS for k in range(len(outputs))]
+    block = _watch(a)
+    assert block.quiet_block("gyro", rows[:8], stamps[:8])
+    assert not block.quiet_block("gyro", rows[8:], stamps[8:])  # the rail input
+    single = _watch(a)
+    for k in range(8):
+        single.observe("gyro", stamps[k], tuple(rows[k]), SampleFlag.OK)
+    assert [block.observe("gyro", stamps[k], tuple(rows[k]), SampleFlag.OK)
+            for k in range(8, 17)] == [single.observe("gyro", stamps[k], tuple(rows[k]),
+                                                      SampleFlag.OK) for k in range(8, 17)]

@@ -6,8 +6,9 @@ One seeded 13 s case, shared: 3 s still (the rest detector and its bias updates)
 stroke by hand (pushed, then braked back: an episode filtered again in full), then a
 coordinated turn through turbulence (the manoeuvre detector closes, the look-back re-filters
 and opens episodes), with the magnetometer pulled aside for 2 s (a disturbance, a
-candidate reference) and uneven steps. A companion test checks the case meets each of
-these branches, so an equality on a case that skips them cannot pass for one that does not.
+candidate reference), an accelerometer gap in the turn (the detectors start again after it)
+and uneven steps. A companion test checks the case meets each of these branches, so an
+equality on a case that skips them cannot pass for one that does not.
 """
 
 from __future__ import annotations
@@ -40,6 +41,8 @@ per process (docs/performance.md), which the default suite does not pay."""
 
 STILL_S = 3.0
 MAG_PULLED = (7.0, 9.0)
+ACCEL_GAP = (8.5, 8.9)
+"""No accelerometer reading (s): inside the turn's look-back episode."""
 
 
 @dataclass(frozen=True)
@@ -48,6 +51,8 @@ class Case:
     acc_g: np.ndarray
     mag: np.ndarray
     dts: np.ndarray
+    accel_read: np.ndarray
+    """False: no accelerometer reading at that step (``ACCEL_GAP``)."""
 
 
 @cache
@@ -69,7 +74,8 @@ def _case() -> Case:
     mag[pulled] += (30.0, -20.0, 10.0)
     dts = np.full(len(gyro), 1.0 / rate)
     dts[::37] = 0.013
-    return Case(gyro, -acc / STANDARD_GRAVITY_M_S2, mag, dts)
+    read = (t < ACCEL_GAP[0]) | (t >= ACCEL_GAP[1])
+    return Case(gyro, -acc / STANDARD_GRAVITY_M_S2, mag, dts, read)
 
 
 def _params() -> DecoupledSettings:
@@ -79,22 +85,30 @@ def _params() -> DecoupledSettings:
 def _python_run(case: Case) -> Iterator[tuple[np.ndarray, DecoupledKernel]]:
     k = DecoupledKernel(_params().params())
     k.start((1.0, 0.0, 0.0, 0.0))
-    for g, a, mg, dt in zip(case.gyro.tolist(), case.acc_g.tolist(), case.mag.tolist(),
-                            case.dts.tolist(), strict=True):
-        q = k.step(tuple(g), tuple(a), tuple(mg), dt)
+    for g, a, mg, dt, read in zip(case.gyro.tolist(), case.acc_g.tolist(), case.mag.tolist(),
+                                  case.dts.tolist(), case.accel_read.tolist(), strict=True):
+        q = k.step(tuple(g), tuple(a) if read else None, tuple(mg), dt)
         yield np.array(q), k
 
 
-def test_the_case_meets_rest_episodes_readmission_and_a_disturbed_field() -> None:
+def test_the_case_meets_rest_episodes_readmission_a_disturbed_field_and_a_gap() -> None:
     rest = episodes = disturbed = 0
     readmitted = 0
+    missed = False
+    episode_at_gap = gap_ends_it = False
     for _, k in _python_run(_case()):
         rest += k.rest
         assert k.lookback is not None
+        if k.accel_missed and not missed:  # the gap's first step
+            episode_at_gap = k.lookback.episode_s is not None
+        if missed and not k.accel_missed:  # the first reading after it
+            gap_ends_it = k.lookback.episode_s is None
+        missed = k.accel_missed
         episodes += k.lookback.episode_s is not None
         disturbed += k.mag_disturbed
         readmitted = k.lookback.readmitted
     assert rest > 50 and episodes > 50 and disturbed > 50 and readmitted >= 1
+    assert episode_at_gap and gap_ends_it
     assert covers(_params().params())
 
 
@@ -111,7 +125,8 @@ def test_compiled_step_gives_the_python_floats(compiled_backend: str) -> None:
         if s[-1] + 2.0 > look.shape[0]:
             look = grown(s, look)
         g, a, mg = case.gyro[i], case.acc_g[i], case.mag[i]
-        out = decoupled_sample(s, params, look, *map(float, g), True, *map(float, a), True,
+        read = bool(case.accel_read[i])
+        out = decoupled_sample(s, params, look, *map(float, g), read, *map(float, a), True,
                                *map(float, mg), float(case.dts[i]), 0.0, 0.0, 0.0)
         q_ref, k_ref = next(ref)
         assert np.array_equal(np.array(out[:4]), q_ref), i
@@ -135,13 +150,17 @@ def _estimates(case: Case, compiled: bool) -> list[str]:
     assert (est._sample_kernel is not None) == compiled
     t = 0
     out: list[str] = []
-    for g, a, mg, dt in zip(case.gyro.tolist(), case.acc_g.tolist(), case.mag.tolist(),
-                            case.dts.tolist(), strict=True):
+    for g, a, mg, dt, read in zip(case.gyro.tolist(), case.acc_g.tolist(), case.mag.tolist(),
+                                  case.dts.tolist(), case.accel_read.tolist(), strict=True):
         t += round(dt * 1e9)
         f = tuple(-c * STANDARD_GRAVITY_M_S2 for c in a)
-        for s in (AccelSample(t_ns=t, device="imu", frame=Frame.BODY_NED, accel_m_s2=f),
-                  MagSample(t_ns=t, device="mag", frame=Frame.BODY_NED, mag_ut=tuple(mg)),
-                  GyroSample(t_ns=t, device="imu", frame=Frame.BODY_NED, gyro_rad_s=tuple(g))):
+        samples: list[AccelSample | MagSample | GyroSample] = [
+            MagSample(t_ns=t, device="mag", frame=Frame.BODY_NED, mag_ut=tuple(mg)),
+            GyroSample(t_ns=t, device="imu", frame=Frame.BODY_NED, gyro_rad_s=tuple(g))]
+        if read:  # the gap: the estimator holds the last reading max_aux_age_s, then none
+            samples.insert(0, AccelSample(t_ns=t, device="imu", frame=Frame.BODY_NED,
+                                          accel_m_s2=f))
+        for s in samples:
             out += [repr(e) for e in est.process(s)]
     out.append(repr(est.get_state()))
     return out

@@ -11,7 +11,11 @@ import math
 
 import numpy as np
 
-from imuhal_filters.common.innovation import ManoeuvreDetector, ManoeuvreParams
+from imuhal_filters.common.innovation import (
+    GAP_VELOCITY_KEPT,
+    ManoeuvreDetector,
+    ManoeuvreParams,
+)
 
 DT_S = 0.005
 G = 9.80665
@@ -83,3 +87,15 @@ def test_rest_resets_the_velocity() -> None:
     assert det.weight((0.5, 0.0, 1.0), DOWN, DT_S) < 0.01
     det.reset()
     assert det.weight((0.0, 0.0, 1.0), DOWN, DT_S) > 0.99
+
+
+def test_a_restart_after_a_gap_keeps_half_the_velocity_and_drops_the_window() -> None:
+    # a clip mid-manoeuvre: the velocity change before it is evidence still, the 0.5 s
+    # window's readings are gone
+    det = ManoeuvreDetector(ManoeuvreParams())
+    for _ in range(int(2.0 / DT_S)):
+        det.weight((0.5, 0.0, 1.0), DOWN, DT_S)
+    v_before = list(det.v_m_s)
+    det.restart()
+    assert det.v_m_s == [GAP_VELOCITY_KEPT * v for v in v_before]
+    assert (det.mean_m_s2, det.mean_sq_m2_s4) == ([0.0, 0.0, 0.0], 0.0)

@@ -4,7 +4,7 @@ The GY-91's BMP280 runs its IIR filter (coefficient 4); one wild pressure (-200 
 ADC at its rail) used to leave the chip flagged once and then 17 outputs in range, valid,
 up to 57 kPa off. The driver now undoes the filter to see what the chip measured and flags
 the outputs the filter can still carry it as FILTER_SETTLING; the IMUs' low-pass filters
-get the same rule after a saturated output.
+get the same rule after an input at the rail (tests/integration/test_imu_lowpass_memory.py).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 
 from imuhal.core.samples import PressureSample, Quantity, Sample, SampleFlag
-from imuhal.drivers.validity import iir_memory_outputs, lowpass_memory_outputs
+from imuhal.drivers.validity import iir_memory_outputs, lowpass_settling_outputs
 from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import AllOnes, CorruptTrim, FaultSpec, WildValue
 from imuhal.estimation.outputs import VerticalEstimate
@@ -89,20 +89,21 @@ def test_the_vario_does_not_follow_a_filtered_in_wild_pressure(
     assert max(abs(wild[t] - clean[t]) for t in common) < 1.0
 
 
-def test_a_saturated_gyro_output_makes_the_mpu9250_low_pass_outputs_after_it_settle() -> None:
-    """A 100 rad/s wild gyro value (the +/-500 dps range saturates) is SATURATED; the
-    outputs of the 41 Hz low-pass's memory after it (9 at 200 Hz) are FILTER_SETTLING and
-    never valid; the one after is valid again."""
+def test_a_wild_gyro_value_makes_the_mpu9250_low_pass_outputs_after_it_settle() -> None:
+    """A 100 rad/s wild gyro value (beyond the +/-500 dps range): the DLPF (41 Hz at
+    200 Hz) takes 1 - a = 0.72 of the rail into an output in range; the driver sees the
+    rail input by undoing the filter and flags that output and the 3 its trace can still
+    reach by the part's specified offset (5 deg/s, 1 % of the full scale) FILTER_SETTLING;
+    the one after is valid again."""
     wild = WildValue(device="imu", channel="gyro", value=100.0, start_s=WILD_AT_S)
     gyro = [e for e, _ in _gy91_events([wild])
             if isinstance(e, Sample) and e.device == "imu" and e.channel is Quantity.GYRO]
-    saturated = [i for i, s in enumerate(gyro) if s.flags & SampleFlag.SATURATED]
-    assert len(saturated) == 1
-    after = gyro[saturated[0] + 1:]
-    n = lowpass_memory_outputs(41, 200, 16)
-    assert n == 9
-    assert [s.flags for s in after[:n]] == [SampleFlag.FILTER_SETTLING] * n
-    assert after[n].valid
+    flagged = [i for i, s in enumerate(gyro) if s.flags]
+    first = flagged[0]
+    n = lowpass_settling_outputs(41, 200, 5 / 500)
+    assert n == 3
+    assert [s.flags for s in gyro[first:first + n + 1]] == [SampleFlag.FILTER_SETTLING] * (n + 1)
+    assert flagged == list(range(first, first + n + 1))
 
 
 @pytest.mark.parametrize("coefficient", [2, 4, 8, 16])
@@ -115,7 +116,7 @@ def test_the_iir_memory_is_where_a_full_scale_error_falls_below_one_lsb(
 
 def test_no_filter_has_no_memory() -> None:
     assert iir_memory_outputs(0, 20) == 0
-    assert lowpass_memory_outputs(1e9, 200, 16) == 1
+    assert lowpass_settling_outputs(1e9, 200, 0.01) == 0
 
 
 def test_a_bmp280_whose_trimming_reads_differently_after_a_reprobe_is_refused() -> None:

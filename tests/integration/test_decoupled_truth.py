@@ -100,5 +100,5 @@ def test_decoupled_flight_defaults_fly_rc_flight_as_well_as_madgwick() -> None:
     madgwick = _rc_tilt_deg("madgwick", samples, scenario, registry)
     assert decoupled.size > 10_000
     rms = float(np.sqrt(np.mean(decoupled**2)))
-    assert rms <= float(np.sqrt(np.mean(madgwick**2)))  # measured 1.16 against 1.81
-    assert decoupled.max() < 10.0  # measured 3.2
+    assert rms <= float(np.sqrt(np.mean(madgwick**2)))  # measured 1.84 against 2.07
+    assert decoupled.max() < 10.0  # measured 4.9

@@ -163,8 +163,12 @@ def test_replay_uses_the_profile_stored_in_the_recording(
     profile = tmp_path / "board.yaml"
     profile.write_text(Path("profiles/gy91.yaml").read_text())
     rec = tmp_path / "run.imurec"
-    assert main(["run", str(profile), "--emulate", "static", "--duration", "1", "--quiet",
-                 "--record", str(rec), "--output", str(tmp_path / "live.csv")]) == 0
+    # --skip-calibration here and in the next three: what they check is the recording and its
+    # replay, not the calibration an emulated run makes first (seconds of CPU; tests/
+    # calibration). The GPS board's test below keeps it: a calibrated-first run replays too.
+    assert main(["run", str(profile), "--emulate", "static", "--skip-calibration", "--duration",
+                 "1", "--quiet", "--record", str(rec), "--output", str(tmp_path / "live.csv")]
+                ) == 0
     profile.unlink()
     assert main(["replay", str(rec), "--quiet", "--output", str(tmp_path / "replay.csv")]) == 0
     assert (tmp_path / "replay.csv").read_text() == (tmp_path / "live.csv").read_text()
@@ -176,8 +180,8 @@ def test_replay_logs_in_the_recorded_profiles_output_frame_as_the_live_run_did(
     profile = tmp_path / "board.yaml"
     profile.write_text(Path("profiles/gy91.yaml").read_text() + "output_frame: enu\n")
     rec, live, replayed = tmp_path / "run.imurec", tmp_path / "live.csv", tmp_path / "rep.csv"
-    assert main(["run", str(profile), "--emulate", "static", "--duration", "1", "--quiet",
-                 "--record", str(rec), "--output", str(live), "--samples"]) == 0
+    assert main(["run", str(profile), "--emulate", "static", "--skip-calibration", "--duration",
+                 "1", "--quiet", "--record", str(rec), "--output", str(live), "--samples"]) == 0
     assert main(["replay", str(rec), "--quiet", "--output", str(replayed), "--samples"]) == 0
     assert "qw_enu" in live.read_text().splitlines()[0]
     assert replayed.read_text() == live.read_text()
@@ -186,7 +190,8 @@ def test_replay_logs_in_the_recorded_profiles_output_frame_as_the_live_run_did(
 def test_a_divergent_replay_is_one_line_and_keeps_the_old_output(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     rec = tmp_path / "run.imurec"
-    assert main(["run", "--duration", "0.5", "--quiet", "--record", str(rec)]) == 0
+    assert main(["run", "--skip-calibration", "--duration", "0.5", "--quiet", "--record",
+                 str(rec)]) == 0
     board = Path("profiles/seed-paraglider-vario.yaml")
     changed = _edited(board, tmp_path / "changed.yaml", "devices", "baro", "pressure_oversampling",
                       _other_osr(board))
@@ -233,8 +238,8 @@ def test_replay_with_other_estimator_settings_decodes_the_same_samples(
 
 def test_trace_and_record_together_see_the_same_transactions(tmp_path: Path) -> None:
     rec, trace = tmp_path / "run.imurec", tmp_path / "bus.txt"
-    assert main(["run", "--duration", "0.5", "--quiet", "--record", str(rec),
-                 "--trace", str(trace)]) == 0
+    assert main(["run", "--skip-calibration", "--duration", "0.5", "--quiet", "--record",
+                 str(rec), "--trace", str(trace)]) == 0
     transfers = [r for r in open_recording(rec).records() if hasattr(r, "written")]
     lines = trace.read_text().splitlines()
     assert len(lines) == len(transfers) > 100

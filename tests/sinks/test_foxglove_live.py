@@ -45,6 +45,7 @@ class Client:
         self.ws = ws
         self.channels: dict[str, dict[str, Any]] = {}
         self._subs: dict[int, str] = {}
+        self._refused: list[int] = []  # channel ids the server answered "Unknown channel ID"
 
     async def until_advertised(self, topic: str, timeout_s: float = 5.0) -> dict[str, Any]:
         async with asyncio.timeout(timeout_s):
@@ -55,6 +56,9 @@ class Client:
     async def subscribe(self, topic: str) -> None:
         sub_id = len(self._subs) + 1
         self._subs[sub_id] = topic
+        await self._send_subscribe(sub_id, topic)
+
+    async def _send_subscribe(self, sub_id: int, topic: str) -> None:
         await self.ws.send(json.dumps({"op": "subscribe", "subscriptions": [
             {"id": sub_id, "channelId": self.channels[topic]["id"]}]}))
 
@@ -63,16 +67,32 @@ class Client:
             async with asyncio.timeout(timeout_s):
                 while True:
                     got = self._take(await self.ws.recv())
+                    await self._resubscribe_refused()
                     if got is not None and got[0] == topic:
                         return got[1], got[2]
         except TimeoutError:
             return None
+
+    async def _resubscribe_refused(self) -> None:
+        """foxglove-sdk (0.30) sends a new channel's advertisement before it registers the
+        channel for that client: a subscription that arrives in between is refused with a
+        status "Unknown channel ID" and dropped (a few in a hundred on a loaded machine, and
+        the live run's test then waited in vain). Sent again, it is accepted: the channel
+        is registered by the time the refusal is out."""
+        while self._refused:
+            channel_id = self._refused.pop()
+            for sub_id, topic in self._subs.items():
+                if self.channels[topic]["id"] == channel_id:
+                    await self._send_subscribe(sub_id, topic)
 
     def _take(self, frame: str | bytes) -> tuple[str, int, bytes] | None:
         if isinstance(frame, str):
             op = json.loads(frame)
             if op["op"] == "advertise":
                 self.channels.update({c["topic"]: c for c in op["channels"]})
+            refused = re.fullmatch(r"Unknown channel ID: (\d+)", op.get("message", ""))
+            if op["op"] == "status" and refused:
+                self._refused.append(int(refused.group(1)))
             return None
         assert frame[0] == MESSAGE_DATA
         sub_id, log_ns = struct.unpack_from("<IQ", frame, 1)
@@ -206,8 +226,11 @@ def test_a_live_emulated_run_reaches_the_client_with_the_csv_log_values(
         tmp_path: Path) -> None:
     log = tmp_path / "run.csv"
     proc = subprocess.Popen(
+        # --skip-calibration: the calibration an emulated run makes first (seconds of CPU,
+        # tested in tests/calibration) is not what is checked here
         [sys.executable, "-m", "imuhal.cli.main", "run", GPS_VARIO, "--emulate", "thermal",
-         "--realtime", "--duration", "120", "--output", str(log), "--samples",
+         "--skip-calibration", "--realtime", "--duration", "120", "--output", str(log),
+         "--samples",
          "--sink", "foxglove", "--sink-set", "foxglove.port=0"],
         stderr=subprocess.PIPE, text=True)
     try:

@@ -74,8 +74,10 @@ def test_a_run_publishes_every_event_in_order_and_as_the_csv_log_has_it(
         tmp_path: Path, broker: Mosquitto, subscriber: Subscriber,
         capsys: pytest.CaptureFixture[str]) -> None:
     log = tmp_path / "run.csv"
-    assert main(["run", str(GPS_VARIO), "--emulate", "thermal", "--duration", "3",
-                 "--realtime", "--quiet", "--samples", "--output", str(log),
+    # --skip-calibration: the messages are compared with this run's own log, not the
+    # calibration an emulated run makes first (seconds of CPU; tests/calibration)
+    assert main(["run", str(GPS_VARIO), "--emulate", "thermal", "--skip-calibration",
+                 "--duration", "3", "--realtime", "--quiet", "--samples", "--output", str(log),
                  "--mqtt", broker.url,
                  "--sink-set", f"mqtt.queue_path={tmp_path / 'queue.sqlite'}"]) == 0
     counts = _summary_counts(capsys.readouterr().err)
@@ -129,8 +131,10 @@ def test_the_queue_limit_drops_the_oldest_counts_them_and_the_next_run_sends_the
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     queue, log = tmp_path / "queue.sqlite", tmp_path / "first.csv"
     nobody = f"mqtt://127.0.0.1:{free_port()}"  # no broker: every message waits
-    args = ["run", str(GPS_VARIO), "--emulate", "thermal", "--quiet", "--sink-set",
-            f"mqtt.queue_path={queue}"]
+    # --skip-calibration: both runs are checked against their own logs and counts, not the
+    # calibration an emulated run makes first (seconds of CPU each; tests/calibration)
+    args = ["run", str(GPS_VARIO), "--emulate", "thermal", "--skip-calibration", "--quiet",
+            "--sink-set", f"mqtt.queue_path={queue}"]
     assert main([*args, "--duration", "2", "--mqtt", nobody, "--samples", "--output", str(log),
                  "--sink-set", "mqtt.queue_max_messages=300",
                  "--sink-set", "mqtt.close_timeout_s=0"]) == 0

@@ -13,6 +13,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from filelock import FileLock
 
 
 def cli_env(**extra: str) -> dict[str, str]:
@@ -41,15 +42,31 @@ def why_no_build() -> str | None:
 def aot_kernel_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A kernel directory with every kernel built by ``imuhal kernels build`` (once per
     session: about a minute of CPU for its 12 kernels, several at a loaded machine's pace);
-    skipped with the reason where the tools are missing."""
+    skipped with the reason where the tools are missing.
+
+    Under pytest-xdist the workers share one build: the first to need it builds it in the
+    session's common temporary folder while holding a file lock, the others wait on the lock
+    and reuse it (a build per worker cost a minute of setup each). Tests copy the folder
+    before they change anything in it."""
     why = why_no_build()
     if why is not None:
         pytest.skip(f"no AOT kernel extension can be built here: {why}")
-    d = tmp_path_factory.mktemp("kernels")
-    done = subprocess.run([sys.executable, "-m", "imuhal.cli.main", "kernels", "build"],
-                          env=cli_env(IMUHAL_KERNEL_DIR=str(d)), capture_output=True,
-                          text=True, timeout=900)
-    assert done.returncode == 0, done.stderr
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = root.parent  # the workers' basetemps are siblings in the session's folder
+    d = root / "aot-kernels"
+    # beside the folder, not in it: tests copy every file of the folder
+    built = root / "aot-kernels.built"
+    with FileLock(str(root / "aot-kernels.lock")):
+        if not built.is_file():
+            shutil.rmtree(d, ignore_errors=True)  # what a failed build of another worker left
+            d.mkdir()
+            done = subprocess.run(
+                [sys.executable, "-m", "imuhal.cli.main", "kernels", "build"],
+                env=cli_env(IMUHAL_KERNEL_DIR=str(d)), capture_output=True, text=True,
+                timeout=900)
+            assert done.returncode == 0, done.stderr
+            built.touch()
     return d
 
 

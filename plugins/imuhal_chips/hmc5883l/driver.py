@@ -698,12 +698,22 @@ class Hmc5883lDriver(Driver):
         it is STALE and the chip reconfigured; on the plan it is a field like any other.
         None: nothing to do."""
         previous = self._emitted
+        if previous is not None and blank_flag(previous):
+            previous = None
+        before = None  # the magnitude of ``previous``, worked out once, when first needed
         for k, copy in enumerate(changes):
-            if previous is not None and not blank_flag(previous) and \
-                    not blank_flag(copy.data) and \
-                    abs(_norm(copy.data) - _norm(previous)) > MAGNITUDE_STEP * _norm(previous):
-                return self._reset_at(changes, k, now_ns)
-            previous = copy.data
+            data = copy.data
+            if blank_flag(data):
+                previous = before = None
+                continue
+            if previous is not None:
+                if before is None:
+                    before = _norm(previous)
+                norm = _norm(data)
+                if abs(norm - before) > MAGNITUDE_STEP * before:
+                    return self._reset_at(changes, k, now_ns)
+                before = norm
+            previous = data
         return None
 
     def _reset_at(self, changes: list[Copy], k: int, now_ns: int) -> PollResult | None:
@@ -727,6 +737,8 @@ class Hmc5883lDriver(Driver):
         value) and the chip reconfigured. A blank alone in a poll is checked by
         ``_no_measurement``; zeros from a master reset (the MAX21100 clears its copy) find
         the HMC5883L as configured, and the copies go on as usual. None: nothing to do."""
+        if len(changes) < 2:  # (the usual poll) a blank alone or last: nothing to do
+            return None
         last = max((k for k, copy in enumerate(changes) if not any(copy.data)), default=None)
         if last is None or last == len(changes) - 1:
             return None
@@ -774,7 +786,7 @@ class Hmc5883lDriver(Driver):
             stamp = min(max(t_ns, self._stamped_ns + 1), now_ns - left) \
                 if by_delivery else now_ns
             sample = self._decoded(data, stamp, blank_flag(data))
-            if sample.flags & SampleFlag.BLANK:
+            if sample.flags and sample.flags & SampleFlag.BLANK:  # (enum & is a call)
                 blank = sample
                 continue
             self._emitted = data

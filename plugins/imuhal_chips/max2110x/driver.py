@@ -50,10 +50,10 @@ from imuhal.drivers.base import (
 from imuhal.drivers.polling import DataReady, PollGrid, ResetWatch
 from imuhal.drivers.validity import (
     NAN3,
-    FilterMemory,
     FrozenWatch,
+    LowPassWatch,
     blank_flag,
-    lowpass_memory_outputs,
+    lowpass_coefficient,
     range_flag,
 )
 from imuhal_chips.max2110x import decode
@@ -141,9 +141,12 @@ class Max2110xDriver(Driver):
     bus_kinds = frozenset({BusKind.I2C, BusKind.SPI})
     resumes_in_a_row = IN_PLACE_ATTEMPTS
     """Each ``resume()`` reads the whole plan back (``_off_plan(overdue=True)``)."""
-    specified_offset: ClassVar[Mapping[Quantity, float]] = {Quantity.ACCEL: 0.060 * 9.80665}
+    specified_offset: ClassVar[Mapping[Quantity, float]] = {
+        Quantity.ACCEL: 0.060 * 9.80665, Quantity.GYRO: math.radians(3.0)}
     """No MAX2110x datasheet was found: +-60 mg is assumed, the consumer-MEMS class of the
-    MPU-9250's specified zero-g offset (and three times the emulator's assumed 20 mg spread)."""
+    MPU-9250's specified zero-g offset (and three times the emulator's assumed 20 mg
+    spread); +-3 deg/s zero-rate offset likewise (three times the assumed 1 deg/s spread,
+    inside the MPU-9250's +-5)."""
     settings: Max2110xSettings
 
     def __init__(
@@ -170,10 +173,18 @@ class Max2110xDriver(Driver):
         self._watch = ResetWatch(self.settings.reset_check_s)
         self._frozen = FrozenWatch(FROZEN_AFTER_FRAMES)
         s = self.settings
-        self._memory = FilterMemory(
-            self.filter_memory_outputs(),
+        self._memory = LowPassWatch(
+            {Quantity.GYRO: lowpass_coefficient(s.gyro_lpf_hz, 1.0 / s.gyro_odr_hz),
+             # the accelerometer's cutoff is its ODR over the divisor (ACC_CFG1)
+             Quantity.ACCEL: lowpass_coefficient(1.0 / s.accel_lpf_divisor, 1.0)},
             {Quantity.GYRO: round(1e9 / s.gyro_odr_hz),
-             Quantity.ACCEL: round(1e9 / s.accel_odr_hz)})
+             Quantity.ACCEL: round(1e9 / s.accel_odr_hz)},
+            FULL_SCALE_COUNTS,
+            # settled once what a rail input can still add is within the part's offset
+            {Quantity.GYRO: math.degrees(self.specified_offset[Quantity.GYRO])
+             * FULL_SCALE_COUNTS / s.gyro_range_dps,
+             Quantity.ACCEL: self.specified_offset[Quantity.ACCEL] / STANDARD_GRAVITY_M_S2
+             * FULL_SCALE_COUNTS / s.accel_range_g})
         self._burst_frame = b""
         self._burst_length = 0
         """The status + data burst's address byte and length (set by configure())."""
@@ -260,6 +271,7 @@ class Max2110xDriver(Driver):
         for reg, value in ((Reg.BANK_SELECT, 0x00), (Reg.RST_REG, RST_SW_RESET)):
             retried(partial(self.regs.write, reg, value))
         self.clock.sleep(SOFT_RESET_WAIT_S)
+        self._memory.forget()  # the reset restarted the chip's filters
         for reg, value in ((Reg.BANK_SELECT, 0x00), (Reg.POWER_CFG, 0x00)):
             retried(partial(self.regs.write, reg, value))
         plan = self._checked(self.register_plan())
@@ -652,22 +664,24 @@ class Max2110xDriver(Driver):
         """The gyro and accelerometer flags of a read's frames (SATURATED, and the chip's
         filter memory after a clip, frame by frame as ``_frame_samples`` gives them)."""
         memory = self._memory
-        # no word at the rail (-32768 included: no abs() on int16) and no window open:
+        # no word at the rail, no rail input hidden by the filter and no window open:
         # every frame OK, without a look frame by frame
-        if int(_MIN(counts, axis=None)) > -FULL_SCALE_COUNTS \
-                and int(_MAX(counts, axis=None)) < FULL_SCALE_COUNTS \
-                and memory.quiet(Quantity.GYRO) and memory.quiet(Quantity.ACCEL):
+        gyro_quiet = memory.quiet_block(Quantity.GYRO, counts[:, 0:3], stamps_ns)
+        if memory.quiet_block(Quantity.ACCEL, counts[:, 3:6], stamps_ns) and gyro_quiet:
             return np.zeros(len(stamps_ns), np.int64), np.zeros(len(stamps_ns), np.int64)
         clipped = np.abs(counts.astype(np.int32)) >= FULL_SCALE_COUNTS
         sat_g: list[bool] = np.asarray(clipped[:, 0:3].any(axis=1), dtype=bool).tolist()
         sat_a: list[bool] = np.asarray(clipped[:, 3:6].any(axis=1), dtype=bool).tolist()
+        rows: list[list[int]] = counts.tolist()
         flags_g: list[int] = []
         flags_a: list[int] = []
-        for t_ns, g, a in zip(stamps_ns, sat_g, sat_a, strict=True):
+        for t_ns, row, g, a in zip(stamps_ns, rows, sat_g, sat_a, strict=True):
             fg = SampleFlag.SATURATED if g else SampleFlag.OK
             fa = SampleFlag.SATURATED if a else SampleFlag.OK
-            flags_g.append(fg | memory.flag(Quantity.GYRO, t_ns, fg))
-            flags_a.append(fa | memory.flag(Quantity.ACCEL, t_ns, fa))
+            # a channel whose block was quiet was observed whole already
+            flags_g.append(fg if gyro_quiet else
+                           fg | memory.observe(Quantity.GYRO, t_ns, row[0:3], fg))
+            flags_a.append(fa | memory.observe(Quantity.ACCEL, t_ns, row[3:6], fa))
         return np.array(flags_g, np.int64), np.array(flags_a, np.int64)
 
     def data_ready(self, edges_ns: Sequence[int]) -> None:
@@ -715,15 +729,12 @@ class Max2110xDriver(Driver):
         return max(now_ns, self.clock.now_ns())
 
     def filter_memory_outputs(self) -> dict[Quantity, int]:
-        """Outputs after a saturated one that each channel's low-pass can still carry it:
-        the gyro's bandwidth (GYRO_CFG1) and the accelerometer's cutoff, its ODR over the
-        output-filter divisor (ACC_CFG1), on 16-bit words (``lowpass_memory_outputs``)."""
-        s = self.settings
-        return {
-            Quantity.GYRO: lowpass_memory_outputs(s.gyro_lpf_hz, s.gyro_odr_hz, 16),
-            Quantity.ACCEL: lowpass_memory_outputs(s.accel_odr_hz / s.accel_lpf_divisor,
-                                                  s.accel_odr_hz, 16),
-        }
+        """Outputs after one input at the rail that each channel's low-pass can still carry
+        it by the part's specified offset or more (``LowPassWatch``): the gyro's bandwidth
+        (GYRO_CFG1) and the accelerometer's cutoff, its ODR over the output-filter divisor
+        (ACC_CFG1): 16 and 26 at the seed RC vario's 10 Hz and ODR / 48 (3 deg/s of 1000,
+        60 mg of 8 g)."""
+        return {q: self._memory.settling_outputs(q) for q in (Quantity.GYRO, Quantity.ACCEL)}
 
     def _frozen_flag(self, raw: bytes) -> SampleFlag:
         """FROZEN when the gyro, accel and temperature words repeat FROZEN_AFTER_FRAMES
@@ -747,7 +758,7 @@ class Max2110xDriver(Driver):
             value = decode.gyro_counts_to_rad_s(counts, self.scales.gyro_lsb_per_dps)
             if decode.saturated(counts):
                 flags |= SampleFlag.SATURATED
-            settling = self._memory.flag(Quantity.GYRO, now_ns, flags)
+            settling = self._memory.observe(Quantity.GYRO, now_ns, counts, flags)
             if settling:  # (an enum operation costs a Python call)
                 flags |= settling
         return GyroSample.build(now_ns, self.device, flags, Frame.SENSOR, value)
@@ -760,7 +771,7 @@ class Max2110xDriver(Driver):
             value = decode.accel_counts_to_m_s2(counts, self.scales.accel_lsb_per_g)
             if decode.saturated(counts):
                 flags |= SampleFlag.SATURATED
-            settling = self._memory.flag(Quantity.ACCEL, now_ns, flags)
+            settling = self._memory.observe(Quantity.ACCEL, now_ns, counts, flags)
             if settling:
                 flags |= settling
         return AccelSample.build(now_ns, self.device, flags, Frame.SENSOR, value)

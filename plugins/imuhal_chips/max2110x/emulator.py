@@ -72,7 +72,14 @@ from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError, NackError
 from imuhal.core.samples import Quantity
-from imuhal.emulation import ChipEmulator, EmulatedBus, PhysicalInputs, PlannedInputs
+from imuhal.emulation import (
+    ChipEmulator,
+    DisturbedLowPass,
+    EmulatedBus,
+    PhysicalInputs,
+    PlannedInputs,
+    world_counts,
+)
 from imuhal_chips.max2110x import emulator_int as intp
 from imuhal_chips.max2110x.emulator_fifo import MAX21100_FIFO, MAX21105_FIFO, FifoMap, Max2110xFifo
 from imuhal_chips.max2110x.error_spec import MAX21100_ERROR_SPEC, MAX21105_ERROR_SPEC
@@ -292,6 +299,9 @@ class Max2110xEmulator(ChipEmulator):
         """The latest instant already announced to the board (``_announce_instants``)."""
         self.fifo = Max2110xFifo(self.fifo_map)
         """The FIFO (empty after every reset)."""
+        self._lowpass = (DisturbedLowPass(), DisturbedLowPass())
+        """Per channel: its low-pass on what a value fault changed in the ADC's words
+        (imuhal.sim.lowpass; restarted by every reset)."""
         self.stuck_data_ready = False
         self.power_on_resets += 1
 
@@ -330,6 +340,11 @@ class Max2110xEmulator(ChipEmulator):
         if cached is None or cached[0] is not plan or cached[1] != k:
             values = plan.angular_rate_rad_s if index == _GYRO else plan.specific_force_m_s2
             counts = _encode_rows(values, k, _COUNTS_AT_FULL_SCALE)
+            if counts is not None and counts.size \
+                    and int(np.abs(counts).max()) >= _COUNTS_AT_FULL_SCALE:
+                # a word at the rail: its residual runs through the low-pass, row by row
+                # (``_latch``)
+                counts = None
             cached = self._plan_counts[index] = (
                 plan, k, counts, None if counts is None else counts.tolist())
         return cached
@@ -402,15 +417,7 @@ class Max2110xEmulator(ChipEmulator):
             first, enable_reg = _ACC_X_H, _PWR_ACC_CFG
             dr, err = _ACC_DR, _ACC_ERR
         planned = self.planned
-        counts = None if planned is None else self._planned_counts(*planned, index)
-        if counts is None:
-            p = self.physics
-            values = (p.angular_rate_rad_s if gyro else p.specific_force_m_s2) or (
-                0.0, 0.0, 0.0)
-            k = self._per_count[index]
-            x, y, z = (_encode(v, k, _COUNTS_AT_FULL_SCALE) for v in values)
-        else:
-            x, y, z = counts
+        x, y, z = self._channel_words(index, planned)
         enabled = bank0[enable_reg] & 0x07 if self.part.has_aux_master else 0x07
         if enabled != 0x07:
             x, y, z = (c if enabled & (1 << axis) else 0 for axis, c in enumerate((x, y, z)))
@@ -426,6 +433,53 @@ class Max2110xEmulator(ChipEmulator):
             self.status |= err  # the previous sample was never read: it is lost
         self.status |= dr
         self._read_since_latch[index] = set()
+
+    def _channel_words(self, index: int, planned: tuple[PlannedInputs, int] | None
+                       ) -> tuple[int, int, int]:
+        """Channel ``index``'s three output words from the inputs standing (the plan's row,
+        encoded with the whole plan, where ``planned``), through its low-pass where a word
+        is at the rail, a value fault replaced the input, or the filter still carries
+        either (``_filtered``; a plan with a word at the rail is encoded row by row)."""
+        gyro = index == _GYRO
+        counts = None if planned is None else self._planned_counts(*planned, index)
+        if counts is not None:
+            x, y, z = counts
+            if not self._lowpass[index].active:
+                return x, y, z
+            assert planned is not None
+            plan, row = planned
+            rows = plan.angular_rate_rad_s if gyro else plan.specific_force_m_s2
+            return self._filtered(index, (x, y, z), rows[row].tolist())
+        p = self.physics
+        values = (p.angular_rate_rad_s if gyro else p.specific_force_m_s2) or (0.0, 0.0, 0.0)
+        k = self._per_count[index]
+        x, y, z = (_encode(v, k, _COUNTS_AT_FULL_SCALE) for v in values)
+        if self.undisturbed is not None or self._lowpass[index].active \
+                or _COUNTS_AT_FULL_SCALE in (abs(x), abs(y), abs(z)):
+            return self._filtered(index, (x, y, z), values)
+        return x, y, z
+
+    def _filtered(self, index: int, words: tuple[int, int, int],
+                  values: Sequence[float]) -> tuple[int, int, int]:
+        """Channel ``index``'s output words when its ADC words (``words``, cut at the rail,
+        from ``values``: what the chip measures, SI) differ from what the world would make
+        of them without a rail or a value fault (``undisturbed`` if a fault replaced them,
+        else ``values`` themselves), or its low-pass still carries such a difference: the
+        world's words plus what the filter carries (imuhal.sim.lowpass), at the bandwidth
+        and ODR the registers select."""
+        channel = _CHANNELS[index]
+        bandwidth = self.noise_bandwidth_hz(channel)
+        period = self.noise_period_s(channel)
+        if bandwidth is None or period is None:
+            return words
+        clean = self.undisturbed
+        if clean is not None:
+            values = (clean.angular_rate_rad_s if index == _GYRO
+                      else clean.specific_force_m_s2) or (0.0, 0.0, 0.0)
+        world = world_counts(values, self._per_count[index], _COUNTS_AT_FULL_SCALE)
+        t_ns = self.physics_t_ns if self.physics_t_ns is not None else self.now_ns()
+        return self._lowpass[index].output(t_ns, world, words, bandwidth, period,
+                                           -_COUNTS_AT_FULL_SCALE, _COUNTS_AT_FULL_SCALE)
 
     def _store_axes(self, first: int, x: int, y: int, z: int) -> None:
         """Three data words from register ``first`` on (int16 values), in ``words`` and
@@ -612,6 +666,8 @@ class Max2110xEmulator(ChipEmulator):
         if self.part.has_aux_master and (bank0[_POWER_CFG] & 0x07 != 0x07
                                          or bank0[_PWR_ACC_CFG] & 0x07 != 0x07):
             return False
+        if self._lowpass[_GYRO].active or self._lowpass[_ACCEL].active:
+            return False  # a residual still fades through a low-pass: row by row
         gyro = self._plan_encoded(plan, _GYRO)[3]
         accel = self._plan_encoded(plan, _ACCEL)[3]
         if gyro is None or accel is None:
@@ -734,7 +790,7 @@ class Max2110xEmulator(ChipEmulator):
             return 0, None
         plan, first = taken
         frames = self._planned_frames(plan)
-        if frames is None:
+        if frames is None or self._lowpass[_GYRO].active or self._lowpass[_ACCEL].active:
             return 0, taken
         n = len(instants)
         self.record_measurements(instants[0], self._period_ns[_GYRO], n)

@@ -36,6 +36,7 @@ from imuhal.bus.auto_read import AUTO_READ, AutoReadFeed, same_feed
 from imuhal.bus.base import Bus, BusKind, Link
 from imuhal.bus.register_plan import IN_PLACE_ATTEMPTS, RegisterPlan, retried
 from imuhal.bus.registers import RegisterView
+from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.core.blocks import Block, FloatArray, IntArray, blocks_of
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
@@ -60,15 +61,16 @@ from imuhal.drivers.base import (
 from imuhal.drivers.polling import DataReady, PollGrid, ResetWatch, reset_check_field
 from imuhal.drivers.validity import (
     NAN3,
-    FilterMemory,
     FrozenWatch,
+    LowPassWatch,
     blank_flag,
-    lowpass_memory_outputs,
+    lowpass_coefficient,
     range_flag,
 )
 from imuhal_chips.mpu9250 import registers as r
 from imuhal_chips.mpu9250.aux import MasterAuxBus
 from imuhal_chips.mpu9250.decode import (
+    COUNT_MAX,
     accel_m_s2,
     accel_scale,
     decode_counts,
@@ -184,9 +186,9 @@ class MPU9250Driver(Driver):
     channels: ClassVar[tuple[Quantity, ...]] = (Quantity.ACCEL, Quantity.GYRO, Quantity.TEMPERATURE)
     bus_kinds: ClassVar[frozenset[BusKind]] = frozenset({BusKind.I2C, BusKind.SPI})
     specified_offset: ClassVar[Mapping[Quantity, float]] = {
-        Quantity.ACCEL: 0.060 * 9.80665}
+        Quantity.ACCEL: 0.060 * 9.80665, Quantity.GYRO: math.radians(5.0)}
     """Product specification: zero-g offset +-60 mg on X and Y (the axes that lie level in
-    flight and decide the tilt; Z +-80 mg)."""
+    flight and decide the tilt; Z +-80 mg); initial zero-rate offset +-5 deg/s."""
     child_bus_kinds: ClassVar[Mapping[str, BusKind]] = {"aux": BusKind.I2C}
     child_bus_features: ClassVar[Mapping[str, frozenset[str]]] = {
         "aux": frozenset({AUTO_READ})}
@@ -254,9 +256,16 @@ class MPU9250Driver(Driver):
         self._watch = ResetWatch(s.reset_check_s)
         self._frozen = FrozenWatch(self.FROZEN_AFTER_FRAMES)
         self._streams: tuple[StreamSpec, ...] = ()
-        self._memory = FilterMemory(self.filter_memory_outputs(),
-                                    {Quantity.GYRO: self._period_ns,
-                                     Quantity.ACCEL: self._period_ns})
+        self._memory = LowPassWatch(
+            {Quantity.GYRO: lowpass_coefficient(s.gyro_lpf_hz, self._period_ns / 1e9),
+             Quantity.ACCEL: lowpass_coefficient(s.accel_lpf_hz, self._period_ns / 1e9)},
+            {Quantity.GYRO: self._period_ns, Quantity.ACCEL: self._period_ns}, COUNT_MAX,
+            # settled once what a rail input can still add is within the part's offset
+            # (full scale: 32768 counts)
+            {Quantity.GYRO: math.degrees(self.specified_offset[Quantity.GYRO])
+             * (COUNT_MAX + 1) / s.gyro_range_dps,
+             Quantity.ACCEL: self.specified_offset[Quantity.ACCEL] / STANDARD_GRAVITY_M_S2
+             * (COUNT_MAX + 1) / s.accel_range_g})
 
     # -- identity ---------------------------------------------------------------------------
 
@@ -373,6 +382,7 @@ class MPU9250Driver(Driver):
         about once in 20 (issue 26)."""
         retried(partial(self.regs.write, r.PWR_MGMT_1, r.PWR1_H_RESET))
         self.clock.sleep(r.RESET_S)
+        self._memory.forget()  # the reset restarted the chip's filters
         retried(partial(self.regs.write, r.PWR_MGMT_1, r.PWR1_CLKSEL_AUTO))
         self.clock.sleep(r.WAKE_S)
         got = self.plan.establish(self.regs)
@@ -458,13 +468,11 @@ class MPU9250Driver(Driver):
     # -- polling ----------------------------------------------------------------------------
 
     def filter_memory_outputs(self) -> dict[Quantity, int]:
-        """Outputs after a saturated one that each channel's digital low-pass (DLPF_CFG,
-        A_DLPFCFG) can still carry it, at the output rate, on 16-bit words
-        (``lowpass_memory_outputs``): 9 at the GY-91's 41 Hz and 200 Hz."""
-        s = self.settings
-        rate_hz = 1e9 / self._period_ns
-        return {Quantity.GYRO: lowpass_memory_outputs(s.gyro_lpf_hz, rate_hz, 16),
-                Quantity.ACCEL: lowpass_memory_outputs(s.accel_lpf_hz, rate_hz, 16)}
+        """Outputs after one input at the rail that each channel's digital low-pass
+        (DLPF_CFG, A_DLPFCFG) can still carry it by the part's specified offset or more at
+        the output rate (``LowPassWatch``): 3 at the GY-91's 41 Hz and 200 Hz (5 deg/s of
+        500, 60 mg of 4 g)."""
+        return {q: self._memory.settling_outputs(q) for q in (Quantity.GYRO, Quantity.ACCEL)}
 
     def _frozen_flag(self, frame: bytes) -> SampleFlag:
         return self._frozen.observe("frame", frame)
@@ -681,18 +689,25 @@ class MPU9250Driver(Driver):
         filter memory after a clip, frame by frame as ``_samples`` gives them)."""
         sat_a, sat_g = saturated_rows(counts[:, 0:3]), saturated_rows(counts[:, 4:7])
         memory = self._memory
-        if not (sat_a.any() or sat_g.any()) and memory.quiet(Quantity.ACCEL) \
-                and memory.quiet(Quantity.GYRO):
-            zeros = np.zeros(len(stamps_ns), np.int64)  # no clip, no window open: all OK
+        # no clip, no rail input hidden by the filter, no window open: all OK
+        accel_quiet = memory.quiet_block(Quantity.ACCEL, counts[:, 0:3], stamps_ns)
+        gyro_quiet = memory.quiet_block(Quantity.GYRO, counts[:, 4:7], stamps_ns)
+        if accel_quiet and gyro_quiet:
+            zeros = np.zeros(len(stamps_ns), np.int64)
             return zeros, zeros.copy()
+        rows: list[list[int]] = counts.tolist()
         flags_a: list[int] = []
         flags_g: list[int] = []
-        # the chip's filter memory, frame by frame (accelerometer, then gyro, as _samples)
-        for t_ns, a, g in zip(stamps_ns, sat_a.tolist(), sat_g.tolist(), strict=True):
+        # the chip's filter memory, frame by frame (accelerometer, then gyro, as _samples);
+        # a channel whose block was quiet was observed whole already
+        for t_ns, row, a, g in zip(stamps_ns, rows, sat_a.tolist(), sat_g.tolist(),
+                                   strict=True):
             fa = _SATURATED if a else _OK
             fg = _SATURATED if g else _OK
-            flags_a.append(fa | memory.flag(Quantity.ACCEL, t_ns, fa))
-            flags_g.append(fg | memory.flag(Quantity.GYRO, t_ns, fg))
+            flags_a.append(fa if accel_quiet else
+                           fa | memory.observe(Quantity.ACCEL, t_ns, row[0:3], fa))
+            flags_g.append(fg if gyro_quiet else
+                           fg | memory.observe(Quantity.GYRO, t_ns, row[4:7], fg))
         return np.array(flags_a, np.int64), np.array(flags_g, np.int64)
 
     def data_ready(self, edges_ns: Sequence[int]) -> None:
@@ -730,8 +745,8 @@ class MPU9250Driver(Driver):
         temp = temperature_degc(raw.temperature)
         sat_a = SampleFlag.SATURATED if saturated(raw.accel) else SampleFlag.OK
         sat_g = SampleFlag.SATURATED if saturated(raw.gyro) else SampleFlag.OK
-        sat_a |= self._memory.flag(Quantity.ACCEL, now_ns, sat_a)
-        sat_g |= self._memory.flag(Quantity.GYRO, now_ns, sat_g)
+        sat_a |= self._memory.observe(Quantity.ACCEL, now_ns, raw.accel, sat_a)
+        sat_g |= self._memory.observe(Quantity.GYRO, now_ns, raw.gyro, sat_g)
         return [
             AccelSample(t_ns=now_ns, device=self.device, flags=sat_a, accel_m_s2=accel),
             GyroSample(t_ns=now_ns, device=self.device, flags=sat_g, gyro_rad_s=gyro),

@@ -62,12 +62,13 @@ from __future__ import annotations
 
 import math
 import struct
+from collections.abc import Sequence
 
 from imuhal.bus.base import BusKind
 from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError, NackError
 from imuhal.core.samples import Quantity
-from imuhal.emulation import ChipEmulator, EmulatedBus
+from imuhal.emulation import ChipEmulator, DisturbedLowPass, EmulatedBus, world_counts
 from imuhal_chips.mpu9250 import registers as r
 from imuhal_chips.mpu9250.emulator_fifo import FifoModel, frame_of
 from imuhal_chips.mpu9250.emulator_int import INT_ACTL, INT_LATCH_INT_EN, INT_PULSE_NS
@@ -98,6 +99,8 @@ _TEMP_LSB_PER_DEGC = 333.87
 _TEMP_ROOM_DEGC = 21.0
 """TEMP_degC = TEMP_OUT / 333.87 + 21 (RoomTemp_Offset 0)."""
 _G_M_S2 = 9.80665
+_INSIDE = -32768
+"""The lowest int16 word: an output word above it and below 32767 is not at a rail."""
 _I2C_MST_DLY = 0x1F
 """I2C_SLV4_CTRL[4:0]: a delayed slave is accessed every 1 + I2C_MST_DLY samples."""
 
@@ -230,6 +233,9 @@ class MPU9250Emulator(ChipEmulator):
 
     def _reset(self) -> None:
         self.fifo = FifoModel()
+        self._lowpass = {Quantity.ACCEL: DisturbedLowPass(), Quantity.GYRO: DisturbedLowPass()}
+        """Per channel: its DLPF on what a value fault changed in the ADC's words
+        (imuhal.sim.lowpass; restarted by every reset)."""
         self._regs = bytearray(128)
         self._regs[r.PWR_MGMT_1] = r.PWR1_CLKSEL_AUTO
         self._slv4_done_ns: int | None = None
@@ -327,10 +333,40 @@ class MPU9250Emulator(ChipEmulator):
                   (temp - _TEMP_ROOM_DEGC) * _TEMP_LSB_PER_DEGC,
                   *(v * g_lsb for v in rate)]
         clipped = [max(-32768, min(32767, round(c))) for c in counts]
+        lowpass = self._lowpass
+        clean = self.undisturbed
+        # the ADC cut a word at its rail, a value fault replaced the input, or the filter
+        # still carries either: the channel's residual runs through its DLPF
+        if clean is not None or lowpass[Quantity.ACCEL].active \
+                or not _INSIDE < min(clipped[0:3]) <= max(clipped[0:3]) < 32767:
+            clipped[0:3] = self._filtered(
+                Quantity.ACCEL, clipped[0:3],
+                force if clean is None else clean.specific_force_m_s2 or force, a_lsb)
+        if clean is not None or lowpass[Quantity.GYRO].active \
+                or not _INSIDE < min(clipped[4:7]) <= max(clipped[4:7]) < 32767:
+            clipped[4:7] = self._filtered(
+                Quantity.GYRO, clipped[4:7],
+                rate if clean is None else clean.angular_rate_rad_s or rate, g_lsb)
         self._regs[r.ACCEL_XOUT_H:r.ACCEL_XOUT_H + 14] = struct.pack(">7h", *clipped)
         if self._regs[r.INT_ENABLE] & r.INT_RAW_RDY and not self.stuck_data_ready:
             self._regs[r.INT_STATUS] |= r.INT_RAW_RDY
         self._slave0()
+
+    def _filtered(self, channel: Quantity, words: list[int], world: Sequence[float],
+                  per_unit: float) -> tuple[int, int, int]:
+        """``channel``'s output words when its ADC words (``words``, cut at the rail) differ
+        from what ``world`` (SI: the chip's input without a rail or a value fault) makes of
+        them, or its DLPF still carries such a difference: the world's words plus what the
+        filter carries (imuhal.sim.lowpass), at the bandwidth and sample period the
+        registers select; ``per_unit``: counts per SI unit."""
+        bandwidth = self.noise_bandwidth_hz(channel)
+        x, y, z = words
+        if bandwidth is None:
+            return x, y, z
+        counts = world_counts(world, 1.0 / per_unit, 32767)
+        t_ns = self.physics_t_ns if self.physics_t_ns is not None else self.now_ns()
+        return self._lowpass[channel].output(t_ns, counts, (x, y, z), bandwidth,
+                                             self.period_ns() / 1e9, -32768, 32767)
 
     def _master_on(self) -> bool:
         return bool(self._regs[r.USER_CTRL] & r.USER_I2C_MST_EN)

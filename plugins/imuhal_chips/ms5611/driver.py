@@ -446,9 +446,8 @@ class MS5611Driver(Driver):
         result = compensate(self.coefficients, d1, self._d2)
         temp_flags = SampleFlag.OK if result.temperature_in_range else SampleFlag.OUT_OF_RANGE
         # Pressure is compensated with the temperature, so an invalid TEMP taints it too.
-        pressure_flags = temp_flags | (
-            SampleFlag.OK if result.pressure_in_range else SampleFlag.OUT_OF_RANGE
-        )
+        pressure_flags = temp_flags if result.pressure_in_range else \
+            temp_flags | SampleFlag.OUT_OF_RANGE  # (an enum | costs a Python call)
         if pressure_flags == SampleFlag.OK:
             pressure_flags = self._steps.observe(t_ns, result.pressure_pa)
         samples: list[Sample] = [

@@ -276,7 +276,16 @@ def inline_kernel(kernel: Kernel) -> Kernel:
 def c_array(values: Any) -> np.ndarray:
     """``values`` as a writable C-ordered float64 array (a copy only when needed): what a
     kernel's ``f8[...::1]`` argument takes."""
+    if type(values) is np.ndarray and values.dtype == _F8:
+        flags = values.flags
+        if flags.c_contiguous and flags.writeable:
+            # the usual case (a block's fresh arrays): np.require's Python wrapper, which
+            # builds a set of its requirements at every call, costs more than this test
+            return values
     return np.require(values, dtype=np.float64, requirements=["C", "W"])
+
+
+_F8 = np.dtype(np.float64)
 
 
 def _kernel_dir_key() -> str:

@@ -104,6 +104,11 @@ class InnovationSpeed:
         return 1.0 / (1.0 + across_sq / (self.speed_m_s * self.speed_m_s))
 
 
+GAP_VELOCITY_KEPT = 0.5
+"""The share of the manoeuvre detector's velocity kept across an accelerometer gap
+(``ManoeuvreDetector.restart``; the compiled kernel reads it too)."""
+
+
 @dataclass(frozen=True, slots=True)
 class ManoeuvreParams:
     """The manoeuvre detector's constants (s, m/s, m/s^2; see ``ManoeuvreDetector``)."""
@@ -163,6 +168,24 @@ class ManoeuvreDetector:
         """Zero velocity and no steady acceleration (at rest)."""
         self.v_m_s = [0.0, 0.0, 0.0]
         self.mean_m_s2 = [0.0, 0.0, 0.0]
+
+    def restart(self) -> None:
+        """After the readings stopped for a while (an accelerometer gap): the window's mean
+        and scatter (``window_s``) start again, as at start-up, since they are of readings
+        long gone; the velocity (``leak_s``, 3 s, longer than a gap) is kept in part,
+        ``GAP_VELOCITY_KEPT``; the drift (the filter's tilt error, ``drift_tau_s``) in
+        full. Across the gap the velocity changed by what was not measured: a clip (the
+        usual gap) is mid-manoeuvre, so zeroing it declares the board at rest, and keeping
+        it whole judges the readings after the gap by a manoeuvre's phase that has passed.
+        ``rc-flight``, tilt RMS/max in deg (Madgwick: seed board 2.07, GY-91 1.36): zeroed,
+        seed 1.78/3.94 and GY-91 3.25/5.76; kept whole 2.05/5.43 and 2.11/4.83; half
+        1.84/4.89 and 1.69/4.57 (0.4 to 0.6: seed 1.83-1.89, GY-91 1.60-1.74; 0.3: the
+        GY-91 3.22 again). Restarting it as manoeuvring instead (raised to
+        ``speed_m_s``) was worse on both (2.4-5.3 and 2.6-4.6): the gyro alone then carried
+        the attitude past the manoeuvre (docs/reliability.md, session 21)."""
+        self.mean_m_s2 = [0.0, 0.0, 0.0]
+        self.mean_sq_m2_s4 = 0.0
+        self.v_m_s = [GAP_VELOCITY_KEPT * c for c in self.v_m_s]
 
     def as_list(self) -> list[float]:
         """The state, JSON-ready."""

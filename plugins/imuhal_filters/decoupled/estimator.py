@@ -378,6 +378,7 @@ class DecoupledEstimator(AhrsEstimator):
                 "mag_ref": None if k.mag_ref is None else list(k.mag_ref),
                 "mag_cand": None if k.mag_cand is None else list(k.mag_cand),
                 "mag_cand_s": k.mag_cand_s, "mag_disturbed": k.mag_disturbed,
+                "accel_missed": k.accel_missed,
                 "innovation": None if k.innovation is None else k.innovation.as_list(),
                 "straight_flight": k.straight.as_list(),
                 "manoeuvre": None if k.manoeuvre is None else k.manoeuvre.as_list(),
@@ -401,6 +402,7 @@ class DecoupledEstimator(AhrsEstimator):
             float(state["rest_s"])
         k.mag_ref, k.mag_cand = tup(state["mag_ref"]), tup(state["mag_cand"])
         k.mag_cand_s, k.mag_disturbed = float(state["mag_cand_s"]), bool(state["mag_disturbed"])
+        k.accel_missed = bool(state.get("accel_missed", False))  # absent before the restart
         if k.innovation is not None and state.get("innovation") is not None:
             k.innovation.load_list(state["innovation"])  # absent before the adaptive weight
         if "straight_flight" in state:  # absent from states saved before the detector

@@ -27,6 +27,7 @@ import numpy as np
 from imuhal_filters.common.fast import jit, per_sample_kernel
 from imuhal_filters.common.fast_ahrs import TO_G as _TO_G
 from imuhal_filters.common.fast_frames import linear_accel_ned
+from imuhal_filters.common.innovation import GAP_VELOCITY_KEPT
 from imuhal_filters.madgwick.fast import block_case, mag_rows_kernel, nominal_fused, step_lengths
 
 _G = 9.80665  # STANDARD_GRAVITY_M_S2
@@ -56,8 +57,9 @@ _PEAK = 90       # its peak (3)
 _READM = 93      # readmitted episodes
 _BEFORE = 94     # the filter before the kept input: set, 6
 _PACE = 101      # pace: innovation_sq, rate_sq, started
-_HEAD = 104      # look-back ring: head, count
-STATE_SIZE = 106
+_MISSED = 104    # a step since the last accelerometer reading had none
+_HEAD = 105      # look-back ring: head, count (last: S[-1] is the count)
+STATE_SIZE = 107
 
 # ---------------------------------------------------------------- parameters (P)
 (P_TAU_ACC, P_TAU_REST, P_TAU_MAG, P_REST_GYRO_TH, P_REST_ACC_TH, P_REST_TAU, P_REST_MIN,
@@ -336,6 +338,22 @@ def _rest_step(S, P, gx, gy, gz, have_a, ax, ay, az, dt):
 
 
 rest_step = jit(_rest_step)
+
+
+def _after_accel_gap(S):
+    """``DecoupledKernel._after_accel_gap``: the detectors start again."""
+    S[_MISSED] = 0.0
+    S[_ALP], S[_ALP + 1], S[_ALP + 2], S[_ALP + 3] = 0.0, 0.0, 0.0, 0.0
+    S[_REST_S] = 0.0
+    for i in range(3, 7):  # ManoeuvreDetector.restart: mean, mean_sq
+        S[_MAN + i] = 0.0
+    for i in range(7, 10):  # and its velocity, in part
+        S[_MAN + i] *= GAP_VELOCITY_KEPT
+    S[_PACE + 2] = 0.0
+    S[_LB + 2], S[_LB + 3] = 0.0, 0.0
+
+
+after_accel_gap = jit(_after_accel_gap)
 
 
 def _pace_step(S, P, r0, r1, r2, wx, wy, wz, dt):
@@ -634,6 +652,10 @@ def _decoupled_step_kernel(S, P, L, gx, gy, gz, have_a, ax, ay, az, have_m, mx, 
     rw, rx, ry, rz = rotvec(wx * dt, wy * dt, wz * dt)
     w, x, y, z = qmul(S[_QG], S[_QG + 1], S[_QG + 2], S[_QG + 3], rw, rx, ry, rz)
     S[_QG], S[_QG + 1], S[_QG + 2], S[_QG + 3] = unit(w, x, y, z)
+    if not have_a:
+        S[_MISSED] = 1.0
+    elif S[_MISSED] != 0.0:
+        after_accel_gap(S)
     rest_step(S, P, gx, gy, gz, have_a, ax, ay, az, dt)
     rest = S[_REST_S] >= P[P_REST_MIN]
     if have_a:

@@ -108,6 +108,7 @@ def pack(k: DecoupledKernel, rows: int = LOOKBACK_ROWS) -> tuple[FloatArray, Flo
         entries = [e if len(e) == f.ENTRY else [*e, 1.0] for e in lb.entries]
     if k.pace is not None:
         s[f._PACE:f._PACE + 3] = k.pace.as_list()
+    s[f._MISSED] = float(k.accel_missed)
     size = max(rows, 2 * len(entries) + 2)
     look = np.zeros((size, f.ENTRY))
     if entries:
@@ -139,6 +140,7 @@ def unpack(s: FloatArray, look: FloatArray, k: DecoupledKernel) -> None:
     k.mag_cand = _get(s, f._MCAND, 2)  # type: ignore[assignment]  # two floats or None
     k.mag_cand_s = float(s[f._MCAND_S])
     k.mag_disturbed = bool(s[f._MDIST])
+    k.accel_missed = bool(s[f._MISSED])
     if k.manoeuvre is not None:
         k.manoeuvre.load_list(s[f._MAN:f._MAN + 10].tolist())
     lb = k.lookback

@@ -185,13 +185,13 @@ class BaroVarioEstimator(Estimator):
             return RejectedEstimate(t_ns=t_ns, source=self.instance, kind="vertical",
                                     flags=EstimateFlag.UNSETTLED, estimator=self.name)
         kf = self._kf
-        return VerticalEstimate(
-            t_ns=t_ns,
-            source=self.instance,
-            altitude_m=kf.z,
-            climb_m_s=kf.v,
-            accel_bias_m_s2=None,
-            diagnostics={
+        return VerticalEstimate.build(  # (the keyword constructor, through its slots)
+            t_ns,
+            self.instance,
+            kf.z,
+            kf.v,
+            None,
+            {
                 "innovation_m": innovation_m,
                 "altitude_gated": gated,
                 "altitude_sigma_m": math.sqrt(max(kf.pzz, 0.0)),

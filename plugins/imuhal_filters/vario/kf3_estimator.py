@@ -343,13 +343,13 @@ class VarioKf3Estimator(Estimator):
         kf = self._kf
         assert kf is not None
         p = kf.P
-        return VerticalEstimate(
-            t_ns=t_ns,
-            source=self.instance,
-            altitude_m=kf.z / CM_PER_M,
-            climb_m_s=kf.v / CM_PER_M,
-            accel_bias_m_s2=kf.bias / CM_PER_M,
-            diagnostics={
+        return VerticalEstimate.build(  # (the keyword constructor, through its slots)
+            t_ns,
+            self.instance,
+            kf.z / CM_PER_M,
+            kf.v / CM_PER_M,
+            kf.bias / CM_PER_M,
+            {
                 "innovation_m": innovation_m,
                 "altitude_gated": gated,
                 "altitude_sigma_m": math.sqrt(max(p[0, 0], 0.0)) / CM_PER_M,

@@ -8,11 +8,14 @@ physically plausible for its chip.
   result). Each driver derives ``n`` from its chip's noise at its quietest setting;
   ``LearnedFrozenWatch`` shortens it to the repeat odds the chip shows at start-up.
 - ``range_flag``: a decoded value outside the limits the chip can report -> ``OUT_OF_RANGE``.
-- ``FilterMemory``: a chip that filters its outputs itself (an IIR filter, a digital
-  low-pass, a moving average) carries a wrong measurement into the outputs after it, which
-  can come back in range; those outputs -> ``FILTER_SETTLING``. Each driver derives how many
-  outputs its chip's settings can carry it (``iir_memory_outputs``,
-  ``lowpass_memory_outputs``).
+- ``FilterMemory``: a chip that filters its outputs itself (an IIR filter, a moving
+  average) carries a wrong measurement into the outputs after it, which can come back in
+  range; those outputs -> ``FILTER_SETTLING``. Each driver derives how many outputs its
+  chip's settings can carry it (``iir_memory_outputs``). ``LowPassWatch`` is the same for
+  an IMU's first-order digital low-pass: it also undoes the filter to see an input at the
+  rail that the output hides, and holds the outputs until what such an input can still add
+  is below what a valid reading of the chip may be off anyway (its specified offset;
+  ``lowpass_settling_outputs``).
 - ``StepWatch``: a quantity the physics bounds in how fast it can change (pressure: by the
   fastest vertical speed) that moves further from the last valid value than that bound and
   the chip's noise allow -> ``IMPLAUSIBLE``; a new level that the next readings confirm is
@@ -28,6 +31,9 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Hashable, Iterable, Mapping, Sequence
 from typing import Any, Generic, TypeVar
+
+import numpy as np
+import numpy.typing as npt
 
 from imuhal.core.samples import SampleFlag
 
@@ -209,19 +215,6 @@ def iir_memory_outputs(coefficient: int, bits: int) -> int:
     return math.floor(bits * math.log(2.0) / math.log(coefficient / (coefficient - 1))) + 1
 
 
-def lowpass_memory_outputs(bandwidth_hz: float, output_rate_hz: float, bits: int) -> int:
-    """Outputs after a wrong input that a chip's digital low-pass of 3 dB ``bandwidth_hz``
-    (output at ``output_rate_hz``) can still carry it by one LSB or more.
-
-    The datasheets give the bandwidth, not the filter: it is taken as the first-order
-    filter of that bandwidth (time constant ``1 / (2 pi bandwidth)``), in which a full-scale
-    error (``2**bits`` LSB) fades below one LSB after ``bits ln 2`` time constants, counted
-    in whole outputs (at least one: a filter wider than the output rate still blends the
-    input that arrived between two outputs into the next)."""
-    tau_s = 1.0 / (2.0 * math.pi * bandwidth_hz)
-    return max(1, math.ceil(bits * math.log(2.0) * tau_s * output_rate_hz))
-
-
 class FilterMemory:
     """The memory of a chip's own filters, per key (a channel, or one key for channels the
     chip filters together).
@@ -276,6 +269,241 @@ class FilterMemory:
     def forget(self) -> None:
         """The chip's filters were re-initialised: nothing earlier can reach the next output."""
         self._until_ns.clear()
+
+
+RAIL_SHARE = 0.9
+"""``LowPassWatch``: an input the filter's inverse puts within 10 % of the rail (or beyond)
+is taken as one the chip's ADC cut at its rail. An honest input that close to the rail is
+nearly clipped anyway; the margin covers noise and motion the inverse amplifies."""
+
+
+def lowpass_coefficient(bandwidth_hz: float, period_s: float) -> float:
+    """The share of its previous output a first-order low-pass of 3 dB ``bandwidth_hz``
+    keeps one output period ``period_s`` later: exp(-2 pi bandwidth period)."""
+    return math.exp(-2.0 * math.pi * bandwidth_hz * period_s)
+
+
+def lowpass_settling_outputs(bandwidth_hz: float, output_rate_hz: float,
+                             settled_share: float) -> int:
+    """Outputs after one input at the rail that a first-order low-pass of ``bandwidth_hz``
+    (output at ``output_rate_hz``) can still carry it by ``settled_share`` of the full scale
+    or more: the input, at most two full scales from the truth, enters the output with
+    weight 1 - a and fades by a per output (``lowpass_coefficient``), so the n-th output
+    after it keeps at most 2 (1 - a) a^n full scales (10 Hz at 200 Hz, settled at 0.3 % of
+    the full scale: 20)."""
+    return _settling_outputs(lowpass_coefficient(bandwidth_hz, 1.0 / output_rate_hz),
+                             settled_share)
+
+
+def _settling_outputs(a: float, settled_share: float) -> int:
+    """``lowpass_settling_outputs`` of a filter keeping ``a`` per output."""
+    entered = 2.0 * (1.0 - a)
+    if a <= 0.0 or entered <= settled_share:
+        return 0
+    return math.floor(math.log(entered / settled_share) / -math.log(a))
+
+
+class LowPassWatch:
+    """A chip's digital low-pass (an IMU's gyro or accelerometer filter) and the outputs a
+    wrong input can still be in, per key (a channel).
+
+    The datasheets give the filter's 3 dB bandwidth only; it is taken as the first-order
+    low-pass of that bandwidth at the output rate: each output keeps ``a`` of the one
+    before and takes ``1 - a`` of the input (``lowpass_coefficient``). The chip's ADC cuts
+    its input at the rail before the filter, so a shock beyond the range for one output
+    period leaves an output in range (``1 - a`` of the way to the rail) and far off. The
+    watch undoes the filter: from the previous output ``g`` periods before, the mean input
+    over them is ``(y - a^g y_prev) / (1 - a^g)``; one within ``RAIL_SHARE`` of the rail
+    that moved the output by 1 - a of the rest of the way at least (an honest input held
+    near the rail moves it little) is a rail input, its output ``FILTER_SETTLING`` (value
+    as read). After a rail input
+    (hidden, or an output at the rail itself, flagged ``SATURATED`` by the driver) the
+    watch keeps a bound on what the filter still carries, in full scales: it adds
+    ``2 (1 - a^g)`` (the input at most two full scales from the truth) and fades by ``a``
+    per period, and the outputs are ``FILTER_SETTLING`` until it is below the key's
+    ``settled_counts``: what the validity model already tolerates of a valid reading of
+    that chip (its driver's specified offset), so an output handed back is no further off
+    than the chip may read anyway. Outputs lost to bus errors count as periods the chip
+    filtered."""
+
+    def __init__(self, coefficient: Mapping[Any, float], period_ns: Mapping[Any, int],
+                 rail_counts: int, settled_counts: Mapping[Any, float]) -> None:
+        self.coefficient = dict(coefficient)
+        self.period_ns = dict(period_ns)
+        self.rail_counts = rail_counts
+        self.settled_share = {key: settled_counts[key] / rail_counts for key in coefficient}
+        """Per key: what the filter may still carry of a rail input once its outputs are
+        valid again, in full scales."""
+        self._one = {key: (a, RAIL_SHARE * rail_counts * (1.0 - a),
+                           (1.0 - RAIL_SHARE) * rail_counts * (1.0 - a),
+                           self.period_ns[key] + self.period_ns[key] // 2)
+                     for key, a in self.coefficient.items() if a > 0.0}
+        """Per key with a filter, for an output one period after the last: (a, the rail
+        input's limit on ``y - a y_prev``, how far a rail input moves the output at least:
+        1 - a of the way from within RAIL_SHARE of the rail, a rail input from nearer the
+        rail leaving a trace below that, within what a reading there may be off anyway;
+        and the most time between two outputs one period apart)."""
+        self._last: dict[Hashable, tuple[int, Sequence[int], int, Sequence[int]]] = {}
+        """Per key: the latest output's time stamp and counts (the filter's previous state),
+        then the one's before it (the change per output before a gap; -1, () at first)."""
+        self._railed: set[Hashable] = set()
+        """Keys whose latest output was a rail input (hidden or at the rail)."""
+        self._bound: dict[Hashable, tuple[int, float]] = {}
+        """Per key: (time stamp, what the filter may still carry then, in full scales)."""
+
+    def settling_outputs(self, key: Hashable) -> int:
+        """Outputs after one rail input that are FILTER_SETTLING (``lowpass_settling_outputs``)."""
+        return _settling_outputs(self.coefficient[key], self.settled_share[key])
+
+    def rail_input(self, key: Hashable, t_ns: int, counts: Sequence[int]) -> bool:
+        """Whether the filter's inverse puts the input behind the output ``counts`` at
+        ``t_ns`` at the rail (nothing is recorded)."""
+        last = self._last.get(key)
+        return last is not None and self._hidden(key, t_ns, counts, last)
+
+    def _hidden(self, key: Hashable, t_ns: int, counts: Sequence[int],
+                last: tuple[int, Sequence[int], int, Sequence[int]]) -> bool:
+        a, limit, jump, most_ns = self._one[key]
+        t_last, previous = last[0], last[1]
+        if t_ns - t_last >= most_ns:
+            return self._hidden_in_gap(key, round((t_ns - t_last) / self.period_ns[key]),
+                                       counts, last)
+        # the input at the rail, and far from where the output was or still there after a
+        # rail input: an honest input that comes near the rail (a fast roll) moves the
+        # output little from one output to the next
+        if key in self._railed:
+            jump = 0.0
+        for y, p in zip(counts, previous, strict=True):
+            if abs(y - a * p) >= limit and abs(y - p) >= jump:
+                return True
+        return False
+
+    def _hidden_in_gap(self, key: Hashable, g: int, counts: Sequence[int],
+                       last: tuple[int, Sequence[int], int, Sequence[int]]) -> bool:
+        """Whether ``g`` periods after the last output (the outputs between unseen: a host
+        stall, a failed read) one of the unseen inputs may have been at the rail. The mean
+        input over the gap cannot tell: one rail input among them moves it by its weight
+        only ((1 - a) a^j for the input j outputs back, 0.72 for the latest at the GY-91's
+        41 Hz). So the output is held against the last one carried on at the change per
+        output seen before it: a rail input that still adds the key's settled counts or more
+        shows as a departure of that much beyond what the same change again allows; honest
+        motion that bends that hard after a gap is flagged too
+        (availability, not trust)."""
+        t_last, previous, t_before, before = last
+        slope = [0.0, 0.0, 0.0] if t_before < 0 else \
+            [(p - b) / max(1, round((t_last - t_before) / self.period_ns[key]))
+             for p, b in zip(previous, before, strict=True)]
+        allowed = self.settled_share[key] * self.rail_counts
+        return any(abs(y - p - g * d) >= allowed + g * abs(d)
+                   for y, p, d in zip(counts, previous, slope, strict=True))
+
+    def observe(self, key: Hashable, t_ns: int, counts: Sequence[int],
+                flags: SampleFlag) -> SampleFlag:
+        """The FILTER_SETTLING flag of the output ``counts`` (three axes, not changed
+        afterwards: kept as the filter's previous output) at ``t_ns`` whose driver gave it
+        ``flags`` (``SATURATED``, ``OUT_OF_RANGE`` or ``OVERFLOW``: an output at the rail, a
+        rail input). A key without a filter (``a`` 0) is never flagged."""
+        one = self._one.get(key)
+        if one is None:
+            return SampleFlag.OK
+        last = self._last.get(key)
+        hidden = self._record(key, t_ns, counts, last, one)
+        bound = self._bound.get(key)
+        wrong = hidden or bool(int(flags) & _VALUE_BITS)
+        if bound is None and not wrong:
+            return SampleFlag.OK
+        return self._settle(key, t_ns, last, bound, hidden=hidden, wrong=wrong)
+
+    def _record(self, key: Hashable, t_ns: int, counts: Sequence[int],
+                last: tuple[int, Sequence[int], int, Sequence[int]] | None,
+                one: tuple[float, float, float, int]) -> bool:
+        """Keep ``counts`` as the filter's previous output; whether its input was a rail
+        input (``_hidden``)."""
+        if last is None:
+            self._last[key] = (t_ns, counts, -1, ())
+            return False
+        self._last[key] = (t_ns, counts, last[0], last[1])
+        a, limit, jump, most_ns = one
+        if t_ns - last[0] >= most_ns or key in self._railed:
+            return self._hidden(key, t_ns, counts, last)
+        # every output of a quiet filter takes this way: written out
+        y0, y1, y2 = counts
+        p0, p1, p2 = last[1]
+        return (abs(y0 - a * p0) >= limit and abs(y0 - p0) >= jump) \
+            or (abs(y1 - a * p1) >= limit and abs(y1 - p1) >= jump) \
+            or (abs(y2 - a * p2) >= limit and abs(y2 - p2) >= jump)
+
+    def _settle(self, key: Hashable, t_ns: int,
+                last: tuple[int, Sequence[int], int, Sequence[int]] | None,
+                bound: tuple[int, float] | None, *, hidden: bool, wrong: bool) -> SampleFlag:
+        """The bound on what the filter still carries, moved to ``t_ns`` (a ``wrong``
+        input adds to it), and the output's flag."""
+        if wrong:
+            self._railed.add(key)
+        else:
+            self._railed.discard(key)
+        a = self.coefficient[key]
+        period = self.period_ns[key]
+        carried = 0.0 if bound is None else bound[1] * a ** ((t_ns - bound[0]) / period)
+        settling = carried >= self.settled_share[key]
+        if wrong:
+            g = 1 if last is None else max(1, round((t_ns - last[0]) / period))
+            self._bound[key] = (t_ns, carried + 2.0 * (1.0 - a ** g))
+            return SampleFlag.FILTER_SETTLING if hidden or settling else SampleFlag.OK
+        if not settling:
+            del self._bound[key]
+            return SampleFlag.OK
+        return SampleFlag.FILTER_SETTLING
+
+    def quiet(self, key: Hashable) -> bool:
+        """No bound is open for ``key`` (a rail input may still be hidden in the next output:
+        a driver decoding a burst at once asks ``quiet_block`` instead)."""
+        return key not in self._bound
+
+    def quiet_block(self, key: Hashable, counts: npt.NDArray[np.int16],
+                    stamps_ns: Sequence[int]) -> bool:
+        """Whether ``observe`` of each row of ``counts`` (n x 3, at ``stamps_ns``) in turn
+        would flag none and arm nothing, with no word at the rail: then the block is taken
+        as observed (its last row becomes the filter's previous output) and True returned;
+        else nothing is observed (the driver observes it row by row)."""
+        if key not in self._one or not len(stamps_ns):
+            return True
+        if key in self._bound or key in self._railed:
+            return False
+        y = counts.astype(np.float64)
+        rail = self.rail_counts
+        if float(np.abs(y).max()) >= rail:
+            return False
+        last = self._last.get(key)
+        if last is None:
+            previous, times = y[:-1], np.asarray(stamps_ns, np.float64)
+            current = y[1:]
+        else:
+            previous = np.vstack([np.asarray(last[1], np.float64)[None, :], y[:-1]])
+            times = np.asarray([last[0], *stamps_ns], np.float64)
+            current = y
+        if len(current):
+            g = np.maximum(1.0, np.rint(np.diff(times) / self.period_ns[key]))
+            if float(g.max()) > 1.0:
+                return False  # a gap: row by row (``_hidden_in_gap``)
+            kept = self.coefficient[key] ** g
+            limit = RAIL_SHARE * rail * (1.0 - kept)
+            if bool(((np.abs(current - kept[:, None] * previous) >= limit[:, None])
+                     & (np.abs(current - previous) >= self._one[key][2])).any()):
+                return False
+        newest = (int(stamps_ns[-1]), tuple(int(v) for v in counts[-1]))
+        if len(stamps_ns) > 1:
+            self._last[key] = (*newest, int(stamps_ns[-2]), tuple(int(v) for v in counts[-2]))
+        else:
+            self._last[key] = (*newest, -1, ()) if last is None else (*newest, *last[:2])
+        return True
+
+    def forget(self) -> None:
+        """The chip's filters were re-initialised (a reset): nothing earlier reaches the
+        next output, and there is no previous output to undo the filter from."""
+        self._bound.clear()
+        self._last.clear()
+        self._railed.clear()
 
 
 R = TypeVar("R")

@@ -415,11 +415,15 @@ class EmulatedBoard:
         inputs = PhysicalInputs.build(
             force, rate, field, pressure, temperature, truth.position_ned_m,
             truth.velocity_ned_m_s, other)
-        inputs = self.faults.physics(name, t_ns, inputs)
+        struck = self.faults.physics(name, t_ns, inputs)
         dev.last_t_ns = t_ns
+        emulator = dev.emulator
         # the time the inputs are true at: a late poll hands over its due time's world
-        dev.emulator.physics_t_ns = t_ns
-        dev.emulator.set_physics(inputs)
+        emulator.physics_t_ns = t_ns
+        # a frozen chip keeps what it had: nothing new reaches its filter
+        emulator.undisturbed = inputs if struck is not inputs and not emulator.frozen \
+            else None
+        emulator.set_physics(struck)
 
     def _inputs_later(self, dev: _Device, t_ns: int,
                       finish: Callable[[float, float], tuple[float, float]] | None

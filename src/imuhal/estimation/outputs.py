@@ -59,6 +59,21 @@ class VerticalEstimate(Estimate):
     climb_m_s: float
     accel_bias_m_s2: float | None = None
 
+    @classmethod
+    def build(cls, t_ns: int, source: str, altitude_m: float, climb_m_s: float,
+              accel_bias_m_s2: float | None, diagnostics: dict[str, Any]
+              ) -> VerticalEstimate:
+        """The same estimate as the keyword constructor, built through its slots (a
+        variometer makes one per pressure sample), as ``AttitudeEstimate.build``."""
+        e = _new(cls)
+        _set_t_ns(e, t_ns)
+        _set_source(e, source)
+        _set_diagnostics(e, diagnostics)
+        _set_altitude(e, altitude_m)
+        _set_climb(e, climb_m_s)
+        _set_bias(e, accel_bias_m_s2)
+        return e
+
 
 class EstimateFlag(IntFlag):
     """Why the pipeline refused an estimate (docs/reliability.md, "Estimates carry
@@ -162,6 +177,9 @@ def usable_blocks_kept(made: list[Any]) -> list[Any]:
     """``made`` with each AttitudeBlock that has a row the estimate check refuses
     (``AttitudeBlock.all_usable``) replaced by its rows, each then checked as one estimate;
     the others stay whole (``made`` itself when none is replaced)."""
+    if len(made) == 1:  # the usual case (an AHRS's block step): no generator set up
+        e = made[0]
+        return made if type(e) is not AttitudeBlock or e.all_usable() else list(e.rows())
     if all(type(e) is not AttitudeBlock or e.all_usable() for e in made):
         return made
     out: list[Any] = []
@@ -279,3 +297,6 @@ _set_source = slot_setter(Estimate, "source")
 _set_diagnostics = slot_setter(Estimate, "diagnostics")
 _set_q = slot_setter(AttitudeEstimate, "q_body_to_ned")
 _set_linear_accel = slot_setter(AttitudeEstimate, "linear_accel_ned_m_s2")
+_set_altitude = slot_setter(VerticalEstimate, "altitude_m")
+_set_climb = slot_setter(VerticalEstimate, "climb_m_s")
+_set_bias = slot_setter(VerticalEstimate, "accel_bias_m_s2")

@@ -34,7 +34,7 @@ from collections import Counter, deque
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from types import FrameType
-from typing import Any, ClassVar
+from typing import Any
 
 from imuhal.core.blocks import Block
 from imuhal.core.clock import MonotonicClock
@@ -352,10 +352,11 @@ class Watchdog:
     timer mean at least n - 1 of its periods spent in the call, so the call is cut off at
     the tick that makes its deadline certain: after the deadline and before the deadline
     plus two periods (1 s of CPU time: cut off between 1 and 1.5 s). Arming and disarming
-    then make no system call: 0.7 us of CPU per driver call against 1.8 for the four
-    ``setitimer`` calls of one-shot timers, at about two driver calls per IMU sample on the
-    seed board (``python -m tests.benchmarks.bench_block_parts watchdog``; docs/performance.md,
-    "The hardware path's per-poll costs").
+    then make no system call and write no class attribute: 0.5-0.6 us of CPU per driver
+    call against 5 for the four ``setitimer`` calls of one-shot timers (1.8 while the state
+    was kept on the class), at about two driver calls per IMU sample on the seed board
+    (``python -m tests.benchmarks.bench_block_parts watchdog``, load 10; docs/performance.md,
+    "The hardware path's per-poll costs" and "Session 21").
 
     Why not a worker thread per call: a thread cannot be stopped, so the overrun call would
     go on using the bus beside the next device's transfers, and every poll would pay a thread
@@ -365,19 +366,10 @@ class Watchdog:
     SIGPROF too on CPU time: a profiler may hold it): otherwise (a pipeline run in a thread)
     ``arm`` returns False and calls are not timed. Every pipeline shares the one handler
     (only one driver call runs at a time in the main thread); the timers and the tick counts
-    are process-wide, hence kept on the class.
+    are process-wide, hence kept in one module-level :class:`_Timers` (not on the class:
+    writing a class attribute invalidates the type's attribute caches, and arming wrote
+    four at every driver call).
     """
-
-    _active = False
-    """A driver call is being timed (class-wide: the handler is process-wide)."""
-    _ticking: ClassVar[tuple[float, float] | None] = None
-    """The periods (s) of the ticking ``ITIMER_REAL`` and ``ITIMER_PROF`` when they tick."""
-    _wall_ticks = 0
-    """``ITIMER_REAL`` ticks since the timed call began."""
-    _cpu_ticks = 0
-    """``ITIMER_PROF`` ticks since the timed call began."""
-    _limits: ClassVar[tuple[int, int]] = (1, 1)
-    """The ``ITIMER_REAL`` and ``ITIMER_PROF`` tick at which the timed call is cut off."""
 
     def __init__(self, timing: DriverTiming | None = None) -> None:
         self.timing = timing if timing is not None else DriverTiming()
@@ -392,37 +384,38 @@ class Watchdog:
         """Start timing a driver call; False when this thread cannot be interrupted."""
         if not self._handled() and not self._install():
             return False
+        timers = _TIMERS
         if self.timing.cpu:
-            if Watchdog._ticking != self._periods:
+            if timers.ticking != self._periods:
                 self._tick()
             limits = self._tick_limits.get(seconds)
             if limits is None:
                 limits = self._tick_limits[seconds] = self._limits_for(seconds)
-            Watchdog._limits = limits
-            Watchdog._wall_ticks = Watchdog._cpu_ticks = 0
+            timers.limits = limits
+            timers.wall_ticks = timers.cpu_ticks = 0
         else:
-            if Watchdog._ticking is not None:
+            if timers.ticking is not None:
                 Watchdog._stop_ticking()
             signal.setitimer(signal.ITIMER_REAL, seconds)
-        Watchdog._active = True
+        timers.active = True
         return True
 
     def disarm(self) -> None:
-        Watchdog._active = False
+        _TIMERS.active = False
         if not self.timing.cpu:
             signal.setitimer(signal.ITIMER_REAL, 0)
 
     def pause(self) -> None:
         """Stop the ticking timers until the next call (a run loop ended: no tick then
         interrupts what the program does between runs)."""
-        Watchdog._active = False
+        _TIMERS.active = False
         Watchdog._stop_ticking()
 
     def release(self) -> None:
         """Stop the timers and give the signals back to the default handler this watchdog
         found."""
         if self._installed:
-            Watchdog._active = False
+            _TIMERS.active = False
             signal.setitimer(signal.ITIMER_REAL, 0)
             Watchdog._stop_ticking()
             for signum in self._signals:
@@ -442,14 +435,14 @@ class Watchdog:
         real_s, prof_s = self._periods
         signal.setitimer(signal.ITIMER_REAL, real_s, real_s)
         signal.setitimer(signal.ITIMER_PROF, prof_s, prof_s)
-        Watchdog._ticking = self._periods
+        _TIMERS.ticking = self._periods
 
     @staticmethod
     def _stop_ticking() -> None:
-        if Watchdog._ticking is not None:
+        if _TIMERS.ticking is not None:
             signal.setitimer(signal.ITIMER_REAL, 0)
             signal.setitimer(signal.ITIMER_PROF, 0)
-            Watchdog._ticking = None
+            _TIMERS.ticking = None
 
     def _handled(self) -> bool:
         """Every signal this watchdog needs goes to the deadline handler (this watchdog's or
@@ -470,19 +463,43 @@ class Watchdog:
         return True
 
 
+class _Timers:
+    """The watchdog's process-wide state (the signal handler is process-wide)."""
+
+    __slots__ = ("active", "cpu_ticks", "limits", "ticking", "wall_ticks")
+
+    def __init__(self) -> None:
+        self.active = False
+        """A driver call is being timed."""
+        self.ticking: tuple[float, float] | None = None
+        """The periods (s) of the ticking ``ITIMER_REAL`` and ``ITIMER_PROF`` when they
+        tick."""
+        self.wall_ticks = 0
+        """``ITIMER_REAL`` ticks since the timed call began."""
+        self.cpu_ticks = 0
+        """``ITIMER_PROF`` ticks since the timed call began."""
+        self.limits: tuple[int, int] = (1, 1)
+        """The ``ITIMER_REAL`` and ``ITIMER_PROF`` tick at which the timed call is cut
+        off."""
+
+
+_TIMERS = _Timers()
+
+
 def _deadline_expired(signum: int, frame: FrameType | None) -> None:
-    if not Watchdog._active:
+    timers = _TIMERS
+    if not timers.active:
         return  # a tick between calls
-    if Watchdog._ticking is not None:
+    if timers.ticking is not None:
         if signum == signal.SIGPROF:
-            Watchdog._cpu_ticks += 1
-            if Watchdog._cpu_ticks < Watchdog._limits[1]:
+            timers.cpu_ticks += 1
+            if timers.cpu_ticks < timers.limits[1]:
                 return
         else:
-            Watchdog._wall_ticks += 1
-            if Watchdog._wall_ticks < Watchdog._limits[0]:
+            timers.wall_ticks += 1
+            if timers.wall_ticks < timers.limits[0]:
                 return
-    Watchdog._active = False
+    timers.active = False
     raise DriverDeadline
 
 

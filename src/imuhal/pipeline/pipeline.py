@@ -1556,7 +1556,9 @@ def _vertical_check(devices: dict[str, DeviceRuntime]) -> VerticalCrossCheck | N
 def _frames(samples: list[Sample]) -> _Readings | list[Block]:
     """A poll's samples as the pipeline hands them out: readings of different streams (a
     register poll) as they are, several of one stream (a FIFO read) as blocks."""
-    if len(samples) < 2 or len({type(s) for s in samples}) == len(samples):
+    n = len(samples)
+    if n < 2 or (n == 2 and type(samples[0]) is not type(samples[1])) \
+            or len({type(s) for s in samples}) == n:  # (a register poll's two: no set built)
         return _Readings(samples)
     return blocks_of(samples)
 

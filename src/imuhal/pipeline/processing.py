@@ -63,7 +63,9 @@ def validity_flags(sample: Sample, full_scale: float | None, last_t_ns: int | No
         # x - x is 0.0 for a finite x and NaN for an infinite or NaN one
         if (x - x) + (y - y) + (z - z) != 0.0:
             flags |= SampleFlag.NAN
-        elif full_scale is not None and max(abs(x), abs(y), abs(z)) > full_scale:
+        elif full_scale is not None and not (
+                -full_scale <= x <= full_scale and -full_scale <= y <= full_scale
+                and -full_scale <= z <= full_scale):  # |v| > full scale, no builtin calls
             flags |= SampleFlag.OUT_OF_RANGE
     elif not all(map(math.isfinite, values)):
         flags |= SampleFlag.NAN

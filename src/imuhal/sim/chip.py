@@ -115,6 +115,11 @@ class ChipEmulator(ABC):
         self.planned: tuple[PlannedInputs, int] | None = None
         """(plan, row) while the inputs standing are a row of an emulated board's plan
         kept whole (:meth:`keep_planned`); None otherwise."""
+        self.undisturbed: PhysicalInputs | None = None
+        """What the chip would measure now had no value fault (``wild_value``,
+        ``wrong_pressure``) replaced the world it is handed (set by an emulated board with
+        ``physics``; None: nothing replaced it). A chip whose own filter runs on its input
+        (imuhal.sim.lowpass) carries the difference into its next outputs."""
         self.physics_t_ns: int | None = None
         """The time ``physics`` is true at, as the emulated board hands it over (a poll that
         comes late gives the world at its due time); None: now."""
