@@ -338,6 +338,7 @@ class Hmc5883lDriver(Driver):
         self._idle_from, self._not_ready = None, False
         if self.settings.read == "auto":
             assert isinstance(self.link.bus, AutoReadBus)
+            restarted = self._feed is not None
             feed = self._feed = self.link.bus.auto_read(self.link.target, Reg.X_MSB, 6)
             feed.take()  # copies from before this configuration
             self._cadence_ns = None
@@ -349,7 +350,11 @@ class Hmc5883lDriver(Driver):
             self._repeat_after_ns = round(period * (1 + CLOCK_TOLERANCE)) + feed.latency_ns
             self._idle_from, self._hang_read, self._repeat = None, None, None
             self._hung_ns = self._change_ns = None
-            self._doubt_until_ns = 0
+            # a reconfiguration after the first (the chip read back off its plan, or kept
+            # producing nothing): on a wire that fails, the one-shot read-back's unanswered
+            # bytes (0xFF) look like a reset, and the master's reads of the chip fail as
+            # well, unreported; a copy they held back looks like a repeat (``_doubt_copies``)
+            self._doubt_until_ns = self.clock.now_ns() + DOUBT_NS if restarted else 0
         self._streams = (self._spec(config),)  # with the auto-read's latency, when there is one
 
     def start(self, now_ns: int) -> int:
@@ -456,7 +461,8 @@ class Hmc5883lDriver(Driver):
         if changes:
             repeat, self._repeat = self._repeat, None
             after_reset = self._reset_behind_blank(changes, now_ns) or \
-                self._reset_behind_jump(changes, now_ns)
+                self._reset_behind_jump(changes, now_ns) or \
+                self._reset_behind_hang(changes, now_ns)
             if after_reset is not None:
                 return after_reset
             samples, blank = self._taken(changes, repeat, now_ns)
@@ -715,6 +721,21 @@ class Hmc5883lDriver(Driver):
                 before = norm
             previous = data
         return None
+
+    def _reset_behind_hang(self, changes: list[Copy], now_ns: int) -> PollResult | None:
+        """The first change after a status read proved the chip idle in this run of
+        unchanged copies (``_hung_ns``: RDY clear when a measuring chip would have set it):
+        a chip whose engine hung and measures again, or one that lost power or reset (an
+        unplugged chip plugged back in), whose registers came back at their defaults
+        (single mode, RDY clear until its one measurement at the power-on gain and
+        averaging). At the default range (1.3 Ga) that measurement has the configured gain,
+        so neither its magnitude (``_reset_behind_jump``) nor its bytes tell it; nor do zeros
+        when the master delivered none while the chip's registers held them. So the
+        configuration is read back before it is handed out (``_reset_at``: once per proved
+        hang). None: as configured, nothing to do."""
+        if self._hung_ns is None:
+            return None
+        return self._reset_at(changes, 0, now_ns)
 
     def _reset_at(self, changes: list[Copy], k: int, now_ns: int) -> PollResult | None:
         """When the configuration reads back off the plan: the copies before ``changes[k]``
