@@ -228,6 +228,9 @@ class Hmc5883lDriver(Driver):
         """read: auto: when the driver last read Mode, which locks the data outputs until
         the master's next copy reads them: that copy holds a measurement from before."""
         self._blank_since_ns: int | None = None
+        self._ended_zeros = False
+        """read: auto: the previous poll's copies handed out a field and ended with all-zero
+        bytes (``_reset_behind_blank``)."""
         """read: auto: the master's copies have been blank since (its registers reset)."""
         self._settle_ns = 0
         """Bytes that changed before this are from before configure() or its first
@@ -466,6 +469,7 @@ class Hmc5883lDriver(Driver):
             if after_reset is not None:
                 return after_reset
             samples, blank = self._taken(changes, repeat, now_ns)
+            self._ended_zeros = bool(samples) and not any(changes[-1].data)
             last = samples[-1] if samples else blank
             self._idle_from = last.t_ns if last is not None and last.valid else None
             self._hang_read = 0 if self._idle_from is not None else None
@@ -757,7 +761,13 @@ class Hmc5883lDriver(Driver):
         before the zeros are handed out, the measurement after them is STALE (counted, no
         value) and the chip reconfigured. A blank alone in a poll is checked by
         ``_no_measurement``; zeros from a master reset (the MAX21100 clears its copy) find
-        the HMC5883L as configured, and the copies go on as usual. None: nothing to do."""
+        the HMC5883L as configured, and the copies go on as usual. Zeros that end a poll
+        whose earlier copies were handed out (no blank poll reads the configuration back
+        then) have the first copy of the next poll checked the same way. None: nothing to
+        do."""
+        ended_zeros, self._ended_zeros = self._ended_zeros, False
+        if ended_zeros and any(changes[0].data):
+            return self._reset_at(changes, 0, now_ns)
         if len(changes) < 2:  # (the usual poll) a blank alone or last: nothing to do
             return None
         last = max((k for k, copy in enumerate(changes) if not any(copy.data)), default=None)
