@@ -225,9 +225,17 @@ class Hmc5883lDriver(Driver):
         """The stamp of the latest field since configure() (the chip's cadence runs from
         it; a reconfiguration restarts the chip's measurements with a new phase)."""
         self._locked_ns = 0
+        self._locked_before_ns = 0
+        """read: auto: the Mode read before ``_locked_ns`` (copies delivered before that
+        one were read under it)."""
         """read: auto: when the driver last read Mode, which locks the data outputs until
         the master's next copy reads them: that copy holds a measurement from before."""
         self._blank_since_ns: int | None = None
+        self._unread_lock = False
+        self._restart_due = False
+        """read: auto: the chip read back off its plan; reconfigure it at the next poll."""
+        """read: auto: no copy but blank ones has come since configure() (its feed is new):
+        the master has read no data since configure() read Mode (``_unlocking``)."""
         self._ended_zeros = False
         """read: auto: the previous poll's copies handed out a field and ended with all-zero
         bytes (``_reset_behind_blank``)."""
@@ -321,7 +329,7 @@ class Hmc5883lDriver(Driver):
         plan.apply(self.regs)
         self._mode_written_ns = self.clock.now_ns()  # continuous measurements start here
         got = plan.read(self.regs)
-        self._locked_ns = self.clock.now_ns()
+        self._locked_before_ns, self._locked_ns = self._locked_ns, self.clock.now_ns()
         if self.settings.read != "auto":
             self._read(Reg.X_MSB, 6)  # reading MODE locked the outputs; six data reads unlock
         # read: auto: the master's next copy reads the six bytes in one transaction and
@@ -344,6 +352,7 @@ class Hmc5883lDriver(Driver):
             restarted = self._feed is not None
             feed = self._feed = self.link.bus.auto_read(self.link.target, Reg.X_MSB, 6)
             feed.take()  # copies from before this configuration
+            self._unread_lock = True
             self._cadence_ns = None
             period = self._grid.period_ns
             self._settle_ns = self._mode_written_ns + period + feed.latency_ns
@@ -409,6 +418,9 @@ class Hmc5883lDriver(Driver):
     def poll(self, now_ns: int) -> PollResult:
         if self.gain_lsb_per_gauss is None:
             raise ConfigurationError(f"{self.describe()}: poll() before configure()")
+        if self._restart_due:  # found off the plan by the poll before (``_reset_at``)
+            self._restart_due = False
+            return PollResult([], self.restart(reset_detected=True))
         if self._watch.check_due(now_ns) and self._off_plan():
             return PollResult([], self.restart(reset_detected=True))
         if self._feed is not None:
@@ -744,12 +756,18 @@ class Hmc5883lDriver(Driver):
     def _reset_at(self, changes: list[Copy], k: int, now_ns: int) -> PollResult | None:
         """When the configuration reads back off the plan: the copies before ``changes[k]``
         handed out, a STALE sample for the reset chip's measurement, and the chip
-        reconfigured; None when it reads back as written."""
+        reconfigured; None when it reads back as written. With copies handed out, the chip
+        is reconfigured at the next poll, at once: the frame ledger counts a reconfiguration
+        before the samples of the poll that made it, and these fields, measured before the
+        reset, end the segment of the chip's cadence they belong to."""
         if not self._off_plan():
             return None
         samples, _ = self._measurements(changes[:k], now_ns, late=True)
         samples.append(MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                                  mag_ut=NAN3, flags=SampleFlag.STALE))
+        if len(samples) > 1:
+            self._restart_due = True
+            return PollResult(samples, self.clock.now_ns())
         return PollResult(samples, self.restart(reset_detected=True))
 
     def _reset_behind_blank(self, changes: list[Copy], now_ns: int) -> PollResult | None:
@@ -850,14 +868,20 @@ class Hmc5883lDriver(Driver):
         master's auto-read was off (its chip reset and reprogrammed, its copies blank
         meanwhile) it differs, and it is as old as the read or older."""
         locked, blank_since = self._locked_ns, self._blank_since_ns
+        if copy.t_ns < locked:  # delivered before the latest read of Mode (a check of a
+            locked = self._locked_before_ns  # poll's copies reads it before they are taken)
         blank = bool(blank_flag(copy.data))
         self._blank_since_ns = (copy.t_ns if blank_since is None else blank_since) \
             if blank else None
         after = copy.after_ns
         # the delivery before it came before the read, or only blank copies did (the
-        # master's registers reset: it read no slave)
+        # master's registers reset: it read no slave), or only blank ones since
+        # configure() (the master's copies restart with its auto-read reprogrammed, blank
+        # until it reads the chip; a reset chip's old measurement is what it reads first)
         first = (after is not None and after < locked) or \
-            (blank_since is not None and blank_since <= locked)
+            (blank_since is not None and blank_since <= locked) or self._unread_lock
+        if not blank:
+            self._unread_lock = False
         if blank or not first or copy.t_ns < locked:
             return copy
         if locked < self._settle_ns:
@@ -937,7 +961,7 @@ class Hmc5883lDriver(Driver):
         if self._feed is None:
             self._read(Reg.X_MSB, 6)
         else:
-            self._locked_ns = self.clock.now_ns()
+            self._locked_before_ns, self._locked_ns = self._locked_ns, self.clock.now_ns()
         return wrong is not None
 
 
