@@ -44,7 +44,13 @@ whose data-ready is stuck (its engine hung) and the frame ledger counts its slot
 measured (issue 25; ``_hung_by_status``). A reset the master's copies show as
 zeros (the data registers' power-on value) followed by the reset chip's one measurement in
 single mode: the configuration is read back before that measurement is handed out
-(``_reset_behind_blank``). Latency: the master copies a
+(``_reset_behind_blank``, also when the zeros ended the poll before); so is the first change
+after a status read proved the chip idle (``_reset_behind_hang``: a chip unplugged and
+plugged back in while the master delivered nothing, whose zeros never reached the driver).
+Found off the plan behind copies handed out in the same poll, the chip is reconfigured at
+the next poll, so those fields end the ledger's segment of the old cadence. A restart makes
+the driver doubt the master's copies for DOUBT_NS (a read-back off the plan is mostly a
+failing wire, whose failed master reads make false repeats). Latency: the master copies a
 measurement at its next accelerometer measurement and the host reads it with the next
 burst (``AutoReadFeed.latency_ns``: one accelerometer period plus the IMU's poll guard,
 4.5 ms at 250 Hz); the driver polls that long plus its own guard (1/8 period) after each
