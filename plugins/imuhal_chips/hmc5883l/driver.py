@@ -231,21 +231,21 @@ class Hmc5883lDriver(Driver):
         """The stamp of the latest field since configure() (the chip's cadence runs from
         it; a reconfiguration restarts the chip's measurements with a new phase)."""
         self._locked_ns = 0
+        """read: auto: when the driver last read Mode, which locks the data outputs until
+        the master's next copy reads them: that copy holds a measurement from before."""
         self._locked_before_ns = 0
         """read: auto: the Mode read before ``_locked_ns`` (copies delivered before that
         one were read under it)."""
-        """read: auto: when the driver last read Mode, which locks the data outputs until
-        the master's next copy reads them: that copy holds a measurement from before."""
         self._blank_since_ns: int | None = None
+        """read: auto: the master's copies have been blank since (its registers reset)."""
         self._unread_lock = False
+        """read: auto: no copy but blank ones has come since configure(): the master has
+        read no data since configure() read Mode (``_unlocking``)."""
         self._restart_due = False
         """read: auto: the chip read back off its plan; reconfigure it at the next poll."""
-        """read: auto: no copy but blank ones has come since configure() (its feed is new):
-        the master has read no data since configure() read Mode (``_unlocking``)."""
         self._ended_zeros = False
         """read: auto: the previous poll's copies handed out a field and ended with all-zero
         bytes (``_reset_behind_blank``)."""
-        """read: auto: the master's copies have been blank since (its registers reset)."""
         self._settle_ns = 0
         """Bytes that changed before this are from before configure() or its first
         measurement (still at the old gain)."""
@@ -474,6 +474,11 @@ class Hmc5883lDriver(Driver):
         frozen = self._frozen.observe(Quantity.MAG, data) if data is not None \
             else SampleFlag.OK
         changes = self._feed.take()
+        if not changes and data is not None and any(data) \
+                and self._feed.t_ns > self._mode_written_ns:
+            # the master delivered the bytes it had before configure() again: it read the
+            # chip since (the feed is the same: a restart's copies are no change unless new)
+            self._unread_lock = False
         if not changes:
             proved = self._repeat_by_status(now_ns)
             if proved is not None:
