@@ -474,12 +474,8 @@ class Hmc5883lDriver(Driver):
         frozen = self._frozen.observe(Quantity.MAG, data) if data is not None \
             else SampleFlag.OK
         changes = self._feed.take()
-        if not changes and data is not None and any(data) \
-                and self._feed.t_ns > self._mode_written_ns:
-            # the master delivered the bytes it had before configure() again: it read the
-            # chip since (the feed is the same: a restart's copies are no change unless new)
-            self._unread_lock = False
         if not changes:
+            self._read_again(data)
             proved = self._repeat_by_status(now_ns)
             if proved is not None:
                 return proved
@@ -530,6 +526,15 @@ class Hmc5883lDriver(Driver):
             # nothing between the field before the hang and this one
             self.health.adjacent = (since, samples[0].t_ns)
         return samples, blank
+
+    def _read_again(self, data: bytes | None) -> None:
+        """read: auto, a poll with no change: a master that delivered non-blank bytes since
+        configure() read the chip (the bytes it had before, again: the feed survives a
+        restart, and a copy equal to the one before is no change), which released the lock
+        configure()'s read of Mode set (``_unread_lock``)."""
+        assert self._feed is not None
+        if data is not None and any(data) and self._feed.t_ns > self._mode_written_ns:
+            self._unread_lock = False
 
     def _look_again(self, now_ns: int) -> PollResult:
         """read: auto, a poll that found no change: when to look next."""
