@@ -236,6 +236,66 @@ def test_a_hung_magnetometer_behind_the_max21100_is_proved_hung_by_its_status(
     assert ledger.not_measured >= 5
 
 
+@pytest.mark.parametrize("start_s", [0.5, 0.5067])
+def test_a_hang_of_one_field_behind_the_max21100_is_proved_by_the_hmc5883ls_status(
+        registry: Registry, start_s: float) -> None:
+    """The HMC5883L behind the seed paraglider's MAX21100 hangs 9 ms (the fault matrix's
+    ``stuck_data_ready`` window at 0.1 %) and lets one measurement pass. Once a copy made
+    after its instant shows the same bytes, its status register has RDY clear before the
+    next measurement could be writing: hung; the first copy after it is the chip's next
+    measurement, so the slot between is not measured, not lost (58 counted for the chip's
+    57 before, at either phase)."""
+    p = _fly(registry, "seed-paraglider-vario",
+             [StuckDataReady(device="mag", start_s=start_s, end_s=start_s + 0.009)],
+             seed=1, seconds=0.8)
+    ledger = _ledger_matches_the_chip(p, "mag")
+    assert (ledger.not_measured, sum(ledger.lost.values())) == (1, 0)
+
+
+def test_a_magnetometer_plugged_back_in_behind_a_paused_master_is_reconfigured_unused(
+        registry: Registry) -> None:
+    """Every chip of the seed paraglider board is unplugged for 9 ms (the fault matrix's
+    ``absent`` at 0.1 %). The MAX21100 delivers no copy meanwhile, so none of the
+    HMC5883L's zeros after power-up reaches its driver; the chip's one single-mode
+    measurement at the power-on gain (the configured 1.3 Ga gain too) comes as a change
+    after a status read found RDY clear. The configuration is read back first: the
+    measurement is no field, the chip is reconfigured, and no slot it never measured is
+    counted (52 counted for the chip's 51 before)."""
+    p = _fly(registry, "seed-paraglider-vario",
+             [ChipAbsent(device=d, start_s=0.6955, end_s=0.7045) for d in ("imu", "mag", "baro")],
+             seed=1, seconds=1.1)
+    ledger = _ledger_matches_the_chip(p, "mag")
+    assert len(ledger.all_segments()) == 2  # reconfigured once
+
+
+def test_a_reset_magnetometers_single_measurement_after_its_zeros_is_not_a_field(
+        registry: Registry) -> None:
+    """The HMC5883L behind the seed paraglider's MAX21100 resets at 0.5475 s: its data
+    registers read 0, then it measures once in single mode. The master's copies bring a
+    field and the zeros in one poll, the measurement in the next; that measurement is
+    checked against the plan before it is handed out: no valid field between the reset and
+    the reconfiguration (one stamped 0.564 s before, and the chip reconfigured 0.1 s
+    later)."""
+    reset_s = 0.5475
+    p = _fly(registry, "seed-paraglider-vario", [ChipReset(device="mag", start_s=reset_s)],
+             seed=1, seconds=0.85)
+    ledger = _ledger_matches_the_chip(p, "mag")
+    (_, before_reset_ns, _), (after_ns, _, _) = ledger.all_segments()
+    assert before_reset_ns < reset_s * 1e9 < after_ns
+
+
+def test_a_field_with_the_same_bytes_as_the_one_before_is_delivered_not_lost(
+        registry: Registry) -> None:
+    """No fault: the seed paraglider's HMC5883L measures the same six bytes twice in a row
+    at 2.72 s (a field still to within a count). The MAX21100's copies do not change, and
+    its status register, read once a copy made after the chip's instant has come, has RDY
+    set: the chip measured, and the field is handed out (counted ``missed`` before)."""
+    p = _fly(registry, "seed-paraglider-vario", [], seed=1, seconds=3.0)
+    ledger = _ledger_matches_the_chip(p, "mag")
+    assert sum(ledger.lost.values()) == 0
+    assert p.devices["mag"].driver.health.reconfigurations == 0
+
+
 def test_an_unplugged_magnetometer_behind_the_max21100_is_not_taken_for_a_hung_one(
         registry: Registry) -> None:
     """The HMC5883L unplugged for 80 ms while it measures on: the MAX21100's reads of it

@@ -28,18 +28,29 @@ throw-away data read).
 ``imu/aux``): the master reads the six data bytes at each of its own measurements and the
 driver takes them from the master's burst, with no transaction of its own; configuration,
 identity and the periodic read-back still use one-shot transactions. The status register is
-not among the six bytes, so a measurement is new when its bytes differ from the previous
-ones (and from the last sample handed out: a measurement that comes back after a blank or a
-master reset is not new). Bytes that stay the same for longer than a healthy chip's noise
-allows (``unchanged_periods``) are a chip that stopped or a master whose reads fail (it
-keeps the last data): flagged STALE at each poll after that, FROZEN once they have not
-changed for FROZEN_AFTER_FRAMES periods, never valid. Such a run reads the status register
-(which locks no output): RDY clear twice, 0.5 ms apart, is a chip whose data-ready is stuck
-(its engine hung) and the frame ledger counts its slots as not measured (issue 25;
-``_hung_by_status``). A reset the master's copies show as
+not among the six bytes, so a copy whose bytes differ from the previous ones is a new
+measurement (unless it equals the last sample handed out: one that comes back after a blank
+or a master reset is not new); a copy that stays the same is no proof that nothing was
+measured (a still field repeats its six bytes, about one field in 500 at +/-1.3 Ga): once a
+copy made after the chip's next instant has come unchanged, one status read tells (RDY set:
+the chip measured the same bytes, handed out when the next change shows it was no late copy
+the master's failed reads held back; RDY clear before the next measurement could be writing:
+the chip hung, its slot not measured; ``_repeat_by_status``). Bytes that stay the same for
+longer than a healthy chip's noise allows (``unchanged_periods``) are a chip that stopped or
+a master whose reads fail (it keeps the last data): flagged STALE at each poll after that,
+FROZEN once they have not changed for FROZEN_AFTER_FRAMES periods, never valid. Such a run
+reads the status register (which locks no output): RDY clear twice, 0.5 ms apart, is a chip
+whose data-ready is stuck (its engine hung) and the frame ledger counts its slots as not
+measured (issue 25; ``_hung_by_status``). A reset the master's copies show as
 zeros (the data registers' power-on value) followed by the reset chip's one measurement in
 single mode: the configuration is read back before that measurement is handed out
-(``_reset_behind_blank``). Latency: the master copies a
+(``_reset_behind_blank``, also when the zeros ended the poll before); so is the first change
+after a status read proved the chip idle (``_reset_behind_hang``: a chip unplugged and
+plugged back in while the master delivered nothing, whose zeros never reached the driver).
+Found off the plan behind copies handed out in the same poll, the chip is reconfigured at
+the next poll, so those fields end the ledger's segment of the old cadence. A restart makes
+the driver doubt the master's copies for DOUBT_NS (a read-back off the plan is mostly a
+failing wire, whose failed master reads make false repeats). Latency: the master copies a
 measurement at its next accelerometer measurement and the host reads it with the next
 burst (``AutoReadFeed.latency_ns``: one accelerometer period plus the IMU's poll guard,
 4.5 ms at 250 Hz); the driver polls that long plus its own guard (1/8 period) after each
@@ -103,6 +114,7 @@ from imuhal_chips.hmc5883l.registers import (
     ODR_BY_CODE,
     ODR_HZ,
     RANGE_GAUSS,
+    STATUS_LOCK,
     STATUS_RDY,
     Reg,
     config_a,
@@ -132,6 +144,15 @@ configured gain: at least 20 % off for every other range (1370: 0.80; 820: 1.33)
 rotation keeps the magnitude, and a hard iron |h| changes it by at most |h| times the angle
 turned in one field period, so an honest 10 % step needs a violent turn near strong iron,
 and costs only the read-back."""
+STATUS_BITS = STATUS_LOCK | STATUS_RDY
+"""The status register's defined bits; the others read 0 (a line nothing drives reads
+0xFF)."""
+DOUBT_NS = 1_000_000_000
+"""read: auto: how long a sign of failing master reads stops repeats being proved (75
+fields at the seed's rate; a wire that failed once likely fails again)."""
+CLOCK_TOLERANCE = 0.02
+"""How far the chip's output period may be off its nominal one (a fraction): the datasheet
+states no tolerance for the output rates; issue 25's +-2 %, as the emulator allows."""
 REPEAT_ODDS = 1e-12
 """How rarely a healthy chip's six data bytes may stay the same for ``unchanged_periods``
 output periods (about once in 400 years of 75 Hz output)."""
@@ -212,8 +233,19 @@ class Hmc5883lDriver(Driver):
         self._locked_ns = 0
         """read: auto: when the driver last read Mode, which locks the data outputs until
         the master's next copy reads them: that copy holds a measurement from before."""
+        self._locked_before_ns = 0
+        """read: auto: the Mode read before ``_locked_ns`` (copies delivered before that
+        one were read under it)."""
         self._blank_since_ns: int | None = None
         """read: auto: the master's copies have been blank since (its registers reset)."""
+        self._unread_lock = False
+        """read: auto: no copy but blank ones has come since configure(): the master has
+        read no data since configure() read Mode (``_unlocking``)."""
+        self._restart_due = False
+        """read: auto: the chip read back off its plan; reconfigure it at the next poll."""
+        self._ended_zeros = False
+        """read: auto: the previous poll's copies handed out a field and ended with all-zero
+        bytes (``_reset_behind_blank``)."""
         self._settle_ns = 0
         """Bytes that changed before this are from before configure() or its first
         measurement (still at the old gain)."""
@@ -231,6 +263,20 @@ class Hmc5883lDriver(Driver):
         self._hung_after_ns = 0
         """read: auto: unchanged copies this long are more than a measuring chip repeats
         (``unchanged_periods``)."""
+        self._repeat_after_ns = 0
+        """read: auto: a delivery this long after the latest change carries a copy made
+        after the chip's next measurement (``_repeat_by_status``)."""
+        self._change_ns: int | None = None
+        """read: auto: the delivery of the latest change taken (``_doubt_copies``)."""
+        self._doubt_until_ns = 0
+        """read: auto: no repeat is proved before this (``_doubt_copies``)."""
+        self._hung_ns: int | None = None
+        """read: auto: when a status read proved the chip hung in this run of unchanged
+        copies (its next change may prove the hang's slots, ``health.adjacent``)."""
+        self._repeat: tuple[int, int] | None = None
+        """read: auto: a measurement of the same bytes as the latest field that a status
+        read proved: its stamp and the earliest delivery of the measurement after it
+        (``_repeated``)."""
         self._not_ready = False
         """read: one-shot: the previous poll found RDY clear (the chip let an instant pass
         unmeasured: reading never clears RDY)."""
@@ -289,7 +335,7 @@ class Hmc5883lDriver(Driver):
         plan.apply(self.regs)
         self._mode_written_ns = self.clock.now_ns()  # continuous measurements start here
         got = plan.read(self.regs)
-        self._locked_ns = self.clock.now_ns()
+        self._locked_before_ns, self._locked_ns = self._locked_ns, self.clock.now_ns()
         if self.settings.read != "auto":
             self._read(Reg.X_MSB, 6)  # reading MODE locked the outputs; six data reads unlock
         # read: auto: the master's next copy reads the six bytes in one transaction and
@@ -309,15 +355,24 @@ class Hmc5883lDriver(Driver):
         self._idle_from, self._not_ready = None, False
         if self.settings.read == "auto":
             assert isinstance(self.link.bus, AutoReadBus)
+            restarted = self._feed is not None
             feed = self._feed = self.link.bus.auto_read(self.link.target, Reg.X_MSB, 6)
             feed.take()  # copies from before this configuration
+            self._unread_lock = True
             self._cadence_ns = None
             period = self._grid.period_ns
             self._settle_ns = self._mode_written_ns + period + feed.latency_ns
             self._unchanged_limit_ns = round(
                 (unchanged_periods(self.gain_lsb_per_gauss) + STALE_AFTER_PERIODS) * period)
             self._hung_after_ns = unchanged_periods(self.gain_lsb_per_gauss) * period
-            self._idle_from, self._hang_read = None, None
+            self._repeat_after_ns = round(period * (1 + CLOCK_TOLERANCE)) + feed.latency_ns
+            self._idle_from, self._hang_read, self._repeat = None, None, None
+            self._hung_ns = self._change_ns = None
+            # a reconfiguration after the first (the chip read back off its plan, or kept
+            # producing nothing): on a wire that fails, the one-shot read-back's unanswered
+            # bytes (0xFF) look like a reset, and the master's reads of the chip fail as
+            # well, unreported; a copy they held back looks like a repeat (``_doubt_copies``)
+            self._doubt_until_ns = self.clock.now_ns() + DOUBT_NS if restarted else 0
         self._streams = (self._spec(config),)  # with the auto-read's latency, when there is one
 
     def start(self, now_ns: int) -> int:
@@ -369,6 +424,9 @@ class Hmc5883lDriver(Driver):
     def poll(self, now_ns: int) -> PollResult:
         if self.gain_lsb_per_gauss is None:
             raise ConfigurationError(f"{self.describe()}: poll() before configure()")
+        if self._restart_due:  # found off the plan by the poll before (``_reset_at``)
+            self._restart_due = False
+            return PollResult([], self.restart(reset_detected=True))
         if self._watch.check_due(now_ns) and self._off_plan():
             return PollResult([], self.restart(reset_detected=True))
         if self._feed is not None:
@@ -417,13 +475,20 @@ class Hmc5883lDriver(Driver):
             else SampleFlag.OK
         changes = self._feed.take()
         if not changes:
+            self._read_again(data)
+            proved = self._repeat_by_status(now_ns)
+            if proved is not None:
+                return proved
             self._hung_by_status(now_ns)
         if changes:
+            repeat, self._repeat = self._repeat, None
             after_reset = self._reset_behind_blank(changes, now_ns) or \
-                self._reset_behind_jump(changes, now_ns)
+                self._reset_behind_jump(changes, now_ns) or \
+                self._reset_behind_hang(changes, now_ns)
             if after_reset is not None:
                 return after_reset
-            samples, blank = self._measurements(changes, now_ns, late=self._retrying)
+            samples, blank = self._taken(changes, repeat, now_ns)
+            self._ended_zeros = bool(samples) and not any(changes[-1].data)
             last = samples[-1] if samples else blank
             self._idle_from = last.t_ns if last is not None and last.valid else None
             self._hang_read = 0 if self._idle_from is not None else None
@@ -436,18 +501,57 @@ class Hmc5883lDriver(Driver):
                 return PollResult([], self._next_look(now_ns))
             sample = blank
         elif now_ns - self._fresh_ns <= self._unchanged_limit_ns:
-            if not self._retrying:
-                # The master's copy may have come a burst late (a failed slave read or IMU
-                # burst): look once more one delivery latency later, else the measurement
-                # is lost when the next one overwrites it.
-                self._retrying = True
-                return PollResult([], now_ns + self._feed.latency_ns)
-            self._retrying = False
-            return PollResult([], self._grid.next_after(now_ns))
+            return self._look_again(now_ns)
         else:
             sample = MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                                mag_ut=NAN3, flags=frozen or SampleFlag.STALE)
         return self._no_measurement(sample, now_ns)
+
+    def _taken(self, changes: list[Copy], repeat: tuple[int, int] | None,
+               now_ns: int) -> tuple[list[Sample], Sample | None]:
+        """read: auto: the samples of a poll's ``changes`` (``_measurements``), after the
+        repeat a status read proved before them when the first can be the measurement after
+        it (``_repeated``); a hang's slots proved by the first copy after it."""
+        repeated = self._repeated(repeat, changes[0])
+        since, hung_ns, self._hung_ns = self._idle_from, self._hung_ns, None
+        samples, blank = self._measurements(changes, now_ns, late=self._retrying)
+        self._doubt_copies(changes, bool(samples), bool(repeated), repeat is not None,
+                           now_ns, hung=hung_ns is not None)
+        samples[:0] = repeated
+        if since is not None and hung_ns is not None and samples and not repeated \
+                and changes[0].t_ns < hung_ns + round(
+                    self._grid.period_ns * (1 - CLOCK_TOLERANCE)):
+            # the first copy after a read that proved the chip hung, delivered sooner
+            # than a resumed chip's second measurement: its first, so the chip made
+            # nothing between the field before the hang and this one
+            self.health.adjacent = (since, samples[0].t_ns)
+        return samples, blank
+
+    def _read_again(self, data: bytes | None) -> None:
+        """read: auto, a poll with no change: a master that delivered non-blank bytes since
+        configure() read the chip (the bytes it had before, again: the feed survives a
+        restart, and a copy equal to the one before is no change), which released the lock
+        configure()'s read of Mode set (``_unread_lock``)."""
+        assert self._feed is not None
+        if data is not None and any(data) and self._feed.t_ns > self._mode_written_ns:
+            self._unread_lock = False
+
+    def _look_again(self, now_ns: int) -> PollResult:
+        """read: auto, a poll that found no change: when to look next."""
+        assert self._feed is not None
+        look_ns = None if self._retrying else self._repeat_look(now_ns)
+        if look_ns is not None and look_ns < now_ns + self._feed.latency_ns:
+            # the look once more, sooner: what it finds is stamped by its delivery
+            self._retrying = True
+            return PollResult([], look_ns)
+        if not self._retrying:
+            # The master's copy may have come a burst late (a failed slave read or IMU
+            # burst): look once more one delivery latency later, else the measurement
+            # is lost when the next one overwrites it.
+            self._retrying = True
+            return PollResult([], now_ns + self._feed.latency_ns)
+        self._retrying = False
+        return PollResult([], self._grid.next_after(now_ns))
 
     def _next_look(self, now_ns: int) -> int:
         """read: auto, after a poll that found the master's copies: the next grid point,
@@ -461,6 +565,142 @@ class Hmc5883lDriver(Driver):
         if delivery_ns > next_ns and self.poll_plan >= AFTER_DELIVERY_PLAN:
             return delivery_ns
         return next_ns
+
+    def _repeat_by_status(self, now_ns: int) -> PollResult | None:
+        """read: auto: the master's copies have not changed since the latest valid field's
+        (``feed.changed_ns``), although a copy made after the chip's next measurement has
+        come: the latest delivery lies more than ``_repeat_after_ns`` (a period at the
+        slowest clock, CLOCK_TOLERANCE, and the feed's latency) after that change, and the
+        measurement behind a change was made before its delivery. So the chip measured the
+        same six bytes again (a field still to within a count: about 0.2 % of fields at
+        +/-1.3 Ga), or it hung, or the master's reads of it failed; its copies, without
+        the status register, cannot tell these apart, and value equality is no proof that
+        nothing was measured. The status register tells the first two apart: RDY set is a
+        chip that measures (a hang leaves RDY clear until it measures again), RDY clear
+        twice, NOT_READY_RETRY_NS apart (a data write holds it clear 250 us), a hung chip
+        (``health.idle``: its slots are not measured, issue 25). A repeat is not handed out
+        yet: a master whose reads failed since the change shows the same, and the next
+        change tells (``_repeated``). One read per such run, at most one repeat per change
+        (two in a row are rarer than 1 in 10^5 fields), never past a period more, so FIFO
+        reads 2.4 fields apart and a chip that stopped keep the rules of ``_poll_auto``.
+        None: nothing proved, poll on as before."""
+        assert self._feed is not None
+        feed = self._feed
+        unchanged = feed.t_ns - feed.changed_ns
+        copied = self._repeat_after_ns <= unchanged
+        # the master's deliveries paused (its chip hung too, the host stalled): RDY alone
+        # can still prove a hang, once the chip's next instant and its data write are past
+        paused = not copied and bool(feed.period_ns) \
+            and now_ns - feed.t_ns > feed.period_ns + NOT_READY_RETRY_NS // 4 \
+            and now_ns >= feed.changed_ns + NOT_READY_RETRY_NS // 2 + round(
+                self._grid.period_ns * (1 + CLOCK_TOLERANCE))
+        if not self._armed() or not (paused or copied) \
+                or unchanged >= self._repeat_after_ns + self._grid.period_ns:
+            return None
+        status = self._read(Reg.STATUS, 1)[0]
+        if status & ~STATUS_BITS:
+            # no chip drives the line (an unplugged one reads 0xFF): its reads fail, and
+            # so may the master's; nothing proved in this run
+            self._hang_read = None
+            return None
+        if status & STATUS_RDY:
+            if not copied:
+                return None  # not hung so far; the copies may yet prove a repeat
+            self._hang_read = None  # no hang in this run: the chip measures
+            if now_ns < self._doubt_until_ns:
+                # the master's reads failed lately (a late copy looks the same): nothing
+                return None
+            # stamped where an on-time poll would have found it: a period after the field
+            # it repeats (the grid's point), never after this poll
+            stamp = min(self._stamped_ns + self._grid.period_ns, now_ns)
+            self._repeat = (stamp, self._next_instant_ns())
+            self._retrying = False
+            return PollResult([], self._grid.next_after(now_ns))
+        if now_ns < self._next_instant_ns():
+            # no measurement could be writing its data now: the chip let its instant pass
+            assert self._idle_from is not None  # _armed()
+            self.health.idle = (self._idle_from, now_ns)
+            self._hang_read, self._hung_ns = None, now_ns
+            return None
+        self._hang_read = now_ns
+        return PollResult([], now_ns + NOT_READY_RETRY_NS)
+
+    def _armed(self) -> bool:
+        """A status read may yet prove a repeat or a hang in this run of unchanged copies:
+        none made, the latest sample valid and its copy the master's latest change, no
+        repeat proved since that change."""
+        return self._hang_read == 0 and self._idle_from is not None and self._repeat is None
+
+    def _next_instant_ns(self) -> int:
+        """The earliest the chip's second measurement after the latest change can start
+        writing its data (clearing RDY): that change's measurement came at most the feed's
+        latency before its delivery, the next two at most two periods at the fastest clock
+        later, less the 250 us a write holds RDY clear."""
+        assert self._feed is not None
+        feed, period = self._feed, self._grid.period_ns
+        return feed.changed_ns - feed.latency_ns + round(2 * period * (1 - CLOCK_TOLERANCE)) \
+            - NOT_READY_RETRY_NS // 2
+
+    def _repeat_look(self, now_ns: int) -> int | None:
+        """When to look next for the first copy a status read can prove something with
+        (``_repeat_by_status``): right after the master's first delivery at least
+        ``_repeat_after_ns`` after the latest change (its deliveries come ``period_ns``
+        apart), so a hang's RDY is read before the measurement after it can set it again.
+        None: no such look (nothing to prove, the master says no period, or that copy has
+        come)."""
+        assert self._feed is not None
+        feed = self._feed
+        bound = feed.changed_ns + self._repeat_after_ns
+        step = feed.period_ns
+        if not step or feed.t_ns >= bound or not self._armed() \
+                or now_ns >= self._next_instant_ns():
+            return None
+        margin = step // 16  # after the master's poll of the same moment
+        deliveries = -(-(bound - feed.t_ns) // step)
+        look = feed.t_ns + deliveries * step + margin
+        return look if look > now_ns else now_ns + step  # deliveries paused: one later
+
+    def _doubt_copies(self, changes: list[Copy], handed_out: bool, repeated: bool,
+                      proved: bool, now_ns: int, *, hung: bool = False) -> None:
+        """Doubt the master's copies for DOUBT_NS after a sign that its reads of the chip
+        fail (the MAX21100 reports no failed slave read; a failed one keeps the copy
+        before, which looks like a repeat): a repeat a status read proved whose next change
+        came too soon for it, or a change delivered later than a measuring chip's next
+        copy (the first of ``changes``, after unbroken deliveries) with no repeat proved
+        before it and no hang (``hung``). A
+        hang or an unproved repeat shows the same and costs only the repeats of the next
+        DOUBT_NS, counted lost as before."""
+        assert self._feed is not None
+        first = changes[0]
+        # from a change handed out only (not one from before configure() settled)
+        previous, self._change_ns = self._change_ns, \
+            changes[-1].t_ns if handed_out else None
+        feed = self._feed
+        late = previous is not None and not proved and not hung \
+            and first.after_ns is not None \
+            and first.t_ns - first.after_ns <= feed.latency_ns \
+            and first.t_ns - previous > self._repeat_after_ns
+        if late or (proved and not repeated):
+            self._doubt_until_ns = now_ns + DOUBT_NS
+
+    def _repeated(self, repeat: tuple[int, int] | None, first: Copy) -> list[Sample]:
+        """The repeat a status read proved (``_repeat_by_status``: its stamp, and the
+        earliest delivery of the measurement after it), handed out when the next change
+        ``first`` can be that later measurement: delivered after the earliest time the
+        chip's second instant after the change could be copied (two periods at the fastest
+        clock after the change's measurement, which came at most the feed's latency before
+        its delivery). A change delivered sooner is the measurement the repeat stood for,
+        copied late (the master's reads failed until then): no repeat. Nor before a blank
+        copy."""
+        if repeat is None or first.t_ns < repeat[1] or blank_flag(first.data) \
+                or self._emitted is None or first.t_ns < self._stamped_ns:
+            return []
+        stamp = repeat[0]
+        sample = self._decoded(self._emitted, stamp, SampleFlag.OK)
+        if not sample.valid:
+            return []
+        self._stamped_ns = self._cadence_ns = stamp
+        return [sample]
 
     def _hung_by_status(self, now_ns: int) -> None:
         """read: auto: the master's copies have not changed since the latest valid field's
@@ -477,7 +717,7 @@ class Hmc5883lDriver(Driver):
         assert self._feed is not None
         feed, first = self._feed, self._hang_read
         if first is None or self._idle_from is None \
-                or feed.t_ns - feed.changed_ns < self._hung_after_ns \
+                or (not first and feed.t_ns - feed.changed_ns < self._hung_after_ns) \
                 or (first and now_ns - first < NOT_READY_RETRY_NS):
             return
         if self._read(Reg.STATUS, 1)[0] & STATUS_RDY:
@@ -486,7 +726,7 @@ class Hmc5883lDriver(Driver):
             self._hang_read = now_ns
         else:
             self.health.idle = (self._idle_from, now_ns)
-            self._hang_read = None
+            self._hang_read, self._hung_ns = None, now_ns
 
     def _reset_behind_jump(self, changes: list[Copy], now_ns: int) -> PollResult | None:
         """A copy whose field magnitude jumped (MAGNITUDE_STEP) from the one before it: a
@@ -514,15 +754,36 @@ class Hmc5883lDriver(Driver):
             previous = data
         return None
 
+    def _reset_behind_hang(self, changes: list[Copy], now_ns: int) -> PollResult | None:
+        """The first change after a status read proved the chip idle in this run of
+        unchanged copies (``_hung_ns``: RDY clear when a measuring chip would have set it):
+        a chip whose engine hung and measures again, or one that lost power or reset (an
+        unplugged chip plugged back in), whose registers came back at their defaults
+        (single mode, RDY clear until its one measurement at the power-on gain and
+        averaging). At the default range (1.3 Ga) that measurement has the configured gain,
+        so neither its magnitude (``_reset_behind_jump``) nor its bytes tell it; nor do zeros
+        when the master delivered none while the chip's registers held them. So the
+        configuration is read back before it is handed out (``_reset_at``: once per proved
+        hang). None: as configured, nothing to do."""
+        if self._hung_ns is None:
+            return None
+        return self._reset_at(changes, 0, now_ns)
+
     def _reset_at(self, changes: list[Copy], k: int, now_ns: int) -> PollResult | None:
         """When the configuration reads back off the plan: the copies before ``changes[k]``
         handed out, a STALE sample for the reset chip's measurement, and the chip
-        reconfigured; None when it reads back as written."""
+        reconfigured; None when it reads back as written. With copies handed out, the chip
+        is reconfigured at the next poll, at once: the frame ledger counts a reconfiguration
+        before the samples of the poll that made it, and these fields, measured before the
+        reset, end the segment of the chip's cadence they belong to."""
         if not self._off_plan():
             return None
         samples, _ = self._measurements(changes[:k], now_ns, late=True)
         samples.append(MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                                  mag_ut=NAN3, flags=SampleFlag.STALE))
+        if len(samples) > 1:
+            self._restart_due = True
+            return PollResult(samples, self.clock.now_ns())
         return PollResult(samples, self.restart(reset_detected=True))
 
     def _reset_behind_blank(self, changes: list[Copy], now_ns: int) -> PollResult | None:
@@ -534,7 +795,13 @@ class Hmc5883lDriver(Driver):
         before the zeros are handed out, the measurement after them is STALE (counted, no
         value) and the chip reconfigured. A blank alone in a poll is checked by
         ``_no_measurement``; zeros from a master reset (the MAX21100 clears its copy) find
-        the HMC5883L as configured, and the copies go on as usual. None: nothing to do."""
+        the HMC5883L as configured, and the copies go on as usual. Zeros that end a poll
+        whose earlier copies were handed out (no blank poll reads the configuration back
+        then) have the first copy of the next poll checked the same way. None: nothing to
+        do."""
+        ended_zeros, self._ended_zeros = self._ended_zeros, False
+        if ended_zeros and any(changes[0].data):
+            return self._reset_at(changes, 0, now_ns)
         if len(changes) < 2:  # (the usual poll) a blank alone or last: nothing to do
             return None
         last = max((k for k, copy in enumerate(changes) if not any(copy.data)), default=None)
@@ -617,14 +884,20 @@ class Hmc5883lDriver(Driver):
         master's auto-read was off (its chip reset and reprogrammed, its copies blank
         meanwhile) it differs, and it is as old as the read or older."""
         locked, blank_since = self._locked_ns, self._blank_since_ns
+        if copy.t_ns < locked:  # delivered before the latest read of Mode (a check of a
+            locked = self._locked_before_ns  # poll's copies reads it before they are taken)
         blank = bool(blank_flag(copy.data))
         self._blank_since_ns = (copy.t_ns if blank_since is None else blank_since) \
             if blank else None
         after = copy.after_ns
         # the delivery before it came before the read, or only blank copies did (the
-        # master's registers reset: it read no slave)
+        # master's registers reset: it read no slave), or only blank ones since
+        # configure() (the master's copies restart with its auto-read reprogrammed, blank
+        # until it reads the chip; a reset chip's old measurement is what it reads first)
         first = (after is not None and after < locked) or \
-            (blank_since is not None and blank_since <= locked)
+            (blank_since is not None and blank_since <= locked) or self._unread_lock
+        if not blank:
+            self._unread_lock = False
         if blank or not first or copy.t_ns < locked:
             return copy
         if locked < self._settle_ns:
@@ -704,7 +977,7 @@ class Hmc5883lDriver(Driver):
         if self._feed is None:
             self._read(Reg.X_MSB, 6)
         else:
-            self._locked_ns = self.clock.now_ns()
+            self._locked_before_ns, self._locked_ns = self._locked_ns, self.clock.now_ns()
         return wrong is not None
 
 

@@ -871,6 +871,8 @@ class Max21100Driver(Max2110xDriver):
             self._fifo_interval_ns() + self._grid.guard_ns
         latency_ns = round(1e9 / self.settings.accel_odr_hz) + after_ns
         feed = AutoReadFeed(target, register, length, latency_ns=latency_ns)
+        if self._fifo is None:
+            feed.period_ns = round(1e9 / self.settings.accel_odr_hz)  # a burst per sample
         auto_read = self._checked(self._auto_read_plan(feed))
         auto_read.apply(self.regs)
         auto_read.verify(self.regs)

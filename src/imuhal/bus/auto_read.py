@@ -103,8 +103,8 @@ class AutoReadFeed:
     """
 
     __slots__ = ("_failed", "_quiet", "_quiet_ns", "_raw", "changed_ns", "data", "deliveries",
-                 "failures", "fresh", "latency_ns", "length", "next_ns", "ready_bit",
-                 "register", "t_ns",
+                 "failures", "fresh", "latency_ns", "length", "next_ns", "period_ns",
+                 "ready_bit", "register", "t_ns",
                  "target")
 
     def __init__(self, target: int, register: int, length: int, *, latency_ns: int) -> None:
@@ -121,6 +121,10 @@ class AutoReadFeed:
         not say): a master that reads the slave's copy less often than every slave
         measurement (a FIFO read every n frames) says so, and a slave driver then looks
         no sooner (imuhal.core.poll_plan, plan 2)."""
+        self.period_ns = 0
+        """How far apart the master's driver delivers while it reads on its own grid (ns;
+        0: it does not say): a slave driver that waits for the first copy made after a
+        given time looks one delivery after it, not a whole latency."""
         self.deliveries = 0
         self._raw: bytes | None = None
         """The bytes of the previous delivery, as read."""
