@@ -77,6 +77,7 @@ from imuhal.bus.auto_read import (
     AutoReadBus,
     AutoReadFeed,
     Copy,
+    LearnedInstants,
     require_auto_read,
     stamp_on_cadence,
 )
@@ -277,6 +278,11 @@ class Hmc5883lDriver(Driver):
         """read: auto: a measurement of the same bytes as the latest field that a status
         read proved: its stamp and the earliest delivery of the measurement after it
         (``_repeated``)."""
+        self._instants: LearnedInstants | None = None
+        """read: auto: the chip's measurement instants learned from the master's copies
+        (``_on_instants``)."""
+        self._index: int | None = None
+        """read: auto: the learned index of the latest field handed out."""
         self._not_ready = False
         """read: one-shot: the previous poll found RDY clear (the chip let an instant pass
         unmeasured: reading never clears RDY)."""
@@ -361,6 +367,9 @@ class Hmc5883lDriver(Driver):
             self._unread_lock = True
             self._cadence_ns = None
             period = self._grid.period_ns
+            # a new phase from the Mode write
+            self._instants = LearnedInstants(period, self._mode_written_ns)
+            self._index = None
             self._settle_ns = self._mode_written_ns + period + feed.latency_ns
             self._unchanged_limit_ns = round(
                 (unchanged_periods(self.gain_lsb_per_gauss) + STALE_AFTER_PERIODS) * period)
@@ -700,6 +709,8 @@ class Hmc5883lDriver(Driver):
         if not sample.valid:
             return []
         self._stamped_ns = self._cadence_ns = stamp
+        if self._index is not None:
+            self._index += 1  # the chip's measurement after the field it repeats
         return [sample]
 
     def _hung_by_status(self, now_ns: int) -> None:
@@ -850,6 +861,8 @@ class Hmc5883lDriver(Driver):
                     t_ns = self._before_next(t_ns, changes[k + 1].t_ns)
             stamp = min(max(t_ns, self._stamped_ns + 1), now_ns - left) \
                 if by_delivery else now_ns
+            if copy is delivered and not blank_flag(data):
+                stamp = self._on_instants(copy, stamp, now_ns - left)
             sample = self._decoded(data, stamp, blank_flag(data))
             if sample.flags and sample.flags & SampleFlag.BLANK:  # (enum & is a call)
                 blank = sample
@@ -858,6 +871,29 @@ class Hmc5883lDriver(Driver):
             self._stamped_ns = self._cadence_ns = stamp
             samples.append(sample)
         return samples, (None if samples else blank)
+
+    def _on_instants(self, copy: Copy, stamp: int, latest_ns: int) -> int:
+        """The stamp of a measurement ``copy`` (first ``stamp``, its poll's or delivery's
+        time) placed within its learned instant's slot (``LearnedInstants``): at or after
+        the instant it must have come from (the latest before its delivery, and after the
+        field handed out before it), and more than the feed's latency before the next one,
+        so both the frame ledger's rounding of gaps and the chip's count take it for that
+        measurement, whatever a late poll, a host stall or failed reads did to the time it
+        was found. Never after ``latest_ns`` nor before the stamp before it. A copy
+        delivered within the feed's latency of the delivery before it teaches the
+        instants first."""
+        instants, feed = self._instants, self._feed
+        assert instants is not None and feed is not None
+        after = copy.after_ns
+        if after is not None and copy.t_ns - after <= feed.latency_ns \
+                and not copy.failed_ns:
+            instants.learn(copy.t_ns)
+        index = instants.index_of(copy.t_ns)
+        if self._index is not None and index <= self._index:
+            index = self._index + 1  # a change is a new measurement
+        placed = min(max(instants.instant_ns(index), self._stamped_ns + 1), latest_ns)
+        self._index = index
+        return placed
 
     def _before_next(self, t_ns: int, next_ns: int) -> int:
         """The stamp ``t_ns`` of a copy whose next change, a measurement, was delivered at

@@ -93,6 +93,60 @@ def stamp_on_cadence(copy: Copy, last_ns: int | None, period_ns: int, *,
     return t_ns
 
 
+class LearnedInstants:
+    """A slave's measurement instants, learned from the deliveries of its master's copies
+    (issue 25: stamp each copy on the chip's instants, not at the poll that found it).
+
+    A copy delivered ``d`` holds the slave's latest measurement before the master copied
+    it, at most the feed's latency before ``d`` when the master delivered without a pause
+    before it. The lower envelope of ``d - k x period`` over such copies (as Linux
+    inv_sensors_timestamp learns a chip's phase) is each measurement instant plus the
+    shortest copy delay: ``instant_ns(k)`` for the k-th. It starts at the instant the
+    chip's measurements were started (at or after its first instant); a copy below it
+    moves it down by at most period / DRIFT, and each copy above it moves it up by at most
+    period / RISE, so a clock a few percent off its nominal period is followed, and copies
+    that failed master reads delayed (unseen: the MAX21100 reports none), which come
+    later or, delayed past the next instant, look early, move it little. A copy's index
+    (``index_of``) is the latest such instant at or before its delivery."""
+
+    DRIFT = 16
+    """A period over this: the most one copy moves the envelope earlier (0.8 ms at 75 Hz)
+    and how early before a learned instant a delivery may still be of it."""
+    RISE = 100
+    """A period over this: the most one copy moves the envelope later (0.13 ms at 75 Hz:
+    a clock 2 % slow moves its instants 0.27 ms a field, and two copies in three come at
+    the envelope at the seed's rates)."""
+
+    __slots__ = ("envelope_ns", "period_ns")
+
+    def __init__(self, period_ns: int, start_ns: int) -> None:
+        self.period_ns = period_ns
+        self.envelope_ns = start_ns
+        """The learned instant of index 0 plus the shortest copy delay (ns): the chip's
+        measurements started at or before ``start_ns``, its first instant."""
+
+    def learn(self, delivered_ns: int) -> None:
+        """A copy the master delivered at ``delivered_ns`` within its latency of the delivery
+        before it (no pause)."""
+        envelope, period = self.envelope_ns, self.period_ns
+        value = delivered_ns - self.index_of(delivered_ns) * period
+        if value < envelope:
+            self.envelope_ns = max(value, envelope - period // self.DRIFT)
+        else:
+            self.envelope_ns = min(value, envelope + period // self.RISE)
+
+    def index_of(self, delivered_ns: int) -> int:
+        """The index of the latest learned instant at or before ``delivered_ns`` (within
+        period / DRIFT)."""
+        period = self.period_ns
+        return (delivered_ns - self.envelope_ns + period // self.DRIFT) // period
+
+    def instant_ns(self, index: int) -> int:
+        """The envelope of the measurement of ``index`` (ns): at or after it, by the
+        shortest copy delay."""
+        return self.envelope_ns + index * self.period_ns
+
+
 class AutoReadFeed:
     """The bytes a master last read from one slave on its own, as its driver delivered them.
 
