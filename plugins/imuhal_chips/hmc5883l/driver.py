@@ -283,6 +283,9 @@ class Hmc5883lDriver(Driver):
         (``_on_instants``)."""
         self._index: int | None = None
         """read: auto: the learned index of the latest field handed out."""
+        self._steady = False
+        """read: auto: the latest measurement copy came within the feed's latency of the
+        delivery before it, unlocked (``_on_instants``)."""
         self._not_ready = False
         """read: one-shot: the previous poll found RDY clear (the chip let an instant pass
         unmeasured: reading never clears RDY)."""
@@ -369,7 +372,7 @@ class Hmc5883lDriver(Driver):
             period = self._grid.period_ns
             # a new phase from the Mode write
             self._instants = LearnedInstants(period, self._mode_written_ns)
-            self._index = None
+            self._index, self._steady = None, False
             self._settle_ns = self._mode_written_ns + period + feed.latency_ns
             self._unchanged_limit_ns = round(
                 (unchanged_periods(self.gain_lsb_per_gauss) + STALE_AFTER_PERIODS) * period)
@@ -861,8 +864,8 @@ class Hmc5883lDriver(Driver):
                     t_ns = self._before_next(t_ns, changes[k + 1].t_ns)
             stamp = min(max(t_ns, self._stamped_ns + 1), now_ns - left) \
                 if by_delivery else now_ns
-            if copy is delivered and not blank_flag(data):
-                stamp = self._on_instants(copy, stamp, now_ns - left)
+            if not blank_flag(data):
+                stamp = self._on_instants(copy, now_ns - left, learn=copy is delivered)
             sample = self._decoded(data, stamp, blank_flag(data))
             if sample.flags and sample.flags & SampleFlag.BLANK:  # (enum & is a call)
                 blank = sample
@@ -872,7 +875,7 @@ class Hmc5883lDriver(Driver):
             samples.append(sample)
         return samples, (None if samples else blank)
 
-    def _on_instants(self, copy: Copy, stamp: int, latest_ns: int) -> int:
+    def _on_instants(self, copy: Copy, latest_ns: int, *, learn: bool) -> int:
         """The stamp of a measurement ``copy`` (first ``stamp``, its poll's or delivery's
         time) placed within its learned instant's slot (``LearnedInstants``): at or after
         the instant it must have come from (the latest before its delivery, and after the
@@ -884,13 +887,21 @@ class Hmc5883lDriver(Driver):
         instants first."""
         instants, feed = self._instants, self._feed
         assert instants is not None and feed is not None
-        after = copy.after_ns
-        if after is not None and copy.t_ns - after <= feed.latency_ns \
-                and not copy.failed_ns:
+        after, last = copy.after_ns, self._index
+        steady = after is not None and copy.t_ns - after <= feed.latency_ns
+        if learn and steady and self._steady and not copy.failed_ns:
+            # the copy before it came steadily too: the master's copies run on its own
+            # instants again (its first after a reset or pause may be a late one)
             instants.learn(copy.t_ns)
+        self._steady = steady and learn
         index = instants.index_of(copy.t_ns)
-        if self._index is not None and index <= self._index:
-            index = self._index + 1  # a change is a new measurement
+        if last is not None and (index <= last or not steady):
+            # a change is a new measurement; after a pause in the master's deliveries
+            # (its chip reset or hung, a stalled host) it may be any measurement since the
+            # one before: the earliest, which a later copy can only follow (a later index
+            # counts the same slots, and a stamp pushed past its poll would not be on an
+            # instant)
+            index = last + 1
         placed = min(max(instants.instant_ns(index), self._stamped_ns + 1), latest_ns)
         self._index = index
         return placed

@@ -129,7 +129,7 @@ class LearnedInstants:
         """A copy the master delivered at ``delivered_ns`` within its latency of the delivery
         before it (no pause)."""
         envelope, period = self.envelope_ns, self.period_ns
-        value = delivered_ns - self.index_of(delivered_ns) * period
+        value = delivered_ns - (delivered_ns - envelope + period // self.DRIFT) // period * period
         if value < envelope:
             self.envelope_ns = max(value, envelope - period // self.DRIFT)
         else:
@@ -137,9 +137,9 @@ class LearnedInstants:
 
     def index_of(self, delivered_ns: int) -> int:
         """The index of the latest learned instant at or before ``delivered_ns`` (within
-        period / DRIFT)."""
+        two RISE steps: the envelope may have crept that far past the shortest delay)."""
         period = self.period_ns
-        return (delivered_ns - self.envelope_ns + period // self.DRIFT) // period
+        return (delivered_ns - self.envelope_ns + 2 * (period // self.RISE)) // period
 
     def instant_ns(self, index: int) -> int:
         """The envelope of the measurement of ``index`` (ns): at or after it, by the
