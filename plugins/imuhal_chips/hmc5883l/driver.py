@@ -849,6 +849,7 @@ class Hmc5883lDriver(Driver):
         # would be stamped a period after its measurement
         stale_ns = now_ns - self._feed.latency_ns - self._grid.guard_ns
         for k, delivered in enumerate(changes):
+            after_blank = self._blank_since_ns is not None
             copy = self._unlocking(delivered)
             if copy is None:
                 continue
@@ -865,7 +866,8 @@ class Hmc5883lDriver(Driver):
             stamp = min(max(t_ns, self._stamped_ns + 1), now_ns - left) \
                 if by_delivery else now_ns
             if not blank_flag(data):
-                stamp = self._on_instants(copy, now_ns - left, learn=copy is delivered)
+                stamp = self._on_instants(copy, now_ns - left, learn=copy is delivered,
+                                          after_blank=after_blank)
             sample = self._decoded(data, stamp, blank_flag(data))
             if sample.flags and sample.flags & SampleFlag.BLANK:  # (enum & is a call)
                 blank = sample
@@ -875,7 +877,8 @@ class Hmc5883lDriver(Driver):
             samples.append(sample)
         return samples, (None if samples else blank)
 
-    def _on_instants(self, copy: Copy, latest_ns: int, *, learn: bool) -> int:
+    def _on_instants(self, copy: Copy, latest_ns: int, *, learn: bool,
+                     after_blank: bool) -> int:
         """The stamp of a measurement ``copy`` (first ``stamp``, its poll's or delivery's
         time) placed within its learned instant's slot (``LearnedInstants``): at or after
         the instant it must have come from (the latest before its delivery, and after the
@@ -895,12 +898,13 @@ class Hmc5883lDriver(Driver):
             instants.learn(copy.t_ns)
         self._steady = steady and learn
         index = instants.index_of(copy.t_ns)
-        if last is not None and (index <= last or not steady):
-            # a change is a new measurement; after a pause in the master's deliveries
-            # (its chip reset or hung, a stalled host) it may be any measurement since the
-            # one before: the earliest, which a later copy can only follow (a later index
-            # counts the same slots, and a stamp pushed past its poll would not be on an
-            # instant)
+        if last is not None and (index <= last or (after_blank and not steady)):
+            # a change is a new measurement; after blank copies and a pause (the master's
+            # chip reset: its registers cleared, its auto-read off until reprogrammed) it
+            # may be any measurement since the one before: the earliest, which a later
+            # copy can only follow (a later index counts the same slots, and a stamp pushed
+            # past its poll would be on no instant). After a stalled host, whose master
+            # went on copying, the latest.
             index = last + 1
         placed = min(max(instants.instant_ns(index), self._stamped_ns + 1), latest_ns)
         self._index = index
