@@ -113,38 +113,66 @@ class LearnedInstants:
     """A period over this: the most one copy moves the envelope earlier (0.8 ms at 75 Hz)
     and how early before a learned instant a delivery may still be of it."""
     RISE = 100
-    """A period over this: the most one copy moves the envelope later (0.13 ms at 75 Hz:
-    a clock 2 % slow moves its instants 0.27 ms a field, and two copies in three come at
-    the envelope at the seed's rates)."""
+    """A period over this: the most one copy moves the envelope later (0.13 ms at 75 Hz):
+    copies a failed master read delayed move it little."""
+    RELEARN = 32
+    """Learned copies after which the period is corrected by the envelope's movement over
+    them: a clock 2 % slow moves its instants 0.27 ms a field, twice what RISE follows,
+    and its envelope lags at most RELEARN x 0.13 ms (4.3 ms) before the correction."""
+    TOLERANCE = 0.02
+    """How far the learned period may be off the nominal one (issue 25's +-2 %)."""
 
-    __slots__ = ("envelope_ns", "period_ns")
+    __slots__ = ("_base", "_mark", "_nominal_ns", "envelope_ns", "period_ns")
 
     def __init__(self, period_ns: int, start_ns: int) -> None:
         self.period_ns = period_ns
+        self._nominal_ns = period_ns
         self.envelope_ns = start_ns
-        """The learned instant of index 0 plus the shortest copy delay (ns): the chip's
-        measurements started at or before ``start_ns``, its first instant."""
+        """The learned instant of index ``_base`` plus the shortest copy delay (ns): the
+        chip's measurements started at or before ``start_ns``, its first instant."""
+        self._base = 0
+        self._mark: tuple[int, int, int] = (0, start_ns, -self.RELEARN)
+        """(index, its envelope then, copies learned since) for the period's correction
+        (none over the first RELEARN copies, which learn the phase from ``start_ns``)."""
 
     def learn(self, delivered_ns: int) -> None:
         """A copy the master delivered at ``delivered_ns`` within its latency of the delivery
         before it (no pause)."""
-        envelope, period = self.envelope_ns, self.period_ns
-        value = delivered_ns - (delivered_ns - envelope + period // self.DRIFT) // period * period
-        if value < envelope:
-            self.envelope_ns = max(value, envelope - period // self.DRIFT)
+        period = self.period_ns
+        k = (delivered_ns - self.envelope_ns + period // self.DRIFT) // period + self._base
+        value = delivered_ns - (k - self._base) * period
+        start = self.envelope_ns
+        if value < start:
+            start = max(value, start - self._nominal_ns // self.DRIFT)
         else:
-            self.envelope_ns = min(value, envelope + period // self.RISE)
+            start = min(value, start + self._nominal_ns // self.RISE)
+        self.envelope_ns = start
+        envelope = self.instant_ns(k)
+        mark_k, mark_ns, copies = self._mark
+        copies += 1
+        if not copies:
+            self._mark = (k, envelope, 0)  # the phase is learned: the period from here
+        elif copies >= self.RELEARN and k > mark_k:
+            nominal = self._nominal_ns
+            step = (envelope - mark_ns) // (k - mark_k)
+            low, high = (round(nominal * (1 + sign * self.TOLERANCE)) for sign in (-1, 1))
+            self.envelope_ns, self._base = envelope, k
+            self.period_ns = min(max(step, low), high)
+            self._mark = (k, envelope, 0)
+        else:
+            self._mark = (mark_k, mark_ns, copies)
 
     def index_of(self, delivered_ns: int) -> int:
         """The index of the latest learned instant at or before ``delivered_ns`` (within
         two RISE steps: the envelope may have crept that far past the shortest delay)."""
         period = self.period_ns
-        return (delivered_ns - self.envelope_ns + 2 * (period // self.RISE)) // period
+        slack = 2 * (self._nominal_ns // self.RISE)
+        return (delivered_ns - self.envelope_ns + slack) // period + self._base
 
     def instant_ns(self, index: int) -> int:
         """The envelope of the measurement of ``index`` (ns): at or after it, by the
         shortest copy delay."""
-        return self.envelope_ns + index * self.period_ns
+        return self.envelope_ns + (index - self._base) * self.period_ns
 
 
 class AutoReadFeed:
