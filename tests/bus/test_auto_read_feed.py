@@ -3,7 +3,7 @@ a slave's driver takes, with the failed reads a master reports (issue 25)."""
 
 from __future__ import annotations
 
-from imuhal.bus.auto_read import AutoReadFeed, Copy, LearnedInstants, stamp_on_cadence
+from imuhal.bus.auto_read import AutoReadFeed, Copy, stamp_on_cadence
 
 DRDY = 0x01
 
@@ -161,40 +161,3 @@ def test_a_copy_after_failed_reads_and_a_pause_is_stamped_at_the_latest_cadence_
     before, the gap counted a field the chip never skipped)."""
     copy = Copy(15_016, b"\x01", failed_ns=(4_391,), after_ns=4_391)
     assert stamp_on_cadence(copy, 0, P, pause_ns=7_500) == 10_000
-
-
-PERIOD = 13_333_333
-"""The HMC5883L's 75 Hz period (ns)."""
-
-
-def test_learned_instants_find_the_earliest_copy_delay_and_index_a_late_copy_by_it() -> None:
-    """Copies delayed 0.5, 1.8 and 3.2 ms after measurements 1 ms after the start (the
-    master's copy phase cycling): the envelope settles on the shortest delay, and a copy
-    delivered 12.5 ms after its measurement (a host 9 ms late, as in issue 25's jitter
-    case) keeps its own instant's index, where the nominal cadence from the field before
-    (``stamp_on_cadence``: 0.94 period, rounded up past 0.9) puts it at the next."""
-    instants = LearnedInstants(PERIOD, 0)
-    for k in range(1, 40):
-        instants.learn(1_000_000 + k * PERIOD + (500_000, 1_800_000, 3_200_000)[k % 3])
-    assert abs(instants.instant_ns(0) - 1_500_000) <= PERIOD // LearnedInstants.RISE
-    late = 1_000_000 + 40 * PERIOD + 12_500_000
-    assert instants.index_of(late) == 40
-    assert instants.instant_ns(40) >= 1_000_000 + 40 * PERIOD
-
-
-def test_learned_instants_follow_a_clock_two_percent_slow() -> None:
-    """The chip's instants 2 % further apart than nominal (the most issue 25 allows): the
-    envelope follows them once it has corrected its period (after 3 x RELEARN copies), and over 300
-    fields (six nominal periods of drift) every copy keeps its own measurement's index,
-    each one more than the one before."""
-    instants = LearnedInstants(PERIOD, 0)
-    slow = round(PERIOD * 1.02)
-    indices = []
-    for k in range(1, 300):
-        delivered = k * slow + (500_000, 1_800_000, 3_200_000)[k % 3]
-        instants.learn(delivered)
-        indices.append(instants.index_of(delivered))
-        if k > 3 * LearnedInstants.RELEARN:
-            assert k * slow <= instants.instant_ns(indices[-1]) <= delivered + 2 * (
-                PERIOD // LearnedInstants.RISE)
-    assert all(b == a + 1 for a, b in zip(indices, indices[1:], strict=False))

@@ -77,7 +77,6 @@ from imuhal.bus.auto_read import (
     AutoReadBus,
     AutoReadFeed,
     Copy,
-    LearnedInstants,
     require_auto_read,
     stamp_on_cadence,
 )
@@ -278,14 +277,6 @@ class Hmc5883lDriver(Driver):
         """read: auto: a measurement of the same bytes as the latest field that a status
         read proved: its stamp and the earliest delivery of the measurement after it
         (``_repeated``)."""
-        self._instants: LearnedInstants | None = None
-        """read: auto: the chip's measurement instants learned from the master's copies
-        (``_on_instants``)."""
-        self._index: int | None = None
-        """read: auto: the learned index of the latest field handed out."""
-        self._steady = False
-        """read: auto: the latest measurement copy came within the feed's latency of the
-        delivery before it, unlocked (``_on_instants``)."""
         self._not_ready = False
         """read: one-shot: the previous poll found RDY clear (the chip let an instant pass
         unmeasured: reading never clears RDY)."""
@@ -370,9 +361,6 @@ class Hmc5883lDriver(Driver):
             self._unread_lock = True
             self._cadence_ns = None
             period = self._grid.period_ns
-            # a new phase from the Mode write
-            self._instants = LearnedInstants(period, self._mode_written_ns)
-            self._index, self._steady = None, False
             self._settle_ns = self._mode_written_ns + period + feed.latency_ns
             self._unchanged_limit_ns = round(
                 (unchanged_periods(self.gain_lsb_per_gauss) + STALE_AFTER_PERIODS) * period)
@@ -712,8 +700,6 @@ class Hmc5883lDriver(Driver):
         if not sample.valid:
             return []
         self._stamped_ns = self._cadence_ns = stamp
-        if self._index is not None:
-            self._index += 1  # the chip's measurement after the field it repeats
         return [sample]
 
     def _hung_by_status(self, now_ns: int) -> None:
@@ -849,7 +835,6 @@ class Hmc5883lDriver(Driver):
         # would be stamped a period after its measurement
         stale_ns = now_ns - self._feed.latency_ns - self._grid.guard_ns
         for k, delivered in enumerate(changes):
-            after_blank = self._blank_since_ns is not None
             copy = self._unlocking(delivered)
             if copy is None:
                 continue
@@ -865,9 +850,6 @@ class Hmc5883lDriver(Driver):
                     t_ns = self._before_next(t_ns, changes[k + 1].t_ns)
             stamp = min(max(t_ns, self._stamped_ns + 1), now_ns - left) \
                 if by_delivery else now_ns
-            if not blank_flag(data):
-                stamp = self._on_instants(copy, now_ns - left, learn=copy is delivered,
-                                          after_blank=after_blank)
             sample = self._decoded(data, stamp, blank_flag(data))
             if sample.flags and sample.flags & SampleFlag.BLANK:  # (enum & is a call)
                 blank = sample
@@ -876,39 +858,6 @@ class Hmc5883lDriver(Driver):
             self._stamped_ns = self._cadence_ns = stamp
             samples.append(sample)
         return samples, (None if samples else blank)
-
-    def _on_instants(self, copy: Copy, latest_ns: int, *, learn: bool,
-                     after_blank: bool) -> int:
-        """The stamp of a measurement ``copy`` (first ``stamp``, its poll's or delivery's
-        time) placed within its learned instant's slot (``LearnedInstants``): at or after
-        the instant it must have come from (the latest before its delivery, and after the
-        field handed out before it), and more than the feed's latency before the next one,
-        so both the frame ledger's rounding of gaps and the chip's count take it for that
-        measurement, whatever a late poll, a host stall or failed reads did to the time it
-        was found. Never after ``latest_ns`` nor before the stamp before it. A copy
-        delivered within the feed's latency of the delivery before it teaches the
-        instants first."""
-        instants, feed = self._instants, self._feed
-        assert instants is not None and feed is not None
-        after, last = copy.after_ns, self._index
-        steady = after is not None and copy.t_ns - after <= feed.latency_ns
-        if learn and steady and self._steady and not copy.failed_ns:
-            # the copy before it came steadily too: the master's copies run on its own
-            # instants again (its first after a reset or pause may be a late one)
-            instants.learn(copy.t_ns)
-        self._steady = steady and learn
-        index = instants.index_of(copy.t_ns)
-        if last is not None and (index <= last or (after_blank and not steady)):
-            # a change is a new measurement; after blank copies and a pause (the master's
-            # chip reset: its registers cleared, its auto-read off until reprogrammed) it
-            # may be any measurement since the one before: the earliest, which a later
-            # copy can only follow (a later index counts the same slots, and a stamp pushed
-            # past its poll would be on no instant). After a stalled host, whose master
-            # went on copying, the latest.
-            index = last + 1
-        placed = min(max(instants.instant_ns(index), self._stamped_ns + 1), latest_ns)
-        self._index = index
-        return placed
 
     def _before_next(self, t_ns: int, next_ns: int) -> int:
         """The stamp ``t_ns`` of a copy whose next change, a measurement, was delivered at
