@@ -95,8 +95,7 @@ class SerialTransport:
         try:
             self._port = factory(port, baudrate=baudrate, timeout=0, write_timeout=0)
         except (OSError, serial.SerialException, ValueError) as exc:
-            raise ImuhalError(f"--nmea serial:{port}@{baudrate}: cannot open {port} ({exc}); "
-                              "check the device path and its permissions") from None
+            raise _cannot_open(port, baudrate, str(exc)) from None
         self.description = f"serial port {port} at {baudrate} baud"
         self.dropped_bytes = 0
 
@@ -135,9 +134,7 @@ class PtyTransport:
                 os.close(self._slave)
                 with contextlib.suppress(OSError):
                     tmp.unlink()
-                raise ImuhalError(f"--nmea pty:{self._link}: cannot make the link there "
-                                  f"({exc.strerror or exc}); name a path in a folder you can "
-                                  "write to, e.g. pty:/tmp/vario") from None
+                raise _cannot_link(self._link, exc.strerror or str(exc)) from None
         where = f"{self._link} -> {self.slave_path}" if self._link else self.slave_path
         self.description = f"pseudo-terminal {where}"
         self._out = WholeWrites(self._send)
@@ -347,8 +344,7 @@ def check_transport(spec: str) -> TransportSpec:
                               "serial:/dev/ttyUSB0@115200")
         # pyserial also takes URLs (socket://, rfc2217://): only a plain path is looked at
         if "://" not in port_path and not os.path.exists(port_path):
-            raise ImuhalError(f"--nmea {spec}: cannot open {port_path} (no such device); "
-                              "check the device path and its permissions")
+            raise _cannot_open(port_path, int(baud_text), "no such device")
         return TransportSpec("serial", spec, port_path, int(baud_text))
     raise ImuhalError(f"--nmea {spec!r}: unknown output; use one of {TRANSPORT_FORMS}")
 
@@ -362,8 +358,19 @@ def _check_pty_link(link: Path) -> None:
     reason = ("No such file or directory" if not folder.is_dir() else
               None if os.access(folder, os.W_OK | os.X_OK) else "Permission denied")
     if reason is not None:
-        raise ImuhalError(f"--nmea pty:{link}: cannot make the link there ({reason}); name a "
-                          "path in a folder you can write to, e.g. pty:/tmp/vario")
+        raise _cannot_link(link, reason)
+
+
+def _cannot_link(link: Path, reason: str) -> ImuhalError:
+    """The one-line error for a pty link that cannot be made (checked or tried)."""
+    return ImuhalError(f"--nmea pty:{link}: cannot make the link there ({reason}); name a "
+                       "path in a folder you can write to, e.g. pty:/tmp/vario")
+
+
+def _cannot_open(port: str, baudrate: int, reason: str) -> ImuhalError:
+    """The one-line error for a serial port that cannot be opened (checked or tried)."""
+    return ImuhalError(f"--nmea serial:{port}@{baudrate}: cannot open {port} ({reason}); "
+                       "check the device path and its permissions")
 
 
 def open_transport(spec: str) -> Transport:
