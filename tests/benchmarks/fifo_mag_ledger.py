@@ -23,14 +23,16 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from tests.benchmarks.bench_blocks import SEED, board_yaml
+from tests.benchmarks.fault_matrix import ledgers_of
 
 from imuhal.emulation import open_emulated
 from imuhal.plugins.manager import load_registry
 from imuhal.profile.loader import load_profile
 
 
-def mag_ledger(fifo_frames: int, duration_s: float) -> tuple[dict[str, int], int]:
-    """The magnetometer's ledger counts and the chip's measurements over its segments."""
+def mag_ledger(fifo_frames: int, duration_s: float) -> dict[str, int]:
+    """The magnetometer's ledger counts and the chip's measurements over its segments
+    (``chip``), as the fault matrix compares them (``ledgers_of``)."""
     registry = load_registry()
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "board.yaml"
@@ -39,11 +41,7 @@ def mag_ledger(fifo_frames: int, duration_s: float) -> tuple[dict[str, int], int
     with open_emulated(profile, registry, seed=1, scenario="thermal") as pipeline:
         for _ in pipeline.events(duration_s):
             pass
-        ledger = pipeline.devices["mag"].ledger
-        chip = pipeline.board.emulators["mag"]
-        assert ledger is not None
-        measured = sum(chip.frames_between(a, b) for a, b, _ in ledger.all_segments())
-        return ledger.counts(), measured
+        return ledgers_of(pipeline)["mag"]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -57,7 +55,8 @@ def main(argv: list[str] | None = None) -> int:
           "| ledger - chip |")
     print("| ---: | ---: | ---: | ---: | ---: | ---: |")
     for n in (int(x) for x in args.frames.split(",")):
-        counts, measured = mag_ledger(n, args.duration)
+        counts = mag_ledger(n, args.duration)
+        measured = counts["chip"]
         lost = counts["produced"] - counts["delivered"]
         print(f"| {n} | {counts['produced']} | {counts['delivered']} | {lost} | {measured} "
               f"| {counts['produced'] - measured:+d} |")
