@@ -207,6 +207,9 @@ class Max2110xDriver(Driver):
         self._edges_seen = False
         """read: fifo: data-ready edges came with this poll (a read the line triggered
         reads the FIFO, whatever the time)."""
+        self._on_edges = False
+        """read: fifo: the current poll is a read data-ready edges triggered (the side
+        reads' schedule is not followed on a line: the slave's copy is read with it)."""
 
     # --- identity -------------------------------------------------------------------------
 
@@ -411,27 +414,37 @@ class Max2110xDriver(Driver):
 
     def _next_read_ns(self, now_ns: int) -> int:
         """read: fifo: the next poll after one at ``now_ns``: the next FIFO read, or, with an
-        auto-read feed, the next side read before it: whole periods before the FIFO read (so
-        on its phase, at the chip's instants), about one period after ``now_ns``. The
+        auto-read feed, the next side read when it comes first. Side reads lie a poll-grid
+        guard after the chip's instants, as a register poll's burst does: whole periods of
+        the chip's clock (learned by the FIFO reader) before or after the FIFO read, which
+        sits at an instant (+-2 us); the FIFO read itself then reads no slave byte. The
         master's copy of the slave is a register, overwritten at every accelerometer
         measurement, not a FIFO entry: read only with the FIFO every n periods, a slave
         measurement copied in between was lost when the next one came, and the slave's
-        fields were stamped up to n periods after their copy (the seed paraglider's
-        HMC5883L ledger was off its chip's count by -218 to +329 of 1,498 fields with
-        ``fifo_frames`` 2 to 8). Read every period, as a register poll reads it, the feed
-        sees what it sees with read: registers."""
+        fields were stamped up to n periods after their copy (the seed paraglider's HMC5883L
+        ledger was off its chip's count by -218 to +329 of about 1,498 fields with
+        ``fifo_frames`` 2 to 8; tests.benchmarks.fifo_mag_ledger). Read every period, the
+        feed sees what it sees with read: registers (the same ledger, nothing lost); read
+        every second period, the ledger was off by +13 again and 16 fields were lost. Read
+        beside the FIFO (at the FIFO read's instant +-2 us) instead of a guard after, 3
+        fields in 20 s were lost (two measurements with the same bytes that the HMC5883L
+        driver's status read did not prove)."""
         due = self._fifo_due_ns
-        if self._feed is None:
+        if self._feed is None or self._fifo is None:
             return due
-        period = self._grid.period_ns
-        before = -(-(due - now_ns - period // 2) // period) - 1
-        return due - before * period if before > 0 else due
+        period = self._fifo.chip_clock.period_ns
+        guard = self._grid.guard_ns
+        # side reads a guard after the instants the FIFO reads sit at (due - k periods),
+        # where a register poll reads: the first more than half a guard after now
+        k = math.ceil((due + guard // 2 - now_ns) / period) - 1
+        return min(due, round(due + guard - max(k, 0) * period))
 
     def _side_only(self, now_ns: int) -> bool:
         """read: fifo: this poll reads the slave's copy (and the temperature when due) only,
         not the FIFO: one ``_next_read_ns`` put before the FIFO read's time, not one a
         data-ready edge triggered."""
         edges, self._edges_seen = self._edges_seen, False
+        self._on_edges = edges
         return self._feed is not None and not edges and now_ns < self._fifo_due_ns
 
     def _side_read(self, now_ns: int) -> PollResult:
@@ -602,7 +615,10 @@ class Max2110xDriver(Driver):
         the FIFO's frames, the time after them and the next read's."""
         assert self._fifo is not None
         self._count_overflow()
-        samples = self._aux_and_temperature(now_ns)
+        # with a feed, the side reads read the slave's copy and the temperature, unless a
+        # line triggers the reads (the pipeline then keeps no deadline of the driver's)
+        samples = self._aux_and_temperature(now_ns) \
+            if self._feed is None or self._on_edges else []
         got = self._fifo.read()
         if got.reset:
             self._overflow_pending = True
