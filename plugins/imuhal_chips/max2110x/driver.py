@@ -111,6 +111,10 @@ probability far below once per year of samples (0.05 s at 200 Hz). It was 50: th
 seed-rc-vario found a frozen MAX21105 in a turbulent cruise handing out valid frames more
 than their error model off the truth from the 13th on (27 in 300 s, 68 in an hour)."""
 TEMPERATURE_RANGE_DEGC = (-40.0, 85.0)
+SIDE_READ_PLAN = 3
+"""The poll plan (imuhal.core.poll_plan) from which read: fifo with an auto-read slave reads
+the slave's copy a guard after every instant between the FIFO reads (``_next_read_ns``);
+before it, only beside each FIFO read (a recording made then replays on that plan)."""
 """Operating range of the die; a temperature word outside it is not a real reading."""
 _MAG_OFFSET = Reg.MAG_X_H - Reg.SYSTEM_STATUS
 """Where MAG X/Y/Z (the auto-read slave's bytes) start in a MAX21100 burst."""
@@ -430,7 +434,7 @@ class Max2110xDriver(Driver):
         fields in 20 s were lost (two measurements with the same bytes that the HMC5883L
         driver's status read did not prove)."""
         due = self._fifo_due_ns
-        if self._feed is None or self._fifo is None:
+        if not self._side_reads() or self._fifo is None:
             return due
         period = self._fifo.chip_clock.period_ns
         guard = self._grid.guard_ns
@@ -439,13 +443,17 @@ class Max2110xDriver(Driver):
         k = math.ceil((due + guard // 2 - now_ns) / period) - 1
         return min(due, round(due + guard - max(k, 0) * period))
 
+    def _side_reads(self) -> bool:
+        """read: fifo reads a feed's copy between the FIFO reads (``_next_read_ns``)."""
+        return self._feed is not None and self.poll_plan >= SIDE_READ_PLAN
+
     def _side_only(self, now_ns: int) -> bool:
         """read: fifo: this poll reads the slave's copy (and the temperature when due) only,
         not the FIFO: one ``_next_read_ns`` put before the FIFO read's time, not one a
         data-ready edge triggered."""
         edges, self._edges_seen = self._edges_seen, False
         self._on_edges = edges
-        return self._feed is not None and not edges and now_ns < self._fifo_due_ns
+        return self._side_reads() and not edges and now_ns < self._fifo_due_ns
 
     def _side_read(self, now_ns: int) -> PollResult:
         """read: fifo, a poll between FIFO reads: the slave's copy (and the temperature when
@@ -618,7 +626,7 @@ class Max2110xDriver(Driver):
         # with a feed, the side reads read the slave's copy and the temperature, unless a
         # line triggers the reads (the pipeline then keeps no deadline of the driver's)
         samples = self._aux_and_temperature(now_ns) \
-            if self._feed is None or self._on_edges else []
+            if not self._side_reads() or self._on_edges else []
         got = self._fifo.read()
         if got.reset:
             self._overflow_pending = True
@@ -626,6 +634,9 @@ class Max2110xDriver(Driver):
                 self._count_overflow()
         now_ns = max(now_ns, self.clock.now_ns())
         self._fifo_due_ns = self._fifo.next_read_ns(now_ns, self._fifo_interval_ns())
+        if self._feed is not None and not self._side_reads():
+            # before SIDE_READ_PLAN the slave's next copy comes with that read
+            self._feed.next_ns = self._fifo_due_ns
         return got, samples, now_ns, self._next_read_ns(now_ns)
 
     def _fifo_result(self, samples: list[Sample], got: FifoRead, now_ns: int,
@@ -671,7 +682,7 @@ class Max2110xDriver(Driver):
         feed = self._feed
         if feed is None and not temp_due:
             return []
-        if not temp_due:
+        if not temp_due and self._side_reads():
             assert feed is not None
             feed.deliver(now_ns, self.regs.send(self._aux_frames[feed.length], feed.length))
             return []
@@ -932,12 +943,14 @@ class Max21100Driver(Max2110xDriver):
             raise ConfigurationError(f"{where}: asked before the MAX21100 was configured")
         # The slave's bytes are copied at each accelerometer measurement and reach the
         # host with the next burst, a poll-grid guard after it; with read: fifo with the
-        # next side read (``_next_read_ns``: every period, at the chip's instants +-2 us, so
-        # at most a period and the guard after the copy)
+        # next side read, a guard after the next instant (``_next_read_ns``), or, before
+        # SIDE_READ_PLAN, with the next FIFO read (up to its interval later)
         period_ns = round(1e9 / self.settings.accel_odr_hz)
-        feed = AutoReadFeed(target, register, length,
-                            latency_ns=period_ns + self._grid.guard_ns)
-        feed.period_ns = period_ns  # a read per sample, burst or side read
+        beside_fifo = self._fifo is not None and self.poll_plan < SIDE_READ_PLAN
+        after_ns = self._grid.guard_ns + (self._fifo_interval_ns() if beside_fifo else 0)
+        feed = AutoReadFeed(target, register, length, latency_ns=period_ns + after_ns)
+        if not beside_fifo:
+            feed.period_ns = period_ns  # a read per sample, burst or side read
         auto_read = self._checked(self._auto_read_plan(feed))
         auto_read.apply(self.regs)
         auto_read.verify(self.regs)
