@@ -35,7 +35,6 @@ from imuhal.emulation import EmulatedBoard, open_emulated
 from imuhal.plugins.manager import load_registry
 from imuhal.profile.loader import load_profile
 
-
 DURATION_S = 20.0
 FRAMES = (0, 1, 2, 3, 4, 8)
 """The default flight and rows (``fifo_frames``; 0: read: registers)."""

@@ -24,9 +24,9 @@ from collections.abc import Callable, Iterable, Sequence
 import numpy as np
 
 from imuhal.core.clock import SimulatedClock
-from imuhal.core.poll_plan import POLL_PLAN
 from imuhal.core.errors import ImuhalError, PluginError
 from imuhal.core.frames import FloatArray
+from imuhal.core.poll_plan import POLL_PLAN
 from imuhal.core.quantities import Quantity
 from imuhal.emulation.faults import BoardFaults, FaultLine
 from imuhal.emulation.lines import EmulatedLine
