@@ -10,6 +10,15 @@ FIFO instead (imuhal_chips.max2110x.fifo, which states what of each part's FIFO 
 and what is assumed) and programs INT1 for a data-ready line
 (registers.INT1_DATA_READY_PLAN, likewise assumed). Samples are in the chip's sensor frame:
 gyro rad/s, accel m/s^2 specific force, temperature degC.
+
+The FIFO holds gyro and accelerometer frames only. With a slave auto-read (the MAX21100's
+MAG X/Y/Z, imuhal.bus.auto_read) the copy of the slave is a register the master overwrites
+at each accelerometer measurement, so under ``read: fifo`` the driver reads it a poll-grid
+guard after every chip instant between its FIFO reads (``_next_read_ns``, poll plan 3), one
+transfer of the slave's bytes (and TEMP with them when due): 250 transfers a second at the
+seed's 250 Hz beside the FIFO's count and burst (313 a second in all with ``fifo_frames:
+8``, where reading the copy only with the FIFO made 82 and lost most of the HMC5883L's
+fields), for the feed to see what a register poll's burst gives it.
 """
 
 from __future__ import annotations
