@@ -698,6 +698,8 @@ class Max2110xDriver(Driver):
         raw = self.regs.send(self._aux_temp_frame, self._aux_temp_bytes)
         if feed is not None:
             feed.deliver(now_ns, raw[:feed.length])
+        if not temp_due:  # before SIDE_READ_PLAN: MAG through TEMP beside every FIFO read
+            return []
         self._last_temp_ns = now_ns
         return [self._temperature_sample(be_int16(raw, self._aux_temp_bytes - 2), now_ns,
                                          blank_flag(raw))]
