@@ -19,6 +19,7 @@ from imuhal.bus.spy import Transfer
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import ImuhalError
 from imuhal.core.frames import MountError, parse_mount
+from imuhal.core.poll_plan import POLL_PLAN
 from imuhal.core.samples import Quantity
 from imuhal.emulation import user_calibration
 from imuhal.emulation.board import EmulatedBoard
@@ -77,8 +78,12 @@ def open_emulated(
     stay the scenario's: estimates, the truth and ``faults``' ``start_s`` count from the
     scenario's 0, not from the switch-on. ``poll_plan`` (default: the newest,
     imuhal.core.poll_plan) runs the drivers on an older plan, as a replay of a recording
-    made under it does: to compare the bus traffic of two plans on one flight.
+    made under it does: to compare the bus traffic of two plans on one flight (not with
+    ``recorder``, whose header holds the newest plan).
     """
+    if poll_plan is not None and recorder is not None and poll_plan != POLL_PLAN:
+        raise ImuhalError(f"poll_plan={poll_plan}: a recording's header holds the newest "
+                          f"poll plan ({POLL_PLAN}); record without poll_plan")
     if not (math.isfinite(start_s) and start_s >= 0.0):
         raise ImuhalError(f"start_s={start_s!r}: the switch-on time must be a finite "
                           "number of seconds >= 0 into the scenario")
