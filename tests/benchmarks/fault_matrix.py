@@ -4,7 +4,7 @@ the simulation's truth (plain script; not collected by pytest).
 
 Run:  nice -n 10 .venv/bin/python tests/benchmarks/fault_matrix.py [--seconds 10]
       [--boards gy91,seed-gps-vario] [--rates 0.001,0.01,0.1] [--kinds wild_value,reset]
-      [--json out.json] [--markdown] [--in-process]
+      [--json out.json] [--markdown] [--in-process] [--imu-fifo 8]
       .venv/bin/python tests/benchmarks/fault_matrix.py --combine a.json b.json [--seconds 10]
 
 Each run opens one bundled board emulated (its profile's scenario, seed 1), injects the
@@ -328,6 +328,15 @@ def accounting_markdown(results: list[RunResult]) -> list[str]:
     return lines + (["", *off] if off else [])
 
 
+def with_imu_fifo(profile: BoardProfile, fifo_frames: int) -> BoardProfile:
+    """``profile`` with its device ``imu`` read from its FIFO every ``fifo_frames``
+    periods (``--imu-fifo``)."""
+    device = profile.devices["imu"]
+    settings = {**device.settings, "read": "fifo", "fifo_frames": fifo_frames}
+    return profile.model_copy(update={"devices": {
+        **profile.devices, "imu": device.model_copy(update={"settings": settings})}})
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seconds", type=float, default=10.0)
@@ -339,6 +348,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--markdown", action="store_true")
     parser.add_argument("--in-process", action="store_true",
                         help="fly every run in this process, not each in a forked child")
+    parser.add_argument("--imu-fifo", type=int, default=0, metavar="N",
+                        help="fly a copy of each board with its device imu set to read: fifo, "
+                             "fifo_frames N")
     parser.add_argument("--combine", nargs="+", metavar="JSON", default=[],
                         help="print the tables of earlier runs' --json files, run nothing")
     args = parser.parse_args(argv)
@@ -356,6 +368,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     results: list[RunResult] = []
     for board in chosen:
         profile = load_profile(boards[board], registry)
+        if args.imu_fifo:
+            profile = with_imu_fifo(profile, args.imu_fifo)
         devices = devices_of(profile, registry)
         for kinds, rate in plans(rates):
             if wanted and not wanted.intersection(kinds):

@@ -252,14 +252,18 @@ def test_unchanged_periods_grow_as_the_gain_makes_repeats_likelier() -> None:
     assert unchanged_periods(230) == 19  # +/-8.1 Ga, about 0.5 LSB of noise per axis
 
 
-def _beside_fifo_reads(poll_plan: int | None = None, fifo_frames: int = 1) -> Board:
+def _beside_fifo_reads(poll_plan: int | None = None, fifo_frames: int = 1, *,
+                       imu_plan: int | None = None) -> Board:
     """The IMU read through its FIFO (issue 25) every ``fifo_frames`` periods, its clock
     2 % fast and the HMC5883L's 2 % slow, a field that moves a count a measurement (each
-    one's bytes differ); the magnetometer on ``poll_plan`` (None: the newest)."""
+    one's bytes differ); the magnetometer on ``poll_plan``, the IMU on ``imu_plan`` (None:
+    the newest)."""
     board = Board({"reset_check_s": 60})
     board.imu = Max21100Driver(board.spi.link(0), {"reset_check_s": 0.1, "read": "fifo",
                                                    "fifo_frames": fifo_frames},
                                device="imu", clock=board.clock)
+    if imu_plan is not None:
+        board.imu.poll_plan = imu_plan
     board.imu.configure()
     board.aux = board.imu.child_buses()["aux"]
     board.mag = Hmc5883lDriver(board.aux.link(0x1E), {"read": "auto", "reset_check_s": 60},
@@ -276,11 +280,15 @@ def _beside_fifo_reads(poll_plan: int | None = None, fifo_frames: int = 1) -> Bo
     return board
 
 
-def test_beside_fifo_reads_every_measurement_the_master_copied_is_handed_out() -> None:
+@pytest.mark.parametrize("fifo_frames", [1, 8])
+def test_beside_fifo_reads_every_measurement_the_master_copied_is_handed_out(
+        fifo_frames: int) -> None:
     """Beside FIFO reads (``_beside_fifo_reads``), every measurement the master copied
     reaches the HMC5883L's driver, also when two copies come between two of its polls,
-    each stamped after its copy and in order."""
-    board = _beside_fifo_reads()
+    each stamped after its copy and in order. Read every 8 periods too: the master's copy
+    is a register it overwrites at each of its measurements, so the driver reads it
+    between its FIFO reads (before: about a third of the fields were lost)."""
+    board = _beside_fifo_reads(fifo_frames=fifo_frames)
     emu = board.mag_emu
     board.run(0.5)
     first = emu.measured_ns[-1]
@@ -294,15 +302,16 @@ def test_beside_fifo_reads_every_measurement_the_master_copied_is_handed_out() -
 
 
 def test_beside_fifo_reads_the_magnetometer_looks_no_sooner_than_the_next_read() -> None:
-    """Poll plan 2 (imuhal.core.poll_plan): a copy can come only with the master's next
-    FIFO read, so the HMC5883L's driver is polled then, not at its own 75 Hz grid in
-    between (plan 1: a poll that found nothing, then a retry). Read every 8 periods (32 ms,
-    the seed board's FIFO benchmark): fewer polls, nearly none empty, the same
-    measurements handed out (a stamp may differ within the copy's latency: a copy's stamp
-    on the cadence is chosen against the poll that found it)."""
+    """Poll plan 2 (imuhal.core.poll_plan), the MAX21100 on it too (from plan 3 it reads
+    the copies between its FIFO reads): a copy can come only with the master's next FIFO
+    read, so the HMC5883L's driver is polled then, not at its own 75 Hz grid in between
+    (plan 1: a poll that found nothing, then a retry). Read every 8 periods (32 ms, the
+    seed board's FIFO benchmark): fewer polls, nearly none empty, the same measurements
+    handed out (a stamp may differ within the copy's latency: a copy's stamp on the
+    cadence is chosen against the poll that found it)."""
     fields, polls, empty = {}, {}, {}
     for plan in (1, 2):
-        board = _beside_fifo_reads(plan, fifo_frames=8)
+        board = _beside_fifo_reads(plan, fifo_frames=8, imu_plan=2)
         samples = valid_mag(board.run(2.0))
         fields[plan] = [s.mag_ut for s in samples]
         polls[plan], empty[plan] = board.mag_polls, board.empty_mag_polls

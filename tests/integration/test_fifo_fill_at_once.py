@@ -12,6 +12,12 @@ in force, starting inside fills:
   is never planned, so its fills are latched one by one and each fault acts at the
   measurements it acts at today; and it does act in FIFO mode (the flight differs from the
   flight without it).
+
+The drivers run on poll plan 2 (imuhal.core.poll_plan), where the host reads the MAX21100
+every 8 periods only: from plan 3 its driver reads the slave's copy a guard after every
+instant between FIFO reads, so the chip latches at most one instant per host access and a
+fill at once comes only with a host stall (3 in this flight's faults elsewhere, 0 without
+faults).
 """
 
 from __future__ import annotations
@@ -51,7 +57,7 @@ def _fly(registry: Registry, faults: Sequence[FaultSpec], *, at_once: bool
     over ``SECONDS``, circling from the start."""
     with open_emulated(_seed_fifo(registry), registry, scenario="thermal", seed=4,
                        scenario_params={"launch_s": 0.0, "schedule": [[0.0, 3.5]]},
-                       calibrated=False, faults=faults) as p:
+                       calibrated=False, faults=faults, poll_plan=2) as p:
         board = EmulatedBoard.of(p)
         imu = board.emulators["imu"]
         imu.fast_paths = at_once

@@ -354,6 +354,21 @@ def test_a_recording_made_under_the_first_poll_plan_replays_to_the_events_it_rec
         1140, "42041a3095f6999b7d0f55423833b68d8781a69a27321c43e7d5b0c0698a351b")
 
 
+def test_a_fifo_recording_made_under_poll_plan_2_replays_to_the_events_it_recorded(
+        full_registry: Registry) -> None:
+    # seed-paraglider-vario with its MAX21100 read from its FIFO every 8 periods (read:
+    # fifo, fifo_frames: 8), thermal, 1.5 s, recorded by main's drivers of 2026-12-07
+    # (4e0458be, poll plan 2): the HMC5883L's copies read beside each FIFO read. From plan 3
+    # the driver reads them between the FIFO reads; on the recording's plan it reads them
+    # as it did, transfer by transfer, and gives the live run's events bit for bit.
+    path = Path("tests/data/recording/seed-fifo8-thermal-1.5s-plan2.imurec")
+    assert open_recording(path).header["poll_plan"] == 2
+    events = _replay(full_registry, path)
+    digest = hashlib.sha256("\n".join(_exact(events)).encode()).hexdigest()
+    assert (len(events), digest) == (
+        973, "c315a57571c110dd38f2ece1763ef405bcf6d3626bb7e505b5baae0b5bfe255c")
+
+
 def test_a_recording_holds_the_poll_plan_it_was_made_under(
         full_registry: Registry, tmp_path: Path) -> None:
     board = Path("profiles/seed-paraglider-vario.yaml")

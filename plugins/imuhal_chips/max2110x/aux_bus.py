@@ -33,7 +33,9 @@ interleave with a half-done one-shot transaction.
 Slave auto-read (imuhal.bus.auto_read): ``auto_read(target, register, length)`` has the
 MAX21100 itself read the slave at every accelerometer measurement into MAG X/Y/Z, which the
 host's 21-byte burst carries anyway (facts section 6, steps 4-5); the MAX21100 driver
-programs it and delivers the bytes of each burst to the returned feed. One-shot transactions
+programs it and delivers the bytes of each burst to the returned feed (read from its FIFO,
+the bytes of a small read of MAG X/Y/Z a guard after each measurement: the FIFO does not
+hold them). One-shot transactions
 still work beside it (the slave's driver configures and checks its chip with them); since
 both use MAG_SLV_ADD, a one-shot transaction with another slave puts the auto-read's address
 back when it ends.

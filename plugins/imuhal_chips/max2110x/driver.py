@@ -10,6 +10,15 @@ FIFO instead (imuhal_chips.max2110x.fifo, which states what of each part's FIFO 
 and what is assumed) and programs INT1 for a data-ready line
 (registers.INT1_DATA_READY_PLAN, likewise assumed). Samples are in the chip's sensor frame:
 gyro rad/s, accel m/s^2 specific force, temperature degC.
+
+The FIFO holds gyro and accelerometer frames only. With a slave auto-read (the MAX21100's
+MAG X/Y/Z, imuhal.bus.auto_read) the copy of the slave is a register the master overwrites
+at each accelerometer measurement, so under ``read: fifo`` the driver reads it a poll-grid
+guard after every chip instant between its FIFO reads (``_next_read_ns``, poll plan 3), one
+transfer of the slave's bytes (and TEMP with them when due): 250 transfers a second at the
+seed's 250 Hz beside the FIFO's count and burst (313 a second in all with ``fifo_frames:
+8``, where reading the copy only with the FIFO made 82 and lost most of the HMC5883L's
+fields), for the feed to see what a register poll's burst gives it.
 """
 
 from __future__ import annotations
@@ -111,6 +120,10 @@ probability far below once per year of samples (0.05 s at 200 Hz). It was 50: th
 seed-rc-vario found a frozen MAX21105 in a turbulent cruise handing out valid frames more
 than their error model off the truth from the 13th on (27 in 300 s, 68 in an hour)."""
 TEMPERATURE_RANGE_DEGC = (-40.0, 85.0)
+SIDE_READ_PLAN = 3
+"""The poll plan (imuhal.core.poll_plan) from which read: fifo with an auto-read slave reads
+the slave's copy a guard after every instant between the FIFO reads (``_next_read_ns``);
+before it, only beside each FIFO read (a recording made then replays on that plan)."""
 """Operating range of the die; a temperature word outside it is not a real reading."""
 _MAG_OFFSET = Reg.MAG_X_H - Reg.SYSTEM_STATUS
 """Where MAG X/Y/Z (the auto-read slave's bytes) start in a MAX21100 burst."""
@@ -198,6 +211,18 @@ class Max2110xDriver(Driver):
         self._aux_temp_bytes = self.part.temp_register + 2 - _AFTER_ACCEL
         self._aux_temp_frame = bytes((self.regs.read_address(_AFTER_ACCEL,
                                                              self._aux_temp_bytes),))
+        self._aux_frames = {n: bytes((self.regs.read_address(_AFTER_ACCEL, n),))
+                            for n in range(1, MAG_DATA_BYTES + 1)}
+        """The read frame of the slave's first n bytes (MAG X/Y/Z: the MAX21100 only)."""
+        self._fifo_due_ns = 0
+        """read: fifo: when the next FIFO read is due (ns, driver clock); with an auto-read
+        feed the polls before it read the slave's copy only (``_side_read``)."""
+        self._edges_seen = False
+        """read: fifo: data-ready edges came with this poll (a read the line triggered
+        reads the FIFO, whatever the time)."""
+        self._on_edges = False
+        """read: fifo: the current poll is a read data-ready edges triggered (the side
+        reads' schedule is not followed on a line: the slave's copy is read with it)."""
 
     # --- identity -------------------------------------------------------------------------
 
@@ -393,11 +418,56 @@ class Max2110xDriver(Driver):
         self._watch.start(now_ns)
         if self._fifo is not None:
             self._fifo.reset(restart=True)
-            return self._fifo.next_read_ns(now_ns, self._fifo_interval_ns())
+            self._fifo_due_ns = self._fifo.next_read_ns(now_ns, self._fifo_interval_ns())
+            return self._next_read_ns(now_ns)
         return self._grid.next_after(now_ns)
 
     def _fifo_interval_ns(self) -> int:
         return self.settings.fifo_frames * self._grid.period_ns
+
+    def _next_read_ns(self, now_ns: int) -> int:
+        """read: fifo: the next poll after one at ``now_ns``: the next FIFO read, or, with an
+        auto-read feed, the next side read when it comes first. Side reads lie a poll-grid
+        guard after the chip's instants, as a register poll's burst does: whole periods of
+        the chip's clock (learned by the FIFO reader) before or after the FIFO read, which
+        sits at an instant (+-2 us); the FIFO read itself then reads no slave byte. The
+        master's copy of the slave is a register, overwritten at every accelerometer
+        measurement, not a FIFO entry: read only with the FIFO every n periods, a slave
+        measurement copied in between was lost when the next one came, and the slave's
+        fields were stamped up to n periods after their copy (the seed paraglider's HMC5883L
+        ledger was off its chip's count by -218 to +329 of about 1,498 fields with
+        ``fifo_frames`` 2 to 8; tests.benchmarks.fifo_mag_ledger). Read every period, the
+        feed sees what it sees with read: registers (the same ledger, nothing lost); read
+        every second period, the ledger was off by +13 again and 16 fields were lost. Read
+        beside the FIFO (at the FIFO read's instant +-2 us) instead of a guard after, 3
+        fields in 20 s were lost (two measurements with the same bytes that the HMC5883L
+        driver's status read did not prove)."""
+        due = self._fifo_due_ns
+        if not self._side_reads() or self._fifo is None:
+            return due
+        period = self._fifo.chip_clock.period_ns
+        guard = self._grid.guard_ns
+        # side reads a guard after the instants the FIFO reads sit at (due - k periods),
+        # where a register poll reads: the first more than half a guard after now
+        k = math.ceil((due + guard // 2 - now_ns) / period) - 1
+        return min(due, round(due + guard - max(k, 0) * period))
+
+    def _side_reads(self) -> bool:
+        """read: fifo reads a feed's copy between the FIFO reads (``_next_read_ns``)."""
+        return self._feed is not None and self.poll_plan >= SIDE_READ_PLAN
+
+    def _side_only(self, now_ns: int) -> bool:
+        """read: fifo: this poll reads the slave's copy (and the temperature when due) only,
+        not the FIFO: one ``_next_read_ns`` put before the FIFO read's time, not one a
+        data-ready edge triggered."""
+        edges, self._edges_seen = self._edges_seen, False
+        self._on_edges = edges
+        return self._side_reads() and not edges and now_ns < self._fifo_due_ns
+
+    def _side_read(self, now_ns: int) -> PollResult:
+        """read: fifo, a poll between FIFO reads: the slave's copy (and the temperature when
+        due), delivered to the feed as a register poll delivers it."""
+        return PollResult(self._aux_and_temperature(now_ns), self._next_read_ns(now_ns))
 
     def poll(self, now_ns: int) -> PollResult:
         """Read one burst; emit a sample per channel with new data.
@@ -533,6 +603,10 @@ class Max2110xDriver(Driver):
             return super().poll_blocks(now_ns)
         if self._watch.check_due(now_ns) and self._off_plan(overdue=False):
             return BlockPoll([], self.restart(reset_detected=True))
+        if self._side_only(now_ns):
+            side = self._side_read(now_ns)
+            return BlockPoll(blocks_of(side.samples) if side.samples else [],
+                             side.next_poll_ns)
         got, samples, now_ns, next_ns = self._read_fifo(now_ns)
         blocks = self._frame_blocks(got)
         if blocks is None:
@@ -545,7 +619,10 @@ class Max2110xDriver(Driver):
     def _poll_fifo(self, now_ns: int) -> PollResult:
         """read: fifo: the slave's bytes and the temperature (when due) from the data
         registers, then every whole frame the FIFO holds, stamped on the chip's clock (or
-        with its edges); no frame for longer than the stale policy allows reports STALE."""
+        with its edges); no frame for longer than the stale policy allows reports STALE.
+        Between two FIFO reads, a poll reads the slave's bytes only (``_next_read_ns``)."""
+        if self._side_only(now_ns):
+            return self._side_read(now_ns)
         got, samples, now_ns, next_ns = self._read_fifo(now_ns)
         samples += self._frame_samples(got)
         return self._fifo_result(samples, got, now_ns, next_ns)
@@ -555,18 +632,21 @@ class Max2110xDriver(Driver):
         the FIFO's frames, the time after them and the next read's."""
         assert self._fifo is not None
         self._count_overflow()
-        samples = self._aux_and_temperature(now_ns)
+        # with a feed, the side reads read the slave's copy and the temperature, unless a
+        # line triggers the reads (the pipeline then keeps no deadline of the driver's)
+        samples = self._aux_and_temperature(now_ns) \
+            if not self._side_reads() or self._on_edges else []
         got = self._fifo.read()
         if got.reset:
             self._overflow_pending = True
             if not got.frames:
                 self._count_overflow()
         now_ns = max(now_ns, self.clock.now_ns())
-        next_ns = self._fifo.next_read_ns(now_ns, self._fifo_interval_ns())
-        if self._feed is not None:
-            # the slave's next copy comes with that read (AutoReadFeed.next_ns)
-            self._feed.next_ns = next_ns
-        return got, samples, now_ns, next_ns
+        self._fifo_due_ns = self._fifo.next_read_ns(now_ns, self._fifo_interval_ns())
+        if self._feed is not None and not self._side_reads():
+            # before SIDE_READ_PLAN the slave's next copy comes with that read
+            self._feed.next_ns = self._fifo_due_ns
+        return got, samples, now_ns, self._next_read_ns(now_ns)
 
     def _fifo_result(self, samples: list[Sample], got: FifoRead, now_ns: int,
                      next_ns: int) -> PollResult:
@@ -603,15 +683,22 @@ class Max2110xDriver(Driver):
     def _aux_and_temperature(self, now_ns: int) -> list[Sample]:
         """MAG X/Y/Z (the slave's copy) and TEMP in one burst, when a feed takes the
         slave's bytes or a temperature sample is due (every TEMPERATURE_PERIOD_NS): neither
-        is in the FIFO, so both are read as polling reads them, stamped with the read."""
+        is in the FIFO, so both are read as polling reads them, stamped with the read. The
+        slave's bytes alone (``feed.length``) when no temperature is due: one small
+        transfer at each side read (``_next_read_ns``)."""
         temp_due = (self._last_temp_ns is None
                     or now_ns - self._last_temp_ns >= TEMPERATURE_PERIOD_NS)
-        if self._feed is None and not temp_due:
+        feed = self._feed
+        if feed is None and not temp_due:
+            return []
+        if not temp_due and self._side_reads():
+            assert feed is not None
+            feed.deliver(now_ns, self.regs.send(self._aux_frames[feed.length], feed.length))
             return []
         raw = self.regs.send(self._aux_temp_frame, self._aux_temp_bytes)
-        if self._feed is not None:
-            self._feed.deliver(now_ns, raw[:self._feed.length])
-        if not temp_due:
+        if feed is not None:
+            feed.deliver(now_ns, raw[:feed.length])
+        if not temp_due:  # before SIDE_READ_PLAN: MAG through TEMP beside every FIFO read
             return []
         self._last_temp_ns = now_ns
         return [self._temperature_sample(be_int16(raw, self._aux_temp_bytes - 2), now_ns,
@@ -687,6 +774,7 @@ class Max2110xDriver(Driver):
     def data_ready(self, edges_ns: Sequence[int]) -> None:
         """read: fifo: each frame is stamped with its own data-ready edge."""
         if self._fifo is not None:
+            self._edges_seen = self._edges_seen or bool(edges_ns)
             self._fifo.data_ready(list(edges_ns))
 
     def drain(self, now_ns: int) -> list[Sample]:
@@ -865,14 +953,15 @@ class Max21100Driver(Max2110xDriver):
         if self.scales is None:
             raise ConfigurationError(f"{where}: asked before the MAX21100 was configured")
         # The slave's bytes are copied at each accelerometer measurement and reach the
-        # host with the next burst: a poll-grid guard after it, or with read: fifo the next
-        # FIFO read (up to its interval later: reads sit at the chip's instants, +-2 us).
-        after_ns = self._grid.guard_ns if self._fifo is None else \
-            self._fifo_interval_ns() + self._grid.guard_ns
-        latency_ns = round(1e9 / self.settings.accel_odr_hz) + after_ns
-        feed = AutoReadFeed(target, register, length, latency_ns=latency_ns)
-        if self._fifo is None:
-            feed.period_ns = round(1e9 / self.settings.accel_odr_hz)  # a burst per sample
+        # host with the next burst, a poll-grid guard after it; with read: fifo with the
+        # next side read, a guard after the next instant (``_next_read_ns``), or, before
+        # SIDE_READ_PLAN, with the next FIFO read (up to its interval later)
+        period_ns = round(1e9 / self.settings.accel_odr_hz)
+        beside_fifo = self._fifo is not None and self.poll_plan < SIDE_READ_PLAN
+        after_ns = self._grid.guard_ns + (self._fifo_interval_ns() if beside_fifo else 0)
+        feed = AutoReadFeed(target, register, length, latency_ns=period_ns + after_ns)
+        if not beside_fifo:
+            feed.period_ns = period_ns  # a read per sample, burst or side read
         auto_read = self._checked(self._auto_read_plan(feed))
         auto_read.apply(self.regs)
         auto_read.verify(self.regs)

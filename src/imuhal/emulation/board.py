@@ -26,6 +26,7 @@ import numpy as np
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import ImuhalError, PluginError
 from imuhal.core.frames import FloatArray
+from imuhal.core.poll_plan import POLL_PLAN
 from imuhal.core.quantities import Quantity
 from imuhal.emulation.faults import BoardFaults, FaultLine
 from imuhal.emulation.lines import EmulatedLine
@@ -65,6 +66,8 @@ class EmulatedBoard:
         profile's ``emulation.faults`` and any others); ``seed`` seeds their draws."""
         self.clock = clock
         self.scenario = scenario
+        self.poll_plan = POLL_PLAN
+        """The drivers' poll plan (imuhal.core.poll_plan; ``open_emulated(poll_plan=)``)."""
         self.buses: dict[str, EmulatedBus] = {}
         for name, cfg in profile.buses.items():
             factory = registry.buses.get(cfg.kind)

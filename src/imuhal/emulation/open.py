@@ -19,6 +19,7 @@ from imuhal.bus.spy import Transfer
 from imuhal.core.clock import SimulatedClock
 from imuhal.core.errors import ImuhalError
 from imuhal.core.frames import MountError, parse_mount
+from imuhal.core.poll_plan import POLL_PLAN
 from imuhal.core.samples import Quantity
 from imuhal.emulation import user_calibration
 from imuhal.emulation.board import EmulatedBoard
@@ -48,6 +49,7 @@ def open_emulated(
     recorder: BusRecorder | None = None,
     calibrate_missing: bool = False,
     start_s: float = 0.0,
+    poll_plan: int | None = None,
 ) -> Pipeline:
     """A pipeline over ``profile``'s board, emulated, flying ``scenario``.
 
@@ -74,8 +76,14 @@ def open_emulated(
     already there (in flight, for a flight scenario), as after a brown-out reboot or a
     battery swap in the air; the pipeline's start-up and every filter begin then. Times
     stay the scenario's: estimates, the truth and ``faults``' ``start_s`` count from the
-    scenario's 0, not from the switch-on.
+    scenario's 0, not from the switch-on. ``poll_plan`` (default: the newest,
+    imuhal.core.poll_plan) runs the drivers on an older plan, as a replay of a recording
+    made under it does: to compare the bus traffic of two plans on one flight (not with
+    ``recorder``, whose header holds the newest plan).
     """
+    if poll_plan is not None and recorder is not None and poll_plan != POLL_PLAN:
+        raise ImuhalError(f"poll_plan={poll_plan}: a recording's header holds the newest "
+                          f"poll plan ({POLL_PLAN}); record without poll_plan")
     if not (math.isfinite(start_s) and start_s >= 0.0):
         raise ImuhalError(f"start_s={start_s!r}: the switch-on time must be a finite "
                           "number of seconds >= 0 into the scenario")
@@ -102,6 +110,8 @@ def open_emulated(
     rotations = chip_rotations(_physically_mounted(profile, physical_mounts or {}))
     board = EmulatedBoard(profile, registry, clock, world, rotations, errors,
                           faults=[*profile.emulation.faults, *faults], seed=run_seed)
+    if poll_plan is not None:
+        board.poll_plan = poll_plan
     board.update(start_ns)
     return Pipeline(profile, registry, board, calibrated=calibrated, trace=trace,
                     recorder=recorder)
