@@ -548,7 +548,7 @@ ESTIMATE_TARGET_ROWS_S = 3 * 132_800
 measured when it was filed."""
 
 
-def estimate_rows(n_rows: int, madgwick_update_us: float) -> list[Row]:
+def estimate_rows(n_rows: int, madgwick_update_us: float | None) -> list[Row]:
     """The three kernel backends of ``imuhal estimate`` on one log: the AOT extension (built
     first into a temporary kernel directory), numba's JIT (its cache warmed on a short log
     first, as an installed user's would be) and pure Python; beside the AOT row, the per-cell
@@ -580,7 +580,7 @@ def estimate_rows(n_rows: int, madgwick_update_us: float) -> list[Row]:
 
 
 def aot_estimate_rows(head: str, log: Path, out: Path, kernels: Path, n_rows: int,
-                      madgwick_update_us: float) -> list[Row]:
+                      madgwick_update_us: float | None) -> list[Row]:
     """The AOT extension's rows, the per-cell CSV path beside them (same backend, same log,
     one after the other) and the peak RSS on the first tenth of the log."""
     load = os.getloadavg()[0]
@@ -608,12 +608,15 @@ def aot_estimate_rows(head: str, log: Path, out: Path, kernels: Path, n_rows: in
 
 
 def estimate_table_rows(case: str, n_rows: int, cpu: float, rss_mb: float,
-                        madgwick_update_us: float) -> list[Row]:
+                        madgwick_update_us: float | None) -> list[Row]:
+    """``madgwick_update_us``: the ``update()`` row of this run, the per-row peer (None with
+    ``--skip estimators``: no ratio, rather than one against a made-up figure)."""
     us_row = cpu / n_rows * 1e6
     return [
         Row("estimate", case, n_rows / cpu, "rows/s (cpu)"),
-        Row("estimate", "  cpu per row", us_row, "us/row", "madgwick update()",
-            us_row / madgwick_update_us),
+        Row("estimate", "  cpu per row", us_row, "us/row",
+            "madgwick update()" if madgwick_update_us else "",
+            us_row / madgwick_update_us if madgwick_update_us else None),
         Row("estimate", "  speed-up", BEFORE_ESTIMATE_US_ROW / us_row, "x",
             f"before ({BEFORE_ESTIMATE_US_ROW} us/row)", None, ">= 4"),
         Row("estimate", "  peak RSS", rss_mb, "MB", "", None, "<= 150 at 2,000,000 rows"),
@@ -844,7 +847,7 @@ def main(argv: list[str] | None = None) -> int:
                                    "plain-Python Madgwick", p_us / plain))
         rows += est
     if "estimate" not in args.skip:
-        upd = next((r.value for r in rows if r.case == "madgwick update()"), 1.0)
+        upd = next((r.value for r in rows if r.case == "madgwick update()"), None)
         rows += estimate_rows(args.rows, upd)
     if "board" not in args.skip or "blocks" not in args.skip:
         rows += board_and_block_rows(args.board_s, args.skip, args.kernel_dir)

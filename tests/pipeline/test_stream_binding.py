@@ -8,9 +8,12 @@ import math
 from pathlib import Path
 
 import pytest
+import yaml
 
 from imuhal.core.errors import ProfileError
 from imuhal.core.quantities import Quantity
+from imuhal.core.samples import Frame
+from imuhal.core.streams import StreamSpec
 from imuhal.emulation.open import open_emulated
 from imuhal.pipeline import Pipeline
 from imuhal.plugins.manager import Registry, load_registry
@@ -89,6 +92,32 @@ def test_a_hand_setting_that_agrees_with_the_stream_is_kept(registry: Registry) 
         "nominal_airspeed_m_s: 10\n      sample_period_s: 0.00401\n"
         "      gyro_full_scale_rad_s: 20\n")}))
     assert (s.sample_period_s, s.gyro_full_scale_rad_s) == (0.00401, 20)  # type: ignore[attr-defined]
+
+
+def stream_bound_settings(registry: Registry) -> set[str]:
+    """The settings some registered estimator takes from its streams: those its ``bind``
+    changes when fed a gyro and an accelerometer stream unlike every default."""
+    streams = (StreamSpec("imu", Quantity.GYRO, Frame.SENSOR, 333.0, full_scale=7.0),
+               StreamSpec("imu", Quantity.ACCEL, Frame.SENSOR, 333.0, full_scale=50.0))
+    keys: set[str] = set()
+    for name in registry.estimators.names():
+        estimator = registry.estimators.get(name)({})
+        before = estimator.settings.model_dump()
+        estimator.bind(streams)
+        after = estimator.settings.model_dump()
+        keys |= {key for key in before if before[key] != after[key]}
+    return keys
+
+
+def test_no_bundled_profile_gives_a_setting_the_streams_bind(registry: Registry) -> None:
+    bound = stream_bound_settings(registry)
+    assert bound >= {"sample_period_s", "sensor_rate_hz", "gyro_full_scale_rad_s",
+                     "accel_full_scale_m_s2"}
+    given = {f"{path.name}: estimators.{name}.settings.{key}"
+             for path in sorted(PROFILES.glob("*.yaml"))
+             for name, spec in yaml.safe_load(path.read_text())["estimators"].items()
+             for key in (spec.get("settings") or {}) if key in bound}
+    assert given == set()
 
 
 def test_freescale_integrates_at_the_gyro_streams_rate(registry: Registry) -> None:

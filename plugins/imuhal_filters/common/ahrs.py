@@ -864,16 +864,18 @@ class AhrsEstimator(Estimator):
         turns the others' integration), so the pull is neither limited to the clipped axes
         nor to an amount. While the accelerometer disagrees with the attitude the step
         hands out by more than RECOVERY_CHECKED_RAD, or no fresh reading (``max_aux_age_s``)
-        checks it, the estimates are withheld (UNSETTLED): the attitude is not known yet."""
+        checks it, the estimates are withheld (UNSETTLED): the attitude is not known yet.
+        A filter whose kernel keeps the attitude (not ``owns_quaternion``: decoupled, VQF)
+        gets no pull, only the check; an attitude still unconfirmed when the recovery runs
+        out stays withheld until the accelerometer agrees (``_after_dropped``'s check)."""
         last = self._last_gyro_t_ns
         dt = self._nominal_dt_s
         if last is not None and 0.0 < (item.t_ns - last) * _NS <= self._max_dt_s:
             dt = (item.t_ns - last) * _NS
         gain = RECOVERY_GAIN * self._recovery_left_s / RECOVERY_S
         self._recovery_left_s = max(0.0, self._recovery_left_s - dt)
-        g = self._checking_g(item.t_ns, rate) if self.owns_quaternion and self._tilt_aligned \
-            else None
-        if g is not None:
+        g = self._checking_g(item.t_ns, rate) if self._tilt_aligned else None
+        if g is not None and self.owns_quaternion:
             self._q = _tilt_pulled(self._q, g, gain * dt)[0]
         out = self._on_gyro(item, rate)
         # judged on the attitude the step hands out, not the one before it: the step
@@ -883,6 +885,14 @@ class AhrsEstimator(Estimator):
         # an earlier agreement no longer holds
         self._recovery_apart_rad = _INF if g is None else _tilt_pulled(self._q, g, 0.0)[1]
         if out and self._recovery_apart_rad > RECOVERY_CHECKED_RAD:
+            if self._recovery_left_s <= 0.0:
+                # the recovery ends with the attitude still unconfirmed (a filter whose
+                # kernel keeps the attitude gets no pull: decoupled, after a roll beyond
+                # its range, was 168 deg off when the recovery ran out and handed that
+                # out): from here it is checked as after an unmeasured span
+                self._unchecked = True
+                self._dropped_after_ns = self._last_gyro_t_ns
+                self._span_before = self._span_residual = None
             self._counters["angular_rate_recovery"]["withheld"] += 1
             return [RejectedEstimate(t_ns=item.t_ns, source=self.instance, kind="attitude",
                                      flags=EstimateFlag.UNSETTLED, estimator=self.name)]
