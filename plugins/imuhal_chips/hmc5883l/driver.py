@@ -586,12 +586,15 @@ class Hmc5883lDriver(Driver):
         None: nothing proved, poll on as before."""
         assert self._feed is not None
         feed = self._feed
-        unchanged = feed.t_ns - feed.changed_ns
+        # from the master's latest copy, not its latest delivery: a hung master (its own
+        # data-ready clear) delivers its copy of before again, made before the chip's
+        # next instant whatever the chip did since (``AutoReadFeed.copied_ns``)
+        unchanged = feed.copied_ns - feed.changed_ns
         copied = self._repeat_after_ns <= unchanged
-        # the master's deliveries paused (its chip hung too, the host stalled): RDY alone
-        # can still prove a hang, once the chip's next instant and its data write are past
+        # the master's copies paused (its chip hung too, the host stalled): RDY alone can
+        # still prove a hang, once the chip's next instant and its data write are past
         paused = not copied and bool(feed.period_ns) \
-            and now_ns - feed.t_ns > feed.period_ns + NOT_READY_RETRY_NS // 4 \
+            and now_ns - feed.copied_ns > feed.period_ns + NOT_READY_RETRY_NS // 4 \
             and now_ns >= feed.changed_ns + NOT_READY_RETRY_NS // 2 + round(
                 self._grid.period_ns * (1 + CLOCK_TOLERANCE))
         if not self._armed() or not (paused or copied) \
@@ -603,9 +606,12 @@ class Hmc5883lDriver(Driver):
             # so may the master's; nothing proved in this run
             self._hang_read = None
             return None
+        # a hung master (delivering, copying nothing): read again past the chip's second
+        # instant, whatever this read found (``_look_past_second_instant``)
+        look = None if copied else self._look_past_second_instant(now_ns)
         if status & STATUS_RDY:
             if not copied:
-                return None  # not hung so far; the copies may yet prove a repeat
+                return look  # not hung so far; the copies may yet prove a repeat
             self._hang_read = None  # no hang in this run: the chip measures
             if now_ns < self._doubt_until_ns:
                 # the master's reads failed lately (a late copy looks the same): nothing
@@ -616,6 +622,8 @@ class Hmc5883lDriver(Driver):
             self._repeat = (stamp, self._next_instant_ns())
             self._retrying = False
             return PollResult([], self._grid.next_after(now_ns))
+        if look is not None:
+            return look
         if now_ns < self._next_instant_ns():
             # no measurement could be writing its data now: the chip let its instant pass
             assert self._idle_from is not None  # _armed()
@@ -624,6 +632,26 @@ class Hmc5883lDriver(Driver):
             return None
         self._hang_read = now_ns
         return PollResult([], now_ns + NOT_READY_RETRY_NS)
+
+    def _look_past_second_instant(self, now_ns: int) -> PollResult | None:
+        """read: auto, a status read while the master delivers but copies nothing (its own
+        chip hung: ``AutoReadFeed.copied_ns`` behind ``t_ns``): read again once the chip's
+        second measurement after the latest change must have been written (two periods at
+        the slowest clock after its delivery, and the write's 250 us). RDY then tells
+        whether the chip let that instant pass. Sooner, RDY set proves nothing, and RDY
+        clear proves a hang a frame ledger cannot use (its reads must reach 1.5 periods
+        past the field's stamp, imuhal.pipeline.accounting); on the grid, a master's
+        recovery holding the host can put the read off until the master copies again, and
+        that copy then comes with no proof of how many measurements the chip made before
+        it hung (the fault matrix hangs both chips at once). None: poll on as before (a
+        master still copying, or paused as a whole: a stalled host; the read is past)."""
+        assert self._feed is not None
+        feed = self._feed
+        look_ns = feed.changed_ns + round(2 * self._grid.period_ns * (1 + CLOCK_TOLERANCE)) \
+            + NOT_READY_RETRY_NS // 2
+        if feed.copied_ns >= feed.t_ns or look_ns <= now_ns:
+            return None
+        return PollResult([], look_ns)
 
     def _armed(self) -> bool:
         """A status read may yet prove a repeat or a hang in this run of unchanged copies:
