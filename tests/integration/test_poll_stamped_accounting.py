@@ -33,6 +33,7 @@ from imuhal.emulation.faults import (
     FaultSpec,
     HostStall,
     StuckDataReady,
+    TimingJitter,
 )
 from imuhal.pipeline import Pipeline
 from imuhal.pipeline.accounting import FrameLedger
@@ -254,6 +255,21 @@ def test_a_magnetometer_hung_with_its_max21100_is_proved_hung_not_repeated(
               for d in ("imu", "mag")], seed=1, seconds=start_s + 0.25)
     ledger = _ledger_matches_the_chip(p, "mag")
     assert ledger.not_measured >= 1
+
+
+def test_a_magnetometer_copy_after_a_pause_in_the_masters_deliveries_is_stamped_on_the_grid(
+        registry: Registry) -> None:
+    """The host's polls of every chip of the seed paraglider come up to 5 ms late for
+    0.45 s (the fault matrix's ``jitter`` at 10 %), so the MAX21100's deliveries pause up
+    to 30 ms. A copy after such a pause is stamped where a poll on time would have stamped
+    its measurement (the HMC5883L driver's grid), not at its delivery or on the cadence of
+    a field stamped off the grid: stamps up to a period after their measurement beside
+    fields stamped a guard after theirs made the frame ledger count a field the chip never
+    skipped (64 for the chip's 63 before)."""
+    p = _fly(registry, "seed-paraglider-vario",
+             [TimingJitter(device=d, max_delay_s=0.005, start_s=0.36, end_s=0.81)
+              for d in ("imu", "mag", "baro")], seed=1, seconds=0.86)
+    _ledger_matches_the_chip(p, "mag")
 
 
 @pytest.mark.parametrize("start_s", [0.5, 0.5067])
