@@ -61,9 +61,14 @@ is stamped with the IMU burst that delivered it), then waits for the next measur
 Every copy that changed since the previous poll is taken (``AutoReadFeed.take``), not only
 the latest: when the master's reads bring two measurements between two polls (FIFO reads
 at the IMU's own instants, or the look a latency later), the older is handed out too,
-stamped with its delivery, or on the chip's own cadence when the master delivered nothing
-for a while before it (its recovery: the copy may have waited a field period in the chip;
-``imuhal.bus.auto_read.stamp_on_cadence``).
+stamped with its delivery, or, when the master delivered nothing for a while before it (its
+recovery, the host's polls late: the copy may have waited a field period in the chip), on
+the driver's grid where a poll on time would have stamped its measurement
+(``_after_pause``; ``imuhal.bus.auto_read.stamp_on_cadence`` for a master that reports its
+failed reads). A master that delivers bursts while its own chip hung
+(``AutoReadFeed.copied_ns``: the MAX21100's accelerometer data-ready clear) made no copy
+in them: the status read proves no repeat from them, and reads again once the chip's
+second instant after its latest field is past (``_look_past_second_instant``).
 A reconfiguration under ``read: auto`` reads no data byte itself: the master's next copy
 (all six bytes in one transaction) releases the lock reading Mode set; six one-shot reads
 straddling a copy would leave it half released and tear every later copy.
@@ -844,9 +849,9 @@ class Hmc5883lDriver(Driver):
         brought two measurements between two polls, as FIFO reads at the IMU's own
         instants can), and the last blank one when none is a measurement. The newest is
         stamped with this poll, as one alone is; an older one with its delivery (its
-        measurement at most the feed's latency before it, or on the chip's cadence when the
-        master paused before it: ``stamp_on_cadence``), kept in order. So is the newest
-        when this poll looks again for a copy that was not there on time (``late``): a
+        measurement at most the feed's latency before it, or on the driver's grid when the
+        master paused before it: ``_after_pause``, ``stamp_on_cadence``), kept in order. So
+        is the newest when this poll looks again for a copy that was not there on time (``late``): a
         failed slave read or IMU burst delayed it, and the poll a delivery latency after the
         planned one would stamp it up to 7 ms late at the seed's rates, past half the
         field's period, where the frame ledger counts a field the chip never skipped; and
