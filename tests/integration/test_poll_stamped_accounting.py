@@ -272,6 +272,23 @@ def test_a_magnetometer_copy_after_a_pause_in_the_masters_deliveries_is_stamped_
     _ledger_matches_the_chip(p, "mag")
 
 
+def test_a_magnetometer_restart_broken_after_its_mode_write_ends_the_ledgers_segment(
+        registry: Registry) -> None:
+    """Every device of the seed paraglider fails one transfer in ten with a bus error and
+    one in ten with an OS error from 1 s (the fault matrix's ``bus_errors+os_error+...``
+    at 10 %). At 1.03 s a restart of the HMC5883L fails after its Mode write, which
+    restarted the chip's measurements with a new phase; resumed as a glitch, the driver
+    polled on the old grid and the ledger counted across the restart (89 for the chip's
+    87 by 1.2 s). The configuration reads back as written, so the restart is completed:
+    the grid re-anchored and a reconfiguration ends the ledger's segment."""
+    p = _fly(registry, "seed-paraglider-vario",
+             [BusErrors(device=d, rate=0.1, start_s=1.0) for d in ("imu", "mag", "baro")]
+             + [BusOSError(device=d, rate=0.1, start_s=1.0) for d in ("imu", "mag", "baro")],
+             seed=1, seconds=1.2)
+    ledger = _ledger_matches_the_chip(p, "mag")
+    assert len(ledger.all_segments()) == 2
+
+
 @pytest.mark.parametrize("start_s", [0.5, 0.5067])
 def test_a_hang_of_one_field_behind_the_max21100_is_proved_by_the_hmc5883ls_status(
         registry: Registry, start_s: float) -> None:

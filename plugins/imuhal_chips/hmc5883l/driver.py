@@ -215,6 +215,10 @@ class Hmc5883lDriver(Driver):
         """What Config A/B and Mode must hold (set by configure())."""
         self._streams: tuple[StreamSpec, ...] = ()
         self._mode_written_ns = 0
+        self._configuring = False
+        """A configure() began and has not completed (a bus error broke it: ``resume``)."""
+        self._written: RegisterPlan | None = None
+        """The plan that configure() wrote in full, until it completes."""
         self._skip_next = False
         self._grid = PollGrid(round(1e9 / self.settings.odr_hz))
         self._ready = DataReady({Quantity.MAG: self._grid.period_ns})
@@ -337,9 +341,14 @@ class Hmc5883lDriver(Driver):
     def configure(self) -> None:
         """Write Config A/B and continuous mode, read them back, release the data lock."""
         plan = self.register_plan()
+        self._configuring, self._written = True, None
         plan.apply(self.regs)
         self._mode_written_ns = self.clock.now_ns()  # continuous measurements start here
-        got = plan.read(self.regs)
+        self._written = plan
+        self._configured_as(plan, plan.read(self.regs))
+
+    def _configured_as(self, plan: RegisterPlan, got: dict[int, int]) -> None:
+        """configure() after its writes: ``got`` is the plan's read-back."""
         self._locked_before_ns, self._locked_ns = self._locked_ns, self.clock.now_ns()
         if self.settings.read != "auto":
             self._read(Reg.X_MSB, 6)  # reading MODE locked the outputs; six data reads unlock
@@ -379,6 +388,7 @@ class Hmc5883lDriver(Driver):
             # well, unreported; a copy they held back looks like a repeat (``_doubt_copies``)
             self._doubt_until_ns = self.clock.now_ns() + DOUBT_NS if restarted else 0
         self._streams = (self._spec(config),)  # with the auto-read's latency, when there is one
+        self._configuring, self._written = False, None
 
     def start(self, now_ns: int) -> int:
         # configure() may have waited on the clock since the caller read it (the base
@@ -1016,12 +1026,36 @@ class Hmc5883lDriver(Driver):
         """One transfer of a poll failed: when Config A/B and Mode still read back as
         written (the read-back also releases the data lock a partial data read may have
         set), the chip kept measuring, so poll again at once instead of the full recovery
-        (which rewrites the configuration and drops the first measurement after it)."""
+        (which rewrites the configuration and drops the first measurement after it).
+
+        After a configure() the failure broke (a restart's) that wrote its plan in full,
+        its Mode write restarted the chip's measurements with a new phase: when the plan
+        reads back as written, the rest of configure() is done (the grid anchored at that
+        write by start(), a reconfiguration counted: the frame ledger's segment ends).
+        Resumed as a glitch, the driver polled on the old grid and the ledger counted
+        across the restart (the fault matrix's ``bus_errors+os_error+all_ones`` at 10 %);
+        the full recovery probes the chip again first, whose one-shot reads through an
+        auto-read master fail on such a wire for seconds. Broken within its writes: the
+        full recovery."""
+        if self._configuring:
+            return self._resume_configure(now_ns)
         if self._feed is None:
             self._idle_from = None  # a failed read breaks the run of reads a hang's proof needs
         if self.gain_lsb_per_gauss is None or self._off_plan():
             return None
         return max(now_ns, self.clock.now_ns())
+
+    def _resume_configure(self, now_ns: int) -> int | None:
+        """``resume`` after a broken configure(): see there."""
+        plan = self._written
+        if plan is None:
+            return None
+        got = plan.read(self.regs)
+        if plan.mismatches(got):
+            return None
+        self._configured_as(plan, got)
+        self.health.reconfigurations += 1
+        return self.start(max(now_ns, self.clock.now_ns()))
 
     def _off_plan(self) -> bool:
         """The plan's check (Config A/B and Mode: a mismatch is a silent reset, defaults
