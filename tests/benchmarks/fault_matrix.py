@@ -4,12 +4,12 @@ the simulation's truth (plain script; not collected by pytest).
 
 Run:  nice -n 10 .venv/bin/python tests/benchmarks/fault_matrix.py [--seconds 10]
       [--boards gy91,seed-gps-vario] [--rates 0.001,0.01,0.1] [--kinds wild_value,reset]
-      [--json out.json] [--markdown] [--in-process] [--imu-fifo 8]
+      [--seed 1] [--json out.json] [--markdown] [--in-process] [--imu-fifo 8]
       .venv/bin/python tests/benchmarks/fault_matrix.py --combine a.json b.json [--seconds 10]
 
-Each run opens one bundled board emulated (its profile's scenario, seed 1), injects the
-faults through imuhal.emulation.faults, flies ``--seconds`` simulated seconds and judges
-every event with the checker the soak shares (tests/benchmarks/fault_truth.py) at MARGIN
+Each run opens one bundled board emulated (its profile's scenario, seed 1 or ``--seed``),
+injects the faults through imuhal.emulation.faults, flies ``--seconds`` simulated seconds
+and judges every event with the checker the soak shares (tests/benchmarks/fault_truth.py) at MARGIN
 times the tolerance the chips' error models allow, with each board's own latency (two
 periods of the device's stream plus the latency its stream spec declares: a chip filter's
 delay). What a kind "at r" means:
@@ -88,6 +88,8 @@ from imuhal.profile.loader import load_profile
 from imuhal.profile.model import BoardProfile
 
 RATES = (0.001, 0.01, 0.1)
+SEED = 1
+"""The flights' seed unless ``--seed`` says another."""
 MARGIN = 1.5
 """Every tolerance of the error model, times this (the "generous margin")."""
 WINDOW_MAX_S = 0.5
@@ -150,6 +152,8 @@ class RunResult:
     quantity (None: a ``--json`` of a run before the matrix counted them)."""
     crash: str = ""
     wall_s: float = 0.0
+    seed: int = SEED
+    """The flight's seed (``--json`` files from before ``--seed`` flew seed 1)."""
     ledgers: dict[str, dict[str, int]] = field(default_factory=dict)
     """Per accounted device: the ledger's counts, ``chip`` (the emulator's count over the
     ledger's segments) and ``segments_off`` (segments whose count differs from it)."""
@@ -182,17 +186,17 @@ def ledgers_of(pipeline: Pipeline) -> dict[str, dict[str, int]]:
 
 
 def run_one(board: str, profile: BoardProfile, registry: Registry, kinds: Sequence[str],
-            rate: float, seconds: float, devices: list[Device]) -> RunResult:
+            rate: float, seconds: float, devices: list[Device], seed: int = SEED) -> RunResult:
     plan: list[FaultSpec] = [f for kind in kinds for dev in devices
                              for f in faults_for(kind, dev, rate, seconds)]
-    result = RunResult(board, tuple(kinds), rate, len(plan))
+    result = RunResult(board, tuple(kinds), rate, len(plan), seed=seed)
     if not plan:
         return result  # no device of the board can have it (corrupt_byte without a UART)
     wall0 = time.perf_counter()
-    report = Report(duration_s=seconds, seed=1)
+    report = Report(duration_s=seconds, seed=seed)
     try:
-        with open_emulated(profile, registry, seed=1, faults=plan) as pipeline:
-            checker = Checker(pipeline, plan, report, error_models_for(profile, registry, 1),
+        with open_emulated(profile, registry, seed=seed, faults=plan) as pipeline:
+            checker = Checker(pipeline, plan, report, error_models_for(profile, registry, seed),
                               margin=MARGIN)
             for event in pipeline.events(seconds):
                 checker.handle(event)
@@ -232,7 +236,8 @@ def _die_with(parent: int) -> None:
 
 
 def run_forked(board: str, profile: BoardProfile, registry: Registry, kinds: Sequence[str],
-               rate: float, seconds: float, devices: list[Device]) -> RunResult:
+               rate: float, seconds: float, devices: list[Device],
+               seed: int = SEED) -> RunResult:
     """``run_one`` in a child forked from this process (see the module docstring); its
     result comes back through a pipe (a child that dies without one is a crash)."""
     context = multiprocessing.get_context("fork")
@@ -242,7 +247,7 @@ def run_forked(board: str, profile: BoardProfile, registry: Registry, kinds: Seq
 
     def child() -> None:
         _die_with(parent)
-        send.send(run_one(board, profile, registry, kinds, rate, seconds, devices))
+        send.send(run_one(board, profile, registry, kinds, rate, seconds, devices, seed))
 
     process = context.Process(target=child)
     process.start()
@@ -252,7 +257,7 @@ def run_forked(board: str, profile: BoardProfile, registry: Registry, kinds: Seq
     except EOFError:
         planned = sum(len(faults_for(kind, dev, rate, seconds)) for kind in kinds
                       for dev in devices)
-        result = RunResult(board, tuple(kinds), rate, planned,
+        result = RunResult(board, tuple(kinds), rate, planned, seed=seed,
                            crash="the run's process died without a result")
     process.join()
     return result
@@ -274,7 +279,8 @@ def _total(counts: Iterable[int | None]) -> str:
 
 
 def markdown(results: list[RunResult], seconds: float) -> str:
-    lines = [f"{seconds:g} s flights, seed 1, margin x{MARGIN:g}", "",
+    seeds = ", ".join(map(str, sorted({r.seed for r in results}))) or str(SEED)
+    lines = [f"{seconds:g} s flights, seed {seeds}, margin x{MARGIN:g}", "",
              "| board | runs | crashes | valid samples checked | wrong valid | out of order | "
              "unflagged wrong estimates | rejected estimates | attitudes handed out | of them "
              f"more than {TILT_MARGIN_DEG:g} deg off | worst tilt (deg) | by design "
@@ -344,6 +350,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--rates", default=",".join(map(str, RATES)))
     parser.add_argument("--kinds", default="",
                         help="comma-separated kinds: only the runs holding one of them")
+    parser.add_argument("--seed", type=int, default=SEED,
+                        help=f"the flights' seed (default {SEED})")
     parser.add_argument("--json", default="")
     parser.add_argument("--markdown", action="store_true")
     parser.add_argument("--in-process", action="store_true",
@@ -375,7 +383,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             if wanted and not wanted.intersection(kinds):
                 continue
             run = run_one if args.in_process else run_forked
-            r = run(board, profile, registry, kinds, rate, args.seconds, devices)
+            r = run(board, profile, registry, kinds, rate, args.seconds, devices, args.seed)
             if not r.faults:
                 continue
             results.append(r)

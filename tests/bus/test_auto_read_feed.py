@@ -24,6 +24,19 @@ def test_a_change_after_failed_reads_names_them_oldest_first() -> None:
     assert f.failures == 2
 
 
+def test_a_delivery_whose_master_copied_nothing_keeps_the_copy_time() -> None:
+    """``master_fresh=False``: the master's own chip did not measure since its previous
+    read, so it made no copy of the slave: ``copied_ns`` stays at the latest delivery that
+    may hold one (a master that says nothing, None, may)."""
+    f = feed()
+    f.deliver(10, b"\x01\x10\x20", master_fresh=True)
+    f.deliver(20, b"\x00\x10\x20", master_fresh=False)
+    f.deliver(30, b"\x00\x10\x20", master_fresh=False)
+    assert (f.t_ns, f.copied_ns) == (30, 10)
+    f.deliver(40, b"\x00\x10\x20")
+    assert f.copied_ns == 40
+
+
 def test_a_repeated_copy_among_reads_with_a_nack_is_a_failed_read() -> None:
     """A FIFO read whose SLV0_NACK says one of its frames' slave reads failed, not which:
     a frame that repeats the copy before may be it; one that differs is not."""

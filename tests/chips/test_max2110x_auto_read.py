@@ -132,6 +132,24 @@ def test_samples_are_stamped_a_fixed_latency_after_each_measurement() -> None:
     assert {(s.t_ns - origin) % PERIOD_NS for s in samples} == {expected}
 
 
+def test_a_hung_max21100_tells_the_feed_that_its_bursts_copied_nothing() -> None:
+    """The MAX21100 copies the slave at each accelerometer measurement. Its engine hung
+    (data-ready never set), its driver still reads a burst at each poll and delivers the
+    copy of before, saying that the master copied nothing since (the accelerometer's
+    data-ready clear): the feed's copy time stays before the hang while its deliveries go
+    on, until the driver's restart cures the chip (the HMC5883L proves a repeat only from
+    a copy made after its chip's next instant)."""
+    board = Board({"reset_check_s": 60})
+    board.run(0.3)
+    feed = board.aux.auto_read(0x1E, 0x03, 6)
+    board.imu_emu.stuck_data_ready = True
+    t_hung = board.clock.now_ns()
+    board.run(0.015)
+    assert board.imu.health.reconfigurations == 0  # not restarted yet
+    assert feed.t_ns > t_hung + 10_000_000
+    assert feed.copied_ns < t_hung
+
+
 def test_a_stopped_magnetometer_is_flagged_stale_and_restarted() -> None:
     board = Board({"reset_check_s": 60})
     board.run(0.5)

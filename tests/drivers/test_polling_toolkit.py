@@ -29,6 +29,14 @@ def test_a_late_poll_skips_to_the_next_grid_point_instead_of_bunching() -> None:
     assert grid.next_after(int(3.5 * PERIOD)) == 4 * PERIOD
 
 
+def test_the_grid_point_at_or_before_a_time_hands_nothing_out() -> None:
+    grid = PollGrid(PERIOD)
+    grid.anchor(1_000)
+    assert [grid.point_at_or_before(1_000 + int(2.5 * PERIOD)),
+            grid.point_at_or_before(1_000 + 2 * PERIOD)] == [1_000 + 2 * PERIOD] * 2
+    assert grid.next_after(1_000) == 1_000 + PERIOD  # the first point, as if never asked
+
+
 def test_an_early_grid_steps_short_of_the_period() -> None:
     grid = PollGrid(PERIOD, early_fraction=64)
     grid.anchor(0)

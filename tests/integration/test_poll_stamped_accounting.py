@@ -33,6 +33,7 @@ from imuhal.emulation.faults import (
     FaultSpec,
     HostStall,
     StuckDataReady,
+    TimingJitter,
 )
 from imuhal.pipeline import Pipeline
 from imuhal.pipeline.accounting import FrameLedger
@@ -234,6 +235,58 @@ def test_a_hung_magnetometer_behind_the_max21100_is_proved_hung_by_its_status(
              seed=1, seconds=6.0)
     ledger = _ledger_matches_the_chip(p, "mag")
     assert ledger.not_measured >= 5
+
+
+@pytest.mark.parametrize("start_s", [0.505, 0.531])
+def test_a_magnetometer_hung_with_its_max21100_is_proved_hung_not_repeated(
+        registry: Registry, start_s: float) -> None:
+    """The MAX21100 and the HMC5883L hang together (the fault matrix's ``stuck_data_ready``
+    at 10 % hangs every chip of the board at once). The MAX21100's driver reads a burst at
+    each poll until it restarts the chip, and says the master copied nothing (its
+    accelerometer's data-ready clear): such bursts are no copy made after the HMC5883L's
+    next instant, so its status read (RDY still set from its last measurement, which the
+    master never copied) proves no repeat (at 0.531 s: 44 counted for the chip's 42);
+    and while they come the driver reads the status again once the chip's second instant
+    after its latest field is past, before the master's recovery holds the host: RDY
+    clear, hung, and the copy of its last measurement after the master's restart ends the
+    run with no slot counted lost (at 0.505 s: 42 for 40)."""
+    p = _fly(registry, "seed-paraglider-vario",
+             [StuckDataReady(device=d, start_s=start_s, end_s=start_s + 0.45)
+              for d in ("imu", "mag")], seed=1, seconds=start_s + 0.25)
+    ledger = _ledger_matches_the_chip(p, "mag")
+    assert ledger.not_measured >= 1
+
+
+def test_a_magnetometer_copy_after_a_pause_in_the_masters_deliveries_is_stamped_on_the_grid(
+        registry: Registry) -> None:
+    """The host's polls of every chip of the seed paraglider come up to 5 ms late for
+    0.45 s (the fault matrix's ``jitter`` at 10 %), so the MAX21100's deliveries pause up
+    to 30 ms. A copy after such a pause is stamped where a poll on time would have stamped
+    its measurement (the HMC5883L driver's grid), not at its delivery or on the cadence of
+    a field stamped off the grid: stamps up to a period after their measurement beside
+    fields stamped a guard after theirs made the frame ledger count a field the chip never
+    skipped (64 for the chip's 63 before)."""
+    p = _fly(registry, "seed-paraglider-vario",
+             [TimingJitter(device=d, max_delay_s=0.005, start_s=0.36, end_s=0.81)
+              for d in ("imu", "mag", "baro")], seed=1, seconds=0.86)
+    _ledger_matches_the_chip(p, "mag")
+
+
+def test_a_magnetometer_restart_broken_after_its_mode_write_ends_the_ledgers_segment(
+        registry: Registry) -> None:
+    """Every device of the seed paraglider fails one transfer in ten with a bus error and
+    one in ten with an OS error from 1 s (the fault matrix's ``bus_errors+os_error+...``
+    at 10 %). At 1.03 s a restart of the HMC5883L fails after its Mode write, which
+    restarted the chip's measurements with a new phase; resumed as a glitch, the driver
+    polled on the old grid and the ledger counted across the restart (89 for the chip's
+    87 by 1.2 s). The configuration reads back as written, so the restart is completed:
+    the grid re-anchored and a reconfiguration ends the ledger's segment."""
+    p = _fly(registry, "seed-paraglider-vario",
+             [BusErrors(device=d, rate=0.1, start_s=1.0) for d in ("imu", "mag", "baro")]
+             + [BusOSError(device=d, rate=0.1, start_s=1.0) for d in ("imu", "mag", "baro")],
+             seed=1, seconds=1.2)
+    ledger = _ledger_matches_the_chip(p, "mag")
+    assert len(ledger.all_segments()) == 2
 
 
 @pytest.mark.parametrize("start_s", [0.5, 0.5067])

@@ -61,9 +61,14 @@ is stamped with the IMU burst that delivered it), then waits for the next measur
 Every copy that changed since the previous poll is taken (``AutoReadFeed.take``), not only
 the latest: when the master's reads bring two measurements between two polls (FIFO reads
 at the IMU's own instants, or the look a latency later), the older is handed out too,
-stamped with its delivery, or on the chip's own cadence when the master delivered nothing
-for a while before it (its recovery: the copy may have waited a field period in the chip;
-``imuhal.bus.auto_read.stamp_on_cadence``).
+stamped with its delivery, or, when the master delivered nothing for a while before it (its
+recovery, the host's polls late: the copy may have waited a field period in the chip), on
+the driver's grid where a poll on time would have stamped its measurement
+(``_after_pause``; ``imuhal.bus.auto_read.stamp_on_cadence`` for a master that reports its
+failed reads). A master that delivers bursts while its own chip hung
+(``AutoReadFeed.copied_ns``: the MAX21100's accelerometer data-ready clear) made no copy
+in them: the status read proves no repeat from them, and reads again once the chip's
+second instant after its latest field is past (``_look_past_second_instant``).
 A reconfiguration under ``read: auto`` reads no data byte itself: the master's next copy
 (all six bytes in one transaction) releases the lock reading Mode set; six one-shot reads
 straddling a copy would leave it half released and tear every later copy.
@@ -210,6 +215,10 @@ class Hmc5883lDriver(Driver):
         """What Config A/B and Mode must hold (set by configure())."""
         self._streams: tuple[StreamSpec, ...] = ()
         self._mode_written_ns = 0
+        self._configuring = False
+        """A configure() began and has not completed (a bus error broke it: ``resume``)."""
+        self._written: RegisterPlan | None = None
+        """The plan that configure() wrote in full, until it completes."""
         self._skip_next = False
         self._grid = PollGrid(round(1e9 / self.settings.odr_hz))
         self._ready = DataReady({Quantity.MAG: self._grid.period_ns})
@@ -332,9 +341,14 @@ class Hmc5883lDriver(Driver):
     def configure(self) -> None:
         """Write Config A/B and continuous mode, read them back, release the data lock."""
         plan = self.register_plan()
+        self._configuring, self._written = True, None
         plan.apply(self.regs)
         self._mode_written_ns = self.clock.now_ns()  # continuous measurements start here
-        got = plan.read(self.regs)
+        self._written = plan
+        self._configured_as(plan, plan.read(self.regs))
+
+    def _configured_as(self, plan: RegisterPlan, got: dict[int, int]) -> None:
+        """configure() after its writes: ``got`` is the plan's read-back."""
         self._locked_before_ns, self._locked_ns = self._locked_ns, self.clock.now_ns()
         if self.settings.read != "auto":
             self._read(Reg.X_MSB, 6)  # reading MODE locked the outputs; six data reads unlock
@@ -374,6 +388,7 @@ class Hmc5883lDriver(Driver):
             # well, unreported; a copy they held back looks like a repeat (``_doubt_copies``)
             self._doubt_until_ns = self.clock.now_ns() + DOUBT_NS if restarted else 0
         self._streams = (self._spec(config),)  # with the auto-read's latency, when there is one
+        self._configuring, self._written = False, None
 
     def start(self, now_ns: int) -> int:
         # configure() may have waited on the clock since the caller read it (the base
@@ -586,12 +601,15 @@ class Hmc5883lDriver(Driver):
         None: nothing proved, poll on as before."""
         assert self._feed is not None
         feed = self._feed
-        unchanged = feed.t_ns - feed.changed_ns
+        # from the master's latest copy, not its latest delivery: a hung master (its own
+        # data-ready clear) delivers its copy of before again, made before the chip's
+        # next instant whatever the chip did since (``AutoReadFeed.copied_ns``)
+        unchanged = feed.copied_ns - feed.changed_ns
         copied = self._repeat_after_ns <= unchanged
-        # the master's deliveries paused (its chip hung too, the host stalled): RDY alone
-        # can still prove a hang, once the chip's next instant and its data write are past
+        # the master's copies paused (its chip hung too, the host stalled): RDY alone can
+        # still prove a hang, once the chip's next instant and its data write are past
         paused = not copied and bool(feed.period_ns) \
-            and now_ns - feed.t_ns > feed.period_ns + NOT_READY_RETRY_NS // 4 \
+            and now_ns - feed.copied_ns > feed.period_ns + NOT_READY_RETRY_NS // 4 \
             and now_ns >= feed.changed_ns + NOT_READY_RETRY_NS // 2 + round(
                 self._grid.period_ns * (1 + CLOCK_TOLERANCE))
         if not self._armed() or not (paused or copied) \
@@ -603,9 +621,12 @@ class Hmc5883lDriver(Driver):
             # so may the master's; nothing proved in this run
             self._hang_read = None
             return None
+        # a hung master (delivering, copying nothing): read again past the chip's second
+        # instant, whatever this read found (``_look_past_second_instant``)
+        look = None if copied else self._look_past_second_instant(now_ns)
         if status & STATUS_RDY:
             if not copied:
-                return None  # not hung so far; the copies may yet prove a repeat
+                return look  # not hung so far; the copies may yet prove a repeat
             self._hang_read = None  # no hang in this run: the chip measures
             if now_ns < self._doubt_until_ns:
                 # the master's reads failed lately (a late copy looks the same): nothing
@@ -616,6 +637,8 @@ class Hmc5883lDriver(Driver):
             self._repeat = (stamp, self._next_instant_ns())
             self._retrying = False
             return PollResult([], self._grid.next_after(now_ns))
+        if look is not None:
+            return look
         if now_ns < self._next_instant_ns():
             # no measurement could be writing its data now: the chip let its instant pass
             assert self._idle_from is not None  # _armed()
@@ -624,6 +647,26 @@ class Hmc5883lDriver(Driver):
             return None
         self._hang_read = now_ns
         return PollResult([], now_ns + NOT_READY_RETRY_NS)
+
+    def _look_past_second_instant(self, now_ns: int) -> PollResult | None:
+        """read: auto, a status read while the master delivers but copies nothing (its own
+        chip hung: ``AutoReadFeed.copied_ns`` behind ``t_ns``): read again once the chip's
+        second measurement after the latest change must have been written (two periods at
+        the slowest clock after its delivery, and the write's 250 us). RDY then tells
+        whether the chip let that instant pass. Sooner, RDY set proves nothing, and RDY
+        clear proves a hang a frame ledger cannot use (its reads must reach 1.5 periods
+        past the field's stamp, imuhal.pipeline.accounting); on the grid, a master's
+        recovery holding the host can put the read off until the master copies again, and
+        that copy then comes with no proof of how many measurements the chip made before
+        it hung (the fault matrix hangs both chips at once). None: poll on as before (a
+        master still copying, or paused as a whole: a stalled host; the read is past)."""
+        assert self._feed is not None
+        feed = self._feed
+        look_ns = feed.changed_ns + round(2 * self._grid.period_ns * (1 + CLOCK_TOLERANCE)) \
+            + NOT_READY_RETRY_NS // 2
+        if feed.copied_ns >= feed.t_ns or look_ns <= now_ns:
+            return None
+        return PollResult([], look_ns)
 
     def _armed(self) -> bool:
         """A status read may yet prove a repeat or a hang in this run of unchanged copies:
@@ -816,9 +859,9 @@ class Hmc5883lDriver(Driver):
         brought two measurements between two polls, as FIFO reads at the IMU's own
         instants can), and the last blank one when none is a measurement. The newest is
         stamped with this poll, as one alone is; an older one with its delivery (its
-        measurement at most the feed's latency before it, or on the chip's cadence when the
-        master paused before it: ``stamp_on_cadence``), kept in order. So is the newest
-        when this poll looks again for a copy that was not there on time (``late``): a
+        measurement at most the feed's latency before it, or on the driver's grid when the
+        master paused before it: ``_after_pause``, ``stamp_on_cadence``), kept in order. So
+        is the newest when this poll looks again for a copy that was not there on time (``late``): a
         failed slave read or IMU burst delayed it, and the poll a delivery latency after the
         planned one would stamp it up to 7 ms late at the seed's rates, past half the
         field's period, where the frame ledger counts a field the chip never skipped; and
@@ -844,8 +887,8 @@ class Hmc5883lDriver(Driver):
             left = len(changes) - 1 - k  # copies after this one: each needs a later stamp
             by_delivery = left or late or copy is not delivered or t_ns < stale_ns
             if by_delivery:
-                t_ns = stamp_on_cadence(copy, self._cadence_ns, self._grid.period_ns,
-                                        pause_ns=pause_ns)
+                t_ns = self._after_pause(copy, pause_ns) or stamp_on_cadence(
+                    copy, self._cadence_ns, self._grid.period_ns, pause_ns=pause_ns)
                 if left and not blank_flag(changes[k + 1].data):
                     t_ns = self._before_next(t_ns, changes[k + 1].t_ns)
             stamp = min(max(t_ns, self._stamped_ns + 1), now_ns - left) \
@@ -858,6 +901,28 @@ class Hmc5883lDriver(Driver):
             self._stamped_ns = self._cadence_ns = stamp
             samples.append(sample)
         return samples, (None if samples else blank)
+
+    def _after_pause(self, copy: Copy, pause_ns: int) -> int | None:
+        """The stamp of a copy the master delivered after a pause in its deliveries
+        (longer than ``pause_ns``: the host's polls late or stalled, the master's reads
+        failing): where a poll on time would have stamped its measurement, the latest
+        point of the driver's grid (a latency and a guard after each of the chip's
+        instants from the Mode write) at or before the delivery, or the first after the
+        field before when none lies between. Stamped at the delivery, or on the cadence of
+        a field stamped off the grid itself, it lay up to a period after its measurement
+        where its neighbours lay a guard after theirs, and the frame ledger's gaps, rounded
+        to whole periods, counted a field the chip never skipped (a 20 ms pause of
+        ``jitter`` at 10 %: 1.93 periods after a field stamped 1.8 ms after its own). On a
+        chip clock a few percent off its nominal period the grid is off as the polls are
+        (module docstring). None: no pause, or no field yet (``stamp_on_cadence``)."""
+        last = self._cadence_ns
+        if last is None or copy.after_ns is None or copy.t_ns - copy.after_ns <= pause_ns:
+            return None
+        grid = self._grid
+        point = grid.point_at_or_before(copy.t_ns)
+        if point <= last:
+            point = grid.point_at_or_before(last) + grid.step_ns
+        return point
 
     def _before_next(self, t_ns: int, next_ns: int) -> int:
         """The stamp ``t_ns`` of a copy whose next change, a measurement, was delivered at
@@ -961,12 +1026,36 @@ class Hmc5883lDriver(Driver):
         """One transfer of a poll failed: when Config A/B and Mode still read back as
         written (the read-back also releases the data lock a partial data read may have
         set), the chip kept measuring, so poll again at once instead of the full recovery
-        (which rewrites the configuration and drops the first measurement after it)."""
+        (which rewrites the configuration and drops the first measurement after it).
+
+        After a configure() the failure broke (a restart's) that wrote its plan in full,
+        its Mode write restarted the chip's measurements with a new phase: when the plan
+        reads back as written, the rest of configure() is done (the grid anchored at that
+        write by start(), a reconfiguration counted: the frame ledger's segment ends).
+        Resumed as a glitch, the driver polled on the old grid and the ledger counted
+        across the restart (the fault matrix's ``bus_errors+os_error+all_ones`` at 10 %);
+        the full recovery probes the chip again first, whose one-shot reads through an
+        auto-read master fail on such a wire for seconds. Broken within its writes: the
+        full recovery."""
+        if self._configuring:
+            return self._resume_configure(now_ns)
         if self._feed is None:
             self._idle_from = None  # a failed read breaks the run of reads a hang's proof needs
         if self.gain_lsb_per_gauss is None or self._off_plan():
             return None
         return max(now_ns, self.clock.now_ns())
+
+    def _resume_configure(self, now_ns: int) -> int | None:
+        """``resume`` after a broken configure(): see there."""
+        plan = self._written
+        if plan is None:
+            return None
+        got = plan.read(self.regs)
+        if plan.mismatches(got):
+            return None
+        self._configured_as(plan, got)
+        self.health.reconfigurations += 1
+        return self.start(max(now_ns, self.clock.now_ns()))
 
     def _off_plan(self) -> bool:
         """The plan's check (Config A/B and Mode: a mismatch is a silent reset, defaults

@@ -181,6 +181,9 @@ class Max2110xDriver(Driver):
         self._idle_since: int | None = None
         """The stamp of the latest valid frame of the accounted channel while every read
         since it was good and found no new sample of it (``health.idle``)."""
+        self._read_whole = False
+        """The latest burst read since start() completed and was not blank (a failed or
+        blank one may have cleared the data-ready bits unseen: ``_deliver_burst``)."""
         self._grid = PollGrid(1, early_fraction=EARLY_FRACTION)
         self._ready = DataReady({})
         self._watch = ResetWatch(self.settings.reset_check_s)
@@ -415,6 +418,7 @@ class Max2110xDriver(Driver):
         self._ready.start(now_ns)
         self._last_temp_ns = None
         self._idle_since = None
+        self._read_whole = False
         self._watch.start(now_ns)
         if self._fifo is not None:
             self._fifo.reset(restart=True)
@@ -488,10 +492,12 @@ class Max2110xDriver(Driver):
             return self._poll_fifo(now_ns)
         # a read that fails may have cleared the data-ready bits: no proof across it
         since, self._idle_since = self._idle_since, None
+        whole, self._read_whole = self._read_whole, False
         raw = self.regs.send(self._burst_frame, self._burst_length)
-        if self._feed is not None:
-            self._feed.deliver(now_ns, raw[_MAG_OFFSET:_MAG_OFFSET + self._feed.length])
+        self._read_whole = not blank_flag(raw)
         status = raw[0]
+        if self._feed is not None:
+            self._deliver_burst(raw, whole, now_ns)
         gyro_ready = status & _GYRO_DR
         accel_ready = status & _ACC_DR
         bad = blank_flag(raw)
@@ -523,6 +529,18 @@ class Max2110xDriver(Driver):
             self.health.overrun_ns = self.health.skipped_ns = now_ns
         return PollResult(samples, self._next_poll_ns(now_ns, bool(fast_ready),
                                                       bool(status & _OVERRUN)))
+
+    def _deliver_burst(self, raw: bytes, whole: bool, now_ns: int) -> None:
+        """Hand the slave's copy in burst ``raw`` to the feed, saying whether the
+        accelerometer measured since the burst before (its data-ready set): the chip copies
+        the slave at each accelerometer measurement (ACC_CFG2 [3:1] = 0), so a clear bit
+        is no copy since, a hung engine's burst included (``AutoReadFeed.deliver``'s
+        ``master_fresh``). Unsaid for a burst after one that failed or came blank (it may
+        have cleared the bit unseen: ``whole`` False) and for a blank one (no status)."""
+        assert self._feed is not None
+        fresh = bool(raw[0] & _ACC_DR) if whole and self._read_whole else None
+        self._feed.deliver(now_ns, raw[_MAG_OFFSET:_MAG_OFFSET + self._feed.length],
+                           master_fresh=fresh)
 
     def _note_idle(self, since: int | None, fast_flag: SampleFlag | None, bad: SampleFlag,
                    now_ns: int) -> None:

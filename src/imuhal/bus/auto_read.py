@@ -102,9 +102,9 @@ class AutoReadFeed:
     copy its burst comes).
     """
 
-    __slots__ = ("_failed", "_quiet", "_quiet_ns", "_raw", "changed_ns", "data", "deliveries",
-                 "failures", "fresh", "latency_ns", "length", "next_ns", "period_ns",
-                 "ready_bit", "register", "t_ns",
+    __slots__ = ("_failed", "_quiet", "_quiet_ns", "_raw", "changed_ns", "copied_ns", "data",
+                 "deliveries", "failures", "fresh", "latency_ns", "length", "next_ns",
+                 "period_ns", "ready_bit", "register", "t_ns",
                  "target")
 
     def __init__(self, target: int, register: int, length: int, *, latency_ns: int) -> None:
@@ -115,6 +115,12 @@ class AutoReadFeed:
         self.data: bytes | None = None
         self.t_ns = 0
         """Time of the latest delivery (ns, the driver clock)."""
+        self.copied_ns = 0
+        """Time of the latest delivery whose master may have copied the slave since the
+        delivery before (ns, the driver clock): ``t_ns`` but for deliveries whose master
+        said its own chip measured nothing since its previous read (``deliver(
+        master_fresh=False)``: the MAX21100's accelerometer data-ready clear), which
+        brought the copy of before again and tell nothing of the slave's instants since."""
         self.changed_ns = 0
         self.next_ns = 0
         """When the master's driver means to deliver next (ns, the driver clock; 0: it does
@@ -156,7 +162,7 @@ class AutoReadFeed:
         self.ready_bit = (offset, mask)
 
     def deliver(self, t_ns: int, data: bytes, *, failed: bool = False,
-                nack_seen: bool = False) -> None:
+                nack_seen: bool = False, master_fresh: bool | None = None) -> None:
         """The master's driver read ``data`` (``length`` bytes, slave register order) at
         ``t_ns``: one delivery per read the master made of the slave (a master that may not
         have read it again since the last delivery is not delivered from). ``failed``: the
@@ -170,7 +176,19 @@ class AutoReadFeed:
         before) and is taken as ``failed``. One that is not (the slave had nothing new,
         its data-ready bit read clear twice) costs nothing: a slave driver places the next
         change at the failed delivery nearest its own cadence or at its own delivery
-        (``stamp_on_cadence``), and a delivery on its cadence is nearest."""
+        (``stamp_on_cadence``), and a delivery on its cadence is nearest.
+
+        ``master_fresh``: whether the master's own chip measured since the master's
+        driver last read it whole, where its copies of the slave follow its measurements
+        (the MAX21100 copies at each accelerometer measurement): False, the master made no
+        copy since (a hung master whose driver still reads its registers), and the bytes
+        are the copy of before, whatever the slave did meanwhile (``copied_ns`` stays);
+        None, the master does not say (or cannot: a read between them failed and may have
+        cleared its data-ready bits). Neither changes ``data``: a slave driver's proof
+        that its chip measured the same bytes again needs a copy the master made after the
+        chip's next instant (imuhal_chips.hmc5883l)."""
+        if master_fresh is not False:
+            self.copied_ns = t_ns
         after_ns = self.t_ns if self.deliveries else None
         if nack_seen and not failed and data == self._raw:
             failed = True

@@ -138,6 +138,11 @@ class PollGrid:
         margin = max(self.period_ns / self.TRACK_MARGIN, 2 * self.guard_ns / self._periods)
         self.step_ns = max(1, int(self._chip_period_ns - margin))
 
+    def point_at_or_before(self, t_ns: int) -> int:
+        """The latest point of the grid as anchored (``anchor + k * step``) at or before
+        ``t_ns``, without handing it out (``next_after``'s state is left as it was)."""
+        return self._anchor_ns + (t_ns - self._anchor_ns) // self.step_ns * self.step_ns
+
     def next_after(self, now_ns: int) -> int:
         """The next grid point strictly after ``now_ns`` and after the previous one handed out.
 
