@@ -18,6 +18,7 @@ estimation); it has no live form, so only ``imuhal estimate`` and ``imuhal evalu
 
 from __future__ import annotations
 
+import math
 from typing import Any, ClassVar, Literal
 
 from pydantic import Field
@@ -28,8 +29,8 @@ from imuhal.core.conventions import VectorKind
 from imuhal.core.frames import FloatArray
 from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
 from imuhal_filters.common.innovation import InnovationSpeed, ManoeuvreDetector, ManoeuvreParams
-from imuhal_filters.common.quat import to_global
-from imuhal_filters.vqf.frames import from_vqf, quat_from_vqf, to_vqf, vector_to_vqf
+from imuhal_filters.common.quat import Quat, multiply, to_global
+from imuhal_filters.vqf.frames import from_vqf, quat_from_vqf, quat_to_vqf, to_vqf, vector_to_vqf
 
 
 class VqfSettings(AhrsSettings):
@@ -158,6 +159,26 @@ class VqfEstimator(AhrsEstimator):
             "mag_used": mag is not None,
             "accel_withheld": self._withheld,
         }
+
+    def _reseat_tilt(self, q: Quat) -> None:
+        """Through the package's own state: its strapdown (``gyrQuat``) set to ``q`` less
+        its heading correction (``delta``, kept: the 9-DOF output stays q), its inclination
+        correction (``accQuat``) and the low-passes that held gravity and the rotation in
+        its almost-inertial frame (accelerometer, motion bias) as ``resetState`` leaves
+        them; its bias, rest detection and magnetic reference kept."""
+        v = self._vqf
+        fresh = VQF(self.settings.sample_period_s, **self.settings.vqf_params()).state
+        state = dict(v.state)
+        half = -0.5 * float(state["delta"])
+        # quatApplyDelta's inverse: VQF's 9-DOF quaternion is its 6-DOF one turned by delta
+        # about the ENU vertical
+        state["gyrQuat"] = multiply((math.cos(half), 0.0, 0.0, math.sin(half)),
+                                    tuple(float(c) for c in quat_to_vqf(q)))  # type: ignore[arg-type]  # four floats
+        for key in ("accQuat", "accLpState", "lastAccLp", "lastAccCorrAngularRate",
+                    "motionBiasEstRLpState", "motionBiasEstBiasLpState"):
+            state[key] = fresh[key]
+        v.state = state
+        self._q = q
 
     def diagnostics(self) -> dict[str, Any]:
         return {**super().diagnostics(), "accel_withheld": self._withheld}
