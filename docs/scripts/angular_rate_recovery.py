@@ -9,7 +9,8 @@ seed 3) with its gyro set to +-250 deg/s makes one full roll in 0.8 s after 2 s 
 ``tumble`` scenario shortened: up to about 10 rad/s, clipped for about 0.6 s). For each
 estimator (default: madgwick, mahony) and each ``gyro_saturation`` (recover, drop) it prints
 the worst tilt error (deg) 0.5-2 s after the roll and the recovery's counters (the
-estimates it withheld while the attitude was not yet checked among them), as the
+re-seats of a kernel that keeps its attitude, and the estimates it withheld while the
+attitude was not yet checked among them), as the
 markdown block ``--write`` puts between the recovery-table markers of docs/estimators.md
 (``--block recovery-table-kept``: the block of the filters whose kernel keeps the attitude,
 ``decoupled vqf``, re-run on demand). The same flight as
@@ -77,8 +78,8 @@ def table(names: list[str], block: str = BLOCK) -> str:
              "rotation that went unmeasured).",
              "",
              "| estimator | `gyro_saturation` | worst tilt error (deg) | clipped samples | "
-             "recoveries | estimates withheld |",
-             "|---|---|---:|---:|---:|---:|"]
+             "recoveries | re-seats | estimates withheld |",
+             "|---|---|---:|---:|---:|---:|---:|"]
     for name in names or ["madgwick", "mahony"]:
         for saturation in ("recover", "drop"):
             worst, recovery = worst_after_roll(name, saturation)
@@ -87,7 +88,7 @@ def table(names: list[str], block: str = BLOCK) -> str:
             shown = "none handed out" if worst is None else f"{worst:.2f}"
             lines.append(f"| {name} | {saturation} | {shown} | "
                          f"{recovery['clipped_samples']} | {recovery['recoveries']} | "
-                         f"{withheld} |")
+                         f"{recovery.get('reseats', 0)} | {withheld} |")
     return "\n".join(lines)
 
 

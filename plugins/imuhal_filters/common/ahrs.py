@@ -924,8 +924,9 @@ class AhrsEstimator(Estimator):
         """The recovery's pull for a filter whose kernel keeps the attitude (not
         ``owns_quaternion``): while the compensated reading ``g`` (gravity-positive g) reads
         within RESEAT_CHECK_G of 1 g and disagrees with the attitude by more than
-        RECOVERY_CHECKED_RAD, the kernel's inclination starts again from it, its heading
-        kept (``_reseat_tilt``), counted ``reseats``.
+        RECOVERY_CHECKED_RAD, and the turn compensation moved it by at most RESEAT_CHECK_G
+        (the raw reading says the same), the kernel's inclination starts again from it, its
+        heading kept (``_reseat_tilt``), counted ``reseats``.
 
         Why not the pull: the kernel's attitude is its own state (decoupled: a strapdown
         and an accelerometer filter in an almost-inertial frame; VQF the same), which the
@@ -936,6 +937,16 @@ class AhrsEstimator(Estimator):
         every axis in a pull-up's 2.4 g turned an attitude 60 deg off (``_after_dropped``)."""
         gx, gy, gz = g
         if abs(math.sqrt(gx * gx + gy * gy + gz * gz) - 1.0) > RESEAT_CHECK_G:
+            return
+        raw = self._accel_m_s2
+        assert raw is not None  # g is its fresh reading, compensated
+        rx, ry, rz = gravity_positive_g(raw)
+        if math.sqrt((rx - gx) ** 2 + (ry - gy) ** 2 + (rz - gz) ** 2) > RESEAT_CHECK_G:
+            # the turn compensation moved the reading: its model (a turn flown forward at
+            # the airspeed) is not what a tumble does (the seed board's nominal 10 m/s at a
+            # 2 rad/s pitch turned a reading upside down, within 0.05 g of 1 g, and a
+            # re-seat from it put VQF 175 deg off), and the raw reading in a turn is the
+            # load, not gravity
             return
         slow = rate[0] * rate[0] + rate[1] * rate[1] + rate[2] * rate[2] < _RESEAT_RATE_SQ
         if not (slow and self._reseat_pending) and \
