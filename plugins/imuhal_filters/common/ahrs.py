@@ -84,7 +84,7 @@ from imuhal_filters.common.limits import (
     within_full_scale,
 )
 from imuhal_filters.common.presets import PresetSettings
-from imuhal_filters.common.quat import IDENTITY, Quat, Vec
+from imuhal_filters.common.quat import IDENTITY, Quat, Vec, to_local
 from imuhal_filters.common.rest import REST_OFF, REST_START, RestSettings, rest_params
 from imuhal_filters.common.rows import StepRows, block_rows
 from imuhal_filters.common.turn import (
@@ -270,6 +270,18 @@ RECOVERY_GAIN = 10.0
 """Angular-rate recovery: the extra tilt feedback's gain at its start (rad/s per unit of
 the sine of the tilt error; Fusion's start-up gain): the tilt error then falls with a time
 constant of 0.1 s, growing to the filter's own as the gain decays."""
+RESEAT_RATE_RAD_S = 0.5
+"""...and a re-seat made while the board turned faster than this (rad/s, the rate's
+magnitude) is made once more at the first step slower than it (``_reseat_pending``): the
+accelerometer's reading lags a fast rotation by its filters' delay (a few ms: at the
+rail's 4.4 rad/s, degrees), and the last re-seat of the test's roll left decoupled 1.8 deg
+off, which its own 3 s correction took a second to walk back (worst 0.5-2 s after the roll
+1.3 deg; 0.39 with this)."""
+_RESEAT_RATE_SQ = RESEAT_RATE_RAD_S * RESEAT_RATE_RAD_S
+RESEAT_CHECK_G = UNMEASURED_SPAN_CHECK_G
+"""Angular-rate recovery of a filter whose kernel keeps the attitude: the inclination is
+re-seated from an accelerometer reading (turn-compensated) only while it reads within this
+much of 1 g (g): gravity, give or take the vibration, not a manoeuvre's load."""
 _BODY_NED = Frame.BODY_NED
 _ACCEL, _MAG, _GYRO = Quantity.ACCEL.value, Quantity.MAG.value, Quantity.GYRO.value
 _INF = math.inf
@@ -424,7 +436,8 @@ class AhrsEstimator(Estimator):
     owns_quaternion: ClassVar[bool] = True
     """The kernel steps from ``_q`` (it keeps no attitude of its own): the angular-rate
     recovery can pull its tilt. False for a wrapper whose kernel holds the attitude (the
-    recovery then only integrates the clipped samples)."""
+    recovery then re-seats the kernel's inclination from the accelerometer instead:
+    ``_reseat_tilt``, which such a filter implements)."""
 
     settings: AhrsSettings
     _gyro_range_rad_s: float | None = None
@@ -466,6 +479,9 @@ class AhrsEstimator(Estimator):
             "start_check": {"withheld": 0, "confirmed_after_s": None},
         }
         self._recovery_left_s = 0.0
+        self._reseat_pending = False
+        """A re-seat (``_reseat``) was made from a reading in a fast rotation: one more is
+        due at the first slow step of the recovery."""
         self._recovery_apart_rad = _INF
         """The angle between the predicted and the measured gravity at the recovery's last
         pull (rad; infinite before the first)."""
@@ -651,6 +667,7 @@ class AhrsEstimator(Estimator):
         if self._recovery_left_s <= 0.0:
             counts["recoveries"] += 1
             self._recovery_apart_rad = _INF
+            self._reseat_pending = False
         self._recovery_left_s = RECOVERY_S
         if self._dropped_after_ns is not None:  # unchecked or unmeasured: as any step
             return self._after_dropped(item, clipped)
@@ -866,8 +883,10 @@ class AhrsEstimator(Estimator):
         hands out by more than RECOVERY_CHECKED_RAD, or no fresh reading (``max_aux_age_s``)
         checks it, the estimates are withheld (UNSETTLED): the attitude is not known yet.
         A filter whose kernel keeps the attitude (not ``owns_quaternion``: decoupled, VQF)
-        gets no pull, only the check; an attitude still unconfirmed when the recovery runs
-        out stays withheld until the accelerometer agrees (``_after_dropped``'s check)."""
+        cannot be pulled: its inclination is re-seated from the accelerometer instead
+        (``_reseat``: Fusion's recovery with the gain at its limit). An attitude still
+        unconfirmed when the recovery runs out stays withheld until the accelerometer agrees
+        (``_after_dropped``'s check)."""
         last = self._last_gyro_t_ns
         dt = self._nominal_dt_s
         if last is not None and 0.0 < (item.t_ns - last) * _NS <= self._max_dt_s:
@@ -875,8 +894,11 @@ class AhrsEstimator(Estimator):
         gain = RECOVERY_GAIN * self._recovery_left_s / RECOVERY_S
         self._recovery_left_s = max(0.0, self._recovery_left_s - dt)
         g = self._checking_g(item.t_ns, rate) if self._tilt_aligned else None
-        if g is not None and self.owns_quaternion:
-            self._q = _tilt_pulled(self._q, g, gain * dt)[0]
+        if g is not None:
+            if self.owns_quaternion:
+                self._q = _tilt_pulled(self._q, g, gain * dt)[0]
+            else:
+                self._reseat(g, rate)
         out = self._on_gyro(item, rate)
         # judged on the attitude the step hands out, not the one before it: the step
         # integrated the clipped rate, which is what may be wrong (a wild gyro word clipped
@@ -897,6 +919,58 @@ class AhrsEstimator(Estimator):
             return [RejectedEstimate(t_ns=item.t_ns, source=self.instance, kind="attitude",
                                      flags=EstimateFlag.UNSETTLED, estimator=self.name)]
         return out
+
+    def _reseat(self, g: Vec, rate: Vec) -> None:
+        """The recovery's pull for a filter whose kernel keeps the attitude (not
+        ``owns_quaternion``): while the compensated reading ``g`` (gravity-positive g) reads
+        within RESEAT_CHECK_G of 1 g and disagrees with the attitude by more than
+        RECOVERY_CHECKED_RAD, and the turn compensation moved it by at most RESEAT_CHECK_G
+        (the raw reading says the same), the kernel's inclination starts again from it, its
+        heading kept (``_reseat_tilt``), counted ``reseats``.
+
+        Why not the pull: the kernel's attitude is its own state (decoupled: a strapdown
+        and an accelerometer filter in an almost-inertial frame; VQF the same), which the
+        base cannot turn a little; its own correction, made for seconds-long
+        accelerations, took the roll the clip hid back in tens of seconds (decoupled 168 deg
+        and VQF 118 deg off when the 3 s recovery ran out, then withheld). Re-seating is
+        Fusion's recovery with its gain at the limit. Only near 1 g: the same pull about
+        every axis in a pull-up's 2.4 g turned an attitude 60 deg off (``_after_dropped``)."""
+        gx, gy, gz = g
+        if abs(math.sqrt(gx * gx + gy * gy + gz * gz) - 1.0) > RESEAT_CHECK_G:
+            return
+        raw = self._accel_m_s2
+        assert raw is not None  # g is its fresh reading, compensated
+        rx, ry, rz = gravity_positive_g(raw)
+        if math.sqrt((rx - gx) ** 2 + (ry - gy) ** 2 + (rz - gz) ** 2) > RESEAT_CHECK_G:
+            # the turn compensation moved the reading: its model (a turn flown forward at
+            # the airspeed) is not what a tumble does (the seed board's nominal 10 m/s at a
+            # 2 rad/s pitch turned a reading upside down, within 0.05 g of 1 g, and a
+            # re-seat from it put VQF 175 deg off), and the raw reading in a turn is the
+            # load, not gravity
+            return
+        slow = rate[0] * rate[0] + rate[1] * rate[1] + rate[2] * rate[2] < _RESEAT_RATE_SQ
+        if not (slow and self._reseat_pending) and \
+                _tilt_pulled(self._q, g, 0.0)[1] <= RECOVERY_CHECKED_RAD:
+            return
+        # a reading taken in a fast rotation lags it (the chip's filters: decoupled 1.8 deg
+        # off after the test's roll, 0.4 with the re-seat once slow); once the rotation has
+        # slowed, one more re-seat from a reading that does not
+        self._reseat_pending = not slow
+        # the heading kept: NED north seen in the body, as a magnetometer would show it
+        q = aligned_quaternion(g, to_local(self._q, (1.0, 0.0, 0.0)))
+        if q is None:
+            return
+        self._reseat_tilt(q)
+        self._q = q
+        counts = self._counters["angular_rate_recovery"]
+        counts["reseats"] = counts.get("reseats", 0) + 1
+
+    def _reseat_tilt(self, q: Quat) -> None:
+        """Hook for a filter whose kernel keeps the attitude: start the kernel's attitude
+        again at ``q`` (body -> NED), its inclination filter anew (what it held was gravity
+        through the attitude the clip corrupted), its gyro bias and magnetic reference
+        kept."""
+        raise NotImplementedError(f"{type(self).__name__} keeps no attitude of its own")
 
     def _process_general(self, item: Sample | Estimate) -> list[Estimate]:
         if isinstance(item, StreamGap):
@@ -1074,6 +1148,7 @@ class AhrsEstimator(Estimator):
                              self._counters["angular_rate_recovery"]),
                          "start_check": dict(self._counters["start_check"])},
             "recovery_left_s": self._recovery_left_s,
+            "reseat_pending": self._reseat_pending,
             "recovery_apart_rad": self._recovery_apart_rad,
             "last_rate_rad_s": list(self._last_rate),
             "dropped_after_ns": self._dropped_after_ns,
@@ -1109,6 +1184,7 @@ class AhrsEstimator(Estimator):
                               "angular_rate_recovery",
                               {"clipped_samples": 0, "recoveries": 0, "withheld": 0}))}
         self._recovery_left_s = float(state.get("recovery_left_s", 0.0))
+        self._reseat_pending = bool(state.get("reseat_pending", False))
         self._recovery_apart_rad = float(state.get("recovery_apart_rad", _INF))
         self._last_rate = _vec(state.get("last_rate_rad_s", NO_VECTOR))
         self._dropped_after_ns = state.get("dropped_after_ns")

@@ -199,6 +199,18 @@ class DecoupledKernel:
         self.accel_missed = False
         """A step since the last accelerometer reading had none (``_after_accel_gap``)."""
 
+    def reseat(self, q: Quat) -> None:
+        """Start the attitude again at ``q`` (body -> NED; the angular-rate recovery's
+        re-seat from the accelerometer): the strapdown, the inclination filter and the
+        detectors as at ``start``, since what they held was seen through the attitude the
+        clip corrupted; kept: the gyro bias with its uncertainty and the magnetometer's
+        reference field (properties of the sensor and the place, not of the attitude)."""
+        kf = self.kf
+        mag = (self.mag_ref, self.mag_cand, self.mag_cand_s, self.mag_disturbed)
+        self.start(q, kf.b)
+        self.kf = kf
+        self.mag_ref, self.mag_cand, self.mag_cand_s, self.mag_disturbed = mag
+
     @property
     def bias(self) -> Vec:
         """The gyro bias estimate (body, rad/s)."""

@@ -28,7 +28,7 @@ from imuhal_filters.common.alignment import aligned_quaternion
 from imuhal_filters.common.fast import c_array
 from imuhal_filters.common.gate import gravity_positive_g
 from imuhal_filters.common.innovation import ManoeuvreParams
-from imuhal_filters.common.quat import IDENTITY, Vec
+from imuhal_filters.common.quat import IDENTITY, Quat, Vec
 from imuhal_filters.decoupled.bias import BiasParams
 from imuhal_filters.decoupled.core import DecoupledKernel, DecoupledParams
 from imuhal_filters.decoupled.fast import decoupled_block, decoupled_rows, decoupled_sample
@@ -257,6 +257,11 @@ class DecoupledEstimator(AhrsEstimator):
     def _on_aligned(self) -> None:
         k = self._synced()
         k.start(self._q, k.bias)
+        if self._sample_kernel is not None:
+            self._pack()
+
+    def _reseat_tilt(self, q: Quat) -> None:
+        self._synced().reseat(q)
         if self._sample_kernel is not None:
             self._pack()
 

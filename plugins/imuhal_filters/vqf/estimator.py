@@ -18,8 +18,10 @@ estimation); it has no live form, so only ``imuhal estimate`` and ``imuhal evalu
 
 from __future__ import annotations
 
+import math
 from typing import Any, ClassVar, Literal
 
+import numpy as np
 from pydantic import Field
 from vqf import VQF, offlineVQF
 
@@ -28,8 +30,8 @@ from imuhal.core.conventions import VectorKind
 from imuhal.core.frames import FloatArray
 from imuhal_filters.common.ahrs import AhrsEstimator, AhrsSettings, ImuStep
 from imuhal_filters.common.innovation import InnovationSpeed, ManoeuvreDetector, ManoeuvreParams
-from imuhal_filters.common.quat import to_global
-from imuhal_filters.vqf.frames import from_vqf, quat_from_vqf, to_vqf, vector_to_vqf
+from imuhal_filters.common.quat import Quat, multiply, to_global
+from imuhal_filters.vqf.frames import from_vqf, quat_from_vqf, quat_to_vqf, to_vqf, vector_to_vqf
 
 
 class VqfSettings(AhrsSettings):
@@ -158,6 +160,37 @@ class VqfEstimator(AhrsEstimator):
             "mag_used": mag is not None,
             "accel_withheld": self._withheld,
         }
+
+    def _reseat_tilt(self, q: Quat) -> None:
+        """Through the package's own state: its strapdown (``gyrQuat``) set to ``q`` less
+        its heading correction (``delta``, kept: the 9-DOF output stays q), its inclination
+        correction (``accQuat``) to none, its accelerometer low-pass steady at gravity
+        (``filterInitialState``; left in ``resetState``'s averaging phase, its first
+        readings moved it whole: a yaw turn's mis-compensated reading put it 77 deg off
+        within 0.2 s of a re-seat on the seed board), the motion bias low-passes of the
+        rotation as ``resetState`` leaves them (what they held was the corrupted
+        attitude); its bias, rest detection and magnetic reference kept."""
+        v = self._vqf
+        fresh = VQF(self.settings.sample_period_s, **self.settings.vqf_params()).state
+        state = dict(v.state)
+        half = -0.5 * float(state["delta"])
+        # quatApplyDelta's inverse: VQF's 9-DOF quaternion is its 6-DOF one turned by delta
+        # about the ENU vertical
+        state["gyrQuat"] = multiply((math.cos(half), 0.0, 0.0, math.sin(half)),
+                                    tuple(float(c) for c in quat_to_vqf(q)))  # type: ignore[arg-type]  # four floats
+        for key in ("accQuat", "lastAccCorrAngularRate", "motionBiasEstRLpState",
+                    "motionBiasEstBiasLpState"):
+            state[key] = fresh[key]
+        # gravity in its almost-inertial frame, which the new strapdown makes ENU's up
+        coeffs = v.coeffs
+        up = (0.0, 0.0, STANDARD_GRAVITY_M_S2)
+        state["lastAccLp"] = list(up)
+        b, a = np.asarray(coeffs["accLpB"], dtype=float), np.asarray(coeffs["accLpA"],
+                                                                     dtype=float)
+        state["accLpState"] = [float(c) for x0 in up
+                               for c in VQF.filterInitialState(x0, b, a)]
+        v.state = state
+        self._q = q
 
     def diagnostics(self) -> dict[str, Any]:
         return {**super().diagnostics(), "accel_withheld": self._withheld}

@@ -44,3 +44,9 @@ def quat_from_vqf(q: FloatArray) -> tuple[float, float, float, float]:
     w, x, y, z = (float(c) for c in q)
     r = w * _E + x * _X + y * _Y + z * _Z
     return (float(r[0]), float(r[1]), float(r[2]), float(r[3]))
+
+
+def quat_to_vqf(q: tuple[float, float, float, float]) -> FloatArray:
+    """One body FRD -> NED quaternion -> VQF's (FLU sensor -> ENU): ``quat_from_vqf``'s
+    inverse."""
+    return convert_quat(np.array(q, dtype=float), NED, ENU)
