@@ -63,6 +63,12 @@ class PollGrid:
     grid steps ``period / TRACK_MARGIN`` short of it (about 0.2 %: a clock that drifts less
     than this between two re-anchors is still approached from the early side)."""
 
+    CATCH_UP_SLACK = 2
+    """Grid points beyond the most a chip on its nominal clock can take to show the early
+    step's poll that finds nothing (``locate``): a tracking grid that has not learnt the
+    chip's period and found no such poll in that many points is behind a chip faster than
+    its early step (a clock 2 % fast against the 1/64 step), so it doubles its shortfall
+    (``next_after``). A nominal clock never gets there: its polls are unchanged."""
     def __init__(self, period_ns: int, *, early_fraction: int = 0, track: bool = False
                  ) -> None:
         if period_ns <= 0:
@@ -82,6 +88,10 @@ class PollGrid:
         self._folded = 0
         """Chip periods moved into the anchor since the last located instant (late polls)."""
         self._folded_ns = 0
+        self._unlocated = 0
+        """Grid points handed out since the latest ``locate`` or ``anchor``."""
+        self._located = False
+        """A ``locate`` since the latest ``anchor`` (the chip's phase is known)."""
 
     def _initial_step(self) -> int:
         fraction = self._early_fraction
@@ -99,6 +109,8 @@ class PollGrid:
         self._anchor_ns = t_ns
         self._k = 0
         self._folded = self._folded_ns = 0
+        self._unlocated = 0
+        self._located = False
         if self._track:
             self._first_ns = self._last_ns = None
             self._periods = 0
@@ -120,6 +132,8 @@ class PollGrid:
         self._anchor_ns = t_ns
         self._k = 0
         self._folded = self._folded_ns = 0
+        self._unlocated = 0
+        self._located = True
         if not self._track:
             return
         steps = points + folded
@@ -161,9 +175,26 @@ class PollGrid:
             self._folded += periods
             self._folded_ns += shift
             self._k = 0
+        if self._track and self._periods == 0:
+            self._catch_up()
         k = max(self._k + 1, (now_ns - self._anchor_ns) // self.step_ns + 1)
         self._k = k
         return self._anchor_ns + k * self.step_ns
+
+
+    def _catch_up(self) -> None:
+        """One more grid point without a poll that found nothing, while the chip's period is
+        not learnt: once more points than the early step needs on a nominal clock (a whole
+        period of creep before the first ``locate`` since the anchor, a guard's after it,
+        plus CATCH_UP_SLACK), the chip is faster than the step, and every poll from then on
+        would fall further behind it (a frame overwritten unread every 1 / (error - 1/64)
+        periods, which no stamp shows): the step's shortfall doubles, up to a guard."""
+        self._unlocated += 1
+        shortfall = max(1, self.period_ns - self.step_ns)
+        span = self.guard_ns if self._located else self.period_ns
+        if self._unlocated > -(-span // shortfall) + self.CATCH_UP_SLACK:
+            self.step_ns = self.period_ns - min(self.guard_ns, 2 * shortfall)
+            self._unlocated = 0
 
 
 class DataReady:
