@@ -51,6 +51,12 @@ class PollGrid:
     earlier than a chip whose clock runs up to about ``1/n`` fast, and the driver re-anchors
     where data appears (see ``anchor`` and ``locate``).
 
+    ``catch_up`` (with ``track``): a grid that has not learnt the chip's period and found
+    no poll with nothing new for longer than a nominal clock allows doubles its shortfall
+    (``_catch_up``), for a driver whose chip shows no overwritten frame (the MPU-9250's and
+    AK8963's polled reads; the MAX2110x's overrun bits re-anchor its grid instead, and a
+    shorter step there moved a count by one under 10 % bus errors).
+
     ``track`` (with ``early_fraction``): the grid learns the chip's own period from the
     instants ``locate`` reports and steps ``TRACK_MARGIN`` (or the estimate's uncertainty,
     when larger) short of it instead of ``period / early_fraction``, so an exact chip clock
@@ -65,17 +71,19 @@ class PollGrid:
 
     CATCH_UP_SLACK = 2
     """Grid points beyond the most a chip on its nominal clock can take to show the early
-    step's poll that finds nothing (``locate``): a tracking grid that has not learnt the
+    step's poll that finds nothing (``locate``): a ``catch_up`` grid that has not learnt the
     chip's period and found no such poll in that many points is behind a chip faster than
     its early step (a clock 2 % fast against the 1/64 step), so it doubles its shortfall
-    (``next_after``). A nominal clock never gets there: its polls are unchanged."""
-    def __init__(self, period_ns: int, *, early_fraction: int = 0, track: bool = False
-                 ) -> None:
+    (``next_after``). A fault-free nominal clock never gets there: its polls are unchanged
+    (faults that hide the empty polls can: bus errors, blank reads)."""
+    def __init__(self, period_ns: int, *, early_fraction: int = 0, track: bool = False,
+                 catch_up: bool = False) -> None:
         if period_ns <= 0:
             raise ValueError(f"poll period must be positive, got {period_ns} ns")
         self.period_ns = period_ns
         self._early_fraction = early_fraction
         self._track = track and early_fraction > 0
+        self._catch_up_on = catch_up and self._track
         self.step_ns = self._initial_step()
         self._anchor_ns = 0
         self._k = 0
@@ -175,7 +183,7 @@ class PollGrid:
             self._folded += periods
             self._folded_ns += shift
             self._k = 0
-        if self._track and self._periods == 0:
+        if self._catch_up_on and self._periods == 0:
             self._catch_up()
         k = max(self._k + 1, (now_ns - self._anchor_ns) // self.step_ns + 1)
         self._k = k
