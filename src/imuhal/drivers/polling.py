@@ -100,6 +100,8 @@ class PollGrid:
         """Grid points handed out since the latest ``locate`` or ``anchor``."""
         self._located = False
         """A ``locate`` since the latest ``anchor`` (the chip's phase is known)."""
+        self._learnt = False
+        """A period learnt since the latest ``anchor`` (``locate`` counted periods)."""
 
     def _initial_step(self) -> int:
         fraction = self._early_fraction
@@ -118,7 +120,7 @@ class PollGrid:
         self._k = 0
         self._folded = self._folded_ns = 0
         self._unlocated = 0
-        self._located = False
+        self._located = self._learnt = False
         if self._track:
             self._first_ns = self._last_ns = None
             self._periods = 0
@@ -156,6 +158,7 @@ class PollGrid:
             return
         self._last_ns = t_ns
         self._periods += steps
+        self._learnt = True
         self._chip_period_ns = (t_ns - first) / self._periods
         margin = max(self.period_ns / self.TRACK_MARGIN, 2 * self.guard_ns / self._periods)
         self.step_ns = max(1, int(self._chip_period_ns - margin))
@@ -183,20 +186,26 @@ class PollGrid:
             self._folded += periods
             self._folded_ns += shift
             self._k = 0
-        if self._catch_up_on and self._periods == 0:
-            self._catch_up()
+        if self._catch_up_on and not self._learnt:
+            self._catch_up(now_ns)
         k = max(self._k + 1, (now_ns - self._anchor_ns) // self.step_ns + 1)
         self._k = k
         return self._anchor_ns + k * self.step_ns
 
 
-    def _catch_up(self) -> None:
+    def _catch_up(self, now_ns: int) -> None:
         """One more grid point without a poll that found nothing, while the chip's period is
         not learnt: once more points than the early step needs on a nominal clock (a whole
         period of creep before the first ``locate`` since the anchor, a guard's after it,
         plus CATCH_UP_SLACK), the chip is faster than the step, and every poll from then on
         would fall further behind it (a frame overwritten unread every 1 / (error - 1/64)
-        periods, which no stamp shows): the step's shortfall doubles, up to a guard."""
+        periods, which no stamp shows): the step's shortfall doubles, up to a guard. Only
+        polls on time count: a late one (a stalled host) proves nothing of the grid's
+        phase (counted through host stalls, it fired on nominal clocks in the fault
+        matrix's ``host_stall`` and moved the seed GPS board's IMU timing)."""
+        if now_ns - (self._anchor_ns + self._k * self.step_ns) > self.guard_ns:
+            self._unlocated = 0
+            return
         self._unlocated += 1
         shortfall = max(1, self.period_ns - self.step_ns)
         span = self.guard_ns if self._located else self.period_ns
