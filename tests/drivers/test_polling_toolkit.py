@@ -174,3 +174,22 @@ def test_restarts_of_a_dead_chip_are_spaced_at_most_the_cap_apart() -> None:
             n += 1
         gaps.append(n)
     assert max(gaps) == MAX_STALE_POLLS_BEFORE_RESTART
+
+
+@pytest.mark.parametrize("catch_up", [False, True])
+def test_a_catch_up_grid_keeps_up_with_a_chip_faster_than_its_early_step(catch_up: bool
+                                                                         ) -> None:
+    """A chip 2 % fast outruns the 1/64 early step: a grid that never finds an empty poll
+    never learns the chip's period and falls behind it (an overrun every ~240 periods); a
+    ``catch_up`` grid doubles its shortfall once a nominal clock would have shown one."""
+    grid = PollGrid(PERIOD, early_fraction=64, track=True, catch_up=catch_up)
+    _, _, overruns = _poll_a_chip(grid, PERIOD / 1.02, 5.0)
+    assert (overruns == 0) is catch_up
+
+
+@pytest.mark.parametrize("clock_error", [-0.02, 0.0])
+def test_a_catch_up_grid_polls_a_nominal_or_slow_chip_as_before(clock_error: float) -> None:
+    chip = PERIOD / (1 + clock_error)
+    assert _poll_a_chip(PollGrid(PERIOD, early_fraction=64, track=True, catch_up=True),
+                        chip, 5.0) == \
+        _poll_a_chip(PollGrid(PERIOD, early_fraction=64, track=True), chip, 5.0)

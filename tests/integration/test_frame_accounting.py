@@ -331,3 +331,18 @@ def test_a_copy_after_a_stall_is_stamped_a_period_before_the_next_measurement(
     faults: list[FaultSpec] = [HostStall(device=d, start_s=1.0, stall_s=0.02, rate_hz=5.0)
                                for d in DEVICES]
     _counts_as_the_chip(_fly(registry, "seed-paraglider-vario", faults, 2.0), "mag")
+
+
+def test_a_phase_search_keeps_up_with_a_chip_clock_two_percent_fast(registry: Registry) -> None:
+    """The MPU-9250's and AK8963's grids step 1/64 period short until they learn the chip's
+    period from a poll that found nothing; a chip 2 % fast never let one find nothing, so
+    the grid fell behind it and a frame was overwritten unread every ~240 periods, unseen
+    by the stamps (gy91 IMU 1015 counted of 1019 in 5 s, issue 25). The grid now doubles its
+    shortfall when a nominal clock would have shown it an empty poll by then."""
+    profile = load_profile(bundled_profiles()["gy91.yaml"], registry)
+    with open_emulated(profile, registry, seed=1, calibrated=False) as p:
+        for name in ("imu", "mag"):
+            p.board.emulators[name].oscillator_error = 0.02
+        list(p.events(SECONDS))
+    for name in ("imu", "mag"):
+        _counts_as_the_chip(p, name)

@@ -253,7 +253,8 @@ class AK8963Driver(Driver):
     def _poll_grid(self) -> PollGrid:
         if self.settings.read == "auto":
             return PollGrid(self._period_ns)
-        return PollGrid(self._period_ns, early_fraction=EARLY_FRACTION, track=True)
+        return PollGrid(self._period_ns, early_fraction=EARLY_FRACTION, track=True,
+                        catch_up=True)
 
     def start(self, now_ns: int) -> int:
         # recover() passes the time from before configure() waited; never start in the past.

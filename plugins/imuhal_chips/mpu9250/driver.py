@@ -248,7 +248,8 @@ class MPU9250Driver(Driver):
                       else None)
         self.plan = self._checked(self._register_plan())
         self._burst_length = r.DATA_BURST_LENGTH
-        self._grid = PollGrid(self._period_ns, early_fraction=EARLY_FRACTION, track=True)
+        self._grid = PollGrid(self._period_ns, early_fraction=EARLY_FRACTION, track=True,
+                              catch_up=True)
         self._search_ns: int | None = None
         """The retry asked for after a poll that found no new sample: new data at it (not a
         late poll) locates the chip's instant."""
@@ -391,7 +392,8 @@ class MPU9250Driver(Driver):
         self._gyro = _range_of(r.GYRO_RANGES, got[r.GYRO_CONFIG])
         self._accel = _range_of(r.ACCEL_RANGES, got[r.ACCEL_CONFIG])
         self._period_ns = self._streams[0].period_ns
-        self._grid = PollGrid(self._period_ns, early_fraction=EARLY_FRACTION, track=True)
+        self._grid = PollGrid(self._period_ns, early_fraction=EARLY_FRACTION, track=True,
+                              catch_up=True)
         self._search_ns = None
         self._sensor_bytes = None
         self._ready = DataReady({Quantity.GYRO: self._period_ns})

@@ -51,6 +51,12 @@ class PollGrid:
     earlier than a chip whose clock runs up to about ``1/n`` fast, and the driver re-anchors
     where data appears (see ``anchor`` and ``locate``).
 
+    ``catch_up`` (with ``track``): a grid that has not learnt the chip's period and found
+    no poll with nothing new for longer than a nominal clock allows doubles its shortfall
+    (``_catch_up``), for a driver whose chip shows no overwritten frame (the MPU-9250's and
+    AK8963's polled reads; the MAX2110x's overrun bits re-anchor its grid instead, and a
+    shorter step there moved a count by one under 10 % bus errors).
+
     ``track`` (with ``early_fraction``): the grid learns the chip's own period from the
     instants ``locate`` reports and steps ``TRACK_MARGIN`` (or the estimate's uncertainty,
     when larger) short of it instead of ``period / early_fraction``, so an exact chip clock
@@ -63,13 +69,21 @@ class PollGrid:
     grid steps ``period / TRACK_MARGIN`` short of it (about 0.2 %: a clock that drifts less
     than this between two re-anchors is still approached from the early side)."""
 
-    def __init__(self, period_ns: int, *, early_fraction: int = 0, track: bool = False
-                 ) -> None:
+    CATCH_UP_SLACK = 2
+    """Grid points beyond the most a chip on its nominal clock can take to show the early
+    step's poll that finds nothing (``locate``): a ``catch_up`` grid that has not learnt the
+    chip's period and found no such poll in that many points is behind a chip faster than
+    its early step (a clock 2 % fast against the 1/64 step), so it doubles its shortfall
+    (``next_after``). A fault-free nominal clock never gets there: its polls are unchanged
+    (faults that hide the empty polls can: bus errors, blank reads)."""
+    def __init__(self, period_ns: int, *, early_fraction: int = 0, track: bool = False,
+                 catch_up: bool = False) -> None:
         if period_ns <= 0:
             raise ValueError(f"poll period must be positive, got {period_ns} ns")
         self.period_ns = period_ns
         self._early_fraction = early_fraction
         self._track = track and early_fraction > 0
+        self._catch_up_on = catch_up and self._track
         self.step_ns = self._initial_step()
         self._anchor_ns = 0
         self._k = 0
@@ -82,6 +96,12 @@ class PollGrid:
         self._folded = 0
         """Chip periods moved into the anchor since the last located instant (late polls)."""
         self._folded_ns = 0
+        self._unlocated = 0
+        """Grid points handed out since the latest ``locate`` or ``anchor``."""
+        self._located = False
+        """A ``locate`` since the latest ``anchor`` (the chip's phase is known)."""
+        self._learnt = False
+        """A period learnt since the latest ``anchor`` (``locate`` counted periods)."""
 
     def _initial_step(self) -> int:
         fraction = self._early_fraction
@@ -99,6 +119,8 @@ class PollGrid:
         self._anchor_ns = t_ns
         self._k = 0
         self._folded = self._folded_ns = 0
+        self._unlocated = 0
+        self._located = self._learnt = False
         if self._track:
             self._first_ns = self._last_ns = None
             self._periods = 0
@@ -120,6 +142,8 @@ class PollGrid:
         self._anchor_ns = t_ns
         self._k = 0
         self._folded = self._folded_ns = 0
+        self._unlocated = 0
+        self._located = True
         if not self._track:
             return
         steps = points + folded
@@ -134,6 +158,7 @@ class PollGrid:
             return
         self._last_ns = t_ns
         self._periods += steps
+        self._learnt = True
         self._chip_period_ns = (t_ns - first) / self._periods
         margin = max(self.period_ns / self.TRACK_MARGIN, 2 * self.guard_ns / self._periods)
         self.step_ns = max(1, int(self._chip_period_ns - margin))
@@ -161,9 +186,32 @@ class PollGrid:
             self._folded += periods
             self._folded_ns += shift
             self._k = 0
+        if self._catch_up_on and not self._learnt:
+            self._catch_up(now_ns)
         k = max(self._k + 1, (now_ns - self._anchor_ns) // self.step_ns + 1)
         self._k = k
         return self._anchor_ns + k * self.step_ns
+
+
+    def _catch_up(self, now_ns: int) -> None:
+        """One more grid point without a poll that found nothing, while the chip's period is
+        not learnt: once more points than the early step needs on a nominal clock (a whole
+        period of creep before the first ``locate`` since the anchor, a guard's after it,
+        plus CATCH_UP_SLACK), the chip is faster than the step, and every poll from then on
+        would fall further behind it (a frame overwritten unread every 1 / (error - 1/64)
+        periods, which no stamp shows): the step's shortfall doubles, up to a guard. Only
+        polls on time count: a late one (a stalled host) proves nothing of the grid's
+        phase (counted through host stalls, it fired on nominal clocks in the fault
+        matrix's ``host_stall`` and moved the seed GPS board's IMU timing)."""
+        if now_ns - (self._anchor_ns + self._k * self.step_ns) > self.guard_ns:
+            self._unlocated = 0
+            return
+        self._unlocated += 1
+        shortfall = max(1, self.period_ns - self.step_ns)
+        span = self.guard_ns if self._located else self.period_ns
+        if self._unlocated > -(-span // shortfall) + self.CATCH_UP_SLACK:
+            self.step_ns = self.period_ns - min(self.guard_ns, 2 * shortfall)
+            self._unlocated = 0
 
 
 class DataReady:
