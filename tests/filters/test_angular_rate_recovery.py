@@ -512,7 +512,7 @@ def test_a_recovery_is_not_confirmed_by_a_reading_far_from_1_g(registry: Registr
     w, x, y, z = ahrs.quaternion
     down = (2.0 * (x * z - w * y), 2.0 * (y * z + w * x), w * w - x * x - y * y + z * z)
     loaded = tuple(-3.0 * G * d for d in down)
-    after = _feed(ahrs, 1.02, 1.2, accel_m_s2=loaded)  # type: ignore[arg-type]
+    after = _feed(ahrs, 1.02, 1.2, accel_m_s2=loaded)
     assert after and _withheld(after) == len(after)
     # back at 1 g (level): the recovery pulls the roll out and hands the attitude out again
     assert _withheld(_feed(ahrs, 1.2, 2.0, accel_m_s2=LEVEL)[-10:]) == 0

@@ -881,7 +881,8 @@ class AhrsEstimator(Estimator):
         turns the others' integration), so the pull is neither limited to the clipped axes
         nor to an amount. While the accelerometer disagrees with the attitude the step
         hands out by more than RECOVERY_CHECKED_RAD, or no fresh reading (``max_aux_age_s``)
-        checks it, the estimates are withheld (UNSETTLED): the attitude is not known yet.
+        that is gravity (``_reads_gravity``) checks it, the estimates are withheld
+        (UNSETTLED): the attitude is not known yet.
         A filter whose kernel keeps the attitude (not ``owns_quaternion``: decoupled, VQF)
         cannot be pulled: its inclination is re-seated from the accelerometer instead
         (``_reseat``: Fusion's recovery with the gain at its limit). An attitude still
@@ -949,10 +950,9 @@ class AhrsEstimator(Estimator):
 
     def _reseat(self, g: Vec, rate: Vec) -> None:
         """The recovery's pull for a filter whose kernel keeps the attitude (not
-        ``owns_quaternion``): while the compensated reading ``g`` (gravity-positive g) reads
-        within RESEAT_CHECK_G of 1 g and disagrees with the attitude by more than
-        RECOVERY_CHECKED_RAD, and the turn compensation moved it by at most RESEAT_CHECK_G
-        (the raw reading says the same), the kernel's inclination starts again from it, its
+        ``owns_quaternion``): while the compensated reading ``g`` (gravity-positive g, which
+        ``_reads_gravity`` passed) disagrees with the attitude by more than
+        RECOVERY_CHECKED_RAD, the kernel's inclination starts again from it, its
         heading kept (``_reseat_tilt``), counted ``reseats``.
 
         Why not the pull: the kernel's attitude is its own state (decoupled: a strapdown
