@@ -493,3 +493,26 @@ def test_an_attitude_whose_disagreement_the_span_changed_is_still_withheld(
     _feed(ahrs, 1.0, 3.0, accel_m_s2=ROLLED_20, gyro_flags=SampleFlag.FROZEN)
     after = _feed(ahrs, 3.0, 4.0, accel_m_s2=ROLLED_20)
     assert _withheld(after) == len(after) == 100
+
+
+def test_a_recovery_is_not_confirmed_by_a_reading_far_from_1_g(registry: Registry) -> None:
+    """The seed board's 8 s tumble beyond +-250 deg/s: Madgwick handed out attitudes up to
+    14.3 deg off during a recovery, confirmed by a reading (compensated for the nominal
+    airspeed's turn) of 4.2 g that pointed along the gravity they predicted. A load's
+    direction is not gravity's: a reading far from 1 g neither pulls nor confirms, and the
+    attitude is withheld until one near 1 g agrees."""
+    ahrs = _madgwick(registry)
+    ahrs.bind(_gyro_stream(100.0))  # +-250 deg/s, at _feed's rate
+    _feed(ahrs, 0.0, 1.0, accel_m_s2=LEVEL)
+    # a fast roll ramps into the rail: integrated clipped, the recovery starts
+    ahrs.process(_gyro(1_000_000_001, (3.0, 0.0, 0.0)))
+    ahrs.process(_gyro(1_010_000_001, (4.5, 0.0, 0.0), SampleFlag.SATURATED))
+    assert ahrs.diagnostics()["angular_rate_recovery"]["recoveries"] == 1
+    # 3 g along the gravity the attitude predicts: its direction agrees, its size says load
+    w, x, y, z = ahrs.quaternion
+    down = (2.0 * (x * z - w * y), 2.0 * (y * z + w * x), w * w - x * x - y * y + z * z)
+    loaded = tuple(-3.0 * G * d for d in down)
+    after = _feed(ahrs, 1.02, 1.2, accel_m_s2=loaded)
+    assert after and _withheld(after) == len(after)
+    # back at 1 g (level): the recovery pulls the roll out and hands the attitude out again
+    assert _withheld(_feed(ahrs, 1.2, 2.0, accel_m_s2=LEVEL)[-10:]) == 0

@@ -881,7 +881,8 @@ class AhrsEstimator(Estimator):
         turns the others' integration), so the pull is neither limited to the clipped axes
         nor to an amount. While the accelerometer disagrees with the attitude the step
         hands out by more than RECOVERY_CHECKED_RAD, or no fresh reading (``max_aux_age_s``)
-        checks it, the estimates are withheld (UNSETTLED): the attitude is not known yet.
+        that is gravity (``_reads_gravity``) checks it, the estimates are withheld
+        (UNSETTLED): the attitude is not known yet.
         A filter whose kernel keeps the attitude (not ``owns_quaternion``: decoupled, VQF)
         cannot be pulled: its inclination is re-seated from the accelerometer instead
         (``_reseat``: Fusion's recovery with the gain at its limit). An attitude still
@@ -894,6 +895,11 @@ class AhrsEstimator(Estimator):
         gain = RECOVERY_GAIN * self._recovery_left_s / RECOVERY_S
         self._recovery_left_s = max(0.0, self._recovery_left_s - dt)
         g = self._checking_g(item.t_ns, rate) if self._tilt_aligned else None
+        if g is not None and not self._reads_gravity(g):
+            # not gravity: neither pulls nor confirms (seed board, 8 s tumble: Madgwick pulled
+            # towards a pitch's reading the nominal airspeed's compensation had bent, and a
+            # 3.4 g reading confirmed it, 14.3 deg off)
+            g = None
         if g is not None:
             if self.owns_quaternion:
                 self._q = _tilt_pulled(self._q, g, gain * dt)[0]
@@ -920,12 +926,33 @@ class AhrsEstimator(Estimator):
                                      flags=EstimateFlag.UNSETTLED, estimator=self.name)]
         return out
 
+    def _reads_gravity(self, g: Vec) -> bool:
+        """Whether the compensated reading ``g`` (gravity-positive g, ``_checking_g``) can
+        pull or confirm the attitude during a recovery: it reads within RESEAT_CHECK_G of
+        1 g, and the turn compensation moved it by at most RESEAT_CHECK_G (the raw reading
+        says the same).
+
+        Why the magnitude: a reading far from 1 g holds a manoeuvre's load, whose direction
+        is not gravity's (a tumble's pitch read 3.4 g compensated, and agreed in direction
+        with an attitude 14 deg off). Why the raw reading: the compensation's model (a turn
+        flown forward at the airspeed) is not what a tumble does: the seed board's nominal
+        10 m/s at a 2 rad/s pitch turned a reading upside down within 0.05 g of 1 g (a
+        re-seat from it put VQF 175 deg off), and the raw reading in a turn is the load, not
+        gravity. A recovery in a coordinated turn then gets no pull and stays withheld until
+        the turn ends or the recovery runs out (then ``_after_dropped``'s check)."""
+        gx, gy, gz = g
+        if abs(math.sqrt(gx * gx + gy * gy + gz * gz) - 1.0) > RESEAT_CHECK_G:
+            return False
+        raw = self._accel_m_s2
+        assert raw is not None  # g is its fresh reading, compensated
+        rx, ry, rz = gravity_positive_g(raw)
+        return (rx - gx) ** 2 + (ry - gy) ** 2 + (rz - gz) ** 2 <= RESEAT_CHECK_G * RESEAT_CHECK_G
+
     def _reseat(self, g: Vec, rate: Vec) -> None:
         """The recovery's pull for a filter whose kernel keeps the attitude (not
-        ``owns_quaternion``): while the compensated reading ``g`` (gravity-positive g) reads
-        within RESEAT_CHECK_G of 1 g and disagrees with the attitude by more than
-        RECOVERY_CHECKED_RAD, and the turn compensation moved it by at most RESEAT_CHECK_G
-        (the raw reading says the same), the kernel's inclination starts again from it, its
+        ``owns_quaternion``): while the compensated reading ``g`` (gravity-positive g, which
+        ``_reads_gravity`` passed) disagrees with the attitude by more than
+        RECOVERY_CHECKED_RAD, the kernel's inclination starts again from it, its
         heading kept (``_reseat_tilt``), counted ``reseats``.
 
         Why not the pull: the kernel's attitude is its own state (decoupled: a strapdown
@@ -935,19 +962,6 @@ class AhrsEstimator(Estimator):
         and VQF 118 deg off when the 3 s recovery ran out, then withheld). Re-seating is
         Fusion's recovery with its gain at the limit. Only near 1 g: the same pull about
         every axis in a pull-up's 2.4 g turned an attitude 60 deg off (``_after_dropped``)."""
-        gx, gy, gz = g
-        if abs(math.sqrt(gx * gx + gy * gy + gz * gz) - 1.0) > RESEAT_CHECK_G:
-            return
-        raw = self._accel_m_s2
-        assert raw is not None  # g is its fresh reading, compensated
-        rx, ry, rz = gravity_positive_g(raw)
-        if math.sqrt((rx - gx) ** 2 + (ry - gy) ** 2 + (rz - gz) ** 2) > RESEAT_CHECK_G:
-            # the turn compensation moved the reading: its model (a turn flown forward at
-            # the airspeed) is not what a tumble does (the seed board's nominal 10 m/s at a
-            # 2 rad/s pitch turned a reading upside down, within 0.05 g of 1 g, and a
-            # re-seat from it put VQF 175 deg off), and the raw reading in a turn is the
-            # load, not gravity
-            return
         slow = rate[0] * rate[0] + rate[1] * rate[1] + rate[2] * rate[2] < _RESEAT_RATE_SQ
         if not (slow and self._reseat_pending) and \
                 _tilt_pulled(self._q, g, 0.0)[1] <= RECOVERY_CHECKED_RAD:
