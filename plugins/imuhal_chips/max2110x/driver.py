@@ -120,11 +120,11 @@ probability far below once per year of samples (0.05 s at 200 Hz). It was 50: th
 seed-rc-vario found a frozen MAX21105 in a turbulent cruise handing out valid frames more
 than their error model off the truth from the 13th on (27 in 300 s, 68 in an hour)."""
 TEMPERATURE_RANGE_DEGC = (-40.0, 85.0)
+"""Operating range of the die; a temperature word outside it is not a real reading."""
 SIDE_READ_PLAN = 3
 """The poll plan (imuhal.core.poll_plan) from which read: fifo with an auto-read slave reads
 the slave's copy a guard after every instant between the FIFO reads (``_next_read_ns``);
 before it, only beside each FIFO read (a recording made then replays on that plan)."""
-"""Operating range of the die; a temperature word outside it is not a real reading."""
 _MAG_OFFSET = Reg.MAG_X_H - Reg.SYSTEM_STATUS
 """Where MAG X/Y/Z (the auto-read slave's bytes) start in a MAX21100 burst."""
 _SIX_WORDS = struct.Struct(">6h")
