@@ -76,6 +76,7 @@ class PollGrid:
     its early step (a clock 2 % fast against the 1/64 step), so it doubles its shortfall
     (``next_after``). A fault-free nominal clock never gets there: its polls are unchanged
     (faults that hide the empty polls can: bus errors, blank reads)."""
+
     def __init__(self, period_ns: int, *, early_fraction: int = 0, track: bool = False,
                  catch_up: bool = False) -> None:
         if period_ns <= 0:
@@ -191,7 +192,6 @@ class PollGrid:
         k = max(self._k + 1, (now_ns - self._anchor_ns) // self.step_ns + 1)
         self._k = k
         return self._anchor_ns + k * self.step_ns
-
 
     def _catch_up(self, now_ns: int) -> None:
         """One more grid point without a poll that found nothing, while the chip's period is
