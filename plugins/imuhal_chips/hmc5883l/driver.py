@@ -19,6 +19,23 @@ with Mode, stay in the periodic read-back), the first poll after a reset sees th
 left continuous mode: that poll's sample is flagged STALE (its bytes are no measurement of
 the configured chip), counted, and the chip is reconfigured.
 
+``mode: single`` (read directly only; the seed rc profile): the chip measures once per Mode
+write (single-measurement mode, 6 ms, up to 160 Hz by the datasheet) and goes idle. The
+driver writes Mode at each point of its own cadence (``odr_hz`` on the host's clock), reads
+Config A through the data in one transaction 6.12 ms later (a chip clock 2 % slow is done
+by then; Mode still single: not done, read again 0.5 ms later) and stamps the field at the
+measurement's end, 6 ms after the write. Production is host-paced, as the MS5611's: the
+chip makes exactly the fields the driver starts, so on any chip clock none is handed out
+twice or lost unseen (continuous mode read directly cannot place its polls: RDY stays set,
+and a clock 2 % off repeats or skips one field in 50 unseen). A start more than half a
+period late slides the cadence, and a measurement not done by the next start was never
+made (a hung chip, which the next Mode write restarts): both are slots counted as not
+converted (``DeviceHealth.not_converted_ns``). Config A/B in every read show a silent reset
+(the power-on values) as Mode does in continuous mode, so no periodic read-back is made.
+ArduPilot's AP_Compass_HMC5843 reads its HMC5883L the same way (read, then a Mode write of
+single, every 13.3 ms). Per field: the Mode write (2 bytes) and the 9-byte read, where
+continuous mode reads status and Mode with the data (two transactions as well).
+
 Two chip habits shape configure(): the first measurement after a gain change still uses the
 old gain (so the first sample after configure is dropped), and reading the mode register
 locks the data outputs until the six data bytes are read (so the read-back is followed by one
@@ -433,7 +450,8 @@ class Hmc5883lDriver(Driver):
         # Poll a guard (1/8 period) after each measurement instant, counted from the Mode
         # write. RDY stays set in continuous mode, so unlike the MAX2110x the phase cannot
         # be searched for; a chip clock off by a few percent occasionally repeats or skips
-        # one output (each sample is still coherent thanks to the data lock).
+        # one output (each sample is still coherent thanks to the data lock): mode: single
+        # does not (_poll_single).
         latency = self._feed.latency_ns if self._feed is not None else 0
         self._grid.anchor(self._mode_written_ns + latency + self._grid.guard_ns)
         self._ready.start(now_ns)
