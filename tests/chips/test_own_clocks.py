@@ -97,6 +97,19 @@ def test_the_hmc5883l_measures_on_its_own_clock_at_the_truth_of_each_instant(
         assert value == pytest.approx(100.0 * _ramp(newest), abs=resolution / 2 + 1e-9)
 
 
+@pytest.mark.parametrize("error", [-0.02, 0.02])
+def test_an_hmc5883l_single_measurement_runs_on_its_own_oscillator(error: float) -> None:
+    clock = SimulatedClock()
+    bus = EmulatedBus("i2c1", BusKind.I2C)
+    chip = bus.attach(0x1E, Hmc5883lEmulator(clock))
+    chip.oscillator_error = error
+    bus.transfer(0x1E, bytes([0x02, 0x01]), 0)  # Mode: single measurement
+    start_ns = clock.now_ns()
+    clock.sleep(0.007)
+    bus.transfer(0x1E, bytes([0x09]), 1)  # status: the measurement is done by now
+    assert list(chip.measured_ns) == [start_ns + round(6_000_000 / (1 + error))]
+
+
 @pytest.mark.parametrize("error", [-0.05, 0.0, 0.05])
 def test_an_ms5611_conversion_runs_on_its_own_oscillator(error: float) -> None:
     clock = SimulatedClock()

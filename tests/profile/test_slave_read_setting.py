@@ -59,3 +59,16 @@ def test_an_unknown_read_mode_lists_the_allowed_ones(registry: Registry) -> None
     problems = _problems(registry, SEED, "sideways")
     assert len(problems) == 1
     assert "devices.mag.settings.read: Input should be 'one-shot' or 'auto'" in problems[0]
+
+
+def test_single_measurements_behind_the_auto_read_are_one_line_naming_the_fix(
+        registry: Registry) -> None:
+    doc = yaml.safe_load(SEED.read_text())
+    doc["devices"]["mag"]["settings"]["mode"] = "single"
+    with pytest.raises(ProfileError) as info:
+        parse_profile(yaml.safe_dump(doc, sort_keys=False), "board.yaml", registry)
+    problems = info.value.problems
+    assert len(problems) == 1 and "\n" not in problems[0]
+    assert problems[0].startswith("board.yaml:")
+    assert "mode 'single' needs the driver to start each measurement" in problems[0]
+    assert "use read: one-shot, or mode: continuous" in problems[0]

@@ -19,6 +19,23 @@ with Mode, stay in the periodic read-back), the first poll after a reset sees th
 left continuous mode: that poll's sample is flagged STALE (its bytes are no measurement of
 the configured chip), counted, and the chip is reconfigured.
 
+``mode: single`` (read directly only; the seed rc profile): the chip measures once per Mode
+write (single-measurement mode, 6 ms, up to 160 Hz by the datasheet) and goes idle. The
+driver writes Mode at each point of its own cadence (``odr_hz`` on the host's clock), reads
+Config A through the data in one transaction 6.12 ms later (a chip clock 2 % slow is done
+by then; Mode still single: not done, read again 0.5 ms later) and stamps the field at the
+measurement's end, 6 ms after the write. Production is host-paced, as the MS5611's: the
+chip makes exactly the fields the driver starts, so on any chip clock none is handed out
+twice or lost unseen (continuous mode read directly cannot place its polls: RDY stays set,
+and a clock 2 % off repeats or skips one field in 50 unseen). A start more than half a
+period late slides the cadence, and a measurement not done by the next start was never
+made (a hung chip, which the next Mode write restarts): both are slots counted as not
+converted (``DeviceHealth.not_converted_ns``). Config A/B in every read show a silent reset
+(the power-on values) as Mode does in continuous mode, so no periodic read-back is made.
+ArduPilot's AP_Compass_HMC5843 reads its HMC5883L the same way (read, then a Mode write of
+single, every 13.3 ms). Per field: the Mode write (2 bytes) and the 9-byte read, where
+continuous mode reads status and Mode with the data (two transactions as well).
+
 Two chip habits shape configure(): the first measurement after a gain change still uses the
 old gain (so the first sample after configure is dropped), and reading the mode register
 locks the data outputs until the six data bytes are read (so the read-back is followed by one
@@ -77,6 +94,9 @@ straddling a copy would leave it half released and tear every later copy.
 from __future__ import annotations
 
 import math
+from typing import Literal
+
+from pydantic import model_validator
 
 from imuhal.bus.auto_read import (
     AutoReadBus,
@@ -116,6 +136,9 @@ from imuhal_chips.hmc5883l.registers import (
     DATA_MIN,
     IDENTITY,
     MODE_CONTINUOUS,
+    MODE_IDLE,
+    MODE_MD_MASK,
+    MODE_SINGLE,
     ODR_BY_CODE,
     ODR_HZ,
     RANGE_GAUSS,
@@ -158,6 +181,16 @@ fields at the seed's rate; a wire that failed once likely fails again)."""
 CLOCK_TOLERANCE = 0.02
 """How far the chip's output period may be off its nominal one (a fraction): the datasheet
 states no tolerance for the output rates; issue 25's +-2 %, as the emulator allows."""
+SINGLE_MEASUREMENT_NS = 6_000_000
+"""mode: single: a measurement is ready this long after the Mode write that starts it (the
+datasheet's wait; its end is the sample's stamp)."""
+SINGLE_WAIT_NS = round(SINGLE_MEASUREMENT_NS / (1 - CLOCK_TOLERANCE))
+"""mode: single: the read comes this long after the Mode write, when a chip clock 2 % slow
+has finished too (6.12 ms)."""
+CONFIG_TO_DATA = DATA_LAST - Reg.CONFIG_A + 1
+"""mode: single: one read from Config A through the last data byte: the configuration (a
+silent reset's power-on values), the mode (idle once the measurement is done) and the
+field."""
 REPEAT_ODDS = 1e-12
 """How rarely a healthy chip's six data bytes may stay the same for ``unchanged_periods``
 output periods (about once in 400 years of 75 Hz output)."""
@@ -192,6 +225,21 @@ class Hmc5883lSettings(DriverSettings):
     data bytes), on any I2C bus; ``auto``, by the I2C master the chip sits behind, at its
     own rate, handed over in the master's burst (a bus offering slave auto-read: the
     MAX21100's ``imu/aux``)."""
+    mode: Literal["continuous", "single"] = "continuous"
+    """How the chip measures: ``continuous``, at ``odr_hz`` on its own oscillator (whose
+    error the datasheet does not bound: a clock 2 % off repeats or skips a field in 50
+    unseen, RDY staying set); ``single`` (``read: one-shot`` only), one measurement per
+    field, started by the driver's Mode write at ``odr_hz`` on the host's clock, so every
+    field handed out is one the host asked for and none is repeated or lost unseen on any
+    chip clock (one more 2-byte write per field; see ``Hmc5883lDriver._poll_single``)."""
+
+    @model_validator(mode="after")
+    def _single_needs_the_driver(self) -> Hmc5883lSettings:
+        if self.mode == "single" and self.read == "auto":
+            raise ValueError("mode 'single' needs the driver to start each measurement, and "
+                             "with read: auto the master reads the chip on its own: use "
+                             "read: one-shot, or mode: continuous")
+        return self
 
 
 class Hmc5883lDriver(Driver):
@@ -289,6 +337,10 @@ class Hmc5883lDriver(Driver):
         self._not_ready = False
         """read: one-shot: the previous poll found RDY clear (the chip let an instant pass
         unmeasured: reading never clears RDY)."""
+        self._single_ns: int | None = None
+        """mode: single: when the Mode write started the measurement not read yet."""
+        self._due_ns = 0
+        """mode: single: when the next measurement is due to start (the driver's cadence)."""
 
     # --- bus helpers (plain I2C register protocol: write pointer, then read) --------------
 
@@ -333,7 +385,8 @@ class Hmc5883lDriver(Driver):
         return RegisterPlan.of(self.describe(), {
             Reg.CONFIG_A: config_a(s.averaging, s.odr_hz),
             Reg.CONFIG_B: config_b(s.range_gauss),
-            Reg.MODE: MODE_CONTINUOUS,
+            # mode: single: idle until the driver starts each measurement (_poll_single)
+            Reg.MODE: MODE_CONTINUOUS if s.mode == "continuous" else MODE_IDLE,
         }, names={Reg.CONFIG_A: "Config A", Reg.CONFIG_B: "Config B", Reg.MODE: "Mode"},
             checks=[(Reg.CONFIG_A, Reg.CONFIG_B, Reg.MODE)], burst_write=True,
             hint="check the bus")
@@ -397,13 +450,17 @@ class Hmc5883lDriver(Driver):
         # Poll a guard (1/8 period) after each measurement instant, counted from the Mode
         # write. RDY stays set in continuous mode, so unlike the MAX2110x the phase cannot
         # be searched for; a chip clock off by a few percent occasionally repeats or skips
-        # one output (each sample is still coherent thanks to the data lock).
+        # one output (each sample is still coherent thanks to the data lock): mode: single
+        # does not (_poll_single).
         latency = self._feed.latency_ns if self._feed is not None else 0
         self._grid.anchor(self._mode_written_ns + latency + self._grid.guard_ns)
         self._ready.start(now_ns)
         self._fresh_ns = now_ns
         self._retrying = False
         self._watch.start(now_ns)
+        if self.settings.mode == "single":
+            self._single_ns, self._due_ns = None, now_ns
+            return now_ns
         return self._grid.next_after(now_ns)
 
     # --- sampling -------------------------------------------------------------------------
@@ -419,11 +476,13 @@ class Hmc5883lDriver(Driver):
                                      ", a reserved output rate; check the bus")
         gain = gain_from_config_b(config[1])
         latency_s = 0.0 if self._feed is None else self._feed.latency_ns * 1e-9
+        # mode: single stamps each field at its measurement's end, not a poll's guard later
+        guard_s = 0.0 if self.settings.mode == "single" else 1 / (8 * rate_hz)
         return StreamSpec(
             self.device, Quantity.MAG, Frame.SENSOR, float(rate_hz),
             scale=decode.counts_to_ut((1, 0, 0), gain)[0],
             full_scale=abs(decode.counts_to_ut((DATA_MIN, 0, 0), gain)[0]),
-            latency_s=latency_s + 1 / (8 * rate_hz))
+            latency_s=latency_s + guard_s)
 
     def streams(self) -> tuple[StreamSpec, ...]:
         """The magnetic field (uT, sensor frame) as configured at the last read-back."""
@@ -442,6 +501,8 @@ class Hmc5883lDriver(Driver):
         if self._restart_due:  # found off the plan by the poll before (``_reset_at``)
             self._restart_due = False
             return PollResult([], self.restart(reset_detected=True))
+        if self.settings.mode == "single":
+            return self._poll_single(now_ns)
         if self._watch.check_due(now_ns) and self._off_plan():
             return PollResult([], self.restart(reset_detected=True))
         if self._feed is not None:
@@ -1041,6 +1102,10 @@ class Hmc5883lDriver(Driver):
             return self._resume_configure(now_ns)
         if self._feed is None:
             self._idle_from = None  # a failed read breaks the run of reads a hang's proof needs
+        if self.settings.mode == "single" and self.gain_lsb_per_gauss is not None:
+            # a failed Mode write is made again, a failed read read again (the chip keeps a
+            # single measurement until the next Mode write); the next read carries Config A/B
+            return max(now_ns, self.clock.now_ns())
         if self.gain_lsb_per_gauss is None or self._off_plan():
             return None
         return max(now_ns, self.clock.now_ns())
@@ -1056,6 +1121,62 @@ class Hmc5883lDriver(Driver):
         self._configured_as(plan, got)
         self.health.reconfigurations += 1
         return self.start(max(now_ns, self.clock.now_ns()))
+
+    @property
+    def host_paced(self) -> bool:
+        """mode: single: the chip measures when the driver's Mode write tells it to."""
+        return self.settings.mode == "single"
+
+    def _poll_single(self, now_ns: int) -> PollResult:
+        """``mode: single``: start a measurement at each point of the driver's cadence
+        (``odr_hz`` on the host's clock: a Mode write of single), read it SINGLE_WAIT_NS
+        later (Config A through the data in one read: as many transactions per field as
+        continuous mode's status and data reads) and stamp it at its end. The chip makes
+        exactly the measurements the driver starts, so on any chip clock no field is handed
+        out twice and none is lost unseen. A start more than half a period late (a stalled
+        host) slides the cadence, a measurement not done by the next start is one the chip
+        never made (hung: Mode still reads single): both are slots the chip did not
+        measure (``DeviceHealth.not_converted_ns``, as the MS5611's). Config A/B off the
+        plan, or Mode continuous, is a silent reset (STALE, reconfigured)."""
+        assert self.plan is not None
+        period = self._grid.period_ns
+        if self._single_ns is None:
+            if now_ns < self._due_ns:
+                return PollResult([], self._due_ns)
+            if 2 * (now_ns - self._due_ns) > period:
+                self.health.not_converted_ns += now_ns - self._due_ns
+                self._due_ns = now_ns
+            self.link.transfer(bytes((Reg.MODE, MODE_SINGLE)), 0)
+            self._single_ns = max(now_ns, self.clock.now_ns())
+            self._due_ns += period
+            return PollResult([], self._single_ns + SINGLE_WAIT_NS)
+        raw = self._read(Reg.CONFIG_A, CONFIG_TO_DATA)
+        stamp_ns = self._single_ns + SINGLE_MEASUREMENT_NS
+        data = raw[Reg.X_MSB - Reg.CONFIG_A:]
+        md = raw[Reg.MODE - Reg.CONFIG_A] & MODE_MD_MASK
+        blank = blank_flag(raw)
+        if not blank and (md == MODE_CONTINUOUS or self.plan.mismatches(
+                {Reg.CONFIG_A: raw[0], Reg.CONFIG_B: raw[1]})):
+            return PollResult([self._decoded(data, stamp_ns, SampleFlag.STALE)],
+                              self.restart(reset_detected=True))
+        if not blank and md == MODE_SINGLE:
+            if now_ns + NOT_READY_RETRY_NS < self._due_ns:
+                return PollResult([], now_ns + NOT_READY_RETRY_NS)
+            self.health.not_converted_ns += period  # its slot passed unmeasured
+            blank = SampleFlag.STALE
+        self._single_ns = None
+        if blank:
+            sample = self._decoded(data, stamp_ns, blank)
+            if self._watch.stale_poll():
+                return PollResult([sample], self.restart(reset_detected=False))
+            return PollResult([sample], max(now_ns, self._due_ns))
+        self._watch.fresh_poll()
+        if self._skip_next:  # measured at the old gain (see poll)
+            self._skip_next = False
+            self._memory.forget()
+            return PollResult([], max(now_ns, self._due_ns))
+        return PollResult([self._decoded(data, stamp_ns, self._frozen_flag(data))],
+                          max(now_ns, self._due_ns))
 
     def _off_plan(self) -> bool:
         """The plan's check (Config A/B and Mode: a mismatch is a silent reset, defaults
