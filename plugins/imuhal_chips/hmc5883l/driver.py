@@ -81,6 +81,7 @@ straddling a copy would leave it half released and tear every later copy.
 from __future__ import annotations
 
 import math
+from collections import deque
 
 from imuhal.bus.auto_read import (
     AutoReadBus,
@@ -159,6 +160,9 @@ STATUS_BITS = STATUS_LOCK | STATUS_RDY
 DOUBT_NS = 1_000_000_000
 """read: auto: how long a sign of failing master reads stops repeats being proved (75
 fields at the seed's rate; a wire that failed once likely fails again)."""
+STEER_FIELDS = 6
+"""read: auto: the grid moves later when the polls on time of this many fields in a row
+came less than a guard after the master's deliveries of their fields (``_steer``)."""
 CLOCK_TOLERANCE = 0.02
 """How far the chip's output period may be off its nominal one (a fraction): the datasheet
 states no tolerance for the output rates; issue 25's +-2 %, as the emulator allows."""
@@ -271,6 +275,12 @@ class Hmc5883lDriver(Driver):
         self._looked_ns: int | None = None
         """read: auto: the poll, on time, that found the bytes unchanged and looks again
         (None: it came late)."""
+        self._steered = False
+        """read: auto: ``_steer`` moved the grid since configure() (the chip's clock is off
+        its nominal period)."""
+        self._afters: deque[int] = deque(maxlen=STEER_FIELDS)
+        """read: auto: how long after the master's delivery of its field each of the latest
+        polls on time came (``_steer``; negative: the field came after the poll)."""
         self._idle_from: int | None = None
         """read: auto: the stamp of the latest sample handed out while it was valid and its
         copy is the master's latest change (None otherwise): the field a hang proof counts
@@ -390,6 +400,8 @@ class Hmc5883lDriver(Driver):
             self._hung_after_ns = unchanged_periods(self.gain_lsb_per_gauss) * period
             self._repeat_after_ns = round(period * (1 + CLOCK_TOLERANCE)) + feed.latency_ns
             self._idle_from, self._hang_read, self._repeat = None, None, None
+            self._afters.clear()
+            self._steered = False
             self._hung_ns = self._change_ns = None
             # a reconfiguration after the first (the chip read back off its plan, or kept
             # producing nothing): on a wire that fails, the one-shot read-back's unanswered
@@ -567,11 +579,13 @@ class Hmc5883lDriver(Driver):
         """read: auto, a poll that found no change: when to look next."""
         assert self._feed is not None
         retrying = self._retrying
-        look_ns = self._repeat_look(now_ns)
+        look_ns = None if retrying and not self._steered else self._repeat_look(now_ns)
         if retrying and look_ns is not None:
-            # the look once more came before the master's first copy that a status read can
-            # prove a repeat with (the grid early of a slow chip's instants, until ``_steer``
-            # moves it): look after that copy too, or a repeated field is lost
+            # a grid that follows a chip clock off its nominal period (``_steer``) can lie
+            # closer after the copies than the nominal one: the look once more came before
+            # the master's first copy that a status read can prove a repeat with (a slow
+            # chip's, until the grid moves later); look after that copy too, or a field
+            # that repeated its bytes is lost
             return PollResult([], look_ns)
         if not retrying:
             self._looked_ns = now_ns if now_ns == self._asked_ns else None
@@ -607,28 +621,41 @@ class Hmc5883lDriver(Driver):
         periods and counted a field lost where none was (+60 in 20 s at +2 %), and the poll
         a period behind took two copies.
 
-        A poll on time that found nothing, whose look again found the change delivered
-        after it: the grid runs ahead of the chip (a clock slow), and it moves a guard
-        later. Left alone, the polls came ever earlier before the copies, their looks
-        again stamped them at delivery, and once a look again came before the copy too,
-        the next poll stamped it a period later (+102 in 20 s at -2 %). A copy a failed
-        master read delayed (the MAX21100 does not report it) shows the same: a guard at
-        a time, the grid moves no further than it."""
+        Polls on time that came less than a guard after the deliveries of their fields,
+        STEER_FIELDS fields in a row (a poll that found nothing, whose look again found its
+        field, came before the delivery), run ahead of the chip (a clock slow): the grid
+        moves a guard later. Left alone, the polls came ever earlier before the copies,
+        their looks again stamped them at delivery, and once a look again came before the
+        copy too, the next poll stamped it a period later (+102 in 20 s at -2 %). A copy
+        that failed master reads delayed (the MAX21100 does not report them) comes late
+        too, but one is no proof: moved at each such field, a grid on the nominal clock
+        under 10 % bus errors came to lag its chip, and a poll a millisecond late then
+        stamped its copy at the delivery (a field counted lost where none was)."""
         feed, grid = self._feed, self._grid
         assert feed is not None
         if len(changes) != 1 or not self._steady(changes[0]):
             return now_ns
         due = self._looked_ns if self._retrying else now_ns
+        # a poll late (put off, a stalled host) or off the grid (a status read's look):
+        # nothing of the grid's phase
         if due is None or (due != self._asked_ns and not self._retrying):
-            return now_ns  # a late poll (put off, a stalled host): nothing of the phase
+            return now_ns
         point = grid.point_at_or_before(due)
+        if point != due:
+            return now_ns
         after = due - changes[0].t_ns
         late = after - feed.latency_ns - grid.guard_ns
+        afters = self._afters
         if late > 0 and not self._retrying:
             grid.anchor(point - late)
+            afters.clear()
+            self._steered = True
             return now_ns - late
-        if after < 0:
+        afters.append(after)
+        if len(afters) == afters.maxlen and max(afters) < grid.guard_ns:
             grid.anchor(point + grid.guard_ns)
+            afters.clear()
+            self._steered = True
         return now_ns
 
     def _steady(self, copy: Copy) -> bool:
