@@ -352,6 +352,20 @@ def test_an_auto_read_magnetometer_off_its_nominal_clock_counts_the_fields_its_c
     assert not +ledger.lost
 
 
+def test_a_max21100_polled_two_percent_fast_loses_no_frame(registry: Registry) -> None:
+    """The seed paraglider's MAX21100 polled on its 1/64 early step: a chip 2 % fast never
+    let a poll find nothing, so the grid fell behind it until a frame was overwritten
+    unread, the overrun bit re-anchored the grid, and the search began again with the same
+    step (2.5 s: 2 frames counted missed of its 636, issue 25). Its grid now doubles its
+    shortfall as the MPU-9250's does (``PollGrid(catch_up=True)``) and learns the period."""
+    profile = load_profile(bundled_profiles()["seed-paraglider-vario.yaml"], registry)
+    with open_emulated(profile, registry, seed=1) as p:
+        p.board.emulators["imu"].oscillator_error = 0.02
+        list(p.events(SECONDS))
+    ledger = _counts_as_the_chip(p, "imu")
+    assert not +ledger.lost
+
+
 def test_a_phase_search_keeps_up_with_a_chip_clock_two_percent_fast(registry: Registry) -> None:
     """The MPU-9250's and AK8963's grids step 1/64 period short until they learn the chip's
     period from a poll that found nothing; a chip 2 % fast never let one find nothing, so
