@@ -362,6 +362,39 @@ def test_a_copy_after_a_stall_is_stamped_a_period_before_the_next_measurement(
     _counts_as_the_chip(_fly(registry, "seed-paraglider-vario", faults, 2.0), "mag")
 
 
+@pytest.mark.parametrize("error", [0.02, -0.02])
+def test_an_auto_read_magnetometer_off_its_nominal_clock_counts_the_fields_its_chip_made(
+        registry: Registry, error: float) -> None:
+    """The seed paraglider's HMC5883L behind the MAX21100's auto-read polled on a grid of its
+    nominal period: 2 % fast, the grid fell behind the chip's instants until a poll's copy
+    was older than a latency and a guard and was stamped at its delivery, 6 ms earlier after
+    its measurement than the fields beside it; 2 % slow, the polls came before the copies and
+    their looks again stamped them at delivery. The ledger rounds each gap to whole periods
+    and counted fields lost that the chip never made (2.5 s: 202 for its 190 fast, 195 for
+    its 182 slow; issue 25). Its grid now follows the chip's instants
+    (``Hmc5883lDriver._steer``), and every field is delivered."""
+    profile = load_profile(bundled_profiles()["seed-paraglider-vario.yaml"], registry)
+    with open_emulated(profile, registry, seed=1) as p:
+        p.board.emulators["mag"].oscillator_error = error
+        list(p.events(SECONDS))
+    ledger = _counts_as_the_chip(p, "mag")
+    assert not +ledger.lost
+
+
+def test_a_max21100_polled_two_percent_fast_loses_no_frame(registry: Registry) -> None:
+    """The seed paraglider's MAX21100 polled on its 1/64 early step: a chip 2 % fast never
+    let a poll find nothing, so the grid fell behind it until a frame was overwritten
+    unread, the overrun bit re-anchored the grid, and the search began again with the same
+    step (2.5 s: 2 frames counted missed of its 636, issue 25). Its grid now doubles its
+    shortfall as the MPU-9250's does (``PollGrid(catch_up=True)``) and learns the period."""
+    profile = load_profile(bundled_profiles()["seed-paraglider-vario.yaml"], registry)
+    with open_emulated(profile, registry, seed=1) as p:
+        p.board.emulators["imu"].oscillator_error = 0.02
+        list(p.events(SECONDS))
+    ledger = _counts_as_the_chip(p, "imu")
+    assert not +ledger.lost
+
+
 def test_a_phase_search_keeps_up_with_a_chip_clock_two_percent_fast(registry: Registry) -> None:
     """The MPU-9250's and AK8963's grids step 1/64 period short until they learn the chip's
     period from a poll that found nothing; a chip 2 % fast never let one find nothing, so

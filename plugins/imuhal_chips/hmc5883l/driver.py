@@ -75,6 +75,10 @@ measurement instant and stamps the sample with the poll's time, about 6 ms after
 measurement at the seed's rates (one-shot: 1.7 ms). A poll that finds the bytes unchanged
 looks once more one latency later (a copy a failed read or burst delayed; what it finds
 is stamped with the IMU burst that delivered it), then waits for the next measurement.
+On a chip clock off its nominal period (issue 25: up to +-2 %) the grid follows the
+chip's instants: a poll more than a latency and a guard after the delivery of the change
+it finds moves it earlier, one whose look again found the change delivered after it a
+guard later (``_steer``); on the nominal clock neither happens.
 Every copy that changed since the previous poll is taken (``AutoReadFeed.take``), not only
 the latest: when the master's reads bring two measurements between two polls (FIFO reads
 at the IMU's own instants, or the look a latency later), the older is handed out too,
@@ -94,6 +98,7 @@ straddling a copy would leave it half released and tear every later copy.
 from __future__ import annotations
 
 import math
+from collections import deque
 from typing import Literal
 
 from pydantic import model_validator
@@ -178,6 +183,9 @@ STATUS_BITS = STATUS_LOCK | STATUS_RDY
 DOUBT_NS = 1_000_000_000
 """read: auto: how long a sign of failing master reads stops repeats being proved (75
 fields at the seed's rate; a wire that failed once likely fails again)."""
+STEER_FIELDS = 6
+"""read: auto: the grid moves later when the polls on time of this many fields in a row
+came less than a guard after the master's deliveries of their fields (``_steer``)."""
 CLOCK_TOLERANCE = 0.02
 """How far the chip's output period may be off its nominal one (a fraction): the datasheet
 states no tolerance for the output rates; issue 25's +-2 %, as the emulator allows."""
@@ -310,6 +318,17 @@ class Hmc5883lDriver(Driver):
         self._unchanged_limit_ns = 0
         self._retrying = False
         """The previous poll found the bytes unchanged and this one looks again."""
+        self._asked_ns: int | None = None
+        """read: auto: when the previous poll asked to be polled next."""
+        self._looked_ns: int | None = None
+        """read: auto: the poll, on time, that found the bytes unchanged and looks again
+        (None: it came late)."""
+        self._steered = False
+        """read: auto: ``_steer`` moved the grid since configure() (the chip's clock is off
+        its nominal period)."""
+        self._afters: deque[int] = deque(maxlen=STEER_FIELDS)
+        """read: auto: how long after the master's delivery of its field each of the latest
+        polls on time came (``_steer``; negative: the field came after the poll)."""
         self._idle_from: int | None = None
         """read: auto: the stamp of the latest sample handed out while it was valid and its
         copy is the master's latest change (None otherwise): the field a hang proof counts
@@ -434,6 +453,8 @@ class Hmc5883lDriver(Driver):
             self._hung_after_ns = unchanged_periods(self.gain_lsb_per_gauss) * period
             self._repeat_after_ns = round(period * (1 + CLOCK_TOLERANCE)) + feed.latency_ns
             self._idle_from, self._hang_read, self._repeat = None, None, None
+            self._afters.clear()
+            self._steered = False
             self._hung_ns = self._change_ns = None
             # a reconfiguration after the first (the chip read back off its plan, or kept
             # producing nothing): on a wire that fails, the one-shot read-back's unanswered
@@ -451,7 +472,8 @@ class Hmc5883lDriver(Driver):
         # write. RDY stays set in continuous mode, so unlike the MAX2110x the phase cannot
         # be searched for; a chip clock off by a few percent occasionally repeats or skips
         # one output (each sample is still coherent thanks to the data lock): mode: single
-        # does not (_poll_single).
+        # does not (_poll_single). Under read: auto the master's deliveries move the grid
+        # with the chip's clock (_steer).
         latency = self._feed.latency_ns if self._feed is not None else 0
         self._grid.anchor(self._mode_written_ns + latency + self._grid.guard_ns)
         self._ready.start(now_ns)
@@ -506,7 +528,9 @@ class Hmc5883lDriver(Driver):
         if self._watch.check_due(now_ns) and self._off_plan():
             return PollResult([], self.restart(reset_detected=True))
         if self._feed is not None:
-            return self._poll_auto(now_ns)
+            result = self._poll_auto(now_ns)
+            self._asked_ns = result.next_poll_ns
+            return result
         status = self._read(Reg.STATUS, 1)[0]
         if status & STATUS_RDY:
             sample, configured = self._sample(now_ns)
@@ -563,7 +587,7 @@ class Hmc5883lDriver(Driver):
                 self._reset_behind_hang(changes, now_ns)
             if after_reset is not None:
                 return after_reset
-            samples, blank = self._taken(changes, repeat, now_ns)
+            samples, blank = self._taken(changes, repeat, self._steer(changes, now_ns))
             self._ended_zeros = bool(samples) and not any(changes[-1].data)
             last = samples[-1] if samples else blank
             self._idle_from = last.t_ns if last is not None and last.valid else None
@@ -615,7 +639,17 @@ class Hmc5883lDriver(Driver):
     def _look_again(self, now_ns: int) -> PollResult:
         """read: auto, a poll that found no change: when to look next."""
         assert self._feed is not None
-        look_ns = None if self._retrying else self._repeat_look(now_ns)
+        retrying = self._retrying
+        look_ns = None if retrying and not self._steered else self._repeat_look(now_ns)
+        if retrying and look_ns is not None:
+            # a grid that follows a chip clock off its nominal period (``_steer``) can lie
+            # closer after the copies than the nominal one: the look once more came before
+            # the master's first copy that a status read can prove a repeat with (a slow
+            # chip's, until the grid moves later); look after that copy too, or a field
+            # that repeated its bytes is lost
+            return PollResult([], look_ns)
+        if not retrying:
+            self._looked_ns = now_ns if now_ns == self._asked_ns else None
         if look_ns is not None and look_ns < now_ns + self._feed.latency_ns:
             # the look once more, sooner: what it finds is stamped by its delivery
             self._retrying = True
@@ -628,6 +662,78 @@ class Hmc5883lDriver(Driver):
             return PollResult([], now_ns + self._feed.latency_ns)
         self._retrying = False
         return PollResult([], self._grid.next_after(now_ns))
+
+    def _steer(self, changes: list[Copy], now_ns: int) -> int:
+        """read: auto: keeps the poll grid a latency and a guard after the chip's own
+        instants, which a chip clock off its nominal period moves along the grid (issue 25:
+        up to +-2 %, 0.27 ms a field at 75 Hz); returns the time to stamp the poll's field
+        at (``now_ns`` but below).
+
+        A poll on time whose one change the master delivered at ``d``, a delivery after
+        one on time (``_steady``): its measurement came before ``d`` and at most the
+        feed's latency before it, so a poll on a grid a latency and a guard after the
+        chip's instants comes at most a latency and a guard after ``d``. On the nominal
+        clock it always does (2.9 to 6.0 ms after ``d`` of 6.2 at the seed's rates), and
+        nothing here moves. Later, the grid lags the chip (a clock fast): it moves
+        earlier by the excess, and the field is stamped where the moved grid's point lay.
+        Left alone, the lag grew by 0.27 ms a field, and a copy older than a latency and a
+        guard was stamped at its delivery (``_measurements``), up to 6 ms earlier after its
+        measurement than the fields beside it: the frame ledger rounds each gap to whole
+        periods and counted a field lost where none was (+60 in 20 s at +2 %), and the poll
+        a period behind took two copies.
+
+        Polls on time that came less than a guard after the deliveries of their fields,
+        STEER_FIELDS fields in a row (a poll that found nothing, whose look again found its
+        field, came before the delivery), run ahead of the chip (a clock slow): the grid
+        moves a guard later. Left alone, the polls came ever earlier before the copies,
+        their looks again stamped them at delivery, and once a look again came before the
+        copy too, the next poll stamped it a period later (+102 in 20 s at -2 %). A copy
+        that failed master reads delayed (the MAX21100 does not report them) comes late
+        too, but one is no proof: moved at each such field, a grid on the nominal clock
+        under 10 % bus errors came to lag its chip, and a poll a millisecond late then
+        stamped its copy at the delivery (a field counted lost where none was)."""
+        feed, grid = self._feed, self._grid
+        assert feed is not None
+        if len(changes) != 1 or not self._steady(changes[0]):
+            return now_ns
+        due = self._looked_ns if self._retrying else now_ns
+        # a poll late (put off, a stalled host) or off the grid (a status read's look):
+        # nothing of the grid's phase
+        if due is None or (due != self._asked_ns and not self._retrying):
+            return now_ns
+        point = grid.point_at_or_before(due)
+        if point != due:
+            return now_ns
+        after = due - changes[0].t_ns
+        late = after - feed.latency_ns - grid.guard_ns
+        afters = self._afters
+        if late > 0 and not self._retrying:
+            grid.anchor(point - late)
+            afters.clear()
+            self._steered = True
+            return now_ns - late
+        afters.append(after)
+        if len(afters) == afters.maxlen and max(afters) < grid.guard_ns:
+            grid.anchor(point + grid.guard_ns)
+            afters.clear()
+            self._steered = True
+        return now_ns
+
+    def _steady(self, copy: Copy) -> bool:
+        """read: auto: ``copy`` is a new field delivered one master period after the
+        delivery before it (no pause: the host's polls late, the master's own recovery),
+        with no read of Mode between them (the lock it sets holds a measurement back until
+        the master's next copy), after configure() settled: its delivery came within the
+        feed's latency after its measurement, as far as the deliveries tell (``_steer``)."""
+        assert self._feed is not None
+        period, after = self._feed.period_ns, copy.after_ns
+        if not period or after is None or copy.t_ns - after > period * 3 // 2:
+            return False
+        if any(after < locked <= copy.t_ns
+               for locked in (self._locked_ns, self._locked_before_ns)):
+            return False
+        return copy.t_ns >= self._settle_ns and copy.data != self._emitted \
+            and not blank_flag(copy.data)
 
     def _next_look(self, now_ns: int) -> int:
         """read: auto, after a poll that found the master's copies: the next grid point,
@@ -974,8 +1080,9 @@ class Hmc5883lDriver(Driver):
         where its neighbours lay a guard after theirs, and the frame ledger's gaps, rounded
         to whole periods, counted a field the chip never skipped (a 20 ms pause of
         ``jitter`` at 10 %: 1.93 periods after a field stamped 1.8 ms after its own). On a
-        chip clock a few percent off its nominal period the grid is off as the polls are
-        (module docstring). None: no pause, or no field yet (``stamp_on_cadence``)."""
+        chip clock a few percent off its nominal period the grid follows the chip's
+        instants as the polls do (``_steer``). None: no pause, or no field yet
+        (``stamp_on_cadence``)."""
         last = self._cadence_ns
         if last is None or copy.after_ns is None or copy.t_ns - copy.after_ns <= pause_ns:
             return None

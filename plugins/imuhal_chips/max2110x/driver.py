@@ -109,7 +109,10 @@ EARLY_FRACTION = 64
 own period (``PollGrid(track=True)``), so it creeps earlier than a chip whose clock runs up to
 ~1.5 % fast instead of falling behind it; a poll that finds nothing re-finds the data a guard
 later. Once the period is learnt the grid steps 1/512 period short of it: about one poll in
-sixty finds nothing (one in eight with the fixed early step and an exact clock)."""
+sixty finds nothing (one in eight with the fixed early step and an exact clock). A chip more
+than 1.6 % fast lets no poll find nothing: the grid fell behind it and an overrun lost a
+frame every ~240 periods (issue 25: 20 in 20 s at +2 %), so it doubles its shortfall once a
+nominal clock would have shown it an empty poll (``PollGrid(catch_up=True)``)."""
 FROZEN_AFTER_FRAMES = 10
 """Identical gyro + accel + temperature frames in a row that mean the measurement engine
 hung. At rest the quietest setting (gyro +/-2000 dps, 15 LSB/dps, 0.005 dps/sqrt(Hz) over
@@ -343,7 +346,8 @@ class Max2110xDriver(Driver):
         periods = {Quantity.GYRO: gyro.period_ns, Quantity.ACCEL: accel.period_ns}
         self._ready = DataReady(periods)
         self._fast = min(periods, key=lambda c: periods[c])
-        self._grid = PollGrid(periods[self._fast], early_fraction=EARLY_FRACTION, track=True)
+        self._grid = PollGrid(periods[self._fast], early_fraction=EARLY_FRACTION, track=True,
+                              catch_up=True)
         if self.settings.read == "fifo":
             self._fifo = FifoReader(self.regs, periods[self._fast], self.clock, self.part.fifo)
 

@@ -53,9 +53,9 @@ class PollGrid:
 
     ``catch_up`` (with ``track``): a grid that has not learnt the chip's period and found
     no poll with nothing new for longer than a nominal clock allows doubles its shortfall
-    (``_catch_up``), for a driver whose chip shows no overwritten frame (the MPU-9250's and
-    AK8963's polled reads; the MAX2110x's overrun bits re-anchor its grid instead, and a
-    shorter step there moved a count by one under 10 % bus errors).
+    (``_catch_up``): the MPU-9250's and AK8963's polled reads, whose chips show no
+    overwritten frame, and the MAX2110x's, whose overrun bits re-anchor the grid at each
+    frame lost behind a chip 2 % fast, with the same early step again.
 
     ``track`` (with ``early_fraction``): the grid learns the chip's own period from the
     instants ``locate`` reports and steps ``TRACK_MARGIN`` (or the estimate's uncertainty,
