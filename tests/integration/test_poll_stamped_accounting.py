@@ -302,6 +302,22 @@ def test_a_magnetometer_copy_taken_by_a_late_poll_is_stamped_where_a_poll_on_tim
     _ledger_matches_the_chip(p, "mag")
 
 
+def test_a_late_imu_poll_retried_after_a_bus_error_counts_exactly(
+        registry: Registry) -> None:
+    """Every device of the seed paraglider fails one transfer in ten with a bus error and
+    one in ten with an OS error from 1 s (seed 7). At 2.79 s the MAX21100's poll, put off
+    a period after the host held it, comes 1.7 ms late, fails on a bus error and is
+    retried at once: the retry reads the frame the put-off poll was due for, and is
+    counted from that poll's grid point (``FrameLedger.retried``); counted from its own
+    stamp, 2.5 ms after its measurement, the gap rounded to a frame the chip never made
+    (49 for the chip's 48 before)."""
+    p = _fly(registry, "seed-paraglider-vario",
+             [BusErrors(device=d, rate=0.1, start_s=1.0) for d in ("imu", "mag", "baro")]
+             + [BusOSError(device=d, rate=0.1, start_s=1.0) for d in ("imu", "mag", "baro")],
+             seed=7, seconds=2.8)
+    _ledger_matches_the_chip(p, "imu")
+
+
 def test_a_magnetometer_restart_broken_after_its_mode_write_ends_the_ledgers_segment(
         registry: Registry) -> None:
     """Every device of the seed paraglider fails one transfer in ten with a bus error and
