@@ -44,9 +44,11 @@ own poll grid (imuhal.pipeline.pipeline, ``Pipeline._on_phase``; up to PUT_OFF_A
 in a row): its reading keeps the phase of the polls before it, so the gap that ends in it is
 counted like any other, exactly. A poll late by less than half a period reads the frame it
 was due for and is counted at its due time, one made off its grid after the put-offs at the
-grid point before it (:meth:`FrameLedger.count_at`). The late poll's ``host_stall`` is noted
-with its due time (``note(at_ns=)``) and charged to the gap that spans it: an auto-read
-slave's first poll after a stall hands out its master's copy from before the stall first.
+grid point before it (:meth:`FrameLedger.count_at`; such a poll that fails on a bus error
+and is retried at once is counted there too, :meth:`FrameLedger.retried`). The late
+poll's ``host_stall`` is noted with its due time (``note(at_ns=)``) and charged to the gap
+that spans it: an auto-read slave's first poll after a stall hands out its master's copy
+from before the stall first.
 
 A chip whose conversions the host starts (the MS5611) produces no frame in a slot of its
 configured cadence that the host let pass without a conversion (its schedule slid after a
