@@ -44,7 +44,9 @@ It also checks every device's frame ledger (imuhal.pipeline.accounting) against 
 own count (issue 25): for each device that accounts for a stream and whose emulator records
 its measurement instants, delivered + lost = produced, and within each segment (a stretch
 between reconfigurations) the ledger's produced frames equal the measurements the emulator
-made over the segment's span (``ChipEmulator.frames_between``). A run where either fails is
+made over the segment's span (``ChipEmulator.frames_between``; for a stream stamped on its
+chip's clock, a FIFO read, from the measurement nearest each end's stamp, which lies a few us
+either side of it). A run where either fails is
 listed with the device, the ledger's count and the chip's ("accounting"). Slots a hung chip
 did not measure (``not_measured``, as its driver's reads proved) and slots a host-paced chip
 never converted (``not_converted``) are neither produced nor lost, so they are outside both
@@ -177,7 +179,11 @@ def ledgers_of(pipeline: Pipeline) -> dict[str, dict[str, int]]:
         if ledger is None or chip is None or not len(chip.measured_ns):
             continue
         segments = ledger.all_segments()
-        measured = [chip.frames_between(a, b) for a, b, _ in segments]
+        # a frame stamped on its chip's clock (a FIFO read) is stamped at its measurement's
+        # instant as estimated, a few us either side: the measurement it carries is the
+        # nearest, not the latest completed by its stamp (0.4 us early took the one before)
+        carried = ledger.period_ns // 2 if dev.buffered else 0
+        measured = [chip.frames_between(a + carried, b + carried) for a, b, _ in segments]
         out[name] = {**ledger.counts(), "chip": sum(measured),
                      "within_segments": sum(n for _, _, n in segments),
                      "segments_off": sum(n != m for (_, _, n), m in

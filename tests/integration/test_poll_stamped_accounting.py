@@ -272,6 +272,52 @@ def test_a_magnetometer_copy_after_a_pause_in_the_masters_deliveries_is_stamped_
     _ledger_matches_the_chip(p, "mag")
 
 
+def test_a_magnetometer_copy_that_failed_reads_delayed_is_no_proved_repeat(
+        registry: Registry) -> None:
+    """Every device of the seed paraglider fails one transfer in ten from 1 s (the fault
+    matrix's ``bus_errors`` at 10 %, seed 6). At 3.17 s two of the MAX21100's reads of the
+    HMC5883L in a row fail, so its copies keep the field before past the chip's next
+    instant and a status read (RDY set) proves a repeat; the late copy comes 8 ms after
+    its measurement, past the first bound of ``_repeated``, and the chip's next
+    measurement 4 ms after it. A change followed that soon is the measurement the repeat
+    stood for: no repeat handed out (243 counted for the chip's 242 before)."""
+    p = _fly(registry, "seed-paraglider-vario",
+             [BusErrors(device=d, rate=0.1, start_s=1.0) for d in ("imu", "mag", "baro")],
+             seed=6, seconds=3.2)
+    _ledger_matches_the_chip(p, "mag")
+
+
+def test_a_magnetometer_copy_taken_by_a_late_poll_is_stamped_where_a_poll_on_time_would(
+        registry: Registry) -> None:
+    """Every device of the seed paraglider fails one transfer in ten from 1 s (the fault
+    matrix's ``bus_errors`` at 10 %, seed 7). At 3.55 s the HMC5883L's poll takes a copy
+    delivered just more than a latency and a guard before it, stamped at its delivery,
+    0.2 ms after its measurement; the next copy, delayed by failed master reads, is
+    stamped 7 ms after its own: 20.1 ms apart, the ledger counted a field lost that the
+    chip never skipped (269 for the chip's 268 before). Stamped at the grid point a poll
+    on time would have taken it at, the gap is one period."""
+    p = _fly(registry, "seed-paraglider-vario",
+             [BusErrors(device=d, rate=0.1, start_s=1.0) for d in ("imu", "mag", "baro")],
+             seed=7, seconds=3.58)
+    _ledger_matches_the_chip(p, "mag")
+
+
+def test_a_late_imu_poll_retried_after_a_bus_error_counts_exactly(
+        registry: Registry) -> None:
+    """Every device of the seed paraglider fails one transfer in ten with a bus error and
+    one in ten with an OS error from 1 s (seed 7). At 2.79 s the MAX21100's poll, put off
+    a period after the host held it, comes 1.7 ms late, fails on a bus error and is
+    retried at once: the retry reads the frame the put-off poll was due for, and is
+    counted from that poll's grid point (``FrameLedger.retried``); counted from its own
+    stamp, 2.5 ms after its measurement, the gap rounded to a frame the chip never made
+    (49 for the chip's 48 before)."""
+    p = _fly(registry, "seed-paraglider-vario",
+             [BusErrors(device=d, rate=0.1, start_s=1.0) for d in ("imu", "mag", "baro")]
+             + [BusOSError(device=d, rate=0.1, start_s=1.0) for d in ("imu", "mag", "baro")],
+             seed=7, seconds=2.8)
+    _ledger_matches_the_chip(p, "imu")
+
+
 def test_a_magnetometer_restart_broken_after_its_mode_write_ends_the_ledgers_segment(
         registry: Registry) -> None:
     """Every device of the seed paraglider fails one transfer in ten with a bus error and

@@ -72,6 +72,31 @@ def test_a_frame_read_off_the_grid_is_counted_from_its_grid_point() -> None:
     assert ledger.produced == 3 and not ledger.lost
 
 
+def test_a_late_poll_retried_after_a_bus_error_is_counted_from_its_grid_point() -> None:
+    """The late poll of the test above fails on a bus error and its driver retries it at
+    once, 1 ns later: the retry reads the frame the failed poll was due for, counted from
+    the failed poll's grid point, not from its own stamp."""
+    ledger = FrameLedger(Quantity.GYRO, P)
+    ledger.observe(gyro(600_000))
+    ledger.count_at(P + 4_200_000, P + 600_000)
+    ledger.note("bus_error")
+    ledger.retried(P + 4_200_000)
+    ledger.observe(gyro(P + 4_200_001))
+    ledger.observe(gyro(2 * P + 600_000))
+    assert ledger.produced == 3 and not ledger.lost
+
+
+def test_a_poll_later_than_a_guard_after_a_failed_late_one_is_counted_from_its_stamp() -> None:
+    """No retry at once: a frame stamped more than a guard after the failed late poll is
+    another read's, counted from its stamp."""
+    ledger = FrameLedger(Quantity.GYRO, P)
+    ledger.observe(gyro(600_000))
+    ledger.count_at(P + 600_000, P + 100_000)
+    ledger.retried(P + 600_000)
+    ledger.observe(gyro(2 * P + 600_000))
+    assert ledger.produced == 3 and ledger.lost["missed"] == 1
+
+
 def test_flagged_frames_of_the_stream_name_their_cause() -> None:
     ledger = FrameLedger(Quantity.GYRO, P)
     ledger.observe(gyro(0))

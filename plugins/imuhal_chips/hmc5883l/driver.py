@@ -51,7 +51,8 @@ or a master reset is not new); a copy that stays the same is no proof that nothi
 measured (a still field repeats its six bytes, about one field in 500 at +/-1.3 Ga): once a
 copy made after the chip's next instant has come unchanged, one status read tells (RDY set:
 the chip measured the same bytes, handed out when the next change shows it was no late copy
-the master's failed reads held back; RDY clear before the next measurement could be writing:
+the master's failed reads held back, and no measurement follows that change within a
+period; RDY clear before the next measurement could be writing:
 the chip hung, its slot not measured; ``_repeat_by_status``). Bytes that stay the same for
 longer than a healthy chip's noise allows (``unchanged_periods``) are a chip that stopped or
 a master whose reads fail (it keeps the last data): flagged STALE at each poll after that,
@@ -86,7 +87,9 @@ stamped with its delivery, or, when the master delivered nothing for a while bef
 recovery, the host's polls late: the copy may have waited a field period in the chip), on
 the driver's grid where a poll on time would have stamped its measurement
 (``_after_pause``; ``imuhal.bus.auto_read.stamp_on_cadence`` for a master that reports its
-failed reads). A master that delivers bursts while its own chip hung
+failed reads). The newest copy a late poll takes more than a latency and a guard after its
+delivery is stamped at the grid point a poll on time would have taken it at
+(``_on_time_point``). A master that delivers bursts while its own chip hung
 (``AutoReadFeed.copied_ns``: the MAX21100's accelerometer data-ready clear) made no copy
 in them: the status read proves no repeat from them, and reads again once the chip's
 second instant after its latest field is past (``_look_past_second_instant``).
@@ -612,7 +615,7 @@ class Hmc5883lDriver(Driver):
         """read: auto: the samples of a poll's ``changes`` (``_measurements``), after the
         repeat a status read proved before them when the first can be the measurement after
         it (``_repeated``); a hang's slots proved by the first copy after it."""
-        repeated = self._repeated(repeat, changes[0])
+        repeated = self._repeated(repeat, changes)
         since, hung_ns, self._hung_ns = self._idle_from, self._hung_ns, None
         samples, blank = self._measurements(changes, now_ns, late=self._retrying)
         self._doubt_copies(changes, bool(samples), bool(repeated), repeat is not None,
@@ -893,17 +896,25 @@ class Hmc5883lDriver(Driver):
         if late or (proved and not repeated):
             self._doubt_until_ns = now_ns + DOUBT_NS
 
-    def _repeated(self, repeat: tuple[int, int] | None, first: Copy) -> list[Sample]:
+    def _repeated(self, repeat: tuple[int, int] | None, changes: list[Copy]) -> list[Sample]:
         """The repeat a status read proved (``_repeat_by_status``: its stamp, and the
         earliest delivery of the measurement after it), handed out when the next change
-        ``first`` can be that later measurement: delivered after the earliest time the
-        chip's second instant after the change could be copied (two periods at the fastest
-        clock after the change's measurement, which came at most the feed's latency before
-        its delivery). A change delivered sooner is the measurement the repeat stood for,
-        copied late (the master's reads failed until then): no repeat. Nor before a blank
-        copy."""
+        (the first of ``changes``) can be that later measurement: delivered after the
+        earliest time the chip's second instant after the change could be copied (two
+        periods at the fastest clock after the change's measurement, which came at most the
+        feed's latency before its delivery), and followed in ``changes`` by no change
+        sooner than the chip's third instant could be copied (a period at the fastest clock
+        later). A change delivered sooner, or one a measurement followed within less than a
+        period, is the measurement the repeat stood for, copied late (the master's reads
+        failed until then; at 10 % bus errors two in a row delayed a copy 8 ms, past the
+        first bound, and the next measurement came 4 ms after it): no repeat. Nor before a
+        blank copy."""
+        first = changes[0]
         if repeat is None or first.t_ns < repeat[1] or blank_flag(first.data) \
                 or self._emitted is None or first.t_ns < self._stamped_ns:
+            return []
+        third_ns = repeat[1] + round(self._grid.period_ns * (1 - CLOCK_TOLERANCE))
+        if any(c.t_ns < third_ns and not blank_flag(c.data) for c in changes[1:]):
             return []
         stamp = repeat[0]
         sample = self._decoded(self._emitted, stamp, SampleFlag.OK)
@@ -1054,8 +1065,8 @@ class Hmc5883lDriver(Driver):
             left = len(changes) - 1 - k  # copies after this one: each needs a later stamp
             by_delivery = left or late or copy is not delivered or t_ns < stale_ns
             if by_delivery:
-                t_ns = self._after_pause(copy, pause_ns) or stamp_on_cadence(
-                    copy, self._cadence_ns, self._grid.period_ns, pause_ns=pause_ns)
+                t_ns = self._by_delivery(copy, pause_ns,
+                                         taken_late=not (left or late) and copy is delivered)
                 if left and not blank_flag(changes[k + 1].data):
                     t_ns = self._before_next(t_ns, changes[k + 1].t_ns)
             stamp = min(max(t_ns, self._stamped_ns + 1), now_ns - left) \
@@ -1068,6 +1079,18 @@ class Hmc5883lDriver(Driver):
             self._stamped_ns = self._cadence_ns = stamp
             samples.append(sample)
         return samples, (None if samples else blank)
+
+    def _by_delivery(self, copy: Copy, pause_ns: int, *, taken_late: bool) -> int:
+        """The stamp of a copy not stamped with this poll (``_measurements``): after a
+        pause on the grid (``_after_pause``), after failed reads on the cadence
+        (``stamp_on_cadence``), else its delivery, or, the newest copy a late poll took
+        (``taken_late``), the grid point a poll on time would have taken it at
+        (``_on_time_point``)."""
+        t_ns = self._after_pause(copy, pause_ns) or stamp_on_cadence(
+            copy, self._cadence_ns, self._grid.period_ns, pause_ns=pause_ns)
+        if taken_late and t_ns == copy.t_ns:
+            return self._on_time_point(t_ns)
+        return t_ns
 
     def _after_pause(self, copy: Copy, pause_ns: int) -> int | None:
         """The stamp of a copy the master delivered after a pause in its deliveries
@@ -1090,6 +1113,30 @@ class Hmc5883lDriver(Driver):
         point = grid.point_at_or_before(copy.t_ns)
         if point <= last:
             point = grid.point_at_or_before(last) + grid.step_ns
+        return point
+
+    def _on_time_point(self, delivered_ns: int) -> int:
+        """The stamp of the newest copy a poll took more than a latency and a guard after
+        its delivery (the poll came late: ``_measurements``' ``stale_ns``): the point of
+        the driver's grid a poll on time would have taken it at, the first at or after the
+        delivery, when the copy came no sooner than the chip's instant that point stands
+        for (a latency and a guard before it, less a quarter of a guard for a grid a little
+        off the chip's instants: 0.2 ms at 10 % bus errors, seed 7); else its delivery (its
+        measurement came before that instant: a copy a period late, or a grid off its
+        chip's phase, as after the restarts of FIFO reads under 10 % bus errors, where a
+        copy 6.7 ms before the point carried a measurement 13 ms before it).
+        Stamped at its delivery, an on-time copy lay up to a latency before where its
+        neighbours, taken on time, lay (a guard and a latency after their measurements),
+        and next to a copy failed reads delayed (stamped at its delivery, up to 9 ms after
+        its measurement) the frame ledger's gap rounded to a field the chip never skipped
+        (10 % bus errors, seeds 4 and 7: 20.2 ms between fields 13.3 ms apart)."""
+        assert self._feed is not None
+        grid = self._grid
+        point = grid.point_at_or_before(delivered_ns)
+        if point < delivered_ns:
+            point += grid.step_ns
+        if point - delivered_ns > self._feed.latency_ns + grid.guard_ns + grid.guard_ns // 4:
+            return delivered_ns
         return point
 
     def _before_next(self, t_ns: int, next_ns: int) -> int:

@@ -1085,6 +1085,8 @@ class Pipeline:
                 next_ns = None
             if next_ns is not None:
                 dev.resumed += 1
+                if dev.ledger is not None:
+                    dev.ledger.retried(t_ns)
                 return next_ns
         dev.resumed = 0
         return self._recover(dev, t_ns)
