@@ -306,6 +306,22 @@ def test_a_poll_put_off_from_a_phase_search_aims_at_the_phase_of_the_frame_befor
     assert _counts_as_the_chip(p, "mag").lost["host_stall"] > 0
 
 
+def test_a_poll_read_after_its_put_offs_is_counted_on_the_phase_of_the_frame_before(
+        registry: Registry) -> None:
+    """Every poll of the gy91 AK8963 stalled 9 ms for 45 ms (a chain of host stalls, as the
+    fault matrix's ``host_stall`` at 10 % makes with gy91's forced-mode BMP280 triggered at
+    once after each): put off three times, the fourth attempt is read when it comes, 0.35
+    ms after the chip's instant and 0.25 ms after a point of the phase the field before
+    was counted on. It was counted at the point of the put-offs' grid before it, a guard
+    after that phase, so a period early: the field it read, then the next one, read with
+    nothing new between (``adjacent``), spanned a slot the ledger took for one the chip
+    let pass (109 counted for the chip's 110). Counted on the phase itself, it is right."""
+    stalls: list[FaultSpec] = [HostStall(device="mag", start_s=1.0, end_s=1.045,
+                                         every_s=0.001, stall_s=0.009)]
+    p = _fly(registry, "gy91", stalls, 1.1)
+    assert _counts_as_the_chip(p, "mag").not_measured == 0
+
+
 def test_a_short_hang_of_the_rc_boards_hmc5883l_is_proved_by_rdy_left_clear(
         registry: Registry) -> None:
     """The seed rc board's HMC5883L (read directly) hangs 9 ms across one instant of its
