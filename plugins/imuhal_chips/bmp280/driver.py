@@ -168,11 +168,11 @@ class BMP280Driver(Driver):
     over its first FROZEN_LEARN_PAIRS outputs it counts the repeats, and the window becomes
     the one whose false-alarm chance matches the fixed window's design
     (``FROZEN_REPEAT_X1 ** (FROZEN_AFTER_FRAMES - 1)``) at an upper bound of the learned
-    odds (``LearnedFrozenWatch``): about 10 outputs for the emulated gy91 (0.2 s at its
-    50 Hz), the ceiling for a chip quieter than one LSB."""
+    odds (``LearnedFrozenWatch``): 13 outputs for the emulated gy91 (0.33 s at its
+    40 Hz in forced mode), the ceiling for a chip quieter than one LSB."""
     FROZEN_REPEAT_X1 = 0.3
     FROZEN_LEARN_PAIRS = 100
-    """Consecutive output pairs counted before the window is shortened (2 s at 50 Hz; the
+    """Consecutive output pairs counted before the window is shortened (2.5 s at 40 Hz; the
     ceiling holds meanwhile)."""
     FROZEN_IIR_FACTOR = 4
     NOISE_PA = 1.3
@@ -491,7 +491,7 @@ class BMP280Driver(Driver):
         ``frozen_window`` identical outputs must come before FROZEN: until the window is full
         a hung chip looks like a quiet one, and a shorter window would flag quiet chips. So
         a valid output of a hung chip carries the world of at most this many outputs ago
-        (27 outputs, 0.54 s, for the emulated gy91: 14 Pa in a 2.2 m/s climb)."""
+        (27 outputs, 0.68 s, for the emulated gy91 at 40 Hz: 18 Pa in a 2.2 m/s climb)."""
         c = self.settings.iir_coefficient
         settle = 0 if c <= 1 else math.ceil(
             math.log(6 * self.NOISE_PA / self.FILTERED_PA_PER_LSB) / math.log(c / (c - 1)))
