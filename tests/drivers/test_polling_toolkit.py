@@ -107,6 +107,21 @@ def test_a_tracking_grid_polled_late_goes_on_from_the_chips_phase_not_its_short_
     assert t % PERIOD == PERIOD - PERIOD // 64
 
 
+def test_a_count_giving_a_period_far_off_the_nominal_one_is_not_learnt() -> None:
+    """A located instant half a step later than the point before it (polls late by
+    less than the half step the count tolerates) counts one period where 1.45 passed:
+    learnt, the grid would step 1.3 periods and skip a frame unseen every few points
+    (the gy91 MPU-9250 learnt 5.94 ms for its 5 ms after a chain of host stalls). No
+    oscillator is PERIOD_ERROR_AT_MOST off: the count starts afresh and the grid keeps
+    its early step."""
+    grid = PollGrid(PERIOD, early_fraction=64, track=True)
+    grid.anchor(0)
+    grid.locate(grid.guard_ns)
+    point = grid.next_after(grid.guard_ns)
+    grid.locate(point + grid.guard_ns + int(0.45 * grid.step_ns))
+    assert grid.step_ns == PERIOD - PERIOD // 64
+
+
 def test_a_channel_is_stale_only_after_the_policy_number_of_periods() -> None:
     ready = DataReady({"gyro": PERIOD})
     ready.start(0)

@@ -83,9 +83,10 @@ def test_the_vario_does_not_follow_a_filtered_in_wild_pressure(
         return {e.t_ns: e.altitude_m for e, _ in run if isinstance(e, VerticalEstimate)}
     wild, clean = altitudes(wild_run), altitudes(clean_run)
     common = [t for t in wild if t in clean and t >= WILD_AT_S * 1e9]
-    # the 49 settling outputs (2 s) are a gap the vario restarts after, withholding its
-    # estimates until it knows the climb rate again (UNSETTLED, docs/reliability.md)
-    assert len(common) > 80
+    # the 49 settling outputs (1.2 s at the gy91's 40 Hz) are a gap the vario restarts
+    # after, withholding its estimates until it knows the climb rate again (UNSETTLED,
+    # docs/reliability.md): about half of the 3 s's 120 outputs remain
+    assert len(common) > 60
     assert max(abs(wild[t] - clean[t]) for t in common) < 1.0
 
 

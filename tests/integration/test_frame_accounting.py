@@ -9,8 +9,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+import yaml
 
-from imuhal.core.samples import MagSample, Sample
+from imuhal.core.samples import MagSample, PressureSample, Sample
 from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import (
     AllZeros,
@@ -43,10 +44,11 @@ MATRIX: dict[str, tuple[list[FaultSpec], dict[str, str]]] = {
     "host_stall": ([LatePolls(device="imu", start_s=1.0, end_s=1.01, delay_s=0.2)],
                    {"imu": "host_stall", "mag": "host_stall"}),
     # stalls at every phase of each device's period (43.7 ms every 0.25 s): the devices
-    # falling due inside one are polled more than half a period late
+    # falling due inside one are polled more than half a period late (the BMP280 in forced
+    # mode converts when triggered: its trigger slides, and the chip loses nothing)
     "host_stalls": ([HostStall(device="imu", start_s=0.6, end_s=2.3, every_s=0.25,
                                stall_s=0.0437)],
-                    {"imu": "host_stall", "mag": "host_stall", "baro": "host_stall"}),
+                    {"imu": "host_stall", "mag": "host_stall"}),
     "reset": ([ChipReset(device=d, start_s=1.0 + 0.3 * i) for i, d in enumerate(DEVICES)],
               {"imu": "reset", "mag": "reset"}),
     "frozen": ([FrozenData(device=d, start_s=1.0, end_s=1.6) for d in DEVICES],
@@ -311,6 +313,45 @@ def test_a_poll_put_off_from_a_phase_search_aims_at_the_phase_of_the_frame_befor
                                for d in DEVICES]
     p = _fly(registry, "gy91", stalls, 3.5)
     assert _counts_as_the_chip(p, "mag").lost["host_stall"] > 0
+
+
+@pytest.mark.parametrize("error", [0.02, -0.02])
+def test_gy91s_bmp280_counts_as_its_chip_on_a_clock_two_percent_off(
+        registry: Registry, error: float) -> None:
+    """The BMP280 has no data-ready bit and no conversion counter. In normal mode its
+    oscillator paces the cycle and the poll grid ran on the nominal 20 ms: 2 % slow, it
+    handed out every 50th output twice, stamped a cycle after the chip made it (999 for the
+    chip's 979 in 20 s); 2 % fast, it lost every 50th unseen (999 for 1019). gy91's profile
+    now triggers each conversion (forced mode, 40 Hz): one frame a trigger, whatever the
+    oscillator does. Its barometer alone, 4 s: the ledger is the chip's count and every
+    valid pressure carries a measurement of its own."""
+    data = yaml.safe_load(bundled_profiles()["gy91.yaml"].read_text())
+    data["devices"], data["estimators"] = {"baro": data["devices"]["baro"]}, {}
+    profile = parse_profile(yaml.safe_dump(data), "gy91-baro.yaml", registry)
+    with open_emulated(profile, registry, seed=1) as p:
+        chip = p.board.emulators["baro"]
+        chip.oscillator_error = error
+        stamps = [s.t_ns for s in p.events(4.0) if isinstance(s, PressureSample) and s.valid]
+    ledger = _counts_as_the_chip(p, "baro")
+    assert ledger.delivered == ledger.produced == chip.frames_between(stamps[0], stamps[-1])
+    carried = [chip.measured_ns.count_until(t) for t in stamps]
+    assert carried == list(range(carried[0], carried[0] + len(stamps)))
+
+
+def test_a_poll_read_after_its_put_offs_is_counted_on_the_phase_of_the_frame_before(
+        registry: Registry) -> None:
+    """Every poll of the gy91 AK8963 stalled 9 ms for 45 ms (a chain of host stalls, as the
+    fault matrix's ``host_stall`` at 10 % makes with gy91's forced-mode BMP280 triggered at
+    once after each): put off three times, the fourth attempt is read when it comes, 0.35
+    ms after the chip's instant and 0.25 ms after a point of the phase the field before
+    was counted on. It was counted at the point of the put-offs' grid before it, a guard
+    after that phase, so a period early: the field it read, then the next one, read with
+    nothing new between (``adjacent``), spanned a slot the ledger took for one the chip
+    let pass (109 counted for the chip's 110). Counted on the phase itself, it is right."""
+    stalls: list[FaultSpec] = [HostStall(device="mag", start_s=1.0, end_s=1.045,
+                                         every_s=0.001, stall_s=0.009)]
+    p = _fly(registry, "gy91", stalls, 1.1)
+    assert _counts_as_the_chip(p, "mag").not_measured == 0
 
 
 def test_a_short_hang_of_the_rc_boards_hmc5883l_is_proved_by_rdy_left_clear(

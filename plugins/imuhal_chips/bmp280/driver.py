@@ -14,6 +14,15 @@ Modes: ``normal`` lets the chip cycle (measurement + standby) and polls once per
 clears and the mode bits have returned to sleep. The BMP280 has no data-ready flag: in forced
 mode a measurement that has not finished after three times its maximum conversion time is
 reported STALE; in normal mode staleness is only visible as the never-measured value 0x80000.
+
+Frames accounted for: the chip has neither a data-ready bit nor a conversion counter, so in
+normal mode, where its own oscillator paces the cycle (the datasheet's typical measurement
+time, up to 15 % shorter than its maximum), the poll grid on the nominal cycle cannot tell a
+repeat from a new output nor see one it skipped when the chip runs off that cycle
+(docs/acquisition.md, "Ledgers with the chips' clocks off"). In forced mode the host starts
+every conversion, as it does the MS5611's: each trigger that completes is one frame, a
+trigger the schedule let slide past its slot made none (``DeviceHealth.not_converted_ns``),
+and the ledger equals the chip's count whatever its oscillator does (``host_paced``).
 """
 
 from __future__ import annotations
@@ -105,7 +114,8 @@ class BMP280Settings(DriverSettings):
             if self.odr_hz > 1.0 / t_max:
                 raise ValueError(
                     f"odr_hz {self.odr_hz:g} is faster than one forced measurement at these "
-                    f"oversamplings allows (at most {1.0 / t_max:.1f} Hz)")
+                    f"oversamplings allows (at most {1.0 / t_max:.1f} Hz: each takes up to "
+                    f"{t_max * 1e3:.2f} ms); lower odr_hz or the oversampling")
         elif self.standby_ms is None:
             self.chosen_standby_ms()
         return self
@@ -158,11 +168,11 @@ class BMP280Driver(Driver):
     over its first FROZEN_LEARN_PAIRS outputs it counts the repeats, and the window becomes
     the one whose false-alarm chance matches the fixed window's design
     (``FROZEN_REPEAT_X1 ** (FROZEN_AFTER_FRAMES - 1)``) at an upper bound of the learned
-    odds (``LearnedFrozenWatch``): about 10 outputs for the emulated gy91 (0.2 s at its
-    50 Hz), the ceiling for a chip quieter than one LSB."""
+    odds (``LearnedFrozenWatch``): 13 outputs for the emulated gy91 (0.33 s at its
+    40 Hz in forced mode), the ceiling for a chip quieter than one LSB."""
     FROZEN_REPEAT_X1 = 0.3
     FROZEN_LEARN_PAIRS = 100
-    """Consecutive output pairs counted before the window is shortened (2 s at 50 Hz; the
+    """Consecutive output pairs counted before the window is shortened (2.5 s at 40 Hz; the
     ceiling holds meanwhile)."""
     FROZEN_IIR_FACTOR = 4
     NOISE_PA = 1.3
@@ -192,6 +202,11 @@ class BMP280Driver(Driver):
         """ctrl_meas and config as read back from the chip (the stream specs' source)."""
         self._triggered_ns: int | None = None
         self._next_ns = 0
+        self._due_ns = 0
+        """Forced mode: when the next trigger is due, one period after the one before (the
+        schedule's slot; a later trigger slides the schedule, ``_trigger``)."""
+        self._running_seen = False
+        """Forced mode: a read since the trigger found its conversion still running."""
         self._last_output: tuple[int, int, int] | None = None
         """(t_ns, adc_P, adc_T) of the last filtered output read since the filter reset."""
         self._grid = PollGrid(1)
@@ -317,7 +332,7 @@ class BMP280Driver(Driver):
             self._next_ns = now_ns + round(self.settings.measurement_time_s(maximum=True) * 1e9)
             self._grid.anchor(self._next_ns)
         else:
-            self._next_ns = now_ns
+            self._next_ns = self._due_ns = now_ns
         return self._next_ns
 
     # -- polling ----------------------------------------------------------------------------
@@ -353,25 +368,45 @@ class BMP280Driver(Driver):
         return self._finish(now_ns, adc_p, adc_t, stale, self._grid.next_after(now_ns))
 
     def _poll_forced(self, now_ns: int) -> PollResult:
-        s = self.settings
+        t_max_ns = round(self.settings.measurement_time_s(maximum=True) * 1e9)
         if self._triggered_ns is None:
             if now_ns < self._next_ns:
                 return PollResult([], self._next_ns)
-            self.regs.write(r.REG_CTRL_MEAS, (self._ctrl & ~r.MODE_MASK) | r.MODE_FORCED)
-            self._triggered_ns = now_ns
-            return PollResult([], now_ns + round(s.measurement_time_s(maximum=True) * 1e9))
+            self._trigger(now_ns)
+            return PollResult([], now_ns + t_max_ns)
         status, ctrl, config, adc_p, adc_t = self._read_burst()
         if self._burst_off_plan(ctrl, config):
             return PollResult([], self.restart(reset_detected=True))
         done = not status & r.STATUS_MEASURING and ctrl & r.MODE_MASK == r.MODE_SLEEP
-        t_max_ns = round(s.measurement_time_s(maximum=True) * 1e9)
         if not done and now_ns - self._triggered_ns < self.STALE_AFTER_MAX_TIMES * t_max_ns:
+            self._running_seen = True
             return PollResult([], now_ns + t_max_ns // 10)
         trigger = self._triggered_ns
         self._triggered_ns = None
-        self._next_ns = max(trigger + self._period_ns, now_ns)
+        self._due_ns = trigger + self._period_ns
+        self._next_ns = max(self._due_ns, now_ns)
         stale = not done or (adc_p == r.ADC_SKIPPED and adc_t == r.ADC_SKIPPED)
-        return self._finish(now_ns, adc_p, adc_t, stale, self._next_ns)
+        if not done:
+            # the conversion never finished (a hung chip): the chip made no frame in this
+            # slot, which the frame ledger counts apart (not converted), not as one lost
+            self.health.not_converted_ns += self._period_ns
+        # The conversion ended by the datasheet's maximum time after the trigger, or, when a
+        # read found it still running then (a chip slower than its datasheet), between that
+        # read and this one: stamped there, not at a read the host made late (a stall).
+        t_ns = now_ns if self._running_seen or not done else trigger + t_max_ns
+        return self._finish(min(t_ns, now_ns), adc_p, adc_t, stale, self._next_ns)
+
+    def _trigger(self, now_ns: int) -> None:
+        """Start one forced conversion. A trigger later than its slot (a late poll: a
+        stalled host, another device's recovery, a read that came late) slides the
+        schedule: the chip converts nothing in the time slid, which the frame ledger is
+        told (``DeviceHealth.not_converted_ns``), so that it counts the slots it spans as
+        never converted, not as frames lost."""
+        self.regs.write(r.REG_CTRL_MEAS, (self._ctrl & ~r.MODE_MASK) | r.MODE_FORCED)
+        if now_ns > self._due_ns:
+            self.health.not_converted_ns += now_ns - self._due_ns
+        self._triggered_ns = self._due_ns = now_ns
+        self._running_seen = False
 
     def _finish(self, now_ns: int, adc_p: int, adc_t: int, stale: bool,
                 next_ns: int) -> PollResult:
@@ -394,10 +429,18 @@ class BMP280Driver(Driver):
             return None
         return max(now_ns, self.clock.now_ns())
 
+    @property
+    def host_paced(self) -> bool:
+        """Forced mode: the driver starts every conversion, so a late poll triggers when the
+        host is free (the schedule slides, ``_trigger``) and measures the world of then."""
+        return self.settings.mode == "forced"
+
     def accounted_stream(self) -> tuple[Quantity, int] | None:
-        """Normal mode: one pressure per measurement plus standby (typical measurement
-        time); forced mode measures when the host asks, so it has no period of its own."""
-        if self.settings.mode != "normal" or not self._period_ns:
+        """One pressure per cycle: in normal mode the chip's measurement plus standby
+        (typical measurement time), in forced mode the driver's trigger schedule at
+        ``odr_hz`` (one conversion per trigger: the count is the host's, exact whatever the
+        chip's oscillator does)."""
+        if not self._period_ns:
             return None
         return Quantity.PRESSURE, self._period_ns
 
@@ -448,7 +491,7 @@ class BMP280Driver(Driver):
         ``frozen_window`` identical outputs must come before FROZEN: until the window is full
         a hung chip looks like a quiet one, and a shorter window would flag quiet chips. So
         a valid output of a hung chip carries the world of at most this many outputs ago
-        (27 outputs, 0.54 s, for the emulated gy91: 14 Pa in a 2.2 m/s climb)."""
+        (27 outputs, 0.68 s, for the emulated gy91 at 40 Hz: 18 Pa in a 2.2 m/s climb)."""
         c = self.settings.iir_coefficient
         settle = 0 if c <= 1 else math.ceil(
             math.log(6 * self.NOISE_PA / self.FILTERED_PA_PER_LSB) / math.log(c / (c - 1)))

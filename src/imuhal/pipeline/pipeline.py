@@ -880,12 +880,18 @@ class Pipeline:
         if dev.put_off >= PUT_OFF_AT_MOST:
             dev.put_off = 0
             grid_ns = aim_ns + (t_ns - aim_ns) // period_ns * period_ns
-            if t_ns > grid_ns and dev.driver.polls_after_instants:
+            # counted from the phase the frame before was counted on, not from the aim a
+            # guard after it: a poll up to a guard past a point of that phase comes after
+            # the chip's instant there (a guard before it at most), so it reads that frame
+            # (from the aim's grid, the frame before: the gy91 AK8963 counted a field too
+            # few after a 130 ms chain of host stalls)
+            phase_ns = grid_ns - offset + (t_ns - grid_ns + offset) // period_ns * period_ns
+            if t_ns > phase_ns and dev.driver.polls_after_instants:
                 # a grid near its chip's instants: counted at the point however little
                 # later it comes (from its stamp, a lag under half a period can still
                 # differ from the frames' before by more: the grid was aimed a guard later
                 # than they were stamped)
-                ledger.count_at(t_ns, grid_ns - offset)
+                ledger.count_at(t_ns, phase_ns)
             elif 2 * (t_ns - grid_ns) >= period_ns:
                 # a grid at an unknown lag after them: from its stamp it could round either
                 # way
