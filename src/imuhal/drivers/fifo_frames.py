@@ -4,10 +4,10 @@ What every FIFO reader shares, whatever its chip: frames are placed on the chip'
 (imuhal.drivers.chip_clock: the host's clock read just before and just after each count
 bounds the chip's period and phase), or paired with the chip's data-ready edges when a line
 triggers the reads (imuhal.drivers.edge_stamps); frames read before either places them are
-held (nothing is lost) and handed out once placed, or when the run ends (:meth:`drain`). A
-chip's reader (the MPU-9250's, the MAX21100's) does the register work: it reads the count,
-decides whether the FIFO overflowed or a burst is corrupt, reads whole frames, resets the
-FIFO, and hands the frames to :meth:`FifoFrames.took` or calls :meth:`FifoFrames.dropped`.
+held (nothing is lost) and handed out once placed, at the latest when the run ends
+(:meth:`drain`, only those the estimate places). A chip's reader (the MPU-9250's, the
+MAX21100's) does the register work: it reads the count, decides whether the FIFO
+overflowed or a burst is corrupt, reads whole frames, resets the FIFO, and hands the frames to :meth:`FifoFrames.took` or calls :meth:`FifoFrames.dropped`.
 Nothing here knows a chip.
 """
 
