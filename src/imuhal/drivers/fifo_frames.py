@@ -7,7 +7,8 @@ triggers the reads (imuhal.drivers.edge_stamps); frames read before either place
 held (nothing is lost) and handed out once placed, at the latest when the run ends
 (:meth:`drain`, only those the estimate places). A chip's reader (the MPU-9250's, the
 MAX21100's) does the register work: it reads the count, decides whether the FIFO
-overflowed or a burst is corrupt, reads whole frames, resets the FIFO, and hands the frames to :meth:`FifoFrames.took` or calls :meth:`FifoFrames.dropped`.
+overflowed or a burst is corrupt, reads whole frames, resets the FIFO, and hands the
+frames to :meth:`FifoFrames.took` or calls :meth:`FifoFrames.dropped`.
 Nothing here knows a chip.
 """
 
