@@ -163,3 +163,30 @@ def test_stamps_follow_the_stated_smoothing_read_after_read() -> None:
         expected = _smoothed(clock._origin_ns + a, p, clock.max_step * p, clock._last,
                              clock._floor_ns, indices)
         assert clock.stamps(indices) == expected
+
+
+def test_a_restart_of_the_same_oscillator_learns_only_the_new_phase() -> None:
+    """A chip reset restarts the chip's sampling at a new phase; its oscillator ran on, so
+    the period learned before bounds the new estimate and twelve reads settle it, where
+    learning the period too takes far more."""
+    settled_after: dict[bool, bool] = {}
+    for same in (True, False):
+        clock = ChipClock(NOMINAL_NS, ready_fraction=0.002)
+        chip = _Chip(NOMINAL_NS * 1.013)
+        before, _ = _fly(clock, chip, 200)
+        assert clock.settled()
+        clock.restart(same_oscillator=same)
+        restarted = _Chip(NOMINAL_NS * 1.013, t0_ns=before[-1] + 50_000_000 + 1_777_000)
+        _fly(clock, restarted, 12, start_ns=before[-1] + 50_000_000)
+        settled_after[same] = clock.settled()
+    assert settled_after == {True: True, False: False}
+
+
+def test_a_period_kept_across_a_restart_that_does_not_hold_is_learned_again() -> None:
+    clock = ChipClock(NOMINAL_NS)
+    before, _ = _fly(clock, _Chip(NOMINAL_NS), 200)
+    clock.restart(same_oscillator=True)
+    other = _Chip(NOMINAL_NS * 1.02, t0_ns=before[-1] + 50_000_000)  # not the one it had
+    after, truth = _fly(clock, other, 300, start_ns=before[-1] + 50_000_000)
+    assert clock.rebuilds >= 1
+    assert np.max(np.abs(np.subtract(after, truth)[-100:])) < 5_000

@@ -213,6 +213,8 @@ class Max2110xDriver(Driver):
         the slave's bytes (MAG X/Y/Z) of every burst go to it."""
         self._fifo: FifoReader | None = None
         """read: fifo: the FIFO reader (made at configure(), for the period read back)."""
+        self._fifo_kept = False
+        """read: fifo: configure() kept the reader (the chip restarted at its period)."""
         self._overflow_pending = False
         self._aux_temp_bytes = self.part.temp_register + 2 - _AFTER_ACCEL
         self._aux_temp_frame = bytes((self.regs.read_address(_AFTER_ACCEL,
@@ -349,7 +351,12 @@ class Max2110xDriver(Driver):
         self._grid = PollGrid(periods[self._fast], early_fraction=EARLY_FRACTION, track=True,
                               catch_up=True)
         if self.settings.read == "fifo":
-            self._fifo = FifoReader(self.regs, periods[self._fast], self.clock, self.part.fifo)
+            # a restart at the period it had (a reset, the same settings) keeps the reader,
+            # so its chip clock keeps the period it learned (FifoReader.reset in start())
+            period_ns = periods[self._fast]
+            self._fifo_kept = self._fifo is not None and self._fifo.period_ns == period_ns
+            if not self._fifo_kept:
+                self._fifo = FifoReader(self.regs, period_ns, self.clock, self.part.fifo)
 
     def _specs(self, regs: Mapping[int, int]) -> tuple[StreamSpec, StreamSpec, StreamSpec]:
         """Gyro, accelerometer and temperature specs from configuration register values
@@ -425,7 +432,7 @@ class Max2110xDriver(Driver):
         self._read_whole = False
         self._watch.start(now_ns)
         if self._fifo is not None:
-            self._fifo.reset(restart=True)
+            self._fifo.reset(restart=True, same_oscillator=self._fifo_kept)
             self._fifo_due_ns = self._fifo.next_read_ns(now_ns, self._fifo_interval_ns())
             return self._next_read_ns(now_ns)
         return self._grid.next_after(now_ns)

@@ -113,13 +113,14 @@ class FifoReader(FifoFrames):
     def depth_frames(self) -> int:
         return DEPTH_FRAMES
 
-    def reset(self, *, restart: bool = True) -> None:
+    def reset(self, *, restart: bool = True, same_oscillator: bool = False) -> None:
         """Empty the FIFO: its mode off, then the configuration again. ``restart``: the
-        chip's sampling restarted too (configured), not only its FIFO."""
+        chip's sampling restarted too (configured), not only its FIFO; ``same_oscillator``:
+        at the period it had (FifoFrames.cleared)."""
         requested_ns = self.clock.now_ns()
         self.regs.write(self.fifo.cfg, 0x00)
         self.regs.write(self.fifo.cfg, self.fifo.cfg_on)
-        self.cleared(requested_ns, restart=restart)
+        self.cleared(requested_ns, restart=restart, same_oscillator=same_oscillator)
 
     def read(self) -> FifoRead:
         """Count and status, check for overflow, read whole frames, check alignment."""

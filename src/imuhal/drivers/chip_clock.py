@@ -53,6 +53,10 @@ class ClockRead:
 PERIOD_MEMORY = 0.001
 """How far the chip's period may have moved while a FIFO reset kept the host from
 watching it (a fraction: far more than temperature drift does in a second)."""
+RESTART_PERIOD_MEMORY = 0.0001
+"""How far the chip's period may have moved between the last read that placed its frames
+settled and a restart at the same period (a reset: well under a second without a read;
+temperature drift moves a MEMS oscillator by a few parts in a million in that time)."""
 PROBE_OFFSET_NS = 2_000
 """How far from the estimated instant of a frame a probe reads (either side, in turn): the
 resolution the estimate keeps tracking a moving chip clock at."""
@@ -118,16 +122,29 @@ class ChipClock:
         self._probes = 0
         self._period_bounds: tuple[float, float] | None = None
         """What the period was learned to be before a FIFO reset (ns), widened."""
+        self._settled_periods: tuple[float, float] | None = None
+        """The period's bounds (ns) at the last read that left the estimate settled: what
+        :meth:`restart` keeps with ``same_oscillator``."""
+        self._kept_period = False
+        """The period's bounds are the ones a restart kept (dropped at a contradiction:
+        the chip's oscillator was not what it had been)."""
 
     # -- segments ---------------------------------------------------------------------------
 
-    def restart(self) -> None:
+    def restart(self, *, same_oscillator: bool = False) -> None:
         """The chip restarted its sampling (reconfigured): a new clock phase; stamps still
-        never go back."""
+        never go back. ``same_oscillator``: the chip restarted at the period it had (a reset
+        and the same configuration): its oscillator ran on, so the period last learned
+        settled, widened by ``RESTART_PERIOD_MEMORY``, bounds the new estimate, and only the phase
+        is learned afresh (a bisection from the first read: about ten reads, where the
+        period too took about thirty)."""
+        known = self._settled_periods if same_oscillator else None
         self._reads.clear()
         self._polygon = []
         self._k = None
-        self._period_bounds = None
+        self._period_bounds = None if known is None else (
+            known[0] * (1 - RESTART_PERIOD_MEMORY), known[1] * (1 + RESTART_PERIOD_MEMORY))
+        self._kept_period = known is not None
         self._restart_stamps()
 
     def _restart_stamps(self) -> None:
@@ -172,9 +189,14 @@ class ChipClock:
         clipped = self._constrain(self._polygon, read)
         if len(clipped) < 3:
             self.rebuilds += 1
+            if self._kept_period:  # the period kept does not hold: learn it afresh
+                self._period_bounds, self._kept_period = None, False
             self._rebuild(hi_ns)
         else:
             self._polygon = clipped
+            if self.settled():
+                periods = [v[1] for v in clipped]
+                self._settled_periods = (min(periods), max(periods))
         return k
 
     def continued(self, n: int) -> int:
@@ -242,6 +264,11 @@ class ChipClock:
         k = self._k
         at = [a + k * p for a, p in self._polygon]
         return max(at) - min(at)
+
+    def relearning(self) -> bool:
+        """Since a restart that kept the period (``same_oscillator``), the phase is not yet
+        settled."""
+        return self._kept_period and not self.settled()
 
     def settled(self) -> bool:
         """The newest frame is placed to within ``ready_fraction`` of a period."""

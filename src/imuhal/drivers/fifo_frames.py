@@ -4,10 +4,11 @@ What every FIFO reader shares, whatever its chip: frames are placed on the chip'
 (imuhal.drivers.chip_clock: the host's clock read just before and just after each count
 bounds the chip's period and phase), or paired with the chip's data-ready edges when a line
 triggers the reads (imuhal.drivers.edge_stamps); frames read before either places them are
-held (nothing is lost) and handed out once placed, or when the run ends (:meth:`drain`). A
-chip's reader (the MPU-9250's, the MAX21100's) does the register work: it reads the count,
-decides whether the FIFO overflowed or a burst is corrupt, reads whole frames, resets the
-FIFO, and hands the frames to :meth:`FifoFrames.took` or calls :meth:`FifoFrames.dropped`.
+held (nothing is lost) and handed out once placed, at the latest when the run ends
+(:meth:`drain`, only those the estimate places). A chip's reader (the MPU-9250's, the
+MAX21100's) does the register work: it reads the count, decides whether the FIFO
+overflowed or a burst is corrupt, reads whole frames, resets the FIFO, and hands the
+frames to :meth:`FifoFrames.took` or calls :meth:`FifoFrames.dropped`.
 Nothing here knows a chip.
 """
 
@@ -57,13 +58,16 @@ class FifoFrames:
         """Frames (index on the chip's clock, bytes) read but not yet handed out."""
         self._base_ns: int | None = None
 
-    def cleared(self, requested_ns: int, *, restart: bool) -> None:
+    def cleared(self, requested_ns: int, *, restart: bool,
+                same_oscillator: bool = False) -> None:
         """The chip's FIFO was emptied, requested at ``requested_ns`` (host clock, read
         before the request). ``restart``: the chip's sampling restarted too (configured),
-        so the frames held and the clock learned belong to a configuration gone."""
+        so the frames held and the clock phase learned belong to a configuration gone;
+        ``same_oscillator``: at the period it had (ChipClock.restart)."""
         if restart:
             self._held = []
-            self.chip_clock.restart()
+            self._base_ns = None  # the reads' schedule starts again at the restart
+            self.chip_clock.restart(same_oscillator=same_oscillator)
             self.edges.restarted(requested_ns)
         else:
             self.chip_clock.frames_dropped()
@@ -80,6 +84,13 @@ class FifoFrames:
     def next_read_ns(self, now_ns: int, interval_ns: int) -> int:
         """When to read next: about ``interval_ns`` on from the previous read's slot, where
         the read tells most about the chip's clock (``ChipClock.probe_ns``)."""
+        if self.chip_clock.relearning():
+            # after a reset at the period it had, only the phase is learned: a bisection
+            # of about ten reads, one a period (40 ms at 250 Hz) where ``interval_ns``
+            # apart it took longer than resets 0.4 s apart left (the fault matrix at 1 %);
+            # the reads ``interval_ns`` apart start from the read after
+            self._base_ns = None
+            return max(self.chip_clock.probe_ns(now_ns + self.period_ns // 2), now_ns + 1)
         base = now_ns if self._base_ns is None else self._base_ns + interval_ns
         base = max(base, now_ns - self.period_ns)
         self._base_ns = base
@@ -125,11 +136,14 @@ class FifoFrames:
         return FifoRead([f for _, f in out], stamps, reset=reset, held=len(self._held))
 
     def drain(self) -> FifoRead:
-        """Every frame held (the run ends): stamped from its edge when it came, else as the
-        stamps before it go on."""
+        """Every frame held (the run ends): stamped from its edge when it came, else with
+        the estimate when it places them as :meth:`dropped` asks; frames it does not place
+        stay unread (the run ended before they were: handed out, a restart's unsettled
+        phase stamped them up to 2.3 ms off)."""
         if self._on_edges():
             return self._release_on_edges(final=True)
-        return self._release() if self._held else FifoRead([], [])
+        placed = self.chip_clock.uncertainty_ns() <= DROP_PLACED_FRACTION * self.period_ns
+        return self._release() if self._held and placed else FifoRead([], [])
 
     def dropped(self, kept: list[bytes] | None = None) -> FifoRead:
         """The chip's FIFO is about to be reset (an overflow or a corrupt burst). Frames
