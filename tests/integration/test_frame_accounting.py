@@ -436,6 +436,21 @@ def test_a_max21100_polled_two_percent_fast_loses_no_frame(registry: Registry) -
     assert not +ledger.lost
 
 
+def test_a_recording_of_poll_plan_3_keeps_its_polls_behind_a_chip_two_percent_fast(
+        registry: Registry) -> None:
+    """The MAX21100's catch-up moves its polls, and so its transfers, on a chip clock off
+    its nominal period: it came with poll plan 4 (imuhal.core.poll_plan.CHIP_CLOCK_PLAN),
+    so a drive on plan 3, as a replay of a recording made under it runs, polls as plan 3
+    did: it falls behind a chip 2 % fast and counts the frames its overrun bits show
+    missed (2 of 636 in 2.5 s), where plan 4 misses none (the test above)."""
+    profile = load_profile(bundled_profiles()["seed-paraglider-vario.yaml"], registry)
+    with open_emulated(profile, registry, seed=1, poll_plan=3) as p:
+        p.board.emulators["imu"].oscillator_error = 0.02
+        list(p.events(SECONDS))
+    ledger = _counts_as_the_chip(p, "imu")
+    assert ledger.lost["missed"] > 0
+
+
 def test_a_phase_search_keeps_up_with_a_chip_clock_two_percent_fast(registry: Registry) -> None:
     """The MPU-9250's and AK8963's grids step 1/64 period short until they learn the chip's
     period from a poll that found nothing; a chip 2 % fast never let one find nothing, so

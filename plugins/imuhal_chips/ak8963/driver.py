@@ -62,6 +62,7 @@ from imuhal.bus.register_plan import IN_PLACE_ATTEMPTS, RegisterPlan, RegisterSe
 from imuhal.bus.registers import RegisterView
 from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError, ConfigurationError, DeviceNotFoundError, NackError
+from imuhal.core.poll_plan import CHIP_CLOCK_PLAN
 from imuhal.core.samples import Frame, MagSample, Quantity, SampleFlag
 from imuhal.core.streams import StreamSpec
 from imuhal.drivers.base import (
@@ -254,7 +255,7 @@ class AK8963Driver(Driver):
         if self.settings.read == "auto":
             return PollGrid(self._period_ns)
         return PollGrid(self._period_ns, early_fraction=EARLY_FRACTION, track=True,
-                        catch_up=True)
+                        catch_up=True, bounded=self.poll_plan >= CHIP_CLOCK_PLAN)
 
     def start(self, now_ns: int) -> int:
         # recover() passes the time from before configure() waited; never start in the past.

@@ -118,6 +118,7 @@ from imuhal.bus.register_plan import RegisterPlan
 from imuhal.bus.registers import RegisterView
 from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError, ConfigurationError, DeviceNotFoundError, NackError
+from imuhal.core.poll_plan import CHIP_CLOCK_PLAN
 from imuhal.core.samples import Frame, MagSample, Quantity, Sample, SampleFlag
 from imuhal.core.streams import StreamSpec
 from imuhal.drivers.base import (
@@ -697,7 +698,7 @@ class Hmc5883lDriver(Driver):
         stamped its copy at the delivery (a field counted lost where none was)."""
         feed, grid = self._feed, self._grid
         assert feed is not None
-        if len(changes) != 1 or not self._steady(changes[0]):
+        if len(changes) != 1 or self.poll_plan < CHIP_CLOCK_PLAN or not self._steady(changes[0]):
             return now_ns
         due = self._looked_ns if self._retrying else now_ns
         # a poll late (put off, a stalled host) or off the grid (a status read's look):

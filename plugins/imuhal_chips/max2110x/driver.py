@@ -39,6 +39,7 @@ from imuhal.bus.registers import RegisterView
 from imuhal.core.blocks import Block, IntArray, blocks_of
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
+from imuhal.core.poll_plan import CHIP_CLOCK_PLAN
 from imuhal.core.quantities import Quantity
 from imuhal.core.samples import (
     AccelSample,
@@ -348,13 +349,16 @@ class Max2110xDriver(Driver):
         periods = {Quantity.GYRO: gyro.period_ns, Quantity.ACCEL: accel.period_ns}
         self._ready = DataReady(periods)
         self._fast = min(periods, key=lambda c: periods[c])
+        # CHIP_CLOCK_PLAN: catch up with a chip 2 % fast, keep the FIFO's period at a reset
+        on_clock = self.poll_plan >= CHIP_CLOCK_PLAN
         self._grid = PollGrid(periods[self._fast], early_fraction=EARLY_FRACTION, track=True,
-                              catch_up=True)
+                              catch_up=on_clock, bounded=on_clock)
         if self.settings.read == "fifo":
             # a restart at the period it had (a reset, the same settings) keeps the reader,
             # so its chip clock keeps the period it learned (FifoReader.reset in start())
             period_ns = periods[self._fast]
-            self._fifo_kept = self._fifo is not None and self._fifo.period_ns == period_ns
+            self._fifo_kept = on_clock and self._fifo is not None \
+                and self._fifo.period_ns == period_ns
             if not self._fifo_kept:
                 self._fifo = FifoReader(self.regs, period_ns, self.clock, self.part.fifo)
 

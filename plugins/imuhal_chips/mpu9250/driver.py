@@ -40,6 +40,7 @@ from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.core.blocks import Block, FloatArray, IntArray, blocks_of
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
+from imuhal.core.poll_plan import CHIP_CLOCK_PLAN
 from imuhal.core.samples import (
     AccelSample,
     Frame,
@@ -393,7 +394,7 @@ class MPU9250Driver(Driver):
         self._accel = _range_of(r.ACCEL_RANGES, got[r.ACCEL_CONFIG])
         self._period_ns = self._streams[0].period_ns
         self._grid = PollGrid(self._period_ns, early_fraction=EARLY_FRACTION, track=True,
-                              catch_up=True)
+                              catch_up=True, bounded=self.poll_plan >= CHIP_CLOCK_PLAN)
         self._search_ns = None
         self._sensor_bytes = None
         self._ready = DataReady({Quantity.GYRO: self._period_ns})

@@ -8,12 +8,24 @@ transfer against the recording, runs the drivers on that plan.
 
 from __future__ import annotations
 
-POLL_PLAN = 3
+POLL_PLAN = 4
 """The plan a run follows and a recording made now holds. 2: the HMC5883L behind a master's
 FIFO reads looks for its copies no sooner than the master's next read
 (imuhal_chips.hmc5883l.driver, ``_next_look``). 3: the MAX21100 read from its FIFO reads
 its auto-read slave's copy a guard after each of its instants, between the FIFO reads
-(imuhal_chips.max2110x.driver, ``_next_read_ns``), not beside each FIFO read."""
+(imuhal_chips.max2110x.driver, ``_next_read_ns``), not beside each FIFO read. 4
+(``CHIP_CLOCK_PLAN``): the polls follow a chip clock off its nominal period, and a chip
+reset."""
+
+CHIP_CLOCK_PLAN = 4
+"""The plan from which a tracking poll grid learns no period more than
+``PollGrid.PERIOD_ERROR_AT_MOST`` off its nominal one (``bounded``); the MAX2110x's polled
+reads catch up with a chip faster than their early step (``PollGrid(catch_up=True)``); the
+HMC5883L behind a master steers its poll grid with the chip's clock (``_steer``); and a
+MAX2110x read from its FIFO keeps the period it learnt across a chip reset, reading every
+half period while it learns the phase again (``FifoFrames.cleared(same_oscillator=True)``).
+On a nominal clock without resets none of them changes a transfer; each moves the polls,
+and so the transfers, of a chip whose clock is off (real hardware) or that reset."""
 
 FIRST_POLL_PLAN = 1
 """The plan of a recording whose header names none (made before plans had versions)."""

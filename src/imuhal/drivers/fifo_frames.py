@@ -66,7 +66,8 @@ class FifoFrames:
         ``same_oscillator``: at the period it had (ChipClock.restart)."""
         if restart:
             self._held = []
-            self._base_ns = None  # the reads' schedule starts again at the restart
+            if same_oscillator:  # the reads' schedule starts again at the restart
+                self._base_ns = None
             self.chip_clock.restart(same_oscillator=same_oscillator)
             self.edges.restarted(requested_ns)
         else:

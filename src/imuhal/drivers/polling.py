@@ -84,13 +84,16 @@ class PollGrid:
     (faults that hide the empty polls can: bus errors, blank reads)."""
 
     def __init__(self, period_ns: int, *, early_fraction: int = 0, track: bool = False,
-                 catch_up: bool = False) -> None:
+                 catch_up: bool = False, bounded: bool = True) -> None:
         if period_ns <= 0:
             raise ValueError(f"poll period must be positive, got {period_ns} ns")
         self.period_ns = period_ns
         self._early_fraction = early_fraction
         self._track = track and early_fraction > 0
         self._catch_up_on = catch_up and self._track
+        self._bounded = bounded
+        """A count giving a period more than PERIOD_ERROR_AT_MOST off is not learnt (False:
+        poll plans before imuhal.core.poll_plan.CHIP_CLOCK_PLAN, whose recordings replay)."""
         self.step_ns = self._initial_step()
         self._anchor_ns = 0
         self._k = 0
@@ -164,8 +167,8 @@ class PollGrid:
             self._periods = 0
             return
         periods = self._periods + steps
-        if abs((t_ns - first) / periods - self.period_ns) > self.PERIOD_ERROR_AT_MOST \
-                * self.period_ns:
+        if self._bounded and abs((t_ns - first) / periods - self.period_ns) \
+                > self.PERIOD_ERROR_AT_MOST * self.period_ns:
             # a count that missed periods (a chain of host stalls folded more than it
             # counted): no oscillator is that far off, so the count starts afresh
             self._first_ns = self._last_ns = t_ns
