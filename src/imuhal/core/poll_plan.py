@@ -15,7 +15,9 @@ FIFO reads looks for its copies no sooner than the master's next read
 its auto-read slave's copy a guard after each of its instants, between the FIFO reads
 (imuhal_chips.max2110x.driver, ``_next_read_ns``), not beside each FIFO read. 4
 (``CHIP_CLOCK_PLAN``): the polls follow a chip clock off its nominal period, and a chip
-reset."""
+reset; and a BMP280 whose forced trigger write failed reads its burst to tell whether the
+conversion started, instead of the full recovery (imuhal_chips.bmp280.driver,
+``TRIGGER_CHECK_PLAN``)."""
 
 CHIP_CLOCK_PLAN = 4
 """The plan from which a tracking poll grid learns no period more than
