@@ -298,7 +298,7 @@ class BMP280Driver(Driver):
                                     {"adc": self._period_ns})
         self._last_output = None
         self._grid = PollGrid(self._period_ns)
-        self._triggered_ns = None
+        self._triggered_ns = self._trying_ns = None  # a recovery ends what was under way
 
     def _streams_from(self, back: bytes) -> tuple[StreamSpec, StreamSpec]:
         """Pressure (Pa) and temperature (degC) specs from ctrl_meas and config as read
