@@ -1301,7 +1301,7 @@ class Hmc5883lDriver(Driver):
             if 2 * (now_ns - self._due_ns) > period:
                 self.health.not_converted_ns += now_ns - self._due_ns
                 self._due_ns = now_ns
-            self.link.transfer(bytes((Reg.MODE, MODE_SINGLE)), 0)
+            self.regs.write(Reg.MODE, MODE_SINGLE)
             self._single_ns = max(now_ns, self.clock.now_ns())
             self._due_ns += period
             return PollResult([], self._single_ns + SINGLE_WAIT_NS)
