@@ -30,14 +30,18 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from tests.benchmarks.fault_matrix import faults_for
 from tests.benchmarks.fault_truth import devices_of
 
+from imuhal.bus.spy import Transfer
 from imuhal.emulation import open_emulated
 from imuhal.plugins.manager import load_registry
 from imuhal.profile.loader import load_profile
+from imuhal_chips.bmp280 import registers as r
 
 PROFILE = Path(__file__).resolve().parents[2] / "profiles" / "gy91.yaml"
 SCENARIOS = ("thermal", "static", "elevator", "rc-flight", "tumble", "magnet")
 DURATION_S = 20.0
 BUS_ERROR_RATE = 0.1
+_DATA = slice(4, 10)
+"""The six data bytes (pressure, temperature) in the poll burst from the status register."""
 
 
 def fly(scenario: str, duration_s: float, bus_errors: bool, mode: str | None) -> dict[str, int]:
@@ -51,18 +55,19 @@ def fly(scenario: str, duration_s: float, bus_errors: bool, mode: str | None) ->
         baro = next(d for d in devices_of(profile, registry) if d.name == "baro")
         faults = faults_for("bus_errors", baro, BUS_ERROR_RATE, duration_s)
     reads: list[tuple[bytes, int]] = []
-    with open_emulated(profile, registry, seed=1, scenario=scenario,
-                       faults=faults) as pipeline:
-        driver: Any = pipeline.devices["baro"].driver
-        chip = pipeline.board.emulators["baro"]
-        read_burst = driver._read_burst
+    chips: list[Any] = []
+    address = profile.devices["baro"].address
 
-        def recorded() -> Any:
-            out = read_burst()  # a failed transfer raises before anything is recorded
-            reads.append((bytes(chip._data), len(chip.measured_ns)))
-            return out
+    def observe(t: Transfer) -> None:
+        # the driver's poll burst as it read it (a failed transfer read nothing), and how
+        # many measurements the chip had recorded by then
+        if t.target == address and t.written == bytes((r.POLL_BURST_START,)) \
+                and len(t.read) == r.POLL_BURST_LENGTH and not t.error and chips:
+            reads.append((t.read[_DATA], len(chips[0].measured_ns)))
 
-        driver._read_burst = recorded
+    with open_emulated(profile, registry, seed=1, scenario=scenario, faults=faults,
+                       trace=observe) as pipeline:
+        chips.append(pipeline.board.emulators["baro"])
         for _ in pipeline.events(duration_s):
             pass
     counts = {"pairs": 0, "new, same bytes": 0, "new, bytes differ": 0,
