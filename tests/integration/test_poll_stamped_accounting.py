@@ -57,6 +57,16 @@ def _fly(registry: Registry, board: str, faults: list[FaultSpec], seed: int = 3,
     return p
 
 
+def _failing_from_1_s(*, os_errors: bool = False) -> list[FaultSpec]:
+    """The fault matrix's ``bus_errors`` at 10 % on every device of the seed paraglider
+    from 1 s, and with ``os_errors`` its ``os_error`` at 10 % too."""
+    devices = ("imu", "mag", "baro")
+    faults: list[FaultSpec] = [BusErrors(device=d, rate=0.1, start_s=1.0) for d in devices]
+    if os_errors:
+        faults += [BusOSError(device=d, rate=0.1, start_s=1.0) for d in devices]
+    return faults
+
+
 def _ledger_matches_the_chip(p: Pipeline, device: str) -> FrameLedger:
     ledger = p.devices[device].ledger
     assert ledger is not None and ledger.delivered > 0
@@ -281,9 +291,7 @@ def test_a_magnetometer_copy_that_failed_reads_delayed_is_no_proved_repeat(
     its measurement, past the first bound of ``_repeated``, and the chip's next
     measurement 4 ms after it. A change followed that soon is the measurement the repeat
     stood for: no repeat handed out (243 counted for the chip's 242 before)."""
-    p = _fly(registry, "seed-paraglider-vario",
-             [BusErrors(device=d, rate=0.1, start_s=1.0) for d in ("imu", "mag", "baro")],
-             seed=6, seconds=3.2)
+    p = _fly(registry, "seed-paraglider-vario", _failing_from_1_s(), seed=6, seconds=3.2)
     _ledger_matches_the_chip(p, "mag")
 
 
@@ -296,9 +304,7 @@ def test_a_magnetometer_copy_taken_by_a_late_poll_is_stamped_where_a_poll_on_tim
     stamped 7 ms after its own: 20.1 ms apart, the ledger counted a field lost that the
     chip never skipped (269 for the chip's 268 before). Stamped at the grid point a poll
     on time would have taken it at, the gap is one period."""
-    p = _fly(registry, "seed-paraglider-vario",
-             [BusErrors(device=d, rate=0.1, start_s=1.0) for d in ("imu", "mag", "baro")],
-             seed=7, seconds=3.58)
+    p = _fly(registry, "seed-paraglider-vario", _failing_from_1_s(), seed=7, seconds=3.58)
     _ledger_matches_the_chip(p, "mag")
 
 
@@ -311,9 +317,7 @@ def test_a_late_imu_poll_retried_after_a_bus_error_counts_exactly(
     counted from that poll's grid point (``FrameLedger.retried``); counted from its own
     stamp, 2.5 ms after its measurement, the gap rounded to a frame the chip never made
     (49 for the chip's 48 before)."""
-    p = _fly(registry, "seed-paraglider-vario",
-             [BusErrors(device=d, rate=0.1, start_s=1.0) for d in ("imu", "mag", "baro")]
-             + [BusOSError(device=d, rate=0.1, start_s=1.0) for d in ("imu", "mag", "baro")],
+    p = _fly(registry, "seed-paraglider-vario", _failing_from_1_s(os_errors=True),
              seed=7, seconds=2.8)
     _ledger_matches_the_chip(p, "imu")
 
@@ -327,9 +331,7 @@ def test_a_magnetometer_restart_broken_after_its_mode_write_ends_the_ledgers_seg
     polled on the old grid and the ledger counted across the restart (89 for the chip's
     87 by 1.2 s). The configuration reads back as written, so the restart is completed:
     the grid re-anchored and a reconfiguration ends the ledger's segment."""
-    p = _fly(registry, "seed-paraglider-vario",
-             [BusErrors(device=d, rate=0.1, start_s=1.0) for d in ("imu", "mag", "baro")]
-             + [BusOSError(device=d, rate=0.1, start_s=1.0) for d in ("imu", "mag", "baro")],
+    p = _fly(registry, "seed-paraglider-vario", _failing_from_1_s(os_errors=True),
              seed=1, seconds=1.2)
     ledger = _ledger_matches_the_chip(p, "mag")
     assert len(ledger.all_segments()) == 2
