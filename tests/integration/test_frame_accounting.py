@@ -214,6 +214,29 @@ def test_fifo_modes_count_the_frames_the_chip_measured_through_stalls_overflows_
     assert ledger.lost["host_stall"] == 0
 
 
+@pytest.mark.parametrize("error", [0.02, -0.02])
+def test_a_fifo_overflow_on_a_chip_two_percent_off_counts_the_frames_it_made(
+        registry: Registry, tmp_path: Path, error: float) -> None:
+    # a 300 ms stall is 61.2 periods of a chip 2 % fast (58.8 slow): counted in nominal
+    # periods the overflow's gap would be a frame short (long); in the period the chip's
+    # own stamps show it is exact
+    text = bundled_profiles()["gy91.yaml"].read_text()
+    path = tmp_path / "gy91.yaml"
+    path.write_text(text.replace("      aux: bypass\n", "      aux: bypass\n      read: fifo\n"))
+    faults = [HostStall(device="imu", start_s=0.9, stall_s=0.3, every_s=10.0)]
+    with open_emulated(load_profile(path, registry), registry, seed=1, faults=faults,
+                       calibrated=False) as p:
+        chip = p.board.emulators["imu"]
+        chip.oscillator_error = error
+        list(p.events(1.4))
+    ledger = _ledger(p, "imu")
+    assert ledger.lost["fifo_overflow"] > 40
+    half = ledger.period_ns // 2
+    assert [n for _, _, n in ledger.all_segments()] == [
+        sum(1 for t in chip.measured_ns if a - half < t < b + half)
+        for a, b, _ in ledger.all_segments()]
+
+
 def test_a_hung_magnetometers_unmade_fields_are_counted_apart_from_lost_ones(
         registry: Registry) -> None:
     """Every chip of the board hangs for 90 ms (``stuck_data_ready``, the fault matrix's

@@ -319,3 +319,53 @@ def test_a_block_is_counted_as_its_frames_one_by_one(times: list[int],
     assert losses == frame_losses
     assert _counted(by_block) == _counted(by_frame)
     assert by_block.all_segments() == by_frame.all_segments()
+
+
+FAST = P * 50 // 51  # a chip 2 % fast: 51 frames in 50 nominal periods
+
+
+def _gap_after_a_run(chip_timed: bool, gap_periods: int) -> FrameLedger:
+    """40 frames of a chip 2 % fast, then ``gap_periods`` of its periods without a frame
+    (a stall past its FIFO's depth, counted as an overflow), then one frame."""
+    ledger = FrameLedger(Quantity.GYRO, P, chip_timed=chip_timed)
+    for k in range(40):
+        ledger.observe(gyro(k * FAST))
+    ledger.note("fifo_overflow")
+    ledger.observe(gyro((39 + gap_periods) * FAST))
+    return ledger
+
+
+def test_a_chip_timed_gap_is_counted_in_the_period_its_stamps_show() -> None:
+    # 39 chip periods are 38.2 nominal ones: 37 frames lost on the nominal period, 38 made
+    assert dict(_gap_after_a_run(True, 39).lost) == {"fifo_overflow": 38}
+
+
+def test_a_poll_stamped_gap_is_counted_in_the_nominal_period() -> None:
+    assert dict(_gap_after_a_run(False, 39).lost) == {"fifo_overflow": 37}
+
+
+def test_a_chip_timed_gap_after_a_short_run_keeps_the_nominal_period() -> None:
+    ledger = FrameLedger(Quantity.GYRO, P, chip_timed=True)
+    for k in range(5):  # too few frames to read a period off
+        ledger.observe(gyro(k * FAST))
+    ledger.note("fifo_overflow")
+    ledger.observe(gyro((4 + 39) * FAST))
+    assert dict(ledger.lost) == {"fifo_overflow": 37}
+
+
+def test_a_chip_timed_period_read_from_a_block_counts_the_next_gap() -> None:
+    ledger = FrameLedger(Quantity.GYRO, P, chip_timed=True)
+    ledger.observe_block(Block.from_samples([gyro(k * FAST) for k in range(40)]))
+    ledger.note("fifo_overflow")
+    ledger.observe(gyro((39 + 39) * FAST))
+    assert dict(ledger.lost) == {"fifo_overflow": 38}
+
+
+def test_stamps_far_off_the_nominal_period_are_not_taken_for_the_chips() -> None:
+    ledger = FrameLedger(Quantity.GYRO, P, chip_timed=True)
+    slow = P * 13 // 10  # 30 % slow: no oscillator, a stamp error
+    for k in range(40):
+        ledger.observe(gyro(k * slow))
+    ledger.note("fifo_overflow")
+    ledger.observe(gyro(39 * slow + 20 * P))
+    assert dict(ledger.lost) == {"fifo_overflow": 19}

@@ -96,7 +96,10 @@ nominal period by more than half a period over a long gap (2 % over 25 periods) 
 shift the count by one, except where the chip's overrun bit shows the frame the grid
 skipped (the MAX2110x's overrun bits: :meth:`FrameLedger.skipped`, at least one frame lost
 before the frame whose read found it). Frame times from the chip
-(FIFO reads, data-ready lines) remove this limit.
+(FIFO reads, data-ready lines) remove this limit. A stream stamped on its chip's clock
+(``FrameLedger.chip_timed``: a FIFO read) counts a gap in the period its consecutive
+frames' stamps show, so a gap past 25 periods of a chip 2 % off (a stall longer than the
+FIFO's depth) is exact too.
 """
 
 from __future__ import annotations
@@ -122,6 +125,14 @@ unmeasured (counted apart, not lost)."""
 HUNG_AFTER_PERIODS = 1.5
 """Reads finding nothing new this many frame periods after the latest valid frame: the chip
 let an instant pass by half a period, which no oscillator error (+-2 %) explains."""
+
+RUN_FOR_PERIOD = 32
+"""Consecutive frames (no slot between any two) a stream stamped on its chip's clock must
+show before the ledger counts its gaps in the period their stamps give (``chip_timed``)."""
+
+STAMP_PERIOD_AT_MOST = 0.1
+"""A period read off the stamps more than this fraction off the nominal one is not the
+chip's (a stamp error, not an oscillator: +-2 %): the nominal period stays."""
 
 NOT_CONVERTED = "not_converted"
 """The cause of a gap in which a host-paced chip made no frame: slots of its configured
@@ -187,6 +198,17 @@ class FrameLedger:
     _retry_until_ns: int = 0
     """A late poll that failed is retried at once (``retried``): a valid frame stamped after
     ``_off_phase``'s stamp and up to this is the retry's, counted at its due time."""
+    chip_timed: bool = False
+    """The stream's stamps are its chip's measurement instants (a FIFO read on the chip's
+    clock, imuhal.drivers.chip_clock): a gap is counted in the period consecutive frames'
+    stamps show, not the nominal one. A chip 2 % fast makes 39 frames in 38 nominal
+    periods, so a gap longer than 25 periods (a host stall past the FIFO's depth) would
+    round to a frame less than the chip made."""
+    _run: tuple[int, int] | None = None
+    """(first stamp, frames) of the latest run of frames with no slot between them."""
+    _stamp_period_ns: float | None = None
+    """The chip's period as the latest run of RUN_FOR_PERIOD frames or more showed it
+    (``chip_timed``; None: not seen yet)."""
 
     def __post_init__(self) -> None:
         if self.period_ns <= 0:
@@ -319,6 +341,8 @@ class FrameLedger:
         if self._segment_first_ns is None:
             self._segment_first_ns = t_ns
             self._segment_produced = 0
+        if self.chip_timed:
+            self._extend_run(t_ns, 1, after_gap=loss is not None or self.last_ns is None)
         self._segment_produced += 1
         self.delivered += 1
         self.last_ns = t_ns
@@ -348,6 +372,8 @@ class FrameLedger:
                 first = int(t[0])
                 loss = self._valid_at(first)
                 more = len(t) - 1
+                if self.chip_timed:
+                    self._extend_run(first, more, after_gap=False)
                 self.delivered += more
                 self._segment_produced += more
                 self.last_ns = self._last_counted_ns = int(t[-1])
@@ -361,6 +387,28 @@ class FrameLedger:
             if loss is not None:
                 out.append((sample.t_ns, loss))
         return out
+
+    def _extend_run(self, t_ns: int, frames: int, *, after_gap: bool) -> None:
+        """``frames`` more frames of the current run (``chip_timed``); a gap before the
+        frame at ``t_ns`` starts a new run there."""
+        if after_gap or self._run is None:
+            self._run = (t_ns, frames)
+        else:
+            self._run = (self._run[0], self._run[1] + frames)
+
+    def _gap_period_ns(self) -> float:
+        """The period a gap after the latest valid frame is counted in: the nominal one, or
+        for a ``chip_timed`` stream the one the run before the gap showed (a run of
+        RUN_FOR_PERIOD frames or more, within STAMP_PERIOD_AT_MOST of the nominal), else
+        the one an earlier run showed (the oscillator is the same across a reset)."""
+        if not self.chip_timed:
+            return self.period_ns
+        run = self._run
+        if run is not None and run[1] >= RUN_FOR_PERIOD and self.last_ns is not None:
+            shown = (self.last_ns - run[0]) / (run[1] - 1)
+            if abs(shown - self.period_ns) <= STAMP_PERIOD_AT_MOST * self.period_ns:
+                self._stamp_period_ns = shown
+        return self._stamp_period_ns or self.period_ns
 
     def _take_pending(self, t_ns: int) -> None:
         """The timed causes that began by ``t_ns`` join the causes of the gap ending there."""
@@ -379,10 +427,11 @@ class FrameLedger:
         ``adjacent``: its read proved the chip made none since the frame before
         (``adjacent``: every slot between is not measured)."""
         assert self.last_ns is not None
-        slots = round(step_ns / self.period_ns) - 1
+        period = self._gap_period_ns()
+        slots = round(step_ns / period) - 1
         if slots <= 0 and not overwritten:  # the next slot (nearly every frame), nothing
             return None  # overwritten unread: nothing below can count
-        lost = max(0, min(slots, round((step_ns - self._slid_ns) / self.period_ns) - 1))
+        lost = max(0, min(slots, round((step_ns - self._slid_ns) / period) - 1))
         if overwritten and slots < 1:
             # the chip overwrote a frame unread since the read before: one frame lies
             # between them whatever the stamps say (a poll grid that drifted past an instant

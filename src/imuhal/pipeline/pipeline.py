@@ -559,6 +559,8 @@ class Pipeline:
         dev.deadline_s = driver_deadline_s(streams)
         dev.spec_of = {spec.quantity: spec for spec in reversed(streams)}
         dev.buffered = any(spec.time_source in BUFFERED_SOURCES for spec in streams)
+        if dev.ledger is not None:  # its gaps in the period the chip's own stamps show
+            dev.ledger.chip_timed = dev.buffered
         for runtime in self.estimators:
             if runtime.inputs is None or dev.name in runtime.inputs:
                 self._bind(runtime)
