@@ -214,15 +214,26 @@ def test_fifo_modes_count_the_frames_the_chip_measured_through_stalls_overflows_
     assert ledger.lost["host_stall"] == 0
 
 
+CHIP_TIMED: dict[str, tuple[str, str, str]] = {
+    # stamped at the chip's instants: read from its FIFO on the chip's clock, or on its
+    # data-ready line's edges (registers); the cause the stall's frames are lost to
+    "fifo": ("      read: fifo\n", "", "fifo_overflow"),
+    "data-ready": ("", "    interrupt: {chip: gpiochip0, line: 17}\n", "host_stall"),
+}
+
+
 @pytest.mark.parametrize("error", [0.02, -0.02])
-def test_a_fifo_overflow_on_a_chip_two_percent_off_counts_the_frames_it_made(
-        registry: Registry, tmp_path: Path, error: float) -> None:
+@pytest.mark.parametrize("mode", sorted(CHIP_TIMED))
+def test_a_long_stall_on_a_chip_two_percent_off_counts_the_frames_it_made(
+        registry: Registry, tmp_path: Path, mode: str, error: float) -> None:
     # a 300 ms stall is 61.2 periods of a chip 2 % fast (58.8 slow): counted in nominal
-    # periods the overflow's gap would be a frame short (long); in the period the chip's
-    # own stamps show it is exact
+    # periods its gap would be a frame short (long); in the period the chip's own stamps
+    # show it is exact
+    settings, interrupt, cause = CHIP_TIMED[mode]
     text = bundled_profiles()["gy91.yaml"].read_text()
+    text = text.replace("      aux: bypass\n", "      aux: bypass\n" + settings)
     path = tmp_path / "gy91.yaml"
-    path.write_text(text.replace("      aux: bypass\n", "      aux: bypass\n      read: fifo\n"))
+    path.write_text(text.replace('    mount: "+X-Y-Z"\n', '    mount: "+X-Y-Z"\n' + interrupt, 1))
     faults = [HostStall(device="imu", start_s=0.9, stall_s=0.3, every_s=10.0)]
     with open_emulated(load_profile(path, registry), registry, seed=1, faults=faults,
                        calibrated=False) as p:
@@ -230,7 +241,7 @@ def test_a_fifo_overflow_on_a_chip_two_percent_off_counts_the_frames_it_made(
         chip.oscillator_error = error
         list(p.events(1.4))
     ledger = _ledger(p, "imu")
-    assert ledger.lost["fifo_overflow"] > 40
+    assert ledger.lost[cause] > 40
     half = ledger.period_ns // 2
     assert [n for _, _, n in ledger.all_segments()] == [
         sum(1 for t in chip.measured_ns if a - half < t < b + half)

@@ -96,10 +96,10 @@ nominal period by more than half a period over a long gap (2 % over 25 periods) 
 shift the count by one, except where the chip's overrun bit shows the frame the grid
 skipped (the MAX2110x's overrun bits: :meth:`FrameLedger.skipped`, at least one frame lost
 before the frame whose read found it). Frame times from the chip
-(FIFO reads, data-ready lines) remove this limit. A stream stamped on its chip's clock
-(``FrameLedger.chip_timed``: a FIFO read) counts a gap in the period its consecutive
-frames' stamps show, so a gap past 25 periods of a chip 2 % off (a stall longer than the
-FIFO's depth) is exact too.
+(FIFO reads, data-ready lines) remove this limit. A stream stamped at its chip's instants
+(``FrameLedger.chip_timed``: a FIFO read, a data-ready line's edges) counts a gap in the
+period its consecutive frames' stamps show, so a gap past 25 periods of a chip 2 % off (a
+stall longer than the FIFO's depth) is exact too.
 """
 
 from __future__ import annotations
@@ -200,10 +200,10 @@ class FrameLedger:
     ``_off_phase``'s stamp and up to this is the retry's, counted at its due time."""
     chip_timed: bool = False
     """The stream's stamps are its chip's measurement instants (a FIFO read on the chip's
-    clock, imuhal.drivers.chip_clock): a gap is counted in the period consecutive frames'
-    stamps show, not the nominal one. A chip 2 % fast makes 39 frames in 38 nominal
-    periods, so a gap longer than 25 periods (a host stall past the FIFO's depth) would
-    round to a frame less than the chip made."""
+    clock, imuhal.drivers.chip_clock; a data-ready line's edges): a gap is counted in the
+    period consecutive frames' stamps show, not the nominal one. A chip 2 % fast makes 39
+    frames in 38 nominal periods, so a gap longer than 25 periods (a host stall past the
+    FIFO's depth) would round to a frame less than the chip made."""
     _run: tuple[int, int] | None = None
     """(first stamp, frames) of the latest run of frames with no slot between them."""
     _stamp_period_ns: float | None = None

@@ -520,6 +520,15 @@ class Pipeline:
         self._take_streams(dev)
         if cfg.interrupt is not None and isinstance(dev.trigger, TimerTrigger):
             dev.trigger = self._line_trigger(dev, cfg.interrupt)
+            self._time_ledger(dev)
+
+    @staticmethod
+    def _time_ledger(dev: DeviceRuntime) -> None:
+        """A device whose frames are stamped at its chip's instants (read from its FIFO on
+        the chip's clock, or on its data-ready line's edges) counts its gaps in the period
+        those stamps show (``FrameLedger.chip_timed``)."""
+        if dev.ledger is not None:
+            dev.ledger.chip_timed = dev.buffered or isinstance(dev.trigger, LineTrigger)
 
     def _line_trigger(self, dev: DeviceRuntime, interrupt: InterruptConfig) -> LineTrigger:
         """The data-ready trigger of ``dev``, whose profile names its INT line; its
@@ -559,8 +568,7 @@ class Pipeline:
         dev.deadline_s = driver_deadline_s(streams)
         dev.spec_of = {spec.quantity: spec for spec in reversed(streams)}
         dev.buffered = any(spec.time_source in BUFFERED_SOURCES for spec in streams)
-        if dev.ledger is not None:  # its gaps in the period the chip's own stamps show
-            dev.ledger.chip_timed = dev.buffered
+        self._time_ledger(dev)
         for runtime in self.estimators:
             if runtime.inputs is None or dev.name in runtime.inputs:
                 self._bind(runtime)
