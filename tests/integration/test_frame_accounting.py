@@ -103,6 +103,18 @@ def _fly(registry: Registry, board: str, faults: list[FaultSpec], seconds: float
     return p
 
 
+@pytest.fixture(scope="module")
+def hung_gy91(registry: Registry) -> tuple[Pipeline, list[int]]:
+    """gy91 flown 6 s with every chip hung for 90 ms from 5.455 s (``stuck_data_ready``, the
+    fault matrix's window at 1 %, seed 1), and the stamps of its valid pressures."""
+    faults: list[FaultSpec] = [StuckDataReady(device=d, start_s=5.455, end_s=5.545)
+                               for d in DEVICES]
+    profile = load_profile(bundled_profiles()["gy91.yaml"], registry)
+    with open_emulated(profile, registry, seed=1, faults=faults) as p:
+        stamps = [e.t_ns for e in p.events(6.0) if isinstance(e, PressureSample) and e.valid]
+    return p, stamps
+
+
 def _counts_as_the_chip(p: Pipeline, device: str) -> FrameLedger:
     """The device's ledger, each of its segments checked against the chip's own count."""
     ledger = _ledger(p, device)
@@ -215,7 +227,7 @@ def test_fifo_modes_count_the_frames_the_chip_measured_through_stalls_overflows_
 
 
 def test_a_hung_magnetometers_unmade_fields_are_counted_apart_from_lost_ones(
-        registry: Registry) -> None:
+        hung_gy91: tuple[Pipeline, list[int]]) -> None:
     """Every chip of the board hangs for 90 ms (``stuck_data_ready``, the fault matrix's
     window at 1 %): the AK8963 (read directly) completes no measurement and DRDY stays
     clear, and the MPU-9250's restart holds the one thread for most of the hang, so the mag
@@ -223,9 +235,7 @@ def test_a_hung_magnetometers_unmade_fields_are_counted_apart_from_lost_ones(
     prove the hang; the fields it never made are counted ``not_measured``, neither produced
     nor lost, and the one its overrun bit (DOR) proves lost, so the ledger's count equals
     the chip's (it counted all thirteen lost before: 1000 for the chip's 988)."""
-    faults: list[FaultSpec] = [StuckDataReady(device=d, start_s=5.455, end_s=5.545)
-                               for d in DEVICES]
-    p = _fly(registry, "gy91", faults, 6.0)
+    p, _ = hung_gy91
     ledger = _counts_as_the_chip(p, "mag")
     assert ledger.not_measured >= 8  # 90 ms of a 100 Hz field, the hang ends at a read
     assert p.summary().frames["mag"]["not_measured"] == ledger.not_measured
@@ -479,3 +489,24 @@ def test_a_failed_forced_trigger_write_is_told_by_the_next_burst_not_a_recovery(
     assert summary.driver["baro"]["reconfigurations"] == 0
     ledger = _counts_as_the_chip(p, "baro")
     assert ledger.delivered + sum(ledger.lost.values()) == ledger.produced
+
+
+
+def test_a_conversion_a_hang_held_is_counted_once_and_never_stamped_valid_far_from_it(
+        hung_gy91: tuple[Pipeline, list[int]]) -> None:
+    """gy91's BMP280 in forced mode hangs with a conversion under way (the fault matrix's
+    1 % window): reads find it ``measuring`` for 14 ms past its maximum time, then the
+    MPU-9250's restart holds the one thread 111 ms, and the hang ends meanwhile. The
+    conversion completes after the hang, and the read after the restart finds it done: it
+    ended somewhere in those 111 ms, so it is STALE (counted lost), and the time it took
+    is counted as slots not converted. Before, the emulator completed it at its own
+    instant, inside the hang, when every read said ``measuring``, and the driver handed it
+    out valid at the read 128 ms later, counting 5 frames lost the chip never made (the
+    matrix: 400 for the chip's 395)."""
+    p, stamps = hung_gy91
+    ledger = _counts_as_the_chip(p, "baro")
+    assert sum(ledger.lost.values()) == 1
+    chip = p.board.emulators["baro"]
+    instants = list(chip.measured_ns)
+    late = [t - instants[chip.measured_ns.count_until(t) - 1] for t in stamps]
+    assert max(late) <= ledger.period_ns
