@@ -100,6 +100,10 @@ class BMP280Emulator(HangsBetweenTransfers, ChipEmulator):
     conformance_sweep = True
     # Normal mode at x1/x1 oversampling and the shortest standby: measurement + 0.5 ms.
     min_output_period_s = (_measurement_ms(1, 1) + _STANDBY_MS_BY_CODE[0]) / 1e3
+    _forced_done: int | None
+    """When the forced conversion under way completes (None: none is)."""
+    _forced_start: int
+    """When the latest forced conversion was triggered."""
 
     def __init__(
         self, clock: Clock | None = None, *, trim: FactoryTrimming = DATASHEET_TRIMMING
@@ -229,10 +233,8 @@ class BMP280Emulator(HangsBetweenTransfers, ChipEmulator):
         self._im_update_until = self.now_ns() + round(_STARTUP_S * 1e9)
         self._cycle_start = 0
         self._cycles_done = 0
-        self._forced_done: int | None = None
-        """When the forced conversion under way completes (None: none is)."""
+        self._forced_done = None
         self._forced_start = 0
-        """When the latest forced conversion was triggered."""
         self._filter: tuple[float, float] | None = None
 
     def _mode(self) -> int:
