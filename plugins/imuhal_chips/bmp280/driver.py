@@ -435,17 +435,18 @@ class BMP280Driver(Driver):
         further from its instant than the ledger's rounding allows (a host that stalled
         during a hang: 128 ms after it on gy91 at 1 % ``stuck_data_ready``), so the sample
         is STALE (counted lost, not delivered valid) and the time it took is told as slid.
-        The next trigger comes at once; the time slid up to it is told here."""
-        self._due_ns = self._next_ns = now_ns
+        The next trigger comes in its slot, or at once when that has passed; the time slid
+        up to it is told here."""
+        self._due_ns = self._next_ns = max(trigger + self._period_ns, now_ns)
         if not done:
             self.health.not_converted_ns += now_ns - trigger - told_ns
-            return self._finish(now_ns, adc_p, adc_t, True, now_ns)
+            return self._finish(now_ns, adc_p, adc_t, True, self._next_ns)
         assert running_ns is not None
         measured = not stale
         if 2 * (now_ns - running_ns) >= self._period_ns:
             self.health.not_converted_ns += now_ns - (trigger + t_max_ns) - told_ns
             stale = True
-        return self._finish(now_ns, adc_p, adc_t, stale, now_ns, measured=measured)
+        return self._finish(now_ns, adc_p, adc_t, stale, self._next_ns, measured=measured)
 
     def _trigger(self, now_ns: int) -> None:
         """Start one forced conversion. A trigger later than its slot (a late poll: a
