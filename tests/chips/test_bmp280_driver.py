@@ -161,6 +161,27 @@ def test_absent_chip_raises_device_not_found() -> None:
         driver.probe()
 
 
+def test_a_forced_conversion_a_hang_held_completes_after_the_hang_not_inside_it() -> None:
+    """A hang 5 ms into a forced conversion (typical 19.5 ms at x8/x1) holds it: every
+    status read during the hang says ``measuring``, so the conversion cannot be dated
+    inside it. When the hang ends the engine resumes: the 14.5 ms the conversion had left
+    come after the end, and the chip records one measurement then (before, it completed
+    at its own instant, inside the hang, 12 ms before a read that found it running)."""
+    clock, bus, emu, driver = rig(mode="forced", odr_hz=5.0)
+    driver.probe()
+    driver.configure()  # x8 pressure, x1 temperature, asleep
+    bus.transfer(ADDRESS, bytes([r.REG_CTRL_MEAS, r.ctrl_meas_value(1, 8, r.MODE_FORCED)]), 0)
+    clock.sleep(0.005)
+    emu.stuck_data_ready = True
+    clock.sleep(0.026)
+    assert bus.transfer(ADDRESS, bytes([r.REG_STATUS]), 1)[0] & r.STATUS_MEASURING
+    emu.stuck_data_ready = False
+    ended = clock.now_ns()
+    clock.sleep(0.030)
+    assert not bus.transfer(ADDRESS, bytes([r.REG_STATUS]), 1)[0] & r.STATUS_MEASURING
+    assert list(emu.measured_ns)[-1:] == [ended + 19_500_000 - 5_000_000]
+
+
 def test_stuck_conversion_in_forced_mode_is_stale_and_recover_works() -> None:
     clock, _bus, emu, driver = rig(mode="forced", odr_hz=10.0)
     driver.probe()

@@ -103,6 +103,18 @@ def _fly(registry: Registry, board: str, faults: list[FaultSpec], seconds: float
     return p
 
 
+@pytest.fixture(scope="module")
+def hung_gy91(registry: Registry) -> tuple[Pipeline, list[int]]:
+    """gy91 flown 6 s with every chip hung for 90 ms from 5.455 s (``stuck_data_ready``, the
+    fault matrix's window at 1 %, seed 1), and the stamps of its valid pressures."""
+    faults: list[FaultSpec] = [StuckDataReady(device=d, start_s=5.455, end_s=5.545)
+                               for d in DEVICES]
+    profile = load_profile(bundled_profiles()["gy91.yaml"], registry)
+    with open_emulated(profile, registry, seed=1, faults=faults) as p:
+        stamps = [e.t_ns for e in p.events(6.0) if isinstance(e, PressureSample) and e.valid]
+    return p, stamps
+
+
 def _counts_as_the_chip(p: Pipeline, device: str) -> FrameLedger:
     """The device's ledger, each of its segments checked against the chip's own count."""
     ledger = _ledger(p, device)
@@ -249,7 +261,7 @@ def test_a_long_stall_on_a_chip_two_percent_off_counts_the_frames_it_made(
 
 
 def test_a_hung_magnetometers_unmade_fields_are_counted_apart_from_lost_ones(
-        registry: Registry) -> None:
+        hung_gy91: tuple[Pipeline, list[int]]) -> None:
     """Every chip of the board hangs for 90 ms (``stuck_data_ready``, the fault matrix's
     window at 1 %): the AK8963 (read directly) completes no measurement and DRDY stays
     clear, and the MPU-9250's restart holds the one thread for most of the hang, so the mag
@@ -257,9 +269,7 @@ def test_a_hung_magnetometers_unmade_fields_are_counted_apart_from_lost_ones(
     prove the hang; the fields it never made are counted ``not_measured``, neither produced
     nor lost, and the one its overrun bit (DOR) proves lost, so the ledger's count equals
     the chip's (it counted all thirteen lost before: 1000 for the chip's 988)."""
-    faults: list[FaultSpec] = [StuckDataReady(device=d, start_s=5.455, end_s=5.545)
-                               for d in DEVICES]
-    p = _fly(registry, "gy91", faults, 6.0)
+    p, _ = hung_gy91
     ledger = _counts_as_the_chip(p, "mag")
     assert ledger.not_measured >= 8  # 90 ms of a 100 Hz field, the hang ends at a read
     assert p.summary().frames["mag"]["not_measured"] == ledger.not_measured
@@ -388,6 +398,25 @@ def test_a_poll_read_after_its_put_offs_is_counted_on_the_phase_of_the_frame_bef
     assert _counts_as_the_chip(p, "mag").not_measured == 0
 
 
+def test_a_field_counted_a_period_early_after_its_put_offs_is_put_back_by_the_next_ones_reads(
+        registry: Registry) -> None:
+    """20 ms host stalls at random, 5 a second from 1 s (the fault matrix's ``host_stall``
+    at 10 %, seed 4; gy91's BMP280, triggered at once after each, makes chains of them):
+    the AK8963's poll read after three put-offs comes at 1.8897 s, 1.3 ms after the chip's
+    instant and 25 us before the point of the phase the field before was counted on, so
+    it is counted at the point before, a period early. The driver's next reads find nothing
+    new until the next field (``adjacent``): their stamps span no slot, so the slot its
+    count spanned is a field the put-off count moved out of the gap before, lost to the
+    stall there, not one the chip let pass (194 counted for the chip's 195, one "not
+    measured", before)."""
+    stalls: list[FaultSpec] = [HostStall(device=d, start_s=1.0, stall_s=0.02, rate_hz=5.0)
+                               for d in DEVICES]
+    profile = load_profile(bundled_profiles()["gy91.yaml"], registry)
+    with open_emulated(profile, registry, seed=4, faults=stalls) as p:
+        list(p.events(1.95))
+    assert _counts_as_the_chip(p, "mag").not_measured == 0
+
+
 def test_a_short_hang_of_the_rc_boards_hmc5883l_is_proved_by_rdy_left_clear(
         registry: Registry) -> None:
     """The seed rc board's HMC5883L (read directly) hangs 9 ms across one instant of its
@@ -513,3 +542,24 @@ def test_a_failed_forced_trigger_write_is_told_by_the_next_burst_not_a_recovery(
     assert summary.driver["baro"]["reconfigurations"] == 0
     ledger = _counts_as_the_chip(p, "baro")
     assert ledger.delivered + sum(ledger.lost.values()) == ledger.produced
+
+
+
+def test_a_conversion_a_hang_held_is_counted_once_and_never_stamped_valid_far_from_it(
+        hung_gy91: tuple[Pipeline, list[int]]) -> None:
+    """gy91's BMP280 in forced mode hangs with a conversion under way (the fault matrix's
+    1 % window): reads find it ``measuring`` for 14 ms past its maximum time, then the
+    MPU-9250's restart holds the one thread 111 ms, and the hang ends meanwhile. The
+    conversion completes after the hang, and the read after the restart finds it done: it
+    ended somewhere in those 111 ms, so it is STALE (counted lost), and the time it took
+    is counted as slots not converted. Before, the emulator completed it at its own
+    instant, inside the hang, when every read said ``measuring``, and the driver handed it
+    out valid at the read 128 ms later, counting 5 frames lost the chip never made (the
+    matrix: 400 for the chip's 395)."""
+    p, stamps = hung_gy91
+    ledger = _counts_as_the_chip(p, "baro")
+    assert sum(ledger.lost.values()) == 1
+    chip = p.board.emulators["baro"]
+    instants = list(chip.measured_ns)
+    late = [t - instants[chip.measured_ns.count_until(t) - 1] for t in stamps]
+    assert max(late) <= ledger.period_ns

@@ -241,6 +241,26 @@ def test_a_frame_read_as_the_chips_next_measurement_has_no_slot_lost_before_it()
     assert (ledger.produced, ledger.not_measured, sum(ledger.lost.values())) == (2, 1, 0)
 
 
+def test_a_frame_counted_a_period_early_is_put_back_by_the_next_frames_adjacent_reads(
+        ) -> None:
+    """A frame read after a stall at 10.95 periods (past the chip's instant, just before a
+    point of its phase) and counted at the point before (``count_at``, 10 periods): the
+    next frame's reads prove nothing new since it (``adjacent``) and their stamps lie a
+    period apart, so the slot its count spanned was a frame the count moved out of the gap
+    before, lost to the stall there, not one the chip let pass."""
+    ledger = FrameLedger(Quantity.GYRO, P)
+    ledger.observe(gyro(0))
+    ledger.note("host_stall")
+    early = 11 * P - P // 100
+    ledger.count_at(early, 10 * P)
+    ledger.observe(gyro(early))
+    ledger.adjacent(early, 12 * P)
+    loss = ledger.observe(gyro(12 * P))
+    assert loss is not None and (loss.frames, loss.cause) == (1, "host_stall")
+    assert (ledger.produced, dict(ledger.lost), ledger.not_measured) == (
+        13, {"host_stall": 10}, 0)
+
+
 @pytest.mark.parametrize("since, overrun, note", [
     (-P, False, ""),  # proved after another frame than the latest valid one
     (0, True, ""),  # the overrun bit says a measurement was overwritten: lost

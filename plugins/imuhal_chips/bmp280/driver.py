@@ -210,8 +210,12 @@ class BMP280Driver(Driver):
         self._due_ns = 0
         """Forced mode: when the next trigger is due, one period after the one before (the
         schedule's slot; a later trigger slides the schedule, ``_trigger``)."""
-        self._running_seen = False
-        """Forced mode: a read since the trigger found its conversion still running."""
+        self._running_ns: int | None = None
+        """Forced mode: the latest read since the trigger that found its conversion still
+        running past its maximum time (None: none did)."""
+        self._late_told_ns = 0
+        """Forced mode: how far past its maximum time the reads since the trigger found the
+        conversion still running, as told the frame ledger (``_running``)."""
         self._trying_ns: int | None = None
         """Forced mode: when a trigger write that failed was made (``resume``), until a read
         tells whether it started a conversion (``_after_failed_trigger``)."""
@@ -389,22 +393,60 @@ class BMP280Driver(Driver):
             return PollResult([], self.restart(reset_detected=True))
         done = not status & r.STATUS_MEASURING and ctrl & r.MODE_MASK == r.MODE_SLEEP
         if not done and now_ns - self._triggered_ns < self.STALE_AFTER_MAX_TIMES * t_max_ns:
-            self._running_seen = True
+            self._running(now_ns, t_max_ns)
             return PollResult([], now_ns + t_max_ns // 10)
         trigger = self._triggered_ns
-        self._triggered_ns = None
+        running, told = self._running_ns, self._late_told_ns
+        self._triggered_ns = self._running_ns = None
+        self._late_told_ns = 0
+        stale = not done or (adc_p == r.ADC_SKIPPED and adc_t == r.ADC_SKIPPED)
+        if not done or running is not None:
+            return self._finish_late(now_ns, trigger, t_max_ns, told, adc_p, adc_t,
+                                     stale=stale, done=done, running_ns=running)
         self._due_ns = trigger + self._period_ns
         self._next_ns = max(self._due_ns, now_ns)
-        stale = not done or (adc_p == r.ADC_SKIPPED and adc_t == r.ADC_SKIPPED)
+        # The conversion ended by the datasheet's maximum time after the trigger: stamped
+        # there, not at a read the host made late (a stall).
+        return self._finish(min(trigger + t_max_ns, now_ns), adc_p, adc_t, stale,
+                            self._next_ns)
+
+    def _running(self, now_ns: int, t_max_ns: int) -> None:
+        """A read found the conversion triggered still running past its maximum time (a
+        chip slower than its datasheet, a hung one): the chip converts nothing else until
+        it ends, so the time past that maximum is time its schedule slid, told the frame
+        ledger as it passes (``DeviceHealth.not_converted_ns``), before the frame that ends
+        it: the pipeline counts a slide told with a frame in the gap after that frame."""
+        assert self._triggered_ns is not None
+        self._running_ns = now_ns
+        late = now_ns - (self._triggered_ns + t_max_ns)
+        if late > self._late_told_ns:
+            self.health.not_converted_ns += late - self._late_told_ns
+            self._late_told_ns = late
+
+    def _finish_late(self, now_ns: int, trigger: int, t_max_ns: int, told_ns: int,
+                     adc_p: int, adc_t: int, *, stale: bool, done: bool,
+                     running_ns: int | None) -> PollResult:
+        """The read after reads that found the conversion triggered at ``trigger`` still
+        running past its maximum time (``_running``, ``told_ns`` of it told): it found the
+        conversion ended (``done``), or gave up on it (a hung chip). Given up, the chip made
+        no frame from the trigger to now, which the ledger counts apart (not converted).
+        Ended, it ended between the latest read that found it running and this one, and is
+        stamped at this one: more than half a period between the two, and the stamp can lie
+        further from its instant than the ledger's rounding allows (a host that stalled
+        during a hang: 128 ms after it on gy91 at 1 % ``stuck_data_ready``), so the sample
+        is STALE (counted lost, not delivered valid) and the time it took is told as slid.
+        The next trigger comes in its slot, or at once when that has passed; the time slid
+        up to it is told here."""
+        self._due_ns = self._next_ns = max(trigger + self._period_ns, now_ns)
         if not done:
-            # the conversion never finished (a hung chip): the chip made no frame in this
-            # slot, which the frame ledger counts apart (not converted), not as one lost
-            self.health.not_converted_ns += self._period_ns
-        # The conversion ended by the datasheet's maximum time after the trigger, or, when a
-        # read found it still running then (a chip slower than its datasheet), between that
-        # read and this one: stamped there, not at a read the host made late (a stall).
-        t_ns = now_ns if self._running_seen or not done else trigger + t_max_ns
-        return self._finish(min(t_ns, now_ns), adc_p, adc_t, stale, self._next_ns)
+            self.health.not_converted_ns += now_ns - trigger - told_ns
+            return self._finish(now_ns, adc_p, adc_t, True, self._next_ns)
+        assert running_ns is not None
+        measured = not stale
+        if 2 * (now_ns - running_ns) >= self._period_ns:
+            self.health.not_converted_ns += now_ns - (trigger + t_max_ns) - told_ns
+            stale = True
+        return self._finish(now_ns, adc_p, adc_t, stale, self._next_ns, measured=measured)
 
     def _trigger(self, now_ns: int) -> None:
         """Start one forced conversion. A trigger later than its slot (a late poll: a
@@ -422,14 +464,16 @@ class BMP280Driver(Driver):
         if now_ns > self._due_ns:
             self.health.not_converted_ns += now_ns - self._due_ns
         self._triggered_ns = self._due_ns = now_ns
-        self._running_seen = False
+        self._running_ns = None
+        self._late_told_ns = 0
 
     def _finish(self, now_ns: int, adc_p: int, adc_t: int, stale: bool,
-                next_ns: int) -> PollResult:
-        """Emit one measurement slot; a chip that keeps producing none is restarted."""
+                next_ns: int, *, measured: bool = False) -> PollResult:
+        """Emit one measurement slot; a chip that keeps producing none is restarted
+        (``measured``: it made this one, whatever its flag says)."""
         bad = SampleFlag.STALE if stale else self._frozen_flag(adc_p, adc_t)
         samples = self._emit(now_ns, adc_p, adc_t, bad)
-        if not bad:
+        if not bad or measured:
             self._watch.fresh_poll()
         elif self._watch.stale_poll():
             return PollResult(samples, self.restart(reset_detected=False))

@@ -25,8 +25,12 @@ trimming (default: the datasheet worked example), at the configured resolution.
 
 Faults: ``chip_id`` (a clone or another part), ``stuck_data_ready`` (conversions never finish:
 ``measuring`` stays set, forced mode never returns to sleep, data freeze; what finished
-before the hang began is measured, and when it ends the cycles it held complete at their own
-instants), ``silent_reset()``,
+before the hang began is measured. When it ends, normal mode's cycles it held complete at
+their own instants; a forced conversion it held resumes where it stopped and completes the
+time it had left after the hang's end, measuring the world of then: nothing is dated inside
+the hang, when every status read said ``measuring``. A trigger written during the hang
+starts its conversion over, as a trigger written while the chip measures does here: the
+datasheet says nothing of either, so this is the model's choice, stated), ``silent_reset()``,
 absence (``absent``) and bus errors via ``EmulatedBus.fail_transfers``.
 
 Source of facts: BMP280 datasheet BST-BMP280-DS001-19; imuhal shared chip facts section 2.
@@ -96,6 +100,10 @@ class BMP280Emulator(HangsBetweenTransfers, ChipEmulator):
     conformance_sweep = True
     # Normal mode at x1/x1 oversampling and the shortest standby: measurement + 0.5 ms.
     min_output_period_s = (_measurement_ms(1, 1) + _STANDBY_MS_BY_CODE[0]) / 1e3
+    _forced_done: int | None
+    """When the forced conversion under way completes (None: none is)."""
+    _forced_start: int
+    """When the latest forced conversion was triggered."""
 
     def __init__(
         self, clock: Clock | None = None, *, trim: FactoryTrimming = DATASHEET_TRIMMING
@@ -107,6 +115,8 @@ class BMP280Emulator(HangsBetweenTransfers, ChipEmulator):
         self.chip_id = r.CHIP_ID
         """What 0xD0 reads (fault injection: 0x60 is a BME280, anything else a clone)."""
         self._hung = False
+        self._hung_ns = 0
+        """When the current hang began (``stuck_data_ready``)."""
         self._pointer = 0
         self.resets = 0
         self._oscillator_error = 0.0
@@ -115,6 +125,29 @@ class BMP280Emulator(HangsBetweenTransfers, ChipEmulator):
         """Resets seen (soft reset command or silent reset), for tests."""
 
     # -- fault injection --------------------------------------------------------------------
+
+    @property
+    def stuck_data_ready(self) -> bool:
+        """The measurement engine hangs (fault injection): no measurement completes."""
+        return self._hung
+
+    @stuck_data_ready.setter
+    def stuck_data_ready(self, hung: bool) -> None:
+        if hung == getattr(self, "_hung", hung):  # ChipEmulator's __init__ sets it first
+            self._hung = hung
+            return
+        self._advance()  # what finished before the hang began (HangsBetweenTransfers)
+        now = self.now_ns()
+        if hung:
+            self._hung_ns = now
+        elif self._forced_done is not None:
+            # the engine resumes the forced conversion it held where it stopped: completed
+            # at its own instant, it would be dated inside the hang, when every status read
+            # said ``measuring`` (a driver stamping it at the read that found it done put
+            # that stamp 128 ms after such an instant: gy91, the fault matrix at 1 %)
+            held_from = max(self._hung_ns, self._forced_start)
+            self._forced_done = now + max(0, self._forced_done - held_from)
+        self._hung = hung
 
     def _measurement_due(self) -> bool:
         """Always (HangsBetweenTransfers): ``_advance`` finds by itself what each mode has
@@ -200,7 +233,8 @@ class BMP280Emulator(HangsBetweenTransfers, ChipEmulator):
         self._im_update_until = self.now_ns() + round(_STARTUP_S * 1e9)
         self._cycle_start = 0
         self._cycles_done = 0
-        self._forced_done: int | None = None
+        self._forced_done = None
+        self._forced_start = 0
         self._filter: tuple[float, float] | None = None
 
     def _mode(self) -> int:
@@ -348,6 +382,7 @@ class BMP280Emulator(HangsBetweenTransfers, ChipEmulator):
             elif mode == r.MODE_SLEEP:
                 self._forced_done = None
             else:
+                self._forced_start = now
                 self._forced_done = now + self._meas_ns()
         elif address == r.REG_CONFIG and self._mode() != r.MODE_NORMAL:
             self._config = value & 0xFD  # bit 1 is reserved

@@ -86,7 +86,12 @@ latest valid frame that found nothing new, then a new measurement with the overr
 (the AK8963's ST1.DOR, set by a measurement that overwrites one unread and cleared by every
 read), so the chip measured once between the two frames and any slot their stamps span is
 ``not_measured``: behind slave 0 the quiet copies, dated a feed latency early, never reach
-1.5 periods when the chip lets one measurement pass (the fault matrix's 9 ms window).
+1.5 periods when the chip lets one measurement pass (the fault matrix's 9 ms window). Such
+reads also span the slots between the two frames' *stamps*: where the frame before was
+counted at a point off its stamp (``count_at``) and that point lies more periods before the
+next frame than its stamp, the count moved frames out of the gap before it (a poll after
+its put-offs, between the chip's instant and the next point of the phase it was counted
+on), and they are counted lost there, to that gap's cause (:meth:`FrameLedger._displaced`).
 
 Limit: time stamps are the host's poll times, up to a period after the measurement. A gap
 is counted right while the two polls at its ends lie at about the same phase to the chip
@@ -209,6 +214,10 @@ class FrameLedger:
     _stamp_period_ns: float | None = None
     """The chip's period as the latest run of RUN_FOR_PERIOD frames or more showed it
     (``chip_timed``; None: not seen yet)."""
+    _off_cause: str = "missed"
+    """The weightiest cause of the gap before the latest valid frame, when that frame was
+    counted off its stamp (``count_at``): what frames its count moved out of that gap
+    were lost to (``_displaced``)."""
 
     def __post_init__(self) -> None:
         if self.period_ns <= 0:
@@ -332,12 +341,19 @@ class FrameLedger:
             counted_ns = off[1]
             self._off_phase = None
         if self.last_ns is not None:
-            loss = self._gap_before(counted_ns - self._last_counted_ns,
+            adjacent = self._adjacent == (self.last_ns, t_ns)
+            step_ns = counted_ns - self._last_counted_ns
+            displaced = self._displaced(t_ns, step_ns) if adjacent else 0
+            loss = self._gap_before(step_ns - displaced * self.period_ns,
                                     overrun=self._overrun_ns == t_ns,
                                     overwritten=self._skipped_ns == t_ns,
-                                    adjacent=self._adjacent == (self.last_ns, t_ns))
+                                    adjacent=adjacent)
+            if displaced:
+                loss = self._displaced_lost(displaced, loss)
         else:
             self.first_ns = t_ns
+        if counted_ns != t_ns:
+            self._off_cause = next((c for c in CAUSES if c in self._seen), "missed")
         if self._segment_first_ns is None:
             self._segment_first_ns = t_ns
             self._segment_produced = 0
@@ -409,6 +425,32 @@ class FrameLedger:
             if abs(shown - self.period_ns) <= STAMP_PERIOD_AT_MOST * self.period_ns:
                 self._stamp_period_ns = shown
         return self._stamp_period_ns or self.period_ns
+    def _displaced(self, t_ns: int, step_ns: int) -> int:
+        """Frames a ``count_at`` of the latest valid frame moved out of the gap before it,
+        as the reads that proved the frame at ``t_ns`` adjacent to it show (``adjacent``:
+        the chip made nothing between the two reads, so their stamps span the slots
+        between, not the points they were counted at). A late poll after its put-offs that
+        came between the chip's instant and the next point of the phase it was counted on
+        (a frame's lag after that instant) read the frame of that point and was counted at
+        the point before: a period early (gy91's AK8963, fault matrix ``host_stall`` at
+        10 %, seeds 4 and 6: 25 us before the point, 1.3 ms after the instant). Not across
+        a reset: the frame before ended its segment."""
+        if self._last_counted_ns == self.last_ns or "reset" in self._seen:
+            return 0
+        assert self.last_ns is not None
+        by_stamp = max(1, round((t_ns - self.last_ns) / self.period_ns))
+        return max(0, round(step_ns / self.period_ns) - by_stamp)
+
+    def _displaced_lost(self, frames: int, loss: Loss | None) -> Loss:
+        """Count ``frames`` displaced out of the gap before the latest valid frame
+        (``_displaced``) as lost to that gap's cause: the chip made them before it."""
+        assert self.last_ns is not None
+        self.lost[self._off_cause] += frames
+        if self._segment_first_ns is not None:
+            self._segment_produced += frames
+        if loss is None or loss.cause in (NOT_MEASURED, NOT_CONVERTED):
+            return Loss(frames + (loss.frames if loss else 0), self._off_cause, self.last_ns)
+        return Loss(frames + loss.frames, loss.cause, self.last_ns)
 
     def _take_pending(self, t_ns: int) -> None:
         """The timed causes that began by ``t_ns`` join the causes of the gap ending there."""
