@@ -137,8 +137,14 @@ class ChipClock:
         and the same configuration): its oscillator ran on, so the period last learned
         settled, widened by ``RESTART_PERIOD_MEMORY``, bounds the new estimate, and only the phase
         is learned afresh (a bisection from the first read: about ten reads, where the
-        period too took about thirty)."""
+        period too took about thirty). Before the estimate first settled, the period's
+        bounds as far as they were learned are kept instead (wider, but still what the
+        reads proved), so resets that come faster than the first learning takes narrow them
+        segment by segment instead of each starting from ``tolerance``."""
         known = self._settled_periods if same_oscillator else None
+        if same_oscillator and known is None and self._polygon:
+            periods = [v[1] for v in self._polygon]
+            known = (min(periods), max(periods))
         self._reads.clear()
         self._polygon = []
         self._k = None
