@@ -247,6 +247,9 @@ class MPU9250Driver(Driver):
                                                         s.smplrt_div()))
         self._fifo = (FifoReader(self.regs, self._period_ns, clock) if s.read == "fifo"
                       else None)
+        self._fifo_kept = False
+        """read: fifo: configure() found the chip at the reader's period (a restart keeps
+        the period its chip clock learnt)."""
         self.plan = self._checked(self._register_plan())
         self._burst_length = r.DATA_BURST_LENGTH
         self._grid = PollGrid(self._period_ns, early_fraction=EARLY_FRACTION, track=True,
@@ -393,6 +396,10 @@ class MPU9250Driver(Driver):
         self._gyro = _range_of(r.GYRO_RANGES, got[r.GYRO_CONFIG])
         self._accel = _range_of(r.ACCEL_RANGES, got[r.ACCEL_CONFIG])
         self._period_ns = self._streams[0].period_ns
+        # CHIP_CLOCK_PLAN: a restart at the period it had (a reset, the same settings) keeps
+        # the period the FIFO reader's chip clock learnt (FifoReader.reset in start())
+        self._fifo_kept = (self._fifo is not None and self.poll_plan >= CHIP_CLOCK_PLAN
+                           and self._fifo.period_ns == self._period_ns)
         self._grid = PollGrid(self._period_ns, early_fraction=EARLY_FRACTION, track=True,
                               catch_up=True, bounded=self.poll_plan >= CHIP_CLOCK_PLAN)
         self._search_ns = None
@@ -448,7 +455,7 @@ class MPU9250Driver(Driver):
         # the first poll a whole period on (the early steps begin with the second)
         self._grid.anchor(now_ns + self._period_ns // EARLY_FRACTION)
         if self._fifo is not None:
-            self._fifo.reset(self.plan[r.USER_CTRL])
+            self._fifo.reset(self.plan[r.USER_CTRL], same_oscillator=self._fifo_kept)
             return self._fifo.next_read_ns(now_ns, self._fifo_interval_ns())
         return self._grid.next_after(now_ns)
 

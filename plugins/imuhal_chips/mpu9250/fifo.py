@@ -91,12 +91,14 @@ class FifoReader(FifoFrames):
         """Whole frames the FIFO holds."""
         return r.FIFO_SIZE_BYTES // self.frame_bytes
 
-    def reset(self, user_ctrl: int, *, restart: bool = True) -> None:
+    def reset(self, user_ctrl: int, *, restart: bool = True,
+              same_oscillator: bool = False) -> None:
         """Empty the FIFO (USER_CTRL.FIFO_RST self-clears; the other bits rewritten).
-        ``restart``: the chip's sampling restarted too (configured), not only its FIFO."""
+        ``restart``: the chip's sampling restarted too (configured), not only its FIFO;
+        ``same_oscillator``: at the period it had (FifoFrames.cleared)."""
         requested_ns = self.clock.now_ns()
         self.regs.write(r.USER_CTRL, user_ctrl | r.USER_FIFO_RST)
-        self.cleared(requested_ns, restart=restart)
+        self.cleared(requested_ns, restart=restart, same_oscillator=same_oscillator)
 
     def read(self, user_ctrl: int, *, overflowed: bool) -> FifoRead:
         """Count, check for overflow, read whole frames. ``overflowed``: INT_STATUS said

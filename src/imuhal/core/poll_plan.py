@@ -24,8 +24,9 @@ CHIP_CLOCK_PLAN = 4
 ``PollGrid.PERIOD_ERROR_AT_MOST`` off its nominal one (``bounded``); the MAX2110x's polled
 reads catch up with a chip faster than their early step (``PollGrid(catch_up=True)``); the
 HMC5883L behind a master steers its poll grid with the chip's clock (``_steer``); and a
-MAX2110x read from its FIFO keeps the period it learnt across a chip reset, reading every
-half period while it learns the phase again (``FifoFrames.cleared(same_oscillator=True)``).
+MAX2110x or an MPU-9250 read from its FIFO keeps the period it learnt across a chip reset,
+reading every half period while it learns the phase again
+(``FifoFrames.cleared(same_oscillator=True)``; the MPU-9250's from session 25).
 On a nominal clock without resets none of them changes a transfer; each moves the polls,
 and so the transfers, of a chip whose clock is off (real hardware) or that reset."""
 

@@ -125,6 +125,9 @@ class ChipClock:
         self._settled_periods: tuple[float, float] | None = None
         """The period's bounds (ns) at the last read that left the estimate settled: what
         :meth:`restart` keeps with ``same_oscillator``."""
+        self._counted_periods: tuple[float, float] | None = None
+        """The period's bounds (ns) at the last read that found frames (settled or not):
+        what :meth:`restart` keeps with ``same_oscillator`` before anything settled."""
         self._kept_period = False
         """The period's bounds are the ones a restart kept (dropped at a contradiction:
         the chip's oscillator was not what it had been)."""
@@ -137,8 +140,13 @@ class ChipClock:
         and the same configuration): its oscillator ran on, so the period last learned
         settled, widened by ``RESTART_PERIOD_MEMORY``, bounds the new estimate, and only the phase
         is learned afresh (a bisection from the first read: about ten reads, where the
-        period too took about thirty)."""
-        known = self._settled_periods if same_oscillator else None
+        period too took about thirty). Before the estimate first settled, the period's
+        bounds as far as they were learned at the last read that found frames are kept
+        instead (wider, but still what the reads proved; a read that found none may follow
+        a reset not yet noticed, whose emptied FIFO says nothing true about the clock), so
+        resets that come faster than the first learning takes narrow them segment by segment
+        instead of each starting from ``tolerance``."""
+        known = (self._settled_periods or self._counted_periods) if same_oscillator else None
         self._reads.clear()
         self._polygon = []
         self._k = None
@@ -194,9 +202,13 @@ class ChipClock:
             self._rebuild(hi_ns)
         else:
             self._polygon = clipped
-            if self.settled():
+            if n or self.settled():
                 periods = [v[1] for v in clipped]
-                self._settled_periods = (min(periods), max(periods))
+                bounds = (min(periods), max(periods))
+                if n:
+                    self._counted_periods = bounds
+                if self.settled():
+                    self._settled_periods = bounds
         return k
 
     def continued(self, n: int) -> int:
