@@ -39,7 +39,7 @@ from imuhal.bus.registers import RegisterView
 from imuhal.core.blocks import Block, IntArray, blocks_of
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
-from imuhal.core.poll_plan import CHIP_CLOCK_PLAN
+from imuhal.core.poll_plan import CHIP_CLOCK_PLAN, FIFO_RESET_PLAN
 from imuhal.core.quantities import Quantity
 from imuhal.core.samples import (
     AccelSample,
@@ -361,6 +361,8 @@ class Max2110xDriver(Driver):
                 and self._fifo.period_ns == period_ns
             if not self._fifo_kept:
                 self._fifo = FifoReader(self.regs, period_ns, self.clock, self.part.fifo)
+            if self._fifo is not None:
+                self._fifo.chip_clock.keep_unsettled = self.poll_plan >= FIFO_RESET_PLAN
 
     def _specs(self, regs: Mapping[int, int]) -> tuple[StreamSpec, StreamSpec, StreamSpec]:
         """Gyro, accelerometer and temperature specs from configuration register values

@@ -40,7 +40,7 @@ from imuhal.core.atmosphere import STANDARD_GRAVITY_M_S2
 from imuhal.core.blocks import Block, FloatArray, IntArray, blocks_of
 from imuhal.core.clock import Clock
 from imuhal.core.errors import ConfigurationError, DeviceNotFoundError, NackError
-from imuhal.core.poll_plan import CHIP_CLOCK_PLAN
+from imuhal.core.poll_plan import CHIP_CLOCK_PLAN, FIFO_RESET_PLAN
 from imuhal.core.samples import (
     AccelSample,
     Frame,
@@ -396,10 +396,12 @@ class MPU9250Driver(Driver):
         self._gyro = _range_of(r.GYRO_RANGES, got[r.GYRO_CONFIG])
         self._accel = _range_of(r.ACCEL_RANGES, got[r.ACCEL_CONFIG])
         self._period_ns = self._streams[0].period_ns
-        # CHIP_CLOCK_PLAN: a restart at the period it had (a reset, the same settings) keeps
-        # the period the FIFO reader's chip clock learnt (FifoReader.reset in start())
-        self._fifo_kept = (self._fifo is not None and self.poll_plan >= CHIP_CLOCK_PLAN
+        # FIFO_RESET_PLAN: a restart at the period it had (a reset, the same settings)
+        # keeps the period the FIFO reader's chip clock learnt (FifoReader.reset in start())
+        self._fifo_kept = (self._fifo is not None and self.poll_plan >= FIFO_RESET_PLAN
                            and self._fifo.period_ns == self._period_ns)
+        if self._fifo is not None:
+            self._fifo.chip_clock.keep_unsettled = self.poll_plan >= FIFO_RESET_PLAN
         self._grid = PollGrid(self._period_ns, early_fraction=EARLY_FRACTION, track=True,
                               catch_up=True, bounded=self.poll_plan >= CHIP_CLOCK_PLAN)
         self._search_ns = None

@@ -8,7 +8,7 @@ transfer against the recording, runs the drivers on that plan.
 
 from __future__ import annotations
 
-POLL_PLAN = 4
+POLL_PLAN = 5
 """The plan a run follows and a recording made now holds. 2: the HMC5883L behind a master's
 FIFO reads looks for its copies no sooner than the master's next read
 (imuhal_chips.hmc5883l.driver, ``_next_look``). 3: the MAX21100 read from its FIFO reads
@@ -17,18 +17,28 @@ its auto-read slave's copy a guard after each of its instants, between the FIFO 
 (``CHIP_CLOCK_PLAN``): the polls follow a chip clock off its nominal period, and a chip
 reset; and a BMP280 whose forced trigger write failed reads its burst to tell whether the
 conversion started, instead of the full recovery (imuhal_chips.bmp280.driver,
-``TRIGGER_CHECK_PLAN``)."""
+``TRIGGER_CHECK_PLAN``). 5 (``FIFO_RESET_PLAN``): an MPU-9250 read from its FIFO keeps
+the period it learnt across a chip reset, and a chip clock restarted before it first
+settled keeps the period's bounds learnt so far."""
 
 CHIP_CLOCK_PLAN = 4
 """The plan from which a tracking poll grid learns no period more than
 ``PollGrid.PERIOD_ERROR_AT_MOST`` off its nominal one (``bounded``); the MAX2110x's polled
 reads catch up with a chip faster than their early step (``PollGrid(catch_up=True)``); the
 HMC5883L behind a master steers its poll grid with the chip's clock (``_steer``); and a
-MAX2110x or an MPU-9250 read from its FIFO keeps the period it learnt across a chip reset,
-reading every half period while it learns the phase again
-(``FifoFrames.cleared(same_oscillator=True)``; the MPU-9250's from session 25).
+MAX2110x read from its FIFO keeps the period it learnt across a chip reset, reading every
+half period while it learns the phase again (``FifoFrames.cleared(same_oscillator=True)``).
 On a nominal clock without resets none of them changes a transfer; each moves the polls,
 and so the transfers, of a chip whose clock is off (real hardware) or that reset."""
+
+FIFO_RESET_PLAN = 5
+"""The plan from which an MPU-9250 read from its FIFO keeps the period its chip clock
+learnt across a chip reset at the same settings (imuhal_chips.mpu9250.driver, as the
+MAX2110x does from CHIP_CLOCK_PLAN), and a chip clock restarted at the same oscillator
+before its estimate first settled keeps the period's bounds its reads proved so far
+(``ChipClock.keep_unsettled``; before: it learnt the period afresh). On a nominal clock
+without resets neither changes a transfer; both move the reads after a reset of a chip
+read from its FIFO."""
 
 FIRST_POLL_PLAN = 1
 """The plan of a recording whose header names none (made before plans had versions)."""

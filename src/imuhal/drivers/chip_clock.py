@@ -128,6 +128,10 @@ class ChipClock:
         self._counted_periods: tuple[float, float] | None = None
         """The period's bounds (ns) at the last read that found frames (settled or not):
         what :meth:`restart` keeps with ``same_oscillator`` before anything settled."""
+        self.keep_unsettled = True
+        """A restart with ``same_oscillator`` before the estimate first settled keeps the
+        period's bounds learnt so far (imuhal.core.poll_plan.FIFO_RESET_PLAN; False: a
+        driver on an older plan, which learnt the period afresh)."""
         self._kept_period = False
         """The period's bounds are the ones a restart kept (dropped at a contradiction:
         the chip's oscillator was not what it had been)."""
@@ -146,7 +150,8 @@ class ChipClock:
         a reset not yet noticed, whose emptied FIFO says nothing true about the clock), so
         resets that come faster than the first learning takes narrow them segment by segment
         instead of each starting from ``tolerance``."""
-        known = (self._settled_periods or self._counted_periods) if same_oscillator else None
+        unsettled = self._counted_periods if self.keep_unsettled else None
+        known = (self._settled_periods or unsettled) if same_oscillator else None
         self._reads.clear()
         self._polygon = []
         self._k = None
