@@ -1212,15 +1212,30 @@ class Hmc5883lDriver(Driver):
         # master's registers reset: it read no slave), or only blank ones since
         # configure() (the master's copies restart with its auto-read reprogrammed, blank
         # until it reads the chip; a reset chip's old measurement is what it reads first)
+        unread = self._unread_lock
         first = (after is not None and after < locked) or \
-            (blank_since is not None and blank_since <= locked) or self._unread_lock
+            (blank_since is not None and blank_since <= locked) or unread
         if not blank:
             self._unread_lock = False
         if blank or not first or copy.t_ns < locked:
             return copy
+        if blank_since is None and not unread and self._copied_since(copy, locked):
+            return copy
         if locked < self._settle_ns:
             return None
         return copy._replace(t_ns=locked)
+
+    def _copied_since(self, copy: Copy, locked: int) -> bool:
+        """``copy``, the master's first delivery after the read of Mode at ``locked``, came
+        so late after it (more than a latency and a master period: the host's polls late or
+        put off) that the copying master (no blank copies, no configure() since) made two
+        copies or more since the read, unseen: the first released the lock, and this one
+        holds a measurement of its own, no locked outputs. Dated at the read, it lay before
+        its measurement (5 ms jitter from 0.30 s: the chip's field after the locked one
+        stamped at the read, the ledger one field above the chip's count)."""
+        feed = self._feed
+        assert feed is not None
+        return bool(feed.period_ns) and copy.t_ns - locked > feed.latency_ns + feed.period_ns
 
     def _no_measurement(self, sample: Sample, now_ns: int) -> PollResult:
         """No usable measurement (``sample`` says why): check the configuration at once, and
