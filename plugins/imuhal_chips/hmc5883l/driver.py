@@ -79,7 +79,12 @@ is stamped with the IMU burst that delivered it), then waits for the next measur
 On a chip clock off its nominal period (issue 25: up to +-2 %) the grid follows the
 chip's instants: a poll more than a latency and a guard after the delivery of the change
 it finds moves it earlier, one whose look again found the change delivered after it a
-guard later (``_steer``); on the nominal clock neither happens.
+guard later (``_steer``); on the nominal clock neither happens. A slow chip's grid stays up
+to a latency early of its instants (its polls come before the copies, whose looks again
+find them): while it does (``_ahead``), a copy that waited for a poll (after a stall, or
+left by a poll that skipped its look again) is stamped by its delivery, not by the poll,
+and the periodic read-back, whose read of Mode locks the outputs, waits for a poll that
+takes a fresh change (``_read_back_now``).
 Every copy that changed since the previous poll is taken (``AutoReadFeed.take``), not only
 the latest: when the master's reads bring two measurements between two polls (FIFO reads
 at the IMU's own instants, or the look a latency later), the older is handed out too,
@@ -1200,7 +1205,9 @@ class Hmc5883lDriver(Driver):
         configure()'s, whose locked bytes are from before the configuration. While the
         master copies, that copy repeats the one before and is no change; after the
         master's auto-read was off (its chip reset and reprogrammed, its copies blank
-        meanwhile) it differs, and it is as old as the read or older."""
+        meanwhile) it differs, and it is as old as the read or older. Delivered long after
+        the read by a master that kept copying, it is a copy of its own
+        (``_copied_since``)."""
         locked, blank_since = self._locked_ns, self._blank_since_ns
         if copy.t_ns < locked:  # delivered before the latest read of Mode (a check of a
             locked = self._locked_before_ns  # poll's copies reads it before they are taken)
