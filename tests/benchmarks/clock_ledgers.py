@@ -2,7 +2,7 @@
 pytest).
 
 Run:  .venv/bin/python -m tests.benchmarks.clock_ledgers [--error 0.02] [--duration 20]
-      [--boards gy91,seed-rc-vario]
+      [--boards gy91,seed-rc-vario] [--stall-ms 20,92]
 
 Issue 25 gives the emulated chips an oscillator error of up to +-2 % and asks that
 delivered + counted lost = produced for every device. The fault matrix flies the chips on
@@ -29,6 +29,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from tests.benchmarks.fault_matrix import ledgers_of
 
 from imuhal.emulation import open_emulated
+from imuhal.emulation.faults import HostStall
 from imuhal.plugins.manager import load_registry
 from imuhal.profile.loader import load_profile
 
@@ -38,11 +39,14 @@ ERROR = 0.02
 DURATION_S = 20.0
 
 
-def fly(board: str, error: float, sign: int, duration_s: float) -> list[str]:
+def fly(board: str, error: float, sign: int, duration_s: float,
+        stall_ms: float = 0.0) -> list[str]:
     """Table rows of one flight: every accounted device's ledger against its chip."""
     registry = load_registry()
     profile = load_profile(PROFILES / f"{board}.yaml", registry)
-    with open_emulated(profile, registry, seed=1) as pipeline:
+    faults = [HostStall(device="imu", start_s=1.0, every_s=1.0, stall_s=stall_ms / 1e3)] \
+        if stall_ms else []
+    with open_emulated(profile, registry, seed=1, faults=faults) as pipeline:
         errors: dict[str, float] = {}
         for i, (name, chip) in enumerate(sorted(pipeline.board.emulators.items())):
             if hasattr(chip, "oscillator_error"):
@@ -53,6 +57,7 @@ def fly(board: str, error: float, sign: int, duration_s: float) -> list[str]:
         for name, c in ledgers_of(pipeline).items():
             lost = c["produced"] - c["delivered"]
             rows.append(f"| {board} | {name} | {errors.get(name, 0.0) * 100:+.0f} % "
+                        f"| {stall_ms:g} ms "
                         f"| {c['produced']} | {c['delivered']} | {lost} | {c['chip']} "
                         f"| {c['produced'] - c['chip']:+d} | {c['delivered'] - c['chip']:+d} |")
         return rows
@@ -63,15 +68,20 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--error", type=float, default=ERROR, help="oscillator error (0.02: 2 %%)")
     p.add_argument("--duration", type=float, default=DURATION_S, help="simulated s per run")
     p.add_argument("--boards", default=",".join(BOARDS), help="comma-separated profiles")
+    p.add_argument("--stall-ms", default="0",
+                   help="comma-separated host stalls, ms, once a second from 1 s (0: none)")
     args = p.parse_args(argv)
-    print(f"{args.duration:g} s of each profile's scenario, seed 1, no faults, chips' "
-          f"oscillators +-{args.error * 100:g} %\n")
-    print("| board | device | its chip's clock | produced (ledger) | delivered | lost (ledger) "
-          "| the chip's count | ledger - chip | delivered - chip |")
-    print("| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
+    stalls = [float(s) for s in args.stall_ms.split(",")]
+    print(f"{args.duration:g} s of each profile's scenario, seed 1, no faults but the host "
+          f"stalls, chips' oscillators +-{args.error * 100:g} %\n")
+    print("| board | device | its chip's clock | host stall | produced (ledger) | delivered "
+          "| lost (ledger) | the chip's count | ledger - chip | delivered - chip |")
+    print("| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
     for board in args.boards.split(","):
-        for sign in (1, -1):
-            print("\n".join(fly(board, args.error, sign, args.duration)), flush=True)
+        for stall_ms in stalls:
+            for sign in (1, -1):
+                print("\n".join(fly(board, args.error, sign, args.duration, stall_ms)),
+                      flush=True)
     return 0
 
 

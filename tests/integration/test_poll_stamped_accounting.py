@@ -282,6 +282,20 @@ def test_a_magnetometer_copy_after_a_pause_in_the_masters_deliveries_is_stamped_
     _ledger_matches_the_chip(p, "mag")
 
 
+def test_a_magnetometer_copy_long_after_a_read_of_mode_holds_no_locked_outputs(
+        registry: Registry) -> None:
+    """The host's polls of every chip of the seed paraglider come up to 5 ms late from
+    0.30 s: the HMC5883L's read-back of Mode (which locks its outputs until the master's
+    next copy) at 0.529 s is followed by no delivery of the MAX21100's for 18 ms, in which
+    its copies released the lock unseen; the copy delivered then holds the measurement of
+    0.544 s, not the locked one, and dated at the read it lay before its measurement and
+    the one before (59 for the chip's 58: ``Hmc5883lDriver._copied_since``)."""
+    p = _fly(registry, "seed-paraglider-vario",
+             [TimingJitter(device=d, max_delay_s=0.005, start_s=0.30, end_s=0.75)
+              for d in ("imu", "mag", "baro")], seed=1, seconds=0.80)
+    _ledger_matches_the_chip(p, "mag")
+
+
 def test_a_magnetometer_copy_that_failed_reads_delayed_is_no_proved_repeat(
         registry: Registry) -> None:
     """Every device of the seed paraglider fails one transfer in ten from 1 s (the fault

@@ -79,7 +79,12 @@ is stamped with the IMU burst that delivered it), then waits for the next measur
 On a chip clock off its nominal period (issue 25: up to +-2 %) the grid follows the
 chip's instants: a poll more than a latency and a guard after the delivery of the change
 it finds moves it earlier, one whose look again found the change delivered after it a
-guard later (``_steer``); on the nominal clock neither happens.
+guard later (``_steer``); on the nominal clock neither happens. A slow chip's grid stays up
+to a latency early of its instants (its polls come before the copies, whose looks again
+find them): while it does (``_ahead``), a copy that waited for a poll (after a stall, or
+left by a poll that skipped its look again) is stamped by its delivery, not by the poll,
+and the periodic read-back, whose read of Mode locks the outputs, waits for a poll that
+takes a fresh change (``_read_back_now``).
 Every copy that changed since the previous poll is taken (``AutoReadFeed.take``), not only
 the latest: when the master's reads bring two measurements between two polls (FIFO reads
 at the IMU's own instants, or the look a latency later), the older is handed out too,
@@ -529,7 +534,8 @@ class Hmc5883lDriver(Driver):
             return PollResult([], self.restart(reset_detected=True))
         if self.settings.mode == "single":
             return self._poll_single(now_ns)
-        if self._watch.check_due(now_ns) and self._off_plan():
+        if self._read_back_now(now_ns) and self._watch.check_due(now_ns) \
+                and self._off_plan():
             return PollResult([], self.restart(reset_detected=True))
         if self._feed is not None:
             result = self._poll_auto(now_ns)
@@ -570,6 +576,26 @@ class Hmc5883lDriver(Driver):
             sample = MagSample(t_ns=now_ns, device=self.device, frame=Frame.SENSOR,
                                mag_ut=NAN3, flags=SampleFlag.STALE)
         return self._no_measurement(sample, now_ns)
+
+    def _read_back_now(self, now_ns: int) -> bool:
+        """read: auto: whether a periodic read-back due now may be made at this poll. It
+        reads Mode, which locks the data outputs until the master's next copy: a
+        measurement the chip makes meanwhile waits in the chip and reaches the master's
+        copy after that one, a master period later than the feed's latency allows (7.8 ms
+        after its measurement at -2 %, where the fields beside it came 1.4 ms after theirs:
+        a gap of 1.5 periods, one field counted lost where none was). So it is made at a
+        poll that takes a change delivered within a latency and a guard before it (the
+        chip's next measurement then lies past the master's next copy, as on every poll on
+        time of a grid on the chip's phase), or once no field has been taken for
+        two periods (a chip that stopped): a grid early of a slow chip's instants
+        (``_steer``) puts it off to its look again. Not steered (a chip on its nominal
+        clock), and for other reads: always, as before."""
+        feed = self._feed
+        if feed is None or not self._ahead() \
+                or now_ns - self._fresh_ns > 2 * self._grid.period_ns:
+            return True
+        return bool(feed.fresh) and \
+            now_ns - feed.changed_ns <= feed.latency_ns + self._grid.guard_ns
 
     def _poll_auto(self, now_ns: int) -> PollResult:
         """``read: auto``: the bytes the master delivered (see the module docstring)."""
@@ -712,16 +738,31 @@ class Hmc5883lDriver(Driver):
         late = after - feed.latency_ns - grid.guard_ns
         afters = self._afters
         if late > 0 and not self._retrying:
+            # stamped at the moved point when the field before was stamped at the point
+            # before it (polls on time, the grid's cadence); after one stamped otherwise (by
+            # its delivery: a poll put off by a stall, a slow chip's look again) this copy
+            # may have waited a period for this poll, which skipped its look again (the
+            # grid early of a slow chip): its delivery, as the field before's
+            ahead = self._ahead()
             grid.anchor(point - late)
             afters.clear()
             self._steered = True
-            return now_ns - late
+            return changes[0].t_ns if ahead else now_ns - late
         afters.append(after)
         if len(afters) == afters.maxlen and max(afters) < grid.guard_ns:
             grid.anchor(point + grid.guard_ns)
             afters.clear()
             self._steered = True
         return now_ns
+
+    def _ahead(self) -> bool:
+        """read: auto: the grid runs ahead of the chip's instants: ``_steer`` moved it (a
+        chip clock off its nominal period) and a poll on time since it last moved came
+        before the master's delivery of its field (its look again found it). A slow chip's
+        grid stays so, up to a latency early (moved a guard later only after STEER_FIELDS
+        such fields), and most of its fields are stamped by their deliveries, so a poll's
+        own time is no stamp for a copy that waited for it."""
+        return self._steered and any(after < 0 for after in self._afters)
 
     def _steady(self, copy: Copy) -> bool:
         """read: auto: ``copy`` is a new field delivered one master period after the
@@ -1064,7 +1105,8 @@ class Hmc5883lDriver(Driver):
             if t_ns < self._settle_ns or data == self._emitted:
                 continue
             left = len(changes) - 1 - k  # copies after this one: each needs a later stamp
-            by_delivery = left or late or copy is not delivered or t_ns < stale_ns
+            by_delivery = left or late or copy is not delivered or t_ns < stale_ns \
+                or (self._ahead() and _after_a_pause(copy, pause_ns))
             if by_delivery:
                 t_ns = self._by_delivery(copy, pause_ns,
                                          taken_late=not (left or late) and copy is delivered)
@@ -1163,7 +1205,9 @@ class Hmc5883lDriver(Driver):
         configure()'s, whose locked bytes are from before the configuration. While the
         master copies, that copy repeats the one before and is no change; after the
         master's auto-read was off (its chip reset and reprogrammed, its copies blank
-        meanwhile) it differs, and it is as old as the read or older."""
+        meanwhile) it differs, and it is as old as the read or older. Delivered long after
+        the read by a master that kept copying, it is a copy of its own
+        (``_copied_since``)."""
         locked, blank_since = self._locked_ns, self._blank_since_ns
         if copy.t_ns < locked:  # delivered before the latest read of Mode (a check of a
             locked = self._locked_before_ns  # poll's copies reads it before they are taken)
@@ -1175,15 +1219,30 @@ class Hmc5883lDriver(Driver):
         # master's registers reset: it read no slave), or only blank ones since
         # configure() (the master's copies restart with its auto-read reprogrammed, blank
         # until it reads the chip; a reset chip's old measurement is what it reads first)
+        unread = self._unread_lock
         first = (after is not None and after < locked) or \
-            (blank_since is not None and blank_since <= locked) or self._unread_lock
+            (blank_since is not None and blank_since <= locked) or unread
         if not blank:
             self._unread_lock = False
         if blank or not first or copy.t_ns < locked:
             return copy
+        if blank_since is None and not unread and self._copied_since(copy, locked):
+            return copy
         if locked < self._settle_ns:
             return None
         return copy._replace(t_ns=locked)
+
+    def _copied_since(self, copy: Copy, locked: int) -> bool:
+        """``copy``, the master's first delivery after the read of Mode at ``locked``, came
+        so late after it (more than a latency and a master period: the host's polls late or
+        put off) that the copying master (no blank copies, no configure() since) made two
+        copies or more since the read, unseen: the first released the lock, and this one
+        holds a measurement of its own, no locked outputs. Dated at the read, it lay before
+        its measurement (5 ms jitter from 0.30 s: the chip's field after the locked one
+        stamped at the read, the ledger one field above the chip's count)."""
+        feed = self._feed
+        assert feed is not None
+        return bool(feed.period_ns) and copy.t_ns - locked > feed.latency_ns + feed.period_ns
 
     def _no_measurement(self, sample: Sample, now_ns: int) -> PollResult:
         """No usable measurement (``sample`` says why): check the configuration at once, and
@@ -1344,6 +1403,19 @@ class Hmc5883lDriver(Driver):
         else:
             self._locked_before_ns, self._locked_ns = self._locked_ns, self.clock.now_ns()
         return wrong is not None
+
+
+def _after_a_pause(copy: Copy, pause_ns: int) -> bool:
+    """The master delivered nothing for longer than ``pause_ns`` before ``copy`` (a host
+    stall, polls put off): its measurement may have waited up to a field period in the
+    chip. Taken by a poll of a grid that ``_steer`` moved (a chip clock off its nominal
+    period: a slow chip's grid runs up to a latency early of its instants, as its looks
+    again show), the poll's time says nothing of when it was made: 20 ms stalls at -2 %
+    stamped such a copy 14.4 ms after its measurement, a gap of two periods from the
+    field before where the chip made one. It is stamped as an older copy of a poll is
+    (``Hmc5883lDriver._by_delivery``: on the grid, or the cadence of the field before)."""
+    after = copy.after_ns
+    return after is not None and copy.t_ns - after > pause_ns
 
 
 def _norm(data: bytes) -> float:
