@@ -486,16 +486,18 @@ def test_an_auto_read_magnetometer_off_its_nominal_clock_counts_the_fields_its_c
 
 
 def _fly_slow_magnetometer(registry: Registry, faults: list[FaultSpec], seconds: float,
-                           edits: dict[str, str] | None = None) -> Pipeline:
+                           edits: dict[str, str] | None = None,
+                           poll_plan: int | None = None) -> Pipeline:
     """The seed paraglider (seed 1, as ``_fly``), its HMC5883L's oscillator 2 % slow and its
-    MAX21100's 2 % fast (the stall tables' clocks), its profile's text edited by ``edits``."""
+    MAX21100's 2 % fast (the stall tables' clocks), its profile's text edited by ``edits``,
+    its drivers on ``poll_plan`` (default: the newest)."""
     path = bundled_profiles()["seed-paraglider-vario.yaml"]
     text = read_profile_text(path)
     for old, new in (edits or {}).items():
         assert old in text, old
         text = text.replace(old, new)
     profile = parse_profile(text, str(path), registry)
-    with open_emulated(profile, registry, seed=1, faults=faults) as p:
+    with open_emulated(profile, registry, seed=1, faults=faults, poll_plan=poll_plan) as p:
         p.board.emulators["mag"].oscillator_error = -0.02
         p.board.emulators["imu"].oscillator_error = 0.02
         list(p.events(seconds))
@@ -515,6 +517,17 @@ def test_a_slow_magnetometers_read_back_waits_for_a_poll_that_takes_its_field(
         "      read: auto ": "      reset_check_s: 0.02\n      read: auto "})
     ledger = _counts_as_the_chip(p, "mag")
     assert not +ledger.lost
+
+
+def test_a_slow_magnetometer_on_poll_plan_4_makes_its_read_backs_when_due(
+        registry: Registry) -> None:
+    """imuhal.core.poll_plan.READ_BACK_PLAN: the drivers replaying a plan-4 recording make
+    the read-backs it recorded, at the first poll due, and so count the field the locked
+    outputs delayed as lost, as they did (109 for the chip's 108; the test above: none)."""
+    p = _fly_slow_magnetometer(registry, [], 1.5, edits={
+        "      read: auto ": "      reset_check_s: 0.02\n      read: auto "}, poll_plan=4)
+    ledger = _ledger(p, "mag")
+    assert sum(ledger.lost.values()) == 1
 
 
 def test_a_slow_auto_read_magnetometer_counts_its_fields_through_host_stalls(

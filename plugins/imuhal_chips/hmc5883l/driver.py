@@ -123,7 +123,7 @@ from imuhal.bus.register_plan import RegisterPlan
 from imuhal.bus.registers import RegisterView
 from imuhal.core.clock import Clock
 from imuhal.core.errors import BusError, ConfigurationError, DeviceNotFoundError, NackError
-from imuhal.core.poll_plan import CHIP_CLOCK_PLAN
+from imuhal.core.poll_plan import CHIP_CLOCK_PLAN, READ_BACK_PLAN
 from imuhal.core.samples import Frame, MagSample, Quantity, Sample, SampleFlag
 from imuhal.core.streams import StreamSpec
 from imuhal.drivers.base import (
@@ -589,9 +589,9 @@ class Hmc5883lDriver(Driver):
         time of a grid on the chip's phase), or once no field has been taken for
         two periods (a chip that stopped): a grid early of a slow chip's instants
         (``_steer``) puts it off to its look again. Not steered (a chip on its nominal
-        clock), and for other reads: always, as before."""
+        clock), for other reads, and on a poll plan before READ_BACK_PLAN: always."""
         feed = self._feed
-        if feed is None or not self._ahead() \
+        if feed is None or self.poll_plan < READ_BACK_PLAN or not self._ahead() \
                 or now_ns - self._fresh_ns > 2 * self._grid.period_ns:
             return True
         return bool(feed.fresh) and \

@@ -19,7 +19,9 @@ reset; and a BMP280 whose forced trigger write failed reads its burst to tell wh
 conversion started, instead of the full recovery (imuhal_chips.bmp280.driver,
 ``TRIGGER_CHECK_PLAN``). 5 (``FIFO_RESET_PLAN``): an MPU-9250 read from its FIFO keeps
 the period it learnt across a chip reset, and a chip clock restarted before it first
-settled keeps the period's bounds learnt so far."""
+settled keeps the period's bounds learnt so far; the HMC5883L behind a master, on a grid
+ahead of a slow chip's instants, makes its periodic read-back at a poll that takes a fresh
+change (``READ_BACK_PLAN``)."""
 
 CHIP_CLOCK_PLAN = 4
 """The plan from which a tracking poll grid learns no period more than
@@ -39,6 +41,14 @@ before its estimate first settled keeps the period's bounds its reads proved so 
 (``ChipClock.keep_unsettled``; before: it learnt the period afresh). On a nominal clock
 without resets neither changes a transfer; both move the reads after a reset of a chip
 read from its FIFO."""
+
+READ_BACK_PLAN = 5
+"""The plan from which the HMC5883L behind a master (``read: auto``), its grid steered
+ahead of a slow chip's instants, makes its periodic read-back of Mode (which locks the
+chip's outputs until the master's next copy) only at a poll that takes a fresh change
+(imuhal_chips.hmc5883l.driver, ``_read_back_now``; before: at the first poll due). On a
+nominal clock it changes no transfer; on a chip clock slow by more than about 1 % it moves
+read-backs."""
 
 FIRST_POLL_PLAN = 1
 """The plan of a recording whose header names none (made before plans had versions)."""
