@@ -831,6 +831,8 @@ class Pipeline:
             return False
         if self._on_phase(dev, due_ns, t_ns):
             return True
+        if dev.resumed:
+            self._count_late_retry(dev, due_ns, t_ns)
         self._note_late(dev, due_ns, t_ns)
         return False
 
@@ -861,9 +863,6 @@ class Pipeline:
         if ledger is None or dev.buffered or dev.needs_recovery or dev.resumed \
                 or not dev.present or not isinstance(dev.trigger, TimerTrigger) \
                 or dev.driver.host_paced:
-            if dev.resumed and ledger is not None and dev.driver.polls_after_instants \
-                    and t_ns - due_ns > ledger.period_ns // 8:
-                self._count_late_retry(ledger, t_ns)
             dev.put_off = 0
             return False
         period_ns = ledger.period_ns
@@ -913,9 +912,9 @@ class Pipeline:
         return True
 
     @staticmethod
-    def _count_late_retry(ledger: FrameLedger, t_ns: int) -> None:
+    def _count_late_retry(dev: DeviceRuntime, due_ns: int, t_ns: int) -> None:
         """A retry after a bus error (``Driver.resume``) of a driver whose grid searches its
-        chip's instants, made at ``t_ns`` more than a guard after it was due (the host's one
+        chip's instants, made at ``t_ns`` more than a guard after ``due_ns`` (the host's one
         thread held: past ``FrameLedger.retried``'s window): it is read at once, never put
         off (it fetches the frame the failed read missed), and counted at the latest point
         of the phase its latest frame was counted on at or before its stamp, as a poll read
@@ -927,9 +926,13 @@ class Pipeline:
         10 % bus errors, seed 3: 2001 for the chip's 2000). Only a point after that frame's
         (a retry within a period of it that brings a new frame read the next one) and
         while the frame is recent (AIM_FROM_FRAME_PERIODS)."""
+        ledger = dev.ledger
+        if ledger is None or dev.buffered or not dev.driver.polls_after_instants:
+            return
         counted_ns = ledger.counted_ns
         period_ns = ledger.period_ns
-        if counted_ns is None or t_ns - counted_ns > AIM_FROM_FRAME_PERIODS * period_ns:
+        if counted_ns is None or t_ns - due_ns <= period_ns // 8 \
+                or t_ns - counted_ns > AIM_FROM_FRAME_PERIODS * period_ns:
             return
         phase_ns = counted_ns + (t_ns - counted_ns) // period_ns * period_ns
         if counted_ns < phase_ns < t_ns:
