@@ -920,12 +920,14 @@ class Pipeline:
         of the phase its latest frame was counted on at or before its stamp, as a poll read
         off its phase after PUT_OFF_AT_MOST put-offs: the chip's instant there lies at most
         a guard before that point, its next one about a period later. From its stamp, a
-        retry 2.8 ms late of a poll itself 1.5 ms late (of 5) read the frame due there 4.3
-        to 4.7 ms after its instant, where the frame before lay 0 to 0.4 ms after its own,
-        and the gap rounded to a frame the chip never made (the seed rc board's MAX21105 at
-        10 % bus errors, seed 3: 2001 for the chip's 2000). Only a point after that frame's
-        (a retry within a period of it that brings a new frame read the next one) and
-        while the frame is recent (AIM_FROM_FRAME_PERIODS)."""
+        retry 2.8 ms late of a poll itself 1.5 ms late (of 5) read the frame due there 4.5
+        ms after its instant, where the frame before lay 0 to 0.4 ms after its own, and the
+        gap rounded to a frame the chip never made (the seed rc board's MAX21105 at 10 % bus
+        errors, seed 3: 2001 for the chip's 2000). Only a point after that frame's (a retry
+        within a period of it that brings a new frame read the next one) and while the
+        frame is recent (AIM_FROM_FRAME_PERIODS); a retry whose read found a frame
+        overwritten came after the next instant after all (within that guard) and is
+        counted at its stamp (``count_at(unless_skipped=True)``)."""
         ledger = dev.ledger
         if ledger is None or dev.buffered or not dev.driver.polls_after_instants:
             return
