@@ -174,3 +174,14 @@ def test_a_copy_after_failed_reads_and_a_pause_is_stamped_at_the_latest_cadence_
     before, the gap counted a field the chip never skipped)."""
     copy = Copy(15_016, b"\x01", failed_ns=(4_391,), after_ns=4_391)
     assert stamp_on_cadence(copy, 0, P, pause_ns=7_500) == 10_000
+
+
+def test_a_copy_whose_slave_says_it_measured_twice_is_never_stamped_one_period_on() -> None:
+    """The AK8963's ST1.DOR in a copy after three failed slave reads: it measured twice
+    since the master's last good read, so the failed read one period on (nearest the
+    cadence) cannot be where its copy was due; the delivery two periods on is (seed-gps-
+    vario, I/O errors on the magnetometer's wire: stamped one period on, 9.6 ms before its
+    measurement, the ledger counted a field more than the chip made)."""
+    copy = Copy(20_000, b"\x03", failed_ns=(5_000, 10_000, 15_000), after_ns=15_000)
+    assert stamp_on_cadence(copy, 0, P, pause_ns=7_500) == 10_000
+    assert stamp_on_cadence(copy, 0, P, pause_ns=7_500, at_least=2) == 20_000

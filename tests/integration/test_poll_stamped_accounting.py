@@ -336,6 +336,40 @@ def test_a_late_imu_poll_retried_after_a_bus_error_counts_exactly(
     _ledger_matches_the_chip(p, "imu")
 
 
+def test_an_imu_retry_the_host_held_late_is_counted_on_the_phase_of_its_frame(
+        registry: Registry) -> None:
+    """Every device of the seed rc board fails one transfer in four from 0.4 s (seed 10).
+    At 0.467 s the MAX21105's poll, 1.8 ms late, fails and is retried at once, but the
+    host's one thread holds the retry 2.8 ms more: it reads the frame the failed poll was
+    due for 4.6 ms after its instant, where the frame before lay 0.2 ms after its own.
+    Counted from its stamp (1.9 periods) the gap held a frame the chip never made (the
+    fault matrix's 10 % ``bus_errors``, seed 3: 2001 for the chip's 2000; here 103 for
+    102); counted on the phase of the frame before (``Pipeline._count_late_retry``), it
+    is the next one."""
+    faults: list[FaultSpec] = [BusErrors(device=d, rate=0.25, start_s=0.4)
+                               for d in ("imu", "mag", "baro")]
+    p = _fly(registry, "seed-rc-vario", faults, seed=10, seconds=0.55)
+    _ledger_matches_the_chip(p, "imu")
+
+
+def test_a_magnetometer_copy_with_its_overrun_bit_after_failed_slave_reads_counts_exactly(
+        registry: Registry) -> None:
+    """I/O errors on the AK8963's wire behind the MPU-9250's slave 0, three in ten from
+    0.5 s (seed 2). At 1.26 s a copy follows three failed slave reads with ST1.DOR set:
+    the chip measured twice since the last good read, one field overwritten unread. It was
+    placed on the chip's cadence one period after the field before (the failed read
+    nearest it), 9.6 ms before its own measurement, and the ledger counted a field the
+    chip never made (84 for 83). DOR now keeps it two periods on at least
+    (``stamp_on_cadence(at_least=2)``) and proves a field lost before it, whatever the
+    stamps say (``DeviceHealth.skipped_ns``): the seed GPS vario's 10 % ``bus_errors +
+    os_error + all_ones`` at seed 2 counted 769 for the chip's 770, its first copy after
+    a restart stamped at its delivery 6.8 ms after its measurement and the DOR copy 1.5
+    periods after it."""
+    p = _fly(registry, "seed-gps-vario", [BusOSError(device="mag", rate=0.3, start_s=0.5)],
+             seed=2, seconds=0.9)
+    _ledger_matches_the_chip(p, "mag")
+
+
 def test_a_magnetometer_restart_broken_after_its_mode_write_ends_the_ledgers_segment(
         registry: Registry) -> None:
     """Every device of the seed paraglider fails one transfer in ten with a bus error and

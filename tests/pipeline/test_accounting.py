@@ -97,6 +97,29 @@ def test_a_poll_later_than_a_guard_after_a_failed_late_one_is_counted_from_its_s
     assert ledger.produced == 3 and ledger.lost["missed"] == 1
 
 
+def test_a_late_retry_counted_on_its_frames_phase_is_counted_from_its_stamp_if_it_skipped(
+        ) -> None:
+    """A late retry is counted at the phase point before its stamp only while the chip's
+    next instant had not come (``count_at(unless_skipped=True)``): its read found a frame
+    overwritten unread, so it read a later frame, and its stamp counts it."""
+    ledger = FrameLedger(Quantity.GYRO, P)
+    ledger.observe(gyro(600_000))
+    ledger.count_at(2 * P + 10_000, P + 600_000, unless_skipped=True)
+    ledger.skipped(2 * P + 10_000)
+    ledger.observe(gyro(2 * P + 10_000))
+    ledger.observe(gyro(3 * P + 500_000))
+    assert ledger.produced == 4 and ledger.lost["missed"] == 1
+
+
+def test_a_late_retry_that_skipped_nothing_is_counted_on_its_frames_phase() -> None:
+    ledger = FrameLedger(Quantity.GYRO, P)
+    ledger.observe(gyro(600_000))
+    ledger.count_at(P + 4_900_000, P + 600_000, unless_skipped=True)
+    ledger.observe(gyro(P + 4_900_000))
+    ledger.observe(gyro(2 * P + 500_000))
+    assert ledger.produced == 3 and not ledger.lost
+
+
 def test_flagged_frames_of_the_stream_name_their_cause() -> None:
     ledger = FrameLedger(Quantity.GYRO, P)
     ledger.observe(gyro(0))

@@ -419,8 +419,10 @@ class AK8963Driver(Driver):
         latency (one MPU period and its poll guard) between two deliveries, one and a half
         MPU periods: more than the poll grid's search for a sample ever adds."""
         assert self._feed is not None
+        # ST1.DOR: the chip measured twice since slave 0's last good read of it
         return stamp_on_cadence(copy, self._stamped_ns, self._period_ns,
-                                pause_ns=self._feed.latency_ns * 4 // 3)
+                                pause_ns=self._feed.latency_ns * 4 // 3,
+                                at_least=2 if copy.data[0] & r.ST1_DOR else 1)
 
     def _measurement(self, data: bytes, t_ns: int, poll_ns: int, *,
                      unbroken: bool = False) -> tuple[MagSample | None, SampleFlag, bool]:
@@ -440,6 +442,11 @@ class AK8963Driver(Driver):
         self._watch.fresh_poll()
         if m.data_overrun:  # a measurement overwritten unread: the ledger's proof of one
             self.health.overrun_ns = t_ns
+            if self._feed is not None:
+                # behind slave 0 too: a field lies between this one and the field before,
+                # whatever the stamps say (a copy after failed slave reads stamped at its
+                # delivery, 1.5 periods after a field whose copy lagged it by 6.8 ms)
+                self.health.skipped_ns = t_ns
         flags = SampleFlag.OK
         if m.overflow:
             flags |= SampleFlag.OVERFLOW

@@ -58,7 +58,7 @@ class Copy(NamedTuple):
 
 
 def stamp_on_cadence(copy: Copy, last_ns: int | None, period_ns: int, *,
-                     pause_ns: int) -> int:
+                     pause_ns: int, at_least: int = 1) -> int:
     """When a slave's measurement in ``copy`` was copied, for a slave driver that stamps
     each copy with its master's delivery, its previous field stamped ``last_ns`` and its
     measurements ``period_ns`` apart. Usually the delivery (``copy.t_ns``); two cases put
@@ -76,18 +76,25 @@ def stamp_on_cadence(copy: Copy, last_ns: int | None, period_ns: int, *,
 
     Either way the stamp stays after ``last_ns`` and the delivery before it, and never
     after the delivery. A slave clock that drifted more than a tenth of a period since
-    ``last_ns`` is stamped a period off: the cadence is only good over short gaps."""
+    ``last_ns`` is stamped a period off: the cadence is only good over short gaps.
+
+    ``at_least``: the slave's own status proves the measurement ``at_least`` periods after
+    the one stamped ``last_ns`` (the AK8963's ST1.DOR: a measurement overwritten unread
+    since the master's last good read, so two); no cadence point nearer is taken. Taking
+    the failed read one period on, nearest its cadence, put a copy with DOR 3 ms before
+    its own measurement, where the chip had measured twice."""
     t_ns = copy.t_ns
     if last_ns is None:
         return t_ns
     after = copy.after_ns
     periods = int((t_ns - last_ns) / period_ns + 0.1)
     if after is not None and t_ns - after > pause_ns and periods:
+        periods = max(periods, at_least)
         # a pause after the failed reads too: the copy may have waited in the chip since
         return min(t_ns, max(last_ns + periods * period_ns, after + 1, last_ns + 1))
     if copy.failed_ns:
         def off_cadence(t: int) -> int:
-            periods = max(1, round((t - last_ns) / period_ns))
+            periods = max(at_least, round((t - last_ns) / period_ns))
             return abs(t - last_ns - periods * period_ns)
         return min((*copy.failed_ns, t_ns), key=off_cadence)
     return t_ns

@@ -126,8 +126,9 @@ class DeviceHealth:
     skipped_ns: int = 0
     """The stamp of the latest frame whose read found a frame of the accounted stream
     overwritten unread since the read before, for a driver whose reads of its chip are its
-    own (the MAX2110x's overrun bits): the frame ledger counts at least one lost frame
-    before it, whatever the stamps say."""
+    own (the MAX2110x's overrun bits) or whose master's copy carries the chip's status (the
+    AK8963's ST1.DOR behind the MPU-9250's slave 0): the frame ledger counts at least one
+    lost frame before it, whatever the stamps say."""
 
     def counts(self) -> dict[str, int]:
         return {"resets_detected": self.resets_detected,

@@ -200,6 +200,8 @@ class FrameLedger:
     """The stamp of a frame whose read found one of the stream overwritten (``skipped``)."""
     _off_phase: tuple[int, int] | None = None
     """(stamp, due time) of a late poll (``count_at``)."""
+    _off_unless_skipped: bool = False
+    """``_off_phase`` holds unless the frame's read found one overwritten (``count_at``)."""
     _retry_until_ns: int = 0
     """A late poll that failed is retried at once (``retried``): a valid frame stamped after
     ``_off_phase``'s stamp and up to this is the retry's, counted at its due time."""
@@ -285,11 +287,14 @@ class FrameLedger:
         """The driver's own read that brought the frame stamped ``stamp_ns`` found a frame
         of the stream overwritten unread since its read before (the MAX2110x's overrun
         bit): at least one frame lies between it and the frame before, lost, whatever the
-        stamps say. Not for a copy a bus master made (the AK8963's DOR behind slave 0: the
-        stamps of such copies are placed on the chip's cadence already)."""
+        stamps say. Also for a copy a bus master made whose slave's status says so (the
+        AK8963's ST1.DOR behind slave 0): such a copy is placed on the chip's cadence at
+        least two periods after the field before (``stamp_on_cadence(at_least=)``), but
+        never after its delivery, and the field before may lag its own measurement by more
+        (the first copy of a segment, stamped at its delivery after failed slave reads)."""
         self._skipped_ns = stamp_ns
 
-    def count_at(self, stamp_ns: int, at_ns: int) -> None:
+    def count_at(self, stamp_ns: int, at_ns: int, *, unless_skipped: bool = False) -> None:
         """A poll made at ``stamp_ns`` was due at ``at_ns`` (a point of its device's grid): a
         frame it delivers stamped ``stamp_ns`` carries the measurement a poll at ``at_ns``
         would have read (the chip's next instant still ahead then, for a grid less than half
@@ -297,8 +302,13 @@ class FrameLedger:
         its stamp a lateness of half a period or more between the two ends of a gap would
         round to one frame more or less. A poll late by less than half a period, and one
         made off its grid after PUT_OFF_AT_MOST put-offs (counted from the grid point
-        before it) (``Pipeline._on_phase``)."""
+        before it) (``Pipeline._on_phase``). ``unless_skipped``: ``at_ns`` stands for the
+        frame after the latest one only if the chip's next instant had not come by
+        ``stamp_ns`` (a late retry, ``Pipeline._count_late_retry``); a read that found a
+        frame overwritten unread (``skipped``) read a later one, and is counted at its
+        stamp."""
         self._off_phase = (stamp_ns, at_ns)
+        self._off_unless_skipped = unless_skipped
         self._retry_until_ns = 0
 
     def retried(self, failed_ns: int) -> None:
@@ -338,7 +348,8 @@ class FrameLedger:
         counted_ns = t_ns
         off = self._off_phase
         if off is not None and (off[0] == t_ns or off[0] < t_ns <= self._retry_until_ns):
-            counted_ns = off[1]
+            if not (self._off_unless_skipped and self._skipped_ns == t_ns):
+                counted_ns = off[1]
             self._off_phase = None
         if self.last_ns is not None:
             adjacent = self._adjacent == (self.last_ns, t_ns)
