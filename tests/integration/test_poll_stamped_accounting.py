@@ -50,9 +50,10 @@ def registry() -> Registry:
 
 
 def _fly(registry: Registry, board: str, faults: list[FaultSpec], seed: int = 3,
-         seconds: float = SECONDS) -> Pipeline:
+         seconds: float = SECONDS, poll_plan: int | None = None) -> Pipeline:
     profile = load_profile(bundled_profiles()[f"{board}.yaml"], registry)
-    with open_emulated(profile, registry, seed=seed, faults=faults, calibrated=False) as p:
+    with open_emulated(profile, registry, seed=seed, faults=faults, calibrated=False,
+                       poll_plan=poll_plan) as p:
         list(p.events(seconds))
     return p
 
@@ -350,6 +351,20 @@ def test_an_imu_retry_the_host_held_late_is_counted_on_the_phase_of_its_frame(
                                for d in ("imu", "mag", "baro")]
     p = _fly(registry, "seed-rc-vario", faults, seed=10, seconds=0.55)
     _ledger_matches_the_chip(p, "imu")
+
+
+def test_a_late_retry_on_poll_plan_4_is_counted_at_its_stamp(registry: Registry) -> None:
+    """imuhal.core.poll_plan.LATE_RETRY_PLAN: the count point moves where later put-off
+    polls aim, so a replay of a plan-4 recording counts the retry at its stamp, as it was
+    made (the flight above: 103 for the chip's 102)."""
+    faults: list[FaultSpec] = [BusErrors(device=d, rate=0.25, start_s=0.4)
+                               for d in ("imu", "mag", "baro")]
+    p = _fly(registry, "seed-rc-vario", faults, seed=10, seconds=0.55, poll_plan=4)
+    ledger = p.devices["imu"].ledger
+    assert ledger is not None
+    chip = p.board.emulators["imu"]
+    assert sum(n for _, _, n in ledger.all_segments()) == sum(
+        chip.frames_between(a, b) for a, b, _ in ledger.all_segments()) + 1
 
 
 def test_a_magnetometer_copy_with_its_overrun_bit_after_failed_slave_reads_counts_exactly(

@@ -21,7 +21,8 @@ conversion started, instead of the full recovery (imuhal_chips.bmp280.driver,
 the period it learnt across a chip reset, and a chip clock restarted before it first
 settled keeps the period's bounds learnt so far; the HMC5883L behind a master, on a grid
 ahead of a slow chip's instants, makes its periodic read-back at a poll that takes a fresh
-change (``READ_BACK_PLAN``)."""
+change (``READ_BACK_PLAN``); the pipeline counts a retry the host held late on its frame's
+phase (``LATE_RETRY_PLAN``)."""
 
 CHIP_CLOCK_PLAN = 4
 """The plan from which a tracking poll grid learns no period more than
@@ -49,6 +50,12 @@ chip's outputs until the master's next copy) only at a poll that takes a fresh c
 (imuhal_chips.hmc5883l.driver, ``_read_back_now``; before: at the first poll due). On a
 nominal clock it changes no transfer; on a chip clock slow by more than about 1 % it moves
 read-backs."""
+
+LATE_RETRY_PLAN = 5
+"""The plan from which the pipeline counts a retry after a bus error that the host held
+more than a guard late on the phase of the frame before (imuhal.pipeline.pipeline,
+``Pipeline._count_late_retry``). That count point is where a later put-off poll aims
+(``Pipeline._aim``), so it moves the polls of a run with bus errors."""
 
 FIRST_POLL_PLAN = 1
 """The plan of a recording whose header names none (made before plans had versions)."""

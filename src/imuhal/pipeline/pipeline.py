@@ -39,7 +39,7 @@ from imuhal.core.conventions import get_convention
 from imuhal.core.errors import BusError, ImuhalError, PluginError, ProfileError, RunEnded
 from imuhal.core.frames import FloatArray
 from imuhal.core.gaps import StreamGap
-from imuhal.core.poll_plan import POLL_PLAN
+from imuhal.core.poll_plan import LATE_RETRY_PLAN, POLL_PLAN
 from imuhal.core.samples import GyroSample, MagSample, Quantity, Sample, SampleFlag
 from imuhal.core.streams import StreamSpec, TimeSource
 from imuhal.drivers.base import DeviceIdentity, Driver
@@ -933,13 +933,14 @@ class Pipeline:
         retry 2.8 ms late of a poll itself 1.5 ms late (of 5) read the frame due there 4.5
         ms after its instant, where the frame before lay 0 to 0.4 ms after its own, and the
         gap rounded to a frame the chip never made (the seed rc board's MAX21105 at 10 % bus
-        errors, seed 3: 2001 for the chip's 2000). Only a point after that frame's (a retry
-        within a period of it that brings a new frame read the next one) and while the
-        frame is recent (AIM_FROM_FRAME_PERIODS); a retry whose read found a frame
-        overwritten came after the next instant after all (within that guard) and is
-        counted at its stamp (``count_at(unless_skipped=True)``)."""
+        errors, seed 3: 2001 for the chip's 2000; from poll plan LATE_RETRY_PLAN). Only a
+        point after that frame's (a retry within a period of it that brings a new frame read
+        the next one) and while the frame is recent (AIM_FROM_FRAME_PERIODS); a retry whose
+        read found a frame overwritten came after the next instant after all (within that
+        guard) and is counted at its stamp (``count_at(unless_skipped=True)``)."""
         ledger = dev.ledger
-        if ledger is None or dev.buffered or not dev.driver.polls_after_instants:
+        if ledger is None or dev.buffered or not dev.driver.polls_after_instants \
+                or dev.driver.poll_plan < LATE_RETRY_PLAN:
             return
         counted_ns = ledger.counted_ns
         period_ns = ledger.period_ns
