@@ -3,13 +3,7 @@ a slave's driver takes, with the failed reads a master reports (issue 25)."""
 
 from __future__ import annotations
 
-from imuhal.bus.auto_read import (
-    RUN_FOR_CADENCE,
-    AutoReadFeed,
-    CadenceRun,
-    Copy,
-    stamp_on_cadence,
-)
+from imuhal.bus.auto_read import AutoReadFeed, Copy, stamp_on_cadence
 
 DRDY = 0x01
 
@@ -191,41 +185,3 @@ def test_a_copy_whose_slave_says_it_measured_twice_is_never_stamped_one_period_o
     copy = Copy(20_000, b"\x03", failed_ns=(5_000, 10_000, 15_000), after_ns=15_000)
     assert stamp_on_cadence(copy, 0, P, pause_ns=7_500) == 10_000
     assert stamp_on_cadence(copy, 0, P, pause_ns=7_500, at_least=2) == 20_000
-
-
-def test_a_copy_after_a_long_pause_counts_its_periods_in_the_slaves_own_cadence() -> None:
-    """A slave 2 % slow (10.2 of 10) measured nine of its periods after the field before
-    (stamped at its measurement) and its copy came after a pause, 0.87 of its periods
-    after that measurement. On the nominal cadence it takes the point ten periods on,
-    0.82 of a period after its measurement; on its own, the point nine periods on, at it
-    (gy91's AK8963 after a 92 ms host stall)."""
-    copy = Copy(100_500, b"\x01", after_ns=0)
-    assert stamp_on_cadence(copy, 0, P, pause_ns=7_500) == 100_000
-    assert stamp_on_cadence(copy, 0, P, pause_ns=7_500, cadence_ns=10_200.0) == 91_800
-
-
-def test_a_slaves_cadence_is_the_span_of_a_long_enough_gapless_run_of_its_stamps() -> None:
-    run = CadenceRun(P)
-    for k in range(RUN_FOR_CADENCE - 1):
-        run.add(k * 10_200, on_delivery=True)
-    assert run.cadence_ns == P  # one field short of a run
-    run.add((RUN_FOR_CADENCE - 1) * 10_200, on_delivery=True)
-    assert run.cadence_ns == 10_200
-
-
-def test_a_gap_or_a_cadence_stamp_starts_a_slaves_run_again() -> None:
-    run = CadenceRun(P)
-    for k in range(RUN_FOR_CADENCE - 1):
-        run.add(k * 10_200, on_delivery=True)
-    run.add(RUN_FOR_CADENCE * 10_200, on_delivery=True)  # a field missed
-    assert run.cadence_ns == P
-    run.add((RUN_FOR_CADENCE + 1) * 10_200, on_delivery=False)
-    run.add((RUN_FOR_CADENCE + 2) * 10_200, on_delivery=True)
-    assert run.cadence_ns == P
-
-
-def test_a_slaves_cadence_is_believed_within_three_percent_of_nominal() -> None:
-    run = CadenceRun(P)
-    for k in range(RUN_FOR_CADENCE):
-        run.add(k * 11_000, on_delivery=True)
-    assert run.cadence_ns == 10_300

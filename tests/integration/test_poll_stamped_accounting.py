@@ -17,12 +17,11 @@ the chip's measurement instants (``ChipEmulator.frames_between``)."""
 
 from __future__ import annotations
 
-from bisect import bisect_right
 from pathlib import Path
 
 import pytest
 
-from imuhal.core.samples import MagSample, Sample
+from imuhal.core.samples import Sample
 from imuhal.emulation import open_emulated
 from imuhal.emulation.faults import (
     AllOnes,
@@ -384,51 +383,6 @@ def test_a_magnetometer_copy_with_its_overrun_bit_after_failed_slave_reads_count
     p = _fly(registry, "seed-gps-vario", [BusOSError(device="mag", rate=0.3, start_s=0.5)],
              seed=2, seconds=0.9)
     _ledger_matches_the_chip(p, "mag")
-
-
-@pytest.fixture(scope="module")
-def gy91_slow_magnetometer_after_a_stall(registry: Registry) -> tuple[Pipeline, list[int]]:
-    """gy91 with its AK8963 auto-read through the MPU-9250's slave 0 (``aux: master``,
-    ``read: auto``, as docs/scripts/acquisition_table.py flies ``poll``), the MPU's clock
-    2 % fast and the AK8963's 2 % slow (10.204 ms), the host stalled 92 ms at 1 s; 1.3 s:
-    (the pipeline, the valid magnetometer stamps)."""
-    profile = load_profile(bundled_profiles()["gy91.yaml"], registry)
-    imu, mag = profile.devices["imu"], profile.devices["mag"]
-    profile = profile.model_copy(update={"devices": {
-        **profile.devices,
-        "imu": imu.model_copy(update={"settings": {**imu.settings, "aux": "master"}}),
-        "mag": mag.model_copy(update={"settings": {**mag.settings, "read": "auto"}})}})
-    stall = HostStall(device="imu", start_s=1.0, every_s=1.0, stall_s=0.092)
-    with open_emulated(profile, registry, scenario="thermal", seed=1, faults=[stall],
-                       calibrated=False) as p:
-        p.board.emulators["imu"].oscillator_error = 0.02
-        p.board.emulators["mag"].oscillator_error = -0.02
-        stamps = [e.t_ns for e in p.events(1.3) if isinstance(e, MagSample) and e.valid]
-    return p, stamps
-
-
-def test_a_slow_magnetometers_first_copy_after_a_host_stall_counts_exactly(
-        gy91_slow_magnetometer_after_a_stall: tuple[Pipeline, list[int]]) -> None:
-    """The first copy after the stall was delivered 9.7 ms after its measurement, where the
-    field before lay 1.07 ms after its own: placed on the nominal cadence (10 ms) it took
-    the point ten periods on, the chip's nine plus 1.8 ms of drift, and the ledger counted
-    a field the chip never skipped (128 for 127). Its whole periods are now counted in the
-    chip's period as the stamps before showed it (``CadenceRun``)."""
-    p, _ = gy91_slow_magnetometer_after_a_stall
-    _ledger_matches_the_chip(p, "mag")
-
-
-def test_a_slow_magnetometers_fields_are_stamped_within_the_masters_latency_of_their_instants(
-        gy91_slow_magnetometer_after_a_stall: tuple[Pipeline, list[int]]) -> None:
-    """From 0.5 s, each valid field's stamp lies after the chip's measurement it carries
-    and no later after it than the master's copies promise (the feed's latency: an MPU
-    period and its poll guard); the stall's first copy was stamped 9.2 ms after its own.
-    (Before 0.4 s copies lag up to 9.2 ms with no stall, as on main: not this rule's.)"""
-    p, stamps = gy91_slow_magnetometer_after_a_stall
-    instants = list(p.board.emulators["mag"].measured_ns)
-    latency_ns = p.devices["mag"].driver.streams()[0].latency_s * 1e9
-    late = [t - instants[bisect_right(instants, t) - 1] for t in stamps if t > 500_000_000]
-    assert min(late) >= 0 and max(late) <= latency_ns, (max(late), latency_ns)
 
 
 def test_a_magnetometer_restart_broken_after_its_mode_write_ends_the_ledgers_segment(

@@ -53,7 +53,6 @@ from typing import ClassVar, Literal
 from imuhal.bus.auto_read import (
     AutoReadBus,
     AutoReadFeed,
-    CadenceRun,
     Copy,
     require_auto_read,
     stamp_on_cadence,
@@ -168,9 +167,6 @@ class AK8963Driver(Driver):
         self._on_delivery = False
         """read: auto: the latest field was stamped with its own copy's delivery (not placed
         on the chip's cadence, ``stamp_on_cadence``, which dates it as another slot's)."""
-        self._cadence = CadenceRun(self._period_ns)
-        """read: auto: the chip's period as its fields' stamps show it (a pause's whole
-        periods are counted in it)."""
         self._asa_read: bytes | None = None
         """The fuse-ROM bytes as last taken (``_read_asa``)."""
         self._cntl1_written_ns = 0
@@ -251,7 +247,6 @@ class AK8963Driver(Driver):
         spec = self._spec(back)
         self._streams = (spec,)
         self._period_ns = spec.period_ns
-        self._cadence = CadenceRun(self._period_ns)
         self._grid = self._poll_grid()
         self._search_ns = None
         self._ready = DataReady({Quantity.MAG: self._period_ns})
@@ -380,7 +375,6 @@ class AK8963Driver(Driver):
                 samples.append(sample)
                 self._stamped_ns = t_ns
                 self._on_delivery = on_delivery
-                self._cadence.add(t_ns, on_delivery=on_delivery)
             self._idle_since = t_ns if sample is not None and sample.valid else None
             bad |= flag
         if not samples:
@@ -423,15 +417,12 @@ class AK8963Driver(Driver):
         delivery, the frame ledger rounds the gap before it up to a field the chip never
         skipped and the one after down to none. The pause: a third more than the feed's
         latency (one MPU period and its poll guard) between two deliveries, one and a half
-        MPU periods: more than the poll grid's search for a sample ever adds. A pause's
-        whole periods are the chip's as its fields' stamps show them (``CadenceRun``),
-        not the nominal 10 ms."""
+        MPU periods: more than the poll grid's search for a sample ever adds."""
         assert self._feed is not None
         # ST1.DOR: the chip measured twice since slave 0's last good read of it
         return stamp_on_cadence(copy, self._stamped_ns, self._period_ns,
                                 pause_ns=self._feed.latency_ns * 4 // 3,
-                                at_least=2 if copy.data[0] & r.ST1_DOR else 1,
-                                cadence_ns=self._cadence.cadence_ns)
+                                at_least=2 if copy.data[0] & r.ST1_DOR else 1)
 
     def _measurement(self, data: bytes, t_ns: int, poll_ns: int, *,
                      unbroken: bool = False) -> tuple[MagSample | None, SampleFlag, bool]:

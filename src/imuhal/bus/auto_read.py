@@ -29,16 +29,6 @@ from imuhal.core.errors import ConfigurationError
 
 FRESH_KEPT = 64
 """Changes a feed keeps for its slave's driver (more than a FIFO of copies holds)."""
-RUN_FOR_CADENCE = 32
-"""Fields in a row, each stamped at its own copy's delivery with none missing between them,
-from which :class:`CadenceRun` takes a slave's period: each stamp lies up to a master
-period after its measurement, so the span's error is at most a master period over 31
-slave periods (0.16 ms of 10 at the boards' 200 Hz and 100 Hz), against the up to 2 %
-(0.2 ms) a slave's oscillator is off."""
-CADENCE_AT_MOST = 0.03
-"""How far from the nominal period (fraction) :class:`CadenceRun` believes a slave's
-period: past an oscillator's datasheet error, a run's stamps show the master's jitter, not
-the slave's clock."""
 AUTO_READ = "auto_read"
 """The feature name a driver lists in ``child_bus_features`` for a bus whose master can
 auto-read a slave (see :class:`AutoReadBus`)."""
@@ -67,43 +57,8 @@ class Copy(NamedTuple):
     bit)."""
 
 
-class CadenceRun:
-    """A slave's period as the stamps of its fields show it, for a slave driver that stamps
-    each copy at its delivery (``stamp_on_cadence``'s ``cadence_ns``): the span of the
-    latest run of RUN_FOR_CADENCE fields or more, each at its own delivery and each within
-    1.5 nominal periods of the one before, bounded to CADENCE_AT_MOST of the nominal."""
-
-    __slots__ = ("_count", "_first_ns", "_last_ns", "cadence_ns", "period_ns")
-
-    def __init__(self, period_ns: int) -> None:
-        self.period_ns = period_ns
-        """The nominal period (ns)."""
-        self.cadence_ns: float = float(period_ns)
-        """The period the latest long enough run showed (ns; the nominal before one)."""
-        self._first_ns: int | None = None
-        self._last_ns = 0
-        self._count = 0
-
-    def add(self, t_ns: int, *, on_delivery: bool) -> None:
-        """A field stamped ``t_ns``; ``on_delivery``: at its own copy's delivery (a stamp
-        placed on the cadence is the cadence's, not the slave's, and ends a run)."""
-        if not on_delivery:
-            self._first_ns = None
-            return
-        step = t_ns - self._last_ns
-        if self._first_ns is None or not 0 < step < self.period_ns * 3 // 2:
-            self._first_ns, self._count = t_ns, 0
-        self._last_ns = t_ns
-        self._count += 1
-        if self._count >= RUN_FOR_CADENCE:
-            shown = (t_ns - self._first_ns) / (self._count - 1)
-            bound = self.period_ns * CADENCE_AT_MOST
-            self.cadence_ns = min(max(shown, self.period_ns - bound), self.period_ns + bound)
-
-
 def stamp_on_cadence(copy: Copy, last_ns: int | None, period_ns: int, *,
-                     pause_ns: int, at_least: int = 1,
-                     cadence_ns: float | None = None) -> int:
+                     pause_ns: int, at_least: int = 1) -> int:
     """When a slave's measurement in ``copy`` was copied, for a slave driver that stamps
     each copy with its master's delivery, its previous field stamped ``last_ns`` and its
     measurements ``period_ns`` apart. Usually the delivery (``copy.t_ns``); two cases put
@@ -127,23 +82,16 @@ def stamp_on_cadence(copy: Copy, last_ns: int | None, period_ns: int, *,
     the one stamped ``last_ns`` (the AK8963's ST1.DOR: a measurement overwritten unread
     since the master's last good read, so two); no cadence point nearer is taken. Taking
     the failed read one period on, nearest its cadence, put a copy with DOR 3 ms before
-    its own measurement, where the chip had measured twice.
-
-    ``cadence_ns``: the slave's period as its stamps showed it (:class:`CadenceRun`), in
-    which the pause case counts its whole periods (else ``period_ns``): over the nine
-    periods of a 92 ms host stall a slave 2 % slow drifts 1.8 ms from the nominal cadence,
-    and a copy delivered 8.7 ms later after its measurement than the field before took the
-    next cadence point, a period after its measurement (gy91, issue 25)."""
+    its own measurement, where the chip had measured twice."""
     t_ns = copy.t_ns
     if last_ns is None:
         return t_ns
     after = copy.after_ns
     periods = int((t_ns - last_ns) / period_ns + 0.1)
     if after is not None and t_ns - after > pause_ns and periods:
-        cadence = cadence_ns or period_ns
-        periods = max(int((t_ns - last_ns) / cadence + 0.1), at_least)
+        periods = max(periods, at_least)
         # a pause after the failed reads too: the copy may have waited in the chip since
-        return min(t_ns, max(last_ns + round(periods * cadence), after + 1, last_ns + 1))
+        return min(t_ns, max(last_ns + periods * period_ns, after + 1, last_ns + 1))
     if copy.failed_ns:
         def off_cadence(t: int) -> int:
             periods = max(at_least, round((t - last_ns) / period_ns))
