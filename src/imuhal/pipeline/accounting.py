@@ -436,6 +436,7 @@ class FrameLedger:
             if abs(shown - self.period_ns) <= STAMP_PERIOD_AT_MOST * self.period_ns:
                 self._stamp_period_ns = shown
         return self._stamp_period_ns or self.period_ns
+
     def _displaced(self, t_ns: int, step_ns: int) -> int:
         """Frames a ``count_at`` of the latest valid frame moved out of the gap before it,
         as the reads that proved the frame at ``t_ns`` adjacent to it show (``adjacent``:
